@@ -1,0 +1,38 @@
+# Set-up and everyday commands. `make demo` and `make test` work on a fresh
+# Debian 12 machine: they install the packages, build, then run.
+BUILD_DIR ?= build
+JOBS ?= $(shell nproc)
+CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
+
+.PHONY: all deps configure build demo test bench charts clean
+
+all: build
+
+deps:
+	./scripts/install-deps.sh
+
+configure:
+	cmake -S . -B $(BUILD_DIR) $(CMAKE_FLAGS)
+
+build: configure
+	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+# The main job: capture the sphere recipe on the simulated dome and reconstruct its normals.
+demo: deps
+	$(MAKE) build
+	rm -rf runs/demo
+	$(BUILD_DIR)/bin/photorig run config/recipes/ps-sphere.yaml --out runs/demo
+
+# Every test, through CTest.
+test: deps
+	$(MAKE) build
+	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 600
+
+bench: build
+	./scripts/run-benchmarks.sh $(BUILD_DIR)
+
+charts: build
+	./scripts/charts.sh $(BUILD_DIR)
+
+clean:
+	rm -rf $(BUILD_DIR)

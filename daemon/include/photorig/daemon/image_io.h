@@ -1,0 +1,34 @@
+#pragma once
+// Image files written by runs and solvers. Float images go to TIFF with
+// lossless LZW compression: OpenCV's default for 3-channel float TIFF is lossy
+// LogLuv. Normal maps are stored with channels (R, G, B) = (x, y, z).
+
+#include <opencv2/core.hpp>
+
+#include <string>
+#include <vector>
+
+namespace photorig::daemon {
+
+// Writes bytes to `path` so that after a crash the file is either absent or
+// complete: temp file, fsync, rename, fsync of the directory.
+void WriteFileDurably(const std::string& path, const void* data, std::size_t size);
+void WriteFileDurably(const std::string& path, const std::string& text);
+
+// Encodes with OpenCV (format from the extension) and writes durably.
+// Throws std::runtime_error naming the file on failure.
+void WriteImage(const std::string& path, const cv::Mat& image);
+// 1- or 3-channel CV_32F; 3-channel images are taken as (x, y, z).
+void WriteFloatTiff(const std::string& path, const cv::Mat& image);
+// Reads back what WriteFloatTiff wrote (channels in x, y, z order).
+cv::Mat ReadFloatTiff(const std::string& path);
+// Reads any image unchanged (16-bit PNG stays 16-bit). Throws naming the file.
+cv::Mat ReadImage(const std::string& path);
+
+// 8-bit views for people: normals as RGB = (n + 1) / 2, scalars scaled to [0, 255].
+cv::Mat NormalsToBgr8(const cv::Mat& normals);
+cv::Mat ScalarToGray8(const cv::Mat& values, double max_value);
+
+std::uint32_t Crc32(const void* data, std::size_t size);
+
+}  // namespace photorig::daemon

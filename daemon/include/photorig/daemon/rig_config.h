@@ -1,0 +1,65 @@
+#pragma once
+// The rig description (config/rigs/*.yaml): which devices, where the lights
+// are, what the camera is, and for simulated rigs what the simulator renders.
+
+#include "photorig/sim/world.h"
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace photorig::daemon {
+
+class YamlNode;
+
+struct LedConfig {
+  int id = 0;
+  Eigen::Vector3d direction{0, 0, 1};  // unit, camera frame, towards the LED
+  double intensity = 1.0;              // relative irradiance at the sample for drive level 1
+};
+
+struct LightsConfig {
+  std::string driver;  // "sim" for now
+  std::string id;
+  std::vector<LedConfig> leds;
+};
+
+struct CameraConfig {
+  std::string driver;  // "sim" for now
+  std::string id;
+  std::string projection = "orthographic";
+  int width = 0;
+  int height = 0;
+  double pixel_pitch_mm = 0.1;
+  int bit_depth = 12;
+  double exposure_us = 10000.0;
+  double gain_db = 0.0;
+  // Radiometric calibration: DN above black per unit radiance per microsecond
+  // at 0 dB. Makes albedo absolute; 1.0 (uncalibrated) gives relative albedo.
+  double dn_per_radiance_per_us = 1.0;
+};
+
+struct SimConfig {
+  std::uint64_t seed = 1;
+  sim::SensorModel sensor;
+  sim::Scene scene;  // default scene; a recipe's sample.sim_scene replaces it
+};
+
+struct RigConfig {
+  std::string path;
+  std::string name;
+  LightsConfig lights;
+  CameraConfig camera;
+  std::optional<SimConfig> sim;  // present when any device is simulated
+
+  bool IsSimulated() const { return sim.has_value(); }
+};
+
+// Throws ConfigError naming file:line:column and key.
+RigConfig LoadRigConfig(const std::string& path);
+// Parses a `scene:` map (shared by rigs and recipes).
+sim::Scene ParseScene(const YamlNode& node, double frame_width_mm);
+
+}  // namespace photorig::daemon

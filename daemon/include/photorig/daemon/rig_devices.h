@@ -1,0 +1,24 @@
+#pragma once
+// Opens the devices a rig describes, through the driver interfaces.
+
+#include "photorig/daemon/recipe.h"
+#include "photorig/daemon/rig_config.h"
+#include "photorig/drivers/camera.h"
+#include "photorig/drivers/light_controller.h"
+#include "photorig/sim/world.h"
+
+#include <memory>
+
+namespace photorig::daemon {
+
+struct RigDevices {
+  std::unique_ptr<drivers::LightController> lights;
+  std::unique_ptr<drivers::Camera> camera;
+  std::shared_ptr<sim::World> world;  // simulated rigs only: the ground truth lives here
+};
+
+// Builds (but does not open) the rig's devices. `recipe` may replace the
+// simulated scene. Throws ConfigError for an unknown driver.
+RigDevices MakeRigDevices(const RigConfig& rig, const Recipe* recipe);
+
+}  // namespace photorig::daemon

@@ -1,0 +1,36 @@
+#pragma once
+// A whole run, in-process: load rig and recipe, capture every step on the
+// rig's devices into a run directory, then run the recipe's solvers on it.
+// Shared by the `photorig` CLI and the `photorigd` daemon.
+
+#include "photorig/daemon/sequencer.h"
+
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <optional>
+#include <string>
+
+namespace photorig::daemon {
+
+struct RunRequest {
+  std::string recipe_path;
+  std::string rig_path;       // empty: the rig the recipe names
+  std::string output_directory;  // empty: runs/<recipe>-<UTC timestamp>
+  bool solve = true;
+  bool show_progress = true;  // a progress line on stderr
+  const std::atomic<bool>* stop_requested = nullptr;
+};
+
+struct RunOutcome {
+  std::string directory;
+  CaptureReport capture;
+  std::optional<nlohmann::json> photometric_stereo;  // the solver's report.json
+};
+
+// Throws ConfigError for bad configuration (before any device is touched) and
+// std::runtime_error for storage failures; device faults end up in
+// outcome.capture.status.
+RunOutcome ExecuteRun(const RunRequest& request);
+
+}  // namespace photorig::daemon

@@ -1,0 +1,89 @@
+#pragma once
+// One directory per run:
+//   manifest.json        rig, camera, lights and every frame (written at the end)
+//   journal.jsonl        one line per frame, appended and fsynced as it lands
+//   frames/NNNN_*.png    16-bit frames, each written durably before the next step
+//   ground_truth/        simulated rigs only: normals.tiff, albedo.tiff, mask.png
+//   results/<solver>/    solver outputs and report.json
+
+#include "photorig/daemon/recipe.h"
+#include "photorig/drivers/camera.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace photorig::daemon {
+
+struct FrameRecord {
+  int index = 0;
+  std::string file;        // relative to the run directory
+  std::string kind;        // "dark" | "light"
+  int led = -1;            // index into `lights`; -1 for darks
+  double level = 0.0;      // drive level of that LED
+  double exposure_us = 0.0;
+  double gain_db = 0.0;
+  int bit_depth = 0;
+  std::uint64_t frame_id = 0;
+  std::int64_t device_timestamp_ns = 0;
+  std::int64_t host_timestamp_ns = 0;
+  std::uint32_t crc32 = 0;  // of the pixel data as stored in the file
+};
+
+struct RunManifest {
+  std::string format = "photorig-run/1";
+  std::string run_id;
+  std::string recipe_path;
+  std::string recipe_name;
+  std::string rig_path;
+  std::string rig_name;
+  std::string status = "running";  // running | complete | failed | aborted
+  std::string status_reason;
+  std::string sample_name;
+  std::string camera_id;
+  int width = 0;
+  int height = 0;
+  int bit_depth = 0;
+  double dn_per_radiance_per_us = 1.0;
+  std::vector<LedConfig> lights;
+  std::vector<FrameRecord> frames;
+  bool has_ground_truth = false;
+};
+
+nlohmann::json ToJson(const FrameRecord& frame);
+FrameRecord FrameRecordFromJson(const nlohmann::json& json);
+nlohmann::json ToJson(const RunManifest& manifest);
+RunManifest RunManifestFromJson(const nlohmann::json& json);
+
+class RunWriter {
+ public:
+  // Creates `directory` (which must not exist or be empty). Throws on I/O error.
+  RunWriter(std::string directory, RunManifest header);
+  ~RunWriter();
+  RunWriter(const RunWriter&) = delete;
+  RunWriter& operator=(const RunWriter&) = delete;
+
+  const std::string& directory() const { return directory_; }
+  const RunManifest& manifest() const { return manifest_; }
+
+  // Durably stores the frame and appends it to the journal before returning.
+  const FrameRecord& WriteFrame(const CaptureStep& step, const drivers::Frame& frame);
+  void WriteGroundTruth(const cv::Mat& normals, const cv::Mat& albedo, const cv::Mat& mask);
+  // Writes manifest.json with the final status.
+  void Finish(const std::string& status, const std::string& reason);
+
+ private:
+  std::string directory_;
+  RunManifest manifest_;
+  int journal_fd_ = -1;
+};
+
+// Reads manifest.json. Throws std::runtime_error naming the file on a missing
+// or corrupt manifest.
+RunManifest LoadRunManifest(const std::string& directory);
+// Loads a frame as 16-bit and checks size and checksum against its record.
+cv::Mat LoadFrame(const std::string& directory, const FrameRecord& record);
+
+}  // namespace photorig::daemon

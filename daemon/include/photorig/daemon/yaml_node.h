@@ -1,0 +1,74 @@
+#pragma once
+// A YAML node that remembers where it came from, so that every configuration
+// error names file:line:column and the dotted key at fault, e.g.
+//   config/rigs/sim-dome.yaml:14:18: lights.leds[3].direction: expected 3 numbers, got 2
+
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/Core>
+
+#include <initializer_list>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace photorig::daemon {
+
+class ConfigError : public std::runtime_error {
+ public:
+  ConfigError(const std::string& file, int line, int column, const std::string& key, const std::string& message);
+  const std::string& file() const { return file_; }
+  int line() const { return line_; }      // 1-based; 0 when unknown
+  int column() const { return column_; }  // 1-based; 0 when unknown
+  const std::string& key() const { return key_; }
+
+ private:
+  std::string file_, key_;
+  int line_, column_;
+};
+
+class YamlNode {
+ public:
+  // Parses a file; syntax errors become ConfigError with the parser's position.
+  static YamlNode LoadFile(const std::string& path);
+  static YamlNode LoadString(const std::string& text, const std::string& name);
+
+  YamlNode(YAML::Node node, std::string file, std::string key);
+
+  const std::string& key() const { return key_; }
+  const std::string& file() const { return file_; }
+  bool IsMap() const { return node_.IsMap(); }
+  bool IsSequence() const { return node_.IsSequence(); }
+  bool IsScalar() const { return node_.IsScalar(); }
+
+  bool Has(const std::string& child) const;
+  YamlNode operator[](const std::string& child) const;  // required: error if missing
+  std::optional<YamlNode> Find(const std::string& child) const;
+  std::vector<YamlNode> Items() const;  // required sequence
+  std::vector<std::string> Keys() const;  // required map, in file order
+  // Rejects keys not in `allowed`: catches typos that would otherwise be ignored.
+  void ExpectKeys(std::initializer_list<const char*> allowed) const;
+
+  std::string AsString() const;
+  double AsDouble() const;
+  int AsInt() const;
+  bool AsBool() const;
+  Eigen::Vector3d AsVector3() const;
+  std::vector<int> AsIntList() const;
+
+  // Shorthands for optional scalars with a default.
+  double Double(const std::string& child, double fallback) const;
+  int Int(const std::string& child, int fallback) const;
+  bool Bool(const std::string& child, bool fallback) const;
+  std::string String(const std::string& child, const std::string& fallback) const;
+
+  [[noreturn]] void Fail(const std::string& message) const;
+
+ private:
+  YAML::Node node_;
+  std::string file_;
+  std::string key_;
+};
+
+}  // namespace photorig::daemon

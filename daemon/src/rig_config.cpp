@@ -1,0 +1,147 @@
+#include "photorig/daemon/rig_config.h"
+
+#include "photorig/daemon/yaml_node.h"
+
+#include <set>
+
+namespace photorig::daemon {
+namespace {
+
+LedConfig ParseLed(const YamlNode& node, int index) {
+  node.ExpectKeys({"id", "direction", "position_mm", "intensity"});
+  LedConfig led;
+  led.id = node.Int("id", index);
+  const bool has_direction = node.Has("direction"), has_position = node.Has("position_mm");
+  if (has_direction == has_position) node.Fail("give exactly one of 'direction' or 'position_mm'");
+  // A position far from a small object is a direction; near-field falloff is
+  // the renderer's business, not the solver's.
+  const YamlNode vector_node = has_direction ? node["direction"] : node["position_mm"];
+  const Eigen::Vector3d vector = vector_node.AsVector3();
+  if (vector.norm() < 1e-9) vector_node.Fail("must not be the zero vector");
+  led.direction = vector.normalized();
+  if (led.direction.z() <= 0.0) vector_node.Fail("points below the sample plane (z <= 0)");
+  led.intensity = node.Double("intensity", 1.0);
+  if (!(led.intensity > 0.0)) node["intensity"].Fail("must be > 0");
+  return led;
+}
+
+sim::SensorModel ParseSensor(const YamlNode& node, int bit_depth) {
+  node.ExpectKeys({"response_e_per_us", "e_per_dn", "black_level_dn", "read_noise_e", "full_well_e", "shot_noise"});
+  sim::SensorModel sensor;
+  sensor.bit_depth = bit_depth;
+  sensor.response_e_per_us = node.Double("response_e_per_us", sensor.response_e_per_us);
+  sensor.e_per_dn = node.Double("e_per_dn", sensor.e_per_dn);
+  sensor.black_level_dn = node.Double("black_level_dn", sensor.black_level_dn);
+  sensor.read_noise_e = node.Double("read_noise_e", sensor.read_noise_e);
+  sensor.full_well_e = node.Double("full_well_e", sensor.full_well_e);
+  sensor.shot_noise = node.Bool("shot_noise", sensor.shot_noise);
+  if (!(sensor.response_e_per_us > 0)) node["response_e_per_us"].Fail("must be > 0");
+  if (!(sensor.e_per_dn > 0)) node["e_per_dn"].Fail("must be > 0");
+  if (!(sensor.read_noise_e >= 0)) node["read_noise_e"].Fail("must be >= 0");
+  if (!(sensor.full_well_e > 0)) node["full_well_e"].Fail("must be > 0");
+  if (!(sensor.black_level_dn >= 0 && sensor.black_level_dn < sensor.max_dn()))
+    node["black_level_dn"].Fail("must lie within the sensor's range");
+  return sensor;
+}
+
+}  // namespace
+
+sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
+  node.ExpectKeys({"shape", "radius_mm", "albedo", "cast_shadows"});
+  sim::Scene scene;
+  const YamlNode shape = node["shape"];
+  try {
+    scene.shape = sim::Scene::ParseShape(shape.AsString());
+  } catch (const std::invalid_argument& e) {
+    shape.Fail(e.what());
+  }
+  scene.sphere_radius_mm = node.Double("radius_mm", 0.45 * frame_width_mm);
+  if (!(scene.sphere_radius_mm > 0)) node["radius_mm"].Fail("must be > 0");
+  if (scene.shape == sim::Scene::Shape::kBumps) scene.bumps = sim::Scene::DefaultBumps(frame_width_mm);
+  scene.cast_shadows = node.Bool("cast_shadows", true);
+  if (auto albedo = node.Find("albedo")) {
+    albedo->ExpectKeys({"pattern", "low", "high", "period_mm"});
+    const std::string pattern = albedo->String("pattern", "checker");
+    if (pattern == "uniform") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kUniform;
+    else if (pattern == "checker") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kChecker;
+    else if (pattern == "rings") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kRings;
+    else (*albedo)["pattern"].Fail("unknown pattern '" + pattern + "' (expected uniform, checker or rings)");
+    scene.albedo.low = albedo->Double("low", scene.albedo.low);
+    scene.albedo.high = albedo->Double("high", scene.albedo.high);
+    scene.albedo.period_mm = albedo->Double("period_mm", scene.albedo.period_mm);
+    if (!(scene.albedo.low >= 0 && scene.albedo.high <= 1 && scene.albedo.low <= scene.albedo.high))
+      albedo->Fail("albedo needs 0 <= low <= high <= 1");
+    if (!(scene.albedo.period_mm > 0)) (*albedo)["period_mm"].Fail("must be > 0");
+  }
+  return scene;
+}
+
+RigConfig LoadRigConfig(const std::string& path) {
+  const YamlNode root = YamlNode::LoadFile(path);
+  root.ExpectKeys({"rig", "lights", "camera", "sim"});
+  RigConfig rig;
+  rig.path = path;
+  const YamlNode header = root["rig"];
+  header.ExpectKeys({"name", "kind", "description"});
+  rig.name = header["name"].AsString();
+  if (header.String("kind", "light_dome") != "light_dome")
+    header["kind"].Fail("only 'light_dome' rigs are supported so far");
+
+  const YamlNode lights = root["lights"];
+  lights.ExpectKeys({"driver", "id", "leds"});
+  rig.lights.driver = lights["driver"].AsString();
+  rig.lights.id = lights.String("id", "lights");
+  std::set<int> ids;
+  const auto leds = lights["leds"].Items();
+  for (std::size_t i = 0; i < leds.size(); ++i) {
+    LedConfig led = ParseLed(leds[i], static_cast<int>(i));
+    if (!ids.insert(led.id).second) leds[i].Fail("duplicate LED id " + std::to_string(led.id));
+    rig.lights.leds.push_back(led);
+  }
+  if (rig.lights.leds.empty()) lights["leds"].Fail("a light dome needs at least one LED");
+
+  const YamlNode camera = root["camera"];
+  camera.ExpectKeys({"driver", "id", "projection", "width", "height", "pixel_pitch_mm", "bit_depth", "exposure_us",
+                     "gain_db", "dn_per_radiance_per_us"});
+  CameraConfig& cam = rig.camera;
+  cam.driver = camera["driver"].AsString();
+  cam.id = camera.String("id", "camera");
+  cam.projection = camera.String("projection", "orthographic");
+  if (cam.projection != "orthographic") camera["projection"].Fail("only 'orthographic' is supported so far");
+  cam.width = camera["width"].AsInt();
+  cam.height = camera["height"].AsInt();
+  if (cam.width < 8 || cam.width > 16384) camera["width"].Fail("must be within [8, 16384]");
+  if (cam.height < 8 || cam.height > 16384) camera["height"].Fail("must be within [8, 16384]");
+  cam.pixel_pitch_mm = camera.Double("pixel_pitch_mm", cam.pixel_pitch_mm);
+  if (!(cam.pixel_pitch_mm > 0)) camera["pixel_pitch_mm"].Fail("must be > 0");
+  cam.bit_depth = camera.Int("bit_depth", cam.bit_depth);
+  if (cam.bit_depth != 8 && cam.bit_depth != 10 && cam.bit_depth != 12 && cam.bit_depth != 16)
+    camera["bit_depth"].Fail("must be 8, 10, 12 or 16");
+  cam.exposure_us = camera.Double("exposure_us", cam.exposure_us);
+  if (!(cam.exposure_us > 0)) camera["exposure_us"].Fail("must be > 0");
+  cam.gain_db = camera.Double("gain_db", cam.gain_db);
+
+  if (auto sim_node = root.Find("sim")) {
+    sim_node->ExpectKeys({"seed", "sensor", "scene"});
+    SimConfig sim;
+    sim.seed = static_cast<std::uint64_t>(sim_node->Int("seed", 1));
+    const auto sensor = sim_node->Find("sensor");
+    sim.sensor = sensor ? ParseSensor(*sensor, cam.bit_depth) : sim::SensorModel{};
+    sim.sensor.bit_depth = cam.bit_depth;
+    if (auto scene = sim_node->Find("scene")) sim.scene = ParseScene(*scene, cam.width * cam.pixel_pitch_mm);
+    // A simulated camera is calibrated by construction.
+    cam.dn_per_radiance_per_us = sim.sensor.response_e_per_us / sim.sensor.e_per_dn;
+    rig.sim = sim;
+  }
+  if (auto calibration = camera.Find("dn_per_radiance_per_us")) {
+    cam.dn_per_radiance_per_us = calibration->AsDouble();
+    if (!(cam.dn_per_radiance_per_us > 0)) calibration->Fail("must be > 0");
+  }
+  if ((rig.lights.driver == "sim" || cam.driver == "sim") && !rig.sim)
+    root.Fail("simulated devices need a 'sim:' section");
+  if (rig.lights.driver != "sim") lights["driver"].Fail("unknown driver '" + rig.lights.driver + "' (available: sim)");
+  if (cam.driver != "sim") camera["driver"].Fail("unknown driver '" + cam.driver + "' (available: sim)");
+  return rig;
+}
+
+}  // namespace photorig::daemon

@@ -1,0 +1,96 @@
+#include "photorig/daemon/run.h"
+
+#include "photorig/daemon/ps_pipeline.h"
+#include "photorig/daemon/rig_devices.h"
+
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+
+namespace photorig::daemon {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string UtcStamp() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y%m%dT%H%M%SZ", &utc);
+  return text;
+}
+
+// A redrawn bar on a terminal; a line every tenth of the run in a log.
+void PrintProgress(const CaptureStep& step, int total) {
+  const int done = step.index + 1;
+  if (!isatty(STDERR_FILENO)) {
+    const int tenth = std::max(1, total / 10);
+    if (done % tenth == 0 || done == total) std::fprintf(stderr, "captured %d/%d (%s)\n", done, total, step.label.c_str());
+    return;
+  }
+  const int width = 30;
+  const int filled = done * width / std::max(1, total);
+  std::fprintf(stderr, "\rcapturing [%.*s%*s] %3d/%d %-12s", filled, "##############################",
+               width - filled, "", done, total, step.label.c_str() + 5);
+  if (done == total) std::fputc('\n', stderr);
+  std::fflush(stderr);
+}
+
+}  // namespace
+
+RunOutcome ExecuteRun(const RunRequest& request) {
+  const Recipe recipe = LoadRecipe(request.recipe_path);
+  const std::string rig_path = ResolveRigPath(recipe, request.rig_path);
+  const RigConfig rig = LoadRigConfig(rig_path);
+  const std::vector<CaptureStep> steps = CompileSteps(recipe, rig);
+  RigDevices devices = MakeRigDevices(rig, &recipe);
+
+  RunOutcome outcome;
+  outcome.directory = request.output_directory.empty() ? (fs::path("runs") / (recipe.name + "-" + UtcStamp())).string()
+                                                       : request.output_directory;
+  RunManifest header;
+  header.run_id = fs::path(outcome.directory).filename().string();
+  header.recipe_path = recipe.path;
+  header.recipe_name = recipe.name;
+  header.rig_path = rig.path;
+  header.rig_name = rig.name;
+  header.sample_name = recipe.sample_name;
+  header.camera_id = rig.camera.id;
+  header.width = rig.camera.width;
+  header.height = rig.camera.height;
+  header.bit_depth = rig.camera.bit_depth;
+  header.dn_per_radiance_per_us = rig.camera.dn_per_radiance_per_us;
+  header.lights = rig.lights.leds;
+  RunWriter writer(outcome.directory, header);
+  if (devices.world) {
+    const sim::SurfaceMaps& truth = devices.world->surface();
+    writer.WriteGroundTruth(truth.normals, truth.albedo, truth.mask);
+  }
+
+  spdlog::info("run {}: recipe {} on rig {} ({} steps) -> {}", header.run_id, recipe.name, rig.name, steps.size(),
+               outcome.directory);
+  CaptureOptions options;
+  options.stop_requested = request.stop_requested;
+  const bool progress = request.show_progress;
+  options.on_frame = [progress](const CaptureStep& step, const FrameRecord&, int total) {
+    if (progress) PrintProgress(step, total);
+  };
+  outcome.capture = RunCapture(steps, rig.camera, *devices.lights, *devices.camera, writer, options);
+  writer.Finish(outcome.capture.status, outcome.capture.reason);
+  spdlog::info("capture {}: {} of {} frames in {:.0f} ms{}{}", outcome.capture.status, outcome.capture.frames_written,
+               outcome.capture.steps_total, outcome.capture.elapsed_ms, outcome.capture.reason.empty() ? "" : ": ",
+               outcome.capture.reason);
+
+  if (request.solve && outcome.capture.status == "complete" && recipe.photometric_stereo) {
+    outcome.photometric_stereo = SolvePhotometricStereoRun(
+        outcome.directory, *recipe.photometric_stereo, (fs::path(outcome.directory) / "results" / "ps").string());
+  }
+  return outcome;
+}
+
+}  // namespace photorig::daemon

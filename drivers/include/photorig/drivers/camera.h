@@ -1,0 +1,95 @@
+#pragma once
+// Camera interface: an explicit state machine
+//
+//   Closed --Open--> Open --Configure--> Configured --Start--> Streaming
+//     ^                |  ^                  |   ^                 |
+//     +------Close-----+  +----Configure-----+   +------Stop-------+
+//
+// The public methods check the transition and then call the implementation's
+// Do* hook, so every driver (real or simulated) shares the same rules: an
+// illegal transition returns kFailedPrecondition and changes nothing.
+
+#include "photorig/drivers/status.h"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace photorig::drivers {
+
+enum class TriggerMode { kSoftware, kHardware, kFreeRun };
+
+struct CameraSettings {
+  int width = 0;   // 0 = the sensor's full width
+  int height = 0;  // 0 = the sensor's full height
+  int bit_depth = 12;
+  double exposure_us = 10000.0;
+  double gain_db = 0.0;
+  TriggerMode trigger = TriggerMode::kSoftware;
+};
+
+// One field the camera could not take as asked, and what it used instead.
+struct SettingAdjustment {
+  std::string field;
+  double requested = 0.0;
+  double applied = 0.0;
+  std::string reason;
+};
+
+struct Frame {
+  int width = 0;
+  int height = 0;
+  int bit_depth = 0;               // significant bits in each 16-bit sample
+  std::vector<std::uint16_t> pixels;  // row-major, width * height
+  std::uint64_t frame_id = 0;      // device counter; gaps mean dropped frames
+  std::int64_t device_timestamp_ns = 0;
+  std::int64_t host_timestamp_ns = 0;  // CLOCK_REALTIME when the frame arrived
+  double exposure_us = 0.0;
+  double gain_db = 0.0;
+  std::string pixel_format;        // GenICam name, e.g. "Mono12"
+};
+
+class Camera {
+ public:
+  enum class State { kClosed, kOpen, kConfigured, kStreaming };
+
+  explicit Camera(std::string id) : id_(std::move(id)) {}
+  virtual ~Camera() = default;
+  Camera(const Camera&) = delete;
+  Camera& operator=(const Camera&) = delete;
+
+  const std::string& id() const { return id_; }
+  State state() const { return state_; }
+
+  Status Open();
+  // Validates the settings against the device, applies them and reports every
+  // value it had to change (rounded exposure, clamped gain, ...).
+  Result<std::vector<SettingAdjustment>> Configure(const CameraSettings& settings);
+  Status Start();
+  Status Trigger();  // software trigger; only in kStreaming with TriggerMode::kSoftware
+  Result<Frame> WaitFrame(int timeout_ms);
+  Status Stop();
+  Status Close();  // from any state; stops streaming first
+
+  const CameraSettings& settings() const { return settings_; }
+
+ protected:
+  virtual Status DoOpen() = 0;
+  virtual Result<std::vector<SettingAdjustment>> DoConfigure(CameraSettings* settings) = 0;
+  virtual Status DoStart() = 0;
+  virtual Status DoTrigger() = 0;
+  virtual Result<Frame> DoWaitFrame(int timeout_ms) = 0;
+  virtual Status DoStop() = 0;
+  virtual Status DoClose() = 0;
+
+  Status IllegalTransition(const char* action) const;
+
+ private:
+  std::string id_;
+  State state_ = State::kClosed;
+  CameraSettings settings_;
+};
+
+const char* CameraStateName(Camera::State state);
+
+}  // namespace photorig::drivers

@@ -1,0 +1,74 @@
+#include "photorig/drivers/camera.h"
+
+namespace photorig::drivers {
+
+const char* CameraStateName(Camera::State state) {
+  switch (state) {
+    case Camera::State::kClosed: return "closed";
+    case Camera::State::kOpen: return "open";
+    case Camera::State::kConfigured: return "configured";
+    case Camera::State::kStreaming: return "streaming";
+  }
+  return "unknown";
+}
+
+Status Camera::IllegalTransition(const char* action) const {
+  return {StatusCode::kFailedPrecondition,
+          "camera " + id_ + ": cannot " + action + " while " + CameraStateName(state_)};
+}
+
+Status Camera::Open() {
+  if (state_ != State::kClosed) return IllegalTransition("open");
+  Status status = DoOpen();
+  if (status.ok()) state_ = State::kOpen;
+  return status;
+}
+
+Result<std::vector<SettingAdjustment>> Camera::Configure(const CameraSettings& settings) {
+  if (state_ != State::kOpen && state_ != State::kConfigured) return IllegalTransition("configure");
+  CameraSettings applied = settings;
+  auto adjustments = DoConfigure(&applied);
+  if (adjustments.ok()) {
+    settings_ = applied;
+    state_ = State::kConfigured;
+  }
+  return adjustments;
+}
+
+Status Camera::Start() {
+  if (state_ != State::kConfigured) return IllegalTransition("start streaming");
+  Status status = DoStart();
+  if (status.ok()) state_ = State::kStreaming;
+  return status;
+}
+
+Status Camera::Trigger() {
+  if (state_ != State::kStreaming) return IllegalTransition("trigger");
+  if (settings_.trigger != TriggerMode::kSoftware)
+    return {StatusCode::kFailedPrecondition, "camera " + id_ + ": software trigger while not in software trigger mode"};
+  return DoTrigger();
+}
+
+Result<Frame> Camera::WaitFrame(int timeout_ms) {
+  if (state_ != State::kStreaming) return IllegalTransition("wait for a frame");
+  if (timeout_ms <= 0) return Status{StatusCode::kInvalidArgument, "camera " + id_ + ": timeout_ms must be > 0"};
+  return DoWaitFrame(timeout_ms);
+}
+
+Status Camera::Stop() {
+  if (state_ != State::kStreaming) return IllegalTransition("stop streaming");
+  Status status = DoStop();
+  state_ = State::kConfigured;  // a failed stop still leaves no stream we can use
+  return status;
+}
+
+Status Camera::Close() {
+  if (state_ == State::kClosed) return Status::Ok();
+  Status stop_status;
+  if (state_ == State::kStreaming) stop_status = Stop();
+  Status status = DoClose();
+  state_ = State::kClosed;
+  return status.ok() ? stop_status : status;
+}
+
+}  // namespace photorig::drivers

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package photorig needs to build, test and chart.
+# Runs as root, or through sudo otherwise. Safe to run again: apt-get skips what is present.
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake pkg-config git
+  # maths and images
+  libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev
+  # configuration, CLI, logging, serialisation
+  libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
+  # daemon: HTTP API, persistent queue, systemd notification
+  libcpp-httplib-dev libsqlite3-dev libsystemd-dev
+  # devices: GenICam cameras, Modbus, GPIO, USB, V4L2 headers
+  libaravis-dev aravis-tools libmodbus-dev libgpiod-dev libusb-1.0-0-dev linux-libc-dev
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev
+  # charts (run under /usr/bin/python3)
+  python3-numpy python3-matplotlib
+)
+
+if [ "$(id -u)" = 0 ]; then
+  as_root=()
+elif command -v sudo >/dev/null 2>&1; then
+  as_root=(sudo)
+else
+  echo "install-deps: run as root or install sudo" >&2
+  exit 1
+fi
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+echo "install-deps: installing ${#missing[@]} packages: ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+"${as_root[@]}" apt-get update -qq
+"${as_root[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"

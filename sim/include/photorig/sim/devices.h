@@ -1,0 +1,48 @@
+#pragma once
+// Simulated devices behind the same interfaces as the real drivers.
+
+#include "photorig/drivers/camera.h"
+#include "photorig/drivers/light_controller.h"
+#include "photorig/sim/world.h"
+
+#include <deque>
+#include <memory>
+
+namespace photorig::sim {
+
+class SimLightDome : public drivers::LightController {
+ public:
+  SimLightDome(std::string id, std::shared_ptr<World> world);
+  int channel_count() const override;
+
+ protected:
+  Status DoOpen() override;
+  Status DoSetPattern(const drivers::LightPattern& pattern) override;
+  Result<drivers::LightPattern> DoReadBack() override;
+  Status DoClose() override;
+
+ private:
+  std::shared_ptr<World> world_;
+};
+
+// Renders a frame from the world's current state on every trigger.
+class SimCamera : public drivers::Camera {
+ public:
+  SimCamera(std::string id, std::shared_ptr<World> world);
+
+ protected:
+  Status DoOpen() override;
+  Result<std::vector<drivers::SettingAdjustment>> DoConfigure(drivers::CameraSettings* settings) override;
+  Status DoStart() override;
+  Status DoTrigger() override;
+  Result<drivers::Frame> DoWaitFrame(int timeout_ms) override;
+  Status DoStop() override;
+  Status DoClose() override;
+
+ private:
+  std::shared_ptr<World> world_;
+  std::deque<drivers::Frame> ready_;
+  std::uint64_t next_frame_id_ = 0;
+};
+
+}  // namespace photorig::sim

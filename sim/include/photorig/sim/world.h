@@ -1,0 +1,50 @@
+#pragma once
+// The simulated rig's physical state: what object sits under the camera, where
+// the LEDs are, how bright each one is right now. The simulated devices share
+// one World, so a camera frame always shows the lights the controller set.
+
+#include "photorig/sim/renderer.h"
+#include "photorig/sim/scene.h"
+#include "photorig/sim/sensor.h"
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+namespace photorig::sim {
+
+struct OrthographicCamera {
+  int width = 384;
+  int height = 384;
+  double pixel_pitch_mm = 0.1;  // object-space size of one pixel
+};
+
+struct WorldConfig {
+  Scene scene;
+  std::vector<DirectionalLight> lights;
+  OrthographicCamera camera;
+  SensorModel sensor;
+  std::uint64_t seed = 1;
+};
+
+class World {
+ public:
+  explicit World(WorldConfig config);
+
+  const WorldConfig& config() const { return config_; }
+  const SurfaceMaps& surface() const { return surface_; }  // also the ground truth
+
+  void SetLevels(std::vector<double> levels);
+  std::vector<double> levels() const;
+  // Radiance under the current light levels.
+  cv::Mat RenderRadiance() const;
+
+ private:
+  WorldConfig config_;
+  SurfaceMaps surface_;
+  mutable std::mutex mutex_;
+  std::vector<double> levels_;
+};
+
+}  // namespace photorig::sim

@@ -1,0 +1,108 @@
+#include "photorig/sim/devices.h"
+
+#include <chrono>
+
+namespace photorig::sim {
+namespace {
+
+std::int64_t NowNs(bool realtime) {
+  const auto now = realtime ? std::chrono::system_clock::now().time_since_epoch()
+                            : std::chrono::steady_clock::now().time_since_epoch();
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(now).count();
+}
+
+// The simulated sensor's limits, as a real camera would advertise them.
+constexpr double kMinExposureUs = 10.0;
+constexpr double kMaxExposureUs = 1e6;
+constexpr double kExposureStepUs = 1.0;
+constexpr double kMaxGainDb = 24.0;
+
+}  // namespace
+
+SimLightDome::SimLightDome(std::string id, std::shared_ptr<World> world)
+    : LightController(std::move(id)), world_(std::move(world)) {}
+
+int SimLightDome::channel_count() const { return static_cast<int>(world_->config().lights.size()); }
+Status SimLightDome::DoOpen() { return Status::Ok(); }
+Status SimLightDome::DoSetPattern(const drivers::LightPattern& pattern) {
+  world_->SetLevels(pattern.levels);
+  return Status::Ok();
+}
+Result<drivers::LightPattern> SimLightDome::DoReadBack() { return drivers::LightPattern{world_->levels()}; }
+Status SimLightDome::DoClose() { return Status::Ok(); }
+
+SimCamera::SimCamera(std::string id, std::shared_ptr<World> world)
+    : Camera(std::move(id)), world_(std::move(world)) {}
+
+Status SimCamera::DoOpen() {
+  next_frame_id_ = 0;
+  return Status::Ok();
+}
+
+Result<std::vector<drivers::SettingAdjustment>> SimCamera::DoConfigure(drivers::CameraSettings* settings) {
+  std::vector<drivers::SettingAdjustment> adjustments;
+  const auto& camera = world_->config().camera;
+  const int bit_depth = world_->config().sensor.bit_depth;
+  auto adjust = [&adjustments](const char* field, double requested, double applied, const char* reason) {
+    if (requested != applied) adjustments.push_back({field, requested, applied, reason});
+  };
+  if (settings->width == 0) settings->width = camera.width;
+  if (settings->height == 0) settings->height = camera.height;
+  if (settings->width != camera.width || settings->height != camera.height)
+    return Status{StatusCode::kInvalidArgument, "camera " + id() + ": the simulated sensor is " +
+                                                    std::to_string(camera.width) + "x" + std::to_string(camera.height) +
+                                                    " and has no region of interest"};
+  adjust("bit_depth", settings->bit_depth, bit_depth, "fixed by the sensor");
+  settings->bit_depth = bit_depth;
+  const double exposure =
+      std::clamp(std::round(settings->exposure_us / kExposureStepUs) * kExposureStepUs, kMinExposureUs, kMaxExposureUs);
+  adjust("exposure_us", settings->exposure_us, exposure, "rounded to the 1 us step within [10 us, 1 s]");
+  settings->exposure_us = exposure;
+  const double gain = std::clamp(settings->gain_db, 0.0, kMaxGainDb);
+  adjust("gain_db", settings->gain_db, gain, "clamped to [0, 24] dB");
+  settings->gain_db = gain;
+  if (settings->trigger == drivers::TriggerMode::kHardware)
+    return Status{StatusCode::kInvalidArgument, "camera " + id() + ": the simulated camera has no trigger input line"};
+  return adjustments;
+}
+
+Status SimCamera::DoStart() {
+  ready_.clear();
+  return Status::Ok();
+}
+
+Status SimCamera::DoTrigger() {
+  const drivers::CameraSettings& s = settings();
+  drivers::Frame frame;
+  frame.width = s.width;
+  frame.height = s.height;
+  frame.bit_depth = s.bit_depth;
+  frame.exposure_us = s.exposure_us;
+  frame.gain_db = s.gain_db;
+  frame.pixel_format = "Mono" + std::to_string(s.bit_depth);
+  frame.frame_id = next_frame_id_++;
+  frame.device_timestamp_ns = NowNs(false);
+  frame.pixels = ExposeFrame(world_->config().sensor, world_->RenderRadiance(), s.exposure_us, s.gain_db,
+                             world_->config().seed, frame.frame_id);
+  frame.host_timestamp_ns = NowNs(true);
+  ready_.push_back(std::move(frame));
+  return Status::Ok();
+}
+
+Result<drivers::Frame> SimCamera::DoWaitFrame(int timeout_ms) {
+  if (ready_.empty())
+    return Status{StatusCode::kTimeout,
+                  "camera " + id() + ": no frame within " + std::to_string(timeout_ms) + " ms (was it triggered?)"};
+  drivers::Frame frame = std::move(ready_.front());
+  ready_.pop_front();
+  return frame;
+}
+
+Status SimCamera::DoStop() {
+  ready_.clear();
+  return Status::Ok();
+}
+
+Status SimCamera::DoClose() { return Status::Ok(); }
+
+}  // namespace photorig::sim

@@ -1,0 +1,48 @@
+#pragma once
+// Lambertian least-squares photometric stereo.
+//
+// Under a distant light w_k with scale s_k a Lambertian pixel reads
+//   I_k - D = s_k * rho * max(0, n . w_k)          (s_k includes the 1/pi)
+// so for the lit samples A x = b with A's rows w_k^T, b_k = (I_k - D) / s_k,
+// x = rho n. The solver applies one 3 x K pseudo-inverse to every pixel whose
+// samples are all usable, in a single streaming pass over the stack. Pixels
+// with shadowed or saturated samples are re-solved with the pseudo-inverse of
+// their own subset of lights, computed once per distinct subset and cached:
+// many pixels share a subset, so this stays a handful of small SVDs rather
+// than one least-squares solve per pixel.
+
+#include "photorig/ps/stack.h"
+#include "photorig/ps/summary.h"
+
+#include <limits>
+#include <string>
+
+namespace photorig::ps {
+
+struct LambertianOptions {
+  // A sample counts as shadowed when I - D <= shadow_threshold (input units).
+  // Default 0: only exact zeros. Set it to a few times the dark noise.
+  double shadow_threshold = 0.0;
+  // A sample counts as saturated when I >= saturation_level (input units,
+  // before dark subtraction). Default: never.
+  double saturation_level = std::numeric_limits<double>::infinity();
+  // true: solve each pixel on its usable samples only (removes the bias of
+  // attached shadows and clipping). false: plain L2 on all samples, the
+  // fastest path; pixels are still flagged if fewer than 3 samples are usable.
+  bool exclude_unusable_samples = true;
+  // Light sets whose 3x3 normal matrix has a condition number (ratio of the
+  // largest to the smallest singular value of A) above this are rejected as
+  // coplanar. 1e3 loses about three digits of the measurement's precision.
+  double max_condition_number = 1e3;
+  // 0 = as many threads as OpenMP offers.
+  int num_threads = 0;
+
+  bool IsValid(std::string* why) const;
+};
+
+// Fills *result (allocated here). Never throws on bad data: the summary says
+// what went wrong and per-pixel flags say which pixels carry no normal.
+SolverSummary SolveLambertian(const LambertianOptions& options, const PhotometricStack& stack,
+                              NormalMap* result);
+
+}  // namespace photorig::ps

@@ -1,0 +1,54 @@
+#pragma once
+// Input and output types shared by the photometric-stereo solvers.
+//
+// Conventions (as in DiLiGenT): camera coordinates with x to the right, y up,
+// z towards the camera. Image row 0 is the top of the picture, so y grows as
+// the row index falls.
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <string>
+#include <vector>
+
+namespace photorig::ps {
+
+// One frame per light. Values are linear sensor values (e.g. DN); the solver
+// subtracts `dark` and divides by `light_scales`, so callers never pre-process
+// the frames (which would cost one more pass over the whole stack).
+struct PhotometricStack {
+  std::vector<cv::Mat> images;                    // K frames, CV_32F, continuous, same size
+  cv::Mat dark;                                   // optional CV_32F, subtracted from every frame
+  std::vector<Eigen::Vector3d> light_directions;  // K unit vectors towards the lights
+  // Per frame: sensor reading per unit radiance times the light's irradiance
+  // at the sample. Then b = (I - D) / s = rho / pi * (n . w) and albedo =
+  // pi * |x| as in the derivation; with 1.0 everywhere the albedo is relative.
+  std::vector<double> light_scales;
+  cv::Mat mask;  // optional CV_8U; zero = do not solve
+
+  int width() const { return images.empty() ? 0 : images.front().cols; }
+  int height() const { return images.empty() ? 0 : images.front().rows; }
+  int light_count() const { return static_cast<int>(images.size()); }
+
+  // Shapes, types and counts agree; directions are unit length; scales > 0.
+  bool IsValid(std::string* why) const;
+};
+
+// Why a pixel has (or has no) normal. Stored per pixel in NormalMap::flags.
+enum class PixelFlag : std::uint8_t {
+  kSolved = 0,
+  kOutsideMask = 1,     // masked out by the caller
+  kTooFewLights = 2,    // fewer than 3 usable (unshadowed, unsaturated) samples
+  kIllConditioned = 3,  // the usable lights are (nearly) coplanar
+  kRejectedByModel = 4  // a solver judged its own estimate untrustworthy
+};
+const char* PixelFlagName(PixelFlag flag);
+
+struct NormalMap {
+  cv::Mat normals;        // CV_32FC3 (x, y, z); NaN where flags != kSolved
+  cv::Mat albedo;         // CV_32F; NaN where flags != kSolved
+  cv::Mat flags;          // CV_8U PixelFlag
+  cv::Mat usable_lights;  // CV_16U count of samples that entered the fit
+};
+
+}  // namespace photorig::ps

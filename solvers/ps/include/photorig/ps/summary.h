@@ -1,0 +1,40 @@
+#pragma once
+// What a photometric-stereo solve did, how long it took, and how many pixels
+// it could not resolve. Solvers return this instead of throwing.
+
+#include <cstddef>
+#include <string>
+
+namespace photorig::ps {
+
+enum class Termination {
+  kSuccess,  // every pixel in the mask was either solved or flagged with a reason
+  kFailure   // no usable result at all (bad input, degenerate lights); see message
+};
+
+struct SolverSummary {
+  Termination termination = Termination::kFailure;
+  std::string message;
+  std::string method;
+
+  double condition_number = 0.0;  // of the full light matrix A (K x 3)
+  int light_count = 0;
+
+  std::size_t pixels_total = 0;
+  std::size_t pixels_solved = 0;
+  std::size_t pixels_outside_mask = 0;
+  std::size_t pixels_too_few_lights = 0;
+  std::size_t pixels_ill_conditioned = 0;
+  std::size_t pixels_rejected_by_model = 0;
+  std::size_t samples_rejected = 0;   // shadowed or saturated samples left out of fits
+  std::size_t distinct_light_subsets = 0;
+
+  double setup_ms = 0.0;
+  double solve_ms = 0.0;
+  double total_ms = 0.0;
+
+  bool IsSolutionUsable() const { return termination == Termination::kSuccess; }
+  std::string BriefReport() const;
+};
+
+}  // namespace photorig::ps

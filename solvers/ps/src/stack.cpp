@@ -1,0 +1,58 @@
+#include "photorig/ps/stack.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace photorig::ps {
+
+bool PhotometricStack::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& text) {
+    if (why) *why = text;
+    return false;
+  };
+  if (images.empty()) return fail("the stack has no images");
+  const std::size_t k = images.size();
+  if (light_directions.size() != k)
+    return fail("the stack has " + std::to_string(k) + " images but " +
+                std::to_string(light_directions.size()) + " light directions");
+  if (light_scales.size() != k)
+    return fail("the stack has " + std::to_string(k) + " images but " +
+                std::to_string(light_scales.size()) + " light scales");
+  const cv::Size size = images.front().size();
+  for (std::size_t i = 0; i < k; ++i) {
+    const cv::Mat& image = images[i];
+    if (image.type() != CV_32F || !image.isContinuous()) {
+      return fail("image " + std::to_string(i) + " is not a continuous single-channel float image");
+    }
+    if (image.size() != size) {
+      std::ostringstream text;
+      text << "image " << i << " is " << image.cols << "x" << image.rows << " but image 0 is "
+           << size.width << "x" << size.height;
+      return fail(text.str());
+    }
+    const double length = light_directions[i].norm();
+    if (!(std::abs(length - 1.0) < 1e-6))
+      return fail("light direction " + std::to_string(i) + " is not unit length (|w| = " +
+                  std::to_string(length) + ")");
+    if (!(light_scales[i] > 0.0) || !std::isfinite(light_scales[i]))
+      return fail("light scale " + std::to_string(i) + " must be positive and finite");
+  }
+  if (!dark.empty() && (dark.type() != CV_32F || dark.size() != size || !dark.isContinuous()))
+    return fail("the dark frame must be a continuous float image of the stack's size");
+  if (!mask.empty() && (mask.type() != CV_8U || mask.size() != size))
+    return fail("the mask must be an 8-bit image of the stack's size");
+  return true;
+}
+
+const char* PixelFlagName(PixelFlag flag) {
+  switch (flag) {
+    case PixelFlag::kSolved: return "solved";
+    case PixelFlag::kOutsideMask: return "outside_mask";
+    case PixelFlag::kTooFewLights: return "too_few_lights";
+    case PixelFlag::kIllConditioned: return "ill_conditioned";
+    case PixelFlag::kRejectedByModel: return "rejected_by_model";
+  }
+  return "unknown";
+}
+
+}  // namespace photorig::ps

@@ -1,0 +1,161 @@
+#include "photorig/daemon/recipe.h"
+#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/yaml_node.h"
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+
+namespace photorig::daemon {
+namespace {
+
+using photorig::testing::SourceDir;
+using photorig::testing::TempDir;
+
+const char* kRig = R"(rig:
+  name: tiny
+lights:
+  driver: sim
+  leds:
+    - {direction: [0, 0, 1]}
+    - {direction: [0.5, 0, 0.8], intensity: 0.9}
+    - {position_mm: [0, 300, 400]}
+camera:
+  driver: sim
+  width: 32
+  height: 24
+sim:
+  seed: 3
+)";
+
+// The message must carry file:line:column and the dotted key.
+void ExpectConfigError(const std::string& path, const std::string& text, int line, int column,
+                       const std::string& key, const std::string& fragment) {
+  try {
+    LoadRigConfig(path);
+    FAIL() << "no error for:\n" << text;
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_EQ(e.line(), line) << e.what();
+    EXPECT_EQ(e.column(), column) << e.what();
+    EXPECT_EQ(e.key(), key) << e.what();
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind(path + ":" + std::to_string(line) + ":" + std::to_string(column), 0), 0u)
+        << e.what();
+  }
+}
+
+TEST(RigConfig, LoadsTheShippedSimulatedDome) {
+  const RigConfig rig = LoadRigConfig(SourceDir() + "/config/rigs/sim-dome.yaml");
+  EXPECT_EQ(rig.name, "sim-dome");
+  EXPECT_GE(rig.lights.leds.size(), 24u);
+  EXPECT_LE(rig.lights.leds.size(), 96u);
+  for (const LedConfig& led : rig.lights.leds) {
+    EXPECT_NEAR(led.direction.norm(), 1.0, 1e-12);
+    EXPECT_GT(led.direction.z(), 0.0);
+  }
+  ASSERT_TRUE(rig.IsSimulated());
+  EXPECT_DOUBLE_EQ(rig.camera.dn_per_radiance_per_us, rig.sim->sensor.response_e_per_us / rig.sim->sensor.e_per_dn);
+}
+
+TEST(RigConfig, PositionsBecomeDirections) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", kRig));
+  EXPECT_NEAR(rig.lights.leds[2].direction.y(), 0.6, 1e-12);
+  EXPECT_NEAR(rig.lights.leds[2].direction.z(), 0.8, 1e-12);
+  EXPECT_DOUBLE_EQ(rig.lights.leds[1].intensity, 0.9);
+  EXPECT_EQ(rig.lights.leds[1].id, 1);
+}
+
+TEST(RigConfig, SyntaxErrorNamesFileLineAndColumn) {
+  TempDir dir;
+  const std::string text = "rig:\n  name: [unclosed\nlights: {}\n";
+  const std::string path = dir.Write("bad.yaml", text);
+  try {
+    LoadRigConfig(path);
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_GE(e.line(), 2) << e.what();
+    EXPECT_GT(e.column(), 0) << e.what();
+    EXPECT_NE(std::string(e.what()).find("YAML syntax error"), std::string::npos) << e.what();
+  }
+}
+
+TEST(RigConfig, WrongVectorLengthNamesTheKey) {
+  TempDir dir;
+  std::string text = kRig;
+  text.replace(text.find("[0.5, 0, 0.8]"), 13, "[0.5, 0.8]");
+  ExpectConfigError(dir.Write("rig.yaml", text), text, 7, 19, "lights.leds[1].direction", "expected a list of 3 numbers");
+}
+
+TEST(RigConfig, UnknownKeyIsReportedWhereItIs) {
+  TempDir dir;
+  std::string text = kRig;
+  text.replace(text.find("  height: 24"), 12, "  heigth: 24");
+  ExpectConfigError(dir.Write("rig.yaml", text), text, 12, 3, "camera.heigth", "unknown key 'heigth'");
+}
+
+TEST(RigConfig, MissingKeyAndBadNumberAreExplained) {
+  TempDir dir;
+  std::string missing = kRig;
+  missing.replace(missing.find("  width: 32\n"), 12, "");
+  ExpectConfigError(dir.Write("a.yaml", missing), missing, 10, 3, "camera", "missing required key 'width'");
+  std::string bad = kRig;
+  bad.replace(bad.find("intensity: 0.9"), 14, "intensity: lots");
+  ExpectConfigError(dir.Write("b.yaml", bad), bad, 7, 45, "lights.leds[1].intensity", "expected a number, got 'lots'");
+}
+
+TEST(RigConfig, LightsBelowTheSampleAreRejected) {
+  TempDir dir;
+  std::string text = kRig;
+  text.replace(text.find("[0, 0, 1]"), 9, "[0, 1, -0.2]");
+  ExpectConfigError(dir.Write("rig.yaml", text), text, 6, 19, "lights.leds[0].direction", "below the sample plane");
+}
+
+TEST(Recipe, ShippedRecipeCompilesToOneDarkAndOneFramePerLed) {
+  const Recipe recipe = LoadRecipe(SourceDir() + "/config/recipes/ps-sphere.yaml");
+  const RigConfig rig = LoadRigConfig(ResolveRigPath(recipe, ""));
+  const auto steps = CompileSteps(recipe, rig);
+  ASSERT_EQ(steps.size(), rig.lights.leds.size() + 1);
+  EXPECT_EQ(steps[0].kind, CaptureStep::Kind::kDark);
+  EXPECT_TRUE(steps[0].pattern.IsDark());
+  for (std::size_t i = 1; i < steps.size(); ++i) {
+    EXPECT_EQ(steps[i].led, static_cast<int>(i - 1));
+    EXPECT_EQ(steps[i].pattern.levels[i - 1], 1.0);
+    EXPECT_EQ(steps[i].index, static_cast<int>(i));
+  }
+  ASSERT_TRUE(recipe.photometric_stereo.has_value());
+  EXPECT_EQ(recipe.photometric_stereo->method, "lambertian");
+}
+
+TEST(Recipe, UnknownLedAndUnknownStepAreErrorsWithPositions) {
+  TempDir dir;
+  const std::string rig_path = dir.Write("rig.yaml", kRig);
+  const std::string recipe_path = dir.Write("r.yaml", R"(recipe:
+  name: r
+  rig: rig.yaml
+capture:
+  steps:
+    - each_led: {leds: [0, 7]}
+)");
+  const Recipe recipe = LoadRecipe(recipe_path);
+  EXPECT_EQ(recipe.rig_path, rig_path);
+  try {
+    CompileSteps(recipe, LoadRigConfig(rig_path));
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.line(), 6) << e.what();
+    EXPECT_NE(std::string(e.what()).find("LED id 7 is not in rig 'tiny'"), std::string::npos) << e.what();
+  }
+  const std::string bad = dir.Write("s.yaml", "recipe: {name: s}\ncapture:\n  steps:\n    - flash: {}\n");
+  try {
+    LoadRecipe(bad);
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.line(), 4) << e.what();
+    EXPECT_NE(std::string(e.what()).find("unknown step 'flash'"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace photorig::daemon

@@ -1,0 +1,116 @@
+// Runs the photorig executable on the shipped recipe and checks what it leaves on disk.
+
+#include "photorig/daemon/image_io.h"
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cstdlib>
+#include <filesystem>
+#include <regex>
+
+namespace {
+
+namespace fs = std::filesystem;
+using photorig::testing::ReadText;
+using photorig::testing::SourceDir;
+using photorig::testing::TempDir;
+
+int RunPhotorig(const std::string& arguments, const fs::path& log) {
+  const std::string command =
+      std::string(PHOTORIG_BIN_DIR) + "/photorig " + arguments + " > " + log.string() + " 2>&1";
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+nlohmann::json Report(const fs::path& run) { return nlohmann::json::parse(ReadText(run / "results/ps/report.json")); }
+
+TEST(EndToEnd, SphereRecipeWithDefaultNoiseIsAccurateToUnderOneDegree) {
+  TempDir dir;
+  const fs::path run = dir.path() / "run";
+  const std::string recipe = SourceDir() + "/config/recipes/ps-sphere.yaml";
+  ASSERT_EQ(RunPhotorig("run " + recipe + " --out " + run.string(), dir.path() / "log"), 0)
+      << ReadText(dir.path() / "log");
+
+  for (const char* file : {"manifest.json", "journal.jsonl", "frames/0000_dark.png", "frames/0048_led47.png",
+                           "ground_truth/normals.tiff", "results/ps/normals.tiff", "results/ps/normals.png",
+                           "results/ps/albedo.tiff", "results/ps/albedo.png", "results/ps/mask.png",
+                           "results/ps/report.json"})
+    EXPECT_TRUE(fs::exists(run / file)) << file;
+
+  const auto manifest = nlohmann::json::parse(ReadText(run / "manifest.json"));
+  EXPECT_EQ(manifest["status"], "complete");
+  ASSERT_EQ(manifest["frames"].size(), 49u);
+  const auto& frame = manifest["frames"][5];
+  EXPECT_EQ(frame["led"], 4);
+  EXPECT_EQ(frame["exposure_us"], 16000.0);
+  EXPECT_GT(frame["host_timestamp_ns"].get<std::int64_t>(), 0);
+  EXPECT_EQ(manifest["lights"][4]["direction"].size(), 3u);
+
+  const auto report = Report(run);
+  EXPECT_EQ(report["termination"], "success");
+  const auto& truth = report["ground_truth"];
+  EXPECT_LT(truth["mean_angular_error_deg"].get<double>(), 1.0);
+  EXPECT_GT(truth["percent_under_5deg"].get<double>(), 95.0);
+  EXPECT_LT(truth["mean_relative_albedo_error"].get<double>(), 0.03);
+  // Unresolved sphere pixels are only the rim, where fewer than 3 LEDs reach.
+  EXPECT_LT(truth["pixels_unresolved"].get<double>(), 0.02 * truth["pixels_with_truth"].get<double>());
+  // Background pixels see no light and must be flagged, not solved.
+  EXPECT_LT(report["pixels"]["solved"].get<double>(), 1.01 * truth["pixels_with_truth"].get<double>());
+
+  // The normals file agrees with the report.
+  const cv::Mat normals = photorig::daemon::ReadFloatTiff((run / "results/ps/normals.tiff").string());
+  const cv::Vec3f centre = normals.at<cv::Vec3f>(normals.rows / 2, normals.cols / 2);
+  EXPECT_GT(centre[2], 0.99f);
+  // The log shows progress and a summary.
+  const std::string log = ReadText(dir.path() / "log");
+  EXPECT_NE(log.find("captured 49/49"), std::string::npos) << log;
+  EXPECT_NE(log.find("vs ground truth: mean"), std::string::npos) << log;
+}
+
+TEST(EndToEnd, NoiseFreeSphereIsAccurateToATenthOfADegree) {
+  TempDir dir;
+  std::string rig = ReadText(SourceDir() + "/config/rigs/sim-dome.yaml");
+  rig = std::regex_replace(rig, std::regex("read_noise_e: [0-9.]+"), "read_noise_e: 0");
+  rig = std::regex_replace(rig, std::regex("shot_noise: true"), "shot_noise: false");
+  const std::string rig_path = dir.Write("quiet-dome.yaml", rig);
+  const fs::path run = dir.path() / "run";
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + rig_path + " --out " +
+                            run.string(),
+                        dir.path() / "log"),
+            0)
+      << ReadText(dir.path() / "log");
+  const auto report = Report(run);
+  EXPECT_EQ(report["noise_sigma_dn"], 0.0);
+  EXPECT_LT(report["ground_truth"]["mean_angular_error_deg"].get<double>(), 0.1);
+}
+
+TEST(EndToEnd, BadRecipeFailsBeforeCapturingAndNamesTheLine) {
+  TempDir dir;
+  const std::string recipe = dir.Write("bad.yaml", "recipe:\n  name: bad\n  rig: " + SourceDir() +
+                                                       "/config/rigs/sim-dome.yaml\ncapture:\n  exposure_us: -5\n"
+                                                       "  steps:\n    - dark: {count: 1}\n");
+  const fs::path run = dir.path() / "run";
+  EXPECT_EQ(RunPhotorig("run " + recipe + " --out " + run.string(), dir.path() / "log"), 2);
+  const std::string log = ReadText(dir.path() / "log");
+  EXPECT_NE(log.find(recipe + ":5:16: capture.exposure_us: must be > 0"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(run));
+}
+
+TEST(EndToEnd, SolveOnAStoredRunReproducesTheResult) {
+  TempDir dir;
+  const fs::path run = dir.path() / "run";
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-bumps.yaml --no-solve --out " + run.string(),
+                        dir.path() / "log"),
+            0)
+      << ReadText(dir.path() / "log");
+  EXPECT_FALSE(fs::exists(run / "results"));
+  ASSERT_EQ(RunPhotorig("solve ps --run " + run.string(), dir.path() / "log2"), 0) << ReadText(dir.path() / "log2");
+  const auto report = Report(run);
+  EXPECT_EQ(report["dark_frames"], 2);
+  // Cast shadows are excluded per pixel, so the bumps stay within a degree or two.
+  EXPECT_LT(report["ground_truth"]["mean_angular_error_deg"].get<double>(), 2.0);
+}
+
+}  // namespace

@@ -1,0 +1,154 @@
+#include "photorig/daemon/image_io.h"
+#include "photorig/daemon/run_store.h"
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+namespace photorig::daemon {
+namespace {
+
+using photorig::testing::TempDir;
+
+TEST(ImageIo, FloatTiffRoundTripsBitExactly) {
+  TempDir dir;
+  std::mt19937 rng(1);
+  std::normal_distribution<float> value(0.0f, 3.0f);
+  cv::Mat normals(37, 53, CV_32FC3), scalar(37, 53, CV_32F);
+  for (auto& v : cv::Mat_<cv::Vec3f>(normals)) v = cv::Vec3f(value(rng), value(rng), value(rng));
+  for (auto& v : cv::Mat_<float>(scalar)) v = value(rng);
+  normals.at<cv::Vec3f>(0, 0) = cv::Vec3f(NAN, NAN, NAN);
+  const std::string n_path = (dir.path() / "n.tiff").string(), s_path = (dir.path() / "s.tiff").string();
+  WriteFloatTiff(n_path, normals);
+  WriteFloatTiff(s_path, scalar);
+  cv::Mat n_back = ReadFloatTiff(n_path);
+  const cv::Mat s_back = ReadFloatTiff(s_path);
+  ASSERT_EQ(n_back.type(), CV_32FC3);
+  EXPECT_TRUE(std::isnan(n_back.at<cv::Vec3f>(0, 0)[0]));
+  normals.at<cv::Vec3f>(0, 0) = n_back.at<cv::Vec3f>(0, 0) = cv::Vec3f(0, 0, 0);
+  EXPECT_EQ(cv::norm(normals, n_back, cv::NORM_INF), 0.0);  // x stays x: channel order preserved
+  EXPECT_EQ(cv::norm(scalar, s_back, cv::NORM_INF), 0.0);
+  // In the file, the first channel (R) is x, as other tools expect.
+  const cv::Mat raw = cv::imread(n_path, cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(raw.at<cv::Vec3f>(5, 5)[2], normals.at<cv::Vec3f>(5, 5)[0]);
+}
+
+TEST(ImageIo, DurableWriteLeavesNoTempFile) {
+  TempDir dir;
+  const std::string path = (dir.path() / "a.txt").string();
+  WriteFileDurably(path, std::string("hello"));
+  EXPECT_EQ(photorig::testing::ReadText(path), "hello");
+  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+}
+
+drivers::Frame MakeFrame(int width, int height, std::uint64_t id) {
+  drivers::Frame frame;
+  frame.width = width;
+  frame.height = height;
+  frame.bit_depth = 12;
+  frame.frame_id = id;
+  frame.exposure_us = 1000;
+  for (int i = 0; i < width * height; ++i) frame.pixels.push_back(static_cast<std::uint16_t>((i * 37 + id) % 4096));
+  return frame;
+}
+
+RunManifest Header() {
+  RunManifest header;
+  header.run_id = "t";
+  header.width = 20;
+  header.height = 10;
+  header.bit_depth = 12;
+  header.lights = {LedConfig{0, Eigen::Vector3d(0, 0, 1), 1.0}};
+  return header;
+}
+
+CaptureStep Step(int index, int led) {
+  CaptureStep step;
+  step.index = index;
+  step.kind = led < 0 ? CaptureStep::Kind::kDark : CaptureStep::Kind::kLight;
+  step.led = led;
+  step.label = "000" + std::to_string(index) + (led < 0 ? "_dark" : "_led00");
+  step.pattern = led < 0 ? drivers::LightPattern::AllOff(1) : drivers::LightPattern::Single(1, 0, 0.5);
+  return step;
+}
+
+TEST(RunStore, FramesLandOnDiskBitExactWithJournalAndManifest) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  {
+    RunWriter writer(run, Header());
+    writer.WriteFrame(Step(0, -1), MakeFrame(20, 10, 0));
+    writer.WriteFrame(Step(1, 0), MakeFrame(20, 10, 1));
+    // The journal holds the frame before the writer moves on.
+    std::ifstream journal(std::filesystem::path(run) / "journal.jsonl");
+    std::string line;
+    int lines = 0;
+    while (std::getline(journal, line)) ++lines;
+    EXPECT_EQ(lines, 3);  // header + 2 frames
+    writer.Finish("complete", "");
+  }
+  const RunManifest manifest = LoadRunManifest(run);
+  EXPECT_EQ(manifest.status, "complete");
+  ASSERT_EQ(manifest.frames.size(), 2u);
+  EXPECT_EQ(manifest.frames[1].level, 0.5);
+  EXPECT_EQ(manifest.frames[1].kind, "light");
+  const cv::Mat image = LoadFrame(run, manifest.frames[1]);
+  const drivers::Frame expected = MakeFrame(20, 10, 1);
+  for (int i = 0; i < 200; ++i) ASSERT_EQ(image.ptr<std::uint16_t>()[i], expected.pixels[i]);
+}
+
+TEST(RunStore, CorruptFrameIsDetectedByItsChecksum) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  RunWriter writer(run, Header());
+  const FrameRecord record = writer.WriteFrame(Step(1, 0), MakeFrame(20, 10, 1));
+  // Replace the frame with a valid PNG holding different pixels.
+  drivers::Frame other = MakeFrame(20, 10, 2);
+  cv::imwrite((std::filesystem::path(run) / record.file).string(), cv::Mat(10, 20, CV_16U, other.pixels.data()));
+  EXPECT_THROW(
+      {
+        try {
+          LoadFrame(run, record);
+        } catch (const std::runtime_error& e) {
+          EXPECT_NE(std::string(e.what()).find("checksum"), std::string::npos);
+          throw;
+        }
+      },
+      std::runtime_error);
+  // A truncated file is named in the error.
+  std::filesystem::resize_file(std::filesystem::path(run) / record.file, 20);
+  try {
+    LoadFrame(run, record);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(record.file), std::string::npos) << e.what();
+  }
+}
+
+TEST(RunStore, ShortFramesAreRefusedAndExistingRunsAreNotOverwritten) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  RunWriter writer(run, Header());
+  drivers::Frame short_frame = MakeFrame(20, 10, 0);
+  short_frame.pixels.resize(150);
+  EXPECT_THROW(writer.WriteFrame(Step(0, -1), short_frame), std::runtime_error);
+  EXPECT_THROW(RunWriter(run, Header()), std::runtime_error);
+}
+
+TEST(RunStore, CorruptManifestIsNamed) {
+  TempDir dir;
+  dir.Write("run/manifest.json", "{\"format\": \"photorig-run/1\", \"run_id\": ");
+  try {
+    LoadRunManifest((dir.path() / "run").string());
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("manifest.json: corrupt manifest"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace photorig::daemon

@@ -1,0 +1,93 @@
+#include "photorig/sim/devices.h"
+
+#include <gtest/gtest.h>
+
+namespace photorig::sim {
+namespace {
+
+std::shared_ptr<World> SmallWorld() {
+  WorldConfig config;
+  config.scene.shape = Scene::Shape::kSphere;
+  config.scene.sphere_radius_mm = 2.0;
+  config.camera = {32, 24, 0.2};
+  config.lights = {{Eigen::Vector3d(0, 0, 1), 1.0}, {Eigen::Vector3d(0.6, 0, 0.8), 1.0}};
+  return std::make_shared<World>(config);
+}
+
+drivers::CameraSettings Settings() {
+  drivers::CameraSettings settings;
+  settings.exposure_us = 5000.4;
+  return settings;
+}
+
+TEST(SimCamera, IllegalTransitionsReturnErrorsAndChangeNothing) {
+  SimCamera camera("cam", SmallWorld());
+  EXPECT_EQ(camera.Trigger().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(camera.Start().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(camera.Configure(Settings()).status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(camera.state(), drivers::Camera::State::kClosed);
+  ASSERT_TRUE(camera.Open().ok());
+  EXPECT_EQ(camera.Open().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(camera.WaitFrame(10).status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(camera.state(), drivers::Camera::State::kOpen);
+}
+
+TEST(SimCamera, ConfigureReportsWhatItAdjusted) {
+  SimCamera camera("cam", SmallWorld());
+  ASSERT_TRUE(camera.Open().ok());
+  drivers::CameraSettings settings = Settings();
+  settings.gain_db = 40.0;
+  settings.bit_depth = 16;
+  auto adjustments = camera.Configure(settings);
+  ASSERT_TRUE(adjustments.ok());
+  std::map<std::string, double> applied;
+  for (const auto& a : adjustments.value()) applied[a.field] = a.applied;
+  EXPECT_EQ(applied.at("exposure_us"), 5000.0);
+  EXPECT_EQ(applied.at("gain_db"), 24.0);
+  EXPECT_EQ(applied.at("bit_depth"), 12.0);
+  EXPECT_EQ(camera.settings().exposure_us, 5000.0);
+  settings.width = 100;
+  EXPECT_EQ(camera.Configure(settings).status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST(SimCamera, FramesShowTheLightsTheDomeSet) {
+  auto world = SmallWorld();
+  SimLightDome dome("dome", world);
+  SimCamera camera("cam", world);
+  ASSERT_TRUE(dome.Open().ok());
+  ASSERT_TRUE(camera.Open().ok());
+  ASSERT_TRUE(camera.Configure(Settings()).ok());
+  ASSERT_TRUE(camera.Start().ok());
+  EXPECT_EQ(camera.WaitFrame(50).status().code(), StatusCode::kTimeout);
+
+  auto capture = [&](const drivers::LightPattern& pattern) {
+    EXPECT_TRUE(dome.SetPattern(pattern).ok());
+    EXPECT_TRUE(camera.Trigger().ok());
+    auto frame = camera.WaitFrame(100);
+    EXPECT_TRUE(frame.ok());
+    return std::move(frame).value();
+  };
+  const drivers::Frame dark = capture(drivers::LightPattern::AllOff(2));
+  const drivers::Frame lit = capture(drivers::LightPattern::Single(2, 0, 1.0));
+  EXPECT_EQ(lit.frame_id, dark.frame_id + 1);
+  EXPECT_EQ(lit.width, 32);
+  EXPECT_EQ(lit.pixel_format, "Mono12");
+  const std::size_t centre = 12 * 32 + 16;
+  EXPECT_GT(lit.pixels[centre], dark.pixels[centre] + 100);
+}
+
+TEST(SimLightDome, RejectsBadPatternsAndEndsDark) {
+  auto world = SmallWorld();
+  SimLightDome dome("dome", world);
+  EXPECT_EQ(dome.SetPattern(drivers::LightPattern::AllOff(2)).code(), StatusCode::kFailedPrecondition);
+  ASSERT_TRUE(dome.Open().ok());
+  EXPECT_EQ(dome.SetPattern(drivers::LightPattern::AllOff(3)).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(dome.SetPattern({{0.5, 1.5}}).code(), StatusCode::kInvalidArgument);
+  ASSERT_TRUE(dome.SetPattern({{0.5, 1.0}}).ok());
+  EXPECT_EQ(dome.ReadBack().value().levels, (std::vector<double>{0.5, 1.0}));
+  ASSERT_TRUE(dome.Close().ok());
+  EXPECT_EQ(world->levels(), (std::vector<double>{0.0, 0.0}));
+}
+
+}  // namespace
+}  // namespace photorig::sim

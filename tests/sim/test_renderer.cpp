@@ -1,0 +1,89 @@
+#include "photorig/sim/renderer.h"
+#include "photorig/sim/scene.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace photorig::sim {
+namespace {
+
+Scene UniformSphere(double radius_mm, double albedo) {
+  Scene scene;
+  scene.shape = Scene::Shape::kSphere;
+  scene.sphere_radius_mm = radius_mm;
+  scene.albedo.pattern = AlbedoTexture::Pattern::kUniform;
+  scene.albedo.high = albedo;
+  return scene;
+}
+
+TEST(SampleSurface, SphereNormalsAreAnalyticAndUnitLength) {
+  const SurfaceMaps maps = SampleSurface(UniformSphere(10.0, 0.5), 64, 64, 0.4);
+  int on_sphere = 0;
+  for (int r = 0; r < 64; ++r)
+    for (int c = 0; c < 64; ++c) {
+      if (!maps.mask.at<std::uint8_t>(r, c)) continue;
+      ++on_sphere;
+      const cv::Vec3f n = maps.normals.at<cv::Vec3f>(r, c);
+      EXPECT_NEAR(cv::norm(n), 1.0, 1e-6);
+      const double x = (c + 0.5 - 32) * 0.4, y = (32 - r - 0.5) * 0.4;
+      EXPECT_NEAR(n[0], x / 10.0, 1e-6);
+      EXPECT_NEAR(n[1], y / 10.0, 1e-6);  // y up: rows grow downwards
+    }
+  // Pixel-centre sampling of a disk of radius 25 px covers about pi r^2 pixels.
+  EXPECT_NEAR(on_sphere, M_PI * 25 * 25, 60);
+}
+
+TEST(RenderRadiance, LambertianSphereMatchesTheClosedForm) {
+  const SurfaceMaps maps = SampleSurface(UniformSphere(10.0, 0.6), 32, 32, 0.7);
+  const Eigen::Vector3d w = Eigen::Vector3d(0.3, -0.2, 0.9).normalized();
+  const cv::Mat radiance = RenderRadiance(maps, false, {{w, 2.5}}, {0.8});
+  for (int r = 0; r < 32; ++r)
+    for (int c = 0; c < 32; ++c) {
+      if (!maps.mask.at<std::uint8_t>(r, c)) {
+        EXPECT_EQ(radiance.at<float>(r, c), 0.0f);
+        continue;
+      }
+      const cv::Vec3f n = maps.normals.at<cv::Vec3f>(r, c);
+      const double cosine = std::max(0.0, n[0] * w.x() + n[1] * w.y() + n[2] * w.z());
+      EXPECT_NEAR(radiance.at<float>(r, c), 0.6 / M_PI * 2.5 * 0.8 * cosine, 1e-6);
+    }
+}
+
+TEST(RenderRadiance, LightsAddUp) {
+  const SurfaceMaps maps = SampleSurface(UniformSphere(10.0, 0.6), 24, 24, 0.9);
+  const std::vector<DirectionalLight> lights = {{Eigen::Vector3d(0, 0, 1), 1.0},
+                                                {Eigen::Vector3d(0.6, 0, 0.8), 2.0}};
+  const cv::Mat both = RenderRadiance(maps, false, lights, {1.0, 0.5});
+  const cv::Mat first = RenderRadiance(maps, false, lights, {1.0, 0.0});
+  const cv::Mat second = RenderRadiance(maps, false, lights, {0.0, 0.5});
+  EXPECT_LT(cv::norm(both, first + second, cv::NORM_INF), 1e-6);
+}
+
+TEST(CastShadowMask, BumpsShadowUnderGrazingLightOnly) {
+  Scene scene;
+  scene.shape = Scene::Shape::kBumps;
+  scene.bumps = Scene::DefaultBumps(40.0);
+  const SurfaceMaps maps = SampleSurface(scene, 100, 100, 0.4);
+  EXPECT_EQ(cv::countNonZero(CastShadowMask(maps, Eigen::Vector3d(0, 0, 1))), 0);
+  const int grazing = cv::countNonZero(CastShadowMask(maps, Eigen::Vector3d(1, 0, 0.25).normalized()));
+  const int steep = cv::countNonZero(CastShadowMask(maps, Eigen::Vector3d(1, 0, 2.0).normalized()));
+  EXPECT_GT(grazing, 200);
+  EXPECT_LT(steep, grazing);
+}
+
+TEST(CastShadowMask, ShadowFallsOnTheFarSideOfABump) {
+  Scene scene;
+  scene.shape = Scene::Shape::kBumps;
+  scene.bumps = {Bump{0.0, 0.0, 4.0, 2.0}};
+  const SurfaceMaps maps = SampleSurface(scene, 81, 81, 0.25);
+  // Light from +x, low: the shadow lies at -x of the bump centre (column 40), on its row.
+  const cv::Mat shadow = CastShadowMask(maps, Eigen::Vector3d(1, 0, 0.3).normalized());
+  int left = 0, right = 0;
+  for (int c = 0; c < 81; ++c) (c < 40 ? left : right) += shadow.at<std::uint8_t>(40, c);
+  EXPECT_GT(left, 5);
+  EXPECT_EQ(right, 0);
+}
+
+}  // namespace
+}  // namespace photorig::sim

@@ -1,0 +1,69 @@
+#pragma once
+// Synthetic photometric-stereo stacks with exactly known answers.
+
+#include "photorig/ps/stack.h"
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <random>
+
+namespace photorig::ps::testing {
+
+// Lights on a cone of the given elevation band around +z.
+inline std::vector<Eigen::Vector3d> RingLights(int count, double min_elevation_deg, double max_elevation_deg,
+                                               unsigned seed = 3) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> elevation(min_elevation_deg * M_PI / 180, max_elevation_deg * M_PI / 180);
+  std::vector<Eigen::Vector3d> lights;
+  for (int i = 0; i < count; ++i) {
+    const double az = 2 * M_PI * i / count, el = elevation(rng);
+    lights.emplace_back(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+  }
+  return lights;
+}
+
+struct TruthMaps {
+  cv::Mat normals;  // CV_32FC3
+  cv::Mat albedo;   // CV_32F
+};
+
+// Random normals within `max_tilt_deg` of +z, random albedo in [0.2, 0.9].
+inline TruthMaps RandomSurface(int width, int height, double max_tilt_deg, unsigned seed = 7) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  TruthMaps truth{cv::Mat(height, width, CV_32FC3), cv::Mat(height, width, CV_32F)};
+  const double max_tilt = max_tilt_deg * M_PI / 180;
+  for (int r = 0; r < height; ++r)
+    for (int c = 0; c < width; ++c) {
+      const double tilt = std::acos(1 - unit(rng) * (1 - std::cos(max_tilt))), az = 2 * M_PI * unit(rng);
+      truth.normals.at<cv::Vec3f>(r, c) =
+          cv::Vec3f(std::sin(tilt) * std::cos(az), std::sin(tilt) * std::sin(az), std::cos(tilt));
+      truth.albedo.at<float>(r, c) = static_cast<float>(0.2 + 0.7 * unit(rng));
+    }
+  return truth;
+}
+
+// I_k = dark + scale_k * albedo / pi * max(0, n . w_k), clipped at `saturation`.
+inline PhotometricStack RenderStack(const TruthMaps& truth, const std::vector<Eigen::Vector3d>& lights,
+                                    const std::vector<double>& scales, float dark_level,
+                                    float saturation = INFINITY) {
+  PhotometricStack stack;
+  stack.light_directions = lights;
+  stack.light_scales = scales;
+  stack.dark = cv::Mat(truth.albedo.size(), CV_32F, cv::Scalar(dark_level));
+  for (std::size_t k = 0; k < lights.size(); ++k) {
+    cv::Mat image(truth.albedo.size(), CV_32F);
+    for (int r = 0; r < image.rows; ++r)
+      for (int c = 0; c < image.cols; ++c) {
+        const cv::Vec3f n = truth.normals.at<cv::Vec3f>(r, c);
+        const double cosine = std::max(0.0, n[0] * lights[k].x() + n[1] * lights[k].y() + n[2] * lights[k].z());
+        const double value = dark_level + scales[k] * truth.albedo.at<float>(r, c) / M_PI * cosine;
+        image.at<float>(r, c) = static_cast<float>(std::min<double>(value, saturation));
+      }
+    stack.images.push_back(image);
+  }
+  return stack;
+}
+
+}  // namespace photorig::ps::testing

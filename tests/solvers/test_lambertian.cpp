@@ -1,0 +1,201 @@
+#include "photorig/ps/evaluation.h"
+#include "photorig/ps/lambertian.h"
+#include "ps_test_scene.h"
+
+#include <gtest/gtest.h>
+
+namespace photorig::ps {
+namespace {
+
+using testing::RandomSurface;
+using testing::RenderStack;
+using testing::RingLights;
+
+std::vector<double> Scales(int count, double base = 1000.0) {
+  std::vector<double> scales;
+  for (int i = 0; i < count; ++i) scales.push_back(base * (0.8 + 0.4 * i / std::max(1, count - 1)));
+  return scales;
+}
+
+TEST(Lambertian, RecoversNormalsAndAlbedoExactlyWithoutShadows) {
+  // Tilts up to 20 deg and lights above 60 deg elevation: every sample is lit.
+  const auto truth = RandomSurface(64, 48, 20.0);
+  const auto lights = RingLights(12, 60, 80);
+  const PhotometricStack stack = RenderStack(truth, lights, Scales(12), 64.0f);
+  NormalMap map;
+  const SolverSummary summary = SolveLambertian(LambertianOptions{}, stack, &map);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  EXPECT_EQ(summary.pixels_solved, 64u * 48u);
+  EXPECT_EQ(summary.samples_rejected, 0u);
+  const AngularErrorStats stats = CompareNormals(map.normals, truth.normals);
+  EXPECT_EQ(stats.pixels_evaluated, 64u * 48u);
+  EXPECT_LT(stats.max_deg, 0.01);
+  cv::Mat albedo_error;
+  cv::absdiff(map.albedo, truth.albedo, albedo_error);
+  double worst = 0;
+  cv::minMaxLoc(albedo_error, nullptr, &worst);
+  EXPECT_LT(worst, 1e-4);
+}
+
+TEST(Lambertian, ExcludesAttachedShadowsPerPixel) {
+  // Tilts up to 70 deg under low lights: many samples are in attached shadow.
+  const auto truth = RandomSurface(64, 64, 70.0);
+  const auto lights = RingLights(24, 20, 70);
+  const PhotometricStack stack = RenderStack(truth, lights, Scales(24), 10.0f);
+  NormalMap map;
+  const SolverSummary summary = SolveLambertian(LambertianOptions{}, stack, &map);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  EXPECT_GT(summary.samples_rejected, 0u);
+  EXPECT_GT(summary.distinct_light_subsets, 1u);
+  const AngularErrorStats stats = CompareNormals(map.normals, truth.normals);
+  EXPECT_EQ(stats.pixels_unresolved, summary.pixels_too_few_lights + summary.pixels_ill_conditioned);
+  EXPECT_LT(stats.max_deg, 0.01);
+
+  // Plain L2 keeps the clamped zeros and is biased on the same data.
+  LambertianOptions l2;
+  l2.exclude_unusable_samples = false;
+  NormalMap biased;
+  ASSERT_TRUE(SolveLambertian(l2, stack, &biased).IsSolutionUsable());
+  EXPECT_GT(CompareNormals(biased.normals, truth.normals).mean_deg, 1.0);
+}
+
+TEST(Lambertian, ExcludesSaturatedSamples) {
+  const auto truth = RandomSurface(32, 32, 30.0);
+  const auto lights = RingLights(16, 50, 85);
+  const float saturation = 250.0f;  // clips the brightest samples of bright pixels
+  const PhotometricStack stack = RenderStack(truth, lights, Scales(16), 5.0f, saturation);
+  LambertianOptions options;
+  options.saturation_level = saturation;
+  NormalMap map;
+  const SolverSummary summary = SolveLambertian(options, stack, &map);
+  ASSERT_TRUE(summary.IsSolutionUsable());
+  EXPECT_GT(summary.samples_rejected, 0u);
+  EXPECT_LT(CompareNormals(map.normals, truth.normals).max_deg, 0.01);
+}
+
+TEST(Lambertian, FlagsPixelsWithFewerThanThreeLitSamples) {
+  const auto truth = RandomSurface(16, 16, 10.0);
+  auto stack = RenderStack(truth, RingLights(8, 50, 80), Scales(8), 0.0f);
+  // Pixel (3, 5) is lit by two lights only.
+  for (int k = 2; k < 8; ++k) stack.images[k].at<float>(5, 3) = 0.0f;
+  NormalMap map;
+  const SolverSummary summary = SolveLambertian(LambertianOptions{}, stack, &map);
+  ASSERT_TRUE(summary.IsSolutionUsable());
+  EXPECT_EQ(map.flags.at<std::uint8_t>(5, 3), static_cast<int>(PixelFlag::kTooFewLights));
+  EXPECT_TRUE(std::isnan(map.normals.at<cv::Vec3f>(5, 3)[0]));
+  EXPECT_EQ(summary.pixels_too_few_lights, 1u);
+  EXPECT_EQ(map.usable_lights.at<std::uint16_t>(5, 3), 2);
+}
+
+TEST(Lambertian, FlagsPixelsWhoseLitLightsAreCoplanar) {
+  // Lights 0..3 share one azimuth plane (y = 0); the rest are elsewhere.
+  std::vector<Eigen::Vector3d> lights = {
+      Eigen::Vector3d(1, 0, 1).normalized(), Eigen::Vector3d(-1, 0, 1).normalized(),
+      Eigen::Vector3d(0.3, 0, 1).normalized(), Eigen::Vector3d(-0.5, 0, 1).normalized(),
+      Eigen::Vector3d(0, 1, 1).normalized(), Eigen::Vector3d(0, -1, 1).normalized()};
+  const auto truth = RandomSurface(8, 8, 5.0);
+  auto stack = RenderStack(truth, lights, std::vector<double>(6, 100.0), 0.0f);
+  stack.images[4].at<float>(2, 2) = 0.0f;
+  stack.images[5].at<float>(2, 2) = 0.0f;
+  NormalMap map;
+  const SolverSummary summary = SolveLambertian(LambertianOptions{}, stack, &map);
+  ASSERT_TRUE(summary.IsSolutionUsable());
+  EXPECT_EQ(map.flags.at<std::uint8_t>(2, 2), static_cast<int>(PixelFlag::kIllConditioned));
+  EXPECT_EQ(summary.pixels_ill_conditioned, 1u);
+  EXPECT_EQ(summary.pixels_solved, 63u);
+}
+
+TEST(Lambertian, RefusesFewerThanThreeLights) {
+  const auto truth = RandomSurface(8, 8, 5.0);
+  const auto stack = RenderStack(truth, RingLights(2, 50, 60), Scales(2), 0.0f);
+  NormalMap map;
+  const SolverSummary summary = SolveLambertian(LambertianOptions{}, stack, &map);
+  EXPECT_FALSE(summary.IsSolutionUsable());
+  EXPECT_NE(summary.message.find("at least 3 lights"), std::string::npos) << summary.message;
+}
+
+TEST(Lambertian, RefusesCoplanarLightsAndReportsTheConditionNumber) {
+  // All lights in the x-z plane: the y component of n is unobservable.
+  std::vector<Eigen::Vector3d> lights;
+  for (double angle : {-50.0, -20.0, 0.0, 25.0, 55.0})
+    lights.emplace_back(std::sin(angle * M_PI / 180), 0.0, std::cos(angle * M_PI / 180));
+  const auto truth = RandomSurface(8, 8, 5.0);
+  const auto stack = RenderStack(truth, lights, Scales(5), 0.0f);
+  NormalMap map;
+  const SolverSummary summary = SolveLambertian(LambertianOptions{}, stack, &map);
+  EXPECT_FALSE(summary.IsSolutionUsable());
+  EXPECT_NE(summary.message.find("coplanar"), std::string::npos) << summary.message;
+  EXPECT_GT(summary.condition_number, 1e3);
+}
+
+TEST(Lambertian, NearlyCoplanarLightsAreRejectedAboveTheConfiguredCondition) {
+  std::vector<Eigen::Vector3d> lights;
+  for (double angle : {-50.0, 0.0, 55.0})
+    lights.push_back(Eigen::Vector3d(std::sin(angle * M_PI / 180), 0.0, std::cos(angle * M_PI / 180)));
+  lights.push_back(Eigen::Vector3d(0.0, 0.02, 1.0).normalized());  // barely out of the plane
+  const auto truth = RandomSurface(8, 8, 5.0);
+  const auto stack = RenderStack(truth, lights, Scales(4), 0.0f);
+  NormalMap map;
+  LambertianOptions strict;
+  strict.max_condition_number = 20.0;
+  EXPECT_FALSE(SolveLambertian(strict, stack, &map).IsSolutionUsable());
+  LambertianOptions lenient;
+  lenient.max_condition_number = 1e4;
+  const SolverSummary summary = SolveLambertian(lenient, stack, &map);
+  EXPECT_TRUE(summary.IsSolutionUsable());
+  EXPECT_GT(summary.condition_number, 20.0);
+}
+
+TEST(Lambertian, RejectsImagesOfDifferentSizesNamingTheImage) {
+  const auto truth = RandomSurface(8, 8, 5.0);
+  auto stack = RenderStack(truth, RingLights(4, 50, 60), Scales(4), 0.0f);
+  stack.images[3] = cv::Mat::zeros(9, 8, CV_32F);
+  NormalMap map;
+  const SolverSummary summary = SolveLambertian(LambertianOptions{}, stack, &map);
+  EXPECT_FALSE(summary.IsSolutionUsable());
+  EXPECT_NE(summary.message.find("image 3 is 8x9"), std::string::npos) << summary.message;
+}
+
+TEST(Lambertian, HonoursTheMask) {
+  const auto truth = RandomSurface(16, 16, 10.0);
+  auto stack = RenderStack(truth, RingLights(6, 50, 80), Scales(6), 0.0f);
+  stack.mask = cv::Mat::zeros(16, 16, CV_8U);
+  stack.mask(cv::Rect(4, 4, 5, 5)).setTo(255);
+  NormalMap map;
+  const SolverSummary summary = SolveLambertian(LambertianOptions{}, stack, &map);
+  EXPECT_EQ(summary.pixels_solved, 25u);
+  EXPECT_EQ(summary.pixels_outside_mask, 256u - 25u);
+  EXPECT_EQ(map.flags.at<std::uint8_t>(0, 0), static_cast<int>(PixelFlag::kOutsideMask));
+}
+
+TEST(Lambertian, ResultDoesNotDependOnTheThreadCount) {
+  const auto truth = RandomSurface(80, 70, 60.0);
+  const auto stack = RenderStack(truth, RingLights(20, 20, 80), Scales(20), 3.0f);
+  LambertianOptions one, two;
+  one.num_threads = 1;
+  two.num_threads = 2;
+  NormalMap a, b;
+  ASSERT_TRUE(SolveLambertian(one, stack, &a).IsSolutionUsable());
+  ASSERT_TRUE(SolveLambertian(two, stack, &b).IsSolutionUsable());
+  EXPECT_EQ(cv::countNonZero(a.flags != b.flags), 0);
+  cv::Mat diff;
+  cv::absdiff(a.normals.reshape(1), b.normals.reshape(1), diff);
+  cv::patchNaNs(diff, 0.0);
+  EXPECT_EQ(cv::countNonZero(diff), 0);
+}
+
+TEST(LambertianOptions, ValidationExplainsTheProblem) {
+  LambertianOptions options;
+  std::string why;
+  EXPECT_TRUE(options.IsValid(&why));
+  options.shadow_threshold = -1;
+  EXPECT_FALSE(options.IsValid(&why));
+  EXPECT_NE(why.find("shadow_threshold"), std::string::npos);
+  options = LambertianOptions{};
+  options.max_condition_number = 0.5;
+  EXPECT_FALSE(options.IsValid(&why));
+  EXPECT_NE(why.find("max_condition_number"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace photorig::ps
