@@ -1,5 +1,6 @@
 #include "photorig/daemon/rig_config.h"
 
+#include "photorig/daemon/device_factory.h"
 #include "photorig/daemon/yaml_node.h"
 
 #include <set>
@@ -8,9 +9,11 @@ namespace photorig::daemon {
 namespace {
 
 LedConfig ParseLed(const YamlNode& node, int index) {
-  node.ExpectKeys({"id", "direction", "position_mm", "intensity"});
+  node.ExpectKeys({"id", "direction", "position_mm", "intensity", "channel"});
   LedConfig led;
   led.id = node.Int("id", index);
+  led.channel = node.Int("channel", index);
+  if (led.channel < 0) node["channel"].Fail("must be >= 0");
   const bool has_direction = node.Has("direction"), has_position = node.Has("position_mm");
   if (has_direction == has_position) node.Fail("give exactly one of 'direction' or 'position_mm'");
   // A position far from a small object is a direction; near-field falloff is
@@ -42,6 +45,36 @@ sim::SensorModel ParseSensor(const YamlNode& node, int bit_depth) {
   if (!(sensor.black_level_dn >= 0 && sensor.black_level_dn < sensor.max_dn()))
     node["black_level_dn"].Fail("must lie within the sensor's range");
   return sensor;
+}
+
+template <typename T>
+std::set<T> IndexSet(const YamlNode& node, const char* key) {
+  std::set<T> values;
+  if (auto list = node.Find(key))
+    for (const YamlNode& item : list->Items()) {
+      const int value = item.AsInt();
+      if (value < 0) item.Fail("must be >= 0");
+      values.insert(static_cast<T>(value));
+    }
+  return values;
+}
+
+// sim.faults: {camera: {drop_frames: [..], short_frames: [..], corrupt_frames: [..], disconnect_at: [..]},
+//              lights: {fail_commands: [..], stuck_off_channels: [..]}}
+void ParseFaults(const YamlNode& node, SimConfig* sim) {
+  node.ExpectKeys({"camera", "lights"});
+  if (auto camera = node.Find("camera")) {
+    camera->ExpectKeys({"drop_frames", "short_frames", "corrupt_frames", "disconnect_at"});
+    sim->camera_faults.drop_frames = IndexSet<std::uint64_t>(*camera, "drop_frames");
+    sim->camera_faults.short_frames = IndexSet<std::uint64_t>(*camera, "short_frames");
+    sim->camera_faults.corrupt_frames = IndexSet<std::uint64_t>(*camera, "corrupt_frames");
+    sim->camera_faults.disconnect_at = IndexSet<std::uint64_t>(*camera, "disconnect_at");
+  }
+  if (auto lights = node.Find("lights")) {
+    lights->ExpectKeys({"fail_commands", "stuck_off_channels"});
+    sim->light_faults.fail_commands = IndexSet<std::uint64_t>(*lights, "fail_commands");
+    sim->light_faults.stuck_off_channels = IndexSet<int>(*lights, "stuck_off_channels");
+  }
 }
 
 }  // namespace
@@ -88,9 +121,12 @@ RigConfig LoadRigConfig(const std::string& path) {
     header["kind"].Fail("only 'light_dome' rigs are supported so far");
 
   const YamlNode lights = root["lights"];
-  lights.ExpectKeys({"driver", "id", "leds"});
+  lights.ExpectKeys({"driver", "id", "leds", "options"});
   rig.lights.driver = lights["driver"].AsString();
+  if (!IsKnownLightDriver(rig.lights.driver))
+    lights["driver"].Fail("unknown driver '" + rig.lights.driver + "' (available: " + LightDriverNames() + ")");
   rig.lights.id = lights.String("id", "lights");
+  rig.lights.options = lights.Find("options");
   std::set<int> ids;
   const auto leds = lights["leds"].Items();
   for (std::size_t i = 0; i < leds.size(); ++i) {
@@ -101,11 +137,14 @@ RigConfig LoadRigConfig(const std::string& path) {
   if (rig.lights.leds.empty()) lights["leds"].Fail("a light dome needs at least one LED");
 
   const YamlNode camera = root["camera"];
-  camera.ExpectKeys({"driver", "id", "projection", "width", "height", "pixel_pitch_mm", "bit_depth", "exposure_us",
-                     "gain_db", "dn_per_radiance_per_us"});
+  camera.ExpectKeys({"driver", "id", "options", "projection", "width", "height", "pixel_pitch_mm", "bit_depth",
+                     "exposure_us", "gain_db", "dn_per_radiance_per_us"});
   CameraConfig& cam = rig.camera;
   cam.driver = camera["driver"].AsString();
+  if (!IsKnownCameraDriver(cam.driver))
+    camera["driver"].Fail("unknown driver '" + cam.driver + "' (available: " + CameraDriverNames() + ")");
   cam.id = camera.String("id", "camera");
+  cam.options = camera.Find("options");
   cam.projection = camera.String("projection", "orthographic");
   if (cam.projection != "orthographic") camera["projection"].Fail("only 'orthographic' is supported so far");
   cam.width = camera["width"].AsInt();
@@ -122,13 +161,14 @@ RigConfig LoadRigConfig(const std::string& path) {
   cam.gain_db = camera.Double("gain_db", cam.gain_db);
 
   if (auto sim_node = root.Find("sim")) {
-    sim_node->ExpectKeys({"seed", "sensor", "scene"});
+    sim_node->ExpectKeys({"seed", "sensor", "scene", "faults"});
     SimConfig sim;
     sim.seed = static_cast<std::uint64_t>(sim_node->Int("seed", 1));
     const auto sensor = sim_node->Find("sensor");
     sim.sensor = sensor ? ParseSensor(*sensor, cam.bit_depth) : sim::SensorModel{};
     sim.sensor.bit_depth = cam.bit_depth;
     if (auto scene = sim_node->Find("scene")) sim.scene = ParseScene(*scene, cam.width * cam.pixel_pitch_mm);
+    if (auto faults = sim_node->Find("faults")) ParseFaults(*faults, &sim);
     // A simulated camera is calibrated by construction.
     cam.dn_per_radiance_per_us = sim.sensor.response_e_per_us / sim.sensor.e_per_dn;
     rig.sim = sim;
@@ -139,8 +179,6 @@ RigConfig LoadRigConfig(const std::string& path) {
   }
   if ((rig.lights.driver == "sim" || cam.driver == "sim") && !rig.sim)
     root.Fail("simulated devices need a 'sim:' section");
-  if (rig.lights.driver != "sim") lights["driver"].Fail("unknown driver '" + rig.lights.driver + "' (available: sim)");
-  if (cam.driver != "sim") camera["driver"].Fail("unknown driver '" + cam.driver + "' (available: sim)");
   return rig;
 }
 

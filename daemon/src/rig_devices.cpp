@@ -1,6 +1,6 @@
 #include "photorig/daemon/rig_devices.h"
 
-#include "photorig/sim/devices.h"
+#include "photorig/daemon/device_factory.h"
 
 namespace photorig::daemon {
 
@@ -10,6 +10,8 @@ RigDevices MakeRigDevices(const RigConfig& rig, const Recipe* recipe) {
     sim::WorldConfig world;
     world.seed = rig.sim->seed;
     world.sensor = rig.sim->sensor;
+    world.camera_faults = rig.sim->camera_faults;
+    world.light_faults = rig.sim->light_faults;
     world.scene = rig.sim->scene;
     if (recipe && recipe->sim_scene)
       world.scene = ParseScene(*recipe->sim_scene, rig.camera.width * rig.camera.pixel_pitch_mm);
@@ -17,9 +19,9 @@ RigDevices MakeRigDevices(const RigConfig& rig, const Recipe* recipe) {
     for (const LedConfig& led : rig.lights.leds) world.lights.push_back({led.direction, led.intensity});
     devices.world = std::make_shared<sim::World>(std::move(world));
   }
-  // LoadRigConfig accepts only known drivers, so "sim" is the one left today.
-  devices.lights = std::make_unique<sim::SimLightDome>(rig.lights.id, devices.world);
-  devices.camera = std::make_unique<sim::SimCamera>(rig.camera.id, devices.world);
+  const DeviceContext context{rig, devices.world};
+  devices.lights = MakeLightController(context);
+  devices.camera = MakeCamera(context);
   return devices;
 }
 

@@ -52,7 +52,13 @@ Status Camera::Trigger() {
 Result<Frame> Camera::WaitFrame(int timeout_ms) {
   if (state_ != State::kStreaming) return IllegalTransition("wait for a frame");
   if (timeout_ms <= 0) return Status{StatusCode::kInvalidArgument, "camera " + id_ + ": timeout_ms must be > 0"};
-  return DoWaitFrame(timeout_ms);
+  auto frame = DoWaitFrame(timeout_ms);
+  // Every driver gets the same check: a frame shorter than its geometry is data loss, not a frame.
+  if (frame.ok() && frame->pixels.size() != static_cast<std::size_t>(frame->width) * frame->height)
+    return Status{StatusCode::kDataLoss, "camera " + id_ + ": frame " + std::to_string(frame->frame_id) + " is short (" +
+                                             std::to_string(frame->pixels.size()) + " of " +
+                                             std::to_string(frame->width * frame->height) + " pixels)"};
+  return frame;
 }
 
 Status Camera::Stop() {

@@ -1,6 +1,8 @@
 #include "photorig/sim/devices.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 
 namespace photorig::sim {
 namespace {
@@ -25,7 +27,13 @@ SimLightDome::SimLightDome(std::string id, std::shared_ptr<World> world)
 int SimLightDome::channel_count() const { return static_cast<int>(world_->config().lights.size()); }
 Status SimLightDome::DoOpen() { return Status::Ok(); }
 Status SimLightDome::DoSetPattern(const drivers::LightPattern& pattern) {
-  world_->SetLevels(pattern.levels);
+  const LightFaults& faults = world_->config().light_faults;
+  if (faults.fail_commands.count(commands_++))
+    return {StatusCode::kUnavailable, "light controller " + id() + ": no reply to pattern command (injected fault)"};
+  std::vector<double> levels = pattern.levels;
+  for (int channel : faults.stuck_off_channels)
+    if (channel >= 0 && channel < static_cast<int>(levels.size())) levels[channel] = 0.0;
+  world_->SetLevels(std::move(levels));
   return Status::Ok();
 }
 Result<drivers::LightPattern> SimLightDome::DoReadBack() { return drivers::LightPattern{world_->levels()}; }
@@ -36,6 +44,7 @@ SimCamera::SimCamera(std::string id, std::shared_ptr<World> world)
 
 Status SimCamera::DoOpen() {
   next_frame_id_ = 0;
+  link_lost_ = false;
   return Status::Ok();
 }
 
@@ -72,6 +81,17 @@ Status SimCamera::DoStart() {
 }
 
 Status SimCamera::DoTrigger() {
+  if (link_lost_) return {StatusCode::kUnavailable, "camera " + id() + ": control link lost"};
+  const CameraFaults& faults = world_->config().camera_faults;
+  const std::uint64_t trigger = triggers_++;
+  if (faults.disconnect_at.count(trigger)) {
+    link_lost_ = true;
+    return {StatusCode::kUnavailable, "camera " + id() + ": control link lost (injected fault)"};
+  }
+  if (faults.drop_frames.count(trigger)) {
+    ++next_frame_id_;  // the device counted the frame; it never reached the host
+    return Status::Ok();
+  }
   const drivers::CameraSettings& s = settings();
   drivers::Frame frame;
   frame.width = s.width;
@@ -85,16 +105,27 @@ Status SimCamera::DoTrigger() {
   frame.pixels = ExposeFrame(world_->config().sensor, world_->RenderRadiance(), s.exposure_us, s.gain_db,
                              world_->config().seed, frame.frame_id);
   frame.host_timestamp_ns = NowNs(true);
+  if (faults.short_frames.count(trigger)) frame.pixels.resize(frame.pixels.size() / 2);
+  if (faults.corrupt_frames.count(trigger)) {
+    // As a GigE camera with lost packets: the payload is damaged and the
+    // buffer status says so.
+    for (std::size_t i = 0; i < frame.pixels.size(); i += 7) frame.pixels[i] ^= 0x0a5a;
+    corrupt_ids_.insert(frame.frame_id);
+  }
   ready_.push_back(std::move(frame));
   return Status::Ok();
 }
 
 Result<drivers::Frame> SimCamera::DoWaitFrame(int timeout_ms) {
+  if (link_lost_) return Status{StatusCode::kUnavailable, "camera " + id() + ": control link lost"};
   if (ready_.empty())
     return Status{StatusCode::kTimeout,
                   "camera " + id() + ": no frame within " + std::to_string(timeout_ms) + " ms (was it triggered?)"};
   drivers::Frame frame = std::move(ready_.front());
   ready_.pop_front();
+  if (corrupt_ids_.erase(frame.frame_id))
+    return Status{StatusCode::kDataLoss,
+                  "camera " + id() + ": frame " + std::to_string(frame.frame_id) + " incomplete (missing packets)"};
   return frame;
 }
 

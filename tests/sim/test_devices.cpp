@@ -91,3 +91,73 @@ TEST(SimLightDome, RejectsBadPatternsAndEndsDark) {
 
 }  // namespace
 }  // namespace photorig::sim
+
+namespace photorig::sim {
+namespace {
+
+struct FaultyRig {
+  std::shared_ptr<World> world;
+  SimLightDome dome;
+  SimCamera camera;
+  explicit FaultyRig(WorldConfig config)
+      : world(std::make_shared<World>(std::move(config))), dome("dome", world), camera("cam", world) {
+    EXPECT_TRUE(dome.Open().ok());
+    EXPECT_TRUE(camera.Open().ok());
+    EXPECT_TRUE(camera.Configure(drivers::CameraSettings{}).ok());
+    EXPECT_TRUE(camera.Start().ok());
+  }
+  Result<drivers::Frame> Capture() {
+    if (Status s = camera.Trigger(); !s.ok()) return s;
+    return camera.WaitFrame(100);
+  }
+};
+
+WorldConfig Config() {
+  WorldConfig config;
+  config.camera = {16, 16, 1.0};
+  config.lights = {{Eigen::Vector3d(0, 0, 1), 1.0}, {Eigen::Vector3d(0.6, 0, 0.8), 1.0}};
+  return config;
+}
+
+TEST(SimFaults, DroppedShortAndCorruptFramesAreReportedAsSuch) {
+  WorldConfig config = Config();
+  config.camera_faults.drop_frames = {1};
+  config.camera_faults.short_frames = {2};
+  config.camera_faults.corrupt_frames = {3};
+  FaultyRig rig(config);
+  auto first = rig.Capture();
+  ASSERT_TRUE(first.ok());
+  EXPECT_EQ(rig.Capture().status().code(), StatusCode::kTimeout);
+  EXPECT_EQ(rig.Capture().status().code(), StatusCode::kDataLoss);
+  EXPECT_EQ(rig.Capture().status().code(), StatusCode::kDataLoss);
+  auto fifth = rig.Capture();
+  ASSERT_TRUE(fifth.ok());
+  EXPECT_EQ(fifth->frame_id, first->frame_id + 4);  // the gap shows the dropped frame
+}
+
+TEST(SimFaults, DisconnectLastsUntilReopen) {
+  WorldConfig config = Config();
+  config.camera_faults.disconnect_at = {1};
+  FaultyRig rig(config);
+  ASSERT_TRUE(rig.Capture().ok());
+  EXPECT_EQ(rig.Capture().status().code(), StatusCode::kUnavailable);
+  EXPECT_EQ(rig.Capture().status().code(), StatusCode::kUnavailable);
+  ASSERT_TRUE(rig.camera.Close().ok());
+  ASSERT_TRUE(rig.camera.Open().ok());
+  ASSERT_TRUE(rig.camera.Configure(drivers::CameraSettings{}).ok());
+  ASSERT_TRUE(rig.camera.Start().ok());
+  EXPECT_TRUE(rig.Capture().ok());
+}
+
+TEST(SimFaults, LightCommandFailuresAndStuckLeds) {
+  WorldConfig config = Config();
+  config.light_faults.fail_commands = {2};  // command 0 is Open's all-off
+  config.light_faults.stuck_off_channels = {1};
+  FaultyRig rig(config);
+  EXPECT_TRUE(rig.dome.SetPattern({{1.0, 1.0}}).ok());
+  EXPECT_EQ(rig.world->levels(), (std::vector<double>{1.0, 0.0}));
+  EXPECT_EQ(rig.dome.SetPattern({{1.0, 0.0}}).code(), StatusCode::kUnavailable);
+}
+
+}  // namespace
+}  // namespace photorig::sim

@@ -2,6 +2,7 @@
 // The rig description (config/rigs/*.yaml): which devices, where the lights
 // are, what the camera is, and for simulated rigs what the simulator renders.
 
+#include "photorig/daemon/yaml_node.h"
 #include "photorig/sim/world.h"
 
 #include <Eigen/Core>
@@ -12,23 +13,24 @@
 
 namespace photorig::daemon {
 
-class YamlNode;
-
 struct LedConfig {
   int id = 0;
   Eigen::Vector3d direction{0, 0, 1};  // unit, camera frame, towards the LED
   double intensity = 1.0;              // relative irradiance at the sample for drive level 1
+  int channel = 0;                     // controller output driving this LED (default: its index)
 };
 
 struct LightsConfig {
-  std::string driver;  // "sim" for now
+  std::string driver;  // a name from daemon/device_factory.h, e.g. "sim"
   std::string id;
   std::vector<LedConfig> leds;
+  std::optional<YamlNode> options;  // driver-specific settings, parsed by the driver's factory
 };
 
 struct CameraConfig {
-  std::string driver;  // "sim" for now
+  std::string driver;  // a name from daemon/device_factory.h, e.g. "sim"
   std::string id;
+  std::optional<YamlNode> options;  // driver-specific settings, parsed by the driver's factory
   std::string projection = "orthographic";
   int width = 0;
   int height = 0;
@@ -45,6 +47,8 @@ struct SimConfig {
   std::uint64_t seed = 1;
   sim::SensorModel sensor;
   sim::Scene scene;  // default scene; a recipe's sample.sim_scene replaces it
+  sim::CameraFaults camera_faults;
+  sim::LightFaults light_faults;
 };
 
 struct RigConfig {

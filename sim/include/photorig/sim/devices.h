@@ -7,6 +7,7 @@
 
 #include <deque>
 #include <memory>
+#include <set>
 
 namespace photorig::sim {
 
@@ -23,6 +24,7 @@ class SimLightDome : public drivers::LightController {
 
  private:
   std::shared_ptr<World> world_;
+  std::uint64_t commands_ = 0;
 };
 
 // Renders a frame from the world's current state on every trigger.
@@ -42,7 +44,10 @@ class SimCamera : public drivers::Camera {
  private:
   std::shared_ptr<World> world_;
   std::deque<drivers::Frame> ready_;
-  std::uint64_t next_frame_id_ = 0;
+  std::uint64_t next_frame_id_ = 0;  // device counter: a dropped frame leaves a gap
+  std::uint64_t triggers_ = 0;       // lifetime count, indexes CameraFaults
+  bool link_lost_ = false;
+  std::set<std::uint64_t> corrupt_ids_;
 };
 
 }  // namespace photorig::sim

@@ -3,6 +3,7 @@
 // the LEDs are, how bright each one is right now. The simulated devices share
 // one World, so a camera frame always shows the lights the controller set.
 
+#include "photorig/sim/faults.h"
 #include "photorig/sim/renderer.h"
 #include "photorig/sim/scene.h"
 #include "photorig/sim/sensor.h"
@@ -26,6 +27,8 @@ struct WorldConfig {
   OrthographicCamera camera;
   SensorModel sensor;
   std::uint64_t seed = 1;
+  CameraFaults camera_faults;
+  LightFaults light_faults;
 };
 
 class World {

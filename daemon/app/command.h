@@ -1,0 +1,37 @@
+#pragma once
+// Subcommands of the `photorig` CLI. Each lives in its own file under
+// app/commands/ and registers itself at static-initialisation time:
+//
+//   namespace {
+//   photorig::app::CommandRunner Setup(CLI::App& app) {
+//     CLI::App* sub = app.add_subcommand("name", "what it does");
+//     auto options = std::make_shared<Options>();   // bound to CLI11 options
+//     ...
+//     return {sub, [options] { return Execute(*options); }};
+//   }
+//   const bool registered = photorig::app::RegisterCommand(Setup);
+//   }  // namespace
+//
+// The runner returns the process exit code: 0 success, 1 runtime error,
+// 2 bad input or configuration, 3 a solver produced no usable result.
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <vector>
+
+namespace photorig::app {
+
+struct CommandRunner {
+  CLI::App* subcommand = nullptr;  // the runner is called when this one was parsed
+  std::function<int()> run;
+};
+using CommandSetup = CommandRunner (*)(CLI::App& app);
+
+bool RegisterCommand(CommandSetup setup);
+// Subcommand groups shared by several files ("solve", "calibrate"): returns the
+// existing group or adds it, so `solve ps` and `solve color` can live apart.
+CLI::App* SubcommandGroup(CLI::App& app, const std::string& name, const std::string& description);
+const std::vector<CommandSetup>& RegisteredCommands();
+
+}  // namespace photorig::app

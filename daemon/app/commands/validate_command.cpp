@@ -1,0 +1,36 @@
+// photorig validate RECIPE [--rig FILE]: parse and compile without touching devices.
+
+#include "../command.h"
+#include "photorig/daemon/recipe.h"
+
+#include <cstdio>
+#include <memory>
+
+namespace photorig::app {
+namespace {
+
+struct Options {
+  std::string recipe, rig;
+};
+
+int Execute(const Options& options) {
+  const daemon::Recipe recipe = daemon::LoadRecipe(options.recipe);
+  const daemon::RigConfig rig = daemon::LoadRigConfig(daemon::ResolveRigPath(recipe, options.rig));
+  const auto steps = daemon::CompileSteps(recipe, rig);
+  std::printf("%s: valid; %zu steps on rig '%s' (%zu LEDs, camera %dx%d)\n", options.recipe.c_str(), steps.size(),
+              rig.name.c_str(), rig.lights.leds.size(), rig.camera.width, rig.camera.height);
+  return 0;
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto options = std::make_shared<Options>();
+  CLI::App* sub = app.add_subcommand("validate", "check a recipe and its rig without touching devices");
+  sub->add_option("recipe", options->recipe, "recipe YAML")->required()->check(CLI::ExistingFile);
+  sub->add_option("--rig", options->rig, "rig YAML")->check(CLI::ExistingFile);
+  return {sub, [options] { return Execute(*options); }};
+}
+
+const bool registered = RegisterCommand(Setup);
+
+}  // namespace
+}  // namespace photorig::app

@@ -1,0 +1,80 @@
+#include "photorig/daemon/device_factory.h"
+
+#include "photorig/sim/devices.h"
+
+#include <functional>
+#include <stdexcept>
+#include <vector>
+
+namespace photorig::daemon {
+namespace {
+
+using LightFactory = std::function<std::unique_ptr<drivers::LightController>(const DeviceContext&)>;
+using CameraFactory = std::function<std::unique_ptr<drivers::Camera>(const DeviceContext&)>;
+
+template <typename Factory>
+struct Entry {
+  const char* name;
+  Factory make;
+};
+
+void RequireWorld(const DeviceContext& context, const char* what) {
+  if (!context.world) throw std::logic_error(std::string(what) + " needs the rig's sim: section");
+}
+
+const std::vector<Entry<LightFactory>>& LightDrivers() {
+  static const std::vector<Entry<LightFactory>> drivers = {
+      {"sim",
+       [](const DeviceContext& c) -> std::unique_ptr<drivers::LightController> {
+         RequireWorld(c, "the simulated light dome");
+         return std::make_unique<sim::SimLightDome>(c.rig.lights.id, c.world);
+       }},
+  };
+  return drivers;
+}
+
+const std::vector<Entry<CameraFactory>>& CameraDrivers() {
+  static const std::vector<Entry<CameraFactory>> drivers = {
+      {"sim",
+       [](const DeviceContext& c) -> std::unique_ptr<drivers::Camera> {
+         RequireWorld(c, "the simulated camera");
+         return std::make_unique<sim::SimCamera>(c.rig.camera.id, c.world);
+       }},
+  };
+  return drivers;
+}
+
+template <typename Factory>
+const Entry<Factory>* Find(const std::vector<Entry<Factory>>& table, const std::string& name) {
+  for (const auto& entry : table)
+    if (name == entry.name) return &entry;
+  return nullptr;
+}
+
+template <typename Factory>
+std::string Names(const std::vector<Entry<Factory>>& table) {
+  std::string names;
+  for (const auto& entry : table) names += std::string(names.empty() ? "" : ", ") + entry.name;
+  return names;
+}
+
+}  // namespace
+
+bool IsKnownLightDriver(const std::string& name) { return Find(LightDrivers(), name) != nullptr; }
+bool IsKnownCameraDriver(const std::string& name) { return Find(CameraDrivers(), name) != nullptr; }
+std::string LightDriverNames() { return Names(LightDrivers()); }
+std::string CameraDriverNames() { return Names(CameraDrivers()); }
+
+std::unique_ptr<drivers::LightController> MakeLightController(const DeviceContext& context) {
+  const auto* entry = Find(LightDrivers(), context.rig.lights.driver);
+  if (!entry) throw std::invalid_argument("unknown light driver '" + context.rig.lights.driver + "'");
+  return entry->make(context);
+}
+
+std::unique_ptr<drivers::Camera> MakeCamera(const DeviceContext& context) {
+  const auto* entry = Find(CameraDrivers(), context.rig.camera.driver);
+  if (!entry) throw std::invalid_argument("unknown camera driver '" + context.rig.camera.driver + "'");
+  return entry->make(context);
+}
+
+}  // namespace photorig::daemon

@@ -1,0 +1,24 @@
+#pragma once
+// Faults the simulated devices inject on purpose, so the sequencer's and the
+// daemon's recovery paths run in tests exactly as they would on hardware.
+// Indices count triggers (camera) or pattern commands (lights) from 0 since
+// the device was created, so a fault fires once even across reopen.
+
+#include <cstdint>
+#include <set>
+
+namespace photorig::sim {
+
+struct CameraFaults {
+  std::set<std::uint64_t> drop_frames;     // the trigger yields no frame: WaitFrame times out
+  std::set<std::uint64_t> short_frames;    // half the pixels arrive; Camera::WaitFrame reports kDataLoss
+  std::set<std::uint64_t> corrupt_frames;  // damaged payload, reported as kDataLoss (as a buffer status would)
+  std::set<std::uint64_t> disconnect_at;   // the link drops at this trigger: kUnavailable until Close + Open
+};
+
+struct LightFaults {
+  std::set<std::uint64_t> fail_commands;   // SetPattern returns kUnavailable (e.g. a Modbus timeout)
+  std::set<int> stuck_off_channels;        // these LEDs never light, whatever is commanded
+};
+
+}  // namespace photorig::sim
