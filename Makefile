@@ -1,5 +1,5 @@
-# Set-up and everyday commands. `make demo` and `make test` work on a fresh
-# Debian 12 machine: they install the packages, build, then run.
+# Everyday commands. On a fresh Debian 12 machine (no make yet) start with
+# scripts/setup.sh demo|test, which installs the packages and then runs these.
 BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release

@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# One command from a fresh Debian 12 machine (nothing but bash and apt):
+#   scripts/setup.sh demo   installs packages, builds, captures and solves the demo recipe
+#   scripts/setup.sh test   installs packages, builds, runs every test
+set -euo pipefail
+cd "$(dirname "$0")/.."
+case "${1:-}" in
+  demo|test) ;;
+  *) echo "usage: scripts/setup.sh demo|test" >&2; exit 2 ;;
+esac
+./scripts/install-deps.sh
+exec make "$1"
