@@ -2,36 +2,125 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace photorig::sim {
+namespace {
 
-cv::Mat CastShadowMask(const SurfaceMaps& surface, const Eigen::Vector3d& direction) {
+using Eigen::Vector3d;
+
+// Height of the heightfield at continuous pixel coordinates (col, row),
+// interpolated between the two rows (or columns) either side; NaN where the
+// surface is absent.
+float Interpolate(const cv::Mat& height, double col, double row, bool along_rows) {
+  const double f = along_rows ? row : col;
+  const int i0 = static_cast<int>(std::floor(f));
+  const double t = f - i0;
+  auto at = [&](int i) {
+    const int r = along_rows ? i : static_cast<int>(row), c = along_rows ? static_cast<int>(col) : i;
+    if (r < 0 || c < 0 || r >= height.rows || c >= height.cols) return std::numeric_limits<float>::quiet_NaN();
+    return height.at<float>(r, c);
+  };
+  const float a = at(i0), b = at(i0 + 1);
+  if (!std::isfinite(a)) return t > 0.5 ? b : a;
+  if (!std::isfinite(b)) return t < 0.5 ? a : b;
+  return static_cast<float>(a + t * (b - a));
+}
+
+}  // namespace
+
+double Light::IrradianceAt(const Vector3d& point_mm, Vector3d* towards_light) const {
+  if (!position_mm) {
+    *towards_light = direction;
+    return irradiance;
+  }
+  const Vector3d to = *position_mm - point_mm;
+  const double d2 = to.squaredNorm();
+  *towards_light = to / std::sqrt(d2);
+  const double cos_axis = -axis.dot(*towards_light);
+  if (cos_axis <= 0.0) return 0.0;
+  // Intensity on the axis chosen so that the irradiance at the origin is `irradiance`.
+  const double origin_d2 = position_mm->squaredNorm();
+  const double origin_cos = std::max(1e-12, axis.dot(-*position_mm) / std::sqrt(origin_d2));
+  const double intensity = irradiance * origin_d2 / std::pow(origin_cos, cos_exponent);
+  return intensity * std::pow(cos_axis, cos_exponent) / d2;
+}
+
+double Light::AngularRadiusAt(const Vector3d& point_mm) const {
+  if (!position_mm) return angular_radius_rad;
+  return std::asin(std::min(1.0, emitter_radius_mm / (*position_mm - point_mm).norm()));
+}
+
+cv::Mat CastShadowMask(const SurfaceMaps& surface, const Vector3d& direction) {
   const cv::Mat& height = surface.height;
   cv::Mat shadow = cv::Mat::zeros(height.size(), CV_8U);
-  if (direction.z() <= 0.0) return shadow;  // below the horizon: everything is in attached shadow anyway
+  const double horizontal = std::hypot(direction.x(), direction.y());
+  // Below the horizon everything is in attached shadow anyway; straight above nothing is cast.
+  if (direction.z() <= 0.0 || horizontal < 1e-9) return shadow;
+  const int rows = height.rows, cols = height.cols;
+  // Towards the light in pixel coordinates (rows grow downwards).
+  const double ux = direction.x() / horizontal, uy = -direction.y() / horizontal;
+  // Lines advance one pixel per step along the dominant axis and `slope`
+  // pixels along the other; a line's cross coordinate at step k is
+  // start + k * slope, so the lines (one per integer start) visit each pixel once.
+  const bool along_cols = std::abs(ux) >= std::abs(uy);
+  const int length = along_cols ? cols : rows, breadth = along_cols ? rows : cols;
+  const double main = along_cols ? ux : uy, cross = along_cols ? uy : ux;
+  const int first = main > 0 ? length - 1 : 0, step = main > 0 ? -1 : 1;  // start on the light's side
+  const double slope = -cross / std::abs(main);
+  const double step_mm = surface.pixel_pitch_mm * std::sqrt(1.0 + slope * slope);
+  const double drop = step_mm * direction.z() / horizontal;  // the shadow line falls this much per step
+  const double span = slope * (length - 1);
+  const int start_min = static_cast<int>(std::floor(std::min(0.0, -span))) - 1;
+  const int start_max = static_cast<int>(std::ceil(std::max(0.0, -span))) + breadth;
+
+#pragma omp parallel for schedule(dynamic, 16)
+  for (int start = start_min; start <= start_max; ++start) {
+    double horizon = -std::numeric_limits<double>::infinity();
+    for (int k = 0; k < length; ++k) {
+      const int m = first + step * k;
+      const double x = start + k * slope;  // exact cross coordinate
+      const int owner = start + static_cast<int>(std::floor(k * slope + 0.5));
+      const double col = along_cols ? m : x, row = along_cols ? x : m;
+      const float h = Interpolate(height, col, row, along_cols);
+      horizon -= drop;
+      if (!std::isfinite(h)) continue;
+      if (h < horizon - 1e-6 && owner >= 0 && owner < breadth) {
+        const int r = along_cols ? owner : m, c = along_cols ? m : owner;
+        if (std::isfinite(height.at<float>(r, c))) shadow.at<std::uint8_t>(r, c) = 1;
+      }
+      horizon = std::max(horizon, double(h));
+    }
+  }
+  return shadow;
+}
+
+cv::Mat CastShadowMask(const SurfaceMaps& surface, const Light& light) {
+  if (!light.position_mm) return CastShadowMask(surface, light.direction);
+  const cv::Mat& height = surface.height;
+  cv::Mat shadow = cv::Mat::zeros(height.size(), CV_8U);
   double max_height = 0.0;
   cv::minMaxLoc(height, nullptr, &max_height, nullptr, nullptr, surface.mask);
-  const double horizontal = std::hypot(direction.x(), direction.y());
-  if (horizontal < 1e-9) return shadow;  // light straight above: nothing shadows
-  // One step = half a pixel along the light's footprint; the ray climbs
-  // rise_per_step millimetres each step.
-  const double step_px = 0.5;
-  const double dc = step_px * direction.x() / horizontal;
-  const double dr = -step_px * direction.y() / horizontal;  // rows grow downwards
-  const double rise_per_step = step_px * surface.pixel_pitch_mm * direction.z() / horizontal;
   const int rows = height.rows, cols = height.cols;
-
+  const double pitch = surface.pixel_pitch_mm;
 #pragma omp parallel for schedule(dynamic, 8)
-  for (int r = 0; r < rows; ++r) {
+  for (int r = 0; r < rows; ++r)
     for (int c = 0; c < cols; ++c) {
       const float h0 = height.at<float>(r, c);
       if (!std::isfinite(h0)) continue;
-      double cc = c, rr = r, ray = h0;
-      while (ray < max_height) {
-        cc += dc;
-        rr += dr;
-        ray += rise_per_step;
-        const int ic = static_cast<int>(std::lround(cc)), ir = static_cast<int>(std::lround(rr));
+      const Vector3d p((c + 0.5 - 0.5 * cols) * pitch, (0.5 * rows - r - 0.5) * pitch, h0);
+      const Vector3d to = *light.position_mm - p;
+      const double horizontal = std::hypot(to.x(), to.y());
+      if (to.z() <= 0.0 || horizontal < 1e-9) continue;
+      // Half-pixel steps along the LED's footprint until the ray clears the
+      // highest point or reaches the LED.
+      const double steps_to_led = horizontal / (0.5 * pitch);
+      const double dc = 0.5 * to.x() / horizontal, dr = -0.5 * to.y() / horizontal;
+      const double rise = to.z() / steps_to_led;
+      double ray = h0;
+      for (int s = 1; s < steps_to_led && ray < max_height; ++s) {
+        ray += rise;
+        const int ic = static_cast<int>(std::lround(c + s * dc)), ir = static_cast<int>(std::lround(r + s * dr));
         if (ic < 0 || ir < 0 || ic >= cols || ir >= rows) break;
         const float h = height.at<float>(ir, ic);
         if (std::isfinite(h) && h > ray) {
@@ -40,34 +129,60 @@ cv::Mat CastShadowMask(const SurfaceMaps& surface, const Eigen::Vector3d& direct
         }
       }
     }
-  }
   return shadow;
 }
 
-cv::Mat RenderRadiance(const SurfaceMaps& surface, bool cast_shadows,
-                       const std::vector<DirectionalLight>& lights, const std::vector<double>& levels) {
+cv::Mat RenderRadiance(const SurfaceMaps& surface, const Brdf& brdf, bool cast_shadows,
+                       const std::vector<Light>& lights, const std::vector<double>& levels) {
   cv::Mat radiance = cv::Mat::zeros(surface.normals.size(), CV_32F);
+  const bool delta = brdf.IsDelta();
   for (std::size_t k = 0; k < lights.size(); ++k) {
     const double level = k < levels.size() ? levels[k] : 0.0;
     if (level <= 0.0) continue;
-    const Eigen::Vector3d w = lights[k].direction;
-    const float scale = static_cast<float>(level * lights[k].irradiance / M_PI);
-    const cv::Mat shadow = cast_shadows ? CastShadowMask(surface, w) : cv::Mat();
-    const float wx = float(w.x()), wy = float(w.y()), wz = float(w.z());
+    const Light& light = lights[k];
+    const cv::Mat shadow = cast_shadows ? CastShadowMask(surface, light) : cv::Mat();
 #pragma omp parallel for schedule(static)
     for (int r = 0; r < radiance.rows; ++r) {
-      const auto* n = surface.normals.ptr<cv::Vec3f>(r);
-      const float* albedo = surface.albedo.ptr<float>(r);
+      const auto* normal = surface.normals.ptr<cv::Vec3f>(r);
+      const auto* view = surface.view.ptr<cv::Vec3f>(r);
+      const auto* position = surface.position.ptr<cv::Vec3f>(r);
+      const auto* params = surface.brdf_params.ptr<cv::Vec4f>(r);
+      const std::uint8_t* mask = surface.mask.ptr<std::uint8_t>(r);
       const std::uint8_t* blocked = shadow.empty() ? nullptr : shadow.ptr<std::uint8_t>(r);
       float* out = radiance.ptr<float>(r);
       for (int c = 0; c < radiance.cols; ++c) {
-        if (!std::isfinite(albedo[c]) || (blocked && blocked[c])) continue;
-        const float cosine = n[c][0] * wx + n[c][1] * wy + n[c][2] * wz;
-        if (cosine > 0.0f) out[c] += scale * albedo[c] * cosine;
+        if (!mask[c] || (blocked && blocked[c])) continue;
+        const Vector3d n(normal[c][0], normal[c][1], normal[c][2]);
+        const Vector3d p(position[c][0], position[c][1], position[c][2]);
+        const Vector3d wo(view[c][0], view[c][1], view[c][2]);
+        const BrdfParams bp{params[c][0], params[c][1], params[c][2], params[c][3]};
+        Vector3d wi;
+        const double e = light.IrradianceAt(p, &wi);
+        const double cosine = n.dot(wi);
+        if (e <= 0.0 || cosine <= 0.0) continue;
+        if (delta) {
+          const double alpha = light.AngularRadiusAt(p);
+          if (MirrorDirection(n, wo).dot(wi) < std::cos(alpha)) continue;
+          const double s = std::sin(alpha);
+          out[c] += static_cast<float>(level * brdf.DeltaReflectance(bp) * e / (M_PI * s * s));
+        } else {
+          out[c] += static_cast<float>(level * brdf.Eval(n, wi, wo, bp) * e * cosine);
+        }
       }
     }
   }
   return radiance;
+}
+
+cv::Mat RenderRadiance(const SurfaceMaps& surface, bool cast_shadows, const std::vector<Light>& lights,
+                       const std::vector<double>& levels) {
+  return RenderRadiance(surface, *MakeBrdf(Brdf::Model::kLambertian), cast_shadows, lights, levels);
+}
+
+cv::Mat RenderTransmission(const cv::Mat& line_integrals, double backlight_radiance) {
+  cv::Mat radiance;
+  cv::exp(-line_integrals, radiance);
+  return radiance * backlight_radiance;
 }
 
 }  // namespace photorig::sim

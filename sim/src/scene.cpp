@@ -1,10 +1,170 @@
 #include "photorig/sim/scene.h"
 
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 
 namespace photorig::sim {
+namespace {
+
+using Eigen::Vector3d;
+
+// A surface z = h(x, y) with its gradient; false where it does not exist.
+using HeightFunction = std::function<bool(double x, double y, double* z, double* dzdx, double* dzdy)>;
+
+cv::Mat LoadDepthMap(const Scene& scene) {
+  const cv::Mat raw = cv::imread(scene.depth_map_path, cv::IMREAD_UNCHANGED);
+  if (raw.empty()) throw std::runtime_error("cannot read depth map '" + scene.depth_map_path + "'");
+  if (raw.channels() != 1 || (raw.depth() != CV_16U && raw.depth() != CV_32F))
+    throw std::runtime_error("depth map '" + scene.depth_map_path +
+                             "': expected a single-channel 16-bit PNG or float TIFF");
+  cv::Mat depth;
+  raw.convertTo(depth, CV_32F, scene.depth_scale_mm);
+  // No data: 0 in a PNG (it has no NaN), NaN in a TIFF.
+  if (raw.depth() == CV_16U) depth.setTo(std::numeric_limits<float>::quiet_NaN(), raw == 0);
+  return depth;
+}
+
+HeightFunction MakeHeightFunction(const Scene& scene, double pitch_mm) {
+  switch (scene.shape) {
+    case Scene::Shape::kBumps:
+      // z = sum a exp(-d^2 / 2 s^2).
+      return [&scene](double x, double y, double* z, double* dzdx, double* dzdy) {
+        *z = *dzdx = *dzdy = 0.0;
+        for (const Bump& b : scene.bumps) {
+          const double dx = x - b.x_mm, dy = y - b.y_mm, s2 = b.sigma_mm * b.sigma_mm;
+          const double g = b.amplitude_mm * std::exp(-(dx * dx + dy * dy) / (2.0 * s2));
+          *z += g;
+          *dzdx -= g * dx / s2;
+          *dzdy -= g * dy / s2;
+        }
+        return true;
+      };
+    case Scene::Shape::kConcave:
+      // A bowl cut from a sphere of radius R so that its rim (radius a) lies at z = 0.
+      return [R = scene.bowl_radius_mm, a = scene.rim_radius_mm](double x, double y, double* z, double* dzdx,
+                                                                   double* dzdy) {
+        const double r2 = x * x + y * y;
+        *z = *dzdx = *dzdy = 0.0;
+        if (r2 >= a * a) return true;
+        const double s = std::sqrt(R * R - r2);
+        *z = std::sqrt(R * R - a * a) - s;
+        *dzdx = x / s;
+        *dzdy = y / s;
+        return true;
+      };
+    case Scene::Shape::kSteps:
+      // Terraces of width w descending by h towards +x; tread k is tilted by
+      // +-slope alternately, so the two sides of every edge differ in depth and normal.
+      return [w = scene.step_width_mm, h = scene.step_height_mm, s = scene.step_slope](
+                 double x, double, double* z, double* dzdx, double* dzdy) {
+        const double u = x / w;
+        const double k = std::floor(u);
+        const double slope = (static_cast<long>(k) % 2 == 0) ? s : -s;
+        *z = -k * h + slope * (u - k - 0.5) * w;
+        *dzdx = slope;
+        *dzdy = 0.0;
+        return true;
+      };
+    case Scene::Shape::kSamplePlane: {
+      const double t = scene.tilt_deg * M_PI / 180.0, radius = scene.sphere_radius_mm;
+      return [t, radius](double x, double y, double* z, double* dzdx, double* dzdy) {
+        const double u = x / std::cos(t);  // in-plane coordinate of the tilted disc
+        if (u * u + y * y >= radius * radius) return false;
+        *z = -x * std::tan(t);
+        *dzdx = -std::tan(t);
+        *dzdy = 0.0;
+        return true;
+      };
+    }
+    case Scene::Shape::kDepthMap: {
+      auto depth = std::make_shared<cv::Mat>(LoadDepthMap(scene));
+      const double d = scene.depth_pitch_mm > 0 ? scene.depth_pitch_mm : pitch_mm;
+      // Bilinear between depth-map pixel centres; the map is centred on the origin.
+      auto at = [depth, d](double x, double y, double* z) {
+        const double fc = x / d + 0.5 * depth->cols - 0.5, fr = 0.5 * depth->rows - y / d - 0.5;
+        const int c0 = static_cast<int>(std::floor(fc)), r0 = static_cast<int>(std::floor(fr));
+        const double tc = fc - c0, tr = fr - r0;
+        double sum = 0.0, weight = 0.0;
+        for (int i = 0; i < 2; ++i)
+          for (int j = 0; j < 2; ++j) {
+            const int r = std::clamp(r0 + i, 0, depth->rows - 1), c = std::clamp(c0 + j, 0, depth->cols - 1);
+            const double wgt = (i ? tr : 1 - tr) * (j ? tc : 1 - tc);
+            const float v = depth->at<float>(r, c);
+            if (wgt == 0.0) continue;
+            if (!std::isfinite(v)) return false;
+            sum += wgt * v;
+            weight += wgt;
+          }
+        if (fc < -0.5 || fr < -0.5 || fc > depth->cols - 0.5 || fr > depth->rows - 0.5) return false;
+        *z = sum / weight;
+        return true;
+      };
+      // Central differences one depth-map pixel wide, one-sided at the edge of the data.
+      return [at, d](double x, double y, double* z, double* dzdx, double* dzdy) {
+        if (!at(x, y, z)) return false;
+        auto slope = [&](double ex, double ey) {
+          double plus = 0.0, minus = 0.0;
+          const bool p = at(x + ex * d, y + ey * d, &plus), m = at(x - ex * d, y - ey * d, &minus);
+          if (p && m) return (plus - minus) / (2 * d);
+          if (p) return (plus - *z) / d;
+          if (m) return (*z - minus) / d;
+          return 0.0;
+        };
+        *dzdx = slope(1, 0);
+        *dzdy = slope(0, 1);
+        return true;
+      };
+    }
+    default: return nullptr;
+  }
+}
+
+// The first hit of a ray on a heightfield: exact under an orthographic camera,
+// fixed-point iteration along the ray under a pinhole one (it converges where
+// the surface slope times the ray's tilt is below 1; a ray grazing a step's
+// riser does not converge and the pixel is left off the object).
+bool IntersectHeightfield(const HeightFunction& h, const Vector3d& origin, const Vector3d& dir, Vector3d* point,
+                          Vector3d* normal) {
+  double z = 0.0, dzdx = 0.0, dzdy = 0.0;
+  if (dir.x() == 0.0 && dir.y() == 0.0) {
+    if (!h(origin.x(), origin.y(), &z, &dzdx, &dzdy)) return false;
+    *point = {origin.x(), origin.y(), z};
+  } else {
+    bool converged = false;
+    for (int i = 0; i < 60 && !converged; ++i) {
+      const double t = (z - origin.z()) / dir.z();
+      double next;
+      if (!h(origin.x() + t * dir.x(), origin.y() + t * dir.y(), &next, &dzdx, &dzdy)) return false;
+      converged = std::abs(next - z) < 1e-7;
+      z = next;
+    }
+    if (!converged) return false;
+    const double t = (z - origin.z()) / dir.z();
+    *point = origin + t * dir;
+  }
+  *normal = Vector3d(-dzdx, -dzdy, 1.0).normalized();
+  return true;
+}
+
+bool IntersectSphere(double radius, const Vector3d& origin, const Vector3d& dir, Vector3d* point, Vector3d* normal) {
+  const double b = origin.dot(dir), c = origin.squaredNorm() - radius * radius;
+  const double disc = b * b - c;
+  if (disc <= 0.0) return false;
+  *point = origin + (-b - std::sqrt(disc)) * dir;
+  // Orthographic rays start far away: recompute z from (x, y) for full precision.
+  const double d2 = point->x() * point->x() + point->y() * point->y();
+  if (d2 >= radius * radius) return false;
+  point->z() = std::sqrt(radius * radius - d2);
+  *normal = *point / radius;
+  return true;
+}
+
+}  // namespace
 
 double AlbedoTexture::At(double x_mm, double y_mm) const {
   switch (pattern) {
@@ -23,13 +183,108 @@ double AlbedoTexture::At(double x_mm, double y_mm) const {
   return high;
 }
 
-Scene::Shape Scene::ParseShape(const std::string& name) {
-  if (name == "sphere") return Shape::kSphere;
-  if (name == "bumps") return Shape::kBumps;
-  throw std::invalid_argument("unknown shape '" + name + "' (expected sphere or bumps)");
+bool Material::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why) *why = message;
+    return false;
+  };
+  switch (model) {
+    case Brdf::Model::kBlinnPhong:
+    case Brdf::Model::kTabulated:
+      if (!(rho_s >= 0)) return fail("rho_s must be >= 0");
+      if (!(exponent >= 0)) return fail("exponent must be >= 0");
+      break;
+    case Brdf::Model::kGgx:
+      if (!(roughness > 0 && roughness <= 1)) return fail("roughness must lie in (0, 1]");
+      if (!(f0 >= 0 && f0 < 1)) return fail("f0 must lie in [0, 1)");
+      break;
+    case Brdf::Model::kMirror:
+      if (!(rho_s >= 0 && rho_s <= 1)) return fail("mirror reflectance rho_s must lie in [0, 1]");
+      break;
+    case Brdf::Model::kLambertian: break;
+  }
+  return true;
 }
 
-const char* Scene::ShapeName(Shape shape) { return shape == Shape::kSphere ? "sphere" : "bumps"; }
+std::unique_ptr<Brdf> Material::MakeBrdf(double stand_in_rho_d) const {
+  if (model != Brdf::Model::kTabulated) return sim::MakeBrdf(model);
+  return sim::MakeBrdf(model, table ? table
+                                    : std::make_shared<MerlTable>(MerlTable::FromBlinnPhong(stand_in_rho_d, rho_s, exponent)));
+}
+
+bool Scene::IsHeightfield() const {
+  switch (shape) {
+    case Shape::kBumps:
+    case Shape::kConcave:
+    case Shape::kSteps:
+    case Shape::kDepthMap:
+    case Shape::kMesh:
+    case Shape::kSamplePlane: return true;
+    default: return false;
+  }
+}
+
+bool Scene::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (!material.IsValid(why)) return false;
+  if (!(albedo.low >= 0 && albedo.high <= 1 && albedo.low <= albedo.high))
+    return fail("albedo needs 0 <= low <= high <= 1");
+  // Blinn-Phong's (e + 2) / (2 pi) lobe reflects up to 4 rho_s at normal view
+  // (the half-vector Jacobian); this keeps the white furnace test true.
+  if (material.model == Brdf::Model::kBlinnPhong && albedo.high + 4.0 * material.rho_s > 1.0 + 1e-9)
+    return fail("blinn_phong conserves energy only if albedo + 4 rho_s <= 1");
+  if (IsSphere() && !(sphere_radius_mm > 0)) return fail("radius_mm must be > 0");
+  if (shape == Shape::kMirrorSphere && material.model != Brdf::Model::kMirror)
+    return fail("a mirror_sphere has the mirror BRDF");
+  if (shape == Shape::kWhiteSphere && material.model != Brdf::Model::kLambertian)
+    return fail("a white_sphere is Lambertian");
+  if (shape == Shape::kConcave && !(rim_radius_mm > 0 && bowl_radius_mm >= rim_radius_mm))
+    return fail("a bowl needs 0 < rim_radius_mm <= bowl_radius_mm");
+  if (shape == Shape::kSteps && !(step_width_mm > 0 && step_height_mm >= 0))
+    return fail("steps need step_width_mm > 0 and step_height_mm >= 0");
+  if (shape == Shape::kSamplePlane && !(std::abs(tilt_deg) < 89.0)) return fail("tilt_deg must lie in (-89, 89)");
+  if (shape == Shape::kDepthMap && depth_map_path.empty()) return fail("a depth_map scene needs a path");
+  if (shape == Shape::kMesh && mesh_path.empty()) return fail("a mesh scene needs a path");
+  if (shape == Shape::kMesh && !(mesh_scale > 0)) return fail("mesh_scale must be > 0");
+  if (shape == Shape::kVolume && !volume.IsValid(why)) return false;
+  if (shape == Shape::kVolume && !(backlight_radiance > 0)) return fail("backlight_radiance must be > 0");
+  return true;
+}
+
+namespace {
+constexpr Scene::Shape kAllShapes[] = {
+    Scene::Shape::kSphere,       Scene::Shape::kBumps,       Scene::Shape::kConcave,
+    Scene::Shape::kSteps,        Scene::Shape::kDepthMap,    Scene::Shape::kMesh,
+    Scene::Shape::kMirrorSphere, Scene::Shape::kWhiteSphere, Scene::Shape::kSamplePlane,
+    Scene::Shape::kVolume};
+}  // namespace
+
+Scene::Shape Scene::ParseShape(const std::string& name) {
+  for (Shape shape : kAllShapes)
+    if (name == ShapeName(shape)) return shape;
+  throw std::invalid_argument("unknown shape '" + name +
+                              "' (expected sphere, bumps, concave, steps, depth_map, mesh, mirror_sphere, "
+                              "white_sphere, sample_plane or volume)");
+}
+
+const char* Scene::ShapeName(Shape shape) {
+  switch (shape) {
+    case Shape::kSphere: return "sphere";
+    case Shape::kBumps: return "bumps";
+    case Shape::kConcave: return "concave";
+    case Shape::kSteps: return "steps";
+    case Shape::kDepthMap: return "depth_map";
+    case Shape::kMesh: return "mesh";
+    case Shape::kMirrorSphere: return "mirror_sphere";
+    case Shape::kWhiteSphere: return "white_sphere";
+    case Shape::kSamplePlane: return "sample_plane";
+    case Shape::kVolume: return "volume";
+  }
+  return "?";
+}
 
 std::vector<Bump> Scene::DefaultBumps(double frame_width_mm) {
   // A 3 x 3 grid alternating bumps and dimples, steep enough to cast shadows
@@ -49,51 +304,101 @@ std::vector<Bump> Scene::DefaultBumps(double frame_width_mm) {
   return bumps;
 }
 
+void Scene::ApplyShapeDefaults(double frame_width_mm) {
+  sphere_radius_mm = 0.45 * frame_width_mm;
+  bumps = shape == Shape::kBumps ? DefaultBumps(frame_width_mm) : std::vector<Bump>{};
+  rim_radius_mm = 0.3 * frame_width_mm;
+  bowl_radius_mm = 0.4 * frame_width_mm;
+  step_width_mm = frame_width_mm / 5.0;
+  step_height_mm = 0.05 * frame_width_mm;
+  if (shape == Shape::kVolume) volume = DensityGrid::Blobs(0.8 * frame_width_mm, 64, 0.2);
+  if (shape == Shape::kMirrorSphere) {
+    material.model = Brdf::Model::kMirror;
+    material.rho_s = 0.9;
+  }
+  if (shape == Shape::kWhiteSphere) {
+    material.model = Brdf::Model::kLambertian;
+    albedo.pattern = AlbedoTexture::Pattern::kUniform;
+    albedo.high = 0.99;
+  }
+}
+
 SurfaceMaps SampleSurface(const Scene& scene, int width, int height, double pixel_pitch_mm) {
+  CameraModel camera;
+  camera.width = width;
+  camera.height = height;
+  camera.pixel_pitch_mm = pixel_pitch_mm;
+  return SampleSurface(scene, camera);
+}
+
+SurfaceMaps SampleSurface(const Scene& scene, const CameraModel& camera) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
+  const int width = camera.width, height = camera.height;
   SurfaceMaps maps;
-  maps.pixel_pitch_mm = pixel_pitch_mm;
+  maps.pixel_pitch_mm = camera.pixel_pitch_mm;
+  maps.height_on_pixel_grid = camera.projection == CameraModel::Projection::kOrthographic;
   maps.normals.create(height, width, CV_32FC3);
   maps.normals.setTo(cv::Scalar::all(nan));
+  maps.position.create(height, width, CV_32FC3);
+  maps.position.setTo(cv::Scalar::all(nan));
+  maps.view.create(height, width, CV_32FC3);
+  maps.view.setTo(cv::Scalar::all(nan));
+  maps.brdf_params.create(height, width, CV_32FC4);
+  maps.brdf_params.setTo(cv::Scalar::all(nan));
   maps.albedo.create(height, width, CV_32F);
   maps.albedo.setTo(nan);
   maps.height.create(height, width, CV_32F);
   maps.height.setTo(nan);
+  maps.depth.create(height, width, CV_32F);
+  maps.depth.setTo(nan);
   maps.mask = cv::Mat::zeros(height, width, CV_8U);
 
+  if (scene.shape == Scene::Shape::kVolume) {
+    maps.line_integrals = LineIntegrals(scene.volume, camera);
+    return maps;
+  }
+  cv::Mat mesh_height, mesh_normals;
+  if (scene.shape == Scene::Shape::kMesh) {
+    TriangleMesh mesh = LoadPly(scene.mesh_path);
+    for (auto& v : mesh.vertices) v *= scene.mesh_scale;
+    RasterizeOrthographic(mesh, camera, &mesh_height, &mesh_normals);
+  }
+  const HeightFunction heightfield = MakeHeightFunction(scene, camera.pixel_pitch_mm);
+  const Material& m = scene.material;
+  const float shininess = static_cast<float>(m.model == Brdf::Model::kGgx ? m.roughness : m.exponent);
+
+#pragma omp parallel for schedule(dynamic, 16)
   for (int r = 0; r < height; ++r) {
-    const double y = (0.5 * height - r - 0.5) * pixel_pitch_mm;
     for (int c = 0; c < width; ++c) {
-      const double x = (c + 0.5 - 0.5 * width) * pixel_pitch_mm;
-      double nx, ny, nz, z;
-      if (scene.shape == Scene::Shape::kSphere) {
-        const double rr = scene.sphere_radius_mm;
-        const double d2 = x * x + y * y;
-        if (d2 >= rr * rr) continue;
-        z = std::sqrt(rr * rr - d2);
-        nx = x / rr;
-        ny = y / rr;
-        nz = z / rr;
-      } else {
-        // z = sum a exp(-d^2 / 2 s^2); the normal is (-dz/dx, -dz/dy, 1) normalised.
-        double dzdx = 0.0, dzdy = 0.0;
-        z = 0.0;
-        for (const Bump& b : scene.bumps) {
-          const double dx = x - b.x_mm, dy = y - b.y_mm;
-          const double s2 = b.sigma_mm * b.sigma_mm;
-          const double g = b.amplitude_mm * std::exp(-(dx * dx + dy * dy) / (2.0 * s2));
-          z += g;
-          dzdx -= g * dx / s2;
-          dzdy -= g * dy / s2;
+      Vector3d origin, dir, p, n;
+      camera.Ray(c, r, &origin, &dir);
+      bool hit;
+      if (scene.IsSphere()) {
+        hit = IntersectSphere(scene.sphere_radius_mm, origin, dir, &p, &n);
+      } else if (scene.shape == Scene::Shape::kMesh) {
+        const float z = mesh_height.at<float>(r, c);
+        hit = std::isfinite(z);
+        if (hit) {
+          p = {origin.x(), origin.y(), z};
+          const cv::Vec3f& mn = mesh_normals.at<cv::Vec3f>(r, c);
+          n = {mn[0], mn[1], mn[2]};
         }
-        const double length = std::sqrt(dzdx * dzdx + dzdy * dzdy + 1.0);
-        nx = -dzdx / length;
-        ny = -dzdy / length;
-        nz = 1.0 / length;
+      } else {
+        hit = IntersectHeightfield(heightfield, origin, dir, &p, &n);
       }
-      maps.normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(nx), float(ny), float(nz));
-      maps.albedo.at<float>(r, c) = static_cast<float>(scene.albedo.At(x, y));
-      maps.height.at<float>(r, c) = static_cast<float>(z);
+      if (!hit) continue;
+      const Vector3d wo = camera.ViewDirection(p);
+      // A table carries its own diffuse part: the texture does not apply.
+      const float rho_d = static_cast<float>(m.model == Brdf::Model::kTabulated ? scene.albedo.high
+                                                                                 : scene.albedo.At(p.x(), p.y()));
+      maps.normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
+      maps.position.at<cv::Vec3f>(r, c) = cv::Vec3f(float(p.x()), float(p.y()), float(p.z()));
+      maps.view.at<cv::Vec3f>(r, c) = cv::Vec3f(float(wo.x()), float(wo.y()), float(wo.z()));
+      maps.brdf_params.at<cv::Vec4f>(r, c) = cv::Vec4f(rho_d, float(m.rho_s), shininess, float(m.f0));
+      maps.albedo.at<float>(r, c) = rho_d;
+      maps.height.at<float>(r, c) = static_cast<float>(p.z());
+      maps.depth.at<float>(r, c) = static_cast<float>(
+          camera.projection == CameraModel::Projection::kPinhole ? camera.distance_mm - p.z() : -p.z());
       maps.mask.at<std::uint8_t>(r, c) = 255;
     }
   }

@@ -1,11 +1,27 @@
 #include "photorig/sim/world.h"
 
+#include <stdexcept>
+
 namespace photorig::sim {
+namespace {
+
+const WorldConfig& Validated(const WorldConfig& config) {
+  std::string why;
+  if (!config.camera.IsValid(&why)) throw std::invalid_argument("simulated camera: " + why);
+  if (!config.scene.IsValid(&why)) throw std::invalid_argument("simulated scene: " + why);
+  if (config.scene.shape == Scene::Shape::kMesh && config.camera.projection != CameraModel::Projection::kOrthographic)
+    throw std::invalid_argument("simulated scene: meshes are rasterised orthographically only");
+  return config;
+}
+
+}  // namespace
 
 World::World(WorldConfig config)
-    : config_(std::move(config)),
-      surface_(SampleSurface(config_.scene, config_.camera.width, config_.camera.height,
-                             config_.camera.pixel_pitch_mm)),
+    : config_(Validated(config)),
+      surface_(SampleSurface(config_.scene, config_.camera)),
+      brdf_(config_.scene.material.MakeBrdf(config_.scene.albedo.high)),
+      // The sweep needs the heightfield on the pixel grid, i.e. an orthographic view.
+      cast_shadows_(config_.scene.cast_shadows && config_.scene.IsHeightfield() && surface_.height_on_pixel_grid),
       levels_(config_.lights.size(), 0.0) {}
 
 void World::SetLevels(std::vector<double> levels) {
@@ -19,8 +35,10 @@ std::vector<double> World::levels() const {
 }
 
 cv::Mat World::RenderRadiance() const {
-  const bool cast_shadows = config_.scene.cast_shadows && config_.scene.shape == Scene::Shape::kBumps;
-  return sim::RenderRadiance(surface_, cast_shadows, config_.lights, levels());
+  // The backlight belongs to the scene, not to the dome: it is always on.
+  if (config_.scene.shape == Scene::Shape::kVolume)
+    return RenderTransmission(surface_.line_integrals, config_.scene.backlight_radiance);
+  return sim::RenderRadiance(surface_, *brdf_, cast_shadows_, config_.lights, levels());
 }
 
 }  // namespace photorig::sim

@@ -52,7 +52,7 @@ TEST(RenderRadiance, LambertianSphereMatchesTheClosedForm) {
 
 TEST(RenderRadiance, LightsAddUp) {
   const SurfaceMaps maps = SampleSurface(UniformSphere(10.0, 0.6), 24, 24, 0.9);
-  const std::vector<DirectionalLight> lights = {{Eigen::Vector3d(0, 0, 1), 1.0},
+  const std::vector<Light> lights = {{Eigen::Vector3d(0, 0, 1), 1.0},
                                                 {Eigen::Vector3d(0.6, 0, 0.8), 2.0}};
   const cv::Mat both = RenderRadiance(maps, false, lights, {1.0, 0.5});
   const cv::Mat first = RenderRadiance(maps, false, lights, {1.0, 0.0});

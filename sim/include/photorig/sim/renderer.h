@@ -1,29 +1,67 @@
 #pragma once
-// Radiance of a Lambertian scene under distant lights, seen orthographically.
-//   L(p) = albedo(p) / pi * sum_k E_k * max(0, n(p) . w_k) * V_k(p)
-// V_k is 1 unless the heightfield itself blocks the light (cast shadow).
+// Direct lighting of the sampled surface, per pixel:
+//   L(p) = sum_k level_k * f_r(w_i, w_o) * E_k(p) * max(0, n . w_i) * V_k(p)
+// with w_o the pixel's view direction (SurfaceMaps::view) and V_k = 0 where
+// the heightfield blocks light k (cast shadow). Delta BRDFs (mirror) instead
+// reflect the radiance of the source seen along the mirror direction:
+//   L(p) = level_k * R * E_k(p) / (pi sin^2 alpha_k)  if the mirror direction falls inside the source's disc
+// where alpha_k is the angular radius of light k seen from p.
+// Radiance, irradiance: arbitrary but consistent units (the sensor's
+// response_e_per_us converts radiance to electrons).
 
+#include "photorig/sim/brdf.h"
 #include "photorig/sim/scene.h"
 
 #include <Eigen/Core>
 
+#include <optional>
 #include <vector>
 
 namespace photorig::sim {
 
-struct DirectionalLight {
-  Eigen::Vector3d direction{0.0, 0.0, 1.0};  // unit, towards the light
-  double irradiance = 1.0;                   // at the object, for drive level 1
+// A distant light (default), or a near LED when position_mm is set.
+struct Light {
+  Light() = default;
+  // A distant light.
+  Light(const Eigen::Vector3d& towards_light, double irradiance_at_object)
+      : direction(towards_light), irradiance(irradiance_at_object) {}
+
+  Eigen::Vector3d direction{0.0, 0.0, 1.0};  // distant: unit, towards the light
+  // Irradiance at normal incidence at the object origin for drive level 1
+  // (the figure a dome calibration measures, near or distant alike).
+  double irradiance = 1.0;
+  double angular_radius_rad = 0.01;  // distant: apparent radius of the source (mirror highlights)
+  // Near LED: irradiance falls off as cos^m(angle to axis) / distance^2.
+  std::optional<Eigen::Vector3d> position_mm;
+  Eigen::Vector3d axis{0.0, 0.0, -1.0};  // unit, the LED's emission axis
+  double cos_exponent = 1.0;             // m: 1 is a Lambertian emitter
+  double emitter_radius_mm = 1.5;        // physical radius (mirror highlights)
+
+  // Unit direction towards the light from `point`, and the irradiance there at
+  // normal incidence (0 behind a near LED).
+  double IrradianceAt(const Eigen::Vector3d& point_mm, Eigen::Vector3d* towards_light) const;
+  // Angular radius of the source seen from `point`.
+  double AngularRadiusAt(const Eigen::Vector3d& point_mm) const;
 };
 
 // `levels[k]` scales light k (0 = off). Threads over rows; the result does not
 // depend on the thread count.
-cv::Mat RenderRadiance(const SurfaceMaps& surface, bool cast_shadows,
-                       const std::vector<DirectionalLight>& lights, const std::vector<double>& levels);
+cv::Mat RenderRadiance(const SurfaceMaps& surface, const Brdf& brdf, bool cast_shadows,
+                       const std::vector<Light>& lights, const std::vector<double>& levels);
+// The Lambertian case, with the albedo map as rho_d.
+cv::Mat RenderRadiance(const SurfaceMaps& surface, bool cast_shadows, const std::vector<Light>& lights,
+                       const std::vector<double>& levels);
 
-// 1 where the heightfield blocks the light towards `direction`, found by
-// marching from each pixel towards the light until the ray clears the highest
-// point of the surface.
+// 1 where the heightfield (surface.height on the orthographic pixel grid)
+// blocks a distant light towards `direction`. Horizon sweep: lines parallel to
+// the light's azimuth are walked away from the light keeping the highest
+// shadow-casting height, so the cost is O(pixels) whatever the elevation.
 cv::Mat CastShadowMask(const SurfaceMaps& surface, const Eigen::Vector3d& direction);
+// Any light: the sweep for a distant one, a march from each pixel towards the
+// LED for a near one (its direction changes across the frame).
+cv::Mat CastShadowMask(const SurfaceMaps& surface, const Light& light);
+
+// Transmission through an absorbing medium: L = L_backlight * exp(-tau).
+cv::Mat RenderTransmission(const cv::Mat& line_integrals, double backlight_radiance);
 
 }  // namespace photorig::sim

@@ -3,13 +3,20 @@
 // imply. Units: millimetres in the object's frame, which coincides with the
 // camera frame (x right, y up, z towards the camera).
 
+#include "photorig/sim/brdf.h"
+#include "photorig/sim/camera_model.h"
+#include "photorig/sim/mesh.h"
+#include "photorig/sim/volume.h"
+
 #include <opencv2/core.hpp>
 
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace photorig::sim {
 
+// A scalar texture over the object's (x, y); used for the diffuse albedo.
 struct AlbedoTexture {
   enum class Pattern { kUniform, kChecker, kRings };
   Pattern pattern = Pattern::kChecker;
@@ -20,6 +27,22 @@ struct AlbedoTexture {
   double At(double x_mm, double y_mm) const;
 };
 
+// The reflectance of the whole object: a model and its parameters. rho_d
+// comes from the scene's albedo texture, so every model can be textured.
+struct Material {
+  Brdf::Model model = Brdf::Model::kLambertian;
+  double rho_s = 0.1;       // blinn_phong specular weight; mirror reflectance
+  double exponent = 50.0;   // blinn_phong
+  double roughness = 0.3;   // ggx a (width of the microfacet distribution)
+  double f0 = 0.04;         // ggx Fresnel at normal incidence
+  std::shared_ptr<const MerlTable> table;  // tabulated; null: the Blinn-Phong stand-in of rho_s/exponent
+
+  bool IsValid(std::string* why) const;
+  // `stand_in_rho_d`: the diffuse part of the Blinn-Phong stand-in table
+  // (a measured table carries its own, and the albedo texture does not apply).
+  std::unique_ptr<Brdf> MakeBrdf(double stand_in_rho_d) const;
+};
+
 // A Gaussian bump (amplitude > 0) or dimple (amplitude < 0) on a flat base.
 struct Bump {
   double x_mm = 0.0, y_mm = 0.0;
@@ -28,31 +51,69 @@ struct Bump {
 };
 
 struct Scene {
-  enum class Shape { kSphere, kBumps };
+  enum class Shape {
+    kSphere,        // sphere_radius_mm, centred on the optical axis
+    kBumps,         // heightfield: sum of `bumps`
+    kConcave,       // heightfield: a spherical bowl of radius bowl_radius_mm cut to rim_radius_mm
+    kSteps,         // heightfield: tilted terraces with a vertical drop between them
+    kDepthMap,      // heightfield from a 16-bit PNG or float TIFF (depth_map_path)
+    kMesh,          // PLY triangle mesh (mesh_path), rasterised orthographically
+    kMirrorSphere,  // chrome sphere: a sphere with the mirror BRDF
+    kWhiteSphere,   // diffuse white sphere: a sphere, Lambertian, uniform albedo
+    kSamplePlane,   // flat material sample, disc of sphere_radius_mm, tilted by tilt_deg about y
+    kVolume,        // absorbing medium in front of a backlight
+  };
   Shape shape = Shape::kSphere;
-  double sphere_radius_mm = 18.0;  // kSphere: centred on the optical axis
-  std::vector<Bump> bumps;         // kBumps: heightfield z = sum of bumps over the whole frame
+  double sphere_radius_mm = 18.0;
+  std::vector<Bump> bumps;
+  double bowl_radius_mm = 15.0, rim_radius_mm = 12.0;
+  double step_width_mm = 8.0, step_height_mm = 2.0, step_slope = 0.15;  // slope: dz/dx of each tread
+  std::string depth_map_path;
+  double depth_scale_mm = 0.01;   // mm per stored unit (PNG) or per TIFF value
+  double depth_pitch_mm = 0.0;    // size of a depth-map pixel; 0 = the camera's pixel pitch
+  std::string mesh_path;
+  double mesh_scale = 1.0;        // PLY units to mm
+  double tilt_deg = 0.0;
+  DensityGrid volume;
+  double backlight_radiance = 1.0;
   AlbedoTexture albedo;
-  bool cast_shadows = true;        // kBumps only; a sphere has attached shadows only
+  Material material;
+  bool cast_shadows = true;       // heightfields and meshes; a sphere has attached shadows only
+
+  bool IsValid(std::string* why) const;
+  bool IsHeightfield() const;     // cast shadows apply
+  bool IsSphere() const { return shape == Shape::kSphere || shape == Shape::kMirrorSphere || shape == Shape::kWhiteSphere; }
 
   static Scene::Shape ParseShape(const std::string& name);  // throws std::invalid_argument
   static const char* ShapeName(Shape shape);
   // A fixed pattern of bumps and dimples sized to a frame of the given width.
   static std::vector<Bump> DefaultBumps(double frame_width_mm);
+  // Fills the shape's parameters with defaults sized to the frame, and the
+  // material the shape implies (mirror_sphere, white_sphere).
+  void ApplyShapeDefaults(double frame_width_mm);
 };
 
-// Per-pixel geometry seen through an orthographic camera: both the ground truth
-// written beside every capture and the input of the renderer.
+// Per-pixel geometry and reflectance parameters seen through the camera: both
+// the ground truth written beside every capture and the input of the renderer.
 struct SurfaceMaps {
-  cv::Mat normals;  // CV_32FC3 (x, y, z); NaN off the object
-  cv::Mat albedo;   // CV_32F; NaN off the object
-  cv::Mat height;   // CV_32F z in mm; NaN off the object
-  cv::Mat mask;     // CV_8U, 255 on the object
+  cv::Mat normals;      // CV_32FC3 (x, y, z); NaN off the object
+  cv::Mat albedo;       // CV_32F diffuse albedo rho_d; NaN off the object
+  cv::Mat height;       // CV_32F z of the surface point in mm; NaN off the object
+  cv::Mat depth;        // CV_32F distance along the optical axis from the camera (pinhole), or -z (orthographic)
+  cv::Mat position;     // CV_32FC3 surface point in mm
+  cv::Mat view;         // CV_32FC3 unit direction towards the camera (w_o)
+  cv::Mat brdf_params;  // CV_32FC4 (rho_d, rho_s, shininess, f0), see BrdfParams
+  cv::Mat mask;         // CV_8U, 255 on the object
+  cv::Mat line_integrals;  // CV_32F tau per pixel; volume scenes only
   double pixel_pitch_mm = 0.1;
+  bool height_on_pixel_grid = true;  // orthographic: `height` is a regular heightfield grid
 };
 
-// Samples the analytic surface at pixel centres (one sample per pixel, so the
-// rendered radiance and the ground-truth normal describe the same point).
+// Samples the surface at pixel centres (one sample per pixel, so the rendered
+// radiance and the ground-truth normal describe the same point). Throws
+// std::runtime_error when a depth map or mesh cannot be read.
+SurfaceMaps SampleSurface(const Scene& scene, const CameraModel& camera);
+// The orthographic form kept for callers that only know a pitch.
 SurfaceMaps SampleSurface(const Scene& scene, int width, int height, double pixel_pitch_mm);
 
 }  // namespace photorig::sim

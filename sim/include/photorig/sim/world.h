@@ -3,6 +3,7 @@
 // the LEDs are, how bright each one is right now. The simulated devices share
 // one World, so a camera frame always shows the lights the controller set.
 
+#include "photorig/sim/camera_model.h"
 #include "photorig/sim/faults.h"
 #include "photorig/sim/renderer.h"
 #include "photorig/sim/scene.h"
@@ -15,16 +16,10 @@
 
 namespace photorig::sim {
 
-struct OrthographicCamera {
-  int width = 384;
-  int height = 384;
-  double pixel_pitch_mm = 0.1;  // object-space size of one pixel
-};
-
 struct WorldConfig {
   Scene scene;
-  std::vector<DirectionalLight> lights;
-  OrthographicCamera camera;
+  std::vector<Light> lights;  // one per controller channel
+  CameraModel camera;
   SensorModel sensor;
   std::uint64_t seed = 1;
   CameraFaults camera_faults;
@@ -33,6 +28,8 @@ struct WorldConfig {
 
 class World {
  public:
+  // Throws std::invalid_argument for an invalid scene or camera, and
+  // std::runtime_error when a depth map or mesh cannot be read.
   explicit World(WorldConfig config);
 
   const WorldConfig& config() const { return config_; }
@@ -46,6 +43,8 @@ class World {
  private:
   WorldConfig config_;
   SurfaceMaps surface_;
+  std::unique_ptr<Brdf> brdf_;
+  bool cast_shadows_ = false;
   mutable std::mutex mutex_;
   std::vector<double> levels_;
 };

@@ -1,0 +1,86 @@
+#pragma once
+// Reflectance models behind one interface, evaluated per pixel.
+// Conventions: every direction is a unit vector pointing away from the surface
+// (w_i towards the light, w_o towards the camera), n is the unit normal, and
+// f_r is in 1/sr. Radiance leaving a point lit by irradiance E (normal
+// incidence) from w_i is L = f_r(w_i, w_o) * E * max(0, n.w_i).
+//
+//   lambertian   f = rho_d / pi
+//   blinn_phong  f = rho_d / pi + rho_s (e + 2) / (2 pi) (n.h)^e,   h = normalize(w_i + w_o)
+//   ggx          f = rho_d / pi * (1 - F(n.w_i)) (1 - F(n.w_o)) / (1 - F0)
+//                  + D(h) G1(w_i) G1(w_o) F(w_i.h) / (4 (n.w_i)(n.w_o))
+//                D(h)  = a^2 / (pi ((n.h)^2 (a^2 - 1) + 1)^2)            a = roughness
+//                G1(v) = 2 (n.v) / ((n.v) + sqrt(a^2 + (1 - a^2)(n.v)^2))  (separable Smith)
+//                F(c)  = F0 + (1 - F0)(1 - c)^5                            (Schlick)
+//   mirror       delta lobe about 2 (n.w_o) n - w_o with reflectance rho_s
+//   tabulated    nearest-bin lookup in a MERL-layout table (see MerlTable)
+// docs/simulation.md discusses energy conservation of each model.
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace photorig::sim {
+
+// The per-pixel parameters every model reads (unused ones are ignored), so
+// parameter maps can be written beside the frames as ground truth.
+struct BrdfParams {
+  float rho_d = 0.5f;      // diffuse albedo
+  float rho_s = 0.0f;      // specular weight (blinn_phong), mirror reflectance (mirror)
+  float shininess = 0.0f;  // Blinn-Phong exponent e, or GGX roughness a
+  float f0 = 0.04f;        // GGX Fresnel reflectance at normal incidence
+};
+
+// A tabulated isotropic BRDF in MERL's layout: 90 theta_h x 90 theta_d x 180
+// phi_d bins, theta_h indexed by sqrt(theta_h / (pi/2)) * 90 (dense near the
+// specular peak), phi_d folded into [0, pi) by reciprocity. One channel, 1/sr.
+class MerlTable {
+ public:
+  static constexpr int kThetaH = 90, kThetaD = 90, kPhiD = 180;
+
+  // The analytic stand-in: Blinn-Phong sampled at bin centres.
+  static MerlTable FromBlinnPhong(double rho_d, double rho_s, double exponent);
+  // A MERL .binary file (int32 dims, then 3 x dims doubles); the channels
+  // are scaled by MERL's constants and averaged. Throws std::runtime_error
+  // naming the file.
+  static MerlTable Load(const std::string& path);
+  // Writes the table as a MERL .binary with the three channels equal.
+  void Save(const std::string& path) const;
+
+  double Lookup(double theta_h, double theta_d, double phi_d) const;
+  // Converts the directions (in a frame where n = z) to MERL's coordinates.
+  static void HalfDiff(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, double* theta_h, double* theta_d,
+                       double* phi_d);
+  const std::vector<float>& values() const { return values_; }
+
+ private:
+  std::vector<float> values_;  // [theta_h][theta_d][phi_d]
+};
+
+class Brdf {
+ public:
+  enum class Model { kLambertian, kBlinnPhong, kGgx, kMirror, kTabulated };
+
+  virtual ~Brdf() = default;
+  virtual Model model() const = 0;
+  // f_r for a non-delta model; 0 for a delta model.
+  virtual double Eval(const Eigen::Vector3d& n, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo,
+                      const BrdfParams& p) const = 0;
+  // Delta models reflect the radiance seen along MirrorDirection(n, w_o),
+  // scaled by this reflectance; others return 0.
+  virtual bool IsDelta() const { return false; }
+  virtual double DeltaReflectance(const BrdfParams&) const { return 0.0; }
+
+  static Model ParseModel(const std::string& name);  // throws std::invalid_argument
+  static const char* ModelName(Model model);
+};
+
+// 2 (n.w_o) n - w_o.
+Eigen::Vector3d MirrorDirection(const Eigen::Vector3d& n, const Eigen::Vector3d& wo);
+
+// `table` is needed by (and only by) kTabulated.
+std::unique_ptr<Brdf> MakeBrdf(Brdf::Model model, std::shared_ptr<const MerlTable> table = nullptr);
+
+}  // namespace photorig::sim
