@@ -1,0 +1,78 @@
+#pragma once
+// LEDs and camera trigger lines on GPIO (libgpiod 1.6, the character-device
+// API Debian 12 ships). Lines are named by chip ("gpiochip0" or a path) and
+// offset; active-low lines are requested with the kernel's active-low flag,
+// so every value here is logical: 1 = LED lit / trigger asserted. All lines
+// of one chip are set with one bulk call; releasing the lines drives them to
+// 0 first, so a released dome is dark.
+//
+// GpioBackend is the seam around the libgpiod calls: the real one talks to
+// /dev/gpiochipN; InMemoryGpioChips (gpio_memory.h) emulates the kernel side
+// for tests, since Debian's kernel has neither gpio-sim nor gpio-mockup.
+
+#include "photorig/drivers/light_controller.h"
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace photorig::drivers {
+
+struct GpioLine {
+  std::string chip;      // "gpiochip0", "/dev/gpiochip0" or a chip label
+  unsigned offset = 0;
+  bool active_low = false;
+};
+
+// Physical levels, one per requested line, in request order.
+class GpioBackend {
+ public:
+  virtual ~GpioBackend() = default;
+  // Requests the lines as outputs driven to `initial` from the start.
+  virtual Status Request(const std::string& consumer, const std::vector<GpioLine>& lines,
+                         const std::vector<int>& initial) = 0;
+  virtual Status Set(const std::vector<int>& physical) = 0;
+  virtual Result<std::vector<int>> Get() = 0;
+  virtual void Release() = 0;
+};
+
+std::unique_ptr<GpioBackend> MakeLibgpiodBackend();
+
+// One line per LED; a level > 0 lights it (GPIO has no intensity).
+class GpioLightController : public LightController {
+ public:
+  GpioLightController(std::string id, std::vector<GpioLine> lines, std::unique_ptr<GpioBackend> backend);
+  ~GpioLightController() override;
+  int channel_count() const override { return static_cast<int>(lines_.size()); }
+
+ protected:
+  Status DoOpen() override;
+  Status DoSetPattern(const LightPattern& pattern) override;
+  Result<LightPattern> DoReadBack() override;
+  Status DoClose() override;
+
+ private:
+  std::vector<GpioLine> lines_;
+  std::unique_ptr<GpioBackend> backend_;
+};
+
+// A camera hardware-trigger output: Pulse asserts the line for width_us.
+class GpioTriggerLine {
+ public:
+  GpioTriggerLine(std::string id, GpioLine line, std::unique_ptr<GpioBackend> backend);
+  ~GpioTriggerLine();
+  Status Open();
+  Status Pulse(std::chrono::microseconds width);
+  Status Close();  // leaves the line deasserted
+  bool is_open() const { return open_; }
+
+ private:
+  std::string id_;
+  GpioLine line_;
+  std::unique_ptr<GpioBackend> backend_;
+  bool open_ = false;
+};
+
+}  // namespace photorig::drivers

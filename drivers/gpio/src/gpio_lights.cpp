@@ -1,0 +1,87 @@
+#include "photorig/drivers/gpio/gpio_lights.h"
+
+#include "photorig/drivers/safety_net.h"
+
+#include <thread>
+
+namespace photorig::drivers {
+namespace {
+
+std::vector<int> Physical(const std::vector<GpioLine>& lines, const std::vector<int>& logical) {
+  std::vector<int> physical(lines.size());
+  for (std::size_t i = 0; i < lines.size(); ++i) physical[i] = (logical[i] != 0) != lines[i].active_low ? 1 : 0;
+  return physical;
+}
+
+std::string Describe(const GpioLine& line) { return line.chip + ":" + std::to_string(line.offset); }
+
+}  // namespace
+
+GpioLightController::GpioLightController(std::string id, std::vector<GpioLine> lines,
+                                         std::unique_ptr<GpioBackend> backend)
+    : LightController(std::move(id)), lines_(std::move(lines)), backend_(std::move(backend)) {}
+
+GpioLightController::~GpioLightController() { (void)Close(); }
+
+Status GpioLightController::DoOpen() {
+  if (lines_.empty()) return {StatusCode::kInvalidArgument, "light controller " + id() + ": no GPIO lines"};
+  Status status = backend_->Request("photorig:" + id(), lines_, Physical(lines_, std::vector<int>(lines_.size(), 0)));
+  if (!status.ok()) return {status.code(), "light controller " + id() + ": " + status.message()};
+  return Status::Ok();
+}
+
+Status GpioLightController::DoSetPattern(const LightPattern& pattern) {
+  std::vector<int> logical(lines_.size());
+  for (std::size_t i = 0; i < lines_.size(); ++i) logical[i] = pattern.levels[i] > 0.0 ? 1 : 0;
+  Status status = backend_->Set(Physical(lines_, logical));
+  if (!status.ok()) return {status.code(), "light controller " + id() + ": " + status.message()};
+  return Status::Ok();
+}
+
+Result<LightPattern> GpioLightController::DoReadBack() {
+  auto physical = backend_->Get();
+  if (!physical.ok()) return physical.status();
+  LightPattern pattern = LightPattern::AllOff(channel_count());
+  for (std::size_t i = 0; i < lines_.size(); ++i)
+    pattern.levels[i] = (physical.value()[i] != 0) != lines_[i].active_low ? 1.0 : 0.0;
+  return pattern;
+}
+
+Status GpioLightController::DoClose() {
+  backend_->Release();
+  return Status::Ok();
+}
+
+GpioTriggerLine::GpioTriggerLine(std::string id, GpioLine line, std::unique_ptr<GpioBackend> backend)
+    : id_(std::move(id)), line_(std::move(line)), backend_(std::move(backend)) {}
+
+GpioTriggerLine::~GpioTriggerLine() { (void)Close(); }
+
+Status GpioTriggerLine::Open() {
+  if (open_) return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": already open"};
+  Status status = backend_->Request("photorig:" + id_, {line_}, Physical({line_}, {0}));
+  if (!status.ok()) return {status.code(), "trigger " + id_ + " (" + Describe(line_) + "): " + status.message()};
+  open_ = true;
+  SafetyNet::Add(this, [this] { (void)Close(); });
+  return Status::Ok();
+}
+
+Status GpioTriggerLine::Pulse(std::chrono::microseconds width) {
+  if (!open_) return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": pulse while closed"};
+  if (width.count() <= 0) return {StatusCode::kInvalidArgument, "trigger " + id_ + ": pulse width must be > 0"};
+  Status status = backend_->Set(Physical({line_}, {1}));
+  if (!status.ok()) return status;
+  std::this_thread::sleep_for(width);
+  return backend_->Set(Physical({line_}, {0}));
+}
+
+Status GpioTriggerLine::Close() {
+  if (!open_) return Status::Ok();
+  Status status = backend_->Set(Physical({line_}, {0}));
+  backend_->Release();
+  open_ = false;
+  SafetyNet::Remove(this);
+  return status;
+}
+
+}  // namespace photorig::drivers

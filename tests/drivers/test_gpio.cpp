@@ -1,0 +1,112 @@
+// GPIO LEDs and trigger lines through the libgpiod seam, on in-memory chips
+// that behave like the kernel's (physical levels, busy lines).
+
+#include "photorig/drivers/gpio/gpio_memory.h"
+
+#include <gtest/gtest.h>
+
+namespace photorig::drivers {
+namespace {
+
+std::shared_ptr<InMemoryGpioChips> Chips() {
+  auto chips = std::make_shared<InMemoryGpioChips>();
+  chips->AddChip("gpiochip0", 32);
+  chips->AddChip("gpiochip1", 8);
+  return chips;
+}
+
+std::vector<GpioLine> Lines() {
+  return {{"gpiochip0", 4, false}, {"gpiochip0", 5, true}, {"gpiochip1", 2, false}, {"gpiochip0", 17, true}};
+}
+
+TEST(GpioLights, OpenStartsDarkWithActiveLowLinesHigh) {
+  auto chips = Chips();
+  GpioLightController lights("dome", Lines(), chips->MakeBackend());
+  ASSERT_TRUE(lights.Open().ok());
+  EXPECT_EQ(chips->physical("gpiochip0", 4), 0);
+  EXPECT_EQ(chips->physical("gpiochip0", 5), 1);  // active-low: off = high
+  EXPECT_EQ(chips->physical("gpiochip1", 2), 0);
+  EXPECT_EQ(chips->physical("gpiochip0", 17), 1);
+  EXPECT_TRUE(chips->requested("gpiochip0", 17));
+}
+
+TEST(GpioLights, PatternSetsPhysicalLevelsInOneBulkCallAndReadsBack) {
+  auto chips = Chips();
+  GpioLightController lights("dome", Lines(), chips->MakeBackend());
+  ASSERT_TRUE(lights.Open().ok());
+  const int calls = chips->bulk_calls();
+  ASSERT_TRUE(lights.SetPattern({{0.0, 0.4, 1.0, 0.0}}).ok());
+  EXPECT_EQ(chips->bulk_calls(), calls + 1);
+  EXPECT_EQ(chips->physical("gpiochip0", 4), 0);
+  EXPECT_EQ(chips->physical("gpiochip0", 5), 0);  // lit active-low line is pulled low
+  EXPECT_EQ(chips->physical("gpiochip1", 2), 1);
+  EXPECT_EQ(chips->physical("gpiochip0", 17), 1);
+  auto back = lights.ReadBack();
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(back->levels, (std::vector<double>{0.0, 1.0, 1.0, 0.0}));  // GPIO is on/off
+}
+
+TEST(GpioLights, CloseSwitchesOffAndReleases) {
+  auto chips = Chips();
+  {
+    GpioLightController lights("dome", Lines(), chips->MakeBackend());
+    ASSERT_TRUE(lights.Open().ok());
+    ASSERT_TRUE(lights.SetPattern({{1.0, 1.0, 1.0, 1.0}}).ok());
+    ASSERT_TRUE(lights.Close().ok());
+    EXPECT_FALSE(chips->requested("gpiochip0", 4));
+    EXPECT_EQ(chips->physical("gpiochip0", 4), 0);
+    EXPECT_EQ(chips->physical("gpiochip0", 5), 1);
+    // Destroyed while open: the destructor closes.
+    ASSERT_TRUE(lights.Open().ok());
+    ASSERT_TRUE(lights.SetPattern({{0.0, 0.0, 1.0, 0.0}}).ok());
+  }
+  EXPECT_EQ(chips->physical("gpiochip1", 2), 0);
+  EXPECT_FALSE(chips->requested("gpiochip1", 2));
+}
+
+TEST(GpioLights, MissingOrBusyLineFailsOpenNamingIt) {
+  auto chips = Chips();
+  GpioLightController bad("dome", {{"gpiochip1", 9, false}}, chips->MakeBackend());
+  const Status missing = bad.Open();
+  EXPECT_EQ(missing.code(), StatusCode::kUnavailable);
+  EXPECT_NE(missing.message().find("gpiochip1:9"), std::string::npos) << missing.message();
+  EXPECT_NE(missing.message().find("light controller dome"), std::string::npos);
+
+  GpioLightController first("a", Lines(), chips->MakeBackend());
+  ASSERT_TRUE(first.Open().ok());
+  GpioLightController second("b", {{"gpiochip0", 5, false}}, chips->MakeBackend());
+  const Status busy = second.Open();
+  EXPECT_NE(busy.message().find("busy"), std::string::npos) << busy.message();
+}
+
+TEST(GpioTrigger, PulseHasTheRequestedWidthAndEndsDeasserted) {
+  auto chips = Chips();
+  GpioTriggerLine trigger("cam-trigger", {"gpiochip1", 7, true}, chips->MakeBackend());
+  EXPECT_EQ(trigger.Pulse(std::chrono::microseconds(100)).code(), StatusCode::kFailedPrecondition);
+  ASSERT_TRUE(trigger.Open().ok());
+  EXPECT_EQ(chips->physical("gpiochip1", 7), 1);  // active-low, idle high
+  ASSERT_TRUE(trigger.Pulse(std::chrono::microseconds(3000)).ok());
+  const auto changes = chips->changes();
+  ASSERT_GE(changes.size(), 3u);
+  const auto& assert_edge = changes[changes.size() - 2];
+  const auto& release_edge = changes.back();
+  EXPECT_EQ(assert_edge.physical, 0);
+  EXPECT_EQ(release_edge.physical, 1);
+  const auto width_us =
+      std::chrono::duration_cast<std::chrono::microseconds>(release_edge.when - assert_edge.when).count();
+  EXPECT_GE(width_us, 3000);
+  EXPECT_EQ(trigger.Pulse(std::chrono::microseconds(0)).code(), StatusCode::kInvalidArgument);
+  ASSERT_TRUE(trigger.Close().ok());
+  EXPECT_FALSE(chips->requested("gpiochip1", 7));
+  EXPECT_EQ(chips->physical("gpiochip1", 7), 1);
+}
+
+TEST(GpioLibgpiod, AbsentChipIsAClearError) {
+  GpioLightController lights("dome", {{"gpiochip-none", 0, false}}, MakeLibgpiodBackend());
+  const Status status = lights.Open();
+  EXPECT_EQ(status.code(), StatusCode::kUnavailable);
+  EXPECT_NE(status.message().find("cannot open GPIO chip 'gpiochip-none'"), std::string::npos) << status.message();
+}
+
+}  // namespace
+}  // namespace photorig::drivers

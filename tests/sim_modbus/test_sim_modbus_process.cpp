@@ -1,0 +1,146 @@
+// The simulated dome as its own process (photorig-sim-modbus), and a whole
+// photometric-stereo run whose lights go over real Modbus TCP.
+
+#include "photorig/drivers/modbus/modbus_lights.h"
+#include "photorig/drivers/motion/modbus_drive.h"
+#include "photorig/daemon/hardware_options.h"
+#include "photorig/daemon/rig_config.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace photorig {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string SourceDir() {
+  const char* dir = std::getenv("PHOTORIG_SOURCE_DIR");
+  return dir ? dir : ".";
+}
+
+// Starts the server process and reads the line naming where it listens.
+struct ServerProcess {
+  pid_t pid = -1;
+  FILE* out = nullptr;
+  std::string where;
+
+  explicit ServerProcess(const std::vector<std::string>& args) {
+    int pipe_fds[2];
+    EXPECT_EQ(::pipe(pipe_fds), 0);
+    pid = ::fork();
+    if (pid == 0) {
+      ::dup2(pipe_fds[1], STDOUT_FILENO);
+      ::close(pipe_fds[0]);
+      std::vector<char*> argv;
+      const std::string binary = std::string(PHOTORIG_BIN_DIR) + "/photorig-sim-modbus";
+      argv.push_back(const_cast<char*>(binary.c_str()));
+      for (const auto& arg : args) argv.push_back(const_cast<char*>(arg.c_str()));
+      argv.push_back(nullptr);
+      ::execv(binary.c_str(), argv.data());
+      std::_Exit(127);
+    }
+    ::close(pipe_fds[1]);
+    out = ::fdopen(pipe_fds[0], "r");
+    char line[256] = {};
+    if (std::fgets(line, sizeof(line), out)) where = line;
+    while (!where.empty() && where.back() == '\n') where.pop_back();
+  }
+  int Terminate() {
+    ::kill(pid, SIGTERM);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    std::fclose(out);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+};
+
+TEST(SimModbusProcess, ServesTheDomeAndArmsOverTcpAndStopsOnSigterm) {
+  const std::string rig = SourceDir() + "/config/rigs/sim-dome-modbus.yaml";
+  ServerProcess server({"--rig", rig, "--arms"});
+  ASSERT_EQ(server.where.rfind("tcp 127.0.0.1:", 0), 0u) << server.where;
+  const int port = std::stoi(server.where.substr(std::string("tcp 127.0.0.1:").size()));
+
+  // The map the client uses is the rig's own.
+  const daemon::RigConfig config = daemon::LoadRigConfig(rig);
+  const auto map = daemon::ParseModbusLightMap(*config.lights.options, 48);
+  drivers::ModbusLinkOptions link;
+  link.port = port;
+  drivers::ModbusLightController lights("dome", link, map);
+  ASSERT_TRUE(lights.Open().ok());
+  drivers::LightPattern pattern = drivers::LightPattern::AllOff(48);
+  pattern.levels[47] = 0.3;
+  pattern.levels[0] = 1.0;
+  ASSERT_TRUE(lights.SetPattern(pattern).ok());
+  auto back = lights.ReadBack();
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(back->levels, pattern.levels);
+  ASSERT_TRUE(lights.Close().ok());
+
+  drivers::ModbusDriveAxis arm("camera_arm", link, 1100, {-90, 90}, {});
+  ASSERT_TRUE(arm.Open().ok());
+  ASSERT_TRUE(arm.Home().ok());
+  ASSERT_TRUE(arm.MoveTo(12.5, {300, 3000}).ok());
+  EXPECT_NEAR(arm.Poll()->position_deg, 12.5, 1e-3);
+  ASSERT_TRUE(arm.Close().ok());
+
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+TEST(SimModbusProcess, ServesRtuOnAPseudoTerminal) {
+  ServerProcess server({"--rig", SourceDir() + "/config/rigs/sim-dome-modbus.yaml", "--rtu"});
+  ASSERT_EQ(server.where.rfind("rtu /dev/", 0), 0u) << server.where;
+  drivers::ModbusLinkOptions link;
+  link.transport = drivers::ModbusLinkOptions::Transport::kRtu;
+  link.serial_device = server.where.substr(4);
+  link.baud = 115200;
+  drivers::ModbusLightMap map;
+  map.channels = 48;
+  map.intensity = true;
+  drivers::ModbusLightController lights("dome", link, map);
+  ASSERT_TRUE(lights.Open().ok());
+  EXPECT_TRUE(lights.SetPattern(drivers::LightPattern::Single(48, 9, 0.5)).ok());
+  EXPECT_EQ(lights.ReadBack()->levels[9], 0.5);
+  EXPECT_TRUE(lights.Close().ok());
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+TEST(EndToEnd, PhotometricStereoRunOverModbusTcp) {
+  const fs::path dir = fs::temp_directory_path() / ("photorig-modbus-e2e-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const fs::path run = dir / "run";
+  fs::create_directories(dir);
+  const std::string command = std::string(PHOTORIG_BIN_DIR) + "/photorig run " + SourceDir() +
+                              "/config/recipes/ps-sphere.yaml --rig " + SourceDir() +
+                              "/config/rigs/sim-dome-modbus.yaml --out " + run.string() + " > " +
+                              (dir / "log").string() + " 2>&1";
+  const int status = std::system(command.c_str());
+  std::ifstream log_file(dir / "log");
+  const std::string log((std::istreambuf_iterator<char>(log_file)), std::istreambuf_iterator<char>());
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << log;
+
+  std::ifstream manifest_file(run / "manifest.json");
+  const auto manifest = nlohmann::json::parse(manifest_file);
+  EXPECT_EQ(manifest["status"], "complete");
+  EXPECT_EQ(manifest["rig"]["name"], "sim-dome-modbus");
+  ASSERT_EQ(manifest["frames"].size(), 49u);
+  EXPECT_EQ(manifest["lights"][0]["rgb_intensity"], nlohmann::json({1.00, 0.97, 0.91}));
+  EXPECT_EQ(manifest["lights"][1]["rgb_intensity"], nlohmann::json({1.0, 1.0, 1.0}));
+
+  std::ifstream report_file(run / "results/ps/report.json");
+  const auto report = nlohmann::json::parse(report_file);
+  EXPECT_EQ(report["termination"], "success");
+  EXPECT_LT(report["ground_truth"]["mean_angular_error_deg"].get<double>(), 1.0);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace photorig
