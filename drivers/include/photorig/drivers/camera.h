@@ -26,6 +26,8 @@ struct CameraSettings {
   double exposure_us = 10000.0;
   double gain_db = 0.0;
   TriggerMode trigger = TriggerMode::kSoftware;
+  std::string trigger_line;  // kHardware: the input the pulse arrives on, e.g. "Line1"
+  std::string pixel_format;  // GenICam name ("Mono12", "BayerRG8"); empty = "Mono<bit_depth>"
 };
 
 // One field the camera could not take as asked, and what it used instead.
@@ -47,6 +49,19 @@ struct Frame {
   double exposure_us = 0.0;
   double gain_db = 0.0;
   std::string pixel_format;        // GenICam name, e.g. "Mono12"
+  std::uint64_t dropped_before = 0;  // frames the device counted since the previous delivered one but never delivered
+};
+
+// What discovery reports about a camera it can see (`photorig devices`).
+// Fields a driver could not read stay empty or 0; `error` says why.
+struct CameraInfo {
+  std::string driver;   // factory name: "aravis", "v4l2"
+  std::string id;       // what the driver's `device` option accepts
+  std::string vendor, model, serial, address;
+  int sensor_width = 0, sensor_height = 0;
+  std::vector<std::string> pixel_formats;
+  double exposure_min_us = 0.0, exposure_max_us = 0.0;
+  std::string error;
 };
 
 class Camera {

@@ -1,0 +1,34 @@
+#pragma once
+// The `options:` maps of the hardware camera drivers. Errors are ConfigError
+// naming file:line:column and the dotted key.
+//
+//   camera:
+//     driver: aravis
+//     options:
+//       device: "192.168.1.20"      # Aravis id, serial number or IP address; absent = the only camera
+//       buffer_count: 4
+//       packet_resend: true
+//       timeout_margin_ms: 200
+//       link_bandwidth_mbps: 1000
+//       reconnect_attempts: 3
+//       reconnect_delay_ms: 250
+//       sim_gige:                   # simulated rigs only: start a GigE Vision camera rendering the sim World
+//         address: 127.0.0.1
+//         serial: SIMGV0
+//         lost_packet_ratio: 0.0
+//         trigger_poll_hz: 500
+//
+//   camera:
+//     driver: v4l2
+//     options: {device: /dev/video0, buffer_count: 4}
+
+#include "photorig/daemon/device_factory.h"
+
+#include <memory>
+
+namespace photorig::daemon {
+
+std::unique_ptr<drivers::Camera> MakeAravisCamera(const DeviceContext& context);
+std::unique_ptr<drivers::Camera> MakeV4l2Camera(const DeviceContext& context);
+
+}  // namespace photorig::daemon
