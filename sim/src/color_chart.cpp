@@ -1,0 +1,112 @@
+#include "photorig/sim/color_chart.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace photorig::sim {
+namespace {
+
+// Trapezoid weights on a possibly uneven grid.
+std::vector<double> TrapezoidWeights(const std::vector<double>& w) {
+  std::vector<double> weights(w.size(), 0.0);
+  for (std::size_t i = 0; i + 1 < w.size(); ++i) {
+    const double half = 0.5 * (w[i + 1] - w[i]);
+    weights[i] += half;
+    weights[i + 1] += half;
+  }
+  return weights;
+}
+
+std::array<double, 3> CameraSignal(const ChartSpectra& spectra, const std::vector<double>& weights,
+                                   const std::vector<double>* reflectance, double flat_reflectance) {
+  std::array<double, 3> rgb{};
+  for (std::size_t i = 0; i < weights.size(); ++i) {
+    const double r = reflectance ? (*reflectance)[i] : flat_reflectance;
+    for (int c = 0; c < 3; ++c) rgb[c] += weights[i] * r * spectra.illuminant[i] * spectra.camera_sensitivity[c][i];
+  }
+  return rgb;
+}
+
+}  // namespace
+
+bool ChartSpectra::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why) *why = message;
+    return false;
+  };
+  const std::size_t n = wavelength_nm.size();
+  if (n < 2) return fail("need at least two wavelengths");
+  if (!std::is_sorted(wavelength_nm.begin(), wavelength_nm.end())) return fail("wavelengths must ascend");
+  if (patch_reflectance.size() != 24) return fail("need 24 patch reflectances");
+  for (const auto& r : patch_reflectance)
+    if (r.size() != n) return fail("a patch reflectance has the wrong number of samples");
+  if (illuminant.size() != n) return fail("illuminant has the wrong number of samples");
+  for (const auto& s : camera_sensitivity)
+    if (s.size() != n) return fail("a camera sensitivity has the wrong number of samples");
+  return true;
+}
+
+cv::Rect ChartGeometry::PatchRect(int patch) const {
+  const int row = patch / 6, column = patch % 6;
+  const int origin = margin_px + border_px;
+  return {origin + column * (patch_px + gap_px), origin + row * (patch_px + gap_px), patch_px, patch_px};
+}
+
+std::array<cv::Point2f, 4> ChartGeometry::GridCorners() const {
+  const float half_gap = 0.5f * static_cast<float>(gap_px);
+  const float left = static_cast<float>(margin_px + border_px) - half_gap;
+  const float top = left;
+  const float right = left + 6.0f * static_cast<float>(patch_px + gap_px);
+  const float bottom = top + 4.0f * static_cast<float>(patch_px + gap_px);
+  return {cv::Point2f(left, top), cv::Point2f(right, top), cv::Point2f(right, bottom), cv::Point2f(left, bottom)};
+}
+
+double ExposureForWhite(const SensorModel& sensor, double fraction) {
+  return fraction * sensor.full_well_e / sensor.response_e_per_us;
+}
+
+ChartRender RenderColorChart(const ChartSpectra& spectra, const ChartGeometry& geometry, const SensorModel& sensor,
+                             double exposure_us, double gain_db, std::uint64_t seed) {
+  const std::vector<double> weights = TrapezoidWeights(spectra.wavelength_nm);
+  const std::array<double, 3> white = CameraSignal(spectra, weights, nullptr, 1.0);
+  const double scale = 1.0 / std::max({white[0], white[1], white[2]});
+
+  auto signal_of = [&](const std::vector<double>* reflectance, double flat) {
+    const std::array<double, 3> rgb = CameraSignal(spectra, weights, reflectance, flat);
+    return cv::Vec3f(static_cast<float>(rgb[0] * scale), static_cast<float>(rgb[1] * scale),
+                     static_cast<float>(rgb[2] * scale));
+  };
+
+  ChartRender render;
+  for (int c = 0; c < 3; ++c) render.white_signal[c] = white[c] * scale;
+  render.signal = cv::Mat(geometry.height(), geometry.width(), CV_32FC3, signal_of(nullptr, geometry.background_reflectance));
+  const int body = geometry.margin_px;
+  render.signal(cv::Rect(body, body, geometry.width() - 2 * body, geometry.height() - 2 * body))
+      .setTo(signal_of(nullptr, geometry.body_reflectance));
+  for (int patch = 0; patch < 24; ++patch)
+    render.signal(geometry.PatchRect(patch)).setTo(signal_of(&spectra.patch_reflectance[patch], 0.0));
+
+  std::vector<cv::Mat> planes;
+  cv::split(render.signal, planes);
+  const cv::Mat off = cv::Mat::zeros(render.signal.size(), CV_32F);
+  auto expose = [&](const std::vector<cv::Mat>& channels, std::uint64_t first_frame) {
+    std::vector<cv::Mat> bgr(3);
+    for (int c = 0; c < 3; ++c) {
+      const std::vector<std::uint16_t> pixels =
+          ExposeFrame(sensor, channels[c], exposure_us, gain_db, seed, first_frame + static_cast<std::uint64_t>(c));
+      bgr[2 - c] = cv::Mat(render.signal.size(), CV_16U, const_cast<std::uint16_t*>(pixels.data())).clone();
+    }
+    cv::Mat merged;
+    cv::merge(bgr, merged);
+    return merged;
+  };
+  render.raw = expose(planes, 0);
+  render.dark = expose({off, off, off}, 3);
+  const double gain = std::pow(10.0, gain_db / 20.0);
+  // Read noise is added after the full-well clip, so clipped pixels scatter around the clip level.
+  const double full_well_dn = (sensor.full_well_e - 3.0 * sensor.read_noise_e) / sensor.e_per_dn * gain;
+  render.clip_level_dn = std::min(sensor.max_dn(), std::floor(full_well_dn + sensor.black_level_dn));
+  return render;
+}
+
+}  // namespace photorig::sim

@@ -1,0 +1,36 @@
+#pragma once
+// Applying a colour model to images: a camera RGB image (OpenCV B, G, R order,
+// any depth) -> CIE XYZ (relative to the calibration illuminant's white, Y = 1)
+// -> sRGB for display. Works on any 3-channel capture, a stack of them, or a
+// per-channel photometric-stereo albedo map.
+
+#include "photorig/color/model.h"
+
+#include <opencv2/core.hpp>
+
+#include <vector>
+
+namespace photorig::color {
+
+struct ApplyOptions {
+  double black_level = 0.0;     // subtracted when no dark frame is given
+  // Exposure x gain of the image relative to the chart capture: RGB is divided
+  // by it, so a model keeps absolute luminance across exposures.
+  double exposure_ratio = 1.0;
+  bool IsValid(std::string* why) const;
+};
+
+// CV_32FC3 (X, Y, Z). `dark_bgr` may be empty. Throws std::invalid_argument on
+// wrong channel counts or sizes.
+cv::Mat CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv::Mat& dark_bgr,
+                    const ApplyOptions& options);
+std::vector<cv::Mat> CameraStackToXyz(const ColorModel& model, const std::vector<cv::Mat>& stack_bgr,
+                                      const cv::Mat& dark_bgr, const ApplyOptions& options);
+
+// XYZ (white = `white_xyz`) -> linear sRGB, adapting the white to D65 (Bradford).
+// CV_32FC3 in B, G, R order, unclipped.
+cv::Mat XyzToLinearSrgbBgr(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz);
+// The same, clipped to [0, 1], encoded with the sRGB transfer function, 8-bit B, G, R.
+cv::Mat XyzToSrgb8(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz);
+
+}  // namespace photorig::color

@@ -1,0 +1,262 @@
+#include "photorig/color/chart.h"
+
+#include "photorig/color/colorimetry.h"
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/mcc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace photorig::color {
+namespace {
+
+cv::Matx33d GridToImage(const std::array<cv::Point2f, 4>& corners) {
+  const cv::Point2f grid[4] = {{0.f, 0.f}, {6.f, 0.f}, {6.f, 4.f}, {0.f, 4.f}};
+  return cv::Matx33d(cv::getPerspectiveTransform(grid, corners.data()));
+}
+
+cv::Point2f Map(const cv::Matx33d& h, double x, double y) {
+  const cv::Vec3d p = h * cv::Vec3d(x, y, 1.0);
+  return {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
+}
+
+double Distance(const cv::Point2f& a, const cv::Point2f& b) { return std::hypot(a.x - b.x, a.y - b.y); }
+
+// 8-bit view for the detector: scaled to the bright end, gamma for contrast.
+cv::Mat DetectorView(const cv::Mat& image) {
+  cv::Mat values;
+  image.convertTo(values, CV_32F);
+  double max_value = 0.0;
+  cv::minMaxLoc(values.reshape(1), nullptr, &max_value);
+  if (max_value <= 0.0) max_value = 1.0;
+  values /= max_value;
+  cv::pow(cv::max(values, 0.0), 1.0 / 2.2, values);
+  cv::Mat view;
+  values.convertTo(view, CV_8U, 255.0);
+  return view;
+}
+
+// The detector's box may start at any corner and run either way round; put the
+// long edge first and the grey ramp (patches 19-24, white to black) on the bottom row.
+std::array<cv::Point2f, 4> OrientCorners(std::array<cv::Point2f, 4> corners, const cv::Mat& image) {
+  if (Distance(corners[0], corners[1]) < Distance(corners[1], corners[2]))
+    std::rotate(corners.begin(), corners.begin() + 1, corners.end());
+  cv::Mat gray;
+  cv::Mat bgr;
+  image.convertTo(bgr, CV_32F);
+  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  auto ramp_score = [&](const std::array<cv::Point2f, 4>& c) {
+    const cv::Matx33d h = GridToImage(c);
+    double score = 0.0;
+    for (int column = 0; column + 1 < 6; ++column) {
+      const cv::Point2f a = Map(h, column + 0.5, 3.5), b = Map(h, column + 1.5, 3.5);
+      auto at = [&](const cv::Point2f& p) {
+        const int x = std::clamp(static_cast<int>(p.x), 0, gray.cols - 1);
+        const int y = std::clamp(static_cast<int>(p.y), 0, gray.rows - 1);
+        return static_cast<double>(gray.at<float>(y, x));
+      };
+      score += at(a) > at(b) ? 1.0 : -1.0;
+    }
+    return score;
+  };
+  std::array<cv::Point2f, 4> flipped = corners;
+  std::rotate(flipped.begin(), flipped.begin() + 2, flipped.end());
+  // Either way round, the corner order must stay clockwise in the image.
+  return ramp_score(flipped) > ramp_score(corners) ? flipped : corners;
+}
+
+}  // namespace
+
+cv::Point2f ChartLocation::PatchCentre(int patch) const {
+  return Map(GridToImage(corners), patch % kChartColumns + 0.5, patch / kChartColumns + 0.5);
+}
+
+std::array<cv::Point2f, 4> ChartLocation::SamplingQuad(int patch, double fraction) const {
+  const cv::Matx33d h = GridToImage(corners);
+  const double cx = patch % kChartColumns + 0.5, cy = patch / kChartColumns + 0.5, half = 0.5 * fraction;
+  return {Map(h, cx - half, cy - half), Map(h, cx + half, cy - half), Map(h, cx + half, cy + half),
+          Map(h, cx - half, cy + half)};
+}
+
+LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options) {
+  LocateResult result;
+  if (image_bgr.empty() || image_bgr.channels() != 3) {
+    result.message = "chart image must have 3 channels (B, G, R)";
+    return result;
+  }
+  std::string detector_note = "detector off";
+  if (options.use_detector) {
+    cv::Ptr<cv::mcc::CCheckerDetector> detector = cv::mcc::CCheckerDetector::create();
+    if (detector->process(DetectorView(image_bgr), cv::mcc::MCC24, 1)) {
+      const std::vector<cv::Point2f> box = detector->getBestColorChecker()->getBox();
+      if (box.size() == 4) {
+        ChartLocation location;
+        std::copy(box.begin(), box.end(), location.corners.begin());
+        location.corners = OrientCorners(location.corners, image_bgr);
+        location.method = "detector";
+        result.location = location;
+        result.message = "chart found by the mcc detector";
+        return result;
+      }
+    }
+    detector_note = "the mcc detector found no 24-patch chart";
+  }
+  if (options.fixed_corners) {
+    result.location = ChartLocation{*options.fixed_corners, "fixed-roi"};
+    result.message = detector_note + "; using the fixed chart position";
+    return result;
+  }
+  result.message = detector_note + " and no fixed chart position was given (--chart-roi or the rig's color_chart)";
+  return result;
+}
+
+std::array<cv::Point2f, 4> ParseChartCorners(const std::string& text) {
+  std::vector<float> values;
+  std::stringstream stream(text);
+  std::string field;
+  while (std::getline(stream, field, ',')) {
+    try {
+      std::size_t used = 0;
+      values.push_back(std::stof(field, &used));
+      if (used != field.size()) throw std::invalid_argument(field);
+    } catch (const std::exception&) {
+      throw std::invalid_argument("chart position '" + text + "': '" + field + "' is not a number");
+    }
+  }
+  if (values.size() == 4) {
+    const float x = values[0], y = values[1], w = values[2], h = values[3];
+    if (w <= 0 || h <= 0) throw std::invalid_argument("chart position '" + text + "': width and height must be > 0");
+    return {cv::Point2f(x, y), cv::Point2f(x + w, y), cv::Point2f(x + w, y + h), cv::Point2f(x, y + h)};
+  }
+  if (values.size() == 8)
+    return {cv::Point2f(values[0], values[1]), cv::Point2f(values[2], values[3]), cv::Point2f(values[4], values[5]),
+            cv::Point2f(values[6], values[7])};
+  throw std::invalid_argument("chart position '" + text + "': expected x,y,w,h or four corners x0,y0,...,x3,y3");
+}
+
+const char* PatchFlagName(PatchFlag flag) {
+  switch (flag) {
+    case PatchFlag::kOk: return "ok";
+    case PatchFlag::kSaturated: return "saturated";
+    case PatchFlag::kUnderexposed: return "underexposed";
+    case PatchFlag::kTooFewPixels: return "too-few-pixels";
+  }
+  return "?";
+}
+
+bool MeasureOptions::IsValid(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (!(sample_fraction > 0.0 && sample_fraction <= 1.0)) return fail("sample_fraction must be in (0, 1]");
+  if (!(trim_fraction >= 0.0 && trim_fraction < 0.5)) return fail("trim_fraction must be in [0, 0.5)");
+  if (!(max_clipped_fraction >= 0.0 && max_clipped_fraction <= 1.0)) return fail("max_clipped_fraction must be in [0, 1]");
+  if (clip_level < 0.0) return fail("clip_level must be >= 0");
+  if (min_pixels < 1) return fail("min_pixels must be >= 1");
+  return true;
+}
+
+std::vector<PatchMeasurement> MeasurePatches(const cv::Mat& image_bgr, const cv::Mat& dark_bgr,
+                                             const ChartLocation& location, const MeasureOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument("measure options: " + why);
+  if (image_bgr.channels() != 3) throw std::invalid_argument("chart image must have 3 channels (B, G, R)");
+  if (!dark_bgr.empty() && (dark_bgr.size() != image_bgr.size() || dark_bgr.type() != image_bgr.type()))
+    throw std::invalid_argument("dark frame must have the chart image's size and type");
+  double clip_level = options.clip_level;
+  if (clip_level == 0.0) {
+    const int depth = image_bgr.depth();
+    clip_level = depth == CV_8U ? 255.0 : depth == CV_16U ? 65535.0 : std::numeric_limits<double>::infinity();
+  }
+  cv::Mat image, dark;
+  image_bgr.convertTo(image, CV_64FC3);
+  if (!dark_bgr.empty()) dark_bgr.convertTo(dark, CV_64FC3);
+
+  std::vector<PatchMeasurement> patches(kChartPatches);
+  std::array<std::vector<double>, 3> values;
+  for (int patch = 0; patch < kChartPatches; ++patch) {
+    const std::array<cv::Point2f, 4> quad = location.SamplingQuad(patch, options.sample_fraction);
+    std::vector<cv::Point> polygon;
+    for (const auto& p : quad) polygon.emplace_back(cvRound(p.x), cvRound(p.y));
+    const cv::Rect bounds = cv::boundingRect(polygon);
+    const cv::Rect inside = bounds & cv::Rect(0, 0, image.cols, image.rows);
+    PatchMeasurement& m = patches[static_cast<std::size_t>(patch)];
+    if (inside != bounds || bounds.area() == 0) {
+      m.flag = PatchFlag::kTooFewPixels;
+      continue;
+    }
+    cv::Mat mask = cv::Mat::zeros(bounds.size(), CV_8U);
+    for (auto& p : polygon) p -= bounds.tl();
+    cv::fillConvexPoly(mask, polygon, cv::Scalar(255));
+    for (auto& v : values) v.clear();
+    for (int y = 0; y < bounds.height; ++y) {
+      const cv::Vec3d* raw = image.ptr<cv::Vec3d>(bounds.y + y) + bounds.x;
+      const cv::Vec3d* black = dark.empty() ? nullptr : dark.ptr<cv::Vec3d>(bounds.y + y) + bounds.x;
+      const std::uint8_t* inside_mask = mask.ptr<std::uint8_t>(y);
+      for (int x = 0; x < bounds.width; ++x) {
+        if (!inside_mask[x]) continue;
+        ++m.pixels;
+        if (raw[x][0] >= clip_level || raw[x][1] >= clip_level || raw[x][2] >= clip_level) {
+          ++m.clipped_pixels;
+          continue;
+        }
+        for (int c = 0; c < 3; ++c)  // B, G, R in; r, g, b out
+          values[static_cast<std::size_t>(2 - c)].push_back(raw[x][c] - (black ? black[x][c] : options.black_level));
+      }
+    }
+    const int kept = m.pixels - m.clipped_pixels;
+    if (m.pixels < options.min_pixels) {
+      m.flag = PatchFlag::kTooFewPixels;
+      continue;
+    }
+    if (m.clipped_pixels > options.max_clipped_fraction * m.pixels || kept < 2) {
+      m.flag = PatchFlag::kSaturated;
+      continue;
+    }
+    const std::size_t drop = static_cast<std::size_t>(options.trim_fraction * kept);
+    double worst_snr = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 3; ++c) {
+      std::vector<double>& v = values[static_cast<std::size_t>(c)];
+      std::sort(v.begin(), v.end());
+      double sum = 0.0, sum_sq = 0.0;
+      const std::size_t n = v.size() - 2 * drop;
+      for (std::size_t i = drop; i < v.size() - drop; ++i) sum += v[i];
+      const double mean = sum / static_cast<double>(n);
+      for (std::size_t i = drop; i < v.size() - drop; ++i) sum_sq += (v[i] - mean) * (v[i] - mean);
+      m.rgb[c] = mean;
+      m.stddev[c] = std::sqrt(sum_sq / std::max<double>(1.0, static_cast<double>(n) - 1.0));
+      const double standard_error = m.stddev[c] / std::sqrt(static_cast<double>(n));
+      worst_snr = std::min(worst_snr, mean <= 0.0 ? 0.0 : standard_error > 0.0 ? mean / standard_error : worst_snr);
+    }
+    if (worst_snr < options.min_snr) m.flag = PatchFlag::kUnderexposed;
+  }
+  return patches;
+}
+
+ChartReference ColorCheckerReference(Illuminant illuminant, const std::vector<double>& grid_nm) {
+  ChartReference reference;
+  const SampledSpectra& reflectance = ColorChecker24Reflectance();
+  for (std::size_t patch = 0; patch < kChartPatches; ++patch)
+    reference.xyz.push_back(ReflectanceToXyz(reflectance, patch, illuminant, grid_nm));
+  reference.white_xyz = WhitePointXyz(illuminant, grid_nm);
+  return reference;
+}
+
+ChartCaptureSpectra ChartCaptureSpectraFor(const std::string& camera, Illuminant illuminant,
+                                           const std::vector<double>& grid_nm) {
+  ChartCaptureSpectra out;
+  out.wavelength_nm = grid_nm;
+  const SampledSpectra reflectance = ColorChecker24Reflectance().Resampled(grid_nm);
+  out.patch_reflectance = reflectance.channels;
+  out.illuminant = IlluminantSpd(illuminant).Resampled(grid_nm).channels[0];
+  const SampledSpectra sensitivity = CameraSensitivity(camera).Resampled(grid_nm);
+  for (int c = 0; c < 3; ++c) out.camera_sensitivity[static_cast<std::size_t>(c)] = sensitivity.channels[static_cast<std::size_t>(c)];
+  return out;
+}
+
+}  // namespace photorig::color
