@@ -1,0 +1,77 @@
+// Inverse lighting and environment-map throughput on a 1024 x 1024 sphere.
+#include "photorig/lighting/envmap.h"
+#include "photorig/lighting/inverse_lighting.h"
+#include "photorig/lighting/relight.h"
+#include "synthetic_sphere.h"
+
+#include <benchmark/benchmark.h>
+
+namespace {
+
+using namespace photorig::lighting;
+
+struct Scene {
+  cv::Mat normals, mask, albedo, image;
+  std::vector<Eigen::Vector3d> dome = testing::DomeDirections();
+  std::vector<double> intensities = std::vector<double>(dome.size(), 1.0);
+  Scene() {
+    testing::SphereNormals(1024, 1.0, &normals, &mask);
+    albedo = cv::Mat(normals.size(), CV_32F, cv::Scalar(0.7));
+    Eigen::MatrixXd sh = Eigen::MatrixXd::Zero(9, 1);
+    sh << 2.0, 0.4, 0.9, -0.3, 0.15, -0.1, 0.2, 0.12, -0.15;
+    image = RenderShLighting(normals, albedo, sh);
+  }
+};
+const Scene& GetScene() {
+  static const Scene scene;
+  return scene;
+}
+
+void BM_ShFitFixedBand2(benchmark::State& state) {
+  const Scene& s = GetScene();
+  ShFitOptions options;
+  options.selection = ShFitOptions::Selection::kFixed;
+  options.fixed_band = 2;
+  for (auto _ : state) benchmark::DoNotOptimize(FitShLighting(s.normals, s.albedo, s.image, s.mask, options));
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(s.normals.total()));
+}
+BENCHMARK(BM_ShFitFixedBand2)->Unit(benchmark::kMillisecond);
+
+void BM_ShFitSelectedUpToBand4(benchmark::State& state) {
+  const Scene& s = GetScene();
+  for (auto _ : state) benchmark::DoNotOptimize(FitShLighting(s.normals, s.albedo, s.image, s.mask));
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(s.normals.total()));
+}
+BENCHMARK(BM_ShFitSelectedUpToBand4)->Unit(benchmark::kMillisecond);
+
+void BM_LedWeightsNnls48(benchmark::State& state) {
+  const Scene& s = GetScene();
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(FitLedWeights(s.normals, s.albedo, s.image, s.mask, s.dome, s.intensities));
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(s.normals.total()));
+}
+BENCHMARK(BM_LedWeightsNnls48)->Unit(benchmark::kMillisecond);
+
+void BM_RenderShBand2(benchmark::State& state) {
+  const Scene& s = GetScene();
+  Eigen::MatrixXd sh = Eigen::MatrixXd::Zero(9, 3);
+  sh.col(0).setConstant(0.5);
+  for (auto _ : state) benchmark::DoNotOptimize(RenderShLighting(s.normals, s.albedo, sh));
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(s.normals.total()));
+}
+BENCHMARK(BM_RenderShBand2)->Unit(benchmark::kMillisecond);
+
+void BM_MirrorBallUnwrap1024(benchmark::State& state) {
+  const cv::Mat ball(1024, 1024, CV_32FC3, cv::Scalar::all(1.0));
+  const SphereGeometry sphere = LocateSphere(CameraModel{}, Circle{511.5, 511.5, 512.0});
+  UnwrapOptions options;
+  options.width = 1024;
+  for (auto _ : state) benchmark::DoNotOptimize(MirrorBallToLatLong(ball, sphere, options));
+  state.SetItemsProcessed(state.iterations() * 1024 * 512);
+}
+BENCHMARK(BM_MirrorBallUnwrap1024)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

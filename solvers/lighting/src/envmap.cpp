@@ -1,0 +1,193 @@
+#include "photorig/lighting/envmap.h"
+
+#include "photorig/lighting/spherical_harmonics.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace photorig::lighting {
+
+Eigen::Vector3d LatLongDirection(double u, double v, int width, int height) {
+  const double theta = M_PI * (v + 0.5) / height;
+  const double phi = 2.0 * M_PI * (u + 0.5) / width - M_PI;
+  return {std::sin(theta) * std::sin(phi), std::cos(theta), std::sin(theta) * std::cos(phi)};
+}
+
+Eigen::Vector2d LatLongPixel(const Eigen::Vector3d& direction, int width, int height) {
+  const Eigen::Vector3d d = direction.normalized();
+  const double theta = std::acos(std::clamp(d.y(), -1.0, 1.0));
+  const double phi = std::atan2(d.x(), d.z());
+  return {(phi + M_PI) / (2.0 * M_PI) * width - 0.5, theta / M_PI * height - 0.5};
+}
+
+LatLongMap MirrorBallToLatLong(const cv::Mat& ball_image, const SphereGeometry& sphere, const UnwrapOptions& options) {
+  if (!sphere.valid || sphere.camera.projection != CameraModel::Projection::kOrthographic) {
+    throw std::invalid_argument("MirrorBallToLatLong: needs a located sphere seen by an orthographic camera");
+  }
+  if (options.width < 4 || options.width % 2 != 0) throw std::invalid_argument("MirrorBallToLatLong: even width >= 4");
+  const int width = options.width, height = options.width / 2;
+  cv::Mat map_u(height, width, CV_32F), map_v(height, width, CV_32F);
+  LatLongMap result;
+  result.valid = cv::Mat(height, width, CV_8U, cv::Scalar(0));
+  const double blind_cos = -std::cos(options.blind_cone_deg * M_PI / 180.0);
+  const Circle& c = sphere.circle;
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const Eigen::Vector3d d = LatLongDirection(u, v, width, height);
+      float pu = -1.0f, pv = -1.0f;
+      if (d.z() > blind_cos) {
+        // The normal halfway between the view vector (0, 0, 1) and d reflects one into the other.
+        const Eigen::Vector3d n = (d + Eigen::Vector3d::UnitZ()).normalized();
+        pu = static_cast<float>(c.cx_px + c.radius_px * n.x());
+        pv = static_cast<float>(c.cy_px - c.radius_px * n.y());
+        result.valid.at<std::uint8_t>(v, u) = 255;
+      }
+      map_u.at<float>(v, u) = pu;
+      map_v.at<float>(v, u) = pv;
+    }
+  }
+  cv::Mat source;
+  ball_image.convertTo(source, CV_MAKETYPE(CV_32F, ball_image.channels()));
+  cv::remap(source, result.radiance, map_u, map_v, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
+  return result;
+}
+
+cv::Mat LatLongToMirrorBall(const cv::Mat& latlong, int size_px) {
+  if (latlong.empty() || latlong.cols != 2 * latlong.rows || size_px < 2) {
+    throw std::invalid_argument("LatLongToMirrorBall: a 2:1 lat-long map and a positive size");
+  }
+  cv::Mat source;
+  latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
+  // One column of wrap-around on each side so that bilinear sampling crosses the seam.
+  cv::copyMakeBorder(source, source, 0, 0, 1, 1, cv::BORDER_WRAP);
+  const double centre = (size_px - 1) / 2.0, radius = size_px / 2.0;
+  cv::Mat map_u(size_px, size_px, CV_32F, cv::Scalar(-10)), map_v(size_px, size_px, CV_32F, cv::Scalar(-10));
+  for (int v = 0; v < size_px; ++v) {
+    for (int u = 0; u < size_px; ++u) {
+      const double x = (u - centre) / radius, y = -(v - centre) / radius;
+      const double rho2 = x * x + y * y;
+      if (rho2 > 1.0) continue;
+      const Eigen::Vector3d n(x, y, std::sqrt(1.0 - rho2));
+      const Eigen::Vector3d d = 2.0 * n.z() * n - Eigen::Vector3d::UnitZ();
+      const Eigen::Vector2d p = LatLongPixel(d, latlong.cols, latlong.rows);
+      map_u.at<float>(v, u) = static_cast<float>(p.x() + 1.0);
+      map_v.at<float>(v, u) = static_cast<float>(std::clamp(p.y(), 0.0, latlong.rows - 1.0));
+    }
+  }
+  cv::Mat ball;
+  cv::remap(source, ball, map_u, map_v, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
+  return ball;
+}
+
+HdrMerge MergeExposures(const std::vector<cv::Mat>& frames, const std::vector<double>& exposure_us,
+                        const ExposureMergeOptions& options) {
+  if (frames.empty() || frames.size() != exposure_us.size()) {
+    throw std::invalid_argument("MergeExposures: one exposure per frame");
+  }
+  const double span = options.saturation_level - options.black_level;
+  if (!(span > 0.0)) throw std::invalid_argument("MergeExposures: saturation_level must exceed black_level");
+  std::size_t shortest = 0;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (frames[k].size() != frames[0].size() || frames[k].type() != frames[0].type() || !(exposure_us[k] > 0.0)) {
+      throw std::invalid_argument("MergeExposures: frames must share size and type; exposures positive");
+    }
+    if (exposure_us[k] < exposure_us[shortest]) shortest = k;
+  }
+  const int type = CV_MAKETYPE(CV_32F, frames[0].channels());
+  cv::Mat sum = cv::Mat::zeros(frames[0].size(), type), weights = cv::Mat::zeros(frames[0].size(), type);
+  cv::Mat value, weight;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    frames[k].convertTo(value, type);
+    value -= cv::Scalar::all(options.black_level);
+    // Hat weight: trust mid-range values, none at black or clipping.
+    cv::min(value, cv::Scalar::all(span) - value, weight);
+    cv::max(weight, 0.0, weight);
+    weight.setTo(0.0, value >= span * 0.999);
+    cv::accumulateProduct(weight, value * (1.0 / exposure_us[k]), sum);
+    weights += weight;
+  }
+  HdrMerge merge;
+  cv::divide(sum, weights, merge.radiance);
+  // Pixels no exposure resolved take the shortest exposure's value, clipped, and are flagged.
+  cv::Mat fallback;
+  frames[shortest].convertTo(fallback, type, 1.0 / exposure_us[shortest], -options.black_level / exposure_us[shortest]);
+  cv::Mat unresolved = weights <= 0.0;
+  if (unresolved.channels() > 1) {
+    std::vector<cv::Mat> planes;
+    cv::split(unresolved, planes);
+    unresolved = planes[0];
+    for (std::size_t i = 1; i < planes.size(); ++i) unresolved |= planes[i];
+  }
+  fallback.copyTo(merge.radiance, unresolved);
+  merge.unresolved = unresolved;
+  merge.unresolved_pixels = cv::countNonZero(unresolved);
+  return merge;
+}
+
+namespace {
+
+// Solid angle of one lat-long pixel at row v.
+double PixelSolidAngle(int v, int width, int height) {
+  const double theta0 = M_PI * v / height, theta1 = M_PI * (v + 1) / height;
+  return 2.0 * M_PI / width * (std::cos(theta0) - std::cos(theta1));
+}
+
+}  // namespace
+
+Eigen::MatrixXd ProjectLatLongToSh(const cv::Mat& latlong, int band) {
+  if (latlong.empty() || latlong.cols != 2 * latlong.rows) throw std::invalid_argument("ProjectLatLongToSh: 2:1 map");
+  cv::Mat source;
+  latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
+  const int channels = source.channels();
+  Eigen::MatrixXd coefficients = Eigen::MatrixXd::Zero(ShCoefficientCount(band), channels);
+  Eigen::VectorXd y(ShCoefficientCount(band));
+  for (int v = 0; v < source.rows; ++v) {
+    const double d_omega = PixelSolidAngle(v, source.cols, source.rows);
+    const float* row = source.ptr<float>(v);
+    for (int u = 0; u < source.cols; ++u) {
+      EvaluateSh(band, LatLongDirection(u, v, source.cols, source.rows), y.data());
+      for (int ch = 0; ch < channels; ++ch) {
+        coefficients.col(channels == 3 ? 2 - ch : 0) += (row[u * channels + ch] * d_omega) * y;
+      }
+    }
+  }
+  return coefficients;
+}
+
+Eigen::MatrixXd LatLongToLedWeights(const cv::Mat& latlong, const std::vector<Eigen::Vector3d>& led_directions,
+                                    const std::vector<double>& led_intensities) {
+  if (latlong.empty() || latlong.cols != 2 * latlong.rows || led_directions.empty() ||
+      led_directions.size() != led_intensities.size()) {
+    throw std::invalid_argument("LatLongToLedWeights: 2:1 map and one intensity per LED");
+  }
+  cv::Mat source;
+  latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
+  const int channels = source.channels();
+  Eigen::MatrixXd weights = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(led_directions.size()), channels);
+  for (int v = 0; v < source.rows; ++v) {
+    const double d_omega = PixelSolidAngle(v, source.cols, source.rows);
+    const float* row = source.ptr<float>(v);
+    for (int u = 0; u < source.cols; ++u) {
+      const Eigen::Vector3d d = LatLongDirection(u, v, source.cols, source.rows);
+      if (d.z() <= 0.0) continue;
+      Eigen::Index nearest = 0;
+      double best = -2.0;
+      for (std::size_t k = 0; k < led_directions.size(); ++k) {
+        const double cosine = d.dot(led_directions[k].normalized());
+        if (cosine > best) {
+          best = cosine;
+          nearest = static_cast<Eigen::Index>(k);
+        }
+      }
+      for (int ch = 0; ch < channels; ++ch) {
+        weights(nearest, channels == 3 ? 2 - ch : 0) += row[u * channels + ch] * d_omega;
+      }
+    }
+  }
+  for (std::size_t k = 0; k < led_intensities.size(); ++k) weights.row(static_cast<Eigen::Index>(k)) /= led_intensities[k];
+  return weights;
+}
+
+}  // namespace photorig::lighting

@@ -1,0 +1,90 @@
+#include "photorig/lighting/nnls.h"
+
+#include <Eigen/Dense>
+
+#include <vector>
+
+namespace photorig::lighting {
+
+NnlsSummary SolveNnlsNormal(const Eigen::MatrixXd& gram, const Eigen::VectorXd& rhs, Eigen::VectorXd* x,
+                            int max_iterations) {
+  NnlsSummary summary;
+  const Eigen::Index n = rhs.size();
+  if (gram.rows() != n || gram.cols() != n) {
+    summary.message = "gram matrix and right-hand side sizes differ";
+    return summary;
+  }
+  if (max_iterations < 0) max_iterations = static_cast<int>(3 * n + 10);
+  x->setZero(n);
+  std::vector<bool> passive(static_cast<std::size_t>(n), false);
+  const double tolerance = 1e-12 * std::max(1.0, gram.diagonal().cwiseAbs().maxCoeff());
+
+  // Solves the unconstrained problem on the passive set; zero elsewhere.
+  auto solve_passive = [&]() {
+    std::vector<Eigen::Index> index;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (passive[static_cast<std::size_t>(i)]) index.push_back(i);
+    }
+    Eigen::MatrixXd g(index.size(), index.size());
+    Eigen::VectorXd h(index.size());
+    for (std::size_t a = 0; a < index.size(); ++a) {
+      h(static_cast<Eigen::Index>(a)) = rhs(index[a]);
+      for (std::size_t b = 0; b < index.size(); ++b) {
+        g(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = gram(index[a], index[b]);
+      }
+    }
+    const Eigen::VectorXd s_passive = g.ldlt().solve(h);
+    Eigen::VectorXd s = Eigen::VectorXd::Zero(n);
+    for (std::size_t a = 0; a < index.size(); ++a) s(index[a]) = s_passive(static_cast<Eigen::Index>(a));
+    return s;
+  };
+
+  while (summary.iterations < max_iterations) {
+    const Eigen::VectorXd gradient = rhs - gram * *x;  // negative gradient of 1/2 ||Ax - b||^2
+    Eigen::Index best = -1;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (!passive[static_cast<std::size_t>(i)] && gradient(i) > tolerance &&
+          (best < 0 || gradient(i) > gradient(best))) {
+        best = i;
+      }
+    }
+    if (best < 0) {
+      summary.converged = true;
+      break;
+    }
+    passive[static_cast<std::size_t>(best)] = true;
+    ++summary.iterations;
+    for (;;) {
+      const Eigen::VectorXd s = solve_passive();
+      double alpha = 1.0;
+      bool feasible = true;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        if (passive[static_cast<std::size_t>(i)] && s(i) <= 0.0) {
+          feasible = false;
+          alpha = std::min(alpha, (*x)(i) / ((*x)(i) - s(i)));
+        }
+      }
+      if (feasible) {
+        *x = s;
+        break;
+      }
+      // Step towards s until the first passive entry hits zero, then release it.
+      *x += alpha * (s - *x);
+      for (Eigen::Index i = 0; i < n; ++i) {
+        if (passive[static_cast<std::size_t>(i)] && (*x)(i) <= tolerance) {
+          passive[static_cast<std::size_t>(i)] = false;
+          (*x)(i) = 0.0;
+        }
+      }
+    }
+  }
+  for (Eigen::Index i = 0; i < n; ++i) summary.active_count += (*x)(i) > 0.0 ? 1 : 0;
+  summary.message = summary.converged ? "converged" : "iteration limit reached";
+  return summary;
+}
+
+NnlsSummary SolveNnls(const Eigen::MatrixXd& a, const Eigen::VectorXd& b, Eigen::VectorXd* x) {
+  return SolveNnlsNormal(a.transpose() * a, a.transpose() * b, x);
+}
+
+}  // namespace photorig::lighting

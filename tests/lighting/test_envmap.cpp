@@ -1,0 +1,133 @@
+#include "photorig/lighting/envmap.h"
+#include "photorig/lighting/inverse_lighting.h"
+#include "photorig/lighting/relight.h"
+#include "photorig/lighting/spherical_harmonics.h"
+#include "synthetic_sphere.h"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include <filesystem>
+
+namespace photorig::lighting {
+namespace {
+
+// A smooth colour environment: a sky gradient plus a warm lobe.
+cv::Mat SmoothEnvironment(int width) {
+  cv::Mat map(width / 2, width, CV_32FC3);
+  for (int v = 0; v < map.rows; ++v) {
+    for (int u = 0; u < map.cols; ++u) {
+      const Eigen::Vector3d d = LatLongDirection(u, v, map.cols, map.rows);
+      const double lobe = std::exp(4.0 * (d.dot(Eigen::Vector3d(0.5, 0.6, 0.62).normalized()) - 1.0));
+      map.at<cv::Vec3f>(v, u) = cv::Vec3f(static_cast<float>(0.5 + 0.3 * d.y()), static_cast<float>(0.4 + 0.2 * d.y() + 2.0 * lobe),
+                                          static_cast<float>(0.3 + 3.0 * lobe));
+    }
+  }
+  return map;
+}
+
+TEST(EnvMap, LatLongPixelInvertsLatLongDirection) {
+  const Eigen::Vector2d p = LatLongPixel(LatLongDirection(37.0, 81.0, 256, 128), 256, 128);
+  EXPECT_NEAR(p.x(), 37.0, 1e-9);
+  EXPECT_NEAR(p.y(), 81.0, 1e-9);
+  EXPECT_NEAR(LatLongPixel(Eigen::Vector3d::UnitZ(), 256, 128).x(), 127.5, 1e-9);  // the camera is mid-map
+}
+
+TEST(EnvMap, MirrorBallRoundTripIsAccurateAwayFromTheBlindCone) {
+  const cv::Mat env = SmoothEnvironment(256);
+  const cv::Mat ball = LatLongToMirrorBall(env, 512);
+  Circle circle{255.5, 255.5, 256.0};
+  UnwrapOptions options;
+  options.width = 256;
+  options.blind_cone_deg = 30.0;
+  const LatLongMap back = MirrorBallToLatLong(ball, LocateSphere(CameraModel{}, circle), options);
+  double sum = 0.0, sum_ref = 0.0;
+  int count = 0;
+  for (int v = 0; v < env.rows; ++v) {
+    for (int u = 0; u < env.cols; ++u) {
+      if (!back.valid.at<std::uint8_t>(v, u)) continue;
+      sum += cv::norm(back.radiance.at<cv::Vec3f>(v, u) - env.at<cv::Vec3f>(v, u), cv::NORM_L1);
+      sum_ref += cv::norm(env.at<cv::Vec3f>(v, u), cv::NORM_L1);
+      ++count;
+    }
+  }
+  EXPECT_GT(count, env.total() * 0.9);
+  EXPECT_LT(sum / sum_ref, 0.01);
+  RecordProperty("relative_round_trip_error", std::to_string(sum / sum_ref));
+}
+
+TEST(EnvMap, ExposureBracketsMergeToRadianceAndFlagUnresolvedPixels) {
+  cv::Mat radiance(8, 8, CV_32F);
+  for (int i = 0; i < 64; ++i) radiance.at<float>(i / 8, i % 8) = static_cast<float>(0.01 * std::pow(1.25, i));
+  std::vector<cv::Mat> frames;
+  const std::vector<double> exposures = {100.0, 1000.0, 10000.0};
+  for (double t : exposures) {
+    cv::Mat frame;
+    cv::Mat(radiance * t + 64.0).convertTo(frame, CV_16U);  // rounding is the only noise
+    frame.setTo(4095, frame > 4095);
+    frames.push_back(frame);
+  }
+  ExposureMergeOptions options;
+  options.black_level = 64.0;
+  options.saturation_level = 4095.0;
+  const HdrMerge merge = MergeExposures(frames, exposures, options);
+  for (int i = 0; i < 64; ++i) {
+    const float truth = radiance.at<float>(i / 8, i % 8);
+    if (truth * 100.0 + 64 >= 4095) {
+      EXPECT_EQ(merge.unresolved.at<std::uint8_t>(i / 8, i % 8), 255);
+    } else if (truth * 10000.0 > 20.0) {  // above a few DN in the longest exposure
+      EXPECT_NEAR(merge.radiance.at<float>(i / 8, i % 8) / truth, 1.0, 0.03) << i;
+    }
+  }
+  EXPECT_GT(merge.unresolved_pixels, 0);
+
+  // Radiance HDR (RGBE) keeps about 1% relative precision through a file.
+  cv::Mat colour;
+  cv::merge(std::vector<cv::Mat>{merge.radiance, merge.radiance, merge.radiance}, colour);
+  const std::string path = (std::filesystem::temp_directory_path() / "photorig_lighting_merge.hdr").string();
+  ASSERT_TRUE(cv::imwrite(path, colour));
+  const cv::Mat read = cv::imread(path, cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(read.type(), CV_32FC3);
+  cv::Mat ratio;
+  cv::divide(read, colour, ratio);
+  double low, high;
+  cv::minMaxLoc(ratio.reshape(1), &low, &high);
+  EXPECT_GT(low, 0.98);
+  EXPECT_LT(high, 1.02);
+  std::filesystem::remove(path);
+}
+
+TEST(EnvMap, RelightingWithAnEnvironmentBySphericalHarmonicsAndByTheDome) {
+  const cv::Mat env = SmoothEnvironment(256);
+  const Eigen::MatrixXd sh = ProjectLatLongToSh(env, 2);
+  cv::Mat normals, mask;
+  testing::SphereNormals(96, 0.95, &normals, &mask);
+  const cv::Mat albedo(normals.size(), CV_32F, cv::Scalar(0.6));
+  const cv::Mat reference = RenderShLighting(normals, albedo, sh);
+
+  // The SH projection is the lighting inverse lighting would recover from that render.
+  const ShLightingSummary fit = FitShLighting(normals, albedo, reference, mask);
+  ASSERT_TRUE(fit.success);
+  EXPECT_LT((fit.coefficients.topRows(9) - sh).cwiseAbs().maxCoeff() / sh.cwiseAbs().maxCoeff(), 0.02);
+
+  // Image-based: one frame per dome LED, weighted by the map's light around each LED.
+  const std::vector<Eigen::Vector3d> dome = testing::DomeDirections();
+  const std::vector<double> intensities(dome.size(), 1.0);
+  std::vector<cv::Mat> frames;
+  for (const auto& d : dome) frames.push_back(RenderDirectionalLights(normals, albedo, {d}, {1.0}));
+  const cv::Mat relit = RelightFromFrames(frames, LatLongToLedWeights(env, dome, intensities));
+  // The dome holds no light below the horizon and samples the rest coarsely: compare facing-up pixels.
+  double diff = 0.0, ref = 0.0;
+  for (int r = 0; r < normals.rows; ++r) {
+    for (int c = 0; c < normals.cols; ++c) {
+      if (!mask.at<std::uint8_t>(r, c) || normals.at<cv::Vec3f>(r, c)[2] < 0.8) continue;
+      diff += cv::norm(relit.at<cv::Vec3f>(r, c) - reference.at<cv::Vec3f>(r, c), cv::NORM_L1);
+      ref += cv::norm(reference.at<cv::Vec3f>(r, c), cv::NORM_L1);
+    }
+  }
+  EXPECT_LT(diff / ref, 0.15);
+  RecordProperty("dome_vs_sh_relative_error", std::to_string(diff / ref));
+}
+
+}  // namespace
+}  // namespace photorig::lighting

@@ -1,0 +1,143 @@
+#include "photorig/lighting/inverse_lighting.h"
+#include "photorig/lighting/nnls.h"
+#include "photorig/lighting/relight.h"
+#include "photorig/lighting/spherical_harmonics.h"
+#include "synthetic_sphere.h"
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace photorig::lighting {
+namespace {
+
+TEST(SphericalHarmonics, MatchesClosedFormsAndIsOrthonormal) {
+  const Eigen::Vector3d d = Eigen::Vector3d(0.3, -0.5, 0.8).normalized();
+  const Eigen::VectorXd y = EvaluateSh(2, d);
+  EXPECT_NEAR(y(0), 0.282095, 1e-6);
+  EXPECT_NEAR(y(1), 0.488603 * d.y(), 1e-6);
+  EXPECT_NEAR(y(2), 0.488603 * d.z(), 1e-6);
+  EXPECT_NEAR(y(3), 0.488603 * d.x(), 1e-6);
+  EXPECT_NEAR(y(4), 1.092548 * d.x() * d.y(), 1e-6);
+  EXPECT_NEAR(y(6), 0.315392 * (3 * d.z() * d.z() - 1), 1e-6);
+  EXPECT_NEAR(y(8), 0.546274 * (d.x() * d.x() - d.y() * d.y()), 1e-6);
+  EXPECT_NEAR(LambertianKernel(2), M_PI / 4, 1e-12);
+  EXPECT_NEAR(LambertianKernel(4), -M_PI / 24, 1e-12);
+  EXPECT_EQ(LambertianKernel(3), 0.0);
+  // Gram matrix over a fine latitude-longitude grid.
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(25, 25);
+  const int rows = 200, cols = 400;
+  for (int i = 0; i < rows; ++i) {
+    const double theta = M_PI * (i + 0.5) / rows;
+    for (int j = 0; j < cols; ++j) {
+      const double phi = 2 * M_PI * (j + 0.5) / cols;
+      const Eigen::VectorXd v = EvaluateSh(4, {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)});
+      gram += v * v.transpose() * (std::sin(theta) * M_PI / rows * 2 * M_PI / cols);
+    }
+  }
+  EXPECT_LT((gram - Eigen::MatrixXd::Identity(25, 25)).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+TEST(Nnls, MatchesBruteForceOverActiveSets) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd a(30, 5);
+  Eigen::VectorXd b(30);
+  for (int i = 0; i < 30; ++i) {
+    b(i) = normal(rng);
+    for (int j = 0; j < 5; ++j) a(i, j) = normal(rng);
+  }
+  Eigen::VectorXd x;
+  ASSERT_TRUE(SolveNnls(a, b, &x).converged);
+  EXPECT_GE(x.minCoeff(), 0.0);
+  double best = HUGE_VAL;
+  for (int set = 0; set < 32; ++set) {  // every subset: unconstrained solve, keep feasible ones
+    std::vector<int> index;
+    for (int j = 0; j < 5; ++j) if (set & (1 << j)) index.push_back(j);
+    Eigen::MatrixXd sub(30, index.size());
+    for (std::size_t k = 0; k < index.size(); ++k) sub.col(static_cast<Eigen::Index>(k)) = a.col(index[k]);
+    const Eigen::VectorXd s = index.empty() ? Eigen::VectorXd() : Eigen::VectorXd(sub.colPivHouseholderQr().solve(b));
+    if (!index.empty() && s.minCoeff() < 0) continue;
+    best = std::min(best, index.empty() ? b.squaredNorm() : (sub * s - b).squaredNorm());
+  }
+  EXPECT_NEAR((a * x - b).squaredNorm(), best, 1e-9);
+}
+
+class InverseLighting : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    testing::SphereNormals(160, 0.95, &normals_, &mask_);
+    albedo_ = cv::Mat(normals_.size(), CV_32F);
+    for (int r = 0; r < albedo_.rows; ++r)
+      for (int c = 0; c < albedo_.cols; ++c) albedo_.at<float>(r, c) = ((r / 16 + c / 16) % 2) ? 0.8f : 0.4f;
+    truth_ = Eigen::MatrixXd(9, 3);
+    truth_ << 2.0, 1.8, 1.5,   0.4, 0.3, 0.2,   0.9, 0.8, 0.9,   -0.3, -0.2, -0.4,  0.15, 0.1, 0.12,
+              -0.1, -0.12, -0.05,  0.2, 0.25, 0.18,  0.12, 0.1, 0.08,  -0.15, -0.1, -0.2;
+  }
+  cv::Mat normals_, mask_, albedo_;
+  Eigen::MatrixXd truth_;
+};
+
+TEST_F(InverseLighting, RecoversBandTwoCoefficientsWithinTwoPercentAndPicksTheBand) {
+  const cv::Mat image = RenderShLighting(normals_, albedo_, truth_);
+  const ShLightingSummary fit = FitShLighting(normals_, albedo_, image, mask_);
+  ASSERT_TRUE(fit.success) << fit.message;
+  EXPECT_EQ(fit.band, 2);
+  ASSERT_EQ(fit.coefficients.rows(), 9);
+  EXPECT_LT((fit.coefficients - truth_).cwiseAbs().maxCoeff() / truth_.cwiseAbs().maxCoeff(), 0.02);
+  for (int i = 0; i < 9; ++i)
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(fit.coefficients(i, c), truth_(i, c), 0.02 * std::abs(truth_(i, c)) + 1e-6);
+  EXPECT_LT(fit.relative_rms_residual, 1e-4);
+}
+
+TEST_F(InverseLighting, NoisyFrontalLightNeedsOnlyTheLowBands) {
+  // Band 1 lighting plus noise: held-out residual and BIC both decline band 2 and 4.
+  Eigen::MatrixXd band1 = Eigen::MatrixXd::Zero(4, 1);
+  band1 << 2.0, 0.3, 0.8, -0.2;
+  cv::Mat image = RenderShLighting(normals_, albedo_, band1);
+  cv::Mat noise(image.size(), CV_32F);
+  cv::randn(noise, 0.0, 0.01);
+  image += noise;
+  for (auto selection : {ShFitOptions::Selection::kHeldOut, ShFitOptions::Selection::kBic}) {
+    ShFitOptions options;
+    options.selection = selection;
+    const ShLightingSummary fit = FitShLighting(normals_, albedo_, image, mask_, options);
+    ASSERT_TRUE(fit.success);
+    EXPECT_EQ(fit.band, 1);
+    EXPECT_EQ(fit.candidates.size(), 4u);
+  }
+}
+
+TEST_F(InverseLighting, LedWeightsRecoverADomeMixtureAndImageBasedRelightingMatches) {
+  const std::vector<Eigen::Vector3d> dome = testing::DomeDirections();
+  std::vector<double> intensities(dome.size());
+  for (std::size_t k = 0; k < dome.size(); ++k) intensities[k] = 0.9 + 0.01 * static_cast<double>(k % 20);
+  std::vector<cv::Mat> frames;
+  for (std::size_t k = 0; k < dome.size(); ++k) {
+    frames.push_back(RenderDirectionalLights(normals_, albedo_, {dome[k]}, {intensities[k]}));
+  }
+  Eigen::MatrixXd truth = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(dome.size()), 1);
+  truth(3, 0) = 0.7;
+  truth(20, 0) = 1.3;
+  truth(44, 0) = 0.5;
+  const cv::Mat image = RelightFromFrames(frames, truth);
+  const LedWeightsSummary fit = FitLedWeights(normals_, albedo_, image, mask_, dome, intensities);
+  ASSERT_TRUE(fit.success) << fit.message;
+  EXPECT_LT((fit.weights - truth).cwiseAbs().maxCoeff(), 1e-3);
+  EXPECT_EQ(fit.active_leds, 3);
+  EXPECT_LT(fit.relative_rms_residual, 1e-4);
+  // A light the dome cannot make (below the horizon) leaves a residual that is reported.
+  const cv::Mat below = RenderDirectionalLights(normals_, albedo_, {Eigen::Vector3d(0, -0.9, -0.44).normalized()}, {1.0});
+  const LedWeightsSummary poor = FitLedWeights(normals_, albedo_, below, mask_, dome, intensities);
+  EXPECT_GT(poor.relative_rms_residual, 0.02);
+}
+
+TEST_F(InverseLighting, RejectsMismatchedInputs) {
+  const ShLightingSummary fit = FitShLighting(normals_, albedo_, cv::Mat::zeros(10, 10, CV_32F), mask_);
+  EXPECT_FALSE(fit.success);
+  EXPECT_NE(fit.message.find("image"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace photorig::lighting
