@@ -1,11 +1,19 @@
 # Adds every immediate subdirectory of the current source directory that has a
 # CMakeLists.txt, in name order. New modules (a driver, a solver, a test area)
 # join the build by existing; no parent list needs editing.
+#
+# PHOTORIG_SKIP_MODULES (a list of directory names, e.g. "aravis;v4l2") leaves
+# modules out, for building on a machine without one of their libraries.
+set(PHOTORIG_SKIP_MODULES "" CACHE STRING "module directory names to leave out of the build")
+
 function(photorig_add_module_subdirectories)
   file(GLOB children LIST_DIRECTORIES true CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/*")
   list(SORT children)
   foreach(child IN LISTS children)
-    if(IS_DIRECTORY "${child}" AND EXISTS "${child}/CMakeLists.txt")
+    get_filename_component(name "${child}" NAME)
+    if(name IN_LIST PHOTORIG_SKIP_MODULES)
+      message(STATUS "photorig: skipping module ${child}")
+    elseif(IS_DIRECTORY "${child}" AND EXISTS "${child}/CMakeLists.txt")
       add_subdirectory("${child}")
     endif()
   endforeach()

@@ -67,3 +67,44 @@ inline PhotometricStack RenderStack(const TruthMaps& truth, const std::vector<Ei
 }
 
 }  // namespace photorig::ps::testing
+
+namespace photorig::ps::testing {
+
+struct Specular {
+  double albedo = 0.0;    // rho_s
+  double exponent = 1.0;  // e
+};
+
+// Diffuse + normalised Blinn-Phong, orthographic view (0, 0, 1), written out
+// independently of the solver's autodiff model:
+//   I_k = dark + s_k [rho_d/pi + rho_s (e+2)/(2 pi) max(0, h.n)^e] max(0, n.w) + noise
+inline PhotometricStack RenderShinyStack(const TruthMaps& truth, const std::vector<Eigen::Vector3d>& lights,
+                                         double scale, Specular specular, float dark_level, double noise_sigma,
+                                         unsigned seed = 11) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  PhotometricStack stack;
+  stack.light_directions = lights;
+  stack.light_scales.assign(lights.size(), scale);
+  stack.dark = cv::Mat(truth.albedo.size(), CV_32F, cv::Scalar(dark_level));
+  stack.noise.read_sigma = noise_sigma;
+  const Eigen::Vector3d view(0, 0, 1);
+  for (const Eigen::Vector3d& w : lights) {
+    const Eigen::Vector3d h = (w + view).normalized();
+    cv::Mat image(truth.albedo.size(), CV_32F);
+    for (int r = 0; r < image.rows; ++r)
+      for (int c = 0; c < image.cols; ++c) {
+        const cv::Vec3f nv = truth.normals.at<cv::Vec3f>(r, c);
+        const Eigen::Vector3d n(nv[0], nv[1], nv[2]);
+        const double cosine = std::max(0.0, n.dot(w));
+        const double lobe = specular.albedo * (specular.exponent + 2) / (2 * M_PI) *
+                            std::pow(std::max(0.0, h.dot(n)), specular.exponent);
+        const double value = dark_level + scale * (truth.albedo.at<float>(r, c) / M_PI + lobe) * cosine;
+        image.at<float>(r, c) = static_cast<float>(value + noise_sigma * gauss(rng));
+      }
+    stack.images.push_back(image);
+  }
+  return stack;
+}
+
+}  // namespace photorig::ps::testing

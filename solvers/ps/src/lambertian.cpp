@@ -59,7 +59,16 @@ SubsetSolver BuildSubsetSolver(const PhotometricStack& stack, const LightSubset&
   return solver;
 }
 
-void WriteSolution(int pixel, float x0, float x1, float x2, NormalMap* out) {
+// Confidence from the residual: expected / observed residual variance when the
+// noise is known (1 = explained down to the noise), else the coefficient of
+// determination 1 - RSS / sum(b^2).
+float Confidence(double rss, double expected_rss, double sum_b2) {
+  if (!(rss > 0.0)) return 1.0f;
+  if (expected_rss > 0.0) return static_cast<float>(std::min(1.0, expected_rss / rss));
+  return static_cast<float>(std::clamp(1.0 - rss / std::max(sum_b2, 1e-300), 0.0, 1.0));
+}
+
+void WriteSolution(int pixel, float x0, float x1, float x2, float confidence, NormalMap* out) {
   const float length = std::sqrt(x0 * x0 + x1 * x1 + x2 * x2);
   auto* n = out->normals.ptr<cv::Vec3f>() + pixel;
   if (!(length > 0.0f)) {
@@ -70,6 +79,8 @@ void WriteSolution(int pixel, float x0, float x1, float x2, NormalMap* out) {
   *n = cv::Vec3f(x0 / length, x1 / length, x2 / length);
   out->albedo.ptr<float>()[pixel] = static_cast<float>(M_PI) * length;
   out->flags.ptr<std::uint8_t>()[pixel] = static_cast<std::uint8_t>(PixelFlag::kSolved);
+  out->model.ptr<std::uint8_t>()[pixel] = static_cast<std::uint8_t>(PixelModel::kLambertian);
+  out->confidence.ptr<float>()[pixel] = confidence;
 }
 
 }  // namespace
@@ -134,6 +145,9 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
   result->flags.setTo(static_cast<int>(PixelFlag::kOutsideMask));
   result->usable_lights.create(height, width, CV_16U);
   result->usable_lights.setTo(0);
+  result->model = cv::Mat::zeros(height, width, CV_8U);
+  result->confidence = cv::Mat::zeros(height, width, CV_32F);
+  result->specular = cv::Mat::zeros(height, width, CV_32FC2);
 
   std::vector<const float*> planes(k);
   for (int i = 0; i < k; ++i) planes[i] = stack.images[i].ptr<float>();
@@ -141,6 +155,18 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
   const std::uint8_t* mask = stack.mask.empty() ? nullptr : stack.mask.ptr<std::uint8_t>();
   std::array<float, 3> dark_weight{};  // sum_k weights(:, k): dark subtraction folded into one term
   for (int c = 0; c < 3; ++c) dark_weight[c] = global.weights.row(c).sum();
+  // For the residual of fully lit pixels without a second pass:
+  //   RSS = sum_k b_k^2 - x^T G x,  G = A^T A,  b_k = (I_k - D) / s_k,
+  // and sum_k b_k^2 = sum I^2/s^2 - 2 D sum I/s^2 + D^2 sum 1/s^2.
+  std::vector<float> inverse_scale2(k);
+  double sum_inverse_scale2 = 0.0;
+  Eigen::Matrix3d gram = Eigen::Matrix3d::Zero();
+  for (int i = 0; i < k; ++i) {
+    inverse_scale2[i] = static_cast<float>(1.0 / (stack.light_scales[i] * stack.light_scales[i]));
+    sum_inverse_scale2 += inverse_scale2[i];
+    gram += stack.light_directions[i] * stack.light_directions[i].transpose();
+  }
+  const NoiseModel noise = stack.noise;
   const float shadow = static_cast<float>(options.shadow_threshold);
   const float saturation = std::isfinite(options.saturation_level)
                                ? static_cast<float>(options.saturation_level)
@@ -156,6 +182,7 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
   {
     std::unordered_map<LightSubset, SubsetSolver, LightSubsetHash> cache;
     alignas(64) float x0[kTilePixels], x1[kTilePixels], x2[kTilePixels], d[kTilePixels];
+    alignas(64) float q1[kTilePixels], q2[kTilePixels];  // sum I/s^2, sum I^2/s^2
     alignas(64) std::uint16_t usable[kTilePixels];
     std::vector<float> samples(k);
 
@@ -164,7 +191,7 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
       const int begin = tile * kTilePixels;
       const int n = std::min(kTilePixels, pixels - begin);
       for (int i = 0; i < n; ++i) {
-        x0[i] = x1[i] = x2[i] = 0.0f;
+        x0[i] = x1[i] = x2[i] = q1[i] = q2[i] = 0.0f;
         usable[i] = 0;
         d[i] = dark ? dark[begin + i] : 0.0f;
       }
@@ -172,12 +199,16 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
       for (int l = 0; l < k; ++l) {
         const float* image = planes[l] + begin;
         const float w0 = global.weights(0, l), w1 = global.weights(1, l), w2 = global.weights(2, l);
+        const float u = inverse_scale2[l];
 #pragma omp simd
         for (int i = 0; i < n; ++i) {
           const float v = image[i];
           x0[i] += w0 * v;
           x1[i] += w1 * v;
           x2[i] += w2 * v;
+          const float vu = v * u;
+          q1[i] += vu;
+          q2[i] += vu * v;
           usable[i] += static_cast<std::uint16_t>((v - d[i] > shadow) & (v < saturation));
         }
       }
@@ -191,8 +222,14 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
           continue;
         }
         if (usable[i] == k || !options.exclude_unusable_samples) {
-          WriteSolution(p, x0[i] - dark_weight[0] * d[i], x1[i] - dark_weight[1] * d[i],
-                        x2[i] - dark_weight[2] * d[i], result);
+          const Eigen::Vector3d x(x0[i] - dark_weight[0] * d[i], x1[i] - dark_weight[1] * d[i],
+                                  x2[i] - dark_weight[2] * d[i]);
+          const double sum_b2 = q2[i] - 2.0 * d[i] * q1[i] + double(d[i]) * d[i] * sum_inverse_scale2;
+          const double rss = std::max(0.0, sum_b2 - x.dot(gram * x));
+          const double noise_sum = noise.read_sigma * noise.read_sigma * sum_inverse_scale2 +
+                                   noise.shot_gain * std::max(0.0, q1[i] - d[i] * sum_inverse_scale2);
+          const double expected_rss = noise_sum * (k - 3) / k;
+          WriteSolution(p, float(x(0)), float(x(1)), float(x(2)), Confidence(rss, expected_rss, sum_b2), result);
           continue;
         }
         // Some samples are shadowed or clipped: solve on this pixel's own subset.
@@ -219,7 +256,18 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
           y1 += solver.weights(1, l) * samples[l];
           y2 += solver.weights(2, l) * samples[l];
         }
-        WriteSolution(p, y0, y1, y2, result);
+        double rss = 0.0, expected = 0.0, sum_b2 = 0.0;
+        for (int l = 0; l < k; ++l) {
+          if (!(subset[l / 64] >> (l % 64) & 1u)) continue;
+          const double b = samples[l] / stack.light_scales[l];
+          const Eigen::Vector3d& w = stack.light_directions[l];
+          const double r = b - (w.x() * y0 + w.y() * y1 + w.z() * y2);
+          rss += r * r;
+          sum_b2 += b * b;
+          expected += noise.Variance(samples[l]) * inverse_scale2[l];
+        }
+        expected *= static_cast<double>(usable[i] - 3) / usable[i];
+        WriteSolution(p, y0, y1, y2, Confidence(rss, expected, sum_b2), result);
       }
     }
   }

@@ -41,7 +41,19 @@ bool PhotometricStack::IsValid(std::string* why) const {
     return fail("the dark frame must be a continuous float image of the stack's size");
   if (!mask.empty() && (mask.type() != CV_8U || mask.size() != size))
     return fail("the mask must be an 8-bit image of the stack's size");
+  if (!(noise.read_sigma >= 0.0) || !(noise.shot_gain >= 0.0)) return fail("noise parameters must be >= 0");
+  if (!(std::abs(view_direction.norm() - 1.0) < 1e-6)) return fail("the view direction must be a unit vector");
   return true;
+}
+
+const char* PixelModelName(PixelModel model) {
+  switch (model) {
+    case PixelModel::kNone: return "none";
+    case PixelModel::kLambertian: return "lambertian";
+    case PixelModel::kRobust: return "robust";
+    case PixelModel::kBlinnPhong: return "blinn_phong";
+  }
+  return "unknown";
 }
 
 const char* PixelFlagName(PixelFlag flag) {

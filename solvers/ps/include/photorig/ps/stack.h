@@ -13,6 +13,18 @@
 
 namespace photorig::ps {
 
+// Noise of one sample in input units: variance = read_sigma^2 + shot_gain * (I - D).
+// For a linear camera, shot_gain = 1 / (electrons per DN) and read_sigma is the
+// dark-frame noise (including that of the subtracted dark). Zero means unknown
+// or noise-free; methods that test residuals against the noise then fall back
+// to the residuals themselves.
+struct NoiseModel {
+  double read_sigma = 0.0;
+  double shot_gain = 0.0;
+  double Variance(double signal) const { return read_sigma * read_sigma + shot_gain * (signal > 0.0 ? signal : 0.0); }
+  bool IsKnown() const { return read_sigma > 0.0 || shot_gain > 0.0; }
+};
+
 // One frame per light. Values are linear sensor values (e.g. DN); the solver
 // subtracts `dark` and divides by `light_scales`, so callers never pre-process
 // the frames (which would cost one more pass over the whole stack).
@@ -25,6 +37,9 @@ struct PhotometricStack {
   // pi * |x| as in the derivation; with 1.0 everywhere the albedo is relative.
   std::vector<double> light_scales;
   cv::Mat mask;  // optional CV_8U; zero = do not solve
+  NoiseModel noise;
+  // Unit vector towards the camera, for view-dependent reflectance (orthographic camera).
+  Eigen::Vector3d view_direction{0.0, 0.0, 1.0};
 
   int width() const { return images.empty() ? 0 : images.front().cols; }
   int height() const { return images.empty() ? 0 : images.front().rows; }
@@ -44,11 +59,26 @@ enum class PixelFlag : std::uint8_t {
 };
 const char* PixelFlagName(PixelFlag flag);
 
+// The reflectance model a pixel was explained with (NormalMap::model).
+enum class PixelModel : std::uint8_t {
+  kNone = 0,        // no normal (see flags)
+  kLambertian = 1,  // least squares on the unshadowed, unsaturated samples
+  kRobust = 2,      // Lambertian with outlying samples down-weighted (IRLS)
+  kBlinnPhong = 3   // diffuse + normalised Blinn-Phong lobe
+};
+const char* PixelModelName(PixelModel model);
+
 struct NormalMap {
   cv::Mat normals;        // CV_32FC3 (x, y, z); NaN where flags != kSolved
-  cv::Mat albedo;         // CV_32F; NaN where flags != kSolved
+  cv::Mat albedo;         // CV_32F diffuse albedo; NaN where flags != kSolved
   cv::Mat flags;          // CV_8U PixelFlag
   cv::Mat usable_lights;  // CV_16U count of samples that entered the fit
+  cv::Mat model;          // CV_8U PixelModel
+  // CV_32F in [0, 1]: how well the chosen model explains the pixel, from the
+  // ratio of its residual variance to the noise variance (1 = at the noise
+  // level, 0.5 = twice the noise variance); 0 where unsolved.
+  cv::Mat confidence;
+  cv::Mat specular;       // CV_32FC2 (rho_s, exponent) where model == kBlinnPhong, else 0
 };
 
 }  // namespace photorig::ps

@@ -28,6 +28,15 @@ struct SolverSummary {
   std::size_t pixels_rejected_by_model = 0;
   std::size_t samples_rejected = 0;   // shadowed or saturated samples left out of fits
   std::size_t distinct_light_subsets = 0;
+  // Pixels explained by each model (kAuto's choices; one model for the others).
+  std::size_t pixels_lambertian = 0;
+  std::size_t pixels_robust = 0;
+  std::size_t pixels_blinn_phong = 0;
+  // Whether the noise model used by the adequacy tests was (partly) estimated
+  // from the residuals rather than given with the stack.
+  bool noise_estimated = false;
+  double noise_read_sigma = 0.0;  // the noise model the tests used, input units
+  double noise_shot_gain = 0.0;
 
   double setup_ms = 0.0;
   double solve_ms = 0.0;

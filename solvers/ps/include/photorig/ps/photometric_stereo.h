@@ -1,0 +1,88 @@
+#pragma once
+// Photometric stereo behind one entry point: pick a method, or let `kAuto`
+// pick per pixel the simplest reflectance model the data support.
+//
+//   kL2          Lambertian least squares on every sample (fastest; biased by
+//                shadows, highlights and clipping).
+//   kLambertian  Lambertian least squares on the unshadowed, unsaturated
+//                samples of each pixel (per-sample thresholds).
+//   kRobust      kLambertian, then iteratively reweighted least squares with a
+//                robust loss, which down-weights samples no Lambertian surface
+//                explains (specular highlights, partial shadows).
+//   kBlinnPhong  diffuse + normalised Blinn-Phong lobe fitted per pixel by
+//                Levenberg-Marquardt with automatic differentiation, started
+//                from kRobust.
+//   kAuto        per pixel: kLambertian if its residual is at the noise level
+//                (chi-square test), else Lambertian with the worst samples
+//                trimmed greedily (reported as kRobust) if that is adequate
+//                while rejecting few samples, else kBlinnPhong; the Bayesian
+//                information criterion decides between inadequate fits.
+
+#include "photorig/autodiff/blinn_phong_jacobian.h"
+#include "photorig/ps/lambertian.h"
+#include "photorig/ps/stack.h"
+#include "photorig/ps/summary.h"
+
+#include <string>
+
+namespace photorig::ps {
+
+enum class Method { kL2, kLambertian, kRobust, kBlinnPhong, kAuto };
+const char* MethodName(Method method);
+bool ParseMethod(const std::string& name, Method* method);  // "l2", "lambertian", "robust", "blinn-phong", "auto"
+
+struct RobustOptions {
+  enum class Loss {
+    kCauchy,  // smooth, never rejects a sample entirely; c = 2.385
+    kHuber,   // convex, bounded influence but no rejection; c = 1.345
+    kTukey    // redescending: gross outliers get weight 0; c = 4.685
+  };
+  // Tukey's biweight by default: specular highlights are gross outliers, and
+  // only a redescending loss removes their pull entirely. It is not convex, so
+  // the first `warmup_iterations` use the Cauchy loss to reach its basin.
+  Loss loss = Loss::kTukey;
+  int warmup_iterations = 3;
+  int max_iterations = 20;
+  double relative_tolerance = 1e-6;  // stop when |dx| <= tol * |x|
+  // A sample whose final weight is below this counts as rejected.
+  double inlier_weight = 0.5;
+  bool IsValid(std::string* why) const;
+};
+
+struct BlinnPhongOptions {
+  autodiff::DerivativeMethod derivative = autodiff::DerivativeMethod::kForward;
+  int max_iterations = 40;
+  double initial_exponent = 30.0;
+  double min_exponent = 1.0;     // below this the lobe is indistinguishable from the diffuse term
+  double max_exponent = 2000.0;  // narrower lobes fall between the lights of any practical dome
+  bool IsValid(std::string* why) const;
+};
+
+struct ModelSelectionOptions {
+  // A fit is adequate when its chi-square statistic is below this quantile of
+  // the chi-square distribution with n - p degrees of freedom.
+  double adequacy_quantile = 0.999;
+  // kAuto prefers kRobust over kBlinnPhong only when it rejects at most this
+  // fraction of a pixel's usable samples.
+  double max_rejected_fraction = 0.25;
+  bool IsValid(std::string* why) const;
+};
+
+struct PhotometricStereoOptions {
+  Method method = Method::kAuto;
+  LambertianOptions lambertian;  // thresholds shared by every method
+  RobustOptions robust;
+  BlinnPhongOptions blinn_phong;
+  ModelSelectionOptions selection;
+  // When the stack's noise model lacks a shot-noise gain, fit one (and the read
+  // noise, if unknown too) to the residuals before testing adequacy. Off: the
+  // stack's noise model is taken as complete.
+  bool estimate_noise = true;
+  bool IsValid(std::string* why) const;
+};
+
+// Never throws on bad data; see SolverSummary and the per-pixel flags.
+SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, const PhotometricStack& stack,
+                                     NormalMap* result);
+
+}  // namespace photorig::ps

@@ -1,0 +1,223 @@
+#include "photorig/ps/integration.h"
+
+#include <Eigen/Sparse>
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+namespace photorig::ps {
+namespace {
+
+struct Gradients {
+  cv::Mat dzdx, dzdy;  // CV_64F, per pixel, depth units per pixel
+  cv::Mat mask;        // CV_8U, pixels with a usable gradient
+  std::size_t dropped = 0;
+};
+
+Gradients ComputeGradients(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask) {
+  Gradients g;
+  g.dzdx = cv::Mat::zeros(normals.size(), CV_64F);
+  g.dzdy = cv::Mat::zeros(normals.size(), CV_64F);
+  g.mask = cv::Mat::zeros(normals.size(), CV_8U);
+  for (int r = 0; r < normals.rows; ++r)
+    for (int c = 0; c < normals.cols; ++c) {
+      if (!mask.empty() && mask.at<std::uint8_t>(r, c) == 0) continue;
+      const cv::Vec3f n = normals.at<cv::Vec3f>(r, c);
+      if (!std::isfinite(n[0]) || !std::isfinite(n[1]) || !std::isfinite(n[2])) continue;
+      if (n[2] < options.min_normal_z) {
+        ++g.dropped;
+        continue;
+      }
+      g.dzdx.at<double>(r, c) = -n[0] / n[2] * options.pixel_pitch;
+      g.dzdy.at<double>(r, c) = -n[1] / n[2] * options.pixel_pitch;
+      g.mask.at<std::uint8_t>(r, c) = 255;
+    }
+  return g;
+}
+
+// Residual of the integrated depth against the gradient on every neighbour
+// pair inside the mask (trapezoidal: the mean of the two pixels' slopes).
+double ResidualRms(const Gradients& g, const cv::Mat& depth) {
+  double sum = 0.0;
+  std::size_t count = 0;
+  for (int r = 0; r < depth.rows; ++r)
+    for (int c = 0; c < depth.cols; ++c) {
+      if (!g.mask.at<std::uint8_t>(r, c)) continue;
+      if (c + 1 < depth.cols && g.mask.at<std::uint8_t>(r, c + 1)) {
+        const double e = (depth.at<float>(r, c + 1) - depth.at<float>(r, c)) -
+                         0.5 * (g.dzdx.at<double>(r, c) + g.dzdx.at<double>(r, c + 1));
+        sum += e * e, ++count;
+      }
+      if (r + 1 < depth.rows && g.mask.at<std::uint8_t>(r + 1, c)) {
+        // One row down is one step of -y.
+        const double e = (depth.at<float>(r + 1, c) - depth.at<float>(r, c)) +
+                         0.5 * (g.dzdy.at<double>(r, c) + g.dzdy.at<double>(r + 1, c));
+        sum += e * e, ++count;
+      }
+    }
+  return count ? std::sqrt(sum / count) : 0.0;
+}
+
+// Subtracts each connected region's mean depth.
+void CentreRegions(const cv::Mat& mask, cv::Mat* depth) {
+  cv::Mat labels;
+  const int regions = cv::connectedComponents(mask, labels, 4, CV_32S);
+  std::vector<double> sum(regions, 0.0);
+  std::vector<std::size_t> count(regions, 0);
+  for (int r = 0; r < mask.rows; ++r)
+    for (int c = 0; c < mask.cols; ++c)
+      if (mask.at<std::uint8_t>(r, c)) sum[labels.at<int>(r, c)] += depth->at<float>(r, c), ++count[labels.at<int>(r, c)];
+  for (int r = 0; r < mask.rows; ++r)
+    for (int c = 0; c < mask.cols; ++c) {
+      if (mask.at<std::uint8_t>(r, c))
+        depth->at<float>(r, c) -= static_cast<float>(sum[labels.at<int>(r, c)] / count[labels.at<int>(r, c)]);
+      else
+        depth->at<float>(r, c) = std::numeric_limits<float>::quiet_NaN();
+    }
+}
+
+void FrankotChellappa(const Gradients& g, cv::Mat* depth) {
+  const int rows = g.dzdx.rows, cols = g.dzdx.cols;
+  // Image rows run down: the row-direction derivative is -dz/dy.
+  cv::Mat p = g.dzdx, q = -g.dzdy;
+  cv::Mat planes_p[] = {p.clone(), cv::Mat::zeros(p.size(), CV_64F)};
+  cv::Mat planes_q[] = {q.clone(), cv::Mat::zeros(q.size(), CV_64F)};
+  cv::Mat fp, fq;
+  cv::merge(planes_p, 2, fp);
+  cv::merge(planes_q, 2, fq);
+  cv::dft(fp, fp);
+  cv::dft(fq, fq);
+  cv::Mat fz(rows, cols, CV_64FC2);
+  for (int r = 0; r < rows; ++r) {
+    const double v = 2.0 * M_PI * (r <= rows / 2 ? r : r - rows) / rows;
+    for (int c = 0; c < cols; ++c) {
+      const double u = 2.0 * M_PI * (c <= cols / 2 ? c : c - cols) / cols;
+      const double denominator = u * u + v * v;
+      if (denominator == 0.0) {
+        fz.at<cv::Vec2d>(r, c) = cv::Vec2d(0, 0);
+        continue;
+      }
+      // Z = (-j u P - j v Q) / (u^2 + v^2)
+      const cv::Vec2d P = fp.at<cv::Vec2d>(r, c), Q = fq.at<cv::Vec2d>(r, c);
+      const double real = (u * P[1] + v * Q[1]) / denominator;
+      const double imag = (-u * P[0] - v * Q[0]) / denominator;
+      fz.at<cv::Vec2d>(r, c) = cv::Vec2d(real, imag);
+    }
+  }
+  cv::Mat z;
+  cv::dft(fz, z, cv::DFT_INVERSE | cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
+  z.convertTo(*depth, CV_32F);
+}
+
+bool Poisson(const Gradients& g, cv::Mat* depth, std::string* message) {
+  const int rows = g.mask.rows, cols = g.mask.cols;
+  cv::Mat index(rows, cols, CV_32S, cv::Scalar(-1));
+  int unknowns = 0;
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c)
+      if (g.mask.at<std::uint8_t>(r, c)) index.at<int>(r, c) = unknowns++;
+  std::vector<Eigen::Triplet<double>> triplets;
+  std::vector<double> rhs;
+  auto equation = [&](int a, int b, double difference) {  // z_b - z_a = difference
+    const int row = static_cast<int>(rhs.size());
+    triplets.emplace_back(row, a, -1.0);
+    triplets.emplace_back(row, b, 1.0);
+    rhs.push_back(difference);
+  };
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) {
+      const int a = index.at<int>(r, c);
+      if (a < 0) continue;
+      if (c + 1 < cols && index.at<int>(r, c + 1) >= 0)
+        equation(a, index.at<int>(r, c + 1), 0.5 * (g.dzdx.at<double>(r, c) + g.dzdx.at<double>(r, c + 1)));
+      if (r + 1 < rows && index.at<int>(r + 1, c) >= 0)
+        equation(a, index.at<int>(r + 1, c), -0.5 * (g.dzdy.at<double>(r, c) + g.dzdy.at<double>(r + 1, c)));
+    }
+  Eigen::SparseMatrix<double> a(static_cast<int>(rhs.size()), unknowns);
+  a.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::Map<const Eigen::VectorXd> b(rhs.data(), static_cast<Eigen::Index>(rhs.size()));
+  // A tiny pull towards 0 fixes each region's free constant; CentreRegions then removes its effect.
+  Eigen::SparseMatrix<double> normal = a.transpose() * a;
+  for (int i = 0; i < unknowns; ++i) normal.coeffRef(i, i) += 1e-9;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
+  if (solver.info() != Eigen::Success) {
+    *message = "sparse factorisation failed";
+    return false;
+  }
+  const Eigen::VectorXd z = solver.solve(a.transpose() * b);
+  depth->create(rows, cols, CV_32F);
+  depth->setTo(0.0f);
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c)
+      if (index.at<int>(r, c) >= 0) depth->at<float>(r, c) = static_cast<float>(z[index.at<int>(r, c)]);
+  return true;
+}
+
+}  // namespace
+
+const char* IntegratorName(Integrator integrator) {
+  return integrator == Integrator::kPoisson ? "poisson" : "frankot-chellappa";
+}
+
+bool ParseIntegrator(const std::string& name, Integrator* integrator) {
+  for (Integrator i : {Integrator::kPoisson, Integrator::kFrankotChellappa}) {
+    if (name == IntegratorName(i)) {
+      *integrator = i;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool IntegrationOptions::IsValid(std::string* why) const {
+  if (!(pixel_pitch > 0.0)) {
+    if (why) *why = "pixel_pitch must be > 0";
+    return false;
+  }
+  if (!(min_normal_z > 0.0 && min_normal_z < 1.0)) {
+    if (why) *why = "min_normal_z must be in (0, 1)";
+    return false;
+  }
+  return true;
+}
+
+IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask,
+                                    cv::Mat* depth) {
+  const auto start = std::chrono::steady_clock::now();
+  IntegrationSummary summary;
+  std::string why;
+  if (!options.IsValid(&why)) {
+    summary.message = "invalid options: " + why;
+    return summary;
+  }
+  if (normals.type() != CV_32FC3 || normals.empty()) {
+    summary.message = "normals must be a non-empty CV_32FC3 image";
+    return summary;
+  }
+  if (!mask.empty() && (mask.type() != CV_8U || mask.size() != normals.size())) {
+    summary.message = "the mask must be an 8-bit image of the normals' size";
+    return summary;
+  }
+  const Gradients g = ComputeGradients(options, normals, mask);
+  summary.pixels_dropped = g.dropped;
+  summary.pixels = static_cast<std::size_t>(cv::countNonZero(g.mask));
+  if (summary.pixels == 0) {
+    summary.message = "no pixel has a usable normal to integrate";
+    return summary;
+  }
+  if (options.integrator == Integrator::kFrankotChellappa) {
+    FrankotChellappa(g, depth);
+  } else if (!Poisson(g, depth, &summary.message)) {
+    return summary;
+  }
+  CentreRegions(g.mask, depth);
+  summary.residual_rms = ResidualRms(g, *depth);
+  summary.solve_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  summary.success = true;
+  return summary;
+}
+
+}  // namespace photorig::ps

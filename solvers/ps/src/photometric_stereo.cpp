@@ -1,0 +1,538 @@
+#include "photorig/ps/photometric_stereo.h"
+
+#include <Eigen/Dense>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <vector>
+
+namespace photorig::ps {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MillisecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// The usable samples of one pixel in solver units: b_k = (I_k - D) / s_k with
+// variance var_k = Var(I_k - D) / s_k^2.
+struct PixelSamples {
+  std::vector<double> b, variance;
+  std::vector<Eigen::Vector3d> w;
+  std::vector<int> light;
+  int size() const { return static_cast<int>(b.size()); }
+};
+
+void GatherSamples(const PhotometricStack& stack, const LambertianOptions& thresholds, int pixel,
+                   PixelSamples* out) {
+  out->b.clear();
+  out->variance.clear();
+  out->w.clear();
+  out->light.clear();
+  const float dark = stack.dark.empty() ? 0.0f : stack.dark.ptr<float>()[pixel];
+  for (int k = 0; k < stack.light_count(); ++k) {
+    const float value = stack.images[k].ptr<float>()[pixel];
+    const double signal = double(value) - dark;
+    if (!(signal > thresholds.shadow_threshold) || !(value < thresholds.saturation_level)) continue;
+    const double s = stack.light_scales[k];
+    out->b.push_back(signal / s);
+    out->variance.push_back(stack.noise.Variance(signal) / (s * s));
+    out->w.push_back(stack.light_directions[k]);
+    out->light.push_back(k);
+  }
+}
+
+double InverseNormalCdf(double p) {
+  // Bisection on the CDF: called once per degree-of-freedom value, so speed is irrelevant.
+  double lo = -10.0, hi = 10.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+// Wilson-Hilferty: accurate to a few per cent for dof >= 3, plenty for a test threshold.
+double ChiSquareQuantile(int dof, double p) {
+  const double z = InverseNormalCdf(p), v = dof;
+  const double t = 1.0 - 2.0 / (9.0 * v) + z * std::sqrt(2.0 / (9.0 * v));
+  return v * t * t * t;
+}
+
+struct Fit {
+  bool ok = false;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  double albedo = 0.0;
+  double specular_albedo = 0.0, exponent = 0.0;
+  double chi2 = 0.0;     // sum of squared residuals over variance, on the samples used
+  int parameters = 3;
+  int used = 0;          // samples with weight >= inlier threshold (all for least squares)
+  int rejected = 0;
+  PixelModel model = PixelModel::kLambertian;
+
+  double Bic() const { return chi2 + parameters * std::log(std::max(used, 1)); }
+  int Dof() const { return used - parameters; }
+};
+
+Eigen::Vector3d WeightedLeastSquares(const PixelSamples& s, const std::vector<double>& weight, bool* ok) {
+  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (int k = 0; k < s.size(); ++k) {
+    const double c = weight[k] / s.variance[k];
+    normal_matrix += c * s.w[k] * s.w[k].transpose();
+    rhs += c * s.b[k] * s.w[k];
+  }
+  Eigen::LDLT<Eigen::Matrix3d> ldlt(normal_matrix);
+  *ok = ldlt.info() == Eigen::Success && ldlt.isPositive() && ldlt.vectorD().minCoeff() > 1e-12 * ldlt.vectorD().maxCoeff();
+  return ldlt.solve(rhs);
+}
+
+Fit LambertianFromX(const PixelSamples& s, const Eigen::Vector3d& x, const std::vector<double>* weight,
+                    double inlier_weight) {
+  Fit fit;
+  const double length = x.norm();
+  if (!(length > 0.0)) return fit;
+  fit.ok = true;
+  fit.normal = x / length;
+  fit.albedo = M_PI * length;
+  for (int k = 0; k < s.size(); ++k) {
+    if (weight && (*weight)[k] < inlier_weight) {
+      ++fit.rejected;
+      continue;
+    }
+    const double r = s.b[k] - s.w[k].dot(x);
+    fit.chi2 += r * r / s.variance[k];
+    ++fit.used;
+  }
+  return fit;
+}
+
+Fit FitRobust(const PixelSamples& s, const Eigen::Vector3d& start, const RobustOptions& options) {
+  std::vector<double> weight(s.size(), 1.0), residual(s.size()), magnitude(s.size());
+  Eigen::Vector3d x = start;
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    const bool warmup = iteration < options.warmup_iterations;
+    const RobustOptions::Loss loss = warmup ? RobustOptions::Loss::kCauchy : options.loss;
+    // Residuals are scaled by the larger of the noise and the residuals' own
+    // robust spread (1.4826 MAD): far from the solution the noise alone would
+    // make every sample an outlier and the weights meaningless.
+    for (int k = 0; k < s.size(); ++k) {
+      residual[k] = s.b[k] - s.w[k].dot(x);
+      magnitude[k] = std::abs(residual[k]);
+    }
+    auto middle = magnitude.begin() + magnitude.size() / 2;
+    std::nth_element(magnitude.begin(), middle, magnitude.end());
+    const double spread = 1.4826 * *middle;
+    for (int k = 0; k < s.size(); ++k) {
+      const double u = residual[k] / std::max(std::sqrt(s.variance[k]), spread);
+      switch (loss) {
+        case RobustOptions::Loss::kCauchy: {
+          const double t = u / 2.385;
+          weight[k] = 1.0 / (1.0 + t * t);
+          break;
+        }
+        case RobustOptions::Loss::kHuber:
+          weight[k] = std::abs(u) <= 1.345 ? 1.0 : 1.345 / std::abs(u);
+          break;
+        case RobustOptions::Loss::kTukey: {
+          const double t = u / 4.685;
+          weight[k] = std::abs(t) < 1.0 ? (1.0 - t * t) * (1.0 - t * t) : 0.0;
+          break;
+        }
+      }
+    }
+    bool ok = false;
+    const Eigen::Vector3d next = WeightedLeastSquares(s, weight, &ok);
+    if (!ok) return Fit{};
+    const double step = (next - x).norm();
+    x = next;
+    if (!warmup && step <= options.relative_tolerance * x.norm()) break;
+  }
+  Fit fit = LambertianFromX(s, x, &weight, options.inlier_weight);
+  fit.model = PixelModel::kRobust;
+  if (fit.used < 3) fit.ok = false;
+  return fit;
+}
+
+// Greedy trimming, the cheap robust stage of kAuto: drop the sample with the
+// largest standardised residual and refit (a rank-one downdate of the 3 x 3
+// normal equations), until the fit is adequate or `max_rejected` samples are
+// gone. Narrow highlights are a few huge residuals, so this usually stops
+// after one or two removals at O(n) each, where IRLS needs ~10 weighted passes.
+template <typename Adequate>
+Fit FitTrimmed(const PixelSamples& s, int max_rejected, const Adequate& adequate) {
+  const int n = s.size();
+  std::vector<char> kept(n, 1);
+  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (int k = 0; k < n; ++k) {
+    normal_matrix += s.w[k] * s.w[k].transpose() / s.variance[k];
+    rhs += s.b[k] * s.w[k] / s.variance[k];
+  }
+  for (int removed = 0;; ++removed) {
+    const Eigen::Vector3d x = normal_matrix.ldlt().solve(rhs);
+    Fit fit;
+    fit.model = PixelModel::kRobust;
+    fit.ok = x.norm() > 0.0 && n - removed >= 3;
+    if (!fit.ok) return fit;
+    fit.normal = x.normalized();
+    fit.albedo = M_PI * x.norm();
+    int worst = -1;
+    double worst_u2 = -1.0;
+    for (int k = 0; k < n; ++k) {
+      if (!kept[k]) continue;
+      const double r = s.b[k] - s.w[k].dot(x);
+      const double u2 = r * r / s.variance[k];
+      fit.chi2 += u2;
+      if (u2 > worst_u2) worst_u2 = u2, worst = k;
+    }
+    fit.used = n - removed;
+    fit.rejected = removed;
+    if (adequate(fit) || removed >= max_rejected || fit.used <= 3) return fit;
+    kept[worst] = 0;
+    normal_matrix -= s.w[worst] * s.w[worst].transpose() / s.variance[worst];
+    rhs -= s.b[worst] * s.w[worst] / s.variance[worst];
+  }
+}
+
+Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptions& options,
+                  autodiff::Tape* tape) {
+  const int n = s.size();
+  Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
+  Eigen::VectorXd observed(n), inverse_sigma(n);
+  for (int k = 0; k < n; ++k) {
+    directions.row(k) = s.w[k].transpose();
+    observed[k] = s.b[k];
+    inverse_sigma[k] = 1.0 / std::sqrt(s.variance[k]);
+  }
+  const Eigen::Vector3d view(0, 0, 1);
+  const autodiff::BlinnPhongPixel pixel(directions, Eigen::VectorXd::Ones(n), view, observed);
+
+  // Initial specular albedo from the largest residual the diffuse start leaves.
+  const Eigen::Vector3d x0 = start.normal * start.albedo / M_PI;
+  int brightest = 0;
+  double largest = -std::numeric_limits<double>::infinity();
+  for (int k = 0; k < n; ++k) {
+    const double r = s.b[k] - s.w[k].dot(x0);
+    if (r > largest) largest = r, brightest = k;
+  }
+  const double e0 = options.initial_exponent;
+  const double lobe = (e0 + 2.0) / (2.0 * M_PI) * std::pow(std::max(0.0, pixel.half_vector(brightest).dot(start.normal)), e0) *
+                      std::max(1e-3, s.w[brightest].dot(start.normal));
+  const double rho_s0 = lobe > 1e-9 ? std::clamp(largest / lobe, 0.0, 1.0) : 0.0;
+
+  Eigen::Matrix<double, 6, 1> p;
+  p << start.normal, start.albedo, rho_s0, e0;
+  auto project = [&options](Eigen::Matrix<double, 6, 1>* q) {
+    q->head<3>().normalize();
+    (*q)(3) = std::max(0.0, (*q)(3));
+    (*q)(4) = std::max(0.0, (*q)(4));
+    (*q)(5) = std::clamp((*q)(5), options.min_exponent, options.max_exponent);
+  };
+  Eigen::VectorXd residuals;
+  Eigen::MatrixXd jacobian;
+  auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
+    bool ok;
+    if (with_jacobian) {
+      ok = autodiff::BlinnPhongResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
+    } else {
+      residuals.resize(n);
+      ok = pixel(q.data(), residuals.data());
+    }
+    if (ok) *cost = residuals.cwiseProduct(inverse_sigma).squaredNorm();
+    return ok;
+  };
+  double cost = 0.0;
+  if (!cost_at(p, true, &cost)) return Fit{};
+  double lambda = 1e-3;
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    const Eigen::MatrixXd jw = inverse_sigma.asDiagonal() * jacobian;
+    const Eigen::VectorXd rw = residuals.cwiseProduct(inverse_sigma);
+    const Eigen::Matrix<double, 6, 6> h = jw.transpose() * jw;
+    const Eigen::Matrix<double, 6, 1> g = jw.transpose() * rw;
+    bool improved = false;
+    while (lambda < 1e12) {
+      Eigen::Matrix<double, 6, 6> damped = h;
+      damped.diagonal() += lambda * h.diagonal() + Eigen::Matrix<double, 6, 1>::Constant(1e-12);
+      Eigen::Matrix<double, 6, 1> candidate = p - damped.ldlt().solve(g);
+      project(&candidate);
+      double candidate_cost = 0.0;
+      if (cost_at(candidate, false, &candidate_cost) && candidate_cost < cost) {
+        const double decrease = (cost - candidate_cost) / std::max(cost, 1e-300);
+        p = candidate;
+        cost = candidate_cost;
+        lambda = std::max(lambda / 3.0, 1e-12);
+        improved = decrease > 1e-10;
+        break;
+      }
+      lambda *= 4.0;
+    }
+    if (!improved || !cost_at(p, true, &cost)) break;
+  }
+  Fit fit;
+  fit.ok = std::isfinite(cost);
+  fit.normal = p.head<3>().normalized();
+  fit.albedo = p(3);
+  fit.specular_albedo = p(4);
+  fit.exponent = p(5);
+  fit.chi2 = cost;
+  fit.parameters = 6;
+  fit.used = n;
+  fit.model = PixelModel::kBlinnPhong;
+  return fit;
+}
+
+// Noise of the data when the stack does not (fully) say: a photon-transfer fit
+// var(I - D) = read^2 + gain * (I - D) to the Lambertian residual variance of a
+// sparse set of pixels. Each pixel's variance v_p is a chi-square estimate, so
+// gain and read^2 are taken as lower quartiles of (v_p - read^2) / signal_p and
+// v_p - gain * signal_p, corrected by the chi-square lower quartile: pixels no
+// Lambertian model explains (highlights) cannot inflate them as long as fewer
+// than three quarters of the pixels are such. A read noise the stack already
+// knows (from dark frames) is kept fixed.
+NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions& thresholds) {
+  struct Sample {
+    double signal, variance;
+    int dof;
+  };
+  std::vector<Sample> samples;
+  PixelSamples s;
+  const int pixels = stack.width() * stack.height();
+  const int stride = std::max(1, pixels / 8000);
+  PhotometricStack unit = stack;
+  unit.noise = NoiseModel{1.0, 0.0};  // variance 1/s^2: chi2 below is then a sum of squared residuals in input units
+  for (int p = 0; p < pixels; p += stride) {
+    if (!stack.mask.empty() && stack.mask.ptr<std::uint8_t>()[p] == 0) continue;
+    GatherSamples(unit, thresholds, p, &s);
+    if (s.size() < 6) continue;
+    bool solvable = false;
+    const Eigen::Vector3d x = WeightedLeastSquares(s, std::vector<double>(s.size(), 1.0), &solvable);
+    if (!solvable) continue;
+    const Fit fit = LambertianFromX(s, x, nullptr, 0.0);
+    double signal = 0.0;
+    for (int k = 0; k < s.size(); ++k) signal += s.b[k] * stack.light_scales[s.light[k]];
+    samples.push_back({signal / s.size(), fit.chi2 / (s.size() - 3), s.size() - 3});
+  }
+  NoiseModel noise = stack.noise;
+  if (samples.size() < 16) return noise;
+  std::vector<double> dofs;
+  for (const Sample& sample : samples) dofs.push_back(sample.dof);
+  std::nth_element(dofs.begin(), dofs.begin() + dofs.size() / 2, dofs.end());
+  const int typical_dof = static_cast<int>(dofs[dofs.size() / 2]);
+  const double bias = ChiSquareQuantile(typical_dof, 0.25) / typical_dof;
+  auto corrected_lower_quartile = [bias](std::vector<double> values) {
+    auto at = values.begin() + static_cast<std::ptrdiff_t>(0.25 * (values.size() - 1));
+    std::nth_element(values.begin(), at, values.end());
+    return *at / bias;
+  };
+  const bool read_known = stack.noise.read_sigma > 0.0;
+  double read2 = read_known ? stack.noise.read_sigma * stack.noise.read_sigma : 0.0;
+  double gain = 0.0;
+  // Unknown read noise comes from the darkest tenth of the pixels, where shot
+  // noise matters least, refined once the gain is known.
+  std::sort(samples.begin(), samples.end(), [](const Sample& a, const Sample& b) { return a.signal < b.signal; });
+  const std::size_t darkest = std::max<std::size_t>(8, samples.size() / 10);
+  for (int round = 0; round < (read_known ? 1 : 2); ++round) {
+    if (!read_known) {
+      std::vector<double> reads;
+      for (std::size_t i = 0; i < darkest; ++i) reads.push_back(samples[i].variance - gain * samples[i].signal);
+      read2 = std::max(0.0, corrected_lower_quartile(reads));
+    }
+    std::vector<double> gains;
+    for (const Sample& sample : samples)
+      if (sample.signal > 0.0) gains.push_back((sample.variance - read2) / sample.signal);
+    gain = gains.empty() ? 0.0 : std::max(0.0, corrected_lower_quartile(gains));
+  }
+  noise.shot_gain = gain;
+  noise.read_sigma = std::sqrt(read2);
+  return noise;
+}
+
+void WriteFit(int pixel, const Fit& fit, NormalMap* out) {
+  out->normals.ptr<cv::Vec3f>()[pixel] = cv::Vec3f(float(fit.normal.x()), float(fit.normal.y()), float(fit.normal.z()));
+  out->albedo.ptr<float>()[pixel] = static_cast<float>(fit.albedo);
+  out->model.ptr<std::uint8_t>()[pixel] = static_cast<std::uint8_t>(fit.model);
+  out->specular.ptr<cv::Vec2f>()[pixel] = cv::Vec2f(float(fit.specular_albedo), float(fit.exponent));
+  out->usable_lights.ptr<std::uint16_t>()[pixel] = static_cast<std::uint16_t>(fit.used);
+  // chi2 / dof is the residual variance relative to the noise: confidence = its inverse, capped.
+  const double ratio = fit.Dof() > 0 ? fit.chi2 / fit.Dof() : 1.0;
+  out->confidence.ptr<float>()[pixel] = static_cast<float>(std::min(1.0, 1.0 / std::max(ratio, 1e-12)));
+}
+
+}  // namespace
+
+const char* MethodName(Method method) {
+  switch (method) {
+    case Method::kL2: return "l2";
+    case Method::kLambertian: return "lambertian";
+    case Method::kRobust: return "robust";
+    case Method::kBlinnPhong: return "blinn-phong";
+    case Method::kAuto: return "auto";
+  }
+  return "unknown";
+}
+
+bool ParseMethod(const std::string& name, Method* method) {
+  for (Method m : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
+    if (name == MethodName(m)) {
+      *method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool RobustOptions::IsValid(std::string* why) const {
+  auto fail = [why](const char* text) {
+    if (why) *why = text;
+    return false;
+  };
+  if (warmup_iterations < 0 || max_iterations < 1) return fail("robust: iterations must be >= 0 (warm-up) and >= 1");
+  if (!(relative_tolerance > 0.0)) return fail("robust: relative_tolerance must be > 0");
+  if (!(inlier_weight > 0.0 && inlier_weight < 1.0)) return fail("robust: inlier_weight must be in (0, 1)");
+  return true;
+}
+
+bool BlinnPhongOptions::IsValid(std::string* why) const {
+  auto fail = [why](const char* text) {
+    if (why) *why = text;
+    return false;
+  };
+  if (max_iterations < 1) return fail("blinn_phong: max_iterations must be >= 1");
+  if (!(min_exponent > 0.0 && min_exponent < max_exponent)) return fail("blinn_phong: need 0 < min_exponent < max_exponent");
+  if (!(initial_exponent >= min_exponent && initial_exponent <= max_exponent))
+    return fail("blinn_phong: initial_exponent must lie within [min_exponent, max_exponent]");
+  return true;
+}
+
+bool ModelSelectionOptions::IsValid(std::string* why) const {
+  auto fail = [why](const char* text) {
+    if (why) *why = text;
+    return false;
+  };
+  if (!(adequacy_quantile > 0.5 && adequacy_quantile < 1.0)) return fail("selection: adequacy_quantile must be in (0.5, 1)");
+  if (!(max_rejected_fraction >= 0.0 && max_rejected_fraction < 1.0))
+    return fail("selection: max_rejected_fraction must be in [0, 1)");
+  return true;
+}
+
+bool PhotometricStereoOptions::IsValid(std::string* why) const {
+  return lambertian.IsValid(why) && robust.IsValid(why) && blinn_phong.IsValid(why) && selection.IsValid(why);
+}
+
+SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, const PhotometricStack& stack,
+                                     NormalMap* result) {
+  const auto start = Clock::now();
+  std::string why;
+  if (!options.IsValid(&why)) {
+    SolverSummary summary;
+    summary.method = MethodName(options.method);
+    summary.message = "invalid options: " + why;
+    return summary;
+  }
+  LambertianOptions lambertian = options.lambertian;
+  lambertian.exclude_unusable_samples = options.method != Method::kL2;
+  // The adequacy tests need the noise; what the stack does not give is
+  // estimated from the data first, so that the Lambertian pass can already
+  // judge its own fits (its confidence) and spare them a second look.
+  PhotometricStack working = stack;
+  const bool refine = options.method == Method::kRobust || options.method == Method::kBlinnPhong ||
+                      options.method == Method::kAuto;
+  bool noise_estimated = false;
+  if (refine && options.estimate_noise && stack.noise.shot_gain == 0.0 && stack.IsValid(nullptr) &&
+      lambertian.IsValid(nullptr)) {
+    working.noise = EstimateNoise(stack, lambertian);
+    noise_estimated = true;
+  }
+  if (refine && !(working.noise.read_sigma > 0.0)) working.noise.read_sigma = 1e-9;  // noise-free: any residual counts
+  SolverSummary summary = SolveLambertian(lambertian, working, result);
+  summary.method = MethodName(options.method);
+  if (!summary.IsSolutionUsable() || !refine) {
+    summary.pixels_lambertian = summary.pixels_solved;
+    summary.total_ms = MillisecondsSince(start);
+    return summary;
+  }
+  const auto refine_start = Clock::now();
+  summary.noise_estimated = noise_estimated;
+  summary.noise_read_sigma = working.noise.read_sigma;
+  summary.noise_shot_gain = working.noise.shot_gain;
+  std::vector<double> quantile(stack.light_count() + 1, 0.0);
+  for (int dof = 1; dof <= stack.light_count(); ++dof) quantile[dof] = ChiSquareQuantile(dof, options.selection.adequacy_quantile);
+  auto adequate = [&quantile](const Fit& fit) { return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile[fit.Dof()]; };
+
+  const int pixels = stack.width() * stack.height();
+  std::size_t lambertian_count = 0, robust_count = 0, blinn_phong_count = 0, rejected_count = 0, failed_count = 0;
+  const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
+#pragma omp parallel num_threads(threads) reduction(+ : lambertian_count, robust_count, blinn_phong_count, rejected_count, failed_count)
+  {
+    PixelSamples s;
+    autodiff::Tape tape;
+#pragma omp for schedule(dynamic, 256)
+    for (int p = 0; p < pixels; ++p) {
+      if (result->flags.ptr<std::uint8_t>()[p] != static_cast<int>(PixelFlag::kSolved)) continue;
+      // The Lambertian pass's confidence is expected / observed residual: at 1
+      // the fit is at the noise level, adequate without another look.
+      if (options.method == Method::kAuto && result->confidence.ptr<float>()[p] >= 1.0f) {
+        ++lambertian_count;
+        continue;
+      }
+      GatherSamples(working, lambertian, p, &s);
+      const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
+      const Eigen::Vector3d x = Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
+      const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
+      Fit chosen;
+      if (options.method == Method::kAuto && adequate(lambert)) {
+        chosen = lambert;
+      } else {
+        const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
+        const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, adequate)
+                                                           : FitRobust(s, x, options.robust);
+        const bool few_rejected = robust.rejected <= max_rejected;
+        if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust) && few_rejected)) {
+          chosen = robust;
+        } else {
+          const Fit blinn_phong = FitBlinnPhong(s, robust.ok ? robust : lambert, options.blinn_phong, &tape);
+          if (options.method == Method::kBlinnPhong) {
+            chosen = blinn_phong;
+          } else {
+            // Neither simple model is adequate: the information criterion decides
+            // between the models fitted to all usable samples.
+            chosen = blinn_phong.ok && blinn_phong.Bic() < lambert.Bic() ? blinn_phong : lambert;
+          }
+        }
+      }
+      if (!chosen.ok) {
+        result->flags.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelFlag::kRejectedByModel);
+        result->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
+        result->albedo.ptr<float>()[p] = std::numeric_limits<float>::quiet_NaN();
+        result->model.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelModel::kNone);
+        result->confidence.ptr<float>()[p] = 0.0f;
+        ++failed_count;
+        continue;
+      }
+      WriteFit(p, chosen, result);
+      rejected_count += static_cast<std::size_t>(chosen.rejected);
+      switch (chosen.model) {
+        case PixelModel::kLambertian: ++lambertian_count; break;
+        case PixelModel::kRobust: ++robust_count; break;
+        case PixelModel::kBlinnPhong: ++blinn_phong_count; break;
+        case PixelModel::kNone: break;
+      }
+    }
+  }
+  summary.pixels_lambertian = lambertian_count;
+  summary.pixels_robust = robust_count;
+  summary.pixels_blinn_phong = blinn_phong_count;
+  summary.samples_rejected += rejected_count;
+  summary.pixels_solved -= failed_count;
+  summary.pixels_rejected_by_model += failed_count;
+  summary.solve_ms += MillisecondsSince(refine_start);
+  summary.total_ms = MillisecondsSince(start);
+  return summary;
+}
+
+}  // namespace photorig::ps

@@ -1,0 +1,190 @@
+#include "photorig/ps/evaluation.h"
+#include "photorig/ps/photometric_stereo.h"
+#include "ps_test_scene.h"
+
+#include <gtest/gtest.h>
+
+namespace photorig::ps {
+namespace {
+
+using testing::RandomSurface;
+using testing::RenderShinyStack;
+using testing::RingLights;
+using testing::Specular;
+
+PhotometricStereoOptions Options(Method method, double shadow_threshold) {
+  PhotometricStereoOptions options;
+  options.method = method;
+  options.lambertian.shadow_threshold = shadow_threshold;
+  options.estimate_noise = false;  // the test stacks carry their complete (additive) noise model
+  return options;
+}
+
+struct Outcome {
+  SolverSummary summary;
+  NormalMap map;
+  AngularErrorStats error;
+};
+
+Outcome Solve(Method method, const PhotometricStack& stack, const cv::Mat& truth, double shadow_threshold) {
+  Outcome outcome;
+  outcome.summary = SolvePhotometricStereo(Options(method, shadow_threshold), stack, &outcome.map);
+  EXPECT_TRUE(outcome.summary.IsSolutionUsable()) << outcome.summary.message;
+  outcome.error = CompareNormals(outcome.map.normals, truth);
+  return outcome;
+}
+
+TEST(PhotometricStereo, MethodNamesRoundTrip) {
+  for (Method m : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
+    Method parsed;
+    ASSERT_TRUE(ParseMethod(MethodName(m), &parsed));
+    EXPECT_EQ(parsed, m);
+  }
+  Method unused;
+  EXPECT_FALSE(ParseMethod("phong", &unused));
+}
+
+TEST(PhotometricStereo, AutoKeepsLambertianPixelsLambertian) {
+  const auto truth = RandomSurface(48, 48, 45.0);
+  const auto lights = RingLights(32, 30, 80);
+  const auto stack = RenderShinyStack(truth, lights, 2000.0, Specular{0.0, 1.0}, 50.0f, 2.0);
+  const Outcome l2 = Solve(Method::kLambertian, stack, truth.normals, 6.0);
+  const Outcome automatic = Solve(Method::kAuto, stack, truth.normals, 6.0);
+  const double lambertian_share =
+      double(automatic.summary.pixels_lambertian) / double(automatic.summary.pixels_solved);
+  EXPECT_GE(lambertian_share, 0.95) << automatic.summary.BriefReport();
+  EXPECT_LT(automatic.error.mean_deg, 1.05 * l2.error.mean_deg + 0.01);
+}
+
+TEST(PhotometricStereo, BlinnPhongFitRecoversShinyPixelsExactlyWithoutNoise) {
+  const auto truth = RandomSurface(12, 12, 35.0);
+  const auto lights = RingLights(40, 25, 85);
+  const Specular specular{0.4, 40.0};
+  const auto stack = RenderShinyStack(truth, lights, 1000.0, specular, 0.0f, 0.0);
+  PhotometricStereoOptions options = Options(Method::kBlinnPhong, 1e-6);
+  options.lambertian.max_condition_number = 1e4;
+  PhotometricStack known = stack;
+  known.noise.read_sigma = 1e-3;  // sets the chi-square scale; the data themselves are exact
+  NormalMap map;
+  const SolverSummary summary = SolvePhotometricStereo(options, known, &map);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  const AngularErrorStats error = CompareNormals(map.normals, truth.normals);
+  EXPECT_LT(error.median_deg, 0.05);
+  int checked = 0;
+  for (int r = 0; r < 12; ++r)
+    for (int c = 0; c < 12; ++c) {
+      if (map.flags.at<std::uint8_t>(r, c) != 0) continue;
+      const cv::Vec2f sp = map.specular.at<cv::Vec2f>(r, c);
+      if (std::abs(sp[0] - 0.4) < 0.02 && std::abs(sp[1] - 40.0) < 2.0) ++checked;
+    }
+  EXPECT_GE(checked, 100) << "specular parameters recovered at too few pixels";
+}
+
+TEST(PhotometricStereo, RobustAndAutoAtLeastHalveTheL2ErrorOnHighlights) {
+  const auto truth = RandomSurface(40, 40, 40.0);
+  const auto lights = RingLights(48, 30, 85);
+  const auto stack = RenderShinyStack(truth, lights, 2000.0, Specular{0.5, 60.0}, 50.0f, 2.0);
+  const Outcome l2 = Solve(Method::kL2, stack, truth.normals, 6.0);
+  const Outcome lambertian = Solve(Method::kLambertian, stack, truth.normals, 6.0);
+  const Outcome robust = Solve(Method::kRobust, stack, truth.normals, 6.0);
+  const Outcome automatic = Solve(Method::kAuto, stack, truth.normals, 6.0);
+  EXPECT_LT(robust.error.mean_deg, 0.5 * l2.error.mean_deg);
+  EXPECT_LT(automatic.error.mean_deg, 0.5 * l2.error.mean_deg);
+  EXPECT_LT(automatic.error.mean_deg, 0.5 * lambertian.error.mean_deg);
+  EXPECT_GT(automatic.summary.pixels_robust + automatic.summary.pixels_blinn_phong, 0u);
+  EXPECT_GT(robust.summary.samples_rejected, 0u);
+}
+
+TEST(PhotometricStereo, BroadLobesNeedBlinnPhong) {
+  // A low exponent spreads the highlight over many lights: rejecting them all is
+  // not an option, so auto must pick the specular model.
+  const auto truth = RandomSurface(24, 24, 30.0);
+  const auto lights = RingLights(48, 30, 85);
+  const auto stack = RenderShinyStack(truth, lights, 2000.0, Specular{0.6, 8.0}, 50.0f, 1.0);
+  const Outcome l2 = Solve(Method::kL2, stack, truth.normals, 3.0);
+  const Outcome automatic = Solve(Method::kAuto, stack, truth.normals, 3.0);
+  EXPECT_GT(automatic.summary.pixels_blinn_phong, automatic.summary.pixels_solved / 2)
+      << automatic.summary.BriefReport();
+  EXPECT_LT(automatic.error.mean_deg, 0.5 * l2.error.mean_deg);
+}
+
+TEST(PhotometricStereo, WrongLightIntensitiesLowerTheConfidence) {
+  const auto truth = RandomSurface(32, 32, 30.0);
+  const auto lights = RingLights(24, 40, 85);
+  auto stack = RenderShinyStack(truth, lights, 2000.0, Specular{0.0, 1.0}, 50.0f, 1.0);
+  NormalMap right, wrong;
+  ASSERT_TRUE(SolvePhotometricStereo(Options(Method::kLambertian, 3.0), stack, &right).IsSolutionUsable());
+  for (int k = 0; k < 24; k += 3) stack.light_scales[k] *= 1.3;  // a miscalibrated third of the dome
+  ASSERT_TRUE(SolvePhotometricStereo(Options(Method::kLambertian, 3.0), stack, &wrong).IsSolutionUsable());
+  EXPECT_GT(cv::mean(right.confidence)[0], 0.5);
+  EXPECT_LT(cv::mean(wrong.confidence)[0], 0.5 * cv::mean(right.confidence)[0]);
+}
+
+TEST(PhotometricStereo, HeavyNoiseIsVisibleInTheErrorNotHiddenByTheModel) {
+  const auto truth = RandomSurface(32, 32, 30.0);
+  const auto lights = RingLights(24, 40, 85);
+  const auto quiet = RenderShinyStack(truth, lights, 2000.0, Specular{0.0, 1.0}, 50.0f, 1.0);
+  const auto noisy = RenderShinyStack(truth, lights, 2000.0, Specular{0.0, 1.0}, 50.0f, 60.0);
+  const Outcome a = Solve(Method::kAuto, quiet, truth.normals, 3.0);
+  const Outcome b = Solve(Method::kAuto, noisy, truth.normals, 180.0);
+  EXPECT_GT(b.error.mean_deg, 5 * a.error.mean_deg);
+  // With the noise model given, auto does not mistake noise for specularity.
+  EXPECT_GE(double(b.summary.pixels_lambertian) / b.summary.pixels_solved, 0.9) << b.summary.BriefReport();
+}
+
+TEST(PhotometricStereo, EstimatesTheNoiseWhenTheStackHasNone) {
+  const auto truth = RandomSurface(40, 40, 30.0);
+  const auto lights = RingLights(32, 40, 85);
+  auto stack = RenderShinyStack(truth, lights, 2000.0, Specular{0.0, 1.0}, 50.0f, 2.0);
+  stack.noise = NoiseModel{};
+  PhotometricStereoOptions options = Options(Method::kAuto, 6.0);
+  options.estimate_noise = true;
+  Outcome automatic;
+  automatic.summary = SolvePhotometricStereo(options, stack, &automatic.map);
+  ASSERT_TRUE(automatic.summary.IsSolutionUsable());
+  EXPECT_TRUE(automatic.summary.noise_estimated);
+  EXPECT_NEAR(automatic.summary.noise_read_sigma, 2.0, 0.4);
+  EXPECT_LT(automatic.summary.noise_shot_gain, 0.01);
+  EXPECT_GE(double(automatic.summary.pixels_lambertian) / automatic.summary.pixels_solved, 0.95);
+}
+
+TEST(PhotometricStereo, EstimatesShotNoiseGainWithAQuarterOfThePixelsShiny) {
+  // Photon noise: variance = 2^2 + 0.25 * signal, as a camera with 4 e-/DN.
+  const auto truth = RandomSurface(64, 64, 30.0);
+  const auto lights = RingLights(32, 40, 85);
+  auto stack = RenderShinyStack(truth, lights, 3000.0, Specular{0.0, 1.0}, 50.0f, 0.0);
+  const auto shiny = RenderShinyStack(truth, lights, 3000.0, Specular{0.5, 40.0}, 50.0f, 0.0);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (std::size_t k = 0; k < stack.images.size(); ++k) {
+    shiny.images[k](cv::Rect(0, 0, 64, 16)).copyTo(stack.images[k](cv::Rect(0, 0, 64, 16)));
+    for (auto& v : cv::Mat_<float>(stack.images[k])) v += float(std::sqrt(4.0 + 0.25 * std::max(0.0f, v - 50.0f)) * gauss(rng));
+  }
+  stack.noise = NoiseModel{2.0, 0.0};  // read noise known from darks, gain unknown
+  PhotometricStereoOptions options = Options(Method::kAuto, 6.0);
+  options.estimate_noise = true;
+  NormalMap map;
+  const SolverSummary summary = SolvePhotometricStereo(options, stack, &map);
+  ASSERT_TRUE(summary.IsSolutionUsable());
+  EXPECT_NEAR(summary.noise_shot_gain, 0.25, 0.05);
+  EXPECT_DOUBLE_EQ(summary.noise_read_sigma, 2.0);
+  // The diffuse three quarters are kept Lambertian.
+  EXPECT_GE(summary.pixels_lambertian, 0.7 * summary.pixels_solved) << summary.BriefReport();
+}
+
+TEST(PhotometricStereoOptions, InvalidOptionsAreReported) {
+  PhotometricStereoOptions options;
+  options.blinn_phong.min_exponent = 0.0;
+  std::string why;
+  EXPECT_FALSE(options.IsValid(&why));
+  EXPECT_NE(why.find("min_exponent"), std::string::npos);
+  const auto truth = RandomSurface(4, 4, 5.0);
+  const auto stack = RenderShinyStack(truth, RingLights(6, 40, 80), 100.0, Specular{}, 0.0f, 0.0);
+  NormalMap map;
+  const SolverSummary summary = SolvePhotometricStereo(options, stack, &map);
+  EXPECT_FALSE(summary.IsSolutionUsable());
+  EXPECT_NE(summary.message.find("min_exponent"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace photorig::ps
