@@ -8,6 +8,8 @@ packages=(
   build-essential cmake pkg-config git
   # maths and images
   libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev
+  # data sets (DiLiGenT's ground truth is a MATLAB file)
+  libmatio-dev
   # configuration, CLI, logging, serialisation
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   # daemon: HTTP API, persistent queue, systemd notification

@@ -1,47 +1,92 @@
-// photorigd: the rig daemon. For now it executes the recipes it is given, one
-// after another, with the same core as `photorig run`, and exits; on SIGTERM
-// or SIGINT it stops after the current step with the lights off.
-//   photorigd --data-root DIR RECIPE...
+// photorigd: the rig daemon. Keeps a persistent queue of capture recipes,
+// runs them on its rig one at a time and serves the HTTP API (see
+// daemon/include/photorig/daemon/api_server.h and docs/api.md).
+//   photorigd --data-root DIR --rig RIG.yaml [--listen ADDR] [--port N] [--token-file FILE]
+// On SIGTERM or SIGINT the current run finishes its frame, the lights go off
+// and the run stays queued for the next start. Under systemd (Type=notify)
+// it reports readiness and feeds the watchdog while the worker is alive.
 
-#include "photorig/daemon/run.h"
-#include "photorig/daemon/yaml_node.h"
+#include "photorig/daemon/api_server.h"
+#include "photorig/daemon/service.h"
 #include "signals.h"
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <systemd/sd-daemon.h>
 
-#include <filesystem>
+#include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <thread>
 
 int main(int argc, char** argv) {
-  CLI::App app{"photorigd: runs capture recipes on the rig"};
-  std::string data_root = "runs";
-  std::vector<std::string> recipes;
-  app.add_option("--data-root", data_root, "where run directories are created");
-  app.add_option("recipes", recipes, "recipes to run in order")->check(CLI::ExistingFile)->required();
+  CLI::App app{"photorigd: runs queued capture recipes on the rig, driven over HTTP"};
+  photorig::daemon::ServiceOptions service_options;
+  photorig::daemon::ApiOptions api_options;
+  std::string token_file;
+  bool no_resume = false;
+  bool no_solve = false;
+  std::string log_level = "info";
+  service_options.data_root = "runs";
+  app.add_option("--data-root", service_options.data_root, "queue, recipes and run directories live here")
+      ->capture_default_str();
+  app.add_option("--rig", service_options.rig_path, "rig YAML this daemon drives")->required()->check(CLI::ExistingFile);
+  app.add_option("--listen", api_options.bind_address, "address to bind (non-loopback needs a token)")
+      ->capture_default_str();
+  app.add_option("--port", api_options.port, "TCP port (0: any free port, printed at start)")->capture_default_str();
+  app.add_option("--token-file", token_file, "file holding the bearer token (default: $PHOTORIG_TOKEN)")
+      ->check(CLI::ExistingFile);
+  app.add_flag("--no-resume", no_resume, "mark runs a crash interrupted as interrupted instead of resuming them");
+  app.add_flag("--no-solve", no_solve, "capture only; skip the recipes' solve: stages");
+  app.add_option("--max-attempts", service_options.retry.max_attempts_per_step,
+                 "attempts per step before a device fault fails the run")
+      ->capture_default_str();
+  app.add_option("--backoff-ms", service_options.retry.initial_backoff_ms, "first retry backoff")->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
-  photorig::app::InstallStopHandlers();
-  spdlog::info("photorigd: {} recipe(s), data root {}", recipes.size(), data_root);
-
-  int failures = 0;
-  for (const std::string& recipe : recipes) {
-    if (photorig::app::g_stop_requested) break;
-    photorig::daemon::RunRequest request;
-    request.recipe_path = recipe;
-    request.show_progress = false;
-    request.stop_requested = &photorig::app::g_stop_requested;
-    try {
-      const std::string stem = std::filesystem::path(recipe).stem().string();
-      int attempt = 0;
-      do {
-        request.output_directory = (std::filesystem::path(data_root) / (stem + "-" + std::to_string(attempt++))).string();
-      } while (std::filesystem::exists(request.output_directory));
-      const auto outcome = photorig::daemon::ExecuteRun(request);
-      spdlog::info("{}: {} ({})", recipe, outcome.capture.status, outcome.directory);
-      failures += outcome.capture.status != "complete";
-    } catch (const std::exception& e) {
-      spdlog::error("{}: {}", recipe, e.what());
-      ++failures;
-    }
+  service_options.resume_interrupted = !no_resume;
+  service_options.solve = !no_solve;
+  if (!token_file.empty()) {
+    std::ifstream in(token_file);
+    std::getline(in, api_options.token);
+  } else if (const char* token = std::getenv("PHOTORIG_TOKEN")) {
+    api_options.token = token;
   }
-  return failures == 0 ? 0 : 1;
+
+  // logfmt: one event per line, key=value, easy for journald and grep alike.
+  spdlog::set_pattern("ts=%Y-%m-%dT%H:%M:%S.%e%z level=%l %v");
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  photorig::app::InstallStopHandlers();
+  try {
+    photorig::daemon::RunService service(service_options);
+    photorig::daemon::ApiServer server(service, api_options);
+    server.Bind();
+    service.Start();
+    std::thread serving([&server] { server.Serve(); });
+    spdlog::info("event=ready listen={}:{} data_root={} rig={} auth={}", api_options.bind_address, server.port(),
+                 service_options.data_root, service_options.rig_path, api_options.token.empty() ? "none" : "bearer");
+    sd_notifyf(0, "READY=1\nSTATUS=listening on %s:%d", api_options.bind_address.c_str(), server.port());
+
+    std::uint64_t watchdog_us = 0;
+    const bool watchdog = sd_watchdog_enabled(0, &watchdog_us) > 0;
+    const auto watchdog_period = std::chrono::microseconds(watchdog_us / 2);
+    auto last_ping = std::chrono::steady_clock::now();
+    while (!photorig::app::g_stop_requested) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (watchdog && std::chrono::steady_clock::now() - last_ping >= watchdog_period && service.Healthy()) {
+        sd_notify(0, "WATCHDOG=1");
+        last_ping = std::chrono::steady_clock::now();
+      }
+    }
+    spdlog::info("event=stopping reason=signal");
+    sd_notify(0, "STOPPING=1");
+    service.Stop();  // the current frame completes, lights off, run stays queued
+    server.Stop();
+    serving.join();
+    spdlog::info("event=stopped");
+  } catch (const std::exception& e) {
+    spdlog::error("event=fatal error={}", nlohmann::json(e.what()).dump());
+    return 1;
+  }
+  return 0;
 }

@@ -1,5 +1,7 @@
 #include "photorig/daemon/device_factory.h"
 
+#include "photorig/daemon/camera_options.h"
+#include "photorig/daemon/hardware_options.h"
 #include "photorig/sim/devices.h"
 
 #include <functional>
@@ -29,6 +31,10 @@ const std::vector<Entry<LightFactory>>& LightDrivers() {
          RequireWorld(c, "the simulated light dome");
          return std::make_unique<sim::SimLightDome>(c.rig.lights.id, c.world);
        }},
+      {"modbus-tcp", [](const DeviceContext& c) { return MakeModbusLights(c, false); }},
+      {"modbus-rtu", [](const DeviceContext& c) { return MakeModbusLights(c, true); }},
+      {"gpio", [](const DeviceContext& c) { return MakeGpioLights(c); }},
+      {"usb-relay", [](const DeviceContext& c) { return MakeUsbRelayLights(c); }},
   };
   return drivers;
 }
@@ -40,6 +46,8 @@ const std::vector<Entry<CameraFactory>>& CameraDrivers() {
          RequireWorld(c, "the simulated camera");
          return std::make_unique<sim::SimCamera>(c.rig.camera.id, c.world);
        }},
+      {"aravis", [](const DeviceContext& c) { return MakeAravisCamera(c); }},
+      {"v4l2", [](const DeviceContext& c) { return MakeV4l2Camera(c); }},
   };
   return drivers;
 }

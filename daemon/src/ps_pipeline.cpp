@@ -1,15 +1,19 @@
 #include "photorig/daemon/ps_pipeline.h"
 
 #include "photorig/daemon/image_io.h"
+#include "photorig/daemon/mesh_io.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/ps/evaluation.h"
-#include "photorig/ps/lambertian.h"
+#include "photorig/ps/integration.h"
+#include "photorig/ps/photometric_stereo.h"
 
 #include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <stdexcept>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
@@ -44,16 +48,80 @@ double DarkNoiseSigma(const std::vector<cv::Mat>& darks, const cv::Mat& mean_dar
   return 1.4826 * *middle;
 }
 
+ps::PhotometricStereoOptions MakeOptions(const PhotometricStereoRequest& request, const PhotometricStereoInput& input,
+                                         double saturation_level) {
+  ps::PhotometricStereoOptions options;
+  if (!ps::ParseMethod(request.method, &options.method))
+    throw std::invalid_argument("unknown photometric-stereo method '" + request.method + "'");
+  const bool derivative_known = [&] {
+    for (auto m : {autodiff::DerivativeMethod::kForward, autodiff::DerivativeMethod::kReverse,
+                   autodiff::DerivativeMethod::kSymbolic, autodiff::DerivativeMethod::kCentralDifference})
+      if (request.derivative == autodiff::ToString(m)) return options.blinn_phong.derivative = m, true;
+    return false;
+  }();
+  if (!derivative_known) throw std::invalid_argument("unknown derivative method '" + request.derivative + "'");
+  // I - D carries the noise of the frame and of the averaged dark: sigma * sqrt(1 + 1/n).
+  // Never below one DN: quantisation alone leaves values within 1 DN of black in shadow.
+  options.lambertian.shadow_threshold = std::max(1.0, request.shadow_threshold_sigma * input.stack.noise.read_sigma);
+  options.lambertian.saturation_level = saturation_level;
+  options.lambertian.max_condition_number = request.max_condition_number;
+  return options;
+}
+
+json MetricsJson(const ps::AngularErrorStats& stats) {
+  return {{"pixels_with_truth", stats.pixels_with_truth},
+          {"pixels_evaluated", stats.pixels_evaluated},
+          {"pixels_unresolved", stats.pixels_unresolved},
+          {"mean_angular_error_deg", stats.mean_deg},
+          {"median_angular_error_deg", stats.median_deg},
+          {"max_angular_error_deg", stats.max_deg},
+          {"percent_under_5deg", 100.0 * stats.fraction_under_5deg},
+          {"percent_under_10deg", 100.0 * stats.fraction_under_10deg},
+          {"percent_under_15deg", 100.0 * stats.fraction_under_15deg}};
+}
+
 }  // namespace
 
-json SolvePhotometricStereoRun(const std::string& run_directory, const PhotometricStereoRequest& request,
-                               const std::string& output_directory) {
-  const auto start = std::chrono::steady_clock::now();
-  const RunManifest manifest = LoadRunManifest(run_directory);
+void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request) {
+  ps::Method method;
+  if (!ps::ParseMethod(request.method, &method))
+    throw std::invalid_argument("method '" + request.method + "' (expected l2, lambertian, robust, blinn-phong or auto)");
+  bool known = false;
+  for (auto m : {autodiff::DerivativeMethod::kForward, autodiff::DerivativeMethod::kReverse,
+                 autodiff::DerivativeMethod::kSymbolic, autodiff::DerivativeMethod::kCentralDifference})
+    known = known || request.derivative == autodiff::ToString(m);
+  if (!known)
+    throw std::invalid_argument("derivative '" + request.derivative +
+                                "' (expected forward, reverse, symbolic or central-difference)");
+  ps::Integrator integrator;
+  if (request.integrator != "none" && !ps::ParseIntegrator(request.integrator, &integrator))
+    throw std::invalid_argument("integrator '" + request.integrator + "' (expected poisson, frankot-chellappa or none)");
+  if (!(request.shadow_threshold_sigma >= 0)) throw std::invalid_argument("shadow_threshold_sigma must be >= 0");
+  if (!(request.max_condition_number > 1)) throw std::invalid_argument("max_condition_number must be > 1");
+}
 
-  ps::PhotometricStack stack;
+PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
+  node.ExpectKeys({"method", "shadow_threshold_sigma", "max_condition_number", "derivative", "integrator"});
+  PhotometricStereoRequest request;
+  request.method = node.String("method", request.method);
+  request.shadow_threshold_sigma = node.Double("shadow_threshold_sigma", request.shadow_threshold_sigma);
+  request.max_condition_number = node.Double("max_condition_number", request.max_condition_number);
+  request.derivative = node.String("derivative", request.derivative);
+  request.integrator = node.String("integrator", request.integrator);
+  try {
+    ValidatePhotometricStereoRequest(request);
+  } catch (const std::invalid_argument& e) {
+    node.Fail(e.what());
+  }
+  return request;
+}
+
+PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
+  const RunManifest manifest = LoadRunManifest(run_directory);
+  PhotometricStereoInput input;
+  input.source = run_directory;
+  ps::PhotometricStack& stack = input.stack;
   std::vector<cv::Mat> darks;
-  int bit_depth = manifest.bit_depth;
   for (const FrameRecord& record : manifest.frames) {
     cv::Mat frame;
     LoadFrame(run_directory, record).convertTo(frame, CV_32F);
@@ -76,43 +144,73 @@ json SolvePhotometricStereoRun(const std::string& run_directory, const Photometr
     stack.light_scales.push_back(led.intensity * record.level * manifest.dn_per_radiance_per_us *
                                  record.exposure_us * gain);
   }
-  const double load_ms = Ms(start);
-
-  double noise_sigma_dn = 0.0;
+  input.dark_frames = static_cast<int>(darks.size());
+  // Photon noise in DN^2 per DN of signal: gain / (electrons per DN). All frames
+  // of a run share the gain in practice; the first light frame's is used.
+  if (manifest.e_per_dn > 0.0) {
+    for (const FrameRecord& record : manifest.frames)
+      if (record.kind == "light") {
+        stack.noise.shot_gain = std::pow(10.0, record.gain_db / 20.0) / manifest.e_per_dn;
+        break;
+      }
+  }
+  input.saturation_level = static_cast<double>((1u << manifest.bit_depth) - 1u);
   if (!darks.empty()) {
     stack.dark = cv::Mat::zeros(darks.front().size(), CV_32F);
     for (const cv::Mat& dark : darks) stack.dark += dark;
     stack.dark /= static_cast<double>(darks.size());
-    noise_sigma_dn = DarkNoiseSigma(darks, stack.dark);
+    stack.noise.read_sigma = DarkNoiseSigma(darks, stack.dark) * std::sqrt(1.0 + 1.0 / darks.size());
   } else {
     spdlog::warn("{}: no dark frame; the solver assumes a zero black level", run_directory);
   }
+  if (manifest.has_ground_truth) {
+    const fs::path truth = fs::path(run_directory) / "ground_truth";
+    input.truth_normals = ReadFloatTiff((truth / "normals.tiff").string());
+    input.truth_albedo = ReadFloatTiff((truth / "albedo.tiff").string());
+  }
+  return input;
+}
 
-  ps::LambertianOptions options;
-  options.exclude_unusable_samples = request.method == "lambertian";
-  // I - D carries the noise of the frame and of the averaged dark: sigma * sqrt(1 + 1/n).
-  const double difference_sigma_dn =
-      darks.empty() ? noise_sigma_dn : noise_sigma_dn * std::sqrt(1.0 + 1.0 / static_cast<double>(darks.size()));
-  // Never below one DN: quantisation alone leaves values within 1 DN of black in shadow.
-  options.shadow_threshold = std::max(1.0, request.shadow_threshold_sigma * difference_sigma_dn);
-  options.saturation_level = static_cast<double>((1u << bit_depth) - 1u);
-  options.max_condition_number = request.max_condition_number;
+json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoRequest& request,
+                   const std::string& output_directory) {
+  const auto start = std::chrono::steady_clock::now();
+  ValidatePhotometricStereoRequest(request);
+  ps::PhotometricStack stack = input.stack;
+  if (!input.object_mask.empty()) stack.mask = input.object_mask;
+  double saturation = input.saturation_level;
+  if (!std::isfinite(saturation)) {
+    double max_value = 0.0;
+    for (const cv::Mat& image : stack.images) {
+      double image_max = 0.0;
+      cv::minMaxLoc(image, nullptr, &image_max);
+      max_value = std::max(max_value, image_max);
+    }
+    // Clipped samples sit at the largest code the data reach when that is a
+    // full-scale code (2^n - 1); otherwise nothing is treated as clipped.
+    const double full_scale = std::exp2(std::ceil(std::log2(max_value + 1.0))) - 1.0;
+    if (max_value >= full_scale) saturation = full_scale;
+  }
+  const ps::PhotometricStereoOptions options = MakeOptions(request, input, saturation);
 
   ps::NormalMap map;
-  const ps::SolverSummary summary = ps::SolveLambertian(options, stack, &map);
+  const ps::SolverSummary summary = ps::SolvePhotometricStereo(options, stack, &map);
 
   fs::create_directories(output_directory);
   const fs::path out(output_directory);
-  json report = {{"run", run_directory},
+  json report = {{"source", input.source},
                  {"method", summary.method},
                  {"termination", summary.IsSolutionUsable() ? "success" : "failure"},
                  {"message", summary.message},
                  {"lights", summary.light_count},
-                 {"dark_frames", darks.size()},
+                 {"dark_frames", input.dark_frames},
                  {"condition_number", summary.condition_number},
-                 {"noise_sigma_dn", noise_sigma_dn},
-                 {"shadow_threshold_dn", options.shadow_threshold},
-                 {"saturation_level_dn", options.saturation_level},
+                 {"noise",
+                  {{"read_sigma", summary.noise_read_sigma > 0 ? summary.noise_read_sigma : stack.noise.read_sigma},
+                   {"shot_gain", summary.noise_shot_gain},
+                   {"estimated", summary.noise_estimated}}},
+                 {"noise_sigma_dn", stack.noise.read_sigma},
+                 {"shadow_threshold", options.lambertian.shadow_threshold},
+                 {"saturation_level", std::isfinite(saturation) ? json(saturation) : json(nullptr)},
                  {"pixels",
                   {{"total", summary.pixels_total},
                    {"solved", summary.pixels_solved},
@@ -120,43 +218,63 @@ json SolvePhotometricStereoRun(const std::string& run_directory, const Photometr
                    {"too_few_lights", summary.pixels_too_few_lights},
                    {"ill_conditioned", summary.pixels_ill_conditioned},
                    {"rejected_by_model", summary.pixels_rejected_by_model}}},
+                 {"models",
+                  {{"lambertian", summary.pixels_lambertian},
+                   {"robust", summary.pixels_robust},
+                   {"blinn_phong", summary.pixels_blinn_phong}}},
                  {"samples_rejected", summary.samples_rejected},
                  {"distinct_light_subsets", summary.distinct_light_subsets},
-                 {"timings_ms", {{"load", load_ms}, {"setup", summary.setup_ms}, {"solve", summary.solve_ms}}}};
+                 {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}}}};
 
   if (summary.IsSolutionUsable()) {
+    const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
+    report["mean_confidence"] = cv::mean(map.confidence, solved)[0];
     WriteFloatTiff((out / "normals.tiff").string(), map.normals);
     WriteImage((out / "normals.png").string(), NormalsToBgr8(map.normals));
     WriteFloatTiff((out / "albedo.tiff").string(), map.albedo);
     WriteImage((out / "albedo.png").string(), ScalarToGray8(map.albedo, 1.0));
-    cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
     WriteImage((out / "mask.png").string(), solved);
     WriteImage((out / "flags.png").string(), map.flags);
+    WriteImage((out / "model.png").string(), map.model * 80);
+    WriteFloatTiff((out / "confidence.tiff").string(), map.confidence);
+    cv::Mat specular;
+    cv::Mat channels[] = {cv::Mat(), cv::Mat(), cv::Mat::zeros(map.specular.size(), CV_32F)};
+    cv::split(map.specular, channels);
+    cv::merge(channels, 3, specular);
+    WriteFloatTiff((out / "specular.tiff").string(), specular);
 
-    if (manifest.has_ground_truth) {
-      const fs::path truth = fs::path(run_directory) / "ground_truth";
-      const cv::Mat truth_normals = ReadFloatTiff((truth / "normals.tiff").string());
-      const cv::Mat truth_albedo = ReadFloatTiff((truth / "albedo.tiff").string());
+    if (request.integrator != "none") {
+      ps::IntegrationOptions integration;
+      ps::ParseIntegrator(request.integrator, &integration.integrator);
+      integration.pixel_pitch = input.pixel_pitch;
+      cv::Mat depth;
+      const ps::IntegrationSummary integrated = ps::IntegrateNormals(integration, map.normals, solved, &depth);
+      report["depth"] = {{"integrator", request.integrator},
+                         {"success", integrated.success},
+                         {"message", integrated.message},
+                         {"pixels", integrated.pixels},
+                         {"pixels_dropped", integrated.pixels_dropped},
+                         {"residual_rms", integrated.residual_rms},
+                         {"pixel_pitch", input.pixel_pitch}};
+      report["timings_ms"]["integrate"] = integrated.solve_ms;
+      if (integrated.success) {
+        WriteFloatTiff((out / "depth.tiff").string(), depth);
+        WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
+      }
+    }
+
+    if (!input.truth_normals.empty()) {
       cv::Mat error_deg;
-      const ps::AngularErrorStats stats = ps::CompareNormals(map.normals, truth_normals, cv::Mat(), &error_deg);
+      const ps::AngularErrorStats stats = ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
       WriteFloatTiff((out / "angular_error.tiff").string(), error_deg);
-      // Albedo error relative to truth, over pixels where both exist.
-      cv::Mat valid = (map.flags == static_cast<int>(ps::PixelFlag::kSolved));
-      cv::Mat relative;
-      cv::absdiff(map.albedo, truth_albedo, relative);
-      relative /= truth_albedo;
-      cv::patchNaNs(relative, 0.0);
-      const double albedo_error = cv::mean(relative, valid)[0];
-      report["ground_truth"] = {{"pixels_with_truth", stats.pixels_with_truth},
-                                {"pixels_evaluated", stats.pixels_evaluated},
-                                {"pixels_unresolved", stats.pixels_unresolved},
-                                {"mean_angular_error_deg", stats.mean_deg},
-                                {"median_angular_error_deg", stats.median_deg},
-                                {"max_angular_error_deg", stats.max_deg},
-                                {"percent_under_5deg", 100.0 * stats.fraction_under_5deg},
-                                {"percent_under_10deg", 100.0 * stats.fraction_under_10deg},
-                                {"percent_under_15deg", 100.0 * stats.fraction_under_15deg},
-                                {"mean_relative_albedo_error", albedo_error}};
+      report["ground_truth"] = MetricsJson(stats);
+      if (!input.truth_albedo.empty()) {
+        cv::Mat relative;
+        cv::absdiff(map.albedo, input.truth_albedo, relative);
+        relative /= input.truth_albedo;
+        cv::patchNaNs(relative, 0.0);
+        report["ground_truth"]["mean_relative_albedo_error"] = cv::mean(relative, solved)[0];
+      }
     }
   }
   report["timings_ms"]["total"] = Ms(start);

@@ -8,8 +8,17 @@
 namespace photorig::daemon {
 namespace fs = std::filesystem;
 
-Recipe LoadRecipe(const std::string& path) {
-  const YamlNode root = YamlNode::LoadFile(path);
+namespace {
+Recipe ParseRecipe(const YamlNode& root, const std::string& path);
+}  // namespace
+
+Recipe LoadRecipe(const std::string& path) { return ParseRecipe(YamlNode::LoadFile(path), path); }
+Recipe LoadRecipeText(const std::string& text, const std::string& name) {
+  return ParseRecipe(YamlNode::LoadString(text, name), name);
+}
+
+namespace {
+Recipe ParseRecipe(const YamlNode& root, const std::string& path) {
   root.ExpectKeys({"recipe", "sample", "capture", "solve"});
   Recipe recipe;
   recipe.path = path;
@@ -70,21 +79,12 @@ Recipe LoadRecipe(const std::string& path) {
       const auto keys = stage.Keys();
       if (keys.size() != 1) stage.Fail("each solve stage is a map with exactly one key");
       if (keys[0] != "photometric_stereo") stage.Fail("unknown solver '" + keys[0] + "' (expected photometric_stereo)");
-      const YamlNode body = stage[keys[0]];
-      body.ExpectKeys({"method", "shadow_threshold_sigma", "max_condition_number"});
-      PhotometricStereoRequest request;
-      request.method = body.String("method", request.method);
-      if (request.method != "lambertian" && request.method != "lambertian-l2")
-        body["method"].Fail("unknown method '" + request.method + "' (expected lambertian or lambertian-l2)");
-      request.shadow_threshold_sigma = body.Double("shadow_threshold_sigma", request.shadow_threshold_sigma);
-      if (!(request.shadow_threshold_sigma >= 0)) body["shadow_threshold_sigma"].Fail("must be >= 0");
-      request.max_condition_number = body.Double("max_condition_number", request.max_condition_number);
-      if (!(request.max_condition_number > 1)) body["max_condition_number"].Fail("must be > 1");
-      recipe.photometric_stereo = request;
+      recipe.photometric_stereo = ParsePhotometricStereoRequest(stage[keys[0]]);
     }
   }
   return recipe;
 }
+}  // namespace
 
 std::string ResolveRigPath(const Recipe& recipe, const std::string& override_path) {
   if (!override_path.empty()) return override_path;

@@ -3,13 +3,15 @@
 #include "photorig/daemon/device_factory.h"
 #include "photorig/daemon/yaml_node.h"
 
+#include <filesystem>
 #include <set>
+#include <stdexcept>
 
 namespace photorig::daemon {
 namespace {
 
 LedConfig ParseLed(const YamlNode& node, int index) {
-  node.ExpectKeys({"id", "direction", "position_mm", "intensity", "channel"});
+  node.ExpectKeys({"id", "direction", "position_mm", "intensity", "channel", "rgb_intensity"});
   LedConfig led;
   led.id = node.Int("id", index);
   led.channel = node.Int("channel", index);
@@ -25,6 +27,11 @@ LedConfig ParseLed(const YamlNode& node, int index) {
   if (led.direction.z() <= 0.0) vector_node.Fail("points below the sample plane (z <= 0)");
   led.intensity = node.Double("intensity", 1.0);
   if (!(led.intensity > 0.0)) node["intensity"].Fail("must be > 0");
+  if (auto rgb = node.Find("rgb_intensity")) {
+    led.rgb_intensity = rgb->AsVector3();
+    if (!(led.rgb_intensity.minCoeff() >= 0.0 && led.rgb_intensity.maxCoeff() > 0.0))
+      rgb->Fail("needs three values >= 0, not all zero");
+  }
   return led;
 }
 
@@ -80,7 +87,9 @@ void ParseFaults(const YamlNode& node, SimConfig* sim) {
 }  // namespace
 
 sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
-  node.ExpectKeys({"shape", "radius_mm", "albedo", "cast_shadows"});
+  node.ExpectKeys({"shape", "radius_mm", "albedo", "cast_shadows", "brdf", "path", "depth_scale_mm", "depth_pitch_mm",
+                   "mesh_scale", "tilt_deg", "bowl_radius_mm", "rim_radius_mm", "step_width_mm", "step_height_mm",
+                   "step_slope", "backlight_radiance", "peak_density_per_mm"});
   sim::Scene scene;
   const YamlNode shape = node["shape"];
   try {
@@ -88,10 +97,40 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
   } catch (const std::invalid_argument& e) {
     shape.Fail(e.what());
   }
-  scene.sphere_radius_mm = node.Double("radius_mm", 0.45 * frame_width_mm);
+  scene.ApplyShapeDefaults(frame_width_mm);
+  scene.sphere_radius_mm = node.Double("radius_mm", scene.sphere_radius_mm);
   if (!(scene.sphere_radius_mm > 0)) node["radius_mm"].Fail("must be > 0");
-  if (scene.shape == sim::Scene::Shape::kBumps) scene.bumps = sim::Scene::DefaultBumps(frame_width_mm);
   scene.cast_shadows = node.Bool("cast_shadows", true);
+  scene.tilt_deg = node.Double("tilt_deg", scene.tilt_deg);
+  scene.bowl_radius_mm = node.Double("bowl_radius_mm", scene.bowl_radius_mm);
+  scene.rim_radius_mm = node.Double("rim_radius_mm", scene.rim_radius_mm);
+  scene.step_width_mm = node.Double("step_width_mm", scene.step_width_mm);
+  scene.step_height_mm = node.Double("step_height_mm", scene.step_height_mm);
+  scene.step_slope = node.Double("step_slope", scene.step_slope);
+  scene.depth_scale_mm = node.Double("depth_scale_mm", scene.depth_scale_mm);
+  scene.depth_pitch_mm = node.Double("depth_pitch_mm", scene.depth_pitch_mm);
+  scene.mesh_scale = node.Double("mesh_scale", scene.mesh_scale);
+  scene.backlight_radiance = node.Double("backlight_radiance", scene.backlight_radiance);
+  if (auto density = node.Find("peak_density_per_mm")) {
+    if (!(density->AsDouble() >= 0)) density->Fail("must be >= 0");
+    scene.volume = sim::DensityGrid::Blobs(0.8 * frame_width_mm, 64, density->AsDouble());
+  }
+  // Files named in a recipe are relative to the recipe, and must load now, not mid-run.
+  auto resolve = [](const YamlNode& path_node) {
+    const std::filesystem::path path = path_node.AsString();
+    return (path.is_absolute() ? path : std::filesystem::path(path_node.file()).parent_path() / path).string();
+  };
+  if (auto path = node.Find("path")) {
+    if (scene.shape == sim::Scene::Shape::kDepthMap) scene.depth_map_path = resolve(*path);
+    else if (scene.shape == sim::Scene::Shape::kMesh) scene.mesh_path = resolve(*path);
+    else path->Fail("only depth_map and mesh scenes read a file");
+    try {
+      if (scene.shape == sim::Scene::Shape::kMesh) sim::LoadPly(scene.mesh_path);
+      else sim::SampleSurface(scene, 8, 8, 1.0);
+    } catch (const std::runtime_error& e) {
+      path->Fail(e.what());
+    }
+  }
   if (auto albedo = node.Find("albedo")) {
     albedo->ExpectKeys({"pattern", "low", "high", "period_mm"});
     const std::string pattern = albedo->String("pattern", "checker");
@@ -106,6 +145,32 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
       albedo->Fail("albedo needs 0 <= low <= high <= 1");
     if (!(scene.albedo.period_mm > 0)) (*albedo)["period_mm"].Fail("must be > 0");
   }
+  // brdf: {model: lambertian|blinn_phong|ggx|mirror|tabulated, rho_s, exponent, roughness, f0, table}
+  if (auto brdf = node.Find("brdf")) {
+    brdf->ExpectKeys({"model", "rho_s", "exponent", "roughness", "f0", "table"});
+    sim::Material& m = scene.material;
+    try {
+      m.model = sim::Brdf::ParseModel((*brdf)["model"].AsString());
+    } catch (const std::invalid_argument& e) {
+      (*brdf)["model"].Fail(e.what());
+    }
+    m.rho_s = brdf->Double("rho_s", m.rho_s);
+    m.exponent = brdf->Double("exponent", m.exponent);
+    m.roughness = brdf->Double("roughness", m.roughness);
+    m.f0 = brdf->Double("f0", m.f0);
+    if (auto table = brdf->Find("table")) {
+      if (m.model != sim::Brdf::Model::kTabulated) table->Fail("only the tabulated model reads a table");
+      try {
+        m.table = std::make_shared<sim::MerlTable>(sim::MerlTable::Load(resolve(*table)));
+      } catch (const std::runtime_error& e) {
+        table->Fail(e.what());
+      }
+    }
+    std::string why;
+    if (!m.IsValid(&why)) brdf->Fail(why);
+  }
+  std::string why;
+  if (!scene.IsValid(&why)) node.Fail(why);
   return scene;
 }
 
@@ -138,7 +203,7 @@ RigConfig LoadRigConfig(const std::string& path) {
 
   const YamlNode camera = root["camera"];
   camera.ExpectKeys({"driver", "id", "options", "projection", "width", "height", "pixel_pitch_mm", "bit_depth",
-                     "exposure_us", "gain_db", "dn_per_radiance_per_us"});
+                     "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn"});
   CameraConfig& cam = rig.camera;
   cam.driver = camera["driver"].AsString();
   if (!IsKnownCameraDriver(cam.driver))
@@ -171,7 +236,12 @@ RigConfig LoadRigConfig(const std::string& path) {
     if (auto faults = sim_node->Find("faults")) ParseFaults(*faults, &sim);
     // A simulated camera is calibrated by construction.
     cam.dn_per_radiance_per_us = sim.sensor.response_e_per_us / sim.sensor.e_per_dn;
+    cam.e_per_dn = sim.sensor.e_per_dn;
     rig.sim = sim;
+  }
+  if (auto conversion = camera.Find("e_per_dn")) {
+    cam.e_per_dn = conversion->AsDouble();
+    if (!(cam.e_per_dn > 0)) conversion->Fail("must be > 0");
   }
   if (auto calibration = camera.Find("dn_per_radiance_per_us")) {
     cam.dn_per_radiance_per_us = calibration->AsDouble();

@@ -1,5 +1,6 @@
 #include "photorig/daemon/run.h"
 
+#include "photorig/daemon/plan.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/rig_devices.h"
 
@@ -48,6 +49,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   const std::string rig_path = ResolveRigPath(recipe, request.rig_path);
   const RigConfig rig = LoadRigConfig(rig_path);
   const std::vector<CaptureStep> steps = CompileSteps(recipe, rig);
+  const RunPlan plan = PlanRun(recipe, rig, steps);
   RigDevices devices = MakeRigDevices(rig, &recipe);
 
   RunOutcome outcome;
@@ -65,9 +67,24 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   header.height = rig.camera.height;
   header.bit_depth = rig.camera.bit_depth;
   header.dn_per_radiance_per_us = rig.camera.dn_per_radiance_per_us;
+  header.e_per_dn = rig.camera.e_per_dn;
   header.lights = rig.lights.leds;
-  RunWriter writer(outcome.directory, header);
-  if (devices.world) {
+  std::unique_ptr<RunWriter> writer_storage;
+  if (request.resume) {
+    writer_storage = RunWriter::Reopen(outcome.directory, &outcome.recovery);
+    spdlog::info("run {}: resuming with {} frames on disk ({} discarded, {} stray files removed{})", header.run_id,
+                 outcome.recovery.frames_kept, outcome.recovery.frames_discarded,
+                 outcome.recovery.removed_files.size(), outcome.recovery.journal_tail_torn ? ", torn journal line cut" : "");
+  }
+  const std::uint64_t needed = plan.estimate.bytes - std::min<std::uint64_t>(plan.estimate.bytes,
+      writer_storage ? writer_storage->manifest().frames.size() * plan.estimate.bytes_per_frame : 0);
+  const std::uint64_t free_bytes = FreeBytes(outcome.directory);
+  if (free_bytes < needed)
+    throw std::runtime_error("not enough free space for " + outcome.directory + ": the run needs about " +
+                             std::to_string(needed >> 20) + " MiB, " + std::to_string(free_bytes >> 20) + " MiB free");
+  if (!writer_storage) writer_storage = std::make_unique<RunWriter>(outcome.directory, header);
+  RunWriter& writer = *writer_storage;
+  if (devices.world && !writer.manifest().has_ground_truth) {
     const sim::SurfaceMaps& truth = devices.world->surface();
     writer.WriteGroundTruth(truth.normals, truth.albedo, truth.mask);
   }
@@ -76,12 +93,16 @@ RunOutcome ExecuteRun(const RunRequest& request) {
                outcome.directory);
   CaptureOptions options;
   options.stop_requested = request.stop_requested;
+  options.control = request.control;
+  options.retry = request.retry;
+  options.on_state = request.on_state;
   const bool progress = request.show_progress;
-  options.on_frame = [progress](const CaptureStep& step, const FrameRecord&, int total) {
+  options.on_frame = [progress, &request, &writer](const CaptureStep& step, const FrameRecord& record, int total) {
     if (progress) PrintProgress(step, total);
+    if (request.on_frame) request.on_frame(step, record, static_cast<int>(writer.manifest().frames.size()), total);
   };
   outcome.capture = RunCapture(steps, rig.camera, *devices.lights, *devices.camera, writer, options);
-  writer.Finish(outcome.capture.status, outcome.capture.reason);
+  writer.Finish(outcome.capture.ToStopRecord());
   spdlog::info("capture {}: {} of {} frames in {:.0f} ms{}{}", outcome.capture.status, outcome.capture.frames_written,
                outcome.capture.steps_total, outcome.capture.elapsed_ms, outcome.capture.reason.empty() ? "" : ": ",
                outcome.capture.reason);

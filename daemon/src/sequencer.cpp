@@ -2,22 +2,36 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <thread>
 
 namespace photorig::daemon {
 namespace {
+
+// A light command can fail transiently (that is one of the faults we retry),
+// so switching off gets a few tries before Close, which switches off once more.
+void SwitchOffAndClose(drivers::LightController& lights) {
+  if (lights.state() == drivers::LightController::State::kClosed) return;
+  for (int attempt = 0; attempt < 3; ++attempt)
+    if (lights.AllOff().ok()) break;
+  const Status off = lights.Close();
+  if (!off.ok()) spdlog::error("could not switch the lights off: {}", off.ToString());
+}
 
 // Owns the "devices are safe" guarantee: whatever happens inside the scope,
 // the dome goes dark and the camera stops and closes.
 class DeviceGuard {
  public:
   DeviceGuard(drivers::LightController& lights, drivers::Camera& camera) : lights_(lights), camera_(camera) {}
-  ~DeviceGuard() {
-    const Status off = lights_.Close();
-    if (!off.ok()) spdlog::error("could not switch the lights off: {}", off.ToString());
-    const Status closed = camera_.Close();
-    if (!closed.ok()) spdlog::warn("camera close: {}", closed.ToString());
+  ~DeviceGuard() { Release(); }
+  void Release() {
+    SwitchOffAndClose(lights_);
+    if (camera_.state() != drivers::Camera::State::kClosed) {
+      const Status closed = camera_.Close();
+      if (!closed.ok()) spdlog::warn("camera close: {}", closed.ToString());
+    }
   }
 
  private:
@@ -25,15 +39,201 @@ class DeviceGuard {
   drivers::Camera& camera_;
 };
 
-struct StepFailure {
-  std::string reason;
-};
-
-void Check(const Status& status) {
-  if (!status.ok()) throw StepFailure{status.ToString()};
+// Faults worth a reopen and a retry; anything else (bad settings, a light
+// that does not do what it is told) will not get better by trying again.
+bool IsTransient(const Status& status) {
+  return status.code() == StatusCode::kTimeout || status.code() == StatusCode::kUnavailable ||
+         status.code() == StatusCode::kDataLoss;
 }
 
+class Capture {
+ public:
+  Capture(const CameraConfig& camera_config, drivers::LightController& lights, drivers::Camera& camera,
+          RunWriter& writer, const CaptureOptions& options, CaptureReport& report)
+      : camera_config_(camera_config), lights_(lights), camera_(camera), writer_(writer), options_(options),
+        report_(report) {}
+
+  bool StopRequested() const {
+    return (options_.stop_requested && options_.stop_requested->load()) ||
+           (options_.control && options_.control->abort_requested());
+  }
+
+  void Notify(RunState state, const std::string& detail) const {
+    if (options_.on_state) options_.on_state(state, detail);
+  }
+
+  // Sleeps in short slices so that SIGTERM and abort both cut it short.
+  bool Sleep(int ms) const {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
+    while (!StopRequested()) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return true;
+      const int slice = static_cast<int>(std::min<std::int64_t>(left.count(), 20));
+      if (options_.control) {
+        options_.control->SleepUnlessAborted(slice);
+      } else {
+        std::this_thread::sleep_for(std::chrono::milliseconds(slice));
+      }
+    }
+    return false;
+  }
+
+  // Returns false when a stop arrived while paused.
+  bool HoldWhilePaused() const {
+    if (!options_.control || !options_.control->paused()) return true;
+    Notify(RunState::kPaused, "");
+    while (options_.control->paused())
+      if (!Sleep(20)) return false;
+    Notify(RunState::kRunning, "resumed");
+    return true;
+  }
+
+  Status OpenDevices(const CaptureStep& first) {
+    if (lights_.state() == drivers::LightController::State::kClosed)
+      if (Status s = lights_.Open(); !s.ok()) return s;
+    if (camera_.state() != drivers::Camera::State::kClosed) (void)camera_.Close();
+    if (Status s = camera_.Open(); !s.ok()) return s;
+    settings_.width = camera_config_.width;
+    settings_.height = camera_config_.height;
+    settings_.bit_depth = camera_config_.bit_depth;
+    settings_.exposure_us = first.exposure_us;
+    settings_.gain_db = first.gain_db;
+    auto adjustments = camera_.Configure(settings_);
+    if (!adjustments.ok()) return adjustments.status();
+    if (report_.adjustments.empty()) {
+      report_.adjustments = adjustments.value();
+      for (const auto& a : report_.adjustments)
+        spdlog::warn("camera {}: {} {} -> {} ({})", camera_.id(), a.field, a.requested, a.applied, a.reason);
+    }
+    return camera_.Start();
+  }
+
+  // Leaves the devices closed and dark after a fault; they are reopened before the retry.
+  void CloseAfterFault() {
+    SwitchOffAndClose(lights_);
+    if (camera_.state() != drivers::Camera::State::kClosed) (void)camera_.Close();
+  }
+
+  Status CheckPattern(const drivers::LightPattern& pattern) {
+    auto actual = lights_.ReadBack();
+    if (!actual.ok()) return actual.status();
+    for (std::size_t channel = 0; channel < pattern.levels.size(); ++channel) {
+      const double got = channel < actual->levels.size() ? actual->levels[channel] : 0.0;
+      if (std::abs(got - pattern.levels[channel]) > 1e-6)
+        return {StatusCode::kInternal, "light controller " + lights_.id() + ": channel " + std::to_string(channel) +
+                                           " reads back " + std::to_string(got) + " after being set to " +
+                                           std::to_string(pattern.levels[channel])};
+    }
+    return Status::Ok();
+  }
+
+  // One step: a frame on disk and in the journal, or the device status that prevented it.
+  Status Step(const CaptureStep& step) {
+    if (step.exposure_us != camera_.settings().exposure_us || step.gain_db != camera_.settings().gain_db) {
+      if (Status s = camera_.Stop(); !s.ok()) return s;
+      settings_.exposure_us = step.exposure_us;
+      settings_.gain_db = step.gain_db;
+      if (Status s = camera_.Configure(settings_).status(); !s.ok()) return s;
+      if (Status s = camera_.Start(); !s.ok()) return s;
+    }
+    if (Status s = lights_.SetPattern(step.pattern); !s.ok()) return s;
+    if (Status s = CheckPattern(step.pattern); !s.ok()) {
+      (void)lights_.AllOff();
+      return s;
+    }
+    if (Status s = camera_.Trigger(); !s.ok()) {
+      (void)lights_.AllOff();
+      return s;
+    }
+    const int timeout_ms = static_cast<int>(std::ceil(step.exposure_us / 1000.0)) + options_.frame_timeout_margin_ms;
+    auto frame = camera_.WaitFrame(timeout_ms);
+    // Lights off before anything else can fail, so no LED stays on longer than one exposure.
+    const Status off = lights_.AllOff();
+    if (!frame.ok()) return frame.status();
+    if (!off.ok()) return off;
+    const FrameRecord& record = writer_.WriteFrame(step, frame.value());  // throws on storage failure
+    ++report_.frames_written;
+    if (options_.on_frame) options_.on_frame(step, record, report_.steps_total);
+    return Status::Ok();
+  }
+
+  void Run(const std::vector<CaptureStep>& steps) {
+    const RetryPolicy& retry = options_.retry;
+    bool devices_open = false;
+    int attempts = 0;  // failed attempts at the current step
+    int backoff_ms = retry.initial_backoff_ms;
+    for (std::size_t i = 0; i < steps.size();) {
+      const CaptureStep& step = steps[i];
+      if (writer_.HasFrame(step.index)) {
+        ++i;
+        continue;
+      }
+      if (StopRequested() || !HoldWhilePaused()) {
+        Notify(RunState::kAborting, "");
+        report_.status = "aborted";
+        report_.reason = "stop requested before step " + step.label;
+        return;
+      }
+      Status status = devices_open ? Status::Ok() : OpenDevices(step);
+      devices_open = status.ok();
+      if (status.ok()) status = Step(step);
+      if (status.ok()) {
+        ++i;
+        attempts = 0;
+        backoff_ms = retry.initial_backoff_ms;
+        continue;
+      }
+      if (status.code() == StatusCode::kTimeout || status.code() == StatusCode::kDataLoss) ++report_.dropped_frames;
+      ++attempts;
+      if (!IsTransient(status) || attempts >= retry.max_attempts_per_step ||
+          report_.retries >= retry.max_retries_per_run) {
+        report_.status = "failed";
+        report_.reason = (IsTransient(status) ? "step " + step.label + " failed " + std::to_string(attempts) +
+                                                    " times; last: "
+                                              : "step " + step.label + ": ") +
+                         status.ToString();
+        return;
+      }
+      ++report_.retries;
+      spdlog::warn("step {}: {}; retry {} in {} ms", step.label, status.ToString(), attempts, backoff_ms);
+      Notify(RunState::kSuspended, status.ToString());
+      CloseAfterFault();
+      devices_open = false;
+      if (!Sleep(backoff_ms)) continue;  // the stop check at the top of the loop ends the run
+      backoff_ms = std::min(retry.max_backoff_ms, static_cast<int>(backoff_ms * retry.backoff_factor));
+      Notify(RunState::kRunning, "retrying step " + step.label);
+    }
+    report_.status = "complete";
+  }
+
+ private:
+  const CameraConfig& camera_config_;
+  drivers::LightController& lights_;
+  drivers::Camera& camera_;
+  RunWriter& writer_;
+  const CaptureOptions& options_;
+  CaptureReport& report_;
+  drivers::CameraSettings settings_;
+};
+
 }  // namespace
+
+bool RetryPolicy::IsValid(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (max_attempts_per_step < 1) return fail("max_attempts_per_step must be >= 1");
+  if (max_retries_per_run < 0) return fail("max_retries_per_run must be >= 0");
+  if (initial_backoff_ms < 0 || max_backoff_ms < initial_backoff_ms)
+    return fail("backoff must satisfy 0 <= initial_backoff_ms <= max_backoff_ms");
+  if (!(backoff_factor >= 1.0)) return fail("backoff_factor must be >= 1");
+  return true;
+}
+
+StopRecord CaptureReport::ToStopRecord() const {
+  return {status, reason, frames_resumed + frames_written, steps_total, retries, dropped_frames};
+}
 
 CaptureReport RunCapture(const std::vector<CaptureStep>& steps, const CameraConfig& camera_config,
                          drivers::LightController& lights, drivers::Camera& camera, RunWriter& writer,
@@ -41,51 +241,12 @@ CaptureReport RunCapture(const std::vector<CaptureStep>& steps, const CameraConf
   const auto start = std::chrono::steady_clock::now();
   CaptureReport report;
   report.steps_total = static_cast<int>(steps.size());
+  report.frames_resumed = static_cast<int>(writer.manifest().frames.size());
   try {
     DeviceGuard guard(lights, camera);
-    Check(lights.Open());
-    Check(camera.Open());
-    drivers::CameraSettings settings;
-    settings.width = camera_config.width;
-    settings.height = camera_config.height;
-    settings.bit_depth = camera_config.bit_depth;
-    settings.exposure_us = steps.empty() ? camera_config.exposure_us : steps.front().exposure_us;
-    settings.gain_db = steps.empty() ? camera_config.gain_db : steps.front().gain_db;
-    auto adjustments = camera.Configure(settings);
-    Check(adjustments.status());
-    report.adjustments = adjustments.value();
-    for (const auto& a : report.adjustments)
-      spdlog::warn("camera {}: {} {} -> {} ({})", camera.id(), a.field, a.requested, a.applied, a.reason);
-    Check(camera.Start());
-    for (const CaptureStep& step : steps) {
-      if (options.stop_requested && options.stop_requested->load()) {
-        report.status = "aborted";
-        report.reason = "stop requested before step " + step.label;
-        break;
-      }
-      if (step.exposure_us != camera.settings().exposure_us || step.gain_db != camera.settings().gain_db) {
-        Check(camera.Stop());
-        settings.exposure_us = step.exposure_us;
-        settings.gain_db = step.gain_db;
-        Check(camera.Configure(settings).status());
-        Check(camera.Start());
-      }
-      Check(lights.SetPattern(step.pattern));
-      Check(camera.Trigger());
-      const int timeout_ms =
-          static_cast<int>(std::ceil(step.exposure_us / 1000.0)) + options.frame_timeout_margin_ms;
-      auto frame = camera.WaitFrame(timeout_ms);
-      // Lights off before anything else can fail, so no LED stays on longer than one exposure.
-      Check(lights.AllOff());
-      Check(frame.status());
-      const FrameRecord& record = writer.WriteFrame(step, frame.value());
-      ++report.frames_written;
-      if (options.on_frame) options.on_frame(step, record, report.steps_total);
-    }
-    if (report.status.empty()) report.status = "complete";
-  } catch (const StepFailure& failure) {
-    report.status = "failed";
-    report.reason = failure.reason;
+    std::string why;
+    if (!options.retry.IsValid(&why)) throw std::invalid_argument("retry policy: " + why);
+    Capture(camera_config, lights, camera, writer, options, report).Run(steps);
   } catch (const std::exception& e) {
     report.status = "failed";
     report.reason = e.what();

@@ -89,7 +89,7 @@ TEST(RunStore, FramesLandOnDiskBitExactWithJournalAndManifest) {
     int lines = 0;
     while (std::getline(journal, line)) ++lines;
     EXPECT_EQ(lines, 3);  // header + 2 frames
-    writer.Finish("complete", "");
+    writer.Finish({"complete", "", 0, 0, 0, 0});
   }
   const RunManifest manifest = LoadRunManifest(run);
   EXPECT_EQ(manifest.status, "complete");
@@ -148,6 +148,62 @@ TEST(RunStore, CorruptManifestIsNamed) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("manifest.json: corrupt manifest"), std::string::npos) << e.what();
   }
+}
+
+TEST(RunStore, ReopenRepairsWhatACrashLeavesAndKeepsEveryGoodFrameOnce) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  {
+    RunWriter writer(run, Header());
+    for (int i = 0; i < 4; ++i) writer.WriteFrame(Step(i, i == 0 ? -1 : 0), MakeFrame(20, 10, i));
+  }
+  namespace fs = std::filesystem;
+  // What a kill -9 can leave: a temp file, a frame renamed into place whose
+  // journal line never landed, a torn last journal line; and a frame damaged since.
+  std::ofstream(fs::path(run) / "frames" / "0004_led00.png.tmp") << "partial";
+  fs::copy_file(fs::path(run) / "frames" / "0001_led00.png", fs::path(run) / "frames" / "0005_led00.png");
+  std::ofstream(fs::path(run) / "journal.jsonl", std::ios::app) << "{\"index\": 6, \"fi";
+  {
+    std::fstream damaged(fs::path(run) / "frames" / "0002_led00.png", std::ios::in | std::ios::out | std::ios::binary);
+    damaged.seekp(static_cast<std::streamoff>(fs::file_size(fs::path(run) / "frames" / "0002_led00.png") / 2));
+    damaged.write("XXXXXXXXXXXX", 12);
+  }
+
+  RecoveryReport recovery;
+  auto writer = RunWriter::Reopen(run, &recovery);
+  EXPECT_TRUE(recovery.journal_tail_torn);
+  EXPECT_EQ(recovery.frames_kept, 3);
+  EXPECT_EQ(recovery.frames_discarded, 1);
+  EXPECT_EQ(recovery.removed_files.size(), 3u);  // the temp file, the unjournalled frame, the damaged frame
+  EXPECT_TRUE(writer->HasFrame(0) && writer->HasFrame(1) && writer->HasFrame(3));
+  EXPECT_FALSE(writer->HasFrame(2));
+  // The retaken step lands once; the finished run verifies clean.
+  writer->WriteFrame(Step(2, 0), MakeFrame(20, 10, 2));
+  writer->Finish({"complete", "", 0, 4, 0, 0});
+  EXPECT_TRUE(VerifyRun(run).empty()) << VerifyRun(run).front();
+  const RunManifest manifest = LoadRunManifest(run);
+  ASSERT_EQ(manifest.frames.size(), 4u);
+  ASSERT_TRUE(manifest.stop.has_value());
+  EXPECT_EQ(manifest.stop->frames, 4);
+  // A second reopen of a clean run changes nothing.
+  RecoveryReport again;
+  RunWriter::Reopen(run, &again);
+  EXPECT_EQ(again.frames_kept, 4);
+  EXPECT_FALSE(again.journal_tail_torn);
+  EXPECT_TRUE(again.removed_files.empty());
+}
+
+TEST(RunStore, VerifyRunFindsMissingAndStrayFrames) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  RunWriter writer(run, Header());
+  writer.WriteFrame(Step(0, -1), MakeFrame(20, 10, 0));
+  writer.Finish({"complete", "", 0, 2, 0, 0});
+  std::ofstream(std::filesystem::path(run) / "frames" / "stray.png") << "x";
+  const auto problems = VerifyRun(run);
+  ASSERT_EQ(problems.size(), 2u);
+  EXPECT_NE(problems[0].find("step 1 missing"), std::string::npos) << problems[0];
+  EXPECT_NE(problems[1].find("stray.png"), std::string::npos) << problems[1];
 }
 
 }  // namespace

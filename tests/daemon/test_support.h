@@ -39,4 +39,30 @@ inline std::string ReadText(const std::filesystem::path& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+// A small simulated dome (4 LEDs, 32x32 camera) for fast runs; `faults` is
+// the body of sim.faults (YAML flow map), empty for none.
+inline std::string SmallRigYaml(const std::string& faults = "", int leds = 4) {
+  std::string text =
+      "rig: {name: small-dome}\n"
+      "lights:\n  driver: sim\n  id: small-dome\n  leds:\n";
+  for (int i = 0; i < leds; ++i)
+    text += "    - {id: " + std::to_string(i) + ", direction: [" + std::to_string(0.5 * ((i % 2) ? 1 : -1)) + ", " +
+            std::to_string(0.5 * ((i / 2 % 2) ? 1 : -1)) + ", 0.707107]}\n";
+  text +=
+      "camera: {driver: sim, id: small-cam, width: 32, height: 32, pixel_pitch_mm: 1.0, bit_depth: 12, "
+      "exposure_us: 1000}\n"
+      "sim:\n  seed: 7\n  scene: {shape: sphere, radius_mm: 12}\n";
+  if (!faults.empty()) text += "  faults: " + faults + "\n";
+  return text;
+}
+
+// One dark frame and one frame per LED.
+inline std::string SmallRecipeYaml(const std::string& rig_path = "", int darks = 1) {
+  std::string text = "recipe:\n  name: small\n";
+  if (!rig_path.empty()) text += "  rig: " + rig_path + "\n";
+  text += "capture:\n  exposure_us: 1000\n  steps:\n    - dark: {count: " + std::to_string(darks) +
+          "}\n    - each_led: {leds: all}\n";
+  return text;
+}
+
 }  // namespace photorig::testing

@@ -1,9 +1,12 @@
-// photorig solve ps --run DIR [--method ...] [--shadow-sigma S] [--out DIR]
+// photorig solve ps (--run DIR | --dataset DIR) [--method ...] [--out DIR] ...
+// photorig export diligent --run DIR --out DIR
 
 #include "../command.h"
+#include "photorig/daemon/diligent.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "ps_report.h"
 
+#include <cstdio>
 #include <filesystem>
 #include <memory>
 
@@ -11,32 +14,65 @@ namespace photorig::app {
 namespace {
 
 struct Options {
-  std::string run_dir, out;
+  std::string run_dir, dataset_dir, out;
   daemon::PhotometricStereoRequest request;
 };
 
 int Execute(const Options& options) {
+  daemon::ValidatePhotometricStereoRequest(options.request);
+  if (options.run_dir.empty() && options.dataset_dir.empty()) {
+    std::fprintf(stderr, "solve ps: give --run DIR or --dataset DIR\n");
+    return 2;
+  }
+  const bool from_run = !options.run_dir.empty();
+  const std::string source = from_run ? options.run_dir : options.dataset_dir;
   const std::string destination =
-      options.out.empty() ? (std::filesystem::path(options.run_dir) / "results" / "ps").string() : options.out;
-  const nlohmann::json report = daemon::SolvePhotometricStereoRun(options.run_dir, options.request, destination);
+      options.out.empty() ? (std::filesystem::path(source) / "results" / "ps").string() : options.out;
+  const daemon::PhotometricStereoInput input =
+      from_run ? daemon::LoadRunStack(options.run_dir) : daemon::LoadDiligent(options.dataset_dir);
+  const nlohmann::json report = daemon::SolveAndWrite(input, options.request, destination);
   PrintPhotometricStereoSummary(report);
+  std::printf("results: %s/\n", destination.c_str());
   return report["termination"] == "success" ? 0 : 3;
 }
 
-CommandRunner Setup(CLI::App& app) {
+CommandRunner SetupSolve(CLI::App& app) {
   auto options = std::make_shared<Options>();
   CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
-  CLI::App* ps = solve->add_subcommand("ps", "photometric stereo");
-  ps->add_option("--run", options->run_dir, "run directory")->required()->check(CLI::ExistingDirectory);
-  ps->add_option("--method", options->request.method, "lambertian | lambertian-l2")
-      ->check(CLI::IsMember({"lambertian", "lambertian-l2"}));
+  CLI::App* ps = solve->add_subcommand("ps", "photometric stereo on a run or a DiLiGenT-layout folder");
+  auto* run = ps->add_option("--run", options->run_dir, "run directory")->check(CLI::ExistingDirectory);
+  auto* dataset = ps->add_option("--dataset", options->dataset_dir, "DiLiGenT-layout folder")->check(CLI::ExistingDirectory);
+  run->excludes(dataset);
+  ps->add_option("--method", options->request.method, "l2 | lambertian | robust | blinn-phong | auto (default auto)")
+      ->check(CLI::IsMember({"l2", "lambertian", "robust", "blinn-phong", "auto"}));
+  ps->add_option("--derivative", options->request.derivative,
+                 "Blinn-Phong Jacobians: forward | reverse | symbolic | central-difference");
+  ps->add_option("--integrator", options->request.integrator, "poisson | frankot-chellappa | none");
   ps->add_option("--shadow-sigma", options->request.shadow_threshold_sigma, "shadow threshold in dark-noise sigmas")
       ->check(CLI::NonNegativeNumber);
-  ps->add_option("--out", options->out, "output directory (default: RUN/results/ps)");
+  ps->add_option("--out", options->out, "output directory (default: SOURCE/results/ps)");
   return {ps, [options] { return Execute(*options); }};
 }
 
-const bool registered = RegisterCommand(Setup);
+struct ExportOptions {
+  std::string run_dir, out;
+};
+
+CommandRunner SetupExport(CLI::App& app) {
+  auto options = std::make_shared<ExportOptions>();
+  CLI::App* group = SubcommandGroup(app, "export", "write stored data in other tools' formats");
+  CLI::App* diligent = group->add_subcommand("diligent", "a run as a DiLiGenT-layout folder");
+  diligent->add_option("--run", options->run_dir, "run directory")->required()->check(CLI::ExistingDirectory);
+  diligent->add_option("--out", options->out, "folder to write")->required();
+  return {diligent, [options] {
+            daemon::ExportDiligent(options->run_dir, options->out);
+            std::printf("wrote %s/\n", options->out.c_str());
+            return 0;
+          }};
+}
+
+const bool registered_solve = RegisterCommand(SetupSolve);
+const bool registered_export = RegisterCommand(SetupExport);
 
 }  // namespace
 }  // namespace photorig::app

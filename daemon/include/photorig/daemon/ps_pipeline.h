@@ -1,25 +1,54 @@
 #pragma once
-// Photometric stereo on a stored run: frames on disk -> solver -> results.
-//   results/ps/normals.tiff   float (x, y, z), NaN where unsolved
-//   results/ps/normals.png    8-bit view, RGB = (n + 1) / 2
-//   results/ps/albedo.tiff    float; albedo.png 8-bit view
-//   results/ps/mask.png       255 where a normal was solved
-//   results/ps/flags.png      per-pixel PixelFlag code
-//   results/ps/angular_error.tiff   degrees, when ground truth exists
-//   results/ps/report.json    timings, counts, metrics
+// Photometric stereo on stored data: a run directory or a DiLiGenT-layout
+// folder -> solver -> files.
+//   normals.tiff        float (x, y, z), NaN where unsolved; normals.png 8-bit view, RGB = (n + 1) / 2
+//   albedo.tiff         float diffuse albedo; albedo.png 8-bit view
+//   mask.png            255 where a normal was solved; flags.png per-pixel PixelFlag code
+//   model.png           chosen reflectance model per pixel (PixelModel code x 80: 80 Lambertian,
+//                       160 robust, 240 Blinn-Phong), confidence.tiff (0..1)
+//   specular.tiff       (rho_s, exponent, 0) where Blinn-Phong was chosen
+//   depth.tiff, mesh.ply   integrated depth (units of the pixel pitch) and its triangle mesh
+//   angular_error.tiff  degrees, when ground truth exists
+//   report.json         timings, counts, noise model, metrics
 
-#include "photorig/daemon/recipe.h"
+#include "photorig/daemon/ps_request.h"
+#include "photorig/ps/stack.h"
 
 #include <nlohmann/json.hpp>
 
+#include <limits>
 #include <string>
 
 namespace photorig::daemon {
 
-// Throws std::runtime_error naming the file for unreadable or inconsistent
-// runs. A solver that cannot produce a result is not an exception: the report
-// says so (termination FAILURE and the reason) and is written all the same.
-nlohmann::json SolvePhotometricStereoRun(const std::string& run_directory, const PhotometricStereoRequest& request,
-                                         const std::string& output_directory);
+struct PhotometricStereoInput {
+  std::string source;        // run directory or dataset folder, for reports and errors
+  ps::PhotometricStack stack;
+  int dark_frames = 0;
+  double pixel_pitch = 1.0;  // object-space size of a pixel (mm for rigs that know it), for depth
+  // Samples at or above this are clipped; infinity = unknown, then taken as the
+  // full-scale code the data reach, if they reach one.
+  double saturation_level = std::numeric_limits<double>::infinity();
+  cv::Mat truth_normals;     // optional CV_32FC3 ground truth
+  cv::Mat truth_albedo;      // optional CV_32F
+  cv::Mat object_mask;       // optional CV_8U: solve only here (DiLiGenT's mask.png)
+};
+
+// Reads a run directory (manifest, frames, ground truth). Dark frames are
+// averaged and their noise becomes the stack's read noise. Throws
+// std::runtime_error naming the file for unreadable or inconsistent runs.
+PhotometricStereoInput LoadRunStack(const std::string& run_directory);
+
+// Solves and writes every output into `output_directory`; returns report.json.
+// A solver that cannot produce a result is not an exception: the report says
+// so (termination "failure" and the reason) and is written all the same.
+nlohmann::json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoRequest& request,
+                             const std::string& output_directory);
+
+inline nlohmann::json SolvePhotometricStereoRun(const std::string& run_directory,
+                                                const PhotometricStereoRequest& request,
+                                                const std::string& output_directory) {
+  return SolveAndWrite(LoadRunStack(run_directory), request, output_directory);
+}
 
 }  // namespace photorig::daemon

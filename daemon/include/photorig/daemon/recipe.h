@@ -2,6 +2,7 @@
 // Capture recipes (config/recipes/*.yaml) and their compilation into the flat
 // list of steps the sequencer executes.
 
+#include "photorig/daemon/ps_request.h"
 #include "photorig/daemon/rig_config.h"
 #include "photorig/daemon/yaml_node.h"
 #include "photorig/drivers/light_controller.h"
@@ -12,11 +13,6 @@
 
 namespace photorig::daemon {
 
-struct PhotometricStereoRequest {
-  std::string method = "lambertian";    // lambertian | lambertian-l2
-  double shadow_threshold_sigma = 3.0;  // samples within this many dark-noise sigmas of black are shadows
-  double max_condition_number = 1e3;
-};
 
 struct Recipe {
   std::string path;
@@ -55,6 +51,8 @@ struct CaptureStep {
 
 // Throws ConfigError naming file:line:column and key.
 Recipe LoadRecipe(const std::string& path);
+// The same from text received over the API; errors name `name` as the file.
+Recipe LoadRecipeText(const std::string& text, const std::string& name);
 std::string ResolveRigPath(const Recipe& recipe, const std::string& override_path);
 // Throws ConfigError (naming the recipe) when the recipe asks for LEDs the rig lacks.
 std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig);

@@ -18,6 +18,7 @@ struct LedConfig {
   Eigen::Vector3d direction{0, 0, 1};  // unit, camera frame, towards the LED
   double intensity = 1.0;              // relative irradiance at the sample for drive level 1
   int channel = 0;                     // controller output driving this LED (default: its index)
+  Eigen::Vector3d rgb_intensity{1, 1, 1};  // relative [r, g, b] output, as calibrated
 };
 
 struct LightsConfig {
@@ -41,6 +42,9 @@ struct CameraConfig {
   // Radiometric calibration: DN above black per unit radiance per microsecond
   // at 0 dB. Makes albedo absolute; 1.0 (uncalibrated) gives relative albedo.
   double dn_per_radiance_per_us = 1.0;
+  // Conversion gain at 0 dB (electrons per DN, from the camera's EMVA 1288
+  // sheet): sets the photon-noise model. 0 = unknown, then estimated from data.
+  double e_per_dn = 0.0;
 };
 
 struct SimConfig {

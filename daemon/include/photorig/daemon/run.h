@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <atomic>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -19,18 +20,27 @@ struct RunRequest {
   std::string output_directory;  // empty: runs/<recipe>-<UTC timestamp>
   bool solve = true;
   bool show_progress = true;  // a progress line on stderr
+  // Reopen the interrupted run in output_directory and capture only the steps
+  // it lacks (see RunWriter::Reopen) instead of creating a new run.
+  bool resume = false;
   const std::atomic<bool>* stop_requested = nullptr;
+  RunControl* control = nullptr;
+  RetryPolicy retry;
+  // After each stored frame; `frames_in_run` counts resumed frames too.
+  std::function<void(const CaptureStep&, const FrameRecord&, int frames_in_run, int total)> on_frame;
+  std::function<void(RunState, const std::string& detail)> on_state;
 };
 
 struct RunOutcome {
   std::string directory;
+  RecoveryReport recovery;  // when resumed
   CaptureReport capture;
   std::optional<nlohmann::json> photometric_stereo;  // the solver's report.json
 };
 
 // Throws ConfigError for bad configuration (before any device is touched) and
-// std::runtime_error for storage failures; device faults end up in
-// outcome.capture.status.
+// std::runtime_error for storage failures or too little free space for the
+// run's estimate; device faults end up in outcome.capture.status.
 RunOutcome ExecuteRun(const RunRequest& request);
 
 }  // namespace photorig::daemon

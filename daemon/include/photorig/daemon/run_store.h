@@ -1,7 +1,8 @@
 #pragma once
 // One directory per run:
 //   manifest.json        rig, camera, lights and every frame (written at the end)
-//   journal.jsonl        one line per frame, appended and fsynced as it lands
+//   journal.jsonl        {"run": header}, then one line per frame, appended and
+//                        fsynced as it lands, then {"stop": record} at the end
 //   frames/NNNN_*.png    16-bit frames, each written durably before the next step
 //   ground_truth/        simulated rigs only: normals.tiff, albedo.tiff, mask.png
 //   results/<solver>/    solver outputs and report.json
@@ -12,6 +13,8 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -32,6 +35,16 @@ struct FrameRecord {
   std::uint32_t crc32 = 0;  // of the pixel data as stored in the file
 };
 
+// How a run ended: written to the manifest and as the journal's last line.
+struct StopRecord {
+  std::string status;  // complete | failed | aborted | interrupted
+  std::string reason;
+  int frames = 0;      // frames in the run
+  int steps_total = 0;
+  int retries = 0;
+  int dropped_frames = 0;
+};
+
 struct RunManifest {
   std::string format = "photorig-run/1";
   std::string run_id;
@@ -47,13 +60,25 @@ struct RunManifest {
   int height = 0;
   int bit_depth = 0;
   double dn_per_radiance_per_us = 1.0;
+  double e_per_dn = 0.0;  // 0 = unknown
   std::vector<LedConfig> lights;
   std::vector<FrameRecord> frames;
   bool has_ground_truth = false;
+  std::optional<StopRecord> stop;
+};
+
+// What reopening an interrupted run found and repaired.
+struct RecoveryReport {
+  int frames_kept = 0;
+  int frames_discarded = 0;        // journalled but missing or failing their checksum
+  bool journal_tail_torn = false;  // a partly written last line was cut off
+  std::vector<std::string> removed_files;  // temp files and frames the journal does not vouch for
 };
 
 nlohmann::json ToJson(const FrameRecord& frame);
 FrameRecord FrameRecordFromJson(const nlohmann::json& json);
+nlohmann::json ToJson(const StopRecord& stop);
+StopRecord StopRecordFromJson(const nlohmann::json& json);
 nlohmann::json ToJson(const RunManifest& manifest);
 RunManifest RunManifestFromJson(const nlohmann::json& json);
 
@@ -61,6 +86,11 @@ class RunWriter {
  public:
   // Creates `directory` (which must not exist or be empty). Throws on I/O error.
   RunWriter(std::string directory, RunManifest header);
+  // Reopens an interrupted run from its journal: cuts a torn last line, drops
+  // records whose frame is missing or corrupt, removes temp files and frames
+  // the journal does not vouch for. The frames kept are the run's checkpoint.
+  // Throws std::runtime_error naming the file when the journal header is unreadable.
+  static std::unique_ptr<RunWriter> Reopen(const std::string& directory, RecoveryReport* report);
   ~RunWriter();
   RunWriter(const RunWriter&) = delete;
   RunWriter& operator=(const RunWriter&) = delete;
@@ -71,10 +101,14 @@ class RunWriter {
   // Durably stores the frame and appends it to the journal before returning.
   const FrameRecord& WriteFrame(const CaptureStep& step, const drivers::Frame& frame);
   void WriteGroundTruth(const cv::Mat& normals, const cv::Mat& albedo, const cv::Mat& mask);
-  // Writes manifest.json with the final status.
-  void Finish(const std::string& status, const std::string& reason);
+  bool HasFrame(int step_index) const;
+  // Appends the stop record to the journal and writes manifest.json.
+  void Finish(const StopRecord& stop);
 
  private:
+  RunWriter() = default;
+  void AppendJournal(const nlohmann::json& line);
+
   std::string directory_;
   RunManifest manifest_;
   int journal_fd_ = -1;
@@ -85,5 +119,8 @@ class RunWriter {
 RunManifest LoadRunManifest(const std::string& directory);
 // Loads a frame as 16-bit and checks size and checksum against its record.
 cv::Mat LoadFrame(const std::string& directory, const FrameRecord& record);
+// Checks a finished run: every step's frame present exactly once, intact, and
+// nothing else in frames/. Returns the problems found (empty when sound).
+std::vector<std::string> VerifyRun(const std::string& directory);
 
 }  // namespace photorig::daemon

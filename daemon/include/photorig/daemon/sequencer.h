@@ -1,11 +1,17 @@
 #pragma once
 // Runs compiled capture steps on open devices:
-//   for each step: set the light pattern -> trigger -> wait for the frame ->
-//   lights off -> store the frame durably.
-// Lights are switched off and the camera stopped on every exit path: normal
-// end, device error, storage error, exception and stop request.
+//   for each step: set the light pattern -> check it took -> trigger -> wait
+//   for the frame -> lights off -> store the frame durably (the checkpoint).
+// Steps already stored in the run (a resumed run) are skipped, so a run picks
+// up at its last checkpoint. A transient device fault (timeout, disconnect,
+// dropped or damaged frame, unanswered light command) suspends the run: the
+// devices are closed, reopened after a backoff and the step is retried, up to
+// the bounds of the RetryPolicy. Lights are switched off and the camera
+// stopped on every exit path: normal end, device error, storage error,
+// exception, pause and stop request.
 
 #include "photorig/daemon/recipe.h"
+#include "photorig/daemon/run_control.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/drivers/camera.h"
 #include "photorig/drivers/light_controller.h"
@@ -17,19 +23,38 @@
 
 namespace photorig::daemon {
 
+struct RetryPolicy {
+  int max_attempts_per_step = 4;  // the first try included
+  int max_retries_per_run = 20;   // over all steps
+  int initial_backoff_ms = 50;    // before the first reopen; then multiplied by backoff_factor
+  double backoff_factor = 2.0;
+  int max_backoff_ms = 2000;
+
+  bool IsValid(std::string* why) const;
+};
+
 struct CaptureOptions {
   int frame_timeout_margin_ms = 1000;  // added to the exposure when waiting for a frame
-  const std::atomic<bool>* stop_requested = nullptr;  // checked between steps
+  RetryPolicy retry;
+  const std::atomic<bool>* stop_requested = nullptr;  // checked between steps (SIGTERM/SIGINT)
+  RunControl* control = nullptr;                      // pause/resume/abort from another thread
   std::function<void(const CaptureStep&, const FrameRecord&, int total)> on_frame;
+  // Every state change of the run: kRunning, kPaused, kSuspended (detail: the fault), kAborting.
+  std::function<void(RunState, const std::string& detail)> on_state;
 };
 
 struct CaptureReport {
   std::string status;  // complete | failed | aborted
   std::string reason;
-  int frames_written = 0;
+  int frames_written = 0;   // by this call
+  int frames_resumed = 0;   // already in the run when this call started
   int steps_total = 0;
+  int retries = 0;
+  int dropped_frames = 0;   // frames that timed out or arrived damaged
   double elapsed_ms = 0.0;
   std::vector<drivers::SettingAdjustment> adjustments;
+
+  StopRecord ToStopRecord() const;
 };
 
 // Opens, configures and closes the devices itself. Never throws for device

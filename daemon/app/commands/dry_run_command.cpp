@@ -1,0 +1,68 @@
+// photorig dry-run RECIPE [--rig FILE] [--out DIR] [--json]: compiles the
+// recipe to its step list, checks limits and free space, and estimates
+// duration and data size, without touching any device.
+
+#include "../command.h"
+#include "photorig/daemon/plan.h"
+#include "photorig/daemon/recipe.h"
+
+#include <cstdio>
+#include <memory>
+
+namespace photorig::app {
+namespace {
+
+struct Options {
+  std::string recipe, rig, out = "runs";
+  double max_led_duty = 1.0;
+  bool json_output = false, list_steps = false;
+};
+
+int Execute(const Options& options) {
+  const daemon::Recipe recipe = daemon::LoadRecipe(options.recipe);
+  const daemon::RigConfig rig = daemon::LoadRigConfig(daemon::ResolveRigPath(recipe, options.rig));
+  const auto steps = daemon::CompileSteps(recipe, rig);
+  daemon::PlanOptions plan_options;
+  plan_options.max_led_duty = options.max_led_duty;
+  daemon::RunPlan plan = daemon::PlanRun(recipe, rig, steps, plan_options);
+  const std::uint64_t free_bytes = daemon::FreeBytes(options.out);
+  if (free_bytes < plan.estimate.bytes)
+    plan.errors.push_back("not enough free space under " + options.out + ": about " +
+                          std::to_string(plan.estimate.bytes >> 20) + " MiB needed, " + std::to_string(free_bytes >> 20) +
+                          " MiB free");
+  if (options.json_output) {
+    auto body = plan.ToJson(steps);
+    body["free_bytes"] = free_bytes;
+    std::printf("%s\n", body.dump(2).c_str());
+    return plan.ok() ? 0 : 2;
+  }
+  if (options.list_steps)
+    for (const auto& step : steps)
+      std::printf("  %-14s exposure %8.0f us  gain %4.1f dB\n", step.label.c_str(), step.exposure_us, step.gain_db);
+  std::printf("%s on rig '%s': %d frames, about %.1f s, %.1f MiB (%.1f MiB free)\n", options.recipe.c_str(),
+              rig.name.c_str(), plan.estimate.frames, plan.estimate.duration_s, plan.estimate.bytes / 1048576.0,
+              free_bytes / 1048576.0);
+  if (plan.max_duty_led >= 0)
+    std::printf("busiest LED: %d, lit %.1f%% of the run\n", plan.max_duty_led, 100.0 * plan.max_led_duty);
+  for (const auto& warning : plan.warnings) std::printf("warning: %s\n", warning.c_str());
+  for (const auto& error : plan.errors) std::fprintf(stderr, "error: %s\n", error.c_str());
+  return plan.ok() ? 0 : 2;
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto options = std::make_shared<Options>();
+  CLI::App* sub = app.add_subcommand("dry-run", "compile a recipe, check limits and estimate time and size (no devices)");
+  sub->add_option("recipe", options->recipe, "recipe YAML")->required()->check(CLI::ExistingFile);
+  sub->add_option("--rig", options->rig, "rig YAML (default: the rig the recipe names)")->check(CLI::ExistingFile);
+  sub->add_option("--out", options->out, "where the run would be stored (for the free-space check)")->capture_default_str();
+  sub->add_option("--max-led-duty", options->max_led_duty, "highest fraction of the run an LED may be lit")
+      ->capture_default_str();
+  sub->add_flag("--steps", options->list_steps, "list every step");
+  sub->add_flag("--json", options->json_output, "print the plan and step list as JSON");
+  return {sub, [options] { return Execute(*options); }};
+}
+
+const bool registered = RegisterCommand(Setup);
+
+}  // namespace
+}  // namespace photorig::app

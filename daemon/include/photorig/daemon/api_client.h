@@ -1,0 +1,45 @@
+#pragma once
+// Client side of the photorigd API (api_server.h), used by the photorig CLI
+// and the API tests.
+
+#include "photorig/daemon/service.h"
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace httplib {
+class Client;
+}
+
+namespace photorig::daemon {
+
+struct ApiClientOptions {
+  std::string url = "http://127.0.0.1:8750";  // scheme://host:port
+  std::string token;                           // sent as a bearer token when set
+  int timeout_s = 30;
+};
+
+class ApiClient {
+ public:
+  explicit ApiClient(ApiClientOptions options);
+  ~ApiClient();
+
+  // http_status 0 and an "error" body when the daemon cannot be reached.
+  ServiceReply Get(const std::string& path);
+  ServiceReply Post(const std::string& path, const nlohmann::json& body);
+  // Follows a run's Server-Sent Events until `on_event` returns false or the
+  // stream ends (after the "stop" event). Returns an error message, or empty.
+  std::string FollowEvents(const std::string& run_id,
+                           const std::function<bool(const std::string& type, const nlohmann::json& data)>& on_event);
+  // The raw bytes of a run's file; http_status as in Get.
+  int Download(const std::string& run_id, const std::string& relative_path, std::string* bytes);
+
+ private:
+  ApiClientOptions options_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+}  // namespace photorig::daemon

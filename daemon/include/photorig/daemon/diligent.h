@@ -1,0 +1,26 @@
+#pragma once
+// The DiLiGenT photometric-stereo data set layout:
+//   001.png .. NNN.png     16-bit RGB, one per light (names listed in filenames.txt)
+//   filenames.txt          one image name per line
+//   light_directions.txt   N lines "x y z" (camera frame: x right, y up, z towards the camera)
+//   light_intensities.txt  N lines "r g b"
+//   mask.png               object mask
+//   Normal_gt.mat          ground-truth normals, variable Normal_gt (H x W x 3), if known
+
+#include "photorig/daemon/ps_pipeline.h"
+
+#include <string>
+
+namespace photorig::daemon {
+
+// Each image becomes grey as the mean over channels of I_c * mean(L) / L_c,
+// with light scale mean(L): colour-balanced, in the sensor's units, albedo
+// relative to the intensities' unit. Throws
+// std::runtime_error naming the file and line of anything malformed.
+PhotometricStereoInput LoadDiligent(const std::string& directory);
+
+// Writes a stored run in the same layout: dark-subtracted frames, directions,
+// intensities, the ground-truth mask and normals when the run has them.
+void ExportDiligent(const std::string& run_directory, const std::string& output_directory);
+
+}  // namespace photorig::daemon

@@ -1,0 +1,16 @@
+#pragma once
+// Triangle meshes from depth maps, as binary little-endian PLY.
+
+#include <opencv2/core.hpp>
+
+#include <string>
+
+namespace photorig::daemon {
+
+// One vertex per finite depth pixel at (x, y, z) = ((c + 0.5) p, -(r + 0.5) p, depth)
+// with p the pixel pitch (y up, as the normals), two triangles per 2x2 block of
+// finite pixels, wound counter-clockwise seen from the camera. Written durably.
+// Returns the number of triangles.
+std::size_t WriteDepthMeshPly(const std::string& path, const cv::Mat& depth, double pixel_pitch);
+
+}  // namespace photorig::daemon

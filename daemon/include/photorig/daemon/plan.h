@@ -1,0 +1,52 @@
+#pragma once
+// What a compiled recipe will do before any device is touched: estimated
+// duration and data size, LED duty, and the checks `photorig dry-run` and the
+// daemon's admission make (limits, free disk space).
+
+#include "photorig/daemon/recipe.h"
+#include "photorig/daemon/rig_config.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace photorig::daemon {
+
+struct PlanOptions {
+  // Per-step time besides the exposure: light switching, trigger latency,
+  // readout and the durable write. A conservative figure for the sim and
+  // GigE cameras at 1 MP; measured per rig it tightens the estimate.
+  double step_overhead_ms = 40.0;
+  double max_led_duty = 1.0;  // highest fraction of the run any LED may be lit, in (0, 1]
+
+  bool IsValid(std::string* why) const;
+};
+
+struct RunEstimate {
+  int frames = 0;
+  double duration_s = 0.0;
+  std::uint64_t bytes_per_frame = 0;  // upper bound: uncompressed 16-bit pixels plus file overhead
+  std::uint64_t bytes = 0;            // frames, ground truth, journal and manifest
+};
+
+struct RunPlan {
+  RunEstimate estimate;
+  double max_led_duty = 0.0;  // over all LEDs
+  int max_duty_led = -1;      // its LED id
+  std::vector<std::string> errors;    // the run must not start
+  std::vector<std::string> warnings;
+
+  bool ok() const { return errors.empty(); }
+  nlohmann::json ToJson(const std::vector<CaptureStep>& steps) const;
+};
+
+RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<CaptureStep>& steps,
+                const PlanOptions& options = {});
+
+// Free bytes for an unprivileged writer on the filesystem holding `path`
+// (or its nearest existing ancestor).
+std::uint64_t FreeBytes(const std::string& path);
+
+}  // namespace photorig::daemon

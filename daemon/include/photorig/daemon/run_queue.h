@@ -1,0 +1,60 @@
+#pragma once
+// The daemon's persistent run queue: one SQLite row per submitted run, so
+// queued and interrupted runs survive a restart (or a kill -9). Writes are
+// synchronous (WAL, synchronous=FULL); the run directory stays the authority
+// on frames, the queue on what the daemon is asked to do next.
+
+#include "photorig/daemon/run_control.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+struct sqlite3;
+
+namespace photorig::daemon {
+
+struct QueuedRun {
+  std::string id;            // "000042-ps-sphere": sequence number and recipe name, safe as a file name
+  std::string recipe_name;
+  RunState state = RunState::kQueued;
+  std::string reason;
+  int frames = 0;
+  int steps_total = 0;
+  int retries = 0;
+  int dropped_frames = 0;
+  std::int64_t created_ns = 0;  // CLOCK_REALTIME
+  std::int64_t updated_ns = 0;
+
+  nlohmann::json ToJson() const;
+};
+
+class RunQueue {
+ public:
+  // Opens or creates the database. Throws std::runtime_error naming the file.
+  explicit RunQueue(const std::string& path);
+  ~RunQueue();
+  RunQueue(const RunQueue&) = delete;
+  RunQueue& operator=(const RunQueue&) = delete;
+
+  QueuedRun Add(const std::string& recipe_name);
+  std::optional<QueuedRun> Get(const std::string& id) const;
+  std::vector<QueuedRun> List() const;  // oldest first
+  std::optional<QueuedRun> NextQueued() const;
+  std::vector<QueuedRun> Unfinished() const;  // neither queued nor final: a run the daemon was executing
+  void Update(const QueuedRun& run);          // state, reason and counters
+
+ private:
+  void Exec(const std::string& sql) const;
+  std::vector<QueuedRun> Select(const std::string& where, const std::string& text_argument) const;
+
+  std::string path_;
+  sqlite3* db_ = nullptr;
+  mutable std::mutex mutex_;
+};
+
+}  // namespace photorig::daemon

@@ -1,0 +1,113 @@
+#pragma once
+// The daemon's core, independent of the transport: a persistent queue of
+// submitted recipes, one worker that executes them on the rig one at a time,
+// pause/resume/abort, progress events, and recovery of the run a crash
+// interrupted. The HTTP API (api_server.h) is a thin layer over this.
+//
+// Data root layout:
+//   queue.sqlite         the persistent queue (run_queue.h)
+//   recipes/<id>.yaml    the recipe text as submitted
+//   runs/<id>/           the run directory (run_store.h)
+
+#include "photorig/daemon/plan.h"
+#include "photorig/daemon/run_queue.h"
+#include "photorig/daemon/sequencer.h"
+
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace photorig::daemon {
+
+struct ServiceOptions {
+  std::string data_root;                 // required; created if missing
+  std::string rig_path;                  // required: the rig this daemon drives
+  bool resume_interrupted = true;        // false: mark runs a crash interrupted as "interrupted"
+  bool solve = true;                     // run the recipe's solve: stages after a complete capture
+  std::size_t max_recipe_bytes = 256 * 1024;
+  RetryPolicy retry;
+  PlanOptions plan;
+
+  bool IsValid(std::string* why) const;
+};
+
+struct RunEvent {
+  std::uint64_t seq = 0;  // per service, increasing
+  std::string run_id;
+  std::string type;       // state | frame | stop
+  nlohmann::json data;
+};
+
+// The outcome of a request, with the HTTP status that describes it.
+struct ServiceReply {
+  int http_status = 200;
+  nlohmann::json body;
+};
+
+class RunService {
+ public:
+  // Throws std::runtime_error for invalid options or an unusable data root.
+  explicit RunService(ServiceOptions options);
+  ~RunService();
+  RunService(const RunService&) = delete;
+  RunService& operator=(const RunService&) = delete;
+
+  // Recovers runs a crash interrupted, then starts the worker.
+  void Start();
+  // Graceful stop: the current run finishes its frame, switches the lights off
+  // and stays queued for the next start. Idempotent.
+  void Stop();
+  bool Healthy() const;
+
+  ServiceReply Submit(const std::string& name, const std::string& recipe_yaml);
+  ServiceReply DryRun(const std::string& name, const std::string& recipe_yaml) const;
+  ServiceReply ListRuns() const;
+  ServiceReply GetRun(const std::string& id) const;
+  ServiceReply Pause(const std::string& id);
+  ServiceReply Resume(const std::string& id);
+  ServiceReply Abort(const std::string& id);
+  ServiceReply Devices() const;
+  ServiceReply Health() const;
+
+  // Events of `run_id` after `after_seq`, waiting up to `wait_ms` for one.
+  std::vector<RunEvent> EventsAfter(const std::string& run_id, std::uint64_t after_seq, int wait_ms) const;
+  bool IsRunFinal(const std::string& run_id) const;
+  // The run's directory; empty for unknown ids. Ids are checked, never used raw.
+  std::string RunDirectory(const std::string& id) const;
+  const ServiceOptions& options() const { return options_; }
+
+ private:
+  void WorkerLoop();
+  void Execute(QueuedRun run);
+  void Publish(const std::string& run_id, const std::string& type, nlohmann::json data);
+  void SetState(QueuedRun& run, RunState state, const std::string& reason);
+  ServiceReply Validate(const std::string& name, const std::string& recipe_yaml, bool for_submit) const;
+
+  ServiceOptions options_;
+  std::unique_ptr<RunQueue> queue_;
+  std::atomic<bool> stopping_{false};
+  std::thread worker_;
+  std::atomic<bool> worker_alive_{false};
+  std::chrono::steady_clock::time_point started_;
+
+  mutable std::mutex mutex_;  // guards everything below
+  mutable std::condition_variable changed_;
+  std::string current_id_;
+  std::shared_ptr<RunControl> current_control_;
+  QueuedRun current_;            // live counters of the current run
+  std::deque<RunEvent> events_;  // the most recent events of all runs
+  std::uint64_t next_seq_ = 1;
+  std::string last_device_fault_;
+};
+
+}  // namespace photorig::daemon

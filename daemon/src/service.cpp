@@ -1,0 +1,369 @@
+#include "photorig/daemon/service.h"
+
+#include "photorig/daemon/image_io.h"
+#include "photorig/daemon/run.h"
+#include "photorig/daemon/yaml_node.h"
+
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <regex>
+
+namespace photorig::daemon {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr std::size_t kMaxEvents = 20000;
+
+ServiceReply Error(int http_status, const std::string& message) { return {http_status, {{"error", message}}}; }
+
+bool IsValidRunId(const std::string& id) {
+  static const std::regex pattern("[0-9]{6}-[A-Za-z0-9_-]{1,48}");
+  return std::regex_match(id, pattern);
+}
+
+}  // namespace
+
+bool ServiceOptions::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (data_root.empty()) return fail("data_root is required");
+  if (rig_path.empty()) return fail("rig_path is required");
+  if (max_recipe_bytes == 0) return fail("max_recipe_bytes must be > 0");
+  std::string detail;
+  if (!retry.IsValid(&detail)) return fail("retry: " + detail);
+  if (!plan.IsValid(&detail)) return fail("plan: " + detail);
+  return true;
+}
+
+RunService::RunService(ServiceOptions options) : options_(std::move(options)) {
+  std::string why;
+  if (!options_.IsValid(&why)) throw std::runtime_error("daemon options: " + why);
+  LoadRigConfig(options_.rig_path);  // a broken rig file stops the daemon at start, not at the first run
+  fs::create_directories(fs::path(options_.data_root) / "recipes");
+  fs::create_directories(fs::path(options_.data_root) / "runs");
+  queue_ = std::make_unique<RunQueue>((fs::path(options_.data_root) / "queue.sqlite").string());
+  started_ = std::chrono::steady_clock::now();
+}
+
+RunService::~RunService() { Stop(); }
+
+void RunService::Start() {
+  for (QueuedRun run : queue_->Unfinished()) {
+    if (options_.resume_interrupted) {
+      spdlog::warn("run={} event=recovered state={} action=resume", run.id, RunStateName(run.state));
+      SetState(run, RunState::kQueued, "interrupted by a daemon restart; resumes from its last checkpoint");
+      continue;
+    }
+    const std::string directory = RunDirectory(run.id);
+    if (fs::exists(fs::path(directory) / "journal.jsonl")) {
+      try {
+        RecoveryReport recovery;
+        auto writer = RunWriter::Reopen(directory, &recovery);
+        run.frames = recovery.frames_kept;
+        writer->Finish({"interrupted", "interrupted by a daemon restart", recovery.frames_kept, run.steps_total,
+                        run.retries, run.dropped_frames});
+      } catch (const std::exception& e) {
+        spdlog::error("run={} event=recovery_failed error=\"{}\"", run.id, e.what());
+      }
+    }
+    spdlog::warn("run={} event=recovered action=mark_interrupted", run.id);
+    SetState(run, RunState::kInterrupted, "interrupted by a daemon restart");
+  }
+  stopping_ = false;
+  worker_alive_ = true;
+  worker_ = std::thread([this] { WorkerLoop(); });
+}
+
+void RunService::Stop() {
+  stopping_ = true;
+  changed_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+bool RunService::Healthy() const { return worker_alive_.load(); }
+
+void RunService::WorkerLoop() {
+  while (!stopping_) {
+    std::optional<QueuedRun> next;
+    try {
+      next = queue_->NextQueued();
+    } catch (const std::exception& e) {
+      spdlog::error("event=queue_error error=\"{}\"", e.what());
+    }
+    if (!next) {
+      std::unique_lock lock(mutex_);
+      changed_.wait_for(lock, std::chrono::milliseconds(200));
+      continue;
+    }
+    Execute(*next);
+  }
+  worker_alive_ = false;
+}
+
+void RunService::SetState(QueuedRun& run, RunState state, const std::string& reason) {
+  run.state = state;
+  run.reason = reason;
+  queue_->Update(run);
+  {
+    std::lock_guard lock(mutex_);
+    if (run.id == current_id_) current_ = run;
+  }
+  spdlog::info("run={} event=state state={}{}{}", run.id, RunStateName(state), reason.empty() ? "" : " reason=",
+               reason.empty() ? "" : json(reason).dump());
+  Publish(run.id, "state", {{"state", RunStateName(state)}, {"reason", reason}});
+}
+
+void RunService::Publish(const std::string& run_id, const std::string& type, json data) {
+  std::lock_guard lock(mutex_);
+  events_.push_back({next_seq_++, run_id, type, std::move(data)});
+  while (events_.size() > kMaxEvents) events_.pop_front();
+  changed_.notify_all();
+}
+
+void RunService::Execute(QueuedRun run) {
+  const std::string recipe_path = (fs::path(options_.data_root) / "recipes" / (run.id + ".yaml")).string();
+  const std::string directory = RunDirectory(run.id);
+  // A directory without a journal holds nothing of value (the crash came
+  // before the first durable write): start it afresh.
+  const bool resume = fs::exists(fs::path(directory) / "journal.jsonl");
+  if (!resume && fs::exists(directory)) fs::remove_all(directory);
+  auto control = std::make_shared<RunControl>();
+  {
+    std::lock_guard lock(mutex_);
+    current_id_ = run.id;
+    current_control_ = control;
+    current_ = run;
+  }
+  SetState(run, RunState::kRunning, resume ? "resuming from the last checkpoint" : "");
+
+  RunRequest request;
+  request.recipe_path = recipe_path;
+  request.rig_path = options_.rig_path;
+  request.output_directory = directory;
+  request.solve = options_.solve;
+  request.show_progress = false;
+  request.resume = resume;
+  request.stop_requested = &stopping_;
+  request.control = control.get();
+  request.retry = options_.retry;
+  const std::string id = run.id;
+  request.on_frame = [this, id](const CaptureStep& step, const FrameRecord& record, int frames, int total) {
+    {
+      std::lock_guard lock(mutex_);
+      current_.frames = frames;
+      current_.steps_total = total;
+    }
+    Publish(id, "frame", {{"index", step.index}, {"label", step.label}, {"file", record.file}, {"frames", frames},
+                          {"total", total}});
+  };
+  request.on_state = [this, &run](RunState state, const std::string& detail) {
+    if (state == RunState::kSuspended) {
+      std::lock_guard lock(mutex_);
+      last_device_fault_ = detail;
+      ++current_.retries;
+    }
+    {
+      std::lock_guard lock(mutex_);
+      run.frames = current_.frames;
+      run.steps_total = current_.steps_total;
+      run.retries = current_.retries;
+    }
+    SetState(run, state, detail);
+  };
+
+  RunState final_state = RunState::kFailed;
+  std::string reason;
+  StopRecord stop;
+  try {
+    const RunOutcome outcome = ExecuteRun(request);
+    stop = outcome.capture.ToStopRecord();
+    reason = outcome.capture.reason;
+    if (outcome.capture.status == "complete") {
+      final_state = RunState::kDone;
+      if (outcome.photometric_stereo && (*outcome.photometric_stereo).value("termination", "") != "success")
+        reason = "photometric stereo: " + (*outcome.photometric_stereo).value("message", std::string("no result"));
+    } else if (outcome.capture.status == "aborted") {
+      // SIGTERM leaves the run queued, to resume at the next start; an abort request ends it.
+      final_state = control->abort_requested() ? RunState::kAborted : RunState::kQueued;
+      if (final_state == RunState::kQueued) reason = "daemon stopped; resumes at the next start";
+    }
+  } catch (const std::exception& e) {
+    reason = e.what();
+    stop.status = "failed";
+    stop.reason = reason;
+  }
+  run.frames = stop.frames;
+  run.steps_total = stop.steps_total;
+  run.retries = stop.retries;
+  run.dropped_frames = stop.dropped_frames;
+  SetState(run, final_state, reason);
+  Publish(run.id, "stop", {{"state", RunStateName(final_state)}, {"reason", reason}, {"frames", stop.frames},
+                           {"steps_total", stop.steps_total}, {"retries", stop.retries},
+                           {"dropped_frames", stop.dropped_frames}});
+  std::lock_guard lock(mutex_);
+  current_id_.clear();
+  current_control_.reset();
+}
+
+ServiceReply RunService::Validate(const std::string& name, const std::string& recipe_yaml, bool for_submit) const {
+  if (recipe_yaml.size() > options_.max_recipe_bytes)
+    return Error(413, "recipe is " + std::to_string(recipe_yaml.size()) + " bytes; the limit is " +
+                          std::to_string(options_.max_recipe_bytes));
+  if (recipe_yaml.empty()) return Error(400, "empty recipe");
+  try {
+    const Recipe recipe = LoadRecipeText(recipe_yaml, name);
+    const RigConfig rig = LoadRigConfig(options_.rig_path);
+    const auto steps = CompileSteps(recipe, rig);
+    const RunPlan plan = PlanRun(recipe, rig, steps, options_.plan);
+    json body = plan.ToJson(steps);
+    body["recipe"] = recipe.name;
+    body["rig"] = rig.name;
+    if (!plan.ok()) return {422, {{"error", plan.errors.front()}, {"plan", body}}};
+    const std::uint64_t free_bytes = FreeBytes(options_.data_root);
+    body["free_bytes"] = free_bytes;
+    if (for_submit && free_bytes < plan.estimate.bytes)
+      return {507, {{"error", "not enough free space: the run needs about " + std::to_string(plan.estimate.bytes >> 20) +
+                                  " MiB, " + std::to_string(free_bytes >> 20) + " MiB free"},
+                    {"plan", body}}};
+    return {200, body};
+  } catch (const ConfigError& e) {
+    return {400,
+            {{"error", e.what()}, {"file", e.file()}, {"line", e.line()}, {"column", e.column()}, {"key", e.key()}}};
+  } catch (const std::exception& e) {
+    return Error(400, e.what());
+  }
+}
+
+ServiceReply RunService::DryRun(const std::string& name, const std::string& recipe_yaml) const {
+  return Validate(name, recipe_yaml, false);
+}
+
+ServiceReply RunService::Submit(const std::string& name, const std::string& recipe_yaml) {
+  ServiceReply reply = Validate(name, recipe_yaml, true);
+  if (reply.http_status != 200) return reply;
+  const json plan = reply.body;
+  QueuedRun run = queue_->Add(plan.value("recipe", name));
+  WriteFileDurably((fs::path(options_.data_root) / "recipes" / (run.id + ".yaml")).string(), recipe_yaml);
+  run.steps_total = plan.value("frames", 0);
+  queue_->Update(run);
+  spdlog::info("run={} event=submitted recipe={} steps={}", run.id, run.recipe_name, run.steps_total);
+  Publish(run.id, "state", {{"state", "queued"}, {"reason", ""}});
+  changed_.notify_all();
+  return {201, {{"id", run.id}, {"state", "queued"}, {"plan", plan}}};
+}
+
+ServiceReply RunService::ListRuns() const {
+  json runs = json::array();
+  std::lock_guard lock(mutex_);
+  for (const QueuedRun& run : queue_->List()) runs.push_back(run.id == current_id_ ? current_.ToJson() : run.ToJson());
+  return {200, {{"runs", runs}}};
+}
+
+ServiceReply RunService::GetRun(const std::string& id) const {
+  if (!IsValidRunId(id)) return Error(404, "no run '" + id + "'");
+  auto run = queue_->Get(id);
+  if (!run) return Error(404, "no run '" + id + "'");
+  json body;
+  {
+    std::lock_guard lock(mutex_);
+    body = id == current_id_ ? current_.ToJson() : run->ToJson();
+  }
+  const fs::path manifest = fs::path(RunDirectory(id)) / "manifest.json";
+  if (IsFinal(run->state) && fs::exists(manifest)) {
+    try {
+      const RunManifest m = LoadRunManifest(RunDirectory(id));
+      if (m.stop) body["stop"] = ToJson(*m.stop);
+    } catch (const std::exception& e) {
+      body["manifest_error"] = e.what();
+    }
+  }
+  return {200, body};
+}
+
+ServiceReply RunService::Pause(const std::string& id) {
+  std::lock_guard lock(mutex_);
+  if (id != current_id_ || !current_control_) return Error(409, "run '" + id + "' is not running");
+  current_control_->Pause();
+  return {202, {{"id", id}, {"requested", "pause"}}};
+}
+
+ServiceReply RunService::Resume(const std::string& id) {
+  std::lock_guard lock(mutex_);
+  if (id != current_id_ || !current_control_) return Error(409, "run '" + id + "' is not running");
+  current_control_->Resume();
+  return {202, {{"id", id}, {"requested", "resume"}}};
+}
+
+ServiceReply RunService::Abort(const std::string& id) {
+  if (!IsValidRunId(id)) return Error(404, "no run '" + id + "'");
+  {
+    std::lock_guard lock(mutex_);
+    if (id == current_id_ && current_control_) {
+      current_control_->Abort();
+      return {202, {{"id", id}, {"requested", "abort"}}};
+    }
+  }
+  auto run = queue_->Get(id);
+  if (!run) return Error(404, "no run '" + id + "'");
+  if (run->state != RunState::kQueued)
+    return Error(409, "run '" + id + "' is " + RunStateName(run->state) + "; nothing to abort");
+  SetState(*run, RunState::kAborted, "aborted before it started");
+  Publish(id, "stop", {{"state", "aborted"}, {"reason", "aborted before it started"}, {"frames", run->frames},
+                       {"steps_total", run->steps_total}, {"retries", 0}, {"dropped_frames", 0}});
+  return {200, run->ToJson()};
+}
+
+ServiceReply RunService::Devices() const {
+  const RigConfig rig = LoadRigConfig(options_.rig_path);
+  std::lock_guard lock(mutex_);
+  const std::string use = current_id_.empty() ? "idle" : "in use by run " + current_id_;
+  json devices = json::array();
+  devices.push_back({{"role", "lights"}, {"id", rig.lights.id}, {"driver", rig.lights.driver},
+                     {"channels", rig.lights.leds.size()}, {"state", use}});
+  devices.push_back({{"role", "camera"}, {"id", rig.camera.id}, {"driver", rig.camera.driver},
+                     {"width", rig.camera.width}, {"height", rig.camera.height}, {"state", use}});
+  return {200, {{"rig", rig.name}, {"simulated", rig.IsSimulated()}, {"devices", devices},
+                {"last_fault", last_device_fault_}}};
+}
+
+ServiceReply RunService::Health() const {
+  int queued = 0;
+  for (const QueuedRun& run : queue_->List()) queued += run.state == RunState::kQueued;
+  std::lock_guard lock(mutex_);
+  const bool ok = worker_alive_.load();
+  return {ok ? 200 : 503,
+          {{"status", ok ? "ok" : "worker stopped"},
+           {"uptime_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count()},
+           {"current_run", current_id_},
+           {"queued", queued},
+           {"free_bytes", FreeBytes(options_.data_root)}}};
+}
+
+std::vector<RunEvent> RunService::EventsAfter(const std::string& run_id, std::uint64_t after_seq, int wait_ms) const {
+  std::unique_lock lock(mutex_);
+  std::vector<RunEvent> found;
+  auto collect = [&] {
+    for (const RunEvent& event : events_)
+      if (event.seq > after_seq && event.run_id == run_id) found.push_back(event);
+    return !found.empty() || stopping_;
+  };
+  changed_.wait_for(lock, std::chrono::milliseconds(wait_ms), collect);
+  return found;
+}
+
+bool RunService::IsRunFinal(const std::string& run_id) const {
+  auto run = queue_->Get(run_id);
+  return !run || IsFinal(run->state);
+}
+
+std::string RunService::RunDirectory(const std::string& id) const {
+  if (!IsValidRunId(id)) return "";
+  return (fs::path(options_.data_root) / "runs" / id).string();
+}
+
+}  // namespace photorig::daemon
