@@ -145,6 +145,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
                                  record.exposure_us * gain);
   }
   input.dark_frames = static_cast<int>(darks.size());
+  if (manifest.pixel_pitch_mm > 0.0) input.pixel_pitch = manifest.pixel_pitch_mm;
   // Photon noise in DN^2 per DN of signal: gain / (electrons per DN). All frames
   // of a run share the gain in practice; the first light frame's is used.
   if (manifest.e_per_dn > 0.0) {
@@ -167,6 +168,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
     const fs::path truth = fs::path(run_directory) / "ground_truth";
     input.truth_normals = ReadFloatTiff((truth / "normals.tiff").string());
     input.truth_albedo = ReadFloatTiff((truth / "albedo.tiff").string());
+    if (fs::exists(truth / "height.tiff")) input.truth_height = ReadFloatTiff((truth / "height.tiff").string());
   }
   return input;
 }
@@ -260,6 +262,17 @@ json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoR
       if (integrated.success) {
         WriteFloatTiff((out / "depth.tiff").string(), depth);
         WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
+        if (!input.truth_height.empty()) {
+          // Depth is known up to a constant per region: compare after removing the mean difference.
+          cv::Mat both = (depth == depth) & (input.truth_height == input.truth_height);
+          cv::Mat difference = depth - input.truth_height;
+          cv::patchNaNs(difference, 0.0);
+          const double offset = cv::mean(difference, both)[0];
+          cv::Mat centred = difference - offset;
+          centred.setTo(0.0, ~both);
+          const double pixels = std::max(1, cv::countNonZero(both));
+          report["depth"]["rms_error_vs_truth"] = std::sqrt(centred.dot(centred) / pixels);
+        }
       }
     }
 

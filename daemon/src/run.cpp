@@ -68,6 +68,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   header.bit_depth = rig.camera.bit_depth;
   header.dn_per_radiance_per_us = rig.camera.dn_per_radiance_per_us;
   header.e_per_dn = rig.camera.e_per_dn;
+  header.pixel_pitch_mm = rig.camera.pixel_pitch_mm;
   header.lights = rig.lights.leds;
   std::unique_ptr<RunWriter> writer_storage;
   if (request.resume) {
@@ -86,7 +87,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   RunWriter& writer = *writer_storage;
   if (devices.world && !writer.manifest().has_ground_truth) {
     const sim::SurfaceMaps& truth = devices.world->surface();
-    writer.WriteGroundTruth(truth.normals, truth.albedo, truth.mask);
+    writer.WriteGroundTruth(truth);
   }
 
   spdlog::info("run {}: recipe {} on rig {} ({} steps) -> {}", header.run_id, recipe.name, rig.name, steps.size(),

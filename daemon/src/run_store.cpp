@@ -90,7 +90,8 @@ json ToJson(const RunManifest& m) {
             {"height", m.height},
             {"bit_depth", m.bit_depth},
             {"dn_per_radiance_per_us", m.dn_per_radiance_per_us},
-            {"e_per_dn", m.e_per_dn}}},
+            {"e_per_dn", m.e_per_dn},
+            {"pixel_pitch_mm", m.pixel_pitch_mm}}},
           {"lights", lights},
           {"frames", frames},
           {"ground_truth", m.has_ground_truth}};
@@ -117,6 +118,7 @@ RunManifest RunManifestFromJson(const json& j) {
   m.bit_depth = camera.at("bit_depth").get<int>();
   m.dn_per_radiance_per_us = camera.at("dn_per_radiance_per_us").get<double>();
   m.e_per_dn = camera.value("e_per_dn", 0.0);
+  m.pixel_pitch_mm = camera.value("pixel_pitch_mm", 0.0);
   for (const json& light : j.at("lights")) {
     LedConfig led;
     led.id = light.at("id").get<int>();
@@ -330,12 +332,23 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
   return manifest_.frames.back();
 }
 
-void RunWriter::WriteGroundTruth(const cv::Mat& normals, const cv::Mat& albedo, const cv::Mat& mask) {
+void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface) {
   const fs::path truth = fs::path(directory_) / "ground_truth";
   fs::create_directories(truth);
-  WriteFloatTiff((truth / "normals.tiff").string(), normals);
-  WriteFloatTiff((truth / "albedo.tiff").string(), albedo);
-  WriteImage((truth / "mask.png").string(), mask);
+  WriteFloatTiff((truth / "normals.tiff").string(), surface.normals);
+  WriteFloatTiff((truth / "albedo.tiff").string(), surface.albedo);
+  WriteImage((truth / "mask.png").string(), surface.mask);
+  if (!surface.height.empty()) WriteFloatTiff((truth / "height.tiff").string(), surface.height);
+  if (!surface.brdf_params.empty()) {
+    // (rho_s, shininess, f0): rho_d is albedo.tiff.
+    std::vector<cv::Mat> channels;
+    cv::split(surface.brdf_params, channels);
+    cv::Mat specular;
+    cv::merge(std::vector<cv::Mat>{channels[1], channels[2], channels[3]}, specular);
+    WriteFloatTiff((truth / "specular.tiff").string(), specular);
+  }
+  if (!surface.line_integrals.empty())
+    WriteFloatTiff((truth / "line_integrals.tiff").string(), surface.line_integrals);
   manifest_.has_ground_truth = true;
 }
 

@@ -57,6 +57,11 @@ TEST(EndToEnd, SphereRecipeWithDefaultNoiseIsAccurateToUnderOneDegree) {
   EXPECT_LT(truth["mean_relative_albedo_error"].get<double>(), 0.03);
   // Unresolved sphere pixels are only the rim, where fewer than 3 LEDs reach.
   EXPECT_LT(truth["pixels_unresolved"].get<double>(), 0.02 * truth["pixels_with_truth"].get<double>());
+  // Depth integrated from the normals matches the sphere's height to a small fraction of its 17 mm radius.
+  EXPECT_TRUE(report["depth"]["success"].get<bool>());
+  EXPECT_LT(report["depth"]["rms_error_vs_truth"].get<double>(), 0.05);
+  EXPECT_TRUE(fs::exists(run / "results/ps/mesh.ply"));
+  EXPECT_TRUE(fs::exists(run / "ground_truth/height.tiff"));
   // Background pixels see no light and must be flagged, not solved.
   EXPECT_LT(report["pixels"]["solved"].get<double>(), 1.01 * truth["pixels_with_truth"].get<double>());
 

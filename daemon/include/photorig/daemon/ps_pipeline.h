@@ -31,6 +31,7 @@ struct PhotometricStereoInput {
   double saturation_level = std::numeric_limits<double>::infinity();
   cv::Mat truth_normals;     // optional CV_32FC3 ground truth
   cv::Mat truth_albedo;      // optional CV_32F
+  cv::Mat truth_height;      // optional CV_32F, same unit as pixel_pitch
   cv::Mat object_mask;       // optional CV_8U: solve only here (DiLiGenT's mask.png)
 };
 

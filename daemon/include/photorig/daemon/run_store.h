@@ -61,6 +61,7 @@ struct RunManifest {
   int bit_depth = 0;
   double dn_per_radiance_per_us = 1.0;
   double e_per_dn = 0.0;  // 0 = unknown
+  double pixel_pitch_mm = 0.0;  // object-space pixel size (orthographic); 0 = unknown
   std::vector<LedConfig> lights;
   std::vector<FrameRecord> frames;
   bool has_ground_truth = false;
@@ -100,7 +101,9 @@ class RunWriter {
 
   // Durably stores the frame and appends it to the journal before returning.
   const FrameRecord& WriteFrame(const CaptureStep& step, const drivers::Frame& frame);
-  void WriteGroundTruth(const cv::Mat& normals, const cv::Mat& albedo, const cv::Mat& mask);
+  // normals, albedo, mask, height (mm), specular BRDF parameters and, for
+  // volumes, line integrals, as ground_truth/*.tiff|png.
+  void WriteGroundTruth(const sim::SurfaceMaps& surface);
   bool HasFrame(int step_index) const;
   // Appends the stop record to the journal and writes manifest.json.
   void Finish(const StopRecord& stop);
