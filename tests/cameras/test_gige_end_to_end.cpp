@@ -21,23 +21,13 @@ using photorig::testing::ReadText;
 using photorig::testing::SourceDir;
 using photorig::testing::TempDir;
 
-int RunPhotorig(const std::string& arguments, const fs::path& log) {
-  const std::string command =
-      std::string(PHOTORIG_BIN_DIR) + "/photorig " + arguments + " > " + log.string() + " 2>&1";
-  const int status = std::system(command.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-std::string NoiseFree(std::string rig) {
-  rig = std::regex_replace(rig, std::regex("read_noise_e: [0-9.]+"), "read_noise_e: 0");
-  return std::regex_replace(rig, std::regex("shot_noise: true"), "shot_noise: false");
-}
+using photorig::testing::RunPhotorig;
 
 TEST(GigeEndToEnd, SphereCapturedOverGigeVisionMatchesTheSimulatedCamera) {
   TempDir dir;
   const std::string recipe = SourceDir() + "/config/recipes/ps-sphere.yaml";
-  const std::string gige_rig = dir.Write("gige.yaml", NoiseFree(ReadText(SourceDir() + "/config/rigs/sim-dome-gige.yaml")));
-  const std::string sim_rig = dir.Write("sim.yaml", NoiseFree(ReadText(SourceDir() + "/config/rigs/sim-dome.yaml")));
+  const std::string gige_rig = dir.Write("gige.yaml", photorig::testing::NoiseFreeRig(ReadText(SourceDir() + "/config/rigs/sim-dome-gige.yaml")));
+  const std::string sim_rig = dir.Write("sim.yaml", photorig::testing::NoiseFreeRig(ReadText(SourceDir() + "/config/rigs/sim-dome.yaml")));
   const fs::path gige_run = dir.path() / "gige", sim_run = dir.path() / "sim";
   ASSERT_EQ(RunPhotorig("run " + recipe + " --rig " + gige_rig + " --no-solve --out " + gige_run.string(), dir.path() / "gige.log"),
             0)

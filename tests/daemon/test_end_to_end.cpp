@@ -18,12 +18,7 @@ using photorig::testing::ReadText;
 using photorig::testing::SourceDir;
 using photorig::testing::TempDir;
 
-int RunPhotorig(const std::string& arguments, const fs::path& log) {
-  const std::string command =
-      std::string(PHOTORIG_BIN_DIR) + "/photorig " + arguments + " > " + log.string() + " 2>&1";
-  const int status = std::system(command.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+using photorig::testing::RunPhotorig;
 
 nlohmann::json Report(const fs::path& run) { return nlohmann::json::parse(ReadText(run / "results/ps/report.json")); }
 
@@ -77,10 +72,8 @@ TEST(EndToEnd, SphereRecipeWithDefaultNoiseIsAccurateToUnderOneDegree) {
 
 TEST(EndToEnd, NoiseFreeSphereIsAccurateToATenthOfADegree) {
   TempDir dir;
-  std::string rig = ReadText(SourceDir() + "/config/rigs/sim-dome.yaml");
-  rig = std::regex_replace(rig, std::regex("read_noise_e: [0-9.]+"), "read_noise_e: 0");
-  rig = std::regex_replace(rig, std::regex("shot_noise: true"), "shot_noise: false");
-  const std::string rig_path = dir.Write("quiet-dome.yaml", rig);
+  const std::string rig_path =
+      dir.Write("quiet-dome.yaml", photorig::testing::NoiseFreeRig(ReadText(SourceDir() + "/config/rigs/sim-dome.yaml")));
   const fs::path run = dir.path() / "run";
   ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + rig_path + " --out " +
                             run.string(),

@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <sys/wait.h>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <string>
 
 namespace photorig::testing {
@@ -64,5 +66,21 @@ inline std::string SmallRecipeYaml(const std::string& rig_path = "", int darks =
           "}\n    - each_led: {leds: all}\n";
   return text;
 }
+
+// A simulated rig's YAML with photon and read noise switched off.
+inline std::string NoiseFreeRig(std::string rig) {
+  rig = std::regex_replace(rig, std::regex("read_noise_e: [0-9.]+"), "read_noise_e: 0");
+  return std::regex_replace(rig, std::regex("shot_noise: true"), "shot_noise: false");
+}
+
+#ifdef PHOTORIG_BIN_DIR
+// Runs build/bin/photorig with `arguments`, output to `log`; returns its exit code.
+inline int RunPhotorig(const std::string& arguments, const std::filesystem::path& log) {
+  const std::string command =
+      std::string(PHOTORIG_BIN_DIR) + "/photorig " + arguments + " > " + log.string() + " 2>&1";
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+#endif
 
 }  // namespace photorig::testing
