@@ -1,6 +1,7 @@
 // Runs the photorig executable on the shipped recipe and checks what it leaves on disk.
 
 #include "photorig/daemon/image_io.h"
+#include "photorig/daemon/rig_config.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -169,6 +170,39 @@ TEST(EndToEnd, DiligentExportSolvesLikeTheRun) {
   std::ofstream(exported / "light_directions.txt", std::ios::app) << "0.1 oops\n";
   EXPECT_NE(RunPhotorig("solve ps --dataset " + exported.string(), dir.path() / "log"), 0);
   EXPECT_NE(ReadText(dir.path() / "log").find("light_directions.txt"), std::string::npos) << ReadText(dir.path() / "log");
+}
+
+}  // namespace
+
+namespace {
+
+TEST(EndToEnd, LightCalibrationRecipeRecoversTheDomeDirections) {
+  TempDir dir;
+  const fs::path run = dir.path() / "run";
+  const std::string rig = SourceDir() + "/config/rigs/sim-dome.yaml";
+  const std::string rig_before = ReadText(rig);
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/light-calibration.yaml --out " + run.string(),
+                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
+  const fs::path calibrated = dir.path() / "calibrated.yaml";
+  // The sphere is 17 mm across 0.1 mm pixels, centred in the 384 x 384 frame.
+  ASSERT_EQ(RunPhotorig("calibrate lights --run " + run.string() + " --circle 192 192 170 --rig " + rig +
+                            " --out-rig " + calibrated.string() + " --out " + (dir.path() / "lights").string(),
+                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
+  EXPECT_EQ(ReadText(rig), rig_before);  // the old rig is never overwritten
+  const auto truth = photorig::daemon::LoadRigConfig(rig);
+  const auto estimate = photorig::daemon::LoadRigConfig(calibrated.string());
+  ASSERT_EQ(estimate.lights.leds.size(), truth.lights.leds.size());
+  double sum_deg = 0.0;
+  for (std::size_t i = 0; i < truth.lights.leds.size(); ++i) {
+    const double cosine = truth.lights.leds[i].direction.dot(estimate.lights.leds[i].direction);
+    sum_deg += std::acos(std::min(1.0, cosine)) * 180.0 / M_PI;
+  }
+  EXPECT_LT(sum_deg / truth.lights.leds.size(), 0.6);
+  // The calibrated rig drives a photometric-stereo run as well as the nominal one.
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + calibrated.string() +
+                            " --out " + (dir.path() / "ps").string(),
+                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
+  EXPECT_LT(Report(dir.path() / "ps")["ground_truth"]["mean_angular_error_deg"].get<double>(), 1.0);
 }
 
 }  // namespace
