@@ -2,11 +2,15 @@
 
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/rig_config.h"
+#include "photorig/lighting/envmap.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -198,11 +202,75 @@ TEST(EndToEnd, LightCalibrationRecipeRecoversTheDomeDirections) {
     sum_deg += std::acos(std::min(1.0, cosine)) * 180.0 / M_PI;
   }
   EXPECT_LT(sum_deg / truth.lights.leds.size(), 0.6);
+  // The same mirror-ball frame unwrapped to a lat-long map: its brightest direction is LED 9's.
+  const fs::path map = dir.path() / "map.hdr";
+  ASSERT_EQ(RunPhotorig("envmap --ball " + (run / "frames/0010_led09.png").string() +
+                            " --circle 192 192 170 --width 512 --out " + map.string(),
+                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
+  cv::Mat radiance = cv::imread(map.string(), cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(radiance.empty());
+  cv::cvtColor(radiance, radiance, cv::COLOR_BGR2GRAY);
+  cv::Point brightest;
+  cv::minMaxLoc(radiance, nullptr, nullptr, nullptr, &brightest);
+  const Eigen::Vector3d seen = photorig::lighting::LatLongDirection(brightest.x, brightest.y, radiance.cols, radiance.rows);
+  EXPECT_LT(std::acos(std::min(1.0, seen.dot(truth.lights.leds[9].direction))) * 180.0 / M_PI, 2.0);
   // The calibrated rig drives a photometric-stereo run as well as the nominal one.
   ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + calibrated.string() +
                             " --out " + (dir.path() / "ps").string(),
                         dir.path() / "log"), 0) << ReadText(dir.path() / "log");
   EXPECT_LT(Report(dir.path() / "ps")["ground_truth"]["mean_angular_error_deg"].get<double>(), 1.0);
+}
+
+}  // namespace
+
+namespace {
+
+// Normalised correlation of two images over the pixels where `mask` is set.
+double Correlation(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
+  cv::Scalar mean_a, std_a, mean_b, std_b;
+  cv::meanStdDev(a, mean_a, std_a, mask);
+  cv::meanStdDev(b, mean_b, std_b, mask);
+  cv::Mat product = (a - mean_a[0]).mul(b - mean_b[0]);
+  return cv::mean(product, mask)[0] / (std_a[0] * std_b[0]);
+}
+
+TEST(EndToEnd, RelightingMatchesTheCapturedFrameOfTheSameLight) {
+  TempDir dir;
+  const fs::path run = dir.path() / "run";
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --out " + run.string(),
+                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
+  const auto manifest = nlohmann::json::parse(ReadText(run / "manifest.json"));
+  const auto& d = manifest["lights"][7]["direction"];
+  cv::Mat dark, frame;
+  cv::imread((run / "frames/0000_dark.png").string(), cv::IMREAD_UNCHANGED).convertTo(dark, CV_32F);
+  cv::imread((run / "frames/0008_led07.png").string(), cv::IMREAD_UNCHANGED).convertTo(frame, CV_32F);
+  const cv::Mat signal = frame - dark;
+  const cv::Mat solved = cv::imread((run / "results/ps/mask.png").string(), cv::IMREAD_GRAYSCALE);
+  const cv::Mat lit = solved & (signal > 20.0);
+
+  // From the recovered normals and albedo.
+  const std::string light = std::to_string(d[0].get<double>()) + "," + std::to_string(d[1].get<double>()) + "," +
+                            std::to_string(d[2].get<double>());
+  ASSERT_EQ(RunPhotorig("relight --run " + run.string() + " --light " + light + " --out " +
+                            (dir.path() / "model.tiff").string(),
+                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
+  const cv::Mat model = photorig::daemon::ReadFloatTiff((dir.path() / "model.tiff").string());
+  EXPECT_GT(Correlation(model, signal, lit), 0.995);
+
+  // Image-based, from a map that is dark but for a patch around LED 7.
+  cv::Mat map = cv::Mat::zeros(128, 256, CV_32FC3);
+  const Eigen::Vector3d led(d[0].get<double>(), d[1].get<double>(), d[2].get<double>());
+  for (int r = 0; r < map.rows; ++r)
+    for (int c = 0; c < map.cols; ++c)
+      if (photorig::lighting::LatLongDirection(c, r, map.cols, map.rows).dot(led) > std::cos(3.0 * M_PI / 180))
+        map.at<cv::Vec3f>(r, c) = cv::Vec3f(1, 1, 1);
+  ASSERT_TRUE(cv::imwrite((dir.path() / "map.hdr").string(), map));
+  ASSERT_EQ(RunPhotorig("relight --run " + run.string() + " --envmap " + (dir.path() / "map.hdr").string() +
+                            " --out " + (dir.path() / "image.tiff").string(),
+                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
+  cv::Mat image = photorig::daemon::ReadFloatTiff((dir.path() / "image.tiff").string());
+  if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_RGB2GRAY);
+  EXPECT_GT(Correlation(image, signal, lit), 0.99);
 }
 
 }  // namespace

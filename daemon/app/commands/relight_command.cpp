@@ -1,0 +1,132 @@
+// photorig relight --run RUN (--envmap MAP.hdr | --light X,Y,Z[,INTENSITY]...) --out IMAGE.tiff
+// photorig envmap --ball IMAGE --circle CX CY R [--width W] --out MAP.hdr
+
+#include "../command.h"
+#include "photorig/daemon/image_io.h"
+#include "photorig/daemon/ps_pipeline.h"
+#include "photorig/lighting/envmap.h"
+#include "photorig/lighting/relight.h"
+#include "photorig/lighting/sphere.h"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+
+namespace photorig::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RelightOptions {
+  std::string run_dir, envmap, out;
+  std::vector<std::vector<double>> lights;  // x, y, z[, intensity]
+};
+
+// Writes the float result and an 8-bit view scaled to its 99.5th percentile.
+void WriteRelit(const std::string& path, const cv::Mat& image) {
+  daemon::WriteFloatTiff(path, image);
+  cv::Mat grey = image.channels() == 1 ? image : cv::Mat();
+  if (grey.empty()) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  std::vector<float> values(grey.begin<float>(), grey.end<float>());
+  std::nth_element(values.begin(), values.begin() + values.size() * 995 / 1000, values.end());
+  const double top = std::max(1e-12, double(values[values.size() * 995 / 1000]));
+  cv::Mat view;
+  image.convertTo(view, CV_8U, 255.0 / top);
+  daemon::WriteImage(fs::path(path).replace_extension(".png").string(), view);
+}
+
+int Relight(const RelightOptions& options) {
+  if (options.envmap.empty() == options.lights.empty()) {
+    std::fprintf(stderr, "relight: give either --envmap or --light\n");
+    return 2;
+  }
+  cv::Mat relit;
+  if (!options.envmap.empty()) {
+    // Image-based: the captured one-light frames, weighted so the dome approximates the map.
+    const daemon::PhotometricStereoInput input = daemon::LoadRunStack(options.run_dir);
+    const cv::Mat map = daemon::ReadImage(options.envmap);
+    if (map.depth() != CV_32F) throw std::runtime_error(options.envmap + ": expected a float (HDR) lat-long map");
+    std::vector<cv::Mat> frames;
+    for (const cv::Mat& frame : input.stack.images) frames.push_back(input.stack.dark.empty() ? frame : frame - input.stack.dark);
+    relit = lighting::RelightFromFrames(frames,
+                                        lighting::LatLongToLedWeights(map, input.stack.light_directions, input.stack.light_scales));
+  } else {
+    // Model-based: the normals and albedo photometric stereo recovered.
+    const fs::path ps = fs::path(options.run_dir) / "results" / "ps";
+    const cv::Mat normals = daemon::ReadFloatTiff((ps / "normals.tiff").string());
+    const cv::Mat albedo = daemon::ReadFloatTiff((ps / "albedo.tiff").string());
+    std::vector<Eigen::Vector3d> directions;
+    std::vector<double> intensities;
+    for (const auto& light : options.lights) {
+      if (light.size() != 3 && light.size() != 4)
+        throw std::invalid_argument("--light takes X,Y,Z or X,Y,Z,INTENSITY");
+      const Eigen::Vector3d d(light[0], light[1], light[2]);
+      if (!(d.norm() > 0)) throw std::invalid_argument("--light: zero direction");
+      directions.push_back(d.normalized());
+      intensities.push_back(light.size() == 4 ? light[3] : 1.0);
+    }
+    cv::Mat clean_normals = normals.clone(), clean_albedo = albedo.clone();
+    cv::patchNaNs(clean_normals, 0.0);  // unsolved pixels render black
+    cv::patchNaNs(clean_albedo, 0.0);
+    relit = lighting::RenderDirectionalLights(clean_normals, clean_albedo, directions, intensities);
+  }
+  WriteRelit(options.out, relit);
+  std::printf("wrote %s\n", options.out.c_str());
+  return 0;
+}
+
+CommandRunner SetupRelight(CLI::App& app) {
+  auto options = std::make_shared<RelightOptions>();
+  CLI::App* sub = app.add_subcommand("relight", "render a captured object under new lighting");
+  sub->add_option("--run", options->run_dir, "run directory (with results/ps for --light)")->required()->check(CLI::ExistingDirectory);
+  sub->add_option("--envmap", options->envmap, "lat-long HDR map: image-based relighting from the one-light frames")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--light", options->lights, "X,Y,Z[,INTENSITY] directional light (repeatable): from normals and albedo")
+      ->delimiter(',')
+      ->allow_extra_args(false);
+  sub->add_option("--out", options->out, "output float TIFF (an 8-bit PNG view is written beside it)")->required();
+  return {sub, [options] { return Relight(*options); }};
+}
+
+struct EnvmapOptions {
+  std::string ball, out;
+  std::vector<double> circle;
+  int width = 512;
+};
+
+CommandRunner SetupEnvmap(CLI::App& app) {
+  auto options = std::make_shared<EnvmapOptions>();
+  CLI::App* sub = app.add_subcommand("envmap", "unwrap a mirror-ball image into a lat-long environment map");
+  sub->add_option("--ball", options->ball, "mirror-ball image (orthographic)")->required()->check(CLI::ExistingFile);
+  sub->add_option("--circle", options->circle, "ball circle CX CY R in pixels")->expected(3)->required();
+  sub->add_option("--width", options->width, "map width (height is half)")->check(CLI::Range(16, 16384));
+  sub->add_option("--out", options->out, "output .hdr")->required();
+  return {sub, [options] {
+            cv::Mat ball;
+            daemon::ReadImage(options->ball).convertTo(ball, CV_32F);
+            lighting::CameraModel camera;
+            const lighting::SphereGeometry sphere =
+                lighting::LocateSphere(camera, {options->circle[0], options->circle[1], options->circle[2]});
+            if (!sphere.valid) {
+              std::fprintf(stderr, "envmap: %s\n", sphere.message.c_str());
+              return 2;
+            }
+            lighting::UnwrapOptions unwrap;
+            unwrap.width = options->width;
+            const lighting::LatLongMap map = lighting::MirrorBallToLatLong(ball, sphere, unwrap);
+            if (!cv::imwrite(options->out, map.radiance)) throw std::runtime_error("cannot write " + options->out);
+            std::printf("wrote %s (%d x %d, %d%% of directions seen)\n", options->out.c_str(), map.radiance.cols,
+                        map.radiance.rows, int(100.0 * cv::countNonZero(map.valid) / map.valid.total()));
+            return 0;
+          }};
+}
+
+const bool registered_relight = RegisterCommand(SetupRelight);
+const bool registered_envmap = RegisterCommand(SetupEnvmap);
+
+}  // namespace
+}  // namespace photorig::app
