@@ -4,6 +4,7 @@
 
 #include "photorig/daemon/sequencer.h"
 #include "photorig/sim/devices.h"
+#include "capture_fixtures.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -27,17 +28,7 @@ struct FaultCase {
 };
 
 // Remembers the levels the dome emitted when it was closed.
-class WatchedDome : public sim::SimLightDome {
- public:
-  using SimLightDome::SimLightDome;
-  std::vector<std::vector<double>> levels_at_close;
-
- protected:
-  Status DoClose() override {
-    levels_at_close.push_back(DoReadBack().value().levels);
-    return SimLightDome::DoClose();
-  }
-};
+using photorig::testing::WatchedDome;
 
 sim::CameraFaults CameraFault(std::set<std::uint64_t> sim::CameraFaults::*kind, std::set<std::uint64_t> at) {
   sim::CameraFaults faults;
@@ -66,17 +57,7 @@ TEST_P(FaultInjection, RunCompletesIntactOrFailsCleanlyWithTheLightsOff) {
   WatchedDome dome("dome", world);
   sim::SimCamera camera("cam", world);
 
-  std::vector<CaptureStep> steps;
-  for (int i = -1; i < kLeds; ++i) {
-    CaptureStep step;
-    step.index = i + 1;
-    step.kind = i < 0 ? CaptureStep::Kind::kDark : CaptureStep::Kind::kLight;
-    step.led = i;
-    step.label = "step" + std::to_string(i + 1);
-    step.pattern = i < 0 ? drivers::LightPattern::AllOff(kLeds) : drivers::LightPattern::Single(kLeds, i, 1.0);
-    step.exposure_us = 1000;
-    steps.push_back(step);
-  }
+  const std::vector<CaptureStep> steps = photorig::testing::DarkThenEachLight(kLeds);
   RunManifest header;
   header.width = 16;
   header.height = 12;

@@ -1,5 +1,6 @@
 #include "photorig/daemon/sequencer.h"
 #include "photorig/sim/devices.h"
+#include "capture_fixtures.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -36,36 +37,8 @@ class FailingCamera : public sim::SimCamera {
   int delivered_ = 0;
 };
 
-// Records whether any pattern was left on when the dome was closed.
-class WatchedDome : public sim::SimLightDome {
- public:
-  using SimLightDome::SimLightDome;
-  std::vector<double> levels_at_close;
-
- protected:
-  Status DoClose() override {
-    levels_at_close = ReadBackLevels();
-    return SimLightDome::DoClose();
-  }
-
- private:
-  std::vector<double> ReadBackLevels() { return DoReadBack().value().levels; }
-};
-
-std::vector<CaptureStep> Steps(int lights) {
-  std::vector<CaptureStep> steps;
-  for (int i = -1; i < lights; ++i) {
-    CaptureStep step;
-    step.index = i + 1;
-    step.kind = i < 0 ? CaptureStep::Kind::kDark : CaptureStep::Kind::kLight;
-    step.led = i;
-    step.label = "step" + std::to_string(i + 1);
-    step.pattern = i < 0 ? drivers::LightPattern::AllOff(lights) : drivers::LightPattern::Single(lights, i, 1.0);
-    step.exposure_us = 1000;
-    steps.push_back(step);
-  }
-  return steps;
-}
+using photorig::testing::DarkThenEachLight;
+using photorig::testing::WatchedDome;
 
 RunManifest Header() {
   RunManifest header;
@@ -87,7 +60,7 @@ TEST(Sequencer, DeviceFaultFailsTheRunKeepsFramesAndLeavesTheLightsOff) {
   WatchedDome dome("dome", world);
   FailingCamera camera(world, 3);
   RunWriter writer((dir.path() / "run").string(), Header());
-  const CaptureReport report = RunCapture(Steps(4), Camera(), dome, camera, writer, {});
+  const CaptureReport report = RunCapture(DarkThenEachLight(4), Camera(), dome, camera, writer, {});
   EXPECT_EQ(report.status, "failed");
   EXPECT_NE(report.reason.find("flaky-cam: link lost"), std::string::npos) << report.reason;
   EXPECT_EQ(report.frames_written, 3);
@@ -96,7 +69,8 @@ TEST(Sequencer, DeviceFaultFailsTheRunKeepsFramesAndLeavesTheLightsOff) {
     EXPECT_TRUE(std::filesystem::exists(dir.path() / "run" / frame.file));
   EXPECT_EQ(dome.state(), drivers::LightController::State::kClosed);
   EXPECT_EQ(camera.state(), drivers::Camera::State::kClosed);
-  EXPECT_EQ(dome.levels_at_close, std::vector<double>(4, 0.0));
+  ASSERT_FALSE(dome.levels_at_close.empty());
+  for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>(4, 0.0));
 }
 
 TEST(Sequencer, StopRequestAbortsBetweenStepsWithTheLightsOff) {
@@ -111,10 +85,11 @@ TEST(Sequencer, StopRequestAbortsBetweenStepsWithTheLightsOff) {
   options.on_frame = [&](const CaptureStep& step, const FrameRecord&, int) {
     if (step.index == 2) stop = true;
   };
-  const CaptureReport report = RunCapture(Steps(5), Camera(), dome, camera, writer, options);
+  const CaptureReport report = RunCapture(DarkThenEachLight(5), Camera(), dome, camera, writer, options);
   EXPECT_EQ(report.status, "aborted");
   EXPECT_EQ(report.frames_written, 3);
-  EXPECT_EQ(dome.levels_at_close, std::vector<double>(5, 0.0));
+  ASSERT_FALSE(dome.levels_at_close.empty());
+  for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>(5, 0.0));
   EXPECT_EQ(world->levels(), std::vector<double>(5, 0.0));
 }
 
@@ -124,7 +99,7 @@ TEST(Sequencer, CompleteRunWritesEveryStepInOrder) {
   sim::SimLightDome dome("dome", world);
   sim::SimCamera camera("cam", world);
   RunWriter writer((dir.path() / "run").string(), Header());
-  const CaptureReport report = RunCapture(Steps(3), Camera(), dome, camera, writer, {});
+  const CaptureReport report = RunCapture(DarkThenEachLight(3), Camera(), dome, camera, writer, {});
   EXPECT_EQ(report.status, "complete");
   ASSERT_EQ(writer.manifest().frames.size(), 4u);
   for (int i = 0; i < 4; ++i) {
