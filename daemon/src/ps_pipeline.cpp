@@ -48,20 +48,25 @@ double DarkNoiseSigma(const std::vector<cv::Mat>& darks, const cv::Mat& mean_dar
   return 1.4826 * *middle;
 }
 
+bool ParseDerivative(const std::string& name, autodiff::DerivativeMethod* method) {
+  for (auto m : {autodiff::DerivativeMethod::kForward, autodiff::DerivativeMethod::kReverse,
+                 autodiff::DerivativeMethod::kSymbolic, autodiff::DerivativeMethod::kCentralDifference}) {
+    if (name == autodiff::ToString(m)) {
+      *method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+// `request` has passed ValidatePhotometricStereoRequest.
 ps::PhotometricStereoOptions MakeOptions(const PhotometricStereoRequest& request, const PhotometricStereoInput& input,
                                          double saturation_level) {
   ps::PhotometricStereoOptions options;
-  if (!ps::ParseMethod(request.method, &options.method))
-    throw std::invalid_argument("unknown photometric-stereo method '" + request.method + "'");
-  const bool derivative_known = [&] {
-    for (auto m : {autodiff::DerivativeMethod::kForward, autodiff::DerivativeMethod::kReverse,
-                   autodiff::DerivativeMethod::kSymbolic, autodiff::DerivativeMethod::kCentralDifference})
-      if (request.derivative == autodiff::ToString(m)) return options.blinn_phong.derivative = m, true;
-    return false;
-  }();
-  if (!derivative_known) throw std::invalid_argument("unknown derivative method '" + request.derivative + "'");
-  // I - D carries the noise of the frame and of the averaged dark: sigma * sqrt(1 + 1/n).
-  // Never below one DN: quantisation alone leaves values within 1 DN of black in shadow.
+  ps::ParseMethod(request.method, &options.method);
+  ParseDerivative(request.derivative, &options.blinn_phong.derivative);
+  // The stack's read noise already includes the subtracted dark's. Never below
+  // one DN: quantisation alone leaves values within 1 DN of black in shadow.
   options.lambertian.shadow_threshold = std::max(1.0, request.shadow_threshold_sigma * input.stack.noise.read_sigma);
   options.lambertian.saturation_level = saturation_level;
   options.lambertian.max_condition_number = request.max_condition_number;
@@ -86,11 +91,8 @@ void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request) {
   ps::Method method;
   if (!ps::ParseMethod(request.method, &method))
     throw std::invalid_argument("method '" + request.method + "' (expected l2, lambertian, robust, blinn-phong or auto)");
-  bool known = false;
-  for (auto m : {autodiff::DerivativeMethod::kForward, autodiff::DerivativeMethod::kReverse,
-                 autodiff::DerivativeMethod::kSymbolic, autodiff::DerivativeMethod::kCentralDifference})
-    known = known || request.derivative == autodiff::ToString(m);
-  if (!known)
+  autodiff::DerivativeMethod derivative;
+  if (!ParseDerivative(request.derivative, &derivative))
     throw std::invalid_argument("derivative '" + request.derivative +
                                 "' (expected forward, reverse, symbolic or central-difference)");
   ps::Integrator integrator;
