@@ -60,12 +60,15 @@ const Format* FindFormat(const std::string& name) {
   return nullptr;
 }
 
+// "GREY", "Y10"; big-endian variants carry bit 31 ("Y16-BE"), so names stay
+// printable ASCII (they end up in JSON).
 std::string FourccName(std::uint32_t fourcc) {
   std::string name;
   for (int i = 0; i < 4; ++i) {
-    const char c = static_cast<char>((fourcc >> (8 * i)) & 0xff);
-    if (c != ' ') name += c;
+    const char c = static_cast<char>((fourcc >> (8 * i)) & 0x7f);
+    if (c != ' ') name += (c >= 0x21 && c <= 0x7e) ? c : '?';
   }
+  if (fourcc & (1u << 31)) name += "-BE";
   return name;
 }
 
@@ -216,7 +219,10 @@ Result<std::vector<SettingAdjustment>> V4l2Camera::DoConfigure(CameraSettings* s
   format.fmt.pix.pixelformat = chosen->fourcc;
   format.fmt.pix.field = V4L2_FIELD_NONE;
   format.fmt.pix.bytesperline = 0;  // let the driver choose its stride
-  if (Ioctl(fd_, VIDIOC_S_FMT, &format) != 0) return Errno(StatusCode::kInvalidArgument, "VIDIOC_S_FMT");
+  if (Ioctl(fd_, VIDIOC_S_FMT, &format) != 0) {
+    if (errno == EBUSY) return Errno(StatusCode::kUnavailable, "VIDIOC_S_FMT (busy: another handle is streaming)");
+    return Errno(StatusCode::kInvalidArgument, "VIDIOC_S_FMT");
+  }
   if (format.fmt.pix.pixelformat != chosen->fourcc)
     return Fail(StatusCode::kInvalidArgument, std::string("driver replaced ") + chosen->v4l2_name + " by " +
                                                   FourccName(format.fmt.pix.pixelformat));
@@ -232,6 +238,7 @@ Result<std::vector<SettingAdjustment>> V4l2Camera::DoConfigure(CameraSettings* s
 
   // Exposure: manual mode, then V4L2_CID_EXPOSURE_ABSOLUTE in units of 100 us.
   const Control exposure = QueryControl(fd_, V4L2_CID_EXPOSURE_ABSOLUTE);
+  has_exposure_control_ = exposure.present;
   if (exposure.present) {
     if (QueryControl(fd_, V4L2_CID_EXPOSURE_AUTO).present) SetControl(fd_, V4L2_CID_EXPOSURE_AUTO, V4L2_EXPOSURE_MANUAL);
     const std::int32_t units = Quantise(exposure.query, s->exposure_us / 100.0);
@@ -284,7 +291,9 @@ Status V4l2Camera::DoStart() {
   request.count = static_cast<std::uint32_t>(options_.buffer_count);
   request.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   request.memory = V4L2_MEMORY_MMAP;
-  if (Ioctl(fd_, VIDIOC_REQBUFS, &request) != 0) return Errno(StatusCode::kUnavailable, "VIDIOC_REQBUFS");
+  if (Ioctl(fd_, VIDIOC_REQBUFS, &request) != 0)
+    return Errno(StatusCode::kUnavailable, errno == EBUSY ? "VIDIOC_REQBUFS (busy: another handle is streaming)"
+                                                          : "VIDIOC_REQBUFS");
   if (request.count < 2) {
     ReleaseBuffers();
     return Fail(StatusCode::kUnavailable, "driver granted " + std::to_string(request.count) + " buffers (need 2)");
@@ -320,6 +329,13 @@ Status V4l2Camera::DoStart() {
   }
   have_sequence_ = false;
   trigger_time_ns_ = -1;
+  // Without an exposure control a frame may have exposed for its whole period.
+  v4l2_streamparm parm{};
+  parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  const v4l2_fract& interval = parm.parm.capture.timeperframe;
+  frame_period_ns_ = Ioctl(fd_, VIDIOC_G_PARM, &parm) == 0 && interval.denominator > 0
+                         ? std::int64_t{1000000000} * interval.numerator / interval.denominator
+                         : 0;
   return Status::Ok();
 }
 
@@ -371,10 +387,13 @@ Result<Frame> V4l2Camera::DoWaitFrame(int timeout_ms) {
         static_cast<std::int64_t>(buffer.timestamp.tv_sec) * 1000000000 + buffer.timestamp.tv_usec * 1000;
     if (software) {
       // The frame must have started exposing after the trigger: timestamps
-      // taken at the end of the frame are moved back by the exposure.
+      // taken at the end of the frame are moved back by the exposure, or by
+      // the frame period when the exposure is only nominal.
       const bool end_of_frame = (buffer.flags & V4L2_BUF_FLAG_TSTAMP_SRC_MASK) == V4L2_BUF_FLAG_TSTAMP_SRC_EOF;
-      const std::int64_t start_ns =
-          stamp_ns - (end_of_frame ? static_cast<std::int64_t>(settings().exposure_us * 1000.0) : 0);
+      const std::int64_t exposure_ns = has_exposure_control_ || frame_period_ns_ <= 0
+                                           ? static_cast<std::int64_t>(settings().exposure_us * 1000.0)
+                                           : frame_period_ns_;
+      const std::int64_t start_ns = stamp_ns - (end_of_frame ? exposure_ns : 0);
       if (trigger_time_ns_ < 0 || start_ns < trigger_time_ns_) {
         ++stats_.stale;
         continue;

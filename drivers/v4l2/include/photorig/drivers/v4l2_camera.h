@@ -8,8 +8,11 @@
 // gain through V4L2_CID_GAIN, reading each back. Start maps a bounded pool of
 // buffers (REQBUFS/QBUF/STREAMON). V4L2 has no trigger: in software-trigger
 // mode the device streams and WaitFrame delivers the first frame whose
-// exposure started after Trigger(); hardware triggers are refused. Gaps in
-// the buffer sequence numbers are counted as dropped frames.
+// exposure started after Trigger() (a device without an exposure control is
+// taken to expose for its whole frame period); hardware triggers are refused.
+// Gaps in the buffer sequence numbers, from the first delivered frame on, are
+// counted as dropped frames. A device another handle is streaming from is
+// kUnavailable ("busy").
 
 #include "photorig/drivers/camera.h"
 
@@ -67,6 +70,8 @@ class V4l2Camera : public Camera {
   std::string driver_name_, card_;
   std::uint32_t fourcc_ = 0;
   std::uint32_t bytes_per_line_ = 0;
+  bool has_exposure_control_ = false;
+  std::int64_t frame_period_ns_ = 0;  // from VIDIOC_G_PARM at Start; 0 = unknown
   std::vector<Mapping> buffers_;
   bool have_sequence_ = false;
   std::uint32_t last_sequence_ = 0;
