@@ -46,7 +46,7 @@ TEST(Lambertian, ExcludesAttachedShadowsPerPixel) {
   const SolverSummary summary = SolveLambertian(LambertianOptions{}, stack, &map);
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   EXPECT_GT(summary.samples_rejected, 0u);
-  EXPECT_GT(summary.distinct_light_subsets, 1u);
+  EXPECT_GT(summary.pixels_on_light_subsets, 1u);
   const AngularErrorStats stats = CompareNormals(map.normals, truth.normals);
   EXPECT_EQ(stats.pixels_unresolved, summary.pixels_too_few_lights + summary.pixels_ill_conditioned);
   EXPECT_LT(stats.max_deg, 0.01);

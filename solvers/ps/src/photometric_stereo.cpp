@@ -249,9 +249,11 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
   double cost = 0.0;
   if (!cost_at(p, true, &cost)) return Fit{};
   double lambda = 1e-3;
+  Eigen::Matrix<double, Eigen::Dynamic, 6> jw;  // fixed width: J^T J without a general GEMM
+  Eigen::VectorXd rw;
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-    const Eigen::MatrixXd jw = inverse_sigma.asDiagonal() * jacobian;
-    const Eigen::VectorXd rw = residuals.cwiseProduct(inverse_sigma);
+    jw = inverse_sigma.asDiagonal() * jacobian;
+    rw = residuals.cwiseProduct(inverse_sigma);
     const Eigen::Matrix<double, 6, 6> h = jw.transpose() * jw;
     const Eigen::Matrix<double, 6, 1> g = jw.transpose() * rw;
     bool improved = false;
@@ -266,7 +268,9 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
         p = candidate;
         cost = candidate_cost;
         lambda = std::max(lambda / 3.0, 1e-12);
-        improved = decrease > 1e-10;
+        // A step that lowers chi-square by less than this fraction changes
+        // the normal by far less than the noise does: stop there.
+        improved = decrease > options.relative_tolerance;
         break;
       }
       lambda *= 4.0;
@@ -403,6 +407,7 @@ bool BlinnPhongOptions::IsValid(std::string* why) const {
     return false;
   };
   if (max_iterations < 1) return fail("blinn_phong: max_iterations must be >= 1");
+  if (!(relative_tolerance > 0.0 && relative_tolerance < 1.0)) return fail("blinn_phong: relative_tolerance must be in (0, 1)");
   if (!(min_exponent > 0.0 && min_exponent < max_exponent)) return fail("blinn_phong: need 0 < min_exponent < max_exponent");
   if (!(initial_exponent >= min_exponent && initial_exponent <= max_exponent))
     return fail("blinn_phong: initial_exponent must lie within [min_exponent, max_exponent]");
@@ -474,9 +479,14 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
 #pragma omp for schedule(dynamic, 256)
     for (int p = 0; p < pixels; ++p) {
       if (result->flags.ptr<std::uint8_t>()[p] != static_cast<int>(PixelFlag::kSolved)) continue;
-      // The Lambertian pass's confidence is expected / observed residual: at 1
-      // the fit is at the noise level, adequate without another look.
-      if (options.method == Method::kAuto && result->confidence.ptr<float>()[p] >= 1.0f) {
+      // The Lambertian pass's confidence is expected / observed residual
+      // variance, so dof / confidence is its chi-square statistic with the
+      // noise variance averaged over the samples: the adequacy test without
+      // another look at the samples. (The exact test below weights each
+      // sample by its own variance; the two differ only near the threshold.)
+      const int dof = result->usable_lights.ptr<std::uint16_t>()[p] - 3;
+      if (options.method == Method::kAuto && dof > 0 &&
+          result->confidence.ptr<float>()[p] * quantile[dof] >= dof) {
         ++lambertian_count;
         continue;
       }

@@ -5,11 +5,12 @@
 //   I_k - D = s_k * rho * max(0, n . w_k)          (s_k includes the 1/pi)
 // so for the lit samples A x = b with A's rows w_k^T, b_k = (I_k - D) / s_k,
 // x = rho n. The solver applies one 3 x K pseudo-inverse to every pixel whose
-// samples are all usable, in a single streaming pass over the stack. Pixels
-// with shadowed or saturated samples are re-solved with the pseudo-inverse of
-// their own subset of lights, computed once per distinct subset and cached:
-// many pixels share a subset, so this stays a handful of small SVDs rather
-// than one least-squares solve per pixel.
+// samples are all usable, in a single streaming pass over the stack (tiles of
+// pixels read once across all K planes; vector code for AVX2/AVX-512 picked at
+// run time). Pixels with shadowed or saturated samples are re-solved from the
+// normal equations of their own usable subset, summed over the same tile while
+// it is still in cache: least squares on the subset, with the subset's
+// condition number from the 3 x 3 normal matrix.
 
 #include "photorig/ps/stack.h"
 #include "photorig/ps/summary.h"

@@ -27,7 +27,7 @@ struct SolverSummary {
   std::size_t pixels_ill_conditioned = 0;
   std::size_t pixels_rejected_by_model = 0;
   std::size_t samples_rejected = 0;   // shadowed or saturated samples left out of fits
-  std::size_t distinct_light_subsets = 0;
+  std::size_t pixels_on_light_subsets = 0;  // solved on their usable samples only (some shadowed or clipped)
   // Pixels explained by each model (kAuto's choices; one model for the others).
   std::size_t pixels_lambertian = 0;
   std::size_t pixels_robust = 0;
