@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <stdexcept>
 
 namespace photorig::sim {
 namespace {
@@ -49,16 +51,56 @@ bool ChartSpectra::IsValid(std::string* why) const {
 cv::Rect ChartGeometry::PatchRect(int patch) const {
   const int row = patch / 6, column = patch % 6;
   const int origin = margin_px + border_px;
-  return {origin + column * (patch_px + gap_px), origin + row * (patch_px + gap_px), patch_px, patch_px};
+  return {offset_px.x + origin + column * (patch_px + gap_px), offset_px.y + origin + row * (patch_px + gap_px),
+          patch_px, patch_px};
 }
 
 std::array<cv::Point2f, 4> ChartGeometry::GridCorners() const {
   const float half_gap = 0.5f * static_cast<float>(gap_px);
-  const float left = static_cast<float>(margin_px + border_px) - half_gap;
-  const float top = left;
+  const float left = static_cast<float>(offset_px.x + margin_px + border_px) - half_gap;
+  const float top = static_cast<float>(offset_px.y + margin_px + border_px) - half_gap;
   const float right = left + 6.0f * static_cast<float>(patch_px + gap_px);
   const float bottom = top + 4.0f * static_cast<float>(patch_px + gap_px);
   return {cv::Point2f(left, top), cv::Point2f(right, top), cv::Point2f(right, bottom), cv::Point2f(left, bottom)};
+}
+
+ChartGeometry ChartGeometry::PlacedIn(const cv::Rect2d& grid_box, cv::Size frame) {
+  const int cell = static_cast<int>(std::lround(grid_box.width / 6.0));
+  if (std::abs(6.0 * cell - grid_box.width) > 2.0 || std::abs(4.0 * cell - grid_box.height) > 2.0)
+    throw std::invalid_argument("a simulated chart has square cells: its box needs w = 6 c and h = 4 c (got " +
+                                std::to_string(grid_box.width) + " x " + std::to_string(grid_box.height) + ")");
+  if (cell < 12) throw std::invalid_argument("chart cells of " + std::to_string(cell) + " px are too small to measure");
+  ChartGeometry g;
+  g.gap_px = 2 * std::max(1, cell / 14);  // even, so the grid corners fall on whole pixels
+  g.patch_px = cell - g.gap_px;
+  g.border_px = g.gap_px;
+  g.margin_px = 0;
+  g.offset_px = cv::Point(static_cast<int>(std::lround(grid_box.x)) + g.gap_px / 2 - g.border_px,
+                          static_cast<int>(std::lround(grid_box.y)) + g.gap_px / 2 - g.border_px);
+  g.frame_px = frame;
+  if (g.offset_px.x < 0 || g.offset_px.y < 0 || g.offset_px.x + g.chart_width() > frame.width ||
+      g.offset_px.y + g.chart_height() > frame.height)
+    throw std::invalid_argument("the chart does not fit in the " + std::to_string(frame.width) + " x " +
+                                std::to_string(frame.height) + " frame");
+  return g;
+}
+
+cv::Mat BayerMosaic(const cv::Mat& bgr, const std::string& pattern) {
+  if (bgr.channels() != 3) throw std::invalid_argument("a Bayer mosaic needs a 3-channel image");
+  // Channel index (B = 0, G = 1, R = 2) of the filter at (row % 2, column % 2).
+  auto channel = [](char c) { return c == 'B' ? 0 : c == 'G' ? 1 : 2; };
+  if (pattern != "RGGB" && pattern != "BGGR" && pattern != "GRBG" && pattern != "GBRG")
+    throw std::invalid_argument("unknown Bayer pattern '" + pattern + "' (expected RGGB, BGGR, GRBG or GBRG)");
+  const int filter[2][2] = {{channel(pattern[0]), channel(pattern[1])}, {channel(pattern[2]), channel(pattern[3])}};
+  cv::Mat mosaic(bgr.size(), CV_MAKETYPE(bgr.depth(), 1));
+  const std::size_t bytes = bgr.elemSize1();
+  for (int y = 0; y < bgr.rows; ++y) {
+    const std::uint8_t* in = bgr.ptr<std::uint8_t>(y);
+    std::uint8_t* out = mosaic.ptr<std::uint8_t>(y);
+    for (int x = 0; x < bgr.cols; ++x)
+      std::memcpy(out + x * bytes, in + (3 * x + filter[y % 2][x % 2]) * bytes, bytes);
+  }
+  return mosaic;
 }
 
 double ExposureForWhite(const SensorModel& sensor, double fraction) {
@@ -81,7 +123,8 @@ ChartRender RenderColorChart(const ChartSpectra& spectra, const ChartGeometry& g
   for (int c = 0; c < 3; ++c) render.white_signal[c] = white[c] * scale;
   render.signal = cv::Mat(geometry.height(), geometry.width(), CV_32FC3, signal_of(nullptr, geometry.background_reflectance));
   const int body = geometry.margin_px;
-  render.signal(cv::Rect(body, body, geometry.width() - 2 * body, geometry.height() - 2 * body))
+  render.signal(cv::Rect(geometry.offset_px.x + body, geometry.offset_px.y + body, geometry.chart_width() - 2 * body,
+                         geometry.chart_height() - 2 * body))
       .setTo(signal_of(nullptr, geometry.body_reflectance));
   for (int patch = 0; patch < 24; ++patch)
     render.signal(geometry.PatchRect(patch)).setTo(signal_of(&spectra.patch_reflectance[patch], 0.0));

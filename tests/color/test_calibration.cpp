@@ -173,5 +173,34 @@ TEST(ColorApply, CorrectedChartImageReproducesTheReferenceColours) {
   EXPECT_THROW(CameraToXyz(model, cv::Mat(4, 4, CV_32F), cv::Mat(), ApplyOptions{}), std::invalid_argument);
 }
 
+TEST(ColorApply, EveryModelAgreesPixelByPixelWithItsDoublePrecisionDefinition) {
+  const sim::ChartRender render = RenderChart("nikon-5100", Illuminant::kD65);
+  const ChartCalibration result = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, FixedChart(),
+                                                      SimMeasureOptions(render), CalibrationOptions{});
+  // 300 columns: one full block of pixels and a partial one; some pixels below black.
+  cv::Mat image(7, 300, CV_16UC3), dark(7, 300, CV_16UC3);
+  cv::randu(image, cv::Scalar::all(40), cv::Scalar::all(3800));
+  cv::randu(dark, cv::Scalar::all(60), cv::Scalar::all(70));
+  for (const ModelEvaluation& m : result.summary.models) {
+    ASSERT_TRUE(m.usable) << m.spec.Name();
+    ApplyOptions options;
+    options.exposure_ratio = 1.5;
+    const cv::Mat with_dark = CameraToXyz(m.model, image, dark, options);
+    options.black_level = 64.0;
+    const cv::Mat with_black = CameraToXyz(m.model, image, cv::Mat(), options);
+    for (int y = 0; y < image.rows; ++y)
+      for (int x = 0; x < image.cols; x += 13) {
+        const cv::Vec3w p = image.at<cv::Vec3w>(y, x), d = dark.at<cv::Vec3w>(y, x);
+        const Eigen::Vector3d rgb(p[2], p[1], p[0]);
+        const Eigen::Vector3d a = m.model.ToXyz((rgb - Eigen::Vector3d(d[2], d[1], d[0])) / 1.5);
+        const Eigen::Vector3d b = m.model.ToXyz((rgb - Eigen::Vector3d::Constant(64.0)) / 1.5);
+        for (int k = 0; k < 3; ++k) {
+          EXPECT_NEAR(with_dark.at<cv::Vec3f>(y, x)[k], a[k], 1e-4 * (1.0 + std::abs(a[k]))) << m.spec.Name();
+          EXPECT_NEAR(with_black.at<cv::Vec3f>(y, x)[k], b[k], 1e-4 * (1.0 + std::abs(b[k]))) << m.spec.Name();
+        }
+      }
+  }
+}
+
 }  // namespace
 }  // namespace photorig::color

@@ -1,19 +1,22 @@
-// photorig calibrate color (--image CHART [--dark DARK] | --sim-camera NAME) [--illuminant D65] [--chart-roi ...]
-//                          [--no-detect] [--white-level DN] [--black-level DN] [--loss xyz|ciede2000]
-//                          [--models a,b,...] --out DIR
-// photorig apply-color --model MODEL --in IMAGE... [--dark DARK] [--black-level DN] [--exposure-ratio R] --out DIR
+// photorig calibrate color (--image CHART [--dark DARK] | --sim-camera NAME) [--rig RIG.yaml] [--illuminant D65]
+//                          [--chart-roi ...] [--no-detect] [--bayer RGGB] [--white-level DN] [--black-level DN]
+//                          [--loss xyz|ciede2000] [--models a,b,...] --out DIR
+// photorig apply-color --model MODEL --in IMAGE... [--dark DARK] [--bayer RGGB] [--black-level DN] [--exposure-ratio R]
+//                      --out DIR
 
 #include "../command.h"
 #include "photorig/color/apply.h"
 #include "photorig/color/calibration.h"
 #include "photorig/color/model_io.h"
 #include "photorig/daemon/image_io.h"
+#include "photorig/daemon/rig_config.h"
 #include "photorig/sim/color_chart.h"
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 namespace photorig::app {
@@ -22,7 +25,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct CalibrateOptions {
-  std::string image, dark, sim_camera, illuminant = "D65", chart_roi, loss = "xyz", out;
+  std::string image, dark, sim_camera, rig, illuminant = "D65", chart_roi, bayer, loss = "xyz", out;
   std::vector<std::string> models;
   bool no_detect = false;
   double white_level = 0.0, black_level = 0.0;
@@ -37,21 +40,45 @@ std::string ReadText(const std::string& path) {
   return text.str();
 }
 
-// The simulated rig's chart capture: spectral render, raw frame and dark frame written to `out`.
-void RenderSimulatedChart(CalibrateOptions& options, color::Illuminant illuminant) {
+// The simulated rig's chart capture: spectral render, raw frame and dark frame
+// written to `out`. With a rig, its sensor and frame size are used and the chart
+// lies where the rig's camera.color_chart says; otherwise a bare chart.
+void RenderSimulatedChart(CalibrateOptions& options, color::Illuminant illuminant,
+                          const std::optional<daemon::RigConfig>& rig) {
   const color::ChartCaptureSpectra s =
       color::ChartCaptureSpectraFor(options.sim_camera, illuminant, color::WavelengthGrid(400.0, 680.0, 5.0));
-  const sim::SensorModel sensor;
+  sim::SensorModel sensor;
+  sim::ChartGeometry geometry;
+  if (rig) {
+    sensor = rig->sim->sensor;
+    const auto& corners = rig->camera.color_chart->corners_px;
+    const Eigen::Vector2d low = corners[0].cwiseMin(corners[1]).cwiseMin(corners[2]).cwiseMin(corners[3]);
+    const Eigen::Vector2d high = corners[0].cwiseMax(corners[1]).cwiseMax(corners[2]).cwiseMax(corners[3]);
+    geometry = sim::ChartGeometry::PlacedIn(cv::Rect2d(low.x(), low.y(), high.x() - low.x(), high.y() - low.y()),
+                                            cv::Size(rig->camera.width, rig->camera.height));
+  }
   const sim::ChartRender render = sim::RenderColorChart({s.wavelength_nm, s.patch_reflectance, s.illuminant, s.camera_sensitivity},
-                                                        sim::ChartGeometry{}, sensor,
-                                                        sim::ExposureForWhite(sensor, 0.8), 0.0, options.seed);
+                                                        geometry, sensor, sim::ExposureForWhite(sensor, 0.8), 0.0,
+                                                        options.seed);
   options.image = (fs::path(options.out) / "chart.png").string();
   options.dark = (fs::path(options.out) / "dark.png").string();
-  daemon::WriteImage(options.image, render.raw);
-  daemon::WriteImage(options.dark, render.dark);
+  const bool mosaic = !options.bayer.empty();
+  daemon::WriteImage(options.image, mosaic ? sim::BayerMosaic(render.raw, options.bayer) : render.raw);
+  daemon::WriteImage(options.dark, mosaic ? sim::BayerMosaic(render.dark, options.bayer) : render.dark);
   if (options.white_level == 0.0) options.white_level = render.clip_level_dn;
-  std::printf("rendered %s chart under %s: %s, %s\n", options.sim_camera.c_str(), color::IlluminantName(illuminant),
-              options.image.c_str(), options.dark.c_str());
+  std::printf("rendered %s chart under %s%s: %s, %s\n", options.sim_camera.c_str(), color::IlluminantName(illuminant),
+              mosaic ? (" through a " + options.bayer + " Bayer mosaic").c_str() : "", options.image.c_str(),
+              options.dark.c_str());
+}
+
+// A one-channel Bayer raw becomes B, G, R; anything else is returned as read.
+cv::Mat ReadCapture(const std::string& path, const std::string& bayer) {
+  cv::Mat image = daemon::ReadImage(path);
+  if (bayer.empty()) return image;
+  if (image.channels() != 1)
+    throw std::invalid_argument(path + ": --bayer needs a one-channel raw, got " + std::to_string(image.channels()) +
+                                " channels");
+  return color::Demosaic(image, bayer);
 }
 
 int ExecuteCalibrate(CalibrateOptions options) {
@@ -62,6 +89,7 @@ int ExecuteCalibrate(CalibrateOptions options) {
   color::Illuminant illuminant;
   color::LocateOptions locate;
   color::CalibrationOptions calibration;
+  std::optional<daemon::RigConfig> rig;
   try {
     illuminant = color::ParseIlluminant(options.illuminant);
     calibration.loss = color::ParseFitLoss(options.loss);
@@ -69,18 +97,43 @@ int ExecuteCalibrate(CalibrateOptions options) {
       calibration.candidates.clear();
       for (const auto& name : options.models) calibration.candidates.push_back(color::ModelSpec::Parse(name));
     }
-    if (!options.chart_roi.empty()) locate.fixed_corners = color::ParseChartCorners(options.chart_roi);
-    if (!options.sim_camera.empty()) color::CameraSensitivity(options.sim_camera);
+    if (!options.rig.empty()) {
+      rig = daemon::LoadRigConfig(options.rig);
+      if (const auto& chart = rig->camera.color_chart) {
+        std::array<cv::Point2f, 4> corners;
+        for (std::size_t i = 0; i < 4; ++i)
+          corners[i] = cv::Point2f(static_cast<float>(chart->corners_px[i].x()), static_cast<float>(chart->corners_px[i].y()));
+        locate.fixed_corners = corners;
+        locate.fixed_source = options.rig + " camera.color_chart";
+      }
+    }
+    if (!options.chart_roi.empty()) {
+      locate.fixed_corners = color::ParseChartCorners(options.chart_roi);
+      locate.fixed_source = "--chart-roi " + options.chart_roi;
+    }
+    if (!options.sim_camera.empty()) {
+      color::CameraSensitivity(options.sim_camera);
+      if (rig && !(rig->sim && rig->camera.color_chart))
+        throw std::invalid_argument(options.rig + ": --sim-camera with --rig needs a simulated rig with camera.color_chart");
+    }
+  } catch (const daemon::ConfigError& e) {
+    std::fprintf(stderr, "calibrate color: %s\n", e.what());
+    return 2;
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "calibrate color: %s\n", e.what());
     return 2;
   }
   locate.use_detector = !options.no_detect;
   fs::create_directories(options.out);
-  if (!options.sim_camera.empty()) RenderSimulatedChart(options, illuminant);
-
-  const cv::Mat image = daemon::ReadImage(options.image);
-  const cv::Mat dark = options.dark.empty() ? cv::Mat() : daemon::ReadImage(options.dark);
+  cv::Mat image, dark;
+  try {
+    if (!options.sim_camera.empty()) RenderSimulatedChart(options, illuminant, rig);
+    image = ReadCapture(options.image, options.bayer);
+    if (!options.dark.empty()) dark = ReadCapture(options.dark, options.bayer);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "calibrate color: %s\n", e.what());
+    return 2;
+  }
   color::MeasureOptions measure;
   measure.clip_level = options.white_level;
   measure.black_level = options.black_level;
@@ -88,13 +141,21 @@ int ExecuteCalibrate(CalibrateOptions options) {
       color::CalibrateChartImage(image, dark, illuminant, locate, measure, calibration);
 
   std::vector<std::string> names(color::ColorChecker24Names().begin(), color::ColorChecker24Names().end());
-  if (result.located.location) std::printf("%s\n", result.located.message.c_str());
+  std::printf("%s\n", result.located.message.c_str());
   std::printf("%s", color::FormatCalibrationReport(result.summary, names).c_str());
   nlohmann::json report = color::CalibrationReport(result.summary, result.patches, names);
   report["image"] = options.image;
   report["dark"] = options.dark;
   report["illuminant"] = options.illuminant;
   report["chart_location"] = result.located.message;
+  if (result.located.location) {
+    report["chart_location_method"] = result.located.location->method;
+    nlohmann::json corners = nlohmann::json::array();
+    for (const cv::Point2f& p : result.located.location->corners) corners.push_back({p.x, p.y});
+    report["chart_corners_px"] = corners;
+  }
+  if (!options.bayer.empty()) report["bayer"] = options.bayer;
+  if (!options.rig.empty()) report["rig"] = options.rig;
   daemon::WriteFileDurably((fs::path(options.out) / "report.json").string(), report.dump(2) + "\n");
   daemon::WriteFileDurably((fs::path(options.out) / "report.txt").string(),
                            color::FormatCalibrationReport(result.summary, names));
@@ -114,7 +175,7 @@ int ExecuteCalibrate(CalibrateOptions options) {
 }
 
 struct ApplyCommandOptions {
-  std::string model, dark, out;
+  std::string model, dark, bayer, out;
   std::vector<std::string> inputs;
   double black_level = 0.0, exposure_ratio = 1.0;
 };
@@ -130,10 +191,22 @@ int ExecuteApply(const ApplyCommandOptions& options) {
   color::ApplyOptions apply;
   apply.black_level = options.black_level;
   apply.exposure_ratio = options.exposure_ratio;
-  const cv::Mat dark = options.dark.empty() ? cv::Mat() : daemon::ReadImage(options.dark);
+  cv::Mat dark;
+  try {
+    if (!options.dark.empty()) dark = ReadCapture(options.dark, options.bayer);
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "apply-color: %s\n", e.what());
+    return 2;
+  }
   fs::create_directories(options.out);
   for (const std::string& input : options.inputs) {
-    const cv::Mat image = daemon::ReadImage(input);
+    cv::Mat image;
+    try {
+      image = ReadCapture(input, options.bayer);
+    } catch (const std::invalid_argument& e) {
+      std::fprintf(stderr, "apply-color: %s\n", e.what());
+      return 2;
+    }
     if (image.channels() != 3) {
       std::fprintf(stderr, "apply-color: %s has %d channel(s); colour correction needs 3 (B, G, R)\n", input.c_str(),
                    image.channels());
@@ -158,8 +231,16 @@ CommandRunner SetupCalibrate(CLI::App& app) {
                   "render the chart on the simulated rig with this camera (nikon-5100, sigma-sdmerill, canon-5d-mark-ii)");
   sub->add_option("--seed", options->seed, "noise seed for --sim-camera");
   sub->add_option("--illuminant", options->illuminant, "light on the chart: D50 | D65 | A");
-  sub->add_option("--chart-roi", options->chart_roi, "where the chart sits: x,y,w,h or x0,y0,...,x3,y3 (grid corners)");
-  sub->add_flag("--no-detect", options->no_detect, "skip the mcc detector; use --chart-roi");
+  sub->add_option("--rig", options->rig,
+                  "rig YAML: its camera.color_chart is the fixed chart position (with --sim-camera: the rig's "
+                  "sensor, frame and chart placement)")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--chart-roi", options->chart_roi,
+                  "where the chart sits: x,y,w,h or x0,y0,...,x3,y3 (grid corners); overrides the rig's");
+  sub->add_flag("--no-detect", options->no_detect, "skip the mcc detector; use --chart-roi or the rig's position");
+  sub->add_option("--bayer", options->bayer,
+                  "captures are one-channel Bayer raws with this top-left block (RGGB, BGGR, GRBG, GBRG); "
+                  "demosaiced before measuring (with --sim-camera: render through this mosaic)");
   sub->add_option("--white-level", options->white_level, "raw value at which pixels clip (default: type maximum)");
   sub->add_option("--black-level", options->black_level, "subtracted when there is no dark frame");
   sub->add_option("--loss", options->loss, "xyz (least squares) | ciede2000 (refined with Ceres)");
@@ -179,8 +260,10 @@ CommandRunner SetupApply(CLI::App& app) {
       ->required()
       ->check(CLI::ExistingFile);
   sub->add_option("--dark", options->dark, "dark frame")->check(CLI::ExistingFile);
+  sub->add_option("--bayer", options->bayer, "inputs are one-channel Bayer raws (RGGB, BGGR, GRBG, GBRG): demosaic first");
   sub->add_option("--black-level", options->black_level, "subtracted when there is no dark frame");
-  sub->add_option("--exposure-ratio", options->exposure_ratio, "exposure x gain relative to the chart capture")
+  sub->add_option("--exposure-ratio", options->exposure_ratio,
+                  "exposure x gain relative to the chart capture; for an albedo map, 1 / (chart DN per unit albedo)")
       ->check(CLI::PositiveNumber);
   sub->add_option("--out", options->out, "output directory")->required();
   return {sub, [options] { return ExecuteApply(*options); }};

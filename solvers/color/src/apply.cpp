@@ -2,6 +2,8 @@
 
 #include "photorig/color/colorimetry.h"
 
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <stdexcept>
 
@@ -25,33 +27,53 @@ cv::Mat CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv
                                 std::to_string(camera_bgr.channels()) + " channel(s)");
   if (!dark_bgr.empty() && (dark_bgr.size() != camera_bgr.size() || dark_bgr.channels() != 3))
     throw std::invalid_argument("dark frame must be 3-channel and the image's size");
-  cv::Mat rgb;
-  camera_bgr.convertTo(rgb, CV_32FC3);
-  if (!dark_bgr.empty()) {
-    cv::Mat dark;
-    dark_bgr.convertTo(dark, CV_32FC3);
-    rgb -= dark;
-  } else if (options.black_level != 0.0) {
-    rgb -= cv::Scalar::all(options.black_level);
-  }
   const int terms = model.spec.TermCount();
-  // Row-major copy of C^T so the inner loop reads it contiguously.
-  double c[3][kMaxModelTerms];
+  float c[3][kMaxModelTerms];
   for (int out = 0; out < 3; ++out)
-    for (int t = 0; t < terms; ++t) c[out][t] = model.coefficients(t, out);
-  const double scale = model.input_scale / options.exposure_ratio;
-  cv::Mat xyz(rgb.size(), CV_32FC3);
-#pragma omp parallel for schedule(static)
-  for (int y = 0; y < rgb.rows; ++y) {
-    const cv::Vec3f* in = rgb.ptr<cv::Vec3f>(y);
-    cv::Vec3f* out = xyz.ptr<cv::Vec3f>(y);
-    double f[kMaxModelTerms];
-    for (int x = 0; x < rgb.cols; ++x) {
-      FillModelFeatures(model.spec, scale * in[x][2], scale * in[x][1], scale * in[x][0], f);
-      for (int k = 0; k < 3; ++k) {
-        double sum = 0.0;
-        for (int t = 0; t < terms; ++t) sum += c[k][t] * f[t];
-        out[x][k] = static_cast<float>(sum);
+    for (int t = 0; t < terms; ++t) c[out][t] = static_cast<float>(model.coefficients(t, out));
+  const float scale = static_cast<float>(model.input_scale / options.exposure_ratio);
+  const float black = dark_bgr.empty() ? static_cast<float>(options.black_level) : 0.0f;
+  cv::Mat xyz(camera_bgr.size(), CV_32FC3);
+  // Rows in blocks of kBlock pixels, held as structure of arrays so that every
+  // step (dark subtraction, features, the 3 x terms product) is a loop the
+  // compiler vectorises; the whole block stays in L1.
+  constexpr int kBlock = 256;
+#pragma omp parallel
+  {
+    cv::Mat row_rgb, row_dark;
+    alignas(64) float f[kMaxModelTerms][kBlock], acc[3][kBlock];
+    float* features[kMaxModelTerms];
+    for (int t = 0; t < kMaxModelTerms; ++t) features[t] = f[t];
+    float* r = f[0];
+    float* g = f[1];
+    float* b = f[2];
+#pragma omp for schedule(static)
+    for (int y = 0; y < camera_bgr.rows; ++y) {
+      camera_bgr.row(y).convertTo(row_rgb, CV_32FC3);
+      if (!dark_bgr.empty()) dark_bgr.row(y).convertTo(row_dark, CV_32FC3);
+      const float* in = row_rgb.ptr<float>();
+      const float* dark = dark_bgr.empty() ? nullptr : row_dark.ptr<float>();
+      float* out = xyz.ptr<float>(y);
+      for (int x0 = 0; x0 < camera_bgr.cols; x0 += kBlock) {
+        const int n = std::min(kBlock, camera_bgr.cols - x0);
+        const float* p = in + 3 * x0;
+        if (dark) {
+          const float* d = dark + 3 * x0;
+          for (int i = 0; i < n; ++i)
+            b[i] = scale * (p[3 * i] - d[3 * i]), g[i] = scale * (p[3 * i + 1] - d[3 * i + 1]),
+            r[i] = scale * (p[3 * i + 2] - d[3 * i + 2]);
+        } else {
+          for (int i = 0; i < n; ++i)
+            b[i] = scale * (p[3 * i] - black), g[i] = scale * (p[3 * i + 1] - black), r[i] = scale * (p[3 * i + 2] - black);
+        }
+        FillModelFeatures(model.spec, n, features);
+        for (int k = 0; k < 3; ++k) {
+          for (int i = 0; i < n; ++i) acc[k][i] = c[k][0] * f[0][i];
+          for (int t = 1; t < terms; ++t)
+            for (int i = 0; i < n; ++i) acc[k][i] += c[k][t] * f[t][i];
+        }
+        float* o = out + 3 * x0;
+        for (int i = 0; i < n; ++i) o[3 * i] = acc[0][i], o[3 * i + 1] = acc[1][i], o[3 * i + 2] = acc[2][i];
       }
     }
   }
@@ -64,6 +86,21 @@ std::vector<cv::Mat> CameraStackToXyz(const ColorModel& model, const std::vector
   out.reserve(stack_bgr.size());
   for (const cv::Mat& frame : stack_bgr) out.push_back(CameraToXyz(model, frame, dark_bgr, options));
   return out;
+}
+
+cv::Mat Demosaic(const cv::Mat& raw, const std::string& pattern) {
+  if (raw.channels() != 1)
+    throw std::invalid_argument("a Bayer raw has one channel, got " + std::to_string(raw.channels()));
+  if (raw.depth() != CV_8U && raw.depth() != CV_16U) throw std::invalid_argument("a Bayer raw must be 8- or 16-bit");
+  int code = 0;
+  if (pattern == "RGGB") code = cv::COLOR_BayerRGGB2BGR;
+  else if (pattern == "BGGR") code = cv::COLOR_BayerBGGR2BGR;
+  else if (pattern == "GRBG") code = cv::COLOR_BayerGRBG2BGR;
+  else if (pattern == "GBRG") code = cv::COLOR_BayerGBRG2BGR;
+  else throw std::invalid_argument("unknown Bayer pattern '" + pattern + "' (expected RGGB, BGGR, GRBG or GBRG)");
+  cv::Mat bgr;
+  cv::cvtColor(raw, bgr, code);
+  return bgr;
 }
 
 cv::Mat XyzToLinearSrgbBgr(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz) {

@@ -106,8 +106,16 @@ LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options)
     detector_note = "the mcc detector found no 24-patch chart";
   }
   if (options.fixed_corners) {
+    for (const cv::Point2f& p : *options.fixed_corners)
+      if (!(p.x >= 0.f && p.y >= 0.f && p.x <= image_bgr.cols && p.y <= image_bgr.rows)) {
+        std::ostringstream message;
+        message << detector_note << "; " << options.fixed_source << " has a corner at (" << p.x << ", " << p.y
+                << "), outside the " << image_bgr.cols << " x " << image_bgr.rows << " image";
+        result.message = message.str();
+        return result;
+      }
     result.location = ChartLocation{*options.fixed_corners, "fixed-roi"};
-    result.message = detector_note + "; using the fixed chart position";
+    result.message = detector_note + "; using " + options.fixed_source;
     return result;
   }
   result.message = detector_note + " and no fixed chart position was given (--chart-roi or the rig's color_chart)";

@@ -1,5 +1,6 @@
 #include "photorig/color/model.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -41,33 +42,69 @@ ModelSpec ModelSpec::Parse(const std::string& name) {
   throw std::invalid_argument("unknown colour model '" + name + "' (known: " + known + ")");
 }
 
-void FillModelFeatures(const ModelSpec& spec, double r, double g, double b, double* f) {
-  const double rp = std::max(r, 0.0), gp = std::max(g, 0.0), bp = std::max(b, 0.0);
-  f[0] = r, f[1] = g, f[2] = b;
+namespace {
+
+// Every feature expansion, for doubles (fitting) and floats (applying): f[0..2]
+// hold r, g, b on entry, the other terms are filled. Loops run over pixels
+// inside each term; the term arrays never overlap (ivdep), so they vectorise.
+// Negative channels count as 0 inside roots.
+template <typename T>
+void Features(const ModelSpec& spec, int n, T* const* f) {
+  const T zero = 0;
+  const T* r = f[0];
+  const T* g = f[1];
+  const T* b = f[2];
   switch (spec.kind) {
     case ModelSpec::Kind::kLinear: return;
-    case ModelSpec::Kind::kAffine: f[3] = 1.0; return;
+    case ModelSpec::Kind::kAffine:
+#pragma GCC ivdep
+      for (int i = 0; i < n; ++i) f[3][i] = 1;
+      return;
     case ModelSpec::Kind::kRootPolynomial:
-      f[3] = std::sqrt(rp * gp), f[4] = std::sqrt(gp * bp), f[5] = std::sqrt(rp * bp);
-      if (spec.degree == 3) {
-        f[6] = std::cbrt(rp * gp * gp), f[7] = std::cbrt(rp * bp * bp), f[8] = std::cbrt(gp * rp * rp);
-        f[9] = std::cbrt(gp * bp * bp), f[10] = std::cbrt(bp * rp * rp), f[11] = std::cbrt(bp * gp * gp);
-        f[12] = std::cbrt(rp * gp * bp);
+#pragma GCC ivdep
+      for (int i = 0; i < n; ++i) {
+        const T rp = std::max(r[i], zero), gp = std::max(g[i], zero), bp = std::max(b[i], zero);
+        f[3][i] = std::sqrt(rp * gp), f[4][i] = std::sqrt(gp * bp), f[5][i] = std::sqrt(rp * bp);
       }
+      // cbrt(r g^2) = cbrt(r) cbrt(g)^2: three cube roots per pixel instead of seven.
+      if (spec.degree == 3)
+  #pragma GCC ivdep
+      for (int i = 0; i < n; ++i) {
+          const T cr = std::cbrt(std::max(r[i], zero)), cg = std::cbrt(std::max(g[i], zero));
+          const T cb = std::cbrt(std::max(b[i], zero));
+          f[6][i] = cr * cg * cg, f[7][i] = cr * cb * cb, f[8][i] = cg * cr * cr;
+          f[9][i] = cg * cb * cb, f[10][i] = cb * cr * cr, f[11][i] = cb * cg * cg;
+          f[12][i] = cr * cg * cb;
+        }
       return;
     case ModelSpec::Kind::kPolynomial:
-      f[3] = r * r, f[4] = g * g, f[5] = b * b, f[6] = r * g, f[7] = g * b, f[8] = r * b;
-      if (spec.degree == 3) {
-        f[9] = r * r * r, f[10] = g * g * g, f[11] = b * b * b, f[12] = r * g * g, f[13] = r * b * b;
-        f[14] = g * r * r, f[15] = g * b * b, f[16] = b * r * r, f[17] = b * g * g, f[18] = r * g * b;
+#pragma GCC ivdep
+      for (int i = 0; i < n; ++i) {
+        const T x = r[i], y = g[i], z = b[i];
+        f[3][i] = x * x, f[4][i] = y * y, f[5][i] = z * z, f[6][i] = x * y, f[7][i] = y * z, f[8][i] = x * z;
       }
+      if (spec.degree == 3)
+  #pragma GCC ivdep
+      for (int i = 0; i < n; ++i) {
+          const T x = r[i], y = g[i], z = b[i];
+          f[9][i] = x * x * x, f[10][i] = y * y * y, f[11][i] = z * z * z, f[12][i] = x * y * y;
+          f[13][i] = x * z * z, f[14][i] = y * x * x, f[15][i] = y * z * z, f[16][i] = z * x * x;
+          f[17][i] = z * y * y, f[18][i] = x * y * z;
+        }
       return;
   }
 }
 
+}  // namespace
+
+void FillModelFeatures(const ModelSpec& spec, int n, float* const* features) { Features(spec, n, features); }
+
 Eigen::VectorXd ModelFeatures(const ModelSpec& spec, const Eigen::Vector3d& rgb) {
   Eigen::VectorXd f(spec.TermCount());
-  FillModelFeatures(spec, rgb[0], rgb[1], rgb[2], f.data());
+  f.head<3>() = rgb;
+  double* terms[kMaxModelTerms];
+  for (int t = 0; t < spec.TermCount(); ++t) terms[t] = f.data() + t;
+  Features(spec, 1, terms);
   return f;
 }
 

@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <string>
 #include <vector>
 
 namespace photorig::color {
@@ -26,6 +27,13 @@ cv::Mat CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv
                     const ApplyOptions& options);
 std::vector<cv::Mat> CameraStackToXyz(const ColorModel& model, const std::vector<cv::Mat>& stack_bgr,
                                       const cv::Mat& dark_bgr, const ApplyOptions& options);
+
+// A single-chip sensor's raw Bayer mosaic (one channel, 8/16-bit) -> B, G, R of
+// the same depth by bilinear interpolation (OpenCV). `pattern` names the
+// top-left 2 x 2 filter block: RGGB, BGGR, GRBG or GBRG. Demosaicing is linear,
+// so a dark frame may be demosaiced the same way and subtracted afterwards.
+// Throws std::invalid_argument on another pattern or a multi-channel image.
+cv::Mat Demosaic(const cv::Mat& raw, const std::string& pattern);
 
 // XYZ (white = `white_xyz`) -> linear sRGB, adapting the white to D65 (Bradford).
 // CV_32FC3 in B, G, R order, unclipped.

@@ -36,6 +36,8 @@ struct LocateOptions {
   // Where the chart sits on the rig (from the rig YAML or the command line);
   // used when detection is off or finds nothing.
   std::optional<std::array<cv::Point2f, 4>> fixed_corners;
+  // Where fixed_corners came from, for messages and reports (e.g. "--chart-roi").
+  std::string fixed_source = "the fixed chart position";
 };
 
 struct LocateResult {
@@ -43,6 +45,8 @@ struct LocateResult {
   std::string message;  // why nothing was found, or how it was
 };
 
+// The detector first (if on), then the fixed position; a fixed position with a
+// corner outside the image is refused with a message naming its source.
 LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options);
 
 // Parses "x0,y0,x1,y1,x2,y2,x3,y3" (corners as in ChartLocation) or "x,y,w,h"

@@ -36,9 +36,12 @@ struct ModelSpec {
 // Feature vector of one normalised camera RGB; negative channels (noise on
 // black) are taken as 0 inside roots.
 Eigen::VectorXd ModelFeatures(const ModelSpec& spec, const Eigen::Vector3d& rgb);
-// The same into `features` (room for kMaxModelTerms), without allocating: for per-pixel use.
+// The same for `n` pixels at once, structure of arrays: features[t][i] is term
+// t of pixel i (TermCount() separate arrays of n); features[0..2] hold the
+// normalised r, g, b on entry. One loop per term, so the compiler vectorises
+// them: this is the per-pixel path of applying a model.
 constexpr int kMaxModelTerms = 19;
-void FillModelFeatures(const ModelSpec& spec, double r, double g, double b, double* features);
+void FillModelFeatures(const ModelSpec& spec, int n, float* const* features);
 
 enum class FitLoss { kXyzLeastSquares, kCiede2000 };
 const char* FitLossName(FitLoss loss);

@@ -1,0 +1,201 @@
+// Colour albedo from photometric stereo on an RGB stack, corrected by a model
+// calibrated from the chart: normals solved once on luminance, each channel's
+// albedo fitted with them fixed, then camera RGB -> XYZ.
+
+#include "photorig/color/apply.h"
+#include "photorig/color/calibration.h"
+#include "photorig/color/colorimetry.h"
+#include "photorig/ps/channel_albedo.h"
+#include "photorig/ps/lambertian.h"
+#include "photorig/sim/renderer.h"
+#include "photorig/sim/scene.h"
+#include "sim_chart.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace photorig::color {
+namespace {
+
+constexpr int kSize = 96;
+// Six chromatic patches and a grey, painted as vertical stripes across a sphere.
+constexpr int kStripePatches[] = {0, 2, 5, 10, 13, 14, 21};
+constexpr int kStripes = static_cast<int>(std::size(kStripePatches));
+
+int StripeOf(int x) { return x * kStripes / kSize; }
+
+// The per-channel albedo of the painted sphere: each patch's camera signal
+// (the chart render's units, white = 1 in the top channel).
+struct ColourSphere {
+  sim::SurfaceMaps surface;
+  std::array<cv::Mat, 3> albedo;  // r, g, b
+};
+
+ColourSphere PaintedSphere(const sim::ChartRender& chart) {
+  sim::Scene scene;
+  scene.shape = sim::Scene::Shape::kSphere;
+  scene.ApplyShapeDefaults(kSize * 0.1);
+  scene.sphere_radius_mm = 4.7;
+  scene.cast_shadows = false;
+  ColourSphere sphere{sim::SampleSurface(scene, kSize, kSize, 0.1), {}};
+  const sim::ChartGeometry geometry;
+  for (int c = 0; c < 3; ++c) {
+    sphere.albedo[static_cast<std::size_t>(c)] = sphere.surface.albedo.clone();
+    for (int y = 0; y < kSize; ++y)
+      for (int x = 0; x < kSize; ++x) {
+        const cv::Rect rect = geometry.PatchRect(kStripePatches[StripeOf(x)]);
+        const float signal = chart.signal.at<cv::Vec3f>(rect.y + rect.height / 2, rect.x + rect.width / 2)[c];
+        float& a = sphere.albedo[static_cast<std::size_t>(c)].at<float>(y, x);
+        if (std::isfinite(a)) a = signal;
+      }
+  }
+  return sphere;
+}
+
+TEST(ColourAlbedo, CorrectedPhotometricStereoAlbedoMatchesTheChartCalibratedTarget) {
+  // The chart capture and its model.
+  const sim::SensorModel sensor;
+  const sim::ChartRender chart = testing::RenderChart("nikon-5100", Illuminant::kD65);
+  LocateOptions locate;
+  locate.use_detector = false;
+  locate.fixed_corners = sim::ChartGeometry{}.GridCorners();
+  CalibrationOptions calibration;
+  calibration.candidates = {ModelSpec::Parse("linear"), ModelSpec::Parse("root-poly-2")};
+  const ChartCalibration calibrated = CalibrateChartImage(chart.raw, chart.dark, Illuminant::kD65, locate,
+                                                          testing::SimMeasureOptions(chart), calibration);
+  ASSERT_TRUE(calibrated.summary.IsUsable()) << calibrated.summary.message;
+  const ColorModel& model = calibrated.summary.chosen_model();
+  const double chart_dn_per_signal = sensor.DnPerRadiance(sim::ExposureForWhite(sensor, 0.8), 0.0);
+
+  // The same camera photographs the painted sphere under 12 white lights, one
+  // frame per light and channel (independent noise per channel).
+  const ColourSphere sphere = PaintedSphere(chart);
+  std::vector<sim::Light> lights;
+  std::vector<Eigen::Vector3d> directions;
+  for (int k = 0; k < 12; ++k) {
+    const double azimuth = 2.0 * M_PI * k / 12.0, elevation = (k % 2 ? 40.0 : 65.0) * M_PI / 180.0;
+    directions.emplace_back(std::cos(elevation) * std::cos(azimuth), std::cos(elevation) * std::sin(azimuth),
+                            std::sin(elevation));
+    lights.emplace_back(directions.back(), 1.0);
+  }
+  const double exposure_us = 0.8 * sensor.full_well_e / sensor.response_e_per_us;
+  const double dn_per_radiance = sensor.DnPerRadiance(exposure_us, 0.0);
+  std::array<ps::PhotometricStack, 3> channels;
+  ps::PhotometricStack luminance;
+  for (int c = 0; c < 3; ++c) {
+    // The renderer reads rho_d from the BRDF parameters.
+    sim::SurfaceMaps surface = sphere.surface;
+    surface.brdf_params = sphere.surface.brdf_params.clone();
+    cv::Mat planes[4];
+    cv::split(surface.brdf_params, planes);
+    planes[0] = sphere.albedo[static_cast<std::size_t>(c)];
+    cv::merge(planes, 4, surface.brdf_params);
+    for (int k = 0; k < 12; ++k) {
+      std::vector<double> levels(12, 0.0);
+      levels[static_cast<std::size_t>(k)] = 1.0;
+      cv::Mat radiance = sim::RenderRadiance(surface, false, lights, levels);
+      cv::patchNaNs(radiance, 0.0);
+      const std::vector<std::uint16_t> dn =
+          sim::ExposeFrame(sensor, radiance, exposure_us, 0.0, 5, static_cast<std::uint64_t>(3 * k + c));
+      cv::Mat frame;
+      cv::Mat(kSize, kSize, CV_16U, const_cast<std::uint16_t*>(dn.data())).convertTo(frame, CV_32F);
+      channels[static_cast<std::size_t>(c)].images.push_back(frame);
+      if (c == 0) luminance.images.push_back(frame / 3.0);
+      else luminance.images[static_cast<std::size_t>(k)] += frame / 3.0;
+    }
+  }
+  for (ps::PhotometricStack* stack : {&channels[0], &channels[1], &channels[2], &luminance}) {
+    stack->dark = cv::Mat(kSize, kSize, CV_32F, cv::Scalar(sensor.black_level_dn));
+    stack->light_directions = directions;
+    // DN per unit radiance times the irradiance (1), as the PS pipeline builds them.
+    stack->light_scales.assign(12, dn_per_radiance);
+    stack->mask = sphere.surface.mask;
+  }
+  ps::NormalMap normals;
+  ps::LambertianOptions lambertian;
+  lambertian.shadow_threshold = 20.0;
+  ASSERT_TRUE(ps::SolveLambertian(lambertian, luminance, &normals).IsSolutionUsable());
+
+  std::array<cv::Mat, 3> albedo;
+  // No shadow threshold here: with the normal known, unlit samples are those
+  // with n . w < min_cosine, and cutting dim samples on their noisy value would
+  // bias a dark channel's albedo upwards.
+  const ps::ChannelAlbedoOptions options;
+  for (int c = 0; c < 3; ++c) {
+    const ps::SolverSummary summary =
+        ps::SolveChannelAlbedo(options, channels[static_cast<std::size_t>(c)], normals.normals, &albedo[static_cast<std::size_t>(c)]);
+    ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  }
+  // Camera-RGB albedo in B, G, R order, as a chart capture would be: the chart's
+  // DN per unit signal is the exposure ratio between them.
+  cv::Mat albedo_bgr;
+  cv::merge(std::vector<cv::Mat>{albedo[2], albedo[1], albedo[0]}, albedo_bgr);
+  ApplyOptions apply;
+  apply.exposure_ratio = 1.0 / chart_dn_per_signal;
+  const cv::Mat xyz = CameraToXyz(model, albedo_bgr, cv::Mat(), apply);
+
+  const ChartReference reference = ColorCheckerReference(Illuminant::kD65, ReferenceGrid());
+  const sim::ChartGeometry geometry;
+  for (int stripe = 0; stripe < kStripes; ++stripe) {
+    const int patch = kStripePatches[stripe];
+    // Per stripe: mean over pixels facing the camera (|n_z| > 0.5) well inside the stripe.
+    Eigen::Vector3d mean_xyz = Eigen::Vector3d::Zero(), mean_rgb = Eigen::Vector3d::Zero();
+    int pixels = 0;
+    for (int y = 0; y < kSize; ++y)
+      for (int x = stripe * kSize / kStripes + 2; x < (stripe + 1) * kSize / kStripes - 2; ++x) {
+        const cv::Vec3f n = normals.normals.at<cv::Vec3f>(y, x);
+        const cv::Vec3f v = xyz.at<cv::Vec3f>(y, x);
+        if (!(n[2] > 0.5) || !std::isfinite(v[0])) continue;
+        mean_xyz += Eigen::Vector3d(v[0], v[1], v[2]);
+        for (int c = 0; c < 3; ++c) mean_rgb[c] += albedo[static_cast<std::size_t>(c)].at<float>(y, x);
+        ++pixels;
+      }
+    ASSERT_GT(pixels, 20) << "patch " << patch + 1;
+    mean_xyz /= pixels;
+    mean_rgb /= pixels;
+    // Each channel's albedo within 1.5 % of the painted one.
+    const cv::Rect rect = geometry.PatchRect(patch);
+    const cv::Vec3f truth = chart.signal.at<cv::Vec3f>(rect.y + rect.height / 2, rect.x + rect.width / 2);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean_rgb[c], truth[c], 0.015 * truth[c] + 1e-3) << "patch " << patch + 1;
+    // The corrected albedo is the model's answer for the painted colour (what
+    // the chart calibration makes of it) to within noise ...
+    const Eigen::Vector3d target = model.ToXyz(chart_dn_per_signal * Eigen::Vector3d(truth[0], truth[1], truth[2]));
+    const double de_target = Ciede2000(XyzToLab(mean_xyz, model.white_xyz), XyzToLab(target, model.white_xyz));
+    EXPECT_LT(de_target, 0.5) << "patch " << patch + 1;
+    // ... and the patch's true colour to within the calibration's own error.
+    const double de_truth = Ciede2000(XyzToLab(mean_xyz, model.white_xyz),
+                                      XyzToLab(reference.xyz[static_cast<std::size_t>(patch)], reference.white_xyz));
+    EXPECT_LT(de_truth, 2.0) << "patch " << patch + 1;
+  }
+}
+
+TEST(ColourAlbedo, MissingNormalsAndDarkChannelsAreFlaggedNotGuessed) {
+  ps::PhotometricStack stack;
+  for (int k = 0; k < 3; ++k) {
+    stack.images.push_back(cv::Mat(2, 2, CV_32F, cv::Scalar(k == 0 ? 100.0 : 0.0)));
+    stack.light_directions.push_back(Eigen::Vector3d(k == 1 ? 0.6 : 0.0, k == 2 ? 0.6 : 0.0, k == 0 ? 1.0 : 0.8));
+  }
+  stack.light_scales.assign(3, 1.0);
+  cv::Mat normals(2, 2, CV_32FC3, cv::Vec3f(0, 0, 1));
+  normals.at<cv::Vec3f>(0, 0) = cv::Vec3f(NAN, NAN, NAN);
+  cv::Mat albedo;
+  ps::ChannelAlbedoOptions options;
+  options.min_samples = 2;
+  // Two of three samples are zero (shadowed): too few usable samples.
+  ps::SolverSummary summary = ps::SolveChannelAlbedo(options, stack, normals, &albedo);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  EXPECT_EQ(summary.pixels_solved, 0u);
+  EXPECT_EQ(summary.pixels_too_few_lights, 3u);
+  EXPECT_TRUE(std::isnan(albedo.at<float>(0, 0)));
+  options.min_samples = 1;
+  summary = ps::SolveChannelAlbedo(options, stack, normals, &albedo);
+  EXPECT_EQ(summary.pixels_solved, 3u);
+  EXPECT_NEAR(albedo.at<float>(1, 1), M_PI * 100.0, 1e-3);  // b = rho / pi * 1
+  EXPECT_TRUE(std::isnan(albedo.at<float>(0, 0)));
+  // Wrong-sized normals are refused.
+  EXPECT_FALSE(ps::SolveChannelAlbedo(options, stack, cv::Mat(3, 3, CV_32FC3), &albedo).IsSolutionUsable());
+}
+
+}  // namespace
+}  // namespace photorig::color

@@ -1,0 +1,207 @@
+// The chart's fixed position in the rig YAML, the chart rendered where the rig
+// says, a Bayer raw demosaiced before measuring, and the one-command
+// calibration on the simulated dome.
+
+#include "../daemon/test_support.h"
+#include "photorig/color/apply.h"
+#include "photorig/color/calibration.h"
+#include "photorig/daemon/image_io.h"
+#include "photorig/daemon/rig_config.h"
+#include "sim_chart.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <regex>
+
+namespace photorig::color {
+namespace {
+
+using photorig::testing::TempDir;
+
+const std::string kSimDome = photorig::testing::SourceDir() + "/config/rigs/sim-dome.yaml";
+
+std::string SimDomeWithChart(const std::string& chart) {
+  const std::string text = photorig::testing::ReadText(kSimDome);
+  return std::regex_replace(text, std::regex("color_chart: \\{[^\n]*\\}"), "color_chart: " + chart);
+}
+
+// The ConfigError text of loading `chart` in place of the dome's color_chart.
+std::string ChartError(const std::string& chart, int* line) {
+  TempDir dir;
+  const std::string path = dir.Write("rig.yaml", SimDomeWithChart(chart));
+  try {
+    daemon::LoadRigConfig(path);
+  } catch (const daemon::ConfigError& e) {
+    *line = e.line();
+    return e.what();
+  }
+  return "";
+}
+
+std::array<cv::Point2f, 4> ToPoints(const daemon::ColorChartPlacement& chart) {
+  std::array<cv::Point2f, 4> corners;
+  for (std::size_t i = 0; i < 4; ++i)
+    corners[i] = cv::Point2f(static_cast<float>(chart.corners_px[i].x()), static_cast<float>(chart.corners_px[i].y()));
+  return corners;
+}
+
+TEST(RigChart, SimDomeNamesTheChartBox) {
+  const daemon::RigConfig rig = daemon::LoadRigConfig(kSimDome);
+  ASSERT_TRUE(rig.camera.color_chart);
+  const auto& c = rig.camera.color_chart->corners_px;
+  EXPECT_EQ(c[0], Eigen::Vector2d(24, 80));
+  EXPECT_EQ(c[2], Eigen::Vector2d(360, 304));
+}
+
+TEST(RigChart, CornersAreReadInOrder) {
+  TempDir dir;
+  const std::string path =
+      dir.Write("rig.yaml", SimDomeWithChart("{corners_px: [[30, 90], [350, 84], [356, 300], [26, 306]]}"));
+  const daemon::RigConfig rig = daemon::LoadRigConfig(path);
+  ASSERT_TRUE(rig.camera.color_chart);
+  EXPECT_EQ(rig.camera.color_chart->corners_px[1], Eigen::Vector2d(350, 84));
+  EXPECT_EQ(rig.camera.color_chart->corners_px[3], Eigen::Vector2d(26, 306));
+}
+
+TEST(RigChart, BadPositionsNameFileLineAndKey) {
+  const int chart_line = [] {
+    const std::string text = SimDomeWithChart("{box_px: [1, 2, 3, 4]}");
+    return static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(text.find("color_chart")), '\n')) + 1;
+  }();
+  int line = 0;
+  std::string error = ChartError("{box_px: [24, 80, 336]}", &line);
+  EXPECT_NE(error.find("rig.yaml:" + std::to_string(chart_line) + ":"), std::string::npos) << error;
+  EXPECT_NE(error.find("camera.color_chart.box_px"), std::string::npos) << error;
+  EXPECT_NE(error.find("expected [x, y, w, h]"), std::string::npos) << error;
+  EXPECT_EQ(line, chart_line);
+
+  error = ChartError("{box_px: [24, 80, 336, 0]}", &line);
+  EXPECT_NE(error.find("width and height must be > 0"), std::string::npos) << error;
+  error = ChartError("{box_px: [200, 80, 336, 224]}", &line);
+  EXPECT_NE(error.find("outside the 384 x 384 frame"), std::string::npos) << error;
+  EXPECT_EQ(line, chart_line);
+  error = ChartError("{box_px: [24, 80, 336, 224], corners_px: []}", &line);
+  EXPECT_NE(error.find("exactly one of"), std::string::npos) << error;
+  error = ChartError("{box: [24, 80, 336, 224]}", &line);
+  EXPECT_NE(error.find("box"), std::string::npos) << error;
+  // Counter-clockwise corners would put patch 1 in the wrong place.
+  error = ChartError("{corners_px: [[30, 90], [26, 306], [356, 300], [350, 84]]}", &line);
+  EXPECT_NE(error.find("clockwise"), std::string::npos) << error;
+  error = ChartError("{corners_px: [[30, 90], [350, 84], [356]]}", &line);
+  EXPECT_NE(error.find("camera.color_chart.corners_px"), std::string::npos) << error;
+  error = ChartError("{corners_px: [[30, 90], [350, 84], [356, x], [26, 306]]}", &line);
+  EXPECT_NE(error.find("corners_px[2]"), std::string::npos) << error;
+}
+
+TEST(RigChart, PositionOutsideTheImageIsRefusedByName) {
+  const cv::Mat image(200, 300, CV_16UC3, cv::Scalar::all(1000));
+  LocateOptions options;
+  options.use_detector = false;
+  options.fixed_corners = ParseChartCorners("100,20,240,160");
+  options.fixed_source = "rig.yaml camera.color_chart";
+  const LocateResult result = LocateChart(image, options);
+  EXPECT_FALSE(result.location);
+  EXPECT_NE(result.message.find("rig.yaml camera.color_chart has a corner at (340, 20), outside the 300 x 200 image"),
+            std::string::npos)
+      << result.message;
+}
+
+TEST(RigChart, ChartRenderedWhereTheRigSaysCalibratesFromThatPosition) {
+  const daemon::RigConfig rig = daemon::LoadRigConfig(kSimDome);
+  const sim::ChartGeometry geometry =
+      sim::ChartGeometry::PlacedIn(cv::Rect2d(24, 80, 336, 224), cv::Size(rig.camera.width, rig.camera.height));
+  const std::array<cv::Point2f, 4> truth = geometry.GridCorners();
+  const std::array<cv::Point2f, 4> from_rig = ToPoints(*rig.camera.color_chart);
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_LE(cv::norm(truth[i] - from_rig[i]), 1.0) << "corner " << i;
+
+  const sim::SensorModel& sensor = rig.sim->sensor;
+  const sim::ChartRender render = sim::RenderColorChart(testing::SimSpectra("nikon-5100", Illuminant::kD65), geometry,
+                                                        sensor, sim::ExposureForWhite(sensor, 0.8), 0.0, 11);
+  ASSERT_EQ(render.raw.size(), cv::Size(384, 384));
+  LocateOptions locate;
+  locate.use_detector = false;
+  locate.fixed_corners = from_rig;
+  const ChartCalibration result = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, locate,
+                                                      testing::SimMeasureOptions(render), CalibrationOptions{});
+  ASSERT_TRUE(result.summary.IsUsable()) << result.summary.message;
+  EXPECT_EQ(result.located.location->method, "fixed-roi");
+  EXPECT_LE(result.summary.models[static_cast<std::size_t>(result.summary.chosen)].held_out_mean, 0.8);
+
+  EXPECT_THROW(sim::ChartGeometry::PlacedIn(cv::Rect2d(24, 80, 336, 150), cv::Size(384, 384)), std::invalid_argument);
+  EXPECT_THROW(sim::ChartGeometry::PlacedIn(cv::Rect2d(60, 80, 336, 224), cv::Size(384, 384)), std::invalid_argument);
+}
+
+TEST(Bayer, PatchMeansAfterDemosaicMatchTheRgbRender) {
+  const sim::ChartGeometry geometry;
+  const sim::ChartRender render = testing::RenderChart("nikon-5100", Illuminant::kD65);
+  const ChartLocation location{geometry.GridCorners(), "fixed-roi"};
+  const MeasureOptions options = testing::SimMeasureOptions(render);
+  const auto rgb = MeasurePatches(render.raw, render.dark, location, options);
+  for (const std::string pattern : {"RGGB", "GBRG"}) {
+    const cv::Mat raw = Demosaic(sim::BayerMosaic(render.raw, pattern), pattern);
+    const cv::Mat dark = Demosaic(sim::BayerMosaic(render.dark, pattern), pattern);
+    ASSERT_EQ(raw.type(), CV_16UC3);
+    const auto demosaiced = MeasurePatches(raw, dark, location, options);
+    for (int p = 0; p < kChartPatches; ++p) {
+      const PatchMeasurement& a = demosaiced[static_cast<std::size_t>(p)];
+      const PatchMeasurement& b = rgb[static_cast<std::size_t>(p)];
+      ASSERT_EQ(a.flag, PatchFlag::kOk) << pattern << " patch " << p + 1;
+      for (int c = 0; c < 3; ++c) {
+        // A red or blue site is one pixel in four: its mean has twice the standard error of a full channel.
+        const double tolerance = 4.0 * 2.0 * b.stddev[c] / std::sqrt(b.pixels) + 1.0;
+        EXPECT_NEAR(a.rgb[c], b.rgb[c], tolerance) << pattern << " patch " << p + 1 << " channel " << c;
+      }
+    }
+  }
+  // A mosaic read as if its filters were the other way round swaps red and blue.
+  const cv::Mat swapped = Demosaic(sim::BayerMosaic(render.raw, "RGGB"), "BGGR");
+  const auto wrong = MeasurePatches(swapped, cv::Mat(), location, options);
+  EXPECT_NEAR(wrong[14].rgb.z(), rgb[14].rgb.x() + sim::SensorModel{}.black_level_dn, 0.1 * rgb[14].rgb.x());  // red patch
+  EXPECT_THROW(Demosaic(render.raw, "RGGB"), std::invalid_argument);
+  EXPECT_THROW(Demosaic(sim::BayerMosaic(render.raw, "RGGB"), "RGBG"), std::invalid_argument);
+  EXPECT_THROW(sim::BayerMosaic(render.raw, "XYZW"), std::invalid_argument);
+}
+
+TEST(CalibrateColorCommand, SimulatedDomeOneCommandUsesTheRigPosition) {
+  TempDir dir;
+  const auto out = dir.path() / "cal";
+  ASSERT_EQ(photorig::testing::RunPhotorig("calibrate color --sim-camera nikon-5100 --rig " + kSimDome +
+                                               " --no-detect --bayer RGGB --models linear,root-poly-2 --out " +
+                                               out.string(),
+                                           dir.path() / "log"),
+            0)
+      << photorig::testing::ReadText(dir.path() / "log");
+  const nlohmann::json report = nlohmann::json::parse(photorig::testing::ReadText(out / "report.json"));
+  EXPECT_EQ(report["chart_location_method"], "fixed-roi");
+  EXPECT_NE(report["chart_location"].get<std::string>().find("camera.color_chart"), std::string::npos);
+  EXPECT_EQ(report["bayer"], "RGGB");
+  EXPECT_TRUE(std::filesystem::exists(out / "model.yaml"));
+  EXPECT_EQ(daemon::ReadImage((out / "chart.png").string()).channels(), 1);
+
+  // The model applied to the same Bayer raw gives the white patch its reference luminance.
+  ASSERT_EQ(photorig::testing::RunPhotorig("apply-color --model " + (out / "model.yaml").string() + " --in " +
+                                               (out / "chart.png").string() + " --dark " + (out / "dark.png").string() +
+                                               " --bayer RGGB --out " + (dir.path() / "applied").string(),
+                                           dir.path() / "log3"),
+            0)
+      << photorig::testing::ReadText(dir.path() / "log3");
+  const cv::Mat xyz = daemon::ReadFloatTiff((dir.path() / "applied" / "chart_xyz.tiff").string());
+  const cv::Point2f white = ChartLocation{ToPoints(*daemon::LoadRigConfig(kSimDome).camera.color_chart), ""}.PatchCentre(kWhitePatch);
+  const ChartReference reference = ColorCheckerReference(Illuminant::kD65, ReferenceGrid());
+  EXPECT_NEAR(xyz.at<cv::Vec3f>(cv::Point(white))[1], reference.xyz[kWhitePatch].y(), 0.03);
+
+  // The flag overrides the rig: a box outside the frame is refused, naming the flag.
+  EXPECT_EQ(photorig::testing::RunPhotorig("calibrate color --image " + (out / "chart.png").string() +
+                                               " --bayer RGGB --no-detect --rig " + kSimDome +
+                                               " --chart-roi 100,100,400,200 --out " + (dir.path() / "x").string(),
+                                           dir.path() / "log2"),
+            3);
+  EXPECT_NE(photorig::testing::ReadText(dir.path() / "log2").find("--chart-roi 100,100,400,200 has a corner"),
+            std::string::npos)
+      << photorig::testing::ReadText(dir.path() / "log2");
+}
+
+}  // namespace
+}  // namespace photorig::color
