@@ -1,7 +1,11 @@
 #include "photorig/lighting/mirror_sphere.h"
 #include "synthetic_sphere.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
 
 namespace photorig::lighting {
 namespace {
@@ -177,6 +181,97 @@ TEST(MirrorSphere, TwoSpheresTriangulateANearLight) {
   const Eigen::Vector3d offset((options.width - 1) / 2.0 * camera.pixel_pitch_mm,
                                -(options.height - 1) / 2.0 * camera.pixel_pitch_mm, 0.0);
   EXPECT_LT((near.position_mm - (light.position_mm + offset)).norm(), 3.0);
+}
+
+}  // namespace
+}  // namespace photorig::lighting
+
+namespace photorig::lighting {
+namespace {
+
+// Mirror-sphere frames of the dome, the true directions, and nominal ones
+// tilted by about `nominal_error_deg` as a dome's drawing is off its build.
+struct HighlightScene {
+  SphereScene scene;
+  std::vector<cv::Mat> frames;
+  std::vector<Eigen::Vector3d> truth, nominal;
+  Circle true_circle;
+};
+
+HighlightScene RenderDomeFrames(double nominal_error_deg) {
+  HighlightScene h;
+  h.scene = Orthographic(110.0);
+  const Eigen::Vector2d centre = testing::OrthographicPixel(h.scene.camera, h.scene.options, h.scene.sphere.centre_mm.x(),
+                                                            h.scene.sphere.centre_mm.y());
+  h.true_circle = {centre.x(), centre.y(), 110.0};
+  std::mt19937 rng(11);
+  std::normal_distribution<double> tilt(0.0, nominal_error_deg * M_PI / 180.0 / std::sqrt(2.0));
+  for (const Eigen::Vector3d& direction : testing::DomeDirections()) {
+    SyntheticLight light;
+    light.direction = direction;
+    SyntheticImageOptions options = h.scene.options;
+    options.seed = static_cast<unsigned>(h.frames.size() + 3);
+    h.frames.push_back(testing::RenderMirrorSphere(h.scene.camera, h.scene.sphere, {light}, options));
+    h.truth.push_back(direction);
+    const Eigen::Vector3d u = direction.unitOrthogonal(), v = direction.cross(u);
+    h.nominal.push_back((direction + tilt(rng) * u + tilt(rng) * v).normalized());
+  }
+  return h;
+}
+
+// Rendered once for all the tests below (48 supersampled frames).
+const HighlightScene& DomeFrames() {
+  static const HighlightScene scene = RenderDomeFrames(1.5);
+  return scene;
+}
+
+TEST(HighlightCircle, PlacesTheSphereFromItsHighlightsWellEnoughForHalfADegree) {
+  const HighlightScene& h = DomeFrames();
+  const HighlightCircleSummary fit = LocateSphereFromHighlights(h.frames, h.nominal);
+  ASSERT_TRUE(fit.success) << fit.message;
+  EXPECT_NEAR(fit.circle.cx_px, h.true_circle.cx_px, 1.0);
+  EXPECT_NEAR(fit.circle.cy_px, h.true_circle.cy_px, 1.0);
+  EXPECT_NEAR(fit.circle.radius_px, h.true_circle.radius_px, 1.5);
+  EXPECT_GT(fit.rms_residual_px, 0.5);  // the nominal directions' errors show in the residual
+  const SphereGeometry sphere = LocateSphere(CameraModel{}, fit.circle);
+  double nominal_sum = 0.0, calibrated_sum = 0.0;
+  for (std::size_t k = 0; k < h.frames.size(); ++k) {
+    const LightDirectionEstimate e = EstimateLightDirection(h.frames[k], sphere);
+    ASSERT_TRUE(e.usable) << k << ": " << e.note;
+    calibrated_sum += AngleDeg(e.direction, h.truth[k]);
+    nominal_sum += AngleDeg(h.nominal[k], h.truth[k]);
+  }
+  EXPECT_GT(nominal_sum / h.frames.size(), 1.0);
+  EXPECT_LT(calibrated_sum / h.frames.size(), 0.5);
+}
+
+TEST(HighlightCircle, AKnownRadiusLeavesOnlyTheCentre) {
+  const HighlightScene& h = DomeFrames();
+  HighlightCircleOptions options;
+  options.fixed_radius_px = 110.0;
+  const HighlightCircleSummary fit = LocateSphereFromHighlights(h.frames, h.nominal, options);
+  ASSERT_TRUE(fit.success) << fit.message;
+  EXPECT_EQ(fit.circle.radius_px, 110.0);
+  EXPECT_NEAR(fit.circle.cx_px, h.true_circle.cx_px, 1.0);
+  EXPECT_NEAR(fit.circle.cy_px, h.true_circle.cy_px, 1.0);
+}
+
+TEST(HighlightCircle, WrongDirectionsAndMissingHighlightsAreReportedNotFitted) {
+  const HighlightScene& h = DomeFrames();
+  // Directions listed in the wrong order: no single sphere explains the highlights.
+  std::vector<Eigen::Vector3d> shuffled(h.nominal.rbegin(), h.nominal.rend());
+  const HighlightCircleSummary wrong = LocateSphereFromHighlights(h.frames, shuffled);
+  EXPECT_FALSE(wrong.success);
+  EXPECT_NE(wrong.message.find("do not fit"), std::string::npos) << wrong.message;
+  // Dark frames have no highlight: they are listed, and too few left is an error.
+  std::vector<cv::Mat> dark(h.frames.size());
+  for (std::size_t k = 0; k < dark.size(); ++k)
+    dark[k] = k < 2 ? h.frames[k] : cv::Mat(h.frames[k].size(), h.frames[k].type(), cv::Scalar(20));
+  const HighlightCircleSummary missing = LocateSphereFromHighlights(dark, h.nominal);
+  EXPECT_FALSE(missing.success);
+  EXPECT_NE(missing.message.find("only 2 highlights"), std::string::npos) << missing.message;
+  EXPECT_EQ(missing.rejected.size(), dark.size() - 2);
+  EXPECT_FALSE(LocateSphereFromHighlights(h.frames, std::vector<Eigen::Vector3d>(3)).success);  // count mismatch
 }
 
 }  // namespace

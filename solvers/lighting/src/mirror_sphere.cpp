@@ -182,6 +182,105 @@ LightDirectionEstimate EstimateLightDirection(const cv::Mat& image, const Sphere
   return estimate;
 }
 
+bool HighlightCircleOptions::IsValid(std::string* why) const {
+  if (!highlight.IsValid(why)) return false;
+  if (!(fixed_radius_px >= 0.0) || !(outlier_px > 0.0) || min_highlights < 2) {
+    if (why) *why = "fixed_radius_px >= 0, outlier_px > 0, min_highlights >= 2";
+    return false;
+  }
+  return true;
+}
+
+HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& frames,
+                                                  const std::vector<Eigen::Vector3d>& nominal_directions,
+                                                  const HighlightCircleOptions& options) {
+  HighlightCircleSummary summary;
+  if (!options.IsValid(&summary.message)) return summary;
+  if (frames.size() != nominal_directions.size()) {
+    summary.message = std::to_string(frames.size()) + " frames for " + std::to_string(nominal_directions.size()) +
+                      " nominal light directions";
+    return summary;
+  }
+  struct Observation {
+    int frame;
+    Eigen::Vector2d highlight_px;
+    Eigen::Vector2d half_xy;  // (h_x, -h_y): the image offset per unit radius
+  };
+  std::vector<Observation> observations;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (frames[k].empty()) {
+      summary.rejected.push_back(static_cast<int>(k));
+      continue;
+    }
+    // The highlight search of EstimateLightDirection, bounded by a circle
+    // around the whole frame; only its highlight position is used here.
+    SphereGeometry whole_frame;
+    whole_frame.valid = true;
+    whole_frame.circle = {0.5 * (frames[k].cols - 1), 0.5 * (frames[k].rows - 1),
+                          0.5 * std::hypot(frames[k].cols, frames[k].rows) + 2.0};
+    const LightDirectionEstimate found = EstimateLightDirection(frames[k], whole_frame, options.highlight);
+    const Eigen::Vector3d half = (nominal_directions[k].normalized() + Eigen::Vector3d::UnitZ()).normalized();
+    if ((found.flags & (kLightMissing | kLightMultipleHighlights)) || !half.allFinite()) {
+      summary.rejected.push_back(static_cast<int>(k));
+      continue;
+    }
+    observations.push_back({static_cast<int>(k), found.highlight_px, Eigen::Vector2d(half.x(), -half.y())});
+  }
+
+  const bool fit_radius = options.fixed_radius_px == 0.0;
+  auto fit = [&](const std::vector<Observation>& used) {
+    const int unknowns = fit_radius ? 3 : 2;
+    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(2 * static_cast<Eigen::Index>(used.size()), unknowns);
+    Eigen::VectorXd b(2 * static_cast<Eigen::Index>(used.size()));
+    for (std::size_t i = 0; i < used.size(); ++i) {
+      for (int axis = 0; axis < 2; ++axis) {
+        const Eigen::Index row = 2 * static_cast<Eigen::Index>(i) + axis;
+        a(row, axis) = 1.0;
+        b(row) = used[i].highlight_px[axis];
+        if (fit_radius) a(row, 2) = used[i].half_xy[axis];
+        else b(row) -= options.fixed_radius_px * used[i].half_xy[axis];
+      }
+    }
+    const Eigen::VectorXd x = a.colPivHouseholderQr().solve(b);
+    return Circle{x(0), x(1), fit_radius ? x(2) : options.fixed_radius_px};
+  };
+  auto residual_px = [](const Circle& c, const Observation& o) {
+    return (o.highlight_px - Eigen::Vector2d(c.cx_px, c.cy_px) - c.radius_px * o.half_xy).norm();
+  };
+
+  if (static_cast<int>(observations.size()) < options.min_highlights) {
+    summary.message = "only " + std::to_string(observations.size()) + " highlights found (need " +
+                      std::to_string(options.min_highlights) + ")";
+    return summary;
+  }
+  Circle circle = fit(observations);
+  std::vector<Observation> kept;
+  for (const Observation& o : observations) {
+    if (residual_px(circle, o) <= options.outlier_px) kept.push_back(o);
+    else summary.rejected.push_back(o.frame);
+  }
+  if (static_cast<int>(kept.size()) < options.min_highlights) {
+    summary.message = "the highlights do not fit one sphere under the nominal light directions (" +
+                      std::to_string(kept.size()) + " of " + std::to_string(observations.size()) + " within " +
+                      std::to_string(options.outlier_px) + " px)";
+    return summary;
+  }
+  if (kept.size() != observations.size()) circle = fit(kept);
+  double sum_squares = 0.0;
+  for (const Observation& o : kept) sum_squares += std::pow(residual_px(circle, o), 2);
+  std::sort(summary.rejected.begin(), summary.rejected.end());
+  summary.circle = circle;
+  summary.highlights_used = static_cast<int>(kept.size());
+  summary.rms_residual_px = std::sqrt(sum_squares / static_cast<double>(kept.size()));
+  if (!(circle.radius_px > 0.0)) {
+    summary.message = "the fitted radius is not positive: the nominal directions do not match the highlights";
+    return summary;
+  }
+  summary.success = true;
+  summary.message = "sphere from " + std::to_string(kept.size()) + " highlights";
+  return summary;
+}
+
 NearLightEstimate TriangulateNearLight(const std::vector<Eigen::Vector3d>& origins_mm,
                                        const std::vector<Eigen::Vector3d>& directions) {
   NearLightEstimate result;

@@ -59,6 +59,38 @@ struct LightDirectionEstimate {
 LightDirectionEstimate EstimateLightDirection(const cv::Mat& image, const SphereGeometry& sphere,
                                               const HighlightOptions& options = {});
 
+// Where a mirror sphere sits when no silhouette image exists (under point
+// LEDs a chrome ball shows only its highlights). With an orthographic camera
+// each light's highlight lies at (cx + r h_x, cy - r h_y) for the half vector
+// h between the view and the light's nominal (design) direction: linear in
+// (cx, cy, r), so a least-squares fit over every highlight places the sphere.
+// Random errors of the nominal directions average out over many lights; a
+// systematic tilt of the whole dome shifts the centre, which the residual
+// cannot reveal, so a silhouette or a given circle is preferred when available.
+struct HighlightCircleOptions {
+  HighlightOptions highlight;       // per-frame highlight search (the whole frame is searched)
+  double fixed_radius_px = 0.0;     // > 0: the radius is known (sphere size / pixel pitch); fit the centre only
+  double outlier_px = 3.0;          // highlights further than this from the fit are dropped and the fit repeated
+  int min_highlights = 3;
+
+  bool IsValid(std::string* why) const;
+};
+
+struct HighlightCircleSummary {
+  bool success = false;
+  std::string message;
+  Circle circle;
+  double rms_residual_px = 0.0;     // of the kept highlights from their predicted positions
+  int highlights_used = 0;
+  std::vector<int> rejected;        // frame indices: no highlight, or an outlier of the fit
+};
+
+// `frames[k]` shows the sphere lit by the light whose nominal direction is
+// `nominal_directions[k]` (unit, camera frame, towards the light). Orthographic only.
+HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& frames,
+                                                  const std::vector<Eigen::Vector3d>& nominal_directions,
+                                                  const HighlightCircleOptions& options = {});
+
 // A near light from the reflection rays of two or more spheres (or views):
 // the least-squares point closest to every ray. Origins in millimetres.
 struct NearLightEstimate {
