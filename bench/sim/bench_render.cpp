@@ -45,6 +45,19 @@ BENCHMARK(BM_ShadowedHeightfield)
     ->Arg(int(Brdf::Model::kGgx))
     ->Unit(benchmark::kMillisecond);
 
+// One bounce of inter-reflection over the same 1 MP heightfield, per sample
+// count: the cost is linear in the samples and the march length.
+void BM_OneBounce(benchmark::State& state) {
+  const SurfaceMaps maps = SampleSurface(Bumps(Brdf::Model::kLambertian), kSide, kSide, 0.05);
+  const auto brdf = MakeBrdf(Brdf::Model::kLambertian);
+  const cv::Mat direct = RenderRadiance(maps, true, {{Eigen::Vector3d(0.8, 0.3, 0.5).normalized(), 1.0}}, {1.0});
+  const int samples = static_cast<int>(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(RenderOneBounce(maps, *brdf, direct, samples, 1).data);
+  state.counters["rays_per_s"] = benchmark::Counter(static_cast<double>(kSide) * kSide * samples,
+                                                    benchmark::Counter::kIsIterationInvariantRate);
+}
+BENCHMARK(BM_OneBounce)->Arg(4)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 void BM_ShadowSweep(benchmark::State& state) {
   const SurfaceMaps maps = SampleSurface(Bumps(Brdf::Model::kLambertian), kSide, kSide, 0.05);
   for (auto _ : state)

@@ -42,6 +42,11 @@ Status SimLightDome::DoClose() { return Status::Ok(); }
 SimCamera::SimCamera(std::string id, std::shared_ptr<World> world)
     : Camera(std::move(id)), world_(std::move(world)) {}
 
+SimCamera::~SimCamera() {
+  world_->DisconnectTriggerInput();
+  (void)Close();
+}
+
 Status SimCamera::DoOpen() {
   next_frame_id_ = 0;
   link_lost_ = false;
@@ -70,17 +75,26 @@ Result<std::vector<drivers::SettingAdjustment>> SimCamera::DoConfigure(drivers::
   const double gain = std::clamp(settings->gain_db, 0.0, kMaxGainDb);
   adjust("gain_db", settings->gain_db, gain, "clamped to [0, 24] dB");
   settings->gain_db = gain;
-  if (settings->trigger == drivers::TriggerMode::kHardware)
-    return Status{StatusCode::kInvalidArgument, "camera " + id() + ": the simulated camera has no trigger input line"};
+  if (settings->trigger == drivers::TriggerMode::kHardware && settings->trigger_line != "Line1")
+    return Status{StatusCode::kInvalidArgument,
+                  "camera " + id() + ": the simulated camera's trigger input is Line1, not '" + settings->trigger_line + "'"};
   return adjustments;
 }
 
 Status SimCamera::DoStart() {
-  ready_.clear();
+  {
+    std::lock_guard lock(frames_mutex_);
+    ready_.clear();
+  }
+  if (settings().trigger == drivers::TriggerMode::kHardware)
+    world_->ConnectTriggerInput([this] { (void)Capture(); });
   return Status::Ok();
 }
 
-Status SimCamera::DoTrigger() {
+Status SimCamera::DoTrigger() { return Capture(); }
+
+Status SimCamera::Capture() {
+  std::lock_guard lock(frames_mutex_);
   if (link_lost_) return {StatusCode::kUnavailable, "camera " + id() + ": control link lost"};
   const CameraFaults& faults = world_->config().camera_faults;
   const std::uint64_t trigger = triggers_++;
@@ -117,6 +131,7 @@ Status SimCamera::DoTrigger() {
 }
 
 Result<drivers::Frame> SimCamera::DoWaitFrame(int timeout_ms) {
+  std::lock_guard lock(frames_mutex_);
   if (link_lost_) return Status{StatusCode::kUnavailable, "camera " + id() + ": control link lost"};
   if (ready_.empty())
     return Status{StatusCode::kTimeout,
@@ -130,10 +145,34 @@ Result<drivers::Frame> SimCamera::DoWaitFrame(int timeout_ms) {
 }
 
 Status SimCamera::DoStop() {
+  world_->DisconnectTriggerInput();
+  std::lock_guard lock(frames_mutex_);
   ready_.clear();
   return Status::Ok();
 }
 
 Status SimCamera::DoClose() { return Status::Ok(); }
+
+SimTriggerLine::SimTriggerLine(std::string id, std::shared_ptr<World> world)
+    : id_(std::move(id)), world_(std::move(world)) {}
+
+Status SimTriggerLine::Open() {
+  if (open_) return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": already open"};
+  open_ = true;
+  return Status::Ok();
+}
+
+Status SimTriggerLine::Fire(std::chrono::microseconds width) {
+  if (!open_) return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": fired while closed"};
+  if (width.count() <= 0) return {StatusCode::kInvalidArgument, "trigger " + id_ + ": pulse width must be > 0"};
+  if (!world_->PulseTriggerInput())
+    return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": no camera armed for a hardware trigger on the wire"};
+  return Status::Ok();
+}
+
+Status SimTriggerLine::Close() {
+  open_ = false;
+  return Status::Ok();
+}
 
 }  // namespace photorig::sim

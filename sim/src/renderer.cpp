@@ -1,5 +1,7 @@
 #include "photorig/sim/renderer.h"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -177,6 +179,132 @@ cv::Mat RenderRadiance(const SurfaceMaps& surface, const Brdf& brdf, bool cast_s
 cv::Mat RenderRadiance(const SurfaceMaps& surface, bool cast_shadows, const std::vector<Light>& lights,
                        const std::vector<double>& levels) {
   return RenderRadiance(surface, *MakeBrdf(Brdf::Model::kLambertian), cast_shadows, lights, levels);
+}
+
+namespace {
+
+std::uint64_t SplitMix64(std::uint64_t* state) {
+  std::uint64_t z = (*state += 0x9e3779b97f4a7c15ULL);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+double Uniform(std::uint64_t* state) { return (SplitMix64(state) >> 11) * 0x1.0p-53; }
+
+// Bilinear height at continuous pixel-centre coordinates (col, row), so that
+// a plane is exactly a plane to the march; NaN where any of the four samples
+// is off the surface (a step there would make edges cast false hits).
+float HeightAt(const cv::Mat& height, double col, double row) {
+  const int c0 = static_cast<int>(std::floor(col)), r0 = static_cast<int>(std::floor(row));
+  if (c0 < 0 || r0 < 0 || c0 + 1 >= height.cols || r0 + 1 >= height.rows) return std::numeric_limits<float>::quiet_NaN();
+  const double tc = col - c0, tr = row - r0;
+  const float* upper = height.ptr<float>(r0) + c0;
+  const float* lower = height.ptr<float>(r0 + 1) + c0;
+  return static_cast<float>((1 - tr) * ((1 - tc) * upper[0] + tc * upper[1]) + tr * ((1 - tc) * lower[0] + tc * lower[1]));
+}
+
+// Highest surface point per block of kBlock x kBlock pixels (with a one-pixel
+// apron, as the bilinear lookup reads the next row and column): a ray above a
+// block's maximum crosses the whole block in one jump.
+constexpr int kBlock = 16;
+
+cv::Mat BlockMaxima(const cv::Mat& height) {
+  const int block_rows = (height.rows + kBlock - 1) / kBlock, block_cols = (height.cols + kBlock - 1) / kBlock;
+  cv::Mat maxima(block_rows, block_cols, CV_32F, cv::Scalar(-std::numeric_limits<float>::infinity()));
+  for (int r = 0; r < height.rows; ++r)
+    for (int c = 0; c < height.cols; ++c) {
+      const float h = height.at<float>(r, c);
+      if (!std::isfinite(h)) continue;
+      // Every block whose lookups may read this sample.
+      for (int br = std::max(0, (r - 1) / kBlock); br <= r / kBlock; ++br)
+        for (int bc = std::max(0, (c - 1) / kBlock); bc <= c / kBlock; ++bc)
+          maxima.at<float>(br, bc) = std::max(maxima.at<float>(br, bc), h);
+    }
+  return maxima;
+}
+
+// Steps of (dc, dr) from (col, row) until the point leaves the block it is in.
+int StepsToLeaveBlock(double col, double row, double dc, double dr) {
+  auto axis_steps = [](double x, double dx) {
+    if (std::abs(dx) < 1e-12) return std::numeric_limits<double>::infinity();
+    const double start = std::floor(x / kBlock) * kBlock;
+    return dx > 0 ? (start + kBlock - x) / dx : (x - start) / -dx;
+  };
+  return static_cast<int>(std::min(axis_steps(col, dc), axis_steps(row, dr))) + 1;
+}
+
+}  // namespace
+
+cv::Mat RenderOneBounce(const SurfaceMaps& surface, const Brdf& brdf, const cv::Mat& direct, int samples,
+                        std::uint64_t seed) {
+  cv::Mat bounce = cv::Mat::zeros(direct.size(), CV_32F);
+  if (samples <= 0 || brdf.IsDelta() || !surface.height_on_pixel_grid) return bounce;
+  const cv::Mat& height = surface.height;
+  double max_height = 0.0;
+  cv::minMaxLoc(height, nullptr, &max_height, nullptr, nullptr, surface.mask);
+  const int rows = height.rows, cols = height.cols;
+  const double pitch = surface.pixel_pitch_mm;
+  const cv::Mat block_max = BlockMaxima(height);
+  // Stratified over a grid of strata x strata cells of the unit square.
+  const int strata = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
+  const int count = strata * strata;
+#pragma omp parallel for schedule(dynamic, 4)
+  for (int r = 0; r < rows; ++r) {
+    const auto* normal = surface.normals.ptr<cv::Vec3f>(r);
+    const auto* view = surface.view.ptr<cv::Vec3f>(r);
+    const auto* params = surface.brdf_params.ptr<cv::Vec4f>(r);
+    const std::uint8_t* mask = surface.mask.ptr<std::uint8_t>(r);
+    float* out = bounce.ptr<float>(r);
+    for (int c = 0; c < cols; ++c) {
+      const float h0 = height.at<float>(r, c);
+      if (!mask[c] || !std::isfinite(h0)) continue;
+      const Vector3d n(normal[c][0], normal[c][1], normal[c][2]);
+      const Vector3d wo(view[c][0], view[c][1], view[c][2]);
+      const BrdfParams bp{params[c][0], params[c][1], params[c][2], params[c][3]};
+      const Vector3d t = n.unitOrthogonal(), b = n.cross(t);
+      std::uint64_t state = seed ^ (static_cast<std::uint64_t>(r) * cols + c) * 0x2545f4914f6cdd1dULL;
+      double sum = 0.0;
+      for (int k = 0; k < count; ++k) {
+        // Cosine-weighted: a uniform point on the disc lifted to the hemisphere.
+        const double u1 = (k / strata + Uniform(&state)) / strata, u2 = (k % strata + Uniform(&state)) / strata;
+        const double radius = std::sqrt(u1), phi = 2.0 * M_PI * u2;
+        const Vector3d wi =
+            radius * std::cos(phi) * t + radius * std::sin(phi) * b + std::sqrt(std::max(0.0, 1.0 - u1)) * n;
+        const double horizontal = std::hypot(wi.x(), wi.y());
+        if (horizontal < 1e-9) continue;  // straight up leaves a heightfield
+        // Half-pixel steps; the ray's height changes by `rise` per step.
+        const double dc = 0.5 * wi.x() / horizontal, dr = -0.5 * wi.y() / horizontal;
+        const double rise = 0.5 * pitch * wi.z() / horizontal;
+        double ray = h0;
+        for (int s = 1;; ++s) {
+          ray += rise;
+          if (rise >= 0.0 && ray > max_height) break;
+          const double col = c + s * dc, row = r + s * dr;
+          if (col < -0.5 || row < -0.5 || col > cols - 0.5 || row > rows - 0.5) break;
+          if (col >= 0.0 && row >= 0.0) {
+            // Above everything in this block all the way to its exit: jump there.
+            const int jump = StepsToLeaveBlock(col, row, dc, dr) - 1;
+            const float top = block_max.at<float>(static_cast<int>(row) / kBlock, static_cast<int>(col) / kBlock);
+            if (jump > 0 && std::min(ray, ray + jump * rise) > top) {
+              s += jump - 1;
+              ray += (jump - 1) * rise;
+              continue;
+            }
+          }
+          const float h = HeightAt(height, col, row);
+          if (!std::isfinite(h) || h <= ray) continue;
+          const int qc = static_cast<int>(std::lround(col)), qr = static_cast<int>(std::lround(row));
+          if (qc == c && qr == r) continue;  // still on the starting pixel
+          if (qc >= 0 && qr >= 0 && qc < cols && qr < rows)
+            sum += brdf.Eval(n, wi, wo, bp) * direct.at<float>(qr, qc);
+          break;
+        }
+      }
+      out[c] = static_cast<float>(M_PI * sum / count);
+    }
+  }
+  return bounce;
 }
 
 cv::Mat RenderTransmission(const cv::Mat& line_integrals, double backlight_radiance) {

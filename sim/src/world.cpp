@@ -11,6 +11,7 @@ const WorldConfig& Validated(const WorldConfig& config) {
   if (!config.scene.IsValid(&why)) throw std::invalid_argument("simulated scene: " + why);
   if (config.scene.shape == Scene::Shape::kMesh && config.camera.projection != CameraModel::Projection::kOrthographic)
     throw std::invalid_argument("simulated scene: meshes are rasterised orthographically only");
+  if (config.gonioreflectometer) CheckGonioScene(config.scene);
   return config;
 }
 
@@ -34,11 +35,46 @@ std::vector<double> World::levels() const {
   return levels_;
 }
 
+void World::SetArm(const std::string& axis, double position_deg) {
+  std::lock_guard lock(mutex_);
+  if (axis == "light_arm") arms_.light_arm_deg = position_deg;
+  else if (axis == "camera_arm") arms_.camera_arm_deg = position_deg;
+  else if (axis == "sample_rotation") arms_.sample_rotation_deg = position_deg;
+  else throw std::invalid_argument("simulated gonioreflectometer has no axis '" + axis + "'");
+}
+
+ArmAngles World::arms() const {
+  std::lock_guard lock(mutex_);
+  return arms_;
+}
+
+void World::ConnectTriggerInput(std::function<void()> on_pulse) {
+  std::lock_guard lock(trigger_mutex_);
+  trigger_input_ = std::move(on_pulse);
+}
+
+void World::DisconnectTriggerInput() {
+  std::lock_guard lock(trigger_mutex_);
+  trigger_input_ = nullptr;
+}
+
+bool World::PulseTriggerInput() {
+  std::lock_guard lock(trigger_mutex_);
+  if (!trigger_input_) return false;
+  trigger_input_();
+  return true;
+}
+
 cv::Mat World::RenderRadiance() const {
+  if (config_.gonioreflectometer)
+    return RenderGonioRadiance(config_.scene, *brdf_, config_.camera, config_.lights, levels(), arms());
   // The backlight belongs to the scene, not to the dome: it is always on.
   if (config_.scene.shape == Scene::Shape::kVolume)
     return RenderTransmission(surface_.line_integrals, config_.scene.backlight_radiance);
-  return sim::RenderRadiance(surface_, *brdf_, cast_shadows_, config_.lights, levels());
+  cv::Mat radiance = sim::RenderRadiance(surface_, *brdf_, cast_shadows_, config_.lights, levels());
+  if (config_.scene.interreflection_samples > 0)
+    radiance += RenderOneBounce(surface_, *brdf_, radiance, config_.scene.interreflection_samples, config_.seed);
+  return radiance;
 }
 
 }  // namespace photorig::sim

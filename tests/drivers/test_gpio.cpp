@@ -82,10 +82,10 @@ TEST(GpioLights, MissingOrBusyLineFailsOpenNamingIt) {
 TEST(GpioTrigger, PulseHasTheRequestedWidthAndEndsDeasserted) {
   auto chips = Chips();
   GpioTriggerLine trigger("cam-trigger", {"gpiochip1", 7, true}, chips->MakeBackend());
-  EXPECT_EQ(trigger.Pulse(std::chrono::microseconds(100)).code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(trigger.Fire(std::chrono::microseconds(100)).code(), StatusCode::kFailedPrecondition);
   ASSERT_TRUE(trigger.Open().ok());
   EXPECT_EQ(chips->physical("gpiochip1", 7), 1);  // active-low, idle high
-  ASSERT_TRUE(trigger.Pulse(std::chrono::microseconds(3000)).ok());
+  ASSERT_TRUE(trigger.Fire(std::chrono::microseconds(3000)).ok());
   const auto changes = chips->changes();
   ASSERT_GE(changes.size(), 3u);
   const auto& assert_edge = changes[changes.size() - 2];
@@ -95,7 +95,7 @@ TEST(GpioTrigger, PulseHasTheRequestedWidthAndEndsDeasserted) {
   const auto width_us =
       std::chrono::duration_cast<std::chrono::microseconds>(release_edge.when - assert_edge.when).count();
   EXPECT_GE(width_us, 3000);
-  EXPECT_EQ(trigger.Pulse(std::chrono::microseconds(0)).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(trigger.Fire(std::chrono::microseconds(0)).code(), StatusCode::kInvalidArgument);
   ASSERT_TRUE(trigger.Close().ok());
   EXPECT_FALSE(chips->requested("gpiochip1", 7));
   EXPECT_EQ(chips->physical("gpiochip1", 7), 1);

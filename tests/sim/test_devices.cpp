@@ -76,6 +76,37 @@ TEST(SimCamera, FramesShowTheLightsTheDomeSet) {
   EXPECT_GT(lit.pixels[centre], dark.pixels[centre] + 100);
 }
 
+TEST(SimCamera, HardwareTriggerTakesAFramePerPulseOnlyWhileArmed) {
+  auto world = SmallWorld();
+  SimLightDome dome("dome", world);
+  SimCamera camera("cam", world);
+  SimTriggerLine trigger("wire", world);
+  ASSERT_TRUE(dome.Open().ok());
+  ASSERT_TRUE(camera.Open().ok());
+  drivers::CameraSettings settings = Settings();
+  settings.trigger = drivers::TriggerMode::kHardware;
+  settings.trigger_line = "Line3";
+  EXPECT_EQ(camera.Configure(settings).status().code(), StatusCode::kInvalidArgument);  // no such input
+  settings.trigger_line = "Line1";
+  ASSERT_TRUE(camera.Configure(settings).ok());
+  EXPECT_EQ(trigger.Fire(std::chrono::microseconds(50)).code(), StatusCode::kFailedPrecondition);  // closed
+  ASSERT_TRUE(trigger.Open().ok());
+  // Not streaming yet: the camera is not armed, so the pulse is lost and said so.
+  EXPECT_EQ(trigger.Fire(std::chrono::microseconds(50)).code(), StatusCode::kFailedPrecondition);
+  ASSERT_TRUE(camera.Start().ok());
+  EXPECT_EQ(camera.Trigger().code(), StatusCode::kFailedPrecondition);  // software triggers are ignored
+  EXPECT_EQ(camera.WaitFrame(10).status().code(), StatusCode::kTimeout);
+  ASSERT_TRUE(dome.SetPattern(drivers::LightPattern::Single(2, 1, 1.0)).ok());
+  ASSERT_TRUE(trigger.Fire(std::chrono::microseconds(50)).ok());
+  ASSERT_TRUE(trigger.Fire(std::chrono::microseconds(50)).ok());
+  auto first = camera.WaitFrame(10), second = camera.WaitFrame(10);
+  ASSERT_TRUE(first.ok() && second.ok());
+  EXPECT_EQ(second.value().frame_id, first.value().frame_id + 1);
+  EXPECT_EQ(camera.WaitFrame(10).status().code(), StatusCode::kTimeout);  // one frame per pulse
+  ASSERT_TRUE(camera.Stop().ok());
+  EXPECT_EQ(trigger.Fire(std::chrono::microseconds(50)).code(), StatusCode::kFailedPrecondition);  // disarmed
+}
+
 TEST(SimLightDome, RejectsBadPatternsAndEndsDark) {
   auto world = SmallWorld();
   SimLightDome dome("dome", world);

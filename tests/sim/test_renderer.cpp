@@ -87,3 +87,71 @@ TEST(CastShadowMask, ShadowFallsOnTheFarSideOfABump) {
 
 }  // namespace
 }  // namespace photorig::sim
+
+namespace photorig::sim {
+namespace {
+
+// Inside a sphere every surface point sees any region of the sphere with the
+// same cosine-weighted view factor, area / (4 pi R^2). A bowl cut from a
+// sphere of radius R with depth d therefore sees its own wall with factor
+// d / (2 R) from every point: under a uniform radiance L on the surface, one
+// bounce brings rho L d / (2 R) everywhere inside, and nothing to the flat
+// surround, which no ray leaves the plane to meet.
+TEST(OneBounce, InsideABowlEveryPointSeesTheSameShareOfWall) {
+  Scene scene;
+  scene.shape = Scene::Shape::kConcave;
+  scene.bowl_radius_mm = 15.0;
+  scene.rim_radius_mm = 12.0;
+  scene.albedo.pattern = AlbedoTexture::Pattern::kUniform;
+  scene.albedo.high = 0.5;
+  const double pitch_mm = 0.25;
+  const int size = 112;
+  const SurfaceMaps maps = SampleSurface(scene, size, size, pitch_mm);
+  const cv::Mat uniform(maps.mask.size(), CV_32F, cv::Scalar(1.0));
+  const cv::Mat bounce = RenderOneBounce(maps, *MakeBrdf(Brdf::Model::kLambertian), uniform, 144, 7);
+  const double depth_mm = 15.0 - std::sqrt(15.0 * 15.0 - 12.0 * 12.0);
+  const double expected = 0.5 * depth_mm / (2.0 * 15.0);
+  double inside_sum = 0.0, worst_outside = 0.0;
+  int inside = 0;
+  for (int r = 0; r < size; ++r)
+    for (int c = 0; c < size; ++c) {
+      const double radius_mm = std::hypot((c + 0.5 - 0.5 * size) * pitch_mm, (0.5 * size - r - 0.5) * pitch_mm);
+      const double value = bounce.at<float>(r, c);
+      if (radius_mm < 0.8 * 12.0) {
+        inside_sum += value;
+        ++inside;
+        EXPECT_NEAR(value, expected, 0.25 * expected) << r << "," << c;  // 144 samples per pixel
+      } else if (radius_mm > 12.5) {
+        worst_outside = std::max(worst_outside, std::abs(value));
+      }
+    }
+  EXPECT_NEAR(inside_sum / inside, expected, 0.02 * expected);
+  EXPECT_EQ(worst_outside, 0.0);
+}
+
+TEST(OneBounce, ConvexSurfacesReceiveNothingAndResultsAreDeterministic) {
+  Scene plane;
+  plane.shape = Scene::Shape::kSamplePlane;
+  plane.sphere_radius_mm = 6.0;
+  plane.tilt_deg = 25.0;
+  const SurfaceMaps flat = SampleSurface(plane, 96, 96, 0.15);
+  const cv::Mat uniform(flat.mask.size(), CV_32F, cv::Scalar(1.0));
+  const auto lambertian = MakeBrdf(Brdf::Model::kLambertian);
+  EXPECT_EQ(cv::countNonZero(RenderOneBounce(flat, *lambertian, uniform, 64, 1)), 0);
+
+  Scene bowl;
+  bowl.shape = Scene::Shape::kConcave;
+  bowl.bowl_radius_mm = 8.0;
+  bowl.rim_radius_mm = 6.0;
+  const SurfaceMaps maps = SampleSurface(bowl, 96, 96, 0.15);
+  const cv::Mat direct = RenderRadiance(maps, true, {{Eigen::Vector3d(0.5, 0.2, 0.84).normalized(), 1.0}}, {1.0});
+  const cv::Mat a = RenderOneBounce(maps, *lambertian, direct, 16, 3), b = RenderOneBounce(maps, *lambertian, direct, 16, 3);
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::countNonZero(a), 0);
+  EXPECT_GT(cv::norm(a, RenderOneBounce(maps, *lambertian, direct, 16, 4), cv::NORM_INF), 0.0);  // the seed matters
+  // The mirror's delta lobe is not sampled by a diffuse bounce: nothing is added.
+  EXPECT_EQ(cv::countNonZero(RenderOneBounce(maps, *MakeBrdf(Brdf::Model::kMirror), direct, 16, 3)), 0);
+}
+
+}  // namespace
+}  // namespace photorig::sim

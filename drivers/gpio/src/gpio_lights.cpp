@@ -66,7 +66,7 @@ Status GpioTriggerLine::Open() {
   return Status::Ok();
 }
 
-Status GpioTriggerLine::Pulse(std::chrono::microseconds width) {
+Status GpioTriggerLine::Fire(std::chrono::microseconds width) {
   if (!open_) return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": pulse while closed"};
   if (width.count() <= 0) return {StatusCode::kInvalidArgument, "trigger " + id_ + ": pulse width must be > 0"};
   Status status = backend_->Set(Physical({line_}, {1}));

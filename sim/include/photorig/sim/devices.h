@@ -3,10 +3,12 @@
 
 #include "photorig/drivers/camera.h"
 #include "photorig/drivers/light_controller.h"
+#include "photorig/drivers/trigger_output.h"
 #include "photorig/sim/world.h"
 
 #include <deque>
 #include <memory>
+#include <mutex>
 #include <set>
 
 namespace photorig::sim {
@@ -27,10 +29,13 @@ class SimLightDome : public drivers::LightController {
   std::uint64_t commands_ = 0;
 };
 
-// Renders a frame from the world's current state on every trigger.
+// Renders a frame from the world's current state on every trigger: a
+// software trigger, or with TriggerMode::kHardware a pulse on the world's
+// trigger wire (SimTriggerLine) while streaming.
 class SimCamera : public drivers::Camera {
  public:
   SimCamera(std::string id, std::shared_ptr<World> world);
+  ~SimCamera() override;
 
  protected:
   Status DoOpen() override;
@@ -42,12 +47,33 @@ class SimCamera : public drivers::Camera {
   Status DoClose() override;
 
  private:
+  Status Capture();
+
   std::shared_ptr<World> world_;
+  std::mutex frames_mutex_;  // a hardware pulse arrives on the trigger output's thread
   std::deque<drivers::Frame> ready_;
   std::uint64_t next_frame_id_ = 0;  // device counter: a dropped frame leaves a gap
   std::uint64_t triggers_ = 0;       // lifetime count, indexes CameraFaults
   bool link_lost_ = false;
   std::set<std::uint64_t> corrupt_ids_;
+};
+
+// The simulated rig's trigger output: each Fire pulses the world's trigger
+// wire, so an armed SimCamera takes a frame. A pulse no camera hears is
+// reported as an error here, where a real output could not know.
+class SimTriggerLine : public drivers::TriggerOutput {
+ public:
+  SimTriggerLine(std::string id, std::shared_ptr<World> world);
+  const std::string& id() const override { return id_; }
+  Status Open() override;
+  Status Fire(std::chrono::microseconds width) override;
+  Status Close() override;
+  bool is_open() const override { return open_; }
+
+ private:
+  std::string id_;
+  std::shared_ptr<World> world_;
+  bool open_ = false;
 };
 
 }  // namespace photorig::sim

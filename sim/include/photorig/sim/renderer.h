@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <optional>
 #include <vector>
 
@@ -60,6 +61,19 @@ cv::Mat CastShadowMask(const SurfaceMaps& surface, const Eigen::Vector3d& direct
 // Any light: the sweep for a distant one, a march from each pixel towards the
 // LED for a near one (its direction changes across the frame).
 cv::Mat CastShadowMask(const SurfaceMaps& surface, const Light& light);
+
+// One bounce of inter-reflection on a heightfield seen orthographically: the
+// radiance each pixel receives from the rest of the surface, reflected towards
+// the camera. Per pixel, `samples` cosine-weighted directions (stratified,
+// seeded per pixel, so the result is deterministic whatever the thread count)
+// are marched over the bilinear heightfield; a hit at q brings the radiance q
+// sends to the camera, `direct(q)`, which is the radiance it sends towards p
+// when q is diffuse (for glossy surfaces this is the approximation). The
+// estimator is pi * f_r(n, w_i, w_o) * L(q) averaged over the samples. Zero on
+// convex surfaces, where no ray meets the surface again; delta BRDFs (mirror)
+// are left out. Cost: samples x march length per pixel.
+cv::Mat RenderOneBounce(const SurfaceMaps& surface, const Brdf& brdf, const cv::Mat& direct, int samples,
+                        std::uint64_t seed);
 
 // Transmission through an absorbing medium: L = L_backlight * exp(-tau).
 cv::Mat RenderTransmission(const cv::Mat& line_integrals, double backlight_radiance);

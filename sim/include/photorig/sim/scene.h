@@ -79,6 +79,9 @@ struct Scene {
   AlbedoTexture albedo;
   Material material;
   bool cast_shadows = true;       // heightfields and meshes; a sphere has attached shadows only
+  // > 0: add one bounce of inter-reflection with this many hemisphere samples
+  // per pixel (orthographic views of heightfields; see RenderOneBounce).
+  int interreflection_samples = 0;
 
   bool IsValid(std::string* why) const;
   bool IsHeightfield() const;     // cast shadows apply

@@ -5,11 +5,13 @@
 
 #include "photorig/sim/camera_model.h"
 #include "photorig/sim/faults.h"
+#include "photorig/sim/gonio.h"
 #include "photorig/sim/renderer.h"
 #include "photorig/sim/scene.h"
 #include "photorig/sim/sensor.h"
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -24,6 +26,9 @@ struct WorldConfig {
   std::uint64_t seed = 1;
   CameraFaults camera_faults;
   LightFaults light_faults;
+  // The camera and lamps ride gonioreflectometer arms: frames come from
+  // RenderGonioRadiance at the arms' current angles (sim/gonio.h).
+  bool gonioreflectometer = false;
 };
 
 class World {
@@ -37,8 +42,20 @@ class World {
 
   void SetLevels(std::vector<double> levels);
   std::vector<double> levels() const;
-  // Radiance under the current light levels.
+  // Gonioreflectometers: "light_arm", "camera_arm" or "sample_rotation"
+  // (std::invalid_argument otherwise), as the simulated axes report them.
+  void SetArm(const std::string& axis, double position_deg);
+  ArmAngles arms() const;
+  // Radiance under the current light levels (and arm angles).
   cv::Mat RenderRadiance() const;
+
+  // The wire from a trigger output to the camera's input line: an armed
+  // camera connects a handler; a pulse with nothing connected is lost, as on
+  // a real rig whose camera is not armed.
+  void ConnectTriggerInput(std::function<void()> on_pulse);
+  void DisconnectTriggerInput();
+  // Returns false when no camera was listening.
+  bool PulseTriggerInput();
 
  private:
   WorldConfig config_;
@@ -47,6 +64,9 @@ class World {
   bool cast_shadows_ = false;
   mutable std::mutex mutex_;
   std::vector<double> levels_;
+  ArmAngles arms_;
+  std::mutex trigger_mutex_;  // held while a pulse is handled: the handler renders
+  std::function<void()> trigger_input_;
 };
 
 }  // namespace photorig::sim

@@ -11,6 +11,7 @@
 // for tests, since Debian's kernel has neither gpio-sim nor gpio-mockup.
 
 #include "photorig/drivers/light_controller.h"
+#include "photorig/drivers/trigger_output.h"
 
 #include <chrono>
 #include <cstdint>
@@ -58,15 +59,16 @@ class GpioLightController : public LightController {
   std::unique_ptr<GpioBackend> backend_;
 };
 
-// A camera hardware-trigger output: Pulse asserts the line for width_us.
-class GpioTriggerLine {
+// A camera hardware-trigger output on one line: Fire asserts it for `width`.
+class GpioTriggerLine : public TriggerOutput {
  public:
   GpioTriggerLine(std::string id, GpioLine line, std::unique_ptr<GpioBackend> backend);
-  ~GpioTriggerLine();
-  Status Open();
-  Status Pulse(std::chrono::microseconds width);
-  Status Close();  // leaves the line deasserted
-  bool is_open() const { return open_; }
+  ~GpioTriggerLine() override;
+  const std::string& id() const override { return id_; }
+  Status Open() override;
+  Status Fire(std::chrono::microseconds width) override;
+  Status Close() override;  // leaves the line deasserted
+  bool is_open() const override { return open_; }
 
  private:
   std::string id_;
