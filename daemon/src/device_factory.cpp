@@ -3,6 +3,7 @@
 #include "photorig/daemon/camera_options.h"
 #include "photorig/daemon/hardware_options.h"
 #include "photorig/sim/devices.h"
+#include "photorig/sim/gonio.h"
 
 #include <functional>
 #include <stdexcept>
@@ -83,6 +84,27 @@ std::unique_ptr<drivers::Camera> MakeCamera(const DeviceContext& context) {
   const auto* entry = Find(CameraDrivers(), context.rig.camera.driver);
   if (!entry) throw std::invalid_argument("unknown camera driver '" + context.rig.camera.driver + "'");
   return entry->make(context);
+}
+
+MotionRig MakeMotion(const DeviceContext& context) {
+  if (!context.rig.motion) return {};
+  const MotionConfig& motion = *context.rig.motion;
+  if (motion.driver != "sim") return MakeModbusMotion(motion);
+  RequireWorld(context, "the simulated gonioreflectometer");
+  sim::SimAxisOptions options;
+  options.time_scale = motion.source.Double("time_scale", options.time_scale);
+  std::string why;
+  if (!options.IsValid(&why)) motion.source["time_scale"].Fail(why);
+  MotionRig rig;
+  std::vector<drivers::Motion*> axes;
+  for (const AxisConfig& axis : motion.axes) {
+    rig.axes.push_back(std::make_unique<sim::SimRotaryAxis>(
+        axis.id, axis.limits, motion.settle, options,
+        [world = context.world, id = axis.id](double deg) { world->SetArm(id, deg); }));
+    axes.push_back(rig.axes.back().get());
+  }
+  rig.goniometer = std::make_unique<drivers::Goniometer>(axes, motion.constraints);
+  return rig;
 }
 
 }  // namespace photorig::daemon

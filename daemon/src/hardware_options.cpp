@@ -231,46 +231,21 @@ std::unique_ptr<drivers::LightController> MakeUsbRelayLights(const DeviceContext
                     context);
 }
 
-MotionRig MakeMotionRig(const YamlNode& motion) {
-  motion.ExpectKeys({"link", "settle", "axes", "constraints"});
-  const YamlNode link_node = motion["link"];
+MotionRig MakeModbusMotion(const MotionConfig& motion) {
+  const YamlNode link_node = motion.source["link"];
   link_node.ExpectKeys({"host", "port", "unit_id", "response_timeout_ms", "byte_timeout_ms", "retries",
                         "retry_backoff_ms"});
   const drivers::ModbusLinkOptions link = ParseModbusLink(link_node, false);
-  drivers::SettleOptions settle;
-  if (auto node = motion.Find("settle")) {
-    node->ExpectKeys({"tolerance_deg", "settle_ms", "timeout_ms", "poll_ms", "stall_window_ms", "overshoot_deg"});
-    settle.tolerance_deg = node->Double("tolerance_deg", settle.tolerance_deg);
-    settle.settle_ms = node->Int("settle_ms", settle.settle_ms);
-    settle.timeout_ms = node->Int("timeout_ms", settle.timeout_ms);
-    settle.poll_ms = node->Int("poll_ms", settle.poll_ms);
-    settle.stall_window_ms = node->Int("stall_window_ms", settle.stall_window_ms);
-    settle.overshoot_deg = node->Double("overshoot_deg", settle.overshoot_deg);
-    Check(*node, settle);
-  }
   MotionRig rig;
   std::vector<drivers::Motion*> axes;
-  for (const YamlNode& item : motion["axes"].Items()) {
-    item.ExpectKeys({"id", "base_address", "min_deg", "max_deg"});
-    drivers::AxisLimits limits{item.Double("min_deg", -180.0), item.Double("max_deg", 180.0)};
-    if (!(limits.min_deg < limits.max_deg)) item.Fail("needs min_deg < max_deg");
-    const std::string id = item["id"].AsString();
-    for (drivers::Motion* axis : axes)
-      if (axis->id() == id) item["id"].Fail("duplicate axis id '" + id + "'");
+  for (const AxisConfig& axis : motion.axes) {
     rig.axes.push_back(std::make_unique<drivers::ModbusDriveAxis>(
-        id, link, IntIn(item, "base_address", 0, 0, 65535 - drivers::drive_profile::kRegisterCount), limits, settle));
+        axis.id, link, IntIn(axis.source, "base_address", 0, 0, 65535 - drivers::drive_profile::kRegisterCount),
+        axis.limits, motion.settle));
     axes.push_back(rig.axes.back().get());
   }
-  std::vector<drivers::SeparationConstraint> constraints;
-  if (auto list = motion.Find("constraints"))
-    for (const YamlNode& item : list->Items()) {
-      item.ExpectKeys({"min_separation_deg", "axes"});
-      const auto names = item["axes"].Items();
-      if (names.size() != 2) item["axes"].Fail("names exactly two axes");
-      constraints.push_back({names[0].AsString(), names[1].AsString(), item["min_separation_deg"].AsDouble()});
-    }
-  rig.goniometer = std::make_unique<drivers::Goniometer>(axes, constraints);
-  if (Status valid = rig.goniometer->Validate(); !valid.ok()) motion.Fail(valid.message());
+  rig.goniometer = std::make_unique<drivers::Goniometer>(axes, motion.constraints);
+  if (Status valid = rig.goniometer->Validate(); !valid.ok()) motion.source.Fail(valid.message());
   return rig;
 }
 

@@ -32,7 +32,10 @@ std::string Extension(const std::string& path) { return fs::path(path).extension
 
 }  // namespace
 
-void WriteFileDurably(const std::string& path, const void* data, std::size_t size) {
+namespace {
+
+// Temp file, optional fsync, rename: readers see the whole file or none.
+void ReplaceFile(const std::string& path, const void* data, std::size_t size, bool fsync_data) {
   const std::string temp = path + ".tmp";
   const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) Fail("cannot create", temp);
@@ -47,13 +50,23 @@ void WriteFileDurably(const std::string& path, const void* data, std::size_t siz
     }
     written += static_cast<std::size_t>(n);
   }
-  if (::fsync(fd) != 0) {
+  if (fsync_data && ::fsync(fd) != 0) {
     ::close(fd);
     Fail("cannot fsync", temp);
   }
   ::close(fd);
   if (::rename(temp.c_str(), path.c_str()) != 0) Fail("cannot rename into", path);
+}
+
+}  // namespace
+
+void WriteFileDurably(const std::string& path, const void* data, std::size_t size) {
+  ReplaceFile(path, data, size, /*fsync_data=*/true);
   FsyncDirectory(fs::path(path).parent_path());
+}
+
+void WriteFileAtomically(const std::string& path, const void* data, std::size_t size) {
+  ReplaceFile(path, data, size, /*fsync_data=*/false);
 }
 
 void WriteFileDurably(const std::string& path, const std::string& text) {

@@ -1,12 +1,37 @@
 #include "photorig/daemon/plan.h"
 
+#include "photorig/sim/gonio.h"
+
 #include <sys/statvfs.h>
 
+#include <cmath>
 #include <filesystem>
 #include <map>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
+
+namespace {
+
+// The goniometer moves one axis at a time, each ending with the settle time.
+double MoveMs(const MotionConfig& motion, const std::map<std::string, double>& from,
+              const std::map<std::string, double>& to) {
+  double ms = 0.0;
+  for (const auto& [id, target] : to) {
+    const double distance = std::abs(target - from.at(id));
+    if (distance > motion.settle.tolerance_deg)
+      ms += 1000.0 * sim::TrapezoidMove(distance, motion.profile).duration_s() + motion.settle.settle_ms;
+  }
+  return ms;
+}
+
+}  // namespace
+
+std::map<std::string, double> PoseTargets(const GonioPose& pose) {
+  return {{"light_arm", pose.light_arm_deg},
+          {"camera_arm", pose.camera_arm_deg},
+          {"sample_rotation", pose.sample_rotation_deg}};
+}
 
 bool PlanOptions::IsValid(std::string* why) const {
   if (!(step_overhead_ms >= 0)) {
@@ -33,9 +58,32 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
 
   std::map<int, double> lit_ms;  // by channel
   double total_ms = 0.0;
+  std::map<std::string, double> axes_at;  // every axis starts from home (0 deg)
+  if (rig.motion)
+    for (const AxisConfig& axis : rig.motion->axes) axes_at[axis.id] = 0.0;
   for (const CaptureStep& step : steps) {
     const double exposure_ms = step.exposure_us / 1000.0;
     total_ms += exposure_ms + options.step_overhead_ms;
+    if (step.pose) {
+      if (!rig.motion) {
+        plan.errors.push_back("step " + step.label + ": a pose on rig '" + rig.name + "', which has no motion");
+        continue;
+      }
+      const std::map<std::string, double> target = PoseTargets(*step.pose);
+      if (std::string why = rig.motion->CheckPose(target); !why.empty())
+        plan.errors.push_back("step " + step.label + ": " + why);
+      // Two arms on one circle cannot pass each other: the side each is on stays as the first pose set it.
+      for (const drivers::SeparationConstraint& c : rig.motion->constraints) {
+        const double before = axes_at[c.axis_a] - axes_at[c.axis_b], after = target.at(c.axis_a) - target.at(c.axis_b);
+        if (before * after < 0.0)
+          plan.errors.push_back("step " + step.label + ": " + c.axis_a + " and " + c.axis_b +
+                                " would have to pass each other (they cannot cross)");
+      }
+      const double move_ms = MoveMs(*rig.motion, axes_at, target);
+      plan.move_s += move_ms / 1000.0;
+      total_ms += move_ms;
+      for (const auto& [id, deg] : target) axes_at[id] = deg;
+    }
     for (std::size_t channel = 0; channel < step.pattern.levels.size(); ++channel) {
       const double level = step.pattern.levels[channel];
       if (level < 0.0 || level > 1.0)
@@ -65,10 +113,16 @@ nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps) const {
   for (const CaptureStep& step : steps) {
     nlohmann::json s = {{"index", step.index},
                         {"label", step.label},
-                        {"kind", step.kind == CaptureStep::Kind::kDark ? "dark" : "light"},
+                        {"kind", CaptureStepKindName(step.kind)},
+                        {"group", step.group},
+                        {"repeat", step.repeat},
                         {"exposure_us", step.exposure_us},
                         {"gain_db", step.gain_db},
                         {"levels", step.pattern.levels}};
+    if (step.pose)
+      s["pose"] = {{"light_arm_deg", step.pose->light_arm_deg},
+                   {"camera_arm_deg", step.pose->camera_arm_deg},
+                   {"sample_rotation_deg", step.pose->sample_rotation_deg}};
     list.push_back(std::move(s));
   }
   return {{"ok", ok()},
@@ -76,6 +130,7 @@ nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps) const {
           {"warnings", warnings},
           {"frames", estimate.frames},
           {"duration_s", estimate.duration_s},
+          {"move_s", move_s},
           {"bytes", estimate.bytes},
           {"bytes_per_frame", estimate.bytes_per_frame},
           {"max_led_duty", max_led_duty},

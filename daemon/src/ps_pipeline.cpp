@@ -125,6 +125,12 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
   ps::PhotometricStack& stack = input.stack;
   std::vector<cv::Mat> darks;
   for (const FrameRecord& record : manifest.frames) {
+    // Only darks and single-LED frames enter the stack: flats, patterns and
+    // gonioreflectometer poses (led -1) light several LEDs or none on their own.
+    // Bracketed and repeated frames of one LED are extra rows, each scaled by
+    // its own exposure; the solver drops their saturated samples, so a bracket
+    // merges into one least-squares fit.
+    if (record.kind != "dark" && (record.kind != "light" || record.led < 0)) continue;
     cv::Mat frame;
     LoadFrame(run_directory, record).convertTo(frame, CV_32F);
     if (frame.cols != manifest.width || frame.rows != manifest.height)
@@ -227,7 +233,7 @@ json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoR
                    {"robust", summary.pixels_robust},
                    {"blinn_phong", summary.pixels_blinn_phong}}},
                  {"samples_rejected", summary.samples_rejected},
-                 {"distinct_light_subsets", summary.distinct_light_subsets},
+                 {"pixels_on_light_subsets", summary.pixels_on_light_subsets},
                  {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}}}};
 
   if (summary.IsSolutionUsable()) {

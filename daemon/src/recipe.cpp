@@ -10,6 +10,134 @@ namespace fs = std::filesystem;
 
 namespace {
 Recipe ParseRecipe(const YamlNode& root, const std::string& path);
+
+constexpr const char* kGroupNames = "dark, flat, each_led, pattern or poses";
+
+int CountIn(const YamlNode& body, const char* key) {
+  const int count = body.Int(key, 1);
+  if (count < 1 || count > 1000) body[key].Fail("must be within [1, 1000]");
+  return count;
+}
+
+double LevelIn(const YamlNode& node, const char* key, double fallback) {
+  const double level = node.Double(key, fallback);
+  if (!(level > 0.0 && level <= 1.0)) node[key].Fail("must be within (0, 1]");
+  return level;
+}
+
+double ExposureIn(const YamlNode& node) {
+  const double exposure_us = node.AsDouble();
+  if (!(exposure_us > 0)) node.Fail("must be > 0");
+  return exposure_us;
+}
+
+// `leds: all` (or absent) is every LED; otherwise a list of LED ids.
+std::vector<int> LedIdsIn(const YamlNode& body) {
+  if (auto leds = body.Find("leds"))
+    if (!(leds->IsScalar() && leds->AsString() == "all")) return leds->AsIntList();
+  return {};
+}
+
+// One axis of a pose grid: a single angle or a list of them.
+std::vector<double> AnglesIn(const YamlNode& grid, const char* key) {
+  if (!grid.Has(key)) return {0.0};
+  const YamlNode node = grid[key];
+  if (node.IsScalar()) return {node.AsDouble()};
+  std::vector<double> angles;
+  for (const YamlNode& item : node.Items()) angles.push_back(item.AsDouble());
+  if (angles.empty()) node.Fail("needs at least one angle");
+  return angles;
+}
+
+std::vector<GonioPose> PosesIn(const YamlNode& body) {
+  if (body.Has("list") == body.Has("grid")) body.Fail("give exactly one of 'list' or 'grid'");
+  std::vector<GonioPose> poses;
+  if (auto list = body.Find("list")) {
+    for (const YamlNode& item : list->Items()) {
+      item.ExpectKeys({"light_arm_deg", "camera_arm_deg", "sample_rotation_deg"});
+      poses.push_back({item["light_arm_deg"].AsDouble(), item["camera_arm_deg"].AsDouble(),
+                       item.Double("sample_rotation_deg", 0.0)});
+    }
+    if (poses.empty()) list->Fail("needs at least one pose");
+    return poses;
+  }
+  const YamlNode grid = body["grid"];
+  grid.ExpectKeys({"light_arm_deg", "camera_arm_deg", "sample_rotation_deg"});
+  for (double rotation : AnglesIn(grid, "sample_rotation_deg"))
+    for (double light : AnglesIn(grid, "light_arm_deg"))
+      for (double camera : AnglesIn(grid, "camera_arm_deg")) poses.push_back({light, camera, rotation});
+  if (poses.size() > 100000) grid.Fail("expands to more than 100000 poses");
+  return poses;
+}
+
+Recipe::Group ParseGroup(const YamlNode& step) {
+  using Kind = Recipe::Group::Kind;
+  const auto keys = step.Keys();
+  if (keys.size() != 1) step.Fail(std::string("each step is a map with exactly one key: ") + kGroupNames);
+  Recipe::Group group;
+  group.source = step;
+  const std::string& kind = keys[0];
+  const YamlNode body = step[kind];
+  if (kind == "dark") {
+    group.kind = Kind::kDark;
+    body.ExpectKeys({"count", "repeat"});
+    group.count = CountIn(body, "count");
+  } else if (kind == "flat") {
+    group.kind = Kind::kFlat;
+    body.ExpectKeys({"count", "level", "leds", "exposure_us", "repeat"});
+    group.count = CountIn(body, "count");
+    group.level = LevelIn(body, "level", 1.0);
+    group.led_ids = LedIdsIn(body);
+    if (auto exposure = body.Find("exposure_us")) group.exposures_us = {ExposureIn(*exposure)};
+  } else if (kind == "each_led") {
+    group.kind = Kind::kEachLed;
+    body.ExpectKeys({"leds", "level", "exposures_us", "repeat"});
+    group.led_ids = LedIdsIn(body);
+    group.level = LevelIn(body, "level", 1.0);
+    if (auto bracket = body.Find("exposures_us")) {
+      for (const YamlNode& item : bracket->Items()) {
+        const double exposure_us = ExposureIn(item);
+        for (double seen : group.exposures_us)
+          if (seen == exposure_us) item.Fail("exposure listed twice in the bracket");
+        group.exposures_us.push_back(exposure_us);
+      }
+      if (group.exposures_us.empty()) bracket->Fail("needs at least one exposure");
+    }
+  } else if (kind == "pattern") {
+    group.kind = Kind::kPattern;
+    body.ExpectKeys({"name", "leds", "level", "count", "exposure_us", "repeat"});
+    const YamlNode name = body["name"];
+    group.name = name.AsString();
+    if (group.name.empty() || group.name.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789_-") != std::string::npos)
+      name.Fail("must be non-empty lower-case letters, digits, '_' or '-' (it becomes part of file names)");
+    group.level = LevelIn(body, "level", 1.0);
+    group.count = CountIn(body, "count");
+    if (auto exposure = body.Find("exposure_us")) group.exposures_us = {ExposureIn(*exposure)};
+    for (const YamlNode& item : body["leds"].Items()) {
+      std::pair<int, double> entry{0, group.level};
+      if (item.IsMap()) {
+        item.ExpectKeys({"id", "level"});
+        entry = {item["id"].AsInt(), LevelIn(item, "level", group.level)};
+      } else {
+        entry.first = item.AsInt();
+      }
+      for (const auto& seen : group.pattern)
+        if (seen.first == entry.first) item.Fail("LED id " + std::to_string(entry.first) + " listed twice");
+      group.pattern.push_back(entry);
+    }
+    if (group.pattern.empty()) body["leds"].Fail("a pattern lights at least one LED");
+  } else if (kind == "poses") {
+    group.kind = Kind::kPoses;
+    body.ExpectKeys({"list", "grid", "level", "repeat"});
+    group.level = LevelIn(body, "level", 1.0);
+    group.poses = PosesIn(body);
+  } else {
+    step.Fail("unknown step '" + kind + "' (expected " + kGroupNames + ")");
+  }
+  group.repeat = body.Int("repeat", 1);
+  if (group.repeat < 1 || group.repeat > 1000) body["repeat"].Fail("must be within [1, 1000]");
+  return group;
+}
 }  // namespace
 
 Recipe LoadRecipe(const std::string& path) { return ParseRecipe(YamlNode::LoadFile(path), path); }
@@ -48,38 +176,16 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path) {
     if (!(*recipe.exposure_us > 0)) exposure->Fail("must be > 0");
   }
   if (auto gain = capture.Find("gain_db")) recipe.gain_db = gain->AsDouble();
-  for (const YamlNode& step : capture["steps"].Items()) {
-    const auto keys = step.Keys();
-    if (keys.size() != 1) step.Fail("each step is a map with exactly one key: dark or each_led");
-    Recipe::Group group;
-    group.source = step;
-    const YamlNode body = step[keys[0]];
-    if (keys[0] == "dark") {
-      group.kind = Recipe::Group::Kind::kDark;
-      body.ExpectKeys({"count"});
-      group.count = body.Int("count", 1);
-      if (group.count < 1 || group.count > 1000) body["count"].Fail("must be within [1, 1000]");
-    } else if (keys[0] == "each_led") {
-      group.kind = Recipe::Group::Kind::kEachLed;
-      body.ExpectKeys({"leds", "level"});
-      if (auto leds = body.Find("leds")) {
-        if (!(leds->IsScalar() && leds->AsString() == "all")) group.led_ids = leds->AsIntList();
-      }
-      group.level = body.Double("level", 1.0);
-      if (!(group.level > 0.0 && group.level <= 1.0)) body["level"].Fail("must be within (0, 1]");
-    } else {
-      step.Fail("unknown step '" + keys[0] + "' (expected dark or each_led)");
-    }
-    recipe.groups.push_back(group);
-  }
+  for (const YamlNode& step : capture["steps"].Items()) recipe.groups.push_back(ParseGroup(step));
   if (recipe.groups.empty()) capture["steps"].Fail("a recipe needs at least one capture step");
 
   if (auto solve = root.Find("solve")) {
     for (const YamlNode& stage : solve->Items()) {
       const auto keys = stage.Keys();
       if (keys.size() != 1) stage.Fail("each solve stage is a map with exactly one key");
-      if (keys[0] != "photometric_stereo") stage.Fail("unknown solver '" + keys[0] + "' (expected photometric_stereo)");
-      recipe.photometric_stereo = ParsePhotometricStereoRequest(stage[keys[0]]);
+      if (keys[0] == "photometric_stereo") recipe.photometric_stereo = ParsePhotometricStereoRequest(stage[keys[0]]);
+      else if (keys[0] == "light_calibration") recipe.light_calibration = ParseLightCalibrationRequest(stage[keys[0]]);
+      else stage.Fail("unknown solver '" + keys[0] + "' (expected photometric_stereo or light_calibration)");
     }
   }
   return recipe;
@@ -93,51 +199,109 @@ std::string ResolveRigPath(const Recipe& recipe, const std::string& override_pat
   return recipe.rig_path;
 }
 
+const char* CaptureStepKindName(CaptureStep::Kind kind) {
+  switch (kind) {
+    case CaptureStep::Kind::kDark: return "dark";
+    case CaptureStep::Kind::kLight: return "light";
+    case CaptureStep::Kind::kFlat: return "flat";
+    case CaptureStep::Kind::kPattern: return "pattern";
+    case CaptureStep::Kind::kPose: return "pose";
+  }
+  return "unknown";
+}
+
 std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig) {
+  using Kind = Recipe::Group::Kind;
   std::vector<CaptureStep> steps;
   const int channels = static_cast<int>(rig.lights.leds.size());
-  const double exposure = recipe.exposure_us.value_or(rig.camera.exposure_us);
+  const double default_exposure_us = recipe.exposure_us.value_or(rig.camera.exposure_us);
   const double gain = recipe.gain_db.value_or(rig.camera.gain_db);
-  auto add = [&](CaptureStep step, const std::string& name) {
-    step.index = static_cast<int>(steps.size());
-    char label[64];
-    std::snprintf(label, sizeof(label), "%04d_%s", step.index, name.c_str());
-    step.label = label;
-    step.exposure_us = exposure;
-    step.gain_db = gain;
-    steps.push_back(std::move(step));
+  auto led_index = [&](const Recipe::Group& group, int id) {
+    for (int i = 0; i < channels; ++i)
+      if (rig.lights.leds[i].id == id) return i;
+    group.source->Fail("LED id " + std::to_string(id) + " is not in rig '" + rig.name + "'");
+  };
+  auto led_indices = [&](const Recipe::Group& group) {
+    std::vector<int> indices;
+    if (group.led_ids.empty())
+      for (int i = 0; i < channels; ++i) indices.push_back(i);
+    for (int id : group.led_ids) indices.push_back(led_index(group, id));
+    return indices;
   };
   for (const Recipe::Group& group : recipe.groups) {
-    if (group.kind == Recipe::Group::Kind::kDark) {
-      for (int i = 0; i < group.count; ++i) {
-        CaptureStep step;
-        step.kind = CaptureStep::Kind::kDark;
-        step.pattern = drivers::LightPattern::AllOff(channels);
-        add(std::move(step), "dark");
+    const double group_exposure_us = group.exposures_us.empty() ? default_exposure_us : group.exposures_us.front();
+    std::vector<CaptureStep> once;  // one repetition; labels are made below
+    std::vector<std::string> names;
+    auto emit = [&](CaptureStep step, const std::string& name, double exposure_us) {
+      step.exposure_us = exposure_us;
+      step.gain_db = gain;
+      once.push_back(std::move(step));
+      names.push_back(name);
+    };
+    CaptureStep base;
+    base.pattern = drivers::LightPattern::AllOff(channels);
+    switch (group.kind) {
+      case Kind::kDark:
+        base.group = "dark";
+        for (int i = 0; i < group.count; ++i) emit(base, "dark", default_exposure_us);
+        break;
+      case Kind::kFlat:
+        base.kind = CaptureStep::Kind::kFlat;
+        base.group = "flat";
+        for (int i : led_indices(group)) base.pattern.levels[i] = group.level;
+        for (int i = 0; i < group.count; ++i) emit(base, "flat", group_exposure_us);
+        break;
+      case Kind::kPattern: {
+        base.kind = CaptureStep::Kind::kPattern;
+        base.group = "pattern:" + group.name;
+        for (const auto& [id, level] : group.pattern) base.pattern.levels[led_index(group, id)] = level;
+        for (int i = 0; i < group.count; ++i) emit(base, "pat_" + group.name, group_exposure_us);
+        break;
       }
-      continue;
-    }
-    std::vector<int> indices;
-    if (group.led_ids.empty()) {
-      for (int i = 0; i < channels; ++i) indices.push_back(i);
-    } else {
-      for (int id : group.led_ids) {
-        int found = -1;
-        for (int i = 0; i < channels; ++i)
-          if (rig.lights.leds[i].id == id) found = i;
-        if (found < 0) group.source->Fail("LED id " + std::to_string(id) + " is not in rig '" + rig.name + "'");
-        indices.push_back(found);
+      case Kind::kEachLed: {
+        base.kind = CaptureStep::Kind::kLight;
+        base.group = "each_led";
+        const bool bracket = !group.exposures_us.empty();
+        const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};
+        for (int i : led_indices(group))
+          for (double exposure_us : exposures) {
+            CaptureStep step = base;
+            step.led = i;
+            step.pattern = drivers::LightPattern::Single(channels, i, group.level);
+            char name[48];
+            if (bracket) std::snprintf(name, sizeof(name), "led%02d_e%.0f", rig.lights.leds[i].id, exposure_us);
+            else std::snprintf(name, sizeof(name), "led%02d", rig.lights.leds[i].id);
+            emit(std::move(step), name, exposure_us);
+          }
+        break;
+      }
+      case Kind::kPoses: {
+        if (!rig.motion) group.source->Fail("poses need a rig with a motion: section; rig '" + rig.name + "' has none");
+        base.kind = CaptureStep::Kind::kPose;
+        base.group = "poses";
+        base.pattern = drivers::LightPattern::AllOff(channels);
+        for (double& level : base.pattern.levels) level = group.level;
+        for (const GonioPose& pose : group.poses) {
+          CaptureStep step = base;
+          step.pose = pose;
+          char name[96];
+          std::snprintf(name, sizeof(name), "pose_l%+.1f_c%+.1f_r%+.1f", pose.light_arm_deg, pose.camera_arm_deg,
+                        pose.sample_rotation_deg);
+          emit(std::move(step), name, default_exposure_us);
+        }
+        break;
       }
     }
-    for (int i : indices) {
-      CaptureStep step;
-      step.kind = CaptureStep::Kind::kLight;
-      step.led = i;
-      step.pattern = drivers::LightPattern::Single(channels, i, group.level);
-      char name[32];
-      std::snprintf(name, sizeof(name), "led%02d", rig.lights.leds[i].id);
-      add(std::move(step), name);
-    }
+    for (int repeat = 0; repeat < group.repeat; ++repeat)
+      for (std::size_t k = 0; k < once.size(); ++k) {
+        CaptureStep step = once[k];
+        step.index = static_cast<int>(steps.size());
+        step.repeat = repeat;
+        char label[128];
+        std::snprintf(label, sizeof(label), "%04d_%s", step.index, names[k].c_str());
+        step.label = label;
+        steps.push_back(std::move(step));
+      }
   }
   return steps;
 }

@@ -3,6 +3,7 @@
 #include "photorig/daemon/device_factory.h"
 #include "photorig/daemon/yaml_node.h"
 
+#include <cmath>
 #include <filesystem>
 #include <set>
 #include <stdexcept>
@@ -18,13 +19,14 @@ LedConfig ParseLed(const YamlNode& node, int index) {
   if (led.channel < 0) node["channel"].Fail("must be >= 0");
   const bool has_direction = node.Has("direction"), has_position = node.Has("position_mm");
   if (has_direction == has_position) node.Fail("give exactly one of 'direction' or 'position_mm'");
-  // A position far from a small object is a direction; near-field falloff is
-  // the renderer's business, not the solver's.
+  // The solvers take the direction to the LED from the object origin; the
+  // near-field falloff across the object is the renderer's business.
   const YamlNode vector_node = has_direction ? node["direction"] : node["position_mm"];
   const Eigen::Vector3d vector = vector_node.AsVector3();
   if (vector.norm() < 1e-9) vector_node.Fail("must not be the zero vector");
   led.direction = vector.normalized();
   if (led.direction.z() <= 0.0) vector_node.Fail("points below the sample plane (z <= 0)");
+  if (has_position) led.position_mm = vector;
   led.intensity = node.Double("intensity", 1.0);
   if (!(led.intensity > 0.0)) node["intensity"].Fail("must be > 0");
   if (auto rgb = node.Find("rgb_intensity")) {
@@ -84,12 +86,121 @@ void ParseFaults(const YamlNode& node, SimConfig* sim) {
   }
 }
 
+// camera.color_chart: {box_px: [x, y, w, h]} or {corners_px: [[x, y] x 4]}, inside the frame.
+ColorChartPlacement ParseColorChart(const YamlNode& node, int width, int height) {
+  node.ExpectKeys({"box_px", "corners_px"});
+  if (node.Has("box_px") == node.Has("corners_px")) node.Fail("give exactly one of 'box_px' or 'corners_px'");
+  ColorChartPlacement chart;
+  if (auto box = node.Find("box_px")) {
+    const auto v = box->Items();
+    if (v.size() != 4) box->Fail("expected [x, y, w, h], got " + std::to_string(v.size()) + " numbers");
+    const double x = v[0].AsDouble(), y = v[1].AsDouble(), w = v[2].AsDouble(), h = v[3].AsDouble();
+    if (!(w > 0 && h > 0)) box->Fail("width and height must be > 0");
+    chart.corners_px = {Eigen::Vector2d(x, y), Eigen::Vector2d(x + w, y), Eigen::Vector2d(x + w, y + h),
+                        Eigen::Vector2d(x, y + h)};
+  } else {
+    const YamlNode corners = node["corners_px"];
+    const auto points = corners.Items();
+    if (points.size() != 4) corners.Fail("expected four [x, y] points, got " + std::to_string(points.size()));
+    for (std::size_t i = 0; i < 4; ++i) {
+      const auto xy = points[i].Items();
+      if (xy.size() != 2) points[i].Fail("expected [x, y]");
+      chart.corners_px[i] = Eigen::Vector2d(xy[0].AsDouble(), xy[1].AsDouble());
+    }
+    // Shoelace area: clockwise in image coordinates (y down) is positive.
+    double area = 0.0;
+    for (std::size_t i = 0; i < 4; ++i) {
+      const Eigen::Vector2d& a = chart.corners_px[i];
+      const Eigen::Vector2d& b = chart.corners_px[(i + 1) % 4];
+      area += a.x() * b.y() - b.x() * a.y();
+    }
+    if (!(area > 0.0)) corners.Fail("corners must run clockwise from the top-left and enclose an area");
+  }
+  for (const Eigen::Vector2d& p : chart.corners_px)
+    if (p.x() < 0 || p.y() < 0 || p.x() > width || p.y() > height)
+      node.Fail("chart corner (" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ") lies outside the " +
+                std::to_string(width) + " x " + std::to_string(height) + " frame");
+  return chart;
+}
+
+// motion: {driver, link, time_scale, profile: {velocity_deg_s, acceleration_deg_s2}, settle,
+//          axes: [{id, min_deg, max_deg, base_address}], constraints: [{min_separation_deg, axes}]}
+MotionConfig ParseMotion(const YamlNode& node) {
+  node.ExpectKeys({"driver", "link", "time_scale", "profile", "settle", "axes", "constraints"});
+  MotionConfig motion{node.String("driver", "modbus-tcp"), {}, {}, {}, {}, node};
+  if (motion.driver != "sim" && motion.driver != "modbus-tcp")
+    node["driver"].Fail("unknown motion driver '" + motion.driver + "' (available: sim, modbus-tcp)");
+  if (auto profile = node.Find("profile")) {
+    profile->ExpectKeys({"velocity_deg_s", "acceleration_deg_s2"});
+    motion.profile.velocity_deg_s = profile->Double("velocity_deg_s", motion.profile.velocity_deg_s);
+    motion.profile.acceleration_deg_s2 = profile->Double("acceleration_deg_s2", motion.profile.acceleration_deg_s2);
+    if (!(motion.profile.velocity_deg_s > 0)) (*profile)["velocity_deg_s"].Fail("must be > 0");
+    if (!(motion.profile.acceleration_deg_s2 > 0)) (*profile)["acceleration_deg_s2"].Fail("must be > 0");
+  }
+  drivers::SettleOptions& settle = motion.settle;
+  if (auto s = node.Find("settle")) {
+    s->ExpectKeys({"tolerance_deg", "settle_ms", "timeout_ms", "poll_ms", "stall_window_ms", "overshoot_deg"});
+    settle.tolerance_deg = s->Double("tolerance_deg", settle.tolerance_deg);
+    settle.settle_ms = s->Int("settle_ms", settle.settle_ms);
+    settle.timeout_ms = s->Int("timeout_ms", settle.timeout_ms);
+    settle.poll_ms = s->Int("poll_ms", settle.poll_ms);
+    settle.stall_window_ms = s->Int("stall_window_ms", settle.stall_window_ms);
+    settle.overshoot_deg = s->Double("overshoot_deg", settle.overshoot_deg);
+    std::string why;
+    if (!settle.IsValid(&why)) s->Fail(why);
+  }
+  for (const YamlNode& item : node["axes"].Items()) {
+    item.ExpectKeys({"id", "base_address", "min_deg", "max_deg"});
+    AxisConfig axis{item["id"].AsString(), {item.Double("min_deg", -180.0), item.Double("max_deg", 180.0)}, item};
+    if (!(axis.limits.min_deg < axis.limits.max_deg)) item.Fail("needs min_deg < max_deg");
+    if (motion.axis(axis.id)) item["id"].Fail("duplicate axis id '" + axis.id + "'");
+    motion.axes.push_back(axis);
+  }
+  if (auto list = node.Find("constraints"))
+    for (const YamlNode& item : list->Items()) {
+      item.ExpectKeys({"min_separation_deg", "axes"});
+      const auto names = item["axes"].Items();
+      if (names.size() != 2) item["axes"].Fail("names exactly two axes");
+      for (const YamlNode& name : names)
+        if (!motion.axis(name.AsString())) name.Fail("no axis '" + name.AsString() + "' in motion.axes");
+      const double min_deg = item["min_separation_deg"].AsDouble();
+      if (!(min_deg >= 0)) item["min_separation_deg"].Fail("must be >= 0");
+      motion.constraints.push_back({names[0].AsString(), names[1].AsString(), min_deg});
+    }
+  return motion;
+}
+
 }  // namespace
+
+const AxisConfig* MotionConfig::axis(const std::string& id) const {
+  for (const AxisConfig& a : axes)
+    if (a.id == id) return &a;
+  return nullptr;
+}
+
+std::string MotionConfig::CheckPose(const std::map<std::string, double>& positions_deg) const {
+  for (const auto& [id, deg] : positions_deg) {
+    const AxisConfig* a = axis(id);
+    if (!a) return "no axis '" + id + "'";
+    if (!a->limits.Contains(deg))
+      return "axis " + id + " target " + std::to_string(deg) + " deg outside its soft limits [" +
+             std::to_string(a->limits.min_deg) + ", " + std::to_string(a->limits.max_deg) + "]";
+  }
+  for (const drivers::SeparationConstraint& c : constraints) {
+    const auto a = positions_deg.find(c.axis_a), b = positions_deg.find(c.axis_b);
+    if (a == positions_deg.end() || b == positions_deg.end()) continue;
+    const double separation = std::abs(a->second - b->second);
+    if (separation < c.min_deg)
+      return c.axis_a + " and " + c.axis_b + " " + std::to_string(separation) + " deg apart, below the minimum " +
+             std::to_string(c.min_deg) + " deg";
+  }
+  return {};
+}
 
 sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
   node.ExpectKeys({"shape", "radius_mm", "albedo", "cast_shadows", "brdf", "path", "depth_scale_mm", "depth_pitch_mm",
                    "mesh_scale", "tilt_deg", "bowl_radius_mm", "rim_radius_mm", "step_width_mm", "step_height_mm",
-                   "step_slope", "backlight_radiance", "peak_density_per_mm"});
+                   "step_slope", "backlight_radiance", "peak_density_per_mm", "interreflection_samples"});
   sim::Scene scene;
   const YamlNode shape = node["shape"];
   try {
@@ -101,6 +212,9 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
   scene.sphere_radius_mm = node.Double("radius_mm", scene.sphere_radius_mm);
   if (!(scene.sphere_radius_mm > 0)) node["radius_mm"].Fail("must be > 0");
   scene.cast_shadows = node.Bool("cast_shadows", true);
+  scene.interreflection_samples = node.Int("interreflection_samples", 0);
+  if (scene.interreflection_samples < 0 || scene.interreflection_samples > 4096)
+    node["interreflection_samples"].Fail("must lie in [0, 4096] (0: direct light only)");
   scene.tilt_deg = node.Double("tilt_deg", scene.tilt_deg);
   scene.bowl_radius_mm = node.Double("bowl_radius_mm", scene.bowl_radius_mm);
   scene.rim_radius_mm = node.Double("rim_radius_mm", scene.rim_radius_mm);
@@ -176,14 +290,23 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
 
 RigConfig LoadRigConfig(const std::string& path) {
   const YamlNode root = YamlNode::LoadFile(path);
-  root.ExpectKeys({"rig", "lights", "camera", "sim"});
+  root.ExpectKeys({"rig", "lights", "camera", "sim", "motion"});
   RigConfig rig;
   rig.path = path;
   const YamlNode header = root["rig"];
   header.ExpectKeys({"name", "kind", "description"});
   rig.name = header["name"].AsString();
-  if (header.String("kind", "light_dome") != "light_dome")
-    header["kind"].Fail("only 'light_dome' rigs are supported so far");
+  rig.kind = header.String("kind", rig.kind);
+  if (rig.kind != "light_dome" && rig.kind != "gonioreflectometer")
+    header["kind"].Fail("unknown rig kind '" + rig.kind + "' (expected light_dome or gonioreflectometer)");
+  if (auto motion = root.Find("motion")) {
+    if (rig.kind != "gonioreflectometer") motion->Fail("only a gonioreflectometer rig has motion");
+    rig.motion = ParseMotion(*motion);
+    for (const char* axis : {"light_arm", "camera_arm", "sample_rotation"})
+      if (!rig.motion->axis(axis)) (*motion)["axes"].Fail(std::string("a gonioreflectometer needs an axis '") + axis + "'");
+  } else if (rig.kind == "gonioreflectometer") {
+    root.Fail("a gonioreflectometer rig needs a 'motion:' section");
+  }
 
   const YamlNode lights = root["lights"];
   lights.ExpectKeys({"driver", "id", "leds", "options"});
@@ -203,7 +326,7 @@ RigConfig LoadRigConfig(const std::string& path) {
 
   const YamlNode camera = root["camera"];
   camera.ExpectKeys({"driver", "id", "options", "projection", "width", "height", "pixel_pitch_mm", "bit_depth",
-                     "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn"});
+                     "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart"});
   CameraConfig& cam = rig.camera;
   cam.driver = camera["driver"].AsString();
   if (!IsKnownCameraDriver(cam.driver))
@@ -224,11 +347,15 @@ RigConfig LoadRigConfig(const std::string& path) {
   cam.exposure_us = camera.Double("exposure_us", cam.exposure_us);
   if (!(cam.exposure_us > 0)) camera["exposure_us"].Fail("must be > 0");
   cam.gain_db = camera.Double("gain_db", cam.gain_db);
+  if (auto chart = camera.Find("color_chart")) cam.color_chart = ParseColorChart(*chart, cam.width, cam.height);
 
   if (auto sim_node = root.Find("sim")) {
-    sim_node->ExpectKeys({"seed", "sensor", "scene", "faults"});
+    sim_node->ExpectKeys({"seed", "sensor", "scene", "faults", "led_direction_error_deg"});
     SimConfig sim;
     sim.seed = static_cast<std::uint64_t>(sim_node->Int("seed", 1));
+    sim.led_direction_error_deg = sim_node->Double("led_direction_error_deg", 0.0);
+    if (!(sim.led_direction_error_deg >= 0.0 && sim.led_direction_error_deg < 30.0))
+      (*sim_node)["led_direction_error_deg"].Fail("must lie in [0, 30)");
     const auto sensor = sim_node->Find("sensor");
     sim.sensor = sensor ? ParseSensor(*sensor, cam.bit_depth) : sim::SensorModel{};
     sim.sensor.bit_depth = cam.bit_depth;

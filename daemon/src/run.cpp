@@ -50,6 +50,11 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   const RigConfig rig = LoadRigConfig(rig_path);
   const std::vector<CaptureStep> steps = CompileSteps(recipe, rig);
   const RunPlan plan = PlanRun(recipe, rig, steps);
+  if (!plan.ok()) {
+    std::string why;
+    for (const std::string& error : plan.errors) why += "\n  " + error;
+    throw std::runtime_error("recipe " + recipe.path + " refused before any device was touched:" + why);
+  }
   RigDevices devices = MakeRigDevices(rig, &recipe);
 
   RunOutcome outcome;
@@ -87,7 +92,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   RunWriter& writer = *writer_storage;
   if (devices.world && !writer.manifest().has_ground_truth) {
     const sim::SurfaceMaps& truth = devices.world->surface();
-    writer.WriteGroundTruth(truth);
+    writer.WriteGroundTruth(truth, devices.world->config().lights);
   }
 
   spdlog::info("run {}: recipe {} on rig {} ({} steps) -> {}", header.run_id, recipe.name, rig.name, steps.size(),
@@ -97,6 +102,10 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   options.control = request.control;
   options.retry = request.retry;
   options.on_state = request.on_state;
+  if (rig.motion) {
+    options.motion = &devices.motion;
+    options.motion_profile = rig.motion->profile;
+  }
   const bool progress = request.show_progress;
   options.on_frame = [progress, &request, &writer](const CaptureStep& step, const FrameRecord& record, int total) {
     if (progress) PrintProgress(step, total);
@@ -111,6 +120,15 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   if (request.solve && outcome.capture.status == "complete" && recipe.photometric_stereo) {
     outcome.photometric_stereo = SolvePhotometricStereoRun(
         outcome.directory, *recipe.photometric_stereo, (fs::path(outcome.directory) / "results" / "ps").string());
+  }
+  if (request.solve && outcome.capture.status == "complete" && recipe.light_calibration) {
+    LightCalibrationRequest calibration = *recipe.light_calibration;
+    const fs::path results = fs::path(outcome.directory) / "results" / "lights";
+    calibration.base_rig = rig.path;
+    if (calibration.out_rig.empty()) calibration.out_rig = (results / "rig.yaml").string();
+    outcome.light_calibration =
+        CalibrateLights(LoadLightCalibrationInputs(outcome.directory), calibration, results.string());
+    spdlog::info("light calibration: {}", outcome.light_calibration->message);
   }
   return outcome;
 }

@@ -2,8 +2,6 @@
 
 #include "photorig/daemon/image_io.h"
 
-#include <zlib.h>
-
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -21,9 +19,11 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 json ToJson(const FrameRecord& f) {
-  return {{"index", f.index},
+  json out = {{"index", f.index},
           {"file", f.file},
           {"kind", f.kind},
+          {"group", f.group},
+          {"repeat", f.repeat},
           {"led", f.led},
           {"level", f.level},
           {"exposure_us", f.exposure_us},
@@ -33,6 +33,11 @@ json ToJson(const FrameRecord& f) {
           {"device_timestamp_ns", f.device_timestamp_ns},
           {"host_timestamp_ns", f.host_timestamp_ns},
           {"crc32", f.crc32}};
+  if (f.pose)
+    out["pose"] = {{"light_arm_deg", f.pose->light_arm_deg},
+                   {"camera_arm_deg", f.pose->camera_arm_deg},
+                   {"sample_rotation_deg", f.pose->sample_rotation_deg}};
+  return out;
 }
 
 FrameRecord FrameRecordFromJson(const json& j) {
@@ -40,6 +45,8 @@ FrameRecord FrameRecordFromJson(const json& j) {
   f.index = j.at("index").get<int>();
   f.file = j.at("file").get<std::string>();
   f.kind = j.at("kind").get<std::string>();
+  f.group = j.value("group", "");  // absent in runs stored before groups existed
+  f.repeat = j.value("repeat", 0);
   f.led = j.at("led").get<int>();
   f.level = j.at("level").get<double>();
   f.exposure_us = j.at("exposure_us").get<double>();
@@ -49,6 +56,11 @@ FrameRecord FrameRecordFromJson(const json& j) {
   f.device_timestamp_ns = j.at("device_timestamp_ns").get<std::int64_t>();
   f.host_timestamp_ns = j.at("host_timestamp_ns").get<std::int64_t>();
   f.crc32 = j.at("crc32").get<std::uint32_t>();
+  if (j.contains("pose")) {
+    const json& p = j.at("pose");
+    f.pose = GonioPose{p.at("light_arm_deg").get<double>(), p.at("camera_arm_deg").get<double>(),
+                       p.at("sample_rotation_deg").get<double>()};
+  }
   return f;
 }
 
@@ -70,11 +82,13 @@ StopRecord StopRecordFromJson(const json& j) {
 
 json ToJson(const RunManifest& m) {
   json lights = json::array();
-  for (const LedConfig& led : m.lights)
+  for (const LedConfig& led : m.lights) {
     lights.push_back({{"id", led.id},
                       {"direction", {led.direction.x(), led.direction.y(), led.direction.z()}},
                       {"intensity", led.intensity},
                       {"rgb_intensity", {led.rgb_intensity.x(), led.rgb_intensity.y(), led.rgb_intensity.z()}}});
+    if (led.position_mm) lights.back()["position_mm"] = {led.position_mm->x(), led.position_mm->y(), led.position_mm->z()};
+  }
   json frames = json::array();
   for (const FrameRecord& f : m.frames) frames.push_back(ToJson(f));
   json out = {{"format", m.format},
@@ -131,6 +145,11 @@ RunManifest RunManifestFromJson(const json& j) {
       if (rgb.size() != 3) throw std::runtime_error("light rgb_intensity needs 3 components");
       led.rgb_intensity = Eigen::Vector3d(rgb[0], rgb[1], rgb[2]);
     }
+    if (light.contains("position_mm")) {
+      const auto p = light.at("position_mm").get<std::vector<double>>();
+      if (p.size() != 3) throw std::runtime_error("light position_mm needs 3 components");
+      led.position_mm = Eigen::Vector3d(p[0], p[1], p[2]);
+    }
     m.lights.push_back(led);
   }
   for (const json& frame : j.at("frames")) m.frames.push_back(FrameRecordFromJson(frame));
@@ -138,54 +157,6 @@ RunManifest RunManifestFromJson(const json& j) {
   if (j.contains("stop")) m.stop = StopRecordFromJson(j.at("stop"));
   return m;
 }
-
-namespace {
-
-void PutBigEndian32(std::vector<std::uint8_t>& out, std::uint32_t value) {
-  for (int shift = 24; shift >= 0; shift -= 8) out.push_back(static_cast<std::uint8_t>(value >> shift));
-}
-
-void PutChunk(std::vector<std::uint8_t>& out, const char* type, const std::uint8_t* data, std::size_t size) {
-  PutBigEndian32(out, static_cast<std::uint32_t>(size));
-  const std::size_t start = out.size();
-  out.insert(out.end(), type, type + 4);
-  out.insert(out.end(), data, data + size);
-  PutBigEndian32(out, static_cast<std::uint32_t>(::crc32(0L, out.data() + start, static_cast<uInt>(size + 4))));
-}
-
-// A 16-bit grayscale PNG with filter 0 and stored (uncompressed) deflate
-// blocks. Noisy 12-bit frames barely compress, and libpng's adaptive
-// filtering plus deflate cost ~40 ms per megapixel, twenty times the durable
-// write itself. Any PNG reader decodes the result.
-std::vector<std::uint8_t> EncodeStoredPng16(const drivers::Frame& frame) {
-  const std::size_t row_bytes = 1 + static_cast<std::size_t>(frame.width) * 2;
-  std::vector<std::uint8_t> raw(row_bytes * frame.height);
-  for (int y = 0; y < frame.height; ++y) {
-    std::uint8_t* row = raw.data() + y * row_bytes;
-    row[0] = 0;  // filter: none
-    const std::uint16_t* pixels = frame.pixels.data() + static_cast<std::size_t>(y) * frame.width;
-    for (int x = 0; x < frame.width; ++x) {
-      row[1 + 2 * x] = static_cast<std::uint8_t>(pixels[x] >> 8);
-      row[2 + 2 * x] = static_cast<std::uint8_t>(pixels[x]);
-    }
-  }
-  uLongf deflated_size = compressBound(static_cast<uLong>(raw.size()));
-  std::vector<std::uint8_t> deflated(deflated_size);
-  if (compress2(deflated.data(), &deflated_size, raw.data(), static_cast<uLong>(raw.size()), 0) != Z_OK)
-    throw std::runtime_error("cannot deflate a frame");
-  std::vector<std::uint8_t> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  png.reserve(deflated_size + 64);
-  std::vector<std::uint8_t> header;
-  PutBigEndian32(header, static_cast<std::uint32_t>(frame.width));
-  PutBigEndian32(header, static_cast<std::uint32_t>(frame.height));
-  header.insert(header.end(), {16, 0, 0, 0, 0});  // 16-bit, grayscale, deflate, adaptive filtering, no interlace
-  PutChunk(png, "IHDR", header.data(), header.size());
-  PutChunk(png, "IDAT", deflated.data(), deflated_size);
-  PutChunk(png, "IEND", nullptr, 0);
-  return png;
-}
-
-}  // namespace
 
 RunWriter::RunWriter(std::string directory, RunManifest header)
     : directory_(std::move(directory)), manifest_(std::move(header)) {
@@ -202,6 +173,12 @@ RunWriter::RunWriter(std::string directory, RunManifest header)
 }
 
 void RunWriter::AppendJournal(const json& entry) {
+  AppendJournalUnsynced(entry);
+  if (::fdatasync(journal_fd_) != 0)
+    throw std::runtime_error("cannot fsync the journal of " + directory_ + ": " + std::strerror(errno));
+}
+
+void RunWriter::AppendJournalUnsynced(const json& entry) {
   const std::string line = entry.dump() + "\n";
   std::size_t written = 0;
   while (written < line.size()) {
@@ -210,8 +187,6 @@ void RunWriter::AppendJournal(const json& entry) {
     if (n <= 0) throw std::runtime_error("cannot append to the journal of " + directory_ + ": " + std::strerror(errno));
     written += static_cast<std::size_t>(n);
   }
-  if (::fdatasync(journal_fd_) != 0)
-    throw std::runtime_error("cannot fsync the journal of " + directory_ + ": " + std::strerror(errno));
 }
 
 std::unique_ptr<RunWriter> RunWriter::Reopen(const std::string& directory, RecoveryReport* report) {
@@ -315,26 +290,41 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
   FrameRecord record;
   record.index = step.index;
   record.file = "frames/" + step.label + ".png";
-  record.kind = step.kind == CaptureStep::Kind::kDark ? "dark" : "light";
+  record.kind = CaptureStepKindName(step.kind);
+  record.group = step.group;
+  record.repeat = step.repeat;
   record.led = step.led;
   record.level = step.led >= 0 ? step.pattern.levels.at(step.led) : 0.0;
+  record.pose = step.pose;
   record.exposure_us = frame.exposure_us;
   record.gain_db = frame.gain_db;
   record.bit_depth = frame.bit_depth;
   record.frame_id = frame.frame_id;
   record.device_timestamp_ns = frame.device_timestamp_ns;
   record.host_timestamp_ns = frame.host_timestamp_ns;
-  record.crc32 = Crc32(frame.pixels.data(), frame.pixels.size() * sizeof(std::uint16_t));
-  const std::vector<std::uint8_t> png = EncodeStoredPng16(frame);
-  WriteFileDurably((fs::path(directory_) / record.file).string(), png.data(), png.size());
-  AppendJournal(ToJson(record));
+  const Png16Encoder::Encoded png = encoder_.Encode(frame.pixels.data(), frame.width, frame.height);
+  record.crc32 = png.pixel_crc32;
+  // One syncfs makes the frame file, its name and its journal line durable
+  // together, where fsyncs of the file, the directory and the journal would
+  // cost three flushes. Until it returns nothing is promised: a crash before
+  // may leave the journal line without its frame, and Reopen drops any
+  // journalled frame that is missing or fails its checksum.
+  WriteFileAtomically((fs::path(directory_) / record.file).string(), png.data, png.size);
+  AppendJournalUnsynced(ToJson(record));
+  if (::syncfs(journal_fd_) != 0)
+    throw std::runtime_error("cannot sync the filesystem of " + directory_ + ": " + std::strerror(errno));
   manifest_.frames.push_back(record);
   return manifest_.frames.back();
 }
 
-void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface) {
+void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights) {
   const fs::path truth = fs::path(directory_) / "ground_truth";
   fs::create_directories(truth);
+  std::ostringstream directions;
+  directions.precision(17);
+  for (const sim::Light& light : lights)
+    directions << light.direction.x() << ' ' << light.direction.y() << ' ' << light.direction.z() << '\n';
+  WriteFileDurably((truth / "light_directions.txt").string(), directions.str());
   WriteFloatTiff((truth / "normals.tiff").string(), surface.normals);
   WriteFloatTiff((truth / "albedo.tiff").string(), surface.albedo);
   WriteImage((truth / "mask.png").string(), surface.mask);

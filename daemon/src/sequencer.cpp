@@ -1,5 +1,7 @@
 #include "photorig/daemon/sequencer.h"
 
+#include "photorig/daemon/plan.h"
+
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -24,9 +26,16 @@ void SwitchOffAndClose(drivers::LightController& lights) {
 // the dome goes dark and the camera stops and closes.
 class DeviceGuard {
  public:
-  DeviceGuard(drivers::LightController& lights, drivers::Camera& camera) : lights_(lights), camera_(camera) {}
+  DeviceGuard(drivers::LightController& lights, drivers::Camera& camera, MotionRig* motion)
+      : lights_(lights), camera_(camera), motion_(motion) {}
   ~DeviceGuard() { Release(); }
   void Release() {
+    if (motion_ && motion_->goniometer) {
+      // Close stops each drive first; StopAll before it halts every arm before any closes.
+      (void)motion_->goniometer->StopAll();
+      if (Status closed = motion_->goniometer->CloseAll(); !closed.ok())
+        spdlog::error("could not stop and close the motion axes: {}", closed.ToString());
+    }
     SwitchOffAndClose(lights_);
     if (camera_.state() != drivers::Camera::State::kClosed) {
       const Status closed = camera_.Close();
@@ -37,6 +46,7 @@ class DeviceGuard {
  private:
   drivers::LightController& lights_;
   drivers::Camera& camera_;
+  MotionRig* motion_;
 };
 
 // Faults worth a reopen and a retry; anything else (bad settings, a light
@@ -105,11 +115,25 @@ class Capture {
       for (const auto& a : report_.adjustments)
         spdlog::warn("camera {}: {} {} -> {} ({})", camera_.id(), a.field, a.requested, a.applied, a.reason);
     }
-    return camera_.Start();
+    if (Status s = camera_.Start(); !s.ok()) return s;
+    return OpenMotion();
+  }
+
+  // Opens and homes the axes once; after a fault they stay open and homed.
+  Status OpenMotion() {
+    if (!options_.motion || !options_.motion->goniometer) return Status::Ok();
+    bool home = false;
+    for (auto& axis : options_.motion->axes) {
+      if (axis->state() == drivers::Motion::State::kClosed)
+        if (Status s = axis->Open(); !s.ok()) return s;
+      home = home || axis->state() == drivers::Motion::State::kOpen;
+    }
+    return home ? options_.motion->goniometer->HomeAll() : Status::Ok();
   }
 
   // Leaves the devices closed and dark after a fault; they are reopened before the retry.
   void CloseAfterFault() {
+    if (options_.motion && options_.motion->goniometer) (void)options_.motion->goniometer->StopAll();
     SwitchOffAndClose(lights_);
     if (camera_.state() != drivers::Camera::State::kClosed) (void)camera_.Close();
   }
@@ -135,6 +159,12 @@ class Capture {
       settings_.gain_db = step.gain_db;
       if (Status s = camera_.Configure(settings_).status(); !s.ok()) return s;
       if (Status s = camera_.Start(); !s.ok()) return s;
+    }
+    if (step.pose) {
+      if (!options_.motion || !options_.motion->goniometer)
+        return {StatusCode::kFailedPrecondition, "step " + step.label + " is a pose but the rig has no motion"};
+      if (Status s = options_.motion->goniometer->MoveTo(PoseTargets(*step.pose), options_.motion_profile); !s.ok())
+        return s;
     }
     if (Status s = lights_.SetPattern(step.pattern); !s.ok()) return s;
     if (Status s = CheckPattern(step.pattern); !s.ok()) {
@@ -243,7 +273,7 @@ CaptureReport RunCapture(const std::vector<CaptureStep>& steps, const CameraConf
   report.steps_total = static_cast<int>(steps.size());
   report.frames_resumed = static_cast<int>(writer.manifest().frames.size());
   try {
-    DeviceGuard guard(lights, camera);
+    DeviceGuard guard(lights, camera, options.motion);
     std::string why;
     if (!options.retry.IsValid(&why)) throw std::invalid_argument("retry policy: " + why);
     Capture(camera_config, lights, camera, writer, options, report).Run(steps);

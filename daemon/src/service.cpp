@@ -187,6 +187,8 @@ void RunService::Execute(QueuedRun run) {
       final_state = RunState::kDone;
       if (outcome.photometric_stereo && (*outcome.photometric_stereo).value("termination", "") != "success")
         reason = "photometric stereo: " + (*outcome.photometric_stereo).value("message", std::string("no result"));
+      if (outcome.light_calibration && !outcome.light_calibration->success)
+        reason = "light calibration: " + outcome.light_calibration->message;
     } else if (outcome.capture.status == "aborted") {
       // SIGTERM leaves the run queued, to resume at the next start; an abort request ends it.
       final_state = control->abort_requested() ? RunState::kAborted : RunState::kQueued;

@@ -1,9 +1,12 @@
 #include "photorig/daemon/recipe.h"
 #include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/rig_devices.h"
 #include "photorig/daemon/yaml_node.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 namespace photorig::daemon {
 namespace {
@@ -64,6 +67,38 @@ TEST(RigConfig, PositionsBecomeDirections) {
   EXPECT_NEAR(rig.lights.leds[2].direction.z(), 0.8, 1e-12);
   EXPECT_DOUBLE_EQ(rig.lights.leds[1].intensity, 0.9);
   EXPECT_EQ(rig.lights.leds[1].id, 1);
+}
+
+TEST(RigConfig, SimulatedNearLedsAndABuiltDomeDifferFromTheDrawing) {
+  TempDir dir;
+  // Many LEDs on a ring, a seeded error of 2 degrees RMS.
+  std::string text = "rig: {name: ring}\nlights:\n  driver: sim\n  leds:\n";
+  for (int i = 0; i < 200; ++i)
+    text += "    - {direction: [" + std::to_string(std::cos(i * 0.1)) + ", " + std::to_string(std::sin(i * 0.1)) +
+            ", 1.5]}\n";
+  text += "    - {position_mm: [0, 60, 80]}\n";
+  text += "camera: {driver: sim, width: 16, height: 16}\nsim:\n  seed: 5\n  led_direction_error_deg: 2\n";
+  const RigConfig rig = LoadRigConfig(dir.Write("ring.yaml", text));
+  ASSERT_TRUE(rig.lights.leds.back().position_mm.has_value());
+  EXPECT_NEAR(rig.lights.leds.back().direction.dot(Eigen::Vector3d(0, 0.6, 0.8)), 1.0, 1e-12);
+  const RigDevices devices = MakeRigDevices(rig, nullptr);
+  const auto& lights = devices.world->config().lights;
+  ASSERT_EQ(lights.size(), rig.lights.leds.size());
+  double sum_squares = 0.0;
+  for (std::size_t i = 0; i + 1 < lights.size(); ++i) {
+    const double angle = std::acos(std::min(1.0, lights[i].direction.dot(rig.lights.leds[i].direction)));
+    sum_squares += angle * angle;
+    EXPECT_FALSE(lights[i].position_mm.has_value());
+  }
+  EXPECT_NEAR(std::sqrt(sum_squares / 200) * 180.0 / M_PI, 2.0, 0.3);
+  // The near LED keeps its distance and stays aimed at the object origin.
+  const sim::Light& near = lights.back();
+  ASSERT_TRUE(near.position_mm.has_value());
+  EXPECT_NEAR(near.position_mm->norm(), 100.0, 1e-9);
+  EXPECT_NEAR(near.axis.dot(-near.position_mm->normalized()), 1.0, 1e-12);
+  // Same seed, same dome.
+  const RigDevices again = MakeRigDevices(rig, nullptr);
+  EXPECT_EQ(again.world->config().lights[7].direction, lights[7].direction);
 }
 
 TEST(RigConfig, SyntaxErrorNamesFileLineAndColumn) {

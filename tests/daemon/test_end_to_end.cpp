@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -180,28 +181,57 @@ TEST(EndToEnd, DiligentExportSolvesLikeTheRun) {
 
 namespace {
 
-TEST(EndToEnd, LightCalibrationRecipeRecoversTheDomeDirections) {
+std::vector<Eigen::Vector3d> ReadDirections(const fs::path& path) {
+  std::vector<Eigen::Vector3d> rows;
+  std::ifstream in(path);
+  double x, y, z;
+  while (in >> x >> y >> z) rows.emplace_back(x, y, z);
+  return rows;
+}
+
+double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+TEST(EndToEnd, LightCalibrationRecipeFindsTheDomeAsBuilt) {
   TempDir dir;
+  // The simulated dome as built: each LED about 1.5 degrees off its drawing.
+  const std::string drawing = ReadText(SourceDir() + "/config/rigs/sim-dome.yaml");
+  const std::string as_built = std::regex_replace(drawing, std::regex("\nsim:\n"), "\nsim:\n  led_direction_error_deg: 1.5\n");
+  ASSERT_NE(as_built, drawing);
+  const fs::path rig = dir.path() / "as-built.yaml";
+  std::ofstream(rig) << as_built;
   const fs::path run = dir.path() / "run";
-  const std::string rig = SourceDir() + "/config/rigs/sim-dome.yaml";
-  const std::string rig_before = ReadText(rig);
-  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/light-calibration.yaml --out " + run.string(),
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/light-calibration.yaml --rig " + rig.string() +
+                            " --out " + run.string(),
                         dir.path() / "log"), 0) << ReadText(dir.path() / "log");
-  const fs::path calibrated = dir.path() / "calibrated.yaml";
-  // The sphere is 17 mm across 0.1 mm pixels, centred in the 384 x 384 frame.
-  ASSERT_EQ(RunPhotorig("calibrate lights --run " + run.string() + " --circle 192 192 170 --rig " + rig +
-                            " --out-rig " + calibrated.string() + " --out " + (dir.path() / "lights").string(),
-                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
-  EXPECT_EQ(ReadText(rig), rig_before);  // the old rig is never overwritten
-  const auto truth = photorig::daemon::LoadRigConfig(rig);
+  EXPECT_EQ(ReadText(rig), as_built);  // the rig the run used is never overwritten
+  const fs::path calibrated = run / "results/lights/rig.yaml";
+  ASSERT_TRUE(fs::exists(calibrated)) << ReadText(dir.path() / "log");
+  const auto truth = ReadDirections(run / "ground_truth/light_directions.txt");
+  const auto nominal = photorig::daemon::LoadRigConfig(rig.string());
   const auto estimate = photorig::daemon::LoadRigConfig(calibrated.string());
-  ASSERT_EQ(estimate.lights.leds.size(), truth.lights.leds.size());
-  double sum_deg = 0.0;
-  for (std::size_t i = 0; i < truth.lights.leds.size(); ++i) {
-    const double cosine = truth.lights.leds[i].direction.dot(estimate.lights.leds[i].direction);
-    sum_deg += std::acos(std::min(1.0, cosine)) * 180.0 / M_PI;
+  ASSERT_EQ(truth.size(), nominal.lights.leds.size());
+  ASSERT_EQ(estimate.lights.leds.size(), truth.size());
+  double nominal_deg = 0.0, calibrated_deg = 0.0;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    nominal_deg += AngleDeg(truth[i], nominal.lights.leds[i].direction) / truth.size();
+    calibrated_deg += AngleDeg(truth[i], estimate.lights.leds[i].direction) / truth.size();
   }
-  EXPECT_LT(sum_deg / truth.lights.leds.size(), 0.6);
+  EXPECT_GT(nominal_deg, 1.0);  // the tilt is there to be found
+  EXPECT_LT(calibrated_deg, 0.5);
+  // No circle was given: the sphere was placed from its highlights, centred in the 384 x 384 frame.
+  const auto report = nlohmann::json::parse(ReadText(run / "results/lights/report.json"));
+  EXPECT_EQ(report["sphere"]["source"], "highlights");
+  EXPECT_NEAR(report["sphere"]["cx_px"].get<double>(), 191.5, 1.0);
+  EXPECT_NEAR(report["sphere"]["cy_px"].get<double>(), 191.5, 1.0);
+  EXPECT_DOUBLE_EQ(report["sphere"]["radius_px"].get<double>(), 170.0);  // 17 mm over 0.1 mm pixels, as given
+  EXPECT_EQ(report["summary"]["unusable"], 0);
+  // A second calibration into the same file is refused: calibrated rigs are always new files.
+  ASSERT_NE(RunPhotorig("calibrate lights --run " + run.string() + " --radius-mm 17 --rig " + rig.string() +
+                            " --out-rig " + calibrated.string() + " --out " + (dir.path() / "again").string(),
+                        dir.path() / "log"), 0);
+  EXPECT_NE(ReadText(dir.path() / "log").find("exists"), std::string::npos) << ReadText(dir.path() / "log");
   // The same mirror-ball frame unwrapped to a lat-long map: its brightest direction is LED 9's.
   const fs::path map = dir.path() / "map.hdr";
   ASSERT_EQ(RunPhotorig("envmap --ball " + (run / "frames/0010_led09.png").string() +
@@ -213,8 +243,8 @@ TEST(EndToEnd, LightCalibrationRecipeRecoversTheDomeDirections) {
   cv::Point brightest;
   cv::minMaxLoc(radiance, nullptr, nullptr, nullptr, &brightest);
   const Eigen::Vector3d seen = photorig::lighting::LatLongDirection(brightest.x, brightest.y, radiance.cols, radiance.rows);
-  EXPECT_LT(std::acos(std::min(1.0, seen.dot(truth.lights.leds[9].direction))) * 180.0 / M_PI, 2.0);
-  // The calibrated rig drives a photometric-stereo run as well as the nominal one.
+  EXPECT_LT(AngleDeg(seen, truth[9]), 2.0);
+  // The calibrated rig is a working rig file.
   ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + calibrated.string() +
                             " --out " + (dir.path() / "ps").string(),
                         dir.path() / "log"), 0) << ReadText(dir.path() / "log");

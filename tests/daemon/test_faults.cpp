@@ -86,9 +86,14 @@ TEST_P(FaultInjection, RunCompletesIntactOrFailsCleanlyWithTheLightsOff) {
   EXPECT_EQ(manifest.stop->frames, static_cast<int>(manifest.frames.size()));
   const auto problems = VerifyRun(writer.directory());
   EXPECT_TRUE(problems.empty()) << problems.front();
-  if (c.completes) EXPECT_EQ(manifest.frames.size(), steps.size());
-  if (!c.completes) EXPECT_FALSE(report.reason.empty());
-  if (c.min_retries > 0) EXPECT_NE(std::find(states.begin(), states.end(), RunState::kSuspended), states.end());
+  if (c.completes) {
+    EXPECT_EQ(manifest.frames.size(), steps.size());
+  } else {
+    EXPECT_FALSE(report.reason.empty());
+  }
+  if (c.min_retries > 0) {
+    EXPECT_NE(std::find(states.begin(), states.end(), RunState::kSuspended), states.end());
+  }
   // Dark at every close (after each fault and at the end) and now.
   ASSERT_FALSE(dome.levels_at_close.empty());
   for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>(kLeds, 0.0));

@@ -1,9 +1,11 @@
 #include "photorig/daemon/image_io.h"
+#include "photorig/daemon/png16.h"
 #include "photorig/daemon/run_store.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
+#include <zlib.h>
 
 #include <filesystem>
 #include <fstream>
@@ -62,7 +64,7 @@ RunManifest Header() {
   header.width = 20;
   header.height = 10;
   header.bit_depth = 12;
-  header.lights = {LedConfig{0, Eigen::Vector3d(0, 0, 1), 1.0}};
+  header.lights.resize(1);  // one LED straight above: id 0, unit intensity
   return header;
 }
 
@@ -74,6 +76,28 @@ CaptureStep Step(int index, int led) {
   step.label = "000" + std::to_string(index) + (led < 0 ? "_dark" : "_led00");
   step.pattern = led < 0 ? drivers::LightPattern::AllOff(1) : drivers::LightPattern::Single(1, 0, 0.5);
   return step;
+}
+
+// Shapes chosen to put stored-block boundaries inside a sample, on a filter
+// byte and at the end of a row, and to make a single block and many.
+TEST(Png16Encoder, EveryShapeDecodesBitExactWithMatchingChecksum) {
+  Png16Encoder encoder;  // one encoder for all: its buffer is reused
+  std::mt19937 rng(3);
+  for (const auto& [width, height] : std::vector<std::pair<int, int>>{
+           {1, 1}, {3, 2}, {32767, 1}, {32767, 3}, {777, 333}, {40000, 3}, {5, 70000}, {1024, 1024}}) {
+    std::vector<std::uint16_t> pixels(static_cast<std::size_t>(width) * height);
+    for (auto& p : pixels) p = static_cast<std::uint16_t>(rng());
+    const Png16Encoder::Encoded png = encoder.Encode(pixels.data(), width, height);
+    const cv::Mat decoded =
+        cv::imdecode(cv::Mat(1, static_cast<int>(png.size), CV_8U, const_cast<std::uint8_t*>(png.data)),
+                     cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(decoded.empty()) << width << "x" << height;
+    ASSERT_EQ(decoded.type(), CV_16U);
+    ASSERT_EQ(decoded.size(), cv::Size(width, height));
+    EXPECT_TRUE(std::equal(pixels.begin(), pixels.end(), decoded.ptr<std::uint16_t>(0))) << width << "x" << height;
+    EXPECT_EQ(png.pixel_crc32, ::crc32(0L, reinterpret_cast<const Bytef*>(pixels.data()),
+                                       static_cast<uInt>(pixels.size() * sizeof(std::uint16_t))));
+  }
 }
 
 TEST(RunStore, FramesLandOnDiskBitExactWithJournalAndManifest) {

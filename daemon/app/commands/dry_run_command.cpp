@@ -37,11 +37,20 @@ int Execute(const Options& options) {
     return plan.ok() ? 0 : 2;
   }
   if (options.list_steps)
-    for (const auto& step : steps)
-      std::printf("  %-14s exposure %8.0f us  gain %4.1f dB\n", step.label.c_str(), step.exposure_us, step.gain_db);
+    for (const auto& step : steps) {
+      int lit = 0;
+      for (double level : step.pattern.levels) lit += level > 0.0;
+      std::printf("  %-32s %-7s exposure %8.0f us  gain %4.1f dB  %2d LED%s lit", step.label.c_str(),
+                  daemon::CaptureStepKindName(step.kind), step.exposure_us, step.gain_db, lit, lit == 1 ? "" : "s");
+      if (step.pose)
+        std::printf("  light %+.1f camera %+.1f rotation %+.1f deg", step.pose->light_arm_deg, step.pose->camera_arm_deg,
+                    step.pose->sample_rotation_deg);
+      std::printf("\n");
+    }
   std::printf("%s on rig '%s': %d frames, about %.1f s, %.1f MiB (%.1f MiB free)\n", options.recipe.c_str(),
               rig.name.c_str(), plan.estimate.frames, plan.estimate.duration_s, plan.estimate.bytes / 1048576.0,
               free_bytes / 1048576.0);
+  if (plan.move_s > 0) std::printf("arm moves: about %.1f s of that\n", plan.move_s);
   if (plan.max_duty_led >= 0)
     std::printf("busiest LED: %d, lit %.1f%% of the run\n", plan.max_duty_led, 100.0 * plan.max_led_duty);
   for (const auto& warning : plan.warnings) std::printf("warning: %s\n", warning.c_str());

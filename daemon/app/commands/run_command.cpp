@@ -34,6 +34,14 @@ int Execute(const Options& options) {
     std::printf("results: %s/results/ps/\n", outcome.directory.c_str());
     if ((*outcome.photometric_stereo)["termination"] != "success") return 3;
   }
+  if (outcome.light_calibration) {
+    const daemon::LightCalibrationSummary& lights = *outcome.light_calibration;
+    std::printf("light calibration: %s; sphere at (%.2f, %.2f) px, radius %.2f px; mean uncertainty %.2f deg\n",
+                lights.message.c_str(), lights.circle.cx_px, lights.circle.cy_px, lights.circle.radius_px,
+                lights.mean_uncertainty_deg);
+    if (!lights.out_rig.empty()) std::printf("calibrated rig: %s\n", lights.out_rig.c_str());
+    if (!lights.success) return 3;
+  }
   if (outcome.capture.status == "aborted") return 130;
   return outcome.capture.status == "complete" ? 0 : 1;
 }

@@ -12,6 +12,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace photorig::daemon {
 
@@ -29,5 +30,13 @@ std::string CameraDriverNames();
 
 std::unique_ptr<drivers::LightController> MakeLightController(const DeviceContext& context);
 std::unique_ptr<drivers::Camera> MakeCamera(const DeviceContext& context);
+
+// A gonioreflectometer's axes and the Goniometer that moves them under the
+// rig's separation constraints. Empty for a rig without `motion:`.
+struct MotionRig {
+  std::vector<std::unique_ptr<drivers::Motion>> axes;
+  std::unique_ptr<drivers::Goniometer> goniometer;
+};
+MotionRig MakeMotion(const DeviceContext& context);
 
 }  // namespace photorig::daemon

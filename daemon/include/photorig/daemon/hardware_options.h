@@ -32,18 +32,8 @@ std::unique_ptr<drivers::LightController> MakeUsbRelayLights(const DeviceContext
 std::unique_ptr<drivers::LightController> WithSafety(std::unique_ptr<drivers::LightController> lights,
                                                      const DeviceContext& context);
 
-// A gonioreflectometer's axes and collision constraints:
-//   motion:
-//     link: {host: 127.0.0.1, port: 502, unit_id: 1, ...}   # shared by the axes unless an axis has its own
-//     settle: {tolerance_deg, settle_ms, timeout_ms, stall_window_ms, overshoot_deg}
-//     axes:
-//       - {id: light_arm, base_address: 1000, min_deg: -170, max_deg: 170}
-//     constraints:
-//       - {min_separation_deg: 12, axes: [light_arm, camera_arm]}
-struct MotionRig {
-  std::vector<std::unique_ptr<drivers::ModbusDriveAxis>> axes;
-  std::unique_ptr<drivers::Goniometer> goniometer;
-};
-MotionRig MakeMotionRig(const YamlNode& motion);
+// The axes of a `motion: {driver: modbus-tcp}` section (rig_config.h): one
+// drive per axis on the shared `link:`, each at its axis entry's base_address.
+MotionRig MakeModbusMotion(const MotionConfig& motion);
 
 }  // namespace photorig::daemon

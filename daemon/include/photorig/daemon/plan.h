@@ -1,6 +1,8 @@
 #pragma once
 // What a compiled recipe will do before any device is touched: estimated
-// duration and data size, LED duty, and the checks `photorig dry-run` and the
+// duration (exposures, per-step overhead, arm moves) and data size, LED duty
+// (flats and patterns light several LEDs at once), soft limits and arm
+// separation at every pose, and the checks `photorig dry-run` and the
 // daemon's admission make (limits, free disk space).
 
 #include "photorig/daemon/recipe.h"
@@ -9,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -33,6 +36,7 @@ struct RunEstimate {
 
 struct RunPlan {
   RunEstimate estimate;
+  double move_s = 0.0;        // of estimate.duration_s: arm moves and settling
   double max_led_duty = 0.0;  // over all LEDs
   int max_duty_led = -1;      // its LED id
   std::vector<std::string> errors;    // the run must not start
@@ -44,6 +48,9 @@ struct RunPlan {
 
 RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<CaptureStep>& steps,
                 const PlanOptions& options = {});
+
+// A pose as goniometer targets by axis id (light_arm, camera_arm, sample_rotation).
+std::map<std::string, double> PoseTargets(const GonioPose& pose);
 
 // Free bytes for an unprivileged writer on the filesystem holding `path`
 // (or its nearest existing ancestor).

@@ -3,10 +3,13 @@
 // are, what the camera is, and for simulated rigs what the simulator renders.
 
 #include "photorig/daemon/yaml_node.h"
+#include "photorig/drivers/motion/goniometer.h"
 #include "photorig/sim/world.h"
 
 #include <Eigen/Core>
 
+#include <array>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -19,6 +22,11 @@ struct LedConfig {
   double intensity = 1.0;              // relative irradiance at the sample for drive level 1
   int channel = 0;                     // controller output driving this LED (default: its index)
   Eigen::Vector3d rgb_intensity{1, 1, 1};  // relative [r, g, b] output, as calibrated
+  // Where the LED is, when the rig gives it (mm, camera frame). Solvers use
+  // `direction` (towards it from the object origin); a simulated rig renders
+  // it as a near LED aimed at the origin, with inverse-square falloff across
+  // the object, the error a distant-light model makes on a small dome.
+  std::optional<Eigen::Vector3d> position_mm;
 };
 
 struct LightsConfig {
@@ -26,6 +34,14 @@ struct LightsConfig {
   std::string id;
   std::vector<LedConfig> leds;
   std::optional<YamlNode> options;  // driver-specific settings, parsed by the driver's factory
+};
+
+// Where a 24-patch colour chart sits in the camera's image when the rig
+// photographs one (camera.color_chart): the outer corners of the 6 x 4 grid of
+// patch cells in pixels, top-left (dark-skin patch) first, then clockwise.
+// Written as `box_px: [x, y, w, h]` or `corners_px: [[x, y], ...]` (four points).
+struct ColorChartPlacement {
+  std::array<Eigen::Vector2d, 4> corners_px;
 };
 
 struct CameraConfig {
@@ -45,10 +61,37 @@ struct CameraConfig {
   // Conversion gain at 0 dB (electrons per DN, from the camera's EMVA 1288
   // sheet): sets the photon-noise model. 0 = unknown, then estimated from data.
   double e_per_dn = 0.0;
+  // Fixed chart position for colour calibration, used when detection fails.
+  std::optional<ColorChartPlacement> color_chart;
+};
+
+// A gonioreflectometer's axes (kind: gonioreflectometer). Axis ids
+// light_arm, camera_arm and sample_rotation are what recipe poses move.
+struct AxisConfig {
+  std::string id;
+  drivers::AxisLimits limits;
+  YamlNode source;  // the axis entry: driver-specific keys (base_address) are read from here
+};
+
+struct MotionConfig {
+  std::string driver;  // "sim" or "modbus-tcp"
+  drivers::MotionProfile profile;  // every move of every axis
+  drivers::SettleOptions settle;
+  std::vector<AxisConfig> axes;
+  std::vector<drivers::SeparationConstraint> constraints;
+  YamlNode source;  // the motion: section (driver-specific: `link:`, sim `time_scale:`)
+
+  const AxisConfig* axis(const std::string& id) const;
+  // Empty when every axis stays within its soft limits and every separation
+  // constraint holds at `positions_deg`; otherwise what is violated.
+  std::string CheckPose(const std::map<std::string, double>& positions_deg) const;
 };
 
 struct SimConfig {
   std::uint64_t seed = 1;
+  // The simulated dome as built: each LED tilted off its nominal direction by
+  // a seeded random angle of this RMS, so light calibration has something to find.
+  double led_direction_error_deg = 0.0;
   sim::SensorModel sensor;
   sim::Scene scene;  // default scene; a recipe's sample.sim_scene replaces it
   sim::CameraFaults camera_faults;
@@ -58,9 +101,11 @@ struct SimConfig {
 struct RigConfig {
   std::string path;
   std::string name;
+  std::string kind = "light_dome";  // or "gonioreflectometer" (needs `motion:`)
   LightsConfig lights;
   CameraConfig camera;
   std::optional<SimConfig> sim;  // present when any device is simulated
+  std::optional<MotionConfig> motion;  // gonioreflectometers only
 
   bool IsSimulated() const { return sim.has_value(); }
 };

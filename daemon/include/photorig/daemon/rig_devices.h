@@ -1,6 +1,7 @@
 #pragma once
 // Opens the devices a rig describes, through the driver interfaces.
 
+#include "photorig/daemon/device_factory.h"
 #include "photorig/daemon/recipe.h"
 #include "photorig/daemon/rig_config.h"
 #include "photorig/drivers/camera.h"
@@ -15,6 +16,7 @@ struct RigDevices {
   std::unique_ptr<drivers::LightController> lights;
   std::unique_ptr<drivers::Camera> camera;
   std::shared_ptr<sim::World> world;  // simulated rigs only: the ground truth lives here
+  MotionRig motion;                   // gonioreflectometers only
 };
 
 // Builds (but does not open) the rig's devices. `recipe` may replace the

@@ -3,6 +3,7 @@
 // rig's devices into a run directory, then run the recipe's solvers on it.
 // Shared by the `photorig` CLI and the `photorigd` daemon.
 
+#include "photorig/daemon/light_calibration.h"
 #include "photorig/daemon/sequencer.h"
 
 #include <nlohmann/json.hpp>
@@ -36,6 +37,7 @@ struct RunOutcome {
   RecoveryReport recovery;  // when resumed
   CaptureReport capture;
   std::optional<nlohmann::json> photometric_stereo;  // the solver's report.json
+  std::optional<LightCalibrationSummary> light_calibration;
 };
 
 // Throws ConfigError for bad configuration (before any device is touched) and

@@ -7,6 +7,7 @@
 //   ground_truth/        simulated rigs only: normals.tiff, albedo.tiff, mask.png
 //   results/<solver>/    solver outputs and report.json
 
+#include "photorig/daemon/png16.h"
 #include "photorig/daemon/recipe.h"
 #include "photorig/drivers/camera.h"
 
@@ -23,8 +24,10 @@ namespace photorig::daemon {
 struct FrameRecord {
   int index = 0;
   std::string file;        // relative to the run directory
-  std::string kind;        // "dark" | "light"
-  int led = -1;            // index into `lights`; -1 for darks
+  std::string kind;        // "dark" | "light" | "flat" | "pattern" | "pose" (CaptureStepKindName)
+  std::string group;       // the recipe group: "dark", "each_led", "flat", "pattern:<name>", "poses"
+  int repeat = 0;          // 0-based repetition of its group
+  int led = -1;            // kind "light": index into `lights`; -1 otherwise
   double level = 0.0;      // drive level of that LED
   double exposure_us = 0.0;
   double gain_db = 0.0;
@@ -33,6 +36,7 @@ struct FrameRecord {
   std::int64_t device_timestamp_ns = 0;
   std::int64_t host_timestamp_ns = 0;
   std::uint32_t crc32 = 0;  // of the pixel data as stored in the file
+  std::optional<GonioPose> pose;  // gonioreflectometer arms when the frame was taken
 };
 
 // How a run ended: written to the manifest and as the journal's last line.
@@ -102,19 +106,23 @@ class RunWriter {
   // Durably stores the frame and appends it to the journal before returning.
   const FrameRecord& WriteFrame(const CaptureStep& step, const drivers::Frame& frame);
   // normals, albedo, mask, height (mm), specular BRDF parameters and, for
-  // volumes, line integrals, as ground_truth/*.tiff|png.
-  void WriteGroundTruth(const sim::SurfaceMaps& surface);
+  // volumes, line integrals, as ground_truth/*.tiff|png; the lights as they
+  // really are (which may differ from the rig's nominal ones) as
+  // ground_truth/light_directions.txt, one "x y z" line per light.
+  void WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights);
   bool HasFrame(int step_index) const;
   // Appends the stop record to the journal and writes manifest.json.
   void Finish(const StopRecord& stop);
 
  private:
   RunWriter() = default;
-  void AppendJournal(const nlohmann::json& line);
+  void AppendJournal(const nlohmann::json& line);  // and fdatasync it
+  void AppendJournalUnsynced(const nlohmann::json& line);
 
   std::string directory_;
   RunManifest manifest_;
   int journal_fd_ = -1;
+  Png16Encoder encoder_;
 };
 
 // Reads manifest.json. Throws std::runtime_error naming the file on a missing

@@ -6,10 +6,14 @@
 // up at its last checkpoint. A transient device fault (timeout, disconnect,
 // dropped or damaged frame, unanswered light command) suspends the run: the
 // devices are closed, reopened after a backoff and the step is retried, up to
-// the bounds of the RetryPolicy. Lights are switched off and the camera
-// stopped on every exit path: normal end, device error, storage error,
-// exception, pause and stop request.
+// the bounds of the RetryPolicy. On a gonioreflectometer a pose step first
+// moves the arms (lights off) through the Goniometer, which refuses targets
+// outside soft limits or separation before anything moves. Lights are
+// switched off, the camera stopped and every axis stopped and closed on every
+// exit path: normal end, device error, storage error, exception, pause and
+// stop request.
 
+#include "photorig/daemon/device_factory.h"
 #include "photorig/daemon/recipe.h"
 #include "photorig/daemon/run_control.h"
 #include "photorig/daemon/run_store.h"
@@ -38,6 +42,10 @@ struct CaptureOptions {
   RetryPolicy retry;
   const std::atomic<bool>* stop_requested = nullptr;  // checked between steps (SIGTERM/SIGINT)
   RunControl* control = nullptr;                      // pause/resume/abort from another thread
+  // Gonioreflectometers: the axes (opened and homed before the first step)
+  // and the profile of every move. Null for a dome; required by pose steps.
+  MotionRig* motion = nullptr;
+  drivers::MotionProfile motion_profile;
   std::function<void(const CaptureStep&, const FrameRecord&, int total)> on_frame;
   // Every state change of the run: kRunning, kPaused, kSuspended (detail: the fault), kAborting.
   std::function<void(RunState, const std::string& detail)> on_state;

@@ -1,0 +1,279 @@
+// The gonioreflectometer end to end on the simulator: rig and pose
+// validation, dry-run refusals (soft limits, separation, arms crossing), a run
+// whose frames match the analytic BRDF at several poses, and every exit path
+// leaving the arms stopped and the lamp off.
+
+#include "photorig/daemon/plan.h"
+#include "photorig/daemon/recipe.h"
+#include "photorig/daemon/rig_devices.h"
+#include "photorig/daemon/run.h"
+#include "photorig/daemon/run_store.h"
+#include "photorig/daemon/sequencer.h"
+#include "photorig/sim/gonio.h"
+#include "capture_fixtures.h"
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include <cmath>
+#include <filesystem>
+
+namespace photorig::daemon {
+namespace {
+
+using photorig::testing::SourceDir;
+using photorig::testing::TempDir;
+using photorig::testing::WatchedDome;
+
+constexpr double kAlbedo = 0.4, kRhoS = 0.15, kExponent = 20.0;
+constexpr double kResponse = 1.5, kEPerDn = 4.0, kBlack = 64.0, kExposureUs = 4000.0;
+
+// 32x32 px at 1 mm, a 12 mm sample disc, arms 15 deg apart at least, noise-free sensor.
+std::string GonioRig(const std::string& faults = "") {
+  std::string text = R"(rig: {name: gonio, kind: gonioreflectometer}
+lights:
+  driver: sim
+  leds: [{id: 0, direction: [0, 0, 1], intensity: 1.0}]
+camera: {driver: sim, width: 32, height: 32, pixel_pitch_mm: 1.0, bit_depth: 12, exposure_us: 4000}
+motion:
+  driver: sim
+  time_scale: 50
+  profile: {velocity_deg_s: 30, acceleration_deg_s2: 120}
+  settle: {settle_ms: 5, poll_ms: 2, stall_window_ms: 100}
+  axes:
+    - {id: light_arm, min_deg: -80, max_deg: 80}
+    - {id: camera_arm, min_deg: -80, max_deg: 80}
+    - {id: sample_rotation, min_deg: -180, max_deg: 180}
+  constraints:
+    - {min_separation_deg: 15, axes: [light_arm, camera_arm]}
+sim:
+  seed: 5
+  sensor: {response_e_per_us: 1.5, e_per_dn: 4.0, black_level_dn: 64, read_noise_e: 0, shot_noise: false}
+  scene:
+    shape: sample_plane
+    radius_mm: 12
+    albedo: {pattern: uniform, high: 0.4}
+    brdf: {model: blinn_phong, rho_s: 0.15, exponent: 20}
+)";
+  if (!faults.empty()) text += "  faults: " + faults + "\n";
+  return text;
+}
+
+std::string GonioRecipe(const std::string& poses) {
+  return "recipe: {name: gonio, rig: rig.yaml}\ncapture:\n  exposure_us: 4000\n  steps:\n    - dark: {count: 1}\n"
+         "    - poses:\n" + poses;
+}
+
+// Blinn-Phong in the sample frame (n = z) for arms in the x-z plane, written
+// out independently of the renderer: f_r * cos(theta_i) at unit irradiance.
+double ExpectedRadiance(double light_deg, double camera_deg) {
+  const double ti = light_deg * M_PI / 180.0, to = camera_deg * M_PI / 180.0;
+  const double hx = std::sin(ti) + std::sin(to), hz = std::cos(ti) + std::cos(to);
+  const double n_dot_h = hz / std::hypot(hx, hz);
+  const double f = kAlbedo / M_PI + kRhoS * (kExponent + 2.0) / (2.0 * M_PI) * std::pow(n_dot_h, kExponent);
+  return f * std::cos(ti);
+}
+
+void ExpectConfigError(const std::string& rig_text, int line, int column, const std::string& fragment) {
+  TempDir dir;
+  const std::string path = dir.Write("rig.yaml", rig_text);
+  try {
+    LoadRigConfig(path);
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.line(), line) << e.what();
+    EXPECT_EQ(e.column(), column) << e.what();
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
+}
+
+std::string Replace(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return text.replace(at, from.size(), to);
+}
+
+TEST(Gonio, RigAndPoseErrorsNameTheirPosition) {
+  ExpectConfigError(Replace(GonioRig(), "    - {id: sample_rotation, min_deg: -180, max_deg: 180}\n", ""), 12, 5,
+                    "needs an axis 'sample_rotation'");
+  ExpectConfigError(Replace(GonioRig(), "axes: [light_arm, camera_arm]", "axes: [light_arm, detector]"), 16, 50,
+                    "no axis 'detector'");
+  ExpectConfigError(Replace(GonioRig(), "{id: light_arm, min_deg: -80", "{id: light_arm, min_deg: 90"), 12, 7,
+                    "needs min_deg < max_deg");
+  ExpectConfigError(Replace(GonioRig(), "kind: gonioreflectometer", "kind: light_dome"), 7, 3,
+                    "only a gonioreflectometer rig has motion");
+  ExpectConfigError(Replace(GonioRig(), "  driver: sim\n  time_scale", "  driver: stepper\n  time_scale"), 7, 11,
+                    "unknown motion driver 'stepper'");
+
+  TempDir dir;
+  dir.Write("rig.yaml", GonioRig());
+  const std::string both = dir.Write(
+      "both.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_arm_deg: 30}]\n        grid: {light_arm_deg: 0}\n"));
+  try {
+    LoadRecipe(both);
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.line(), 7) << e.what();
+    EXPECT_NE(std::string(e.what()).find("exactly one of 'list' or 'grid'"), std::string::npos) << e.what();
+  }
+  const std::string typo = dir.Write("typo.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_deg: 30}]\n"));
+  try {
+    LoadRecipe(typo);
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.line(), 7) << e.what();
+    EXPECT_EQ(e.column(), 35) << e.what();
+    EXPECT_NE(std::string(e.what()).find("camera_deg"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Gonio, GridCompilesToPosesAndThePlanCountsTheMoves) {
+  TempDir dir;
+  dir.Write("rig.yaml", GonioRig());
+  const Recipe recipe = LoadRecipe(dir.Write(
+      "r.yaml", GonioRecipe("        grid: {light_arm_deg: -30, camera_arm_deg: [0, 30], sample_rotation_deg: [0, 90]}\n")));
+  const RigConfig rig = LoadRigConfig(recipe.rig_path);
+  const auto steps = CompileSteps(recipe, rig);
+  ASSERT_EQ(steps.size(), 5u);
+  EXPECT_EQ(steps[1].kind, CaptureStep::Kind::kPose);
+  EXPECT_EQ(steps[1].label, "0001_pose_l-30.0_c+0.0_r+0.0");
+  ASSERT_TRUE(steps[4].pose.has_value());
+  EXPECT_EQ(steps[4].pose->camera_arm_deg, 30.0);
+  EXPECT_EQ(steps[4].pose->sample_rotation_deg, 90.0);
+  EXPECT_EQ(steps[4].pattern.levels, std::vector<double>{1.0});
+  PlanOptions options;
+  options.step_overhead_ms = 0.0;
+  const RunPlan plan = PlanRun(recipe, rig, steps, options);
+  ASSERT_TRUE(plan.ok());
+  // From home: light to -30; camera to 30; camera back to 0 and rotation to 90;
+  // camera to 30. A trapezoid from rest to rest over d takes d / v + v / a;
+  // each move adds settle_ms (5 ms).
+  const double move_30 = 30.0 / 30.0 + 30.0 / 120.0, move_90 = 90.0 / 30.0 + 30.0 / 120.0;
+  EXPECT_NEAR(plan.move_s, 4 * move_30 + move_90 + 5 * 0.005, 1e-9);
+  EXPECT_NEAR(plan.estimate.duration_s, plan.move_s + 5 * kExposureUs * 1e-6, 1e-9);
+}
+
+TEST(Gonio, DryRunAndRunRefuseBadPosesBeforeAnythingMoves) {
+  struct Case {
+    const char* poses;
+    const char* fragment;
+  };
+  const Case cases[] = {
+      {"        list: [{light_arm_deg: -30, camera_arm_deg: 85}]\n", "camera_arm target 85"},
+      {"        list: [{light_arm_deg: -30, camera_arm_deg: 30}, {light_arm_deg: 20, camera_arm_deg: 30}]\n",
+       "light_arm and camera_arm 10.0"},
+      {"        list: [{light_arm_deg: -30, camera_arm_deg: 30}, {light_arm_deg: 40, camera_arm_deg: 0}]\n",
+       "would have to pass each other"},
+  };
+  for (const Case& c : cases) {
+    TempDir dir;
+    dir.Write("rig.yaml", GonioRig());
+    const std::string path = dir.Write("r.yaml", GonioRecipe(c.poses));
+    const Recipe recipe = LoadRecipe(path);
+    const RigConfig rig = LoadRigConfig(recipe.rig_path);
+    const RunPlan plan = PlanRun(recipe, rig, CompileSteps(recipe, rig));
+    ASSERT_EQ(plan.errors.size(), 1u) << c.poses;
+    EXPECT_NE(plan.errors[0].find(c.fragment), std::string::npos) << plan.errors[0];
+
+    RunRequest request;
+    request.recipe_path = path;
+    request.output_directory = (dir.path() / "run").string();
+    request.show_progress = false;
+    try {
+      ExecuteRun(request);
+      FAIL() << "run accepted " << c.poses;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(c.fragment), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(request.output_directory));  // nothing stored, nothing opened
+  }
+}
+
+TEST(Gonio, FramesMatchTheAnalyticBrdfAtEachPose) {
+  TempDir dir;
+  dir.Write("rig.yaml", GonioRig());
+  RunRequest request;
+  request.recipe_path = dir.Write("r.yaml", GonioRecipe(R"(        list:
+          - {light_arm_deg: -30, camera_arm_deg: 0}
+          - {light_arm_deg: -30, camera_arm_deg: 30}
+          - {light_arm_deg: -30, camera_arm_deg: 60}
+          - {light_arm_deg: -30, camera_arm_deg: 30, sample_rotation_deg: 120}
+          - {light_arm_deg: 10, camera_arm_deg: 50}
+)"));
+  request.output_directory = (dir.path() / "run").string();
+  request.show_progress = false;
+  const RunOutcome outcome = ExecuteRun(request);
+  ASSERT_EQ(outcome.capture.status, "complete") << outcome.capture.reason;
+  const RunManifest manifest = LoadRunManifest(request.output_directory);
+  ASSERT_EQ(manifest.frames.size(), 6u);
+
+  const double poses[][2] = {{-30, 0}, {-30, 30}, {-30, 60}, {-30, 30}, {10, 50}};
+  double specular = 0.0, off_specular = 0.0;
+  for (int k = 0; k < 5; ++k) {
+    cv::Mat frame;
+    const FrameRecord& record = manifest.frames[k + 1];
+    // The manifest says where the arms were.
+    EXPECT_EQ(record.kind, "pose");
+    EXPECT_EQ(record.group, "poses");
+    ASSERT_TRUE(record.pose.has_value()) << "pose " << k;
+    EXPECT_EQ(record.pose->light_arm_deg, poses[k][0]);
+    EXPECT_EQ(record.pose->camera_arm_deg, poses[k][1]);
+    EXPECT_EQ(record.pose->sample_rotation_deg, k == 3 ? 120.0 : 0.0);
+    LoadFrame(request.output_directory, record).convertTo(frame, CV_64F);
+    const double radiance = ExpectedRadiance(poses[k][0], poses[k][1]);
+    const double expected_dn = kBlack + radiance * kResponse * kExposureUs / kEPerDn;
+    EXPECT_NEAR(frame.at<double>(16, 16), expected_dn, 0.5 + 1e-3 * expected_dn) << "pose " << k;
+    // The disc (radius 12 mm, 1 mm pixels) foreshortened by the camera arm: 24 cos(theta_o) pixels across.
+    int lit = 0;
+    for (int col = 0; col < 32; ++col) lit += frame.at<double>(16, col) > kBlack + 0.5;
+    EXPECT_NEAR(lit, 24.0 * std::cos(poses[k][1] * M_PI / 180.0), 1.01) << "pose " << k;
+    if (k == 1) specular = frame.at<double>(16, 16);
+    if (k == 0) off_specular = frame.at<double>(16, 16);
+  }
+  EXPECT_GT(specular - kBlack, 1.5 * (off_specular - kBlack));  // the highlight is where the mirror direction is
+}
+
+TEST(Gonio, FailureStopsTheArmsAndSwitchesTheLampOff) {
+  TempDir dir;
+  dir.Write("rig.yaml", GonioRig("{lights: {stuck_off_channels: [0]}}"));
+  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", GonioRecipe(
+      "        list: [{light_arm_deg: -40, camera_arm_deg: 20}, {light_arm_deg: -30, camera_arm_deg: 30}]\n")));
+  const RigConfig rig = LoadRigConfig(recipe.rig_path);
+  RigDevices devices = MakeRigDevices(rig, &recipe);
+  WatchedDome dome("lamp", devices.world);
+  RunManifest header;
+  header.width = header.height = 32;
+  RunWriter writer((dir.path() / "run").string(), header);
+  CaptureOptions options;
+  options.motion = &devices.motion;
+  options.motion_profile = rig.motion->profile;
+  const CaptureReport report = RunCapture(CompileSteps(recipe, rig), rig.camera, dome, *devices.camera, writer, options);
+  EXPECT_EQ(report.status, "failed");
+  EXPECT_NE(report.reason.find("reads back"), std::string::npos) << report.reason;
+  EXPECT_EQ(report.frames_written, 1);  // the dark frame
+  // The arms reached the first pose, then every axis was stopped and closed; the lamp closed dark.
+  const sim::ArmAngles arms = devices.world->arms();
+  EXPECT_NEAR(arms.light_arm_deg, -40.0, 0.05);
+  EXPECT_NEAR(arms.camera_arm_deg, 20.0, 0.05);
+  for (const auto& axis : devices.motion.axes) {
+    EXPECT_EQ(axis->state(), drivers::Motion::State::kClosed) << axis->id();
+    EXPECT_GE(static_cast<sim::SimRotaryAxis&>(*axis).stops(), 2) << axis->id();  // StopAll and Close
+  }
+  EXPECT_EQ(dome.state(), drivers::LightController::State::kClosed);
+  ASSERT_FALSE(dome.levels_at_close.empty());
+  for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>{0.0});
+}
+
+TEST(Gonio, ShippedRecipeDryRunsClean) {
+  const Recipe recipe = LoadRecipe(SourceDir() + "/config/recipes/gonio-sample.yaml");
+  const RigConfig rig = LoadRigConfig(ResolveRigPath(recipe, ""));
+  const auto steps = CompileSteps(recipe, rig);
+  const RunPlan plan = PlanRun(recipe, rig, steps);
+  EXPECT_TRUE(plan.ok()) << (plan.errors.empty() ? "" : plan.errors[0]);
+  EXPECT_EQ(steps.size(), 13u);
+  EXPECT_GT(plan.move_s, 0.0);
+}
+
+}  // namespace
+}  // namespace photorig::daemon
