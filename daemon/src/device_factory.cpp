@@ -2,6 +2,7 @@
 
 #include "photorig/daemon/camera_options.h"
 #include "photorig/daemon/hardware_options.h"
+#include "photorig/drivers/gpio/gpio_lights.h"
 #include "photorig/sim/devices.h"
 #include "photorig/sim/gonio.h"
 
@@ -84,6 +85,22 @@ std::unique_ptr<drivers::Camera> MakeCamera(const DeviceContext& context) {
   const auto* entry = Find(CameraDrivers(), context.rig.camera.driver);
   if (!entry) throw std::invalid_argument("unknown camera driver '" + context.rig.camera.driver + "'");
   return entry->make(context);
+}
+
+std::unique_ptr<drivers::TriggerOutput> MakeTriggerOutput(const DeviceContext& context) {
+  const TriggerConfig& trigger = context.rig.camera.trigger;
+  if (trigger.mode != drivers::TriggerMode::kHardware) return nullptr;
+  const std::string id = context.rig.camera.id + "-trigger";
+  if (trigger.output_driver == "sim") {
+    RequireWorld(context, "the simulated trigger wire");
+    return std::make_unique<sim::SimTriggerLine>(id, context.world);
+  }
+  const YamlNode& output = *trigger.output;
+  const int offset = output["offset"].AsInt();
+  if (offset < 0) output["offset"].Fail("must be >= 0");
+  return std::make_unique<drivers::GpioTriggerLine>(
+      id, drivers::GpioLine{output.String("chip", "gpiochip0"), static_cast<unsigned>(offset), output.Bool("active_low", false)},
+      drivers::MakeLibgpiodBackend());
 }
 
 MotionRig MakeMotion(const DeviceContext& context) {

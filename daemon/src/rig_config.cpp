@@ -37,6 +37,27 @@ LedConfig ParseLed(const YamlNode& node, int index) {
   return led;
 }
 
+TriggerConfig ParseTrigger(const YamlNode& node) {
+  node.ExpectKeys({"mode", "line", "pulse_us", "output"});
+  TriggerConfig trigger;
+  const std::string mode = node.String("mode", "software");
+  if (mode == "hardware") trigger.mode = drivers::TriggerMode::kHardware;
+  else if (mode != "software") node["mode"].Fail("expected software or hardware");
+  trigger.line = node.String("line", trigger.line);
+  trigger.pulse_us = node.Int("pulse_us", trigger.pulse_us);
+  if (trigger.pulse_us < 1 || trigger.pulse_us > 1000000) node["pulse_us"].Fail("must lie in [1, 1000000]");
+  if (trigger.mode == drivers::TriggerMode::kHardware) {
+    trigger.output = node["output"];  // required: what fires the camera
+    trigger.output->ExpectKeys({"driver", "chip", "offset", "active_low"});
+    trigger.output_driver = (*trigger.output)["driver"].AsString();
+    if (trigger.output_driver != "sim" && trigger.output_driver != "gpio")
+      (*trigger.output)["driver"].Fail("unknown trigger output '" + trigger.output_driver + "' (available: sim, gpio)");
+  } else if (node.Has("output")) {
+    node["output"].Fail("a trigger output needs mode: hardware");
+  }
+  return trigger;
+}
+
 sim::SensorModel ParseSensor(const YamlNode& node, int bit_depth) {
   node.ExpectKeys({"response_e_per_us", "e_per_dn", "black_level_dn", "read_noise_e", "full_well_e", "shot_noise"});
   sim::SensorModel sensor;
@@ -326,7 +347,7 @@ RigConfig LoadRigConfig(const std::string& path) {
 
   const YamlNode camera = root["camera"];
   camera.ExpectKeys({"driver", "id", "options", "projection", "width", "height", "pixel_pitch_mm", "bit_depth",
-                     "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart"});
+                     "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart", "trigger"});
   CameraConfig& cam = rig.camera;
   cam.driver = camera["driver"].AsString();
   if (!IsKnownCameraDriver(cam.driver))
@@ -347,6 +368,7 @@ RigConfig LoadRigConfig(const std::string& path) {
   cam.exposure_us = camera.Double("exposure_us", cam.exposure_us);
   if (!(cam.exposure_us > 0)) camera["exposure_us"].Fail("must be > 0");
   cam.gain_db = camera.Double("gain_db", cam.gain_db);
+  if (auto trigger = camera.Find("trigger")) cam.trigger = ParseTrigger(*trigger);
   if (auto chart = camera.Find("color_chart")) cam.color_chart = ParseColorChart(*chart, cam.width, cam.height);
 
   if (auto sim_node = root.Find("sim")) {

@@ -60,6 +60,7 @@ RigDevices MakeRigDevices(const RigConfig& rig, const Recipe* recipe) {
   const DeviceContext context{rig, devices.world};
   devices.lights = MakeLightController(context);
   devices.camera = MakeCamera(context);
+  devices.trigger = MakeTriggerOutput(context);
   devices.motion = MakeMotion(context);
   return devices;
 }

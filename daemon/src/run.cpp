@@ -102,6 +102,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   options.control = request.control;
   options.retry = request.retry;
   options.on_state = request.on_state;
+  options.trigger_output = devices.trigger.get();
   if (rig.motion) {
     options.motion = &devices.motion;
     options.motion_profile = rig.motion->profile;

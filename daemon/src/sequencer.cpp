@@ -26,10 +26,15 @@ void SwitchOffAndClose(drivers::LightController& lights) {
 // the dome goes dark and the camera stops and closes.
 class DeviceGuard {
  public:
-  DeviceGuard(drivers::LightController& lights, drivers::Camera& camera, MotionRig* motion)
-      : lights_(lights), camera_(camera), motion_(motion) {}
+  DeviceGuard(drivers::LightController& lights, drivers::Camera& camera, MotionRig* motion,
+              drivers::TriggerOutput* trigger)
+      : lights_(lights), camera_(camera), motion_(motion), trigger_(trigger) {}
   ~DeviceGuard() { Release(); }
   void Release() {
+    if (trigger_ && trigger_->is_open()) {
+      if (Status closed = trigger_->Close(); !closed.ok())
+        spdlog::error("could not release the trigger output {}: {}", trigger_->id(), closed.ToString());
+    }
     if (motion_ && motion_->goniometer) {
       // Close stops each drive first; StopAll before it halts every arm before any closes.
       (void)motion_->goniometer->StopAll();
@@ -47,6 +52,7 @@ class DeviceGuard {
   drivers::LightController& lights_;
   drivers::Camera& camera_;
   MotionRig* motion_;
+  drivers::TriggerOutput* trigger_;
 };
 
 // Faults worth a reopen and a retry; anything else (bad settings, a light
@@ -108,6 +114,15 @@ class Capture {
     settings_.bit_depth = camera_config_.bit_depth;
     settings_.exposure_us = first.exposure_us;
     settings_.gain_db = first.gain_db;
+    settings_.trigger = camera_config_.trigger.mode;
+    settings_.trigger_line = camera_config_.trigger.line;
+    if (settings_.trigger == drivers::TriggerMode::kHardware) {
+      if (!options_.trigger_output)
+        return {StatusCode::kFailedPrecondition,
+                "camera " + camera_.id() + " is set for a hardware trigger but the rig has no trigger output"};
+      if (!options_.trigger_output->is_open())
+        if (Status s = options_.trigger_output->Open(); !s.ok()) return s;
+    }
     auto adjustments = camera_.Configure(settings_);
     if (!adjustments.ok()) return adjustments.status();
     if (report_.adjustments.empty()) {
@@ -131,8 +146,14 @@ class Capture {
     return home ? options_.motion->goniometer->HomeAll() : Status::Ok();
   }
 
+  Status FireTrigger() {
+    if (settings_.trigger != drivers::TriggerMode::kHardware) return camera_.Trigger();
+    return options_.trigger_output->Fire(std::chrono::microseconds(camera_config_.trigger.pulse_us));
+  }
+
   // Leaves the devices closed and dark after a fault; they are reopened before the retry.
   void CloseAfterFault() {
+    if (options_.trigger_output && options_.trigger_output->is_open()) (void)options_.trigger_output->Close();
     if (options_.motion && options_.motion->goniometer) (void)options_.motion->goniometer->StopAll();
     SwitchOffAndClose(lights_);
     if (camera_.state() != drivers::Camera::State::kClosed) (void)camera_.Close();
@@ -171,7 +192,7 @@ class Capture {
       (void)lights_.AllOff();
       return s;
     }
-    if (Status s = camera_.Trigger(); !s.ok()) {
+    if (Status s = FireTrigger(); !s.ok()) {
       (void)lights_.AllOff();
       return s;
     }
@@ -273,7 +294,7 @@ CaptureReport RunCapture(const std::vector<CaptureStep>& steps, const CameraConf
   report.steps_total = static_cast<int>(steps.size());
   report.frames_resumed = static_cast<int>(writer.manifest().frames.size());
   try {
-    DeviceGuard guard(lights, camera, options.motion);
+    DeviceGuard guard(lights, camera, options.motion, options.trigger_output);
     std::string why;
     if (!options.retry.IsValid(&why)) throw std::invalid_argument("retry policy: " + why);
     Capture(camera_config, lights, camera, writer, options, report).Run(steps);

@@ -1,12 +1,14 @@
 #include "photorig/daemon/recipe.h"
 #include "photorig/daemon/rig_config.h"
 #include "photorig/daemon/rig_devices.h"
+#include "photorig/daemon/run.h"
 #include "photorig/daemon/yaml_node.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <regex>
 
 namespace photorig::daemon {
 namespace {
@@ -190,6 +192,49 @@ capture:
     EXPECT_EQ(e.line(), 4) << e.what();
     EXPECT_NE(std::string(e.what()).find("unknown step 'flash'"), std::string::npos) << e.what();
   }
+}
+
+}  // namespace
+}  // namespace photorig::daemon
+
+namespace photorig::daemon {
+namespace {
+
+std::string TriggeredRig(const std::string& trigger) {
+  return std::regex_replace(photorig::testing::SmallRigYaml(), std::regex("exposure_us: 1000\\}"),
+                            "exposure_us: 1000, trigger: " + trigger + "}");
+}
+
+TEST(HardwareTriggerConfig, MistakesAreNamedWhereTheyAre) {
+  TempDir dir;
+  ExpectConfigError(dir.Write("a.yaml", TriggeredRig("{mode: hardware}")), TriggeredRig("{mode: hardware}"), 10, 125,
+                    "camera.trigger", "output");
+  const std::string unknown = TriggeredRig("{mode: hardware, output: {driver: relay}}");
+  ExpectConfigError(dir.Write("b.yaml", unknown), unknown, 10, 159, "camera.trigger.output.driver", "unknown trigger output");
+  const std::string soft = TriggeredRig("{mode: software, output: {driver: sim}}");
+  ExpectConfigError(dir.Write("c.yaml", soft), soft, 10, 150, "camera.trigger.output", "needs mode: hardware");
+}
+
+TEST(HardwareTriggerConfig, SimWireRunsAndAMissingGpioChipFailsByName) {
+  TempDir dir;
+  RunRequest request;
+  request.rig_path = dir.Write("sim.yaml", TriggeredRig("{mode: hardware, output: {driver: sim}}"));
+  request.recipe_path = dir.Write("r.yaml", photorig::testing::SmallRecipeYaml());
+  request.output_directory = (dir.path() / "sim-run").string();
+  request.show_progress = false;
+  request.solve = false;
+  const RunOutcome wired = ExecuteRun(request);
+  EXPECT_EQ(wired.capture.status, "complete") << wired.capture.reason;
+  EXPECT_EQ(wired.capture.frames_written, 5);
+
+  request.rig_path = dir.Write("gpio.yaml", TriggeredRig("{mode: hardware, output: {driver: gpio, chip: gpiochip77, offset: 3}}"));
+  request.output_directory = (dir.path() / "gpio-run").string();
+  request.retry.initial_backoff_ms = 1;
+  request.retry.max_backoff_ms = 2;
+  const RunOutcome missing = ExecuteRun(request);
+  EXPECT_EQ(missing.capture.status, "failed");
+  EXPECT_NE(missing.capture.reason.find("gpiochip77"), std::string::npos) << missing.capture.reason;
+  EXPECT_EQ(missing.capture.frames_written, 0);
 }
 
 }  // namespace

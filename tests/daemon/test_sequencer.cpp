@@ -110,3 +110,96 @@ TEST(Sequencer, CompleteRunWritesEveryStepInOrder) {
 
 }  // namespace
 }  // namespace photorig::daemon
+
+namespace photorig::daemon {
+namespace {
+
+CameraConfig HardwareTriggered() {
+  CameraConfig camera = Camera();
+  camera.trigger.mode = drivers::TriggerMode::kHardware;
+  return camera;
+}
+
+// Counts pulses and passes each one on to the simulated camera's input.
+class CountingWire : public sim::SimTriggerLine {
+ public:
+  using SimTriggerLine::SimTriggerLine;
+  int pulses = 0;
+  Status Fire(std::chrono::microseconds width) override {
+    ++pulses;
+    return SimTriggerLine::Fire(width);
+  }
+};
+
+TEST(HardwareTrigger, OnePulsePerFrameGivesTheSameFramesAsSoftwareTriggers) {
+  TempDir dir;
+  auto world = World(3);
+  sim::SimLightDome dome("dome", world);
+  sim::SimCamera camera("cam", world);
+  RunWriter software((dir.path() / "software").string(), Header());
+  ASSERT_EQ(RunCapture(DarkThenEachLight(3), Camera(), dome, camera, software, {}).status, "complete");
+
+  CountingWire wire("wire", world);
+  CaptureOptions options;
+  options.trigger_output = &wire;
+  RunWriter hardware((dir.path() / "hardware").string(), Header());
+  const CaptureReport report = RunCapture(DarkThenEachLight(3), HardwareTriggered(), dome, camera, hardware, options);
+  ASSERT_EQ(report.status, "complete") << report.reason;
+  EXPECT_EQ(wire.pulses, 4);
+  EXPECT_FALSE(wire.is_open());  // released at the end
+  ASSERT_EQ(hardware.manifest().frames.size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i) {
+    // Same world, same seed and frame ids: the same noisy pixels, whichever trigger took them.
+    const cv::Mat a = LoadFrame(software.directory(), software.manifest().frames[i]);
+    const cv::Mat b = LoadFrame(hardware.directory(), hardware.manifest().frames[i]);
+    EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0) << i;
+  }
+}
+
+// The output fires but the camera never sees the pulse (a broken wire): every
+// wait times out, the run fails after its retries with the lights off.
+class BrokenWire : public drivers::TriggerOutput {
+ public:
+  const std::string& id() const override { return id_; }
+  Status Open() override { open_ = true; return Status::Ok(); }
+  Status Fire(std::chrono::microseconds) override { ++pulses; return Status::Ok(); }
+  Status Close() override { open_ = false; return Status::Ok(); }
+  bool is_open() const override { return open_; }
+  int pulses = 0;
+
+ private:
+  std::string id_ = "broken-wire";
+  bool open_ = false;
+};
+
+TEST(HardwareTrigger, APulseThatNeverArrivesTimesOutAndFailsCleanly) {
+  TempDir dir;
+  auto world = World(2);
+  WatchedDome dome("dome", world);
+  sim::SimCamera camera("cam", world);
+  BrokenWire wire;
+  CaptureOptions options;
+  options.trigger_output = &wire;
+  options.frame_timeout_margin_ms = 5;
+  options.retry.initial_backoff_ms = 1;
+  options.retry.max_backoff_ms = 2;
+  RunWriter writer((dir.path() / "run").string(), Header());
+  const CaptureReport report = RunCapture(DarkThenEachLight(2), HardwareTriggered(), dome, camera, writer, options);
+  EXPECT_EQ(report.status, "failed");
+  EXPECT_NE(report.reason.find("no frame within"), std::string::npos) << report.reason;
+  EXPECT_EQ(wire.pulses, options.retry.max_attempts_per_step);
+  EXPECT_EQ(report.dropped_frames, options.retry.max_attempts_per_step);
+  EXPECT_FALSE(wire.is_open());
+  EXPECT_EQ(writer.manifest().frames.size(), 0u);
+  ASSERT_FALSE(dome.levels_at_close.empty());
+  for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>(2, 0.0));
+
+  // A hardware-triggered camera with no output at all is refused before any frame.
+  RunWriter none((dir.path() / "none").string(), Header());
+  const CaptureReport refused = RunCapture(DarkThenEachLight(2), HardwareTriggered(), dome, camera, none, {});
+  EXPECT_EQ(refused.status, "failed");
+  EXPECT_NE(refused.reason.find("no trigger output"), std::string::npos) << refused.reason;
+}
+
+}  // namespace
+}  // namespace photorig::daemon

@@ -7,6 +7,7 @@
 
 #include "photorig/daemon/rig_config.h"
 #include "photorig/drivers/camera.h"
+#include "photorig/drivers/trigger_output.h"
 #include "photorig/drivers/light_controller.h"
 #include "photorig/sim/world.h"
 
@@ -30,6 +31,8 @@ std::string CameraDriverNames();
 
 std::unique_ptr<drivers::LightController> MakeLightController(const DeviceContext& context);
 std::unique_ptr<drivers::Camera> MakeCamera(const DeviceContext& context);
+// The output that fires a hardware-triggered camera; null for software triggers.
+std::unique_ptr<drivers::TriggerOutput> MakeTriggerOutput(const DeviceContext& context);
 
 // A gonioreflectometer's axes and the Goniometer that moves them under the
 // rig's separation constraints. Empty for a rig without `motion:`.

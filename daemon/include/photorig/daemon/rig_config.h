@@ -3,6 +3,7 @@
 // are, what the camera is, and for simulated rigs what the simulator renders.
 
 #include "photorig/daemon/yaml_node.h"
+#include "photorig/drivers/camera.h"
 #include "photorig/drivers/motion/goniometer.h"
 #include "photorig/sim/world.h"
 
@@ -44,6 +45,17 @@ struct ColorChartPlacement {
   std::array<Eigen::Vector2d, 4> corners_px;
 };
 
+// How frames are triggered. `hardware`: the camera is armed on its input
+// `line` and the sequencer fires the rig's trigger output (a GPIO line, or the
+// simulated rig's wire) once per frame instead of a software trigger.
+struct TriggerConfig {
+  drivers::TriggerMode mode = drivers::TriggerMode::kSoftware;
+  std::string line = "Line1";  // the camera's trigger input (GenICam TriggerSource)
+  int pulse_us = 100;
+  std::string output_driver;   // hardware: "sim" | "gpio"
+  std::optional<YamlNode> output;  // the `output:` map, for driver-specific keys and error positions
+};
+
 struct CameraConfig {
   std::string driver;  // a name from daemon/device_factory.h, e.g. "sim"
   std::string id;
@@ -55,6 +67,7 @@ struct CameraConfig {
   int bit_depth = 12;
   double exposure_us = 10000.0;
   double gain_db = 0.0;
+  TriggerConfig trigger;
   // Radiometric calibration: DN above black per unit radiance per microsecond
   // at 0 dB. Makes albedo absolute; 1.0 (uncalibrated) gives relative albedo.
   double dn_per_radiance_per_us = 1.0;

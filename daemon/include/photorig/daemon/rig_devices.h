@@ -15,6 +15,7 @@ namespace photorig::daemon {
 struct RigDevices {
   std::unique_ptr<drivers::LightController> lights;
   std::unique_ptr<drivers::Camera> camera;
+  std::unique_ptr<drivers::TriggerOutput> trigger;  // hardware-triggered cameras only
   std::shared_ptr<sim::World> world;  // simulated rigs only: the ground truth lives here
   MotionRig motion;                   // gonioreflectometers only
 };

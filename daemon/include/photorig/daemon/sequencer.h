@@ -19,6 +19,7 @@
 #include "photorig/daemon/run_store.h"
 #include "photorig/drivers/camera.h"
 #include "photorig/drivers/light_controller.h"
+#include "photorig/drivers/trigger_output.h"
 
 #include <atomic>
 #include <functional>
@@ -46,6 +47,9 @@ struct CaptureOptions {
   // and the profile of every move. Null for a dome; required by pose steps.
   MotionRig* motion = nullptr;
   drivers::MotionProfile motion_profile;
+  // Required when the camera config asks for a hardware trigger: fired once
+  // per frame, after the lights are checked; closed (deasserted) on every exit.
+  drivers::TriggerOutput* trigger_output = nullptr;
   std::function<void(const CaptureStep&, const FrameRecord&, int total)> on_frame;
   // Every state change of the run: kRunning, kPaused, kSuspended (detail: the fault), kAborting.
   std::function<void(RunState, const std::string& detail)> on_state;
