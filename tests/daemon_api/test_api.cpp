@@ -155,20 +155,26 @@ TEST_F(Api, PauseResumeAndAbortARunningRun) {
   EXPECT_EQ(client.Post("/api/v1/runs/" + queued + "/abort", json::object()).http_status, 200);
   EXPECT_EQ(client.Get("/api/v1/runs/" + queued).body["state"], "aborted");
 
-  bool paused = false, resumed = false;
+  // Each request follows from an event the previous one caused, never from a
+  // frame count: the daemon may be many frames ahead of the event stream.
+  bool pause_sent = false, paused = false, resumed = false, abort_sent = false;
   json stop;
-  std::string steer_error;
   const std::string error = client.FollowEvents(id, [&](const std::string& type, const json& data) {
     ApiClient steer = Client();
-    if (type == "frame" && data["frames"] == 3 && !paused)
-      steer_error += steer.Post("/api/v1/runs/" + id + "/pause", json::object()).body.dump();
-    if (type == "state" && data["state"] == "paused") {
+    if (type == "frame" && data["frames"] >= 3 && !pause_sent) {
+      EXPECT_EQ(steer.Post("/api/v1/runs/" + id + "/pause", json::object()).http_status, 202);
+      pause_sent = true;
+    }
+    if (type == "state" && data["state"] == "paused" && !paused) {
       paused = true;
       EXPECT_EQ(steer.Get("/api/v1/runs/" + id).body["state"], "paused");
-      steer.Post("/api/v1/runs/" + id + "/resume", json::object());
+      EXPECT_EQ(steer.Post("/api/v1/runs/" + id + "/resume", json::object()).http_status, 202);
     }
     if (type == "state" && data["state"] == "running" && paused) resumed = true;
-    if (type == "frame" && data["frames"] == 10) steer.Post("/api/v1/runs/" + id + "/abort", json::object());
+    if (type == "frame" && resumed && !abort_sent) {
+      EXPECT_EQ(steer.Post("/api/v1/runs/" + id + "/abort", json::object()).http_status, 202);
+      abort_sent = true;
+    }
     if (type == "stop") stop = data;
     return true;
   });
