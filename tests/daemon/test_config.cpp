@@ -3,6 +3,7 @@
 #include "photorig/daemon/rig_devices.h"
 #include "photorig/daemon/run.h"
 #include "photorig/daemon/yaml_node.h"
+#include "config_error_check.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -35,18 +36,8 @@ sim:
 // The message must carry file:line:column and the dotted key.
 void ExpectConfigError(const std::string& path, const std::string& text, int line, int column,
                        const std::string& key, const std::string& fragment) {
-  try {
-    LoadRigConfig(path);
-    FAIL() << "no error for:\n" << text;
-  } catch (const ConfigError& e) {
-    EXPECT_EQ(e.file(), path);
-    EXPECT_EQ(e.line(), line) << e.what();
-    EXPECT_EQ(e.column(), column) << e.what();
-    EXPECT_EQ(e.key(), key) << e.what();
-    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
-    EXPECT_EQ(std::string(e.what()).rfind(path + ":" + std::to_string(line) + ":" + std::to_string(column), 0), 0u)
-        << e.what();
-  }
+  SCOPED_TRACE(text);
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRigConfig(path); }, path, line, column, fragment, key);
 }
 
 TEST(RigConfig, LoadsTheShippedSimulatedDome) {

@@ -11,6 +11,7 @@
 #include "photorig/daemon/sequencer.h"
 #include "photorig/sim/gonio.h"
 #include "capture_fixtures.h"
+#include "config_error_check.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -78,14 +79,7 @@ double ExpectedRadiance(double light_deg, double camera_deg) {
 void ExpectConfigError(const std::string& rig_text, int line, int column, const std::string& fragment) {
   TempDir dir;
   const std::string path = dir.Write("rig.yaml", rig_text);
-  try {
-    LoadRigConfig(path);
-    FAIL() << "no error";
-  } catch (const ConfigError& e) {
-    EXPECT_EQ(e.line(), line) << e.what();
-    EXPECT_EQ(e.column(), column) << e.what();
-    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
-  }
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRigConfig(path); }, path, line, column, fragment);
 }
 
 std::string Replace(std::string text, const std::string& from, const std::string& to) {
@@ -110,22 +104,10 @@ TEST(Gonio, RigAndPoseErrorsNameTheirPosition) {
   dir.Write("rig.yaml", GonioRig());
   const std::string both = dir.Write(
       "both.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_arm_deg: 30}]\n        grid: {light_arm_deg: 0}\n"));
-  try {
-    LoadRecipe(both);
-    FAIL();
-  } catch (const ConfigError& e) {
-    EXPECT_EQ(e.line(), 7) << e.what();
-    EXPECT_NE(std::string(e.what()).find("exactly one of 'list' or 'grid'"), std::string::npos) << e.what();
-  }
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(both); }, both, 7, 9,
+                                         "exactly one of 'list' or 'grid'");
   const std::string typo = dir.Write("typo.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_deg: 30}]\n"));
-  try {
-    LoadRecipe(typo);
-    FAIL();
-  } catch (const ConfigError& e) {
-    EXPECT_EQ(e.line(), 7) << e.what();
-    EXPECT_EQ(e.column(), 35) << e.what();
-    EXPECT_NE(std::string(e.what()).find("camera_deg"), std::string::npos) << e.what();
-  }
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(typo); }, typo, 7, 35, "camera_deg");
 }
 
 TEST(Gonio, GridCompilesToPosesAndThePlanCountsTheMoves) {

@@ -7,6 +7,7 @@
 #include "photorig/daemon/recipe.h"
 #include "photorig/daemon/run.h"
 #include "photorig/daemon/run_store.h"
+#include "config_error_check.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -35,17 +36,13 @@ void ExpectRecipeError(const std::string& steps, int line, int column, const std
   TempDir dir;
   dir.Write("rig.yaml", SmallRigYaml());
   const std::string path = dir.Write("r.yaml", RecipeWithSteps(steps));
-  try {
-    const Recipe recipe = LoadRecipe(path);
-    CompileSteps(recipe, LoadRigConfig(recipe.rig_path));
-    FAIL() << "no error for:\n" << steps;
-  } catch (const ConfigError& e) {
-    EXPECT_EQ(e.line(), line) << e.what();
-    EXPECT_EQ(e.column(), column) << e.what();
-    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
-    EXPECT_EQ(std::string(e.what()).rfind(path + ":" + std::to_string(line) + ":" + std::to_string(column), 0), 0u)
-        << e.what();
-  }
+  SCOPED_TRACE(steps);
+  photorig::testing::ExpectConfigErrorAt(
+      [&] {
+        const Recipe recipe = LoadRecipe(path);
+        CompileSteps(recipe, LoadRigConfig(recipe.rig_path));
+      },
+      path, line, column, fragment);
 }
 
 TEST(RecipeGroups, ErrorsNameTheOffendingValue) {
