@@ -1,4 +1,5 @@
 #include "photorig/ps/lambertian.h"
+#include "lambertian_tiles.h"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
@@ -67,22 +68,26 @@ bool WriteSolution(int pixel, float x0, float x1, float x2, float confidence, No
   return true;
 }
 
-// What the per-tile kernels need from the solve's setup.
+// What the per-tile kernels need from the solve's setup. Per-light arrays
+// are float (the kernels' precision) and indexed by light.
 struct TileConstants {
   const float* const* planes = nullptr;  // K planes
   int lights = 0;
   const float* weights = nullptr;         // 3 x K, row-major: the pseudo-inverse with 1/s_k folded in
-  const float* inverse_scale2 = nullptr;  // K
-  const double* inverse_scale = nullptr;  // K: 1 / s_k
-  const double* directions = nullptr;     // K x 3, row-major: w_k
+  const float* inverse_scale2 = nullptr;  // 1 / s_k^2
+  const float* inverse_scale = nullptr;   // 1 / s_k
+  const float* direction[3] = {};         // w_k: x, y, z
   std::array<double, 3> dark_weight{};    // row sums of weights
   std::array<double, 6> gram{};           // G = A^T A: xx, yy, zz, xy, xz, yz
   double sum_inverse_scale2 = 0.0;
   double read_variance = 0.0, shot_gain = 0.0;
   float shadow = 0.0f, saturation = 0.0f;
+  // Bound on |G_S|_F^2 |G_S^-1|_F^2 below which a subset is certainly well
+  // conditioned: the Frobenius condition number bounds the spectral one.
+  float max_frobenius_condition2 = 0.0f;
 };
 
-// Per-pixel sums over all K samples of one tile; 8 rows of 4 KB stay in L1.
+// Per-pixel sums over all K samples of one tile (the L2 path); 8 rows of 4 KB stay in L1.
 struct TileSums {
   alignas(64) float x0[kTilePixels], x1[kTilePixels], x2[kTilePixels];
   alignas(64) float q1[kTilePixels], q2[kTilePixels];  // sum I/s^2, sum I^2/s^2
@@ -91,14 +96,14 @@ struct TileSums {
   alignas(64) float threshold[kTilePixels];             // a sample is usable when threshold < I < saturation
 };
 
-// Sums over the usable samples only (subset S), in double, for tiles with
-// shadowed or clipped pixels: the normal equations G_S x = A_S^T b_S of each
-// pixel, sum_S b^2 for its residual and sum_S 1/s^2, sum_S (I - D)/s^2 for
-// its expected residual.
-struct SubsetSums {
-  alignas(64) double g[6][kTilePixels];  // G_S: xx, yy, zz, xy, xz, yz
-  alignas(64) double r[3][kTilePixels];  // A_S^T b_S
-  alignas(64) double b2[kTilePixels], u[kTilePixels], signal[kTilePixels];
+// One tile's answer before it is written out: x = rho n, the confidence, the
+// usable-sample count and whether the float kernel could vouch for the
+// conditioning of the pixel's light subset (else the exact check decides).
+struct TileSolution {
+  alignas(64) float x0[kTilePixels], x1[kTilePixels], x2[kTilePixels];
+  alignas(64) float confidence[kTilePixels];
+  alignas(64) float usable[kTilePixels];
+  alignas(64) float certainly_conditioned[kTilePixels];  // 1 or 0
 };
 
 // The hot loops are built for several instruction sets and the best one the
@@ -165,73 +170,12 @@ void AccumulateTile(const TileConstants& c, int begin, int n, TileSums* t) {
   }
 }
 
-// SubsetSums of every pixel of the tile (the tile's planes are still in cache).
+// The L2 answer of every pixel of the tile from its sums: x with the dark
+// frame folded out, confidence from RSS = sum b^2 - x^T G x.
 PHOTORIG_PS_MULTIVERSION
-void AccumulateSubsetTile(const TileConstants& c, int begin, int n, const TileSums& t, SubsetSums* s) {
-  for (auto* row : {s->g[0], s->g[1], s->g[2], s->g[3], s->g[4], s->g[5], s->r[0], s->r[1], s->r[2], s->b2, s->u, s->signal})
-    std::fill(row, row + n, 0.0);
-  // Four lights per sweep over the tile, so the twelve accumulators are
-  // loaded and stored once per four samples (the rows do not fit in L1).
-  constexpr int kGroup = 4;
-  const float saturation = c.saturation;
-  for (int first = 0; first < c.lights; first += kGroup) {
-    const int count = std::min(kGroup, c.lights - first);
-    const float* planes[kGroup];
-    double wx[kGroup], wy[kGroup], wz[kGroup], inverse_scale[kGroup], u[kGroup];
-    for (int j = 0; j < kGroup; ++j) {
-      // Missing lights of the last group repeat light 0 with weight 0.
-      const int l = j < count ? first + j : 0;
-      planes[j] = c.planes[l] + begin;
-      wx[j] = c.directions[3 * l];
-      wy[j] = c.directions[3 * l + 1];
-      wz[j] = c.directions[3 * l + 2];
-      inverse_scale[j] = j < count ? c.inverse_scale[l] : 0.0;
-      u[j] = inverse_scale[j] * inverse_scale[j];
-    }
-    const double present[kGroup] = {1.0, count > 1 ? 1.0 : 0.0, count > 2 ? 1.0 : 0.0, count > 3 ? 1.0 : 0.0};
-#pragma omp simd
-    for (int i = 0; i < n; ++i) {
-      double gxx = s->g[0][i], gyy = s->g[1][i], gzz = s->g[2][i], gxy = s->g[3][i], gxz = s->g[4][i], gyz = s->g[5][i];
-      double rx = s->r[0][i], ry = s->r[1][i], rz = s->r[2][i], b2 = s->b2[i], su = s->u[i], signal_sum = s->signal[i];
-      for (int j = 0; j < kGroup; ++j) {
-        const float v = planes[j][i];
-        const double m = (v > t.threshold[i]) & (v < saturation) ? present[j] : 0.0;
-        const double signal = m * (double(v) - t.dark[i]);
-        const double b = signal * inverse_scale[j];
-        gxx += m * (wx[j] * wx[j]);
-        gyy += m * (wy[j] * wy[j]);
-        gzz += m * (wz[j] * wz[j]);
-        gxy += m * (wx[j] * wy[j]);
-        gxz += m * (wx[j] * wz[j]);
-        gyz += m * (wy[j] * wz[j]);
-        rx += wx[j] * b;
-        ry += wy[j] * b;
-        rz += wz[j] * b;
-        b2 += b * b;
-        su += m * u[j];
-        signal_sum += signal * u[j];
-      }
-      s->g[0][i] = gxx, s->g[1][i] = gyy, s->g[2][i] = gzz, s->g[3][i] = gxy, s->g[4][i] = gxz, s->g[5][i] = gyz;
-      s->r[0][i] = rx, s->r[1][i] = ry, s->r[2][i] = rz, s->b2[i] = b2, s->u[i] = su, s->signal[i] = signal_sum;
-    }
-  }
-}
-
-// Writes every pixel of the tile as the fully lit solution: normal, albedo,
-// confidence from RSS = sum b^2 - x^T G x, usable count, zero specular. The
-// caller overwrites the pixels that are masked, shadowed or clipped.
-PHOTORIG_PS_MULTIVERSION
-void WriteLitTile(const TileConstants& c, int begin, int n, const TileSums& t, NormalMap* out) {
-  float* __restrict normals = out->normals.ptr<float>() + 3 * static_cast<std::size_t>(begin);
-  float* __restrict albedo = out->albedo.ptr<float>() + begin;
-  float* __restrict confidence = out->confidence.ptr<float>() + begin;
-  float* __restrict specular = out->specular.ptr<float>() + 2 * static_cast<std::size_t>(begin);
-  std::uint8_t* __restrict flags = out->flags.ptr<std::uint8_t>() + begin;
-  std::uint8_t* __restrict model = out->model.ptr<std::uint8_t>() + begin;
-  std::uint16_t* __restrict usable = out->usable_lights.ptr<std::uint16_t>() + begin;
+void SolveLitTile(const TileConstants& c, int n, const TileSums& t, TileSolution* s) {
   const double k = c.lights;
   const double dof_fraction = (k - 3.0) / k;
-  const double nan = std::numeric_limits<double>::quiet_NaN();
 #pragma omp simd
   for (int i = 0; i < n; ++i) {
     const double d = t.dark[i];
@@ -249,26 +193,229 @@ void WriteLitTile(const TileConstants& c, int begin, int n, const TileSums& t, N
     // the loop vectorises.
     const double known = std::min(1.0, expected / rss);
     const double r2 = std::clamp(1.0 - rss / std::max(sum_b2, 1e-300), 0.0, 1.0);
-    const double fit = rss > 0.0 ? (expected > 0.0 ? known : r2) : 1.0;
-    const double length = std::sqrt(x * x + y * y + z * z);
-    const bool solved = length > 0.0;
-    const double inverse = solved ? 1.0 / length : nan;
-    normals[3 * i] = static_cast<float>(x * inverse);
-    normals[3 * i + 1] = static_cast<float>(y * inverse);
-    normals[3 * i + 2] = static_cast<float>(z * inverse);
-    albedo[i] = static_cast<float>(solved ? M_PI * length : nan);
-    confidence[i] = solved ? static_cast<float>(fit) : 0.0f;
+    s->confidence[i] = static_cast<float>(rss > 0.0 ? (expected > 0.0 ? known : r2) : 1.0);
+    s->x0[i] = static_cast<float>(x);
+    s->x1[i] = static_cast<float>(y);
+    s->x2[i] = static_cast<float>(z);
+    s->usable[i] = t.usable[i];
+    s->certainly_conditioned[i] = 1.0f;  // the full light set was checked once for all pixels
   }
-  // The narrow outputs in a loop of their own: mixed with the double lanes
-  // above they would force 2-wide vectors.
+}
+
+// Per-pixel sums over the usable samples of a block of a tile: the normal
+// equations G_S x = A_S^T b_S and what the residual test needs. A block's
+// 14 rows (14 KB) stay in L1 while its samples stream past.
+constexpr int kBlockPixels = 256;
+struct SubsetBlock {
+  alignas(64) float g[6][kBlockPixels];  // G_S: xx, yy, zz, xy, xz, yz
+  alignas(64) float r[3][kBlockPixels];  // A_S^T b_S
+  alignas(64) float usable[kBlockPixels], u[kBlockPixels], signal[kBlockPixels], b2[kBlockPixels];
+  alignas(64) float rss[kBlockPixels];
+};
+
+// Least squares on each pixel's usable samples, block by block: one sweep
+// over a block's K samples (from memory) sums the normal equations, the 3 x 3
+// systems are solved by their adjugates, and a second sweep over the same
+// samples (from cache) sums the residuals exactly rather than as a difference
+// of large sums. A pixel whose samples are all usable gets the full set's
+// least squares: the pseudo-inverse's answer. Four lights per sweep, so the
+// accumulators are loaded and stored once per four samples.
+PHOTORIG_PS_MULTIVERSION
+void SolveSubsetTile(const TileConstants& c, int begin, int n, const float* dark, SubsetBlock* a, TileSolution* s) {
+  constexpr int kGroup = 4;
+  const int k = c.lights;
+  const float saturation = c.saturation;
+  const float read_variance = static_cast<float>(c.read_variance), shot_gain = static_cast<float>(c.shot_gain);
+  for (int first_pixel = 0; first_pixel < n; first_pixel += kBlockPixels) {
+    const int count = std::min(kBlockPixels, n - first_pixel);
+    const float* __restrict d = dark + first_pixel;
+    for (auto* row : {a->g[0], a->g[1], a->g[2], a->g[3], a->g[4], a->g[5], a->r[0], a->r[1], a->r[2], a->usable, a->u,
+                      a->signal, a->b2, a->rss})
+      std::fill(row, row + count, 0.0f);
+    for (int first = 0; first < k; first += kGroup) {
+      const float* planes[kGroup];
+      float wx[kGroup], wy[kGroup], wz[kGroup], inverse_scale[kGroup], u[kGroup], present[kGroup];
+      for (int j = 0; j < kGroup; ++j) {
+        // Missing lights of the last group repeat light 0 with weight 0.
+        const int l = first + j < k ? first + j : 0;
+        planes[j] = c.planes[l] + begin + first_pixel;
+        wx[j] = c.direction[0][l];
+        wy[j] = c.direction[1][l];
+        wz[j] = c.direction[2][l];
+        present[j] = first + j < k ? 1.0f : 0.0f;
+        inverse_scale[j] = present[j] * c.inverse_scale[l];
+        u[j] = present[j] * c.inverse_scale2[l];
+      }
+#pragma omp simd
+      for (int i = 0; i < count; ++i) {
+        float gxx = a->g[0][i], gyy = a->g[1][i], gzz = a->g[2][i], gxy = a->g[3][i], gxz = a->g[4][i], gyz = a->g[5][i];
+        float rx = a->r[0][i], ry = a->r[1][i], rz = a->r[2][i];
+        float usable = a->usable[i], su = a->u[i], signal_sum = a->signal[i], b2 = a->b2[i];
+        const float threshold = d[i] + c.shadow;
+        for (int j = 0; j < kGroup; ++j) {
+          const float v = planes[j][i];
+          const float m = (v > threshold) & (v < saturation) ? present[j] : 0.0f;
+          const float signal = m * (v - d[i]);
+          const float b = signal * inverse_scale[j];
+          gxx += m * (wx[j] * wx[j]);
+          gyy += m * (wy[j] * wy[j]);
+          gzz += m * (wz[j] * wz[j]);
+          gxy += m * (wx[j] * wy[j]);
+          gxz += m * (wx[j] * wz[j]);
+          gyz += m * (wy[j] * wz[j]);
+          rx += wx[j] * b;
+          ry += wy[j] * b;
+          rz += wz[j] * b;
+          usable += m;
+          su += m * u[j];
+          signal_sum += signal * u[j];
+          b2 += b * b;
+        }
+        a->g[0][i] = gxx, a->g[1][i] = gyy, a->g[2][i] = gzz, a->g[3][i] = gxy, a->g[4][i] = gxz, a->g[5][i] = gyz;
+        a->r[0][i] = rx, a->r[1][i] = ry, a->r[2][i] = rz;
+        a->usable[i] = usable, a->u[i] = su, a->signal[i] = signal_sum, a->b2[i] = b2;
+      }
+    }
+    float* __restrict x0 = s->x0 + first_pixel;
+    float* __restrict x1 = s->x1 + first_pixel;
+    float* __restrict x2 = s->x2 + first_pixel;
+    float* __restrict certain = s->certainly_conditioned + first_pixel;
+    const float all = static_cast<float>(k);
+#pragma omp simd
+    for (int i = 0; i < count; ++i) {
+      const float gxx = a->g[0][i], gyy = a->g[1][i], gzz = a->g[2][i], gxy = a->g[3][i], gxz = a->g[4][i], gyz = a->g[5][i];
+      // Adjugate of the symmetric G_S; G_S^-1 = adj / det.
+      const float a00 = gyy * gzz - gyz * gyz, a01 = gxz * gyz - gxy * gzz, a02 = gxy * gyz - gxz * gyy;
+      const float a11 = gxx * gzz - gxz * gxz, a12 = gxy * gxz - gxx * gyz, a22 = gxx * gyy - gxy * gxy;
+      const float det = gxx * a00 + gxy * a01 + gxz * a02;
+      const float inverse_det = det > 0.0f ? 1.0f / det : 0.0f;
+      const float rx = a->r[0][i], ry = a->r[1][i], rz = a->r[2][i];
+      x0[i] = (a00 * rx + a01 * ry + a02 * rz) * inverse_det;
+      x1[i] = (a01 * rx + a11 * ry + a12 * rz) * inverse_det;
+      x2[i] = (a02 * rx + a12 * ry + a22 * rz) * inverse_det;
+      const float g_norm2 = gxx * gxx + gyy * gyy + gzz * gzz + 2.0f * (gxy * gxy + gxz * gxz + gyz * gyz);
+      const float adj_norm2 = a00 * a00 + a11 * a11 + a22 * a22 + 2.0f * (a01 * a01 + a02 * a02 + a12 * a12);
+      const float bound = g_norm2 * adj_norm2 * inverse_det * inverse_det;
+      // Full-set pixels were checked once for all; where det <= 0 the bound
+      // is 0 (inverse_det = 0), so det > 0 is tested on its own.
+      certain[i] = (a->usable[i] == all) | ((det > 0.0f) & (bound <= c.max_frobenius_condition2)) ? 1.0f : 0.0f;
+    }
+    for (int first = 0; first < k; first += kGroup) {
+      const float* planes[kGroup];
+      float wx[kGroup], wy[kGroup], wz[kGroup], inverse_scale[kGroup], present[kGroup];
+      for (int j = 0; j < kGroup; ++j) {
+        const int l = first + j < k ? first + j : 0;
+        planes[j] = c.planes[l] + begin + first_pixel;
+        wx[j] = c.direction[0][l];
+        wy[j] = c.direction[1][l];
+        wz[j] = c.direction[2][l];
+        present[j] = first + j < k ? 1.0f : 0.0f;
+        inverse_scale[j] = c.inverse_scale[l];
+      }
+#pragma omp simd
+      for (int i = 0; i < count; ++i) {
+        float rss = a->rss[i];
+        const float threshold = d[i] + c.shadow;
+        for (int j = 0; j < kGroup; ++j) {
+          const float v = planes[j][i];
+          const float r = (v - d[i]) * inverse_scale[j] - (wx[j] * x0[i] + wy[j] * x1[i] + wz[j] * x2[i]);
+          rss += (v > threshold) & (v < saturation) ? present[j] * r * r : 0.0f;
+        }
+        a->rss[i] = rss;
+      }
+    }
+    float* __restrict confidence = s->confidence + first_pixel;
+    float* __restrict usable_out = s->usable + first_pixel;
+#pragma omp simd
+    for (int i = 0; i < count; ++i) {
+      const float usable = a->usable[i], rss = a->rss[i], b2 = a->b2[i];
+      const float expected = (read_variance * a->u[i] + shot_gain * a->signal[i]) * (usable - 3.0f) / std::max(usable, 1.0f);
+      const float known = std::min(1.0f, expected / rss);
+      const float r2 = std::clamp(1.0f - rss / std::max(b2, 1e-30f), 0.0f, 1.0f);
+      confidence[i] = rss > 0.0f ? (expected > 0.0f ? known : r2) : 1.0f;
+      usable_out[i] = usable;
+    }
+  }
+}
+
+// Writes every pixel of the tile from its solution: normal, albedo,
+// confidence, usable count, model, zero specular; kTooFewLights where x = 0
+// (no direction exists). The caller overwrites masked and unusable pixels.
+PHOTORIG_PS_MULTIVERSION
+void WriteTile(int begin, int n, const TileSolution& s, NormalMap* out) {
+  float* __restrict normals = out->normals.ptr<float>() + 3 * static_cast<std::size_t>(begin);
+  float* __restrict albedo = out->albedo.ptr<float>() + begin;
+  float* __restrict confidence = out->confidence.ptr<float>() + begin;
+  float* __restrict specular = out->specular.ptr<float>() + 2 * static_cast<std::size_t>(begin);
+  std::uint8_t* __restrict flags = out->flags.ptr<std::uint8_t>() + begin;
+  std::uint8_t* __restrict model = out->model.ptr<std::uint8_t>() + begin;
+  std::uint16_t* __restrict usable = out->usable_lights.ptr<std::uint16_t>() + begin;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+#pragma omp simd
+  for (int i = 0; i < n; ++i) {
+    const float x = s.x0[i], y = s.x1[i], z = s.x2[i];
+    const float length = std::sqrt(x * x + y * y + z * z);
+    const bool solved = length > 0.0f;
+    const float inverse = solved ? 1.0f / length : nan;
+    normals[3 * i] = x * inverse;
+    normals[3 * i + 1] = y * inverse;
+    normals[3 * i + 2] = z * inverse;
+    albedo[i] = solved ? static_cast<float>(M_PI) * length : nan;
+    confidence[i] = solved ? s.confidence[i] : 0.0f;
+  }
+  // The narrow outputs in a loop of their own: mixed with the float lanes
+  // above they would force narrower vectors.
 #pragma omp simd
   for (int i = 0; i < n; ++i) {
     const bool solved = albedo[i] > 0.0f;  // false for NaN
     flags[i] = solved ? std::uint8_t{0} : static_cast<std::uint8_t>(PixelFlag::kTooFewLights);
     model[i] = solved ? static_cast<std::uint8_t>(PixelModel::kLambertian) : std::uint8_t{0};
-    usable[i] = static_cast<std::uint16_t>(t.usable[i]);
+    usable[i] = static_cast<std::uint16_t>(s.usable[i]);
   }
   std::fill(specular, specular + 2 * n, 0.0f);
+}
+
+// The exact verdict for a pixel whose subset the float kernel could not vouch
+// for: G_S summed again in double, its condition number from eigenvalues, and
+// if acceptable the solution in double. Rare (few usable lights, or a near
+// coplanar subset), so plain scalar code.
+struct ExactSubset {
+  bool conditioned = false;
+  Eigen::Vector3d x = Eigen::Vector3d::Zero();
+  float confidence = 0.0f;
+};
+
+ExactSubset SolveSubsetExactly(const PhotometricStack& stack, const TileConstants& c, int pixel, float dark,
+                               double max_condition2) {
+  Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  double b2 = 0.0, sum_u = 0.0, sum_signal = 0.0;
+  int usable = 0;
+  for (int l = 0; l < c.lights; ++l) {
+    const float v = c.planes[l][pixel];
+    if (!(v > dark + c.shadow) || !(v < c.saturation)) continue;
+    const double u = 1.0 / (stack.light_scales[l] * stack.light_scales[l]);
+    const double signal = double(v) - dark, b = signal / stack.light_scales[l];
+    const Eigen::Vector3d& w = stack.light_directions[l];
+    g += w * w.transpose();
+    rhs += b * w;
+    b2 += b * b;
+    sum_u += u;
+    sum_signal += signal * u;
+    ++usable;
+  }
+  ExactSubset result;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+  eigen.computeDirect(g, Eigen::EigenvaluesOnly);
+  const Eigen::Vector3d lambda = eigen.eigenvalues();  // ascending
+  // cond(A_S) = sqrt(cond(G_S)), G_S = A_S^T A_S.
+  if (!(lambda(0) > 0.0) || !(lambda(2) <= max_condition2 * lambda(0))) return result;
+  result.conditioned = true;
+  result.x = g.ldlt().solve(rhs);
+  const double rss = std::max(0.0, b2 - result.x.dot(rhs));
+  const double expected = (c.read_variance * sum_u + c.shot_gain * sum_signal) * (usable - 3.0) / usable;
+  result.confidence = Confidence(rss, expected, b2);
+  return result;
 }
 
 }  // namespace
@@ -286,8 +433,10 @@ bool LambertianOptions::IsValid(std::string* why) const {
   return true;
 }
 
-SolverSummary SolveLambertian(const LambertianOptions& options, const PhotometricStack& stack,
-                              NormalMap* result) {
+namespace internal {
+
+SolverSummary SolveLambertianTiles(const LambertianOptions& options, const PhotometricStack& stack,
+                                   NormalMap* result, const TileVisitor& visit) {
   const auto start = Clock::now();
   SolverSummary summary;
   summary.method = options.exclude_unusable_samples ? "lambertian" : "lambertian-l2";
@@ -336,30 +485,31 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
   for (int i = 0; i < k; ++i) planes[i] = stack.images[i].ptr<float>();
   const float* dark = stack.dark.empty() ? nullptr : stack.dark.ptr<float>();
   const std::uint8_t* mask = stack.mask.empty() ? nullptr : stack.mask.ptr<std::uint8_t>();
-  // For the residual of fully lit pixels without a second pass:
+  // For the L2 residual without a second pass:
   //   RSS = sum_k b_k^2 - x^T G x,  G = A^T A,  b_k = (I_k - D) / s_k,
   // and sum_k b_k^2 = sum I^2/s^2 - 2 D sum I/s^2 + D^2 sum 1/s^2.
-  std::vector<float> weights(3 * static_cast<std::size_t>(k)), inverse_scale2(k);
-  std::vector<double> inverse_scale(k), directions(3 * static_cast<std::size_t>(k));
+  std::vector<float> weights(3 * static_cast<std::size_t>(k)), inverse_scale2(k), inverse_scale(k);
+  std::vector<float> direction(3 * static_cast<std::size_t>(k));
   Eigen::Matrix3d gram = Eigen::Matrix3d::Zero();
   TileConstants constants;
   for (int i = 0; i < k; ++i) {
+    const Eigen::Vector3d& w = stack.light_directions[i];
     for (int c = 0; c < 3; ++c) {
       weights[c * k + i] = global.weights(c, i);
       constants.dark_weight[c] += global.weights(c, i);  // dark subtraction folded into one term
+      direction[c * k + i] = static_cast<float>(w(c));
     }
     inverse_scale2[i] = static_cast<float>(1.0 / (stack.light_scales[i] * stack.light_scales[i]));
-    inverse_scale[i] = 1.0 / stack.light_scales[i];
-    for (int c = 0; c < 3; ++c) directions[3 * i + c] = stack.light_directions[i](c);
+    inverse_scale[i] = static_cast<float>(1.0 / stack.light_scales[i]);
     constants.sum_inverse_scale2 += inverse_scale2[i];
-    gram += stack.light_directions[i] * stack.light_directions[i].transpose();
+    gram += w * w.transpose();
   }
   constants.planes = planes.data();
   constants.lights = k;
   constants.weights = weights.data();
   constants.inverse_scale2 = inverse_scale2.data();
   constants.inverse_scale = inverse_scale.data();
-  constants.directions = directions.data();
+  for (int c = 0; c < 3; ++c) constants.direction[c] = direction.data() + c * k;
   constants.gram = {gram(0, 0), gram(1, 1), gram(2, 2), gram(0, 1), gram(0, 2), gram(1, 2)};
   const NoiseModel noise = stack.noise;
   constants.read_variance = noise.read_sigma * noise.read_sigma;
@@ -367,7 +517,10 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
   constants.shadow = static_cast<float>(options.shadow_threshold);
   constants.saturation = std::isfinite(options.saturation_level) ? static_cast<float>(options.saturation_level)
                                                                    : std::numeric_limits<float>::infinity();
+  // cond(A_S)^2 = cond(G_S) <= |G_S|_F |G_S^-1|_F: squared once more for the
+  // kernel's squared norms, with 1 % room for float rounding on the safe side.
   const double max_condition2 = options.max_condition_number * options.max_condition_number;
+  constants.max_frobenius_condition2 = static_cast<float>(0.99 * max_condition2 * max_condition2);
   summary.setup_ms = MillisecondsSince(start);
 
   const auto solve_start = Clock::now();
@@ -379,8 +532,10 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
 #pragma omp parallel num_threads(threads) \
     reduction(+ : rejected_samples, on_subset, solved, outside_mask, too_few, ill_conditioned)
   {
-    TileSums sums;
-    const auto subset_sums = std::make_unique<SubsetSums>();  // 96 KB: heap, not the thread's stack
+    // Heap, not the thread's stack: together about 70 KB.
+    const auto sums = std::make_unique<TileSums>();
+    const auto solution = std::make_unique<TileSolution>();
+    const auto block = std::make_unique<SubsetBlock>();
     auto unsolved = [&](int p, PixelFlag flag) {
       result->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
       result->albedo.ptr<float>()[p] = std::numeric_limits<float>::quiet_NaN();
@@ -393,15 +548,18 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
     for (int tile = 0; tile < tiles; ++tile) {
       const int begin = tile * kTilePixels;
       const int n = std::min(kTilePixels, pixels - begin);
-      for (int i = 0; i < n; ++i) sums.dark[i] = dark ? dark[begin + i] : 0.0f;
-      // The streaming pass: every sample is read exactly once from memory.
-      AccumulateTile(constants, begin, n, &sums);
-      // Every pixel as if fully lit; the loop below corrects the others.
-      WriteLitTile(constants, begin, n, sums, result);
-      bool subset_ready = false;
+      for (int i = 0; i < n; ++i) sums->dark[i] = dark ? dark[begin + i] : 0.0f;
+      // Every sample is read exactly once from memory, by one of the two kernels.
+      if (options.exclude_unusable_samples) {
+        SolveSubsetTile(constants, begin, n, sums->dark, block.get(), solution.get());
+      } else {
+        AccumulateTile(constants, begin, n, sums.get());
+        SolveLitTile(constants, n, *sums, solution.get());
+      }
+      WriteTile(begin, n, *solution, result);
       for (int i = 0; i < n; ++i) {
         const int p = begin + i;
-        const int usable = static_cast<int>(sums.usable[i]);
+        const int usable = static_cast<int>(solution->usable[i]);
         if (mask && mask[p] == 0) {
           unsolved(p, PixelFlag::kOutsideMask);
           result->usable_lights.ptr<std::uint16_t>()[p] = 0;
@@ -414,55 +572,31 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
           ++too_few;
           continue;
         }
-        if (usable == k || !options.exclude_unusable_samples) {
-          if (result->flags.ptr<std::uint8_t>()[p] == static_cast<std::uint8_t>(PixelFlag::kSolved)) {
-            ++solved;
-          } else {
-            // All usable samples were zero after dark subtraction: no direction exists.
-            unsolved(p, PixelFlag::kTooFewLights);
-            ++too_few;
+        if (options.exclude_unusable_samples && usable < k) {
+          if (solution->certainly_conditioned[i] == 0.0f) {
+            const ExactSubset exact = SolveSubsetExactly(stack, constants, p, sums->dark[i], max_condition2);
+            if (!exact.conditioned) {
+              unsolved(p, PixelFlag::kIllConditioned);
+              ++ill_conditioned;
+              continue;
+            }
+            if (!WriteSolution(p, float(exact.x(0)), float(exact.x(1)), float(exact.x(2)), exact.confidence, result)) {
+              unsolved(p, PixelFlag::kTooFewLights);
+              ++too_few;
+              continue;
+            }
           }
-          continue;
+          ++on_subset;
         }
-        // Some samples are shadowed or clipped: solve this pixel's normal
-        // equations on its usable subset (least squares on the subset, as the
-        // subset's pseudo-inverse would give).
-        if (!subset_ready) {
-          AccumulateSubsetTile(constants, begin, n, sums, subset_sums.get());
-          subset_ready = true;
-        }
-        const SubsetSums& ss = *subset_sums;
-        Eigen::Matrix3d g;
-        g << ss.g[0][i], ss.g[3][i], ss.g[4][i], ss.g[3][i], ss.g[1][i], ss.g[5][i], ss.g[4][i], ss.g[5][i], ss.g[2][i];
-        // cond(A_S) = sqrt(cond(G_S)), G_S = A_S^T A_S. The Frobenius-norm
-        // condition number |G| |G^-1| bounds the spectral one from above, so
-        // the exact (eigenvalue) test is only needed when that bound fails.
-        const double det = g.determinant();
-        const Eigen::Matrix3d inverse = g.inverse();
-        const double bound = g.norm() * inverse.norm();
-        if (!(det > 0.0) || !(bound <= max_condition2)) {
-          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
-          eigen.computeDirect(g, Eigen::EigenvaluesOnly);
-          const Eigen::Vector3d lambda = eigen.eigenvalues();  // ascending
-          if (!(lambda(0) > 0.0) || !(lambda(2) <= max_condition2 * lambda(0))) {
-            unsolved(p, PixelFlag::kIllConditioned);
-            ++ill_conditioned;
-            continue;
-          }
-        }
-        ++on_subset;
-        const Eigen::Vector3d rhs(ss.r[0][i], ss.r[1][i], ss.r[2][i]);
-        const Eigen::Vector3d x = inverse * rhs;
-        const double rss = std::max(0.0, ss.b2[i] - x.dot(rhs));
-        const double expected = (constants.read_variance * ss.u[i] + constants.shot_gain * ss.signal[i]) *
-                                static_cast<double>(usable - 3) / usable;
-        if (WriteSolution(p, float(x(0)), float(x(1)), float(x(2)), Confidence(rss, expected, ss.b2[i]), result)) {
+        if (result->flags.ptr<std::uint8_t>()[p] == static_cast<std::uint8_t>(PixelFlag::kSolved)) {
           ++solved;
         } else {
+          // All usable samples were zero after dark subtraction: no direction exists.
           unsolved(p, PixelFlag::kTooFewLights);
           ++too_few;
         }
       }
+      if (visit) visit(omp_get_thread_num(), begin, n);
     }
   }
 
@@ -477,6 +611,13 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
   summary.total_ms = MillisecondsSince(start);
   summary.termination = Termination::kSuccess;
   return summary;
+}
+
+}  // namespace internal
+
+SolverSummary SolveLambertian(const LambertianOptions& options, const PhotometricStack& stack,
+                              NormalMap* result) {
+  return internal::SolveLambertianTiles(options, stack, result, {});
 }
 
 }  // namespace photorig::ps

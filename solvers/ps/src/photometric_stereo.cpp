@@ -1,5 +1,7 @@
 #include "photorig/ps/photometric_stereo.h"
 
+#include "lambertian_tiles.h"
+
 #include <Eigen/Dense>
 #include <omp.h>
 
@@ -47,7 +49,7 @@ void GatherSamples(const PhotometricStack& stack, const LambertianOptions& thres
 }
 
 double InverseNormalCdf(double p) {
-  // Bisection on the CDF: called once per degree-of-freedom value, so speed is irrelevant.
+  // Bisection on the CDF: called once per solve, so speed is irrelevant.
   double lo = -10.0, hi = 10.0;
   for (int i = 0; i < 200; ++i) {
     const double mid = 0.5 * (lo + hi);
@@ -56,11 +58,17 @@ double InverseNormalCdf(double p) {
   return 0.5 * (lo + hi);
 }
 
-// Wilson-Hilferty: accurate to a few per cent for dof >= 3, plenty for a test threshold.
-double ChiSquareQuantile(int dof, double p) {
-  const double z = InverseNormalCdf(p), v = dof;
-  const double t = 1.0 - 2.0 / (9.0 * v) + z * std::sqrt(2.0 / (9.0 * v));
-  return v * t * t * t;
+// Quantile p of the chi-square distribution for 0..max_dof degrees of
+// freedom, by Wilson-Hilferty: accurate to a few per cent for dof >= 3, plenty
+// for a test threshold. Entry 0 is 0.
+std::vector<double> ChiSquareQuantiles(int max_dof, double p) {
+  const double z = InverseNormalCdf(p);
+  std::vector<double> quantile(max_dof + 1, 0.0);
+  for (int dof = 1; dof <= max_dof; ++dof) {
+    const double v = dof, t = 1.0 - 2.0 / (9.0 * v) + z * std::sqrt(2.0 / (9.0 * v));
+    quantile[dof] = v * t * t * t;
+  }
+  return quantile;
 }
 
 struct Fit {
@@ -212,21 +220,42 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
   const Eigen::Vector3d view(0, 0, 1);
   const autodiff::BlinnPhongPixel pixel(directions, Eigen::VectorXd::Ones(n), view, observed);
 
-  // Initial specular albedo from the largest residual the diffuse start leaves.
-  const Eigen::Vector3d x0 = start.normal * start.albedo / M_PI;
-  int brightest = 0;
-  double largest = -std::numeric_limits<double>::infinity();
+  // Start: the normal of the robust fit, and the exponent from a doubling
+  // grid over [min_exponent, max_exponent] (each grid lobe is the previous
+  // one squared, so no pow), with rho_d and rho_s >= 0 for each by linear
+  // least squares; the grid point with the lowest chi-square wins. From there
+  // Levenberg-Marquardt needs a few iterations, not tens.
+  std::vector<double> cos_light(n), lobe(n);
   for (int k = 0; k < n; ++k) {
-    const double r = s.b[k] - s.w[k].dot(x0);
-    if (r > largest) largest = r, brightest = k;
+    cos_light[k] = std::max(0.0, s.w[k].dot(start.normal));
+    lobe[k] = std::max(0.0, pixel.half_vector(k).dot(start.normal));
   }
-  const double e0 = options.initial_exponent;
-  const double lobe = (e0 + 2.0) / (2.0 * M_PI) * std::pow(std::max(0.0, pixel.half_vector(brightest).dot(start.normal)), e0) *
-                      std::max(1e-3, s.w[brightest].dot(start.normal));
-  const double rho_s0 = lobe > 1e-9 ? std::clamp(largest / lobe, 0.0, 1.0) : 0.0;
-
+  double exponent = 1.0;
+  while (exponent < options.min_exponent) {
+    exponent *= 2.0;
+    for (double& value : lobe) value *= value;
+  }
   Eigen::Matrix<double, 6, 1> p;
-  p << start.normal, start.albedo, rho_s0, e0;
+  p << start.normal, start.albedo, 0.0, exponent;
+  double best_chi2 = std::numeric_limits<double>::infinity();
+  for (; exponent <= options.max_exponent; exponent *= 2.0) {
+    // Normal equations of b ~ rho_d d + rho_s l, d = cos / pi, l = (e + 2) / (2 pi) lobe cos.
+    double dd = 0, dl = 0, ll = 0, db = 0, lb = 0, bb = 0;
+    const double normalisation = (exponent + 2.0) / (2.0 * M_PI);
+    for (int k = 0; k < n; ++k) {
+      const double c = 1.0 / s.variance[k], d = cos_light[k] / M_PI, l = normalisation * lobe[k] * cos_light[k];
+      dd += c * d * d, dl += c * d * l, ll += c * l * l, db += c * d * s.b[k], lb += c * l * s.b[k], bb += c * s.b[k] * s.b[k];
+    }
+    const double det = dd * ll - dl * dl;
+    double rho_d = dd > 0.0 ? db / dd : 0.0, rho_s = 0.0;
+    if (det > 1e-12 * dd * ll) {
+      const double joint_s = (dd * lb - dl * db) / det;
+      if (joint_s > 0.0) rho_s = joint_s, rho_d = (ll * db - dl * lb) / det;
+    }
+    const double chi2 = bb - 2.0 * (rho_d * db + rho_s * lb) + rho_d * rho_d * dd + 2.0 * rho_d * rho_s * dl + rho_s * rho_s * ll;
+    if (chi2 < best_chi2 && rho_d >= 0.0) best_chi2 = chi2, p(3) = rho_d, p(4) = rho_s, p(5) = exponent;
+    for (double& value : lobe) value *= value;
+  }
   auto project = [&options](Eigen::Matrix<double, 6, 1>* q) {
     q->head<3>().normalize();
     (*q)(3) = std::max(0.0, (*q)(3));
@@ -254,8 +283,10 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     jw = inverse_sigma.asDiagonal() * jacobian;
     rw = residuals.cwiseProduct(inverse_sigma);
-    const Eigen::Matrix<double, 6, 6> h = jw.transpose() * jw;
-    const Eigen::Matrix<double, 6, 1> g = jw.transpose() * rw;
+    // Coefficient-wise products: for 6 columns and tens of rows a general
+    // matrix product's packing costs more than the arithmetic.
+    const Eigen::Matrix<double, 6, 6> h = jw.transpose().lazyProduct(jw);
+    const Eigen::Matrix<double, 6, 1> g = jw.transpose().lazyProduct(rw);
     bool improved = false;
     while (lambda < 1e12) {
       Eigen::Matrix<double, 6, 6> damped = h;
@@ -327,7 +358,7 @@ NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions&
   for (const Sample& sample : samples) dofs.push_back(sample.dof);
   std::nth_element(dofs.begin(), dofs.begin() + dofs.size() / 2, dofs.end());
   const int typical_dof = static_cast<int>(dofs[dofs.size() / 2]);
-  const double bias = ChiSquareQuantile(typical_dof, 0.25) / typical_dof;
+  const double bias = ChiSquareQuantiles(typical_dof, 0.25)[typical_dof] / typical_dof;
   auto corrected_lower_quartile = [bias](std::vector<double> values) {
     auto at = values.begin() + static_cast<std::ptrdiff_t>(0.25 * (values.size() - 1));
     std::nth_element(values.begin(), at, values.end());
@@ -409,8 +440,6 @@ bool BlinnPhongOptions::IsValid(std::string* why) const {
   if (max_iterations < 1) return fail("blinn_phong: max_iterations must be >= 1");
   if (!(relative_tolerance > 0.0 && relative_tolerance < 1.0)) return fail("blinn_phong: relative_tolerance must be in (0, 1)");
   if (!(min_exponent > 0.0 && min_exponent < max_exponent)) return fail("blinn_phong: need 0 < min_exponent < max_exponent");
-  if (!(initial_exponent >= min_exponent && initial_exponent <= max_exponent))
-    return fail("blinn_phong: initial_exponent must lie within [min_exponent, max_exponent]");
   return true;
 }
 
@@ -453,86 +482,101 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     working.noise = EstimateNoise(stack, lambertian);
     noise_estimated = true;
   }
-  if (refine && !(working.noise.read_sigma > 0.0)) working.noise.read_sigma = 1e-9;  // noise-free: any residual counts
-  SolverSummary summary = SolveLambertian(lambertian, working, result);
-  summary.method = MethodName(options.method);
-  if (!summary.IsSolutionUsable() || !refine) {
+  if (!refine) {
+    SolverSummary summary = SolveLambertian(lambertian, working, result);
+    summary.method = MethodName(options.method);
     summary.pixels_lambertian = summary.pixels_solved;
     summary.total_ms = MillisecondsSince(start);
     return summary;
   }
-  const auto refine_start = Clock::now();
+  if (!(working.noise.read_sigma > 0.0)) working.noise.read_sigma = 1e-9;  // noise-free: any residual counts
+  const std::vector<double> quantile = ChiSquareQuantiles(stack.light_count(), options.selection.adequacy_quantile);
+  auto adequate = [&quantile](const Fit& fit) { return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile[fit.Dof()]; };
+
+  // Each pixel is refined right after its tile's Lambertian pass, while the
+  // tile's samples are still in cache; counts are kept per thread.
+  struct ThreadState {
+    PixelSamples samples;
+    autodiff::Tape tape;
+    std::size_t lambertian = 0, robust = 0, blinn_phong = 0, rejected = 0, failed = 0;
+  };
+  const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
+  std::vector<ThreadState> states(threads);
+  auto refine_pixel = [&](ThreadState& state, int p) {
+    if (result->flags.ptr<std::uint8_t>()[p] != static_cast<int>(PixelFlag::kSolved)) return;
+    // The Lambertian pass's confidence is expected / observed residual
+    // variance, so dof / confidence is its chi-square statistic with the
+    // noise variance averaged over the samples: the adequacy test without
+    // another look at the samples. (The exact test below weights each
+    // sample by its own variance; the two differ only near the threshold.)
+    const int dof = result->usable_lights.ptr<std::uint16_t>()[p] - 3;
+    if (options.method == Method::kAuto && dof > 0 && result->confidence.ptr<float>()[p] * quantile[dof] >= dof) {
+      ++state.lambertian;
+      return;
+    }
+    PixelSamples& s = state.samples;
+    GatherSamples(working, lambertian, p, &s);
+    const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
+    const Eigen::Vector3d x = Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
+    const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
+    Fit chosen;
+    if (options.method == Method::kAuto && adequate(lambert)) {
+      chosen = lambert;
+    } else {
+      const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
+      const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, adequate)
+                                                         : FitRobust(s, x, options.robust);
+      const bool few_rejected = robust.rejected <= max_rejected;
+      if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust) && few_rejected)) {
+        chosen = robust;
+      } else {
+        const Fit blinn_phong = FitBlinnPhong(s, robust.ok ? robust : lambert, options.blinn_phong, &state.tape);
+        if (options.method == Method::kBlinnPhong) {
+          chosen = blinn_phong;
+        } else {
+          // Neither simple model is adequate: the information criterion decides
+          // between the models fitted to all usable samples.
+          chosen = blinn_phong.ok && blinn_phong.Bic() < lambert.Bic() ? blinn_phong : lambert;
+        }
+      }
+    }
+    if (!chosen.ok) {
+      result->flags.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelFlag::kRejectedByModel);
+      result->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
+      result->albedo.ptr<float>()[p] = std::numeric_limits<float>::quiet_NaN();
+      result->model.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelModel::kNone);
+      result->confidence.ptr<float>()[p] = 0.0f;
+      ++state.failed;
+      return;
+    }
+    WriteFit(p, chosen, result);
+    state.rejected += static_cast<std::size_t>(chosen.rejected);
+    switch (chosen.model) {
+      case PixelModel::kLambertian: ++state.lambertian; break;
+      case PixelModel::kRobust: ++state.robust; break;
+      case PixelModel::kBlinnPhong: ++state.blinn_phong; break;
+      case PixelModel::kNone: break;
+    }
+  };
+  const internal::TileVisitor refine_tile = [&](int thread, int begin, int count) {
+    for (int p = begin; p < begin + count; ++p) refine_pixel(states[thread], p);
+  };
+  SolverSummary summary = internal::SolveLambertianTiles(lambertian, working, result, refine_tile);
+  summary.method = MethodName(options.method);
+  if (!summary.IsSolutionUsable()) {
+    summary.total_ms = MillisecondsSince(start);
+    return summary;
+  }
   summary.noise_estimated = noise_estimated;
   summary.noise_read_sigma = working.noise.read_sigma;
   summary.noise_shot_gain = working.noise.shot_gain;
-  std::vector<double> quantile(stack.light_count() + 1, 0.0);
-  for (int dof = 1; dof <= stack.light_count(); ++dof) quantile[dof] = ChiSquareQuantile(dof, options.selection.adequacy_quantile);
-  auto adequate = [&quantile](const Fit& fit) { return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile[fit.Dof()]; };
-
-  const int pixels = stack.width() * stack.height();
   std::size_t lambertian_count = 0, robust_count = 0, blinn_phong_count = 0, rejected_count = 0, failed_count = 0;
-  const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
-#pragma omp parallel num_threads(threads) reduction(+ : lambertian_count, robust_count, blinn_phong_count, rejected_count, failed_count)
-  {
-    PixelSamples s;
-    autodiff::Tape tape;
-#pragma omp for schedule(dynamic, 256)
-    for (int p = 0; p < pixels; ++p) {
-      if (result->flags.ptr<std::uint8_t>()[p] != static_cast<int>(PixelFlag::kSolved)) continue;
-      // The Lambertian pass's confidence is expected / observed residual
-      // variance, so dof / confidence is its chi-square statistic with the
-      // noise variance averaged over the samples: the adequacy test without
-      // another look at the samples. (The exact test below weights each
-      // sample by its own variance; the two differ only near the threshold.)
-      const int dof = result->usable_lights.ptr<std::uint16_t>()[p] - 3;
-      if (options.method == Method::kAuto && dof > 0 &&
-          result->confidence.ptr<float>()[p] * quantile[dof] >= dof) {
-        ++lambertian_count;
-        continue;
-      }
-      GatherSamples(working, lambertian, p, &s);
-      const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
-      const Eigen::Vector3d x = Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
-      const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
-      Fit chosen;
-      if (options.method == Method::kAuto && adequate(lambert)) {
-        chosen = lambert;
-      } else {
-        const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
-        const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, adequate)
-                                                           : FitRobust(s, x, options.robust);
-        const bool few_rejected = robust.rejected <= max_rejected;
-        if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust) && few_rejected)) {
-          chosen = robust;
-        } else {
-          const Fit blinn_phong = FitBlinnPhong(s, robust.ok ? robust : lambert, options.blinn_phong, &tape);
-          if (options.method == Method::kBlinnPhong) {
-            chosen = blinn_phong;
-          } else {
-            // Neither simple model is adequate: the information criterion decides
-            // between the models fitted to all usable samples.
-            chosen = blinn_phong.ok && blinn_phong.Bic() < lambert.Bic() ? blinn_phong : lambert;
-          }
-        }
-      }
-      if (!chosen.ok) {
-        result->flags.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelFlag::kRejectedByModel);
-        result->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
-        result->albedo.ptr<float>()[p] = std::numeric_limits<float>::quiet_NaN();
-        result->model.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelModel::kNone);
-        result->confidence.ptr<float>()[p] = 0.0f;
-        ++failed_count;
-        continue;
-      }
-      WriteFit(p, chosen, result);
-      rejected_count += static_cast<std::size_t>(chosen.rejected);
-      switch (chosen.model) {
-        case PixelModel::kLambertian: ++lambertian_count; break;
-        case PixelModel::kRobust: ++robust_count; break;
-        case PixelModel::kBlinnPhong: ++blinn_phong_count; break;
-        case PixelModel::kNone: break;
-      }
-    }
+  for (const ThreadState& state : states) {
+    lambertian_count += state.lambertian;
+    robust_count += state.robust;
+    blinn_phong_count += state.blinn_phong;
+    rejected_count += state.rejected;
+    failed_count += state.failed;
   }
   summary.pixels_lambertian = lambertian_count;
   summary.pixels_robust = robust_count;
@@ -540,7 +584,6 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   summary.samples_rejected += rejected_count;
   summary.pixels_solved -= failed_count;
   summary.pixels_rejected_by_model += failed_count;
-  summary.solve_ms += MillisecondsSince(refine_start);
   summary.total_ms = MillisecondsSince(start);
   return summary;
 }

@@ -4,14 +4,15 @@
 // Under a distant light w_k with scale s_k a Lambertian pixel reads
 //   I_k - D = s_k * rho * max(0, n . w_k)          (s_k includes the 1/pi)
 // so for the lit samples A x = b with A's rows w_k^T, b_k = (I_k - D) / s_k,
-// x = rho n. The solver applies one 3 x K pseudo-inverse to every pixel whose
-// samples are all usable, in a single streaming pass over the stack (tiles of
-// pixels read once across all K planes; vector code for AVX2/AVX-512 picked at
-// run time). Pixels with shadowed or saturated samples are re-solved from the
-// normal equations of their own usable subset, summed over the same tile while
-// it is still in cache: least squares on the subset, with the subset's
-// condition number from the 3 x 3 normal matrix.
-
+// x = rho n. Both paths read each sample once from memory, in tiles of pixels
+// across all K planes, with vector code for AVX2/AVX-512 picked at run time.
+// Plain L2 (exclude_unusable_samples = false) applies one 3 x K pseudo-inverse
+// to every pixel. Otherwise each pixel is least squares on its own usable
+// samples: its 3 x 3 normal equations are summed over the samples that are
+// neither shadowed nor clipped and solved in closed form, lanes of pixels at
+// a time, and its residual is summed in a second sweep while the block is
+// still in cache. The subset's condition number is bounded cheaply and
+// computed exactly only where the bound cannot vouch for it.
 #include "photorig/ps/stack.h"
 #include "photorig/ps/summary.h"
 

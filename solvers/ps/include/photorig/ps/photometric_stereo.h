@@ -54,7 +54,6 @@ struct BlinnPhongOptions {
   int max_iterations = 40;
   // Stop when a step lowers the cost (chi-square) by less than this fraction.
   double relative_tolerance = 1e-6;
-  double initial_exponent = 30.0;
   double min_exponent = 1.0;     // below this the lobe is indistinguishable from the diffuse term
   double max_exponent = 2000.0;  // narrower lobes fall between the lights of any practical dome
   bool IsValid(std::string* why) const;
