@@ -206,6 +206,10 @@ void SolveLitTile(const TileConstants& c, int n, const TileSums& t, TileSolution
 // equations G_S x = A_S^T b_S and what the residual test needs. A block's
 // 14 rows (14 KB) stay in L1 while its samples stream past.
 constexpr int kBlockPixels = 256;
+// Granularity at which a tile decides whether pixels need their own subsets:
+// small enough that a dome-lit object's rim of attached shadows does not drag
+// its fully lit interior along.
+constexpr int kChunkPixels = 64;
 struct SubsetBlock {
   alignas(64) float g[6][kBlockPixels];  // G_S: xx, yy, zz, xy, xz, yz
   alignas(64) float r[3][kBlockPixels];  // A_S^T b_S
@@ -213,21 +217,22 @@ struct SubsetBlock {
   alignas(64) float rss[kBlockPixels];
 };
 
-// Least squares on each pixel's usable samples, block by block: one sweep
-// over a block's K samples (from memory) sums the normal equations, the 3 x 3
-// systems are solved by their adjugates, and a second sweep over the same
-// samples (from cache) sums the residuals exactly rather than as a difference
-// of large sums. A pixel whose samples are all usable gets the full set's
-// least squares: the pseudo-inverse's answer. Four lights per sweep, so the
-// accumulators are loaded and stored once per four samples.
+// Least squares on each pixel's usable samples, for pixels [first, end) of a
+// tile whose samples the streaming pass has just brought into cache, block by
+// block: one sweep over a block's K samples sums the normal equations, the
+// 3 x 3 systems are solved by their adjugates, and a second sweep sums the
+// residuals exactly rather than as a difference of large sums. A pixel whose
+// samples are all usable gets the full set's least squares again. Four lights
+// per sweep, so the accumulators are loaded and stored once per four samples.
 PHOTORIG_PS_MULTIVERSION
-void SolveSubsetTile(const TileConstants& c, int begin, int n, const float* dark, SubsetBlock* a, TileSolution* s) {
+void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, const float* dark, SubsetBlock* a,
+                     TileSolution* s) {
   constexpr int kGroup = 4;
   const int k = c.lights;
   const float saturation = c.saturation;
   const float read_variance = static_cast<float>(c.read_variance), shot_gain = static_cast<float>(c.shot_gain);
-  for (int first_pixel = 0; first_pixel < n; first_pixel += kBlockPixels) {
-    const int count = std::min(kBlockPixels, n - first_pixel);
+  for (int first_pixel = first; first_pixel < end; first_pixel += kBlockPixels) {
+    const int count = std::min(kBlockPixels, end - first_pixel);
     const float* __restrict d = dark + first_pixel;
     for (auto* row : {a->g[0], a->g[1], a->g[2], a->g[3], a->g[4], a->g[5], a->r[0], a->r[1], a->r[2], a->usable, a->u,
                       a->signal, a->b2, a->rss})
@@ -536,6 +541,7 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
     const auto sums = std::make_unique<TileSums>();
     const auto solution = std::make_unique<TileSolution>();
     const auto block = std::make_unique<SubsetBlock>();
+    bool expect_lit = true;
     auto unsolved = [&](int p, PixelFlag flag) {
       result->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
       result->albedo.ptr<float>()[p] = std::numeric_limits<float>::quiet_NaN();
@@ -549,12 +555,32 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
       const int begin = tile * kTilePixels;
       const int n = std::min(kTilePixels, pixels - begin);
       for (int i = 0; i < n; ++i) sums->dark[i] = dark ? dark[begin + i] : 0.0f;
-      // Every sample is read exactly once from memory, by one of the two kernels.
-      if (options.exclude_unusable_samples) {
-        SolveSubsetTile(constants, begin, n, sums->dark, block.get(), solution.get());
+      // Every sample is read exactly once from memory. A tile of fully lit
+      // pixels costs least with the pseudo-inverse pass; where pixels have
+      // shadowed or clipped samples, the subset kernel reads the tile itself.
+      // Which one a tile starts with is a guess from the thread's previous
+      // tile (neighbouring tiles look alike); a wrong guess of "lit" costs a
+      // second look at the affected chunks, from cache.
+      if (options.exclude_unusable_samples && !expect_lit) {
+        SolveSubsetTile(constants, begin, 0, n, sums->dark, block.get(), solution.get());
+        expect_lit = std::all_of(solution->usable, solution->usable + n, [k](float u) { return u == k; });
       } else {
         AccumulateTile(constants, begin, n, sums.get());
         SolveLitTile(constants, n, *sums, solution.get());
+        expect_lit = true;
+        int run_first = -1;
+        for (int chunk = 0; options.exclude_unusable_samples && chunk < n; chunk += kChunkPixels) {
+          const int chunk_end = std::min(n, chunk + kChunkPixels);
+          bool needed = false;
+          for (int i = chunk; i < chunk_end; ++i) needed |= sums->usable[i] < static_cast<float>(k);
+          expect_lit &= !needed;
+          if (needed && run_first < 0) run_first = chunk;
+          if (!needed && run_first >= 0) {
+            SolveSubsetTile(constants, begin, run_first, chunk, sums->dark, block.get(), solution.get());
+            run_first = -1;
+          }
+        }
+        if (run_first >= 0) SolveSubsetTile(constants, begin, run_first, n, sums->dark, block.get(), solution.get());
       }
       WriteTile(begin, n, *solution, result);
       for (int i = 0; i < n; ++i) {
