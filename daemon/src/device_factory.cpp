@@ -115,8 +115,11 @@ MotionRig MakeMotion(const DeviceContext& context) {
   MotionRig rig;
   std::vector<drivers::Motion*> axes;
   for (const AxisConfig& axis : motion.axes) {
+    sim::SimAxisOptions axis_options = options;
+    if (context.rig.sim && context.rig.sim->axis_faults.count(axis.id))
+      axis_options.faults = context.rig.sim->axis_faults.at(axis.id);
     rig.axes.push_back(std::make_unique<sim::SimRotaryAxis>(
-        axis.id, axis.limits, motion.settle, options,
+        axis.id, axis.limits, motion.settle, axis_options,
         [world = context.world, id = axis.id](double deg) { world->SetArm(id, deg); }));
     axes.push_back(rig.axes.back().get());
   }

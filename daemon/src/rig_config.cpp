@@ -90,9 +90,10 @@ std::set<T> IndexSet(const YamlNode& node, const char* key) {
 }
 
 // sim.faults: {camera: {drop_frames: [..], short_frames: [..], corrupt_frames: [..], disconnect_at: [..]},
-//              lights: {fail_commands: [..], stuck_off_channels: [..]}}
-void ParseFaults(const YamlNode& node, SimConfig* sim) {
-  node.ExpectKeys({"camera", "lights"});
+//              lights: {fail_commands: [..], stuck_off_channels: [..]},
+//              motion: {<axis id>: {refused_moves: [..]}}}
+void ParseFaults(const YamlNode& node, const std::optional<MotionConfig>& motion, SimConfig* sim) {
+  node.ExpectKeys({"camera", "lights", "motion"});
   if (auto camera = node.Find("camera")) {
     camera->ExpectKeys({"drop_frames", "short_frames", "corrupt_frames", "disconnect_at"});
     sim->camera_faults.drop_frames = IndexSet<std::uint64_t>(*camera, "drop_frames");
@@ -104,6 +105,15 @@ void ParseFaults(const YamlNode& node, SimConfig* sim) {
     lights->ExpectKeys({"fail_commands", "stuck_off_channels"});
     sim->light_faults.fail_commands = IndexSet<std::uint64_t>(*lights, "fail_commands");
     sim->light_faults.stuck_off_channels = IndexSet<int>(*lights, "stuck_off_channels");
+  }
+  if (auto axes = node.Find("motion")) {
+    if (!motion) axes->Fail("motion faults need a 'motion:' section");
+    for (const std::string& id : axes->Keys()) {
+      const YamlNode axis = (*axes)[id];
+      if (!motion->axis(id)) axis.Fail("no axis '" + id + "' in motion.axes");
+      axis.ExpectKeys({"refused_moves"});
+      sim->axis_faults[id].refused_moves = IndexSet<std::uint64_t>(axis, "refused_moves");
+    }
   }
 }
 
@@ -382,7 +392,7 @@ RigConfig LoadRigConfig(const std::string& path) {
     sim.sensor = sensor ? ParseSensor(*sensor, cam.bit_depth) : sim::SensorModel{};
     sim.sensor.bit_depth = cam.bit_depth;
     if (auto scene = sim_node->Find("scene")) sim.scene = ParseScene(*scene, cam.width * cam.pixel_pitch_mm);
-    if (auto faults = sim_node->Find("faults")) ParseFaults(*faults, &sim);
+    if (auto faults = sim_node->Find("faults")) ParseFaults(*faults, rig.motion, &sim);
     // A simulated camera is calibrated by construction.
     cam.dn_per_radiance_per_us = sim.sensor.response_e_per_us / sim.sensor.e_per_dn;
     cam.e_per_dn = sim.sensor.e_per_dn;

@@ -134,13 +134,17 @@ class Capture {
     return OpenMotion();
   }
 
-  // Opens and homes the axes once; after a fault they stay open and homed.
+  // Opens and homes the axes; after a fault the axes that are still good
+  // stay open and homed, and a faulted one is cleared, which loses its
+  // position, so all are homed again before the retried step moves them.
   Status OpenMotion() {
     if (!options_.motion || !options_.motion->goniometer) return Status::Ok();
     bool home = false;
     for (auto& axis : options_.motion->axes) {
       if (axis->state() == drivers::Motion::State::kClosed)
         if (Status s = axis->Open(); !s.ok()) return s;
+      if (axis->state() == drivers::Motion::State::kFault)
+        if (Status s = axis->ClearFault(); !s.ok()) return s;
       home = home || axis->state() == drivers::Motion::State::kOpen;
     }
     return home ? options_.motion->goniometer->HomeAll() : Status::Ok();

@@ -136,12 +136,15 @@ Status SimRotaryAxis::DoStartHome() {
   {
     std::lock_guard lock(mutex_);
     homed_ = false;
+    ++homings_;
   }
   Start(0.0, options_.homing, true);
   return Status::Ok();
 }
 
 Status SimRotaryAxis::DoStartMove(double target_deg, const drivers::MotionProfile& profile) {
+  if (options_.faults.refused_moves.count(++moves_))
+    return {StatusCode::kUnavailable, "simulated drive " + id() + " did not acknowledge move " + std::to_string(moves_)};
   Start(target_deg, profile, false);
   return Status::Ok();
 }

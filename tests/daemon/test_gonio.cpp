@@ -1,7 +1,7 @@
 // The gonioreflectometer end to end on the simulator: rig and pose
 // validation, dry-run refusals (soft limits, separation, arms crossing), a run
 // whose frames match the analytic BRDF at several poses, and every exit path
-// leaving the arms stopped and the lamp off.
+// leaving the arms stopped and the lamp off, or retried after a drive fault.
 
 #include "photorig/daemon/plan.h"
 #include "photorig/daemon/recipe.h"
@@ -245,6 +245,39 @@ TEST(Gonio, FailureStopsTheArmsAndSwitchesTheLampOff) {
   EXPECT_EQ(dome.state(), drivers::LightController::State::kClosed);
   ASSERT_FALSE(dome.levels_at_close.empty());
   for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>{0.0});
+}
+
+// A drive that drops a move command leaves its axis in Fault: the retry must
+// clear it and home every axis again before moving, then finish the run.
+TEST(Gonio, ALostMoveCommandIsRetriedAfterClearingAndHoming) {
+  TempDir dir;
+  dir.Write("rig.yaml", GonioRig("{motion: {camera_arm: {refused_moves: [2]}}}"));
+  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", GonioRecipe(
+      "        list: [{light_arm_deg: -40, camera_arm_deg: 20}, {light_arm_deg: -30, camera_arm_deg: 30},\n"
+      "               {light_arm_deg: -20, camera_arm_deg: 40}]\n")));
+  const RigConfig rig = LoadRigConfig(recipe.rig_path);
+  RigDevices devices = MakeRigDevices(rig, &recipe);
+  RunManifest header;
+  header.width = header.height = 32;
+  RunWriter writer((dir.path() / "run").string(), header);
+  CaptureOptions options;
+  options.motion = &devices.motion;
+  options.motion_profile = rig.motion->profile;
+  options.retry.initial_backoff_ms = 1;
+  const CaptureReport report =
+      RunCapture(CompileSteps(recipe, rig), rig.camera, *devices.lights, *devices.camera, writer, options);
+  ASSERT_EQ(report.status, "complete") << report.reason;
+  EXPECT_EQ(report.retries, 1);
+  EXPECT_EQ(report.frames_written, 4);  // dark + three poses, none twice
+  const sim::ArmAngles arms = devices.world->arms();
+  EXPECT_NEAR(arms.light_arm_deg, -20.0, 0.05);
+  EXPECT_NEAR(arms.camera_arm_deg, 40.0, 0.05);
+  for (const auto& axis : devices.motion.axes)
+    EXPECT_EQ(static_cast<sim::SimRotaryAxis&>(*axis).homings(), 2) << axis->id();  // at the start and after the fault
+}
+
+TEST(Gonio, MotionFaultsNameAnAxisOfTheRig) {
+  ExpectConfigError(GonioRig("{motion: {tilt_arm: {refused_moves: [1]}}}"), 25, 31, "no axis 'tilt_arm'");
 }
 
 TEST(Gonio, ShippedRecipeDryRunsClean) {

@@ -109,6 +109,7 @@ struct SimConfig {
   sim::Scene scene;  // default scene; a recipe's sample.sim_scene replaces it
   sim::CameraFaults camera_faults;
   sim::LightFaults light_faults;
+  std::map<std::string, sim::AxisFaults> axis_faults;  // by axis id
 };
 
 struct RigConfig {

@@ -16,6 +16,13 @@ struct CameraFaults {
   std::set<std::uint64_t> disconnect_at;   // the link drops at this trigger: kUnavailable until Close + Open
 };
 
+struct AxisFaults {
+  // Moves (1-based, counting every move the axis was asked for) the drive
+  // does not acknowledge: kUnavailable, as when a fieldbus command is lost.
+  // The axis then sits in Fault until it is cleared and homed again.
+  std::set<std::uint64_t> refused_moves;
+};
+
 struct LightFaults {
   std::set<std::uint64_t> fail_commands;   // SetPattern returns kUnavailable (e.g. a Modbus timeout)
   std::set<int> stuck_off_channels;        // these LEDs never light, whatever is commanded

@@ -16,6 +16,7 @@
 #include "photorig/drivers/motion.h"
 #include "photorig/sim/brdf.h"
 #include "photorig/sim/camera_model.h"
+#include "photorig/sim/faults.h"
 #include "photorig/sim/renderer.h"
 #include "photorig/sim/scene.h"
 
@@ -67,6 +68,7 @@ struct SimAxisOptions {
   double time_scale = 1.0;
   double power_on_deg = 0.0;  // where the axis stands before homing (home is 0)
   drivers::MotionProfile homing{20.0, 80.0};
+  AxisFaults faults;
 
   bool IsValid(std::string* why) const;
 };
@@ -82,6 +84,7 @@ class SimRotaryAxis : public drivers::Motion {
 
   double position_deg() const;  // without polling; for tests
   int stops() const { return stops_; }
+  int homings() const { return homings_; }
 
  protected:
   Status DoOpen() override;
@@ -109,6 +112,8 @@ class SimRotaryAxis : public drivers::Motion {
   double position_deg_;
   bool homed_ = false;
   int stops_ = 0;
+  int homings_ = 0;
+  std::uint64_t moves_ = 0;
   std::optional<Trajectory> trajectory_;
 };
 
