@@ -22,6 +22,8 @@ packages=(
   qemu-system-x86 busybox-static cpio
   # charts (run under /usr/bin/python3)
   python3-numpy python3-matplotlib
+  # run store: vectorised CRC-32 and Adler-32 for frame files
+  libdeflate-dev
 )
 
 if [ "$(id -u)" = 0 ]; then

@@ -1,8 +1,9 @@
 // The daemon's own cost per frame, device time excluded: for a 1 MP 16-bit
-// frame, the step bookkeeping plus the durable write (encode, temp file,
-// fsync, rename, directory fsync, journal append + fdatasync), against a bare
-// write + fsync of the same bytes in the same run. The ratio is the figure to
-// quote; absolute times depend on the filesystem's fsync cost.
+// frame, the step bookkeeping plus the durable write (encode streamed into a
+// temp file, rename, journal append, one syncfs), against a bare write + fsync
+// of the same bytes in the same run, and the encode alone (no I/O) to split
+// CPU from disk. The ratio is the figure to quote; absolute times depend on
+// the filesystem's fsync cost.
 //   bench_daemon --benchmark_filter=. (scripts/run-benchmarks.sh runs it too)
 
 #include "photorig/daemon/run_store.h"
@@ -59,6 +60,18 @@ void BM_BareWriteFsync(benchmark::State& state) {
   fs::remove_all(dir);
 }
 BENCHMARK(BM_BareWriteFsync)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_EncodeFrame(benchmark::State& state) {
+  const drivers::Frame frame = NoisyFrame();
+  Png16Encoder encoder;
+  std::size_t bytes = 0;
+  for (auto _ : state)
+    benchmark::DoNotOptimize(encoder.Encode(frame.pixels.data(), kWidth, kHeight,
+                                            [&](const std::uint8_t*, std::size_t size) { bytes += size; }));
+  benchmark::DoNotOptimize(bytes);
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * frame.pixels.size() * 2));
+}
+BENCHMARK(BM_EncodeFrame)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // One step's worth of daemon work on a frame the camera already delivered.
 void BM_DaemonFrame(benchmark::State& state) {

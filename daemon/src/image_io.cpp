@@ -22,20 +22,22 @@ namespace {
 }
 
 void FsyncDirectory(const fs::path& directory) {
-  const int fd = ::open(directory.empty() ? "." : directory.c_str(), O_RDONLY | O_DIRECTORY);
+  const int fd = ::open(directory.empty() ? "." : directory.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) Fail("cannot open directory", directory);
-  ::fsync(fd);
+  const int synced = ::fsync(fd);
+  const int error = errno;
   ::close(fd);
+  errno = error;
+  if (synced != 0) Fail("cannot fsync directory", directory);
 }
 
 std::string Extension(const std::string& path) { return fs::path(path).extension().string(); }
 
 }  // namespace
 
-namespace {
-
-// Temp file, optional fsync, rename: readers see the whole file or none.
-void ReplaceFile(const std::string& path, const void* data, std::size_t size, bool fsync_data) {
+// Temp file, fsync, rename, fsync of the directory: readers and crashes see
+// the whole file or none.
+void WriteFileDurably(const std::string& path, const void* data, std::size_t size) {
   const std::string temp = path + ".tmp";
   const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) Fail("cannot create", temp);
@@ -50,23 +52,13 @@ void ReplaceFile(const std::string& path, const void* data, std::size_t size, bo
     }
     written += static_cast<std::size_t>(n);
   }
-  if (fsync_data && ::fsync(fd) != 0) {
+  if (::fsync(fd) != 0) {
     ::close(fd);
     Fail("cannot fsync", temp);
   }
   ::close(fd);
   if (::rename(temp.c_str(), path.c_str()) != 0) Fail("cannot rename into", path);
-}
-
-}  // namespace
-
-void WriteFileDurably(const std::string& path, const void* data, std::size_t size) {
-  ReplaceFile(path, data, size, /*fsync_data=*/true);
   FsyncDirectory(fs::path(path).parent_path());
-}
-
-void WriteFileAtomically(const std::string& path, const void* data, std::size_t size) {
-  ReplaceFile(path, data, size, /*fsync_data=*/false);
 }
 
 void WriteFileDurably(const std::string& path, const std::string& text) {

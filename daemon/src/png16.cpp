@@ -1,6 +1,6 @@
 #include "photorig/daemon/png16.h"
 
-#include <zlib.h>
+#include <libdeflate.h>
 
 #include <algorithm>
 #include <array>
@@ -13,6 +13,11 @@ namespace {
 constexpr std::size_t kMaxStoredBlock = 65535;  // deflate's limit for one stored block
 constexpr std::size_t kStoredHeader = 5;        // BFINAL/BTYPE byte, LEN, NLEN
 constexpr std::array<std::uint8_t, 8> kSignature = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+constexpr std::size_t kIhdrChunk = 4 + 4 + 13 + 4, kIendChunk = 12;
+constexpr std::size_t kPrefixBytes = kSignature.size() + kIhdrChunk + 8 + 2;  // up to the first stored block
+constexpr std::size_t kTrailerBytes = 4 + 4 + kIendChunk;                      // Adler-32, IDAT CRC, IEND
+static_assert(Png16Encoder::kPieceBytes >=
+              kPrefixBytes + Png16Encoder::kBlocksPerPiece * (kStoredHeader + kMaxStoredBlock) + kTrailerBytes);
 
 std::uint8_t* PutBigEndian32(std::uint8_t* out, std::uint32_t value) {
   out[0] = static_cast<std::uint8_t>(value >> 24);
@@ -23,7 +28,7 @@ std::uint8_t* PutBigEndian32(std::uint8_t* out, std::uint32_t value) {
 }
 
 std::uint32_t Crc(std::uint32_t crc, const std::uint8_t* data, std::size_t size) {
-  return static_cast<std::uint32_t>(::crc32_z(crc, data, size));
+  return libdeflate_crc32(crc, data, size);
 }
 
 // A whole small chunk: length, type, data, CRC over type and data.
@@ -43,110 +48,87 @@ void FillScanlines(const std::uint16_t* pixels, int width, std::size_t begin, st
   std::size_t offset = begin;
   while (offset < end) {
     const std::size_t row = offset / row_bytes;
-    std::size_t in_row = offset % row_bytes;
-    const std::size_t stop = std::min(end, (row + 1) * row_bytes);
+    std::size_t k = offset % row_bytes;  // byte k >= 1 of a row is the high byte of sample (k-1)/2 when k is odd
+    const std::size_t k_stop = std::min(end, (row + 1) * row_bytes) - row * row_bytes;
     const std::uint16_t* row_pixels = pixels + row * static_cast<std::size_t>(width);
-    if (in_row == 0) {
+    if (k == 0) {
       *out++ = 0;
-      ++in_row;
+      ++k;
     }
-    // Byte k of the row (k >= 1) is the high byte of sample (k-1)/2 when k is odd.
-    std::size_t k = in_row;
-    const std::size_t k_stop = stop - row * row_bytes;
     if (k < k_stop && (k % 2) == 0) *out++ = static_cast<std::uint8_t>(row_pixels[(k++ - 1) / 2]);
-    for (; k + 1 < k_stop; k += 2) {
-      const std::uint16_t v = row_pixels[(k - 1) / 2];
-      out[0] = static_cast<std::uint8_t>(v >> 8);
-      out[1] = static_cast<std::uint8_t>(v);
-      out += 2;
+    // Whole samples: a plain byte-swapping loop the compiler vectorises.
+    const std::uint16_t* samples = row_pixels + (k - 1) / 2;
+    const std::size_t count = (k_stop - k) / 2;
+    for (std::size_t i = 0; i < count; ++i) {
+      const std::uint16_t big_endian = static_cast<std::uint16_t>((samples[i] >> 8) | (samples[i] << 8));
+      std::memcpy(out + 2 * i, &big_endian, 2);
     }
+    out += 2 * count;
+    k += 2 * count;
     if (k < k_stop) *out++ = static_cast<std::uint8_t>(row_pixels[(k - 1) / 2] >> 8);
-    offset = stop;
+    offset = row * row_bytes + k_stop;
   }
 }
 
-struct SlicePartials {
-  std::uint32_t adler = 1;     // of the scanline bytes in the slice
-  std::size_t raw_bytes = 0;
-  std::uint32_t idat_crc = 0;  // of every output byte of the slice (block headers included)
-  std::size_t out_bytes = 0;
-  std::uint32_t pixel_crc = 0;
-  std::size_t pixel_bytes = 0;
-};
-
 }  // namespace
 
-Png16Encoder::Encoded Png16Encoder::Encode(const std::uint16_t* pixels, int width, int height) {
+std::uint32_t Png16Encoder::Encode(const std::uint16_t* pixels, int width, int height, const Sink& sink) {
   if (width <= 0 || height <= 0) throw std::invalid_argument("Png16Encoder: empty frame");
   const std::size_t row_bytes = 1 + 2 * static_cast<std::size_t>(width);
   const std::size_t raw_size = row_bytes * static_cast<std::size_t>(height);
   const std::size_t blocks = (raw_size + kMaxStoredBlock - 1) / kMaxStoredBlock;
   const std::size_t zlib_size = 2 + blocks * kStoredHeader + raw_size + 4;
   if (zlib_size > 0x7fffffffu) throw std::invalid_argument("Png16Encoder: frame too large for one IDAT chunk");
-  constexpr std::size_t kIhdrChunk = 4 + 4 + 13 + 4, kIendChunk = 12;
-  const std::size_t total = kSignature.size() + kIhdrChunk + 8 + zlib_size + 4 + kIendChunk;
-  buffer_.resize(total);
+  piece_.resize(kPieceBytes);
 
-  std::uint8_t* out = std::copy(kSignature.begin(), kSignature.end(), buffer_.data());
+  std::uint8_t* out = std::copy(kSignature.begin(), kSignature.end(), piece_.data());
   std::array<std::uint8_t, 13> ihdr{};
   PutBigEndian32(ihdr.data(), static_cast<std::uint32_t>(width));
   PutBigEndian32(ihdr.data() + 4, static_cast<std::uint32_t>(height));
   ihdr[8] = 16;  // bit depth; colour type 0 (grey), deflate, filter method 0, no interlace
   out = PutChunk(out, "IHDR", ihdr.data(), ihdr.size());
   out = PutBigEndian32(out, static_cast<std::uint32_t>(zlib_size));
-  std::uint8_t* idat_type = out;
+  const std::uint8_t* idat_from = out;  // the chunk CRC covers the type and the data
   std::memcpy(out, "IDAT", 4);
   out += 4;
   out[0] = 0x78;  // deflate, 32K window; FCHECK makes the header a multiple of 31
   out[1] = 0x01;
   out += 2;
-  std::uint8_t* const blocks_begin = out;
 
-  // Slices of whole stored blocks, so each slice's output is independent.
-  const std::size_t slices = std::min<std::size_t>(blocks, 16);
-  const std::size_t pixel_count = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
-  std::vector<SlicePartials> partials(slices);
-#pragma omp parallel for schedule(static)
-  for (std::size_t s = 0; s < slices; ++s) {
-    SlicePartials& p = partials[s];
-    const std::size_t first_block = blocks * s / slices, last_block = blocks * (s + 1) / slices;
-    std::uint8_t* const slice_out = blocks_begin + first_block * (kStoredHeader + kMaxStoredBlock);
-    std::uint8_t* block_out = slice_out;
-    for (std::size_t b = first_block; b < last_block; ++b) {
-      const std::size_t begin = b * kMaxStoredBlock;
-      const std::size_t size = std::min(kMaxStoredBlock, raw_size - begin);
-      block_out[0] = b + 1 == blocks ? 1 : 0;  // BFINAL on the last block; BTYPE 00 = stored
-      block_out[1] = static_cast<std::uint8_t>(size);
-      block_out[2] = static_cast<std::uint8_t>(size >> 8);
-      block_out[3] = static_cast<std::uint8_t>(~size);
-      block_out[4] = static_cast<std::uint8_t>(~size >> 8);
-      FillScanlines(pixels, width, begin, begin + size, block_out + kStoredHeader);
-      p.adler = static_cast<std::uint32_t>(::adler32_z(p.adler, block_out + kStoredHeader, size));
-      p.raw_bytes += size;
-      block_out += kStoredHeader + size;
+  std::uint32_t adler = 1, idat_crc = 0;
+  for (std::size_t b = 0; b < blocks; ++b) {
+    const std::size_t begin = b * kMaxStoredBlock;
+    const std::size_t size = std::min(kMaxStoredBlock, raw_size - begin);
+    const bool last = b + 1 == blocks;
+    out[0] = last ? 1 : 0;  // BFINAL on the last block; BTYPE 00 = stored
+    out[1] = static_cast<std::uint8_t>(size);
+    out[2] = static_cast<std::uint8_t>(size >> 8);
+    out[3] = static_cast<std::uint8_t>(~size);
+    out[4] = static_cast<std::uint8_t>(~size >> 8);
+    FillScanlines(pixels, width, begin, begin + size, out + kStoredHeader);
+    adler = libdeflate_adler32(adler, out + kStoredHeader, size);
+    out += kStoredHeader + size;
+    if (!last && (b + 1) % kBlocksPerPiece != 0) continue;
+    if (last) out = PutBigEndian32(out, adler);
+    idat_crc = Crc(idat_crc, idat_from, static_cast<std::size_t>(out - idat_from));
+    if (last) {
+      out = PutBigEndian32(out, idat_crc);
+      out = PutChunk(out, "IEND", nullptr, 0);
     }
-    p.out_bytes = static_cast<std::size_t>(block_out - slice_out);
-    p.idat_crc = Crc(0, slice_out, p.out_bytes);
-    const std::size_t first_pixel = pixel_count * s / slices, last_pixel = pixel_count * (s + 1) / slices;
-    p.pixel_bytes = (last_pixel - first_pixel) * sizeof(std::uint16_t);
-    p.pixel_crc = Crc(0, reinterpret_cast<const std::uint8_t*>(pixels + first_pixel), p.pixel_bytes);
+    sink(piece_.data(), static_cast<std::size_t>(out - piece_.data()));
+    out = piece_.data();
+    idat_from = out;
   }
+  const std::size_t pixel_bytes = static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * 2;
+  return Crc(0, reinterpret_cast<const std::uint8_t*>(pixels), pixel_bytes);
+}
 
-  std::uint32_t adler = 1, idat_crc = Crc(0, idat_type, 4 + 2), pixel_crc = 0;
-  for (const SlicePartials& p : partials) {
-    adler = static_cast<std::uint32_t>(::adler32_combine(adler, p.adler, static_cast<z_off_t>(p.raw_bytes)));
-    idat_crc = static_cast<std::uint32_t>(::crc32_combine(idat_crc, p.idat_crc, static_cast<z_off_t>(p.out_bytes)));
-    pixel_crc = static_cast<std::uint32_t>(::crc32_combine(pixel_crc, p.pixel_crc, static_cast<z_off_t>(p.pixel_bytes)));
-  }
-  out = blocks_begin + blocks * kStoredHeader + raw_size;
-  std::uint8_t adler_bytes[4];
-  PutBigEndian32(adler_bytes, adler);
-  std::memcpy(out, adler_bytes, 4);
-  idat_crc = Crc(idat_crc, adler_bytes, 4);
-  out = PutBigEndian32(out + 4, idat_crc);
-  out = PutChunk(out, "IEND", nullptr, 0);
-  if (static_cast<std::size_t>(out - buffer_.data()) != total) throw std::logic_error("Png16Encoder: size mismatch");
-  return {buffer_.data(), total, pixel_crc};
+Png16Encoder::Encoded Png16Encoder::Encode(const std::uint16_t* pixels, int width, int height) {
+  whole_.clear();
+  const std::uint32_t crc = Encode(pixels, width, height, [this](const std::uint8_t* data, std::size_t size) {
+    whole_.insert(whole_.end(), data, data + size);
+  });
+  return {whole_.data(), whole_.size(), crc};
 }
 
 }  // namespace photorig::daemon

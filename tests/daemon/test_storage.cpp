@@ -97,6 +97,15 @@ TEST(Png16Encoder, EveryShapeDecodesBitExactWithMatchingChecksum) {
     EXPECT_TRUE(std::equal(pixels.begin(), pixels.end(), decoded.ptr<std::uint16_t>(0))) << width << "x" << height;
     EXPECT_EQ(png.pixel_crc32, ::crc32(0L, reinterpret_cast<const Bytef*>(pixels.data()),
                                        static_cast<uInt>(pixels.size() * sizeof(std::uint16_t))));
+    // Streamed, the same bytes arrive in bounded pieces (what RunWriter writes as it encodes).
+    const std::vector<std::uint8_t> whole(png.data, png.data + png.size);
+    std::vector<std::uint8_t> streamed;
+    const std::uint32_t crc = encoder.Encode(pixels.data(), width, height, [&](const std::uint8_t* data, std::size_t size) {
+      EXPECT_LE(size, Png16Encoder::kPieceBytes);
+      streamed.insert(streamed.end(), data, data + size);
+    });
+    EXPECT_EQ(crc, png.pixel_crc32);
+    EXPECT_TRUE(streamed == whole) << width << "x" << height;
   }
 }
 

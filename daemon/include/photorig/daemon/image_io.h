@@ -14,9 +14,6 @@ namespace photorig::daemon {
 // complete: temp file, fsync, rename, fsync of the directory.
 void WriteFileDurably(const std::string& path, const void* data, std::size_t size);
 void WriteFileDurably(const std::string& path, const std::string& text);
-// Temp file and rename without any fsync: whole or absent for readers, but
-// durable only after a later sync of the filesystem (see RunWriter::WriteFrame).
-void WriteFileAtomically(const std::string& path, const void* data, std::size_t size);
 
 // Encodes with OpenCV (format from the extension) and writes durably.
 // Throws std::runtime_error naming the file on failure.
