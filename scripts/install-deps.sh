@@ -18,6 +18,8 @@ packages=(
   libaravis-dev aravis-tools libmodbus-dev libgpiod-dev libusb-1.0-0-dev linux-libc-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # an independent CRC-32 for the storage tests
+  zlib1g-dev
   # V4L2 tests against the kernel's vivid driver in a VM (scripts/v4l2-vm-test.sh)
   qemu-system-x86 busybox-static cpio
   # charts (run under /usr/bin/python3)

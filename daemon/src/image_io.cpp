@@ -2,7 +2,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <zlib.h>
+#include <libdeflate.h>
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -119,7 +119,7 @@ cv::Mat ScalarToGray8(const cv::Mat& values, double max_value) {
 }
 
 std::uint32_t Crc32(const void* data, std::size_t size) {
-  return static_cast<std::uint32_t>(::crc32(0L, static_cast<const Bytef*>(data), static_cast<uInt>(size)));
+  return libdeflate_crc32(0, data, size);
 }
 
 }  // namespace photorig::daemon

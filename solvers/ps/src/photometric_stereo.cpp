@@ -502,18 +502,9 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   };
   const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
   std::vector<ThreadState> states(threads);
+  // Pixels the cheap screen could not accept: the exact tests and, where the
+  // simple models fail, the richer fits.
   auto refine_pixel = [&](ThreadState& state, int p) {
-    if (result->flags.ptr<std::uint8_t>()[p] != static_cast<int>(PixelFlag::kSolved)) return;
-    // The Lambertian pass's confidence is expected / observed residual
-    // variance, so dof / confidence is its chi-square statistic with the
-    // noise variance averaged over the samples: the adequacy test without
-    // another look at the samples. (The exact test below weights each
-    // sample by its own variance; the two differ only near the threshold.)
-    const int dof = result->usable_lights.ptr<std::uint16_t>()[p] - 3;
-    if (options.method == Method::kAuto && dof > 0 && result->confidence.ptr<float>()[p] * quantile[dof] >= dof) {
-      ++state.lambertian;
-      return;
-    }
     PixelSamples& s = state.samples;
     GatherSamples(working, lambertian, p, &s);
     const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
@@ -559,7 +550,24 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     }
   };
   const internal::TileVisitor refine_tile = [&](int thread, int begin, int count) {
-    for (int p = begin; p < begin + count; ++p) refine_pixel(states[thread], p);
+    ThreadState& state = states[thread];
+    const std::uint8_t* flags = result->flags.ptr<std::uint8_t>();  // allocated by the solve
+    const std::uint16_t* usable = result->usable_lights.ptr<std::uint16_t>();
+    const float* confidence = result->confidence.ptr<float>();
+    for (int p = begin; p < begin + count; ++p) {
+      if (flags[p] != static_cast<int>(PixelFlag::kSolved)) continue;
+      // The Lambertian pass's confidence is expected / observed residual
+      // variance, so dof / confidence is its chi-square statistic with the
+      // noise variance averaged over the samples: the adequacy test without
+      // another look at the samples. (The exact test weights each sample by
+      // its own variance; the two differ only near the threshold.)
+      const int dof = usable[p] - 3;
+      if (options.method == Method::kAuto && dof > 0 && confidence[p] * quantile[dof] >= dof) {
+        ++state.lambertian;
+        continue;
+      }
+      refine_pixel(state, p);
+    }
   };
   SolverSummary summary = internal::SolveLambertianTiles(lambertian, working, result, refine_tile);
   summary.method = MethodName(options.method);
