@@ -88,6 +88,35 @@ std::string Replace(std::string text, const std::string& from, const std::string
   return text.replace(at, from.size(), to);
 }
 
+// The capture of a pose list on the gonio rig (with `faults`), run through
+// RunCapture with the rig's own devices; `lights` may stand in for the lamp.
+struct GonioCapture {
+  static Recipe WriteRigAndRecipe(TempDir& dir, const std::string& faults, const std::string& poses) {
+    dir.Write("rig.yaml", GonioRig(faults));
+    return LoadRecipe(dir.Write("r.yaml", GonioRecipe(poses)));
+  }
+
+  GonioCapture(TempDir& dir, const std::string& faults, const std::string& poses)
+      : directory(dir.path()),
+        recipe(WriteRigAndRecipe(dir, faults, poses)),
+        rig(LoadRigConfig(recipe.rig_path)),
+        devices(MakeRigDevices(rig, &recipe)) {}
+
+  CaptureReport Run(drivers::LightController& lights, CaptureOptions options) {
+    RunManifest header;
+    header.width = header.height = 32;
+    RunWriter writer((directory / "run").string(), header);
+    options.motion = &devices.motion;
+    options.motion_profile = rig.motion->profile;
+    return RunCapture(CompileSteps(recipe, rig), rig.camera, lights, *devices.camera, writer, options);
+  }
+
+  std::filesystem::path directory;
+  Recipe recipe;
+  RigConfig rig;
+  RigDevices devices;
+};
+
 TEST(Gonio, RigAndPoseErrorsNameTheirPosition) {
   ExpectConfigError(Replace(GonioRig(), "    - {id: sample_rotation, min_deg: -180, max_deg: 180}\n", ""), 12, 5,
                     "needs an axis 'sample_rotation'");
@@ -218,19 +247,11 @@ TEST(Gonio, FramesMatchTheAnalyticBrdfAtEachPose) {
 
 TEST(Gonio, FailureStopsTheArmsAndSwitchesTheLampOff) {
   TempDir dir;
-  dir.Write("rig.yaml", GonioRig("{lights: {stuck_off_channels: [0]}}"));
-  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", GonioRecipe(
-      "        list: [{light_arm_deg: -40, camera_arm_deg: 20}, {light_arm_deg: -30, camera_arm_deg: 30}]\n")));
-  const RigConfig rig = LoadRigConfig(recipe.rig_path);
-  RigDevices devices = MakeRigDevices(rig, &recipe);
+  GonioCapture capture(dir, "{lights: {stuck_off_channels: [0]}}",
+                       "        list: [{light_arm_deg: -40, camera_arm_deg: 20}, {light_arm_deg: -30, camera_arm_deg: 30}]\n");
+  RigDevices& devices = capture.devices;
   WatchedDome dome("lamp", devices.world);
-  RunManifest header;
-  header.width = header.height = 32;
-  RunWriter writer((dir.path() / "run").string(), header);
-  CaptureOptions options;
-  options.motion = &devices.motion;
-  options.motion_profile = rig.motion->profile;
-  const CaptureReport report = RunCapture(CompileSteps(recipe, rig), rig.camera, dome, *devices.camera, writer, options);
+  const CaptureReport report = capture.Run(dome, {});
   EXPECT_EQ(report.status, "failed");
   EXPECT_NE(report.reason.find("reads back"), std::string::npos) << report.reason;
   EXPECT_EQ(report.frames_written, 1);  // the dark frame
@@ -251,21 +272,13 @@ TEST(Gonio, FailureStopsTheArmsAndSwitchesTheLampOff) {
 // clear it and home every axis again before moving, then finish the run.
 TEST(Gonio, ALostMoveCommandIsRetriedAfterClearingAndHoming) {
   TempDir dir;
-  dir.Write("rig.yaml", GonioRig("{motion: {camera_arm: {refused_moves: [2]}}}"));
-  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", GonioRecipe(
-      "        list: [{light_arm_deg: -40, camera_arm_deg: 20}, {light_arm_deg: -30, camera_arm_deg: 30},\n"
-      "               {light_arm_deg: -20, camera_arm_deg: 40}]\n")));
-  const RigConfig rig = LoadRigConfig(recipe.rig_path);
-  RigDevices devices = MakeRigDevices(rig, &recipe);
-  RunManifest header;
-  header.width = header.height = 32;
-  RunWriter writer((dir.path() / "run").string(), header);
+  GonioCapture capture(dir, "{motion: {camera_arm: {refused_moves: [2]}}}",
+                       "        list: [{light_arm_deg: -40, camera_arm_deg: 20}, {light_arm_deg: -30, camera_arm_deg: 30},\n"
+                       "               {light_arm_deg: -20, camera_arm_deg: 40}]\n");
+  RigDevices& devices = capture.devices;
   CaptureOptions options;
-  options.motion = &devices.motion;
-  options.motion_profile = rig.motion->profile;
   options.retry.initial_backoff_ms = 1;
-  const CaptureReport report =
-      RunCapture(CompileSteps(recipe, rig), rig.camera, *devices.lights, *devices.camera, writer, options);
+  const CaptureReport report = capture.Run(*devices.lights, options);
   ASSERT_EQ(report.status, "complete") << report.reason;
   EXPECT_EQ(report.retries, 1);
   EXPECT_EQ(report.frames_written, 4);  // dark + three poses, none twice

@@ -217,17 +217,41 @@ struct SubsetBlock {
   alignas(64) float rss[kBlockPixels];
 };
 
+// The constants of four consecutive lights for one sweep over a block, so
+// the accumulators are loaded and stored once per four samples. Missing
+// lights of the last group repeat light 0 with weight 0 (present = 0).
+struct LightGroup {
+  static constexpr int kSize = 4;
+  const float* planes[kSize];  // each at pixel `offset`
+  float wx[kSize], wy[kSize], wz[kSize], inverse_scale[kSize], u[kSize], present[kSize];
+};
+
+// Inlined, so the group stays a local the compiler can keep in registers.
+__attribute__((always_inline)) inline LightGroup GroupAt(const TileConstants& c, int first, int offset) {
+  LightGroup group;
+  for (int j = 0; j < LightGroup::kSize; ++j) {
+    const int l = first + j < c.lights ? first + j : 0;
+    group.planes[j] = c.planes[l] + offset;
+    group.wx[j] = c.direction[0][l];
+    group.wy[j] = c.direction[1][l];
+    group.wz[j] = c.direction[2][l];
+    group.present[j] = first + j < c.lights ? 1.0f : 0.0f;
+    group.inverse_scale[j] = group.present[j] * c.inverse_scale[l];
+    group.u[j] = group.present[j] * c.inverse_scale2[l];
+  }
+  return group;
+}
+
 // Least squares on each pixel's usable samples, for pixels [first, end) of a
 // tile whose samples the streaming pass has just brought into cache, block by
 // block: one sweep over a block's K samples sums the normal equations, the
 // 3 x 3 systems are solved by their adjugates, and a second sweep sums the
 // residuals exactly rather than as a difference of large sums. A pixel whose
-// samples are all usable gets the full set's least squares again. Four lights
-// per sweep, so the accumulators are loaded and stored once per four samples.
+// samples are all usable gets the full set's least squares again.
 PHOTORIG_PS_MULTIVERSION
 void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, const float* dark, SubsetBlock* a,
                      TileSolution* s) {
-  constexpr int kGroup = 4;
+  constexpr int kGroup = LightGroup::kSize;
   const int k = c.lights;
   const float saturation = c.saturation;
   const float read_variance = static_cast<float>(c.read_variance), shot_gain = static_cast<float>(c.shot_gain);
@@ -238,19 +262,10 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
                       a->signal, a->b2, a->rss})
       std::fill(row, row + count, 0.0f);
     for (int first = 0; first < k; first += kGroup) {
-      const float* planes[kGroup];
-      float wx[kGroup], wy[kGroup], wz[kGroup], inverse_scale[kGroup], u[kGroup], present[kGroup];
-      for (int j = 0; j < kGroup; ++j) {
-        // Missing lights of the last group repeat light 0 with weight 0.
-        const int l = first + j < k ? first + j : 0;
-        planes[j] = c.planes[l] + begin + first_pixel;
-        wx[j] = c.direction[0][l];
-        wy[j] = c.direction[1][l];
-        wz[j] = c.direction[2][l];
-        present[j] = first + j < k ? 1.0f : 0.0f;
-        inverse_scale[j] = present[j] * c.inverse_scale[l];
-        u[j] = present[j] * c.inverse_scale2[l];
-      }
+      const LightGroup group = GroupAt(c, first, begin + first_pixel);
+      const auto& planes = group.planes;
+      const auto &wx = group.wx, &wy = group.wy, &wz = group.wz, &inverse_scale = group.inverse_scale;
+      const auto &u = group.u, &present = group.present;
 #pragma omp simd
       for (int i = 0; i < count; ++i) {
         float gxx = a->g[0][i], gyy = a->g[1][i], gzz = a->g[2][i], gxy = a->g[3][i], gxz = a->g[4][i], gyz = a->g[5][i];
@@ -306,17 +321,10 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
       certain[i] = (a->usable[i] == all) | ((det > 0.0f) & (bound <= c.max_frobenius_condition2)) ? 1.0f : 0.0f;
     }
     for (int first = 0; first < k; first += kGroup) {
-      const float* planes[kGroup];
-      float wx[kGroup], wy[kGroup], wz[kGroup], inverse_scale[kGroup], present[kGroup];
-      for (int j = 0; j < kGroup; ++j) {
-        const int l = first + j < k ? first + j : 0;
-        planes[j] = c.planes[l] + begin + first_pixel;
-        wx[j] = c.direction[0][l];
-        wy[j] = c.direction[1][l];
-        wz[j] = c.direction[2][l];
-        present[j] = first + j < k ? 1.0f : 0.0f;
-        inverse_scale[j] = c.inverse_scale[l];
-      }
+      const LightGroup group = GroupAt(c, first, begin + first_pixel);
+      const auto& planes = group.planes;
+      const auto &wx = group.wx, &wy = group.wy, &wz = group.wz, &inverse_scale = group.inverse_scale;
+      const auto& present = group.present;
 #pragma omp simd
       for (int i = 0; i < count; ++i) {
         float rss = a->rss[i];
