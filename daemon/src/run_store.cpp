@@ -193,7 +193,12 @@ RunWriter::RunWriter(std::string directory, RunManifest header)
   // The header first, so a journal alone describes the run.
   json header_line = ToJson(manifest_);
   header_line.erase("frames");
-  AppendJournal(json{{"run", header_line}});
+  try {
+    AppendJournal(json{{"run", header_line}});
+  } catch (...) {
+    ::close(journal_fd_);  // no destructor runs for a constructor that throws
+    throw;
+  }
 }
 
 void RunWriter::AppendJournal(const json& entry) {
