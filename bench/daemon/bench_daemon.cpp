@@ -50,7 +50,8 @@ void BM_BareWriteFsync(benchmark::State& state) {
   const std::size_t bytes = frame.pixels.size() * sizeof(std::uint16_t);
   int i = 0;
   for (auto _ : state) {
-    const std::string path = (dir / ("f" + std::to_string(i++ % 64))).string();
+    fs::path path = dir / "f";
+    path += std::to_string(i++ % 64);
     const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (::write(fd, frame.pixels.data(), bytes) != static_cast<ssize_t>(bytes)) state.SkipWithError("write failed");
     ::fsync(fd);
