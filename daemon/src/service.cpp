@@ -204,12 +204,16 @@ void RunService::Execute(QueuedRun run) {
   run.retries = stop.retries;
   run.dropped_frames = stop.dropped_frames;
   SetState(run, final_state, reason);
+  {
+    // No longer current before anyone hears it stopped: a client reacting to
+    // the stop event (an abort, a new submission) must find the run final.
+    std::lock_guard lock(mutex_);
+    current_id_.clear();
+    current_control_.reset();
+  }
   Publish(run.id, "stop", {{"state", RunStateName(final_state)}, {"reason", reason}, {"frames", stop.frames},
                            {"steps_total", stop.steps_total}, {"retries", stop.retries},
                            {"dropped_frames", stop.dropped_frames}});
-  std::lock_guard lock(mutex_);
-  current_id_.clear();
-  current_control_.reset();
 }
 
 ServiceReply RunService::Validate(const std::string& name, const std::string& recipe_yaml, bool for_submit) const {
