@@ -264,18 +264,19 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
   };
   Eigen::VectorXd residuals;
   Eigen::MatrixXd jacobian;
-  // Residuals, Jacobian and cost at q. Candidates are evaluated with their
-  // Jacobian too: nearly every step is accepted, and the accepted point's
-  // Jacobian is then ready for the next iteration. (A rejected candidate
-  // overwrites them, but the retry needs only h and g.)
-  auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, double* cost) {
-    const bool ok =
-        autodiff::BlinnPhongResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
+  auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
+    bool ok;
+    if (with_jacobian) {
+      ok = autodiff::BlinnPhongResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
+    } else {
+      residuals.resize(n);
+      ok = pixel(q.data(), residuals.data());
+    }
     if (ok) *cost = residuals.cwiseProduct(inverse_sigma).squaredNorm();
     return ok;
   };
   double cost = 0.0;
-  if (!cost_at(p, &cost)) return Fit{};
+  if (!cost_at(p, true, &cost)) return Fit{};
   double lambda = 1e-3;
   Eigen::Matrix<double, Eigen::Dynamic, 6> jw;  // fixed width: J^T J without a general GEMM
   Eigen::VectorXd rw;
@@ -293,7 +294,7 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
       Eigen::Matrix<double, 6, 1> candidate = p - damped.ldlt().solve(g);
       project(&candidate);
       double candidate_cost = 0.0;
-      if (cost_at(candidate, &candidate_cost) && candidate_cost < cost) {
+      if (cost_at(candidate, false, &candidate_cost) && candidate_cost < cost) {
         const double decrease = (cost - candidate_cost) / std::max(cost, 1e-300);
         p = candidate;
         cost = candidate_cost;
@@ -305,7 +306,7 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
       }
       lambda *= 4.0;
     }
-    if (!improved) break;
+    if (!improved || !cost_at(p, true, &cost)) break;
   }
   Fit fit;
   fit.ok = std::isfinite(cost);
