@@ -123,12 +123,4 @@ std::uint32_t Png16Encoder::Encode(const std::uint16_t* pixels, int width, int h
   return Crc(0, reinterpret_cast<const std::uint8_t*>(pixels), pixel_bytes);
 }
 
-Png16Encoder::Encoded Png16Encoder::Encode(const std::uint16_t* pixels, int width, int height) {
-  whole_.clear();
-  const std::uint32_t crc = Encode(pixels, width, height, [this](const std::uint8_t* data, std::size_t size) {
-    whole_.insert(whole_.end(), data, data + size);
-  });
-  return {whole_.data(), whole_.size(), crc};
-}
-
 }  // namespace photorig::daemon

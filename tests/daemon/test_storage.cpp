@@ -79,7 +79,9 @@ CaptureStep Step(int index, int led) {
 }
 
 // Shapes chosen to put stored-block boundaries inside a sample, on a filter
-// byte and at the end of a row, and to make a single block and many.
+// byte and at the end of a row, and to make a single block and many. The file
+// is what arrives at the sink, in bounded pieces (what RunWriter writes as it
+// encodes), decoded by OpenCV's own PNG reader.
 TEST(Png16Encoder, EveryShapeDecodesBitExactWithMatchingChecksum) {
   Png16Encoder encoder;  // one encoder for all: its buffer is reused
   std::mt19937 rng(3);
@@ -87,25 +89,18 @@ TEST(Png16Encoder, EveryShapeDecodesBitExactWithMatchingChecksum) {
            {1, 1}, {3, 2}, {32767, 1}, {32767, 3}, {777, 333}, {40000, 3}, {5, 70000}, {1024, 1024}}) {
     std::vector<std::uint16_t> pixels(static_cast<std::size_t>(width) * height);
     for (auto& p : pixels) p = static_cast<std::uint16_t>(rng());
-    const Png16Encoder::Encoded png = encoder.Encode(pixels.data(), width, height);
-    const cv::Mat decoded =
-        cv::imdecode(cv::Mat(1, static_cast<int>(png.size), CV_8U, const_cast<std::uint8_t*>(png.data)),
-                     cv::IMREAD_UNCHANGED);
+    std::vector<std::uint8_t> file;
+    const std::uint32_t crc = encoder.Encode(pixels.data(), width, height, [&](const std::uint8_t* data, std::size_t size) {
+      EXPECT_LE(size, Png16Encoder::kPieceBytes);
+      file.insert(file.end(), data, data + size);
+    });
+    const cv::Mat decoded = cv::imdecode(cv::Mat(1, static_cast<int>(file.size()), CV_8U, file.data()), cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(decoded.empty()) << width << "x" << height;
     ASSERT_EQ(decoded.type(), CV_16U);
     ASSERT_EQ(decoded.size(), cv::Size(width, height));
     EXPECT_TRUE(std::equal(pixels.begin(), pixels.end(), decoded.ptr<std::uint16_t>(0))) << width << "x" << height;
-    EXPECT_EQ(png.pixel_crc32, ::crc32(0L, reinterpret_cast<const Bytef*>(pixels.data()),
-                                       static_cast<uInt>(pixels.size() * sizeof(std::uint16_t))));
-    // Streamed, the same bytes arrive in bounded pieces (what RunWriter writes as it encodes).
-    const std::vector<std::uint8_t> whole(png.data, png.data + png.size);
-    std::vector<std::uint8_t> streamed;
-    const std::uint32_t crc = encoder.Encode(pixels.data(), width, height, [&](const std::uint8_t* data, std::size_t size) {
-      EXPECT_LE(size, Png16Encoder::kPieceBytes);
-      streamed.insert(streamed.end(), data, data + size);
-    });
-    EXPECT_EQ(crc, png.pixel_crc32);
-    EXPECT_TRUE(streamed == whole) << width << "x" << height;
+    EXPECT_EQ(crc, ::crc32(0L, reinterpret_cast<const Bytef*>(pixels.data()),
+                           static_cast<uInt>(pixels.size() * sizeof(std::uint16_t))));
   }
 }
 

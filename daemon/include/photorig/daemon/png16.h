@@ -21,18 +21,11 @@ class Png16Encoder {
   // Receives consecutive pieces of the file, each valid only during the call.
   using Sink = std::function<void(const std::uint8_t* data, std::size_t size)>;
 
-  struct Encoded {
-    const std::uint8_t* data = nullptr;  // valid until the next whole-file Encode
-    std::size_t size = 0;
-    std::uint32_t pixel_crc32 = 0;  // CRC-32 of the pixels as native 16-bit words (what LoadFrame checks)
-  };
-
   // Streams the file to `sink` in order, in pieces of at most kPieceBytes, and
-  // returns the pixel CRC-32. Throws std::invalid_argument for an empty frame
-  // or one too large for a single IDAT chunk.
+  // returns the CRC-32 of the pixels as native 16-bit words (what LoadFrame
+  // checks). Throws std::invalid_argument for an empty frame or one too large
+  // for a single IDAT chunk.
   std::uint32_t Encode(const std::uint16_t* pixels, int width, int height, const Sink& sink);
-  // The whole file in one buffer, reused across calls.
-  Encoded Encode(const std::uint16_t* pixels, int width, int height);
 
   // Stored blocks per piece: large enough that a write per piece costs
   // little, small enough that writeback of the first piece starts early.
@@ -42,7 +35,6 @@ class Png16Encoder {
 
  private:
   std::vector<std::uint8_t> piece_;  // reused, so equal-sized frames fault in no fresh pages
-  std::vector<std::uint8_t> whole_;
 };
 
 }  // namespace photorig::daemon
