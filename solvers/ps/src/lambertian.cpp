@@ -1,5 +1,6 @@
 #include "photorig/ps/lambertian.h"
 #include "lambertian_tiles.h"
+#include "lane_math.h"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
@@ -105,13 +106,6 @@ struct TileSolution {
   alignas(64) float usable[kTilePixels];
   alignas(64) float certainly_conditioned[kTilePixels];  // 1 or 0
 };
-
-// The hot loops are built for several instruction sets and the best one the
-// CPU supports is picked at load time (GCC function multi-versioning): the
-// library itself stays at the baseline ISA (see CMakeLists.txt). They use no
-// Eigen, whose types must not cross code built for different ISAs.
-#define PHOTORIG_PS_MULTIVERSION \
-  __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 
 // x = W I, sum I/s^2, sum I^2/s^2 and the usable-sample count of every pixel
 // of the tile, in one pass over its K planes. Planes are taken four at a time

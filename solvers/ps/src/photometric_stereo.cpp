@@ -1,5 +1,6 @@
 #include "photorig/ps/photometric_stereo.h"
 
+#include "blinn_phong_lanes.h"
 #include "lambertian_tiles.h"
 
 #include <Eigen/Dense>
@@ -29,22 +30,50 @@ struct PixelSamples {
   int size() const { return static_cast<int>(b.size()); }
 };
 
+// Sample k of a pixel in solver units, b = (I - D) / s with variance
+// Var(I - D) / s^2; false when it is shadowed or clipped.
+inline bool UsableSample(const PhotometricStack& stack, const LambertianOptions& thresholds, float dark, int pixel,
+                         int k, double* b, double* variance) {
+  const float value = stack.images[k].ptr<float>()[pixel];
+  const double signal = double(value) - dark;
+  if (!(signal > thresholds.shadow_threshold) || !(value < thresholds.saturation_level)) return false;
+  const double s = stack.light_scales[k];
+  *b = signal / s;
+  *variance = stack.noise.Variance(signal) / (s * s);
+  return true;
+}
+
+float DarkAt(const PhotometricStack& stack, int pixel) {
+  return stack.dark.empty() ? 0.0f : stack.dark.ptr<float>()[pixel];
+}
+
 void GatherSamples(const PhotometricStack& stack, const LambertianOptions& thresholds, int pixel,
                    PixelSamples* out) {
   out->b.clear();
   out->variance.clear();
   out->w.clear();
   out->light.clear();
-  const float dark = stack.dark.empty() ? 0.0f : stack.dark.ptr<float>()[pixel];
+  const float dark = DarkAt(stack, pixel);
+  double b, variance;
   for (int k = 0; k < stack.light_count(); ++k) {
-    const float value = stack.images[k].ptr<float>()[pixel];
-    const double signal = double(value) - dark;
-    if (!(signal > thresholds.shadow_threshold) || !(value < thresholds.saturation_level)) continue;
-    const double s = stack.light_scales[k];
-    out->b.push_back(signal / s);
-    out->variance.push_back(stack.noise.Variance(signal) / (s * s));
+    if (!UsableSample(stack, thresholds, dark, pixel, k, &b, &variance)) continue;
+    out->b.push_back(b);
+    out->variance.push_back(variance);
     out->w.push_back(stack.light_directions[k]);
     out->light.push_back(k);
+  }
+}
+
+// Every light's sample of a pixel, with 1 / sigma = 0 for the unusable ones:
+// the layout of the lane fitter.
+void GatherAllSamples(const PhotometricStack& stack, const LambertianOptions& thresholds, int pixel,
+                      double* observed, double* inverse_sigma) {
+  const float dark = DarkAt(stack, pixel);
+  double variance;
+  for (int k = 0; k < stack.light_count(); ++k) {
+    const bool usable = UsableSample(stack, thresholds, dark, pixel, k, &observed[k], &variance);
+    inverse_sigma[k] = usable ? 1.0 / std::sqrt(variance) : 0.0;
+    if (!usable) observed[k] = 0.0;
   }
 }
 
@@ -207,6 +236,9 @@ Fit FitTrimmed(const PixelSamples& s, int max_rejected, const Adequate& adequate
   }
 }
 
+// The normal's two degrees of freedom, rho_d, rho_s and e.
+constexpr int kBlinnPhongParameters = 5;
+
 Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptions& options,
                   autodiff::Tape* tape) {
   const int n = s.size();
@@ -220,42 +252,18 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
   const Eigen::Vector3d view(0, 0, 1);
   const autodiff::BlinnPhongPixel pixel(directions, Eigen::VectorXd::Ones(n), view, observed);
 
-  // Start: the normal of the robust fit, and the exponent from a doubling
-  // grid over [min_exponent, max_exponent] (each grid lobe is the previous
-  // one squared, so no pow), with rho_d and rho_s >= 0 for each by linear
-  // least squares; the grid point with the lowest chi-square wins. From there
-  // Levenberg-Marquardt needs a few iterations, not tens.
-  std::vector<double> cos_light(n), lobe(n);
+  // Start: the normal of the robust fit and the material of the best point
+  // of the exponent grid.
+  std::vector<double> cos_light(n), cos_half(n), weight(n);
   for (int k = 0; k < n; ++k) {
     cos_light[k] = std::max(0.0, s.w[k].dot(start.normal));
-    lobe[k] = std::max(0.0, pixel.half_vector(k).dot(start.normal));
+    cos_half[k] = std::max(0.0, pixel.half_vector(k).dot(start.normal));
+    weight[k] = 1.0 / s.variance[k];
   }
-  double exponent = 1.0;
-  while (exponent < options.min_exponent) {
-    exponent *= 2.0;
-    for (double& value : lobe) value *= value;
-  }
+  const internal::BlinnPhongMaterial material = internal::BlinnPhongGridStart(
+      n, cos_light.data(), cos_half.data(), s.b.data(), weight.data(), start.albedo, options);
   Eigen::Matrix<double, 6, 1> p;
-  p << start.normal, start.albedo, 0.0, exponent;
-  double best_chi2 = std::numeric_limits<double>::infinity();
-  for (; exponent <= options.max_exponent; exponent *= 2.0) {
-    // Normal equations of b ~ rho_d d + rho_s l, d = cos / pi, l = (e + 2) / (2 pi) lobe cos.
-    double dd = 0, dl = 0, ll = 0, db = 0, lb = 0, bb = 0;
-    const double normalisation = (exponent + 2.0) / (2.0 * M_PI);
-    for (int k = 0; k < n; ++k) {
-      const double c = 1.0 / s.variance[k], d = cos_light[k] / M_PI, l = normalisation * lobe[k] * cos_light[k];
-      dd += c * d * d, dl += c * d * l, ll += c * l * l, db += c * d * s.b[k], lb += c * l * s.b[k], bb += c * s.b[k] * s.b[k];
-    }
-    const double det = dd * ll - dl * dl;
-    double rho_d = dd > 0.0 ? db / dd : 0.0, rho_s = 0.0;
-    if (det > 1e-12 * dd * ll) {
-      const double joint_s = (dd * lb - dl * db) / det;
-      if (joint_s > 0.0) rho_s = joint_s, rho_d = (ll * db - dl * lb) / det;
-    }
-    const double chi2 = bb - 2.0 * (rho_d * db + rho_s * lb) + rho_d * rho_d * dd + 2.0 * rho_d * rho_s * dl + rho_s * rho_s * ll;
-    if (chi2 < best_chi2 && rho_d >= 0.0) best_chi2 = chi2, p(3) = rho_d, p(4) = rho_s, p(5) = exponent;
-    for (double& value : lobe) value *= value;
-  }
+  p << start.normal, material.diffuse_albedo, material.specular_albedo, material.exponent;
   auto project = [&options](Eigen::Matrix<double, 6, 1>* q) {
     q->head<3>().normalize();
     (*q)(3) = std::max(0.0, (*q)(3));
@@ -315,7 +323,7 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
   fit.specular_albedo = p(4);
   fit.exponent = p(5);
   fit.chi2 = cost;
-  fit.parameters = 6;
+  fit.parameters = kBlinnPhongParameters;
   fit.used = n;
   fit.model = PixelModel::kBlinnPhong;
   return fit;
@@ -494,43 +502,35 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   auto adequate = [&quantile](const Fit& fit) { return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile[fit.Dof()]; };
 
   // Each pixel is refined right after its tile's Lambertian pass, while the
-  // tile's samples are still in cache; counts are kept per thread.
+  // tile's samples are still in cache; counts are kept per thread. Pixels that
+  // need the Blinn-Phong fit wait for the end of their tile, where the lane
+  // fitter takes them together.
+  const bool lanes = options.blinn_phong.fitter == BlinnPhongOptions::Fitter::kLanes;
+  struct Deferred {
+    int pixel;
+    Fit lambert;
+    Eigen::Vector3d start_normal;
+    double start_albedo;
+    int used;
+  };
   struct ThreadState {
     PixelSamples samples;
     autodiff::Tape tape;
+    std::vector<Deferred> deferred;
+    std::vector<double> observed, inverse_sigma;  // deferred.size() x K
+    std::vector<internal::BlinnPhongProblem> problems;
+    std::vector<internal::BlinnPhongSolution> solutions;
     std::size_t lambertian = 0, robust = 0, blinn_phong = 0, rejected = 0, failed = 0;
   };
   const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
   std::vector<ThreadState> states(threads);
-  // Pixels the cheap screen could not accept: the exact tests and, where the
-  // simple models fail, the richer fits.
-  auto refine_pixel = [&](ThreadState& state, int p) {
-    PixelSamples& s = state.samples;
-    GatherSamples(working, lambertian, p, &s);
-    const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
-    const Eigen::Vector3d x = Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
-    const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
-    Fit chosen;
-    if (options.method == Method::kAuto && adequate(lambert)) {
-      chosen = lambert;
-    } else {
-      const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
-      const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, adequate)
-                                                         : FitRobust(s, x, options.robust);
-      const bool few_rejected = robust.rejected <= max_rejected;
-      if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust) && few_rejected)) {
-        chosen = robust;
-      } else {
-        const Fit blinn_phong = FitBlinnPhong(s, robust.ok ? robust : lambert, options.blinn_phong, &state.tape);
-        if (options.method == Method::kBlinnPhong) {
-          chosen = blinn_phong;
-        } else {
-          // Neither simple model is adequate: the information criterion decides
-          // between the models fitted to all usable samples.
-          chosen = blinn_phong.ok && blinn_phong.Bic() < lambert.Bic() ? blinn_phong : lambert;
-        }
-      }
-    }
+  std::vector<internal::BlinnPhongLaneFitter> fitters;
+  if (lanes) {
+    for (int t = 0; t < threads; ++t)
+      fitters.emplace_back(working.light_directions, Eigen::Vector3d::UnitZ(), options.blinn_phong);
+  }
+  const int lights = working.light_count();
+  auto record = [&](ThreadState& state, int p, const Fit& chosen) {
     if (!chosen.ok) {
       result->flags.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelFlag::kRejectedByModel);
       result->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
@@ -548,6 +548,61 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       case PixelModel::kBlinnPhong: ++state.blinn_phong; break;
       case PixelModel::kNone: break;
     }
+  };
+  // Neither simple model is adequate: the information criterion decides
+  // between the models fitted to all usable samples.
+  auto choose_blinn_phong = [&](const Fit& lambert, const Fit& blinn_phong) {
+    if (options.method == Method::kBlinnPhong) return blinn_phong;
+    return blinn_phong.ok && blinn_phong.Bic() < lambert.Bic() ? blinn_phong : lambert;
+  };
+  // Pixels the cheap screen could not accept: the exact tests and, where the
+  // simple models fail, the richer fits.
+  auto refine_pixel = [&](ThreadState& state, int p) {
+    PixelSamples& s = state.samples;
+    GatherSamples(working, lambertian, p, &s);
+    const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
+    const Eigen::Vector3d x = Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
+    const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
+    if (options.method == Method::kAuto && adequate(lambert)) return record(state, p, lambert);
+    const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
+    const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, adequate)
+                                                       : FitRobust(s, x, options.robust);
+    const bool few_rejected = robust.rejected <= max_rejected;
+    if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust) && few_rejected))
+      return record(state, p, robust);
+    const Fit& start = robust.ok ? robust : lambert;
+    if (!lanes) return record(state, p, choose_blinn_phong(lambert, FitBlinnPhong(s, start, options.blinn_phong, &state.tape)));
+    state.deferred.push_back({p, lambert, start.normal, start.albedo, s.size()});
+  };
+  auto fit_deferred = [&](int thread) {
+    ThreadState& state = states[thread];
+    const std::size_t count = state.deferred.size();
+    if (count == 0) return;
+    state.observed.resize(count * lights);
+    state.inverse_sigma.resize(count * lights);
+    state.problems.resize(count);
+    state.solutions.assign(count, {});
+    for (std::size_t i = 0; i < count; ++i) {
+      const Deferred& d = state.deferred[i];
+      GatherAllSamples(working, lambertian, d.pixel, &state.observed[i * lights], &state.inverse_sigma[i * lights]);
+      state.problems[i] = {&state.observed[i * lights], &state.inverse_sigma[i * lights], d.start_normal, d.start_albedo};
+    }
+    fitters[thread].Fit(state.problems, state.solutions);
+    for (std::size_t i = 0; i < count; ++i) {
+      const internal::BlinnPhongSolution& solution = state.solutions[i];
+      Fit fit;
+      fit.ok = solution.ok;
+      fit.normal = solution.normal;
+      fit.albedo = solution.diffuse_albedo;
+      fit.specular_albedo = solution.specular_albedo;
+      fit.exponent = solution.exponent;
+      fit.chi2 = solution.chi2;
+      fit.parameters = kBlinnPhongParameters;
+      fit.used = state.deferred[i].used;
+      fit.model = PixelModel::kBlinnPhong;
+      record(state, state.deferred[i].pixel, choose_blinn_phong(state.deferred[i].lambert, fit));
+    }
+    state.deferred.clear();
   };
   const internal::TileVisitor refine_tile = [&](int thread, int begin, int count) {
     ThreadState& state = states[thread];
@@ -568,6 +623,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       }
       refine_pixel(state, p);
     }
+    fit_deferred(thread);
   };
   SolverSummary summary = internal::SolveLambertianTiles(lambertian, working, result, refine_tile);
   summary.method = MethodName(options.method);

@@ -1,0 +1,380 @@
+#include "blinn_phong_lanes.h"
+
+#include "lane_math.h"
+
+#include "photorig/autodiff/vector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace photorig::ps::internal {
+namespace {
+
+constexpr double kInvPi = std::numbers::inv_pi;
+constexpr int kParameters = 5;  // two tangent-plane steps of the normal, rho_d, rho_s, e
+constexpr int kHessianEntries = kParameters * (kParameters + 1) / 2;
+
+// One point per lane: the unit normal with an orthonormal basis of its
+// tangent plane, and the material.
+struct alignas(64) LanePoint {
+  double normal[3][kLanes];
+  double tangent[2][3][kLanes];
+  double diffuse_albedo[kLanes], specular_albedo[kLanes], exponent[kLanes];
+};
+
+// Gauss-Newton normal equations of the weighted residuals at a LanePoint:
+// cost = sum r^2, hessian = J^T J (upper triangle, row by row), gradient = J^T r.
+struct alignas(64) LaneEquations {
+  double cost[kLanes];
+  double hessian[kHessianEntries][kLanes];
+  double gradient[kParameters][kLanes];
+};
+
+// A tangent basis for a unit normal, continuous everywhere but on n_z = -1
+// (Duff et al. 2017): branch-free, so it also runs in lanes.
+PHOTORIG_LANE_INLINE void TangentBasis(double nx, double ny, double nz, double t1[3], double t2[3]) {
+  const double sign = std::copysign(1.0, nz);
+  const double a = -1.0 / (sign + nz);
+  const double b = nx * ny * a;
+  t1[0] = 1.0 + sign * nx * nx * a, t1[1] = sign * b, t1[2] = -sign * nx;
+  t2[0] = b, t2[1] = sign + ny * ny * a, t2[2] = -ny;
+}
+
+// The pass over the lights shared by all lanes: residuals r = (I - observed) / sigma
+// and their derivatives, accumulated into the normal equations. Per light
+// (blinn_phong_symbolic.h), with c = w . n, h = w_h . n, k = (e + 2) / (2 pi):
+//   dI/dn = (rho_d / pi + rho_s k h^e) w + rho_s k e h^(e-1) c w_h,
+//   dI/drho_d = c / pi, dI/drho_s = c k h^e, dI/de = c rho_s h^e (1 / (2 pi) + k ln h),
+// all zero where c <= 0, the h terms zero where h <= 0. A tangent step t moves
+// the normal by t to first order, so dI/dt = dI/dn . t.
+PHOTORIG_PS_MULTIVERSION
+void EvaluateLanes(const LanePoint& q, int lights, const double* geometry, const double* observed,
+                   const double* inverse_sigma, LaneEquations* out) {
+  alignas(64) double acc[1 + kHessianEntries + kParameters][kLanes] = {};
+  alignas(64) double lobe_scale[kLanes];
+  for (int j = 0; j < kLanes; ++j) lobe_scale[j] = q.specular_albedo[j] * (q.exponent[j] + 2.0) * (0.5 * kInvPi);
+  for (int k = 0; k < lights; ++k) {
+    const double* sigma_k = inverse_sigma + k * kLanes;
+    bool used = false;
+    for (int j = 0; j < kLanes; ++j) used |= sigma_k[j] != 0.0;
+    if (!used) continue;  // shadowed in every lane
+    const double* g = geometry + 6 * k;
+    const double wx = g[0], wy = g[1], wz = g[2], hx = g[3], hy = g[4], hz = g[5];
+    const double* observed_k = observed + k * kLanes;
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) {
+      const double nx = q.normal[0][j], ny = q.normal[1][j], nz = q.normal[2][j];
+      const double c = wx * nx + wy * ny + wz * nz;
+      const double h = hx * nx + hy * ny + hz * nz;
+      // Clamps as max() and two selects: GCC gives up on a lane loop with more conditions.
+      const double lit_c = std::max(c, 0.0);
+      const double safe_h = std::max(h, 1e-300);  // h <= 0: lobe ~ 1e-300 e, nothing
+      const double log_h = LaneLog(safe_h);
+      const double lobe = LaneExp(q.exponent[j] * log_h);
+      const double brdf = q.diffuse_albedo[j] * kInvPi + lobe_scale[j] * lobe;
+      const double sigma = inverse_sigma[k * kLanes + j];
+      const double r = (brdf * lit_c - observed_k[j]) * sigma;
+      const double cs = lit_c * sigma;
+      // dI/dn / sigma = a w + s w_h; the w_h term vanishes with the clamp of h.
+      const double a = c > 0.0 ? brdf * sigma : 0.0;
+      const double s = h > 0.0 ? lobe_scale[j] * q.exponent[j] * lobe / safe_h * cs : 0.0;
+      const double w_t1 = wx * q.tangent[0][0][j] + wy * q.tangent[0][1][j] + wz * q.tangent[0][2][j];
+      const double w_t2 = wx * q.tangent[1][0][j] + wy * q.tangent[1][1][j] + wz * q.tangent[1][2][j];
+      const double h_t1 = hx * q.tangent[0][0][j] + hy * q.tangent[0][1][j] + hz * q.tangent[0][2][j];
+      const double h_t2 = hx * q.tangent[1][0][j] + hy * q.tangent[1][1][j] + hz * q.tangent[1][2][j];
+      const double d0 = a * w_t1 + s * h_t1, d1 = a * w_t2 + s * h_t2, d2 = cs * kInvPi;
+      const double d3 = cs * (q.exponent[j] + 2.0) * (0.5 * kInvPi) * lobe;
+      const double d4 = cs * q.specular_albedo[j] * lobe * (0.5 * kInvPi + (q.exponent[j] + 2.0) * (0.5 * kInvPi) * log_h);
+      // Written out: loops here would stop GCC vectorising over the lanes.
+      acc[0][j] += r * r;
+      acc[1][j] += d0 * d0, acc[2][j] += d0 * d1, acc[3][j] += d0 * d2, acc[4][j] += d0 * d3, acc[5][j] += d0 * d4;
+      acc[6][j] += d1 * d1, acc[7][j] += d1 * d2, acc[8][j] += d1 * d3, acc[9][j] += d1 * d4;
+      acc[10][j] += d2 * d2, acc[11][j] += d2 * d3, acc[12][j] += d2 * d4;
+      acc[13][j] += d3 * d3, acc[14][j] += d3 * d4;
+      acc[15][j] += d4 * d4;
+      acc[16][j] += d0 * r, acc[17][j] += d1 * r, acc[18][j] += d2 * r, acc[19][j] += d3 * r, acc[20][j] += d4 * r;
+    }
+  }
+  for (int j = 0; j < kLanes; ++j) {
+    out->cost[j] = acc[0][j];
+    for (int e = 0; e < kHessianEntries; ++e) out->hessian[e][j] = acc[1 + e][j];
+    for (int p = 0; p < kParameters; ++p) out->gradient[p][j] = acc[1 + kHessianEntries + p][j];
+  }
+}
+
+}  // namespace
+
+BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, double* cos_half,
+                                       const double* observed, const double* weight, double start_albedo,
+                                       const BlinnPhongOptions& options) {
+  double exponent = 1.0;
+  while (exponent < options.min_exponent) {
+    exponent *= 2.0;
+#pragma omp simd
+    for (int k = 0; k < samples; ++k) cos_half[k] *= cos_half[k];
+  }
+  BlinnPhongMaterial best{start_albedo, 0.0, exponent};
+  double best_chi2 = std::numeric_limits<double>::infinity();
+  for (; exponent <= options.max_exponent; exponent *= 2.0) {
+    // Normal equations of b ~ rho_d d + rho_s l, d = cos / pi, l = (e + 2) / (2 pi) lobe cos.
+    double dd = 0, dl = 0, ll = 0, db = 0, lb = 0, bb = 0;
+    const double normalisation = (exponent + 2.0) / (2.0 * M_PI);
+#pragma omp simd reduction(+ : dd, dl, ll, db, lb, bb)
+    for (int k = 0; k < samples; ++k) {
+      const double c = weight[k], d = cos_light[k] * kInvPi, l = normalisation * cos_half[k] * cos_light[k];
+      dd += c * d * d, dl += c * d * l, ll += c * l * l, db += c * d * observed[k], lb += c * l * observed[k],
+          bb += c * observed[k] * observed[k];
+    }
+    const double det = dd * ll - dl * dl;
+    double rho_d = dd > 0.0 ? db / dd : 0.0, rho_s = 0.0;
+    if (det > 1e-12 * dd * ll) {
+      const double joint_s = (dd * lb - dl * db) / det;
+      if (joint_s > 0.0) rho_s = joint_s, rho_d = (ll * db - dl * lb) / det;
+    }
+    const double chi2 = bb - 2.0 * (rho_d * db + rho_s * lb) + rho_d * rho_d * dd + 2.0 * rho_d * rho_s * dl + rho_s * rho_s * ll;
+    if (chi2 < best_chi2 && rho_d >= 0.0) best_chi2 = chi2, best = {rho_d, rho_s, exponent};
+#pragma omp simd
+    for (int k = 0; k < samples; ++k) cos_half[k] *= cos_half[k];
+  }
+  return best;
+}
+
+struct BlinnPhongLaneFitter::State {
+  LanePoint candidate, current;
+  LaneEquations candidate_equations, current_equations;
+  double current_cost[kLanes];
+  double lambda[kLanes];
+  int iterations[kLanes];
+  int problem[kLanes];  // index into the problems being fitted, -1 for an idle lane
+};
+
+BlinnPhongLaneFitter::BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& light_directions,
+                                           const Eigen::Vector3d& view, const BlinnPhongOptions& options)
+    : lights_(static_cast<int>(light_directions.size())),
+      options_(options),
+      geometry_(6 * light_directions.size()),
+      observed_(light_directions.size() * kLanes),
+      inverse_sigma_(light_directions.size() * kLanes),
+      cos_light_(light_directions.size()),
+      cos_half_(light_directions.size()),
+      weight_(light_directions.size()),
+      state_(std::make_unique<State>()) {
+  const Eigen::Vector3d towards_camera = view.normalized();
+  for (int k = 0; k < lights_; ++k) {
+    const Eigen::Vector3d w = light_directions[k].normalized();
+    // A light exactly opposite the camera has no half vector, hence no highlight.
+    const Eigen::Vector3d half = autodiff::NormalizeGuarded(Eigen::Vector3d(w + towards_camera)).direction;
+    for (int i = 0; i < 3; ++i) geometry_[6 * k + i] = w[i], geometry_[6 * k + 3 + i] = half[i];
+  }
+}
+
+BlinnPhongLaneFitter::~BlinnPhongLaneFitter() = default;
+BlinnPhongLaneFitter::BlinnPhongLaneFitter(BlinnPhongLaneFitter&&) noexcept = default;
+
+void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem) {
+  State& s = *state_;
+  const Eigen::Vector3d n = problem.start_normal.normalized();
+  for (int k = 0; k < lights_; ++k) {
+    const double* g = &geometry_[6 * k];
+    observed_[k * kLanes + lane] = problem.observed[k];
+    inverse_sigma_[k * kLanes + lane] = problem.inverse_sigma[k];
+    cos_light_[k] = std::max(0.0, g[0] * n.x() + g[1] * n.y() + g[2] * n.z());
+    cos_half_[k] = std::max(0.0, g[3] * n.x() + g[4] * n.y() + g[5] * n.z());
+    weight_[k] = problem.inverse_sigma[k] * problem.inverse_sigma[k];
+  }
+  const BlinnPhongMaterial start = BlinnPhongGridStart(lights_, cos_light_.data(), cos_half_.data(), problem.observed,
+                                                       weight_.data(), problem.start_albedo, options_);
+  LanePoint& q = s.candidate;
+  double t1[3], t2[3];
+  TangentBasis(n.x(), n.y(), n.z(), t1, t2);
+  for (int i = 0; i < 3; ++i) q.normal[i][lane] = n[i], q.tangent[0][i][lane] = t1[i], q.tangent[1][i][lane] = t2[i];
+  q.diffuse_albedo[lane] = start.diffuse_albedo;
+  q.specular_albedo[lane] = start.specular_albedo;
+  q.exponent[lane] = start.exponent;
+  s.current_cost[lane] = std::numeric_limits<double>::infinity();  // the start is always taken
+  s.lambda[lane] = 1e-3;
+  s.iterations[lane] = 0;
+}
+
+// The next candidate of a lane: the damped Gauss-Newton step from its current
+// point, with the damping raised until the system is positive definite.
+// False when the fit has converged or the damping exceeds any useful value.
+bool BlinnPhongLaneFitter::Propose(int lane) {
+  State& s = *state_;
+  const LaneEquations& eq = s.current_equations;
+  const LanePoint& p = s.current;
+  for (; s.lambda[lane] < 1e12; s.lambda[lane] *= 4.0) {
+    double a[kParameters][kParameters];
+    int entry = 0;
+    for (int row = 0; row < kParameters; ++row)
+      for (int col = row; col < kParameters; ++col) a[row][col] = a[col][row] = eq.hessian[entry++][lane];
+    for (int i = 0; i < kParameters; ++i) a[i][i] += s.lambda[lane] * a[i][i] + 1e-12;
+    // Cholesky in place (lower triangle), then the two triangular solves.
+    bool positive = true;
+    for (int col = 0; col < kParameters && positive; ++col) {
+      double diagonal = a[col][col];
+      for (int i = 0; i < col; ++i) diagonal -= a[col][i] * a[col][i];
+      positive = diagonal > 0.0 && std::isfinite(diagonal);
+      a[col][col] = std::sqrt(positive ? diagonal : 1.0);
+      for (int row = col + 1; row < kParameters; ++row) {
+        double value = a[row][col];
+        for (int i = 0; i < col; ++i) value -= a[row][i] * a[col][i];
+        a[row][col] = value / a[col][col];
+      }
+    }
+    if (!positive) continue;
+    double step[kParameters];
+    for (int row = 0; row < kParameters; ++row) {
+      double value = eq.gradient[row][lane];
+      for (int i = 0; i < row; ++i) value -= a[row][i] * step[i];
+      step[row] = value / a[row][row];
+    }
+    for (int row = kParameters - 1; row >= 0; --row) {
+      double value = step[row];
+      for (int i = row + 1; i < kParameters; ++i) value -= a[i][row] * step[i];
+      step[row] = value / a[row][row];
+    }
+    // Converged when even the linearised model promises less than the
+    // tolerance: otherwise rounding at the minimum rejects step after step
+    // while the damping climbs to its limit.
+    double predicted_decrease = 0.0;
+    entry = 0;
+    for (int row = 0; row < kParameters; ++row) {
+      predicted_decrease += 2.0 * step[row] * eq.gradient[row][lane];
+      for (int col = row; col < kParameters; ++col)
+        predicted_decrease -= (row == col ? 1.0 : 2.0) * step[row] * step[col] * eq.hessian[entry++][lane];
+    }
+    if (!(predicted_decrease > options_.relative_tolerance * eq.cost[lane])) return false;
+    LanePoint& q = s.candidate;
+    double n[3];
+    for (int i = 0; i < 3; ++i)
+      n[i] = p.normal[i][lane] - step[0] * p.tangent[0][i][lane] - step[1] * p.tangent[1][i][lane];
+    const double inverse_length = 1.0 / std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (double& v : n) v *= inverse_length;
+    double t1[3], t2[3];
+    TangentBasis(n[0], n[1], n[2], t1, t2);
+    for (int i = 0; i < 3; ++i) q.normal[i][lane] = n[i], q.tangent[0][i][lane] = t1[i], q.tangent[1][i][lane] = t2[i];
+    q.diffuse_albedo[lane] = std::max(0.0, p.diffuse_albedo[lane] - step[2]);
+    q.specular_albedo[lane] = std::max(0.0, p.specular_albedo[lane] - step[3]);
+    q.exponent[lane] = std::clamp(p.exponent[lane] - step[4], options_.min_exponent, options_.max_exponent);
+    if (std::isfinite(q.diffuse_albedo[lane] + q.specular_albedo[lane] + q.exponent[lane] + inverse_length)) return true;
+  }
+  return false;
+}
+
+void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std::span<BlinnPhongSolution> solutions) {
+  State& s = *state_;
+  const int count = static_cast<int>(problems.size());
+  int next = 0;
+  int busy = 0;
+  for (int lane = 0; lane < kLanes; ++lane) {
+    s.problem[lane] = -1;
+    // An idle lane evaluates a harmless point with no samples.
+    for (int k = 0; k < lights_; ++k) observed_[k * kLanes + lane] = inverse_sigma_[k * kLanes + lane] = 0.0;
+    double t1[3], t2[3];
+    TangentBasis(0.0, 0.0, 1.0, t1, t2);
+    for (int i = 0; i < 3; ++i) {
+      s.candidate.normal[i][lane] = i == 2 ? 1.0 : 0.0;
+      s.candidate.tangent[0][i][lane] = t1[i], s.candidate.tangent[1][i][lane] = t2[i];
+    }
+    s.candidate.diffuse_albedo[lane] = s.candidate.specular_albedo[lane] = 0.0;
+    s.candidate.exponent[lane] = options_.min_exponent;
+    if (next < count) {
+      s.problem[lane] = next;
+      Load(lane, problems[next++]);
+      ++busy;
+    }
+  }
+  while (busy > 0) {
+    EvaluateLanes(s.candidate, lights_, geometry_.data(), observed_.data(), inverse_sigma_.data(),
+                  &s.candidate_equations);
+    for (int lane = 0; lane < kLanes; ++lane) {
+      if (s.problem[lane] < 0) continue;
+      const double cost = s.candidate_equations.cost[lane];
+      const bool at_start = std::isinf(s.current_cost[lane]);
+      bool done = false;
+      if (cost < s.current_cost[lane]) {
+        const double decrease = (s.current_cost[lane] - cost) / std::max(s.current_cost[lane], 1e-300);
+        for (int i = 0; i < 3; ++i) {
+          s.current.normal[i][lane] = s.candidate.normal[i][lane];
+          s.current.tangent[0][i][lane] = s.candidate.tangent[0][i][lane];
+          s.current.tangent[1][i][lane] = s.candidate.tangent[1][i][lane];
+        }
+        s.current.diffuse_albedo[lane] = s.candidate.diffuse_albedo[lane];
+        s.current.specular_albedo[lane] = s.candidate.specular_albedo[lane];
+        s.current.exponent[lane] = s.candidate.exponent[lane];
+        s.current_equations.cost[lane] = cost;
+        for (int e = 0; e < kHessianEntries; ++e) s.current_equations.hessian[e][lane] = s.candidate_equations.hessian[e][lane];
+        for (int e = 0; e < kParameters; ++e) s.current_equations.gradient[e][lane] = s.candidate_equations.gradient[e][lane];
+        s.current_cost[lane] = cost;
+        if (!at_start) {
+          ++s.iterations[lane];
+          s.lambda[lane] = std::max(s.lambda[lane] / 3.0, 1e-12);
+          // A step that lowers chi-square by less than this fraction changes
+          // the normal by far less than the noise does: stop there.
+          done = decrease <= options_.relative_tolerance || s.iterations[lane] >= options_.max_iterations;
+        }
+      } else if (at_start) {
+        done = true;  // the start itself does not evaluate (no usable sample is finite)
+      } else {
+        s.lambda[lane] *= 4.0;
+      }
+      if (!done) done = !Propose(lane);
+      if (!done) continue;
+      BlinnPhongSolution& out = solutions[s.problem[lane]];
+      out.ok = std::isfinite(s.current_cost[lane]);
+      out.normal = Eigen::Vector3d(s.current.normal[0][lane], s.current.normal[1][lane], s.current.normal[2][lane]);
+      out.diffuse_albedo = s.current.diffuse_albedo[lane];
+      out.specular_albedo = s.current.specular_albedo[lane];
+      out.exponent = s.current.exponent[lane];
+      out.chi2 = s.current_cost[lane];
+      out.iterations = s.iterations[lane];
+      if (next < count) {
+        s.problem[lane] = next;
+        Load(lane, problems[next++]);
+      } else {
+        s.problem[lane] = -1;
+        for (int k = 0; k < lights_; ++k) inverse_sigma_[k * kLanes + lane] = 0.0;
+        --busy;
+      }
+    }
+  }
+}
+
+BlinnPhongLaneFitter::Linearization BlinnPhongLaneFitter::Linearize(const BlinnPhongProblem& problem,
+                                                                   const Eigen::Vector3d& normal,
+                                                                   double diffuse_albedo, double specular_albedo,
+                                                                   double exponent) {
+  std::fill(inverse_sigma_.begin(), inverse_sigma_.end(), 0.0);
+  std::fill(observed_.begin(), observed_.end(), 0.0);
+  LanePoint point{};
+  for (int lane = 0; lane < kLanes; ++lane) {
+    const Eigen::Vector3d n = normal.normalized();
+    double t1[3], t2[3];
+    TangentBasis(n.x(), n.y(), n.z(), t1, t2);
+    for (int i = 0; i < 3; ++i)
+      point.normal[i][lane] = n[i], point.tangent[0][i][lane] = t1[i], point.tangent[1][i][lane] = t2[i];
+    point.diffuse_albedo[lane] = diffuse_albedo;
+    point.specular_albedo[lane] = specular_albedo;
+    point.exponent[lane] = exponent;
+  }
+  for (int k = 0; k < lights_; ++k) {
+    observed_[k * kLanes] = problem.observed[k];
+    inverse_sigma_[k * kLanes] = problem.inverse_sigma[k];
+  }
+  LaneEquations equations;
+  EvaluateLanes(point, lights_, geometry_.data(), observed_.data(), inverse_sigma_.data(), &equations);
+  Linearization out;
+  out.cost = equations.cost[0];
+  int entry = 0;
+  for (int row = 0; row < kParameters; ++row) {
+    out.gradient[row] = equations.gradient[row][0];
+    for (int col = row; col < kParameters; ++col) out.hessian(row, col) = out.hessian(col, row) = equations.hessian[entry++][0];
+  }
+  for (int t = 0; t < 2; ++t) out.tangent[t] = Eigen::Vector3d(point.tangent[t][0][0], point.tangent[t][1][0], point.tangent[t][2][0]);
+  return out;
+}
+
+}  // namespace photorig::ps::internal

@@ -1,0 +1,102 @@
+#pragma once
+// The Blinn-Phong fit of many pixels under one set of lights, one pixel per
+// SIMD lane. A pixel's Levenberg-Marquardt fit is a few iterations, each a
+// pass over its K samples with a pow per sample; run one pixel at a time that
+// pass is scalar (and, with forward-mode derivatives, carries six tangents
+// through every operation). Here kLanes pixels share each pass: the light
+// loop is the same for all, the per-lane control flow (accept, reject,
+// converge) runs between passes, and a lane whose fit has converged takes
+// the next pixel at once, so no lane idles while others finish.
+//
+// Derivatives are the closed forms of blinn_phong_symbolic.h (the tests check
+// the lanes' Jacobian against forward-mode automatic differentiation). The
+// normal moves on the sphere: each step is in the tangent plane of the current
+// normal, so the normal has two parameters and the 5 x 5 normal equations
+// are well posed, where the three-component form is singular along n.
+
+#include "photorig/ps/photometric_stereo.h"
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace photorig::ps::internal {
+
+inline constexpr int kLanes = 8;
+
+// Start material for a Blinn-Phong fit at a fixed normal: the exponent from a
+// doubling grid over [min_exponent, max_exponent] (each grid lobe is the
+// previous one squared, so no pow), with rho_d and rho_s >= 0 for each by
+// linear least squares; the grid point with the lowest chi-square wins.
+// cos_light and cos_half are the clamped cosines of each sample's light and
+// half vector with the normal, weight 1 / variance (0 drops the sample);
+// cos_half is overwritten. From this start Levenberg-Marquardt needs a few
+// iterations, not tens.
+struct BlinnPhongMaterial {
+  double diffuse_albedo = 0.0, specular_albedo = 0.0, exponent = 1.0;
+};
+BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, double* cos_half,
+                                       const double* observed, const double* weight, double start_albedo,
+                                       const BlinnPhongOptions& options);
+
+// One pixel: observed values in solver units for every light of the set, and
+// 1 / sigma for each (0 marks a sample the fit must not use).
+struct BlinnPhongProblem {
+  const double* observed = nullptr;
+  const double* inverse_sigma = nullptr;
+  Eigen::Vector3d start_normal = Eigen::Vector3d::UnitZ();
+  double start_albedo = 0.0;  // rho_d if no grid point fits
+};
+
+struct BlinnPhongSolution {
+  bool ok = false;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  double diffuse_albedo = 0.0, specular_albedo = 0.0, exponent = 0.0;
+  double chi2 = 0.0;
+  int iterations = 0;  // accepted steps
+};
+
+class BlinnPhongLaneFitter {
+ public:
+  // light_directions: unit vectors towards the lights; view: towards the camera.
+  BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& light_directions, const Eigen::Vector3d& view,
+                       const BlinnPhongOptions& options);
+  ~BlinnPhongLaneFitter();
+  BlinnPhongLaneFitter(BlinnPhongLaneFitter&&) noexcept;
+
+  int light_count() const { return lights_; }
+
+  // Fits every problem; solutions[i] answers problems[i].
+  void Fit(std::span<const BlinnPhongProblem> problems, std::span<BlinnPhongSolution> solutions);
+
+  // The normal equations a fit builds at one point, to check its derivatives:
+  // cost = sum r^2 with r = (I - observed) / sigma, hessian = J^T J and
+  // gradient = J^T r, J taken w.r.t. (steps along tangent[0] and tangent[1],
+  // rho_d, rho_s, e); tangent is the basis the fitter uses at `normal`.
+  struct Linearization {
+    double cost = 0.0;
+    Eigen::Matrix<double, 5, 5> hessian;
+    Eigen::Matrix<double, 5, 1> gradient;
+    Eigen::Vector3d tangent[2];
+  };
+  Linearization Linearize(const BlinnPhongProblem& problem, const Eigen::Vector3d& normal, double diffuse_albedo,
+                          double specular_albedo, double exponent);
+
+ private:
+  struct State;  // lane registers, in blinn_phong_lanes.cpp
+
+  void Load(int lane, const BlinnPhongProblem& problem);
+  bool Propose(int lane);
+
+  int lights_;
+  BlinnPhongOptions options_;
+  std::vector<double> geometry_;  // per light: w (3), w_h (3)
+  // Struct-of-arrays over lanes: [light * kLanes + lane].
+  std::vector<double> observed_, inverse_sigma_;
+  std::vector<double> cos_light_, cos_half_, weight_;  // one pixel's, for the start
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace photorig::ps::internal

@@ -1,0 +1,80 @@
+#pragma once
+// Building blocks of the SIMD kernels: multi-versioning, and log and exp for
+// loops that run one pixel per SIMD lane. glibc's vector
+// versions are only declared under -ffast-math, which would also let the
+// compiler drop the NaN checks the solvers rely on; these use nothing but
+// arithmetic and 64-bit integer operations, which AVX2 and AVX-512 vectorise,
+// and are accurate to a few units in the last place. Both are always_inline:
+// a call inside a `#pragma omp simd` loop would make the loop scalar.
+
+#include <bit>
+#include <cstdint>
+
+namespace photorig::ps::internal {
+
+#define PHOTORIG_LANE_INLINE inline __attribute__((always_inline))
+
+// The hot loops are built for several instruction sets and the best one the
+// CPU supports is picked at load time (GCC function multi-versioning): the
+// library itself stays at the baseline ISA (see CMakeLists.txt). They use no
+// Eigen, whose types must not cross code built for different ISAs.
+#define PHOTORIG_PS_MULTIVERSION \
+  __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+
+inline constexpr double kLn2Hi = 6.93147180369123816490e-01;  // ln 2 with 20 trailing zero bits
+inline constexpr double kLn2Lo = 1.90821492927058770002e-10;  // ln 2 - kLn2Hi
+
+// ln x for finite x > 0 (normal numbers): x = 2^k f with f in [sqrt(1/2),
+// sqrt(2)), ln f = 2 atanh(s), s = (f - 1) / (f + 1), |s| <= 0.1716, whose
+// odd series to s^19 is exact to double precision.
+PHOTORIG_LANE_INLINE double LaneLog(double x) {
+  constexpr std::uint64_t kSqrtHalfBits = 0x3fe6a09e667f3bcdULL;
+  constexpr std::uint64_t kBias = 1024ULL << 52;  // keeps the shifted exponent non-negative
+  const std::uint64_t bits = std::bit_cast<std::uint64_t>(x);
+  const std::uint64_t biased_k = (bits - kSqrtHalfBits + kBias) >> 52;  // k + 1024
+  const double f = std::bit_cast<double>(bits - (biased_k << 52) + kBias);
+  // k as a double without an int64 -> double conversion (AVX2 has none).
+  const double k = std::bit_cast<double>(biased_k | 0x4330000000000000ULL) - (4503599627370496.0 + 1024.0);
+  const double s = (f - 1.0) / (f + 1.0), s2 = s * s;
+  double series = 2.0 / 19.0;
+  series = series * s2 + 2.0 / 17.0;
+  series = series * s2 + 2.0 / 15.0;
+  series = series * s2 + 2.0 / 13.0;
+  series = series * s2 + 2.0 / 11.0;
+  series = series * s2 + 2.0 / 9.0;
+  series = series * s2 + 2.0 / 7.0;
+  series = series * s2 + 2.0 / 5.0;
+  series = series * s2 + 2.0 / 3.0;
+  series = series * s2 + 2.0;
+  return k * kLn2Hi + (k * kLn2Lo + s * series);
+}
+
+// e^y for y <= 709; below -708 the result is clamped to e^-708 (about 3e-308)
+// rather than going subnormal. y = k ln 2 + r with |r| <= ln 2 / 2, e^r by its
+// Taylor series to r^13 (truncation below 1e-17), 2^k built in the exponent bits.
+PHOTORIG_LANE_INLINE double LaneExp(double y) {
+  constexpr double kRound = 6755399441055744.0;  // 1.5 * 2^52: adding it rounds to an integer
+  const double clamped = y < -708.0 ? -708.0 : y;
+  const double t = clamped * 1.4426950408889634 + kRound;
+  const double k = t - kRound;
+  const double r = clamped - k * kLn2Hi - k * kLn2Lo;
+  double p = 1.0 / 6227020800.0;
+  p = p * r + 1.0 / 479001600.0;
+  p = p * r + 1.0 / 39916800.0;
+  p = p * r + 1.0 / 3628800.0;
+  p = p * r + 1.0 / 362880.0;
+  p = p * r + 1.0 / 40320.0;
+  p = p * r + 1.0 / 5040.0;
+  p = p * r + 1.0 / 720.0;
+  p = p * r + 1.0 / 120.0;
+  p = p * r + 1.0 / 24.0;
+  p = p * r + 1.0 / 6.0;
+  p = p * r + 0.5;
+  p = p * r + 1.0;
+  p = p * r + 1.0;
+  // The low bits of t hold k (two's complement, wrapped): 2^k = (k + 1023) << 52.
+  const std::uint64_t k_bits = std::bit_cast<std::uint64_t>(t) - std::bit_cast<std::uint64_t>(kRound);
+  return p * std::bit_cast<double>((k_bits + 1023) << 52);
+}
+
+}  // namespace photorig::ps::internal

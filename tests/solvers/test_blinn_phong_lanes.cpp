@@ -1,0 +1,210 @@
+// The lane fitter of the Blinn-Phong model: its math against libm, its
+// derivatives against forward-mode automatic differentiation, its fits
+// against the per-pixel reference fit.
+#include "blinn_phong_lanes.h"
+#include "lane_math.h"
+
+#include "photorig/autodiff/blinn_phong_jacobian.h"
+#include "ps_test_scene.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace photorig::ps {
+namespace {
+
+using internal::BlinnPhongLaneFitter;
+using internal::BlinnPhongProblem;
+using internal::BlinnPhongSolution;
+
+TEST(LaneMath, LogAndExpAgreeWithLibmToAFewUlp) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> exponent(-300.0, 300.0), mantissa(1.0, 2.0);
+  double worst_log = 0.0, worst_exp = 0.0;
+  for (int i = 0; i < 200000; ++i) {
+    const double x = mantissa(rng) * std::pow(2.0, std::floor(exponent(rng)));
+    const double log_reference = std::log(x);
+    worst_log = std::max(worst_log, std::abs(internal::LaneLog(x) - log_reference) /
+                                        std::max(std::abs(log_reference), 1e-300));
+    const double y = -708.0 + 1417.0 * (mantissa(rng) - 1.0);
+    worst_exp = std::max(worst_exp, std::abs(internal::LaneExp(y) / std::exp(y) - 1.0));
+  }
+  EXPECT_LT(worst_log, 4e-16);
+  EXPECT_LT(worst_exp, 1e-15);
+  // Near 1 the logarithm is small: its absolute error is what matters.
+  EXPECT_NEAR(internal::LaneLog(1.0), 0.0, 0.0);
+  EXPECT_NEAR(internal::LaneLog(1.0 + 1e-12), std::log(1.0 + 1e-12), 1e-27);
+  EXPECT_EQ(internal::LaneExp(0.0), 1.0);
+  // Far below the range the result is clamped, not garbage.
+  EXPECT_GT(internal::LaneExp(-1e6), 0.0);
+  EXPECT_LT(internal::LaneExp(-1e6), 1e-300);
+}
+
+// A pixel seen by lights all around, some behind its horizon and some whose
+// half vector is past 90 degrees, so every clamp of the model is exercised.
+struct Pixel {
+  std::vector<Eigen::Vector3d> lights;
+  std::vector<double> observed, inverse_sigma;
+  Eigen::Vector3d normal;
+};
+
+Pixel RandomPixel(std::mt19937& rng, int light_count) {
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  Pixel pixel;
+  for (int k = 0; k < light_count; ++k) {
+    Eigen::Vector3d w(gauss(rng), gauss(rng), gauss(rng) + 0.8);
+    pixel.lights.push_back(w.normalized());
+  }
+  pixel.normal = Eigen::Vector3d(gauss(rng), gauss(rng), 0.3).normalized();
+  for (int k = 0; k < light_count; ++k) {
+    pixel.observed.push_back(0.5 * unit(rng));
+    pixel.inverse_sigma.push_back(k % 7 == 3 ? 0.0 : 0.5 + unit(rng));  // some samples unusable
+  }
+  return pixel;
+}
+
+TEST(BlinnPhongLanes, NormalEquationsMatchForwardModeAutodiff) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int lights_past_horizon = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const Pixel pixel = RandomPixel(rng, 24);
+    const int n = static_cast<int>(pixel.lights.size());
+    const double rho_d = 0.2 + unit(rng), rho_s = unit(rng), exponent = 1.0 + 200.0 * unit(rng) * unit(rng);
+    BlinnPhongOptions options;
+    BlinnPhongLaneFitter fitter(pixel.lights, Eigen::Vector3d::UnitZ(), options);
+    const BlinnPhongProblem problem{pixel.observed.data(), pixel.inverse_sigma.data(), pixel.normal, rho_d};
+    const auto lanes = fitter.Linearize(problem, pixel.normal, rho_d, rho_s, exponent);
+
+    // Reference: autodiff's N x 6 Jacobian w.r.t. (m, rho_d, rho_s, e) at |m| = 1;
+    // a tangent step t moves m by t, so its column is J_m t.
+    Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
+    for (int k = 0; k < n; ++k) directions.row(k) = pixel.lights[k].transpose();
+    const autodiff::BlinnPhongPixel model(directions, Eigen::VectorXd::Ones(n), Eigen::Vector3d::UnitZ(),
+                                          Eigen::Map<const Eigen::VectorXd>(pixel.observed.data(), n));
+    const double parameters[6] = {pixel.normal.x(), pixel.normal.y(), pixel.normal.z(), rho_d, rho_s, exponent};
+    Eigen::VectorXd residuals;
+    Eigen::MatrixXd jacobian;
+    ASSERT_TRUE(autodiff::BlinnPhongResidualsAndJacobian(model, parameters, autodiff::DerivativeMethod::kForward,
+                                                         &residuals, &jacobian));
+    Eigen::MatrixXd j(n, 5);
+    j.col(0) = jacobian.leftCols<3>() * lanes.tangent[0];
+    j.col(1) = jacobian.leftCols<3>() * lanes.tangent[1];
+    j.rightCols<3>() = jacobian.rightCols<3>();
+    const Eigen::VectorXd weights = Eigen::Map<const Eigen::VectorXd>(pixel.inverse_sigma.data(), n);
+    const Eigen::MatrixXd jw = weights.asDiagonal() * j;
+    const Eigen::VectorXd rw = residuals.cwiseProduct(weights);
+    const Eigen::MatrixXd hessian = jw.transpose() * jw;
+    const Eigen::VectorXd gradient = jw.transpose() * rw;
+
+    EXPECT_NEAR(lanes.cost, rw.squaredNorm(), 1e-12 * rw.squaredNorm());
+    EXPECT_LT((lanes.hessian - hessian).norm(), 1e-10 * hessian.norm()) << "trial " << trial;
+    EXPECT_LT((lanes.gradient - gradient).norm(), 1e-10 * gradient.norm() + 1e-14) << "trial " << trial;
+    EXPECT_NEAR(lanes.tangent[0].dot(pixel.normal), 0.0, 1e-12);
+    EXPECT_NEAR(lanes.tangent[1].dot(pixel.normal), 0.0, 1e-12);
+    EXPECT_NEAR(lanes.tangent[0].dot(lanes.tangent[1]), 0.0, 1e-12);
+    for (int k = 0; k < n; ++k) {
+      lights_past_horizon += pixel.lights[k].dot(pixel.normal) <= 0.0;
+    }
+  }
+  // The horizon clamp was exercised, not just the smooth interior. (The lobe
+  // clamp h <= 0 with c > 0 needs a normal facing away from the camera.)
+  EXPECT_GT(lights_past_horizon, 20);
+}
+
+// Noise-free shiny pixels: the lane fit must land where the per-pixel
+// reference fit (forward-mode autodiff) lands, at the true parameters.
+TEST(BlinnPhongLanes, FitsAgreeWithThePerPixelReference) {
+  const auto lights = testing::RingLights(40, 25, 80);
+  const auto truth = testing::RandomSurface(10, 7, 40.0, 13);  // 70 pixels: not a multiple of the lane count
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const int pixels = truth.normals.rows * truth.normals.cols, n = static_cast<int>(lights.size());
+  std::vector<double> observed(pixels * n), inverse_sigma(pixels * n, 100.0);
+  std::vector<BlinnPhongProblem> problems;
+  std::vector<Eigen::Vector3d> normals;
+  std::vector<double> exponents;
+  for (int p = 0; p < pixels; ++p) {
+    const cv::Vec3f t = truth.normals.ptr<cv::Vec3f>()[p];
+    const Eigen::Vector3d normal = Eigen::Vector3d(t[0], t[1], t[2]).normalized();  // unit in double
+    const double rho_d = truth.albedo.ptr<float>()[p], rho_s = 0.2 + 0.5 * unit(rng), e = 10.0 + 40.0 * unit(rng);
+    for (int k = 0; k < n; ++k) {
+      const Eigen::Vector3d half = (lights[k] + Eigen::Vector3d::UnitZ()).normalized();
+      const double c = std::max(0.0, lights[k].dot(normal)), h = std::max(0.0, half.dot(normal));
+      observed[p * n + k] = (rho_d / M_PI + rho_s * (e + 2) / (2 * M_PI) * std::pow(h, e)) * c;
+    }
+    // Start 3 degrees off, as a trimmed Lambertian estimate would be. (From
+    // much further, a lobe narrower than the light spacing can settle between
+    // the lights with a huge rho_s: the model, not the fitter, is ambiguous there.)
+    const Eigen::Vector3d start = (normal + 0.05 * normal.unitOrthogonal()).normalized();
+    problems.push_back({&observed[p * n], &inverse_sigma[p * n], start, rho_d});
+    normals.push_back(normal);
+    exponents.push_back(e);
+  }
+  BlinnPhongOptions options;
+  BlinnPhongLaneFitter fitter(lights, Eigen::Vector3d::UnitZ(), options);
+  std::vector<BlinnPhongSolution> solutions(pixels);
+  fitter.Fit(problems, solutions);
+  double worst_deg = 0.0, worst_exponent = 0.0;
+  for (int p = 0; p < pixels; ++p) {
+    ASSERT_TRUE(solutions[p].ok) << p;
+    worst_deg = std::max(worst_deg, std::acos(std::min(1.0, solutions[p].normal.dot(normals[p]))) * 180 / M_PI);
+    worst_exponent = std::max(worst_exponent, std::abs(solutions[p].exponent / exponents[p] - 1.0));
+    EXPECT_LT(solutions[p].iterations, options.max_iterations);
+  }
+  EXPECT_LT(worst_deg, 1e-4);
+  EXPECT_LT(worst_exponent, 1e-3);
+
+  // The whole solver with either fitter on a noisy stack: the same answer to
+  // within a small fraction of the error either makes.
+  const auto stack = testing::RenderShinyStack(truth, lights, 2000.0, testing::Specular{0.4, 40.0}, 20.0f, 2.0);
+  PhotometricStereoOptions lanes_options;
+  lanes_options.method = Method::kBlinnPhong;
+  lanes_options.lambertian.shadow_threshold = 6.0;
+  lanes_options.estimate_noise = false;
+  PhotometricStereoOptions reference_options = lanes_options;
+  reference_options.blinn_phong.fitter = BlinnPhongOptions::Fitter::kPerPixel;
+  NormalMap lanes_map, reference_map;
+  ASSERT_TRUE(SolvePhotometricStereo(lanes_options, stack, &lanes_map).IsSolutionUsable());
+  ASSERT_TRUE(SolvePhotometricStereo(reference_options, stack, &reference_map).IsSolutionUsable());
+  int compared = 0;
+  for (int p = 0; p < pixels; ++p) {
+    const cv::Vec3f a = lanes_map.normals.ptr<cv::Vec3f>()[p], b = reference_map.normals.ptr<cv::Vec3f>()[p];
+    if (!(std::isfinite(a[0]) && std::isfinite(b[0]))) continue;
+    // Where the model cannot explain a pixel (its confidence is tiny) each
+    // fitter stops in some poor local minimum; those need not agree.
+    if (reference_map.confidence.ptr<float>()[p] < 0.1f) continue;
+    EXPECT_GT(a.dot(b), std::cos(0.05 * M_PI / 180)) << "pixel " << p;
+    EXPECT_NEAR(lanes_map.albedo.ptr<float>()[p], reference_map.albedo.ptr<float>()[p], 1e-3) << "pixel " << p;
+    ++compared;
+  }
+  EXPECT_GE(compared, pixels * 8 / 10);
+}
+
+TEST(BlinnPhongLanes, SamplesWithoutWeightAreIgnored) {
+  const auto lights = testing::RingLights(16, 30, 70);
+  const int n = static_cast<int>(lights.size());
+  std::vector<double> observed(n, 0.1), inverse_sigma(n, 0.0);
+  BlinnPhongOptions options;
+  BlinnPhongLaneFitter fitter(lights, Eigen::Vector3d::UnitZ(), options);
+  // No usable sample: the cost is 0 and no step can lower it.
+  std::vector<BlinnPhongProblem> problems{{observed.data(), inverse_sigma.data(), Eigen::Vector3d::UnitZ(), 0.5}};
+  std::vector<BlinnPhongSolution> solutions(1);
+  fitter.Fit(problems, solutions);
+  EXPECT_EQ(solutions[0].chi2, 0.0);
+  EXPECT_EQ(solutions[0].iterations, 0);
+  // An absurd value on an unweighted sample adds nothing.
+  std::fill(inverse_sigma.begin(), inverse_sigma.end(), 1.0);
+  const auto clean = fitter.Linearize(problems[0], Eigen::Vector3d::UnitZ(), 0.5, 0.1, 20.0);
+  inverse_sigma[3] = 0.0;
+  observed[3] = 1e300;
+  const auto masked = fitter.Linearize(problems[0], Eigen::Vector3d::UnitZ(), 0.5, 0.1, 20.0);
+  EXPECT_TRUE(std::isfinite(masked.cost));
+  EXPECT_LT(masked.cost, clean.cost);
+}
+
+}  // namespace
+}  // namespace photorig::ps
