@@ -48,11 +48,18 @@ double DarkNoiseSigma(const std::vector<cv::Mat>& darks, const cv::Mat& mean_dar
   return 1.4826 * *middle;
 }
 
-bool ParseDerivative(const std::string& name, autodiff::DerivativeMethod* method) {
+// "lanes" is the lane fitter with its closed-form derivatives; the
+// autodiff method names run the per-pixel reference fit with that method.
+bool ParseDerivative(const std::string& name, ps::BlinnPhongOptions* options) {
+  if (name == "lanes") {
+    options->fitter = ps::BlinnPhongOptions::Fitter::kLanes;
+    return true;
+  }
   for (auto m : {autodiff::DerivativeMethod::kForward, autodiff::DerivativeMethod::kReverse,
                  autodiff::DerivativeMethod::kSymbolic, autodiff::DerivativeMethod::kCentralDifference}) {
     if (name == autodiff::ToString(m)) {
-      *method = m;
+      options->fitter = ps::BlinnPhongOptions::Fitter::kPerPixel;
+      options->derivative = m;
       return true;
     }
   }
@@ -64,7 +71,7 @@ ps::PhotometricStereoOptions MakeOptions(const PhotometricStereoRequest& request
                                          double saturation_level) {
   ps::PhotometricStereoOptions options;
   ps::ParseMethod(request.method, &options.method);
-  ParseDerivative(request.derivative, &options.blinn_phong.derivative);
+  ParseDerivative(request.derivative, &options.blinn_phong);
   // The stack's read noise already includes the subtracted dark's. Never below
   // one DN: quantisation alone leaves values within 1 DN of black in shadow.
   options.lambertian.shadow_threshold = std::max(1.0, request.shadow_threshold_sigma * input.stack.noise.read_sigma);
@@ -91,10 +98,10 @@ void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request) {
   ps::Method method;
   if (!ps::ParseMethod(request.method, &method))
     throw std::invalid_argument("method '" + request.method + "' (expected l2, lambertian, robust, blinn-phong or auto)");
-  autodiff::DerivativeMethod derivative;
-  if (!ParseDerivative(request.derivative, &derivative))
+  ps::BlinnPhongOptions blinn_phong;
+  if (!ParseDerivative(request.derivative, &blinn_phong))
     throw std::invalid_argument("derivative '" + request.derivative +
-                                "' (expected forward, reverse, symbolic or central-difference)");
+                                "' (expected lanes, forward, reverse, symbolic or central-difference)");
   ps::Integrator integrator;
   if (request.integrator != "none" && !ps::ParseIntegrator(request.integrator, &integrator))
     throw std::invalid_argument("integrator '" + request.integrator + "' (expected poisson, frankot-chellappa or none)");

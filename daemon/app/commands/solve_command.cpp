@@ -46,7 +46,7 @@ CommandRunner SetupSolve(CLI::App& app) {
   ps->add_option("--method", options->request.method, "l2 | lambertian | robust | blinn-phong | auto (default auto)")
       ->check(CLI::IsMember({"l2", "lambertian", "robust", "blinn-phong", "auto"}));
   ps->add_option("--derivative", options->request.derivative,
-                 "Blinn-Phong Jacobians: forward | reverse | symbolic | central-difference");
+                 "Blinn-Phong fit: lanes (default) | per pixel with forward | reverse | symbolic | central-difference");
   ps->add_option("--integrator", options->request.integrator, "poisson | frankot-chellappa | none");
   ps->add_option("--shadow-sigma", options->request.shadow_threshold_sigma, "shadow threshold in dark-noise sigmas")
       ->check(CLI::NonNegativeNumber);

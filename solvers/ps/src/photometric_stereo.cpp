@@ -195,44 +195,68 @@ Fit FitRobust(const PixelSamples& s, const Eigen::Vector3d& start, const RobustO
   return fit;
 }
 
+// The samples of one pixel as plain arrays, for loops the compiler vectorises.
+struct TrimScratch {
+  std::vector<double> wx, wy, wz, b, inverse_variance, u2;
+};
+
 // Greedy trimming, the cheap robust stage of kAuto: drop the sample with the
 // largest standardised residual and refit (a rank-one downdate of the 3 x 3
 // normal equations), until the fit is adequate or `max_rejected` samples are
 // gone. Narrow highlights are a few huge residuals, so this usually stops
 // after one or two removals at O(n) each, where IRLS needs ~10 weighted passes.
 template <typename Adequate>
-Fit FitTrimmed(const PixelSamples& s, int max_rejected, const Adequate& adequate) {
+Fit FitTrimmed(const PixelSamples& s, int max_rejected, const Adequate& adequate, TrimScratch* t) {
   const int n = s.size();
-  std::vector<char> kept(n, 1);
-  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (std::vector<double>* v : {&t->wx, &t->wy, &t->wz, &t->b, &t->inverse_variance, &t->u2}) v->resize(n);
+  double* __restrict wx = t->wx.data();
+  double* __restrict wy = t->wy.data();
+  double* __restrict wz = t->wz.data();
+  double* __restrict b = t->b.data();
+  double* __restrict iv = t->inverse_variance.data();  // 0 once a sample is trimmed
+  double* __restrict u2 = t->u2.data();
   for (int k = 0; k < n; ++k) {
-    normal_matrix += s.w[k] * s.w[k].transpose() / s.variance[k];
-    rhs += s.b[k] * s.w[k] / s.variance[k];
+    wx[k] = s.w[k].x(), wy[k] = s.w[k].y(), wz[k] = s.w[k].z();
+    b[k] = s.b[k], iv[k] = 1.0 / s.variance[k];
+  }
+  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0, bx = 0, by = 0, bz = 0;
+#pragma omp simd reduction(+ : xx, xy, xz, yy, yz, zz, bx, by, bz)
+  for (int k = 0; k < n; ++k) {
+    xx += iv[k] * wx[k] * wx[k], xy += iv[k] * wx[k] * wy[k], xz += iv[k] * wx[k] * wz[k];
+    yy += iv[k] * wy[k] * wy[k], yz += iv[k] * wy[k] * wz[k], zz += iv[k] * wz[k] * wz[k];
+    bx += iv[k] * b[k] * wx[k], by += iv[k] * b[k] * wy[k], bz += iv[k] * b[k] * wz[k];
   }
   for (int removed = 0;; ++removed) {
-    const Eigen::Vector3d x = normal_matrix.ldlt().solve(rhs);
+    Eigen::Matrix3d normal_matrix;
+    normal_matrix << xx, xy, xz, xy, yy, yz, xz, yz, zz;
+    // A singular system gives a non-finite x, which fails the check below.
+    const Eigen::Vector3d x = normal_matrix.inverse() * Eigen::Vector3d(bx, by, bz);
     Fit fit;
     fit.model = PixelModel::kRobust;
     fit.ok = x.norm() > 0.0 && n - removed >= 3;
     if (!fit.ok) return fit;
     fit.normal = x.normalized();
     fit.albedo = M_PI * x.norm();
-    int worst = -1;
-    double worst_u2 = -1.0;
+    double chi2 = 0.0, worst_u2 = 0.0;
+#pragma omp simd reduction(+ : chi2) reduction(max : worst_u2)
     for (int k = 0; k < n; ++k) {
-      if (!kept[k]) continue;
-      const double r = s.b[k] - s.w[k].dot(x);
-      const double u2 = r * r / s.variance[k];
-      fit.chi2 += u2;
-      if (u2 > worst_u2) worst_u2 = u2, worst = k;
+      const double r = b[k] - wx[k] * x.x() - wy[k] * x.y() - wz[k] * x.z();
+      u2[k] = r * r * iv[k];
+      chi2 += u2[k];
+      worst_u2 = std::max(worst_u2, u2[k]);
     }
+    fit.chi2 = chi2;
     fit.used = n - removed;
     fit.rejected = removed;
     if (adequate(fit) || removed >= max_rejected || fit.used <= 3) return fit;
-    kept[worst] = 0;
-    normal_matrix -= s.w[worst] * s.w[worst].transpose() / s.variance[worst];
-    rhs -= s.b[worst] * s.w[worst] / s.variance[worst];
+    // Drop the kept sample with the largest standardised residual (trimmed
+    // ones have u2 = 0).
+    const int worst = static_cast<int>(std::find(u2, u2 + n, worst_u2) - u2);
+    const double c = iv[worst];
+    xx -= c * wx[worst] * wx[worst], xy -= c * wx[worst] * wy[worst], xz -= c * wx[worst] * wz[worst];
+    yy -= c * wy[worst] * wy[worst], yz -= c * wy[worst] * wz[worst], zz -= c * wz[worst] * wz[worst];
+    bx -= c * b[worst] * wx[worst], by -= c * b[worst] * wy[worst], bz -= c * b[worst] * wz[worst];
+    iv[worst] = 0.0;
   }
 }
 
@@ -515,6 +539,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   };
   struct ThreadState {
     PixelSamples samples;
+    TrimScratch trim;
     autodiff::Tape tape;
     std::vector<Deferred> deferred;
     std::vector<double> observed, inverse_sigma;  // deferred.size() x K
@@ -565,7 +590,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
     if (options.method == Method::kAuto && adequate(lambert)) return record(state, p, lambert);
     const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
-    const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, adequate)
+    const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, adequate, &state.trim)
                                                        : FitRobust(s, x, options.robust);
     const bool few_rejected = robust.rejected <= max_rejected;
     if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust) && few_rejected))
