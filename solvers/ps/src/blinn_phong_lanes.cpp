@@ -106,6 +106,7 @@ void EvaluateLanes(const LanePoint& q, int lights, const double* geometry, const
 
 }  // namespace
 
+PHOTORIG_PS_MULTIVERSION
 BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, double* cos_half,
                                        const double* observed, const double* weight, double start_albedo,
                                        const BlinnPhongOptions& options) {

@@ -14,6 +14,7 @@
 // normal, so the normal has two parameters and the 5 x 5 normal equations
 // are well posed, where the three-component form is singular along n.
 
+#include "lane_math.h"
 #include "photorig/ps/photometric_stereo.h"
 
 #include <Eigen/Core>
@@ -23,8 +24,6 @@
 #include <vector>
 
 namespace photorig::ps::internal {
-
-inline constexpr int kLanes = 8;
 
 // Start material for a Blinn-Phong fit at a fixed normal: the exponent from a
 // doubling grid over [min_exponent, max_exponent] (each grid lobe is the

@@ -2,6 +2,7 @@
 
 #include "blinn_phong_lanes.h"
 #include "lambertian_tiles.h"
+#include "trim_lanes.h"
 
 #include <Eigen/Dense>
 #include <omp.h>
@@ -27,55 +28,101 @@ struct PixelSamples {
   std::vector<double> b, variance;
   std::vector<Eigen::Vector3d> w;
   std::vector<int> light;
+  std::vector<double> row_observed, row_inverse_sigma;  // every light's, while gathering
   int size() const { return static_cast<int>(b.size()); }
 };
 
-// Sample k of a pixel in solver units, b = (I - D) / s with variance
-// Var(I - D) / s^2; false when it is shadowed or clipped.
-inline bool UsableSample(const PhotometricStack& stack, const LambertianOptions& thresholds, float dark, int pixel,
-                         int k, double* b, double* variance) {
-  const float value = stack.images[k].ptr<float>()[pixel];
-  const double signal = double(value) - dark;
-  if (!(signal > thresholds.shadow_threshold) || !(value < thresholds.saturation_level)) return false;
-  const double s = stack.light_scales[k];
-  *b = signal / s;
-  *variance = stack.noise.Variance(signal) / (s * s);
-  return true;
-}
+// One pixel's samples over every light: b = (I - D) / s, 1 / sigma with
+// sigma^2 = Var(I - D) / s^2 (0 for a shadowed or clipped sample, whose b is
+// 0), and chi-square of the Lambertian solution x on the usable samples.
+// Plain arrays, so the loop vectorises (the planes are read by gathers).
+struct RowInputs {
+  int lights;
+  const float* const* planes;
+  const float* dark;  // null: no dark frame
+  double shadow_threshold, saturation_level;
+  const double* scales;
+  double read_variance, shot_gain;
+  const double* directions;  // 3 per light
+};
 
-float DarkAt(const PhotometricStack& stack, int pixel) {
-  return stack.dark.empty() ? 0.0f : stack.dark.ptr<float>()[pixel];
-}
-
-void GatherSamples(const PhotometricStack& stack, const LambertianOptions& thresholds, int pixel,
-                   PixelSamples* out) {
-  out->b.clear();
-  out->variance.clear();
-  out->w.clear();
-  out->light.clear();
-  const float dark = DarkAt(stack, pixel);
-  double b, variance;
-  for (int k = 0; k < stack.light_count(); ++k) {
-    if (!UsableSample(stack, thresholds, dark, pixel, k, &b, &variance)) continue;
-    out->b.push_back(b);
-    out->variance.push_back(variance);
-    out->w.push_back(stack.light_directions[k]);
-    out->light.push_back(k);
+PHOTORIG_PS_MULTIVERSION
+void ReadRow(const RowInputs& in, int pixel, const double* x, double* observed, double* inverse_sigma, double* chi2,
+             int* usable) {
+  const double dark = in.dark ? in.dark[pixel] : 0.0;
+  const double x0 = x[0], x1 = x[1], x2 = x[2];
+  double sum = 0.0;
+  int count = 0;
+#pragma omp simd reduction(+ : sum, count)
+  for (int k = 0; k < in.lights; ++k) {
+    const float value = in.planes[k][pixel];
+    const double signal = double(value) - dark;
+    const bool ok = (signal > in.shadow_threshold) & (value < in.saturation_level);
+    const double s = in.scales[k];
+    const double variance = (in.read_variance + in.shot_gain * std::max(signal, 0.0)) / (s * s);
+    const double b = ok ? signal / s : 0.0;
+    const double inverse = ok ? 1.0 / std::sqrt(variance) : 0.0;
+    observed[k] = b;
+    inverse_sigma[k] = inverse;
+    const double r = (b - in.directions[3 * k] * x0 - in.directions[3 * k + 1] * x1 - in.directions[3 * k + 2] * x2) *
+                     inverse;
+    sum += r * r;
+    count += ok;
   }
+  *chi2 = sum;
+  *usable = count;
 }
 
-// Every light's sample of a pixel, with 1 / sigma = 0 for the unusable ones:
-// the layout of the lane fitter.
-void GatherAllSamples(const PhotometricStack& stack, const LambertianOptions& thresholds, int pixel,
-                      double* observed, double* inverse_sigma) {
-  const float dark = DarkAt(stack, pixel);
-  double variance;
-  for (int k = 0; k < stack.light_count(); ++k) {
-    const bool usable = UsableSample(stack, thresholds, dark, pixel, k, &observed[k], &variance);
-    inverse_sigma[k] = usable ? 1.0 / std::sqrt(variance) : 0.0;
-    if (!usable) observed[k] = 0.0;
+// A stack's samples, pixel by pixel.
+class SampleReader {
+ public:
+  SampleReader(const PhotometricStack& stack, const LambertianOptions& thresholds) {
+    for (int k = 0; k < stack.light_count(); ++k) {
+      planes_.push_back(stack.images[k].ptr<float>());
+      for (int i = 0; i < 3; ++i) directions_.push_back(stack.light_directions[k][i]);
+    }
+    light_directions_ = stack.light_directions;
+    inputs_ = {stack.light_count(), planes_.data(), stack.dark.empty() ? nullptr : stack.dark.ptr<float>(),
+               thresholds.shadow_threshold, thresholds.saturation_level, stack.light_scales.data(),
+               stack.noise.read_sigma * stack.noise.read_sigma, stack.noise.shot_gain, directions_.data()};
   }
-}
+
+  int lights() const { return inputs_.lights; }
+
+  // Every light's sample (see ReadRow); returns chi-square at x.
+  double Row(int pixel, const Eigen::Vector3d& x, double* observed, double* inverse_sigma, int* usable) const {
+    double chi2 = 0.0;
+    ReadRow(inputs_, pixel, x.data(), observed, inverse_sigma, &chi2, usable);
+    return chi2;
+  }
+
+  // The usable samples only.
+  void Usable(int pixel, PixelSamples* out) const {
+    int usable = 0;
+    out->row_observed.resize(lights());
+    out->row_inverse_sigma.resize(lights());
+    const double* observed = out->row_observed.data();
+    const double* inverse_sigma = out->row_inverse_sigma.data();
+    Row(pixel, Eigen::Vector3d::Zero(), out->row_observed.data(), out->row_inverse_sigma.data(), &usable);
+    out->b.clear();
+    out->variance.clear();
+    out->w.clear();
+    out->light.clear();
+    for (int k = 0; k < lights(); ++k) {
+      if (inverse_sigma[k] == 0.0) continue;
+      out->b.push_back(observed[k]);
+      out->variance.push_back(1.0 / (inverse_sigma[k] * inverse_sigma[k]));
+      out->w.push_back(light_directions_[k]);
+      out->light.push_back(k);
+    }
+  }
+
+ private:
+  std::vector<const float*> planes_;
+  std::vector<double> directions_;
+  std::vector<Eigen::Vector3d> light_directions_;
+  RowInputs inputs_;
+};
 
 double InverseNormalCdf(double p) {
   // Bisection on the CDF: called once per solve, so speed is irrelevant.
@@ -372,9 +419,10 @@ NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions&
   const int stride = std::max(1, pixels / 8000);
   PhotometricStack unit = stack;
   unit.noise = NoiseModel{1.0, 0.0};  // variance 1/s^2: chi2 below is then a sum of squared residuals in input units
+  const SampleReader reader(unit, thresholds);
   for (int p = 0; p < pixels; p += stride) {
     if (!stack.mask.empty() && stack.mask.ptr<std::uint8_t>()[p] == 0) continue;
-    GatherSamples(unit, thresholds, p, &s);
+    reader.Usable(p, &s);
     if (s.size() < 6) continue;
     bool solvable = false;
     const Eigen::Vector3d x = WeightedLeastSquares(s, std::vector<double>(s.size(), 1.0), &solvable);
@@ -526,23 +574,29 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   auto adequate = [&quantile](const Fit& fit) { return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile[fit.Dof()]; };
 
   // Each pixel is refined right after its tile's Lambertian pass, while the
-  // tile's samples are still in cache; counts are kept per thread. Pixels that
-  // need the Blinn-Phong fit wait for the end of their tile, where the lane
-  // fitter takes them together.
+  // tile's samples are still in cache; counts are kept per thread. With the
+  // lane fitter, `auto` takes a tile's doubtful pixels through each stage
+  // together (trimming, then Blinn-Phong), eight at a time; the per-pixel
+  // fitter refines one pixel after another, the reference.
   const bool lanes = options.blinn_phong.fitter == BlinnPhongOptions::Fitter::kLanes;
   struct Deferred {
     int pixel;
     Fit lambert;
     Eigen::Vector3d start_normal;
     double start_albedo;
-    int used;
+    std::size_t row;  // of the thread's sample rows
   };
   struct ThreadState {
     PixelSamples samples;
     TrimScratch trim;
     autodiff::Tape tape;
-    std::vector<Deferred> deferred;
-    std::vector<double> observed, inverse_sigma;  // deferred.size() x K
+    // Every light's sample of the pixels being refined, one row per pixel
+    // (SampleReader::Row), reset after each tile.
+    std::vector<double> observed, inverse_sigma;
+    std::size_t rows = 0;
+    std::vector<Deferred> trimming, deferred;
+    std::vector<internal::TrimProblem> trim_problems;
+    std::vector<internal::TrimSolution> trim_solutions;
     std::vector<internal::BlinnPhongProblem> problems;
     std::vector<internal::BlinnPhongSolution> solutions;
     std::size_t lambertian = 0, robust = 0, blinn_phong = 0, rejected = 0, failed = 0;
@@ -550,11 +604,26 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
   std::vector<ThreadState> states(threads);
   std::vector<internal::BlinnPhongLaneFitter> fitters;
+  std::vector<internal::TrimmedLambertianLanes> trimmers;
   if (lanes) {
-    for (int t = 0; t < threads; ++t)
+    for (int t = 0; t < threads; ++t) {
       fitters.emplace_back(working.light_directions, Eigen::Vector3d::UnitZ(), options.blinn_phong);
+      trimmers.emplace_back(working.light_directions);
+    }
   }
   const int lights = working.light_count();
+  const SampleReader reader(working, lambertian);
+  // Gathers pixel p's samples into a new row; the Lambertian fit x is tested on them.
+  auto gather_row = [&](ThreadState& state, int p, const Eigen::Vector3d& x, Fit* lambert) {
+    const std::size_t row = state.rows++;
+    state.observed.resize(state.rows * lights);
+    state.inverse_sigma.resize(state.rows * lights);
+    lambert->chi2 = reader.Row(p, x, &state.observed[row * lights], &state.inverse_sigma[row * lights], &lambert->used);
+    lambert->ok = x.norm() > 0.0;
+    lambert->normal = x.normalized();
+    lambert->albedo = M_PI * x.norm();
+    return row;
+  };
   auto record = [&](ThreadState& state, int p, const Fit& chosen) {
     if (!chosen.ok) {
       result->flags.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelFlag::kRejectedByModel);
@@ -580,13 +649,16 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     if (options.method == Method::kBlinnPhong) return blinn_phong;
     return blinn_phong.ok && blinn_phong.Bic() < lambert.Bic() ? blinn_phong : lambert;
   };
-  // Pixels the cheap screen could not accept: the exact tests and, where the
-  // simple models fail, the richer fits.
+  auto tile_x = [&](int p) -> Eigen::Vector3d {
+    const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
+    return Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
+  };
+  // Pixels the cheap screen could not accept, one at a time: the exact tests
+  // and, where the simple models fail, the richer fits.
   auto refine_pixel = [&](ThreadState& state, int p) {
     PixelSamples& s = state.samples;
-    GatherSamples(working, lambertian, p, &s);
-    const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
-    const Eigen::Vector3d x = Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
+    reader.Usable(p, &s);
+    const Eigen::Vector3d x = tile_x(p);
     const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
     if (options.method == Method::kAuto && adequate(lambert)) return record(state, p, lambert);
     const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
@@ -597,22 +669,20 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       return record(state, p, robust);
     const Fit& start = robust.ok ? robust : lambert;
     if (!lanes) return record(state, p, choose_blinn_phong(lambert, FitBlinnPhong(s, start, options.blinn_phong, &state.tape)));
-    state.deferred.push_back({p, lambert, start.normal, start.albedo, s.size()});
+    Fit unused;
+    state.deferred.push_back({p, lambert, start.normal, start.albedo, gather_row(state, p, x, &unused)});
   };
   auto fit_deferred = [&](int thread) {
     ThreadState& state = states[thread];
     const std::size_t count = state.deferred.size();
-    if (count == 0) return;
-    state.observed.resize(count * lights);
-    state.inverse_sigma.resize(count * lights);
     state.problems.resize(count);
     state.solutions.assign(count, {});
     for (std::size_t i = 0; i < count; ++i) {
       const Deferred& d = state.deferred[i];
-      GatherAllSamples(working, lambertian, d.pixel, &state.observed[i * lights], &state.inverse_sigma[i * lights]);
-      state.problems[i] = {&state.observed[i * lights], &state.inverse_sigma[i * lights], d.start_normal, d.start_albedo};
+      state.problems[i] = {&state.observed[d.row * lights], &state.inverse_sigma[d.row * lights], d.start_normal,
+                           d.start_albedo};
     }
-    fitters[thread].Fit(state.problems, state.solutions);
+    if (count > 0) fitters[thread].Fit(state.problems, state.solutions);
     for (std::size_t i = 0; i < count; ++i) {
       const internal::BlinnPhongSolution& solution = state.solutions[i];
       Fit fit;
@@ -623,17 +693,52 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       fit.exponent = solution.exponent;
       fit.chi2 = solution.chi2;
       fit.parameters = kBlinnPhongParameters;
-      fit.used = state.deferred[i].used;
+      fit.used = state.deferred[i].lambert.used;
       fit.model = PixelModel::kBlinnPhong;
       record(state, state.deferred[i].pixel, choose_blinn_phong(state.deferred[i].lambert, fit));
     }
     state.deferred.clear();
+    state.rows = 0;
+  };
+  // `auto` with lanes, for the pixels of one tile the screen did not accept.
+  auto refine_in_lanes = [&](int thread) {
+    ThreadState& state = states[thread];
+    const std::size_t count = state.trimming.size();
+    state.trim_problems.resize(count);
+    state.trim_solutions.assign(count, {});
+    for (std::size_t i = 0; i < count; ++i) {
+      const Deferred& d = state.trimming[i];
+      state.trim_problems[i] = {&state.observed[d.row * lights], &state.inverse_sigma[d.row * lights],
+                                static_cast<int>(options.selection.max_rejected_fraction * d.lambert.used)};
+    }
+    if (count > 0) trimmers[thread].Fit(state.trim_problems, quantile, state.trim_solutions);
+    for (std::size_t i = 0; i < count; ++i) {
+      const internal::TrimSolution& trimmed = state.trim_solutions[i];
+      Fit robust;
+      robust.ok = trimmed.ok;
+      robust.normal = trimmed.x.normalized();
+      robust.albedo = M_PI * trimmed.x.norm();
+      robust.chi2 = trimmed.chi2;
+      robust.used = trimmed.used;
+      robust.rejected = trimmed.rejected;
+      robust.model = PixelModel::kRobust;
+      Deferred d = state.trimming[i];
+      if (adequate(robust)) {  // it trimmed at most max_rejected samples
+        record(state, d.pixel, robust);
+        continue;
+      }
+      if (robust.ok) d.start_normal = robust.normal, d.start_albedo = robust.albedo;
+      state.deferred.push_back(d);
+    }
+    state.trimming.clear();
+    fit_deferred(thread);
   };
   const internal::TileVisitor refine_tile = [&](int thread, int begin, int count) {
     ThreadState& state = states[thread];
     const std::uint8_t* flags = result->flags.ptr<std::uint8_t>();  // allocated by the solve
     const std::uint16_t* usable = result->usable_lights.ptr<std::uint16_t>();
     const float* confidence = result->confidence.ptr<float>();
+    const bool auto_lanes = lanes && options.method == Method::kAuto;
     for (int p = begin; p < begin + count; ++p) {
       if (flags[p] != static_cast<int>(PixelFlag::kSolved)) continue;
       // The Lambertian pass's confidence is expected / observed residual
@@ -646,9 +751,24 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
         ++state.lambertian;
         continue;
       }
-      refine_pixel(state, p);
+      if (!auto_lanes) {
+        refine_pixel(state, p);
+        continue;
+      }
+      Fit lambert;
+      const std::size_t row = gather_row(state, p, tile_x(p), &lambert);
+      if (adequate(lambert)) {
+        record(state, p, lambert);
+        --state.rows;  // the row is not needed
+        continue;
+      }
+      state.trimming.push_back({p, lambert, lambert.normal, lambert.albedo, row});
     }
-    fit_deferred(thread);
+    if (auto_lanes) {
+      refine_in_lanes(thread);
+    } else {
+      fit_deferred(thread);
+    }
   };
   SolverSummary summary = internal::SolveLambertianTiles(lambertian, working, result, refine_tile);
   summary.method = MethodName(options.method);

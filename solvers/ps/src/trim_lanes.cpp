@@ -1,0 +1,168 @@
+#include "trim_lanes.h"
+
+#include "lane_math.h"
+
+#include <cmath>
+
+namespace photorig::ps::internal {
+namespace {
+
+// Weighted normal equations of each lane: the 3 x 3 matrix sum v w w^T (xx,
+// xy, xz, yy, yz, zz) and sum v b w, v = 1 / sigma^2 over the kept samples.
+struct alignas(64) LaneNormalEquations {
+  double matrix[6][kLanes];
+  double rhs[3][kLanes];
+};
+
+struct alignas(64) LaneRound {
+  double x[3][kLanes];
+  double chi2[kLanes];
+  double worst_u2[kLanes];
+  double worst_light[kLanes];  // index as a double: the lane loop keeps one element type
+};
+
+// One round for all lanes: x from the normal equations (by the adjugate; a
+// singular system gives non-finite x), then residuals, chi-square and the
+// kept sample with the largest standardised residual (the first on a tie).
+PHOTORIG_PS_MULTIVERSION
+void TrimRound(const LaneNormalEquations& eq, int lights, const double* directions, const double* observed,
+               const double* weight, LaneRound* out) {
+  alignas(64) double x0[kLanes], x1[kLanes], x2[kLanes], chi2[kLanes], worst[kLanes], worst_light[kLanes];
+#pragma omp simd
+  for (int j = 0; j < kLanes; ++j) {
+    const double xx = eq.matrix[0][j], xy = eq.matrix[1][j], xz = eq.matrix[2][j];
+    const double yy = eq.matrix[3][j], yz = eq.matrix[4][j], zz = eq.matrix[5][j];
+    const double c00 = yy * zz - yz * yz, c01 = xz * yz - xy * zz, c02 = xy * yz - xz * yy;
+    const double c11 = xx * zz - xz * xz, c12 = xy * xz - xx * yz, c22 = xx * yy - xy * xy;
+    const double inverse_det = 1.0 / (xx * c00 + xy * c01 + xz * c02);
+    const double b0 = eq.rhs[0][j], b1 = eq.rhs[1][j], b2 = eq.rhs[2][j];
+    x0[j] = (c00 * b0 + c01 * b1 + c02 * b2) * inverse_det;
+    x1[j] = (c01 * b0 + c11 * b1 + c12 * b2) * inverse_det;
+    x2[j] = (c02 * b0 + c12 * b1 + c22 * b2) * inverse_det;
+    chi2[j] = 0.0, worst[j] = -1.0, worst_light[j] = -1.0;
+  }
+  for (int k = 0; k < lights; ++k) {
+    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
+    const double* b = observed + k * kLanes;
+    const double* v = weight + k * kLanes;
+    const double light = k;
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) {
+      const double r = b[j] - wx * x0[j] - wy * x1[j] - wz * x2[j];
+      const double u2 = r * r * v[j];
+      chi2[j] += u2;
+      const bool worse = u2 > worst[j];
+      worst[j] = worse ? u2 : worst[j];
+      worst_light[j] = worse ? light : worst_light[j];
+    }
+  }
+  for (int j = 0; j < kLanes; ++j) {
+    out->x[0][j] = x0[j], out->x[1][j] = x1[j], out->x[2][j] = x2[j];
+    out->chi2[j] = chi2[j], out->worst_u2[j] = worst[j], out->worst_light[j] = worst_light[j];
+  }
+}
+
+}  // namespace
+
+struct TrimmedLambertianLanes::State {
+  LaneNormalEquations equations;
+  LaneRound round;
+  int problem[kLanes];  // -1: idle
+  int usable[kLanes], removed[kLanes], max_rejected[kLanes];
+};
+
+TrimmedLambertianLanes::TrimmedLambertianLanes(const std::vector<Eigen::Vector3d>& light_directions)
+    : lights_(static_cast<int>(light_directions.size())),
+      directions_(3 * light_directions.size()),
+      observed_(light_directions.size() * kLanes),
+      weight_(light_directions.size() * kLanes),
+      state_(std::make_unique<State>()) {
+  for (int k = 0; k < lights_; ++k)
+    for (int i = 0; i < 3; ++i) directions_[3 * k + i] = light_directions[k][i];
+}
+
+TrimmedLambertianLanes::~TrimmedLambertianLanes() = default;
+TrimmedLambertianLanes::TrimmedLambertianLanes(TrimmedLambertianLanes&&) noexcept = default;
+
+void TrimmedLambertianLanes::Load(int lane, const TrimProblem& problem) {
+  State& s = *state_;
+  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0, bx = 0, by = 0, bz = 0;
+  int usable = 0;
+  for (int k = 0; k < lights_; ++k) {
+    const double v = problem.inverse_sigma[k] * problem.inverse_sigma[k], b = problem.observed[k];
+    const double wx = directions_[3 * k], wy = directions_[3 * k + 1], wz = directions_[3 * k + 2];
+    observed_[k * kLanes + lane] = b;
+    weight_[k * kLanes + lane] = v;
+    xx += v * wx * wx, xy += v * wx * wy, xz += v * wx * wz, yy += v * wy * wy, yz += v * wy * wz, zz += v * wz * wz;
+    bx += v * b * wx, by += v * b * wy, bz += v * b * wz;
+    usable += v > 0.0;
+  }
+  const double matrix[6] = {xx, xy, xz, yy, yz, zz}, rhs[3] = {bx, by, bz};
+  for (int i = 0; i < 6; ++i) s.equations.matrix[i][lane] = matrix[i];
+  for (int i = 0; i < 3; ++i) s.equations.rhs[i][lane] = rhs[i];
+  s.usable[lane] = usable;
+  s.removed[lane] = 0;
+  s.max_rejected[lane] = problem.max_rejected;
+}
+
+void TrimmedLambertianLanes::Fit(std::span<const TrimProblem> problems, std::span<const double> chi2_quantile,
+                                 std::span<TrimSolution> solutions) {
+  State& s = *state_;
+  const int count = static_cast<int>(problems.size());
+  int next = 0, busy = 0;
+  // An idle lane solves the identity system on no samples: finite, ignored.
+  auto idle = [&](int lane) {
+    s.problem[lane] = -1;
+    for (int k = 0; k < lights_; ++k) observed_[k * kLanes + lane] = weight_[k * kLanes + lane] = 0.0;
+    for (int i = 0; i < 6; ++i) s.equations.matrix[i][lane] = (i == 0 || i == 3 || i == 5) ? 1.0 : 0.0;
+    for (int i = 0; i < 3; ++i) s.equations.rhs[i][lane] = 0.0;
+  };
+  for (int lane = 0; lane < kLanes; ++lane) {
+    if (next < count) {
+      s.problem[lane] = next;
+      Load(lane, problems[next++]);
+      ++busy;
+    } else {
+      idle(lane);
+    }
+  }
+  while (busy > 0) {
+    TrimRound(s.equations, lights_, directions_.data(), observed_.data(), weight_.data(), &s.round);
+    for (int lane = 0; lane < kLanes; ++lane) {
+      if (s.problem[lane] < 0) continue;
+      const Eigen::Vector3d x(s.round.x[0][lane], s.round.x[1][lane], s.round.x[2][lane]);
+      const int used = s.usable[lane] - s.removed[lane];
+      const bool ok = x.norm() > 0.0 && used >= 3;  // false for a non-finite x too
+      const int dof = used - 3;
+      const double chi2 = s.round.chi2[lane];
+      const bool adequate = ok && dof > 0 && chi2 <= chi2_quantile[dof];
+      const int worst = static_cast<int>(s.round.worst_light[lane]);
+      if (ok && !adequate && s.removed[lane] < s.max_rejected[lane] && used > 3 && worst >= 0) {
+        // Drop the worst sample: a rank-one downdate.
+        const double v = weight_[worst * kLanes + lane], b = observed_[worst * kLanes + lane];
+        const double* w = &directions_[3 * worst];
+        const double terms[6] = {w[0] * w[0], w[0] * w[1], w[0] * w[2], w[1] * w[1], w[1] * w[2], w[2] * w[2]};
+        for (int i = 0; i < 6; ++i) s.equations.matrix[i][lane] -= v * terms[i];
+        for (int i = 0; i < 3; ++i) s.equations.rhs[i][lane] -= v * b * w[i];
+        weight_[worst * kLanes + lane] = 0.0;
+        ++s.removed[lane];
+        continue;
+      }
+      TrimSolution& out = solutions[s.problem[lane]];
+      out.ok = ok;
+      out.x = x;
+      out.chi2 = chi2;
+      out.used = used;
+      out.rejected = s.removed[lane];
+      if (next < count) {
+        s.problem[lane] = next;
+        Load(lane, problems[next++]);
+      } else {
+        idle(lane);
+        --busy;
+      }
+    }
+  }
+}
+
+}  // namespace photorig::ps::internal
