@@ -104,6 +104,108 @@ void EvaluateLanes(const LanePoint& q, int lights, const double* geometry, const
   }
 }
 
+// The damped Gauss-Newton step of every lane from its current point p:
+// (H + lambda diag(H) + 1e-12 I) step = g by Cholesky, then the candidate
+// q = p - step (the normal renormalised, the material projected onto its
+// bounds). positive[j] is 0 where the damped matrix is not positive definite
+// (raise lambda and try again); predicted[j] is the decrease of the cost the
+// linearised model promises, 2 step.g - step.H.step.
+PHOTORIG_PS_MULTIVERSION
+void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lambda, double min_exponent,
+                  double max_exponent, LanePoint* q, double* positive, double* predicted) {
+  // Lower triangle of the factor, [row][col][lane]; loops over the matrix
+  // indices stay outside the lane loops so that each lane loop vectorises.
+  alignas(64) double l[kParameters][kParameters][kLanes];
+  alignas(64) double step[kParameters][kLanes];
+  auto hessian_entry = [](int row, int col) {  // index into the packed upper triangle
+    if (row > col) std::swap(row, col);
+    return row * kParameters - row * (row - 1) / 2 + (col - row);
+  };
+  // Every lane loop below is free of inner loops: GCC does not vectorise
+  // one that has them.
+  alignas(64) double sum[kLanes];
+#pragma omp simd
+  for (int j = 0; j < kLanes; ++j) positive[j] = 1.0;
+  for (int col = 0; col < kParameters; ++col) {
+    const int diagonal_entry = hessian_entry(col, col);
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) {
+      const double h = eq.hessian[diagonal_entry][j];
+      sum[j] = h + lambda[j] * h + 1e-12;
+    }
+    for (int i = 0; i < col; ++i) {
+#pragma omp simd
+      for (int j = 0; j < kLanes; ++j) sum[j] -= l[col][i][j] * l[col][i][j];
+    }
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) {
+      const bool ok = sum[j] > 0.0;
+      positive[j] = ok ? positive[j] : 0.0;
+      l[col][col][j] = std::sqrt(ok ? sum[j] : 1.0);
+    }
+    for (int row = col + 1; row < kParameters; ++row) {
+      const int entry = hessian_entry(row, col);
+#pragma omp simd
+      for (int j = 0; j < kLanes; ++j) sum[j] = eq.hessian[entry][j];
+      for (int i = 0; i < col; ++i) {
+#pragma omp simd
+        for (int j = 0; j < kLanes; ++j) sum[j] -= l[row][i][j] * l[col][i][j];
+      }
+#pragma omp simd
+      for (int j = 0; j < kLanes; ++j) l[row][col][j] = sum[j] / l[col][col][j];
+    }
+  }
+  for (int row = 0; row < kParameters; ++row) {  // L y = g
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) sum[j] = eq.gradient[row][j];
+    for (int i = 0; i < row; ++i) {
+#pragma omp simd
+      for (int j = 0; j < kLanes; ++j) sum[j] -= l[row][i][j] * step[i][j];
+    }
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) step[row][j] = sum[j] / l[row][row][j];
+  }
+  for (int row = kParameters - 1; row >= 0; --row) {  // L^T step = y
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) sum[j] = step[row][j];
+    for (int i = row + 1; i < kParameters; ++i) {
+#pragma omp simd
+      for (int j = 0; j < kLanes; ++j) sum[j] -= l[i][row][j] * step[i][j];
+    }
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) step[row][j] = sum[j] / l[row][row][j];
+  }
+#pragma omp simd
+  for (int j = 0; j < kLanes; ++j) predicted[j] = 0.0;
+  for (int row = 0; row < kParameters; ++row) {
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) predicted[j] += 2.0 * step[row][j] * eq.gradient[row][j];
+    for (int col = row; col < kParameters; ++col) {
+      const int entry = hessian_entry(row, col);
+      const double factor = row == col ? 1.0 : 2.0;
+#pragma omp simd
+      for (int j = 0; j < kLanes; ++j) predicted[j] -= factor * step[row][j] * step[col][j] * eq.hessian[entry][j];
+    }
+  }
+#pragma omp simd
+  for (int j = 0; j < kLanes; ++j) {
+    const double step_t1 = step[0][j], step_t2 = step[1][j];
+    const double nx = p.normal[0][j] - step_t1 * p.tangent[0][0][j] - step_t2 * p.tangent[1][0][j];
+    const double ny = p.normal[1][j] - step_t1 * p.tangent[0][1][j] - step_t2 * p.tangent[1][1][j];
+    const double nz = p.normal[2][j] - step_t1 * p.tangent[0][2][j] - step_t2 * p.tangent[1][2][j];
+    const double inverse_length = 1.0 / std::sqrt(nx * nx + ny * ny + nz * nz);
+    const double ux = nx * inverse_length, uy = ny * inverse_length, uz = nz * inverse_length;
+    double t1[3], t2[3];
+    TangentBasis(ux, uy, uz, t1, t2);
+    q->normal[0][j] = ux, q->normal[1][j] = uy, q->normal[2][j] = uz;
+    q->tangent[0][0][j] = t1[0], q->tangent[0][1][j] = t1[1], q->tangent[0][2][j] = t1[2];
+    q->tangent[1][0][j] = t2[0], q->tangent[1][1][j] = t2[1], q->tangent[1][2][j] = t2[2];
+    q->diffuse_albedo[j] = std::max(0.0, p.diffuse_albedo[j] - step[2][j]);
+    q->specular_albedo[j] = std::max(0.0, p.specular_albedo[j] - step[3][j]);
+    q->exponent[j] = std::min(std::max(p.exponent[j] - step[4][j], min_exponent), max_exponent);
+  }
+}
+
 }  // namespace
 
 PHOTORIG_PS_MULTIVERSION
@@ -143,10 +245,11 @@ BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, dou
 }
 
 struct BlinnPhongLaneFitter::State {
-  LanePoint candidate, current;
+  LanePoint candidate, current, proposal;
   LaneEquations candidate_equations, current_equations;
   double current_cost[kLanes];
   double lambda[kLanes];
+  double positive[kLanes], predicted_decrease[kLanes];
   int iterations[kLanes];
   int problem[kLanes];  // index into the problems being fitted, -1 for an idle lane
 };
@@ -199,72 +302,6 @@ void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem) {
   s.iterations[lane] = 0;
 }
 
-// The next candidate of a lane: the damped Gauss-Newton step from its current
-// point, with the damping raised until the system is positive definite.
-// False when the fit has converged or the damping exceeds any useful value.
-bool BlinnPhongLaneFitter::Propose(int lane) {
-  State& s = *state_;
-  const LaneEquations& eq = s.current_equations;
-  const LanePoint& p = s.current;
-  for (; s.lambda[lane] < 1e12; s.lambda[lane] *= 4.0) {
-    double a[kParameters][kParameters];
-    int entry = 0;
-    for (int row = 0; row < kParameters; ++row)
-      for (int col = row; col < kParameters; ++col) a[row][col] = a[col][row] = eq.hessian[entry++][lane];
-    for (int i = 0; i < kParameters; ++i) a[i][i] += s.lambda[lane] * a[i][i] + 1e-12;
-    // Cholesky in place (lower triangle), then the two triangular solves.
-    bool positive = true;
-    for (int col = 0; col < kParameters && positive; ++col) {
-      double diagonal = a[col][col];
-      for (int i = 0; i < col; ++i) diagonal -= a[col][i] * a[col][i];
-      positive = diagonal > 0.0 && std::isfinite(diagonal);
-      a[col][col] = std::sqrt(positive ? diagonal : 1.0);
-      for (int row = col + 1; row < kParameters; ++row) {
-        double value = a[row][col];
-        for (int i = 0; i < col; ++i) value -= a[row][i] * a[col][i];
-        a[row][col] = value / a[col][col];
-      }
-    }
-    if (!positive) continue;
-    double step[kParameters];
-    for (int row = 0; row < kParameters; ++row) {
-      double value = eq.gradient[row][lane];
-      for (int i = 0; i < row; ++i) value -= a[row][i] * step[i];
-      step[row] = value / a[row][row];
-    }
-    for (int row = kParameters - 1; row >= 0; --row) {
-      double value = step[row];
-      for (int i = row + 1; i < kParameters; ++i) value -= a[i][row] * step[i];
-      step[row] = value / a[row][row];
-    }
-    // Converged when even the linearised model promises less than the
-    // tolerance: otherwise rounding at the minimum rejects step after step
-    // while the damping climbs to its limit.
-    double predicted_decrease = 0.0;
-    entry = 0;
-    for (int row = 0; row < kParameters; ++row) {
-      predicted_decrease += 2.0 * step[row] * eq.gradient[row][lane];
-      for (int col = row; col < kParameters; ++col)
-        predicted_decrease -= (row == col ? 1.0 : 2.0) * step[row] * step[col] * eq.hessian[entry++][lane];
-    }
-    if (!(predicted_decrease > options_.relative_tolerance * eq.cost[lane])) return false;
-    LanePoint& q = s.candidate;
-    double n[3];
-    for (int i = 0; i < 3; ++i)
-      n[i] = p.normal[i][lane] - step[0] * p.tangent[0][i][lane] - step[1] * p.tangent[1][i][lane];
-    const double inverse_length = 1.0 / std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    for (double& v : n) v *= inverse_length;
-    double t1[3], t2[3];
-    TangentBasis(n[0], n[1], n[2], t1, t2);
-    for (int i = 0; i < 3; ++i) q.normal[i][lane] = n[i], q.tangent[0][i][lane] = t1[i], q.tangent[1][i][lane] = t2[i];
-    q.diffuse_albedo[lane] = std::max(0.0, p.diffuse_albedo[lane] - step[2]);
-    q.specular_albedo[lane] = std::max(0.0, p.specular_albedo[lane] - step[3]);
-    q.exponent[lane] = std::clamp(p.exponent[lane] - step[4], options_.min_exponent, options_.max_exponent);
-    if (std::isfinite(q.diffuse_albedo[lane] + q.specular_albedo[lane] + q.exponent[lane] + inverse_length)) return true;
-  }
-  return false;
-}
-
 void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std::span<BlinnPhongSolution> solutions) {
   State& s = *state_;
   const int count = static_cast<int>(problems.size());
@@ -288,10 +325,30 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
       ++busy;
     }
   }
+  auto finish = [&](int lane) {
+    BlinnPhongSolution& out = solutions[s.problem[lane]];
+    out.ok = std::isfinite(s.current_cost[lane]);
+    out.normal = Eigen::Vector3d(s.current.normal[0][lane], s.current.normal[1][lane], s.current.normal[2][lane]);
+    out.diffuse_albedo = s.current.diffuse_albedo[lane];
+    out.specular_albedo = s.current.specular_albedo[lane];
+    out.exponent = s.current.exponent[lane];
+    out.chi2 = s.current_cost[lane];
+    out.iterations = s.iterations[lane];
+    if (next < count) {
+      s.problem[lane] = next;
+      Load(lane, problems[next++]);  // its start is the next candidate
+    } else {
+      s.problem[lane] = -1;
+      for (int k = 0; k < lights_; ++k) inverse_sigma_[k * kLanes + lane] = 0.0;
+      --busy;
+    }
+  };
+  bool stepping[kLanes];  // lanes whose next candidate is a step from their current point
   while (busy > 0) {
     EvaluateLanes(s.candidate, lights_, geometry_.data(), observed_.data(), inverse_sigma_.data(),
                   &s.candidate_equations);
     for (int lane = 0; lane < kLanes; ++lane) {
+      stepping[lane] = false;
       if (s.problem[lane] < 0) continue;
       const double cost = s.candidate_equations.cost[lane];
       const bool at_start = std::isinf(s.current_cost[lane]);
@@ -321,25 +378,48 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
         done = true;  // the start itself does not evaluate (no usable sample is finite)
       } else {
         s.lambda[lane] *= 4.0;
+        done = s.lambda[lane] >= 1e12;  // stuck
       }
-      if (!done) done = !Propose(lane);
-      if (!done) continue;
-      BlinnPhongSolution& out = solutions[s.problem[lane]];
-      out.ok = std::isfinite(s.current_cost[lane]);
-      out.normal = Eigen::Vector3d(s.current.normal[0][lane], s.current.normal[1][lane], s.current.normal[2][lane]);
-      out.diffuse_albedo = s.current.diffuse_albedo[lane];
-      out.specular_albedo = s.current.specular_albedo[lane];
-      out.exponent = s.current.exponent[lane];
-      out.chi2 = s.current_cost[lane];
-      out.iterations = s.iterations[lane];
-      if (next < count) {
-        s.problem[lane] = next;
-        Load(lane, problems[next++]);
+      if (done) {
+        finish(lane);
       } else {
-        s.problem[lane] = -1;
-        for (int k = 0; k < lights_; ++k) inverse_sigma_[k * kLanes + lane] = 0.0;
-        --busy;
+        stepping[lane] = true;
       }
+    }
+    // The next candidates, all lanes at once; a lane whose damped system is
+    // not positive definite raises its damping and all go round again.
+    for (bool retry = true; retry;) {
+      ProposeLanes(s.current, s.current_equations, s.lambda, options_.min_exponent, options_.max_exponent,
+                   &s.proposal, s.positive, s.predicted_decrease);
+      retry = false;
+      for (int lane = 0; lane < kLanes; ++lane) {
+        if (!stepping[lane] || s.positive[lane] != 0.0) continue;
+        s.lambda[lane] *= 4.0;
+        if (s.lambda[lane] < 1e12) {
+          retry = true;
+        } else {
+          stepping[lane] = false;
+          finish(lane);
+        }
+      }
+    }
+    for (int lane = 0; lane < kLanes; ++lane) {
+      if (!stepping[lane]) continue;
+      // Converged when even the linearised model promises less than the
+      // tolerance: otherwise rounding at the minimum rejects step after step
+      // while the damping climbs to its limit.
+      if (!(s.predicted_decrease[lane] > options_.relative_tolerance * s.current_cost[lane])) {
+        finish(lane);
+        continue;
+      }
+      for (int i = 0; i < 3; ++i) {
+        s.candidate.normal[i][lane] = s.proposal.normal[i][lane];
+        s.candidate.tangent[0][i][lane] = s.proposal.tangent[0][i][lane];
+        s.candidate.tangent[1][i][lane] = s.proposal.tangent[1][i][lane];
+      }
+      s.candidate.diffuse_albedo[lane] = s.proposal.diffuse_albedo[lane];
+      s.candidate.specular_albedo[lane] = s.proposal.specular_albedo[lane];
+      s.candidate.exponent[lane] = s.proposal.exponent[lane];
     }
   }
 }

@@ -87,7 +87,6 @@ class BlinnPhongLaneFitter {
   struct State;  // lane registers, in blinn_phong_lanes.cpp
 
   void Load(int lane, const BlinnPhongProblem& problem);
-  bool Propose(int lane);
 
   int lights_;
   BlinnPhongOptions options_;

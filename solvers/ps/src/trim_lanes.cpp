@@ -62,6 +62,24 @@ void TrimRound(const LaneNormalEquations& eq, int lights, const double* directio
   }
 }
 
+// The weighted normal equations of one pixel's samples (v = 1 / sigma^2):
+// sums = {xx, xy, xz, yy, yz, zz, bx, by, bz, usable count}.
+PHOTORIG_PS_MULTIVERSION
+void NormalEquationsOfRow(int lights, const double* directions, const double* observed, const double* inverse_sigma,
+                          double* sums) {
+  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0, bx = 0, by = 0, bz = 0, usable = 0;
+#pragma omp simd reduction(+ : xx, xy, xz, yy, yz, zz, bx, by, bz, usable)
+  for (int k = 0; k < lights; ++k) {
+    const double v = inverse_sigma[k] * inverse_sigma[k], b = observed[k];
+    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
+    xx += v * wx * wx, xy += v * wx * wy, xz += v * wx * wz, yy += v * wy * wy, yz += v * wy * wz, zz += v * wz * wz;
+    bx += v * b * wx, by += v * b * wy, bz += v * b * wz;
+    usable += v > 0.0 ? 1.0 : 0.0;
+  }
+  const double values[10] = {xx, xy, xz, yy, yz, zz, bx, by, bz, usable};
+  for (int i = 0; i < 10; ++i) sums[i] = values[i];
+}
+
 }  // namespace
 
 struct TrimmedLambertianLanes::State {
@@ -86,21 +104,15 @@ TrimmedLambertianLanes::TrimmedLambertianLanes(TrimmedLambertianLanes&&) noexcep
 
 void TrimmedLambertianLanes::Load(int lane, const TrimProblem& problem) {
   State& s = *state_;
-  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0, bx = 0, by = 0, bz = 0;
-  int usable = 0;
+  double sums[10];  // the normal equations (6), their right-hand side (3), the usable count
+  NormalEquationsOfRow(lights_, directions_.data(), problem.observed, problem.inverse_sigma, sums);
   for (int k = 0; k < lights_; ++k) {
-    const double v = problem.inverse_sigma[k] * problem.inverse_sigma[k], b = problem.observed[k];
-    const double wx = directions_[3 * k], wy = directions_[3 * k + 1], wz = directions_[3 * k + 2];
-    observed_[k * kLanes + lane] = b;
-    weight_[k * kLanes + lane] = v;
-    xx += v * wx * wx, xy += v * wx * wy, xz += v * wx * wz, yy += v * wy * wy, yz += v * wy * wz, zz += v * wz * wz;
-    bx += v * b * wx, by += v * b * wy, bz += v * b * wz;
-    usable += v > 0.0;
+    observed_[k * kLanes + lane] = problem.observed[k];
+    weight_[k * kLanes + lane] = problem.inverse_sigma[k] * problem.inverse_sigma[k];
   }
-  const double matrix[6] = {xx, xy, xz, yy, yz, zz}, rhs[3] = {bx, by, bz};
-  for (int i = 0; i < 6; ++i) s.equations.matrix[i][lane] = matrix[i];
-  for (int i = 0; i < 3; ++i) s.equations.rhs[i][lane] = rhs[i];
-  s.usable[lane] = usable;
+  for (int i = 0; i < 6; ++i) s.equations.matrix[i][lane] = sums[i];
+  for (int i = 0; i < 3; ++i) s.equations.rhs[i][lane] = sums[6 + i];
+  s.usable[lane] = static_cast<int>(sums[9]);
   s.removed[lane] = 0;
   s.max_rejected[lane] = problem.max_rejected;
 }
