@@ -1,14 +1,16 @@
-// The lane fitter of the Blinn-Phong model: its math against libm, its
-// derivatives against forward-mode automatic differentiation, its fits
-// against the per-pixel reference fit.
+// The lane kernels: their math against libm, the Blinn-Phong fitter's
+// derivatives against forward-mode automatic differentiation, the trimming
+// against known outliers, and `auto` in lanes against the per-pixel reference.
 #include "blinn_phong_lanes.h"
 #include "lane_math.h"
+#include "trim_lanes.h"
 
 #include "photorig/autodiff/blinn_phong_jacobian.h"
 #include "ps_test_scene.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -204,6 +206,120 @@ TEST(BlinnPhongLanes, SamplesWithoutWeightAreIgnored) {
   const auto masked = fitter.Linearize(problems[0], Eigen::Vector3d::UnitZ(), 0.5, 0.1, 20.0);
   EXPECT_TRUE(std::isfinite(masked.cost));
   EXPECT_LT(masked.cost, clean.cost);
+}
+
+}  // namespace
+}  // namespace photorig::ps
+
+namespace photorig::ps {
+namespace {
+
+using internal::TrimmedLambertianLanes;
+using internal::TrimProblem;
+using internal::TrimSolution;
+
+// Chi-square 0.999 quantiles are not needed here: a threshold per dof that
+// accepts a fit whose residuals are at the noise level (sigma = 1).
+std::vector<double> Thresholds(int lights) {
+  std::vector<double> quantile(lights + 1);
+  for (int dof = 0; dof <= lights; ++dof) quantile[dof] = 2.0 * dof + 10.0;
+  return quantile;
+}
+
+TEST(TrimmedLambertianLanes, DropsExactlyTheOutliersAndNothingElse) {
+  const auto lights = testing::RingLights(32, 25, 80);
+  const int n = static_cast<int>(lights.size()), pixels = 21;  // not a multiple of the lane count
+  std::mt19937 rng(23);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  std::vector<double> observed(pixels * n), inverse_sigma(pixels * n, 1.0);
+  std::vector<Eigen::Vector3d> truth;
+  std::vector<int> outliers;
+  for (int p = 0; p < pixels; ++p) {
+    const Eigen::Vector3d x = Eigen::Vector3d(0.2 * noise(rng), 0.2 * noise(rng), 1.0).normalized() * 150.0;
+    truth.push_back(x);
+    for (int k = 0; k < n; ++k) observed[p * n + k] = lights[k].dot(x) + noise(rng);
+    // Pixel p gets p % 4 highlights, each far above the noise.
+    std::vector<int> hit;
+    while (static_cast<int>(hit.size()) < p % 4) {
+      const int k = pick(rng);
+      if (std::find(hit.begin(), hit.end(), k) != hit.end()) continue;
+      hit.push_back(k);
+      observed[p * n + k] += 80.0 + 20.0 * hit.size();
+    }
+    outliers.push_back(p % 4);
+  }
+  // One pixel whose residuals are broad, not a few outliers: trimming must
+  // give up after its allowance and say so.
+  for (int k = 0; k < n; ++k) observed[5 * n + k] += 30.0 * std::sin(1.7 * k);
+  outliers[5] = -1;
+  std::vector<TrimProblem> problems;
+  for (int p = 0; p < pixels; ++p) problems.push_back({&observed[p * n], &inverse_sigma[p * n], 6});
+  TrimmedLambertianLanes trimmer(lights);
+  std::vector<TrimSolution> solutions(pixels);
+  const std::vector<double> thresholds = Thresholds(n);
+  trimmer.Fit(problems, thresholds, solutions);
+  for (int p = 0; p < pixels; ++p) {
+    const TrimSolution& s = solutions[p];
+    ASSERT_TRUE(s.ok) << p;
+    if (outliers[p] < 0) {
+      EXPECT_EQ(s.rejected, 6) << p;
+      EXPECT_GT(s.chi2, thresholds[s.used - 3]) << p;
+      continue;
+    }
+    EXPECT_EQ(s.rejected, outliers[p]) << p;
+    EXPECT_EQ(s.used, n - outliers[p]) << p;
+    EXPECT_LE(s.chi2, thresholds[s.used - 3]) << p;
+    EXPECT_LT((s.x - truth[p]).norm(), 2.0) << p;  // a few noise sigmas over ~30 samples
+  }
+}
+
+// Angle between two stored normals; atan2 keeps small angles exact where acos
+// of a float dot product cannot resolve them.
+double AngleDeg(const cv::Vec3f& a, const cv::Vec3f& b) {
+  const Eigen::Vector3d u(a[0], a[1], a[2]), v(b[0], b[1], b[2]);
+  return std::atan2(u.cross(v).norm(), u.dot(v)) * 180.0 / M_PI;
+}
+
+// `auto` through the lanes and through the per-pixel reference on the same
+// shiny stack: the same models for (nearly) every pixel, the same normals
+// where both trimmed, close ones where both fitted Blinn-Phong.
+TEST(PhotometricStereoLanes, AutoMatchesThePerPixelReference) {
+  const auto truth = testing::RandomSurface(40, 30, 45.0, 29);
+  const auto lights = testing::RingLights(36, 20, 80);
+  const auto stack = testing::RenderShinyStack(truth, lights, 2500.0, testing::Specular{0.3, 120.0}, 20.0f, 2.0);
+  PhotometricStereoOptions lanes_options;
+  lanes_options.method = Method::kAuto;
+  lanes_options.lambertian.shadow_threshold = 6.0;
+  lanes_options.estimate_noise = false;
+  PhotometricStereoOptions reference_options = lanes_options;
+  reference_options.blinn_phong.fitter = BlinnPhongOptions::Fitter::kPerPixel;
+  NormalMap lanes_map, reference_map;
+  const SolverSummary lanes = SolvePhotometricStereo(lanes_options, stack, &lanes_map);
+  const SolverSummary reference = SolvePhotometricStereo(reference_options, stack, &reference_map);
+  ASSERT_TRUE(lanes.IsSolutionUsable()) << lanes.message;
+  ASSERT_TRUE(reference.IsSolutionUsable()) << reference.message;
+  ASSERT_GT(reference.pixels_robust, 50u);
+  ASSERT_GT(reference.pixels_blinn_phong, 50u);
+  const double pixels = double(reference.pixels_solved);
+  EXPECT_LE(std::abs(double(lanes.pixels_robust) - double(reference.pixels_robust)), 0.005 * pixels);
+  EXPECT_LE(std::abs(double(lanes.pixels_blinn_phong) - double(reference.pixels_blinn_phong)), 0.01 * pixels);
+  int same_model = 0, trimmed = 0;
+  for (int p = 0; p < truth.normals.rows * truth.normals.cols; ++p) {
+    const auto model = lanes_map.model.ptr<std::uint8_t>()[p];
+    if (model != reference_map.model.ptr<std::uint8_t>()[p]) continue;
+    ++same_model;
+    const cv::Vec3f a = lanes_map.normals.ptr<cv::Vec3f>()[p], b = reference_map.normals.ptr<cv::Vec3f>()[p];
+    if (model == static_cast<std::uint8_t>(PixelModel::kRobust)) {
+      ++trimmed;
+      EXPECT_LT(AngleDeg(a, b), 1e-3) << "pixel " << p;  // the same algorithm
+    } else if (model == static_cast<std::uint8_t>(PixelModel::kBlinnPhong) &&
+               reference_map.confidence.ptr<float>()[p] > 0.1f) {
+      EXPECT_LT(AngleDeg(a, b), 0.1) << "pixel " << p;
+    }
+  }
+  EXPECT_GE(same_model, 0.98 * pixels);
+  EXPECT_GT(trimmed, 50);
 }
 
 }  // namespace
