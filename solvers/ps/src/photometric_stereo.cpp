@@ -57,10 +57,14 @@ void ReadRow(const RowInputs& in, int pixel, const double* x, double* observed, 
   const double* directions = in.directions;
   const double shadow = in.shadow_threshold, saturation = in.saturation_level;
   const double read_variance = in.read_variance, gain = in.shot_gain;
+  // The reads first: GCC does not vectorise a load through a per-lane pointer,
+  // and a loop with one stays scalar throughout.
+  double* values = observed;
+  for (int k = 0; k < in.lights; ++k) values[k] = planes[k][pixel];
   double sum = 0.0, count = 0.0;
 #pragma omp simd reduction(+ : sum, count)
   for (int k = 0; k < in.lights; ++k) {
-    const double value = planes[k][pixel];
+    const double value = values[k];
     const double signal = value - dark;
     const bool ok = (signal > shadow) & (value < saturation);
     const double s = scales[k];
@@ -75,6 +79,23 @@ void ReadRow(const RowInputs& in, int pixel, const double* x, double* observed, 
   }
   *chi2 = sum;
   *usable = static_cast<int>(count);
+}
+
+// Marks the solved pixels of a tile whose Lambertian confidence is below
+// threshold[usable samples] (they need a closer look); returns how many
+// solved pixels pass.
+PHOTORIG_PS_MULTIVERSION
+std::size_t ScreenTile(const std::uint8_t* flags, const std::uint16_t* usable, const float* confidence, int count,
+                       const double* threshold, std::uint8_t* needs_refit) {
+  int passed = 0;
+#pragma omp simd reduction(+ : passed)
+  for (int i = 0; i < count; ++i) {
+    const bool solved = flags[i] == static_cast<std::uint8_t>(PixelFlag::kSolved);
+    const bool pass = double(confidence[i]) >= threshold[usable[i]];
+    needs_refit[i] = solved & !pass;
+    passed += solved & pass;
+  }
+  return static_cast<std::size_t>(passed);
 }
 
 // A stack's samples, pixel by pixel.
@@ -576,6 +597,16 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   if (!(working.noise.read_sigma > 0.0)) working.noise.read_sigma = 1e-9;  // noise-free: any residual counts
   const std::vector<double> quantile = ChiSquareQuantiles(stack.light_count(), options.selection.adequacy_quantile);
   auto adequate = [&quantile](const Fit& fit) { return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile[fit.Dof()]; };
+  // The screen of `auto`: the Lambertian pass's confidence is expected /
+  // observed residual variance, so dof / confidence is its chi-square
+  // statistic with the noise variance averaged over the samples, and a pixel
+  // with confidence >= dof / quantile[dof] passes the adequacy test without
+  // another look at its samples. (The exact test weights each sample by its
+  // own variance; the two differ only near the threshold.) Other methods
+  // refine every pixel.
+  std::vector<double> screen_threshold(stack.light_count() + 1, std::numeric_limits<double>::infinity());
+  if (options.method == Method::kAuto)
+    for (int dof = 1; dof + 3 <= stack.light_count(); ++dof) screen_threshold[dof + 3] = dof / quantile[dof];
 
   // Each pixel is refined right after its tile's Lambertian pass, while the
   // tile's samples are still in cache; counts are kept per thread. With the
@@ -591,6 +622,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     std::size_t row;  // of the thread's sample rows
   };
   struct ThreadState {
+    std::vector<std::uint8_t> needs_refit;  // per pixel of the tile
     PixelSamples samples;
     TrimScratch trim;
     autodiff::Tape tape;
@@ -739,22 +771,15 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   };
   const internal::TileVisitor refine_tile = [&](int thread, int begin, int count) {
     ThreadState& state = states[thread];
-    const std::uint8_t* flags = result->flags.ptr<std::uint8_t>();  // allocated by the solve
-    const std::uint16_t* usable = result->usable_lights.ptr<std::uint16_t>();
-    const float* confidence = result->confidence.ptr<float>();
     const bool auto_lanes = lanes && options.method == Method::kAuto;
-    for (int p = begin; p < begin + count; ++p) {
-      if (flags[p] != static_cast<int>(PixelFlag::kSolved)) continue;
-      // The Lambertian pass's confidence is expected / observed residual
-      // variance, so dof / confidence is its chi-square statistic with the
-      // noise variance averaged over the samples: the adequacy test without
-      // another look at the samples. (The exact test weights each sample by
-      // its own variance; the two differ only near the threshold.)
-      const int dof = usable[p] - 3;
-      if (options.method == Method::kAuto && dof > 0 && confidence[p] * quantile[dof] >= dof) {
-        ++state.lambertian;
-        continue;
-      }
+    state.needs_refit.resize(count);
+    state.lambertian += ScreenTile(result->flags.ptr<std::uint8_t>() + begin,
+                                   result->usable_lights.ptr<std::uint16_t>() + begin,
+                                   result->confidence.ptr<float>() + begin, count, screen_threshold.data(),
+                                   state.needs_refit.data());
+    for (int i = 0; i < count; ++i) {
+      if (!state.needs_refit[i]) continue;
+      const int p = begin + i;
       if (!auto_lanes) {
         refine_pixel(state, p);
         continue;
