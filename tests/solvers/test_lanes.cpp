@@ -21,6 +21,20 @@ using internal::BlinnPhongLaneFitter;
 using internal::BlinnPhongProblem;
 using internal::BlinnPhongSolution;
 
+// Options for the test stacks, which carry their complete noise model.
+PhotometricStereoOptions LaneOptions(Method method) {
+  PhotometricStereoOptions options;
+  options.method = method;
+  options.lambertian.shadow_threshold = 6.0;
+  options.estimate_noise = false;
+  return options;
+}
+
+PhotometricStereoOptions PerPixel(PhotometricStereoOptions options) {
+  options.blinn_phong.fitter = BlinnPhongOptions::Fitter::kPerPixel;
+  return options;
+}
+
 TEST(LaneMath, LogAndExpAgreeWithLibmToAFewUlp) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> exponent(-300.0, 300.0), mantissa(1.0, 2.0);
@@ -163,12 +177,8 @@ TEST(BlinnPhongLanes, FitsAgreeWithThePerPixelReference) {
   // The whole solver with either fitter on a noisy stack: the same answer to
   // within a small fraction of the error either makes.
   const auto stack = testing::RenderShinyStack(truth, lights, 2000.0, testing::Specular{0.4, 40.0}, 20.0f, 2.0);
-  PhotometricStereoOptions lanes_options;
-  lanes_options.method = Method::kBlinnPhong;
-  lanes_options.lambertian.shadow_threshold = 6.0;
-  lanes_options.estimate_noise = false;
-  PhotometricStereoOptions reference_options = lanes_options;
-  reference_options.blinn_phong.fitter = BlinnPhongOptions::Fitter::kPerPixel;
+  const PhotometricStereoOptions lanes_options = LaneOptions(Method::kBlinnPhong);
+  const PhotometricStereoOptions reference_options = PerPixel(lanes_options);
   NormalMap lanes_map, reference_map;
   ASSERT_TRUE(SolvePhotometricStereo(lanes_options, stack, &lanes_map).IsSolutionUsable());
   ASSERT_TRUE(SolvePhotometricStereo(reference_options, stack, &reference_map).IsSolutionUsable());
@@ -207,12 +217,6 @@ TEST(BlinnPhongLanes, SamplesWithoutWeightAreIgnored) {
   EXPECT_TRUE(std::isfinite(masked.cost));
   EXPECT_LT(masked.cost, clean.cost);
 }
-
-}  // namespace
-}  // namespace photorig::ps
-
-namespace photorig::ps {
-namespace {
 
 using internal::TrimmedLambertianLanes;
 using internal::TrimProblem;
@@ -288,12 +292,8 @@ TEST(PhotometricStereoLanes, AutoMatchesThePerPixelReference) {
   const auto truth = testing::RandomSurface(40, 30, 45.0, 29);
   const auto lights = testing::RingLights(36, 20, 80);
   const auto stack = testing::RenderShinyStack(truth, lights, 2500.0, testing::Specular{0.3, 120.0}, 20.0f, 2.0);
-  PhotometricStereoOptions lanes_options;
-  lanes_options.method = Method::kAuto;
-  lanes_options.lambertian.shadow_threshold = 6.0;
-  lanes_options.estimate_noise = false;
-  PhotometricStereoOptions reference_options = lanes_options;
-  reference_options.blinn_phong.fitter = BlinnPhongOptions::Fitter::kPerPixel;
+  const PhotometricStereoOptions lanes_options = LaneOptions(Method::kAuto);
+  const PhotometricStereoOptions reference_options = PerPixel(lanes_options);
   NormalMap lanes_map, reference_map;
   const SolverSummary lanes = SolvePhotometricStereo(lanes_options, stack, &lanes_map);
   const SolverSummary reference = SolvePhotometricStereo(reference_options, stack, &reference_map);

@@ -32,6 +32,17 @@ struct alignas(64) LaneEquations {
   double gradient[kParameters][kLanes];
 };
 
+void CopyLane(const LanePoint& from, int lane, LanePoint* to) {
+  for (int i = 0; i < 3; ++i) {
+    to->normal[i][lane] = from.normal[i][lane];
+    to->tangent[0][i][lane] = from.tangent[0][i][lane];
+    to->tangent[1][i][lane] = from.tangent[1][i][lane];
+  }
+  to->diffuse_albedo[lane] = from.diffuse_albedo[lane];
+  to->specular_albedo[lane] = from.specular_albedo[lane];
+  to->exponent[lane] = from.exponent[lane];
+}
+
 // A tangent basis for a unit normal, continuous everywhere but on n_z = -1
 // (Duff et al. 2017): branch-free, so it also runs in lanes.
 PHOTORIG_LANE_INLINE void TangentBasis(double nx, double ny, double nz, double t1[3], double t2[3]) {
@@ -355,14 +366,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
       bool done = false;
       if (cost < s.current_cost[lane]) {
         const double decrease = (s.current_cost[lane] - cost) / std::max(s.current_cost[lane], 1e-300);
-        for (int i = 0; i < 3; ++i) {
-          s.current.normal[i][lane] = s.candidate.normal[i][lane];
-          s.current.tangent[0][i][lane] = s.candidate.tangent[0][i][lane];
-          s.current.tangent[1][i][lane] = s.candidate.tangent[1][i][lane];
-        }
-        s.current.diffuse_albedo[lane] = s.candidate.diffuse_albedo[lane];
-        s.current.specular_albedo[lane] = s.candidate.specular_albedo[lane];
-        s.current.exponent[lane] = s.candidate.exponent[lane];
+        CopyLane(s.candidate, lane, &s.current);
         s.current_equations.cost[lane] = cost;
         for (int e = 0; e < kHessianEntries; ++e) s.current_equations.hessian[e][lane] = s.candidate_equations.hessian[e][lane];
         for (int e = 0; e < kParameters; ++e) s.current_equations.gradient[e][lane] = s.candidate_equations.gradient[e][lane];
@@ -412,14 +416,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
         finish(lane);
         continue;
       }
-      for (int i = 0; i < 3; ++i) {
-        s.candidate.normal[i][lane] = s.proposal.normal[i][lane];
-        s.candidate.tangent[0][i][lane] = s.proposal.tangent[0][i][lane];
-        s.candidate.tangent[1][i][lane] = s.proposal.tangent[1][i][lane];
-      }
-      s.candidate.diffuse_albedo[lane] = s.proposal.diffuse_albedo[lane];
-      s.candidate.specular_albedo[lane] = s.proposal.specular_albedo[lane];
-      s.candidate.exponent[lane] = s.proposal.exponent[lane];
+      CopyLane(s.proposal, lane, &s.candidate);
     }
   }
 }
