@@ -49,6 +49,17 @@ TEST(LaneMath, LogAndExpAgreeWithLibmToAFewUlp) {
   }
   EXPECT_LT(worst_log, 4e-16);
   EXPECT_LT(worst_exp, 1e-15);
+  // The fused logarithm and reciprocal, over the range the lobe uses.
+  double worst_fused_log = 0.0, worst_inverse = 0.0;
+  for (int i = 0; i < 200000; ++i) {
+    const double x = mantissa(rng) * std::pow(2.0, std::floor(-1000.0 + 1001.0 * (mantissa(rng) - 1.0)));
+    double inverse = 0.0;
+    const double log_x = internal::LaneLogAndInverse(x, &inverse);
+    worst_fused_log = std::max(worst_fused_log, std::abs(log_x - std::log(x)) / std::max(std::abs(std::log(x)), 1e-3));
+    worst_inverse = std::max(worst_inverse, std::abs(inverse * x - 1.0));
+  }
+  EXPECT_LT(worst_fused_log, 1e-15);
+  EXPECT_LT(worst_inverse, 1e-15);
   // Near 1 the logarithm is small: its absolute error is what matters.
   EXPECT_NEAR(internal::LaneLog(1.0), 0.0, 0.0);
   EXPECT_NEAR(internal::LaneLog(1.0 + 1e-12), std::log(1.0 + 1e-12), 1e-27);

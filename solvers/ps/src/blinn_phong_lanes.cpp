@@ -82,7 +82,8 @@ void EvaluateLanes(const LanePoint& q, int lights, const double* geometry, const
       // Clamps as max() and two selects: GCC gives up on a lane loop with more conditions.
       const double lit_c = std::max(c, 0.0);
       const double safe_h = std::max(h, 1e-300);  // h <= 0: lobe ~ 1e-300 e, nothing
-      const double log_h = LaneLog(safe_h);
+      double inverse_h;
+      const double log_h = LaneLogAndInverse(safe_h, &inverse_h);
       const double lobe = LaneExp(q.exponent[j] * log_h);
       const double brdf = q.diffuse_albedo[j] * kInvPi + lobe_scale[j] * lobe;
       const double sigma = inverse_sigma[k * kLanes + j];
@@ -90,7 +91,7 @@ void EvaluateLanes(const LanePoint& q, int lights, const double* geometry, const
       const double cs = lit_c * sigma;
       // dI/dn / sigma = a w + s w_h; the w_h term vanishes with the clamp of h.
       const double a = c > 0.0 ? brdf * sigma : 0.0;
-      const double s = h > 0.0 ? lobe_scale[j] * q.exponent[j] * lobe / safe_h * cs : 0.0;
+      const double s = h > 0.0 ? lobe_scale[j] * q.exponent[j] * lobe * inverse_h * cs : 0.0;
       const double w_t1 = wx * q.tangent[0][0][j] + wy * q.tangent[0][1][j] + wz * q.tangent[0][2][j];
       const double w_t2 = wx * q.tangent[1][0][j] + wy * q.tangent[1][1][j] + wz * q.tangent[1][2][j];
       const double h_t1 = hx * q.tangent[0][0][j] + hy * q.tangent[0][1][j] + hz * q.tangent[0][2][j];
