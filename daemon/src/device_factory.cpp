@@ -120,7 +120,10 @@ MotionRig MakeMotion(const DeviceContext& context) {
       axis_options.faults = context.rig.sim->axis_faults.at(axis.id);
     rig.axes.push_back(std::make_unique<sim::SimRotaryAxis>(
         axis.id, axis.limits, motion.settle, axis_options,
-        [world = context.world, id = axis.id](double deg) { world->SetArm(id, deg); }));
+        // The drive counts from its home switch, which sits at home_deg on the rig.
+        [world = context.world, id = axis.id, home = axis.limits.home_deg](double deg) {
+          world->SetArm(id, deg + home);
+        }));
     axes.push_back(rig.axes.back().get());
   }
   rig.goniometer = std::make_unique<drivers::Goniometer>(axes, motion.constraints);

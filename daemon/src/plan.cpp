@@ -58,9 +58,9 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
 
   std::map<int, double> lit_ms;  // by channel
   double total_ms = 0.0;
-  std::map<std::string, double> axes_at;  // every axis starts from home (0 deg)
+  std::map<std::string, double> axes_at;  // every axis starts from its home
   if (rig.motion)
-    for (const AxisConfig& axis : rig.motion->axes) axes_at[axis.id] = 0.0;
+    for (const AxisConfig& axis : rig.motion->axes) axes_at[axis.id] = axis.limits.home_deg;
   for (const CaptureStep& step : steps) {
     const double exposure_ms = step.exposure_us / 1000.0;
     total_ms += exposure_ms + options.step_overhead_ms;

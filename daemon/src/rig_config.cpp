@@ -181,9 +181,12 @@ MotionConfig ParseMotion(const YamlNode& node) {
     if (!settle.IsValid(&why)) s->Fail(why);
   }
   for (const YamlNode& item : node["axes"].Items()) {
-    item.ExpectKeys({"id", "base_address", "min_deg", "max_deg"});
-    AxisConfig axis{item["id"].AsString(), {item.Double("min_deg", -180.0), item.Double("max_deg", 180.0)}, item};
+    item.ExpectKeys({"id", "base_address", "min_deg", "max_deg", "home_deg"});
+    AxisConfig axis{item["id"].AsString(),
+                    {item.Double("min_deg", -180.0), item.Double("max_deg", 180.0), item.Double("home_deg", 0.0)},
+                    item};
     if (!(axis.limits.min_deg < axis.limits.max_deg)) item.Fail("needs min_deg < max_deg");
+    if (!axis.limits.Contains(axis.limits.home_deg)) item.Fail("needs home_deg within [min_deg, max_deg]");
     if (motion.axis(axis.id)) item["id"].Fail("duplicate axis id '" + axis.id + "'");
     motion.axes.push_back(axis);
   }
@@ -197,6 +200,11 @@ MotionConfig ParseMotion(const YamlNode& node) {
       const double min_deg = item["min_separation_deg"].AsDouble();
       if (!(min_deg >= 0)) item["min_separation_deg"].Fail("must be >= 0");
       motion.constraints.push_back({names[0].AsString(), names[1].AsString(), min_deg});
+      const double home_gap = std::abs(motion.axis(names[0].AsString())->limits.home_deg -
+                                       motion.axis(names[1].AsString())->limits.home_deg);
+      if (home_gap < min_deg)
+        item.Fail("the two arms' homes (home_deg) are " + std::to_string(home_gap) +
+                  " deg apart, closer than min_separation_deg: homing would drive them into each other");
     }
   return motion;
 }

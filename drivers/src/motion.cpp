@@ -73,6 +73,10 @@ Status Motion::Open() {
   if (!settle_.IsValid(&why)) return {StatusCode::kInvalidArgument, "axis " + id_ + ": " + why};
   if (!(limits_.min_deg < limits_.max_deg))
     return {StatusCode::kInvalidArgument, "axis " + id_ + ": soft limits need min_deg < max_deg"};
+  if (!limits_.Contains(limits_.home_deg))
+    return {StatusCode::kInvalidArgument, "axis " + id_ + ": home " + Degrees(limits_.home_deg) +
+                                              " outside its soft limits [" + Degrees(limits_.min_deg) + ", " +
+                                              Degrees(limits_.max_deg) + "]"};
   Status status = DoOpen();
   if (!status.ok()) return status;
   state_ = State::kOpen;
@@ -86,10 +90,14 @@ Status Motion::Open() {
 
 Status Motion::Home() {
   if (state_ != State::kOpen && state_ != State::kIdle) return IllegalTransition("home");
+  // Progress is measured from where the drive starts (a stall check against
+  // the home itself would call a short run that ends there a stall).
+  Result<AxisStatus> start = ReadStatus();
+  if (!start.ok()) return EnterFault(start.status().code(), start.status().message());
   Status status = DoStartHome();
   if (!status.ok()) return EnterFault(status.code(), "homing not accepted: " + status.message());
   state_ = State::kHoming;
-  return WaitSettled(0.0, 0.0, true);
+  return WaitSettled(start->position_deg, limits_.home_deg, true);
 }
 
 Status Motion::MoveTo(double target_deg, const MotionProfile& profile) {
@@ -99,9 +107,9 @@ Status Motion::MoveTo(double target_deg, const MotionProfile& profile) {
                                               Degrees(limits_.min_deg) + ", " + Degrees(limits_.max_deg) + "]"};
   if (!(profile.velocity_deg_s > 0) || !(profile.acceleration_deg_s2 > 0))
     return {StatusCode::kInvalidArgument, "axis " + id_ + ": velocity and acceleration must be > 0"};
-  Result<AxisStatus> start = DoReadStatus();
+  Result<AxisStatus> start = ReadStatus();
   if (!start.ok()) return EnterFault(start.status().code(), start.status().message());
-  Status status = DoStartMove(target_deg, profile);
+  Status status = DoStartMove(target_deg - limits_.home_deg, profile);
   if (!status.ok()) return EnterFault(status.code(), "move not accepted: " + status.message());
   state_ = State::kMoving;
   return WaitSettled(start->position_deg, target_deg, false);
@@ -116,7 +124,7 @@ Status Motion::WaitSettled(double start_deg, double target_deg, bool homing) {
   const double direction = target_deg >= start_deg ? 1.0 : -1.0;
   const char* what = homing ? "homing" : "move";
   for (;;) {
-    Result<AxisStatus> polled = DoReadStatus();
+    Result<AxisStatus> polled = ReadStatus();
     if (!polled.ok()) return EnterFault(polled.status().code(), polled.status().message());
     const AxisStatus& s = polled.value();
     const double elapsed_ms = ElapsedMs(begin);
@@ -183,7 +191,13 @@ Status Motion::ClearFault() {
 
 Result<AxisStatus> Motion::Poll() {
   if (state_ == State::kClosed) return IllegalTransition("poll");
-  return DoReadStatus();
+  return ReadStatus();
+}
+
+Result<AxisStatus> Motion::ReadStatus() {
+  Result<AxisStatus> status = DoReadStatus();
+  if (status.ok()) status->position_deg += limits_.home_deg;
+  return status;
 }
 
 Status Motion::Close() {

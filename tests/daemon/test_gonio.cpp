@@ -43,8 +43,8 @@ motion:
   profile: {velocity_deg_s: 30, acceleration_deg_s2: 120}
   settle: {settle_ms: 5, poll_ms: 2, stall_window_ms: 100}
   axes:
-    - {id: light_arm, min_deg: -80, max_deg: 80}
-    - {id: camera_arm, min_deg: -80, max_deg: 80}
+    - {id: light_arm, min_deg: -80, max_deg: 80, home_deg: -60}
+    - {id: camera_arm, min_deg: -80, max_deg: 80, home_deg: 60}
     - {id: sample_rotation, min_deg: -180, max_deg: 180}
   constraints:
     - {min_separation_deg: 15, axes: [light_arm, camera_arm]}
@@ -124,6 +124,11 @@ TEST(Gonio, RigAndPoseErrorsNameTheirPosition) {
                     "no axis 'detector'");
   ExpectConfigError(Replace(GonioRig(), "{id: light_arm, min_deg: -80", "{id: light_arm, min_deg: 90"), 12, 7,
                     "needs min_deg < max_deg");
+  ExpectConfigError(Replace(GonioRig(), "home_deg: -60", "home_deg: -90"), 12, 7,
+                    "needs home_deg within [min_deg, max_deg]");
+  // Homes closer than the arms may come: homing would drive them together.
+  ExpectConfigError(Replace(GonioRig(), "home_deg: 60", "home_deg: -50"), 16, 7,
+                    "homes (home_deg) are 10.000000 deg apart");
   ExpectConfigError(Replace(GonioRig(), "kind: gonioreflectometer", "kind: light_dome"), 7, 3,
                     "only a gonioreflectometer rig has motion");
   ExpectConfigError(Replace(GonioRig(), "  driver: sim\n  time_scale", "  driver: stepper\n  time_scale"), 7, 11,
@@ -157,11 +162,12 @@ TEST(Gonio, GridCompilesToPosesAndThePlanCountsTheMoves) {
   options.step_overhead_ms = 0.0;
   const RunPlan plan = PlanRun(recipe, rig, steps, options);
   ASSERT_TRUE(plan.ok());
-  // From home: light to -30; camera to 30; camera back to 0 and rotation to 90;
-  // camera to 30. A trapezoid from rest to rest over d takes d / v + v / a;
-  // each move adds settle_ms (5 ms).
-  const double move_30 = 30.0 / 30.0 + 30.0 / 120.0, move_90 = 90.0 / 30.0 + 30.0 / 120.0;
-  EXPECT_NEAR(plan.move_s, 4 * move_30 + move_90 + 5 * 0.005, 1e-9);
+  // From the homes (light -60, camera +60): light to -30 and camera to 0;
+  // camera to 30; camera back to 0 and rotation to 90; camera to 30. A
+  // trapezoid from rest to rest over d takes d / v + v / a; each move adds
+  // settle_ms (5 ms).
+  auto move = [](double deg) { return deg / 30.0 + 30.0 / 120.0; };
+  EXPECT_NEAR(plan.move_s, 4 * move(30) + move(60) + move(90) + 6 * 0.005, 1e-9);
   EXPECT_NEAR(plan.estimate.duration_s, plan.move_s + 5 * kExposureUs * 1e-6, 1e-9);
 }
 

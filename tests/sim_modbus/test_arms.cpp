@@ -10,6 +10,9 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
+
 namespace photorig {
 namespace {
 
@@ -21,7 +24,8 @@ struct Arms {
   sim::SimModbusServer server;
   std::vector<std::unique_ptr<drivers::ModbusDriveAxis>> axes;
 
-  explicit Arms(sim::SimArmOptions base = {}) {
+  // homes: each axis's home_deg on the rig (the drives count from 0 there).
+  explicit Arms(sim::SimArmOptions base = {}, std::array<double, 3> homes = {0.0, 0.0, 0.0}) {
     int address = 1000;
     for (const char* name : {"light_arm", "camera_arm", "sample_stage"}) {
       sim::SimArmOptions options = base;
@@ -40,8 +44,8 @@ struct Arms {
     settle.stall_window_ms = 150;
     address = 1000;
     for (const char* name : {"light_arm", "camera_arm", "sample_stage"}) {
-      axes.push_back(std::make_unique<drivers::ModbusDriveAxis>(name, link, address, drivers::AxisLimits{-120, 120},
-                                                                settle));
+      axes.push_back(std::make_unique<drivers::ModbusDriveAxis>(
+          name, link, address, drivers::AxisLimits{-120, 120, homes[(address - 1000) / 100]}, settle));
       address += 100;
     }
   }
@@ -175,17 +179,28 @@ TEST(ModbusDrive, CloseStopsAMovingArm) {
   EXPECT_LT(stopped_at, 5.0);
 }
 
+double RigPosition(drivers::Motion& axis) {
+  Result<drivers::AxisStatus> polled = axis.Poll();
+  EXPECT_TRUE(polled.ok()) << polled.status().message();
+  return polled.ok() ? polled->position_deg : NAN;
+}
+
+// The light arm homes at -60 deg and the camera arm at +60 on the rig; their
+// drives count from 0 at those homes.
 TEST(Goniometer, KeepsArmsApartAndPicksASafeOrder) {
-  Arms arms;
+  Arms arms({}, {-60.0, 60.0, 0.0});
   std::vector<drivers::Motion*> axes;
   for (auto& axis : arms.axes) axes.push_back(axis.get());
   drivers::Goniometer gonio(axes, {{"light_arm", "camera_arm", 15.0}});
   ASSERT_TRUE(gonio.Validate().ok());
   for (auto& axis : arms.axes) ASSERT_TRUE(axis->Open().ok());
-  ASSERT_TRUE(gonio.HomeAll().ok());  // all at 0: homing itself is not constrained
-  // Too close already: only a move that opens the gap is allowed.
+  ASSERT_TRUE(gonio.HomeAll().ok());
+  EXPECT_NEAR(RigPosition(*arms.axes[0]), -60.0, 1e-6);
+  EXPECT_NEAR(RigPosition(*arms.axes[1]), 60.0, 1e-6);
+  EXPECT_NEAR(arms.sims[0]->position_deg(), 0.0, 1e-6);  // the drive's own count
   ASSERT_TRUE(gonio.MoveTo({{"light_arm", -30.0}}, kFast).ok());
   ASSERT_TRUE(gonio.MoveTo({{"camera_arm", 30.0}}, kFast).ok());
+  EXPECT_NEAR(arms.sims[0]->position_deg(), 30.0, 1e-3);  // -30 on the rig is 30 from the home switch
 
   // Too close at the end: refused, nothing moves.
   const std::uint64_t moves = arms.sims[0]->moves() + arms.sims[1]->moves();
@@ -202,8 +217,42 @@ TEST(Goniometer, KeepsArmsApartAndPicksASafeOrder) {
 
   // Both move the same way: only the camera-first order keeps them apart.
   ASSERT_TRUE(gonio.MoveTo({{"light_arm", 40.0}, {"camera_arm", 70.0}}, kFast).ok());
-  EXPECT_NEAR(arms.sims[0]->position_deg(), 40.0, 1e-3);
-  EXPECT_NEAR(arms.sims[1]->position_deg(), 70.0, 1e-3);
+  EXPECT_NEAR(RigPosition(*arms.axes[0]), 40.0, 1e-3);
+  EXPECT_NEAR(RigPosition(*arms.axes[1]), 70.0, 1e-3);
+  EXPECT_TRUE(gonio.CloseAll().ok());
+}
+
+TEST(Goniometer, HomesInAnOrderThatKeepsArmsApart) {
+  Arms arms({}, {-60.0, 60.0, 0.0});
+  // Camera arm listed first: homing in the given order would swing it onto the light arm below.
+  std::vector<drivers::Motion*> axes{arms.axes[1].get(), arms.axes[0].get(), arms.axes[2].get()};
+  drivers::Goniometer gonio(axes, {{"light_arm", "camera_arm", 15.0}});
+  for (auto& axis : arms.axes) ASSERT_TRUE(axis->Open().ok());
+  ASSERT_TRUE(gonio.HomeAll().ok());  // from power-on: the given order, both arms away from each other
+  ASSERT_TRUE(gonio.MoveTo({{"light_arm", 50.0}, {"camera_arm", 70.0}}, kFast).ok());
+  // Camera first would stop it at 60, 10 deg from the light arm at 50: the light arm must go first.
+  const Status homed = gonio.HomeAll();
+  ASSERT_TRUE(homed.ok()) << homed.message();
+  EXPECT_NEAR(RigPosition(*arms.axes[0]), -60.0, 1e-6);
+  EXPECT_NEAR(RigPosition(*arms.axes[1]), 60.0, 1e-6);
+  EXPECT_TRUE(gonio.CloseAll().ok());
+}
+
+TEST(Goniometer, RefusesToHomeArmsWhoseHomesCollide) {
+  Arms arms({}, {0.0, 5.0, 0.0});  // power-on at -40 and 35 deg on the drives
+  std::vector<drivers::Motion*> axes;
+  for (auto& axis : arms.axes) axes.push_back(axis.get());
+  drivers::Goniometer gonio(axes, {{"light_arm", "camera_arm", 15.0}});
+  for (auto& axis : arms.axes) ASSERT_TRUE(axis->Open().ok());
+  const Status homed = gonio.HomeAll();
+  EXPECT_EQ(homed.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(homed.message().find("at their homes light_arm and camera_arm would be 5.000 deg apart"),
+            std::string::npos)
+      << homed.message();
+  // Nothing moved.
+  EXPECT_NEAR(arms.sims[0]->position_deg(), -40.0, 1e-9);
+  EXPECT_NEAR(arms.sims[1]->position_deg(), 35.0, 1e-9);
+  EXPECT_EQ(arms.axes[0]->state(), State::kOpen);
   EXPECT_TRUE(gonio.CloseAll().ok());
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 
 namespace photorig::drivers {
 namespace {
@@ -62,15 +63,61 @@ std::string Goniometer::CheckSweep(const std::map<std::string, double>& position
   return {};
 }
 
-Status Goniometer::HomeAll() {
-  for (Motion* axis : axes_) {
-    Status status = axis->Home();
+std::string Goniometer::SafeOrder(const std::map<std::string, double>& positions,
+                                  const std::map<std::string, double>& targets, std::vector<std::string>* order) const {
+  // Few axes: try every order, take the first whose sweeps all keep clear.
+  order->clear();
+  for (const auto& [id, target] : targets) order->push_back(id);
+  std::sort(order->begin(), order->end());
+  std::string last_why;
+  do {
+    std::map<std::string, double> at = positions;
+    std::string why;
+    for (const std::string& id : *order) {
+      why = CheckSweep(at, id, at[id], targets.at(id));
+      if (!why.empty()) break;
+      at[id] = targets.at(id);
+    }
+    if (why.empty()) return {};
+    last_why = why;
+  } while (std::next_permutation(order->begin(), order->end()));
+  return last_why;
+}
+
+Status Goniometer::RunInOrder(const std::vector<std::string>& order, const std::function<Status(Motion*)>& step) {
+  for (const std::string& id : order) {
+    Status status = step(axis(id));
     if (!status.ok()) {
       (void)StopAll();
       return status;
     }
   }
   return Status::Ok();
+}
+
+Status Goniometer::HomeAll() {
+  std::map<std::string, double> homes, positions;
+  bool positions_known = true;
+  for (Motion* axis : axes_) {
+    homes[axis->id()] = axis->limits().home_deg;
+    if (axis->state() != Motion::State::kIdle) {
+      positions_known = false;  // never homed, or faulted: the drive's count is not trusted
+      continue;
+    }
+    Result<AxisStatus> polled = axis->Poll();
+    if (!polled.ok()) return polled.status();
+    positions[axis->id()] = polled->position_deg;
+  }
+  if (std::string why = CheckConfiguration(homes); !why.empty())
+    return {StatusCode::kInvalidArgument, "goniometer: refused to home: at their homes " + why};
+  std::vector<std::string> order;
+  if (positions_known) {
+    if (std::string why = SafeOrder(positions, homes, &order); !why.empty())
+      return {StatusCode::kInvalidArgument, "goniometer: refused to home: no collision-free order: " + why};
+  } else {
+    for (Motion* axis : axes_) order.push_back(axis->id());
+  }
+  return RunInOrder(order, [](Motion* axis) { return axis->Home(); });
 }
 
 Status Goniometer::MoveTo(const std::map<std::string, double>& targets, const MotionProfile& profile) {
@@ -80,43 +127,20 @@ Status Goniometer::MoveTo(const std::map<std::string, double>& targets, const Mo
     if (!polled.ok()) return polled.status();
     positions[axis->id()] = polled->position_deg;
   }
-  std::vector<std::string> order;
   for (const auto& [id, target] : targets) {
     Motion* moving = axis(id);
     if (!moving) return {StatusCode::kInvalidArgument, "goniometer: no axis '" + id + "'"};
     if (!moving->limits().Contains(target))
       return {StatusCode::kInvalidArgument, "goniometer: axis " + id + " target outside its soft limits"};
-    order.push_back(id);
   }
   std::map<std::string, double> final_positions = positions;
   for (const auto& [id, target] : targets) final_positions[id] = target;
   if (std::string why = CheckConfiguration(final_positions); !why.empty())
     return {StatusCode::kInvalidArgument, "goniometer: refused: " + why};
-
-  // Few axes: try every order, take the first whose sweeps all keep clear.
-  std::sort(order.begin(), order.end());
-  std::string last_why;
-  do {
-    std::map<std::string, double> at = positions;
-    std::string why;
-    for (const std::string& id : order) {
-      why = CheckSweep(at, id, at[id], targets.at(id));
-      if (!why.empty()) break;
-      at[id] = targets.at(id);
-    }
-    if (why.empty()) {
-      for (const std::string& id : order) {
-        Status status = axis(id)->MoveTo(targets.at(id), profile);
-        if (!status.ok()) {
-          (void)StopAll();
-          return status;
-        }
-      }
-      return Status::Ok();
-    }
-    last_why = why;
-  } while (std::next_permutation(order.begin(), order.end()));
-  return {StatusCode::kInvalidArgument, "goniometer: refused: no collision-free order: " + last_why};
+  std::vector<std::string> order;
+  if (std::string why = SafeOrder(positions, targets, &order); !why.empty())
+    return {StatusCode::kInvalidArgument, "goniometer: refused: no collision-free order: " + why};
+  return RunInOrder(order, [&](Motion* axis) { return axis->MoveTo(targets.at(axis->id()), profile); });
 }
 
 Status Goniometer::StopAll() {

@@ -18,9 +18,15 @@
 
 namespace photorig::drivers {
 
+// An axis's frame on the rig, in rig degrees.
 struct AxisLimits {
   double min_deg = -180.0;  // soft limits: a target outside is refused before anything moves
   double max_deg = 180.0;
+  // Where homing leaves the axis: the rig angle of the drive's own zero. The
+  // drive counts from its home switch; Motion adds this to every position it
+  // reports and subtracts it from every target, so callers see rig angles.
+  // Arms that share a circle need different homes (see Goniometer::HomeAll).
+  double home_deg = 0.0;
   bool Contains(double position_deg) const { return position_deg >= min_deg && position_deg <= max_deg; }
 };
 
@@ -72,7 +78,7 @@ class Motion {
   Status MoveTo(double target_deg, const MotionProfile& profile = {});
   Status Stop();        // halts the drive; Homing/Moving/Idle -> Idle (Open if never homed)
   Status ClearFault();  // Fault -> Open: the axis must be homed again
-  Result<AxisStatus> Poll();
+  Result<AxisStatus> Poll();  // positions in rig degrees (see AxisLimits::home_deg)
   Status Close();       // from any state; stops the drive first; safe to call twice
 
  protected:
@@ -86,6 +92,7 @@ class Motion {
 
  private:
   Status IllegalTransition(const char* action) const;
+  Result<AxisStatus> ReadStatus();  // DoReadStatus in rig degrees
   // Stops the drive and enters Fault; returns the error naming the axis.
   Status EnterFault(StatusCode code, const std::string& reason);
   Status WaitSettled(double start_deg, double target_deg, bool homing);

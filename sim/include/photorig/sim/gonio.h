@@ -66,7 +66,7 @@ struct SimAxisOptions {
   // Simulated seconds per wall-clock second: > 1 runs moves faster than life
   // (tests), 1 moves like the real arm.
   double time_scale = 1.0;
-  double power_on_deg = 0.0;  // where the axis stands before homing (home is 0)
+  double power_on_deg = 0.0;  // where the axis stands before homing, in drive degrees (home is 0)
   drivers::MotionProfile homing{20.0, 80.0};
   AxisFaults faults;
 
