@@ -52,14 +52,16 @@ struct RobustOptions {
 struct BlinnPhongOptions {
   // How the fit runs. kLanes: eight pixels at once, one per SIMD lane, with
   // the closed-form derivatives (the tests check them against forward-mode
-  // automatic differentiation); about 20x faster than one pixel at a time.
+  // automatic differentiation); several times faster than one pixel at a
+  // time (docs/performance.md).
   // kPerPixel: one pixel at a time with Jacobians by `derivative`: the
   // reference, and the way to compare derivative methods.
   enum class Fitter { kLanes, kPerPixel };
   Fitter fitter = Fitter::kLanes;
   autodiff::DerivativeMethod derivative = autodiff::DerivativeMethod::kForward;  // kPerPixel only
   int max_iterations = 40;
-  // Stop when a step lowers the cost (chi-square) by less than this fraction.
+  // Stop when a step lowers the cost (chi-square) by less than this fraction
+  // (the lane fitter also stops when the linearised model promises less).
   double relative_tolerance = 1e-6;
   double min_exponent = 1.0;     // below this the lobe is indistinguishable from the diffuse term
   double max_exponent = 2000.0;  // narrower lobes fall between the lights of any practical dome
