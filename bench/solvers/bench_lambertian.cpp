@@ -16,6 +16,7 @@
 #include <map>
 #include <tuple>
 #include <random>
+#include <string>
 
 namespace {
 
@@ -187,6 +188,7 @@ void BM_Method(benchmark::State& state) {
   const PhotometricStack& stack = scene.stack;
   photorig::ps::PhotometricStereoOptions options;
   options.method = method;
+  if (state.range(2) == 1) options.blinn_phong.fitter = photorig::ps::BlinnPhongOptions::Fitter::kPerPixel;
   options.lambertian.shadow_threshold = 6.0;  // 3 read-noise sigmas
   photorig::ps::NormalMap map;
   photorig::ps::SolverSummary summary;
@@ -194,7 +196,7 @@ void BM_Method(benchmark::State& state) {
     summary = photorig::ps::SolvePhotometricStereo(options, stack, &map);
     benchmark::DoNotOptimize(map.normals.data);
   }
-  state.SetLabel(photorig::ps::MethodName(method));
+  state.SetLabel(std::string(photorig::ps::MethodName(method)) + (state.range(2) == 1 ? " per pixel" : ""));
   const double solved = std::max<std::size_t>(1, summary.pixels_solved);
   state.counters["lambertian_pct"] = 100.0 * summary.pixels_lambertian / solved;
   state.counters["blinn_phong_pct"] = 100.0 * summary.pixels_blinn_phong / solved;
@@ -211,14 +213,16 @@ BENCHMARK(BM_Lambertian)
     ->Args({96, 1, 0})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-// Args: method (l2, lambertian, robust, blinn-phong, auto as 0-4), Blinn-Phong exponent (0 = matte).
+// Args: method (l2, lambertian, robust, blinn-phong, auto as 0-4), Blinn-Phong
+// exponent (0 = matte), fitter (0 lanes, 1 per pixel with forward-mode autodiff).
 BENCHMARK(BM_Method)
-    ->ArgNames({"method", "shininess"})
-    ->Args({0, 0})
-    ->Args({1, 0})
-    ->Args({4, 0})
-    ->Args({0, 50})
-    ->Args({4, 50})
+    ->ArgNames({"method", "shininess", "per_pixel"})
+    ->Args({0, 0, 0})
+    ->Args({1, 0, 0})
+    ->Args({4, 0, 0})
+    ->Args({0, 50, 0})
+    ->Args({4, 50, 0})
+    ->Args({4, 50, 1})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
