@@ -65,8 +65,6 @@ class BlinnPhongLaneFitter {
   ~BlinnPhongLaneFitter();
   BlinnPhongLaneFitter(BlinnPhongLaneFitter&&) noexcept;
 
-  int light_count() const { return lights_; }
-
   // Fits every problem; solutions[i] answers problems[i].
   void Fit(std::span<const BlinnPhongProblem> problems, std::span<BlinnPhongSolution> solutions);
 

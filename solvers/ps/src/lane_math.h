@@ -36,10 +36,12 @@ inline constexpr int kLanes = 8;
 inline constexpr double kLn2Hi = 6.93147180369123816490e-01;  // ln 2 with 20 trailing zero bits
 inline constexpr double kLn2Lo = 1.90821492927058770002e-10;  // ln 2 - kLn2Hi
 
-// ln x for finite x > 0 (normal numbers): x = 2^k f with f in [sqrt(1/2),
-// sqrt(2)), ln f = 2 atanh(s), s = (f - 1) / (f + 1), |s| <= 0.1716, whose
-// odd series to s^19 is exact to double precision.
-PHOTORIG_LANE_INLINE double LaneLog(double x) {
+// ln x and 1 / x together, for finite x in [2^-1022, 2^1022]: x = 2^k f with
+// f in [sqrt(1/2), sqrt(2)), ln f = 2 atanh(s), s = (f - 1) / (f + 1),
+// |s| <= 0.1716, whose odd series to s^19 is exact to double precision. One
+// division (the slowest vector operation here) gives both quotients: with
+// d = 1 / (f (f + 1)), s = (f - 1) f d and 1 / f = (f + 1) d.
+PHOTORIG_LANE_INLINE double LaneLogAndInverse(double x, double* inverse) {
   constexpr std::uint64_t kSqrtHalfBits = 0x3fe6a09e667f3bcdULL;
   constexpr std::uint64_t kBias = 1024ULL << 52;  // keeps the shifted exponent non-negative
   const std::uint64_t bits = std::bit_cast<std::uint64_t>(x);
@@ -47,27 +49,10 @@ PHOTORIG_LANE_INLINE double LaneLog(double x) {
   const double f = std::bit_cast<double>(bits - (biased_k << 52) + kBias);
   // k as a double without an int64 -> double conversion (AVX2 has none).
   const double k = std::bit_cast<double>(biased_k | 0x4330000000000000ULL) - (4503599627370496.0 + 1024.0);
-  const double s = (f - 1.0) / (f + 1.0), s2 = s * s;
-  // 2 atanh(s) = s (2 + 2/3 s^2 + 2/5 s^4 + ... + 2/19 s^18).
-  const double series = Horner(s2, 2.0 / 19.0, 2.0 / 17.0, 2.0 / 15.0, 2.0 / 13.0, 2.0 / 11.0, 2.0 / 9.0,
-                               2.0 / 7.0, 2.0 / 5.0, 2.0 / 3.0, 2.0);
-  return k * kLn2Hi + (k * kLn2Lo + s * series);
-}
-
-// ln x and 1 / x together, for finite x in [2^-1022, 2^1022], with one
-// division where the two would need two (the slowest vector operation here):
-// with d = 1 / (f (f + 1)), s = (f - 1) f d and 1 / f = (f + 1) d. A few
-// units in the last place less exact than LaneLog.
-PHOTORIG_LANE_INLINE double LaneLogAndInverse(double x, double* inverse) {
-  constexpr std::uint64_t kSqrtHalfBits = 0x3fe6a09e667f3bcdULL;
-  constexpr std::uint64_t kBias = 1024ULL << 52;
-  const std::uint64_t bits = std::bit_cast<std::uint64_t>(x);
-  const std::uint64_t biased_k = (bits - kSqrtHalfBits + kBias) >> 52;  // k + 1024
-  const double f = std::bit_cast<double>(bits - (biased_k << 52) + kBias);
-  const double k = std::bit_cast<double>(biased_k | 0x4330000000000000ULL) - (4503599627370496.0 + 1024.0);
   const double d = 1.0 / (f * (f + 1.0));
   const double s = (f - 1.0) * f * d, s2 = s * s;
   *inverse = std::bit_cast<double>((2047ULL - biased_k) << 52) * ((f + 1.0) * d);  // 2^-k / f
+  // 2 atanh(s) = s (2 + 2/3 s^2 + 2/5 s^4 + ... + 2/19 s^18).
   const double series = Horner(s2, 2.0 / 19.0, 2.0 / 17.0, 2.0 / 15.0, 2.0 / 13.0, 2.0 / 11.0, 2.0 / 9.0,
                                2.0 / 7.0, 2.0 / 5.0, 2.0 / 3.0, 2.0);
   return k * kLn2Hi + (k * kLn2Lo + s * series);

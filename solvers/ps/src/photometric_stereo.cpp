@@ -101,12 +101,11 @@ std::size_t ScreenTile(const std::uint8_t* flags, const std::uint16_t* usable, c
 // A stack's samples, pixel by pixel.
 class SampleReader {
  public:
-  SampleReader(const PhotometricStack& stack, const LambertianOptions& thresholds) {
+  SampleReader(const PhotometricStack& stack, const LambertianOptions& thresholds) : stack_(stack) {
     for (int k = 0; k < stack.light_count(); ++k) {
       planes_.push_back(stack.images[k].ptr<float>());
       for (int i = 0; i < 3; ++i) directions_.push_back(stack.light_directions[k][i]);
     }
-    light_directions_ = stack.light_directions;
     inputs_ = {stack.light_count(), planes_.data(), stack.dark.empty() ? nullptr : stack.dark.ptr<float>(),
                thresholds.shadow_threshold, thresholds.saturation_level, stack.light_scales.data(),
                stack.noise.read_sigma * stack.noise.read_sigma, stack.noise.shot_gain, directions_.data()};
@@ -129,6 +128,7 @@ class SampleReader {
     const double* observed = out->row_observed.data();
     const double* inverse_sigma = out->row_inverse_sigma.data();
     Row(pixel, Eigen::Vector3d::Zero(), out->row_observed.data(), out->row_inverse_sigma.data(), &usable);
+    const std::vector<Eigen::Vector3d>& light_directions = stack_.light_directions;
     out->b.clear();
     out->variance.clear();
     out->w.clear();
@@ -137,15 +137,15 @@ class SampleReader {
       if (inverse_sigma[k] == 0.0) continue;
       out->b.push_back(observed[k]);
       out->variance.push_back(1.0 / (inverse_sigma[k] * inverse_sigma[k]));
-      out->w.push_back(light_directions_[k]);
+      out->w.push_back(light_directions[k]);
       out->light.push_back(k);
     }
   }
 
  private:
+  const PhotometricStack& stack_;  // must outlive the reader
   std::vector<const float*> planes_;
-  std::vector<double> directions_;
-  std::vector<Eigen::Vector3d> light_directions_;
+  std::vector<double> directions_;  // the stack's, 3 per light
   RowInputs inputs_;
 };
 
