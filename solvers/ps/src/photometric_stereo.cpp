@@ -272,13 +272,15 @@ struct TrimScratch {
   std::vector<double> wx, wy, wz, b, inverse_variance, u2;
 };
 
-// Greedy trimming, the cheap robust stage of kAuto: drop the sample with the
-// largest standardised residual and refit (a rank-one downdate of the 3 x 3
-// normal equations), until the fit is adequate or `max_rejected` samples are
-// gone. Narrow highlights are a few huge residuals, so this usually stops
-// after one or two removals at O(n) each, where IRLS needs ~10 weighted passes.
+// Trimming, the cheap robust stage of kAuto: drop the samples TrimThreshold
+// picks (the worst alone, or all gross outliers of a round together) and
+// refit (rank-one downdates of the 3 x 3 normal equations), until the fit is
+// adequate; a pixel that would have to drop more than `max_rejected` samples
+// keeps its inadequate fit. Highlights are a few huge residuals, so this
+// usually stops after one or two rounds at O(n) each, where IRLS needs ~10
+// weighted passes. The per-pixel reference of TrimmedLambertianLanes.
 template <typename Adequate>
-Fit FitTrimmed(const PixelSamples& s, int max_rejected, const Adequate& adequate, TrimScratch* t) {
+Fit FitTrimmed(const PixelSamples& s, int max_rejected, double gross_u2, const Adequate& adequate, TrimScratch* t) {
   const int n = s.size();
   for (std::vector<double>* v : {&t->wx, &t->wy, &t->wz, &t->b, &t->inverse_variance, &t->u2}) v->resize(n);
   double* __restrict wx = t->wx.data();
@@ -298,7 +300,7 @@ Fit FitTrimmed(const PixelSamples& s, int max_rejected, const Adequate& adequate
     yy += iv[k] * wy[k] * wy[k], yz += iv[k] * wy[k] * wz[k], zz += iv[k] * wz[k] * wz[k];
     bx += iv[k] * b[k] * wx[k], by += iv[k] * b[k] * wy[k], bz += iv[k] * b[k] * wz[k];
   }
-  for (int removed = 0;; ++removed) {
+  for (int removed = 0;;) {
     Eigen::Matrix3d normal_matrix;
     normal_matrix << xx, xy, xz, xy, yy, yz, xz, yz, zz;
     // A singular system gives a non-finite x, which fails the check below.
@@ -320,15 +322,20 @@ Fit FitTrimmed(const PixelSamples& s, int max_rejected, const Adequate& adequate
     fit.chi2 = chi2;
     fit.used = n - removed;
     fit.rejected = removed;
-    if (adequate(fit) || removed >= max_rejected || fit.used <= 3) return fit;
-    // Drop the kept sample with the largest standardised residual (trimmed
-    // ones have u2 = 0).
-    const int worst = static_cast<int>(std::find(u2, u2 + n, worst_u2) - u2);
-    const double c = iv[worst];
-    xx -= c * wx[worst] * wx[worst], xy -= c * wx[worst] * wy[worst], xz -= c * wx[worst] * wz[worst];
-    yy -= c * wy[worst] * wy[worst], yz -= c * wy[worst] * wz[worst], zz -= c * wz[worst] * wz[worst];
-    bx -= c * b[worst] * wx[worst], by -= c * b[worst] * wy[worst], bz -= c * b[worst] * wz[worst];
-    iv[worst] = 0.0;
+    if (adequate(fit)) return fit;
+    // Trimmed samples have u2 = 0, below any threshold that drops something.
+    const double threshold = internal::TrimThreshold(worst_u2, gross_u2);
+    const int drop = static_cast<int>(std::count_if(u2, u2 + n, [threshold](double u) { return u >= threshold; }));
+    if (!(threshold > 0.0) || removed + drop > max_rejected || fit.used - drop < 3) return fit;
+    for (int k = 0; k < n; ++k) {
+      if (!(u2[k] >= threshold)) continue;
+      const double c = iv[k];
+      xx -= c * wx[k] * wx[k], xy -= c * wx[k] * wy[k], xz -= c * wx[k] * wz[k];
+      yy -= c * wy[k] * wy[k], yz -= c * wy[k] * wz[k], zz -= c * wz[k] * wz[k];
+      bx -= c * b[k] * wx[k], by -= c * b[k] * wy[k], bz -= c * b[k] * wz[k];
+      iv[k] = 0.0;
+    }
+    removed += drop;
   }
 }
 
@@ -556,6 +563,8 @@ bool ModelSelectionOptions::IsValid(std::string* why) const {
   if (!(adequacy_quantile > 0.5 && adequacy_quantile < 1.0)) return fail("selection: adequacy_quantile must be in (0.5, 1)");
   if (!(max_rejected_fraction >= 0.0 && max_rejected_fraction < 1.0))
     return fail("selection: max_rejected_fraction must be in [0, 1)");
+  if (!(gross_outlier_sigma > 0.0) || !std::isfinite(gross_outlier_sigma))
+    return fail("selection: gross_outlier_sigma must be finite and > 0");
   return true;
 }
 
@@ -596,6 +605,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   }
   if (!(working.noise.read_sigma > 0.0)) working.noise.read_sigma = 1e-9;  // noise-free: any residual counts
   const std::vector<double> quantile = ChiSquareQuantiles(stack.light_count(), options.selection.adequacy_quantile);
+  const double gross_u2 = options.selection.gross_outlier_sigma * options.selection.gross_outlier_sigma;
   auto adequate = [&quantile](const Fit& fit) { return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile[fit.Dof()]; };
   // The screen of `auto`: the Lambertian pass's confidence is expected /
   // observed residual variance, so dof / confidence is its chi-square
@@ -644,7 +654,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   if (lanes) {
     for (int t = 0; t < threads; ++t) {
       fitters.emplace_back(working.light_directions, Eigen::Vector3d::UnitZ(), options.blinn_phong);
-      trimmers.emplace_back(working.light_directions);
+      trimmers.emplace_back(working.light_directions, gross_u2);
     }
   }
   const int lights = working.light_count();
@@ -698,10 +708,10 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
     if (options.method == Method::kAuto && adequate(lambert)) return record(state, p, lambert);
     const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
-    const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, adequate, &state.trim)
+    const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, gross_u2, adequate, &state.trim)
                                                        : FitRobust(s, x, options.robust);
-    const bool few_rejected = robust.rejected <= max_rejected;
-    if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust) && few_rejected))
+    // FitTrimmed never drops more than max_rejected samples.
+    if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust)))
       return record(state, p, robust);
     const Fit& start = robust.ok ? robust : lambert;
     if (!lanes) return record(state, p, choose_blinn_phong(lambert, FitBlinnPhong(s, start, options.blinn_phong, &state.tape)));

@@ -2,7 +2,9 @@
 
 #include "lane_math.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace photorig::ps::internal {
 namespace {
@@ -18,16 +20,15 @@ struct alignas(64) LaneRound {
   double x[3][kLanes];
   double chi2[kLanes];
   double worst_u2[kLanes];
-  double worst_light[kLanes];  // index as a double: the lane loop keeps one element type
 };
 
 // One round for all lanes: x from the normal equations (by the adjugate; a
-// singular system gives non-finite x), then residuals, chi-square and the
-// kept sample with the largest standardised residual (the first on a tie).
+// singular system gives non-finite x), then every sample's squared
+// standardised residual u2 (0 once trimmed), chi-square and the largest u2.
 PHOTORIG_PS_MULTIVERSION
 void TrimRound(const LaneNormalEquations& eq, int lights, const double* directions, const double* observed,
-               const double* weight, LaneRound* out) {
-  alignas(64) double x0[kLanes], x1[kLanes], x2[kLanes], chi2[kLanes], worst[kLanes], worst_light[kLanes];
+               const double* weight, LaneRound* out, double* u2_out) {
+  alignas(64) double x0[kLanes], x1[kLanes], x2[kLanes], chi2[kLanes], worst[kLanes];
 #pragma omp simd
   for (int j = 0; j < kLanes; ++j) {
     const double xx = eq.matrix[0][j], xy = eq.matrix[1][j], xz = eq.matrix[2][j];
@@ -39,26 +40,66 @@ void TrimRound(const LaneNormalEquations& eq, int lights, const double* directio
     x0[j] = (c00 * b0 + c01 * b1 + c02 * b2) * inverse_det;
     x1[j] = (c01 * b0 + c11 * b1 + c12 * b2) * inverse_det;
     x2[j] = (c02 * b0 + c12 * b1 + c22 * b2) * inverse_det;
-    chi2[j] = 0.0, worst[j] = -1.0, worst_light[j] = -1.0;
+    chi2[j] = 0.0, worst[j] = 0.0;
   }
   for (int k = 0; k < lights; ++k) {
     const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
     const double* b = observed + k * kLanes;
     const double* v = weight + k * kLanes;
-    const double light = k;
+    double* u2 = u2_out + k * kLanes;
 #pragma omp simd
     for (int j = 0; j < kLanes; ++j) {
       const double r = b[j] - wx * x0[j] - wy * x1[j] - wz * x2[j];
-      const double u2 = r * r * v[j];
-      chi2[j] += u2;
-      const bool worse = u2 > worst[j];
-      worst[j] = worse ? u2 : worst[j];
-      worst_light[j] = worse ? light : worst_light[j];
+      u2[j] = r * r * v[j];
+      chi2[j] += u2[j];
+      worst[j] = std::max(worst[j], u2[j]);
     }
   }
   for (int j = 0; j < kLanes; ++j) {
     out->x[0][j] = x0[j], out->x[1][j] = x1[j], out->x[2][j] = x2[j];
-    out->chi2[j] = chi2[j], out->worst_u2[j] = worst[j], out->worst_light[j] = worst_light[j];
+    out->chi2[j] = chi2[j], out->worst_u2[j] = worst[j];
+  }
+}
+
+// How many samples of each lane have u2 >= threshold[lane].
+PHOTORIG_PS_MULTIVERSION
+void CountAtLeast(int lights, const double* u2, const double* threshold, double* count) {
+  alignas(64) double sum[kLanes] = {};
+  for (int k = 0; k < lights; ++k) {
+    const double* row = u2 + k * kLanes;
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) sum[j] += row[j] >= threshold[j] ? 1.0 : 0.0;
+  }
+  for (int j = 0; j < kLanes; ++j) count[j] = sum[j];
+}
+
+// Drops every sample with u2 >= threshold[lane] (infinity: none) from its
+// lane's normal equations, a rank-one downdate each, and marks it trimmed.
+PHOTORIG_PS_MULTIVERSION
+void DropSamples(int lights, const double* directions, const double* observed, const double* u2,
+                 const double* threshold, double* weight, LaneNormalEquations* eq) {
+  // The dropped samples' sums, in registers; subtracted once at the end.
+  alignas(64) double xx[kLanes] = {}, xy[kLanes] = {}, xz[kLanes] = {}, yy[kLanes] = {}, yz[kLanes] = {},
+                     zz[kLanes] = {}, bx[kLanes] = {}, by[kLanes] = {}, bz[kLanes] = {};
+  for (int k = 0; k < lights; ++k) {
+    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
+    const double* b = observed + k * kLanes;
+    const double* row = u2 + k * kLanes;
+    double* v = weight + k * kLanes;
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) {
+      const double c = row[j] >= threshold[j] ? v[j] : 0.0;
+      xx[j] += c * wx * wx, xy[j] += c * wx * wy, xz[j] += c * wx * wz;
+      yy[j] += c * wy * wy, yz[j] += c * wy * wz, zz[j] += c * wz * wz;
+      bx[j] += c * b[j] * wx, by[j] += c * b[j] * wy, bz[j] += c * b[j] * wz;
+      v[j] -= c;
+    }
+  }
+#pragma omp simd
+  for (int j = 0; j < kLanes; ++j) {
+    eq->matrix[0][j] -= xx[j], eq->matrix[1][j] -= xy[j], eq->matrix[2][j] -= xz[j];
+    eq->matrix[3][j] -= yy[j], eq->matrix[4][j] -= yz[j], eq->matrix[5][j] -= zz[j];
+    eq->rhs[0][j] -= bx[j], eq->rhs[1][j] -= by[j], eq->rhs[2][j] -= bz[j];
   }
 }
 
@@ -89,11 +130,14 @@ struct TrimmedLambertianLanes::State {
   int usable[kLanes], removed[kLanes], max_rejected[kLanes];
 };
 
-TrimmedLambertianLanes::TrimmedLambertianLanes(const std::vector<Eigen::Vector3d>& light_directions)
+TrimmedLambertianLanes::TrimmedLambertianLanes(const std::vector<Eigen::Vector3d>& light_directions,
+                                               double gross_u2)
     : lights_(static_cast<int>(light_directions.size())),
+      gross_u2_(gross_u2),
       directions_(3 * light_directions.size()),
       observed_(light_directions.size() * kLanes),
       weight_(light_directions.size() * kLanes),
+      u2_(light_directions.size() * kLanes),
       state_(std::make_unique<State>()) {
   for (int k = 0; k < lights_; ++k)
     for (int i = 0; i < 3; ++i) directions_[3 * k + i] = light_directions[k][i];
@@ -139,31 +183,35 @@ void TrimmedLambertianLanes::Fit(std::span<const TrimProblem> problems, std::spa
     }
   }
   while (busy > 0) {
-    TrimRound(s.equations, lights_, directions_.data(), observed_.data(), weight_.data(), &s.round);
+    TrimRound(s.equations, lights_, directions_.data(), observed_.data(), weight_.data(), &s.round, u2_.data());
+    // Which samples each lane would drop (infinity: it is done) ...
+    alignas(64) double threshold[kLanes], drop[kLanes];
+    for (int lane = 0; lane < kLanes; ++lane) {
+      threshold[lane] = std::numeric_limits<double>::infinity();
+      if (s.problem[lane] < 0) continue;
+      const int used = s.usable[lane] - s.removed[lane];
+      const bool ok = Eigen::Vector3d(s.round.x[0][lane], s.round.x[1][lane], s.round.x[2][lane]).norm() > 0.0 &&
+                      used >= 3;  // false for a non-finite x too
+      const bool adequate = ok && used > 3 && s.round.chi2[lane] <= chi2_quantile[used - 3];
+      const double t = TrimThreshold(s.round.worst_u2[lane], gross_u2_);
+      if (ok && !adequate && t > 0.0) threshold[lane] = t;
+    }
+    CountAtLeast(lights_, u2_.data(), threshold, drop);
+    // ... and whether it may: a lane that is done, or would exceed its
+    // allowance, hands over its fit and takes the next pixel.
     for (int lane = 0; lane < kLanes; ++lane) {
       if (s.problem[lane] < 0) continue;
-      const Eigen::Vector3d x(s.round.x[0][lane], s.round.x[1][lane], s.round.x[2][lane]);
       const int used = s.usable[lane] - s.removed[lane];
-      const bool ok = x.norm() > 0.0 && used >= 3;  // false for a non-finite x too
-      const int dof = used - 3;
-      const double chi2 = s.round.chi2[lane];
-      const bool adequate = ok && dof > 0 && chi2 <= chi2_quantile[dof];
-      const int worst = static_cast<int>(s.round.worst_light[lane]);
-      if (ok && !adequate && s.removed[lane] < s.max_rejected[lane] && used > 3 && worst >= 0) {
-        // Drop the worst sample: a rank-one downdate.
-        const double v = weight_[worst * kLanes + lane], b = observed_[worst * kLanes + lane];
-        const double* w = &directions_[3 * worst];
-        const double terms[6] = {w[0] * w[0], w[0] * w[1], w[0] * w[2], w[1] * w[1], w[1] * w[2], w[2] * w[2]};
-        for (int i = 0; i < 6; ++i) s.equations.matrix[i][lane] -= v * terms[i];
-        for (int i = 0; i < 3; ++i) s.equations.rhs[i][lane] -= v * b * w[i];
-        weight_[worst * kLanes + lane] = 0.0;
-        ++s.removed[lane];
+      const int dropped = static_cast<int>(drop[lane]);
+      if (std::isfinite(threshold[lane]) && s.removed[lane] + dropped <= s.max_rejected[lane] && used - dropped >= 3) {
+        s.removed[lane] += dropped;
         continue;
       }
+      threshold[lane] = std::numeric_limits<double>::infinity();
       TrimSolution& out = solutions[s.problem[lane]];
-      out.ok = ok;
-      out.x = x;
-      out.chi2 = chi2;
+      out.x = Eigen::Vector3d(s.round.x[0][lane], s.round.x[1][lane], s.round.x[2][lane]);
+      out.ok = out.x.norm() > 0.0 && used >= 3;
+      out.chi2 = s.round.chi2[lane];
       out.used = used;
       out.rejected = s.removed[lane];
       if (next < count) {
@@ -174,6 +222,7 @@ void TrimmedLambertianLanes::Fit(std::span<const TrimProblem> problems, std::spa
         --busy;
       }
     }
+    DropSamples(lights_, directions_.data(), observed_.data(), u2_.data(), threshold, weight_.data(), &s.equations);
   }
 }
 

@@ -1,14 +1,15 @@
 #pragma once
-// Greedy trimming of a Lambertian fit, many pixels under one set of lights,
-// one pixel per SIMD lane: the cheap robust stage of `auto`. Each round solves
+// Trimming of a Lambertian fit, many pixels under one set of lights, one
+// pixel per SIMD lane: the cheap robust stage of `auto`. Each round solves
 // every lane's 3 x 3 weighted normal equations, then one pass over the lights
-// computes the residuals, chi-square and the worst sample of every lane; a
-// lane whose fit is adequate, or that has trimmed all it may, hands over its
-// answer and takes the next pixel, the others drop their worst sample (a
-// rank-one downdate) and go round again.
+// computes the residuals and chi-square of every lane; a lane whose fit is
+// adequate hands over its answer and takes the next pixel, the others drop the
+// samples TrimThreshold picks (rank-one downdates) and go round again. A lane
+// that would have to drop more than it may hands over its inadequate fit.
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <memory>
 #include <span>
 #include <vector>
@@ -30,9 +31,21 @@ struct TrimSolution {
   int used = 0, rejected = 0;  // kept and trimmed samples
 };
 
+// Which samples one trimming round drops, by squared standardised residual u2:
+// every sample with u2 >= the returned threshold. A single worst sample goes
+// alone (greedy trimming, which refits before judging the next); gross
+// outliers, u2 >= gross_u2, go together with every sample within a factor 2
+// of the worst residual: a highlight's few samples all leave in one round,
+// while a sample that only looks bad because the fit leans towards the
+// highlight is judged again after the refit. 0 when nothing stands out.
+inline double TrimThreshold(double worst_u2, double gross_u2) {
+  return worst_u2 >= gross_u2 ? std::max(gross_u2, worst_u2 / 4.0) : worst_u2;
+}
+
 class TrimmedLambertianLanes {
  public:
-  explicit TrimmedLambertianLanes(const std::vector<Eigen::Vector3d>& light_directions);
+  // gross_u2: see TrimThreshold.
+  TrimmedLambertianLanes(const std::vector<Eigen::Vector3d>& light_directions, double gross_u2);
   ~TrimmedLambertianLanes();
   TrimmedLambertianLanes(TrimmedLambertianLanes&&) noexcept;
 
@@ -47,9 +60,11 @@ class TrimmedLambertianLanes {
   void Load(int lane, const TrimProblem& problem);
 
   int lights_;
+  double gross_u2_;
   std::vector<double> directions_;  // per light: w (3)
-  // Struct-of-arrays over lanes: [light * kLanes + lane]; weights are 1 / sigma^2, 0 once trimmed.
-  std::vector<double> observed_, weight_;
+  // Struct-of-arrays over lanes: [light * kLanes + lane]; weights are 1 / sigma^2, 0 once trimmed;
+  // u2 is the last round's squared standardised residual.
+  std::vector<double> observed_, weight_, u2_;
   std::unique_ptr<State> state_;
 };
 

@@ -75,6 +75,12 @@ struct ModelSelectionOptions {
   // kAuto prefers kRobust over kBlinnPhong only when it rejects at most this
   // fraction of a pixel's usable samples.
   double max_rejected_fraction = 0.25;
+  // Trimming drops samples beyond this many noise sigmas together, with every
+  // sample within a factor 2 of the worst residual, in one round (otherwise
+  // one sample per round); a pixel with more of them than max_rejected_fraction
+  // allows goes straight to the Blinn-Phong fit. 5 sigma: a sample of a good
+  // fit lies beyond it with probability 6e-7.
+  double gross_outlier_sigma = 5.0;
   bool IsValid(std::string* why) const;
 };
 
