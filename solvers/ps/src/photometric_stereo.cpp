@@ -42,6 +42,7 @@ struct RowInputs {
   const float* dark;  // null: no dark frame
   double shadow_threshold, saturation_level;
   const double* scales;
+  const double* inverse_scales;
   double read_variance, shot_gain;
   const double* directions;  // 3 per light
 };
@@ -54,6 +55,7 @@ void ReadRow(const RowInputs& in, int pixel, const double* x, double* observed, 
   // Fields in locals and one reduction type: otherwise GCC 12 leaves the loop scalar.
   const float* const* planes = in.planes;
   const double* scales = in.scales;
+  const double* inverse_scales = in.inverse_scales;
   const double* directions = in.directions;
   const double shadow = in.shadow_threshold, saturation = in.saturation_level;
   const double read_variance = in.read_variance, gain = in.shot_gain;
@@ -67,10 +69,10 @@ void ReadRow(const RowInputs& in, int pixel, const double* x, double* observed, 
     const double value = values[k];
     const double signal = value - dark;
     const bool ok = (signal > shadow) & (value < saturation);
-    const double s = scales[k];
-    const double variance = (read_variance + gain * std::max(signal, 0.0)) / (s * s);
-    const double b = ok ? signal / s : 0.0;
-    const double inverse = ok ? 1.0 / std::sqrt(variance) : 0.0;
+    // b = signal / s has sigma sqrt(var(I)) / s: one division and one square
+    // root per sample, the slow part of this loop.
+    const double b = ok ? signal * inverse_scales[k] : 0.0;
+    const double inverse = ok ? scales[k] / std::sqrt(read_variance + gain * std::max(signal, 0.0)) : 0.0;
     observed[k] = b;
     inverse_sigma[k] = inverse;
     const double r = (b - directions[3 * k] * x0 - directions[3 * k + 1] * x1 - directions[3 * k + 2] * x2) * inverse;
@@ -104,11 +106,13 @@ class SampleReader {
   SampleReader(const PhotometricStack& stack, const LambertianOptions& thresholds) : stack_(stack) {
     for (int k = 0; k < stack.light_count(); ++k) {
       planes_.push_back(stack.images[k].ptr<float>());
+      inverse_scales_.push_back(1.0 / stack.light_scales[k]);
       for (int i = 0; i < 3; ++i) directions_.push_back(stack.light_directions[k][i]);
     }
     inputs_ = {stack.light_count(), planes_.data(), stack.dark.empty() ? nullptr : stack.dark.ptr<float>(),
                thresholds.shadow_threshold, thresholds.saturation_level, stack.light_scales.data(),
-               stack.noise.read_sigma * stack.noise.read_sigma, stack.noise.shot_gain, directions_.data()};
+               inverse_scales_.data(), stack.noise.read_sigma * stack.noise.read_sigma, stack.noise.shot_gain,
+               directions_.data()};
   }
 
   int lights() const { return inputs_.lights; }
@@ -146,6 +150,7 @@ class SampleReader {
   const PhotometricStack& stack_;  // must outlive the reader
   std::vector<const float*> planes_;
   std::vector<double> directions_;  // the stack's, 3 per light
+  std::vector<double> inverse_scales_;  // 1 / s_k
   RowInputs inputs_;
 };
 
