@@ -221,39 +221,74 @@ void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lam
 }  // namespace
 
 PHOTORIG_PS_MULTIVERSION
-BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, double* cos_half,
-                                       const double* observed, const double* weight, double start_albedo,
-                                       const BlinnPhongOptions& options) {
+void BlinnPhongGridStartLanes(int lights, const double* cos_light, double* cos_half, const double* observed,
+                              const double* weight, const double* start_albedo, double min_exponent,
+                              double max_exponent, LaneMaterial* out) {
   double exponent = 1.0;
-  while (exponent < options.min_exponent) {
+  const int samples = lights * kLanes;
+  while (exponent < min_exponent) {
     exponent *= 2.0;
 #pragma omp simd
-    for (int k = 0; k < samples; ++k) cos_half[k] *= cos_half[k];
+    for (int i = 0; i < samples; ++i) cos_half[i] *= cos_half[i];
   }
-  BlinnPhongMaterial best{start_albedo, 0.0, exponent};
-  double best_chi2 = std::numeric_limits<double>::infinity();
-  for (; exponent <= options.max_exponent; exponent *= 2.0) {
-    // Normal equations of b ~ rho_d d + rho_s l, d = cos / pi, l = (e + 2) / (2 pi) lobe cos.
-    double dd = 0, dl = 0, ll = 0, db = 0, lb = 0, bb = 0;
+  alignas(64) double best_chi2[kLanes];
+  for (int j = 0; j < kLanes; ++j) {
+    best_chi2[j] = std::numeric_limits<double>::infinity();
+    out->diffuse_albedo[j] = start_albedo[j], out->specular_albedo[j] = 0.0, out->exponent[j] = exponent;
+  }
+  for (; exponent <= max_exponent; exponent *= 2.0) {
+    // Normal equations of b ~ rho_d d + rho_s l, d = cos / pi, l = (e + 2) / (2 pi) lobe cos, per lane.
+    alignas(64) double dd[kLanes] = {}, dl[kLanes] = {}, ll[kLanes] = {}, db[kLanes] = {}, lb[kLanes] = {},
+                       bb[kLanes] = {};
     const double normalisation = (exponent + 2.0) / (2.0 * M_PI);
-#pragma omp simd reduction(+ : dd, dl, ll, db, lb, bb)
-    for (int k = 0; k < samples; ++k) {
-      const double c = weight[k], d = cos_light[k] * kInvPi, l = normalisation * cos_half[k] * cos_light[k];
-      dd += c * d * d, dl += c * d * l, ll += c * l * l, db += c * d * observed[k], lb += c * l * observed[k],
-          bb += c * observed[k] * observed[k];
-    }
-    const double det = dd * ll - dl * dl;
-    double rho_d = dd > 0.0 ? db / dd : 0.0, rho_s = 0.0;
-    if (det > 1e-12 * dd * ll) {
-      const double joint_s = (dd * lb - dl * db) / det;
-      if (joint_s > 0.0) rho_s = joint_s, rho_d = (ll * db - dl * lb) / det;
-    }
-    const double chi2 = bb - 2.0 * (rho_d * db + rho_s * lb) + rho_d * rho_d * dd + 2.0 * rho_d * rho_s * dl + rho_s * rho_s * ll;
-    if (chi2 < best_chi2 && rho_d >= 0.0) best_chi2 = chi2, best = {rho_d, rho_s, exponent};
+    for (int k = 0; k < lights; ++k) {
+      const double* c = weight + k * kLanes;
+      const double* cl = cos_light + k * kLanes;
+      const double* b = observed + k * kLanes;
+      double* ch = cos_half + k * kLanes;
 #pragma omp simd
-    for (int k = 0; k < samples; ++k) cos_half[k] *= cos_half[k];
+      for (int j = 0; j < kLanes; ++j) {
+        const double d = cl[j] * kInvPi, l = normalisation * ch[j] * cl[j];
+        dd[j] += c[j] * d * d, dl[j] += c[j] * d * l, ll[j] += c[j] * l * l;
+        db[j] += c[j] * d * b[j], lb[j] += c[j] * l * b[j], bb[j] += c[j] * b[j] * b[j];
+        ch[j] *= ch[j];  // the next grid point's lobe
+      }
+    }
+    for (int j = 0; j < kLanes; ++j) {
+      const double det = dd[j] * ll[j] - dl[j] * dl[j];
+      double rho_d = dd[j] > 0.0 ? db[j] / dd[j] : 0.0, rho_s = 0.0;
+      if (det > 1e-12 * dd[j] * ll[j]) {
+        const double joint_s = (dd[j] * lb[j] - dl[j] * db[j]) / det;
+        if (joint_s > 0.0) rho_s = joint_s, rho_d = (ll[j] * db[j] - dl[j] * lb[j]) / det;
+      }
+      const double chi2 = bb[j] - 2.0 * (rho_d * db[j] + rho_s * lb[j]) + rho_d * rho_d * dd[j] +
+                          2.0 * rho_d * rho_s * dl[j] + rho_s * rho_s * ll[j];
+      if (chi2 < best_chi2[j] && rho_d >= 0.0) {
+        best_chi2[j] = chi2;
+        out->diffuse_albedo[j] = rho_d, out->specular_albedo[j] = rho_s, out->exponent[j] = exponent;
+      }
+    }
   }
-  return best;
+}
+
+BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, const double* cos_half,
+                                       const double* observed, const double* weight, double start_albedo,
+                                       const BlinnPhongOptions& options) {
+  // Lane 0 holds the pixel; the other lanes have no samples.
+  std::vector<double> lanes(4 * static_cast<std::size_t>(samples) * kLanes, 0.0);
+  double* lane_cos_light = lanes.data();
+  double* lane_cos_half = lane_cos_light + samples * kLanes;
+  double* lane_observed = lane_cos_half + samples * kLanes;
+  double* lane_weight = lane_observed + samples * kLanes;
+  for (int k = 0; k < samples; ++k) {
+    lane_cos_light[k * kLanes] = cos_light[k], lane_cos_half[k * kLanes] = cos_half[k];
+    lane_observed[k * kLanes] = observed[k], lane_weight[k * kLanes] = weight[k];
+  }
+  alignas(64) double start[kLanes] = {start_albedo};
+  LaneMaterial material;
+  BlinnPhongGridStartLanes(samples, lane_cos_light, lane_cos_half, lane_observed, lane_weight, start,
+                           options.min_exponent, options.max_exponent, &material);
+  return {material.diffuse_albedo[0], material.specular_albedo[0], material.exponent[0]};
 }
 
 struct BlinnPhongLaneFitter::State {
@@ -273,9 +308,10 @@ BlinnPhongLaneFitter::BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& l
       geometry_(6 * light_directions.size()),
       observed_(light_directions.size() * kLanes),
       inverse_sigma_(light_directions.size() * kLanes),
-      cos_light_(light_directions.size()),
-      cos_half_(light_directions.size()),
-      weight_(light_directions.size()),
+      cos_light_(light_directions.size() * kLanes),
+      cos_half_(light_directions.size() * kLanes),
+      start_observed_(light_directions.size() * kLanes),
+      weight_(light_directions.size() * kLanes),
       state_(std::make_unique<State>()) {
   const Eigen::Vector3d towards_camera = view.normalized();
   for (int k = 0; k < lights_; ++k) {
@@ -289,19 +325,13 @@ BlinnPhongLaneFitter::BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& l
 BlinnPhongLaneFitter::~BlinnPhongLaneFitter() = default;
 BlinnPhongLaneFitter::BlinnPhongLaneFitter(BlinnPhongLaneFitter&&) noexcept = default;
 
-void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem) {
+void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem, const BlinnPhongMaterial& start) {
   State& s = *state_;
   const Eigen::Vector3d n = problem.start_normal.normalized();
   for (int k = 0; k < lights_; ++k) {
-    const double* g = &geometry_[6 * k];
     observed_[k * kLanes + lane] = problem.observed[k];
     inverse_sigma_[k * kLanes + lane] = problem.inverse_sigma[k];
-    cos_light_[k] = std::max(0.0, g[0] * n.x() + g[1] * n.y() + g[2] * n.z());
-    cos_half_[k] = std::max(0.0, g[3] * n.x() + g[4] * n.y() + g[5] * n.z());
-    weight_[k] = problem.inverse_sigma[k] * problem.inverse_sigma[k];
   }
-  const BlinnPhongMaterial start = BlinnPhongGridStart(lights_, cos_light_.data(), cos_half_.data(), problem.observed,
-                                                       weight_.data(), problem.start_albedo, options_);
   LanePoint& q = s.candidate;
   double t1[3], t2[3];
   TangentBasis(n.x(), n.y(), n.z(), t1, t2);
@@ -314,9 +344,45 @@ void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem) {
   s.iterations[lane] = 0;
 }
 
+void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problems) {
+  const int count = static_cast<int>(problems.size());
+  starts_.resize(count);
+  for (int first = 0; first < count; first += kLanes) {
+    alignas(64) double start_albedo[kLanes] = {}, normal[3][kLanes];
+    for (int j = 0; j < kLanes; ++j) {
+      const bool present = first + j < count;
+      const Eigen::Vector3d n = present ? problems[first + j].start_normal.normalized() : Eigen::Vector3d::UnitZ();
+      for (int i = 0; i < 3; ++i) normal[i][j] = n[i];
+      if (present) start_albedo[j] = problems[first + j].start_albedo;
+      // Copies through per-lane pointers, apart from the vector loop below.
+      for (int k = 0; k < lights_; ++k) {
+        const double inverse_sigma = present ? problems[first + j].inverse_sigma[k] : 0.0;
+        start_observed_[k * kLanes + j] = present ? problems[first + j].observed[k] : 0.0;
+        weight_[k * kLanes + j] = inverse_sigma * inverse_sigma;
+      }
+    }
+    for (int k = 0; k < lights_; ++k) {
+      const double* g = &geometry_[6 * k];
+      double* cos_light = &cos_light_[k * kLanes];
+      double* cos_half = &cos_half_[k * kLanes];
+#pragma omp simd
+      for (int j = 0; j < kLanes; ++j) {
+        cos_light[j] = std::max(0.0, g[0] * normal[0][j] + g[1] * normal[1][j] + g[2] * normal[2][j]);
+        cos_half[j] = std::max(0.0, g[3] * normal[0][j] + g[4] * normal[1][j] + g[5] * normal[2][j]);
+      }
+    }
+    LaneMaterial material;
+    BlinnPhongGridStartLanes(lights_, cos_light_.data(), cos_half_.data(), start_observed_.data(), weight_.data(),
+                             start_albedo, options_.min_exponent, options_.max_exponent, &material);
+    for (int j = 0; j < kLanes && first + j < count; ++j)
+      starts_[first + j] = {material.diffuse_albedo[j], material.specular_albedo[j], material.exponent[j]};
+  }
+}
+
 void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std::span<BlinnPhongSolution> solutions) {
   State& s = *state_;
   const int count = static_cast<int>(problems.size());
+  GridStarts(problems);
   int next = 0;
   int busy = 0;
   for (int lane = 0; lane < kLanes; ++lane) {
@@ -333,7 +399,8 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
     s.candidate.exponent[lane] = options_.min_exponent;
     if (next < count) {
       s.problem[lane] = next;
-      Load(lane, problems[next++]);
+      Load(lane, problems[next], starts_[next]);
+      ++next;
       ++busy;
     }
   }
@@ -348,7 +415,8 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
     out.iterations = s.iterations[lane];
     if (next < count) {
       s.problem[lane] = next;
-      Load(lane, problems[next++]);  // its start is the next candidate
+      Load(lane, problems[next], starts_[next]);  // its start is the next candidate
+      ++next;
     } else {
       s.problem[lane] = -1;
       for (int k = 0; k < lights_; ++k) inverse_sigma_[k * kLanes + lane] = 0.0;

@@ -31,12 +31,21 @@ namespace photorig::ps::internal {
 // linear least squares; the grid point with the lowest chi-square wins.
 // cos_light and cos_half are the clamped cosines of each sample's light and
 // half vector with the normal, weight 1 / variance (0 drops the sample);
-// cos_half is overwritten. From this start Levenberg-Marquardt needs a few
-// iterations, not tens.
+// start_albedo is rho_d if no grid point fits. From this start
+// Levenberg-Marquardt needs a few iterations, not tens.
 struct BlinnPhongMaterial {
   double diffuse_albedo = 0.0, specular_albedo = 0.0, exponent = 1.0;
 };
-BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, double* cos_half,
+struct alignas(64) LaneMaterial {
+  double diffuse_albedo[kLanes], specular_albedo[kLanes], exponent[kLanes];
+};
+// kLanes pixels at once, one per lane; arrays are [light * kLanes + lane],
+// and cos_half is overwritten.
+void BlinnPhongGridStartLanes(int lights, const double* cos_light, double* cos_half, const double* observed,
+                              const double* weight, const double* start_albedo, double min_exponent,
+                              double max_exponent, LaneMaterial* out);
+// One pixel (lane 0 of the above).
+BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, const double* cos_half,
                                        const double* observed, const double* weight, double start_albedo,
                                        const BlinnPhongOptions& options);
 
@@ -84,14 +93,18 @@ class BlinnPhongLaneFitter {
  private:
   struct State;  // lane registers, in blinn_phong_lanes.cpp
 
-  void Load(int lane, const BlinnPhongProblem& problem);
+  // Every problem's start material, kLanes problems per pass.
+  void GridStarts(std::span<const BlinnPhongProblem> problems);
+  void Load(int lane, const BlinnPhongProblem& problem, const BlinnPhongMaterial& start);
 
   int lights_;
   BlinnPhongOptions options_;
   std::vector<double> geometry_;  // per light: w (3), w_h (3)
   // Struct-of-arrays over lanes: [light * kLanes + lane].
   std::vector<double> observed_, inverse_sigma_;
-  std::vector<double> cos_light_, cos_half_, weight_;  // one pixel's, for the start
+  // The start grid's inputs, [light * kLanes + lane], and its answers per problem.
+  std::vector<double> cos_light_, cos_half_, start_observed_, weight_;
+  std::vector<BlinnPhongMaterial> starts_;
   std::unique_ptr<State> state_;
 };
 
