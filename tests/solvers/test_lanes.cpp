@@ -1,8 +1,10 @@
 // The lane kernels: their math against libm, the Blinn-Phong fitter's
 // derivatives against forward-mode automatic differentiation, the trimming
-// against known outliers, and `auto` in lanes against the per-pixel reference.
+// against known outliers, IRLS against a plain implementation of the same
+// iteration, and `auto` in lanes against the per-pixel reference.
 #include "blinn_phong_lanes.h"
 #include "lane_math.h"
+#include "robust_lanes.h"
 #include "trim_lanes.h"
 
 #include "photorig/autodiff/blinn_phong_jacobian.h"
@@ -313,6 +315,125 @@ TEST(TrimmedLambertianLanes, HandsOverAtOnceWhenGrossSamplesExceedTheAllowance) 
   TrimmedLambertianLanes(lights, 1e12).Fit(problems, thresholds, solutions);
   EXPECT_EQ(solutions[0].rejected, 6);
   EXPECT_GT(solutions[0].chi2, thresholds[solutions[0].used - 3]);
+}
+
+// IRLS written the plain way, one pixel, usable samples only: the iteration
+// robust_lanes.h documents.
+internal::RobustSolution PlainIrls(const std::vector<Eigen::Vector3d>& lights, const double* observed,
+                                   const double* inverse_sigma, Eigen::Vector3d x, const RobustOptions& options) {
+  std::vector<int> usable;
+  for (int k = 0; k < static_cast<int>(lights.size()); ++k)
+    if (inverse_sigma[k] > 0.0) usable.push_back(k);
+  const int n = static_cast<int>(usable.size());
+  std::vector<double> weight(n, 1.0), residual(n), magnitude(n);
+  int iteration = 0;
+  while (iteration < options.max_iterations) {
+    const bool warmup = iteration < options.warmup_iterations;
+    const RobustOptions::Loss loss = warmup ? RobustOptions::Loss::kCauchy : options.loss;
+    for (int i = 0; i < n; ++i) {
+      residual[i] = observed[usable[i]] - lights[usable[i]].dot(x);
+      magnitude[i] = std::abs(residual[i]);
+    }
+    std::nth_element(magnitude.begin(), magnitude.begin() + n / 2, magnitude.end());
+    const double spread = 1.4826 * magnitude[n / 2];
+    Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    for (int i = 0; i < n; ++i) {
+      const double sigma = 1.0 / inverse_sigma[usable[i]];
+      const double u = std::abs(residual[i]) / std::max(sigma, spread);
+      if (loss == RobustOptions::Loss::kCauchy) weight[i] = 1.0 / (1.0 + (u / 2.385) * (u / 2.385));
+      if (loss == RobustOptions::Loss::kHuber) weight[i] = u <= 1.345 ? 1.0 : 1.345 / u;
+      if (loss == RobustOptions::Loss::kTukey) weight[i] = u < 4.685 ? std::pow(1.0 - (u / 4.685) * (u / 4.685), 2) : 0.0;
+      const Eigen::Vector3d& w = lights[usable[i]];
+      const double c = weight[i] / (sigma * sigma);
+      normal_matrix += c * w * w.transpose();
+      rhs += c * observed[usable[i]] * w;
+    }
+    const Eigen::Vector3d next = normal_matrix.ldlt().solve(rhs);
+    const double step = (next - x).norm();
+    x = next;
+    ++iteration;
+    if (!warmup && step <= options.relative_tolerance * x.norm()) break;
+  }
+  internal::RobustSolution solution;
+  solution.x = x;
+  solution.iterations = iteration;
+  for (int i = 0; i < n; ++i) {
+    if (weight[i] < options.inlier_weight) {
+      ++solution.rejected;
+      continue;
+    }
+    const double r = observed[usable[i]] - lights[usable[i]].dot(x);
+    solution.chi2 += r * r * inverse_sigma[usable[i]] * inverse_sigma[usable[i]];
+    ++solution.used;
+  }
+  solution.ok = solution.used >= 3;
+  return solution;
+}
+
+// Pixels with highlights, shadowed (unusable) samples and per-sample noise,
+// fitted in lanes with each loss, against the plain iteration. Ties between
+// the float and double weights decide nothing: both agree to 1e-6 relative.
+TEST(RobustLambertianLanes, MatchesThePlainIterationForEveryLoss) {
+  const auto lights = testing::RingLights(40, 20, 80);
+  const int n = static_cast<int>(lights.size()), pixels = 29;  // not a multiple of the lane count
+  std::mt19937 rng(41);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<double> observed(pixels * n), inverse_sigma(pixels * n);
+  std::vector<Eigen::Vector3d> starts;
+  for (int p = 0; p < pixels; ++p) {
+    const Eigen::Vector3d x = Eigen::Vector3d(0.4 * noise(rng), 0.4 * noise(rng), 1.0).normalized() * 120.0;
+    for (int k = 0; k < n; ++k) {
+      const double signal = lights[k].dot(x);
+      const double sigma = std::sqrt(4.0 + 0.5 * std::max(signal, 0.0));
+      const bool usable = signal > 5.0 && uniform(rng) > 0.1;
+      inverse_sigma[p * n + k] = usable ? 1.0 / sigma : 0.0;
+      observed[p * n + k] = usable ? signal + sigma * noise(rng) + (uniform(rng) < 0.15 ? 150.0 : 0.0) : 0.0;
+    }
+    starts.push_back(x + Eigen::Vector3d(10.0 * noise(rng), 10.0 * noise(rng), 10.0 * noise(rng)));
+  }
+  for (const auto loss : {RobustOptions::Loss::kCauchy, RobustOptions::Loss::kHuber, RobustOptions::Loss::kTukey}) {
+    RobustOptions options;
+    options.loss = loss;
+    std::vector<internal::RobustProblem> problems;
+    for (int p = 0; p < pixels; ++p) problems.push_back({&observed[p * n], &inverse_sigma[p * n], starts[p]});
+    std::vector<internal::RobustSolution> solutions(pixels);
+    internal::RobustLambertianLanes(lights, options).Fit(problems, solutions);
+    for (int p = 0; p < pixels; ++p) {
+      const auto plain = PlainIrls(lights, &observed[p * n], &inverse_sigma[p * n], starts[p], options);
+      const auto& lanes = solutions[p];
+      ASSERT_TRUE(plain.ok && lanes.ok) << "loss " << int(loss) << " pixel " << p;
+      EXPECT_LT((lanes.x - plain.x).norm(), 1e-6 * plain.x.norm()) << "loss " << int(loss) << " pixel " << p;
+      EXPECT_EQ(lanes.used, plain.used) << "loss " << int(loss) << " pixel " << p;
+      EXPECT_EQ(lanes.rejected, plain.rejected) << "loss " << int(loss) << " pixel " << p;
+      EXPECT_NEAR(lanes.chi2, plain.chi2, 1e-6 * plain.chi2 + 1e-9) << "loss " << int(loss) << " pixel " << p;
+      EXPECT_NEAR(lanes.iterations, plain.iterations, 1) << "loss " << int(loss) << " pixel " << p;
+    }
+  }
+}
+
+// Fewer than three usable samples cannot be solved: the lane says so, and
+// the lanes beside it are not disturbed.
+TEST(RobustLambertianLanes, FlagsUnsolvablePixelsWithoutDisturbingTheOthers) {
+  const auto lights = testing::RingLights(24, 30, 70);
+  const int n = static_cast<int>(lights.size());
+  const Eigen::Vector3d x(10.0, -20.0, 100.0);
+  std::vector<double> observed(3 * n), inverse_sigma(3 * n, 0.0);
+  for (int p = 0; p < 3; ++p)
+    for (int k = 0; k < n; ++k) observed[p * n + k] = lights[k].dot(x);
+  for (int k = 0; k < n; ++k) inverse_sigma[k] = inverse_sigma[2 * n + k] = 1.0;  // pixels 0 and 2: every sample
+  inverse_sigma[n] = inverse_sigma[n + 1] = 1.0;                                  // pixel 1: two samples
+  std::vector<internal::RobustProblem> problems;
+  for (int p = 0; p < 3; ++p) problems.push_back({&observed[p * n], &inverse_sigma[p * n], Eigen::Vector3d(0, 0, 90)});
+  std::vector<internal::RobustSolution> solutions(3);
+  internal::RobustLambertianLanes(lights, RobustOptions{}).Fit(problems, solutions);
+  EXPECT_FALSE(solutions[1].ok);
+  for (int p : {0, 2}) {
+    EXPECT_TRUE(solutions[p].ok) << p;
+    EXPECT_LT((solutions[p].x - x).norm(), 1e-6 * x.norm()) << p;
+    EXPECT_EQ(solutions[p].used, n) << p;
+  }
 }
 
 // Angle between two stored normals; atan2 keeps small angles exact where acos

@@ -2,6 +2,7 @@
 
 #include "blinn_phong_lanes.h"
 #include "lambertian_tiles.h"
+#include "robust_lanes.h"
 #include "trim_lanes.h"
 
 #include <Eigen/Dense>
@@ -11,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <vector>
 
@@ -227,50 +229,17 @@ Fit LambertianFromX(const PixelSamples& s, const Eigen::Vector3d& x, const std::
   return fit;
 }
 
-Fit FitRobust(const PixelSamples& s, const Eigen::Vector3d& start, const RobustOptions& options) {
-  std::vector<double> weight(s.size(), 1.0), residual(s.size()), magnitude(s.size());
-  Eigen::Vector3d x = start;
-  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-    const bool warmup = iteration < options.warmup_iterations;
-    const RobustOptions::Loss loss = warmup ? RobustOptions::Loss::kCauchy : options.loss;
-    // Residuals are scaled by the larger of the noise and the residuals' own
-    // robust spread (1.4826 MAD): far from the solution the noise alone would
-    // make every sample an outlier and the weights meaningless.
-    for (int k = 0; k < s.size(); ++k) {
-      residual[k] = s.b[k] - s.w[k].dot(x);
-      magnitude[k] = std::abs(residual[k]);
-    }
-    auto middle = magnitude.begin() + magnitude.size() / 2;
-    std::nth_element(magnitude.begin(), middle, magnitude.end());
-    const double spread = 1.4826 * *middle;
-    for (int k = 0; k < s.size(); ++k) {
-      const double u = residual[k] / std::max(std::sqrt(s.variance[k]), spread);
-      switch (loss) {
-        case RobustOptions::Loss::kCauchy: {
-          const double t = u / 2.385;
-          weight[k] = 1.0 / (1.0 + t * t);
-          break;
-        }
-        case RobustOptions::Loss::kHuber:
-          weight[k] = std::abs(u) <= 1.345 ? 1.0 : 1.345 / std::abs(u);
-          break;
-        case RobustOptions::Loss::kTukey: {
-          const double t = u / 4.685;
-          weight[k] = std::abs(t) < 1.0 ? (1.0 - t * t) * (1.0 - t * t) : 0.0;
-          break;
-        }
-      }
-    }
-    bool ok = false;
-    const Eigen::Vector3d next = WeightedLeastSquares(s, weight, &ok);
-    if (!ok) return Fit{};
-    const double step = (next - x).norm();
-    x = next;
-    if (!warmup && step <= options.relative_tolerance * x.norm()) break;
-  }
-  Fit fit = LambertianFromX(s, x, &weight, options.inlier_weight);
+// The `robust` fit of a pixel from its IRLS solution.
+Fit RobustFit(const internal::RobustSolution& solution) {
+  Fit fit;
   fit.model = PixelModel::kRobust;
-  if (fit.used < 3) fit.ok = false;
+  fit.ok = solution.ok;
+  if (!fit.ok) return fit;
+  fit.normal = solution.x.normalized();
+  fit.albedo = M_PI * solution.x.norm();
+  fit.chi2 = solution.chi2;
+  fit.used = solution.used;
+  fit.rejected = solution.rejected;
   return fit;
 }
 
@@ -647,7 +616,10 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     // (SampleReader::Row), reset after each tile.
     std::vector<double> observed, inverse_sigma;
     std::size_t rows = 0;
-    std::vector<Deferred> trimming, deferred;
+    std::vector<Deferred> trimming, reweighting, deferred;
+    std::unique_ptr<internal::RobustLambertianLanes> irls;
+    std::vector<internal::RobustProblem> robust_problems;
+    std::vector<internal::RobustSolution> robust_solutions;
     std::vector<internal::TrimProblem> trim_problems;
     std::vector<internal::TrimSolution> trim_solutions;
     std::vector<internal::BlinnPhongProblem> problems;
@@ -656,6 +628,8 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   };
   const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
   std::vector<ThreadState> states(threads);
+  for (ThreadState& state : states)
+    state.irls = std::make_unique<internal::RobustLambertianLanes>(working.light_directions, options.robust);
   std::vector<internal::BlinnPhongLaneFitter> fitters;
   std::vector<internal::TrimmedLambertianLanes> trimmers;
   if (lanes) {
@@ -708,6 +682,16 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   };
   // Pixels the cheap screen could not accept, one at a time: the exact tests
   // and, where the simple models fail, the richer fits.
+  // IRLS of one pixel: the lane fitter with a single problem.
+  auto reweight_pixel = [&](ThreadState& state, const PixelSamples& s, const Eigen::Vector3d& x) {
+    const internal::RobustProblem problem{s.row_observed.data(), s.row_inverse_sigma.data(), x};
+    internal::RobustSolution solution;
+    state.irls->Fit({&problem, 1}, {&solution, 1});
+    return RobustFit(solution);
+  };
+  // The per-pixel fitter: pixels the cheap screen could not accept, one at a
+  // time, through the exact tests and, where the simple models fail, the
+  // richer fits.
   auto refine_pixel = [&](ThreadState& state, int p) {
     PixelSamples& s = state.samples;
     reader.Usable(p, &s);
@@ -716,14 +700,12 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     if (options.method == Method::kAuto && adequate(lambert)) return record(state, p, lambert);
     const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
     const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, gross_u2, adequate, &state.trim)
-                                                       : FitRobust(s, x, options.robust);
+                                                       : reweight_pixel(state, s, x);
     // FitTrimmed never drops more than max_rejected samples.
     if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust)))
       return record(state, p, robust);
     const Fit& start = robust.ok ? robust : lambert;
-    if (!lanes) return record(state, p, choose_blinn_phong(lambert, FitBlinnPhong(s, start, options.blinn_phong, &state.tape)));
-    Fit unused;
-    state.deferred.push_back({p, lambert, start.normal, start.albedo, gather_row(state, p, x, &unused)});
+    record(state, p, choose_blinn_phong(lambert, FitBlinnPhong(s, start, options.blinn_phong, &state.tape)));
   };
   auto fit_deferred = [&](int thread) {
     ThreadState& state = states[thread];
@@ -753,8 +735,9 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     state.deferred.clear();
     state.rows = 0;
   };
-  // `auto` with lanes, for the pixels of one tile the screen did not accept.
-  auto refine_in_lanes = [&](int thread) {
+  // `auto` with lanes, for the pixels of one tile the screen did not accept:
+  // trimming; what it cannot explain goes on to the Blinn-Phong fit.
+  auto trim_in_lanes = [&](int thread) {
     ThreadState& state = states[thread];
     const std::size_t count = state.trimming.size();
     state.trim_problems.resize(count);
@@ -784,11 +767,34 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       state.deferred.push_back(d);
     }
     state.trimming.clear();
-    fit_deferred(thread);
+  };
+  // `robust` and `blinn-phong` with lanes: IRLS for every pixel of the tile;
+  // `blinn-phong` fits from there.
+  auto reweight_in_lanes = [&](int thread) {
+    ThreadState& state = states[thread];
+    const std::size_t count = state.reweighting.size();
+    state.robust_problems.resize(count);
+    state.robust_solutions.assign(count, {});
+    for (std::size_t i = 0; i < count; ++i) {
+      const Deferred& d = state.reweighting[i];
+      state.robust_problems[i] = {&state.observed[d.row * lights], &state.inverse_sigma[d.row * lights],
+                                  d.start_normal * d.start_albedo / M_PI};
+    }
+    if (count > 0) state.irls->Fit(state.robust_problems, state.robust_solutions);
+    for (std::size_t i = 0; i < count; ++i) {
+      const Fit robust = RobustFit(state.robust_solutions[i]);
+      Deferred d = state.reweighting[i];
+      if (options.method == Method::kRobust) {
+        record(state, d.pixel, robust);
+        continue;
+      }
+      if (robust.ok) d.start_normal = robust.normal, d.start_albedo = robust.albedo;
+      state.deferred.push_back(d);
+    }
+    state.reweighting.clear();
   };
   const internal::TileVisitor refine_tile = [&](int thread, int begin, int count) {
     ThreadState& state = states[thread];
-    const bool auto_lanes = lanes && options.method == Method::kAuto;
     state.needs_refit.resize(count);
     state.lambertian += ScreenTile(result->flags.ptr<std::uint8_t>() + begin,
                                    result->usable_lights.ptr<std::uint16_t>() + begin,
@@ -797,24 +803,25 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     for (int i = 0; i < count; ++i) {
       if (!state.needs_refit[i]) continue;
       const int p = begin + i;
-      if (!auto_lanes) {
+      if (!lanes) {
         refine_pixel(state, p);
         continue;
       }
       Fit lambert;
       const std::size_t row = gather_row(state, p, tile_x(p), &lambert);
-      if (adequate(lambert)) {
+      if (options.method != Method::kAuto) {
+        state.reweighting.push_back({p, lambert, lambert.normal, lambert.albedo, row});
+      } else if (adequate(lambert)) {
         record(state, p, lambert);
         --state.rows;  // the row is not needed
-        continue;
+      } else {
+        state.trimming.push_back({p, lambert, lambert.normal, lambert.albedo, row});
       }
-      state.trimming.push_back({p, lambert, lambert.normal, lambert.albedo, row});
     }
-    if (auto_lanes) {
-      refine_in_lanes(thread);
-    } else {
-      fit_deferred(thread);
-    }
+    if (!lanes) return;  // refine_pixel has recorded every pixel
+    trim_in_lanes(thread);
+    reweight_in_lanes(thread);
+    fit_deferred(thread);
   };
   SolverSummary summary = internal::SolveLambertianTiles(lambertian, working, result, refine_tile);
   summary.method = MethodName(options.method);

@@ -1,0 +1,241 @@
+#include "robust_lanes.h"
+
+#include "lane_math.h"
+
+#include <Eigen/Cholesky>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace photorig::ps::internal {
+namespace {
+
+// Tuning constants for 95 % efficiency under Gaussian noise.
+constexpr double kCauchyScale = 2.385, kHuberScale = 1.345, kTukeyScale = 4.685;
+
+struct alignas(64) LaneVector {
+  double v[3][kLanes];
+};
+
+// Weighted normal equations of each lane: sum c w w^T (xx, xy, xz, yy, yz,
+// zz) and sum c b w, c = weight / sigma^2.
+struct alignas(64) LaneNormalEquations {
+  double matrix[6][kLanes];
+  double rhs[3][kLanes];
+};
+
+// Residuals at x, and chi-square and the count of the inliers under the
+// current weights (what a lane that has just converged reports).
+PHOTORIG_PS_MULTIVERSION
+void Residuals(int lights, const double* directions, const double* observed, const double* inverse_variance,
+               const double* weight, double inlier_weight, const LaneVector& x, double* residual, double* chi2_out,
+               double* used_out) {
+  alignas(64) double chi2[kLanes] = {}, used[kLanes] = {};
+  for (int k = 0; k < lights; ++k) {
+    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
+    const double* b = observed + k * kLanes;
+    const double* v = inverse_variance + k * kLanes;
+    const double* c = weight + k * kLanes;
+    double* r = residual + k * kLanes;
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) {
+      r[j] = b[j] - wx * x.v[0][j] - wy * x.v[1][j] - wz * x.v[2][j];
+      const double inlier = (v[j] > 0.0) & (c[j] >= inlier_weight) ? 1.0 : 0.0;
+      chi2[j] += inlier * v[j] * r[j] * r[j];
+      used[j] += inlier;
+    }
+  }
+  for (int j = 0; j < kLanes; ++j) chi2_out[j] = chi2[j], used_out[j] = used[j];
+}
+
+// The weights of the loss each lane is in (one of the three selectors is 1,
+// the others 0: formulas without branches, so the loop vectorises), and the
+// weighted normal equations.
+PHOTORIG_PS_MULTIVERSION
+void WeightsAndNormalEquations(int lights, const double* directions, const double* observed,
+                               const double* inverse_variance, const double* inverse_sigma,
+                               const double* residual, const double* inverse_spread, const double* cauchy, const double* huber, const double* tukey,
+                               double* weight, LaneNormalEquations* eq) {
+  alignas(64) double xx[kLanes] = {}, xy[kLanes] = {}, xz[kLanes] = {}, yy[kLanes] = {}, yz[kLanes] = {},
+                     zz[kLanes] = {}, bx[kLanes] = {}, by[kLanes] = {}, bz[kLanes] = {};
+  for (int k = 0; k < lights; ++k) {
+    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
+    const double* b = observed + k * kLanes;
+    const double* v = inverse_variance + k * kLanes;
+    const double* r = residual + k * kLanes;
+    double* weight_k = weight + k * kLanes;
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) {
+      // u^2 = r^2 / max(sigma, spread)^2, by products: 1 / max(a, b) = min(1 / a, 1 / b).
+      const double scale = std::min(inverse_sigma[k * kLanes + j], inverse_spread[j]);
+      const double u2 = r[j] * r[j] * scale * scale;
+      const double biweight = 1.0 - std::min(u2 * (1.0 / (kTukeyScale * kTukeyScale)), 1.0);  // 0 beyond the cut-off
+      // The two divisions in float: a weight needs no more than its 7 digits.
+      const float u2f = static_cast<float>(u2);
+      const double cauchy_weight = 1.0f / (1.0f + u2f * static_cast<float>(1.0 / (kCauchyScale * kCauchyScale)));
+      const double huber_weight = std::min(1.0f, static_cast<float>(kHuberScale) / std::sqrt(u2f));
+      const double w = cauchy[j] * cauchy_weight + huber[j] * huber_weight + tukey[j] * biweight * biweight;
+      weight_k[j] = w;
+      const double c = w * v[j];
+      xx[j] += c * wx * wx, xy[j] += c * wx * wy, xz[j] += c * wx * wz;
+      yy[j] += c * wy * wy, yz[j] += c * wy * wz, zz[j] += c * wz * wz;
+      bx[j] += c * b[j] * wx, by[j] += c * b[j] * wy, bz[j] += c * b[j] * wz;
+    }
+  }
+  for (int j = 0; j < kLanes; ++j) {
+    eq->matrix[0][j] = xx[j], eq->matrix[1][j] = xy[j], eq->matrix[2][j] = xz[j];
+    eq->matrix[3][j] = yy[j], eq->matrix[4][j] = yz[j], eq->matrix[5][j] = zz[j];
+    eq->rhs[0][j] = bx[j], eq->rhs[1][j] = by[j], eq->rhs[2][j] = bz[j];
+  }
+}
+
+}  // namespace
+
+struct RobustLambertianLanes::State {
+  LaneVector x;
+  LaneNormalEquations equations;
+  double chi2[kLanes], used[kLanes];
+  double inverse_spread[kLanes], cauchy[kLanes], huber[kLanes], tukey[kLanes];
+  int problem[kLanes];  // -1: idle
+  int usable[kLanes], iteration[kLanes];
+  bool converged[kLanes];  // reports at the next residual pass
+};
+
+RobustLambertianLanes::RobustLambertianLanes(const std::vector<Eigen::Vector3d>& light_directions,
+                                             const RobustOptions& options)
+    : lights_(static_cast<int>(light_directions.size())),
+      options_(options),
+      directions_(3 * light_directions.size()),
+      observed_(light_directions.size() * kLanes),
+      inverse_variance_(light_directions.size() * kLanes),
+      inverse_sigma_(light_directions.size() * kLanes),
+      residual_(light_directions.size() * kLanes),
+      weight_(light_directions.size() * kLanes),
+      state_(std::make_unique<State>()) {
+  for (int k = 0; k < lights_; ++k)
+    for (int i = 0; i < 3; ++i) directions_[3 * k + i] = light_directions[k][i];
+  magnitudes_.resize(lights_);
+}
+
+RobustLambertianLanes::~RobustLambertianLanes() = default;
+RobustLambertianLanes::RobustLambertianLanes(RobustLambertianLanes&&) noexcept = default;
+
+void RobustLambertianLanes::Load(int lane, const RobustProblem& problem) {
+  State& s = *state_;
+  int usable = 0;
+  for (int k = 0; k < lights_; ++k) {
+    const int i = k * kLanes + lane;
+    const double inverse_sigma = problem.inverse_sigma[k];
+    observed_[i] = problem.observed[k];
+    inverse_variance_[i] = inverse_sigma * inverse_sigma;
+    inverse_sigma_[i] = inverse_sigma;
+    weight_[i] = 1.0;
+    usable += inverse_sigma > 0.0;
+  }
+  for (int i = 0; i < 3; ++i) s.x.v[i][lane] = problem.start[i];
+  s.usable[lane] = usable;
+  s.iteration[lane] = 0;
+  s.converged[lane] = false;
+}
+
+void RobustLambertianLanes::Fit(std::span<const RobustProblem> problems, std::span<RobustSolution> solutions) {
+  State& s = *state_;
+  const int count = static_cast<int>(problems.size());
+  int next = 0, busy = 0;
+  // An idle lane fits nothing: no usable samples, its answers ignored.
+  auto idle = [&](int lane) {
+    s.problem[lane] = -1;
+    for (int k = 0; k < lights_; ++k) {
+      const int i = k * kLanes + lane;
+      observed_[i] = inverse_variance_[i] = inverse_sigma_[i] = 0.0;
+    }
+    for (int i = 0; i < 3; ++i) s.x.v[i][lane] = 0.0;
+  };
+  // Hands the lane the next problem, or idles it.
+  auto refill = [&](int lane) {
+    if (next < count) {
+      s.problem[lane] = next;
+      Load(lane, problems[next++]);
+    } else {
+      idle(lane);
+      --busy;
+    }
+  };
+  for (int lane = 0; lane < kLanes; ++lane) {
+    if (next < count) {
+      s.problem[lane] = next;
+      Load(lane, problems[next++]);
+      ++busy;
+    } else {
+      idle(lane);
+    }
+  }
+  while (busy > 0) {
+    Residuals(lights_, directions_.data(), observed_.data(), inverse_variance_.data(), weight_.data(),
+              options_.inlier_weight, s.x, residual_.data(), s.chi2, s.used);
+    bool iterating[kLanes];
+    for (int lane = 0; lane < kLanes; ++lane) {
+      iterating[lane] = false;
+      s.inverse_spread[lane] = std::numeric_limits<double>::infinity();
+      s.cauchy[lane] = s.huber[lane] = s.tukey[lane] = 0.0;
+      if (s.problem[lane] < 0) continue;
+      if (s.converged[lane]) {
+        RobustSolution& out = solutions[s.problem[lane]];
+        out.x = Eigen::Vector3d(s.x.v[0][lane], s.x.v[1][lane], s.x.v[2][lane]);
+        out.used = static_cast<int>(s.used[lane]);
+        out.rejected = s.usable[lane] - out.used;
+        out.chi2 = s.chi2[lane];
+        out.iterations = s.iteration[lane];
+        out.ok = out.x.norm() > 0.0 && out.used >= 3;
+        refill(lane);  // its residuals come with the next pass
+        continue;
+      }
+      if (s.usable[lane] > 0) {
+        // Unusable samples as +infinity: they sort after every usable one, so
+        // the middle of the usable ones is found without a branch per sample.
+        for (int k = 0; k < lights_; ++k)
+          magnitudes_[k] = inverse_variance_[k * kLanes + lane] > 0.0 ? std::abs(residual_[k * kLanes + lane])
+                                                                       : std::numeric_limits<double>::infinity();
+        const auto middle_element = magnitudes_.begin() + s.usable[lane] / 2;
+        std::nth_element(magnitudes_.begin(), middle_element, magnitudes_.end());
+        const double middle = *middle_element;
+        s.inverse_spread[lane] = 1.0 / (1.4826 * middle);  // infinite for a zero spread: sigma decides
+      }
+      const bool warmup = s.iteration[lane] < options_.warmup_iterations;
+      const RobustOptions::Loss loss = warmup ? RobustOptions::Loss::kCauchy : options_.loss;
+      s.cauchy[lane] = loss == RobustOptions::Loss::kCauchy;
+      s.huber[lane] = loss == RobustOptions::Loss::kHuber;
+      s.tukey[lane] = loss == RobustOptions::Loss::kTukey;
+      iterating[lane] = true;
+    }
+    WeightsAndNormalEquations(lights_, directions_.data(), observed_.data(), inverse_variance_.data(),
+                              inverse_sigma_.data(), residual_.data(), s.inverse_spread, s.cauchy, s.huber, s.tukey, weight_.data(), &s.equations);
+    for (int lane = 0; lane < kLanes; ++lane) {
+      if (!iterating[lane]) continue;
+      const auto& m = s.equations.matrix;
+      Eigen::Matrix3d normal_matrix;
+      normal_matrix << m[0][lane], m[1][lane], m[2][lane], m[1][lane], m[3][lane], m[4][lane], m[2][lane],
+          m[4][lane], m[5][lane];
+      const Eigen::LDLT<Eigen::Matrix3d> ldlt(normal_matrix);
+      const bool solvable = ldlt.info() == Eigen::Success && ldlt.isPositive() &&
+                            ldlt.vectorD().minCoeff() > 1e-12 * ldlt.vectorD().maxCoeff();
+      if (!solvable) {
+        solutions[s.problem[lane]] = RobustSolution{};
+        refill(lane);
+        continue;
+      }
+      const Eigen::Vector3d x(s.x.v[0][lane], s.x.v[1][lane], s.x.v[2][lane]);
+      const Eigen::Vector3d step_to =
+          ldlt.solve(Eigen::Vector3d(s.equations.rhs[0][lane], s.equations.rhs[1][lane], s.equations.rhs[2][lane]));
+      const double step = (step_to - x).norm();
+      for (int i = 0; i < 3; ++i) s.x.v[i][lane] = step_to[i];
+      const bool warmup = s.iteration[lane] < options_.warmup_iterations;
+      ++s.iteration[lane];
+      s.converged[lane] = (!warmup && step <= options_.relative_tolerance * step_to.norm()) ||
+                          s.iteration[lane] >= options_.max_iterations;
+    }
+  }
+}
+
+}  // namespace photorig::ps::internal
