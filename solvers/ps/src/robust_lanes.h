@@ -21,6 +21,7 @@
 
 #include <memory>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace photorig::ps::internal {
@@ -61,7 +62,8 @@ class RobustLambertianLanes {
   // Struct-of-arrays over lanes, [light * kLanes + lane]: b, 1 / sigma^2 and
   // 1 / sigma (0: unusable), the last residuals and the last weights.
   std::vector<double> observed_, inverse_variance_, inverse_sigma_, residual_, weight_;
-  std::vector<double> magnitudes_;  // one lane's |r| (infinity: unusable), for its median
+  std::vector<double> magnitude_;   // |r| (infinity: unusable), sorted per lane for the median
+  std::vector<std::pair<int, int>> sorting_network_;  // compare-exchanges that sort lights_ values
   std::unique_ptr<State> state_;
 };
 
