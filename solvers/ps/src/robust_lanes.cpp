@@ -1,6 +1,6 @@
 #include "robust_lanes.h"
 
-#include "lane_math.h"
+#include "lane_least_squares.h"
 
 #include <Eigen/Cholesky>
 
@@ -17,13 +17,6 @@ constexpr double kCauchyScale = 2.385, kHuberScale = 1.345, kTukeyScale = 4.685;
 
 struct alignas(64) LaneVector {
   double v[3][kLanes];
-};
-
-// Weighted normal equations of each lane: sum c w w^T (xx, xy, xz, yy, yz,
-// zz) and sum c b w, c = weight / sigma^2.
-struct alignas(64) LaneNormalEquations {
-  double matrix[6][kLanes];
-  double rhs[3][kLanes];
 };
 
 // Residuals at x, their magnitudes (+infinity for unusable samples, which
@@ -60,10 +53,9 @@ void Residuals(int lights, const double* directions, const double* observed, con
 PHOTORIG_PS_MULTIVERSION
 void WeightsAndNormalEquations(int lights, const double* directions, const double* observed,
                                const double* inverse_variance, const double* inverse_sigma,
-                               const double* residual, const double* inverse_spread, const double* cauchy, const double* huber, const double* tukey,
-                               double* weight, LaneNormalEquations* eq) {
-  alignas(64) double xx[kLanes] = {}, xy[kLanes] = {}, xz[kLanes] = {}, yy[kLanes] = {}, yz[kLanes] = {},
-                     zz[kLanes] = {}, bx[kLanes] = {}, by[kLanes] = {}, bz[kLanes] = {};
+                               const double* residual, const double* inverse_spread, const double* cauchy,
+                               const double* huber, const double* tukey, double* weight, LaneNormalEquations* eq) {
+  LaneNormalEquations sums = {};  // in registers; stored once at the end
   for (int k = 0; k < lights; ++k) {
     const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
     const double* b = observed + k * kLanes;
@@ -82,17 +74,10 @@ void WeightsAndNormalEquations(int lights, const double* directions, const doubl
       const double huber_weight = std::min(1.0f, static_cast<float>(kHuberScale) / std::sqrt(u2f));
       const double w = cauchy[j] * cauchy_weight + huber[j] * huber_weight + tukey[j] * biweight * biweight;
       weight_k[j] = w;
-      const double c = w * v[j];
-      xx[j] += c * wx * wx, xy[j] += c * wx * wy, xz[j] += c * wx * wz;
-      yy[j] += c * wy * wy, yz[j] += c * wy * wz, zz[j] += c * wz * wz;
-      bx[j] += c * b[j] * wx, by[j] += c * b[j] * wy, bz[j] += c * b[j] * wz;
+      AddSample(sums, j, w * v[j], b[j], wx, wy, wz);
     }
   }
-  for (int j = 0; j < kLanes; ++j) {
-    eq->matrix[0][j] = xx[j], eq->matrix[1][j] = xy[j], eq->matrix[2][j] = xz[j];
-    eq->matrix[3][j] = yy[j], eq->matrix[4][j] = yz[j], eq->matrix[5][j] = zz[j];
-    eq->rhs[0][j] = bx[j], eq->rhs[1][j] = by[j], eq->rhs[2][j] = bz[j];
-  }
+  *eq = sums;
 }
 
 // Sorts every lane's values, [index * kLanes + lane], by a fixed sequence of
@@ -145,7 +130,7 @@ RobustLambertianLanes::RobustLambertianLanes(const std::vector<Eigen::Vector3d>&
                                              const RobustOptions& options)
     : lights_(static_cast<int>(light_directions.size())),
       options_(options),
-      directions_(3 * light_directions.size()),
+      directions_(DirectionArray(light_directions)),
       observed_(light_directions.size() * kLanes),
       inverse_variance_(light_directions.size() * kLanes),
       inverse_sigma_(light_directions.size() * kLanes),
@@ -153,8 +138,6 @@ RobustLambertianLanes::RobustLambertianLanes(const std::vector<Eigen::Vector3d>&
       weight_(light_directions.size() * kLanes),
       magnitude_(light_directions.size() * kLanes),
       state_(std::make_unique<State>()) {
-  for (int k = 0; k < lights_; ++k)
-    for (int i = 0; i < 3; ++i) directions_[3 * k + i] = light_directions[k][i];
   sorting_network_ = SortingNetwork(lights_);
 }
 

@@ -1,6 +1,6 @@
 #include "trim_lanes.h"
 
-#include "lane_math.h"
+#include "lane_least_squares.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,13 +8,6 @@
 
 namespace photorig::ps::internal {
 namespace {
-
-// Weighted normal equations of each lane: the 3 x 3 matrix sum v w w^T (xx,
-// xy, xz, yy, yz, zz) and sum v b w, v = 1 / sigma^2 over the kept samples.
-struct alignas(64) LaneNormalEquations {
-  double matrix[6][kLanes];
-  double rhs[3][kLanes];
-};
 
 struct alignas(64) LaneRound {
   double x[3][kLanes];
@@ -78,9 +71,7 @@ void CountAtLeast(int lights, const double* u2, const double* threshold, double*
 PHOTORIG_PS_MULTIVERSION
 void DropSamples(int lights, const double* directions, const double* observed, const double* u2,
                  const double* threshold, double* weight, LaneNormalEquations* eq) {
-  // The dropped samples' sums, in registers; subtracted once at the end.
-  alignas(64) double xx[kLanes] = {}, xy[kLanes] = {}, xz[kLanes] = {}, yy[kLanes] = {}, yz[kLanes] = {},
-                     zz[kLanes] = {}, bx[kLanes] = {}, by[kLanes] = {}, bz[kLanes] = {};
+  LaneNormalEquations dropped = {};  // in registers; subtracted once at the end
   for (int k = 0; k < lights; ++k) {
     const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
     const double* b = observed + k * kLanes;
@@ -89,18 +80,16 @@ void DropSamples(int lights, const double* directions, const double* observed, c
 #pragma omp simd
     for (int j = 0; j < kLanes; ++j) {
       const double c = row[j] >= threshold[j] ? v[j] : 0.0;
-      xx[j] += c * wx * wx, xy[j] += c * wx * wy, xz[j] += c * wx * wz;
-      yy[j] += c * wy * wy, yz[j] += c * wy * wz, zz[j] += c * wz * wz;
-      bx[j] += c * b[j] * wx, by[j] += c * b[j] * wy, bz[j] += c * b[j] * wz;
+      AddSample(dropped, j, c, b[j], wx, wy, wz);
       v[j] -= c;
     }
   }
+  for (int i = 0; i < 6; ++i)
 #pragma omp simd
-  for (int j = 0; j < kLanes; ++j) {
-    eq->matrix[0][j] -= xx[j], eq->matrix[1][j] -= xy[j], eq->matrix[2][j] -= xz[j];
-    eq->matrix[3][j] -= yy[j], eq->matrix[4][j] -= yz[j], eq->matrix[5][j] -= zz[j];
-    eq->rhs[0][j] -= bx[j], eq->rhs[1][j] -= by[j], eq->rhs[2][j] -= bz[j];
-  }
+    for (int j = 0; j < kLanes; ++j) eq->matrix[i][j] -= dropped.matrix[i][j];
+  for (int i = 0; i < 3; ++i)
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) eq->rhs[i][j] -= dropped.rhs[i][j];
 }
 
 // The weighted normal equations of one pixel's samples (v = 1 / sigma^2):
@@ -134,14 +123,11 @@ TrimmedLambertianLanes::TrimmedLambertianLanes(const std::vector<Eigen::Vector3d
                                                double gross_u2)
     : lights_(static_cast<int>(light_directions.size())),
       gross_u2_(gross_u2),
-      directions_(3 * light_directions.size()),
+      directions_(DirectionArray(light_directions)),
       observed_(light_directions.size() * kLanes),
       weight_(light_directions.size() * kLanes),
       u2_(light_directions.size() * kLanes),
-      state_(std::make_unique<State>()) {
-  for (int k = 0; k < lights_; ++k)
-    for (int i = 0; i < 3; ++i) directions_[3 * k + i] = light_directions[k][i];
-}
+      state_(std::make_unique<State>()) {}
 
 TrimmedLambertianLanes::~TrimmedLambertianLanes() = default;
 TrimmedLambertianLanes::TrimmedLambertianLanes(TrimmedLambertianLanes&&) noexcept = default;
