@@ -165,36 +165,19 @@ void RobustLambertianLanes::Load(int lane, const RobustProblem& problem) {
 void RobustLambertianLanes::Fit(std::span<const RobustProblem> problems, std::span<RobustSolution> solutions) {
   State& s = *state_;
   const int count = static_cast<int>(problems.size());
-  int next = 0, busy = 0;
   // An idle lane fits nothing: no usable samples, its answers ignored.
   auto idle = [&](int lane) {
-    s.problem[lane] = -1;
     for (int k = 0; k < lights_; ++k) {
       const int i = k * kLanes + lane;
       observed_[i] = inverse_variance_[i] = inverse_sigma_[i] = 0.0;
     }
     for (int i = 0; i < 3; ++i) s.x.v[i][lane] = 0.0;
   };
-  // Hands the lane the next problem, or idles it.
-  auto refill = [&](int lane) {
-    if (next < count) {
-      s.problem[lane] = next;
-      Load(lane, problems[next++]);
-    } else {
-      idle(lane);
-      --busy;
-    }
-  };
-  for (int lane = 0; lane < kLanes; ++lane) {
-    if (next < count) {
-      s.problem[lane] = next;
-      Load(lane, problems[next++]);
-      ++busy;
-    } else {
-      idle(lane);
-    }
-  }
-  while (busy > 0) {
+  LaneQueue queue(count);
+  auto load = [&](int lane, int index) { Load(lane, problems[index]); };
+  auto refill = [&](int lane) { queue.Refill(lane, s.problem, load, idle); };
+  for (int lane = 0; lane < kLanes; ++lane) refill(lane);
+  while (queue.busy() > 0) {
     Residuals(lights_, directions_.data(), observed_.data(), inverse_variance_.data(), weight_.data(),
               options_.inlier_weight, s.x, residual_.data(), magnitude_.data(), s.chi2, s.used);
     SortLanes(sorting_network_.data(), static_cast<int>(sorting_network_.size()), magnitude_.data());

@@ -151,24 +151,17 @@ void TrimmedLambertianLanes::Fit(std::span<const TrimProblem> problems, std::spa
                                  std::span<TrimSolution> solutions) {
   State& s = *state_;
   const int count = static_cast<int>(problems.size());
-  int next = 0, busy = 0;
   // An idle lane solves the identity system on no samples: finite, ignored.
   auto idle = [&](int lane) {
-    s.problem[lane] = -1;
     for (int k = 0; k < lights_; ++k) observed_[k * kLanes + lane] = weight_[k * kLanes + lane] = 0.0;
     for (int i = 0; i < 6; ++i) s.equations.matrix[i][lane] = (i == 0 || i == 3 || i == 5) ? 1.0 : 0.0;
     for (int i = 0; i < 3; ++i) s.equations.rhs[i][lane] = 0.0;
   };
-  for (int lane = 0; lane < kLanes; ++lane) {
-    if (next < count) {
-      s.problem[lane] = next;
-      Load(lane, problems[next++]);
-      ++busy;
-    } else {
-      idle(lane);
-    }
-  }
-  while (busy > 0) {
+  LaneQueue queue(count);
+  auto load = [&](int lane, int index) { Load(lane, problems[index]); };
+  auto refill = [&](int lane) { queue.Refill(lane, s.problem, load, idle); };
+  for (int lane = 0; lane < kLanes; ++lane) refill(lane);
+  while (queue.busy() > 0) {
     TrimRound(s.equations, lights_, directions_.data(), observed_.data(), weight_.data(), &s.round, u2_.data());
     // Which samples each lane would drop (infinity: it is done) ...
     alignas(64) double threshold[kLanes], drop[kLanes];
@@ -200,13 +193,7 @@ void TrimmedLambertianLanes::Fit(std::span<const TrimProblem> problems, std::spa
       out.chi2 = s.round.chi2[lane];
       out.used = used;
       out.rejected = s.removed[lane];
-      if (next < count) {
-        s.problem[lane] = next;
-        Load(lane, problems[next++]);
-      } else {
-        idle(lane);
-        --busy;
-      }
+      refill(lane);
     }
     DropSamples(lights_, directions_.data(), observed_.data(), u2_.data(), threshold, weight_.data(), &s.equations);
   }
