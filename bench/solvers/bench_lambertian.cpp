@@ -185,7 +185,8 @@ const Scene& Sphere(int size, double shininess) {
 void BM_Method(benchmark::State& state) {
   const auto method = static_cast<photorig::ps::Method>(state.range(0));
   const Scene& scene = Sphere(384, static_cast<double>(state.range(1)));
-  const PhotometricStack& stack = scene.stack;
+  PhotometricStack stack = scene.stack;
+  if (state.range(3) == 0) stack.noise.shot_gain = 0.0;  // estimated from the data by the methods that need it
   photorig::ps::PhotometricStereoOptions options;
   options.method = method;
   if (state.range(2) == 1) options.blinn_phong.fitter = photorig::ps::BlinnPhongOptions::Fitter::kPerPixel;
@@ -196,7 +197,8 @@ void BM_Method(benchmark::State& state) {
     summary = photorig::ps::SolvePhotometricStereo(options, stack, &map);
     benchmark::DoNotOptimize(map.normals.data);
   }
-  state.SetLabel(std::string(photorig::ps::MethodName(method)) + (state.range(2) == 1 ? " per pixel" : ""));
+  state.SetLabel(std::string(photorig::ps::MethodName(method)) + (state.range(2) == 1 ? " per pixel" : "") +
+                 (state.range(3) == 0 ? " noise estimated" : ""));
   const double solved = std::max<std::size_t>(1, summary.pixels_solved);
   state.counters["lambertian_pct"] = 100.0 * summary.pixels_lambertian / solved;
   state.counters["blinn_phong_pct"] = 100.0 * summary.pixels_blinn_phong / solved;
@@ -214,17 +216,20 @@ BENCHMARK(BM_Lambertian)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 // Args: method (l2, lambertian, robust, blinn-phong, auto as 0-4), Blinn-Phong
-// exponent (0 = matte), fitter (0 lanes, 1 per pixel with forward-mode autodiff).
+// exponent (0 = matte), fitter (0 lanes, 1 per pixel with forward-mode autodiff),
+// noise model (1 given; 0 shot noise unknown, so estimated from the data first).
 BENCHMARK(BM_Method)
-    ->ArgNames({"method", "shininess", "per_pixel"})
-    ->Args({0, 0, 0})
-    ->Args({1, 0, 0})
-    ->Args({4, 0, 0})
-    ->Args({0, 50, 0})
-    ->Args({2, 50, 0})
-    ->Args({3, 50, 0})
-    ->Args({4, 50, 0})
-    ->Args({4, 50, 1})
+    ->ArgNames({"method", "shininess", "per_pixel", "noise_known"})
+    ->Args({0, 0, 0, 1})
+    ->Args({1, 0, 0, 1})
+    ->Args({4, 0, 0, 1})
+    ->Args({4, 0, 0, 0})
+    ->Args({0, 50, 0, 1})
+    ->Args({2, 50, 0, 1})
+    ->Args({3, 50, 0, 1})
+    ->Args({4, 50, 0, 1})
+    ->Args({4, 50, 0, 0})
+    ->Args({4, 50, 1, 1})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

@@ -14,6 +14,7 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <tuple>
 #include <vector>
 
 namespace photorig::ps {
@@ -195,19 +196,6 @@ struct Fit {
   double Bic() const { return chi2 + parameters * std::log(std::max(used, 1)); }
   int Dof() const { return used - parameters; }
 };
-
-Eigen::Vector3d WeightedLeastSquares(const PixelSamples& s, const std::vector<double>& weight, bool* ok) {
-  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-  for (int k = 0; k < s.size(); ++k) {
-    const double c = weight[k] / s.variance[k];
-    normal_matrix += c * s.w[k] * s.w[k].transpose();
-    rhs += c * s.b[k] * s.w[k];
-  }
-  Eigen::LDLT<Eigen::Matrix3d> ldlt(normal_matrix);
-  *ok = ldlt.info() == Eigen::Success && ldlt.isPositive() && ldlt.vectorD().minCoeff() > 1e-12 * ldlt.vectorD().maxCoeff();
-  return ldlt.solve(rhs);
-}
 
 Fit LambertianFromX(const PixelSamples& s, const Eigen::Vector3d& x, const std::vector<double>* weight,
                     double inlier_weight) {
@@ -421,24 +409,61 @@ NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions&
     double signal, variance;
     int dof;
   };
-  std::vector<Sample> samples;
-  PixelSamples s;
   const int pixels = stack.width() * stack.height();
-  const int stride = std::max(1, pixels / 8000);
+  // About 8000 pixels, as runs of 32 neighbours spread over the image: a
+  // pixel's samples lie in K planes, and lone pixels every few apart would
+  // pull nearly every cache line of the stack from memory for one sample each.
+  constexpr int kTarget = 8000, kRun = 32;
+  const int run_stride = std::max(kRun, pixels / (kTarget / kRun));
+  const int lights = stack.light_count();
   PhotometricStack unit = stack;
   unit.noise = NoiseModel{1.0, 0.0};  // variance 1/s^2: chi2 below is then a sum of squared residuals in input units
   const SampleReader reader(unit, thresholds);
-  for (int p = 0; p < pixels; p += stride) {
-    if (!stack.mask.empty() && stack.mask.ptr<std::uint8_t>()[p] == 0) continue;
-    reader.Usable(p, &s);
-    if (s.size() < 6) continue;
-    bool solvable = false;
-    const Eigen::Vector3d x = WeightedLeastSquares(s, std::vector<double>(s.size(), 1.0), &solvable);
-    if (!solvable) continue;
-    const Fit fit = LambertianFromX(s, x, nullptr, 0.0);
-    double signal = 0.0;
-    for (int k = 0; k < s.size(); ++k) signal += s.b[k] * stack.light_scales[s.light[k]];
-    samples.push_back({signal / s.size(), fit.chi2 / (s.size() - 3), s.size() - 3});
+  std::vector<int> sampled;
+  for (int run = 0; run < pixels; run += run_stride)
+    for (int p = run; p < std::min(run + kRun, pixels); ++p)
+      if (stack.mask.empty() || stack.mask.ptr<std::uint8_t>()[p] != 0) sampled.push_back(p);
+  // Least squares on each sampled pixel's usable samples: the lane trimmer
+  // allowed to drop nothing, eight pixels at a time, in chunks the threads
+  // share. Everything below depends only on the set of samples found, not on
+  // their order.
+  constexpr int kChunk = 256;
+  const std::vector<double> never_adequate(lights + 1, -1.0);
+  std::vector<Sample> samples;
+#pragma omp parallel num_threads(thresholds.num_threads > 0 ? thresholds.num_threads : omp_get_max_threads())
+  {
+    internal::TrimmedLambertianLanes fitter(stack.light_directions, std::numeric_limits<double>::infinity());
+    std::vector<double> observed(kChunk * static_cast<std::size_t>(lights)), inverse_sigma(observed.size());
+    std::vector<internal::TrimProblem> problems;
+    std::vector<internal::TrimSolution> solutions;
+    std::vector<double> signals;
+    std::vector<Sample> found;
+#pragma omp for schedule(static)
+    for (int first = 0; first < static_cast<int>(sampled.size()); first += kChunk) {
+      problems.clear();
+      signals.clear();
+      const int end = std::min<int>(first + kChunk, static_cast<int>(sampled.size()));
+      for (int i = first; i < end; ++i) {
+        double* row_observed = &observed[static_cast<std::size_t>(problems.size()) * lights];
+        double* row_inverse_sigma = &inverse_sigma[static_cast<std::size_t>(problems.size()) * lights];
+        int usable = 0;
+        reader.Row(sampled[i], Eigen::Vector3d::Zero(), row_observed, row_inverse_sigma, &usable);
+        if (usable < 6) continue;
+        double signal = 0.0;  // sum of I - D over the usable samples (b s, with 1 / sigma = s here)
+        for (int k = 0; k < lights; ++k)
+          if (row_inverse_sigma[k] > 0.0) signal += row_observed[k] * stack.light_scales[k];
+        problems.push_back({row_observed, row_inverse_sigma, 0});
+        signals.push_back(signal / usable);
+      }
+      solutions.assign(problems.size(), {});
+      fitter.Fit(problems, never_adequate, solutions);
+      for (std::size_t i = 0; i < problems.size(); ++i) {
+        const internal::TrimSolution& fit = solutions[i];
+        if (fit.ok && fit.used > 3) found.push_back({signals[i], fit.chi2 / (fit.used - 3), fit.used - 3});
+      }
+    }
+#pragma omp critical
+    samples.insert(samples.end(), found.begin(), found.end());
   }
   NoiseModel noise = stack.noise;
   if (samples.size() < 16) return noise;
@@ -457,7 +482,10 @@ NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions&
   double gain = 0.0;
   // Unknown read noise comes from the darkest tenth of the pixels, where shot
   // noise matters least, refined once the gain is known.
-  std::sort(samples.begin(), samples.end(), [](const Sample& a, const Sample& b) { return a.signal < b.signal; });
+  // Ties broken by every field: the threads' order must not change the result.
+  std::sort(samples.begin(), samples.end(), [](const Sample& a, const Sample& b) {
+    return std::tie(a.signal, a.variance, a.dof) < std::tie(b.signal, b.variance, b.dof);
+  });
   const std::size_t darkest = std::max<std::size_t>(8, samples.size() / 10);
   for (int round = 0; round < (read_known ? 1 : 2); ++round) {
     if (!read_known) {
