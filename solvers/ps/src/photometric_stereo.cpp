@@ -399,11 +399,12 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
 // Noise of the data when the stack does not (fully) say: a photon-transfer fit
 // var(I - D) = read^2 + gain * (I - D) to the Lambertian residual variance of a
 // sparse set of pixels. Each pixel's variance v_p is a chi-square estimate, so
-// gain and read^2 are taken as lower quartiles of (v_p - read^2) / signal_p and
-// v_p - gain * signal_p, corrected by the chi-square lower quartile: pixels no
+// gain and read^2 are taken as lower deciles of (v_p - read^2) / signal_p and
+// v_p - gain * signal_p, corrected by the chi-square lower decile: pixels no
 // Lambertian model explains (highlights) cannot inflate them as long as fewer
-// than three quarters of the pixels are such. A read noise the stack already
-// knows (from dark frames) is kept fixed.
+// than nine tenths of the pixels are such. (Under a dome most pixels of a
+// glossy object see a highlight; a lower quartile breaks down there.) A read
+// noise the stack already knows (from dark frames) is kept fixed.
 NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions& thresholds) {
   struct Sample {
     double signal, variance;
@@ -471,9 +472,10 @@ NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions&
   for (const Sample& sample : samples) dofs.push_back(sample.dof);
   std::nth_element(dofs.begin(), dofs.begin() + dofs.size() / 2, dofs.end());
   const int typical_dof = static_cast<int>(dofs[dofs.size() / 2]);
-  const double bias = ChiSquareQuantiles(typical_dof, 0.25)[typical_dof] / typical_dof;
-  auto corrected_lower_quartile = [bias](std::vector<double> values) {
-    auto at = values.begin() + static_cast<std::ptrdiff_t>(0.25 * (values.size() - 1));
+  constexpr double kQuantile = 0.1;
+  const double bias = ChiSquareQuantiles(typical_dof, kQuantile)[typical_dof] / typical_dof;
+  auto corrected_lower_decile = [bias](std::vector<double> values) {
+    auto at = values.begin() + static_cast<std::ptrdiff_t>(kQuantile * (values.size() - 1));
     std::nth_element(values.begin(), at, values.end());
     return *at / bias;
   };
@@ -491,12 +493,12 @@ NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions&
     if (!read_known) {
       std::vector<double> reads;
       for (std::size_t i = 0; i < darkest; ++i) reads.push_back(samples[i].variance - gain * samples[i].signal);
-      read2 = std::max(0.0, corrected_lower_quartile(reads));
+      read2 = std::max(0.0, corrected_lower_decile(reads));
     }
     std::vector<double> gains;
     for (const Sample& sample : samples)
       if (sample.signal > 0.0) gains.push_back((sample.variance - read2) / sample.signal);
-    gain = gains.empty() ? 0.0 : std::max(0.0, corrected_lower_quartile(gains));
+    gain = gains.empty() ? 0.0 : std::max(0.0, corrected_lower_decile(gains));
   }
   noise.shot_gain = gain;
   noise.read_sigma = std::sqrt(read2);
