@@ -153,7 +153,6 @@ void RobustLambertianLanes::Load(int lane, const RobustProblem& problem) {
     observed_[i] = problem.observed[k];
     inverse_variance_[i] = inverse_sigma * inverse_sigma;
     inverse_sigma_[i] = inverse_sigma;
-    weight_[i] = 1.0;
     usable += inverse_sigma > 0.0;
   }
   for (int i = 0; i < 3; ++i) s.x.v[i][lane] = problem.start[i];
