@@ -383,11 +383,8 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
   State& s = *state_;
   const int count = static_cast<int>(problems.size());
   GridStarts(problems);
-  int next = 0;
-  int busy = 0;
-  for (int lane = 0; lane < kLanes; ++lane) {
-    s.problem[lane] = -1;
-    // An idle lane evaluates a harmless point with no samples.
+  // An idle lane evaluates a harmless point with no samples.
+  auto idle = [&](int lane) {
     for (int k = 0; k < lights_; ++k) observed_[k * kLanes + lane] = inverse_sigma_[k * kLanes + lane] = 0.0;
     double t1[3], t2[3];
     TangentBasis(0.0, 0.0, 1.0, t1, t2);
@@ -397,13 +394,12 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
     }
     s.candidate.diffuse_albedo[lane] = s.candidate.specular_albedo[lane] = 0.0;
     s.candidate.exponent[lane] = options_.min_exponent;
-    if (next < count) {
-      s.problem[lane] = next;
-      Load(lane, problems[next], starts_[next]);
-      ++next;
-      ++busy;
-    }
-  }
+  };
+  LaneQueue queue(count);
+  // A loaded problem's start is the lane's next candidate.
+  auto load = [&](int lane, int index) { Load(lane, problems[index], starts_[index]); };
+  auto refill = [&](int lane) { queue.Refill(lane, s.problem, load, idle); };
+  for (int lane = 0; lane < kLanes; ++lane) refill(lane);
   auto finish = [&](int lane) {
     BlinnPhongSolution& out = solutions[s.problem[lane]];
     out.ok = std::isfinite(s.current_cost[lane]);
@@ -413,18 +409,10 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
     out.exponent = s.current.exponent[lane];
     out.chi2 = s.current_cost[lane];
     out.iterations = s.iterations[lane];
-    if (next < count) {
-      s.problem[lane] = next;
-      Load(lane, problems[next], starts_[next]);  // its start is the next candidate
-      ++next;
-    } else {
-      s.problem[lane] = -1;
-      for (int k = 0; k < lights_; ++k) inverse_sigma_[k * kLanes + lane] = 0.0;
-      --busy;
-    }
+    refill(lane);
   };
   bool stepping[kLanes];  // lanes whose next candidate is a step from their current point
-  while (busy > 0) {
+  while (queue.busy() > 0) {
     EvaluateLanes(s.candidate, lights_, geometry_.data(), observed_.data(), inverse_sigma_.data(),
                   &s.candidate_equations);
     for (int lane = 0; lane < kLanes; ++lane) {

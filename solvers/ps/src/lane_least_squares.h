@@ -1,7 +1,7 @@
 #pragma once
 // What the Lambertian lane fitters (trim_lanes, robust_lanes) share: the
-// lights as plain arrays for their kernels, each lane's weighted 3 x 3
-// normal equations, and the order in which lanes take pixels.
+// lights as plain arrays for their kernels, and each lane's weighted 3 x 3
+// normal equations.
 
 #include "lane_math.h"
 
@@ -34,29 +34,5 @@ PHOTORIG_LANE_INLINE void AddSample(LaneNormalEquations& sums, int j, double c, 
   sums.matrix[3][j] += c * wy * wy, sums.matrix[4][j] += c * wy * wz, sums.matrix[5][j] += c * wz * wz;
   sums.rhs[0][j] += c * b * wx, sums.rhs[1][j] += c * b * wy, sums.rhs[2][j] += c * b * wz;
 }
-
-// Problems handed to lanes in order: a lane keeps its problem until it is
-// done, then takes the next at once; `busy` counts the lanes with a problem.
-class LaneQueue {
- public:
-  explicit LaneQueue(int count) : count_(count) {}
-  int busy() const { return busy_; }
-  // Gives the lane the next problem, load(lane, index) and problem[lane] =
-  // index, or idles it, idle(lane) and problem[lane] = -1.
-  template <typename Load, typename Idle>
-  void Refill(int lane, int* problem, const Load& load, const Idle& idle) {
-    if (next_ < count_) {
-      problem[lane] = next_;
-      load(lane, next_++);
-    } else {
-      problem[lane] = -1;
-      idle(lane);
-      --busy_;
-    }
-  }
-
- private:
-  int count_, next_ = 0, busy_ = kLanes;
-};
 
 }  // namespace photorig::ps::internal

@@ -1,6 +1,7 @@
 #pragma once
-// Building blocks of the SIMD kernels: multi-versioning, and log and exp for
-// loops that run one pixel per SIMD lane. glibc's vector
+// Building blocks of the SIMD kernels: multi-versioning, log and exp for
+// loops that run one pixel per SIMD lane, and the queue that hands pixels to
+// lanes. glibc's vector
 // versions are only declared under -ffast-math, which would also let the
 // compiler drop the NaN checks the solvers rely on; these use nothing but
 // arithmetic and 64-bit integer operations, which AVX2 and AVX-512 vectorise,
@@ -74,5 +75,29 @@ PHOTORIG_LANE_INLINE double LaneExp(double y) {
   const std::uint64_t k_bits = std::bit_cast<std::uint64_t>(t) - std::bit_cast<std::uint64_t>(kRound);
   return p * std::bit_cast<double>((k_bits + 1023) << 52);
 }
+
+// Problems handed to lanes in order: a lane keeps its problem until it is
+// done, then takes the next at once; `busy` counts the lanes with a problem.
+class LaneQueue {
+ public:
+  explicit LaneQueue(int count) : count_(count) {}
+  int busy() const { return busy_; }
+  // Gives the lane the next problem, load(lane, index) and problem[lane] =
+  // index, or idles it, idle(lane) and problem[lane] = -1.
+  template <typename Load, typename Idle>
+  void Refill(int lane, int* problem, const Load& load, const Idle& idle) {
+    if (next_ < count_) {
+      problem[lane] = next_;
+      load(lane, next_++);
+    } else {
+      problem[lane] = -1;
+      idle(lane);
+      --busy_;
+    }
+  }
+
+ private:
+  int count_, next_ = 0, busy_ = kLanes;
+};
 
 }  // namespace photorig::ps::internal

@@ -647,7 +647,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     std::vector<double> observed, inverse_sigma;
     std::size_t rows = 0;
     std::vector<Deferred> trimming, reweighting, deferred;
-    std::unique_ptr<internal::RobustLambertianLanes> irls;
+    std::unique_ptr<internal::RobustLambertianLanes> irls;  // `robust` and `blinn-phong` only
     std::vector<internal::RobustProblem> robust_problems;
     std::vector<internal::RobustSolution> robust_solutions;
     std::vector<internal::TrimProblem> trim_problems;
@@ -658,8 +658,9 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   };
   const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
   std::vector<ThreadState> states(threads);
-  for (ThreadState& state : states)
-    state.irls = std::make_unique<internal::RobustLambertianLanes>(working.light_directions, options.robust);
+  if (options.method == Method::kRobust || options.method == Method::kBlinnPhong)
+    for (ThreadState& state : states)
+      state.irls = std::make_unique<internal::RobustLambertianLanes>(working.light_directions, options.robust);
   std::vector<internal::BlinnPhongLaneFitter> fitters;
   std::vector<internal::TrimmedLambertianLanes> trimmers;
   if (lanes) {
@@ -710,8 +711,6 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
     return Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
   };
-  // Pixels the cheap screen could not accept, one at a time: the exact tests
-  // and, where the simple models fail, the richer fits.
   // IRLS of one pixel: the lane fitter with a single problem.
   auto reweight_pixel = [&](ThreadState& state, const PixelSamples& s, const Eigen::Vector3d& x) {
     const internal::RobustProblem problem{s.row_observed.data(), s.row_inverse_sigma.data(), x};

@@ -137,9 +137,8 @@ RobustLambertianLanes::RobustLambertianLanes(const std::vector<Eigen::Vector3d>&
       residual_(light_directions.size() * kLanes),
       weight_(light_directions.size() * kLanes),
       magnitude_(light_directions.size() * kLanes),
-      state_(std::make_unique<State>()) {
-  sorting_network_ = SortingNetwork(lights_);
-}
+      sorting_network_(SortingNetwork(lights_)),
+      state_(std::make_unique<State>()) {}
 
 RobustLambertianLanes::~RobustLambertianLanes() = default;
 RobustLambertianLanes::RobustLambertianLanes(RobustLambertianLanes&&) noexcept = default;
@@ -209,7 +208,8 @@ void RobustLambertianLanes::Fit(std::span<const RobustProblem> problems, std::sp
       iterating[lane] = true;
     }
     WeightsAndNormalEquations(lights_, directions_.data(), observed_.data(), inverse_variance_.data(),
-                              inverse_sigma_.data(), residual_.data(), s.inverse_spread, s.cauchy, s.huber, s.tukey, weight_.data(), &s.equations);
+                              inverse_sigma_.data(), residual_.data(), s.inverse_spread, s.cauchy, s.huber, s.tukey,
+                              weight_.data(), &s.equations);
     for (int lane = 0; lane < kLanes; ++lane) {
       if (!iterating[lane]) continue;
       const auto& m = s.equations.matrix;

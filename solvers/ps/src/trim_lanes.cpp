@@ -165,15 +165,16 @@ void TrimmedLambertianLanes::Fit(std::span<const TrimProblem> problems, std::spa
     TrimRound(s.equations, lights_, directions_.data(), observed_.data(), weight_.data(), &s.round, u2_.data());
     // Which samples each lane would drop (infinity: it is done) ...
     alignas(64) double threshold[kLanes], drop[kLanes];
+    bool ok[kLanes];
     for (int lane = 0; lane < kLanes; ++lane) {
       threshold[lane] = std::numeric_limits<double>::infinity();
       if (s.problem[lane] < 0) continue;
       const int used = s.usable[lane] - s.removed[lane];
-      const bool ok = Eigen::Vector3d(s.round.x[0][lane], s.round.x[1][lane], s.round.x[2][lane]).norm() > 0.0 &&
-                      used >= 3;  // false for a non-finite x too
-      const bool adequate = ok && used > 3 && s.round.chi2[lane] <= chi2_quantile[used - 3];
+      ok[lane] = Eigen::Vector3d(s.round.x[0][lane], s.round.x[1][lane], s.round.x[2][lane]).norm() > 0.0 &&
+                 used >= 3;  // false for a non-finite x too
+      const bool adequate = ok[lane] && used > 3 && s.round.chi2[lane] <= chi2_quantile[used - 3];
       const double t = TrimThreshold(s.round.worst_u2[lane], gross_u2_);
-      if (ok && !adequate && t > 0.0) threshold[lane] = t;
+      if (ok[lane] && !adequate && t > 0.0) threshold[lane] = t;
     }
     CountAtLeast(lights_, u2_.data(), threshold, drop);
     // ... and whether it may: a lane that is done, or would exceed its
@@ -189,7 +190,7 @@ void TrimmedLambertianLanes::Fit(std::span<const TrimProblem> problems, std::spa
       threshold[lane] = std::numeric_limits<double>::infinity();
       TrimSolution& out = solutions[s.problem[lane]];
       out.x = Eigen::Vector3d(s.round.x[0][lane], s.round.x[1][lane], s.round.x[2][lane]);
-      out.ok = out.x.norm() > 0.0 && used >= 3;
+      out.ok = ok[lane];
       out.chi2 = s.round.chi2[lane];
       out.used = used;
       out.rejected = s.removed[lane];
