@@ -4,6 +4,13 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+#include <vector>
+
 namespace photorig::ps {
 namespace {
 
@@ -57,6 +64,57 @@ TEST(Lambertian, ExcludesAttachedShadowsPerPixel) {
   NormalMap biased;
   ASSERT_TRUE(SolveLambertian(l2, stack, &biased).IsSolutionUsable());
   EXPECT_GT(CompareNormals(biased.normals, truth.normals).mean_deg, 1.0);
+}
+
+// The confidence is expected / observed residual variance. The observed RSS
+// comes from the normal equations' float sums where their rounding is
+// negligible next to it, and from summing the residuals themselves where it
+// is not (a fit closer than float sums resolve). Either way it must match the
+// RSS of the same light subset summed in double.
+TEST(Lambertian, ConfidenceMatchesResidualsSummedInDoubleAtEveryNoiseLevel) {
+  const auto truth = RandomSurface(64, 64, 70.0);
+  const auto lights = RingLights(24, 20, 70);
+  const double scale = 1000.0;
+  const float dark = 10.0f;
+  for (const double noise_sigma : {2.0, 0.02}) {
+    SCOPED_TRACE(noise_sigma);
+    PhotometricStack stack = testing::RenderShinyStack(truth, lights, scale, {}, dark, noise_sigma);
+    // A read noise well below the real one keeps every confidence below the
+    // clamp at 1, so it is proportional to 1 / RSS.
+    stack.noise.read_sigma = 0.1 * noise_sigma;
+    LambertianOptions options;
+    options.shadow_threshold = 5.0 * noise_sigma;
+    NormalMap map;
+    ASSERT_TRUE(SolveLambertian(options, stack, &map).IsSolutionUsable());
+    std::vector<double> relative_errors;
+    for (int p = 0; p < static_cast<int>(truth.albedo.total()); ++p) {
+      if (map.flags.ptr<std::uint8_t>()[p] != static_cast<std::uint8_t>(PixelFlag::kSolved)) continue;
+      Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+      std::vector<std::pair<Eigen::Vector3d, double>> samples;
+      for (std::size_t k = 0; k < lights.size(); ++k) {
+        const double signal = double(stack.images[k].ptr<float>()[p]) - dark;
+        if (!(signal > options.shadow_threshold)) continue;
+        samples.emplace_back(lights[k], signal / scale);
+        g += lights[k] * lights[k].transpose();
+        rhs += lights[k] * (signal / scale);
+      }
+      const int n = static_cast<int>(samples.size());
+      if (n <= 3) continue;
+      const Eigen::Vector3d x = g.ldlt().solve(rhs);
+      double rss = 0.0;
+      for (const auto& [w, b] : samples) rss += (b - w.dot(x)) * (b - w.dot(x));
+      const double read_variance = stack.noise.read_sigma * stack.noise.read_sigma / (scale * scale);
+      const double expected = read_variance * n * (n - 3.0) / n;
+      ASSERT_LT(expected / rss, 1.0) << "pixel " << p;
+      relative_errors.push_back(std::abs(map.confidence.ptr<float>()[p] / (expected / rss) - 1.0));
+    }
+    ASSERT_GT(relative_errors.size(), 3000u);
+    std::sort(relative_errors.begin(), relative_errors.end());
+    // Documented: within 4 % at worst, typically a few parts in a thousand.
+    EXPECT_LT(relative_errors.back(), 0.04);
+    EXPECT_LT(relative_errors[relative_errors.size() / 2], 0.005);
+  }
 }
 
 TEST(Lambertian, ExcludesSaturatedSamples) {

@@ -204,6 +204,11 @@ constexpr int kBlockPixels = 256;
 // small enough that a dome-lit object's rim of attached shadows does not drag
 // its fully lit interior along.
 constexpr int kChunkPixels = 64;
+// Residuals from the normal equations' sums are trusted to this fraction of
+// their value (see SolveSubsetTile); the factor is three sums' statistical
+// rounding, 3 sqrt(n) u, with a factor two to spare.
+constexpr double kResidualTolerance = 0.1;
+constexpr double kRoundingPerSqrtSample = 6.0 / (1 << 24);
 struct SubsetBlock {
   alignas(64) float g[6][kBlockPixels];  // G_S: xx, yy, zz, xy, xz, yz
   alignas(64) float r[3][kBlockPixels];  // A_S^T b_S
@@ -237,11 +242,11 @@ __attribute__((always_inline)) inline LightGroup GroupAt(const TileConstants& c,
 }
 
 // Least squares on each pixel's usable samples, for pixels [first, end) of a
-// tile whose samples the streaming pass has just brought into cache, block by
-// block: one sweep over a block's K samples sums the normal equations, the
-// 3 x 3 systems are solved by their adjugates, and a second sweep sums the
-// residuals exactly rather than as a difference of large sums. A pixel whose
-// samples are all usable gets the full set's least squares again.
+// tile, block by block: one sweep over a block's K samples sums the normal
+// equations, the 3 x 3 systems are solved by their adjugates, and the
+// residual comes from the same sums unless float rounding could blur it (then
+// a second sweep sums the residuals themselves). A pixel whose samples are
+// all usable gets the full set's least squares again.
 PHOTORIG_PS_MULTIVERSION
 void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, const float* dark, SubsetBlock* a,
                      TileSolution* s) {
@@ -253,7 +258,7 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
     const int count = std::min(kBlockPixels, end - first_pixel);
     const float* __restrict d = dark + first_pixel;
     for (auto* row : {a->g[0], a->g[1], a->g[2], a->g[3], a->g[4], a->g[5], a->r[0], a->r[1], a->r[2], a->usable, a->u,
-                      a->signal, a->b2, a->rss})
+                      a->signal, a->b2})
       std::fill(row, row + count, 0.0f);
     for (int first = 0; first < k; first += kGroup) {
       const LightGroup group = GroupAt(c, first, begin + first_pixel);
@@ -314,21 +319,43 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
       // is 0 (inverse_det = 0), so det > 0 is tested on its own.
       certain[i] = (a->usable[i] == all) | ((det > 0.0f) & (bound <= c.max_frobenius_condition2)) ? 1.0f : 0.0f;
     }
-    for (int first = 0; first < k; first += kGroup) {
-      const LightGroup group = GroupAt(c, first, begin + first_pixel);
-      const auto& planes = group.planes;
-      const auto &wx = group.wx, &wy = group.wy, &wz = group.wz, &inverse_scale = group.inverse_scale;
-      const auto& present = group.present;
+    // The residual from the sums, RSS = b^2 - 2 x^T r + x^T G x (stationary
+    // in x, so the solve's rounding enters squared). Its own rounding error
+    // grows with b^2, not with RSS: statistically about sqrt(n) u b^2 for each
+    // of the three float sums of n terms (u = 2^-24). Where that could exceed
+    // kResidualTolerance of RSS anywhere in the block (a fit closer than
+    // float sums can resolve), a second sweep sums the residuals themselves.
+    int exact_needed = 0;
+#pragma omp simd reduction(max : exact_needed)
+    for (int i = 0; i < count; ++i) {
+      const double x = x0[i], y = x1[i], z = x2[i];
+      const double gx = a->g[0][i] * x + a->g[3][i] * y + a->g[4][i] * z;
+      const double gy = a->g[3][i] * x + a->g[1][i] * y + a->g[5][i] * z;
+      const double gz = a->g[4][i] * x + a->g[5][i] * y + a->g[2][i] * z;
+      const double xr = x * a->r[0][i] + y * a->r[1][i] + z * a->r[2][i];
+      const double rss = std::max(0.0, a->b2[i] - 2.0 * xr + (x * gx + y * gy + z * gz));
+      const double rounding = kRoundingPerSqrtSample * std::sqrt(double(a->usable[i])) * a->b2[i];
+      a->rss[i] = static_cast<float>(rss);
+      exact_needed = std::max(exact_needed, (a->usable[i] > 3.0f) & (rounding > kResidualTolerance * rss) ? 1 : 0);
+    }
+    if (exact_needed) {
+      std::fill(a->rss, a->rss + count, 0.0f);
+      for (int first = 0; first < k; first += kGroup) {
+        const LightGroup group = GroupAt(c, first, begin + first_pixel);
+        const auto& planes = group.planes;
+        const auto &wx = group.wx, &wy = group.wy, &wz = group.wz, &inverse_scale = group.inverse_scale;
+        const auto& present = group.present;
 #pragma omp simd
-      for (int i = 0; i < count; ++i) {
-        float rss = a->rss[i];
-        const float threshold = d[i] + c.shadow;
-        for (int j = 0; j < kGroup; ++j) {
-          const float v = planes[j][i];
-          const float r = (v - d[i]) * inverse_scale[j] - (wx[j] * x0[i] + wy[j] * x1[i] + wz[j] * x2[i]);
-          rss += (v > threshold) & (v < saturation) ? present[j] * r * r : 0.0f;
+        for (int i = 0; i < count; ++i) {
+          float rss = a->rss[i];
+          const float threshold = d[i] + c.shadow;
+          for (int j = 0; j < kGroup; ++j) {
+            const float v = planes[j][i];
+            const float r = (v - d[i]) * inverse_scale[j] - (wx[j] * x0[i] + wy[j] * x1[i] + wz[j] * x2[i]);
+            rss += (v > threshold) & (v < saturation) ? present[j] * r * r : 0.0f;
+          }
+          a->rss[i] = rss;
         }
-        a->rss[i] = rss;
       }
     }
     float* __restrict confidence = s->confidence + first_pixel;
@@ -346,10 +373,10 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
 }
 
 // Writes every pixel of the tile from its solution: normal, albedo,
-// confidence, usable count, model, zero specular; kTooFewLights where x = 0
-// (no direction exists). The caller overwrites masked and unusable pixels.
+// confidence, usable count, model, zero specular and the flag: outside the
+// mask, too few usable samples (or x = 0: no direction exists) or solved.
 PHOTORIG_PS_MULTIVERSION
-void WriteTile(int begin, int n, const TileSolution& s, NormalMap* out) {
+void WriteTile(int begin, int n, const TileSolution& s, const std::uint8_t* mask, NormalMap* out) {
   float* __restrict normals = out->normals.ptr<float>() + 3 * static_cast<std::size_t>(begin);
   float* __restrict albedo = out->albedo.ptr<float>() + begin;
   float* __restrict confidence = out->confidence.ptr<float>() + begin;
@@ -358,11 +385,14 @@ void WriteTile(int begin, int n, const TileSolution& s, NormalMap* out) {
   std::uint8_t* __restrict model = out->model.ptr<std::uint8_t>() + begin;
   std::uint16_t* __restrict usable = out->usable_lights.ptr<std::uint16_t>() + begin;
   const float nan = std::numeric_limits<float>::quiet_NaN();
+  // Inside the mask as 1 / 0 floats, so the float loop below stays at full width.
+  alignas(64) float inside[kTilePixels];
+  for (int i = 0; i < n; ++i) inside[i] = mask == nullptr || mask[begin + i] != 0 ? 1.0f : 0.0f;
 #pragma omp simd
   for (int i = 0; i < n; ++i) {
     const float x = s.x0[i], y = s.x1[i], z = s.x2[i];
     const float length = std::sqrt(x * x + y * y + z * z);
-    const bool solved = length > 0.0f;
+    const bool solved = (length > 0.0f) & (inside[i] > 0.0f) & (s.usable[i] >= 3.0f);
     const float inverse = solved ? 1.0f / length : nan;
     normals[3 * i] = x * inverse;
     normals[3 * i + 1] = y * inverse;
@@ -375,9 +405,12 @@ void WriteTile(int begin, int n, const TileSolution& s, NormalMap* out) {
 #pragma omp simd
   for (int i = 0; i < n; ++i) {
     const bool solved = albedo[i] > 0.0f;  // false for NaN
-    flags[i] = solved ? std::uint8_t{0} : static_cast<std::uint8_t>(PixelFlag::kTooFewLights);
+    const bool outside = inside[i] == 0.0f;
+    flags[i] = static_cast<std::uint8_t>(solved ? PixelFlag::kSolved
+                                         : outside ? PixelFlag::kOutsideMask
+                                                   : PixelFlag::kTooFewLights);
     model[i] = solved ? static_cast<std::uint8_t>(PixelModel::kLambertian) : std::uint8_t{0};
-    usable[i] = static_cast<std::uint16_t>(s.usable[i]);
+    usable[i] = outside ? std::uint16_t{0} : static_cast<std::uint16_t>(s.usable[i]);
   }
   std::fill(specular, specular + 2 * n, 0.0f);
 }
@@ -584,46 +617,40 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
         }
         if (run_first >= 0) SolveSubsetTile(constants, begin, run_first, n, sums->dark, block.get(), solution.get());
       }
-      WriteTile(begin, n, *solution, result);
-      for (int i = 0; i < n; ++i) {
+      WriteTile(begin, n, *solution, mask, result);
+      // Subsets the float kernel could not vouch for get the exact verdict.
+      for (int i = 0; options.exclude_unusable_samples && i < n; ++i) {
         const int p = begin + i;
-        const int usable = static_cast<int>(solution->usable[i]);
-        if (mask && mask[p] == 0) {
-          unsolved(p, PixelFlag::kOutsideMask);
-          result->usable_lights.ptr<std::uint16_t>()[p] = 0;
-          ++outside_mask;
-          continue;
-        }
-        rejected_samples += static_cast<std::size_t>(k - usable);
-        if (usable < 3) {
+        if (solution->certainly_conditioned[i] != 0.0f || result->usable_lights.ptr<std::uint16_t>()[p] < 3) continue;
+        const ExactSubset exact = SolveSubsetExactly(stack, constants, p, sums->dark[i], max_condition2);
+        if (!exact.conditioned) {
+          unsolved(p, PixelFlag::kIllConditioned);
+        } else if (!WriteSolution(p, float(exact.x(0)), float(exact.x(1)), float(exact.x(2)), exact.confidence,
+                                  result)) {
           unsolved(p, PixelFlag::kTooFewLights);
-          ++too_few;
-          continue;
-        }
-        if (options.exclude_unusable_samples && usable < k) {
-          if (solution->certainly_conditioned[i] == 0.0f) {
-            const ExactSubset exact = SolveSubsetExactly(stack, constants, p, sums->dark[i], max_condition2);
-            if (!exact.conditioned) {
-              unsolved(p, PixelFlag::kIllConditioned);
-              ++ill_conditioned;
-              continue;
-            }
-            if (!WriteSolution(p, float(exact.x(0)), float(exact.x(1)), float(exact.x(2)), exact.confidence, result)) {
-              unsolved(p, PixelFlag::kTooFewLights);
-              ++too_few;
-              continue;
-            }
-          }
-          ++on_subset;
-        }
-        if (result->flags.ptr<std::uint8_t>()[p] == static_cast<std::uint8_t>(PixelFlag::kSolved)) {
-          ++solved;
-        } else {
-          // All usable samples were zero after dark subtraction: no direction exists.
-          unsolved(p, PixelFlag::kTooFewLights);
-          ++too_few;
         }
       }
+      const std::uint8_t* flags = result->flags.ptr<std::uint8_t>() + begin;
+      const std::uint16_t* usable = result->usable_lights.ptr<std::uint16_t>() + begin;
+      std::size_t tile_rejected = 0, tile_subset = 0, tile_solved = 0, tile_outside = 0, tile_too_few = 0,
+                  tile_ill = 0;
+#pragma omp simd reduction(+ : tile_rejected, tile_subset, tile_solved, tile_outside, tile_too_few, tile_ill)
+      for (int i = 0; i < n; ++i) {
+        const bool outside = flags[i] == static_cast<std::uint8_t>(PixelFlag::kOutsideMask);
+        const bool is_solved = flags[i] == static_cast<std::uint8_t>(PixelFlag::kSolved);
+        tile_rejected += outside ? 0 : static_cast<std::size_t>(k - usable[i]);
+        tile_subset += is_solved & (usable[i] < k);
+        tile_solved += is_solved;
+        tile_outside += outside;
+        tile_too_few += flags[i] == static_cast<std::uint8_t>(PixelFlag::kTooFewLights);
+        tile_ill += flags[i] == static_cast<std::uint8_t>(PixelFlag::kIllConditioned);
+      }
+      rejected_samples += tile_rejected;
+      on_subset += options.exclude_unusable_samples ? tile_subset : 0;
+      solved += tile_solved;
+      outside_mask += tile_outside;
+      too_few += tile_too_few;
+      ill_conditioned += tile_ill;
       if (visit) visit(omp_get_thread_num(), begin, n);
     }
   }
