@@ -93,12 +93,12 @@ void ReadRow(const RowInputs& in, int pixel, const double* x, double* observed, 
 // solved pixels pass.
 PHOTORIG_PS_MULTIVERSION
 std::size_t ScreenTile(const std::uint8_t* flags, const std::uint16_t* usable, const float* confidence, int count,
-                       const double* threshold, std::uint8_t* needs_refit) {
+                       const float* threshold, std::uint8_t* needs_refit) {
   int passed = 0;
 #pragma omp simd reduction(+ : passed)
   for (int i = 0; i < count; ++i) {
     const bool solved = flags[i] == static_cast<std::uint8_t>(PixelFlag::kSolved);
-    const bool pass = double(confidence[i]) >= threshold[usable[i]];
+    const bool pass = confidence[i] >= threshold[usable[i]];
     needs_refit[i] = solved & !pass;
     passed += solved & pass;
   }
@@ -620,9 +620,11 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   // another look at its samples. (The exact test weights each sample by its
   // own variance; the two differ only near the threshold.) Other methods
   // refine every pixel.
-  std::vector<double> screen_threshold(stack.light_count() + 1, std::numeric_limits<double>::infinity());
+  // Float, as the confidence is: the screen only needs to be close (see above).
+  std::vector<float> screen_threshold(stack.light_count() + 1, std::numeric_limits<float>::infinity());
   if (options.method == Method::kAuto)
-    for (int dof = 1; dof + 3 <= stack.light_count(); ++dof) screen_threshold[dof + 3] = dof / quantile[dof];
+    for (int dof = 1; dof + 3 <= stack.light_count(); ++dof)
+      screen_threshold[dof + 3] = static_cast<float>(dof / quantile[dof]);
 
   // Each pixel is refined right after its tile's Lambertian pass, while the
   // tile's samples are still in cache; counts are kept per thread. With the
