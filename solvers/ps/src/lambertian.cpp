@@ -265,6 +265,11 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
       const auto& planes = group.planes;
       const auto &wx = group.wx, &wy = group.wy, &wz = group.wz, &inverse_scale = group.inverse_scale;
       const auto &u = group.u, &present = group.present;
+      float wxx[kGroup], wyy[kGroup], wzz[kGroup], wxy[kGroup], wxz[kGroup], wyz[kGroup];
+      for (int j = 0; j < kGroup; ++j) {
+        wxx[j] = wx[j] * wx[j], wyy[j] = wy[j] * wy[j], wzz[j] = wz[j] * wz[j];
+        wxy[j] = wx[j] * wy[j], wxz[j] = wx[j] * wz[j], wyz[j] = wy[j] * wz[j];
+      }
 #pragma omp simd
       for (int i = 0; i < count; ++i) {
         float gxx = a->g[0][i], gyy = a->g[1][i], gzz = a->g[2][i], gxy = a->g[3][i], gxz = a->g[4][i], gyz = a->g[5][i];
@@ -273,22 +278,25 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
         const float threshold = d[i] + c.shadow;
         for (int j = 0; j < kGroup; ++j) {
           const float v = planes[j][i];
-          const float m = (v > threshold) & (v < saturation) ? present[j] : 0.0f;
-          const float signal = m * (v - d[i]);
-          const float b = signal * inverse_scale[j];
-          gxx += m * (wx[j] * wx[j]);
-          gyy += m * (wy[j] * wy[j]);
-          gzz += m * (wz[j] * wz[j]);
-          gxy += m * (wx[j] * wy[j]);
-          gxz += m * (wx[j] * wz[j]);
-          gyz += m * (wy[j] * wz[j]);
-          rx += wx[j] * b;
-          ry += wy[j] * b;
-          rz += wz[j] * b;
-          usable += m;
-          su += m * u[j];
-          signal_sum += signal * u[j];
-          b2 += b * b;
+          // Conditional sums rather than products with a 0/1 weight: with
+          // AVX-512 each is one merge-masked add.
+          if ((v > threshold) & (v < saturation) & (present[j] != 0.0f)) {
+            const float signal = v - d[i];
+            const float b = signal * inverse_scale[j];
+            gxx += wxx[j];
+            gyy += wyy[j];
+            gzz += wzz[j];
+            gxy += wxy[j];
+            gxz += wxz[j];
+            gyz += wyz[j];
+            rx += wx[j] * b;
+            ry += wy[j] * b;
+            rz += wz[j] * b;
+            usable += 1.0f;
+            su += u[j];
+            signal_sum += signal * u[j];
+            b2 += b * b;
+          }
         }
         a->g[0][i] = gxx, a->g[1][i] = gyy, a->g[2][i] = gzz, a->g[3][i] = gxy, a->g[4][i] = gxz, a->g[5][i] = gyz;
         a->r[0][i] = rx, a->r[1][i] = ry, a->r[2][i] = rz;
