@@ -676,8 +676,12 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   // Gathers pixel p's samples into a new row; the Lambertian fit x is tested on them.
   auto gather_row = [&](ThreadState& state, int p, const Eigen::Vector3d& x, Fit* lambert) {
     const std::size_t row = state.rows++;
-    state.observed.resize(state.rows * lights);
-    state.inverse_sigma.resize(state.rows * lights);
+    // Rows are reused from tile to tile: grow only (a resize would zero-fill
+    // every row again for each tile).
+    if (state.observed.size() < state.rows * lights) {
+      state.observed.resize(2 * state.rows * lights);
+      state.inverse_sigma.resize(2 * state.rows * lights);
+    }
     lambert->chi2 = reader.Row(p, x, &state.observed[row * lights], &state.inverse_sigma[row * lights], &lambert->used);
     lambert->ok = x.norm() > 0.0;
     lambert->normal = x.normalized();
@@ -764,7 +768,6 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       record(state, state.deferred[i].pixel, choose_blinn_phong(state.deferred[i].lambert, fit));
     }
     state.deferred.clear();
-    state.rows = 0;
   };
   // `auto` with lanes, for the pixels of one tile the screen did not accept:
   // trimming; what it cannot explain goes on to the Blinn-Phong fit.
@@ -824,6 +827,32 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     }
     state.reweighting.clear();
   };
+  // The lane stages run on batches gathered across tiles, so that a tile with
+  // only a few doubtful pixels does not run eight lanes for one of them; a
+  // pixel's samples were copied to its row when it was queued. Once a stage
+  // has run, the rows still queued move to the front of the thread's rows,
+  // which stay as small as the queues.
+  constexpr std::size_t kBatch = 64;
+  auto flush = [&](int thread, bool all) {
+    ThreadState& state = states[thread];
+    const std::size_t queued_before = state.trimming.size() + state.reweighting.size() + state.deferred.size();
+    if (all || state.trimming.size() >= kBatch) trim_in_lanes(thread);
+    if (all || state.reweighting.size() >= kBatch) reweight_in_lanes(thread);
+    if (all || state.deferred.size() >= kBatch) fit_deferred(thread);
+    if (state.trimming.size() + state.reweighting.size() + state.deferred.size() == queued_before) return;
+    std::vector<Deferred*> queued;
+    for (auto* queue : {&state.trimming, &state.reweighting, &state.deferred})
+      for (Deferred& d : *queue) queued.push_back(&d);
+    std::sort(queued.begin(), queued.end(), [](const Deferred* a, const Deferred* b) { return a->row < b->row; });
+    for (std::size_t i = 0; i < queued.size(); ++i) {
+      // Ascending rows move down or stay, so no row is overwritten before it moves.
+      const std::size_t from = queued[i]->row * lights, to = i * lights;
+      std::copy_n(&state.observed[from], lights, &state.observed[to]);
+      std::copy_n(&state.inverse_sigma[from], lights, &state.inverse_sigma[to]);
+      queued[i]->row = i;
+    }
+    state.rows = queued.size();
+  };
   const internal::TileVisitor refine_tile = [&](int thread, int begin, int count) {
     ThreadState& state = states[thread];
     state.needs_refit.resize(count);
@@ -849,16 +878,20 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
         state.trimming.push_back({p, lambert, lambert.normal, lambert.albedo, row});
       }
     }
-    if (!lanes) return;  // refine_pixel has recorded every pixel
-    trim_in_lanes(thread);
-    reweight_in_lanes(thread);
-    fit_deferred(thread);
+    if (lanes) flush(thread, false);  // refine_pixel has recorded every pixel
   };
   SolverSummary summary = internal::SolveLambertianTiles(lambertian, working, result, refine_tile);
   summary.method = MethodName(options.method);
   if (!summary.IsSolutionUsable()) {
     summary.total_ms = MillisecondsSince(start);
     return summary;
+  }
+  if (lanes) {
+    // What is still queued, each thread's queues by one thread.
+    const auto flush_start = Clock::now();
+#pragma omp parallel for num_threads(threads) schedule(static, 1)
+    for (int thread = 0; thread < threads; ++thread) flush(thread, true);
+    summary.solve_ms += MillisecondsSince(flush_start);
   }
   summary.noise_estimated = noise_estimated;
   summary.noise_read_sigma = working.noise.read_sigma;
