@@ -713,6 +713,12 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     if (options.method == Method::kBlinnPhong) return blinn_phong;
     return blinn_phong.ok && blinn_phong.Bic() < lambert.Bic() ? blinn_phong : lambert;
   };
+  // `auto` fits a richer model only where the samples can tell it apart:
+  // with no sample to spare (3 usable) nothing can be tested or trimmed, and
+  // with no more samples than its parameters the Blinn-Phong lobe is not
+  // determined. Such pixels keep their Lambertian fit.
+  auto can_trim = [](const Fit& lambert) { return lambert.Dof() > 0; };
+  auto can_fit_lobe = [](const Fit& lambert) { return lambert.used > kBlinnPhongParameters; };
   auto tile_x = [&](int p) -> Eigen::Vector3d {
     const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
     return Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
@@ -732,13 +738,14 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     reader.Usable(p, &s);
     const Eigen::Vector3d x = tile_x(p);
     const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
-    if (options.method == Method::kAuto && adequate(lambert)) return record(state, p, lambert);
+    if (options.method == Method::kAuto && (adequate(lambert) || !can_trim(lambert))) return record(state, p, lambert);
     const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
     const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, gross_u2, adequate, &state.trim)
                                                        : reweight_pixel(state, s, x);
     // FitTrimmed never drops more than max_rejected samples.
     if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust)))
       return record(state, p, robust);
+    if (options.method == Method::kAuto && !can_fit_lobe(lambert)) return record(state, p, lambert);
     const Fit& start = robust.ok ? robust : lambert;
     record(state, p, choose_blinn_phong(lambert, FitBlinnPhong(s, start, options.blinn_phong, &state.tape)));
   };
@@ -795,6 +802,10 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       Deferred d = state.trimming[i];
       if (adequate(robust)) {  // it trimmed at most max_rejected samples
         record(state, d.pixel, robust);
+        continue;
+      }
+      if (!can_fit_lobe(d.lambert)) {
+        record(state, d.pixel, d.lambert);
         continue;
       }
       if (robust.ok) d.start_normal = robust.normal, d.start_albedo = robust.albedo;
@@ -871,7 +882,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       const std::size_t row = gather_row(state, p, tile_x(p), &lambert);
       if (options.method != Method::kAuto) {
         state.reweighting.push_back({p, lambert, lambert.normal, lambert.albedo, row});
-      } else if (adequate(lambert)) {
+      } else if (adequate(lambert) || !can_trim(lambert)) {
         record(state, p, lambert);
         --state.rows;  // the row is not needed
       } else {
