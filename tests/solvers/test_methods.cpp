@@ -108,6 +108,35 @@ TEST(PhotometricStereo, BroadLobesNeedBlinnPhong) {
   EXPECT_LT(automatic.error.mean_deg, 0.5 * l2.error.mean_deg);
 }
 
+// Richer models only where the samples can tell them apart. Pixel A keeps
+// three usable samples: nothing can be tested or trimmed. Pixel B keeps five,
+// two of them corrupted: trimming may drop only one, and a five-parameter lobe
+// through five samples would explain anything. Both keep the Lambertian fit,
+// and B says with its confidence that the fit does not explain it.
+TEST(PhotometricStereo, AutoFitsNoModelTheSamplesCannotDetermine) {
+  const auto truth = RandomSurface(16, 16, 20.0);
+  const auto lights = RingLights(24, 40, 80);
+  const float dark = 20.0f;
+  PhotometricStack stack = RenderShinyStack(truth, lights, 2000.0, {}, dark, 1.0);
+  const int a = 5 * 16 + 5, b = 10 * 16 + 10;
+  for (int k = 3; k < 24; ++k) stack.images[k].ptr<float>()[a] = dark;
+  for (int k = 5; k < 24; ++k) stack.images[k].ptr<float>()[b] = dark;
+  stack.images[0].ptr<float>()[b] = dark + 3.0f * (stack.images[0].ptr<float>()[b] - dark);
+  stack.images[1].ptr<float>()[b] = dark + 2.5f * (stack.images[1].ptr<float>()[b] - dark);
+  for (const bool per_pixel : {false, true}) {
+    SCOPED_TRACE(per_pixel ? "per pixel" : "lanes");
+    PhotometricStereoOptions options = Options(Method::kAuto, 5.0);
+    if (per_pixel) options.blinn_phong.fitter = BlinnPhongOptions::Fitter::kPerPixel;
+    NormalMap map;
+    ASSERT_TRUE(SolvePhotometricStereo(options, stack, &map).IsSolutionUsable());
+    EXPECT_EQ(map.usable_lights.ptr<std::uint16_t>()[a], 3);
+    EXPECT_EQ(map.usable_lights.ptr<std::uint16_t>()[b], 5);
+    EXPECT_EQ(map.model.ptr<std::uint8_t>()[a], static_cast<std::uint8_t>(PixelModel::kLambertian));
+    EXPECT_EQ(map.model.ptr<std::uint8_t>()[b], static_cast<std::uint8_t>(PixelModel::kLambertian));
+    EXPECT_LT(map.confidence.ptr<float>()[b], 0.1f);
+  }
+}
+
 TEST(PhotometricStereo, WrongLightIntensitiesLowerTheConfidence) {
   const auto truth = RandomSurface(32, 32, 30.0);
   const auto lights = RingLights(24, 40, 85);
