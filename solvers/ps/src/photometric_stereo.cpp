@@ -660,7 +660,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   };
   const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
   std::vector<ThreadState> states(threads);
-  if (options.method == Method::kRobust || options.method == Method::kBlinnPhong)
+  if (options.method == Method::kRobust)
     for (ThreadState& state : states)
       state.irls = std::make_unique<internal::RobustLambertianLanes>(working.light_directions, options.robust);
   std::vector<internal::BlinnPhongLaneFitter> fitters;
@@ -740,8 +740,8 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
     if (options.method == Method::kAuto && (adequate(lambert) || !can_trim(lambert))) return record(state, p, lambert);
     const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
-    const Fit robust = options.method == Method::kAuto ? FitTrimmed(s, max_rejected, gross_u2, adequate, &state.trim)
-                                                       : reweight_pixel(state, s, x);
+    const Fit robust = options.method == Method::kRobust ? reweight_pixel(state, s, x)
+                                                         : FitTrimmed(s, max_rejected, gross_u2, adequate, &state.trim);
     // FitTrimmed never drops more than max_rejected samples.
     if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust)))
       return record(state, p, robust);
@@ -800,11 +800,11 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       robust.rejected = trimmed.rejected;
       robust.model = PixelModel::kRobust;
       Deferred d = state.trimming[i];
-      if (adequate(robust)) {  // it trimmed at most max_rejected samples
+      if (options.method == Method::kAuto && adequate(robust)) {  // it trimmed at most max_rejected samples
         record(state, d.pixel, robust);
         continue;
       }
-      if (!can_fit_lobe(d.lambert)) {
+      if (options.method == Method::kAuto && !can_fit_lobe(d.lambert)) {
         record(state, d.pixel, d.lambert);
         continue;
       }
@@ -880,9 +880,9 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       }
       Fit lambert;
       const std::size_t row = gather_row(state, p, tile_x(p), &lambert);
-      if (options.method != Method::kAuto) {
+      if (options.method == Method::kRobust) {
         state.reweighting.push_back({p, lambert, lambert.normal, lambert.albedo, row});
-      } else if (adequate(lambert) || !can_trim(lambert)) {
+      } else if (options.method == Method::kAuto && (adequate(lambert) || !can_trim(lambert))) {
         record(state, p, lambert);
         --state.rows;  // the row is not needed
       } else {
