@@ -626,11 +626,11 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     for (int dof = 1; dof + 3 <= stack.light_count(); ++dof)
       screen_threshold[dof + 3] = static_cast<float>(dof / quantile[dof]);
 
-  // Each pixel is refined right after its tile's Lambertian pass, while the
-  // tile's samples are still in cache; counts are kept per thread. With the
-  // lane fitter, `auto` takes a tile's doubtful pixels through each stage
-  // together (trimming, then Blinn-Phong), eight at a time; the per-pixel
-  // fitter refines one pixel after another, the reference.
+  // Each pixel's samples are read right after its tile's Lambertian pass,
+  // while the tile is still in cache; counts are kept per thread. With the
+  // lane fitter, the doubtful pixels go through each stage (trimming or IRLS,
+  // then Blinn-Phong) eight at a time, in batches gathered across tiles; the
+  // per-pixel fitter refines one pixel after another, the reference.
   const bool lanes = options.blinn_phong.fitter == BlinnPhongOptions::Fitter::kLanes;
   struct Deferred {
     int pixel;
@@ -644,12 +644,12 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     PixelSamples samples;
     TrimScratch trim;
     autodiff::Tape tape;
-    // Every light's sample of the pixels being refined, one row per pixel
-    // (SampleReader::Row), reset after each tile.
+    // Every light's sample of the queued pixels, one row per pixel
+    // (SampleReader::Row); see `flush`.
     std::vector<double> observed, inverse_sigma;
     std::size_t rows = 0;
     std::vector<Deferred> trimming, reweighting, deferred;
-    std::unique_ptr<internal::RobustLambertianLanes> irls;  // `robust` and `blinn-phong` only
+    std::unique_ptr<internal::RobustLambertianLanes> irls;  // `robust` only
     std::vector<internal::RobustProblem> robust_problems;
     std::vector<internal::RobustSolution> robust_solutions;
     std::vector<internal::TrimProblem> trim_problems;
@@ -776,8 +776,9 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     }
     state.deferred.clear();
   };
-  // `auto` with lanes, for the pixels of one tile the screen did not accept:
-  // trimming; what it cannot explain goes on to the Blinn-Phong fit.
+  // `auto` and `blinn-phong` with lanes: trimming; for `auto`, what it cannot
+  // explain goes on to the Blinn-Phong fit, for `blinn-phong` every pixel
+  // does, from the trimmed fit.
   auto trim_in_lanes = [&](int thread) {
     ThreadState& state = states[thread];
     const std::size_t count = state.trimming.size();
@@ -813,8 +814,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     }
     state.trimming.clear();
   };
-  // `robust` and `blinn-phong` with lanes: IRLS for every pixel of the tile;
-  // `blinn-phong` fits from there.
+  // `robust` with lanes: IRLS for every pixel.
   auto reweight_in_lanes = [&](int thread) {
     ThreadState& state = states[thread];
     const std::size_t count = state.reweighting.size();
@@ -826,16 +826,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
                                   d.start_normal * d.start_albedo / M_PI};
     }
     if (count > 0) state.irls->Fit(state.robust_problems, state.robust_solutions);
-    for (std::size_t i = 0; i < count; ++i) {
-      const Fit robust = RobustFit(state.robust_solutions[i]);
-      Deferred d = state.reweighting[i];
-      if (options.method == Method::kRobust) {
-        record(state, d.pixel, robust);
-        continue;
-      }
-      if (robust.ok) d.start_normal = robust.normal, d.start_albedo = robust.albedo;
-      state.deferred.push_back(d);
-    }
+    for (std::size_t i = 0; i < count; ++i) record(state, state.reweighting[i].pixel, RobustFit(state.robust_solutions[i]));
     state.reweighting.clear();
   };
   // The lane stages run on batches gathered across tiles, so that a tile with
