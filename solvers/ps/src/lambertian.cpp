@@ -423,6 +423,39 @@ void WriteTile(int begin, int n, const TileSolution& s, const std::uint8_t* mask
   std::fill(specular, specular + 2 * n, 0.0f);
 }
 
+// Solved pixels whose subset the float kernel could not vouch for.
+PHOTORIG_PS_MULTIVERSION
+int CountUnverified(const float* certainly_conditioned, const std::uint16_t* usable, int n) {
+  int unverified = 0;
+#pragma omp simd reduction(+ : unverified)
+  for (int i = 0; i < n; ++i) unverified += (certainly_conditioned[i] == 0.0f) & (usable[i] >= 3) ? 1 : 0;
+  return unverified;
+}
+
+// A written tile's pixels by flag, for the summary.
+struct TileCounts {
+  int rejected_samples = 0, on_subset = 0, solved = 0, outside_mask = 0, too_few = 0, ill_conditioned = 0;
+};
+
+PHOTORIG_PS_MULTIVERSION
+TileCounts CountTile(const std::uint8_t* flags, const std::uint16_t* usable, int n, int lights) {
+  // int counters of one type, so that GCC vectorises the loop.
+  int rejected = 0, subset = 0, solved = 0, outside = 0, too_few = 0, ill = 0;
+#pragma omp simd reduction(+ : rejected, subset, solved, outside, too_few, ill)
+  for (int i = 0; i < n; ++i) {
+    const int flag = flags[i], lit = usable[i];
+    const int is_outside = flag == static_cast<int>(PixelFlag::kOutsideMask);
+    const int is_solved = flag == static_cast<int>(PixelFlag::kSolved);
+    rejected += is_outside ? 0 : lights - lit;
+    subset += is_solved & (lit < lights ? 1 : 0);
+    solved += is_solved;
+    outside += is_outside;
+    too_few += flag == static_cast<int>(PixelFlag::kTooFewLights);
+    ill += flag == static_cast<int>(PixelFlag::kIllConditioned);
+  }
+  return {rejected, subset, solved, outside, too_few, ill};
+}
+
 // The exact verdict for a pixel whose subset the float kernel could not vouch
 // for: G_S summed again in double, its condition number from eigenvalues, and
 // if acceptable the solution in double. Rare (few usable lights, or a near
@@ -629,9 +662,7 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
       // Subsets the float kernel could not vouch for get the exact verdict;
       // most tiles have none, which one vector pass finds out.
       const std::uint16_t* usable = result->usable_lights.ptr<std::uint16_t>() + begin;
-      int unverified = 0;
-#pragma omp simd reduction(+ : unverified)
-      for (int i = 0; i < n; ++i) unverified += (solution->certainly_conditioned[i] == 0.0f) & (usable[i] >= 3) ? 1 : 0;
+      const int unverified = CountUnverified(solution->certainly_conditioned, usable, n);
       for (int i = 0; options.exclude_unusable_samples && unverified > 0 && i < n; ++i) {
         const int p = begin + i;
         if (solution->certainly_conditioned[i] != 0.0f || usable[i] < 3) continue;
@@ -643,27 +674,13 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
           unsolved(p, PixelFlag::kTooFewLights);
         }
       }
-      const std::uint8_t* flags = result->flags.ptr<std::uint8_t>() + begin;
-      // int counters of one type, so that GCC vectorises the loop.
-      int tile_rejected = 0, tile_subset = 0, tile_solved = 0, tile_outside = 0, tile_too_few = 0, tile_ill = 0;
-#pragma omp simd reduction(+ : tile_rejected, tile_subset, tile_solved, tile_outside, tile_too_few, tile_ill)
-      for (int i = 0; i < n; ++i) {
-        const int flag = flags[i], lit = usable[i];
-        const int outside = flag == static_cast<int>(PixelFlag::kOutsideMask);
-        const int is_solved = flag == static_cast<int>(PixelFlag::kSolved);
-        tile_rejected += outside ? 0 : k - lit;
-        tile_subset += is_solved & (lit < k ? 1 : 0);
-        tile_solved += is_solved;
-        tile_outside += outside;
-        tile_too_few += flag == static_cast<int>(PixelFlag::kTooFewLights);
-        tile_ill += flag == static_cast<int>(PixelFlag::kIllConditioned);
-      }
-      rejected_samples += tile_rejected;
-      on_subset += options.exclude_unusable_samples ? tile_subset : 0;
-      solved += tile_solved;
-      outside_mask += tile_outside;
-      too_few += tile_too_few;
-      ill_conditioned += tile_ill;
+      const TileCounts counts = CountTile(result->flags.ptr<std::uint8_t>() + begin, usable, n, k);
+      rejected_samples += counts.rejected_samples;
+      on_subset += options.exclude_unusable_samples ? counts.on_subset : 0;
+      solved += counts.solved;
+      outside_mask += counts.outside_mask;
+      too_few += counts.too_few;
+      ill_conditioned += counts.ill_conditioned;
       if (visit) visit(omp_get_thread_num(), begin, n);
     }
   }
