@@ -890,7 +890,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
         state.trimming.push_back({p, lambert, lambert.normal, lambert.albedo, row});
       }
     }
-    if (lanes) flush(thread, false);  // refine_pixel has recorded every pixel
+    if (lanes) flush(thread, false);  // (without lanes, refine_pixel has recorded every pixel)
   };
   SolverSummary summary = internal::SolveLambertianTiles(lambertian, working, result, refine_tile);
   summary.method = MethodName(options.method);
