@@ -3,6 +3,7 @@
 // against known outliers, IRLS against a plain implementation of the same
 // iteration, and `auto` in lanes against the per-pixel reference.
 #include "blinn_phong_lanes.h"
+#include "lambertian_tiles.h"
 #include "lane_math.h"
 #include "robust_lanes.h"
 #include "trim_lanes.h"
@@ -478,6 +479,54 @@ void ExpectAutoLanesMatchThePerPixelReference(const PhotometricStack& stack) {
   }
   EXPECT_GE(same_model, 0.98 * pixels);
   EXPECT_GT(trimmed, 50);
+}
+
+// The noise estimate's per-pixel fits through the tile kernel, against the
+// same least squares in double: usable counts exactly, the sums over the
+// usable samples to float precision, the residual to the kernel's documented
+// precision.
+TEST(PixelResiduals, MatchLeastSquaresInDouble) {
+  const auto truth = testing::RandomSurface(64, 32, 70.0, 5);
+  const auto lights = testing::RingLights(24, 20, 70);
+  const double scale = 1500.0;
+  const float dark = 15.0f;
+  const PhotometricStack stack = testing::RenderShinyStack(truth, lights, scale, {}, dark, 2.0);
+  LambertianOptions options;
+  options.shadow_threshold = 8.0;
+  const internal::PixelResiduals fitter(options, stack);
+  ASSERT_TRUE(fitter.ok());
+  const std::vector<internal::PixelResiduals::Run> runs = {{0, 32}, {100, 7}, {1000, 256}, {2000, 48}};
+  std::vector<internal::PixelResidual> fits(32 + 7 + 256 + 48);
+  fitter.Fit(runs, fits.data());
+  std::size_t index = 0, checked = 0;
+  for (const auto& run : runs) {
+    for (int p = run.begin; p < run.begin + run.count; ++p, ++index) {
+      const internal::PixelResidual& fit = fits[index];
+      Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+      std::vector<std::pair<Eigen::Vector3d, double>> samples;
+      double sum_u = 0.0, sum_signal_u = 0.0;
+      for (std::size_t k = 0; k < lights.size(); ++k) {
+        const double signal = double(stack.images[k].ptr<float>()[p]) - dark;
+        if (!(signal > options.shadow_threshold)) continue;
+        samples.emplace_back(lights[k], signal / scale);
+        g += lights[k] * lights[k].transpose();
+        rhs += lights[k] * (signal / scale);
+        sum_u += 1.0 / (scale * scale);
+        sum_signal_u += signal / (scale * scale);
+      }
+      ASSERT_EQ(fit.usable, static_cast<int>(samples.size())) << "pixel " << p;
+      if (fit.usable < 4 || !fit.conditioned) continue;
+      const Eigen::Vector3d x = g.ldlt().solve(rhs);
+      double rss = 0.0;
+      for (const auto& [w, b] : samples) rss += (b - w.dot(x)) * (b - w.dot(x));
+      EXPECT_NEAR(fit.sum_inverse_scale2, sum_u, 1e-6 * sum_u) << "pixel " << p;
+      EXPECT_NEAR(fit.sum_signal_inverse_scale2, sum_signal_u, 1e-5 * sum_signal_u) << "pixel " << p;
+      EXPECT_NEAR(fit.rss, rss, 0.04 * rss) << "pixel " << p;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 250u);
 }
 
 TEST(PhotometricStereoLanes, AutoMatchesThePerPixelReference) {

@@ -499,6 +499,63 @@ ExactSubset SolveSubsetExactly(const PhotometricStack& stack, const TileConstant
   return result;
 }
 
+// The kernels' constants and the arrays they point into, for one stack.
+class TileSetup {
+ public:
+  TileSetup(const LambertianOptions& options, const PhotometricStack& stack, const GlobalSolver& global);
+  TileSetup(const TileSetup&) = delete;
+  TileSetup& operator=(const TileSetup&) = delete;
+  const TileConstants& constants() const { return constants_; }
+
+ private:
+  std::vector<const float*> planes_;
+  std::vector<float> weights_, inverse_scale2_, inverse_scale_, direction_;
+  TileConstants constants_;
+};
+
+TileSetup::TileSetup(const LambertianOptions& options, const PhotometricStack& stack, const GlobalSolver& global) {
+  const int k = stack.light_count();
+  planes_.resize(k);
+  for (int i = 0; i < k; ++i) planes_[i] = stack.images[i].ptr<float>();
+  // For the L2 residual without a second pass:
+  //   RSS = sum_k b_k^2 - x^T G x,  G = A^T A,  b_k = (I_k - D) / s_k,
+  // and sum_k b_k^2 = sum I^2/s^2 - 2 D sum I/s^2 + D^2 sum 1/s^2.
+  weights_.resize(3 * static_cast<std::size_t>(k));
+  inverse_scale2_.resize(k);
+  inverse_scale_.resize(k);
+  direction_.resize(3 * static_cast<std::size_t>(k));
+  Eigen::Matrix3d gram = Eigen::Matrix3d::Zero();
+  TileConstants& c = constants_;
+  for (int i = 0; i < k; ++i) {
+    const Eigen::Vector3d& w = stack.light_directions[i];
+    for (int axis = 0; axis < 3; ++axis) {
+      weights_[axis * k + i] = global.weights(axis, i);
+      c.dark_weight[axis] += global.weights(axis, i);  // dark subtraction folded into one term
+      direction_[axis * k + i] = static_cast<float>(w(axis));
+    }
+    inverse_scale2_[i] = static_cast<float>(1.0 / (stack.light_scales[i] * stack.light_scales[i]));
+    inverse_scale_[i] = static_cast<float>(1.0 / stack.light_scales[i]);
+    c.sum_inverse_scale2 += inverse_scale2_[i];
+    gram += w * w.transpose();
+  }
+  c.planes = planes_.data();
+  c.lights = k;
+  c.weights = weights_.data();
+  c.inverse_scale2 = inverse_scale2_.data();
+  c.inverse_scale = inverse_scale_.data();
+  for (int axis = 0; axis < 3; ++axis) c.direction[axis] = direction_.data() + axis * k;
+  c.gram = {gram(0, 0), gram(1, 1), gram(2, 2), gram(0, 1), gram(0, 2), gram(1, 2)};
+  c.read_variance = stack.noise.read_sigma * stack.noise.read_sigma;
+  c.shot_gain = stack.noise.shot_gain;
+  c.shadow = static_cast<float>(options.shadow_threshold);
+  c.saturation = std::isfinite(options.saturation_level) ? static_cast<float>(options.saturation_level)
+                                                         : std::numeric_limits<float>::infinity();
+  // cond(A_S)^2 = cond(G_S) <= |G_S|_F |G_S^-1|_F: squared once more for the
+  // kernel's squared norms, with 1 % room for float rounding on the safe side.
+  const double max_condition2 = options.max_condition_number * options.max_condition_number;
+  c.max_frobenius_condition2 = static_cast<float>(0.99 * max_condition2 * max_condition2);
+}
+
 }  // namespace
 
 bool LambertianOptions::IsValid(std::string* why) const {
@@ -515,6 +572,43 @@ bool LambertianOptions::IsValid(std::string* why) const {
 }
 
 namespace internal {
+
+struct PixelResiduals::Impl {
+  GlobalSolver global;
+  std::unique_ptr<TileSetup> setup;
+  const float* dark = nullptr;
+};
+
+PixelResiduals::PixelResiduals(const LambertianOptions& options, const PhotometricStack& stack) {
+  if (!options.IsValid(nullptr) || !stack.IsValid(nullptr)) return;
+  if (stack.light_count() < 3 || stack.light_count() > kMaxLights) return;
+  auto impl = std::make_unique<Impl>();
+  impl->global = BuildGlobalSolver(stack);
+  if (!(impl->global.condition_number <= options.max_condition_number)) return;
+  impl->setup = std::make_unique<TileSetup>(options, stack, impl->global);
+  impl->dark = stack.dark.empty() ? nullptr : stack.dark.ptr<float>();
+  impl_ = std::move(impl);
+}
+
+PixelResiduals::~PixelResiduals() = default;
+
+void PixelResiduals::Fit(std::span<const Run> runs, PixelResidual* out) const {
+  static_assert(kMaxRun <= kBlockPixels, "a run is one block of the subset kernel");
+  const auto block = std::make_unique<SubsetBlock>();
+  const auto solution = std::make_unique<TileSolution>();
+  alignas(64) float dark[kMaxRun];
+  for (const Run& run : runs) {
+    for (int i = 0; i < run.count; ++i) dark[i] = impl_->dark ? impl_->dark[run.begin + i] : 0.0f;
+    SolveSubsetTile(impl_->setup->constants(), run.begin, 0, run.count, dark, block.get(), solution.get());
+    for (int i = 0; i < run.count; ++i, ++out) {
+      out->rss = block->rss[i];
+      out->usable = static_cast<int>(block->usable[i]);
+      out->sum_inverse_scale2 = block->u[i];
+      out->sum_signal_inverse_scale2 = block->signal[i];
+      out->conditioned = solution->certainly_conditioned[i] != 0.0f;
+    }
+  }
+}
 
 SolverSummary SolveLambertianTiles(const LambertianOptions& options, const PhotometricStack& stack,
                                    NormalMap* result, const TileVisitor& visit) {
@@ -562,46 +656,11 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
   result->confidence.create(height, width, CV_32F);
   result->specular.create(height, width, CV_32FC2);
 
-  std::vector<const float*> planes(k);
-  for (int i = 0; i < k; ++i) planes[i] = stack.images[i].ptr<float>();
   const float* dark = stack.dark.empty() ? nullptr : stack.dark.ptr<float>();
   const std::uint8_t* mask = stack.mask.empty() ? nullptr : stack.mask.ptr<std::uint8_t>();
-  // For the L2 residual without a second pass:
-  //   RSS = sum_k b_k^2 - x^T G x,  G = A^T A,  b_k = (I_k - D) / s_k,
-  // and sum_k b_k^2 = sum I^2/s^2 - 2 D sum I/s^2 + D^2 sum 1/s^2.
-  std::vector<float> weights(3 * static_cast<std::size_t>(k)), inverse_scale2(k), inverse_scale(k);
-  std::vector<float> direction(3 * static_cast<std::size_t>(k));
-  Eigen::Matrix3d gram = Eigen::Matrix3d::Zero();
-  TileConstants constants;
-  for (int i = 0; i < k; ++i) {
-    const Eigen::Vector3d& w = stack.light_directions[i];
-    for (int c = 0; c < 3; ++c) {
-      weights[c * k + i] = global.weights(c, i);
-      constants.dark_weight[c] += global.weights(c, i);  // dark subtraction folded into one term
-      direction[c * k + i] = static_cast<float>(w(c));
-    }
-    inverse_scale2[i] = static_cast<float>(1.0 / (stack.light_scales[i] * stack.light_scales[i]));
-    inverse_scale[i] = static_cast<float>(1.0 / stack.light_scales[i]);
-    constants.sum_inverse_scale2 += inverse_scale2[i];
-    gram += w * w.transpose();
-  }
-  constants.planes = planes.data();
-  constants.lights = k;
-  constants.weights = weights.data();
-  constants.inverse_scale2 = inverse_scale2.data();
-  constants.inverse_scale = inverse_scale.data();
-  for (int c = 0; c < 3; ++c) constants.direction[c] = direction.data() + c * k;
-  constants.gram = {gram(0, 0), gram(1, 1), gram(2, 2), gram(0, 1), gram(0, 2), gram(1, 2)};
-  const NoiseModel noise = stack.noise;
-  constants.read_variance = noise.read_sigma * noise.read_sigma;
-  constants.shot_gain = noise.shot_gain;
-  constants.shadow = static_cast<float>(options.shadow_threshold);
-  constants.saturation = std::isfinite(options.saturation_level) ? static_cast<float>(options.saturation_level)
-                                                                   : std::numeric_limits<float>::infinity();
-  // cond(A_S)^2 = cond(G_S) <= |G_S|_F |G_S^-1|_F: squared once more for the
-  // kernel's squared norms, with 1 % room for float rounding on the safe side.
+  const TileSetup setup(options, stack, global);
+  const TileConstants& constants = setup.constants();
   const double max_condition2 = options.max_condition_number * options.max_condition_number;
-  constants.max_frobenius_condition2 = static_cast<float>(0.99 * max_condition2 * max_condition2);
   summary.setup_ms = MillisecondsSince(start);
 
   const auto solve_start = Clock::now();

@@ -7,6 +7,8 @@
 #include "photorig/ps/lambertian.h"
 
 #include <functional>
+#include <memory>
+#include <span>
 
 namespace photorig::ps::internal {
 
@@ -16,5 +18,40 @@ using TileVisitor = std::function<void(int thread, int begin, int count)>;
 
 SolverSummary SolveLambertianTiles(const LambertianOptions& options, const PhotometricStack& stack,
                                    NormalMap* result, const TileVisitor& visit);
+
+// One pixel's least squares on its usable samples, as the tile kernel sums
+// it (float lanes, the same thresholds and residual precision).
+struct PixelResidual {
+  double rss = 0.0;                        // sum of squared residuals in solver units, b = (I - D) / s
+  int usable = 0;                          // usable samples
+  double sum_inverse_scale2 = 0.0;         // sum of 1 / s^2 over the usable samples
+  double sum_signal_inverse_scale2 = 0.0;  // sum of (I - D) / s^2 over them
+  bool conditioned = false;                // false where the kernel could not vouch for the subset
+};
+
+// The tile kernel on chosen runs of pixels, for statistics over many pixels
+// (the noise estimate) at the cost of the Lambertian pass rather than of a
+// per-pixel fit.
+class PixelResiduals {
+ public:
+  struct Run {
+    int begin = 0;  // first pixel, row-major
+    int count = 0;  // at most kMaxRun
+  };
+  static constexpr int kMaxRun = 256;
+
+  // ok() is false where SolveLambertian would refuse the stack: invalid
+  // options or images, fewer than 3 lights, coplanar lights.
+  PixelResiduals(const LambertianOptions& options, const PhotometricStack& stack);
+  ~PixelResiduals();
+  bool ok() const { return impl_ != nullptr; }
+
+  // Writes one PixelResidual per pixel of the runs, in order. Thread-safe.
+  void Fit(std::span<const Run> runs, PixelResidual* out) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace photorig::ps::internal

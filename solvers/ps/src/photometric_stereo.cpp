@@ -417,55 +417,36 @@ NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions&
   // pull nearly every cache line of the stack from memory for one sample each.
   constexpr int kTarget = 8000, kRun = 32;
   const int run_stride = std::max(kRun, pixels / (kTarget / kRun));
-  const int lights = stack.light_count();
-  PhotometricStack unit = stack;
-  unit.noise = NoiseModel{1.0, 0.0};  // variance 1/s^2: chi2 below is then a sum of squared residuals in input units
-  const SampleReader reader(unit, thresholds);
-  std::vector<int> sampled;
-  for (int run = 0; run < pixels; run += run_stride)
-    for (int p = run; p < std::min(run + kRun, pixels); ++p)
-      if (stack.mask.empty() || stack.mask.ptr<std::uint8_t>()[p] != 0) sampled.push_back(p);
-  // Least squares on each sampled pixel's usable samples: the lane trimmer
-  // allowed to drop nothing, eight pixels at a time, in chunks the threads
-  // share. Everything below depends only on the set of samples found, not on
-  // their order.
-  constexpr int kChunk = 256;
-  const std::vector<double> never_adequate(lights + 1, -1.0);
-  std::vector<Sample> samples;
-#pragma omp parallel num_threads(thresholds.num_threads > 0 ? thresholds.num_threads : omp_get_max_threads())
+  // Least squares on each sampled pixel's usable samples, by the Lambertian
+  // pass's own kernel: the noise estimate then costs a fraction of the pass.
+  const internal::PixelResiduals fitter(thresholds, stack);
+  if (!fitter.ok()) return stack.noise;
+  std::vector<internal::PixelResiduals::Run> runs;
+  for (int run = 0; run < pixels; run += run_stride) runs.push_back({run, std::min(kRun, pixels - run)});
+  std::vector<std::size_t> first_fit(runs.size() + 1, 0);
+  for (std::size_t r = 0; r < runs.size(); ++r) first_fit[r + 1] = first_fit[r] + runs[r].count;
+  std::vector<internal::PixelResidual> fits(first_fit.back());
+  const int threads = thresholds.num_threads > 0 ? thresholds.num_threads : omp_get_max_threads();
+#pragma omp parallel num_threads(threads)
   {
-    internal::TrimmedLambertianLanes fitter(stack.light_directions, std::numeric_limits<double>::infinity());
-    std::vector<double> observed(kChunk * static_cast<std::size_t>(lights)), inverse_sigma(observed.size());
-    std::vector<internal::TrimProblem> problems;
-    std::vector<internal::TrimSolution> solutions;
-    std::vector<double> signals;
-    std::vector<Sample> found;
-#pragma omp for schedule(static)
-    for (int first = 0; first < static_cast<int>(sampled.size()); first += kChunk) {
-      problems.clear();
-      signals.clear();
-      const int end = std::min<int>(first + kChunk, static_cast<int>(sampled.size()));
-      for (int i = first; i < end; ++i) {
-        double* row_observed = &observed[static_cast<std::size_t>(problems.size()) * lights];
-        double* row_inverse_sigma = &inverse_sigma[static_cast<std::size_t>(problems.size()) * lights];
-        int usable = 0;
-        reader.Row(sampled[i], Eigen::Vector3d::Zero(), row_observed, row_inverse_sigma, &usable);
-        if (usable < 6) continue;
-        double signal = 0.0;  // sum of I - D over the usable samples (b s, with 1 / sigma = s here)
-        for (int k = 0; k < lights; ++k)
-          if (row_inverse_sigma[k] > 0.0) signal += row_observed[k] * stack.light_scales[k];
-        problems.push_back({row_observed, row_inverse_sigma, 0});
-        signals.push_back(signal / usable);
-      }
-      solutions.assign(problems.size(), {});
-      fitter.Fit(problems, never_adequate, solutions);
-      for (std::size_t i = 0; i < problems.size(); ++i) {
-        const internal::TrimSolution& fit = solutions[i];
-        if (fit.ok && fit.used > 3) found.push_back({signals[i], fit.chi2 / (fit.used - 3), fit.used - 3});
-      }
+    // One contiguous share of the runs per thread, one call each.
+    const std::size_t count = runs.size(), thread = omp_get_thread_num(), shares = omp_get_num_threads();
+    const std::size_t begin = count * thread / shares, end = count * (thread + 1) / shares;
+    if (begin < end)
+      fitter.Fit(std::span(runs).subspan(begin, end - begin), fits.data() + first_fit[begin]);
+  }
+  std::vector<Sample> samples;
+  const std::uint8_t* mask = stack.mask.empty() ? nullptr : stack.mask.ptr<std::uint8_t>();
+  for (std::size_t r = 0; r < runs.size(); ++r) {
+    for (int i = 0; i < runs[r].count; ++i) {
+      const internal::PixelResidual& fit = fits[first_fit[r] + i];
+      if ((mask && mask[runs[r].begin + i] == 0) || !fit.conditioned || fit.usable < 6) continue;
+      // RSS ~ (n - 3) / n (read^2 sum 1/s^2 + gain sum (I - D)/s^2): per pixel
+      // a residual variance and a signal in input units (with equal scales
+      // s, RSS s^2 / (n - 3) and the mean of I - D).
+      const double n = fit.usable, weight = fit.sum_inverse_scale2;
+      samples.push_back({fit.sum_signal_inverse_scale2 / weight, fit.rss * n / ((n - 3.0) * weight), fit.usable - 3});
     }
-#pragma omp critical
-    samples.insert(samples.end(), found.begin(), found.end());
   }
   NoiseModel noise = stack.noise;
   if (samples.size() < 16) return noise;
@@ -484,12 +465,12 @@ NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions&
   double read2 = read_known ? stack.noise.read_sigma * stack.noise.read_sigma : 0.0;
   double gain = 0.0;
   // Unknown read noise comes from the darkest tenth of the pixels, where shot
-  // noise matters least, refined once the gain is known.
-  // Ties broken by every field: the threads' order must not change the result.
-  std::sort(samples.begin(), samples.end(), [](const Sample& a, const Sample& b) {
-    return std::tie(a.signal, a.variance, a.dof) < std::tie(b.signal, b.variance, b.dof);
-  });
+  // noise matters least, refined once the gain is known. (The samples are in
+  // run order whatever the thread count, so the partition is reproducible.)
   const std::size_t darkest = std::max<std::size_t>(8, samples.size() / 10);
+  if (!read_known)
+    std::nth_element(samples.begin(), samples.begin() + (darkest - 1), samples.end(),
+                     [](const Sample& a, const Sample& b) { return a.signal < b.signal; });
   for (int round = 0; round < (read_known ? 1 : 2); ++round) {
     if (!read_known) {
       std::vector<double> reads;
