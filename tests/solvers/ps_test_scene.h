@@ -3,10 +3,13 @@
 
 #include "photorig/ps/stack.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
 #include <cmath>
 #include <random>
+#include <utility>
+#include <vector>
 
 namespace photorig::ps::testing {
 
@@ -105,6 +108,39 @@ inline PhotometricStack RenderShinyStack(const TruthMaps& truth, const std::vect
     stack.images.push_back(image);
   }
   return stack;
+}
+
+// The reference for the solver's per-pixel sums: least squares in double on
+// pixel p's usable samples (I - D > shadow_threshold), b = (I - D) / s, for
+// stacks with one scale s for every light and a uniform dark level.
+struct UsableLeastSquares {
+  int usable = 0;
+  Eigen::Vector3d x = Eigen::Vector3d::Zero();
+  double rss = 0.0;
+  double sum_inverse_scale2 = 0.0, sum_signal_inverse_scale2 = 0.0;
+};
+
+inline UsableLeastSquares SolveUsableInDouble(const PhotometricStack& stack, int p, double scale, double dark,
+                                              double shadow_threshold) {
+  UsableLeastSquares out;
+  Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  std::vector<std::pair<Eigen::Vector3d, double>> samples;
+  for (int k = 0; k < stack.light_count(); ++k) {
+    const double signal = double(stack.images[k].ptr<float>()[p]) - dark;
+    if (!(signal > shadow_threshold)) continue;
+    const Eigen::Vector3d& w = stack.light_directions[k];
+    samples.emplace_back(w, signal / scale);
+    g += w * w.transpose();
+    rhs += w * (signal / scale);
+    out.sum_inverse_scale2 += 1.0 / (scale * scale);
+    out.sum_signal_inverse_scale2 += signal / (scale * scale);
+  }
+  out.usable = static_cast<int>(samples.size());
+  if (out.usable < 3) return out;
+  out.x = g.ldlt().solve(rhs);
+  for (const auto& [w, b] : samples) out.rss += (b - w.dot(out.x)) * (b - w.dot(out.x));
+  return out;
 }
 
 }  // namespace photorig::ps::testing

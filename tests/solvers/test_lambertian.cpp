@@ -4,11 +4,8 @@
 
 #include <gtest/gtest.h>
 
-#include <Eigen/Dense>
-
 #include <algorithm>
 #include <cmath>
-#include <utility>
 #include <vector>
 
 namespace photorig::ps {
@@ -89,21 +86,11 @@ TEST(Lambertian, ConfidenceMatchesResidualsSummedInDoubleAtEveryNoiseLevel) {
     std::vector<double> relative_errors;
     for (int p = 0; p < static_cast<int>(truth.albedo.total()); ++p) {
       if (map.flags.ptr<std::uint8_t>()[p] != static_cast<std::uint8_t>(PixelFlag::kSolved)) continue;
-      Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-      std::vector<std::pair<Eigen::Vector3d, double>> samples;
-      for (std::size_t k = 0; k < lights.size(); ++k) {
-        const double signal = double(stack.images[k].ptr<float>()[p]) - dark;
-        if (!(signal > options.shadow_threshold)) continue;
-        samples.emplace_back(lights[k], signal / scale);
-        g += lights[k] * lights[k].transpose();
-        rhs += lights[k] * (signal / scale);
-      }
-      const int n = static_cast<int>(samples.size());
+      const testing::UsableLeastSquares reference =
+          testing::SolveUsableInDouble(stack, p, scale, dark, options.shadow_threshold);
+      const int n = reference.usable;
       if (n <= 3) continue;
-      const Eigen::Vector3d x = g.ldlt().solve(rhs);
-      double rss = 0.0;
-      for (const auto& [w, b] : samples) rss += (b - w.dot(x)) * (b - w.dot(x));
+      const double rss = reference.rss;
       const double read_variance = stack.noise.read_sigma * stack.noise.read_sigma / (scale * scale);
       const double expected = read_variance * n * (n - 3.0) / n;
       ASSERT_LT(expected / rss, 1.0) << "pixel " << p;

@@ -502,27 +502,14 @@ TEST(PixelResiduals, MatchLeastSquaresInDouble) {
   for (const auto& run : runs) {
     for (int p = run.begin; p < run.begin + run.count; ++p, ++index) {
       const internal::PixelResidual& fit = fits[index];
-      Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-      std::vector<std::pair<Eigen::Vector3d, double>> samples;
-      double sum_u = 0.0, sum_signal_u = 0.0;
-      for (std::size_t k = 0; k < lights.size(); ++k) {
-        const double signal = double(stack.images[k].ptr<float>()[p]) - dark;
-        if (!(signal > options.shadow_threshold)) continue;
-        samples.emplace_back(lights[k], signal / scale);
-        g += lights[k] * lights[k].transpose();
-        rhs += lights[k] * (signal / scale);
-        sum_u += 1.0 / (scale * scale);
-        sum_signal_u += signal / (scale * scale);
-      }
-      ASSERT_EQ(fit.usable, static_cast<int>(samples.size())) << "pixel " << p;
+      const testing::UsableLeastSquares reference =
+          testing::SolveUsableInDouble(stack, p, scale, dark, options.shadow_threshold);
+      ASSERT_EQ(fit.usable, reference.usable) << "pixel " << p;
       if (fit.usable < 4 || !fit.conditioned) continue;
-      const Eigen::Vector3d x = g.ldlt().solve(rhs);
-      double rss = 0.0;
-      for (const auto& [w, b] : samples) rss += (b - w.dot(x)) * (b - w.dot(x));
-      EXPECT_NEAR(fit.sum_inverse_scale2, sum_u, 1e-6 * sum_u) << "pixel " << p;
-      EXPECT_NEAR(fit.sum_signal_inverse_scale2, sum_signal_u, 1e-5 * sum_signal_u) << "pixel " << p;
-      EXPECT_NEAR(fit.rss, rss, 0.04 * rss) << "pixel " << p;
+      EXPECT_NEAR(fit.sum_inverse_scale2, reference.sum_inverse_scale2, 1e-6 * reference.sum_inverse_scale2);
+      EXPECT_NEAR(fit.sum_signal_inverse_scale2, reference.sum_signal_inverse_scale2,
+                  1e-5 * reference.sum_signal_inverse_scale2);
+      EXPECT_NEAR(fit.rss, reference.rss, 0.04 * reference.rss) << "pixel " << p;
       ++checked;
     }
   }
