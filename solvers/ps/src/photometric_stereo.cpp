@@ -14,8 +14,6 @@
 #include <cstring>
 #include <limits>
 #include <memory>
-#include <numeric>
-#include <tuple>
 #include <vector>
 
 namespace photorig::ps {
