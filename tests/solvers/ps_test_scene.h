@@ -69,6 +69,13 @@ inline PhotometricStack RenderStack(const TruthMaps& truth, const std::vector<Ei
   return stack;
 }
 
+// Angle between two stored normals; atan2 keeps small angles exact where acos
+// of a float dot product cannot resolve them.
+inline double AngleDeg(const cv::Vec3f& a, const cv::Vec3f& b) {
+  const Eigen::Vector3d u(a[0], a[1], a[2]), v(b[0], b[1], b[2]);
+  return std::atan2(u.cross(v).norm(), u.dot(v)) * 180.0 / M_PI;
+}
+
 }  // namespace photorig::ps::testing
 
 namespace photorig::ps::testing {

@@ -437,12 +437,7 @@ TEST(RobustLambertianLanes, FlagsUnsolvablePixelsWithoutDisturbingTheOthers) {
   }
 }
 
-// Angle between two stored normals; atan2 keeps small angles exact where acos
-// of a float dot product cannot resolve them.
-double AngleDeg(const cv::Vec3f& a, const cv::Vec3f& b) {
-  const Eigen::Vector3d u(a[0], a[1], a[2]), v(b[0], b[1], b[2]);
-  return std::atan2(u.cross(v).norm(), u.dot(v)) * 180.0 / M_PI;
-}
+using testing::AngleDeg;
 
 // `auto` through the lanes and through the per-pixel reference on the same
 // shiny stack: the same models for (nearly) every pixel, the same normals

@@ -7,6 +7,7 @@
 namespace photorig::ps {
 namespace {
 
+using testing::AngleDeg;
 using testing::RandomSurface;
 using testing::RenderShinyStack;
 using testing::RingLights;
@@ -134,6 +135,49 @@ TEST(PhotometricStereo, AutoFitsNoModelTheSamplesCannotDetermine) {
     EXPECT_EQ(map.model.ptr<std::uint8_t>()[a], static_cast<std::uint8_t>(PixelModel::kLambertian));
     EXPECT_EQ(map.model.ptr<std::uint8_t>()[b], static_cast<std::uint8_t>(PixelModel::kLambertian));
     EXPECT_LT(map.confidence.ptr<float>()[b], 0.1f);
+  }
+}
+
+// Read noise lifts a few samples of lights behind a pixel's tangent plane
+// over the shadow threshold. Least squares on them tilts the normal towards
+// those lights; `auto` sees that its fit puts a usable sample in attached
+// shadow, leaves it out and keeps the Lambertian model, in both fitters.
+TEST(PhotometricStereo, AutoLeavesOutSamplesItsOwnFitPutsInAttachedShadow) {
+  const auto truth = RandomSurface(32, 32, 50.0, 17);
+  const auto lights = RingLights(24, 25, 60);
+  const float dark = 20.0f, sigma = 1.0f, shadow = 3.0f * sigma;
+  PhotometricStack stack = RenderShinyStack(truth, lights, 2000.0, {}, dark, sigma);
+  std::vector<int> lifted;
+  for (int p = 0; p < 32 * 32; p += 3) {
+    const cv::Vec3f n = truth.normals.ptr<cv::Vec3f>()[p];
+    for (std::size_t k = 0; k < lights.size(); ++k) {
+      if (n[0] * lights[k].x() + n[1] * lights[k].y() + n[2] * lights[k].z() < -0.15) {
+        stack.images[k].ptr<float>()[p] = dark + shadow + 0.5f * sigma;
+        lifted.push_back(p);
+        break;
+      }
+    }
+  }
+  ASSERT_GT(lifted.size(), 50u);
+  NormalMap plain;
+  ASSERT_TRUE(SolvePhotometricStereo(Options(Method::kLambertian, shadow), stack, &plain).IsSolutionUsable());
+  for (const bool per_pixel : {false, true}) {
+    SCOPED_TRACE(per_pixel ? "per pixel" : "lanes");
+    PhotometricStereoOptions options = Options(Method::kAuto, shadow);
+    if (per_pixel) options.blinn_phong.fitter = BlinnPhongOptions::Fitter::kPerPixel;
+    NormalMap map;
+    const SolverSummary summary = SolvePhotometricStereo(options, stack, &map);
+    ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+    double plain_error = 0.0, auto_error = 0.0;
+    for (const int p : lifted) {
+      const cv::Vec3f n = truth.normals.ptr<cv::Vec3f>()[p];
+      EXPECT_EQ(map.model.ptr<std::uint8_t>()[p], static_cast<std::uint8_t>(PixelModel::kLambertian)) << p;
+      EXPECT_EQ(map.usable_lights.ptr<std::uint16_t>()[p] + 1, plain.usable_lights.ptr<std::uint16_t>()[p]) << p;
+      plain_error += AngleDeg(plain.normals.ptr<cv::Vec3f>()[p], n) / lifted.size();
+      auto_error += AngleDeg(map.normals.ptr<cv::Vec3f>()[p], n) / lifted.size();
+    }
+    EXPECT_LT(auto_error, 0.2 * plain_error) << "plain " << plain_error << " deg, auto " << auto_error << " deg";
+    EXPECT_GE(double(summary.pixels_lambertian) / summary.pixels_solved, 0.99) << summary.BriefReport();
   }
 }
 

@@ -611,7 +611,7 @@ void PixelResiduals::Fit(std::span<const Run> runs, PixelResidual* out) const {
 }
 
 SolverSummary SolveLambertianTiles(const LambertianOptions& options, const PhotometricStack& stack,
-                                   NormalMap* result, const TileVisitor& visit) {
+                                   NormalMap* result, const TileVisitor& visit, const ThreadDone& done) {
   const auto start = Clock::now();
   SolverSummary summary;
   summary.method = options.exclude_unusable_samples ? "lambertian" : "lambertian-l2";
@@ -685,7 +685,7 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
       result->confidence.ptr<float>()[p] = 0.0f;
     };
 
-#pragma omp for schedule(dynamic, 4)
+#pragma omp for schedule(dynamic, 4) nowait
     for (int tile = 0; tile < tiles; ++tile) {
       const int begin = tile * kTilePixels;
       const int n = std::min(kTilePixels, pixels - begin);
@@ -742,6 +742,7 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
       ill_conditioned += counts.ill_conditioned;
       if (visit) visit(omp_get_thread_num(), begin, n);
     }
+    if (done) done(omp_get_thread_num());
   }
 
   summary.samples_rejected = rejected_samples;

@@ -15,9 +15,12 @@ namespace photorig::ps::internal {
 // thread: omp_get_thread_num() of the solving thread (< the solve's thread
 // count); the tile is pixels [begin, begin + count) in row-major order.
 using TileVisitor = std::function<void(int thread, int begin, int count)>;
+// Runs on each solving thread once it has no tiles left, while the others
+// may still be solving theirs: the place to finish the thread's own work.
+using ThreadDone = std::function<void(int thread)>;
 
 SolverSummary SolveLambertianTiles(const LambertianOptions& options, const PhotometricStack& stack,
-                                   NormalMap* result, const TileVisitor& visit);
+                                   NormalMap* result, const TileVisitor& visit, const ThreadDone& done = {});
 
 // One pixel's least squares on its usable samples, as the tile kernel sums
 // it (float lanes, the same thresholds and residual precision).

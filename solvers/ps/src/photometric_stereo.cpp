@@ -2,6 +2,7 @@
 
 #include "blinn_phong_lanes.h"
 #include "lambertian_tiles.h"
+#include "recheck_lanes.h"
 #include "robust_lanes.h"
 #include "trim_lanes.h"
 
@@ -9,6 +10,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -104,60 +106,6 @@ std::size_t ScreenTile(const std::uint8_t* flags, const std::uint16_t* usable, c
   return static_cast<std::size_t>(passed);
 }
 
-// A stack's samples, pixel by pixel.
-class SampleReader {
- public:
-  SampleReader(const PhotometricStack& stack, const LambertianOptions& thresholds) : stack_(stack) {
-    for (int k = 0; k < stack.light_count(); ++k) {
-      planes_.push_back(stack.images[k].ptr<float>());
-      inverse_scales_.push_back(1.0 / stack.light_scales[k]);
-      for (int i = 0; i < 3; ++i) directions_.push_back(stack.light_directions[k][i]);
-    }
-    inputs_ = {stack.light_count(), planes_.data(), stack.dark.empty() ? nullptr : stack.dark.ptr<float>(),
-               thresholds.shadow_threshold, thresholds.saturation_level, stack.light_scales.data(),
-               inverse_scales_.data(), stack.noise.read_sigma * stack.noise.read_sigma, stack.noise.shot_gain,
-               directions_.data()};
-  }
-
-  int lights() const { return inputs_.lights; }
-
-  // Every light's sample (see ReadRow); returns chi-square at x.
-  double Row(int pixel, const Eigen::Vector3d& x, double* observed, double* inverse_sigma, int* usable) const {
-    double chi2 = 0.0;
-    ReadRow(inputs_, pixel, x.data(), observed, inverse_sigma, &chi2, usable);
-    return chi2;
-  }
-
-  // The usable samples only.
-  void Usable(int pixel, PixelSamples* out) const {
-    int usable = 0;
-    out->row_observed.resize(lights());
-    out->row_inverse_sigma.resize(lights());
-    const double* observed = out->row_observed.data();
-    const double* inverse_sigma = out->row_inverse_sigma.data();
-    Row(pixel, Eigen::Vector3d::Zero(), out->row_observed.data(), out->row_inverse_sigma.data(), &usable);
-    const std::vector<Eigen::Vector3d>& light_directions = stack_.light_directions;
-    out->b.clear();
-    out->variance.clear();
-    out->w.clear();
-    out->light.clear();
-    for (int k = 0; k < lights(); ++k) {
-      if (inverse_sigma[k] == 0.0) continue;
-      out->b.push_back(observed[k]);
-      out->variance.push_back(1.0 / (inverse_sigma[k] * inverse_sigma[k]));
-      out->w.push_back(light_directions[k]);
-      out->light.push_back(k);
-    }
-  }
-
- private:
-  const PhotometricStack& stack_;  // must outlive the reader
-  std::vector<const float*> planes_;
-  std::vector<double> directions_;  // the stack's, 3 per light
-  std::vector<double> inverse_scales_;  // 1 / s_k
-  RowInputs inputs_;
-};
-
 double InverseNormalCdf(double p) {
   // Bisection on the CDF: called once per solve, so speed is irrelevant.
   double lo = -10.0, hi = 10.0;
@@ -216,6 +164,19 @@ Fit LambertianFromX(const PixelSamples& s, const Eigen::Vector3d& x, const std::
   return fit;
 }
 
+// The Lambertian fit x of a pixel with its chi-square on `used` samples,
+// `rejected` of its usable ones left out.
+Fit LambertianFit(const Eigen::Vector3d& x, double chi2, int used, int rejected) {
+  Fit fit;
+  fit.ok = x.norm() > 0.0;
+  fit.normal = x.normalized();
+  fit.albedo = M_PI * x.norm();
+  fit.chi2 = chi2;
+  fit.used = used;
+  fit.rejected = rejected;
+  return fit;
+}
+
 // The `robust` fit of a pixel from its IRLS solution.
 Fit RobustFit(const internal::RobustSolution& solution) {
   Fit fit;
@@ -229,6 +190,140 @@ Fit RobustFit(const internal::RobustSolution& solution) {
   fit.rejected = solution.rejected;
   return fit;
 }
+
+// Sums of one round of FitLit over every light's sample (a row as ReadRow
+// writes it: b, and 1 / sigma, 0 where unusable): the normal equations of the
+// usable samples the solution x lights (w . x > 0), chi-square of x on them,
+// and how many usable samples x leaves in attached shadow or, compared with
+// the previous solution, moves across the terminator.
+struct LitSums {
+  double gxx = 0, gyy = 0, gzz = 0, gxy = 0, gxz = 0, gyz = 0, rx = 0, ry = 0, rz = 0;
+  double chi2 = 0, used = 0, unlit = 0, moved = 0;
+};
+
+PHOTORIG_PS_MULTIVERSION
+LitSums SumLitSamples(int lights, const double* wx, const double* wy, const double* wz, const double* observed,
+                      const double* inverse_sigma, const double* x, const double* previous) {
+  const double x0 = x[0], x1 = x[1], x2 = x[2], p0 = previous[0], p1 = previous[1], p2 = previous[2];
+  double gxx = 0, gyy = 0, gzz = 0, gxy = 0, gxz = 0, gyz = 0, rx = 0, ry = 0, rz = 0;
+  double chi2 = 0, used = 0, unlit = 0, moved = 0;
+#pragma omp simd reduction(+ : gxx, gyy, gzz, gxy, gxz, gyz, rx, ry, rz, chi2, used, unlit, moved)
+  for (int k = 0; k < lights; ++k) {
+    const double usable = inverse_sigma[k] != 0.0 ? 1.0 : 0.0;
+    const double prediction = wx[k] * x0 + wy[k] * x1 + wz[k] * x2;
+    const double lit = prediction > 0.0 ? usable : 0.0;
+    const double was_lit = wx[k] * p0 + wy[k] * p1 + wz[k] * p2 > 0.0 ? usable : 0.0;
+    const double b = lit * observed[k], r = b - lit * prediction, u = inverse_sigma[k] * r;
+    gxx += lit * wx[k] * wx[k], gyy += lit * wy[k] * wy[k], gzz += lit * wz[k] * wz[k];
+    gxy += lit * wx[k] * wy[k], gxz += lit * wx[k] * wz[k], gyz += lit * wy[k] * wz[k];
+    rx += b * wx[k], ry += b * wy[k], rz += b * wz[k];
+    chi2 += u * u;
+    used += lit;
+    unlit += usable - lit;
+    moved += lit != was_lit ? 1.0 : 0.0;
+  }
+  return {gxx, gyy, gzz, gxy, gxz, gyz, rx, ry, rz, chi2, used, unlit, moved};
+}
+
+// The Lambertian fit of a pixel on its usable samples that the fit itself
+// lights. A sample of a light behind the surface's tangent plane (w . n <= 0)
+// can only be dark: where one is usable, read noise lifted it over the shadow
+// threshold, and least squares, which knows no max(0, w . n), pulls the
+// normal towards it. Such samples are dropped and the rest refitted once; the
+// refit stands if it lights exactly the samples it was fitted to. False where
+// x leaves no usable sample in attached shadow (nothing would change), where
+// the refit moves samples across the terminator (then the trimming stage
+// decides), or where the remaining lights are worse conditioned than
+// max_condition. RecheckLanes runs the same test in float lanes.
+bool FitLit(int lights, const double* wx, const double* wy, const double* wz, const double* observed,
+            const double* inverse_sigma, const Eigen::Vector3d& x, double max_condition, Fit* fit) {
+  const LitSums before = SumLitSamples(lights, wx, wy, wz, observed, inverse_sigma, x.data(), x.data());
+  if (before.unlit == 0.0 || before.used < 4.0) return false;
+  Eigen::Matrix3d g;
+  g << before.gxx, before.gxy, before.gxz, before.gxy, before.gyy, before.gyz, before.gxz, before.gyz, before.gzz;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+  eigen.computeDirect(g, Eigen::EigenvaluesOnly);
+  const Eigen::Vector3d lambda = eigen.eigenvalues();  // ascending; cond(A)^2 = cond(G)
+  if (!(lambda(0) > 0.0) || !(lambda(2) <= max_condition * max_condition * lambda(0))) return false;
+  const Eigen::Vector3d refit = g.ldlt().solve(Eigen::Vector3d(before.rx, before.ry, before.rz));
+  const LitSums after = SumLitSamples(lights, wx, wy, wz, observed, inverse_sigma, refit.data(), x.data());
+  if (after.moved != 0.0 || !(refit.norm() > 0.0)) return false;
+  fit->ok = true;
+  fit->normal = refit.normalized();
+  fit->albedo = M_PI * refit.norm();
+  fit->chi2 = after.chi2;
+  fit->used = static_cast<int>(after.used);
+  fit->rejected = static_cast<int>(after.unlit);
+  fit->parameters = 3;
+  fit->model = PixelModel::kLambertian;
+  return true;
+}
+
+// A stack's samples, pixel by pixel.
+class SampleReader {
+ public:
+  SampleReader(const PhotometricStack& stack, const LambertianOptions& thresholds)
+      : stack_(stack), max_condition_(thresholds.max_condition_number) {
+    for (int k = 0; k < stack.light_count(); ++k) {
+      planes_.push_back(stack.images[k].ptr<float>());
+      inverse_scales_.push_back(1.0 / stack.light_scales[k]);
+      for (int i = 0; i < 3; ++i) {
+        directions_.push_back(stack.light_directions[k][i]);
+        direction_axes_[i].push_back(stack.light_directions[k][i]);
+      }
+    }
+    inputs_ = {stack.light_count(), planes_.data(), stack.dark.empty() ? nullptr : stack.dark.ptr<float>(),
+               thresholds.shadow_threshold, thresholds.saturation_level, stack.light_scales.data(),
+               inverse_scales_.data(), stack.noise.read_sigma * stack.noise.read_sigma, stack.noise.shot_gain,
+               directions_.data()};
+  }
+
+  int lights() const { return inputs_.lights; }
+
+  // FitLit on a row of this stack's samples.
+  bool FitLit(const double* observed, const double* inverse_sigma, const Eigen::Vector3d& x, Fit* fit) const {
+    return photorig::ps::FitLit(lights(), direction_axes_[0].data(), direction_axes_[1].data(),
+                                direction_axes_[2].data(), observed, inverse_sigma, x, max_condition_, fit);
+  }
+
+  // Every light's sample (see ReadRow); returns chi-square at x.
+  double Row(int pixel, const Eigen::Vector3d& x, double* observed, double* inverse_sigma, int* usable) const {
+    double chi2 = 0.0;
+    ReadRow(inputs_, pixel, x.data(), observed, inverse_sigma, &chi2, usable);
+    return chi2;
+  }
+
+  // The usable samples only.
+  void Usable(int pixel, PixelSamples* out) const {
+    int usable = 0;
+    out->row_observed.resize(lights());
+    out->row_inverse_sigma.resize(lights());
+    const double* observed = out->row_observed.data();
+    const double* inverse_sigma = out->row_inverse_sigma.data();
+    Row(pixel, Eigen::Vector3d::Zero(), out->row_observed.data(), out->row_inverse_sigma.data(), &usable);
+    const std::vector<Eigen::Vector3d>& light_directions = stack_.light_directions;
+    out->b.clear();
+    out->variance.clear();
+    out->w.clear();
+    out->light.clear();
+    for (int k = 0; k < lights(); ++k) {
+      if (inverse_sigma[k] == 0.0) continue;
+      out->b.push_back(observed[k]);
+      out->variance.push_back(1.0 / (inverse_sigma[k] * inverse_sigma[k]));
+      out->w.push_back(light_directions[k]);
+      out->light.push_back(k);
+    }
+  }
+
+ private:
+  const PhotometricStack& stack_;  // must outlive the reader
+  std::vector<const float*> planes_;
+  std::vector<double> directions_;  // the stack's, 3 per light
+  std::array<std::vector<double>, 3> direction_axes_;  // the same, one array per axis
+  double max_condition_;
+  std::vector<double> inverse_scales_;  // 1 / s_k
+  RowInputs inputs_;
+};
 
 // The samples of one pixel as plain arrays, for loops the compiler vectorises.
 struct TrimScratch {
@@ -621,6 +716,9 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   };
   struct ThreadState {
     std::vector<std::uint8_t> needs_refit;  // per pixel of the tile
+    std::vector<int> doubtful;  // the tile's pixels that need refitting, with lanes
+    std::vector<Eigen::Vector3d> doubtful_x;
+    std::vector<internal::Recheck> rechecks;
     PixelSamples samples;
     TrimScratch trim;
     autodiff::Tape tape;
@@ -653,6 +751,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   }
   const int lights = working.light_count();
   const SampleReader reader(working, lambertian);
+  const internal::RecheckLanes recheck(working, lambertian);
   // Gathers pixel p's samples into a new row; the Lambertian fit x is tested on them.
   auto gather_row = [&](ThreadState& state, int p, const Eigen::Vector3d& x, Fit* lambert) {
     const std::size_t row = state.rows++;
@@ -719,6 +818,10 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     const Eigen::Vector3d x = tile_x(p);
     const Fit lambert = LambertianFromX(s, x, nullptr, 0.0);
     if (options.method == Method::kAuto && (adequate(lambert) || !can_trim(lambert))) return record(state, p, lambert);
+    Fit lit;
+    if (options.method == Method::kAuto && reader.FitLit(s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit) &&
+        adequate(lit))
+      return record(state, p, lit);
     const int max_rejected = static_cast<int>(options.selection.max_rejected_fraction * s.size());
     const Fit robust = options.method == Method::kRobust ? reweight_pixel(state, s, x)
                                                          : FitTrimmed(s, max_rejected, gross_u2, adequate, &state.trim);
@@ -855,34 +958,58 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       if (!state.needs_refit[i]) continue;
       const int p = begin + i;
       if (!lanes) {
-        refine_pixel(state, p);
+        refine_pixel(state, p);  // records the pixel
         continue;
       }
+      state.doubtful.push_back(p);
+      state.doubtful_x.push_back(tile_x(p));
+    }
+    if (!lanes) return;
+    const std::size_t doubtful = state.doubtful.size();
+    // `auto` looks again at the doubtful pixels in lanes before copying any
+    // samples out: most are settled by the exact test or the lit refit.
+    if (options.method == Method::kAuto) {
+      state.rechecks.resize(doubtful);
+      recheck.Check(state.doubtful, state.doubtful_x, state.rechecks);
+    }
+    for (std::size_t j = 0; j < doubtful; ++j) {
+      const int p = state.doubtful[j];
+      const Eigen::Vector3d& x = state.doubtful_x[j];
+      if (options.method == Method::kAuto) {
+        const internal::Recheck& again = state.rechecks[j];
+        const Fit lambert = LambertianFit(x, again.chi2, again.used, 0);
+        if (adequate(lambert) || !can_trim(lambert)) {
+          record(state, p, lambert);
+          continue;
+        }
+        const Fit lit = LambertianFit(again.lit_x, again.lit_chi2, again.lit_used, again.unlit);
+        if (again.refitted && adequate(lit)) {
+          record(state, p, lit);
+          continue;
+        }
+      }
       Fit lambert;
-      const std::size_t row = gather_row(state, p, tile_x(p), &lambert);
+      const std::size_t row = gather_row(state, p, x, &lambert);
       if (options.method == Method::kRobust) {
         state.reweighting.push_back({p, lambert, lambert.normal, lambert.albedo, row});
-      } else if (options.method == Method::kAuto && (adequate(lambert) || !can_trim(lambert))) {
-        record(state, p, lambert);
-        --state.rows;  // the row is not needed
       } else {
         state.trimming.push_back({p, lambert, lambert.normal, lambert.albedo, row});
       }
     }
-    if (lanes) flush(thread, false);  // (without lanes, refine_pixel has recorded every pixel)
+    state.doubtful.clear();
+    state.doubtful_x.clear();
+    flush(thread, false);
   };
-  SolverSummary summary = internal::SolveLambertianTiles(lambertian, working, result, refine_tile);
+  // What is still queued when a thread runs out of tiles, it fits while the
+  // others finish theirs.
+  const internal::ThreadDone flush_rest = [&](int thread) {
+    if (lanes) flush(thread, true);
+  };
+  SolverSummary summary = internal::SolveLambertianTiles(lambertian, working, result, refine_tile, flush_rest);
   summary.method = MethodName(options.method);
   if (!summary.IsSolutionUsable()) {
     summary.total_ms = MillisecondsSince(start);
     return summary;
-  }
-  if (lanes) {
-    // What is still queued, each thread's queues by one thread.
-    const auto flush_start = Clock::now();
-#pragma omp parallel for num_threads(threads) schedule(static, 1)
-    for (int thread = 0; thread < threads; ++thread) flush(thread, true);
-    summary.solve_ms += MillisecondsSince(flush_start);
   }
   summary.noise_estimated = noise_estimated;
   summary.noise_read_sigma = working.noise.read_sigma;

@@ -1,0 +1,180 @@
+#include "recheck_lanes.h"
+#include "lane_math.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace photorig::ps::internal {
+namespace {
+
+constexpr int kLanes = RecheckLanes::kLanes;
+
+struct Constants {
+  int lights = 0;
+  const float* const* planes = nullptr;
+  const float* dark = nullptr;  // null: no dark frame
+  const float *wx = nullptr, *wy = nullptr, *wz = nullptr, *scale = nullptr, *inverse_scale = nullptr;
+  float shadow = 0.0f, saturation = 0.0f, read_variance = 0.0f, shot_gain = 0.0f;
+  float max_frobenius_condition2 = 0.0f;
+};
+
+// One lane per pixel; a lane past the last pixel repeats pixel 0.
+struct Lanes {
+  alignas(64) int pixel[kLanes];
+  alignas(64) float dark[kLanes];
+  alignas(64) float x0[kLanes], x1[kLanes], x2[kLanes];  // in: the Lambertian pass's fit
+  alignas(64) float chi2[kLanes], used[kLanes], unlit[kLanes];
+  alignas(64) float g[6][kLanes], r[3][kLanes];  // normal equations of the lit samples: xx, yy, zz, xy, xz, yz
+  alignas(64) float lit0[kLanes], lit1[kLanes], lit2[kLanes], conditioned[kLanes];  // the refit
+  alignas(64) float lit_chi2[kLanes], lit_used[kLanes], moved[kLanes];
+};
+
+// Residuals are taken in input units, r = (I - D) - s w.x, so that r^2 /
+// Var(I - D) needs no division by s.
+PHOTORIG_PS_MULTIVERSION
+void TestFit(const Constants& c, Lanes* l) {
+  for (int i = 0; i < kLanes; ++i) {
+    l->chi2[i] = l->used[i] = l->unlit[i] = 0.0f;
+    for (auto& row : l->g) row[i] = 0.0f;
+    for (auto& row : l->r) row[i] = 0.0f;
+  }
+  for (int k = 0; k < c.lights; ++k) {
+    const float* plane = c.planes[k];
+    const float wx = c.wx[k], wy = c.wy[k], wz = c.wz[k], scale = c.scale[k], inverse_scale = c.inverse_scale[k];
+#pragma omp simd
+    for (int i = 0; i < kLanes; ++i) {
+      const float value = plane[l->pixel[i]];
+      const float signal = value - l->dark[i];
+      const bool usable = (signal > c.shadow) & (value < c.saturation);
+      const float prediction = wx * l->x0[i] + wy * l->x1[i] + wz * l->x2[i];
+      const float residual = signal - scale * prediction;
+      const float variance = c.read_variance + c.shot_gain * std::max(signal, 0.0f);
+      // 0 / 1 factors rather than conditional updates: a masked store
+      // followed by the next light's load of the same lanes is not forwarded.
+      const float in = usable ? 1.0f : 0.0f, lit = usable & (prediction > 0.0f) ? 1.0f : 0.0f;
+      l->chi2[i] += in * (residual * residual / variance);
+      l->used[i] += in;
+      l->unlit[i] += in - lit;
+      const float b = lit * signal * inverse_scale;
+      l->g[0][i] += lit * wx * wx, l->g[1][i] += lit * wy * wy, l->g[2][i] += lit * wz * wz;
+      l->g[3][i] += lit * wx * wy, l->g[4][i] += lit * wx * wz, l->g[5][i] += lit * wy * wz;
+      l->r[0][i] += wx * b, l->r[1][i] += wy * b, l->r[2][i] += wz * b;
+    }
+  }
+}
+
+// The refit of every lane from its lit samples' normal equations, by the
+// adjugate, with the tile kernel's Frobenius bound on the conditioning.
+PHOTORIG_PS_MULTIVERSION
+void SolveLit(const Constants& c, Lanes* l) {
+#pragma omp simd
+  for (int i = 0; i < kLanes; ++i) {
+    const float gxx = l->g[0][i], gyy = l->g[1][i], gzz = l->g[2][i], gxy = l->g[3][i], gxz = l->g[4][i],
+                gyz = l->g[5][i];
+    const float a00 = gyy * gzz - gyz * gyz, a01 = gxz * gyz - gxy * gzz, a02 = gxy * gyz - gxz * gyy;
+    const float a11 = gxx * gzz - gxz * gxz, a12 = gxy * gxz - gxx * gyz, a22 = gxx * gyy - gxy * gxy;
+    const float det = gxx * a00 + gxy * a01 + gxz * a02;
+    const float inverse_det = det > 0.0f ? 1.0f / det : 0.0f;
+    const float rx = l->r[0][i], ry = l->r[1][i], rz = l->r[2][i];
+    l->lit0[i] = (a00 * rx + a01 * ry + a02 * rz) * inverse_det;
+    l->lit1[i] = (a01 * rx + a11 * ry + a12 * rz) * inverse_det;
+    l->lit2[i] = (a02 * rx + a12 * ry + a22 * rz) * inverse_det;
+    const float g_norm2 = gxx * gxx + gyy * gyy + gzz * gzz + 2.0f * (gxy * gxy + gxz * gxz + gyz * gyz);
+    const float adj_norm2 = a00 * a00 + a11 * a11 + a22 * a22 + 2.0f * (a01 * a01 + a02 * a02 + a12 * a12);
+    const float bound = g_norm2 * adj_norm2 * inverse_det * inverse_det;
+    l->conditioned[i] = (det > 0.0f) & (bound <= c.max_frobenius_condition2) ? 1.0f : 0.0f;
+  }
+}
+
+// Chi-square of the refit on the samples it lights, and how many usable
+// samples it moves across the terminator compared with the first fit.
+PHOTORIG_PS_MULTIVERSION
+void TestRefit(const Constants& c, Lanes* l) {
+  for (int i = 0; i < kLanes; ++i) l->lit_chi2[i] = l->lit_used[i] = l->moved[i] = 0.0f;
+  for (int k = 0; k < c.lights; ++k) {
+    const float* plane = c.planes[k];
+    const float wx = c.wx[k], wy = c.wy[k], wz = c.wz[k], scale = c.scale[k];
+#pragma omp simd
+    for (int i = 0; i < kLanes; ++i) {
+      const float value = plane[l->pixel[i]];
+      const float signal = value - l->dark[i];
+      const bool usable = (signal > c.shadow) & (value < c.saturation);
+      const bool was_lit = wx * l->x0[i] + wy * l->x1[i] + wz * l->x2[i] > 0.0f;
+      const float prediction = wx * l->lit0[i] + wy * l->lit1[i] + wz * l->lit2[i];
+      const bool lit = prediction > 0.0f;
+      const float residual = signal - scale * prediction;
+      const float variance = c.read_variance + c.shot_gain * std::max(signal, 0.0f);
+      const float counted = usable & lit ? 1.0f : 0.0f;  // as in TestFit, no conditional updates
+      l->lit_chi2[i] += counted * (residual * residual / variance);
+      l->lit_used[i] += counted;
+      l->moved[i] += usable & (lit != was_lit) ? 1.0f : 0.0f;
+    }
+  }
+}
+
+}  // namespace
+
+RecheckLanes::RecheckLanes(const PhotometricStack& stack, const LambertianOptions& options) {
+  const int k = stack.light_count();
+  for (int l = 0; l < k; ++l) {
+    planes_.push_back(stack.images[l].ptr<float>());
+    wx_.push_back(static_cast<float>(stack.light_directions[l].x()));
+    wy_.push_back(static_cast<float>(stack.light_directions[l].y()));
+    wz_.push_back(static_cast<float>(stack.light_directions[l].z()));
+    scale_.push_back(static_cast<float>(stack.light_scales[l]));
+    inverse_scale_.push_back(static_cast<float>(1.0 / stack.light_scales[l]));
+  }
+  dark_ = stack.dark.empty() ? nullptr : stack.dark.ptr<float>();
+  shadow_ = static_cast<float>(options.shadow_threshold);
+  saturation_ = std::isfinite(options.saturation_level) ? static_cast<float>(options.saturation_level)
+                                                        : std::numeric_limits<float>::infinity();
+  read_variance_ = static_cast<float>(stack.noise.read_sigma * stack.noise.read_sigma);
+  shot_gain_ = static_cast<float>(stack.noise.shot_gain);
+  // As the tile kernel: cond(A)^2 = cond(G) <= |G|_F |G^-1|_F, squared once
+  // more for squared norms, with 1 % room for float rounding on the safe side.
+  const double max_condition2 = options.max_condition_number * options.max_condition_number;
+  max_frobenius_condition2_ = static_cast<float>(0.99 * max_condition2 * max_condition2);
+}
+
+void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x,
+                         std::span<Recheck> out) const {
+  const Constants c{static_cast<int>(planes_.size()), planes_.data(), dark_, wx_.data(), wy_.data(), wz_.data(),
+                    scale_.data(), inverse_scale_.data(), shadow_, saturation_, read_variance_, shot_gain_,
+                    max_frobenius_condition2_};
+  Lanes lanes;
+  for (std::size_t first = 0; first < pixels.size(); first += kLanes) {
+    const int count = static_cast<int>(std::min<std::size_t>(kLanes, pixels.size() - first));
+    for (int i = 0; i < kLanes; ++i) {
+      const std::size_t j = first + (i < count ? i : 0);
+      lanes.pixel[i] = pixels[j];
+      lanes.dark[i] = dark_ ? dark_[pixels[j]] : 0.0f;
+      lanes.x0[i] = static_cast<float>(x[j].x());
+      lanes.x1[i] = static_cast<float>(x[j].y());
+      lanes.x2[i] = static_cast<float>(x[j].z());
+    }
+    TestFit(c, &lanes);
+    bool any_unlit = false;
+    for (int i = 0; i < count; ++i) any_unlit |= lanes.unlit[i] > 0.0f && lanes.used[i] - lanes.unlit[i] >= 4.0f;
+    if (any_unlit) {
+      SolveLit(c, &lanes);
+      TestRefit(c, &lanes);
+    }
+    for (int i = 0; i < count; ++i) {
+      Recheck& result = out[first + i];
+      result = Recheck{};
+      result.chi2 = lanes.chi2[i];
+      result.used = static_cast<int>(lanes.used[i]);
+      result.unlit = static_cast<int>(lanes.unlit[i]);
+      if (!any_unlit || lanes.unlit[i] == 0.0f || lanes.used[i] - lanes.unlit[i] < 4.0f ||
+          lanes.conditioned[i] == 0.0f || lanes.moved[i] != 0.0f)
+        continue;
+      result.refitted = true;
+      result.lit_x = Eigen::Vector3d(lanes.lit0[i], lanes.lit1[i], lanes.lit2[i]);
+      result.lit_chi2 = lanes.lit_chi2[i];
+      result.lit_used = static_cast<int>(lanes.lit_used[i]);
+    }
+  }
+}
+
+}  // namespace photorig::ps::internal

@@ -1,0 +1,52 @@
+#pragma once
+// A second look at the pixels `auto`'s screen could not accept, several
+// pixels per SIMD lane set, straight from the stack's planes: the exact
+// adequacy test of the Lambertian pass's fit (chi-square with every sample's
+// own variance, where the screen used their average) and, where that fit
+// leaves usable samples in attached shadow, one refit without them (FitLit in
+// photometric_stereo.cpp is the same test in double, one pixel at a time).
+// On a matte object nearly every doubtful pixel is settled here, so only the
+// rest has its samples copied out for the lane fitters.
+
+#include "photorig/ps/lambertian.h"
+#include "photorig/ps/stack.h"
+
+#include <Eigen/Core>
+
+#include <span>
+#include <vector>
+
+namespace photorig::ps::internal {
+
+struct Recheck {
+  // The Lambertian pass's fit x on its usable samples.
+  double chi2 = 0.0;
+  int used = 0;
+  // Set where x leaves `unlit` > 0 usable samples in attached shadow
+  // (w . x <= 0), the others are well conditioned, and the refit on them
+  // lights exactly those: the refit, its chi-square and sample count.
+  bool refitted = false;
+  Eigen::Vector3d lit_x = Eigen::Vector3d::Zero();
+  double lit_chi2 = 0.0;
+  int lit_used = 0, unlit = 0;
+};
+
+class RecheckLanes {
+ public:
+  static constexpr int kLanes = 16;  // one AVX-512 register of floats
+
+  // Thresholds and the conditioning limit from options; noise from the stack.
+  RecheckLanes(const PhotometricStack& stack, const LambertianOptions& options);
+
+  // pixels and x of the same length; any length (taken kLanes at a time).
+  void Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x, std::span<Recheck> out) const;
+
+ private:
+  std::vector<const float*> planes_;
+  const float* dark_ = nullptr;
+  std::vector<float> wx_, wy_, wz_, scale_, inverse_scale_;
+  float shadow_ = 0.0f, saturation_ = 0.0f, read_variance_ = 0.0f, shot_gain_ = 0.0f;
+  float max_frobenius_condition2_ = 0.0f;
+};
+
+}  // namespace photorig::ps::internal
