@@ -3,9 +3,11 @@
 #include "ps_test_scene.h"
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 namespace photorig::ps {
@@ -211,6 +213,52 @@ TEST(Lambertian, HonoursTheMask) {
   EXPECT_EQ(summary.pixels_solved, 25u);
   EXPECT_EQ(summary.pixels_outside_mask, 256u - 25u);
   EXPECT_EQ(map.flags.at<std::uint8_t>(0, 0), static_cast<int>(PixelFlag::kOutsideMask));
+}
+
+// Whole chunks of pixels outside the mask are skipped, not solved and then
+// discarded: what lies there (here NaN and clipped garbage) changes nothing,
+// and every pixel inside gets exactly the answer of the unmasked solve, with
+// and without the exclusion of unusable samples.
+TEST(Lambertian, SkipsWhatTheMaskLeavesOutWithoutChangingWhatItKeeps) {
+  const int width = 300, height = 90;
+  const auto truth = RandomSurface(width, height, 60.0);
+  const auto clean = RenderStack(truth, RingLights(20, 20, 80), Scales(20), 3.0f);
+  auto masked = clean;
+  masked.mask = cv::Mat::zeros(height, width, CV_8U);
+  cv::circle(masked.mask, cv::Point(width / 2, height / 2), 40, cv::Scalar(255), cv::FILLED);
+  for (auto& image : masked.images) {
+    image = image.clone();
+    image.setTo(std::numeric_limits<float>::quiet_NaN(), masked.mask == 0);
+    image.row(0).setTo(1e30f);  // the top row is outside the circle
+  }
+  const int inside = cv::countNonZero(masked.mask);
+  for (const bool exclude : {true, false}) {
+    SCOPED_TRACE(exclude ? "usable samples" : "every sample (l2)");
+    LambertianOptions options;
+    options.shadow_threshold = 5.0;
+    options.exclude_unusable_samples = exclude;
+    NormalMap reference, map;
+    ASSERT_TRUE(SolveLambertian(options, clean, &reference).IsSolutionUsable());
+    const SolverSummary summary = SolveLambertian(options, masked, &map);
+    ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+    EXPECT_EQ(summary.pixels_outside_mask, static_cast<std::size_t>(width * height - inside));
+    EXPECT_EQ(summary.pixels_solved + summary.pixels_too_few_lights + summary.pixels_ill_conditioned,
+              static_cast<std::size_t>(inside));
+    int differing = 0;
+    for (int p = 0; p < width * height; ++p) {
+      const bool in = masked.mask.ptr<std::uint8_t>()[p] != 0;
+      const std::uint8_t flag = map.flags.ptr<std::uint8_t>()[p];
+      if (!in) {
+        EXPECT_EQ(flag, static_cast<std::uint8_t>(PixelFlag::kOutsideMask)) << p;
+        EXPECT_EQ(map.usable_lights.ptr<std::uint16_t>()[p], 0) << p;
+        continue;
+      }
+      const cv::Vec3f a = map.normals.ptr<cv::Vec3f>()[p], b = reference.normals.ptr<cv::Vec3f>()[p];
+      differing += flag != reference.flags.ptr<std::uint8_t>()[p] ||
+                   (flag == 0 && (a != b || map.confidence.ptr<float>()[p] != reference.confidence.ptr<float>()[p]));
+    }
+    EXPECT_EQ(differing, 0);
+  }
 }
 
 TEST(Lambertian, ResultDoesNotDependOnTheThreadCount) {

@@ -107,29 +107,33 @@ struct TileSolution {
   alignas(64) float certainly_conditioned[kTilePixels];  // 1 or 0
 };
 
-// x = W I, sum I/s^2, sum I^2/s^2 and the usable-sample count of every pixel
-// of the tile, in one pass over its K planes. Planes are taken four at a time
-// so the accumulators are loaded and stored once per four samples.
+// x = W I, sum I/s^2, sum I^2/s^2 and the usable-sample count of pixels
+// [first, end) of the tile at `begin`, in one pass over their K planes.
+// Planes are taken four at a time so the accumulators are loaded and stored
+// once per four samples.
 PHOTORIG_PS_MULTIVERSION
-void AccumulateTile(const TileConstants& c, int begin, int n, TileSums* t) {
+void AccumulateTile(const TileConstants& c, int begin, int first, int end, TileSums* t) {
   const int k = c.lights;
+  const int n = end - first;
   const float* w0 = c.weights;
   const float* w1 = c.weights + k;
   const float* w2 = c.weights + 2 * k;
   const float* u = c.inverse_scale2;
   const float saturation = c.saturation;
-  float* __restrict x0 = t->x0;
-  float* __restrict x1 = t->x1;
-  float* __restrict x2 = t->x2;
-  float* __restrict q1 = t->q1;
-  float* __restrict q2 = t->q2;
-  float* __restrict usable = t->usable;
-  float* __restrict threshold = t->threshold;
+  float* __restrict x0 = t->x0 + first;
+  float* __restrict x1 = t->x1 + first;
+  float* __restrict x2 = t->x2 + first;
+  float* __restrict q1 = t->q1 + first;
+  float* __restrict q2 = t->q2 + first;
+  float* __restrict usable = t->usable + first;
+  float* __restrict threshold = t->threshold + first;
+  const float* __restrict dark = t->dark + first;
 #pragma omp simd
   for (int i = 0; i < n; ++i) {
-    threshold[i] = t->dark[i] + c.shadow;
+    threshold[i] = dark[i] + c.shadow;
     x0[i] = x1[i] = x2[i] = q1[i] = q2[i] = usable[i] = 0.0f;
   }
+  begin += first;
   int l = 0;
   for (; l + 4 <= k; l += 4) {
     const float* __restrict a = c.planes[l] + begin;
@@ -164,14 +168,14 @@ void AccumulateTile(const TileConstants& c, int begin, int n, TileSums* t) {
   }
 }
 
-// The L2 answer of every pixel of the tile from its sums: x with the dark
-// frame folded out, confidence from RSS = sum b^2 - x^T G x.
+// The L2 answer of pixels [first, end) of the tile from their sums: x with
+// the dark frame folded out, confidence from RSS = sum b^2 - x^T G x.
 PHOTORIG_PS_MULTIVERSION
-void SolveLitTile(const TileConstants& c, int n, const TileSums& t, TileSolution* s) {
+void SolveLitTile(const TileConstants& c, int first, int end, const TileSums& t, TileSolution* s) {
   const double k = c.lights;
   const double dof_fraction = (k - 3.0) / k;
 #pragma omp simd
-  for (int i = 0; i < n; ++i) {
+  for (int i = first; i < end; ++i) {
     const double d = t.dark[i];
     const double x = t.x0[i] - c.dark_weight[0] * d;
     const double y = t.x1[i] - c.dark_weight[1] * d;
@@ -378,6 +382,22 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
       usable_out[i] = usable;
     }
   }
+}
+
+// solve(first, end) for each maximal run [first, end) of consecutive chunks
+// of a tile's n pixels for which wanted(chunk_first, chunk_end) holds.
+template <typename Wanted, typename Solve>
+void ForEachRunOfChunks(int n, Wanted&& wanted, Solve&& solve) {
+  int run_first = -1;
+  for (int chunk = 0; chunk < n; chunk += kChunkPixels) {
+    const bool in_run = wanted(chunk, std::min(n, chunk + kChunkPixels));
+    if (in_run && run_first < 0) run_first = chunk;
+    if (!in_run && run_first >= 0) {
+      solve(run_first, chunk);
+      run_first = -1;
+    }
+  }
+  if (run_first >= 0) solve(run_first, n);
 }
 
 // Writes every pixel of the tile from its solution: normal, albedo,
@@ -696,26 +716,50 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
       // Which one a tile starts with is a guess from the thread's previous
       // tile (neighbouring tiles look alike); a wrong guess of "lit" costs a
       // second look at the affected chunks, from cache.
-      if (options.exclude_unusable_samples && !expect_lit) {
-        SolveSubsetTile(constants, begin, 0, n, sums->dark, block.get(), solution.get());
-        expect_lit = std::all_of(solution->usable, solution->usable + n, [k](float u) { return u == k; });
-      } else {
-        AccumulateTile(constants, begin, n, sums.get());
-        SolveLitTile(constants, n, *sums, solution.get());
+      // Chunks without a pixel inside the mask are not solved at all: WriteTile
+      // marks their pixels outside whatever their (stale) solution says.
+      std::array<bool, kTilePixels / kChunkPixels> inside;
+      bool any_inside = false;
+      for (int chunk = 0; chunk < n; chunk += kChunkPixels) {
+        const int chunk_end = std::min(n, chunk + kChunkPixels);
+        bool in = mask == nullptr;
+        for (int i = chunk; !in && i < chunk_end; ++i) in = mask[begin + i] != 0;
+        inside[chunk / kChunkPixels] = in;
+        any_inside |= in;
+      }
+      auto inside_chunk = [&inside](int chunk, int) { return inside[chunk / kChunkPixels]; };
+      auto all_lit = [&](int chunk, int chunk_end) {
+        for (int i = chunk; i < chunk_end; ++i)
+          if (solution->usable[i] < static_cast<float>(k)) return false;
+        return true;
+      };
+      auto solve_subsets = [&](int first, int end) {
+        SolveSubsetTile(constants, begin, first, end, sums->dark, block.get(), solution.get());
+      };
+      if (!any_inside) {
+        // Nothing to solve; the guess for the next tile stands.
+      } else if (options.exclude_unusable_samples && !expect_lit) {
+        ForEachRunOfChunks(n, inside_chunk, solve_subsets);
         expect_lit = true;
-        int run_first = -1;
-        for (int chunk = 0; options.exclude_unusable_samples && chunk < n; chunk += kChunkPixels) {
-          const int chunk_end = std::min(n, chunk + kChunkPixels);
-          bool needed = false;
-          for (int i = chunk; i < chunk_end; ++i) needed |= sums->usable[i] < static_cast<float>(k);
-          expect_lit &= !needed;
-          if (needed && run_first < 0) run_first = chunk;
-          if (!needed && run_first >= 0) {
-            SolveSubsetTile(constants, begin, run_first, chunk, sums->dark, block.get(), solution.get());
-            run_first = -1;
-          }
+        for (int chunk = 0; chunk < n; chunk += kChunkPixels)
+          expect_lit &= !inside[chunk / kChunkPixels] || all_lit(chunk, std::min(n, chunk + kChunkPixels));
+      } else {
+        ForEachRunOfChunks(n, inside_chunk, [&](int first, int end) {
+          AccumulateTile(constants, begin, first, end, sums.get());
+          SolveLitTile(constants, first, end, *sums, solution.get());
+        });
+        expect_lit = true;
+        if (options.exclude_unusable_samples) {
+          // The chunks with shadowed or clipped samples get their own subsets.
+          ForEachRunOfChunks(
+              n,
+              [&](int chunk, int chunk_end) {
+                const bool needed = inside[chunk / kChunkPixels] && !all_lit(chunk, chunk_end);
+                expect_lit &= !needed;
+                return needed;
+              },
+              solve_subsets);
         }
-        if (run_first >= 0) SolveSubsetTile(constants, begin, run_first, n, sums->dark, block.get(), solution.get());
       }
       WriteTile(begin, n, *solution, mask, result);
       // Subsets the float kernel could not vouch for get the exact verdict;
