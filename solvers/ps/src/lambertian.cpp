@@ -400,6 +400,20 @@ void ForEachRunOfChunks(int n, Wanted&& wanted, Solve&& solve) {
   if (run_first >= 0) solve(run_first, n);
 }
 
+// A solving thread's working rows, about 70 KB. They live as long as the
+// thread (OpenMP keeps its threads between solves), so a solve neither
+// allocates them nor faults their pages in again.
+struct TileScratch {
+  TileSums sums;
+  TileSolution solution;
+  SubsetBlock block;
+};
+
+TileScratch& ThreadTileScratch() {
+  thread_local const auto scratch = std::make_unique<TileScratch>();
+  return *scratch;
+}
+
 // Writes every pixel of the tile from its solution: normal, albedo,
 // confidence, usable count, model, zero specular and the flag: outside the
 // mask, too few usable samples (or x = 0: no direction exists) or solved.
@@ -614,12 +628,13 @@ PixelResiduals::~PixelResiduals() = default;
 
 void PixelResiduals::Fit(std::span<const Run> runs, PixelResidual* out) const {
   static_assert(kMaxRun <= kBlockPixels, "a run is one block of the subset kernel");
-  const auto block = std::make_unique<SubsetBlock>();
-  const auto solution = std::make_unique<TileSolution>();
+  TileScratch& scratch = ThreadTileScratch();
+  SubsetBlock* const block = &scratch.block;
+  TileSolution* const solution = &scratch.solution;
   alignas(64) float dark[kMaxRun];
   for (const Run& run : runs) {
     for (int i = 0; i < run.count; ++i) dark[i] = impl_->dark ? impl_->dark[run.begin + i] : 0.0f;
-    SolveSubsetTile(impl_->setup->constants(), run.begin, 0, run.count, dark, block.get(), solution.get());
+    SolveSubsetTile(impl_->setup->constants(), run.begin, 0, run.count, dark, block, solution);
     for (int i = 0; i < run.count; ++i, ++out) {
       out->rss = block->rss[i];
       out->usable = static_cast<int>(block->usable[i]);
@@ -692,10 +707,10 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
 #pragma omp parallel num_threads(threads) \
     reduction(+ : rejected_samples, on_subset, solved, outside_mask, too_few, ill_conditioned)
   {
-    // Heap, not the thread's stack: together about 70 KB.
-    const auto sums = std::make_unique<TileSums>();
-    const auto solution = std::make_unique<TileSolution>();
-    const auto block = std::make_unique<SubsetBlock>();
+    TileScratch& scratch = ThreadTileScratch();
+    TileSums* const sums = &scratch.sums;
+    TileSolution* const solution = &scratch.solution;
+    SubsetBlock* const block = &scratch.block;
     bool expect_lit = true;
     auto unsolved = [&](int p, PixelFlag flag) {
       result->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
@@ -734,7 +749,7 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
         return true;
       };
       auto solve_subsets = [&](int first, int end) {
-        SolveSubsetTile(constants, begin, first, end, sums->dark, block.get(), solution.get());
+        SolveSubsetTile(constants, begin, first, end, sums->dark, block, solution);
       };
       if (!any_inside) {
         // Nothing to solve; the guess for the next tile stands.
@@ -745,8 +760,8 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
           expect_lit &= !inside[chunk / kChunkPixels] || all_lit(chunk, std::min(n, chunk + kChunkPixels));
       } else {
         ForEachRunOfChunks(n, inside_chunk, [&](int first, int end) {
-          AccumulateTile(constants, begin, first, end, sums.get());
-          SolveLitTile(constants, first, end, *sums, solution.get());
+          AccumulateTile(constants, begin, first, end, sums);
+          SolveLitTile(constants, first, end, *sums, solution);
         });
         expect_lit = true;
         if (options.exclude_unusable_samples) {
