@@ -191,14 +191,16 @@ Fit RobustFit(const internal::RobustSolution& solution) {
   return fit;
 }
 
-// Sums of one round of FitLit over every light's sample (a row as ReadRow
-// writes it: b, and 1 / sigma, 0 where unusable): the normal equations of the
-// usable samples the solution x lights (w . x > 0), chi-square of x on them,
-// and how many usable samples x leaves in attached shadow or, compared with
-// the previous solution, moves across the terminator.
+// FitLit's pass over every light's sample (a row as ReadRow writes it: b, and
+// 1 / sigma, 0 where unusable): the normal equations of the usable samples
+// the solution x lights (w . x > 0), chi-square of x on them, how many usable
+// samples x leaves in attached shadow or, compared with the solution
+// `previous`, moves across the terminator, and the largest squared
+// standardised residual of x among the lit and among the unlit samples.
 struct LitSums {
   double gxx = 0, gyy = 0, gzz = 0, gxy = 0, gxz = 0, gyz = 0, rx = 0, ry = 0, rz = 0;
   double chi2 = 0, used = 0, unlit = 0, moved = 0;
+  double worst_lit = 0, worst_unlit = 0;
 };
 
 PHOTORIG_PS_MULTIVERSION
@@ -206,23 +208,27 @@ LitSums SumLitSamples(int lights, const double* wx, const double* wy, const doub
                       const double* inverse_sigma, const double* x, const double* previous) {
   const double x0 = x[0], x1 = x[1], x2 = x[2], p0 = previous[0], p1 = previous[1], p2 = previous[2];
   double gxx = 0, gyy = 0, gzz = 0, gxy = 0, gxz = 0, gyz = 0, rx = 0, ry = 0, rz = 0;
-  double chi2 = 0, used = 0, unlit = 0, moved = 0;
-#pragma omp simd reduction(+ : gxx, gyy, gzz, gxy, gxz, gyz, rx, ry, rz, chi2, used, unlit, moved)
+  double chi2 = 0, used = 0, unlit = 0, moved = 0, worst_lit = 0, worst_unlit = 0;
+#pragma omp simd reduction(+ : gxx, gyy, gzz, gxy, gxz, gyz, rx, ry, rz, chi2, used, unlit, moved) \
+    reduction(max : worst_lit, worst_unlit)
   for (int k = 0; k < lights; ++k) {
     const double usable = inverse_sigma[k] != 0.0 ? 1.0 : 0.0;
     const double prediction = wx[k] * x0 + wy[k] * x1 + wz[k] * x2;
     const double lit = prediction > 0.0 ? usable : 0.0;
     const double was_lit = wx[k] * p0 + wy[k] * p1 + wz[k] * p2 > 0.0 ? usable : 0.0;
-    const double b = lit * observed[k], r = b - lit * prediction, u = inverse_sigma[k] * r;
+    const double u = inverse_sigma[k] * (observed[k] - prediction), u2 = u * u;  // 0 where unusable
+    const double b = lit * observed[k];
     gxx += lit * wx[k] * wx[k], gyy += lit * wy[k] * wy[k], gzz += lit * wz[k] * wz[k];
     gxy += lit * wx[k] * wy[k], gxz += lit * wx[k] * wz[k], gyz += lit * wy[k] * wz[k];
     rx += b * wx[k], ry += b * wy[k], rz += b * wz[k];
-    chi2 += u * u;
+    chi2 += lit * u2;
     used += lit;
     unlit += usable - lit;
     moved += lit != was_lit ? 1.0 : 0.0;
+    worst_lit = std::max(worst_lit, lit * u2);
+    worst_unlit = std::max(worst_unlit, (usable - lit) * u2);
   }
-  return {gxx, gyy, gzz, gxy, gxz, gyz, rx, ry, rz, chi2, used, unlit, moved};
+  return {gxx, gyy, gzz, gxy, gxz, gyz, rx, ry, rz, chi2, used, unlit, moved, worst_lit, worst_unlit};
 }
 
 // The Lambertian fit of a pixel on its usable samples that the fit itself
@@ -230,15 +236,17 @@ LitSums SumLitSamples(int lights, const double* wx, const double* wy, const doub
 // can only be dark: where one is usable, read noise lifted it over the shadow
 // threshold, and least squares, which knows no max(0, w . n), pulls the
 // normal towards it. Such samples are dropped and the rest refitted once; the
-// refit stands if it lights exactly the samples it was fitted to. False where
-// x leaves no usable sample in attached shadow (nothing would change), where
-// the refit moves samples across the terminator (then the trimming stage
-// decides), or where the remaining lights are worse conditioned than
-// max_condition. RecheckLanes runs the same test in float lanes.
+// refit stands if it lights exactly the samples it was fitted to. It is tried
+// only where one of them is the fit's worst misfit: a glossy pixel's worst
+// residuals are its highlight's, which dropping shadow samples would not
+// mend (there the trimming stage decides). False also where the refit moves
+// samples across the terminator or the remaining lights are worse
+// conditioned than max_condition. RecheckLanes runs the same test in float
+// lanes.
 bool FitLit(int lights, const double* wx, const double* wy, const double* wz, const double* observed,
             const double* inverse_sigma, const Eigen::Vector3d& x, double max_condition, Fit* fit) {
   const LitSums before = SumLitSamples(lights, wx, wy, wz, observed, inverse_sigma, x.data(), x.data());
-  if (before.unlit == 0.0 || before.used < 4.0) return false;
+  if (before.unlit == 0.0 || before.worst_unlit < before.worst_lit || before.used < 4.0) return false;
   Eigen::Matrix3d g;
   g << before.gxx, before.gxy, before.gxz, before.gxy, before.gyy, before.gyz, before.gxz, before.gyz, before.gzz;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;

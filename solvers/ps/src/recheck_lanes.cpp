@@ -25,6 +25,7 @@ struct Lanes {
   alignas(64) float dark[kLanes];
   alignas(64) float x0[kLanes], x1[kLanes], x2[kLanes];  // in: the Lambertian pass's fit
   alignas(64) float chi2[kLanes], used[kLanes], unlit[kLanes];
+  alignas(64) float worst_lit[kLanes], worst_unlit[kLanes];  // largest r^2 / var among lit, unlit samples
   alignas(64) float g[6][kLanes], r[3][kLanes];  // normal equations of the lit samples: xx, yy, zz, xy, xz, yz
   alignas(64) float lit0[kLanes], lit1[kLanes], lit2[kLanes], conditioned[kLanes];  // the refit
   alignas(64) float lit_chi2[kLanes], lit_used[kLanes], moved[kLanes];
@@ -35,7 +36,7 @@ struct Lanes {
 PHOTORIG_PS_MULTIVERSION
 void TestFit(const Constants& c, Lanes* l) {
   for (int i = 0; i < kLanes; ++i) {
-    l->chi2[i] = l->used[i] = l->unlit[i] = 0.0f;
+    l->chi2[i] = l->used[i] = l->unlit[i] = l->worst_lit[i] = l->worst_unlit[i] = 0.0f;
     for (auto& row : l->g) row[i] = 0.0f;
     for (auto& row : l->r) row[i] = 0.0f;
   }
@@ -53,9 +54,12 @@ void TestFit(const Constants& c, Lanes* l) {
       // 0 / 1 factors rather than conditional updates: a masked store
       // followed by the next light's load of the same lanes is not forwarded.
       const float in = usable ? 1.0f : 0.0f, lit = usable & (prediction > 0.0f) ? 1.0f : 0.0f;
-      l->chi2[i] += in * (residual * residual / variance);
+      const float u2 = in * (residual * residual / variance);
+      l->chi2[i] += u2;
       l->used[i] += in;
       l->unlit[i] += in - lit;
+      l->worst_lit[i] = std::max(l->worst_lit[i], lit * u2);
+      l->worst_unlit[i] = std::max(l->worst_unlit[i], (in - lit) * u2);
       const float b = lit * signal * inverse_scale;
       l->g[0][i] += lit * wx * wx, l->g[1][i] += lit * wy * wy, l->g[2][i] += lit * wz * wz;
       l->g[3][i] += lit * wx * wy, l->g[4][i] += lit * wx * wz, l->g[5][i] += lit * wy * wz;
@@ -154,9 +158,15 @@ void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vec
       lanes.x2[i] = static_cast<float>(x[j].z());
     }
     TestFit(c, &lanes);
-    bool any_unlit = false;
-    for (int i = 0; i < count; ++i) any_unlit |= lanes.unlit[i] > 0.0f && lanes.used[i] - lanes.unlit[i] >= 4.0f;
-    if (any_unlit) {
+    // As FitLit: the refit only where a sample in attached shadow is the worst misfit.
+    bool refit[kLanes] = {};
+    bool any_refit = false;
+    for (int i = 0; i < count; ++i) {
+      refit[i] = lanes.unlit[i] > 0.0f && lanes.worst_unlit[i] >= lanes.worst_lit[i] &&
+                 lanes.used[i] - lanes.unlit[i] >= 4.0f;
+      any_refit |= refit[i];
+    }
+    if (any_refit) {
       SolveLit(c, &lanes);
       TestRefit(c, &lanes);
     }
@@ -166,9 +176,7 @@ void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vec
       result.chi2 = lanes.chi2[i];
       result.used = static_cast<int>(lanes.used[i]);
       result.unlit = static_cast<int>(lanes.unlit[i]);
-      if (!any_unlit || lanes.unlit[i] == 0.0f || lanes.used[i] - lanes.unlit[i] < 4.0f ||
-          lanes.conditioned[i] == 0.0f || lanes.moved[i] != 0.0f)
-        continue;
+      if (!refit[i] || lanes.conditioned[i] == 0.0f || lanes.moved[i] != 0.0f) continue;
       result.refitted = true;
       result.lit_x = Eigen::Vector3d(lanes.lit0[i], lanes.lit1[i], lanes.lit2[i]);
       result.lit_chi2 = lanes.lit_chi2[i];

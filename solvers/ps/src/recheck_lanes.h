@@ -23,8 +23,9 @@ struct Recheck {
   double chi2 = 0.0;
   int used = 0;
   // Set where x leaves `unlit` > 0 usable samples in attached shadow
-  // (w . x <= 0), the others are well conditioned, and the refit on them
-  // lights exactly those: the refit, its chi-square and sample count.
+  // (w . x <= 0), one of them is x's worst misfit, the others are well
+  // conditioned, and the refit on them lights exactly those: the refit, its
+  // chi-square and sample count.
   bool refitted = false;
   Eigen::Vector3d lit_x = Eigen::Vector3d::Zero();
   double lit_chi2 = 0.0;
