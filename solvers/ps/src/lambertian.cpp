@@ -748,9 +748,9 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
       }
       auto inside_chunk = [&inside](int chunk, int) { return inside[chunk / kChunkPixels]; };
       auto all_lit = [&](int chunk, int chunk_end) {
-        for (int i = chunk; i < chunk_end; ++i)
-          if (solution->usable[i] < static_cast<float>(k)) return false;
-        return true;
+        bool lit = true;
+        for (int i = chunk; i < chunk_end; ++i) lit &= solution->usable[i] == static_cast<float>(k);
+        return lit;
       };
       auto solve_subsets = [&](int first, int end) {
         SolveSubsetTile(constants, begin, first, end, sums->dark, block, solution);

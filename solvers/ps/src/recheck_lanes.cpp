@@ -8,7 +8,8 @@
 namespace photorig::ps::internal {
 namespace {
 
-constexpr int kLanes = RecheckLanes::kLanes;
+// Pixels per pass, one per float lane (lane_math.h's kLanes counts doubles).
+constexpr int kPixels = RecheckLanes::kLanes;
 
 struct Constants {
   int lights = 0;
@@ -21,21 +22,21 @@ struct Constants {
 
 // One lane per pixel; a lane past the last pixel repeats pixel 0.
 struct Lanes {
-  alignas(64) int pixel[kLanes];
-  alignas(64) float dark[kLanes];
-  alignas(64) float x0[kLanes], x1[kLanes], x2[kLanes];  // in: the Lambertian pass's fit
-  alignas(64) float chi2[kLanes], used[kLanes], unlit[kLanes];
-  alignas(64) float worst_lit[kLanes], worst_unlit[kLanes];  // largest r^2 / var among lit, unlit samples
-  alignas(64) float g[6][kLanes], r[3][kLanes];  // normal equations of the lit samples: xx, yy, zz, xy, xz, yz
-  alignas(64) float lit0[kLanes], lit1[kLanes], lit2[kLanes], conditioned[kLanes];  // the refit
-  alignas(64) float lit_chi2[kLanes], lit_used[kLanes], moved[kLanes];
+  alignas(64) int pixel[kPixels];
+  alignas(64) float dark[kPixels];
+  alignas(64) float x0[kPixels], x1[kPixels], x2[kPixels];  // in: the Lambertian pass's fit
+  alignas(64) float chi2[kPixels], used[kPixels], unlit[kPixels];
+  alignas(64) float worst_lit[kPixels], worst_unlit[kPixels];  // largest r^2 / var among lit, unlit samples
+  alignas(64) float g[6][kPixels], r[3][kPixels];  // normal equations of the lit samples: xx, yy, zz, xy, xz, yz
+  alignas(64) float lit0[kPixels], lit1[kPixels], lit2[kPixels], conditioned[kPixels];  // the refit
+  alignas(64) float lit_chi2[kPixels], lit_used[kPixels], moved[kPixels];
 };
 
 // Residuals are taken in input units, r = (I - D) - s w.x, so that r^2 /
 // Var(I - D) needs no division by s.
 PHOTORIG_PS_MULTIVERSION
 void TestFit(const Constants& c, Lanes* l) {
-  for (int i = 0; i < kLanes; ++i) {
+  for (int i = 0; i < kPixels; ++i) {
     l->chi2[i] = l->used[i] = l->unlit[i] = l->worst_lit[i] = l->worst_unlit[i] = 0.0f;
     for (auto& row : l->g) row[i] = 0.0f;
     for (auto& row : l->r) row[i] = 0.0f;
@@ -44,7 +45,7 @@ void TestFit(const Constants& c, Lanes* l) {
     const float* plane = c.planes[k];
     const float wx = c.wx[k], wy = c.wy[k], wz = c.wz[k], scale = c.scale[k], inverse_scale = c.inverse_scale[k];
 #pragma omp simd
-    for (int i = 0; i < kLanes; ++i) {
+    for (int i = 0; i < kPixels; ++i) {
       const float value = plane[l->pixel[i]];
       const float signal = value - l->dark[i];
       const bool usable = (signal > c.shadow) & (value < c.saturation);
@@ -73,7 +74,7 @@ void TestFit(const Constants& c, Lanes* l) {
 PHOTORIG_PS_MULTIVERSION
 void SolveLit(const Constants& c, Lanes* l) {
 #pragma omp simd
-  for (int i = 0; i < kLanes; ++i) {
+  for (int i = 0; i < kPixels; ++i) {
     const float gxx = l->g[0][i], gyy = l->g[1][i], gzz = l->g[2][i], gxy = l->g[3][i], gxz = l->g[4][i],
                 gyz = l->g[5][i];
     const float a00 = gyy * gzz - gyz * gyz, a01 = gxz * gyz - gxy * gzz, a02 = gxy * gyz - gxz * gyy;
@@ -95,12 +96,12 @@ void SolveLit(const Constants& c, Lanes* l) {
 // samples it moves across the terminator compared with the first fit.
 PHOTORIG_PS_MULTIVERSION
 void TestRefit(const Constants& c, Lanes* l) {
-  for (int i = 0; i < kLanes; ++i) l->lit_chi2[i] = l->lit_used[i] = l->moved[i] = 0.0f;
+  for (int i = 0; i < kPixels; ++i) l->lit_chi2[i] = l->lit_used[i] = l->moved[i] = 0.0f;
   for (int k = 0; k < c.lights; ++k) {
     const float* plane = c.planes[k];
     const float wx = c.wx[k], wy = c.wy[k], wz = c.wz[k], scale = c.scale[k];
 #pragma omp simd
-    for (int i = 0; i < kLanes; ++i) {
+    for (int i = 0; i < kPixels; ++i) {
       const float value = plane[l->pixel[i]];
       const float signal = value - l->dark[i];
       const bool usable = (signal > c.shadow) & (value < c.saturation);
@@ -147,9 +148,9 @@ void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vec
                     scale_.data(), inverse_scale_.data(), shadow_, saturation_, read_variance_, shot_gain_,
                     max_frobenius_condition2_};
   Lanes lanes;
-  for (std::size_t first = 0; first < pixels.size(); first += kLanes) {
-    const int count = static_cast<int>(std::min<std::size_t>(kLanes, pixels.size() - first));
-    for (int i = 0; i < kLanes; ++i) {
+  for (std::size_t first = 0; first < pixels.size(); first += kPixels) {
+    const int count = static_cast<int>(std::min<std::size_t>(kPixels, pixels.size() - first));
+    for (int i = 0; i < kPixels; ++i) {
       const std::size_t j = first + (i < count ? i : 0);
       lanes.pixel[i] = pixels[j];
       lanes.dark[i] = dark_ ? dark_[pixels[j]] : 0.0f;
@@ -159,7 +160,7 @@ void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vec
     }
     TestFit(c, &lanes);
     // As FitLit: the refit only where a sample in attached shadow is the worst misfit.
-    bool refit[kLanes] = {};
+    bool refit[kPixels] = {};
     bool any_refit = false;
     for (int i = 0; i < count; ++i) {
       refit[i] = lanes.unlit[i] > 0.0f && lanes.worst_unlit[i] >= lanes.worst_lit[i] &&
