@@ -461,6 +461,15 @@ void WriteTile(int begin, int n, const TileSolution& s, const std::uint8_t* mask
   std::fill(specular, specular + 2 * n, 0.0f);
 }
 
+// Pixels with fewer usable samples than `lights`.
+PHOTORIG_PS_MULTIVERSION
+int CountPartlyUsable(const float* usable, int n, float lights) {
+  int fewer = 0;
+#pragma omp simd reduction(+ : fewer)
+  for (int i = 0; i < n; ++i) fewer += usable[i] != lights ? 1 : 0;
+  return fewer;
+}
+
 // Solved pixels whose subset the float kernel could not vouch for.
 PHOTORIG_PS_MULTIVERSION
 int CountUnverified(const float* certainly_conditioned, const std::uint16_t* usable, int n) {
@@ -728,7 +737,10 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
     for (int tile = 0; tile < tiles; ++tile) {
       const int begin = tile * kTilePixels;
       const int n = std::min(kTilePixels, pixels - begin);
-      for (int i = 0; i < n; ++i) sums->dark[i] = dark ? dark[begin + i] : 0.0f;
+      if (dark)
+        std::copy_n(dark + begin, n, sums->dark);
+      else
+        std::fill_n(sums->dark, n, 0.0f);
       // Every sample is read exactly once from memory. A tile of fully lit
       // pixels costs least with the pseudo-inverse pass; where pixels have
       // shadowed or clipped samples, the subset kernel reads the tile itself.
@@ -748,9 +760,7 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
       }
       auto inside_chunk = [&inside](int chunk, int) { return inside[chunk / kChunkPixels]; };
       auto all_lit = [&](int chunk, int chunk_end) {
-        bool lit = true;
-        for (int i = chunk; i < chunk_end; ++i) lit &= solution->usable[i] == static_cast<float>(k);
-        return lit;
+        return CountPartlyUsable(solution->usable + chunk, chunk_end - chunk, static_cast<float>(k)) == 0;
       };
       auto solve_subsets = [&](int first, int end) {
         SolveSubsetTile(constants, begin, first, end, sums->dark, block, solution);
