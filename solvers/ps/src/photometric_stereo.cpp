@@ -256,14 +256,7 @@ bool FitLit(int lights, const double* wx, const double* wy, const double* wz, co
   const Eigen::Vector3d refit = g.ldlt().solve(Eigen::Vector3d(before.rx, before.ry, before.rz));
   const LitSums after = SumLitSamples(lights, wx, wy, wz, observed, inverse_sigma, refit.data(), x.data());
   if (after.moved != 0.0 || !(refit.norm() > 0.0)) return false;
-  fit->ok = true;
-  fit->normal = refit.normalized();
-  fit->albedo = M_PI * refit.norm();
-  fit->chi2 = after.chi2;
-  fit->used = static_cast<int>(after.used);
-  fit->rejected = static_cast<int>(after.unlit);
-  fit->parameters = 3;
-  fit->model = PixelModel::kLambertian;
+  *fit = LambertianFit(refit, after.chi2, static_cast<int>(after.used), static_cast<int>(after.unlit));
   return true;
 }
 
@@ -769,10 +762,9 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       state.observed.resize(2 * state.rows * lights);
       state.inverse_sigma.resize(2 * state.rows * lights);
     }
-    lambert->chi2 = reader.Row(p, x, &state.observed[row * lights], &state.inverse_sigma[row * lights], &lambert->used);
-    lambert->ok = x.norm() > 0.0;
-    lambert->normal = x.normalized();
-    lambert->albedo = M_PI * x.norm();
+    int used = 0;
+    const double chi2 = reader.Row(p, x, &state.observed[row * lights], &state.inverse_sigma[row * lights], &used);
+    *lambert = LambertianFit(x, chi2, used, 0);
     return row;
   };
   auto record = [&](ThreadState& state, int p, const Fit& chosen) {

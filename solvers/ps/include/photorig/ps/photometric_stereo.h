@@ -10,13 +10,15 @@
 //                robust loss, which down-weights samples no Lambertian surface
 //                explains (specular highlights, partial shadows).
 //   kBlinnPhong  diffuse + normalised Blinn-Phong lobe fitted per pixel by
-//                Levenberg-Marquardt, started from kRobust (see
-//                BlinnPhongOptions for how the derivatives are computed).
+//                Levenberg-Marquardt, started from the trimmed Lambertian fit
+//                (see BlinnPhongOptions for how the derivatives are computed).
 //   kAuto        per pixel: kLambertian if its residual is at the noise level
-//                (chi-square test), else Lambertian with the worst samples
-//                trimmed greedily (reported as kRobust) if that is adequate
-//                while rejecting few samples, else kBlinnPhong; the Bayesian
-//                information criterion decides between inadequate fits.
+//                (chi-square test), or once refitted without usable samples
+//                the fit itself puts in attached shadow; else Lambertian with
+//                the worst samples trimmed greedily (reported as kRobust) if
+//                that is adequate while rejecting few samples, else
+//                kBlinnPhong; the Bayesian information criterion decides
+//                between inadequate fits.
 
 #include "photorig/autodiff/blinn_phong_jacobian.h"
 #include "photorig/ps/lambertian.h"
