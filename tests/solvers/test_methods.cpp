@@ -203,6 +203,26 @@ TEST(PhotometricStereo, AutoLeavesOutSamplesItsOwnFitPutsInAttachedShadowAmongGl
   ExpectAutoLeavesOutLiftedSamples(true);
 }
 
+// A normal from exactly three samples passes through them whatever they are:
+// every method that leaves shadows out keeps it, with confidence 0, while
+// the pixels around it, tested by their residuals, keep theirs.
+TEST(PhotometricStereo, ExactlyDeterminedPixelsAreSolvedButNotVouchedFor) {
+  const auto truth = RandomSurface(16, 16, 10.0);
+  auto stack = RenderShinyStack(truth, RingLights(8, 50, 80), 2000.0, Specular{0.0, 1.0}, 50.0f, 2.0);
+  for (int k = 3; k < 8; ++k) stack.images[k].at<float>(5, 3) = 50.0f;  // at the dark level: shadowed
+  for (Method method : {Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
+    SCOPED_TRACE(MethodName(method));
+    const Outcome outcome = Solve(method, stack, truth.normals, 6.0);
+    const NormalMap& map = outcome.map;
+    ASSERT_EQ(map.flags.at<std::uint8_t>(5, 3), static_cast<int>(PixelFlag::kSolved));
+    EXPECT_EQ(map.usable_lights.at<std::uint16_t>(5, 3), 3);
+    EXPECT_EQ(map.confidence.at<float>(5, 3), 0.0f);
+    EXPECT_LT(AngleDeg(map.normals.at<cv::Vec3f>(5, 3), truth.normals.at<cv::Vec3f>(5, 3)), 5.0);
+    EXPECT_GT(map.confidence.at<float>(5, 4), 0.0f);
+    EXPECT_GT(cv::mean(map.confidence)[0], 0.5);
+  }
+}
+
 TEST(PhotometricStereo, WrongLightIntensitiesLowerTheConfidence) {
   const auto truth = RandomSurface(32, 32, 30.0);
   const auto lights = RingLights(24, 40, 85);

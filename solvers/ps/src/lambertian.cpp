@@ -53,8 +53,10 @@ GlobalSolver BuildGlobalSolver(const PhotometricStack& stack) {
 
 // Confidence from the residual: expected / observed residual variance when the
 // noise is known (1 = explained down to the noise), else the coefficient of
-// determination 1 - RSS / sum(b^2).
-float Confidence(double rss, double expected_rss, double sum_b2) {
+// determination 1 - RSS / sum(b^2). An exactly determined fit (3 usable
+// samples) has no residual to judge it by: 0, untested.
+float Confidence(double rss, double expected_rss, double sum_b2, int usable) {
+  if (usable <= 3) return 0.0f;
   if (!(rss > 0.0)) return 1.0f;
   if (expected_rss > 0.0) return static_cast<float>(std::min(1.0, expected_rss / rss));
   return static_cast<float>(std::clamp(1.0 - rss / std::max(sum_b2, 1e-300), 0.0, 1.0));
@@ -199,7 +201,8 @@ void SolveLitTile(const TileConstants& c, int first, int end, const TileSums& t,
     // the loop vectorises.
     const double known = std::min(1.0, expected / rss);
     const double r2 = std::clamp(1.0 - rss / std::max(sum_b2, 1e-300), 0.0, 1.0);
-    s->confidence[i] = static_cast<float>(rss > 0.0 ? (expected > 0.0 ? known : r2) : 1.0);
+    const double tested = rss > 0.0 ? (expected > 0.0 ? known : r2) : 1.0;
+    s->confidence[i] = static_cast<float>(k > 3.0 ? tested : 0.0);
     s->x0[i] = static_cast<float>(x);
     s->x1[i] = static_cast<float>(y);
     s->x2[i] = static_cast<float>(z);
@@ -382,7 +385,8 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
       const float expected = (read_variance * a->u[i] + shot_gain * a->signal[i]) * (usable - 3.0f) / std::max(usable, 1.0f);
       const float known = std::min(1.0f, expected / rss);
       const float r2 = std::clamp(1.0f - rss / std::max(b2, 1e-30f), 0.0f, 1.0f);
-      confidence[i] = rss > 0.0f ? (expected > 0.0f ? known : r2) : 1.0f;
+      const float tested = rss > 0.0f ? (expected > 0.0f ? known : r2) : 1.0f;
+      confidence[i] = usable > 3.0f ? tested : 0.0f;  // as Confidence()
       usable_out[i] = usable;
     }
   }
@@ -542,7 +546,7 @@ ExactSubset SolveSubsetExactly(const PhotometricStack& stack, const TileConstant
   result.x = g.ldlt().solve(rhs);
   const double rss = std::max(0.0, b2 - result.x.dot(rhs));
   const double expected = (c.read_variance * sum_u + c.shot_gain * sum_signal) * (usable - 3.0) / usable;
-  result.confidence = Confidence(rss, expected, b2);
+  result.confidence = Confidence(rss, expected, b2, usable);
   return result;
 }
 

@@ -587,9 +587,11 @@ void WriteFit(int pixel, const Fit& fit, NormalMap* out) {
   out->model.ptr<std::uint8_t>()[pixel] = static_cast<std::uint8_t>(fit.model);
   out->specular.ptr<cv::Vec2f>()[pixel] = cv::Vec2f(float(fit.specular_albedo), float(fit.exponent));
   out->usable_lights.ptr<std::uint16_t>()[pixel] = static_cast<std::uint16_t>(fit.used);
-  // chi2 / dof is the residual variance relative to the noise: confidence = its inverse, capped.
-  const double ratio = fit.Dof() > 0 ? fit.chi2 / fit.Dof() : 1.0;
-  out->confidence.ptr<float>()[pixel] = static_cast<float>(std::min(1.0, 1.0 / std::max(ratio, 1e-12)));
+  // chi2 / dof is the residual variance relative to the noise: confidence = its
+  // inverse, capped; 0 for a fit with no degree of freedom left to test it.
+  const double ratio = fit.Dof() > 0 ? fit.chi2 / fit.Dof() : 0.0;
+  out->confidence.ptr<float>()[pixel] =
+      fit.Dof() > 0 ? static_cast<float>(std::min(1.0, 1.0 / std::max(ratio, 1e-12))) : 0.0f;
 }
 
 }  // namespace

@@ -76,7 +76,9 @@ struct NormalMap {
   cv::Mat model;          // CV_8U PixelModel
   // CV_32F in [0, 1]: how well the chosen model explains the pixel, from the
   // ratio of its residual variance to the noise variance (1 = at the noise
-  // level, 0.5 = twice the noise variance); 0 where unsolved.
+  // level, 0.5 = twice the noise variance); 0 where unsolved, and where the
+  // fit is exactly determined (3 usable samples for a Lambertian normal), so
+  // that no residual tests it.
   cv::Mat confidence;
   cv::Mat specular;       // CV_32FC2 (rho_s, exponent) where model == kBlinnPhong, else 0
 };
