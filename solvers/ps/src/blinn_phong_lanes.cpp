@@ -220,10 +220,16 @@ void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lam
 
 }  // namespace
 
+// With d = cos / pi and l = k h^e cos, k = (e + 2) / (2 pi), the normal
+// equations' sums are dd = S_A / pi^2, db = S_B / pi, dl = k / pi S_A h^e,
+// ll = k^2 S_A h^2e and lb = k S_B h^e, where S_A sums weight cos^2 and S_B
+// weight cos b over the samples. A = weight cos^2 and B = weight cos b are
+// computed once, into cos_light and observed; each grid point then takes
+// three multiply-adds and the squaring per sample.
 PHOTORIG_PS_MULTIVERSION
-void BlinnPhongGridStartLanes(int lights, const double* cos_light, double* cos_half, const double* observed,
-                              const double* weight, const double* start_albedo, double min_exponent,
-                              double max_exponent, LaneMaterial* out) {
+void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, double* observed, const double* weight,
+                              const double* start_albedo, double min_exponent, double max_exponent,
+                              LaneMaterial* out) {
   double exponent = 1.0;
   const int samples = lights * kLanes;
   while (exponent < min_exponent) {
@@ -231,38 +237,50 @@ void BlinnPhongGridStartLanes(int lights, const double* cos_light, double* cos_h
 #pragma omp simd
     for (int i = 0; i < samples; ++i) cos_half[i] *= cos_half[i];
   }
+  alignas(64) double sum_a[kLanes] = {}, sum_b[kLanes] = {}, bb[kLanes] = {};
+  for (int k = 0; k < lights; ++k) {
+    const double* c = weight + k * kLanes;
+    double* a = cos_light + k * kLanes;
+    double* b = observed + k * kLanes;
+#pragma omp simd
+    for (int j = 0; j < kLanes; ++j) {
+      const double cos = a[j], weighted_cos = c[j] * cos;
+      bb[j] += c[j] * b[j] * b[j];
+      a[j] = weighted_cos * cos, b[j] = weighted_cos * b[j];
+      sum_a[j] += a[j], sum_b[j] += b[j];
+    }
+  }
   alignas(64) double best_chi2[kLanes];
   for (int j = 0; j < kLanes; ++j) {
     best_chi2[j] = std::numeric_limits<double>::infinity();
     out->diffuse_albedo[j] = start_albedo[j], out->specular_albedo[j] = 0.0, out->exponent[j] = exponent;
   }
   for (; exponent <= max_exponent; exponent *= 2.0) {
-    // Normal equations of b ~ rho_d d + rho_s l, d = cos / pi, l = (e + 2) / (2 pi) lobe cos, per lane.
-    alignas(64) double dd[kLanes] = {}, dl[kLanes] = {}, ll[kLanes] = {}, db[kLanes] = {}, lb[kLanes] = {},
-                       bb[kLanes] = {};
-    const double normalisation = (exponent + 2.0) / (2.0 * M_PI);
+    alignas(64) double sum_a_h[kLanes] = {}, sum_a_h2[kLanes] = {}, sum_b_h[kLanes] = {};
     for (int k = 0; k < lights; ++k) {
-      const double* c = weight + k * kLanes;
-      const double* cl = cos_light + k * kLanes;
+      const double* a = cos_light + k * kLanes;
       const double* b = observed + k * kLanes;
-      double* ch = cos_half + k * kLanes;
+      double* h = cos_half + k * kLanes;
 #pragma omp simd
       for (int j = 0; j < kLanes; ++j) {
-        const double d = cl[j] * kInvPi, l = normalisation * ch[j] * cl[j];
-        dd[j] += c[j] * d * d, dl[j] += c[j] * d * l, ll[j] += c[j] * l * l;
-        db[j] += c[j] * d * b[j], lb[j] += c[j] * l * b[j], bb[j] += c[j] * b[j] * b[j];
-        ch[j] *= ch[j];  // the next grid point's lobe
+        const double h2 = h[j] * h[j];
+        sum_a_h[j] += a[j] * h[j], sum_a_h2[j] += a[j] * h2, sum_b_h[j] += b[j] * h[j];
+        h[j] = h2;  // the next grid point's lobe
       }
     }
+    const double normalisation = (exponent + 2.0) / (2.0 * M_PI);
     for (int j = 0; j < kLanes; ++j) {
-      const double det = dd[j] * ll[j] - dl[j] * dl[j];
-      double rho_d = dd[j] > 0.0 ? db[j] / dd[j] : 0.0, rho_s = 0.0;
-      if (det > 1e-12 * dd[j] * ll[j]) {
-        const double joint_s = (dd[j] * lb[j] - dl[j] * db[j]) / det;
-        if (joint_s > 0.0) rho_s = joint_s, rho_d = (ll[j] * db[j] - dl[j] * lb[j]) / det;
+      const double dd = sum_a[j] * (kInvPi * kInvPi), db = sum_b[j] * kInvPi;
+      const double dl = normalisation * kInvPi * sum_a_h[j], ll = normalisation * normalisation * sum_a_h2[j];
+      const double lb = normalisation * sum_b_h[j];
+      const double det = dd * ll - dl * dl;
+      double rho_d = dd > 0.0 ? db / dd : 0.0, rho_s = 0.0;
+      if (det > 1e-12 * dd * ll) {
+        const double joint_s = (dd * lb - dl * db) / det;
+        if (joint_s > 0.0) rho_s = joint_s, rho_d = (ll * db - dl * lb) / det;
       }
-      const double chi2 = bb[j] - 2.0 * (rho_d * db[j] + rho_s * lb[j]) + rho_d * rho_d * dd[j] +
-                          2.0 * rho_d * rho_s * dl[j] + rho_s * rho_s * ll[j];
+      const double chi2 = bb[j] - 2.0 * (rho_d * db + rho_s * lb) + rho_d * rho_d * dd + 2.0 * rho_d * rho_s * dl +
+                          rho_s * rho_s * ll;
       if (chi2 < best_chi2[j] && rho_d >= 0.0) {
         best_chi2[j] = chi2;
         out->diffuse_albedo[j] = rho_d, out->specular_albedo[j] = rho_s, out->exponent[j] = exponent;

@@ -40,10 +40,10 @@ struct alignas(64) LaneMaterial {
   double diffuse_albedo[kLanes], specular_albedo[kLanes], exponent[kLanes];
 };
 // kLanes pixels at once, one per lane; arrays are [light * kLanes + lane],
-// and cos_half is overwritten.
-void BlinnPhongGridStartLanes(int lights, const double* cos_light, double* cos_half, const double* observed,
-                              const double* weight, const double* start_albedo, double min_exponent,
-                              double max_exponent, LaneMaterial* out);
+// and cos_light, cos_half and observed are overwritten.
+void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, double* observed, const double* weight,
+                              const double* start_albedo, double min_exponent, double max_exponent,
+                              LaneMaterial* out);
 // One pixel (lane 0 of the above).
 BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, const double* cos_half,
                                        const double* observed, const double* weight, double start_albedo,
