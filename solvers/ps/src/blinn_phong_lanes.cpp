@@ -244,9 +244,9 @@ void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, d
     double* b = observed + k * kLanes;
 #pragma omp simd
     for (int j = 0; j < kLanes; ++j) {
-      const double cos = a[j], weighted_cos = c[j] * cos;
+      const double cosine = a[j], weighted_cosine = c[j] * cosine;
       bb[j] += c[j] * b[j] * b[j];
-      a[j] = weighted_cos * cos, b[j] = weighted_cos * b[j];
+      a[j] = weighted_cosine * cosine, b[j] = weighted_cosine * b[j];
       sum_a[j] += a[j], sum_b[j] += b[j];
     }
   }

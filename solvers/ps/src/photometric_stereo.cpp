@@ -589,9 +589,9 @@ void WriteFit(int pixel, const Fit& fit, NormalMap* out) {
   out->usable_lights.ptr<std::uint16_t>()[pixel] = static_cast<std::uint16_t>(fit.used);
   // chi2 / dof is the residual variance relative to the noise: confidence = its
   // inverse, capped; 0 for a fit with no degree of freedom left to test it.
-  const double ratio = fit.Dof() > 0 ? fit.chi2 / fit.Dof() : 0.0;
+  const int dof = fit.Dof();
   out->confidence.ptr<float>()[pixel] =
-      fit.Dof() > 0 ? static_cast<float>(std::min(1.0, 1.0 / std::max(ratio, 1e-12))) : 0.0f;
+      dof > 0 ? static_cast<float>(std::min(1.0, 1.0 / std::max(fit.chi2 / dof, 1e-12))) : 0.0f;
 }
 
 }  // namespace
