@@ -81,7 +81,8 @@ void RunQueue::Exec(const std::string& sql) const {
   }
 }
 
-QueuedRun RunQueue::Add(const std::string& recipe_name) {
+QueuedRun RunQueue::Add(const std::string& recipe_name, int steps_total,
+                        const std::function<void(const QueuedRun&)>& prepare) {
   std::lock_guard lock(mutex_);
   // Ids double as directory names: keep [A-Za-z0-9_-] of the name only.
   std::string safe;
@@ -91,15 +92,17 @@ QueuedRun RunQueue::Add(const std::string& recipe_name) {
   safe = safe.substr(0, 48);
   QueuedRun run;
   run.recipe_name = recipe_name;
+  run.steps_total = steps_total;
   run.created_ns = run.updated_ns = NowNs();
   Exec("BEGIN IMMEDIATE");
   try {
     Statement insert(db_,
-                     "INSERT INTO runs (id, recipe_name, state, created_ns, updated_ns) VALUES ('pending-' || "
-                     "hex(randomblob(8)), ?1, 'queued', ?2, ?2)",
+                     "INSERT INTO runs (id, recipe_name, state, steps_total, created_ns, updated_ns) VALUES "
+                     "('pending-' || hex(randomblob(8)), ?1, 'queued', ?3, ?2, ?2)",
                      path_);
     insert.Bind(1, recipe_name);
     insert.Bind(2, run.created_ns);
+    insert.Bind(3, static_cast<std::int64_t>(steps_total));
     if (sqlite3_step(insert.get()) != SQLITE_DONE) throw std::runtime_error(path_ + ": " + sqlite3_errmsg(db_));
     const std::int64_t seq = sqlite3_last_insert_rowid(db_);
     char id[80];
@@ -109,6 +112,7 @@ QueuedRun RunQueue::Add(const std::string& recipe_name) {
     name.Bind(1, run.id);
     name.Bind(2, seq);
     if (sqlite3_step(name.get()) != SQLITE_DONE) throw std::runtime_error(path_ + ": " + sqlite3_errmsg(db_));
+    if (prepare) prepare(run);
     Exec("COMMIT");
   } catch (...) {
     Exec("ROLLBACK");

@@ -120,6 +120,10 @@ void RunService::SetState(QueuedRun& run, RunState state, const std::string& rea
 
 void RunService::Publish(const std::string& run_id, const std::string& type, json data) {
   std::lock_guard lock(mutex_);
+  PublishLocked(run_id, type, std::move(data));
+}
+
+void RunService::PublishLocked(const std::string& run_id, const std::string& type, json data) {
   events_.push_back({next_seq_++, run_id, type, std::move(data)});
   while (events_.size() > kMaxEvents) events_.pop_front();
   changed_.notify_all();
@@ -253,13 +257,15 @@ ServiceReply RunService::Submit(const std::string& name, const std::string& reci
   ServiceReply reply = Validate(name, recipe_yaml, true);
   if (reply.http_status != 200) return reply;
   const json plan = reply.body;
-  QueuedRun run = queue_->Add(plan.value("recipe", name));
-  WriteFileDurably((fs::path(options_.data_root) / "recipes" / (run.id + ".yaml")).string(), recipe_yaml);
-  run.steps_total = plan.value("frames", 0);
-  queue_->Update(run);
+  // The recipe is on disk before the worker can see the run, and the run's
+  // "queued" event goes out before the worker can publish its next state
+  // (SetState waits for mutex_).
+  std::lock_guard lock(mutex_);
+  const QueuedRun run = queue_->Add(plan.value("recipe", name), plan.value("frames", 0), [&](const QueuedRun& added) {
+    WriteFileDurably((fs::path(options_.data_root) / "recipes" / (added.id + ".yaml")).string(), recipe_yaml);
+  });
   spdlog::info("run={} event=submitted recipe={} steps={}", run.id, run.recipe_name, run.steps_total);
-  Publish(run.id, "state", {{"state", "queued"}, {"reason", ""}});
-  changed_.notify_all();
+  PublishLocked(run.id, "state", {{"state", "queued"}, {"reason", ""}});
   return {201, {{"id", run.id}, {"state", "queued"}, {"plan", plan}}};
 }
 

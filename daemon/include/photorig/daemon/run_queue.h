@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -41,7 +42,11 @@ class RunQueue {
   RunQueue(const RunQueue&) = delete;
   RunQueue& operator=(const RunQueue&) = delete;
 
-  QueuedRun Add(const std::string& recipe_name);
+  // Adds a queued run. `prepare` runs with the new run (its id assigned)
+  // before the row is committed, so before NextQueued can return it: the
+  // daemon writes the run's recipe there. If it throws, nothing is added.
+  QueuedRun Add(const std::string& recipe_name, int steps_total,
+                const std::function<void(const QueuedRun&)>& prepare);
   std::optional<QueuedRun> Get(const std::string& id) const;
   std::vector<QueuedRun> List() const;  // oldest first
   std::optional<QueuedRun> NextQueued() const;

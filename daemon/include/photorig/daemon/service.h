@@ -90,6 +90,7 @@ class RunService {
   void WorkerLoop();
   void Execute(QueuedRun run);
   void Publish(const std::string& run_id, const std::string& type, nlohmann::json data);
+  void PublishLocked(const std::string& run_id, const std::string& type, nlohmann::json data);  // mutex_ held
   void SetState(QueuedRun& run, RunState state, const std::string& reason);
   ServiceReply Validate(const std::string& name, const std::string& recipe_yaml, bool for_submit) const;
 
