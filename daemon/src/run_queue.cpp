@@ -183,4 +183,21 @@ void RunQueue::Update(const QueuedRun& run) {
   if (sqlite3_step(update.get()) != SQLITE_DONE) throw std::runtime_error(path_ + ": " + sqlite3_errmsg(db_));
 }
 
+bool RunQueue::LeaveQueued(QueuedRun& run, RunState to, const std::string& reason) {
+  std::lock_guard lock(mutex_);
+  const std::int64_t now = NowNs();
+  Statement update(db_, "UPDATE runs SET state = ?1, reason = ?2, updated_ns = ?3 WHERE id = ?4 AND state = 'queued'",
+                   path_);
+  update.Bind(1, std::string(RunStateName(to)));
+  update.Bind(2, reason);
+  update.Bind(3, now);
+  update.Bind(4, run.id);
+  if (sqlite3_step(update.get()) != SQLITE_DONE) throw std::runtime_error(path_ + ": " + sqlite3_errmsg(db_));
+  if (sqlite3_changes(db_) != 1) return false;
+  run.state = to;
+  run.reason = reason;
+  run.updated_ns = now;
+  return true;
+}
+
 }  // namespace photorig::daemon

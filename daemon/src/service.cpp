@@ -113,9 +113,13 @@ void RunService::SetState(QueuedRun& run, RunState state, const std::string& rea
     std::lock_guard lock(mutex_);
     if (run.id == current_id_) current_ = run;
   }
-  spdlog::info("run={} event=state state={}{}{}", run.id, RunStateName(state), reason.empty() ? "" : " reason=",
-               reason.empty() ? "" : json(reason).dump());
-  Publish(run.id, "state", {{"state", RunStateName(state)}, {"reason", reason}});
+  AnnounceState(run);
+}
+
+void RunService::AnnounceState(const QueuedRun& run) {
+  spdlog::info("run={} event=state state={}{}{}", run.id, RunStateName(run.state), run.reason.empty() ? "" : " reason=",
+               run.reason.empty() ? "" : json(run.reason).dump());
+  Publish(run.id, "state", {{"state", RunStateName(run.state)}, {"reason", run.reason}});
 }
 
 void RunService::Publish(const std::string& run_id, const std::string& type, json data) {
@@ -130,19 +134,23 @@ void RunService::PublishLocked(const std::string& run_id, const std::string& typ
 }
 
 void RunService::Execute(QueuedRun run) {
+  auto control = std::make_shared<RunControl>();
+  {
+    // The run is claimed under mutex_, where Abort decides too: a run
+    // aborted since NextQueued returned it is not started, and a started
+    // one is aborted through its control.
+    std::lock_guard lock(mutex_);
+    if (!queue_->LeaveQueued(run, RunState::kRunning, "")) return;
+    current_id_ = run.id;
+    current_control_ = control;
+    current_ = run;
+  }
   const std::string recipe_path = (fs::path(options_.data_root) / "recipes" / (run.id + ".yaml")).string();
   const std::string directory = RunDirectory(run.id);
   // A directory without a journal holds nothing of value (the crash came
   // before the first durable write): start it afresh.
   const bool resume = fs::exists(fs::path(directory) / "journal.jsonl");
   if (!resume && fs::exists(directory)) fs::remove_all(directory);
-  auto control = std::make_shared<RunControl>();
-  {
-    std::lock_guard lock(mutex_);
-    current_id_ = run.id;
-    current_control_ = control;
-    current_ = run;
-  }
   SetState(run, RunState::kRunning, resume ? "resuming from the last checkpoint" : "");
 
   RunRequest request;
@@ -313,21 +321,23 @@ ServiceReply RunService::Resume(const std::string& id) {
 
 ServiceReply RunService::Abort(const std::string& id) {
   if (!IsValidRunId(id)) return Error(404, "no run '" + id + "'");
+  QueuedRun run;
   {
-    std::lock_guard lock(mutex_);
+    std::lock_guard lock(mutex_);  // as Execute claims a run
     if (id == current_id_ && current_control_) {
       current_control_->Abort();
       return {202, {{"id", id}, {"requested", "abort"}}};
     }
+    auto found = queue_->Get(id);
+    if (!found) return Error(404, "no run '" + id + "'");
+    run = *found;
+    if (!queue_->LeaveQueued(run, RunState::kAborted, "aborted before it started"))
+      return Error(409, "run '" + id + "' is " + RunStateName(run.state) + "; nothing to abort");
   }
-  auto run = queue_->Get(id);
-  if (!run) return Error(404, "no run '" + id + "'");
-  if (run->state != RunState::kQueued)
-    return Error(409, "run '" + id + "' is " + RunStateName(run->state) + "; nothing to abort");
-  SetState(*run, RunState::kAborted, "aborted before it started");
-  Publish(id, "stop", {{"state", "aborted"}, {"reason", "aborted before it started"}, {"frames", run->frames},
-                       {"steps_total", run->steps_total}, {"retries", 0}, {"dropped_frames", 0}});
-  return {200, run->ToJson()};
+  AnnounceState(run);
+  Publish(id, "stop", {{"state", "aborted"}, {"reason", run.reason}, {"frames", run.frames},
+                       {"steps_total", run.steps_total}, {"retries", 0}, {"dropped_frames", 0}});
+  return {200, run.ToJson()};
 }
 
 ServiceReply RunService::Devices() const {

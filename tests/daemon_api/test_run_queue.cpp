@@ -1,4 +1,5 @@
-// The persistent run queue: what the worker can see, and when.
+// The persistent run queue: what the worker can see, and when, and who
+// takes a run out of it.
 
 #include "photorig/daemon/run_queue.h"
 #include "test_support.h"
@@ -45,6 +46,29 @@ TEST(RunQueue, AFailedPreparationAddsNothing) {
   const QueuedRun run = queue.Add("ps-sphere", 49, [](const QueuedRun&) {});
   EXPECT_EQ(queue.List().size(), 1u);
   EXPECT_EQ(queue.NextQueued()->id, run.id);
+}
+
+// The worker claims a queued run and Abort cancels one with the same
+// conditional transition: whichever comes second finds the run gone from the
+// queue and changes nothing.
+TEST(RunQueue, ARunLeavesTheQueueOnlyOnce) {
+  TempDir dir;
+  RunQueue queue((dir.path() / "queue.db").string());
+  const QueuedRun first = queue.Add("claimed-first", 1, nullptr), second = queue.Add("aborted-first", 1, nullptr);
+
+  QueuedRun worker = first, aborter = first;
+  ASSERT_TRUE(queue.LeaveQueued(worker, RunState::kRunning, ""));
+  EXPECT_EQ(worker.state, RunState::kRunning);
+  EXPECT_FALSE(queue.LeaveQueued(aborter, RunState::kAborted, "aborted before it started"));
+  EXPECT_EQ(aborter.state, RunState::kQueued);  // untouched
+  EXPECT_EQ(queue.Get(first.id)->state, RunState::kRunning);
+
+  aborter = worker = second;
+  ASSERT_TRUE(queue.LeaveQueued(aborter, RunState::kAborted, "aborted before it started"));
+  EXPECT_FALSE(queue.LeaveQueued(worker, RunState::kRunning, ""));
+  EXPECT_EQ(queue.Get(second.id)->state, RunState::kAborted);
+  EXPECT_EQ(queue.Get(second.id)->reason, "aborted before it started");
+  EXPECT_FALSE(queue.NextQueued());
 }
 
 }  // namespace

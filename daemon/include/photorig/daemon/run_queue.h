@@ -52,6 +52,11 @@ class RunQueue {
   std::optional<QueuedRun> NextQueued() const;
   std::vector<QueuedRun> Unfinished() const;  // neither queued nor final: a run the daemon was executing
   void Update(const QueuedRun& run);          // state, reason and counters
+  // Moves the run from kQueued to `to` if it is still queued, in one
+  // statement, and updates `run`; false (and `run` untouched) otherwise. The
+  // worker claims a run and Abort cancels one this way, so a run is either
+  // started or aborted, never both.
+  bool LeaveQueued(QueuedRun& run, RunState to, const std::string& reason);
 
  private:
   void Exec(const std::string& sql) const;

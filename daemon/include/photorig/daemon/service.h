@@ -92,6 +92,7 @@ class RunService {
   void Publish(const std::string& run_id, const std::string& type, nlohmann::json data);
   void PublishLocked(const std::string& run_id, const std::string& type, nlohmann::json data);  // mutex_ held
   void SetState(QueuedRun& run, RunState state, const std::string& reason);
+  void AnnounceState(const QueuedRun& run);  // the log line and the "state" event
   ServiceReply Validate(const std::string& name, const std::string& recipe_yaml, bool for_submit) const;
 
   ServiceOptions options_;
