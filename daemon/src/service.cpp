@@ -134,24 +134,24 @@ void RunService::PublishLocked(const std::string& run_id, const std::string& typ
 }
 
 void RunService::Execute(QueuedRun run) {
+  const std::string recipe_path = (fs::path(options_.data_root) / "recipes" / (run.id + ".yaml")).string();
+  const std::string directory = RunDirectory(run.id);
+  const bool resume = fs::exists(fs::path(directory) / "journal.jsonl");
   auto control = std::make_shared<RunControl>();
   {
     // The run is claimed under mutex_, where Abort decides too: a run
     // aborted since NextQueued returned it is not started, and a started
     // one is aborted through its control.
     std::lock_guard lock(mutex_);
-    if (!queue_->LeaveQueued(run, RunState::kRunning, "")) return;
+    if (!queue_->LeaveQueued(run, RunState::kRunning, resume ? "resuming from the last checkpoint" : "")) return;
     current_id_ = run.id;
     current_control_ = control;
     current_ = run;
   }
-  const std::string recipe_path = (fs::path(options_.data_root) / "recipes" / (run.id + ".yaml")).string();
-  const std::string directory = RunDirectory(run.id);
   // A directory without a journal holds nothing of value (the crash came
   // before the first durable write): start it afresh.
-  const bool resume = fs::exists(fs::path(directory) / "journal.jsonl");
   if (!resume && fs::exists(directory)) fs::remove_all(directory);
-  SetState(run, RunState::kRunning, resume ? "resuming from the last checkpoint" : "");
+  AnnounceState(run);
 
   RunRequest request;
   request.recipe_path = recipe_path;
