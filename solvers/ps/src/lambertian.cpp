@@ -4,10 +4,12 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
+#include <immintrin.h>
 #include <omp.h>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -27,6 +29,11 @@ constexpr int kTilePixels = 1024;  // 4 KB per accumulator row: stays in L1 acro
 // (and skips what the mask leaves out): small enough that a dome-lit object's
 // rim of attached shadows does not drag its fully lit interior along.
 constexpr int kChunkPixels = 64;
+// The AVX-512 subset kernel looks up what groups of this many lights add to
+// the normal equations (TileConstants::group_terms) by which of them are usable.
+constexpr int kSubsetGroup = 4;
+constexpr int kGroupPatterns = 1 << kSubsetGroup;
+constexpr int kGroupQuantities = 8;  // G_S's six entries, the usable count, sum 1 / s^2
 
 // Pseudo-inverse of the full light matrix, with 1/s_k folded in:
 // x = sum_k weights(:, k) * (I_k - D).
@@ -75,6 +82,12 @@ bool WriteSolution(int pixel, float x0, float x1, float x2, float confidence, No
   return true;
 }
 
+// One light's constants for the AVX-512 subset kernel, together in one
+// cache line (each is a broadcast operand there).
+struct LightTerms {
+  float wx, wy, wz, inverse_scale, inverse_scale2;
+};
+
 // What the per-tile kernels need from the solve's setup. Per-light arrays
 // are float (the kernels' precision) and indexed by light.
 struct TileConstants {
@@ -84,6 +97,13 @@ struct TileConstants {
   const float* inverse_scale2 = nullptr;  // 1 / s_k^2
   const float* inverse_scale = nullptr;   // 1 / s_k
   const float* direction[3] = {};         // w_k: x, y, z
+  const LightTerms* light_terms = nullptr;  // K
+  // What a group of four lights (4 g .. 4 g + 3) adds to G_S (xx, yy, zz, xy,
+  // xz, yz), to the usable count and to sum 1 / s^2, for each of the 16
+  // patterns of which of them are usable (bit j: light 4 g + j), as
+  // [group][quantity][pattern]: a quantity's 16 patterns fill one AVX-512
+  // register, so one permute looks up all sixteen pixels' terms.
+  const float* group_terms = nullptr;
   std::array<double, 3> dark_weight{};    // row sums of weights
   std::array<double, 6> gram{};           // G = A^T A: xx, yy, zz, xy, xz, yz
   double sum_inverse_scale2 = 0.0;
@@ -252,6 +272,125 @@ __attribute__((always_inline)) inline LightGroup GroupAt(const TileConstants& c,
   return group;
 }
 
+// The sums of one block's normal equations (see SubsetBlock) over the usable
+// samples of pixels [offset, offset + count), four lights per sweep.
+PHOTORIG_PS_MULTIVERSION
+void AccumulateSubsetBlock(const TileConstants& c, int offset, int count, const float* __restrict d, SubsetBlock* a) {
+  constexpr int kGroup = LightGroup::kSize;
+  const int k = c.lights;
+  const float saturation = c.saturation;
+  for (auto* row : {a->g[0], a->g[1], a->g[2], a->g[3], a->g[4], a->g[5], a->r[0], a->r[1], a->r[2], a->usable, a->u,
+                    a->signal, a->b2})
+    std::fill(row, row + count, 0.0f);
+  for (int first = 0; first < k; first += kGroup) {
+    const LightGroup group = GroupAt(c, first, offset);
+    const auto& planes = group.planes;
+    const auto &wx = group.wx, &wy = group.wy, &wz = group.wz, &inverse_scale = group.inverse_scale;
+    const auto &u = group.u, &present = group.present;
+    float wxx[kGroup], wyy[kGroup], wzz[kGroup], wxy[kGroup], wxz[kGroup], wyz[kGroup];
+    for (int j = 0; j < kGroup; ++j) {
+      wxx[j] = wx[j] * wx[j], wyy[j] = wy[j] * wy[j], wzz[j] = wz[j] * wz[j];
+      wxy[j] = wx[j] * wy[j], wxz[j] = wx[j] * wz[j], wyz[j] = wy[j] * wz[j];
+    }
+#pragma omp simd
+    for (int i = 0; i < count; ++i) {
+      float gxx = a->g[0][i], gyy = a->g[1][i], gzz = a->g[2][i], gxy = a->g[3][i], gxz = a->g[4][i], gyz = a->g[5][i];
+      float rx = a->r[0][i], ry = a->r[1][i], rz = a->r[2][i];
+      float usable = a->usable[i], su = a->u[i], signal_sum = a->signal[i], b2 = a->b2[i];
+      const float threshold = d[i] + c.shadow;
+      for (int j = 0; j < kGroup; ++j) {
+        const float v = planes[j][i];
+        // Conditional sums rather than products with a 0/1 weight: with
+        // AVX-512 each is one merge-masked add.
+        if ((v > threshold) & (v < saturation) & (present[j] != 0.0f)) {
+          const float signal = v - d[i];
+          const float b = signal * inverse_scale[j];
+          gxx += wxx[j];
+          gyy += wyy[j];
+          gzz += wzz[j];
+          gxy += wxy[j];
+          gxz += wxz[j];
+          gyz += wyz[j];
+          rx += wx[j] * b;
+          ry += wy[j] * b;
+          rz += wz[j] * b;
+          usable += 1.0f;
+          su += u[j];
+          signal_sum += signal * u[j];
+          b2 += b * b;
+        }
+      }
+      a->g[0][i] = gxx, a->g[1][i] = gyy, a->g[2][i] = gzz, a->g[3][i] = gxy, a->g[4][i] = gxz, a->g[5][i] = gyz;
+      a->r[0][i] = rx, a->r[1][i] = ry, a->r[2][i] = rz;
+      a->usable[i] = usable, a->u[i] = su, a->signal[i] = signal_sum, a->b2[i] = b2;
+    }
+  }
+}
+
+// The same sums with AVX-512 intrinsics, sixteen pixels at a time through
+// every light with the thirteen sums in registers (GCC's code for the loop
+// above keeps them in memory and copies registers around each merge-masked
+// add). The eight sums that depend only on which lights are usable (G_S, the
+// count, sum 1 / s^2) are looked up per group of four lights by each pixel's
+// usable pattern (group_terms) instead of summed light by light: one permute
+// and one add per sum and group where there were four masked adds. Each
+// light's next cache lines are prefetched: the hardware prefetcher does not
+// follow K streams at once.
+__attribute__((target("avx512f"))) void AccumulateSubsetBlockAvx512(const TileConstants& c, int offset, int count,
+                                                                    const float* __restrict d, SubsetBlock* a) {
+  constexpr int kLanes = 16;
+  static_assert(kBlockPixels % kLanes == 0 && kGroupPatterns == kLanes);
+  float* const pattern_sums_out[kGroupQuantities] = {a->g[0], a->g[1], a->g[2], a->g[3],
+                                                     a->g[4], a->g[5], a->usable, a->u};
+  const __m512 saturation = _mm512_set1_ps(c.saturation), shadow = _mm512_set1_ps(c.shadow);
+  for (int i = 0; i < count; i += kLanes) {
+    const __mmask16 lanes = count - i >= kLanes ? __mmask16(0xFFFF) : __mmask16((1u << (count - i)) - 1u);
+    const __m512 dark = _mm512_maskz_loadu_ps(lanes, d + i);
+    const __m512 threshold = _mm512_add_ps(dark, shadow);
+    __m512 pattern_sums[kGroupQuantities];
+    for (__m512& sum : pattern_sums) sum = _mm512_setzero_ps();
+    __m512 rx = _mm512_setzero_ps(), ry = rx, rz = rx, signal_sum = rx, b2 = rx;
+    for (int first = 0; first < c.lights; first += kSubsetGroup) {
+      __m512i pattern = _mm512_setzero_si512();
+      const int end = std::min(first + kSubsetGroup, c.lights);
+      for (int j = first; j < end; ++j) {
+        const LightTerms& t = c.light_terms[j];
+        const float* samples = c.planes[j] + offset + i;
+        _mm_prefetch(reinterpret_cast<const char*>(samples + 4 * kLanes), _MM_HINT_T0);
+        const __m512 v = _mm512_maskz_loadu_ps(lanes, samples);
+        const __mmask16 usable = _mm512_mask_cmp_ps_mask(
+            _mm512_mask_cmp_ps_mask(lanes, v, threshold, _CMP_GT_OQ), v, saturation, _CMP_LT_OQ);
+        const __m512 signal = _mm512_sub_ps(v, dark);
+        const __m512 b = _mm512_mul_ps(signal, _mm512_set1_ps(t.inverse_scale));
+        pattern = _mm512_mask_or_epi32(pattern, usable, pattern, _mm512_set1_epi32(1 << (j - first)));
+        rx = _mm512_mask3_fmadd_ps(_mm512_set1_ps(t.wx), b, rx, usable);
+        ry = _mm512_mask3_fmadd_ps(_mm512_set1_ps(t.wy), b, ry, usable);
+        rz = _mm512_mask3_fmadd_ps(_mm512_set1_ps(t.wz), b, rz, usable);
+        signal_sum = _mm512_mask3_fmadd_ps(signal, _mm512_set1_ps(t.inverse_scale2), signal_sum, usable);
+        b2 = _mm512_mask3_fmadd_ps(b, b, b2, usable);
+      }
+      const float* terms = c.group_terms + static_cast<std::size_t>(first / kSubsetGroup) * kGroupQuantities * kLanes;
+      // The masked form with an all-ones mask: GCC 12 warns about the plain one's undefined source operand.
+      for (int q = 0; q < kGroupQuantities; ++q)
+        pattern_sums[q] = _mm512_add_ps(
+            pattern_sums[q], _mm512_maskz_permutexvar_ps(0xFFFF, pattern, _mm512_loadu_ps(terms + q * kLanes)));
+    }
+    for (int q = 0; q < kGroupQuantities; ++q) _mm512_store_ps(pattern_sums_out[q] + i, pattern_sums[q]);
+    _mm512_store_ps(a->r[0] + i, rx);
+    _mm512_store_ps(a->r[1] + i, ry);
+    _mm512_store_ps(a->r[2] + i, rz);
+    _mm512_store_ps(a->signal + i, signal_sum);
+    _mm512_store_ps(a->b2 + i, b2);
+  }
+}
+
+std::atomic<bool> use_avx512_subset_kernel{true};
+
+bool Avx512Available() {
+  static const bool available = (__builtin_cpu_init(), __builtin_cpu_supports("avx512f"));
+  return available;
+}
+
 // Least squares on each pixel's usable samples, for pixels [first, end) of a
 // tile, block by block: one sweep over a block's K samples sums the normal
 // equations, the 3 x 3 systems are solved by their adjugates, and the
@@ -268,52 +407,10 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
   for (int first_pixel = first; first_pixel < end; first_pixel += kBlockPixels) {
     const int count = std::min(kBlockPixels, end - first_pixel);
     const float* __restrict d = dark + first_pixel;
-    for (auto* row : {a->g[0], a->g[1], a->g[2], a->g[3], a->g[4], a->g[5], a->r[0], a->r[1], a->r[2], a->usable, a->u,
-                      a->signal, a->b2})
-      std::fill(row, row + count, 0.0f);
-    for (int first = 0; first < k; first += kGroup) {
-      const LightGroup group = GroupAt(c, first, begin + first_pixel);
-      const auto& planes = group.planes;
-      const auto &wx = group.wx, &wy = group.wy, &wz = group.wz, &inverse_scale = group.inverse_scale;
-      const auto &u = group.u, &present = group.present;
-      float wxx[kGroup], wyy[kGroup], wzz[kGroup], wxy[kGroup], wxz[kGroup], wyz[kGroup];
-      for (int j = 0; j < kGroup; ++j) {
-        wxx[j] = wx[j] * wx[j], wyy[j] = wy[j] * wy[j], wzz[j] = wz[j] * wz[j];
-        wxy[j] = wx[j] * wy[j], wxz[j] = wx[j] * wz[j], wyz[j] = wy[j] * wz[j];
-      }
-#pragma omp simd
-      for (int i = 0; i < count; ++i) {
-        float gxx = a->g[0][i], gyy = a->g[1][i], gzz = a->g[2][i], gxy = a->g[3][i], gxz = a->g[4][i], gyz = a->g[5][i];
-        float rx = a->r[0][i], ry = a->r[1][i], rz = a->r[2][i];
-        float usable = a->usable[i], su = a->u[i], signal_sum = a->signal[i], b2 = a->b2[i];
-        const float threshold = d[i] + c.shadow;
-        for (int j = 0; j < kGroup; ++j) {
-          const float v = planes[j][i];
-          // Conditional sums rather than products with a 0/1 weight: with
-          // AVX-512 each is one merge-masked add.
-          if ((v > threshold) & (v < saturation) & (present[j] != 0.0f)) {
-            const float signal = v - d[i];
-            const float b = signal * inverse_scale[j];
-            gxx += wxx[j];
-            gyy += wyy[j];
-            gzz += wzz[j];
-            gxy += wxy[j];
-            gxz += wxz[j];
-            gyz += wyz[j];
-            rx += wx[j] * b;
-            ry += wy[j] * b;
-            rz += wz[j] * b;
-            usable += 1.0f;
-            su += u[j];
-            signal_sum += signal * u[j];
-            b2 += b * b;
-          }
-        }
-        a->g[0][i] = gxx, a->g[1][i] = gyy, a->g[2][i] = gzz, a->g[3][i] = gxy, a->g[4][i] = gxz, a->g[5][i] = gyz;
-        a->r[0][i] = rx, a->r[1][i] = ry, a->r[2][i] = rz;
-        a->usable[i] = usable, a->u[i] = su, a->signal[i] = signal_sum, a->b2[i] = b2;
-      }
-    }
+    if (use_avx512_subset_kernel.load(std::memory_order_relaxed) && Avx512Available())
+      AccumulateSubsetBlockAvx512(c, begin + first_pixel, count, d, a);
+    else
+      AccumulateSubsetBlock(c, begin + first_pixel, count, d, a);
     float* __restrict x0 = s->x0 + first_pixel;
     float* __restrict x1 = s->x1 + first_pixel;
     float* __restrict x2 = s->x2 + first_pixel;
@@ -561,6 +658,8 @@ class TileSetup {
  private:
   std::vector<const float*> planes_;
   std::vector<float> weights_, inverse_scale2_, inverse_scale_, direction_;
+  std::vector<LightTerms> light_terms_;
+  std::vector<float> group_terms_;
   TileConstants constants_;
 };
 
@@ -589,6 +688,30 @@ TileSetup::TileSetup(const LambertianOptions& options, const PhotometricStack& s
     c.sum_inverse_scale2 += inverse_scale2_[i];
     gram += w * w.transpose();
   }
+  light_terms_.resize(k);
+  for (int i = 0; i < k; ++i)
+    light_terms_[i] = {direction_[i], direction_[k + i], direction_[2 * k + i], inverse_scale_[i], inverse_scale2_[i]};
+  c.light_terms = light_terms_.data();
+  const int groups = (k + kSubsetGroup - 1) / kSubsetGroup;
+  group_terms_.assign(static_cast<std::size_t>(groups) * kGroupQuantities * kGroupPatterns, 0.0f);
+  for (int g = 0; g < groups; ++g) {
+    for (int pattern = 0; pattern < kGroupPatterns; ++pattern) {
+      std::array<double, kGroupQuantities> sum{};
+      for (int j = 0; j < kSubsetGroup && kSubsetGroup * g + j < k; ++j) {
+        if (!(pattern & (1 << j))) continue;
+        const int light = kSubsetGroup * g + j;
+        const Eigen::Vector3d& w = stack.light_directions[light];
+        const std::array<double, kGroupQuantities> term = {
+            w.x() * w.x(), w.y() * w.y(), w.z() * w.z(), w.x() * w.y(), w.x() * w.z(), w.y() * w.z(), 1.0,
+            1.0 / (stack.light_scales[light] * stack.light_scales[light])};
+        for (int q = 0; q < kGroupQuantities; ++q) sum[q] += term[q];
+      }
+      for (int q = 0; q < kGroupQuantities; ++q)
+        group_terms_[(static_cast<std::size_t>(g) * kGroupQuantities + q) * kGroupPatterns + pattern] =
+            static_cast<float>(sum[q]);
+    }
+  }
+  c.group_terms = group_terms_.data();
   c.planes = planes_.data();
   c.lights = k;
   c.weights = weights_.data();
@@ -661,6 +784,9 @@ void PixelResiduals::Fit(std::span<const Run> runs, PixelResidual* out) const {
     }
   }
 }
+
+void UseAvx512SubsetKernel(bool use) { use_avx512_subset_kernel.store(use, std::memory_order_relaxed); }
+bool Avx512SubsetKernelAvailable() { return Avx512Available(); }
 
 SolverSummary SolveLambertianTiles(const LambertianOptions& options, const PhotometricStack& stack,
                                    NormalMap* result, const TileVisitor& visit, const ThreadDone& done) {

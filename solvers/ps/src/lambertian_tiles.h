@@ -57,4 +57,11 @@ class PixelResiduals {
   std::unique_ptr<Impl> impl_;
 };
 
+// The subset kernel sums the normal equations with AVX-512 intrinsics where
+// the CPU has AVX-512F, else with its portable loop (multi-versioned for AVX2
+// and the baseline). Off: the portable loop everywhere, so that tests can
+// compare the two on one machine. Not to be switched while a solve runs.
+void UseAvx512SubsetKernel(bool use);
+bool Avx512SubsetKernelAvailable();
+
 }  // namespace photorig::ps::internal
