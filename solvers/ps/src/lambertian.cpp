@@ -450,9 +450,11 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
       const double gz = a->g[4][i] * x + a->g[5][i] * y + a->g[2][i] * z;
       const double xr = x * a->r[0][i] + y * a->r[1][i] + z * a->r[2][i];
       const double rss = std::max(0.0, a->b2[i] - 2.0 * xr + (x * gx + y * gy + z * gz));
-      const double rounding = kRoundingPerSqrtSample * std::sqrt(double(a->usable[i])) * a->b2[i];
+      // rounding > tolerance * RSS, compared squared (no square root per pixel).
+      const double rounding2 = kRoundingPerSqrtSample * kRoundingPerSqrtSample * a->usable[i] * a->b2[i] * a->b2[i];
+      const double tolerated = kResidualTolerance * rss;
       a->rss[i] = static_cast<float>(rss);
-      exact_needed = std::max(exact_needed, (a->usable[i] > 3.0f) & (rounding > kResidualTolerance * rss) ? 1 : 0);
+      exact_needed = std::max(exact_needed, (a->usable[i] > 3.0f) & (rounding2 > tolerated * tolerated) ? 1 : 0);
     }
     if (exact_needed) {
       std::fill(a->rss, a->rss + count, 0.0f);
@@ -479,11 +481,15 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
 #pragma omp simd
     for (int i = 0; i < count; ++i) {
       const float usable = a->usable[i], rss = a->rss[i], b2 = a->b2[i];
-      const float expected = (read_variance * a->u[i] + shot_gain * a->signal[i]) * (usable - 3.0f) / std::max(usable, 1.0f);
-      const float known = std::min(1.0f, expected / rss);
-      const float r2 = std::clamp(1.0f - rss / std::max(b2, 1e-30f), 0.0f, 1.0f);
-      const float tested = rss > 0.0f ? (expected > 0.0f ? known : r2) : 1.0f;
-      confidence[i] = usable > 3.0f ? tested : 0.0f;  // as Confidence()
+      // As Confidence(), with one division: expected / RSS capped at 1, where
+      // expected = noise * (n - 3) / n, or else 1 - RSS / b^2 clamped to [0, 1].
+      const float noise = (read_variance * a->u[i] + shot_gain * a->signal[i]) * (usable - 3.0f);
+      const float rss_times_n = std::max(usable, 1.0f) * rss, b2_floor = std::max(b2, 1e-30f);
+      const float numerator = noise > 0.0f ? noise : b2 - rss;
+      const float denominator = noise > 0.0f ? rss_times_n : b2_floor;
+      const float ratio = std::clamp(numerator / denominator, 0.0f, 1.0f);
+      const float tested = rss > 0.0f ? ratio : 1.0f;
+      confidence[i] = usable > 3.0f ? tested : 0.0f;
       usable_out[i] = usable;
     }
   }
