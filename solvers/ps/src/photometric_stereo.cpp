@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -947,25 +948,26 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
                                    result->usable_lights.ptr<std::uint16_t>() + begin,
                                    result->confidence.ptr<float>() + begin, count, screen_threshold.data(),
                                    state.needs_refit.data());
-    for (int i = 0; i < count; ++i) {
-      // Most pixels pass the screen: where eight in a row do, skip them together.
-      if (i % 8 == 0 && i + 8 <= count) {
-        std::uint64_t eight;
-        std::memcpy(&eight, &state.needs_refit[i], sizeof eight);
-        if (eight == 0) {
-          i += 7;
-          continue;
-        }
-      }
-      if (!state.needs_refit[i]) continue;
+    auto doubt = [&](int i) {
       const int p = begin + i;
       if (!lanes) {
         refine_pixel(state, p);  // records the pixel
-        continue;
+        return;
       }
       state.doubtful.push_back(p);
       state.doubtful_x.push_back(tile_x(p));
+    };
+    // Most pixels pass the screen: the flags (0 or 1) are read eight at a
+    // time, and each set one is found as the lowest set bit of its word.
+    static_assert(std::endian::native == std::endian::little, "byte i of a word is bits 8i..8i+7");
+    int i = 0;
+    for (; i + 8 <= count; i += 8) {
+      std::uint64_t eight;
+      std::memcpy(&eight, &state.needs_refit[i], sizeof eight);
+      for (; eight != 0; eight &= eight - 1) doubt(i + std::countr_zero(eight) / 8);
     }
+    for (; i < count; ++i)
+      if (state.needs_refit[i]) doubt(i);
     if (!lanes) return;
     const std::size_t doubtful = state.doubtful.size();
     // `auto` looks again at the doubtful pixels in lanes before copying any
