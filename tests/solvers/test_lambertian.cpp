@@ -287,11 +287,15 @@ TEST(Lambertian, Avx512AndPortableSubsetKernelsAgree) {
   if (!internal::Avx512SubsetKernelAvailable()) GTEST_SKIP() << "this CPU has no AVX-512F";
   const auto truth = RandomSurface(61, 37, 70.0);
   const PhotometricStack stack =
-      testing::RenderShinyStack(truth, RingLights(23, 15, 75), 1000.0, {}, 10.0f, 2.0);
+      testing::RenderShinyStack(truth, RingLights(23, 15, 75), 3000.0, {}, 10.0f, 2.0);
   LambertianOptions options;
   options.shadow_threshold = 6.0;
-  options.saturation_level = 700.0;
-  NormalMap fast, portable;
+  options.saturation_level = 700.0;  // clips where albedo cos > 0.72
+  LambertianOptions unclipped = options;
+  unclipped.saturation_level = std::numeric_limits<double>::infinity();
+  NormalMap fast, portable, shadows_only;
+  ASSERT_LT(SolveLambertian(unclipped, stack, &shadows_only).samples_rejected + 500,
+            SolveLambertian(options, stack, &fast).samples_rejected);
   const SolverSummary fast_summary = SolveLambertian(options, stack, &fast);
   internal::UseAvx512SubsetKernel(false);
   const SolverSummary portable_summary = SolveLambertian(options, stack, &portable);
