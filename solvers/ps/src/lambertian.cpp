@@ -82,12 +82,6 @@ bool WriteSolution(int pixel, float x0, float x1, float x2, float confidence, No
   return true;
 }
 
-// One light's constants for the AVX-512 subset kernel, together in one
-// cache line (each is a broadcast operand there).
-struct LightTerms {
-  float wx, wy, wz, inverse_scale, inverse_scale2;
-};
-
 // What the per-tile kernels need from the solve's setup. Per-light arrays
 // are float (the kernels' precision) and indexed by light.
 struct TileConstants {
@@ -97,7 +91,6 @@ struct TileConstants {
   const float* inverse_scale2 = nullptr;  // 1 / s_k^2
   const float* inverse_scale = nullptr;   // 1 / s_k
   const float* direction[3] = {};         // w_k: x, y, z
-  const LightTerms* light_terms = nullptr;  // K
   // What a group of four lights (4 g .. 4 g + 3) adds to G_S (xx, yy, zz, xy,
   // xz, yz), to the usable count and to sum 1 / s^2, for each of the 16
   // patterns of which of them are usable (bit j: light 4 g + j), as
@@ -354,19 +347,18 @@ __attribute__((target("avx512f"))) void AccumulateSubsetBlockAvx512(const TileCo
       __m512i pattern = _mm512_setzero_si512();
       const int end = std::min(first + kSubsetGroup, c.lights);
       for (int j = first; j < end; ++j) {
-        const LightTerms& t = c.light_terms[j];
         const float* samples = c.planes[j] + offset + i;
         _mm_prefetch(reinterpret_cast<const char*>(samples + 4 * kLanes), _MM_HINT_T0);
         const __m512 v = _mm512_maskz_loadu_ps(lanes, samples);
         const __mmask16 usable = _mm512_mask_cmp_ps_mask(
             _mm512_mask_cmp_ps_mask(lanes, v, threshold, _CMP_GT_OQ), v, saturation, _CMP_LT_OQ);
         const __m512 signal = _mm512_sub_ps(v, dark);
-        const __m512 b = _mm512_mul_ps(signal, _mm512_set1_ps(t.inverse_scale));
+        const __m512 b = _mm512_mul_ps(signal, _mm512_set1_ps(c.inverse_scale[j]));
         pattern = _mm512_mask_or_epi32(pattern, usable, pattern, _mm512_set1_epi32(1 << (j - first)));
-        rx = _mm512_mask3_fmadd_ps(_mm512_set1_ps(t.wx), b, rx, usable);
-        ry = _mm512_mask3_fmadd_ps(_mm512_set1_ps(t.wy), b, ry, usable);
-        rz = _mm512_mask3_fmadd_ps(_mm512_set1_ps(t.wz), b, rz, usable);
-        signal_sum = _mm512_mask3_fmadd_ps(signal, _mm512_set1_ps(t.inverse_scale2), signal_sum, usable);
+        rx = _mm512_mask3_fmadd_ps(_mm512_set1_ps(c.direction[0][j]), b, rx, usable);
+        ry = _mm512_mask3_fmadd_ps(_mm512_set1_ps(c.direction[1][j]), b, ry, usable);
+        rz = _mm512_mask3_fmadd_ps(_mm512_set1_ps(c.direction[2][j]), b, rz, usable);
+        signal_sum = _mm512_mask3_fmadd_ps(signal, _mm512_set1_ps(c.inverse_scale2[j]), signal_sum, usable);
         b2 = _mm512_mask3_fmadd_ps(b, b, b2, usable);
       }
       const float* terms = c.group_terms + static_cast<std::size_t>(first / kSubsetGroup) * kGroupQuantities * kLanes;
@@ -664,7 +656,6 @@ class TileSetup {
  private:
   std::vector<const float*> planes_;
   std::vector<float> weights_, inverse_scale2_, inverse_scale_, direction_;
-  std::vector<LightTerms> light_terms_;
   std::vector<float> group_terms_;
   TileConstants constants_;
 };
@@ -694,10 +685,6 @@ TileSetup::TileSetup(const LambertianOptions& options, const PhotometricStack& s
     c.sum_inverse_scale2 += inverse_scale2_[i];
     gram += w * w.transpose();
   }
-  light_terms_.resize(k);
-  for (int i = 0; i < k; ++i)
-    light_terms_[i] = {direction_[i], direction_[k + i], direction_[2 * k + i], inverse_scale_[i], inverse_scale2_[i]};
-  c.light_terms = light_terms_.data();
   const int groups = (k + kSubsetGroup - 1) / kSubsetGroup;
   group_terms_.assign(static_cast<std::size_t>(groups) * kGroupQuantities * kGroupPatterns, 0.0f);
   for (int g = 0; g < groups; ++g) {
