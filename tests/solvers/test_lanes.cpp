@@ -227,8 +227,31 @@ TEST(BlinnPhongLanes, SamplesWithoutWeightAreIgnored) {
 }
 
 using internal::TrimmedLambertianLanes;
-using internal::TrimProblem;
 using internal::TrimSolution;
+
+// Rows of samples (pixels x lights, in solver units with sigma 1) as a stack
+// one pixel high, light scales 1 and read noise 1: the trimmer sees exactly
+// these values and weights.
+PhotometricStack RowStack(const std::vector<Eigen::Vector3d>& lights, const std::vector<double>& observed) {
+  const int n = static_cast<int>(lights.size()), pixels = static_cast<int>(observed.size()) / n;
+  PhotometricStack stack;
+  for (int k = 0; k < n; ++k) {
+    cv::Mat plane(1, pixels, CV_32F);
+    for (int p = 0; p < pixels; ++p) plane.at<float>(0, p) = static_cast<float>(observed[p * n + k]);
+    stack.images.push_back(plane);
+  }
+  stack.light_directions = lights;
+  stack.light_scales.assign(n, 1.0);
+  stack.noise.read_sigma = 1.0;
+  return stack;
+}
+
+// The first `count` pixels' samples as the trimmer takes them.
+std::vector<float> Rows(const TrimmedLambertianLanes& trimmer, int count) {
+  std::vector<float> rows(static_cast<std::size_t>(count) * trimmer.row_length());
+  for (int p = 0; p < count; ++p) trimmer.CopySamples(p, &rows[p * trimmer.row_length()]);
+  return rows;
+}
 
 // Chi-square 0.999 quantiles are not needed here: a threshold per dof that
 // accepts a fit whose residuals are at the noise level (sigma = 1).
@@ -244,7 +267,7 @@ TEST(TrimmedLambertianLanes, DropsExactlyTheOutliersAndNothingElse) {
   std::mt19937 rng(23);
   std::normal_distribution<double> noise(0.0, 1.0);
   std::uniform_int_distribution<int> pick(0, n - 1);
-  std::vector<double> observed(pixels * n), inverse_sigma(pixels * n, 1.0);
+  std::vector<double> observed(pixels * n);
   std::vector<Eigen::Vector3d> truth;
   std::vector<int> outliers;
   for (int p = 0; p < pixels; ++p) {
@@ -265,12 +288,11 @@ TEST(TrimmedLambertianLanes, DropsExactlyTheOutliersAndNothingElse) {
   // give up within its allowance and say so.
   for (int k = 0; k < n; ++k) observed[5 * n + k] += 30.0 * std::sin(1.7 * k);
   outliers[5] = -1;
-  std::vector<TrimProblem> problems;
-  for (int p = 0; p < pixels; ++p) problems.push_back({&observed[p * n], &inverse_sigma[p * n], 6});
-  TrimmedLambertianLanes trimmer(lights, 25.0);
+  const PhotometricStack stack = RowStack(lights, observed);
+  TrimmedLambertianLanes trimmer(stack, LambertianOptions{}, 25.0, 6.0 / n);  // at most 6 samples
   std::vector<TrimSolution> solutions(pixels);
   const std::vector<double> thresholds = Thresholds(n);
-  trimmer.Fit(problems, thresholds, solutions);
+  trimmer.Fit(Rows(trimmer, pixels), thresholds, solutions);
   for (int p = 0; p < pixels; ++p) {
     const TrimSolution& s = solutions[p];
     ASSERT_TRUE(s.ok) << p;
@@ -302,18 +324,20 @@ TEST(TrimmedLambertianLanes, HandsOverAtOnceWhenGrossSamplesExceedTheAllowance) 
   const auto lights = testing::RingLights(32, 25, 80);
   const int n = static_cast<int>(lights.size());
   const Eigen::Vector3d x = Eigen::Vector3d(0.1, -0.2, 1.0).normalized() * 150.0;
-  std::vector<double> observed(n), inverse_sigma(n, 1.0);
+  std::vector<double> observed(n);
   for (int k = 0; k < n; ++k) observed[k] = lights[k].dot(x) + (k < 12 ? 200.0 : 0.0);  // 12 bright samples
-  const std::vector<TrimProblem> problems = {{observed.data(), inverse_sigma.data(), 6}};
+  const PhotometricStack stack = RowStack(lights, observed);
   std::vector<TrimSolution> solutions(1);
   const std::vector<double> thresholds = Thresholds(n);
-  TrimmedLambertianLanes(lights, 25.0).Fit(problems, thresholds, solutions);
+  TrimmedLambertianLanes at_gross(stack, LambertianOptions{}, 25.0, 6.0 / n);
+  at_gross.Fit(Rows(at_gross, 1), thresholds, solutions);
   ASSERT_TRUE(solutions[0].ok);
   EXPECT_EQ(solutions[0].rejected, 0);
   EXPECT_GT(solutions[0].chi2, thresholds[n - 3]);
   // With a gross level above every residual the same pixel trims one sample
   // per round and stops at its allowance, still inadequate.
-  TrimmedLambertianLanes(lights, 1e12).Fit(problems, thresholds, solutions);
+  TrimmedLambertianLanes never_gross(stack, LambertianOptions{}, 1e12, 6.0 / n);
+  never_gross.Fit(Rows(never_gross, 1), thresholds, solutions);
   EXPECT_EQ(solutions[0].rejected, 6);
   EXPECT_GT(solutions[0].chi2, thresholds[solutions[0].used - 3]);
 }

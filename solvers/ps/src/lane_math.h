@@ -80,7 +80,7 @@ PHOTORIG_LANE_INLINE double LaneExp(double y) {
 // done, then takes the next at once; `busy` counts the lanes with a problem.
 class LaneQueue {
  public:
-  explicit LaneQueue(int count) : count_(count) {}
+  explicit LaneQueue(int count, int lanes = kLanes) : count_(count), busy_(lanes) {}
   int busy() const { return busy_; }
   // Gives the lane the next problem, load(lane, index) and problem[lane] =
   // index, or idles it, idle(lane) and problem[lane] = -1.
@@ -97,7 +97,7 @@ class LaneQueue {
   }
 
  private:
-  int count_, next_ = 0, busy_ = kLanes;
+  int count_, next_ = 0, busy_;
 };
 
 }  // namespace photorig::ps::internal

@@ -40,7 +40,9 @@ struct PixelSamples {
 // One pixel's samples over every light: b = (I - D) / s, 1 / sigma with
 // sigma^2 = Var(I - D) / s^2 (0 for a shadowed or clipped sample, whose b is
 // 0), and chi-square of the Lambertian solution x on the usable samples.
-// Plain arrays, so the loop vectorises (the planes are read by gathers).
+// Plain arrays, so the loop vectorises; the raw values are read beforehand
+// (GCC does not vectorise a load through a per-lane pointer, and a loop with
+// one stays scalar throughout).
 struct RowInputs {
   int lights;
   const float* const* planes;
@@ -52,22 +54,18 @@ struct RowInputs {
   const double* directions;  // 3 per light
 };
 
+// `observed` holds the raw values I on entry, dark is D.
 PHOTORIG_PS_MULTIVERSION
-void ReadRow(const RowInputs& in, int pixel, const double* x, double* observed, double* inverse_sigma, double* chi2,
+void ReadRow(const RowInputs& in, double dark, const double* x, double* observed, double* inverse_sigma, double* chi2,
              int* usable) {
-  const double dark = in.dark ? in.dark[pixel] : 0.0;
   const double x0 = x[0], x1 = x[1], x2 = x[2];
   // Fields in locals and one reduction type: otherwise GCC 12 leaves the loop scalar.
-  const float* const* planes = in.planes;
   const double* scales = in.scales;
   const double* inverse_scales = in.inverse_scales;
   const double* directions = in.directions;
   const double shadow = in.shadow_threshold, saturation = in.saturation_level;
   const double read_variance = in.read_variance, gain = in.shot_gain;
-  // The reads first: GCC does not vectorise a load through a per-lane pointer,
-  // and a loop with one stays scalar throughout.
-  double* values = observed;
-  for (int k = 0; k < in.lights; ++k) values[k] = planes[k][pixel];
+  const double* values = observed;
   double sum = 0.0, count = 0.0;
 #pragma omp simd reduction(+ : sum, count)
   for (int k = 0; k < in.lights; ++k) {
@@ -290,8 +288,18 @@ class SampleReader {
 
   // Every light's sample (see ReadRow); returns chi-square at x.
   double Row(int pixel, const Eigen::Vector3d& x, double* observed, double* inverse_sigma, int* usable) const {
+    for (int k = 0; k < lights(); ++k) observed[k] = inputs_.planes[k][pixel];
     double chi2 = 0.0;
-    ReadRow(inputs_, pixel, x.data(), observed, inverse_sigma, &chi2, usable);
+    ReadRow(inputs_, inputs_.dark ? inputs_.dark[pixel] : 0.0, x.data(), observed, inverse_sigma, &chi2, usable);
+    return chi2;
+  }
+  // The same from a pixel's raw samples as TrimmedLambertianLanes::CopySamples
+  // wrote them: every light's value, then the dark frame's.
+  double RowFromSamples(const float* samples, const Eigen::Vector3d& x, double* observed, double* inverse_sigma,
+                        int* usable) const {
+    for (int k = 0; k < lights(); ++k) observed[k] = samples[k];
+    double chi2 = 0.0;
+    ReadRow(inputs_, samples[lights()], x.data(), observed, inverse_sigma, &chi2, usable);
     return chi2;
   }
 
@@ -707,9 +715,10 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
 
   // Each pixel's samples are read right after its tile's Lambertian pass,
   // while the tile is still in cache; counts are kept per thread. With the
-  // lane fitter, the doubtful pixels go through each stage (trimming or IRLS,
-  // then Blinn-Phong) eight at a time, in batches gathered across tiles; the
-  // per-pixel fitter refines one pixel after another, the reference.
+  // lane fitter, the doubtful pixels of a tile are rechecked (`auto`) and
+  // trimmed there, sixteen at a time; IRLS and the Blinn-Phong fit take
+  // eight at a time, in batches gathered across tiles. The per-pixel fitter
+  // refines one pixel after another, the reference.
   const bool lanes = options.blinn_phong.fitter == BlinnPhongOptions::Fitter::kLanes;
   struct Deferred {
     int pixel;
@@ -730,11 +739,20 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     // (SampleReader::Row); see `flush`.
     std::vector<double> observed, inverse_sigma;
     std::size_t rows = 0;
-    std::vector<Deferred> trimming, reweighting, deferred;
+    // Pixels queued for trimming (with their Lambertian fit x and, for
+    // `auto`, its fit as the recheck found it) and their raw samples
+    // (TrimmedLambertianLanes::CopySamples), one row each.
+    struct Trimming {
+      int pixel;
+      Eigen::Vector3d x;
+      Fit lambert;
+    };
+    std::vector<Trimming> trimming;
+    std::vector<float> trim_rows;
+    std::vector<Deferred> reweighting, deferred;
     std::unique_ptr<internal::RobustLambertianLanes> irls;  // `robust` only
     std::vector<internal::RobustProblem> robust_problems;
     std::vector<internal::RobustSolution> robust_solutions;
-    std::vector<internal::TrimProblem> trim_problems;
     std::vector<internal::TrimSolution> trim_solutions;
     std::vector<internal::BlinnPhongProblem> problems;
     std::vector<internal::BlinnPhongSolution> solutions;
@@ -750,14 +768,17 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   if (lanes) {
     for (int t = 0; t < threads; ++t) {
       fitters.emplace_back(working.light_directions, Eigen::Vector3d::UnitZ(), options.blinn_phong);
-      trimmers.emplace_back(working.light_directions, gross_u2);
+      trimmers.emplace_back(working, lambertian, gross_u2, options.selection.max_rejected_fraction);
     }
   }
   const int lights = working.light_count();
   const SampleReader reader(working, lambertian);
   const internal::RecheckLanes recheck(working, lambertian);
-  // Gathers pixel p's samples into a new row; the Lambertian fit x is tested on them.
-  auto gather_row = [&](ThreadState& state, int p, const Eigen::Vector3d& x, Fit* lambert) {
+  // Gathers pixel p's samples into a new row, from the planes or from the
+  // copy `samples` of them (TrimmedLambertianLanes::CopySamples); the
+  // Lambertian fit x is tested on them.
+  auto gather_row = [&](ThreadState& state, int p, const Eigen::Vector3d& x, Fit* lambert,
+                        const float* samples = nullptr) {
     const std::size_t row = state.rows++;
     // Rows are reused from tile to tile: grow only (a resize would zero-fill
     // every row again for each tile).
@@ -766,7 +787,10 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       state.inverse_sigma.resize(2 * state.rows * lights);
     }
     int used = 0;
-    const double chi2 = reader.Row(p, x, &state.observed[row * lights], &state.inverse_sigma[row * lights], &used);
+    double* observed = &state.observed[row * lights];
+    double* inverse_sigma = &state.inverse_sigma[row * lights];
+    const double chi2 = samples ? reader.RowFromSamples(samples, x, observed, inverse_sigma, &used)
+                                : reader.Row(p, x, observed, inverse_sigma, &used);
     *lambert = LambertianFit(x, chi2, used, 0);
     return row;
   };
@@ -864,19 +888,15 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   };
   // `auto` and `blinn-phong` with lanes: trimming; for `auto`, what it cannot
   // explain goes on to the Blinn-Phong fit, for `blinn-phong` every pixel
-  // does, from the trimmed fit.
+  // does, from the trimmed fit. Only those have their samples copied out in
+  // double.
   auto trim_in_lanes = [&](int thread) {
     ThreadState& state = states[thread];
     const std::size_t count = state.trimming.size();
-    state.trim_problems.resize(count);
     state.trim_solutions.assign(count, {});
+    if (count > 0) trimmers[thread].Fit(state.trim_rows, quantile, state.trim_solutions);
     for (std::size_t i = 0; i < count; ++i) {
-      const Deferred& d = state.trimming[i];
-      state.trim_problems[i] = {&state.observed[d.row * lights], &state.inverse_sigma[d.row * lights],
-                                static_cast<int>(options.selection.max_rejected_fraction * d.lambert.used)};
-    }
-    if (count > 0) trimmers[thread].Fit(state.trim_problems, quantile, state.trim_solutions);
-    for (std::size_t i = 0; i < count; ++i) {
+      const ThreadState::Trimming& t = state.trimming[i];
       const internal::TrimSolution& trimmed = state.trim_solutions[i];
       Fit robust;
       robust.ok = trimmed.ok;
@@ -886,19 +906,22 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       robust.used = trimmed.used;
       robust.rejected = trimmed.rejected;
       robust.model = PixelModel::kRobust;
-      Deferred d = state.trimming[i];
-      if (options.method == Method::kAuto && adequate(robust)) {  // it trimmed at most max_rejected samples
-        record(state, d.pixel, robust);
+      if (options.method == Method::kAuto && adequate(robust)) {  // it trimmed at most its allowance
+        record(state, t.pixel, robust);
         continue;
       }
-      if (options.method == Method::kAuto && !can_fit_lobe(d.lambert)) {
-        record(state, d.pixel, d.lambert);
+      if (options.method == Method::kAuto && !can_fit_lobe(t.lambert)) {
+        record(state, t.pixel, t.lambert);
         continue;
       }
-      if (robust.ok) d.start_normal = robust.normal, d.start_albedo = robust.albedo;
-      state.deferred.push_back(d);
+      Fit lambert;
+      const float* samples = &state.trim_rows[i * trimmers[thread].row_length()];
+      const std::size_t row = gather_row(state, t.pixel, t.x, &lambert, samples);
+      const Fit& start = robust.ok ? robust : lambert;
+      state.deferred.push_back({t.pixel, lambert, start.normal, start.albedo, row});
     }
     state.trimming.clear();
+    state.trim_rows.clear();
   };
   // `robust` with lanes: IRLS for every pixel.
   auto reweight_in_lanes = [&](int thread) {
@@ -916,20 +939,20 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     state.reweighting.clear();
   };
   // The lane stages run on batches gathered across tiles, so that a tile with
-  // only a few doubtful pixels does not run eight lanes for one of them; a
-  // pixel's samples were copied to its row when it was queued. Once a stage
+  // only a few doubtful pixels does not run a full set of lanes for one of
+  // them; a pixel's samples were copied out when it was queued. Once a stage
   // has run, the rows still queued move to the front of the thread's rows,
   // which stay as small as the queues.
   constexpr std::size_t kBatch = 64;
   auto flush = [&](int thread, bool all) {
     ThreadState& state = states[thread];
-    const std::size_t queued_before = state.trimming.size() + state.reweighting.size() + state.deferred.size();
     if (all || state.trimming.size() >= kBatch) trim_in_lanes(thread);
+    const std::size_t queued_before = state.reweighting.size() + state.deferred.size();
     if (all || state.reweighting.size() >= kBatch) reweight_in_lanes(thread);
     if (all || state.deferred.size() >= kBatch) fit_deferred(thread);
-    if (state.trimming.size() + state.reweighting.size() + state.deferred.size() == queued_before) return;
+    if (state.reweighting.size() + state.deferred.size() == queued_before) return;
     std::vector<Deferred*> queued;
-    for (auto* queue : {&state.trimming, &state.reweighting, &state.deferred})
+    for (auto* queue : {&state.reweighting, &state.deferred})
       for (Deferred& d : *queue) queued.push_back(&d);
     std::sort(queued.begin(), queued.end(), [](const Deferred* a, const Deferred* b) { return a->row < b->row; });
     for (std::size_t i = 0; i < queued.size(); ++i) {
@@ -992,13 +1015,17 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
           continue;
         }
       }
+      if (options.method != Method::kRobust) {
+        const internal::Recheck* again = options.method == Method::kAuto ? &state.rechecks[j] : nullptr;
+        state.trimming.push_back({p, x, again ? LambertianFit(x, again->chi2, again->used, 0) : Fit{}});
+        const std::size_t at = state.trim_rows.size();
+        state.trim_rows.resize(at + trimmers[thread].row_length());
+        trimmers[thread].CopySamples(p, &state.trim_rows[at]);
+        continue;
+      }
       Fit lambert;
       const std::size_t row = gather_row(state, p, x, &lambert);
-      if (options.method == Method::kRobust) {
-        state.reweighting.push_back({p, lambert, lambert.normal, lambert.albedo, row});
-      } else {
-        state.trimming.push_back({p, lambert, lambert.normal, lambert.albedo, row});
-      }
+      state.reweighting.push_back({p, lambert, lambert.normal, lambert.albedo, row});
     }
     state.doubtful.clear();
     state.doubtful_x.clear();

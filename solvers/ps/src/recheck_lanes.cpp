@@ -8,16 +8,13 @@
 namespace photorig::ps::internal {
 namespace {
 
-// Pixels per pass, one per float lane (lane_math.h's kLanes counts doubles).
-constexpr int kPixels = RecheckLanes::kLanes;
+constexpr int kPixels = kFloatLanes;
 
-struct Constants {
-  int lights = 0;
-  const float* const* planes = nullptr;
-  const float* dark = nullptr;  // null: no dark frame
-  const float *wx = nullptr, *wy = nullptr, *wz = nullptr, *scale = nullptr, *inverse_scale = nullptr;
-  float shadow = 0.0f, saturation = 0.0f, read_variance = 0.0f, shot_gain = 0.0f;
-  float max_frobenius_condition2 = 0.0f;
+// The stack's constants and the conditioning limit of the refit.
+struct Constants : PlaneConstants {
+  Constants(const PlaneSamples& samples, float max_frobenius_condition2)
+      : PlaneConstants(samples), max_frobenius_condition2(max_frobenius_condition2) {}
+  float max_frobenius_condition2;
 };
 
 // One lane per pixel; a lane past the last pixel repeats pixel 0.
@@ -48,10 +45,10 @@ void TestFit(const Constants& c, Lanes* l) {
     for (int i = 0; i < kPixels; ++i) {
       const float value = plane[l->pixel[i]];
       const float signal = value - l->dark[i];
-      const bool usable = (signal > c.shadow) & (value < c.saturation);
+      const bool usable = c.Usable(value, signal);
       const float prediction = wx * l->x0[i] + wy * l->x1[i] + wz * l->x2[i];
       const float residual = signal - scale * prediction;
-      const float variance = c.read_variance + c.shot_gain * std::max(signal, 0.0f);
+      const float variance = c.Variance(signal);
       // 0 / 1 factors rather than conditional updates: a masked store
       // followed by the next light's load of the same lanes is not forwarded.
       const float in = usable ? 1.0f : 0.0f, lit = usable & (prediction > 0.0f) ? 1.0f : 0.0f;
@@ -104,12 +101,12 @@ void TestRefit(const Constants& c, Lanes* l) {
     for (int i = 0; i < kPixels; ++i) {
       const float value = plane[l->pixel[i]];
       const float signal = value - l->dark[i];
-      const bool usable = (signal > c.shadow) & (value < c.saturation);
+      const bool usable = c.Usable(value, signal);
       const bool was_lit = wx * l->x0[i] + wy * l->x1[i] + wz * l->x2[i] > 0.0f;
       const float prediction = wx * l->lit0[i] + wy * l->lit1[i] + wz * l->lit2[i];
       const bool lit = prediction > 0.0f;
       const float residual = signal - scale * prediction;
-      const float variance = c.read_variance + c.shot_gain * std::max(signal, 0.0f);
+      const float variance = c.Variance(signal);
       const float counted = usable & lit ? 1.0f : 0.0f;  // as in TestFit, no conditional updates
       l->lit_chi2[i] += counted * (residual * residual / variance);
       l->lit_used[i] += counted;
@@ -120,22 +117,8 @@ void TestRefit(const Constants& c, Lanes* l) {
 
 }  // namespace
 
-RecheckLanes::RecheckLanes(const PhotometricStack& stack, const LambertianOptions& options) {
-  const int k = stack.light_count();
-  for (int l = 0; l < k; ++l) {
-    planes_.push_back(stack.images[l].ptr<float>());
-    wx_.push_back(static_cast<float>(stack.light_directions[l].x()));
-    wy_.push_back(static_cast<float>(stack.light_directions[l].y()));
-    wz_.push_back(static_cast<float>(stack.light_directions[l].z()));
-    scale_.push_back(static_cast<float>(stack.light_scales[l]));
-    inverse_scale_.push_back(static_cast<float>(1.0 / stack.light_scales[l]));
-  }
-  dark_ = stack.dark.empty() ? nullptr : stack.dark.ptr<float>();
-  shadow_ = static_cast<float>(options.shadow_threshold);
-  saturation_ = std::isfinite(options.saturation_level) ? static_cast<float>(options.saturation_level)
-                                                        : std::numeric_limits<float>::infinity();
-  read_variance_ = static_cast<float>(stack.noise.read_sigma * stack.noise.read_sigma);
-  shot_gain_ = static_cast<float>(stack.noise.shot_gain);
+RecheckLanes::RecheckLanes(const PhotometricStack& stack, const LambertianOptions& options)
+    : samples_(stack, options) {
   // As the tile kernel: cond(A)^2 = cond(G) <= |G|_F |G^-1|_F, squared once
   // more for squared norms, with 1 % room for float rounding on the safe side.
   const double max_condition2 = options.max_condition_number * options.max_condition_number;
@@ -144,16 +127,14 @@ RecheckLanes::RecheckLanes(const PhotometricStack& stack, const LambertianOption
 
 void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x,
                          std::span<Recheck> out) const {
-  const Constants c{static_cast<int>(planes_.size()), planes_.data(), dark_, wx_.data(), wy_.data(), wz_.data(),
-                    scale_.data(), inverse_scale_.data(), shadow_, saturation_, read_variance_, shot_gain_,
-                    max_frobenius_condition2_};
+  const Constants c(samples_, max_frobenius_condition2_);
   Lanes lanes;
   for (std::size_t first = 0; first < pixels.size(); first += kPixels) {
     const int count = static_cast<int>(std::min<std::size_t>(kPixels, pixels.size() - first));
     for (int i = 0; i < kPixels; ++i) {
       const std::size_t j = first + (i < count ? i : 0);
       lanes.pixel[i] = pixels[j];
-      lanes.dark[i] = dark_ ? dark_[pixels[j]] : 0.0f;
+      lanes.dark[i] = samples_.dark ? samples_.dark[pixels[j]] : 0.0f;
       lanes.x0[i] = static_cast<float>(x[j].x());
       lanes.x1[i] = static_cast<float>(x[j].y());
       lanes.x2[i] = static_cast<float>(x[j].z());

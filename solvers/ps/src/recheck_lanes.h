@@ -8,8 +8,7 @@
 // On a matte object nearly every doubtful pixel is settled here, so only the
 // rest has its samples copied out for the lane fitters.
 
-#include "photorig/ps/lambertian.h"
-#include "photorig/ps/stack.h"
+#include "plane_lanes.h"
 
 #include <Eigen/Core>
 
@@ -34,19 +33,14 @@ struct Recheck {
 
 class RecheckLanes {
  public:
-  static constexpr int kLanes = 16;  // one AVX-512 register of floats
-
   // Thresholds and the conditioning limit from options; noise from the stack.
   RecheckLanes(const PhotometricStack& stack, const LambertianOptions& options);
 
-  // pixels and x of the same length; any length (taken kLanes at a time).
+  // pixels and x of the same length; any length (taken kFloatLanes at a time).
   void Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x, std::span<Recheck> out) const;
 
  private:
-  std::vector<const float*> planes_;
-  const float* dark_ = nullptr;
-  std::vector<float> wx_, wy_, wz_, scale_, inverse_scale_;
-  float shadow_ = 0.0f, saturation_ = 0.0f, read_variance_ = 0.0f, shot_gain_ = 0.0f;
+  PlaneSamples samples_;
   float max_frobenius_condition2_ = 0.0f;
 };
 

@@ -1,202 +1,259 @@
 #include "trim_lanes.h"
 
-#include "lane_least_squares.h"
-
-#include <algorithm>
 #include <cmath>
 #include <limits>
 
 namespace photorig::ps::internal {
 namespace {
 
-struct alignas(64) LaneRound {
-  double x[3][kLanes];
-  double chi2[kLanes];
-  double worst_u2[kLanes];
+constexpr int kPixels = kFloatLanes;
+
+// Weighted normal equations of each lane: sum c w w^T (xx, xy, xz, yy, yz,
+// zz) and sum c b w.
+struct alignas(64) LaneSums {
+  float matrix[6][kPixels];
+  float rhs[3][kPixels];
 };
+
+struct alignas(64) Lanes {
+  float load[kPixels];  // 1 where the lane takes a new pixel, 0 where it keeps its own
+  float dark[kPixels];
+  float usable[kPixels];  // of the pixels just loaded
+  LaneSums equations;
+  float x[3][kPixels], chi2[kPixels], worst_u2[kPixels];  // the last round's
+  float threshold[kPixels], dropped[kPixels];
+  LaneSums kept;  // the normal equations without the samples over threshold
+};
+
+// Loads the lanes with load = 1, whose raw values are in `observed`: b = (I -
+// D) / s and its weight for every light, and the pixel's normal equations on
+// its usable samples. Lanes with load = 0 keep their samples and sums.
+PHOTORIG_PS_MULTIVERSION
+void LoadLanes(const PlaneConstants& c, float weight_unit, Lanes* l, float* observed, float* weight) {
+  alignas(64) float sums[10][kPixels] = {};
+  for (int k = 0; k < c.lights; ++k) {
+    const float wx = c.wx[k], wy = c.wy[k], wz = c.wz[k];
+    const float scale2 = c.scale[k] * c.scale[k] * weight_unit, inverse_scale = c.inverse_scale[k];
+    // Restrict: stores the compiler must think could change the lanes'
+    // flags leave the loop scalar.
+    float* __restrict observed_k = observed + k * kPixels;
+    float* __restrict weight_k = weight + k * kPixels;
+#pragma omp simd
+    for (int i = 0; i < kPixels; ++i) {
+      const bool load = l->load[i] != 0.0f;
+      const float value = observed_k[i];
+      const float signal = value - l->dark[i];
+      const bool usable = load & c.Usable(value, signal);
+      const float v = usable ? scale2 / c.Variance(signal) : 0.0f;
+      const float b = usable ? signal * inverse_scale : 0.0f;
+      observed_k[i] = load ? b : value;
+      weight_k[i] = load ? v : weight_k[i];
+      sums[0][i] += v * wx * wx, sums[1][i] += v * wx * wy, sums[2][i] += v * wx * wz;
+      sums[3][i] += v * wy * wy, sums[4][i] += v * wy * wz, sums[5][i] += v * wz * wz;
+      sums[6][i] += v * b * wx, sums[7][i] += v * b * wy, sums[8][i] += v * b * wz;
+      sums[9][i] += usable ? 1.0f : 0.0f;
+    }
+  }
+#pragma omp simd
+  for (int i = 0; i < kPixels; ++i) {
+    const bool load = l->load[i] != 0.0f;
+    l->equations.matrix[0][i] = load ? sums[0][i] : l->equations.matrix[0][i];
+    l->equations.matrix[1][i] = load ? sums[1][i] : l->equations.matrix[1][i];
+    l->equations.matrix[2][i] = load ? sums[2][i] : l->equations.matrix[2][i];
+    l->equations.matrix[3][i] = load ? sums[3][i] : l->equations.matrix[3][i];
+    l->equations.matrix[4][i] = load ? sums[4][i] : l->equations.matrix[4][i];
+    l->equations.matrix[5][i] = load ? sums[5][i] : l->equations.matrix[5][i];
+    l->equations.rhs[0][i] = load ? sums[6][i] : l->equations.rhs[0][i];
+    l->equations.rhs[1][i] = load ? sums[7][i] : l->equations.rhs[1][i];
+    l->equations.rhs[2][i] = load ? sums[8][i] : l->equations.rhs[2][i];
+    l->usable[i] = sums[9][i];
+  }
+}
 
 // One round for all lanes: x from the normal equations (by the adjugate; a
 // singular system gives non-finite x), then every sample's squared
 // standardised residual u2 (0 once trimmed), chi-square and the largest u2.
 PHOTORIG_PS_MULTIVERSION
-void TrimRound(const LaneNormalEquations& eq, int lights, const double* directions, const double* observed,
-               const double* weight, LaneRound* out, double* u2_out) {
-  alignas(64) double x0[kLanes], x1[kLanes], x2[kLanes], chi2[kLanes], worst[kLanes];
+void TrimRound(const PlaneConstants& c, float inverse_weight_unit, const float* observed, const float* weight,
+               Lanes* l, float* u2_out) {
+  alignas(64) float x0[kPixels], x1[kPixels], x2[kPixels], chi2[kPixels], worst[kPixels];
 #pragma omp simd
-  for (int j = 0; j < kLanes; ++j) {
-    const double xx = eq.matrix[0][j], xy = eq.matrix[1][j], xz = eq.matrix[2][j];
-    const double yy = eq.matrix[3][j], yz = eq.matrix[4][j], zz = eq.matrix[5][j];
-    const double c00 = yy * zz - yz * yz, c01 = xz * yz - xy * zz, c02 = xy * yz - xz * yy;
-    const double c11 = xx * zz - xz * xz, c12 = xy * xz - xx * yz, c22 = xx * yy - xy * xy;
-    const double inverse_det = 1.0 / (xx * c00 + xy * c01 + xz * c02);
-    const double b0 = eq.rhs[0][j], b1 = eq.rhs[1][j], b2 = eq.rhs[2][j];
-    x0[j] = (c00 * b0 + c01 * b1 + c02 * b2) * inverse_det;
-    x1[j] = (c01 * b0 + c11 * b1 + c12 * b2) * inverse_det;
-    x2[j] = (c02 * b0 + c12 * b1 + c22 * b2) * inverse_det;
-    chi2[j] = 0.0, worst[j] = 0.0;
+  for (int i = 0; i < kPixels; ++i) {
+    const LaneSums& eq = l->equations;
+    const float xx = eq.matrix[0][i], xy = eq.matrix[1][i], xz = eq.matrix[2][i];
+    const float yy = eq.matrix[3][i], yz = eq.matrix[4][i], zz = eq.matrix[5][i];
+    const float c00 = yy * zz - yz * yz, c01 = xz * yz - xy * zz, c02 = xy * yz - xz * yy;
+    const float c11 = xx * zz - xz * xz, c12 = xy * xz - xx * yz, c22 = xx * yy - xy * xy;
+    const float inverse_det = 1.0f / (xx * c00 + xy * c01 + xz * c02);
+    const float b0 = eq.rhs[0][i], b1 = eq.rhs[1][i], b2 = eq.rhs[2][i];
+    x0[i] = (c00 * b0 + c01 * b1 + c02 * b2) * inverse_det;
+    x1[i] = (c01 * b0 + c11 * b1 + c12 * b2) * inverse_det;
+    x2[i] = (c02 * b0 + c12 * b1 + c22 * b2) * inverse_det;
+    chi2[i] = 0.0f, worst[i] = 0.0f;
   }
-  for (int k = 0; k < lights; ++k) {
-    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
-    const double* b = observed + k * kLanes;
-    const double* v = weight + k * kLanes;
-    double* u2 = u2_out + k * kLanes;
+  for (int k = 0; k < c.lights; ++k) {
+    const float wx = c.wx[k], wy = c.wy[k], wz = c.wz[k];
+    const float* b = observed + k * kPixels;
+    const float* v = weight + k * kPixels;
+    float* u2 = u2_out + k * kPixels;
 #pragma omp simd
-    for (int j = 0; j < kLanes; ++j) {
-      const double r = b[j] - wx * x0[j] - wy * x1[j] - wz * x2[j];
-      u2[j] = r * r * v[j];
-      chi2[j] += u2[j];
-      worst[j] = std::max(worst[j], u2[j]);
+    for (int i = 0; i < kPixels; ++i) {
+      const float r = b[i] - wx * x0[i] - wy * x1[i] - wz * x2[i];
+      u2[i] = r * r * v[i] * inverse_weight_unit;
+      chi2[i] += u2[i];
+      worst[i] = std::max(worst[i], u2[i]);
     }
   }
-  for (int j = 0; j < kLanes; ++j) {
-    out->x[0][j] = x0[j], out->x[1][j] = x1[j], out->x[2][j] = x2[j];
-    out->chi2[j] = chi2[j], out->worst_u2[j] = worst[j];
+  for (int i = 0; i < kPixels; ++i) {
+    l->x[0][i] = x0[i], l->x[1][i] = x1[i], l->x[2][i] = x2[i];
+    l->chi2[i] = chi2[i], l->worst_u2[i] = worst[i];
   }
 }
 
-// How many samples of each lane have u2 >= threshold[lane].
+// Marks every sample with u2 >= threshold[lane] (infinity: none) trimmed,
+// counts them, and sums the normal equations of the samples kept (summed
+// afresh rather than downdated: no cancellation in float). The caller takes
+// them for the lanes that may drop those samples; a lane that may not hands
+// over its pixel, and the next one is loaded over its samples.
 PHOTORIG_PS_MULTIVERSION
-void CountAtLeast(int lights, const double* u2, const double* threshold, double* count) {
-  alignas(64) double sum[kLanes] = {};
-  for (int k = 0; k < lights; ++k) {
-    const double* row = u2 + k * kLanes;
+void DropSamples(const PlaneConstants& c, const float* observed, const float* u2, float* weight, Lanes* l) {
+  alignas(64) float sums[10][kPixels] = {};
+  for (int k = 0; k < c.lights; ++k) {
+    const float wx = c.wx[k], wy = c.wy[k], wz = c.wz[k];
+    const float* b = observed + k * kPixels;
+    const float* row = u2 + k * kPixels;
+    float* v = weight + k * kPixels;
 #pragma omp simd
-    for (int j = 0; j < kLanes; ++j) sum[j] += row[j] >= threshold[j] ? 1.0 : 0.0;
-  }
-  for (int j = 0; j < kLanes; ++j) count[j] = sum[j];
-}
-
-// Drops every sample with u2 >= threshold[lane] (infinity: none) from its
-// lane's normal equations, a rank-one downdate each, and marks it trimmed.
-PHOTORIG_PS_MULTIVERSION
-void DropSamples(int lights, const double* directions, const double* observed, const double* u2,
-                 const double* threshold, double* weight, LaneNormalEquations* eq) {
-  LaneNormalEquations dropped = {};  // in registers; subtracted once at the end
-  for (int k = 0; k < lights; ++k) {
-    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
-    const double* b = observed + k * kLanes;
-    const double* row = u2 + k * kLanes;
-    double* v = weight + k * kLanes;
-#pragma omp simd
-    for (int j = 0; j < kLanes; ++j) {
-      const double c = row[j] >= threshold[j] ? v[j] : 0.0;
-      AddSample(dropped, j, c, b[j], wx, wy, wz);
-      v[j] -= c;
+    for (int i = 0; i < kPixels; ++i) {
+      const bool drop = row[i] >= l->threshold[i];
+      const float w = drop ? 0.0f : v[i], bw = w * b[i];
+      sums[0][i] += w * wx * wx, sums[1][i] += w * wx * wy, sums[2][i] += w * wx * wz;
+      sums[3][i] += w * wy * wy, sums[4][i] += w * wy * wz, sums[5][i] += w * wz * wz;
+      sums[6][i] += bw * wx, sums[7][i] += bw * wy, sums[8][i] += bw * wz;
+      sums[9][i] += drop ? 1.0f : 0.0f;
+      v[i] = w;
     }
   }
-  for (int i = 0; i < 6; ++i)
-#pragma omp simd
-    for (int j = 0; j < kLanes; ++j) eq->matrix[i][j] -= dropped.matrix[i][j];
-  for (int i = 0; i < 3; ++i)
-#pragma omp simd
-    for (int j = 0; j < kLanes; ++j) eq->rhs[i][j] -= dropped.rhs[i][j];
-}
-
-// The weighted normal equations of one pixel's samples (v = 1 / sigma^2):
-// sums = {xx, xy, xz, yy, yz, zz, bx, by, bz, usable count}.
-PHOTORIG_PS_MULTIVERSION
-void NormalEquationsOfRow(int lights, const double* directions, const double* observed, const double* inverse_sigma,
-                          double* sums) {
-  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0, bx = 0, by = 0, bz = 0, usable = 0;
-#pragma omp simd reduction(+ : xx, xy, xz, yy, yz, zz, bx, by, bz, usable)
-  for (int k = 0; k < lights; ++k) {
-    const double v = inverse_sigma[k] * inverse_sigma[k], b = observed[k];
-    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
-    xx += v * wx * wx, xy += v * wx * wy, xz += v * wx * wz, yy += v * wy * wy, yz += v * wy * wz, zz += v * wz * wz;
-    bx += v * b * wx, by += v * b * wy, bz += v * b * wz;
-    usable += v > 0.0 ? 1.0 : 0.0;
+  for (int i = 0; i < kPixels; ++i) {
+    for (int e = 0; e < 6; ++e) l->kept.matrix[e][i] = sums[e][i];
+    for (int e = 0; e < 3; ++e) l->kept.rhs[e][i] = sums[6 + e][i];
+    l->dropped[i] = sums[9][i];
   }
-  const double values[10] = {xx, xy, xz, yy, yz, zz, bx, by, bz, usable};
-  for (int i = 0; i < 10; ++i) sums[i] = values[i];
 }
 
 }  // namespace
 
 struct TrimmedLambertianLanes::State {
-  LaneNormalEquations equations;
-  LaneRound round;
-  int problem[kLanes];  // -1: idle
-  int usable[kLanes], removed[kLanes], max_rejected[kLanes];
+  Lanes lanes;
+  int problem[kPixels];  // -1: idle
+  int usable[kPixels], removed[kPixels], max_rejected[kPixels];
 };
 
-TrimmedLambertianLanes::TrimmedLambertianLanes(const std::vector<Eigen::Vector3d>& light_directions,
-                                               double gross_u2)
-    : lights_(static_cast<int>(light_directions.size())),
+TrimmedLambertianLanes::TrimmedLambertianLanes(const PhotometricStack& stack, const LambertianOptions& options,
+                                               double gross_u2, double max_rejected_fraction)
+    : samples_(stack, options),
       gross_u2_(gross_u2),
-      directions_(DirectionArray(light_directions)),
-      observed_(light_directions.size() * kLanes),
-      weight_(light_directions.size() * kLanes),
-      u2_(light_directions.size() * kLanes),
-      state_(std::make_unique<State>()) {}
+      max_rejected_fraction_(max_rejected_fraction),
+      observed_(stack.light_count() * kPixels),
+      weight_(stack.light_count() * kPixels),
+      u2_(stack.light_count() * kPixels),
+      state_(std::make_unique<State>()) {
+  // A usable sample has I - D > max(shadow threshold, 0), so its variance is
+  // at least that of the threshold; its weight s^2 / variance is at most the
+  // largest s^2 over that.
+  double largest_scale2 = 0.0;
+  for (const double s : stack.light_scales) largest_scale2 = std::max(largest_scale2, s * s);
+  const double smallest_variance = stack.noise.Variance(std::max(options.shadow_threshold, 0.0));
+  const double unit = smallest_variance / largest_scale2;
+  if (std::isfinite(unit) && unit > 0.0) weight_unit_ = static_cast<float>(unit);
+}
 
 TrimmedLambertianLanes::~TrimmedLambertianLanes() = default;
 TrimmedLambertianLanes::TrimmedLambertianLanes(TrimmedLambertianLanes&&) noexcept = default;
 
-void TrimmedLambertianLanes::Load(int lane, const TrimProblem& problem) {
-  State& s = *state_;
-  double sums[10];  // the normal equations (6), their right-hand side (3), the usable count
-  NormalEquationsOfRow(lights_, directions_.data(), problem.observed, problem.inverse_sigma, sums);
-  for (int k = 0; k < lights_; ++k) {
-    observed_[k * kLanes + lane] = problem.observed[k];
-    weight_[k * kLanes + lane] = problem.inverse_sigma[k] * problem.inverse_sigma[k];
-  }
-  for (int i = 0; i < 6; ++i) s.equations.matrix[i][lane] = sums[i];
-  for (int i = 0; i < 3; ++i) s.equations.rhs[i][lane] = sums[6 + i];
-  s.usable[lane] = static_cast<int>(sums[9]);
-  s.removed[lane] = 0;
-  s.max_rejected[lane] = problem.max_rejected;
+void TrimmedLambertianLanes::CopySamples(int pixel, float* row) const {
+  const int lights = samples_.lights();
+  for (int k = 0; k < lights; ++k) row[k] = samples_.planes[k][pixel];
+  row[lights] = samples_.dark ? samples_.dark[pixel] : 0.0f;
 }
 
-void TrimmedLambertianLanes::Fit(std::span<const TrimProblem> problems, std::span<const double> chi2_quantile,
+void TrimmedLambertianLanes::Fit(std::span<const float> rows, std::span<const double> chi2_quantile,
                                  std::span<TrimSolution> solutions) {
   State& s = *state_;
-  const int count = static_cast<int>(problems.size());
+  Lanes& l = s.lanes;
+  const PlaneConstants c(samples_);
+  const int length = row_length(), count = static_cast<int>(rows.size()) / length;
+  const float inverse_weight_unit = 1.0f / weight_unit_;
+  bool any_load = false;
+  // A lane takes its pixel's raw values now and turns them into samples in
+  // the next LoadLanes, before the round.
+  auto load = [&](int lane, int index) {
+    const float* row = &rows[static_cast<std::size_t>(index) * length];
+    for (int k = 0; k < c.lights; ++k) observed_[k * kPixels + lane] = row[k];
+    l.dark[lane] = row[c.lights];
+    l.load[lane] = 1.0f;
+    any_load = true;
+  };
   // An idle lane solves the identity system on no samples: finite, ignored.
   auto idle = [&](int lane) {
-    for (int k = 0; k < lights_; ++k) observed_[k * kLanes + lane] = weight_[k * kLanes + lane] = 0.0;
-    for (int i = 0; i < 6; ++i) s.equations.matrix[i][lane] = (i == 0 || i == 3 || i == 5) ? 1.0 : 0.0;
-    for (int i = 0; i < 3; ++i) s.equations.rhs[i][lane] = 0.0;
+    for (int k = 0; k < c.lights; ++k) observed_[k * kPixels + lane] = weight_[k * kPixels + lane] = 0.0f;
+    for (int e = 0; e < 6; ++e) l.equations.matrix[e][lane] = (e == 0 || e == 3 || e == 5) ? 1.0f : 0.0f;
+    for (int e = 0; e < 3; ++e) l.equations.rhs[e][lane] = 0.0f;
   };
-  LaneQueue queue(count);
-  auto load = [&](int lane, int index) { Load(lane, problems[index]); };
+  LaneQueue queue(count, kPixels);
   auto refill = [&](int lane) { queue.Refill(lane, s.problem, load, idle); };
-  for (int lane = 0; lane < kLanes; ++lane) refill(lane);
+  for (int lane = 0; lane < kPixels; ++lane) {
+    l.load[lane] = 0.0f;
+    refill(lane);
+  }
   while (queue.busy() > 0) {
-    TrimRound(s.equations, lights_, directions_.data(), observed_.data(), weight_.data(), &s.round, u2_.data());
+    if (any_load) {
+      LoadLanes(c, weight_unit_, &l, observed_.data(), weight_.data());
+      for (int lane = 0; lane < kPixels; ++lane) {
+        if (l.load[lane] == 0.0f) continue;
+        l.load[lane] = 0.0f;
+        s.usable[lane] = static_cast<int>(l.usable[lane]);
+        s.removed[lane] = 0;
+        s.max_rejected[lane] = static_cast<int>(max_rejected_fraction_ * s.usable[lane]);
+      }
+      any_load = false;
+    }
+    TrimRound(c, inverse_weight_unit, observed_.data(), weight_.data(), &l, u2_.data());
     // Which samples each lane would drop (infinity: it is done) ...
-    alignas(64) double threshold[kLanes], drop[kLanes];
-    bool ok[kLanes];
-    for (int lane = 0; lane < kLanes; ++lane) {
-      threshold[lane] = std::numeric_limits<double>::infinity();
+    bool ok[kPixels] = {};
+    for (int lane = 0; lane < kPixels; ++lane) {
+      l.threshold[lane] = std::numeric_limits<float>::infinity();
       if (s.problem[lane] < 0) continue;
       const int used = s.usable[lane] - s.removed[lane];
-      ok[lane] = Eigen::Vector3d(s.round.x[0][lane], s.round.x[1][lane], s.round.x[2][lane]).norm() > 0.0 &&
-                 used >= 3;  // false for a non-finite x too
-      const bool adequate = ok[lane] && used > 3 && s.round.chi2[lane] <= chi2_quantile[used - 3];
-      const double t = TrimThreshold(s.round.worst_u2[lane], gross_u2_);
-      if (ok[lane] && !adequate && t > 0.0) threshold[lane] = t;
+      const double x_norm2 = double(l.x[0][lane]) * l.x[0][lane] + double(l.x[1][lane]) * l.x[1][lane] +
+                             double(l.x[2][lane]) * l.x[2][lane];
+      ok[lane] = x_norm2 > 0.0 && used >= 3;  // false for a non-finite x too
+      const bool adequate = ok[lane] && used > 3 && l.chi2[lane] <= chi2_quantile[used - 3];
+      const double t = TrimThreshold(l.worst_u2[lane], gross_u2_);
+      if (ok[lane] && !adequate && t > 0.0) l.threshold[lane] = static_cast<float>(t);
     }
-    CountAtLeast(lights_, u2_.data(), threshold, drop);
+    DropSamples(c, observed_.data(), u2_.data(), weight_.data(), &l);
     // ... and whether it may: a lane that is done, or would exceed its
     // allowance, hands over its fit and takes the next pixel.
-    for (int lane = 0; lane < kLanes; ++lane) {
+    for (int lane = 0; lane < kPixels; ++lane) {
       if (s.problem[lane] < 0) continue;
       const int used = s.usable[lane] - s.removed[lane];
-      const int dropped = static_cast<int>(drop[lane]);
-      if (std::isfinite(threshold[lane]) && s.removed[lane] + dropped <= s.max_rejected[lane] && used - dropped >= 3) {
+      const int dropped = static_cast<int>(l.dropped[lane]);
+      if (std::isfinite(l.threshold[lane]) && s.removed[lane] + dropped <= s.max_rejected[lane] &&
+          used - dropped >= 3) {
         s.removed[lane] += dropped;
+        for (int e = 0; e < 6; ++e) l.equations.matrix[e][lane] = l.kept.matrix[e][lane];
+        for (int e = 0; e < 3; ++e) l.equations.rhs[e][lane] = l.kept.rhs[e][lane];
         continue;
       }
-      threshold[lane] = std::numeric_limits<double>::infinity();
       TrimSolution& out = solutions[s.problem[lane]];
-      out.x = Eigen::Vector3d(s.round.x[0][lane], s.round.x[1][lane], s.round.x[2][lane]);
+      out.x = Eigen::Vector3d(l.x[0][lane], l.x[1][lane], l.x[2][lane]);
       out.ok = ok[lane];
-      out.chi2 = s.round.chi2[lane];
+      out.chi2 = l.chi2[lane];
       out.used = used;
       out.rejected = s.removed[lane];
       refill(lane);
     }
-    DropSamples(lights_, directions_.data(), observed_.data(), u2_.data(), threshold, weight_.data(), &s.equations);
   }
 }
 

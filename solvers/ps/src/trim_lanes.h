@@ -1,11 +1,18 @@
 #pragma once
-// Trimming of a Lambertian fit, many pixels under one set of lights, one
-// pixel per SIMD lane: the cheap robust stage of `auto`. Each round solves
-// every lane's 3 x 3 weighted normal equations, then one pass over the lights
-// computes the residuals and chi-square of every lane; a lane whose fit is
-// adequate hands over its answer and takes the next pixel, the others drop the
-// samples TrimThreshold picks (rank-one downdates) and go round again. A lane
-// that would have to drop more than it may hands over its inadequate fit.
+// Trimming of a Lambertian fit, the cheap robust stage of `auto` (and the
+// start of `blinn-phong`), one pixel per float lane. A pixel's raw samples
+// are copied out of the stack's planes while the Lambertian pass's tile is
+// still in cache (CopySamples), so that pixels from several tiles can share
+// the lanes. Each round solves every lane's weighted 3 x 3 normal equations,
+// then one pass over the lights computes the residuals and chi-square of
+// every lane; a lane whose fit is adequate hands over its answer and takes
+// the next pixel, the others drop the samples TrimThreshold picks (their
+// normal equations summed again over the samples kept) and go round again.
+// A lane that would have to drop more than it may hands over its inadequate
+// fit. FitTrimmed in photometric_stereo.cpp is the same stage in double, one
+// pixel at a time.
+
+#include "plane_lanes.h"
 
 #include <Eigen/Core>
 
@@ -15,14 +22,6 @@
 #include <vector>
 
 namespace photorig::ps::internal {
-
-// One pixel: observed values in solver units for every light, 1 / sigma for
-// each (0 marks an unusable sample), and how many samples it may drop.
-struct TrimProblem {
-  const double* observed = nullptr;
-  const double* inverse_sigma = nullptr;
-  int max_rejected = 0;
-};
 
 struct TrimSolution {
   bool ok = false;             // a finite, non-zero solution on >= 3 samples
@@ -44,27 +43,38 @@ inline double TrimThreshold(double worst_u2, double gross_u2) {
 
 class TrimmedLambertianLanes {
  public:
-  // gross_u2: see TrimThreshold.
-  TrimmedLambertianLanes(const std::vector<Eigen::Vector3d>& light_directions, double gross_u2);
+  // Thresholds from options, noise from the stack (which must outlive this);
+  // gross_u2: see TrimThreshold. A pixel may drop at most
+  // max_rejected_fraction of its usable samples.
+  TrimmedLambertianLanes(const PhotometricStack& stack, const LambertianOptions& options, double gross_u2,
+                         double max_rejected_fraction);
   ~TrimmedLambertianLanes();
   TrimmedLambertianLanes(TrimmedLambertianLanes&&) noexcept;
 
+  // A pixel's samples as Fit takes them, row_length() floats: every light's
+  // raw value, then the dark frame's (0 without one).
+  int row_length() const { return samples_.lights() + 1; }
+  void CopySamples(int pixel, float* row) const;
+
+  // rows: one row of row_length() floats per pixel, solutions[i] answers row i.
   // A fit with dof = used - 3 > 0 is adequate when chi2 <= chi2_quantile[dof];
   // the table must cover the light count.
-  void Fit(std::span<const TrimProblem> problems, std::span<const double> chi2_quantile,
-           std::span<TrimSolution> solutions);
+  void Fit(std::span<const float> rows, std::span<const double> chi2_quantile, std::span<TrimSolution> solutions);
 
  private:
   struct State;  // lane registers, in trim_lanes.cpp
 
-  void Load(int lane, const TrimProblem& problem);
-
-  int lights_;
-  double gross_u2_;
-  std::vector<double> directions_;  // per light: w (3)
-  // Struct-of-arrays over lanes: [light * kLanes + lane]; weights are 1 / sigma^2, 0 once trimmed;
-  // u2 is the last round's squared standardised residual.
-  std::vector<double> observed_, weight_, u2_;
+  PlaneSamples samples_;
+  double gross_u2_, max_rejected_fraction_;
+  // Weights are 1 / sigma^2 in solver units times weight_unit_, which brings
+  // the largest possible one to 1: float normal equations then neither
+  // overflow nor lose their determinant, whatever the noise level.
+  float weight_unit_ = 1.0f;
+  // Struct-of-arrays over lanes: [light * kFloatLanes + lane]; observed holds
+  // a loading lane's raw values until LoadLanes turns them into b = (I - D) /
+  // s; weights are 0 once trimmed; u2 is the last round's squared
+  // standardised residual.
+  std::vector<float> observed_, weight_, u2_;
   std::unique_ptr<State> state_;
 };
 
