@@ -342,6 +342,27 @@ TEST(TrimmedLambertianLanes, HandsOverAtOnceWhenGrossSamplesExceedTheAllowance) 
   EXPECT_GT(solutions[0].chi2, thresholds[solutions[0].used - 3]);
 }
 
+// Weights 1 / sigma^2 in solver units reach 1e12 with a light scale of 1e6
+// and unit read noise: float normal equations of such weights overflow (their
+// determinant is ~1e39). The trimmer scales them and still solves the pixel,
+// to float precision, with its two gross outliers gone.
+TEST(TrimmedLambertianLanes, SolvesPixelsWhateverTheScaleOfTheirWeights) {
+  const auto lights = testing::RingLights(32, 25, 80);
+  const int n = static_cast<int>(lights.size());
+  const double scale = 1e6;
+  const Eigen::Vector3d x = Eigen::Vector3d(0.1, -0.2, 1.0).normalized() * 0.5;
+  std::vector<double> observed(n);
+  for (int k = 0; k < n; ++k) observed[k] = scale * lights[k].dot(x) + (k == 3 || k == 17 ? 0.2 * scale : 0.0);
+  PhotometricStack stack = RowStack(lights, observed);
+  stack.light_scales.assign(n, scale);
+  TrimmedLambertianLanes trimmer(stack, LambertianOptions{}, 25.0, 6.0 / n);
+  std::vector<TrimSolution> solutions(1);
+  trimmer.Fit(Rows(trimmer, 1), Thresholds(n), solutions);
+  ASSERT_TRUE(solutions[0].ok);
+  EXPECT_GE(solutions[0].rejected, 2);
+  EXPECT_LT((solutions[0].x - x).norm(), 1e-5 * x.norm()) << solutions[0].x.transpose();
+}
+
 // IRLS written the plain way, one pixel, usable samples only: the iteration
 // robust_lanes.h documents.
 internal::RobustSolution PlainIrls(const std::vector<Eigen::Vector3d>& lights, const double* observed,
