@@ -3,10 +3,14 @@
 // SIMD lane. A pixel's Levenberg-Marquardt fit is a few iterations, each a
 // pass over its K samples with a pow per sample; run one pixel at a time that
 // pass is scalar (and, with forward-mode derivatives, carries six tangents
-// through every operation). Here kLanes pixels share each pass: the light
+// through every operation). Here kFitLanes pixels share each pass: the light
 // loop is the same for all, the per-lane control flow (accept, reject,
 // converge) runs between passes, and a lane whose fit has converged takes
-// the next pixel at once, so no lane idles while others finish.
+// the next pixel at once, so no lane idles while others finish. The pass
+// itself runs in float, sixteen pixels per AVX-512 register (the model and
+// its derivatives need no more than float's seven digits against data whose
+// noise is in the second or third); the iteration's state, its normal
+// equations and the damped steps stay in double.
 //
 // Derivatives are the closed forms of blinn_phong_symbolic.h (the tests check
 // the lanes' Jacobian against forward-mode automatic differentiation). The
@@ -25,6 +29,8 @@
 
 namespace photorig::ps::internal {
 
+inline constexpr int kFitLanes = 16;  // pixels per pass
+
 // Start material for a Blinn-Phong fit at a fixed normal: the exponent from a
 // doubling grid over [min_exponent, max_exponent] (each grid lobe is the
 // previous one squared, so no pow), with rho_d and rho_s >= 0 for each by
@@ -37,9 +43,9 @@ struct BlinnPhongMaterial {
   double diffuse_albedo = 0.0, specular_albedo = 0.0, exponent = 1.0;
 };
 struct alignas(64) LaneMaterial {
-  double diffuse_albedo[kLanes], specular_albedo[kLanes], exponent[kLanes];
+  double diffuse_albedo[kFitLanes], specular_albedo[kFitLanes], exponent[kFitLanes];
 };
-// kLanes pixels at once, one per lane; arrays are [light * kLanes + lane],
+// kFitLanes pixels at once, one per lane; arrays are [light * kFitLanes + lane],
 // and cos_light, cos_half and observed are overwritten.
 void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, double* observed, const double* weight,
                               const double* start_albedo, double min_exponent, double max_exponent,
@@ -93,16 +99,17 @@ class BlinnPhongLaneFitter {
  private:
   struct State;  // lane registers, in blinn_phong_lanes.cpp
 
-  // Every problem's start material, kLanes problems per pass.
+  // Every problem's start material, kFitLanes problems per pass.
   void GridStarts(std::span<const BlinnPhongProblem> problems);
   void Load(int lane, const BlinnPhongProblem& problem, const BlinnPhongMaterial& start);
 
   int lights_;
   BlinnPhongOptions options_;
   std::vector<double> geometry_;  // per light: w (3), w_h (3)
-  // Struct-of-arrays over lanes: [light * kLanes + lane].
-  std::vector<double> observed_, inverse_sigma_;
-  // The start grid's inputs, [light * kLanes + lane], and its answers per problem.
+  std::vector<float> evaluation_geometry_;  // the same in float
+  // Struct-of-arrays over lanes: [light * kFitLanes + lane].
+  std::vector<float> observed_, inverse_sigma_;
+  // The start grid's inputs, [light * kFitLanes + lane], and its answers per problem.
   std::vector<double> cos_light_, cos_half_, start_observed_, weight_;
   std::vector<BlinnPhongMaterial> starts_;
   std::unique_ptr<State> state_;

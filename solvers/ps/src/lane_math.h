@@ -24,10 +24,10 @@ namespace photorig::ps::internal {
 
 // c0 x^n + c1 x^(n-1) + ... + cn by Horner's rule, unrolled by the fold (a
 // loop here would stop the enclosing lane loop from vectorising).
-template <typename... Coefficients>
-PHOTORIG_LANE_INLINE double Horner(double x, double leading, Coefficients... rest) {
-  double value = leading;
-  ((value = value * x + rest), ...);
+template <typename T, typename... Coefficients>
+PHOTORIG_LANE_INLINE T Horner(T x, T leading, Coefficients... rest) {
+  T value = leading;
+  ((value = value * x + static_cast<T>(rest)), ...);
   return value;
 }
 
@@ -74,6 +74,40 @@ PHOTORIG_LANE_INLINE double LaneExp(double y) {
   // The low bits of t hold k (two's complement, wrapped): 2^k = (k + 1023) << 52.
   const std::uint64_t k_bits = std::bit_cast<std::uint64_t>(t) - std::bit_cast<std::uint64_t>(kRound);
   return p * std::bit_cast<double>((k_bits + 1023) << 52);
+}
+
+// The same two in float, for the Blinn-Phong fit's evaluation: ln x and 1 / x
+// for finite x in [2^-126, 2^126], the series to s^9 (truncation below 1e-9);
+// e^y for y <= 88, clamped below at e^-80 so that products with the result
+// stay clear of subnormals, Taylor series to r^7 (truncation below 1e-8).
+// Both are accurate to a few float ulp.
+inline constexpr float kLn2HiF = 0.693145751953125f;   // ln 2 with 9 trailing zero bits
+inline constexpr float kLn2LoF = 1.428606765330187e-06f;  // ln 2 - kLn2HiF
+
+PHOTORIG_LANE_INLINE float LaneLogAndInverse(float x, float* inverse) {
+  constexpr std::uint32_t kSqrtHalfBits = 0x3f3504f3U;
+  constexpr std::uint32_t kBias = 128U << 23;  // keeps the shifted exponent non-negative
+  const std::uint32_t bits = std::bit_cast<std::uint32_t>(x);
+  const std::uint32_t biased_k = (bits - kSqrtHalfBits + kBias) >> 23;  // k + 128
+  const float f = std::bit_cast<float>(bits - (biased_k << 23) + kBias);
+  const float k = static_cast<float>(static_cast<std::int32_t>(biased_k) - 128);
+  const float d = 1.0f / (f * (f + 1.0f));
+  const float s = (f - 1.0f) * f * d, s2 = s * s;
+  *inverse = std::bit_cast<float>((255U - biased_k) << 23) * ((f + 1.0f) * d);  // 2^-k / f
+  const float series = Horner(s2, 2.0f / 9.0f, 2.0f / 7.0f, 2.0f / 5.0f, 2.0f / 3.0f, 2.0f);
+  return k * kLn2HiF + (k * kLn2LoF + s * series);
+}
+
+PHOTORIG_LANE_INLINE float LaneExp(float y) {
+  constexpr float kRound = 12582912.0f;  // 1.5 * 2^23: adding it rounds to an integer
+  const float clamped = y < -80.0f ? -80.0f : y;
+  const float t = clamped * 1.44269504f + kRound;
+  const float k = t - kRound;
+  const float r = clamped - k * kLn2HiF - k * kLn2LoF;
+  const float p = Horner(r, 1.0f / 5040.0f, 1.0f / 720.0f, 1.0f / 120.0f, 1.0f / 24.0f, 1.0f / 6.0f, 0.5f, 1.0f, 1.0f);
+  // The low bits of t hold k (two's complement, wrapped): 2^k = (k + 127) << 23.
+  const std::uint32_t k_bits = std::bit_cast<std::uint32_t>(t) - std::bit_cast<std::uint32_t>(kRound);
+  return p * std::bit_cast<float>((k_bits + 127U) << 23);
 }
 
 // Problems handed to lanes in order: a lane keeps its problem until it is

@@ -52,10 +52,10 @@ struct RobustOptions {
 };
 
 struct BlinnPhongOptions {
-  // How the fit runs. kLanes: eight pixels at once, one per SIMD lane, with
-  // the closed-form derivatives (the tests check them against forward-mode
-  // automatic differentiation); several times faster than one pixel at a
-  // time (docs/performance.md).
+  // How the fit runs. kLanes: sixteen pixels at once, one per SIMD lane, with
+  // the closed-form derivatives evaluated in float (the tests check them
+  // against forward-mode automatic differentiation); several times faster
+  // than one pixel at a time (docs/performance.md).
   // kPerPixel: one pixel at a time with Jacobians by `derivative`: the
   // reference, and the way to compare derivative methods.
   enum class Fitter { kLanes, kPerPixel };
@@ -64,6 +64,9 @@ struct BlinnPhongOptions {
   int max_iterations = 40;
   // Stop when a step lowers the cost (chi-square) by less than this fraction
   // (the lane fitter also stops when the linearised model promises less).
+  // The lane fitter evaluates in float and takes changes below 1e-5 of the
+  // cost for rounding, so with it tolerances below 1e-5 act as 1e-5: on a
+  // chi-square near its degrees of freedom that is a change far below 1.
   double relative_tolerance = 1e-6;
   double min_exponent = 1.0;     // below this the lobe is indistinguishable from the diffuse term
   double max_exponent = 2000.0;  // narrower lobes fall between the lights of any practical dome
