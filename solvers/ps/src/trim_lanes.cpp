@@ -16,58 +16,49 @@ struct alignas(64) LaneSums {
 };
 
 struct alignas(64) Lanes {
-  float load[kPixels];  // 1 where the lane takes a new pixel, 0 where it keeps its own
-  float dark[kPixels];
-  float usable[kPixels];  // of the pixels just loaded
   LaneSums equations;
   float x[3][kPixels], chi2[kPixels], worst_u2[kPixels];  // the last round's
   float threshold[kPixels], dropped[kPixels];
   LaneSums kept;  // the normal equations without the samples over threshold
 };
 
-// Loads the lanes with load = 1, whose raw values are in `observed`: b = (I -
-// D) / s and its weight for every light, and the pixel's normal equations on
-// its usable samples. Lanes with load = 0 keep their samples and sums.
+// Where CopySamples puts what, in a row of RowLength(lights) floats.
+struct RowLayout {
+  explicit RowLayout(int lights) : lights(lights) {}
+  int dark() const { return lights; }
+  int observed() const { return lights + 1; }  // b = (I - D) / s per light
+  int weight() const { return 2 * lights + 1; }  // its weight, 0 where unusable
+  int sums() const { return 3 * lights + 1; }  // normal equations (9), usable count
+  int length() const { return 3 * lights + 11; }
+  int lights;
+};
+
+// A pixel's samples in solver units from its raw values: b and its weight for
+// every light, and the normal equations of its usable samples, one pass over
+// the lights in vector lanes.
 PHOTORIG_PS_MULTIVERSION
-void LoadLanes(const PlaneConstants& c, float weight_unit, Lanes* l, float* observed, float* weight) {
-  alignas(64) float sums[10][kPixels] = {};
+void PrepareRow(const PlaneConstants& c, float weight_unit, float* row) {
+  const RowLayout layout(c.lights);
+  const float dark = row[layout.dark()];
+  const float* raw = row;
+  float* __restrict observed = row + layout.observed();
+  float* __restrict weight = row + layout.weight();
+  const float *wx = c.wx, *wy = c.wy, *wz = c.wz, *scale = c.scale, *inverse_scale = c.inverse_scale;
+  float xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0, bx = 0, by = 0, bz = 0, usable = 0;
+#pragma omp simd reduction(+ : xx, xy, xz, yy, yz, zz, bx, by, bz, usable)
   for (int k = 0; k < c.lights; ++k) {
-    const float wx = c.wx[k], wy = c.wy[k], wz = c.wz[k];
-    const float scale2 = c.scale[k] * c.scale[k] * weight_unit, inverse_scale = c.inverse_scale[k];
-    // Restrict: stores the compiler must think could change the lanes'
-    // flags leave the loop scalar.
-    float* __restrict observed_k = observed + k * kPixels;
-    float* __restrict weight_k = weight + k * kPixels;
-#pragma omp simd
-    for (int i = 0; i < kPixels; ++i) {
-      const bool load = l->load[i] != 0.0f;
-      const float value = observed_k[i];
-      const float signal = value - l->dark[i];
-      const bool usable = load & c.Usable(value, signal);
-      const float v = usable ? scale2 / c.Variance(signal) : 0.0f;
-      const float b = usable ? signal * inverse_scale : 0.0f;
-      observed_k[i] = load ? b : value;
-      weight_k[i] = load ? v : weight_k[i];
-      sums[0][i] += v * wx * wx, sums[1][i] += v * wx * wy, sums[2][i] += v * wx * wz;
-      sums[3][i] += v * wy * wy, sums[4][i] += v * wy * wz, sums[5][i] += v * wz * wz;
-      sums[6][i] += v * b * wx, sums[7][i] += v * b * wy, sums[8][i] += v * b * wz;
-      sums[9][i] += usable ? 1.0f : 0.0f;
-    }
+    const float value = raw[k], signal = value - dark;
+    const bool ok = c.Usable(value, signal);
+    const float v = ok ? scale[k] * scale[k] * weight_unit / c.Variance(signal) : 0.0f;
+    const float b = ok ? signal * inverse_scale[k] : 0.0f;
+    observed[k] = b, weight[k] = v;
+    xx += v * wx[k] * wx[k], xy += v * wx[k] * wy[k], xz += v * wx[k] * wz[k];
+    yy += v * wy[k] * wy[k], yz += v * wy[k] * wz[k], zz += v * wz[k] * wz[k];
+    bx += v * b * wx[k], by += v * b * wy[k], bz += v * b * wz[k];
+    usable += ok ? 1.0f : 0.0f;
   }
-#pragma omp simd
-  for (int i = 0; i < kPixels; ++i) {
-    const bool load = l->load[i] != 0.0f;
-    l->equations.matrix[0][i] = load ? sums[0][i] : l->equations.matrix[0][i];
-    l->equations.matrix[1][i] = load ? sums[1][i] : l->equations.matrix[1][i];
-    l->equations.matrix[2][i] = load ? sums[2][i] : l->equations.matrix[2][i];
-    l->equations.matrix[3][i] = load ? sums[3][i] : l->equations.matrix[3][i];
-    l->equations.matrix[4][i] = load ? sums[4][i] : l->equations.matrix[4][i];
-    l->equations.matrix[5][i] = load ? sums[5][i] : l->equations.matrix[5][i];
-    l->equations.rhs[0][i] = load ? sums[6][i] : l->equations.rhs[0][i];
-    l->equations.rhs[1][i] = load ? sums[7][i] : l->equations.rhs[1][i];
-    l->equations.rhs[2][i] = load ? sums[8][i] : l->equations.rhs[2][i];
-    l->usable[i] = sums[9][i];
-  }
+  const float sums[10] = {xx, xy, xz, yy, yz, zz, bx, by, bz, usable};
+  for (int i = 0; i < 10; ++i) row[layout.sums() + i] = sums[i];
 }
 
 // One round for all lanes: x from the normal equations (by the adjugate; a
@@ -171,10 +162,13 @@ TrimmedLambertianLanes::TrimmedLambertianLanes(const PhotometricStack& stack, co
 TrimmedLambertianLanes::~TrimmedLambertianLanes() = default;
 TrimmedLambertianLanes::TrimmedLambertianLanes(TrimmedLambertianLanes&&) noexcept = default;
 
+int TrimmedLambertianLanes::row_length() const { return RowLayout(samples_.lights()).length(); }
+
 void TrimmedLambertianLanes::CopySamples(int pixel, float* row) const {
   const int lights = samples_.lights();
   for (int k = 0; k < lights; ++k) row[k] = samples_.planes[k][pixel];
-  row[lights] = samples_.dark ? samples_.dark[pixel] : 0.0f;
+  row[RowLayout(lights).dark()] = samples_.dark ? samples_.dark[pixel] : 0.0f;
+  PrepareRow(PlaneConstants(samples_), weight_unit_, row);
 }
 
 void TrimmedLambertianLanes::Fit(std::span<const float> rows, std::span<const double> chi2_quantile,
@@ -182,17 +176,21 @@ void TrimmedLambertianLanes::Fit(std::span<const float> rows, std::span<const do
   State& s = *state_;
   Lanes& l = s.lanes;
   const PlaneConstants c(samples_);
-  const int length = row_length(), count = static_cast<int>(rows.size()) / length;
+  const RowLayout layout(c.lights);
+  const int count = static_cast<int>(rows.size()) / layout.length();
   const float inverse_weight_unit = 1.0f / weight_unit_;
-  bool any_load = false;
-  // A lane takes its pixel's raw values now and turns them into samples in
-  // the next LoadLanes, before the round.
   auto load = [&](int lane, int index) {
-    const float* row = &rows[static_cast<std::size_t>(index) * length];
-    for (int k = 0; k < c.lights; ++k) observed_[k * kPixels + lane] = row[k];
-    l.dark[lane] = row[c.lights];
-    l.load[lane] = 1.0f;
-    any_load = true;
+    const float* row = &rows[static_cast<std::size_t>(index) * layout.length()];
+    for (int k = 0; k < c.lights; ++k) {
+      observed_[k * kPixels + lane] = row[layout.observed() + k];
+      weight_[k * kPixels + lane] = row[layout.weight() + k];
+    }
+    const float* sums = row + layout.sums();
+    for (int e = 0; e < 6; ++e) l.equations.matrix[e][lane] = sums[e];
+    for (int e = 0; e < 3; ++e) l.equations.rhs[e][lane] = sums[6 + e];
+    s.usable[lane] = static_cast<int>(sums[9]);
+    s.removed[lane] = 0;
+    s.max_rejected[lane] = static_cast<int>(max_rejected_fraction_ * s.usable[lane]);
   };
   // An idle lane solves the identity system on no samples: finite, ignored.
   auto idle = [&](int lane) {
@@ -202,22 +200,8 @@ void TrimmedLambertianLanes::Fit(std::span<const float> rows, std::span<const do
   };
   LaneQueue queue(count, kPixels);
   auto refill = [&](int lane) { queue.Refill(lane, s.problem, load, idle); };
-  for (int lane = 0; lane < kPixels; ++lane) {
-    l.load[lane] = 0.0f;
-    refill(lane);
-  }
+  for (int lane = 0; lane < kPixels; ++lane) refill(lane);
   while (queue.busy() > 0) {
-    if (any_load) {
-      LoadLanes(c, weight_unit_, &l, observed_.data(), weight_.data());
-      for (int lane = 0; lane < kPixels; ++lane) {
-        if (l.load[lane] == 0.0f) continue;
-        l.load[lane] = 0.0f;
-        s.usable[lane] = static_cast<int>(l.usable[lane]);
-        s.removed[lane] = 0;
-        s.max_rejected[lane] = static_cast<int>(max_rejected_fraction_ * s.usable[lane]);
-      }
-      any_load = false;
-    }
     TrimRound(c, inverse_weight_unit, observed_.data(), weight_.data(), &l, u2_.data());
     // Which samples each lane would drop (infinity: it is done) ...
     bool ok[kPixels] = {};

@@ -2,7 +2,8 @@
 // Trimming of a Lambertian fit, the cheap robust stage of `auto` (and the
 // start of `blinn-phong`), one pixel per float lane. A pixel's raw samples
 // are copied out of the stack's planes while the Lambertian pass's tile is
-// still in cache (CopySamples), so that pixels from several tiles can share
+// still in cache, and turned into weighted samples and normal equations in
+// one vector pass (CopySamples), so that pixels from several tiles can share
 // the lanes. Each round solves every lane's weighted 3 x 3 normal equations,
 // then one pass over the lights computes the residuals and chi-square of
 // every lane; a lane whose fit is adequate hands over its answer and takes
@@ -52,8 +53,10 @@ class TrimmedLambertianLanes {
   TrimmedLambertianLanes(TrimmedLambertianLanes&&) noexcept;
 
   // A pixel's samples as Fit takes them, row_length() floats: every light's
-  // raw value, then the dark frame's (0 without one).
-  int row_length() const { return samples_.lights() + 1; }
+  // raw value, then the dark frame's (0 without one), then what Fit loads
+  // into a lane (the samples in solver units, their weights and their normal
+  // equations).
+  int row_length() const;
   void CopySamples(int pixel, float* row) const;
 
   // rows: one row of row_length() floats per pixel, solutions[i] answers row i.
@@ -70,10 +73,9 @@ class TrimmedLambertianLanes {
   // the largest possible one to 1: float normal equations then neither
   // overflow nor lose their determinant, whatever the noise level.
   float weight_unit_ = 1.0f;
-  // Struct-of-arrays over lanes: [light * kFloatLanes + lane]; observed holds
-  // a loading lane's raw values until LoadLanes turns them into b = (I - D) /
-  // s; weights are 0 once trimmed; u2 is the last round's squared
-  // standardised residual.
+  // Struct-of-arrays over lanes: [light * kFloatLanes + lane]; b = (I - D) /
+  // s, weights (0 once trimmed), and the last round's squared standardised
+  // residuals u2.
   std::vector<float> observed_, weight_, u2_;
   std::unique_ptr<State> state_;
 };
