@@ -740,12 +740,13 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     std::vector<double> observed, inverse_sigma;
     std::size_t rows = 0;
     // Pixels queued for trimming (with their Lambertian fit x and, for
-    // `auto`, its fit as the recheck found it) and their raw samples
-    // (TrimmedLambertianLanes::CopySamples), one row each.
+    // `auto`, its chi-square and sample count as the recheck found them) and
+    // their samples (TrimmedLambertianLanes::CopySamples), one row each.
     struct Trimming {
       int pixel;
       Eigen::Vector3d x;
-      Fit lambert;
+      double chi2;
+      int used;
     };
     std::vector<Trimming> trimming;
     std::vector<float> trim_rows;
@@ -824,7 +825,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   // with no more samples than its parameters the Blinn-Phong lobe is not
   // determined. Such pixels keep their Lambertian fit.
   auto can_trim = [](const Fit& lambert) { return lambert.Dof() > 0; };
-  auto can_fit_lobe = [](const Fit& lambert) { return lambert.used > kBlinnPhongParameters; };
+  auto can_fit_lobe = [](int used) { return used > kBlinnPhongParameters; };
   auto tile_x = [&](int p) -> Eigen::Vector3d {
     const cv::Vec3f n = result->normals.ptr<cv::Vec3f>()[p];
     return Eigen::Vector3d(n[0], n[1], n[2]) * result->albedo.ptr<float>()[p] / M_PI;
@@ -855,7 +856,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     // FitTrimmed never drops more than max_rejected samples.
     if (options.method == Method::kRobust || (options.method == Method::kAuto && adequate(robust)))
       return record(state, p, robust);
-    if (options.method == Method::kAuto && !can_fit_lobe(lambert)) return record(state, p, lambert);
+    if (options.method == Method::kAuto && !can_fit_lobe(lambert.used)) return record(state, p, lambert);
     const Fit& start = robust.ok ? robust : lambert;
     record(state, p, choose_blinn_phong(lambert, FitBlinnPhong(s, start, options.blinn_phong, &state.tape)));
   };
@@ -910,8 +911,8 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
         record(state, t.pixel, robust);
         continue;
       }
-      if (options.method == Method::kAuto && !can_fit_lobe(t.lambert)) {
-        record(state, t.pixel, t.lambert);
+      if (options.method == Method::kAuto && !can_fit_lobe(t.used)) {
+        record(state, t.pixel, LambertianFit(t.x, t.chi2, t.used, 0));
         continue;
       }
       Fit lambert;
@@ -1017,7 +1018,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       }
       if (options.method != Method::kRobust) {
         const internal::Recheck* again = options.method == Method::kAuto ? &state.rechecks[j] : nullptr;
-        state.trimming.push_back({p, x, again ? LambertianFit(x, again->chi2, again->used, 0) : Fit{}});
+        state.trimming.push_back({p, x, again ? again->chi2 : 0.0, again ? again->used : 0});
         const std::size_t at = state.trim_rows.size();
         state.trim_rows.resize(at + trimmers[thread].row_length());
         trimmers[thread].CopySamples(p, &state.trim_rows[at]);
