@@ -715,10 +715,11 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
 
   // Each pixel's samples are read right after its tile's Lambertian pass,
   // while the tile is still in cache; counts are kept per thread. With the
-  // lane fitter, the doubtful pixels of a tile are rechecked (`auto`) and
-  // trimmed there, sixteen at a time; IRLS takes eight at a time and the
-  // Blinn-Phong fit sixteen, in batches gathered across tiles. The per-pixel fitter
-  // refines one pixel after another, the reference.
+  // lane fitter, the doubtful pixels of a tile are rechecked there (`auto`)
+  // and the samples of the rest copied out; trimming (sixteen pixels at a
+  // time), IRLS (eight) and the Blinn-Phong fit (sixteen) run on batches
+  // gathered across tiles. The per-pixel fitter refines one pixel after
+  // another, the reference.
   const bool lanes = options.blinn_phong.fitter == BlinnPhongOptions::Fitter::kLanes;
   struct Deferred {
     int pixel;
