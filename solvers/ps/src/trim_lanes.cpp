@@ -22,7 +22,7 @@ struct alignas(64) Lanes {
   LaneSums kept;  // the normal equations without the samples over threshold
 };
 
-// Where CopySamples puts what, in a row of RowLength(lights) floats.
+// Where CopySamples puts what in a pixel's row of length() floats.
 struct RowLayout {
   explicit RowLayout(int lights) : lights(lights) {}
   int dark() const { return lights; }
