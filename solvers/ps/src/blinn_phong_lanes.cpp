@@ -22,17 +22,17 @@ constexpr int kHessianEntries = kParameters * (kParameters + 1) / 2;
 // One point per lane: the unit normal with an orthonormal basis of its
 // tangent plane, and the material.
 struct alignas(64) LanePoint {
-  double normal[3][kFitLanes];
-  double tangent[2][3][kFitLanes];
-  double diffuse_albedo[kFitLanes], specular_albedo[kFitLanes], exponent[kFitLanes];
+  double normal[3][kFloatLanes];
+  double tangent[2][3][kFloatLanes];
+  double diffuse_albedo[kFloatLanes], specular_albedo[kFloatLanes], exponent[kFloatLanes];
 };
 
 // Gauss-Newton normal equations of the weighted residuals at a LanePoint:
 // cost = sum r^2, hessian = J^T J (upper triangle, row by row), gradient = J^T r.
 struct alignas(64) LaneEquations {
-  double cost[kFitLanes];
-  double hessian[kHessianEntries][kFitLanes];
-  double gradient[kParameters][kFitLanes];
+  double cost[kFloatLanes];
+  double hessian[kHessianEntries][kFloatLanes];
+  double gradient[kParameters][kFloatLanes];
 };
 
 void CopyLane(const LanePoint& from, int lane, LanePoint* to) {
@@ -69,10 +69,10 @@ void EvaluateLanes(const LanePoint& q, int lights, const float* geometry, const 
   constexpr float kInvPiF = static_cast<float>(kInvPi);
   // The point in float, one array per quantity, so that each lane loop reads
   // whole registers.
-  alignas(64) float nx[kFitLanes], ny[kFitLanes], nz[kFitLanes], t[2][3][kFitLanes];
-  alignas(64) float rho_d[kFitLanes], rho_s[kFitLanes], exponent[kFitLanes], lobe_scale[kFitLanes];
+  alignas(64) float nx[kFloatLanes], ny[kFloatLanes], nz[kFloatLanes], t[2][3][kFloatLanes];
+  alignas(64) float rho_d[kFloatLanes], rho_s[kFloatLanes], exponent[kFloatLanes], lobe_scale[kFloatLanes];
 #pragma omp simd
-  for (int j = 0; j < kFitLanes; ++j) {
+  for (int j = 0; j < kFloatLanes; ++j) {
     nx[j] = static_cast<float>(q.normal[0][j]), ny[j] = static_cast<float>(q.normal[1][j]);
     nz[j] = static_cast<float>(q.normal[2][j]);
     t[0][0][j] = static_cast<float>(q.tangent[0][0][j]), t[0][1][j] = static_cast<float>(q.tangent[0][1][j]);
@@ -82,17 +82,17 @@ void EvaluateLanes(const LanePoint& q, int lights, const float* geometry, const 
     exponent[j] = static_cast<float>(q.exponent[j]);
     lobe_scale[j] = static_cast<float>(q.specular_albedo[j] * (q.exponent[j] + 2.0) * (0.5 * kInvPi));
   }
-  alignas(64) float acc[1 + kHessianEntries + kParameters][kFitLanes] = {};
+  alignas(64) float acc[1 + kHessianEntries + kParameters][kFloatLanes] = {};
   for (int k = 0; k < lights; ++k) {
-    const float* sigma_k = inverse_sigma + k * kFitLanes;
+    const float* sigma_k = inverse_sigma + k * kFloatLanes;
     bool used = false;
-    for (int j = 0; j < kFitLanes; ++j) used |= sigma_k[j] != 0.0f;
+    for (int j = 0; j < kFloatLanes; ++j) used |= sigma_k[j] != 0.0f;
     if (!used) continue;  // shadowed in every lane
     const float* g = geometry + 6 * k;
     const float wx = g[0], wy = g[1], wz = g[2], hx = g[3], hy = g[4], hz = g[5];
-    const float* observed_k = observed + k * kFitLanes;
+    const float* observed_k = observed + k * kFloatLanes;
 #pragma omp simd
-    for (int j = 0; j < kFitLanes; ++j) {
+    for (int j = 0; j < kFloatLanes; ++j) {
       const float c = wx * nx[j] + wy * ny[j] + wz * nz[j];
       const float h = hx * nx[j] + hy * ny[j] + hz * nz[j];
       // Clamps as max() and two selects: GCC gives up on a lane loop with more conditions.
@@ -125,7 +125,7 @@ void EvaluateLanes(const LanePoint& q, int lights, const float* geometry, const 
       acc[16][j] += d0 * r, acc[17][j] += d1 * r, acc[18][j] += d2 * r, acc[19][j] += d3 * r, acc[20][j] += d4 * r;
     }
   }
-  for (int j = 0; j < kFitLanes; ++j) {
+  for (int j = 0; j < kFloatLanes; ++j) {
     out->cost[j] = acc[0][j];
     for (int e = 0; e < kHessianEntries; ++e) out->hessian[e][j] = acc[1 + e][j];
     for (int p = 0; p < kParameters; ++p) out->gradient[p][j] = acc[1 + kHessianEntries + p][j];
@@ -143,30 +143,30 @@ void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lam
                   double max_exponent, LanePoint* q, double* positive, double* predicted) {
   // Lower triangle of the factor, [row][col][lane]; loops over the matrix
   // indices stay outside the lane loops so that each lane loop vectorises.
-  alignas(64) double l[kParameters][kParameters][kFitLanes];
-  alignas(64) double step[kParameters][kFitLanes];
+  alignas(64) double l[kParameters][kParameters][kFloatLanes];
+  alignas(64) double step[kParameters][kFloatLanes];
   auto hessian_entry = [](int row, int col) {  // index into the packed upper triangle
     if (row > col) std::swap(row, col);
     return row * kParameters - row * (row - 1) / 2 + (col - row);
   };
   // Every lane loop below is free of inner loops: GCC does not vectorise
   // one that has them.
-  alignas(64) double sum[kFitLanes];
+  alignas(64) double sum[kFloatLanes];
 #pragma omp simd
-  for (int j = 0; j < kFitLanes; ++j) positive[j] = 1.0;
+  for (int j = 0; j < kFloatLanes; ++j) positive[j] = 1.0;
   for (int col = 0; col < kParameters; ++col) {
     const int diagonal_entry = hessian_entry(col, col);
 #pragma omp simd
-    for (int j = 0; j < kFitLanes; ++j) {
+    for (int j = 0; j < kFloatLanes; ++j) {
       const double h = eq.hessian[diagonal_entry][j];
       sum[j] = h + lambda[j] * h + 1e-12;
     }
     for (int i = 0; i < col; ++i) {
 #pragma omp simd
-      for (int j = 0; j < kFitLanes; ++j) sum[j] -= l[col][i][j] * l[col][i][j];
+      for (int j = 0; j < kFloatLanes; ++j) sum[j] -= l[col][i][j] * l[col][i][j];
     }
 #pragma omp simd
-    for (int j = 0; j < kFitLanes; ++j) {
+    for (int j = 0; j < kFloatLanes; ++j) {
       const bool ok = sum[j] > 0.0;
       positive[j] = ok ? positive[j] : 0.0;
       l[col][col][j] = std::sqrt(ok ? sum[j] : 1.0);
@@ -174,49 +174,49 @@ void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lam
     for (int row = col + 1; row < kParameters; ++row) {
       const int entry = hessian_entry(row, col);
 #pragma omp simd
-      for (int j = 0; j < kFitLanes; ++j) sum[j] = eq.hessian[entry][j];
+      for (int j = 0; j < kFloatLanes; ++j) sum[j] = eq.hessian[entry][j];
       for (int i = 0; i < col; ++i) {
 #pragma omp simd
-        for (int j = 0; j < kFitLanes; ++j) sum[j] -= l[row][i][j] * l[col][i][j];
+        for (int j = 0; j < kFloatLanes; ++j) sum[j] -= l[row][i][j] * l[col][i][j];
       }
 #pragma omp simd
-      for (int j = 0; j < kFitLanes; ++j) l[row][col][j] = sum[j] / l[col][col][j];
+      for (int j = 0; j < kFloatLanes; ++j) l[row][col][j] = sum[j] / l[col][col][j];
     }
   }
   for (int row = 0; row < kParameters; ++row) {  // L y = g
 #pragma omp simd
-    for (int j = 0; j < kFitLanes; ++j) sum[j] = eq.gradient[row][j];
+    for (int j = 0; j < kFloatLanes; ++j) sum[j] = eq.gradient[row][j];
     for (int i = 0; i < row; ++i) {
 #pragma omp simd
-      for (int j = 0; j < kFitLanes; ++j) sum[j] -= l[row][i][j] * step[i][j];
+      for (int j = 0; j < kFloatLanes; ++j) sum[j] -= l[row][i][j] * step[i][j];
     }
 #pragma omp simd
-    for (int j = 0; j < kFitLanes; ++j) step[row][j] = sum[j] / l[row][row][j];
+    for (int j = 0; j < kFloatLanes; ++j) step[row][j] = sum[j] / l[row][row][j];
   }
   for (int row = kParameters - 1; row >= 0; --row) {  // L^T step = y
 #pragma omp simd
-    for (int j = 0; j < kFitLanes; ++j) sum[j] = step[row][j];
+    for (int j = 0; j < kFloatLanes; ++j) sum[j] = step[row][j];
     for (int i = row + 1; i < kParameters; ++i) {
 #pragma omp simd
-      for (int j = 0; j < kFitLanes; ++j) sum[j] -= l[i][row][j] * step[i][j];
+      for (int j = 0; j < kFloatLanes; ++j) sum[j] -= l[i][row][j] * step[i][j];
     }
 #pragma omp simd
-    for (int j = 0; j < kFitLanes; ++j) step[row][j] = sum[j] / l[row][row][j];
+    for (int j = 0; j < kFloatLanes; ++j) step[row][j] = sum[j] / l[row][row][j];
   }
 #pragma omp simd
-  for (int j = 0; j < kFitLanes; ++j) predicted[j] = 0.0;
+  for (int j = 0; j < kFloatLanes; ++j) predicted[j] = 0.0;
   for (int row = 0; row < kParameters; ++row) {
 #pragma omp simd
-    for (int j = 0; j < kFitLanes; ++j) predicted[j] += 2.0 * step[row][j] * eq.gradient[row][j];
+    for (int j = 0; j < kFloatLanes; ++j) predicted[j] += 2.0 * step[row][j] * eq.gradient[row][j];
     for (int col = row; col < kParameters; ++col) {
       const int entry = hessian_entry(row, col);
       const double factor = row == col ? 1.0 : 2.0;
 #pragma omp simd
-      for (int j = 0; j < kFitLanes; ++j) predicted[j] -= factor * step[row][j] * step[col][j] * eq.hessian[entry][j];
+      for (int j = 0; j < kFloatLanes; ++j) predicted[j] -= factor * step[row][j] * step[col][j] * eq.hessian[entry][j];
     }
   }
 #pragma omp simd
-  for (int j = 0; j < kFitLanes; ++j) {
+  for (int j = 0; j < kFloatLanes; ++j) {
     const double step_t1 = step[0][j], step_t2 = step[1][j];
     const double nx = p.normal[0][j] - step_t1 * p.tangent[0][0][j] - step_t2 * p.tangent[1][0][j];
     const double ny = p.normal[1][j] - step_t1 * p.tangent[0][1][j] - step_t2 * p.tangent[1][1][j];
@@ -247,45 +247,45 @@ void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, d
                               const double* start_albedo, double min_exponent, double max_exponent,
                               LaneMaterial* out) {
   double exponent = 1.0;
-  const int samples = lights * kFitLanes;
+  const int samples = lights * kFloatLanes;
   while (exponent < min_exponent) {
     exponent *= 2.0;
 #pragma omp simd
     for (int i = 0; i < samples; ++i) cos_half[i] *= cos_half[i];
   }
-  alignas(64) double sum_a[kFitLanes] = {}, sum_b[kFitLanes] = {}, bb[kFitLanes] = {};
+  alignas(64) double sum_a[kFloatLanes] = {}, sum_b[kFloatLanes] = {}, bb[kFloatLanes] = {};
   for (int k = 0; k < lights; ++k) {
-    const double* c = weight + k * kFitLanes;
-    double* a = cos_light + k * kFitLanes;
-    double* b = observed + k * kFitLanes;
+    const double* c = weight + k * kFloatLanes;
+    double* a = cos_light + k * kFloatLanes;
+    double* b = observed + k * kFloatLanes;
 #pragma omp simd
-    for (int j = 0; j < kFitLanes; ++j) {
+    for (int j = 0; j < kFloatLanes; ++j) {
       const double cosine = a[j], weighted_cosine = c[j] * cosine;
       bb[j] += c[j] * b[j] * b[j];
       a[j] = weighted_cosine * cosine, b[j] = weighted_cosine * b[j];
       sum_a[j] += a[j], sum_b[j] += b[j];
     }
   }
-  alignas(64) double best_chi2[kFitLanes];
-  for (int j = 0; j < kFitLanes; ++j) {
+  alignas(64) double best_chi2[kFloatLanes];
+  for (int j = 0; j < kFloatLanes; ++j) {
     best_chi2[j] = std::numeric_limits<double>::infinity();
     out->diffuse_albedo[j] = start_albedo[j], out->specular_albedo[j] = 0.0, out->exponent[j] = exponent;
   }
   for (; exponent <= max_exponent; exponent *= 2.0) {
-    alignas(64) double sum_a_h[kFitLanes] = {}, sum_a_h2[kFitLanes] = {}, sum_b_h[kFitLanes] = {};
+    alignas(64) double sum_a_h[kFloatLanes] = {}, sum_a_h2[kFloatLanes] = {}, sum_b_h[kFloatLanes] = {};
     for (int k = 0; k < lights; ++k) {
-      const double* a = cos_light + k * kFitLanes;
-      const double* b = observed + k * kFitLanes;
-      double* h = cos_half + k * kFitLanes;
+      const double* a = cos_light + k * kFloatLanes;
+      const double* b = observed + k * kFloatLanes;
+      double* h = cos_half + k * kFloatLanes;
 #pragma omp simd
-      for (int j = 0; j < kFitLanes; ++j) {
+      for (int j = 0; j < kFloatLanes; ++j) {
         const double h2 = h[j] * h[j];
         sum_a_h[j] += a[j] * h[j], sum_a_h2[j] += a[j] * h2, sum_b_h[j] += b[j] * h[j];
         h[j] = h2;  // the next grid point's lobe
       }
     }
     const double normalisation = (exponent + 2.0) / (2.0 * M_PI);
-    for (int j = 0; j < kFitLanes; ++j) {
+    for (int j = 0; j < kFloatLanes; ++j) {
       const double dd = sum_a[j] * (kInvPi * kInvPi), db = sum_b[j] * kInvPi;
       const double dl = normalisation * kInvPi * sum_a_h[j], ll = normalisation * normalisation * sum_a_h2[j];
       const double lb = normalisation * sum_b_h[j];
@@ -309,16 +309,16 @@ BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, con
                                        const double* observed, const double* weight, double start_albedo,
                                        const BlinnPhongOptions& options) {
   // Lane 0 holds the pixel; the other lanes have no samples.
-  std::vector<double> lanes(4 * static_cast<std::size_t>(samples) * kFitLanes, 0.0);
+  std::vector<double> lanes(4 * static_cast<std::size_t>(samples) * kFloatLanes, 0.0);
   double* lane_cos_light = lanes.data();
-  double* lane_cos_half = lane_cos_light + samples * kFitLanes;
-  double* lane_observed = lane_cos_half + samples * kFitLanes;
-  double* lane_weight = lane_observed + samples * kFitLanes;
+  double* lane_cos_half = lane_cos_light + samples * kFloatLanes;
+  double* lane_observed = lane_cos_half + samples * kFloatLanes;
+  double* lane_weight = lane_observed + samples * kFloatLanes;
   for (int k = 0; k < samples; ++k) {
-    lane_cos_light[k * kFitLanes] = cos_light[k], lane_cos_half[k * kFitLanes] = cos_half[k];
-    lane_observed[k * kFitLanes] = observed[k], lane_weight[k * kFitLanes] = weight[k];
+    lane_cos_light[k * kFloatLanes] = cos_light[k], lane_cos_half[k * kFloatLanes] = cos_half[k];
+    lane_observed[k * kFloatLanes] = observed[k], lane_weight[k * kFloatLanes] = weight[k];
   }
-  alignas(64) double start[kFitLanes] = {start_albedo};
+  alignas(64) double start[kFloatLanes] = {start_albedo};
   LaneMaterial material;
   BlinnPhongGridStartLanes(samples, lane_cos_light, lane_cos_half, lane_observed, lane_weight, start,
                            options.min_exponent, options.max_exponent, &material);
@@ -328,11 +328,11 @@ BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, con
 struct BlinnPhongLaneFitter::State {
   LanePoint candidate, current, proposal;
   LaneEquations candidate_equations, current_equations;
-  double current_cost[kFitLanes];
-  double lambda[kFitLanes];
-  double positive[kFitLanes], predicted_decrease[kFitLanes];
-  int iterations[kFitLanes];
-  int problem[kFitLanes];  // index into the problems being fitted, -1 for an idle lane
+  double current_cost[kFloatLanes];
+  double lambda[kFloatLanes];
+  double positive[kFloatLanes], predicted_decrease[kFloatLanes];
+  int iterations[kFloatLanes];
+  int problem[kFloatLanes];  // index into the problems being fitted, -1 for an idle lane
 };
 
 BlinnPhongLaneFitter::BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& light_directions,
@@ -341,12 +341,12 @@ BlinnPhongLaneFitter::BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& l
       options_(options),
       geometry_(6 * light_directions.size()),
       evaluation_geometry_(6 * light_directions.size()),
-      observed_(light_directions.size() * kFitLanes),
-      inverse_sigma_(light_directions.size() * kFitLanes),
-      cos_light_(light_directions.size() * kFitLanes),
-      cos_half_(light_directions.size() * kFitLanes),
-      start_observed_(light_directions.size() * kFitLanes),
-      weight_(light_directions.size() * kFitLanes),
+      observed_(light_directions.size() * kFloatLanes),
+      inverse_sigma_(light_directions.size() * kFloatLanes),
+      cos_light_(light_directions.size() * kFloatLanes),
+      cos_half_(light_directions.size() * kFloatLanes),
+      start_observed_(light_directions.size() * kFloatLanes),
+      weight_(light_directions.size() * kFloatLanes),
       state_(std::make_unique<State>()) {
   const Eigen::Vector3d towards_camera = view.normalized();
   for (int k = 0; k < lights_; ++k) {
@@ -365,8 +365,8 @@ void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem, cons
   State& s = *state_;
   const Eigen::Vector3d n = problem.start_normal.normalized();
   for (int k = 0; k < lights_; ++k) {
-    observed_[k * kFitLanes + lane] = static_cast<float>(problem.observed[k]);
-    inverse_sigma_[k * kFitLanes + lane] = static_cast<float>(problem.inverse_sigma[k]);
+    observed_[k * kFloatLanes + lane] = static_cast<float>(problem.observed[k]);
+    inverse_sigma_[k * kFloatLanes + lane] = static_cast<float>(problem.inverse_sigma[k]);
   }
   LanePoint& q = s.candidate;
   double t1[3], t2[3];
@@ -383,9 +383,9 @@ void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem, cons
 void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problems) {
   const int count = static_cast<int>(problems.size());
   starts_.resize(count);
-  for (int first = 0; first < count; first += kFitLanes) {
-    alignas(64) double start_albedo[kFitLanes] = {}, normal[3][kFitLanes];
-    for (int j = 0; j < kFitLanes; ++j) {
+  for (int first = 0; first < count; first += kFloatLanes) {
+    alignas(64) double start_albedo[kFloatLanes] = {}, normal[3][kFloatLanes];
+    for (int j = 0; j < kFloatLanes; ++j) {
       const bool present = first + j < count;
       const Eigen::Vector3d n = present ? problems[first + j].start_normal.normalized() : Eigen::Vector3d::UnitZ();
       for (int i = 0; i < 3; ++i) normal[i][j] = n[i];
@@ -393,16 +393,16 @@ void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problem
       // Copies through per-lane pointers, apart from the vector loop below.
       for (int k = 0; k < lights_; ++k) {
         const double inverse_sigma = present ? problems[first + j].inverse_sigma[k] : 0.0;
-        start_observed_[k * kFitLanes + j] = present ? problems[first + j].observed[k] : 0.0;
-        weight_[k * kFitLanes + j] = inverse_sigma * inverse_sigma;
+        start_observed_[k * kFloatLanes + j] = present ? problems[first + j].observed[k] : 0.0;
+        weight_[k * kFloatLanes + j] = inverse_sigma * inverse_sigma;
       }
     }
     for (int k = 0; k < lights_; ++k) {
       const double* g = &geometry_[6 * k];
-      double* cos_light = &cos_light_[k * kFitLanes];
-      double* cos_half = &cos_half_[k * kFitLanes];
+      double* cos_light = &cos_light_[k * kFloatLanes];
+      double* cos_half = &cos_half_[k * kFloatLanes];
 #pragma omp simd
-      for (int j = 0; j < kFitLanes; ++j) {
+      for (int j = 0; j < kFloatLanes; ++j) {
         cos_light[j] = std::max(0.0, g[0] * normal[0][j] + g[1] * normal[1][j] + g[2] * normal[2][j]);
         cos_half[j] = std::max(0.0, g[3] * normal[0][j] + g[4] * normal[1][j] + g[5] * normal[2][j]);
       }
@@ -410,7 +410,7 @@ void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problem
     LaneMaterial material;
     BlinnPhongGridStartLanes(lights_, cos_light_.data(), cos_half_.data(), start_observed_.data(), weight_.data(),
                              start_albedo, options_.min_exponent, options_.max_exponent, &material);
-    for (int j = 0; j < kFitLanes && first + j < count; ++j)
+    for (int j = 0; j < kFloatLanes && first + j < count; ++j)
       starts_[first + j] = {material.diffuse_albedo[j], material.specular_albedo[j], material.exponent[j]};
   }
 }
@@ -421,7 +421,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
   GridStarts(problems);
   // An idle lane evaluates a harmless point with no samples.
   auto idle = [&](int lane) {
-    for (int k = 0; k < lights_; ++k) observed_[k * kFitLanes + lane] = inverse_sigma_[k * kFitLanes + lane] = 0.0f;
+    for (int k = 0; k < lights_; ++k) observed_[k * kFloatLanes + lane] = inverse_sigma_[k * kFloatLanes + lane] = 0.0f;
     double t1[3], t2[3];
     TangentBasis(0.0, 0.0, 1.0, t1, t2);
     for (int i = 0; i < 3; ++i) {
@@ -431,11 +431,11 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
     s.candidate.diffuse_albedo[lane] = s.candidate.specular_albedo[lane] = 0.0;
     s.candidate.exponent[lane] = options_.min_exponent;
   };
-  LaneQueue queue(count, kFitLanes);
+  LaneQueue queue(count, kFloatLanes);
   // A loaded problem's start is the lane's next candidate.
   auto load = [&](int lane, int index) { Load(lane, problems[index], starts_[index]); };
   auto refill = [&](int lane) { queue.Refill(lane, s.problem, load, idle); };
-  for (int lane = 0; lane < kFitLanes; ++lane) refill(lane);
+  for (int lane = 0; lane < kFloatLanes; ++lane) refill(lane);
   auto finish = [&](int lane) {
     BlinnPhongSolution& out = solutions[s.problem[lane]];
     out.ok = std::isfinite(s.current_cost[lane]);
@@ -449,11 +449,11 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
   };
   // Changes of the cost below what the float evaluation resolves are noise.
   const double tolerance = std::max(options_.relative_tolerance, kEvaluationPrecision);
-  bool stepping[kFitLanes];  // lanes whose next candidate is a step from their current point
+  bool stepping[kFloatLanes];  // lanes whose next candidate is a step from their current point
   while (queue.busy() > 0) {
     EvaluateLanes(s.candidate, lights_, evaluation_geometry_.data(), observed_.data(), inverse_sigma_.data(),
                   &s.candidate_equations);
-    for (int lane = 0; lane < kFitLanes; ++lane) {
+    for (int lane = 0; lane < kFloatLanes; ++lane) {
       stepping[lane] = false;
       if (s.problem[lane] < 0) continue;
       const double cost = s.candidate_equations.cost[lane];
@@ -493,7 +493,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
       ProposeLanes(s.current, s.current_equations, s.lambda, options_.min_exponent, options_.max_exponent,
                    &s.proposal, s.positive, s.predicted_decrease);
       retry = false;
-      for (int lane = 0; lane < kFitLanes; ++lane) {
+      for (int lane = 0; lane < kFloatLanes; ++lane) {
         if (!stepping[lane] || s.positive[lane] != 0.0) continue;
         s.lambda[lane] *= 4.0;
         if (s.lambda[lane] < 1e12) {
@@ -504,7 +504,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
         }
       }
     }
-    for (int lane = 0; lane < kFitLanes; ++lane) {
+    for (int lane = 0; lane < kFloatLanes; ++lane) {
       if (!stepping[lane]) continue;
       // Converged when even the linearised model promises less than the
       // tolerance: otherwise rounding at the minimum rejects step after step
@@ -525,7 +525,7 @@ BlinnPhongLaneFitter::Linearization BlinnPhongLaneFitter::Linearize(const BlinnP
   std::fill(inverse_sigma_.begin(), inverse_sigma_.end(), 0.0f);
   std::fill(observed_.begin(), observed_.end(), 0.0f);
   LanePoint point{};
-  for (int lane = 0; lane < kFitLanes; ++lane) {
+  for (int lane = 0; lane < kFloatLanes; ++lane) {
     const Eigen::Vector3d n = normal.normalized();
     double t1[3], t2[3];
     TangentBasis(n.x(), n.y(), n.z(), t1, t2);
@@ -536,8 +536,8 @@ BlinnPhongLaneFitter::Linearization BlinnPhongLaneFitter::Linearize(const BlinnP
     point.exponent[lane] = exponent;
   }
   for (int k = 0; k < lights_; ++k) {
-    observed_[k * kFitLanes] = static_cast<float>(problem.observed[k]);
-    inverse_sigma_[k * kFitLanes] = static_cast<float>(problem.inverse_sigma[k]);
+    observed_[k * kFloatLanes] = static_cast<float>(problem.observed[k]);
+    inverse_sigma_[k * kFloatLanes] = static_cast<float>(problem.inverse_sigma[k]);
   }
   LaneEquations equations;
   EvaluateLanes(point, lights_, evaluation_geometry_.data(), observed_.data(), inverse_sigma_.data(), &equations);

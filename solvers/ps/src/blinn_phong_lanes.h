@@ -3,7 +3,7 @@
 // SIMD lane. A pixel's Levenberg-Marquardt fit is a few iterations, each a
 // pass over its K samples with a pow per sample; run one pixel at a time that
 // pass is scalar (and, with forward-mode derivatives, carries six tangents
-// through every operation). Here kFitLanes pixels share each pass: the light
+// through every operation). Here kFloatLanes pixels share each pass: the light
 // loop is the same for all, the per-lane control flow (accept, reject,
 // converge) runs between passes, and a lane whose fit has converged takes
 // the next pixel at once, so no lane idles while others finish. The pass
@@ -29,8 +29,6 @@
 
 namespace photorig::ps::internal {
 
-inline constexpr int kFitLanes = 16;  // pixels per pass
-
 // Start material for a Blinn-Phong fit at a fixed normal: the exponent from a
 // doubling grid over [min_exponent, max_exponent] (each grid lobe is the
 // previous one squared, so no pow), with rho_d and rho_s >= 0 for each by
@@ -43,9 +41,9 @@ struct BlinnPhongMaterial {
   double diffuse_albedo = 0.0, specular_albedo = 0.0, exponent = 1.0;
 };
 struct alignas(64) LaneMaterial {
-  double diffuse_albedo[kFitLanes], specular_albedo[kFitLanes], exponent[kFitLanes];
+  double diffuse_albedo[kFloatLanes], specular_albedo[kFloatLanes], exponent[kFloatLanes];
 };
-// kFitLanes pixels at once, one per lane; arrays are [light * kFitLanes + lane],
+// kFloatLanes pixels at once, one per lane; arrays are [light * kFloatLanes + lane],
 // and cos_light, cos_half and observed are overwritten.
 void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, double* observed, const double* weight,
                               const double* start_albedo, double min_exponent, double max_exponent,
@@ -99,7 +97,7 @@ class BlinnPhongLaneFitter {
  private:
   struct State;  // lane registers, in blinn_phong_lanes.cpp
 
-  // Every problem's start material, kFitLanes problems per pass.
+  // Every problem's start material, kFloatLanes problems per pass.
   void GridStarts(std::span<const BlinnPhongProblem> problems);
   void Load(int lane, const BlinnPhongProblem& problem, const BlinnPhongMaterial& start);
 
@@ -107,9 +105,9 @@ class BlinnPhongLaneFitter {
   BlinnPhongOptions options_;
   std::vector<double> geometry_;  // per light: w (3), w_h (3)
   std::vector<float> evaluation_geometry_;  // the same in float
-  // Struct-of-arrays over lanes: [light * kFitLanes + lane].
+  // Struct-of-arrays over lanes: [light * kFloatLanes + lane].
   std::vector<float> observed_, inverse_sigma_;
-  // The start grid's inputs, [light * kFitLanes + lane], and its answers per problem.
+  // The start grid's inputs, [light * kFloatLanes + lane], and its answers per problem.
   std::vector<double> cos_light_, cos_half_, start_observed_, weight_;
   std::vector<BlinnPhongMaterial> starts_;
   std::unique_ptr<State> state_;

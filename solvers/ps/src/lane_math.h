@@ -31,8 +31,10 @@ PHOTORIG_LANE_INLINE T Horner(T x, T leading, Coefficients... rest) {
   return value;
 }
 
-// Pixels per lane kernel pass: one AVX-512 register of doubles, two of AVX2.
+// Pixels per lane kernel pass: one AVX-512 register of doubles, two of AVX2;
+// kFloatLanes for the kernels that run in float.
 inline constexpr int kLanes = 8;
+inline constexpr int kFloatLanes = 16;
 
 inline constexpr double kLn2Hi = 6.93147180369123816490e-01;  // ln 2 with 20 trailing zero bits
 inline constexpr double kLn2Lo = 1.90821492927058770002e-10;  // ln 2 - kLn2Hi

@@ -1,9 +1,7 @@
 #pragma once
-// What the float lane kernels that read samples straight from a stack's
-// planes share (recheck_lanes, trim_lanes): sixteen pixels per pass, one per
-// lane of an AVX-512 register of floats, and the stack's lights, thresholds
-// and noise as float arrays. Pixels are gathered by index, so any set of
-// pixels runs at full width.
+// What the float lane kernels that read samples from a stack's planes share
+// (recheck_lanes, trim_lanes): the stack's planes, lights, thresholds and
+// noise as float arrays, and the test of a sample against them.
 
 #include "lane_math.h"
 #include "photorig/ps/lambertian.h"
@@ -13,8 +11,6 @@
 #include <vector>
 
 namespace photorig::ps::internal {
-
-inline constexpr int kFloatLanes = 16;
 
 struct PlaneSamples {
   PlaneSamples(const PhotometricStack& stack, const LambertianOptions& options);
