@@ -51,10 +51,9 @@ daemon::PhotometricStereoInput SubsetLights(const daemon::PhotometricStereoInput
 void Evaluate(std::ostream& csv, const std::string& source, const std::string& scene, double relative_noise,
               const daemon::PhotometricStereoInput& input) {
   for (ps::Method method : kMethods) {
-    ps::PhotometricStereoOptions options;
-    options.method = method;
-    options.lambertian.shadow_threshold = std::max(1.0, 3.0 * input.stack.noise.read_sigma);
-    options.lambertian.saturation_level = input.saturation_level;
+    daemon::PhotometricStereoRequest request;  // the thresholds `photorig solve ps` uses
+    request.method = ps::MethodName(method);
+    const ps::PhotometricStereoOptions options = daemon::MakeSolverOptions(request, input.saturation_level);
     ps::PhotometricStack stack = input.stack;
     if (!input.object_mask.empty()) stack.mask = input.object_mask;
     ps::NormalMap map;

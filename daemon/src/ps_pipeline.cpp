@@ -66,20 +66,6 @@ bool ParseDerivative(const std::string& name, ps::BlinnPhongOptions* options) {
   return false;
 }
 
-// `request` has passed ValidatePhotometricStereoRequest.
-ps::PhotometricStereoOptions MakeOptions(const PhotometricStereoRequest& request, const PhotometricStereoInput& input,
-                                         double saturation_level) {
-  ps::PhotometricStereoOptions options;
-  ps::ParseMethod(request.method, &options.method);
-  ParseDerivative(request.derivative, &options.blinn_phong);
-  // The stack's read noise already includes the subtracted dark's. Never below
-  // one DN: quantisation alone leaves values within 1 DN of black in shadow.
-  options.lambertian.shadow_threshold = std::max(1.0, request.shadow_threshold_sigma * input.stack.noise.read_sigma);
-  options.lambertian.saturation_level = saturation_level;
-  options.lambertian.max_condition_number = request.max_condition_number;
-  return options;
-}
-
 json MetricsJson(const ps::AngularErrorStats& stats) {
   return {{"pixels_with_truth", stats.pixels_with_truth},
           {"pixels_evaluated", stats.pixels_evaluated},
@@ -93,6 +79,21 @@ json MetricsJson(const ps::AngularErrorStats& stats) {
 }
 
 }  // namespace
+
+ps::PhotometricStereoOptions MakeSolverOptions(const PhotometricStereoRequest& request, double saturation_level) {
+  ps::PhotometricStereoOptions options;
+  ps::ParseMethod(request.method, &options.method);
+  ParseDerivative(request.derivative, &options.blinn_phong);
+  // Never below one DN: quantisation alone leaves values within 1 DN of black
+  // in shadow. Above that, a multiple of the read noise: the stack's (which
+  // includes the subtracted dark's) or, for a data set without dark frames,
+  // the solver's estimate.
+  options.lambertian.shadow_threshold = 1.0;
+  options.shadow_threshold_read_sigmas = request.shadow_threshold_sigma;
+  options.lambertian.saturation_level = saturation_level;
+  options.lambertian.max_condition_number = request.max_condition_number;
+  return options;
+}
 
 void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request) {
   ps::Method method;
@@ -207,7 +208,7 @@ json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoR
     const double full_scale = std::exp2(std::ceil(std::log2(max_value + 1.0))) - 1.0;
     if (max_value >= full_scale) saturation = full_scale;
   }
-  const ps::PhotometricStereoOptions options = MakeOptions(request, input, saturation);
+  const ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
 
   ps::NormalMap map;
   const ps::SolverSummary summary = ps::SolvePhotometricStereo(options, stack, &map);
@@ -226,7 +227,7 @@ json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoR
                    {"shot_gain", summary.noise_shot_gain},
                    {"estimated", summary.noise_estimated}}},
                  {"noise_sigma_dn", stack.noise.read_sigma},
-                 {"shadow_threshold", options.lambertian.shadow_threshold},
+                 {"shadow_threshold", summary.shadow_threshold},
                  {"saturation_level", std::isfinite(saturation) ? json(saturation) : json(nullptr)},
                  {"pixels",
                   {{"total", summary.pixels_total},

@@ -306,6 +306,70 @@ TEST(PhotometricStereo, EstimatesShotNoiseGainWithMostPixelsShiny) {
   EXPECT_LE(summary.pixels_lambertian, 0.5 * summary.pixels_solved) << summary.BriefReport();
 }
 
+// A data set without dark frames (DiLiGenT's layout): black subtracted and
+// clipped at 0, no noise model. Shadowed samples lifted by read noise (sigma
+// 3 DN here) pass a 1 DN threshold and tilt the fits; a threshold of three
+// read-noise sigmas, with the read noise estimated from the residuals, keeps
+// them out.
+PhotometricStack StackWithoutDarks(double read_sigma) {
+  const auto truth = RandomSurface(48, 48, 60.0);
+  auto stack = RenderShinyStack(truth, RingLights(32, 20, 80), 1500.0, Specular{}, 0.0f, read_sigma);
+  for (cv::Mat& image : stack.images) image = cv::max(image, 0.0f);
+  stack.noise = NoiseModel{};
+  return stack;
+}
+
+TEST(PhotometricStereo, ShadowThresholdInReadNoiseSigmasUsesTheEstimatedReadNoise) {
+  const auto truth = RandomSurface(48, 48, 60.0);
+  const PhotometricStack stack = StackWithoutDarks(3.0);
+  PhotometricStereoOptions options = Options(Method::kLambertian, 1.0);
+  options.estimate_noise = true;
+  Outcome absolute, relative;
+  absolute.summary = SolvePhotometricStereo(options, stack, &absolute.map);
+  options.shadow_threshold_read_sigmas = 3.0;
+  relative.summary = SolvePhotometricStereo(options, stack, &relative.map);
+  ASSERT_TRUE(absolute.summary.IsSolutionUsable() && relative.summary.IsSolutionUsable());
+  EXPECT_FALSE(absolute.summary.noise_estimated);  // `lambertian` needs no noise for a fixed threshold
+  EXPECT_DOUBLE_EQ(absolute.summary.shadow_threshold, 1.0);
+  EXPECT_TRUE(relative.summary.noise_estimated);
+  EXPECT_NEAR(relative.summary.noise_read_sigma, 3.0, 1.0);
+  EXPECT_DOUBLE_EQ(relative.summary.shadow_threshold, 3.0 * relative.summary.noise_read_sigma);
+  const double before = CompareNormals(absolute.map.normals, truth.normals).mean_deg;
+  const double after = CompareNormals(relative.map.normals, truth.normals).mean_deg;
+  EXPECT_LT(after, before / 3.0) << before << " deg with a 1 DN threshold";
+}
+
+TEST(PhotometricStereo, ReadNoiseEstimateKeepsAGivenShotGain) {
+  PhotometricStack stack = StackWithoutDarks(3.0);
+  stack.noise.shot_gain = 0.25;  // the camera's, known; the read noise is not
+  PhotometricStereoOptions options = Options(Method::kAuto, 1.0);
+  options.estimate_noise = true;
+  options.shadow_threshold_read_sigmas = 3.0;
+  NormalMap map;
+  const SolverSummary summary = SolvePhotometricStereo(options, stack, &map);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  EXPECT_TRUE(summary.noise_estimated);
+  EXPECT_DOUBLE_EQ(summary.noise_shot_gain, 0.25);
+  EXPECT_GT(summary.noise_read_sigma, 0.0);
+}
+
+TEST(PhotometricStereo, ShadowThresholdRaisedPastSaturationIsReported) {
+  PhotometricStack stack = StackWithoutDarks(3.0);
+  stack.noise.read_sigma = 20.0;
+  PhotometricStereoOptions options = Options(Method::kLambertian, 1.0);
+  options.lambertian.saturation_level = 50.0;
+  options.shadow_threshold_read_sigmas = 3.0;  // 60 DN, above saturation
+  NormalMap map;
+  const SolverSummary summary = SolvePhotometricStereo(options, stack, &map);
+  EXPECT_FALSE(summary.IsSolutionUsable());
+  EXPECT_NE(summary.message.find("saturation_level"), std::string::npos) << summary.message;
+  EXPECT_NE(summary.message.find("read-noise sigmas"), std::string::npos) << summary.message;
+  options.shadow_threshold_read_sigmas = -1.0;
+  std::string why;
+  EXPECT_FALSE(options.IsValid(&why));
+  EXPECT_NE(why.find("shadow_threshold_read_sigmas"), std::string::npos);
+}
+
 TEST(PhotometricStereoOptions, InvalidOptionsAreReported) {
   PhotometricStereoOptions options;
   options.blinn_phong.min_exponent = 0.0;

@@ -12,6 +12,7 @@
 //   report.json         timings, counts, noise model, metrics
 
 #include "photorig/daemon/ps_request.h"
+#include "photorig/ps/photometric_stereo.h"
 #include "photorig/ps/stack.h"
 
 #include <nlohmann/json.hpp>
@@ -39,6 +40,11 @@ struct PhotometricStereoInput {
 // averaged and their noise becomes the stack's read noise. Throws
 // std::runtime_error naming the file for unreadable or inconsistent runs.
 PhotometricStereoInput LoadRunStack(const std::string& run_directory);
+
+// The solver's options for a request that has passed
+// ValidatePhotometricStereoRequest; samples at or above saturation_level are
+// clipped.
+ps::PhotometricStereoOptions MakeSolverOptions(const PhotometricStereoRequest& request, double saturation_level);
 
 // Solves and writes every output into `output_directory`; returns report.json.
 // A solver that cannot produce a result is not an exception: the report says

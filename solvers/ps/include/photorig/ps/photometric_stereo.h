@@ -99,6 +99,15 @@ struct PhotometricStereoOptions {
   // noise, if unknown too) to the residuals before testing adequacy. Off: the
   // stack's noise model is taken as complete.
   bool estimate_noise = true;
+  // When > 0, samples within this many read-noise sigmas of the dark level
+  // count as shadowed too: the shadow threshold becomes the larger of
+  // lambertian.shadow_threshold and this multiple of the read noise. The read
+  // noise is the stack's (from dark frames) or, where the stack has none (a
+  // data set without dark frames), estimated from the residuals as above (then
+  // for `lambertian` too, and once more at the raised threshold). A noise
+  // lift of three sigmas puts one shadowed sample in 740 above it. 0: the
+  // absolute threshold only. SolverSummary::shadow_threshold reports the one used.
+  double shadow_threshold_read_sigmas = 0.0;
   bool IsValid(std::string* why) const;
 };
 

@@ -37,6 +37,7 @@ struct SolverSummary {
   bool noise_estimated = false;
   double noise_read_sigma = 0.0;  // the noise model the tests used, input units
   double noise_shot_gain = 0.0;
+  double shadow_threshold = 0.0;  // I - D at or below which a sample counted as shadowed, input units
 
   double setup_ms = 0.0;
   double solve_ms = 0.0;
