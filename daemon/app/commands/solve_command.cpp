@@ -48,7 +48,7 @@ CommandRunner SetupSolve(CLI::App& app) {
   ps->add_option("--derivative", options->request.derivative,
                  "Blinn-Phong fit: lanes (default) | per pixel with forward | reverse | symbolic | central-difference");
   ps->add_option("--integrator", options->request.integrator, "poisson | frankot-chellappa | none");
-  ps->add_option("--shadow-sigma", options->request.shadow_threshold_sigma, "shadow threshold in dark-noise sigmas")
+  ps->add_option("--shadow-sigma", options->request.shadow_threshold_sigma, "shadow threshold in read-noise sigmas (from dark frames, else estimated)")
       ->check(CLI::NonNegativeNumber);
   ps->add_option("--out", options->out, "output directory (default: SOURCE/results/ps)");
   return {ps, [options] { return Execute(*options); }};

@@ -10,10 +10,12 @@ namespace photorig::daemon {
 
 struct PhotometricStereoRequest {
   std::string method = "auto";          // l2 | lambertian | robust | blinn-phong | auto
-  double shadow_threshold_sigma = 3.0;  // samples within this many dark-noise sigmas of black are shadows
+  // Samples within this many read-noise sigmas of black (and within 1 DN) are
+  // shadows; the read noise comes from dark frames, or is estimated without them.
+  double shadow_threshold_sigma = 3.0;
   double max_condition_number = 1e3;
-  // Blinn-Phong fit: lanes (closed-form derivatives, eight pixels per SIMD
-  // pass) | forward | reverse | symbolic | central-difference (one pixel at a
+  // Blinn-Phong fit: lanes (closed-form derivatives, sixteen pixels per SIMD
+  // pass in float) | forward | reverse | symbolic | central-difference (one pixel at a
   // time, Jacobians by that method).
   std::string derivative = "lanes";
   std::string integrator = "poisson";   // depth from normals: poisson | frankot-chellappa | none
