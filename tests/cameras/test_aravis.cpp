@@ -305,7 +305,8 @@ TEST(AravisCamera, ReconnectsAndReappliesSettingsWhenTheCameraRestarts) {
   ASSERT_TRUE(camera.Configure(Settings(2000.0, 2.0)).ok());
   ASSERT_TRUE(camera.Start().ok());
   ASSERT_TRUE(camera.Trigger().ok());
-  ASSERT_TRUE(camera.WaitFrame(2000).ok());
+  const auto first = camera.WaitFrame(2000);
+  ASSERT_TRUE(first.ok()) << first.status().ToString();
 
   // The camera power-cycles: a new device with default registers (Mono8, 10 ms, gain 0) and no controller.
   fake.reset();
