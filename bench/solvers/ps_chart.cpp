@@ -1,5 +1,7 @@
 // photorig-ps-chart: every photometric-stereo method on the simulated rig's
-// scenes (and on DiLiGenT folders given as arguments), written as CSV rows
+// scenes, captured on the 96-LED dome (config/rigs/sim-dome-96.yaml) and solved
+// with all 96 lights and with every 2nd, 4th and 8th of them (and on DiLiGenT
+// folders given as arguments), written as CSV rows
 //   source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,robust_pct,blinn_phong_pct
 // for scripts/chart-ps.sh; solve_ms is the fastest of three runs. Captures go
 // through the same code as `photorig run`.
@@ -81,9 +83,11 @@ void Evaluate(std::ostream& csv, const std::string& source, const std::string& s
   }
 }
 
-// Captures `recipe` with its exposure divided by `dimming` (shot noise relative
-// to the signal grows as sqrt(dimming); read noise as dimming).
-daemon::PhotometricStereoInput Capture(const fs::path& recipe, double dimming, const fs::path& scratch) {
+// Captures `recipe` on the rig `rig` with its exposure divided by `dimming`
+// (shot noise relative to the signal grows as sqrt(dimming); read noise as
+// dimming).
+daemon::PhotometricStereoInput Capture(const fs::path& recipe, const fs::path& rig, double dimming,
+                                       const fs::path& scratch) {
   std::ifstream in(recipe);
   std::stringstream text;
   text << in.rdbuf();
@@ -93,7 +97,9 @@ daemon::PhotometricStereoInput Capture(const fs::path& recipe, double dimming, c
   if (!std::regex_search(yaml, match, exposure)) throw std::runtime_error(recipe.string() + ": no exposure_us");
   const double exposure_us = std::stod(match[1]) / dimming;
   yaml = std::regex_replace(yaml, exposure, "exposure_us: " + std::to_string(exposure_us), std::regex_constants::format_first_only);
-  yaml = std::regex_replace(yaml, std::regex("rig: \\.\\./rigs/"), "rig: " + fs::absolute(recipe.parent_path().parent_path() / "rigs").string() + "/");
+  const std::regex rig_line("rig: *[^\\n]*");
+  if (!std::regex_search(yaml, rig_line)) throw std::runtime_error(recipe.string() + ": no rig");
+  yaml = std::regex_replace(yaml, rig_line, "rig: " + fs::absolute(rig).string(), std::regex_constants::format_first_only);
   const fs::path modified = scratch / (recipe.stem().string() + ".yaml");
   std::ofstream(modified) << yaml;
   daemon::RunRequest request;
@@ -122,12 +128,13 @@ int main(int argc, char** argv) {
   const fs::path scratch = fs::temp_directory_path() / "photorig-ps-chart";
   fs::create_directories(scratch);
   try {
+    const fs::path rig = source / "config" / "rigs" / "sim-dome-96.yaml";
     for (const char* scene : {"ps-sphere", "ps-shiny-sphere", "ps-ggx-bumps"}) {
       const fs::path recipe = source / "config" / "recipes" / (std::string(scene) + ".yaml");
       for (double dimming : {1.0, 4.0, 16.0}) {
-        const daemon::PhotometricStereoInput input = Capture(recipe, dimming, scratch);
+        const daemon::PhotometricStereoInput input = Capture(recipe, rig, dimming, scratch);
         if (dimming == 1.0) {
-          for (int step : {4, 2}) Evaluate(csv, "sim", scene, 1.0, SubsetLights(input, step));
+          for (int step : {8, 4, 2}) Evaluate(csv, "sim", scene, 1.0, SubsetLights(input, step));
         }
         Evaluate(csv, "sim", scene, std::sqrt(dimming), input);
       }
