@@ -85,12 +85,13 @@ struct Specular {
   double exponent = 1.0;  // e
 };
 
-// Diffuse + normalised Blinn-Phong, orthographic view (0, 0, 1), written out
-// independently of the solver's autodiff model:
+// Diffuse + normalised Blinn-Phong, orthographic view (the unit vector
+// `view` towards the camera, stored in the stack), written out independently
+// of the solver's autodiff model:
 //   I_k = dark + s_k [rho_d/pi + rho_s (e+2)/(2 pi) max(0, h.n)^e] max(0, n.w) + noise
 inline PhotometricStack RenderShinyStack(const TruthMaps& truth, const std::vector<Eigen::Vector3d>& lights,
                                          double scale, Specular specular, float dark_level, double noise_sigma,
-                                         unsigned seed = 11) {
+                                         unsigned seed = 11, const Eigen::Vector3d& view = Eigen::Vector3d::UnitZ()) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   PhotometricStack stack;
@@ -98,7 +99,7 @@ inline PhotometricStack RenderShinyStack(const TruthMaps& truth, const std::vect
   stack.light_scales.assign(lights.size(), scale);
   stack.dark = cv::Mat(truth.albedo.size(), CV_32F, cv::Scalar(dark_level));
   stack.noise.read_sigma = noise_sigma;
-  const Eigen::Vector3d view(0, 0, 1);
+  stack.view_direction = view;
   for (const Eigen::Vector3d& w : lights) {
     const Eigen::Vector3d h = (w + view).normalized();
     cv::Mat image(truth.albedo.size(), CV_32F);

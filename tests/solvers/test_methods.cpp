@@ -83,6 +83,29 @@ TEST(PhotometricStereo, BlinnPhongFitRecoversShinyPixelsExactlyWithoutNoise) {
   EXPECT_GE(checked, 100) << "specular parameters recovered at too few pixels";
 }
 
+// The lobe sits around the half vector of light and view: with the lights
+// given in a frame the camera is tilted in (20 deg here), a fit that took the
+// view as (0, 0, 1) would put every lobe in the wrong place. Both fitters take
+// the stack's view direction.
+TEST(PhotometricStereo, BlinnPhongFitsTakeTheStacksViewDirection) {
+  const auto truth = RandomSurface(16, 16, 30.0);
+  const Eigen::Vector3d view(std::sin(20 * M_PI / 180), 0.0, std::cos(20 * M_PI / 180));
+  const auto stack = RenderShinyStack(truth, RingLights(40, 25, 85), 1000.0, Specular{0.4, 40.0}, 0.0f, 0.5, 11, view);
+  PhotometricStack assumed_overhead = stack;
+  assumed_overhead.view_direction = Eigen::Vector3d::UnitZ();
+  for (auto fitter : {BlinnPhongOptions::Fitter::kLanes, BlinnPhongOptions::Fitter::kPerPixel}) {
+    PhotometricStereoOptions options = Options(Method::kBlinnPhong, 2.0);
+    options.blinn_phong.fitter = fitter;
+    NormalMap right, wrong;
+    ASSERT_TRUE(SolvePhotometricStereo(options, stack, &right).IsSolutionUsable());
+    ASSERT_TRUE(SolvePhotometricStereo(options, assumed_overhead, &wrong).IsSolutionUsable());
+    const double right_deg = CompareNormals(right.normals, truth.normals).mean_deg;
+    const double wrong_deg = CompareNormals(wrong.normals, truth.normals).mean_deg;
+    EXPECT_LT(right_deg, 0.2) << "fitter " << static_cast<int>(fitter);
+    EXPECT_GT(wrong_deg, 5.0 * right_deg) << "fitter " << static_cast<int>(fitter);
+  }
+}
+
 TEST(PhotometricStereo, RobustAndAutoAtLeastHalveTheL2ErrorOnHighlights) {
   const auto truth = RandomSurface(40, 40, 40.0);
   const auto lights = RingLights(48, 30, 85);

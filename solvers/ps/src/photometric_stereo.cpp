@@ -410,8 +410,8 @@ Fit FitTrimmed(const PixelSamples& s, int max_rejected, double gross_u2, const A
 // The normal's two degrees of freedom, rho_d, rho_s and e.
 constexpr int kBlinnPhongParameters = 5;
 
-Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptions& options,
-                  autodiff::Tape* tape) {
+Fit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const Fit& start,
+                  const BlinnPhongOptions& options, autodiff::Tape* tape) {
   const int n = s.size();
   Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
   Eigen::VectorXd observed(n), inverse_sigma(n);
@@ -420,7 +420,6 @@ Fit FitBlinnPhong(const PixelSamples& s, const Fit& start, const BlinnPhongOptio
     observed[k] = s.b[k];
     inverse_sigma[k] = 1.0 / std::sqrt(s.variance[k]);
   }
-  const Eigen::Vector3d view(0, 0, 1);
   const autodiff::BlinnPhongPixel pixel(directions, Eigen::VectorXd::Ones(n), view, observed);
 
   // Start: the normal of the robust fit and the material of the best point
@@ -806,7 +805,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   std::vector<internal::TrimmedLambertianLanes> trimmers;
   if (lanes) {
     for (int t = 0; t < threads; ++t) {
-      fitters.emplace_back(working.light_directions, Eigen::Vector3d::UnitZ(), options.blinn_phong);
+      fitters.emplace_back(working.light_directions, working.view_direction, options.blinn_phong);
       trimmers.emplace_back(working, lambertian, gross_u2, options.selection.max_rejected_fraction);
     }
   }
@@ -896,7 +895,8 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       return record(state, p, robust);
     if (options.method == Method::kAuto && !can_fit_lobe(lambert.used)) return record(state, p, lambert);
     const Fit& start = robust.ok ? robust : lambert;
-    record(state, p, choose_blinn_phong(lambert, FitBlinnPhong(s, start, options.blinn_phong, &state.tape)));
+    const Fit lobe = FitBlinnPhong(s, working.view_direction, start, options.blinn_phong, &state.tape);
+    record(state, p, choose_blinn_phong(lambert, lobe));
   };
   auto fit_deferred = [&](int thread) {
     ThreadState& state = states[thread];

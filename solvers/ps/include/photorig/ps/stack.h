@@ -38,7 +38,10 @@ struct PhotometricStack {
   std::vector<double> light_scales;
   cv::Mat mask;  // optional CV_8U; zero = do not solve
   NoiseModel noise;
-  // Unit vector towards the camera, for view-dependent reflectance (orthographic camera).
+  // Unit vector towards the camera in the frame of the light directions, the
+  // same for every pixel (an orthographic camera): (0, 0, 1) in camera
+  // coordinates, another where the lights are given in a frame the camera is
+  // tilted in. The Blinn-Phong fits take their half vectors from it.
   Eigen::Vector3d view_direction{0.0, 0.0, 1.0};
 
   int width() const { return images.empty() ? 0 : images.front().cols; }
