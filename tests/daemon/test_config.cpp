@@ -6,8 +6,10 @@
 #include "config_error_check.h"
 #include "test_support.h"
 
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <regex>
 
@@ -51,6 +53,31 @@ TEST(RigConfig, LoadsTheShippedSimulatedDome) {
   }
   ASSERT_TRUE(rig.IsSimulated());
   EXPECT_DOUBLE_EQ(rig.camera.dn_per_radiance_per_us, rig.sim->sensor.response_e_per_us / rig.sim->sensor.e_per_dn);
+}
+
+// The photometric-stereo chart solves with every 8th, 4th and 2nd LED of this
+// dome: each subset must reach from the low rings to the high ones and all
+// the way round, or its light matrix would be poorly conditioned (each is
+// about 1.16).
+TEST(RigConfig, TheNinetySixLedDomeAndItsSubsetsAreWellSpread) {
+  const RigConfig rig = LoadRigConfig(SourceDir() + "/config/rigs/sim-dome-96.yaml");
+  EXPECT_EQ(rig.name, "sim-dome-96");
+  ASSERT_EQ(rig.lights.leds.size(), 96u);
+  for (std::size_t step : {8u, 4u, 2u, 1u}) {
+    Eigen::Matrix3d gram = Eigen::Matrix3d::Zero();
+    double lowest = 1.0, highest = 0.0;
+    for (std::size_t i = 0; i < rig.lights.leds.size(); i += step) {
+      const Eigen::Vector3d& w = rig.lights.leds[i].direction;
+      EXPECT_NEAR(w.norm(), 1.0, 1e-6);
+      gram += w * w.transpose();
+      lowest = std::min(lowest, w.z());
+      highest = std::max(highest, w.z());
+    }
+    const Eigen::Vector3d eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(gram).eigenvalues();
+    EXPECT_LT(std::sqrt(eigenvalues(2) / eigenvalues(0)), 2.0) << "every " << step << "th LED";
+    EXPECT_LT(lowest, std::sin(25 * M_PI / 180)) << "every " << step << "th LED";
+    EXPECT_GT(highest, std::sin(65 * M_PI / 180)) << "every " << step << "th LED";
+  }
 }
 
 TEST(RigConfig, PositionsBecomeDirections) {
