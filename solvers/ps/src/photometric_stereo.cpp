@@ -574,12 +574,31 @@ NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions&
   if (!read_known)
     std::nth_element(samples.begin(), samples.begin() + (darkest - 1), samples.end(),
                      [](const Sample& a, const Sample& b) { return a.signal < b.signal; });
-  for (int round = 0; round < (read_known ? 1 : 2); ++round) {
-    if (!read_known) {
-      std::vector<double> reads;
-      for (std::size_t i = 0; i < darkest; ++i) reads.push_back(samples[i].variance - gain * samples[i].signal);
-      read2 = std::max(0.0, corrected_lower_decile(reads));
+  // Given the gain, read^2 is where the lower decile of v_p / (read^2 + gain
+  // signal_p) over those pixels equals the chi-square lower decile (bias); the
+  // ratio is decreasing in read^2, so bisection finds it. (The lower decile of
+  // v_p - gain signal_p instead comes out low by gain signal_p (1 / bias - 1):
+  // 0.8 DN for 3 DN of read noise where shot noise dominated the dark pixels.)
+  auto read_variance = [&](double gain) {
+    std::vector<double> ratios(darkest);
+    auto decile_ratio = [&](double r2) {
+      for (std::size_t i = 0; i < darkest; ++i)
+        ratios[i] = samples[i].variance / std::max(r2 + gain * std::max(samples[i].signal, 0.0), 1e-300);
+      auto at = ratios.begin() + static_cast<std::ptrdiff_t>(kQuantile * (darkest - 1));
+      std::nth_element(ratios.begin(), at, ratios.end());
+      return *at;
+    };
+    if (decile_ratio(0.0) <= bias) return 0.0;  // shot noise alone explains the darkest pixels
+    double low = 0.0, high = 1.0;
+    while (decile_ratio(high) > bias) high *= 4.0;
+    for (int step = 0; step < 60; ++step) {
+      const double middle = 0.5 * (low + high);
+      (decile_ratio(middle) > bias ? low : high) = middle;
     }
+    return 0.5 * (low + high);
+  };
+  for (int round = 0; round < (read_known ? 1 : 2); ++round) {
+    if (!read_known) read2 = read_variance(gain);
     if (gain_known) break;  // the read noise was all that was missing
     std::vector<double> gains;
     for (const Sample& sample : samples)
