@@ -2,19 +2,18 @@
 // What a photometric-stereo solve did, how long it took, and how many pixels
 // it could not resolve. Solvers return this instead of throwing.
 
+#include "photorig/solvers/summary.h"
+
 #include <cstddef>
 #include <string>
 
 namespace photorig::ps {
 
-enum class Termination {
-  kSuccess,  // every pixel in the mask was either solved or flagged with a reason
-  kFailure   // no usable result at all (bad input, degenerate lights); see message
-};
+// kSuccess: every pixel in the mask was either solved or flagged with a reason.
+// kInvalidOptions, kInvalidInput, kFailure (degenerate lights): no result; see message.
+using solvers::Termination;
 
-struct SolverSummary {
-  Termination termination = Termination::kFailure;
-  std::string message;
+struct SolverSummary : solvers::Summary {
   std::string method;
 
   double condition_number = 0.0;  // of the full light matrix A (K x 3)
@@ -39,11 +38,6 @@ struct SolverSummary {
   double noise_shot_gain = 0.0;
   double shadow_threshold = 0.0;  // I - D at or below which a sample counted as shadowed, input units
 
-  double setup_ms = 0.0;
-  double solve_ms = 0.0;
-  double total_ms = 0.0;
-
-  bool IsSolutionUsable() const { return termination == Termination::kSuccess; }
   std::string BriefReport() const;
 };
 

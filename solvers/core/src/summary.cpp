@@ -1,0 +1,58 @@
+#include "photorig/solvers/summary.h"
+
+#include <utility>
+
+namespace photorig::solvers {
+namespace {
+double MillisecondsBetween(std::chrono::steady_clock::time_point from, std::chrono::steady_clock::time_point to) {
+  return std::chrono::duration<double, std::milli>(to - from).count();
+}
+}  // namespace
+
+const char* TerminationName(Termination termination) {
+  switch (termination) {
+    case Termination::kSuccess: return "success";
+    case Termination::kNoConvergence: return "no-convergence";
+    case Termination::kInvalidOptions: return "invalid-options";
+    case Termination::kInvalidInput: return "invalid-input";
+    case Termination::kFailure: return "failure";
+  }
+  return "failure";
+}
+
+bool Summary::IsSolutionUsable() const {
+  return termination == Termination::kSuccess || termination == Termination::kNoConvergence;
+}
+
+void Summary::End(Termination how, std::string why) {
+  termination = how;
+  message = std::move(why);
+}
+
+Summary Ended(Termination how, std::string why) {
+  Summary summary;
+  summary.End(how, std::move(why));
+  return summary;
+}
+
+SolveTimer::SolveTimer() : start_(Clock::now()), solve_start_(start_) {}
+
+void SolveTimer::SetupDone(Summary* summary) {
+  solve_start_ = Clock::now();
+  summary->setup_ms = MillisecondsBetween(start_, solve_start_);
+  setup_done_ = true;
+}
+
+void SolveTimer::Finish(Summary* summary) const {
+  const Clock::time_point end = Clock::now();
+  summary->total_ms = MillisecondsBetween(start_, end);
+  summary->solve_ms = MillisecondsBetween(setup_done_ ? solve_start_ : start_, end);
+}
+
+Summary SolveTimer::Succeeded(std::string note) const {
+  Summary summary = Ended(Termination::kSuccess, std::move(note));
+  Finish(&summary);
+  return summary;
+}
+
+}  // namespace photorig::solvers
