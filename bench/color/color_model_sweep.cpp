@@ -16,7 +16,14 @@ int main(int argc, char** argv) {
     return 2;
   }
   CalibrationOptions options;
-  if (argc >= 4 && std::string(argv[2]) == "--loss") options.loss = ParseFitLoss(argv[3]);
+  if (argc >= 4 && std::string(argv[2]) == "--loss") {
+    const std::optional<FitLoss> loss = ParseFitLoss(argv[3]);
+    if (!loss) {
+      std::fprintf(stderr, "unknown fit loss '%s' (known: xyz, ciede2000)\n", argv[3]);
+      return 2;
+    }
+    options.loss = *loss;
+  }
   std::printf("camera,model,terms,loss,training_mean,held_out_mean,held_out_max,fit_loo_ms,chosen\n");
   for (const std::string& camera : CameraNames()) {
     const ChartCalibration chart = bench::SimulatedChart(camera, Illuminant::kD65, options);

@@ -73,8 +73,11 @@ int main(int argc, char** argv) {
       UnwrapOptions options;
       options.width = 256;
       options.blind_cone_deg = cone;
-      const LatLongMap back = MirrorBallToLatLong(
-          LatLongToMirrorBall(env, size), LocateSphere(CameraModel{}, Circle{(size - 1) / 2.0, (size - 1) / 2.0, size / 2.0}), options);
+      cv::Mat ball;
+      LatLongMap back;
+      LatLongToMirrorBall(env, size, &ball);
+      MirrorBallToLatLong(ball, LocateSphere(CameraModel{}, Circle{(size - 1) / 2.0, (size - 1) / 2.0, size / 2.0}),
+                          options, &back);
       cv::Mat diff;
       cv::absdiff(back.radiance, env, diff);
       const double error = cv::sum(diff.setTo(0, back.valid == 0))[0] / cv::sum(env.clone().setTo(0, back.valid == 0))[0];

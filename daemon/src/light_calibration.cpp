@@ -130,7 +130,7 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
       return summary;
     }
     const SphereFitSummary fit = FitSphereSilhouette(silhouette);
-    if (!fit.success) {
+    if (!fit.IsSolutionUsable()) {
       summary.message = request.silhouette_image + ": " + fit.message;
       return summary;
     }
@@ -151,7 +151,7 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
     if (request.sphere_radius_mm > 0.0 && inputs.pixel_pitch_mm > 0.0)
       options.fixed_radius_px = request.sphere_radius_mm / inputs.pixel_pitch_mm;
     const HighlightCircleSummary fit = LocateSphereFromHighlights(inputs.frames, inputs.nominal_directions, options);
-    if (!fit.success) {
+    if (!fit.IsSolutionUsable()) {
       summary.message = "sphere from highlights: " + fit.message;
       return summary;
     }

@@ -268,14 +268,14 @@ json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoR
       cv::Mat depth;
       const ps::IntegrationSummary integrated = ps::IntegrateNormals(integration, map.normals, solved, &depth);
       report["depth"] = {{"integrator", request.integrator},
-                         {"success", integrated.success},
+                         {"success", integrated.IsSolutionUsable()},
                          {"message", integrated.message},
                          {"pixels", integrated.pixels},
                          {"pixels_dropped", integrated.pixels_dropped},
                          {"residual_rms", integrated.residual_rms},
                          {"pixel_pitch", input.pixel_pitch}};
       report["timings_ms"]["integrate"] = integrated.solve_ms;
-      if (integrated.success) {
+      if (integrated.IsSolutionUsable()) {
         WriteFloatTiff((out / "depth.tiff").string(), depth);
         WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
         if (!input.truth_height.empty()) {

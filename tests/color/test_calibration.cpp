@@ -13,6 +13,14 @@ namespace {
 using testing::RenderChart;
 using testing::SimMeasureOptions;
 
+// CameraToXyz that must succeed.
+cv::Mat ToXyz(const ColorModel& model, const cv::Mat& image, const cv::Mat& dark, const ApplyOptions& options) {
+  cv::Mat xyz;
+  const solvers::Summary summary = CameraToXyz(model, image, dark, options, &xyz);
+  EXPECT_EQ(summary.termination, solvers::Termination::kSuccess) << summary.message;
+  return xyz;
+}
+
 LocateOptions FixedChart() {
   LocateOptions options;
   options.use_detector = false;
@@ -30,7 +38,7 @@ TEST(ColorCalibration, ChosenModelMeetsTheAccuracyTargetForNikonUnderD65) {
   const sim::ChartRender render = RenderChart("nikon-5100", Illuminant::kD65);
   const ChartCalibration result = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, FixedChart(),
                                                       SimMeasureOptions(render), CalibrationOptions{});
-  ASSERT_TRUE(result.summary.IsUsable()) << result.summary.message;
+  ASSERT_TRUE(result.summary.IsSolutionUsable()) << result.summary.message;
   const ModelEvaluation& chosen = result.summary.models[static_cast<std::size_t>(result.summary.chosen)];
   EXPECT_LE(chosen.held_out_mean, 0.8) << result.summary.message;
   // Every model fits its training patches at least as well as it predicts held-out ones,
@@ -46,11 +54,11 @@ TEST(ColorCalibration, ChosenModelMeetsTheAccuracyTargetForNikonUnderD65) {
 TEST(ColorCalibration, Ciede2000LossLowersTheTrainingError) {
   const sim::ChartRender render = RenderChart("nikon-5100", Illuminant::kD65);
   CalibrationOptions options;
-  options.candidates = {ModelSpec::Parse("linear")};
+  options.candidates = {*ModelSpec::Parse("linear")};
   const auto xyz = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, FixedChart(), SimMeasureOptions(render), options);
   options.loss = FitLoss::kCiede2000;
   const auto de = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, FixedChart(), SimMeasureOptions(render), options);
-  ASSERT_TRUE(xyz.summary.IsUsable() && de.summary.IsUsable());
+  ASSERT_TRUE(xyz.summary.IsSolutionUsable() && de.summary.IsSolutionUsable());
   EXPECT_LT(de.summary.models[0].training_mean, xyz.summary.models[0].training_mean - 0.05);
 }
 
@@ -58,7 +66,7 @@ TEST(ColorCalibration, RootPolynomialIsExposureInvariantAndPolynomialIsNot) {
   const sim::ChartRender render = RenderChart("canon-5d-mark-ii", Illuminant::kD65);
   const ChartCalibration result = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, FixedChart(),
                                                       SimMeasureOptions(render), CalibrationOptions{});
-  ASSERT_TRUE(result.summary.IsUsable());
+  ASSERT_TRUE(result.summary.IsSolutionUsable());
   const Eigen::Vector3d rgb = result.patches[12].rgb;  // blue
   for (const char* name : {"linear", "root-poly-2", "root-poly-3"}) {
     const ColorModel& m = Find(result.summary, name).model;
@@ -86,9 +94,9 @@ TEST(ColorCalibration, OnlyGreyPatchesIsIllConditionedAndRefused) {
     input.usable.push_back(true);
   }
   CalibrationOptions options;
-  options.candidates = {ModelSpec::Parse("linear"), ModelSpec::Parse("root-poly-2")};
+  options.candidates = {*ModelSpec::Parse("linear"), *ModelSpec::Parse("root-poly-2")};
   const CalibrationSummary summary = Calibrate(input, options);
-  EXPECT_FALSE(summary.IsUsable());
+  EXPECT_FALSE(summary.IsSolutionUsable());
   EXPECT_NE(summary.message.find("near-singular"), std::string::npos) << summary.message;
 }
 
@@ -104,7 +112,7 @@ TEST(ColorCalibration, MissingPatchesLeaveOutModelsTheyCannotSupport) {
     input.usable.push_back(p < 12 || p == kWhitePatch);  // 13 patches: a torn chart
   }
   const CalibrationSummary summary = Calibrate(input, CalibrationOptions{});
-  ASSERT_TRUE(summary.IsUsable()) << summary.message;
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   EXPECT_EQ(summary.patches_used, 13);
   EXPECT_FALSE(Find(summary, "poly-3").usable);
   EXPECT_NE(Find(summary, "poly-3").note.find("usable patches"), std::string::npos);
@@ -112,7 +120,7 @@ TEST(ColorCalibration, MissingPatchesLeaveOutModelsTheyCannotSupport) {
 
   for (int p = 0; p < 24; ++p) input.usable[static_cast<std::size_t>(p)] = p < 3;
   const CalibrationSummary none = Calibrate(input, CalibrationOptions{});
-  EXPECT_FALSE(none.IsUsable());
+  EXPECT_FALSE(none.IsSolutionUsable());
   EXPECT_NE(none.message.find("only 3 usable patches"), std::string::npos);
 
   input.usable.pop_back();
@@ -124,7 +132,7 @@ TEST(ColorCalibration, SaturatedWhiteFallsBackToAGreyForExposure) {
   const ChartCalibration result = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, FixedChart(),
                                                       SimMeasureOptions(render), CalibrationOptions{});
   EXPECT_EQ(result.patches[kWhitePatch].flag, PatchFlag::kSaturated);
-  ASSERT_TRUE(result.summary.IsUsable()) << result.summary.message;
+  ASSERT_TRUE(result.summary.IsSolutionUsable()) << result.summary.message;
   EXPECT_GT(result.summary.exposure_patch, kWhitePatch);
   EXPECT_NE(result.summary.message.find("flagged and left out"), std::string::npos);
 }
@@ -133,7 +141,7 @@ TEST(ColorCalibration, NoChartGivesAClearFailure) {
   const cv::Mat blank(200, 300, CV_16UC3, cv::Scalar::all(1000));
   const ChartCalibration result =
       CalibrateChartImage(blank, cv::Mat(), Illuminant::kD65, LocateOptions{}, MeasureOptions{}, CalibrationOptions{});
-  EXPECT_FALSE(result.summary.IsUsable());
+  EXPECT_FALSE(result.summary.IsSolutionUsable());
   EXPECT_NE(result.summary.message.find("no 24-patch chart"), std::string::npos);
 }
 
@@ -142,9 +150,9 @@ TEST(ColorApply, CorrectedChartImageReproducesTheReferenceColours) {
   const sim::ChartRender render = RenderChart("sigma-sdmerill", Illuminant::kD65);
   const ChartCalibration result = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, FixedChart(),
                                                       SimMeasureOptions(render), CalibrationOptions{});
-  ASSERT_TRUE(result.summary.IsUsable());
+  ASSERT_TRUE(result.summary.IsSolutionUsable());
   const ColorModel& model = result.summary.chosen_model();
-  const cv::Mat xyz = CameraToXyz(model, render.raw, render.dark, ApplyOptions{});
+  const cv::Mat xyz = ToXyz(model, render.raw, render.dark, ApplyOptions{});
   double sum = 0.0;
   for (int p = 0; p < kChartPatches; ++p) {
     const cv::Rect rect = geometry.PatchRect(p);
@@ -159,18 +167,28 @@ TEST(ColorApply, CorrectedChartImageReproducesTheReferenceColours) {
   cv::Mat raw, dark;
   render.raw.convertTo(raw, CV_32FC3);
   render.dark.convertTo(dark, CV_32FC3);
-  const cv::Mat doubled = CameraToXyz(model, (raw - dark) * 2.0, cv::Mat(), ApplyOptions{0.0, 2.0});
+  const cv::Mat doubled = ToXyz(model, (raw - dark) * 2.0, cv::Mat(), ApplyOptions{0.0, 2.0});
   EXPECT_NEAR(cv::mean(doubled(geometry.PatchRect(7)))[1], cv::mean(xyz(geometry.PatchRect(7)))[1], 2e-3);
 
   // sRGB view: the white patch is near-white, the black patch near-black.
-  const cv::Mat srgb = XyzToSrgb8(xyz, model.white_xyz);
+  cv::Mat srgb;
+  ASSERT_TRUE(XyzToSrgb8(xyz, model.white_xyz, &srgb).IsSolutionUsable());
   const cv::Scalar white = cv::mean(srgb(geometry.PatchRect(kWhitePatch)));
   const cv::Scalar black = cv::mean(srgb(geometry.PatchRect(23)));
   for (int c = 0; c < 3; ++c) {
     EXPECT_NEAR(white[c], 243.0, 6.0);
     EXPECT_NEAR(black[c], 52.0, 6.0);
   }
-  EXPECT_THROW(CameraToXyz(model, cv::Mat(4, 4, CV_32F), cv::Mat(), ApplyOptions{}), std::invalid_argument);
+  // Bad input and bad options end in the summary, naming what is wrong, and leave the output alone.
+  cv::Mat untouched;
+  const solvers::Summary one_channel = CameraToXyz(model, cv::Mat(4, 4, CV_32F), cv::Mat(), ApplyOptions{}, &untouched);
+  EXPECT_EQ(one_channel.termination, solvers::Termination::kInvalidInput);
+  EXPECT_NE(one_channel.message.find("3-channel"), std::string::npos) << one_channel.message;
+  const solvers::Summary no_exposure = CameraToXyz(model, xyz, cv::Mat(), ApplyOptions{0.0, 0.0}, &untouched);
+  EXPECT_EQ(no_exposure.termination, solvers::Termination::kInvalidOptions);
+  EXPECT_NE(no_exposure.message.find("exposure_ratio"), std::string::npos) << no_exposure.message;
+  EXPECT_EQ(XyzToSrgb8(srgb, model.white_xyz, &untouched).termination, solvers::Termination::kInvalidInput);
+  EXPECT_TRUE(untouched.empty());
 }
 
 TEST(ColorApply, EveryModelAgreesPixelByPixelWithItsDoublePrecisionDefinition) {
@@ -185,9 +203,9 @@ TEST(ColorApply, EveryModelAgreesPixelByPixelWithItsDoublePrecisionDefinition) {
     ASSERT_TRUE(m.usable) << m.spec.Name();
     ApplyOptions options;
     options.exposure_ratio = 1.5;
-    const cv::Mat with_dark = CameraToXyz(m.model, image, dark, options);
+    const cv::Mat with_dark = ToXyz(m.model, image, dark, options);
     options.black_level = 64.0;
-    const cv::Mat with_black = CameraToXyz(m.model, image, cv::Mat(), options);
+    const cv::Mat with_black = ToXyz(m.model, image, cv::Mat(), options);
     for (int y = 0; y < image.rows; ++y)
       for (int x = 0; x < image.cols; x += 13) {
         const cv::Vec3w p = image.at<cv::Vec3w>(y, x), d = dark.at<cv::Vec3w>(y, x);

@@ -61,10 +61,10 @@ TEST(ColourAlbedo, CorrectedPhotometricStereoAlbedoMatchesTheChartCalibratedTarg
   locate.use_detector = false;
   locate.fixed_corners = sim::ChartGeometry{}.GridCorners();
   CalibrationOptions calibration;
-  calibration.candidates = {ModelSpec::Parse("linear"), ModelSpec::Parse("root-poly-2")};
+  calibration.candidates = {*ModelSpec::Parse("linear"), *ModelSpec::Parse("root-poly-2")};
   const ChartCalibration calibrated = CalibrateChartImage(chart.raw, chart.dark, Illuminant::kD65, locate,
                                                           testing::SimMeasureOptions(chart), calibration);
-  ASSERT_TRUE(calibrated.summary.IsUsable()) << calibrated.summary.message;
+  ASSERT_TRUE(calibrated.summary.IsSolutionUsable()) << calibrated.summary.message;
   const ColorModel& model = calibrated.summary.chosen_model();
   const double chart_dn_per_signal = sensor.DnPerRadiance(sim::ExposureForWhite(sensor, 0.8), 0.0);
 
@@ -133,7 +133,8 @@ TEST(ColourAlbedo, CorrectedPhotometricStereoAlbedoMatchesTheChartCalibratedTarg
   cv::merge(std::vector<cv::Mat>{albedo[2], albedo[1], albedo[0]}, albedo_bgr);
   ApplyOptions apply;
   apply.exposure_ratio = 1.0 / chart_dn_per_signal;
-  const cv::Mat xyz = CameraToXyz(model, albedo_bgr, cv::Mat(), apply);
+  cv::Mat xyz;
+  ASSERT_TRUE(CameraToXyz(model, albedo_bgr, cv::Mat(), apply, &xyz).IsSolutionUsable());
 
   const ChartReference reference = ColorCheckerReference(Illuminant::kD65, ReferenceGrid());
   const sim::ChartGeometry geometry;

@@ -1,5 +1,6 @@
 #include "photorig/color/colorimetry.h"
 #include "photorig/color/chart.h"
+#include "photorig/color/model.h"
 
 #include <gtest/gtest.h>
 
@@ -121,7 +122,10 @@ TEST(Colorimetry, BabelColorSpectraReproduceThePublishedChartLab) {
 
 TEST(Tables, UnknownNamesAreClearErrors) {
   EXPECT_THROW(CameraSensitivity("nikon-9999"), std::invalid_argument);
-  EXPECT_THROW(ParseIlluminant("F2"), std::invalid_argument);
+  EXPECT_FALSE(ParseIlluminant("F2").has_value());
+  EXPECT_EQ(ParseIlluminant("D50"), Illuminant::kD50);
+  EXPECT_FALSE(ModelSpec::Parse("cubic").has_value());
+  EXPECT_EQ(ParseFitLoss("ciede2000"), FitLoss::kCiede2000);
   EXPECT_EQ(CameraNames().size(), 3u);
 }
 

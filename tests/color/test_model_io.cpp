@@ -7,7 +7,7 @@ namespace {
 
 ColorModel SampleModel() {
   ColorModel model;
-  model.spec = ModelSpec::Parse("root-poly-2");
+  model.spec = *ModelSpec::Parse("root-poly-2");
   model.loss = FitLoss::kCiede2000;
   model.illuminant = Illuminant::kD50;
   model.white_xyz = {0.9642, 1.0, 0.8251};

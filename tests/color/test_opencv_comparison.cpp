@@ -19,7 +19,7 @@ TEST(ColorVersusOpenCv, ChosenModelBeatsOpenCvOnEveryCamera) {
     const sim::ChartRender render = testing::RenderChart(camera, Illuminant::kD65);
     const ChartCalibration ours = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, locate,
                                                       testing::SimMeasureOptions(render), CalibrationOptions{});
-    ASSERT_TRUE(ours.summary.IsUsable()) << camera << ": " << ours.summary.message;
+    ASSERT_TRUE(ours.summary.IsSolutionUsable()) << camera << ": " << ours.summary.message;
     CalibrationInput input;
     input.reference_xyz = ours.reference.xyz;
     input.white_xyz = ours.reference.white_xyz;

@@ -20,6 +20,14 @@ namespace {
 
 using photorig::testing::TempDir;
 
+// Demosaic that must succeed.
+cv::Mat Demosaiced(const cv::Mat& raw, const std::string& pattern) {
+  cv::Mat bgr;
+  const solvers::Summary summary = Demosaic(raw, pattern, &bgr);
+  EXPECT_EQ(summary.termination, solvers::Termination::kSuccess) << summary.message;
+  return bgr;
+}
+
 const std::string kSimDome = photorig::testing::SourceDir() + "/config/rigs/sim-dome.yaml";
 
 std::string SimDomeWithChart(const std::string& chart) {
@@ -125,7 +133,7 @@ TEST(RigChart, ChartRenderedWhereTheRigSaysCalibratesFromThatPosition) {
   locate.fixed_corners = from_rig;
   const ChartCalibration result = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, locate,
                                                       testing::SimMeasureOptions(render), CalibrationOptions{});
-  ASSERT_TRUE(result.summary.IsUsable()) << result.summary.message;
+  ASSERT_TRUE(result.summary.IsSolutionUsable()) << result.summary.message;
   EXPECT_EQ(result.located.location->method, "fixed-roi");
   EXPECT_LE(result.summary.models[static_cast<std::size_t>(result.summary.chosen)].held_out_mean, 0.8);
 
@@ -140,8 +148,8 @@ TEST(Bayer, PatchMeansAfterDemosaicMatchTheRgbRender) {
   const MeasureOptions options = testing::SimMeasureOptions(render);
   const auto rgb = MeasurePatches(render.raw, render.dark, location, options);
   for (const std::string pattern : {"RGGB", "GBRG"}) {
-    const cv::Mat raw = Demosaic(sim::BayerMosaic(render.raw, pattern), pattern);
-    const cv::Mat dark = Demosaic(sim::BayerMosaic(render.dark, pattern), pattern);
+    const cv::Mat raw = Demosaiced(sim::BayerMosaic(render.raw, pattern), pattern);
+    const cv::Mat dark = Demosaiced(sim::BayerMosaic(render.dark, pattern), pattern);
     ASSERT_EQ(raw.type(), CV_16UC3);
     const auto demosaiced = MeasurePatches(raw, dark, location, options);
     for (int p = 0; p < kChartPatches; ++p) {
@@ -156,11 +164,15 @@ TEST(Bayer, PatchMeansAfterDemosaicMatchTheRgbRender) {
     }
   }
   // A mosaic read as if its filters were the other way round swaps red and blue.
-  const cv::Mat swapped = Demosaic(sim::BayerMosaic(render.raw, "RGGB"), "BGGR");
+  const cv::Mat swapped = Demosaiced(sim::BayerMosaic(render.raw, "RGGB"), "BGGR");
   const auto wrong = MeasurePatches(swapped, cv::Mat(), location, options);
   EXPECT_NEAR(wrong[14].rgb.z(), rgb[14].rgb.x() + sim::SensorModel{}.black_level_dn, 0.1 * rgb[14].rgb.x());  // red patch
-  EXPECT_THROW(Demosaic(render.raw, "RGGB"), std::invalid_argument);
-  EXPECT_THROW(Demosaic(sim::BayerMosaic(render.raw, "RGGB"), "RGBG"), std::invalid_argument);
+  cv::Mat untouched;
+  EXPECT_EQ(Demosaic(render.raw, "RGGB", &untouched).termination, solvers::Termination::kInvalidInput);
+  const solvers::Summary unknown = Demosaic(sim::BayerMosaic(render.raw, "RGGB"), "RGBG", &untouched);
+  EXPECT_EQ(unknown.termination, solvers::Termination::kInvalidOptions);
+  EXPECT_NE(unknown.message.find("'RGBG'"), std::string::npos) << unknown.message;
+  EXPECT_TRUE(untouched.empty());
   EXPECT_THROW(sim::BayerMosaic(render.raw, "XYZW"), std::invalid_argument);
 }
 

@@ -2,6 +2,7 @@
 #include "photorig/lighting/nnls.h"
 #include "photorig/lighting/relight.h"
 #include "photorig/lighting/spherical_harmonics.h"
+#include "solver_output.h"
 #include "synthetic_sphere.h"
 
 #include <Eigen/Dense>
@@ -11,6 +12,8 @@
 
 namespace photorig::lighting {
 namespace {
+
+using testing::OutputOf;
 
 TEST(SphericalHarmonics, MatchesClosedFormsAndIsOrthonormal) {
   const Eigen::Vector3d d = Eigen::Vector3d(0.3, -0.5, 0.8).normalized();
@@ -49,7 +52,7 @@ TEST(Nnls, MatchesBruteForceOverActiveSets) {
     for (int j = 0; j < 5; ++j) a(i, j) = normal(rng);
   }
   Eigen::VectorXd x;
-  ASSERT_TRUE(SolveNnls(a, b, &x).converged);
+  ASSERT_EQ(SolveNnls(a, b, &x).termination, solvers::Termination::kSuccess);
   EXPECT_GE(x.minCoeff(), 0.0);
   double best = HUGE_VAL;
   for (int set = 0; set < 32; ++set) {  // every subset: unconstrained solve, keep feasible ones
@@ -80,9 +83,9 @@ class InverseLighting : public ::testing::Test {
 };
 
 TEST_F(InverseLighting, RecoversBandTwoCoefficientsWithinTwoPercentAndPicksTheBand) {
-  const cv::Mat image = RenderShLighting(normals_, albedo_, truth_);
+  const cv::Mat image = OutputOf<cv::Mat>([&](cv::Mat* out) { return RenderShLighting(normals_, albedo_, truth_, out); });
   const ShLightingSummary fit = FitShLighting(normals_, albedo_, image, mask_);
-  ASSERT_TRUE(fit.success) << fit.message;
+  ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
   EXPECT_EQ(fit.band, 2);
   ASSERT_EQ(fit.coefficients.rows(), 9);
   EXPECT_LT((fit.coefficients - truth_).cwiseAbs().maxCoeff() / truth_.cwiseAbs().maxCoeff(), 0.02);
@@ -95,7 +98,7 @@ TEST_F(InverseLighting, NoisyFrontalLightNeedsOnlyTheLowBands) {
   // Band 1 lighting plus noise: held-out residual and BIC both decline band 2 and 4.
   Eigen::MatrixXd band1 = Eigen::MatrixXd::Zero(4, 1);
   band1 << 2.0, 0.3, 0.8, -0.2;
-  cv::Mat image = RenderShLighting(normals_, albedo_, band1);
+  cv::Mat image = OutputOf<cv::Mat>([&](cv::Mat* out) { return RenderShLighting(normals_, albedo_, band1, out); });
   cv::Mat noise(image.size(), CV_32F);
   cv::randn(noise, 0.0, 0.01);
   image += noise;
@@ -103,7 +106,7 @@ TEST_F(InverseLighting, NoisyFrontalLightNeedsOnlyTheLowBands) {
     ShFitOptions options;
     options.selection = selection;
     const ShLightingSummary fit = FitShLighting(normals_, albedo_, image, mask_, options);
-    ASSERT_TRUE(fit.success);
+    ASSERT_TRUE(fit.IsSolutionUsable());
     EXPECT_EQ(fit.band, 1);
     EXPECT_EQ(fit.candidates.size(), 4u);
   }
@@ -115,28 +118,53 @@ TEST_F(InverseLighting, LedWeightsRecoverADomeMixtureAndImageBasedRelightingMatc
   for (std::size_t k = 0; k < dome.size(); ++k) intensities[k] = 0.9 + 0.01 * static_cast<double>(k % 20);
   std::vector<cv::Mat> frames;
   for (std::size_t k = 0; k < dome.size(); ++k) {
-    frames.push_back(RenderDirectionalLights(normals_, albedo_, {dome[k]}, {intensities[k]}));
+    frames.push_back(
+        OutputOf<cv::Mat>([&](cv::Mat* out) { return RenderDirectionalLights(normals_, albedo_, {dome[k]}, {intensities[k]}, out); }));
   }
   Eigen::MatrixXd truth = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(dome.size()), 1);
   truth(3, 0) = 0.7;
   truth(20, 0) = 1.3;
   truth(44, 0) = 0.5;
-  const cv::Mat image = RelightFromFrames(frames, truth);
+  const cv::Mat image = OutputOf<cv::Mat>([&](cv::Mat* out) { return RelightFromFrames(frames, truth, out); });
   const LedWeightsSummary fit = FitLedWeights(normals_, albedo_, image, mask_, dome, intensities);
-  ASSERT_TRUE(fit.success) << fit.message;
+  ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
   EXPECT_LT((fit.weights - truth).cwiseAbs().maxCoeff(), 1e-3);
   EXPECT_EQ(fit.active_leds, 3);
   EXPECT_LT(fit.relative_rms_residual, 1e-4);
   // A light the dome cannot make (below the horizon) leaves a residual that is reported.
-  const cv::Mat below = RenderDirectionalLights(normals_, albedo_, {Eigen::Vector3d(0, -0.9, -0.44).normalized()}, {1.0});
+  const cv::Mat below = OutputOf<cv::Mat>([&](cv::Mat* out) {
+    return RenderDirectionalLights(normals_, albedo_, {Eigen::Vector3d(0, -0.9, -0.44).normalized()}, {1.0}, out);
+  });
   const LedWeightsSummary poor = FitLedWeights(normals_, albedo_, below, mask_, dome, intensities);
   EXPECT_GT(poor.relative_rms_residual, 0.02);
 }
 
 TEST_F(InverseLighting, RejectsMismatchedInputs) {
   const ShLightingSummary fit = FitShLighting(normals_, albedo_, cv::Mat::zeros(10, 10, CV_32F), mask_);
-  EXPECT_FALSE(fit.success);
+  EXPECT_EQ(fit.termination, solvers::Termination::kInvalidInput);
   EXPECT_NE(fit.message.find("image"), std::string::npos);
+  ShFitOptions bad;
+  bad.pixel_stride = 0;
+  EXPECT_EQ(FitShLighting(normals_, albedo_, normals_, mask_, bad).termination, solvers::Termination::kInvalidOptions);
+  // Relighting with mismatched inputs says what is wrong and leaves the output alone.
+  cv::Mat untouched;
+  const solvers::Summary render = RenderShLighting(normals_, albedo_, Eigen::MatrixXd::Zero(5, 1), &untouched);
+  EXPECT_EQ(render.termination, solvers::Termination::kInvalidInput);
+  EXPECT_NE(render.message.find("5 SH coefficients"), std::string::npos) << render.message;
+  EXPECT_EQ(RelightFromFrames({albedo_}, Eigen::MatrixXd::Ones(2, 1), &untouched).termination,
+            solvers::Termination::kInvalidInput);
+  EXPECT_EQ(RenderDirectionalLights(normals_, albedo_, {Eigen::Vector3d::UnitZ()}, {}, &untouched).termination,
+            solvers::Termination::kInvalidInput);
+  EXPECT_TRUE(untouched.empty());
+  // NNLS: an iteration limit is a usable, unconverged result; sizes that disagree are invalid input.
+  Eigen::VectorXd x;
+  EXPECT_EQ(SolveNnls(Eigen::MatrixXd::Identity(3, 3), Eigen::VectorXd::Ones(2), &x).termination,
+            solvers::Termination::kInvalidInput);
+  NnlsOptions one_step;
+  one_step.max_iterations = 1;
+  const NnlsSummary limited = SolveNnls(Eigen::MatrixXd::Identity(3, 3), Eigen::VectorXd::Ones(3), &x, one_step);
+  EXPECT_EQ(limited.termination, solvers::Termination::kNoConvergence);
+  EXPECT_TRUE(limited.IsSolutionUsable());
 }
 
 }  // namespace

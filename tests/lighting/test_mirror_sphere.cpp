@@ -228,7 +228,7 @@ const HighlightScene& DomeFrames() {
 TEST(HighlightCircle, PlacesTheSphereFromItsHighlightsWellEnoughForHalfADegree) {
   const HighlightScene& h = DomeFrames();
   const HighlightCircleSummary fit = LocateSphereFromHighlights(h.frames, h.nominal);
-  ASSERT_TRUE(fit.success) << fit.message;
+  ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
   EXPECT_NEAR(fit.circle.cx_px, h.true_circle.cx_px, 1.0);
   EXPECT_NEAR(fit.circle.cy_px, h.true_circle.cy_px, 1.0);
   EXPECT_NEAR(fit.circle.radius_px, h.true_circle.radius_px, 1.5);
@@ -250,7 +250,7 @@ TEST(HighlightCircle, AKnownRadiusLeavesOnlyTheCentre) {
   HighlightCircleOptions options;
   options.fixed_radius_px = 110.0;
   const HighlightCircleSummary fit = LocateSphereFromHighlights(h.frames, h.nominal, options);
-  ASSERT_TRUE(fit.success) << fit.message;
+  ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
   EXPECT_EQ(fit.circle.radius_px, 110.0);
   EXPECT_NEAR(fit.circle.cx_px, h.true_circle.cx_px, 1.0);
   EXPECT_NEAR(fit.circle.cy_px, h.true_circle.cy_px, 1.0);
@@ -261,17 +261,17 @@ TEST(HighlightCircle, WrongDirectionsAndMissingHighlightsAreReportedNotFitted) {
   // Directions listed in the wrong order: no single sphere explains the highlights.
   std::vector<Eigen::Vector3d> shuffled(h.nominal.rbegin(), h.nominal.rend());
   const HighlightCircleSummary wrong = LocateSphereFromHighlights(h.frames, shuffled);
-  EXPECT_FALSE(wrong.success);
+  EXPECT_FALSE(wrong.IsSolutionUsable());
   EXPECT_NE(wrong.message.find("do not fit"), std::string::npos) << wrong.message;
   // Dark frames have no highlight: they are listed, and too few left is an error.
   std::vector<cv::Mat> dark(h.frames.size());
   for (std::size_t k = 0; k < dark.size(); ++k)
     dark[k] = k < 2 ? h.frames[k] : cv::Mat(h.frames[k].size(), h.frames[k].type(), cv::Scalar(20));
   const HighlightCircleSummary missing = LocateSphereFromHighlights(dark, h.nominal);
-  EXPECT_FALSE(missing.success);
+  EXPECT_FALSE(missing.IsSolutionUsable());
   EXPECT_NE(missing.message.find("only 2 highlights"), std::string::npos) << missing.message;
   EXPECT_EQ(missing.rejected.size(), dark.size() - 2);
-  EXPECT_FALSE(LocateSphereFromHighlights(h.frames, std::vector<Eigen::Vector3d>(3)).success);  // count mismatch
+  EXPECT_FALSE(LocateSphereFromHighlights(h.frames, std::vector<Eigen::Vector3d>(3)).IsSolutionUsable());  // count mismatch
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ TEST(SphereFit, SubPixelCentreAndRadiusOfAnOffCentreSphere) {
   cv::randn(noise, 0.0, 20.0);
   image += noise;
   const SphereFitSummary fit = FitSphereSilhouette(image);
-  ASSERT_TRUE(fit.success) << fit.message;
+  ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
   const Eigen::Vector2d truth = testing::OrthographicPixel(camera, options, 1.437, -2.219);
   EXPECT_NEAR(fit.circle.cx_px, truth.x(), 0.03);
   EXPECT_NEAR(fit.circle.cy_px, truth.y(), 0.03);
@@ -37,7 +37,7 @@ TEST(SphereFit, FlagsASilhouetteCutByTheBorderAndRejectsEmptyImages) {
   const SphereFitSummary cut = FitSphereSilhouette(testing::RenderSilhouette(camera, sphere, {}));
   EXPECT_TRUE(cut.touches_border);
   const SphereFitSummary empty = FitSphereSilhouette(cv::Mat::zeros(64, 64, CV_32F));
-  EXPECT_FALSE(empty.success);
+  EXPECT_FALSE(empty.IsSolutionUsable());
   EXPECT_FALSE(empty.message.empty());
 }
 
@@ -54,7 +54,7 @@ TEST(SphereFit, PinholeSilhouetteIsAnEllipseAndTheConeRecoversTheCentre) {
   options.width = 640;
   options.height = 480;
   const SphereFitSummary fit = FitSphereSilhouette(testing::RenderSilhouette(camera, sphere, options));
-  ASSERT_TRUE(fit.success) << fit.message;
+  ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
   EXPECT_LT(fit.ellipse_axis_ratio, 0.995);
   CameraModel model;
   model.projection = CameraModel::Projection::kPinhole;

@@ -42,7 +42,7 @@ TEST(IntegrateNormals, PoissonRecoversASphereOnItsMask) {
   Sphere(96, 40.0, &normals, &height, &mask);
   IntegrationOptions options;
   const IntegrationSummary summary = IntegrateNormals(options, normals, mask, &depth);
-  ASSERT_TRUE(summary.success) << summary.message;
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   EXPECT_EQ(summary.pixels, static_cast<std::size_t>(cv::countNonZero(mask)));
   // Trapezoidal slopes on a curved surface: error well under a pixel of a 40-pixel sphere.
   EXPECT_LT(RmsAfterRemovingMean(depth, height, mask), 0.15);
@@ -68,14 +68,14 @@ TEST(IntegrateNormals, FrankotChellappaIsExactOnPeriodicSurfacesAndBendsAtMaskBo
   IntegrationOptions options;
   options.integrator = Integrator::kFrankotChellappa;
   cv::Mat depth;
-  ASSERT_TRUE(IntegrateNormals(options, normals, cv::Mat(), &depth).success);
+  ASSERT_TRUE(IntegrateNormals(options, normals, cv::Mat(), &depth).IsSolutionUsable());
   // Spectral differentiation of a band-limited field: exact but for the sampling of the slopes.
   EXPECT_LT(RmsAfterRemovingMean(depth, truth, all), 0.05);
 
   cv::Mat sphere_normals, height, mask, fc_depth, poisson_depth;
   Sphere(96, 40.0, &sphere_normals, &height, &mask);
-  ASSERT_TRUE(IntegrateNormals(options, sphere_normals, mask, &fc_depth).success);
-  ASSERT_TRUE(IntegrateNormals(IntegrationOptions{}, sphere_normals, mask, &poisson_depth).success);
+  ASSERT_TRUE(IntegrateNormals(options, sphere_normals, mask, &fc_depth).IsSolutionUsable());
+  ASSERT_TRUE(IntegrateNormals(IntegrationOptions{}, sphere_normals, mask, &poisson_depth).IsSolutionUsable());
   EXPECT_GT(RmsAfterRemovingMean(fc_depth, height, mask), 2 * RmsAfterRemovingMean(poisson_depth, height, mask));
 }
 
@@ -90,7 +90,7 @@ TEST(IntegrateNormals, SeparateRegionsAndHolesAreHandled) {
   mask(cv::Rect(10, 15, 8, 8)).setTo(0);  // a hole
   cv::Mat depth;
   const IntegrationSummary summary = IntegrateNormals(IntegrationOptions{}, normals, mask, &depth);
-  ASSERT_TRUE(summary.success);
+  ASSERT_TRUE(summary.IsSolutionUsable());
   EXPECT_LT(summary.residual_rms, 1e-5);
   EXPECT_NEAR(depth.at<float>(5, 25) - depth.at<float>(5, 5), 10.0, 1e-3);
   EXPECT_NEAR(depth.at<float>(30, 70) - depth.at<float>(5, 50), 0.0, 1e-3);
@@ -102,13 +102,18 @@ TEST(IntegrateNormals, GrazingNormalsAreDroppedAndEmptyInputIsAnError) {
   normals.at<cv::Vec3f>(3, 3) = cv::Vec3f(1.0f, 0.0f, 0.0f);
   cv::Mat depth;
   const IntegrationSummary summary = IntegrateNormals(IntegrationOptions{}, normals, cv::Mat(), &depth);
-  ASSERT_TRUE(summary.success);
+  ASSERT_TRUE(summary.IsSolutionUsable());
   EXPECT_EQ(summary.pixels_dropped, 1u);
   EXPECT_TRUE(std::isnan(depth.at<float>(3, 3)));
   const cv::Mat nothing(8, 8, CV_32FC3, cv::Scalar::all(NAN));
   const IntegrationSummary empty = IntegrateNormals(IntegrationOptions{}, nothing, cv::Mat(), &depth);
-  EXPECT_FALSE(empty.success);
+  EXPECT_EQ(empty.termination, solvers::Termination::kFailure);
   EXPECT_NE(empty.message.find("no pixel"), std::string::npos);
+  IntegrationOptions flat;
+  flat.min_normal_z = 1.5;
+  EXPECT_EQ(IntegrateNormals(flat, nothing, cv::Mat(), &depth).termination, solvers::Termination::kInvalidOptions);
+  EXPECT_EQ(IntegrateNormals(IntegrationOptions{}, cv::Mat(8, 8, CV_32F), cv::Mat(), &depth).termination,
+            solvers::Termination::kInvalidInput);
 }
 
 }  // namespace

@@ -24,6 +24,20 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// The image a colour operation produced, or std::invalid_argument naming `what`
+// and the solver's reason: the commands report it and exit 2.
+cv::Mat Produced(const solvers::Summary& summary, cv::Mat image, const std::string& what) {
+  if (!summary.IsSolutionUsable()) throw std::invalid_argument(what + ": " + summary.message);
+  return image;
+}
+
+// A name a parser rejected, as std::invalid_argument listing the known ones.
+template <typename T>
+T Known(const std::optional<T>& parsed, const std::string& kind, const std::string& name, const std::string& known) {
+  if (!parsed) throw std::invalid_argument("unknown " + kind + " '" + name + "' (known: " + known + ")");
+  return *parsed;
+}
+
 struct CalibrateOptions {
   std::string image, dark, sim_camera, rig, illuminant = "D65", chart_roi, bayer, loss = "xyz", out;
   std::vector<std::string> models;
@@ -78,7 +92,9 @@ cv::Mat ReadCapture(const std::string& path, const std::string& bayer) {
   if (image.channels() != 1)
     throw std::invalid_argument(path + ": --bayer needs a one-channel raw, got " + std::to_string(image.channels()) +
                                 " channels");
-  return color::Demosaic(image, bayer);
+  cv::Mat bgr;
+  const solvers::Summary demosaiced = color::Demosaic(image, bayer, &bgr);
+  return Produced(demosaiced, bgr, path + ": --bayer " + bayer);
 }
 
 int ExecuteCalibrate(CalibrateOptions options) {
@@ -91,11 +107,14 @@ int ExecuteCalibrate(CalibrateOptions options) {
   color::CalibrationOptions calibration;
   std::optional<daemon::RigConfig> rig;
   try {
-    illuminant = color::ParseIlluminant(options.illuminant);
-    calibration.loss = color::ParseFitLoss(options.loss);
+    illuminant = Known(color::ParseIlluminant(options.illuminant), "illuminant", options.illuminant, "D50, D65, A");
+    calibration.loss = Known(color::ParseFitLoss(options.loss), "fit loss", options.loss, "xyz, ciede2000");
     if (!options.models.empty()) {
       calibration.candidates.clear();
-      for (const auto& name : options.models) calibration.candidates.push_back(color::ModelSpec::Parse(name));
+      for (const auto& name : options.models) {
+        calibration.candidates.push_back(
+            Known(color::ModelSpec::Parse(name), "colour model", name, color::ModelSpec::KnownNames()));
+      }
     }
     if (!options.rig.empty()) {
       rig = daemon::LoadRigConfig(options.rig);
@@ -159,7 +178,7 @@ int ExecuteCalibrate(CalibrateOptions options) {
   daemon::WriteFileDurably((fs::path(options.out) / "report.json").string(), report.dump(2) + "\n");
   daemon::WriteFileDurably((fs::path(options.out) / "report.txt").string(),
                            color::FormatCalibrationReport(result.summary, names));
-  if (!result.summary.IsUsable()) return 3;
+  if (!result.summary.IsSolutionUsable()) return 3;
 
   const color::ColorModel& model = result.summary.chosen_model();
   for (const char* name : {"model.json", "model.yaml"}) {
@@ -168,8 +187,16 @@ int ExecuteCalibrate(CalibrateOptions options) {
   }
   color::ApplyOptions apply;
   apply.black_level = options.black_level;
-  const cv::Mat xyz = color::CameraToXyz(model, image, dark, apply);
-  daemon::WriteImage((fs::path(options.out) / "corrected_srgb.png").string(), color::XyzToSrgb8(xyz, model.white_xyz));
+  cv::Mat xyz, srgb;
+  const solvers::Summary corrected = color::CameraToXyz(model, image, dark, apply, &xyz);
+  const solvers::Summary encoded =
+      corrected.IsSolutionUsable() ? color::XyzToSrgb8(xyz, model.white_xyz, &srgb) : corrected;
+  if (!encoded.IsSolutionUsable()) {
+    std::fprintf(stderr, "calibrate color: applying the model to %s failed: %s\n", options.image.c_str(),
+                 encoded.message.c_str());
+    return 3;
+  }
+  daemon::WriteImage((fs::path(options.out) / "corrected_srgb.png").string(), srgb);
   std::printf("wrote %s/{model.json, model.yaml, report.json, report.txt, corrected_srgb.png}\n", options.out.c_str());
   return 0;
 }
@@ -212,10 +239,17 @@ int ExecuteApply(const ApplyCommandOptions& options) {
                    image.channels());
       return 2;
     }
-    const cv::Mat xyz = color::CameraToXyz(model, image, dark, apply);
+    cv::Mat xyz, srgb;
+    const solvers::Summary corrected = color::CameraToXyz(model, image, dark, apply, &xyz);
+    const solvers::Summary encoded =
+        corrected.IsSolutionUsable() ? color::XyzToSrgb8(xyz, model.white_xyz, &srgb) : corrected;
+    if (!encoded.IsSolutionUsable()) {
+      std::fprintf(stderr, "apply-color: %s: %s\n", input.c_str(), encoded.message.c_str());
+      return 2;
+    }
     const std::string stem = (fs::path(options.out) / fs::path(input).stem()).string();
     daemon::WriteFloatTiff(stem + "_xyz.tiff", xyz);
-    daemon::WriteImage(stem + "_srgb.png", color::XyzToSrgb8(xyz, model.white_xyz));
+    daemon::WriteImage(stem + "_srgb.png", srgb);
     std::printf("%s -> %s_xyz.tiff, %s_srgb.png\n", input.c_str(), stem.c_str(), stem.c_str());
   }
   return 0;

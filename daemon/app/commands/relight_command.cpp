@@ -52,8 +52,15 @@ int Relight(const RelightOptions& options) {
     if (map.depth() != CV_32F) throw std::runtime_error(options.envmap + ": expected a float (HDR) lat-long map");
     std::vector<cv::Mat> frames;
     for (const cv::Mat& frame : input.stack.images) frames.push_back(input.stack.dark.empty() ? frame : frame - input.stack.dark);
-    relit = lighting::RelightFromFrames(frames,
-                                        lighting::LatLongToLedWeights(map, input.stack.light_directions, input.stack.light_scales));
+    Eigen::MatrixXd weights;
+    solvers::Summary done = lighting::LatLongToLedWeights(map, input.stack.light_directions, input.stack.light_scales,
+                                                          &weights);
+    if (done.IsSolutionUsable()) done = lighting::RelightFromFrames(frames, weights, &relit);
+    if (!done.IsSolutionUsable()) {
+      std::fprintf(stderr, "relight: %s with %s: %s\n", options.run_dir.c_str(), options.envmap.c_str(),
+                   done.message.c_str());
+      return 2;
+    }
   } else {
     // Model-based: the normals and albedo photometric stereo recovered.
     const fs::path ps = fs::path(options.run_dir) / "results" / "ps";
@@ -72,7 +79,12 @@ int Relight(const RelightOptions& options) {
     cv::Mat clean_normals = normals.clone(), clean_albedo = albedo.clone();
     cv::patchNaNs(clean_normals, 0.0);  // unsolved pixels render black
     cv::patchNaNs(clean_albedo, 0.0);
-    relit = lighting::RenderDirectionalLights(clean_normals, clean_albedo, directions, intensities);
+    const solvers::Summary rendered =
+        lighting::RenderDirectionalLights(clean_normals, clean_albedo, directions, intensities, &relit);
+    if (!rendered.IsSolutionUsable()) {
+      std::fprintf(stderr, "relight: %s: %s\n", ps.c_str(), rendered.message.c_str());
+      return 2;
+    }
   }
   WriteRelit(options.out, relit);
   std::printf("wrote %s\n", options.out.c_str());
@@ -117,7 +129,12 @@ CommandRunner SetupEnvmap(CLI::App& app) {
             }
             lighting::UnwrapOptions unwrap;
             unwrap.width = options->width;
-            const lighting::LatLongMap map = lighting::MirrorBallToLatLong(ball, sphere, unwrap);
+            lighting::LatLongMap map;
+            const solvers::Summary unwrapped = lighting::MirrorBallToLatLong(ball, sphere, unwrap, &map);
+            if (!unwrapped.IsSolutionUsable()) {
+              std::fprintf(stderr, "envmap: %s: %s\n", options->ball.c_str(), unwrapped.message.c_str());
+              return 2;
+            }
             if (!cv::imwrite(options->out, map.radiance)) throw std::runtime_error("cannot write " + options->out);
             std::printf("wrote %s (%d x %d, %d%% of directions seen)\n", options->out.c_str(), map.radiance.cols,
                         map.radiance.rows, int(100.0 * cv::countNonZero(map.valid) / map.valid.total()));

@@ -5,7 +5,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <stdexcept>
+#include <string>
 
 namespace photorig::color {
 
@@ -17,16 +17,22 @@ bool ApplyOptions::IsValid(std::string* why) const {
   return true;
 }
 
-cv::Mat CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv::Mat& dark_bgr,
-                    const ApplyOptions& options) {
+using solvers::Ended;
+using solvers::Termination;
+
+solvers::Summary CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv::Mat& dark_bgr,
+                             const ApplyOptions& options, cv::Mat* xyz_out) {
+  const solvers::SolveTimer timer;
   std::string why;
-  if (!model.IsValid(&why)) throw std::invalid_argument("colour model: " + why);
-  if (!options.IsValid(&why)) throw std::invalid_argument("apply options: " + why);
-  if (camera_bgr.channels() != 3)
-    throw std::invalid_argument("colour correction needs a 3-channel image, got " +
-                                std::to_string(camera_bgr.channels()) + " channel(s)");
-  if (!dark_bgr.empty() && (dark_bgr.size() != camera_bgr.size() || dark_bgr.channels() != 3))
-    throw std::invalid_argument("dark frame must be 3-channel and the image's size");
+  if (!options.IsValid(&why)) return Ended(Termination::kInvalidOptions, "invalid options: " + why);
+  if (!model.IsValid(&why)) return Ended(Termination::kInvalidInput, "colour model: " + why);
+  if (camera_bgr.empty() || camera_bgr.channels() != 3) {
+    return Ended(Termination::kInvalidInput, "colour correction needs a 3-channel image, got " +
+                                                 std::to_string(camera_bgr.channels()) + " channel(s)");
+  }
+  if (!dark_bgr.empty() && (dark_bgr.size() != camera_bgr.size() || dark_bgr.channels() != 3)) {
+    return Ended(Termination::kInvalidInput, "dark frame must be 3-channel and the image's size");
+  }
   const int terms = model.spec.TermCount();
   float c[3][kMaxModelTerms];
   for (int out = 0; out < 3; ++out)
@@ -77,47 +83,52 @@ cv::Mat CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv
       }
     }
   }
-  return xyz;
+  *xyz_out = xyz;
+  return timer.Succeeded();
 }
 
-std::vector<cv::Mat> CameraStackToXyz(const ColorModel& model, const std::vector<cv::Mat>& stack_bgr,
-                                      const cv::Mat& dark_bgr, const ApplyOptions& options) {
-  std::vector<cv::Mat> out;
-  out.reserve(stack_bgr.size());
-  for (const cv::Mat& frame : stack_bgr) out.push_back(CameraToXyz(model, frame, dark_bgr, options));
-  return out;
-}
-
-cv::Mat Demosaic(const cv::Mat& raw, const std::string& pattern) {
-  if (raw.channels() != 1)
-    throw std::invalid_argument("a Bayer raw has one channel, got " + std::to_string(raw.channels()));
-  if (raw.depth() != CV_8U && raw.depth() != CV_16U) throw std::invalid_argument("a Bayer raw must be 8- or 16-bit");
+solvers::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Mat* bgr) {
+  const solvers::SolveTimer timer;
+  if (raw.empty() || raw.channels() != 1) {
+    return Ended(Termination::kInvalidInput, "a Bayer raw has one channel, got " + std::to_string(raw.channels()));
+  }
+  if (raw.depth() != CV_8U && raw.depth() != CV_16U) {
+    return Ended(Termination::kInvalidInput, "a Bayer raw must be 8- or 16-bit");
+  }
   int code = 0;
   if (pattern == "RGGB") code = cv::COLOR_BayerRGGB2BGR;
   else if (pattern == "BGGR") code = cv::COLOR_BayerBGGR2BGR;
   else if (pattern == "GRBG") code = cv::COLOR_BayerGRBG2BGR;
   else if (pattern == "GBRG") code = cv::COLOR_BayerGBRG2BGR;
-  else throw std::invalid_argument("unknown Bayer pattern '" + pattern + "' (expected RGGB, BGGR, GRBG or GBRG)");
-  cv::Mat bgr;
-  cv::cvtColor(raw, bgr, code);
-  return bgr;
+  else {
+    return Ended(Termination::kInvalidOptions,
+                 "unknown Bayer pattern '" + pattern + "' (expected RGGB, BGGR, GRBG or GBRG)");
+  }
+  cv::cvtColor(raw, *bgr, code);
+  return timer.Succeeded();
 }
 
-cv::Mat XyzToLinearSrgbBgr(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz) {
-  if (xyz.type() != CV_32FC3) throw std::invalid_argument("XYZ image must be CV_32FC3");
+solvers::Summary XyzToLinearSrgbBgr(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz, cv::Mat* bgr) {
+  const solvers::SolveTimer timer;
+  if (xyz.type() != CV_32FC3) return Ended(Termination::kInvalidInput, "XYZ image must be CV_32FC3");
+  if (!white_xyz.allFinite() || !(white_xyz.y() > 0.0)) {
+    return Ended(Termination::kInvalidInput, "the white point must be finite with Y > 0");
+  }
   const Eigen::Vector3d d65 = LinearSrgbToXyzD65() * Eigen::Vector3d::Ones();
   const Eigen::Matrix3d m = XyzD65ToLinearSrgb() * BradfordAdaptation(white_xyz, d65);
   // Output rows in B, G, R order.
   cv::Matx33f to_bgr;
   for (int r = 0; r < 3; ++r)
     for (int col = 0; col < 3; ++col) to_bgr(r, col) = static_cast<float>(m(2 - r, col));
-  cv::Mat bgr;
-  cv::transform(xyz, bgr, to_bgr);
-  return bgr;
+  cv::transform(xyz, *bgr, to_bgr);
+  return timer.Succeeded();
 }
 
-cv::Mat XyzToSrgb8(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz) {
-  const cv::Mat linear = XyzToLinearSrgbBgr(xyz, white_xyz);
+solvers::Summary XyzToSrgb8(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz, cv::Mat* bgr) {
+  const solvers::SolveTimer timer;
+  cv::Mat linear;
+  const solvers::Summary converted = XyzToLinearSrgbBgr(xyz, white_xyz, &linear);
+  if (!converted.IsSolutionUsable()) return converted;
   // A 4096-entry table of the transfer function: exact to 8 bits and cheap per pixel.
   static const std::vector<std::uint8_t> table = [] {
     std::vector<std::uint8_t> t(4096);
@@ -133,7 +144,8 @@ cv::Mat XyzToSrgb8(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz) {
       o[i] = table[static_cast<std::size_t>(index)];
     }
   }
-  return out;
+  *bgr = out;
+  return timer.Succeeded();
 }
 
 }  // namespace photorig::color

@@ -134,16 +134,16 @@ ColorModel FitModel(const ModelSpec& spec, const std::vector<Eigen::Vector3d>& c
 }
 
 CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOptions& options) {
-  const auto start = Clock::now();
+  solvers::SolveTimer timer;
   CalibrationSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.message = "invalid options: " + why;
+    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   const std::size_t n = input.camera_rgb.size();
   if (input.usable.size() != n || input.reference_xyz.size() != n) {
-    summary.message = "camera_rgb, usable and reference_xyz must have one entry per patch";
+    summary.End(solvers::Termination::kInvalidInput, "camera_rgb, usable and reference_xyz must have one entry per patch");
     return summary;
   }
   std::vector<int> used;
@@ -152,7 +152,8 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
       used.push_back(static_cast<int>(i));
   summary.patches_used = static_cast<int>(used.size());
   if (used.size() < 4) {
-    summary.message = "only " + std::to_string(used.size()) + " usable patches; at least 5 are needed";
+    summary.End(solvers::Termination::kFailure,
+                "only " + std::to_string(used.size()) + " usable patches; at least 4 are needed");
     return summary;
   }
 
@@ -170,7 +171,7 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
       }
     }
     if (summary.exposure_patch < 0) {
-      summary.message = "no usable white or grey patch to normalise the exposure on";
+      summary.End(solvers::Termination::kFailure, "no usable white or grey patch to normalise the exposure on");
       return summary;
     }
     const auto w = static_cast<std::size_t>(summary.exposure_patch);
@@ -184,9 +185,10 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
     std::ostringstream message;
     message << "near-singular system: the usable patches span too little colour (chromaticity spread " << spread
             << " < " << options.min_chromaticity_spread << "); a chart of greys cannot calibrate colour";
-    summary.message = message.str();
+    summary.End(solvers::Termination::kFailure, message.str());
     return summary;
   }
+  timer.SetupDone(&summary);
   std::vector<Eigen::Vector3d> lab;
   for (const auto& v : xyz) lab.push_back(XyzToLab(v, input.white_xyz));
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -251,19 +253,19 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
     if (summary.chosen < 0 || m.spec.TermCount() < summary.models[static_cast<std::size_t>(summary.chosen)].spec.TermCount())
       summary.chosen = static_cast<int>(i);
   }
-  summary.total_ms = MsSince(start);
+  timer.Finish(&summary);
   if (summary.chosen < 0) {
-    summary.message = "no candidate model is usable:";
-    for (const auto& m : summary.models) summary.message += " " + m.spec.Name() + ": " + m.note + ";";
+    std::string reasons = "no candidate model is usable:";
+    for (const auto& m : summary.models) reasons += " " + m.spec.Name() + ": " + m.note + ";";
+    summary.End(solvers::Termination::kFailure, reasons);
     return summary;
   }
-  summary.termination = CalibrationTermination::kSuccess;
   const auto& chosen = summary.models[static_cast<std::size_t>(summary.chosen)];
   std::ostringstream message;
   message.precision(3);
   message << "chose " << chosen.spec.Name() << ": leave-one-out mean CIEDE2000 " << chosen.held_out_mean
           << " (training " << chosen.training_mean << ") over " << used.size() << " patches";
-  summary.message = message.str();
+  summary.End(solvers::Termination::kSuccess, message.str());
   return summary;
 }
 
@@ -276,7 +278,7 @@ ChartCalibration CalibrateChartImage(const cv::Mat& image_bgr, const cv::Mat& da
   out.reference = ColorCheckerReference(illuminant, ReferenceGrid());
   out.located = LocateChart(image_bgr, locate);
   if (!out.located.location) {
-    out.summary.message = out.located.message;
+    out.summary.End(solvers::Termination::kFailure, "chart not found: " + out.located.message);
     return out;
   }
   out.patches = MeasurePatches(image_bgr, dark_bgr, *out.located.location, measure);

@@ -33,13 +33,17 @@ std::vector<ModelSpec> ModelSpec::All() {
           {Kind::kPolynomial, 2},     {Kind::kRootPolynomial, 3}, {Kind::kPolynomial, 3}};
 }
 
-ModelSpec ModelSpec::Parse(const std::string& name) {
-  std::string known;
+std::optional<ModelSpec> ModelSpec::Parse(const std::string& name) {
   for (const ModelSpec& spec : All()) {
     if (spec.Name() == name) return spec;
-    known += (known.empty() ? "" : ", ") + spec.Name();
   }
-  throw std::invalid_argument("unknown colour model '" + name + "' (known: " + known + ")");
+  return std::nullopt;
+}
+
+std::string ModelSpec::KnownNames() {
+  std::string known;
+  for (const ModelSpec& spec : All()) known += (known.empty() ? "" : ", ") + spec.Name();
+  return known;
 }
 
 namespace {
@@ -110,10 +114,10 @@ Eigen::VectorXd ModelFeatures(const ModelSpec& spec, const Eigen::Vector3d& rgb)
 
 const char* FitLossName(FitLoss loss) { return loss == FitLoss::kCiede2000 ? "ciede2000" : "xyz"; }
 
-FitLoss ParseFitLoss(const std::string& name) {
+std::optional<FitLoss> ParseFitLoss(const std::string& name) {
   if (name == "xyz") return FitLoss::kXyzLeastSquares;
   if (name == "ciede2000") return FitLoss::kCiede2000;
-  throw std::invalid_argument("unknown fit loss '" + name + "' (known: xyz, ciede2000)");
+  return std::nullopt;
 }
 
 Eigen::Vector3d ColorModel::ToXyz(const Eigen::Vector3d& camera_rgb) const {

@@ -97,13 +97,19 @@ ColorModel ModelFromJson(const nlohmann::json& json, const std::string& source) 
   if (!field("format").is_string() || field("format").get<std::string>() != kFormat)
     throw fail("format", std::string("expected '") + kFormat + "'");
   ColorModel model;
-  try {
-    model.spec = ModelSpec::Parse(field("model").get<std::string>());
-    model.loss = ParseFitLoss(field("loss").get<std::string>());
-    model.illuminant = ParseIlluminant(field("illuminant").get<std::string>());
-  } catch (const std::exception& e) {
-    throw std::invalid_argument(source + ": " + e.what());
-  }
+  auto name = [&](const char* key) {
+    if (!field(key).is_string()) throw fail(key, "expected a string");
+    return field(key).get<std::string>();
+  };
+  const std::optional<ModelSpec> spec = ModelSpec::Parse(name("model"));
+  if (!spec) throw fail("model", "unknown model (known: " + ModelSpec::KnownNames() + ")");
+  const std::optional<FitLoss> loss = ParseFitLoss(name("loss"));
+  if (!loss) throw fail("loss", "unknown fit loss (known: xyz, ciede2000)");
+  const std::optional<Illuminant> illuminant = ParseIlluminant(name("illuminant"));
+  if (!illuminant) throw fail("illuminant", "unknown illuminant (known: D50, D65, A)");
+  model.spec = *spec;
+  model.loss = *loss;
+  model.illuminant = *illuminant;
   const auto& white = field("white_xyz");
   if (!white.is_array() || white.size() != 3) throw fail("white_xyz", "expected 3 numbers");
   for (int i = 0; i < 3; ++i) model.white_xyz[i] = number(white[static_cast<std::size_t>(i)], "white_xyz");
@@ -143,7 +149,7 @@ ColorModel ParseModel(const std::string& text, const std::string& path) {
 nlohmann::json CalibrationReport(const CalibrationSummary& summary, const std::vector<PatchMeasurement>& measurements,
                                  const std::vector<std::string>& patch_names) {
   nlohmann::json report;
-  report["termination"] = summary.termination == CalibrationTermination::kSuccess ? "success" : "failure";
+  report["termination"] = solvers::TerminationName(summary.termination);
   report["message"] = summary.message;
   report["patches_used"] = summary.patches_used;
   report["exposure_patch"] = summary.exposure_patch;

@@ -106,11 +106,11 @@ std::vector<double> WavelengthGrid(double first_nm, double last_nm, double step_
   return grid;
 }
 
-Illuminant ParseIlluminant(const std::string& name) {
+std::optional<Illuminant> ParseIlluminant(const std::string& name) {
   if (name == "D50") return Illuminant::kD50;
   if (name == "D65") return Illuminant::kD65;
   if (name == "A") return Illuminant::kA;
-  throw std::invalid_argument("unknown illuminant '" + name + "' (known: D50, D65, A)");
+  return std::nullopt;
 }
 
 const char* IlluminantName(Illuminant illuminant) {

@@ -5,7 +5,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
-#include <stdexcept>
+#include <string>
+#include <utility>
 
 namespace photorig::lighting {
 
@@ -22,11 +23,44 @@ Eigen::Vector2d LatLongPixel(const Eigen::Vector3d& direction, int width, int he
   return {(phi + M_PI) / (2.0 * M_PI) * width - 0.5, theta / M_PI * height - 0.5};
 }
 
-LatLongMap MirrorBallToLatLong(const cv::Mat& ball_image, const SphereGeometry& sphere, const UnwrapOptions& options) {
-  if (!sphere.valid || sphere.camera.projection != CameraModel::Projection::kOrthographic) {
-    throw std::invalid_argument("MirrorBallToLatLong: needs a located sphere seen by an orthographic camera");
+bool UnwrapOptions::IsValid(std::string* why) const {
+  if (width < 4 || width % 2 != 0) {
+    if (why) *why = "width must be even and >= 4, got " + std::to_string(width);
+    return false;
   }
-  if (options.width < 4 || options.width % 2 != 0) throw std::invalid_argument("MirrorBallToLatLong: even width >= 4");
+  if (!(blind_cone_deg >= 0.0 && blind_cone_deg < 90.0)) {
+    if (why) *why = "blind_cone_deg must be in [0, 90), got " + std::to_string(blind_cone_deg);
+    return false;
+  }
+  return true;
+}
+
+bool ExposureMergeOptions::IsValid(std::string* why) const {
+  if (!(saturation_level > black_level)) {
+    if (why) *why = "saturation_level must exceed black_level";
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+using solvers::Ended;
+using solvers::Termination;
+
+bool IsLatLong(const cv::Mat& map) { return !map.empty() && map.cols == 2 * map.rows; }
+
+}  // namespace
+
+solvers::Summary MirrorBallToLatLong(const cv::Mat& ball_image, const SphereGeometry& sphere,
+                                     const UnwrapOptions& options, LatLongMap* map) {
+  const solvers::SolveTimer timer;
+  std::string why;
+  if (!options.IsValid(&why)) return Ended(Termination::kInvalidOptions, "invalid options: " + why);
+  if (!sphere.valid || sphere.camera.projection != CameraModel::Projection::kOrthographic) {
+    return Ended(Termination::kInvalidInput, "needs a located sphere seen by an orthographic camera");
+  }
+  if (ball_image.empty()) return Ended(Termination::kInvalidInput, "the mirror-ball image is empty");
   const int width = options.width, height = options.width / 2;
   cv::Mat map_u(height, width, CV_32F), map_v(height, width, CV_32F);
   LatLongMap result;
@@ -51,12 +85,15 @@ LatLongMap MirrorBallToLatLong(const cv::Mat& ball_image, const SphereGeometry& 
   cv::Mat source;
   ball_image.convertTo(source, CV_MAKETYPE(CV_32F, ball_image.channels()));
   cv::remap(source, result.radiance, map_u, map_v, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
-  return result;
+  *map = std::move(result);
+  return timer.Succeeded();
 }
 
-cv::Mat LatLongToMirrorBall(const cv::Mat& latlong, int size_px) {
-  if (latlong.empty() || latlong.cols != 2 * latlong.rows || size_px < 2) {
-    throw std::invalid_argument("LatLongToMirrorBall: a 2:1 lat-long map and a positive size");
+solvers::Summary LatLongToMirrorBall(const cv::Mat& latlong, int size_px, cv::Mat* ball) {
+  const solvers::SolveTimer timer;
+  if (!IsLatLong(latlong)) return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map");
+  if (size_px < 2) {
+    return Ended(Termination::kInvalidInput, "ball size must be >= 2 px, got " + std::to_string(size_px));
   }
   cv::Mat source;
   latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
@@ -76,22 +113,29 @@ cv::Mat LatLongToMirrorBall(const cv::Mat& latlong, int size_px) {
       map_v.at<float>(v, u) = static_cast<float>(std::clamp(p.y(), 0.0, latlong.rows - 1.0));
     }
   }
-  cv::Mat ball;
-  cv::remap(source, ball, map_u, map_v, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
-  return ball;
+  cv::remap(source, *ball, map_u, map_v, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
+  return timer.Succeeded();
 }
 
-HdrMerge MergeExposures(const std::vector<cv::Mat>& frames, const std::vector<double>& exposure_us,
-                        const ExposureMergeOptions& options) {
+solvers::Summary MergeExposures(const std::vector<cv::Mat>& frames, const std::vector<double>& exposure_us,
+                                const ExposureMergeOptions& options, HdrMerge* merge_out) {
+  const solvers::SolveTimer timer;
+  std::string why;
+  if (!options.IsValid(&why)) return Ended(Termination::kInvalidOptions, "invalid options: " + why);
   if (frames.empty() || frames.size() != exposure_us.size()) {
-    throw std::invalid_argument("MergeExposures: one exposure per frame");
+    return Ended(Termination::kInvalidInput, std::to_string(frames.size()) + " frames for " +
+                                                          std::to_string(exposure_us.size()) + " exposures");
   }
   const double span = options.saturation_level - options.black_level;
-  if (!(span > 0.0)) throw std::invalid_argument("MergeExposures: saturation_level must exceed black_level");
   std::size_t shortest = 0;
   for (std::size_t k = 0; k < frames.size(); ++k) {
-    if (frames[k].size() != frames[0].size() || frames[k].type() != frames[0].type() || !(exposure_us[k] > 0.0)) {
-      throw std::invalid_argument("MergeExposures: frames must share size and type; exposures positive");
+    if (frames[k].empty() || frames[k].size() != frames[0].size() || frames[k].type() != frames[0].type()) {
+      return Ended(Termination::kInvalidInput,
+                   "frame " + std::to_string(k) + " differs from frame 0 in size or type (or is empty)");
+    }
+    if (!(exposure_us[k] > 0.0)) {
+      return Ended(Termination::kInvalidInput,
+                   "exposure " + std::to_string(k) + " is not positive: " + std::to_string(exposure_us[k]) + " us");
     }
     if (exposure_us[k] < exposure_us[shortest]) shortest = k;
   }
@@ -123,7 +167,10 @@ HdrMerge MergeExposures(const std::vector<cv::Mat>& frames, const std::vector<do
   fallback.copyTo(merge.radiance, unresolved);
   merge.unresolved = unresolved;
   merge.unresolved_pixels = cv::countNonZero(unresolved);
-  return merge;
+  *merge_out = std::move(merge);
+  if (merge_out->unresolved_pixels == 0) return timer.Succeeded();
+  return timer.Succeeded(std::to_string(merge_out->unresolved_pixels) +
+                              " pixels saturated in every exposure (clipped values from the shortest; flagged)");
 }
 
 namespace {
@@ -136,8 +183,12 @@ double PixelSolidAngle(int v, int width, int height) {
 
 }  // namespace
 
-Eigen::MatrixXd ProjectLatLongToSh(const cv::Mat& latlong, int band) {
-  if (latlong.empty() || latlong.cols != 2 * latlong.rows) throw std::invalid_argument("ProjectLatLongToSh: 2:1 map");
+solvers::Summary ProjectLatLongToSh(const cv::Mat& latlong, int band, Eigen::MatrixXd* coefficients_out) {
+  const solvers::SolveTimer timer;
+  if (band < 0 || band > 8) {
+    return Ended(Termination::kInvalidOptions, "band must be in [0, 8], got " + std::to_string(band));
+  }
+  if (!IsLatLong(latlong)) return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map");
   cv::Mat source;
   latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
   const int channels = source.channels();
@@ -153,14 +204,23 @@ Eigen::MatrixXd ProjectLatLongToSh(const cv::Mat& latlong, int band) {
       }
     }
   }
-  return coefficients;
+  *coefficients_out = std::move(coefficients);
+  return timer.Succeeded();
 }
 
-Eigen::MatrixXd LatLongToLedWeights(const cv::Mat& latlong, const std::vector<Eigen::Vector3d>& led_directions,
-                                    const std::vector<double>& led_intensities) {
-  if (latlong.empty() || latlong.cols != 2 * latlong.rows || led_directions.empty() ||
-      led_directions.size() != led_intensities.size()) {
-    throw std::invalid_argument("LatLongToLedWeights: 2:1 map and one intensity per LED");
+solvers::Summary LatLongToLedWeights(const cv::Mat& latlong, const std::vector<Eigen::Vector3d>& led_directions,
+                                     const std::vector<double>& led_intensities, Eigen::MatrixXd* weights_out) {
+  const solvers::SolveTimer timer;
+  if (!IsLatLong(latlong)) return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map");
+  if (led_directions.empty() || led_directions.size() != led_intensities.size()) {
+    return Ended(Termination::kInvalidInput, std::to_string(led_directions.size()) + " LED directions for " +
+                                                          std::to_string(led_intensities.size()) + " intensities");
+  }
+  for (std::size_t k = 0; k < led_intensities.size(); ++k) {
+    if (!(led_intensities[k] > 0.0) || !(led_directions[k].norm() > 0.0)) {
+      return Ended(Termination::kInvalidInput,
+                   "LED " + std::to_string(k) + " has a non-positive intensity or a zero direction");
+    }
   }
   cv::Mat source;
   latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
@@ -187,7 +247,8 @@ Eigen::MatrixXd LatLongToLedWeights(const cv::Mat& latlong, const std::vector<Ei
     }
   }
   for (std::size_t k = 0; k < led_intensities.size(); ++k) weights.row(static_cast<Eigen::Index>(k)) /= led_intensities[k];
-  return weights;
+  *weights_out = std::move(weights);
+  return timer.Succeeded();
 }
 
 }  // namespace photorig::lighting

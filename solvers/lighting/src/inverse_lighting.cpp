@@ -5,7 +5,6 @@
 
 #include <Eigen/Dense>
 
-#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -14,10 +13,6 @@ namespace {
 
 // Results are R, G, B columns; OpenCV stores B, G, R.
 int ColourColumn(int stored_channel, int channels) { return channels == 3 ? 2 - stored_channel : 0; }
-
-double MillisecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
 
 // Normal equations of one linear model, per image channel and per held-out fold.
 struct NormalEquations {
@@ -111,11 +106,15 @@ bool ShFitOptions::IsValid(std::string* why) const {
 
 ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, const cv::Mat& image,
                                 const cv::Mat& mask, const ShFitOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
+  const solvers::SolveTimer timer;
   ShLightingSummary summary;
   std::string why;
-  if (!options.IsValid(&why) || !(why = CheckInputs(normals, albedo, image, mask)).empty()) {
-    summary.message = why;
+  if (!options.IsValid(&why)) {
+    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    return summary;
+  }
+  if (!(why = CheckInputs(normals, albedo, image, mask)).empty()) {
+    summary.End(solvers::Termination::kInvalidInput, why);
     return summary;
   }
   const int top_band = options.selection == ShFitOptions::Selection::kFixed ? options.fixed_band : options.max_band;
@@ -147,7 +146,7 @@ ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, c
     return index;
   };
   if (summary.pixels_used < static_cast<std::size_t>(2 * columns_of(bands.back()).size())) {
-    summary.message = "too few valid pixels (" + std::to_string(summary.pixels_used) + ")";
+    summary.End(solvers::Termination::kFailure, "too few valid pixels (" + std::to_string(summary.pixels_used) + ")");
     return summary;
   }
 
@@ -215,9 +214,12 @@ ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, c
   }
   summary.rms_residual = std::sqrt(sse / n_total);
   summary.relative_rms_residual = summary.rms_residual / std::max(std::abs(eq.sum_intensity / n_total), 1e-300);
-  summary.success = std::isfinite(summary.rms_residual);
-  summary.message = summary.success ? "band " + std::to_string(chosen) + " selected" : "fit failed";
-  summary.total_ms = MillisecondsSince(start);
+  if (std::isfinite(summary.rms_residual)) {
+    summary.End(solvers::Termination::kSuccess, "band " + std::to_string(chosen) + " selected");
+  } else {
+    summary.End(solvers::Termination::kFailure, "the fit's residual is not finite (NaN or infinite input values?)");
+  }
+  timer.Finish(&summary);
   return summary;
 }
 
@@ -232,15 +234,19 @@ bool LedWeightsOptions::IsValid(std::string* why) const {
 LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, const cv::Mat& image,
                                 const cv::Mat& mask, const std::vector<Eigen::Vector3d>& led_directions,
                                 const std::vector<double>& led_intensities, const LedWeightsOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
+  const solvers::SolveTimer timer;
   LedWeightsSummary summary;
   std::string why;
-  if (!options.IsValid(&why) || !(why = CheckInputs(normals, albedo, image, mask)).empty()) {
-    summary.message = why;
+  if (!options.IsValid(&why)) {
+    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    return summary;
+  }
+  if (!(why = CheckInputs(normals, albedo, image, mask)).empty()) {
+    summary.End(solvers::Termination::kInvalidInput, why);
     return summary;
   }
   if (led_directions.empty() || led_directions.size() != led_intensities.size()) {
-    summary.message = "need one intensity per LED direction";
+    summary.End(solvers::Termination::kInvalidInput, "need one intensity per LED direction");
     return summary;
   }
   const int leds = static_cast<int>(led_directions.size());
@@ -253,7 +259,8 @@ LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, c
                                         });
   summary.pixels_used = eq.samples[0] + eq.samples[1];
   if (summary.pixels_used < static_cast<std::size_t>(leds)) {
-    summary.message = "too few valid pixels";
+    summary.End(solvers::Termination::kFailure, "too few valid pixels (" + std::to_string(summary.pixels_used) +
+                                                     " for " + std::to_string(leds) + " LEDs)");
     return summary;
   }
   summary.weights = Eigen::MatrixXd::Zero(leds, eq.channels);
@@ -265,7 +272,7 @@ LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, c
     const Eigen::VectorXd h = eq.rhs[k0] + eq.rhs[k1];
     Eigen::VectorXd x;
     const NnlsSummary nnls = SolveNnlsNormal(g, h, &x);
-    converged = converged && nnls.converged;
+    converged = converged && nnls.termination == solvers::Termination::kSuccess;
     summary.weights.col(ColourColumn(ch, eq.channels)) = x;
     sse += Sse(g, h, eq.sum_squares[k0] + eq.sum_squares[k1], x);
   }
@@ -275,9 +282,12 @@ LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, c
   const double n_total = static_cast<double>(summary.pixels_used) * eq.channels;
   summary.rms_residual = std::sqrt(sse / n_total);
   summary.relative_rms_residual = summary.rms_residual / std::max(std::abs(eq.sum_intensity / n_total), 1e-300);
-  summary.success = converged;
-  summary.message = converged ? "converged" : "NNLS iteration limit reached";
-  summary.total_ms = MillisecondsSince(start);
+  if (converged) {
+    summary.End(solvers::Termination::kSuccess, "");
+  } else {
+    summary.End(solvers::Termination::kNoConvergence, "NNLS iteration limit reached");
+  }
+  timer.Finish(&summary);
   return summary;
 }
 

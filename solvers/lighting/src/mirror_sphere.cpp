@@ -194,9 +194,15 @@ bool HighlightCircleOptions::IsValid(std::string* why) const {
 HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& frames,
                                                   const std::vector<Eigen::Vector3d>& nominal_directions,
                                                   const HighlightCircleOptions& options) {
+  const solvers::SolveTimer timer;
   HighlightCircleSummary summary;
-  if (!options.IsValid(&summary.message)) return summary;
+  std::string why;
+  if (!options.IsValid(&why)) {
+    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    return summary;
+  }
   if (frames.size() != nominal_directions.size()) {
+    summary.termination = solvers::Termination::kInvalidInput;
     summary.message = std::to_string(frames.size()) + " frames for " + std::to_string(nominal_directions.size()) +
                       " nominal light directions";
     return summary;
@@ -249,6 +255,7 @@ HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& fr
   };
 
   if (static_cast<int>(observations.size()) < options.min_highlights) {
+    summary.termination = solvers::Termination::kFailure;
     summary.message = "only " + std::to_string(observations.size()) + " highlights found (need " +
                       std::to_string(options.min_highlights) + ")";
     return summary;
@@ -260,6 +267,7 @@ HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& fr
     else summary.rejected.push_back(o.frame);
   }
   if (static_cast<int>(kept.size()) < options.min_highlights) {
+    summary.termination = solvers::Termination::kFailure;
     summary.message = "the highlights do not fit one sphere under the nominal light directions (" +
                       std::to_string(kept.size()) + " of " + std::to_string(observations.size()) + " within " +
                       std::to_string(options.outlier_px) + " px)";
@@ -273,11 +281,12 @@ HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& fr
   summary.highlights_used = static_cast<int>(kept.size());
   summary.rms_residual_px = std::sqrt(sum_squares / static_cast<double>(kept.size()));
   if (!(circle.radius_px > 0.0)) {
+    summary.termination = solvers::Termination::kFailure;
     summary.message = "the fitted radius is not positive: the nominal directions do not match the highlights";
     return summary;
   }
-  summary.success = true;
-  summary.message = "sphere from " + std::to_string(kept.size()) + " highlights";
+  summary.End(solvers::Termination::kSuccess, "sphere from " + std::to_string(kept.size()) + " highlights");
+  timer.Finish(&summary);
   return summary;
 }
 

@@ -2,19 +2,39 @@
 
 #include <Eigen/Dense>
 
+#include <string>
 #include <vector>
 
 namespace photorig::lighting {
 
+bool NnlsOptions::IsValid(std::string* why) const {
+  if (max_iterations < 0) {
+    if (why) *why = "max_iterations must be >= 0 (0: 3 n + 10), got " + std::to_string(max_iterations);
+    return false;
+  }
+  return true;
+}
+
 NnlsSummary SolveNnlsNormal(const Eigen::MatrixXd& gram, const Eigen::VectorXd& rhs, Eigen::VectorXd* x,
-                            int max_iterations) {
+                            const NnlsOptions& options) {
+  const solvers::SolveTimer timer;
   NnlsSummary summary;
-  const Eigen::Index n = rhs.size();
-  if (gram.rows() != n || gram.cols() != n) {
-    summary.message = "gram matrix and right-hand side sizes differ";
+  std::string why;
+  if (!options.IsValid(&why)) {
+    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
-  if (max_iterations < 0) max_iterations = static_cast<int>(3 * n + 10);
+  const Eigen::Index n = rhs.size();
+  if (gram.rows() != n || gram.cols() != n || x == nullptr) {
+    summary.End(solvers::Termination::kInvalidInput, "gram matrix and right-hand side sizes differ");
+    return summary;
+  }
+  if (!gram.allFinite() || !rhs.allFinite()) {
+    summary.End(solvers::Termination::kInvalidInput, "gram matrix or right-hand side has NaN or infinite entries");
+    return summary;
+  }
+  const int max_iterations = options.max_iterations > 0 ? options.max_iterations : static_cast<int>(3 * n + 10);
+  bool converged = false;
   x->setZero(n);
   std::vector<bool> passive(static_cast<std::size_t>(n), false);
   const double tolerance = 1e-12 * std::max(1.0, gram.diagonal().cwiseAbs().maxCoeff());
@@ -49,7 +69,7 @@ NnlsSummary SolveNnlsNormal(const Eigen::MatrixXd& gram, const Eigen::VectorXd& 
       }
     }
     if (best < 0) {
-      summary.converged = true;
+      converged = true;
       break;
     }
     passive[static_cast<std::size_t>(best)] = true;
@@ -79,12 +99,25 @@ NnlsSummary SolveNnlsNormal(const Eigen::MatrixXd& gram, const Eigen::VectorXd& 
     }
   }
   for (Eigen::Index i = 0; i < n; ++i) summary.active_count += (*x)(i) > 0.0 ? 1 : 0;
-  summary.message = summary.converged ? "converged" : "iteration limit reached";
+  if (converged) {
+    summary.End(solvers::Termination::kSuccess, "");
+  } else {
+    summary.End(solvers::Termination::kNoConvergence,
+                "iteration limit (" + std::to_string(max_iterations) + ") reached before the optimality conditions held");
+  }
+  timer.Finish(&summary);
   return summary;
 }
 
-NnlsSummary SolveNnls(const Eigen::MatrixXd& a, const Eigen::VectorXd& b, Eigen::VectorXd* x) {
-  return SolveNnlsNormal(a.transpose() * a, a.transpose() * b, x);
+NnlsSummary SolveNnls(const Eigen::MatrixXd& a, const Eigen::VectorXd& b, Eigen::VectorXd* x,
+                      const NnlsOptions& options) {
+  if (a.rows() != b.size()) {
+    NnlsSummary summary;
+    summary.End(solvers::Termination::kInvalidInput, "A has " + std::to_string(a.rows()) + " rows, b " +
+                                                         std::to_string(b.size()) + " entries");
+    return summary;
+  }
+  return SolveNnlsNormal(a.transpose() * a, a.transpose() * b, x, options);
 }
 
 }  // namespace photorig::lighting

@@ -3,15 +3,18 @@
 #include "photorig/lighting/spherical_harmonics.h"
 
 #include <cmath>
-#include <stdexcept>
+#include <string>
 
 namespace photorig::lighting {
 namespace {
 
+using solvers::Ended;
+using solvers::Termination;
+
+// The band whose coefficient count is `rows`; -1 if `rows` is not a square.
 int ShBandOf(Eigen::Index rows) {
   const int band = static_cast<int>(std::lround(std::sqrt(static_cast<double>(rows)))) - 1;
-  if (band < 0 || ShCoefficientCount(band) != rows) throw std::invalid_argument("SH coefficient count is not a square");
-  return band;
+  return band >= 0 && ShCoefficientCount(band) == rows ? band : -1;
 }
 
 // Output channel k of a 3-channel image is stored BGR: colour column 2 - k.
@@ -19,13 +22,24 @@ int ColourColumn(int stored_channel, int channels) { return channels == 3 ? 2 - 
 
 }  // namespace
 
-cv::Mat RenderShLighting(const cv::Mat& normals, const cv::Mat& albedo, const Eigen::MatrixXd& coefficients) {
+solvers::Summary RenderShLighting(const cv::Mat& normals, const cv::Mat& albedo, const Eigen::MatrixXd& coefficients,
+                                  cv::Mat* image) {
+  const solvers::SolveTimer timer;
   if (normals.type() != CV_32FC3 || albedo.size() != normals.size() || albedo.depth() != CV_32F) {
-    throw std::invalid_argument("RenderShLighting: normals CV_32FC3 and albedo CV_32F of the same size");
+    return Ended(Termination::kInvalidInput, "normals must be CV_32FC3 and albedo CV_32F of the same size");
   }
   const int band = ShBandOf(coefficients.rows());
+  if (band < 0) {
+    return Ended(Termination::kInvalidInput,
+                 std::to_string(coefficients.rows()) + " SH coefficients is not (band + 1)^2 for any band");
+  }
   const int channels = static_cast<int>(coefficients.cols());
-  if (channels != 1 && channels != 3) throw std::invalid_argument("RenderShLighting: 1 or 3 coefficient columns");
+  if (channels != 1 && channels != 3) {
+    return Ended(Termination::kInvalidInput, "1 or 3 coefficient columns, got " + std::to_string(channels));
+  }
+  if (albedo.channels() != 1 && albedo.channels() != channels) {
+    return Ended(Termination::kInvalidInput, "albedo must have 1 channel or one per coefficient column");
+  }
   // Irradiance coefficients E_lm = A_l L_lm, scaled by 1/pi for radiance.
   Eigen::MatrixXd irradiance = coefficients;
   for (int l = 0; l <= band; ++l) irradiance.middleRows(l * l, 2 * l + 1) *= LambertianKernel(l) / M_PI;
@@ -46,15 +60,20 @@ cv::Mat RenderShLighting(const cv::Mat& normals, const cv::Mat& albedo, const Ei
       }
     }
   }
-  return out;
+  *image = out;
+  return timer.Succeeded();
 }
 
-cv::Mat RenderDirectionalLights(const cv::Mat& normals, const cv::Mat& albedo,
-                                const std::vector<Eigen::Vector3d>& directions,
-                                const std::vector<double>& intensities) {
-  if (normals.type() != CV_32FC3 || albedo.size() != normals.size() || albedo.type() != CV_32FC1 ||
-      directions.size() != intensities.size()) {
-    throw std::invalid_argument("RenderDirectionalLights: normals CV_32FC3, albedo CV_32FC1, one intensity per light");
+solvers::Summary RenderDirectionalLights(const cv::Mat& normals, const cv::Mat& albedo,
+                                         const std::vector<Eigen::Vector3d>& directions,
+                                         const std::vector<double>& intensities, cv::Mat* image) {
+  const solvers::SolveTimer timer;
+  if (normals.type() != CV_32FC3 || albedo.size() != normals.size() || albedo.type() != CV_32FC1) {
+    return Ended(Termination::kInvalidInput, "normals must be CV_32FC3 and albedo CV_32FC1 of the same size");
+  }
+  if (directions.size() != intensities.size()) {
+    return Ended(Termination::kInvalidInput, std::to_string(directions.size()) + " light directions for " +
+                                                 std::to_string(intensities.size()) + " intensities");
   }
   cv::Mat out(normals.size(), CV_32F, cv::Scalar(0));
   for (int r = 0; r < normals.rows; ++r) {
@@ -68,31 +87,38 @@ cv::Mat RenderDirectionalLights(const cv::Mat& normals, const cv::Mat& albedo,
       out.at<float>(r, c) = static_cast<float>(albedo.at<float>(r, c) / M_PI * sum);
     }
   }
-  return out;
+  *image = out;
+  return timer.Succeeded();
 }
 
-cv::Mat RelightFromFrames(const std::vector<cv::Mat>& frames, const Eigen::MatrixXd& weights) {
+solvers::Summary RelightFromFrames(const std::vector<cv::Mat>& frames, const Eigen::MatrixXd& weights, cv::Mat* image) {
+  const solvers::SolveTimer timer;
   if (frames.empty() || static_cast<Eigen::Index>(frames.size()) != weights.rows() ||
       (weights.cols() != 1 && weights.cols() != 3)) {
-    throw std::invalid_argument("RelightFromFrames: one weight row per frame, 1 or 3 columns");
+    return Ended(Termination::kInvalidInput, "needs one weight row per frame and 1 or 3 columns (" +
+                                                 std::to_string(frames.size()) + " frames, " +
+                                                 std::to_string(weights.rows()) + " x " +
+                                                 std::to_string(weights.cols()) + " weights)");
+  }
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (frames[k].empty() || frames[k].size() != frames[0].size() || frames[k].channels() != 1) {
+      return Ended(Termination::kInvalidInput, "frame " + std::to_string(k) +
+                                                   " is not single-channel or differs from frame 0 in size");
+    }
   }
   const int channels = static_cast<int>(weights.cols());
   std::vector<cv::Mat> planes(static_cast<std::size_t>(channels));
   for (auto& p : planes) p = cv::Mat::zeros(frames[0].size(), CV_32F);
   cv::Mat frame;
   for (std::size_t k = 0; k < frames.size(); ++k) {
-    if (frames[k].size() != frames[0].size() || frames[k].channels() != 1) {
-      throw std::invalid_argument("RelightFromFrames: frames must be single-channel and the same size");
-    }
     frames[k].convertTo(frame, CV_32F);
     for (int ch = 0; ch < channels; ++ch) {
       const double w = weights(static_cast<Eigen::Index>(k), ColourColumn(ch, channels));
       if (w != 0.0) cv::scaleAdd(frame, w, planes[static_cast<std::size_t>(ch)], planes[static_cast<std::size_t>(ch)]);
     }
   }
-  cv::Mat out;
-  cv::merge(planes, out);
-  return out;
+  cv::merge(planes, *image);
+  return timer.Succeeded();
 }
 
 }  // namespace photorig::lighting

@@ -81,14 +81,15 @@ Circle GeometricCircle(const std::vector<Eigen::Vector2d>& points, Circle c) {
 }  // namespace
 
 SphereFitSummary FitSphereSilhouette(const cv::Mat& image, const SphereFitOptions& options) {
+  const solvers::SolveTimer timer;
   SphereFitSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.message = "invalid options: " + why;
+    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   if (image.empty() || image.channels() != 1) {
-    summary.message = "sphere fit needs a non-empty single-channel image";
+    summary.End(solvers::Termination::kInvalidInput, "sphere fit needs a non-empty single-channel image");
     return summary;
   }
   cv::Mat values;
@@ -104,7 +105,8 @@ SphereFitSummary FitSphereSilhouette(const cv::Mat& image, const SphereFitOption
     if (best < 0 || stats.at<int>(label, cv::CC_STAT_AREA) > stats.at<int>(best, cv::CC_STAT_AREA)) best = label;
   }
   if (best < 0 || stats.at<int>(best, cv::CC_STAT_AREA) < M_PI * options.min_radius_px * options.min_radius_px) {
-    summary.message = "no blob above threshold " + std::to_string(threshold) + " large enough for a sphere";
+    summary.End(solvers::Termination::kFailure,
+                "no blob above threshold " + std::to_string(threshold) + " large enough for a sphere");
     return summary;
   }
   const int left = stats.at<int>(best, cv::CC_STAT_LEFT), top = stats.at<int>(best, cv::CC_STAT_TOP);
@@ -133,7 +135,7 @@ SphereFitSummary FitSphereSilhouette(const cv::Mat& image, const SphereFitOption
     }
   }
   if (points.size() < 8) {
-    summary.message = "too few silhouette edge points";
+    summary.End(solvers::Termination::kFailure, "too few silhouette edge points");
     return summary;
   }
 
@@ -174,9 +176,12 @@ SphereFitSummary FitSphereSilhouette(const cv::Mat& image, const SphereFitOption
   summary.edge_points_used = static_cast<int>(points.size());
   summary.edge_points_rejected = static_cast<int>(total - points.size());
   summary.edge_points = std::move(points);
-  summary.success = circle.radius_px >= options.min_radius_px;
-  summary.message = summary.success ? (summary.touches_border ? "fitted; silhouette touches the image border" : "fitted")
-                                    : "fitted circle smaller than min_radius_px";
+  if (circle.radius_px >= options.min_radius_px) {
+    summary.End(solvers::Termination::kSuccess, summary.touches_border ? "silhouette touches the image border" : "");
+  } else {
+    summary.End(solvers::Termination::kFailure, "fitted circle smaller than min_radius_px");
+  }
+  timer.Finish(&summary);
   return summary;
 }
 

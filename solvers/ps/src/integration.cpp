@@ -3,7 +3,6 @@
 #include <Eigen/Sparse>
 #include <opencv2/imgproc.hpp>
 
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -186,37 +185,39 @@ bool IntegrationOptions::IsValid(std::string* why) const {
 
 IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask,
                                     cv::Mat* depth) {
-  const auto start = std::chrono::steady_clock::now();
+  solvers::SolveTimer timer;
   IntegrationSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.message = "invalid options: " + why;
+    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   if (normals.type() != CV_32FC3 || normals.empty()) {
-    summary.message = "normals must be a non-empty CV_32FC3 image";
+    summary.End(solvers::Termination::kInvalidInput, "normals must be a non-empty CV_32FC3 image");
     return summary;
   }
   if (!mask.empty() && (mask.type() != CV_8U || mask.size() != normals.size())) {
-    summary.message = "the mask must be an 8-bit image of the normals' size";
+    summary.End(solvers::Termination::kInvalidInput, "the mask must be an 8-bit image of the normals' size");
     return summary;
   }
   const Gradients g = ComputeGradients(options, normals, mask);
   summary.pixels_dropped = g.dropped;
   summary.pixels = static_cast<std::size_t>(cv::countNonZero(g.mask));
   if (summary.pixels == 0) {
-    summary.message = "no pixel has a usable normal to integrate";
+    summary.End(solvers::Termination::kFailure, "no pixel has a usable normal to integrate");
     return summary;
   }
+  timer.SetupDone(&summary);
   if (options.integrator == Integrator::kFrankotChellappa) {
     FrankotChellappa(g, depth);
-  } else if (!Poisson(g, depth, &summary.message)) {
+  } else if (!Poisson(g, depth, &why)) {
+    summary.End(solvers::Termination::kFailure, why);
     return summary;
   }
   CentreRegions(g.mask, depth);
   summary.residual_rms = ResidualRms(g, *depth);
-  summary.solve_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  summary.success = true;
+  summary.End(solvers::Termination::kSuccess, "");
+  timer.Finish(&summary);
   return summary;
 }
 

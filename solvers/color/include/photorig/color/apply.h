@@ -1,15 +1,16 @@
 #pragma once
 // Applying a colour model to images: a camera RGB image (OpenCV B, G, R order,
 // any depth) -> CIE XYZ (relative to the calibration illuminant's white, Y = 1)
-// -> sRGB for display. Works on any 3-channel capture, a stack of them, or a
-// per-channel photometric-stereo albedo map.
+// -> sRGB for display. Works on any 3-channel capture or a per-channel
+// photometric-stereo albedo map.
 
 #include "photorig/color/model.h"
+
+#include "photorig/solvers/summary.h"
 
 #include <opencv2/core.hpp>
 
 #include <string>
-#include <vector>
 
 namespace photorig::color {
 
@@ -21,24 +22,24 @@ struct ApplyOptions {
   bool IsValid(std::string* why) const;
 };
 
-// CV_32FC3 (X, Y, Z). `dark_bgr` may be empty. Throws std::invalid_argument on
-// wrong channel counts or sizes.
-cv::Mat CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv::Mat& dark_bgr,
-                    const ApplyOptions& options);
-std::vector<cv::Mat> CameraStackToXyz(const ColorModel& model, const std::vector<cv::Mat>& stack_bgr,
-                                      const cv::Mat& dark_bgr, const ApplyOptions& options);
+// Each returns a solvers::Summary; on kInvalidOptions or kInvalidInput (the
+// reason in its message) the output is left untouched. Nothing throws.
+
+// *xyz: CV_32FC3 (X, Y, Z). camera_bgr: 3 channels, any depth; `dark_bgr` may
+// be empty, else 3 channels of the image's size.
+solvers::Summary CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv::Mat& dark_bgr,
+                             const ApplyOptions& options, cv::Mat* xyz);
 
 // A single-chip sensor's raw Bayer mosaic (one channel, 8/16-bit) -> B, G, R of
 // the same depth by bilinear interpolation (OpenCV). `pattern` names the
 // top-left 2 x 2 filter block: RGGB, BGGR, GRBG or GBRG. Demosaicing is linear,
 // so a dark frame may be demosaiced the same way and subtracted afterwards.
-// Throws std::invalid_argument on another pattern or a multi-channel image.
-cv::Mat Demosaic(const cv::Mat& raw, const std::string& pattern);
+solvers::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Mat* bgr);
 
-// XYZ (white = `white_xyz`) -> linear sRGB, adapting the white to D65 (Bradford).
-// CV_32FC3 in B, G, R order, unclipped.
-cv::Mat XyzToLinearSrgbBgr(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz);
+// XYZ (CV_32FC3, white = `white_xyz`) -> linear sRGB, adapting the white to
+// D65 (Bradford). CV_32FC3 in B, G, R order, unclipped.
+solvers::Summary XyzToLinearSrgbBgr(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz, cv::Mat* bgr);
 // The same, clipped to [0, 1], encoded with the sRGB transfer function, 8-bit B, G, R.
-cv::Mat XyzToSrgb8(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz);
+solvers::Summary XyzToSrgb8(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz, cv::Mat* bgr);
 
 }  // namespace photorig::color

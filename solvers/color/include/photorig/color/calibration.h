@@ -8,6 +8,8 @@
 #include "photorig/color/chart.h"
 #include "photorig/color/model.h"
 
+#include "photorig/solvers/summary.h"
+
 #include <Eigen/Core>
 
 #include <string>
@@ -50,18 +52,12 @@ struct ModelEvaluation {
   double fit_ms = 0.0, loo_ms = 0.0;
 };
 
-enum class CalibrationTermination { kSuccess, kFailure };
-
-struct CalibrationSummary {
-  CalibrationTermination termination = CalibrationTermination::kFailure;
-  std::string message;
+// kSuccess: a model was chosen (chosen_model() is valid); otherwise message says why not.
+struct CalibrationSummary : solvers::Summary {
   std::vector<ModelEvaluation> models;
   int chosen = -1;  // index into models
   int patches_used = 0;
   int exposure_patch = -1;
-  double total_ms = 0.0;
-
-  bool IsUsable() const { return termination == CalibrationTermination::kSuccess && chosen >= 0; }
   const ColorModel& chosen_model() const { return models.at(static_cast<std::size_t>(chosen)).model; }
 };
 

@@ -15,6 +15,7 @@
 
 #include <Eigen/Core>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,7 +29,8 @@ struct ModelSpec {
   std::string Name() const;
   int TermCount() const;
   bool IsExposureInvariant() const;
-  static ModelSpec Parse(const std::string& name);  // throws std::invalid_argument listing the names
+  static std::optional<ModelSpec> Parse(const std::string& name);  // nullopt for an unknown name
+  static std::string KnownNames();                                  // "linear, affine, ...", for messages
   static std::vector<ModelSpec> All();               // simplest first
   bool operator==(const ModelSpec&) const = default;
 };
@@ -45,7 +47,7 @@ void FillModelFeatures(const ModelSpec& spec, int n, float* const* features);
 
 enum class FitLoss { kXyzLeastSquares, kCiede2000 };
 const char* FitLossName(FitLoss loss);
-FitLoss ParseFitLoss(const std::string& name);  // "xyz" | "ciede2000"
+std::optional<FitLoss> ParseFitLoss(const std::string& name);  // "xyz" | "ciede2000"; nullopt otherwise
 
 struct ColorModel {
   ModelSpec spec;

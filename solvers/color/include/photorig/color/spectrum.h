@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,7 +27,7 @@ struct SampledSpectra {
 std::vector<double> WavelengthGrid(double first_nm, double last_nm, double step_nm);
 
 enum class Illuminant { kD50, kD65, kA };
-Illuminant ParseIlluminant(const std::string& name);  // "D50" | "D65" | "A"; throws std::invalid_argument
+std::optional<Illuminant> ParseIlluminant(const std::string& name);  // "D50" | "D65" | "A"; nullopt otherwise
 const char* IlluminantName(Illuminant illuminant);
 
 const SampledSpectra& Cie1931Observer();                 // xbar, ybar, zbar; 360-830 nm, 1 nm

@@ -4,6 +4,8 @@
 // the data support) or as non-negative weights over the dome's LED directions.
 // Image model (Lambertian, no cast shadows): I = albedo / pi * E(n).
 
+#include "photorig/solvers/summary.h"
+
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
@@ -35,9 +37,7 @@ struct ShCandidate {
   double bic = 0.0;
 };
 
-struct ShLightingSummary {
-  bool success = false;
-  std::string message;
+struct ShLightingSummary : solvers::Summary {
   int band = 0;
   // Radiance coefficients L_lm, ShCoefficientCount(band) rows x channels (R, G, B for colour images).
   // Odd bands above 1 are not observable through a Lambertian surface and are zero.
@@ -47,7 +47,6 @@ struct ShLightingSummary {
   double relative_rms_residual = 0.0;  // rms / mean intensity
   double condition_number = 0.0;
   std::size_t pixels_used = 0;
-  double total_ms = 0.0;
 };
 
 // normals CV_32FC3 (x, y, z per pixel), albedo CV_32FC1 or same channels as image,
@@ -61,15 +60,12 @@ struct LedWeightsOptions {
   bool IsValid(std::string* why) const;
 };
 
-struct LedWeightsSummary {
-  bool success = false;
-  std::string message;
+struct LedWeightsSummary : solvers::Summary {
   Eigen::MatrixXd weights;  // LEDs x channels (R, G, B for colour), drive levels >= 0 relative to each LED's calibrated intensity
   double rms_residual = 0.0;
   double relative_rms_residual = 0.0;
   int active_leds = 0;  // weights above 1e-4 of the largest
   std::size_t pixels_used = 0;
-  double total_ms = 0.0;
 };
 
 LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, const cv::Mat& image,

@@ -76,9 +76,7 @@ struct HighlightCircleOptions {
   bool IsValid(std::string* why) const;
 };
 
-struct HighlightCircleSummary {
-  bool success = false;
-  std::string message;
+struct HighlightCircleSummary : solvers::Summary {
   Circle circle;
   double rms_residual_px = 0.0;     // of the kept highlights from their predicted positions
   int highlights_used = 0;

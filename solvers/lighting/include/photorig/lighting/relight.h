@@ -2,6 +2,8 @@
 // Relighting: render an object under new lighting from its normals and albedo,
 // or image-based, as a weighted sum of one-light-at-a-time frames.
 
+#include "photorig/solvers/summary.h"
+
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
@@ -9,17 +11,22 @@
 
 namespace photorig::lighting {
 
-// I = albedo / pi * sum_lm A_l L_lm Y_lm(n). coefficients: SH rows x channels (1 or 3).
-// Output CV_32F with coefficients.cols() channels (3 channels are stored BGR). Pixels with a zero normal are 0.
-cv::Mat RenderShLighting(const cv::Mat& normals, const cv::Mat& albedo, const Eigen::MatrixXd& coefficients);
+// Each returns a solvers::Summary; on kInvalidInput (the reason in its message)
+// the output is left untouched. Nothing throws.
 
+// I = albedo / pi * sum_lm A_l L_lm Y_lm(n). coefficients: SH rows (a square
+// count) x channels (1 or 3). normals CV_32FC3, albedo CV_32F of their size.
+// *image: CV_32F with coefficients.cols() channels (3 channels are stored BGR).
+// Pixels with a zero normal are 0.
+solvers::Summary RenderShLighting(const cv::Mat& normals, const cv::Mat& albedo, const Eigen::MatrixXd& coefficients,
+                                  cv::Mat* image);
 // I = albedo / pi * sum_k intensity_k max(0, n . d_k); single channel.
-cv::Mat RenderDirectionalLights(const cv::Mat& normals, const cv::Mat& albedo,
-                                const std::vector<Eigen::Vector3d>& directions,
-                                const std::vector<double>& intensities);
-
-// sum_k weights(k, c) * frames[k] per channel c; frames single-channel, any depth (converted to float).
+// normals CV_32FC3, albedo CV_32FC1 of their size, one intensity per direction.
+solvers::Summary RenderDirectionalLights(const cv::Mat& normals, const cv::Mat& albedo,
+                                         const std::vector<Eigen::Vector3d>& directions,
+                                         const std::vector<double>& intensities, cv::Mat* image);
+// sum_k weights(k, c) * frames[k] per channel c; frames single-channel, one size, any depth (converted to float).
 // weights: frames x (1 or 3); a 3-column weight matrix gives a BGR-stored colour image.
-cv::Mat RelightFromFrames(const std::vector<cv::Mat>& frames, const Eigen::MatrixXd& weights);
+solvers::Summary RelightFromFrames(const std::vector<cv::Mat>& frames, const Eigen::MatrixXd& weights, cv::Mat* image);
 
 }  // namespace photorig::lighting

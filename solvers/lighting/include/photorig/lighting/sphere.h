@@ -5,6 +5,8 @@
 // Conventions (as DiLiGenT): camera frame x right, y up, z towards the camera;
 // image row 0 is the top; pixel (col, row) has its centre at (u, v) = (col, row).
 
+#include "photorig/solvers/summary.h"
+
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
@@ -44,9 +46,7 @@ struct SphereFitOptions {
   bool IsValid(std::string* why) const;
 };
 
-struct SphereFitSummary {
-  bool success = false;
-  std::string message;
+struct SphereFitSummary : solvers::Summary {
   Circle circle;
   double rms_residual_px = 0.0;    // of the kept edge points from the circle
   double ellipse_axis_ratio = 1.0; // minor / major axis of an ellipse fitted to the same points

@@ -13,6 +13,8 @@
 // Each connected region's depth is defined up to a constant: both methods put
 // its mean at 0.
 
+#include "photorig/solvers/summary.h"
+
 #include <opencv2/core.hpp>
 
 #include <string>
@@ -32,13 +34,10 @@ struct IntegrationOptions {
   bool IsValid(std::string* why) const;
 };
 
-struct IntegrationSummary {
-  bool success = false;
-  std::string message;
+struct IntegrationSummary : solvers::Summary {
   std::size_t pixels = 0;       // pixels that received a depth
   std::size_t pixels_dropped = 0;  // in the mask but too close to grazing
   double residual_rms = 0.0;    // RMS of (depth difference - integrated gradient) over neighbour pairs, in depth units
-  double solve_ms = 0.0;
 };
 
 // normals: CV_32FC3 (x, y, z), NaN where unknown; mask: CV_8U (empty = every
