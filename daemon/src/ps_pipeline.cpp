@@ -189,25 +189,27 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
   return input;
 }
 
+double EffectiveSaturationLevel(const PhotometricStereoInput& input) {
+  if (std::isfinite(input.saturation_level)) return input.saturation_level;
+  double max_value = 0.0;
+  for (const cv::Mat& image : input.stack.images) {
+    double image_max = 0.0;
+    cv::minMaxLoc(image, nullptr, &image_max);
+    max_value = std::max(max_value, image_max);
+  }
+  // Clipped samples sit at the largest code the data reach when that is a
+  // full-scale code (2^n - 1); otherwise nothing is treated as clipped.
+  const double full_scale = std::exp2(std::ceil(std::log2(max_value + 1.0))) - 1.0;
+  return max_value >= full_scale ? full_scale : input.saturation_level;
+}
+
 json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoRequest& request,
                    const std::string& output_directory) {
   const auto start = std::chrono::steady_clock::now();
   ValidatePhotometricStereoRequest(request);
   ps::PhotometricStack stack = input.stack;
   if (!input.object_mask.empty()) stack.mask = input.object_mask;
-  double saturation = input.saturation_level;
-  if (!std::isfinite(saturation)) {
-    double max_value = 0.0;
-    for (const cv::Mat& image : stack.images) {
-      double image_max = 0.0;
-      cv::minMaxLoc(image, nullptr, &image_max);
-      max_value = std::max(max_value, image_max);
-    }
-    // Clipped samples sit at the largest code the data reach when that is a
-    // full-scale code (2^n - 1); otherwise nothing is treated as clipped.
-    const double full_scale = std::exp2(std::ceil(std::log2(max_value + 1.0))) - 1.0;
-    if (max_value >= full_scale) saturation = full_scale;
-  }
+  const double saturation = EffectiveSaturationLevel(input);
   const ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
 
   ps::NormalMap map;

@@ -59,7 +59,8 @@ TriggerConfig ParseTrigger(const YamlNode& node) {
 }
 
 sim::SensorModel ParseSensor(const YamlNode& node, int bit_depth) {
-  node.ExpectKeys({"response_e_per_us", "e_per_dn", "black_level_dn", "read_noise_e", "full_well_e", "shot_noise"});
+  node.ExpectKeys(
+      {"response_e_per_us", "e_per_dn", "black_level_dn", "read_noise_e", "full_well_e", "shot_noise", "response_gamma"});
   sim::SensorModel sensor;
   sensor.bit_depth = bit_depth;
   sensor.response_e_per_us = node.Double("response_e_per_us", sensor.response_e_per_us);
@@ -68,6 +69,8 @@ sim::SensorModel ParseSensor(const YamlNode& node, int bit_depth) {
   sensor.read_noise_e = node.Double("read_noise_e", sensor.read_noise_e);
   sensor.full_well_e = node.Double("full_well_e", sensor.full_well_e);
   sensor.shot_noise = node.Bool("shot_noise", sensor.shot_noise);
+  sensor.response_gamma = node.Double("response_gamma", sensor.response_gamma);
+  if (!(sensor.response_gamma >= 0.2 && sensor.response_gamma <= 5.0)) node["response_gamma"].Fail("must lie in [0.2, 5]");
   if (!(sensor.response_e_per_us > 0)) node["response_e_per_us"].Fail("must be > 0");
   if (!(sensor.e_per_dn > 0)) node["e_per_dn"].Fail("must be > 0");
   if (!(sensor.read_noise_e >= 0)) node["read_noise_e"].Fail("must be >= 0");
@@ -115,6 +118,18 @@ void ParseFaults(const YamlNode& node, const std::optional<MotionConfig>& motion
       sim->axis_faults[id].refused_moves = IndexSet<std::uint64_t>(axis, "refused_moves");
     }
   }
+}
+
+// sim.ambient: {dome_fraction, stray_irradiance, samples}
+sim::AmbientLight ParseAmbient(const YamlNode& node) {
+  node.ExpectKeys({"dome_fraction", "stray_irradiance", "samples"});
+  sim::AmbientLight ambient;
+  ambient.dome_fraction = node.Double("dome_fraction", ambient.dome_fraction);
+  ambient.stray_irradiance = node.Double("stray_irradiance", ambient.stray_irradiance);
+  ambient.samples = node.Int("samples", ambient.samples);
+  std::string why;
+  if (!ambient.IsValid(&why)) node.Fail(why);
+  return ambient;
 }
 
 // camera.color_chart: {box_px: [x, y, w, h]} or {corners_px: [[x, y] x 4]}, inside the frame.
@@ -390,12 +405,17 @@ RigConfig LoadRigConfig(const std::string& path) {
   if (auto chart = camera.Find("color_chart")) cam.color_chart = ParseColorChart(*chart, cam.width, cam.height);
 
   if (auto sim_node = root.Find("sim")) {
-    sim_node->ExpectKeys({"seed", "sensor", "scene", "faults", "led_direction_error_deg"});
+    sim_node->ExpectKeys(
+        {"seed", "sensor", "scene", "faults", "led_direction_error_deg", "led_intensity_error_pct", "ambient"});
     SimConfig sim;
     sim.seed = static_cast<std::uint64_t>(sim_node->Int("seed", 1));
     sim.led_direction_error_deg = sim_node->Double("led_direction_error_deg", 0.0);
     if (!(sim.led_direction_error_deg >= 0.0 && sim.led_direction_error_deg < 30.0))
       (*sim_node)["led_direction_error_deg"].Fail("must lie in [0, 30)");
+    sim.led_intensity_error_pct = sim_node->Double("led_intensity_error_pct", 0.0);
+    if (!(sim.led_intensity_error_pct >= 0.0 && sim.led_intensity_error_pct < 30.0))
+      (*sim_node)["led_intensity_error_pct"].Fail("must lie in [0, 30)");
+    if (auto ambient = sim_node->Find("ambient")) sim.ambient = ParseAmbient(*ambient);
     const auto sensor = sim_node->Find("sensor");
     sim.sensor = sensor ? ParseSensor(*sensor, cam.bit_depth) : sim::SensorModel{};
     sim.sensor.bit_depth = cam.bit_depth;

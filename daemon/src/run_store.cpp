@@ -358,11 +358,15 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
 void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights) {
   const fs::path truth = fs::path(directory_) / "ground_truth";
   fs::create_directories(truth);
-  std::ostringstream directions;
+  std::ostringstream directions, intensities;
   directions.precision(17);
-  for (const sim::Light& light : lights)
+  intensities.precision(17);
+  for (const sim::Light& light : lights) {
     directions << light.direction.x() << ' ' << light.direction.y() << ' ' << light.direction.z() << '\n';
+    intensities << light.irradiance << '\n';
+  }
   WriteFileDurably((truth / "light_directions.txt").string(), directions.str());
+  WriteFileDurably((truth / "light_intensities.txt").string(), intensities.str());
   WriteFloatTiff((truth / "normals.tiff").string(), surface.normals);
   WriteFloatTiff((truth / "albedo.tiff").string(), surface.albedo);
   WriteImage((truth / "mask.png").string(), surface.mask);

@@ -55,4 +55,33 @@ for key, label, name, select in [
     axes[0][-1].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(f"{out}/{name}.png", dpi=120)
+
+# 4. The realistic shiny-sphere scenes (photorig-ps-chart --realistic), when present.
+realistic_csv = f"{out}/ps_realistic.csv"
+try:
+    realistic = list(csv.DictReader(open(realistic_csv)))
+except FileNotFoundError:
+    realistic = []
+if realistic:
+    effects = list(dict.fromkeys(r["scene"] for r in realistic))
+    fig, (ax, ax_nan) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
+    width = 0.8 / len(methods)
+    for i, m in enumerate(methods):
+        by = {r["scene"]: r for r in realistic if r["method"] == m}
+        xs = [e + (i - (len(methods) - 1) / 2) * width for e in range(len(effects))]
+        ax.bar(xs, [float(by[e]["mean_deg"]) if e in by else 0 for e in effects], width, label=m,
+               hatch="//" if m == "auto" else None, edgecolor="black", linewidth=0.4)
+        ax_nan.bar(xs, [100.0 * int(by[e]["unresolved_usable3"]) / int(by[e]["pixels_with_truth"]) if e in by else 0
+                        for e in effects], width, label=m)
+    ax.set_yscale("log")
+    ax.set_ylabel("mean angular error on resolved pixels (deg, log)")
+    ax.set_title("Shiny sphere, 96 lights: what a real capture adds")
+    ax.legend(fontsize=7, ncol=5)
+    ax.grid(True, axis="y", which="both", alpha=0.3)
+    ax_nan.set_ylabel("unresolved with >= 3\nusable lights (% of mask)")
+    ax_nan.set_xticks(range(len(effects)))
+    ax_nan.set_xticklabels(effects)
+    ax_nan.grid(True, axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(f"{out}/ps_realistic.png", dpi=120)
 print("wrote", out)

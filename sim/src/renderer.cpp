@@ -192,6 +192,16 @@ std::uint64_t SplitMix64(std::uint64_t* state) {
 
 double Uniform(std::uint64_t* state) { return (SplitMix64(state) >> 11) * 0x1.0p-53; }
 
+// The k-th of strata x strata stratified cosine-weighted directions about n
+// (t, b: tangents completing the frame): a uniform point in the cell of the
+// unit square, mapped to the disc and lifted to the hemisphere.
+Vector3d CosineWeighted(const Vector3d& n, const Vector3d& t, const Vector3d& b, int k, int strata,
+                        std::uint64_t* state) {
+  const double u1 = (k / strata + Uniform(state)) / strata, u2 = (k % strata + Uniform(state)) / strata;
+  const double radius = std::sqrt(u1), phi = 2.0 * M_PI * u2;
+  return radius * std::cos(phi) * t + radius * std::sin(phi) * b + std::sqrt(std::max(0.0, 1.0 - u1)) * n;
+}
+
 // Bilinear height at continuous pixel-centre coordinates (col, row), so that
 // a plane is exactly a plane to the march; NaN where any of the four samples
 // is off the surface (a step there would make edges cast false hits).
@@ -266,11 +276,7 @@ cv::Mat RenderOneBounce(const SurfaceMaps& surface, const Brdf& brdf, const cv::
       std::uint64_t state = seed ^ (static_cast<std::uint64_t>(r) * cols + c) * 0x2545f4914f6cdd1dULL;
       double sum = 0.0;
       for (int k = 0; k < count; ++k) {
-        // Cosine-weighted: a uniform point on the disc lifted to the hemisphere.
-        const double u1 = (k / strata + Uniform(&state)) / strata, u2 = (k % strata + Uniform(&state)) / strata;
-        const double radius = std::sqrt(u1), phi = 2.0 * M_PI * u2;
-        const Vector3d wi =
-            radius * std::cos(phi) * t + radius * std::sin(phi) * b + std::sqrt(std::max(0.0, 1.0 - u1)) * n;
+        const Vector3d wi = CosineWeighted(n, t, b, k, strata, &state);
         const double horizontal = std::hypot(wi.x(), wi.y());
         if (horizontal < 1e-9) continue;  // straight up leaves a heightfield
         // Half-pixel steps; the ray's height changes by `rise` per step.
@@ -305,6 +311,55 @@ cv::Mat RenderOneBounce(const SurfaceMaps& surface, const Brdf& brdf, const cv::
     }
   }
   return bounce;
+}
+
+bool AmbientLight::IsValid(std::string* why) const {
+  if (!(dome_fraction >= 0.0 && dome_fraction <= 1.0)) {
+    *why = "the dome's share of an LED's light must lie in [0, 1]";
+    return false;
+  }
+  if (!(stray_irradiance >= 0.0)) {
+    *why = "stray irradiance must be >= 0";
+    return false;
+  }
+  if (samples < 1 || samples > 65536) {
+    *why = "ambient samples must lie in [1, 65536]";
+    return false;
+  }
+  return true;
+}
+
+cv::Mat RenderSkyResponse(const SurfaceMaps& surface, const Brdf& brdf, int samples, std::uint64_t seed) {
+  cv::Mat response = cv::Mat::zeros(surface.mask.size(), CV_32F);
+  const int strata = std::max(1, static_cast<int>(std::lround(std::sqrt(samples))));
+  const int count = strata * strata;
+#pragma omp parallel for schedule(dynamic, 4)
+  for (int r = 0; r < response.rows; ++r) {
+    const auto* normal = surface.normals.ptr<cv::Vec3f>(r);
+    const auto* view = surface.view.ptr<cv::Vec3f>(r);
+    const auto* params = surface.brdf_params.ptr<cv::Vec4f>(r);
+    const std::uint8_t* mask = surface.mask.ptr<std::uint8_t>(r);
+    float* out = response.ptr<float>(r);
+    for (int c = 0; c < response.cols; ++c) {
+      if (!mask[c]) continue;
+      const Vector3d n(normal[c][0], normal[c][1], normal[c][2]);
+      const Vector3d wo(view[c][0], view[c][1], view[c][2]);
+      const BrdfParams bp{params[c][0], params[c][1], params[c][2], params[c][3]};
+      if (brdf.IsDelta()) {  // the sky's radiance 1 / pi seen along the mirror direction
+        out[c] = MirrorDirection(n, wo).z() > 0.0 ? static_cast<float>(brdf.DeltaReflectance(bp) / M_PI) : 0.0f;
+        continue;
+      }
+      const Vector3d t = n.unitOrthogonal(), b = n.cross(t);
+      std::uint64_t state = seed ^ (static_cast<std::uint64_t>(r) * response.cols + c) * 0x9fb21c651e98df25ULL;
+      double sum = 0.0;
+      for (int k = 0; k < count; ++k) {
+        const Vector3d wi = CosineWeighted(n, t, b, k, strata, &state);
+        if (wi.z() > 0.0) sum += brdf.Eval(n, wi, wo, bp);
+      }
+      out[c] = static_cast<float>(sum / count);
+    }
+  }
+  return response;
 }
 
 cv::Mat RenderTransmission(const cv::Mat& line_integrals, double backlight_radiance) {

@@ -43,6 +43,14 @@ double SensorModel::DnPerRadiance(double exposure_us, double gain_db) const {
   return response_e_per_us * exposure_us / e_per_dn * std::pow(10.0, gain_db / 20.0);
 }
 
+double ApplyResponse(const SensorModel& sensor, double signal_dn) {
+  if (sensor.IsLinear()) return sensor.black_level_dn + signal_dn;
+  const double full_scale = sensor.max_dn() - sensor.black_level_dn;
+  const double x = signal_dn / full_scale;
+  // Odd about black, so read noise below black stays symmetric about it.
+  return sensor.black_level_dn + full_scale * std::copysign(std::pow(std::abs(x), 1.0 / sensor.response_gamma), x);
+}
+
 std::vector<std::uint16_t> ExposeFrame(const SensorModel& sensor, const cv::Mat& radiance, double exposure_us,
                                        double gain_db, std::uint64_t seed, std::uint64_t frame_index) {
   const int rows = radiance.rows, cols = radiance.cols;
@@ -59,7 +67,7 @@ std::vector<std::uint16_t> ExposeFrame(const SensorModel& sensor, const cv::Mat&
       double electrons = sensor.shot_noise ? Poisson(mean_e, key) : mean_e;
       electrons = std::min(electrons, sensor.full_well_e);
       electrons += sensor.read_noise_e * Normal(key + 1);
-      const double dn = std::round(electrons / sensor.e_per_dn * gain + sensor.black_level_dn);
+      const double dn = std::round(ApplyResponse(sensor, electrons / sensor.e_per_dn * gain));
       pixels[static_cast<std::size_t>(r) * cols + c] = static_cast<std::uint16_t>(std::clamp(dn, 0.0, max_dn));
     }
   }

@@ -12,6 +12,7 @@ const WorldConfig& Validated(const WorldConfig& config) {
   if (config.scene.shape == Scene::Shape::kMesh && config.camera.projection != CameraModel::Projection::kOrthographic)
     throw std::invalid_argument("simulated scene: meshes are rasterised orthographically only");
   if (config.gonioreflectometer) CheckGonioScene(config.scene);
+  if (!config.ambient.IsValid(&why)) throw std::invalid_argument("simulated ambient light: " + why);
   return config;
 }
 
@@ -23,7 +24,11 @@ World::World(WorldConfig config)
       brdf_(config_.scene.material.MakeBrdf(config_.scene.albedo.high)),
       // The sweep needs the heightfield on the pixel grid, i.e. an orthographic view.
       cast_shadows_(config_.scene.cast_shadows && config_.scene.IsHeightfield() && surface_.height_on_pixel_grid),
-      levels_(config_.lights.size(), 0.0) {}
+      levels_(config_.lights.size(), 0.0) {
+  // The sky's shape is fixed, only its level follows the LEDs: one map serves every frame.
+  if (config_.ambient.IsOn() && !config_.gonioreflectometer && config_.scene.shape != Scene::Shape::kVolume)
+    sky_response_ = RenderSkyResponse(surface_, *brdf_, config_.ambient.samples, config_.seed);
+}
 
 void World::SetLevels(std::vector<double> levels) {
   std::lock_guard lock(mutex_);
@@ -74,6 +79,13 @@ cv::Mat World::RenderRadiance() const {
   cv::Mat radiance = sim::RenderRadiance(surface_, *brdf_, cast_shadows_, config_.lights, levels());
   if (config_.scene.interreflection_samples > 0)
     radiance += RenderOneBounce(surface_, *brdf_, radiance, config_.scene.interreflection_samples, config_.seed);
+  if (!sky_response_.empty()) {
+    const std::vector<double> now = levels();
+    double sky_irradiance = config_.ambient.stray_irradiance;
+    for (std::size_t k = 0; k < now.size() && k < config_.lights.size(); ++k)
+      sky_irradiance += config_.ambient.dome_fraction * now[k] * config_.lights[k].irradiance;
+    radiance += sky_response_ * sky_irradiance;
+  }
   return radiance;
 }
 

@@ -121,6 +121,37 @@ TEST(RigConfig, SimulatedNearLedsAndABuiltDomeDifferFromTheDrawing) {
   EXPECT_EQ(again.world->config().lights[7].direction, lights[7].direction);
 }
 
+// What a real capture has and the simulated rig lacks reaches the simulated
+// world from the rig file: LED intensity errors (5 % RMS over 200 LEDs: the
+// sample RMS has a standard error of 0.25 %, the test allows five), ambient
+// light and the camera's response curve; a curve out of range fails at its key.
+TEST(RigConfig, SimulatedIntensityErrorsAmbientLightAndResponseCurveReachTheWorld) {
+  TempDir dir;
+  std::string text = "rig: {name: ring}\nlights:\n  driver: sim\n  leds:\n";
+  for (int i = 0; i < 200; ++i)
+    text += "    - {direction: [" + std::to_string(std::cos(i * 0.1)) + ", " + std::to_string(std::sin(i * 0.1)) +
+            ", 1.5], intensity: " + std::to_string(1.0 + i / 400.0) + "}\n";
+  text += "camera: {driver: sim, width: 16, height: 16}\nsim:\n  seed: 5\n  led_intensity_error_pct: 5\n"
+          "  ambient: {dome_fraction: 0.02, stray_irradiance: 0.1}\n  sensor: {response_gamma: 1.1}\n";
+  const RigConfig rig = LoadRigConfig(dir.Write("ring.yaml", text));
+  const RigDevices devices = MakeRigDevices(rig, nullptr);
+  const sim::WorldConfig& world = devices.world->config();
+  EXPECT_DOUBLE_EQ(world.ambient.dome_fraction, 0.02);
+  EXPECT_DOUBLE_EQ(world.ambient.stray_irradiance, 0.1);
+  EXPECT_DOUBLE_EQ(world.sensor.response_gamma, 1.1);
+  double sum_squares = 0.0;
+  for (std::size_t i = 0; i < world.lights.size(); ++i) {
+    EXPECT_EQ(world.lights[i].direction, rig.lights.leds[i].direction);  // no direction error asked for
+    const double relative = world.lights[i].irradiance / rig.lights.leds[i].intensity - 1.0;
+    sum_squares += relative * relative;
+  }
+  EXPECT_NEAR(std::sqrt(sum_squares / world.lights.size()), 0.05, 0.0125);
+
+  const std::string bad = "rig: {name: r}\nlights:\n  driver: sim\n  leds:\n    - {direction: [0, 0, 1]}\n"
+                          "camera: {driver: sim, width: 16, height: 16}\nsim:\n  sensor: {response_gamma: 0}\n";
+  ExpectConfigError(dir.Write("bad.yaml", bad), bad, 8, 28, "sim.sensor.response_gamma", "must lie in [0.2, 5]");
+}
+
 TEST(RigConfig, SyntaxErrorNamesFileLineAndColumn) {
   TempDir dir;
   const std::string text = "rig:\n  name: [unclosed\nlights: {}\n";

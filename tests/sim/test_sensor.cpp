@@ -53,6 +53,32 @@ TEST(ExposeFrame, ClipsAtFullWellAndBitDepth) {
   for (auto p : ExposeFrame(sensor, bright, 1000.0, 0.0, 1, 0)) EXPECT_EQ(p, 4095);
 }
 
+// DN = black + F (S / F)^(1 / gamma), F = max_dn - black: black and full
+// scale stay where they are, a mid-scale signal is lifted.
+TEST(ExposeFrame, ResponseCurveMapsAKnownRadianceToTheExpectedCode) {
+  SensorModel sensor;
+  sensor.bit_depth = 12;
+  sensor.black_level_dn = 64;
+  sensor.e_per_dn = 1.0;
+  sensor.response_e_per_us = 1.0;
+  sensor.read_noise_e = 0;
+  sensor.shot_noise = false;
+  sensor.full_well_e = 1e9;
+  sensor.response_gamma = 2.0;
+  const double full_scale = 4095 - 64;
+  // 1000 DN of linear signal: 64 + sqrt(1000 * 4031) = 2071.74.
+  const cv::Mat radiance(2, 2, CV_32F, cv::Scalar(1.0));
+  for (auto p : ExposeFrame(sensor, radiance, 1000.0, 0.0, 1, 0)) EXPECT_EQ(p, 2072);
+  EXPECT_DOUBLE_EQ(ApplyResponse(sensor, 0.0), 64.0);
+  EXPECT_DOUBLE_EQ(ApplyResponse(sensor, full_scale), 4095.0);
+  // Odd about black: read noise below black mirrors the noise above it.
+  EXPECT_DOUBLE_EQ(ApplyResponse(sensor, -16.0) - 64.0, -(ApplyResponse(sensor, 16.0) - 64.0));
+  sensor.response_gamma = 1.1;  // +3.2 % of full scale at half scale, as sensor.h says
+  EXPECT_NEAR((ApplyResponse(sensor, full_scale / 2) - 64.0) / full_scale - 0.5, 0.0325, 5e-4);
+  sensor.response_gamma = 1.0;
+  for (auto p : ExposeFrame(sensor, radiance, 1000.0, 0.0, 1, 0)) EXPECT_EQ(p, 1064);
+}
+
 TEST(ExposeFrame, NoiseIsDeterministicPerSeedAndFrame) {
   SensorModel sensor;
   const cv::Mat radiance(32, 32, CV_32F, cv::Scalar(100.0));

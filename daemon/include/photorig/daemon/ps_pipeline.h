@@ -41,6 +41,11 @@ struct PhotometricStereoInput {
 // std::runtime_error naming the file for unreadable or inconsistent runs.
 PhotometricStereoInput LoadRunStack(const std::string& run_directory);
 
+// The level at or above which samples count as clipped: the input's own, or,
+// for data that do not say (DiLiGenT folders), the full-scale code 2^n - 1
+// when the data reach one; infinity when nothing is known to be clipped.
+double EffectiveSaturationLevel(const PhotometricStereoInput& input);
+
 // The solver's options for a request that has passed
 // ValidatePhotometricStereoRequest; samples at or above saturation_level are
 // clipped.

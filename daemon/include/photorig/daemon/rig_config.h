@@ -105,6 +105,11 @@ struct SimConfig {
   // The simulated dome as built: each LED tilted off its nominal direction by
   // a seeded random angle of this RMS, so light calibration has something to find.
   double led_direction_error_deg = 0.0;
+  // ... and its irradiance off the stated intensity by a seeded random factor
+  // of this RMS relative error, in percent (sim/light_errors.h).
+  double led_intensity_error_pct = 0.0;
+  // Light from the dome's walls and the room on every frame (sim/renderer.h).
+  sim::AmbientLight ambient;
   sim::SensorModel sensor;
   sim::Scene scene;  // default scene; a recipe's sample.sim_scene replaces it
   sim::CameraFaults camera_faults;

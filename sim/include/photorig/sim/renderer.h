@@ -16,6 +16,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
 #include <vector>
 
 namespace photorig::sim {
@@ -74,6 +75,36 @@ cv::Mat CastShadowMask(const SurfaceMaps& surface, const Light& light);
 // are left out. Cost: samples x march length per pixel.
 cv::Mat RenderOneBounce(const SurfaceMaps& surface, const Brdf& brdf, const cv::Mat& direct, int samples,
                         std::uint64_t seed);
+
+// Light that reaches the object other than straight from the LEDs, spread
+// evenly over the sky above it: radiance L_a from every direction with w.z > 0
+// (the dome's interior and opening), none from below (a dark stage). Its
+// level is given as E_a = pi L_a, the irradiance it brings to an upward-facing
+// surface.
+struct AmbientLight {
+  // Light the dome's interior sends back: each LED at drive level l and
+  // irradiance E adds dome_fraction * l * E to E_a. It is what a white
+  // target facing up reads with the LED's direct light blocked, relative to
+  // what it reads from the LED alone (a few per cent for a matt black dome).
+  double dome_fraction = 0.0;
+  // Light from outside the dome (room light), on whatever the LEDs do, so
+  // also in dark frames: E_a grows by stray_irradiance.
+  double stray_irradiance = 0.0;
+  int samples = 256;  // directions per pixel for RenderSkyResponse
+
+  bool IsOn() const { return dome_fraction > 0.0 || stray_irradiance > 0.0; }
+  bool IsValid(std::string* why) const;
+};
+
+// Per pixel, the radiance reflected towards the camera under the sky of
+// AmbientLight for E_a = 1:
+//   A(p) = integral over w.z > 0 of f_r(n, w, w_o) (1 / pi) max(0, n.w) dw,
+// estimated from `samples` stratified cosine-weighted directions about n (the
+// estimator is the mean of f_r [w.z > 0]), seeded per pixel. A Lambertian
+// pixel gets rho / pi (1 + n_z) / 2; a mirror rho_s / pi where its mirror
+// direction points into the sky. The object's own occlusion of the sky is
+// ignored: exact for convex objects, an overestimate in concavities.
+cv::Mat RenderSkyResponse(const SurfaceMaps& surface, const Brdf& brdf, int samples, std::uint64_t seed);
 
 // Transmission through an absorbing medium: L = L_backlight * exp(-tau).
 cv::Mat RenderTransmission(const cv::Mat& line_integrals, double backlight_radiance);

@@ -26,6 +26,9 @@ struct WorldConfig {
   std::uint64_t seed = 1;
   CameraFaults camera_faults;
   LightFaults light_faults;
+  // Light from the dome's walls and the room, added to every frame of a
+  // light dome (not to gonioreflectometer or transmission frames).
+  AmbientLight ambient;
   // The camera and lamps ride gonioreflectometer arms: frames come from
   // RenderGonioRadiance at the arms' current angles (sim/gonio.h).
   bool gonioreflectometer = false;
@@ -62,6 +65,7 @@ class World {
   SurfaceMaps surface_;
   std::unique_ptr<Brdf> brdf_;
   bool cast_shadows_ = false;
+  cv::Mat sky_response_;  // RenderSkyResponse, when config_.ambient is on
   mutable std::mutex mutex_;
   std::vector<double> levels_;
   ArmAngles arms_;
