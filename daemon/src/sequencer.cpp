@@ -31,7 +31,7 @@ class DeviceGuard {
       : lights_(lights), camera_(camera), motion_(motion), trigger_(trigger) {}
   ~DeviceGuard() { Release(); }
   void Release() {
-    if (trigger_ && trigger_->is_open()) {
+    if (trigger_) {
       if (Status closed = trigger_->Close(); !closed.ok())
         spdlog::error("could not release the trigger output {}: {}", trigger_->id(), closed.ToString());
     }
@@ -120,7 +120,7 @@ class Capture {
       if (!options_.trigger_output)
         return {StatusCode::kFailedPrecondition,
                 "camera " + camera_.id() + " is set for a hardware trigger but the rig has no trigger output"};
-      if (!options_.trigger_output->is_open())
+      if (options_.trigger_output->state() == drivers::TriggerOutput::State::kClosed)
         if (Status s = options_.trigger_output->Open(); !s.ok()) return s;
     }
     auto adjustments = camera_.Configure(settings_);
@@ -157,7 +157,7 @@ class Capture {
 
   // Leaves the devices closed and dark after a fault; they are reopened before the retry.
   void CloseAfterFault() {
-    if (options_.trigger_output && options_.trigger_output->is_open()) (void)options_.trigger_output->Close();
+    if (options_.trigger_output) (void)options_.trigger_output->Close();
     if (options_.motion && options_.motion->goniometer) (void)options_.motion->goniometer->StopAll();
     SwitchOffAndClose(lights_);
     if (camera_.state() != drivers::Camera::State::kClosed) (void)camera_.Close();

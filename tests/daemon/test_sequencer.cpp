@@ -125,9 +125,11 @@ class CountingWire : public sim::SimTriggerLine {
  public:
   using SimTriggerLine::SimTriggerLine;
   int pulses = 0;
-  Status Fire(std::chrono::microseconds width) override {
+
+ protected:
+  Status DoFire(std::chrono::microseconds width) override {
     ++pulses;
-    return SimTriggerLine::Fire(width);
+    return SimTriggerLine::DoFire(width);
   }
 };
 
@@ -146,7 +148,7 @@ TEST(HardwareTrigger, OnePulsePerFrameGivesTheSameFramesAsSoftwareTriggers) {
   const CaptureReport report = RunCapture(DarkThenEachLight(3), HardwareTriggered(), dome, camera, hardware, options);
   ASSERT_EQ(report.status, "complete") << report.reason;
   EXPECT_EQ(wire.pulses, 4);
-  EXPECT_FALSE(wire.is_open());  // released at the end
+  EXPECT_EQ(wire.state(), drivers::TriggerOutput::State::kClosed);  // released at the end
   ASSERT_EQ(hardware.manifest().frames.size(), 4u);
   for (std::size_t i = 0; i < 4; ++i) {
     // Same world, same seed and frame ids: the same noisy pixels, whichever trigger took them.
@@ -160,16 +162,14 @@ TEST(HardwareTrigger, OnePulsePerFrameGivesTheSameFramesAsSoftwareTriggers) {
 // wait times out, the run fails after its retries with the lights off.
 class BrokenWire : public drivers::TriggerOutput {
  public:
-  const std::string& id() const override { return id_; }
-  Status Open() override { open_ = true; return Status::Ok(); }
-  Status Fire(std::chrono::microseconds) override { ++pulses; return Status::Ok(); }
-  Status Close() override { open_ = false; return Status::Ok(); }
-  bool is_open() const override { return open_; }
+  BrokenWire() : TriggerOutput("broken-wire") {}
+  ~BrokenWire() override { (void)Close(); }
   int pulses = 0;
 
- private:
-  std::string id_ = "broken-wire";
-  bool open_ = false;
+ protected:
+  Status DoOpen() override { return Status::Ok(); }
+  Status DoFire(std::chrono::microseconds) override { ++pulses; return Status::Ok(); }
+  Status DoClose() override { return Status::Ok(); }
 };
 
 TEST(HardwareTrigger, APulseThatNeverArrivesTimesOutAndFailsCleanly) {
@@ -189,7 +189,7 @@ TEST(HardwareTrigger, APulseThatNeverArrivesTimesOutAndFailsCleanly) {
   EXPECT_NE(report.reason.find("no frame within"), std::string::npos) << report.reason;
   EXPECT_EQ(wire.pulses, options.retry.max_attempts_per_step);
   EXPECT_EQ(report.dropped_frames, options.retry.max_attempts_per_step);
-  EXPECT_FALSE(wire.is_open());
+  EXPECT_EQ(wire.state(), drivers::TriggerOutput::State::kClosed);
   EXPECT_EQ(writer.manifest().frames.size(), 0u);
   ASSERT_FALSE(dome.levels_at_close.empty());
   for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>(2, 0.0));

@@ -64,17 +64,15 @@ class GpioTriggerLine : public TriggerOutput {
  public:
   GpioTriggerLine(std::string id, GpioLine line, std::unique_ptr<GpioBackend> backend);
   ~GpioTriggerLine() override;
-  const std::string& id() const override { return id_; }
-  Status Open() override;
-  Status Fire(std::chrono::microseconds width) override;
-  Status Close() override;  // leaves the line deasserted
-  bool is_open() const override { return open_; }
+
+ protected:
+  Status DoOpen() override;
+  Status DoFire(std::chrono::microseconds width) override;
+  Status DoClose() override;
 
  private:
-  std::string id_;
   GpioLine line_;
   std::unique_ptr<GpioBackend> backend_;
-  bool open_ = false;
 };
 
 }  // namespace photorig::drivers
