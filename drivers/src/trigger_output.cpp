@@ -1,6 +1,6 @@
 #include "photorig/drivers/trigger_output.h"
 
-#include "photorig/drivers/safety_net.h"
+#include "photorig/drivers/internal/safety_net.h"
 
 namespace photorig::drivers {
 

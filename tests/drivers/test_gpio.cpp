@@ -1,7 +1,7 @@
 // GPIO LEDs and trigger lines through the libgpiod seam, on in-memory chips
 // that behave like the kernel's (physical levels, busy lines).
 
-#include "photorig/drivers/gpio/gpio_memory.h"
+#include "photorig/drivers/gpio/internal/gpio_memory.h"
 
 #include <gtest/gtest.h>
 

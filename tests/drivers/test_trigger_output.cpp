@@ -2,7 +2,7 @@
 // illegal transitions without calling the implementation, and Close leaves
 // the output deasserted from any state.
 
-#include "photorig/drivers/safety_net.h"
+#include "photorig/drivers/internal/safety_net.h"
 #include "photorig/drivers/trigger_output.h"
 
 #include <gtest/gtest.h>
