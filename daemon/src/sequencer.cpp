@@ -225,7 +225,7 @@ class Capture {
       }
       if (StopRequested() || !HoldWhilePaused()) {
         Notify(RunState::kAborting, "");
-        report_.status = "aborted";
+        report_.status = CaptureStatus::kAborted;
         report_.reason = "stop requested before step " + step.label;
         return;
       }
@@ -242,7 +242,7 @@ class Capture {
       ++attempts;
       if (!IsTransient(status) || attempts >= retry.max_attempts_per_step ||
           report_.retries >= retry.max_retries_per_run) {
-        report_.status = "failed";
+        report_.status = CaptureStatus::kFailed;
         report_.reason = (IsTransient(status) ? "step " + step.label + " failed " + std::to_string(attempts) +
                                                     " times; last: "
                                               : "step " + step.label + ": ") +
@@ -258,7 +258,7 @@ class Capture {
       backoff_ms = std::min(retry.max_backoff_ms, static_cast<int>(backoff_ms * retry.backoff_factor));
       Notify(RunState::kRunning, "retrying step " + step.label);
     }
-    report_.status = "complete";
+    report_.status = CaptureStatus::kComplete;
   }
 
  private:
@@ -303,7 +303,7 @@ CaptureReport RunCapture(const std::vector<CaptureStep>& steps, const CameraConf
     if (!options.retry.IsValid(&why)) throw std::invalid_argument("retry policy: " + why);
     Capture(camera_config, lights, camera, writer, options, report).Run(steps);
   } catch (const std::exception& e) {
-    report.status = "failed";
+    report.status = CaptureStatus::kFailed;
     report.reason = e.what();
   }
   report.elapsed_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

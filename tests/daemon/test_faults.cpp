@@ -75,7 +75,7 @@ TEST_P(FaultInjection, RunCompletesIntactOrFailsCleanlyWithTheLightsOff) {
   const CaptureReport report = RunCapture(steps, camera_config, dome, camera, writer, options);
   writer.Finish(report.ToStopRecord());
 
-  EXPECT_EQ(report.status, c.completes ? "complete" : "failed") << report.reason;
+  EXPECT_EQ(report.status, c.completes ? CaptureStatus::kComplete : CaptureStatus::kFailed) << report.reason;
   EXPECT_GE(report.retries, c.min_retries);
   EXPECT_EQ(report.dropped_frames, c.dropped_frames);
   const RunManifest manifest = LoadRunManifest(writer.directory());
