@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <ostream>
 
 namespace photorig::daemon {
 namespace {
@@ -41,6 +42,12 @@ sim::LightFaults LightFault(std::set<T> sim::LightFaults::*kind, std::set<T> at)
   sim::LightFaults faults;
   faults.*kind = std::move(at);
   return faults;
+}
+
+// What a failing case prints: its name and what it expects, not the bytes of the faults.
+void PrintTo(const FaultCase& c, std::ostream* out) {
+  *out << c.name << " (" << (c.completes ? "completes" : "fails") << ", retries >= " << c.min_retries
+       << ", dropped frames " << c.dropped_frames << ")";
 }
 
 class FaultInjection : public ::testing::TestWithParam<FaultCase> {};
