@@ -109,7 +109,7 @@ daemon::PhotometricStereoInput Capture(const fs::path& recipe, const fs::path& r
   request.show_progress = false;
   fs::remove_all(request.output_directory);
   const daemon::RunOutcome outcome = daemon::ExecuteRun(request);
-  if (outcome.capture.status != "complete") throw std::runtime_error("capture failed: " + outcome.capture.reason);
+  if (outcome.capture.status != daemon::CaptureStatus::kComplete) throw std::runtime_error("capture failed: " + outcome.capture.reason);
   return daemon::LoadRunStack(outcome.directory);
 }
 
