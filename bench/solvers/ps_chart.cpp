@@ -125,7 +125,7 @@ std::string CaptureRun(const std::string& recipe, const std::string& rig, const 
   request.show_progress = false;
   fs::remove_all(request.output_directory);
   const daemon::RunOutcome outcome = daemon::ExecuteRun(request);
-  if (outcome.capture.status != "complete") throw std::runtime_error("capture failed: " + outcome.capture.reason);
+  if (outcome.capture.status != daemon::CaptureStatus::kComplete) throw std::runtime_error("capture failed: " + outcome.capture.reason);
   return outcome.directory;
 }
 

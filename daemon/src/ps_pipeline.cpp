@@ -203,32 +203,21 @@ double EffectiveSaturationLevel(const PhotometricStereoInput& input) {
   return max_value >= full_scale ? full_scale : input.saturation_level;
 }
 
-json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoRequest& request,
-                   const std::string& output_directory) {
-  const auto start = std::chrono::steady_clock::now();
-  ValidatePhotometricStereoRequest(request);
-  ps::PhotometricStack stack = input.stack;
-  if (!input.object_mask.empty()) stack.mask = input.object_mask;
-  const double saturation = EffectiveSaturationLevel(input);
-  const ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
-
-  ps::NormalMap map;
-  const ps::SolverSummary summary = ps::SolvePhotometricStereo(options, stack, &map);
-
-  fs::create_directories(output_directory);
-  const fs::path out(output_directory);
-  json report = {{"source", input.source},
+json ToJson(const PhotometricStereoResult& result) {
+  const ps::SolverSummary& summary = result.summary;
+  const double saturation = result.saturation_level;
+  json report = {{"source", result.source},
                  {"method", summary.method},
-                 {"termination", summary.IsSolutionUsable() ? "success" : "failure"},
+                 {"termination", solvers::TerminationName(summary.termination)},
                  {"message", summary.message},
                  {"lights", summary.light_count},
-                 {"dark_frames", input.dark_frames},
+                 {"dark_frames", result.dark_frames},
                  {"condition_number", summary.condition_number},
                  {"noise",
-                  {{"read_sigma", summary.noise_read_sigma > 0 ? summary.noise_read_sigma : stack.noise.read_sigma},
+                  {{"read_sigma", summary.noise_read_sigma > 0 ? summary.noise_read_sigma : result.noise_sigma_dn},
                    {"shot_gain", summary.noise_shot_gain},
                    {"estimated", summary.noise_estimated}}},
-                 {"noise_sigma_dn", stack.noise.read_sigma},
+                 {"noise_sigma_dn", result.noise_sigma_dn},
                  {"shadow_threshold", summary.shadow_threshold},
                  {"saturation_level", std::isfinite(saturation) ? json(saturation) : json(nullptr)},
                  {"pixels",
@@ -244,11 +233,50 @@ json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoR
                    {"blinn_phong", summary.pixels_blinn_phong}}},
                  {"samples_rejected", summary.samples_rejected},
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets},
-                 {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}}}};
+                 {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}, {"total", result.total_ms}}}};
+  if (result.mean_confidence) report["mean_confidence"] = *result.mean_confidence;
+  if (result.depth) {
+    const ps::IntegrationSummary& integrated = result.depth->summary;
+    report["depth"] = {{"integrator", result.depth->integrator},
+                       {"success", integrated.IsSolutionUsable()},
+                       {"message", integrated.message},
+                       {"pixels", integrated.pixels},
+                       {"pixels_dropped", integrated.pixels_dropped},
+                       {"residual_rms", integrated.residual_rms},
+                       {"pixel_pitch", result.depth->pixel_pitch}};
+    if (result.depth->rms_error_vs_truth) report["depth"]["rms_error_vs_truth"] = *result.depth->rms_error_vs_truth;
+    report["timings_ms"]["integrate"] = integrated.solve_ms;
+  }
+  if (result.normals_vs_truth) {
+    report["ground_truth"] = MetricsJson(*result.normals_vs_truth);
+    if (result.mean_relative_albedo_error)
+      report["ground_truth"]["mean_relative_albedo_error"] = *result.mean_relative_albedo_error;
+  }
+  return report;
+}
 
-  if (summary.IsSolutionUsable()) {
+PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoRequest& request,
+                                      const std::string& output_directory) {
+  const auto start = std::chrono::steady_clock::now();
+  ValidatePhotometricStereoRequest(request);
+  ps::PhotometricStack stack = input.stack;
+  if (!input.object_mask.empty()) stack.mask = input.object_mask;
+  const double saturation = EffectiveSaturationLevel(input);
+  const ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
+
+  ps::NormalMap map;
+  PhotometricStereoResult result;
+  result.summary = ps::SolvePhotometricStereo(options, stack, &map);
+  result.source = input.source;
+  result.dark_frames = input.dark_frames;
+  result.noise_sigma_dn = stack.noise.read_sigma;
+  result.saturation_level = saturation;
+
+  fs::create_directories(output_directory);
+  const fs::path out(output_directory);
+  if (result.usable()) {
     const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
-    report["mean_confidence"] = cv::mean(map.confidence, solved)[0];
+    result.mean_confidence = cv::mean(map.confidence, solved)[0];
     WriteFloatTiff((out / "normals.tiff").string(), map.normals);
     WriteImage((out / "normals.png").string(), NormalsToBgr8(map.normals));
     WriteFloatTiff((out / "albedo.tiff").string(), map.albedo);
@@ -268,16 +296,11 @@ json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoR
       ps::ParseIntegrator(request.integrator, &integration.integrator);
       integration.pixel_pitch = input.pixel_pitch;
       cv::Mat depth;
-      const ps::IntegrationSummary integrated = ps::IntegrateNormals(integration, map.normals, solved, &depth);
-      report["depth"] = {{"integrator", request.integrator},
-                         {"success", integrated.IsSolutionUsable()},
-                         {"message", integrated.message},
-                         {"pixels", integrated.pixels},
-                         {"pixels_dropped", integrated.pixels_dropped},
-                         {"residual_rms", integrated.residual_rms},
-                         {"pixel_pitch", input.pixel_pitch}};
-      report["timings_ms"]["integrate"] = integrated.solve_ms;
-      if (integrated.IsSolutionUsable()) {
+      PhotometricStereoDepth& integrated = result.depth.emplace();
+      integrated.integrator = request.integrator;
+      integrated.pixel_pitch = input.pixel_pitch;
+      integrated.summary = ps::IntegrateNormals(integration, map.normals, solved, &depth);
+      if (integrated.summary.IsSolutionUsable()) {
         WriteFloatTiff((out / "depth.tiff").string(), depth);
         WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
         if (!input.truth_height.empty()) {
@@ -289,28 +312,27 @@ json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoR
           cv::Mat centred = difference - offset;
           centred.setTo(0.0, ~both);
           const double pixels = std::max(1, cv::countNonZero(both));
-          report["depth"]["rms_error_vs_truth"] = std::sqrt(centred.dot(centred) / pixels);
+          integrated.rms_error_vs_truth = std::sqrt(centred.dot(centred) / pixels);
         }
       }
     }
 
     if (!input.truth_normals.empty()) {
       cv::Mat error_deg;
-      const ps::AngularErrorStats stats = ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
+      result.normals_vs_truth = ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
       WriteFloatTiff((out / "angular_error.tiff").string(), error_deg);
-      report["ground_truth"] = MetricsJson(stats);
       if (!input.truth_albedo.empty()) {
         cv::Mat relative;
         cv::absdiff(map.albedo, input.truth_albedo, relative);
         relative /= input.truth_albedo;
         cv::patchNaNs(relative, 0.0);
-        report["ground_truth"]["mean_relative_albedo_error"] = cv::mean(relative, solved)[0];
+        result.mean_relative_albedo_error = cv::mean(relative, solved)[0];
       }
     }
   }
-  report["timings_ms"]["total"] = Ms(start);
-  WriteFileDurably((out / "report.json").string(), report.dump(2) + "\n");
-  return report;
+  result.total_ms = Ms(start);
+  WriteFileDurably((out / "report.json").string(), ToJson(result).dump(2) + "\n");
+  return result;
 }
 
 }  // namespace photorig::daemon

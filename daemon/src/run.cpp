@@ -114,15 +114,15 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   };
   outcome.capture = RunCapture(steps, rig.camera, *devices.lights, *devices.camera, writer, options);
   writer.Finish(outcome.capture.ToStopRecord());
-  spdlog::info("capture {}: {} of {} frames in {:.0f} ms{}{}", outcome.capture.status, outcome.capture.frames_written,
+  spdlog::info("capture {}: {} of {} frames in {:.0f} ms{}{}", CaptureStatusName(outcome.capture.status), outcome.capture.frames_written,
                outcome.capture.steps_total, outcome.capture.elapsed_ms, outcome.capture.reason.empty() ? "" : ": ",
                outcome.capture.reason);
 
-  if (request.solve && outcome.capture.status == "complete" && recipe.photometric_stereo) {
+  if (request.solve && outcome.capture.status == CaptureStatus::kComplete && recipe.photometric_stereo) {
     outcome.photometric_stereo = SolvePhotometricStereoRun(
         outcome.directory, *recipe.photometric_stereo, (fs::path(outcome.directory) / "results" / "ps").string());
   }
-  if (request.solve && outcome.capture.status == "complete" && recipe.light_calibration) {
+  if (request.solve && outcome.capture.status == CaptureStatus::kComplete && recipe.light_calibration) {
     LightCalibrationRequest calibration = *recipe.light_calibration;
     const fs::path results = fs::path(outcome.directory) / "results" / "lights";
     calibration.base_rig = rig.path;

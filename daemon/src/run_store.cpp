@@ -88,14 +88,47 @@ FrameRecord FrameRecordFromJson(const json& j) {
   return f;
 }
 
+namespace {
+
+constexpr struct {
+  CaptureStatus status;
+  const char* name;
+} kCaptureStatusNames[] = {
+    {CaptureStatus::kRunning, "running"}, {CaptureStatus::kComplete, "complete"}, {CaptureStatus::kFailed, "failed"},
+    {CaptureStatus::kAborted, "aborted"}, {CaptureStatus::kInterrupted, "interrupted"},
+};
+
+CaptureStatus CaptureStatusFromJson(const json& j) {
+  const std::string name = j.get<std::string>();
+  const std::optional<CaptureStatus> status = CaptureStatusFromName(name);
+  if (!status) throw std::runtime_error("unknown capture status '" + name + "'");
+  return *status;
+}
+
+}  // namespace
+
+const char* CaptureStatusName(CaptureStatus status) {
+  for (const auto& entry : kCaptureStatusNames)
+    if (entry.status == status) return entry.name;
+  return "unknown";
+}
+
+std::ostream& operator<<(std::ostream& out, CaptureStatus status) { return out << CaptureStatusName(status); }
+
+std::optional<CaptureStatus> CaptureStatusFromName(const std::string& name) {
+  for (const auto& entry : kCaptureStatusNames)
+    if (name == entry.name) return entry.status;
+  return std::nullopt;
+}
+
 json ToJson(const StopRecord& s) {
-  return {{"status", s.status},         {"reason", s.reason},   {"frames", s.frames},
+  return {{"status", CaptureStatusName(s.status)}, {"reason", s.reason},   {"frames", s.frames},
           {"steps_total", s.steps_total}, {"retries", s.retries}, {"dropped_frames", s.dropped_frames}};
 }
 
 StopRecord StopRecordFromJson(const json& j) {
   StopRecord s;
-  s.status = j.at("status").get<std::string>();
+  s.status = CaptureStatusFromJson(j.at("status"));
   s.reason = j.value("reason", "");
   s.frames = j.at("frames").get<int>();
   s.steps_total = j.at("steps_total").get<int>();
@@ -119,7 +152,7 @@ json ToJson(const RunManifest& m) {
           {"run_id", m.run_id},
           {"recipe", {{"path", m.recipe_path}, {"name", m.recipe_name}}},
           {"rig", {{"path", m.rig_path}, {"name", m.rig_name}}},
-          {"status", m.status},
+          {"status", CaptureStatusName(m.status)},
           {"status_reason", m.status_reason},
           {"sample", m.sample_name},
           {"camera",
@@ -146,7 +179,7 @@ RunManifest RunManifestFromJson(const json& j) {
   m.recipe_name = j.at("recipe").at("name").get<std::string>();
   m.rig_path = j.at("rig").at("path").get<std::string>();
   m.rig_name = j.at("rig").at("name").get<std::string>();
-  m.status = j.at("status").get<std::string>();
+  m.status = CaptureStatusFromJson(j.at("status"));
   m.status_reason = j.value("status_reason", "");
   m.sample_name = j.value("sample", "");
   const json& camera = j.at("camera");
@@ -288,7 +321,7 @@ std::unique_ptr<RunWriter> RunWriter::Reopen(const std::string& directory, Recov
   for (const FrameRecord& record : writer->manifest_.frames) clean += ToJson(record).dump() + "\n";
   WriteFileDurably(journal.string(), clean);
   writer->manifest_.stop.reset();
-  writer->manifest_.status = "running";
+  writer->manifest_.status = CaptureStatus::kRunning;
   writer->journal_fd_ = ::open(journal.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
   if (writer->journal_fd_ < 0) throw std::runtime_error("cannot open " + journal.string() + ": " + std::strerror(errno));
   return writer;
@@ -433,7 +466,7 @@ std::vector<std::string> VerifyRun(const std::string& directory) {
       problems.push_back(e.what());
     }
   }
-  if (manifest.stop && manifest.stop->status == "complete")
+  if (manifest.stop && manifest.stop->status == CaptureStatus::kComplete)
     for (int i = 0; i < manifest.stop->steps_total; ++i)
       if (!indices.count(i)) problems.push_back("step " + std::to_string(i) + " missing");
   const fs::path frames_dir = fs::path(directory) / "frames";

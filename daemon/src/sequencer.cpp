@@ -31,7 +31,7 @@ class DeviceGuard {
       : lights_(lights), camera_(camera), motion_(motion), trigger_(trigger) {}
   ~DeviceGuard() { Release(); }
   void Release() {
-    if (trigger_ && trigger_->is_open()) {
+    if (trigger_) {
       if (Status closed = trigger_->Close(); !closed.ok())
         spdlog::error("could not release the trigger output {}: {}", trigger_->id(), closed.ToString());
     }
@@ -120,7 +120,7 @@ class Capture {
       if (!options_.trigger_output)
         return {StatusCode::kFailedPrecondition,
                 "camera " + camera_.id() + " is set for a hardware trigger but the rig has no trigger output"};
-      if (!options_.trigger_output->is_open())
+      if (options_.trigger_output->state() == drivers::TriggerOutput::State::kClosed)
         if (Status s = options_.trigger_output->Open(); !s.ok()) return s;
     }
     auto adjustments = camera_.Configure(settings_);
@@ -157,7 +157,7 @@ class Capture {
 
   // Leaves the devices closed and dark after a fault; they are reopened before the retry.
   void CloseAfterFault() {
-    if (options_.trigger_output && options_.trigger_output->is_open()) (void)options_.trigger_output->Close();
+    if (options_.trigger_output) (void)options_.trigger_output->Close();
     if (options_.motion && options_.motion->goniometer) (void)options_.motion->goniometer->StopAll();
     SwitchOffAndClose(lights_);
     if (camera_.state() != drivers::Camera::State::kClosed) (void)camera_.Close();
@@ -225,7 +225,7 @@ class Capture {
       }
       if (StopRequested() || !HoldWhilePaused()) {
         Notify(RunState::kAborting, "");
-        report_.status = "aborted";
+        report_.status = CaptureStatus::kAborted;
         report_.reason = "stop requested before step " + step.label;
         return;
       }
@@ -242,7 +242,7 @@ class Capture {
       ++attempts;
       if (!IsTransient(status) || attempts >= retry.max_attempts_per_step ||
           report_.retries >= retry.max_retries_per_run) {
-        report_.status = "failed";
+        report_.status = CaptureStatus::kFailed;
         report_.reason = (IsTransient(status) ? "step " + step.label + " failed " + std::to_string(attempts) +
                                                     " times; last: "
                                               : "step " + step.label + ": ") +
@@ -258,7 +258,7 @@ class Capture {
       backoff_ms = std::min(retry.max_backoff_ms, static_cast<int>(backoff_ms * retry.backoff_factor));
       Notify(RunState::kRunning, "retrying step " + step.label);
     }
-    report_.status = "complete";
+    report_.status = CaptureStatus::kComplete;
   }
 
  private:
@@ -303,7 +303,7 @@ CaptureReport RunCapture(const std::vector<CaptureStep>& steps, const CameraConf
     if (!options.retry.IsValid(&why)) throw std::invalid_argument("retry policy: " + why);
     Capture(camera_config, lights, camera, writer, options, report).Run(steps);
   } catch (const std::exception& e) {
-    report.status = "failed";
+    report.status = CaptureStatus::kFailed;
     report.reason = e.what();
   }
   report.elapsed_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

@@ -65,7 +65,7 @@ void RunService::Start() {
         RecoveryReport recovery;
         auto writer = RunWriter::Reopen(directory, &recovery);
         run.frames = recovery.frames_kept;
-        writer->Finish({"interrupted", "interrupted by a daemon restart", recovery.frames_kept, run.steps_total,
+        writer->Finish({CaptureStatus::kInterrupted, "interrupted by a daemon restart", recovery.frames_kept, run.steps_total,
                         run.retries, run.dropped_frames});
       } catch (const std::exception& e) {
         spdlog::error("run={} event=recovery_failed error=\"{}\"", run.id, e.what());
@@ -195,20 +195,20 @@ void RunService::Execute(QueuedRun run) {
     const RunOutcome outcome = ExecuteRun(request);
     stop = outcome.capture.ToStopRecord();
     reason = outcome.capture.reason;
-    if (outcome.capture.status == "complete") {
+    if (outcome.capture.status == CaptureStatus::kComplete) {
       final_state = RunState::kDone;
-      if (outcome.photometric_stereo && (*outcome.photometric_stereo).value("termination", "") != "success")
-        reason = "photometric stereo: " + (*outcome.photometric_stereo).value("message", std::string("no result"));
+      if (outcome.photometric_stereo && !outcome.photometric_stereo->usable())
+        reason = "photometric stereo: " + outcome.photometric_stereo->summary.message;
       if (outcome.light_calibration && !outcome.light_calibration->success)
         reason = "light calibration: " + outcome.light_calibration->message;
-    } else if (outcome.capture.status == "aborted") {
+    } else if (outcome.capture.status == CaptureStatus::kAborted) {
       // SIGTERM leaves the run queued, to resume at the next start; an abort request ends it.
       final_state = control->abort_requested() ? RunState::kAborted : RunState::kQueued;
       if (final_state == RunState::kQueued) reason = "daemon stopped; resumes at the next start";
     }
   } catch (const std::exception& e) {
     reason = e.what();
-    stop.status = "failed";
+    stop.status = CaptureStatus::kFailed;
     stop.reason = reason;
   }
   run.frames = stop.frames;
@@ -335,7 +335,7 @@ ServiceReply RunService::Abort(const std::string& id) {
       return Error(409, "run '" + id + "' is " + RunStateName(run.state) + "; nothing to abort");
   }
   AnnounceState(run);
-  Publish(id, "stop", {{"state", "aborted"}, {"reason", run.reason}, {"frames", run.frames},
+  Publish(id, "stop", {{"state", RunStateName(RunState::kAborted)}, {"reason", run.reason}, {"frames", run.frames},
                        {"steps_total", run.steps_total}, {"retries", 0}, {"dropped_frames", 0}});
   return {200, run.ToJson()};
 }

@@ -1,6 +1,6 @@
 #include "photorig/drivers/light_safety.h"
 
-#include "photorig/drivers/safety_net.h"
+#include "photorig/drivers/internal/safety_net.h"
 
 #include <algorithm>
 #include <cstdio>

@@ -1,6 +1,6 @@
 #include "photorig/drivers/motion.h"
 
-#include "photorig/drivers/safety_net.h"
+#include "photorig/drivers/internal/safety_net.h"
 
 #include <chrono>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "photorig/drivers/safety_net.h"
+#include "photorig/drivers/internal/safety_net.h"
 
 #include <cstdlib>
 #include <exception>

@@ -154,24 +154,15 @@ Status SimCamera::DoStop() {
 Status SimCamera::DoClose() { return Status::Ok(); }
 
 SimTriggerLine::SimTriggerLine(std::string id, std::shared_ptr<World> world)
-    : id_(std::move(id)), world_(std::move(world)) {}
+    : TriggerOutput(std::move(id)), world_(std::move(world)) {}
 
-Status SimTriggerLine::Open() {
-  if (open_) return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": already open"};
-  open_ = true;
-  return Status::Ok();
-}
+SimTriggerLine::~SimTriggerLine() { (void)Close(); }
 
-Status SimTriggerLine::Fire(std::chrono::microseconds width) {
-  if (!open_) return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": fired while closed"};
-  if (width.count() <= 0) return {StatusCode::kInvalidArgument, "trigger " + id_ + ": pulse width must be > 0"};
+// The wire carries no level between pulses, so there is nothing to deassert:
+// the pulse is delivered whole, whatever its width.
+Status SimTriggerLine::DoFire(std::chrono::microseconds) {
   if (!world_->PulseTriggerInput())
-    return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": no camera armed for a hardware trigger on the wire"};
-  return Status::Ok();
-}
-
-Status SimTriggerLine::Close() {
-  open_ = false;
+    return {StatusCode::kFailedPrecondition, "trigger " + id() + ": no camera armed for a hardware trigger on the wire"};
   return Status::Ok();
 }
 

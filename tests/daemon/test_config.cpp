@@ -273,7 +273,7 @@ TEST(HardwareTriggerConfig, SimWireRunsAndAMissingGpioChipFailsByName) {
   request.show_progress = false;
   request.solve = false;
   const RunOutcome wired = ExecuteRun(request);
-  EXPECT_EQ(wired.capture.status, "complete") << wired.capture.reason;
+  EXPECT_EQ(wired.capture.status, CaptureStatus::kComplete) << wired.capture.reason;
   EXPECT_EQ(wired.capture.frames_written, 5);
 
   request.rig_path = dir.Write("gpio.yaml", TriggeredRig("{mode: hardware, output: {driver: gpio, chip: gpiochip77, offset: 3}}"));
@@ -281,7 +281,7 @@ TEST(HardwareTriggerConfig, SimWireRunsAndAMissingGpioChipFailsByName) {
   request.retry.initial_backoff_ms = 1;
   request.retry.max_backoff_ms = 2;
   const RunOutcome missing = ExecuteRun(request);
-  EXPECT_EQ(missing.capture.status, "failed");
+  EXPECT_EQ(missing.capture.status, CaptureStatus::kFailed);
   EXPECT_NE(missing.capture.reason.find("gpiochip77"), std::string::npos) << missing.capture.reason;
   EXPECT_EQ(missing.capture.frames_written, 0);
 }

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <ostream>
 
 namespace photorig::daemon {
 namespace {
@@ -41,6 +42,12 @@ sim::LightFaults LightFault(std::set<T> sim::LightFaults::*kind, std::set<T> at)
   sim::LightFaults faults;
   faults.*kind = std::move(at);
   return faults;
+}
+
+// What a failing case prints: its name and what it expects, not the bytes of the faults.
+void PrintTo(const FaultCase& c, std::ostream* out) {
+  *out << c.name << " (" << (c.completes ? "completes" : "fails") << ", retries >= " << c.min_retries
+       << ", dropped frames " << c.dropped_frames << ")";
 }
 
 class FaultInjection : public ::testing::TestWithParam<FaultCase> {};
@@ -75,7 +82,7 @@ TEST_P(FaultInjection, RunCompletesIntactOrFailsCleanlyWithTheLightsOff) {
   const CaptureReport report = RunCapture(steps, camera_config, dome, camera, writer, options);
   writer.Finish(report.ToStopRecord());
 
-  EXPECT_EQ(report.status, c.completes ? "complete" : "failed") << report.reason;
+  EXPECT_EQ(report.status, c.completes ? CaptureStatus::kComplete : CaptureStatus::kFailed) << report.reason;
   EXPECT_GE(report.retries, c.min_retries);
   EXPECT_EQ(report.dropped_frames, c.dropped_frames);
   const RunManifest manifest = LoadRunManifest(writer.directory());

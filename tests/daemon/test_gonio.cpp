@@ -221,7 +221,7 @@ TEST(Gonio, FramesMatchTheAnalyticBrdfAtEachPose) {
   request.output_directory = (dir.path() / "run").string();
   request.show_progress = false;
   const RunOutcome outcome = ExecuteRun(request);
-  ASSERT_EQ(outcome.capture.status, "complete") << outcome.capture.reason;
+  ASSERT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;
   const RunManifest manifest = LoadRunManifest(request.output_directory);
   ASSERT_EQ(manifest.frames.size(), 6u);
 
@@ -258,7 +258,7 @@ TEST(Gonio, FailureStopsTheArmsAndSwitchesTheLampOff) {
   RigDevices& devices = capture.devices;
   WatchedDome dome("lamp", devices.world);
   const CaptureReport report = capture.Run(dome, {});
-  EXPECT_EQ(report.status, "failed");
+  EXPECT_EQ(report.status, CaptureStatus::kFailed);
   EXPECT_NE(report.reason.find("reads back"), std::string::npos) << report.reason;
   EXPECT_EQ(report.frames_written, 1);  // the dark frame
   // The arms reached the first pose, then every axis was stopped and closed; the lamp closed dark.
@@ -285,7 +285,7 @@ TEST(Gonio, ALostMoveCommandIsRetriedAfterClearingAndHoming) {
   CaptureOptions options;
   options.retry.initial_backoff_ms = 1;
   const CaptureReport report = capture.Run(*devices.lights, options);
-  ASSERT_EQ(report.status, "complete") << report.reason;
+  ASSERT_EQ(report.status, CaptureStatus::kComplete) << report.reason;
   EXPECT_EQ(report.retries, 1);
   EXPECT_EQ(report.frames_written, 4);  // dark + three poses, none twice
   const sim::ArmAngles arms = devices.world->arms();

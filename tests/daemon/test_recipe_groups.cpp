@@ -122,7 +122,7 @@ TEST(RecipeGroups, CaptureWritesEveryFrameAndPhotometricStereoUsesOnlySingleLedF
   request.show_progress = false;
   request.solve = false;
   const RunOutcome outcome = ExecuteRun(request);
-  ASSERT_EQ(outcome.capture.status, "complete") << outcome.capture.reason;
+  ASSERT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;
 
   const RunManifest manifest = LoadRunManifest(request.output_directory);
   ASSERT_EQ(manifest.frames.size(), 22u);

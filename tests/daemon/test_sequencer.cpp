@@ -61,7 +61,7 @@ TEST(Sequencer, DeviceFaultFailsTheRunKeepsFramesAndLeavesTheLightsOff) {
   FailingCamera camera(world, 3);
   RunWriter writer((dir.path() / "run").string(), Header());
   const CaptureReport report = RunCapture(DarkThenEachLight(4), Camera(), dome, camera, writer, {});
-  EXPECT_EQ(report.status, "failed");
+  EXPECT_EQ(report.status, CaptureStatus::kFailed);
   EXPECT_NE(report.reason.find("flaky-cam: link lost"), std::string::npos) << report.reason;
   EXPECT_EQ(report.frames_written, 3);
   EXPECT_EQ(writer.manifest().frames.size(), 3u);
@@ -86,7 +86,7 @@ TEST(Sequencer, StopRequestAbortsBetweenStepsWithTheLightsOff) {
     if (step.index == 2) stop = true;
   };
   const CaptureReport report = RunCapture(DarkThenEachLight(5), Camera(), dome, camera, writer, options);
-  EXPECT_EQ(report.status, "aborted");
+  EXPECT_EQ(report.status, CaptureStatus::kAborted);
   EXPECT_EQ(report.frames_written, 3);
   ASSERT_FALSE(dome.levels_at_close.empty());
   for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>(5, 0.0));
@@ -100,7 +100,7 @@ TEST(Sequencer, CompleteRunWritesEveryStepInOrder) {
   sim::SimCamera camera("cam", world);
   RunWriter writer((dir.path() / "run").string(), Header());
   const CaptureReport report = RunCapture(DarkThenEachLight(3), Camera(), dome, camera, writer, {});
-  EXPECT_EQ(report.status, "complete");
+  EXPECT_EQ(report.status, CaptureStatus::kComplete);
   ASSERT_EQ(writer.manifest().frames.size(), 4u);
   for (int i = 0; i < 4; ++i) {
     EXPECT_EQ(writer.manifest().frames[i].index, i);
@@ -125,9 +125,11 @@ class CountingWire : public sim::SimTriggerLine {
  public:
   using SimTriggerLine::SimTriggerLine;
   int pulses = 0;
-  Status Fire(std::chrono::microseconds width) override {
+
+ protected:
+  Status DoFire(std::chrono::microseconds width) override {
     ++pulses;
-    return SimTriggerLine::Fire(width);
+    return SimTriggerLine::DoFire(width);
   }
 };
 
@@ -137,16 +139,16 @@ TEST(HardwareTrigger, OnePulsePerFrameGivesTheSameFramesAsSoftwareTriggers) {
   sim::SimLightDome dome("dome", world);
   sim::SimCamera camera("cam", world);
   RunWriter software((dir.path() / "software").string(), Header());
-  ASSERT_EQ(RunCapture(DarkThenEachLight(3), Camera(), dome, camera, software, {}).status, "complete");
+  ASSERT_EQ(RunCapture(DarkThenEachLight(3), Camera(), dome, camera, software, {}).status, CaptureStatus::kComplete);
 
   CountingWire wire("wire", world);
   CaptureOptions options;
   options.trigger_output = &wire;
   RunWriter hardware((dir.path() / "hardware").string(), Header());
   const CaptureReport report = RunCapture(DarkThenEachLight(3), HardwareTriggered(), dome, camera, hardware, options);
-  ASSERT_EQ(report.status, "complete") << report.reason;
+  ASSERT_EQ(report.status, CaptureStatus::kComplete) << report.reason;
   EXPECT_EQ(wire.pulses, 4);
-  EXPECT_FALSE(wire.is_open());  // released at the end
+  EXPECT_EQ(wire.state(), drivers::TriggerOutput::State::kClosed);  // released at the end
   ASSERT_EQ(hardware.manifest().frames.size(), 4u);
   for (std::size_t i = 0; i < 4; ++i) {
     // Same world, same seed and frame ids: the same noisy pixels, whichever trigger took them.
@@ -160,16 +162,14 @@ TEST(HardwareTrigger, OnePulsePerFrameGivesTheSameFramesAsSoftwareTriggers) {
 // wait times out, the run fails after its retries with the lights off.
 class BrokenWire : public drivers::TriggerOutput {
  public:
-  const std::string& id() const override { return id_; }
-  Status Open() override { open_ = true; return Status::Ok(); }
-  Status Fire(std::chrono::microseconds) override { ++pulses; return Status::Ok(); }
-  Status Close() override { open_ = false; return Status::Ok(); }
-  bool is_open() const override { return open_; }
+  BrokenWire() : TriggerOutput("broken-wire") {}
+  ~BrokenWire() override { (void)Close(); }
   int pulses = 0;
 
- private:
-  std::string id_ = "broken-wire";
-  bool open_ = false;
+ protected:
+  Status DoOpen() override { return Status::Ok(); }
+  Status DoFire(std::chrono::microseconds) override { ++pulses; return Status::Ok(); }
+  Status DoClose() override { return Status::Ok(); }
 };
 
 TEST(HardwareTrigger, APulseThatNeverArrivesTimesOutAndFailsCleanly) {
@@ -185,11 +185,11 @@ TEST(HardwareTrigger, APulseThatNeverArrivesTimesOutAndFailsCleanly) {
   options.retry.max_backoff_ms = 2;
   RunWriter writer((dir.path() / "run").string(), Header());
   const CaptureReport report = RunCapture(DarkThenEachLight(2), HardwareTriggered(), dome, camera, writer, options);
-  EXPECT_EQ(report.status, "failed");
+  EXPECT_EQ(report.status, CaptureStatus::kFailed);
   EXPECT_NE(report.reason.find("no frame within"), std::string::npos) << report.reason;
   EXPECT_EQ(wire.pulses, options.retry.max_attempts_per_step);
   EXPECT_EQ(report.dropped_frames, options.retry.max_attempts_per_step);
-  EXPECT_FALSE(wire.is_open());
+  EXPECT_EQ(wire.state(), drivers::TriggerOutput::State::kClosed);
   EXPECT_EQ(writer.manifest().frames.size(), 0u);
   ASSERT_FALSE(dome.levels_at_close.empty());
   for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>(2, 0.0));
@@ -197,7 +197,7 @@ TEST(HardwareTrigger, APulseThatNeverArrivesTimesOutAndFailsCleanly) {
   // A hardware-triggered camera with no output at all is refused before any frame.
   RunWriter none((dir.path() / "none").string(), Header());
   const CaptureReport refused = RunCapture(DarkThenEachLight(2), HardwareTriggered(), dome, camera, none, {});
-  EXPECT_EQ(refused.status, "failed");
+  EXPECT_EQ(refused.status, CaptureStatus::kFailed);
   EXPECT_NE(refused.reason.find("no trigger output"), std::string::npos) << refused.reason;
 }
 

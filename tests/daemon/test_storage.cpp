@@ -117,16 +117,54 @@ TEST(RunStore, FramesLandOnDiskBitExactWithJournalAndManifest) {
     int lines = 0;
     while (std::getline(journal, line)) ++lines;
     EXPECT_EQ(lines, 3);  // header + 2 frames
-    writer.Finish({"complete", "", 0, 0, 0, 0});
+    writer.Finish({CaptureStatus::kComplete, "", 0, 0, 0, 0});
   }
   const RunManifest manifest = LoadRunManifest(run);
-  EXPECT_EQ(manifest.status, "complete");
+  EXPECT_EQ(manifest.status, CaptureStatus::kComplete);
   ASSERT_EQ(manifest.frames.size(), 2u);
   EXPECT_EQ(manifest.frames[1].level, 0.5);
   EXPECT_EQ(manifest.frames[1].kind, "light");
   const cv::Mat image = LoadFrame(run, manifest.frames[1]);
   const drivers::Frame expected = MakeFrame(20, 10, 1);
   for (int i = 0; i < 200; ++i) ASSERT_EQ(image.ptr<std::uint16_t>()[i], expected.pixels[i]);
+}
+
+// The status words are the run format's: runs stored before the status was
+// typed must read back, and new runs must write the same words.
+TEST(RunStore, CaptureStatusIsStoredAsTheFormatsWords) {
+  const std::pair<CaptureStatus, const char*> words[] = {{CaptureStatus::kRunning, "running"},
+                                                          {CaptureStatus::kComplete, "complete"},
+                                                          {CaptureStatus::kFailed, "failed"},
+                                                          {CaptureStatus::kAborted, "aborted"},
+                                                          {CaptureStatus::kInterrupted, "interrupted"}};
+  for (const auto& [status, word] : words) {
+    EXPECT_STREQ(CaptureStatusName(status), word);
+    EXPECT_EQ(CaptureStatusFromName(word), status) << word;
+    const StopRecord stop{status, "why", 3, 4, 1, 2};
+    EXPECT_EQ(ToJson(stop)["status"], word);
+    EXPECT_EQ(StopRecordFromJson(ToJson(stop)).status, status) << word;
+  }
+  EXPECT_EQ(CaptureStatusFromName("done"), std::nullopt);  // a queue state, not a capture status
+
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  {
+    RunWriter writer(run, Header());
+    writer.Finish({CaptureStatus::kAborted, "stop requested", 0, 2, 0, 0});
+  }
+  const nlohmann::json stored = nlohmann::json::parse(std::ifstream(std::filesystem::path(run) / "manifest.json"));
+  EXPECT_EQ(stored["status"], "aborted");
+  EXPECT_EQ(stored["stop"]["status"], "aborted");
+  // A word the format does not have is a corrupt manifest, named as such.
+  nlohmann::json tampered = stored;
+  tampered["status"] = "finished";
+  std::ofstream(std::filesystem::path(run) / "manifest.json") << tampered.dump();
+  try {
+    LoadRunManifest(run);
+    ADD_FAILURE() << "an unknown status loaded";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown capture status 'finished'"), std::string::npos) << e.what();
+  }
 }
 
 TEST(RunStore, CorruptFrameIsDetectedByItsChecksum) {
@@ -207,7 +245,7 @@ TEST(RunStore, ReopenRepairsWhatACrashLeavesAndKeepsEveryGoodFrameOnce) {
   EXPECT_FALSE(writer->HasFrame(2));
   // The retaken step lands once; the finished run verifies clean.
   writer->WriteFrame(Step(2, 0), MakeFrame(20, 10, 2));
-  writer->Finish({"complete", "", 0, 4, 0, 0});
+  writer->Finish({CaptureStatus::kComplete, "", 0, 4, 0, 0});
   EXPECT_TRUE(VerifyRun(run).empty()) << VerifyRun(run).front();
   const RunManifest manifest = LoadRunManifest(run);
   ASSERT_EQ(manifest.frames.size(), 4u);
@@ -226,7 +264,7 @@ TEST(RunStore, VerifyRunFindsMissingAndStrayFrames) {
   const std::string run = (dir.path() / "run").string();
   RunWriter writer(run, Header());
   writer.WriteFrame(Step(0, -1), MakeFrame(20, 10, 0));
-  writer.Finish({"complete", "", 0, 2, 0, 0});
+  writer.Finish({CaptureStatus::kComplete, "", 0, 2, 0, 0});
   std::ofstream(std::filesystem::path(run) / "frames" / "stray.png") << "x";
   const auto problems = VerifyRun(run);
   ASSERT_EQ(problems.size(), 2u);

@@ -187,7 +187,7 @@ TEST_F(Api, PauseResumeAndAbortARunningRun) {
   EXPECT_LT(stop["frames"].get<int>(), 124);
   const std::string run = (dir_.path() / "data/runs" / id).string();
   EXPECT_TRUE(VerifyRun(run).empty());
-  EXPECT_EQ(LoadRunManifest(run).stop->status, "aborted");
+  EXPECT_EQ(LoadRunManifest(run).stop->status, CaptureStatus::kAborted);
 }
 
 }  // namespace

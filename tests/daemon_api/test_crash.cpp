@@ -144,7 +144,7 @@ TEST(Crash, KillNineAtRandomPointsLosesAndDuplicatesNoFrame) {
   const RunManifest manifest = LoadRunManifest(run.string());
   EXPECT_EQ(manifest.frames.size(), static_cast<std::size_t>(kSteps));
   ASSERT_TRUE(manifest.stop.has_value());
-  EXPECT_EQ(manifest.stop->status, "complete");
+  EXPECT_EQ(manifest.stop->status, CaptureStatus::kComplete);
   EXPECT_EQ(manifest.stop->frames, kSteps);
 }
 

@@ -1,7 +1,7 @@
 // GPIO LEDs and trigger lines through the libgpiod seam, on in-memory chips
 // that behave like the kernel's (physical levels, busy lines).
 
-#include "photorig/drivers/gpio/gpio_memory.h"
+#include "photorig/drivers/gpio/internal/gpio_memory.h"
 
 #include <gtest/gtest.h>
 
@@ -99,6 +99,30 @@ TEST(GpioTrigger, PulseHasTheRequestedWidthAndEndsDeasserted) {
   ASSERT_TRUE(trigger.Close().ok());
   EXPECT_FALSE(chips->requested("gpiochip1", 7));
   EXPECT_EQ(chips->physical("gpiochip1", 7), 1);
+}
+
+TEST(GpioTrigger, IllegalTransitionsKeepTheLineAsItWas) {
+  auto chips = Chips();
+  {
+    GpioTriggerLine trigger("cam-trigger", {"gpiochip0", 9, false}, chips->MakeBackend());
+    ASSERT_TRUE(trigger.Open().ok());
+    const int calls = chips->bulk_calls();
+    // A second open is refused by the state machine, not by the kernel as a busy line.
+    const Status again = trigger.Open();
+    EXPECT_EQ(again.code(), StatusCode::kFailedPrecondition);
+    EXPECT_NE(again.message().find("cannot open while open"), std::string::npos) << again.message();
+    EXPECT_EQ(chips->bulk_calls(), calls);
+    EXPECT_TRUE(chips->requested("gpiochip0", 9));
+    EXPECT_EQ(chips->physical("gpiochip0", 9), 0);
+    ASSERT_TRUE(trigger.Close().ok());
+    ASSERT_TRUE(trigger.Close().ok());
+    EXPECT_EQ(trigger.Fire(std::chrono::microseconds(100)).code(), StatusCode::kFailedPrecondition);
+    EXPECT_EQ(chips->physical("gpiochip0", 9), 0);
+    // Destroyed while open: the destructor deasserts and releases.
+    ASSERT_TRUE(trigger.Open().ok());
+  }
+  EXPECT_FALSE(chips->requested("gpiochip0", 9));
+  EXPECT_EQ(chips->physical("gpiochip0", 9), 0);
 }
 
 TEST(GpioLibgpiod, AbsentChipIsAClearError) {

@@ -1,9 +1,9 @@
 // The safety wrapper in front of a real driver (GPIO on in-memory chips):
 // on-time and duty-cycle limits, the sequencer watchdog, and the exit net.
 
-#include "photorig/drivers/gpio/gpio_memory.h"
+#include "photorig/drivers/gpio/internal/gpio_memory.h"
 #include "photorig/drivers/light_safety.h"
-#include "photorig/drivers/safety_net.h"
+#include "photorig/drivers/internal/safety_net.h"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // The USB HID relay protocol at the transport seam, against an in-memory
 // board that decodes feature reports like the board's firmware.
 
-#include "photorig/drivers/usbrelay/usb_relay.h"
+#include "photorig/drivers/usbrelay/internal/usb_relay_memory.h"
 
 #include <gtest/gtest.h>
 

@@ -107,6 +107,19 @@ TEST(SimCamera, HardwareTriggerTakesAFramePerPulseOnlyWhileArmed) {
   EXPECT_EQ(trigger.Fire(std::chrono::microseconds(50)).code(), StatusCode::kFailedPrecondition);  // disarmed
 }
 
+TEST(SimTriggerLine, IllegalTransitionsReturnErrorsAndChangeNothing) {
+  SimTriggerLine trigger("wire", SmallWorld());
+  EXPECT_EQ(trigger.Fire(std::chrono::microseconds(50)).code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(trigger.state(), drivers::TriggerOutput::State::kClosed);
+  ASSERT_TRUE(trigger.Open().ok());
+  EXPECT_EQ(trigger.Open().code(), StatusCode::kFailedPrecondition);
+  EXPECT_EQ(trigger.state(), drivers::TriggerOutput::State::kOpen);
+  EXPECT_EQ(trigger.Fire(std::chrono::microseconds(0)).code(), StatusCode::kInvalidArgument);
+  ASSERT_TRUE(trigger.Close().ok());
+  ASSERT_TRUE(trigger.Close().ok());
+  EXPECT_EQ(trigger.state(), drivers::TriggerOutput::State::kClosed);
+}
+
 TEST(SimLightDome, RejectsBadPatternsAndEndsDark) {
   auto world = SmallWorld();
   SimLightDome dome("dome", world);

@@ -4,8 +4,8 @@
 
 #include "photorig/drivers/motion/goniometer.h"
 #include "photorig/drivers/motion/modbus_drive.h"
-#include "photorig/drivers/safety_net.h"
-#include "photorig/sim/modbus/arm_peer.h"
+#include "photorig/drivers/internal/safety_net.h"
+#include "photorig/sim/modbus/internal/arm_peer.h"
 #include "photorig/sim/modbus/server.h"
 
 #include <gtest/gtest.h>

@@ -9,6 +9,9 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
+#include <ostream>
+#include <string>
+
 namespace photorig {
 namespace {
 
@@ -66,7 +69,21 @@ struct Bench {
 
 LightPattern Pattern(std::vector<double> levels) { return {std::move(levels)}; }
 
-class MapTest : public ::testing::TestWithParam<std::tuple<ModbusLightMap::Switch, bool, bool>> {};
+// One register layout over one transport.
+struct MapCase {
+  ModbusLightMap::Switch on_off;
+  bool intensity;
+  bool rtu;
+
+  std::string Name() const {  // coils_intensity_tcp, bitmask_switch_only_rtu, ...
+    return std::string(Map(1, on_off, intensity).SwitchName()) + (intensity ? "_intensity" : "_switch_only") +
+           (rtu ? "_rtu" : "_tcp");
+  }
+};
+
+void PrintTo(const MapCase& c, std::ostream* out) { *out << c.Name(); }
+
+class MapTest : public ::testing::TestWithParam<MapCase> {};
 
 TEST_P(MapTest, PatternReachesTheWorldAndReadsBack) {
   const auto [on_off, intensity, rtu] = GetParam();
@@ -99,15 +116,15 @@ TEST_P(MapTest, PatternReachesTheWorldAndReadsBack) {
   for (double level : bench.world->levels()) EXPECT_EQ(level, 0.0);  // Close leaves the dome dark
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Maps, MapTest,
-    ::testing::Values(std::make_tuple(ModbusLightMap::Switch::kCoils, false, false),
-                      std::make_tuple(ModbusLightMap::Switch::kCoils, true, false),
-                      std::make_tuple(ModbusLightMap::Switch::kBitmask, false, false),
-                      std::make_tuple(ModbusLightMap::Switch::kBitmask, true, false),
-                      std::make_tuple(ModbusLightMap::Switch::kNone, true, false),
-                      std::make_tuple(ModbusLightMap::Switch::kCoils, true, true),
-                      std::make_tuple(ModbusLightMap::Switch::kBitmask, false, true)));
+INSTANTIATE_TEST_SUITE_P(Maps, MapTest,
+                         ::testing::Values(MapCase{ModbusLightMap::Switch::kCoils, false, false},
+                                           MapCase{ModbusLightMap::Switch::kCoils, true, false},
+                                           MapCase{ModbusLightMap::Switch::kBitmask, false, false},
+                                           MapCase{ModbusLightMap::Switch::kBitmask, true, false},
+                                           MapCase{ModbusLightMap::Switch::kNone, true, false},
+                                           MapCase{ModbusLightMap::Switch::kCoils, true, true},
+                                           MapCase{ModbusLightMap::Switch::kBitmask, false, true}),
+                         [](const ::testing::TestParamInfo<MapCase>& info) { return info.param.Name(); });
 
 TEST(ModbusLights, SimCameraSeesWhatTheModbusClientCommanded) {
   const ModbusLightMap map = Map(4, ModbusLightMap::Switch::kCoils, true);

@@ -1,8 +1,8 @@
 #pragma once
-// Prints the short summary of a photometric-stereo report.json.
+// Prints the short summary of a photometric-stereo result.
 
-#include <nlohmann/json.hpp>
+#include "photorig/daemon/ps_pipeline.h"
 
 namespace photorig::app {
-void PrintPhotometricStereoSummary(const nlohmann::json& report);
+void PrintPhotometricStereoSummary(const daemon::PhotometricStereoResult& result);
 }

@@ -8,6 +8,7 @@
 
 #include "../command.h"
 #include "photorig/daemon/api_client.h"
+#include "photorig/daemon/run_control.h"
 
 #include <unistd.h>
 
@@ -16,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 
 namespace photorig::app {
 namespace {
@@ -72,9 +74,11 @@ std::string RunLine(const json& run) {
   return text;
 }
 
+// `state` as the API names it (RunStateName).
 int ExitCodeForState(const std::string& state) {
-  if (state == "done") return 0;
-  if (state == "aborted") return 130;
+  const std::optional<daemon::RunState> parsed = daemon::RunStateFromName(state);
+  if (parsed == daemon::RunState::kDone) return 0;
+  if (parsed == daemon::RunState::kAborted) return 130;
   return 1;
 }
 

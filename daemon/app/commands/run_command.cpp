@@ -26,13 +26,13 @@ int Execute(const Options& options) {
   request.stop_requested = &g_stop_requested;
   const daemon::RunOutcome outcome = daemon::ExecuteRun(request);
   std::printf("run directory: %s\n", outcome.directory.c_str());
-  std::printf("capture: %s, %d/%d frames, %.0f ms%s%s\n", outcome.capture.status.c_str(),
+  std::printf("capture: %s, %d/%d frames, %.0f ms%s%s\n", daemon::CaptureStatusName(outcome.capture.status),
               outcome.capture.frames_written, outcome.capture.steps_total, outcome.capture.elapsed_ms,
               outcome.capture.reason.empty() ? "" : ": ", outcome.capture.reason.c_str());
   if (outcome.photometric_stereo) {
     PrintPhotometricStereoSummary(*outcome.photometric_stereo);
     std::printf("results: %s/results/ps/\n", outcome.directory.c_str());
-    if ((*outcome.photometric_stereo)["termination"] != "success") return 3;
+    if (!outcome.photometric_stereo->usable()) return 3;
   }
   if (outcome.light_calibration) {
     const daemon::LightCalibrationSummary& lights = *outcome.light_calibration;
@@ -42,8 +42,8 @@ int Execute(const Options& options) {
     if (!lights.out_rig.empty()) std::printf("calibrated rig: %s\n", lights.out_rig.c_str());
     if (!lights.success) return 3;
   }
-  if (outcome.capture.status == "aborted") return 130;
-  return outcome.capture.status == "complete" ? 0 : 1;
+  if (outcome.capture.status == daemon::CaptureStatus::kAborted) return 130;
+  return outcome.capture.status == daemon::CaptureStatus::kComplete ? 0 : 1;
 }
 
 CommandRunner Setup(CLI::App& app) {

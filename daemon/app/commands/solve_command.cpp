@@ -30,10 +30,10 @@ int Execute(const Options& options) {
       options.out.empty() ? (std::filesystem::path(source) / "results" / "ps").string() : options.out;
   const daemon::PhotometricStereoInput input =
       from_run ? daemon::LoadRunStack(options.run_dir) : daemon::LoadDiligent(options.dataset_dir);
-  const nlohmann::json report = daemon::SolveAndWrite(input, options.request, destination);
-  PrintPhotometricStereoSummary(report);
+  const daemon::PhotometricStereoResult result = daemon::SolveAndWrite(input, options.request, destination);
+  PrintPhotometricStereoSummary(result);
   std::printf("results: %s/\n", destination.c_str());
-  return report["termination"] == "success" ? 0 : 3;
+  return result.usable() ? 0 : 3;
 }
 
 CommandRunner SetupSolve(CLI::App& app) {

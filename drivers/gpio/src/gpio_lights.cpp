@@ -1,7 +1,5 @@
 #include "photorig/drivers/gpio/gpio_lights.h"
 
-#include "photorig/drivers/safety_net.h"
-
 #include <thread>
 
 namespace photorig::drivers {
@@ -53,34 +51,27 @@ Status GpioLightController::DoClose() {
 }
 
 GpioTriggerLine::GpioTriggerLine(std::string id, GpioLine line, std::unique_ptr<GpioBackend> backend)
-    : id_(std::move(id)), line_(std::move(line)), backend_(std::move(backend)) {}
+    : TriggerOutput(std::move(id)), line_(std::move(line)), backend_(std::move(backend)) {}
 
 GpioTriggerLine::~GpioTriggerLine() { (void)Close(); }
 
-Status GpioTriggerLine::Open() {
-  if (open_) return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": already open"};
-  Status status = backend_->Request("photorig:" + id_, {line_}, Physical({line_}, {0}));
-  if (!status.ok()) return {status.code(), "trigger " + id_ + " (" + Describe(line_) + "): " + status.message()};
-  open_ = true;
-  SafetyNet::Add(this, [this] { (void)Close(); });
+Status GpioTriggerLine::DoOpen() {
+  Status status = backend_->Request("photorig:" + id(), {line_}, Physical({line_}, {0}));
+  if (!status.ok()) return {status.code(), "trigger " + id() + " (" + Describe(line_) + "): " + status.message()};
   return Status::Ok();
 }
 
-Status GpioTriggerLine::Fire(std::chrono::microseconds width) {
-  if (!open_) return {StatusCode::kFailedPrecondition, "trigger " + id_ + ": pulse while closed"};
-  if (width.count() <= 0) return {StatusCode::kInvalidArgument, "trigger " + id_ + ": pulse width must be > 0"};
+Status GpioTriggerLine::DoFire(std::chrono::microseconds width) {
   Status status = backend_->Set(Physical({line_}, {1}));
   if (!status.ok()) return status;
   std::this_thread::sleep_for(width);
   return backend_->Set(Physical({line_}, {0}));
 }
 
-Status GpioTriggerLine::Close() {
-  if (!open_) return Status::Ok();
+Status GpioTriggerLine::DoClose() {
+  // Deassert before releasing: the kernel keeps a released line's last value.
   Status status = backend_->Set(Physical({line_}, {0}));
   backend_->Release();
-  open_ = false;
-  SafetyNet::Remove(this);
   return status;
 }
 

@@ -1,4 +1,4 @@
-#include "photorig/drivers/gpio/gpio_memory.h"
+#include "photorig/drivers/gpio/internal/gpio_memory.h"
 
 namespace photorig::drivers {
 

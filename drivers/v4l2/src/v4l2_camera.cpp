@@ -461,10 +461,10 @@ Status V4l2Camera::DoClose() {
   return Status::Ok();
 }
 
-std::vector<CameraInfo> DiscoverV4l2Cameras() {
+std::vector<CameraInfo> DiscoverV4l2Cameras(const std::string& device_directory) {
   std::vector<std::string> paths;
   std::error_code error;
-  for (const auto& entry : std::filesystem::directory_iterator("/dev", error)) {
+  for (const auto& entry : std::filesystem::directory_iterator(device_directory, error)) {
     const std::string name = entry.path().filename().string();
     if (name.rfind("video", 0) == 0) paths.push_back(entry.path().string());
   }

@@ -7,7 +7,7 @@
 
 #include "photorig/daemon/hardware_options.h"
 #include "photorig/daemon/rig_devices.h"
-#include "photorig/sim/modbus/arm_peer.h"
+#include "photorig/sim/modbus/internal/arm_peer.h"
 #include "photorig/sim/modbus/led_peer.h"
 #include "photorig/sim/modbus/server.h"
 

@@ -1,4 +1,4 @@
-#include "photorig/sim/modbus/arm_peer.h"
+#include "photorig/sim/modbus/internal/arm_peer.h"
 
 #include "photorig/drivers/motion/modbus_drive.h"
 

@@ -12,12 +12,15 @@
 //   report.json         timings, counts, noise model, metrics
 
 #include "photorig/daemon/ps_request.h"
+#include "photorig/ps/evaluation.h"
+#include "photorig/ps/integration.h"
 #include "photorig/ps/photometric_stereo.h"
 #include "photorig/ps/stack.h"
 
 #include <nlohmann/json.hpp>
 
 #include <limits>
+#include <optional>
 #include <string>
 
 namespace photorig::daemon {
@@ -51,15 +54,46 @@ double EffectiveSaturationLevel(const PhotometricStereoInput& input);
 // clipped.
 ps::PhotometricStereoOptions MakeSolverOptions(const PhotometricStereoRequest& request, double saturation_level);
 
-// Solves and writes every output into `output_directory`; returns report.json.
-// A solver that cannot produce a result is not an exception: the report says
-// so (termination "failure" and the reason) and is written all the same.
-nlohmann::json SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoRequest& request,
-                             const std::string& output_directory);
+// The depth integrated from the solved normals.
+struct PhotometricStereoDepth {
+  std::string integrator;          // the request's integrator name
+  ps::IntegrationSummary summary;
+  double pixel_pitch = 1.0;        // depth units per pixel
+  // RMS of depth - true height after removing their mean difference (depth is
+  // known up to a constant); when the source has a ground-truth height.
+  std::optional<double> rms_error_vs_truth;
+};
 
-inline nlohmann::json SolvePhotometricStereoRun(const std::string& run_directory,
-                                                const PhotometricStereoRequest& request,
-                                                const std::string& output_directory) {
+// What one solve produced. Callers use it as is; ToJson gives report.json.
+struct PhotometricStereoResult {
+  std::string source;              // PhotometricStereoInput::source
+  int dark_frames = 0;
+  double noise_sigma_dn = 0.0;     // the stack's read noise (from its darks)
+  double saturation_level = std::numeric_limits<double>::infinity();  // as applied; infinity = nothing clipped
+  ps::SolverSummary summary;       // method, termination, message, pixel counts, noise model, timings
+  // Measured on the output, so only when the solution is usable:
+  std::optional<double> mean_confidence;     // over solved pixels
+  std::optional<PhotometricStereoDepth> depth;   // unless the integrator is "none"
+  std::optional<ps::AngularErrorStats> normals_vs_truth;  // when the source has ground-truth normals
+  std::optional<double> mean_relative_albedo_error;      // ... and albedo; over solved pixels
+  double total_ms = 0.0;
+
+  bool usable() const { return summary.IsSolutionUsable(); }
+};
+
+// report.json, the stored form of a result ("termination" is the solver's
+// termination name, solvers::TerminationName; the measured parts appear only when present).
+nlohmann::json ToJson(const PhotometricStereoResult& result);
+
+// Solves and writes every output into `output_directory`, report.json last.
+// A solver that cannot produce a result is not an exception: the result says
+// so (usable() false, summary.message the reason) and is written all the same.
+PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoRequest& request,
+                                      const std::string& output_directory);
+
+inline PhotometricStereoResult SolvePhotometricStereoRun(const std::string& run_directory,
+                                                         const PhotometricStereoRequest& request,
+                                                         const std::string& output_directory) {
   return SolveAndWrite(LoadRunStack(run_directory), request, output_directory);
 }
 

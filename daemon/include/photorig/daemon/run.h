@@ -4,9 +4,8 @@
 // Shared by the `photorig` CLI and the `photorigd` daemon.
 
 #include "photorig/daemon/light_calibration.h"
+#include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/sequencer.h"
-
-#include <nlohmann/json.hpp>
 
 #include <atomic>
 #include <functional>
@@ -36,7 +35,7 @@ struct RunOutcome {
   std::string directory;
   RecoveryReport recovery;  // when resumed
   CaptureReport capture;
-  std::optional<nlohmann::json> photometric_stereo;  // the solver's report.json
+  std::optional<PhotometricStereoResult> photometric_stereo;  // stored as results/ps/report.json
   std::optional<LightCalibrationSummary> light_calibration;
 };
 

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <iosfwd>
 #include <memory>
 #include <optional>
 #include <string>
@@ -39,9 +40,19 @@ struct FrameRecord {
   std::optional<GonioPose> pose;  // gonioreflectometer arms when the frame was taken
 };
 
+// Where a capture stands: kRunning until it ends, then how it ended
+// (kInterrupted: finished after a crash without resuming).
+enum class CaptureStatus { kRunning, kComplete, kFailed, kAborted, kInterrupted };
+
+// "running", "complete", "failed", "aborted", "interrupted": the words
+// manifest.json, journal.jsonl and the HTTP API store.
+const char* CaptureStatusName(CaptureStatus status);
+std::optional<CaptureStatus> CaptureStatusFromName(const std::string& name);
+std::ostream& operator<<(std::ostream& out, CaptureStatus status);  // the name; for logs and test messages
+
 // How a run ended: written to the manifest and as the journal's last line.
 struct StopRecord {
-  std::string status;  // complete | failed | aborted | interrupted
+  CaptureStatus status = CaptureStatus::kFailed;
   std::string reason;
   int frames = 0;      // frames in the run
   int steps_total = 0;
@@ -56,7 +67,7 @@ struct RunManifest {
   std::string recipe_name;
   std::string rig_path;
   std::string rig_name;
-  std::string status = "running";  // running | complete | failed | aborted
+  CaptureStatus status = CaptureStatus::kRunning;
   std::string status_reason;
   std::string sample_name;
   std::string camera_id;

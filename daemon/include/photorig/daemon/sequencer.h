@@ -56,7 +56,7 @@ struct CaptureOptions {
 };
 
 struct CaptureReport {
-  std::string status;  // complete | failed | aborted
+  CaptureStatus status = CaptureStatus::kFailed;  // kComplete, kFailed or kAborted
   std::string reason;
   int frames_written = 0;   // by this call
   int frames_resumed = 0;   // already in the run when this call started
@@ -70,7 +70,7 @@ struct CaptureReport {
 };
 
 // Opens, configures and closes the devices itself. Never throws for device
-// faults: they end the run with status "failed" and a reason naming the device.
+// faults: they end the run with status kFailed and a reason naming the device.
 CaptureReport RunCapture(const std::vector<CaptureStep>& steps, const CameraConfig& camera_config,
                          drivers::LightController& lights, drivers::Camera& camera, RunWriter& writer,
                          const CaptureOptions& options);

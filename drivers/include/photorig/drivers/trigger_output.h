@@ -7,7 +7,11 @@
 //
 //   Closed --Open--> Open --Fire--> Open --Close--> Closed
 //
-// Close leaves the output deasserted, from any state.
+// The public methods check the transition and the pulse width, then call the
+// implementation's Do* hooks; an illegal transition returns
+// kFailedPrecondition and changes nothing. Close leaves the output
+// deasserted, from any state, and is safe to call twice. An open output is
+// registered with the SafetyNet, so it is released at exit as well.
 
 #include "photorig/drivers/status.h"
 
@@ -18,13 +22,37 @@ namespace photorig::drivers {
 
 class TriggerOutput {
  public:
-  virtual ~TriggerOutput() = default;
-  virtual const std::string& id() const = 0;
-  virtual Status Open() = 0;
-  // Asserts the output for `width`, then deasserts it. Only while open.
-  virtual Status Fire(std::chrono::microseconds width) = 0;
-  virtual Status Close() = 0;
-  virtual bool is_open() const = 0;
+  enum class State { kClosed, kOpen };
+
+  explicit TriggerOutput(std::string id) : id_(std::move(id)) {}
+  // Implementations call Close() in their own destructor (the hooks are gone by the time this runs).
+  virtual ~TriggerOutput();
+  TriggerOutput(const TriggerOutput&) = delete;
+  TriggerOutput& operator=(const TriggerOutput&) = delete;
+
+  const std::string& id() const { return id_; }
+  State state() const { return state_; }
+
+  // Claims the output, deasserted.
+  Status Open();
+  // Asserts the output for `width` (> 0), then deasserts it. Only while open.
+  Status Fire(std::chrono::microseconds width);
+  Status Close();
+
+ protected:
+  virtual Status DoOpen() = 0;
+  // Called with width > 0; must end with the output deasserted, even on failure where it can.
+  virtual Status DoFire(std::chrono::microseconds width) = 0;
+  // Deasserts the output and releases it.
+  virtual Status DoClose() = 0;
+
+ private:
+  Status IllegalTransition(const char* action) const;
+
+  std::string id_;
+  State state_ = State::kClosed;
 };
+
+const char* TriggerOutputStateName(TriggerOutput::State state);
 
 }  // namespace photorig::drivers

@@ -64,16 +64,15 @@ class SimCamera : public drivers::Camera {
 class SimTriggerLine : public drivers::TriggerOutput {
  public:
   SimTriggerLine(std::string id, std::shared_ptr<World> world);
-  const std::string& id() const override { return id_; }
-  Status Open() override;
-  Status Fire(std::chrono::microseconds width) override;
-  Status Close() override;
-  bool is_open() const override { return open_; }
+  ~SimTriggerLine() override;
+
+ protected:
+  Status DoOpen() override { return Status::Ok(); }
+  Status DoFire(std::chrono::microseconds width) override;
+  Status DoClose() override { return Status::Ok(); }
 
  private:
-  std::string id_;
   std::shared_ptr<World> world_;
-  bool open_ = false;
 };
 
 }  // namespace photorig::sim

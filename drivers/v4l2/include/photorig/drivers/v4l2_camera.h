@@ -79,7 +79,10 @@ class V4l2Camera : public Camera {
   Statistics stats_;
 };
 
-// Capture devices under /dev/video*, with formats, largest frame size and exposure range.
-std::vector<CameraInfo> DiscoverV4l2Cameras();
+// Capture devices among the video* nodes of `device_directory`, with formats,
+// largest frame size and exposure range. Nodes that do not answer
+// VIDIOC_QUERYCAP as a single-planar capture device are left out; nodes that
+// cannot be opened are listed with the reason in CameraInfo::error.
+std::vector<CameraInfo> DiscoverV4l2Cameras(const std::string& device_directory = "/dev");
 
 }  // namespace photorig::drivers

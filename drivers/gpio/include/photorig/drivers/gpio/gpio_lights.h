@@ -1,14 +1,16 @@
 #pragma once
 // LEDs and camera trigger lines on GPIO (libgpiod 1.6, the character-device
 // API Debian 12 ships). Lines are named by chip ("gpiochip0" or a path) and
-// offset; active-low lines are requested with the kernel's active-low flag,
-// so every value here is logical: 1 = LED lit / trigger asserted. All lines
-// of one chip are set with one bulk call; releasing the lines drives them to
-// 0 first, so a released dome is dark.
+// offset. Values here are logical (1 = LED lit / trigger asserted); the
+// driver applies active-low itself, so a backend only ever sees physical
+// levels. All lines of one chip are set with one bulk call; closing drives
+// every line off before releasing it (the kernel keeps a released line's
+// last value), so a released dome is dark.
 //
 // GpioBackend is the seam around the libgpiod calls: the real one talks to
-// /dev/gpiochipN; InMemoryGpioChips (gpio_memory.h) emulates the kernel side
-// for tests, since Debian's kernel has neither gpio-sim nor gpio-mockup.
+// /dev/gpiochipN; InMemoryGpioChips (internal/gpio_memory.h) emulates the
+// kernel side for tests, since Debian's kernel has neither gpio-sim nor
+// gpio-mockup.
 
 #include "photorig/drivers/light_controller.h"
 #include "photorig/drivers/trigger_output.h"
@@ -64,17 +66,15 @@ class GpioTriggerLine : public TriggerOutput {
  public:
   GpioTriggerLine(std::string id, GpioLine line, std::unique_ptr<GpioBackend> backend);
   ~GpioTriggerLine() override;
-  const std::string& id() const override { return id_; }
-  Status Open() override;
-  Status Fire(std::chrono::microseconds width) override;
-  Status Close() override;  // leaves the line deasserted
-  bool is_open() const override { return open_; }
+
+ protected:
+  Status DoOpen() override;
+  Status DoFire(std::chrono::microseconds width) override;
+  Status DoClose() override;
 
  private:
-  std::string id_;
   GpioLine line_;
   std::unique_ptr<GpioBackend> backend_;
-  bool open_ = false;
 };
 
 }  // namespace photorig::drivers

@@ -7,8 +7,8 @@
 //   GET_FEATURE bytes 0..4 the board's serial (ASCII), byte 7 the relay
 //               states, bit n-1 = relay n.
 // HidTransport is the seam: LibusbHidTransport speaks to the board through
-// libusb-1.0 control transfers; InMemoryRelayBoard (same header) decodes the
-// reports like the board's firmware, for tests.
+// libusb-1.0 control transfers; InMemoryRelayBoard (internal/usb_relay_memory.h)
+// decodes the reports like the board's firmware, for tests.
 
 #include "photorig/drivers/light_controller.h"
 
@@ -16,7 +16,6 @@
 #include <functional>
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <vector>
 
@@ -51,24 +50,6 @@ struct UsbRelayBoardInfo {
 Result<std::vector<UsbRelayBoardInfo>> EnumerateUsbRelayBoards();
 // Opens the board with this serial (or the only board, if serial is empty).
 Result<std::unique_ptr<HidTransport>> OpenUsbRelayBoard(const std::string& serial);
-
-class InMemoryRelayBoard : public HidTransport {
- public:
-  InMemoryRelayBoard(std::string serial, int relays);
-  Status SetFeature(const usb_relay::Report& report) override;
-  Result<usb_relay::Report> GetFeature() override;
-  std::uint8_t states() const;
-  std::vector<usb_relay::Report> received() const;
-  void set_stuck_off(int relay) { stuck_off_mask_ |= static_cast<std::uint8_t>(1u << (relay - 1)); }
-
- private:
-  mutable std::mutex mutex_;
-  std::string serial_;
-  int relays_;
-  std::uint8_t states_ = 0;
-  std::uint8_t stuck_off_mask_ = 0;
-  std::vector<usb_relay::Report> received_;
-};
 
 // One relay per LED (LED i on relay i+1); a level > 0 closes it. All-off is
 // used for a dark pattern (relays beyond the LEDs open too: the safe side). The
