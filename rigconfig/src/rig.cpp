@@ -5,9 +5,7 @@
 #include "photorig/config/yaml_node.h"
 
 #include <cmath>
-#include <filesystem>
 #include <set>
-#include <stdexcept>
 
 namespace photorig::config {
 namespace {
