@@ -4,6 +4,10 @@
 #
 # PHOTORIG_SKIP_MODULES (a list of directory names, e.g. "aravis;v4l2") leaves
 # modules out, for building on a machine without one of their libraries.
+# Leaving out aravis, v4l2, gpio, usbrelay or gige works: targets and tests
+# that need them check if(TARGET ...), code checks photorig/config/modules.h,
+# and a rig naming a missing driver fails to load, saying so. modbus and
+# motion cannot be left out (rigconfig/CMakeLists.txt says why).
 set(PHOTORIG_SKIP_MODULES "" CACHE STRING "module directory names to leave out of the build")
 
 function(photorig_add_module_subdirectories)

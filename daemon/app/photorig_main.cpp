@@ -1,7 +1,7 @@
 // photorig: the command-line front end. Subcommands live in app/commands/.
 
 #include "command.h"
-#include "photorig/daemon/yaml_node.h"
+#include "photorig/daemon/rig_config.h"
 #include "signals.h"
 
 #include <spdlog/spdlog.h>

@@ -1,6 +1,5 @@
 #include "photorig/daemon/recipe.h"
 
-#include "photorig/daemon/yaml_node.h"
 
 #include <cstdio>
 #include <filesystem>
@@ -9,7 +8,13 @@ namespace photorig::daemon {
 namespace fs = std::filesystem;
 
 namespace {
-Recipe ParseRecipe(const YamlNode& root, const std::string& path);
+Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfig& rig);
+
+// A path a recipe gives, relative to the recipe file.
+std::string RelativeToRecipe(const std::string& recipe_path, const std::string& path) {
+  const fs::path p = path;
+  return (p.is_absolute() ? p : fs::path(recipe_path).parent_path() / p).lexically_normal().string();
+}
 
 constexpr const char* kGroupNames = "dark, flat, each_led, pattern or poses";
 
@@ -140,13 +145,15 @@ Recipe::Group ParseGroup(const YamlNode& step) {
 }
 }  // namespace
 
-Recipe LoadRecipe(const std::string& path) { return ParseRecipe(YamlNode::LoadFile(path), path); }
-Recipe LoadRecipeText(const std::string& text, const std::string& name) {
-  return ParseRecipe(YamlNode::LoadString(text, name), name);
+Recipe LoadRecipe(const std::string& path, const RigConfig& rig) {
+  return ParseRecipe(YamlNode::LoadFile(path), path, rig);
+}
+Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig) {
+  return ParseRecipe(YamlNode::LoadString(text, name), name, rig);
 }
 
 namespace {
-Recipe ParseRecipe(const YamlNode& root, const std::string& path) {
+Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfig& rig) {
   root.ExpectKeys({"recipe", "sample", "capture", "solve"});
   Recipe recipe;
   recipe.path = path;
@@ -155,18 +162,13 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path) {
   header.ExpectKeys({"name", "description", "rig"});
   recipe.name = header["name"].AsString();
   recipe.description = header.String("description", "");
-  if (auto rig = header.Find("rig")) {
-    const fs::path rig_path = rig->AsString();
-    recipe.rig_path = (rig_path.is_absolute() ? rig_path : fs::path(path).parent_path() / rig_path).lexically_normal();
-  }
+  // `rig:` is read by RecipeRigPath, before the recipe; checked here too, since --rig may override it.
+  if (auto rig_name = header.Find("rig")) rig_name->AsString();
 
   if (auto sample = root.Find("sample")) {
     sample->ExpectKeys({"name", "sim_scene"});
     recipe.sample_name = sample->String("name", "");
-    if (auto scene = sample->Find("sim_scene")) {
-      ParseScene(*scene, 1.0);  // report errors now, before any device is touched
-      recipe.sim_scene = scene;
-    }
+    if (auto scene = sample->Find("sim_scene")) recipe.sim_scene = config::ParseScene(*scene, config::FrameWidthMm(rig));
   }
 
   const YamlNode capture = root["capture"];
@@ -192,11 +194,11 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path) {
 }
 }  // namespace
 
-std::string ResolveRigPath(const Recipe& recipe, const std::string& override_path) {
+std::string RecipeRigPath(const std::string& recipe_path, const std::string& override_path) {
   if (!override_path.empty()) return override_path;
-  if (recipe.rig_path.empty())
-    throw ConfigError(recipe.path, 0, 0, "recipe.rig", "the recipe names no rig; pass --rig FILE");
-  return recipe.rig_path;
+  const YamlNode root = YamlNode::LoadFile(recipe_path);
+  if (auto rig = root["recipe"].Find("rig")) return RelativeToRecipe(recipe_path, rig->AsString());
+  throw ConfigError(recipe_path, 0, 0, "recipe.rig", "the recipe names no rig; pass --rig FILE");
 }
 
 const char* CaptureStepKindName(CaptureStep::Kind kind) {

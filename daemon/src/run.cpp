@@ -45,9 +45,8 @@ void PrintProgress(const CaptureStep& step, int total) {
 }  // namespace
 
 RunOutcome ExecuteRun(const RunRequest& request) {
-  const Recipe recipe = LoadRecipe(request.recipe_path);
-  const std::string rig_path = ResolveRigPath(recipe, request.rig_path);
-  const RigConfig rig = LoadRigConfig(rig_path);
+  const RigConfig rig = LoadRigConfig(RecipeRigPath(request.recipe_path, request.rig_path));
+  const Recipe recipe = LoadRecipe(request.recipe_path, rig);
   const std::vector<CaptureStep> steps = CompileSteps(recipe, rig);
   const RunPlan plan = PlanRun(recipe, rig, steps);
   if (!plan.ok()) {

@@ -2,7 +2,7 @@
 
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/run.h"
-#include "photorig/daemon/yaml_node.h"
+#include "photorig/daemon/rig_config.h"
 
 #include <spdlog/spdlog.h>
 
@@ -234,8 +234,8 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
                           std::to_string(options_.max_recipe_bytes));
   if (recipe_yaml.empty()) return Error(400, "empty recipe");
   try {
-    const Recipe recipe = LoadRecipeText(recipe_yaml, name);
     const RigConfig rig = LoadRigConfig(options_.rig_path);
+    const Recipe recipe = LoadRecipeText(recipe_yaml, name, rig);
     const auto steps = CompileSteps(recipe, rig);
     const RunPlan plan = PlanRun(recipe, rig, steps, options_.plan);
     json body = plan.ToJson(steps);

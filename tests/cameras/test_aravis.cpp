@@ -1,8 +1,8 @@
 // The Aravis driver against a real GigE Vision peer: Aravis' fake GV camera on
 // 127.0.0.1, whose frames the simulator renders from a sim::World.
 
-#include "photorig/drivers/aravis_camera.h"
-#include "photorig/sim/gige_camera.h"
+#include "photorig/drivers/aravis/aravis_camera.h"
+#include "photorig/sim/gige/gige_camera.h"
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // naming the device. Capture itself runs against the kernel's vivid driver in
 // a VM (see docs/cameras.md).
 
-#include "photorig/drivers/v4l2_camera.h"
+#include "photorig/drivers/v4l2/v4l2_camera.h"
 #include "../daemon/test_support.h"
 
 #include <gtest/gtest.h>

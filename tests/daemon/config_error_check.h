@@ -3,7 +3,7 @@
 // ConfigError whose message starts with file:line:column, names the key (when
 // given) and says what is wrong.
 
-#include "photorig/daemon/yaml_node.h"
+#include "photorig/config/yaml_node.h"
 
 #include <gtest/gtest.h>
 
@@ -17,7 +17,7 @@ void ExpectConfigErrorAt(Load load, const std::string& path, int line, int colum
   try {
     load();
     ADD_FAILURE() << "no error from " << path;
-  } catch (const daemon::ConfigError& e) {
+  } catch (const config::ConfigError& e) {
     EXPECT_EQ(e.file(), path);
     EXPECT_EQ(e.line(), line) << e.what();
     EXPECT_EQ(e.column(), column) << e.what();

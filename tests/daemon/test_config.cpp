@@ -2,7 +2,6 @@
 #include "photorig/daemon/rig_config.h"
 #include "photorig/daemon/rig_devices.h"
 #include "photorig/daemon/run.h"
-#include "photorig/daemon/yaml_node.h"
 #include "config_error_check.h"
 #include "test_support.h"
 
@@ -199,8 +198,9 @@ TEST(RigConfig, LightsBelowTheSampleAreRejected) {
 }
 
 TEST(Recipe, ShippedRecipeCompilesToOneDarkAndOneFramePerLed) {
-  const Recipe recipe = LoadRecipe(SourceDir() + "/config/recipes/ps-sphere.yaml");
-  const RigConfig rig = LoadRigConfig(ResolveRigPath(recipe, ""));
+  const std::string path = SourceDir() + "/config/recipes/ps-sphere.yaml";
+  const RigConfig rig = LoadRigConfig(RecipeRigPath(path, ""));
+  const Recipe recipe = LoadRecipe(path, rig);
   const auto steps = CompileSteps(recipe, rig);
   ASSERT_EQ(steps.size(), rig.lights.leds.size() + 1);
   EXPECT_EQ(steps[0].kind, CaptureStep::Kind::kDark);
@@ -224,10 +224,11 @@ capture:
   steps:
     - each_led: {leds: [0, 7]}
 )");
-  const Recipe recipe = LoadRecipe(recipe_path);
-  EXPECT_EQ(recipe.rig_path, rig_path);
+  ASSERT_EQ(RecipeRigPath(recipe_path, ""), rig_path);
+  const RigConfig rig = LoadRigConfig(rig_path);
+  const Recipe recipe = LoadRecipe(recipe_path, rig);
   try {
-    CompileSteps(recipe, LoadRigConfig(rig_path));
+    CompileSteps(recipe, rig);
     FAIL();
   } catch (const ConfigError& e) {
     EXPECT_EQ(e.line(), 6) << e.what();
@@ -235,12 +236,34 @@ capture:
   }
   const std::string bad = dir.Write("s.yaml", "recipe: {name: s}\ncapture:\n  steps:\n    - flash: {}\n");
   try {
-    LoadRecipe(bad);
+    LoadRecipe(bad, rig);
     FAIL();
   } catch (const ConfigError& e) {
     EXPECT_EQ(e.line(), 4) << e.what();
     EXPECT_NE(std::string(e.what()).find("unknown step 'flash'"), std::string::npos) << e.what();
   }
+}
+
+// A recipe's sim_scene is parsed once, when the recipe is loaded for its rig:
+// sizes it leaves out come from that rig's frame, and a mistake in it fails
+// the load, with its position, before any device exists.
+TEST(Recipe, SimSceneIsParsedAtLoadForTheRigsFrame) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", kRig));
+  auto recipe_with = [](const std::string& scene) {
+    return "recipe: {name: s, rig: rig.yaml}\nsample:\n  sim_scene: " + scene +
+           "\ncapture:\n  steps:\n    - dark: {count: 1}\n";
+  };
+  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", recipe_with("{shape: sphere}")), rig);
+  ASSERT_TRUE(recipe.sim_scene.has_value());
+  EXPECT_DOUBLE_EQ(recipe.sim_scene->sphere_radius_mm, 0.45 * 32 * 0.1);  // the rig's 32 pixels of 0.1 mm
+
+  const std::string typo = dir.Write("typo.yaml", recipe_with("{shape: sphere, albedo: {pattern: checker, hi: 0.9}}"));
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(typo, rig); }, typo, 3, 57, "unknown key 'hi'",
+                                         "sample.sim_scene.albedo.hi");
+  const std::string shape = dir.Write("shape.yaml", recipe_with("{shape: torus}"));
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(shape, rig); }, shape, 3, 22, "unknown shape 'torus'",
+                                         "sample.sim_scene.shape");
 }
 
 }  // namespace
@@ -277,6 +300,10 @@ TEST(HardwareTriggerConfig, SimWireRunsAndAMissingGpioChipFailsByName) {
   EXPECT_EQ(wired.capture.frames_written, 5);
 
   request.rig_path = dir.Write("gpio.yaml", TriggeredRig("{mode: hardware, output: {driver: gpio, chip: gpiochip77, offset: 3}}"));
+#if !PHOTORIG_HAVE_DRIVERS_GPIO
+  // Without the module the rig does not load at all.
+  EXPECT_THROW(ExecuteRun(request), ConfigError);
+#else
   request.output_directory = (dir.path() / "gpio-run").string();
   request.retry.initial_backoff_ms = 1;
   request.retry.max_backoff_ms = 2;
@@ -284,6 +311,7 @@ TEST(HardwareTriggerConfig, SimWireRunsAndAMissingGpioChipFailsByName) {
   EXPECT_EQ(missing.capture.status, CaptureStatus::kFailed);
   EXPECT_NE(missing.capture.reason.find("gpiochip77"), std::string::npos) << missing.capture.reason;
   EXPECT_EQ(missing.capture.frames_written, 0);
+#endif
 }
 
 }  // namespace

@@ -91,15 +91,10 @@ std::string Replace(std::string text, const std::string& from, const std::string
 // The capture of a pose list on the gonio rig (with `faults`), run through
 // RunCapture with the rig's own devices; `lights` may stand in for the lamp.
 struct GonioCapture {
-  static Recipe WriteRigAndRecipe(TempDir& dir, const std::string& faults, const std::string& poses) {
-    dir.Write("rig.yaml", GonioRig(faults));
-    return LoadRecipe(dir.Write("r.yaml", GonioRecipe(poses)));
-  }
-
   GonioCapture(TempDir& dir, const std::string& faults, const std::string& poses)
       : directory(dir.path()),
-        recipe(WriteRigAndRecipe(dir, faults, poses)),
-        rig(LoadRigConfig(recipe.rig_path)),
+        rig(LoadRigConfig(dir.Write("rig.yaml", GonioRig(faults)))),
+        recipe(LoadRecipe(dir.Write("r.yaml", GonioRecipe(poses)), rig)),
         devices(MakeRigDevices(rig, &recipe)) {}
 
   CaptureReport Run(drivers::LightController& lights, CaptureOptions options) {
@@ -112,8 +107,8 @@ struct GonioCapture {
   }
 
   std::filesystem::path directory;
-  Recipe recipe;
   RigConfig rig;
+  Recipe recipe;
   RigDevices devices;
 };
 
@@ -135,21 +130,20 @@ TEST(Gonio, RigAndPoseErrorsNameTheirPosition) {
                     "unknown motion driver 'stepper'");
 
   TempDir dir;
-  dir.Write("rig.yaml", GonioRig());
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
   const std::string both = dir.Write(
       "both.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_arm_deg: 30}]\n        grid: {light_arm_deg: 0}\n"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(both); }, both, 7, 9,
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(both, rig); }, both, 7, 9,
                                          "exactly one of 'list' or 'grid'");
   const std::string typo = dir.Write("typo.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_deg: 30}]\n"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(typo); }, typo, 7, 35, "camera_deg");
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(typo, rig); }, typo, 7, 35, "camera_deg");
 }
 
 TEST(Gonio, GridCompilesToPosesAndThePlanCountsTheMoves) {
   TempDir dir;
-  dir.Write("rig.yaml", GonioRig());
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
   const Recipe recipe = LoadRecipe(dir.Write(
-      "r.yaml", GonioRecipe("        grid: {light_arm_deg: -30, camera_arm_deg: [0, 30], sample_rotation_deg: [0, 90]}\n")));
-  const RigConfig rig = LoadRigConfig(recipe.rig_path);
+      "r.yaml", GonioRecipe("        grid: {light_arm_deg: -30, camera_arm_deg: [0, 30], sample_rotation_deg: [0, 90]}\n")), rig);
   const auto steps = CompileSteps(recipe, rig);
   ASSERT_EQ(steps.size(), 5u);
   EXPECT_EQ(steps[1].kind, CaptureStep::Kind::kPose);
@@ -185,10 +179,9 @@ TEST(Gonio, DryRunAndRunRefuseBadPosesBeforeAnythingMoves) {
   };
   for (const Case& c : cases) {
     TempDir dir;
-    dir.Write("rig.yaml", GonioRig());
+    const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
     const std::string path = dir.Write("r.yaml", GonioRecipe(c.poses));
-    const Recipe recipe = LoadRecipe(path);
-    const RigConfig rig = LoadRigConfig(recipe.rig_path);
+    const Recipe recipe = LoadRecipe(path, rig);
     const RunPlan plan = PlanRun(recipe, rig, CompileSteps(recipe, rig));
     ASSERT_EQ(plan.errors.size(), 1u) << c.poses;
     EXPECT_NE(plan.errors[0].find(c.fragment), std::string::npos) << plan.errors[0];
@@ -300,8 +293,9 @@ TEST(Gonio, MotionFaultsNameAnAxisOfTheRig) {
 }
 
 TEST(Gonio, ShippedRecipeDryRunsClean) {
-  const Recipe recipe = LoadRecipe(SourceDir() + "/config/recipes/gonio-sample.yaml");
-  const RigConfig rig = LoadRigConfig(ResolveRigPath(recipe, ""));
+  const std::string path = SourceDir() + "/config/recipes/gonio-sample.yaml";
+  const RigConfig rig = LoadRigConfig(RecipeRigPath(path, ""));
+  const Recipe recipe = LoadRecipe(path, rig);
   const auto steps = CompileSteps(recipe, rig);
   const RunPlan plan = PlanRun(recipe, rig, steps);
   EXPECT_TRUE(plan.ok()) << (plan.errors.empty() ? "" : plan.errors[0]);

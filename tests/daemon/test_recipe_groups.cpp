@@ -34,15 +34,11 @@ const char* kMixedSteps =
 // The message names file:line:column of the offending value.
 void ExpectRecipeError(const std::string& steps, int line, int column, const std::string& fragment) {
   TempDir dir;
-  dir.Write("rig.yaml", SmallRigYaml());
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", SmallRigYaml()));
   const std::string path = dir.Write("r.yaml", RecipeWithSteps(steps));
   SCOPED_TRACE(steps);
-  photorig::testing::ExpectConfigErrorAt(
-      [&] {
-        const Recipe recipe = LoadRecipe(path);
-        CompileSteps(recipe, LoadRigConfig(recipe.rig_path));
-      },
-      path, line, column, fragment);
+  photorig::testing::ExpectConfigErrorAt([&] { CompileSteps(LoadRecipe(path, rig), rig); }, path, line, column,
+                                         fragment);
 }
 
 TEST(RecipeGroups, ErrorsNameTheOffendingValue) {
@@ -66,9 +62,8 @@ TEST(RecipeGroups, ErrorsNameTheOffendingValue) {
 
 TEST(RecipeGroups, CompileToLabelledStepsWithKindsPatternsAndExposures) {
   TempDir dir;
-  dir.Write("rig.yaml", SmallRigYaml());
-  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", RecipeWithSteps(kMixedSteps)));
-  const RigConfig rig = LoadRigConfig(recipe.rig_path);
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", SmallRigYaml()));
+  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", RecipeWithSteps(kMixedSteps)), rig);
   const auto steps = CompileSteps(recipe, rig);
   std::vector<std::string> labels = {"0000_dark", "0001_dark", "0002_flat", "0003_flat", "0004_pat_diagonal",
                                      "0005_pat_diagonal"};

@@ -1,10 +1,9 @@
 // The simulated dome as its own process (photorig-sim-modbus), and a whole
 // photometric-stereo run whose lights go over real Modbus TCP.
 
+#include "photorig/config/rig.h"
 #include "photorig/drivers/modbus/modbus_lights.h"
 #include "photorig/drivers/motion/modbus_drive.h"
-#include "photorig/daemon/hardware_options.h"
-#include "photorig/daemon/rig_config.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -70,8 +69,9 @@ TEST(SimModbusProcess, ServesTheDomeAndArmsOverTcpAndStopsOnSigterm) {
   const int port = std::stoi(server.where.substr(std::string("tcp 127.0.0.1:").size()));
 
   // The map the client uses is the rig's own.
-  const daemon::RigConfig config = daemon::LoadRigConfig(rig);
-  const auto map = daemon::ParseModbusLightMap(*config.lights.options, 48);
+  const config::RigConfig config = config::LoadRigConfig(rig);
+  ASSERT_TRUE(config.lights.modbus.has_value());
+  const drivers::ModbusLightMap& map = config.lights.modbus->map;
   drivers::ModbusLinkOptions link;
   link.port = port;
   drivers::ModbusLightController lights("dome", link, map);

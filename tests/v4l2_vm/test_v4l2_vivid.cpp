@@ -9,7 +9,7 @@
 // skips sequence numbers when it falls behind. Its test controls inject
 // dropped buffers, damaged buffers and fatal queue errors.
 
-#include "photorig/drivers/v4l2_camera.h"
+#include "photorig/drivers/v4l2/v4l2_camera.h"
 
 #include <fcntl.h>
 #include <linux/videodev2.h>

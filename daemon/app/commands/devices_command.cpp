@@ -1,9 +1,16 @@
 // photorig devices [--json] [--no-details]: the cameras this machine can see
-// (GenICam through Aravis, V4L2 capture nodes) and their key features.
+// (GenICam through Aravis, V4L2 capture nodes) and their key features; a
+// camera module left out of the build finds nothing.
 
 #include "../command.h"
-#include "photorig/drivers/aravis_camera.h"
-#include "photorig/drivers/v4l2_camera.h"
+#include "photorig/config/modules.h"
+#include "photorig/drivers/camera.h"
+#if PHOTORIG_HAVE_DRIVERS_ARAVIS
+#include "photorig/drivers/aravis/aravis_camera.h"
+#endif
+#if PHOTORIG_HAVE_DRIVERS_V4L2
+#include "photorig/drivers/v4l2/v4l2_camera.h"
+#endif
 
 #include <nlohmann/json.hpp>
 
@@ -25,8 +32,13 @@ std::string Formats(const std::vector<std::string>& formats) {
 }
 
 int Execute(const Options& options) {
-  std::vector<drivers::CameraInfo> cameras = drivers::DiscoverAravisCameras(!options.no_details);
+  std::vector<drivers::CameraInfo> cameras;
+#if PHOTORIG_HAVE_DRIVERS_ARAVIS
+  cameras = drivers::DiscoverAravisCameras(!options.no_details);
+#endif
+#if PHOTORIG_HAVE_DRIVERS_V4L2
   for (auto& camera : drivers::DiscoverV4l2Cameras()) cameras.push_back(std::move(camera));
+#endif
   if (options.json) {
     nlohmann::json list = nlohmann::json::array();
     for (const auto& c : cameras)

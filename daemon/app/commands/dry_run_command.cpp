@@ -19,8 +19,8 @@ struct Options {
 };
 
 int Execute(const Options& options) {
-  const daemon::Recipe recipe = daemon::LoadRecipe(options.recipe);
-  const daemon::RigConfig rig = daemon::LoadRigConfig(daemon::ResolveRigPath(recipe, options.rig));
+  const daemon::RigConfig rig = daemon::LoadRigConfig(daemon::RecipeRigPath(options.recipe, options.rig));
+  const daemon::Recipe recipe = daemon::LoadRecipe(options.recipe, rig);
   const auto steps = daemon::CompileSteps(recipe, rig);
   daemon::PlanOptions plan_options;
   plan_options.max_led_duty = options.max_led_duty;

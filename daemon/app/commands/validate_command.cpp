@@ -14,8 +14,8 @@ struct Options {
 };
 
 int Execute(const Options& options) {
-  const daemon::Recipe recipe = daemon::LoadRecipe(options.recipe);
-  const daemon::RigConfig rig = daemon::LoadRigConfig(daemon::ResolveRigPath(recipe, options.rig));
+  const daemon::RigConfig rig = daemon::LoadRigConfig(daemon::RecipeRigPath(options.recipe, options.rig));
+  const daemon::Recipe recipe = daemon::LoadRecipe(options.recipe, rig);
   const auto steps = daemon::CompileSteps(recipe, rig);
   std::printf("%s: valid; %zu steps on rig '%s' (%zu LEDs, camera %dx%d)\n", options.recipe.c_str(), steps.size(),
               rig.name.c_str(), rig.lights.leds.size(), rig.camera.width, rig.camera.height);

@@ -1,4 +1,4 @@
-#include "photorig/drivers/aravis_camera.h"
+#include "photorig/drivers/aravis/aravis_camera.h"
 
 #include <arv.h>
 

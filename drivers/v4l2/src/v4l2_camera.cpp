@@ -1,4 +1,4 @@
-#include "photorig/drivers/v4l2_camera.h"
+#include "photorig/drivers/v4l2/v4l2_camera.h"
 
 #include <fcntl.h>
 #include <linux/videodev2.h>

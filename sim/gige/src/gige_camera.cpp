@@ -1,4 +1,4 @@
-#include "photorig/sim/gige_camera.h"
+#include "photorig/sim/gige/gige_camera.h"
 
 #include <arv.h>
 

@@ -5,8 +5,8 @@
 //   photorig-sim-modbus --rig config/rigs/sim-dome-modbus.yaml --rtu
 // Prints one line naming where it listens, then serves until SIGINT/SIGTERM.
 
-#include "photorig/daemon/hardware_options.h"
-#include "photorig/daemon/rig_devices.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
 #include "photorig/sim/modbus/internal/arm_peer.h"
 #include "photorig/sim/modbus/led_peer.h"
 #include "photorig/sim/modbus/server.h"
@@ -41,22 +41,21 @@ int main(int argc, char** argv) {
   app.add_option("--overshoot-move", overshoot_moves, "the arms overshoot on these moves");
   CLI11_PARSE(app, argc, argv);
 
-  namespace daemon = photorig::daemon;
+  namespace config = photorig::config;
   try {
-    daemon::RigConfig rig = daemon::LoadRigConfig(rig_path);
+    const config::RigConfig rig = config::LoadRigConfig(rig_path);
     if (!rig.sim) throw std::runtime_error(rig_path + ": the rig needs a sim: section");
-    const int channels = static_cast<int>(rig.lights.leds.size());
-    const auto map = rig.lights.options ? daemon::ParseModbusLightMap(*rig.lights.options, channels)
-                                        : photorig::drivers::ModbusLightMap{channels};
-    rig.lights.driver = "sim";  // the World only; this process is the controller
-    rig.camera.driver = "sim";
-    const auto devices = daemon::MakeRigDevices(rig, nullptr);
+    // The rig's register map when its lights are a Modbus controller; else a coil per LED.
+    photorig::drivers::ModbusLightMap map;
+    map.channels = static_cast<int>(rig.lights.leds.size());
+    if (rig.lights.modbus) map = rig.lights.modbus->map;
+    const auto world = std::make_shared<photorig::sim::World>(config::MakeWorldConfig(rig, rig.sim->scene));
 
     photorig::sim::ModbusServerOptions options;
     options.faults.exception_at = {exception_at.begin(), exception_at.end()};
     options.faults.disconnect_at = {disconnect_at.begin(), disconnect_at.end()};
     photorig::sim::SimModbusServer server(options);
-    server.AddPeer(std::make_shared<photorig::sim::SimModbusLedController>(map, devices.world));
+    server.AddPeer(std::make_shared<photorig::sim::SimModbusLedController>(map, world));
     if (arms) {
       int base = 1000;
       for (const char* name : {"light_arm", "camera_arm", "sample_stage"}) {

@@ -1,6 +1,6 @@
 #pragma once
-// The `options:` maps of the hardware camera drivers. Errors are ConfigError
-// naming file:line:column and the dotted key.
+// The hardware cameras, built from the settings LoadRigConfig parsed
+// (photorig/config/driver_options.h):
 //
 //   camera:
 //     driver: aravis
@@ -28,7 +28,11 @@
 
 namespace photorig::daemon {
 
+#if PHOTORIG_HAVE_DRIVERS_ARAVIS
 std::unique_ptr<drivers::Camera> MakeAravisCamera(const DeviceContext& context);
+#endif
+#if PHOTORIG_HAVE_DRIVERS_V4L2
 std::unique_ptr<drivers::Camera> MakeV4l2Camera(const DeviceContext& context);
+#endif
 
 }  // namespace photorig::daemon

@@ -1,14 +1,17 @@
 #pragma once
-// The table of device drivers a rig YAML may name. Each entry builds (never
-// opens) a device from the rig's common settings plus its driver-specific
-// `options:` map; configuration errors are ConfigError naming file:line:column.
+// Builds (never opens) the devices a loaded rig describes. The rig's driver
+// settings were parsed and checked by LoadRigConfig, so building a device
+// finds no configuration errors; what can still fail here is the outside
+// world (e.g. a simulated Modbus controller that cannot bind its port).
 //
-// Adding a driver: one entry in src/device_factory.cpp.
+// Adding a driver: its settings in rigconfig/ (photorig/config/driver_options.h),
+// its construction in src/device_factory.cpp.
 
 #include "photorig/daemon/rig_config.h"
 #include "photorig/drivers/camera.h"
 #include "photorig/drivers/trigger_output.h"
 #include "photorig/drivers/light_controller.h"
+#include "photorig/drivers/motion/goniometer.h"
 #include "photorig/sim/world.h"
 
 #include <memory>
@@ -23,11 +26,6 @@ struct DeviceContext {
   const RigConfig& rig;
   std::shared_ptr<sim::World> world;
 };
-
-bool IsKnownLightDriver(const std::string& name);
-bool IsKnownCameraDriver(const std::string& name);
-std::string LightDriverNames();   // "sim, ..." for error messages
-std::string CameraDriverNames();
 
 std::unique_ptr<drivers::LightController> MakeLightController(const DeviceContext& context);
 std::unique_ptr<drivers::Camera> MakeCamera(const DeviceContext& context);

@@ -8,7 +8,7 @@
 // never overwritten). Used by the recipe stage `light_calibration:` and by
 // `photorig calibrate lights`.
 
-#include "photorig/daemon/yaml_node.h"
+#include "photorig/daemon/rig_config.h"
 #include "photorig/lighting/mirror_sphere.h"
 
 #include <Eigen/Core>

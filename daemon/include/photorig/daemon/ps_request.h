@@ -2,7 +2,7 @@
 // The `photometric_stereo:` stage of a recipe's solve pipeline, and the same
 // settings as given on the command line.
 
-#include "photorig/daemon/yaml_node.h"
+#include "photorig/daemon/rig_config.h"
 
 #include <string>
 

@@ -5,7 +5,6 @@
 #include "photorig/daemon/light_calibration.h"
 #include "photorig/daemon/ps_request.h"
 #include "photorig/daemon/rig_config.h"
-#include "photorig/daemon/yaml_node.h"
 #include "photorig/drivers/light_controller.h"
 
 #include <optional>
@@ -27,11 +26,10 @@ struct Recipe {
   std::string path;
   std::string name;
   std::string description;
-  std::string rig_path;  // resolved relative to the recipe file
   std::string sample_name;
-  // Replaces the simulated rig's scene. Kept as YAML because sizes default to
-  // the camera's field of view, which only the rig knows.
-  std::optional<YamlNode> sim_scene;
+  // sample.sim_scene: replaces a simulated rig's scene. Parsed for the rig the
+  // recipe was loaded for, whose frame sizes the defaults.
+  std::optional<sim::Scene> sim_scene;
   std::optional<double> exposure_us;    // overrides the rig camera's exposure
   std::optional<double> gain_db;
 
@@ -81,11 +79,15 @@ struct CaptureStep {
 // "dark" | "light" | "flat" | "pattern" | "pose": the kind as journals and manifests spell it.
 const char* CaptureStepKindName(CaptureStep::Kind kind);
 
-// Throws ConfigError naming file:line:column and key.
-Recipe LoadRecipe(const std::string& path);
+// Reads a recipe for the rig it will run on. Throws ConfigError naming
+// file:line:column and key.
+Recipe LoadRecipe(const std::string& path, const RigConfig& rig);
 // The same from text received over the API; errors name `name` as the file.
-Recipe LoadRecipeText(const std::string& text, const std::string& name);
-std::string ResolveRigPath(const Recipe& recipe, const std::string& override_path);
+Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig);
+// The rig file a recipe runs on: `override_path` when given, else the
+// recipe's `recipe.rig` (relative to the recipe file). Throws ConfigError
+// when neither names one.
+std::string RecipeRigPath(const std::string& recipe_path, const std::string& override_path);
 // Throws ConfigError (naming the recipe) when the recipe asks for LEDs the rig
 // lacks, or for poses on a rig without motion.
 std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig);

@@ -1,137 +1,24 @@
 #pragma once
-// The rig description (config/rigs/*.yaml): which devices, where the lights
-// are, what the camera is, and for simulated rigs what the simulator renders.
+// The daemon reads rigs through the configuration library (rigconfig/,
+// photorig/config/); these are the names it uses unqualified.
 
-#include "photorig/daemon/yaml_node.h"
-#include "photorig/drivers/camera.h"
-#include "photorig/drivers/motion/goniometer.h"
-#include "photorig/sim/world.h"
-
-#include <Eigen/Core>
-
-#include <array>
-#include <map>
-#include <optional>
-#include <string>
-#include <vector>
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 
 namespace photorig::daemon {
 
-struct LedConfig {
-  int id = 0;
-  Eigen::Vector3d direction{0, 0, 1};  // unit, camera frame, towards the LED
-  double intensity = 1.0;              // relative irradiance at the sample for drive level 1
-  int channel = 0;                     // controller output driving this LED (default: its index)
-  Eigen::Vector3d rgb_intensity{1, 1, 1};  // relative [r, g, b] output, as calibrated
-  // Where the LED is, when the rig gives it (mm, camera frame). Solvers use
-  // `direction` (towards it from the object origin); a simulated rig renders
-  // it as a near LED aimed at the origin, with inverse-square falloff across
-  // the object, the error a distant-light model makes on a small dome.
-  std::optional<Eigen::Vector3d> position_mm;
-};
-
-struct LightsConfig {
-  std::string driver;  // a name from daemon/device_factory.h, e.g. "sim"
-  std::string id;
-  std::vector<LedConfig> leds;
-  std::optional<YamlNode> options;  // driver-specific settings, parsed by the driver's factory
-};
-
-// Where a 24-patch colour chart sits in the camera's image when the rig
-// photographs one (camera.color_chart): the outer corners of the 6 x 4 grid of
-// patch cells in pixels, top-left (dark-skin patch) first, then clockwise.
-// Written as `box_px: [x, y, w, h]` or `corners_px: [[x, y], ...]` (four points).
-struct ColorChartPlacement {
-  std::array<Eigen::Vector2d, 4> corners_px;
-};
-
-// How frames are triggered. `hardware`: the camera is armed on its input
-// `line` and the sequencer fires the rig's trigger output (a GPIO line, or the
-// simulated rig's wire) once per frame instead of a software trigger.
-struct TriggerConfig {
-  drivers::TriggerMode mode = drivers::TriggerMode::kSoftware;
-  std::string line = "Line1";  // the camera's trigger input (GenICam TriggerSource)
-  int pulse_us = 100;
-  std::string output_driver;   // hardware: "sim" | "gpio"
-  std::optional<YamlNode> output;  // the `output:` map, for driver-specific keys and error positions
-};
-
-struct CameraConfig {
-  std::string driver;  // a name from daemon/device_factory.h, e.g. "sim"
-  std::string id;
-  std::optional<YamlNode> options;  // driver-specific settings, parsed by the driver's factory
-  std::string projection = "orthographic";
-  int width = 0;
-  int height = 0;
-  double pixel_pitch_mm = 0.1;
-  int bit_depth = 12;
-  double exposure_us = 10000.0;
-  double gain_db = 0.0;
-  TriggerConfig trigger;
-  // Radiometric calibration: DN above black per unit radiance per microsecond
-  // at 0 dB. Makes albedo absolute; 1.0 (uncalibrated) gives relative albedo.
-  double dn_per_radiance_per_us = 1.0;
-  // Conversion gain at 0 dB (electrons per DN, from the camera's EMVA 1288
-  // sheet): sets the photon-noise model. 0 = unknown, then estimated from data.
-  double e_per_dn = 0.0;
-  // Fixed chart position for colour calibration, used when detection fails.
-  std::optional<ColorChartPlacement> color_chart;
-};
-
-// A gonioreflectometer's axes (kind: gonioreflectometer). Axis ids
-// light_arm, camera_arm and sample_rotation are what recipe poses move.
-struct AxisConfig {
-  std::string id;
-  drivers::AxisLimits limits;
-  YamlNode source;  // the axis entry: driver-specific keys (base_address) are read from here
-};
-
-struct MotionConfig {
-  std::string driver;  // "sim" or "modbus-tcp"
-  drivers::MotionProfile profile;  // every move of every axis
-  drivers::SettleOptions settle;
-  std::vector<AxisConfig> axes;
-  std::vector<drivers::SeparationConstraint> constraints;
-  YamlNode source;  // the motion: section (driver-specific: `link:`, sim `time_scale:`)
-
-  const AxisConfig* axis(const std::string& id) const;
-  // Empty when every axis stays within its soft limits and every separation
-  // constraint holds at `positions_deg`; otherwise what is violated.
-  std::string CheckPose(const std::map<std::string, double>& positions_deg) const;
-};
-
-struct SimConfig {
-  std::uint64_t seed = 1;
-  // The simulated dome as built: each LED tilted off its nominal direction by
-  // a seeded random angle of this RMS, so light calibration has something to find.
-  double led_direction_error_deg = 0.0;
-  // ... and its irradiance off the stated intensity by a seeded random factor
-  // of this RMS relative error, in percent (sim/light_errors.h).
-  double led_intensity_error_pct = 0.0;
-  // Light from the dome's walls and the room on every frame (sim/renderer.h).
-  sim::AmbientLight ambient;
-  sim::SensorModel sensor;
-  sim::Scene scene;  // default scene; a recipe's sample.sim_scene replaces it
-  sim::CameraFaults camera_faults;
-  sim::LightFaults light_faults;
-  std::map<std::string, sim::AxisFaults> axis_faults;  // by axis id
-};
-
-struct RigConfig {
-  std::string path;
-  std::string name;
-  std::string kind = "light_dome";  // or "gonioreflectometer" (needs `motion:`)
-  LightsConfig lights;
-  CameraConfig camera;
-  std::optional<SimConfig> sim;  // present when any device is simulated
-  std::optional<MotionConfig> motion;  // gonioreflectometers only
-
-  bool IsSimulated() const { return sim.has_value(); }
-};
-
-// Throws ConfigError naming file:line:column and key.
-RigConfig LoadRigConfig(const std::string& path);
-// Parses a `scene:` map (shared by rigs and recipes).
-sim::Scene ParseScene(const YamlNode& node, double frame_width_mm);
+using config::AxisConfig;
+using config::CameraConfig;
+using config::ColorChartPlacement;
+using config::ConfigError;
+using config::LedConfig;
+using config::LightsConfig;
+using config::LoadRigConfig;
+using config::MotionConfig;
+using config::RigConfig;
+using config::SimConfig;
+using config::TriggerConfig;
+using config::YamlNode;
 
 }  // namespace photorig::daemon

@@ -21,7 +21,9 @@ struct RigDevices {
 };
 
 // Builds (but does not open) the rig's devices. `recipe` may replace the
-// simulated scene. Throws ConfigError for an unknown driver.
+// simulated scene. Configuration errors were all found when the rig and the
+// recipe were loaded; this throws only when the outside world refuses (a
+// simulated peer that cannot serve, a scene file gone since).
 RigDevices MakeRigDevices(const RigConfig& rig, const Recipe* recipe);
 
 }  // namespace photorig::daemon

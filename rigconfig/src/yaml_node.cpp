@@ -1,10 +1,10 @@
-#include "photorig/daemon/yaml_node.h"
+#include "photorig/config/yaml_node.h"
 
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 
-namespace photorig::daemon {
+namespace photorig::config {
 namespace {
 
 std::string Position(const std::string& file, int line, int column) {
@@ -164,4 +164,4 @@ std::string YamlNode::String(const std::string& child, const std::string& fallba
   return node ? node->AsString() : fallback;
 }
 
-}  // namespace photorig::daemon
+}  // namespace photorig::config

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-namespace photorig::daemon {
+namespace photorig::config {
 
 class ConfigError : public std::runtime_error {
  public:
@@ -71,4 +71,4 @@ class YamlNode {
   std::string key_;
 };
 
-}  // namespace photorig::daemon
+}  // namespace photorig::config

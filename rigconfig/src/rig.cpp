@@ -1,14 +1,13 @@
-#include "photorig/daemon/rig_config.h"
+#include "photorig/config/rig.h"
 
-#include "photorig/daemon/device_factory.h"
-#include "photorig/daemon/yaml_node.h"
+#include "driver_options_parse.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 
 #include <cmath>
-#include <filesystem>
 #include <set>
-#include <stdexcept>
 
-namespace photorig::daemon {
+namespace photorig::config {
 namespace {
 
 LedConfig ParseLed(const YamlNode& node, int index) {
@@ -47,11 +46,11 @@ TriggerConfig ParseTrigger(const YamlNode& node) {
   trigger.pulse_us = node.Int("pulse_us", trigger.pulse_us);
   if (trigger.pulse_us < 1 || trigger.pulse_us > 1000000) node["pulse_us"].Fail("must lie in [1, 1000000]");
   if (trigger.mode == drivers::TriggerMode::kHardware) {
-    trigger.output = node["output"];  // required: what fires the camera
-    trigger.output->ExpectKeys({"driver", "chip", "offset", "active_low"});
-    trigger.output_driver = (*trigger.output)["driver"].AsString();
-    if (trigger.output_driver != "sim" && trigger.output_driver != "gpio")
-      (*trigger.output)["driver"].Fail("unknown trigger output '" + trigger.output_driver + "' (available: sim, gpio)");
+    const YamlNode output = node["output"];  // required: what fires the camera
+    output.ExpectKeys({"driver", "chip", "offset", "active_low"});
+    CheckDriver(output["driver"], "trigger output");
+    trigger.output_driver = output["driver"].AsString();
+    ParseTriggerOutput(output, &trigger);
   } else if (node.Has("output")) {
     node["output"].Fail("a trigger output needs mode: hardware");
   }
@@ -173,9 +172,9 @@ ColorChartPlacement ParseColorChart(const YamlNode& node, int width, int height)
 //          axes: [{id, min_deg, max_deg, base_address}], constraints: [{min_separation_deg, axes}]}
 MotionConfig ParseMotion(const YamlNode& node) {
   node.ExpectKeys({"driver", "link", "time_scale", "profile", "settle", "axes", "constraints"});
-  MotionConfig motion{node.String("driver", "modbus-tcp"), {}, {}, {}, {}, node};
-  if (motion.driver != "sim" && motion.driver != "modbus-tcp")
-    node["driver"].Fail("unknown motion driver '" + motion.driver + "' (available: sim, modbus-tcp)");
+  MotionConfig motion;
+  motion.driver = node.String("driver", "modbus-tcp");
+  if (node.Has("driver")) CheckDriver(node["driver"], "motion");
   if (auto profile = node.Find("profile")) {
     profile->ExpectKeys({"velocity_deg_s", "acceleration_deg_s2"});
     motion.profile.velocity_deg_s = profile->Double("velocity_deg_s", motion.profile.velocity_deg_s);
@@ -198,8 +197,7 @@ MotionConfig ParseMotion(const YamlNode& node) {
   for (const YamlNode& item : node["axes"].Items()) {
     item.ExpectKeys({"id", "base_address", "min_deg", "max_deg", "home_deg"});
     AxisConfig axis{item["id"].AsString(),
-                    {item.Double("min_deg", -180.0), item.Double("max_deg", 180.0), item.Double("home_deg", 0.0)},
-                    item};
+                    {item.Double("min_deg", -180.0), item.Double("max_deg", 180.0), item.Double("home_deg", 0.0)}};
     if (!(axis.limits.min_deg < axis.limits.max_deg)) item.Fail("needs min_deg < max_deg");
     if (!axis.limits.Contains(axis.limits.home_deg)) item.Fail("needs home_deg within [min_deg, max_deg]");
     if (motion.axis(axis.id)) item["id"].Fail("duplicate axis id '" + axis.id + "'");
@@ -221,6 +219,7 @@ MotionConfig ParseMotion(const YamlNode& node) {
         item.Fail("the two arms' homes (home_deg) are " + std::to_string(home_gap) +
                   " deg apart, closer than min_separation_deg: homing would drive them into each other");
     }
+  ParseMotionDriver(node, &motion);
   return motion;
 }
 
@@ -251,97 +250,6 @@ std::string MotionConfig::CheckPose(const std::map<std::string, double>& positio
   return {};
 }
 
-sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
-  node.ExpectKeys({"shape", "radius_mm", "albedo", "cast_shadows", "brdf", "path", "depth_scale_mm", "depth_pitch_mm",
-                   "mesh_scale", "tilt_deg", "bowl_radius_mm", "rim_radius_mm", "step_width_mm", "step_height_mm",
-                   "step_slope", "backlight_radiance", "peak_density_per_mm", "interreflection_samples"});
-  sim::Scene scene;
-  const YamlNode shape = node["shape"];
-  try {
-    scene.shape = sim::Scene::ParseShape(shape.AsString());
-  } catch (const std::invalid_argument& e) {
-    shape.Fail(e.what());
-  }
-  scene.ApplyShapeDefaults(frame_width_mm);
-  scene.sphere_radius_mm = node.Double("radius_mm", scene.sphere_radius_mm);
-  if (!(scene.sphere_radius_mm > 0)) node["radius_mm"].Fail("must be > 0");
-  scene.cast_shadows = node.Bool("cast_shadows", true);
-  scene.interreflection_samples = node.Int("interreflection_samples", 0);
-  if (scene.interreflection_samples < 0 || scene.interreflection_samples > 4096)
-    node["interreflection_samples"].Fail("must lie in [0, 4096] (0: direct light only)");
-  scene.tilt_deg = node.Double("tilt_deg", scene.tilt_deg);
-  scene.bowl_radius_mm = node.Double("bowl_radius_mm", scene.bowl_radius_mm);
-  scene.rim_radius_mm = node.Double("rim_radius_mm", scene.rim_radius_mm);
-  scene.step_width_mm = node.Double("step_width_mm", scene.step_width_mm);
-  scene.step_height_mm = node.Double("step_height_mm", scene.step_height_mm);
-  scene.step_slope = node.Double("step_slope", scene.step_slope);
-  scene.depth_scale_mm = node.Double("depth_scale_mm", scene.depth_scale_mm);
-  scene.depth_pitch_mm = node.Double("depth_pitch_mm", scene.depth_pitch_mm);
-  scene.mesh_scale = node.Double("mesh_scale", scene.mesh_scale);
-  scene.backlight_radiance = node.Double("backlight_radiance", scene.backlight_radiance);
-  if (auto density = node.Find("peak_density_per_mm")) {
-    if (!(density->AsDouble() >= 0)) density->Fail("must be >= 0");
-    scene.volume = sim::DensityGrid::Blobs(0.8 * frame_width_mm, 64, density->AsDouble());
-  }
-  // Files named in a recipe are relative to the recipe, and must load now, not mid-run.
-  auto resolve = [](const YamlNode& path_node) {
-    const std::filesystem::path path = path_node.AsString();
-    return (path.is_absolute() ? path : std::filesystem::path(path_node.file()).parent_path() / path).string();
-  };
-  if (auto path = node.Find("path")) {
-    if (scene.shape == sim::Scene::Shape::kDepthMap) scene.depth_map_path = resolve(*path);
-    else if (scene.shape == sim::Scene::Shape::kMesh) scene.mesh_path = resolve(*path);
-    else path->Fail("only depth_map and mesh scenes read a file");
-    try {
-      if (scene.shape == sim::Scene::Shape::kMesh) sim::LoadPly(scene.mesh_path);
-      else sim::SampleSurface(scene, 8, 8, 1.0);
-    } catch (const std::runtime_error& e) {
-      path->Fail(e.what());
-    }
-  }
-  if (auto albedo = node.Find("albedo")) {
-    albedo->ExpectKeys({"pattern", "low", "high", "period_mm"});
-    const std::string pattern = albedo->String("pattern", "checker");
-    if (pattern == "uniform") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kUniform;
-    else if (pattern == "checker") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kChecker;
-    else if (pattern == "rings") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kRings;
-    else (*albedo)["pattern"].Fail("unknown pattern '" + pattern + "' (expected uniform, checker or rings)");
-    scene.albedo.low = albedo->Double("low", scene.albedo.low);
-    scene.albedo.high = albedo->Double("high", scene.albedo.high);
-    scene.albedo.period_mm = albedo->Double("period_mm", scene.albedo.period_mm);
-    if (!(scene.albedo.low >= 0 && scene.albedo.high <= 1 && scene.albedo.low <= scene.albedo.high))
-      albedo->Fail("albedo needs 0 <= low <= high <= 1");
-    if (!(scene.albedo.period_mm > 0)) (*albedo)["period_mm"].Fail("must be > 0");
-  }
-  // brdf: {model: lambertian|blinn_phong|ggx|mirror|tabulated, rho_s, exponent, roughness, f0, table}
-  if (auto brdf = node.Find("brdf")) {
-    brdf->ExpectKeys({"model", "rho_s", "exponent", "roughness", "f0", "table"});
-    sim::Material& m = scene.material;
-    try {
-      m.model = sim::Brdf::ParseModel((*brdf)["model"].AsString());
-    } catch (const std::invalid_argument& e) {
-      (*brdf)["model"].Fail(e.what());
-    }
-    m.rho_s = brdf->Double("rho_s", m.rho_s);
-    m.exponent = brdf->Double("exponent", m.exponent);
-    m.roughness = brdf->Double("roughness", m.roughness);
-    m.f0 = brdf->Double("f0", m.f0);
-    if (auto table = brdf->Find("table")) {
-      if (m.model != sim::Brdf::Model::kTabulated) table->Fail("only the tabulated model reads a table");
-      try {
-        m.table = std::make_shared<sim::MerlTable>(sim::MerlTable::Load(resolve(*table)));
-      } catch (const std::runtime_error& e) {
-        table->Fail(e.what());
-      }
-    }
-    std::string why;
-    if (!m.IsValid(&why)) brdf->Fail(why);
-  }
-  std::string why;
-  if (!scene.IsValid(&why)) node.Fail(why);
-  return scene;
-}
-
 RigConfig LoadRigConfig(const std::string& path) {
   const YamlNode root = YamlNode::LoadFile(path);
   root.ExpectKeys({"rig", "lights", "camera", "sim", "motion"});
@@ -364,11 +272,9 @@ RigConfig LoadRigConfig(const std::string& path) {
 
   const YamlNode lights = root["lights"];
   lights.ExpectKeys({"driver", "id", "leds", "options"});
+  CheckDriver(lights["driver"], "light");
   rig.lights.driver = lights["driver"].AsString();
-  if (!IsKnownLightDriver(rig.lights.driver))
-    lights["driver"].Fail("unknown driver '" + rig.lights.driver + "' (available: " + LightDriverNames() + ")");
   rig.lights.id = lights.String("id", "lights");
-  rig.lights.options = lights.Find("options");
   std::set<int> ids;
   const auto leds = lights["leds"].Items();
   for (std::size_t i = 0; i < leds.size(); ++i) {
@@ -377,16 +283,17 @@ RigConfig LoadRigConfig(const std::string& path) {
     rig.lights.leds.push_back(led);
   }
   if (rig.lights.leds.empty()) lights["leds"].Fail("a light dome needs at least one LED");
+  const bool simulated = root.Has("sim");
+  ParseLightsOptions(lights, simulated, &rig.lights);
 
   const YamlNode camera = root["camera"];
   camera.ExpectKeys({"driver", "id", "options", "projection", "width", "height", "pixel_pitch_mm", "bit_depth",
                      "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart", "trigger"});
   CameraConfig& cam = rig.camera;
+  CheckDriver(camera["driver"], "camera");
   cam.driver = camera["driver"].AsString();
-  if (!IsKnownCameraDriver(cam.driver))
-    camera["driver"].Fail("unknown driver '" + cam.driver + "' (available: " + CameraDriverNames() + ")");
   cam.id = camera.String("id", "camera");
-  cam.options = camera.Find("options");
+  ParseCameraOptions(camera, simulated, &cam);
   cam.projection = camera.String("projection", "orthographic");
   if (cam.projection != "orthographic") camera["projection"].Fail("only 'orthographic' is supported so far");
   cam.width = camera["width"].AsInt();
@@ -419,7 +326,7 @@ RigConfig LoadRigConfig(const std::string& path) {
     const auto sensor = sim_node->Find("sensor");
     sim.sensor = sensor ? ParseSensor(*sensor, cam.bit_depth) : sim::SensorModel{};
     sim.sensor.bit_depth = cam.bit_depth;
-    if (auto scene = sim_node->Find("scene")) sim.scene = ParseScene(*scene, cam.width * cam.pixel_pitch_mm);
+    if (auto scene = sim_node->Find("scene")) sim.scene = ParseScene(*scene, FrameWidthMm(rig));
     if (auto faults = sim_node->Find("faults")) ParseFaults(*faults, rig.motion, &sim);
     // A simulated camera is calibrated by construction.
     cam.dn_per_radiance_per_us = sim.sensor.response_e_per_us / sim.sensor.e_per_dn;
@@ -439,4 +346,4 @@ RigConfig LoadRigConfig(const std::string& path) {
   return rig;
 }
 
-}  // namespace photorig::daemon
+}  // namespace photorig::config

@@ -9,7 +9,7 @@
 // wider ones), ExposureTimeAbs in 1 us steps and GainRaw 0..10, rendered as
 // that many dB. Frame ids are 16-bit and start near the wrap (65400).
 
-#include "photorig/drivers/aravis_camera.h"
+#include "photorig/drivers/aravis/aravis_camera.h"
 #include "photorig/drivers/status.h"
 #include "photorig/sim/world.h"
 

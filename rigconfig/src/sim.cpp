@@ -1,0 +1,128 @@
+#include "photorig/config/sim.h"
+
+#include "photorig/sim/light_errors.h"
+
+#include <cmath>
+#include <filesystem>
+#include <stdexcept>
+
+namespace photorig::config {
+
+sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
+  node.ExpectKeys({"shape", "radius_mm", "albedo", "cast_shadows", "brdf", "path", "depth_scale_mm", "depth_pitch_mm",
+                   "mesh_scale", "tilt_deg", "bowl_radius_mm", "rim_radius_mm", "step_width_mm", "step_height_mm",
+                   "step_slope", "backlight_radiance", "peak_density_per_mm", "interreflection_samples"});
+  sim::Scene scene;
+  const YamlNode shape = node["shape"];
+  try {
+    scene.shape = sim::Scene::ParseShape(shape.AsString());
+  } catch (const std::invalid_argument& e) {
+    shape.Fail(e.what());
+  }
+  scene.ApplyShapeDefaults(frame_width_mm);
+  scene.sphere_radius_mm = node.Double("radius_mm", scene.sphere_radius_mm);
+  if (!(scene.sphere_radius_mm > 0)) node["radius_mm"].Fail("must be > 0");
+  scene.cast_shadows = node.Bool("cast_shadows", true);
+  scene.interreflection_samples = node.Int("interreflection_samples", 0);
+  if (scene.interreflection_samples < 0 || scene.interreflection_samples > 4096)
+    node["interreflection_samples"].Fail("must lie in [0, 4096] (0: direct light only)");
+  scene.tilt_deg = node.Double("tilt_deg", scene.tilt_deg);
+  scene.bowl_radius_mm = node.Double("bowl_radius_mm", scene.bowl_radius_mm);
+  scene.rim_radius_mm = node.Double("rim_radius_mm", scene.rim_radius_mm);
+  scene.step_width_mm = node.Double("step_width_mm", scene.step_width_mm);
+  scene.step_height_mm = node.Double("step_height_mm", scene.step_height_mm);
+  scene.step_slope = node.Double("step_slope", scene.step_slope);
+  scene.depth_scale_mm = node.Double("depth_scale_mm", scene.depth_scale_mm);
+  scene.depth_pitch_mm = node.Double("depth_pitch_mm", scene.depth_pitch_mm);
+  scene.mesh_scale = node.Double("mesh_scale", scene.mesh_scale);
+  scene.backlight_radiance = node.Double("backlight_radiance", scene.backlight_radiance);
+  if (auto density = node.Find("peak_density_per_mm")) {
+    if (!(density->AsDouble() >= 0)) density->Fail("must be >= 0");
+    scene.volume = sim::DensityGrid::Blobs(0.8 * frame_width_mm, 64, density->AsDouble());
+  }
+  // Files named in a recipe are relative to the recipe, and must load now, not mid-run.
+  auto resolve = [](const YamlNode& path_node) {
+    const std::filesystem::path path = path_node.AsString();
+    return (path.is_absolute() ? path : std::filesystem::path(path_node.file()).parent_path() / path).string();
+  };
+  if (auto path = node.Find("path")) {
+    if (scene.shape == sim::Scene::Shape::kDepthMap) scene.depth_map_path = resolve(*path);
+    else if (scene.shape == sim::Scene::Shape::kMesh) scene.mesh_path = resolve(*path);
+    else path->Fail("only depth_map and mesh scenes read a file");
+    try {
+      if (scene.shape == sim::Scene::Shape::kMesh) sim::LoadPly(scene.mesh_path);
+      else sim::SampleSurface(scene, 8, 8, 1.0);
+    } catch (const std::runtime_error& e) {
+      path->Fail(e.what());
+    }
+  }
+  if (auto albedo = node.Find("albedo")) {
+    albedo->ExpectKeys({"pattern", "low", "high", "period_mm"});
+    const std::string pattern = albedo->String("pattern", "checker");
+    if (pattern == "uniform") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kUniform;
+    else if (pattern == "checker") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kChecker;
+    else if (pattern == "rings") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kRings;
+    else (*albedo)["pattern"].Fail("unknown pattern '" + pattern + "' (expected uniform, checker or rings)");
+    scene.albedo.low = albedo->Double("low", scene.albedo.low);
+    scene.albedo.high = albedo->Double("high", scene.albedo.high);
+    scene.albedo.period_mm = albedo->Double("period_mm", scene.albedo.period_mm);
+    if (!(scene.albedo.low >= 0 && scene.albedo.high <= 1 && scene.albedo.low <= scene.albedo.high))
+      albedo->Fail("albedo needs 0 <= low <= high <= 1");
+    if (!(scene.albedo.period_mm > 0)) (*albedo)["period_mm"].Fail("must be > 0");
+  }
+  // brdf: {model: lambertian|blinn_phong|ggx|mirror|tabulated, rho_s, exponent, roughness, f0, table}
+  if (auto brdf = node.Find("brdf")) {
+    brdf->ExpectKeys({"model", "rho_s", "exponent", "roughness", "f0", "table"});
+    sim::Material& m = scene.material;
+    try {
+      m.model = sim::Brdf::ParseModel((*brdf)["model"].AsString());
+    } catch (const std::invalid_argument& e) {
+      (*brdf)["model"].Fail(e.what());
+    }
+    m.rho_s = brdf->Double("rho_s", m.rho_s);
+    m.exponent = brdf->Double("exponent", m.exponent);
+    m.roughness = brdf->Double("roughness", m.roughness);
+    m.f0 = brdf->Double("f0", m.f0);
+    if (auto table = brdf->Find("table")) {
+      if (m.model != sim::Brdf::Model::kTabulated) table->Fail("only the tabulated model reads a table");
+      try {
+        m.table = std::make_shared<sim::MerlTable>(sim::MerlTable::Load(resolve(*table)));
+      } catch (const std::runtime_error& e) {
+        table->Fail(e.what());
+      }
+    }
+    std::string why;
+    if (!m.IsValid(&why)) brdf->Fail(why);
+  }
+  std::string why;
+  if (!scene.IsValid(&why)) node.Fail(why);
+  return scene;
+}
+
+double FrameWidthMm(const RigConfig& rig) { return rig.camera.width * rig.camera.pixel_pitch_mm; }
+
+sim::WorldConfig MakeWorldConfig(const RigConfig& rig, const sim::Scene& scene) {
+  if (!rig.sim) throw std::logic_error("rig '" + rig.name + "' has no sim: section");
+  sim::WorldConfig world;
+  world.seed = rig.sim->seed;
+  world.sensor = rig.sim->sensor;
+  world.camera_faults = rig.sim->camera_faults;
+  world.light_faults = rig.sim->light_faults;
+  world.scene = scene;
+  world.camera = {rig.camera.width, rig.camera.height, rig.camera.pixel_pitch_mm};
+  world.gonioreflectometer = rig.kind == "gonioreflectometer";
+  for (const LedConfig& led : rig.lights.leds) {
+    sim::Light light(led.direction, led.intensity);
+    if (led.position_mm) {
+      light.position_mm = led.position_mm;
+      light.axis = -led.position_mm->normalized();  // aimed at the object
+    }
+    world.lights.push_back(light);
+  }
+  sim::PerturbLights({rig.sim->led_direction_error_deg, rig.sim->led_intensity_error_pct}, rig.sim->seed,
+                     &world.lights);
+  world.ambient = rig.sim->ambient;
+  return world;
+}
+
+}  // namespace photorig::config

@@ -1,0 +1,121 @@
+// Everything a rig file says is checked when it is loaded, driver settings and
+// the simulated scene included: no configuration error waits for the devices.
+
+#include "photorig/config/modules.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "config_error_check.h"
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+namespace photorig::config {
+namespace {
+
+using photorig::testing::SourceDir;
+using photorig::testing::TempDir;
+
+// A two-LED rig; `lights` and `camera` are the bodies of those sections.
+std::string Rig(const std::string& lights, const std::string& camera, const std::string& sim = "  seed: 1\n") {
+  return "rig: {name: r}\n"
+         "lights:\n" + lights +
+         "  leds:\n"
+         "    - {direction: [0, 0, 1]}\n"
+         "    - {direction: [0.6, 0, 0.8]}\n"
+         "camera:\n" + camera +
+         "  width: 40\n"
+         "  height: 30\n"
+         "sim:\n" + sim;
+}
+
+const char* kSimLights = "  driver: sim\n";
+const char* kSimCamera = "  driver: sim\n";
+
+void ExpectLoadError(const std::string& text, int line, int column, const std::string& key,
+                     const std::string& fragment) {
+  TempDir dir;
+  const std::string path = dir.Write("rig.yaml", text);
+  SCOPED_TRACE(text);
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRigConfig(path); }, path, line, column, fragment, key);
+}
+
+TEST(RigLoad, ModbusOptionsAreParsedIntoTypedSettings) {
+  const RigConfig rig = LoadRigConfig(SourceDir() + "/config/rigs/sim-dome-modbus.yaml");
+  ASSERT_TRUE(rig.lights.modbus.has_value());
+  const ModbusLightsOptions& modbus = *rig.lights.modbus;
+  EXPECT_TRUE(modbus.simulated);
+  EXPECT_EQ(modbus.map.channels, static_cast<int>(rig.lights.leds.size()));
+  EXPECT_TRUE(modbus.map.intensity);
+  EXPECT_EQ(modbus.map.intensity_address, 100);
+  EXPECT_EQ(modbus.map.full_scale, 1000);
+  EXPECT_EQ(modbus.link.retries, 3);
+  EXPECT_EQ(rig.lights.safety.defaults.max_on_ms, 2000.0);
+  EXPECT_EQ(rig.lights.safety.watchdog_ms, 5000.0);
+}
+
+TEST(RigLoad, ABadDriverOptionFailsTheLoadWithItsPosition) {
+  const std::string lights =
+      "  driver: modbus-tcp\n"
+      "  options:\n"
+      "    host: 192.0.2.7\n"
+      "    response_timeout_ms: 0\n";
+  ExpectLoadError(Rig(lights, kSimCamera), 6, 26, "lights.options.response_timeout_ms", "must be within [1, 60000]");
+  const std::string map =
+      "  driver: modbus-tcp\n"
+      "  options: {host: 192.0.2.7, map: {on_off: relays}}\n";
+  ExpectLoadError(Rig(map, kSimCamera), 4, 44, "lights.options.map.on_off", "unknown 'relays'");
+  const std::string safety =
+      "  driver: modbus-rtu\n"
+      "  options: {device: /dev/ttyUSB0, safety: {max_duty: 1.5}}\n";
+  ExpectLoadError(Rig(safety, kSimCamera), 4, 43, "lights.options.safety", "max_duty");
+  // Served by this process: needs the World, which only a sim: section makes.
+  std::string served = Rig("  driver: modbus-tcp\n  options: {host: sim}\n", kSimCamera);
+  served = served.substr(0, served.rfind("sim:\n"));
+  ExpectLoadError(served, 4, 12, "lights.options", "needs the rig's sim: section");
+}
+
+TEST(RigLoad, ABadSimulatedSceneFailsTheLoadWithItsPosition) {
+  ExpectLoadError(Rig(kSimLights, kSimCamera, "  scene: {shape: sphere, radius: 3}\n"), 12, 26, "sim.scene.radius",
+                  "unknown key 'radius'");
+  ExpectLoadError(Rig(kSimLights, kSimCamera, "  scene: {shape: sphere, brdf: {model: ggx, roughness: 2}}\n"), 12,
+                  32, "sim.scene.brdf", "roughness must lie in (0, 1]");
+}
+
+TEST(RigLoad, SceneDefaultsAreSizedToTheRigsFrame) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", Rig(kSimLights, kSimCamera, "  scene: {shape: sphere}\n")));
+  EXPECT_DOUBLE_EQ(FrameWidthMm(rig), 40 * 0.1);
+  EXPECT_DOUBLE_EQ(rig.sim->scene.sphere_radius_mm, 0.45 * 40 * 0.1);
+}
+
+TEST(RigLoad, OptionsOnASimulatedDeviceAreRefused) {
+  ExpectLoadError(Rig("  driver: sim\n  options: {host: sim}\n", kSimCamera), 4, 12, "lights.options",
+                  "takes no options");
+}
+
+// A driver whose module this build left out is still known by name; a rig
+// naming it does not load. With the module, its options are parsed at load.
+TEST(RigLoad, ADriverLeftOutOfTheBuildIsRefusedByName) {
+  const std::string camera = "  driver: aravis\n  options: {device: cam7, buffer_count: 6}\n";
+  const std::string text = Rig(kSimLights, camera);
+#if !PHOTORIG_HAVE_DRIVERS_ARAVIS
+  ExpectLoadError(text, 8, 11, "camera.driver", "driver 'aravis' was left out of this build (PHOTORIG_SKIP_MODULES)");
+#else
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", text));
+  ASSERT_TRUE(rig.camera.aravis.has_value());
+  EXPECT_EQ(rig.camera.aravis->camera.device, "cam7");
+  EXPECT_EQ(rig.camera.aravis->camera.buffer_count, 6);
+  ExpectLoadError(Rig(kSimLights, "  driver: aravis\n  options: {buffer_count: 0}\n"), 9, 12, "camera.options",
+                  "buffer_count");
+#endif
+}
+
+TEST(RigLoad, AnUnknownDriverListsTheOnesThisBuildHas) {
+  ExpectLoadError(Rig("  driver: dmx\n", kSimCamera), 3, 11, "lights.driver", "unknown driver 'dmx' (available: sim, ");
+}
+
+}  // namespace
+}  // namespace photorig::config
