@@ -5,7 +5,10 @@
 #include "photorig/color/chart.h"
 #include "photorig/sim/color_chart.h"
 
+#include <gtest/gtest.h>
+
 #include <string>
+#include <vector>
 
 namespace photorig::color::testing {
 
@@ -26,6 +29,15 @@ inline MeasureOptions SimMeasureOptions(const sim::ChartRender& render) {
   MeasureOptions options;
   options.clip_level = render.clip_level_dn;
   return options;
+}
+
+// MeasurePatches that must succeed.
+inline std::vector<PatchMeasurement> Measured(const cv::Mat& image_bgr, const cv::Mat& dark_bgr,
+                                              const ChartLocation& location, const MeasureOptions& options) {
+  std::vector<PatchMeasurement> patches;
+  const solvers::Summary summary = MeasurePatches(image_bgr, dark_bgr, location, options, &patches);
+  EXPECT_EQ(summary.termination, solvers::Termination::kSuccess) << summary.message;
+  return patches;
 }
 
 }  // namespace photorig::color::testing

@@ -70,7 +70,7 @@ TEST(ChartMeasure, TrimmedMeansMatchTheNoiseFreeSignal) {
   const sim::ChartGeometry geometry;
   const sim::ChartRender render = RenderChart("nikon-5100", Illuminant::kD65);
   const ChartLocation location{geometry.GridCorners(), "fixed-roi"};
-  const std::vector<PatchMeasurement> patches = MeasurePatches(render.raw, render.dark, location, SimMeasureOptions(render));
+  const std::vector<PatchMeasurement> patches = testing::Measured(render.raw, render.dark, location, SimMeasureOptions(render));
   const sim::SensorModel sensor;
   const double dn_per_signal = sensor.DnPerRadiance(sim::ExposureForWhite(sensor, 0.8), 0.0);
   for (int p = 0; p < kChartPatches; ++p) {
@@ -92,10 +92,10 @@ TEST(ChartMeasure, WithoutDarkSubtractionTheBlackLevelBiasesTheMeans) {
   const sim::ChartRender render = RenderChart("nikon-5100", Illuminant::kD65);
   const ChartLocation location{geometry.GridCorners(), "fixed-roi"};
   MeasureOptions options = SimMeasureOptions(render);
-  const auto with_dark = MeasurePatches(render.raw, render.dark, location, options);
-  const auto raw = MeasurePatches(render.raw, cv::Mat(), location, options);
+  const auto with_dark = testing::Measured(render.raw, render.dark, location, options);
+  const auto raw = testing::Measured(render.raw, cv::Mat(), location, options);
   options.black_level = sim::SensorModel{}.black_level_dn;
-  const auto with_black = MeasurePatches(render.raw, cv::Mat(), location, options);
+  const auto with_black = testing::Measured(render.raw, cv::Mat(), location, options);
   EXPECT_NEAR(raw[23].rgb.y() - with_dark[23].rgb.y(), 64.0, 1.0);
   EXPECT_NEAR(with_black[23].rgb.y(), with_dark[23].rgb.y(), 1.0);
 }
@@ -105,21 +105,25 @@ TEST(ChartMeasure, FlagsSaturatedUnderexposedAndOutOfFramePatches) {
   const ChartLocation location{geometry.GridCorners(), "fixed-roi"};
   // Over-exposed 2x: the white and light patches clip.
   const sim::ChartRender bright = RenderChart("nikon-5100", Illuminant::kD65, 1.6);
-  const auto over = MeasurePatches(bright.raw, bright.dark, location, SimMeasureOptions(bright));
+  const auto over = testing::Measured(bright.raw, bright.dark, location, SimMeasureOptions(bright));
   EXPECT_EQ(over[kWhitePatch].flag, PatchFlag::kSaturated);
   EXPECT_EQ(over[23].flag, PatchFlag::kOk);  // black stays fine
   // Under-exposed 1000x: the dark patches sink into the read noise.
   const sim::ChartRender dim = RenderChart("nikon-5100", Illuminant::kD65, 0.0008);
-  const auto under = MeasurePatches(dim.raw, dim.dark, location, SimMeasureOptions(dim));
+  const auto under = testing::Measured(dim.raw, dim.dark, location, SimMeasureOptions(dim));
   EXPECT_EQ(under[23].flag, PatchFlag::kUnderexposed);
   // A chart half out of frame.
   ChartLocation shifted = location;
   for (auto& corner : shifted.corners) corner.x += 0.6f * static_cast<float>(geometry.width());
-  const auto missing = MeasurePatches(bright.raw, bright.dark, shifted, SimMeasureOptions(bright));
+  const auto missing = testing::Measured(bright.raw, bright.dark, shifted, SimMeasureOptions(bright));
   EXPECT_EQ(missing[5].flag, PatchFlag::kTooFewPixels);
   // Mismatched dark frame.
-  EXPECT_THROW(MeasurePatches(bright.raw, cv::Mat(10, 10, CV_16UC3), location, SimMeasureOptions(bright)),
-               std::invalid_argument);
+  std::vector<PatchMeasurement> untouched;
+  const solvers::Summary mismatched =
+      MeasurePatches(bright.raw, cv::Mat(10, 10, CV_16UC3), location, SimMeasureOptions(bright), &untouched);
+  EXPECT_EQ(mismatched.termination, solvers::Termination::kInvalidInput);
+  EXPECT_NE(mismatched.message.find("dark frame"), std::string::npos) << mismatched.message;
+  EXPECT_TRUE(untouched.empty());
 }
 
 }  // namespace

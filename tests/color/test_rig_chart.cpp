@@ -146,12 +146,12 @@ TEST(Bayer, PatchMeansAfterDemosaicMatchTheRgbRender) {
   const sim::ChartRender render = testing::RenderChart("nikon-5100", Illuminant::kD65);
   const ChartLocation location{geometry.GridCorners(), "fixed-roi"};
   const MeasureOptions options = testing::SimMeasureOptions(render);
-  const auto rgb = MeasurePatches(render.raw, render.dark, location, options);
+  const auto rgb = testing::Measured(render.raw, render.dark, location, options);
   for (const std::string pattern : {"RGGB", "GBRG"}) {
     const cv::Mat raw = Demosaiced(sim::BayerMosaic(render.raw, pattern), pattern);
     const cv::Mat dark = Demosaiced(sim::BayerMosaic(render.dark, pattern), pattern);
     ASSERT_EQ(raw.type(), CV_16UC3);
-    const auto demosaiced = MeasurePatches(raw, dark, location, options);
+    const auto demosaiced = testing::Measured(raw, dark, location, options);
     for (int p = 0; p < kChartPatches; ++p) {
       const PatchMeasurement& a = demosaiced[static_cast<std::size_t>(p)];
       const PatchMeasurement& b = rgb[static_cast<std::size_t>(p)];
@@ -165,7 +165,7 @@ TEST(Bayer, PatchMeansAfterDemosaicMatchTheRgbRender) {
   }
   // A mosaic read as if its filters were the other way round swaps red and blue.
   const cv::Mat swapped = Demosaiced(sim::BayerMosaic(render.raw, "RGGB"), "BGGR");
-  const auto wrong = MeasurePatches(swapped, cv::Mat(), location, options);
+  const auto wrong = testing::Measured(swapped, cv::Mat(), location, options);
   EXPECT_NEAR(wrong[14].rgb.z(), rgb[14].rgb.x() + sim::SensorModel{}.black_level_dn, 0.1 * rgb[14].rgb.x());  // red patch
   cv::Mat untouched;
   EXPECT_EQ(Demosaic(render.raw, "RGGB", &untouched).termination, solvers::Termination::kInvalidInput);

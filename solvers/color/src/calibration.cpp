@@ -281,7 +281,11 @@ ChartCalibration CalibrateChartImage(const cv::Mat& image_bgr, const cv::Mat& da
     out.summary.End(solvers::Termination::kFailure, "chart not found: " + out.located.message);
     return out;
   }
-  out.patches = MeasurePatches(image_bgr, dark_bgr, *out.located.location, measure);
+  const solvers::Summary measured = MeasurePatches(image_bgr, dark_bgr, *out.located.location, measure, &out.patches);
+  if (!measured.IsSolutionUsable()) {
+    out.summary.End(measured.termination, "measuring the chart's patches: " + measured.message);
+    return out;
+  }
   CalibrationInput input;
   input.reference_xyz = out.reference.xyz;
   input.white_xyz = out.reference.white_xyz;

@@ -169,13 +169,17 @@ bool MeasureOptions::IsValid(std::string* why) const {
   return true;
 }
 
-std::vector<PatchMeasurement> MeasurePatches(const cv::Mat& image_bgr, const cv::Mat& dark_bgr,
-                                             const ChartLocation& location, const MeasureOptions& options) {
+solvers::Summary MeasurePatches(const cv::Mat& image_bgr, const cv::Mat& dark_bgr, const ChartLocation& location,
+                                const MeasureOptions& options, std::vector<PatchMeasurement>* patches_out) {
+  const solvers::SolveTimer timer;
   std::string why;
-  if (!options.IsValid(&why)) throw std::invalid_argument("measure options: " + why);
-  if (image_bgr.channels() != 3) throw std::invalid_argument("chart image must have 3 channels (B, G, R)");
-  if (!dark_bgr.empty() && (dark_bgr.size() != image_bgr.size() || dark_bgr.type() != image_bgr.type()))
-    throw std::invalid_argument("dark frame must have the chart image's size and type");
+  if (!options.IsValid(&why)) return solvers::Ended(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+  if (image_bgr.empty() || image_bgr.channels() != 3) {
+    return solvers::Ended(solvers::Termination::kInvalidInput, "chart image must have 3 channels (B, G, R)");
+  }
+  if (!dark_bgr.empty() && (dark_bgr.size() != image_bgr.size() || dark_bgr.type() != image_bgr.type())) {
+    return solvers::Ended(solvers::Termination::kInvalidInput, "dark frame must have the chart image's size and type");
+  }
   double clip_level = options.clip_level;
   if (clip_level == 0.0) {
     const int depth = image_bgr.depth();
@@ -243,7 +247,8 @@ std::vector<PatchMeasurement> MeasurePatches(const cv::Mat& image_bgr, const cv:
     }
     if (worst_snr < options.min_snr) m.flag = PatchFlag::kUnderexposed;
   }
-  return patches;
+  *patches_out = std::move(patches);
+  return timer.Succeeded();
 }
 
 ChartReference ColorCheckerReference(Illuminant illuminant, const std::vector<double>& grid_nm) {

@@ -5,6 +5,8 @@
 
 #include "photorig/color/spectrum.h"
 
+#include "photorig/solvers/summary.h"
+
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
@@ -83,8 +85,10 @@ struct PatchMeasurement {
 };
 
 // `dark_bgr` may be empty; otherwise it has the image's size and type.
-std::vector<PatchMeasurement> MeasurePatches(const cv::Mat& image_bgr, const cv::Mat& dark_bgr,
-                                             const ChartLocation& location, const MeasureOptions& options);
+// kInvalidOptions / kInvalidInput (with the reason) leave *patches untouched;
+// patches that cannot be measured are flagged, not an error.
+solvers::Summary MeasurePatches(const cv::Mat& image_bgr, const cv::Mat& dark_bgr, const ChartLocation& location,
+                                const MeasureOptions& options, std::vector<PatchMeasurement>* patches);
 
 // Reference XYZ (white Y = 1) of the BabelColor ColorChecker under an illuminant,
 // summed over `grid_nm`, and that illuminant's white.
