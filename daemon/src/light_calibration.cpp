@@ -17,11 +17,6 @@ namespace {
 namespace fs = std::filesystem;
 using namespace photorig::lighting;
 
-std::string ResolveAgainst(const YamlNode& node, const std::string& path) {
-  if (path.empty() || fs::path(path).is_absolute()) return path;
-  return (fs::path(node.file()).parent_path() / path).lexically_normal().string();
-}
-
 // A copy of `base_rig` whose LEDs carry the calibrated directions (and
 // intensities when measured). Lights that failed keep their previous values.
 void WriteCalibratedRig(const std::string& base_rig, const std::string& out_rig,
@@ -52,41 +47,6 @@ void WriteCalibratedRig(const std::string& base_rig, const std::string& out_rig,
 }
 
 }  // namespace
-
-bool LightCalibrationRequest::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (circle && !(circle->radius_px > 0.0)) return fail("the sphere circle needs a positive radius");
-  if (!(sphere_radius_mm >= 0.0)) return fail("sphere radius_mm must be >= 0");
-  if (!camera.IsValid(why)) return false;
-  if (base_rig.empty() != out_rig.empty()) return fail("a new rig file needs both the rig to copy and the file to write");
-  return true;
-}
-
-LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node) {
-  node.ExpectKeys({"sphere", "out_rig"});
-  LightCalibrationRequest request;
-  if (auto sphere = node.Find("sphere")) {
-    sphere->ExpectKeys({"circle", "silhouette", "from", "radius_mm"});
-    if (auto circle = sphere->Find("circle")) {
-      const Eigen::Vector3d c = circle->AsVector3();
-      if (!(c.z() > 0.0)) circle->Fail("the circle is [cx, cy, radius] in pixels with a positive radius");
-      request.circle = Circle{c.x(), c.y(), c.z()};
-    }
-    if (auto silhouette = sphere->Find("silhouette")) request.silhouette_image = ResolveAgainst(node, silhouette->AsString());
-    if (auto from = sphere->Find("from")) {
-      if (from->AsString() != "highlights") from->Fail("expected 'highlights' (or give a circle or a silhouette)");
-      if (request.circle || !request.silhouette_image.empty()) from->Fail("give one of circle, silhouette or from");
-    }
-    if (request.circle && !request.silhouette_image.empty()) (*sphere)["silhouette"].Fail("give one of circle, silhouette or from");
-    request.sphere_radius_mm = sphere->Double("radius_mm", 0.0);
-    if (!(request.sphere_radius_mm >= 0.0)) (*sphere)["radius_mm"].Fail("must be >= 0");
-  }
-  if (auto out_rig = node.Find("out_rig")) request.out_rig = ResolveAgainst(node, out_rig->AsString());
-  return request;
-}
 
 LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directory) {
   const RunManifest manifest = LoadRunManifest(run_directory);

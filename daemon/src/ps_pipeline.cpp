@@ -48,24 +48,6 @@ double DarkNoiseSigma(const std::vector<cv::Mat>& darks, const cv::Mat& mean_dar
   return 1.4826 * *middle;
 }
 
-// "lanes" is the lane fitter with its closed-form derivatives; the
-// autodiff method names run the per-pixel reference fit with that method.
-bool ParseDerivative(const std::string& name, ps::BlinnPhongOptions* options) {
-  if (name == "lanes") {
-    options->fitter = ps::BlinnPhongOptions::Fitter::kLanes;
-    return true;
-  }
-  for (auto m : {autodiff::DerivativeMethod::kForward, autodiff::DerivativeMethod::kReverse,
-                 autodiff::DerivativeMethod::kSymbolic, autodiff::DerivativeMethod::kCentralDifference}) {
-    if (name == autodiff::ToString(m)) {
-      options->fitter = ps::BlinnPhongOptions::Fitter::kPerPixel;
-      options->derivative = m;
-      return true;
-    }
-  }
-  return false;
-}
-
 json MetricsJson(const ps::AngularErrorStats& stats) {
   return {{"pixels_with_truth", stats.pixels_with_truth},
           {"pixels_evaluated", stats.pixels_evaluated},
@@ -93,37 +75,6 @@ ps::PhotometricStereoOptions MakeSolverOptions(const PhotometricStereoRequest& r
   options.lambertian.saturation_level = saturation_level;
   options.lambertian.max_condition_number = request.max_condition_number;
   return options;
-}
-
-void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request) {
-  ps::Method method;
-  if (!ps::ParseMethod(request.method, &method))
-    throw std::invalid_argument("method '" + request.method + "' (expected l2, lambertian, robust, blinn-phong or auto)");
-  ps::BlinnPhongOptions blinn_phong;
-  if (!ParseDerivative(request.derivative, &blinn_phong))
-    throw std::invalid_argument("derivative '" + request.derivative +
-                                "' (expected lanes, forward, reverse, symbolic or central-difference)");
-  ps::Integrator integrator;
-  if (request.integrator != "none" && !ps::ParseIntegrator(request.integrator, &integrator))
-    throw std::invalid_argument("integrator '" + request.integrator + "' (expected poisson, frankot-chellappa or none)");
-  if (!(request.shadow_threshold_sigma >= 0)) throw std::invalid_argument("shadow_threshold_sigma must be >= 0");
-  if (!(request.max_condition_number > 1)) throw std::invalid_argument("max_condition_number must be > 1");
-}
-
-PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
-  node.ExpectKeys({"method", "shadow_threshold_sigma", "max_condition_number", "derivative", "integrator"});
-  PhotometricStereoRequest request;
-  request.method = node.String("method", request.method);
-  request.shadow_threshold_sigma = node.Double("shadow_threshold_sigma", request.shadow_threshold_sigma);
-  request.max_condition_number = node.Double("max_condition_number", request.max_condition_number);
-  request.derivative = node.String("derivative", request.derivative);
-  request.integrator = node.String("integrator", request.integrator);
-  try {
-    ValidatePhotometricStereoRequest(request);
-  } catch (const std::invalid_argument& e) {
-    node.Fail(e.what());
-  }
-  return request;
 }
 
 PhotometricStereoInput LoadRunStack(const std::string& run_directory) {

@@ -8,7 +8,7 @@
 // never overwritten). Used by the recipe stage `light_calibration:` and by
 // `photorig calibrate lights`.
 
-#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/recipe.h"
 #include "photorig/lighting/mirror_sphere.h"
 
 #include <Eigen/Core>
@@ -19,24 +19,6 @@
 #include <vector>
 
 namespace photorig::daemon {
-
-struct LightCalibrationRequest {
-  // How the sphere is found, in this order of preference: a given circle, a
-  // silhouette image, else the highlights (see LocateSphereFromHighlights).
-  std::optional<lighting::Circle> circle;
-  std::string silhouette_image;
-  double sphere_radius_mm = 0.0;  // > 0 with a known pixel pitch fixes the radius of the highlight fit
-  lighting::CameraModel camera;   // orthographic unless pinhole intrinsics are given
-  std::string base_rig;           // rig YAML to copy with the calibrated lights ("" = no rig output)
-  std::string out_rig;            // the new rig YAML; must not exist
-
-  bool IsValid(std::string* why) const;
-};
-
-// The recipe stage `light_calibration: {sphere: {circle: [cx, cy, r]} |
-// {silhouette: IMAGE} | {from: highlights, radius_mm: R}, out_rig: FILE}`;
-// paths are relative to the recipe. Throws ConfigError naming file:line:column.
-LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node);
 
 struct LightCalibrationInputs {
   std::vector<cv::Mat> frames;  // mirror sphere, one single-channel frame per LED (empty Mat: no frame)

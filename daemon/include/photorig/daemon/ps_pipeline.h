@@ -11,7 +11,7 @@
 //   angular_error.tiff  degrees, when ground truth exists
 //   report.json         timings, counts, noise model, metrics
 
-#include "photorig/daemon/ps_request.h"
+#include "photorig/daemon/recipe.h"
 #include "photorig/ps/evaluation.h"
 #include "photorig/ps/integration.h"
 #include "photorig/ps/photometric_stereo.h"

@@ -1,10 +1,11 @@
-#include "photorig/daemon/recipe.h"
+#include "photorig/config/recipe.h"
 
+#include "photorig/config/sim.h"
 
 #include <cstdio>
 #include <filesystem>
 
-namespace photorig::daemon {
+namespace photorig::config {
 namespace fs = std::filesystem;
 
 namespace {
@@ -308,4 +309,4 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
   return steps;
 }
 
-}  // namespace photorig::daemon
+}  // namespace photorig::config

@@ -1,0 +1,94 @@
+#pragma once
+// Capture recipes (config/recipes/*.yaml) and their compilation into the flat
+// list of steps the sequencer executes.
+
+#include "photorig/config/rig.h"
+#include "photorig/config/solve_requests.h"
+#include "photorig/drivers/light_controller.h"
+
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace photorig::config {
+
+// Where a gonioreflectometer's three axes stand for one frame (degrees, axis
+// zero = the arm on the sample normal / the sample's reference orientation).
+struct GonioPose {
+  double light_arm_deg = 0.0;
+  double camera_arm_deg = 0.0;
+  double sample_rotation_deg = 0.0;
+};
+
+struct Recipe {
+  std::string path;
+  std::string name;
+  std::string description;
+  std::string sample_name;
+  // sample.sim_scene: replaces a simulated rig's scene. Parsed for the rig the
+  // recipe was loaded for, whose frame sizes the defaults.
+  std::optional<sim::Scene> sim_scene;
+  std::optional<double> exposure_us;    // overrides the rig camera's exposure
+  std::optional<double> gain_db;
+
+  // One entry of capture.steps. Every group takes `repeat: N` (default 1):
+  // its whole step sequence is emitted N times in a row.
+  struct Group {
+    enum class Kind {
+      kDark,     // dark: {count}
+      kFlat,     // flat: {count, level, leds, exposure_us}: the listed LEDs (default all) lit together
+      kEachLed,  // each_led: {leds, level, exposures_us}: one frame per LED per bracket exposure
+      kPattern,  // pattern: {name, leds: [{id, level} | id], level, count, exposure_us}
+      kPoses,    // poses: {list: [{light_arm_deg, camera_arm_deg, sample_rotation_deg}] | grid: {...}, level}
+    };
+    Kind kind = Kind::kDark;
+    int count = 1;             // kDark, kFlat, kPattern: frames per repetition
+    int repeat = 1;
+    std::vector<int> led_ids;  // kFlat, kEachLed: empty = all LEDs
+    double level = 1.0;        // kFlat, kEachLed, kPoses (every LED), kPattern (entries given as bare ids)
+    std::vector<double> exposures_us;  // kEachLed: the HDR bracket; kFlat, kPattern: at most one. Empty = capture's
+    std::string name;                  // kPattern: goes into the labels
+    std::vector<std::pair<int, double>> pattern;  // kPattern: (LED id, level)
+    std::vector<GonioPose> poses;                 // kPoses, in capture order
+    std::optional<YamlNode> source;  // for errors found once the rig is known
+  };
+  std::vector<Group> groups;
+  std::optional<PhotometricStereoRequest> photometric_stereo;
+  std::optional<LightCalibrationRequest> light_calibration;
+};
+
+struct CaptureStep {
+  // kLight: exactly one LED lit (what photometric stereo consumes); kFlat: a
+  // uniformly lit reference; kPattern: a named LED pattern; kPose: a
+  // gonioreflectometer pose, arms moved before the frame.
+  enum class Kind { kDark, kLight, kFlat, kPattern, kPose };
+  int index = 0;
+  Kind kind = Kind::kDark;
+  std::string label;         // file stem, unique in the run: "0000_dark", "0001_led07", "0003_led02_e4000"
+  std::string group;         // the recipe group it came from: "dark", "each_led", "flat", "pattern:<name>", "poses"
+  int repeat = 0;            // 0-based repetition of its group
+  int led = -1;              // kLight: index into RigConfig::lights.leds; -1 otherwise
+  drivers::LightPattern pattern;
+  double exposure_us = 0.0;
+  double gain_db = 0.0;
+  std::optional<GonioPose> pose;  // kPose only
+};
+
+// "dark" | "light" | "flat" | "pattern" | "pose": the kind as journals and manifests spell it.
+const char* CaptureStepKindName(CaptureStep::Kind kind);
+
+// Reads a recipe for the rig it will run on. Throws ConfigError naming
+// file:line:column and key.
+Recipe LoadRecipe(const std::string& path, const RigConfig& rig);
+// The same from text received over the API; errors name `name` as the file.
+Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig);
+// The rig file a recipe runs on: `override_path` when given, else the
+// recipe's `recipe.rig` (relative to the recipe file). Throws ConfigError
+// when neither names one.
+std::string RecipeRigPath(const std::string& recipe_path, const std::string& override_path);
+// Throws ConfigError (naming the recipe) when the recipe asks for LEDs the rig
+// lacks, or for poses on a rig without motion.
+std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig);
+
+}  // namespace photorig::config

@@ -1,0 +1,55 @@
+#pragma once
+// The solve stages a recipe may ask for (`solve: [photometric_stereo: ...,
+// light_calibration: ...]`), and the same settings as the command line gives
+// them: parsed and checked when the recipe is loaded.
+
+#include "photorig/config/yaml_node.h"
+#include "photorig/lighting/sphere.h"
+#include "photorig/ps/photometric_stereo.h"
+
+#include <optional>
+#include <string>
+
+namespace photorig::config {
+
+struct PhotometricStereoRequest {
+  std::string method = "auto";          // l2 | lambertian | robust | blinn-phong | auto
+  // Samples within this many read-noise sigmas of black (and within 1 DN) are
+  // shadows; the read noise comes from dark frames, or is estimated without them.
+  double shadow_threshold_sigma = 3.0;
+  double max_condition_number = 1e3;
+  // Blinn-Phong fit: lanes (closed-form derivatives, sixteen pixels per SIMD
+  // pass in float) | forward | reverse | symbolic | central-difference (one pixel at a
+  // time, Jacobians by that method).
+  std::string derivative = "lanes";
+  std::string integrator = "poisson";   // depth from normals: poisson | frankot-chellappa | none
+};
+
+// Throws ConfigError naming file:line:column for unknown keys or values.
+PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node);
+// Throws std::invalid_argument naming the field when a value is not allowed.
+void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request);
+
+// "lanes" (the lane fitter) or an autodiff method name (the per-pixel
+// reference fit with that method) into `options`; false for another name.
+bool ParseDerivative(const std::string& name, ps::BlinnPhongOptions* options);
+
+struct LightCalibrationRequest {
+  // How the sphere is found, in this order of preference: a given circle, a
+  // silhouette image, else the highlights (see LocateSphereFromHighlights).
+  std::optional<lighting::Circle> circle;
+  std::string silhouette_image;
+  double sphere_radius_mm = 0.0;  // > 0 with a known pixel pitch fixes the radius of the highlight fit
+  lighting::CameraModel camera;   // orthographic unless pinhole intrinsics are given
+  std::string base_rig;           // rig YAML to copy with the calibrated lights ("" = no rig output)
+  std::string out_rig;            // the new rig YAML; must not exist
+
+  bool IsValid(std::string* why) const;
+};
+
+// The recipe stage `light_calibration: {sphere: {circle: [cx, cy, r]} |
+// {silhouette: IMAGE} | {from: highlights, radius_mm: R}, out_rig: FILE}`;
+// paths are relative to the recipe. Throws ConfigError naming file:line:column.
+LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node);
+
+}  // namespace photorig::config

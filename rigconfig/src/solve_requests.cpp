@@ -1,0 +1,104 @@
+#include "photorig/config/solve_requests.h"
+
+#include "photorig/ps/integration.h"
+
+#include <Eigen/Core>
+
+#include <filesystem>
+#include <stdexcept>
+
+namespace photorig::config {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string ResolveAgainst(const YamlNode& node, const std::string& path) {
+  if (path.empty() || fs::path(path).is_absolute()) return path;
+  return (fs::path(node.file()).parent_path() / path).lexically_normal().string();
+}
+
+}  // namespace
+
+bool ParseDerivative(const std::string& name, ps::BlinnPhongOptions* options) {
+  if (name == "lanes") {
+    options->fitter = ps::BlinnPhongOptions::Fitter::kLanes;
+    return true;
+  }
+  for (auto m : {autodiff::DerivativeMethod::kForward, autodiff::DerivativeMethod::kReverse,
+                 autodiff::DerivativeMethod::kSymbolic, autodiff::DerivativeMethod::kCentralDifference}) {
+    if (name == autodiff::ToString(m)) {
+      options->fitter = ps::BlinnPhongOptions::Fitter::kPerPixel;
+      options->derivative = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request) {
+  ps::Method method;
+  if (!ps::ParseMethod(request.method, &method))
+    throw std::invalid_argument("method '" + request.method + "' (expected l2, lambertian, robust, blinn-phong or auto)");
+  ps::BlinnPhongOptions blinn_phong;
+  if (!ParseDerivative(request.derivative, &blinn_phong))
+    throw std::invalid_argument("derivative '" + request.derivative +
+                                "' (expected lanes, forward, reverse, symbolic or central-difference)");
+  ps::Integrator integrator;
+  if (request.integrator != "none" && !ps::ParseIntegrator(request.integrator, &integrator))
+    throw std::invalid_argument("integrator '" + request.integrator + "' (expected poisson, frankot-chellappa or none)");
+  if (!(request.shadow_threshold_sigma >= 0)) throw std::invalid_argument("shadow_threshold_sigma must be >= 0");
+  if (!(request.max_condition_number > 1)) throw std::invalid_argument("max_condition_number must be > 1");
+}
+
+PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
+  node.ExpectKeys({"method", "shadow_threshold_sigma", "max_condition_number", "derivative", "integrator"});
+  PhotometricStereoRequest request;
+  request.method = node.String("method", request.method);
+  request.shadow_threshold_sigma = node.Double("shadow_threshold_sigma", request.shadow_threshold_sigma);
+  request.max_condition_number = node.Double("max_condition_number", request.max_condition_number);
+  request.derivative = node.String("derivative", request.derivative);
+  request.integrator = node.String("integrator", request.integrator);
+  try {
+    ValidatePhotometricStereoRequest(request);
+  } catch (const std::invalid_argument& e) {
+    node.Fail(e.what());
+  }
+  return request;
+}
+
+bool LightCalibrationRequest::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (circle && !(circle->radius_px > 0.0)) return fail("the sphere circle needs a positive radius");
+  if (!(sphere_radius_mm >= 0.0)) return fail("sphere radius_mm must be >= 0");
+  if (!camera.IsValid(why)) return false;
+  if (base_rig.empty() != out_rig.empty()) return fail("a new rig file needs both the rig to copy and the file to write");
+  return true;
+}
+
+LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node) {
+  node.ExpectKeys({"sphere", "out_rig"});
+  LightCalibrationRequest request;
+  if (auto sphere = node.Find("sphere")) {
+    sphere->ExpectKeys({"circle", "silhouette", "from", "radius_mm"});
+    if (auto circle = sphere->Find("circle")) {
+      const Eigen::Vector3d c = circle->AsVector3();
+      if (!(c.z() > 0.0)) circle->Fail("the circle is [cx, cy, radius] in pixels with a positive radius");
+      request.circle = lighting::Circle{c.x(), c.y(), c.z()};
+    }
+    if (auto silhouette = sphere->Find("silhouette")) request.silhouette_image = ResolveAgainst(node, silhouette->AsString());
+    if (auto from = sphere->Find("from")) {
+      if (from->AsString() != "highlights") from->Fail("expected 'highlights' (or give a circle or a silhouette)");
+      if (request.circle || !request.silhouette_image.empty()) from->Fail("give one of circle, silhouette or from");
+    }
+    if (request.circle && !request.silhouette_image.empty()) (*sphere)["silhouette"].Fail("give one of circle, silhouette or from");
+    request.sphere_radius_mm = sphere->Double("radius_mm", 0.0);
+    if (!(request.sphere_radius_mm >= 0.0)) (*sphere)["radius_mm"].Fail("must be >= 0");
+  }
+  if (auto out_rig = node.Find("out_rig")) request.out_rig = ResolveAgainst(node, out_rig->AsString());
+  return request;
+}
+
+}  // namespace photorig::config
