@@ -2,6 +2,8 @@
 
 #include "blinn_phong_lanes.h"
 #include "lambertian_tiles.h"
+#include "model_selection.h"
+#include "noise_estimate.h"
 #include "recheck_lanes.h"
 #include "robust_lanes.h"
 #include "trim_lanes.h"
@@ -103,29 +105,6 @@ std::size_t ScreenTile(const std::uint8_t* flags, const std::uint16_t* usable, c
     passed += solved & pass;
   }
   return static_cast<std::size_t>(passed);
-}
-
-double InverseNormalCdf(double p) {
-  // Bisection on the CDF: called once per solve, so speed is irrelevant.
-  double lo = -10.0, hi = 10.0;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi);
-}
-
-// Quantile p of the chi-square distribution for 0..max_dof degrees of
-// freedom, by Wilson-Hilferty: accurate to a few per cent for dof >= 3, plenty
-// for a test threshold. Entry 0 is 0.
-std::vector<double> ChiSquareQuantiles(int max_dof, double p) {
-  const double z = InverseNormalCdf(p);
-  std::vector<double> quantile(max_dof + 1, 0.0);
-  for (int dof = 1; dof <= max_dof; ++dof) {
-    const double v = dof, t = 1.0 - 2.0 / (9.0 * v) + z * std::sqrt(2.0 / (9.0 * v));
-    quantile[dof] = v * t * t * t;
-  }
-  return quantile;
 }
 
 struct Fit {
@@ -499,117 +478,6 @@ Fit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const Fit&
   return fit;
 }
 
-// Noise of the data when the stack does not (fully) say: a photon-transfer fit
-// var(I - D) = read^2 + gain * (I - D) to the Lambertian residual variance of a
-// sparse set of pixels. Each pixel's variance v_p is a chi-square estimate, so
-// gain and read^2 are taken as lower deciles of (v_p - read^2) / signal_p and
-// v_p - gain * signal_p, corrected by the chi-square lower decile: pixels no
-// Lambertian model explains (highlights) cannot inflate them as long as fewer
-// than nine tenths of the pixels are such. (Under a dome most pixels of a
-// glossy object see a highlight; a lower quartile breaks down there.) A read
-// noise (from dark frames) or gain (from the camera) the stack already knows
-// is kept fixed.
-NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions& thresholds) {
-  struct Sample {
-    double signal, variance;
-    int dof;
-  };
-  const int pixels = stack.width() * stack.height();
-  // About 8000 pixels, as runs of 32 neighbours spread over the image: a
-  // pixel's samples lie in K planes, and lone pixels every few apart would
-  // pull nearly every cache line of the stack from memory for one sample each.
-  constexpr int kTarget = 8000, kRun = 32;
-  const int run_stride = std::max(kRun, pixels / (kTarget / kRun));
-  // Least squares on each sampled pixel's usable samples, by the Lambertian
-  // pass's own kernel: the noise estimate then costs a fraction of the pass.
-  const internal::PixelResiduals fitter(thresholds, stack);
-  if (!fitter.ok()) return stack.noise;
-  std::vector<internal::PixelResiduals::Run> runs;
-  for (int run = 0; run < pixels; run += run_stride) runs.push_back({run, std::min(kRun, pixels - run)});
-  std::vector<std::size_t> first_fit(runs.size() + 1, 0);
-  for (std::size_t r = 0; r < runs.size(); ++r) first_fit[r + 1] = first_fit[r] + runs[r].count;
-  std::vector<internal::PixelResidual> fits(first_fit.back());
-  const int threads = thresholds.num_threads > 0 ? thresholds.num_threads : omp_get_max_threads();
-#pragma omp parallel num_threads(threads)
-  {
-    // One contiguous share of the runs per thread, one call each.
-    const std::size_t count = runs.size(), thread = omp_get_thread_num(), shares = omp_get_num_threads();
-    const std::size_t begin = count * thread / shares, end = count * (thread + 1) / shares;
-    if (begin < end)
-      fitter.Fit(std::span(runs).subspan(begin, end - begin), fits.data() + first_fit[begin]);
-  }
-  std::vector<Sample> samples;
-  const std::uint8_t* mask = stack.mask.empty() ? nullptr : stack.mask.ptr<std::uint8_t>();
-  for (std::size_t r = 0; r < runs.size(); ++r) {
-    for (int i = 0; i < runs[r].count; ++i) {
-      const internal::PixelResidual& fit = fits[first_fit[r] + i];
-      if ((mask && mask[runs[r].begin + i] == 0) || !fit.conditioned || fit.usable < 6) continue;
-      // RSS ~ (n - 3) / n (read^2 sum 1/s^2 + gain sum (I - D)/s^2): per pixel
-      // a residual variance and a signal in input units (with equal scales
-      // s, RSS s^2 / (n - 3) and the mean of I - D).
-      const double n = fit.usable, weight = fit.sum_inverse_scale2;
-      samples.push_back({fit.sum_signal_inverse_scale2 / weight, fit.rss * n / ((n - 3.0) * weight), fit.usable - 3});
-    }
-  }
-  NoiseModel noise = stack.noise;
-  if (samples.size() < 16) return noise;
-  std::vector<double> dofs;
-  for (const Sample& sample : samples) dofs.push_back(sample.dof);
-  std::nth_element(dofs.begin(), dofs.begin() + dofs.size() / 2, dofs.end());
-  const int typical_dof = static_cast<int>(dofs[dofs.size() / 2]);
-  constexpr double kQuantile = 0.1;
-  const double bias = ChiSquareQuantiles(typical_dof, kQuantile)[typical_dof] / typical_dof;
-  auto corrected_lower_decile = [bias](std::vector<double> values) {
-    auto at = values.begin() + static_cast<std::ptrdiff_t>(kQuantile * (values.size() - 1));
-    std::nth_element(values.begin(), at, values.end());
-    return *at / bias;
-  };
-  const bool read_known = stack.noise.read_sigma > 0.0, gain_known = stack.noise.shot_gain > 0.0;
-  double read2 = read_known ? stack.noise.read_sigma * stack.noise.read_sigma : 0.0;
-  double gain = gain_known ? stack.noise.shot_gain : 0.0;
-  // Unknown read noise comes from the darkest tenth of the pixels, where shot
-  // noise matters least, refined once the gain is known. (The samples are in
-  // run order whatever the thread count, so the partition is reproducible.)
-  const std::size_t darkest = std::max<std::size_t>(8, samples.size() / 10);
-  if (!read_known)
-    std::nth_element(samples.begin(), samples.begin() + (darkest - 1), samples.end(),
-                     [](const Sample& a, const Sample& b) { return a.signal < b.signal; });
-  // Given the gain, read^2 is where the lower decile of v_p / (read^2 + gain
-  // signal_p) over those pixels equals the chi-square lower decile (bias); the
-  // ratio is decreasing in read^2, so bisection finds it. (The lower decile of
-  // v_p - gain signal_p instead comes out low by gain signal_p (1 / bias - 1):
-  // 0.8 DN for 3 DN of read noise where shot noise dominated the dark pixels.)
-  auto read_variance = [&](double gain) {
-    std::vector<double> ratios(darkest);
-    auto decile_ratio = [&](double r2) {
-      for (std::size_t i = 0; i < darkest; ++i)
-        ratios[i] = samples[i].variance / std::max(r2 + gain * std::max(samples[i].signal, 0.0), 1e-300);
-      auto at = ratios.begin() + static_cast<std::ptrdiff_t>(kQuantile * (darkest - 1));
-      std::nth_element(ratios.begin(), at, ratios.end());
-      return *at;
-    };
-    if (decile_ratio(0.0) <= bias) return 0.0;  // shot noise alone explains the darkest pixels
-    double low = 0.0, high = 1.0;
-    while (decile_ratio(high) > bias) high *= 4.0;
-    for (int step = 0; step < 60; ++step) {
-      const double middle = 0.5 * (low + high);
-      (decile_ratio(middle) > bias ? low : high) = middle;
-    }
-    return 0.5 * (low + high);
-  };
-  for (int round = 0; round < (read_known ? 1 : 2); ++round) {
-    if (!read_known) read2 = read_variance(gain);
-    if (gain_known) break;  // the read noise was all that was missing
-    std::vector<double> gains;
-    for (const Sample& sample : samples)
-      if (sample.signal > 0.0) gains.push_back((sample.variance - read2) / sample.signal);
-    gain = gains.empty() ? 0.0 : std::max(0.0, corrected_lower_decile(gains));
-  }
-  noise.shot_gain = gain;
-  noise.read_sigma = std::sqrt(read2);
-  return noise;
-}
-
 void WriteFit(int pixel, const Fit& fit, NormalMap* out) {
   out->normals.ptr<cv::Vec3f>()[pixel] = cv::Vec3f(float(fit.normal.x()), float(fit.normal.y()), float(fit.normal.z()));
   out->albedo.ptr<float>()[pixel] = static_cast<float>(fit.albedo);
@@ -650,7 +518,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   const bool estimable = options.estimate_noise && stack.IsValid(nullptr) && lambertian.IsValid(nullptr);
   bool noise_estimated = false;
   if (estimable && ((refine && stack.noise.shot_gain == 0.0) || read_noise_wanted)) {
-    working.noise = EstimateNoise(stack, lambertian);
+    working.noise = internal::EstimateNoise(stack, lambertian);
     noise_estimated = true;
   }
   const double absolute_threshold = lambertian.shadow_threshold;
@@ -665,7 +533,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   // moved the estimate by under 2 % on re-imported simulated runs).
   if (noise_estimated && !(stack.noise.read_sigma > 0.0) && lambertian.shadow_threshold > absolute_threshold &&
       lambertian.IsValid(nullptr)) {
-    working.noise = EstimateNoise(stack, lambertian);
+    working.noise = internal::EstimateNoise(stack, lambertian);
     raise_threshold();
   }
   if (!lambertian.IsValid(&why)) {
@@ -689,7 +557,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     return summary;
   }
   if (!(working.noise.read_sigma > 0.0)) working.noise.read_sigma = 1e-9;  // noise-free: any residual counts
-  const std::vector<double> quantile = ChiSquareQuantiles(stack.light_count(), options.selection.adequacy_quantile);
+  const std::vector<double> quantile = internal::ChiSquareQuantiles(stack.light_count(), options.selection.adequacy_quantile);
   const double gross_u2 = options.selection.gross_outlier_sigma * options.selection.gross_outlier_sigma;
   auto adequate = [&quantile](const Fit& fit) { return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile[fit.Dof()]; };
   // The screen of `auto`: the Lambertian pass's confidence is expected /
