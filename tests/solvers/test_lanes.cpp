@@ -2,11 +2,11 @@
 // derivatives against forward-mode automatic differentiation, the trimming
 // against known outliers, IRLS against a plain implementation of the same
 // iteration, and `auto` in lanes against the per-pixel reference.
-#include "blinn_phong_lanes.h"
+#include "kernels/blinn_phong_fit.h"
 #include "lambertian_tiles.h"
-#include "lane_math.h"
-#include "robust_lanes.h"
-#include "trim_lanes.h"
+#include "kernels/lane_math.h"
+#include "kernels/irls_lambertian_fit.h"
+#include "kernels/trimmed_lambertian_fit.h"
 
 #include "photorig/autodiff/blinn_phong_jacobian.h"
 #include "ps_test_scene.h"
@@ -396,7 +396,7 @@ TEST(TrimmedLambertianLanes, SolvesPixelsWhateverTheScaleOfTheirWeights) {
 }
 
 // IRLS written the plain way, one pixel, usable samples only: the iteration
-// robust_lanes.h documents.
+// irls_lambertian_fit.h documents.
 internal::RobustSolution PlainIrls(const std::vector<Eigen::Vector3d>& lights, const double* observed,
                                    const double* inverse_sigma, Eigen::Vector3d x, const RobustOptions& options) {
   std::vector<int> usable;

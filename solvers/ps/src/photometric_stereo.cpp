@@ -1,12 +1,12 @@
 #include "photorig/ps/photometric_stereo.h"
 
-#include "blinn_phong_lanes.h"
+#include "kernels/blinn_phong_fit.h"
 #include "lambertian_tiles.h"
 #include "model_selection.h"
 #include "noise_estimate.h"
-#include "recheck_lanes.h"
-#include "robust_lanes.h"
-#include "trim_lanes.h"
+#include "kernels/lambertian_recheck.h"
+#include "kernels/irls_lambertian_fit.h"
+#include "kernels/trimmed_lambertian_fit.h"
 
 #include <Eigen/Dense>
 #include <omp.h>
