@@ -2,7 +2,7 @@
 // scenes, captured on the 96-LED dome (config/rigs/sim-dome-96.yaml) and solved
 // with all 96 lights and with every 2nd, 4th and 8th of them (and on DiLiGenT
 // folders given as arguments), written as CSV rows
-//   source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,robust_pct,blinn_phong_pct
+//   source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct
 // for scripts/chart-ps.sh; solve_ms is the fastest of three runs. Captures go
 // through the same code as `photorig run`.
 //
@@ -77,7 +77,8 @@ void Evaluate(std::ostream& csv, const std::string& source, const std::string& s
     csv << source << ',' << scene << ',' << stack.light_count() << ',' << relative_noise << ','
         << ps::MethodName(method) << ',' << error.mean_deg << ',' << error.median_deg << ','
         << 100.0 * error.fraction_under_15deg << ',' << ms << ',' << 100.0 * summary.pixels_lambertian / solved << ','
-        << 100.0 * summary.pixels_robust / solved << ',' << 100.0 * summary.pixels_blinn_phong / solved << '\n';
+        << 100.0 * summary.pixels_trimmed / solved << ','
+        << 100.0 * summary.pixels_irls / solved << ',' << 100.0 * summary.pixels_blinn_phong / solved << '\n';
     std::fprintf(stderr, "%-16s %2d lights noise x%-4g %-12s mean %7.3f deg  %8.1f ms\n", scene.c_str(),
                  stack.light_count(), relative_noise, ps::MethodName(method), error.mean_deg, ms);
   }
@@ -124,7 +125,7 @@ int main(int argc, char** argv) {
   const fs::path source(argv[1]);
   std::ofstream csv(argv[2]);
   csv << "source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,"
-         "robust_pct,blinn_phong_pct\n";
+         "trimmed_pct,irls_pct,blinn_phong_pct\n";
   const fs::path scratch = fs::temp_directory_path() / "photorig-ps-chart";
   fs::create_directories(scratch);
   try {

@@ -530,10 +530,10 @@ void ExpectAutoLanesMatchThePerPixelReference(const PhotometricStack& stack) {
   const SolverSummary reference = SolvePhotometricStereo(reference_options, stack, &reference_map);
   ASSERT_TRUE(lanes.IsSolutionUsable()) << lanes.message;
   ASSERT_TRUE(reference.IsSolutionUsable()) << reference.message;
-  ASSERT_GT(reference.pixels_robust, 50u);
+  ASSERT_GT(reference.pixels_trimmed, 50u);
   ASSERT_GT(reference.pixels_blinn_phong, 50u);
   const double pixels = double(reference.pixels_solved);
-  EXPECT_LE(std::abs(double(lanes.pixels_robust) - double(reference.pixels_robust)), 0.005 * pixels);
+  EXPECT_LE(std::abs(double(lanes.pixels_trimmed) - double(reference.pixels_trimmed)), 0.005 * pixels);
   EXPECT_LE(std::abs(double(lanes.pixels_blinn_phong) - double(reference.pixels_blinn_phong)), 0.01 * pixels);
   int same_model = 0, trimmed = 0;
   for (int p = 0; p < stack.width() * stack.height(); ++p) {
@@ -541,7 +541,7 @@ void ExpectAutoLanesMatchThePerPixelReference(const PhotometricStack& stack) {
     if (model != reference_map.model.ptr<std::uint8_t>()[p]) continue;
     ++same_model;
     const cv::Vec3f a = lanes_map.normals.ptr<cv::Vec3f>()[p], b = reference_map.normals.ptr<cv::Vec3f>()[p];
-    if (model == static_cast<std::uint8_t>(PixelModel::kRobust)) {
+    if (model == static_cast<std::uint8_t>(PixelModel::kTrimmed)) {
       ++trimmed;
       EXPECT_LT(AngleDeg(a, b), 1e-3) << "pixel " << p;  // the same algorithm
     } else if (model == static_cast<std::uint8_t>(PixelModel::kBlinnPhong) &&

@@ -14,7 +14,7 @@ namespace photorig::ps::internal {
 
 PixelFit IrlsFit(const RobustSolution& solution) {
   PixelFit fit;
-  fit.model = PixelModel::kRobust;
+  fit.model = PixelModel::kIrls;
   fit.ok = solution.ok;
   if (!fit.ok) return fit;
   fit.normal = solution.x.normalized();
@@ -110,7 +110,7 @@ PixelFit FitTrimmed(const PixelSamples& s, const ModelLadder& ladder, TrimScratc
     // A singular system gives a non-finite x, which fails the check below.
     const Eigen::Vector3d x = normal_matrix.inverse() * Eigen::Vector3d(bx, by, bz);
     PixelFit fit;
-    fit.model = PixelModel::kRobust;
+    fit.model = PixelModel::kTrimmed;
     fit.ok = x.norm() > 0.0 && n - removed >= 3;
     if (!fit.ok) return fit;
     fit.normal = x.normalized();

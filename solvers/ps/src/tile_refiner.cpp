@@ -22,7 +22,7 @@ PixelFit TrimmedFit(const TrimSolution& trimmed) {
   fit.chi2 = trimmed.chi2;
   fit.used = trimmed.used;
   fit.rejected = trimmed.rejected;
-  fit.model = PixelModel::kRobust;
+  fit.model = PixelModel::kTrimmed;
   return fit;
 }
 
@@ -100,7 +100,7 @@ struct TileRefiner::ThreadState {
   std::vector<TrimSolution> trim_solutions;
   std::vector<BlinnPhongProblem> problems;
   std::vector<BlinnPhongSolution> solutions;
-  std::size_t lambertian = 0, robust = 0, blinn_phong = 0, rejected = 0, failed = 0;
+  std::size_t lambertian = 0, trimmed = 0, irls_fits = 0, blinn_phong = 0, rejected = 0, failed = 0;
 };
 
 TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const LambertianOptions& lambertian,
@@ -148,7 +148,8 @@ void TileRefiner::Record(ThreadState& state, int p, const PixelFit& chosen) {
   state.rejected += static_cast<std::size_t>(chosen.rejected);
   switch (chosen.model) {
     case PixelModel::kLambertian: ++state.lambertian; break;
-    case PixelModel::kRobust: ++state.robust; break;
+    case PixelModel::kTrimmed: ++state.trimmed; break;
+    case PixelModel::kIrls: ++state.irls_fits; break;
     case PixelModel::kBlinnPhong: ++state.blinn_phong; break;
     case PixelModel::kNone: break;
   }
@@ -349,7 +350,8 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
   std::size_t failed = 0;
   for (const ThreadState& state : states_) {
     summary->pixels_lambertian += state.lambertian;
-    summary->pixels_robust += state.robust;
+    summary->pixels_trimmed += state.trimmed;
+    summary->pixels_irls += state.irls_fits;
     summary->pixels_blinn_phong += state.blinn_phong;
     summary->samples_rejected += state.rejected;
     failed += state.failed;
