@@ -3,6 +3,7 @@
 // shot-noise gain fitted to the Lambertian residuals of a sample of pixels.
 
 #include "photorig/ps/lambertian.h"
+#include "photorig/ps/photometric_stereo.h"
 #include "photorig/ps/stack.h"
 
 namespace photorig::ps::internal {
@@ -20,5 +21,19 @@ namespace photorig::ps::internal {
 // noise (from dark frames) or gain (from the camera) the stack already knows
 // is kept fixed.
 NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions& thresholds);
+
+// The noise model and shadow threshold a solve works with.
+struct SolveNoise {
+  NoiseModel model;
+  bool estimated = false;  // (partly) by EstimateNoise
+  double shadow_threshold = 0.0;  // input units; may fail LambertianOptions::IsValid
+};
+// What the stack gives, completed by EstimateNoise where options.estimate_noise
+// allows and the solve needs it: the shot-noise gain for the adequacy tests of
+// the methods that refine the Lambertian pass (refine), the read noise for a
+// shadow threshold in read-noise sigmas (every method but `l2`).
+// lambertian: the solve's Lambertian options, at the absolute threshold.
+SolveNoise NoiseForSolve(const PhotometricStereoOptions& options, bool refine, const PhotometricStack& stack,
+                         const LambertianOptions& lambertian);
 
 }  // namespace photorig::ps::internal

@@ -36,34 +36,13 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   // The adequacy tests need the noise; what the stack does not give is
   // estimated from the data first, so that the Lambertian pass can already
   // judge its own fits (its confidence) and spare them a second look.
-  PhotometricStack working = stack;
   const bool refine = options.method == Method::kRobust || options.method == Method::kBlinnPhong ||
                       options.method == Method::kAuto;
-  // A shadow threshold in read-noise sigmas needs the read noise; `l2` uses
-  // every sample whatever the threshold, so it is not estimated for `l2`.
-  const bool read_noise_wanted = options.shadow_threshold_read_sigmas > 0.0 && options.method != Method::kL2 &&
-                                 !(stack.noise.read_sigma > 0.0);
-  const bool estimable = options.estimate_noise && stack.IsValid(nullptr) && lambertian.IsValid(nullptr);
-  bool noise_estimated = false;
-  if (estimable && ((refine && stack.noise.shot_gain == 0.0) || read_noise_wanted)) {
-    working.noise = internal::EstimateNoise(stack, lambertian);
-    noise_estimated = true;
-  }
-  const double absolute_threshold = lambertian.shadow_threshold;
-  auto raise_threshold = [&] {
-    lambertian.shadow_threshold =
-        std::max(absolute_threshold, options.shadow_threshold_read_sigmas * working.noise.read_sigma);
-  };
-  raise_threshold();
-  // An estimated read noise came from fits of the samples just above the
-  // absolute threshold, shadows lifted by noise among them: it is estimated
-  // once more without them, and the threshold taken from that (a third round
-  // moved the estimate by under 2 % on re-imported simulated runs).
-  if (noise_estimated && !(stack.noise.read_sigma > 0.0) && lambertian.shadow_threshold > absolute_threshold &&
-      lambertian.IsValid(nullptr)) {
-    working.noise = internal::EstimateNoise(stack, lambertian);
-    raise_threshold();
-  }
+  PhotometricStack working = stack;
+  const internal::SolveNoise noise = internal::NoiseForSolve(options, refine, stack, lambertian);
+  working.noise = noise.model;
+  const bool noise_estimated = noise.estimated;
+  lambertian.shadow_threshold = noise.shadow_threshold;
   if (!lambertian.IsValid(&why)) {
     SolverSummary summary;
     summary.method = MethodName(options.method);
