@@ -12,7 +12,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <optional>
 #include <vector>
 
 namespace photorig::ps::internal {
@@ -43,26 +42,35 @@ struct PixelFit {
 
 // The Lambertian fit x of a pixel with its chi-square on `used` samples,
 // `rejected` of its usable ones left out.
-PixelFit LambertianFit(const Eigen::Vector3d& x, double chi2, int used, int rejected);
+inline PixelFit LambertianFit(const Eigen::Vector3d& x, double chi2, int used, int rejected) {
+  PixelFit fit;
+  const double length = x.norm();
+  fit.ok = length > 0.0;
+  fit.normal = fit.ok ? Eigen::Vector3d(x / length) : x;  // as x.normalized()
+  fit.albedo = M_PI * length;
+  fit.chi2 = chi2;
+  fit.used = used;
+  fit.rejected = rejected;
+  return fit;
+}
 
-// The fits a pixel's climb has made so far. An empty optional: not fitted
-// yet; a fit with ok false: fitted, without an answer.
+// The fits a pixel's climb has made so far, owned by the caller. Null: not
+// fitted yet; kNoFit (or any fit with ok false): fitted, without an answer.
 struct LadderFits {
-  // The Lambertian fit on the usable samples, tested exactly.
-  PixelFit lambertian;
+  // The Lambertian fit on the usable samples, tested exactly. Never null.
+  const PixelFit* lambertian = nullptr;
   // The same refitted without the usable samples it puts in attached shadow.
-  std::optional<PixelFit> lit;
+  const PixelFit* lit = nullptr;
   // Trimmed (`auto`, `blinn-phong`) or iteratively reweighted (`robust`).
-  std::optional<PixelFit> robust;
+  const PixelFit* robust = nullptr;
   // The Blinn-Phong fit, and the Lambertian fit on the samples it was fitted
   // to, which the information criterion weighs it against. (The lane stages
   // read those samples again in double; their `lambertian` was tested on the
-  // float recheck's sums.)
-  struct Lobe {
-    PixelFit blinn_phong, lambertian;
-  };
-  std::optional<Lobe> lobe;
+  // float recheck's sums.) Both or neither.
+  const PixelFit* blinn_phong = nullptr;
+  const PixelFit* lobe_lambertian = nullptr;
 };
+inline const PixelFit kNoFit{};
 
 // What a pixel's climb does next.
 struct LadderStep {
@@ -71,10 +79,10 @@ struct LadderStep {
     kRefitLit,    // fit LadderFits::lit
     kTrim,        // fit LadderFits::robust by trimming
     kReweight,    // fit LadderFits::robust by IRLS
-    kFitLobe      // fit LadderFits::lobe, starting from `start`
+    kFitLobe      // fit LadderFits::blinn_phong, starting from `start`
   };
   Action action = Action::kKeep;
-  const PixelFit* keep = nullptr;   // kKeep: points into the LadderFits asked
+  const PixelFit* keep = nullptr;   // kKeep: one of the fits asked about
   const PixelFit* start = nullptr;  // kFitLobe: the normal and albedo to start from
 };
 
@@ -102,7 +110,9 @@ class ModelLadder {
   //      where trimming failed), kept if its information criterion is lower.
   // `robust` keeps the IRLS fit, `blinn-phong` the lobe fitted from the
   // trimmed fit, `lambertian` and `l2` the Lambertian fit.
-  LadderStep Next(const LadderFits& fits) const;
+  // Inline: the lane stages ask it once per pixel and stage, with most of
+  // `fits` known where they call.
+  inline LadderStep Next(const LadderFits& fits) const;
 
   // Per usable sample count, the Lambertian pass's confidence at or above
   // which a pixel passes step 1 without a closer look (infinity where none
@@ -128,5 +138,35 @@ class ModelLadder {
   std::vector<double> quantile_;
   double gross_u2_, max_rejected_fraction_;
 };
+
+inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
+  using Action = LadderStep::Action;
+  const PixelFit& lambertian = *fits.lambertian;
+  switch (method_) {
+    case Method::kL2:
+    case Method::kLambertian: return Keep(lambertian);
+    case Method::kRobust:
+      if (!fits.robust) return {Action::kReweight};
+      return Keep(*fits.robust);
+    case Method::kBlinnPhong:
+      if (!fits.robust) return {Action::kTrim};
+      if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, fits.robust->ok ? fits.robust : &lambertian};
+      return Keep(*fits.blinn_phong);
+    case Method::kAuto: break;
+  }
+  // A richer model is fitted only where the samples can tell it apart: with
+  // no sample to spare nothing can be tested or trimmed.
+  if (Adequate(lambertian) || !(lambertian.Dof() > 0)) return Keep(lambertian);
+  if (!fits.lit) return {Action::kRefitLit};
+  if (Adequate(*fits.lit)) return Keep(*fits.lit);
+  if (!fits.robust) return {Action::kTrim};
+  if (Adequate(*fits.robust)) return Keep(*fits.robust);  // it trimmed at most its allowance
+  if (lambertian.used <= kBlinnPhongParameters) return Keep(lambertian);
+  if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, fits.robust->ok ? fits.robust : &lambertian};
+  // Neither simple model is adequate: the information criterion decides
+  // between the models fitted to all usable samples.
+  const PixelFit& lobe = *fits.blinn_phong;
+  return Keep(lobe.ok && lobe.Bic() < fits.lobe_lambertian->Bic() ? lobe : *fits.lobe_lambertian);
+}
 
 }  // namespace photorig::ps::internal

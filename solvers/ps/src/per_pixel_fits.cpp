@@ -241,29 +241,34 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
   using Action = LadderStep::Action;
   PixelSamples& s = scratch->samples;
   reader_.Usable(pixel, &s);
+  const PixelFit lambertian = LambertianFromX(s, x);
+  PixelFit lit, robust, blinn_phong;
   LadderFits fits;
-  fits.lambertian = LambertianFromX(s, x);
+  fits.lambertian = &lambertian;
   for (;;) {
     const LadderStep step = ladder_.Next(fits);
     switch (step.action) {
       case Action::kKeep: return *step.keep;
-      case Action::kRefitLit: {
-        PixelFit lit;  // ok stays false where no refit stands
-        FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);
-        fits.lit = lit;
+      case Action::kRefitLit:
+        FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);  // ok stays false without one
+        fits.lit = &lit;
         break;
-      }
-      case Action::kTrim: fits.robust = FitTrimmed(s, ladder_, &scratch->trim); break;
+      case Action::kTrim:
+        robust = FitTrimmed(s, ladder_, &scratch->trim);
+        fits.robust = &robust;
+        break;
       case Action::kReweight: {
         const RobustProblem problem{s.row_observed.data(), s.row_inverse_sigma.data(), x};
         RobustSolution solution;
         irls->Fit({&problem, 1}, {&solution, 1});
-        fits.robust = IrlsFit(solution);
+        robust = IrlsFit(solution);
+        fits.robust = &robust;
         break;
       }
       case Action::kFitLobe:
-        fits.lobe = LadderFits::Lobe{FitBlinnPhong(s, view_, *step.start, blinn_phong_, &scratch->tape),
-                                     fits.lambertian};
+        blinn_phong = FitBlinnPhong(s, view_, *step.start, blinn_phong_, &scratch->tape);
+        fits.blinn_phong = &blinn_phong;
+        fits.lobe_lambertian = &lambertian;
         break;
     }
   }
