@@ -3,10 +3,10 @@
 // against known outliers, IRLS against a plain implementation of the same
 // iteration, and `auto` in lanes against the per-pixel reference.
 #include "kernels/blinn_phong_fit.h"
-#include "lambertian_tiles.h"
-#include "kernels/lane_math.h"
 #include "kernels/irls_lambertian_fit.h"
+#include "kernels/lane_math.h"
 #include "kernels/trimmed_lambertian_fit.h"
+#include "lambertian_tiles.h"
 
 #include "photorig/autodiff/blinn_phong_jacobian.h"
 #include "ps_test_scene.h"
