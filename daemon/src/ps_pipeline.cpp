@@ -269,9 +269,14 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
       }
     }
 
-    if (!input.truth_normals.empty()) {
-      cv::Mat error_deg;
-      result.normals_vs_truth = ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
+    cv::Mat error_deg;
+    const ps::AngularErrorStats vs_truth =
+        input.truth_normals.empty() ? ps::AngularErrorStats{}
+                                    : ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
+    if (!input.truth_normals.empty() && !vs_truth.IsSolutionUsable()) {
+      spdlog::warn("{}: ground-truth normals not compared: {}", input.source, vs_truth.message);
+    } else if (!input.truth_normals.empty()) {  // compared: error map and figures
+      result.normals_vs_truth = vs_truth;
       WriteFloatTiff((out / "angular_error.tiff").string(), error_deg);
       if (!input.truth_albedo.empty()) {
         cv::Mat relative;

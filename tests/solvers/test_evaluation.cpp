@@ -39,6 +39,10 @@ TEST(CompareNormals, SmallAnglesKeepTheirPrecision) {
   cv::Mat estimate(1, 1, CV_32FC3);
   estimate.at<cv::Vec3f>(0, 0) = Tilted(0.001);
   EXPECT_NEAR(CompareNormals(estimate, truth).mean_deg, 0.001, 1e-5);
+  // Maps that cannot be compared say so instead of throwing.
+  const AngularErrorStats mismatched = CompareNormals(estimate, cv::Mat(2, 2, CV_32FC3));
+  EXPECT_EQ(mismatched.termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(mismatched.pixels_with_truth, 0u);
 }
 
 }  // namespace

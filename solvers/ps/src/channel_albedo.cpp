@@ -23,12 +23,16 @@ SolverSummary SolveChannelAlbedo(const ChannelAlbedoOptions& options, const Phot
   SolverSummary summary;
   summary.method = "channel-albedo";
   std::string why;
-  if (!options.IsValid(&why) || !channel.IsValid(&why)) {
-    summary.message = why;
+  if (!options.IsValid(&why)) {
+    summary.End(Termination::kInvalidOptions, "invalid options: " + why);
+    return summary;
+  }
+  if (!channel.IsValid(&why)) {
+    summary.End(Termination::kInvalidInput, "invalid stack: " + why);
     return summary;
   }
   if (normals.type() != CV_32FC3 || normals.rows != channel.height() || normals.cols != channel.width()) {
-    summary.message = "normals must be CV_32FC3 of the stack's size";
+    summary.End(Termination::kInvalidInput, "normals must be CV_32FC3 of the stack's size");
     return summary;
   }
   const int width = channel.width(), height = channel.height(), lights = channel.light_count();

@@ -3,16 +3,18 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <stdexcept>
 #include <vector>
 
 namespace photorig::ps {
 
 AngularErrorStats CompareNormals(const cv::Mat& estimate, const cv::Mat& truth, const cv::Mat& mask,
                                  cv::Mat* error_deg) {
-  if (estimate.type() != CV_32FC3 || truth.type() != CV_32FC3 || estimate.size() != truth.size())
-    throw std::invalid_argument("CompareNormals: both normal maps must be CV_32FC3 of the same size");
+  const solvers::SolveTimer timer;
   AngularErrorStats stats;
+  if (estimate.type() != CV_32FC3 || truth.type() != CV_32FC3 || estimate.size() != truth.size()) {
+    stats.End(solvers::Termination::kInvalidInput, "both normal maps must be CV_32FC3 of the same size");
+    return stats;
+  }
   std::vector<double> errors;
   errors.reserve(estimate.total());
   if (error_deg) {
@@ -41,7 +43,11 @@ AngularErrorStats CompareNormals(const cv::Mat& estimate, const cv::Mat& truth, 
     }
   }
   stats.pixels_evaluated = errors.size();
-  if (errors.empty()) return stats;
+  if (errors.empty()) {
+    stats.End(solvers::Termination::kSuccess, "no pixel has both a normal and a ground truth");
+    timer.Finish(&stats);
+    return stats;
+  }
   double sum = 0.0;
   std::size_t under5 = 0, under10 = 0, under15 = 0;
   for (double angle : errors) {
@@ -62,6 +68,8 @@ AngularErrorStats CompareNormals(const cv::Mat& estimate, const cv::Mat& truth, 
   if (errors.size() % 2 == 0) {
     stats.median_deg = 0.5 * (stats.median_deg + *std::max_element(errors.begin(), middle));
   }
+  stats.End(solvers::Termination::kSuccess, "");
+  timer.Finish(&stats);
   return stats;
 }
 

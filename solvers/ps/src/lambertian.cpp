@@ -789,27 +789,28 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
   summary.light_count = stack.light_count();
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.message = "invalid options: " + why;
+    summary.End(Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   if (!stack.IsValid(&why)) {
-    summary.message = "invalid stack: " + why;
+    summary.End(Termination::kInvalidInput, "invalid stack: " + why);
     return summary;
   }
   const int k = stack.light_count();
   if (k < 3) {
-    summary.message = "photometric stereo needs at least 3 lights, got " + std::to_string(k);
+    summary.End(Termination::kInvalidInput, "photometric stereo needs at least 3 lights, got " + std::to_string(k));
     return summary;
   }
   if (k > kMaxLights) {
-    summary.message = "at most " + std::to_string(kMaxLights) + " lights are supported, got " +
-                      std::to_string(k);
+    summary.End(Termination::kInvalidInput, "at most " + std::to_string(kMaxLights) + " lights are supported, got " +
+                                                std::to_string(k));
     return summary;
   }
 
   const GlobalSolver global = BuildGlobalSolver(stack);
   summary.condition_number = global.condition_number;
   if (!(global.condition_number <= options.max_condition_number)) {
+    summary.termination = Termination::kFailure;
     summary.message = "light directions are coplanar or nearly so (condition number " +
                       std::to_string(global.condition_number) + " > " +
                       std::to_string(options.max_condition_number) + ")";

@@ -28,7 +28,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   if (!options.IsValid(&why)) {
     SolverSummary summary;
     summary.method = MethodName(options.method);
-    summary.message = "invalid options: " + why;
+    summary.End(Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   LambertianOptions lambertian = options.lambertian;
@@ -46,6 +46,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   if (!lambertian.IsValid(&why)) {
     SolverSummary summary;
     summary.method = MethodName(options.method);
+    summary.termination = Termination::kInvalidOptions;
     summary.message = "invalid options: " + why + " (the shadow threshold was raised to " +
                       std::to_string(options.shadow_threshold_read_sigmas) + " read-noise sigmas, " +
                       std::to_string(lambertian.shadow_threshold) + ")";

@@ -3,12 +3,14 @@
 // photometric-stereo literature reports (DiLiGenT: mean angular error).
 
 #include "photorig/ps/stack.h"
+#include "photorig/solvers/summary.h"
 
 #include <cstddef>
 
 namespace photorig::ps {
 
-struct AngularErrorStats {
+// kSuccess, or kInvalidInput (maps of other types or sizes; every figure 0).
+struct AngularErrorStats : solvers::Summary {
   std::size_t pixels_with_truth = 0;   // ground truth defined (finite, non-zero)
   std::size_t pixels_evaluated = 0;    // ... and the estimate has a normal
   std::size_t pixels_unresolved = 0;   // ... but the estimate has none (flagged)
