@@ -76,6 +76,13 @@ TEST(FiniteDifferenceTest, StepIsRelativeForLargeInputs) {
   ASSERT_TRUE(FiniteDifferenceJacobian(Square(), &x, {}, &value, &jacobian));
   // An absolute step of cbrt(eps) would leave an error of ~eps x^2 / h ~ 40 here.
   EXPECT_NEAR(jacobian(0, 0), 2e6, 1e-9 * 2e6);
+  // A negative step is not a step: refused before any evaluation.
+  FiniteDifferenceOptions negative;
+  negative.relative_step = -1e-6;
+  std::string why;
+  EXPECT_FALSE(negative.IsValid(&why));
+  EXPECT_NE(why.find("relative_step"), std::string::npos);
+  EXPECT_FALSE(FiniteDifferenceJacobian(Square(), &x, negative, &value, &jacobian));
 }
 
 TEST(FiniteDifferenceTest, FailedEvaluationIsReported) {

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -29,6 +30,13 @@ struct FiniteDifferenceOptions {
   DifferenceScheme scheme = DifferenceScheme::kCentral;
   // The step for input j is relative_step * max(1, |x_j|); 0 selects DefaultRelativeStep(scheme).
   double relative_step = 0.0;
+  bool IsValid(std::string* why) const {
+    if (!(relative_step >= 0.0 && relative_step < 1.0)) {
+      if (why) *why = "relative_step must be in [0, 1) (0: the scheme's default)";
+      return false;
+    }
+    return true;
+  }
 };
 
 // sqrt(eps) for forward differences, cbrt(eps) for central ones (see the top of this file).
@@ -38,11 +46,13 @@ inline double DefaultRelativeStep(DifferenceScheme scheme) {
 }
 
 // Value and Jacobian by finite differences: num_inputs + 1 evaluations (forward) or
-// 2 num_inputs + 1 (central). Returns false, leaving the outputs unspecified, if any evaluation
-// fails (for instance a step that crosses into an invalid region).
+// 2 num_inputs + 1 (central). Returns false, leaving the outputs unspecified, if the options are
+// invalid or any evaluation fails (for instance a step that crosses into an invalid region). An
+// evaluation, not a solve: it reports with a bool like the functions it differentiates.
 template <DifferentiableFunction F>
 bool FiniteDifferenceJacobian(const F& f, const double* x, const FiniteDifferenceOptions& options,
                               Eigen::VectorXd* value, Eigen::MatrixXd* jacobian) {
+  if (!options.IsValid(nullptr)) return false;
   const int num_inputs = f.num_inputs();
   const int num_outputs = f.num_outputs();
   const double relative_step =
