@@ -229,7 +229,8 @@ json ToJson(const PhotometricStereoResult& result) {
                    {"rejected_by_model", summary.pixels_rejected_by_model}}},
                  {"models",
                   {{"lambertian", summary.pixels_lambertian},
-                   {"robust", summary.pixels_robust},
+                   {"trimmed", summary.pixels_trimmed},
+                   {"irls", summary.pixels_irls},
                    {"blinn_phong", summary.pixels_blinn_phong}}},
                  {"samples_rejected", summary.samples_rejected},
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets},
@@ -283,7 +284,7 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
     WriteImage((out / "albedo.png").string(), ScalarToGray8(map.albedo, 1.0));
     WriteImage((out / "mask.png").string(), solved);
     WriteImage((out / "flags.png").string(), map.flags);
-    WriteImage((out / "model.png").string(), map.model * 80);
+    WriteImage((out / "model.png").string(), map.model * 60);
     WriteFloatTiff((out / "confidence.tiff").string(), map.confidence);
     cv::Mat specular;
     cv::Mat channels[] = {cv::Mat(), cv::Mat(), cv::Mat::zeros(map.specular.size(), CV_32F)};

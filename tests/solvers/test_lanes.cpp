@@ -2,11 +2,11 @@
 // derivatives against forward-mode automatic differentiation, the trimming
 // against known outliers, IRLS against a plain implementation of the same
 // iteration, and `auto` in lanes against the per-pixel reference.
-#include "blinn_phong_lanes.h"
+#include "kernels/blinn_phong_fit.h"
 #include "lambertian_tiles.h"
-#include "lane_math.h"
-#include "robust_lanes.h"
-#include "trim_lanes.h"
+#include "kernels/lane_math.h"
+#include "kernels/irls_lambertian_fit.h"
+#include "kernels/trimmed_lambertian_fit.h"
 
 #include "photorig/autodiff/blinn_phong_jacobian.h"
 #include "ps_test_scene.h"
@@ -396,7 +396,7 @@ TEST(TrimmedLambertianLanes, SolvesPixelsWhateverTheScaleOfTheirWeights) {
 }
 
 // IRLS written the plain way, one pixel, usable samples only: the iteration
-// robust_lanes.h documents.
+// irls_lambertian_fit.h documents.
 internal::RobustSolution PlainIrls(const std::vector<Eigen::Vector3d>& lights, const double* observed,
                                    const double* inverse_sigma, Eigen::Vector3d x, const RobustOptions& options) {
   std::vector<int> usable;
@@ -530,10 +530,10 @@ void ExpectAutoLanesMatchThePerPixelReference(const PhotometricStack& stack) {
   const SolverSummary reference = SolvePhotometricStereo(reference_options, stack, &reference_map);
   ASSERT_TRUE(lanes.IsSolutionUsable()) << lanes.message;
   ASSERT_TRUE(reference.IsSolutionUsable()) << reference.message;
-  ASSERT_GT(reference.pixels_robust, 50u);
+  ASSERT_GT(reference.pixels_trimmed, 50u);
   ASSERT_GT(reference.pixels_blinn_phong, 50u);
   const double pixels = double(reference.pixels_solved);
-  EXPECT_LE(std::abs(double(lanes.pixels_robust) - double(reference.pixels_robust)), 0.005 * pixels);
+  EXPECT_LE(std::abs(double(lanes.pixels_trimmed) - double(reference.pixels_trimmed)), 0.005 * pixels);
   EXPECT_LE(std::abs(double(lanes.pixels_blinn_phong) - double(reference.pixels_blinn_phong)), 0.01 * pixels);
   int same_model = 0, trimmed = 0;
   for (int p = 0; p < stack.width() * stack.height(); ++p) {
@@ -541,7 +541,7 @@ void ExpectAutoLanesMatchThePerPixelReference(const PhotometricStack& stack) {
     if (model != reference_map.model.ptr<std::uint8_t>()[p]) continue;
     ++same_model;
     const cv::Vec3f a = lanes_map.normals.ptr<cv::Vec3f>()[p], b = reference_map.normals.ptr<cv::Vec3f>()[p];
-    if (model == static_cast<std::uint8_t>(PixelModel::kRobust)) {
+    if (model == static_cast<std::uint8_t>(PixelModel::kTrimmed)) {
       ++trimmed;
       EXPECT_LT(AngleDeg(a, b), 1e-3) << "pixel " << p;  // the same algorithm
     } else if (model == static_cast<std::uint8_t>(PixelModel::kBlinnPhong) &&

@@ -1,6 +1,6 @@
 #include "photorig/ps/lambertian.h"
 #include "lambertian_tiles.h"
-#include "lane_math.h"
+#include "kernels/lane_math.h"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>

@@ -50,8 +50,9 @@ const char* PixelModelName(PixelModel model) {
   switch (model) {
     case PixelModel::kNone: return "none";
     case PixelModel::kLambertian: return "lambertian";
-    case PixelModel::kRobust: return "robust";
+    case PixelModel::kTrimmed: return "trimmed";
     case PixelModel::kBlinnPhong: return "blinn_phong";
+    case PixelModel::kIrls: return "irls";
   }
   return "unknown";
 }

@@ -4,8 +4,8 @@
 //   normals.tiff        float (x, y, z), NaN where unsolved; normals.png 8-bit view, RGB = (n + 1) / 2
 //   albedo.tiff         float diffuse albedo; albedo.png 8-bit view
 //   mask.png            255 where a normal was solved; flags.png per-pixel PixelFlag code
-//   model.png           chosen reflectance model per pixel (PixelModel code x 80: 80 Lambertian,
-//                       160 robust, 240 Blinn-Phong), confidence.tiff (0..1)
+//   model.png           chosen reflectance model per pixel (PixelModel code x 60: 60 Lambertian,
+//                       120 trimmed, 180 Blinn-Phong, 240 IRLS), confidence.tiff (0..1)
 //   specular.tiff       (rho_s, exponent, 0) where Blinn-Phong was chosen
 //   depth.tiff, mesh.ply   integrated depth (units of the pixel pitch) and its triangle mesh
 //   angular_error.tiff  degrees, when ground truth exists

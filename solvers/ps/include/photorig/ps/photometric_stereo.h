@@ -15,7 +15,7 @@
 //   kAuto        per pixel: kLambertian if its residual is at the noise level
 //                (chi-square test), or once refitted without usable samples
 //                the fit itself puts in attached shadow; else Lambertian with
-//                the worst samples trimmed greedily (reported as kRobust) if
+//                the worst samples trimmed greedily (reported as PixelModel::kTrimmed) if
 //                that is adequate while rejecting few samples, else
 //                kBlinnPhong; the Bayesian information criterion decides
 //                between inadequate fits.
@@ -77,8 +77,8 @@ struct ModelSelectionOptions {
   // A fit is adequate when its chi-square statistic is below this quantile of
   // the chi-square distribution with n - p degrees of freedom.
   double adequacy_quantile = 0.999;
-  // kAuto prefers kRobust over kBlinnPhong only when it rejects at most this
-  // fraction of a pixel's usable samples.
+  // kAuto prefers the trimmed Lambertian fit over kBlinnPhong only when it
+  // rejects at most this fraction of a pixel's usable samples.
   double max_rejected_fraction = 0.25;
   // Trimming drops samples beyond this many noise sigmas together, with every
   // sample within a factor 2 of the worst residual, in one round (otherwise

@@ -66,8 +66,9 @@ const char* PixelFlagName(PixelFlag flag);
 enum class PixelModel : std::uint8_t {
   kNone = 0,        // no normal (see flags)
   kLambertian = 1,  // least squares on the unshadowed, unsaturated samples
-  kRobust = 2,      // Lambertian with outlying samples down-weighted (IRLS)
-  kBlinnPhong = 3   // diffuse + normalised Blinn-Phong lobe
+  kTrimmed = 2,     // Lambertian with its worst samples left out (`auto`'s trimming)
+  kBlinnPhong = 3,  // diffuse + normalised Blinn-Phong lobe
+  kIrls = 4         // Lambertian with outlying samples down-weighted (IRLS, the `robust` method)
 };
 const char* PixelModelName(PixelModel model);
 

@@ -29,7 +29,8 @@ struct SolverSummary : solvers::Summary {
   std::size_t pixels_on_light_subsets = 0;  // solved on their usable samples only (some shadowed or clipped)
   // Pixels explained by each model (kAuto's choices; one model for the others).
   std::size_t pixels_lambertian = 0;
-  std::size_t pixels_robust = 0;
+  std::size_t pixels_trimmed = 0;  // Lambertian with its worst samples left out
+  std::size_t pixels_irls = 0;     // Lambertian by iteratively reweighted least squares
   std::size_t pixels_blinn_phong = 0;
   // Whether the noise model used by the adequacy tests was (partly) estimated
   // from the residuals rather than given with the stack.

@@ -10,10 +10,10 @@
 // the next pixel, the others drop the samples TrimThreshold picks (their
 // normal equations summed again over the samples kept) and go round again.
 // A lane that would have to drop more than it may hands over its inadequate
-// fit. FitTrimmed in photometric_stereo.cpp is the same stage in double, one
+// fit. FitTrimmed in per_pixel_fits.cpp is the same stage in double, one
 // pixel at a time.
 
-#include "plane_lanes.h"
+#include "plane_samples.h"
 
 #include <Eigen/Core>
 
@@ -65,7 +65,7 @@ class TrimmedLambertianLanes {
   void Fit(std::span<const float> rows, std::span<const double> chi2_quantile, std::span<TrimSolution> solutions);
 
  private:
-  struct State;  // lane registers, in trim_lanes.cpp
+  struct State;  // lane registers, in trimmed_lambertian_fit.cpp
 
   PlaneSamples samples_;
   double gross_u2_, max_rejected_fraction_;

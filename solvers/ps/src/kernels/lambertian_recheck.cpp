@@ -1,4 +1,4 @@
-#include "recheck_lanes.h"
+#include "lambertian_recheck.h"
 #include "lane_math.h"
 
 #include <algorithm>

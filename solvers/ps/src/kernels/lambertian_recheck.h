@@ -4,11 +4,11 @@
 // adequacy test of the Lambertian pass's fit (chi-square with every sample's
 // own variance, where the screen used their average) and, where that fit
 // leaves usable samples in attached shadow, one refit without them (FitLit in
-// photometric_stereo.cpp is the same test in double, one pixel at a time).
+// per_pixel_fits.cpp is the same test in double, one pixel at a time).
 // On a matte object nearly every doubtful pixel is settled here, so only the
 // rest has its samples copied out for the lane fitters.
 
-#include "plane_lanes.h"
+#include "plane_samples.h"
 
 #include <Eigen/Core>
 

@@ -1,7 +1,7 @@
 #pragma once
-// What the Lambertian lane fitters (trim_lanes, robust_lanes) share: the
-// lights as plain arrays for their kernels, and each lane's weighted 3 x 3
-// normal equations.
+// What the Lambertian lane fitters (trimmed_lambertian_fit, irls_lambertian_fit)
+// share: the lights as plain arrays for their kernels, and each lane's
+// weighted 3 x 3 normal equations.
 
 #include "lane_math.h"
 

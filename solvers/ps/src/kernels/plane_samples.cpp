@@ -1,4 +1,4 @@
-#include "plane_lanes.h"
+#include "plane_samples.h"
 
 #include <cmath>
 #include <limits>

@@ -1,6 +1,6 @@
-#include "robust_lanes.h"
+#include "irls_lambertian_fit.h"
 
-#include "lane_least_squares.h"
+#include "normal_equations.h"
 
 #include <Eigen/Cholesky>
 

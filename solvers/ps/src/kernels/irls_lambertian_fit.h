@@ -52,7 +52,7 @@ class RobustLambertianLanes {
   void Fit(std::span<const RobustProblem> problems, std::span<RobustSolution> solutions);
 
  private:
-  struct State;  // lane registers, in robust_lanes.cpp
+  struct State;  // lane registers, in irls_lambertian_fit.cpp
 
   void Load(int lane, const RobustProblem& problem);
 

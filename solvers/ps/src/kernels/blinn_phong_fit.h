@@ -95,7 +95,7 @@ class BlinnPhongLaneFitter {
                           double specular_albedo, double exponent);
 
  private:
-  struct State;  // lane registers, in blinn_phong_lanes.cpp
+  struct State;  // lane registers, in blinn_phong_fit.cpp
 
   // Every problem's start material, kFloatLanes problems per pass.
   void GridStarts(std::span<const BlinnPhongProblem> problems);

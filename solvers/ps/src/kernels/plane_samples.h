@@ -1,7 +1,7 @@
 #pragma once
 // What the float lane kernels that read samples from a stack's planes share
-// (recheck_lanes, trim_lanes): the stack's planes, lights, thresholds and
-// noise as float arrays, and the test of a sample against them.
+// (lambertian_recheck, trimmed_lambertian_fit): the stack's planes, lights,
+// thresholds and noise as float arrays, and the test of a sample against them.
 
 #include "lane_math.h"
 #include "photorig/ps/lambertian.h"

@@ -1,4 +1,4 @@
-#include "blinn_phong_lanes.h"
+#include "blinn_phong_fit.h"
 
 #include "lane_math.h"
 

@@ -1,4 +1,4 @@
-#include "trim_lanes.h"
+#include "trimmed_lambertian_fit.h"
 
 #include <cmath>
 #include <limits>

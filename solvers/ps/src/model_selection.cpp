@@ -1,0 +1,45 @@
+#include "model_selection.h"
+
+#include <cmath>
+#include <limits>
+
+namespace photorig::ps::internal {
+namespace {
+
+double InverseNormalCdf(double p) {
+  // Bisection on the CDF: called once per solve, so speed is irrelevant.
+  double lo = -10.0, hi = 10.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+}  // namespace
+
+std::vector<double> ChiSquareQuantiles(int max_dof, double p) {
+  const double z = InverseNormalCdf(p);
+  std::vector<double> quantile(max_dof + 1, 0.0);
+  for (int dof = 1; dof <= max_dof; ++dof) {
+    const double v = dof, t = 1.0 - 2.0 / (9.0 * v) + z * std::sqrt(2.0 / (9.0 * v));
+    quantile[dof] = v * t * t * t;
+  }
+  return quantile;
+}
+
+ModelLadder::ModelLadder(Method method, const ModelSelectionOptions& options, int lights)
+    : method_(method),
+      quantile_(ChiSquareQuantiles(lights, options.adequacy_quantile)),
+      gross_u2_(options.gross_outlier_sigma * options.gross_outlier_sigma),
+      max_rejected_fraction_(options.max_rejected_fraction) {}
+
+std::vector<float> ModelLadder::ScreenThresholds() const {
+  const int lights = static_cast<int>(quantile_.size()) - 1;
+  std::vector<float> threshold(lights + 1, std::numeric_limits<float>::infinity());
+  if (method_ == Method::kAuto)
+    for (int dof = 1; dof + 3 <= lights; ++dof) threshold[dof + 3] = static_cast<float>(dof / quantile_[dof]);
+  return threshold;
+}
+
+}  // namespace photorig::ps::internal

@@ -1,0 +1,172 @@
+#pragma once
+// Model selection: the record of one model's fit of a pixel, when a fit
+// explains the pixel (chi-square against the noise), how two fits compare
+// (the Bayesian information criterion), and the ladder of `auto` (and of the
+// single-model methods) from the Lambertian pass's fit to the model kept.
+// The per-pixel reference (per_pixel_fits.cpp) and the lane stages
+// (tile_refiner.cpp) both climb it through ModelLadder::Next.
+
+#include "photorig/ps/photometric_stereo.h"
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace photorig::ps::internal {
+
+// Quantile p of the chi-square distribution for 0..max_dof degrees of
+// freedom, by Wilson-Hilferty: accurate to a few per cent for dof >= 3, plenty
+// for a test threshold. Entry 0 is 0.
+std::vector<double> ChiSquareQuantiles(int max_dof, double p);
+
+// The normal's two degrees of freedom, rho_d, rho_s and e.
+inline constexpr int kBlinnPhongParameters = 5;
+
+// One model's fit of one pixel.
+struct PixelFit {
+  bool ok = false;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  double albedo = 0.0;
+  double specular_albedo = 0.0, exponent = 0.0;
+  double chi2 = 0.0;     // sum of squared residuals over variance, on the samples used
+  int parameters = 3;
+  int used = 0;          // samples with weight >= inlier threshold (all for least squares)
+  int rejected = 0;
+  PixelModel model = PixelModel::kLambertian;
+
+  double Bic() const { return chi2 + parameters * std::log(std::max(used, 1)); }
+  int Dof() const { return used - parameters; }
+};
+
+// The Lambertian fit x of a pixel with its chi-square on `used` samples,
+// `rejected` of its usable ones left out.
+inline PixelFit LambertianFit(const Eigen::Vector3d& x, double chi2, int used, int rejected) {
+  PixelFit fit;
+  const double length = x.norm();
+  fit.ok = length > 0.0;
+  fit.normal = fit.ok ? Eigen::Vector3d(x / length) : x;  // as x.normalized()
+  fit.albedo = M_PI * length;
+  fit.chi2 = chi2;
+  fit.used = used;
+  fit.rejected = rejected;
+  return fit;
+}
+
+// The fits a pixel's climb has made so far, owned by the caller. Null: not
+// fitted yet; kNoFit (or any fit with ok false): fitted, without an answer.
+struct LadderFits {
+  // The Lambertian fit on the usable samples, tested exactly. Never null.
+  const PixelFit* lambertian = nullptr;
+  // The same refitted without the usable samples it puts in attached shadow.
+  const PixelFit* lit = nullptr;
+  // Trimmed (`auto`, `blinn-phong`) or iteratively reweighted (`robust`).
+  const PixelFit* robust = nullptr;
+  // The Blinn-Phong fit, and the Lambertian fit on the samples it was fitted
+  // to, which the information criterion weighs it against. (The lane stages
+  // read those samples again in double; their `lambertian` was tested on the
+  // float recheck's sums.) Both or neither.
+  const PixelFit* blinn_phong = nullptr;
+  const PixelFit* lobe_lambertian = nullptr;
+};
+inline const PixelFit kNoFit{};
+
+// What a pixel's climb does next.
+struct LadderStep {
+  enum class Action {
+    kKeep,        // `keep` is the pixel's answer
+    kRefitLit,    // fit LadderFits::lit
+    kTrim,        // fit LadderFits::robust by trimming
+    kReweight,    // fit LadderFits::robust by IRLS
+    kFitLobe      // fit LadderFits::blinn_phong, starting from `start`
+  };
+  Action action = Action::kKeep;
+  const PixelFit* keep = nullptr;   // kKeep: one of the fits asked about
+  const PixelFit* start = nullptr;  // kFitLobe: the normal and albedo to start from
+};
+
+class ModelLadder {
+ public:
+  // lights: the stack's light count (the largest sample count a pixel has).
+  ModelLadder(Method method, const ModelSelectionOptions& options, int lights);
+
+  // The fit's chi-square is below the adequacy quantile for its degrees of
+  // freedom: its residual is at the noise level.
+  bool Adequate(const PixelFit& fit) const {
+    return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile_[fit.Dof()];
+  }
+
+  // The ladder itself. For `auto`, per pixel:
+  //   1. the Lambertian fit, if adequate, or if no sample is left to test or
+  //      trim (3 usable);
+  //   2. else its refit without the samples it puts in attached shadow, if
+  //      adequate;
+  //   3. else the trimmed fit, if adequate (trimming drops at most
+  //      max_rejected_fraction of the samples);
+  //   4. else, with no more samples than the lobe has parameters, the
+  //      Lambertian fit (a lobe would pass through every sample);
+  //   5. else the Blinn-Phong fit from the trimmed one (or the Lambertian fit
+  //      where trimming failed), kept if its information criterion is lower.
+  // `robust` keeps the IRLS fit, `blinn-phong` the lobe fitted from the
+  // trimmed fit, `lambertian` and `l2` the Lambertian fit.
+  // Inline: the lane stages ask it once per pixel and stage, with most of
+  // `fits` known where they call.
+  inline LadderStep Next(const LadderFits& fits) const;
+
+  // Per usable sample count, the Lambertian pass's confidence at or above
+  // which a pixel passes step 1 without a closer look (infinity where none
+  // does, and for every count unless the method is `auto`): the confidence is
+  // dof / chi-square with the noise variance averaged over the samples, so
+  // the threshold is dof / quantile[dof]. (The exact test weights each sample
+  // by its own variance; the two differ only near the threshold.) Float, as
+  // the confidence is.
+  std::vector<float> ScreenThresholds() const;
+
+  // The adequacy quantile per degree of freedom, 0..lights.
+  const std::vector<double>& quantiles() const { return quantile_; }
+  // Trimming drops samples beyond this squared number of sigmas together.
+  double gross_u2() const { return gross_u2_; }
+  // At most this many of `usable` samples may be trimmed.
+  int MaxRejected(int usable) const { return static_cast<int>(max_rejected_fraction_ * usable); }
+  Method method() const { return method_; }
+
+ private:
+  static LadderStep Keep(const PixelFit& fit) { return {LadderStep::Action::kKeep, &fit, nullptr}; }
+
+  Method method_;
+  std::vector<double> quantile_;
+  double gross_u2_, max_rejected_fraction_;
+};
+
+inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
+  using Action = LadderStep::Action;
+  const PixelFit& lambertian = *fits.lambertian;
+  switch (method_) {
+    case Method::kL2:
+    case Method::kLambertian: return Keep(lambertian);
+    case Method::kRobust:
+      if (!fits.robust) return {Action::kReweight};
+      return Keep(*fits.robust);
+    case Method::kBlinnPhong:
+      if (!fits.robust) return {Action::kTrim};
+      if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, fits.robust->ok ? fits.robust : &lambertian};
+      return Keep(*fits.blinn_phong);
+    case Method::kAuto: break;
+  }
+  // A richer model is fitted only where the samples can tell it apart: with
+  // no sample to spare nothing can be tested or trimmed.
+  if (Adequate(lambertian) || !(lambertian.Dof() > 0)) return Keep(lambertian);
+  if (!fits.lit) return {Action::kRefitLit};
+  if (Adequate(*fits.lit)) return Keep(*fits.lit);
+  if (!fits.robust) return {Action::kTrim};
+  if (Adequate(*fits.robust)) return Keep(*fits.robust);  // it trimmed at most its allowance
+  if (lambertian.used <= kBlinnPhongParameters) return Keep(lambertian);
+  if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, fits.robust->ok ? fits.robust : &lambertian};
+  // Neither simple model is adequate: the information criterion decides
+  // between the models fitted to all usable samples.
+  const PixelFit& lobe = *fits.blinn_phong;
+  return Keep(lobe.ok && lobe.Bic() < fits.lobe_lambertian->Bic() ? lobe : *fits.lobe_lambertian);
+}
+
+}  // namespace photorig::ps::internal

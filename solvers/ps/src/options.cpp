@@ -1,0 +1,72 @@
+// The options of SolvePhotometricStereo: method names and validation.
+#include "photorig/ps/photometric_stereo.h"
+
+#include <cmath>
+
+namespace photorig::ps {
+
+const char* MethodName(Method method) {
+  switch (method) {
+    case Method::kL2: return "l2";
+    case Method::kLambertian: return "lambertian";
+    case Method::kRobust: return "robust";
+    case Method::kBlinnPhong: return "blinn-phong";
+    case Method::kAuto: return "auto";
+  }
+  return "unknown";
+}
+
+bool ParseMethod(const std::string& name, Method* method) {
+  for (Method m : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
+    if (name == MethodName(m)) {
+      *method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool RobustOptions::IsValid(std::string* why) const {
+  auto fail = [why](const char* text) {
+    if (why) *why = text;
+    return false;
+  };
+  if (warmup_iterations < 0 || max_iterations < 1) return fail("robust: iterations must be >= 0 (warm-up) and >= 1");
+  if (!(relative_tolerance > 0.0)) return fail("robust: relative_tolerance must be > 0");
+  if (!(inlier_weight > 0.0 && inlier_weight < 1.0)) return fail("robust: inlier_weight must be in (0, 1)");
+  return true;
+}
+
+bool BlinnPhongOptions::IsValid(std::string* why) const {
+  auto fail = [why](const char* text) {
+    if (why) *why = text;
+    return false;
+  };
+  if (max_iterations < 1) return fail("blinn_phong: max_iterations must be >= 1");
+  if (!(relative_tolerance > 0.0 && relative_tolerance < 1.0)) return fail("blinn_phong: relative_tolerance must be in (0, 1)");
+  if (!(min_exponent > 0.0 && min_exponent < max_exponent)) return fail("blinn_phong: need 0 < min_exponent < max_exponent");
+  return true;
+}
+
+bool ModelSelectionOptions::IsValid(std::string* why) const {
+  auto fail = [why](const char* text) {
+    if (why) *why = text;
+    return false;
+  };
+  if (!(adequacy_quantile > 0.5 && adequacy_quantile < 1.0)) return fail("selection: adequacy_quantile must be in (0.5, 1)");
+  if (!(max_rejected_fraction >= 0.0 && max_rejected_fraction < 1.0))
+    return fail("selection: max_rejected_fraction must be in [0, 1)");
+  if (!(gross_outlier_sigma > 0.0) || !std::isfinite(gross_outlier_sigma))
+    return fail("selection: gross_outlier_sigma must be finite and > 0");
+  return true;
+}
+
+bool PhotometricStereoOptions::IsValid(std::string* why) const {
+  if (!(shadow_threshold_read_sigmas >= 0.0) || !std::isfinite(shadow_threshold_read_sigmas)) {
+    if (why) *why = "shadow_threshold_read_sigmas must be finite and >= 0";
+    return false;
+  }
+  return lambertian.IsValid(why) && robust.IsValid(why) && blinn_phong.IsValid(why) && selection.IsValid(why);
+}
+
+}  // namespace photorig::ps

@@ -1,0 +1,277 @@
+#include "per_pixel_fits.h"
+
+#include "kernels/blinn_phong_fit.h"
+#include "kernels/trimmed_lambertian_fit.h"
+
+#include "photorig/autodiff/blinn_phong_jacobian.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+
+namespace photorig::ps::internal {
+
+PixelFit IrlsFit(const RobustSolution& solution) {
+  PixelFit fit;
+  fit.model = PixelModel::kIrls;
+  fit.ok = solution.ok;
+  if (!fit.ok) return fit;
+  fit.normal = solution.x.normalized();
+  fit.albedo = M_PI * solution.x.norm();
+  fit.chi2 = solution.chi2;
+  fit.used = solution.used;
+  fit.rejected = solution.rejected;
+  return fit;
+}
+
+namespace {
+
+// The Lambertian fit x of a pixel, tested on its usable samples.
+PixelFit LambertianFromX(const PixelSamples& s, const Eigen::Vector3d& x) {
+  PixelFit fit;
+  const double length = x.norm();
+  if (!(length > 0.0)) return fit;
+  fit.ok = true;
+  fit.normal = x / length;
+  fit.albedo = M_PI * length;
+  for (int k = 0; k < s.size(); ++k) {
+    const double r = s.b[k] - s.w[k].dot(x);
+    fit.chi2 += r * r / s.variance[k];
+    ++fit.used;
+  }
+  return fit;
+}
+
+// The Lambertian fit of a pixel on its usable samples that the fit itself
+// lights. A sample of a light behind the surface's tangent plane (w . n <= 0)
+// can only be dark: where one is usable, read noise lifted it over the shadow
+// threshold, and least squares, which knows no max(0, w . n), pulls the
+// normal towards it. Such samples are dropped and the rest refitted once; the
+// refit stands if it lights exactly the samples it was fitted to. It is tried
+// only where one of them is the fit's worst misfit: a glossy pixel's worst
+// residuals are its highlight's, which dropping shadow samples would not
+// mend (there the trimming stage decides). False also where the refit moves
+// samples across the terminator or the remaining lights are worse
+// conditioned than max_condition. RecheckLanes runs the same test in float
+// lanes (kernels/lambertian_recheck.cpp).
+bool FitLit(const SampleReader& reader, const double* observed, const double* inverse_sigma, const Eigen::Vector3d& x,
+            PixelFit* fit) {
+  const int lights = reader.lights();
+  const double *wx = reader.direction_axis(0), *wy = reader.direction_axis(1), *wz = reader.direction_axis(2);
+  const double max_condition = reader.max_condition();
+  const LitSums before = SumLitSamples(lights, wx, wy, wz, observed, inverse_sigma, x.data(), x.data());
+  if (before.unlit == 0.0 || before.worst_unlit < before.worst_lit || before.used < 4.0) return false;
+  Eigen::Matrix3d g;
+  g << before.gxx, before.gxy, before.gxz, before.gxy, before.gyy, before.gyz, before.gxz, before.gyz, before.gzz;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+  eigen.computeDirect(g, Eigen::EigenvaluesOnly);
+  const Eigen::Vector3d lambda = eigen.eigenvalues();  // ascending; cond(A)^2 = cond(G)
+  if (!(lambda(0) > 0.0) || !(lambda(2) <= max_condition * max_condition * lambda(0))) return false;
+  const Eigen::Vector3d refit = g.ldlt().solve(Eigen::Vector3d(before.rx, before.ry, before.rz));
+  const LitSums after = SumLitSamples(lights, wx, wy, wz, observed, inverse_sigma, refit.data(), x.data());
+  if (after.moved != 0.0 || !(refit.norm() > 0.0)) return false;
+  *fit = LambertianFit(refit, after.chi2, static_cast<int>(after.used), static_cast<int>(after.unlit));
+  return true;
+}
+
+// Trimming, the cheap robust stage of kAuto: drop the samples TrimThreshold
+// picks (the worst alone, or all gross outliers of a round together) and
+// refit (rank-one downdates of the 3 x 3 normal equations), until the fit is
+// adequate; a pixel that would have to drop more than `max_rejected` samples
+// keeps its inadequate fit. Highlights are a few huge residuals, so this
+// usually stops after one or two rounds at O(n) each, where IRLS needs ~10
+// weighted passes. The per-pixel reference of TrimmedLambertianLanes.
+PixelFit FitTrimmed(const PixelSamples& s, const ModelLadder& ladder, TrimScratch* t) {
+  const int max_rejected = ladder.MaxRejected(s.size());
+  const double gross_u2 = ladder.gross_u2();
+  const int n = s.size();
+  for (std::vector<double>* v : {&t->wx, &t->wy, &t->wz, &t->b, &t->inverse_variance, &t->u2}) v->resize(n);
+  double* __restrict wx = t->wx.data();
+  double* __restrict wy = t->wy.data();
+  double* __restrict wz = t->wz.data();
+  double* __restrict b = t->b.data();
+  double* __restrict iv = t->inverse_variance.data();  // 0 once a sample is trimmed
+  double* __restrict u2 = t->u2.data();
+  for (int k = 0; k < n; ++k) {
+    wx[k] = s.w[k].x(), wy[k] = s.w[k].y(), wz[k] = s.w[k].z();
+    b[k] = s.b[k], iv[k] = 1.0 / s.variance[k];
+  }
+  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0, bx = 0, by = 0, bz = 0;
+#pragma omp simd reduction(+ : xx, xy, xz, yy, yz, zz, bx, by, bz)
+  for (int k = 0; k < n; ++k) {
+    xx += iv[k] * wx[k] * wx[k], xy += iv[k] * wx[k] * wy[k], xz += iv[k] * wx[k] * wz[k];
+    yy += iv[k] * wy[k] * wy[k], yz += iv[k] * wy[k] * wz[k], zz += iv[k] * wz[k] * wz[k];
+    bx += iv[k] * b[k] * wx[k], by += iv[k] * b[k] * wy[k], bz += iv[k] * b[k] * wz[k];
+  }
+  for (int removed = 0;;) {
+    Eigen::Matrix3d normal_matrix;
+    normal_matrix << xx, xy, xz, xy, yy, yz, xz, yz, zz;
+    // A singular system gives a non-finite x, which fails the check below.
+    const Eigen::Vector3d x = normal_matrix.inverse() * Eigen::Vector3d(bx, by, bz);
+    PixelFit fit;
+    fit.model = PixelModel::kTrimmed;
+    fit.ok = x.norm() > 0.0 && n - removed >= 3;
+    if (!fit.ok) return fit;
+    fit.normal = x.normalized();
+    fit.albedo = M_PI * x.norm();
+    double chi2 = 0.0, worst_u2 = 0.0;
+#pragma omp simd reduction(+ : chi2) reduction(max : worst_u2)
+    for (int k = 0; k < n; ++k) {
+      const double r = b[k] - wx[k] * x.x() - wy[k] * x.y() - wz[k] * x.z();
+      u2[k] = r * r * iv[k];
+      chi2 += u2[k];
+      worst_u2 = std::max(worst_u2, u2[k]);
+    }
+    fit.chi2 = chi2;
+    fit.used = n - removed;
+    fit.rejected = removed;
+    if (ladder.Adequate(fit)) return fit;
+    // Trimmed samples have u2 = 0, below any threshold that drops something.
+    const double threshold = TrimThreshold(worst_u2, gross_u2);
+    const int drop = static_cast<int>(std::count_if(u2, u2 + n, [threshold](double u) { return u >= threshold; }));
+    if (!(threshold > 0.0) || removed + drop > max_rejected || fit.used - drop < 3) return fit;
+    for (int k = 0; k < n; ++k) {
+      if (!(u2[k] >= threshold)) continue;
+      const double c = iv[k];
+      xx -= c * wx[k] * wx[k], xy -= c * wx[k] * wy[k], xz -= c * wx[k] * wz[k];
+      yy -= c * wy[k] * wy[k], yz -= c * wy[k] * wz[k], zz -= c * wz[k] * wz[k];
+      bx -= c * b[k] * wx[k], by -= c * b[k] * wy[k], bz -= c * b[k] * wz[k];
+      iv[k] = 0.0;
+    }
+    removed += drop;
+  }
+}
+
+
+
+PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& start,
+                  const BlinnPhongOptions& options, autodiff::Tape* tape) {
+  const int n = s.size();
+  Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
+  Eigen::VectorXd observed(n), inverse_sigma(n);
+  for (int k = 0; k < n; ++k) {
+    directions.row(k) = s.w[k].transpose();
+    observed[k] = s.b[k];
+    inverse_sigma[k] = 1.0 / std::sqrt(s.variance[k]);
+  }
+  const autodiff::BlinnPhongPixel pixel(directions, Eigen::VectorXd::Ones(n), view, observed);
+
+  // Start: the normal of the robust fit and the material of the best point
+  // of the exponent grid.
+  std::vector<double> cos_light(n), cos_half(n), weight(n);
+  for (int k = 0; k < n; ++k) {
+    cos_light[k] = std::max(0.0, s.w[k].dot(start.normal));
+    cos_half[k] = std::max(0.0, pixel.half_vector(k).dot(start.normal));
+    weight[k] = 1.0 / s.variance[k];
+  }
+  const BlinnPhongMaterial material = BlinnPhongGridStart(
+      n, cos_light.data(), cos_half.data(), s.b.data(), weight.data(), start.albedo, options);
+  Eigen::Matrix<double, 6, 1> p;
+  p << start.normal, material.diffuse_albedo, material.specular_albedo, material.exponent;
+  auto project = [&options](Eigen::Matrix<double, 6, 1>* q) {
+    q->head<3>().normalize();
+    (*q)(3) = std::max(0.0, (*q)(3));
+    (*q)(4) = std::max(0.0, (*q)(4));
+    (*q)(5) = std::clamp((*q)(5), options.min_exponent, options.max_exponent);
+  };
+  Eigen::VectorXd residuals;
+  Eigen::MatrixXd jacobian;
+  auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
+    bool ok;
+    if (with_jacobian) {
+      ok = autodiff::BlinnPhongResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
+    } else {
+      residuals.resize(n);
+      ok = pixel(q.data(), residuals.data());
+    }
+    if (ok) *cost = residuals.cwiseProduct(inverse_sigma).squaredNorm();
+    return ok;
+  };
+  double cost = 0.0;
+  if (!cost_at(p, true, &cost)) return PixelFit{};
+  double lambda = 1e-3;
+  Eigen::Matrix<double, Eigen::Dynamic, 6> jw;  // fixed width: J^T J without a general GEMM
+  Eigen::VectorXd rw;
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    jw = inverse_sigma.asDiagonal() * jacobian;
+    rw = residuals.cwiseProduct(inverse_sigma);
+    // Coefficient-wise products: for 6 columns and tens of rows a general
+    // matrix product's packing costs more than the arithmetic.
+    const Eigen::Matrix<double, 6, 6> h = jw.transpose().lazyProduct(jw);
+    const Eigen::Matrix<double, 6, 1> g = jw.transpose().lazyProduct(rw);
+    bool improved = false;
+    while (lambda < 1e12) {
+      Eigen::Matrix<double, 6, 6> damped = h;
+      damped.diagonal() += lambda * h.diagonal() + Eigen::Matrix<double, 6, 1>::Constant(1e-12);
+      Eigen::Matrix<double, 6, 1> candidate = p - damped.ldlt().solve(g);
+      project(&candidate);
+      double candidate_cost = 0.0;
+      if (cost_at(candidate, false, &candidate_cost) && candidate_cost < cost) {
+        const double decrease = (cost - candidate_cost) / std::max(cost, 1e-300);
+        p = candidate;
+        cost = candidate_cost;
+        lambda = std::max(lambda / 3.0, 1e-12);
+        // A step that lowers chi-square by less than this fraction changes
+        // the normal by far less than the noise does: stop there.
+        improved = decrease > options.relative_tolerance;
+        break;
+      }
+      lambda *= 4.0;
+    }
+    if (!improved || !cost_at(p, true, &cost)) break;
+  }
+  PixelFit fit;
+  fit.ok = std::isfinite(cost);
+  fit.normal = p.head<3>().normalized();
+  fit.albedo = p(3);
+  fit.specular_albedo = p(4);
+  fit.exponent = p(5);
+  fit.chi2 = cost;
+  fit.parameters = kBlinnPhongParameters;
+  fit.used = n;
+  fit.model = PixelModel::kBlinnPhong;
+  return fit;
+}
+
+}  // namespace
+
+PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch* scratch,
+                              RobustLambertianLanes* irls) const {
+  using Action = LadderStep::Action;
+  PixelSamples& s = scratch->samples;
+  reader_.Usable(pixel, &s);
+  const PixelFit lambertian = LambertianFromX(s, x);
+  PixelFit lit, robust, blinn_phong;
+  LadderFits fits;
+  fits.lambertian = &lambertian;
+  for (;;) {
+    const LadderStep step = ladder_.Next(fits);
+    switch (step.action) {
+      case Action::kKeep: return *step.keep;
+      case Action::kRefitLit:
+        FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);  // ok stays false without one
+        fits.lit = &lit;
+        break;
+      case Action::kTrim:
+        robust = FitTrimmed(s, ladder_, &scratch->trim);
+        fits.robust = &robust;
+        break;
+      case Action::kReweight: {
+        const RobustProblem problem{s.row_observed.data(), s.row_inverse_sigma.data(), x};
+        RobustSolution solution;
+        irls->Fit({&problem, 1}, {&solution, 1});
+        robust = IrlsFit(solution);
+        fits.robust = &robust;
+        break;
+      }
+      case Action::kFitLobe:
+        blinn_phong = FitBlinnPhong(s, view_, *step.start, blinn_phong_, &scratch->tape);
+        fits.blinn_phong = &blinn_phong;
+        fits.lobe_lambertian = &lambertian;
+        break;
+    }
+  }
+}
+
+}  // namespace photorig::ps::internal

@@ -1,0 +1,54 @@
+#pragma once
+// The per-pixel reference: a pixel's climb of the model ladder one fit at a
+// time, each fit in double on the pixel's own samples (IRLS by the lane
+// fitter with a single problem). The lane stages (tile_refiner.cpp) climb the
+// same ladder with many pixels per fit; the tests check that both pick the
+// same models. Also the fitter of `--derivative forward | reverse | symbolic |
+// central-difference`.
+
+#include "kernels/irls_lambertian_fit.h"
+#include "model_selection.h"
+#include "sample_reader.h"
+
+#include "photorig/autodiff/tape.h"
+
+#include <Eigen/Core>
+
+#include <vector>
+
+namespace photorig::ps::internal {
+
+// The `robust` fit of a pixel from its IRLS solution.
+PixelFit IrlsFit(const RobustSolution& solution);
+
+// The samples of one pixel as plain arrays, for loops the compiler vectorises.
+struct TrimScratch {
+  std::vector<double> wx, wy, wz, b, inverse_variance, u2;
+};
+
+// What one thread's per-pixel fits reuse from pixel to pixel.
+struct PixelScratch {
+  PixelSamples samples;
+  TrimScratch trim;
+  autodiff::Tape tape;
+};
+
+class PerPixelFits {
+ public:
+  // All must outlive this; irls (per thread) only for `robust`.
+  PerPixelFits(const ModelLadder& ladder, const SampleReader& reader, const Eigen::Vector3d& view,
+               const BlinnPhongOptions& blinn_phong)
+      : ladder_(ladder), reader_(reader), view_(view), blinn_phong_(blinn_phong) {}
+
+  // The model the ladder keeps for `pixel`, from the Lambertian pass's
+  // solution x (albedo / pi times the normal).
+  PixelFit Refine(int pixel, const Eigen::Vector3d& x, PixelScratch* scratch, RobustLambertianLanes* irls) const;
+
+ private:
+  const ModelLadder& ladder_;
+  const SampleReader& reader_;
+  Eigen::Vector3d view_;
+  const BlinnPhongOptions& blinn_phong_;
+};
+
+}  // namespace photorig::ps::internal

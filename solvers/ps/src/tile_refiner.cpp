@@ -1,0 +1,365 @@
+#include "tile_refiner.h"
+
+#include "kernels/adequacy_screen.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+namespace photorig::ps::internal {
+namespace {
+
+// Queues longer than this run their stage; see Flush.
+constexpr std::size_t kBatch = 64;
+
+PixelFit TrimmedFit(const TrimSolution& trimmed) {
+  PixelFit fit;
+  const double length = trimmed.x.norm();
+  fit.ok = trimmed.ok;
+  fit.normal = length > 0.0 ? Eigen::Vector3d(trimmed.x / length) : trimmed.x;  // as x.normalized()
+  fit.albedo = M_PI * length;
+  fit.chi2 = trimmed.chi2;
+  fit.used = trimmed.used;
+  fit.rejected = trimmed.rejected;
+  fit.model = PixelModel::kTrimmed;
+  return fit;
+}
+
+// The lobe fitted to `used` samples.
+PixelFit BlinnPhongFit(const BlinnPhongSolution& solution, int used) {
+  PixelFit fit;
+  fit.ok = solution.ok;
+  fit.normal = solution.normal;
+  fit.albedo = solution.diffuse_albedo;
+  fit.specular_albedo = solution.specular_albedo;
+  fit.exponent = solution.exponent;
+  fit.chi2 = solution.chi2;
+  fit.parameters = kBlinnPhongParameters;
+  fit.used = used;
+  fit.model = PixelModel::kBlinnPhong;
+  return fit;
+}
+
+void WriteFit(int pixel, const PixelFit& fit, NormalMap* out) {
+  out->normals.ptr<cv::Vec3f>()[pixel] = cv::Vec3f(float(fit.normal.x()), float(fit.normal.y()), float(fit.normal.z()));
+  out->albedo.ptr<float>()[pixel] = static_cast<float>(fit.albedo);
+  out->model.ptr<std::uint8_t>()[pixel] = static_cast<std::uint8_t>(fit.model);
+  out->specular.ptr<cv::Vec2f>()[pixel] = cv::Vec2f(float(fit.specular_albedo), float(fit.exponent));
+  out->usable_lights.ptr<std::uint16_t>()[pixel] = static_cast<std::uint16_t>(fit.used);
+  // chi2 / dof is the residual variance relative to the noise: confidence = its
+  // inverse, capped; 0 for a fit with no degree of freedom left to test it.
+  const int dof = fit.Dof();
+  out->confidence.ptr<float>()[pixel] =
+      dof > 0 ? static_cast<float>(std::min(1.0, 1.0 / std::max(fit.chi2 / dof, 1e-12))) : 0.0f;
+}
+
+}  // namespace
+
+// A pixel waiting for a lane stage that works on a row of its samples (IRLS,
+// the Blinn-Phong fit). It keeps only what the ladder looks at again: the
+// Lambertian pass's solution x with its chi-square and sample count as the
+// exact test found them. The fits it climbed past were inadequate, and a fit
+// with no answer (kNoFit) tells the ladder as much.
+struct TileRefiner::Queued {
+  int pixel;
+  Eigen::Vector3d x;
+  double chi2;
+  int used;
+  PixelFit row_lambertian;  // x tested on the row
+  Eigen::Vector3d start_normal;
+  double start_albedo;
+  std::size_t row;  // of the thread's rows
+};
+
+struct TileRefiner::ThreadState {
+  std::vector<std::uint8_t> needs_refit;  // per pixel of the tile
+  std::vector<int> doubtful;  // the tile's pixels that need refitting, with lanes
+  std::vector<Eigen::Vector3d> doubtful_x;
+  std::vector<Recheck> rechecks;
+  PixelScratch scratch;  // the per-pixel fitter's
+  // Every light's sample of the queued pixels, one row per pixel
+  // (SampleReader::Row); see Flush.
+  std::vector<double> observed, inverse_sigma;
+  std::size_t rows = 0;
+  // Pixels queued for trimming (with the Lambertian pass's solution x and,
+  // for `auto`, its chi-square and sample count as the recheck found them)
+  // and their samples (TrimmedLambertianLanes::CopySamples), one row each.
+  struct Trimming {
+    int pixel;
+    Eigen::Vector3d x;
+    double chi2;
+    int used;
+  };
+  std::vector<Trimming> trimming;
+  std::vector<float> trim_rows;
+  std::vector<Queued> reweighting, lobes;
+  std::unique_ptr<RobustLambertianLanes> irls;  // `robust` only
+  std::vector<RobustProblem> robust_problems;
+  std::vector<RobustSolution> robust_solutions;
+  std::vector<TrimSolution> trim_solutions;
+  std::vector<BlinnPhongProblem> problems;
+  std::vector<BlinnPhongSolution> solutions;
+  std::size_t lambertian = 0, trimmed = 0, irls_fits = 0, blinn_phong = 0, rejected = 0, failed = 0;
+};
+
+TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const LambertianOptions& lambertian,
+                         const PhotometricStack& stack, const ModelLadder& ladder, int threads, NormalMap* result)
+    : options_(options),
+      stack_(stack),
+      ladder_(ladder),
+      result_(result),
+      lanes_(options.blinn_phong.fitter == BlinnPhongOptions::Fitter::kLanes),
+      lights_(stack.light_count()),
+      screen_threshold_(ladder.ScreenThresholds()),
+      reader_(stack, lambertian),
+      recheck_(stack, lambertian),
+      per_pixel_(ladder, reader_, stack.view_direction, options.blinn_phong),
+      states_(threads) {
+  if (options.method == Method::kRobust)
+    for (ThreadState& state : states_)
+      state.irls = std::make_unique<RobustLambertianLanes>(stack.light_directions, options.robust);
+  if (lanes_) {
+    for (int t = 0; t < threads; ++t) {
+      lobe_fitters_.emplace_back(stack.light_directions, stack.view_direction, options.blinn_phong);
+      trimmers_.emplace_back(stack, lambertian, ladder.gross_u2(), options.selection.max_rejected_fraction);
+    }
+  }
+}
+
+TileRefiner::~TileRefiner() = default;
+
+Eigen::Vector3d TileRefiner::PassSolution(int p) const {
+  const cv::Vec3f n = result_->normals.ptr<cv::Vec3f>()[p];
+  return Eigen::Vector3d(n[0], n[1], n[2]) * result_->albedo.ptr<float>()[p] / M_PI;
+}
+
+// Record and Climb run once per pixel and stage; inlined into each stage,
+// where calls to them cost 1 % of shiny `auto`'s instructions.
+__attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& state, int p, const PixelFit& chosen) {
+  if (!chosen.ok) {
+    result_->flags.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelFlag::kRejectedByModel);
+    result_->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
+    result_->albedo.ptr<float>()[p] = std::numeric_limits<float>::quiet_NaN();
+    result_->model.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelModel::kNone);
+    result_->confidence.ptr<float>()[p] = 0.0f;
+    ++state.failed;
+    return;
+  }
+  WriteFit(p, chosen, result_);
+  state.rejected += static_cast<std::size_t>(chosen.rejected);
+  switch (chosen.model) {
+    case PixelModel::kLambertian: ++state.lambertian; break;
+    case PixelModel::kTrimmed: ++state.trimmed; break;
+    case PixelModel::kIrls: ++state.irls_fits; break;
+    case PixelModel::kBlinnPhong: ++state.blinn_phong; break;
+    case PixelModel::kNone: break;
+  }
+}
+
+std::size_t TileRefiner::GatherRow(ThreadState& state, int p, const Eigen::Vector3d& x, PixelFit* lambertian,
+                                   const float* samples) {
+  const std::size_t row = state.rows++;
+  // Rows are reused from tile to tile: grow only (a resize would zero-fill
+  // every row again for each tile).
+  if (state.observed.size() < state.rows * lights_) {
+    state.observed.resize(2 * state.rows * lights_);
+    state.inverse_sigma.resize(2 * state.rows * lights_);
+  }
+  int used = 0;
+  double* observed = &state.observed[row * lights_];
+  double* inverse_sigma = &state.inverse_sigma[row * lights_];
+  const double chi2 = samples ? reader_.RowFromSamples(samples, x, observed, inverse_sigma, &used)
+                              : reader_.Row(p, x, observed, inverse_sigma, &used);
+  *lambertian = LambertianFit(x, chi2, used, 0);
+  return row;
+}
+
+__attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p, const Eigen::Vector3d& x, const LadderFits& fits, const float* samples) {
+  ThreadState& state = states_[thread];
+  const LadderStep step = ladder_.Next(fits);
+  switch (step.action) {
+    case LadderStep::Action::kKeep: Record(state, p, *step.keep); return;
+    case LadderStep::Action::kRefitLit: return;  // not asked: the recheck refits every pixel it looks at
+    case LadderStep::Action::kTrim: {
+      state.trimming.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used});
+      const std::size_t at = state.trim_rows.size();
+      state.trim_rows.resize(at + trimmers_[thread].row_length());
+      trimmers_[thread].CopySamples(p, &state.trim_rows[at]);
+      return;
+    }
+    case LadderStep::Action::kReweight: {
+      PixelFit lambertian;
+      const std::size_t row = GatherRow(state, p, x, &lambertian);
+      state.reweighting.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used, lambertian, lambertian.normal,
+                                   lambertian.albedo, row});
+      return;
+    }
+    case LadderStep::Action::kFitLobe: {
+      PixelFit lambertian;
+      const std::size_t row = GatherRow(state, p, x, &lambertian, samples);
+      state.lobes.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used, lambertian, step.start->normal,
+                             step.start->albedo, row});
+      return;
+    }
+  }
+}
+
+void TileRefiner::Trim(int thread) {
+  ThreadState& state = states_[thread];
+  const std::size_t count = state.trimming.size();
+  state.trim_solutions.assign(count, {});
+  if (count > 0) trimmers_[thread].Fit(state.trim_rows, ladder_.quantiles(), state.trim_solutions);
+  for (std::size_t i = 0; i < count; ++i) {
+    const ThreadState::Trimming& t = state.trimming[i];
+    const PixelFit lambertian = LambertianFit(t.x, t.chi2, t.used, 0), trimmed = TrimmedFit(state.trim_solutions[i]);
+    const LadderFits fits{&lambertian, &kNoFit, &trimmed};
+    // The pixel's samples as copied: only a pixel that goes on to the
+    // Blinn-Phong fit has them read into a row of doubles.
+    Climb(thread, t.pixel, t.x, fits, &state.trim_rows[i * trimmers_[thread].row_length()]);
+  }
+  state.trimming.clear();
+  state.trim_rows.clear();
+}
+
+void TileRefiner::Reweight(int thread) {
+  ThreadState& state = states_[thread];
+  const std::size_t count = state.reweighting.size();
+  state.robust_problems.resize(count);
+  state.robust_solutions.assign(count, {});
+  for (std::size_t i = 0; i < count; ++i) {
+    const Queued& q = state.reweighting[i];
+    state.robust_problems[i] = {&state.observed[q.row * lights_], &state.inverse_sigma[q.row * lights_],
+                                q.start_normal * q.start_albedo / M_PI};
+  }
+  if (count > 0) state.irls->Fit(state.robust_problems, state.robust_solutions);
+  for (std::size_t i = 0; i < count; ++i) {
+    const Queued& q = state.reweighting[i];
+    const PixelFit reweighted = IrlsFit(state.robust_solutions[i]);
+    const LadderFits fits{&q.row_lambertian, nullptr, &reweighted};
+    Climb(thread, q.pixel, q.x, fits);
+  }
+  state.reweighting.clear();
+}
+
+void TileRefiner::FitLobes(int thread) {
+  ThreadState& state = states_[thread];
+  const std::size_t count = state.lobes.size();
+  state.problems.resize(count);
+  state.solutions.assign(count, {});
+  for (std::size_t i = 0; i < count; ++i) {
+    const Queued& q = state.lobes[i];
+    state.problems[i] = {&state.observed[q.row * lights_], &state.inverse_sigma[q.row * lights_], q.start_normal,
+                         q.start_albedo};
+  }
+  if (count > 0) lobe_fitters_[thread].Fit(state.problems, state.solutions);
+  for (std::size_t i = 0; i < count; ++i) {
+    const Queued& q = state.lobes[i];
+    const PixelFit lambertian = LambertianFit(q.x, q.chi2, q.used, 0);
+    const PixelFit blinn_phong = BlinnPhongFit(state.solutions[i], q.row_lambertian.used);
+    const LadderFits fits{&lambertian, &kNoFit, &kNoFit, &blinn_phong, &q.row_lambertian};
+    Climb(thread, q.pixel, q.x, fits);
+  }
+  state.lobes.clear();
+}
+
+void TileRefiner::Flush(int thread, bool all) {
+  ThreadState& state = states_[thread];
+  if (all || state.trimming.size() >= kBatch) Trim(thread);
+  const std::size_t queued_before = state.reweighting.size() + state.lobes.size();
+  if (all || state.reweighting.size() >= kBatch) Reweight(thread);
+  if (all || state.lobes.size() >= kBatch) FitLobes(thread);
+  if (state.reweighting.size() + state.lobes.size() == queued_before) return;
+  // The rows still queued move to the front of the thread's rows, which stay
+  // as small as the queues.
+  std::vector<Queued*> queued;
+  for (auto* queue : {&state.reweighting, &state.lobes})
+    for (Queued& q : *queue) queued.push_back(&q);
+  std::sort(queued.begin(), queued.end(), [](const Queued* a, const Queued* b) { return a->row < b->row; });
+  for (std::size_t i = 0; i < queued.size(); ++i) {
+    // Ascending rows move down or stay, so no row is overwritten before it moves.
+    const std::size_t from = queued[i]->row * lights_, to = i * lights_;
+    std::copy_n(&state.observed[from], lights_, &state.observed[to]);
+    std::copy_n(&state.inverse_sigma[from], lights_, &state.inverse_sigma[to]);
+    queued[i]->row = i;
+  }
+  state.rows = queued.size();
+}
+
+void TileRefiner::RefineTile(int thread, int begin, int count) {
+  ThreadState& state = states_[thread];
+  state.needs_refit.resize(count);
+  state.lambertian += ScreenTile(result_->flags.ptr<std::uint8_t>() + begin,
+                                 result_->usable_lights.ptr<std::uint16_t>() + begin,
+                                 result_->confidence.ptr<float>() + begin, count, screen_threshold_.data(),
+                                 state.needs_refit.data());
+  auto doubt = [&](int i) {
+    const int p = begin + i;
+    if (!lanes_) {
+      Record(state, p, per_pixel_.Refine(p, PassSolution(p), &state.scratch, state.irls.get()));
+      return;
+    }
+    state.doubtful.push_back(p);
+    state.doubtful_x.push_back(PassSolution(p));
+  };
+  // Most pixels pass the screen: the flags (0 or 1) are read eight at a
+  // time, and each set one is found as the lowest set bit of its word.
+  static_assert(std::endian::native == std::endian::little, "byte i of a word is bits 8i..8i+7");
+  int i = 0;
+  for (; i + 8 <= count; i += 8) {
+    std::uint64_t eight;
+    std::memcpy(&eight, &state.needs_refit[i], sizeof eight);
+    for (; eight != 0; eight &= eight - 1) doubt(i + std::countr_zero(eight) / 8);
+  }
+  for (; i < count; ++i)
+    if (state.needs_refit[i]) doubt(i);
+  if (!lanes_) return;
+  const std::size_t doubtful = state.doubtful.size();
+  // `auto` looks again at the doubtful pixels in lanes before copying any
+  // samples out: most are settled by the exact test or the lit refit.
+  const bool recheck = options_.method == Method::kAuto;
+  if (recheck) {
+    state.rechecks.resize(doubtful);
+    recheck_.Check(state.doubtful, state.doubtful_x, state.rechecks);
+  }
+  for (std::size_t j = 0; j < doubtful; ++j) {
+    const Eigen::Vector3d& x = state.doubtful_x[j];
+    if (!recheck) {  // `robust` and `blinn-phong` refit every pixel: x is not tested
+      const PixelFit lambertian = LambertianFit(x, 0.0, 0, 0);
+      Climb(thread, state.doubtful[j], x, {&lambertian});
+      continue;
+    }
+    const Recheck& again = state.rechecks[j];
+    const PixelFit lambertian = LambertianFit(x, again.chi2, again.used, 0);
+    if (!again.refitted) {
+      Climb(thread, state.doubtful[j], x, {&lambertian, &kNoFit});
+      continue;
+    }
+    const PixelFit lit = LambertianFit(again.lit_x, again.lit_chi2, again.lit_used, again.unlit);
+    Climb(thread, state.doubtful[j], x, {&lambertian, &lit});
+  }
+  state.doubtful.clear();
+  state.doubtful_x.clear();
+  Flush(thread, false);
+}
+
+void TileRefiner::Finish(int thread) {
+  if (lanes_) Flush(thread, true);
+}
+
+void TileRefiner::AddCounts(SolverSummary* summary) const {
+  std::size_t failed = 0;
+  for (const ThreadState& state : states_) {
+    summary->pixels_lambertian += state.lambertian;
+    summary->pixels_trimmed += state.trimmed;
+    summary->pixels_irls += state.irls_fits;
+    summary->pixels_blinn_phong += state.blinn_phong;
+    summary->samples_rejected += state.rejected;
+    failed += state.failed;
+  }
+  summary->pixels_solved -= failed;
+  summary->pixels_rejected_by_model += failed;
+}
+
+}  // namespace photorig::ps::internal

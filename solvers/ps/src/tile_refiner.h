@@ -1,0 +1,92 @@
+#pragma once
+// The refinement of the Lambertian pass's answer by the methods that go
+// beyond it (`robust`, `blinn-phong`, `auto`), tile by tile: each tile is
+// refined right after the Lambertian pass wrote it, on the same thread, while
+// its samples are still in cache (SolveLambertianTiles' visitor).
+//
+// A tile's pixels climb ModelLadder. The screen settles most of them from the
+// Lambertian pass's confidence alone. With the lane fitter the others go
+// through the ladder's stages many pixels at a time: the exact test and the
+// lit refit in float lanes straight from the planes (`auto`), then trimming
+// (sixteen per pass), IRLS (eight) and the Blinn-Phong fit (sixteen), on
+// queues that collect pixels across tiles, so that a tile with a few doubtful
+// pixels does not run a full set of lanes for one of them; a pixel's samples
+// are copied out when it is queued. With the per-pixel fitter each doubtful
+// pixel climbs the ladder on its own (PerPixelFits), the reference.
+
+#include "kernels/blinn_phong_fit.h"
+#include "kernels/irls_lambertian_fit.h"
+#include "kernels/lambertian_recheck.h"
+#include "kernels/trimmed_lambertian_fit.h"
+#include "model_selection.h"
+#include "per_pixel_fits.h"
+#include "sample_reader.h"
+
+#include "photorig/ps/photometric_stereo.h"
+
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace photorig::ps::internal {
+
+class TileRefiner {
+ public:
+  // stack: the one the Lambertian pass solves (its noise model complete);
+  // lambertian: that pass's options (the shadow threshold raised as it was);
+  // result: the pass's output, refined in place. All must outlive this.
+  TileRefiner(const PhotometricStereoOptions& options, const LambertianOptions& lambertian,
+              const PhotometricStack& stack, const ModelLadder& ladder, int threads, NormalMap* result);
+  ~TileRefiner();
+
+  // SolveLambertianTiles' visitor: refines pixels [begin, begin + count).
+  void RefineTile(int thread, int begin, int count);
+  // SolveLambertianTiles' last call on a thread: fits what is still queued.
+  void Finish(int thread);
+
+  // The counts of models, rejected samples and failed fits, into a summary of
+  // the Lambertian pass (whose counts of solved and rejected pixels they correct).
+  void AddCounts(SolverSummary* summary) const;
+
+ private:
+  struct ThreadState;
+  struct Queued;
+
+  // The Lambertian pass's solution x = albedo / pi n of pixel p.
+  Eigen::Vector3d PassSolution(int p) const;
+  void Record(ThreadState& state, int p, const PixelFit& chosen);
+  // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps
+  // the pixel's answer, or queues it for the stage the ladder asks for.
+  // samples: the pixel's samples as copied for trimming, if they were.
+  void Climb(int thread, int p, const Eigen::Vector3d& x, const LadderFits& fits, const float* samples = nullptr);
+  // Pixel p's samples as a new row of the thread's rows (from the planes, or
+  // from their copy `samples`), and the Lambertian fit x tested on them.
+  std::size_t GatherRow(ThreadState& state, int p, const Eigen::Vector3d& x, PixelFit* lambertian,
+                        const float* samples = nullptr);
+  // The lane stages, on the thread's queues.
+  void Trim(int thread);
+  void Reweight(int thread);
+  void FitLobes(int thread);
+  // Runs the stages whose queues are full (all: every non-empty one) and
+  // moves the rows still queued to the front.
+  void Flush(int thread, bool all);
+
+  const PhotometricStereoOptions& options_;
+  const PhotometricStack& stack_;
+  const ModelLadder& ladder_;
+  NormalMap* result_;
+  const bool lanes_;
+  const int lights_;
+  const std::vector<float> screen_threshold_;
+  const SampleReader reader_;
+  const RecheckLanes recheck_;
+  const PerPixelFits per_pixel_;
+  std::vector<ThreadState> states_;
+  std::vector<BlinnPhongLaneFitter> lobe_fitters_;
+  std::vector<TrimmedLambertianLanes> trimmers_;
+};
+
+}  // namespace photorig::ps::internal

@@ -1,0 +1,120 @@
+// The model ladder on hand-made fits: which fit it keeps, and which it asks
+// for next, for each method.
+#include "model_selection.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+namespace photorig::ps {
+namespace {
+
+using internal::kNoFit;
+using internal::LadderFits;
+using internal::LadderStep;
+using internal::ModelLadder;
+using internal::PixelFit;
+using Action = LadderStep::Action;
+
+constexpr int kLights = 48;
+
+// A fit on `used` samples whose chi-square is `per_dof` times its degrees of
+// freedom (1: at the noise level; 3 on 40 samples: far above it).
+PixelFit FitWith(int used, double per_dof, PixelModel model = PixelModel::kLambertian, int parameters = 3) {
+  PixelFit fit;
+  fit.ok = true;
+  fit.normal = Eigen::Vector3d::UnitZ();
+  fit.albedo = 0.5;
+  fit.used = used;
+  fit.parameters = parameters;
+  fit.chi2 = per_dof * (used - parameters);
+  fit.model = model;
+  return fit;
+}
+
+ModelLadder Ladder(Method method) { return ModelLadder(method, ModelSelectionOptions{}, kLights); }
+
+TEST(ModelLadder, AutoKeepsAnAdequateLambertianFitWithoutAskingForMore) {
+  const PixelFit lambertian = FitWith(40, 1.0);
+  const LadderStep step = Ladder(Method::kAuto).Next({&lambertian});
+  ASSERT_EQ(step.action, Action::kKeep);
+  EXPECT_EQ(step.keep, &lambertian);
+}
+
+TEST(ModelLadder, AutoClimbsLitRefitTrimmingAndLobeInThatOrder) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit lambertian = FitWith(40, 3.0), trimmed = FitWith(34, 3.0, PixelModel::kTrimmed);
+  const PixelFit lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  ASSERT_FALSE(ladder.Adequate(lambertian));
+  LadderFits fits{&lambertian};
+  EXPECT_EQ(ladder.Next(fits).action, Action::kRefitLit);
+  fits.lit = &kNoFit;  // no refit stands
+  EXPECT_EQ(ladder.Next(fits).action, Action::kTrim);
+  fits.robust = &trimmed;
+  const LadderStep fit_lobe = ladder.Next(fits);
+  ASSERT_EQ(fit_lobe.action, Action::kFitLobe);
+  EXPECT_EQ(fit_lobe.start, &trimmed);  // the lobe starts from the trimmed fit
+  fits.blinn_phong = &lobe;
+  fits.lobe_lambertian = &lambertian;
+  const LadderStep kept = ladder.Next(fits);
+  ASSERT_EQ(kept.action, Action::kKeep);
+  EXPECT_EQ(kept.keep, &lobe);
+}
+
+TEST(ModelLadder, AutoKeepsTheFirstAdequateRefit) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit lambertian = FitWith(40, 3.0), good_lit = FitWith(38, 1.0), bad_lit = FitWith(38, 3.0);
+  const PixelFit trimmed = FitWith(34, 1.0, PixelModel::kTrimmed);
+  EXPECT_EQ(ladder.Next({&lambertian, &good_lit}).keep, &good_lit);
+  EXPECT_EQ(ladder.Next({&lambertian, &bad_lit, &trimmed}).keep, &trimmed);
+}
+
+TEST(ModelLadder, AutoWeighsTheLobeAgainstTheLambertianFitOnItsOwnSamples) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit lambertian = FitWith(40, 3.0);
+  // Trimming failed: the lobe starts from the Lambertian fit.
+  EXPECT_EQ(ladder.Next({&lambertian, &kNoFit, &kNoFit}).start, &lambertian);
+  // A lobe whose chi-square is barely lower does not pay for its two parameters.
+  const PixelFit same_samples = FitWith(40, 3.0);
+  PixelFit lobe = FitWith(40, 3.0, PixelModel::kBlinnPhong, 5);
+  lobe.chi2 = same_samples.chi2 - 1.0;
+  EXPECT_EQ(ladder.Next({&lambertian, &kNoFit, &kNoFit, &lobe, &same_samples}).keep, &same_samples);
+  lobe.chi2 = same_samples.chi2 - 20.0;
+  EXPECT_EQ(ladder.Next({&lambertian, &kNoFit, &kNoFit, &lobe, &same_samples}).keep, &lobe);
+}
+
+TEST(ModelLadder, AutoFitsNothingRicherThanTheSamplesDetermine) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit exact = FitWith(3, 0.0);  // no degree of freedom: nothing to test or trim
+  EXPECT_EQ(ladder.Next({&exact}).keep, &exact);
+  const PixelFit five = FitWith(5, 20.0);  // as many samples as the lobe's parameters
+  const PixelFit trimmed = FitWith(4, 20.0, PixelModel::kTrimmed);
+  ASSERT_FALSE(ladder.Adequate(five));
+  ASSERT_FALSE(ladder.Adequate(trimmed));
+  EXPECT_EQ(ladder.Next({&five, &kNoFit, &trimmed}).keep, &five);
+}
+
+TEST(ModelLadder, EachSingleModelMethodAsksForItsOwnFit) {
+  const PixelFit lambertian = FitWith(40, 3.0), reweighted = FitWith(40, 3.0, PixelModel::kIrls);
+  const PixelFit lobe = FitWith(40, 10.0, PixelModel::kBlinnPhong, 5);
+  EXPECT_EQ(Ladder(Method::kLambertian).Next({&lambertian}).keep, &lambertian);
+  EXPECT_EQ(Ladder(Method::kRobust).Next({&lambertian}).action, Action::kReweight);
+  EXPECT_EQ(Ladder(Method::kRobust).Next({&lambertian, nullptr, &reweighted}).keep, &reweighted);
+  EXPECT_EQ(Ladder(Method::kBlinnPhong).Next({&lambertian}).action, Action::kTrim);
+  EXPECT_EQ(Ladder(Method::kBlinnPhong).Next({&lambertian, nullptr, &kNoFit}).action, Action::kFitLobe);
+  // `blinn-phong` keeps its lobe whatever the information criterion says.
+  EXPECT_EQ(Ladder(Method::kBlinnPhong).Next({&lambertian, nullptr, &kNoFit, &lobe, &lambertian}).keep, &lobe);
+}
+
+TEST(ModelLadder, OnlyAutoScreensOnTheLambertianConfidence) {
+  const std::vector<float> screen = Ladder(Method::kAuto).ScreenThresholds();
+  ASSERT_EQ(screen.size(), kLights + 1u);
+  EXPECT_TRUE(std::isinf(screen[3]));  // dof 0: never accepted unseen
+  EXPECT_GT(screen[40], 0.4f);
+  EXPECT_LT(screen[40], 1.0f);  // dof / quantile: a little below 1
+  for (float threshold : Ladder(Method::kRobust).ScreenThresholds()) EXPECT_TRUE(std::isinf(threshold));
+}
+
+}  // namespace
+}  // namespace photorig::ps
