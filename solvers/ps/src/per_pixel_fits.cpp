@@ -189,7 +189,11 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
     return ok;
   };
   double cost = 0.0;
-  if (!cost_at(p, true, &cost)) return PixelFit{};
+  if (!cost_at(p, true, &cost) || !std::isfinite(cost)) {
+    // As the lane fitter: once more from the diffuse start with no lobe.
+    p << start.normal, start.albedo, 0.0, options.min_exponent;
+    if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
+  }
   double lambda = 1e-3;
   Eigen::Matrix<double, Eigen::Dynamic, 6> jw;  // fixed width: J^T J without a general GEMM
   Eigen::VectorXd rw;
