@@ -107,6 +107,37 @@ TEST(ModelLadder, EachSingleModelMethodAsksForItsOwnFit) {
   EXPECT_EQ(Ladder(Method::kBlinnPhong).Next({&lambertian, nullptr, &kNoFit, &lobe, &lambertian}).keep, &lobe);
 }
 
+// Where the fit a method asks for fails, the pixel keeps the rung below it,
+// labelled by that rung's model and marked as a fallback; only a pixel whose
+// every rung failed is left without a normal.
+TEST(ModelLadder, EachMethodFallsBackWhereItsOwnFitFails) {
+  const PixelFit lambertian = FitWith(40, 3.0), trimmed = FitWith(34, 3.0, PixelModel::kTrimmed);
+  const ModelLadder blinn_phong = Ladder(Method::kBlinnPhong);
+  LadderStep step = blinn_phong.Next({&lambertian, nullptr, &trimmed, &kNoFit, &lambertian});
+  EXPECT_EQ(step.keep, &trimmed);
+  EXPECT_TRUE(step.fell_back);
+  step = blinn_phong.Next({&lambertian, nullptr, &kNoFit, &kNoFit, &lambertian});
+  EXPECT_EQ(step.keep, &lambertian);
+  EXPECT_TRUE(step.fell_back);
+  step = blinn_phong.Next({&kNoFit, nullptr, &kNoFit, &kNoFit, &kNoFit});
+  EXPECT_FALSE(step.keep->ok);  // nothing to fall back to: flagged
+  EXPECT_FALSE(step.fell_back);
+  const PixelFit lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  step = blinn_phong.Next({&lambertian, nullptr, &trimmed, &lobe, &lambertian});
+  EXPECT_EQ(step.keep, &lobe);
+  EXPECT_FALSE(step.fell_back);
+
+  const ModelLadder robust = Ladder(Method::kRobust);
+  step = robust.Next({&lambertian, nullptr, &kNoFit});
+  EXPECT_EQ(step.keep, &lambertian);
+  EXPECT_TRUE(step.fell_back);
+
+  // `auto`: a failed lobe leaves the Lambertian fit on the lobe's samples.
+  step = Ladder(Method::kAuto).Next({&lambertian, &kNoFit, &trimmed, &kNoFit, &lambertian});
+  EXPECT_EQ(step.keep, &lambertian);
+  EXPECT_TRUE(step.fell_back);
+}
+
 TEST(ModelLadder, OnlyAutoScreensOnTheLambertianConfidence) {
   const std::vector<float> screen = Ladder(Method::kAuto).ScreenThresholds();
   ASSERT_EQ(screen.size(), kLights + 1u);

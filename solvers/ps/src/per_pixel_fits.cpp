@@ -241,7 +241,7 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
 }  // namespace
 
 PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch* scratch,
-                              RobustLambertianLanes* irls) const {
+                              RobustLambertianLanes* irls, bool* fell_back) const {
   using Action = LadderStep::Action;
   PixelSamples& s = scratch->samples;
   reader_.Usable(pixel, &s);
@@ -252,7 +252,9 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
   for (;;) {
     const LadderStep step = ladder_.Next(fits);
     switch (step.action) {
-      case Action::kKeep: return *step.keep;
+      case Action::kKeep:
+        *fell_back = step.fell_back;
+        return *step.keep;
       case Action::kRefitLit:
         FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);  // ok stays false without one
         fits.lit = &lit;
