@@ -105,13 +105,16 @@ class ModelLadder {
   //      trim (3 usable);
   //   2. else its refit without the samples it puts in attached shadow, if
   //      adequate;
-  //   3. else the trimmed fit, if adequate (trimming drops at most
-  //      max_rejected_fraction of the samples);
-  //   4. else, with no more samples than the lobe has parameters, the
-  //      Lambertian fit (a lobe would pass through every sample);
-  //   5. else the Blinn-Phong fit from the trimmed one (or the Lambertian fit
+  //   3. else trimming (at most max_rejected_fraction of the samples); with
+  //      no more samples than the lobe has parameters (a lobe would pass
+  //      through every sample), the trimmed fit if adequate, else the
+  //      Lambertian fit;
+  //   4. else the Blinn-Phong fit from the trimmed one (or the Lambertian fit
   //      where trimming failed), kept if its information criterion is lower
-  //      than the Lambertian fit's on the same samples.
+  //      than the Lambertian fit's on the same samples; else the trimmed fit
+  //      if adequate, else that Lambertian fit. An adequate trimmed fit does
+  //      not end the climb: the samples it dropped are a highlight's core,
+  //      and the lobe's shoulders it kept still tilt its normal.
   // `robust` keeps the IRLS fit, `blinn-phong` the lobe fitted from the
   // trimmed fit, `lambertian` and `l2` the Lambertian fit. Where the fit a
   // method asked for fails, it falls back: `blinn-phong` to the trimmed fit,
@@ -173,8 +176,9 @@ inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
   if (Adequate(*fits.lit)) return Keep(*fits.lit);
   if (!fits.robust) return {Action::kTrim};
   const PixelFit& trimmed = *fits.robust;
+  // Adequate with nothing dropped: a Lambertian fit at the noise level.
   const bool trimmed_adequate = Adequate(trimmed);  // it trimmed at most its allowance
-  if (trimmed_adequate) return Keep(trimmed);
+  if (trimmed_adequate && trimmed.rejected == 0) return Keep(trimmed);
   if (lambertian.used <= kBlinnPhongParameters) return Keep(trimmed_adequate ? trimmed : lambertian);
   if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, trimmed.ok ? &trimmed : &lambertian};
   // The information criterion decides between the models fitted to all
