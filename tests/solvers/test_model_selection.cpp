@@ -65,9 +65,35 @@ TEST(ModelLadder, AutoClimbsLitRefitTrimmingAndLobeInThatOrder) {
 TEST(ModelLadder, AutoKeepsTheFirstAdequateRefit) {
   const ModelLadder ladder = Ladder(Method::kAuto);
   const PixelFit lambertian = FitWith(40, 3.0), good_lit = FitWith(38, 1.0), bad_lit = FitWith(38, 3.0);
-  const PixelFit trimmed = FitWith(34, 1.0, PixelModel::kTrimmed);
+  PixelFit trimmed = FitWith(34, 1.0, PixelModel::kTrimmed);
+  trimmed.rejected = 6;
   EXPECT_EQ(ladder.Next({&lambertian, &good_lit}).keep, &good_lit);
-  EXPECT_EQ(ladder.Next({&lambertian, &bad_lit, &trimmed}).keep, &trimmed);
+  // An adequate trimmed fit that dropped samples is weighed against the lobe
+  // first, and kept where the lobe does not pay for its parameters.
+  EXPECT_EQ(ladder.Next({&lambertian, &bad_lit, &trimmed}).action, Action::kFitLobe);
+  PixelFit lobe = FitWith(40, 3.0, PixelModel::kBlinnPhong, 5);
+  lobe.chi2 = lambertian.chi2 - 1.0;
+  EXPECT_EQ(ladder.Next({&lambertian, &bad_lit, &trimmed, &lobe, &lambertian}).keep, &trimmed);
+  lobe.chi2 = lambertian.chi2 - 50.0;
+  EXPECT_EQ(ladder.Next({&lambertian, &bad_lit, &trimmed, &lobe, &lambertian}).keep, &lobe);
+}
+
+TEST(ModelLadder, AutoLooksForALobeBehindALambertianFitBetweenTheTwoQuantiles) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  ModelSelectionOptions defaults;
+  const std::vector<double> strict = internal::ChiSquareQuantiles(kLights, defaults.lambertian_quantile);
+  PixelFit between = FitWith(40, 1.0);
+  between.chi2 = 0.5 * (strict[37] + ladder.quantiles()[37]);
+  ASSERT_TRUE(ladder.Adequate(between));
+  EXPECT_EQ(ladder.Next({&between}).action, Action::kRefitLit);
+  // Trimming drops nothing: the lobe decides against the Lambertian fit itself.
+  const PixelFit untrimmed = FitWith(40, 1.0, PixelModel::kTrimmed);
+  EXPECT_EQ(ladder.Next({&between, &kNoFit, &untrimmed}).action, Action::kFitLobe);
+  PixelFit lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  lobe.chi2 = between.chi2 - 1.0;
+  EXPECT_EQ(ladder.Next({&between, &kNoFit, &untrimmed, &lobe, &between}).keep, &between);
+  const PixelFit below = FitWith(40, 0.8);
+  EXPECT_EQ(ladder.Next({&below}).keep, &below);
 }
 
 TEST(ModelLadder, AutoWeighsTheLobeAgainstTheLambertianFitOnItsOwnSamples) {

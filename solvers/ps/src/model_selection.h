@@ -99,6 +99,10 @@ class ModelLadder {
   bool Adequate(const PixelFit& fit) const {
     return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile_[fit.Dof()];
   }
+  // The same below the stricter quantile `auto` keeps a Lambertian fit at.
+  bool LambertianAdequate(const PixelFit& fit) const {
+    return fit.ok && fit.Dof() > 0 && fit.chi2 <= lambertian_quantile_[fit.Dof()];
+  }
 
   // The ladder itself. For `auto`, per pixel:
   //   1. the Lambertian fit, if adequate, or if no sample is left to test or
@@ -150,7 +154,7 @@ class ModelLadder {
   }
 
   Method method_;
-  std::vector<double> quantile_;
+  std::vector<double> quantile_, lambertian_quantile_;
   double gross_u2_, max_rejected_fraction_;
 };
 
@@ -171,23 +175,22 @@ inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
   }
   // A richer model is fitted only where the samples can tell it apart: with
   // no sample to spare nothing can be tested or trimmed.
-  if (Adequate(lambertian) || !(lambertian.Dof() > 0)) return Keep(lambertian);
+  if (LambertianAdequate(lambertian) || !(lambertian.Dof() > 0)) return Keep(lambertian);
   if (!fits.lit) return {Action::kRefitLit};
   if (Adequate(*fits.lit)) return Keep(*fits.lit);
   if (!fits.robust) return {Action::kTrim};
   const PixelFit& trimmed = *fits.robust;
-  // Adequate with nothing dropped: a Lambertian fit at the noise level.
+  // Adequate with nothing dropped: the Lambertian fit passed the looser test.
   const bool trimmed_adequate = Adequate(trimmed);  // it trimmed at most its allowance
-  if (trimmed_adequate && trimmed.rejected == 0) return Keep(trimmed);
-  if (lambertian.used <= kBlinnPhongParameters) return Keep(trimmed_adequate ? trimmed : lambertian);
+  const PixelFit& adequate_simpler = trimmed.rejected > 0 ? trimmed : lambertian;
+  if (lambertian.used <= kBlinnPhongParameters) return Keep(trimmed_adequate ? adequate_simpler : lambertian);
   if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, trimmed.ok ? &trimmed : &lambertian};
   // The information criterion decides between the models fitted to all
   // usable samples; where the lobe does not pay for its parameters, an
-  // adequate trimmed fit still explains the pixel better than the inadequate
-  // Lambertian one.
+  // adequate simpler fit stands.
   const PixelFit& lobe = *fits.blinn_phong;
   if (lobe.ok && lobe.Bic() < fits.lobe_lambertian->Bic()) return Keep(lobe);
-  const PixelFit& simpler = trimmed_adequate ? trimmed : *fits.lobe_lambertian;
+  const PixelFit& simpler = trimmed_adequate ? adequate_simpler : *fits.lobe_lambertian;
   return lobe.ok ? Keep(simpler) : FallBack(lobe, simpler);
 }
 

@@ -77,6 +77,14 @@ struct ModelSelectionOptions {
   // A fit is adequate when its chi-square statistic is below this quantile of
   // the chi-square distribution with n - p degrees of freedom.
   double adequacy_quantile = 0.999;
+  // kAuto keeps the Lambertian fit on the usable samples without looking
+  // further only below this stricter quantile.
+  // A lobe's tails add less than the 0.999 quantile allows (about 1.76 times
+  // the noise variance for 50 samples) and still tilt the normal; a fit
+  // between the two quantiles is weighed against the Blinn-Phong fit by the
+  // information criterion, which keeps the Lambertian fit where the lobe
+  // does not pay for its parameters.
+  double lambertian_quantile = 0.99;
   // kAuto prefers the trimmed Lambertian fit over kBlinnPhong only when it
   // rejects at most this fraction of a pixel's usable samples.
   double max_rejected_fraction = 0.25;
