@@ -14,11 +14,14 @@
 //                (see BlinnPhongOptions for how the derivatives are computed).
 //   kAuto        per pixel: kLambertian if its residual is at the noise level
 //                (chi-square test), or once refitted without usable samples
-//                the fit itself puts in attached shadow; else Lambertian with
-//                the worst samples trimmed greedily (reported as PixelModel::kTrimmed) if
-//                that is adequate while rejecting few samples, else
-//                kBlinnPhong; the Bayesian information criterion decides
-//                between inadequate fits.
+//                the fit itself puts in attached shadow; else kBlinnPhong
+//                started from Lambertian with the worst samples trimmed
+//                greedily, kept where the Bayesian information criterion
+//                prefers it to the Lambertian fit, else the trimmed fit
+//                (PixelModel::kTrimmed) if that is adequate while rejecting
+//                few samples, else the Lambertian fit.
+//   Where a method's own fit fails, the pixel falls back to a simpler one
+//   (SolverSummary::pixels_fell_back).
 
 #include "photorig/autodiff/blinn_phong_jacobian.h"
 #include "photorig/ps/lambertian.h"
