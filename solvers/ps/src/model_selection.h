@@ -105,8 +105,8 @@ class ModelLadder {
   }
 
   // The ladder itself. For `auto`, per pixel:
-  //   1. the Lambertian fit, if adequate, or if no sample is left to test or
-  //      trim (3 usable);
+  //   1. the Lambertian fit, if adequate at the stricter lambertian_quantile,
+  //      or if no sample is left to test or trim (3 usable);
   //   2. else its refit without the samples it puts in attached shadow, if
   //      adequate;
   //   3. else trimming (at most max_rejected_fraction of the samples); with
@@ -180,7 +180,8 @@ inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
   if (Adequate(*fits.lit)) return Keep(*fits.lit);
   if (!fits.robust) return {Action::kTrim};
   const PixelFit& trimmed = *fits.robust;
-  // Adequate with nothing dropped: the Lambertian fit passed the looser test.
+  // A trimmed fit adequate with nothing dropped is the Lambertian fit itself,
+  // between the two quantiles.
   const bool trimmed_adequate = Adequate(trimmed);  // it trimmed at most its allowance
   const PixelFit& adequate_simpler = trimmed.rejected > 0 ? trimmed : lambertian;
   if (lambertian.used <= kBlinnPhongParameters) return Keep(trimmed_adequate ? adequate_simpler : lambertian);
