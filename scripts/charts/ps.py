@@ -82,6 +82,7 @@ if realistic:
     ax_nan.set_xticks(range(len(effects)))
     ax_nan.set_xticklabels(effects)
     ax_nan.grid(True, axis="y", alpha=0.3)
+    ax_nan.set_ylim(bottom=0)  # a share: with none unresolved, the axis still starts at 0
     fig.tight_layout()
     fig.savefig(f"{out}/ps_realistic.png", dpi=120)
 print("wrote", out)

@@ -520,9 +520,9 @@ using testing::AngleDeg;
 // shiny stack: the same models for (nearly) every pixel, the same normals
 // where both trimmed, close ones where both fitted Blinn-Phong.
 // `auto` in lanes against the per-pixel pipeline on the same stack: the same
-// model for >= 98 % of pixels, the same trimmed normals, Blinn-Phong normals
-// within 0.1 deg where the model fits.
-void ExpectAutoLanesMatchThePerPixelReference(const PhotometricStack& stack) {
+// model for >= 98 % of pixels, the same trimmed normals (on at least
+// `min_trimmed` pixels), Blinn-Phong normals within 0.1 deg where the model fits.
+void ExpectAutoLanesMatchThePerPixelReference(const PhotometricStack& stack, int min_trimmed) {
   const PhotometricStereoOptions lanes_options = LaneOptions(Method::kAuto);
   const PhotometricStereoOptions reference_options = PerPixel(lanes_options);
   NormalMap lanes_map, reference_map;
@@ -530,7 +530,7 @@ void ExpectAutoLanesMatchThePerPixelReference(const PhotometricStack& stack) {
   const SolverSummary reference = SolvePhotometricStereo(reference_options, stack, &reference_map);
   ASSERT_TRUE(lanes.IsSolutionUsable()) << lanes.message;
   ASSERT_TRUE(reference.IsSolutionUsable()) << reference.message;
-  ASSERT_GT(reference.pixels_trimmed, 50u);
+  ASSERT_GE(reference.pixels_trimmed, std::size_t(min_trimmed));
   ASSERT_GT(reference.pixels_blinn_phong, 50u);
   const double pixels = double(reference.pixels_solved);
   EXPECT_LE(std::abs(double(lanes.pixels_trimmed) - double(reference.pixels_trimmed)), 0.005 * pixels);
@@ -550,7 +550,7 @@ void ExpectAutoLanesMatchThePerPixelReference(const PhotometricStack& stack) {
     }
   }
   EXPECT_GE(same_model, 0.98 * pixels);
-  EXPECT_GT(trimmed, 50);
+  EXPECT_GE(trimmed, min_trimmed);
 }
 
 // The noise estimate's per-pixel fits through the tile kernel, against the
@@ -591,8 +591,10 @@ TEST(PixelResiduals, MatchLeastSquaresInDouble) {
 TEST(PhotometricStereoLanes, AutoMatchesThePerPixelReference) {
   const auto truth = testing::RandomSurface(40, 30, 45.0, 29);
   const auto lights = testing::RingLights(36, 20, 80);
+  // Every pixel glossy: wherever trimming drops samples the lobe fit explains
+  // the pixel better, so no pixel keeps the trimmed fit.
   ExpectAutoLanesMatchThePerPixelReference(
-      testing::RenderShinyStack(truth, lights, 2500.0, testing::Specular{0.3, 120.0}, 20.0f, 2.0));
+      testing::RenderShinyStack(truth, lights, 2500.0, testing::Specular{0.3, 120.0}, 20.0f, 2.0), 0);
 }
 
 // Few doubtful pixels per tile: the lane stages' queues then carry pixels
@@ -608,7 +610,11 @@ TEST(PhotometricStereoLanes, AutoMatchesThePerPixelReferenceWithFewDoubtfulPixel
   // some need trimming or the Blinn-Phong fit.
   for (int p = 0; p < stack.width() * stack.height(); p += 12)
     for (std::size_t k = 0; k < lights.size(); ++k) stack.images[k].ptr<float>()[p] = shiny.images[k].ptr<float>()[p];
-  ExpectAutoLanesMatchThePerPixelReference(stack);
+  // One matte pixel in twelve has two spikes no lobe explains (as from
+  // inter-reflection): those keep the trimmed fit.
+  for (int p = 6; p < stack.width() * stack.height(); p += 12)
+    for (int k : {p % 36, (p / 36 + 7) % 36}) stack.images[k].ptr<float>()[p] *= 3.0f;
+  ExpectAutoLanesMatchThePerPixelReference(stack, 50);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 
 namespace photorig::ps {
 namespace {
@@ -395,6 +396,34 @@ TEST(PhotometricStereo, ShadowThresholdRaisedPastSaturationIsReported) {
   std::string why;
   EXPECT_FALSE(options.IsValid(&why));
   EXPECT_NE(why.find("shadow_threshold_read_sigmas"), std::string::npos);
+}
+
+// A pixel whose lobe fit fails keeps the fit below it on the ladder, labelled
+// as that model and counted, instead of losing its normal. Two samples of one
+// pixel are corrupt (1e20 DN, as from a damaged frame): their squared
+// residuals overflow the lane fitter's float evaluation, so no lobe fit of
+// that pixel has a finite cost, while trimming drops them.
+TEST(PhotometricStereo, BlinnPhongFallsBackToTheTrimmedFitWhereTheLobeFitFails) {
+  const auto truth = RandomSurface(16, 8, 35.0);
+  const auto lights = RingLights(40, 25, 85);
+  PhotometricStack stack = RenderShinyStack(truth, lights, 1000.0, Specular{0.4, 40.0}, 10.0f, 1.0);
+  const int corrupt = 37;
+  for (int k : {3, 17}) stack.images[k].ptr<float>()[corrupt] = 1e20f;
+  NormalMap map;
+  const SolverSummary summary = SolvePhotometricStereo(Options(Method::kBlinnPhong, 5.0), stack, &map);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  EXPECT_EQ(summary.pixels_solved, 128u) << summary.BriefReport();
+  EXPECT_EQ(summary.pixels_rejected_by_model, 0u);
+  EXPECT_EQ(summary.pixels_fell_back, 1u);
+  EXPECT_EQ(summary.pixels_trimmed, 1u);
+  EXPECT_EQ(summary.pixels_blinn_phong, 127u);
+  EXPECT_EQ(map.flags.ptr<std::uint8_t>()[corrupt], static_cast<std::uint8_t>(PixelFlag::kSolved));
+  EXPECT_EQ(map.model.ptr<std::uint8_t>()[corrupt], static_cast<std::uint8_t>(PixelModel::kTrimmed));
+  EXPECT_TRUE(std::isfinite(map.normals.ptr<cv::Vec3f>()[corrupt][0]));
+  // The corrupt samples are beyond the float trimming too: the fit kept is
+  // far from the noise level, and its confidence says so.
+  EXPECT_LT(map.confidence.ptr<float>()[corrupt], 0.01f);
+  EXPECT_GT(map.confidence.ptr<float>()[corrupt + 1], 0.3f);
 }
 
 TEST(PhotometricStereoOptions, InvalidOptionsAreReported) {

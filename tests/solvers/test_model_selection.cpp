@@ -65,9 +65,35 @@ TEST(ModelLadder, AutoClimbsLitRefitTrimmingAndLobeInThatOrder) {
 TEST(ModelLadder, AutoKeepsTheFirstAdequateRefit) {
   const ModelLadder ladder = Ladder(Method::kAuto);
   const PixelFit lambertian = FitWith(40, 3.0), good_lit = FitWith(38, 1.0), bad_lit = FitWith(38, 3.0);
-  const PixelFit trimmed = FitWith(34, 1.0, PixelModel::kTrimmed);
+  PixelFit trimmed = FitWith(34, 1.0, PixelModel::kTrimmed);
+  trimmed.rejected = 6;
   EXPECT_EQ(ladder.Next({&lambertian, &good_lit}).keep, &good_lit);
-  EXPECT_EQ(ladder.Next({&lambertian, &bad_lit, &trimmed}).keep, &trimmed);
+  // An adequate trimmed fit that dropped samples is weighed against the lobe
+  // first, and kept where the lobe does not pay for its parameters.
+  EXPECT_EQ(ladder.Next({&lambertian, &bad_lit, &trimmed}).action, Action::kFitLobe);
+  PixelFit lobe = FitWith(40, 3.0, PixelModel::kBlinnPhong, 5);
+  lobe.chi2 = lambertian.chi2 - 1.0;
+  EXPECT_EQ(ladder.Next({&lambertian, &bad_lit, &trimmed, &lobe, &lambertian}).keep, &trimmed);
+  lobe.chi2 = lambertian.chi2 - 50.0;
+  EXPECT_EQ(ladder.Next({&lambertian, &bad_lit, &trimmed, &lobe, &lambertian}).keep, &lobe);
+}
+
+TEST(ModelLadder, AutoLooksForALobeBehindALambertianFitBetweenTheTwoQuantiles) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  ModelSelectionOptions defaults;
+  const std::vector<double> strict = internal::ChiSquareQuantiles(kLights, defaults.lambertian_quantile);
+  PixelFit between = FitWith(40, 1.0);
+  between.chi2 = 0.5 * (strict[37] + ladder.quantiles()[37]);
+  ASSERT_TRUE(ladder.Adequate(between));
+  EXPECT_EQ(ladder.Next({&between}).action, Action::kRefitLit);
+  // Trimming drops nothing: the lobe decides against the Lambertian fit itself.
+  const PixelFit untrimmed = FitWith(40, 1.0, PixelModel::kTrimmed);
+  EXPECT_EQ(ladder.Next({&between, &kNoFit, &untrimmed}).action, Action::kFitLobe);
+  PixelFit lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  lobe.chi2 = between.chi2 - 1.0;
+  EXPECT_EQ(ladder.Next({&between, &kNoFit, &untrimmed, &lobe, &between}).keep, &between);
+  const PixelFit below = FitWith(40, 0.8);
+  EXPECT_EQ(ladder.Next({&below}).keep, &below);
 }
 
 TEST(ModelLadder, AutoWeighsTheLobeAgainstTheLambertianFitOnItsOwnSamples) {
@@ -105,6 +131,37 @@ TEST(ModelLadder, EachSingleModelMethodAsksForItsOwnFit) {
   EXPECT_EQ(Ladder(Method::kBlinnPhong).Next({&lambertian, nullptr, &kNoFit}).action, Action::kFitLobe);
   // `blinn-phong` keeps its lobe whatever the information criterion says.
   EXPECT_EQ(Ladder(Method::kBlinnPhong).Next({&lambertian, nullptr, &kNoFit, &lobe, &lambertian}).keep, &lobe);
+}
+
+// Where the fit a method asks for fails, the pixel keeps the rung below it,
+// labelled by that rung's model and marked as a fallback; only a pixel whose
+// every rung failed is left without a normal.
+TEST(ModelLadder, EachMethodFallsBackWhereItsOwnFitFails) {
+  const PixelFit lambertian = FitWith(40, 3.0), trimmed = FitWith(34, 3.0, PixelModel::kTrimmed);
+  const ModelLadder blinn_phong = Ladder(Method::kBlinnPhong);
+  LadderStep step = blinn_phong.Next({&lambertian, nullptr, &trimmed, &kNoFit, &lambertian});
+  EXPECT_EQ(step.keep, &trimmed);
+  EXPECT_TRUE(step.fell_back);
+  step = blinn_phong.Next({&lambertian, nullptr, &kNoFit, &kNoFit, &lambertian});
+  EXPECT_EQ(step.keep, &lambertian);
+  EXPECT_TRUE(step.fell_back);
+  step = blinn_phong.Next({&kNoFit, nullptr, &kNoFit, &kNoFit, &kNoFit});
+  EXPECT_FALSE(step.keep->ok);  // nothing to fall back to: flagged
+  EXPECT_FALSE(step.fell_back);
+  const PixelFit lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  step = blinn_phong.Next({&lambertian, nullptr, &trimmed, &lobe, &lambertian});
+  EXPECT_EQ(step.keep, &lobe);
+  EXPECT_FALSE(step.fell_back);
+
+  const ModelLadder robust = Ladder(Method::kRobust);
+  step = robust.Next({&lambertian, nullptr, &kNoFit});
+  EXPECT_EQ(step.keep, &lambertian);
+  EXPECT_TRUE(step.fell_back);
+
+  // `auto`: a failed lobe leaves the Lambertian fit on the lobe's samples.
+  step = Ladder(Method::kAuto).Next({&lambertian, &kNoFit, &trimmed, &kNoFit, &lambertian});
+  EXPECT_EQ(step.keep, &lambertian);
+  EXPECT_TRUE(step.fell_back);
 }
 
 TEST(ModelLadder, OnlyAutoScreensOnTheLambertianConfidence) {

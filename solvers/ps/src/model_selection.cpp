@@ -31,6 +31,7 @@ std::vector<double> ChiSquareQuantiles(int max_dof, double p) {
 ModelLadder::ModelLadder(Method method, const ModelSelectionOptions& options, int lights)
     : method_(method),
       quantile_(ChiSquareQuantiles(lights, options.adequacy_quantile)),
+      lambertian_quantile_(ChiSquareQuantiles(lights, options.lambertian_quantile)),
       gross_u2_(options.gross_outlier_sigma * options.gross_outlier_sigma),
       max_rejected_fraction_(options.max_rejected_fraction) {}
 
@@ -38,7 +39,8 @@ std::vector<float> ModelLadder::ScreenThresholds() const {
   const int lights = static_cast<int>(quantile_.size()) - 1;
   std::vector<float> threshold(lights + 1, std::numeric_limits<float>::infinity());
   if (method_ == Method::kAuto)
-    for (int dof = 1; dof + 3 <= lights; ++dof) threshold[dof + 3] = static_cast<float>(dof / quantile_[dof]);
+    for (int dof = 1; dof + 3 <= lights; ++dof)
+      threshold[dof + 3] = static_cast<float>(dof / lambertian_quantile_[dof]);
   return threshold;
 }
 

@@ -84,6 +84,9 @@ struct LadderStep {
   Action action = Action::kKeep;
   const PixelFit* keep = nullptr;   // kKeep: one of the fits asked about
   const PixelFit* start = nullptr;  // kFitLobe: the normal and albedo to start from
+  // kKeep: the last fit the ladder asked for failed, and `keep` is a simpler
+  // one below it (the model map says which).
+  bool fell_back = false;
 };
 
 class ModelLadder {
@@ -96,20 +99,31 @@ class ModelLadder {
   bool Adequate(const PixelFit& fit) const {
     return fit.ok && fit.Dof() > 0 && fit.chi2 <= quantile_[fit.Dof()];
   }
+  // The same below the stricter quantile `auto` keeps a Lambertian fit at.
+  bool LambertianAdequate(const PixelFit& fit) const {
+    return fit.ok && fit.Dof() > 0 && fit.chi2 <= lambertian_quantile_[fit.Dof()];
+  }
 
   // The ladder itself. For `auto`, per pixel:
-  //   1. the Lambertian fit, if adequate, or if no sample is left to test or
-  //      trim (3 usable);
+  //   1. the Lambertian fit, if adequate at the stricter lambertian_quantile,
+  //      or if no sample is left to test or trim (3 usable);
   //   2. else its refit without the samples it puts in attached shadow, if
   //      adequate;
-  //   3. else the trimmed fit, if adequate (trimming drops at most
-  //      max_rejected_fraction of the samples);
-  //   4. else, with no more samples than the lobe has parameters, the
-  //      Lambertian fit (a lobe would pass through every sample);
-  //   5. else the Blinn-Phong fit from the trimmed one (or the Lambertian fit
-  //      where trimming failed), kept if its information criterion is lower.
+  //   3. else trimming (at most max_rejected_fraction of the samples); with
+  //      no more samples than the lobe has parameters (a lobe would pass
+  //      through every sample), the trimmed fit if adequate, else the
+  //      Lambertian fit;
+  //   4. else the Blinn-Phong fit from the trimmed one (or the Lambertian fit
+  //      where trimming failed), kept if its information criterion is lower
+  //      than the Lambertian fit's on the same samples; else the trimmed fit
+  //      if adequate, else that Lambertian fit. An adequate trimmed fit does
+  //      not end the climb: the samples it dropped are a highlight's core,
+  //      and the lobe's shoulders it kept still tilt its normal.
   // `robust` keeps the IRLS fit, `blinn-phong` the lobe fitted from the
-  // trimmed fit, `lambertian` and `l2` the Lambertian fit.
+  // trimmed fit, `lambertian` and `l2` the Lambertian fit. Where the fit a
+  // method asked for fails, it falls back: `blinn-phong` to the trimmed fit,
+  // then the Lambertian fit; `robust` and `auto` to the Lambertian fit (the
+  // step's fell_back). Only a pixel whose Lambertian fit fails too has none.
   // Inline: the lane stages ask it once per pixel and stage, with most of
   // `fits` known where they call.
   inline LadderStep Next(const LadderFits& fits) const;
@@ -133,9 +147,14 @@ class ModelLadder {
 
  private:
   static LadderStep Keep(const PixelFit& fit) { return {LadderStep::Action::kKeep, &fit, nullptr}; }
+  // `asked` failed: keep `fallback` instead, or `asked` (no normal) where it failed too.
+  static LadderStep FallBack(const PixelFit& asked, const PixelFit& fallback) {
+    if (asked.ok || !fallback.ok) return Keep(asked);
+    return {LadderStep::Action::kKeep, &fallback, nullptr, true};
+  }
 
   Method method_;
-  std::vector<double> quantile_;
+  std::vector<double> quantile_, lambertian_quantile_;
   double gross_u2_, max_rejected_fraction_;
 };
 
@@ -147,26 +166,33 @@ inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
     case Method::kLambertian: return Keep(lambertian);
     case Method::kRobust:
       if (!fits.robust) return {Action::kReweight};
-      return Keep(*fits.robust);
+      return FallBack(*fits.robust, lambertian);
     case Method::kBlinnPhong:
       if (!fits.robust) return {Action::kTrim};
       if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, fits.robust->ok ? fits.robust : &lambertian};
-      return Keep(*fits.blinn_phong);
+      return FallBack(*fits.blinn_phong, fits.robust->ok ? *fits.robust : *fits.lobe_lambertian);
     case Method::kAuto: break;
   }
   // A richer model is fitted only where the samples can tell it apart: with
   // no sample to spare nothing can be tested or trimmed.
-  if (Adequate(lambertian) || !(lambertian.Dof() > 0)) return Keep(lambertian);
+  if (LambertianAdequate(lambertian) || !(lambertian.Dof() > 0)) return Keep(lambertian);
   if (!fits.lit) return {Action::kRefitLit};
   if (Adequate(*fits.lit)) return Keep(*fits.lit);
   if (!fits.robust) return {Action::kTrim};
-  if (Adequate(*fits.robust)) return Keep(*fits.robust);  // it trimmed at most its allowance
-  if (lambertian.used <= kBlinnPhongParameters) return Keep(lambertian);
-  if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, fits.robust->ok ? fits.robust : &lambertian};
-  // Neither simple model is adequate: the information criterion decides
-  // between the models fitted to all usable samples.
+  const PixelFit& trimmed = *fits.robust;
+  // A trimmed fit adequate with nothing dropped is the Lambertian fit itself,
+  // between the two quantiles.
+  const bool trimmed_adequate = Adequate(trimmed);  // it trimmed at most its allowance
+  const PixelFit& adequate_simpler = trimmed.rejected > 0 ? trimmed : lambertian;
+  if (lambertian.used <= kBlinnPhongParameters) return Keep(trimmed_adequate ? adequate_simpler : lambertian);
+  if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, trimmed.ok ? &trimmed : &lambertian};
+  // The information criterion decides between the models fitted to all
+  // usable samples; where the lobe does not pay for its parameters, an
+  // adequate simpler fit stands.
   const PixelFit& lobe = *fits.blinn_phong;
-  return Keep(lobe.ok && lobe.Bic() < fits.lobe_lambertian->Bic() ? lobe : *fits.lobe_lambertian);
+  if (lobe.ok && lobe.Bic() < fits.lobe_lambertian->Bic()) return Keep(lobe);
+  const PixelFit& simpler = trimmed_adequate ? adequate_simpler : *fits.lobe_lambertian;
+  return lobe.ok ? Keep(simpler) : FallBack(lobe, simpler);
 }
 
 }  // namespace photorig::ps::internal

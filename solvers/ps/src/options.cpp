@@ -54,6 +54,8 @@ bool ModelSelectionOptions::IsValid(std::string* why) const {
     return false;
   };
   if (!(adequacy_quantile > 0.5 && adequacy_quantile < 1.0)) return fail("selection: adequacy_quantile must be in (0.5, 1)");
+  if (!(lambertian_quantile > 0.5 && lambertian_quantile <= adequacy_quantile))
+    return fail("selection: lambertian_quantile must be in (0.5, adequacy_quantile]");
   if (!(max_rejected_fraction >= 0.0 && max_rejected_fraction < 1.0))
     return fail("selection: max_rejected_fraction must be in [0, 1)");
   if (!(gross_outlier_sigma > 0.0) || !std::isfinite(gross_outlier_sigma))

@@ -189,7 +189,11 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
     return ok;
   };
   double cost = 0.0;
-  if (!cost_at(p, true, &cost)) return PixelFit{};
+  if (!cost_at(p, true, &cost) || !std::isfinite(cost)) {
+    // As the lane fitter: once more from the diffuse start with no lobe.
+    p << start.normal, start.albedo, 0.0, options.min_exponent;
+    if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
+  }
   double lambda = 1e-3;
   Eigen::Matrix<double, Eigen::Dynamic, 6> jw;  // fixed width: J^T J without a general GEMM
   Eigen::VectorXd rw;
@@ -237,7 +241,7 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
 }  // namespace
 
 PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch* scratch,
-                              RobustLambertianLanes* irls) const {
+                              RobustLambertianLanes* irls, bool* fell_back) const {
   using Action = LadderStep::Action;
   PixelSamples& s = scratch->samples;
   reader_.Usable(pixel, &s);
@@ -248,7 +252,9 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
   for (;;) {
     const LadderStep step = ladder_.Next(fits);
     switch (step.action) {
-      case Action::kKeep: return *step.keep;
+      case Action::kKeep:
+        *fell_back = step.fell_back;
+        return *step.keep;
       case Action::kRefitLit:
         FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);  // ok stays false without one
         fits.lit = &lit;

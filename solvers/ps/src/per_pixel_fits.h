@@ -41,8 +41,9 @@ class PerPixelFits {
       : ladder_(ladder), reader_(reader), view_(view), blinn_phong_(blinn_phong) {}
 
   // The model the ladder keeps for `pixel`, from the Lambertian pass's
-  // solution x (albedo / pi times the normal).
-  PixelFit Refine(int pixel, const Eigen::Vector3d& x, PixelScratch* scratch, RobustLambertianLanes* irls) const;
+  // solution x (albedo / pi times the normal); fell_back as LadderStep's.
+  PixelFit Refine(int pixel, const Eigen::Vector3d& x, PixelScratch* scratch, RobustLambertianLanes* irls,
+                  bool* fell_back) const;
 
  private:
   const ModelLadder& ladder_;

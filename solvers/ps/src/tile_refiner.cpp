@@ -68,6 +68,7 @@ struct TileRefiner::Queued {
   double chi2;
   int used;
   PixelFit row_lambertian;  // x tested on the row
+  PixelFit trimmed;         // the lobe's queue: the trimmed fit, the rung below the lobe (kNoFit if none)
   Eigen::Vector3d start_normal;
   double start_albedo;
   std::size_t row;  // of the thread's rows
@@ -101,7 +102,7 @@ struct TileRefiner::ThreadState {
   std::vector<TrimSolution> trim_solutions;
   std::vector<BlinnPhongProblem> problems;
   std::vector<BlinnPhongSolution> solutions;
-  std::size_t lambertian = 0, trimmed = 0, irls_fits = 0, blinn_phong = 0, rejected = 0, failed = 0;
+  std::size_t lambertian = 0, trimmed = 0, irls_fits = 0, blinn_phong = 0, rejected = 0, failed = 0, fell_back = 0;
 };
 
 TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const LambertianOptions& lambertian,
@@ -137,7 +138,8 @@ Eigen::Vector3d TileRefiner::PassSolution(int p) const {
 
 // Record and Climb run once per pixel and stage; inlined into each stage,
 // where calls to them cost 1 % of shiny `auto`'s instructions.
-__attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& state, int p, const PixelFit& chosen) {
+__attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& state, int p, const PixelFit& chosen,
+                                                                bool fell_back) {
   if (!chosen.ok) {
     result_->flags.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelFlag::kRejectedByModel);
     result_->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
@@ -149,6 +151,7 @@ __attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& stat
   }
   WriteFit(p, chosen, result_);
   state.rejected += static_cast<std::size_t>(chosen.rejected);
+  state.fell_back += fell_back;
   switch (chosen.model) {
     case PixelModel::kLambertian: ++state.lambertian; break;
     case PixelModel::kTrimmed: ++state.trimmed; break;
@@ -180,7 +183,7 @@ __attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p,
   ThreadState& state = states_[thread];
   const LadderStep step = ladder_.Next(fits);
   switch (step.action) {
-    case LadderStep::Action::kKeep: Record(state, p, *step.keep); return;
+    case LadderStep::Action::kKeep: Record(state, p, *step.keep, step.fell_back); return;
     case LadderStep::Action::kRefitLit: return;  // not asked: the recheck refits every pixel it looks at
     case LadderStep::Action::kTrim: {
       state.trimming.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used});
@@ -192,15 +195,15 @@ __attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p,
     case LadderStep::Action::kReweight: {
       PixelFit lambertian;
       const std::size_t row = GatherRow(state, p, x, &lambertian);
-      state.reweighting.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used, lambertian, lambertian.normal,
-                                   lambertian.albedo, row});
+      state.reweighting.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used, lambertian, kNoFit,
+                                   lambertian.normal, lambertian.albedo, row});
       return;
     }
     case LadderStep::Action::kFitLobe: {
       PixelFit lambertian;
       const std::size_t row = GatherRow(state, p, x, &lambertian, samples);
-      state.lobes.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used, lambertian, step.start->normal,
-                             step.start->albedo, row});
+      state.lobes.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used, lambertian,
+                             fits.robust ? *fits.robust : kNoFit, step.start->normal, step.start->albedo, row});
       return;
     }
   }
@@ -258,7 +261,7 @@ void TileRefiner::FitLobes(int thread) {
     const Queued& q = state.lobes[i];
     const PixelFit lambertian = LambertianFit(q.x, q.chi2, q.used, 0);
     const PixelFit blinn_phong = BlinnPhongFit(state.solutions[i], q.row_lambertian.used);
-    const LadderFits fits{&lambertian, &kNoFit, &kNoFit, &blinn_phong, &q.row_lambertian};
+    const LadderFits fits{&lambertian, &kNoFit, &q.trimmed, &blinn_phong, &q.row_lambertian};
     Climb(thread, q.pixel, q.x, fits);
   }
   state.lobes.clear();
@@ -297,7 +300,9 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
   auto doubt = [&](int i) {
     const int p = begin + i;
     if (!lanes_) {
-      Record(state, p, per_pixel_.Refine(p, PassSolution(p), &state.scratch, state.irls.get()));
+      bool fell_back = false;
+      const PixelFit chosen = per_pixel_.Refine(p, PassSolution(p), &state.scratch, state.irls.get(), &fell_back);
+      Record(state, p, chosen, fell_back);
       return;
     }
     state.doubtful.push_back(p);
@@ -356,6 +361,7 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
     summary->pixels_irls += state.irls_fits;
     summary->pixels_blinn_phong += state.blinn_phong;
     summary->samples_rejected += state.rejected;
+    summary->pixels_fell_back += state.fell_back;
     failed += state.failed;
   }
   summary->pixels_solved -= failed;

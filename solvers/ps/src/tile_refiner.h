@@ -57,7 +57,8 @@ class TileRefiner {
 
   // The Lambertian pass's solution x = albedo / pi n of pixel p.
   Eigen::Vector3d PassSolution(int p) const;
-  void Record(ThreadState& state, int p, const PixelFit& chosen);
+  // fell_back: `chosen` stands in for a fit that failed (LadderStep's).
+  void Record(ThreadState& state, int p, const PixelFit& chosen, bool fell_back);
   // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps
   // the pixel's answer, or queues it for the stage the ladder asks for.
   // samples: the pixel's samples as copied for trimming, if they were.

@@ -16,6 +16,9 @@ constexpr double kInvPi = std::numbers::inv_pi;
 // Relative precision of a cost the float evaluation returns: float rounding
 // amplified by the exponent (h^e moves by e times h's rounding).
 constexpr double kEvaluationPrecision = 1e-5;
+// The grid start fits no lobe whose largest value over the samples is below
+// this fraction of its peak (see BlinnPhongGridStartLanes).
+constexpr double kVisibleLobe = 1e-6;
 constexpr int kParameters = 5;  // two tangent-plane steps of the normal, rho_d, rho_s, e
 constexpr int kHessianEntries = kParameters * (kParameters + 1) / 2;
 
@@ -253,9 +256,11 @@ void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, d
 #pragma omp simd
     for (int i = 0; i < samples; ++i) cos_half[i] *= cos_half[i];
   }
-  alignas(64) double sum_a[kFloatLanes] = {}, sum_b[kFloatLanes] = {}, bb[kFloatLanes] = {};
+  // peak: the lobe's largest value h^e over the samples the fit uses.
+  alignas(64) double sum_a[kFloatLanes] = {}, sum_b[kFloatLanes] = {}, bb[kFloatLanes] = {}, peak[kFloatLanes] = {};
   for (int k = 0; k < lights; ++k) {
     const double* c = weight + k * kFloatLanes;
+    const double* h = cos_half + k * kFloatLanes;
     double* a = cos_light + k * kFloatLanes;
     double* b = observed + k * kFloatLanes;
 #pragma omp simd
@@ -264,6 +269,7 @@ void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, d
       bb[j] += c[j] * b[j] * b[j];
       a[j] = weighted_cosine * cosine, b[j] = weighted_cosine * b[j];
       sum_a[j] += a[j], sum_b[j] += b[j];
+      peak[j] = std::max(peak[j], a[j] > 0.0 ? h[j] : 0.0);
     }
   }
   alignas(64) double best_chi2[kFloatLanes];
@@ -291,7 +297,11 @@ void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, d
       const double lb = normalisation * sum_b_h[j];
       const double det = dd * ll - dl * dl;
       double rho_d = dd > 0.0 ? db / dd : 0.0, rho_s = 0.0;
-      if (det > 1e-12 * dd * ll) {
+      // A lobe that stays below kVisibleLobe of its peak at every sample is
+      // fitted to its far tail: its rho_s grows as 1 / h^e (past 1e40 at the
+      // rim of a shiny sphere, where every h is small), beyond what the lane
+      // fitter's float evaluation can hold.
+      if (peak[j] >= kVisibleLobe && det > 1e-12 * dd * ll) {
         const double joint_s = (dd * lb - dl * db) / det;
         if (joint_s > 0.0) rho_s = joint_s, rho_d = (ll * db - dl * lb) / det;
       }
@@ -301,6 +311,7 @@ void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, d
         best_chi2[j] = chi2;
         out->diffuse_albedo[j] = rho_d, out->specular_albedo[j] = rho_s, out->exponent[j] = exponent;
       }
+      peak[j] *= peak[j];
     }
   }
 }
@@ -332,6 +343,7 @@ struct BlinnPhongLaneFitter::State {
   double lambda[kFloatLanes];
   double positive[kFloatLanes], predicted_decrease[kFloatLanes];
   int iterations[kFloatLanes];
+  bool restarted[kFloatLanes];  // the start had no finite cost and the lane started again
   int problem[kFloatLanes];  // index into the problems being fitted, -1 for an idle lane
 };
 
@@ -378,6 +390,7 @@ void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem, cons
   s.current_cost[lane] = std::numeric_limits<double>::infinity();  // the start is always taken
   s.lambda[lane] = 1e-3;
   s.iterations[lane] = 0;
+  s.restarted[lane] = false;
 }
 
 void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problems) {
@@ -474,7 +487,16 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
           done = decrease <= tolerance || s.iterations[lane] >= options_.max_iterations;
         }
       } else if (at_start) {
-        done = true;  // the start itself does not evaluate (no usable sample is finite)
+        // The start does not evaluate: once more from the diffuse start with
+        // no lobe, which evaluates wherever the samples are finite.
+        done = s.restarted[lane];
+        if (!done) {
+          s.restarted[lane] = true;
+          s.candidate.diffuse_albedo[lane] = problems[s.problem[lane]].start_albedo;
+          s.candidate.specular_albedo[lane] = 0.0;
+          s.candidate.exponent[lane] = options_.min_exponent;
+          continue;  // stepping stays false: the candidate is evaluated as it is
+        }
       } else {
         s.lambda[lane] *= 4.0;
         // Stuck, or the step's change of the cost is below what the float

@@ -14,11 +14,14 @@
 //                (see BlinnPhongOptions for how the derivatives are computed).
 //   kAuto        per pixel: kLambertian if its residual is at the noise level
 //                (chi-square test), or once refitted without usable samples
-//                the fit itself puts in attached shadow; else Lambertian with
-//                the worst samples trimmed greedily (reported as PixelModel::kTrimmed) if
-//                that is adequate while rejecting few samples, else
-//                kBlinnPhong; the Bayesian information criterion decides
-//                between inadequate fits.
+//                the fit itself puts in attached shadow; else kBlinnPhong
+//                started from Lambertian with the worst samples trimmed
+//                greedily, kept where the Bayesian information criterion
+//                prefers it to the Lambertian fit, else the trimmed fit
+//                (PixelModel::kTrimmed) if that is adequate while rejecting
+//                few samples, else the Lambertian fit.
+//   Where a method's own fit fails, the pixel falls back to a simpler one
+//   (SolverSummary::pixels_fell_back).
 
 #include "photorig/autodiff/blinn_phong_jacobian.h"
 #include "photorig/ps/lambertian.h"
@@ -77,6 +80,14 @@ struct ModelSelectionOptions {
   // A fit is adequate when its chi-square statistic is below this quantile of
   // the chi-square distribution with n - p degrees of freedom.
   double adequacy_quantile = 0.999;
+  // kAuto keeps the Lambertian fit on the usable samples without looking
+  // further only below this stricter quantile.
+  // A lobe's tails add less than the 0.999 quantile allows (about 1.76 times
+  // the noise variance for 50 samples) and still tilt the normal; a fit
+  // between the two quantiles is weighed against the Blinn-Phong fit by the
+  // information criterion, which keeps the Lambertian fit where the lobe
+  // does not pay for its parameters.
+  double lambertian_quantile = 0.99;
   // kAuto prefers the trimmed Lambertian fit over kBlinnPhong only when it
   // rejects at most this fraction of a pixel's usable samples.
   double max_rejected_fraction = 0.25;

@@ -32,6 +32,10 @@ struct SolverSummary : solvers::Summary {
   std::size_t pixels_trimmed = 0;  // Lambertian with its worst samples left out
   std::size_t pixels_irls = 0;     // Lambertian by iteratively reweighted least squares
   std::size_t pixels_blinn_phong = 0;
+  // Pixels whose method's own fit failed and which kept a simpler fit instead
+  // (`blinn-phong`: the trimmed, then the Lambertian fit; `robust` and `auto`:
+  // the Lambertian fit), counted among the models above by the fit they kept.
+  std::size_t pixels_fell_back = 0;
   // Whether the noise model used by the adequacy tests was (partly) estimated
   // from the residuals rather than given with the stack.
   bool noise_estimated = false;

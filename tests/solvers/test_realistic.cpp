@@ -1,0 +1,124 @@
+// Every method on a small shiny sphere with what a real capture adds to the
+// simulated one (docs/photometric-stereo.md, "Realistic scenes"): a GGX lobe
+// where the solver models Blinn-Phong, lights off their stated directions and
+// intensities, and a camera response that is not linear.
+#include "photorig/ps/evaluation.h"
+#include "photorig/ps/photometric_stereo.h"
+#include "ps_test_scene.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+
+namespace photorig::ps {
+namespace {
+
+struct RealisticScene {
+  PhotometricStack stack;
+  cv::Mat truth;  // CV_32FC3, zero off the sphere
+};
+
+// GGX microfacet lobe with Schlick's Fresnel and Smith's shadowing, as
+// sim/ renders `brdf: ggx`: f = rho_d / pi + D F G / (4 (n.l) (n.v)).
+double GgxBrdf(const Eigen::Vector3d& n, const Eigen::Vector3d& l, const Eigen::Vector3d& v, double rho_d,
+               double roughness, double f0) {
+  const Eigen::Vector3d h = (l + v).normalized();
+  const double nl = n.dot(l), nv = n.dot(v), nh = std::max(0.0, n.dot(h)), vh = std::max(0.0, v.dot(h));
+  const double a2 = roughness * roughness;
+  const double denominator = nh * nh * (a2 - 1.0) + 1.0;
+  const double d = a2 / (M_PI * denominator * denominator);
+  const double fresnel = f0 + (1.0 - f0) * std::pow(1.0 - vh, 5.0);
+  auto g1 = [a2](double c) { return 2.0 * c / (c + std::sqrt(a2 + (1.0 - a2) * c * c)); };
+  return rho_d / M_PI + d * fresnel * g1(nl) * g1(nv) / (4.0 * nl * nv);
+}
+
+// A sphere of radius 28 px in a 64 x 64 image under 48 lights, seen along +z.
+// The stack states the lights' nominal directions and scales; the frames are
+// rendered with each light 1 deg (RMS) off its direction and 3 % (RMS) off
+// its intensity, through a response DN ~ S^(1 / 1.1), with read noise 2 DN and
+// shot noise 0.25 DN per DN, which the stack's noise model gives (as from a
+// rig with dark frames and the camera's conversion gain).
+RealisticScene CaptureRealisticSphere() {
+  constexpr int kSize = 64;
+  constexpr double kRadius = 28.0, kScale = 2000.0, kDark = 16.0, kFullScale = 4095.0, kGamma = 1.1;
+  const std::vector<Eigen::Vector3d> lights = testing::RingLights(48, 20, 85, 17);
+  std::mt19937 rng(23);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  RealisticScene scene;
+  scene.stack.light_directions = lights;
+  scene.stack.light_scales.assign(lights.size(), kScale);
+  scene.stack.dark = cv::Mat(kSize, kSize, CV_32F, cv::Scalar(kDark));
+  scene.stack.noise.read_sigma = 2.0;
+  scene.stack.noise.shot_gain = 0.25;
+  scene.stack.mask = cv::Mat::zeros(kSize, kSize, CV_8U);
+  scene.truth = cv::Mat::zeros(kSize, kSize, CV_32FC3);
+  for (int r = 0; r < kSize; ++r)
+    for (int c = 0; c < kSize; ++c) {
+      const double x = (c + 0.5 - kSize / 2.0) / kRadius, y = (r + 0.5 - kSize / 2.0) / kRadius;
+      if (x * x + y * y >= 0.98) continue;
+      scene.truth.at<cv::Vec3f>(r, c) = cv::Vec3f(float(x), float(y), float(std::sqrt(1.0 - x * x - y * y)));
+      scene.stack.mask.at<std::uint8_t>(r, c) = 255;
+    }
+  const Eigen::Vector3d view = Eigen::Vector3d::UnitZ();
+  for (const Eigen::Vector3d& stated : lights) {
+    // The light as built: its direction turned by a random 1 deg (RMS) rotation, its intensity 3 % off.
+    const Eigen::Vector3d axis = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    const double angle = std::abs(gauss(rng)) * (M_PI / 180.0) / std::sqrt(2.0 / M_PI) * std::sqrt(2.0 / 3.0);
+    const Eigen::Vector3d w = Eigen::AngleAxisd(angle, axis) * stated;
+    const double intensity = kScale * (1.0 + 0.03 * gauss(rng));
+    cv::Mat image(kSize, kSize, CV_32F);
+    for (int r = 0; r < kSize; ++r)
+      for (int c = 0; c < kSize; ++c) {
+        const cv::Vec3f t = scene.truth.at<cv::Vec3f>(r, c);
+        const Eigen::Vector3d n(t[0], t[1], t[2]);
+        const double cosine = n.dot(w);
+        const double linear = scene.stack.mask.at<std::uint8_t>(r, c) && cosine > 0.0
+                                  ? intensity * GgxBrdf(n, w, view, 0.6, 0.18, 0.3) * cosine
+                                  : 0.0;
+        const double response = kFullScale * std::pow(linear / kFullScale, 1.0 / kGamma);
+        const double noisy = response + std::sqrt(scene.stack.noise.Variance(response)) * gauss(rng);
+        image.at<float>(r, c) = static_cast<float>(kDark + noisy);
+      }
+    scene.stack.images.push_back(image);
+  }
+  return scene;
+}
+
+TEST(RealisticSphere, AutoIsAsAccurateAsTheBestMethodAndEveryMethodResolvesEveryPixelWithThreeLights) {
+  const RealisticScene scene = CaptureRealisticSphere();
+  double best_single = std::numeric_limits<double>::infinity(), automatic = 0.0;
+  for (Method method : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
+    PhotometricStereoOptions options;
+    options.method = method;
+    options.lambertian.shadow_threshold = 6.0;  // three read-noise sigmas
+    NormalMap map;
+    const SolverSummary summary = SolvePhotometricStereo(options, scene.stack, &map);
+    ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+    int unresolved_with_three = 0;
+    for (int p = 0; p < map.normals.rows * map.normals.cols; ++p)
+      if (scene.stack.mask.data[p] && !std::isfinite(map.normals.ptr<cv::Vec3f>()[p][0]) &&
+          map.usable_lights.ptr<std::uint16_t>()[p] >= 3)
+        ++unresolved_with_three;
+    EXPECT_EQ(unresolved_with_three, 0) << summary.BriefReport();
+    const AngularErrorStats error = CompareNormals(map.normals, scene.truth, scene.stack.mask);
+    if (method == Method::kAuto) {
+      automatic = error.mean_deg;
+    } else {
+      best_single = std::min(best_single, error.mean_deg);
+    }
+  }
+  // 1 % of the error: `auto` differs from `blinn-phong` (the best single
+  // method here) only on the pixels where it keeps a simpler fit (about 14 %),
+  // and there by amounts whose sign changes with the draw of light errors and
+  // noise: over eight draws `auto` minus `blinn-phong` ranged from -0.003 to
+  // +0.008 deg (mean +0.004, 0.3 %), while each draw moved both means by
+  // +-0.07 deg. A margin below that spread says "as accurate"; `robust`, the
+  // next method, is 7 % worse.
+  EXPECT_LE(automatic, 1.01 * best_single);
+}
+
+}  // namespace
+}  // namespace photorig::ps
