@@ -79,9 +79,10 @@ TEST(ModelLadder, AutoKeepsTheFirstAdequateRefit) {
 }
 
 TEST(ModelLadder, AutoLooksForALobeBehindALambertianFitBetweenTheTwoQuantiles) {
-  const ModelLadder ladder = Ladder(Method::kAuto);
-  ModelSelectionOptions defaults;
-  const std::vector<double> strict = internal::ChiSquareQuantiles(kLights, defaults.lambertian_quantile);
+  ModelSelectionOptions options;
+  options.lambertian_quantile = 0.99;  // stricter than the adequacy quantile (by default they are equal)
+  const ModelLadder ladder(Method::kAuto, options, kLights);
+  const std::vector<double> strict = internal::ChiSquareQuantiles(kLights, options.lambertian_quantile);
   PixelFit between = FitWith(40, 1.0);
   between.chi2 = 0.5 * (strict[37] + ladder.quantiles()[37]);
   ASSERT_TRUE(ladder.Adequate(between));
