@@ -49,6 +49,8 @@ void SolveTimer::Finish(Summary* summary) const {
   summary->solve_ms = MillisecondsBetween(setup_done_ ? solve_start_ : start_, end);
 }
 
+double SolveTimer::ElapsedMs() const { return MillisecondsBetween(start_, Clock::now()); }
+
 Summary SolveTimer::Succeeded(std::string note) const {
   Summary summary = Ended(Termination::kSuccess, std::move(note));
   Finish(&summary);

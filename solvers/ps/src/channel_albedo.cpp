@@ -1,6 +1,5 @@
 #include "photorig/ps/channel_albedo.h"
 
-#include <chrono>
 #include <cmath>
 #include <vector>
 
@@ -19,7 +18,7 @@ bool ChannelAlbedoOptions::IsValid(std::string* why) const {
 
 SolverSummary SolveChannelAlbedo(const ChannelAlbedoOptions& options, const PhotometricStack& channel,
                                  const cv::Mat& normals, cv::Mat* albedo) {
-  const auto start = std::chrono::steady_clock::now();
+  const solvers::SolveTimer timer;
   SolverSummary summary;
   summary.method = "channel-albedo";
   std::string why;
@@ -84,8 +83,7 @@ SolverSummary SolveChannelAlbedo(const ChannelAlbedoOptions& options, const Phot
   summary.pixels_too_few_lights = too_few;
   summary.pixels_outside_mask = unsolved;
   summary.samples_rejected = rejected;
-  summary.total_ms = summary.solve_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  timer.Finish(&summary);
   summary.termination = Termination::kSuccess;
   summary.message = std::to_string(solved) + " of " + std::to_string(summary.pixels_total) + " pixels given an albedo";
   return summary;

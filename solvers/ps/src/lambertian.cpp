@@ -10,18 +10,12 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <memory>
 
 namespace photorig::ps {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double MillisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 constexpr int kMaxLights = 65535;  // NormalMap::usable_lights is 16-bit
 constexpr int kTilePixels = 1024;  // 4 KB per accumulator row: stays in L1 across all K planes
@@ -783,7 +777,7 @@ bool Avx512SubsetKernelAvailable() { return Avx512Available(); }
 
 SolverSummary SolveLambertianTiles(const LambertianOptions& options, const PhotometricStack& stack,
                                    NormalMap* result, const TileVisitor& visit, const ThreadDone& done) {
-  const auto start = Clock::now();
+  solvers::SolveTimer timer;
   SolverSummary summary;
   summary.method = options.exclude_unusable_samples ? "lambertian" : "lambertian-l2";
   summary.light_count = stack.light_count();
@@ -833,9 +827,8 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
   const TileSetup setup(options, stack, global);
   const TileConstants& constants = setup.constants();
   const double max_condition2 = options.max_condition_number * options.max_condition_number;
-  summary.setup_ms = MillisecondsSince(start);
+  timer.SetupDone(&summary);
 
-  const auto solve_start = Clock::now();
   const int tiles = (pixels + kTilePixels - 1) / kTilePixels;
   std::size_t rejected_samples = 0, on_subset = 0;
   std::size_t solved = 0, outside_mask = 0, too_few = 0, ill_conditioned = 0;
@@ -949,8 +942,7 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
   summary.pixels_outside_mask = outside_mask;
   summary.pixels_too_few_lights = too_few;
   summary.pixels_ill_conditioned = ill_conditioned;
-  summary.solve_ms = MillisecondsSince(solve_start);
-  summary.total_ms = MillisecondsSince(start);
+  timer.Finish(&summary);
   summary.termination = Termination::kSuccess;
   return summary;
 }

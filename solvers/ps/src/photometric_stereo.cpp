@@ -8,22 +8,12 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <chrono>
 #include <string>
 
 namespace photorig::ps {
-namespace {
-
-using Clock = std::chrono::steady_clock;
-double MillisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-}  // namespace
-
 SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, const PhotometricStack& stack,
                                      NormalMap* result) {
-  const auto start = Clock::now();
+  const solvers::SolveTimer timer;
   std::string why;
   if (!options.IsValid(&why)) {
     SolverSummary summary;
@@ -61,7 +51,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     summary.noise_read_sigma = working.noise.read_sigma;
     summary.noise_shot_gain = working.noise.shot_gain;
     summary.shadow_threshold = lambertian.shadow_threshold;
-    summary.total_ms = MillisecondsSince(start);
+    summary.total_ms = timer.ElapsedMs();
     return summary;
   }
   if (!(working.noise.read_sigma > 0.0)) working.noise.read_sigma = 1e-9;  // noise-free: any residual counts
@@ -74,14 +64,14 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   summary.method = MethodName(options.method);
   summary.shadow_threshold = lambertian.shadow_threshold;
   if (!summary.IsSolutionUsable()) {
-    summary.total_ms = MillisecondsSince(start);
+    summary.total_ms = timer.ElapsedMs();
     return summary;
   }
   summary.noise_estimated = noise_estimated;
   summary.noise_read_sigma = working.noise.read_sigma;
   summary.noise_shot_gain = working.noise.shot_gain;
   refiner.AddCounts(&summary);
-  summary.total_ms = MillisecondsSince(start);
+  summary.total_ms = timer.ElapsedMs();
   return summary;
 }
 

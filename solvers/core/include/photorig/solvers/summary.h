@@ -60,6 +60,9 @@ class SolveTimer {
   void Finish(Summary* summary) const;
   // A kSuccess summary (with `note` as its message) timed by this timer.
   Summary Succeeded(std::string note = {}) const;
+  // Milliseconds since construction (for a solve that keeps the setup and
+  // solve phases of an inner solver and times only the whole).
+  double ElapsedMs() const;
 
  private:
   using Clock = std::chrono::steady_clock;
