@@ -1,6 +1,7 @@
 #include "photorig/daemon/diligent.h"
 
 #include "photorig/daemon/image_io.h"
+#include "photorig/daemon/rig_config.h"
 
 #include <matio.h>
 
@@ -8,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 
@@ -15,40 +17,83 @@ namespace photorig::daemon {
 namespace fs = std::filesystem;
 namespace {
 
-std::vector<std::string> ReadLines(const fs::path& path) {
+// Every malformed file is a ConfigError naming the file (and line): bad input
+// the user fixes, not a fault of the solve.
+[[noreturn]] void Malformed(const fs::path& file, int line, const std::string& message) {
+  throw ConfigError(file.string(), line, line > 0 ? 1 : 0, "", message);
+}
+
+// Non-blank lines with their 1-based line numbers.
+std::vector<std::pair<int, std::string>> ReadLines(const fs::path& path) {
+  if (fs::is_directory(path)) Malformed(path, 0, "is a directory, expected a text file");
   std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open " + path.string());
-  std::vector<std::string> lines;
+  if (!in) Malformed(path, 0, "cannot open (a DiLiGenT folder needs filenames.txt, light_directions.txt and light_intensities.txt)");
+  std::vector<std::pair<int, std::string>> lines;
+  int number = 0;
   for (std::string line; std::getline(in, line);) {
+    ++number;
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.find_first_not_of(" \t") != std::string::npos) lines.push_back(line);
+    if (line.find_first_not_of(" \t") != std::string::npos) lines.emplace_back(number, line);
   }
   return lines;
 }
 
-std::vector<cv::Vec3d> ReadTriples(const fs::path& path, std::size_t expected) {
+// Exactly three finite numbers per line, one line per image.
+std::vector<std::pair<int, cv::Vec3d>> ReadTriples(const fs::path& path, std::size_t expected) {
   const auto lines = ReadLines(path);
   if (lines.size() != expected)
-    throw std::runtime_error(path.string() + ": " + std::to_string(lines.size()) + " lines for " +
-                             std::to_string(expected) + " images");
-  std::vector<cv::Vec3d> values;
-  for (std::size_t i = 0; i < lines.size(); ++i) {
-    std::istringstream fields(lines[i]);
+    Malformed(path, 0, std::to_string(lines.size()) + " lines for " + std::to_string(expected) +
+                           " images in filenames.txt: one line per image, in the same order");
+  std::vector<std::pair<int, cv::Vec3d>> values;
+  for (const auto& [number, text] : lines) {
+    std::istringstream fields(text);
     cv::Vec3d v;
-    if (!(fields >> v[0] >> v[1] >> v[2]))
-      throw std::runtime_error(path.string() + ":" + std::to_string(i + 1) + ": expected three numbers");
-    values.push_back(v);
+    std::string extra;
+    if (!(fields >> v[0] >> v[1] >> v[2])) Malformed(path, number, "expected three numbers, got '" + text + "'");
+    if (fields >> extra) Malformed(path, number, "expected three numbers, got more ('" + extra + "' after the third)");
+    if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
+      Malformed(path, number, "numbers must be finite");
+    values.emplace_back(number, v);
   }
   return values;
 }
 
-cv::Mat ReadNormalsMat(const fs::path& path, cv::Size size) {
+// DiLiGenT's intensities are of order 1; values far outside this range are a
+// unit mistake that would overflow the albedo (1/intensity) in float.
+constexpr double kMinLightIntensity = 1e-6, kMaxLightIntensity = 1e6;
+
+// A unit direction towards the light, z towards the camera. Scaled by its
+// largest component first so that lengths like 1e308 do not overflow.
+Eigen::Vector3d LightDirection(const fs::path& path, int line, const cv::Vec3d& d) {
+  const double largest = std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])});
+  if (!(largest > 0)) Malformed(path, line, "zero direction");
+  const Eigen::Vector3d w = Eigen::Vector3d(d[0], d[1], d[2]) / largest;
+  const Eigen::Vector3d unit = w.normalized();
+  if (!(unit.z() > 0))
+    Malformed(path, line, "light below the object's horizon (z = " + std::to_string(unit.z()) +
+                              " <= 0; z points towards the camera): check the axis convention");
+  return unit;
+}
+
+const char* DepthName(int depth) {
+  switch (depth) {
+    case CV_8U: return "8-bit";
+    case CV_16U: return "16-bit";
+    case CV_32F: return "32-bit float";
+    default: return "unusual-depth";
+  }
+}
+
+// Ground-truth normals: a real double H x W x 3 array whose vectors inside the
+// object are unit length. Vectors that are not (DiLiGenT's zeros off the
+// object, or a damaged file) become NaN so that no evaluation counts them.
+cv::Mat ReadNormalsMat(const fs::path& path, cv::Size size, const cv::Mat& object_mask) {
   mat_t* file = Mat_Open(path.c_str(), MAT_ACC_RDONLY);
-  if (!file) throw std::runtime_error("cannot open " + path.string() + " as a MATLAB file");
-  matvar_t* variable = Mat_VarRead(file, "Normal_gt");
+  if (!file) Malformed(path, 0, "cannot open as a MATLAB file");
+  matvar_t* variable = Mat_VarReadInfo(file, "Normal_gt");
   if (!variable) {
     Mat_Close(file);
-    throw std::runtime_error(path.string() + ": no variable Normal_gt");
+    Malformed(path, 0, "no variable Normal_gt (missing, or the file is truncated)");
   }
   const bool shape_ok = variable->rank == 3 && variable->dims[0] == static_cast<size_t>(size.height) &&
                         variable->dims[1] == static_cast<size_t>(size.width) && variable->dims[2] == 3 &&
@@ -56,18 +101,37 @@ cv::Mat ReadNormalsMat(const fs::path& path, cv::Size size) {
   cv::Mat normals;
   if (shape_ok) {
     normals.create(size, CV_32FC3);
-    const auto* data = static_cast<const double*>(variable->data);
     const std::size_t h = size.height, w = size.width;
+    // Read into NaNs: matio fills a truncated file's missing tail with whatever
+    // the buffer held, and NaN is what the unit-length check below refuses.
+    std::vector<double> values(h * w * 3, std::numeric_limits<double>::quiet_NaN());
+    int start[3] = {0, 0, 0}, stride[3] = {1, 1, 1}, edge[3] = {size.height, size.width, 3};
+    Mat_VarReadData(file, variable, values.data(), start, stride, edge);
+    const double* data = values.data();
     for (std::size_t r = 0; r < h; ++r)
-      for (std::size_t c = 0; c < w; ++c)
+      for (std::size_t c = 0; c < w; ++c) {
+        cv::Vec3f& n = normals.at<cv::Vec3f>(r, c);
         for (int k = 0; k < 3; ++k)  // MATLAB arrays are column-major
-          normals.at<cv::Vec3f>(r, c)[k] = static_cast<float>(data[r + h * (c + w * k)]);
+          n[k] = static_cast<float>(data[r + h * (c + w * k)]);
+        if (!(std::abs(cv::norm(n) - 1.0) < 0.01)) n = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
+      }
   }
   Mat_VarFree(variable);
   Mat_Close(file);
   if (!shape_ok)
-    throw std::runtime_error(path.string() + ": Normal_gt must be a real double array of " +
-                             std::to_string(size.height) + " x " + std::to_string(size.width) + " x 3");
+    Malformed(path, 0, "Normal_gt must be a real double array of " + std::to_string(size.height) + " x " +
+                           std::to_string(size.width) + " x 3 (the images' size)");
+  // Half the object without unit normals is not ground truth but a damaged file.
+  int inside = 0, unit = 0;
+  for (int r = 0; r < size.height; ++r)
+    for (int c = 0; c < size.width; ++c) {
+      if (!object_mask.empty() && !object_mask.at<std::uint8_t>(r, c)) continue;
+      ++inside;
+      unit += std::isfinite(normals.at<cv::Vec3f>(r, c)[0]) ? 1 : 0;
+    }
+  if (unit == 0 || (!object_mask.empty() && unit < inside / 2))
+    Malformed(path, 0, "Normal_gt has unit normals at " + std::to_string(unit) + " of " + std::to_string(inside) +
+                           " object pixels: the file is damaged or not ground-truth normals");
   return normals;
 }
 
@@ -96,50 +160,72 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   const fs::path root(directory);
   PhotometricStereoInput input;
   input.source = directory;
-  const auto names = ReadLines(root / "filenames.txt");
-  if (names.size() < 3) throw std::runtime_error((root / "filenames.txt").string() + ": fewer than 3 images");
-  const auto directions = ReadTriples(root / "light_directions.txt", names.size());
-  const auto intensities = ReadTriples(root / "light_intensities.txt", names.size());
+  const fs::path names_file = root / "filenames.txt";
+  const auto names = ReadLines(names_file);
+  if (names.size() < 3) Malformed(names_file, 0, "fewer than 3 images; photometric stereo needs at least 3 lights");
+  std::map<std::string, int> first_line;
+  for (const auto& [number, name] : names) {
+    const auto [it, fresh] = first_line.emplace(name, number);
+    if (!fresh) Malformed(names_file, number, "'" + name + "' is listed twice (first on line " + std::to_string(it->second) + ")");
+  }
+  const fs::path directions_file = root / "light_directions.txt", intensities_file = root / "light_intensities.txt";
+  const auto directions = ReadTriples(directions_file, names.size());
+  const auto intensities = ReadTriples(intensities_file, names.size());
+  cv::Mat first;
   for (std::size_t i = 0; i < names.size(); ++i) {
-    const fs::path file = root / names[i];
+    const fs::path file = root / names[i].second;
+    if (!fs::is_regular_file(file))
+      Malformed(names_file, names[i].first, "'" + names[i].second + "' is not a file in " + root.string());
     const cv::Mat image = ReadImage(file.string());
-    if (!input.stack.images.empty() && image.size() != input.stack.images.front().size())
-      throw std::runtime_error(file.string() + ": size differs from " + (root / names[0]).string());
+    if (first.empty()) {
+      first = image;
+    } else if (image.size() != first.size() || image.depth() != first.depth() || image.channels() != first.channels()) {
+      // Mixed bit depths solve with "success" at several times the error: the
+      // 8-bit images are 257 times too dark for their light.
+      Malformed(file, 0, std::to_string(image.cols) + "x" + std::to_string(image.rows) + " " + DepthName(image.depth()) +
+                             " with " + std::to_string(image.channels()) + " channel(s), but " + names[0].second + " is " +
+                             std::to_string(first.cols) + "x" + std::to_string(first.rows) + " " + DepthName(first.depth()) +
+                             " with " + std::to_string(first.channels()) +
+                             ": every image of a stack must share size, bit depth and channels (re-export it)");
+    }
+    const auto& [intensity_line, rgb] = intensities[i];
+    for (int c = 0; c < 3; ++c)
+      if (!(rgb[c] >= kMinLightIntensity && rgb[c] <= kMaxLightIntensity))
+        Malformed(intensities_file, intensity_line, "intensities must lie in [1e-6, 1e6] (relative units, of order 1)");
     // Colour-balance each channel by its intensity but keep the sensor's scale:
     // grey = mean_c(I_c * mean(L) / L_c), light scale = mean(L). Thresholds in
     // DN (shadows, quantisation) then keep their meaning.
     std::vector<cv::Mat> channels;
     cv::split(image, channels);
-    const double mean_intensity = (intensities[i][0] + intensities[i][1] + intensities[i][2]) / 3.0;
-    if (!(intensities[i][0] > 0 && intensities[i][1] > 0 && intensities[i][2] > 0))
-      throw std::runtime_error((root / "light_intensities.txt").string() + ":" + std::to_string(i + 1) +
-                               ": intensities must be > 0");
+    const double mean_intensity = (rgb[0] + rgb[1] + rgb[2]) / 3.0;
     cv::Mat grey = cv::Mat::zeros(image.size(), CV_32F);
     for (std::size_t c = 0; c < channels.size(); ++c) {
       // OpenCV reads BGR; light_intensities.txt lists R G B.
-      const double intensity = channels.size() == 3 ? intensities[i][2 - c] : mean_intensity;
+      const double intensity = channels.size() == 3 ? rgb[2 - c] : mean_intensity;
       cv::Mat channel;
       channels[c].convertTo(channel, CV_32F, mean_intensity / (intensity * channels.size()));
       grey += channel;
     }
-    const cv::Vec3d d = directions[i];
-    const double length = cv::norm(d);
-    if (!(length > 0)) throw std::runtime_error((root / "light_directions.txt").string() + ":" +
-                                                std::to_string(i + 1) + ": zero direction");
     input.stack.images.push_back(grey);
-    input.stack.light_directions.emplace_back(d[0] / length, d[1] / length, d[2] / length);
+    input.stack.light_directions.push_back(LightDirection(directions_file, directions[i].first, directions[i].second));
     input.stack.light_scales.push_back(mean_intensity);
   }
   // Channels are rescaled, so there is no common full-scale code to detect.
   input.saturation_level = std::numeric_limits<double>::infinity();
-  if (fs::exists(root / "mask.png")) {
-    cv::Mat mask = ReadImage((root / "mask.png").string());
+  const fs::path mask_file = root / "mask.png";
+  if (fs::exists(mask_file)) {
+    cv::Mat mask = ReadImage(mask_file.string());
+    if (mask.size() != first.size())
+      Malformed(mask_file, 0, std::to_string(mask.cols) + "x" + std::to_string(mask.rows) + ", but the images are " +
+                                  std::to_string(first.cols) + "x" + std::to_string(first.rows));
     if (mask.channels() > 1) cv::extractChannel(mask, mask, 0);
     if (mask.depth() != CV_8U) mask.convertTo(mask, CV_8U, 1.0 / 257.0);
     input.object_mask = mask > 0;
+    if (cv::countNonZero(input.object_mask) == 0)
+      Malformed(mask_file, 0, "the mask is empty (no nonzero pixel): nothing to solve; fix or remove mask.png");
   }
   if (fs::exists(root / "Normal_gt.mat"))
-    input.truth_normals = ReadNormalsMat(root / "Normal_gt.mat", input.stack.images.front().size());
+    input.truth_normals = ReadNormalsMat(root / "Normal_gt.mat", first.size(), input.object_mask);
   return input;
 }
 

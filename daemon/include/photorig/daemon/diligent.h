@@ -15,8 +15,12 @@ namespace photorig::daemon {
 
 // Each image becomes grey as the mean over channels of I_c * mean(L) / L_c,
 // with light scale mean(L): colour-balanced, in the sensor's units, albedo
-// relative to the intensities' unit. Throws
-// std::runtime_error naming the file and line of anything malformed.
+// relative to the intensities' unit. Throws ConfigError naming the file and
+// line of anything malformed: a missing or unreadable file, images that differ
+// in size, bit depth or channels, a name listed twice, a line without exactly
+// three finite numbers, a light at or below the horizon, intensities outside
+// [1e-6, 1e6], a mask of another size or with no object pixel, and
+// ground-truth normals that are not unit vectors over the object.
 PhotometricStereoInput LoadDiligent(const std::string& directory);
 
 // Writes a stored run in the same layout: dark-subtracted frames, directions,
