@@ -36,6 +36,12 @@ Result<LightPattern> LightController::ReadBack() {
   return DoReadBack();
 }
 
+Status LightController::KeepAlive() {
+  if (state_ != State::kOpen)
+    return {StatusCode::kFailedPrecondition, "light controller " + id_ + ": keep-alive while closed"};
+  return DoKeepAlive();
+}
+
 Status LightController::Close() {
   if (state_ == State::kClosed) return Status::Ok();
   Status off = AllOff();

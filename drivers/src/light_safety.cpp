@@ -35,6 +35,7 @@ bool LightSafetyOptions::IsValid(int channels, std::string* why) const {
   if (!(duty_window_ms > 0)) return fail("duty_window_ms must be > 0");
   if (!(watchdog_ms >= 0)) return fail("watchdog_ms must be >= 0");
   if (monitor_period_ms <= 0) return fail("monitor_period_ms must be > 0");
+  if (keepalive_period_ms <= 0) return fail("keepalive_period_ms must be > 0");
   return true;
 }
 
@@ -56,7 +57,7 @@ Status SafeLightController::DoOpen() {
     std::lock_guard lock(mutex_);
     channels_.assign(inner_->channel_count(), Channel{});
     current_ = LightPattern::AllOff(inner_->channel_count());
-    last_command_ = Clock::now();
+    last_command_ = last_keepalive_ = Clock::now();
     stopping_ = false;
     pending_report_.clear();
   }
@@ -142,6 +143,13 @@ void SafeLightController::Monitor() {
     wake_.wait_for(lock, std::chrono::milliseconds(options_.monitor_period_ms));
     if (stopping_) break;
     const auto now = Clock::now();
+    if (Ms(now - last_keepalive_) >= options_.keepalive_period_ms) {
+      last_keepalive_ = now;
+      // A link that no longer answers leaves the dead-man to switch the
+      // outputs off; the next command reports it.
+      Status alive = inner_->KeepAlive();
+      if (!alive.ok()) pending_report_ = "keep-alive failed: " + alive.ToString();
+    }
     LightPattern next = current_;
     std::string reason;
     if (options_.watchdog_ms > 0 && !current_.IsDark() && Ms(now - last_command_) >= options_.watchdog_ms) {
@@ -167,6 +175,13 @@ void SafeLightController::Monitor() {
     cuts_.push_back(reason);
     pending_report_ = reason;
   }
+}
+
+Status SafeLightController::DoKeepAlive() {
+  Heartbeat();
+  std::lock_guard lock(mutex_);
+  last_keepalive_ = Clock::now();
+  return inner_->KeepAlive();
 }
 
 Result<LightPattern> SafeLightController::DoReadBack() {

@@ -89,7 +89,8 @@ drivers::ModbusLightMap ParseModbusLightMap(const YamlNode& options, int channel
   drivers::ModbusLightMap map;
   map.channels = channels;
   if (auto node = options.Find("map")) {
-    node->ExpectKeys({"on_off", "on_off_address", "intensity", "intensity_address", "full_scale"});
+    node->ExpectKeys({"on_off", "on_off_address", "intensity", "intensity_address", "full_scale", "watchdog_address",
+                      "watchdog_timeout_ms"});
     const std::string on_off = node->String("on_off", "coils");
     if (!drivers::ParseModbusSwitch(on_off, &map.on_off))
       (*node)["on_off"].Fail("unknown '" + on_off + "' (expected coils, bitmask or none)");
@@ -97,6 +98,8 @@ drivers::ModbusLightMap ParseModbusLightMap(const YamlNode& options, int channel
     map.intensity = node->Bool("intensity", map.intensity);
     map.intensity_address = IntIn(*node, "intensity_address", map.intensity_address, 0, 65535);
     map.full_scale = IntIn(*node, "full_scale", map.full_scale, 1, 65535);
+    map.watchdog_address = IntIn(*node, "watchdog_address", map.watchdog_address, -1, 65535);
+    map.watchdog_timeout_ms = IntIn(*node, "watchdog_timeout_ms", map.watchdog_timeout_ms, 1000, 65535);
     Check(*node, map);
   }
   return map;

@@ -1,6 +1,7 @@
 // The Modbus LED driver against the simulated controller, over real Modbus
 // TCP on loopback and Modbus RTU on a pseudo-terminal pair.
 
+#include "photorig/drivers/light_safety.h"
 #include "photorig/drivers/modbus/modbus_lights.h"
 #include "photorig/sim/devices.h"
 #include "photorig/sim/modbus/led_peer.h"
@@ -11,6 +12,7 @@
 
 #include <ostream>
 #include <string>
+#include <thread>
 
 namespace photorig {
 namespace {
@@ -249,6 +251,52 @@ TEST(ModbusLights, InvalidMapIsRefusedAtOpen) {
   const Status status = lights.Open();
   EXPECT_EQ(status.code(), StatusCode::kInvalidArgument);
   EXPECT_NE(status.message().find("coils, a bitmask or intensity"), std::string::npos);
+}
+
+// The controller's communication-loss watchdog, armed at Open.
+ModbusLightMap WatchedMap() {
+  ModbusLightMap map = Map(4, ModbusLightMap::Switch::kCoils, true);
+  map.watchdog_address = 300;
+  map.watchdog_timeout_ms = 1000;
+  return map;
+}
+
+TEST(ModbusLights, TheControllerSwitchesOffWhenItsLinkGoesQuiet) {
+  const ModbusLightMap map = WatchedMap();
+  Bench bench(map);
+  ModbusLightController lights("dome", bench.link, map);
+  ASSERT_TRUE(lights.Open().ok());
+  ASSERT_TRUE(lights.SetPattern(Pattern({0, 1, 0, 0.5})).ok());
+  EXPECT_EQ(bench.world->levels()[1], 1.0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1400));  // the owner says nothing for 1.4 s
+  EXPECT_EQ(bench.world->levels(), std::vector<double>(4, 0.0));
+  EXPECT_EQ(bench.peer->trips(), 1);
+  auto back = lights.ReadBack();  // the registers say so too
+  ASSERT_TRUE(back.ok());
+  EXPECT_TRUE(back->IsDark());
+}
+
+TEST(ModbusLights, KeepAliveFromTheSafetyLayerHoldsALongExposure) {
+  const ModbusLightMap map = WatchedMap();
+  Bench bench(map);
+  drivers::LightSafetyOptions safety;
+  safety.watchdog_ms = 0;  // the sequencer's watchdog is not what this tests
+  drivers::SafeLightController lights(std::make_unique<ModbusLightController>("dome", bench.link, map), safety);
+  ASSERT_TRUE(lights.Open().ok());
+  ASSERT_TRUE(lights.SetPattern(Pattern({0, 1, 0, 0})).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(1600));  // an exposure longer than the timeout
+  EXPECT_EQ(bench.world->levels()[1], 1.0);
+  EXPECT_EQ(bench.peer->trips(), 0);
+  ASSERT_TRUE(lights.Close().ok());
+  EXPECT_EQ(bench.world->levels(), std::vector<double>(4, 0.0));
+}
+
+TEST(ModbusLights, AWatchdogRegisterInsideTheLedRegistersIsRefused) {
+  ModbusLightMap map = WatchedMap();
+  map.watchdog_address = map.intensity_address + 2;
+  std::string why;
+  EXPECT_FALSE(map.IsValid(&why));
+  EXPECT_NE(why.find("overlaps"), std::string::npos) << why;
 }
 
 }  // namespace

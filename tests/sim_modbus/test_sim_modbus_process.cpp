@@ -2,6 +2,7 @@
 // photometric-stereo run whose lights go over real Modbus TCP.
 
 #include "photorig/config/rig.h"
+#include "photorig/drivers/light_safety.h"
 #include "photorig/drivers/modbus/modbus_lights.h"
 #include "photorig/drivers/motion/modbus_drive.h"
 
@@ -14,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sys/wait.h>
+#include <thread>
 #include <unistd.h>
 
 namespace photorig {
@@ -92,6 +94,55 @@ TEST(SimModbusProcess, ServesTheDomeAndArmsOverTcpAndStopsOnSigterm) {
   EXPECT_NEAR(arm.Poll()->position_deg, 12.5, 1e-3);
   ASSERT_TRUE(arm.Close().ok());
 
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
+// The process that lit an LED dies outright (SIGKILL: no handler, no
+// atexit, no SafetyNet): the controller's own communication-loss watchdog,
+// armed by the driver from the rig's map, switches the LED off.
+TEST(SimModbusProcess, AnLedLitByAKilledProcessGoesDarkWithinTheControllersTimeout) {
+  const std::string rig = SourceDir() + "/config/rigs/sim-dome-modbus.yaml";
+  const config::RigConfig config = config::LoadRigConfig(rig);
+  const drivers::ModbusLightMap& map = config.lights.modbus->map;
+  ASSERT_GE(map.watchdog_address, 0) << "the rig arms the controller's watchdog";
+  ServerProcess server({"--rig", rig});
+  const int port = std::stoi(server.where.substr(std::string("tcp 127.0.0.1:").size()));
+  drivers::ModbusLinkOptions link;
+  link.port = port;
+
+  int lit[2];
+  ASSERT_EQ(::pipe(lit), 0);
+  const pid_t child = ::fork();
+  if (child == 0) {
+    // As the daemon drives it: the driver behind the safety layer, whose
+    // monitor keeps the dead-man alive for as long as this process lives
+    // (the rig's 2 s on-time limit lifted, so the hold outlasts the timeout).
+    drivers::LightSafetyOptions safety = config.lights.safety;
+    safety.defaults.max_on_ms = 0;
+    drivers::SafeLightController lights(std::make_unique<drivers::ModbusLightController>("dome", link, map), safety);
+    const bool ok = lights.Open().ok() && lights.SetPattern(drivers::LightPattern::Single(48, 5, 1.0)).ok();
+    const char byte = ok ? 1 : 0;
+    (void)!::write(lit[1], &byte, 1);
+    for (;;) ::pause();
+  }
+  char byte = 0;
+  ASSERT_EQ(::read(lit[0], &byte, 1), 1);
+  ASSERT_EQ(byte, 1) << "the child could not light LED 5";
+  // Held lit while the process lives (longer than the 2 s timeout).
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  drivers::ModbusLink probe("probe", link);
+  ASSERT_TRUE(probe.Connect().ok());
+  EXPECT_EQ(probe.ReadCoils(map.on_off_address + 5, 1).value()[0], 1) << "kept alive while the process lives";
+  probe.Disconnect();
+
+  ::kill(child, SIGKILL);
+  ::waitpid(child, nullptr, 0);
+  // No request from anyone now (a probe would itself keep the controller alive).
+  std::this_thread::sleep_for(std::chrono::milliseconds(map.watchdog_timeout_ms + 500));
+  ASSERT_TRUE(probe.Connect().ok());
+  EXPECT_EQ(probe.ReadCoils(map.on_off_address + 5, 1).value()[0], 0) << "still lit after the controller's timeout";
+  EXPECT_EQ(probe.ReadRegisters(map.intensity_address + 5, 1).value()[0], 0);
+  probe.Disconnect();
   EXPECT_EQ(server.Terminate(), 0);
 }
 

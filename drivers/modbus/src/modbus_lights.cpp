@@ -16,6 +16,16 @@ bool ModbusLightMap::IsValid(std::string* why) const {
   if (intensity && (intensity_address < 0 || intensity_address + channels > 65536))
     return fail("intensity registers must lie within [0, 65535]");
   if (intensity && (full_scale < 1 || full_scale > 65535)) return fail("full scale must be within [1, 65535]");
+  if (watchdog_address >= 0) {
+    if (watchdog_address > 65535) return fail("watchdog address must be within [0, 65535]");
+    if (watchdog_timeout_ms < 1000 || watchdog_timeout_ms > 65535)
+      return fail("watchdog timeout must be within [1000, 65535] ms");
+    const bool in_intensity = intensity && watchdog_address >= intensity_address &&
+                              watchdog_address < intensity_address + channels;
+    const bool in_mask = on_off == Switch::kBitmask && watchdog_address >= on_off_address &&
+                         watchdog_address < on_off_address + bitmask_registers();
+    if (in_intensity || in_mask) return fail("watchdog register overlaps the LED registers");
+  }
   if (on_off == Switch::kBitmask && intensity) {
     const int mask_end = on_off_address + bitmask_registers();
     if (on_off_address < intensity_address + channels && intensity_address < mask_end)
@@ -60,7 +70,14 @@ ModbusLightController::ModbusLightController(std::string id, ModbusLinkOptions l
 Status ModbusLightController::DoOpen() {
   std::string why;
   if (!map_.IsValid(&why)) return {StatusCode::kInvalidArgument, "light controller " + id() + ": " + why};
-  return link_.Connect();
+  Status connected = link_.Connect();
+  if (!connected.ok() || map_.watchdog_address < 0) return connected;
+  return link_.WriteRegisters(map_.watchdog_address, {static_cast<std::uint16_t>(map_.watchdog_timeout_ms)});
+}
+
+Status ModbusLightController::DoKeepAlive() {
+  if (map_.watchdog_address < 0) return Status::Ok();
+  return link_.ReadRegisters(map_.watchdog_address, 1).status();
 }
 
 Status ModbusLightController::DoSetPattern(const LightPattern& pattern) {

@@ -19,7 +19,27 @@ SimModbusLedController::SimModbusLedController(drivers::ModbusLightMap map, std:
   for (int channel : world_->config().light_faults.stuck_off_channels) stuck_off_.insert(channel);
 }
 
-void SimModbusLedController::Advance(modbus_mapping_t*, double) {}
+void SimModbusLedController::Advance(modbus_mapping_t*, double now_s) { last_request_s_ = now_s; }
+
+void SimModbusLedController::Tick(modbus_mapping_t* m, double now_s) {
+  if (map_.watchdog_address < 0 || map_.watchdog_address >= m->nb_registers || last_request_s_ < 0) return;
+  const int timeout_ms = m->tab_registers[map_.watchdog_address];
+  if (timeout_ms == 0 || (now_s - last_request_s_) * 1000.0 < timeout_ms) return;
+  last_request_s_ = -1.0;  // tripped: quiet until the next request
+  const int n = map_.channels;
+  bool lit = false;
+  for (double level : world_->levels()) lit = lit || level > 0.0;
+  if (!lit) return;
+  if (map_.on_off == drivers::ModbusLightMap::Switch::kCoils && map_.on_off_address + n <= m->nb_bits)
+    std::fill_n(m->tab_bits + map_.on_off_address, n, 0);
+  if (map_.on_off == drivers::ModbusLightMap::Switch::kBitmask &&
+      map_.on_off_address + map_.bitmask_registers() <= m->nb_registers)
+    std::fill_n(m->tab_registers + map_.on_off_address, map_.bitmask_registers(), 0);
+  if (map_.intensity && map_.intensity_address + n <= m->nb_registers)
+    std::fill_n(m->tab_registers + map_.intensity_address, n, 0);
+  world_->SetLevels(std::vector<double>(n, 0.0));
+  ++trips_;
+}
 
 void SimModbusLedController::AfterWrite(modbus_mapping_t* m, double) {
   ++writes_;

@@ -166,8 +166,13 @@ void SimModbusServer::Serve() {
       watch(listen_fd_);
       for (int fd : clients) watch(fd);
     }
-    timeval timeout{0, 10000};  // wake to notice Stop
+    timeval timeout{0, 10000};  // wake to notice Stop and to run the devices' clocks
     const int ready = ::select(highest + 1, &readable, nullptr, nullptr, &timeout);
+    {
+      std::lock_guard lock(map_mutex_);
+      const double now = NowSeconds();
+      for (auto& peer : peers_) peer->Tick(map_, now);
+    }
     if (ready <= 0) continue;
     if (rtu_) {
       const int length = modbus_receive(ctx_, request);

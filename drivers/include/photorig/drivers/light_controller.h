@@ -48,12 +48,18 @@ class LightController {
   Status AllOff();
   Result<LightPattern> ReadBack();
   Status Close();  // switches everything off first; safe to call twice
+  // Tells the device its owner is alive. A controller with a hardware
+  // dead-man (a watchdog that switches every output off when its link goes
+  // quiet, armed at Open) is reset by it; for the others it does nothing.
+  // Owners call it more often than the dead-man's timeout while open.
+  Status KeepAlive();
 
  protected:
   virtual Status DoOpen() = 0;
   virtual Status DoSetPattern(const LightPattern& pattern) = 0;
   virtual Result<LightPattern> DoReadBack() = 0;
   virtual Status DoClose() = 0;
+  virtual Status DoKeepAlive() { return Status::Ok(); }
 
  private:
   std::string id_;

@@ -7,7 +7,10 @@
 //     channel whose window is already used up is refused; it is cut when the
 //     window fills while it is on;
 //   - a watchdog: if no SetPattern or Heartbeat arrives within the timeout
-//     while any channel is lit (a stalled sequencer), everything goes off.
+//     while any channel is lit (a stalled sequencer), everything goes off;
+//   - the inner controller's hardware dead-man kept alive every
+//     keepalive_period_ms while this process lives, so that a process killed
+//     outright (SIGKILL, a crash) leaves the hardware to switch itself off.
 // Cuts happen on a monitor thread; the refusal or cut is reported by the next
 // SetPattern (kFailedPrecondition naming the channel and the limit).
 // The wrapper also registers with the SafetyNet while open.
@@ -31,11 +34,14 @@ struct ChannelLimits {
 };
 
 struct LightSafetyOptions {
-  ChannelLimits defaults;
+  // Defaults that suit LEDs of a dome in normal use (frames of up to seconds,
+  // a few LEDs lit at once); a rig with other needs says so in its YAML.
+  ChannelLimits defaults{.max_on_ms = 10000.0, .max_duty = 0.5};
   std::vector<ChannelLimits> per_channel;  // empty, or one entry per channel (overrides defaults)
   double duty_window_ms = 10000.0;
-  double watchdog_ms = 0.0;  // 0 = no watchdog
+  double watchdog_ms = 5000.0;  // 0 = no watchdog
   int monitor_period_ms = 5;
+  int keepalive_period_ms = 250;  // well inside any hardware dead-man's timeout (>= 1 s by convention)
 
   bool IsValid(int channels, std::string* why) const;
   const ChannelLimits& For(int channel) const {
@@ -49,7 +55,8 @@ class SafeLightController : public LightController {
   ~SafeLightController() override;
   int channel_count() const override { return inner_->channel_count(); }
 
-  // Tells the watchdog the sequencer is alive without changing the pattern.
+  // Tells the watchdog the sequencer is alive without changing the pattern
+  // (also what KeepAlive does, besides keeping the hardware dead-man alive).
   void Heartbeat();
   // Every cut made by the monitor so far ("channel 3: on-time 520 ms > 500 ms").
   std::vector<std::string> cuts() const;
@@ -60,6 +67,7 @@ class SafeLightController : public LightController {
   Status DoSetPattern(const LightPattern& pattern) override;
   Result<LightPattern> DoReadBack() override;
   Status DoClose() override;
+  Status DoKeepAlive() override;
 
  private:
   using Clock = std::chrono::steady_clock;
@@ -81,6 +89,7 @@ class SafeLightController : public LightController {
   std::vector<Channel> channels_;
   LightPattern current_;
   Clock::time_point last_command_;
+  Clock::time_point last_keepalive_;
   std::vector<std::string> cuts_;
   std::string pending_report_;  // a cut not yet reported to the caller
   bool stopping_ = false;

@@ -9,6 +9,13 @@
 // true when the map has no on/off switch. SetPattern writes intensities first
 // (one write-multiple), then the switches (one write-multiple), then reads
 // both back and fails if the device disagrees (e.g. a stuck output).
+//
+// Hardware dead-man: with `watchdog_address` set, Open writes
+// `watchdog_timeout_ms` to that holding register, arming the controller's
+// communication-loss timeout (every output off when no request arrives for
+// that long), and KeepAlive reads it back as the request that resets it. The
+// SafeLightController in front keeps it alive while the process lives, so a
+// process killed mid-exposure leaves the dome dark within the timeout.
 
 #include "photorig/drivers/light_controller.h"
 #include "photorig/drivers/modbus/modbus_link.h"
@@ -28,6 +35,8 @@ struct ModbusLightMap {
   bool intensity = false;          // one holding register per channel
   int intensity_address = 100;     // first intensity register
   int full_scale = 1000;           // register value for level 1.0
+  int watchdog_address = -1;       // holding register of the communication-loss timeout; -1 = none
+  int watchdog_timeout_ms = 2000;  // written there at Open, in ms (1000..65535)
 
   bool IsValid(std::string* why) const;
   int bitmask_registers() const { return (channels + 15) / 16; }
@@ -51,6 +60,7 @@ class ModbusLightController : public LightController {
   Status DoSetPattern(const LightPattern& pattern) override;
   Result<LightPattern> DoReadBack() override;
   Status DoClose() override;
+  Status DoKeepAlive() override;
 
  private:
   ModbusLightMap map_;

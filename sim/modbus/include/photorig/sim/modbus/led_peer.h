@@ -5,11 +5,17 @@
 // LightFaults::stuck_off_channels) never light, and their coils / bits /
 // intensity registers read back as off, as a controller with a dead output
 // stage reports it.
+//
+// With the map's watchdog register set to a nonzero timeout (ms), the
+// controller switches every output off (coils, bits, intensities and the
+// World's levels) when no request has arrived for that long, as a real
+// controller's communication-loss timeout does; trips() counts it.
 
 #include "photorig/drivers/modbus/modbus_lights.h"
 #include "photorig/sim/modbus/server.h"
 #include "photorig/sim/world.h"
 
+#include <atomic>
 #include <memory>
 #include <set>
 
@@ -23,13 +29,17 @@ class SimModbusLedController : public ModbusPeer {
 
   void Advance(modbus_mapping_t* map, double now_s) override;
   void AfterWrite(modbus_mapping_t* map, double now_s) override;
+  void Tick(modbus_mapping_t* map, double now_s) override;
   std::uint64_t writes() const { return writes_; }
+  int trips() const { return trips_; }
 
  private:
   drivers::ModbusLightMap map_;
   std::shared_ptr<World> world_;
   std::set<int> stuck_off_;
   std::uint64_t writes_ = 0;
+  double last_request_s_ = -1.0;  // < 0: none yet (the timeout runs from the first request)
+  std::atomic<int> trips_{0};
 };
 
 }  // namespace photorig::sim

@@ -38,6 +38,9 @@ class ModbusPeer {
   virtual void Advance(modbus_mapping_t* map, double now_s) = 0;
   // After a write request was applied to the map.
   virtual void AfterWrite(modbus_mapping_t* map, double now_s) = 0;
+  // Every ~10 ms whether or not a request came: timeouts that run on the
+  // device's own clock.
+  virtual void Tick(modbus_mapping_t*, double) {}
 };
 
 struct ModbusServerOptions {
