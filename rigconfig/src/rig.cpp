@@ -14,8 +14,13 @@ LedConfig ParseLed(const YamlNode& node, int index) {
   node.ExpectKeys({"id", "direction", "position_mm", "intensity", "channel", "rgb_intensity"});
   LedConfig led;
   led.id = node.Int("id", index);
-  led.channel = node.Int("channel", index);
-  if (led.channel < 0) node["channel"].Fail("must be >= 0");
+  // LED i is driven on controller output i (Modbus coil/register offset i,
+  // GPIO line i of `lines`, relay i): a `channel` elsewhere would be ignored,
+  // lighting the wrong LED, so it is refused rather than silently dropped.
+  if (node.Has("channel") && node.Int("channel", index) != index)
+    node["channel"].Fail("is " + std::to_string(node.Int("channel", index)) + " but this LED is entry " +
+                         std::to_string(index) + " of lights.leds: photorig drives entry i on output i, so list "
+                         "the LEDs in output order (or give channel: i)");
   const bool has_direction = node.Has("direction"), has_position = node.Has("position_mm");
   if (has_direction == has_position) node.Fail("give exactly one of 'direction' or 'position_mm'");
   // The solvers take the direction to the LED from the object origin; the

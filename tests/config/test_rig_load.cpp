@@ -53,6 +53,19 @@ TEST(RigLoad, ModbusOptionsAreParsedIntoTypedSettings) {
   EXPECT_EQ(modbus.link.retries, 3);
   EXPECT_EQ(rig.lights.safety.defaults.max_on_ms, 2000.0);
   EXPECT_EQ(rig.lights.safety.watchdog_ms, 5000.0);
+  EXPECT_EQ(modbus.map.watchdog_address, 200);
+  EXPECT_EQ(modbus.map.watchdog_timeout_ms, 2000);
+}
+
+// An LED's `channel` other than its place in the list would be ignored and
+// light the wrong LED: refused, naming the order photorig drives.
+TEST(RigLoad, AnLedChannelOtherThanItsPlaceIsRefused) {
+  std::string text = Rig(kSimLights, kSimCamera);
+  text.replace(text.find("{direction: [0.6, 0, 0.8]}"), 26, "{direction: [0.6, 0, 0.8], channel: 7}");
+  ExpectLoadError(text, 6, 43, "lights.leds[1].channel", "list the LEDs in output order");
+  text.replace(text.find("channel: 7"), 10, "channel: 1");
+  TempDir dir;
+  EXPECT_NO_THROW(LoadRigConfig(dir.Write("rig.yaml", text)));
 }
 
 TEST(RigLoad, ABadDriverOptionFailsTheLoadWithItsPosition) {

@@ -24,7 +24,6 @@ struct LedConfig {
   int id = 0;
   Eigen::Vector3d direction{0, 0, 1};  // unit, camera frame, towards the LED
   double intensity = 1.0;              // relative irradiance at the sample for drive level 1
-  int channel = 0;                     // controller output driving this LED (default: its index)
   Eigen::Vector3d rgb_intensity{1, 1, 1};  // relative [r, g, b] output, as calibrated
   // Where the LED is, when the rig gives it (mm, camera frame). Solvers use
   // `direction` (towards it from the object origin); a simulated rig renders
