@@ -2,6 +2,7 @@
 
 #include "photorig/daemon/camera_options.h"
 #include "photorig/daemon/hardware_options.h"
+#include "photorig/drivers/light_safety.h"
 #include "photorig/sim/devices.h"
 #include "photorig/sim/gonio.h"
 
@@ -26,7 +27,10 @@ std::unique_ptr<drivers::LightController> MakeLightController(const DeviceContex
   const std::string& driver = context.rig.lights.driver;
   if (driver == "sim") {
     RequireWorld(context, "the simulated light dome");
-    return std::make_unique<sim::SimLightDome>(context.rig.lights.id, context.world);
+    // Behind the same safety layer as hardware, so that a simulated run meets
+    // the limits (on-time, duty, watchdog) a real dome would.
+    return std::make_unique<drivers::SafeLightController>(
+        std::make_unique<sim::SimLightDome>(context.rig.lights.id, context.world), context.rig.lights.safety);
   }
   if (driver == "modbus-tcp" || driver == "modbus-rtu") return MakeModbusLights(context);
 #if PHOTORIG_HAVE_DRIVERS_GPIO

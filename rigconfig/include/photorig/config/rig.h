@@ -43,7 +43,7 @@ struct LightsConfig {
 #endif
   std::optional<UsbRelayOptions> usb_relay;
   // options.safety of a hardware controller: {max_on_ms, max_duty, duty_window_ms, watchdog_ms,
-  // channels: {<index>: {max_on_ms, max_duty}}}. The simulated dome has none.
+  // channels: {<index>: {max_on_ms, max_duty}}}. The simulated dome takes the defaults.
   drivers::LightSafetyOptions safety;
 };
 
