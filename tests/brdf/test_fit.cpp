@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace photorig::solvers::brdf {
@@ -95,6 +96,20 @@ TEST(BrdfSelection, PicksLambertianForAMatteSample) {
   EXPECT_EQ(s.chosen, Model::kLambertian);
   EXPECT_TRUE(s.peak_sampled);
   for (const FitSummary& f : s.candidates) EXPECT_TRUE(std::isfinite(f.bic)) << ModelName(f.params.model);
+}
+
+TEST(BrdfSelection, ReportsProgressOncePerCandidate) {
+  std::vector<std::int64_t> done;
+  SelectionOptions options;
+  options.progress = [&](const photorig::solvers::Progress& p) {
+    EXPECT_EQ(p.stage, "fit");
+    EXPECT_EQ(p.total, 3);
+    done.push_back(p.done);
+  };
+  ASSERT_TRUE(SelectModel(SyntheticSamples(Matte(), {}), options).IsSolutionUsable());
+  ASSERT_FALSE(done.empty());
+  EXPECT_TRUE(std::is_sorted(done.begin(), done.end()));
+  EXPECT_EQ(done.back(), 3);
 }
 
 TEST(BrdfSelection, PicksTheLobeTheGlossySampleWasMadeWith) {

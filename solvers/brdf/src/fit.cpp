@@ -320,6 +320,7 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   summary.peak_sampled = summary.min_theta_h_deg < options.peak_theta_h_deg;
   timer.SetupDone(&summary);
 
+  ProgressThrottle progress(options.progress, "fit", static_cast<std::int64_t>(options.candidates.size()));
   for (Model model : options.candidates) {
     summary.candidates.push_back(FitModel(model, samples, options.fit));
     const FitSummary& fit = summary.candidates.back();
@@ -328,7 +329,9 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
       summary.End(fit.termination, fit.message);
       return summary;
     }
+    progress.Update(static_cast<std::int64_t>(summary.candidates.size()));
   }
+  progress.Finish();
   auto trusted = [](const FitSummary& f) { return f.IsSolutionUsable() && f.lobe_identifiable; };
   std::optional<std::size_t> best;
   for (std::size_t i = 0; i < summary.candidates.size(); ++i)

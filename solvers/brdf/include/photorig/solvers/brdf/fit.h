@@ -17,6 +17,7 @@
 
 #include "photorig/solvers/brdf/models.h"
 #include "photorig/solvers/brdf/samples.h"
+#include "photorig/solvers/progress.h"
 #include "photorig/solvers/summary.h"
 
 #include <Eigen/Core>
@@ -73,6 +74,9 @@ struct SelectionOptions {
   double min_bic_improvement = 10.0;
   // The samples are said to see the specular peak when one has theta_h below this.
   double peak_theta_h_deg = 5.0;
+  // Called after each candidate's fit (stage "fit", done = candidates fitted):
+  // a whole measured table takes seconds per lobe model.
+  ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
 };
