@@ -118,6 +118,12 @@ TEST(BrdfSelection, PicksTheLobeTheGlossySampleWasMadeWith) {
     ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
     EXPECT_EQ(s.chosen, truth.model) << ModelName(truth.model);
     EXPECT_LT(s.candidates[s.chosen_index].bic + 10.0, s.candidates[0].bic);
+    // Held out, the true model's residuals are the noise (about one sigma);
+    // Lambertian's are the lobe it cannot follow.
+    const double true_rms = s.candidates[s.chosen_index].held_out_rms;
+    EXPECT_GT(true_rms, 0.8);
+    EXPECT_LT(true_rms, 1.25);
+    EXPECT_GT(s.candidates[0].held_out_rms, 5.0 * true_rms);
   }
 }
 

@@ -101,6 +101,7 @@ nlohmann::json FitJson(const brdf::FitSummary& f) {
           {"termination", solvers::TerminationName(f.termination)},
           {"message", f.message},
           {"bic", f.bic},
+          {"held_out_rms", f.held_out_rms},
           {"cost", f.cost},
           {"parameters", f.parameters},
           {"diffuse", Vec(f.params.diffuse)},
@@ -162,8 +163,9 @@ int Execute(const Options& options) {
                extraction.samples.size(), extraction.pose_frames, extraction.clipped, extraction.below_horizon,
                s.min_theta_h_deg);
   for (const brdf::FitSummary& f : s.candidates) {
-    std::fprintf(text, "  %-12s %-14s BIC %12.1f  rho_d %.4f +- %.4f", brdf::ModelName(f.params.model),
-                 solvers::TerminationName(f.termination), f.bic, f.params.diffuse[0], f.diffuse_sigma[0]);
+    std::fprintf(text, "  %-12s %-14s BIC %12.1f  held-out rms %8.3f  rho_d %.4f +- %.4f",
+                 brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic, f.held_out_rms,
+                 f.params.diffuse[0], f.diffuse_sigma[0]);
     if (f.params.model != brdf::Model::kLambertian)
       std::fprintf(text, "  specular %.4f +- %.4f  shape %.4g +- %.2g%s", f.params.specular[0], f.specular_sigma[0],
                    f.params.shape, f.shape_sigma, f.lobe_identifiable ? "" : "  (not identifiable)");

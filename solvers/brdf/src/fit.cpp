@@ -136,6 +136,38 @@ void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd
   }
 }
 
+// RMS residual of `samples` under `params`, in the units of `loss`.
+double RmsResidual(const ModelParams& params, const std::vector<BrdfSample>& samples, FitLoss loss) {
+  double sum = 0.0;
+  for (const BrdfSample& s : samples) {
+    const Eigen::Vector3d f = Evaluate(params, s.wi, s.wo);
+    for (int c = 0; c < 3; ++c) {
+      const double r = loss == FitLoss::kWeighted
+                           ? (f[c] - s.value[c]) / s.sigma[c]
+                           : std::log(1.0 + f[c] * s.wi.z()) - std::log(1.0 + s.value[c] * s.wi.z());
+      sum += r * r;
+    }
+  }
+  return std::sqrt(sum / (3.0 * static_cast<double>(samples.size())));
+}
+
+// k-fold held-out RMS residual of `model`; NaN when a fold's fit fails.
+double HeldOutRms(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options, int folds) {
+  double sum = 0.0;
+  std::size_t count = 0;
+  for (int fold = 0; fold < folds; ++fold) {
+    std::vector<BrdfSample> train, test;
+    for (std::size_t k = 0; k < samples.size(); ++k) (static_cast<int>(k % folds) == fold ? test : train).push_back(samples[k]);
+    if (test.empty()) continue;
+    const FitSummary fit = FitModel(model, train, options);
+    if (!fit.IsSolutionUsable()) return std::numeric_limits<double>::quiet_NaN();
+    const double rms = RmsResidual(fit.params, test, options.loss);
+    sum += rms * rms * static_cast<double>(test.size());
+    count += test.size();
+  }
+  return count > 0 ? std::sqrt(sum / static_cast<double>(count)) : std::numeric_limits<double>::quiet_NaN();
+}
+
 }  // namespace
 
 bool FitOptions::IsValid(std::string* why) const {
@@ -158,6 +190,10 @@ bool SelectionOptions::IsValid(std::string* why) const {
   }
   if (!(min_bic_improvement >= 0.0) || !(peak_theta_h_deg >= 0.0)) {
     *why = "min_bic_improvement and peak_theta_h_deg must be non-negative";
+    return false;
+  }
+  if (held_out_folds < 0 || held_out_folds == 1) {
+    *why = "held_out_folds must be 0 (none) or at least 2";
     return false;
   }
   return true;
@@ -329,6 +365,8 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
       summary.End(fit.termination, fit.message);
       return summary;
     }
+    if (options.held_out_folds > 0 && fit.IsSolutionUsable())
+      summary.candidates.back().held_out_rms = HeldOutRms(model, samples, options.fit, options.held_out_folds);
     progress.Update(static_cast<std::int64_t>(summary.candidates.size()));
   }
   progress.Finish();

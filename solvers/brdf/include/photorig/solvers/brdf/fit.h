@@ -62,6 +62,10 @@ struct FitSummary : Summary {
   // n ln(cost / n) + k ln n for kLog; lower is better.
   double bic = 0.0;
   int iterations = 0;
+  // RMS residual (in the loss's units: sigmas for kWeighted) of samples the
+  // fit did not see, over SelectionOptions::held_out_folds folds; NaN when
+  // not computed. About 1 for the right model with the weighted loss.
+  double held_out_rms = std::numeric_limits<double>::quiet_NaN();
 };
 
 FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options = {});
@@ -74,6 +78,10 @@ struct SelectionOptions {
   double min_bic_improvement = 10.0;
   // The samples are said to see the specular peak when one has theta_h below this.
   double peak_theta_h_deg = 5.0;
+  // Folds of the held-out error reported beside BIC (sample k in fold
+  // k mod folds; 0 = none). Each costs one more fit per candidate; the
+  // choice itself is by BIC.
+  int held_out_folds = 5;
   // Called after each candidate's fit (stage "fit", done = candidates fitted):
   // a whole measured table takes seconds per lobe model.
   ProgressCallback progress;
