@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <regex>
 
 namespace {
@@ -41,6 +42,33 @@ TEST(BrdfEndToEnd, GonioRunFitsTheSimulatedMaterial) {
   EXPECT_NEAR(fit["specular"][0].get<double>(), 0.15 / ((20.0 + 4.0) / (4.0 * (std::pow(2.0, -10.0) + 20.0))), 0.025);
   EXPECT_NEAR(fit["shape"].get<double>(), 20.0, 1.0);
   EXPECT_TRUE(fit["lobe_identifiable"]);
+}
+
+TEST(BrdfEndToEnd, PlannedPosesPassTheRigsDryRun) {
+  TempDir dir;
+  const std::string rig = std::filesystem::absolute(SourceDir() + "/config/rigs/sim-gonio.yaml").string();
+  // theta_d >= 10 deg keeps the arms 20 deg apart; theta_h + theta_d <= 70 deg keeps them within +-85.
+  ASSERT_EQ(RunPhotorig("plan brdf --rig " + rig + " --theta-h 0 30 4 --theta-d 10 40 4", dir.path() / "plan.log"), 0)
+      << ReadText(dir.path() / "plan.log");
+  const std::string plan = ReadText(dir.path() / "plan.log");
+  EXPECT_NE(plan.find("# 16 poses"), std::string::npos) << plan;
+  EXPECT_NE(plan.find("# 0 refused"), std::string::npos) << plan;
+  std::string steps;
+  for (std::size_t start = 0, end; start < plan.size(); start = end + 1) {
+    end = plan.find('\n', start);
+    if (end == std::string::npos) end = plan.size();
+    steps += "    " + plan.substr(start, end - start) + "\n";
+  }
+  const std::string recipe = dir.Write("planned.yaml", "recipe:\n  name: planned\n  rig: " + rig +
+                                                           "\nsample:\n  name: s\n  sim_scene:\n    shape: sample_plane\n"
+                                                           "capture:\n  exposure_us: 4000\n  steps:\n" + steps);
+  ASSERT_EQ(RunPhotorig("dry-run " + recipe, dir.path() / "dry.log"), 0) << ReadText(dir.path() / "dry.log");
+  EXPECT_NE(ReadText(dir.path() / "dry.log").find("16 frames"), std::string::npos) << ReadText(dir.path() / "dry.log");
+
+  // Arms 10 deg apart on a rig that needs 15: refused with the reason, the rest planned.
+  ASSERT_EQ(RunPhotorig("plan brdf --rig " + rig + " --theta-h 20 20 1 --theta-d 5 30 2", dir.path() / "close.log"), 0);
+  EXPECT_NE(ReadText(dir.path() / "close.log").find("arms 10.00 deg apart, closer than 15.00"), std::string::npos)
+      << ReadText(dir.path() / "close.log");
 }
 
 TEST(BrdfEndToEnd, NotARunIsAUsageError) {
