@@ -98,7 +98,7 @@ TEST(MerlTable, NoValueBelowTheHorizonOrInUnmeasuredCells) {
   ASSERT_TRUE(table.Evaluate(up, up).has_value());
   EXPECT_NEAR((*table.Evaluate(up, up))[1], 0.2, 1e-15);
   EXPECT_FALSE(table.Evaluate(up, down).has_value());
-  EXPECT_FALSE(GgxTable().Evaluate(down, up).has_value());
+  EXPECT_FALSE(table.Evaluate(down, up).has_value());
 }
 
 TEST(MerlFile, WriteReadWriteIsByteExact) {
