@@ -1,0 +1,195 @@
+// photorig solve brdf --run DIR [--loss weighted|log] [--out DIR] [--json]
+//
+// Gonioreflectometer frames -> BRDF samples -> every candidate model fitted
+// and the one the data support chosen (solvers/brdf). Each pose frame gives
+// one sample: the mean of a central block of pixels (every pixel of the
+// orthographic camera sees the sample under the same directions), minus the
+// dark frames' mean, divided by what a perfect white diffuser would give
+// without the 1/pi (lamp irradiance x level x camera response x exposure x
+// gain x cos theta_i). Its sigma is the block's standard error. A grey camera
+// gives the same value in all three channels.
+
+#include "../command.h"
+#include "photorig/daemon/run_store.h"
+#include "photorig/solvers/brdf/fit.h"
+#include "photorig/solvers/brdf/pose_plan.h"
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+
+namespace photorig::app {
+namespace {
+
+namespace brdf = photorig::solvers::brdf;
+namespace fs = std::filesystem;
+
+// A block the sample fills up to a camera arm at 80 deg on config/rigs/sim-gonio.yaml
+// (a 12 mm sample seen through 0.5 mm pixels, foreshortened by cos 80 deg: +-2.1 mm).
+constexpr int kBlockPx = 8;
+
+struct Options {
+  std::string run_dir, out, loss = "weighted";
+  bool json = false;
+};
+
+struct Extraction {
+  std::vector<brdf::BrdfSample> samples;
+  int pose_frames = 0, dark_frames = 0, clipped = 0, below_horizon = 0;
+};
+
+cv::Mat CentralBlock(const cv::Mat& frame) {
+  const int x = (frame.cols - kBlockPx) / 2, y = (frame.rows - kBlockPx) / 2;
+  cv::Mat block;
+  frame(cv::Rect(x, y, kBlockPx, kBlockPx)).convertTo(block, CV_64F);
+  return block;
+}
+
+Extraction ExtractSamples(const std::string& run_dir, const daemon::RunManifest& manifest) {
+  Extraction out;
+  if (manifest.lights.empty()) throw std::runtime_error(run_dir + "/manifest.json: the run has no lamp");
+  double dark_sum = 0.0;
+  for (const daemon::FrameRecord& r : manifest.frames)
+    if (r.kind == "dark") {
+      dark_sum += cv::mean(CentralBlock(daemon::LoadFrame(run_dir, r)))[0];
+      ++out.dark_frames;
+    }
+  // Without dark frames the black level stays in the signal; say so rather than guess it.
+  if (out.dark_frames == 0) throw std::runtime_error(run_dir + ": no dark frames to subtract (add a dark step)");
+  const double dark_dn = dark_sum / out.dark_frames;
+  for (const daemon::FrameRecord& r : manifest.frames) {
+    if (r.kind != "pose" || !r.pose) continue;
+    ++out.pose_frames;
+    const cv::Mat block = CentralBlock(daemon::LoadFrame(run_dir, r));
+    double max_dn;
+    cv::minMaxLoc(block, nullptr, &max_dn);
+    const int bits = r.bit_depth > 0 ? r.bit_depth : manifest.bit_depth;
+    if (max_dn >= std::ldexp(1.0, bits) - 1.0) {
+      ++out.clipped;
+      continue;
+    }
+    const brdf::DirectionPair dirs =
+        brdf::ArmDirections({r.pose->light_arm_deg, r.pose->camera_arm_deg, r.pose->sample_rotation_deg});
+    if (dirs.wi.z() <= 0.0 || dirs.wo.z() <= 0.0) {
+      ++out.below_horizon;
+      continue;
+    }
+    cv::Scalar mean, sd;
+    cv::meanStdDev(block, mean, sd);
+    const double level = r.level > 0.0 ? r.level : 1.0;
+    const double scale = manifest.lights[0].intensity * level * manifest.dn_per_radiance_per_us * r.exposure_us *
+                         std::pow(10.0, r.gain_db / 20.0) * dirs.wi.z();
+    brdf::BrdfSample s;
+    s.wi = dirs.wi;
+    s.wo = dirs.wo;
+    s.value.setConstant((mean[0] - dark_dn) / scale);
+    s.sigma.setConstant(std::max(sd[0], 0.5) / std::sqrt(double(block.total())) / scale);  // >= half a DN
+    out.samples.push_back(s);
+  }
+  return out;
+}
+
+nlohmann::json Vec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
+
+nlohmann::json FitJson(const brdf::FitSummary& f) {
+  return {{"model", brdf::ModelName(f.params.model)},
+          {"termination", solvers::TerminationName(f.termination)},
+          {"message", f.message},
+          {"bic", f.bic},
+          {"held_out_rms", f.held_out_rms},
+          {"cost", f.cost},
+          {"parameters", f.parameters},
+          {"diffuse", Vec(f.params.diffuse)},
+          {"diffuse_sigma", Vec(f.diffuse_sigma)},
+          {"specular", Vec(f.params.specular)},
+          {"specular_sigma", Vec(f.specular_sigma)},
+          {"shape", f.params.shape},
+          {"shape_sigma", f.shape_sigma},
+          {"lobe_identifiable", f.lobe_identifiable}};
+}
+
+int Execute(const Options& options) {
+  nlohmann::json doc = {{"command", "solve brdf"}, {"run", options.run_dir}};
+  auto finish = [&](int code, const std::string& error) {
+    doc["ok"] = code == 0;
+    doc["exit_code"] = code;
+    if (!error.empty()) {
+      doc["error"] = error;
+      std::fprintf(stderr, "solve brdf: %s\n", error.c_str());
+    }
+    if (options.json) std::printf("%s\n", doc.dump(2).c_str());
+    return code;
+  };
+  brdf::SelectionOptions selection;
+  selection.fit.loss = options.loss == "log" ? brdf::FitLoss::kLog : brdf::FitLoss::kWeighted;
+  Extraction extraction;
+  try {
+    extraction = ExtractSamples(options.run_dir, daemon::LoadRunManifest(options.run_dir));
+  } catch (const std::exception& e) {
+    return finish(2, e.what());
+  }
+  doc["pose_frames"] = extraction.pose_frames;
+  doc["samples"] = extraction.samples.size();
+  doc["clipped_frames"] = extraction.clipped;
+  doc["below_horizon_frames"] = extraction.below_horizon;
+  if (extraction.samples.empty()) return finish(1, "no usable pose frames");
+  const brdf::SelectionSummary s = brdf::SelectModel(extraction.samples, selection);
+  doc["termination"] = solvers::TerminationName(s.termination);
+  doc["message"] = s.message;
+  doc["min_theta_h_deg"] = s.min_theta_h_deg;
+  doc["peak_sampled"] = s.peak_sampled;
+  doc["candidates"] = nlohmann::json::array();
+  for (const brdf::FitSummary& f : s.candidates) doc["candidates"].push_back(FitJson(f));
+  if (s.chosen) doc["chosen"] = brdf::ModelName(*s.chosen);
+
+  const std::string out = options.out.empty() ? (fs::path(options.run_dir) / "results" / "brdf").string() : options.out;
+  fs::create_directories(out);
+  std::ofstream(fs::path(out) / "report.json") << doc.dump(2) << "\n";
+  std::ofstream csv(fs::path(out) / "samples.csv");
+  csv << "wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b\n";
+  for (const brdf::BrdfSample& b : extraction.samples) {
+    for (const Eigen::Vector3d* v : {&b.wi, &b.wo, &b.value, &b.sigma})
+      for (int c = 0; c < 3; ++c) csv << (*v)[c] << ((v == &b.sigma && c == 2) ? "\n" : ",");
+  }
+  doc["results"] = out;
+
+  FILE* text = options.json ? stderr : stdout;
+  std::fprintf(text, "%zu samples from %d pose frames (%d clipped, %d below the horizon), closest theta_h %.1f deg\n",
+               extraction.samples.size(), extraction.pose_frames, extraction.clipped, extraction.below_horizon,
+               s.min_theta_h_deg);
+  for (const brdf::FitSummary& f : s.candidates) {
+    std::fprintf(text, "  %-12s %-14s BIC %12.1f  held-out rms %8.3f  rho_d %.4f +- %.4f",
+                 brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic, f.held_out_rms,
+                 f.params.diffuse[0], f.diffuse_sigma[0]);
+    if (f.params.model != brdf::Model::kLambertian)
+      std::fprintf(text, "  specular %.4f +- %.4f  shape %.4g +- %.2g%s", f.params.specular[0], f.specular_sigma[0],
+                   f.params.shape, f.shape_sigma, f.lobe_identifiable ? "" : "  (not identifiable)");
+    std::fprintf(text, "\n");
+  }
+  if (s.chosen) std::fprintf(text, "chosen: %s\n", brdf::ModelName(*s.chosen));
+  if (!s.message.empty()) std::fprintf(text, "%s\n", s.message.c_str());
+  std::fprintf(text, "results: %s/\n", out.c_str());
+  return finish(s.IsSolutionUsable() ? 0 : 1, s.IsSolutionUsable() ? "" : s.message);
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto options = std::make_shared<Options>();
+  CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
+  CLI::App* sub = solve->add_subcommand("brdf", "fit BRDF models to a gonioreflectometer run and choose one");
+  sub->add_option("--run", options->run_dir, "run directory")->required()->check(CLI::ExistingDirectory);
+  sub->add_option("--loss", options->loss, "weighted (by each sample's deviation, default) | log")
+      ->check(CLI::IsMember({"weighted", "log"}));
+  sub->add_option("--out", options->out, "output directory (default: RUN/results/brdf)");
+  sub->add_flag("--json", options->json, "print one JSON document on stdout");
+  return {sub, [options] { return Execute(*options); }};
+}
+
+const bool registered = RegisterCommand(Setup);
+
+}  // namespace
+}  // namespace photorig::app

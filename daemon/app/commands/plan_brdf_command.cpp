@@ -1,0 +1,112 @@
+// photorig plan brdf --rig RIG [--theta-h MIN MAX STEPS] [--theta-d MIN MAX STEPS]
+//                    [--phi-d MIN MAX STEPS] [--rotation DEG]
+//
+// A gonioreflectometer pose plan uniform in Rusinkiewicz's angles
+// (solvers/brdf/pose_plan.h) for the rig's arms, printed as a recipe `poses:`
+// step to paste into a recipe's capture steps. Refused configurations and why
+// go to stderr. Every planned pose is checked again by the rig's own limits and
+// separation constraints, as dry-run will.
+
+#include "../command.h"
+#include "photorig/daemon/rig_config.h"
+#include "photorig/solvers/brdf/pose_plan.h"
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+
+namespace photorig::app {
+namespace {
+
+namespace brdf = photorig::solvers::brdf;
+
+struct Options {
+  std::string rig;
+  std::vector<double> theta_h = {0.0, 60.0, 13.0}, theta_d = {10.0, 70.0, 13.0}, phi_d = {0.0, 0.0, 1.0};
+  double rotation_deg = 0.0;
+};
+
+int Execute(const Options& o) {
+  const daemon::RigConfig rig = daemon::LoadRigConfig(o.rig);
+  const daemon::AxisConfig* light = rig.motion ? rig.motion->axis("light_arm") : nullptr;
+  const daemon::AxisConfig* camera = rig.motion ? rig.motion->axis("camera_arm") : nullptr;
+  if (!light || !camera) {
+    std::fprintf(stderr, "plan brdf: %s has no light_arm and camera_arm axes (not a gonioreflectometer)\n",
+                 o.rig.c_str());
+    return 2;
+  }
+  brdf::GonioArms arms;
+  arms.light_min_deg = light->limits.min_deg;
+  arms.light_max_deg = light->limits.max_deg;
+  arms.light_home_deg = light->limits.home_deg;
+  arms.camera_min_deg = camera->limits.min_deg;
+  arms.camera_max_deg = camera->limits.max_deg;
+  arms.camera_home_deg = camera->limits.home_deg;
+  arms.min_separation_deg = 0.0;
+  for (const auto& c : rig.motion->constraints)
+    if ((c.axis_a == "light_arm" && c.axis_b == "camera_arm") || (c.axis_a == "camera_arm" && c.axis_b == "light_arm"))
+      arms.min_separation_deg = std::max(arms.min_separation_deg, c.min_deg);
+
+  brdf::SamplingSpec spec;
+  spec.theta_h_min_deg = o.theta_h[0];
+  spec.theta_h_max_deg = o.theta_h[1];
+  spec.theta_h_steps = static_cast<int>(o.theta_h[2]);
+  spec.theta_d_min_deg = o.theta_d[0];
+  spec.theta_d_max_deg = o.theta_d[1];
+  spec.theta_d_steps = static_cast<int>(o.theta_d[2]);
+  spec.phi_d_min_deg = o.phi_d[0];
+  spec.phi_d_max_deg = o.phi_d[1];
+  spec.phi_d_steps = static_cast<int>(o.phi_d[2]);
+  if (std::string why; !spec.IsValid(&why)) {
+    std::fprintf(stderr, "plan brdf: %s\n", why.c_str());
+    return 2;
+  }
+  brdf::PosePlanOptions plan_options;
+  plan_options.sample_rotation_deg = o.rotation_deg;
+  const brdf::PosePlan plan = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), arms, plan_options);
+  if (plan.termination == solvers::Termination::kInvalidOptions) {
+    std::fprintf(stderr, "plan brdf: %s: %s\n", o.rig.c_str(), plan.message.c_str());
+    return 2;
+  }
+  constexpr double kDeg = 180.0 / M_PI;
+  for (const brdf::RefusedPose& r : plan.refused)
+    std::fprintf(stderr, "refused theta_h %.2f theta_d %.2f phi_d %.2f: %s\n", r.requested.theta_h * kDeg,
+                 r.requested.theta_d * kDeg, r.requested.phi_d * kDeg, r.reason.c_str());
+  std::printf("# %zu poses uniform in theta_h [%g, %g] x%d, theta_d [%g, %g] x%d, phi_d [%g, %g] x%d on %s;\n"
+              "# %zu refused; arm travel %.0f deg (%.0f deg in grid order)\n",
+              plan.poses.size(), spec.theta_h_min_deg, spec.theta_h_max_deg, spec.theta_h_steps,
+              spec.theta_d_min_deg, spec.theta_d_max_deg, spec.theta_d_steps, spec.phi_d_min_deg, spec.phi_d_max_deg,
+              spec.phi_d_steps, o.rig.c_str(), plan.refused.size(), plan.planned_move_deg,
+              plan.requested_order_move_deg);
+  std::printf("- poses:\n    list:\n");
+  for (const brdf::PlannedPose& p : plan.poses) {
+    const std::map<std::string, double> target = {{"light_arm", p.arms.light_arm_deg},
+                                                  {"camera_arm", p.arms.camera_arm_deg},
+                                                  {"sample_rotation", p.arms.sample_rotation_deg}};
+    if (std::string why = rig.motion->CheckPose(target); !why.empty()) {
+      std::fprintf(stderr, "plan brdf: planned pose refused by the rig: %s\n", why.c_str());
+      return 1;
+    }
+    std::printf("      - {light_arm_deg: %.3f, camera_arm_deg: %.3f, sample_rotation_deg: %.3f}\n",
+                p.arms.light_arm_deg, p.arms.camera_arm_deg, p.arms.sample_rotation_deg);
+  }
+  return plan.IsSolutionUsable() ? 0 : 1;
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto options = std::make_shared<Options>();
+  CLI::App* group = SubcommandGroup(app, "plan", "plan captures without touching any device");
+  CLI::App* sub = group->add_subcommand("brdf", "gonioreflectometer poses uniform in (theta_h, theta_d, phi_d), as a recipe step");
+  sub->add_option("--rig", options->rig, "gonioreflectometer rig YAML")->required()->check(CLI::ExistingFile);
+  sub->add_option("--theta-h", options->theta_h, "MIN MAX STEPS in degrees (default 0 60 13)")->expected(3);
+  sub->add_option("--theta-d", options->theta_d, "MIN MAX STEPS in degrees (default 10 70 13)")->expected(3);
+  sub->add_option("--phi-d", options->phi_d, "MIN MAX STEPS in degrees (default 0 0 1: in-plane)")->expected(3);
+  sub->add_option("--rotation", options->rotation_deg, "where the turntable stays, degrees (default 0)");
+  return {sub, [options] { return Execute(*options); }};
+}
+
+const bool registered = RegisterCommand(Setup);
+
+}  // namespace
+}  // namespace photorig::app

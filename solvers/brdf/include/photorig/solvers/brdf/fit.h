@@ -1,0 +1,108 @@
+#pragma once
+// Fitting the analytic models of models.h to measured samples with Ceres
+// (Levenberg-Marquardt, automatic derivatives, bounds keeping the albedos
+// non-negative and F0 <= 1), and choosing the simplest model the data support.
+//
+// Fitting space (FitLoss):
+//   kWeighted  residual (f_model - f_measured) / sigma per sample and channel,
+//              in BRDF units (1/sr): a chi-square, the right loss when the
+//              deviations are known; the parameter covariance is then absolute.
+//   kLog       residual log(1 + f_model cos theta_i) - log(1 + f_measured cos theta_i)
+//              (Löw et al. 2012): cosine-weighted and compressed, for samples
+//              without deviations; the covariance is scaled by the residual
+//              variance.
+// The lobe's shape (exponent or roughness) is fitted as its logarithm, so its
+// reported uncertainty is relative in essence and the solver never tries a
+// negative one.
+
+#include "photorig/solvers/brdf/models.h"
+#include "photorig/solvers/brdf/samples.h"
+#include "photorig/solvers/progress.h"
+#include "photorig/solvers/summary.h"
+
+#include <Eigen/Core>
+
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace photorig::solvers::brdf {
+
+enum class FitLoss { kWeighted, kLog };
+
+struct FitOptions {
+  FitLoss loss = FitLoss::kWeighted;  // kWeighted needs sigma > 0 on every sample
+  int max_iterations = 200;           // Levenberg-Marquardt iterations
+  // A lobe whose fitted shape has a relative standard deviation above this
+  // (or no covariance at all) is flagged not identifiable: the samples do not
+  // pin its width down, typically because none lies near the specular peak.
+  double max_relative_shape_sigma = 0.25;
+
+  bool IsValid(std::string* why) const;
+};
+
+struct FitSummary : Summary {
+  ModelParams params;
+  // One standard deviation of each parameter from the covariance (NaN where
+  // the covariance could not be computed).
+  Eigen::Vector3d diffuse_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Vector3d specular_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double shape_sigma = std::numeric_limits<double>::quiet_NaN();
+  bool covariance_available = false;
+  // False when the lobe's shape is not pinned down (see FitOptions); always
+  // true for Lambertian. A fit with an unidentifiable lobe is not a result.
+  bool lobe_identifiable = true;
+
+  std::size_t samples = 0;
+  std::size_t residuals = 0;  // samples x 3 channels
+  int parameters = 0;
+  double cost = 0.0;  // sum of squared residuals (a chi-square for kWeighted)
+  // Bayesian information criterion: cost + k ln n for kWeighted,
+  // n ln(cost / n) + k ln n for kLog; lower is better.
+  double bic = 0.0;
+  int iterations = 0;
+  // RMS residual (in the loss's units: sigmas for kWeighted) of samples the
+  // fit did not see, over SelectionOptions::held_out_folds folds; NaN when
+  // not computed. About 1 for the right model with the weighted loss.
+  double held_out_rms = std::numeric_limits<double>::quiet_NaN();
+};
+
+FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options = {});
+
+struct SelectionOptions {
+  FitOptions fit;
+  std::vector<Model> candidates = {Model::kLambertian, Model::kBlinnPhong, Model::kGgx};
+  // A lobe model is chosen over a simpler one only when its BIC is lower by
+  // more than this (10: "very strong" evidence on Kass and Raftery's scale).
+  double min_bic_improvement = 10.0;
+  // The samples are said to see the specular peak when one has theta_h below this.
+  double peak_theta_h_deg = 5.0;
+  // Folds of the held-out error reported beside BIC (sample k in fold
+  // k mod folds; 0 = none). Each costs one more fit per candidate; the
+  // choice itself is by BIC.
+  int held_out_folds = 5;
+  // Called after each candidate's fit (stage "fit", done = candidates fitted):
+  // a whole measured table takes seconds per lobe model.
+  ProgressCallback progress;
+
+  bool IsValid(std::string* why) const;
+};
+
+struct SelectionSummary : Summary {
+  std::vector<FitSummary> candidates;  // one per SelectionOptions::candidates, in that order
+  std::optional<Model> chosen;
+  std::size_t chosen_index = 0;
+  double min_theta_h_deg = 0.0;  // the sample nearest the specular peak
+  bool peak_sampled = false;     // min_theta_h_deg < peak_theta_h_deg
+};
+
+// Fits every candidate and chooses the one with the lowest BIC among those
+// whose fit is usable and identifiable, preferring the simpler (listed first)
+// unless a more complex one improves the BIC by min_bic_improvement. Ends
+// kFailure when no candidate is usable, or when a lobe model is far better
+// than every trusted one but its shape is not identifiable (the data show a
+// lobe whose width they cannot give).
+SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const SelectionOptions& options = {});
+
+}  // namespace photorig::solvers::brdf

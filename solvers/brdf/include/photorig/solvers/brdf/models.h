@@ -1,0 +1,60 @@
+#pragma once
+// Analytic isotropic BRDF models, in 1/sr (not cosine-weighted: the radiance
+// from irradiance E at normal incidence arriving from w_i is
+// L = f_r(w_i, w_o) * E * cos theta_i). Each is a per-channel diffuse term
+// plus (except Lambertian) one specular lobe whose shape the channels share:
+//
+//   lambertian   f = rho_d / pi
+//   blinn_phong  f = rho_d / pi + k_s N(e) cos^e theta_h
+//                N(e) = (e + 2)(e + 4) / (8 pi (2^(-e/2) + e))  (Giesen's exact
+//                normalisation: the lobe's albedo at normal incidence is k_s)
+//   ggx          f = rho_d / pi + D(h) G1(w_i) G1(w_o) F(w_i.h) / (4 cos theta_i cos theta_o)
+//                D = a^2 / (pi (cos^2 theta_h (a^2 - 1) + 1)^2)          (Trowbridge-Reitz)
+//                G1(v) = 2 cos / (cos + sqrt(a^2 + (1 - a^2) cos^2))      (separable Smith)
+//                F(c) = F0 + (1 - F0)(1 - c)^5                            (Schlick; F0 per channel)
+//
+// The Blinn-Phong here is normalised for energy, not like the simulator's
+// (e + 2) / (2 pi) lobe: a simulated rho_s corresponds to k_s = rho_s / c(e)
+// with c(e) = (e + 4) / (4 (2^(-e/2) + e)) (docs/brdf.md).
+
+#include "photorig/solvers/brdf/half_diff.h"
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <string_view>
+
+namespace photorig::solvers::brdf {
+
+enum class Model { kLambertian, kBlinnPhong, kGgx };
+
+const char* ModelName(Model model);  // "lambertian", "blinn_phong", "ggx"
+std::optional<Model> ParseModel(std::string_view name);
+// Free parameters: 3 diffuse (+ 3 specular + 1 shape for a lobe).
+int ParameterCount(Model model);
+
+struct ModelParams {
+  Model model = Model::kLambertian;
+  Eigen::Vector3d diffuse = Eigen::Vector3d::Zero();   // rho_d per channel (the albedo of the diffuse term)
+  Eigen::Vector3d specular = Eigen::Vector3d::Zero();  // blinn_phong: k_s; ggx: F0; per channel
+  double shape = 0.0;                                  // blinn_phong: exponent e; ggx: roughness a
+};
+
+// The cosines every isotropic model here reads.
+struct Geometry {
+  double cos_i = 0.0;  // n . w_i
+  double cos_o = 0.0;  // n . w_o
+  double cos_h = 0.0;  // n . h
+  double cos_d = 0.0;  // w_i . h
+};
+Geometry GeometryOf(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo);
+
+// f_r per channel in 1/sr; zero below the horizon.
+Eigen::Vector3d Evaluate(const ModelParams& params, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo);
+
+// The fraction of light arriving from `wi` that the model reflects, per
+// channel: the integral over the hemisphere of f_r cos theta_o, by the midpoint
+// rule on `theta_steps` x 4 * `theta_steps` cells in (cos theta_o, phi_o).
+Eigen::Vector3d DirectionalAlbedo(const ModelParams& params, const Eigen::Vector3d& wi, int theta_steps = 256);
+
+}  // namespace photorig::solvers::brdf

@@ -1,0 +1,193 @@
+#include "photorig/solvers/brdf/fit.h"
+
+#include "synthetic_samples.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace photorig::solvers::brdf {
+namespace {
+
+using testing::SyntheticSamples;
+using testing::SyntheticSpec;
+
+ModelParams Matte() {
+  ModelParams p;
+  p.diffuse = {0.6, 0.4, 0.2};
+  return p;
+}
+
+ModelParams GlossyGgx() {
+  ModelParams p;
+  p.model = Model::kGgx;
+  p.diffuse = {0.25, 0.15, 0.05};
+  p.specular = {0.9, 0.7, 0.5};
+  p.shape = 0.15;
+  return p;
+}
+
+ModelParams GlossyBlinnPhong() {
+  ModelParams p;
+  p.model = Model::kBlinnPhong;
+  p.diffuse = {0.25, 0.15, 0.05};
+  p.specular = {0.4, 0.3, 0.2};
+  p.shape = 60.0;
+  return p;
+}
+
+// (estimate - truth) / reported sd for every parameter of a fit.
+std::vector<double> ZScores(const FitSummary& fit, const ModelParams& truth) {
+  std::vector<double> z;
+  for (int c = 0; c < 3; ++c) z.push_back((fit.params.diffuse[c] - truth.diffuse[c]) / fit.diffuse_sigma[c]);
+  if (truth.model != Model::kLambertian) {
+    for (int c = 0; c < 3; ++c) z.push_back((fit.params.specular[c] - truth.specular[c]) / fit.specular_sigma[c]);
+    z.push_back((fit.params.shape - truth.shape) / fit.shape_sigma);
+  }
+  return z;
+}
+
+// Over 20 noisy data sets, the estimates scatter about the truth as their
+// reported deviations say: with correct deviations 95 % of z-scores fall
+// within 2 and essentially none beyond 4 (p = 6e-5 each); we ask for 85 % and
+// none, so the test fails on wrong uncertainties, not on bad luck.
+void ExpectRecoveredWithinUncertainty(const ModelParams& truth) {
+  int within_2 = 0, total = 0;
+  for (std::uint32_t seed = 1; seed <= 20; ++seed) {
+    SyntheticSpec spec;
+    spec.seed = seed;
+    const FitSummary fit = FitModel(truth.model, SyntheticSamples(truth, spec));
+    ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
+    ASSERT_TRUE(fit.covariance_available);
+    ASSERT_TRUE(fit.lobe_identifiable) << fit.message;
+    for (double z : ZScores(fit, truth)) {
+      EXPECT_LT(std::abs(z), 4.0) << "seed " << seed;
+      within_2 += std::abs(z) < 2.0;
+      ++total;
+    }
+  }
+  EXPECT_GE(within_2, 0.85 * total) << within_2 << " of " << total << " z-scores within 2";
+}
+
+TEST(BrdfFit, LambertianRecoveredWithinItsUncertainty) { ExpectRecoveredWithinUncertainty(Matte()); }
+TEST(BrdfFit, BlinnPhongRecoveredWithinItsUncertainty) { ExpectRecoveredWithinUncertainty(GlossyBlinnPhong()); }
+TEST(BrdfFit, GgxRecoveredWithinItsUncertainty) { ExpectRecoveredWithinUncertainty(GlossyGgx()); }
+
+TEST(BrdfFit, LogLossRecoversNoiseFreeGgxWithoutDeviations) {
+  SyntheticSpec spec;
+  spec.relative_sigma = 0.0;
+  spec.absolute_sigma = 0.0;
+  FitOptions options;
+  options.loss = FitLoss::kLog;
+  const FitSummary fit = FitModel(Model::kGgx, SyntheticSamples(GlossyGgx(), spec), options);
+  ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
+  EXPECT_NEAR(fit.params.shape, 0.15, 0.15 * 1e-3);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(fit.params.diffuse[c], GlossyGgx().diffuse[c], 1e-4);
+    EXPECT_NEAR(fit.params.specular[c], GlossyGgx().specular[c], 1e-3);
+  }
+}
+
+TEST(BrdfSelection, PicksLambertianForAMatteSample) {
+  const SelectionSummary s = SelectModel(SyntheticSamples(Matte(), {}));
+  ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+  ASSERT_EQ(s.candidates.size(), 3u);
+  EXPECT_EQ(s.chosen, Model::kLambertian);
+  EXPECT_TRUE(s.peak_sampled);
+  for (const FitSummary& f : s.candidates) EXPECT_TRUE(std::isfinite(f.bic)) << ModelName(f.params.model);
+}
+
+TEST(BrdfSelection, ReportsProgressOncePerCandidate) {
+  std::vector<std::int64_t> done;
+  SelectionOptions options;
+  options.progress = [&](const photorig::solvers::Progress& p) {
+    EXPECT_EQ(p.stage, "fit");
+    EXPECT_EQ(p.total, 3);
+    done.push_back(p.done);
+  };
+  ASSERT_TRUE(SelectModel(SyntheticSamples(Matte(), {}), options).IsSolutionUsable());
+  ASSERT_FALSE(done.empty());
+  EXPECT_TRUE(std::is_sorted(done.begin(), done.end()));
+  EXPECT_EQ(done.back(), 3);
+}
+
+TEST(BrdfSelection, PicksTheLobeTheGlossySampleWasMadeWith) {
+  for (const ModelParams& truth : {GlossyGgx(), GlossyBlinnPhong()}) {
+    const SelectionSummary s = SelectModel(SyntheticSamples(truth, {}));
+    ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+    EXPECT_EQ(s.chosen, truth.model) << ModelName(truth.model);
+    EXPECT_LT(s.candidates[s.chosen_index].bic + 10.0, s.candidates[0].bic);
+    // Held out, the true model's residuals are the noise (about one sigma);
+    // Lambertian's are the lobe it cannot follow.
+    const double true_rms = s.candidates[s.chosen_index].held_out_rms;
+    EXPECT_GT(true_rms, 0.8);
+    EXPECT_LT(true_rms, 1.25);
+    EXPECT_GT(s.candidates[0].held_out_rms, 5.0 * true_rms);
+  }
+}
+
+TEST(BrdfSelection, ANarrowLobeNeverSampledIsFlaggedNotGuessed) {
+  ModelParams truth = GlossyBlinnPhong();
+  truth.shape = 2000.0;  // cos^2000 of 20 deg is e^-124: nothing reaches the samples
+  SyntheticSpec spec;
+  spec.theta_h_min_deg = 20.0;
+  const SelectionSummary s = SelectModel(SyntheticSamples(truth, spec));
+  EXPECT_FALSE(s.peak_sampled);
+  EXPECT_GT(s.min_theta_h_deg, 19.9);
+  EXPECT_NE(s.message.find("specular peak"), std::string::npos) << s.message;
+  for (const FitSummary& f : s.candidates) {
+    if (f.params.model != Model::kLambertian) {
+      EXPECT_FALSE(f.lobe_identifiable) << ModelName(f.params.model) << " claims a shape of " << f.params.shape
+                                        << " +- " << f.shape_sigma;
+    }
+  }
+  if (s.IsSolutionUsable()) {
+    EXPECT_EQ(s.chosen, Model::kLambertian);
+  }
+}
+
+TEST(BrdfSelection, TooFewSamplesForALobeLeaveOnlyLambertian) {
+  SyntheticSpec spec;
+  spec.count = 2;  // 6 values: enough for 3 diffuse parameters, not for 7
+  const SelectionSummary s = SelectModel(SyntheticSamples(GlossyGgx(), spec));
+  ASSERT_TRUE(s.IsSolutionUsable()) << s.message;
+  EXPECT_EQ(s.chosen, Model::kLambertian);
+  for (std::size_t i = 1; i < s.candidates.size(); ++i) {
+    EXPECT_EQ(s.candidates[i].termination, Termination::kFailure);
+    EXPECT_NE(s.candidates[i].message.find("cannot fit the 7 parameters"), std::string::npos);
+  }
+}
+
+TEST(BrdfSelection, InvalidInputAndOptionsAreRefused) {
+  std::vector<BrdfSample> samples = SyntheticSamples(Matte(), {});
+  EXPECT_EQ(SelectModel({}).termination, Termination::kInvalidInput);
+
+  samples[3].value[1] = std::nan("");
+  SelectionSummary s = SelectModel(samples);
+  EXPECT_EQ(s.termination, Termination::kInvalidInput);
+  EXPECT_NE(s.message.find("sample 3"), std::string::npos) << s.message;
+
+  samples = SyntheticSamples(Matte(), {});
+  samples[5].wo = Eigen::Vector3d(0.0, 0.6, -0.8);
+  EXPECT_EQ(FitModel(Model::kLambertian, samples).termination, Termination::kInvalidInput);
+
+  samples = SyntheticSamples(Matte(), {});
+  samples[0].sigma = Eigen::Vector3d::Zero();
+  const FitSummary weighted = FitModel(Model::kLambertian, samples);
+  EXPECT_EQ(weighted.termination, Termination::kInvalidInput);
+  EXPECT_NE(weighted.message.find("log loss"), std::string::npos);
+  FitOptions log_loss;
+  log_loss.loss = FitLoss::kLog;
+  EXPECT_TRUE(FitModel(Model::kLambertian, samples, log_loss).IsSolutionUsable());
+
+  SelectionOptions options;
+  options.candidates.clear();
+  EXPECT_EQ(SelectModel(samples, options).termination, Termination::kInvalidOptions);
+  options = {};
+  options.fit.max_iterations = 0;
+  EXPECT_EQ(SelectModel(samples, options).termination, Termination::kInvalidOptions);
+}
+
+}  // namespace
+}  // namespace photorig::solvers::brdf

@@ -1,0 +1,174 @@
+#include "photorig/solvers/brdf/merl.h"
+#include "photorig/solvers/brdf/models.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <random>
+
+namespace photorig::solvers::brdf {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+std::string TempPath(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("photorig_brdf_" + name)).string();
+}
+
+std::vector<char> Bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+ModelParams Ggx() {
+  ModelParams p;
+  p.model = Model::kGgx;
+  p.diffuse = {0.3, 0.2, 0.1};
+  p.specular = {0.9, 0.7, 0.5};
+  p.shape = 0.2;
+  return p;
+}
+
+// One table for the whole suite: sampling 1.46 million cells takes a while.
+const MerlTable& GgxTable() {
+  static const MerlTable table =
+      MerlTable::FromFunction([](const DirectionPair& d) { return Evaluate(Ggx(), d.wi, d.wo); });
+  return table;
+}
+
+TEST(MerlLayout, SizesAndIndexFromTheFileFormat) {
+  EXPECT_EQ(MerlTable::kCells, 1458000u);
+  EXPECT_EQ(MerlTable::kFileBytes, 34992012u);
+  EXPECT_EQ(MerlTable::CellIndex(0, 0, 0), 0u);
+  EXPECT_EQ(MerlTable::CellIndex(1, 2, 3), 3u + 180u * 2u + 16200u * 1u);
+  EXPECT_EQ(MerlTable::CellIndex(89, 89, 179), MerlTable::kCells - 1);
+}
+
+TEST(MerlLayout, BinsHandComputed) {
+  // theta_h: floor(90 sqrt(theta_h / 90 deg)); 22.5 deg is a quarter of 90 -> sqrt = 1/2 -> 45.
+  EXPECT_EQ(MerlTable::ThetaHBin(0.0), 0);
+  EXPECT_EQ(MerlTable::ThetaHBin(-0.1), 0);
+  EXPECT_EQ(MerlTable::ThetaHBin(22.5 * kDeg), 45);
+  EXPECT_EQ(MerlTable::ThetaHBin(22.4 * kDeg), 44);
+  EXPECT_EQ(MerlTable::ThetaHBin(1.0 * kDeg), 9);  // 90 sqrt(1/90) = 9.49
+  EXPECT_EQ(MerlTable::ThetaHBin(90.0 * kDeg), 89);  // clamped
+  // theta_d: one bin per degree.
+  EXPECT_EQ(MerlTable::ThetaDBin(45.5 * kDeg), 45);
+  EXPECT_EQ(MerlTable::ThetaDBin(95.0 * kDeg), 89);
+  // phi_d: one bin per degree of [0, 180); negative angles folded by adding 180 deg.
+  EXPECT_EQ(MerlTable::PhiDBin(10.5 * kDeg), 10);
+  EXPECT_EQ(MerlTable::PhiDBin(-90.5 * kDeg), 89);
+  EXPECT_EQ(MerlTable::PhiDBin(M_PI), 179);  // clamped
+  // Bin centres fall in their own bins.
+  for (int i : {0, 1, 44, 89}) {
+    const HalfDiff c = MerlTable::CellCentre(i, i, 2 * i);
+    EXPECT_EQ(MerlTable::ThetaHBin(c.theta_h), i);
+    EXPECT_EQ(MerlTable::ThetaDBin(c.theta_d), i);
+    EXPECT_EQ(MerlTable::PhiDBin(c.phi_d), 2 * i);
+  }
+}
+
+TEST(MerlTable, EvaluationMatchesTheModelAtBinCentres) {
+  const MerlTable& table = GgxTable();
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> h(0, 89), d(0, 89), p(0, 179);
+  int compared = 0;
+  for (int k = 0; k < 2000; ++k) {
+    const DirectionPair dirs = FromHalfDiff(MerlTable::CellCentre(h(rng), d(rng), p(rng)), 0.3);
+    if (dirs.wi.z() <= 0.0 || dirs.wo.z() <= 0.0) continue;
+    const auto value = table.Evaluate(dirs.wi, dirs.wo);
+    ASSERT_TRUE(value.has_value());
+    const Eigen::Vector3d truth = Evaluate(Ggx(), dirs.wi, dirs.wo);
+    EXPECT_LT(((*value - truth).array().abs() / truth.array()).maxCoeff(), 1e-12);
+    ++compared;
+  }
+  EXPECT_GT(compared, 1000);
+}
+
+TEST(MerlTable, NoValueBelowTheHorizonOrInUnmeasuredCells) {
+  MerlTable table;  // every cell unmeasured
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ(), down(0.0, 0.6, -0.8);
+  EXPECT_FALSE(table.Evaluate(up, up).has_value());
+  table.SetCell(MerlTable::CellIndex(0, 0, 0), Eigen::Vector3d(0.1, 0.2, 0.3));
+  ASSERT_TRUE(table.Evaluate(up, up).has_value());
+  EXPECT_NEAR((*table.Evaluate(up, up))[1], 0.2, 1e-15);
+  EXPECT_FALSE(table.Evaluate(up, down).has_value());
+  EXPECT_FALSE(table.Evaluate(down, up).has_value());
+}
+
+TEST(MerlFile, WriteReadWriteIsByteExact) {
+  MerlTable table = GgxTable();
+  table.SetCellInvalid(12345);
+  const std::string first = TempPath("first.binary"), second = TempPath("second.binary");
+  ASSERT_TRUE(WriteMerl(first, table).IsSolutionUsable());
+  EXPECT_EQ(std::filesystem::file_size(first), MerlTable::kFileBytes);
+  MerlTable read;
+  const MerlReadSummary summary = ReadMerl(first, &read);
+  ASSERT_EQ(summary.termination, Termination::kSuccess) << summary.message;
+  EXPECT_GE(summary.invalid_cells, 1u);
+  for (int c = 0; c < 3; ++c) EXPECT_TRUE(read.plane(c) == table.plane(c));
+  ASSERT_TRUE(WriteMerl(second, read).IsSolutionUsable());
+  EXPECT_TRUE(Bytes(first) == Bytes(second));
+  // The header and the first R value as the format defines them.
+  const std::vector<char> bytes = Bytes(first);
+  std::int32_t dims[3];
+  std::memcpy(dims, bytes.data(), sizeof dims);
+  EXPECT_EQ(dims[0], 90);
+  EXPECT_EQ(dims[1], 90);
+  EXPECT_EQ(dims[2], 180);
+  double r0;
+  std::memcpy(&r0, bytes.data() + 12, sizeof r0);
+  EXPECT_NEAR(r0 / 1500.0, (*GgxTable().EvaluateCell(0))[0], 1e-15);
+  std::filesystem::remove(first);
+  std::filesystem::remove(second);
+}
+
+// Writes a file of the right size whose header or body is then spoiled.
+std::string SpoiledFile(const std::string& name, std::size_t offset, const void* data, std::size_t size) {
+  const std::string path = TempPath(name);
+  EXPECT_TRUE(WriteMerl(path, MerlTable()).IsSolutionUsable());
+  std::fstream f(path, std::ios::binary | std::ios::in | std::ios::out);
+  f.seekp(static_cast<std::streamoff>(offset));
+  f.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
+  return path;
+}
+
+void ExpectRefused(const std::string& path, const std::string& what) {
+  MerlTable table;
+  table.SetCell(0, Eigen::Vector3d::Ones());
+  const MerlReadSummary summary = ReadMerl(path, &table);
+  EXPECT_EQ(summary.termination, Termination::kInvalidInput);
+  EXPECT_NE(summary.message.find(path), std::string::npos) << summary.message;
+  EXPECT_NE(summary.message.find(what), std::string::npos) << summary.message;
+  EXPECT_EQ(table.plane(0)[0], 1500.0) << "a refused read left the table changed";
+}
+
+TEST(MerlFile, BadFilesAreRefusedNamingTheFileAndTheFault) {
+  ExpectRefused(TempPath("does_not_exist.binary"), "cannot open");
+
+  const std::string short_path = TempPath("short.binary");
+  {
+    std::ofstream out(short_path, std::ios::binary);
+    const std::int32_t dims[3] = {90, 90, 180};
+    out.write(reinterpret_cast<const char*>(dims), sizeof dims);
+    const double v = 1.0;
+    for (int i = 0; i < 1000; ++i) out.write(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+  ExpectRefused(short_path, "8012 bytes");
+
+  const std::int32_t wrong_dims[3] = {90, 90, 360};
+  ExpectRefused(SpoiledFile("header.binary", 0, wrong_dims, sizeof wrong_dims), "header is 90 x 90 x 360");
+
+  const double nan = std::nan("");
+  ExpectRefused(SpoiledFile("nan.binary", 12 + 8 * (MerlTable::kCells + 7), &nan, sizeof nan),
+                "cell 7 of the G plane is NaN");
+  for (const char* name : {"short.binary", "header.binary", "nan.binary"}) std::filesystem::remove(TempPath(name));
+}
+
+}  // namespace
+}  // namespace photorig::solvers::brdf
