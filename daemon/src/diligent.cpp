@@ -137,6 +137,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
     if (mask.channels() > 1) cv::extractChannel(mask, mask, 0);
     if (mask.depth() != CV_8U) mask.convertTo(mask, CV_8U, 1.0 / 257.0);
     input.object_mask = mask > 0;
+    input.mask_source = (root / "mask.png").string();
   }
   if (fs::exists(root / "Normal_gt.mat"))
     input.truth_normals = ReadNormalsMat(root / "Normal_gt.mat", input.stack.images.front().size());
