@@ -110,6 +110,7 @@ struct EnvmapOptions {
   std::string ball, dark, out;
   std::vector<double> circle;
   double black_level_dn = -1.0;  // < 0: not given
+  double noise_floor_sigmas = 5.0;
   int width = 512;
 };
 
@@ -169,11 +170,24 @@ int Envmap(const EnvmapOptions& options) {
     std::fprintf(stderr, "envmap: no dark frame or black level for %s: the map includes the sensor's offset "
                          "(give --dark FILE or --black-level DN)\n", options.ball.c_str());
   } else {
-    std::fprintf(stderr, "envmap: subtracting %s\n", said.c_str());
     cv::Mat channels = offset;
     if (ball.channels() == 3) cv::merge(std::vector<cv::Mat>{offset, offset, offset}, channels);
     ball -= channels;
-    ball = cv::max(ball, 0.0);  // radiance is not negative; below the offset is noise
+    // A point LED's highlight covers a few pixels of the ball, its noise all
+    // of them: left in, the noise's positive half outweighs the light. So
+    // what does not rise above the noise (robust sigma of the whole
+    // difference, mostly noise) counts as no light.
+    const cv::Mat samples = ball.reshape(1);
+    std::vector<float> values(samples.begin<float>(), samples.end<float>());
+    auto middle = values.begin() + values.size() / 2;
+    std::nth_element(values.begin(), middle, values.end());
+    const float median = *middle;
+    for (float& v : values) v = std::abs(v - median);
+    std::nth_element(values.begin(), middle, values.end());
+    const double floor_dn = options.noise_floor_sigmas * 1.4826 * *middle;
+    cv::threshold(ball, ball, floor_dn, 0.0, cv::THRESH_TOZERO);
+    std::fprintf(stderr, "envmap: subtracting %s; values under %g noise sigmas (%.1f DN) count as no light\n",
+                 said.c_str(), options.noise_floor_sigmas, floor_dn);
   }
   lighting::CameraModel camera;
   const lighting::SphereGeometry sphere = lighting::LocateSphere(camera, {cx, cy, r});
@@ -206,6 +220,9 @@ CommandRunner SetupEnvmap(CLI::App& app) {
   sub->add_option("--black-level", options->black_level_dn, "sensor offset in DN to subtract, instead of a dark frame")
       ->check(CLI::NonNegativeNumber)
       ->excludes(dark);
+  sub->add_option("--noise-floor", options->noise_floor_sigmas,
+                  "after the dark or black level: values under this many noise sigmas count as no light (default 5)")
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--width", options->width, "map width (height is half)")->check(CLI::Range(16, 16384));
   sub->add_option("--out", options->out, "output .hdr")->required();
   return {sub, [options] { return Envmap(*options); }};
