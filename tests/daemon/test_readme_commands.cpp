@@ -246,11 +246,22 @@ TEST(ReadmeCommands, LightCalibrationEnvironmentMapAndRelighting) {
   EXPECT_TRUE(fs::exists(ws.work() / "runs/lights/results/lights/report.json"));
   // Nothing but the asked-for rig outside the run's own results.
   EXPECT_EQ(ws.Entries(), (std::set<std::string>{"runs", "NEW_RIG.yaml"}));
+  EXPECT_EQ(Report(ws.work() / "runs/lights/results/lights/report.json")["summary"]["unusable"], 0);
 
-  // photorig envmap --ball runs/lights/frames/0010_led09.png --circle 191.5 191.5 170 --out map.hdr
-  ASSERT_EQ(ws.Run("envmap --ball runs/lights/frames/0010_led09.png --circle 191.5 191.5 170 --out map.hdr"), 0)
+  // photorig envmap --ball runs/lights/frames/0010_led09.png --dark runs/lights/frames/0000_dark.png
+  //     --circle 191.5 191.5 170 --out map.hdr
+  ASSERT_EQ(ws.Run("envmap --ball runs/lights/frames/0010_led09.png --dark runs/lights/frames/0000_dark.png "
+                   "--circle 191.5 191.5 170 --out map.hdr"), 0) << ws.Output();
+  // The sphere is where the README says: the calibration's own report.
+  const json calibration = Report(ws.work() / "runs/lights/results/lights/report.json");
+  EXPECT_NEAR(calibration["sphere"]["cx_px"].get<double>(), 191.5, 0.1);
+  EXPECT_NEAR(calibration["sphere"]["cy_px"].get<double>(), 191.5, 0.1);
+  EXPECT_NEAR(calibration["sphere"]["radius_px"].get<double>(), 170.0, 0.1);
+  // A frame of a run needs no --dark: the run's dark frame is taken, and said so.
+  ASSERT_EQ(ws.Run("envmap --ball runs/lights/frames/0010_led09.png --circle 191.5 191.5 170 --out auto.hdr"), 0)
       << ws.Output();
-  EXPECT_NE(ws.Stderr().find("dark frame"), std::string::npos) << ws.Stderr();
+  EXPECT_NE(ws.Stderr().find("the run's dark frame"), std::string::npos) << ws.Stderr();
+  EXPECT_EQ(ReadText(ws.work() / "auto.hdr"), ReadText(ws.work() / "map.hdr"));
   // The map is the LED's light, not the sensor's offset: almost all of its
   // energy lies within 10 degrees of LED 9.
   cv::Mat map = cv::imread((ws.work() / "map.hdr").string(), cv::IMREAD_UNCHANGED);
@@ -349,16 +360,17 @@ TEST(ReadmeCommands, ColourCalibrationAndApplyingIt) {
   // photorig calibrate color --sim-camera nikon-5100 --rig config/rigs/sim-dome.yaml --bayer RGGB --out cal/
   ASSERT_EQ(ws.Run("calibrate color --sim-camera nikon-5100 --rig " + Config("rigs/sim-dome.yaml") +
                    " --bayer RGGB --out cal/"), 0) << ws.Output();
-  // photorig calibrate color --image chart.png --dark dark.png --bayer RGGB --rig RIG.yaml --out cal/
+  // photorig calibrate color --image chart.tiff --dark dark.tiff --bayer RGGB --rig RIG.yaml --out cal/
   ASSERT_EQ(ws.Run("calibrate color --image cal/chart.png --dark cal/dark.png --bayer RGGB --rig " +
                    Config("rigs/sim-dome.yaml") + " --out cal2/"), 0) << ws.Output();
   // photorig apply-color --model cal/model.yaml --in raw.png --bayer RGGB --dark dark.png --out corrected/
+  // (the chart the simulated camera shot is the raw image)
   ASSERT_EQ(ws.Run("apply-color --model cal/model.yaml --in cal/chart.png --bayer RGGB --dark cal/dark.png "
                    "--out corrected/"), 0) << ws.Output();
   EXPECT_EQ(ws.Entries(), (std::set<std::string>{"cal", "cal2", "corrected"}));
 }
 
-// A small simulated dome: its run, and the mask given to solve ps.
+// photorig solve ps --run runs/shiny --mask object.png, on a small simulated dome.
 TEST(ReadmeCommands, SolveWithAMaskSolvesOnlyThere) {
   Workspace ws;
   const fs::path rig = ws.work() / "rig.yaml", recipe = ws.work() / "recipe.yaml";
