@@ -182,6 +182,19 @@ TEST(ReadmeCommands, ShinyRunSolveExportAndDataset) {
   const json dataset = Report(ws.work() / "shiny-diligent/results/ps/report.json");
   EXPECT_NE(dataset["mask"]["source"].get<std::string>().find("mask.png"), std::string::npos);
   EXPECT_EQ(ws.Entries(), (std::set<std::string>{"runs", "shiny-diligent"}));
+
+  // With unit light intensities the albedo is in DN, thousands of them, as in
+  // DiLiGenT's 16-bit folders: the preview still spans its range instead of
+  // clipping to a copy of the mask.
+  {
+    std::ofstream ones(ws.work() / "shiny-diligent/light_intensities.txt");
+    for (int k = 0; k < dataset["lights"].get<int>(); ++k) ones << "1 1 1\n";
+  }
+  ASSERT_EQ(ws.Run("solve ps --dataset shiny-diligent --method robust --out in-dn"), 0) << ws.Output();
+  ExpectPreviewsMatchTheData(ws.work() / "in-dn");
+  EXPECT_GT(Report(ws.work() / "in-dn/report.json")["previews"]["albedo.png"]["high"].get<double>(), 1000.0);
+  const cv::Mat in_dn_mask = ReadGrey(ws.work() / "in-dn/mask.png");
+  EXPECT_GT(cv::countNonZero(in_dn_mask & (ReadGrey(ws.work() / "in-dn/albedo.png") < 128)), 0);
 }
 
 TEST(ReadmeCommands, RunOverModbusTcp) {
