@@ -42,13 +42,7 @@ double DarkNoiseSigma(const std::vector<cv::Mat>& darks, const cv::Mat& mean_dar
     cv::sqrt(variance, sigma);
     return cv::mean(sigma)[0];
   }
-  std::vector<float> values(mean_dark.begin<float>(), mean_dark.end<float>());
-  auto middle = values.begin() + values.size() / 2;
-  std::nth_element(values.begin(), middle, values.end());
-  const float median = *middle;
-  for (float& v : values) v = std::abs(v - median);
-  std::nth_element(values.begin(), middle, values.end());
-  return 1.4826 * *middle;
+  return RobustSigma(mean_dark);
 }
 
 json MetricsJson(const ps::AngularErrorStats& stats) {
@@ -141,6 +135,17 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
     if (fs::exists(truth / "height.tiff")) input.truth_height = ReadFloatTiff((truth / "height.tiff").string());
   }
   return input;
+}
+
+double RobustSigma(const cv::Mat& values) {
+  const cv::Mat samples = values.isContinuous() ? values.reshape(1) : values.clone().reshape(1);
+  std::vector<float> v(samples.begin<float>(), samples.end<float>());
+  auto middle = v.begin() + v.size() / 2;
+  std::nth_element(v.begin(), middle, v.end());
+  const float median = *middle;
+  for (float& x : v) x = std::abs(x - median);
+  std::nth_element(v.begin(), middle, v.end());
+  return 1.4826 * *middle;
 }
 
 void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* input) {

@@ -177,14 +177,7 @@ int Envmap(const EnvmapOptions& options) {
     // of them: left in, the noise's positive half outweighs the light. So
     // what does not rise above the noise (robust sigma of the whole
     // difference, mostly noise) counts as no light.
-    const cv::Mat samples = ball.reshape(1);
-    std::vector<float> values(samples.begin<float>(), samples.end<float>());
-    auto middle = values.begin() + values.size() / 2;
-    std::nth_element(values.begin(), middle, values.end());
-    const float median = *middle;
-    for (float& v : values) v = std::abs(v - median);
-    std::nth_element(values.begin(), middle, values.end());
-    const double floor_dn = options.noise_floor_sigmas * 1.4826 * *middle;
+    const double floor_dn = options.noise_floor_sigmas * daemon::RobustSigma(ball);
     cv::threshold(ball, ball, floor_dn, 0.0, cv::THRESH_TOZERO);
     std::fprintf(stderr, "envmap: subtracting %s; values under %g noise sigmas (%.1f DN) count as no light\n",
                  said.c_str(), options.noise_floor_sigmas, floor_dn);

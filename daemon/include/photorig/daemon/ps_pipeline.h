@@ -41,6 +41,10 @@ struct PhotometricStereoInput {
   std::string mask_source;   // where object_mask came from, for the report ("" when there is none)
 };
 
+// 1.4826 x the median absolute deviation of a CV_32F image's values (every
+// channel): the standard deviation of Gaussian noise, unmoved by a few bright pixels.
+double RobustSigma(const cv::Mat& values);
+
 // Replaces the input's object mask with a PNG file (nonzero = object). Throws
 // ConfigError naming the file and both sizes when it does not match the images.
 void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* input);
