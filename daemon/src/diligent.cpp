@@ -223,6 +223,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
     input.object_mask = mask > 0;
     if (cv::countNonZero(input.object_mask) == 0)
       Malformed(mask_file, 0, "the mask is empty (no nonzero pixel): nothing to solve; fix or remove mask.png");
+    input.mask_source = mask_file.string();
   }
   if (fs::exists(root / "Normal_gt.mat"))
     input.truth_normals = ReadNormalsMat(root / "Normal_gt.mat", first.size(), input.object_mask);

@@ -110,14 +110,6 @@ cv::Mat NormalsToBgr8(const cv::Mat& normals) {
   return out;
 }
 
-cv::Mat ScalarToGray8(const cv::Mat& values, double max_value) {
-  cv::Mat clean = values.clone();
-  cv::patchNaNs(clean, 0.0);
-  cv::Mat out;
-  clean.convertTo(out, CV_8U, max_value > 0 ? 255.0 / max_value : 0.0);
-  return out;
-}
-
 std::uint32_t Crc32(const void* data, std::size_t size) {
   return libdeflate_crc32(0, data, size);
 }

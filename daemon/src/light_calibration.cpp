@@ -8,6 +8,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -148,6 +150,41 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
                                 {"uncertainty_deg", e.uncertainty_deg}});
     directions.push_back(e);
   }
+  // A given circle is checked against the one the highlights place under the
+  // rig's nominal directions: each direction's shift between the two circles
+  // joins its uncertainty, so a wrong circle cannot report the precision of a
+  // right one.
+  if (summary.sphere_source == "circle" && inputs.nominal_directions.size() == inputs.frames.size() &&
+      request.camera.projection == CameraModel::Projection::kOrthographic) {
+    const HighlightCircleSummary fit = LocateSphereFromHighlights(inputs.frames, inputs.nominal_directions);
+    const SphereGeometry check = fit.IsSolutionUsable() ? LocateSphere(request.camera, fit.circle) : SphereGeometry{};
+    if (check.valid) {
+      double shift_sum = 0.0;
+      uncertainty_sum = 0.0;
+      for (std::size_t k = 0; k < directions.size(); ++k) {
+        LightDirectionEstimate& e = directions[k];
+        if (!e.usable) continue;
+        const LightDirectionEstimate other = EstimateLightDirection(inputs.frames[k], check);
+        const double shift_deg =
+            other.usable ? std::acos(std::clamp(e.direction.dot(other.direction), -1.0, 1.0)) * 180.0 / M_PI : 0.0;
+        e.uncertainty_deg = std::hypot(e.uncertainty_deg, shift_deg);
+        report["lights"][k]["uncertainty_deg"] = e.uncertainty_deg;
+        report["lights"][k]["circle_shift_deg"] = shift_deg;
+        uncertainty_sum += e.uncertainty_deg;
+        shift_sum += shift_deg;
+      }
+      const int checked = summary.lights - summary.unusable;
+      summary.circle_shift_deg = checked > 0 ? shift_sum / checked : 0.0;
+      report["sphere"]["check"] = {{"highlight_circle", {fit.circle.cx_px, fit.circle.cy_px, fit.circle.radius_px}},
+                                   {"highlight_fit_rms_px", fit.rms_residual_px},
+                                   {"centre_offset_px", std::hypot(summary.circle.cx_px - fit.circle.cx_px,
+                                                                   summary.circle.cy_px - fit.circle.cy_px)},
+                                   {"radius_difference_px", summary.circle.radius_px - fit.circle.radius_px},
+                                   {"mean_direction_shift_deg", summary.circle_shift_deg}};
+    } else {
+      report["sphere"]["check"] = {{"message", "the highlights place no sphere: " + fit.message}};
+    }
+  }
   const int usable = summary.lights - summary.unusable;
   summary.mean_uncertainty_deg = usable > 0 ? uncertainty_sum / usable : 0.0;
 
@@ -183,7 +220,8 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
     }
   }
   report["summary"] = {{"lights", summary.lights}, {"unusable", summary.unusable},
-                       {"mean_uncertainty_deg", summary.mean_uncertainty_deg}, {"out_rig", summary.out_rig}};
+                       {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
+                       {"circle_shift_deg", summary.circle_shift_deg}, {"out_rig", summary.out_rig}};
   std::ofstream((fs::path(out_directory) / "report.json").string()) << report.dump(2) << "\n";
   summary.success = rig_written && summary.unusable == 0;
   if (summary.message.empty())

@@ -2,6 +2,8 @@
 
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/mesh_io.h"
+#include "photorig/daemon/previews.h"
+#include "photorig/daemon/rig_config.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/ps/evaluation.h"
 #include "photorig/ps/integration.h"
@@ -11,6 +13,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
@@ -39,13 +42,7 @@ double DarkNoiseSigma(const std::vector<cv::Mat>& darks, const cv::Mat& mean_dar
     cv::sqrt(variance, sigma);
     return cv::mean(sigma)[0];
   }
-  std::vector<float> values(mean_dark.begin<float>(), mean_dark.end<float>());
-  auto middle = values.begin() + values.size() / 2;
-  std::nth_element(values.begin(), middle, values.end());
-  const float median = *middle;
-  for (float& v : values) v = std::abs(v - median);
-  std::nth_element(values.begin(), middle, values.end());
-  return 1.4826 * *middle;
+  return RobustSigma(mean_dark);
 }
 
 json MetricsJson(const ps::AngularErrorStats& stats) {
@@ -140,6 +137,37 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
   return input;
 }
 
+double RobustSigma(const cv::Mat& values) {
+  const cv::Mat samples = values.isContinuous() ? values.reshape(1) : values.clone().reshape(1);
+  std::vector<float> v(samples.begin<float>(), samples.end<float>());
+  auto middle = v.begin() + v.size() / 2;
+  std::nth_element(v.begin(), middle, v.end());
+  const float median = *middle;
+  for (float& x : v) x = std::abs(x - median);
+  std::nth_element(v.begin(), middle, v.end());
+  return 1.4826 * *middle;
+}
+
+void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* input) {
+  cv::Mat mask = ReadImage(path);
+  if (mask.channels() > 1) cv::extractChannel(mask, mask, 0);
+  const cv::Size images = input->stack.images.empty() ? mask.size() : input->stack.images.front().size();
+  if (mask.size() != images)
+    throw ConfigError(path, 0, 0, "", "the mask is " + std::to_string(mask.cols) + "x" + std::to_string(mask.rows) +
+                                          ", the images of " + input->source + " are " + std::to_string(images.width) +
+                                          "x" + std::to_string(images.height));
+  input->object_mask = mask != 0;
+  input->mask_source = path;
+}
+
+cv::Mat AutomaticObjectMask(const ps::PhotometricStack& stack, double sigmas) {
+  if (stack.dark.empty() || stack.images.empty()) return {};
+  cv::Mat brightest = stack.images.front().clone();
+  for (const cv::Mat& image : stack.images) cv::max(brightest, image, brightest);
+  const double threshold_dn = std::max(1.0, sigmas * stack.noise.read_sigma);
+  return (brightest - stack.dark) > threshold_dn;
+}
+
 double EffectiveSaturationLevel(const PhotometricStereoInput& input) {
   if (std::isfinite(input.saturation_level)) return input.saturation_level;
   double max_value = 0.0;
@@ -171,6 +199,8 @@ json ToJson(const PhotometricStereoResult& result) {
                  {"noise_sigma_dn", result.noise_sigma_dn},
                  {"shadow_threshold", summary.shadow_threshold},
                  {"saturation_level", std::isfinite(saturation) ? json(saturation) : json(nullptr)},
+                 {"mask", {{"source", result.mask_source.empty() ? json(nullptr) : json(result.mask_source)},
+                           {"pixels", result.mask_pixels}}},
                  {"pixels",
                   {{"total", summary.pixels_total},
                    {"solved", summary.pixels_solved},
@@ -188,6 +218,7 @@ json ToJson(const PhotometricStereoResult& result) {
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets},
                  {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}, {"total", result.total_ms}}}};
   if (result.mean_confidence) report["mean_confidence"] = *result.mean_confidence;
+  if (!result.previews.is_null()) report["previews"] = result.previews;
   if (result.depth) {
     const ps::IntegrationSummary& integrated = result.depth->summary;
     report["depth"] = {{"integrator", result.depth->integrator},
@@ -213,12 +244,22 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   const auto start = std::chrono::steady_clock::now();
   ValidatePhotometricStereoRequest(request);
   ps::PhotometricStack stack = input.stack;
-  if (!input.object_mask.empty()) stack.mask = input.object_mask;
+  PhotometricStereoResult result;
+  if (!input.object_mask.empty()) {
+    stack.mask = input.object_mask;
+    result.mask_source = input.mask_source;
+  } else if (!stack.dark.empty()) {
+    stack.mask = AutomaticObjectMask(stack, kAutomaticMaskSigmas);
+    char rule[96];
+    std::snprintf(rule, sizeof(rule), "automatic: brightest lit frame above the dark by %g read-noise sigmas",
+                  kAutomaticMaskSigmas);
+    result.mask_source = rule;
+  }
+  if (!stack.mask.empty()) result.mask_pixels = cv::countNonZero(stack.mask);
   const double saturation = EffectiveSaturationLevel(input);
   const ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
 
   ps::NormalMap map;
-  PhotometricStereoResult result;
   result.summary = ps::SolvePhotometricStereo(options, stack, &map);
   result.source = input.source;
   result.dark_frames = input.dark_frames;
@@ -231,12 +272,7 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
     const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
     result.mean_confidence = cv::mean(map.confidence, solved)[0];
     WriteFloatTiff((out / "normals.tiff").string(), map.normals);
-    WriteImage((out / "normals.png").string(), NormalsToBgr8(map.normals));
     WriteFloatTiff((out / "albedo.tiff").string(), map.albedo);
-    WriteImage((out / "albedo.png").string(), ScalarToGray8(map.albedo, 1.0));
-    WriteImage((out / "mask.png").string(), solved);
-    WriteImage((out / "flags.png").string(), map.flags);
-    WriteImage((out / "model.png").string(), map.model * 60);
     WriteFloatTiff((out / "confidence.tiff").string(), map.confidence);
     cv::Mat specular;
     cv::Mat channels[] = {cv::Mat(), cv::Mat(), cv::Mat::zeros(map.specular.size(), CV_32F)};
@@ -244,11 +280,11 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
     cv::merge(channels, 3, specular);
     WriteFloatTiff((out / "specular.tiff").string(), specular);
 
+    cv::Mat depth;  // stays empty unless integrated
     if (request.integrator != "none") {
       ps::IntegrationOptions integration;
       ps::ParseIntegrator(request.integrator, &integration.integrator);
       integration.pixel_pitch = input.pixel_pitch;
-      cv::Mat depth;
       PhotometricStereoDepth& integrated = result.depth.emplace();
       integrated.integrator = request.integrator;
       integrated.pixel_pitch = input.pixel_pitch;
@@ -267,8 +303,11 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
           const double pixels = std::max(1, cv::countNonZero(both));
           integrated.rms_error_vs_truth = std::sqrt(centred.dot(centred) / pixels);
         }
+      } else {
+        depth.release();
       }
     }
+    result.previews = WritePhotometricStereoPreviews(map, solved, depth, output_directory);
 
     cv::Mat error_deg;
     const ps::AngularErrorStats vs_truth =

@@ -1,6 +1,6 @@
 // photorig calibrate lights (--run DIR | --images F...) [--silhouette IMG | --circle CX,CY,R | --radius-mm R]
 //   [--camera orthographic|pinhole --fx --fy --cx --cy] [--white-images F...]
-//   [--rig IN.yaml --out-rig NEW.yaml] [--out DIR]
+//   [--rig IN.yaml --out-rig NEW.yaml] [--out DIR (default RUN/results/lights; required with --images)]
 // Light directions from a mirror sphere (one image per LED), optional relative
 // intensities from a white sphere, written as .lp, DiLiGenT text files, a JSON
 // report and a new rig YAML (an existing file is never overwritten).
@@ -21,7 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct Options {
-  std::string run_dir, silhouette, rig, out_rig, out = "light-calibration", camera = "orthographic";
+  std::string run_dir, silhouette, rig, out_rig, out, camera = "orthographic";
   std::vector<std::string> images, white_images;
   std::vector<double> circle;
   double fx = 0, fy = 0, cx = 0, cy = 0, radius_mm = 0;
@@ -34,6 +34,12 @@ cv::Mat ReadSingleChannel(const std::string& path) {
 }
 
 int Execute(const Options& o) {
+  // Nothing is written outside --out or, by default, the run's own results.
+  if (o.out.empty() && o.run_dir.empty()) {
+    std::cerr << "calibrate lights: give --out DIR for the outputs (with --run they default to RUN/results/lights)\n";
+    return 2;
+  }
+  const std::string out = o.out.empty() ? (fs::path(o.run_dir) / "results" / "lights").string() : o.out;
   daemon::LightCalibrationInputs inputs;
   if (!o.run_dir.empty()) {
     inputs = daemon::LoadLightCalibrationInputs(o.run_dir);
@@ -65,11 +71,14 @@ int Execute(const Options& o) {
   request.base_rig = o.out_rig.empty() ? "" : o.rig;
   request.out_rig = o.out_rig;
 
-  const daemon::LightCalibrationSummary summary = daemon::CalibrateLights(inputs, request, o.out);
+  const daemon::LightCalibrationSummary summary = daemon::CalibrateLights(inputs, request, out);
   std::cout << "sphere (" << summary.sphere_source << "): centre " << summary.circle.cx_px << ", "
             << summary.circle.cy_px << " px, radius " << summary.circle.radius_px << " px\n"
             << "lights: " << summary.lights << ", unusable: " << summary.unusable << ", mean uncertainty "
-            << summary.mean_uncertainty_deg << " deg, outputs in " << o.out << "\n";
+            << summary.mean_uncertainty_deg << " deg, outputs in " << out << "\n";
+  if (summary.circle_shift_deg > 0.0)
+    std::cout << "circle check: the highlights' circle would move the directions by " << summary.circle_shift_deg
+              << " deg on average (included in the uncertainty)\n";
   if (!summary.success) {
     std::cerr << "error: " << summary.message << "\n";
     return summary.sphere_source.empty() ? 2 : 3;
@@ -97,7 +106,7 @@ CommandRunner Setup(CLI::App& app) {
   lights->add_option("--rig", o->rig, "rig YAML to copy with the calibrated lights (and, with --images, the nominal directions)")
       ->check(CLI::ExistingFile);
   lights->add_option("--out-rig", o->out_rig, "new rig YAML to write");
-  lights->add_option("--out", o->out, "output directory");
+  lights->add_option("--out", o->out, "output directory (default: RUN/results/lights)");
   return {lights, [o] {
             try {
               return Execute(*o);

@@ -1,9 +1,11 @@
 // photorig relight --run RUN (--envmap MAP.hdr | --light X,Y,Z[,INTENSITY]...) --out IMAGE.tiff
-// photorig envmap --ball IMAGE --circle CX CY R [--width W] --out MAP.hdr
+// photorig envmap --ball IMAGE --circle CX CY R [--dark FILE | --black-level DN] [--width W] --out MAP.hdr
 
 #include "../command.h"
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/ps_pipeline.h"
+#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/run_store.h"
 #include "photorig/lighting/envmap.h"
 #include "photorig/lighting/relight.h"
 #include "photorig/lighting/sphere.h"
@@ -105,41 +107,118 @@ CommandRunner SetupRelight(CLI::App& app) {
 }
 
 struct EnvmapOptions {
-  std::string ball, out;
+  std::string ball, dark, out;
   std::vector<double> circle;
+  double black_level_dn = -1.0;  // < 0: not given
+  double noise_floor_sigmas = 5.0;
   int width = 512;
 };
+
+// The sensor's offset under the ball: --dark, --black-level, or, for a frame
+// inside a run directory (RUN/frames/NAME), the mean of the run's dark frames.
+// Empty when none is known. `said` is what was subtracted, for stderr.
+cv::Mat BallOffset(const EnvmapOptions& options, cv::Size size, std::string* said) {
+  if (!options.dark.empty()) {
+    cv::Mat dark;
+    daemon::ReadImage(options.dark).convertTo(dark, CV_32F);
+    if (dark.channels() > 1) cv::cvtColor(dark, dark, cv::COLOR_BGR2GRAY);
+    if (dark.size() != size)
+      throw daemon::ConfigError(options.dark, 0, 0, "", "the dark frame is " + std::to_string(dark.cols) + "x" +
+                                                            std::to_string(dark.rows) + ", the ball image is " +
+                                                            std::to_string(size.width) + "x" + std::to_string(size.height));
+    *said = "the dark frame " + options.dark;
+    return dark;
+  }
+  if (options.black_level_dn >= 0.0) {
+    *said = "a black level of " + std::to_string(options.black_level_dn) + " DN";
+    return cv::Mat(size, CV_32F, cv::Scalar(options.black_level_dn));
+  }
+  const fs::path frames = fs::absolute(options.ball).parent_path();
+  const fs::path run = frames.parent_path();
+  if (frames.filename() != "frames" || !fs::exists(run / "manifest.json")) return {};
+  cv::Mat sum;
+  int count = 0;
+  for (const daemon::FrameRecord& record : daemon::LoadRunManifest(run.string()).frames) {
+    if (record.kind != "dark") continue;
+    cv::Mat dark;
+    daemon::LoadFrame(run.string(), record).convertTo(dark, CV_32F);
+    if (dark.size() != size) continue;
+    if (sum.empty()) sum = cv::Mat::zeros(size, CV_32F);
+    sum += dark;
+    *said = (count == 0 ? "the run's dark frame " : *said + ", ") + (run / record.file).string();
+    ++count;
+  }
+  if (count == 0) return {};
+  return sum / count;
+}
+
+int Envmap(const EnvmapOptions& options) {
+  cv::Mat ball;
+  daemon::ReadImage(options.ball).convertTo(ball, CV_32F);
+  const double cx = options.circle[0], cy = options.circle[1], r = options.circle[2];
+  // Pixel centres are at integer coordinates: the image covers -0.5 .. cols - 0.5.
+  if (!(r > 0) || cx - r < -0.5 || cy - r < -0.5 || cx + r > ball.cols - 0.5 || cy + r > ball.rows - 0.5) {
+    std::fprintf(stderr,
+                 "envmap: the circle (%g, %g) radius %g spans x %g..%g, y %g..%g, which does not fit inside the "
+                 "%dx%d image %s: give the ball's circle in that image's pixels\n",
+                 cx, cy, r, cx - r, cx + r, cy - r, cy + r, ball.cols, ball.rows, options.ball.c_str());
+    return 2;
+  }
+  std::string said;
+  const cv::Mat offset = BallOffset(options, ball.size(), &said);
+  if (offset.empty()) {
+    std::fprintf(stderr, "envmap: no dark frame or black level for %s: the map includes the sensor's offset "
+                         "(give --dark FILE or --black-level DN)\n", options.ball.c_str());
+  } else {
+    cv::Mat channels = offset;
+    if (ball.channels() == 3) cv::merge(std::vector<cv::Mat>{offset, offset, offset}, channels);
+    ball -= channels;
+    // A point LED's highlight covers a few pixels of the ball, its noise all
+    // of them: left in, the noise's positive half outweighs the light. So
+    // what does not rise above the noise (robust sigma of the whole
+    // difference, mostly noise) counts as no light.
+    const double floor_dn = options.noise_floor_sigmas * daemon::RobustSigma(ball);
+    cv::threshold(ball, ball, floor_dn, 0.0, cv::THRESH_TOZERO);
+    std::fprintf(stderr, "envmap: subtracting %s; values under %g noise sigmas (%.1f DN) count as no light\n",
+                 said.c_str(), options.noise_floor_sigmas, floor_dn);
+  }
+  lighting::CameraModel camera;
+  const lighting::SphereGeometry sphere = lighting::LocateSphere(camera, {cx, cy, r});
+  if (!sphere.valid) {
+    std::fprintf(stderr, "envmap: %s\n", sphere.message.c_str());
+    return 2;
+  }
+  lighting::UnwrapOptions unwrap;
+  unwrap.width = options.width;
+  lighting::LatLongMap map;
+  const solvers::Summary unwrapped = lighting::MirrorBallToLatLong(ball, sphere, unwrap, &map);
+  if (!unwrapped.IsSolutionUsable()) {
+    std::fprintf(stderr, "envmap: %s: %s\n", options.ball.c_str(), unwrapped.message.c_str());
+    return 2;
+  }
+  if (!cv::imwrite(options.out, map.radiance)) throw std::runtime_error("cannot write " + options.out);
+  std::printf("wrote %s (%d x %d, %d%% of directions seen)\n", options.out.c_str(), map.radiance.cols,
+              map.radiance.rows, int(100.0 * cv::countNonZero(map.valid) / map.valid.total()));
+  return 0;
+}
 
 CommandRunner SetupEnvmap(CLI::App& app) {
   auto options = std::make_shared<EnvmapOptions>();
   CLI::App* sub = app.add_subcommand("envmap", "unwrap a mirror-ball image into a lat-long environment map");
   sub->add_option("--ball", options->ball, "mirror-ball image (orthographic)")->required()->check(CLI::ExistingFile);
   sub->add_option("--circle", options->circle, "ball circle CX CY R in pixels")->expected(3)->required();
+  auto* dark = sub->add_option("--dark", options->dark,
+                               "dark frame to subtract (default: the run's darks when the ball is a run's frame)")
+                   ->check(CLI::ExistingFile);
+  sub->add_option("--black-level", options->black_level_dn, "sensor offset in DN to subtract, instead of a dark frame")
+      ->check(CLI::NonNegativeNumber)
+      ->excludes(dark);
+  sub->add_option("--noise-floor", options->noise_floor_sigmas,
+                  "after the dark or black level: values under this many noise sigmas count as no light (default 5)")
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--width", options->width, "map width (height is half)")->check(CLI::Range(16, 16384));
   sub->add_option("--out", options->out, "output .hdr")->required();
-  return {sub, [options] {
-            cv::Mat ball;
-            daemon::ReadImage(options->ball).convertTo(ball, CV_32F);
-            lighting::CameraModel camera;
-            const lighting::SphereGeometry sphere =
-                lighting::LocateSphere(camera, {options->circle[0], options->circle[1], options->circle[2]});
-            if (!sphere.valid) {
-              std::fprintf(stderr, "envmap: %s\n", sphere.message.c_str());
-              return 2;
-            }
-            lighting::UnwrapOptions unwrap;
-            unwrap.width = options->width;
-            lighting::LatLongMap map;
-            const solvers::Summary unwrapped = lighting::MirrorBallToLatLong(ball, sphere, unwrap, &map);
-            if (!unwrapped.IsSolutionUsable()) {
-              std::fprintf(stderr, "envmap: %s: %s\n", options->ball.c_str(), unwrapped.message.c_str());
-              return 2;
-            }
-            if (!cv::imwrite(options->out, map.radiance)) throw std::runtime_error("cannot write " + options->out);
-            std::printf("wrote %s (%d x %d, %d%% of directions seen)\n", options->out.c_str(), map.radiance.cols,
-                        map.radiance.rows, int(100.0 * cv::countNonZero(map.valid) / map.valid.total()));
-            return 0;
-          }};
+  return {sub, [options] { return Envmap(*options); }};
 }
 
 const bool registered_relight = RegisterCommand(SetupRelight);

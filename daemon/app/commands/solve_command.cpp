@@ -1,4 +1,4 @@
-// photorig solve ps (--run DIR | --dataset DIR) [--method ...] [--out DIR] ...
+// photorig solve ps (--run DIR | --dataset DIR) [--method ...] [--mask PNG] [--out DIR] ...
 // photorig export diligent --run DIR --out DIR
 
 #include "../command.h"
@@ -14,7 +14,7 @@ namespace photorig::app {
 namespace {
 
 struct Options {
-  std::string run_dir, dataset_dir, out;
+  std::string run_dir, dataset_dir, mask, out;
   daemon::PhotometricStereoRequest request;
 };
 
@@ -28,8 +28,9 @@ int Execute(const Options& options) {
   const std::string source = from_run ? options.run_dir : options.dataset_dir;
   const std::string destination =
       options.out.empty() ? (std::filesystem::path(source) / "results" / "ps").string() : options.out;
-  const daemon::PhotometricStereoInput input =
+  daemon::PhotometricStereoInput input =
       from_run ? daemon::LoadRunStack(options.run_dir) : daemon::LoadDiligent(options.dataset_dir);
+  if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   const daemon::PhotometricStereoResult result = daemon::SolveAndWrite(input, options.request, destination);
   PrintPhotometricStereoSummary(result);
   std::printf("results: %s/\n", destination.c_str());
@@ -50,6 +51,9 @@ CommandRunner SetupSolve(CLI::App& app) {
   ps->add_option("--integrator", options->request.integrator, "poisson | frankot-chellappa | none");
   ps->add_option("--shadow-sigma", options->request.shadow_threshold_sigma, "shadow threshold in read-noise sigmas (from dark frames, else estimated)")
       ->check(CLI::NonNegativeNumber);
+  ps->add_option("--mask", options->mask,
+                 "PNG, nonzero = object: solve only there (default: the dataset's mask.png, else from the dark and lit frames)")
+      ->check(CLI::ExistingFile);
   ps->add_option("--out", options->out, "output directory (default: SOURCE/results/ps)");
   return {ps, [options] { return Execute(*options); }};
 }

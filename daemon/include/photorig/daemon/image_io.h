@@ -25,9 +25,8 @@ cv::Mat ReadFloatTiff(const std::string& path);
 // Reads any image unchanged (16-bit PNG stays 16-bit). Throws naming the file.
 cv::Mat ReadImage(const std::string& path);
 
-// 8-bit views for people: normals as RGB = (n + 1) / 2, scalars scaled to [0, 255].
+// 8-bit view for people: normals as RGB = (n + 1) / 2 (other views: previews.h).
 cv::Mat NormalsToBgr8(const cv::Mat& normals);
-cv::Mat ScalarToGray8(const cv::Mat& values, double max_value);
 
 std::uint32_t Crc32(const void* data, std::size_t size);
 

@@ -40,7 +40,10 @@ struct LightCalibrationSummary {
   double sphere_fit_rms_px = 0.0;
   int lights = 0;
   int unusable = 0;
-  double mean_uncertainty_deg = 0.0;
+  double mean_uncertainty_deg = 0.0;  // includes circle_shift_deg's per-light shifts
+  // A given circle only: mean change of the directions had the sphere been
+  // placed from the highlights instead (0 when not checked).
+  double circle_shift_deg = 0.0;
   std::string out_rig;  // written, or "" when none was asked for
 };
 

@@ -1,14 +1,15 @@
 #pragma once
 // Photometric stereo on stored data: a run directory or a DiLiGenT-layout
 // folder -> solver -> files.
-//   normals.tiff        float (x, y, z), NaN where unsolved; normals.png 8-bit view, RGB = (n + 1) / 2
-//   albedo.tiff         float diffuse albedo; albedo.png 8-bit view
-//   mask.png            255 where a normal was solved; flags.png per-pixel PixelFlag code
-//   model.png           chosen reflectance model per pixel (PixelModel code x 60: 60 Lambertian,
-//                       120 trimmed, 180 Blinn-Phong, 240 IRLS), confidence.tiff (0..1)
+//   normals.tiff        float (x, y, z), NaN where unsolved
+//   albedo.tiff         float diffuse albedo
+//   confidence.tiff     0..1, how well the chosen model explains the pixel
 //   specular.tiff       (rho_s, exponent, 0) where Blinn-Phong was chosen
 //   depth.tiff, mesh.ply   integrated depth (units of the pixel pitch) and its triangle mesh
 //   angular_error.tiff  degrees, when ground truth exists
+//   normals.png, albedo.png, depth.png, confidence.png, mask.png, flags.png, model.png
+//                       8-bit views, each mapped from its own data's range (previews.h);
+//                       the mappings and the legends are in report.json "previews"
 //   report.json         timings, counts, noise model, metrics
 
 #include "photorig/daemon/recipe.h"
@@ -36,8 +37,24 @@ struct PhotometricStereoInput {
   cv::Mat truth_normals;     // optional CV_32FC3 ground truth
   cv::Mat truth_albedo;      // optional CV_32F
   cv::Mat truth_height;      // optional CV_32F, same unit as pixel_pitch
-  cv::Mat object_mask;       // optional CV_8U: solve only here (DiLiGenT's mask.png)
+  cv::Mat object_mask;       // optional CV_8U: solve only here (DiLiGenT's mask.png, --mask)
+  std::string mask_source;   // where object_mask came from, for the report ("" when there is none)
 };
+
+// 1.4826 x the median absolute deviation of a CV_32F image's values (every
+// channel): the standard deviation of Gaussian noise, unmoved by a few bright pixels.
+double RobustSigma(const cv::Mat& values);
+
+// Replaces the input's object mask with a PNG file (nonzero = object). Throws
+// ConfigError naming the file and both sizes when it does not match the images.
+void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* input);
+
+// With dark frames and no mask, SolveAndWrite solves only the pixels whose
+// brightest lit frame rises above the dark by more than this many read-noise
+// sigmas (and by at least 1 DN): the rest see none of the lights, so a normal
+// there would be fitted to noise.
+inline constexpr double kAutomaticMaskSigmas = 5.0;
+cv::Mat AutomaticObjectMask(const ps::PhotometricStack& stack, double sigmas);
 
 // Reads a run directory (manifest, frames, ground truth). Dark frames are
 // averaged and their noise becomes the stack's read noise. Throws
@@ -76,6 +93,9 @@ struct PhotometricStereoResult {
   std::optional<PhotometricStereoDepth> depth;   // unless the integrator is "none"
   std::optional<ps::AngularErrorStats> normals_vs_truth;  // when the source has ground-truth normals
   std::optional<double> mean_relative_albedo_error;      // ... and albedo; over solved pixels
+  std::string mask_source;         // "" when every pixel was solved for
+  int mask_pixels = 0;             // pixels inside the mask
+  nlohmann::json previews;         // file name -> its mapping (previews.h), when usable
   double total_ms = 0.0;
 
   bool usable() const { return summary.IsSolutionUsable(); }
