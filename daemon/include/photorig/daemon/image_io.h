@@ -29,6 +29,7 @@ cv::Mat ReadImage(const std::string& path);
 cv::Mat NormalsToBgr8(const cv::Mat& normals);
 cv::Mat ScalarToGray8(const cv::Mat& values, double max_value);
 
-std::uint32_t Crc32(const void* data, std::size_t size);
+// CRC-32 of `data`, continuing `crc` (the CRC-32 of the bytes before it; 0 to start).
+std::uint32_t Crc32(const void* data, std::size_t size, std::uint32_t crc = 0);
 
 }  // namespace photorig::daemon
