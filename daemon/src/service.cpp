@@ -52,8 +52,10 @@ std::optional<std::string> RigMismatch(const std::string& recipe_name, const std
   std::string other;
   try {
     other = LoadRigConfig(resolved.string()).name;
-  } catch (const std::exception& e) {
-    return "recipe '" + recipe_name + "' names rig " + named + ", which does not load: " + e.what() + "; " + drives;
+  } catch (const std::exception&) {
+    // Its errors stay on the client's side: `photorig dry-run` shows them.
+    return "recipe '" + recipe_name + "' names rig " + named + ", which is not a rig file photorig can load (" +
+           resolved.string() + "; photorig dry-run on the recipe says why); " + drives;
   }
   if (other == rig.name) return std::nullopt;
   return "recipe '" + recipe_name + "' names rig '" + other + "' (" + resolved.string() + "), but " + drives;
