@@ -205,6 +205,7 @@ void ApiServer::Routes() {
     std::error_code error;
     const std::uintmax_t size = fs::file_size(file, error);
     if (error || !fs::is_regular_file(file)) return ErrorReply(res, 404, "no file '" + relative + "' in the run");
+    if (size == 0) return res.set_content("", ContentType(file));
     // Streamed from the file, so a large result never sits in memory whole.
     auto in = std::make_shared<std::ifstream>(file, std::ios::binary);
     res.set_content_provider(size, ContentType(file), [in](std::size_t offset, std::size_t length, httplib::DataSink& sink) {

@@ -49,7 +49,6 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
 // The recipe's solve: stages on the stored frames, in order, reported as they
 // start and end.
 void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfig& rig, RunOutcome* outcome) {
-  if (!recipe.photometric_stereo && !recipe.light_calibration) return;
   const fs::path directory = outcome->directory;
   bool first = true;
   // False when an abort arrived during the previous stage: the rest is skipped.

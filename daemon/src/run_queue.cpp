@@ -152,8 +152,10 @@ std::vector<QueuedRun> RunQueue::Select(const std::string& where, const std::str
     run.dropped_frames = sqlite3_column_int(s, 7);
     run.created_ns = sqlite3_column_int64(s, 8);
     run.updated_ns = sqlite3_column_int64(s, 9);
-    if (const std::string solve = Column(s, 10); !solve.empty())
+    if (const std::string solve = Column(s, 10); !solve.empty()) {
       run.solve = nlohmann::json::parse(solve, nullptr, /*allow_exceptions=*/false);
+      if (run.solve.is_discarded()) run.solve = nullptr;  // unreadable: shown as no solve, not as an error
+    }
     runs.push_back(std::move(run));
   }
   return runs;
