@@ -64,15 +64,23 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
     if (request.on_solve_finished) request.on_solve_finished(report);
     outcome->solve_stages.push_back(std::move(report));
   };
+  // A stage's folder holds only what this solve wrote: a run resumed after a
+  // crash mid-solve solves again from the frames, and its calibrated rig is
+  // a new file again.
+  auto fresh_results = [&directory](const char* name) {
+    const fs::path results = directory / "results" / name;
+    fs::remove_all(results);
+    return results;
+  };
   if (recipe.photometric_stereo && start("photometric_stereo")) {
     outcome->photometric_stereo = SolvePhotometricStereoRun(directory.string(), *recipe.photometric_stereo,
-                                                            (directory / "results" / "ps").string());
+                                                            fresh_results("ps").string());
     finish(ReportSolveStage(*outcome->photometric_stereo));
   }
   if (recipe.light_calibration && start("light_calibration")) {
     const auto started = std::chrono::steady_clock::now();
     LightCalibrationRequest calibration = *recipe.light_calibration;
-    const fs::path results = directory / "results" / "lights";
+    const fs::path results = fresh_results("lights");
     calibration.base_rig = rig.path;
     if (calibration.out_rig.empty()) calibration.out_rig = (results / "rig.yaml").string();
     outcome->light_calibration =

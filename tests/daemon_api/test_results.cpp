@@ -5,6 +5,7 @@
 
 #include "daemon_process.h"
 #include "photorig/daemon/api_client.h"
+#include "photorig/daemon/run_queue.h"
 
 #include <gtest/gtest.h>
 
@@ -197,6 +198,39 @@ TEST_F(Results, UnusableSolveFailsTheRunAndSubmitWatchExitsOne) {
   EXPECT_EQ(run["stop"]["status"], "complete");  // the capture itself was sound
   EXPECT_NE(Output("submit.txt").find("stopped: failed - photometric_stereo: "), std::string::npos)
       << Output("submit.txt");
+}
+
+// The queue as a crash during the solve leaves it: the run still solving,
+// its results folder half written. The next start solves again from the frames.
+TEST_F(Results, ARunInterruptedWhileSolvingSolvesAgainAtTheNextStart) {
+  const auto submitted = Client().Post("/api/v1/runs", {{"recipe", PsRecipe("rig.yaml")}});
+  ASSERT_EQ(submitted.http_status, 201) << submitted.body.dump();
+  const std::string id = submitted.body["id"];
+  EXPECT_EQ(Client().FollowEvents(id, [](const std::string&, const json&) { return true; }), "");
+  ASSERT_EQ(daemon_->Terminate(), 0);
+  {
+    RunQueue queue((dir_.path() / "data/queue.sqlite").string());
+    QueuedRun run = *queue.Get(id);
+    run.state = RunState::kSolving;
+    run.solve = nullptr;
+    queue.Update(run);
+  }
+  std::ofstream(RunDirectory(id) / "results/ps/left-over.tiff") << "from the interrupted solve";
+
+  daemon_ = std::make_unique<DaemonProcess>(dir_.path() / "data", rig_, log_, std::vector<std::string>{});
+  port_ = daemon_->WaitReady(log_, 1);
+  ASSERT_GT(port_, 0) << ReadText(log_);
+  json stop;
+  EXPECT_EQ(Client().FollowEvents(id,
+                                  [&](const std::string& type, const json& data) {
+                                    if (type == "stop") stop = data;
+                                    return true;
+                                  }),
+            "");
+  EXPECT_EQ(stop["state"], "done") << stop.dump() << ReadText(log_);
+  EXPECT_EQ(stop["solve"]["ok"], true) << stop.dump();
+  EXPECT_FALSE(fs::exists(RunDirectory(id) / "results/ps/left-over.tiff"));
+  EXPECT_TRUE(fs::exists(RunDirectory(id) / "results/ps/normals.tiff"));
 }
 
 TEST_F(Results, SubmitWatchJsonExitsZeroForADoneRun) {
