@@ -82,10 +82,53 @@ std::string ApiClient::FollowEvents(const std::string& run_id,
 }
 
 int ApiClient::Download(const std::string& run_id, const std::string& relative_path, std::string* bytes) {
-  auto result = client_->Get(("/api/v1/runs/" + run_id + "/files/" + relative_path).c_str());
-  if (!result) return 0;
-  *bytes = result->body;
-  return result->status;
+  bytes->clear();
+  std::string error;
+  const int status = Download(
+      run_id, relative_path,
+      [bytes](const char* data, std::size_t size) {
+        bytes->append(data, size);
+        return true;
+      },
+      &error);
+  if (status != 200) *bytes = error;
+  return status;
+}
+
+int ApiClient::Download(const std::string& run_id, const std::string& relative_path,
+                        const std::function<bool(const char*, std::size_t)>& on_data, std::string* error) {
+  error->clear();
+  int status = 0;
+  std::string error_body;
+  auto result = client_->Get(
+      ("/api/v1/runs/" + run_id + "/files/" + relative_path).c_str(),
+      [&status](const httplib::Response& response) {
+        status = response.status;
+        return true;
+      },
+      [&](const char* data, std::size_t size) {
+        if (status != 200) {
+          error_body.append(data, size);
+          return true;
+        }
+        return on_data(data, size);
+      });
+  if (status == 0) {
+    *error = "cannot reach photorigd at " + options_.url + ": " + httplib::to_string(result.error());
+    return 0;
+  }
+  if (status != 200) {
+    *error = "HTTP " + std::to_string(status);
+    try {
+      *error = json::parse(error_body).value("error", *error);
+    } catch (const std::exception&) {
+      if (!error_body.empty()) *error = error_body;
+    }
+  } else if (!result) {
+    *error = "download of " + relative_path + " broke off: " + httplib::to_string(result.error());
+    return 0;
+  }
+  return status;
 }
 
 }  // namespace photorig::daemon

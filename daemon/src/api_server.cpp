@@ -3,8 +3,11 @@
 #include <httplib.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <vector>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
@@ -28,13 +31,16 @@ bool ConstantTimeEquals(const std::string& a, const std::string& b) {
   return diff == 0;
 }
 
-// {"name": "...", "recipe": "yaml"} from a JSON body, or the YAML itself.
-bool ParseRecipeBody(const httplib::Request& req, httplib::Response& res, std::string* name, std::string* yaml) {
+// {"name": "...", "recipe": "yaml", "path": "..."} from a JSON body, or the
+// YAML itself with ?name= and ?path=.
+bool ParseRecipeBody(const httplib::Request& req, httplib::Response& res, std::string* name, std::string* yaml,
+                     std::string* path) {
   if (req.get_header_value("Content-Type").rfind("application/json", 0) == 0) {
     try {
       const json body = json::parse(req.body);
       *yaml = body.at("recipe").get<std::string>();
       *name = body.value("name", "recipe.yaml");
+      *path = body.value("path", "");
     } catch (const std::exception& e) {
       ErrorReply(res, 400, std::string("expected {\"name\": ..., \"recipe\": \"<yaml>\"}: ") + e.what());
       return false;
@@ -42,9 +48,11 @@ bool ParseRecipeBody(const httplib::Request& req, httplib::Response& res, std::s
   } else {
     *yaml = req.body;
     *name = req.has_param("name") ? req.get_param_value("name") : "recipe.yaml";
+    *path = req.has_param("path") ? req.get_param_value("path") : "";
   }
-  if (name->size() > 200 || name->find('\n') != std::string::npos) {
-    ErrorReply(res, 400, "recipe name too long or multi-line");
+  if (name->size() > 200 || name->find('\n') != std::string::npos || path->size() > 4096 ||
+      path->find('\n') != std::string::npos) {
+    ErrorReply(res, 400, "recipe name or path too long or multi-line");
     return false;
   }
   return true;
@@ -131,12 +139,12 @@ void ApiServer::Routes() {
   s.Get("/api/v1/health", [this](const httplib::Request&, httplib::Response& res) { Reply(res, service_.Health()); });
   s.Get("/api/v1/devices", [this](const httplib::Request&, httplib::Response& res) { Reply(res, service_.Devices()); });
   s.Post("/api/v1/dry-run", [this](const httplib::Request& req, httplib::Response& res) {
-    std::string name, yaml;
-    if (ParseRecipeBody(req, res, &name, &yaml)) Reply(res, service_.DryRun(name, yaml));
+    std::string name, yaml, path;
+    if (ParseRecipeBody(req, res, &name, &yaml, &path)) Reply(res, service_.DryRun(name, yaml, path));
   });
   s.Post("/api/v1/runs", [this](const httplib::Request& req, httplib::Response& res) {
-    std::string name, yaml;
-    if (ParseRecipeBody(req, res, &name, &yaml)) Reply(res, service_.Submit(name, yaml));
+    std::string name, yaml, path;
+    if (ParseRecipeBody(req, res, &name, &yaml, &path)) Reply(res, service_.Submit(name, yaml, path));
   });
   s.Get("/api/v1/runs", [this](const httplib::Request&, httplib::Response& res) { Reply(res, service_.ListRuns()); });
   s.Get(R"(/api/v1/runs/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
@@ -171,13 +179,7 @@ void ApiServer::Routes() {
       if (events.empty()) {
         // A run that finished before this stream began: its stop record, then the end.
         if (service_.IsRunFinal(id)) {
-          const json body = service_.GetRun(id).body;
-          const std::string text = SseEvent({*last + 1, id, "stop", {{"state", body.value("state", "")},
-                                                                      {"reason", body.value("reason", "")},
-                                                                      {"frames", body.value("frames", 0)},
-                                                                      {"steps_total", body.value("steps_total", 0)},
-                                                                      {"retries", body.value("retries", 0)},
-                                                                      {"dropped_frames", body.value("dropped_frames", 0)}}});
+          const std::string text = SseEvent({*last + 1, id, "stop", StopEventData(service_.GetRun(id).body)});
           sink.write(text.data(), text.size());
           sink.done();
           return true;
@@ -192,20 +194,26 @@ void ApiServer::Routes() {
       return true;
     });
   });
+  s.Get(R"(/api/v1/runs/([^/]+)/files)", [this](const httplib::Request& req, httplib::Response& res) {
+    Reply(res, service_.ListFiles(req.matches[1], req.has_param("under") ? req.get_param_value("under") : ""));
+  });
   s.Get(R"(/api/v1/runs/([^/]+)/files/(.+))", [this](const httplib::Request& req, httplib::Response& res) {
-    const std::string directory = service_.RunDirectory(req.matches[1]);
-    if (directory.empty() || !fs::exists(directory)) return ErrorReply(res, 404, "no run '" + std::string(req.matches[1]) + "'");
     const std::string relative = req.matches[2];
-    const fs::path root = fs::weakly_canonical(directory);
-    const fs::path target = fs::weakly_canonical(root / relative);
-    // Resolve first, then check: "..", absolute paths and symlinks all end up outside the root.
-    const auto mismatch = std::mismatch(root.begin(), root.end(), target.begin(), target.end());
-    if (relative.find('\0') != std::string::npos || fs::path(relative).is_absolute() || mismatch.first != root.end())
-      return ErrorReply(res, 400, "path '" + relative + "' leaves the run directory");
-    if (!fs::is_regular_file(target)) return ErrorReply(res, 404, "no file '" + relative + "' in the run");
-    std::ifstream in(target, std::ios::binary);
-    std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    res.set_content(std::move(content), ContentType(target));
+    std::string file;
+    if (const ServiceReply resolved = service_.ResolveRunPath(req.matches[1], relative, &file); resolved.http_status != 200)
+      return Reply(res, resolved);
+    std::error_code error;
+    const std::uintmax_t size = fs::file_size(file, error);
+    if (error || !fs::is_regular_file(file)) return ErrorReply(res, 404, "no file '" + relative + "' in the run");
+    if (size == 0) return res.set_content("", ContentType(file));
+    // Streamed from the file, so a large result never sits in memory whole.
+    auto in = std::make_shared<std::ifstream>(file, std::ios::binary);
+    res.set_content_provider(size, ContentType(file), [in](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
+      std::vector<char> buffer(std::min<std::size_t>(length, 1 << 20));
+      in->seekg(static_cast<std::streamoff>(offset));
+      in->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+      return in->gcount() > 0 && sink.write(buffer.data(), static_cast<std::size_t>(in->gcount()));
+    });
   });
 }
 

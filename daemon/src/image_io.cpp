@@ -110,8 +110,8 @@ cv::Mat NormalsToBgr8(const cv::Mat& normals) {
   return out;
 }
 
-std::uint32_t Crc32(const void* data, std::size_t size) {
-  return libdeflate_crc32(0, data, size);
+std::uint32_t Crc32(const void* data, std::size_t size, std::uint32_t crc) {
+  return libdeflate_crc32(crc, data, size);
 }
 
 }  // namespace photorig::daemon

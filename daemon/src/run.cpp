@@ -42,7 +42,103 @@ void PrintProgress(const CaptureStep& step, int total) {
   std::fflush(stderr);
 }
 
+double MillisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The recipe's solve: stages on the stored frames, in order, reported as they
+// start and end.
+void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfig& rig, RunOutcome* outcome) {
+  const fs::path directory = outcome->directory;
+  bool first = true;
+  // False when an abort arrived during the previous stage: the rest is skipped.
+  auto start = [&](const std::string& stage) {
+    if (request.control && request.control->abort_requested()) return false;
+    if (first && request.on_state) request.on_state(RunState::kSolving, stage);
+    first = false;
+    if (request.on_solve_started) request.on_solve_started(stage);
+    return true;
+  };
+  auto finish = [&](SolveStageReport report) {
+    spdlog::info("solve {}: {}{}{}", report.stage, report.termination, report.message.empty() ? "" : ": ", report.message);
+    if (request.on_solve_finished) request.on_solve_finished(report);
+    outcome->solve_stages.push_back(std::move(report));
+  };
+  // A stage's folder holds only what this solve wrote: a run resumed after a
+  // crash mid-solve solves again from the frames, and its calibrated rig is
+  // a new file again.
+  auto fresh_results = [&directory](const char* name) {
+    const fs::path results = directory / "results" / name;
+    fs::remove_all(results);
+    return results;
+  };
+  if (recipe.photometric_stereo && start("photometric_stereo")) {
+    outcome->photometric_stereo = SolvePhotometricStereoRun(directory.string(), *recipe.photometric_stereo,
+                                                            fresh_results("ps").string());
+    finish(ReportSolveStage(*outcome->photometric_stereo));
+  }
+  if (recipe.light_calibration && start("light_calibration")) {
+    const auto started = std::chrono::steady_clock::now();
+    LightCalibrationRequest calibration = *recipe.light_calibration;
+    const fs::path results = fresh_results("lights");
+    calibration.base_rig = rig.path;
+    if (calibration.out_rig.empty()) calibration.out_rig = (results / "rig.yaml").string();
+    outcome->light_calibration =
+        CalibrateLights(LoadLightCalibrationInputs(directory.string()), calibration, results.string());
+    finish(ReportSolveStage(*outcome->light_calibration, directory.string(), MillisecondsSince(started)));
+  }
+}
+
 }  // namespace
+
+nlohmann::json SolveStageReport::ToJson() const {
+  return {{"stage", stage},     {"ok", usable},           {"termination", termination}, {"message", message},
+          {"results", results}, {"figures", figures},     {"timings_ms", timings_ms}};
+}
+
+SolveStageReport ReportSolveStage(const PhotometricStereoResult& result) {
+  const ps::SolverSummary& summary = result.summary;
+  SolveStageReport report;
+  report.stage = "photometric_stereo";
+  report.usable = result.usable();
+  report.termination = solvers::TerminationName(summary.termination);
+  report.message = summary.message;
+  report.results = "results/ps";
+  report.figures = {{"method", summary.method},
+                    {"lights", summary.light_count},
+                    {"pixels_solved", summary.pixels_solved},
+                    {"pixels_total", summary.pixels_total}};
+  if (result.mean_confidence) report.figures["mean_confidence"] = *result.mean_confidence;
+  if (result.normals_vs_truth) {
+    report.figures["normals_vs_truth_mean_deg"] = result.normals_vs_truth->mean_deg;
+    report.figures["normals_vs_truth_median_deg"] = result.normals_vs_truth->median_deg;
+  }
+  if (result.depth && result.depth->rms_error_vs_truth) report.figures["depth_rms_vs_truth"] = *result.depth->rms_error_vs_truth;
+  report.timings_ms = {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}, {"total", result.total_ms}};
+  return report;
+}
+
+SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const std::string& run_directory,
+                                  double total_ms) {
+  SolveStageReport report;
+  report.stage = "light_calibration";
+  report.usable = summary.success;
+  report.termination = summary.success ? "success" : "failure";
+  report.message = summary.message;
+  report.results = "results/lights";
+  report.figures = {{"lights", summary.lights},
+                    {"unusable", summary.unusable},
+                    {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
+                    {"sphere_source", summary.sphere_source},
+                    {"sphere_fit_rms_px", summary.sphere_fit_rms_px}};
+  // A rig written inside the run is named relative to it, like the results.
+  if (!summary.out_rig.empty()) {
+    const fs::path relative = fs::path(summary.out_rig).lexically_proximate(run_directory);
+    report.figures["out_rig"] = relative.empty() || *relative.begin() == ".." ? summary.out_rig : relative.string();
+  }
+  report.timings_ms = {{"total", total_ms}};
+  return report;
+}
 
 RunOutcome ExecuteRun(const RunRequest& request) {
   const RigConfig rig = LoadRigConfig(RecipeRigPath(request.recipe_path, request.rig_path));
@@ -117,19 +213,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
                outcome.capture.steps_total, outcome.capture.elapsed_ms, outcome.capture.reason.empty() ? "" : ": ",
                outcome.capture.reason);
 
-  if (request.solve && outcome.capture.status == CaptureStatus::kComplete && recipe.photometric_stereo) {
-    outcome.photometric_stereo = SolvePhotometricStereoRun(
-        outcome.directory, *recipe.photometric_stereo, (fs::path(outcome.directory) / "results" / "ps").string());
-  }
-  if (request.solve && outcome.capture.status == CaptureStatus::kComplete && recipe.light_calibration) {
-    LightCalibrationRequest calibration = *recipe.light_calibration;
-    const fs::path results = fs::path(outcome.directory) / "results" / "lights";
-    calibration.base_rig = rig.path;
-    if (calibration.out_rig.empty()) calibration.out_rig = (results / "rig.yaml").string();
-    outcome.light_calibration =
-        CalibrateLights(LoadLightCalibrationInputs(outcome.directory), calibration, results.string());
-    spdlog::info("light calibration: {}", outcome.light_calibration->message);
-  }
+  if (request.solve && outcome.capture.status == CaptureStatus::kComplete) SolveStages(request, recipe, rig, &outcome);
   return outcome;
 }
 

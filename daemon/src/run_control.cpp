@@ -10,7 +10,8 @@ constexpr struct {
   const char* name;
 } kStateNames[] = {
     {RunState::kQueued, "queued"},   {RunState::kRunning, "running"},     {RunState::kPaused, "paused"},
-    {RunState::kSuspended, "suspended"}, {RunState::kAborting, "aborting"}, {RunState::kDone, "done"},
+    {RunState::kSuspended, "suspended"}, {RunState::kAborting, "aborting"}, {RunState::kSolving, "solving"},
+    {RunState::kDone, "done"},
     {RunState::kFailed, "failed"},   {RunState::kAborted, "aborted"},     {RunState::kInterrupted, "interrupted"},
 };
 

@@ -40,7 +40,7 @@ std::string Column(sqlite3_stmt* stmt, int i) {
 }  // namespace
 
 nlohmann::json QueuedRun::ToJson() const {
-  return {{"id", id},
+  nlohmann::json body = {{"id", id},
           {"recipe", recipe_name},
           {"state", RunStateName(state)},
           {"reason", reason},
@@ -50,6 +50,8 @@ nlohmann::json QueuedRun::ToJson() const {
           {"dropped_frames", dropped_frames},
           {"created_ns", created_ns},
           {"updated_ns", updated_ns}};
+  if (!solve.is_null()) body["solve"] = solve;
+  return body;
 }
 
 RunQueue::RunQueue(const std::string& path) : path_(path) {
@@ -67,7 +69,14 @@ RunQueue::RunQueue(const std::string& path) : path_(path) {
       "recipe_name TEXT NOT NULL, state TEXT NOT NULL, reason TEXT NOT NULL DEFAULT '', "
       "frames INTEGER NOT NULL DEFAULT 0, steps_total INTEGER NOT NULL DEFAULT 0, "
       "retries INTEGER NOT NULL DEFAULT 0, dropped_frames INTEGER NOT NULL DEFAULT 0, "
-      "created_ns INTEGER NOT NULL, updated_ns INTEGER NOT NULL)");
+      "created_ns INTEGER NOT NULL, updated_ns INTEGER NOT NULL, solve TEXT NOT NULL DEFAULT '')");
+  // Queues made before runs carried their solve stages gain the column.
+  bool has_solve = false;
+  {
+    Statement columns(db_, "PRAGMA table_info(runs)", path_);
+    while (sqlite3_step(columns.get()) == SQLITE_ROW) has_solve |= Column(columns.get(), 1) == "solve";
+  }
+  if (!has_solve) Exec("ALTER TABLE runs ADD COLUMN solve TEXT NOT NULL DEFAULT ''");
 }
 
 RunQueue::~RunQueue() { sqlite3_close(db_); }
@@ -125,7 +134,7 @@ std::vector<QueuedRun> RunQueue::Select(const std::string& where, const std::str
   std::lock_guard lock(mutex_);
   Statement select(db_,
                    "SELECT id, recipe_name, state, reason, frames, steps_total, retries, dropped_frames, created_ns, "
-                   "updated_ns FROM runs " +
+                   "updated_ns, solve FROM runs " +
                        where + " ORDER BY seq",
                    path_);
   if (!text_argument.empty()) select.Bind(1, text_argument);
@@ -143,6 +152,10 @@ std::vector<QueuedRun> RunQueue::Select(const std::string& where, const std::str
     run.dropped_frames = sqlite3_column_int(s, 7);
     run.created_ns = sqlite3_column_int64(s, 8);
     run.updated_ns = sqlite3_column_int64(s, 9);
+    if (const std::string solve = Column(s, 10); !solve.empty()) {
+      run.solve = nlohmann::json::parse(solve, nullptr, /*allow_exceptions=*/false);
+      if (run.solve.is_discarded()) run.solve = nullptr;  // unreadable: shown as no solve, not as an error
+    }
     runs.push_back(std::move(run));
   }
   return runs;
@@ -163,14 +176,14 @@ std::optional<QueuedRun> RunQueue::NextQueued() const {
 }
 
 std::vector<QueuedRun> RunQueue::Unfinished() const {
-  return Select("WHERE state IN ('running', 'paused', 'suspended', 'aborting')", "");
+  return Select("WHERE state IN ('running', 'paused', 'suspended', 'aborting', 'solving')", "");
 }
 
 void RunQueue::Update(const QueuedRun& run) {
   std::lock_guard lock(mutex_);
   Statement update(db_,
                    "UPDATE runs SET state = ?1, reason = ?2, frames = ?3, steps_total = ?4, retries = ?5, "
-                   "dropped_frames = ?6, updated_ns = ?7 WHERE id = ?8",
+                   "dropped_frames = ?6, updated_ns = ?7, solve = ?9 WHERE id = ?8",
                    path_);
   update.Bind(1, std::string(RunStateName(run.state)));
   update.Bind(2, run.reason);
@@ -180,6 +193,7 @@ void RunQueue::Update(const QueuedRun& run) {
   update.Bind(6, static_cast<std::int64_t>(run.dropped_frames));
   update.Bind(7, NowNs());
   update.Bind(8, run.id);
+  update.Bind(9, run.solve.is_null() ? std::string() : run.solve.dump());
   if (sqlite3_step(update.get()) != SQLITE_DONE) throw std::runtime_error(path_ + ": " + sqlite3_errmsg(db_));
 }
 

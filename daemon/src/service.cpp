@@ -6,7 +6,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <regex>
 
 namespace photorig::daemon {
@@ -24,7 +26,74 @@ bool IsValidRunId(const std::string& id) {
   return std::regex_match(id, pattern);
 }
 
+// Why the rig a recipe names is not the rig this daemon drives; nullopt when
+// it is. Same file, or a rig file of the same name, is the same rig. A
+// relative `recipe.rig` resolves from the recipe's folder when the client said
+// where the recipe is (`recipe_path`, absolute); otherwise only its file name
+// is known, and its stem must be the rig's name or its file's stem.
+std::optional<std::string> RigMismatch(const std::string& recipe_name, const std::string& named,
+                                       const std::string& recipe_path, const RigConfig& rig) {
+  const std::string drives = "this daemon drives rig '" + rig.name + "' (" + rig.path +
+                             "); submit the recipe to that rig's daemon, or change its recipe.rig";
+  const fs::path named_path = named;
+  fs::path resolved;
+  if (named_path.is_absolute()) resolved = named_path;
+  else if (fs::path(recipe_path).is_absolute()) resolved = (fs::path(recipe_path).parent_path() / named_path).lexically_normal();
+  if (resolved.empty()) {
+    const std::string stem = named_path.stem().string();
+    if (stem == rig.name || stem == fs::path(rig.path).stem().string()) return std::nullopt;
+    return "recipe '" + recipe_name + "' names rig '" + stem + "' (" + named + "), but " + drives;
+  }
+  std::error_code error;
+  if (!fs::is_regular_file(resolved, error))
+    return "recipe '" + recipe_name + "' names rig " + named + ", which does not exist (" + resolved.string() +
+           "; a relative recipe.rig resolves from the recipe's folder); " + drives;
+  if (fs::equivalent(resolved, rig.path, error)) return std::nullopt;
+  std::string other;
+  try {
+    other = LoadRigConfig(resolved.string()).name;
+  } catch (const std::exception&) {
+    // Its errors stay on the client's side: `photorig dry-run` shows them.
+    return "recipe '" + recipe_name + "' names rig " + named + ", which is not a rig file photorig can load (" +
+           resolved.string() + "; photorig dry-run on the recipe says why); " + drives;
+  }
+  if (other == rig.name) return std::nullopt;
+  return "recipe '" + recipe_name + "' names rig '" + other + "' (" + resolved.string() + "), but " + drives;
+}
+
+// {"ok", "stages": [...]}: ok when every stage that ran is usable.
+json SolveJson(const std::vector<SolveStageReport>& stages) {
+  json solve = {{"ok", true}, {"stages", json::array()}};
+  for (const SolveStageReport& stage : stages) {
+    solve["stages"].push_back(stage.ToJson());
+    if (!stage.usable) solve["ok"] = false;
+  }
+  return solve;
+}
+
+std::uint32_t FileCrc32(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> buffer(1 << 20);
+  std::uint32_t crc = 0;
+  while (in) {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    crc = Crc32(buffer.data(), static_cast<std::size_t>(in.gcount()), crc);
+  }
+  if (in.bad()) throw std::runtime_error("cannot read " + path.string());
+  return crc;
+}
+
 }  // namespace
+
+json StopEventData(const json& run) {
+  json data = {{"id", run.value("id", "")},             {"state", run.value("state", "")},
+               {"reason", run.value("reason", "")},
+               {"frames", run.value("frames", 0)},       {"steps_total", run.value("steps_total", 0)},
+               {"retries", run.value("retries", 0)},     {"dropped_frames", run.value("dropped_frames", 0)}};
+  for (const char* key : {"solve", "results"})
+    if (run.contains(key)) data[key] = run[key];
+  return data;
+}
 
 bool ServiceOptions::IsValid(std::string* why) const {
   auto fail = [why](const std::string& message) {
@@ -173,6 +242,18 @@ void RunService::Execute(QueuedRun run) {
     Publish(id, "frame", {{"index", step.index}, {"label", step.label}, {"file", record.file}, {"frames", frames},
                           {"total", total}});
   };
+  request.on_solve_started = [this, id](const std::string& stage) { Publish(id, "solve_started", {{"stage", stage}}); };
+  request.on_solve_finished = [this, id](const SolveStageReport& report) {
+    const json stage = report.ToJson();
+    {
+      // The record shows each stage as soon as it ends.
+      std::lock_guard lock(mutex_);
+      if (current_.solve.is_null()) current_.solve = {{"ok", true}, {"stages", json::array()}};
+      current_.solve["stages"].push_back(stage);
+      if (!report.usable) current_.solve["ok"] = false;
+    }
+    Publish(id, "solve_finished", stage);
+  };
   request.on_state = [this, &run](RunState state, const std::string& detail) {
     if (state == RunState::kSuspended) {
       std::lock_guard lock(mutex_);
@@ -184,6 +265,7 @@ void RunService::Execute(QueuedRun run) {
       run.frames = current_.frames;
       run.steps_total = current_.steps_total;
       run.retries = current_.retries;
+      run.solve = current_.solve;
     }
     SetState(run, state, detail);
   };
@@ -196,11 +278,19 @@ void RunService::Execute(QueuedRun run) {
     stop = outcome.capture.ToStopRecord();
     reason = outcome.capture.reason;
     if (outcome.capture.status == CaptureStatus::kComplete) {
+      // A run is done when its data can be used: an unusable solve fails it.
       final_state = RunState::kDone;
-      if (outcome.photometric_stereo && !outcome.photometric_stereo->usable())
-        reason = "photometric stereo: " + outcome.photometric_stereo->summary.message;
-      if (outcome.light_calibration && !outcome.light_calibration->success)
-        reason = "light calibration: " + outcome.light_calibration->message;
+      if (!outcome.solve_stages.empty()) run.solve = SolveJson(outcome.solve_stages);
+      for (const SolveStageReport& stage : outcome.solve_stages)
+        if (!stage.usable) {
+          final_state = RunState::kFailed;
+          reason = stage.stage + ": " + (stage.message.empty() ? stage.termination : stage.message);
+          break;
+        }
+      if (control->abort_requested()) {
+        final_state = RunState::kAborted;
+        reason = "aborted after the capture; the solve stages after the one in progress were skipped";
+      }
     } else if (outcome.capture.status == CaptureStatus::kAborted) {
       // SIGTERM leaves the run queued, to resume at the next start; an abort request ends it.
       final_state = control->abort_requested() ? RunState::kAborted : RunState::kQueued;
@@ -210,6 +300,14 @@ void RunService::Execute(QueuedRun run) {
     reason = e.what();
     stop.status = CaptureStatus::kFailed;
     stop.reason = reason;
+    std::lock_guard lock(mutex_);
+    if (current_.state == RunState::kSolving) {
+      // A stage that threw (an unreadable run, a result that cannot be written) is an unusable solve.
+      run.solve = current_.solve.is_null() ? json{{"stages", json::array()}} : current_.solve;
+      run.solve["ok"] = false;
+      reason = "solve: " + reason;
+      stop = {CaptureStatus::kComplete, "", current_.frames, current_.steps_total, current_.retries, 0};
+    }
   }
   run.frames = stop.frames;
   run.steps_total = stop.steps_total;
@@ -223,12 +321,11 @@ void RunService::Execute(QueuedRun run) {
     current_id_.clear();
     current_control_.reset();
   }
-  Publish(run.id, "stop", {{"state", RunStateName(final_state)}, {"reason", reason}, {"frames", stop.frames},
-                           {"steps_total", stop.steps_total}, {"retries", stop.retries},
-                           {"dropped_frames", stop.dropped_frames}});
+  Publish(run.id, "stop", StopEventData(RunJson(run)));
 }
 
-ServiceReply RunService::Validate(const std::string& name, const std::string& recipe_yaml, bool for_submit) const {
+ServiceReply RunService::Validate(const std::string& name, const std::string& recipe_yaml,
+                                  const std::string& recipe_path, bool for_submit) const {
   if (recipe_yaml.size() > options_.max_recipe_bytes)
     return Error(413, "recipe is " + std::to_string(recipe_yaml.size()) + " bytes; the limit is " +
                           std::to_string(options_.max_recipe_bytes));
@@ -236,6 +333,11 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
   try {
     const RigConfig rig = LoadRigConfig(options_.rig_path);
     const Recipe recipe = LoadRecipeText(recipe_yaml, name, rig);
+    // A recipe without recipe.rig runs on the daemon's rig; one naming another rig is refused.
+    if (auto named = YamlNode::LoadString(recipe_yaml, name)["recipe"].Find("rig")) {
+      if (auto mismatch = RigMismatch(recipe.name, named->AsString(), recipe_path.empty() ? name : recipe_path, rig))
+        return {422, {{"error", *mismatch}, {"recipe_rig", named->AsString()}, {"rig", rig.name}}};
+    }
     const auto steps = CompileSteps(recipe, rig);
     const RunPlan plan = PlanRun(recipe, rig, steps, options_.plan);
     json body = plan.ToJson(steps);
@@ -257,12 +359,13 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
   }
 }
 
-ServiceReply RunService::DryRun(const std::string& name, const std::string& recipe_yaml) const {
-  return Validate(name, recipe_yaml, false);
+ServiceReply RunService::DryRun(const std::string& name, const std::string& recipe_yaml,
+                                const std::string& recipe_path) const {
+  return Validate(name, recipe_yaml, recipe_path, false);
 }
 
-ServiceReply RunService::Submit(const std::string& name, const std::string& recipe_yaml) {
-  ServiceReply reply = Validate(name, recipe_yaml, true);
+ServiceReply RunService::Submit(const std::string& name, const std::string& recipe_yaml, const std::string& recipe_path) {
+  ServiceReply reply = Validate(name, recipe_yaml, recipe_path, true);
   if (reply.http_status != 200) return reply;
   const json plan = reply.body;
   // The recipe is on disk before the worker can see the run, and the run's
@@ -280,8 +383,16 @@ ServiceReply RunService::Submit(const std::string& name, const std::string& reci
 ServiceReply RunService::ListRuns() const {
   json runs = json::array();
   std::lock_guard lock(mutex_);
-  for (const QueuedRun& run : queue_->List()) runs.push_back(run.id == current_id_ ? current_.ToJson() : run.ToJson());
+  for (const QueuedRun& run : queue_->List()) runs.push_back(RunJson(run.id == current_id_ ? current_ : run));
   return {200, {{"runs", runs}}};
+}
+
+json RunService::RunJson(const QueuedRun& run) const {
+  json body = run.ToJson();
+  if (fs::is_directory(fs::path(RunDirectory(run.id)) / "results"))
+    body["results"] = {{"path", "runs/" + run.id + "/results"},
+                       {"url", "/api/v1/runs/" + run.id + "/files?under=results"}};
+  return body;
 }
 
 ServiceReply RunService::GetRun(const std::string& id) const {
@@ -291,7 +402,7 @@ ServiceReply RunService::GetRun(const std::string& id) const {
   json body;
   {
     std::lock_guard lock(mutex_);
-    body = id == current_id_ ? current_.ToJson() : run->ToJson();
+    body = RunJson(id == current_id_ ? current_ : *run);
   }
   const fs::path manifest = fs::path(RunDirectory(id)) / "manifest.json";
   if (IsFinal(run->state) && fs::exists(manifest)) {
@@ -308,6 +419,8 @@ ServiceReply RunService::GetRun(const std::string& id) const {
 ServiceReply RunService::Pause(const std::string& id) {
   std::lock_guard lock(mutex_);
   if (id != current_id_ || !current_control_) return Error(409, "run '" + id + "' is not running");
+  if (current_.state == RunState::kSolving)
+    return Error(409, "run '" + id + "' is solving: its capture is over, and a solve stage cannot pause");
   current_control_->Pause();
   return {202, {{"id", id}, {"requested", "pause"}}};
 }
@@ -335,9 +448,51 @@ ServiceReply RunService::Abort(const std::string& id) {
       return Error(409, "run '" + id + "' is " + RunStateName(run.state) + "; nothing to abort");
   }
   AnnounceState(run);
-  Publish(id, "stop", {{"state", RunStateName(RunState::kAborted)}, {"reason", run.reason}, {"frames", run.frames},
-                       {"steps_total", run.steps_total}, {"retries", 0}, {"dropped_frames", 0}});
-  return {200, run.ToJson()};
+  const json body = RunJson(run);
+  Publish(id, "stop", StopEventData(body));
+  return {200, body};
+}
+
+ServiceReply RunService::ResolveRunPath(const std::string& id, const std::string& relative,
+                                        std::string* absolute) const {
+  const std::string directory = RunDirectory(id);
+  std::error_code error;
+  if (directory.empty() || !fs::is_directory(directory, error)) return Error(404, "no run '" + id + "'");
+  const fs::path root = fs::weakly_canonical(directory, error);
+  // Resolve first, then check: "..", absolute paths and symlinks all end up outside the root.
+  const fs::path target = fs::weakly_canonical(root / relative, error);
+  const auto outside = std::mismatch(root.begin(), root.end(), target.begin(), target.end()).first != root.end();
+  if (error || relative.find('\0') != std::string::npos || fs::path(relative).is_absolute() || outside)
+    return Error(400, "path '" + relative + "' leaves the run directory");
+  *absolute = target.string();
+  return {200, json::object()};
+}
+
+ServiceReply RunService::ListFiles(const std::string& id, const std::string& under) const {
+  std::string folder;
+  if (const ServiceReply resolved = ResolveRunPath(id, under, &folder); resolved.http_status != 200) return resolved;
+  std::error_code error;
+  if (!fs::is_directory(folder, error)) return Error(404, "no folder '" + under + "' in run '" + id + "'");
+  const fs::path root = fs::weakly_canonical(RunDirectory(id));
+  json files = json::array();
+  std::uint64_t bytes = 0;
+  // Symlinks are left out (and not followed): what a run holds is its own files.
+  for (auto it = fs::recursive_directory_iterator(folder, error); !error && it != fs::recursive_directory_iterator();
+       it.increment(error)) {
+    if (it->is_symlink() || !it->is_regular_file()) continue;
+    try {
+      const std::uint64_t size = it->file_size();
+      files.push_back({{"path", it->path().lexically_relative(root).generic_string()},
+                       {"size", size},
+                       {"crc32", FileCrc32(it->path())}});
+      bytes += size;
+    } catch (const std::exception&) {
+      // Gone or replaced while listing (a temp file of a running run): not part of the listing.
+    }
+  }
+  if (error) return Error(500, "cannot list run '" + id + "': " + error.message());
+  std::sort(files.begin(), files.end(), [](const json& a, const json& b) { return a["path"] < b["path"]; });
+  return {200, {{"id", id}, {"under", under}, {"files", files}, {"bytes", bytes}}};
 }
 
 ServiceReply RunService::Devices() const {

@@ -5,7 +5,7 @@
 
 #include "photorig/daemon/api_client.h"
 #include "photorig/daemon/run_store.h"
-#include "test_support.h"
+#include "daemon_process.h"
 
 #include <gtest/gtest.h>
 
@@ -25,54 +25,17 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using photorig::testing::DaemonProcess;
 using photorig::testing::ReadText;
 using photorig::testing::TempDir;
 
 constexpr int kKills = 12;
 constexpr int kSteps = 64;  // 60 darks + 4 LEDs
 
-class Daemon {
- public:
-  Daemon(const fs::path& data_root, const std::string& rig, const fs::path& log) {
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      const std::string bin = std::string(PHOTORIG_BIN_DIR) + "/photorigd";
-      if (!std::freopen(log.c_str(), "a", stdout) || !std::freopen(log.c_str(), "a", stderr)) _exit(126);
-      ::execl(bin.c_str(), bin.c_str(), "--data-root", data_root.c_str(), "--rig", rig.c_str(), "--port", "0",
-              "--no-solve", "--backoff-ms", "1", static_cast<char*>(nullptr));
-      _exit(127);
-    }
-  }
-  // The port from the "event=ready" line of this start (the log is appended to).
-  int WaitReady(const fs::path& log, int starts_before) {
-    static const std::regex ready(R"(event=ready listen=127\.0\.0\.1:(\d+))");
-    for (int i = 0; i < 500; ++i) {
-      const std::string text = ReadText(log);
-      int seen = 0;
-      int port = 0;
-      for (auto it = std::sregex_iterator(text.begin(), text.end(), ready); it != std::sregex_iterator(); ++it) {
-        ++seen;
-        port = std::stoi((*it)[1]);
-      }
-      if (seen > starts_before) return port;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return 0;
-  }
-  void Kill() {
-    ::kill(pid_, SIGKILL);
-    ::waitpid(pid_, nullptr, 0);
-  }
-  int Terminate() {
-    ::kill(pid_, SIGTERM);
-    int status = 0;
-    ::waitpid(pid_, &status, 0);
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-
- private:
-  pid_t pid_ = -1;
-};
+// The daemon of this test: capture only, retries without delay.
+std::unique_ptr<DaemonProcess> StartDaemon(const fs::path& data, const std::string& rig, const fs::path& log) {
+  return std::make_unique<DaemonProcess>(data, rig, log, std::vector<std::string>{"--no-solve", "--backoff-ms", "1"});
+}
 
 ApiClient Client(int port) {
   ApiClientOptions options;
@@ -89,7 +52,7 @@ TEST(Crash, KillNineAtRandomPointsLosesAndDuplicatesNoFrame) {
   std::uniform_int_distribution<int> delay_ms(5, 120);
 
   int starts = 0;
-  auto daemon = std::make_unique<Daemon>(data, rig, log);
+  auto daemon = StartDaemon(data, rig, log);
   int port = daemon->WaitReady(log, starts++);
   ASSERT_GT(port, 0) << ReadText(log);
   const auto submitted = Client(port).Post("/api/v1/runs", {{"recipe", photorig::testing::SmallRecipeYaml("", 60)}});
@@ -124,7 +87,7 @@ TEST(Crash, KillNineAtRandomPointsLosesAndDuplicatesNoFrame) {
       kills_during_capture += recovery.frames_kept < kSteps;
       fs::remove_all(copy);
     }
-    daemon = std::make_unique<Daemon>(data, rig, log);
+    daemon = StartDaemon(data, rig, log);
     port = daemon->WaitReady(log, starts++);
     ASSERT_GT(port, 0) << ReadText(log);
   }

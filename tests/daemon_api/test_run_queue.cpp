@@ -5,6 +5,7 @@
 #include "test_support.h"
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include <chrono>
 #include <future>
@@ -69,6 +70,58 @@ TEST(RunQueue, ARunLeavesTheQueueOnlyOnce) {
   EXPECT_EQ(queue.Get(second.id)->state, RunState::kAborted);
   EXPECT_EQ(queue.Get(second.id)->reason, "aborted before it started");
   EXPECT_FALSE(queue.NextQueued());
+}
+
+// A run's solve stages are kept with it; a run that was solving when the
+// daemon stopped is one to recover.
+TEST(RunQueue, KeepsTheSolveAndCountsASolvingRunAsUnfinished) {
+  TempDir dir;
+  const std::string path = (dir.path() / "queue.db").string();
+  std::string id;
+  {
+    RunQueue queue(path);
+    QueuedRun run = queue.Add("ps-sphere", 49, nullptr);
+    id = run.id;
+    ASSERT_TRUE(queue.LeaveQueued(run, RunState::kRunning, ""));
+    run.state = RunState::kSolving;
+    run.solve = {{"ok", false}, {"stages", {{{"stage", "photometric_stereo"}, {"ok", false}}}}};
+    queue.Update(run);
+    ASSERT_EQ(queue.Unfinished().size(), 1u);
+  }
+  RunQueue reopened(path);
+  const std::optional<QueuedRun> run = reopened.Get(id);
+  ASSERT_TRUE(run);
+  EXPECT_EQ(run->state, RunState::kSolving);
+  EXPECT_EQ(run->solve["stages"][0]["stage"], "photometric_stereo");
+  EXPECT_EQ(run->ToJson()["solve"]["ok"], false);
+  EXPECT_FALSE(reopened.Add("no-solve-yet", 1, nullptr).ToJson().contains("solve"));
+}
+
+// A queue written before runs carried their solve gains the column on open.
+TEST(RunQueue, OpensAQueueWithoutTheSolveColumn) {
+  TempDir dir;
+  const std::string path = (dir.path() / "queue.db").string();
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db,
+                         "CREATE TABLE runs (seq INTEGER PRIMARY KEY AUTOINCREMENT, id TEXT UNIQUE NOT NULL, "
+                         "recipe_name TEXT NOT NULL, state TEXT NOT NULL, reason TEXT NOT NULL DEFAULT '', "
+                         "frames INTEGER NOT NULL DEFAULT 0, steps_total INTEGER NOT NULL DEFAULT 0, "
+                         "retries INTEGER NOT NULL DEFAULT 0, dropped_frames INTEGER NOT NULL DEFAULT 0, "
+                         "created_ns INTEGER NOT NULL, updated_ns INTEGER NOT NULL);"
+                         "INSERT INTO runs (id, recipe_name, state, created_ns, updated_ns) "
+                         "VALUES ('000001-old', 'old', 'done', 1, 1);",
+                         nullptr, nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+  RunQueue queue(path);
+  std::optional<QueuedRun> old = queue.Get("000001-old");
+  ASSERT_TRUE(old);
+  EXPECT_EQ(old->state, RunState::kDone);
+  EXPECT_TRUE(old->solve.is_null());
+  old->solve = {{"ok", true}, {"stages", nlohmann::json::array()}};
+  queue.Update(*old);
+  EXPECT_EQ(queue.Get("000001-old")->solve["ok"], true);
 }
 
 }  // namespace

@@ -7,7 +7,7 @@
 // --token-file (default $PHOTORIG_TOKEN), --json for machine-readable output.
 
 #include "../command.h"
-#include "photorig/daemon/api_client.h"
+#include "daemon_connection.h"
 #include "photorig/daemon/run_control.h"
 
 #include <unistd.h>
@@ -23,34 +23,6 @@ namespace photorig::app {
 namespace {
 
 using nlohmann::json;
-
-struct Connection {
-  std::string url;
-  std::string token_file;
-  bool json_output = false;
-
-  void AddOptions(CLI::App* sub) {
-    const char* env_url = std::getenv("PHOTORIG_URL");
-    url = env_url ? env_url : "http://127.0.0.1:8750";
-    sub->add_option("--url", url, "photorigd address ($PHOTORIG_URL)")->capture_default_str();
-    sub->add_option("--token-file", token_file, "bearer token file (default: $PHOTORIG_TOKEN)")
-        ->check(CLI::ExistingFile);
-    sub->add_flag("--json", json_output, "print JSON");
-  }
-
-  daemon::ApiClient Client(int timeout_s = 30) const {
-    daemon::ApiClientOptions options;
-    options.url = url;
-    options.timeout_s = timeout_s;
-    if (!token_file.empty()) {
-      std::ifstream in(token_file);
-      std::getline(in, options.token);
-    } else if (const char* token = std::getenv("PHOTORIG_TOKEN")) {
-      options.token = token;
-    }
-    return daemon::ApiClient(options);
-  }
-};
 
 // Exit codes: 0 ok, 1 daemon unreachable or server error, 2 rejected input.
 int Fail(const daemon::ServiceReply& reply, bool json_output) {
@@ -82,12 +54,33 @@ int ExitCodeForState(const std::string& state) {
   return 1;
 }
 
+// The solve stages and the results' location of a stop event (or run record).
+void PrintSolve(const json& run) {
+  if (run.contains("solve"))
+    for (const json& stage : run["solve"]["stages"]) {
+      std::string figures;
+      for (const auto& [key, value] : stage["figures"].items()) {
+        char number[32];
+        std::snprintf(number, sizeof(number), "%.4g", value.is_number() ? value.get<double>() : 0.0);
+        figures += ", " + key + " " +
+                   (value.is_string() ? value.get<std::string>() : value.is_number_float() ? number : value.dump());
+      }
+      std::printf("solve %s: %s%s, %.0f ms\n", stage.value("stage", "").c_str(), stage.value("termination", "").c_str(),
+                  figures.c_str(), stage["timings_ms"].value("total", 0.0));
+      if (!stage.value("message", "").empty()) std::printf("  %s\n", stage.value("message", "").c_str());
+    }
+  if (run.contains("results"))
+    std::printf("results: %s in the data root (photorig fetch %s --results)\n",
+                run["results"].value("path", "").c_str(), run.value("id", "").c_str());
+}
+
 // Follows a run's events: a redrawn bar on a terminal, plain lines otherwise.
 int Watch(const Connection& connection, const std::string& id) {
   auto client = connection.Client(24 * 3600);
   const bool tty = isatty(STDOUT_FILENO) && !connection.json_output;
   std::string final_state;
   const std::string error = client.FollowEvents(id, [&](const std::string& type, const json& data) {
+    if (type == "stop") final_state = data.value("state", "");
     if (connection.json_output) {
       std::printf("%s\n", json{{"event", type}, {"data", data}}.dump().c_str());
     } else if (type == "frame") {
@@ -99,14 +92,16 @@ int Watch(const Connection& connection, const std::string& id) {
       } else {
         std::printf("frame %d/%d %s\n", done, total, data.value("label", "").c_str());
       }
+    } else if (type == "solve_started") {
+      std::printf("%ssolving: %s\n", tty ? "\n" : "", data.value("stage", "").c_str());
     } else if (type == "state" || type == "stop") {
       std::printf("%s%s %s%s%s\n", tty ? "\n" : "", type == "stop" ? "stopped:" : "state:",
                   data.value("state", "").c_str(), data.value("reason", "").empty() ? "" : " - ",
                   data.value("reason", "").c_str());
       if (type == "stop") {
-        final_state = data.value("state", "");
         std::printf("frames %d/%d, retries %d, dropped frames %d\n", data.value("frames", 0),
                     data.value("steps_total", 0), data.value("retries", 0), data.value("dropped_frames", 0));
+        PrintSolve(data);
       }
     }
     std::fflush(stdout);
@@ -129,7 +124,10 @@ int Submit(const SubmitOptions& options) {
   std::ifstream in(options.recipe);
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   auto client = options.connection.Client();
-  const auto reply = client.Post("/api/v1/runs", {{"name", options.recipe}, {"recipe", text}});
+  // The recipe's own path lets the daemon resolve its recipe.rig as `photorig run` would.
+  const auto reply = client.Post("/api/v1/runs", {{"name", options.recipe},
+                                                  {"recipe", text},
+                                                  {"path", std::filesystem::absolute(options.recipe).string()}});
   if (!Ok(reply)) return Fail(reply, options.connection.json_output);
   const json& plan = reply.body["plan"];
   if (options.connection.json_output) {
@@ -166,6 +164,7 @@ int Status(const RunOptions& options) {
     for (const json& run : reply.body["runs"]) std::printf("%s\n", RunLine(run).c_str());
   } else {
     std::printf("%s\n", RunLine(reply.body).c_str());
+    PrintSolve(reply.body);
   }
   return 0;
 }

@@ -36,6 +36,13 @@ class ApiClient {
                            const std::function<bool(const std::string& type, const nlohmann::json& data)>& on_event);
   // The raw bytes of a run's file; http_status as in Get.
   int Download(const std::string& run_id, const std::string& relative_path, std::string* bytes);
+  // Streams a run's file to `on_data` as it arrives (return false to stop).
+  // Returns the HTTP status: 200 when the whole file arrived; 0 when the
+  // daemon could not be reached or the transfer broke off (or `on_data`
+  // stopped it). For any status but 200 nothing reaches `on_data` and
+  // `*error` says why (the daemon's message, or the transport's).
+  int Download(const std::string& run_id, const std::string& relative_path,
+               const std::function<bool(const char* data, std::size_t size)>& on_data, std::string* error);
 
  private:
   ApiClientOptions options_;

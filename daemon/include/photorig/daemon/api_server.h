@@ -7,6 +7,7 @@
 //   GET  /runs, /runs/{id}            run state, counters and stop record
 //   POST /runs/{id}/pause|resume|abort
 //   GET  /runs/{id}/events            progress as Server-Sent Events
+//   GET  /runs/{id}/files[?under=DIR] the run's files with sizes and CRC-32
 //   GET  /runs/{id}/files/{path}      a file of the run (frames/..., results/..., manifest.json)
 // Errors are JSON {"error": "..."} with a 4xx/5xx status. A bearer token is
 // required whenever one is configured, and must be configured to bind to

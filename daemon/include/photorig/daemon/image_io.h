@@ -28,6 +28,7 @@ cv::Mat ReadImage(const std::string& path);
 // 8-bit view for people: normals as RGB = (n + 1) / 2 (other views: previews.h).
 cv::Mat NormalsToBgr8(const cv::Mat& normals);
 
-std::uint32_t Crc32(const void* data, std::size_t size);
+// CRC-32 of `data`, continuing `crc` (the CRC-32 of the bytes before it; 0 to start).
+std::uint32_t Crc32(const void* data, std::size_t size, std::uint32_t crc = 0);
 
 }  // namespace photorig::daemon

@@ -7,12 +7,33 @@
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/sequencer.h"
 
+#include <nlohmann/json.hpp>
+
 #include <atomic>
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace photorig::daemon {
+
+// What one solve stage of a run produced, in the words the daemon's run
+// record, its events and `photorig watch` use.
+struct SolveStageReport {
+  std::string stage;        // the recipe's key: "photometric_stereo" | "light_calibration"
+  bool usable = false;      // the stage's result can be used (PS: IsSolutionUsable; lights: success)
+  std::string termination;  // solvers::TerminationName for PS; "success" | "failure" for light calibration
+  std::string message;
+  std::string results;      // the stage's output folder, relative to the run directory: "results/ps"
+  nlohmann::json figures;   // key figures: pixels solved, lights, errors against ground truth, ...
+  nlohmann::json timings_ms;  // {"total": ...} and, where the solver reports them, "setup" and "solve"
+
+  nlohmann::json ToJson() const;
+};
+
+SolveStageReport ReportSolveStage(const PhotometricStereoResult& result);
+SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const std::string& run_directory,
+                                  double total_ms);
 
 struct RunRequest {
   std::string recipe_path;
@@ -29,6 +50,11 @@ struct RunRequest {
   // After each stored frame; `frames_in_run` counts resumed frames too.
   std::function<void(const CaptureStep&, const FrameRecord&, int frames_in_run, int total)> on_frame;
   std::function<void(RunState, const std::string& detail)> on_state;
+  // Around each solve stage after a complete capture; on_state hears
+  // kSolving (detail: the stage) before the first. An abort requested through
+  // `control` while a stage runs skips the stages after it.
+  std::function<void(const std::string& stage)> on_solve_started;
+  std::function<void(const SolveStageReport&)> on_solve_finished;
 };
 
 struct RunOutcome {
@@ -37,6 +63,7 @@ struct RunOutcome {
   CaptureReport capture;
   std::optional<PhotometricStereoResult> photometric_stereo;  // stored as results/ps/report.json
   std::optional<LightCalibrationSummary> light_calibration;
+  std::vector<SolveStageReport> solve_stages;  // in the order they ran
 };
 
 // Throws ConfigError for bad configuration (before any device is touched) and

@@ -7,7 +7,9 @@
 //            suspended            (device fault: backoff, reopen, retry)
 //               |
 //   running/paused/suspended -> aborting -> aborted
-//   running -> done | failed
+//   running -> solving            (capture complete; the recipe's solve stages run)
+//   running/solving -> done | failed
+//   solving -> aborted            (an abort waits for the stage in progress)
 //   any non-final state -> interrupted   (daemon restarted and told not to resume)
 
 #include <condition_variable>
@@ -17,7 +19,7 @@
 
 namespace photorig::daemon {
 
-enum class RunState { kQueued, kRunning, kPaused, kSuspended, kAborting, kDone, kFailed, kAborted, kInterrupted };
+enum class RunState { kQueued, kRunning, kPaused, kSuspended, kAborting, kSolving, kDone, kFailed, kAborted, kInterrupted };
 
 const char* RunStateName(RunState state);
 std::optional<RunState> RunStateFromName(const std::string& name);

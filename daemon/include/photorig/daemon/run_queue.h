@@ -30,8 +30,10 @@ struct QueuedRun {
   int dropped_frames = 0;
   std::int64_t created_ns = 0;  // CLOCK_REALTIME
   std::int64_t updated_ns = 0;
+  // The solve stages' outcome once they ran: {"ok", "stages": [SolveStageReport...]}; null before.
+  nlohmann::json solve;
 
-  nlohmann::json ToJson() const;
+  nlohmann::json ToJson() const;  // "solve" only when set
 };
 
 class RunQueue {
@@ -51,7 +53,7 @@ class RunQueue {
   std::vector<QueuedRun> List() const;  // oldest first
   std::optional<QueuedRun> NextQueued() const;
   std::vector<QueuedRun> Unfinished() const;  // neither queued nor final: a run the daemon was executing
-  void Update(const QueuedRun& run);          // state, reason and counters
+  void Update(const QueuedRun& run);          // state, reason, counters and solve
   // Moves the run from kQueued to `to` if it is still queued, in one
   // statement, and updates `run`; false (and `run` untouched) otherwise. The
   // worker claims a run and Abort cancels one this way, so a run is either

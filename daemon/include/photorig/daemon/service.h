@@ -44,7 +44,7 @@ struct ServiceOptions {
 struct RunEvent {
   std::uint64_t seq = 0;  // per service, increasing
   std::string run_id;
-  std::string type;       // state | frame | stop
+  std::string type;       // state | frame | solve_started | solve_finished | stop
   nlohmann::json data;
 };
 
@@ -53,6 +53,10 @@ struct ServiceReply {
   int http_status = 200;
   nlohmann::json body;
 };
+
+// The "stop" event's data for a run record (RunService::GetRun's body): how
+// it ended, its counters, its solve stages and where its results are.
+nlohmann::json StopEventData(const nlohmann::json& run);
 
 class RunService {
  public:
@@ -69,13 +73,24 @@ class RunService {
   void Stop();
   bool Healthy() const;
 
-  ServiceReply Submit(const std::string& name, const std::string& recipe_yaml);
-  ServiceReply DryRun(const std::string& name, const std::string& recipe_yaml) const;
+  // `name` names the recipe in messages; `recipe_path`, when the client
+  // gives one, is where it read the recipe, so a relative `recipe.rig`
+  // resolves from its folder (see RigMismatch in service.cpp).
+  ServiceReply Submit(const std::string& name, const std::string& recipe_yaml, const std::string& recipe_path = "");
+  ServiceReply DryRun(const std::string& name, const std::string& recipe_yaml,
+                      const std::string& recipe_path = "") const;
   ServiceReply ListRuns() const;
   ServiceReply GetRun(const std::string& id) const;
   ServiceReply Pause(const std::string& id);
   ServiceReply Resume(const std::string& id);
   ServiceReply Abort(const std::string& id);
+  // The run's regular files under `under` (a folder of the run, "" for all):
+  // {"id", "under", "files": [{"path", "size", "crc32"}], "bytes"}, by path.
+  ServiceReply ListFiles(const std::string& id, const std::string& under) const;
+  // A path inside the run's directory: 200 and `*absolute` set, or the error
+  // reply (404 unknown run, 400 a path that leaves the run directory, by
+  // "..", an absolute path or a symlink).
+  ServiceReply ResolveRunPath(const std::string& id, const std::string& relative, std::string* absolute) const;
   ServiceReply Devices() const;
   ServiceReply Health() const;
 
@@ -93,7 +108,9 @@ class RunService {
   void PublishLocked(const std::string& run_id, const std::string& type, nlohmann::json data);  // mutex_ held
   void SetState(QueuedRun& run, RunState state, const std::string& reason);
   void AnnounceState(const QueuedRun& run);  // the log line and the "state" event
-  ServiceReply Validate(const std::string& name, const std::string& recipe_yaml, bool for_submit) const;
+  ServiceReply Validate(const std::string& name, const std::string& recipe_yaml, const std::string& recipe_path,
+                        bool for_submit) const;
+  nlohmann::json RunJson(const QueuedRun& run) const;  // the record as GET /runs/{id} shows it
 
   ServiceOptions options_;
   std::unique_ptr<RunQueue> queue_;

@@ -1,0 +1,44 @@
+#pragma once
+// How a CLI command reaches photorigd: --url (default $PHOTORIG_URL or
+// http://127.0.0.1:8750), --token-file (default $PHOTORIG_TOKEN) and --json.
+// Shared by the remote commands and `photorig fetch`.
+
+#include "photorig/daemon/api_client.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdlib>
+#include <fstream>
+#include <string>
+
+namespace photorig::app {
+
+struct Connection {
+  std::string url;
+  std::string token_file;
+  bool json_output = false;
+
+  void AddOptions(CLI::App* sub) {
+    const char* env_url = std::getenv("PHOTORIG_URL");
+    url = env_url ? env_url : "http://127.0.0.1:8750";
+    sub->add_option("--url", url, "photorigd address ($PHOTORIG_URL)")->capture_default_str();
+    sub->add_option("--token-file", token_file, "bearer token file (default: $PHOTORIG_TOKEN)")
+        ->check(CLI::ExistingFile);
+    sub->add_flag("--json", json_output, "print JSON");
+  }
+
+  daemon::ApiClient Client(int timeout_s = 30) const {
+    daemon::ApiClientOptions options;
+    options.url = url;
+    options.timeout_s = timeout_s;
+    if (!token_file.empty()) {
+      std::ifstream in(token_file);
+      std::getline(in, options.token);
+    } else if (const char* token = std::getenv("PHOTORIG_TOKEN")) {
+      options.token = token;
+    }
+    return daemon::ApiClient(options);
+  }
+};
+
+}  // namespace photorig::app

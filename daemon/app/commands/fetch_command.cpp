@@ -1,0 +1,227 @@
+// photorig fetch RUN [--results] [--out DIR] [--url URL]: downloads a
+// finished run of photorigd (or only its results/) into DIR (default
+// ./RUN), checking each file's size and CRC-32 against the daemon's listing.
+// Each file is written to a temporary name and renamed once it checks out, so
+// DIR never holds a partial file under a real name; files already there with
+// the listed size and checksum are kept. Exit codes: 0 every file fetched,
+// 1 a download failed or the run has not ended, 2 bad arguments or an unknown
+// run, 3 the daemon cannot be reached.
+
+#include "../command.h"
+#include "daemon_connection.h"
+#include "photorig/daemon/image_io.h"
+#include "photorig/daemon/run_control.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <vector>
+
+namespace photorig::app {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// Below this much in all, a fetch prints no progress lines.
+constexpr std::uint64_t kProgressMinBytes = 4u << 20;
+
+struct Options {
+  Connection connection;
+  std::string id, out;
+  bool results_only = false;
+};
+
+struct Fetched {
+  std::string path;
+  std::uint64_t size = 0;
+  bool kept = false;  // already present and intact
+  std::string error;
+};
+
+double MiB(std::uint64_t bytes) { return bytes / 1048576.0; }
+
+// A listed path must stay inside the output folder, whatever the server says.
+bool IsSafeRelative(const std::string& path) {
+  const fs::path p = path;
+  if (path.empty() || p.is_absolute()) return false;
+  for (const fs::path& part : p)
+    if (part == ".." || part == ".") return false;
+  return true;
+}
+
+bool IsIntact(const fs::path& file, std::uint64_t size, std::uint32_t crc32) {
+  std::error_code error;
+  if (!fs::is_regular_file(file, error) || fs::file_size(file, error) != size) return false;
+  std::ifstream in(file, std::ios::binary);
+  std::vector<char> buffer(1 << 20);
+  std::uint32_t crc = 0;
+  while (in) {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    crc = daemon::Crc32(buffer.data(), static_cast<std::size_t>(in.gcount()), crc);
+  }
+  return !in.bad() && crc == crc32;
+}
+
+// Prints a progress line each tenth of the bytes, on stderr.
+class ProgressLines {
+ public:
+  ProgressLines(std::string id, std::uint64_t total_bytes, std::size_t total_files)
+      : id_(std::move(id)), total_bytes_(total_bytes), total_files_(total_files) {}
+  void Add(std::uint64_t bytes) {
+    done_bytes_ += bytes;
+    if (total_bytes_ < kProgressMinBytes) return;
+    const int tenth = static_cast<int>(10 * done_bytes_ / total_bytes_);
+    if (tenth <= last_tenth_) return;
+    last_tenth_ = tenth;
+    std::fprintf(stderr, "fetch %s: %3d%% (%zu/%zu files, %.1f/%.1f MiB)\n", id_.c_str(), 10 * tenth, files_done_,
+                 total_files_, MiB(done_bytes_), MiB(total_bytes_));
+  }
+  void FileDone() { ++files_done_; }
+
+ private:
+  std::string id_;
+  std::uint64_t total_bytes_, done_bytes_ = 0;
+  std::size_t total_files_, files_done_ = 0;
+  int last_tenth_ = 0;
+};
+
+Fetched FetchFile(daemon::ApiClient& client, const std::string& id, const json& listed, const fs::path& out,
+                  ProgressLines& progress) {
+  Fetched fetched;
+  fetched.path = listed.value("path", "");
+  fetched.size = listed.value("size", std::uint64_t{0});
+  const std::uint32_t expected_crc = listed.value("crc32", std::uint32_t{0});
+  if (!IsSafeRelative(fetched.path)) {
+    fetched.error = "the daemon listed an unsafe path '" + fetched.path + "'; not fetched";
+    return fetched;
+  }
+  const fs::path target = out / fetched.path;
+  if (IsIntact(target, fetched.size, expected_crc)) {
+    fetched.kept = true;
+    progress.Add(fetched.size);
+    return fetched;
+  }
+  fs::create_directories(target.parent_path());
+  const fs::path temp = target.string() + ".fetching";
+  std::ofstream file(temp, std::ios::binary | std::ios::trunc);
+  if (!file) {
+    fetched.error = "cannot write " + temp.string();
+    return fetched;
+  }
+  std::uint64_t received = 0;
+  std::uint32_t crc = 0;
+  std::string error;
+  const int status = client.Download(
+      id, fetched.path,
+      [&](const char* data, std::size_t size) {
+        file.write(data, static_cast<std::streamsize>(size));
+        crc = daemon::Crc32(data, size, crc);
+        received += size;
+        progress.Add(size);
+        return static_cast<bool>(file);
+      },
+      &error);
+  file.close();
+  if (status != 200 || !file) {
+    fetched.error = !file ? "cannot write " + temp.string() : error;
+  } else if (received != fetched.size) {
+    fetched.error = "received " + std::to_string(received) + " bytes, the daemon listed " + std::to_string(fetched.size);
+  } else if (crc != expected_crc) {
+    fetched.error = "CRC-32 mismatch: received " + std::to_string(crc) + ", the daemon listed " + std::to_string(expected_crc);
+  }
+  std::error_code ignored;
+  if (!fetched.error.empty()) {
+    fs::remove(temp, ignored);
+    return fetched;
+  }
+  fs::rename(temp, target);
+  return fetched;
+}
+
+int Finish(const Options& options, const json& report, int exit_code, const std::string& error) {
+  if (options.connection.json_output) {
+    json body = report;
+    body["command"] = "fetch";
+    body["ok"] = exit_code == 0;
+    body["exit_code"] = exit_code;
+    if (!error.empty()) body["error"] = error;
+    std::printf("%s\n", body.dump().c_str());
+  } else if (!error.empty()) {
+    std::fprintf(stderr, "error: %s\n", error.c_str());
+  }
+  return exit_code;
+}
+
+// 3 when the daemon cannot be reached, 2 for an unknown run or a refused request, 1 otherwise.
+int ExitCodeFor(const daemon::ServiceReply& reply) {
+  if (reply.http_status == 0) return 3;
+  return reply.http_status >= 400 && reply.http_status < 500 ? 2 : 1;
+}
+
+int Execute(const Options& options) {
+  auto client = options.connection.Client();
+  json report = {{"id", options.id}};
+  const daemon::ServiceReply run = client.Get("/api/v1/runs/" + options.id);
+  if (run.http_status != 200) return Finish(options, report, ExitCodeFor(run), run.body.value("error", "HTTP error"));
+  const std::string state = run.body.value("state", "");
+  const auto parsed = daemon::RunStateFromName(state);
+  if (!parsed || !daemon::IsFinal(*parsed))
+    return Finish(options, report, 1,
+                  "run " + options.id + " is " + state + "; fetch it once it has ended (photorig watch " + options.id + ")");
+  if (options.results_only && !run.body.contains("results"))
+    return Finish(options, report, 1,
+                  "run " + options.id + " has no results: its recipe has no solve stage, or the daemon skips them (--no-solve)");
+  const daemon::ServiceReply listing =
+      client.Get("/api/v1/runs/" + options.id + "/files" + (options.results_only ? "?under=results" : ""));
+  if (listing.http_status != 200)
+    return Finish(options, report, ExitCodeFor(listing), listing.body.value("error", "HTTP error"));
+
+  const fs::path out = options.out.empty() ? fs::path(options.id) : fs::path(options.out);
+  const json& files = listing.body["files"];
+  ProgressLines progress(options.id, listing.body.value("bytes", std::uint64_t{0}), files.size());
+  std::uint64_t bytes = 0;
+  int fetched = 0, kept = 0, failed = 0;
+  json failures = json::array();
+  for (const json& listed : files) {
+    const Fetched file = FetchFile(client, options.id, listed, out, progress);
+    progress.FileDone();
+    if (!file.error.empty()) {
+      ++failed;
+      failures.push_back({{"path", file.path}, {"error", file.error}});
+      std::fprintf(stderr, "failed: %s: %s\n", file.path.c_str(), file.error.c_str());
+      continue;
+    }
+    (file.kept ? kept : fetched) += 1;
+    bytes += file.size;
+  }
+  report["directory"] = out.string();
+  report["files"] = files.size();
+  report["fetched"] = fetched;
+  report["kept"] = kept;
+  report["failed"] = failures;
+  report["bytes"] = bytes;
+  if (!options.connection.json_output)
+    std::printf("%s: %d files fetched, %d already present, %.1f MiB, into %s\n", options.id.c_str(), fetched, kept,
+                MiB(bytes), out.string().c_str());
+  if (failed > 0)
+    return Finish(options, report, 1,
+                  std::to_string(failed) + " of " + std::to_string(files.size()) + " files failed; run the fetch again");
+  return Finish(options, report, 0, "");
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto options = std::make_shared<Options>();
+  CLI::App* sub = app.add_subcommand("fetch", "download a finished run (or its results) from the photorigd daemon");
+  sub->add_option("run", options->id, "run id")->required();
+  sub->add_flag("--results", options->results_only, "only the run's results/ folder");
+  sub->add_option("--out", options->out, "folder to write into (default: ./RUN)");
+  options->connection.AddOptions(sub);
+  return {sub, [options] { return Execute(*options); }};
+}
+
+const bool registered = RegisterCommand(Setup);
+
+}  // namespace
+}  // namespace photorig::app
