@@ -118,8 +118,10 @@ RunOutcome ExecuteRun(const RunRequest& request) {
                outcome.capture.reason);
 
   if (request.solve && outcome.capture.status == CaptureStatus::kComplete && recipe.photometric_stereo) {
-    outcome.photometric_stereo = SolvePhotometricStereoRun(
-        outcome.directory, *recipe.photometric_stereo, (fs::path(outcome.directory) / "results" / "ps").string());
+    PhotometricStereoRequest solve = *recipe.photometric_stereo;
+    solve.progress = request.solve_progress;
+    outcome.photometric_stereo =
+        SolvePhotometricStereoRun(outcome.directory, solve, (fs::path(outcome.directory) / "results" / "ps").string());
   }
   if (request.solve && outcome.capture.status == CaptureStatus::kComplete && recipe.light_calibration) {
     LightCalibrationRequest calibration = *recipe.light_calibration;

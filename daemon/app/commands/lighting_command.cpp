@@ -6,8 +6,10 @@
 // report and a new rig YAML (an existing file is never overwritten).
 
 #include "../command.h"
+#include "../command_output.h"
 #include "photorig/daemon/light_calibration.h"
 #include "photorig/daemon/rig_config.h"
+#include "ps_report.h"
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -70,11 +72,12 @@ int Execute(const Options& o) {
             << summary.circle.cy_px << " px, radius " << summary.circle.radius_px << " px\n"
             << "lights: " << summary.lights << ", unusable: " << summary.unusable << ", mean uncertainty "
             << summary.mean_uncertainty_deg << " deg, outputs in " << o.out << "\n";
-  if (!summary.success) {
-    std::cerr << "error: " << summary.message << "\n";
-    return summary.sphere_source.empty() ? 2 : 3;
-  }
-  return 0;
+  ResultFields() = LightCalibrationJson(summary);
+  ResultFields()["out"] = o.out;
+  // Before a sphere is located, what stops the calibration is its input (no
+  // frames, a request that cannot work); after, the fit.
+  if (!summary.success) return Fail(summary.sphere_source.empty() ? kExitUsage : kExitFailed, summary.message);
+  return kExitOk;
 }
 
 CommandRunner Setup(CLI::App& app) {
@@ -98,14 +101,7 @@ CommandRunner Setup(CLI::App& app) {
       ->check(CLI::ExistingFile);
   lights->add_option("--out-rig", o->out_rig, "new rig YAML to write");
   lights->add_option("--out", o->out, "output directory");
-  return {lights, [o] {
-            try {
-              return Execute(*o);
-            } catch (const std::exception& e) {
-              std::cerr << "error: " << e.what() << "\n";
-              return 1;
-            }
-          }};
+  return {lights, [o] { return Execute(*o); }};
 }
 
 const bool registered = RegisterCommand(Setup);

@@ -29,6 +29,8 @@ struct RunRequest {
   // After each stored frame; `frames_in_run` counts resumed frames too.
   std::function<void(const CaptureStep&, const FrameRecord&, int frames_in_run, int total)> on_frame;
   std::function<void(RunState, const std::string& detail)> on_state;
+  // Given to the recipe's solvers (solvers/progress.h).
+  solvers::ProgressCallback solve_progress;
 };
 
 struct RunOutcome {
