@@ -133,6 +133,21 @@ TEST(Cli, RunAndSolveReportTheirResultsAsJson) {
   ASSERT_EQ(relit.exit_code, 0) << relit.err;
   EXPECT_EQ(Document(relit, "relight")["width"], 32);
 
+  // Lights located from the matte sphere's brightest points: four found;
+  // a circle smaller than the sphere leaves every light unusable, a failed solve.
+  const Outcome lights = Photorig("calibrate lights --run " + small.run + " --out " + (dir.path() / "lc").string() +
+                                      " --json",
+                                  dir);
+  ASSERT_EQ(lights.exit_code, 0) << lights.err;
+  const json calibrated = Document(lights, "calibrate lights");
+  EXPECT_EQ(calibrated["lights"], 4);
+  EXPECT_EQ(calibrated["sphere"]["source"], "highlights");
+  const Outcome misplaced = Photorig("calibrate lights --run " + small.run + " --circle 16,16,12 --out " +
+                                         (dir.path() / "lc2").string() + " --json",
+                                     dir);
+  EXPECT_EQ(misplaced.exit_code, 1) << misplaced.err;
+  EXPECT_EQ(Document(misplaced, "calibrate lights")["unusable"], 4);
+
   const Outcome envmap = Photorig("envmap --ball " + small.run + "/frames/0001_led00.png --circle 16 16 12 --width 64 --out " +
                                       (dir.path() / "map.hdr").string() + " --json",
                                   dir);
@@ -235,6 +250,8 @@ TEST(Cli, ColourCalibrationOfARawChartWithoutBayerAsksForIt) {
                                           "--models linear --out " + (dir.path() / "ok").string(),
                                       dir);
   EXPECT_EQ(demosaiced.exit_code, 0) << demosaiced.err;
+  // One candidate: the fit on all 24 patches and one per left-out patch.
+  EXPECT_NE(demosaiced.err.find("colour fits 25/25 (100%)"), std::string::npos) << demosaiced.err;
 
   const Outcome applied = Photorig("apply-color --model " + rendered + "/model.json --in " + chart + " --dark " + dark +
                                        " --bayer RGGB --out " + (dir.path() / "applied").string() + " --json",

@@ -6,6 +6,7 @@
 
 #include "../command.h"
 #include "../command_output.h"
+#include "../progress_display.h"
 #include "photorig/color/apply.h"
 #include "photorig/color/calibration.h"
 #include "photorig/color/model_io.h"
@@ -191,8 +192,11 @@ int ExecuteCalibrate(CalibrateOptions options) {
   color::MeasureOptions measure;
   measure.clip_level = options.white_level;
   measure.black_level = options.black_level;
+  ProgressDisplay progress;
+  calibration.progress = progress.Callback();
   const color::ChartCalibration result =
       color::CalibrateChartImage(image, dark, illuminant, locate, measure, calibration);
+  progress.EndLine();
 
   std::vector<std::string> names(color::ColorChecker24Names().begin(), color::ColorChecker24Names().end());
   std::printf("%s\n", result.located.message.c_str());
