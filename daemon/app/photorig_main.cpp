@@ -32,11 +32,12 @@ CLI::App* SubcommandGroup(CLI::App& app, const std::string& name, const std::str
 
 namespace {
 
-// Every command takes --json (command_output.h); a group ("solve") does not.
+// Every command takes --json (command_output.h); a group ("solve") does not,
+// and a command that declares its own keeps it.
 void AddJsonFlag(CLI::App* app, bool* json_output) {
   const auto subcommands = app->get_subcommands(std::function<bool(CLI::App*)>([](CLI::App*) { return true; }));
   for (CLI::App* sub : subcommands) AddJsonFlag(sub, json_output);
-  if (subcommands.empty() && app->get_parent() != nullptr)
+  if (subcommands.empty() && app->get_parent() != nullptr && app->get_option_no_throw("--json") == nullptr)
     app->add_flag("--json", *json_output, "print one JSON document on stdout (docs/cli.md); text goes to stderr");
 }
 
