@@ -28,6 +28,7 @@ nlohmann::json& ResultFields() { return State().fields; }
 
 int Fail(ExitCode code, const std::string& why) {
   State().error = why;
+  std::fflush(stdout);  // under --json both reach stderr: keep them in order
   std::fprintf(stderr, "%s: %s\n", State().name.c_str(), why.c_str());
   return code;
 }

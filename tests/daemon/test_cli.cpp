@@ -278,6 +278,24 @@ TEST(Cli, AnUnreachableDaemonExitsThreeAndSaysHowToStartIt) {
   EXPECT_NE(submit.err.find("submit: photorigd is not reachable at " + ClosedUrl()), std::string::npos) << submit.err;
 }
 
+TEST(Cli, ALightControllerThatCannotBeReachedExitsThree) {
+  TempDir dir;
+  // The simulated dome's Modbus controller, pointed at a port nothing serves.
+  std::string rig = ReadText(photorig::testing::SourceDir() + "/config/rigs/sim-dome-modbus.yaml");
+  rig = std::regex_replace(rig, std::regex("host: sim .*"), "host: 127.0.0.1");
+  const std::string port = ClosedUrl().substr(ClosedUrl().rfind(':') + 1);
+  rig = std::regex_replace(rig, std::regex("port: 0 .*"), "port: " + port);
+  const std::string rig_path = dir.Write("dead-modbus.yaml", rig);
+  const Outcome outcome = Photorig("run " + photorig::testing::SourceDir() + "/config/recipes/ps-sphere.yaml --rig " +
+                                       rig_path + " --out " + (dir.path() / "run").string() + " --json",
+                                   dir);
+  EXPECT_EQ(outcome.exit_code, 3) << outcome.err;
+  const json document = Document(outcome, "run");
+  EXPECT_EQ(document["capture"]["status"], "failed");
+  EXPECT_NE(document.value("error", "").find("light controller modbus-dome (tcp 127.0.0.1:" + port), std::string::npos)
+      << document.dump();
+}
+
 // photorigd on any free port, for as long as the object lives.
 class Daemon {
  public:
