@@ -12,8 +12,11 @@
 //   const bool registered = photorig::app::RegisterCommand(Setup);
 //   }  // namespace
 //
-// The runner returns the process exit code: 0 success, 1 runtime error,
-// 2 bad input or configuration, 3 a solver produced no usable result.
+// The runner returns the process exit code (command_output.h, docs/cli.md):
+// 0 success, 1 a failed run or solve, 2 a usage or configuration error,
+// 3 a device or the daemon unavailable, 130 interrupted. It prints text for
+// people as it likes and puts its figures in ResultFields(): main prints
+// them as one JSON document under --json, which every command takes.
 
 #include <CLI/CLI.hpp>
 

@@ -1,12 +1,14 @@
 // photorig: the command-line front end. Subcommands live in app/commands/.
 
 #include "command.h"
+#include "command_output.h"
 #include "photorig/daemon/rig_config.h"
 #include "signals.h"
 
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
+#include <cstring>
 
 namespace photorig::app {
 
@@ -28,26 +30,77 @@ CLI::App* SubcommandGroup(CLI::App& app, const std::string& name, const std::str
   return group;
 }
 
+namespace {
+
+// Every command takes --json (command_output.h); a group ("solve") does not,
+// and a command that declares its own keeps it.
+void AddJsonFlag(CLI::App* app, bool* json_output) {
+  const auto subcommands = app->get_subcommands(std::function<bool(CLI::App*)>([](CLI::App*) { return true; }));
+  for (CLI::App* sub : subcommands) AddJsonFlag(sub, json_output);
+  if (subcommands.empty() && app->get_parent() != nullptr && app->get_option_no_throw("--json") == nullptr)
+    app->add_flag("--json", *json_output, "print one JSON document on stdout (docs/cli.md); text goes to stderr");
+}
+
+// "solve ps" for `photorig solve ps --run x`: the subcommand names the
+// arguments start with, known even when parsing failed.
+std::string CommandNameFromArguments(CLI::App& app, int argc, char** argv) {
+  std::string name;
+  CLI::App* current = &app;
+  for (int i = 1; i < argc; ++i) {
+    CLI::App* sub = nullptr;
+    try {
+      sub = current->get_subcommand(argv[i]);
+    } catch (const CLI::OptionNotFound&) {
+      break;
+    }
+    name += (name.empty() ? "" : " ") + sub->get_name();
+    current = sub;
+  }
+  return name.empty() ? "photorig" : name;
+}
+
+bool ArgumentsAskForJson(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i)
+    if (std::strcmp(argv[i], "--json") == 0) return true;
+  return false;
+}
+
+}  // namespace
 }  // namespace photorig::app
 
 int main(int argc, char** argv) {
+  using namespace photorig::app;
   CLI::App app{"photorig: capture and reconstruct with a light dome (simulated or real)"};
   app.require_subcommand(1);
-  std::vector<photorig::app::CommandRunner> runners;
-  for (auto setup : photorig::app::RegisteredCommands()) runners.push_back(setup(app));
-  CLI11_PARSE(app, argc, argv);
+  std::vector<CommandRunner> runners;
+  for (auto setup : RegisteredCommands()) runners.push_back(setup(app));
+  bool json_output = false;
+  AddJsonFlag(&app, &json_output);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // Usage errors exit 2 like every other configuration error, not with CLI11's own codes.
+    internal::BeginCommand(CommandNameFromArguments(app, argc, argv), ArgumentsAskForJson(argc, argv));
+    app.exit(e);
+    return internal::EndCommand(kExitUsage, e.what());
+  }
+  internal::BeginCommand(CommandNameFromArguments(app, argc, argv), json_output);
 
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
-  photorig::app::InstallStopHandlers();
+  InstallStopHandlers();
   try {
     for (const auto& runner : runners)
-      if (runner.subcommand->parsed()) return runner.run();
+      if (runner.subcommand->parsed()) return internal::EndCommand(runner.run(), "failed");
   } catch (const photorig::daemon::ConfigError& e) {
-    std::fprintf(stderr, "configuration error: %s\n", e.what());
-    return 2;
+    return internal::EndCommand(Fail(kExitUsage, std::string("configuration error: ") + e.what()), "");
+  } catch (const std::invalid_argument& e) {
+    return internal::EndCommand(Fail(kExitUsage, e.what()), "");
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
+    return internal::EndCommand(Fail(kExitFailed, e.what()), "");
   }
-  return 0;
+  return internal::EndCommand(kExitOk, "");
 }

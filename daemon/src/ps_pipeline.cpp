@@ -71,6 +71,7 @@ ps::PhotometricStereoOptions MakeSolverOptions(const PhotometricStereoRequest& r
   options.shadow_threshold_read_sigmas = request.shadow_threshold_sigma;
   options.lambertian.saturation_level = saturation_level;
   options.lambertian.max_condition_number = request.max_condition_number;
+  options.progress = request.progress;
   return options;
 }
 

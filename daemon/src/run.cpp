@@ -73,8 +73,9 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
     return results;
   };
   if (recipe.photometric_stereo && start("photometric_stereo")) {
-    outcome->photometric_stereo = SolvePhotometricStereoRun(directory.string(), *recipe.photometric_stereo,
-                                                            fresh_results("ps").string());
+    PhotometricStereoRequest solve = *recipe.photometric_stereo;
+    solve.progress = request.solve_progress;
+    outcome->photometric_stereo = SolvePhotometricStereoRun(directory.string(), solve, fresh_results("ps").string());
     finish(ReportSolveStage(*outcome->photometric_stereo));
   }
   if (recipe.light_calibration && start("light_calibration")) {

@@ -243,6 +243,7 @@ class Capture {
       if (!IsTransient(status) || attempts >= retry.max_attempts_per_step ||
           report_.retries >= retry.max_retries_per_run) {
         report_.status = CaptureStatus::kFailed;
+        report_.fault = status.code();
         report_.reason = (IsTransient(status) ? "step " + step.label + " failed " + std::to_string(attempts) +
                                                     " times; last: "
                                               : "step " + step.label + ": ") +

@@ -198,7 +198,16 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
 std::string RecipeRigPath(const std::string& recipe_path, const std::string& override_path) {
   if (!override_path.empty()) return override_path;
   const YamlNode root = YamlNode::LoadFile(recipe_path);
-  if (auto rig = root["recipe"].Find("rig")) return RelativeToRecipe(recipe_path, rig->AsString());
+  if (auto rig = root["recipe"].Find("rig")) {
+    const std::string path = RelativeToRecipe(recipe_path, rig->AsString());
+    if (!fs::exists(path)) {
+      const fs::path folder = fs::path(recipe_path).parent_path();
+      rig->Fail("rig file " + path + " not found (a relative rig path resolves from the recipe's folder, " +
+                (folder.empty() ? std::string(".") : folder.string()) + "/, not from where photorig runs); fix it " +
+                "or pass --rig FILE");
+    }
+    return path;
+  }
   throw ConfigError(recipe_path, 0, 0, "recipe.rig", "the recipe names no rig; pass --rig FILE");
 }
 

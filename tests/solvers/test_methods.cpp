@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <thread>
+#include <vector>
 #include <cmath>
 
 namespace photorig::ps {
@@ -438,6 +440,39 @@ TEST(PhotometricStereoOptions, InvalidOptionsAreReported) {
   const SolverSummary summary = SolvePhotometricStereo(options, stack, &map);
   EXPECT_FALSE(summary.IsSolutionUsable());
   EXPECT_NE(summary.message.find("min_exponent"), std::string::npos);
+}
+
+// Every method reports its pixels under its own name, in order, from the
+// calling thread (so a display needs no lock), ending at every pixel of the
+// image, and the answer is the one it gives without a listener.
+TEST(PhotometricStereo, ProgressCountsEveryPixelFromTheCallingThread) {
+  const auto truth = RandomSurface(64, 64, 40.0);
+  const auto stack = RenderShinyStack(truth, RingLights(24, 30, 80), 1000.0, Specular{0.3, 30.0}, 0.0f, 0.5);
+  const std::thread::id caller = std::this_thread::get_id();
+  for (Method method : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
+    std::vector<solvers::Progress> seen;
+    bool other_thread = false;
+    PhotometricStereoOptions options = Options(method, 2.0);
+    options.lambertian.num_threads = 2;
+    NormalMap quiet, reported;
+    ASSERT_TRUE(SolvePhotometricStereo(options, stack, &quiet).IsSolutionUsable());
+    options.progress = [&](const solvers::Progress& p) {
+      other_thread |= std::this_thread::get_id() != caller;
+      seen.push_back(p);
+    };
+    ASSERT_TRUE(SolvePhotometricStereo(options, stack, &reported).IsSolutionUsable());
+    ASSERT_FALSE(seen.empty()) << MethodName(method);
+    EXPECT_FALSE(other_thread) << MethodName(method);
+    EXPECT_EQ(seen.back().done, 64 * 64) << MethodName(method);
+    for (std::size_t i = 0; i < seen.size(); ++i) {
+      EXPECT_EQ(seen[i].stage, MethodName(method));
+      EXPECT_EQ(seen[i].total, 64 * 64);
+      if (i > 0) {
+        EXPECT_GT(seen[i].done, seen[i - 1].done) << MethodName(method);
+      }
+    }
+    EXPECT_LT(CompareNormals(reported.normals, quiet.normals).mean_deg, 1e-3) << MethodName(method);
+  }
 }
 
 }  // namespace

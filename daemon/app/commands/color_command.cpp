@@ -5,6 +5,8 @@
 //                      --out DIR
 
 #include "../command.h"
+#include "../command_output.h"
+#include "../progress_display.h"
 #include "photorig/color/apply.h"
 #include "photorig/color/calibration.h"
 #include "photorig/color/model_io.h"
@@ -12,6 +14,8 @@
 #include "photorig/daemon/rig_config.h"
 #include "photorig/sim/color_chart.h"
 
+#include <algorithm>
+#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -85,10 +89,46 @@ void RenderSimulatedChart(CalibrateOptions& options, color::Illuminant illuminan
               options.dark.c_str());
 }
 
+// The means of a one-channel image's four 2x2 phases (top-left, top-right,
+// bottom-left, bottom-right) above its darkest pixel, when they differ by
+// more than a tenth: behind a colour filter array the red, green and blue
+// sites see different light, while a monochrome image's phases sample the
+// same scene and agree to a percent or so.
+std::optional<std::array<double, 4>> MosaicPhaseMeans(const cv::Mat& image) {
+  if (image.channels() != 1 || image.rows < 4 || image.cols < 4) return std::nullopt;
+  cv::Mat values;
+  image.convertTo(values, CV_64F);
+  double darkest = 0.0;
+  cv::minMaxLoc(values, &darkest);
+  std::array<double, 4> means{};
+  std::array<long, 4> counts{};
+  for (int y = 0; y < values.rows; ++y) {
+    const double* row = values.ptr<double>(y);
+    for (int x = 0; x < values.cols; ++x) {
+      means[(y % 2) * 2 + x % 2] += row[x] - darkest;
+      ++counts[(y % 2) * 2 + x % 2];
+    }
+  }
+  for (int i = 0; i < 4; ++i) means[i] /= double(counts[i]);
+  const auto [low, high] = std::minmax_element(means.begin(), means.end());
+  if (!(*high > 0.0) || *high - *low < 0.1 * *high) return std::nullopt;
+  return means;
+}
+
 // A one-channel Bayer raw becomes B, G, R; anything else is returned as read.
 cv::Mat ReadCapture(const std::string& path, const std::string& bayer) {
   cv::Mat image = daemon::ReadImage(path);
-  if (bayer.empty()) return image;
+  if (bayer.empty()) {
+    if (const auto means = MosaicPhaseMeans(image)) {
+      char figures[160];
+      std::snprintf(figures, sizeof(figures), "%.0f, %.0f, %.0f and %.0f DN", (*means)[0], (*means)[1], (*means)[2],
+                    (*means)[3]);
+      throw std::invalid_argument(
+          path + " looks like a raw Bayer mosaic: one channel whose 2x2 phases average " + figures +
+          " above black; pass --bayer with the colours of its top-left 2x2 block (RGGB, BGGR, GRBG or GBRG)");
+    }
+    return image;
+  }
   if (image.channels() != 1)
     throw std::invalid_argument(path + ": --bayer needs a one-channel raw, got " + std::to_string(image.channels()) +
                                 " channels");
@@ -99,8 +139,7 @@ cv::Mat ReadCapture(const std::string& path, const std::string& bayer) {
 
 int ExecuteCalibrate(CalibrateOptions options) {
   if (options.image.empty() == options.sim_camera.empty()) {
-    std::fprintf(stderr, "calibrate color: give exactly one of --image or --sim-camera\n");
-    return 2;
+    return Fail(kExitUsage, "give exactly one of --image or --sim-camera");
   }
   color::Illuminant illuminant;
   color::LocateOptions locate;
@@ -136,11 +175,9 @@ int ExecuteCalibrate(CalibrateOptions options) {
         throw std::invalid_argument(options.rig + ": --sim-camera with --rig needs a simulated rig with camera.color_chart");
     }
   } catch (const daemon::ConfigError& e) {
-    std::fprintf(stderr, "calibrate color: %s\n", e.what());
-    return 2;
+    return Fail(kExitUsage, e.what());
   } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "calibrate color: %s\n", e.what());
-    return 2;
+    return Fail(kExitUsage, e.what());
   }
   locate.use_detector = !options.no_detect;
   fs::create_directories(options.out);
@@ -150,14 +187,16 @@ int ExecuteCalibrate(CalibrateOptions options) {
     image = ReadCapture(options.image, options.bayer);
     if (!options.dark.empty()) dark = ReadCapture(options.dark, options.bayer);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "calibrate color: %s\n", e.what());
-    return 2;
+    return Fail(kExitUsage, e.what());
   }
   color::MeasureOptions measure;
   measure.clip_level = options.white_level;
   measure.black_level = options.black_level;
+  ProgressDisplay progress;
+  calibration.progress = progress.Callback();
   const color::ChartCalibration result =
       color::CalibrateChartImage(image, dark, illuminant, locate, measure, calibration);
+  progress.EndLine();
 
   std::vector<std::string> names(color::ColorChecker24Names().begin(), color::ColorChecker24Names().end());
   std::printf("%s\n", result.located.message.c_str());
@@ -178,7 +217,9 @@ int ExecuteCalibrate(CalibrateOptions options) {
   daemon::WriteFileDurably((fs::path(options.out) / "report.json").string(), report.dump(2) + "\n");
   daemon::WriteFileDurably((fs::path(options.out) / "report.txt").string(),
                            color::FormatCalibrationReport(result.summary, names));
-  if (!result.summary.IsSolutionUsable()) return 3;
+  ResultFields()["out"] = options.out;
+  ResultFields()["report"] = report;
+  if (!result.summary.IsSolutionUsable()) return Fail(kExitFailed, "no usable colour model: " + result.summary.message);
 
   const color::ColorModel& model = result.summary.chosen_model();
   for (const char* name : {"model.json", "model.yaml"}) {
@@ -192,13 +233,12 @@ int ExecuteCalibrate(CalibrateOptions options) {
   const solvers::Summary encoded =
       corrected.IsSolutionUsable() ? color::XyzToSrgb8(xyz, model.white_xyz, &srgb) : corrected;
   if (!encoded.IsSolutionUsable()) {
-    std::fprintf(stderr, "calibrate color: applying the model to %s failed: %s\n", options.image.c_str(),
-                 encoded.message.c_str());
-    return 3;
+    return Fail(kExitFailed, "applying the model to " + options.image + " failed: " + encoded.message);
   }
   daemon::WriteImage((fs::path(options.out) / "corrected_srgb.png").string(), srgb);
   std::printf("wrote %s/{model.json, model.yaml, report.json, report.txt, corrected_srgb.png}\n", options.out.c_str());
-  return 0;
+  ResultFields()["model"] = (fs::path(options.out) / "model.json").string();
+  return kExitOk;
 }
 
 struct ApplyCommandOptions {
@@ -212,8 +252,7 @@ int ExecuteApply(const ApplyCommandOptions& options) {
   try {
     model = color::ParseModel(ReadText(options.model), options.model);
   } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "apply-color: %s\n", e.what());
-    return 2;
+    return Fail(kExitUsage, e.what());
   }
   color::ApplyOptions apply;
   apply.black_level = options.black_level;
@@ -222,8 +261,7 @@ int ExecuteApply(const ApplyCommandOptions& options) {
   try {
     if (!options.dark.empty()) dark = ReadCapture(options.dark, options.bayer);
   } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "apply-color: %s\n", e.what());
-    return 2;
+    return Fail(kExitUsage, e.what());
   }
   fs::create_directories(options.out);
   for (const std::string& input : options.inputs) {
@@ -231,28 +269,23 @@ int ExecuteApply(const ApplyCommandOptions& options) {
     try {
       image = ReadCapture(input, options.bayer);
     } catch (const std::invalid_argument& e) {
-      std::fprintf(stderr, "apply-color: %s\n", e.what());
-      return 2;
+      return Fail(kExitUsage, e.what());
     }
-    if (image.channels() != 3) {
-      std::fprintf(stderr, "apply-color: %s has %d channel(s); colour correction needs 3 (B, G, R)\n", input.c_str(),
-                   image.channels());
-      return 2;
-    }
+    if (image.channels() != 3)
+      return Fail(kExitUsage, input + " has " + std::to_string(image.channels()) +
+                                  " channel(s); colour correction needs 3 (B, G, R)");
     cv::Mat xyz, srgb;
     const solvers::Summary corrected = color::CameraToXyz(model, image, dark, apply, &xyz);
     const solvers::Summary encoded =
         corrected.IsSolutionUsable() ? color::XyzToSrgb8(xyz, model.white_xyz, &srgb) : corrected;
-    if (!encoded.IsSolutionUsable()) {
-      std::fprintf(stderr, "apply-color: %s: %s\n", input.c_str(), encoded.message.c_str());
-      return 2;
-    }
+    if (!encoded.IsSolutionUsable()) return Fail(kExitUsage, input + ": " + encoded.message);
     const std::string stem = (fs::path(options.out) / fs::path(input).stem()).string();
     daemon::WriteFloatTiff(stem + "_xyz.tiff", xyz);
     daemon::WriteImage(stem + "_srgb.png", srgb);
     std::printf("%s -> %s_xyz.tiff, %s_srgb.png\n", input.c_str(), stem.c_str(), stem.c_str());
+    ResultFields()["outputs"].push_back({{"input", input}, {"xyz", stem + "_xyz.tiff"}, {"srgb", stem + "_srgb.png"}});
   }
-  return 0;
+  return kExitOk;
 }
 
 CommandRunner SetupCalibrate(CLI::App& app) {

@@ -1,7 +1,8 @@
 #pragma once
 // How a CLI command reaches photorigd: --url (default $PHOTORIG_URL or
-// http://127.0.0.1:8750), --token-file (default $PHOTORIG_TOKEN) and --json.
-// Shared by the remote commands and `photorig fetch`.
+// http://127.0.0.1:8750) and --token-file (default $PHOTORIG_TOKEN); --json
+// is every command's (docs/cli.md). Shared by the remote commands and
+// `photorig fetch`.
 
 #include "photorig/daemon/api_client.h"
 
@@ -16,7 +17,6 @@ namespace photorig::app {
 struct Connection {
   std::string url;
   std::string token_file;
-  bool json_output = false;
 
   void AddOptions(CLI::App* sub) {
     const char* env_url = std::getenv("PHOTORIG_URL");
@@ -24,7 +24,6 @@ struct Connection {
     sub->add_option("--url", url, "photorigd address ($PHOTORIG_URL)")->capture_default_str();
     sub->add_option("--token-file", token_file, "bearer token file (default: $PHOTORIG_TOKEN)")
         ->check(CLI::ExistingFile);
-    sub->add_flag("--json", json_output, "print JSON");
   }
 
   daemon::ApiClient Client(int timeout_s = 30) const {
@@ -38,6 +37,13 @@ struct Connection {
       options.token = token;
     }
     return daemon::ApiClient(options);
+  }
+
+  // What to say when nothing answers at `url`.
+  std::string Unreachable() const {
+    return "photorigd is not reachable at " + url +
+           "; start it with `photorigd --rig RIG.yaml --data-root DIR` (docs/daemon.md), or point --url or "
+           "$PHOTORIG_URL at the one that runs";
   }
 };
 

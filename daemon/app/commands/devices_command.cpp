@@ -1,8 +1,9 @@
-// photorig devices [--json] [--no-details]: the cameras this machine can see
+// photorig devices [--no-details]: the cameras this machine can see
 // (GenICam through Aravis, V4L2 capture nodes) and their key features; a
 // camera module left out of the build finds nothing.
 
 #include "../command.h"
+#include "../command_output.h"
 #include "photorig/config/modules.h"
 #include "photorig/drivers/camera.h"
 #if PHOTORIG_HAVE_DRIVERS_ARAVIS
@@ -21,7 +22,6 @@ namespace photorig::app {
 namespace {
 
 struct Options {
-  bool json = false;
   bool no_details = false;
 };
 
@@ -39,17 +39,14 @@ int Execute(const Options& options) {
 #if PHOTORIG_HAVE_DRIVERS_V4L2
   for (auto& camera : drivers::DiscoverV4l2Cameras()) cameras.push_back(std::move(camera));
 #endif
-  if (options.json) {
-    nlohmann::json list = nlohmann::json::array();
-    for (const auto& c : cameras)
-      list.push_back({{"driver", c.driver}, {"id", c.id}, {"vendor", c.vendor}, {"model", c.model},
-                      {"serial", c.serial}, {"address", c.address}, {"sensor_width", c.sensor_width},
-                      {"sensor_height", c.sensor_height}, {"pixel_formats", c.pixel_formats},
-                      {"exposure_min_us", c.exposure_min_us}, {"exposure_max_us", c.exposure_max_us},
-                      {"error", c.error}});
-    std::printf("%s\n", list.dump(2).c_str());
-    return 0;
-  }
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& c : cameras)
+    list.push_back({{"driver", c.driver}, {"id", c.id}, {"vendor", c.vendor}, {"model", c.model},
+                    {"serial", c.serial}, {"address", c.address}, {"sensor_width", c.sensor_width},
+                    {"sensor_height", c.sensor_height}, {"pixel_formats", c.pixel_formats},
+                    {"exposure_min_us", c.exposure_min_us}, {"exposure_max_us", c.exposure_max_us},
+                    {"error", c.error}});
+  ResultFields()["cameras"] = list;
   if (cameras.empty()) {
     std::printf("no cameras found (GenICam over GigE Vision/USB3 Vision, V4L2 /dev/video*)\n");
     return 0;
@@ -71,7 +68,6 @@ int Execute(const Options& options) {
 CommandRunner Setup(CLI::App& app) {
   auto options = std::make_shared<Options>();
   CLI::App* sub = app.add_subcommand("devices", "list the cameras this machine can see (Aravis, V4L2)");
-  sub->add_flag("--json", options->json, "machine-readable output");
   sub->add_flag("--no-details", options->no_details, "do not open GenICam cameras to read sensor size and formats");
   return {sub, [options] { return Execute(*options); }};
 }

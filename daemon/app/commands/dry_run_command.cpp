@@ -1,8 +1,9 @@
-// photorig dry-run RECIPE [--rig FILE] [--out DIR] [--json]: compiles the
+// photorig dry-run RECIPE [--rig FILE] [--out DIR]: compiles the
 // recipe to its step list, checks limits and free space, and estimates
 // duration and data size, without touching any device.
 
 #include "../command.h"
+#include "../command_output.h"
 #include "photorig/daemon/plan.h"
 #include "photorig/daemon/recipe.h"
 
@@ -15,7 +16,7 @@ namespace {
 struct Options {
   std::string recipe, rig, out = "runs";
   double max_led_duty = 1.0;
-  bool json_output = false, list_steps = false;
+  bool list_steps = false;
 };
 
 int Execute(const Options& options) {
@@ -30,12 +31,8 @@ int Execute(const Options& options) {
     plan.errors.push_back("not enough free space under " + options.out + ": about " +
                           std::to_string(plan.estimate.bytes >> 20) + " MiB needed, " + std::to_string(free_bytes >> 20) +
                           " MiB free");
-  if (options.json_output) {
-    auto body = plan.ToJson(steps);
-    body["free_bytes"] = free_bytes;
-    std::printf("%s\n", body.dump(2).c_str());
-    return plan.ok() ? 0 : 2;
-  }
+  ResultFields() = plan.ToJson(steps);
+  ResultFields()["free_bytes"] = free_bytes;
   if (options.list_steps)
     for (const auto& step : steps) {
       int lit = 0;
@@ -54,8 +51,10 @@ int Execute(const Options& options) {
   if (plan.max_duty_led >= 0)
     std::printf("busiest LED: %d, lit %.1f%% of the run\n", plan.max_duty_led, 100.0 * plan.max_led_duty);
   for (const auto& warning : plan.warnings) std::printf("warning: %s\n", warning.c_str());
-  for (const auto& error : plan.errors) std::fprintf(stderr, "error: %s\n", error.c_str());
-  return plan.ok() ? 0 : 2;
+  if (plan.ok()) return kExitOk;
+  std::string why;
+  for (const auto& error : plan.errors) why += (why.empty() ? "" : "; ") + error;
+  return Fail(kExitUsage, why);
 }
 
 CommandRunner Setup(CLI::App& app) {
@@ -67,7 +66,6 @@ CommandRunner Setup(CLI::App& app) {
   sub->add_option("--max-led-duty", options->max_led_duty, "highest fraction of the run an LED may be lit")
       ->capture_default_str();
   sub->add_flag("--steps", options->list_steps, "list every step");
-  sub->add_flag("--json", options->json_output, "print the plan and step list as JSON");
   return {sub, [options] { return Execute(*options); }};
 }
 

@@ -8,6 +8,7 @@
 // run, 3 the daemon cannot be reached.
 
 #include "../command.h"
+#include "../command_output.h"
 #include "daemon_connection.h"
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/run_control.h"
@@ -140,43 +141,35 @@ Fetched FetchFile(daemon::ApiClient& client, const std::string& id, const json& 
   return fetched;
 }
 
-int Finish(const Options& options, const json& report, int exit_code, const std::string& error) {
-  if (options.connection.json_output) {
-    json body = report;
-    body["command"] = "fetch";
-    body["ok"] = exit_code == 0;
-    body["exit_code"] = exit_code;
-    if (!error.empty()) body["error"] = error;
-    std::printf("%s\n", body.dump().c_str());
-  } else if (!error.empty()) {
-    std::fprintf(stderr, "error: %s\n", error.c_str());
-  }
-  return exit_code;
+// The report as the command's result; with an error, the command's failure.
+int Finish(const json& report, ExitCode exit_code, const std::string& error) {
+  ResultFields() = report;
+  return error.empty() ? exit_code : Fail(exit_code, error);
 }
 
-// 3 when the daemon cannot be reached, 2 for an unknown run or a refused request, 1 otherwise.
-int ExitCodeFor(const daemon::ServiceReply& reply) {
-  if (reply.http_status == 0) return 3;
-  return reply.http_status >= 400 && reply.http_status < 500 ? 2 : 1;
+// Unreachable: 3; an unknown run or a refused request: 2; otherwise 1.
+int FailedRequest(const Options& options, const json& report, const daemon::ServiceReply& reply) {
+  if (reply.http_status == 0) return Finish(report, kExitUnavailable, options.connection.Unreachable());
+  return Finish(report, reply.http_status >= 400 && reply.http_status < 500 ? kExitUsage : kExitFailed,
+                reply.body.value("error", "HTTP " + std::to_string(reply.http_status)));
 }
 
 int Execute(const Options& options) {
   auto client = options.connection.Client();
   json report = {{"id", options.id}};
   const daemon::ServiceReply run = client.Get("/api/v1/runs/" + options.id);
-  if (run.http_status != 200) return Finish(options, report, ExitCodeFor(run), run.body.value("error", "HTTP error"));
+  if (run.http_status != 200) return FailedRequest(options, report, run);
   const std::string state = run.body.value("state", "");
   const auto parsed = daemon::RunStateFromName(state);
   if (!parsed || !daemon::IsFinal(*parsed))
-    return Finish(options, report, 1,
+    return Finish(report, kExitFailed,
                   "run " + options.id + " is " + state + "; fetch it once it has ended (photorig watch " + options.id + ")");
   if (options.results_only && !run.body.contains("results"))
-    return Finish(options, report, 1,
+    return Finish(report, kExitFailed,
                   "run " + options.id + " has no results: its recipe has no solve stage, or the daemon skips them (--no-solve)");
   const daemon::ServiceReply listing =
       client.Get("/api/v1/runs/" + options.id + "/files" + (options.results_only ? "?under=results" : ""));
-  if (listing.http_status != 200)
-    return Finish(options, report, ExitCodeFor(listing), listing.body.value("error", "HTTP error"));
+  if (listing.http_status != 200) return FailedRequest(options, report, listing);
 
   const fs::path out = options.out.empty() ? fs::path(options.id) : fs::path(options.out);
   const json& files = listing.body["files"];
@@ -202,13 +195,12 @@ int Execute(const Options& options) {
   report["kept"] = kept;
   report["failed"] = failures;
   report["bytes"] = bytes;
-  if (!options.connection.json_output)
-    std::printf("%s: %d files fetched, %d already present, %.1f MiB, into %s\n", options.id.c_str(), fetched, kept,
+  std::printf("%s: %d files fetched, %d already present, %.1f MiB, into %s\n", options.id.c_str(), fetched, kept,
                 MiB(bytes), out.string().c_str());
   if (failed > 0)
-    return Finish(options, report, 1,
+    return Finish(report, kExitFailed,
                   std::to_string(failed) + " of " + std::to_string(files.size()) + " files failed; run the fetch again");
-  return Finish(options, report, 0, "");
+  return Finish(report, kExitOk, "");
 }
 
 CommandRunner Setup(CLI::App& app) {

@@ -6,8 +6,10 @@
 // report and a new rig YAML (an existing file is never overwritten).
 
 #include "../command.h"
+#include "../command_output.h"
 #include "photorig/daemon/light_calibration.h"
 #include "photorig/daemon/rig_config.h"
+#include "ps_report.h"
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -36,8 +38,7 @@ cv::Mat ReadSingleChannel(const std::string& path) {
 int Execute(const Options& o) {
   // Nothing is written outside --out or, by default, the run's own results.
   if (o.out.empty() && o.run_dir.empty()) {
-    std::cerr << "calibrate lights: give --out DIR for the outputs (with --run they default to RUN/results/lights)\n";
-    return 2;
+    return Fail(kExitUsage, "calibrate lights: give --out DIR for the outputs (with --run they default to RUN/results/lights)");
   }
   const std::string out = o.out.empty() ? (fs::path(o.run_dir) / "results" / "lights").string() : o.out;
   daemon::LightCalibrationInputs inputs;
@@ -79,11 +80,12 @@ int Execute(const Options& o) {
   if (summary.circle_shift_deg > 0.0)
     std::cout << "circle check: the highlights' circle would move the directions by " << summary.circle_shift_deg
               << " deg on average (included in the uncertainty)\n";
-  if (!summary.success) {
-    std::cerr << "error: " << summary.message << "\n";
-    return summary.sphere_source.empty() ? 2 : 3;
-  }
-  return 0;
+  ResultFields() = LightCalibrationJson(summary);
+  ResultFields()["out"] = out;
+  // Before a sphere is located, what stops the calibration is its input (no
+  // frames, a request that cannot work); after, the fit.
+  if (!summary.success) return Fail(summary.sphere_source.empty() ? kExitUsage : kExitFailed, summary.message);
+  return kExitOk;
 }
 
 CommandRunner Setup(CLI::App& app) {
@@ -107,14 +109,7 @@ CommandRunner Setup(CLI::App& app) {
       ->check(CLI::ExistingFile);
   lights->add_option("--out-rig", o->out_rig, "new rig YAML to write");
   lights->add_option("--out", o->out, "output directory (default: RUN/results/lights)");
-  return {lights, [o] {
-            try {
-              return Execute(*o);
-            } catch (const std::exception& e) {
-              std::cerr << "error: " << e.what() << "\n";
-              return 1;
-            }
-          }};
+  return {lights, [o] { return Execute(*o); }};
 }
 
 const bool registered = RegisterCommand(Setup);

@@ -2,6 +2,7 @@
 // photorig envmap --ball IMAGE --circle CX CY R [--dark FILE | --black-level DN] [--width W] --out MAP.hdr
 
 #include "../command.h"
+#include "../command_output.h"
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/rig_config.h"
@@ -42,10 +43,7 @@ void WriteRelit(const std::string& path, const cv::Mat& image) {
 }
 
 int Relight(const RelightOptions& options) {
-  if (options.envmap.empty() == options.lights.empty()) {
-    std::fprintf(stderr, "relight: give either --envmap or --light\n");
-    return 2;
-  }
+  if (options.envmap.empty() == options.lights.empty()) return Fail(kExitUsage, "give either --envmap or --light");
   cv::Mat relit;
   if (!options.envmap.empty()) {
     // Image-based: the captured one-light frames, weighted so the dome approximates the map.
@@ -58,14 +56,16 @@ int Relight(const RelightOptions& options) {
     solvers::Summary done = lighting::LatLongToLedWeights(map, input.stack.light_directions, input.stack.light_scales,
                                                           &weights);
     if (done.IsSolutionUsable()) done = lighting::RelightFromFrames(frames, weights, &relit);
-    if (!done.IsSolutionUsable()) {
-      std::fprintf(stderr, "relight: %s with %s: %s\n", options.run_dir.c_str(), options.envmap.c_str(),
-                   done.message.c_str());
-      return 2;
-    }
+    if (!done.IsSolutionUsable())
+      return Fail(kExitFailed, options.run_dir + " with " + options.envmap + ": " + done.message);
   } else {
     // Model-based: the normals and albedo photometric stereo recovered.
     const fs::path ps = fs::path(options.run_dir) / "results" / "ps";
+    for (const char* file : {"normals.tiff", "albedo.tiff"})
+      if (!fs::exists(ps / file))
+        return Fail(kExitUsage, (ps / file).string() + " not found: relighting with --light renders the normals and "
+                                "albedo of a photometric-stereo result; run `photorig solve ps --run " +
+                                    options.run_dir + "` first");
     const cv::Mat normals = daemon::ReadFloatTiff((ps / "normals.tiff").string());
     const cv::Mat albedo = daemon::ReadFloatTiff((ps / "albedo.tiff").string());
     std::vector<Eigen::Vector3d> directions;
@@ -83,14 +83,15 @@ int Relight(const RelightOptions& options) {
     cv::patchNaNs(clean_albedo, 0.0);
     const solvers::Summary rendered =
         lighting::RenderDirectionalLights(clean_normals, clean_albedo, directions, intensities, &relit);
-    if (!rendered.IsSolutionUsable()) {
-      std::fprintf(stderr, "relight: %s: %s\n", ps.c_str(), rendered.message.c_str());
-      return 2;
-    }
+    if (!rendered.IsSolutionUsable()) return Fail(kExitFailed, ps.string() + ": " + rendered.message);
   }
   WriteRelit(options.out, relit);
   std::printf("wrote %s\n", options.out.c_str());
-  return 0;
+  ResultFields()["out"] = options.out;
+  ResultFields()["preview"] = fs::path(options.out).replace_extension(".png").string();
+  ResultFields()["width"] = relit.cols;
+  ResultFields()["height"] = relit.rows;
+  return kExitOk;
 }
 
 CommandRunner SetupRelight(CLI::App& app) {
@@ -158,11 +159,12 @@ int Envmap(const EnvmapOptions& options) {
   const double cx = options.circle[0], cy = options.circle[1], r = options.circle[2];
   // Pixel centres are at integer coordinates: the image covers -0.5 .. cols - 0.5.
   if (!(r > 0) || cx - r < -0.5 || cy - r < -0.5 || cx + r > ball.cols - 0.5 || cy + r > ball.rows - 0.5) {
-    std::fprintf(stderr,
-                 "envmap: the circle (%g, %g) radius %g spans x %g..%g, y %g..%g, which does not fit inside the "
-                 "%dx%d image %s: give the ball's circle in that image's pixels\n",
-                 cx, cy, r, cx - r, cx + r, cy - r, cy + r, ball.cols, ball.rows, options.ball.c_str());
-    return 2;
+    char why[512];
+    std::snprintf(why, sizeof(why),
+                  "the circle (%g, %g) radius %g spans x %g..%g, y %g..%g, which does not fit inside the "
+                  "%dx%d image %s: give the ball's circle in that image's pixels",
+                  cx, cy, r, cx - r, cx + r, cy - r, cy + r, ball.cols, ball.rows, options.ball.c_str());
+    return Fail(kExitUsage, why);
   }
   std::string said;
   const cv::Mat offset = BallOffset(options, ball.size(), &said);
@@ -184,22 +186,22 @@ int Envmap(const EnvmapOptions& options) {
   }
   lighting::CameraModel camera;
   const lighting::SphereGeometry sphere = lighting::LocateSphere(camera, {cx, cy, r});
-  if (!sphere.valid) {
-    std::fprintf(stderr, "envmap: %s\n", sphere.message.c_str());
-    return 2;
-  }
+  if (!sphere.valid) return Fail(kExitUsage, sphere.message);
   lighting::UnwrapOptions unwrap;
   unwrap.width = options.width;
   lighting::LatLongMap map;
   const solvers::Summary unwrapped = lighting::MirrorBallToLatLong(ball, sphere, unwrap, &map);
-  if (!unwrapped.IsSolutionUsable()) {
-    std::fprintf(stderr, "envmap: %s: %s\n", options.ball.c_str(), unwrapped.message.c_str());
-    return 2;
-  }
+  if (!unwrapped.IsSolutionUsable()) return Fail(kExitFailed, options.ball + ": " + unwrapped.message);
   if (!cv::imwrite(options.out, map.radiance)) throw std::runtime_error("cannot write " + options.out);
+  const double seen = double(cv::countNonZero(map.valid)) / double(map.valid.total());
   std::printf("wrote %s (%d x %d, %d%% of directions seen)\n", options.out.c_str(), map.radiance.cols,
-              map.radiance.rows, int(100.0 * cv::countNonZero(map.valid) / map.valid.total()));
-  return 0;
+              map.radiance.rows, int(100.0 * seen));
+  ResultFields() = {{"out", options.out},
+                    {"width", map.radiance.cols},
+                    {"height", map.radiance.rows},
+                    {"directions_seen_fraction", seen},
+                    {"offset_subtracted", !offset.empty()}};
+  return kExitOk;
 }
 
 CommandRunner SetupEnvmap(CLI::App& app) {

@@ -4,13 +4,13 @@
 //   photorig watch RUN                   follow progress until the run ends
 //   photorig pause|resume|abort RUN
 // Common options: --url (default $PHOTORIG_URL or http://127.0.0.1:8750),
-// --token-file (default $PHOTORIG_TOKEN), --json for machine-readable output.
+// --token-file (default $PHOTORIG_TOKEN); --json as for every command (docs/cli.md).
 
 #include "../command.h"
+#include "../command_output.h"
+#include "../progress_display.h"
 #include "daemon_connection.h"
 #include "photorig/daemon/run_control.h"
-
-#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -18,20 +18,19 @@
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <sstream>
 
 namespace photorig::app {
 namespace {
 
 using nlohmann::json;
 
-// Exit codes: 0 ok, 1 daemon unreachable or server error, 2 rejected input.
-int Fail(const daemon::ServiceReply& reply, bool json_output) {
-  if (json_output) {
-    std::printf("%s\n", reply.body.dump().c_str());
-  } else {
-    std::fprintf(stderr, "error: %s\n", reply.body.value("error", std::string("HTTP ") + std::to_string(reply.http_status)).c_str());
-  }
-  return reply.http_status >= 400 && reply.http_status < 500 ? 2 : 1;
+// No answer: 3; a request the daemon refused (bad recipe, unknown run): 2; its own failure: 1.
+int Fail(const Connection& connection, const daemon::ServiceReply& reply) {
+  ResultFields()["http_status"] = reply.http_status;
+  if (reply.http_status == 0) return Fail(kExitUnavailable, connection.Unreachable());
+  const std::string why = reply.body.value("error", std::string("HTTP ") + std::to_string(reply.http_status));
+  return Fail(reply.http_status >= 400 && reply.http_status < 500 ? kExitUsage : kExitFailed, why);
 }
 
 bool Ok(const daemon::ServiceReply& reply) { return reply.http_status >= 200 && reply.http_status < 300; }
@@ -42,6 +41,7 @@ std::string RunLine(const json& run) {
                 run.value("state", "").c_str(), run.value("frames", 0), run.value("steps_total", 0),
                 run.value("retries", 0), run.value("dropped_frames", 0));
   std::string text = line;
+  if (run.contains("eta_s")) text += "  ETA " + FormatDuration(run["eta_s"].get<double>());
   if (!run.value("reason", "").empty()) text += "  (" + run.value("reason", "") + ")";
   return text;
 }
@@ -49,9 +49,9 @@ std::string RunLine(const json& run) {
 // `state` as the API names it (RunStateName).
 int ExitCodeForState(const std::string& state) {
   const std::optional<daemon::RunState> parsed = daemon::RunStateFromName(state);
-  if (parsed == daemon::RunState::kDone) return 0;
-  if (parsed == daemon::RunState::kAborted) return 130;
-  return 1;
+  if (parsed == daemon::RunState::kDone) return kExitOk;
+  if (parsed == daemon::RunState::kAborted) return kExitInterrupted;
+  return kExitFailed;
 }
 
 // The solve stages and the results' location of a stop event (or run record).
@@ -74,31 +74,52 @@ void PrintSolve(const json& run) {
                 run["results"].value("path", "").c_str(), run.value("id", "").c_str());
 }
 
-// Follows a run's events: a redrawn bar on a terminal, plain lines otherwise.
+// The time left for a running run, from the host timestamps of the frames in
+// its journal: the mean time per frame so far times the frames still to take.
+std::optional<double> EtaSeconds(daemon::ApiClient& client, const json& run) {
+  const int frames = run.value("frames", 0), total = run.value("steps_total", 0);
+  if (run.value("state", "") != "running" || frames < 2 || frames >= total) return std::nullopt;
+  std::string journal;
+  if (client.Download(run.value("id", ""), "journal.jsonl", &journal) != 200) return std::nullopt;
+  std::istringstream lines(journal);
+  std::int64_t first_ns = 0, last_ns = 0;
+  int stamped = 0;
+  for (std::string line; std::getline(lines, line);) {
+    const json record = json::parse(line, nullptr, false);
+    if (!record.is_object() || !record.contains("host_timestamp_ns")) continue;
+    last_ns = record["host_timestamp_ns"].get<std::int64_t>();
+    if (stamped++ == 0) first_ns = last_ns;
+  }
+  if (stamped < 2 || last_ns <= first_ns) return std::nullopt;
+  return 1e-9 * double(last_ns - first_ns) / (stamped - 1) * (total - frames);
+}
+
+// Follows a run's events until it stops: frames as a progress bar with an
+// ETA (on stderr), states as lines. Returns the exit code of how it ended.
 int Watch(const Connection& connection, const std::string& id) {
   auto client = connection.Client(24 * 3600);
-  const bool tty = isatty(STDOUT_FILENO) && !connection.json_output;
-  std::string final_state;
+  // The run as it stands: an unreachable daemon or an unknown run end here,
+  // and frames already taken are replayed by the stream in a burst, which
+  // must not count towards the rate behind the ETA.
+  const auto run = client.Get("/api/v1/runs/" + id);
+  if (!Ok(run)) return Fail(connection, run);
+  const int frames_before = run.body.value("frames", 0);
+  ResultFields()["id"] = id;
+  ProgressDisplay progress;
+  json stop;
   const std::string error = client.FollowEvents(id, [&](const std::string& type, const json& data) {
-    if (type == "stop") final_state = data.value("state", "");
-    if (connection.json_output) {
-      std::printf("%s\n", json{{"event", type}, {"data", data}}.dump().c_str());
-    } else if (type == "frame") {
-      const int done = data.value("frames", 0), total = std::max(1, data.value("total", 1));
-      if (tty) {
-        const int width = 30, filled = done * width / total;
-        std::printf("\r[%.*s%*s] %d/%d %-16s", filled, "##############################", width - filled, "", done,
-                    total, data.value("label", "").c_str());
-      } else {
-        std::printf("frame %d/%d %s\n", done, total, data.value("label", "").c_str());
-      }
+    if (type == "frame") {
+      const int done = data.value("frames", 0);
+      if (done >= frames_before) progress.Update("captured", done, data.value("total", 0), data.value("label", ""));
     } else if (type == "solve_started") {
-      std::printf("%ssolving: %s\n", tty ? "\n" : "", data.value("stage", "").c_str());
+      progress.EndLine();
+      std::printf("solving: %s\n", data.value("stage", "").c_str());
     } else if (type == "state" || type == "stop") {
-      std::printf("%s%s %s%s%s\n", tty ? "\n" : "", type == "stop" ? "stopped:" : "state:",
-                  data.value("state", "").c_str(), data.value("reason", "").empty() ? "" : " - ",
-                  data.value("reason", "").c_str());
+      progress.EndLine();
+      std::printf("%s %s%s%s\n", type == "stop" ? "stopped:" : "state:", data.value("state", "").c_str(),
+                  data.value("reason", "").empty() ? "" : " - ", data.value("reason", "").c_str());
       if (type == "stop") {
+        stop = data;
         std::printf("frames %d/%d, retries %d, dropped frames %d\n", data.value("frames", 0),
                     data.value("steps_total", 0), data.value("retries", 0), data.value("dropped_frames", 0));
         PrintSolve(data);
@@ -107,11 +128,18 @@ int Watch(const Connection& connection, const std::string& id) {
     std::fflush(stdout);
     return true;
   });
-  if (!error.empty()) {
-    std::fprintf(stderr, "error: %s\n", error.c_str());
-    return 1;
+  progress.EndLine();
+  if (stop.is_object()) {
+    ResultFields()["state"] = stop.value("state", "");
+    ResultFields()["stop"] = stop;
   }
-  return ExitCodeForState(final_state);
+  if (!error.empty()) return Fail(kExitUnavailable, "lost the run's event stream: " + error);
+  const std::string state = stop.value("state", "");
+  const int code = ExitCodeForState(state);
+  if (code != kExitOk)
+    return Fail(static_cast<ExitCode>(code), "run " + id + " ended " + state +
+                                                 (stop.value("reason", "").empty() ? "" : ": " + stop.value("reason", "")));
+  return kExitOk;
 }
 
 struct SubmitOptions {
@@ -128,16 +156,13 @@ int Submit(const SubmitOptions& options) {
   const auto reply = client.Post("/api/v1/runs", {{"name", options.recipe},
                                                   {"recipe", text},
                                                   {"path", std::filesystem::absolute(options.recipe).string()}});
-  if (!Ok(reply)) return Fail(reply, options.connection.json_output);
+  if (!Ok(reply)) return Fail(options.connection, reply);
   const json& plan = reply.body["plan"];
-  if (options.connection.json_output) {
-    std::printf("%s\n", reply.body.dump().c_str());
-  } else {
-    std::printf("submitted %s: %d frames, about %.1f s and %.1f MiB\n", reply.body.value("id", "").c_str(),
-                plan.value("frames", 0), plan.value("duration_s", 0.0),
-                plan.value("bytes", std::uint64_t{0}) / 1048576.0);
-  }
-  return options.watch ? Watch(options.connection, reply.body.value("id", "")) : 0;
+  ResultFields() = reply.body;
+  std::printf("submitted %s: %d frames, about %.1f s and %.1f MiB\n", reply.body.value("id", "").c_str(),
+              plan.value("frames", 0), plan.value("duration_s", 0.0), plan.value("bytes", std::uint64_t{0}) / 1048576.0);
+  std::fflush(stdout);
+  return options.watch ? Watch(options.connection, reply.body.value("id", "")) : kExitOk;
 }
 
 CommandRunner SetupSubmit(CLI::App& app) {
@@ -156,17 +181,23 @@ struct RunOptions {
 
 int Status(const RunOptions& options) {
   auto client = options.connection.Client();
-  const auto reply = client.Get(options.id.empty() ? "/api/v1/runs" : "/api/v1/runs/" + options.id);
-  if (!Ok(reply)) return Fail(reply, options.connection.json_output);
-  if (options.connection.json_output) {
-    std::printf("%s\n", reply.body.dump().c_str());
-  } else if (options.id.empty()) {
-    for (const json& run : reply.body["runs"]) std::printf("%s\n", RunLine(run).c_str());
+  auto reply = client.Get(options.id.empty() ? "/api/v1/runs" : "/api/v1/runs/" + options.id);
+  if (!Ok(reply)) return Fail(options.connection, reply);
+  const auto with_eta = [&client](json& run) {
+    if (const auto eta = EtaSeconds(client, run)) run["eta_s"] = *eta;
+  };
+  if (options.id.empty()) {
+    for (json& run : reply.body["runs"]) {
+      with_eta(run);
+      std::printf("%s\n", RunLine(run).c_str());
+    }
   } else {
+    with_eta(reply.body);
     std::printf("%s\n", RunLine(reply.body).c_str());
     PrintSolve(reply.body);
   }
-  return 0;
+  ResultFields() = reply.body;
+  return kExitOk;
 }
 
 CommandRunner SetupStatus(CLI::App& app) {
@@ -193,13 +224,10 @@ CommandRunner SetupAction(CLI::App& app, const std::string& action, const std::s
   return {sub, [options, action] {
             auto client = options->connection.Client();
             const auto reply = client.Post("/api/v1/runs/" + options->id + "/" + action, json::object());
-            if (!Ok(reply)) return Fail(reply, options->connection.json_output);
-            if (options->connection.json_output) {
-              std::printf("%s\n", reply.body.dump().c_str());
-            } else {
-              std::printf("%s: %s requested\n", options->id.c_str(), action.c_str());
-            }
-            return 0;
+            if (!Ok(reply)) return Fail(options->connection, reply);
+            ResultFields() = reply.body;
+            std::printf("%s: %s requested\n", options->id.c_str(), action.c_str());
+            return int{kExitOk};
           }};
 }
 

@@ -1,6 +1,8 @@
 // photorig run RECIPE [--rig FILE] [--out DIR] [--no-solve]
 
 #include "../command.h"
+#include "../command_output.h"
+#include "../progress_display.h"
 #include "../signals.h"
 #include "photorig/daemon/run.h"
 #include "ps_report.h"
@@ -16,23 +18,49 @@ struct Options {
   bool no_solve = false;
 };
 
+nlohmann::json CaptureJson(const daemon::CaptureReport& capture) {
+  return {{"status", daemon::CaptureStatusName(capture.status)}, {"reason", capture.reason},
+          {"frames_written", capture.frames_written},               {"steps_total", capture.steps_total},
+          {"retries", capture.retries},                              {"dropped_frames", capture.dropped_frames},
+          {"elapsed_ms", capture.elapsed_ms}};
+}
+
 int Execute(const Options& options) {
+  ProgressDisplay progress;
   daemon::RunRequest request;
   request.recipe_path = options.recipe;
   request.rig_path = options.rig;
   request.output_directory = options.out;
   request.solve = !options.no_solve;
-  request.show_progress = true;
+  request.show_progress = false;  // shown here, with an ETA
+  request.on_frame = [&progress](const daemon::CaptureStep& step, const daemon::FrameRecord&, int frames, int total) {
+    progress.Update("captured", frames, total, step.label);
+  };
+  request.solve_progress = progress.Callback();
   request.stop_requested = &g_stop_requested;
   const daemon::RunOutcome outcome = daemon::ExecuteRun(request);
+  progress.EndLine();
+  ResultFields()["run_directory"] = outcome.directory;
+  ResultFields()["capture"] = CaptureJson(outcome.capture);
   std::printf("run directory: %s\n", outcome.directory.c_str());
   std::printf("capture: %s, %d/%d frames, %.0f ms%s%s\n", daemon::CaptureStatusName(outcome.capture.status),
               outcome.capture.frames_written, outcome.capture.steps_total, outcome.capture.elapsed_ms,
               outcome.capture.reason.empty() ? "" : ": ", outcome.capture.reason.c_str());
+  if (outcome.capture.status == daemon::CaptureStatus::kAborted)
+    return Fail(kExitInterrupted, "capture aborted: " + outcome.capture.reason);
+  if (outcome.capture.status != daemon::CaptureStatus::kComplete)
+    return Fail(outcome.capture.fault == StatusCode::kUnavailable ? kExitUnavailable : kExitFailed,
+                "capture " + std::string(daemon::CaptureStatusName(outcome.capture.status)) + ": " +
+                    outcome.capture.reason);
   if (outcome.photometric_stereo) {
     PrintPhotometricStereoSummary(*outcome.photometric_stereo);
-    std::printf("results: %s/results/ps/\n", outcome.directory.c_str());
-    if (!outcome.photometric_stereo->usable()) return 3;
+    const std::string results = outcome.directory + "/results/ps";
+    std::printf("results: %s/\n", results.c_str());
+    ResultFields()["photometric_stereo"] = daemon::ToJson(*outcome.photometric_stereo);
+    ResultFields()["photometric_stereo"]["results_directory"] = results;
+    if (!outcome.photometric_stereo->usable())
+      return Fail(kExitFailed, "photometric stereo gave no usable result: " +
+                                   outcome.photometric_stereo->summary.message);
   }
   if (outcome.light_calibration) {
     const daemon::LightCalibrationSummary& lights = *outcome.light_calibration;
@@ -40,10 +68,10 @@ int Execute(const Options& options) {
                 lights.message.c_str(), lights.circle.cx_px, lights.circle.cy_px, lights.circle.radius_px,
                 lights.mean_uncertainty_deg);
     if (!lights.out_rig.empty()) std::printf("calibrated rig: %s\n", lights.out_rig.c_str());
-    if (!lights.success) return 3;
+    ResultFields()["light_calibration"] = LightCalibrationJson(lights);
+    if (!lights.success) return Fail(kExitFailed, "light calibration failed: " + lights.message);
   }
-  if (outcome.capture.status == daemon::CaptureStatus::kAborted) return 130;
-  return outcome.capture.status == daemon::CaptureStatus::kComplete ? 0 : 1;
+  return kExitOk;
 }
 
 CommandRunner Setup(CLI::App& app) {

@@ -2,6 +2,8 @@
 // photorig export diligent --run DIR --out DIR
 
 #include "../command.h"
+#include "../command_output.h"
+#include "../progress_display.h"
 #include "photorig/daemon/diligent.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "ps_report.h"
@@ -20,10 +22,7 @@ struct Options {
 
 int Execute(const Options& options) {
   daemon::ValidatePhotometricStereoRequest(options.request);
-  if (options.run_dir.empty() && options.dataset_dir.empty()) {
-    std::fprintf(stderr, "solve ps: give --run DIR or --dataset DIR\n");
-    return 2;
-  }
+  if (options.run_dir.empty() && options.dataset_dir.empty()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
   const bool from_run = !options.run_dir.empty();
   const std::string source = from_run ? options.run_dir : options.dataset_dir;
   const std::string destination =
@@ -31,10 +30,17 @@ int Execute(const Options& options) {
   daemon::PhotometricStereoInput input =
       from_run ? daemon::LoadRunStack(options.run_dir) : daemon::LoadDiligent(options.dataset_dir);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
-  const daemon::PhotometricStereoResult result = daemon::SolveAndWrite(input, options.request, destination);
+  ProgressDisplay progress;
+  daemon::PhotometricStereoRequest request = options.request;
+  request.progress = progress.Callback();
+  const daemon::PhotometricStereoResult result = daemon::SolveAndWrite(input, request, destination);
+  progress.EndLine();
   PrintPhotometricStereoSummary(result);
   std::printf("results: %s/\n", destination.c_str());
-  return result.usable() ? 0 : 3;
+  ResultFields() = daemon::ToJson(result);
+  ResultFields()["results_directory"] = destination;
+  if (!result.usable()) return Fail(kExitFailed, "no usable result: " + result.summary.message);
+  return kExitOk;
 }
 
 CommandRunner SetupSolve(CLI::App& app) {
@@ -71,7 +77,9 @@ CommandRunner SetupExport(CLI::App& app) {
   return {diligent, [options] {
             daemon::ExportDiligent(options->run_dir, options->out);
             std::printf("wrote %s/\n", options->out.c_str());
-            return 0;
+            ResultFields()["run_directory"] = options->run_dir;
+            ResultFields()["out"] = options->out;
+            return kExitOk;
           }};
 }
 

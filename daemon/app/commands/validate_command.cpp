@@ -1,6 +1,7 @@
 // photorig validate RECIPE [--rig FILE]: parse and compile without touching devices.
 
 #include "../command.h"
+#include "../command_output.h"
 #include "photorig/daemon/recipe.h"
 
 #include <cstdio>
@@ -19,7 +20,9 @@ int Execute(const Options& options) {
   const auto steps = daemon::CompileSteps(recipe, rig);
   std::printf("%s: valid; %zu steps on rig '%s' (%zu LEDs, camera %dx%d)\n", options.recipe.c_str(), steps.size(),
               rig.name.c_str(), rig.lights.leds.size(), rig.camera.width, rig.camera.height);
-  return 0;
+  ResultFields() = {{"recipe", options.recipe}, {"rig", rig.path}, {"rig_name", rig.name}, {"steps", steps.size()},
+                    {"leds", rig.lights.leds.size()}, {"camera", {{"width", rig.camera.width}, {"height", rig.camera.height}}}};
+  return kExitOk;
 }
 
 CommandRunner Setup(CLI::App& app) {

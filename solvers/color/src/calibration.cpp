@@ -193,7 +193,13 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
   for (const auto& v : xyz) lab.push_back(XyzToLab(v, input.white_xyz));
   const double nan = std::numeric_limits<double>::quiet_NaN();
 
+  const std::int64_t fits_per_model = static_cast<std::int64_t>(used.size()) + 1;
+  solvers::ProgressThrottle progress(options.progress, "colour fits",
+                                     fits_per_model * static_cast<std::int64_t>(options.candidates.size()));
+  std::int64_t fits_done = 0;  // a skipped model's fits count as done
   for (const ModelSpec& spec : options.candidates) {
+    const std::int64_t first_fit = fits_done;
+    fits_done += fits_per_model;
     ModelEvaluation eval;
     eval.spec = spec;
     eval.training_de.assign(n, nan);
@@ -229,6 +235,7 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
           FitModel(spec, rgb_train, xyz_train, input.white_xyz, scale, options.loss, options.max_refinement_iterations);
       eval.held_out_de[static_cast<std::size_t>(used[k])] =
           Ciede2000(XyzToLab(held_out.ToXyz(rgb[k]), input.white_xyz), lab[k]);
+      progress.Update(first_fit + 2 + static_cast<std::int64_t>(k));  // the fit on all patches, then k + 1 left out
     }
     eval.loo_ms = MsSince(t0);
     eval.training_mean = Mean(eval.training_de);
@@ -242,6 +249,7 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
     if (!eval.usable) eval.note = "fit produced non-finite values";
     summary.models.push_back(std::move(eval));
   }
+  progress.Finish();
 
   // The simplest model whose held-out error is within the tolerance of the best.
   double best = std::numeric_limits<double>::infinity();

@@ -8,9 +8,34 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
 #include <string>
 
 namespace photorig::ps {
+namespace {
+
+// Counts the pixels of the tiles every thread has finished and reports them
+// from OpenMP's thread 0, the caller's, so the callback never runs
+// concurrently; one atomic add per tile, nothing when no one listens.
+class TileProgress {
+ public:
+  TileProgress(const solvers::ProgressCallback& callback, const char* stage, std::int64_t pixels)
+      : throttle_(callback, stage, pixels), listening_(static_cast<bool>(callback)) {}
+  void TileDone(int thread, int pixels) {
+    if (!listening_) return;
+    const std::int64_t done = done_.fetch_add(pixels, std::memory_order_relaxed) + pixels;
+    if (thread == 0) throttle_.Update(done);
+  }
+  void Finish() { throttle_.Finish(); }
+
+ private:
+  solvers::ProgressThrottle throttle_;
+  const bool listening_;
+  std::atomic<std::int64_t> done_{0};
+};
+
+}  // namespace
+
 SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, const PhotometricStack& stack,
                                      NormalMap* result) {
   const solvers::SolveTimer timer;
@@ -43,8 +68,13 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     summary.shadow_threshold = lambertian.shadow_threshold;
     return summary;
   }
+  TileProgress progress(options.progress, MethodName(options.method),
+                        static_cast<std::int64_t>(stack.width()) * stack.height());
   if (!refine) {
-    SolverSummary summary = SolveLambertian(lambertian, working, result);
+    const internal::TileVisitor count_tiles = [&](int thread, int, int count) { progress.TileDone(thread, count); };
+    SolverSummary summary =
+        internal::SolveLambertianTiles(lambertian, working, result, options.progress ? count_tiles : nullptr);
+    if (summary.IsSolutionUsable()) progress.Finish();
     summary.method = MethodName(options.method);
     summary.pixels_lambertian = summary.pixels_solved;
     summary.noise_estimated = noise_estimated;
@@ -59,7 +89,11 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
   internal::TileRefiner refiner(options, lambertian, working, ladder, threads, result);
   SolverSummary summary = internal::SolveLambertianTiles(
-      lambertian, working, result, [&](int thread, int begin, int count) { refiner.RefineTile(thread, begin, count); },
+      lambertian, working, result,
+      [&](int thread, int begin, int count) {
+        refiner.RefineTile(thread, begin, count);
+        progress.TileDone(thread, count);
+      },
       [&](int thread) { refiner.Finish(thread); });
   summary.method = MethodName(options.method);
   summary.shadow_threshold = lambertian.shadow_threshold;
@@ -71,6 +105,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   summary.noise_read_sigma = working.noise.read_sigma;
   summary.noise_shot_gain = working.noise.shot_gain;
   refiner.AddCounts(&summary);
+  progress.Finish();
   summary.total_ms = timer.ElapsedMs();
   return summary;
 }

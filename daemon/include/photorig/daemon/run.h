@@ -55,6 +55,8 @@ struct RunRequest {
   // `control` while a stage runs skips the stages after it.
   std::function<void(const std::string& stage)> on_solve_started;
   std::function<void(const SolveStageReport&)> on_solve_finished;
+  // Given to the recipe's solvers (solvers/progress.h).
+  solvers::ProgressCallback solve_progress;
 };
 
 struct RunOutcome {

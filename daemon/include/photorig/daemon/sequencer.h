@@ -58,6 +58,9 @@ struct CaptureOptions {
 struct CaptureReport {
   CaptureStatus status = CaptureStatus::kFailed;  // kComplete, kFailed or kAborted
   std::string reason;
+  // What ended a failed capture, e.g. kUnavailable for a device that cannot
+  // be reached or opened; kOk otherwise.
+  StatusCode fault = StatusCode::kOk;
   int frames_written = 0;   // by this call
   int frames_resumed = 0;   // already in the run when this call started
   int steps_total = 0;

@@ -23,6 +23,8 @@ struct PhotometricStereoRequest {
   // time, Jacobians by that method).
   std::string derivative = "lanes";
   std::string integrator = "poisson";   // depth from normals: poisson | frankot-chellappa | none
+  // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
+  solvers::ProgressCallback progress;
 };
 
 // Throws ConfigError naming file:line:column for unknown keys or values.

@@ -8,6 +8,7 @@
 #include "photorig/color/chart.h"
 #include "photorig/color/model.h"
 
+#include "photorig/solvers/progress.h"
 #include "photorig/solvers/summary.h"
 
 #include <Eigen/Core>
@@ -28,6 +29,9 @@ struct CalibrationOptions {
   double min_chromaticity_spread = 0.01;
   double selection_tolerance = 0.02;         // CIEDE2000: prefer fewer terms within this of the best
   int max_refinement_iterations = 100;       // Ceres, for kCiede2000
+  // Fits done (stage "colour fits"): per candidate, one on every usable patch
+  // and one per left-out patch; seconds in all with kCiede2000. Empty: none.
+  solvers::ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
 };

@@ -27,6 +27,7 @@
 #include "photorig/ps/lambertian.h"
 #include "photorig/ps/stack.h"
 #include "photorig/ps/summary.h"
+#include "photorig/solvers/progress.h"
 
 #include <string>
 
@@ -121,6 +122,11 @@ struct PhotometricStereoOptions {
   // lift of three sigmas puts one shadowed sample in 740 above it. 0: the
   // absolute threshold only. SolverSummary::shadow_threshold reports the one used.
   double shadow_threshold_read_sigmas = 0.0;
+  // Pixels solved so far, under the method's name as the stage: the Lambertian
+  // pass and the refinement run tile by tile together, so one count covers
+  // both. Called on the thread that called SolvePhotometricStereo, about
+  // every percent of the image. Empty: no reports.
+  solvers::ProgressCallback progress;
   bool IsValid(std::string* why) const;
 };
 

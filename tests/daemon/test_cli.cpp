@@ -1,0 +1,370 @@
+// The photorig executable as a script sees it: every command's --json output
+// is one document with the common fields, exit codes follow docs/cli.md, and
+// the errors people meet most say what to do next.
+
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <regex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using photorig::testing::ReadText;
+using photorig::testing::SmallRigYaml;
+using photorig::testing::TempDir;
+
+struct Outcome {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+// Runs build/bin/photorig with `arguments`, stdout and stderr kept apart.
+Outcome Photorig(const std::string& arguments, const TempDir& dir) {
+  static int calls = 0;
+  const fs::path out = dir.path() / ("out" + std::to_string(calls)), err = dir.path() / ("err" + std::to_string(calls));
+  ++calls;
+  const std::string command = std::string(PHOTORIG_BIN_DIR) + "/photorig " + arguments + " > " + out.string() +
+                              " 2> " + err.string() + " < /dev/null";
+  const int status = std::system(command.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadText(out), ReadText(err)};
+}
+
+// The one JSON document a --json command printed, checked for the common
+// fields against the exit code; null (and a test failure) when it is not one.
+json Document(const Outcome& outcome, const std::string& command) {
+  const json document = json::parse(outcome.out, nullptr, false);
+  EXPECT_TRUE(document.is_object()) << "stdout: " << outcome.out << "\nstderr: " << outcome.err;
+  if (!document.is_object()) return nullptr;
+  EXPECT_EQ(document.value("command", ""), command);
+  EXPECT_EQ(document.value("exit_code", -1), outcome.exit_code);
+  EXPECT_EQ(document.value("ok", outcome.exit_code != 0), outcome.exit_code == 0);
+  EXPECT_EQ(document.contains("error"), outcome.exit_code != 0) << outcome.out;
+  if (document.contains("error")) {
+    EXPECT_FALSE(document["error"].get<std::string>().empty());
+  }
+  return document;
+}
+
+// A small rig (4 LEDs, 32x32) with a recipe that captures and solves.
+struct SmallRun {
+  explicit SmallRun(const TempDir& dir)
+      : rig(dir.Write("rig.yaml", SmallRigYaml())),
+        recipe(dir.Write("recipe.yaml", photorig::testing::SmallRecipeYaml(rig) +
+                                            "solve:\n  - photometric_stereo: {method: lambertian, integrator: none}\n")),
+        run((dir.path() / "run").string()) {}
+  std::string rig, recipe, run;
+};
+
+// An address nothing listens on: a port the kernel gave out, then closed.
+std::string ClosedUrl() {
+  static const std::string url = [] {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t length = sizeof(address);
+    ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address));
+    ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
+    ::close(fd);
+    return "http://127.0.0.1:" + std::to_string(ntohs(address.sin_port));
+  }();
+  return url;
+}
+
+TEST(Cli, RunAndSolveReportTheirResultsAsJson) {
+  TempDir dir;
+  const SmallRun small(dir);
+  const Outcome run = Photorig("run " + small.recipe + " --out " + small.run + " --json", dir);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json captured = Document(run, "run");
+  EXPECT_EQ(captured["run_directory"], small.run);
+  EXPECT_EQ(captured["capture"]["status"], "complete");
+  EXPECT_EQ(captured["capture"]["frames_written"], 5);
+  EXPECT_EQ(captured["photometric_stereo"]["termination"], "success");
+  // Human text and the capture's progress go to stderr under --json... but
+  // progress is silent there: the text is what remains.
+  EXPECT_NE(run.err.find("capture: complete, 5/5 frames"), std::string::npos) << run.err;
+  EXPECT_EQ(run.err.find("captured 5/5"), std::string::npos) << run.err;
+
+  // Without --json the capture's progress shows on stderr, and stdout has the text.
+  const Outcome text = Photorig("run " + small.recipe + " --out " + small.run + "-text --no-solve", dir);
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.err.find("captured 5/5 (100%)"), std::string::npos) << text.err;
+  EXPECT_NE(text.out.find("capture: complete"), std::string::npos) << text.out;
+
+  const Outcome solve = Photorig("solve ps --run " + small.run + " --method auto --json", dir);
+  ASSERT_EQ(solve.exit_code, 0) << solve.err;
+  const json solved = Document(solve, "solve ps");
+  EXPECT_EQ(solved["method"], "auto");
+  EXPECT_EQ(solved["termination"], "success");
+  EXPECT_EQ(solved["results_directory"], small.run + "/results/ps");
+  EXPECT_GT(solved["pixels"]["solved"].get<int>(), 100);
+
+  // The solver's progress, counted in pixels of the 32x32 image.
+  const Outcome shown = Photorig("solve ps --run " + small.run + " --method auto", dir);
+  ASSERT_EQ(shown.exit_code, 0) << shown.err;
+  EXPECT_NE(shown.err.find("auto 1024/1024 (100%)"), std::string::npos) << shown.err;
+
+  const Outcome exported =
+      Photorig("export diligent --run " + small.run + " --out " + (dir.path() / "diligent").string() + " --json", dir);
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  EXPECT_EQ(Document(exported, "export diligent")["out"], (dir.path() / "diligent").string());
+
+  const Outcome relit = Photorig("relight --run " + small.run + " --light 0,0,1 --out " +
+                                     (dir.path() / "relit.tiff").string() + " --json",
+                                 dir);
+  ASSERT_EQ(relit.exit_code, 0) << relit.err;
+  EXPECT_EQ(Document(relit, "relight")["width"], 32);
+
+  // Lights located from the matte sphere's brightest points: four found;
+  // a circle smaller than the sphere leaves every light unusable, a failed solve.
+  const Outcome lights = Photorig("calibrate lights --run " + small.run + " --out " + (dir.path() / "lc").string() +
+                                      " --json",
+                                  dir);
+  ASSERT_EQ(lights.exit_code, 0) << lights.err;
+  const json calibrated = Document(lights, "calibrate lights");
+  EXPECT_EQ(calibrated["lights"], 4);
+  EXPECT_EQ(calibrated["sphere"]["source"], "highlights");
+  const Outcome misplaced = Photorig("calibrate lights --run " + small.run + " --circle 16,16,12 --out " +
+                                         (dir.path() / "lc2").string() + " --json",
+                                     dir);
+  EXPECT_EQ(misplaced.exit_code, 1) << misplaced.err;
+  EXPECT_EQ(Document(misplaced, "calibrate lights")["unusable"], 4);
+
+  const Outcome envmap = Photorig("envmap --ball " + small.run + "/frames/0001_led00.png --circle 16 16 12 --width 64 --out " +
+                                      (dir.path() / "map.hdr").string() + " --json",
+                                  dir);
+  ASSERT_EQ(envmap.exit_code, 0) << envmap.err;
+  const json map = Document(envmap, "envmap");
+  EXPECT_EQ(map["width"], 64);
+  EXPECT_GT(map["directions_seen_fraction"].get<double>(), 0.5);
+}
+
+TEST(Cli, ValidateAndDryRunDescribeTheRecipe) {
+  TempDir dir;
+  const SmallRun small(dir);
+  const Outcome valid = Photorig("validate " + small.recipe + " --json", dir);
+  ASSERT_EQ(valid.exit_code, 0) << valid.err;
+  const json validated = Document(valid, "validate");
+  EXPECT_EQ(validated["steps"], 5);
+  EXPECT_EQ(validated["leds"], 4);
+  EXPECT_EQ(validated["rig_name"], "small-dome");
+
+  const Outcome dry = Photorig("dry-run " + small.recipe + " --json --out " + dir.path().string(), dir);
+  ASSERT_EQ(dry.exit_code, 0) << dry.err;
+  const json plan = Document(dry, "dry-run");
+  EXPECT_EQ(plan["frames"], 5);
+  EXPECT_GT(plan["free_bytes"].get<double>(), 0.0);
+
+  const Outcome devices = Photorig("devices --no-details --json", dir);
+  ASSERT_EQ(devices.exit_code, 0) << devices.err;
+  EXPECT_TRUE(Document(devices, "devices")["cameras"].is_array());
+}
+
+TEST(Cli, UsageErrorsExitTwoInEveryCommand) {
+  TempDir dir;
+  const SmallRun small(dir);
+  for (const std::string& arguments : std::vector<std::string>{
+           "run", "solve ps --run " + small.run + " --method magic", "solve ps", "validate --no-such-flag x",
+        "calibrate lights --circle 1,2", "relight --run " + dir.path().string() + " --out x.tiff",
+        "envmap --ball nothing.png --circle 1 2 3 --out m.hdr", "apply-color --in nothing.png --out x",
+        "calibrate color --out x", "dry-run", "export diligent --out x", "submit", "watch", "pause", "status a b"}) {
+    const Outcome outcome = Photorig(arguments + " --json", dir);
+    EXPECT_EQ(outcome.exit_code, 2) << arguments << "\n" << outcome.err;
+    const json document = json::parse(outcome.out, nullptr, false);
+    ASSERT_TRUE(document.is_object()) << arguments << ": " << outcome.out;
+    EXPECT_FALSE(document["ok"].get<bool>()) << arguments;
+    EXPECT_EQ(document["exit_code"], 2) << arguments;
+    EXPECT_FALSE(document.value("error", "").empty()) << arguments;
+  }
+  // Without --json too, not CLI11's own codes.
+  EXPECT_EQ(Photorig("solve ps --no-such-flag", dir).exit_code, 2);
+  EXPECT_EQ(Photorig("no-such-command", dir).exit_code, 2);
+}
+
+TEST(Cli, MissingRigFileNamesTheRecipeLineAndWherePathsResolveFrom) {
+  TempDir dir;
+  const std::string recipe = dir.Write("recipes/lost.yaml", photorig::testing::SmallRecipeYaml("../rigs/gone.yaml"));
+  for (const char* command : {"validate", "run", "dry-run"}) {
+    const Outcome outcome = Photorig(std::string(command) + " " + recipe + " --json", dir);
+    EXPECT_EQ(outcome.exit_code, 2) << command;
+    const json document = Document(outcome, command);
+    const std::string error = document.value("error", "");
+    EXPECT_NE(error.find(recipe + ":3:"), std::string::npos) << error;
+    EXPECT_NE(error.find("recipe.rig: rig file " + (dir.path() / "rigs/gone.yaml").string() + " not found"),
+              std::string::npos)
+        << error;
+    EXPECT_NE(error.find("resolves from the recipe's folder, " + (dir.path() / "recipes").string()), std::string::npos)
+        << error;
+  }
+}
+
+TEST(Cli, RelightWithoutAPhotometricStereoResultSaysToSolveFirst) {
+  TempDir dir;
+  const SmallRun small(dir);
+  ASSERT_EQ(Photorig("run " + small.recipe + " --out " + small.run + " --no-solve", dir).exit_code, 0);
+  const Outcome outcome =
+      Photorig("relight --run " + small.run + " --light 0,0,1 --out " + (dir.path() / "r.tiff").string(), dir);
+  EXPECT_EQ(outcome.exit_code, 2);
+  EXPECT_NE(outcome.err.find("run `photorig solve ps --run " + small.run + "` first"), std::string::npos) << outcome.err;
+  EXPECT_EQ(outcome.err.find("OpenCV"), std::string::npos) << outcome.err;
+}
+
+TEST(Cli, ColourCalibrationOfARawChartWithoutBayerAsksForIt) {
+  TempDir dir;
+  const std::string rendered = (dir.path() / "rendered").string();
+  const Outcome render =
+      Photorig("calibrate color --sim-camera nikon-5100 --bayer RGGB --models linear --out " + rendered + " --json", dir);
+  ASSERT_EQ(render.exit_code, 0) << render.err;
+  const json calibrated = Document(render, "calibrate color");
+  EXPECT_EQ(calibrated["model"], rendered + "/model.json");
+  EXPECT_TRUE(calibrated["report"].is_object());
+
+  const std::string chart = rendered + "/chart.png", dark = rendered + "/dark.png";
+  const Outcome raw = Photorig("calibrate color --image " + chart + " --dark " + dark + " --models linear --out " +
+                                   (dir.path() / "raw").string() + " --json",
+                               dir);
+  EXPECT_EQ(raw.exit_code, 2);
+  const std::string error = Document(raw, "calibrate color").value("error", "");
+  EXPECT_NE(error.find(chart + " looks like a raw Bayer mosaic"), std::string::npos) << error;
+  EXPECT_NE(error.find("pass --bayer"), std::string::npos) << error;
+
+  const Outcome demosaiced = Photorig("calibrate color --image " + chart + " --dark " + dark + " --bayer RGGB " +
+                                          "--models linear --out " + (dir.path() / "ok").string(),
+                                      dir);
+  EXPECT_EQ(demosaiced.exit_code, 0) << demosaiced.err;
+  // One candidate: the fit on all 24 patches and one per left-out patch.
+  EXPECT_NE(demosaiced.err.find("colour fits 25/25 (100%)"), std::string::npos) << demosaiced.err;
+
+  const Outcome applied = Photorig("apply-color --model " + rendered + "/model.json --in " + chart + " --dark " + dark +
+                                       " --bayer RGGB --out " + (dir.path() / "applied").string() + " --json",
+                                   dir);
+  ASSERT_EQ(applied.exit_code, 0) << applied.err;
+  EXPECT_EQ(Document(applied, "apply-color")["outputs"].size(), 1u);
+}
+
+TEST(Cli, AnUnreachableDaemonExitsThreeAndSaysHowToStartIt) {
+  TempDir dir;
+  for (const std::string& command : std::vector<std::string>{"status", "status run-1", "watch run-1", "pause run-1", "resume run-1",
+                                    "abort run-1"}) {
+    const Outcome outcome = Photorig(command + " --url " + ClosedUrl() + " --json", dir);
+    EXPECT_EQ(outcome.exit_code, 3) << command;
+    const std::string name = command.substr(0, command.find(' '));
+    const std::string error = Document(outcome, name).value("error", "");
+    EXPECT_NE(error.find("photorigd is not reachable at " + ClosedUrl() + "; start it with `photorigd --rig"),
+              std::string::npos)
+        << error;
+  }
+  const std::string recipe = dir.Write("recipe.yaml", photorig::testing::SmallRecipeYaml());
+  const Outcome submit = Photorig("submit " + recipe + " --url " + ClosedUrl(), dir);
+  EXPECT_EQ(submit.exit_code, 3);
+  EXPECT_NE(submit.err.find("submit: photorigd is not reachable at " + ClosedUrl()), std::string::npos) << submit.err;
+}
+
+TEST(Cli, ALightControllerThatCannotBeReachedExitsThree) {
+  TempDir dir;
+  // The simulated dome's Modbus controller, pointed at a port nothing serves.
+  std::string rig = ReadText(photorig::testing::SourceDir() + "/config/rigs/sim-dome-modbus.yaml");
+  rig = std::regex_replace(rig, std::regex("host: sim .*"), "host: 127.0.0.1");
+  const std::string port = ClosedUrl().substr(ClosedUrl().rfind(':') + 1);
+  rig = std::regex_replace(rig, std::regex("port: 0 .*"), "port: " + port);
+  const std::string rig_path = dir.Write("dead-modbus.yaml", rig);
+  const Outcome outcome = Photorig("run " + photorig::testing::SourceDir() + "/config/recipes/ps-sphere.yaml --rig " +
+                                       rig_path + " --out " + (dir.path() / "run").string() + " --json",
+                                   dir);
+  EXPECT_EQ(outcome.exit_code, 3) << outcome.err;
+  const json document = Document(outcome, "run");
+  EXPECT_EQ(document["capture"]["status"], "failed");
+  EXPECT_NE(document.value("error", "").find("light controller modbus-dome (tcp 127.0.0.1:" + port), std::string::npos)
+      << document.dump();
+}
+
+// photorigd on any free port, for as long as the object lives.
+class Daemon {
+ public:
+  Daemon(const fs::path& data_root, const std::string& rig, const fs::path& log) : log_(log) {
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const std::string bin = std::string(PHOTORIG_BIN_DIR) + "/photorigd";
+      if (!std::freopen(log.c_str(), "a", stdout) || !std::freopen(log.c_str(), "a", stderr)) _exit(126);
+      ::execl(bin.c_str(), bin.c_str(), "--data-root", data_root.c_str(), "--rig", rig.c_str(), "--port", "0",
+              static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  ~Daemon() {
+    ::kill(pid_, SIGTERM);
+    ::waitpid(pid_, nullptr, 0);
+  }
+  // The address from its "event=ready" line, or "" if it never got ready.
+  std::string WaitReady() const {
+    static const std::regex ready(R"(event=ready listen=(127\.0\.0\.1:\d+))");
+    for (int i = 0; i < 1000; ++i) {
+      std::smatch match;
+      const std::string text = ReadText(log_);
+      if (std::regex_search(text, match, ready)) return "http://" + match[1].str();
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return "";
+  }
+
+ private:
+  fs::path log_;
+  pid_t pid_ = -1;
+};
+
+TEST(Cli, SubmitWatchJsonExitsZeroForARunThatEndsDone) {
+  TempDir dir;
+  const std::string rig = dir.Write("rig.yaml", SmallRigYaml());
+  const std::string recipe = dir.Write("recipe.yaml", photorig::testing::SmallRecipeYaml());
+  const Daemon daemon(dir.path() / "data", rig, dir.path() / "photorigd.log");
+  const std::string url = daemon.WaitReady();
+  ASSERT_FALSE(url.empty()) << ReadText(dir.path() / "photorigd.log");
+
+  const Outcome submitted = Photorig("submit " + recipe + " --watch --json --url " + url, dir);
+  EXPECT_EQ(submitted.exit_code, 0) << submitted.err;
+  const json watched = Document(submitted, "submit");
+  EXPECT_EQ(watched["state"], "done");
+  EXPECT_EQ(watched["stop"]["frames"], 5);
+  const std::string id = watched.value("id", "");
+  ASSERT_FALSE(id.empty());
+
+  const Outcome status = Photorig("status " + id + " --json --url " + url, dir);
+  ASSERT_EQ(status.exit_code, 0) << status.err;
+  EXPECT_EQ(Document(status, "status")["state"], "done");
+  const Outcome listed = Photorig("status --json --url " + url, dir);
+  ASSERT_EQ(listed.exit_code, 0) << listed.err;
+  EXPECT_EQ(Document(listed, "status")["runs"].size(), 1u);
+
+  // A finished run watched again ends at once, with how it ended.
+  const Outcome again = Photorig("watch " + id + " --json --url " + url, dir);
+  EXPECT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(Document(again, "watch")["state"], "done");
+
+  // Requests the daemon refuses are the caller's mistake: 2.
+  const Outcome unknown = Photorig("watch no-such-run --json --url " + url, dir);
+  EXPECT_EQ(unknown.exit_code, 2);
+  EXPECT_EQ(Document(unknown, "watch")["http_status"], 404);
+  const Outcome bad = Photorig("submit " + dir.Write("bad.yaml", "recipe: {name: bad}\n") + " --json --url " + url, dir);
+  EXPECT_EQ(bad.exit_code, 2);
+  Document(bad, "submit");
+}
+
+}  // namespace
