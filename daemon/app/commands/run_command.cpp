@@ -32,7 +32,7 @@ int Execute(const Options& options) {
   if (outcome.photometric_stereo) {
     PrintPhotometricStereoSummary(*outcome.photometric_stereo);
     std::printf("results: %s/results/ps/\n", outcome.directory.c_str());
-    if (!outcome.photometric_stereo->usable()) return 3;
+    if (!outcome.photometric_stereo->usable()) return 1;
   }
   if (outcome.light_calibration) {
     const daemon::LightCalibrationSummary& lights = *outcome.light_calibration;

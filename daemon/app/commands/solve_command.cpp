@@ -33,7 +33,7 @@ int Execute(const Options& options) {
   const daemon::PhotometricStereoResult result = daemon::SolveAndWrite(input, options.request, destination);
   PrintPhotometricStereoSummary(result);
   std::printf("results: %s/\n", destination.c_str());
-  return result.usable() ? 0 : 3;
+  return result.usable() ? 0 : 1;
 }
 
 CommandRunner SetupSolve(CLI::App& app) {
