@@ -199,6 +199,8 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   options.retry = request.retry;
   options.on_state = request.on_state;
   options.trigger_output = devices.trigger.get();
+  options.health = rig.health;
+  options.leds = rig.lights.leds;
   if (rig.motion) {
     options.motion = &devices.motion;
     options.motion_profile = rig.motion->profile;

@@ -64,10 +64,11 @@ bool IsTransient(const Status& status) {
 
 class Capture {
  public:
-  Capture(const CameraConfig& camera_config, drivers::LightController& lights, drivers::Camera& camera,
-          RunWriter& writer, const CaptureOptions& options, CaptureReport& report)
+  Capture(const std::vector<CaptureStep>& steps, const CameraConfig& camera_config,
+          drivers::LightController& lights, drivers::Camera& camera, RunWriter& writer, const CaptureOptions& options,
+          CaptureReport& report)
       : camera_config_(camera_config), lights_(lights), camera_(camera), writer_(writer), options_(options),
-        report_(report) {}
+        report_(report), health_(options.health, steps, options.leds) {}
 
   bool StopRequested() const {
     return (options_.stop_requested && options_.stop_requested->load()) ||
@@ -176,8 +177,9 @@ class Capture {
     return Status::Ok();
   }
 
-  // One step: a frame on disk and in the journal, or the device status that prevented it.
-  Status Step(const CaptureStep& step) {
+  // One step: a frame on disk and in the journal, or the device status that
+  // prevented it, or (status ok) the health check the frame failed, unstored.
+  Status Step(const CaptureStep& step, std::optional<HealthFinding>* unhealthy) {
     if (step.exposure_us != camera_.settings().exposure_us || step.gain_db != camera_.settings().gain_db) {
       if (Status s = camera_.Stop(); !s.ok()) return s;
       settings_.exposure_us = step.exposure_us;
@@ -206,20 +208,57 @@ class Capture {
     const Status off = lights_.AllOff();
     if (!frame.ok()) return frame.status();
     if (!off.ok()) return off;
-    const FrameRecord& record = writer_.WriteFrame(step, frame.value());  // throws on storage failure
+    const drivers::Frame& pixels = frame.value();
+    const bool measurable = health_.enabled() && pixels.pixels.size() == static_cast<std::size_t>(pixels.width) * pixels.height;
+    const cv::Mat view = measurable ? cv::Mat(pixels.height, pixels.width, CV_16U,
+                                              const_cast<std::uint16_t*>(pixels.pixels.data()))
+                                    : cv::Mat();
+    const FrameStats stats = measurable ? health_.Measure(view, pixels.bit_depth) : FrameStats{};
+    if (measurable) {
+      *unhealthy = health_.Judge(step, stats);
+      if (*unhealthy) {
+        ++report_.frames_rejected;
+        return Status::Ok();
+      }
+    }
+    const FrameRecord& record = writer_.WriteFrame(step, pixels);  // throws on storage failure
+    if (measurable) health_.Accept(step, view, stats);
     ++report_.frames_written;
     if (options_.on_frame) options_.on_frame(step, record, report_.steps_total);
     return Status::Ok();
   }
 
+  // A frame stored before this call (a resumed run) is a reference like any other.
+  void AcceptStored(const CaptureStep& step) {
+    if (!health_.enabled()) return;
+    for (const FrameRecord& record : writer_.manifest().frames)
+      if (record.index == step.index) {
+        const cv::Mat frame = LoadFrame(writer_.directory(), record);
+        health_.Accept(step, frame, health_.Measure(frame, record.bit_depth));
+        return;
+      }
+  }
+
+  // A device fault that ends the run; health findings so far go with it.
+  void Fail(std::string reason) {
+    if (!report_.health.empty()) reason += "; also " + FrameHealth::Describe(report_.health);
+    report_.status = CaptureStatus::kFailed;
+    report_.reason = std::move(reason);
+  }
+
   void Run(const std::vector<CaptureStep>& steps) {
     const RetryPolicy& retry = options_.retry;
     bool devices_open = false;
+    // Once a step has failed its health checks on every attempt, the run
+    // will fail; the rest is taken once per step, so the reason can name
+    // every LED that did not light, not only the first.
+    bool surveying = false;
     int attempts = 0;  // failed attempts at the current step
     int backoff_ms = retry.initial_backoff_ms;
     for (std::size_t i = 0; i < steps.size();) {
       const CaptureStep& step = steps[i];
       if (writer_.HasFrame(step.index)) {
+        AcceptStored(step);
         ++i;
         continue;
       }
@@ -231,33 +270,55 @@ class Capture {
       }
       Status status = devices_open ? Status::Ok() : OpenDevices(step);
       devices_open = status.ok();
-      if (status.ok()) status = Step(step);
-      if (status.ok()) {
+      std::optional<HealthFinding> unhealthy;
+      if (status.ok()) status = Step(step, &unhealthy);
+      if (status.ok() && !unhealthy) {
         ++i;
         attempts = 0;
         backoff_ms = retry.initial_backoff_ms;
         continue;
       }
-      if (status.code() == StatusCode::kTimeout || status.code() == StatusCode::kDataLoss) ++report_.dropped_frames;
       ++attempts;
-      if (!IsTransient(status) || attempts >= retry.max_attempts_per_step ||
-          report_.retries >= retry.max_retries_per_run) {
-        report_.status = CaptureStatus::kFailed;
-        report_.fault = status.code();
-        report_.reason = (IsTransient(status) ? "step " + step.label + " failed " + std::to_string(attempts) +
-                                                    " times; last: "
-                                              : "step " + step.label + ": ") +
-                         status.ToString();
-        return;
+      std::string fault;
+      if (unhealthy) {
+        // A frame can fail for a passing cause (a controller that dropped its
+        // state, a stale buffer), so it is retried like a transient fault.
+        fault = FrameHealth::Describe({*unhealthy});
+        if (surveying || attempts >= retry.max_attempts_per_step || report_.retries >= retry.max_retries_per_run) {
+          spdlog::error("step {}: {}", step.label, fault);
+          report_.health.push_back(*unhealthy);
+          surveying = true;
+          ++i;
+          attempts = 0;
+          backoff_ms = retry.initial_backoff_ms;
+          continue;
+        }
+      } else {
+        if (status.code() == StatusCode::kTimeout || status.code() == StatusCode::kDataLoss) ++report_.dropped_frames;
+        if (!IsTransient(status) || attempts >= retry.max_attempts_per_step ||
+            report_.retries >= retry.max_retries_per_run) {
+          report_.fault = status.code();
+          Fail((IsTransient(status) ? "step " + step.label + " failed " + std::to_string(attempts) + " times; last: "
+                                    : "step " + step.label + ": ") +
+               status.ToString());
+          return;
+        }
+        fault = status.ToString();
       }
       ++report_.retries;
-      spdlog::warn("step {}: {}; retry {} in {} ms", step.label, status.ToString(), attempts, backoff_ms);
-      Notify(RunState::kSuspended, status.ToString());
+      spdlog::warn("step {}: {}; retry {} in {} ms", step.label, fault, attempts, backoff_ms);
+      Notify(RunState::kSuspended, fault);
       CloseAfterFault();
       devices_open = false;
       if (!Sleep(backoff_ms)) continue;  // the stop check at the top of the loop ends the run
       backoff_ms = std::min(retry.max_backoff_ms, static_cast<int>(backoff_ms * retry.backoff_factor));
       Notify(RunState::kRunning, "retrying step " + step.label);
+    }
+    for (HealthFinding& dim : health_.CompareNeighbours()) report_.health.push_back(std::move(dim));
+    if (!report_.health.empty()) {
+      report_.status = CaptureStatus::kFailed;
+      report_.reason = FrameHealth::Describe(report_.health);
+      return;
     }
     report_.status = CaptureStatus::kComplete;
   }
@@ -269,6 +330,7 @@ class Capture {
   RunWriter& writer_;
   const CaptureOptions& options_;
   CaptureReport& report_;
+  FrameHealth health_;
   drivers::CameraSettings settings_;
 };
 
@@ -302,7 +364,7 @@ CaptureReport RunCapture(const std::vector<CaptureStep>& steps, const CameraConf
     DeviceGuard guard(lights, camera, options.motion, options.trigger_output);
     std::string why;
     if (!options.retry.IsValid(&why)) throw std::invalid_argument("retry policy: " + why);
-    Capture(camera_config, lights, camera, writer, options, report).Run(steps);
+    Capture(steps, camera_config, lights, camera, writer, options, report).Run(steps);
   } catch (const std::exception& e) {
     report.status = CaptureStatus::kFailed;
     report.reason = e.what();

@@ -96,22 +96,40 @@ std::set<T> IndexSet(const YamlNode& node, const char* key) {
   return values;
 }
 
-// sim.faults: {camera: {drop_frames: [..], short_frames: [..], corrupt_frames: [..], disconnect_at: [..]},
-//              lights: {fail_commands: [..], stuck_off_channels: [..]},
+// sim.faults: {camera: {drop_frames: [..], short_frames: [..], corrupt_frames: [..], disconnect_at: [..],
+//                       repeat_frames: [..], lens_cap: bool},
+//              lights: {fail_commands: [..], stuck_off_channels: [..], dim_channels: {<channel>: fraction}},
 //              motion: {<axis id>: {refused_moves: [..]}}}
 void ParseFaults(const YamlNode& node, const std::optional<MotionConfig>& motion, SimConfig* sim) {
   node.ExpectKeys({"camera", "lights", "motion"});
   if (auto camera = node.Find("camera")) {
-    camera->ExpectKeys({"drop_frames", "short_frames", "corrupt_frames", "disconnect_at"});
+    camera->ExpectKeys({"drop_frames", "short_frames", "corrupt_frames", "disconnect_at", "repeat_frames", "lens_cap"});
     sim->camera_faults.drop_frames = IndexSet<std::uint64_t>(*camera, "drop_frames");
     sim->camera_faults.short_frames = IndexSet<std::uint64_t>(*camera, "short_frames");
     sim->camera_faults.corrupt_frames = IndexSet<std::uint64_t>(*camera, "corrupt_frames");
     sim->camera_faults.disconnect_at = IndexSet<std::uint64_t>(*camera, "disconnect_at");
+    sim->camera_faults.repeat_frames = IndexSet<std::uint64_t>(*camera, "repeat_frames");
+    sim->camera_faults.lens_cap = camera->Bool("lens_cap", false);
   }
   if (auto lights = node.Find("lights")) {
-    lights->ExpectKeys({"fail_commands", "stuck_off_channels"});
+    lights->ExpectKeys({"fail_commands", "stuck_off_channels", "dim_channels"});
     sim->light_faults.fail_commands = IndexSet<std::uint64_t>(*lights, "fail_commands");
     sim->light_faults.stuck_off_channels = IndexSet<int>(*lights, "stuck_off_channels");
+    if (auto dim = lights->Find("dim_channels"))
+      for (const std::string& key : dim->Keys()) {
+        const YamlNode fraction = (*dim)[key];
+        int channel = -1;
+        try {
+          std::size_t used = 0;
+          channel = std::stoi(key, &used);
+          if (used != key.size()) channel = -1;
+        } catch (const std::exception&) {
+        }
+        if (channel < 0) fraction.Fail("'" + key + "' is not a channel number (>= 0)");
+        if (!(fraction.AsDouble() >= 0.0 && fraction.AsDouble() < 1.0))
+          fraction.Fail("must lie in [0, 1): the fraction of its light the LED still emits");
+        sim->light_faults.dim_channels[channel] = fraction.AsDouble();
+      }
   }
   if (auto axes = node.Find("motion")) {
     if (!motion) axes->Fail("motion faults need a 'motion:' section");
@@ -228,6 +246,31 @@ MotionConfig ParseMotion(const YamlNode& node) {
   return motion;
 }
 
+// health: {enabled, lit_sigma, max_clipped_fraction, saturation_dn, min_neighbour_ratio, neighbours,
+//          max_brightness_ratio}; `health` holds the defaults.
+HealthConfig ParseHealth(const YamlNode& node, HealthConfig health) {
+  node.ExpectKeys({"enabled", "lit_sigma", "max_clipped_fraction", "saturation_dn", "min_neighbour_ratio",
+                   "neighbours", "max_brightness_ratio"});
+  health.enabled = node.Bool("enabled", health.enabled);
+  auto in_range = [&node](const char* key, double value, double low, double high, const char* range) {
+    if (!(value >= low && value <= high)) node[key].Fail(std::string("must lie in ") + range);
+    return value;
+  };
+  health.lit_sigma = in_range("lit_sigma", node.Double("lit_sigma", health.lit_sigma), 3.0, 1000.0, "[3, 1000]");
+  health.max_clipped_fraction = in_range(
+      "max_clipped_fraction", node.Double("max_clipped_fraction", health.max_clipped_fraction), 0.0, 1.0, "[0, 1]");
+  health.saturation_dn =
+      in_range("saturation_dn", node.Double("saturation_dn", health.saturation_dn), 0.0, 65535.0, "[0, 65535]");
+  health.min_neighbour_ratio = in_range(
+      "min_neighbour_ratio", node.Double("min_neighbour_ratio", health.min_neighbour_ratio), 0.0, 0.99, "[0, 0.99]");
+  health.neighbours = static_cast<int>(
+      in_range("neighbours", node.Int("neighbours", health.neighbours), 1, 16, "[1, 16]"));
+  health.max_brightness_ratio = in_range(
+      "max_brightness_ratio", node.Double("max_brightness_ratio", health.max_brightness_ratio), 1.1, 100.0,
+      "[1.1, 100]");
+  return health;
+}
+
 }  // namespace
 
 const AxisConfig* MotionConfig::axis(const std::string& id) const {
@@ -257,7 +300,7 @@ std::string MotionConfig::CheckPose(const std::map<std::string, double>& positio
 
 RigConfig LoadRigConfig(const std::string& path) {
   const YamlNode root = YamlNode::LoadFile(path);
-  root.ExpectKeys({"rig", "lights", "camera", "sim", "motion"});
+  root.ExpectKeys({"rig", "lights", "camera", "sim", "motion", "health"});
   RigConfig rig;
   rig.path = path;
   const YamlNode header = root["rig"];
@@ -346,6 +389,13 @@ RigConfig LoadRigConfig(const std::string& path) {
     cam.dn_per_radiance_per_us = calibration->AsDouble();
     if (!(cam.dn_per_radiance_per_us > 0)) calibration->Fail("must be > 0");
   }
+  if (rig.sim) {
+    const sim::SensorModel& sensor = rig.sim->sensor;
+    rig.health.saturation_dn =
+        std::min(sensor.max_dn(), sensor.black_level_dn + sensor.full_well_e / sensor.e_per_dn) -
+        3.0 * sensor.read_noise_e / sensor.e_per_dn;
+  }
+  if (auto health = root.Find("health")) rig.health = ParseHealth(*health, rig.health);
   if ((rig.lights.driver == "sim" || cam.driver == "sim") && !rig.sim)
     root.Fail("simulated devices need a 'sim:' section");
   return rig;

@@ -116,8 +116,16 @@ Status SimCamera::Capture() {
   frame.pixel_format = "Mono" + std::to_string(s.bit_depth);
   frame.frame_id = next_frame_id_++;
   frame.device_timestamp_ns = NowNs(false);
-  frame.pixels = ExposeFrame(world_->config().sensor, world_->RenderRadiance(), s.exposure_us, s.gain_db,
-                             world_->config().seed, frame.frame_id);
+  if (faults.repeat_frames.count(trigger) && !last_pixels_.empty()) {
+    frame.pixels = last_pixels_;
+  } else {
+    const cv::Mat radiance = faults.lens_cap ? cv::Mat::zeros(s.height, s.width, CV_32F) : world_->RenderRadiance();
+    // Noise seeded by the trigger count, which a reopen does not reset (frame
+    // ids restart at 0): no two exposures of a camera share their noise.
+    frame.pixels = ExposeFrame(world_->config().sensor, radiance, s.exposure_us, s.gain_db, world_->config().seed,
+                               trigger);
+  }
+  last_pixels_ = frame.pixels;
   frame.host_timestamp_ns = NowNs(true);
   if (faults.short_frames.count(trigger)) frame.pixels.resize(frame.pixels.size() / 2);
   if (faults.corrupt_frames.count(trigger)) {

@@ -70,20 +70,27 @@ bool World::PulseTriggerInput() {
   return true;
 }
 
+std::vector<double> World::EmittedLevels() const {
+  std::vector<double> emitted = levels();
+  for (const auto& [channel, fraction] : config_.light_faults.dim_channels)
+    if (channel >= 0 && channel < static_cast<int>(emitted.size())) emitted[channel] *= fraction;
+  return emitted;
+}
+
 cv::Mat World::RenderRadiance() const {
+  const std::vector<double> emitted = EmittedLevels();
   if (config_.gonioreflectometer)
-    return RenderGonioRadiance(config_.scene, *brdf_, config_.camera, config_.lights, levels(), arms());
+    return RenderGonioRadiance(config_.scene, *brdf_, config_.camera, config_.lights, emitted, arms());
   // The backlight belongs to the scene, not to the dome: it is always on.
   if (config_.scene.shape == Scene::Shape::kVolume)
     return RenderTransmission(surface_.line_integrals, config_.scene.backlight_radiance);
-  cv::Mat radiance = sim::RenderRadiance(surface_, *brdf_, cast_shadows_, config_.lights, levels());
+  cv::Mat radiance = sim::RenderRadiance(surface_, *brdf_, cast_shadows_, config_.lights, emitted);
   if (config_.scene.interreflection_samples > 0)
     radiance += RenderOneBounce(surface_, *brdf_, radiance, config_.scene.interreflection_samples, config_.seed);
   if (!sky_response_.empty()) {
-    const std::vector<double> now = levels();
     double sky_irradiance = config_.ambient.stray_irradiance;
-    for (std::size_t k = 0; k < now.size() && k < config_.lights.size(); ++k)
-      sky_irradiance += config_.ambient.dome_fraction * now[k] * config_.lights[k].irradiance;
+    for (std::size_t k = 0; k < emitted.size() && k < config_.lights.size(); ++k)
+      sky_irradiance += config_.ambient.dome_fraction * emitted[k] * config_.lights[k].irradiance;
     radiance += sky_response_ * sky_irradiance;
   }
   return radiance;

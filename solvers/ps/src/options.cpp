@@ -68,6 +68,10 @@ bool PhotometricStereoOptions::IsValid(std::string* why) const {
     if (why) *why = "shadow_threshold_read_sigmas must be finite and >= 0";
     return false;
   }
+  if (!(min_signal_read_sigmas >= 0.0) || !std::isfinite(min_signal_read_sigmas) || min_signal_pixels < 1) {
+    if (why) *why = "min_signal_read_sigmas must be finite and >= 0, min_signal_pixels >= 1";
+    return false;
+  }
   return lambertian.IsValid(why) && robust.IsValid(why) && blinn_phong.IsValid(why) && selection.IsValid(why);
 }
 

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <string>
 
 namespace photorig::ps {
@@ -33,6 +34,30 @@ class TileProgress {
   const bool listening_;
   std::atomic<std::int64_t> done_{0};
 };
+// Empty when at least three images rise above the dark over enough pixels
+// (or the stack gives no dark and read noise to judge by); else why not.
+std::string MissingSignal(const PhotometricStereoOptions& options, const PhotometricStack& stack) {
+  if (options.min_signal_read_sigmas <= 0.0 || stack.dark.empty() || !(stack.noise.read_sigma > 0.0) ||
+      !stack.IsValid(nullptr))
+    return {};
+  const float threshold = static_cast<float>(options.min_signal_read_sigmas * stack.noise.read_sigma);
+  const std::size_t pixels = stack.dark.total();
+  const float* dark = stack.dark.ptr<float>();
+  int with_signal = 0;
+  for (const cv::Mat& image : stack.images) {
+    const float* values = image.ptr<float>();
+    int above = 0;
+    for (std::size_t i = 0; i < pixels && above < options.min_signal_pixels; ++i) above += values[i] - dark[i] > threshold;
+    if (above >= options.min_signal_pixels && ++with_signal >= 3) return {};
+  }
+  char text[400];
+  std::snprintf(text, sizeof(text),
+                "no usable signal: %d of %d images have %d pixels %g read-noise sigmas (%.1f) above the dark, and a "
+                "normal needs 3 lit images; were the lights on? Check the light controller's power and wiring, and "
+                "that nothing covers the lens",
+                with_signal, stack.light_count(), options.min_signal_pixels, options.min_signal_read_sigmas, threshold);
+  return text;
+}
 
 }  // namespace
 
@@ -44,6 +69,13 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     SolverSummary summary;
     summary.method = MethodName(options.method);
     summary.End(Termination::kInvalidOptions, "invalid options: " + why);
+    return summary;
+  }
+  if (const std::string missing = MissingSignal(options, stack); !missing.empty()) {
+    SolverSummary summary;
+    summary.method = MethodName(options.method);
+    summary.light_count = stack.light_count();
+    summary.End(Termination::kFailure, missing);
     return summary;
   }
   LambertianOptions lambertian = options.lambertian;

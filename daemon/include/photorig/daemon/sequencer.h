@@ -12,8 +12,16 @@
 // switched off, the camera stopped and every axis stopped and closed on every
 // exit path: normal end, device error, storage error, exception, pause and
 // stop request.
+// Every frame passes the capture health checks (frame_health.h) before it is
+// stored: a frame that fails is retried like a transient fault (devices
+// reopened, counting against the RetryPolicy); once a step's attempts are
+// spent the run is bound to fail, but the remaining steps are still taken,
+// once each, so the reason names every LED or frame that failed, and the
+// healthy frames are stored. A failed frame is never stored, so a resumed
+// run takes it again.
 
 #include "photorig/daemon/device_factory.h"
+#include "photorig/daemon/frame_health.h"
 #include "photorig/daemon/recipe.h"
 #include "photorig/daemon/run_control.h"
 #include "photorig/daemon/run_store.h"
@@ -50,6 +58,10 @@ struct CaptureOptions {
   // Required when the camera config asks for a hardware trigger: fired once
   // per frame, after the lights are checked; closed (deasserted) on every exit.
   drivers::TriggerOutput* trigger_output = nullptr;
+  // Thresholds of the health checks (the rig's `health:`), and the rig's
+  // LEDs, which name them in messages and find each LED's neighbours.
+  HealthConfig health;
+  std::vector<LedConfig> leds;
   std::function<void(const CaptureStep&, const FrameRecord&, int total)> on_frame;
   // Every state change of the run: kRunning, kPaused, kSuspended (detail: the fault), kAborting.
   std::function<void(RunState, const std::string& detail)> on_state;
@@ -66,6 +78,8 @@ struct CaptureReport {
   int steps_total = 0;
   int retries = 0;
   int dropped_frames = 0;   // frames that timed out or arrived damaged
+  int frames_rejected = 0;  // frames that failed a health check (retries included), never stored
+  std::vector<HealthFinding> health;  // the checks that failed the run; `reason` describes them
   double elapsed_ms = 0.0;
   std::vector<drivers::SettingAdjustment> adjustments;
 

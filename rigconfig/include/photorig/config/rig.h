@@ -136,6 +136,34 @@ struct SimConfig {
   std::map<std::string, sim::AxisFaults> axis_faults;  // by axis id
 };
 
+// Thresholds of the checks every captured frame passes before it is stored
+// (rig `health:`, docs/daemon.md "Capture health checks"). The defaults hold
+// for any rig whose frames are healthy; loading range-checks each key.
+struct HealthConfig {
+  bool enabled = true;
+  // A lit frame needs a pixel this many noise sigmas above the dark: the
+  // brightest pixel, because a mirror sphere's highlight may be one pixel,
+  // and 10 sigma because noise alone stays below 6 sigma on 10^7 pixels.
+  // A dark frame whose mean rises this far above the earlier darks saw light.
+  double lit_sigma = 10.0;
+  // Clipped (full-scale) pixels a frame may have: the solvers drop clipped
+  // samples per pixel, but a frame clipped this widely is overexposed.
+  double max_clipped_fraction = 0.02;
+  // The code at or above which a pixel counts as clipped; 0: the full-scale
+  // code 2^bit_depth - 1. A sensor whose full well fills before its ADC does
+  // clips lower (EMVA 1288 saturation capacity / conversion gain + black);
+  // a simulated rig's default is its sensor's, less 3 read-noise sigmas,
+  // since the simulated read noise is added after the full-well clip.
+  double saturation_dn = 0.0;
+  // An LED whose mean response is below this fraction of the median of its
+  // nearest neighbours (by direction) is dead or dim; 0 turns the check off.
+  double min_neighbour_ratio = 0.25;
+  int neighbours = 4;
+  // A frame of a pattern taken before (a repeat, another bracket exposure)
+  // must be within this factor of that frame's response scaled by exposure.
+  double max_brightness_ratio = 2.0;
+};
+
 struct RigConfig {
   std::string path;
   std::string name;
@@ -144,6 +172,7 @@ struct RigConfig {
   CameraConfig camera;
   std::optional<SimConfig> sim;  // present when any device is simulated
   std::optional<MotionConfig> motion;  // gonioreflectometers only
+  HealthConfig health;
 
   bool IsSimulated() const { return sim.has_value(); }
 };

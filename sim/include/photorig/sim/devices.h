@@ -56,6 +56,7 @@ class SimCamera : public drivers::Camera {
   std::uint64_t triggers_ = 0;       // lifetime count, indexes CameraFaults
   bool link_lost_ = false;
   std::set<std::uint64_t> corrupt_ids_;
+  std::vector<std::uint16_t> last_pixels_;  // what CameraFaults::repeat_frames delivers again
 };
 
 // The simulated rig's trigger output: each Fire pulses the world's trigger

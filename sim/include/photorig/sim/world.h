@@ -49,7 +49,8 @@ class World {
   // (std::invalid_argument otherwise), as the simulated axes report them.
   void SetArm(const std::string& axis, double position_deg);
   ArmAngles arms() const;
-  // Radiance under the current light levels (and arm angles).
+  // Radiance under the light the LEDs emit at their current levels (dimmed
+  // by LightFaults::dim_channels) and the current arm angles.
   cv::Mat RenderRadiance() const;
 
   // The wire from a trigger output to the camera's input line: an armed
@@ -61,6 +62,8 @@ class World {
   bool PulseTriggerInput();
 
  private:
+  std::vector<double> EmittedLevels() const;
+
   WorldConfig config_;
   SurfaceMaps surface_;
   std::unique_ptr<Brdf> brdf_;

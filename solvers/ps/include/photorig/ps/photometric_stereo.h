@@ -127,6 +127,16 @@ struct PhotometricStereoOptions {
   // both. Called on the thread that called SolvePhotometricStereo, about
   // every percent of the image. Empty: no reports.
   solvers::ProgressCallback progress;
+  // A stack must carry signal: at least three of its images (a normal needs
+  // three lights) must each have min_signal_pixels pixels this many read-noise
+  // sigmas above the dark, else the solve ends kFailure rather than solve
+  // noise (a black stack from lights that never came on). Noise alone puts
+  // one pixel in 3.5 million above 5 sigma. Tested only where the stack has
+  // a dark and its read noise (a black level to measure against); it stops
+  // reading as soon as three images pass, so it costs next to nothing on a
+  // healthy stack. 0: off.
+  double min_signal_read_sigmas = 5.0;
+  int min_signal_pixels = 16;
   bool IsValid(std::string* why) const;
 };
 
