@@ -37,6 +37,8 @@ bool ServiceOptions::IsValid(std::string* why) const {
   std::string detail;
   if (!retry.IsValid(&detail)) return fail("retry: " + detail);
   if (!plan.IsValid(&detail)) return fail("plan: " + detail);
+  if (!limits.IsValid(&detail)) return fail("limits: " + detail);
+  if (max_listed_steps == 0) return fail("max_listed_steps must be > 0");
   return true;
 }
 
@@ -236,9 +238,11 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
   try {
     const RigConfig rig = LoadRigConfig(options_.rig_path);
     const Recipe recipe = LoadRecipeText(recipe_yaml, name, rig);
-    const auto steps = CompileSteps(recipe, rig);
+    CaptureLimits limits = options_.limits;
+    limits.step_overhead_ms = options_.plan.step_overhead_ms;
+    const auto steps = CompileSteps(recipe, rig, limits);
     const RunPlan plan = PlanRun(recipe, rig, steps, options_.plan);
-    json body = plan.ToJson(steps);
+    json body = plan.ToJson(steps, options_.max_listed_steps);
     body["recipe"] = recipe.name;
     body["rig"] = rig.name;
     if (!plan.ok()) return {422, {{"error", plan.errors.front()}, {"plan", body}}};
@@ -250,7 +254,9 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
                     {"plan", body}}};
     return {200, body};
   } catch (const ConfigError& e) {
-    return {400,
+    // A recipe that expands beyond the limits is too large, not malformed.
+    const bool too_large = dynamic_cast<const CaptureLimitError*>(&e) != nullptr;
+    return {too_large ? 413 : 400,
             {{"error", e.what()}, {"file", e.file()}, {"line", e.line()}, {"column", e.column()}, {"key", e.key()}}};
   } catch (const std::exception& e) {
     return Error(400, e.what());

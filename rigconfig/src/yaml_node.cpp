@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 
 namespace photorig::config {
@@ -29,14 +32,51 @@ ConfigError::ConfigError(const std::string& file, int line, int column, const st
       line_(line),
       column_(column) {}
 
+bool IsValidUtf8(std::string_view text, std::size_t* bad_offset) {
+  const auto* bytes = reinterpret_cast<const unsigned char*>(text.data());
+  std::size_t i = 0;
+  auto bad = [&] {
+    if (bad_offset) *bad_offset = i;
+    return false;
+  };
+  while (i < text.size()) {
+    const unsigned char c = bytes[i];
+    std::size_t length = 0;
+    std::uint32_t code = 0, min = 0;
+    if (c < 0x80) length = 1, code = c;
+    else if ((c & 0xE0) == 0xC0) length = 2, code = c & 0x1F, min = 0x80;
+    else if ((c & 0xF0) == 0xE0) length = 3, code = c & 0x0F, min = 0x800;
+    else if ((c & 0xF8) == 0xF0) length = 4, code = c & 0x07, min = 0x10000;
+    else return bad();
+    if (i + length > text.size()) return bad();
+    for (std::size_t k = 1; k < length; ++k) {
+      if ((bytes[i + k] & 0xC0) != 0x80) return bad();
+      code = (code << 6) | (bytes[i + k] & 0x3F);
+    }
+    if (code < min || code > 0x10FFFF || (code >= 0xD800 && code <= 0xDFFF)) return bad();
+    i += length;
+  }
+  return true;
+}
+
 YamlNode YamlNode::LoadFile(const std::string& path) {
-  std::ifstream in(path);
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) throw ConfigError(path, 0, 0, "", "is a directory, not a file");
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError(path, 0, 0, "", "cannot open file");
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw ConfigError(path, 0, 0, "", "cannot read file");
   return LoadString(text, path);
 }
 
 YamlNode YamlNode::LoadString(const std::string& text, const std::string& name) {
+  // Names and messages from the file end up in JSON, which must be UTF-8.
+  if (std::size_t bad = 0; !IsValidUtf8(text, &bad)) {
+    const std::size_t line_start = text.rfind('\n', bad == 0 ? 0 : bad - 1);
+    const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(bad), '\n'));
+    const int column = 1 + static_cast<int>(line_start == std::string::npos || bad == 0 ? bad : bad - line_start - 1);
+    throw ConfigError(name, line, column, "", "not UTF-8 text (byte " + std::to_string(bad) + ")");
+  }
   try {
     YAML::Node root = YAML::Load(text);
     if (!root.IsMap()) throw ConfigError(name, 1, 1, "", "expected a map at the top level");
@@ -49,11 +89,13 @@ YamlNode YamlNode::LoadString(const std::string& text, const std::string& name) 
 YamlNode::YamlNode(YAML::Node node, std::string file, std::string key)
     : node_(std::move(node)), file_(std::move(file)), key_(std::move(key)) {}
 
-void YamlNode::Fail(const std::string& message) const {
+int YamlNode::line() const {
   const YAML::Mark mark = node_.Mark();
-  const bool known = mark.line >= 0 && !mark.is_null();
-  throw ConfigError(file_, known ? mark.line + 1 : 0, known ? mark.column + 1 : 0, key_, message);
+  return mark.line >= 0 && !mark.is_null() ? mark.line + 1 : 0;
 }
+int YamlNode::column() const { return line() > 0 ? node_.Mark().column + 1 : 0; }
+
+void YamlNode::Fail(const std::string& message) const { throw ConfigError(file_, line(), column(), key_, message); }
 
 bool YamlNode::Has(const std::string& child) const { return node_.IsMap() && node_[child].IsDefined(); }
 
@@ -145,6 +187,21 @@ std::vector<int> YamlNode::AsIntList() const {
   std::vector<int> values;
   for (const YamlNode& item : Items()) values.push_back(item.AsInt());
   return values;
+}
+
+double YamlNode::AsDoubleIn(double min, double max) const {
+  const double value = AsDouble();
+  if (!(value >= min && value <= max)) {
+    char range[80];
+    std::snprintf(range, sizeof(range), "must lie in [%g, %g]", min, max);
+    Fail(range);
+  }
+  return value;
+}
+
+double YamlNode::DoubleIn(const std::string& child, double fallback, double min, double max) const {
+  const auto node = Find(child);
+  return node ? node->AsDoubleIn(min, max) : fallback;
 }
 
 double YamlNode::Double(const std::string& child, double fallback) const {

@@ -35,6 +35,10 @@ struct ServiceOptions {
   bool resume_interrupted = true;        // false: mark runs a crash interrupted as "interrupted"
   bool solve = true;                     // run the recipe's solve: stages after a complete capture
   std::size_t max_recipe_bytes = 256 * 1024;
+  // What one recipe may expand to (frames, bytes, duration); beyond it
+  // dry-run and submit answer 413. Its step_overhead_ms is plan.step_overhead_ms.
+  CaptureLimits limits;
+  std::size_t max_listed_steps = 10000;  // steps listed in a dry-run or submit answer
   RetryPolicy retry;
   PlanOptions plan;
 

@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace photorig::config {
@@ -28,9 +29,15 @@ class ConfigError : public std::runtime_error {
   int line_, column_;
 };
 
+// True when `text` is well-formed UTF-8 (no overlong forms, surrogates or
+// code points above U+10FFFF); `*bad_offset` is the first byte that is not.
+bool IsValidUtf8(std::string_view text, std::size_t* bad_offset = nullptr);
+
 class YamlNode {
  public:
   // Parses a file; syntax errors become ConfigError with the parser's position.
+  // A path that is no readable regular file and text that is not UTF-8 are
+  // errors too (the latter at the first bad byte).
   static YamlNode LoadFile(const std::string& path);
   static YamlNode LoadString(const std::string& text, const std::string& name);
 
@@ -41,6 +48,8 @@ class YamlNode {
   bool IsMap() const { return node_.IsMap(); }
   bool IsSequence() const { return node_.IsSequence(); }
   bool IsScalar() const { return node_.IsScalar(); }
+  int line() const;    // 1-based; 0 when unknown
+  int column() const;  // 1-based; 0 when unknown
 
   bool Has(const std::string& child) const;
   YamlNode operator[](const std::string& child) const;  // required: error if missing
@@ -62,6 +71,9 @@ class YamlNode {
   int Int(const std::string& child, int fallback) const;
   bool Bool(const std::string& child, bool fallback) const;
   std::string String(const std::string& child, const std::string& fallback) const;
+  // A number within [min, max]; otherwise an error naming the range.
+  double AsDoubleIn(double min, double max) const;
+  double DoubleIn(const std::string& child, double fallback, double min, double max) const;
 
   [[noreturn]] void Fail(const std::string& message) const;
 
