@@ -120,7 +120,7 @@ void RunService::SetState(QueuedRun& run, RunState state, const std::string& rea
 
 void RunService::AnnounceState(const QueuedRun& run) {
   spdlog::info("run={} event=state state={}{}{}", run.id, RunStateName(run.state), run.reason.empty() ? "" : " reason=",
-               run.reason.empty() ? "" : json(run.reason).dump());
+               run.reason.empty() ? "" : json(run.reason).dump(-1, ' ', false, json::error_handler_t::replace));
   Publish(run.id, "state", {{"state", RunStateName(run.state)}, {"reason", run.reason}});
 }
 
