@@ -215,7 +215,11 @@ void ApiServer::Routes() {
     spdlog::debug("event=http method={} path={} status={}", req.method, req.path, res.status);
   });
   s.set_error_handler([](const httplib::Request&, httplib::Response& res) {
-    if (res.body.empty()) ErrorReply(res, res.status, res.status == 413 ? "request body too large" : "no such route");
+    if (!res.body.empty()) return;
+    ErrorReply(res, res.status,
+               res.status == 413   ? "request body too large"
+               : res.status == 404 ? "no such route"
+                                   : "malformed request");
   });
   // Every error a handler lets through ends here as a 500; the daemon keeps serving.
   s.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {

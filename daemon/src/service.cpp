@@ -237,7 +237,9 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
   if (recipe_yaml.empty()) return Error(400, "empty recipe");
   try {
     const RigConfig rig = LoadRigConfig(options_.rig_path);
-    const Recipe recipe = LoadRecipeText(recipe_yaml, name, rig);
+    // Resolved where the run will read it from: the recipes folder of the data root.
+    const Recipe recipe =
+        LoadRecipeText(recipe_yaml, name, rig, (fs::path(options_.data_root) / "recipes").string());
     CaptureLimits limits = options_.limits;
     limits.step_overhead_ms = options_.plan.step_overhead_ms;
     const auto steps = CompileSteps(recipe, rig, limits);

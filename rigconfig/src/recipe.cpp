@@ -160,11 +160,19 @@ Recipe::Group ParseGroup(const YamlNode& step) {
 }
 }  // namespace
 
-Recipe LoadRecipe(const std::string& path, const RigConfig& rig) {
-  return ParseRecipe(YamlNode::LoadFile(path), path, rig);
+// The folder a recipe's paths stay in: the one given, else the recipe file's.
+std::string PathRoot(const std::string& recipe_path, const std::string& directory) {
+  if (!directory.empty()) return directory;
+  const fs::path parent = fs::path(recipe_path).parent_path();
+  return parent.empty() ? "." : parent.string();
 }
-Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig) {
-  return ParseRecipe(YamlNode::LoadString(text, name), name, rig);
+
+Recipe LoadRecipe(const std::string& path, const RigConfig& rig) {
+  return ParseRecipe(YamlNode::LoadFile(path).ConfinedTo(PathRoot(path, "")), path, rig);
+}
+Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig,
+                      const std::string& directory) {
+  return ParseRecipe(YamlNode::LoadString(text, name).ConfinedTo(PathRoot(name, directory)), name, rig);
 }
 
 namespace {

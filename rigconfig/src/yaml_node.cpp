@@ -103,7 +103,9 @@ YamlNode YamlNode::operator[](const std::string& child) const {
   if (!node_.IsMap()) Fail("expected a map with key '" + child + "', got " + Describe(node_));
   const YAML::Node value = node_[child];
   if (!value.IsDefined()) Fail("missing required key '" + child + "'");
-  return YamlNode(value, file_, key_.empty() ? child : key_ + "." + child);
+  YamlNode found(value, file_, key_.empty() ? child : key_ + "." + child);
+  found.path_root_ = path_root_;
+  return found;
 }
 
 std::optional<YamlNode> YamlNode::Find(const std::string& child) const {
@@ -114,8 +116,10 @@ std::optional<YamlNode> YamlNode::Find(const std::string& child) const {
 std::vector<YamlNode> YamlNode::Items() const {
   if (!node_.IsSequence()) Fail("expected a list, got " + Describe(node_));
   std::vector<YamlNode> items;
-  for (std::size_t i = 0; i < node_.size(); ++i)
+  for (std::size_t i = 0; i < node_.size(); ++i) {
     items.emplace_back(node_[i], file_, key_ + "[" + std::to_string(i) + "]");
+    items.back().path_root_ = path_root_;
+  }
   return items;
 }
 
@@ -137,6 +141,28 @@ void YamlNode::ExpectKeys(std::initializer_list<const char*> allowed) const {
           .Fail("unknown key '" + name + "' (expected one of: " + list + ")");
     }
   }
+}
+
+YamlNode YamlNode::ConfinedTo(const std::string& directory) const {
+  YamlNode confined = *this;
+  confined.path_root_ = std::filesystem::weakly_canonical(std::filesystem::absolute(directory)).string();
+  return confined;
+}
+
+std::string YamlNode::AsPath() const {
+  namespace fs = std::filesystem;
+  const fs::path path = AsString();
+  if (path.empty()) Fail("expected a path, got an empty string");
+  const fs::path base = path_root_.empty() ? fs::path(file_).parent_path() : fs::path(path_root_);
+  const fs::path resolved = (path.is_absolute() ? path : base / path).lexically_normal();
+  if (path_root_.empty()) return resolved.string();
+  std::error_code error;
+  const fs::path real = fs::weakly_canonical(resolved, error);
+  const fs::path root = path_root_;
+  const auto mismatch = std::mismatch(root.begin(), root.end(), real.begin(), real.end());
+  if (error || mismatch.first != root.end() || path.string().find('\0') != std::string::npos)
+    Fail("must lie inside " + path_root_ + " (paths a recipe names stay in its folder)");
+  return real.string();
 }
 
 std::string YamlNode::AsString() const {

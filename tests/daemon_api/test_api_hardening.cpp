@@ -198,6 +198,41 @@ TEST_F(Hardening, ForeignPagesCannotChangeAnything) {
   EXPECT_EQ(raw.Post("/api/v1/dry-run?name=small.yaml", SmallRecipeYaml(), "application/yaml")->status, 200);
 }
 
+// Finding 3: recipes wrote and probed files anywhere.
+TEST_F(Hardening, PathsARecipeNamesStayInTheDataRoot) {
+  StartDaemon();
+  ApiClient client = Client();
+  const std::string existing = dir_.Write("outside.ply", "ply\nformat ascii 1.0\nend_header\n");
+  const std::string missing = (dir_.path() / "missing.ply").string();
+  auto with_scene = [](const std::string& path) {
+    return "recipe: {name: s}\nsample:\n  sim_scene: {shape: mesh, path: " + path +
+           "}\ncapture:\n  steps:\n    - dark: {count: 1}\n";
+  };
+  const auto probe_existing = client.Post("/api/v1/dry-run", {{"name", "s.yaml"}, {"recipe", with_scene(existing)}});
+  const auto probe_missing = client.Post("/api/v1/dry-run", {{"name", "s.yaml"}, {"recipe", with_scene(missing)}});
+  const auto probe_relative = client.Post("/api/v1/dry-run", {{"name", "s.yaml"}, {"recipe", with_scene("../../outside.ply")}});
+  EXPECT_EQ(probe_existing.http_status, 400);
+  EXPECT_EQ(probe_relative.http_status, 400);
+  // Whether the file exists outside is not told.
+  EXPECT_EQ(probe_existing.body["error"], probe_missing.body["error"]) << probe_existing.body.dump();
+  EXPECT_NE(probe_existing.body["error"].get<std::string>().find("s.yaml:3:34: sample.sim_scene.path: must lie inside"),
+            std::string::npos)
+      << probe_existing.body.dump();
+
+  auto with_out_rig = [](const std::string& path) {
+    return "recipe: {name: c}\ncapture:\n  steps:\n    - dark: {count: 1}\nsolve:\n  - light_calibration: {out_rig: " +
+           path + "}\n";
+  };
+  for (const std::string& path : {(dir_.path() / "evil.yaml").string(), std::string("../../rig.yaml"),
+                                  std::string("../queue.sqlite"), std::string("calibrated.sqlite")}) {
+    const auto reply = client.Post("/api/v1/runs", {{"name", "c.yaml"}, {"recipe", with_out_rig(path)}});
+    EXPECT_EQ(reply.http_status, 400) << path << ": " << reply.body.dump();
+  }
+  const auto inside = client.Post("/api/v1/dry-run", {{"name", "c.yaml"}, {"recipe", with_out_rig("calibrated.yaml")}});
+  EXPECT_EQ(inside.http_status, 200) << inside.body.dump();
+  EXPECT_TRUE(client.Get("/api/v1/runs").body["runs"].empty());
+}
+
 TEST_F(Hardening, AValidTokenIsAcceptedUnderAnyHost) {
   StartDaemon(kToken);
   httplib::Client raw = Raw();

@@ -101,10 +101,15 @@ class CaptureLimitError : public ConfigError {
 const char* CaptureStepKindName(CaptureStep::Kind kind);
 
 // Reads a recipe for the rig it will run on. Throws ConfigError naming
-// file:line:column and key.
+// file:line:column and key. Every path the recipe names (sample.sim_scene.path,
+// light_calibration's silhouette and out_rig) is relative to the recipe's
+// folder and must stay inside it.
 Recipe LoadRecipe(const std::string& path, const RigConfig& rig);
 // The same from text received over the API; errors name `name` as the file.
-Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig);
+// Its paths stay inside `directory` (default: the folder of `name`): the
+// daemon passes the folder it stores recipes in, where the run will read it.
+Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig,
+                      const std::string& directory = "");
 // The rig file a recipe runs on: `override_path` when given, else the
 // recipe's `recipe.rig` (relative to the recipe file). Throws ConfigError
 // when neither names one.

@@ -41,6 +41,15 @@ class YamlNode {
   static YamlNode LoadFile(const std::string& path);
   static YamlNode LoadString(const std::string& text, const std::string& name);
 
+  // This node and every node below it resolve relative paths against
+  // `directory` and refuse any path that resolves outside it (after `..` and
+  // symlinks). Without it a path resolves against the file's folder, unchecked.
+  YamlNode ConfinedTo(const std::string& directory) const;
+  // The node's string as a path: absolute ones as they are, relative ones
+  // against the confining folder (or the file's). Outside the confining
+  // folder it fails with a message that says nothing of what exists there.
+  std::string AsPath() const;
+
   YamlNode(YAML::Node node, std::string file, std::string key);
 
   const std::string& key() const { return key_; }
@@ -81,6 +90,7 @@ class YamlNode {
   YAML::Node node_;
   std::string file_;
   std::string key_;
+  std::string path_root_;  // empty: not confined
 };
 
 }  // namespace photorig::config
