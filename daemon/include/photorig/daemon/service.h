@@ -97,6 +97,12 @@ class RunService {
   void PublishLocked(const std::string& run_id, const std::string& type, nlohmann::json data);  // mutex_ held
   void SetState(QueuedRun& run, RunState state, const std::string& reason);
   void AnnounceState(const QueuedRun& run);  // the log line and the "state" event
+  // Storage (the queue, a run directory) failed, e.g. on a full disk: logged
+  // and reported by Health until the next queue write succeeds.
+  void NoteStorageError(const std::string& what);
+  // A failed run's stop record and manifest, written when its directory has a
+  // journal and no manifest yet; a failure to write them is logged only.
+  void FinishRunDirectory(const std::string& run_id, const StopRecord& stop);
   ServiceReply Validate(const std::string& name, const std::string& recipe_yaml, bool for_submit) const;
 
   ServiceOptions options_;
@@ -114,6 +120,7 @@ class RunService {
   std::deque<RunEvent> events_;  // the most recent events of all runs
   std::uint64_t next_seq_ = 1;
   std::string last_device_fault_;
+  std::string storage_error_;  // empty while storage works
 };
 
 }  // namespace photorig::daemon
