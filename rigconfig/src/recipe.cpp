@@ -253,20 +253,19 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
   const double bytes_per_frame = 2.0 * rig.camera.width * rig.camera.height + 4096;
   double total_bytes = 0.0, total_s = 0.0;
   auto over_limit = [&](const Recipe::Group& group, double frames, double bytes, double seconds) {
+    auto whole = [](double value) { return std::to_string(static_cast<long long>(std::min(value, 1e18))); };
     auto fail = [&](const std::string& what) {
       throw CaptureLimitError(recipe.path, group.source ? group.source->line() : 0,
                               group.source ? group.source->column() : 0, group.source ? group.source->key() : "",
                               "the capture would " + what);
     };
     if (frames > limits.max_frames)
-      fail("take more than " + std::to_string(limits.max_frames) + " frames (" + std::to_string(frames) +
-           " with this group)");
+      fail("take more than " + std::to_string(limits.max_frames) + " frames (" + whole(frames) + " with this group)");
     if (bytes > static_cast<double>(limits.max_bytes))
-      fail("store more than " + std::to_string(limits.max_bytes >> 30) + " GiB (" +
-           std::to_string(static_cast<std::uint64_t>(bytes) >> 30) + " GiB with this group)");
+      fail("store more than " + std::to_string(limits.max_bytes >> 30) + " GiB (" + whole(bytes / (1 << 30)) +
+           " GiB with this group)");
     if (seconds > limits.max_duration_s)
-      fail("last more than " + std::to_string(static_cast<long long>(limits.max_duration_s)) + " s (" +
-           std::to_string(static_cast<long long>(std::min(seconds, 1e18))) + " s with this group)");
+      fail("last more than " + whole(limits.max_duration_s) + " s (" + whole(seconds) + " s with this group)");
   };
   const int channels = static_cast<int>(rig.lights.leds.size());
   const double default_exposure_us = recipe.exposure_us.value_or(rig.camera.exposure_us);
