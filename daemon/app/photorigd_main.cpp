@@ -1,7 +1,7 @@
 // photorigd: the rig daemon. Keeps a persistent queue of capture recipes,
 // runs them on its rig one at a time and serves the HTTP API (see
 // daemon/include/photorig/daemon/api_server.h and docs/api.md).
-//   photorigd --data-root DIR --rig RIG.yaml [--listen ADDR] [--port N] [--token-file FILE]
+//   photorigd --data-root DIR --rig RIG.yaml [--listen ADDR] [--port N] [--token-file FILE] [--allow-host NAME]
 // On SIGTERM or SIGINT the current run finishes its frame, the lights go off
 // and the run stays queued for the next start. Under systemd (Type=notify)
 // it reports readiness and feeds the watchdog while the worker is alive.
@@ -34,6 +34,8 @@ int main(int argc, char** argv) {
   app.add_option("--listen", api_options.bind_address, "address to bind (non-loopback needs a token)")
       ->capture_default_str();
   app.add_option("--port", api_options.port, "TCP port (0: any free port, printed at start)")->capture_default_str();
+  app.add_option("--allow-host", api_options.allowed_hosts,
+                 "a Host name clients without a token may use besides loopback (repeatable)");
   app.add_option("--token-file", token_file, "file holding the bearer token (default: $PHOTORIG_TOKEN)")
       ->check(CLI::ExistingFile);
   app.add_flag("--no-resume", no_resume, "mark runs a crash interrupted as interrupted instead of resuming them");

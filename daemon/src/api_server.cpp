@@ -1,9 +1,17 @@
 #include "photorig/daemon/api_server.h"
 
+#include "photorig/config/yaml_node.h"
+
 #include <httplib.h>
 #include <spdlog/spdlog.h>
 
+#include <sys/socket.h>
+
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -17,7 +25,9 @@ namespace {
 
 void Reply(httplib::Response& res, const ServiceReply& reply) {
   res.status = reply.http_status;
-  res.set_content(reply.body.dump(), "application/json");
+  // Text stored before names were checked may hold bytes that are not UTF-8:
+  // replaced (U+FFFD) rather than failing the whole answer.
+  res.set_content(reply.body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
 }
 
 void ErrorReply(httplib::Response& res, int status, const std::string& message) {
@@ -50,9 +60,9 @@ bool ParseRecipeBody(const httplib::Request& req, httplib::Response& res, std::s
     *name = req.has_param("name") ? req.get_param_value("name") : "recipe.yaml";
     *path = req.has_param("path") ? req.get_param_value("path") : "";
   }
-  if (name->size() > 200 || name->find('\n') != std::string::npos || path->size() > 4096 ||
-      path->find('\n') != std::string::npos) {
-    ErrorReply(res, 400, "recipe name or path too long or multi-line");
+  if (name->size() > 200 || name->find('\n') != std::string::npos || !config::IsValidUtf8(*name) ||
+      path->size() > 4096 || path->find('\n') != std::string::npos || !config::IsValidUtf8(*path)) {
+    ErrorReply(res, 400, "recipe name or path too long, multi-line or not UTF-8");
     return false;
   }
   return true;
@@ -69,8 +79,77 @@ const char* ContentType(const fs::path& path) {
 }
 
 std::string SseEvent(const RunEvent& event) {
-  return "id: " + std::to_string(event.seq) + "\nevent: " + event.type + "\ndata: " + event.data.dump() + "\n\n";
+  return "id: " + std::to_string(event.seq) + "\nevent: " + event.type +
+         "\ndata: " + event.data.dump(-1, ' ', false, json::error_handler_t::replace) + "\n\n";
 }
+
+std::string Lower(std::string text) {
+  for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return text;
+}
+
+// The host of a Host header ("127.0.0.1:8750", "[::1]:8750"), without the port.
+std::string HostName(const std::string& authority) {
+  if (!authority.empty() && authority.front() == '[') return Lower(authority.substr(1, authority.find(']') - 1));
+  return Lower(authority.substr(0, authority.rfind(':')));
+}
+
+// What a web page may POST to another origin without the browser asking it
+// first (a CORS "simple request"): never accepted, so a page cannot queue a run.
+bool IsFormOrPlainText(const std::string& content_type) {
+  std::string media = Lower(content_type.substr(0, content_type.find(';')));
+  media.erase(media.find_last_not_of(" \t") + 1);
+  return media == "text/plain" || media == "application/x-www-form-urlencoded" || media == "multipart/form-data";
+}
+
+struct Refusal {
+  int status = 0;  // 0: the request may proceed
+  std::string message;
+};
+
+// The checks every request passes before any route: see docs/api.md, "Request rules".
+Refusal CheckRequest(const httplib::Request& req, const ApiOptions& options) {
+  if (!config::IsValidUtf8(req.path)) return {400, "the request path is not UTF-8"};
+  // cpp-httplib reads a chunked body whole before its handler can refuse it,
+  // whatever the payload limit: only bodies with a length are read.
+  if (req.has_header("Transfer-Encoding"))
+    return {411, "send the body with a Content-Length (chunked uploads are not accepted)"};
+  const bool state_changing = req.method != "GET" && req.method != "HEAD" && req.method != "OPTIONS";
+  if (state_changing && IsFormOrPlainText(req.get_header_value("Content-Type")))
+    return {415, "send JSON (application/json) or YAML (application/yaml), not a form or text/plain"};
+  bool authenticated = false;
+  if (!options.token.empty()) {
+    if (!ConstantTimeEquals(req.get_header_value("Authorization"), "Bearer " + options.token))
+      return {401, "missing or wrong bearer token"};
+    authenticated = true;  // a page in a browser cannot know the token
+  }
+  if (authenticated) return {};
+  // A page served from elsewhere reaches a loopback daemon only through the
+  // browser: under its own host name (DNS rebinding) or with its own Origin.
+  if (req.has_header("Host")) {
+    const std::string host = HostName(req.get_header_value("Host"));
+    const bool allowed = IsLoopbackAddress(host) || host == Lower(options.bind_address) ||
+                         std::any_of(options.allowed_hosts.begin(), options.allowed_hosts.end(),
+                                     [&](const std::string& name) { return Lower(name) == host; });
+    if (!allowed) return {403, "Host '" + host + "' is not this daemon's (see --allow-host)"};
+  }
+  if (state_changing && req.has_header("Origin") &&
+      Lower(req.get_header_value("Origin")) != "http://" + Lower(req.get_header_value("Host")))
+    return {403, "cross-origin requests may not change anything"};
+  return {};
+}
+
+// Frees an event-stream slot when the stream's response is destroyed, however it ended.
+class StreamSlot {
+ public:
+  explicit StreamSlot(std::atomic<int>& open) : open_(open) {}
+  ~StreamSlot() { --open_; }
+  StreamSlot(const StreamSlot&) = delete;
+  StreamSlot& operator=(const StreamSlot&) = delete;
+
+ private:
+  std::atomic<int>& open_;
+};
 
 }  // namespace
 
@@ -88,6 +167,11 @@ bool ApiOptions::IsValid(std::string* why) const {
     return fail("binding to " + bind_address + " (not loopback) requires a bearer token");
   if (!token.empty() && token.size() < 16) return fail("the bearer token must be at least 16 characters");
   if (max_body_bytes == 0) return fail("max_body_bytes must be > 0");
+  if (max_event_streams < 1) return fail("max_event_streams must be >= 1");
+  if (worker_threads < max_event_streams + 8)
+    return fail("worker_threads must exceed max_event_streams by at least 8, so short requests are served");
+  if (read_timeout_ms < 100) return fail("read_timeout_ms must be >= 100");
+  if (listen_backlog < 1) return fail("listen_backlog must be >= 1");
   return true;
 }
 
@@ -96,6 +180,15 @@ ApiServer::ApiServer(RunService& service, ApiOptions options)
   std::string why;
   if (!options_.IsValid(&why)) throw std::runtime_error("API options: " + why);
   server_->set_payload_max_length(options_.max_body_bytes);
+  const std::size_t workers = static_cast<std::size_t>(options_.worker_threads);
+  server_->new_task_queue = [workers] { return new httplib::ThreadPool(workers); };
+  server_->set_read_timeout(std::chrono::milliseconds(options_.read_timeout_ms));
+  // The library listens with a fixed backlog of 5; the socket it binds is
+  // remembered here so Bind can raise it.
+  server_->set_socket_options([this](socket_t fd) {
+    httplib::default_socket_options(fd);
+    listen_fd_ = fd;
+  });
   Routes();
 }
 
@@ -106,6 +199,9 @@ void ApiServer::Bind() {
                              : (server_->bind_to_port(options_.bind_address, options_.port) ? options_.port : -1);
   if (port_ <= 0)
     throw std::runtime_error("cannot listen on " + options_.bind_address + ":" + std::to_string(options_.port));
+  if (::listen(listen_fd_, options_.listen_backlog) != 0)
+    throw std::runtime_error("cannot set the listen backlog on " + options_.bind_address + ":" + std::to_string(port_) +
+                             ": " + std::strerror(errno));
 }
 
 void ApiServer::Serve() { server_->listen_after_bind(); }
@@ -113,26 +209,33 @@ void ApiServer::Stop() { server_->stop(); }
 
 void ApiServer::Routes() {
   httplib::Server& s = *server_;
-  const std::string token = options_.token;
-  s.set_pre_routing_handler([token](const httplib::Request& req, httplib::Response& res) {
-    if (token.empty()) return httplib::Server::HandlerResponse::Unhandled;
-    if (ConstantTimeEquals(req.get_header_value("Authorization"), "Bearer " + token))
-      return httplib::Server::HandlerResponse::Unhandled;
-    res.set_header("WWW-Authenticate", "Bearer");
-    ErrorReply(res, 401, "missing or wrong bearer token");
+  // Runs once the headers are in, before the body is read.
+  s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    const Refusal refusal = CheckRequest(req, options_);
+    if (refusal.status == 0) return httplib::Server::HandlerResponse::Unhandled;
+    if (refusal.status == 401) res.set_header("WWW-Authenticate", "Bearer");
+    if (refusal.status == 411 || refusal.status == 413) res.set_header("Connection", "close");  // the body stays unread
+    ErrorReply(res, refusal.status, refusal.message);
     return httplib::Server::HandlerResponse::Handled;
   });
   s.set_logger([](const httplib::Request& req, const httplib::Response& res) {
     spdlog::debug("event=http method={} path={} status={}", req.method, req.path, res.status);
   });
   s.set_error_handler([](const httplib::Request&, httplib::Response& res) {
-    if (res.body.empty()) ErrorReply(res, res.status, res.status == 413 ? "request body too large" : "no such route");
+    if (!res.body.empty()) return;
+    ErrorReply(res, res.status,
+               res.status == 413   ? "request body too large"
+               : res.status == 404 ? "no such route"
+                                   : "malformed request");
   });
+  // Every error a handler lets through ends here as a 500; the daemon keeps serving.
   s.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
     try {
       std::rethrow_exception(ep);
     } catch (const std::exception& e) {
       ErrorReply(res, 500, e.what());
+    } catch (...) {
+      ErrorReply(res, 500, "unknown error");
     }
   });
 
@@ -164,8 +267,13 @@ void ApiServer::Routes() {
     if (req.has_header("Last-Event-ID")) start = std::strtoull(req.get_header_value("Last-Event-ID").c_str(), nullptr, 10);
     auto last = std::make_shared<std::uint64_t>(start);
     auto idle_ms = std::make_shared<int>(0);
+    if (++open_event_streams_ > options_.max_event_streams) {
+      --open_event_streams_;
+      return ErrorReply(res, 503, "too many open event streams (" + std::to_string(options_.max_event_streams) + ")");
+    }
+    auto slot = std::make_shared<StreamSlot>(open_event_streams_);
     res.set_header("Cache-Control", "no-cache");
-    res.set_chunked_content_provider("text/event-stream", [this, id, last, idle_ms](std::size_t, httplib::DataSink& sink) {
+    res.set_chunked_content_provider("text/event-stream", [this, id, last, idle_ms, slot](std::size_t, httplib::DataSink& sink) {
       const auto events = service_.EventsAfter(id, *last, 500);
       for (const RunEvent& event : events) {
         const std::string text = SseEvent(event);

@@ -43,21 +43,30 @@ void WriteFileDurably(const std::string& path, const void* data, std::size_t siz
   if (fd < 0) Fail("cannot create", temp);
   const char* bytes = static_cast<const char*>(data);
   std::size_t written = 0;
+  // A failed write (a full disk) leaves no temp file holding the space.
+  auto fail = [&](const char* what, const std::string& name) {
+    const int error = errno;
+    ::close(fd);
+    ::unlink(temp.c_str());
+    errno = error;
+    Fail(what, name);
+  };
   while (written < size) {
     const ssize_t n = ::write(fd, bytes + written, size - written);
     if (n < 0) {
       if (errno == EINTR) continue;
-      ::close(fd);
-      Fail("cannot write", temp);
+      fail("cannot write", temp);
     }
     written += static_cast<std::size_t>(n);
   }
-  if (::fsync(fd) != 0) {
-    ::close(fd);
-    Fail("cannot fsync", temp);
-  }
+  if (::fsync(fd) != 0) fail("cannot fsync", temp);
   ::close(fd);
-  if (::rename(temp.c_str(), path.c_str()) != 0) Fail("cannot rename into", path);
+  if (::rename(temp.c_str(), path.c_str()) != 0) {
+    const int error = errno;
+    ::unlink(temp.c_str());
+    errno = error;
+    Fail("cannot rename into", path);
+  }
   FsyncDirectory(fs::path(path).parent_path());
 }
 

@@ -4,6 +4,7 @@
 
 #include <sys/statvfs.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -108,9 +109,11 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
   return plan;
 }
 
-nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps) const {
+nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps, std::size_t max_listed_steps) const {
   nlohmann::json list = nlohmann::json::array();
-  for (const CaptureStep& step : steps) {
+  const std::size_t listed = std::min(steps.size(), max_listed_steps);
+  for (std::size_t i = 0; i < listed; ++i) {
+    const CaptureStep& step = steps[i];
     nlohmann::json s = {{"index", step.index},
                         {"label", step.label},
                         {"kind", CaptureStepKindName(step.kind)},
@@ -135,6 +138,7 @@ nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps) const {
           {"bytes_per_frame", estimate.bytes_per_frame},
           {"max_led_duty", max_led_duty},
           {"max_duty_led", max_duty_led},
+          {"steps_listed", listed},
           {"steps", list}};
 }
 

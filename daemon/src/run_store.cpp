@@ -361,20 +361,25 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
   // Temp file and rename, so the name only ever points at a whole frame.
   const std::string path = (fs::path(directory_) / record.file).string();
   const std::string temp = path + ".tmp";
-  {
-    const ScopedFd file{::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
-    if (file.fd < 0) FailIo("cannot create", temp);
-    off_t offset = 0;
-    record.crc32 = encoder_.Encode(frame.pixels.data(), frame.width, frame.height,
-                                   [&](const std::uint8_t* data, std::size_t size) {
-                                     WriteAll(file.fd, data, size, temp);
-                                     // Writeback of each piece starts while the next is encoded,
-                                     // so the sync below waits only for the tail.
-                                     ::sync_file_range(file.fd, offset, static_cast<off_t>(size), SYNC_FILE_RANGE_WRITE);
-                                     offset += static_cast<off_t>(size);
-                                   });
+  try {
+    {
+      const ScopedFd file{::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
+      if (file.fd < 0) FailIo("cannot create", temp);
+      off_t offset = 0;
+      record.crc32 = encoder_.Encode(frame.pixels.data(), frame.width, frame.height,
+                                     [&](const std::uint8_t* data, std::size_t size) {
+                                       WriteAll(file.fd, data, size, temp);
+                                       // Writeback of each piece starts while the next is encoded,
+                                       // so the sync below waits only for the tail.
+                                       ::sync_file_range(file.fd, offset, static_cast<off_t>(size), SYNC_FILE_RANGE_WRITE);
+                                       offset += static_cast<off_t>(size);
+                                     });
+    }
+    if (::rename(temp.c_str(), path.c_str()) != 0) FailIo("cannot rename into", path);
+  } catch (...) {
+    ::unlink(temp.c_str());  // on a full disk, the part written would hold the space
+    throw;
   }
-  if (::rename(temp.c_str(), path.c_str()) != 0) FailIo("cannot rename into", path);
   AppendJournalUnsynced(ToJson(record));
   // One syncfs makes the frame's data, its name and its journal line durable
   // together. Separate fdatasyncs of the frame, the directory and the journal

@@ -106,6 +106,8 @@ bool ServiceOptions::IsValid(std::string* why) const {
   std::string detail;
   if (!retry.IsValid(&detail)) return fail("retry: " + detail);
   if (!plan.IsValid(&detail)) return fail("plan: " + detail);
+  if (!limits.IsValid(&detail)) return fail("limits: " + detail);
+  if (max_listed_steps == 0) return fail("max_listed_steps must be > 0");
   return true;
 }
 
@@ -122,7 +124,19 @@ RunService::RunService(ServiceOptions options) : options_(std::move(options)) {
 RunService::~RunService() { Stop(); }
 
 void RunService::Start() {
-  for (QueuedRun run : queue_->Unfinished()) {
+  std::vector<QueuedRun> unfinished;
+  try {
+    unfinished = queue_->Unfinished();
+    // A run that failed while its directory could not be written (a full
+    // disk) gets its stop record and manifest once there is room again.
+    for (const QueuedRun& run : queue_->List())
+      if (run.state == RunState::kFailed)
+        FinishRunDirectory(run.id, {CaptureStatus::kFailed, run.reason, run.frames, run.steps_total, run.retries,
+                                    run.dropped_frames});
+  } catch (const std::exception& e) {
+    NoteStorageError(e.what());
+  }
+  for (QueuedRun run : unfinished) {
     if (options_.resume_interrupted) {
       spdlog::warn("run={} event=recovered state={} action=resume", run.id, RunStateName(run.state));
       SetState(run, RunState::kQueued, "interrupted by a daemon restart; resumes from its last checkpoint");
@@ -169,7 +183,14 @@ void RunService::WorkerLoop() {
       changed_.wait_for(lock, std::chrono::milliseconds(200));
       continue;
     }
-    Execute(*next);
+    try {
+      Execute(*next);
+    } catch (const std::exception& e) {
+      // The queue could not record the run's start: try again later, not in a tight loop.
+      NoteStorageError(e.what());
+      std::unique_lock lock(mutex_);
+      changed_.wait_for(lock, std::chrono::seconds(1), [this] { return stopping_.load(); });
+    }
   }
   worker_alive_ = false;
 }
@@ -177,17 +198,45 @@ void RunService::WorkerLoop() {
 void RunService::SetState(QueuedRun& run, RunState state, const std::string& reason) {
   run.state = state;
   run.reason = reason;
-  queue_->Update(run);
+  // The queue row may not follow (a full disk): the run still changes state
+  // in memory and for every listener, and the failure is reported on /health.
+  bool stored = true;
+  try {
+    queue_->Update(run);
+  } catch (const std::exception& e) {
+    stored = false;
+    NoteStorageError(e.what());
+  }
   {
     std::lock_guard lock(mutex_);
     if (run.id == current_id_) current_ = run;
+    if (stored) storage_error_.clear();
   }
   AnnounceState(run);
 }
 
+void RunService::NoteStorageError(const std::string& what) {
+  spdlog::error("event=storage_error error={}", json(what).dump(-1, ' ', false, json::error_handler_t::replace));
+  std::lock_guard lock(mutex_);
+  storage_error_ = what;
+}
+
+void RunService::FinishRunDirectory(const std::string& run_id, const StopRecord& stop) {
+  const fs::path directory = RunDirectory(run_id);
+  if (!fs::exists(directory / "journal.jsonl") || fs::exists(directory / "manifest.json")) return;
+  try {
+    RecoveryReport recovery;
+    RunWriter::Reopen(directory.string(), &recovery)->Finish(stop);
+    spdlog::info("run={} event=stop_record_written frames={}", run_id, recovery.frames_kept);
+  } catch (const std::exception& e) {
+    spdlog::error("run={} event=stop_record_failed error={}", run_id,
+                  json(e.what()).dump(-1, ' ', false, json::error_handler_t::replace));
+  }
+}
+
 void RunService::AnnounceState(const QueuedRun& run) {
   spdlog::info("run={} event=state state={}{}{}", run.id, RunStateName(run.state), run.reason.empty() ? "" : " reason=",
-               run.reason.empty() ? "" : json(run.reason).dump());
+               run.reason.empty() ? "" : json(run.reason).dump(-1, ' ', false, json::error_handler_t::replace));
   Publish(run.id, "state", {{"state", RunStateName(run.state)}, {"reason", run.reason}});
 }
 
@@ -300,14 +349,21 @@ void RunService::Execute(QueuedRun run) {
     reason = e.what();
     stop.status = CaptureStatus::kFailed;
     stop.reason = reason;
-    std::lock_guard lock(mutex_);
-    if (current_.state == RunState::kSolving) {
-      // A stage that threw (an unreadable run, a result that cannot be written) is an unusable solve.
-      run.solve = current_.solve.is_null() ? json{{"stages", json::array()}} : current_.solve;
-      run.solve["ok"] = false;
-      reason = "solve: " + reason;
-      stop = {CaptureStatus::kComplete, "", current_.frames, current_.steps_total, current_.retries, 0};
+    {
+      std::lock_guard lock(mutex_);
+      stop.frames = current_.frames;
+      stop.steps_total = current_.steps_total;
+      stop.retries = current_.retries;
+      if (current_.state == RunState::kSolving) {
+        // A stage that threw (an unreadable run, a result that cannot be written) is an unusable solve.
+        run.solve = current_.solve.is_null() ? json{{"stages", json::array()}} : current_.solve;
+        run.solve["ok"] = false;
+        reason = "solve: " + reason;
+        stop = {CaptureStatus::kComplete, "", current_.frames, current_.steps_total, current_.retries, 0};
+      }
     }
+    // Storage failed mid-run (a full disk): the stop record and manifest where they can still be written.
+    FinishRunDirectory(run.id, stop);
   }
   run.frames = stop.frames;
   run.steps_total = stop.steps_total;
@@ -332,15 +388,19 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
   if (recipe_yaml.empty()) return Error(400, "empty recipe");
   try {
     const RigConfig rig = LoadRigConfig(options_.rig_path);
-    const Recipe recipe = LoadRecipeText(recipe_yaml, name, rig);
+    // Resolved where the run will read it from: the recipes folder of the data root.
+    const Recipe recipe =
+        LoadRecipeText(recipe_yaml, name, rig, (fs::path(options_.data_root) / "recipes").string());
     // A recipe without recipe.rig runs on the daemon's rig; one naming another rig is refused.
     if (auto named = YamlNode::LoadString(recipe_yaml, name)["recipe"].Find("rig")) {
       if (auto mismatch = RigMismatch(recipe.name, named->AsString(), recipe_path.empty() ? name : recipe_path, rig))
         return {422, {{"error", *mismatch}, {"recipe_rig", named->AsString()}, {"rig", rig.name}}};
     }
-    const auto steps = CompileSteps(recipe, rig);
+    CaptureLimits limits = options_.limits;
+    limits.step_overhead_ms = options_.plan.step_overhead_ms;
+    const auto steps = CompileSteps(recipe, rig, limits);
     const RunPlan plan = PlanRun(recipe, rig, steps, options_.plan);
-    json body = plan.ToJson(steps);
+    json body = plan.ToJson(steps, options_.max_listed_steps);
     body["recipe"] = recipe.name;
     body["rig"] = rig.name;
     if (!plan.ok()) return {422, {{"error", plan.errors.front()}, {"plan", body}}};
@@ -352,7 +412,9 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
                     {"plan", body}}};
     return {200, body};
   } catch (const ConfigError& e) {
-    return {400,
+    // A recipe that expands beyond the limits is too large, not malformed.
+    const bool too_large = dynamic_cast<const CaptureLimitError*>(&e) != nullptr;
+    return {too_large ? 413 : 400,
             {{"error", e.what()}, {"file", e.file()}, {"line", e.line()}, {"column", e.column()}, {"key", e.key()}}};
   } catch (const std::exception& e) {
     return Error(400, e.what());
@@ -372,9 +434,17 @@ ServiceReply RunService::Submit(const std::string& name, const std::string& reci
   // "queued" event goes out before the worker can publish its next state
   // (SetState waits for mutex_).
   std::lock_guard lock(mutex_);
-  const QueuedRun run = queue_->Add(plan.value("recipe", name), plan.value("frames", 0), [&](const QueuedRun& added) {
-    WriteFileDurably((fs::path(options_.data_root) / "recipes" / (added.id + ".yaml")).string(), recipe_yaml);
-  });
+  QueuedRun run;
+  try {
+    run = queue_->Add(plan.value("recipe", name), plan.value("frames", 0), [&](const QueuedRun& added) {
+      WriteFileDurably((fs::path(options_.data_root) / "recipes" / (added.id + ".yaml")).string(), recipe_yaml);
+    });
+  } catch (const std::exception& e) {
+    spdlog::error("event=storage_error error={}", json(e.what()).dump(-1, ' ', false, json::error_handler_t::replace));
+    storage_error_ = e.what();
+    return Error(507, std::string("cannot store the run: ") + e.what());
+  }
+  storage_error_.clear();
   spdlog::info("run={} event=submitted recipe={} steps={}", run.id, run.recipe_name, run.steps_total);
   PublishLocked(run.id, "state", {{"state", "queued"}, {"reason", ""}});
   return {201, {{"id", run.id}, {"state", "queued"}, {"plan", plan}}};
@@ -510,15 +580,26 @@ ServiceReply RunService::Devices() const {
 
 ServiceReply RunService::Health() const {
   int queued = 0;
-  for (const QueuedRun& run : queue_->List()) queued += run.state == RunState::kQueued;
+  std::string queue_error;
+  try {
+    for (const QueuedRun& run : queue_->List()) queued += run.state == RunState::kQueued;
+  } catch (const std::exception& e) {
+    queue_error = e.what();
+  }
+  const std::uint64_t free_bytes = FreeBytes(options_.data_root);
   std::lock_guard lock(mutex_);
-  const bool ok = worker_alive_.load();
-  return {ok ? 200 : 503,
-          {{"status", ok ? "ok" : "worker stopped"},
-           {"uptime_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count()},
-           {"current_run", current_id_},
-           {"queued", queued},
-           {"free_bytes", FreeBytes(options_.data_root)}}};
+  const std::string storage_error = !queue_error.empty() ? queue_error : storage_error_;
+  const char* status = !worker_alive_.load()     ? "worker stopped"
+                       : !storage_error.empty() ? "storage error"
+                       : free_bytes == 0        ? "disk full"
+                                                : "ok";
+  json body = {{"status", status},
+               {"uptime_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count()},
+               {"current_run", current_id_},
+               {"queued", queued},
+               {"free_bytes", free_bytes}};
+  if (!storage_error.empty()) body["storage_error"] = storage_error;
+  return {std::string(status) == "ok" ? 200 : 503, body};
 }
 
 std::vector<RunEvent> RunService::EventsAfter(const std::string& run_id, std::uint64_t after_seq, int wait_ms) const {

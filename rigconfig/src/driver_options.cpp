@@ -312,7 +312,8 @@ void ParseTriggerOutput(const YamlNode& output, TriggerConfig* trigger) {
 void ParseMotionDriver(const YamlNode& motion_node, MotionConfig* motion) {
   const auto axes = motion_node["axes"].Items();
   if (motion->driver == "sim") {
-    motion->sim_axis.time_scale = motion_node.Double("time_scale", motion->sim_axis.time_scale);
+    // Beyond these the simulated arm either never arrives or jumps in one tick.
+    motion->sim_axis.time_scale = motion_node.DoubleIn("time_scale", motion->sim_axis.time_scale, 0.01, 1000.0);
     std::string why;
     if (!motion->sim_axis.IsValid(&why)) motion_node["time_scale"].Fail(why);
     if (motion_node.Has("link")) motion_node["link"].Fail("only a modbus-tcp drive has a link");

@@ -2,6 +2,7 @@
 
 #include "photorig/config/sim.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -18,6 +19,11 @@ std::string RelativeToRecipe(const std::string& recipe_path, const std::string& 
 }
 
 constexpr const char* kGroupNames = "dark, flat, each_led, pattern or poses";
+// Per-group bounds that keep parsing itself cheap (the duplicate checks are
+// quadratic); the whole expansion is bounded by CaptureLimits.
+constexpr int kMaxGridPoses = CaptureLimits{}.max_frames;
+constexpr std::size_t kMaxBracketExposures = 64;
+constexpr std::size_t kMaxPatternLeds = 1024;
 
 int CountIn(const YamlNode& body, const char* key) {
   const int count = body.Int(key, 1);
@@ -31,11 +37,7 @@ double LevelIn(const YamlNode& node, const char* key, double fallback) {
   return level;
 }
 
-double ExposureIn(const YamlNode& node) {
-  const double exposure_us = node.AsDouble();
-  if (!(exposure_us > 0)) node.Fail("must be > 0");
-  return exposure_us;
-}
+double ExposureIn(const YamlNode& node) { return node.AsDoubleIn(kMinExposureUs, kMaxExposureUs); }
 
 // `leds: all` (or absent) is every LED; otherwise a list of LED ids.
 std::vector<int> LedIdsIn(const YamlNode& body) {
@@ -69,10 +71,18 @@ std::vector<GonioPose> PosesIn(const YamlNode& body) {
   }
   const YamlNode grid = body["grid"];
   grid.ExpectKeys({"light_arm_deg", "camera_arm_deg", "sample_rotation_deg"});
-  for (double rotation : AnglesIn(grid, "sample_rotation_deg"))
-    for (double light : AnglesIn(grid, "light_arm_deg"))
-      for (double camera : AnglesIn(grid, "camera_arm_deg")) poses.push_back({light, camera, rotation});
-  if (poses.size() > 100000) grid.Fail("expands to more than 100000 poses");
+  const std::vector<double> rotations = AnglesIn(grid, "sample_rotation_deg");
+  const std::vector<double> lights = AnglesIn(grid, "light_arm_deg");
+  const std::vector<double> cameras = AnglesIn(grid, "camera_arm_deg");
+  // Refused from its dimensions, before a single pose is built.
+  const double size = static_cast<double>(rotations.size()) * lights.size() * cameras.size();
+  if (size > kMaxGridPoses)
+    grid.Fail("expands to " + std::to_string(rotations.size()) + " x " + std::to_string(lights.size()) + " x " +
+              std::to_string(cameras.size()) + " poses, more than " + std::to_string(kMaxGridPoses));
+  poses.reserve(static_cast<std::size_t>(size));
+  for (double rotation : rotations)
+    for (double light : lights)
+      for (double camera : cameras) poses.push_back({light, camera, rotation});
   return poses;
 }
 
@@ -106,6 +116,8 @@ Recipe::Group ParseGroup(const YamlNode& step) {
         for (double seen : group.exposures_us)
           if (seen == exposure_us) item.Fail("exposure listed twice in the bracket");
         group.exposures_us.push_back(exposure_us);
+        if (group.exposures_us.size() > kMaxBracketExposures)
+          item.Fail("a bracket has at most " + std::to_string(kMaxBracketExposures) + " exposures");
       }
       if (group.exposures_us.empty()) bracket->Fail("needs at least one exposure");
     }
@@ -130,6 +142,8 @@ Recipe::Group ParseGroup(const YamlNode& step) {
       for (const auto& seen : group.pattern)
         if (seen.first == entry.first) item.Fail("LED id " + std::to_string(entry.first) + " listed twice");
       group.pattern.push_back(entry);
+      if (group.pattern.size() > kMaxPatternLeds)
+        item.Fail("a pattern lists at most " + std::to_string(kMaxPatternLeds) + " LEDs");
     }
     if (group.pattern.empty()) body["leds"].Fail("a pattern lights at least one LED");
   } else if (kind == "poses") {
@@ -146,11 +160,19 @@ Recipe::Group ParseGroup(const YamlNode& step) {
 }
 }  // namespace
 
-Recipe LoadRecipe(const std::string& path, const RigConfig& rig) {
-  return ParseRecipe(YamlNode::LoadFile(path), path, rig);
+// The folder a recipe's paths stay in: the one given, else the recipe file's.
+std::string PathRoot(const std::string& recipe_path, const std::string& directory) {
+  if (!directory.empty()) return directory;
+  const fs::path parent = fs::path(recipe_path).parent_path();
+  return parent.empty() ? "." : parent.string();
 }
-Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig) {
-  return ParseRecipe(YamlNode::LoadString(text, name), name, rig);
+
+Recipe LoadRecipe(const std::string& path, const RigConfig& rig) {
+  return ParseRecipe(YamlNode::LoadFile(path).ConfinedTo(PathRoot(path, "")), path, rig);
+}
+Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig,
+                      const std::string& directory) {
+  return ParseRecipe(YamlNode::LoadString(text, name).ConfinedTo(PathRoot(name, directory)), name, rig);
 }
 
 namespace {
@@ -174,11 +196,8 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
 
   const YamlNode capture = root["capture"];
   capture.ExpectKeys({"exposure_us", "gain_db", "steps"});
-  if (auto exposure = capture.Find("exposure_us")) {
-    recipe.exposure_us = exposure->AsDouble();
-    if (!(*recipe.exposure_us > 0)) exposure->Fail("must be > 0");
-  }
-  if (auto gain = capture.Find("gain_db")) recipe.gain_db = gain->AsDouble();
+  if (auto exposure = capture.Find("exposure_us")) recipe.exposure_us = ExposureIn(*exposure);
+  if (auto gain = capture.Find("gain_db")) recipe.gain_db = gain->AsDoubleIn(kMinGainDb, kMaxGainDb);
   for (const YamlNode& step : capture["steps"].Items()) recipe.groups.push_back(ParseGroup(step));
   if (recipe.groups.empty()) capture["steps"].Fail("a recipe needs at least one capture step");
 
@@ -222,9 +241,41 @@ const char* CaptureStepKindName(CaptureStep::Kind kind) {
   return "unknown";
 }
 
-std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig) {
+bool CaptureLimits::IsValid(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (max_frames < 1) return fail("max_frames must be >= 1");
+  if (max_bytes == 0) return fail("max_bytes must be > 0");
+  if (!(max_duration_s > 0)) return fail("max_duration_s must be > 0");
+  if (!(step_overhead_ms >= 0)) return fail("step_overhead_ms must be >= 0");
+  return true;
+}
+
+std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig, const CaptureLimits& limits) {
   using Kind = Recipe::Group::Kind;
+  if (std::string why; !limits.IsValid(&why)) throw ConfigError(recipe.path, 0, 0, "", "capture limits: " + why);
   std::vector<CaptureStep> steps;
+  // What the steps so far add up to, and the bound each group is checked
+  // against before its repetitions are built.
+  const double bytes_per_frame = 2.0 * rig.camera.width * rig.camera.height + 4096;
+  double total_bytes = 0.0, total_s = 0.0;
+  auto over_limit = [&](const Recipe::Group& group, double frames, double bytes, double seconds) {
+    auto whole = [](double value) { return std::to_string(static_cast<long long>(std::min(value, 1e18))); };
+    auto fail = [&](const std::string& what) {
+      throw CaptureLimitError(recipe.path, group.source ? group.source->line() : 0,
+                              group.source ? group.source->column() : 0, group.source ? group.source->key() : "",
+                              "the capture would " + what);
+    };
+    if (frames > limits.max_frames)
+      fail("take more than " + std::to_string(limits.max_frames) + " frames (" + whole(frames) + " with this group)");
+    if (bytes > static_cast<double>(limits.max_bytes))
+      fail("store more than " + std::to_string(limits.max_bytes >> 30) + " GiB (" + whole(bytes / (1 << 30)) +
+           " GiB with this group)");
+    if (seconds > limits.max_duration_s)
+      fail("last more than " + whole(limits.max_duration_s) + " s (" + whole(seconds) + " s with this group)");
+  };
   const int channels = static_cast<int>(rig.lights.leds.size());
   const double default_exposure_us = recipe.exposure_us.value_or(rig.camera.exposure_us);
   const double gain = recipe.gain_db.value_or(rig.camera.gain_db);
@@ -244,7 +295,12 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
     const double group_exposure_us = group.exposures_us.empty() ? default_exposure_us : group.exposures_us.front();
     std::vector<CaptureStep> once;  // one repetition; labels are made below
     std::vector<std::string> names;
+    double once_s = 0.0;
     auto emit = [&](CaptureStep step, const std::string& name, double exposure_us) {
+      once_s += (exposure_us / 1000.0 + limits.step_overhead_ms) / 1000.0;
+      // One repetition alone can be long (an LED list with repeated ids): checked as it grows.
+      over_limit(group, static_cast<double>(steps.size() + once.size() + 1),
+                 total_bytes + bytes_per_frame * static_cast<double>(once.size() + 1), total_s + once_s);
       step.exposure_us = exposure_us;
       step.gain_db = gain;
       once.push_back(std::move(step));
@@ -304,6 +360,11 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
         break;
       }
     }
+    const double repeats = group.repeat;
+    total_bytes += bytes_per_frame * static_cast<double>(once.size()) * repeats;
+    total_s += once_s * repeats;
+    over_limit(group, static_cast<double>(steps.size()) + static_cast<double>(once.size()) * repeats, total_bytes,
+               total_s);
     for (int repeat = 0; repeat < group.repeat; ++repeat)
       for (std::size_t k = 0; k < once.size(); ++k) {
         CaptureStep step = once[k];

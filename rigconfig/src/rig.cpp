@@ -32,11 +32,14 @@ LedConfig ParseLed(const YamlNode& node, int index) {
   if (led.direction.z() <= 0.0) vector_node.Fail("points below the sample plane (z <= 0)");
   if (has_position) led.position_mm = vector;
   led.intensity = node.Double("intensity", 1.0);
-  if (!(led.intensity > 0.0)) node["intensity"].Fail("must be > 0");
+  if (!(led.intensity > 0.0 && led.intensity <= kMaxLedIntensity))
+    node["intensity"].Fail("must lie in (0, " + std::to_string(static_cast<int>(kMaxLedIntensity)) + "]");
   if (auto rgb = node.Find("rgb_intensity")) {
     led.rgb_intensity = rgb->AsVector3();
-    if (!(led.rgb_intensity.minCoeff() >= 0.0 && led.rgb_intensity.maxCoeff() > 0.0))
-      rgb->Fail("needs three values >= 0, not all zero");
+    if (!(led.rgb_intensity.minCoeff() >= 0.0 && led.rgb_intensity.maxCoeff() > 0.0 &&
+          led.rgb_intensity.maxCoeff() <= kMaxLedIntensity))
+      rgb->Fail("needs three values in [0, " + std::to_string(static_cast<int>(kMaxLedIntensity)) +
+                "], not all zero");
   }
   return led;
 }
@@ -67,11 +70,12 @@ sim::SensorModel ParseSensor(const YamlNode& node, int bit_depth) {
       {"response_e_per_us", "e_per_dn", "black_level_dn", "read_noise_e", "full_well_e", "shot_noise", "response_gamma"});
   sim::SensorModel sensor;
   sensor.bit_depth = bit_depth;
-  sensor.response_e_per_us = node.Double("response_e_per_us", sensor.response_e_per_us);
-  sensor.e_per_dn = node.Double("e_per_dn", sensor.e_per_dn);
-  sensor.black_level_dn = node.Double("black_level_dn", sensor.black_level_dn);
-  sensor.read_noise_e = node.Double("read_noise_e", sensor.read_noise_e);
-  sensor.full_well_e = node.Double("full_well_e", sensor.full_well_e);
+  // Bounds far beyond any sensor; within them the renderer's arithmetic stays finite.
+  sensor.response_e_per_us = node.DoubleIn("response_e_per_us", sensor.response_e_per_us, 0.0, 1e9);
+  sensor.e_per_dn = node.DoubleIn("e_per_dn", sensor.e_per_dn, 0.0, 1e6);
+  sensor.black_level_dn = node.DoubleIn("black_level_dn", sensor.black_level_dn, 0.0, 65535.0);
+  sensor.read_noise_e = node.DoubleIn("read_noise_e", sensor.read_noise_e, 0.0, 1e6);
+  sensor.full_well_e = node.DoubleIn("full_well_e", sensor.full_well_e, 1.0, 1e9);
   sensor.shot_noise = node.Bool("shot_noise", sensor.shot_noise);
   sensor.response_gamma = node.Double("response_gamma", sensor.response_gamma);
   if (!(sensor.response_gamma >= 0.2 && sensor.response_gamma <= 5.0)) node["response_gamma"].Fail("must lie in [0.2, 5]");
@@ -349,13 +353,12 @@ RigConfig LoadRigConfig(const std::string& path) {
   if (cam.width < 8 || cam.width > 16384) camera["width"].Fail("must be within [8, 16384]");
   if (cam.height < 8 || cam.height > 16384) camera["height"].Fail("must be within [8, 16384]");
   cam.pixel_pitch_mm = camera.Double("pixel_pitch_mm", cam.pixel_pitch_mm);
-  if (!(cam.pixel_pitch_mm > 0)) camera["pixel_pitch_mm"].Fail("must be > 0");
+  if (!(cam.pixel_pitch_mm > 0 && cam.pixel_pitch_mm <= 1000)) camera["pixel_pitch_mm"].Fail("must lie in (0, 1000]");
   cam.bit_depth = camera.Int("bit_depth", cam.bit_depth);
   if (cam.bit_depth != 8 && cam.bit_depth != 10 && cam.bit_depth != 12 && cam.bit_depth != 16)
     camera["bit_depth"].Fail("must be 8, 10, 12 or 16");
-  cam.exposure_us = camera.Double("exposure_us", cam.exposure_us);
-  if (!(cam.exposure_us > 0)) camera["exposure_us"].Fail("must be > 0");
-  cam.gain_db = camera.Double("gain_db", cam.gain_db);
+  cam.exposure_us = camera.DoubleIn("exposure_us", cam.exposure_us, kMinExposureUs, kMaxExposureUs);
+  cam.gain_db = camera.DoubleIn("gain_db", cam.gain_db, kMinGainDb, kMaxGainDb);
   if (auto trigger = camera.Find("trigger")) cam.trigger = ParseTrigger(*trigger);
   if (auto chart = camera.Find("color_chart")) cam.color_chart = ParseColorChart(*chart, cam.width, cam.height);
 

@@ -41,13 +41,9 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
     scene.volume = sim::DensityGrid::Blobs(0.8 * frame_width_mm, 64, density->AsDouble());
   }
   // Files named in a recipe are relative to the recipe, and must load now, not mid-run.
-  auto resolve = [](const YamlNode& path_node) {
-    const std::filesystem::path path = path_node.AsString();
-    return (path.is_absolute() ? path : std::filesystem::path(path_node.file()).parent_path() / path).string();
-  };
   if (auto path = node.Find("path")) {
-    if (scene.shape == sim::Scene::Shape::kDepthMap) scene.depth_map_path = resolve(*path);
-    else if (scene.shape == sim::Scene::Shape::kMesh) scene.mesh_path = resolve(*path);
+    if (scene.shape == sim::Scene::Shape::kDepthMap) scene.depth_map_path = path->AsPath();
+    else if (scene.shape == sim::Scene::Shape::kMesh) scene.mesh_path = path->AsPath();
     else path->Fail("only depth_map and mesh scenes read a file");
     try {
       if (scene.shape == sim::Scene::Shape::kMesh) sim::LoadPly(scene.mesh_path);
@@ -86,7 +82,7 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
     if (auto table = brdf->Find("table")) {
       if (m.model != sim::Brdf::Model::kTabulated) table->Fail("only the tabulated model reads a table");
       try {
-        m.table = std::make_shared<sim::MerlTable>(sim::MerlTable::Load(resolve(*table)));
+        m.table = std::make_shared<sim::MerlTable>(sim::MerlTable::Load(table->AsPath()));
       } catch (const std::runtime_error& e) {
         table->Fail(e.what());
       }

@@ -8,16 +8,7 @@
 #include <stdexcept>
 
 namespace photorig::config {
-namespace {
-
 namespace fs = std::filesystem;
-
-std::string ResolveAgainst(const YamlNode& node, const std::string& path) {
-  if (path.empty() || fs::path(path).is_absolute()) return path;
-  return (fs::path(node.file()).parent_path() / path).lexically_normal().string();
-}
-
-}  // namespace
 
 bool ParseDerivative(const std::string& name, ps::BlinnPhongOptions* options) {
   if (name == "lanes") {
@@ -88,7 +79,7 @@ LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node) {
       if (!(c.z() > 0.0)) circle->Fail("the circle is [cx, cy, radius] in pixels with a positive radius");
       request.circle = lighting::Circle{c.x(), c.y(), c.z()};
     }
-    if (auto silhouette = sphere->Find("silhouette")) request.silhouette_image = ResolveAgainst(node, silhouette->AsString());
+    if (auto silhouette = sphere->Find("silhouette")) request.silhouette_image = silhouette->AsPath();
     if (auto from = sphere->Find("from")) {
       if (from->AsString() != "highlights") from->Fail("expected 'highlights' (or give a circle or a silhouette)");
       if (request.circle || !request.silhouette_image.empty()) from->Fail("give one of circle, silhouette or from");
@@ -97,7 +88,12 @@ LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node) {
     request.sphere_radius_mm = sphere->Double("radius_mm", 0.0);
     if (!(request.sphere_radius_mm >= 0.0)) (*sphere)["radius_mm"].Fail("must be >= 0");
   }
-  if (auto out_rig = node.Find("out_rig")) request.out_rig = ResolveAgainst(node, out_rig->AsString());
+  if (auto out_rig = node.Find("out_rig")) {
+    request.out_rig = out_rig->AsPath();
+    // A rig file and nothing else: never the queue, a frame or a recipe.
+    const std::string extension = fs::path(request.out_rig).extension().string();
+    if (extension != ".yaml" && extension != ".yml") out_rig->Fail("must name a .yaml file");
+  }
   return request;
 }
 

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 
 namespace photorig::config {
@@ -29,14 +32,51 @@ ConfigError::ConfigError(const std::string& file, int line, int column, const st
       line_(line),
       column_(column) {}
 
+bool IsValidUtf8(std::string_view text, std::size_t* bad_offset) {
+  const auto* bytes = reinterpret_cast<const unsigned char*>(text.data());
+  std::size_t i = 0;
+  auto bad = [&] {
+    if (bad_offset) *bad_offset = i;
+    return false;
+  };
+  while (i < text.size()) {
+    const unsigned char c = bytes[i];
+    std::size_t length = 0;
+    std::uint32_t code = 0, min = 0;
+    if (c < 0x80) length = 1, code = c;
+    else if ((c & 0xE0) == 0xC0) length = 2, code = c & 0x1F, min = 0x80;
+    else if ((c & 0xF0) == 0xE0) length = 3, code = c & 0x0F, min = 0x800;
+    else if ((c & 0xF8) == 0xF0) length = 4, code = c & 0x07, min = 0x10000;
+    else return bad();
+    if (i + length > text.size()) return bad();
+    for (std::size_t k = 1; k < length; ++k) {
+      if ((bytes[i + k] & 0xC0) != 0x80) return bad();
+      code = (code << 6) | (bytes[i + k] & 0x3F);
+    }
+    if (code < min || code > 0x10FFFF || (code >= 0xD800 && code <= 0xDFFF)) return bad();
+    i += length;
+  }
+  return true;
+}
+
 YamlNode YamlNode::LoadFile(const std::string& path) {
-  std::ifstream in(path);
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) throw ConfigError(path, 0, 0, "", "is a directory, not a file");
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError(path, 0, 0, "", "cannot open file");
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw ConfigError(path, 0, 0, "", "cannot read file");
   return LoadString(text, path);
 }
 
 YamlNode YamlNode::LoadString(const std::string& text, const std::string& name) {
+  // Names and messages from the file end up in JSON, which must be UTF-8.
+  if (std::size_t bad = 0; !IsValidUtf8(text, &bad)) {
+    const std::size_t line_start = text.rfind('\n', bad == 0 ? 0 : bad - 1);
+    const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(bad), '\n'));
+    const int column = 1 + static_cast<int>(line_start == std::string::npos || bad == 0 ? bad : bad - line_start - 1);
+    throw ConfigError(name, line, column, "", "not UTF-8 text (byte " + std::to_string(bad) + ")");
+  }
   try {
     YAML::Node root = YAML::Load(text);
     if (!root.IsMap()) throw ConfigError(name, 1, 1, "", "expected a map at the top level");
@@ -49,11 +89,13 @@ YamlNode YamlNode::LoadString(const std::string& text, const std::string& name) 
 YamlNode::YamlNode(YAML::Node node, std::string file, std::string key)
     : node_(std::move(node)), file_(std::move(file)), key_(std::move(key)) {}
 
-void YamlNode::Fail(const std::string& message) const {
+int YamlNode::line() const {
   const YAML::Mark mark = node_.Mark();
-  const bool known = mark.line >= 0 && !mark.is_null();
-  throw ConfigError(file_, known ? mark.line + 1 : 0, known ? mark.column + 1 : 0, key_, message);
+  return mark.line >= 0 && !mark.is_null() ? mark.line + 1 : 0;
 }
+int YamlNode::column() const { return line() > 0 ? node_.Mark().column + 1 : 0; }
+
+void YamlNode::Fail(const std::string& message) const { throw ConfigError(file_, line(), column(), key_, message); }
 
 bool YamlNode::Has(const std::string& child) const { return node_.IsMap() && node_[child].IsDefined(); }
 
@@ -61,7 +103,9 @@ YamlNode YamlNode::operator[](const std::string& child) const {
   if (!node_.IsMap()) Fail("expected a map with key '" + child + "', got " + Describe(node_));
   const YAML::Node value = node_[child];
   if (!value.IsDefined()) Fail("missing required key '" + child + "'");
-  return YamlNode(value, file_, key_.empty() ? child : key_ + "." + child);
+  YamlNode found(value, file_, key_.empty() ? child : key_ + "." + child);
+  found.path_root_ = path_root_;
+  return found;
 }
 
 std::optional<YamlNode> YamlNode::Find(const std::string& child) const {
@@ -72,8 +116,10 @@ std::optional<YamlNode> YamlNode::Find(const std::string& child) const {
 std::vector<YamlNode> YamlNode::Items() const {
   if (!node_.IsSequence()) Fail("expected a list, got " + Describe(node_));
   std::vector<YamlNode> items;
-  for (std::size_t i = 0; i < node_.size(); ++i)
+  for (std::size_t i = 0; i < node_.size(); ++i) {
     items.emplace_back(node_[i], file_, key_ + "[" + std::to_string(i) + "]");
+    items.back().path_root_ = path_root_;
+  }
   return items;
 }
 
@@ -95,6 +141,28 @@ void YamlNode::ExpectKeys(std::initializer_list<const char*> allowed) const {
           .Fail("unknown key '" + name + "' (expected one of: " + list + ")");
     }
   }
+}
+
+YamlNode YamlNode::ConfinedTo(const std::string& directory) const {
+  YamlNode confined = *this;
+  confined.path_root_ = std::filesystem::weakly_canonical(std::filesystem::absolute(directory)).string();
+  return confined;
+}
+
+std::string YamlNode::AsPath() const {
+  namespace fs = std::filesystem;
+  const fs::path path = AsString();
+  if (path.empty()) Fail("expected a path, got an empty string");
+  const fs::path base = path_root_.empty() ? fs::path(file_).parent_path() : fs::path(path_root_);
+  const fs::path resolved = (path.is_absolute() ? path : base / path).lexically_normal();
+  if (path_root_.empty()) return resolved.string();
+  std::error_code error;
+  const fs::path real = fs::weakly_canonical(resolved, error);
+  const fs::path root = path_root_;
+  const auto mismatch = std::mismatch(root.begin(), root.end(), real.begin(), real.end());
+  if (error || mismatch.first != root.end() || path.string().find('\0') != std::string::npos)
+    Fail("must lie inside " + path_root_ + " (paths a recipe names stay in its folder)");
+  return real.string();
 }
 
 std::string YamlNode::AsString() const {
@@ -145,6 +213,21 @@ std::vector<int> YamlNode::AsIntList() const {
   std::vector<int> values;
   for (const YamlNode& item : Items()) values.push_back(item.AsInt());
   return values;
+}
+
+double YamlNode::AsDoubleIn(double min, double max) const {
+  const double value = AsDouble();
+  if (!(value >= min && value <= max)) {
+    char range[80];
+    std::snprintf(range, sizeof(range), "must lie in [%g, %g]", min, max);
+    Fail(range);
+  }
+  return value;
+}
+
+double YamlNode::DoubleIn(const std::string& child, double fallback, double min, double max) const {
+  const auto node = Find(child);
+  return node ? node->AsDoubleIn(min, max) : fallback;
 }
 
 double YamlNode::Double(const std::string& child, double fallback) const {

@@ -51,7 +51,7 @@ TEST(RecipeGroups, ErrorsNameTheOffendingValue) {
   ExpectRecipeError("    - pattern: {name: ring, leds: [0, {id: 0, level: 0.5}]}\n", 5, 39, "listed twice");
   ExpectRecipeError("    - pattern: {name: ring, leds: [{id: 1, level: 2}]}\n", 5, 51, "must be within (0, 1]");
   ExpectRecipeError("    - pattern: {name: ring, leds: [{id: 1, lvl: 1}]}\n", 5, 44, "lvl");
-  ExpectRecipeError("    - each_led: {exposures_us: [1000, -5]}\n", 5, 39, "must be > 0");
+  ExpectRecipeError("    - each_led: {exposures_us: [1000, -5]}\n", 5, 39, "must lie in [1, 1e+08]");
   ExpectRecipeError("    - each_led: {exposures_us: [1000, 1000]}\n", 5, 39, "listed twice");
   ExpectRecipeError("    - each_led: {exposures_us: []}\n", 5, 32, "at least one exposure");
   ExpectRecipeError("    - dark: {count: 1, repeat: 0}\n", 5, 32, "must be within [1, 1000]");

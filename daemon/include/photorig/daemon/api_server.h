@@ -11,12 +11,19 @@
 //   GET  /runs/{id}/files/{path}      a file of the run (frames/..., results/..., manifest.json)
 // Errors are JSON {"error": "..."} with a 4xx/5xx status. A bearer token is
 // required whenever one is configured, and must be configured to bind to
-// anything but loopback.
+// anything but loopback. Before any route, every request is checked (see
+// docs/api.md, "Request rules"): its path is UTF-8, its body has a length (no
+// chunked uploads, so the body limit holds), a POST carries no form or
+// text/plain body (what a foreign web page can send without asking), and a
+// request without a valid token names a loopback or allowed Host and comes
+// from no foreign Origin.
 
 #include "photorig/daemon/service.h"
 
+#include <atomic>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace httplib {
 class Server;
@@ -30,6 +37,17 @@ struct ApiOptions {
   std::string token;                      // bearer token; required off loopback
   std::size_t max_body_bytes = 1 << 20;
   int sse_keepalive_ms = 15000;
+  // Host names accepted besides loopback and bind_address (a request with a
+  // valid token is accepted under any Host).
+  std::vector<std::string> allowed_hosts;
+  // Each connection holds a worker while it is served, an event stream for as
+  // long as it is open: streams are capped (503 beyond) below the pool size,
+  // so short requests such as /health always find a free worker.
+  int worker_threads = 64;
+  int max_event_streams = 32;
+  // A client silent this long (while sending its headers or body) is cut off.
+  int read_timeout_ms = 5000;
+  int listen_backlog = 128;  // connections the kernel holds while every worker is busy
 
   bool IsValid(std::string* why) const;
 };
@@ -52,6 +70,8 @@ class ApiServer {
 
   RunService& service_;
   ApiOptions options_;
+  std::atomic<int> open_event_streams_{0};
+  int listen_fd_ = -1;  // the bound socket, to raise its backlog
   std::unique_ptr<httplib::Server> server_;
   int port_ = 0;
 };

@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -43,7 +44,9 @@ struct RunPlan {
   std::vector<std::string> warnings;
 
   bool ok() const { return errors.empty(); }
-  nlohmann::json ToJson(const std::vector<CaptureStep>& steps) const;
+  // The step list holds the first `max_listed_steps` steps ("steps_listed"
+  // says how many); the figures always cover all of them.
+  nlohmann::json ToJson(const std::vector<CaptureStep>& steps, std::size_t max_listed_steps = SIZE_MAX) const;
 };
 
 RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<CaptureStep>& steps,

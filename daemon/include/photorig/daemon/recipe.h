@@ -8,6 +8,8 @@
 
 namespace photorig::daemon {
 
+using config::CaptureLimitError;
+using config::CaptureLimits;
 using config::CaptureStep;
 using config::CaptureStepKindName;
 using config::CompileSteps;

@@ -35,6 +35,10 @@ struct ServiceOptions {
   bool resume_interrupted = true;        // false: mark runs a crash interrupted as "interrupted"
   bool solve = true;                     // run the recipe's solve: stages after a complete capture
   std::size_t max_recipe_bytes = 256 * 1024;
+  // What one recipe may expand to (frames, bytes, duration); beyond it
+  // dry-run and submit answer 413. Its step_overhead_ms is plan.step_overhead_ms.
+  CaptureLimits limits;
+  std::size_t max_listed_steps = 10000;  // steps listed in a dry-run or submit answer
   RetryPolicy retry;
   PlanOptions plan;
 
@@ -108,6 +112,12 @@ class RunService {
   void PublishLocked(const std::string& run_id, const std::string& type, nlohmann::json data);  // mutex_ held
   void SetState(QueuedRun& run, RunState state, const std::string& reason);
   void AnnounceState(const QueuedRun& run);  // the log line and the "state" event
+  // Storage (the queue, a run directory) failed, e.g. on a full disk: logged
+  // and reported by Health until the next queue write succeeds.
+  void NoteStorageError(const std::string& what);
+  // A failed run's stop record and manifest, written when its directory has a
+  // journal and no manifest yet; a failure to write them is logged only.
+  void FinishRunDirectory(const std::string& run_id, const StopRecord& stop);
   ServiceReply Validate(const std::string& name, const std::string& recipe_yaml, const std::string& recipe_path,
                         bool for_submit) const;
   nlohmann::json RunJson(const QueuedRun& run) const;  // the record as GET /runs/{id} shows it
@@ -127,6 +137,7 @@ class RunService {
   std::deque<RunEvent> events_;  // the most recent events of all runs
   std::uint64_t next_seq_ = 1;
   std::string last_device_fault_;
+  std::string storage_error_;  // empty while storage works
 };
 
 }  // namespace photorig::daemon

@@ -6,6 +6,7 @@
 #include "photorig/config/solve_requests.h"
 #include "photorig/drivers/light_controller.h"
 
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <utility>
@@ -75,20 +76,47 @@ struct CaptureStep {
   std::optional<GonioPose> pose;  // kPose only
 };
 
+// Bounds on what one recipe may expand to. Counts, repeats and YAML aliases
+// multiply, so a few lines can ask for millions of frames; CompileSteps checks
+// these while it expands, group by group, and stops at the first group that
+// crosses one. The defaults are far beyond any real capture (a day of dome
+// captures is a few thousand frames) and far below what exhausts the daemon.
+struct CaptureLimits {
+  int max_frames = 100000;
+  std::uint64_t max_bytes = std::uint64_t{1} << 41;  // 2 TiB of uncompressed 16-bit frames
+  double max_duration_s = 7 * 24 * 3600.0;           // exposures plus step_overhead_ms per frame
+  double step_overhead_ms = 40.0;  // counted per frame towards max_duration_s (as PlanOptions counts it)
+
+  bool IsValid(std::string* why) const;
+};
+
+// A recipe that compiles but expands beyond CaptureLimits: the position is the
+// group that crossed the limit.
+class CaptureLimitError : public ConfigError {
+ public:
+  using ConfigError::ConfigError;
+};
+
 // "dark" | "light" | "flat" | "pattern" | "pose": the kind as journals and manifests spell it.
 const char* CaptureStepKindName(CaptureStep::Kind kind);
 
 // Reads a recipe for the rig it will run on. Throws ConfigError naming
-// file:line:column and key.
+// file:line:column and key. Every path the recipe names (sample.sim_scene.path,
+// light_calibration's silhouette and out_rig) is relative to the recipe's
+// folder and must stay inside it.
 Recipe LoadRecipe(const std::string& path, const RigConfig& rig);
 // The same from text received over the API; errors name `name` as the file.
-Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig);
+// Its paths stay inside `directory` (default: the folder of `name`): the
+// daemon passes the folder it stores recipes in, where the run will read it.
+Recipe LoadRecipeText(const std::string& text, const std::string& name, const RigConfig& rig,
+                      const std::string& directory = "");
 // The rig file a recipe runs on: `override_path` when given, else the
 // recipe's `recipe.rig` (relative to the recipe file). Throws ConfigError
 // when neither names one.
 std::string RecipeRigPath(const std::string& recipe_path, const std::string& override_path);
 // Throws ConfigError (naming the recipe) when the recipe asks for LEDs the rig
-// lacks, or for poses on a rig without motion.
-std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig);
+// lacks, or for poses on a rig without motion; CaptureLimitError when it
+// expands beyond `limits` (checked before the steps are built).
+std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig, const CaptureLimits& limits = {});
 
 }  // namespace photorig::config

@@ -68,6 +68,15 @@ struct TriggerConfig {
 #endif
 };
 
+// The ranges a rig or recipe may give, checked at load. Beyond them a value
+// is a typo, and a huge one would overflow the integer microseconds and
+// nanoseconds the drivers convert it to.
+inline constexpr double kMinExposureUs = 1.0;
+inline constexpr double kMaxExposureUs = 1e8;  // 100 s
+inline constexpr double kMinGainDb = -40.0;
+inline constexpr double kMaxGainDb = 60.0;
+inline constexpr double kMaxLedIntensity = 1000.0;  // relative to the nominal LED (1)
+
 struct CameraConfig {
   std::string driver;  // sim | aravis | v4l2
   std::string id;

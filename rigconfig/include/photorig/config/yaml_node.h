@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace photorig::config {
@@ -28,11 +29,26 @@ class ConfigError : public std::runtime_error {
   int line_, column_;
 };
 
+// True when `text` is well-formed UTF-8 (no overlong forms, surrogates or
+// code points above U+10FFFF); `*bad_offset` is the first byte that is not.
+bool IsValidUtf8(std::string_view text, std::size_t* bad_offset = nullptr);
+
 class YamlNode {
  public:
   // Parses a file; syntax errors become ConfigError with the parser's position.
+  // A path that is no readable regular file and text that is not UTF-8 are
+  // errors too (the latter at the first bad byte).
   static YamlNode LoadFile(const std::string& path);
   static YamlNode LoadString(const std::string& text, const std::string& name);
+
+  // This node and every node below it resolve relative paths against
+  // `directory` and refuse any path that resolves outside it (after `..` and
+  // symlinks). Without it a path resolves against the file's folder, unchecked.
+  YamlNode ConfinedTo(const std::string& directory) const;
+  // The node's string as a path: absolute ones as they are, relative ones
+  // against the confining folder (or the file's). Outside the confining
+  // folder it fails with a message that says nothing of what exists there.
+  std::string AsPath() const;
 
   YamlNode(YAML::Node node, std::string file, std::string key);
 
@@ -41,6 +57,8 @@ class YamlNode {
   bool IsMap() const { return node_.IsMap(); }
   bool IsSequence() const { return node_.IsSequence(); }
   bool IsScalar() const { return node_.IsScalar(); }
+  int line() const;    // 1-based; 0 when unknown
+  int column() const;  // 1-based; 0 when unknown
 
   bool Has(const std::string& child) const;
   YamlNode operator[](const std::string& child) const;  // required: error if missing
@@ -62,6 +80,9 @@ class YamlNode {
   int Int(const std::string& child, int fallback) const;
   bool Bool(const std::string& child, bool fallback) const;
   std::string String(const std::string& child, const std::string& fallback) const;
+  // A number within [min, max]; otherwise an error naming the range.
+  double AsDoubleIn(double min, double max) const;
+  double DoubleIn(const std::string& child, double fallback, double min, double max) const;
 
   [[noreturn]] void Fail(const std::string& message) const;
 
@@ -69,6 +90,7 @@ class YamlNode {
   YAML::Node node_;
   std::string file_;
   std::string key_;
+  std::string path_root_;  // empty: not confined
 };
 
 }  // namespace photorig::config
