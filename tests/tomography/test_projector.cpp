@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <string>
 
 namespace photorig::tomography {
 namespace {
@@ -62,7 +63,12 @@ INSTANTIATE_TEST_SUITE_P(
                     AdjointCase{Beam::kParallel, Interpolation::kJoseph, Storage::kSparse},
                     AdjointCase{Beam::kCone, Interpolation::kSiddon, Storage::kMatrixFree},
                     AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kSparse},
-                    AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kMatrixFree}));
+                    AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kMatrixFree}),
+    [](const testing::TestParamInfo<AdjointCase>& info) {
+      return std::string(info.param.beam == Beam::kParallel ? "Parallel" : "Cone") +
+             (info.param.interpolation == Interpolation::kSiddon ? "Siddon" : "Joseph") +
+             (info.param.storage == Storage::kSparse ? "Sparse" : "MatrixFree");
+    });
 
 TEST(Projector, SparseAndMatrixFreeGiveTheSameProducts) {
   const VolumeGrid grid{16, 16, 4, 0.5};
