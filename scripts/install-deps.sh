@@ -24,6 +24,8 @@ packages=(
   qemu-system-x86 busybox-static cpio
   # charts (run under /usr/bin/python3)
   python3-numpy python3-matplotlib
+  # the tomography peer: scikit-image's radon-transform reconstructions (scripts/chart-tomography.sh)
+  python3-skimage
   # run store: vectorised CRC-32 and Adler-32 for frame files
   libdeflate-dev
 )

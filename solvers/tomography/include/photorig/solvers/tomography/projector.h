@@ -1,0 +1,86 @@
+#pragma once
+// The system matrix W (rays x voxels) of a scan, applied forwards (W x, a
+// projection) and backwards (W^T y, a back projection). Stored as an Eigen
+// sparse matrix, with its transpose for a parallel back projection, when both
+// fit in the memory budget; otherwise every product traces its rays again
+// (matrix-free). Both give the same products through the same interface.
+
+#include "photorig/solvers/progress.h"
+#include "photorig/solvers/summary.h"
+#include "photorig/solvers/tomography/geometry.h"
+#include "photorig/solvers/tomography/ray_trace.h"
+#include "photorig/solvers/tomography/volume_grid.h"
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace photorig::tomography {
+
+enum class Storage {
+  kAuto,       // sparse when W and W^T fit in memory_budget_bytes, matrix-free otherwise
+  kSparse,     // sparse, or kFailure when it does not fit
+  kMatrixFree  // trace the rays in every product
+};
+
+struct ProjectorOptions {
+  Interpolation interpolation = Interpolation::kSiddon;
+  Storage storage = Storage::kAuto;
+  // What the stored W and W^T may take together. Default 4 GiB: a 64^3 volume
+  // from 90 views of 64^2 pixels takes about 0.4 GB; 128^3 from 180 views of
+  // 128^2 about 7 GB, so it runs matrix-free under the default.
+  std::size_t memory_budget_bytes = std::size_t{4} << 30;
+  solvers::ProgressCallback progress;  // stage "projector": views traced while building W
+
+  bool IsValid(std::string* why) const;
+};
+
+using SparseMatrix = Eigen::SparseMatrix<float, Eigen::RowMajor, std::int32_t>;
+
+class Projector {
+ public:
+  Projector(const VolumeGrid& grid, const Geometry& geometry, Interpolation interpolation);
+
+  const VolumeGrid& grid() const { return grid_; }
+  const Geometry& geometry() const { return geometry_; }
+  Interpolation interpolation() const { return interpolation_; }
+  std::int64_t rays() const { return geometry_.rays(); }
+  std::int64_t voxels() const { return grid_.voxels(); }
+  bool is_sparse() const { return w_ != nullptr; }
+  std::int64_t nonzeros() const;  // stored entries of W (0 when matrix-free)
+  std::size_t stored_bytes() const;
+
+  void Forward(const Eigen::VectorXf& x, Eigen::VectorXf* y) const;  // y = W x
+  void Back(const Eigen::VectorXf& y, Eigen::VectorXf* x) const;     // x = W^T y
+  // Row `ray` of W, for row-action methods.
+  void Row(std::int64_t ray, std::vector<RayWeight>* weights) const;
+
+  // Stores W and W^T (called by MakeProjector when they fit).
+  void StoreSparse(const solvers::ProgressCallback& progress);
+
+ private:
+  VolumeGrid grid_;
+  Geometry geometry_;
+  Interpolation interpolation_;
+  std::unique_ptr<SparseMatrix> w_, wt_;
+};
+
+struct ProjectorSummary : solvers::Summary {
+  bool sparse = false;
+  std::int64_t nonzeros = 0;                // stored entries of W (sparse only)
+  std::size_t estimated_sparse_bytes = 0;   // W and W^T, from a sample of rays
+  std::size_t stored_bytes = 0;
+};
+
+// Builds the projector of `grid` seen by `geometry`. Ends kInvalidOptions or
+// kInvalidInput with the reason, or kFailure when kSparse was asked for and
+// W does not fit the budget.
+ProjectorSummary MakeProjector(const VolumeGrid& grid, const Geometry& geometry, const ProjectorOptions& options,
+                               std::unique_ptr<Projector>* projector);
+
+}  // namespace photorig::tomography

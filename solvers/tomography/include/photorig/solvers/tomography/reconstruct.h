@@ -1,0 +1,111 @@
+#pragma once
+// Solves W sigma = b for the volume sigma (1/mm) by one of three iterations:
+//
+//   kArt:  Kaczmarz's row action (algebraic reconstruction technique): one
+//          sweep visits every valid ray once, views in a shuffled order, and
+//          projects sigma onto the ray's hyperplane, relaxed by lambda.
+//   kSirt: simultaneous: sigma += lambda C W^T R (b - W sigma), with R and C
+//          the inverse row and column sums of W (the ASTRA / Gregor-Benson form).
+//   kCgls: conjugate gradients on the normal equations; the fastest to the
+//          least-squares solution, but no non-negativity (a projection would
+//          break its conjugacy).
+// ART and SIRT project onto sigma >= 0 (an absorbing sample) after every update.
+//
+// With noisy b these iterations semi-converge: the error to the true volume
+// falls, then rises as they start fitting the noise. The discrepancy principle
+// (Morozov) stops them without a ground truth: at the first iteration whose
+// residual ||W sigma - b|| over the valid rays falls to
+//   tau * sqrt(sum of var(b)),
+// the level the noise alone explains. var(b) comes from the flats and darks
+// (Absorbance::variance) or from a given noise_sigma.
+//
+// What the summary flags rather than hides:
+//   * no signal: b is within its noise (sigma = 0 already fits it) -> kFailure;
+//   * too few views: fewer valid rays than min_rays_per_voxel times the voxels
+//     the rays reach -> kFailure; fewer rays than voxels is reported as
+//     underdetermined (the prior, non-negativity and early stopping carry it);
+//   * inconsistent data: the residual stalls well above the noise level (a wrong
+//     centre of rotation, bad flats, scatter) -> kNoConvergence with the flag;
+//   * voxels no valid ray reaches: left at 0 and counted.
+
+#include "photorig/solvers/progress.h"
+#include "photorig/solvers/summary.h"
+#include "photorig/solvers/tomography/absorbance.h"
+#include "photorig/solvers/tomography/projector.h"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace photorig::tomography {
+
+enum class Method { kArt, kSirt, kCgls };
+
+std::optional<Method> ParseMethod(std::string_view name);  // "art", "sirt", "cgls"
+const char* MethodName(Method method);
+
+enum class StopRule {
+  kDiscrepancy,  // stop when the residual reaches the noise level (needs a noise estimate)
+  kIterations    // run max_iterations
+};
+
+enum class StopReason {
+  kNone,           // did not iterate (failed before)
+  kDiscrepancy,    // the residual reached the noise level
+  kMaxIterations,  // max_iterations came first
+  kStagnation      // the residual stopped falling
+};
+
+const char* StopReasonName(StopReason reason);
+
+struct ReconstructOptions {
+  Method method = Method::kSirt;
+  int max_iterations = 200;  // sweeps for ART
+  // Relaxation lambda; 0 picks the method's default: ART 0.25 (gentle sweeps,
+  // so that the stopping rule has iterations to choose between), SIRT 1.9
+  // (within its (0, 2) range of convergence). CGLS has none.
+  double relaxation = 0.0;
+  bool non_negative = true;  // ART and SIRT; CGLS cannot keep it
+  StopRule stop_rule = StopRule::kDiscrepancy;
+  double discrepancy_factor = 1.0;  // tau in the rule above; 1 is Morozov's choice
+  // Standard deviation of every b when the measurements carry no variance
+  // (0: none given; the discrepancy rule then needs Absorbance::variance).
+  double noise_sigma = 0.0;
+  // Fewer valid rays per reached voxel than this is too few views. Default
+  // 0.25: 64 views of 128 pixels for a 128^2 slice give 0.5 and reconstruct well.
+  double min_rays_per_voxel = 0.25;
+  // Stops when an iteration lowers the residual by less than this fraction.
+  double stagnation_tolerance = 1e-5;
+  // Called after every iteration with its number (from 1) and the volume: for
+  // error-against-iterations charts. It must not keep the reference.
+  std::function<void(int, const Eigen::VectorXf&)> on_iteration;
+  solvers::ProgressCallback progress;  // stage: the method's name; total: max_iterations
+
+  bool IsValid(std::string* why) const;
+};
+
+struct ReconstructionSummary : solvers::Summary {
+  Method method = Method::kSirt;
+  int iterations = 0;
+  double relaxation = 0.0;               // the lambda used
+  std::vector<double> residual_history;  // ||W sigma - b|| over valid rays; [0] before the first iteration
+  double discrepancy_target = 0.0;       // tau sqrt(sum var(b)); 0 when no noise estimate
+  StopReason stop_reason = StopReason::kNone;
+  std::int64_t rays_used = 0;
+  std::int64_t voxels_reached = 0;  // voxels some valid ray crosses
+  std::int64_t voxels_unreached = 0;
+  bool underdetermined = false;  // rays_used < voxels_reached
+  bool inconsistent = false;     // the residual stalled above 1.5 x the noise level
+};
+
+// Fills *sigma (voxels, 1/mm) from the measurements. *sigma is the starting
+// point when it has the right size, otherwise it starts from zero.
+ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& measurements,
+                                  const ReconstructOptions& options, Eigen::VectorXf* sigma);
+
+}  // namespace photorig::tomography

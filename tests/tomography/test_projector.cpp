@@ -1,0 +1,135 @@
+#include "photorig/solvers/tomography/projector.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <string>
+
+namespace photorig::tomography {
+namespace {
+
+Geometry Scan(Beam beam, int views, int cols, int rows, double pixel_mm) {
+  Geometry g;
+  g.beam = beam;
+  g.detector_cols = cols;
+  g.detector_rows = rows;
+  g.pixel_mm = pixel_mm;
+  g.angles_rad = EvenAngles(views, 360.0);
+  g.cor_offset_mm = 0.13;
+  g.source_to_axis_mm = 40.0;
+  g.axis_to_detector_mm = 20.0;
+  return g;
+}
+
+Eigen::VectorXf Random(std::int64_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  Eigen::VectorXf v(n);
+  for (auto& x : v) x = u(rng);
+  return v;
+}
+
+struct AdjointCase {
+  Beam beam;
+  Interpolation interpolation;
+  Storage storage;
+};
+
+class Adjoint : public testing::TestWithParam<AdjointCase> {};
+
+TEST_P(Adjoint, BackProjectionIsTheTransposeOfProjection) {
+  const AdjointCase c = GetParam();
+  const VolumeGrid grid{12, 10, 8, 1.0};
+  const Geometry geometry = Scan(c.beam, 9, 20, 14, 1.1);
+  ProjectorOptions options;
+  options.interpolation = c.interpolation;
+  options.storage = c.storage;
+  std::unique_ptr<Projector> w;
+  ASSERT_TRUE(MakeProjector(grid, geometry, options, &w).IsSolutionUsable());
+  EXPECT_EQ(w->is_sparse(), c.storage == Storage::kSparse);
+  const Eigen::VectorXf x = Random(w->voxels(), 1), y = Random(w->rays(), 2);
+  Eigen::VectorXf wx, wty;
+  w->Forward(x, &wx);
+  w->Back(y, &wty);
+  const double lhs = wx.cast<double>().dot(y.cast<double>()), rhs = x.cast<double>().dot(wty.cast<double>());
+  EXPECT_NEAR(lhs, rhs, 1e-5 * (std::abs(lhs) + std::abs(rhs)));
+  EXPECT_GT(wx.norm(), 0.0f) << "the rays must cross the grid";
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    AllProjectors, Adjoint,
+    testing::Values(AdjointCase{Beam::kParallel, Interpolation::kSiddon, Storage::kSparse},
+                    AdjointCase{Beam::kParallel, Interpolation::kSiddon, Storage::kMatrixFree},
+                    AdjointCase{Beam::kParallel, Interpolation::kJoseph, Storage::kSparse},
+                    AdjointCase{Beam::kCone, Interpolation::kSiddon, Storage::kMatrixFree},
+                    AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kSparse},
+                    AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kMatrixFree}),
+    [](const testing::TestParamInfo<AdjointCase>& info) {
+      return std::string(info.param.beam == Beam::kParallel ? "Parallel" : "Cone") +
+             (info.param.interpolation == Interpolation::kSiddon ? "Siddon" : "Joseph") +
+             (info.param.storage == Storage::kSparse ? "Sparse" : "MatrixFree");
+    });
+
+TEST(Projector, SparseAndMatrixFreeGiveTheSameProducts) {
+  const VolumeGrid grid{16, 16, 4, 0.5};
+  const Geometry geometry = Scan(Beam::kCone, 7, 24, 6, 0.5);
+  ProjectorOptions sparse_options, free_options;
+  sparse_options.storage = Storage::kSparse;
+  free_options.storage = Storage::kMatrixFree;
+  std::unique_ptr<Projector> sparse, free;
+  ASSERT_TRUE(MakeProjector(grid, geometry, sparse_options, &sparse).IsSolutionUsable());
+  ASSERT_TRUE(MakeProjector(grid, geometry, free_options, &free).IsSolutionUsable());
+  const Eigen::VectorXf x = Random(grid.voxels(), 3), y = Random(geometry.rays(), 4);
+  Eigen::VectorXf a, b;
+  sparse->Forward(x, &a);
+  free->Forward(x, &b);
+  EXPECT_LT((a - b).norm(), 1e-5 * a.norm());
+  sparse->Back(y, &a);
+  free->Back(y, &b);
+  EXPECT_LT((a - b).norm(), 1e-5 * a.norm());
+}
+
+TEST(Projector, ColumnSumsOfAParallelSliceScanAreTheVoxelAreaOverThePitch) {
+  // Each view's rays, spaced by the pitch p, cover a voxel of side v with
+  // lengths summing to v^2 / p on average.
+  const VolumeGrid grid{32, 32, 1, 0.5};
+  Geometry geometry = Scan(Beam::kParallel, 30, 48, 1, 0.5);
+  geometry.cor_offset_mm = 0.0;
+  geometry.angles_rad = EvenAngles(30, 180.0);
+  std::unique_ptr<Projector> w;
+  ASSERT_TRUE(MakeProjector(grid, geometry, {}, &w).IsSolutionUsable());
+  Eigen::VectorXf sums;
+  w->Back(Eigen::VectorXf::Ones(geometry.rays()), &sums);
+  const double expected = 30 * 0.5 * 0.5 / 0.5;
+  EXPECT_NEAR(sums.mean(), expected, 0.01 * expected);
+  EXPECT_NEAR(sums.minCoeff(), expected, 0.1 * expected);
+  EXPECT_NEAR(sums.maxCoeff(), expected, 0.1 * expected);
+}
+
+TEST(Projector, SparseStorageOverTheBudgetFails) {
+  ProjectorOptions options;
+  options.storage = Storage::kSparse;
+  options.memory_budget_bytes = 1024;
+  std::unique_ptr<Projector> w;
+  const ProjectorSummary s = MakeProjector({16, 16, 16, 0.5}, Scan(Beam::kParallel, 8, 16, 16, 0.5), options, &w);
+  EXPECT_EQ(s.termination, solvers::Termination::kFailure);
+  EXPECT_NE(s.message.find("memory_budget_bytes"), std::string::npos);
+  EXPECT_GT(s.estimated_sparse_bytes, 1024u);
+  EXPECT_EQ(w, nullptr);
+  // kAuto falls back to matrix-free under the same budget.
+  options.storage = Storage::kAuto;
+  ASSERT_TRUE(MakeProjector({16, 16, 16, 0.5}, Scan(Beam::kParallel, 8, 16, 16, 0.5), options, &w).IsSolutionUsable());
+  EXPECT_FALSE(w->is_sparse());
+}
+
+TEST(Projector, BadGeometryIsInvalidInput) {
+  Geometry g = Scan(Beam::kParallel, 4, 8, 8, 0.5);
+  g.angles_rad.clear();
+  std::unique_ptr<Projector> w;
+  EXPECT_EQ(MakeProjector({8, 8, 8, 0.5}, g, {}, &w).termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(MakeProjector({0, 8, 8, 0.5}, Scan(Beam::kParallel, 4, 8, 8, 0.5), {}, &w).termination,
+            solvers::Termination::kInvalidInput);
+}
+
+}  // namespace
+}  // namespace photorig::tomography
