@@ -9,7 +9,8 @@
 #   scripts/fuzz.sh list                    the targets
 #
 # Environment: PHOTORIG_FUZZ_BUILD (build tree, default build-fuzz/), FUZZ_JOBS (build jobs, default 2),
-# FUZZ_WORKERS (parallel fuzzing processes per target in `run`, default 2).
+# FUZZ_WORKERS (parallel fuzzing processes per target in `run`, default 2), FUZZ_SKIP_BUILD=1 (`run`
+# without building first, e.g. while the tree is being built by another command).
 # A finding leaves its input in <build tree>/artifacts/<target>/; replay it with
 #   <build tree>/bin/<target> <file>
 set -euo pipefail
@@ -44,8 +45,9 @@ build_fuzzers() {
   local launcher=()
   command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
   if [ ! -f "$build/CMakeCache.txt" ]; then
-    # -O1 without NDEBUG: assertions stay on (each one a check the fuzzer can trip) and the build is shorter.
-    CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE=-O1 "${launcher[@]}" \
+    # -O1 without NDEBUG: assertions stay on (each one a check the fuzzer can trip); RelWithDebInfo
+    # also keeps the solvers' Release-only -O3 out, which would lengthen the build.
+    CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 "${launcher[@]}" \
       -DPHOTORIG_FUZZ=ON -DPHOTORIG_BUILD_TESTS=OFF -DPHOTORIG_BUILD_BENCH=OFF >/dev/null
   fi
   cmake --build "$build" --target photorig_fuzzers -j "$jobs"
@@ -63,7 +65,7 @@ make_seeds() {
   local t="$1" out="$build/seeds/$1"
   rm -rf "$out"
   mkdir -p "$out"
-  [ -d "$root/fuzz/corpus/$t" ] && cp "$root/fuzz/corpus/$t/"* "$out/"
+  [ -d "$root/fuzz/corpus/$t" ] && cp -r "$root/fuzz/corpus/$t/." "$out/"
   case "$t" in
     fuzz_rig) cp "$root"/config/rigs/*.yaml "$out/" ;;
     fuzz_recipe) cp "$root"/config/recipes/*.yaml "$out/" ;;
@@ -128,7 +130,7 @@ case "$command" in
       selected=("$2")
     fi
     seconds="${3:-300}"
-    build_fuzzers
+    [ "${FUZZ_SKIP_BUILD:-0}" = 1 ] || build_fuzzers
     failed=0
     for t in "${selected[@]}"; do fuzz_target "$t" "$seconds" "$workers" || failed=1; done
     exit "$failed" ;;
