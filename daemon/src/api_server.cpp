@@ -14,7 +14,9 @@ namespace {
 
 void Reply(httplib::Response& res, const ServiceReply& reply) {
   res.status = reply.http_status;
-  res.set_content(reply.body.dump(), "application/json");
+  // Messages can quote request bytes (a recipe key, a parse error's context)
+  // that are not UTF-8; they are replaced (U+FFFD) rather than failing the answer.
+  res.set_content(reply.body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
 }
 
 void ErrorReply(httplib::Response& res, int status, const std::string& message) {
