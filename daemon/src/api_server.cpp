@@ -25,8 +25,9 @@ namespace {
 
 void Reply(httplib::Response& res, const ServiceReply& reply) {
   res.status = reply.http_status;
-  // Text stored before names were checked may hold bytes that are not UTF-8:
-  // replaced (U+FFFD) rather than failing the whole answer.
+  // Messages can quote request bytes (a recipe key, a parse error's context)
+  // and runs stored before names were checked can hold bytes that are not
+  // UTF-8: replaced (U+FFFD) rather than failing the whole answer.
   res.set_content(reply.body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
 }
 

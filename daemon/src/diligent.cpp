@@ -4,6 +4,7 @@
 #include "photorig/daemon/rig_config.h"
 
 #include <matio.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -21,6 +22,14 @@ namespace {
 // the user fixes, not a fault of the solve.
 [[noreturn]] void Malformed(const fs::path& file, int line, const std::string& message) {
   throw ConfigError(file.string(), line, line > 0 ? 1 : 0, "", message);
+}
+
+// An image of the folder, unchanged (16-bit stays 16-bit); one that does not
+// decode is malformed input like any other file of the folder.
+cv::Mat ReadFolderImage(const fs::path& file) {
+  cv::Mat image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+  if (image.empty()) Malformed(file, 0, "cannot read as an image (truncated or not an image)");
+  return image;
 }
 
 // Non-blank lines with their 1-based line numbers.
@@ -176,7 +185,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
     const fs::path file = root / names[i].second;
     if (!fs::is_regular_file(file))
       Malformed(names_file, names[i].first, "'" + names[i].second + "' is not a file in " + root.string());
-    const cv::Mat image = ReadImage(file.string());
+    const cv::Mat image = ReadFolderImage(file);
     if (first.empty()) {
       first = image;
     } else if (image.size() != first.size() || image.depth() != first.depth() || image.channels() != first.channels()) {
@@ -214,7 +223,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   input.saturation_level = std::numeric_limits<double>::infinity();
   const fs::path mask_file = root / "mask.png";
   if (fs::exists(mask_file)) {
-    cv::Mat mask = ReadImage(mask_file.string());
+    cv::Mat mask = ReadFolderImage(mask_file);
     if (mask.size() != first.size())
       Malformed(mask_file, 0, std::to_string(mask.cols) + "x" + std::to_string(mask.rows) + ", but the images are " +
                                   std::to_string(first.cols) + "x" + std::to_string(first.rows));

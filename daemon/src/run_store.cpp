@@ -5,7 +5,9 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -269,23 +271,24 @@ std::unique_ptr<RunWriter> RunWriter::Reopen(const std::string& directory, Recov
   std::string line;
   bool have_header = false;
   std::map<int, FrameRecord> frames;  // by step index: a retaken step replaces its earlier record
-  while (std::getline(lines, line)) {
-    json entry;
+  for (int line_number = 1; std::getline(lines, line); ++line_number) {
+    // A line that parses but is not a record (a number, a header that is not an
+    // object, a field of the wrong type) is as corrupt as one that does not parse.
     try {
-      entry = json::parse(line);
+      const json entry = json::parse(line);
+      if (entry.contains("run")) {
+        json header = entry.at("run");
+        header["frames"] = json::array();
+        writer->manifest_ = RunManifestFromJson(header);
+        have_header = true;
+      } else if (entry.contains("stop")) {
+        writer->manifest_.stop = StopRecordFromJson(entry.at("stop"));
+      } else {
+        const FrameRecord record = FrameRecordFromJson(entry);
+        frames[record.index] = record;
+      }
     } catch (const std::exception& e) {
-      throw std::runtime_error(journal.string() + ": corrupt line: " + e.what());
-    }
-    if (entry.contains("run")) {
-      json header = entry["run"];
-      header["frames"] = json::array();
-      writer->manifest_ = RunManifestFromJson(header);
-      have_header = true;
-    } else if (entry.contains("stop")) {
-      writer->manifest_.stop = StopRecordFromJson(entry["stop"]);
-    } else {
-      const FrameRecord record = FrameRecordFromJson(entry);
-      frames[record.index] = record;
+      throw std::runtime_error(journal.string() + ":" + std::to_string(line_number) + ": corrupt line: " + e.what());
     }
   }
   if (!have_header) throw std::runtime_error(journal.string() + ": no run header (journal is empty or torn)");
@@ -471,9 +474,21 @@ std::vector<std::string> VerifyRun(const std::string& directory) {
       problems.push_back(e.what());
     }
   }
-  if (manifest.stop && manifest.stop->status == CaptureStatus::kComplete)
-    for (int i = 0; i < manifest.stop->steps_total; ++i)
-      if (!indices.count(i)) problems.push_back("step " + std::to_string(i) + " missing");
+  if (manifest.stop && manifest.stop->status == CaptureStatus::kComplete) {
+    // Counted from the frames present, so a damaged steps_total of 2^31 costs no
+    // more than a small one; the first few missing steps are named.
+    const int steps_total = manifest.stop->steps_total;
+    const auto present = std::count_if(indices.begin(), indices.end(), [&](int i) { return i >= 0 && i < steps_total; });
+    const std::int64_t missing = std::max<std::int64_t>(0, std::int64_t{steps_total} - present);
+    constexpr std::int64_t kNamed = 20;
+    std::int64_t named = 0;
+    for (int i = 0; i < steps_total && named < std::min(missing, kNamed); ++i)
+      if (!indices.count(i)) {
+        problems.push_back("step " + std::to_string(i) + " missing");
+        ++named;
+      }
+    if (missing > named) problems.push_back(std::to_string(missing - named) + " more steps missing");
+  }
   const fs::path frames_dir = fs::path(directory) / "frames";
   if (fs::exists(frames_dir))
     for (const auto& entry : fs::directory_iterator(frames_dir))

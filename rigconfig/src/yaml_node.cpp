@@ -22,6 +22,13 @@ std::string Describe(const YAML::Node& node) {
   return "a map";
 }
 
+// A map key as a string. YAML allows any node as a key (`? [a, b]`, `? {a: 1}`,
+// an empty `? `); configuration keys are names, so anything else is an error.
+std::string KeyName(const YAML::Node& key, const std::string& file, const std::string& parent) {
+  if (!key.IsScalar()) YamlNode(key, file, parent).Fail("expected a name as a key, got " + Describe(key));
+  return key.Scalar();
+}
+
 }  // namespace
 
 ConfigError::ConfigError(const std::string& file, int line, int column, const std::string& key,
@@ -126,14 +133,14 @@ std::vector<YamlNode> YamlNode::Items() const {
 std::vector<std::string> YamlNode::Keys() const {
   if (!node_.IsMap()) Fail("expected a map, got " + Describe(node_));
   std::vector<std::string> keys;
-  for (const auto& entry : node_) keys.push_back(entry.first.as<std::string>());
+  for (const auto& entry : node_) keys.push_back(KeyName(entry.first, file_, key_));
   return keys;
 }
 
 void YamlNode::ExpectKeys(std::initializer_list<const char*> allowed) const {
   if (!node_.IsMap()) Fail("expected a map, got " + Describe(node_));
   for (const auto& entry : node_) {
-    const std::string name = entry.first.as<std::string>();
+    const std::string name = KeyName(entry.first, file_, key_);
     if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return name == a; })) {
       std::string list;
       for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;

@@ -180,6 +180,19 @@ TEST(RigConfig, UnknownKeyIsReportedWhereItIs) {
   ExpectConfigError(dir.Write("rig.yaml", text), text, 12, 3, "camera.heigth", "unknown key 'heigth'");
 }
 
+TEST(RigConfig, AKeyThatIsNotANameIsAConfigErrorWhereItIs) {
+  TempDir dir;
+  // YAML allows a list, a map or nothing as a key; yaml-cpp's bad conversion used to escape the loader.
+  const std::string rig = kRig;
+  const int line = static_cast<int>(std::count(rig.begin(), rig.end(), '\n')) + 1;
+  for (const std::string key : {"? [a, b]\n: 1\n", "? {d: 1}\n: 1\n", "? \n: 1\n"}) {
+    const std::string text = rig + key;
+    const bool empty = key == "? \n: 1\n";  // an empty key has no text of its own: the parser marks the line after
+    ExpectConfigError(dir.Write("rig.yaml", text), text, empty ? line + 1 : line, empty ? 1 : 3, "",
+                      "expected a name as a key");
+  }
+}
+
 TEST(RigConfig, MissingKeyAndBadNumberAreExplained) {
   TempDir dir;
   std::string missing = kRig;

@@ -165,5 +165,19 @@ TEST_F(DiligentFolder, AListedImageThatIsMissingIsNamedWithItsLine) {
   EXPECT_NE(error.find("005.png"), std::string::npos) << error;
 }
 
+TEST_F(DiligentFolder, AnImageOrMaskThatDoesNotDecodeIsAConfigErrorNamingIt) {
+  // An empty or damaged PNG escaped as a plain runtime_error, not the folder's ConfigError.
+  for (const std::string name : {"002.png", "mask.png"}) {
+    const std::filesystem::path file = dir_.path() / name;
+    const std::string good = photorig::testing::ReadText(file);
+    for (const std::string bad : {std::string(), good.substr(0, good.size() / 2), std::string("\x89PNG\r\n")}) {
+      std::ofstream(file, std::ios::binary | std::ios::trunc) << bad;
+      const std::string error = LoadError();
+      EXPECT_NE(error.find(name + ": cannot read as an image"), std::string::npos) << name << ": " << error;
+    }
+    std::ofstream(file, std::ios::binary | std::ios::trunc) << good;
+  }
+}
+
 }  // namespace
 }  // namespace photorig::daemon

@@ -273,4 +273,39 @@ TEST(RunStore, VerifyRunFindsMissingAndStrayFrames) {
 }
 
 }  // namespace
+TEST(RunStore, ReopenNamesAJournalLineThatIsNotARecord) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  {
+    RunWriter writer(run, Header());
+    writer.WriteFrame(Step(0, -1), MakeFrame(20, 10, 0));
+  }
+  // Valid JSON, but not a frame record: a number, then (separately) a header that is not an object.
+  for (const std::string bad : {"7\n", "{\"run\": 3}\n", "{\"index\": \"one\", \"file\": 2}\n"}) {
+    const std::filesystem::path journal = std::filesystem::path(run) / "journal.jsonl";
+    const std::string good = photorig::testing::ReadText(journal);
+    std::ofstream(journal, std::ios::app) << bad;
+    try {
+      RunWriter::Reopen(run, nullptr);
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("journal.jsonl:3: corrupt line"), std::string::npos) << e.what();
+    }
+    std::ofstream(journal, std::ios::trunc) << good;
+  }
+}
+
+TEST(RunStore, VerifyRunOfAHugeStepCountNamesAFewMissingStepsAndCountsTheRest) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  RunWriter writer(run, Header());
+  writer.WriteFrame(Step(0, -1), MakeFrame(20, 10, 0));
+  writer.Finish({CaptureStatus::kComplete, "", 1, 2147483647, 0, 0});
+  const auto problems = VerifyRun(run);
+  ASSERT_EQ(problems.size(), 21u);
+  EXPECT_NE(problems[0].find("step 1 missing"), std::string::npos) << problems[0];
+  EXPECT_NE(problems[19].find("step 20 missing"), std::string::npos) << problems[19];
+  EXPECT_EQ(problems[20], "2147483626 more steps missing");
+}
+
 }  // namespace photorig::daemon

@@ -7,6 +7,7 @@
 #include "test_support.h"
 
 #include <gtest/gtest.h>
+#include <httplib.h>
 
 #include <filesystem>
 #include <thread>
@@ -100,6 +101,18 @@ TEST_F(Api, SubmitWatchAndFetchAFrame) {
   const std::string on_disk = photorig::testing::ReadText(dir_.path() / "data/runs" / id / "frames/0001_led00.png");
   EXPECT_EQ(bytes, on_disk);
   EXPECT_TRUE(VerifyRun((dir_.path() / "data/runs" / id).string()).empty());
+}
+
+TEST_F(Api, AnErrorQuotingBytesThatAreNotUtf8IsA400WithValidJson) {
+  StartDaemon("");
+  // The JSON parser's message quotes the bad byte; serialising it used to throw, and the answer became a 500.
+  httplib::Client http("127.0.0.1", server_->port());
+  const std::string body = "{\"name\": \"x.yaml\", \"recipe\": \"recipe: {name: small}\\ncapture:\\n  steps:\\n    - each_le\xA7" "d: {}\\n\"}";
+  const auto res = http.Post("/api/v1/runs", body, "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 400) << res->body;
+  const json answer = json::parse(res->body);
+  EXPECT_NE(answer.at("error").get<std::string>().find("each_le\xEF\xBF\xBD"), std::string::npos) << res->body;
 }
 
 TEST_F(Api, RejectsBadInputWithClear4xx) {

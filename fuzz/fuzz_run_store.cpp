@@ -1,0 +1,87 @@
+// A stored run, read as `photorig` and the daemon read one: manifest.json
+// (LoadRunManifest, then LoadFrame for each frame it lists), the whole run
+// (VerifyRun) and the journal (RunWriter::Reopen, which repairs it). The input
+// replaces one file of a valid two-frame run: the first byte picks
+// manifest.json, journal.jsonl or a frame PNG, the rest is its content. The
+// contract is a result or a std::runtime_error naming the file.
+#include "fuzz_support.h"
+#include "photorig/daemon/run_store.h"
+
+#include <array>
+#include <stdexcept>
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace photorig::daemon;
+
+constexpr std::array<const char*, 3> kFiles = {"manifest.json", "journal.jsonl", "frames/0001_led00.png"};
+
+photorig::drivers::Frame MakeFrame(std::uint64_t id) {
+  photorig::drivers::Frame frame;
+  frame.width = 8;
+  frame.height = 4;
+  frame.bit_depth = 12;
+  frame.frame_id = id;
+  frame.exposure_us = 1000;
+  for (int i = 0; i < frame.width * frame.height; ++i)
+    frame.pixels.push_back(static_cast<std::uint16_t>((i * 37 + id) % 4096));
+  return frame;
+}
+
+CaptureStep Step(int index, int led) {
+  CaptureStep step;
+  step.index = index;
+  step.kind = led < 0 ? CaptureStep::Kind::kDark : CaptureStep::Kind::kLight;
+  step.led = led;
+  step.label = led < 0 ? "0000_dark" : "0001_led00";
+  step.pattern = led < 0 ? photorig::drivers::LightPattern::AllOff(1) : photorig::drivers::LightPattern::Single(1, 0, 0.5);
+  return step;
+}
+
+// A finished run of a dark frame and one lit frame.
+fs::path WriteValidRun(const fs::path& dir) {
+  RunManifest header;
+  header.run_id = "fuzz";
+  header.width = 8;
+  header.height = 4;
+  header.bit_depth = 12;
+  header.lights.resize(1);
+  RunWriter writer(dir.string(), header);
+  writer.WriteFrame(Step(0, -1), MakeFrame(1));
+  writer.WriteFrame(Step(1, 0), MakeFrame(2));
+  writer.Finish({CaptureStatus::kComplete, "", 2, 2, 0, 0});
+  if (!VerifyRun(dir.string()).empty()) std::abort();  // the harness's own check
+  for (std::size_t i = 0; i < kFiles.size(); ++i) {
+    std::ifstream in(dir / kFiles[i], std::ios::binary);
+    const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    photorig::fuzz::WriteSeed(fs::path(kFiles[i]).filename().string(), static_cast<std::uint8_t>(i), bytes);
+  }
+  return dir;
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  static const fs::path valid = WriteValidRun(photorig::fuzz::WorkDir() / "valid");
+  static const fs::path run = photorig::fuzz::WorkDir() / "run";
+  if (size == 0) return 0;
+  fs::remove_all(run);
+  fs::copy(valid, run, fs::copy_options::recursive);
+  photorig::fuzz::WriteBytes(run / kFiles[data[0] % kFiles.size()], data + 1, size - 1);
+  try {
+    const RunManifest manifest = LoadRunManifest(run.string());
+    for (const FrameRecord& frame : manifest.frames) LoadFrame(run.string(), frame);
+  } catch (const std::runtime_error&) {
+  }
+  try {
+    VerifyRun(run.string());
+  } catch (const std::runtime_error&) {
+  }
+  try {
+    RecoveryReport report;
+    RunWriter::Reopen(run.string(), &report);
+  } catch (const std::runtime_error&) {
+  }
+  return 0;
+}

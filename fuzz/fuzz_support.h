@@ -1,0 +1,52 @@
+#pragma once
+// What the fuzz targets share: a private temporary directory per process and
+// file writing. A target calls the parser as the program does and catches only
+// the errors the parser documents; anything else (a crash, a sanitizer report,
+// another exception escaping, a hang) is what the fuzzer is there to find.
+
+#include <unistd.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace photorig::fuzz {
+
+// Created on first use, removed at exit.
+inline const std::filesystem::path& WorkDir() {
+  static const std::filesystem::path dir = [] {
+    std::string pattern = (std::filesystem::temp_directory_path() / "photorig-fuzz-XXXXXX").string();
+    if (::mkdtemp(pattern.data()) == nullptr) std::abort();
+    std::atexit([] { std::filesystem::remove_all(WorkDir()); });
+    return std::filesystem::path(pattern);
+  }();
+  return dir;
+}
+
+inline void WriteBytes(const std::filesystem::path& path, const std::uint8_t* data, std::size_t size) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
+  if (!out) std::abort();  // the harness's own failure, not the parser's
+}
+
+inline void WriteText(const std::filesystem::path& path, const std::string& text) {
+  WriteBytes(path, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
+}
+
+// Seeds for targets whose input is a selector byte and a file's bytes: when
+// PHOTORIG_FUZZ_SEEDS names a directory, a target writes the valid files it
+// starts from there, each prefixed by the byte that selects it
+// (scripts/fuzz.sh seeds; the corpus then follows the formats as they change).
+inline void WriteSeed(const std::string& name, std::uint8_t selector, const std::string& bytes) {
+  const char* dir = std::getenv("PHOTORIG_FUZZ_SEEDS");
+  if (dir == nullptr) return;
+  WriteText(std::filesystem::path(dir) / name, std::string(1, static_cast<char>(selector)) + bytes);
+}
+
+// A file of the source tree (config/rigs/..., the fixed rig the recipe and API targets use).
+inline std::string SourcePath(const std::string& relative) { return std::string(PHOTORIG_SOURCE_DIR) + "/" + relative; }
+
+}  // namespace photorig::fuzz

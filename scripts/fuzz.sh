@@ -1,0 +1,138 @@
+#!/usr/bin/env bash
+# libFuzzer targets for every parser (fuzz/, docs/fuzzing.md), built with clang,
+# AddressSanitizer and UndefinedBehaviorSanitizer in their own build tree.
+#
+#   scripts/fuzz.sh build                   configure and build the fuzzers
+#   scripts/fuzz.sh smoke                   build, then run each fuzzer for 5 s over its seeds; fails on any finding
+#   scripts/fuzz.sh run [TARGET] [SECONDS]  long runs (default: every target, 300 s each), corpus kept in
+#                                           the build tree; prints executions reached per target
+#   scripts/fuzz.sh list                    the targets
+#
+# Environment: PHOTORIG_FUZZ_BUILD (build tree, default build-fuzz/), FUZZ_JOBS (build jobs, default 2),
+# FUZZ_WORKERS (parallel fuzzing processes per target in `run`, default 2), FUZZ_SKIP_BUILD=1 (`run`
+# without building first, e.g. while the tree is being built by another command).
+# A finding leaves its input in <build tree>/artifacts/<target>/; replay it with
+#   <build tree>/bin/<target> <file>
+set -euo pipefail
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+build="${PHOTORIG_FUZZ_BUILD:-$root/build-fuzz}"
+jobs="${FUZZ_JOBS:-2}"
+workers="${FUZZ_WORKERS:-2}"
+targets=(fuzz_rig fuzz_recipe fuzz_diligent fuzz_run_store fuzz_color_model fuzz_light_files fuzz_api)
+# Limits of every run: a finding is a crash, a sanitizer report, an escaped
+# exception, more than 2 GiB of memory or one input taking more than 10 s.
+limits=(-rss_limit_mb=2048 -timeout=10)
+
+die() {
+  echo "fuzz: $*" >&2
+  exit 1
+}
+
+need_clang() {
+  command -v clang++ >/dev/null 2>&1 || die "clang++ not found: run scripts/install-deps.sh (clang, libclang-rt-14-dev)"
+  local fuzzer_lib
+  fuzzer_lib="$(clang++ -print-file-name=libclang_rt.fuzzer-x86_64.a 2>/dev/null || true)"
+  if [ ! -f "$fuzzer_lib" ]; then
+    fuzzer_lib="$(find "$(clang++ -print-resource-dir)" -name 'libclang_rt.fuzzer*.a' 2>/dev/null | head -n1)"
+  fi
+  [ -n "$fuzzer_lib" ] && [ -f "$fuzzer_lib" ] ||
+    die "libFuzzer runtime not found: run scripts/install-deps.sh (libclang-rt-14-dev)"
+}
+
+build_fuzzers() {
+  need_clang
+  local launcher=()
+  command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+  if [ ! -f "$build/CMakeCache.txt" ]; then
+    # -O1 without NDEBUG: assertions stay on (each one a check the fuzzer can trip); RelWithDebInfo
+    # also keeps the solvers' Release-only -O3 out, which would lengthen the build.
+    CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 "${launcher[@]}" \
+      -DPHOTORIG_FUZZ=ON -DPHOTORIG_BUILD_TESTS=OFF -DPHOTORIG_BUILD_BENCH=OFF >/dev/null
+  fi
+  cmake --build "$build" --target photorig_fuzzers -j "$jobs"
+}
+
+check_target() {
+  local t
+  for t in "${targets[@]}"; do [ "$t" = "$1" ] && return 0; done
+  die "no target '$1' (targets: ${targets[*]})"
+}
+
+# Seeds: the committed ones in fuzz/corpus/<target>/, the rigs and recipes of
+# config/, and the valid files the selector-byte targets start from.
+make_seeds() {
+  local t="$1" out="$build/seeds/$1"
+  rm -rf "$out"
+  mkdir -p "$out"
+  [ -d "$root/fuzz/corpus/$t" ] && cp -r "$root/fuzz/corpus/$t/." "$out/"
+  case "$t" in
+    fuzz_rig) cp "$root"/config/rigs/*.yaml "$out/" ;;
+    fuzz_recipe) cp "$root"/config/recipes/*.yaml "$out/" ;;
+    fuzz_diligent | fuzz_run_store | fuzz_color_model)
+      PHOTORIG_FUZZ_SEEDS="$out" "$build/bin/$t" -runs=1 "$out" >/dev/null 2>&1 ||
+        die "$t: writing its seeds failed" ;;
+    fuzz_api)
+      local recipe body
+      for recipe in "$root"/config/recipes/*.yaml; do
+        body="$(cat "$recipe")"
+        printf 'POST /api/v1/dry-run HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/yaml\r\nContent-Length: %d\r\n\r\n%s' \
+          "$(printf '%s' "$body" | wc -c)" "$body" >"$out/dry-run-$(basename "$recipe" .yaml)"
+      done ;;
+  esac
+}
+
+dict_flag() {
+  case "$1" in
+    fuzz_rig | fuzz_recipe | fuzz_color_model) echo "-dict=$root/fuzz/yaml.dict" ;;
+    fuzz_api) echo "-dict=$root/fuzz/http.dict" ;;
+  esac
+}
+
+# Runs one target for `seconds` with `n` workers; prints "target executions findings".
+fuzz_target() {
+  local t="$1" seconds="$2" n="$3" corpus="$build/corpus/$1" logs="$build/logs/$1" artifacts="$build/artifacts/$1"
+  mkdir -p "$corpus" "$artifacts"
+  rm -rf "$logs"
+  mkdir -p "$logs"
+  make_seeds "$t"
+  local status=0
+  # libFuzzer adds new inputs to the first directory only: the seeds stay as they are.
+  (cd "$logs" && "$build/bin/$t" "$corpus" "$build/seeds/$t" $(dict_flag "$t") "${limits[@]}" \
+    -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="$artifacts/" \
+    -jobs="$n" -workers="$n" >"$logs/main.log" 2>&1) || status=$?
+  # With -jobs the workers' logs are fuzz-<n>.log; executions are summed over them.
+  local execs findings
+  execs="$(cat "$logs"/*.log | awk '/stat::number_of_executed_units/ {s += $2} END {print s + 0}')"
+  findings="$(grep -l -E 'ERROR: (AddressSanitizer|UndefinedBehaviorSanitizer|LeakSanitizer|libFuzzer)|runtime error:|uncaught exception|terminate called' "$logs"/*.log | wc -l || true)"
+  printf '%-18s %12s executions  %d finding(s)  (%d s, %d worker(s), corpus %d files)\n' \
+    "$t" "$execs" "$findings" "$seconds" "$n" "$(ls "$corpus" | wc -l)"
+  if [ "$status" != 0 ] || [ "$findings" != 0 ]; then
+    grep -h -E -A12 'ERROR: |runtime error:|uncaught exception|terminate called|500 answer' "$logs"/*.log | head -n 60 >&2 || true
+    echo "fuzz: $t found a problem; inputs in $artifacts/, logs in $logs/" >&2
+    return 1
+  fi
+}
+
+command="${1:-}"
+case "$command" in
+  list) printf '%s\n' "${targets[@]}" ;;
+  build) build_fuzzers ;;
+  smoke)
+    build_fuzzers
+    failed=0
+    for t in "${targets[@]}"; do fuzz_target "$t" 5 1 || failed=1; done
+    exit "$failed" ;;
+  run)
+    selected=("${targets[@]}")
+    if [ -n "${2:-}" ] && [ "$2" != all ]; then
+      check_target "$2"
+      selected=("$2")
+    fi
+    seconds="${3:-300}"
+    [ "${FUZZ_SKIP_BUILD:-0}" = 1 ] || build_fuzzers
+    failed=0
+    for t in "${selected[@]}"; do fuzz_target "$t" "$seconds" "$workers" || failed=1; done
+    exit "$failed" ;;
+  *) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2 ;;
+esac
