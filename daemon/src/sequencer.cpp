@@ -179,6 +179,19 @@ class Capture {
 
   // One step: a frame on disk and in the journal, or the device status that
   // prevented it, or (status ok) the health check the frame failed, unstored.
+  // Waits for the frame in slices of lights_keepalive_ms, telling the lights
+  // between them that the sequencer is alive.
+  Result<drivers::Frame> WaitFrameKeepingLightsAlive(int timeout_ms) {
+    const int slice_ms = std::max(1, options_.lights_keepalive_ms);
+    for (int remaining_ms = timeout_ms;;) {
+      const int wait_ms = std::min(remaining_ms, slice_ms);
+      auto frame = camera_.WaitFrame(wait_ms);
+      remaining_ms -= wait_ms;
+      if (frame.ok() || frame.status().code() != StatusCode::kTimeout || remaining_ms <= 0) return frame;
+      if (Status alive = lights_.KeepAlive(); !alive.ok()) return alive;
+    }
+  }
+
   Status Step(const CaptureStep& step, std::optional<HealthFinding>* unhealthy) {
     if (step.exposure_us != camera_.settings().exposure_us || step.gain_db != camera_.settings().gain_db) {
       if (Status s = camera_.Stop(); !s.ok()) return s;
@@ -203,7 +216,7 @@ class Capture {
       return s;
     }
     const int timeout_ms = static_cast<int>(std::ceil(step.exposure_us / 1000.0)) + options_.frame_timeout_margin_ms;
-    auto frame = camera_.WaitFrame(timeout_ms);
+    auto frame = WaitFrameKeepingLightsAlive(timeout_ms);
     // Lights off before anything else can fail, so no LED stays on longer than one exposure.
     const Status off = lights_.AllOff();
     if (!frame.ok()) return frame.status();

@@ -170,7 +170,7 @@ TEST_F(DiligentFolder, AnImageOrMaskThatDoesNotDecodeIsAConfigErrorNamingIt) {
   for (const std::string name : {"002.png", "mask.png"}) {
     const std::filesystem::path file = dir_.path() / name;
     const std::string good = photorig::testing::ReadText(file);
-    for (const std::string bad : {std::string(), good.substr(0, good.size() / 2), std::string("\x89PNG\r\n")}) {
+    for (const std::string& bad : {std::string(), good.substr(0, good.size() / 2), std::string("\x89PNG\r\n")}) {
       std::ofstream(file, std::ios::binary | std::ios::trunc) << bad;
       const std::string error = LoadError();
       EXPECT_NE(error.find(name + ": cannot read as an image"), std::string::npos) << name << ": " << error;

@@ -1,11 +1,14 @@
 #include "photorig/daemon/sequencer.h"
+#include "photorig/drivers/light_safety.h"
 #include "photorig/sim/devices.h"
 #include "capture_fixtures.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
+#include <thread>
 
 namespace photorig::daemon {
 namespace {
@@ -40,6 +43,31 @@ class FailingCamera : public sim::SimCamera {
 using photorig::testing::DarkThenEachLight;
 using photorig::testing::WatchedDome;
 
+// A simulated camera whose frames take `exposure_ms` of wall-clock time to
+// arrive, as a real long exposure does (the simulated one renders at once).
+class SlowCamera : public sim::SimCamera {
+ public:
+  SlowCamera(std::shared_ptr<sim::World> world, int exposure_ms)
+      : SimCamera("slow-cam", std::move(world)), exposure_ms_(exposure_ms) {}
+
+ protected:
+  Result<drivers::Frame> DoWaitFrame(int timeout_ms) override {
+    using Clock = std::chrono::steady_clock;
+    if (!waiting_) waiting_since_ = Clock::now();
+    waiting_ = true;
+    const auto due = waiting_since_ + std::chrono::milliseconds(exposure_ms_);
+    std::this_thread::sleep_until(std::min(due, Clock::now() + std::chrono::milliseconds(timeout_ms)));
+    if (Clock::now() < due) return Status{StatusCode::kTimeout, "camera slow-cam: exposure still running"};
+    waiting_ = false;
+    return SimCamera::DoWaitFrame(timeout_ms);
+  }
+
+ private:
+  int exposure_ms_;
+  bool waiting_ = false;
+  std::chrono::steady_clock::time_point waiting_since_;
+};
+
 RunManifest Header() {
   RunManifest header;
   header.width = 16;
@@ -71,6 +99,36 @@ TEST(Sequencer, DeviceFaultFailsTheRunKeepsFramesAndLeavesTheLightsOff) {
   EXPECT_EQ(camera.state(), drivers::Camera::State::kClosed);
   ASSERT_FALSE(dome.levels_at_close.empty());
   for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>(4, 0.0));
+}
+
+// An exposure longer than the safety layer's watchdog: the sequencer's
+// keep-alives while it waits hold the LED on; without them the watchdog
+// takes the sequencer for stalled and cuts the light mid-exposure.
+TEST(Sequencer, AnExposureLongerThanTheLightWatchdogIsNotCut) {
+  for (const bool keep_alive : {true, false}) {
+    SCOPED_TRACE(keep_alive ? "with keep-alives" : "without");
+    TempDir dir;
+    auto world = World(2);
+    drivers::LightSafetyOptions safety;
+    safety.watchdog_ms = 300;
+    drivers::SafeLightController lights(std::make_unique<WatchedDome>("dome", world), safety);
+    SlowCamera camera(world, 700);
+    RunWriter writer((dir.path() / "run").string(), Header());
+    CaptureOptions options;
+    options.lights_keepalive_ms = keep_alive ? 100 : 5000;
+    options.retry.max_attempts_per_step = 1;
+    std::vector<CaptureStep> steps = DarkThenEachLight(2);
+    steps.resize(2);  // the dark and one lit frame
+    const CaptureReport report = RunCapture(steps, Camera(), lights, camera, writer, options);
+    if (keep_alive) {
+      EXPECT_EQ(report.status, CaptureStatus::kComplete) << report.reason;
+      EXPECT_TRUE(lights.cuts().empty());
+    } else {
+      EXPECT_EQ(report.status, CaptureStatus::kFailed);
+      ASSERT_FALSE(lights.cuts().empty());
+      EXPECT_NE(lights.cuts().front().find("watchdog"), std::string::npos) << lights.cuts().front();
+    }
+  }
 }
 
 TEST(Sequencer, StopRequestAbortsBetweenStepsWithTheLightsOff) {

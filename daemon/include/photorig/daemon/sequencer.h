@@ -48,6 +48,10 @@ struct RetryPolicy {
 
 struct CaptureOptions {
   int frame_timeout_margin_ms = 1000;  // added to the exposure when waiting for a frame
+  // While a frame is awaited the lights hear KeepAlive this often, so that an
+  // exposure longer than the safety layer's watchdog (5 s by default) is not
+  // cut as a stalled sequencer would be.
+  int lights_keepalive_ms = 1000;
   RetryPolicy retry;
   const std::atomic<bool>* stop_requested = nullptr;  // checked between steps (SIGTERM/SIGINT)
   RunControl* control = nullptr;                      // pause/resume/abort from another thread
