@@ -26,6 +26,44 @@ double MoveMs(const MotionConfig& motion, const std::map<std::string, double>& f
   return ms;
 }
 
+// The rig's LED limits (lights.options.safety, the same the driver layer
+// enforces) against the planned exposures: a plan that the safety layer would
+// cut mid-run is refused before it starts. Each lit exposure is one interval;
+// the duty is the most lit time in any window of duty_window_ms.
+void CheckLightSafety(const RigConfig& rig, const std::map<int, std::vector<std::pair<double, double>>>& lit_intervals,
+                      RunPlan* plan) {
+  const drivers::LightSafetyOptions& safety = rig.lights.safety;
+  for (const auto& [channel, intervals] : lit_intervals) {
+    if (channel >= static_cast<int>(rig.lights.leds.size())) continue;
+    const drivers::ChannelLimits& limits =
+        safety.per_channel.empty() ? safety.defaults : safety.per_channel.at(static_cast<std::size_t>(channel));
+    const int led = rig.lights.leds[static_cast<std::size_t>(channel)].id;
+    double longest_ms = 0.0;
+    for (const auto& [start, length] : intervals) longest_ms = std::max(longest_ms, length);
+    if (limits.max_on_ms > 0 && longest_ms > limits.max_on_ms)
+      plan->errors.push_back("LED " + std::to_string(led) + " would stay lit " + std::to_string(longest_ms) +
+                             " ms in one exposure, above the rig's max_on_ms of " + std::to_string(limits.max_on_ms) +
+                             " ms (lights.options.safety)");
+    if (limits.max_duty >= 1.0) continue;
+    // Windows that start at an exposure's start hold the most lit time.
+    double worst_ms = 0.0, in_window_ms = 0.0;
+    for (std::size_t first = 0, end = 0; first < intervals.size(); ++first) {
+      const double window_end = intervals[first].first + safety.duty_window_ms;
+      for (; end < intervals.size() && intervals[end].first < window_end; ++end) in_window_ms += intervals[end].second;
+      // The last interval may reach past the window: count only its part inside.
+      const auto& last = intervals[end - 1];
+      const double overhang = std::max(0.0, last.first + last.second - window_end);
+      worst_ms = std::max(worst_ms, in_window_ms - overhang);
+      in_window_ms -= intervals[first].second;
+    }
+    const double duty = worst_ms / safety.duty_window_ms;
+    if (duty > limits.max_duty)
+      plan->errors.push_back("LED " + std::to_string(led) + " would be lit " + std::to_string(duty * 100) + "% of a " +
+                             std::to_string(safety.duty_window_ms / 1000.0) + " s window, above the rig's max_duty of " +
+                             std::to_string(limits.max_duty * 100) + "% (lights.options.safety)");
+  }
+}
+
 }  // namespace
 
 std::map<std::string, double> PoseTargets(const GonioPose& pose) {
@@ -58,12 +96,14 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
   if (rig.IsSimulated()) plan.estimate.bytes += pixels * (12 + 4 + 1);  // ground truth maps
 
   std::map<int, double> lit_ms;  // by channel
+  std::map<int, std::vector<std::pair<double, double>>> lit_intervals;  // by channel: (start, length) in ms
   double total_ms = 0.0;
   std::map<std::string, double> axes_at;  // every axis starts from its home
   if (rig.motion)
     for (const AxisConfig& axis : rig.motion->axes) axes_at[axis.id] = axis.limits.home_deg;
   for (const CaptureStep& step : steps) {
     const double exposure_ms = step.exposure_us / 1000.0;
+    const double step_start_ms = total_ms;
     total_ms += exposure_ms + options.step_overhead_ms;
     if (step.pose) {
       if (!rig.motion) {
@@ -90,7 +130,10 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
       if (level < 0.0 || level > 1.0)
         plan.errors.push_back("step " + step.label + ": channel " + std::to_string(channel) + " level " +
                               std::to_string(level) + " outside [0, 1]");
-      if (level > 0.0) lit_ms[static_cast<int>(channel)] += exposure_ms;
+      if (level > 0.0) {
+        lit_ms[static_cast<int>(channel)] += exposure_ms;
+        lit_intervals[static_cast<int>(channel)].emplace_back(step_start_ms, exposure_ms);
+      }
     }
   }
   plan.estimate.duration_s = total_ms / 1000.0;
@@ -105,6 +148,7 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
     plan.errors.push_back("LED " + std::to_string(plan.max_duty_led) + " would be lit " +
                           std::to_string(plan.max_led_duty * 100) + "% of the run, above the " +
                           std::to_string(options.max_led_duty * 100) + "% limit");
+  CheckLightSafety(rig, lit_intervals, &plan);
   if (steps.empty()) plan.warnings.push_back("recipe " + recipe.path + " compiles to no steps");
   return plan;
 }

@@ -3,6 +3,7 @@
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/run.h"
 #include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/rig_devices.h"
 
 #include <spdlog/spdlog.h>
 
@@ -123,7 +124,31 @@ RunService::RunService(ServiceOptions options) : options_(std::move(options)) {
 
 RunService::~RunService() { Stop(); }
 
+namespace {
+
+// Whatever a previous process left lit (killed outright mid-exposure, a
+// power cut of the PC) goes dark now, before any run: opening a light
+// controller switches every output off, and closing it leaves them off. A
+// controller that cannot be reached is reported, not fatal: runs will say so.
+void DarkenLights(const std::string& rig_path) {
+  try {
+    const RigConfig rig = LoadRigConfig(rig_path);
+    RigDevices devices = MakeRigDevices(rig, nullptr);
+    const Status opened = devices.lights->Open();
+    const Status closed = devices.lights->Close();
+    if (!opened.ok() || !closed.ok())
+      spdlog::warn("event=lights_unreachable error={}", json((opened.ok() ? closed : opened).ToString()).dump());
+    else
+      spdlog::info("event=lights_off lights={}", rig.lights.id);
+  } catch (const std::exception& e) {
+    spdlog::warn("event=lights_unreachable error={}", json(e.what()).dump());
+  }
+}
+
+}  // namespace
+
 void RunService::Start() {
+  DarkenLights(options_.rig_path);
   std::vector<QueuedRun> unfinished;
   try {
     unfinished = queue_->Unfinished();

@@ -153,5 +153,30 @@ TEST(RecipeGroups, CaptureWritesEveryFrameAndPhotometricStereoUsesOnlySingleLedF
   EXPECT_NEAR(input.stack.light_scales[1] / input.stack.light_scales[0], 4.0, 1e-9);
 }
 
+// The rig's LED limits hold at dry-run: a plan the safety layer would cut
+// mid-run (the simulated dome takes the default 10 s on-time and 50 % duty
+// per 10 s window) is refused before it starts, naming the LED and the limit.
+TEST(RecipeGroups, PlansBeyondTheRigsLedLimitsAreRefused) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", SmallRigYaml()));
+  const auto plan_of = [&](const std::string& exposure_us, const std::string& steps) {
+    const std::string path = dir.Write("r.yaml", "recipe: {name: hot, rig: rig.yaml}\ncapture:\n  exposure_us: " +
+                                                     exposure_us + "\n  steps:\n" + steps);
+    const Recipe recipe = LoadRecipe(path, rig);
+    return PlanRun(recipe, rig, CompileSteps(recipe, rig));
+  };
+  const RunPlan usual = plan_of("1000", "    - dark: {count: 1}\n    - each_led: {leds: all}\n");
+  EXPECT_TRUE(usual.ok()) << usual.errors.front();
+  // Twenty 1 s flats in a row: every LED lit nearly all of every window.
+  const RunPlan hot = plan_of("1000000", "    - flat: {count: 20, level: 1.0}\n");
+  ASSERT_FALSE(hot.ok());
+  EXPECT_NE(hot.errors.front().find("above the rig's max_duty of 50"), std::string::npos) << hot.errors.front();
+  // One 12 s exposure: beyond the 10 s on-time limit.
+  const RunPlan long_on = plan_of("12000000", "    - flat: {count: 1, level: 1.0}\n");
+  ASSERT_FALSE(long_on.ok());
+  EXPECT_NE(long_on.errors.front().find("above the rig's max_on_ms of 10000"), std::string::npos)
+      << long_on.errors.front();
+}
+
 }  // namespace
 }  // namespace photorig::daemon

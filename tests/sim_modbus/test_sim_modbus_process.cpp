@@ -146,6 +146,50 @@ TEST(SimModbusProcess, AnLedLitByAKilledProcessGoesDarkWithinTheControllersTimeo
   EXPECT_EQ(server.Terminate(), 0);
 }
 
+// An LED left lit by a process that is gone (here: set by hand on a
+// controller without a watchdog) goes dark when photorigd starts, even with
+// --no-resume, before any run.
+TEST(SimModbusProcess, PhotorigdStartsByDarkeningTheLights) {
+  const std::string rig_path = SourceDir() + "/config/rigs/sim-dome-modbus.yaml";
+  ServerProcess server({"--rig", rig_path});
+  const int port = std::stoi(server.where.substr(std::string("tcp 127.0.0.1:").size()));
+  const drivers::ModbusLightMap map = config::LoadRigConfig(rig_path).lights.modbus->map;
+  drivers::ModbusLinkOptions link;
+  link.port = port;
+  drivers::ModbusLink probe("probe", link);
+  ASSERT_TRUE(probe.Connect().ok());
+  ASSERT_TRUE(probe.WriteRegisters(map.intensity_address + 7, {1000}).ok());
+  ASSERT_TRUE(probe.WriteCoils(map.on_off_address + 7, {1}).ok());
+
+  // The rig as a lab's would be: the controller at its address, not served in-process.
+  const fs::path dir = fs::temp_directory_path() / ("photorig-darken-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ifstream in(rig_path);
+  std::string rig((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  rig.replace(rig.find("    host: sim"), 13, "    host: 127.0.0.1");
+  rig.replace(rig.find("    port: 0 "), 12, "    port: " + std::to_string(port) + " ");
+  std::ofstream(dir / "rig.yaml") << rig;
+  const pid_t daemon = ::fork();
+  if (daemon == 0) {
+    const std::string binary = std::string(PHOTORIG_BIN_DIR) + "/photorigd";
+    const std::string rig_file = (dir / "rig.yaml").string(), root = (dir / "data").string();
+    ::execl(binary.c_str(), binary.c_str(), "--rig", rig_file.c_str(), "--data-root", root.c_str(), "--port", "0",
+            "--no-resume", static_cast<char*>(nullptr));
+    std::_Exit(127);
+  }
+  bool dark = false;
+  for (int i = 0; i < 100 && !dark; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    dark = probe.ReadCoils(map.on_off_address + 7, 1).value()[0] == 0;
+  }
+  EXPECT_TRUE(dark) << "LED 7 still lit 10 s after photorigd started";
+  ::kill(daemon, SIGTERM);
+  ::waitpid(daemon, nullptr, 0);
+  probe.Disconnect();
+  fs::remove_all(dir);
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
 TEST(SimModbusProcess, ServesRtuOnAPseudoTerminal) {
   ServerProcess server({"--rig", SourceDir() + "/config/rigs/sim-dome-modbus.yaml", "--rtu"});
   ASSERT_EQ(server.where.rfind("rtu /dev/", 0), 0u) << server.where;
