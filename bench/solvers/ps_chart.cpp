@@ -123,7 +123,6 @@ std::string CaptureRun(const std::string& recipe, const std::string& rig, const 
   request.recipe_path = recipe_path.string();
   request.output_directory = (scratch / name).string();
   request.solve = false;
-  request.show_progress = false;
   fs::remove_all(request.output_directory);
   const daemon::RunOutcome outcome = daemon::ExecuteRun(request);
   if (outcome.capture.status != daemon::CaptureStatus::kComplete) throw std::runtime_error("capture failed: " + outcome.capture.reason);

@@ -5,7 +5,6 @@
 #include "photorig/daemon/rig_devices.h"
 
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
@@ -24,22 +23,6 @@ std::string UtcStamp() {
   char text[32];
   std::strftime(text, sizeof(text), "%Y%m%dT%H%M%SZ", &utc);
   return text;
-}
-
-// A redrawn bar on a terminal; a line every tenth of the run in a log.
-void PrintProgress(const CaptureStep& step, int total) {
-  const int done = step.index + 1;
-  if (!isatty(STDERR_FILENO)) {
-    const int tenth = std::max(1, total / 10);
-    if (done % tenth == 0 || done == total) std::fprintf(stderr, "captured %d/%d (%s)\n", done, total, step.label.c_str());
-    return;
-  }
-  const int width = 30;
-  const int filled = done * width / std::max(1, total);
-  std::fprintf(stderr, "\rcapturing [%.*s%*s] %3d/%d %-12s", filled, "##############################",
-               width - filled, "", done, total, step.label.c_str() + 5);
-  if (done == total) std::fputc('\n', stderr);
-  std::fflush(stderr);
 }
 
 double MillisecondsSince(std::chrono::steady_clock::time_point start) {
@@ -205,9 +188,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
     options.motion = &devices.motion;
     options.motion_profile = rig.motion->profile;
   }
-  const bool progress = request.show_progress;
-  options.on_frame = [progress, &request, &writer](const CaptureStep& step, const FrameRecord& record, int total) {
-    if (progress) PrintProgress(step, total);
+  options.on_frame = [&request, &writer](const CaptureStep& step, const FrameRecord& record, int total) {
     if (request.on_frame) request.on_frame(step, record, static_cast<int>(writer.manifest().frames.size()), total);
   };
   outcome.capture = RunCapture(steps, rig.camera, *devices.lights, *devices.camera, writer, options);

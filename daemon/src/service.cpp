@@ -301,7 +301,6 @@ void RunService::Execute(QueuedRun run) {
   request.rig_path = options_.rig_path;
   request.output_directory = directory;
   request.solve = options_.solve;
-  request.show_progress = false;
   request.resume = resume;
   request.stop_requested = &stopping_;
   request.control = control.get();
@@ -317,6 +316,10 @@ void RunService::Execute(QueuedRun run) {
                           {"total", total}});
   };
   request.on_solve_started = [this, id](const std::string& stage) { Publish(id, "solve_started", {{"stage", stage}}); };
+  // Solvers report about every percent (solvers/progress.h): one event each.
+  request.solve_progress = [this, id](const solvers::Progress& progress) {
+    Publish(id, "solve_progress", {{"stage", std::string(progress.stage)}, {"done", progress.done}, {"total", progress.total}});
+  };
   request.on_solve_finished = [this, id](const SolveStageReport& report) {
     const json stage = report.ToJson();
     {

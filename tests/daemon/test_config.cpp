@@ -306,7 +306,6 @@ TEST(HardwareTriggerConfig, SimWireRunsAndAMissingGpioChipFailsByName) {
   request.rig_path = dir.Write("sim.yaml", TriggeredRig("{mode: hardware, output: {driver: sim}}"));
   request.recipe_path = dir.Write("r.yaml", photorig::testing::SmallRecipeYaml());
   request.output_directory = (dir.path() / "sim-run").string();
-  request.show_progress = false;
   request.solve = false;
   const RunOutcome wired = ExecuteRun(request);
   EXPECT_EQ(wired.capture.status, CaptureStatus::kComplete) << wired.capture.reason;

@@ -189,7 +189,6 @@ TEST(Gonio, DryRunAndRunRefuseBadPosesBeforeAnythingMoves) {
     RunRequest request;
     request.recipe_path = path;
     request.output_directory = (dir.path() / "run").string();
-    request.show_progress = false;
     try {
       ExecuteRun(request);
       FAIL() << "run accepted " << c.poses;
@@ -212,7 +211,6 @@ TEST(Gonio, FramesMatchTheAnalyticBrdfAtEachPose) {
           - {light_arm_deg: 10, camera_arm_deg: 50}
 )"));
   request.output_directory = (dir.path() / "run").string();
-  request.show_progress = false;
   const RunOutcome outcome = ExecuteRun(request);
   ASSERT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;
   const RunManifest manifest = LoadRunManifest(request.output_directory);

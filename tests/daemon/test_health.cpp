@@ -38,7 +38,6 @@ RunOutcome Capture(const TempDir& dir, const std::string& faults, const std::str
   RunRequest request;
   request.recipe_path = dir.Write("recipe.yaml", recipe);
   request.output_directory = (dir.path() / "run").string();
-  request.show_progress = false;
   request.solve = false;
   request.retry.initial_backoff_ms = 1;
   request.retry.max_backoff_ms = 4;

@@ -114,7 +114,6 @@ TEST(RecipeGroups, CaptureWritesEveryFrameAndPhotometricStereoUsesOnlySingleLedF
   RunRequest request;
   request.recipe_path = dir.Write("r.yaml", RecipeWithSteps(kMixedSteps));
   request.output_directory = (dir.path() / "run").string();
-  request.show_progress = false;
   request.solve = false;
   const RunOutcome outcome = ExecuteRun(request);
   ASSERT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;

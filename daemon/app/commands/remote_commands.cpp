@@ -114,6 +114,8 @@ int Watch(const Connection& connection, const std::string& id) {
     } else if (type == "solve_started") {
       progress.EndLine();
       std::printf("solving: %s\n", data.value("stage", "").c_str());
+    } else if (type == "solve_progress") {
+      progress.Update(data.value("stage", ""), data.value("done", 0), data.value("total", 0), "");
     } else if (type == "state" || type == "stop") {
       progress.EndLine();
       std::printf("%s %s%s%s\n", type == "stop" ? "stopped:" : "state:", data.value("state", "").c_str(),

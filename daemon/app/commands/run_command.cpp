@@ -32,7 +32,6 @@ int Execute(const Options& options) {
   request.rig_path = options.rig;
   request.output_directory = options.out;
   request.solve = !options.no_solve;
-  request.show_progress = false;  // shown here, with an ETA
   request.on_frame = [&progress](const daemon::CaptureStep& step, const daemon::FrameRecord&, int frames, int total) {
     progress.Update("captured", frames, total, step.label);
   };

@@ -40,7 +40,6 @@ struct RunRequest {
   std::string rig_path;       // empty: the rig the recipe names
   std::string output_directory;  // empty: runs/<recipe>-<UTC timestamp>
   bool solve = true;
-  bool show_progress = true;  // a progress line on stderr
   // Reopen the interrupted run in output_directory and capture only the steps
   // it lacks (see RunWriter::Reopen) instead of creating a new run.
   bool resume = false;
