@@ -6,6 +6,7 @@
 #include <matio.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -96,7 +97,37 @@ const char* DepthName(int depth) {
 // Ground-truth normals: a real double H x W x 3 array whose vectors inside the
 // object are unit length. Vectors that are not (DiLiGenT's zeros off the
 // object, or a damaged file) become NaN so that no evaluation counts them.
+// A MATLAB 5 (or 7.3) file's 128-byte header: text, then version 0x0100
+// (0x0200 for 7.3) and the endian mark "IM"/"MI" at bytes 124..127; for
+// level 5 the first data element's size must fit the file. Checked before
+// matio sees the file: it would take anything else for a headerless level 4
+// file and trust sizes from garbage (gigabytes for a 23-byte file).
+std::string MatHeaderProblem(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::array<unsigned char, 136> head{};
+  in.read(reinterpret_cast<char*>(head.data()), head.size());
+  const std::streamsize got = in.gcount();
+  if (got < 128) return "shorter than a MATLAB file's 128-byte header";
+  const bool little = head[126] == 'I' && head[127] == 'M', big = head[126] == 'M' && head[127] == 'I';
+  if (!little && !big) return "not a MATLAB 5 or 7.3 file (no endian mark in its header)";
+  const unsigned version = little ? head[124] | head[125] << 8 : head[125] | head[124] << 8;
+  if (version == 0x0200) return {};  // 7.3: an HDF5 file, read by matio's HDF5 support
+  if (version != 0x0100) return "not a MATLAB 5 or 7.3 file (header version " + std::to_string(version) + ")";
+  if (got < 136) return "no data after the header";
+  const auto word = [&](int at) {
+    return little ? std::uint32_t(head[at]) | std::uint32_t(head[at + 1]) << 8 | std::uint32_t(head[at + 2]) << 16 |
+                        std::uint32_t(head[at + 3]) << 24
+                  : std::uint32_t(head[at + 3]) | std::uint32_t(head[at + 2]) << 8 | std::uint32_t(head[at + 1]) << 16 |
+                        std::uint32_t(head[at]) << 24;
+  };
+  const std::uintmax_t size = fs::file_size(path);
+  if (word(132) > size - 136) return "its first variable claims " + std::to_string(word(132)) + " bytes of a " +
+                                     std::to_string(size) + "-byte file (truncated or damaged)";
+  return {};
+}
+
 cv::Mat ReadNormalsMat(const fs::path& path, cv::Size size, const cv::Mat& object_mask) {
+  if (const std::string problem = MatHeaderProblem(path); !problem.empty()) Malformed(path, 0, problem);
   mat_t* file = Mat_Open(path.c_str(), MAT_ACC_RDONLY);
   if (!file) Malformed(path, 0, "cannot open as a MATLAB file");
   matvar_t* variable = Mat_VarReadInfo(file, "Normal_gt");

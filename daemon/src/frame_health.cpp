@@ -1,5 +1,7 @@
 #include "photorig/daemon/frame_health.h"
 
+#include "photorig/daemon/ps_pipeline.h"  // RobustSigma: hot pixels and fixed patterns do not inflate a dark's spread
+
 #include <spdlog/fmt/fmt.h>
 
 #include <algorithm>
@@ -13,19 +15,6 @@ namespace {
 // Quantisation alone leaves 1/sqrt(12) DN of noise: a floor for a dark so
 // clean (or so coarsely quantised) that its spread reads as zero.
 constexpr double kQuantisationSigmaDn = 0.28867513459481287;
-
-// Robust standard deviation (1.4826 x median absolute deviation), so hot
-// pixels and fixed patterns in a dark do not inflate it.
-double RobustSigma(const cv::Mat& values) {
-  std::vector<float> v(values.begin<float>(), values.end<float>());
-  if (v.empty()) return 0.0;
-  auto middle = v.begin() + v.size() / 2;
-  std::nth_element(v.begin(), middle, v.end());
-  const float median = *middle;
-  for (float& x : v) x = std::abs(x - median);
-  std::nth_element(v.begin(), middle, v.end());
-  return 1.4826 * *middle;
-}
 
 double Gain(double gain_db) { return std::pow(10.0, gain_db / 20.0); }
 

@@ -141,6 +141,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
 double RobustSigma(const cv::Mat& values) {
   const cv::Mat samples = values.isContinuous() ? values.reshape(1) : values.clone().reshape(1);
   std::vector<float> v(samples.begin<float>(), samples.end<float>());
+  if (v.empty()) return 0.0;
   auto middle = v.begin() + v.size() / 2;
   std::nth_element(v.begin(), middle, v.end());
   const float median = *middle;

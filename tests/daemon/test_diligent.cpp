@@ -112,6 +112,19 @@ TEST_F(DiligentFolder, ATruncatedMatFileIsRefused) {
   EXPECT_NE(error.find("Normal_gt.mat"), std::string::npos) << error;
 }
 
+// Found by the DiLiGenT fuzzer: 22 bytes that matio took for a headerless
+// MATLAB 4 file and sized in gigabytes. Refused from the header, before matio.
+TEST_F(DiligentFolder, ADamagedMatFileIsRefusedFromItsHeader) {
+  const std::string garbage("\x00\x00\x00\x00\x60\x60\x00\x51\x70\x77\x00\x0f\x0a\x70\x67\xff\x31\x2e\x0a\x70\x67\x00", 22);
+  std::ofstream(dir_.path() / "Normal_gt.mat", std::ios::binary | std::ios::trunc) << garbage;
+  const std::string error = LoadError();
+  EXPECT_NE(error.find("Normal_gt.mat: shorter than a MATLAB file's 128-byte header"), std::string::npos) << error;
+  WriteNormals(1.0);  // and a whole file whose first variable claims more than the file holds
+  const auto path = dir_.path() / "Normal_gt.mat";
+  std::filesystem::resize_file(path, 200);
+  EXPECT_NE(LoadError().find("truncated or damaged"), std::string::npos) << LoadError();
+}
+
 TEST_F(DiligentFolder, AnEmptyMaskIsRefused) {
   cv::imwrite((dir_.path() / "mask.png").string(), cv::Mat::zeros(kSize, kSize, CV_8U));
   const std::string error = LoadError();

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <ostream>
 #include <random>
 #include <string>
 
@@ -33,7 +34,16 @@ struct AdjointCase {
   Beam beam;
   Interpolation interpolation;
   Storage storage;
+
+  std::string Name() const {  // ParallelSiddonSparse, ConeJosephMatrixFree, ...
+    return std::string(beam == Beam::kParallel ? "Parallel" : "Cone") +
+           (interpolation == Interpolation::kSiddon ? "Siddon" : "Joseph") +
+           (storage == Storage::kSparse ? "Sparse" : "MatrixFree");
+  }
 };
+
+// CTest shows the case by name, not as a dump of its bytes.
+void PrintTo(const AdjointCase& c, std::ostream* out) { *out << c.Name(); }
 
 class Adjoint : public testing::TestWithParam<AdjointCase> {};
 
@@ -64,11 +74,7 @@ INSTANTIATE_TEST_SUITE_P(
                     AdjointCase{Beam::kCone, Interpolation::kSiddon, Storage::kMatrixFree},
                     AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kSparse},
                     AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kMatrixFree}),
-    [](const testing::TestParamInfo<AdjointCase>& info) {
-      return std::string(info.param.beam == Beam::kParallel ? "Parallel" : "Cone") +
-             (info.param.interpolation == Interpolation::kSiddon ? "Siddon" : "Joseph") +
-             (info.param.storage == Storage::kSparse ? "Sparse" : "MatrixFree");
-    });
+    [](const testing::TestParamInfo<AdjointCase>& info) { return info.param.Name(); });
 
 TEST(Projector, SparseAndMatrixFreeGiveTheSameProducts) {
   const VolumeGrid grid{16, 16, 4, 0.5};

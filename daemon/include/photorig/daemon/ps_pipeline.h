@@ -42,7 +42,7 @@ struct PhotometricStereoInput {
 };
 
 // 1.4826 x the median absolute deviation of a CV_32F image's values (every
-// channel): the standard deviation of Gaussian noise, unmoved by a few bright pixels.
+// channel): the standard deviation of Gaussian noise, unmoved by a few bright pixels; 0 for no values.
 double RobustSigma(const cv::Mat& values);
 
 // Replaces the input's object mask with a PNG file (nonzero = object). Throws
