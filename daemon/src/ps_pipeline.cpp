@@ -120,7 +120,10 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
         break;
       }
   }
-  input.saturation_level = static_cast<double>((1u << manifest.bit_depth) - 1u);
+  // Samples at the clipping level are dropped per pixel; a sensor whose full
+  // well fills first clips below the ADC's top code.
+  const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
+  input.saturation_level = manifest.saturation_dn > 0.0 ? std::min(manifest.saturation_dn, top_code) : top_code;
   if (!darks.empty()) {
     stack.dark = cv::Mat::zeros(darks.front().size(), CV_32F);
     for (const cv::Mat& dark : darks) stack.dark += dark;

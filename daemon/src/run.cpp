@@ -150,6 +150,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   header.width = rig.camera.width;
   header.height = rig.camera.height;
   header.bit_depth = rig.camera.bit_depth;
+  header.saturation_dn = rig.health.saturation_dn;
   header.dn_per_radiance_per_us = rig.camera.dn_per_radiance_per_us;
   header.e_per_dn = rig.camera.e_per_dn;
   header.pixel_pitch_mm = rig.camera.pixel_pitch_mm;

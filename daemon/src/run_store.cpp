@@ -162,6 +162,7 @@ json ToJson(const RunManifest& m) {
             {"width", m.width},
             {"height", m.height},
             {"bit_depth", m.bit_depth},
+            {"saturation_dn", m.saturation_dn},
             {"dn_per_radiance_per_us", m.dn_per_radiance_per_us},
             {"e_per_dn", m.e_per_dn},
             {"pixel_pitch_mm", m.pixel_pitch_mm}}},
@@ -189,6 +190,7 @@ RunManifest RunManifestFromJson(const json& j) {
   m.width = camera.at("width").get<int>();
   m.height = camera.at("height").get<int>();
   m.bit_depth = camera.at("bit_depth").get<int>();
+  m.saturation_dn = camera.value("saturation_dn", 0.0);  // absent in runs of earlier versions
   m.dn_per_radiance_per_us = camera.at("dn_per_radiance_per_us").get<double>();
   m.e_per_dn = camera.value("e_per_dn", 0.0);
   m.pixel_pitch_mm = camera.value("pixel_pitch_mm", 0.0);

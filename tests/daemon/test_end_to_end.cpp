@@ -49,9 +49,15 @@ TEST(EndToEnd, SphereRecipeWithDefaultNoiseIsAccurateToUnderOneDegree) {
   EXPECT_EQ(frame["exposure_us"], 16000.0);
   EXPECT_GT(frame["host_timestamp_ns"].get<std::int64_t>(), 0);
   EXPECT_EQ(manifest["lights"][4]["direction"].size(), 3u);
+  // The simulated 12-bit sensor's full well fills before its top code (4095):
+  // the run records where it clips, and the solver drops samples from there.
+  const double clips_at = manifest["camera"]["saturation_dn"].get<double>();
+  EXPECT_GT(clips_at, 3000.0);
+  EXPECT_LT(clips_at, 4095.0);
 
   const auto report = Report(run);
   EXPECT_EQ(report["termination"], "success");
+  EXPECT_EQ(report["saturation_level"].get<double>(), clips_at);
   const auto& truth = report["ground_truth"];
   EXPECT_LT(truth["mean_angular_error_deg"].get<double>(), 1.0);
   EXPECT_GT(truth["percent_under_5deg"].get<double>(), 95.0);

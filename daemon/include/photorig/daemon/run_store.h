@@ -74,6 +74,10 @@ struct RunManifest {
   int width = 0;
   int height = 0;
   int bit_depth = 0;
+  // The code at or above which a pixel is clipped (the rig's health
+  // saturation_dn: a full well that fills before the ADC's top code); 0 = the
+  // top code 2^bit_depth - 1.
+  double saturation_dn = 0.0;
   double dn_per_radiance_per_us = 1.0;
   double e_per_dn = 0.0;  // 0 = unknown
   double pixel_pitch_mm = 0.0;  // object-space pixel size (orthographic); 0 = unknown
