@@ -28,8 +28,8 @@ packages=(
   python3-skimage
   # run store: vectorised CRC-32 and Adler-32 for frame files
   libdeflate-dev
-  # fuzzers: libFuzzer and the sanitizer runtimes (scripts/fuzz.sh)
-  clang libclang-rt-14-dev
+  # fuzzers: libFuzzer, the sanitizer runtimes and clang's OpenMP (scripts/fuzz.sh)
+  clang libclang-rt-14-dev libomp-14-dev
 )
 
 if [ "$(id -u)" = 0 ]; then
