@@ -1,4 +1,4 @@
-// photorig solve brdf --run DIR [--loss weighted|log] [--out DIR] [--json]
+// photorig solve brdf --run DIR [--loss weighted|log] [--out DIR]   (--json as every command: docs/cli.md)
 //
 // Gonioreflectometer frames -> BRDF samples -> every candidate model fitted
 // and the one the data support chosen (solvers/brdf). Each pose frame gives
@@ -10,6 +10,7 @@
 // gives the same value in all three channels.
 
 #include "../command.h"
+#include "../command_output.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/solvers/brdf/fit.h"
 #include "photorig/solvers/brdf/pose_plan.h"
@@ -35,7 +36,6 @@ constexpr int kBlockPx = 8;
 
 struct Options {
   std::string run_dir, out, loss = "weighted";
-  bool json = false;
 };
 
 struct Extraction {
@@ -114,16 +114,11 @@ nlohmann::json FitJson(const brdf::FitSummary& f) {
 }
 
 int Execute(const Options& options) {
-  nlohmann::json doc = {{"command", "solve brdf"}, {"run", options.run_dir}};
-  auto finish = [&](int code, const std::string& error) {
-    doc["ok"] = code == 0;
-    doc["exit_code"] = code;
-    if (!error.empty()) {
-      doc["error"] = error;
-      std::fprintf(stderr, "solve brdf: %s\n", error.c_str());
-    }
-    if (options.json) std::printf("%s\n", doc.dump(2).c_str());
-    return code;
+  nlohmann::json doc = {{"run", options.run_dir}};
+  // The report is also the command's --json document (main adds command, ok, exit_code).
+  auto finish = [&](ExitCode code, const std::string& error) {
+    ResultFields() = doc;
+    return error.empty() ? static_cast<int>(code) : Fail(code, error);
   };
   brdf::SelectionOptions selection;
   selection.fit.loss = options.loss == "log" ? brdf::FitLoss::kLog : brdf::FitLoss::kWeighted;
@@ -131,13 +126,13 @@ int Execute(const Options& options) {
   try {
     extraction = ExtractSamples(options.run_dir, daemon::LoadRunManifest(options.run_dir));
   } catch (const std::exception& e) {
-    return finish(2, e.what());
+    return finish(kExitUsage, e.what());
   }
   doc["pose_frames"] = extraction.pose_frames;
   doc["samples"] = extraction.samples.size();
   doc["clipped_frames"] = extraction.clipped;
   doc["below_horizon_frames"] = extraction.below_horizon;
-  if (extraction.samples.empty()) return finish(1, "no usable pose frames");
+  if (extraction.samples.empty()) return finish(kExitFailed, "no usable pose frames");
   const brdf::SelectionSummary s = brdf::SelectModel(extraction.samples, selection);
   doc["termination"] = solvers::TerminationName(s.termination);
   doc["message"] = s.message;
@@ -158,7 +153,7 @@ int Execute(const Options& options) {
   }
   doc["results"] = out;
 
-  FILE* text = options.json ? stderr : stdout;
+  FILE* text = stdout;  // under --json main points it at stderr
   std::fprintf(text, "%zu samples from %d pose frames (%d clipped, %d below the horizon), closest theta_h %.1f deg\n",
                extraction.samples.size(), extraction.pose_frames, extraction.clipped, extraction.below_horizon,
                s.min_theta_h_deg);
@@ -174,7 +169,7 @@ int Execute(const Options& options) {
   if (s.chosen) std::fprintf(text, "chosen: %s\n", brdf::ModelName(*s.chosen));
   if (!s.message.empty()) std::fprintf(text, "%s\n", s.message.c_str());
   std::fprintf(text, "results: %s/\n", out.c_str());
-  return finish(s.IsSolutionUsable() ? 0 : 1, s.IsSolutionUsable() ? "" : s.message);
+  return finish(s.IsSolutionUsable() ? kExitOk : kExitFailed, s.IsSolutionUsable() ? "" : s.message);
 }
 
 CommandRunner Setup(CLI::App& app) {
@@ -185,7 +180,6 @@ CommandRunner Setup(CLI::App& app) {
   sub->add_option("--loss", options->loss, "weighted (by each sample's deviation, default) | log")
       ->check(CLI::IsMember({"weighted", "log"}));
   sub->add_option("--out", options->out, "output directory (default: RUN/results/brdf)");
-  sub->add_flag("--json", options->json, "print one JSON document on stdout");
   return {sub, [options] { return Execute(*options); }};
 }
 

@@ -8,6 +8,7 @@
 // separation constraints, as dry-run will.
 
 #include "../command.h"
+#include "../command_output.h"
 #include "photorig/daemon/rig_config.h"
 #include "photorig/solvers/brdf/pose_plan.h"
 
@@ -31,11 +32,7 @@ int Execute(const Options& o) {
   const daemon::RigConfig rig = daemon::LoadRigConfig(o.rig);
   const daemon::AxisConfig* light = rig.motion ? rig.motion->axis("light_arm") : nullptr;
   const daemon::AxisConfig* camera = rig.motion ? rig.motion->axis("camera_arm") : nullptr;
-  if (!light || !camera) {
-    std::fprintf(stderr, "plan brdf: %s has no light_arm and camera_arm axes (not a gonioreflectometer)\n",
-                 o.rig.c_str());
-    return 2;
-  }
+  if (!light || !camera) return Fail(kExitUsage, o.rig + " has no light_arm and camera_arm axes (not a gonioreflectometer)");
   brdf::GonioArms arms;
   arms.light_min_deg = light->limits.min_deg;
   arms.light_max_deg = light->limits.max_deg;
@@ -58,17 +55,11 @@ int Execute(const Options& o) {
   spec.phi_d_min_deg = o.phi_d[0];
   spec.phi_d_max_deg = o.phi_d[1];
   spec.phi_d_steps = static_cast<int>(o.phi_d[2]);
-  if (std::string why; !spec.IsValid(&why)) {
-    std::fprintf(stderr, "plan brdf: %s\n", why.c_str());
-    return 2;
-  }
+  if (std::string why; !spec.IsValid(&why)) return Fail(kExitUsage, why);
   brdf::PosePlanOptions plan_options;
   plan_options.sample_rotation_deg = o.rotation_deg;
   const brdf::PosePlan plan = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), arms, plan_options);
-  if (plan.termination == solvers::Termination::kInvalidOptions) {
-    std::fprintf(stderr, "plan brdf: %s: %s\n", o.rig.c_str(), plan.message.c_str());
-    return 2;
-  }
+  if (plan.termination == solvers::Termination::kInvalidOptions) return Fail(kExitUsage, o.rig + ": " + plan.message);
   constexpr double kDeg = 180.0 / M_PI;
   for (const brdf::RefusedPose& r : plan.refused)
     std::fprintf(stderr, "refused theta_h %.2f theta_d %.2f phi_d %.2f: %s\n", r.requested.theta_h * kDeg,
@@ -84,14 +75,17 @@ int Execute(const Options& o) {
     const std::map<std::string, double> target = {{"light_arm", p.arms.light_arm_deg},
                                                   {"camera_arm", p.arms.camera_arm_deg},
                                                   {"sample_rotation", p.arms.sample_rotation_deg}};
-    if (std::string why = rig.motion->CheckPose(target); !why.empty()) {
-      std::fprintf(stderr, "plan brdf: planned pose refused by the rig: %s\n", why.c_str());
-      return 1;
-    }
+    if (std::string why = rig.motion->CheckPose(target); !why.empty())
+      return Fail(kExitFailed, "planned pose refused by the rig: " + why);
     std::printf("      - {light_arm_deg: %.3f, camera_arm_deg: %.3f, sample_rotation_deg: %.3f}\n",
                 p.arms.light_arm_deg, p.arms.camera_arm_deg, p.arms.sample_rotation_deg);
   }
-  return plan.IsSolutionUsable() ? 0 : 1;
+  ResultFields() = {{"rig", o.rig},
+                    {"poses", plan.poses.size()},
+                    {"refused", plan.refused.size()},
+                    {"arm_travel_deg", plan.planned_move_deg},
+                    {"grid_order_travel_deg", plan.requested_order_move_deg}};
+  return plan.IsSolutionUsable() ? kExitOk : Fail(kExitFailed, plan.message);
 }
 
 CommandRunner Setup(CLI::App& app) {
