@@ -35,8 +35,7 @@ void CheckLightSafety(const RigConfig& rig, const std::map<int, std::vector<std:
   const drivers::LightSafetyOptions& safety = rig.lights.safety;
   for (const auto& [channel, intervals] : lit_intervals) {
     if (channel >= static_cast<int>(rig.lights.leds.size())) continue;
-    const drivers::ChannelLimits& limits =
-        safety.per_channel.empty() ? safety.defaults : safety.per_channel.at(static_cast<std::size_t>(channel));
+    const drivers::ChannelLimits& limits = safety.For(channel);
     const int led = rig.lights.leds[static_cast<std::size_t>(channel)].id;
     double longest_ms = 0.0;
     for (const auto& [start, length] : intervals) longest_ms = std::max(longest_ms, length);

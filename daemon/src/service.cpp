@@ -3,7 +3,7 @@
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/run.h"
 #include "photorig/daemon/rig_config.h"
-#include "photorig/daemon/rig_devices.h"
+#include "photorig/daemon/device_factory.h"
 
 #include <spdlog/spdlog.h>
 
@@ -128,14 +128,18 @@ namespace {
 
 // Whatever a previous process left lit (killed outright mid-exposure, a
 // power cut of the PC) goes dark now, before any run: opening a light
-// controller switches every output off, and closing it leaves them off. A
-// controller that cannot be reached is reported, not fatal: runs will say so.
+// controller switches every output off, and closing it leaves them off. Only
+// a controller outside this process can be lit from before (the simulated
+// dome, and a Modbus controller served in-process, start dark with it), and
+// it needs no simulated world. A controller that cannot be reached is
+// reported, not fatal: runs will say so.
 void DarkenLights(const std::string& rig_path) {
   try {
     const RigConfig rig = LoadRigConfig(rig_path);
-    RigDevices devices = MakeRigDevices(rig, nullptr);
-    const Status opened = devices.lights->Open();
-    const Status closed = devices.lights->Close();
+    if (rig.lights.driver == "sim" || (rig.lights.modbus && rig.lights.modbus->simulated)) return;
+    const std::unique_ptr<drivers::LightController> lights = MakeLightController(DeviceContext{rig, nullptr});
+    const Status opened = lights->Open();
+    const Status closed = lights->Close();
     if (!opened.ok() || !closed.ok())
       spdlog::warn("event=lights_unreachable error={}", json((opened.ok() ? closed : opened).ToString()).dump());
     else
