@@ -1,0 +1,210 @@
+#!/usr/bin/python3
+"""The browser interface in a real Chromium: each page opens, ps-shiny-sphere
+is submitted from the Queue page and watched to `done` on the Run page, the
+normal map decodes at the camera's size, the relighting canvas changes when the
+light is dragged, and the browser logs no errors. Screenshots go to
+--artefacts; --screenshots DIR also writes the README's (docs/screenshots).
+
+Exit codes: 0 passed, 1 failed, 77 skipped (Chromium, chromedriver or Selenium
+not installed: the reason is printed)."""
+
+import argparse
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+SKIP = 77
+
+
+def fail(message):
+    print(f"FAIL: {message}", file=sys.stderr)
+    sys.exit(1)
+
+
+def check(condition, message):
+    if not condition:
+        fail(message)
+
+
+def start_daemon(args, data_root, log_path):
+    command = [os.path.join(args.bin_dir, "photorigd"), "--data-root", data_root, "--port", "0",
+               "--rig", os.path.join(args.source_dir, "config/rigs/sim-dome.yaml"),
+               "--recipes", os.path.join(args.source_dir, "config/recipes")]
+    log = open(log_path, "w")
+    daemon = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    found = {}
+    ready = threading.Event()
+
+    def pump():  # the daemon's output to its log; the address it prints noted
+        for line in daemon.stdout:
+            log.write(line)
+            log.flush()
+            match = re.search(r"photorigd: open (http://127\.0\.0\.1:\d+/)", line)
+            if match:
+                found["url"] = match.group(1)
+                ready.set()
+        ready.set()
+
+    threading.Thread(target=pump, daemon=True).start()
+    ready.wait(20)
+    if "url" not in found:
+        daemon.kill()
+        fail(f"photorigd printed no address to open (log: {log_path})")
+    return daemon, found["url"]
+
+
+def start_browser(profile_dir):
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = "/usr/bin/chromium"
+    for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", f"--user-data-dir={profile_dir}",
+                 "--window-size=1280,1000", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                 "--no-first-run", "--disable-extensions", "--disable-background-networking"):
+        options.add_argument(flag)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    try:
+        return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+    except Exception as error:  # installed but cannot start: a failure, not a skip
+        fail(f"Chromium did not start under chromedriver: {error}")
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--bin-dir", required=True)
+    parser.add_argument("--source-dir", required=True)
+    parser.add_argument("--artefacts", required=True)
+    parser.add_argument("--screenshots", help="also write the README's screenshots here")
+    args = parser.parse_args()
+
+    missing = [path for path in ("/usr/bin/chromium", "/usr/bin/chromedriver") if not os.path.exists(path)]
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        missing.append("python3-selenium")
+    if missing:
+        print(f"SKIP: not installed: {', '.join(missing)} (scripts/install-deps.sh installs chromium, "
+              "chromium-driver and python3-selenium)")
+        return SKIP
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select, WebDriverWait
+
+    os.makedirs(args.artefacts, exist_ok=True)
+    started = time.monotonic()
+    temp = tempfile.mkdtemp(prefix="photorig-browser-")
+    daemon, url = start_daemon(args, os.path.join(temp, "data"), os.path.join(args.artefacts, "photorigd.log"))
+    driver = None
+    try:
+        driver = start_browser(os.path.join(temp, "chromium-profile"))
+        wait = lambda seconds, condition, what: WebDriverWait(driver, seconds).until(  # noqa: E731
+            lambda d: condition(d), message=what)
+        shots = {}
+
+        def screenshot(name, element=None):
+            path = os.path.join(args.artefacts, f"{name}.png")
+            if element is None:
+                driver.save_screenshot(path)
+            else:
+                element.screenshot(path)
+            shots[name] = path
+
+        js = driver.execute_script
+
+        # Rig page: devices and free disk.
+        driver.get(url)
+        wait(15, lambda d: d.find_elements(By.ID, "free-disk"), "the Rig page shows no devices")
+        devices = js("return fetch('/api/v1/devices').then(r => r.json())")
+        camera = next(d for d in devices["devices"] if d["role"] == "camera")
+        check("sim-dome" in driver.find_element(By.ID, "devices").text, "the Rig page does not name the rig")
+
+        # Queue page: choose the recipe, see its plan, submit.
+        driver.get(url + "#/queue")
+        select = wait(15, lambda d: d.find_elements(By.ID, "recipe-select"), "no recipe list on the Queue page")[0]
+        wait(10, lambda d: len(Select(select).options) > 1, "the recipe list is empty")
+        Select(select).select_by_visible_text(next(o.text for o in Select(select).options if o.text.startswith("ps-shiny-sphere ")))
+        frames = wait(20, lambda d: d.find_elements(By.ID, "plan-frames"), "no dry-run plan shown")[0]
+        check(frames.text == "49", f"the plan of ps-shiny-sphere shows {frames.text} frames, expected 49 (dark + 48 LEDs)")
+        screenshot("queue")
+        driver.find_element(By.ID, "submit").click()
+
+        # Run page: watched from the event stream until done.
+        wait(15, lambda d: "#/run/" in d.current_url, "submitting did not open the Run page")
+        run_id = driver.current_url.split("#/run/")[1]
+        wait(120, lambda d: d.find_elements(By.CSS_SELECTOR, "#run-state [data-state=done]")
+             or d.find_elements(By.CSS_SELECTOR, "#run-state .state-failed"), "the run did not finish")
+        state = driver.find_element(By.ID, "run-state").text
+        check(state == "done", f"run {run_id} ended {state}: {driver.find_element(By.ID, 'run-reason').text}")
+        check(driver.find_element(By.ID, "run-counters").text.startswith("49/49 frames"),
+              f"the Run page counts {driver.find_element(By.ID, 'run-counters').text!r}")
+        wait(15, lambda d: d.find_element(By.ID, "frame-image").get_attribute("data-file"), "no latest frame shown")
+        wait(15, lambda d: "frames/0048" in d.find_element(By.ID, "run-journal").text, "the journal lacks the last frame")
+        screenshot("run")
+
+        # Rig page again: the last frame of the run with its histogram.
+        driver.get(url + "#/rig")
+        wait(15, lambda d: d.find_element(By.ID, "frame-image").get_attribute("data-file"), "the Rig page shows no frame")
+        wait(15, lambda d: "clipped" in d.find_element(By.ID, "frame-caption").text, "no frame caption")
+        screenshot("rig")
+
+        # Results page: the normal map at the camera's size, read-out, relighting.
+        driver.get(url + f"#/results/{run_id}")
+        image = wait(30, lambda d: d.find_elements(By.CSS_SELECTOR, "#map-image[data-map=normals]"), "no normal map")[0]
+        size = wait(15, lambda d: js("const i = arguments[0]; return i.complete && i.naturalWidth ? [i.naturalWidth, i.naturalHeight] : null", image),
+                    "the normal map did not decode")
+        check(size == [camera["width"], camera["height"]],
+              f"the normal map decodes at {size}, the camera is {camera['width']}x{camera['height']}")
+        ActionChains(driver).move_to_element(image).perform()
+        wait(10, lambda d: "n = (" in d.find_element(By.ID, "map-readout").text, "no value read out under the cursor")
+        readout = driver.find_element(By.ID, "map-readout").text
+        nz = float(re.search(r"n = \(([^,]+), ([^,]+), ([^)]+)\)", readout).group(3))
+        check(nz > 0.9, f"the sphere's centre should face the camera: {readout}")
+        canvas = wait(30, lambda d: d.find_elements(By.ID, "relight-canvas"), "no relighting canvas")[0]
+        wait(30, lambda d: d.find_elements(By.ID, "mesh-canvas"), "no mesh view")
+        before = js("return arguments[0].toDataURL()", canvas)
+        pad = driver.find_element(By.ID, "light-pad")
+        ActionChains(driver).move_to_element_with_offset(pad, -50, 0).click_and_hold().move_by_offset(100, -30).release().perform()
+        after = js("return arguments[0].toDataURL()", canvas)
+        check(before != after, "the relighting canvas did not change when the light moved")
+        lit = js("""const c = document.createElement('canvas'); const s = arguments[0];
+                    c.width = s.width; c.height = s.height; const g = c.getContext('2d'); g.drawImage(s, 0, 0);
+                    const d = g.getImageData(0, 0, c.width, c.height).data; let n = 0;
+                    for (let i = 0; i < d.length; i += 4) n += d[i] > 40; return n;""", canvas)
+        check(lit > 0.2 * camera["width"] * camera["height"], f"the relit sphere is dark: {lit} bright pixels")
+        screenshot("results")
+        screenshot("relight", driver.find_element(By.ID, "relight"))
+
+        page_bytes = js("""return performance.getEntriesByType('resource').concat(performance.getEntriesByType('navigation'))
+                           .filter(e => !e.name.includes('/api/')).reduce((s, e) => s + (e.transferSize || e.encodedBodySize || 0), 0)""")
+        print(f"results page: {page_bytes / 1024:.0f} KiB of pages and libraries")
+
+        # Every page logged no errors.
+        errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
+        check(not errors, "the browser logged errors:\n" + "\n".join(e["message"] for e in errors))
+
+        if args.screenshots:
+            os.makedirs(args.screenshots, exist_ok=True)
+            for name in ("queue", "run", "relight"):
+                shutil.copy(shots[name], os.path.join(args.screenshots, f"ui-{name}.png"))
+        print(f"passed in {time.monotonic() - started:.1f} s; screenshots in {args.artefacts}")
+        return 0
+    finally:
+        if driver is not None:
+            driver.quit()
+        daemon.send_signal(signal.SIGTERM)
+        try:
+            daemon.wait(15)
+        except subprocess.TimeoutExpired:
+            daemon.kill()
+        shutil.rmtree(temp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
