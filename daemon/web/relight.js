@@ -109,7 +109,7 @@ export function relightView(normals, albedo, lobe) {
   const light = { x: -0.4, y: 0.4 };
   const model = el('select', { id: 'relight-model' }, el('option', { value: 0 }, 'Lambertian (normals + albedo)'),
     lobe ? el('option', { value: 1, selected: true }, 'with the per-pixel lobe (specular.tiff)') : null);
-  const exposure = el('input', { type: 'range', min: -3, max: 3, step: 0.1, value: 0, id: 'relight-exposure' });
+  const exposure = el('input', { type: 'range', min: -3, max: 3, step: 0.1, value: -0.5, id: 'relight-exposure' });
   const pad = el('canvas', { class: 'light-pad', width: 160, height: 160, id: 'light-pad' });
   const readout = el('div', { class: 'readout', id: 'light-readout' });
 
