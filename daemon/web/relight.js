@@ -2,11 +2,13 @@
 // light over the pad, the object is shaded from its per-pixel normals with
 //   model 0 (Lambertian):      albedo * max(n.l, 0)
 //   model 1 (per-pixel lobe):  + rho_s * max(n.h, 0)^exponent where specular.tiff has a lobe
+//   model 2 (environment map): albedo * E(n), E the map's irradiance from 9 SH coefficients
 // Every reflectance result reaches the shader the same way: per-pixel float
 // textures (normals, albedo, lobe) and a model switch. A per-material result
 // (a material-index map and a table of lobe parameters per material) adds a
 // texture pair and one branch in shade() (docs/ui.md, "Relighting").
-import { el } from './api.js';
+import { el, errorBox } from './api.js';
+import { decodeHdr, irradianceSh } from './envmap.js';
 
 const VERTEX = `#version 300 es
 in vec2 a_position;
@@ -16,18 +18,29 @@ void main() {
   gl_Position = vec4(a_position, 0.0, 1.0);
 }`;
 
+// The SH basis of envmap.js as GLSL, written out once.
+const SH_GLSL = '0.282095, 0.488603 * n.y, 0.488603 * n.z, 0.488603 * n.x, 1.092548 * n.x * n.y, 1.092548 * n.y * n.z, ' +
+  '0.315392 * (3.0 * n.z * n.z - 1.0), 1.092548 * n.x * n.z, 0.546274 * (n.x * n.x - n.y * n.y)';
+
 const FRAGMENT = `#version 300 es
 precision highp float;
 uniform highp sampler2D u_normals;  // RGB32F: (x, y, z), NaN where unsolved
 uniform highp sampler2D u_albedo;   // R32F
 uniform highp sampler2D u_lobe;     // RG32F: (rho_s, exponent); 0 where no lobe was fitted
-uniform int u_model;                // 0 Lambertian, 1 with the per-pixel lobe
+uniform int u_model;                // 0 Lambertian, 1 with the per-pixel lobe, 2 environment map
 uniform vec3 u_light;               // unit vector towards the light, camera coordinates
 uniform float u_scale;              // albedo value shown as white
+uniform vec3 u_sh[9];               // model 2: irradiance SH coefficients (RGB), envmap.js
 in vec2 v_uv;
 out vec4 color;
 
 vec3 shade(vec3 n, vec2 uv) {
+  if (u_model == 2) {
+    float y[9] = float[9](${SH_GLSL});
+    vec3 irradiance = vec3(0.0);
+    for (int k = 0; k < 9; ++k) irradiance += u_sh[k] * y[k];
+    return texture(u_albedo, uv).r * max(irradiance, 0.0) / u_scale;
+  }
   vec3 l = normalize(u_light);
   float ndotl = max(dot(n, l), 0.0);
   float radiance = texture(u_albedo, uv).r * ndotl;
@@ -78,8 +91,10 @@ function albedoScale(albedo) {
 }
 
 // {root, setLight(x, y)}: normals {width, height, channels 3}, albedo (1 channel),
-// lobe (specular.tiff, 3 channels: rho_s, exponent, 0) or null.
-export function relightView(normals, albedo, lobe) {
+// lobe (specular.tiff, 3 channels: rho_s, exponent, 0) or null; envmaps:
+// [{name, bytes: async () => Uint8Array}], the run's .hdr maps (a file from
+// this computer can be chosen too).
+export function relightView(normals, albedo, lobe, envmaps = []) {
   const canvas = el('canvas', { id: 'relight-canvas', width: normals.width, height: normals.height });
   const gl = canvas.getContext('webgl2', { preserveDrawingBuffer: true });
   if (!gl) throw new Error('relighting needs WebGL2, which this browser does not offer');
@@ -108,7 +123,36 @@ export function relightView(normals, albedo, lobe) {
 
   const light = { x: -0.4, y: 0.4 };
   const model = el('select', { id: 'relight-model' }, el('option', { value: 0 }, 'Lambertian (normals + albedo)'),
-    lobe ? el('option', { value: 1, selected: true }, 'with the per-pixel lobe (specular.tiff)') : null);
+    lobe ? el('option', { value: 1, selected: true }, 'with the per-pixel lobe (specular.tiff)') : null,
+    el('option', { value: 2 }, 'environment map (Lambertian)'));
+  const mapSelect = el('select', { id: 'envmap-select' }, envmaps.map((m, i) => el('option', { value: i }, m.name)));
+  const mapFile = el('input', { type: 'file', accept: '.hdr', id: 'envmap-file' });
+  const azimuth = el('input', { type: 'range', min: -180, max: 180, step: 5, value: 0, id: 'envmap-azimuth' });
+  const envError = el('div');
+  const envControls = el('div', { hidden: true }, el('p', {}, 'map ', mapSelect, ' or ', mapFile),
+    el('p', {}, 'turn ', azimuth), envError);
+  let environment = null;  // the decoded map in use
+  async function useMap(load) {
+    envError.replaceChildren();
+    try {
+      environment = decodeHdr(await load());
+      setEnvironment();
+    } catch (error) {
+      envError.append(errorBox(error));
+    }
+  }
+  function setEnvironment() {
+    if (!environment) return;
+    gl.uniform3fv(uniform('u_sh'), irradianceSh(environment, +azimuth.value * Math.PI / 180));
+    draw();
+  }
+  mapSelect.addEventListener('change', () => useMap(envmaps[mapSelect.value].bytes));
+  mapFile.addEventListener('change', () => mapFile.files[0] && useMap(async () => new Uint8Array(await mapFile.files[0].arrayBuffer())));
+  azimuth.addEventListener('input', setEnvironment);
+  model.addEventListener('change', () => {
+    envControls.hidden = model.value !== '2';
+    if (model.value === '2' && !environment && envmaps.length) useMap(envmaps[0].bytes);
+  });
   const exposure = el('input', { type: 'range', min: -3, max: 3, step: 0.1, value: -0.5, id: 'relight-exposure' });
   const pad = el('canvas', { class: 'light-pad', width: 160, height: 160, id: 'light-pad' });
   const readout = el('div', { class: 'readout', id: 'light-readout' });
@@ -147,6 +191,7 @@ export function relightView(normals, albedo, lobe) {
   exposure.addEventListener('input', draw);
   draw();
   const root = el('div', { class: 'row' }, canvas,
-    el('div', {}, el('p', {}, 'Drag the light:'), pad, readout, el('p', {}, model), el('p', {}, 'exposure ', exposure)));
+    el('div', {}, el('p', {}, 'Drag the light:'), pad, readout, el('p', {}, model), envControls,
+      el('p', {}, 'exposure ', exposure)));
   return { root, setLight };
 }

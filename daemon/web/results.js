@@ -85,7 +85,10 @@ async function psResults(main, runId, folder, report, files) {
   const section = el('section', { id: 'relight' }, el('h2', {}, 'Relighting'));
   main.append(section);
   try {
-    section.append(relightView(normals, albedo, hasLobe ? lobe : null).root);
+    const envmaps = [...files].filter((f) => f.endsWith('.hdr')).map((f) => ({
+      name: f, bytes: async () => new Uint8Array(await (await api(`/runs/${runId}/files/${f}`)).arrayBuffer()),
+    }));
+    section.append(relightView(normals, albedo, hasLobe ? lobe : null, envmaps).root);
   } catch (error) {
     section.append(errorBox(error));
   }

@@ -64,7 +64,7 @@ export async function runPage(main, runId) {
   }
   const note = (text) => { log.textContent = `${text}\n${log.textContent}`.slice(0, 20000); };
   render();
-  showJournal();
+  if (run.frames > 0) showJournal();  // before its first frame a run may have no journal yet
   let journalTimer = null;
   const stream = runEvents(runId, (type, data) => {
     if (type === 'frame') {
@@ -86,7 +86,7 @@ export async function runPage(main, runId) {
     } else if (type === 'stop') {
       Object.assign(run, data);
       note(`stop: ${data.state}${data.reason ? ` (${data.reason})` : ''}`);
-      showJournal();
+      if (run.frames > 0) showJournal();
     }
     render();
   });

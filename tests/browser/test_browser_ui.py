@@ -59,6 +59,29 @@ def start_daemon(args, data_root, log_path):
     return daemon, found["url"]
 
 
+def write_hdr(path, width=32, height=16):
+    """A lat-long Radiance map (flat RGBE scanlines): warm light from the
+    camera's left (-x) half of the sphere of directions only."""
+    import math
+    rows = []
+    for v in range(height):
+        theta = math.pi * (v + 0.5) / height
+        for u in range(width):
+            phi = 2 * math.pi * (u + 0.5) / width - math.pi
+            x = math.sin(theta) * math.sin(phi)
+            level = 4.0 * max(0.0, -x) ** 2
+            rgb = (level, 0.8 * level, 0.6 * level)
+            top = max(rgb)
+            if top < 1e-32:
+                rows.append(bytes(4))
+                continue
+            exponent = math.frexp(top)[1]
+            scale = 256.0 / 2 ** exponent
+            rows.append(bytes([min(255, int(c * scale)) for c in rgb] + [exponent + 128]))
+    with open(path, "wb") as out:
+        out.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + f"-Y {height} +X {width}\n".encode() + b"".join(rows))
+
+
 def start_browser(profile_dir):
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
@@ -156,6 +179,9 @@ def main():
         screenshot("rig")
 
         # Results page: the normal map at the camera's size, read-out, relighting.
+        envmap_dir = os.path.join(temp, "data", "runs", run_id, "results", "envmaps")
+        os.makedirs(envmap_dir)
+        write_hdr(os.path.join(envmap_dir, "sky-left.hdr"))
         driver.get(url + f"#/results/{run_id}")
         image = wait(30, lambda d: d.find_elements(By.CSS_SELECTOR, "#map-image[data-map=normals]"), "no normal map")[0]
         size = wait(15, lambda d: js("const i = arguments[0]; return i.complete && i.naturalWidth ? [i.naturalWidth, i.naturalHeight] : null", image),
@@ -174,13 +200,24 @@ def main():
         ActionChains(driver).move_to_element_with_offset(pad, -50, 0).click_and_hold().move_by_offset(100, -30).release().perform()
         after = js("return arguments[0].toDataURL()", canvas)
         check(before != after, "the relighting canvas did not change when the light moved")
-        lit = js("""const c = document.createElement('canvas'); const s = arguments[0];
-                    c.width = s.width; c.height = s.height; const g = c.getContext('2d'); g.drawImage(s, 0, 0);
-                    const d = g.getImageData(0, 0, c.width, c.height).data; let n = 0;
-                    for (let i = 0; i < d.length; i += 4) n += d[i] > 40; return n;""", canvas)
+        brightness = """const c = document.createElement('canvas'); const s = arguments[0];
+            c.width = s.width; c.height = s.height; const g = c.getContext('2d'); g.drawImage(s, 0, 0);
+            const d = g.getImageData(0, 0, c.width, c.height).data; let n = 0, left = 0, right = 0;
+            for (let i = 0; i < d.length; i += 4) {
+              n += d[i] > 40;
+              if ((i / 4) % c.width < c.width / 2) left += d[i]; else right += d[i];
+            }
+            return [n, left, right];"""
+        lit = js(brightness, canvas)[0]
         check(lit > 0.2 * camera["width"] * camera["height"], f"the relit sphere is dark: {lit} bright pixels")
         screenshot("results")
         screenshot("relight", driver.find_element(By.ID, "relight"))
+
+        # The environment map in the run's results lights the sphere from the left.
+        Select(driver.find_element(By.ID, "relight-model")).select_by_value("2")
+        wait(15, lambda d: js(brightness, canvas)[1] > 1.5 * js(brightness, canvas)[2],
+             "the sky brightest on the left does not light the sphere's left half most")
+        screenshot("relight-envmap", driver.find_element(By.ID, "relight"))
 
         page_bytes = js("""return performance.getEntriesByType('resource').concat(performance.getEntriesByType('navigation'))
                            .filter(e => !e.name.includes('/api/')).reduce((s, e) => s + (e.transferSize || e.encodedBodySize || 0), 0)""")
