@@ -52,8 +52,8 @@ export function decodeHdr(bytes) {
 }
 
 // The 9 irradiance SH coefficients (RGB each, 27 numbers) of `map` turned by
-// `azimuth` radians about +y, scaled so a surface facing the camera (n = +z)
-// with albedo 1 shows 1 in its brightest channel.
+// `azimuth` radians about +y, scaled so the brightest of the surfaces the
+// camera sees best (normals +z, ±x, ±y) with albedo 1 shows 1 in its brightest channel.
 export function irradianceSh(map, azimuth = 0) {
   const { width, height, data } = map;
   const L = new Float64Array(27);
@@ -69,8 +69,11 @@ export function irradianceSh(map, azimuth = 0) {
     }
   }
   for (let k = 0; k < 9; ++k) for (let c = 0; c < 3; ++c) L[3 * k + c] *= a[k] / Math.PI;  // radiance of albedo 1
-  const facing = basis(0, 0, 1);
-  const reference = Math.max(...[0, 1, 2].map((c) => facing.reduce((s, y, k) => s + y * L[3 * k + c], 0)));
+  let reference = 0;
+  for (const n of [[0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]]) {
+    const y = basis(...n);
+    for (let c = 0; c < 3; ++c) reference = Math.max(reference, y.reduce((sum, yk, k) => sum + yk * L[3 * k + c], 0));
+  }
   return Float32Array.from(L, (x) => x / (reference > 0 ? reference : 1));
 }
 

@@ -181,40 +181,77 @@ async function meshView(main, runId, file) {
   const sun = new THREE.DirectionalLight(0xffffff, 0.8);
   sun.position.set(1, 1, 2);
   scene.add(sun);
-  let frame = 0;
-  const render = () => { renderer.render(scene, camera); frame = requestAnimationFrame(render); };
+  // Drawn when the view changes, not every animation frame: software WebGL is slow.
+  const render = () => renderer.render(scene, camera);
+  controls.addEventListener('change', render);
   render();
   main.append(el('section', { id: 'mesh' }, el('h2', {}, `Mesh (${file}: ${geometry.index ? geometry.index.count / 3 : 0} triangles; drag to turn, wheel to zoom)`), renderer.domElement));
-  return () => { cancelAnimationFrame(frame); controls.dispose(); renderer.dispose(); };
+  return () => { controls.dispose(); renderer.dispose(); };
 }
 
-// BRDF: every candidate's fit, and the measured samples as a polar plot
-// (angle: the half vector's from the normal, radius: f_r of the red channel
-// over its largest), chosen model named.
+// BRDF: every candidate's fit, and a polar plot of f_r (red channel) against
+// the half vector's angle theta_h from the normal (left of the axis: the half
+// vector's azimuth on the -x side): the measured samples, and each fitted
+// model in the plane of incidence at the samples' median difference angle theta_d.
 async function brdfResults(main, runId, folder, report, files) {
   const section = el('section', { id: 'brdf' }, el('h2', {}, `BRDF (${folder}): chosen ${report.chosen || 'none'}`),
     table(report.candidates.map((c) => [c.model, c.termination, c.held_out_rms?.toPrecision(3), c.bic?.toPrecision(4),
-      `kd ${c.diffuse?.map((x) => x.toPrecision(3)).join(', ')}; ks ${c.specular?.map((x) => x.toPrecision(3)).join(', ')}; shape ${c.shape}`]),
+      `rho_d ${c.diffuse?.map((x) => x.toPrecision(3)).join(', ')}; specular ${c.specular?.map((x) => x.toPrecision(3)).join(', ')}; shape ${c.shape}`]),
     ['model', 'termination', 'held-out rms', 'BIC', 'parameters']));
   main.append(section);
   if (!files.has(`${folder}samples.csv`)) return;
   const lines = (await (await api(`/runs/${runId}/files/${folder}samples.csv`)).text()).trim().split('\n').slice(1);
-  const samples = lines.map((l) => l.split(',').map(Number));
-  const peak = Math.max(...samples.map((s) => s[6]));
-  const points = samples.map(([ix, iy, iz, ox, oy, oz, fr]) => {
+  const samples = lines.map((l) => l.split(',').map(Number)).map(([ix, iy, iz, ox, oy, oz, fr]) => {
     const h = [ix + ox, iy + oy, iz + oz], n = Math.hypot(...h);
-    const theta = Math.acos(h[2] / n), phi = Math.atan2(h[1], h[0]);
-    const r = fr / peak;
-    return { x: r * Math.sin(theta) * Math.sign(Math.cos(phi) || 1), y: r * Math.cos(theta) };
+    const thetaH = Math.acos(h[2] / n), thetaD = Math.acos(Math.min(1, (ix * h[0] + iy * h[1] + iz * h[2]) / n));
+    return { thetaH: h[0] < 0 ? -thetaH : thetaH, thetaD, fr };
   });
+  const thetaD = samples.map((s) => s.thetaD).sort((a, b) => a - b)[Math.floor(samples.length / 2)] ?? 0;
+  const curves = report.candidates.map((c) => {
+    const points = [];
+    for (let deg = -89; deg <= 89; deg += 1) {
+      const th = Math.abs(deg) * Math.PI / 180;
+      const cosI = Math.cos(th + thetaD), cosO = Math.cos(th - thetaD);
+      if (cosI <= 0 || cosO <= 0) continue;
+      points.push({ thetaH: deg * Math.PI / 180, fr: brdfRed(c, { cosI, cosO, cosH: Math.cos(th), cosD: Math.cos(thetaD) }) });
+    }
+    return { label: `${c.model}${c.model === report.chosen ? ' (chosen)' : ''} at θd ${(thetaD * 180 / Math.PI).toFixed(0)}°`, points };
+  });
+  const peak = Math.max(...samples.map((s) => s.fr), ...curves.flatMap((c) => c.points.map((p) => p.fr)));
+  const polar = (p) => ({ x: p.fr / peak * Math.sin(p.thetaH), y: p.fr / peak * Math.cos(p.thetaH) });
   const { Chart, registerables } = await import('/vendor/chart.js/chart.esm.js');
   Chart.register(...registerables);
-  const canvas = el('canvas', { width: 360, height: 200, id: 'brdf-polar' });
+  const canvas = el('canvas', { width: 560, height: 320, id: 'brdf-polar' });
   section.append(canvas);
+  const colours = ['#d0502a', '#2a8a4a', '#8a3ab8'];
   new Chart(canvas, {
-    type: 'scatter', data: { datasets: [{ label: 'measured f_r (red) / max, at the half vector\'s angle', data: points, pointRadius: 2 }] },
-    options: { responsive: false, animation: false, scales: { x: { min: -1, max: 1 }, y: { min: 0, max: 1 } } },
+    type: 'scatter',
+    data: {
+      datasets: [{ label: 'measured (red channel)', data: samples.map(polar), pointRadius: 2, backgroundColor: '#4a78b8' },
+        ...curves.map((c, i) => ({ label: c.label, data: c.points.map(polar), showLine: true, pointRadius: 0, borderWidth: 2,
+          borderColor: colours[i % colours.length] }))],
+    },
+    options: {
+      responsive: false, animation: false,
+      plugins: { title: { display: true, text: 'f_r / max against θh (polar: straight up is the normal)' } },
+      scales: { x: { min: -1, max: 1 }, y: { min: 0, max: 1 } },
+    },
   });
+}
+
+// f_r of the red channel for a fitted model (solvers/brdf/models.h), from the cosines.
+function brdfRed(c, g) {
+  const diffuse = c.diffuse[0] / Math.PI;
+  const ks = c.specular?.[0] ?? 0, e = c.shape;
+  if (c.model === 'blinn_phong')
+    return diffuse + ks * (e + 2) * (e + 4) / (8 * Math.PI * (2 ** (-e / 2) + e)) * g.cosH ** e;
+  if (c.model === 'ggx') {
+    const a2 = e * e, t = g.cosH * g.cosH * (a2 - 1) + 1, d = a2 / (Math.PI * t * t);
+    const g1 = (cos) => 2 * cos / (cos + Math.sqrt(a2 + (1 - a2) * cos * cos));
+    const fresnel = ks + (1 - ks) * (1 - g.cosD) ** 5;
+    return diffuse + d * g1(g.cosI) * g1(g.cosO) * fresnel / (4 * g.cosI * g.cosO);
+  }
+  return diffuse;
 }
 
 // An NRRD volume (raw or gzip encoding, attached data): its slices along z.

@@ -82,6 +82,46 @@ def write_hdr(path, width=32, height=16):
         out.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + f"-Y {height} +X {width}\n".encode() + b"".join(rows))
 
 
+def write_brdf_results(folder):
+    """What `photorig solve brdf` writes (report.json, samples.csv), for
+    in-plane samples of a Blinn-Phong BRDF (rho_d 0.5, k_s 0.2, e 40)."""
+    import json
+    import math
+    os.makedirs(folder)
+    e, ks, rho = 40.0, 0.2, 0.5
+    norm = (e + 2) * (e + 4) / (8 * math.pi * (2 ** (-e / 2) + e))
+    lines = ["wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b"]
+    for ti in range(10, 80, 10):
+        for to in range(-80, 81, 4):
+            wi = (-math.sin(math.radians(ti)), 0.0, math.cos(math.radians(ti)))
+            wo = (math.sin(math.radians(to)), 0.0, math.cos(math.radians(to)))
+            h = [a + b for a, b in zip(wi, wo)]
+            cos_h = h[2] / math.sqrt(sum(c * c for c in h))
+            f = rho / math.pi + ks * norm * cos_h ** e
+            lines.append(",".join(f"{v:.6g}" for v in (*wi, *wo, f, f, f, 0.01, 0.01, 0.01)))
+    candidate = lambda model, specular, shape: {  # noqa: E731
+        "model": model, "termination": "success", "message": "", "bic": -1.0, "held_out_rms": 0.01, "cost": 0.0,
+        "parameters": 7, "diffuse": [rho] * 3, "diffuse_sigma": [0.0] * 3, "specular": [specular] * 3,
+        "specular_sigma": [0.0] * 3, "shape": shape, "shape_sigma": 0.0, "lobe_identifiable": True}
+    report = {"samples": len(lines) - 1, "termination": "success", "chosen": "blinn_phong",
+              "candidates": [candidate("lambertian", 0.0, 0.0), candidate("blinn_phong", ks, e), candidate("ggx", 0.04, 0.2)]}
+    with open(os.path.join(folder, "report.json"), "w") as out:
+        json.dump(report, out)
+    with open(os.path.join(folder, "samples.csv"), "w") as out:
+        out.write("\n".join(lines) + "\n")
+
+
+def write_nrrd(path, n=24):
+    """A raw little-endian float NRRD volume: a ball of 1 in a cube of 0."""
+    import struct
+    os.makedirs(os.path.dirname(path))
+    values = [1.0 if (x - n / 2) ** 2 + (y - n / 2) ** 2 + (z - n / 2) ** 2 < (n / 3) ** 2 else 0.0
+              for z in range(n) for y in range(n) for x in range(n)]
+    header = f"NRRD0004\ntype: float\ndimension: 3\nsizes: {n} {n} {n}\nendian: little\nencoding: raw\n\n"
+    with open(path, "wb") as out:
+        out.write(header.encode() + struct.pack(f"<{len(values)}f", *values))
+
+
 def start_browser(profile_dir):
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
@@ -141,6 +181,8 @@ def main():
             shots[name] = path
 
         js = driver.execute_script
+        phase = lambda name: print(f"{time.monotonic() - started:6.1f} s  {name}", flush=True)  # noqa: E731
+        phase("browser started")
 
         # Rig page: devices and free disk.
         driver.get(url)
@@ -149,6 +191,7 @@ def main():
         camera = next(d for d in devices["devices"] if d["role"] == "camera")
         check("sim-dome" in driver.find_element(By.ID, "devices").text, "the Rig page does not name the rig")
 
+        phase("rig page")
         # Queue page: choose the recipe, see its plan, submit.
         driver.get(url + "#/queue")
         select = wait(15, lambda d: d.find_elements(By.ID, "recipe-select"), "no recipe list on the Queue page")[0]
@@ -159,6 +202,7 @@ def main():
         screenshot("queue")
         driver.find_element(By.ID, "submit").click()
 
+        phase("submitted")
         # Run page: watched from the event stream until done.
         wait(15, lambda d: "#/run/" in d.current_url, "submitting did not open the Run page")
         run_id = driver.current_url.split("#/run/")[1]
@@ -172,29 +216,37 @@ def main():
         wait(15, lambda d: "frames/0048" in d.find_element(By.ID, "run-journal").text, "the journal lacks the last frame")
         screenshot("run")
 
+        phase("run done")
         # Rig page again: the last frame of the run with its histogram.
         driver.get(url + "#/rig")
         wait(15, lambda d: d.find_element(By.ID, "frame-image").get_attribute("data-file"), "the Rig page shows no frame")
         wait(15, lambda d: "clipped" in d.find_element(By.ID, "frame-caption").text, "no frame caption")
         screenshot("rig")
 
+        phase("rig page with frame")
         # Results page: the normal map at the camera's size, read-out, relighting.
         envmap_dir = os.path.join(temp, "data", "runs", run_id, "results", "envmaps")
         os.makedirs(envmap_dir)
         write_hdr(os.path.join(envmap_dir, "sky-left.hdr"))
+        results_dir = os.path.dirname(envmap_dir)
+        write_brdf_results(os.path.join(results_dir, "brdf"))
+        write_nrrd(os.path.join(results_dir, "tomography", "volume.nrrd"))
         driver.get(url + f"#/results/{run_id}")
         image = wait(30, lambda d: d.find_elements(By.CSS_SELECTOR, "#map-image[data-map=normals]"), "no normal map")[0]
         size = wait(15, lambda d: js("const i = arguments[0]; return i.complete && i.naturalWidth ? [i.naturalWidth, i.naturalHeight] : null", image),
                     "the normal map did not decode")
         check(size == [camera["width"], camera["height"]],
               f"the normal map decodes at {size}, the camera is {camera['width']}x{camera['height']}")
+        phase("results page loaded")
+        canvas = wait(30, lambda d: d.find_elements(By.ID, "relight-canvas"), "no relighting canvas")[0]
+        wait(30, lambda d: d.find_elements(By.ID, "mesh-canvas"), "no mesh view")
+        wait(30, lambda d: d.find_elements(By.CSS_SELECTOR, "section.volume canvas"), "no volume slices")
+        js("arguments[0].scrollIntoView({block: 'center'})", image)
         ActionChains(driver).move_to_element(image).perform()
         wait(10, lambda d: "n = (" in d.find_element(By.ID, "map-readout").text, "no value read out under the cursor")
         readout = driver.find_element(By.ID, "map-readout").text
         nz = float(re.search(r"n = \(([^,]+), ([^,]+), ([^)]+)\)", readout).group(3))
         check(nz > 0.9, f"the sphere's centre should face the camera: {readout}")
-        canvas = wait(30, lambda d: d.find_elements(By.ID, "relight-canvas"), "no relighting canvas")[0]
-        wait(30, lambda d: d.find_elements(By.ID, "mesh-canvas"), "no mesh view")
         before = js("return arguments[0].toDataURL()", canvas)
         pad = driver.find_element(By.ID, "light-pad")
         ActionChains(driver).move_to_element_with_offset(pad, -50, 0).click_and_hold().move_by_offset(100, -30).release().perform()
@@ -213,12 +265,27 @@ def main():
         screenshot("results")
         screenshot("relight", driver.find_element(By.ID, "relight"))
 
+        phase("relit")
         # The environment map in the run's results lights the sphere from the left.
         Select(driver.find_element(By.ID, "relight-model")).select_by_value("2")
         wait(15, lambda d: js(brightness, canvas)[1] > 1.5 * js(brightness, canvas)[2],
              "the sky brightest on the left does not light the sphere's left half most")
         screenshot("relight-envmap", driver.find_element(By.ID, "relight"))
 
+        phase("environment map")
+        # BRDF results: the polar plot of samples and fitted lobes; a volume's slices.
+        wait(15, lambda d: d.find_elements(By.ID, "brdf-polar"), "no BRDF polar plot")
+        check("chosen blinn_phong" in driver.find_element(By.ID, "brdf").text, "the BRDF section does not name the chosen model")
+        screenshot("brdf", driver.find_element(By.ID, "brdf"))
+        volume = wait(15, lambda d: d.find_elements(By.CSS_SELECTOR, "section.volume canvas"), "no volume slices")[0]
+        centre, corner = js("""const c = arguments[0], d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+                               const at = (x, y) => d[4 * (y * c.width + x)];
+                               return [at(c.width >> 1, c.height >> 1), at(0, 0)];""", volume)
+        check(centre == 255 and corner == 0, f"the volume's middle slice shows {centre} at the ball's centre, {corner} outside")
+        for box in driver.find_elements(By.CSS_SELECTOR, "#page .error"):
+            fail(f"the Results page shows an error: {box.text}")
+
+        phase("BRDF and volume")
         page_bytes = js("""return performance.getEntriesByType('resource').concat(performance.getEntriesByType('navigation'))
                            .filter(e => !e.name.includes('/api/')).reduce((s, e) => s + (e.transferSize || e.encodedBodySize || 0), 0)""")
         print(f"results page: {page_bytes / 1024:.0f} KiB of pages and libraries")
