@@ -16,12 +16,19 @@ function headers(extra = {}) {
   return token ? { ...extra, Authorization: `Bearer ${token}` } : extra;
 }
 
-async function askForToken() {
-  const dialog = document.getElementById('token-dialog');
-  if (dialog.open) return;
-  dialog.showModal();
-  await new Promise((resolve) => dialog.addEventListener('close', resolve, { once: true }));
-  sessionStorage.setItem(TOKEN_KEY, document.getElementById('token-input').value.trim());
+// One question at a time: every request that met a 401 waits for the same answer.
+let tokenAnswer = null;
+function askForToken() {
+  tokenAnswer ??= new Promise((resolve) => {
+    const dialog = document.getElementById('token-dialog');
+    dialog.addEventListener('close', () => {
+      sessionStorage.setItem(TOKEN_KEY, document.getElementById('token-input').value.trim());
+      tokenAnswer = null;
+      resolve();
+    }, { once: true });
+    dialog.showModal();
+  });
+  return tokenAnswer;
 }
 
 // fetch under /api/v1; throws an Error carrying the daemon's message and status.

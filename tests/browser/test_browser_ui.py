@@ -32,12 +32,16 @@ def check(condition, message):
         fail(message)
 
 
-def start_daemon(args, data_root, log_path):
+def start_daemon(args, data_root, log_path, token=None):
     command = [os.path.join(args.bin_dir, "photorigd"), "--data-root", data_root, "--port", "0",
                "--rig", os.path.join(args.source_dir, "config/rigs/sim-dome.yaml"),
                "--recipes", os.path.join(args.source_dir, "config/recipes")]
     log = open(log_path, "w")
-    daemon = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    env = dict(os.environ)
+    env.pop("PHOTORIG_TOKEN", None)
+    if token:
+        env["PHOTORIG_TOKEN"] = token
+    daemon = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
     found = {}
     ready = threading.Event()
 
@@ -45,7 +49,7 @@ def start_daemon(args, data_root, log_path):
         for line in daemon.stdout:
             log.write(line)
             log.flush()
-            match = re.search(r"photorigd: open (http://127\.0\.0\.1:\d+/)", line)
+            match = re.search(r"photorigd: open (http://127\.0\.0\.1:\d+/)(#token=<your token>)?", line)
             if match:
                 found["url"] = match.group(1)
                 ready.set()
@@ -293,6 +297,22 @@ def main():
         # Every page logged no errors.
         errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
         check(not errors, "the browser logged errors:\n" + "\n".join(e["message"] for e in errors))
+
+        # A daemon with a token: given once in the address, kept for the tab, gone from the address.
+        token = "browser-test-token-0123456789"
+        secured, secured_url = start_daemon(args, os.path.join(temp, "data-token"),
+                                            os.path.join(args.artefacts, "photorigd-token.log"), token)
+        try:
+            driver.get(secured_url + "#token=" + token)
+            wait(15, lambda d: d.find_elements(By.ID, "free-disk"), "the Rig page shows no devices with a token")
+            check(js("return sessionStorage.getItem('photorig.token')") == token, "the token was not kept")
+            check("token" not in driver.current_url, f"the token stays in the address: {driver.current_url}")
+            errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
+            check(not errors, "the browser logged errors with a token:\n" + "\n".join(e["message"] for e in errors))
+        finally:
+            secured.send_signal(signal.SIGTERM)
+            secured.wait(15)
+        phase("token")
 
         if args.screenshots:  # the README's, in 128 colours to keep the repository small
             from PIL import Image
