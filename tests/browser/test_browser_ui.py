@@ -251,6 +251,28 @@ def main():
         readout = driver.find_element(By.ID, "map-readout").text
         nz = float(re.search(r"n = \(([^,]+), ([^,]+), ([^)]+)\)", readout).group(3))
         check(nz > 0.9, f"the sphere's centre should face the camera: {readout}")
+        # Every other map shows with its legend and reads out under the cursor.
+        def hover_pixel(x, y):  # the map's pixel (x, y), whatever its displayed size
+            image = driver.find_element(By.ID, "map-image")
+            js("arguments[0].scrollIntoView({block: 'center'})", image)
+            box = js("const r = arguments[0].getBoundingClientRect(); return [r.width, r.height, arguments[0].naturalWidth]", image)
+            scale = box[0] / box[2]
+            ActionChains(driver).move_to_element_with_offset(
+                image, int((x + 0.5) * scale - box[0] / 2), int((y + 0.5) * scale - box[1] / 2)).perform()
+
+        for button in driver.find_elements(By.CSS_SELECTOR, "#maps button[data-map]"):
+            key = button.get_attribute("data-map")
+            button.click()
+            wait(15, lambda d: d.find_element(By.ID, "map-image").get_attribute("data-map") == key, f"map {key} not shown")
+            js("document.getElementById('map-readout').textContent = ''")
+            hover_pixel(camera["width"] // 2, camera["height"] // 2)
+            wait(15, lambda d: driver.find_element(By.ID, "map-readout").text.startswith("(")
+                 and driver.find_element(By.ID, "map-legend").text, f"map {key}: no read-out or legend")
+            if key == "flags":
+                check("solved" in driver.find_element(By.ID, "map-readout").text,
+                      f"the flag at the sphere's centre reads {driver.find_element(By.ID, 'map-readout').text!r}")
+            if key == "albedo":
+                screenshot("maps", driver.find_element(By.ID, "maps"))
         before = js("return arguments[0].toDataURL()", canvas)
         pad = driver.find_element(By.ID, "light-pad")
         ActionChains(driver).move_to_element_with_offset(pad, -50, 0).click_and_hold().move_by_offset(100, -30).release().perform()
