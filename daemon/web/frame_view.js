@@ -56,7 +56,7 @@ export class FrameView {
   }
 }
 
-// The journal record of `file` (its exposure and gain).
+// Every frame record of a run's journal (exposure, gain, LED, pose of each frame).
 export async function journalRecords(runId) {
   const text = await (await api(`/runs/${runId}/files/journal.jsonl`)).text();
   return text.trim().split('\n').slice(1).map((line) => JSON.parse(line));
