@@ -4,7 +4,7 @@ BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps configure build demo test bench charts clean
+.PHONY: all deps configure build demo test bench charts ui-screenshots clean
 
 all: build
 
@@ -33,6 +33,11 @@ bench: build
 
 charts: build
 	./scripts/charts.sh $(BUILD_DIR)
+
+# The browser interface's screenshots in docs/screenshots/ (docs/ui.md), from its test.
+ui-screenshots: build
+	/usr/bin/python3 tests/browser/test_browser_ui.py --bin-dir $(BUILD_DIR)/bin --source-dir . \
+	  --artefacts $(BUILD_DIR)/tests/browser/artefacts --screenshots docs/screenshots
 
 clean:
 	rm -rf $(BUILD_DIR)

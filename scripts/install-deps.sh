@@ -28,6 +28,10 @@ packages=(
   python3-skimage
   # run store: vectorised CRC-32 and Adler-32 for frame files
   libdeflate-dev
+  # the browser interface's libraries, served by photorigd (docs/ui.md): three.js r111, Chart.js 3.9
+  libjs-three libjs-chart.js
+  # the browser interface's test: headless Chromium over WebDriver (tests/browser)
+  chromium chromium-driver python3-selenium
   # fuzzers: libFuzzer, the sanitizer runtimes and clang's OpenMP (scripts/fuzz.sh)
   clang libclang-rt-14-dev libomp-14-dev
 )

@@ -2,6 +2,8 @@
 // runs them on its rig one at a time and serves the HTTP API (see
 // daemon/include/photorig/daemon/api_server.h and docs/api.md).
 //   photorigd --data-root DIR --rig RIG.yaml [--listen ADDR] [--port N] [--token-file FILE] [--allow-host NAME]
+//             [--web-root DIR] [--recipes DIR]
+// It prints the browser interface's address on stdout once it listens (docs/ui.md).
 // On SIGTERM or SIGINT the current run finishes its frame, the lights go off
 // and the run stays queued for the next start. Under systemd (Type=notify)
 // it reports readiness and feeds the watchdog while the worker is alive.
@@ -16,8 +18,27 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <thread>
+
+namespace {
+
+// The browser interface's pages: installed beside the executable
+// (<prefix>/bin/../share/photorig/web), else the source tree's daemon/web
+// (a build tree); empty when neither exists.
+std::string DefaultWebRoot() {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", error);
+  for (const fs::path& candidate : {exe.parent_path().parent_path() / "share" / "photorig" / "web",
+                                    fs::path(PHOTORIG_WEB_SOURCE_DIR)})
+    if (fs::is_regular_file(candidate / "index.html", error)) return candidate.string();
+  return "";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"photorigd: runs queued capture recipes on the rig, driven over HTTP"};
@@ -38,6 +59,12 @@ int main(int argc, char** argv) {
                  "a Host name clients without a token may use besides loopback (repeatable)");
   app.add_option("--token-file", token_file, "file holding the bearer token (default: $PHOTORIG_TOKEN)")
       ->check(CLI::ExistingFile);
+  app.add_option("--web-root", api_options.web_root,
+                 "folder of the browser interface's pages (default: installed share/photorig/web, else the "
+                 "source tree's daemon/web; 'none': no interface)");
+  app.add_option("--recipes", service_options.recipe_folders,
+                 "a folder of recipes the interface offers (repeatable; default: the recipes folder beside the "
+                 "rig's folder, e.g. config/recipes for config/rigs/sim-dome.yaml)");
   app.add_flag("--no-resume", no_resume, "mark runs a crash interrupted as interrupted instead of resuming them");
   app.add_flag("--no-solve", no_solve, "capture only; skip the recipes' solve: stages");
   app.add_option("--max-attempts", service_options.retry.max_attempts_per_step,
@@ -46,6 +73,12 @@ int main(int argc, char** argv) {
   app.add_option("--backoff-ms", service_options.retry.initial_backoff_ms, "first retry backoff")->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  if (api_options.web_root.empty()) api_options.web_root = DefaultWebRoot();
+  if (api_options.web_root == "none") api_options.web_root.clear();
+  if (service_options.recipe_folders.empty()) {
+    const auto beside = std::filesystem::absolute(service_options.rig_path).parent_path().parent_path() / "recipes";
+    if (std::filesystem::is_directory(beside)) service_options.recipe_folders.push_back(beside.lexically_normal().string());
+  }
   service_options.resume_interrupted = !no_resume;
   service_options.solve = !no_solve;
   if (!token_file.empty()) {
@@ -67,6 +100,12 @@ int main(int argc, char** argv) {
     std::thread serving([&server] { server.Serve(); });
     spdlog::info("event=ready listen={}:{} data_root={} rig={} auth={}", api_options.bind_address, server.port(),
                  service_options.data_root, service_options.rig_path, api_options.token.empty() ? "none" : "bearer");
+    if (!api_options.web_root.empty()) {
+      // The address to open (a literal IPv6 address goes in brackets).
+      const std::string& host = api_options.bind_address;
+      std::cout << "photorigd: open http://" << (host.find(':') != std::string::npos ? "[" + host + "]" : host) << ":"
+                << server.port() << "/" << (api_options.token.empty() ? "" : "#token=<your token>") << std::endl;
+    }
     sd_notifyf(0, "READY=1\nSTATUS=listening on %s:%d", api_options.bind_address.c_str(), server.port());
 
     std::uint64_t watchdog_us = 0;

@@ -1,6 +1,10 @@
 #include "photorig/daemon/api_server.h"
 
 #include "photorig/config/yaml_node.h"
+#include "photorig/daemon/image_io.h"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <httplib.h>
 #include <spdlog/spdlog.h>
@@ -11,6 +15,7 @@
 #include <cctype>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -119,7 +124,11 @@ Refusal CheckRequest(const httplib::Request& req, const ApiOptions& options) {
   if (state_changing && IsFormOrPlainText(req.get_header_value("Content-Type")))
     return {415, "send JSON (application/json) or YAML (application/yaml), not a form or text/plain"};
   bool authenticated = false;
-  if (!options.token.empty()) {
+  // The interface's pages and libraries hold no data and a browser cannot
+  // attach a token to the request that loads a page: they are served without
+  // one (the Host check below still applies); their scripts send it to /api/.
+  const bool static_file = (req.method == "GET" || req.method == "HEAD") && req.path.rfind("/api/", 0) != 0;
+  if (!options.token.empty() && !static_file) {
     if (!ConstantTimeEquals(req.get_header_value("Authorization"), "Bearer " + options.token))
       return {401, "missing or wrong bearer token"};
     authenticated = true;  // a page in a browser cannot know the token
@@ -151,6 +160,115 @@ class StreamSlot {
  private:
   std::atomic<int>& open_;
 };
+
+
+// An image of a run as float channels in (R, G, B) = (x, y, z) order: float
+// TIFFs as written (image_io.h), PNG frames and previews converted.
+cv::Mat ReadImageAsFloat(const std::string& file) {
+  const std::string ext = Lower(fs::path(file).extension().string());
+  if (ext == ".tiff" || ext == ".tif") return ReadFloatTiff(file);
+  if (ext != ".png") throw std::invalid_argument("not an image: only .png, .tif and .tiff files have values");
+  cv::Mat image = ReadImage(file);
+  if (image.channels() == 4) cv::cvtColor(image, image, cv::COLOR_BGRA2RGB);
+  else if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2RGB);
+  cv::Mat values;
+  image.convertTo(values, CV_32F);
+  return values;
+}
+
+// The value at `fraction` of the sorted finite values of every channel.
+double Percentile(const cv::Mat& image, double fraction) {
+  std::vector<float> values;
+  values.reserve(image.total() * image.channels());
+  const cv::Mat flat = image.reshape(1, 1);
+  for (int i = 0; i < flat.cols; ++i)
+    if (std::isfinite(flat.at<float>(0, i))) values.push_back(flat.at<float>(0, i));
+  if (values.empty()) return 0.0;
+  const std::size_t k = std::min(values.size() - 1, static_cast<std::size_t>(fraction * (values.size() - 1) + 0.5));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
+}
+
+double NumberParam(const httplib::Request& req, const char* name, double fallback) {
+  if (!req.has_param(name)) return fallback;
+  const std::string text = req.get_param_value(name);
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (end == text.c_str() || *end != '\0' || !std::isfinite(value))
+    throw std::invalid_argument(std::string("?") + name + "= must be a number, got '" + text + "'");
+  return value;
+}
+
+// The tone mapping of GET .../preview: `low` .. `high` (default: the finite
+// values' minimum .. 99.5th percentile) to 0 .. 1, then the power 1 / `gamma`
+// (default 2.2, a display's), NaN black, and pixels at or above `saturation`
+// (when given) red. Shrunk to at most `max_side` pixels on its longer side.
+struct Preview {
+  cv::Mat bgr8;
+  double low = 0, high = 0;
+  int clipped = 0;
+};
+
+Preview TonemapPreview(const cv::Mat& values, const httplib::Request& req) {
+  Preview preview;
+  double min_value = 0;
+  cv::Mat finite_mask = values.reshape(1) == values.reshape(1);
+  cv::minMaxLoc(values.reshape(1), &min_value, nullptr, nullptr, nullptr, finite_mask);
+  preview.low = NumberParam(req, "low", min_value);
+  preview.high = NumberParam(req, "high", Percentile(values, 0.995));
+  if (!(preview.high > preview.low)) preview.high = preview.low + 1.0;
+  const double gamma = NumberParam(req, "gamma", 2.2);
+  const double max_side = NumberParam(req, "max_side", 1024);
+  if (gamma <= 0 || max_side < 16 || max_side > 8192)
+    throw std::invalid_argument("?gamma= must be > 0 and ?max_side= within [16, 8192]");
+  cv::Mat scaled = (values - preview.low) / (preview.high - preview.low);
+  cv::patchNaNs(scaled, 0.0);
+  cv::max(scaled, 0.0, scaled);
+  cv::min(scaled, 1.0, scaled);
+  cv::pow(scaled, 1.0 / gamma, scaled);
+  cv::Mat bytes;
+  scaled.convertTo(bytes, CV_8U, 255.0);
+  if (bytes.channels() == 1) cv::cvtColor(bytes, preview.bgr8, cv::COLOR_GRAY2BGR);
+  else if (bytes.channels() == 3) cv::cvtColor(bytes, preview.bgr8, cv::COLOR_RGB2BGR);
+  else throw std::invalid_argument("previews show 1- or 3-channel images");
+  if (req.has_param("saturation")) {
+    cv::Mat clipped;
+    cv::compare(values.reshape(1, values.rows * values.cols), NumberParam(req, "saturation", 0), clipped, cv::CMP_GE);
+    cv::reduce(clipped, clipped, 1, cv::REDUCE_MAX);
+    clipped = clipped.reshape(1, values.rows);
+    preview.clipped = cv::countNonZero(clipped);
+    preview.bgr8.setTo(cv::Scalar(0, 0, 255), clipped);
+  }
+  const double longer = std::max(values.cols, values.rows);
+  if (longer > max_side)
+    cv::resize(preview.bgr8, preview.bgr8, cv::Size(), max_side / longer, max_side / longer, cv::INTER_AREA);
+  return preview;
+}
+
+// GET .../stats: size, finite range, a 64-bin histogram over it (all
+// channels together) and, with ?saturation=, the pixels at or above it.
+json ImageStats(const cv::Mat& values, const httplib::Request& req) {
+  constexpr int kBins = 64;
+  double low = 0, high = 0;
+  cv::Mat finite_mask = values.reshape(1) == values.reshape(1);
+  cv::minMaxLoc(values.reshape(1), &low, &high, nullptr, nullptr, finite_mask);
+  std::vector<std::uint64_t> histogram(kBins, 0);
+  const cv::Mat flat = values.reshape(1, 1);
+  const double width = std::max(high - low, 1e-30);
+  std::uint64_t clipped = 0;
+  const bool has_saturation = req.has_param("saturation");
+  const double saturation = NumberParam(req, "saturation", 0);
+  for (int i = 0; i < flat.cols; ++i) {
+    const float v = flat.at<float>(0, i);
+    if (!std::isfinite(v)) continue;
+    ++histogram[std::min(kBins - 1, static_cast<int>((v - low) / width * kBins))];
+    if (has_saturation && v >= saturation) ++clipped;
+  }
+  json stats = {{"width", values.cols}, {"height", values.rows}, {"channels", values.channels()},
+                {"min", low},           {"max", high},           {"histogram", histogram}};
+  if (has_saturation) stats["clipped"] = clipped;
+  return stats;
+}
 
 }  // namespace
 
@@ -324,6 +442,62 @@ void ApiServer::Routes() {
       return in->gcount() > 0 && sink.write(buffer.data(), static_cast<std::size_t>(in->gcount()));
     });
   });
+
+  // Images of a run for the browser interface (docs/api.md, "Images").
+  auto image_route = [this](const char* kind, auto respond) {
+    server_->Get(std::string(R"(/api/v1/runs/([^/]+)/)") + kind + "/(.+)",
+                 [this, respond](const httplib::Request& req, httplib::Response& res) {
+                   const std::string relative = req.matches[2];
+                   std::string file;
+                   if (const ServiceReply resolved = service_.ResolveRunPath(req.matches[1], relative, &file);
+                       resolved.http_status != 200)
+                     return Reply(res, resolved);
+                   if (!fs::is_regular_file(file)) return ErrorReply(res, 404, "no file '" + relative + "' in the run");
+                   cv::Mat values;
+                   try {
+                     values = ReadImageAsFloat(file);
+                     respond(values, req, res);
+                   } catch (const std::invalid_argument& e) {
+                     ErrorReply(res, 400, e.what());
+                   }
+                 });
+  };
+  image_route("preview", [](const cv::Mat& values, const httplib::Request& req, httplib::Response& res) {
+    const Preview preview = TonemapPreview(values, req);
+    std::vector<unsigned char> png;
+    cv::imencode(".png", preview.bgr8, png, {cv::IMWRITE_PNG_COMPRESSION, 1});
+    res.set_header("X-Preview-Low", std::to_string(preview.low));
+    res.set_header("X-Preview-High", std::to_string(preview.high));
+    if (req.has_param("saturation")) res.set_header("X-Preview-Clipped", std::to_string(preview.clipped));
+    res.set_content(reinterpret_cast<const char*>(png.data()), png.size(), "image/png");
+  });
+  image_route("stats", [](const cv::Mat& values, const httplib::Request& req, httplib::Response& res) {
+    Reply(res, {200, ImageStats(values, req)});
+  });
+  image_route("values", [](const cv::Mat& values, const httplib::Request&, httplib::Response& res) {
+    const cv::Mat contiguous = values.isContinuous() ? values : values.clone();
+    res.set_header("X-Image-Width", std::to_string(values.cols));
+    res.set_header("X-Image-Height", std::to_string(values.rows));
+    res.set_header("X-Image-Channels", std::to_string(values.channels()));
+    res.set_content(reinterpret_cast<const char*>(contiguous.data), contiguous.total() * contiguous.elemSize(),
+                    "application/octet-stream");
+  });
+  s.Get("/api/v1/recipes", [this](const httplib::Request&, httplib::Response& res) { Reply(res, service_.ListRecipes()); });
+
+  // The browser interface, and its libraries from Debian's packages.
+  if (!options_.web_root.empty()) {
+    for (const char* ext : {"js", "mjs"}) s.set_file_extension_and_mimetype_mapping(ext, "text/javascript");
+    s.set_file_extension_and_mimetype_mapping("css", "text/css");
+    s.set_file_extension_and_mimetype_mapping("html", "text/html");
+    s.set_file_extension_and_mimetype_mapping("svg", "image/svg+xml");
+    if (!s.set_mount_point("/", options_.web_root))
+      throw std::runtime_error("web_root " + options_.web_root + " is not a folder");
+    for (const char* library : {"three", "chart.js"}) {
+      const fs::path folder = fs::path(options_.javascript_root) / library;
+      if (fs::is_directory(folder)) s.set_mount_point(std::string("/vendor/") + library, folder.string());
+      else spdlog::warn("event=ui_library_missing folder={} (install Debian's libjs-{})", folder.string(), library);
+    }
+  }
 }
 
 }  // namespace photorig::daemon

@@ -315,6 +315,8 @@ void RunService::Execute(QueuedRun run) {
       std::lock_guard lock(mutex_);
       current_.frames = frames;
       current_.steps_total = total;
+      last_frame_ = ToJson(record);
+      last_frame_["run"] = id;
     }
     Publish(id, "frame", {{"index", step.index}, {"label", step.label}, {"file", record.file}, {"frames", frames},
                           {"total", total}});
@@ -606,8 +608,50 @@ ServiceReply RunService::Devices() const {
                      {"channels", rig.lights.leds.size()}, {"state", use}});
   devices.push_back({{"role", "camera"}, {"id", rig.camera.id}, {"driver", rig.camera.driver},
                      {"width", rig.camera.width}, {"height", rig.camera.height}, {"state", use}});
+  if (rig.motion) {
+    json axes = json::array();
+    for (const AxisConfig& axis : rig.motion->axes) axes.push_back(axis.id);
+    devices.push_back({{"role", "motion"}, {"driver", rig.motion->driver}, {"axes", axes}, {"state", use}});
+  }
   return {200, {{"rig", rig.name}, {"simulated", rig.IsSimulated()}, {"devices", devices},
-                {"last_fault", last_device_fault_}}};
+                {"last_fault", last_device_fault_}, {"last_frame", last_frame_}}};
+}
+
+ServiceReply RunService::ListRecipes() const {
+  std::vector<std::pair<std::string, fs::path>> folders;  // (source, folder)
+  for (const std::string& folder : options_.recipe_folders) folders.emplace_back("config", folder);
+  folders.emplace_back("data_root", fs::path(options_.data_root) / "recipes");
+  json recipes = json::array();
+  json listed_folders = json::array();
+  for (const auto& [source, folder] : folders) {
+    std::error_code error;
+    if (!fs::is_directory(folder, error)) continue;
+    listed_folders.push_back(fs::absolute(folder).lexically_normal().string());
+    std::vector<fs::path> files;
+    for (const auto& entry : fs::directory_iterator(folder, error))
+      if (entry.is_regular_file() && entry.path().extension() == ".yaml" &&
+          !IsValidRunId(entry.path().stem().string()))  // a submitted run's copy
+        files.push_back(entry.path());
+    std::sort(files.begin(), files.end());
+    for (const fs::path& file : files) {
+      const std::uintmax_t size = fs::file_size(file, error);
+      if (error || size > options_.max_recipe_bytes) continue;
+      std::ifstream in(file, std::ios::binary);
+      const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      json recipe = {{"file", file.filename().string()}, {"source", source},
+                     {"path", fs::absolute(file).lexically_normal().string()}, {"text", text}};
+      try {
+        const YamlNode root = YamlNode::LoadString(text, file.string());
+        recipe["name"] = root["recipe"]["name"].AsString();
+        if (auto description = root["recipe"].Find("description")) recipe["description"] = description->AsString();
+      } catch (const std::exception& e) {
+        recipe["name"] = file.stem().string();
+        recipe["error"] = e.what();  // listed all the same: a dry-run shows where it is wrong
+      }
+      recipes.push_back(recipe);
+    }
+  }
+  return {200, {{"folders", listed_folders}, {"recipes", recipes}}};
 }
 
 ServiceReply RunService::Health() const {

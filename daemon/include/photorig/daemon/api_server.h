@@ -9,6 +9,12 @@
 //   GET  /runs/{id}/events            progress as Server-Sent Events
 //   GET  /runs/{id}/files[?under=DIR] the run's files with sizes and CRC-32
 //   GET  /runs/{id}/files/{path}      a file of the run (frames/..., results/..., manifest.json)
+//   GET  /runs/{id}/preview/{path}    an image of the run tone-mapped to an 8-bit PNG
+//   GET  /runs/{id}/stats/{path}      an image's size, range, histogram and clipped pixels
+//   GET  /runs/{id}/values/{path}     an image's values as float32, for read-outs
+//   GET  /recipes                     recipes to choose from, with their text
+// Outside /api/v1, GET serves the browser interface (web_root, docs/ui.md)
+// and the JavaScript libraries it uses under /vendor/.
 // Errors are JSON {"error": "..."} with a 4xx/5xx status. A bearer token is
 // required whenever one is configured, and must be configured to bind to
 // anything but loopback. Before any route, every request is checked (see
@@ -48,6 +54,11 @@ struct ApiOptions {
   // A client silent this long (while sending its headers or body) is cut off.
   int read_timeout_ms = 5000;
   int listen_backlog = 128;  // connections the kernel holds while every worker is busy
+  // The browser interface's pages (daemon/web, installed to share/photorig/web);
+  // empty: none served. Its libraries come from Debian's libjs-three and
+  // libjs-chart.js under javascript_root, served as /vendor/three/ and /vendor/chart.js/.
+  std::string web_root;
+  std::string javascript_root = "/usr/share/javascript";
 
   bool IsValid(std::string* why) const;
 };

@@ -41,6 +41,9 @@ struct ServiceOptions {
   std::size_t max_listed_steps = 10000;  // steps listed in a dry-run or submit answer
   RetryPolicy retry;
   PlanOptions plan;
+  // Folders whose *.yaml recipes GET /recipes lists besides <data_root>/recipes
+  // (photorigd: the recipes folder beside the rig's folder, e.g. config/recipes).
+  std::vector<std::string> recipe_folders;
 
   bool IsValid(std::string* why) const;
 };
@@ -96,6 +99,9 @@ class RunService {
   // "..", an absolute path or a symlink).
   ServiceReply ResolveRunPath(const std::string& id, const std::string& relative, std::string* absolute) const;
   ServiceReply Devices() const;
+  // The recipes of `recipe_folders` and of <data_root>/recipes (not the
+  // copies of submitted runs), each with its text, for choosing one to submit.
+  ServiceReply ListRecipes() const;
   ServiceReply Health() const;
 
   // Events of `run_id` after `after_seq`, waiting up to `wait_ms` for one.
@@ -137,6 +143,7 @@ class RunService {
   std::deque<RunEvent> events_;  // the most recent events of all runs
   std::uint64_t next_seq_ = 1;
   std::string last_device_fault_;
+  nlohmann::json last_frame_;  // the most recent frame's record and run: what the lights and arms last did
   std::string storage_error_;  // empty while storage works
 };
 

@@ -1,0 +1,302 @@
+// Results of a run: the photometric-stereo maps with legends and read-outs,
+// metrics against ground truth, charts from report.json, the mesh in 3D,
+// relighting; BRDF samples and fits; slices of NRRD volumes.
+import { api, getJson, imageUrl, imageValues, el, table, bytes, errorBox } from './api.js';
+import { relightView } from './relight.js';
+
+// The maps a PS result can have: the file shown, the file read out, and how.
+const MAPS = [
+  { key: 'normals', show: 'normals.png', values: 'normals.tiff', legend: 'RGB = (n + 1) / 2; n = (x right, y up, z towards the camera)' },
+  { key: 'albedo', values: 'albedo.tiff', gamma: 1 },
+  { key: 'depth', values: 'depth.tiff', gamma: 1 },
+  { key: 'confidence', values: 'confidence.tiff', gamma: 1 },
+  { key: 'error', values: 'angular_error.tiff', gamma: 1, low: 0, high: 10, unit: '°' },
+  { key: 'specular', values: 'specular.tiff', gamma: 1, channels: ['rho_s', 'exponent'] },
+  { key: 'flags', show: 'flags.png', values: 'flags.png', legendOf: 'flags.png' },
+  { key: 'model', show: 'model.png', values: 'model.png', legendOf: 'model.png' },
+];
+
+export async function resultsPage(main, runId) {
+  if (!runId) {
+    main.append(el('p', { class: 'muted' }, 'No runs yet.'));
+    return null;
+  }
+  const listing = await getJson(`/runs/${runId}/files?under=results`).catch(() => ({ files: [] }));
+  const files = new Set(listing.files.map((f) => f.path));
+  main.append(el('section', {}, el('h2', {}, `Results of ${runId}`),
+    listing.files.length ? el('details', {}, el('summary', {}, `${listing.files.length} files, ${bytes(listing.bytes)}`),
+      table(listing.files.map((f) => [f.path, bytes(f.size)])))
+      : el('p', { class: 'muted' }, 'This run has no results (yet).')));
+  const cleanups = [];
+  const folders = [...new Set([...files].filter((f) => f.endsWith('/report.json')).map((f) => f.slice(0, -'report.json'.length)))];
+  for (const folder of folders) {
+    const report = await (await api(`/runs/${runId}/files/${folder}report.json`)).json();
+    if (files.has(`${folder}normals.tiff`)) cleanups.push(await psResults(main, runId, folder, report, files));
+    else if (report.candidates) await brdfResults(main, runId, folder, report, files);
+  }
+  for (const volume of [...files].filter((f) => f.endsWith('.nrrd'))) await volumeSlices(main, runId, volume);
+  return () => cleanups.forEach((c) => c && c());
+}
+
+async function psResults(main, runId, folder, report, files) {
+  const maps = MAPS.filter((m) => files.has(folder + m.values));
+  const image = el('img', { id: 'map-image', alt: 'map' });
+  const legend = el('div', { id: 'map-legend', class: 'muted' });
+  const readout = el('div', { class: 'readout', id: 'map-readout' }, 'move the cursor over the map');
+  const tabs = el('p', {}, maps.map((m) => el('button', { 'data-map': m.key, onclick: () => show(m) }, m.key)));
+  let values = null, current = null;
+  const cache = new Map();
+
+  async function show(map) {
+    current = map;
+    values = null;
+    const query = map.show ? null : new URLSearchParams({ gamma: map.gamma ?? 2.2, ...(map.low !== undefined ? { low: map.low, high: map.high } : {}) });
+    const { url, headers } = await imageUrl(map.show ? `/runs/${runId}/files/${folder}${map.show}` : `/runs/${runId}/preview/${folder}${map.values}?${query}`);
+    if (image.src) URL.revokeObjectURL(image.src);
+    image.src = url;
+    image.dataset.map = map.key;
+    await image.decode();
+    legend.replaceChildren(legendFor(map, report, headers));
+    if (!cache.has(map.key)) cache.set(map.key, await imageValues(runId, folder + map.values));
+    if (current === map) values = cache.get(map.key);
+  }
+  image.addEventListener('mousemove', (event) => {
+    if (!values) return;
+    const box = image.getBoundingClientRect();
+    const x = Math.floor((event.clientX - box.left) / box.width * image.naturalWidth);
+    const y = Math.floor((event.clientY - box.top) / box.height * image.naturalHeight);
+    if (x < 0 || y < 0 || x >= values.width || y >= values.height) { readout.textContent = ''; return; }
+    const at = (y * values.width + x) * values.channels;
+    const v = Array.from(values.data.slice(at, at + values.channels));
+    readout.textContent = `(${x}, ${y}): ${describe(current, v, report)}`;
+  });
+
+  main.append(el('section', { id: 'maps' }, el('h2', {}, `Maps (${folder})`), tabs,
+    el('div', { class: 'map' }, image), readout, legend));
+  if (maps.length) await show(maps[0]);
+
+  metrics(main, report);
+  charts(main, report).catch((error) => main.append(errorBox(error)));
+  const cleanups = [];
+  if (files.has(`${folder}mesh.ply`)) cleanups.push(await meshView(main, runId, `${folder}mesh.ply`));
+  const [normals, albedo] = await Promise.all([imageValues(runId, `${folder}normals.tiff`), imageValues(runId, `${folder}albedo.tiff`)]);
+  const lobe = files.has(`${folder}specular.tiff`) ? await imageValues(runId, `${folder}specular.tiff`) : null;
+  const hasLobe = lobe && lobe.data.some((v, i) => i % 3 === 0 && v > 0);
+  const section = el('section', { id: 'relight' }, el('h2', {}, 'Relighting'));
+  main.append(section);
+  try {
+    const envmaps = [...files].filter((f) => f.endsWith('.hdr')).map((f) => ({
+      name: f, bytes: async () => new Uint8Array(await (await api(`/runs/${runId}/files/${f}`)).arrayBuffer()),
+    }));
+    section.append(relightView(normals, albedo, hasLobe ? lobe : null, envmaps).root);
+  } catch (error) {
+    section.append(errorBox(error));
+  }
+  return () => cleanups.forEach((c) => c());
+}
+
+function describe(map, v, report) {
+  const f = (x) => Number.isFinite(x) ? (+x.toPrecision(4)).toString() : 'none';
+  if (map.legendOf) {
+    const legend = report.previews?.[map.legendOf]?.legend || [];
+    const hit = legend.find((e) => e.rgb[0] === v[0] && e.rgb[1] === v[1] && e.rgb[2] === v[2]);
+    return hit ? `${hit.name} (code ${hit.code})` : `RGB ${v.join(', ')}`;
+  }
+  if (map.key === 'normals') return `n = (${v.map(f).join(', ')})`;
+  if (map.channels) return map.channels.map((name, i) => `${name} ${f(v[i])}`).join(', ');
+  return `${f(v[0])}${map.unit || ''}`;
+}
+
+function legendFor(map, report, headers) {
+  if (map.legend) return el('span', {}, map.legend);
+  if (map.legendOf) {
+    const legend = report.previews?.[map.legendOf]?.legend || [];
+    return el('span', {}, legend.map((e) => el('span', { style: 'margin-right:1em' },
+      el('span', { style: `display:inline-block;width:12px;height:12px;background:rgb(${e.rgb.join(',')});border:1px solid #999` }), ` ${e.name}`)));
+  }
+  const low = +headers.get('X-Preview-Low'), high = +headers.get('X-Preview-High');
+  const bar = el('canvas', { class: 'legend', width: 256, height: 12 });
+  const g = bar.getContext('2d');
+  const gamma = map.gamma ?? 2.2;
+  for (let i = 0; i < 256; ++i) {
+    const level = Math.round(255 * (i / 255) ** (1 / gamma));
+    g.fillStyle = `rgb(${level},${level},${level})`;
+    g.fillRect(i, 0, 1, 12);
+  }
+  return el('div', {}, bar, `${+low.toPrecision(4)} … ${+high.toPrecision(4)}${map.unit || ''}` +
+    `${map.channels ? ` (each of ${map.channels.join(', ')})` : ''}; unsolved pixels black`);
+}
+
+function metrics(main, report) {
+  const rows = [['method', report.method], ['termination', report.termination], ['lights', report.lights],
+    ['pixels solved', `${report.pixels?.solved} of ${report.pixels?.total}`], ['mean confidence', report.mean_confidence?.toFixed(3)]];
+  const truth = report.ground_truth;
+  if (truth) for (const [k, v] of Object.entries(truth)) rows.push([`vs ground truth: ${k}`, typeof v === 'number' ? +v.toPrecision(4) : JSON.stringify(v)]);
+  if (report.depth) rows.push(['depth', `${report.depth.integrator}, residual rms ${report.depth.residual_rms?.toPrecision(3)}` +
+    (report.depth.rms_error_vs_truth !== undefined ? `, rms vs truth ${report.depth.rms_error_vs_truth.toPrecision(3)}` : '')]);
+  main.append(el('section', { id: 'metrics' }, el('h2', {}, 'Metrics'), table(rows)));
+}
+
+async function charts(main, report) {
+  const { Chart, registerables } = await import('/vendor/chart.js/chart.esm.js');
+  Chart.register(...registerables);
+  const section = el('section', { id: 'charts' }, el('h2', {}, 'From report.json'));
+  const row = el('div', { class: 'row' });
+  section.append(row);
+  main.append(section);
+  const bar = (title, data) => {
+    const canvas = el('canvas', { width: 320, height: 220 });
+    row.append(el('div', { style: 'width:320px' }, canvas));
+    new Chart(canvas, {
+      type: 'bar', data: { labels: Object.keys(data), datasets: [{ label: title, data: Object.values(data), backgroundColor: '#4a78b8' }] },
+      options: { responsive: false, animation: false, plugins: { title: { display: true, text: title }, legend: { display: false } } },
+    });
+  };
+  if (report.pixels) bar('pixels by outcome', Object.fromEntries(Object.entries(report.pixels).filter(([k]) => k !== 'total')));
+  if (report.models) bar('pixels by model kept', report.models);
+  if (report.timings_ms) bar('time (ms)', report.timings_ms);
+}
+
+async function meshView(main, runId, file) {
+  const THREE = await import('/vendor/three/build/three.module.js');
+  const { OrbitControls } = await import('/vendor/three/examples/jsm/controls/OrbitControls.js');
+  const { PLYLoader } = await import('/vendor/three/examples/jsm/loaders/PLYLoader.js');
+  const buffer = await (await api(`/runs/${runId}/files/${file}`)).arrayBuffer();
+  const geometry = new PLYLoader().parse(buffer);
+  geometry.computeVertexNormals();
+  geometry.computeBoundingSphere();
+  const { center, radius } = geometry.boundingSphere;
+  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  renderer.setSize(480, 360);
+  renderer.domElement.id = 'mesh-canvas';
+  const scene = new THREE.Scene();
+  scene.background = new THREE.Color(0x20242c);
+  const camera = new THREE.PerspectiveCamera(35, 480 / 360, radius / 100, radius * 20);
+  camera.position.set(center.x, center.y - radius * 1.2, center.z + radius * 3);
+  const controls = new OrbitControls(camera, renderer.domElement);
+  controls.target.copy(center);
+  controls.update();
+  scene.add(new THREE.Mesh(geometry, new THREE.MeshStandardMaterial({ color: 0xd8d0c0, roughness: 0.6, side: THREE.DoubleSide })));
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x444455, 0.6));
+  const sun = new THREE.DirectionalLight(0xffffff, 0.8);
+  sun.position.set(1, 1, 2);
+  scene.add(sun);
+  // Drawn when the view changes, not every animation frame: software WebGL is slow.
+  const render = () => renderer.render(scene, camera);
+  controls.addEventListener('change', render);
+  render();
+  main.append(el('section', { id: 'mesh' }, el('h2', {}, `Mesh (${file}: ${geometry.index ? geometry.index.count / 3 : 0} triangles; drag to turn, wheel to zoom)`), renderer.domElement));
+  return () => { controls.dispose(); renderer.dispose(); };
+}
+
+// BRDF: every candidate's fit, and a polar plot of f_r (red channel) against
+// the half vector's angle theta_h from the normal (left of the axis: the half
+// vector's azimuth on the -x side): the measured samples, and each fitted
+// model in the plane of incidence at the samples' median difference angle theta_d.
+async function brdfResults(main, runId, folder, report, files) {
+  const section = el('section', { id: 'brdf' }, el('h2', {}, `BRDF (${folder}): chosen ${report.chosen || 'none'}`),
+    table(report.candidates.map((c) => [c.model, c.termination, c.held_out_rms?.toPrecision(3), c.bic?.toPrecision(4),
+      `rho_d ${c.diffuse?.map((x) => x.toPrecision(3)).join(', ')}; specular ${c.specular?.map((x) => x.toPrecision(3)).join(', ')}; shape ${c.shape}`]),
+    ['model', 'termination', 'held-out rms', 'BIC', 'parameters']));
+  main.append(section);
+  if (!files.has(`${folder}samples.csv`)) return;
+  const lines = (await (await api(`/runs/${runId}/files/${folder}samples.csv`)).text()).trim().split('\n').slice(1);
+  const samples = lines.map((l) => l.split(',').map(Number)).map(([ix, iy, iz, ox, oy, oz, fr]) => {
+    const h = [ix + ox, iy + oy, iz + oz], n = Math.hypot(...h);
+    const thetaH = Math.acos(h[2] / n), thetaD = Math.acos(Math.min(1, (ix * h[0] + iy * h[1] + iz * h[2]) / n));
+    return { thetaH: h[0] < 0 ? -thetaH : thetaH, thetaD, fr };
+  });
+  const thetaD = samples.map((s) => s.thetaD).sort((a, b) => a - b)[Math.floor(samples.length / 2)] ?? 0;
+  const curves = report.candidates.map((c) => {
+    const points = [];
+    for (let deg = -89; deg <= 89; deg += 1) {
+      const th = Math.abs(deg) * Math.PI / 180;
+      const cosI = Math.cos(th + thetaD), cosO = Math.cos(th - thetaD);
+      if (cosI <= 0 || cosO <= 0) continue;
+      points.push({ thetaH: deg * Math.PI / 180, fr: brdfRed(c, { cosI, cosO, cosH: Math.cos(th), cosD: Math.cos(thetaD) }) });
+    }
+    return { label: `${c.model}${c.model === report.chosen ? ' (chosen)' : ''} at θd ${(thetaD * 180 / Math.PI).toFixed(0)}°`, points };
+  });
+  const peak = Math.max(...samples.map((s) => s.fr), ...curves.flatMap((c) => c.points.map((p) => p.fr)));
+  const polar = (p) => ({ x: p.fr / peak * Math.sin(p.thetaH), y: p.fr / peak * Math.cos(p.thetaH) });
+  const { Chart, registerables } = await import('/vendor/chart.js/chart.esm.js');
+  Chart.register(...registerables);
+  const canvas = el('canvas', { width: 560, height: 320, id: 'brdf-polar' });
+  section.append(canvas);
+  const colours = ['#d0502a', '#2a8a4a', '#8a3ab8'];
+  new Chart(canvas, {
+    type: 'scatter',
+    data: {
+      datasets: [{ label: 'measured (red channel)', data: samples.map(polar), pointRadius: 2, backgroundColor: '#4a78b8' },
+        ...curves.map((c, i) => ({ label: c.label, data: c.points.map(polar), showLine: true, pointRadius: 0, borderWidth: 2,
+          borderColor: colours[i % colours.length] }))],
+    },
+    options: {
+      responsive: false, animation: false,
+      plugins: { title: { display: true, text: 'f_r / max against θh (polar: straight up is the normal)' } },
+      scales: { x: { min: -1, max: 1 }, y: { min: 0, max: 1 } },
+    },
+  });
+}
+
+// f_r of the red channel for a fitted model (solvers/brdf/models.h), from the cosines.
+function brdfRed(c, g) {
+  const diffuse = c.diffuse[0] / Math.PI;
+  const ks = c.specular?.[0] ?? 0, e = c.shape;
+  if (c.model === 'blinn_phong')
+    return diffuse + ks * (e + 2) * (e + 4) / (8 * Math.PI * (2 ** (-e / 2) + e)) * g.cosH ** e;
+  if (c.model === 'ggx') {
+    const a2 = e * e, t = g.cosH * g.cosH * (a2 - 1) + 1, d = a2 / (Math.PI * t * t);
+    const g1 = (cos) => 2 * cos / (cos + Math.sqrt(a2 + (1 - a2) * cos * cos));
+    const fresnel = ks + (1 - ks) * (1 - g.cosD) ** 5;
+    return diffuse + d * g1(g.cosI) * g1(g.cosO) * fresnel / (4 * g.cosI * g.cosO);
+  }
+  return diffuse;
+}
+
+// An NRRD volume (raw or gzip encoding, attached data): its slices along z.
+async function volumeSlices(main, runId, file) {
+  const section = el('section', { class: 'volume' }, el('h2', {}, `Volume ${file}`));
+  main.append(section);
+  try {
+    const buffer = new Uint8Array(await (await api(`/runs/${runId}/files/${file}`)).arrayBuffer());
+    let end = 0;
+    while (end < buffer.length - 1 && !(buffer[end] === 10 && buffer[end + 1] === 10)) ++end;
+    const fields = {};
+    for (const line of new TextDecoder().decode(buffer.slice(0, end)).split('\n')) {
+      const m = line.match(/^([^:#]+):=?\s*(.*)$/);
+      if (m) fields[m[1].trim().toLowerCase()] = m[2].trim();
+    }
+    if (fields['data file']) throw new Error('detached NRRD data files are not shown');
+    let data = buffer.slice(end + 2);
+    if (fields.encoding === 'gzip' || fields.encoding === 'gz')
+      data = new Uint8Array(await new Response(new Blob([data]).stream().pipeThrough(new DecompressionStream('gzip'))).arrayBuffer());
+    else if (fields.encoding !== 'raw') throw new Error(`NRRD encoding '${fields.encoding}' is not shown (raw and gzip are)`);
+    const [nx, ny, nz = 1] = fields.sizes.split(/\s+/).map(Number);
+    const types = { float: Float32Array, double: Float64Array, uchar: Uint8Array, uint8: Uint8Array, ushort: Uint16Array,
+      uint16: Uint16Array, short: Int16Array, int16: Int16Array, int: Int32Array, int32: Int32Array };
+    const Type = types[fields.type];
+    if (!Type) throw new Error(`NRRD type '${fields.type}' is not shown`);
+    if (Type.BYTES_PER_ELEMENT > 1 && fields.endian === 'big') throw new Error('big-endian NRRD data are not shown');
+    const voxels = new Type(data.buffer.slice(data.byteOffset, data.byteOffset + nx * ny * nz * Type.BYTES_PER_ELEMENT));
+    let low = Infinity, high = -Infinity;
+    for (const v of voxels) if (Number.isFinite(v)) { low = Math.min(low, v); high = Math.max(high, v); }
+    const canvas = el('canvas', { width: nx, height: ny, style: `width:${Math.max(256, nx)}px;image-rendering:pixelated` });
+    const slider = el('input', { type: 'range', min: 0, max: nz - 1, value: Math.floor(nz / 2) });
+    const label = el('span');
+    const draw = () => {
+      const z = +slider.value, g = canvas.getContext('2d'), img = g.createImageData(nx, ny);
+      for (let i = 0; i < nx * ny; ++i) {
+        const level = 255 * (voxels[z * nx * ny + i] - low) / (high - low || 1);
+        img.data.set([level, level, level, 255], 4 * i);
+      }
+      g.putImageData(img, 0, 0);
+      label.textContent = ` slice z = ${z} of ${nz}; ${+low.toPrecision(4)} (black) … ${+high.toPrecision(4)} (white)`;
+    };
+    slider.addEventListener('input', draw);
+    draw();
+    section.append(canvas, el('p', {}, slider, label));
+  } catch (error) {
+    section.append(errorBox(error));
+  }
+}

@@ -1,0 +1,359 @@
+#!/usr/bin/python3
+"""The browser interface in a real Chromium: each page opens, ps-shiny-sphere
+is submitted from the Queue page and watched to `done` on the Run page, the
+normal map decodes at the camera's size, the relighting canvas changes when the
+light is dragged, and the browser logs no errors. Screenshots go to
+--artefacts; --screenshots DIR also writes the README's (docs/screenshots).
+
+Exit codes: 0 passed, 1 failed, 77 skipped (Chromium, chromedriver or Selenium
+not installed: the reason is printed)."""
+
+import argparse
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+SKIP = 77
+
+
+def fail(message):
+    print(f"FAIL: {message}", file=sys.stderr)
+    sys.exit(1)
+
+
+def check(condition, message):
+    if not condition:
+        fail(message)
+
+
+def start_daemon(args, data_root, log_path, token=None):
+    command = [os.path.join(args.bin_dir, "photorigd"), "--data-root", data_root, "--port", "0",
+               "--rig", os.path.join(args.source_dir, "config/rigs/sim-dome.yaml"),
+               "--recipes", os.path.join(args.source_dir, "config/recipes")]
+    log = open(log_path, "w")
+    env = dict(os.environ)
+    env.pop("PHOTORIG_TOKEN", None)
+    if token:
+        env["PHOTORIG_TOKEN"] = token
+    daemon = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    found = {}
+    ready = threading.Event()
+
+    def pump():  # the daemon's output to its log; the address it prints noted
+        for line in daemon.stdout:
+            log.write(line)
+            log.flush()
+            match = re.search(r"photorigd: open (http://127\.0\.0\.1:\d+/)(#token=<your token>)?", line)
+            if match:
+                found["url"] = match.group(1)
+                ready.set()
+        ready.set()
+
+    threading.Thread(target=pump, daemon=True).start()
+    ready.wait(20)
+    if "url" not in found:
+        daemon.kill()
+        fail(f"photorigd printed no address to open (log: {log_path})")
+    return daemon, found["url"]
+
+
+def write_hdr(path, width=32, height=16):
+    """A lat-long Radiance map (flat RGBE scanlines): warm light from the
+    camera's left (-x) half of the sphere of directions only."""
+    import math
+    rows = []
+    for v in range(height):
+        theta = math.pi * (v + 0.5) / height
+        for u in range(width):
+            phi = 2 * math.pi * (u + 0.5) / width - math.pi
+            x = math.sin(theta) * math.sin(phi)
+            level = 4.0 * max(0.0, -x) ** 2
+            rgb = (level, 0.8 * level, 0.6 * level)
+            top = max(rgb)
+            if top < 1e-32:
+                rows.append(bytes(4))
+                continue
+            exponent = math.frexp(top)[1]
+            scale = 256.0 / 2 ** exponent
+            rows.append(bytes([min(255, int(c * scale)) for c in rgb] + [exponent + 128]))
+    with open(path, "wb") as out:
+        out.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + f"-Y {height} +X {width}\n".encode() + b"".join(rows))
+
+
+def write_brdf_results(folder):
+    """What `photorig solve brdf` writes (report.json, samples.csv), for
+    in-plane samples of a Blinn-Phong BRDF (rho_d 0.5, k_s 0.2, e 40)."""
+    import json
+    import math
+    os.makedirs(folder)
+    e, ks, rho = 40.0, 0.2, 0.5
+    norm = (e + 2) * (e + 4) / (8 * math.pi * (2 ** (-e / 2) + e))
+    lines = ["wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b"]
+    for ti in range(10, 80, 10):
+        for to in range(-80, 81, 4):
+            wi = (-math.sin(math.radians(ti)), 0.0, math.cos(math.radians(ti)))
+            wo = (math.sin(math.radians(to)), 0.0, math.cos(math.radians(to)))
+            h = [a + b for a, b in zip(wi, wo)]
+            cos_h = h[2] / math.sqrt(sum(c * c for c in h))
+            f = rho / math.pi + ks * norm * cos_h ** e
+            lines.append(",".join(f"{v:.6g}" for v in (*wi, *wo, f, f, f, 0.01, 0.01, 0.01)))
+    candidate = lambda model, specular, shape: {  # noqa: E731
+        "model": model, "termination": "success", "message": "", "bic": -1.0, "held_out_rms": 0.01, "cost": 0.0,
+        "parameters": 7, "diffuse": [rho] * 3, "diffuse_sigma": [0.0] * 3, "specular": [specular] * 3,
+        "specular_sigma": [0.0] * 3, "shape": shape, "shape_sigma": 0.0, "lobe_identifiable": True}
+    report = {"samples": len(lines) - 1, "termination": "success", "chosen": "blinn_phong",
+              "candidates": [candidate("lambertian", 0.0, 0.0), candidate("blinn_phong", ks, e), candidate("ggx", 0.04, 0.2)]}
+    with open(os.path.join(folder, "report.json"), "w") as out:
+        json.dump(report, out)
+    with open(os.path.join(folder, "samples.csv"), "w") as out:
+        out.write("\n".join(lines) + "\n")
+
+
+def write_nrrd(path, n=24):
+    """A raw little-endian float NRRD volume: a ball of 1 in a cube of 0."""
+    import struct
+    os.makedirs(os.path.dirname(path))
+    values = [1.0 if (x - n / 2) ** 2 + (y - n / 2) ** 2 + (z - n / 2) ** 2 < (n / 3) ** 2 else 0.0
+              for z in range(n) for y in range(n) for x in range(n)]
+    header = f"NRRD0004\ntype: float\ndimension: 3\nsizes: {n} {n} {n}\nendian: little\nencoding: raw\n\n"
+    with open(path, "wb") as out:
+        out.write(header.encode() + struct.pack(f"<{len(values)}f", *values))
+
+
+def start_browser(profile_dir):
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = "/usr/bin/chromium"
+    for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", f"--user-data-dir={profile_dir}",
+                 "--window-size=1280,1000", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                 "--no-first-run", "--disable-extensions", "--disable-background-networking"):
+        options.add_argument(flag)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    try:
+        return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+    except Exception as error:  # installed but cannot start: a failure, not a skip
+        fail(f"Chromium did not start under chromedriver: {error}")
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--bin-dir", required=True)
+    parser.add_argument("--source-dir", required=True)
+    parser.add_argument("--artefacts", required=True)
+    parser.add_argument("--screenshots", help="also write the README's screenshots here")
+    args = parser.parse_args()
+
+    missing = [path for path in ("/usr/bin/chromium", "/usr/bin/chromedriver") if not os.path.exists(path)]
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        missing.append("python3-selenium")
+    if missing:
+        print(f"SKIP: not installed: {', '.join(missing)} (scripts/install-deps.sh installs chromium, "
+              "chromium-driver and python3-selenium)")
+        return SKIP
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select, WebDriverWait
+
+    os.makedirs(args.artefacts, exist_ok=True)
+    started = time.monotonic()
+    temp = tempfile.mkdtemp(prefix="photorig-browser-")
+    daemon, url = start_daemon(args, os.path.join(temp, "data"), os.path.join(args.artefacts, "photorigd.log"))
+    driver = None
+    try:
+        driver = start_browser(os.path.join(temp, "chromium-profile"))
+        wait = lambda seconds, condition, what: WebDriverWait(driver, seconds).until(  # noqa: E731
+            lambda d: condition(d), message=what)
+        shots = {}
+
+        def screenshot(name, element=None):
+            path = os.path.join(args.artefacts, f"{name}.png")
+            if element is None:
+                driver.save_screenshot(path)
+            else:
+                driver.execute_script("arguments[0].scrollIntoView()", element)
+                element.screenshot(path)
+            shots[name] = path
+
+        js = driver.execute_script
+        phase = lambda name: print(f"{time.monotonic() - started:6.1f} s  {name}", flush=True)  # noqa: E731
+        phase("browser started")
+
+        # Rig page: devices and free disk.
+        driver.get(url)
+        wait(15, lambda d: d.find_elements(By.ID, "free-disk"), "the Rig page shows no devices")
+        devices = js("return fetch('/api/v1/devices').then(r => r.json())")
+        camera = next(d for d in devices["devices"] if d["role"] == "camera")
+        check("sim-dome" in driver.find_element(By.ID, "devices").text, "the Rig page does not name the rig")
+
+        phase("rig page")
+        # Queue page: choose the recipe, see its plan, submit.
+        driver.get(url + "#/queue")
+        select = wait(15, lambda d: d.find_elements(By.ID, "recipe-select"), "no recipe list on the Queue page")[0]
+        wait(10, lambda d: len(Select(select).options) > 1, "the recipe list is empty")
+        Select(select).select_by_visible_text(next(o.text for o in Select(select).options if o.text.startswith("ps-shiny-sphere ")))
+        frames = wait(20, lambda d: d.find_elements(By.ID, "plan-frames"), "no dry-run plan shown")[0]
+        check(frames.text == "49", f"the plan of ps-shiny-sphere shows {frames.text} frames, expected 49 (dark + 48 LEDs)")
+        screenshot("queue")
+        driver.find_element(By.ID, "submit").click()
+
+        phase("submitted")
+        # Run page: watched from the event stream until done.
+        wait(15, lambda d: "#/run/" in d.current_url, "submitting did not open the Run page")
+        run_id = driver.current_url.split("#/run/")[1]
+        wait(120, lambda d: d.find_elements(By.CSS_SELECTOR, "#run-state [data-state=done]")
+             or d.find_elements(By.CSS_SELECTOR, "#run-state .state-failed"), "the run did not finish")
+        state = driver.find_element(By.ID, "run-state").text
+        check(state == "done", f"run {run_id} ended {state}: {driver.find_element(By.ID, 'run-reason').text}")
+        check(driver.find_element(By.ID, "run-counters").text.startswith("49/49 frames"),
+              f"the Run page counts {driver.find_element(By.ID, 'run-counters').text!r}")
+        wait(15, lambda d: d.find_element(By.ID, "frame-image").get_attribute("data-file"), "no latest frame shown")
+        wait(15, lambda d: "frames/0048" in d.find_element(By.ID, "run-journal").text, "the journal lacks the last frame")
+        screenshot("run")
+
+        phase("run done")
+        # Rig page again: the last frame of the run with its histogram.
+        driver.get(url + "#/rig")
+        wait(15, lambda d: d.find_element(By.ID, "frame-image").get_attribute("data-file"), "the Rig page shows no frame")
+        wait(15, lambda d: "clipped" in d.find_element(By.ID, "frame-caption").text, "no frame caption")
+        screenshot("rig")
+
+        phase("rig page with frame")
+        # Results page: the normal map at the camera's size, read-out, relighting.
+        envmap_dir = os.path.join(temp, "data", "runs", run_id, "results", "envmaps")
+        os.makedirs(envmap_dir)
+        write_hdr(os.path.join(envmap_dir, "sky-left.hdr"))
+        results_dir = os.path.dirname(envmap_dir)
+        write_brdf_results(os.path.join(results_dir, "brdf"))
+        write_nrrd(os.path.join(results_dir, "tomography", "volume.nrrd"))
+        driver.get(url + f"#/results/{run_id}")
+        image = wait(30, lambda d: d.find_elements(By.CSS_SELECTOR, "#map-image[data-map=normals]"), "no normal map")[0]
+        size = wait(15, lambda d: js("const i = arguments[0]; return i.complete && i.naturalWidth ? [i.naturalWidth, i.naturalHeight] : null", image),
+                    "the normal map did not decode")
+        check(size == [camera["width"], camera["height"]],
+              f"the normal map decodes at {size}, the camera is {camera['width']}x{camera['height']}")
+        phase("results page loaded")
+        canvas = wait(30, lambda d: d.find_elements(By.ID, "relight-canvas"), "no relighting canvas")[0]
+        wait(30, lambda d: d.find_elements(By.ID, "mesh-canvas"), "no mesh view")
+        wait(30, lambda d: d.find_elements(By.CSS_SELECTOR, "section.volume canvas"), "no volume slices")
+        js("arguments[0].scrollIntoView({block: 'center'})", image)
+        ActionChains(driver).move_to_element(image).perform()
+        wait(10, lambda d: "n = (" in d.find_element(By.ID, "map-readout").text, "no value read out under the cursor")
+        readout = driver.find_element(By.ID, "map-readout").text
+        nz = float(re.search(r"n = \(([^,]+), ([^,]+), ([^)]+)\)", readout).group(3))
+        check(nz > 0.9, f"the sphere's centre should face the camera: {readout}")
+        # Every other map shows with its legend and reads out under the cursor.
+        def hover_pixel(x, y):  # the map's pixel (x, y), whatever its displayed size
+            image = driver.find_element(By.ID, "map-image")
+            js("arguments[0].scrollIntoView({block: 'center'})", image)
+            box = js("const r = arguments[0].getBoundingClientRect(); return [r.width, r.height, arguments[0].naturalWidth]", image)
+            scale = box[0] / box[2]
+            ActionChains(driver).move_to_element_with_offset(
+                image, int((x + 0.5) * scale - box[0] / 2), int((y + 0.5) * scale - box[1] / 2)).perform()
+
+        for button in driver.find_elements(By.CSS_SELECTOR, "#maps button[data-map]"):
+            key = button.get_attribute("data-map")
+            button.click()
+            wait(15, lambda d: d.find_element(By.ID, "map-image").get_attribute("data-map") == key, f"map {key} not shown")
+            js("document.getElementById('map-readout').textContent = ''")
+            hover_pixel(camera["width"] // 2, camera["height"] // 2)
+            wait(15, lambda d: driver.find_element(By.ID, "map-readout").text.startswith("(")
+                 and driver.find_element(By.ID, "map-legend").text, f"map {key}: no read-out or legend")
+            if key == "flags":
+                check("solved" in driver.find_element(By.ID, "map-readout").text,
+                      f"the flag at the sphere's centre reads {driver.find_element(By.ID, 'map-readout').text!r}")
+            if key == "albedo":
+                screenshot("maps", driver.find_element(By.ID, "maps"))
+        before = js("return arguments[0].toDataURL()", canvas)
+        pad = driver.find_element(By.ID, "light-pad")
+        ActionChains(driver).move_to_element_with_offset(pad, -50, 0).click_and_hold().move_by_offset(100, -30).release().perform()
+        after = js("return arguments[0].toDataURL()", canvas)
+        check(before != after, "the relighting canvas did not change when the light moved")
+        brightness = """const c = document.createElement('canvas'); const s = arguments[0];
+            c.width = s.width; c.height = s.height; const g = c.getContext('2d'); g.drawImage(s, 0, 0);
+            const d = g.getImageData(0, 0, c.width, c.height).data; let n = 0, left = 0, right = 0;
+            for (let i = 0; i < d.length; i += 4) {
+              n += d[i] > 40;
+              if ((i / 4) % c.width < c.width / 2) left += d[i]; else right += d[i];
+            }
+            return [n, left, right];"""
+        lit = js(brightness, canvas)[0]
+        check(lit > 0.2 * camera["width"] * camera["height"], f"the relit sphere is dark: {lit} bright pixels")
+        screenshot("results")
+        screenshot("relight", driver.find_element(By.ID, "relight"))
+
+        phase("relit")
+        # The environment map in the run's results lights the sphere from the left.
+        Select(driver.find_element(By.ID, "relight-model")).select_by_value("2")
+        wait(15, lambda d: js(brightness, canvas)[1] > 1.5 * js(brightness, canvas)[2],
+             "the sky brightest on the left does not light the sphere's left half most")
+        screenshot("relight-envmap", driver.find_element(By.ID, "relight"))
+
+        phase("environment map")
+        # BRDF results: the polar plot of samples and fitted lobes; a volume's slices.
+        wait(15, lambda d: d.find_elements(By.ID, "brdf-polar"), "no BRDF polar plot")
+        check("chosen blinn_phong" in driver.find_element(By.ID, "brdf").text, "the BRDF section does not name the chosen model")
+        screenshot("brdf", driver.find_element(By.ID, "brdf"))
+        volume = wait(15, lambda d: d.find_elements(By.CSS_SELECTOR, "section.volume canvas"), "no volume slices")[0]
+        centre, corner = js("""const c = arguments[0], d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+                               const at = (x, y) => d[4 * (y * c.width + x)];
+                               return [at(c.width >> 1, c.height >> 1), at(0, 0)];""", volume)
+        check(centre == 255 and corner == 0, f"the volume's middle slice shows {centre} at the ball's centre, {corner} outside")
+        for box in driver.find_elements(By.CSS_SELECTOR, "#page .error"):
+            fail(f"the Results page shows an error: {box.text}")
+
+        phase("BRDF and volume")
+        page_bytes = js("""return performance.getEntriesByType('resource').concat(performance.getEntriesByType('navigation'))
+                           .filter(e => !e.name.includes('/api/')).reduce((s, e) => s + (e.transferSize || e.encodedBodySize || 0), 0)""")
+        print(f"results page: {page_bytes / 1024:.0f} KiB of pages and libraries")
+
+        # Every page logged no errors.
+        errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
+        check(not errors, "the browser logged errors:\n" + "\n".join(e["message"] for e in errors))
+
+        # A daemon with a token: given once in the address, kept for the tab, gone from the address.
+        token = "browser-test-token-0123456789"
+        secured, secured_url = start_daemon(args, os.path.join(temp, "data-token"),
+                                            os.path.join(args.artefacts, "photorigd-token.log"), token)
+        try:
+            driver.get(secured_url + "#token=" + token)
+            wait(15, lambda d: d.find_elements(By.ID, "free-disk"), "the Rig page shows no devices with a token")
+            check(js("return sessionStorage.getItem('photorig.token')") == token, "the token was not kept")
+            check("token" not in driver.current_url, f"the token stays in the address: {driver.current_url}")
+            errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
+            check(not errors, "the browser logged errors with a token:\n" + "\n".join(e["message"] for e in errors))
+        finally:
+            secured.send_signal(signal.SIGTERM)
+            secured.wait(15)
+        phase("token")
+
+        if args.screenshots:  # the README's, in 128 colours to keep the repository small
+            from PIL import Image
+            os.makedirs(args.screenshots, exist_ok=True)
+            for name in ("queue", "run", "relight"):
+                Image.open(shots[name]).convert("RGB").quantize(128).save(
+                    os.path.join(args.screenshots, f"ui-{name}.png"), optimize=True)
+        print(f"passed in {time.monotonic() - started:.1f} s; screenshots in {args.artefacts}")
+        return 0
+    finally:
+        if driver is not None:
+            driver.quit()
+        daemon.send_signal(signal.SIGTERM)
+        try:
+            daemon.wait(15)
+        except subprocess.TimeoutExpired:
+            daemon.kill()
+        shutil.rmtree(temp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
