@@ -49,7 +49,8 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
   };
   // A stage's folder holds only what this solve wrote: a run resumed after a
   // crash mid-solve solves again from the frames, and its calibrated rig is
-  // a new file again.
+  // a new file again. Photometric stereo replaces its folder whole as it
+  // ends (results_folder.h), so the previous result stays until then.
   auto fresh_results = [&directory](const char* name) {
     const fs::path results = directory / "results" / name;
     fs::remove_all(results);
@@ -58,7 +59,7 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
   if (recipe.photometric_stereo && start("photometric_stereo")) {
     PhotometricStereoRequest solve = *recipe.photometric_stereo;
     solve.progress = request.solve_progress;
-    outcome->photometric_stereo = SolvePhotometricStereoRun(directory.string(), solve, fresh_results("ps").string());
+    outcome->photometric_stereo = SolvePhotometricStereoRun(directory.string(), solve, (directory / "results" / "ps").string());
     finish(ReportSolveStage(*outcome->photometric_stereo));
   }
   if (recipe.light_calibration && start("light_calibration")) {
