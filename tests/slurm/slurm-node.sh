@@ -34,6 +34,12 @@ start() {
       cannot "$tool is missing (Debian packages slurm-wlm munge; scripts/install-deps.sh installs them)"
   done
   export PATH="$PATH:/usr/sbin"
+  for port in 16817 16818; do
+    if (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null; then
+      echo "slurm-node: port $port is in use (another test node still running?)" >&2
+      exit 1
+    fi
+  done
   mkdir -p "$dir"/{state,spool,log}
   chmod 700 "$dir"
   local host cpus memory_mb
@@ -82,7 +88,7 @@ SlurmctldDebug=info
 SlurmdDebug=info
 # Finished jobs stay visible to squeue/scontrol a while; photorig batch status reads its own records after that.
 MinJobAge=300
-SchedulerType=sched/backfill
+SchedulerType=sched/builtin
 NodeName=$host NodeAddr=127.0.0.1 CPUs=$cpus RealMemory=$memory_mb State=UNKNOWN
 PartitionName=batch Nodes=$host Default=YES MaxTime=INFINITE State=UP
 CONF
@@ -100,6 +106,14 @@ CONF
   for _ in $(seq 150); do
     state=$(sinfo -h -N -n "$host" -o %t 2>/dev/null)
     case "$state" in idle) echo "slurm-node: $host idle, SLURM_CONF=$dir/slurm.conf" >&2; return 0 ;; esac
+    for daemon in slurmctld slurmd; do
+      if [ -f "$dir/$daemon.pid" ] && ! kill -0 "$(cat "$dir/$daemon.pid")" 2>/dev/null; then
+        echo "slurm-node: $daemon exited; logs:" >&2
+        tail -n 30 "$dir"/log/*.log "$dir"/log/*.out >&2
+        stop "$dir"
+        exit 1
+      fi
+    done
     sleep 0.2
   done
   echo "slurm-node: node $host not idle after 30 s (state '$state'); logs:" >&2
