@@ -23,6 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
+using photorig::testing::Daemon;
 using photorig::testing::ReadText;
 using photorig::testing::SmallRecipeYaml;
 using photorig::testing::SmallRigYaml;
@@ -134,7 +135,6 @@ class SlurmBatch : public ::testing::Test {
     ASSERT_EQ(code, 0) << ReadText(log);
     started_ = true;
     ::setenv("SLURM_CONF", (slurm_.path() / "node" / "slurm.conf").c_str(), 1);
-    CaptureRuns(dir_);
   }
   void TearDown() override {
     if (started_)
@@ -153,6 +153,7 @@ class SlurmBatch : public ::testing::Test {
 };
 
 TEST_F(SlurmBatch, JobArraySolvesEveryRunAsInProcess) {
+  CaptureRuns(dir_);
   json submitted;
   ASSERT_EQ(Photorig("batch solve --runs '" + (dir_.path() / "runs").string() + "/*' --slurm --time 00:05:00 --mem 100M" +
                          " --method blinn-phong --batch " + batch(),
@@ -174,6 +175,7 @@ TEST_F(SlurmBatch, JobArraySolvesEveryRunAsInProcess) {
 }
 
 TEST_F(SlurmBatch, CancelledTaskKeepsThePreviousResultAndRetryCompletes) {
+  CaptureRuns(dir_);
   // Run 0 has an earlier result; a cancelled task must leave it whole.
   PhotometricStereoRequest earlier;
   earlier.method = "l2";
@@ -224,6 +226,43 @@ TEST_F(SlurmBatch, CancelledTaskKeepsThePreviousResultAndRetryCompletes) {
   EXPECT_EQ(CountState(status, "completed"), kRuns);
   EXPECT_EQ(status["job_ids"].size(), 2u);
   ExpectSameAsInProcess(dir_, "auto");
+}
+
+TEST_F(SlurmBatch, DaemonHandsTheRecipesSolveToSlurmAndTracksTheJob) {
+  const std::string rig = dir_.Write("slurm-rig.yaml", SmallRigYaml("", 8) + "solve: {executor: slurm, poll_ms: 200}\n");
+  const std::string recipe =
+      dir_.Write("slurm-recipe.yaml", SmallRecipeYaml() + "solve:\n  - photometric_stereo: {method: robust}\n");
+  const Daemon daemon(dir_.path() / "data", rig, dir_.path() / "photorigd.log");
+  const std::string url = daemon.WaitReady();
+  ASSERT_FALSE(url.empty()) << ReadText(dir_.path() / "photorigd.log");
+
+  const fs::path watch_log = dir_.path() / "watch.log";
+  ASSERT_EQ(photorig::testing::RunPhotorig("submit " + recipe + " --watch --url " + url, watch_log), 0)
+      << ReadText(watch_log) << ReadText(dir_.path() / "photorigd.log");
+  const std::string watched = ReadText(watch_log);
+  std::smatch job;
+  ASSERT_TRUE(std::regex_search(watched, job, std::regex(R"(solving: photometric_stereo as Slurm job (\d+_0))"))) << watched;
+  EXPECT_NE(watched.find("state: solving - photometric_stereo: Slurm job " + job[1].str()), std::string::npos) << watched;
+
+  json status;
+  ASSERT_EQ(Photorig("status --url " + url, &status, dir_.path() / "status.log"), 0);
+  ASSERT_EQ(status["runs"].size(), 1u) << status.dump(2);
+  const json& run = status["runs"][0];
+  EXPECT_EQ(run["state"], "done");
+  ASSERT_EQ(run["solve"]["stages"].size(), 1u) << run.dump(2);
+  const json& stage = run["solve"]["stages"][0];
+  EXPECT_TRUE(stage["ok"].get<bool>()) << stage.dump(2);
+  EXPECT_EQ(stage["figures"]["slurm_job_id"], job[1].str());
+  EXPECT_EQ(stage["figures"]["method"], "robust");
+
+  // The task solved the daemon's run as an in-process solve would.
+  const fs::path run_directory = dir_.path() / "data" / "runs" / run["id"].get<std::string>();
+  EXPECT_EQ(json::parse(ReadText(run_directory / "batch" / "batch.json"))["job_ids"][0].get<std::string>() + "_0", job[1].str());
+  PhotometricStereoRequest request;
+  request.method = "robust";
+  SolvePhotometricStereoRun(run_directory.string(), request, (dir_.path() / "reference").string());
+  for (const char* file : kComparedFiles)
+    EXPECT_EQ(ReadText(run_directory / "results" / "ps" / file), ReadText(dir_.path() / "reference" / file)) << file;
 }
 
 }  // namespace

@@ -81,6 +81,9 @@ CommandRunner SetupSolve(CLI::App& app) {
   ps->add_option("--integrator", options->request.integrator, "poisson | frankot-chellappa | none");
   ps->add_option("--shadow-sigma", options->request.shadow_threshold_sigma, "shadow threshold in read-noise sigmas (from dark frames, else estimated)")
       ->check(CLI::NonNegativeNumber);
+  ps->add_option("--max-condition", options->request.max_condition_number,
+                 "largest condition number of a pixel's lit light directions (default 1000)")
+      ->check(CLI::PositiveNumber);
   ps->add_option("--mask", options->mask,
                  "PNG, nonzero = object: solve only there (default: the dataset's mask.png, else from the dark and lit frames)")
       ->check(CLI::ExistingFile);
