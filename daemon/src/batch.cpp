@@ -106,6 +106,12 @@ std::string StateName(const std::string& slurm_state) {
   return state;
 }
 
+// Slurm's clients say so when slurmctld does not answer.
+bool ControllerUnreachable(const std::string& output) {
+  return output.find("Unable to contact slurm controller") != std::string::npos ||
+         output.find("Socket timed out") != std::string::npos;
+}
+
 fs::path TaskRecord(const BatchManifest& batch, int index) {
   return fs::path(batch.directory) / "tasks" / (std::to_string(index) + ".json");
 }
@@ -136,6 +142,10 @@ std::string TaskScript(const BatchManifest& batch) {
   script += " )\n"
             "if [ -z \"$task\" ] || [ -z \"${runs[$task]:-}\" ]; then echo \"no task '$task' in $dir\" >&2; exit 2; fi\n"
             "exec 2>>\"$dir/logs/$task.log\"\n"
+            "# The solver's threads: as many as the CPUs Slurm gave the task, unless told.\n"
+            "if [ -n \"${SLURM_CPUS_PER_TASK:-}\" ] && [ -z \"${OMP_NUM_THREADS:-}\" ]; then\n"
+            "  export OMP_NUM_THREADS=$SLURM_CPUS_PER_TASK\n"
+            "fi\n"
             "record=\"$dir/tasks/$task.json\"\n"
             "partial=\"$record.partial-$(hostname -s)-$$\"\n"
             "echo \"== $(date -u +%FT%TZ) task $task on $(hostname -s): ${runs[$task]}\" >&2\n" +
@@ -290,6 +300,9 @@ std::vector<TaskStatus> CollectBatchStatus(const BatchManifest& batch) {
         if (bar != std::string::npos) consider(line.substr(0, bar), line.substr(bar + 1));
       }
     const ProgramResult squeue = RunProgram({"squeue", "-h", "-r", "--states=all", "-j", jobs, "-o", "%i|%T"});
+    // Jobs Slurm has forgotten make squeue fail too ("Invalid job id"): their tasks' records speak for them.
+    if (squeue.exit_code == 127) throw SlurmUnavailable("squeue cannot be run (Debian: slurm-client)");
+    if (ControllerUnreachable(squeue.output)) throw SlurmUnavailable("squeue: " + squeue.output);
     if (squeue.exit_code == 0)
       for (const std::string& line : Lines(squeue.output)) {
         const std::size_t bar = line.find('|');
@@ -352,6 +365,7 @@ std::string SubmitSlurmArray(BatchManifest* batch, const std::vector<int>& indic
   const ProgramResult sbatch = RunProgram(argv);
   if (sbatch.exit_code == 127)
     throw SlurmUnavailable("sbatch cannot be run (is Slurm's client installed and on PATH? Debian: slurm-client)");
+  if (ControllerUnreachable(sbatch.output)) throw SlurmUnavailable("sbatch: " + sbatch.output);
   const std::vector<std::string> lines = Lines(sbatch.output);
   if (sbatch.exit_code != 0 || lines.empty())
     throw std::runtime_error("sbatch refused the job array: " + (lines.empty() ? "no output" : sbatch.output));

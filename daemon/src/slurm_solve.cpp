@@ -93,7 +93,14 @@ SlurmSolveOutcome SolvePhotometricStereoOnSlurm(const std::string& run_directory
   auto abort_requested = [&request] { return request.control && request.control->abort_requested(); };
   bool cancelled = false;
   for (;;) {
-    const TaskStatus status = CollectBatchStatus(batch).front();
+    TaskStatus status;
+    try {
+      status = CollectBatchStatus(batch).front();
+    } catch (const SlurmUnavailable& e) {
+      // A controller restarting is no reason to fail the run: ask again later.
+      spdlog::warn("solve photometric_stereo: Slurm job {}: {}", outcome.job_id, e.what());
+      status.state = "running";
+    }
     if (!status.live()) {
       outcome.report = ReportFromTask(status, outcome.job_id);
       return outcome;

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <functional>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -119,8 +120,8 @@ int Submit(BatchManifest* batch, const std::vector<int>& indices) {
   std::string job_id;
   try {
     job_id = daemon::SubmitSlurmArray(batch, indices);
-  } catch (const daemon::SlurmUnavailable& e) {
-    return Fail(kExitUnavailable, e.what());
+  } catch (const daemon::SlurmUnavailable&) {
+    throw;
   } catch (const std::runtime_error& e) {
     return Fail(kExitUsage, e.what());
   }
@@ -178,6 +179,15 @@ int ExecuteSolve(const SolveOptions& options) {
   return RunLocally(batch, indices, std::max(1, processes));
 }
 
+// Slurm not answering is a service unavailable (exit 3), wherever it is asked.
+int ExitUnavailableOnSlurm(const std::function<int()>& command) {
+  try {
+    return command();
+  } catch (const daemon::SlurmUnavailable& e) {
+    return Fail(kExitUnavailable, e.what());
+  }
+}
+
 CommandRunner SetupSolve(CLI::App& app) {
   auto options = std::make_shared<SolveOptions>();
   CLI::App* batch = SubcommandGroup(app, "batch", "solve many runs: a Slurm job array or N processes here");
@@ -200,7 +210,7 @@ CommandRunner SetupSolve(CLI::App& app) {
   solve->add_option("--local", options->local, "run the tasks here, N processes at a time")->check(CLI::PositiveNumber);
   solve->add_flag("--retry-failed", options->retry_failed,
                   "run again the tasks of --batch DIR that ended without a result (as first run, or --slurm/--local N)");
-  return {solve, [options] { return ExecuteSolve(*options); }};
+  return {solve, [options] { return ExitUnavailableOnSlurm([&options] { return ExecuteSolve(*options); }); }};
 }
 
 struct StatusOptions {
@@ -234,7 +244,7 @@ CommandRunner SetupStatus(CLI::App& app) {
   CLI::App* status = batch->add_subcommand("status", "each task's state (Slurm's, then its record) and its run's report");
   status->add_option("--batch", options->batch_dir, "batch folder")->required()->check(CLI::ExistingDirectory);
   status->add_flag("--wait", options->wait, "wait until no task is pending or running");
-  return {status, [options] { return ExecuteStatus(*options); }};
+  return {status, [options] { return ExitUnavailableOnSlurm([&options] { return ExecuteStatus(*options); }); }};
 }
 
 const bool registered_solve = RegisterCommand(SetupSolve);

@@ -18,6 +18,7 @@
 #include <atomic>
 #include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -83,8 +84,14 @@ struct TaskStatus {
   nlohmann::json ToJson() const;
 };
 
+// sbatch or squeue cannot be run, or Slurm's controller does not answer.
+struct SlurmUnavailable : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 // Each task's state: Slurm's (squeue, then sacct where accounting is on) for
-// live tasks of the batch's newest jobs, else the task's own record.
+// live tasks of the batch's newest jobs, else the task's own record. Throws
+// SlurmUnavailable for a batch with jobs when Slurm cannot be asked.
 std::vector<TaskStatus> CollectBatchStatus(const BatchManifest& batch);
 
 // Removes the records of these tasks, so a new attempt's state is its own.
@@ -92,10 +99,8 @@ void ClearTaskRecords(const BatchManifest& batch, const std::vector<int>& indice
 
 // Submits these tasks as one job array; returns its job id and appends it to
 // batch->job_ids (the caller saves). Throws std::runtime_error with sbatch's
-// words when it refuses, SlurmUnavailable when sbatch cannot be run.
-struct SlurmUnavailable : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+// words when it refuses, SlurmUnavailable when sbatch cannot be run or
+// reach the controller.
 std::string SubmitSlurmArray(BatchManifest* batch, const std::vector<int>& indices);
 // scancel of the batch's jobs (the daemon aborting a run); true when scancel ran.
 bool CancelSlurmJobs(const BatchManifest& batch);
