@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <memory>
 #include <regex>
 #include <string>
 #include <sys/wait.h>
@@ -263,6 +264,40 @@ TEST_F(SlurmBatch, DaemonHandsTheRecipesSolveToSlurmAndTracksTheJob) {
   SolvePhotometricStereoRun(run_directory.string(), request, (dir_.path() / "reference").string());
   for (const char* file : kComparedFiles)
     EXPECT_EQ(ReadText(run_directory / "results" / "ps" / file), ReadText(dir_.path() / "reference" / file)) << file;
+}
+
+TEST_F(SlurmBatch, RestartedDaemonFollowsTheJobItSubmitted) {
+  const std::string rig = dir_.Write("slurm-rig.yaml", SmallRigYaml("", 8) + "solve: {executor: slurm, poll_ms: 200}\n");
+  const std::string recipe = dir_.Write("slurm-recipe.yaml", SmallRecipeYaml() + "solve:\n  - photometric_stereo: {}\n");
+  const fs::path data = dir_.path() / "data";
+  auto daemon = std::make_unique<Daemon>(data, rig, dir_.path() / "photorigd-1.log");
+  std::string url = daemon->WaitReady();
+  ASSERT_FALSE(url.empty()) << ReadText(dir_.path() / "photorigd-1.log");
+  json submitted;
+  ASSERT_EQ(Photorig("submit " + recipe + " --url " + url, &submitted, dir_.path() / "submit.log"), 0);
+  const std::string id = submitted["id"];
+  // Stop the daemon once it has handed the solve to Slurm.
+  json run;
+  for (int i = 0; i < 600; ++i) {
+    Photorig("status " + id + " --url " + url, &run, dir_.path() / "status.log");
+    if (run.value("reason", "").find("Slurm job") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_EQ(run["state"], "solving") << run.dump(2);
+  daemon.reset();
+
+  daemon = std::make_unique<Daemon>(data, rig, dir_.path() / "photorigd-2.log");
+  url = daemon->WaitReady();
+  ASSERT_FALSE(url.empty()) << ReadText(dir_.path() / "photorigd-2.log");
+  json watched;
+  EXPECT_EQ(Photorig("watch " + id + " --url " + url, &watched, dir_.path() / "watch.log"), 0)
+      << watched.dump(2) << ReadText(dir_.path() / "photorigd-2.log");
+  EXPECT_NE(ReadText(dir_.path() / "photorigd-2.log").find("following Slurm job"), std::string::npos);
+  // One job in all: the second daemon followed the first one's.
+  const json batch = json::parse(ReadText(data / "runs" / id / "batch" / "batch.json"));
+  ASSERT_EQ(batch["job_ids"].size(), 1u);
+  EXPECT_EQ(watched["stop"]["solve"]["stages"][0]["figures"]["slurm_job_id"], batch["job_ids"][0].get<std::string>() + "_0");
+  EXPECT_TRUE(fs::exists(data / "runs" / id / "results" / "ps" / "report.json"));
 }
 
 }  // namespace
