@@ -90,6 +90,16 @@ std::vector<std::string> Lines(const std::string& text) {
   return lines;
 }
 
+// A program's words on one line, for an error message.
+std::string OneLine(const std::string& output) {
+  std::string line;
+  for (const std::string& part : Lines(output)) {
+    if (!line.empty()) line += "; ";
+    line += part;
+  }
+  return line;
+}
+
 std::string Lowercase(std::string text) {
   for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return text;
@@ -302,7 +312,7 @@ std::vector<TaskStatus> CollectBatchStatus(const BatchManifest& batch) {
     const ProgramResult squeue = RunProgram({"squeue", "-h", "-r", "--states=all", "-j", jobs, "-o", "%i|%T"});
     // Jobs Slurm has forgotten make squeue fail too ("Invalid job id"): their tasks' records speak for them.
     if (squeue.exit_code == 127) throw SlurmUnavailable("squeue cannot be run (Debian: slurm-client)");
-    if (ControllerUnreachable(squeue.output)) throw SlurmUnavailable("squeue: " + squeue.output);
+    if (ControllerUnreachable(squeue.output)) throw SlurmUnavailable(OneLine(squeue.output));
     if (squeue.exit_code == 0)
       for (const std::string& line : Lines(squeue.output)) {
         const std::size_t bar = line.find('|');
@@ -365,14 +375,14 @@ std::string SubmitSlurmArray(BatchManifest* batch, const std::vector<int>& indic
   const ProgramResult sbatch = RunProgram(argv);
   if (sbatch.exit_code == 127)
     throw SlurmUnavailable("sbatch cannot be run (is Slurm's client installed and on PATH? Debian: slurm-client)");
-  if (ControllerUnreachable(sbatch.output)) throw SlurmUnavailable("sbatch: " + sbatch.output);
+  if (ControllerUnreachable(sbatch.output)) throw SlurmUnavailable(OneLine(sbatch.output));
   const std::vector<std::string> lines = Lines(sbatch.output);
   if (sbatch.exit_code != 0 || lines.empty())
-    throw std::runtime_error("sbatch refused the job array: " + (lines.empty() ? "no output" : sbatch.output));
+    throw std::runtime_error("sbatch refused the job array: " + (lines.empty() ? "no output" : OneLine(sbatch.output)));
   // --parsable: "JOBID" or "JOBID;CLUSTER" on the last line (warnings may come first).
   const std::string job_id = lines.back().substr(0, lines.back().find(';'));
   if (job_id.empty() || job_id.find_first_not_of("0123456789") != std::string::npos)
-    throw std::runtime_error("sbatch gave no job id: " + sbatch.output);
+    throw std::runtime_error("sbatch gave no job id: " + OneLine(sbatch.output));
   batch->job_ids.push_back(job_id);
   return job_id;
 }

@@ -37,7 +37,7 @@ ResultsFolder::ResultsFolder(const std::string& destination) {
   destination_ = normal.string();
   std::error_code error;
   if (fs::is_directory(normal, error) && !fs::is_empty(normal, error) && !fs::exists(normal / "report.json", error))
-    throw std::runtime_error(destination_ + " holds files that are not a solver's results (no report.json); "
+    throw std::invalid_argument(destination_ + " holds files that are not a solver's results (no report.json); "
                              "give a new or empty output folder");
   fs::create_directories(normal.parent_path());
   const std::string prefix = PartialPrefix(normal);

@@ -118,12 +118,14 @@ int RunLocally(const BatchManifest& batch, const std::vector<int>& indices, int 
 
 int Submit(BatchManifest* batch, const std::vector<int>& indices) {
   std::string job_id;
+  const std::string kept = " (the batch is kept: photorig batch solve --retry-failed --batch " + batch->directory +
+                           " submits it again)";
   try {
     job_id = daemon::SubmitSlurmArray(batch, indices);
-  } catch (const daemon::SlurmUnavailable&) {
-    throw;
+  } catch (const daemon::SlurmUnavailable& e) {
+    return Fail(kExitUnavailable, e.what() + kept);
   } catch (const std::runtime_error& e) {
-    return Fail(kExitUsage, e.what());
+    return Fail(kExitUsage, e.what() + kept);  // sbatch refused the request (a partition or limit it does not have)
   }
   daemon::SaveBatch(*batch);
   std::printf("batch %s: job array %s, %zu tasks\n", batch->directory.c_str(), job_id.c_str(), indices.size());

@@ -13,7 +13,7 @@ class ResultsFolder {
  public:
   // Creates the partial folder beside `destination`, first removing the
   // partial folders earlier, killed attempts left there. Throws
-  // std::runtime_error when `destination` exists and is not a results folder
+  // std::invalid_argument when `destination` exists and is not a results folder
   // (it holds files but no report.json): replacing it would lose them.
   explicit ResultsFolder(const std::string& destination);
   // Removes the partial folder unless committed: an exception mid-solve leaves nothing.
