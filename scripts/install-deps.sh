@@ -34,6 +34,8 @@ packages=(
   chromium chromium-driver python3-selenium
   # fuzzers: libFuzzer, the sanitizer runtimes and clang's OpenMP (scripts/fuzz.sh)
   clang libclang-rt-14-dev libomp-14-dev
+  # batch solves on Slurm: the tests start a single-node cluster (tests/slurm/slurm-node.sh, docs/scaling.md)
+  slurm-wlm munge
 )
 
 if [ "$(id -u)" = 0 ]; then

@@ -21,7 +21,11 @@ namespace {
   throw std::runtime_error(what + " " + path + ": " + std::strerror(errno));
 }
 
-void FsyncDirectory(const fs::path& directory) {
+std::string Extension(const std::string& path) { return fs::path(path).extension().string(); }
+
+}  // namespace
+
+void FsyncDirectory(const std::string& directory) {
   const int fd = ::open(directory.empty() ? "." : directory.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) Fail("cannot open directory", directory);
   const int synced = ::fsync(fd);
@@ -30,10 +34,6 @@ void FsyncDirectory(const fs::path& directory) {
   errno = error;
   if (synced != 0) Fail("cannot fsync directory", directory);
 }
-
-std::string Extension(const std::string& path) { return fs::path(path).extension().string(); }
-
-}  // namespace
 
 // Temp file, fsync, rename, fsync of the directory: readers and crashes see
 // the whole file or none.
@@ -67,7 +67,7 @@ void WriteFileDurably(const std::string& path, const void* data, std::size_t siz
     errno = error;
     Fail("cannot rename into", path);
   }
-  FsyncDirectory(fs::path(path).parent_path());
+  FsyncDirectory(fs::path(path).parent_path().string());
 }
 
 void WriteFileDurably(const std::string& path, const std::string& text) {

@@ -3,6 +3,7 @@
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/mesh_io.h"
 #include "photorig/daemon/previews.h"
+#include "photorig/daemon/results_folder.h"
 #include "photorig/daemon/rig_config.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/ps/evaluation.h"
@@ -245,7 +246,7 @@ json ToJson(const PhotometricStereoResult& result) {
 }
 
 PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoRequest& request,
-                                      const std::string& output_directory) {
+                                      const std::string& output_directory, const std::function<void()>& before_commit) {
   const auto start = std::chrono::steady_clock::now();
   ValidatePhotometricStereoRequest(request);
   ps::PhotometricStack stack = input.stack;
@@ -271,8 +272,8 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   result.noise_sigma_dn = stack.noise.read_sigma;
   result.saturation_level = saturation;
 
-  fs::create_directories(output_directory);
-  const fs::path out(output_directory);
+  ResultsFolder folder(output_directory);
+  const fs::path out(folder.path());
   if (result.usable()) {
     const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
     result.mean_confidence = cv::mean(map.confidence, solved)[0];
@@ -312,7 +313,7 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
         depth.release();
       }
     }
-    result.previews = WritePhotometricStereoPreviews(map, solved, depth, output_directory);
+    result.previews = WritePhotometricStereoPreviews(map, solved, depth, folder.path());
 
     cv::Mat error_deg;
     const ps::AngularErrorStats vs_truth =
@@ -334,6 +335,8 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   }
   result.total_ms = Ms(start);
   WriteFileDurably((out / "report.json").string(), ToJson(result).dump(2) + "\n");
+  if (before_commit) before_commit();
+  folder.Commit();
   return result;
 }
 

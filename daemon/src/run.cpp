@@ -3,6 +3,7 @@
 #include "photorig/daemon/plan.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/rig_devices.h"
+#include "photorig/daemon/slurm_solve.h"
 
 #include <spdlog/spdlog.h>
 
@@ -49,7 +50,8 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
   };
   // A stage's folder holds only what this solve wrote: a run resumed after a
   // crash mid-solve solves again from the frames, and its calibrated rig is
-  // a new file again.
+  // a new file again. Photometric stereo replaces its folder whole as it
+  // ends (results_folder.h), so the previous result stays until then.
   auto fresh_results = [&directory](const char* name) {
     const fs::path results = directory / "results" / name;
     fs::remove_all(results);
@@ -57,9 +59,21 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
   };
   if (recipe.photometric_stereo && start("photometric_stereo")) {
     PhotometricStereoRequest solve = *recipe.photometric_stereo;
-    solve.progress = request.solve_progress;
-    outcome->photometric_stereo = SolvePhotometricStereoRun(directory.string(), solve, fresh_results("ps").string());
-    finish(ReportSolveStage(*outcome->photometric_stereo));
+    if (rig.solve.executor == "slurm") {
+      const SlurmSolveOutcome submitted = SolvePhotometricStereoOnSlurm(directory.string(), solve, rig.solve, request);
+      if (!submitted.report) {
+        // The daemon is stopping: the run goes back to the queue, and the next start follows the same job.
+        outcome->capture.status = CaptureStatus::kAborted;
+        outcome->capture.reason = "stopped while Slurm job " + submitted.job_id + " solves; followed again at the next start";
+        return;
+      }
+      finish(*submitted.report);
+    } else {
+      solve.progress = request.solve_progress;
+      outcome->photometric_stereo =
+          SolvePhotometricStereoRun(directory.string(), solve, (directory / "results" / "ps").string());
+      finish(ReportSolveStage(*outcome->photometric_stereo));
+    }
   }
   if (recipe.light_calibration && start("light_calibration")) {
     const auto started = std::chrono::steady_clock::now();
@@ -81,24 +95,32 @@ nlohmann::json SolveStageReport::ToJson() const {
 }
 
 SolveStageReport ReportSolveStage(const PhotometricStereoResult& result) {
-  const ps::SolverSummary& summary = result.summary;
+  return ReportPhotometricStereoStage(ToJson(result), result.usable());
+}
+
+SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& stored, bool usable) {
   SolveStageReport report;
   report.stage = "photometric_stereo";
-  report.usable = result.usable();
-  report.termination = solvers::TerminationName(summary.termination);
-  report.message = summary.message;
+  report.usable = usable;
+  report.termination = stored.value("termination", "");
+  report.message = stored.value("message", "");
   report.results = "results/ps";
-  report.figures = {{"method", summary.method},
-                    {"lights", summary.light_count},
-                    {"pixels_solved", summary.pixels_solved},
-                    {"pixels_total", summary.pixels_total}};
-  if (result.mean_confidence) report.figures["mean_confidence"] = *result.mean_confidence;
-  if (result.normals_vs_truth) {
-    report.figures["normals_vs_truth_mean_deg"] = result.normals_vs_truth->mean_deg;
-    report.figures["normals_vs_truth_median_deg"] = result.normals_vs_truth->median_deg;
+  const nlohmann::json pixels = stored.value("pixels", nlohmann::json::object());
+  report.figures = {{"method", stored.value("method", "")},
+                    {"lights", stored.value("lights", 0)},
+                    {"pixels_solved", pixels.value("solved", 0)},
+                    {"pixels_total", pixels.value("total", 0)}};
+  if (stored.contains("mean_confidence")) report.figures["mean_confidence"] = stored["mean_confidence"];
+  if (stored.contains("ground_truth")) {
+    report.figures["normals_vs_truth_mean_deg"] = stored["ground_truth"].value("mean_angular_error_deg", 0.0);
+    report.figures["normals_vs_truth_median_deg"] = stored["ground_truth"].value("median_angular_error_deg", 0.0);
   }
-  if (result.depth && result.depth->rms_error_vs_truth) report.figures["depth_rms_vs_truth"] = *result.depth->rms_error_vs_truth;
-  report.timings_ms = {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}, {"total", result.total_ms}};
+  if (stored.contains("depth") && stored["depth"].contains("rms_error_vs_truth"))
+    report.figures["depth_rms_vs_truth"] = stored["depth"]["rms_error_vs_truth"];
+  const nlohmann::json timings = stored.value("timings_ms", nlohmann::json::object());
+  report.timings_ms = {{"setup", timings.value("setup", 0.0)},
+                       {"solve", timings.value("solve", 0.0)},
+                       {"total", timings.value("total", 0.0)}};
   return report;
 }
 

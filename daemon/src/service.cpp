@@ -326,6 +326,12 @@ void RunService::Execute(QueuedRun run) {
   request.solve_progress = [this, id](const solvers::Progress& progress) {
     Publish(id, "solve_progress", {{"stage", std::string(progress.stage)}, {"done", progress.done}, {"total", progress.total}});
   };
+  request.on_solve_submitted = [this, id](const std::string& stage, const std::string& job_id, const std::string& batch) {
+    Publish(id, "solve_submitted", {{"stage", stage}, {"executor", "slurm"}, {"job_id", job_id}, {"batch", batch}});
+    std::lock_guard lock(mutex_);
+    if (current_.solve.is_null()) current_.solve = {{"ok", true}, {"stages", json::array()}};
+    current_.solve["slurm_job_id"] = job_id;
+  };
   request.on_solve_finished = [this, id](const SolveStageReport& report) {
     const json stage = report.ToJson();
     {

@@ -250,6 +250,22 @@ MotionConfig ParseMotion(const YamlNode& node) {
   return motion;
 }
 
+// solve: {executor: local | slurm, partition, time, mem, photorig, poll_ms}
+SolveExecutorConfig ParseSolveExecutor(const YamlNode& node) {
+  node.ExpectKeys({"executor", "partition", "time", "mem", "photorig", "poll_ms"});
+  SolveExecutorConfig solve;
+  solve.executor = node.String("executor", solve.executor);
+  if (solve.executor != "local" && solve.executor != "slurm")
+    node["executor"].Fail("expected local or slurm, got '" + solve.executor + "'");
+  solve.partition = node.String("partition", "");
+  solve.time = node.String("time", "");
+  solve.mem = node.String("mem", "");
+  solve.photorig = node.String("photorig", "");
+  solve.poll_ms = node.Int("poll_ms", solve.poll_ms);
+  if (solve.poll_ms < 100 || solve.poll_ms > 600000) node["poll_ms"].Fail("must lie in [100, 600000]");
+  return solve;
+}
+
 // health: {enabled, lit_sigma, max_clipped_fraction, saturation_dn, min_neighbour_ratio, neighbours,
 //          max_brightness_ratio}; `health` holds the defaults.
 HealthConfig ParseHealth(const YamlNode& node, HealthConfig health) {
@@ -304,7 +320,7 @@ std::string MotionConfig::CheckPose(const std::map<std::string, double>& positio
 
 RigConfig LoadRigConfig(const std::string& path) {
   const YamlNode root = YamlNode::LoadFile(path);
-  root.ExpectKeys({"rig", "lights", "camera", "sim", "motion", "health"});
+  root.ExpectKeys({"rig", "lights", "camera", "sim", "motion", "health", "solve"});
   RigConfig rig;
   rig.path = path;
   const YamlNode header = root["rig"];
@@ -362,6 +378,7 @@ RigConfig LoadRigConfig(const std::string& path) {
   if (auto trigger = camera.Find("trigger")) cam.trigger = ParseTrigger(*trigger);
   if (auto chart = camera.Find("color_chart")) cam.color_chart = ParseColorChart(*chart, cam.width, cam.height);
 
+  if (auto solve = root.Find("solve")) rig.solve = ParseSolveExecutor(*solve);
   if (auto sim_node = root.Find("sim")) {
     sim_node->ExpectKeys(
         {"seed", "sensor", "scene", "faults", "led_direction_error_deg", "led_intensity_error_pct", "ambient"});

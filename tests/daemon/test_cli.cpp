@@ -26,6 +26,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using photorig::testing::Daemon;
 using photorig::testing::ReadText;
 using photorig::testing::SmallRigYaml;
 using photorig::testing::TempDir;
@@ -295,40 +296,6 @@ TEST(Cli, ALightControllerThatCannotBeReachedExitsThree) {
   EXPECT_NE(document.value("error", "").find("light controller modbus-dome (tcp 127.0.0.1:" + port), std::string::npos)
       << document.dump();
 }
-
-// photorigd on any free port, for as long as the object lives.
-class Daemon {
- public:
-  Daemon(const fs::path& data_root, const std::string& rig, const fs::path& log) : log_(log) {
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      const std::string bin = std::string(PHOTORIG_BIN_DIR) + "/photorigd";
-      if (!std::freopen(log.c_str(), "a", stdout) || !std::freopen(log.c_str(), "a", stderr)) _exit(126);
-      ::execl(bin.c_str(), bin.c_str(), "--data-root", data_root.c_str(), "--rig", rig.c_str(), "--port", "0",
-              static_cast<char*>(nullptr));
-      _exit(127);
-    }
-  }
-  ~Daemon() {
-    ::kill(pid_, SIGTERM);
-    ::waitpid(pid_, nullptr, 0);
-  }
-  // The address from its "event=ready" line, or "" if it never got ready.
-  std::string WaitReady() const {
-    static const std::regex ready(R"(event=ready listen=(127\.0\.0\.1:\d+))");
-    for (int i = 0; i < 1000; ++i) {
-      std::smatch match;
-      const std::string text = ReadText(log_);
-      if (std::regex_search(text, match, ready)) return "http://" + match[1].str();
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return "";
-  }
-
- private:
-  fs::path log_;
-  pid_t pid_ = -1;
-};
 
 TEST(Cli, SubmitWatchJsonExitsZeroForARunThatEndsDone) {
   TempDir dir;

@@ -1,14 +1,20 @@
 #pragma once
-// Temporary directories and files for tests, removed when the test ends.
+// Temporary directories and files for tests, removed when the test ends;
+// the photorig and photorigd executables run as a test runs them.
 
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <csignal>
+#include <cstdio>
 #include <sys/wait.h>
+#include <unistd.h>
 #include <filesystem>
+#include <chrono>
 #include <fstream>
 #include <regex>
 #include <string>
+#include <thread>
 
 namespace photorig::testing {
 
@@ -81,6 +87,40 @@ inline int RunPhotorig(const std::string& arguments, const std::filesystem::path
   const int status = std::system(command.c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
+
+// photorigd on any free port, for as long as the object lives.
+class Daemon {
+ public:
+  Daemon(const std::filesystem::path& data_root, const std::string& rig, const std::filesystem::path& log) : log_(log) {
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const std::string bin = std::string(PHOTORIG_BIN_DIR) + "/photorigd";
+      if (!std::freopen(log.c_str(), "a", stdout) || !std::freopen(log.c_str(), "a", stderr)) _exit(126);
+      ::execl(bin.c_str(), bin.c_str(), "--data-root", data_root.c_str(), "--rig", rig.c_str(), "--port", "0",
+              static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  ~Daemon() {
+    ::kill(pid_, SIGTERM);
+    ::waitpid(pid_, nullptr, 0);
+  }
+  // The address from its "event=ready" line, or "" if it never got ready.
+  std::string WaitReady() const {
+    static const std::regex ready(R"(event=ready listen=(127\.0\.0\.1:\d+))");
+    for (int i = 0; i < 1000; ++i) {
+      std::smatch match;
+      const std::string text = ReadText(log_);
+      if (std::regex_search(text, match, ready)) return "http://" + match[1].str();
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return "";
+  }
+
+ private:
+  std::filesystem::path log_;
+  pid_t pid_ = -1;
+};
 #endif
 
 }  // namespace photorig::testing

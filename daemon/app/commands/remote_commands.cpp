@@ -114,6 +114,10 @@ int Watch(const Connection& connection, const std::string& id) {
     } else if (type == "solve_started") {
       progress.EndLine();
       std::printf("solving: %s\n", data.value("stage", "").c_str());
+    } else if (type == "solve_submitted") {
+      progress.EndLine();
+      std::printf("solving: %s as Slurm job %s (%s)\n", data.value("stage", "").c_str(), data.value("job_id", "").c_str(),
+                  data.value("batch", "").c_str());
     } else if (type == "solve_progress") {
       progress.Update(data.value("stage", ""), data.value("done", 0), data.value("total", 0), "");
     } else if (type == "state" || type == "stop") {

@@ -4,21 +4,39 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
+#include "../signals.h"
 #include "photorig/daemon/diligent.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "ps_report.h"
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <stdexcept>
+#include <thread>
 
 namespace photorig::app {
 namespace {
 
 struct Options {
   std::string run_dir, dataset_dir, mask, out;
+  std::string commit_gate;  // tests: hold the finished solve while this file exists
   daemon::PhotometricStereoRequest request;
 };
+
+struct StoppedBeforeCommit : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Runs between writing the results and renaming them into place. A stop
+// request (SIGTERM from Slurm's scancel or pre-emption, Ctrl-C) ends the
+// solve there, leaving the previous results as they were.
+void BeforeCommit(const std::string& commit_gate) {
+  while (!commit_gate.empty() && std::filesystem::exists(commit_gate) && !g_stop_requested.load())
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  if (g_stop_requested.load()) throw StoppedBeforeCommit("stopped before the results were put in place");
+}
 
 int Execute(const Options& options) {
   daemon::ValidatePhotometricStereoRequest(options.request);
@@ -33,7 +51,13 @@ int Execute(const Options& options) {
   ProgressDisplay progress;
   daemon::PhotometricStereoRequest request = options.request;
   request.progress = progress.Callback();
-  const daemon::PhotometricStereoResult result = daemon::SolveAndWrite(input, request, destination);
+  daemon::PhotometricStereoResult result;
+  try {
+    result = daemon::SolveAndWrite(input, request, destination, [&options] { BeforeCommit(options.commit_gate); });
+  } catch (const StoppedBeforeCommit& e) {
+    progress.EndLine();
+    return Fail(kExitInterrupted, std::string(e.what()) + "; " + destination + " is unchanged");
+  }
   progress.EndLine();
   PrintPhotometricStereoSummary(result);
   std::printf("results: %s/\n", destination.c_str());
@@ -57,10 +81,16 @@ CommandRunner SetupSolve(CLI::App& app) {
   ps->add_option("--integrator", options->request.integrator, "poisson | frankot-chellappa | none");
   ps->add_option("--shadow-sigma", options->request.shadow_threshold_sigma, "shadow threshold in read-noise sigmas (from dark frames, else estimated)")
       ->check(CLI::NonNegativeNumber);
+  ps->add_option("--max-condition", options->request.max_condition_number,
+                 "largest condition number of a pixel's lit light directions (default 1000)")
+      ->check(CLI::PositiveNumber);
   ps->add_option("--mask", options->mask,
                  "PNG, nonzero = object: solve only there (default: the dataset's mask.png, else from the dark and lit frames)")
       ->check(CLI::ExistingFile);
-  ps->add_option("--out", options->out, "output directory (default: SOURCE/results/ps)");
+  ps->add_option("--out", options->out, "output directory, replaced whole as the solve ends (default: SOURCE/results/ps)");
+  // For tests of pre-emption (tests/slurm): a task held with its results written but not yet in place.
+  ps->add_option("--commit-gate", options->commit_gate, "wait while FILE exists before putting the results in place")
+      ->group("");
   return {ps, [options] { return Execute(*options); }};
 }
 

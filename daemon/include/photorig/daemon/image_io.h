@@ -14,6 +14,8 @@ namespace photorig::daemon {
 // complete: temp file, fsync, rename, fsync of the directory.
 void WriteFileDurably(const std::string& path, const void* data, std::size_t size);
 void WriteFileDurably(const std::string& path, const std::string& text);
+// Makes a directory's entries (files created, renamed or removed in it) durable.
+void FsyncDirectory(const std::string& directory);
 
 // Encodes with OpenCV (format from the extension) and writes durably.
 // Throws std::runtime_error naming the file on failure.

@@ -20,6 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <functional>
 #include <limits>
 #include <optional>
 #include <string>
@@ -108,8 +109,12 @@ nlohmann::json ToJson(const PhotometricStereoResult& result);
 // Solves and writes every output into `output_directory`, report.json last.
 // A solver that cannot produce a result is not an exception: the result says
 // so (usable() false, summary.message the reason) and is written all the same.
+// The folder appears whole, replacing the previous result in one rename
+// (results_folder.h); `before_commit`, when given, runs just before that
+// rename (it may throw to leave the previous result in place).
 PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const PhotometricStereoRequest& request,
-                                      const std::string& output_directory);
+                                      const std::string& output_directory,
+                                      const std::function<void()>& before_commit = {});
 
 inline PhotometricStereoResult SolvePhotometricStereoRun(const std::string& run_directory,
                                                          const PhotometricStereoRequest& request,

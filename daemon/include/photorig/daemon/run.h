@@ -32,6 +32,9 @@ struct SolveStageReport {
 };
 
 SolveStageReport ReportSolveStage(const PhotometricStereoResult& result);
+// The same from a stored report (report.json, ToJson's fields): a solve that
+// ran in another process, e.g. a Slurm task (slurm_solve.h).
+SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& report, bool usable);
 SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const std::string& run_directory,
                                   double total_ms);
 
@@ -54,6 +57,10 @@ struct RunRequest {
   // `control` while a stage runs skips the stages after it.
   std::function<void(const std::string& stage)> on_solve_started;
   std::function<void(const SolveStageReport&)> on_solve_finished;
+  // A stage handed to Slurm (rig solve.executor: slurm): its job ("JOB_TASK")
+  // and batch folder, when submitted or, after a restart, followed again.
+  std::function<void(const std::string& stage, const std::string& job_id, const std::string& batch)>
+      on_solve_submitted;
   // Given to the recipe's solvers (solvers/progress.h).
   solvers::ProgressCallback solve_progress;
 };

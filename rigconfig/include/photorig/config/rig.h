@@ -173,6 +173,21 @@ struct HealthConfig {
   double max_brightness_ratio = 2.0;
 };
 
+// Where the daemon runs a run's photometric-stereo stage (rig `solve:`,
+// docs/scaling.md): in its own process, or as a one-task Slurm batch on the
+// cluster this host submits to, the run staying `solving` until the job ends.
+struct SolveExecutorConfig {
+  std::string executor = "local";  // local | slurm
+  // sbatch's requests; empty: the cluster's defaults.
+  std::string partition;
+  std::string time;  // e.g. "00:30:00"
+  std::string mem;   // e.g. "4G"
+  // The photorig executable on the nodes; empty: the one beside photorigd.
+  std::string photorig;
+  // How often the daemon asks Slurm about the job.
+  int poll_ms = 2000;
+};
+
 struct RigConfig {
   std::string path;
   std::string name;
@@ -182,6 +197,7 @@ struct RigConfig {
   std::optional<SimConfig> sim;  // present when any device is simulated
   std::optional<MotionConfig> motion;  // gonioreflectometers only
   HealthConfig health;
+  SolveExecutorConfig solve;
 
   bool IsSimulated() const { return sim.has_value(); }
 };

@@ -1,0 +1,36 @@
+#pragma once
+// A folder of solver results that readers, crashes and killed processes see
+// whole or not at all. The solver writes into a hidden sibling
+// (`.<name>.partial-<host>-<pid>`) and Commit() swaps it into place, so a
+// batch task that is cancelled, pre-empted or re-queued mid-solve leaves the
+// previous result (or none), never half of a new one.
+
+#include <string>
+
+namespace photorig::daemon {
+
+class ResultsFolder {
+ public:
+  // Creates the partial folder beside `destination`, first removing the
+  // partial folders earlier, killed attempts left there. Throws
+  // std::invalid_argument when `destination` exists and is not a results folder
+  // (it holds files but no report.json): replacing it would lose them.
+  explicit ResultsFolder(const std::string& destination);
+  // Removes the partial folder unless committed: an exception mid-solve leaves nothing.
+  ~ResultsFolder();
+  ResultsFolder(const ResultsFolder&) = delete;
+  ResultsFolder& operator=(const ResultsFolder&) = delete;
+
+  // Where the solver writes.
+  const std::string& path() const { return partial_; }
+  // Makes the folder durable and puts it at `destination` in one rename (an
+  // exchange with the previous result, which is then removed).
+  void Commit();
+
+ private:
+  std::string destination_;
+  std::string partial_;
+  bool committed_ = false;
+};
+
+}  // namespace photorig::daemon

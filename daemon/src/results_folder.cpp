@@ -1,0 +1,82 @@
+#include "photorig/daemon/results_folder.h"
+
+#include "photorig/daemon/image_io.h"
+
+#include <fcntl.h>
+#include <stdio.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <stdexcept>
+
+namespace photorig::daemon {
+namespace fs = std::filesystem;
+namespace {
+
+std::string PartialPrefix(const fs::path& destination) {
+  std::string prefix = ".";
+  prefix += destination.filename().string();
+  prefix += ".partial-";
+  return prefix;
+}
+
+std::string HostName() {
+  char name[256] = {};
+  ::gethostname(name, sizeof(name) - 1);
+  return name;
+}
+
+}  // namespace
+
+ResultsFolder::ResultsFolder(const std::string& destination) {
+  // "results/ps/" and "results/ps" name the same folder; its parent holds the partial one.
+  const fs::path target = fs::absolute(destination).lexically_normal();
+  const fs::path normal = target.filename().empty() ? target.parent_path() : target;
+  destination_ = normal.string();
+  std::error_code error;
+  if (fs::is_directory(normal, error) && !fs::is_empty(normal, error) && !fs::exists(normal / "report.json", error))
+    throw std::invalid_argument(destination_ + " holds files that are not a solver's results (no report.json); "
+                             "give a new or empty output folder");
+  fs::create_directories(normal.parent_path());
+  const std::string prefix = PartialPrefix(normal);
+  for (const fs::directory_entry& entry : fs::directory_iterator(normal.parent_path()))
+    if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(entry.path(), error);
+  partial_ = (normal.parent_path() / (prefix + HostName() + "-" + std::to_string(::getpid()))).string();
+  fs::create_directories(partial_);
+}
+
+ResultsFolder::~ResultsFolder() {
+  if (committed_) return;
+  std::error_code ignored;
+  fs::remove_all(partial_, ignored);
+}
+
+void ResultsFolder::Commit() {
+  // Every file in it was written durably (WriteFileDurably); the folder's own entry too.
+  FsyncDirectory(partial_);
+  std::error_code error;
+  if (fs::exists(destination_, error)) {
+    // One atomic step: the previous result and the new one trade places.
+    if (::renameat2(AT_FDCWD, partial_.c_str(), AT_FDCWD, destination_.c_str(), RENAME_EXCHANGE) != 0) {
+      if (errno != EINVAL && errno != ENOSYS)
+        throw std::runtime_error("cannot put " + partial_ + " in place of " + destination_ + ": " + std::strerror(errno));
+      // A filesystem without exchange (some network filesystems): set the old
+      // one aside first; a crash between the renames leaves no result at the
+      // destination, never a partial one.
+      const std::string aside = partial_ + ".previous";
+      if (::rename(destination_.c_str(), aside.c_str()) != 0 || ::rename(partial_.c_str(), destination_.c_str()) != 0)
+        throw std::runtime_error("cannot put " + partial_ + " in place of " + destination_ + ": " + std::strerror(errno));
+      fs::remove_all(aside, error);
+    }
+  } else if (::rename(partial_.c_str(), destination_.c_str()) != 0) {
+    throw std::runtime_error("cannot rename " + partial_ + " to " + destination_ + ": " + std::strerror(errno));
+  }
+  committed_ = true;
+  FsyncDirectory(fs::path(destination_).parent_path().string());
+  // After an exchange the previous result sits at the partial folder's name.
+  fs::remove_all(partial_, error);
+}
+
+}  // namespace photorig::daemon
