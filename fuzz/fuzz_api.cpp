@@ -13,6 +13,8 @@
 #include <sys/socket.h>
 #include <sys/time.h>
 
+#include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <thread>
@@ -39,20 +41,30 @@ int StartServer() {
 }
 
 int Connect(int port) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) std::abort();
-  const timeval timeout{3, 0};  // an event stream stays open; its first bytes are enough
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof(timeout));
   sockaddr_in address{};
   address.sin_family = AF_INET;
   address.sin_port = htons(static_cast<std::uint16_t>(port));
   address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof(address)) != 0) {
-    std::perror("fuzz_api: the server stopped accepting connections");
-    std::abort();
+  // libFuzzer's own timers interrupt system calls, and on a loaded machine the
+  // backlog can be full for a moment: only ten failed attempts in a row are a finding.
+  constexpr int kAttempts = 10;
+  for (int attempt = 1;; ++attempt) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    if (fd < 0) std::abort();
+    const timeval timeout{3, 0};  // an event stream stays open; its first bytes are enough
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+    ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof(timeout));
+    if (::connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof(address)) == 0) return fd;
+    const int error = errno;
+    ::close(fd);
+    const bool transient = error == EINTR || error == EINPROGRESS || error == EAGAIN || error == ETIMEDOUT;
+    if (!transient || attempt == kAttempts) {
+      errno = error;
+      std::perror("fuzz_api: the server stopped accepting connections");
+      std::abort();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100 * attempt));
   }
-  return fd;
 }
 
 }  // namespace
