@@ -19,7 +19,10 @@
 //                greedily, kept where the Bayesian information criterion
 //                prefers it to the Lambertian fit, else the trimmed fit
 //                (PixelModel::kTrimmed) if that is adequate while rejecting
-//                few samples, else the Lambertian fit.
+//                few samples, else the Lambertian fit. Then, in each region
+//                of the image glossy enough to know its lobe, the pixels
+//                kept without one take that lobe where it explains their
+//                samples better (ModelSelectionOptions::share_lobe).
 //   Where a method's own fit fails, the pixel falls back to a simpler one
 //   (SolverSummary::pixels_fell_back).
 
