@@ -16,8 +16,9 @@ namespace {
 
 // Queues longer than this run their stage; see Flush.
 constexpr std::size_t kBatch = 64;
-// Step 5 pools a region's exponent only from at least this many confidently
-// glossy pixels (the median of 16 is within about a third of their spread).
+// Step 5 pools a region's lobe only from at least this many confidently
+// glossy pixels (the median of 16 is within about a third of a standard
+// deviation of their spread).
 constexpr std::size_t kMinPooledLobes = 16;
 
 PixelFit TrimmedFit(const TrimSolution& trimmed) {
