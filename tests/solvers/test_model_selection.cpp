@@ -122,6 +122,38 @@ TEST(ModelLadder, AutoFitsNothingRicherThanTheSamplesDetermine) {
   EXPECT_EQ(ladder.Next({&five, &kNoFit, &trimmed}).keep, &five);
 }
 
+// Step 5: a pixel kept without a lobe in a glossy region is offered the
+// region's lobe, which has as many parameters of its own as the Lambertian
+// fit, so chi-square alone decides.
+TEST(ModelLadder, AutoOffersTheRegionsLobeOnlyToPixelsKeptWithoutOne) {
+  using internal::SharedLobeFits;
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit lambertian = FitWith(40, 1.0);
+  for (const PixelModel model : {PixelModel::kLambertian, PixelModel::kTrimmed}) {
+    const PixelFit kept = FitWith(model == PixelModel::kTrimmed ? 36 : 40, 1.0, model);
+    const LadderStep ask = ladder.NextWithSharedLobe({&kept, &lambertian});
+    EXPECT_EQ(ask.action, Action::kFitSharedLobe);
+    EXPECT_EQ(ask.start, &kept);
+    PixelFit lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, internal::kSharedLobeParameters);
+    lobe.chi2 = lambertian.chi2 - 0.5;
+    EXPECT_EQ(ladder.NextWithSharedLobe({&kept, &lambertian, &lobe}).keep, &lobe);
+    lobe.chi2 = lambertian.chi2 + 0.5;  // the pixel's samples show less lobe than the region has
+    EXPECT_EQ(ladder.NextWithSharedLobe({&kept, &lambertian, &lobe}).keep, &kept);
+    lobe.ok = false;
+    EXPECT_EQ(ladder.NextWithSharedLobe({&kept, &lambertian, &lobe}).keep, &kept);
+  }
+  // Not for a pixel that has a lobe of its own, nor where no sample is left to test one.
+  const PixelFit own_lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  EXPECT_EQ(ladder.NextWithSharedLobe({&own_lobe, &lambertian}).keep, &own_lobe);
+  const PixelFit three = FitWith(3, 0.0);
+  EXPECT_EQ(ladder.NextWithSharedLobe({&three, &three}).keep, &three);
+  // Nor for any other method.
+  for (const Method method : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong}) {
+    const PixelFit kept = FitWith(40, 1.0);
+    EXPECT_EQ(Ladder(method).NextWithSharedLobe({&kept, &lambertian}).keep, &kept) << MethodName(method);
+  }
+}
+
 TEST(ModelLadder, EachSingleModelMethodAsksForItsOwnFit) {
   const PixelFit lambertian = FitWith(40, 3.0), reweighted = FitWith(40, 3.0, PixelModel::kIrls);
   const PixelFit lobe = FitWith(40, 10.0, PixelModel::kBlinnPhong, 5);

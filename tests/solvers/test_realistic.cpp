@@ -41,11 +41,11 @@ double GgxBrdf(const Eigen::Vector3d& n, const Eigen::Vector3d& l, const Eigen::
 // its intensity, through a response DN ~ S^(1 / 1.1), with read noise 2 DN and
 // shot noise 0.25 DN per DN, which the stack's noise model gives (as from a
 // rig with dark frames and the camera's conversion gain).
-RealisticScene CaptureRealisticSphere() {
+RealisticScene CaptureRealisticSphere(unsigned seed = 23) {
   constexpr int kSize = 64;
   constexpr double kRadius = 28.0, kScale = 2000.0, kDark = 16.0, kFullScale = 4095.0, kGamma = 1.1;
   const std::vector<Eigen::Vector3d> lights = testing::RingLights(48, 20, 85, 17);
-  std::mt19937 rng(23);
+  std::mt19937 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   RealisticScene scene;
   scene.stack.light_directions = lights;
@@ -87,9 +87,10 @@ RealisticScene CaptureRealisticSphere() {
   return scene;
 }
 
-TEST(RealisticSphere, AutoIsAsAccurateAsTheBestMethodAndEveryMethodResolvesEveryPixelWithThreeLights) {
+TEST(RealisticSphere, AutoIsAsAccurateAsBlinnPhongAndNoMethodLeavesAPixelWithThreeLightsUnresolved) {
   const RealisticScene scene = CaptureRealisticSphere();
-  double best_single = std::numeric_limits<double>::infinity(), automatic = 0.0;
+  double best_single = std::numeric_limits<double>::infinity(), blinn_phong = 0.0, automatic = 0.0;
+  SolverSummary auto_summary;
   for (Method method : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
     PhotometricStereoOptions options;
     options.method = method;
@@ -104,20 +105,24 @@ TEST(RealisticSphere, AutoIsAsAccurateAsTheBestMethodAndEveryMethodResolvesEvery
         ++unresolved_with_three;
     EXPECT_EQ(unresolved_with_three, 0) << summary.BriefReport();
     const AngularErrorStats error = CompareNormals(map.normals, scene.truth, scene.stack.mask);
+    EXPECT_EQ(error.pixels_unresolved, 0u) << MethodName(method);
     if (method == Method::kAuto) {
       automatic = error.mean_deg;
+      auto_summary = summary;
     } else {
       best_single = std::min(best_single, error.mean_deg);
+      if (method == Method::kBlinnPhong) blinn_phong = error.mean_deg;
     }
   }
-  // 1 % of the error: `auto` differs from `blinn-phong` (the best single
-  // method here) only on the pixels where it keeps a simpler fit (about 14 %),
-  // and there by amounts whose sign changes with the draw of light errors and
-  // noise: over eight draws `auto` minus `blinn-phong` ranged from -0.003 to
-  // +0.008 deg (mean +0.004, 0.3 %), while each draw moved both means by
-  // +-0.07 deg. A margin below that spread says "as accurate"; `robust`, the
-  // next method, is 7 % worse.
-  EXPECT_LE(automatic, 1.01 * best_single);
+  ASSERT_EQ(blinn_phong, best_single);
+  // Step 5 gave the sphere's lobe to pixels whose own samples could not tell it apart.
+  EXPECT_GT(auto_summary.pixels_shared_lobe, 0u) << auto_summary.BriefReport();
+  // 0.002 deg: over twelve draws of light errors and noise (seeds 1-11 and
+  // this one) `auto` minus `blinn-phong` was -0.0070 to -0.0104 deg (mean
+  // -0.0083, standard deviation 0.0010), while each draw moved both means by
+  // up to 0.15 deg; the tolerance leaves room for another platform's
+  // rounding only. Without step 5 this draw gives +0.0057 deg and fails.
+  EXPECT_LE(automatic, blinn_phong + 0.002) << "blinn-phong " << blinn_phong << " deg";
 }
 
 }  // namespace

@@ -23,6 +23,19 @@ std::vector<double> ChiSquareQuantiles(int max_dof, double p);
 
 // The normal's two degrees of freedom, rho_d, rho_s and e.
 inline constexpr int kBlinnPhongParameters = 5;
+// The same with the lobe (rho_s and e) shared by the pixel's region (step 5):
+// as many of its own as the Lambertian fit.
+inline constexpr int kSharedLobeParameters = 3;
+
+// A region's lobe (step 5): the medians of rho_s and e over its confidently
+// glossy pixels.
+struct SharedLobe {
+  double specular_albedo = 0.0, exponent = 0.0;
+};
+// A lobe kept by an information criterion this much below the simpler fit's
+// ("very strong" evidence on Kass and Raftery's scale) marks its pixel as
+// glossy for step 5: its exponent is pooled and its region counted glossy.
+inline constexpr double kConfidentLobeEvidence = 10.0;
 
 // One model's fit of one pixel.
 struct PixelFit {
@@ -79,7 +92,8 @@ struct LadderStep {
     kRefitLit,    // fit LadderFits::lit
     kTrim,        // fit LadderFits::robust by trimming
     kReweight,    // fit LadderFits::robust by IRLS
-    kFitLobe      // fit LadderFits::blinn_phong, starting from `start`
+    kFitLobe,     // fit LadderFits::blinn_phong, starting from `start`
+    kFitSharedLobe  // step 5: fit SharedLobeFits::lobe with the region's exponent, starting from `start`
   };
   Action action = Action::kKeep;
   const PixelFit* keep = nullptr;   // kKeep: one of the fits asked about
@@ -87,6 +101,19 @@ struct LadderStep {
   // kKeep: the last fit the ladder asked for failed, and `keep` is a simpler
   // one below it (the model map says which).
   bool fell_back = false;
+  // kKeep of a lobe fit: how far its information criterion is below the
+  // simpler fit's (kConfidentLobeEvidence and more: a confidently glossy pixel).
+  double evidence = 0.0;
+};
+
+// Step 5's fits of a pixel that steps 1-4 kept without a lobe, in a region
+// whose lobe is known (SharedLobe): the fit kept, the Lambertian fit on all
+// its usable samples (LambertianOnRow), and the fit with the region's lobe
+// held (null: not fitted yet).
+struct SharedLobeFits {
+  const PixelFit* kept = nullptr;
+  const PixelFit* lambertian = nullptr;
+  const PixelFit* lobe = nullptr;
 };
 
 class ModelLadder {
@@ -127,6 +154,19 @@ class ModelLadder {
   // Inline: the lane stages ask it once per pixel and stage, with most of
   // `fits` known where they call.
   inline LadderStep Next(const LadderFits& fits) const;
+
+  // Step 5 (`auto` only), once every pixel has climbed steps 1-4: a pixel
+  // kept Lambertian or trimmed in a region that is glossy (enough of its
+  // pixels kept a lobe with kConfidentLobeEvidence) is fitted with the
+  // region's lobe held, its normal and rho_d free: as many parameters of its
+  // own as the Lambertian fit (the region's two cost each of its pixels two
+  // over the region's size: nothing), so the two compare by chi-square
+  // alone, a likelihood ratio. Where the pixel's samples could show the lobe
+  // and do not (a matte pixel in a glossy region), the held lobe misfits and
+  // the Lambertian fit stays; where they cannot tell, the region's lobe
+  // removes the tilt its tails put into the Lambertian normal. Elsewhere
+  // `kept` stands.
+  inline LadderStep NextWithSharedLobe(const SharedLobeFits& fits) const;
 
   // Per usable sample count, the Lambertian pass's confidence at or above
   // which a pixel passes step 1 without a closer look (infinity where none
@@ -190,9 +230,26 @@ inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
   // usable samples; where the lobe does not pay for its parameters, an
   // adequate simpler fit stands.
   const PixelFit& lobe = *fits.blinn_phong;
-  if (lobe.ok && lobe.Bic() < fits.lobe_lambertian->Bic()) return Keep(lobe);
+  if (lobe.ok && lobe.Bic() < fits.lobe_lambertian->Bic()) {
+    LadderStep step = Keep(lobe);
+    step.evidence = fits.lobe_lambertian->Bic() - lobe.Bic();
+    return step;
+  }
   const PixelFit& simpler = trimmed_adequate ? adequate_simpler : *fits.lobe_lambertian;
   return lobe.ok ? Keep(simpler) : FallBack(lobe, simpler);
+}
+
+inline LadderStep ModelLadder::NextWithSharedLobe(const SharedLobeFits& fits) const {
+  const PixelFit& kept = *fits.kept;
+  const bool simpler = kept.model == PixelModel::kLambertian || kept.model == PixelModel::kTrimmed;
+  // As in step 4: a lobe is fitted only where a sample is left to test it.
+  if (method_ != Method::kAuto || !kept.ok || !simpler || !fits.lambertian->ok ||
+      fits.lambertian->used <= kSharedLobeParameters)
+    return Keep(kept);
+  if (!fits.lobe) return {LadderStep::Action::kFitSharedLobe, nullptr, &kept};
+  const PixelFit& lobe = *fits.lobe;
+  if (lobe.ok && lobe.chi2 < fits.lambertian->chi2) return Keep(lobe);
+  return Keep(kept);
 }
 
 }  // namespace photorig::ps::internal

@@ -60,6 +60,8 @@ bool ModelSelectionOptions::IsValid(std::string* why) const {
     return fail("selection: max_rejected_fraction must be in [0, 1)");
   if (!(gross_outlier_sigma > 0.0) || !std::isfinite(gross_outlier_sigma))
     return fail("selection: gross_outlier_sigma must be finite and > 0");
+  if (!(glossy_region_fraction > 0.0 && glossy_region_fraction <= 1.0))
+    return fail("selection: glossy_region_fraction must be in (0, 1]");
   return true;
 }
 

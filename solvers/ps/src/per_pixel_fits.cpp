@@ -25,6 +25,34 @@ PixelFit IrlsFit(const RobustSolution& solution) {
   return fit;
 }
 
+PixelFit LambertianOnRow(const SampleReader& reader, const double* observed, const double* inverse_sigma,
+                         const Eigen::Vector3d& kept) {
+  const double *wx = reader.direction_axis(0), *wy = reader.direction_axis(1), *wz = reader.direction_axis(2);
+  Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d r = Eigen::Vector3d::Zero();
+  int used = 0;
+  for (int k = 0; k < reader.lights(); ++k) {
+    if (inverse_sigma[k] == 0.0) continue;
+    const Eigen::Vector3d w(wx[k], wy[k], wz[k]);
+    g += w * w.transpose();
+    r += observed[k] * w;
+    ++used;
+  }
+  if (used < 3) return PixelFit{};
+  const Eigen::Vector3d x = g.ldlt().solve(r);
+  double chi2 = 0.0, kept_chi2 = 0.0;
+  for (int k = 0; k < reader.lights(); ++k) {
+    const double u = (observed[k] - (wx[k] * x.x() + wy[k] * x.y() + wz[k] * x.z())) * inverse_sigma[k];
+    const double v = (observed[k] - std::max(0.0, wx[k] * kept.x() + wy[k] * kept.y() + wz[k] * kept.z())) *
+                     inverse_sigma[k];
+    chi2 += u * u, kept_chi2 += v * v;  // 0 where unusable
+  }
+  chi2 = std::min(chi2, kept_chi2);
+  PixelFit fit = LambertianFit(x, chi2, used, 0);
+  fit.ok = fit.ok && std::isfinite(chi2);
+  return fit;
+}
+
 namespace {
 
 // The Lambertian fit x of a pixel, tested on its usable samples.
@@ -145,8 +173,11 @@ PixelFit FitTrimmed(const PixelSamples& s, const ModelLadder& ladder, TrimScratc
 
 
 
+// The lobe fitted to a pixel's usable samples from `start`'s normal and
+// albedo, its material from the grid's best start; or, with `shared` (step
+// 5), the lobe held at the region's and only the normal and rho_d fitted.
 PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& start,
-                  const BlinnPhongOptions& options, autodiff::Tape* tape) {
+                       const BlinnPhongOptions& options, autodiff::Tape* tape, const SharedLobe* shared = nullptr) {
   const int n = s.size();
   Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
   Eigen::VectorXd observed(n), inverse_sigma(n);
@@ -165,8 +196,26 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
     cos_half[k] = std::max(0.0, pixel.half_vector(k).dot(start.normal));
     weight[k] = 1.0 / s.variance[k];
   }
-  const BlinnPhongMaterial material = BlinnPhongGridStart(
-      n, cos_light.data(), cos_half.data(), s.b.data(), weight.data(), start.albedo, options);
+  BlinnPhongMaterial material;
+  if (shared) {
+    // Lane 0 of the lane start, the other lanes without samples.
+    std::vector<double> lanes(4 * static_cast<std::size_t>(n) * kFloatLanes, 0.0);
+    double* lane_inputs[4] = {lanes.data(), lanes.data() + n * kFloatLanes, lanes.data() + 2 * n * kFloatLanes,
+                              lanes.data() + 3 * n * kFloatLanes};
+    for (int k = 0; k < n; ++k) {
+      lane_inputs[0][k * kFloatLanes] = cos_light[k], lane_inputs[1][k * kFloatLanes] = cos_half[k];
+      lane_inputs[2][k * kFloatLanes] = s.b[k], lane_inputs[3][k * kFloatLanes] = weight[k];
+    }
+    alignas(64) double albedo[kFloatLanes] = {start.albedo}, specular[kFloatLanes] = {shared->specular_albedo},
+                       exponent[kFloatLanes] = {shared->exponent};
+    LaneMaterial lane;
+    BlinnPhongSharedStartLanes(n, lane_inputs[0], lane_inputs[1], lane_inputs[2], lane_inputs[3], albedo, specular,
+                               exponent, &lane);
+    material = {lane.diffuse_albedo[0], lane.specular_albedo[0], lane.exponent[0]};
+  } else {
+    material = BlinnPhongGridStart(n, cos_light.data(), cos_half.data(), s.b.data(), weight.data(), start.albedo,
+                                   options);
+  }
   Eigen::Matrix<double, 6, 1> p;
   p << start.normal, material.diffuse_albedo, material.specular_albedo, material.exponent;
   auto project = [&options](Eigen::Matrix<double, 6, 1>* q) {
@@ -186,12 +235,18 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
       ok = pixel(q.data(), residuals.data());
     }
     if (ok) *cost = residuals.cwiseProduct(inverse_sigma).squaredNorm();
+    // A shared lobe has no derivatives: the step leaves rho_s and e where they are.
+    if (ok && with_jacobian && shared) jacobian.rightCols<2>().setZero();
     return ok;
   };
   double cost = 0.0;
   if (!cost_at(p, true, &cost) || !std::isfinite(cost)) {
     // As the lane fitter: once more from the diffuse start with no lobe.
-    p << start.normal, start.albedo, 0.0, options.min_exponent;
+    if (shared) {
+      p << start.normal, start.albedo, shared->specular_albedo, shared->exponent;
+    } else {
+      p << start.normal, start.albedo, 0.0, options.min_exponent;
+    }
     if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
   }
   double lambda = 1e-3;
@@ -232,7 +287,7 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
   fit.specular_albedo = p(4);
   fit.exponent = p(5);
   fit.chi2 = cost;
-  fit.parameters = kBlinnPhongParameters;
+  fit.parameters = shared ? kSharedLobeParameters : kBlinnPhongParameters;
   fit.used = n;
   fit.model = PixelModel::kBlinnPhong;
   return fit;
@@ -241,7 +296,7 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
 }  // namespace
 
 PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch* scratch,
-                              RobustLambertianLanes* irls, bool* fell_back) const {
+                              RobustLambertianLanes* irls, bool* fell_back, double* evidence) const {
   using Action = LadderStep::Action;
   PixelSamples& s = scratch->samples;
   reader_.Usable(pixel, &s);
@@ -254,7 +309,9 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
     switch (step.action) {
       case Action::kKeep:
         *fell_back = step.fell_back;
+        *evidence = step.evidence;
         return *step.keep;
+      case Action::kFitSharedLobe: return *fits.lambertian;  // Next never asks for it (NextWithSharedLobe does)
       case Action::kRefitLit:
         FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);  // ok stays false without one
         fits.lit = &lit;
@@ -278,6 +335,21 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
         break;
     }
   }
+}
+
+std::optional<PixelFit> PerPixelFits::ShareLobe(int pixel, const PixelFit& kept, const SharedLobe& shared,
+                                                PixelScratch* scratch) const {
+  PixelSamples& s = scratch->samples;
+  reader_.Usable(pixel, &s);
+  const PixelFit lambertian =
+      LambertianOnRow(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), kept.normal * kept.albedo / M_PI);
+  SharedLobeFits fits{&kept, &lambertian};
+  const LadderStep step = ladder_.NextWithSharedLobe(fits);
+  if (step.action != LadderStep::Action::kFitSharedLobe) return std::nullopt;
+  const PixelFit lobe = FitBlinnPhong(s, view_, *step.start, blinn_phong_, &scratch->tape, &shared);
+  fits.lobe = &lobe;
+  if (ladder_.NextWithSharedLobe(fits).keep != &lobe) return std::nullopt;
+  return lobe;
 }
 
 }  // namespace photorig::ps::internal

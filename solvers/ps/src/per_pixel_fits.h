@@ -14,12 +14,22 @@
 
 #include <Eigen/Core>
 
+#include <optional>
 #include <vector>
 
 namespace photorig::ps::internal {
 
 // The `robust` fit of a pixel from its IRLS solution.
 PixelFit IrlsFit(const RobustSolution& solution);
+
+// Step 5's Lambertian fit of a row's usable samples, the one the shared lobe
+// must beat: least squares (unweighted, as the Lambertian pass fits), with
+// the lower of its chi-square and that of `kept` (the solution steps 1-4
+// kept, albedo / pi times the normal) under the clamp max(0, w . x) the lobe
+// model has too; for a pixel that left out samples it put in attached
+// shadow, the latter.
+PixelFit LambertianOnRow(const SampleReader& reader, const double* observed, const double* inverse_sigma,
+                         const Eigen::Vector3d& kept);
 
 // The samples of one pixel as plain arrays, for loops the compiler vectorises.
 struct TrimScratch {
@@ -41,9 +51,14 @@ class PerPixelFits {
       : ladder_(ladder), reader_(reader), view_(view), blinn_phong_(blinn_phong) {}
 
   // The model the ladder keeps for `pixel`, from the Lambertian pass's
-  // solution x (albedo / pi times the normal); fell_back as LadderStep's.
+  // solution x (albedo / pi times the normal); fell_back and evidence as
+  // LadderStep's.
   PixelFit Refine(int pixel, const Eigen::Vector3d& x, PixelScratch* scratch, RobustLambertianLanes* irls,
-                  bool* fell_back) const;
+                  bool* fell_back, double* evidence) const;
+  // Step 5 for `pixel`, which steps 1-4 left with `kept`, in a region whose
+  // lobe is `shared`: the lobe fit if the ladder keeps it, else nullopt.
+  std::optional<PixelFit> ShareLobe(int pixel, const PixelFit& kept, const SharedLobe& shared,
+                                    PixelScratch* scratch) const;
 
  private:
   const ModelLadder& ladder_;

@@ -133,6 +133,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     summary.total_ms = timer.ElapsedMs();
     return summary;
   }
+  refiner.ShareLobe();
   summary.noise_estimated = noise_estimated;
   summary.noise_read_sigma = working.noise.read_sigma;
   summary.noise_shot_gain = working.noise.shot_gain;

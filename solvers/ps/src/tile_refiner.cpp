@@ -2,6 +2,9 @@
 
 #include "kernels/adequacy_screen.h"
 
+#include <omp.h>
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -13,6 +16,10 @@ namespace {
 
 // Queues longer than this run their stage; see Flush.
 constexpr std::size_t kBatch = 64;
+// Step 5 pools a region's lobe only from at least this many confidently
+// glossy pixels (the median of 16 is within about a third of a standard
+// deviation of their spread).
+constexpr std::size_t kMinPooledLobes = 16;
 
 PixelFit TrimmedFit(const TrimSolution& trimmed) {
   PixelFit fit;
@@ -103,6 +110,22 @@ struct TileRefiner::ThreadState {
   std::vector<BlinnPhongProblem> problems;
   std::vector<BlinnPhongSolution> solutions;
   std::size_t lambertian = 0, trimmed = 0, irls_fits = 0, blinn_phong = 0, rejected = 0, failed = 0, fell_back = 0;
+  // Pixels that kept a lobe with kConfidentLobeEvidence, and its rho_s and e.
+  struct Glossy {
+    int pixel;
+    float specular_albedo, exponent;
+  };
+  std::vector<Glossy> glossy;
+  // Step 5: the pixels of a batch offered the shared lobe, and what it changed
+  // (the pixels it took from each simpler model, the samples those had left out).
+  struct Sharing {
+    int pixel;
+    PixelFit kept, lambertian;
+    SharedLobe shared;
+    std::size_t row;  // of the thread's rows
+  };
+  std::vector<Sharing> sharing;
+  std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0, shared_samples_restored = 0;
 };
 
 TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const LambertianOptions& lambertian,
@@ -117,6 +140,7 @@ TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const Lamberti
       reader_(stack, lambertian),
       recheck_(stack, lambertian),
       per_pixel_(ladder, reader_, stack.view_direction, options.blinn_phong),
+      threads_(threads),
       states_(threads) {
   if (options.method == Method::kRobust)
     for (ThreadState& state : states_)
@@ -139,7 +163,7 @@ Eigen::Vector3d TileRefiner::PassSolution(int p) const {
 // Record and Climb run once per pixel and stage; inlined into each stage,
 // where calls to them cost 1 % of shiny `auto`'s instructions.
 __attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& state, int p, const PixelFit& chosen,
-                                                                bool fell_back) {
+                                                                bool fell_back, double evidence) {
   if (!chosen.ok) {
     result_->flags.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelFlag::kRejectedByModel);
     result_->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
@@ -156,7 +180,11 @@ __attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& stat
     case PixelModel::kLambertian: ++state.lambertian; break;
     case PixelModel::kTrimmed: ++state.trimmed; break;
     case PixelModel::kIrls: ++state.irls_fits; break;
-    case PixelModel::kBlinnPhong: ++state.blinn_phong; break;
+    case PixelModel::kBlinnPhong:
+      ++state.blinn_phong;
+      if (evidence >= kConfidentLobeEvidence)
+        state.glossy.push_back({p, static_cast<float>(chosen.specular_albedo), static_cast<float>(chosen.exponent)});
+      break;
     case PixelModel::kNone: break;
   }
 }
@@ -183,8 +211,9 @@ __attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p,
   ThreadState& state = states_[thread];
   const LadderStep step = ladder_.Next(fits);
   switch (step.action) {
-    case LadderStep::Action::kKeep: Record(state, p, *step.keep, step.fell_back); return;
+    case LadderStep::Action::kKeep: Record(state, p, *step.keep, step.fell_back, step.evidence); return;
     case LadderStep::Action::kRefitLit: return;  // not asked: the recheck refits every pixel it looks at
+    case LadderStep::Action::kFitSharedLobe: return;  // Next never asks for it (NextWithSharedLobe does)
     case LadderStep::Action::kTrim: {
       state.trimming.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used});
       const std::size_t at = state.trim_rows.size();
@@ -301,8 +330,10 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
     const int p = begin + i;
     if (!lanes_) {
       bool fell_back = false;
-      const PixelFit chosen = per_pixel_.Refine(p, PassSolution(p), &state.scratch, state.irls.get(), &fell_back);
-      Record(state, p, chosen, fell_back);
+      double evidence = 0.0;
+      const PixelFit chosen =
+          per_pixel_.Refine(p, PassSolution(p), &state.scratch, state.irls.get(), &fell_back, &evidence);
+      Record(state, p, chosen, fell_back, evidence);
       return;
     }
     state.doubtful.push_back(p);
@@ -353,17 +384,149 @@ void TileRefiner::Finish(int thread) {
   if (lanes_) Flush(thread, true);
 }
 
+PixelFit TileRefiner::KeptFit(int p) const {
+  PixelFit fit;
+  fit.ok = true;
+  const cv::Vec3f n = result_->normals.ptr<cv::Vec3f>()[p];
+  fit.normal = Eigen::Vector3d(n[0], n[1], n[2]);
+  fit.albedo = result_->albedo.ptr<float>()[p];
+  fit.used = result_->usable_lights.ptr<std::uint16_t>()[p];
+  fit.model = static_cast<PixelModel>(result_->model.ptr<std::uint8_t>()[p]);
+  return fit;
+}
+
+void TileRefiner::RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe,
+                                   int usable) {
+  WriteFit(p, lobe, result_);
+  ++state.shared_lobes;
+  (kept.model == PixelModel::kTrimmed ? state.shared_from_trimmed : state.shared_from_lambertian) += 1;
+  // The kept fit left out what it did not use (trimmed or unlit samples); the lobe uses them all.
+  state.shared_samples_restored += static_cast<std::size_t>(std::max(0, usable - kept.used));
+}
+
+void TileRefiner::ShareLobe(int thread, const std::vector<int>& candidates, const std::vector<SharedLobe>& lobes,
+                            std::size_t begin, std::size_t end) {
+  ThreadState& state = states_[thread];
+  if (!lanes_) {
+    for (std::size_t i = begin; i < end; ++i) {
+      const int p = candidates[i];
+      const PixelFit kept = KeptFit(p);
+      if (const std::optional<PixelFit> lobe = per_pixel_.ShareLobe(p, kept, lobes[i], &state.scratch)) {
+        RecordSharedLobe(state, p, kept, *lobe, state.scratch.samples.size());
+      }
+    }
+    return;
+  }
+  for (std::size_t first = begin; first < end; first += kBatch) {
+    const std::size_t last = std::min(end, first + kBatch);
+    state.rows = 0;
+    state.sharing.clear();
+    state.problems.clear();
+    for (std::size_t i = first; i < last; ++i) {
+      const int p = candidates[i];
+      const PixelFit kept = KeptFit(p);
+      PixelFit tested;
+      const Eigen::Vector3d x = kept.normal * kept.albedo / M_PI;
+      const std::size_t row = GatherRow(state, p, x, &tested);
+      const PixelFit lambertian =
+          LambertianOnRow(reader_, &state.observed[row * lights_], &state.inverse_sigma[row * lights_], x);
+      const LadderStep step = ladder_.NextWithSharedLobe({&kept, &lambertian});
+      if (step.action != LadderStep::Action::kFitSharedLobe) {
+        --state.rows;
+        continue;
+      }
+      state.sharing.push_back({p, kept, lambertian, lobes[i], row});
+    }
+    // The rows are complete (gathering may have moved them): now point at them.
+    for (const ThreadState::Sharing& sharing : state.sharing)
+      state.problems.push_back({&state.observed[sharing.row * lights_], &state.inverse_sigma[sharing.row * lights_],
+                                sharing.kept.normal, sharing.kept.albedo, sharing.shared.specular_albedo,
+                                sharing.shared.exponent});
+    state.solutions.assign(state.problems.size(), {});
+    if (!state.problems.empty()) lobe_fitters_[thread].Fit(state.problems, state.solutions);
+    for (std::size_t i = 0; i < state.sharing.size(); ++i) {
+      const ThreadState::Sharing& sharing = state.sharing[i];
+      PixelFit lobe = BlinnPhongFit(state.solutions[i], sharing.lambertian.used);
+      lobe.parameters = kSharedLobeParameters;
+      if (ladder_.NextWithSharedLobe({&sharing.kept, &sharing.lambertian, &lobe}).keep == &lobe)
+        RecordSharedLobe(state, sharing.pixel, sharing.kept, lobe, sharing.lambertian.used);
+    }
+  }
+  state.rows = 0;
+}
+
+void TileRefiner::ShareLobe() {
+  if (options_.method != Method::kAuto || !options_.selection.share_lobe) return;
+  std::size_t confident = 0;
+  for (const ThreadState& state : states_) confident += state.glossy.size();
+  // No region can be glossy: a matte scene stops here, before any pass over the image.
+  if (confident < kMinPooledLobes) return;
+  const cv::Mat solved = result_->flags == static_cast<int>(PixelFlag::kSolved);
+  cv::Mat labels, stats, centroids;
+  const int regions = cv::connectedComponentsWithStats(solved, labels, stats, centroids, 8, CV_32S);
+  std::vector<std::vector<float>> specular(regions), exponent(regions);
+  const int* label = labels.ptr<int>();
+  for (const ThreadState& state : states_)
+    for (const ThreadState::Glossy& g : state.glossy) {
+      specular[label[g.pixel]].push_back(g.specular_albedo);
+      exponent[label[g.pixel]].push_back(g.exponent);
+    }
+  auto median = [](std::vector<float>& values) {
+    std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+    return values[values.size() / 2];
+  };
+  // Label 0 is the background (pixels not solved).
+  std::vector<SharedLobe> region_lobe(regions);
+  bool any_glossy = false;
+  for (int r = 1; r < regions; ++r) {
+    const std::size_t confident = exponent[r].size();
+    const double area = stats.at<int>(r, cv::CC_STAT_AREA);
+    if (confident < kMinPooledLobes || confident < options_.selection.glossy_region_fraction * area) continue;
+    region_lobe[r] = {median(specular[r]), median(exponent[r])};
+    any_glossy = true;
+  }
+  if (!any_glossy) return;
+  std::vector<int> candidates;
+  std::vector<SharedLobe> lobes;
+  const std::uint8_t* model = result_->model.ptr<std::uint8_t>();
+  const int pixels = labels.rows * labels.cols;
+  for (int p = 0; p < pixels; ++p) {
+    const SharedLobe& lobe = region_lobe[label[p]];
+    if (lobe.exponent > 0.0 && (model[p] == static_cast<std::uint8_t>(PixelModel::kLambertian) ||
+                                model[p] == static_cast<std::uint8_t>(PixelModel::kTrimmed))) {
+      candidates.push_back(p);
+      lobes.push_back(lobe);
+    }
+  }
+  const std::size_t count = candidates.size();
+#pragma omp parallel num_threads(threads_)
+  {
+    const std::size_t thread = omp_get_thread_num(), team = omp_get_num_threads();
+    ShareLobe(static_cast<int>(thread), candidates, lobes, count * thread / team, count * (thread + 1) / team);
+  }
+}
+
 void TileRefiner::AddCounts(SolverSummary* summary) const {
   std::size_t failed = 0;
+  // Step 5 moved pixels between models counted on other threads: subtract
+  // after summing.
+  std::size_t from_lambertian = 0, from_trimmed = 0, restored = 0;
   for (const ThreadState& state : states_) {
     summary->pixels_lambertian += state.lambertian;
     summary->pixels_trimmed += state.trimmed;
     summary->pixels_irls += state.irls_fits;
-    summary->pixels_blinn_phong += state.blinn_phong;
+    summary->pixels_blinn_phong += state.blinn_phong + state.shared_lobes;
+    summary->pixels_shared_lobe += state.shared_lobes;
     summary->samples_rejected += state.rejected;
+    from_lambertian += state.shared_from_lambertian;
+    from_trimmed += state.shared_from_trimmed;
+    restored += state.shared_samples_restored;
     summary->pixels_fell_back += state.fell_back;
     failed += state.failed;
   }
+  summary->pixels_lambertian -= from_lambertian;
+  summary->pixels_trimmed -= from_trimmed;
+  summary->samples_rejected -= restored;
   summary->pixels_solved -= failed;
   summary->pixels_rejected_by_model += failed;
 }

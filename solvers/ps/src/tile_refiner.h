@@ -46,6 +46,12 @@ class TileRefiner {
   void RefineTile(int thread, int begin, int count);
   // SolveLambertianTiles' last call on a thread: fits what is still queued.
   void Finish(int thread);
+  // `auto`'s step 5, once every tile is refined: in each connected region of
+  // solved pixels where enough pixels kept a lobe with very strong evidence,
+  // their median rho_s and e are the region's lobe, and the region's pixels
+  // kept Lambertian or trimmed are offered it (ModelLadder::NextWithSharedLobe).
+  // Runs its own threads.
+  void ShareLobe();
 
   // The counts of models, rejected samples and failed fits, into a summary of
   // the Lambertian pass (whose counts of solved and rejected pixels they correct).
@@ -57,8 +63,16 @@ class TileRefiner {
 
   // The Lambertian pass's solution x = albedo / pi n of pixel p.
   Eigen::Vector3d PassSolution(int p) const;
-  // fell_back: `chosen` stands in for a fit that failed (LadderStep's).
-  void Record(ThreadState& state, int p, const PixelFit& chosen, bool fell_back);
+  // fell_back: `chosen` stands in for a fit that failed (LadderStep's);
+  // evidence: LadderStep's, for a kept lobe.
+  void Record(ThreadState& state, int p, const PixelFit& chosen, bool fell_back, double evidence = 0.0);
+  // The fit steps 1-4 kept for solved pixel p, as the map holds it.
+  PixelFit KeptFit(int p) const;
+  // Step 5 on pixels [begin, end) of `candidates`, with their regions' lobes.
+  void ShareLobe(int thread, const std::vector<int>& candidates, const std::vector<SharedLobe>& lobes,
+                 std::size_t begin, std::size_t end);
+  // Pixel p, kept as `kept`, takes the lobe fitted with its region's exponent.
+  void RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe, int usable);
   // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps
   // the pixel's answer, or queues it for the stage the ladder asks for.
   // samples: the pixel's samples as copied for trimming, if they were.
@@ -85,6 +99,7 @@ class TileRefiner {
   const SampleReader reader_;
   const RecheckLanes recheck_;
   const PerPixelFits per_pixel_;
+  const int threads_;
   std::vector<ThreadState> states_;
   std::vector<BlinnPhongLaneFitter> lobe_fitters_;
   std::vector<TrimmedLambertianLanes> trimmers_;

@@ -237,6 +237,21 @@ void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lam
   }
 }
 
+// A lane whose lobe is held (a region's shared lobe) has no derivatives
+// along rho_s and e: their rows and columns of J^T J and entries of J^T r
+// are zero, so the damped step (whose diagonal keeps 1e-12) leaves them
+// where they are and solves for the normal and rho_d alone.
+void HoldSharedLobes(const double* shared_exponent, LaneEquations* equations) {
+  constexpr int kFirstLobeParameter = 3;  // rho_s, then e
+  for (int j = 0; j < kFloatLanes; ++j) {
+    if (!(shared_exponent[j] > 0.0)) continue;
+    for (int row = 0, entry = 0; row < kParameters; ++row)
+      for (int col = row; col < kParameters; ++col, ++entry)
+        if (col >= kFirstLobeParameter) equations->hessian[entry][j] = 0.0;
+    for (int p = kFirstLobeParameter; p < kParameters; ++p) equations->gradient[p][j] = 0.0;
+  }
+}
+
 }  // namespace
 
 // With d = cos / pi and l = k h^e cos, k = (e + 2) / (2 pi), the normal
@@ -316,6 +331,30 @@ void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, d
   }
 }
 
+PHOTORIG_PS_MULTIVERSION
+void BlinnPhongSharedStartLanes(int lights, const double* cos_light, const double* cos_half, const double* observed,
+                                const double* weight, const double* start_albedo, const double* specular_albedo,
+                                const double* exponent, LaneMaterial* out) {
+  // rho_d / pi = sum w c (b - lobe c) / sum w c^2, with lobe = rho_s (e + 2) / (2 pi) h^e.
+  alignas(64) double sum_a[kFloatLanes] = {}, sum_b[kFloatLanes] = {};
+  for (int k = 0; k < lights; ++k) {
+    const double* w = weight + k * kFloatLanes;
+    const double* c = cos_light + k * kFloatLanes;
+    const double* h = cos_half + k * kFloatLanes;
+    const double* b = observed + k * kFloatLanes;
+    for (int j = 0; j < kFloatLanes; ++j) {
+      const double lobe = h[j] > 0.0 && exponent[j] > 0.0
+                              ? specular_albedo[j] * (exponent[j] + 2.0) * (0.5 * kInvPi) * std::pow(h[j], exponent[j])
+                              : 0.0;
+      sum_a[j] += w[j] * c[j] * c[j], sum_b[j] += w[j] * c[j] * (b[j] - lobe * c[j]);
+    }
+  }
+  for (int j = 0; j < kFloatLanes; ++j) {
+    out->diffuse_albedo[j] = sum_a[j] > 0.0 ? std::max(0.0, M_PI * sum_b[j] / sum_a[j]) : start_albedo[j];
+    out->specular_albedo[j] = specular_albedo[j], out->exponent[j] = exponent[j];
+  }
+}
+
 BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, const double* cos_half,
                                        const double* observed, const double* weight, double start_albedo,
                                        const BlinnPhongOptions& options) {
@@ -344,6 +383,7 @@ struct BlinnPhongLaneFitter::State {
   double positive[kFloatLanes], predicted_decrease[kFloatLanes];
   int iterations[kFloatLanes];
   bool restarted[kFloatLanes];  // the start had no finite cost and the lane started again
+  double shared_exponent[kFloatLanes];  // > 0: the lane's lobe is held (BlinnPhongProblem's)
   int problem[kFloatLanes];  // index into the problems being fitted, -1 for an idle lane
 };
 
@@ -391,6 +431,7 @@ void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem, cons
   s.lambda[lane] = 1e-3;
   s.iterations[lane] = 0;
   s.restarted[lane] = false;
+  s.shared_exponent[lane] = problem.shared_exponent;
 }
 
 void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problems) {
@@ -420,11 +461,27 @@ void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problem
         cos_half[j] = std::max(0.0, g[3] * normal[0][j] + g[4] * normal[1][j] + g[5] * normal[2][j]);
       }
     }
-    LaneMaterial material;
-    BlinnPhongGridStartLanes(lights_, cos_light_.data(), cos_half_.data(), start_observed_.data(), weight_.data(),
-                             start_albedo, options_.min_exponent, options_.max_exponent, &material);
-    for (int j = 0; j < kFloatLanes && first + j < count; ++j)
-      starts_[first + j] = {material.diffuse_albedo[j], material.specular_albedo[j], material.exponent[j]};
+    // Problems with a shared lobe start from it, the others from the grid
+    // (which overwrites its inputs, so it goes second).
+    alignas(64) double shared_specular[kFloatLanes], shared_exponent[kFloatLanes];
+    bool any_shared = false, any_free = false;
+    for (int j = 0; j < kFloatLanes; ++j) {
+      const bool present = first + j < count;
+      shared_specular[j] = present ? problems[first + j].shared_specular_albedo : 0.0;
+      shared_exponent[j] = present ? problems[first + j].shared_exponent : 0.0;
+      (shared_exponent[j] > 0.0 ? any_shared : any_free) = true;
+    }
+    LaneMaterial shared, material;
+    if (any_shared)
+      BlinnPhongSharedStartLanes(lights_, cos_light_.data(), cos_half_.data(), start_observed_.data(), weight_.data(),
+                                 start_albedo, shared_specular, shared_exponent, &shared);
+    if (any_free)
+      BlinnPhongGridStartLanes(lights_, cos_light_.data(), cos_half_.data(), start_observed_.data(), weight_.data(),
+                               start_albedo, options_.min_exponent, options_.max_exponent, &material);
+    for (int j = 0; j < kFloatLanes && first + j < count; ++j) {
+      const LaneMaterial& from = shared_exponent[j] > 0.0 ? shared : material;
+      starts_[first + j] = {from.diffuse_albedo[j], from.specular_albedo[j], from.exponent[j]};
+    }
   }
 }
 
@@ -466,6 +523,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
   while (queue.busy() > 0) {
     EvaluateLanes(s.candidate, lights_, evaluation_geometry_.data(), observed_.data(), inverse_sigma_.data(),
                   &s.candidate_equations);
+    HoldSharedLobes(s.shared_exponent, &s.candidate_equations);
     for (int lane = 0; lane < kFloatLanes; ++lane) {
       stepping[lane] = false;
       if (s.problem[lane] < 0) continue;
@@ -493,8 +551,10 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
         if (!done) {
           s.restarted[lane] = true;
           s.candidate.diffuse_albedo[lane] = problems[s.problem[lane]].start_albedo;
-          s.candidate.specular_albedo[lane] = 0.0;
-          s.candidate.exponent[lane] = options_.min_exponent;
+          if (!(s.shared_exponent[lane] > 0.0)) {  // a shared lobe stays
+            s.candidate.specular_albedo[lane] = 0.0;
+            s.candidate.exponent[lane] = options_.min_exponent;
+          }
           continue;  // stepping stays false: the candidate is evaluated as it is
         }
       } else {

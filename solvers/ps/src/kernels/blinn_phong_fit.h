@@ -52,6 +52,12 @@ void BlinnPhongGridStartLanes(int lights, double* cos_light, double* cos_half, d
 BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, const double* cos_half,
                                        const double* observed, const double* weight, double start_albedo,
                                        const BlinnPhongOptions& options);
+// The start where the lobe is given (rho_s and e per lane, a region's shared
+// lobe): rho_d >= 0 by linear least squares with the lobe subtracted. The
+// inputs are only read.
+void BlinnPhongSharedStartLanes(int lights, const double* cos_light, const double* cos_half, const double* observed,
+                                const double* weight, const double* start_albedo, const double* specular_albedo,
+                                const double* exponent, LaneMaterial* out);
 
 // One pixel: observed values in solver units for every light of the set, and
 // 1 / sigma for each (0 marks a sample the fit must not use).
@@ -60,6 +66,10 @@ struct BlinnPhongProblem {
   const double* inverse_sigma = nullptr;
   Eigen::Vector3d start_normal = Eigen::Vector3d::UnitZ();
   double start_albedo = 0.0;  // rho_d if no grid point fits
+  // shared_exponent > 0: the lobe is held at (shared_specular_albedo,
+  // shared_exponent), the one the pixel's region shares, and only the normal
+  // and rho_d are fitted.
+  double shared_specular_albedo = 0.0, shared_exponent = 0.0;
 };
 
 struct BlinnPhongSolution {

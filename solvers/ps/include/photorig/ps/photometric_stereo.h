@@ -19,7 +19,10 @@
 //                greedily, kept where the Bayesian information criterion
 //                prefers it to the Lambertian fit, else the trimmed fit
 //                (PixelModel::kTrimmed) if that is adequate while rejecting
-//                few samples, else the Lambertian fit.
+//                few samples, else the Lambertian fit. Then, in each region
+//                of the image glossy enough to know its lobe, the pixels
+//                kept without one take that lobe where it explains their
+//                samples better (ModelSelectionOptions::share_lobe).
 //   Where a method's own fit fails, the pixel falls back to a simpler one
 //   (SolverSummary::pixels_fell_back).
 
@@ -100,6 +103,18 @@ struct ModelSelectionOptions {
   // allows goes straight to the Blinn-Phong fit. 5 sigma: a sample of a good
   // fit lies beyond it with probability 6e-7.
   double gross_outlier_sigma = 5.0;
+  // kAuto's step 5 (docs/photometric-stereo.md, "The `auto` ladder"): one
+  // lobe per material. In a connected region of solved pixels where at least
+  // glossy_region_fraction of the pixels (and 16 or more) kept a lobe with
+  // very strong evidence (information criterion 10 below the Lambertian
+  // fit's), the pixels kept Lambertian or trimmed are fitted with the lobe at
+  // the region's median exponent, and keep it where it lowers chi-square by
+  // more than 2 (Akaike's criterion for its one extra parameter). Their own
+  // samples cannot tell the lobe apart, yet it tilts their normals (on the
+  // realistic shiny spheres, a fifth to a third of the pixels). 5 %: fifty
+  // times the rate at which chance sends a matte pixel to the lobe.
+  bool share_lobe = true;
+  double glossy_region_fraction = 0.05;
   bool IsValid(std::string* why) const;
 };
 

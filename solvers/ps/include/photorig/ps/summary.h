@@ -32,6 +32,9 @@ struct SolverSummary : solvers::Summary {
   std::size_t pixels_trimmed = 0;  // Lambertian with its worst samples left out
   std::size_t pixels_irls = 0;     // Lambertian by iteratively reweighted least squares
   std::size_t pixels_blinn_phong = 0;
+  // Of pixels_blinn_phong: fitted by `auto`'s step 5 with the exponent their
+  // region shares (pixels whose own samples could not tell the lobe apart).
+  std::size_t pixels_shared_lobe = 0;
   // Pixels whose method's own fit failed and which kept a simpler fit instead
   // (`blinn-phong`: the trimmed, then the Lambertian fit; `robust` and `auto`:
   // the Lambertian fit), counted among the models above by the fit they kept.
