@@ -122,7 +122,12 @@ std::vector<PixelLobe> FitPixelLobes(const Samples& s, const std::vector<int>& p
         for (int ch = 0; ch < s.channels; ++ch) {
           const ChannelSums& cs = sums.c[ch];
           const double reduced = cs.uu > 0.0 ? cs.hh - cs.uh * cs.uh / cs.uu : 0.0;
-          const double w = reduced > 1e-300 ? std::max(0.0, (cs.hy - cs.uh * cs.uy / cs.uu) / reduced) : 0.0;
+          // A lobe the samples barely separate from the diffuse term (reduced
+          // coefficient a vanishing part of the lobe's own) has no weight to
+          // speak of; and its albedo at normal incidence cannot exceed 1.
+          const double w = reduced > 1e-9 * cs.hh && reduced > 0.0
+                               ? std::clamp((cs.hy - cs.uh * cs.uy / cs.uu) / reduced, 0.0, 1.0)
+                               : 0.0;
           trial.weight[ch] = w;
           cost += PixelCost(cs, w, &trial.rho[ch]);
         }
