@@ -8,6 +8,8 @@ packages=(
   build-essential cmake pkg-config git
   # maths and images
   libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev
+  # relightable assets: glTF 2.0 writer/reader (header-only; images through OpenCV, see docs/reflectance.md)
+  libtinygltf-dev
   # data sets (DiLiGenT's ground truth is a MATLAB file)
   libmatio-dev
   # configuration, CLI, logging, serialisation

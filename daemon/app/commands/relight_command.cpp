@@ -1,4 +1,4 @@
-// photorig relight --run RUN (--envmap MAP.hdr | --light X,Y,Z[,INTENSITY]...) --out IMAGE.tiff
+// photorig relight --run RUN (--envmap MAP.hdr | --light X,Y,Z[,INTENSITY]... [--model lambertian|svbrdf]) --out IMAGE.tiff
 // photorig envmap --ball IMAGE --circle CX CY R [--dark FILE | --black-level DN] [--width W] --out MAP.hdr
 
 #include "../command.h"
@@ -7,6 +7,7 @@
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/rig_config.h"
 #include "photorig/daemon/run_store.h"
+#include "photorig/daemon/svbrdf_pipeline.h"
 #include "photorig/lighting/envmap.h"
 #include "photorig/lighting/relight.h"
 #include "photorig/lighting/sphere.h"
@@ -27,6 +28,7 @@ namespace fs = std::filesystem;
 struct RelightOptions {
   std::string run_dir, envmap, out;
   std::vector<std::vector<double>> lights;  // x, y, z[, intensity]
+  std::string model = "lambertian";          // with --light: lambertian (results/ps) | svbrdf (results/svbrdf)
 };
 
 // Writes the float result and an 8-bit view scaled to its 99.5th percentile.
@@ -58,6 +60,23 @@ int Relight(const RelightOptions& options) {
     if (done.IsSolutionUsable()) done = lighting::RelightFromFrames(frames, weights, &relit);
     if (!done.IsSolutionUsable())
       return Fail(kExitFailed, options.run_dir + " with " + options.envmap + ": " + done.message);
+  } else if (options.model == "svbrdf") {
+    // Model-based with the fitted reflectance: per-pixel albedo and the materials' lobes.
+    const fs::path svbrdf = fs::path(options.run_dir) / "results" / "svbrdf";
+    if (!fs::exists(svbrdf / "report.json"))
+      return Fail(kExitUsage, (svbrdf / "report.json").string() + " not found: run `photorig solve svbrdf --run " +
+                                  options.run_dir + "` first");
+    const solvers::reflectance::ReflectanceMaps maps = daemon::ReadSvbrdfResult(svbrdf.string());
+    for (const auto& light : options.lights) {
+      if (light.size() != 3 && light.size() != 4) throw std::invalid_argument("--light takes X,Y,Z or X,Y,Z,INTENSITY");
+      const Eigen::Vector3d d(light[0], light[1], light[2]);
+      if (!(d.norm() > 0)) throw std::invalid_argument("--light: zero direction");
+      cv::Mat one;
+      const solvers::Summary rendered = solvers::reflectance::RenderReflectance(
+          maps, d.normalized(), Eigen::Vector3d::Constant(light.size() == 4 ? light[3] : 1.0), Eigen::Vector3d::UnitZ(), &one);
+      if (!rendered.IsSolutionUsable()) return Fail(kExitFailed, svbrdf.string() + ": " + rendered.message);
+      if (relit.empty()) relit = one; else relit += one;
+    }
   } else {
     // Model-based: the normals and albedo photometric stereo recovered.
     const fs::path ps = fs::path(options.run_dir) / "results" / "ps";
@@ -103,6 +122,10 @@ CommandRunner SetupRelight(CLI::App& app) {
   sub->add_option("--light", options->lights, "X,Y,Z[,INTENSITY] directional light (repeatable): from normals and albedo")
       ->delimiter(',')
       ->allow_extra_args(false);
+  sub->add_option("--model", options->model,
+                  "with --light: lambertian (results/ps normals and albedo, default) or svbrdf (results/svbrdf: "
+                  "albedo and the materials' lobes)")
+      ->check(CLI::IsMember({"lambertian", "svbrdf"}));
   sub->add_option("--out", options->out, "output float TIFF (an 8-bit PNG view is written beside it)")->required();
   return {sub, [options] { return Relight(*options); }};
 }

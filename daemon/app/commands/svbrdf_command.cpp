@@ -1,0 +1,89 @@
+// photorig solve svbrdf (--run DIR | --dataset DIR) [--mask PNG] [--out DIR] [--max-materials K] [--held-out N] [--no-gltf]
+
+#include "../command.h"
+#include "../command_output.h"
+#include "../progress_display.h"
+#include "photorig/daemon/diligent.h"
+#include "photorig/daemon/svbrdf_pipeline.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+namespace photorig::app {
+namespace {
+
+namespace refl = solvers::reflectance;
+
+struct Options {
+  std::string run_dir, dataset_dir, mask, out;
+  daemon::SvbrdfRequest request;
+  bool no_gltf = false;
+};
+
+void PrintSummary(const daemon::SvbrdfResult& result) {
+  std::fprintf(stderr, "svbrdf: %s, %d pixels fitted, %d materials\n", solvers::TerminationName(result.summary.termination),
+               result.summary.pixels_fitted, result.summary.materials);
+  for (std::size_t m = 0; m < result.material_fits.size(); ++m) {
+    const refl::MaterialFit& f = result.material_fits[m];
+    std::fprintf(stderr, "  material %zu: %s, %d pixels, specular %.4g, shape %.4g\n", m,
+                 solvers::brdf::ModelName(f.model), f.pixels, f.specular[0], f.shape);
+  }
+  for (refl::Warning w : result.summary.warnings) std::fprintf(stderr, "  warning: %s\n", refl::WarningName(w));
+  if (result.relighting && result.relighting->IsSolutionUsable())
+    for (int m = 0; m < 3; ++m)
+      std::fprintf(stderr, "  held-out RMSE %-15s %.5g (PSNR %.1f dB) over %zu lights\n",
+                   refl::MethodName(static_cast<refl::Method>(m)), result.relighting->mean_rmse[m],
+                   result.relighting->mean_psnr_db[m], result.relighting->held_out.size());
+}
+
+int Execute(const Options& options) {
+  daemon::ValidatePhotometricStereoRequest(options.request.ps);
+  if (options.run_dir.empty() && options.dataset_dir.empty()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
+  const bool from_run = !options.run_dir.empty();
+  const std::string source = from_run ? options.run_dir : options.dataset_dir;
+  const std::string destination =
+      options.out.empty() ? (std::filesystem::path(source) / "results" / "svbrdf").string() : options.out;
+  daemon::PhotometricStereoInput input =
+      from_run ? daemon::LoadRunStack(options.run_dir) : daemon::LoadDiligent(options.dataset_dir);
+  if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
+  ProgressDisplay progress;
+  daemon::SvbrdfRequest request = options.request;
+  request.progress = progress.Callback();
+  request.export_gltf = !options.no_gltf;
+  const daemon::SvbrdfResult result = daemon::SolveSvbrdfAndWrite(input, request, destination);
+  progress.EndLine();
+  PrintSummary(result);
+  std::printf("results: %s/\n", destination.c_str());
+  ResultFields() = daemon::ToJson(result);
+  ResultFields()["results_directory"] = destination;
+  if (!result.usable()) return Fail(kExitFailed, "no usable result: " + result.summary.message);
+  return kExitOk;
+}
+
+CommandRunner SetupSolveSvbrdf(CLI::App& app) {
+  auto options = std::make_shared<Options>();
+  CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
+  CLI::App* svbrdf = solve->add_subcommand(
+      "svbrdf", "normals, per-pixel albedo and per-material lobes, held-out relighting and a glTF asset");
+  auto* run = svbrdf->add_option("--run", options->run_dir, "run directory")->check(CLI::ExistingDirectory);
+  auto* dataset =
+      svbrdf->add_option("--dataset", options->dataset_dir, "DiLiGenT-layout folder")->check(CLI::ExistingDirectory);
+  run->excludes(dataset);
+  svbrdf->add_option("--mask", options->mask, "PNG, nonzero = object")->check(CLI::ExistingFile);
+  svbrdf->add_option("--out", options->out, "output directory (default: SOURCE/results/svbrdf)");
+  svbrdf->add_option("--method", options->request.ps.method, "photometric stereo for the normals (default auto)")
+      ->check(CLI::IsMember({"l2", "lambertian", "robust", "blinn-phong", "auto"}));
+  svbrdf->add_option("--max-materials", options->request.max_materials, "largest number of materials tried (default 4)")
+      ->check(CLI::Range(1, 16));
+  svbrdf->add_option("--held-out", options->request.held_out_lights,
+                     "lights held out one at a time for the relighting check, a stratified subset (default 8; 0 = all; -1 = skip)")
+      ->check(CLI::Range(-1, 100000));
+  svbrdf->add_flag("--no-gltf", options->no_gltf, "do not write the glTF asset");
+  return {svbrdf, [options] { return Execute(*options); }};
+}
+
+const bool registered = RegisterCommand(SetupSolveSvbrdf);
+
+}  // namespace
+}  // namespace photorig::app

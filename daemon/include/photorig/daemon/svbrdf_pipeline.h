@@ -1,0 +1,59 @@
+#pragma once
+// `photorig solve svbrdf`: photometric stereo for the normals and the depth,
+// then spatially varying reflectance (solvers/reflectance) on the same stack,
+// its held-out-light relighting check, and the glTF asset.
+//
+// Output directory:
+//   ps/                    the photometric-stereo result (normals, depth, mesh, its report.json)
+//   albedo.tiff            rho_d, float, 1 or 3 channels
+//   albedo_sigma.tiff      its standard deviation
+//   material.png           material index per pixel (255 = not fitted)
+//   flags.png              solvers::reflectance::PixelFlag per pixel
+//   rms_residual.tiff      per-pixel RMS residual (image units)
+//   asset/                 asset.gltf, asset.bin, PNG textures, EXR maps (gltf_export.h)
+//   report.json            materials with their lobes, warnings, held-out errors, timings, truth comparisons
+
+#include "photorig/daemon/ps_pipeline.h"
+#include "photorig/solvers/reflectance/svbrdf.h"
+
+#include <nlohmann/json.hpp>
+
+#include <optional>
+#include <string>
+
+namespace photorig::daemon {
+
+struct SvbrdfRequest {
+  PhotometricStereoRequest ps;   // how the normals are solved
+  int max_materials = 4;         // ReflectanceOptions::max_materials
+  int held_out_lights = 8;       // RelightingOptions::held_out_lights (0 = every light); -1 = skip the check
+  bool export_gltf = true;
+  solvers::ProgressCallback progress;
+};
+
+// The stack as the reflectance solver takes it: dark subtracted, light
+// scales as per-channel intensities, clipped samples marked so the solver
+// leaves them out and counts them.
+solvers::reflectance::ReflectanceStack ToReflectanceStack(const PhotometricStereoInput& input);
+
+struct SvbrdfResult {
+  PhotometricStereoResult ps;
+  solvers::reflectance::ReflectanceSummary summary;
+  std::vector<solvers::reflectance::MaterialFit> material_fits;  // as fitted, for the report
+  std::optional<solvers::reflectance::RelightingSummary> relighting;
+  std::vector<double> gltf_mapping_error;   // per material, relative RMS (gltf_material.h)
+  std::optional<double> albedo_error_vs_truth;  // median relative, over fitted pixels
+  std::string gltf_path;                    // empty when not exported
+  double total_ms = 0.0;
+  bool usable() const { return ps.usable() && summary.IsSolutionUsable(); }
+};
+
+nlohmann::json ToJson(const SvbrdfResult& result);
+
+SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const SvbrdfRequest& request,
+                                 const std::string& output_directory);
+
+// Reads back what SolveSvbrdfAndWrite wrote (maps, normals, materials), for relighting.
+solvers::reflectance::ReflectanceMaps ReadSvbrdfResult(const std::string& output_directory);
+
+}  // namespace photorig::daemon

@@ -1,0 +1,197 @@
+#include "photorig/daemon/svbrdf_pipeline.h"
+
+#include "photorig/daemon/gltf_export.h"
+#include "photorig/daemon/image_io.h"
+#include "photorig/solvers/reflectance/gltf_material.h"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+
+namespace photorig::daemon {
+namespace {
+
+namespace fs = std::filesystem;
+namespace refl = solvers::reflectance;
+namespace brdf = solvers::brdf;
+
+nlohmann::json MaterialJson(const refl::MaterialFit& m) {
+  nlohmann::json j;
+  j["model"] = brdf::ModelName(m.model);
+  j["pixels"] = m.pixels;
+  j["specular"] = {m.specular[0], m.specular[1], m.specular[2]};
+  j["specular_sigma"] = {m.specular_sigma[0], m.specular_sigma[1], m.specular_sigma[2]};
+  j["shape"] = m.shape;
+  j["shape_relative_sigma"] = m.shape_sigma;
+  j["rms_residual"] = m.rms_residual;
+  j["bic"] = m.bic;
+  j["bic_lambertian"] = m.bic_lambertian;
+  j["min_half_angle_deg"] = m.min_half_angle_deg;
+  j["highlight_lights"] = m.highlight_lights;
+  j["warnings"] = nlohmann::json::array();
+  for (refl::Warning w : m.warnings) j["warnings"].push_back(refl::WarningName(w));
+  return j;
+}
+
+}  // namespace
+
+refl::ReflectanceStack ToReflectanceStack(const PhotometricStereoInput& input) {
+  refl::ReflectanceStack stack;
+  const ps::PhotometricStack& ps = input.stack;
+  const double saturation = EffectiveSaturationLevel(input);
+  // Clipped samples become +max so the solver's saturation test finds them
+  // after the dark has been subtracted.
+  const float clipped = std::numeric_limits<float>::max();
+  for (std::size_t j = 0; j < ps.images.size(); ++j) {
+    cv::Mat image;
+    if (ps.dark.empty()) image = ps.images[j].clone(); else image = ps.images[j] - ps.dark;
+    if (std::isfinite(saturation)) image.setTo(clipped, ps.images[j] >= saturation);
+    stack.images.push_back(image);
+    stack.light_intensities.push_back(Eigen::Vector3d::Constant(ps.light_scales.empty() ? 1.0 : ps.light_scales[j]));
+  }
+  stack.light_directions = ps.light_directions;
+  stack.view_direction = ps.view_direction;
+  if (std::isfinite(saturation)) stack.saturation_level = clipped;
+  return stack;
+}
+
+nlohmann::json ToJson(const SvbrdfResult& result) {
+  nlohmann::json j;
+  j["source"] = result.ps.source;
+  j["termination"] = solvers::TerminationName(result.summary.termination);
+  j["message"] = result.summary.message;
+  j["pixels"] = {{"fitted", result.summary.pixels_fitted},
+                 {"outside_mask", result.summary.pixels_outside_mask},
+                 {"no_normal", result.summary.pixels_no_normal},
+                 {"too_few_samples", result.summary.pixels_too_few_samples},
+                 {"poor_fit", result.summary.pixels_poor_fit}};
+  j["saturated_samples"] = result.summary.saturated_samples;
+  j["materials"] = nlohmann::json::array();
+  for (std::size_t m = 0; m < result.material_fits.size(); ++m) {
+    nlohmann::json mj = MaterialJson(result.material_fits[m]);
+    if (m < result.gltf_mapping_error.size()) mj["gltf_mapping_error"] = result.gltf_mapping_error[m];
+    j["materials"].push_back(mj);
+  }
+  j["bic_by_materials"] = result.summary.bic_by_materials;
+  j["warnings"] = nlohmann::json::array();
+  for (refl::Warning w : result.summary.warnings) j["warnings"].push_back(refl::WarningName(w));
+  j["inconsistent_lights"] = result.summary.inconsistent_lights;
+  j["timings_ms"] = {{"setup", result.summary.setup_ms}, {"solve", result.summary.solve_ms},
+                     {"total", result.summary.total_ms}, {"pipeline", result.total_ms}};
+  if (result.ps.normals_vs_truth)
+    j["normals_vs_truth_deg"] = {{"mean", result.ps.normals_vs_truth->mean_deg},
+                                 {"median", result.ps.normals_vs_truth->median_deg}};
+  if (result.albedo_error_vs_truth) j["albedo_median_relative_error_vs_truth"] = *result.albedo_error_vs_truth;
+  if (result.relighting) {
+    const refl::RelightingSummary& r = *result.relighting;
+    nlohmann::json h;
+    h["subset"] = "stratified (farthest-point over the light directions)";
+    h["lights"] = r.held_out;
+    h["termination"] = solvers::TerminationName(r.termination);
+    for (int m = 0; m < 3; ++m) {
+      const char* name = refl::MethodName(static_cast<refl::Method>(m));
+      h["mean"][name] = {{"rmse", r.mean_rmse[m]}, {"psnr_db", r.mean_psnr_db[m]}, {"fit_ms", r.mean_fit_ms[m]}};
+    }
+    h["errors"] = nlohmann::json::array();
+    for (const auto& e : r.errors)
+      h["errors"].push_back({{"light", e.light}, {"method", refl::MethodName(e.method)}, {"rmse", e.rmse},
+                             {"psnr_db", e.psnr_db}, {"fit_ms", e.fit_ms}});
+    j["held_out"] = h;
+  }
+  if (!result.gltf_path.empty()) j["gltf"] = fs::path(result.gltf_path).lexically_relative(fs::path(result.gltf_path).parent_path().parent_path()).string();
+  return j;
+}
+
+SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const SvbrdfRequest& request,
+                                 const std::string& output_directory) {
+  const auto start = std::chrono::steady_clock::now();
+  const fs::path out(output_directory);
+  fs::create_directories(out);
+  SvbrdfResult result;
+  PhotometricStereoRequest ps_request = request.ps;
+  ps_request.progress = request.progress;
+  result.ps = SolveAndWrite(input, ps_request, (out / "ps").string());
+  if (!result.ps.usable()) {
+    result.summary.End(solvers::Termination::kFailure, "photometric stereo found no normals: " + result.ps.summary.message);
+  } else {
+    const cv::Mat normals = ReadFloatTiff((out / "ps" / "normals.tiff").string());
+    cv::Mat mask = input.object_mask;
+    const refl::ReflectanceStack stack = ToReflectanceStack(input);
+    refl::ReflectanceOptions options;
+    options.max_materials = request.max_materials;
+    options.progress = request.progress;
+    refl::ReflectanceMaps maps;
+    result.summary = refl::FitReflectance(options, stack, normals, mask, &maps);
+    if (result.summary.IsSolutionUsable()) {
+      result.material_fits = maps.materials;
+      WriteFloatTiff((out / "albedo.tiff").string(), maps.albedo);
+      WriteFloatTiff((out / "albedo_sigma.tiff").string(), maps.albedo_sigma);
+      WriteFloatTiff((out / "rms_residual.tiff").string(), maps.rms_residual);
+      WriteImage((out / "material.png").string(), maps.material);
+      WriteImage((out / "flags.png").string(), maps.flags);
+      for (const auto& m : maps.materials)
+        result.gltf_mapping_error.push_back(refl::GltfMappingError(m, stack.light_directions, stack.view_direction));
+      if (!input.truth_albedo.empty() && input.truth_albedo.size() == maps.albedo.size()) {
+        std::vector<double> errors;
+        const int C = maps.albedo.channels();
+        for (int i = 0; i < static_cast<int>(maps.flags.total()); ++i) {
+          if (maps.flags.at<std::uint8_t>(i) != static_cast<std::uint8_t>(refl::PixelFlag::kFitted)) continue;
+          const double t = input.truth_albedo.ptr<float>()[i];
+          double f = 0.0;
+          for (int ch = 0; ch < C; ++ch) f += maps.albedo.ptr<float>()[i * C + ch] / C;
+          if (std::isfinite(t) && t > 0.0) errors.push_back(std::abs(f - t) / t);
+        }
+        if (!errors.empty()) {
+          std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+          result.albedo_error_vs_truth = errors[errors.size() / 2];
+        }
+      }
+      if (request.held_out_lights >= 0) {
+        refl::RelightingOptions relight;
+        relight.fit = options;
+        relight.fit.progress = nullptr;
+        relight.held_out_lights = request.held_out_lights;
+        relight.progress = request.progress;
+        result.relighting = refl::EvaluateHeldOutLights(relight, stack, normals, mask);
+      }
+      if (request.export_gltf && fs::exists(out / "ps" / "depth.tiff")) {
+        const cv::Mat depth = ReadFloatTiff((out / "ps" / "depth.tiff").string());
+        result.gltf_path = WriteGltfAsset((out / "asset").string(), maps, depth, input.pixel_pitch).gltf_path;
+      }
+    }
+  }
+  result.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  WriteFileDurably((out / "report.json").string(), ToJson(result).dump(2) + "\n");
+  return result;
+}
+
+refl::ReflectanceMaps ReadSvbrdfResult(const std::string& output_directory) {
+  const fs::path dir(output_directory);
+  const fs::path report_path = dir / "report.json";
+  std::ifstream file(report_path);
+  if (!file) throw std::runtime_error(report_path.string() + " not found: run `photorig solve svbrdf` first");
+  const nlohmann::json report = nlohmann::json::parse(file);
+  refl::ReflectanceMaps maps;
+  maps.albedo = ReadFloatTiff((dir / "albedo.tiff").string());
+  maps.normals = ReadFloatTiff((dir / "ps" / "normals.tiff").string());
+  maps.material = ReadImage((dir / "material.png").string());
+  maps.flags = ReadImage((dir / "flags.png").string());
+  for (const auto& m : report.at("materials")) {
+    refl::MaterialFit fit;
+    const auto model = brdf::ParseModel(m.at("model").get<std::string>());
+    if (!model) throw std::runtime_error(report_path.string() + ": unknown model " + m.at("model").dump());
+    fit.model = *model;
+    for (int ch = 0; ch < 3; ++ch) fit.specular[ch] = m.at("specular")[ch].get<double>();
+    fit.shape = m.at("shape").get<double>();
+    fit.pixels = m.at("pixels").get<int>();
+    maps.materials.push_back(fit);
+  }
+  return maps;
+}
+
+}  // namespace photorig::daemon

@@ -1,0 +1,203 @@
+#pragma once
+// Spatially varying reflectance from a photometric stack with known normals:
+// a diffuse albedo per pixel and channel, and a specular lobe shared by every
+// pixel of a material. The number of materials and each material's lobe
+// (none, Blinn-Phong, GGX; the models of photorig/solvers/brdf/models.h) are
+// chosen by the Bayesian information criterion, so the result models no more
+// than the data show.
+//
+// Per pixel p, light j and channel c the stack holds linear radiance
+//   I_pjc = E_jc (rho_pc / pi + lobe_c(n_p, w_j, v)) (n_p . w_j)
+// with E_jc the light's calibrated irradiance in that channel. For a fixed lobe
+// shape the model is linear in the per-pixel albedos and the material's
+// specular weight, so the solver eliminates the albedos exactly (a Schur
+// complement per pixel) and searches the shape alone: a log-spaced grid, then
+// golden-section refinement.
+//
+// Materials are k-means clusters (k = 1..max_materials) of per-pixel features:
+// albedo chromaticity (three-channel stacks) and the pixel's own Blinn-Phong
+// lobe (its weight and sharpness). Each k is scored by the BIC of the fit it
+// leads to; the smallest wins.
+
+#include "photorig/solvers/brdf/models.h"
+#include "photorig/solvers/progress.h"
+#include "photorig/solvers/summary.h"
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace photorig::solvers::reflectance {
+
+// N images of C channels (C = 1 or 3), linear, dark already subtracted.
+struct ReflectanceStack {
+  std::vector<cv::Mat> images;                       // CV_32FC1 or CV_32FC3, same size
+  std::vector<Eigen::Vector3d> light_directions;     // unit vectors towards each light
+  // Per light and channel: the irradiance the light delivers at normal
+  // incidence in image units per unit reflectance; (1, 1, 1) for a
+  // calibrated stack whose albedo is relative. Empty = all ones.
+  std::vector<Eigen::Vector3d> light_intensities;
+  Eigen::Vector3d view_direction{0.0, 0.0, 1.0};     // towards the camera (orthographic)
+  // Samples at or above this value are clipped by the sensor: left out of
+  // every fit and counted (SaturatedHighlights).
+  double saturation_level = std::numeric_limits<double>::infinity();
+
+  int width() const { return images.empty() ? 0 : images.front().cols; }
+  int height() const { return images.empty() ? 0 : images.front().rows; }
+  int channels() const { return images.empty() ? 0 : images.front().channels(); }
+  int light_count() const { return static_cast<int>(images.size()); }
+  Eigen::Vector3d Intensity(int light) const;  // (1, 1, 1) when none are given
+  bool IsValid(std::string* why) const;
+};
+
+// Why a pixel has (or lacks) reflectance. Stored in ReflectanceMaps::flags.
+enum class PixelFlag : std::uint8_t {
+  kFitted = 0,
+  kOutsideMask = 1,    // masked out by the caller
+  kNoNormal = 2,       // the normal map is NaN here
+  kTooFewSamples = 3,  // fewer than min_samples lit, unsaturated samples
+  kPoorFit = 4,        // residual far above its material's: the model does not explain it
+};
+const char* PixelFlagName(PixelFlag flag);
+
+// Conditions under which the data cannot support what was fitted; each is
+// raised on the materials it concerns and listed in the summary.
+enum class Warning : std::uint8_t {
+  kTooFewHighlightLights,  // a lobe seen under fewer than min_highlight_lights lights: shape unreliable
+  kHighlightsUnobserved,   // no light comes near a material's mirror direction: a lobe would go unseen
+  kSaturatedHighlights,    // clipped samples in a material: its lobe's peak was never measured
+  kInconsistentIntensities // a light's images disagree with the others by more than max_intensity_error
+};
+const char* WarningName(Warning warning);
+
+struct MaterialFit {
+  brdf::Model model = brdf::Model::kLambertian;  // kLambertian: no lobe
+  Eigen::Vector3d specular = Eigen::Vector3d::Zero();  // k_s (Blinn-Phong) or F0 (GGX), per channel
+  double shape = 0.0;                                  // exponent e (Blinn-Phong) or roughness a (GGX)
+  Eigen::Vector3d specular_sigma = Eigen::Vector3d::Zero();  // one standard deviation
+  double shape_sigma = 0.0;                                  // of the shape, relative (sigma / shape)
+  int pixels = 0;
+  double rms_residual = 0.0;          // image units, over its samples
+  double bic = 0.0;                   // of the chosen lobe
+  double bic_lambertian = 0.0;        // of no lobe, for comparison
+  double min_half_angle_deg = 0.0;    // median over pixels of the smallest angle between n and h
+  int highlight_lights = 0;           // lights that put samples inside the fitted lobe's half width
+  std::vector<Warning> warnings;
+};
+
+struct ReflectanceMaps {
+  cv::Mat albedo;        // CV_32FC(C) diffuse rho_d; NaN where not fitted
+  cv::Mat albedo_sigma;  // CV_32FC(C) one standard deviation; NaN where not fitted
+  cv::Mat material;      // CV_8U index into `materials`; 255 where not fitted
+  cv::Mat flags;         // CV_8U PixelFlag
+  cv::Mat rms_residual;  // CV_32F per pixel, image units; NaN where not fitted
+  cv::Mat normals;       // CV_32FC3, the normals the reflectance was fitted with
+  std::vector<MaterialFit> materials;
+};
+
+struct ReflectanceOptions {
+  // Largest number of materials tried (1 = one material for the whole object). Default 4.
+  int max_materials = 4;
+  // Lobes a material may have; kLambertian (no lobe) is always a candidate. Default both.
+  std::vector<brdf::Model> lobes = {brdf::Model::kBlinnPhong, brdf::Model::kGgx};
+  // Samples with n . w below this are left out (grazing light, attached shadow). Default 0.05.
+  double min_cosine = 0.05;
+  // Pixels with fewer lit, unsaturated samples are flagged kTooFewSamples. Default 6.
+  int min_samples = 6;
+  // A pixel whose residual exceeds this many times its material's is flagged kPoorFit. Default 6.
+  double poor_fit_ratio = 6.0;
+  // Pixels per material used for the lobe-shape search (a deterministic
+  // subsample); the albedos are then solved for every pixel. Default 2000.
+  int shape_search_pixels = 2000;
+  // k-means restarts per k (deterministic seeds). Default 4.
+  int kmeans_restarts = 4;
+  // Fewer distinct lights inside a lobe's half width raise kTooFewHighlightLights. Default 3.
+  int min_highlight_lights = 3;
+  // A material whose median smallest half-vector angle exceeds this raises
+  // kHighlightsUnobserved (a lobe narrower than that cannot be seen). Default 20 degrees.
+  double unobserved_half_angle_deg = 20.0;
+  // Clipped samples above this fraction of a material's samples raise kSaturatedHighlights. Default 0.002.
+  double max_saturated_fraction = 0.002;
+  // A light whose median ratio of measured to predicted radiance is off by
+  // more than this raises kInconsistentIntensities. Default 0.08.
+  double max_intensity_error = 0.08;
+  // Reports "per-pixel", "materials k=..", "albedo" stages.
+  ProgressCallback progress;
+
+  bool IsValid(std::string* why) const;
+};
+
+struct ReflectanceSummary : Summary {
+  int pixels_fitted = 0;
+  int pixels_outside_mask = 0;
+  int pixels_no_normal = 0;
+  int pixels_too_few_samples = 0;
+  int pixels_poor_fit = 0;
+  long long saturated_samples = 0;
+  int materials = 0;
+  std::vector<double> bic_by_materials;  // [k - 1]: BIC of the best fit with k materials
+  std::vector<Warning> warnings;         // the union over materials, plus stack-wide ones
+  std::vector<int> inconsistent_lights;  // lights behind kInconsistentIntensities
+  std::vector<double> light_intensity_ratio;  // per light: median measured / predicted
+};
+
+// Fits the reflectance of every masked pixel with a finite normal. `normals`
+// is CV_32FC3 of the stack's size; `mask` optional CV_8U (zero = skip).
+ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const ReflectanceStack& stack,
+                                  const cv::Mat& normals, const cv::Mat& mask, ReflectanceMaps* maps);
+
+// The image of the fitted reflectance under one light (radiance in the
+// stack's units): CV_32FC(C), zero where the pixel was not fitted.
+Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
+                          const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image);
+
+// ---- Held-out-light relighting: the check that needs no ground truth ----
+
+enum class Method {
+  kLambertian,     // per-pixel albedo, no lobe
+  kPerPixelLobe,   // per-pixel albedo and per-pixel Blinn-Phong lobe
+  kPerMaterial     // the materials of FitReflectance
+};
+const char* MethodName(Method method);  // "lambertian", "per_pixel_lobe", "per_material"
+
+struct RelightingOptions {
+  ReflectanceOptions fit;
+  // How many lights to hold out, one at a time: a stratified subset spread
+  // over the light directions by farthest-point sampling (0 = every light). Default 8.
+  int held_out_lights = 8;
+  ProgressCallback progress;  // one unit per held-out light and method
+  bool IsValid(std::string* why) const;
+};
+
+struct HeldOutError {
+  int light = 0;
+  Method method = Method::kLambertian;
+  double rmse = 0.0;     // image units, over the pixels every method fitted, unsaturated samples
+  double psnr_db = 0.0;  // 20 log10(peak / rmse), peak = the held-out image's 99.9th percentile over the mask
+  double fit_ms = 0.0;   // time to fit without the light
+};
+
+struct RelightingSummary : Summary {
+  std::vector<int> held_out;  // light indices, in evaluation order
+  std::vector<HeldOutError> errors;
+  // Mean RMSE over the held-out lights per method, indexed by Method.
+  double mean_rmse[3] = {0.0, 0.0, 0.0};
+  double mean_psnr_db[3] = {0.0, 0.0, 0.0};
+  double mean_fit_ms[3] = {0.0, 0.0, 0.0};
+  int materials = 0;  // chosen on all lights and kept for every held-out fit
+};
+
+// For each held-out light: fit each method on the other lights (the number
+// of materials and their lobes chosen once on all lights, the lobe shapes,
+// weights and albedos refitted), render the held-out light, compare.
+RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
+                                        const cv::Mat& normals, const cv::Mat& mask);
+
+// The stratified subset EvaluateHeldOutLights holds out.
+std::vector<int> StratifiedLights(const std::vector<Eigen::Vector3d>& directions, int count);
+
+}  // namespace photorig::solvers::reflectance

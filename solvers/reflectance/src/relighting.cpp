@@ -1,0 +1,169 @@
+#include "photorig/solvers/reflectance/svbrdf.h"
+
+#include "samples.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace photorig::solvers::reflectance {
+
+const char* MethodName(Method method) {
+  switch (method) {
+    case Method::kLambertian: return "lambertian";
+    case Method::kPerPixelLobe: return "per_pixel_lobe";
+    case Method::kPerMaterial: return "per_material";
+  }
+  return "?";
+}
+
+bool RelightingOptions::IsValid(std::string* why) const {
+  if (held_out_lights < 0) {
+    if (why) *why = "held_out_lights must be >= 0 (0 = every light)";
+    return false;
+  }
+  return fit.IsValid(why);
+}
+
+std::vector<int> StratifiedLights(const std::vector<Eigen::Vector3d>& directions, int count) {
+  const int n = static_cast<int>(directions.size());
+  std::vector<int> chosen;
+  if (count <= 0 || count >= n) {
+    for (int j = 0; j < n; ++j) chosen.push_back(j);
+    return chosen;
+  }
+  // Start with the light nearest the zenith, then keep adding the light farthest from all chosen.
+  int first = 0;
+  for (int j = 1; j < n; ++j)
+    if (directions[j].z() > directions[first].z()) first = j;
+  chosen.push_back(first);
+  std::vector<double> nearest(n, std::numeric_limits<double>::infinity());
+  while (static_cast<int>(chosen.size()) < count) {
+    const Eigen::Vector3d& last = directions[chosen.back()];
+    int far = -1;
+    for (int j = 0; j < n; ++j) {
+      nearest[j] = std::min(nearest[j], std::acos(std::clamp(directions[j].dot(last), -1.0, 1.0)));
+      if (std::find(chosen.begin(), chosen.end(), j) == chosen.end() && (far < 0 || nearest[j] > nearest[far])) far = j;
+    }
+    chosen.push_back(far);
+  }
+  return chosen;
+}
+
+RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
+                                        const cv::Mat& normals, const cv::Mat& mask) {
+  SolveTimer timer;
+  RelightingSummary summary;
+  std::string why;
+  if (!options.IsValid(&why)) {
+    summary.End(Termination::kInvalidOptions, why);
+    return summary;
+  }
+  // Materials and their lobes chosen once, on every light.
+  ReflectanceMaps full;
+  const ReflectanceSummary fitted = FitReflectance(options.fit, stack, normals, mask, &full);
+  if (!fitted.IsSolutionUsable()) {
+    summary.End(fitted.termination, fitted.message);
+    return summary;
+  }
+  if (stack.light_count() < options.fit.min_samples + 1) {
+    summary.End(Termination::kFailure, "too few lights to hold one out");
+    return summary;
+  }
+  summary.materials = fitted.materials;
+  cv::Mat flags;
+  long long saturated = 0;
+  const internal::Samples s = internal::Gather(stack, normals, mask, options.fit.min_cosine, &flags, &saturated);
+  // Pixels the full fit resolved, grouped by material.
+  std::vector<int> pixels;
+  std::vector<std::vector<int>> groups(full.materials.size());
+  for (int p = 0; p < s.pixels; ++p) {
+    const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
+    if (full.flags.at<std::uint8_t>(r, c) != static_cast<std::uint8_t>(PixelFlag::kFitted)) continue;
+    pixels.push_back(p);
+    groups[full.material.at<std::uint8_t>(r, c)].push_back(p);
+  }
+  summary.held_out = StratifiedLights(stack.light_directions, options.held_out_lights);
+  timer.SetupDone(&summary);
+  ProgressThrottle throttle(options.progress, "held-out", static_cast<std::int64_t>(summary.held_out.size()) * 3);
+  const int C = s.channels;
+  int done = 0;
+  for (int j : summary.held_out) {
+    std::vector<std::uint8_t> enabled(s.lights, 1);
+    enabled[j] = 0;
+    // Values of the held-out light that the sensor measured (not clipped), and the peak for PSNR.
+    std::vector<double> measured_values;
+    for (int p : pixels)
+      if (!s.saturated[s.At(p, j)])
+        for (int ch = 0; ch < C; ++ch) measured_values.push_back(s.value[s.At(p, j) * C + ch]);
+    double peak = 1.0;
+    if (!measured_values.empty()) {
+      auto it = measured_values.begin() + static_cast<std::ptrdiff_t>(0.999 * (measured_values.size() - 1));
+      std::nth_element(measured_values.begin(), it, measured_values.end());
+      peak = std::max(*it, 1e-12);
+    }
+    for (Method method : {Method::kLambertian, Method::kPerPixelLobe, Method::kPerMaterial}) {
+      SolveTimer fit_timer;
+      // Per pixel: lobe, weights and albedo to predict with.
+      std::vector<internal::Lobe> lobe(s.pixels);
+      std::vector<Eigen::Vector3d> weight(s.pixels, Eigen::Vector3d::Zero()), rho(s.pixels, Eigen::Vector3d::Zero());
+      if (method == Method::kLambertian) {
+        const auto albedo = internal::FitLambertian(s, pixels, enabled);
+        for (std::size_t i = 0; i < pixels.size(); ++i) rho[pixels[i]] = albedo[i];
+      } else if (method == Method::kPerPixelLobe) {
+        const auto own = internal::FitPixelLobes(s, pixels, enabled, {});
+        for (std::size_t i = 0; i < pixels.size(); ++i) {
+          const int p = pixels[i];
+          lobe[p] = {own[i].exponent > 0.0 ? brdf::Model::kBlinnPhong : brdf::Model::kLambertian, own[i].exponent};
+          weight[p] = own[i].weight;
+          rho[p] = own[i].rho;
+        }
+      } else {
+        for (std::size_t m = 0; m < groups.size(); ++m) {
+          if (groups[m].empty()) continue;
+          const internal::MaterialResult refit = internal::FitMaterial(
+              s, groups[m], {full.materials[m].model}, enabled, options.fit.shape_search_pixels);
+          const auto albedo = internal::FitAlbedo(s, groups[m], refit.fit, enabled);
+          for (std::size_t i = 0; i < groups[m].size(); ++i) {
+            const int p = groups[m][i];
+            lobe[p] = {refit.fit.model, refit.fit.shape};
+            weight[p] = refit.fit.specular;
+            rho[p] = albedo[i];
+          }
+        }
+      }
+      const double fit_ms = fit_timer.ElapsedMs();
+      double sum = 0.0;
+      long long count = 0;
+      for (int p : pixels) {
+        const std::size_t cell = s.At(p, j);
+        if (s.saturated[cell]) continue;
+        for (int ch = 0; ch < C; ++ch) {
+          const double predicted =
+              internal::Predict(s, p, s.wi[cell], lobe[p], weight[p][ch], rho[p][ch], s.intensity[j][ch]);
+          const double d = predicted - s.value[cell * C + ch];
+          sum += d * d;
+          ++count;
+        }
+      }
+      HeldOutError error;
+      error.light = j;
+      error.method = method;
+      error.rmse = count > 0 ? std::sqrt(sum / count) : 0.0;
+      error.psnr_db = error.rmse > 0.0 ? 20.0 * std::log10(peak / error.rmse) : 99.0;
+      error.fit_ms = fit_ms;
+      summary.errors.push_back(error);
+      const int mi = static_cast<int>(method);
+      summary.mean_rmse[mi] += error.rmse / summary.held_out.size();
+      summary.mean_psnr_db[mi] += error.psnr_db / summary.held_out.size();
+      summary.mean_fit_ms[mi] += fit_ms / summary.held_out.size();
+      throttle.Update(++done);
+    }
+  }
+  throttle.Finish();
+  summary.termination = Termination::kSuccess;
+  summary.message = fitted.message;
+  timer.Finish(&summary);
+  return summary;
+}
+
+}  // namespace photorig::solvers::reflectance

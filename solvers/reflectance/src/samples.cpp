@@ -1,0 +1,295 @@
+#include "samples.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace photorig::solvers::reflectance::internal {
+
+namespace {
+
+// An orthonormal frame with n as its z axis.
+void FrameOf(const Eigen::Vector3d& n, Eigen::Vector3d* t, Eigen::Vector3d* b) {
+  const Eigen::Vector3d a = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  *t = a.cross(n).normalized();
+  *b = n.cross(*t);
+}
+
+std::vector<double> LogGrid(double lo, double hi, int count) {
+  std::vector<double> grid(count);
+  for (int i = 0; i < count; ++i) grid[i] = lo * std::pow(hi / lo, static_cast<double>(i) / (count - 1));
+  return grid;
+}
+
+}  // namespace
+
+Eigen::Vector3d ToLocal(const Eigen::Vector3d& n, const Eigen::Vector3d& w) {
+  Eigen::Vector3d t, b;
+  FrameOf(n, &t, &b);
+  return {t.dot(w), b.dot(w), n.dot(w)};
+}
+
+Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::Mat& mask, double min_cosine,
+               cv::Mat* flags, long long* saturated_samples) {
+  Samples s;
+  s.width = stack.width();
+  s.height = stack.height();
+  s.lights = stack.light_count();
+  s.channels = stack.channels();
+  *flags = cv::Mat(s.height, s.width, CV_8U, cv::Scalar(static_cast<int>(PixelFlag::kFitted)));
+  for (int j = 0; j < s.lights; ++j) s.intensity.push_back(stack.Intensity(j));
+  *saturated_samples = 0;
+  const Eigen::Vector3d view = stack.view_direction.normalized();
+  for (int r = 0; r < s.height; ++r) {
+    for (int c = 0; c < s.width; ++c) {
+      if (!mask.empty() && mask.at<std::uint8_t>(r, c) == 0) {
+        flags->at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelFlag::kOutsideMask);
+        continue;
+      }
+      const cv::Vec3f nf = normals.at<cv::Vec3f>(r, c);
+      const Eigen::Vector3d n(nf[0], nf[1], nf[2]);
+      if (!n.allFinite() || n.norm() < 0.5 || n.normalized().dot(view) <= 0.0) {
+        flags->at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelFlag::kNoNormal);
+        continue;
+      }
+      s.pixel_index.push_back(r * s.width + c);
+      s.normal.push_back(n.normalized());
+    }
+  }
+  s.pixels = static_cast<int>(s.pixel_index.size());
+  const std::size_t cells = static_cast<std::size_t>(s.pixels) * s.lights;
+  s.value.resize(cells * s.channels);
+  s.usable.assign(cells, 0);
+  s.saturated.assign(cells, 0);
+  s.wi.resize(cells);
+  s.wo.resize(s.pixels);
+  s.usable_count.assign(s.pixels, 0);
+  long long clipped = 0;
+#pragma omp parallel for schedule(static) reduction(+ : clipped)
+  for (int p = 0; p < s.pixels; ++p) {
+    const Eigen::Vector3d& n = s.normal[p];
+    Eigen::Vector3d t, b;
+    FrameOf(n, &t, &b);
+    s.wo[p] = Eigen::Vector3d(t.dot(view), b.dot(view), n.dot(view));
+    const int idx = s.pixel_index[p];
+    for (int j = 0; j < s.lights; ++j) {
+      const Eigen::Vector3d& w = stack.light_directions[j];
+      const std::size_t cell = s.At(p, j);
+      s.wi[cell] = Eigen::Vector3d(t.dot(w), b.dot(w), n.dot(w));
+      const float* px = stack.images[j].ptr<float>() + static_cast<std::size_t>(idx) * s.channels;
+      bool clip = false, finite = true;
+      for (int ch = 0; ch < s.channels; ++ch) {
+        s.value[cell * s.channels + ch] = px[ch];
+        clip = clip || px[ch] >= stack.saturation_level;
+        finite = finite && std::isfinite(px[ch]);
+      }
+      const bool lit = s.wi[cell].z() >= min_cosine;
+      if (lit && clip) {
+        s.saturated[cell] = 1;
+        ++clipped;
+      }
+      s.usable[cell] = lit && !clip && finite;
+      s.usable_count[p] += s.usable[cell];
+    }
+  }
+  *saturated_samples = clipped;
+  return s;
+}
+
+void LobeBasis(const Lobe& lobe, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, double* a0, double* a1) {
+  if (lobe.model == brdf::Model::kLambertian) {
+    *a0 = *a1 = 0.0;
+    return;
+  }
+  // Channel 0 evaluates the lobe at weight 0, channel 1 at weight 1: the
+  // brdf module's own models, so the two stay one definition.
+  const brdf::ModelParams params{lobe.model, Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, 1.0, 0.0), lobe.shape};
+  const Eigen::Vector3d f = brdf::Evaluate(params, wi, wo);
+  *a0 = f[0];
+  *a1 = f[1];
+}
+
+PixelSums SumsOf(const Samples& s, int p, const Lobe& lobe, const std::vector<std::uint8_t>& enabled) {
+  PixelSums sums;
+  const Eigen::Vector3d& wo = s.wo[p];
+  for (int j = 0; j < s.lights; ++j) {
+    const std::size_t cell = s.At(p, j);
+    if (!s.usable[cell] || (!enabled.empty() && !enabled[j])) continue;
+    const Eigen::Vector3d& wi = s.wi[cell];
+    double a0, a1;
+    LobeBasis(lobe, wi, wo, &a0, &a1);
+    ++sums.samples;
+    for (int ch = 0; ch < s.channels; ++ch) {
+      const double e = s.intensity[j][ch] * wi.z();
+      const double u = e / M_PI, g = e * a0, h = e * (a1 - a0);
+      const double y = s.value[cell * s.channels + ch] - g;
+      ChannelSums& cs = sums.c[ch];
+      cs.uu += u * u;
+      cs.uh += u * h;
+      cs.hh += h * h;
+      cs.uy += u * y;
+      cs.hy += h * y;
+      cs.yy += y * y;
+    }
+  }
+  return sums;
+}
+
+double PixelCost(const ChannelSums& cs, double weight, double* rho) {
+  if (cs.uu <= 0.0) {
+    *rho = 0.0;
+    return cs.yy;
+  }
+  double r = (cs.uy - weight * cs.uh) / cs.uu;
+  if (r < 0.0) r = 0.0;
+  *rho = r;
+  const double cost = cs.yy - 2.0 * r * cs.uy - 2.0 * weight * cs.hy + r * r * cs.uu + 2.0 * r * weight * cs.uh +
+                      weight * weight * cs.hh;
+  return std::max(cost, 0.0);
+}
+
+GroupFit FitGroup(const Samples& s, const std::vector<int>& pixels, const Lobe& lobe,
+                  const std::vector<std::uint8_t>& enabled, std::vector<PixelSums>* sums_out) {
+  std::vector<PixelSums> local;
+  std::vector<PixelSums>& sums = sums_out ? *sums_out : local;
+  sums.resize(pixels.size());
+  const int count = static_cast<int>(pixels.size());
+#pragma omp parallel for schedule(static) if (count > 256)
+  for (int i = 0; i < count; ++i) sums[i] = SumsOf(s, pixels[i], lobe, enabled);
+  GroupFit fit;
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (const PixelSums& ps : sums) {
+    fit.residuals += static_cast<long long>(ps.samples) * s.channels;
+    for (int ch = 0; ch < s.channels; ++ch) {
+      const ChannelSums& cs = ps.c[ch];
+      if (cs.uu <= 0.0) continue;
+      fit.reduced_hh[ch] += cs.hh - cs.uh * cs.uh / cs.uu;
+      b[ch] += cs.hy - cs.uh * cs.uy / cs.uu;
+    }
+  }
+  if (lobe.model != brdf::Model::kLambertian) {
+    for (int ch = 0; ch < s.channels; ++ch) {
+      double w = fit.reduced_hh[ch] > 1e-300 ? b[ch] / fit.reduced_hh[ch] : 0.0;
+      w = std::max(w, 0.0);
+      if (lobe.model == brdf::Model::kGgx) w = std::min(w, 1.0);  // F0 is a reflectance
+      fit.weight[ch] = w;
+    }
+  }
+  for (const PixelSums& ps : sums)
+    for (int ch = 0; ch < s.channels; ++ch) {
+      double rho;
+      fit.cost += PixelCost(ps.c[ch], fit.weight[ch], &rho);
+    }
+  return fit;
+}
+
+const std::vector<double>& ShapeGrid(brdf::Model model) {
+  static const std::vector<double> exponents = LogGrid(2.0, 3000.0, 22);
+  static const std::vector<double> roughness = LogGrid(0.02, 1.0, 18);
+  return model == brdf::Model::kGgx ? roughness : exponents;
+}
+
+ShapeSearch SearchShape(const Samples& s, const std::vector<int>& pixels, brdf::Model model,
+                        const std::vector<std::uint8_t>& enabled, bool refine) {
+  const std::vector<double>& grid = ShapeGrid(model);
+  auto cost_at = [&](double log_shape) { return FitGroup(s, pixels, {model, std::exp(log_shape)}, enabled).cost; };
+  std::vector<double> costs(grid.size());
+  for (std::size_t i = 0; i < grid.size(); ++i) costs[i] = cost_at(std::log(grid[i]));
+  const std::size_t best = std::min_element(costs.begin(), costs.end()) - costs.begin();
+  ShapeSearch out{grid[best], costs[best], 0.0};
+  if (!refine) return out;
+  // Golden section on log(shape) between the neighbours of the best grid point.
+  double lo = std::log(grid[best > 0 ? best - 1 : 0]);
+  double hi = std::log(grid[std::min(best + 1, grid.size() - 1)]);
+  const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
+  double x1 = hi - ratio * (hi - lo), x2 = lo + ratio * (hi - lo);
+  double f1 = cost_at(x1), f2 = cost_at(x2);
+  for (int it = 0; it < 14; ++it) {
+    if (f1 < f2) {
+      hi = x2; x2 = x1; f2 = f1;
+      x1 = hi - ratio * (hi - lo);
+      f1 = cost_at(x1);
+    } else {
+      lo = x1; x1 = x2; f1 = f2;
+      x2 = lo + ratio * (hi - lo);
+      f2 = cost_at(x2);
+    }
+  }
+  const double x = f1 < f2 ? x1 : x2, fx = std::min(f1, f2);
+  if (fx < out.cost) out = {std::exp(x), fx, 0.0};
+  // Curvature of the cost in log(shape): var = 2 sigma^2 / cost''.
+  const double step = 0.05, xs = std::log(out.shape);
+  const double curvature = (cost_at(xs + step) - 2.0 * out.cost + cost_at(xs - step)) / (step * step);
+  long long residuals = 0;
+  for (int p : pixels)
+    for (int j = 0; j < s.lights; ++j)
+      if (s.usable[s.At(p, j)] && (enabled.empty() || enabled[j])) residuals += s.channels;
+  const double variance = residuals > 0 ? out.cost / static_cast<double>(residuals) : 0.0;
+  out.log_shape_sigma = curvature > 0.0 ? std::sqrt(2.0 * variance / curvature) : std::numeric_limits<double>::infinity();
+  return out;
+}
+
+namespace {
+
+// Every n-th pixel, so that at most `count` remain.
+std::vector<int> Subsample(const std::vector<int>& pixels, int count) {
+  if (static_cast<int>(pixels.size()) <= count) return pixels;
+  std::vector<int> out;
+  const double step = static_cast<double>(pixels.size()) / count;
+  for (int i = 0; i < count; ++i) out.push_back(pixels[static_cast<std::size_t>(i * step)]);
+  return out;
+}
+
+double Bic(double cost, long long residuals, int parameters) {
+  const double n = static_cast<double>(std::max<long long>(residuals, 1));
+  return n * std::log(std::max(cost, 1e-300) / n) + parameters * std::log(n);
+}
+
+}  // namespace
+
+MaterialResult FitMaterial(const Samples& s, const std::vector<int>& pixels, const std::vector<brdf::Model>& candidates,
+                           const std::vector<std::uint8_t>& enabled, int search_pixels) {
+  MaterialResult best;
+  double best_bic = std::numeric_limits<double>::infinity();
+  const std::vector<int> subset = Subsample(pixels, search_pixels);
+  for (brdf::Model model : candidates) {
+    Lobe lobe{model, 0.0};
+    double log_sigma = 0.0;
+    if (model != brdf::Model::kLambertian) {
+      const ShapeSearch search = SearchShape(s, subset, model, enabled, true);
+      lobe.shape = search.shape;
+      log_sigma = search.log_shape_sigma;
+    }
+    const GroupFit fit = FitGroup(s, pixels, lobe, enabled);
+    const int parameters = model == brdf::Model::kLambertian ? 0 : s.channels + 1;
+    const double bic = Bic(fit.cost, fit.residuals, parameters);
+    if (model == brdf::Model::kLambertian) best.fit.bic_lambertian = bic;
+    if (bic < best_bic) {
+      best_bic = bic;
+      best.fit.model = model;
+      best.fit.specular = fit.weight;
+      best.fit.shape = lobe.shape;
+      best.fit.shape_sigma = log_sigma;
+      const double variance = fit.residuals > 0 ? fit.cost / fit.residuals : 0.0;
+      for (int ch = 0; ch < 3; ++ch)
+        best.fit.specular_sigma[ch] =
+            fit.reduced_hh[ch] > 0.0 && model != brdf::Model::kLambertian ? std::sqrt(variance / fit.reduced_hh[ch]) : 0.0;
+      best.fit.bic = bic;
+      best.fit.pixels = static_cast<int>(pixels.size());
+      best.fit.rms_residual = fit.residuals > 0 ? std::sqrt(fit.cost / fit.residuals) : 0.0;
+      best.cost = fit.cost;
+      best.residuals = fit.residuals;
+    }
+  }
+  return best;
+}
+
+double Predict(const Samples& s, int p, const Eigen::Vector3d& wi_local, const Lobe& lobe, double weight, double rho,
+               double irradiance) {
+  if (wi_local.z() <= 0.0) return 0.0;
+  double a0, a1;
+  LobeBasis(lobe, wi_local, s.wo[p], &a0, &a1);
+  return irradiance * wi_local.z() * (rho / M_PI + a0 + weight * (a1 - a0));
+}
+
+}  // namespace photorig::solvers::reflectance::internal

@@ -1,0 +1,124 @@
+#pragma once
+// The stack's samples gathered per pixel in a local frame (normal = z), and
+// the linear least squares every method shares: for a fixed lobe shape the
+// radiance is linear in the pixel's albedo rho and the material's specular
+// weight s,
+//   I = u rho + g + h s,  u = E cos_i / pi,  g + h s = E cos_i lobe(s)
+// (g = 0 for Blinn-Phong; GGX's Schlick term is affine in F0), so the
+// albedos are eliminated exactly per pixel and s solved from the remainder.
+
+#include "photorig/solvers/brdf/models.h"
+#include "photorig/solvers/reflectance/svbrdf.h"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <vector>
+
+namespace photorig::solvers::reflectance::internal {
+
+struct Samples {
+  int pixels = 0, lights = 0, channels = 0;
+  int width = 0, height = 0;
+  std::vector<int> pixel_index;          // row * width + col, per gathered pixel
+  std::vector<float> value;              // [pixel][light][channel]
+  std::vector<std::uint8_t> usable;      // [pixel][light]: lit and unsaturated
+  std::vector<std::uint8_t> saturated;   // [pixel][light]: lit and clipped
+  std::vector<Eigen::Vector3d> wi;       // [pixel][light] light direction in the pixel's frame
+  std::vector<Eigen::Vector3d> wo;       // [pixel] view direction in the pixel's frame
+  std::vector<Eigen::Vector3d> normal;   // [pixel] in camera frame
+  std::vector<Eigen::Vector3d> intensity;  // [light]
+  std::vector<int> usable_count;         // [pixel]
+
+  std::size_t At(int p, int j) const { return static_cast<std::size_t>(p) * lights + j; }
+};
+
+// Gathers every masked pixel with a finite normal facing the camera; the
+// others are flagged in *flags (CV_8U, same size as the stack).
+Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::Mat& mask, double min_cosine,
+               cv::Mat* flags, long long* saturated_samples);
+
+struct Lobe {
+  brdf::Model model = brdf::Model::kLambertian;
+  double shape = 0.0;
+};
+
+// Lobe values of s = 0 and s = 1 (per unit irradiance, without the cosine).
+void LobeBasis(const Lobe& lobe, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, double* a0, double* a1);
+
+// The per-pixel normal-equation sums of one channel.
+struct ChannelSums {
+  double uu = 0, uh = 0, hh = 0, uy = 0, hy = 0, yy = 0;
+};
+struct PixelSums {
+  ChannelSums c[3];
+  int samples = 0;
+};
+// `enabled`: per light, 0 leaves it out (held-out evaluation); empty = all.
+PixelSums SumsOf(const Samples& s, int p, const Lobe& lobe, const std::vector<std::uint8_t>& enabled);
+
+// The pixel's albedo (clamped >= 0) and squared residual given the weight.
+double PixelCost(const ChannelSums& sums, double weight, double* rho);
+
+struct GroupFit {
+  Eigen::Vector3d weight = Eigen::Vector3d::Zero();
+  Eigen::Vector3d reduced_hh = Eigen::Vector3d::Zero();  // the weight's normal-equation coefficient
+  double cost = 0.0;
+  long long residuals = 0;
+};
+// Shared weight per channel and total cost over `pixels` at one lobe shape.
+GroupFit FitGroup(const Samples& s, const std::vector<int>& pixels, const Lobe& lobe,
+                  const std::vector<std::uint8_t>& enabled, std::vector<PixelSums>* sums_out = nullptr);
+
+// The lobe shape minimising the group's cost: a log-spaced grid, then golden
+// section between the best point's neighbours (`refine` = false: grid only).
+struct ShapeSearch {
+  double shape = 0.0;
+  double cost = 0.0;
+  double log_shape_sigma = 0.0;  // from the cost's curvature in log(shape)
+};
+ShapeSearch SearchShape(const Samples& s, const std::vector<int>& pixels, brdf::Model model,
+                        const std::vector<std::uint8_t>& enabled, bool refine);
+const std::vector<double>& ShapeGrid(brdf::Model model);
+
+// Full fit of one material over `pixels` with each candidate lobe; the one of
+// least BIC is kept (`candidates` includes kLambertian).
+struct MaterialResult {
+  MaterialFit fit;
+  double cost = 0.0;
+  long long residuals = 0;
+};
+MaterialResult FitMaterial(const Samples& s, const std::vector<int>& pixels, const std::vector<brdf::Model>& candidates,
+                           const std::vector<std::uint8_t>& enabled, int search_pixels);
+
+// Radiance of pixel p under light direction w (camera frame) with albedo rho and a lobe.
+double Predict(const Samples& s, int p, const Eigen::Vector3d& wi_local, const Lobe& lobe, double weight, double rho,
+               double irradiance);
+
+// wi in pixel p's frame.
+Eigen::Vector3d ToLocal(const Eigen::Vector3d& n, const Eigen::Vector3d& w);
+
+}  // namespace photorig::solvers::reflectance::internal
+
+namespace photorig::solvers::reflectance::internal {
+
+// Each pixel's own Blinn-Phong lobe (exponent from the grid, weight and
+// albedo per channel), or none where no lobe lowers its cost.
+struct PixelLobe {
+  double exponent = 0.0;
+  Eigen::Vector3d weight = Eigen::Vector3d::Zero();
+  Eigen::Vector3d rho = Eigen::Vector3d::Zero();
+};
+std::vector<PixelLobe> FitPixelLobes(const Samples& s, const std::vector<int>& pixels,
+                                     const std::vector<std::uint8_t>& enabled, const ProgressCallback& progress);
+
+// Per-pixel Lambertian albedo.
+std::vector<Eigen::Vector3d> FitLambertian(const Samples& s, const std::vector<int>& pixels,
+                                           const std::vector<std::uint8_t>& enabled);
+
+// Albedos of `pixels` under a material's lobe and weights.
+std::vector<Eigen::Vector3d> FitAlbedo(const Samples& s, const std::vector<int>& pixels, const MaterialFit& material,
+                                       const std::vector<std::uint8_t>& enabled);
+
+}  // namespace photorig::solvers::reflectance::internal

@@ -1,0 +1,610 @@
+#include "photorig/solvers/reflectance/svbrdf.h"
+
+#include "samples.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <set>
+
+namespace photorig::solvers::reflectance {
+
+using internal::Lobe;
+using internal::Samples;
+
+Eigen::Vector3d ReflectanceStack::Intensity(int light) const {
+  return light_intensities.empty() ? Eigen::Vector3d::Ones() : light_intensities[light];
+}
+
+bool ReflectanceStack::IsValid(std::string* why) const {
+  auto fail = [&](std::string text) {
+    if (why) *why = std::move(text);
+    return false;
+  };
+  if (images.size() < 3) return fail("the stack needs at least 3 images, has " + std::to_string(images.size()));
+  if (light_directions.size() != images.size())
+    return fail(std::to_string(images.size()) + " images but " + std::to_string(light_directions.size()) +
+                " light directions");
+  if (!light_intensities.empty() && light_intensities.size() != images.size())
+    return fail(std::to_string(images.size()) + " images but " + std::to_string(light_intensities.size()) +
+                " light intensities");
+  for (std::size_t j = 0; j < images.size(); ++j) {
+    const cv::Mat& m = images[j];
+    if (m.type() != CV_32FC1 && m.type() != CV_32FC3)
+      return fail("image " + std::to_string(j) + " is not CV_32FC1 or CV_32FC3");
+    if (m.size() != images.front().size() || m.type() != images.front().type())
+      return fail("image " + std::to_string(j) + " differs in size or channels from image 0");
+    if (!m.isContinuous()) return fail("image " + std::to_string(j) + " is not continuous");
+    if (std::abs(light_directions[j].norm() - 1.0) > 1e-3)
+      return fail("light direction " + std::to_string(j) + " is not a unit vector");
+    if (!light_intensities.empty() && !(light_intensities[j].minCoeff() > 0.0))
+      return fail("light intensity " + std::to_string(j) + " is not positive");
+  }
+  if (std::abs(view_direction.norm() - 1.0) > 1e-3) return fail("the view direction is not a unit vector");
+  return true;
+}
+
+const char* PixelFlagName(PixelFlag flag) {
+  switch (flag) {
+    case PixelFlag::kFitted: return "fitted";
+    case PixelFlag::kOutsideMask: return "outside-mask";
+    case PixelFlag::kNoNormal: return "no-normal";
+    case PixelFlag::kTooFewSamples: return "too-few-samples";
+    case PixelFlag::kPoorFit: return "poor-fit";
+  }
+  return "?";
+}
+
+const char* WarningName(Warning warning) {
+  switch (warning) {
+    case Warning::kTooFewHighlightLights: return "too-few-highlight-lights";
+    case Warning::kHighlightsUnobserved: return "highlights-unobserved";
+    case Warning::kSaturatedHighlights: return "saturated-highlights";
+    case Warning::kInconsistentIntensities: return "inconsistent-intensities";
+  }
+  return "?";
+}
+
+bool ReflectanceOptions::IsValid(std::string* why) const {
+  auto fail = [&](const char* text) {
+    if (why) *why = text;
+    return false;
+  };
+  if (max_materials < 1 || max_materials > 16) return fail("max_materials must be in [1, 16]");
+  for (brdf::Model m : lobes)
+    if (m == brdf::Model::kLambertian) return fail("lobes lists specular lobes only (no lobe is always a candidate)");
+  if (!(min_cosine >= 0.0 && min_cosine < 1.0)) return fail("min_cosine must be in [0, 1)");
+  if (min_samples < 3) return fail("min_samples must be at least 3");
+  if (!(poor_fit_ratio > 1.0)) return fail("poor_fit_ratio must exceed 1");
+  if (shape_search_pixels < 10) return fail("shape_search_pixels must be at least 10");
+  if (kmeans_restarts < 1) return fail("kmeans_restarts must be at least 1");
+  if (min_highlight_lights < 1) return fail("min_highlight_lights must be at least 1");
+  if (!(unobserved_half_angle_deg > 0.0 && unobserved_half_angle_deg < 90.0))
+    return fail("unobserved_half_angle_deg must be in (0, 90)");
+  if (!(max_saturated_fraction >= 0.0 && max_saturated_fraction <= 1.0))
+    return fail("max_saturated_fraction must be in [0, 1]");
+  if (!(max_intensity_error > 0.0)) return fail("max_intensity_error must be positive");
+  return true;
+}
+
+namespace internal {
+
+std::vector<PixelLobe> FitPixelLobes(const Samples& s, const std::vector<int>& pixels,
+                                     const std::vector<std::uint8_t>& enabled, const ProgressCallback& progress) {
+  const std::vector<double>& grid = ShapeGrid(brdf::Model::kBlinnPhong);
+  std::vector<PixelLobe> out(pixels.size());
+  const int count = static_cast<int>(pixels.size());
+  ProgressThrottle throttle(progress, "per-pixel", count);
+  const int block = 256;
+  for (int start = 0; start < count; start += block) {
+    const int end = std::min(count, start + block);
+#pragma omp parallel for schedule(dynamic, 16)
+    for (int i = start; i < end; ++i) {
+      const int p = pixels[i];
+      // No lobe first: a lobe must lower the cost to be kept.
+      const PixelSums flat = SumsOf(s, p, {brdf::Model::kLambertian, 0.0}, enabled);
+      double best = 0.0;
+      PixelLobe result;
+      for (int ch = 0; ch < s.channels; ++ch) best += PixelCost(flat.c[ch], 0.0, &result.rho[ch]);
+      // A lobe is kept only where it lowers the pixel's BIC by a wide margin
+      // (three times the usual penalty, the best of the grid's shapes being
+      // picked): otherwise the pixel's noise would pass for a lobe, and
+      // materials grouped by these lobes would select that noise.
+      const double n = std::max(1, flat.samples * s.channels);
+      const double lobe_penalty = 3.0 * (s.channels + 1) * std::log(n);
+      double best_bic = n * std::log(std::max(best, 1e-300) / n);
+      for (double e : grid) {
+        const PixelSums sums = SumsOf(s, p, {brdf::Model::kBlinnPhong, e}, enabled);
+        PixelLobe trial;
+        trial.exponent = e;
+        double cost = 0.0;
+        for (int ch = 0; ch < s.channels; ++ch) {
+          const ChannelSums& cs = sums.c[ch];
+          const double reduced = cs.uu > 0.0 ? cs.hh - cs.uh * cs.uh / cs.uu : 0.0;
+          // A lobe the samples barely separate from the diffuse term (reduced
+          // coefficient a vanishing part of the lobe's own) has no weight to
+          // speak of; and its albedo at normal incidence cannot exceed 1.
+          const double w = reduced > 1e-9 * cs.hh && reduced > 0.0
+                               ? std::clamp((cs.hy - cs.uh * cs.uy / cs.uu) / reduced, 0.0, 1.0)
+                               : 0.0;
+          trial.weight[ch] = w;
+          cost += PixelCost(cs, w, &trial.rho[ch]);
+        }
+        const double bic = n * std::log(std::max(cost, 1e-300) / n) + lobe_penalty;
+        if (bic < best_bic) {
+          best_bic = bic;
+          result = trial;
+        }
+      }
+      out[i] = result;
+    }
+    throttle.Update(end);
+  }
+  throttle.Finish();
+  return out;
+}
+
+std::vector<Eigen::Vector3d> FitLambertian(const Samples& s, const std::vector<int>& pixels,
+                                           const std::vector<std::uint8_t>& enabled) {
+  MaterialFit none;
+  return FitAlbedo(s, pixels, none, enabled);
+}
+
+std::vector<Eigen::Vector3d> FitAlbedo(const Samples& s, const std::vector<int>& pixels, const MaterialFit& material,
+                                       const std::vector<std::uint8_t>& enabled) {
+  std::vector<Eigen::Vector3d> rho(pixels.size(), Eigen::Vector3d::Zero());
+  const int count = static_cast<int>(pixels.size());
+  const Lobe lobe{material.model, material.shape};
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < count; ++i) {
+    const PixelSums sums = SumsOf(s, pixels[i], lobe, enabled);
+    for (int ch = 0; ch < s.channels; ++ch) PixelCost(sums.c[ch], material.specular[ch], &rho[i][ch]);
+  }
+  return rho;
+}
+
+}  // namespace internal
+
+namespace {
+
+// Lloyd's k-means with k-means++ seeding; returns labels and the inertia.
+double KMeans(const std::vector<Eigen::VectorXd>& x, int k, unsigned seed, std::vector<int>* labels) {
+  const int n = static_cast<int>(x.size());
+  std::mt19937 rng(seed);
+  std::vector<Eigen::VectorXd> centres;
+  centres.push_back(x[std::uniform_int_distribution<int>(0, n - 1)(rng)]);
+  std::vector<double> d2(n);
+  while (static_cast<int>(centres.size()) < k) {
+    double total = 0.0;
+    for (int i = 0; i < n; ++i) {
+      double best = std::numeric_limits<double>::infinity();
+      for (const auto& c : centres) best = std::min(best, (x[i] - c).squaredNorm());
+      d2[i] = best;
+      total += best;
+    }
+    if (total <= 0.0) break;
+    double pick = std::uniform_real_distribution<double>(0.0, total)(rng);
+    int chosen = n - 1;
+    for (int i = 0; i < n; ++i) {
+      pick -= d2[i];
+      if (pick <= 0.0) {
+        chosen = i;
+        break;
+      }
+    }
+    centres.push_back(x[chosen]);
+  }
+  labels->assign(n, 0);
+  double inertia = 0.0;
+  for (int it = 0; it < 50; ++it) {
+    bool changed = false;
+    inertia = 0.0;
+    for (int i = 0; i < n; ++i) {
+      int best = 0;
+      double best_d = std::numeric_limits<double>::infinity();
+      for (std::size_t c = 0; c < centres.size(); ++c) {
+        const double d = (x[i] - centres[c]).squaredNorm();
+        if (d < best_d) {
+          best_d = d;
+          best = static_cast<int>(c);
+        }
+      }
+      changed = changed || (*labels)[i] != best;
+      (*labels)[i] = best;
+      inertia += best_d;
+    }
+    if (!changed && it > 0) break;
+    std::vector<Eigen::VectorXd> sums(centres.size(), Eigen::VectorXd::Zero(x[0].size()));
+    std::vector<int> counts(centres.size(), 0);
+    for (int i = 0; i < n; ++i) {
+      sums[(*labels)[i]] += x[i];
+      ++counts[(*labels)[i]];
+    }
+    for (std::size_t c = 0; c < centres.size(); ++c)
+      if (counts[c] > 0) centres[c] = sums[c] / counts[c];
+  }
+  return inertia;
+}
+
+// Groups the indices (into `active`) by label, dropping empty groups.
+std::vector<std::vector<int>> Groups(const std::vector<int>& active, const std::vector<int>& labels, int k) {
+  std::vector<std::vector<int>> groups(k);
+  for (std::size_t i = 0; i < active.size(); ++i) groups[labels[i]].push_back(active[i]);
+  groups.erase(std::remove_if(groups.begin(), groups.end(), [](const auto& g) { return g.empty(); }), groups.end());
+  return groups;
+}
+
+struct Partition {
+  std::vector<std::vector<int>> groups;  // pixel indices (into Samples) per material
+  std::vector<internal::MaterialResult> materials;
+  double bic = std::numeric_limits<double>::infinity();
+};
+
+double PooledBic(const std::vector<internal::MaterialResult>& materials, int channels) {
+  double cost = 0.0;
+  long long n = 0;
+  int parameters = 0;
+  for (const auto& m : materials) {
+    cost += m.cost;
+    n += m.residuals;
+    // The material's label and lobe choice count as one parameter; a lobe adds its weights and shape.
+    parameters += 1 + (m.fit.model == brdf::Model::kLambertian ? 0 : channels + 1);
+  }
+  const double nn = static_cast<double>(std::max<long long>(n, 1));
+  return nn * std::log(std::max(cost, 1e-300) / nn) + parameters * std::log(nn);
+}
+
+// Each pixel to the material whose lobe explains it best; returns whether any moved.
+bool Reassign(const Samples& s, const std::vector<Eigen::Vector2d>& chroma, Partition* part) {
+  std::vector<int> pixels;
+  for (const auto& g : part->groups) pixels.insert(pixels.end(), g.begin(), g.end());
+  const int count = static_cast<int>(pixels.size());
+  const int k = static_cast<int>(part->materials.size());
+  std::vector<double> cost(static_cast<std::size_t>(count) * k);
+  std::vector<int> previous(s.pixels, -1);
+  for (int m = 0; m < k; ++m)
+    for (int p : part->groups[m]) previous[p] = m;
+  for (int m = 0; m < k; ++m) {
+    const MaterialFit& fit = part->materials[m].fit;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < count; ++i) {
+      const internal::PixelSums sums = internal::SumsOf(s, pixels[i], {fit.model, fit.shape}, {});
+      double c = 0.0, rho;
+      for (int ch = 0; ch < s.channels; ++ch) c += internal::PixelCost(sums.c[ch], fit.specular[ch], &rho);
+      cost[static_cast<std::size_t>(i) * k + m] = c;
+    }
+  }
+  // Mean chromaticity per material: what decides between materials whose lobes explain a pixel equally.
+  std::vector<Eigen::Vector2d> centre(k, Eigen::Vector2d::Zero());
+  if (!chroma.empty())
+    for (int m = 0; m < k; ++m) {
+      for (int p : part->groups[m]) centre[m] += chroma[p];
+      centre[m] /= static_cast<double>(part->groups[m].size());
+    }
+  std::vector<std::vector<int>> groups(k);
+  bool moved = false;
+  for (int i = 0; i < count; ++i) {
+    const double* c = &cost[static_cast<std::size_t>(i) * k];
+    const int argmin = static_cast<int>(std::min_element(c, c + k) - c);
+    int best = previous[pixels[i]];
+    if (c[argmin] < 0.98 * c[best]) {
+      best = argmin;
+    } else if (!chroma.empty()) {
+      // No lobe tells the materials apart here (no highlight seen): the nearest colour among the near-equal costs.
+      double nearest = std::numeric_limits<double>::infinity();
+      for (int m = 0; m < k; ++m) {
+        const double d = (chroma[pixels[i]] - centre[m]).squaredNorm();
+        if (c[m] <= c[argmin] / 0.98 && d < nearest) {
+          nearest = d;
+          best = m;
+        }
+      }
+    }
+    moved = moved || best != previous[pixels[i]];
+    groups[best].push_back(pixels[i]);
+  }
+  groups.erase(std::remove_if(groups.begin(), groups.end(), [](const auto& g) { return g.empty(); }), groups.end());
+  part->groups = std::move(groups);
+  return moved;
+}
+
+void FitPartition(const Samples& s, const std::vector<brdf::Model>& candidates, int search_pixels, Partition* part) {
+  part->materials.clear();
+  for (const auto& g : part->groups) part->materials.push_back(internal::FitMaterial(s, g, candidates, {}, search_pixels));
+  part->bic = PooledBic(part->materials, s.channels);
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const auto mid = v.begin() + v.size() / 2;
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+void AddWarning(std::vector<Warning>* list, Warning w) {
+  if (std::find(list->begin(), list->end(), w) == list->end()) list->push_back(w);
+}
+
+// Half width (angle between n and h at half the peak) of a fitted lobe, radians.
+double LobeHalfWidth(const MaterialFit& m) {
+  const double exponent = m.model == brdf::Model::kGgx ? std::max(1.0, 2.0 / (m.shape * m.shape) - 2.0) : m.shape;
+  return std::acos(std::pow(0.5, 1.0 / exponent));
+}
+
+}  // namespace
+
+ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const ReflectanceStack& stack,
+                                  const cv::Mat& normals, const cv::Mat& mask, ReflectanceMaps* maps) {
+  SolveTimer timer;
+  ReflectanceSummary summary;
+  std::string why;
+  if (!options.IsValid(&why)) {
+    summary.End(Termination::kInvalidOptions, why);
+    return summary;
+  }
+  if (!stack.IsValid(&why)) {
+    summary.End(Termination::kInvalidInput, why);
+    return summary;
+  }
+  if (normals.type() != CV_32FC3 || normals.size() != stack.images.front().size()) {
+    summary.End(Termination::kInvalidInput, "normals must be CV_32FC3 of the stack's size");
+    return summary;
+  }
+  if (!mask.empty() && (mask.type() != CV_8U || mask.size() != normals.size())) {
+    summary.End(Termination::kInvalidInput, "mask must be CV_8U of the stack's size");
+    return summary;
+  }
+  if (maps == nullptr) {
+    summary.End(Termination::kInvalidInput, "no output maps given");
+    return summary;
+  }
+  cv::Mat flags;
+  const Samples s = internal::Gather(stack, normals, mask, options.min_cosine, &flags, &summary.saturated_samples);
+  std::vector<int> active;
+  for (int p = 0; p < s.pixels; ++p) {
+    if (s.usable_count[p] >= options.min_samples) {
+      active.push_back(p);
+    } else {
+      flags.at<std::uint8_t>(s.pixel_index[p] / s.width, s.pixel_index[p] % s.width) =
+          static_cast<std::uint8_t>(PixelFlag::kTooFewSamples);
+    }
+  }
+  for (int i = 0; i < flags.rows * flags.cols; ++i) {
+    switch (static_cast<PixelFlag>(flags.at<std::uint8_t>(i))) {
+      case PixelFlag::kOutsideMask: ++summary.pixels_outside_mask; break;
+      case PixelFlag::kNoNormal: ++summary.pixels_no_normal; break;
+      case PixelFlag::kTooFewSamples: ++summary.pixels_too_few_samples; break;
+      default: break;
+    }
+  }
+  if (active.empty()) {
+    summary.End(Termination::kFailure, "no pixel has a normal and " + std::to_string(options.min_samples) +
+                                           " lit, unsaturated samples; check the mask, the normals and the exposure");
+    return summary;
+  }
+  timer.SetupDone(&summary);
+
+  // Features for the clustering: chromaticity and each pixel's own lobe.
+  const std::vector<internal::PixelLobe> own = internal::FitPixelLobes(s, active, {}, options.progress);
+  std::vector<Eigen::VectorXd> features(active.size());
+  std::vector<Eigen::Vector2d> chroma(s.channels == 3 ? s.pixels : 0, Eigen::Vector2d::Zero());
+  for (std::size_t i = 0; i < active.size(); ++i) {
+    const internal::PixelLobe& pl = own[i];
+    const int chroma_dims = s.channels == 3 ? 2 : 0;
+    Eigen::VectorXd f(chroma_dims + 2);
+    if (chroma_dims) {
+      const double total = std::max(pl.rho.sum(), 1e-6);
+      f[0] = 3.0 * pl.rho[0] / total;
+      f[1] = 3.0 * pl.rho[1] / total;
+      chroma[active[i]] = f.head<2>();
+    }
+    // Bounded: a grazing pixel's own lobe can take any weight, and must not outweigh its colour.
+    const double strength = std::min(1.0, std::sqrt(std::max(0.0, pl.weight.head(s.channels).mean())));
+    f[chroma_dims] = strength;
+    f[chroma_dims + 1] = pl.exponent > 0.0 ? strength * std::log10(pl.exponent) / 2.0 : 0.0;
+    features[i] = f;
+  }
+
+  std::vector<brdf::Model> candidates{brdf::Model::kLambertian};
+  candidates.insert(candidates.end(), options.lobes.begin(), options.lobes.end());
+  Partition best;
+  const int max_k = std::min<int>(options.max_materials, static_cast<int>(active.size()));
+  for (int k = 1; k <= max_k; ++k) {
+    ProgressThrottle throttle(options.progress, "materials", max_k);
+    throttle.Update(k - 1);
+    std::vector<int> labels, best_labels;
+    double best_inertia = std::numeric_limits<double>::infinity();
+    for (int r = 0; r < options.kmeans_restarts; ++r) {
+      const double inertia = KMeans(features, k, 1234u + 17u * r + 101u * k, &labels);
+      if (inertia < best_inertia) {
+        best_inertia = inertia;
+        best_labels = labels;
+      }
+    }
+    Partition part;
+    part.groups = Groups(active, best_labels, k);
+    FitPartition(s, candidates, options.shape_search_pixels, &part);
+    for (int it = 0; it < 4 && part.groups.size() > 1; ++it) {
+      if (!Reassign(s, chroma, &part)) break;
+      FitPartition(s, candidates, options.shape_search_pixels, &part);
+    }
+    summary.bic_by_materials.push_back(part.bic);
+    if (part.bic < best.bic) best = std::move(part);
+    if (k == max_k) throttle.Finish();
+  }
+
+  // Materials the clustering split but whose lobes agree are one material
+  // (the albedo is per pixel anyway): merged. Agreement is judged on the
+  // parameters, not the BIC, whose Gaussian likelihood overstates small
+  // gains when the noise grows with the signal.
+  auto same_lobe = [](const MaterialFit& a, const MaterialFit& b) {
+    if (a.model != b.model) return false;
+    if (a.model == brdf::Model::kLambertian) return true;
+    if (std::abs(std::log(a.shape / b.shape)) > std::max(0.1, 3.0 * std::hypot(a.shape_sigma, b.shape_sigma))) return false;
+    for (int ch = 0; ch < 3; ++ch) {
+      const double tolerance = 0.1 * std::max(a.specular[ch], b.specular[ch]) + 3.0 * std::hypot(a.specular_sigma[ch], b.specular_sigma[ch]);
+      if (std::abs(a.specular[ch] - b.specular[ch]) > tolerance) return false;
+    }
+    return true;
+  };
+  for (bool merged = true; merged && best.groups.size() > 1;) {
+    merged = false;
+    for (std::size_t a = 0; a < best.groups.size() && !merged; ++a)
+      for (std::size_t b = a + 1; b < best.groups.size() && !merged; ++b) {
+        if (!same_lobe(best.materials[a].fit, best.materials[b].fit)) continue;
+        best.groups[a].insert(best.groups[a].end(), best.groups[b].begin(), best.groups[b].end());
+        best.groups.erase(best.groups.begin() + static_cast<std::ptrdiff_t>(b));
+        best.materials.erase(best.materials.begin() + static_cast<std::ptrdiff_t>(b));
+        best.materials[a] = internal::FitMaterial(s, best.groups[a], candidates, {}, options.shape_search_pixels);
+        merged = true;
+      }
+  }
+
+  // Final albedos, their deviations and residuals per pixel.
+  const int C = s.channels;
+  maps->albedo = cv::Mat(s.height, s.width, CV_32FC(C), cv::Scalar::all(std::numeric_limits<float>::quiet_NaN()));
+  maps->albedo_sigma = maps->albedo.clone();
+  maps->material = cv::Mat(s.height, s.width, CV_8U, cv::Scalar(255));
+  maps->rms_residual = cv::Mat(s.height, s.width, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+  maps->normals = normals.clone();
+  maps->materials.clear();
+  ProgressThrottle albedo_progress(options.progress, "albedo", static_cast<std::int64_t>(best.groups.size()));
+  std::vector<int> material_of(s.pixels, -1);
+  std::vector<double> pixel_rms(s.pixels, 0.0);
+  for (std::size_t m = 0; m < best.groups.size(); ++m) {
+    MaterialFit fit = best.materials[m].fit;
+    const std::vector<int>& group = best.groups[m];
+    std::vector<internal::PixelSums> sums;
+    internal::FitGroup(s, group, {fit.model, fit.shape}, {}, &sums);
+    std::vector<double> rms(group.size());
+    for (std::size_t i = 0; i < group.size(); ++i) {
+      const int p = group[i];
+      material_of[p] = static_cast<int>(m);
+      const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
+      float* albedo = maps->albedo.ptr<float>(r) + c * C;
+      float* sigma = maps->albedo_sigma.ptr<float>(r) + c * C;
+      double cost = 0.0;
+      for (int ch = 0; ch < C; ++ch) {
+        double rho;
+        const double channel_cost = internal::PixelCost(sums[i].c[ch], fit.specular[ch], &rho);
+        cost += channel_cost;
+        albedo[ch] = static_cast<float>(rho);
+        // Least squares with the pixel's own residual variance (one dof per channel used by rho).
+        const double dof = std::max(1, sums[i].samples - 1);
+        sigma[ch] = static_cast<float>(std::sqrt(channel_cost / dof / std::max(sums[i].c[ch].uu, 1e-300)));
+      }
+      rms[i] = std::sqrt(cost / std::max(1, sums[i].samples * C));
+      pixel_rms[p] = rms[i];
+      maps->rms_residual.at<float>(r, c) = static_cast<float>(rms[i]);
+      maps->material.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(m);
+    }
+    // Poor fits: far above the material's typical residual.
+    const double typical = Median(rms);
+    for (std::size_t i = 0; i < group.size(); ++i)
+      if (rms[i] > options.poor_fit_ratio * typical && rms[i] > 0.0) {
+        const int p = group[i];
+        flags.at<std::uint8_t>(s.pixel_index[p] / s.width, s.pixel_index[p] % s.width) =
+            static_cast<std::uint8_t>(PixelFlag::kPoorFit);
+        ++summary.pixels_poor_fit;
+      }
+
+    // What the lights could show of this material.
+    std::vector<double> min_angle;
+    std::set<int> highlight_lights;
+    long long saturated = 0, lit = 0;
+    const double half_width = fit.model == brdf::Model::kLambertian ? 0.0 : LobeHalfWidth(fit);
+    for (int p : group) {
+      double smallest = M_PI;
+      for (int j = 0; j < s.lights; ++j) {
+        const std::size_t cell = s.At(p, j);
+        saturated += s.saturated[cell];
+        lit += s.saturated[cell] + s.usable[cell];
+        if (!s.usable[cell]) continue;
+        const Eigen::Vector3d h = (s.wi[cell] + s.wo[p]).normalized();
+        const double angle = std::acos(std::clamp(h.z(), -1.0, 1.0));
+        smallest = std::min(smallest, angle);
+        if (angle < half_width) highlight_lights.insert(j);
+      }
+      min_angle.push_back(smallest);
+    }
+    fit.min_half_angle_deg = Median(min_angle) * 180.0 / M_PI;
+    fit.highlight_lights = static_cast<int>(highlight_lights.size());
+    if (fit.model != brdf::Model::kLambertian && fit.highlight_lights < options.min_highlight_lights)
+      AddWarning(&fit.warnings, Warning::kTooFewHighlightLights);
+    // A fitted lobe was seen; without one, a lobe narrower than the nearest half vector could hide.
+    if (fit.model == brdf::Model::kLambertian && fit.min_half_angle_deg > options.unobserved_half_angle_deg)
+      AddWarning(&fit.warnings, Warning::kHighlightsUnobserved);
+    if (lit > 0 && static_cast<double>(saturated) / lit > options.max_saturated_fraction)
+      AddWarning(&fit.warnings, Warning::kSaturatedHighlights);
+    for (Warning w : fit.warnings) AddWarning(&summary.warnings, w);
+    maps->materials.push_back(fit);
+    albedo_progress.Update(static_cast<std::int64_t>(m + 1));
+  }
+  albedo_progress.Finish();
+
+  // Per light: measured over predicted where the diffuse term dominates.
+  summary.light_intensity_ratio.assign(s.lights, std::numeric_limits<double>::quiet_NaN());
+  for (int j = 0; j < s.lights; ++j) {
+    std::vector<double> ratios;
+    for (int p : active) {
+      const std::size_t cell = s.At(p, j);
+      if (!s.usable[cell] || material_of[p] < 0) continue;
+      const MaterialFit& fit = maps->materials[material_of[p]];
+      const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
+      const float* albedo = maps->albedo.ptr<float>(r) + c * C;
+      double measured = 0.0, predicted = 0.0, diffuse = 0.0;
+      for (int ch = 0; ch < C; ++ch) {
+        const double e = s.intensity[j][ch];
+        measured += s.value[cell * C + ch];
+        predicted += internal::Predict(s, p, s.wi[cell], {fit.model, fit.shape}, fit.specular[ch], albedo[ch], e);
+        diffuse += e * s.wi[cell].z() * albedo[ch] / M_PI;
+      }
+      if (predicted > 0.0 && diffuse > 0.9 * predicted && predicted > 4.0 * pixel_rms[p]) ratios.push_back(measured / predicted);
+    }
+    if (ratios.size() >= 20) summary.light_intensity_ratio[j] = Median(ratios);
+    if (std::isfinite(summary.light_intensity_ratio[j]) &&
+        std::abs(summary.light_intensity_ratio[j] - 1.0) > options.max_intensity_error)
+      summary.inconsistent_lights.push_back(j);
+  }
+  if (!summary.inconsistent_lights.empty()) AddWarning(&summary.warnings, Warning::kInconsistentIntensities);
+
+  maps->flags = flags;
+  summary.materials = static_cast<int>(maps->materials.size());
+  summary.pixels_fitted = static_cast<int>(active.size()) - summary.pixels_poor_fit;
+  summary.termination = Termination::kSuccess;
+  if (!summary.warnings.empty()) {
+    summary.message = "warnings:";
+    for (Warning w : summary.warnings) summary.message += std::string(" ") + WarningName(w);
+  }
+  timer.Finish(&summary);
+  return summary;
+}
+
+Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
+                          const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image) {
+  if (maps.albedo.empty() || maps.flags.size() != maps.albedo.size() || maps.normals.size() != maps.albedo.size())
+    return Ended(Termination::kInvalidInput, "the reflectance maps are empty or differ in size");
+  if (image == nullptr) return Ended(Termination::kInvalidInput, "no output image given");
+  const int C = maps.albedo.channels();
+  *image = cv::Mat(maps.albedo.size(), CV_32FC(C), cv::Scalar::all(0));
+  const Eigen::Vector3d w = light_direction.normalized(), v = view_direction.normalized();
+  for (int r = 0; r < image->rows; ++r)
+    for (int c = 0; c < image->cols; ++c) {
+      const std::uint8_t m = maps.material.at<std::uint8_t>(r, c);
+      if (m >= maps.materials.size()) continue;
+      const MaterialFit& fit = maps.materials[m];
+      const cv::Vec3f nf = maps.normals.at<cv::Vec3f>(r, c);
+      const Eigen::Vector3d n = Eigen::Vector3d(nf[0], nf[1], nf[2]).normalized();
+      const Eigen::Vector3d wi = internal::ToLocal(n, w), wo = internal::ToLocal(n, v);
+      brdf::ModelParams params{fit.model, Eigen::Vector3d::Zero(), fit.specular, fit.shape};
+      const float* albedo = maps.albedo.ptr<float>(r) + c * C;
+      for (int ch = 0; ch < C; ++ch) params.diffuse[ch] = albedo[ch];
+      const Eigen::Vector3d f = brdf::Evaluate(params, wi, wo);
+      float* out = image->ptr<float>(r) + c * C;
+      for (int ch = 0; ch < C; ++ch) out[ch] = static_cast<float>(intensity[ch] * f[ch] * std::max(0.0, wi.z()));
+    }
+  return Ended(Termination::kSuccess, "");
+}
+
+}  // namespace photorig::solvers::reflectance

@@ -1,0 +1,154 @@
+#include "svbrdf_scene.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace photorig::testing {
+namespace {
+
+using refl::FitReflectance;
+using refl::PixelFlag;
+using refl::ReflectanceMaps;
+using refl::ReflectanceOptions;
+
+// Per true material: the fitted material most of its pixels went to.
+std::vector<int> Correspondence(const ReflectanceMaps& truth, const ReflectanceMaps& fit) {
+  std::vector<int> out;
+  for (std::size_t m = 0; m < truth.materials.size(); ++m) {
+    std::vector<int> votes(fit.materials.size(), 0);
+    for (int i = 0; i < static_cast<int>(truth.material.total()); ++i)
+      if (truth.material.at<std::uint8_t>(i) == m && fit.material.at<std::uint8_t>(i) < fit.materials.size())
+        ++votes[fit.material.at<std::uint8_t>(i)];
+    out.push_back(static_cast<int>(std::max_element(votes.begin(), votes.end()) - votes.begin()));
+  }
+  return out;
+}
+
+// Median relative albedo error over fitted pixels.
+double AlbedoError(const ReflectanceMaps& truth, const ReflectanceMaps& fit) {
+  std::vector<double> errors;
+  const int C = truth.albedo.channels();
+  for (int i = 0; i < static_cast<int>(truth.material.total()); ++i) {
+    if (fit.flags.at<std::uint8_t>(i) != static_cast<std::uint8_t>(PixelFlag::kFitted)) continue;
+    for (int ch = 0; ch < C; ++ch) {
+      const double t = truth.albedo.ptr<float>()[i * C + ch], f = fit.albedo.ptr<float>()[i * C + ch];
+      errors.push_back(std::abs(f - t) / t);
+    }
+  }
+  std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+  return errors[errors.size() / 2];
+}
+
+TEST(Svbrdf, ThreeMaterialsInColourAreFoundWithTheirLobes) {
+  const SvbrdfScene scene = MakeScene(ThreeMaterials());
+  ReflectanceMaps fit;
+  const auto summary = FitReflectance({}, scene.stack, scene.truth.normals, scene.mask, &fit);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  ASSERT_EQ(summary.materials, 3);
+  const std::vector<int> match = Correspondence(scene.truth, fit);
+  for (std::size_t m = 0; m < 3; ++m) {
+    const auto& t = scene.truth.materials[m];
+    const auto& f = fit.materials[match[m]];
+    EXPECT_EQ(f.model, t.model) << "material " << m;
+    if (t.model != brdf::Model::kLambertian && f.model == t.model) {
+      EXPECT_NEAR(f.shape / t.shape, 1.0, 0.05) << "material " << m;
+      for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(f.specular[ch] / t.specular[ch], 1.0, 0.05) << "material " << m;
+    }
+    EXPECT_TRUE(f.warnings.empty()) << "material " << m;
+  }
+  EXPECT_LT(AlbedoError(scene.truth, fit), 0.01);
+  // Pixels whose band boundary a material reaches across are few.
+  int wrong = 0;
+  for (int i = 0; i < static_cast<int>(scene.truth.material.total()); ++i) {
+    const int t = scene.truth.material.at<std::uint8_t>(i);
+    if (t < 3 && fit.material.at<std::uint8_t>(i) != match[t]) ++wrong;
+  }
+  EXPECT_LT(wrong, 0.02 * summary.pixels_fitted);
+}
+
+TEST(Svbrdf, TwoMaterialsInMonochromeAreTold) {
+  SceneSpec spec;
+  spec.channels = 1;
+  spec.materials = {Matte(), Phong(0.3, 40.0)};
+  const SvbrdfScene scene = MakeScene(spec);
+  ReflectanceMaps fit;
+  const auto summary = FitReflectance({}, scene.stack, scene.truth.normals, scene.mask, &fit);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  ASSERT_EQ(summary.materials, 2);
+  const std::vector<int> match = Correspondence(scene.truth, fit);
+  EXPECT_EQ(fit.materials[match[0]].model, brdf::Model::kLambertian);
+  EXPECT_EQ(fit.materials[match[1]].model, brdf::Model::kBlinnPhong);
+  EXPECT_NEAR(fit.materials[match[1]].shape / 40.0, 1.0, 0.05);
+  EXPECT_LT(AlbedoError(scene.truth, fit), 0.01);
+}
+
+TEST(Svbrdf, AMatteObjectIsOneMaterialWithoutALobe) {
+  SceneSpec spec;
+  spec.materials = {Matte()};
+  spec.band_colour = {Eigen::Vector3d(0.8, 0.7, 0.6)};
+  const SvbrdfScene scene = MakeScene(spec);
+  ReflectanceMaps fit;
+  const auto summary = FitReflectance({}, scene.stack, scene.truth.normals, scene.mask, &fit);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  EXPECT_EQ(summary.materials, 1);
+  EXPECT_EQ(fit.materials[0].model, brdf::Model::kLambertian);
+  EXPECT_LT(AlbedoError(scene.truth, fit), 0.01);
+}
+
+TEST(Svbrdf, UnusablePixelsAreFlaggedNotGuessed) {
+  SceneSpec spec = ThreeMaterials(1);
+  SvbrdfScene scene = MakeScene(spec);
+  cv::Mat normals = scene.truth.normals.clone();
+  normals.at<cv::Vec3f>(32, 32) = cv::Vec3f(NAN, NAN, NAN);
+  // A pixel every image shows dark: no usable sample.
+  for (auto& image : scene.stack.images) image.ptr<float>(20)[20] = NAN;
+  ReflectanceMaps fit;
+  const auto summary = FitReflectance({}, scene.stack, normals, scene.mask, &fit);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  EXPECT_EQ(fit.flags.at<std::uint8_t>(32, 32), static_cast<std::uint8_t>(PixelFlag::kNoNormal));
+  EXPECT_EQ(fit.flags.at<std::uint8_t>(20, 20), static_cast<std::uint8_t>(PixelFlag::kTooFewSamples));
+  EXPECT_TRUE(std::isnan(fit.albedo.ptr<float>(20)[20]));
+  EXPECT_EQ(fit.flags.at<std::uint8_t>(0, 0), static_cast<std::uint8_t>(PixelFlag::kOutsideMask));
+  EXPECT_EQ(summary.pixels_no_normal, 1);
+  EXPECT_EQ(summary.pixels_too_few_samples, 1);
+}
+
+TEST(Svbrdf, BadOptionsAndInputsEndWithoutAResult) {
+  const SvbrdfScene scene = MakeScene(ThreeMaterials(1));
+  ReflectanceMaps fit;
+  ReflectanceOptions options;
+  options.max_materials = 0;
+  EXPECT_EQ(FitReflectance(options, scene.stack, scene.truth.normals, scene.mask, &fit).termination,
+            solvers::Termination::kInvalidOptions);
+  options = {};
+  options.lobes = {brdf::Model::kLambertian};
+  EXPECT_EQ(FitReflectance(options, scene.stack, scene.truth.normals, scene.mask, &fit).termination,
+            solvers::Termination::kInvalidOptions);
+  auto stack = scene.stack;
+  stack.light_directions.pop_back();
+  EXPECT_EQ(FitReflectance({}, stack, scene.truth.normals, scene.mask, &fit).termination,
+            solvers::Termination::kInvalidInput);
+  EXPECT_EQ(FitReflectance({}, scene.stack, cv::Mat(3, 3, CV_32FC3), scene.mask, &fit).termination,
+            solvers::Termination::kInvalidInput);
+  EXPECT_EQ(FitReflectance({}, scene.stack, scene.truth.normals, cv::Mat::zeros(scene.mask.size(), CV_8U), &fit)
+                .termination,
+            solvers::Termination::kFailure);
+}
+
+TEST(Svbrdf, RenderingAFlatPixelIsTheBrdfModel) {
+  refl::ReflectanceMaps maps;
+  maps.materials = {Ggx(0.5, 0.2)};
+  maps.normals = cv::Mat(1, 1, CV_32FC3, cv::Scalar(0, 0, 1));
+  maps.albedo = cv::Mat(1, 1, CV_32FC3, cv::Scalar(0.2, 0.4, 0.6));
+  maps.material = cv::Mat(1, 1, CV_8U, cv::Scalar(0));
+  maps.flags = cv::Mat(1, 1, CV_8U, cv::Scalar(0));
+  const Eigen::Vector3d wi = Eigen::Vector3d(0.3, 0.2, 0.9).normalized(), wo = Eigen::Vector3d(-0.2, 0.1, 0.95).normalized();
+  cv::Mat image;
+  ASSERT_TRUE(refl::RenderReflectance(maps, wi, Eigen::Vector3d(1.0, 2.0, 3.0), wo, &image).IsSolutionUsable());
+  const Eigen::Vector3d f = brdf::Evaluate({brdf::Model::kGgx, Eigen::Vector3d(0.2, 0.4, 0.6), Eigen::Vector3d::Constant(0.5), 0.2}, wi, wo);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(image.at<cv::Vec3f>(0, 0)[ch], (ch + 1) * f[ch] * wi.z(), 1e-5);
+}
+
+}  // namespace
+}  // namespace photorig::testing

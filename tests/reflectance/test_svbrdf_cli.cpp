@@ -1,0 +1,81 @@
+// From `photorig run` of the simulated glossy sphere to `photorig solve svbrdf`
+// and `photorig relight --model svbrdf`: one Blinn-Phong material with the
+// simulator's lobe, the held-out error below the Lambertian one, a glTF asset,
+// and the shared exit codes and --json document.
+
+#include "../daemon/test_support.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <cmath>
+#include <filesystem>
+
+namespace {
+
+using photorig::testing::ReadText;
+using photorig::testing::RunPhotorig;
+using photorig::testing::SourceDir;
+using photorig::testing::TempDir;
+
+TEST(SvbrdfCli, SolvesTheSimulatedGlossySphere) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-shiny-sphere.yaml --no-solve --out " + run,
+                        dir.path() / "run.log"),
+            0)
+      << ReadText(dir.path() / "run.log");
+  // A block of the sphere, to keep the test short.
+  cv::Mat frame = cv::imread((std::filesystem::path(run) / "ground_truth" / "normals.tiff").string(), cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(frame.empty());
+  cv::Mat mask = cv::Mat::zeros(frame.size(), CV_8U);
+  mask(cv::Rect(frame.cols / 2 - 30, frame.rows / 2 - 30, 60, 60)).setTo(255);
+  const std::string mask_path = (dir.path() / "mask.png").string();
+  ASSERT_TRUE(cv::imwrite(mask_path, mask));
+
+  ASSERT_EQ(RunPhotorig("solve svbrdf --json --held-out 2 --max-materials 2 --mask " + mask_path + " --run " + run,
+                        dir.path() / "solve.json"),
+            0)
+      << ReadText(dir.path() / "solve.json");
+  const std::string text = ReadText(dir.path() / "solve.json");
+  const auto json = nlohmann::json::parse(text.substr(text.find('{'), text.rfind('}') - text.find('{') + 1));
+  EXPECT_EQ(json["command"], "solve svbrdf");
+  EXPECT_TRUE(json["ok"]);
+  ASSERT_EQ(json["materials"].size(), 1u) << json.dump(2);
+  const auto& m = json["materials"][0];
+  EXPECT_EQ(m["model"], "blinn_phong");
+  EXPECT_NEAR(m["shape"].get<double>(), 60.0, 3.0);
+  // The simulator's rho_s 0.1 at e = 60 is k_s = 0.1 / c(60) = 0.375 (docs/brdf.md).
+  EXPECT_NEAR(m["specular"][0].get<double>(), 0.375, 0.02);
+  const auto& mean = json["held_out"]["mean"];
+  EXPECT_LT(mean["per_material"]["rmse"].get<double>(), 0.5 * mean["lambertian"]["rmse"].get<double>());
+  const std::filesystem::path results = std::filesystem::path(run) / "results" / "svbrdf";
+  for (const char* file : {"albedo.tiff", "material.png", "flags.png", "report.json", "asset/asset.gltf", "asset/asset.bin",
+                           "asset/base_colour.png", "asset/albedo.exr"})
+    EXPECT_TRUE(std::filesystem::exists(results / file)) << file;
+
+  EXPECT_EQ(RunPhotorig("relight --model svbrdf --light 0.3,0.2,0.9 --run " + run + " --out " +
+                            (dir.path() / "relit.tiff").string(),
+                        dir.path() / "relight.log"),
+            0)
+      << ReadText(dir.path() / "relight.log");
+  EXPECT_TRUE(std::filesystem::exists(dir.path() / "relit.tiff"));
+}
+
+TEST(SvbrdfCli, UsageErrorsExitTwo) {
+  TempDir dir;
+  EXPECT_EQ(RunPhotorig("solve svbrdf --json", dir.path() / "none.json"), 2) << ReadText(dir.path() / "none.json");
+  const std::string text = ReadText(dir.path() / "none.json");
+  const auto json = nlohmann::json::parse(text.substr(text.find('{'), text.rfind('}') - text.find('{') + 1));
+  EXPECT_FALSE(json["ok"]);
+  EXPECT_EQ(json["exit_code"], 2);
+  EXPECT_EQ(RunPhotorig("solve svbrdf --max-materials 0 --dataset " + dir.path().string(), dir.path() / "k.log"), 2);
+  EXPECT_EQ(RunPhotorig("relight --model svbrdf --light 0,0,1 --run " + dir.path().string() + " --out x.tiff",
+                        dir.path() / "relight.log"),
+            2)
+      << ReadText(dir.path() / "relight.log");
+}
+
+}  // namespace
