@@ -340,7 +340,8 @@ RigConfig LoadRigConfig(const std::string& path) {
 
   const YamlNode camera = root["camera"];
   camera.ExpectKeys({"driver", "id", "options", "projection", "width", "height", "pixel_pitch_mm", "bit_depth",
-                     "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart", "trigger"});
+                     "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart", "trigger",
+                     "pixel_format", "color_model"});
   CameraConfig& cam = rig.camera;
   CheckDriver(camera["driver"], "camera");
   cam.driver = camera["driver"].AsString();
@@ -361,6 +362,22 @@ RigConfig LoadRigConfig(const std::string& path) {
   cam.gain_db = camera.DoubleIn("gain_db", cam.gain_db, kMinGainDb, kMaxGainDb);
   if (auto trigger = camera.Find("trigger")) cam.trigger = ParseTrigger(*trigger);
   if (auto chart = camera.Find("color_chart")) cam.color_chart = ParseColorChart(*chart, cam.width, cam.height);
+  if (auto format = camera.Find("pixel_format")) {
+    cam.pixel_format = format->AsString();
+    const std::string mosaic = drivers::MosaicOfPixelFormat(cam.pixel_format);
+    const int bits = drivers::BitsOfPixelFormat(cam.pixel_format);
+    if (mosaic.empty() || mosaic == "RGB")
+      format->Fail("'" + cam.pixel_format + "' is not a format frames can be stored in (Mono8/10/12/16, "
+                   "BayerRG/GR/GB/BG 8/10/12/16)");
+    if (bits != cam.bit_depth)
+      format->Fail(cam.pixel_format + " delivers " + std::to_string(bits) + " bits but bit_depth is " +
+                   std::to_string(cam.bit_depth));
+    cam.mosaic = mosaic;
+  }
+  if (auto model = camera.Find("color_model")) {
+    if (cam.mosaic == "mono") model->Fail("a colour model needs a colour camera (pixel_format Bayer*)");
+    cam.color_model = LoadColorModelFile(model->AsPath());
+  }
 
   if (auto sim_node = root.Find("sim")) {
     sim_node->ExpectKeys(

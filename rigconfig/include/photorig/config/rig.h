@@ -4,6 +4,7 @@
 // Loading checks everything, each driver's own settings included, so a rig
 // that loads builds its devices without configuration errors.
 
+#include "photorig/config/color_model.h"
 #include "photorig/config/driver_options.h"
 #include "photorig/config/yaml_node.h"
 #include "photorig/drivers/camera.h"
@@ -103,6 +104,16 @@ struct CameraConfig {
   double e_per_dn = 0.0;
   // Fixed chart position for colour calibration, used when detection fails.
   std::optional<ColorChartPlacement> color_chart;
+  // GenICam pixel format asked of the camera: Mono8/10/12/16,
+  // Bayer{RG,GR,GB,BG}{8,10,12,16}; "" = Mono<bit_depth>. A Bayer format makes
+  // the camera a colour one: frames are stored as the raw mosaic and `mosaic`
+  // names its top-left 2 x 2 block (drivers::MosaicOfPixelFormat).
+  std::string pixel_format;
+  std::string mosaic = "mono";
+  // camera.color_model: the colour model of this camera (photorig calibrate
+  // color), loaded and checked when the rig loads; applied when colour runs
+  // are solved.
+  std::optional<LoadedColorModel> color_model;
 };
 
 // A gonioreflectometer's axes (kind: gonioreflectometer). Axis ids
