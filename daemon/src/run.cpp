@@ -178,7 +178,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   RunWriter& writer = *writer_storage;
   if (devices.world && !writer.manifest().has_ground_truth) {
     const sim::SurfaceMaps& truth = devices.world->surface();
-    writer.WriteGroundTruth(truth, devices.world->config().lights);
+    writer.WriteGroundTruth(truth, devices.world->config().lights, devices.world->TruthColorAlbedo());
   }
 
   spdlog::info("run {}: recipe {} on rig {} ({} steps) -> {}", header.run_id, recipe.name, rig.name, steps.size(),

@@ -419,7 +419,8 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
   return manifest_.frames.back();
 }
 
-void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights) {
+void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights,
+                                 const cv::Mat& albedo_rgb) {
   const fs::path truth = fs::path(directory_) / "ground_truth";
   fs::create_directories(truth);
   std::ostringstream directions, intensities;
@@ -433,6 +434,7 @@ void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vec
   WriteFileDurably((truth / "light_intensities.txt").string(), intensities.str());
   WriteFloatTiff((truth / "normals.tiff").string(), surface.normals);
   WriteFloatTiff((truth / "albedo.tiff").string(), surface.albedo);
+  if (!albedo_rgb.empty()) WriteFloatTiff((truth / "albedo_rgb.tiff").string(), albedo_rgb);
   WriteImage((truth / "mask.png").string(), surface.mask);
   if (!surface.height.empty()) WriteFloatTiff((truth / "height.tiff").string(), surface.height);
   if (!surface.brdf_params.empty()) {

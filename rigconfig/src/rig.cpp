@@ -3,7 +3,9 @@
 #include "driver_options_parse.h"
 #include "photorig/config/sim.h"
 #include "photorig/config/yaml_node.h"
+#include "photorig/color/spectrum.h"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 
@@ -381,7 +383,7 @@ RigConfig LoadRigConfig(const std::string& path) {
 
   if (auto sim_node = root.Find("sim")) {
     sim_node->ExpectKeys(
-        {"seed", "sensor", "scene", "faults", "led_direction_error_deg", "led_intensity_error_pct", "ambient"});
+        {"seed", "sensor", "scene", "faults", "led_direction_error_deg", "led_intensity_error_pct", "ambient", "color"});
     SimConfig sim;
     sim.seed = static_cast<std::uint64_t>(sim_node->Int("seed", 1));
     sim.led_direction_error_deg = sim_node->Double("led_direction_error_deg", 0.0);
@@ -391,6 +393,17 @@ RigConfig LoadRigConfig(const std::string& path) {
     if (!(sim.led_intensity_error_pct >= 0.0 && sim.led_intensity_error_pct < 30.0))
       (*sim_node)["led_intensity_error_pct"].Fail("must lie in [0, 30)");
     if (auto ambient = sim_node->Find("ambient")) sim.ambient = ParseAmbient(*ambient);
+    if (auto color = sim_node->Find("color")) {
+      color->ExpectKeys({"camera", "illuminant"});
+      sim.color.camera = color->String("camera", sim.color.camera);
+      const auto& cameras = color::CameraNames();
+      if (std::find(cameras.begin(), cameras.end(), sim.color.camera) == cameras.end())
+        (*color)["camera"].Fail("unknown camera '" + sim.color.camera + "'");
+      const std::string illuminant = color->String("illuminant", "D65");
+      const auto parsed = color::ParseIlluminant(illuminant);
+      if (!parsed) (*color)["illuminant"].Fail("unknown illuminant '" + illuminant + "' (known: D50, D65, A)");
+      sim.color.illuminant = *parsed;
+    }
     const auto sensor = sim_node->Find("sensor");
     sim.sensor = sensor ? ParseSensor(*sensor, cam.bit_depth) : sim::SensorModel{};
     sim.sensor.bit_depth = cam.bit_depth;

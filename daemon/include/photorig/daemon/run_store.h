@@ -135,7 +135,10 @@ class RunWriter {
   // volumes, line integrals, as ground_truth/*.tiff|png; the lights as they
   // really are (which may differ from the rig's nominal ones) as
   // ground_truth/light_directions.txt, one "x y z" line per light.
-  void WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights);
+  // A colour camera's scene also has its albedo in linear sRGB (albedo_rgb,
+  // CV_32FC3 R, G, B) as ground_truth/albedo_rgb.tiff.
+  void WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights,
+                        const cv::Mat& albedo_rgb = cv::Mat());
   bool HasFrame(int step_index) const;
   // Appends the stop record to the journal and writes manifest.json.
   void Finish(const StopRecord& stop);

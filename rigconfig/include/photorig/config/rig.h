@@ -139,6 +139,14 @@ struct MotionConfig {
   std::string CheckPose(const std::map<std::string, double>& positions_deg) const;
 };
 
+// The simulated colour camera (sim.color), used when camera.pixel_format is a
+// Bayer format: whose measured sensitivities its channels have and the
+// spectrum of the dome's LEDs (a CIE illuminant).
+struct SimColorConfig {
+  std::string camera = "nikon-5100";  // color::CameraNames()
+  color::Illuminant illuminant = color::Illuminant::kD65;
+};
+
 struct SimConfig {
   std::uint64_t seed = 1;
   // The simulated dome as built: each LED tilted off its nominal direction by
@@ -151,6 +159,7 @@ struct SimConfig {
   sim::AmbientLight ambient;
   sim::SensorModel sensor;
   sim::Scene scene;  // default scene; a recipe's sample.sim_scene replaces it
+  SimColorConfig color;
   sim::CameraFaults camera_faults;
   sim::LightFaults light_faults;
   std::map<std::string, sim::AxisFaults> axis_faults;  // by axis id
