@@ -4,6 +4,7 @@
 #include "photorig/daemon/rig_config.h"
 
 #include <matio.h>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include <array>
@@ -249,6 +250,27 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
     input.stack.images.push_back(grey);
     input.stack.light_directions.push_back(LightDirection(directions_file, directions[i].first, directions[i].second));
     input.stack.light_scales.push_back(mean_intensity);
+    if (image.channels() == 3) {
+      // Colour kept as well: each channel's albedo is fitted under that
+      // channel's intensity once the normals are solved on the grey stack.
+      if (!input.color) {
+        input.color.emplace();
+        input.color->provenance.mosaic = "RGB";
+        input.color->provenance.demosaic = "none";
+        input.color->provenance.color_space = "camera-rgb";
+        input.color->provenance.light_colors = intensities_file.string() + " per channel";
+      }
+      cv::Mat frame_rgb;
+      cv::cvtColor(image, frame_rgb, cv::COLOR_BGR2RGB);
+      const double full_scale = image.depth() == CV_8U ? 255.0 : 65535.0;
+      cv::Mat clipped;  // any channel at the top code
+      cv::transform(frame_rgb >= full_scale, clipped, cv::Matx13f(1, 1, 1));
+      frame_rgb.convertTo(frame_rgb, CV_32F);
+      frame_rgb.setTo(cv::Scalar::all(std::numeric_limits<float>::infinity()), clipped != 0);
+      input.color->images.push_back(frame_rgb);
+      input.color->light_directions.push_back(input.stack.light_directions.back());
+      input.color->light_scales.emplace_back(rgb[0], rgb[1], rgb[2]);  // light_intensities.txt: R G B
+    }
   }
   // Channels are rescaled, so there is no common full-scale code to detect.
   input.saturation_level = std::numeric_limits<double>::infinity();
