@@ -127,15 +127,16 @@ sim::WorldConfig MakeWorldConfig(const RigConfig& rig, const sim::Scene& scene) 
   sim::PerturbLights({rig.sim->led_direction_error_deg, rig.sim->led_intensity_error_pct}, rig.sim->seed,
                      &world.lights);
   world.ambient = rig.sim->ambient;
+  const sim::ColorCamera color = ColorSceneResponses(rig.sim->color, world.scene.albedo);
+  if (world.scene.albedo.paints.size() == 2) {
+    // The texture's numbers become the paints' luminance: what a monochrome
+    // camera sees of them, and the monochrome ground truth (albedo.tiff).
+    world.scene.albedo.low = color.truth_low_srgb.dot(LuminanceOfLinearSrgb());
+    world.scene.albedo.high = color.truth_high_srgb.dot(LuminanceOfLinearSrgb());
+  }
   if (rig.camera.mosaic != "mono") {
-    world.color = ColorSceneResponses(rig.sim->color, world.scene.albedo);
+    world.color = color;
     world.color.mosaic = rig.camera.mosaic;
-    if (world.scene.albedo.paints.size() == 2) {
-      // The texture's numbers become the paints' luminance, so the monochrome
-      // ground truth (albedo.tiff) is what a luminance camera would solve.
-      world.scene.albedo.low = world.color.truth_low_srgb.dot(LuminanceOfLinearSrgb());
-      world.scene.albedo.high = world.color.truth_high_srgb.dot(LuminanceOfLinearSrgb());
-    }
   }
   return world;
 }

@@ -26,7 +26,7 @@ struct AlbedoTexture {
   // For a colour camera: the paints of the low and high squares / rings, by
   // ColorChecker patch name ("red", "blue", ...). The world's builder turns
   // them into camera responses (sim::ColorCamera) and sets low and high to
-  // their luminance Y; a monochrome camera ignores them.
+  // their luminance Y, which is what a monochrome camera sees.
   std::vector<std::string> paints;
 
   double At(double x_mm, double y_mm) const;
