@@ -177,19 +177,23 @@ ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorS
     out.light_scales.push_back(scale * led.rgb_intensity);
   }
   out.provenance.light_colors = "rig lights' rgb_intensity";
-  // Channel noise: the darks' temporal spread after the same processing
-  // (one dark: a robust spatial estimate), including the subtracted mean's.
+  // Channel noise: the darks' temporal spread after the same processing (one
+  // dark: its robust spatial spread), including the subtracted mean's.
   if (!darks.empty()) {
+    std::vector<cv::Mat> residuals;
+    for (const cv::Mat& dark : darks) {
+      const cv::Mat reference = darks.size() >= 2 ? mean_dark : cv::Mat(dark.size(), CV_32FC3, cv::mean(dark));
+      cv::Mat residual = dark - reference;
+      if (model) ApplyColorModelInPlace(model->model, &residual);
+      residuals.push_back(residual);
+    }
+    const double n = static_cast<double>(darks.size());
+    const double temporal = darks.size() >= 2 ? std::sqrt(n / (n - 1.0)) : 1.0;
     for (int c = 0; c < 3; ++c) {
       std::vector<float> values;
-      for (const cv::Mat& dark : darks) {
-        cv::Mat d = dark - (darks.size() >= 2 ? mean_dark : cv::Mat(cv::Mat::zeros(dark.size(), CV_32FC3)));
-        if (model) {
-          if (darks.size() < 2) d = dark - cv::mean(dark);
-          ApplyColorModelInPlace(model->model, &d);
-        }
+      for (const cv::Mat& residual : residuals) {
         cv::Mat channel;
-        cv::extractChannel(d, channel, c);
+        cv::extractChannel(residual, channel, c);
         values.insert(values.end(), channel.begin<float>(), channel.end<float>());
       }
       auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
@@ -197,8 +201,6 @@ ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorS
       const float median = *middle;
       for (float& v : values) v = std::abs(v - median);
       std::nth_element(values.begin(), middle, values.end());
-      const double n = static_cast<double>(darks.size());
-      const double temporal = darks.size() >= 2 ? std::sqrt(n / (n - 1.0)) : 1.0;
       out.read_sigma[c] = 1.4826 * *middle * temporal * std::sqrt(1.0 + 1.0 / n);
     }
   }

@@ -213,6 +213,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   const auto directions = ReadTriples(directions_file, names.size());
   const auto intensities = ReadTriples(intensities_file, names.size());
   cv::Mat first;
+  bool colour_seen = false;
   for (std::size_t i = 0; i < names.size(); ++i) {
     const fs::path file = root / names[i].second;
     if (!fs::is_regular_file(file))
@@ -250,6 +251,13 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
     input.stack.images.push_back(grey);
     input.stack.light_directions.push_back(LightDirection(directions_file, directions[i].first, directions[i].second));
     input.stack.light_scales.push_back(mean_intensity);
+    // Grey images saved as RGB (a monochrome camera's, an export of a
+    // monochrome run) carry no colour: all three channels agree.
+    if (image.channels() == 3 && !colour_seen) {
+      std::vector<cv::Mat> bgr;
+      cv::split(image, bgr);
+      colour_seen = cv::countNonZero(bgr[0] != bgr[1]) > 0 || cv::countNonZero(bgr[1] != bgr[2]) > 0;
+    }
     if (image.channels() == 3) {
       // Colour kept as well: each channel's albedo is fitted under that
       // channel's intensity once the normals are solved on the grey stack.
@@ -272,6 +280,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
       input.color->light_scales.emplace_back(rgb[0], rgb[1], rgb[2]);  // light_intensities.txt: R G B
     }
   }
+  if (!colour_seen) input.color.reset();
   // Channels are rescaled, so there is no common full-scale code to detect.
   input.saturation_level = std::numeric_limits<double>::infinity();
   const fs::path mask_file = root / "mask.png";
