@@ -4,6 +4,7 @@
 #include "photorig/daemon/rig_config.h"
 
 #include <matio.h>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include <array>
@@ -212,6 +213,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   const auto directions = ReadTriples(directions_file, names.size());
   const auto intensities = ReadTriples(intensities_file, names.size());
   cv::Mat first;
+  bool colour_seen = false;
   for (std::size_t i = 0; i < names.size(); ++i) {
     const fs::path file = root / names[i].second;
     if (!fs::is_regular_file(file))
@@ -249,7 +251,36 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
     input.stack.images.push_back(grey);
     input.stack.light_directions.push_back(LightDirection(directions_file, directions[i].first, directions[i].second));
     input.stack.light_scales.push_back(mean_intensity);
+    // Grey images saved as RGB (a monochrome camera's, an export of a
+    // monochrome run) carry no colour: all three channels agree.
+    if (image.channels() == 3 && !colour_seen) {
+      std::vector<cv::Mat> bgr;
+      cv::split(image, bgr);
+      colour_seen = cv::countNonZero(bgr[0] != bgr[1]) > 0 || cv::countNonZero(bgr[1] != bgr[2]) > 0;
+    }
+    if (image.channels() == 3) {
+      // Colour kept as well: each channel's albedo is fitted under that
+      // channel's intensity once the normals are solved on the grey stack.
+      if (!input.color) {
+        input.color.emplace();
+        input.color->provenance.mosaic = "RGB";
+        input.color->provenance.demosaic = "none";
+        input.color->provenance.color_space = "camera-rgb";
+        input.color->provenance.light_colors = intensities_file.string() + " per channel";
+      }
+      cv::Mat frame_rgb;
+      cv::cvtColor(image, frame_rgb, cv::COLOR_BGR2RGB);
+      const double full_scale = image.depth() == CV_8U ? 255.0 : 65535.0;
+      cv::Mat clipped;  // any channel at the top code
+      cv::transform(frame_rgb >= full_scale, clipped, cv::Matx13f(1, 1, 1));
+      frame_rgb.convertTo(frame_rgb, CV_32F);
+      frame_rgb.setTo(cv::Scalar::all(std::numeric_limits<float>::infinity()), clipped != 0);
+      input.color->images.push_back(frame_rgb);
+      input.color->light_directions.push_back(input.stack.light_directions.back());
+      input.color->light_scales.emplace_back(rgb[0], rgb[1], rgb[2]);  // light_intensities.txt: R G B
+    }
   }
+  if (!colour_seen) input.color.reset();
   // Channels are rescaled, so there is no common full-scale code to detect.
   input.saturation_level = std::numeric_limits<double>::infinity();
   const fs::path mask_file = root / "mask.png";

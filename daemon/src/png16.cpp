@@ -72,9 +72,11 @@ void FillScanlines(const std::uint16_t* pixels, int width, std::size_t begin, st
 
 }  // namespace
 
-std::uint32_t Png16Encoder::Encode(const std::uint16_t* pixels, int width, int height, const Sink& sink) {
+std::uint32_t Png16Encoder::Encode(const std::uint16_t* pixels, int width, int height, const Sink& sink, int channels) {
   if (width <= 0 || height <= 0) throw std::invalid_argument("Png16Encoder: empty frame");
-  const std::size_t row_bytes = 1 + 2 * static_cast<std::size_t>(width);
+  if (channels != 1 && channels != 3) throw std::invalid_argument("Png16Encoder: frames have 1 or 3 channels");
+  const int samples_per_row = width * channels;  // a row of R, G, B is a row of 3 x width samples
+  const std::size_t row_bytes = 1 + 2 * static_cast<std::size_t>(samples_per_row);
   const std::size_t raw_size = row_bytes * static_cast<std::size_t>(height);
   const std::size_t blocks = (raw_size + kMaxStoredBlock - 1) / kMaxStoredBlock;
   const std::size_t zlib_size = 2 + blocks * kStoredHeader + raw_size + 4;
@@ -85,7 +87,8 @@ std::uint32_t Png16Encoder::Encode(const std::uint16_t* pixels, int width, int h
   std::array<std::uint8_t, 13> ihdr{};
   PutBigEndian32(ihdr.data(), static_cast<std::uint32_t>(width));
   PutBigEndian32(ihdr.data() + 4, static_cast<std::uint32_t>(height));
-  ihdr[8] = 16;  // bit depth; colour type 0 (grey), deflate, filter method 0, no interlace
+  ihdr[8] = 16;  // bit depth; colour type 0 (grey) or 2 (RGB), deflate, filter method 0, no interlace
+  ihdr[9] = channels == 3 ? 2 : 0;
   out = PutChunk(out, "IHDR", ihdr.data(), ihdr.size());
   out = PutBigEndian32(out, static_cast<std::uint32_t>(zlib_size));
   const std::uint8_t* idat_from = out;  // the chunk CRC covers the type and the data
@@ -105,7 +108,7 @@ std::uint32_t Png16Encoder::Encode(const std::uint16_t* pixels, int width, int h
     out[2] = static_cast<std::uint8_t>(size >> 8);
     out[3] = static_cast<std::uint8_t>(~size);
     out[4] = static_cast<std::uint8_t>(~size >> 8);
-    FillScanlines(pixels, width, begin, begin + size, out + kStoredHeader);
+    FillScanlines(pixels, samples_per_row, begin, begin + size, out + kStoredHeader);
     adler = libdeflate_adler32(adler, out + kStoredHeader, size);
     out += kStoredHeader + size;
     if (!last && (b + 1) % kBlocksPerPiece != 0) continue;
@@ -119,7 +122,7 @@ std::uint32_t Png16Encoder::Encode(const std::uint16_t* pixels, int width, int h
     out = piece_.data();
     idat_from = out;
   }
-  const std::size_t pixel_bytes = static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * 2;
+  const std::size_t pixel_bytes = static_cast<std::size_t>(samples_per_row) * static_cast<std::size_t>(height) * 2;
   return Crc(0, reinterpret_cast<const std::uint8_t*>(pixels), pixel_bytes);
 }
 

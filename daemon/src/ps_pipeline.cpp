@@ -9,8 +9,13 @@
 #include "photorig/ps/evaluation.h"
 #include "photorig/ps/integration.h"
 #include "photorig/ps/photometric_stereo.h"
+#include "photorig/ps/channel_albedo.h"
+#include "photorig/color/colorimetry.h"
 
+#include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
+
+#include <algorithm>
 
 #include <chrono>
 #include <cmath>
@@ -58,7 +63,99 @@ json MetricsJson(const ps::AngularErrorStats& stats) {
           {"percent_under_15deg", 100.0 * stats.fraction_under_15deg}};
 }
 
+// B, G, R 8-bit: each channel of the linear albedo over `top`, clipped to
+// [0, 1] and sRGB-encoded; unsolved pixels black.
+cv::Mat ColorAlbedoPreview(const cv::Mat& albedo_rgb, const cv::Mat& solved, double top) {
+  cv::Mat out(albedo_rgb.size(), CV_8UC3, cv::Scalar::all(0));
+  for (int r = 0; r < albedo_rgb.rows; ++r) {
+    const auto* a = albedo_rgb.ptr<cv::Vec3f>(r);
+    const auto* m = solved.ptr<std::uint8_t>(r);
+    auto* o = out.ptr<cv::Vec3b>(r);
+    for (int c = 0; c < albedo_rgb.cols; ++c) {
+      if (!m[c]) continue;
+      for (int k = 0; k < 3; ++k) {
+        const double v = std::isfinite(a[c][k]) ? std::clamp(a[c][k] / top, 0.0, 1.0) : 0.0;
+        o[c][2 - k] = cv::saturate_cast<std::uint8_t>(255.0 * color::SrgbEncode(v));
+      }
+    }
+  }
+  return out;
+}
+
+// A one-channel mask repeated for the three interleaved channels of an image
+// reshaped to one channel (rows x cols*3 values as one column).
+cv::Mat RepeatMask3(const cv::Mat& mask) {
+  cv::Mat three;
+  cv::merge(std::vector<cv::Mat>{mask, mask, mask}, three);
+  return three.reshape(1, mask.rows * mask.cols * 3);
+}
+
+// Per-channel albedo with the normals fixed (ps::SolveChannelAlbedo): R, G, B
+// as CV_32FC3, NaN where a channel has too few usable samples.
+cv::Mat SolveColorAlbedo(const ColorImageStack& color, const cv::Mat& normals, double shadow_sigmas,
+                         PhotometricStereoResult* result) {
+  std::vector<cv::Mat> channels(3);
+  for (int c = 0; c < 3; ++c) {
+    ps::ChannelAlbedoOptions options;
+    // Clipped samples are +infinity in a colour stack; shadows sit at zero
+    // after the dark, within the channel's noise.
+    options.shadow_threshold = std::max(1.0, shadow_sigmas * color.read_sigma[c]);
+    options.saturation_level = std::numeric_limits<double>::infinity();
+    const ps::SolverSummary summary = ps::SolveChannelAlbedo(options, color.Channel(c), normals, &channels[c]);
+    if (c == 1) result->color_albedo_summary = summary;
+    if (!summary.IsSolutionUsable())
+      spdlog::warn("{}: channel {} albedo: {}", result->source, "RGB"[c], summary.message);
+  }
+  cv::Mat albedo;
+  cv::merge(channels, albedo);
+  result->color = color.provenance;
+  return albedo;
+}
+
+PhotometricStereoResult::ColorError Summarise(std::vector<double> errors) {
+  PhotometricStereoResult::ColorError out;
+  out.pixels = static_cast<int>(errors.size());
+  if (errors.empty()) return out;
+  double sum = 0.0;
+  for (double e : errors) sum += e;
+  out.mean = sum / static_cast<double>(errors.size());
+  std::sort(errors.begin(), errors.end());
+  out.median = errors[errors.size() / 2];
+  out.p95 = errors[std::min(errors.size() - 1, errors.size() * 95 / 100)];
+  return out;
+}
+
+PhotometricStereoResult::ColorErrors CompareColorAlbedo(const cv::Mat& albedo_rgb, const cv::Mat& truth_rgb,
+                                                        const cv::Mat& solved) {
+  // Interior: the truth's 5 x 5 range is zero in every channel (NaN off the object counts as a change).
+  cv::Mat truth = truth_rgb.clone();
+  cv::patchNaNs(truth, -1.0);
+  cv::Mat high, low;
+  const cv::Mat box = cv::Mat::ones(5, 5, CV_8U);
+  cv::dilate(truth, high, box);
+  cv::erode(truth, low, box);
+  cv::Mat range;
+  cv::transform(high - low, range, cv::Matx13f(1, 1, 1));
+  std::vector<double> all, interior;
+  for (int r = 0; r < albedo_rgb.rows; ++r)
+    for (int c = 0; c < albedo_rgb.cols; ++c) {
+      if (!solved.at<std::uint8_t>(r, c)) continue;
+      const cv::Vec3f a = albedo_rgb.at<cv::Vec3f>(r, c), t = truth_rgb.at<cv::Vec3f>(r, c);
+      if (!std::isfinite(a[0] + a[1] + a[2]) || !std::isfinite(t[0] + t[1] + t[2])) continue;
+      const double e = Ciede2000OfLinearSrgb(Eigen::Vector3d(a[0], a[1], a[2]), Eigen::Vector3d(t[0], t[1], t[2]));
+      all.push_back(e);
+      if (range.at<float>(r, c) == 0.0f) interior.push_back(e);
+    }
+  return {Summarise(std::move(all)), Summarise(std::move(interior))};
+}
+
 }  // namespace
+
+double Ciede2000OfLinearSrgb(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Matrix3d& to_xyz = color::LinearSrgbToXyzD65();
+  const Eigen::Vector3d white = to_xyz * Eigen::Vector3d::Ones();
+  return color::Ciede2000(color::XyzToLab(to_xyz * a, white), color::XyzToLab(to_xyz * b, white));
+}
 
 ps::PhotometricStereoOptions MakeSolverOptions(const PhotometricStereoRequest& request, double saturation_level) {
   ps::PhotometricStereoOptions options;
@@ -76,11 +173,37 @@ ps::PhotometricStereoOptions MakeSolverOptions(const PhotometricStereoRequest& r
   return options;
 }
 
-PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
+PhotometricStereoInput LoadRunStack(const std::string& run_directory, const ColorStackOptions& color) {
   const RunManifest manifest = LoadRunManifest(run_directory);
   PhotometricStereoInput input;
   input.source = run_directory;
   ps::PhotometricStack& stack = input.stack;
+  // Samples at the clipping level are dropped per pixel; a sensor whose full
+  // well fills first clips below the ADC's top code.
+  const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
+  const double saturation = manifest.saturation_dn > 0.0 ? std::min(manifest.saturation_dn, top_code) : top_code;
+  const bool colour = manifest.mosaic != "mono";
+  // A colour frame's luminance stand-in is the sum of its camera channels
+  // (after demosaicing); a pixel any clipped raw sample reached is clipped in it.
+  auto to_float = [&](const cv::Mat& raw) {
+    cv::Mat out;
+    if (!colour) {
+      raw.convertTo(out, CV_32F);
+      return out;
+    }
+    cv::Mat clipped = raw >= saturation;
+    cv::Mat rgb = raw;
+    if (IsBayerPattern(manifest.mosaic)) {
+      cv::dilate(clipped, clipped, cv::Mat::ones(3, 3, CV_8U));
+      rgb = DemosaicToRgb(raw, manifest.mosaic, color.demosaic);
+    } else {
+      cv::transform(clipped, clipped, cv::Matx13f(1, 1, 1));
+    }
+    rgb.convertTo(rgb, CV_32F);
+    cv::transform(rgb, out, cv::Matx13f(1, 1, 1));
+    out.setTo(3.0 * saturation, clipped);
+    return out;
+  };
   std::vector<cv::Mat> darks;
   for (const FrameRecord& record : manifest.frames) {
     // Only darks and single-LED frames enter the stack: flats, patterns and
@@ -89,8 +212,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
     // its own exposure; the solver drops their saturated samples, so a bracket
     // merges into one least-squares fit.
     if (record.kind != "dark" && (record.kind != "light" || record.led < 0)) continue;
-    cv::Mat frame;
-    LoadFrame(run_directory, record).convertTo(frame, CV_32F);
+    const cv::Mat frame = to_float(LoadFrame(run_directory, record));
     if (frame.cols != manifest.width || frame.rows != manifest.height)
       throw std::runtime_error(run_directory + "/" + record.file + ": frame is " + std::to_string(frame.cols) + "x" +
                                std::to_string(frame.rows) + ", the run is " + std::to_string(manifest.width) + "x" +
@@ -121,10 +243,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
         break;
       }
   }
-  // Samples at the clipping level are dropped per pixel; a sensor whose full
-  // well fills first clips below the ADC's top code.
-  const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
-  input.saturation_level = manifest.saturation_dn > 0.0 ? std::min(manifest.saturation_dn, top_code) : top_code;
+  input.saturation_level = colour ? 3.0 * saturation : saturation;
   if (!darks.empty()) {
     stack.dark = cv::Mat::zeros(darks.front().size(), CV_32F);
     for (const cv::Mat& dark : darks) stack.dark += dark;
@@ -138,7 +257,10 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory) {
     input.truth_normals = ReadFloatTiff((truth / "normals.tiff").string());
     input.truth_albedo = ReadFloatTiff((truth / "albedo.tiff").string());
     if (fs::exists(truth / "height.tiff")) input.truth_height = ReadFloatTiff((truth / "height.tiff").string());
+    if (fs::exists(truth / "albedo_rgb.tiff"))
+      input.truth_albedo_rgb = ReadFloatTiff((truth / "albedo_rgb.tiff").string());
   }
+  if (colour) input.color = LoadRunColorStack(run_directory, color);
   return input;
 }
 
@@ -237,8 +359,19 @@ json ToJson(const PhotometricStereoResult& result) {
     if (result.depth->rms_error_vs_truth) report["depth"]["rms_error_vs_truth"] = *result.depth->rms_error_vs_truth;
     report["timings_ms"]["integrate"] = integrated.solve_ms;
   }
+  if (result.color) {
+    report["color"] = ToJson(*result.color);
+    report["color"]["albedo"] = "per channel with the normals fixed (solved on the sum of the camera channels)";
+    if (result.color_albedo_summary)
+      report["color"]["green_channel_pixels_solved"] = result.color_albedo_summary->pixels_solved;
+  }
   if (result.normals_vs_truth) {
     report["ground_truth"] = MetricsJson(*result.normals_vs_truth);
+    if (result.albedo_ciede2000_vs_truth)
+      for (const auto& [name, e] : {std::pair{"all", result.albedo_ciede2000_vs_truth->all},
+                                    std::pair{"interior", result.albedo_ciede2000_vs_truth->interior}})
+        report["ground_truth"]["albedo_ciede2000"][name] = {
+            {"mean", e.mean}, {"median", e.median}, {"p95", e.p95}, {"pixels", e.pixels}};
     if (result.mean_relative_albedo_error)
       report["ground_truth"]["mean_relative_albedo_error"] = *result.mean_relative_albedo_error;
   }
@@ -278,7 +411,13 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
     const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
     result.mean_confidence = cv::mean(map.confidence, solved)[0];
     WriteFloatTiff((out / "normals.tiff").string(), map.normals);
-    WriteFloatTiff((out / "albedo.tiff").string(), map.albedo);
+    cv::Mat albedo_rgb;  // colour data: per-channel albedo with the normals fixed
+    if (input.color) {
+      albedo_rgb = SolveColorAlbedo(*input.color, map.normals, request.shadow_threshold_sigma, &result);
+      WriteFloatTiff((out / "albedo.tiff").string(), albedo_rgb);
+    } else {
+      WriteFloatTiff((out / "albedo.tiff").string(), map.albedo);
+    }
     WriteFloatTiff((out / "confidence.tiff").string(), map.confidence);
     cv::Mat specular;
     cv::Mat channels[] = {cv::Mat(), cv::Mat(), cv::Mat::zeros(map.specular.size(), CV_32F)};
@@ -314,6 +453,19 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
       }
     }
     result.previews = WritePhotometricStereoPreviews(map, solved, depth, folder.path());
+    if (!albedo_rgb.empty()) {
+      const bool calibrated = result.color->color_space == "linear-srgb";
+      // Calibrated albedo is absolute: 1 is a perfect white. Camera RGB and
+      // DiLiGenT's DN are not, so they map from their own 99.5th percentile.
+      const double top = calibrated ? 1.0 : std::max(1e-12, PercentileOverMask(albedo_rgb.reshape(1, albedo_rgb.rows * albedo_rgb.cols * 3),
+                                                                                 RepeatMask3(solved), 99.5));
+      WriteImage((out / "albedo.png").string(), ColorAlbedoPreview(albedo_rgb, solved, top));
+      result.previews["albedo.png"] = {{"low", 0.0},
+                                       {"high", top},
+                                       {"scale", "linear " + std::string(calibrated ? "sRGB" : "camera RGB") + " 0.." +
+                                                     std::to_string(top) + " -> sRGB-encoded 0..255 per channel"}};
+      if (!calibrated) result.previews["albedo.png"]["percentile"] = 99.5;
+    }
 
     cv::Mat error_deg;
     const ps::AngularErrorStats vs_truth =
@@ -324,7 +476,9 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
     } else if (!input.truth_normals.empty()) {  // compared: error map and figures
       result.normals_vs_truth = vs_truth;
       WriteFloatTiff((out / "angular_error.tiff").string(), error_deg);
-      if (!input.truth_albedo.empty()) {
+      if (!albedo_rgb.empty() && !input.truth_albedo_rgb.empty()) {
+        result.albedo_ciede2000_vs_truth = CompareColorAlbedo(albedo_rgb, input.truth_albedo_rgb, solved);
+      } else if (!input.truth_albedo.empty() && albedo_rgb.empty()) {
         cv::Mat relative;
         cv::absdiff(map.albedo, input.truth_albedo, relative);
         relative /= input.truth_albedo;

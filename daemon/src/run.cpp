@@ -176,6 +176,12 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   header.dn_per_radiance_per_us = rig.camera.dn_per_radiance_per_us;
   header.e_per_dn = rig.camera.e_per_dn;
   header.pixel_pitch_mm = rig.camera.pixel_pitch_mm;
+  header.mosaic = rig.camera.mosaic;
+  header.pixel_format = rig.camera.pixel_format;
+  if (rig.camera.color_model) {
+    header.color_model_path = fs::absolute(rig.camera.color_model->path).lexically_normal().string();
+    header.color_model_hash = rig.camera.color_model->content_hash;
+  }
   header.lights = rig.lights.leds;
   std::unique_ptr<RunWriter> writer_storage;
   if (request.resume) {
@@ -194,7 +200,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   RunWriter& writer = *writer_storage;
   if (devices.world && !writer.manifest().has_ground_truth) {
     const sim::SurfaceMaps& truth = devices.world->surface();
-    writer.WriteGroundTruth(truth, devices.world->config().lights);
+    writer.WriteGroundTruth(truth, devices.world->config().lights, devices.world->TruthColorAlbedo());
   }
 
   spdlog::info("run {}: recipe {} on rig {} ({} steps) -> {}", header.run_id, recipe.name, rig.name, steps.size(),

@@ -1,6 +1,9 @@
 #include "photorig/daemon/run_store.h"
 
+#include "photorig/daemon/color_stack.h"
 #include "photorig/daemon/image_io.h"
+
+#include <opencv2/imgproc.hpp>
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -55,6 +58,7 @@ json ToJson(const FrameRecord& f) {
           {"exposure_us", f.exposure_us},
           {"gain_db", f.gain_db},
           {"bit_depth", f.bit_depth},
+          {"pixel_format", f.pixel_format},
           {"frame_id", f.frame_id},
           {"device_timestamp_ns", f.device_timestamp_ns},
           {"host_timestamp_ns", f.host_timestamp_ns},
@@ -78,6 +82,7 @@ FrameRecord FrameRecordFromJson(const json& j) {
   f.exposure_us = j.at("exposure_us").get<double>();
   f.gain_db = j.at("gain_db").get<double>();
   f.bit_depth = j.at("bit_depth").get<int>();
+  f.pixel_format = j.value("pixel_format", "");  // absent in runs stored before it was recorded
   f.frame_id = j.at("frame_id").get<std::uint64_t>();
   f.device_timestamp_ns = j.at("device_timestamp_ns").get<std::int64_t>();
   f.host_timestamp_ns = j.at("host_timestamp_ns").get<std::int64_t>();
@@ -165,10 +170,14 @@ json ToJson(const RunManifest& m) {
             {"saturation_dn", m.saturation_dn},
             {"dn_per_radiance_per_us", m.dn_per_radiance_per_us},
             {"e_per_dn", m.e_per_dn},
-            {"pixel_pitch_mm", m.pixel_pitch_mm}}},
+            {"pixel_pitch_mm", m.pixel_pitch_mm},
+            {"mosaic", m.mosaic},
+            {"pixel_format", m.pixel_format}}},
           {"lights", lights},
           {"frames", frames},
           {"ground_truth", m.has_ground_truth}};
+  if (!m.color_model_path.empty())
+    out["camera"]["color_model"] = {{"path", m.color_model_path}, {"hash", m.color_model_hash}};
   if (m.stop) out["stop"] = ToJson(*m.stop);
   return out;
 }
@@ -194,6 +203,13 @@ RunManifest RunManifestFromJson(const json& j) {
   m.dn_per_radiance_per_us = camera.at("dn_per_radiance_per_us").get<double>();
   m.e_per_dn = camera.value("e_per_dn", 0.0);
   m.pixel_pitch_mm = camera.value("pixel_pitch_mm", 0.0);
+  m.mosaic = camera.value("mosaic", "mono");  // runs stored before colour cameras are monochrome
+  if (!IsKnownMosaic(m.mosaic)) throw std::runtime_error("unknown camera mosaic '" + m.mosaic + "'");
+  m.pixel_format = camera.value("pixel_format", "");
+  if (camera.contains("color_model")) {
+    m.color_model_path = camera.at("color_model").at("path").get<std::string>();
+    m.color_model_hash = camera.at("color_model").value("hash", "");
+  }
   for (const json& light : j.at("lights")) {
     LedConfig led;
     led.id = light.at("id").get<int>();
@@ -343,8 +359,11 @@ RunWriter::~RunWriter() {
 }
 
 const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers::Frame& frame) {
+  // RGB frames carry three samples per pixel; raw Bayer mosaics are one-channel
+  // frames and are stored as they came.
+  const int channels = MosaicChannels(manifest_.mosaic);
   if (frame.width <= 0 || frame.height <= 0 ||
-      frame.pixels.size() != static_cast<std::size_t>(frame.width) * frame.height)
+      frame.pixels.size() != static_cast<std::size_t>(frame.width) * frame.height * channels)
     throw std::runtime_error("frame " + std::to_string(frame.frame_id) + " for step " + step.label +
                              " is short: " + std::to_string(frame.pixels.size()) + " samples for " +
                              std::to_string(frame.width) + "x" + std::to_string(frame.height));
@@ -360,6 +379,7 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
   record.exposure_us = frame.exposure_us;
   record.gain_db = frame.gain_db;
   record.bit_depth = frame.bit_depth;
+  record.pixel_format = frame.pixel_format;
   record.frame_id = frame.frame_id;
   record.device_timestamp_ns = frame.device_timestamp_ns;
   record.host_timestamp_ns = frame.host_timestamp_ns;
@@ -378,7 +398,8 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
                                        // so the sync below waits only for the tail.
                                        ::sync_file_range(file.fd, offset, static_cast<off_t>(size), SYNC_FILE_RANGE_WRITE);
                                        offset += static_cast<off_t>(size);
-                                     });
+                                     },
+                                     channels);
     }
     if (::rename(temp.c_str(), path.c_str()) != 0) FailIo("cannot rename into", path);
   } catch (...) {
@@ -398,7 +419,8 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
   return manifest_.frames.back();
 }
 
-void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights) {
+void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights,
+                                 const cv::Mat& albedo_rgb) {
   const fs::path truth = fs::path(directory_) / "ground_truth";
   fs::create_directories(truth);
   std::ostringstream directions, intensities;
@@ -412,6 +434,7 @@ void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vec
   WriteFileDurably((truth / "light_intensities.txt").string(), intensities.str());
   WriteFloatTiff((truth / "normals.tiff").string(), surface.normals);
   WriteFloatTiff((truth / "albedo.tiff").string(), surface.albedo);
+  if (!albedo_rgb.empty()) WriteFloatTiff((truth / "albedo_rgb.tiff").string(), albedo_rgb);
   WriteImage((truth / "mask.png").string(), surface.mask);
   if (!surface.height.empty()) WriteFloatTiff((truth / "height.tiff").string(), surface.height);
   if (!surface.brdf_params.empty()) {
@@ -450,7 +473,10 @@ RunManifest LoadRunManifest(const std::string& directory) {
 cv::Mat LoadFrame(const std::string& directory, const FrameRecord& record) {
   const std::string path = (fs::path(directory) / record.file).string();
   cv::Mat image = ReadImage(path);
-  if (image.type() != CV_16U) throw std::runtime_error(path + ": expected a 16-bit single-channel frame");
+  if (image.depth() != CV_16U || (image.channels() != 1 && image.channels() != 3))
+    throw std::runtime_error(path + ": expected a 16-bit frame of one or three channels");
+  // RGB frames are stored as RGB PNG; OpenCV reads them as B, G, R.
+  if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2RGB);
   if (!image.isContinuous()) image = image.clone();
   if (Crc32(image.data, image.total() * image.elemSize()) != record.crc32)
     throw std::runtime_error(path + ": pixel checksum does not match the manifest (corrupt frame)");

@@ -113,6 +113,7 @@ class Capture {
     settings_.width = camera_config_.width;
     settings_.height = camera_config_.height;
     settings_.bit_depth = camera_config_.bit_depth;
+    settings_.pixel_format = camera_config_.pixel_format;
     settings_.exposure_us = first.exposure_us;
     settings_.gain_db = first.gain_db;
     settings_.trigger = camera_config_.trigger.mode;

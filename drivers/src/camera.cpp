@@ -77,4 +77,34 @@ Status Camera::Close() {
   return status.ok() ? stop_status : status;
 }
 
+namespace {
+
+// Prefix -> mosaic; the rest of the name is the bit count.
+constexpr struct {
+  const char* prefix;
+  const char* mosaic;
+} kPixelFormatFamilies[] = {
+    {"Mono", "mono"}, {"BayerRG", "RGGB"}, {"BayerGR", "GRBG"}, {"BayerGB", "GBRG"}, {"BayerBG", "BGGR"}, {"RGB", "RGB"},
+};
+
+}  // namespace
+
+std::string MosaicOfPixelFormat(const std::string& pixel_format) {
+  if (BitsOfPixelFormat(pixel_format) == 0) return "";
+  for (const auto& family : kPixelFormatFamilies)
+    if (pixel_format.rfind(family.prefix, 0) == 0) return family.mosaic;
+  return "";
+}
+
+int BitsOfPixelFormat(const std::string& pixel_format) {
+  for (const auto& family : kPixelFormatFamilies) {
+    if (pixel_format.rfind(family.prefix, 0) != 0) continue;
+    const std::string bits = pixel_format.substr(std::string(family.prefix).size());
+    const bool rgb = std::string(family.mosaic) == "RGB";
+    for (const char* allowed : {"8", "10", "12", "14", "16"})
+      if (bits == allowed && (!rgb || bits == "8" || bits == "16")) return std::stoi(bits);
+  }
+  return 0;
+}
+
 }  // namespace photorig::drivers

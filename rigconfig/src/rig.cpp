@@ -3,7 +3,9 @@
 #include "driver_options_parse.h"
 #include "photorig/config/sim.h"
 #include "photorig/config/yaml_node.h"
+#include "photorig/color/spectrum.h"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 
@@ -356,7 +358,8 @@ RigConfig LoadRigConfig(const std::string& path) {
 
   const YamlNode camera = root["camera"];
   camera.ExpectKeys({"driver", "id", "options", "projection", "width", "height", "pixel_pitch_mm", "bit_depth",
-                     "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart", "trigger"});
+                     "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart", "trigger",
+                     "pixel_format", "color_model"});
   CameraConfig& cam = rig.camera;
   CheckDriver(camera["driver"], "camera");
   cam.driver = camera["driver"].AsString();
@@ -377,11 +380,27 @@ RigConfig LoadRigConfig(const std::string& path) {
   cam.gain_db = camera.DoubleIn("gain_db", cam.gain_db, kMinGainDb, kMaxGainDb);
   if (auto trigger = camera.Find("trigger")) cam.trigger = ParseTrigger(*trigger);
   if (auto chart = camera.Find("color_chart")) cam.color_chart = ParseColorChart(*chart, cam.width, cam.height);
+  if (auto format = camera.Find("pixel_format")) {
+    cam.pixel_format = format->AsString();
+    const std::string mosaic = drivers::MosaicOfPixelFormat(cam.pixel_format);
+    const int bits = drivers::BitsOfPixelFormat(cam.pixel_format);
+    if (mosaic.empty() || mosaic == "RGB")
+      format->Fail("'" + cam.pixel_format + "' is not a format frames can be stored in (Mono8/10/12/16, "
+                   "BayerRG/GR/GB/BG 8/10/12/16)");
+    if (bits != cam.bit_depth)
+      format->Fail(cam.pixel_format + " delivers " + std::to_string(bits) + " bits but bit_depth is " +
+                   std::to_string(cam.bit_depth));
+    cam.mosaic = mosaic;
+  }
+  if (auto model = camera.Find("color_model")) {
+    if (cam.mosaic == "mono") model->Fail("a colour model needs a colour camera (pixel_format Bayer*)");
+    cam.color_model = LoadColorModelFile(model->AsPath());
+  }
 
   if (auto solve = root.Find("solve")) rig.solve = ParseSolveExecutor(*solve);
   if (auto sim_node = root.Find("sim")) {
     sim_node->ExpectKeys(
-        {"seed", "sensor", "scene", "faults", "led_direction_error_deg", "led_intensity_error_pct", "ambient"});
+        {"seed", "sensor", "scene", "faults", "led_direction_error_deg", "led_intensity_error_pct", "ambient", "color"});
     SimConfig sim;
     sim.seed = static_cast<std::uint64_t>(sim_node->Int("seed", 1));
     sim.led_direction_error_deg = sim_node->Double("led_direction_error_deg", 0.0);
@@ -391,6 +410,17 @@ RigConfig LoadRigConfig(const std::string& path) {
     if (!(sim.led_intensity_error_pct >= 0.0 && sim.led_intensity_error_pct < 30.0))
       (*sim_node)["led_intensity_error_pct"].Fail("must lie in [0, 30)");
     if (auto ambient = sim_node->Find("ambient")) sim.ambient = ParseAmbient(*ambient);
+    if (auto color = sim_node->Find("color")) {
+      color->ExpectKeys({"camera", "illuminant"});
+      sim.color.camera = color->String("camera", sim.color.camera);
+      const auto& cameras = color::CameraNames();
+      if (std::find(cameras.begin(), cameras.end(), sim.color.camera) == cameras.end())
+        (*color)["camera"].Fail("unknown camera '" + sim.color.camera + "'");
+      const std::string illuminant = color->String("illuminant", "D65");
+      const auto parsed = color::ParseIlluminant(illuminant);
+      if (!parsed) (*color)["illuminant"].Fail("unknown illuminant '" + illuminant + "' (known: D50, D65, A)");
+      sim.color.illuminant = *parsed;
+    }
     const auto sensor = sim_node->Find("sensor");
     sim.sensor = sensor ? ParseSensor(*sensor, cam.bit_depth) : sim::SensorModel{};
     sim.sensor.bit_depth = cam.bit_depth;

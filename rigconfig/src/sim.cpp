@@ -53,7 +53,7 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
     }
   }
   if (auto albedo = node.Find("albedo")) {
-    albedo->ExpectKeys({"pattern", "low", "high", "period_mm"});
+    albedo->ExpectKeys({"pattern", "low", "high", "period_mm", "paints"});
     const std::string pattern = albedo->String("pattern", "checker");
     if (pattern == "uniform") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kUniform;
     else if (pattern == "checker") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kChecker;
@@ -61,6 +61,15 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
     else (*albedo)["pattern"].Fail("unknown pattern '" + pattern + "' (expected uniform, checker or rings)");
     scene.albedo.low = albedo->Double("low", scene.albedo.low);
     scene.albedo.high = albedo->Double("high", scene.albedo.high);
+    if (auto paints = albedo->Find("paints")) {
+      const auto items = paints->Items();
+      if (items.size() != 2) paints->Fail("needs two ColorChecker patch names: [low, high]");
+      for (const YamlNode& item : items) {
+        const std::string name = item.AsString();
+        if (ColorCheckerPatch(name) < 0) item.Fail("unknown ColorChecker patch '" + name + "' (e.g. red, blue, green, yellow, white 9.5 (.05 D))");
+        scene.albedo.paints.push_back(name);
+      }
+    }
     scene.albedo.period_mm = albedo->Double("period_mm", scene.albedo.period_mm);
     if (!(scene.albedo.low >= 0 && scene.albedo.high <= 1 && scene.albedo.low <= scene.albedo.high))
       albedo->Fail("albedo needs 0 <= low <= high <= 1");
@@ -118,6 +127,17 @@ sim::WorldConfig MakeWorldConfig(const RigConfig& rig, const sim::Scene& scene) 
   sim::PerturbLights({rig.sim->led_direction_error_deg, rig.sim->led_intensity_error_pct}, rig.sim->seed,
                      &world.lights);
   world.ambient = rig.sim->ambient;
+  const sim::ColorCamera color = ColorSceneResponses(rig.sim->color, world.scene.albedo);
+  if (world.scene.albedo.paints.size() == 2) {
+    // The texture's numbers become the paints' luminance: what a monochrome
+    // camera sees of them, and the monochrome ground truth (albedo.tiff).
+    world.scene.albedo.low = color.truth_low_srgb.dot(LuminanceOfLinearSrgb());
+    world.scene.albedo.high = color.truth_high_srgb.dot(LuminanceOfLinearSrgb());
+  }
+  if (rig.camera.mosaic != "mono") {
+    world.color = color;
+    world.color.mosaic = rig.camera.mosaic;
+  }
   return world;
 }
 

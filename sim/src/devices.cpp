@@ -68,6 +68,13 @@ Result<std::vector<drivers::SettingAdjustment>> SimCamera::DoConfigure(drivers::
                                                     " and has no region of interest"};
   adjust("bit_depth", settings->bit_depth, bit_depth, "fixed by the sensor");
   settings->bit_depth = bit_depth;
+  // The sensor's own format: Mono<n>, or Bayer<pattern><n> behind a colour filter.
+  const std::string format = SensorPixelFormat();
+  if (!settings->pixel_format.empty() && settings->pixel_format != format)
+    return Status{StatusCode::kInvalidArgument,
+                  "camera " + id() + ": pixel format " + settings->pixel_format + " is not offered (the sensor delivers " +
+                      format + ")"};
+  settings->pixel_format = format;
   const double exposure =
       std::clamp(std::round(settings->exposure_us / kExposureStepUs) * kExposureStepUs, kMinExposureUs, kMaxExposureUs);
   adjust("exposure_us", settings->exposure_us, exposure, "rounded to the 1 us step within [10 us, 1 s]");
@@ -79,6 +86,14 @@ Result<std::vector<drivers::SettingAdjustment>> SimCamera::DoConfigure(drivers::
     return Status{StatusCode::kInvalidArgument,
                   "camera " + id() + ": the simulated camera's trigger input is Line1, not '" + settings->trigger_line + "'"};
   return adjustments;
+}
+
+std::string SimCamera::SensorPixelFormat() const {
+  const ColorCamera& color = world_->config().color;
+  const std::string bits = std::to_string(world_->config().sensor.bit_depth);
+  if (!color.IsOn()) return "Mono" + bits;
+  // GenICam names a Bayer format by its first two filters: BayerRG = RGGB.
+  return "Bayer" + color.mosaic.substr(0, 2) + bits;
 }
 
 Status SimCamera::DoStart() {
@@ -113,7 +128,7 @@ Status SimCamera::Capture() {
   frame.bit_depth = s.bit_depth;
   frame.exposure_us = s.exposure_us;
   frame.gain_db = s.gain_db;
-  frame.pixel_format = "Mono" + std::to_string(s.bit_depth);
+  frame.pixel_format = s.pixel_format;
   frame.frame_id = next_frame_id_++;
   frame.device_timestamp_ns = NowNs(false);
   if (faults.repeat_frames.count(trigger) && !last_pixels_.empty()) {

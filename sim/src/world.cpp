@@ -1,5 +1,10 @@
 #include "photorig/sim/world.h"
 
+#include <opencv2/core.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace photorig::sim {
@@ -13,6 +18,9 @@ const WorldConfig& Validated(const WorldConfig& config) {
     throw std::invalid_argument("simulated scene: meshes are rasterised orthographically only");
   if (config.gonioreflectometer) CheckGonioScene(config.scene);
   if (!config.ambient.IsValid(&why)) throw std::invalid_argument("simulated ambient light: " + why);
+  if (!config.color.IsValid(&why)) throw std::invalid_argument("simulated colour camera: " + why);
+  if (config.color.IsOn() && (config.gonioreflectometer || config.scene.shape == Scene::Shape::kVolume))
+    throw std::invalid_argument("simulated colour camera: only light-dome scenes are rendered in colour");
   return config;
 }
 
@@ -28,6 +36,80 @@ World::World(WorldConfig config)
   // The sky's shape is fixed, only its level follows the LEDs: one map serves every frame.
   if (config_.ambient.IsOn() && !config_.gonioreflectometer && config_.scene.shape != Scene::Shape::kVolume)
     sky_response_ = RenderSkyResponse(surface_, *brdf_, config_.ambient.samples, config_.seed);
+  if (config_.color.IsOn()) {
+    const ColorCamera& color = config_.color;
+    const cv::Mat rgb = MixAlbedo(surface_.albedo, config_.scene.albedo.low, config_.scene.albedo.high, color.low_rgb,
+                                  color.high_rgb);
+    for (int c = 0; c < 3; ++c) {
+      SurfaceMaps& channel = channel_surface_[c];
+      channel = surface_;
+      channel.brdf_params = surface_.brdf_params.clone();
+      for (int r = 0; r < rgb.rows; ++r) {
+        const auto* albedo = rgb.ptr<cv::Vec3f>(r);
+        auto* params = channel.brdf_params.ptr<cv::Vec4f>(r);
+        for (int x = 0; x < rgb.cols; ++x) {
+          if (std::isnan(albedo[x][c])) continue;
+          params[x][0] = albedo[x][c];
+          params[x][1] *= static_cast<float>(color.light_rgb[c]);  // the lobe reflects the light's colour
+        }
+      }
+      channel.albedo = cv::Mat();  // the copy shares surface_'s buffer; extract into a new one
+      cv::extractChannel(rgb, channel.albedo, c);
+      if (!sky_response_.empty())
+        channel_sky_response_[c] = RenderSkyResponse(channel, *brdf_, config_.ambient.samples, config_.seed);
+    }
+  }
+}
+
+cv::Mat World::TruthColorAlbedo() const {
+  if (!config_.color.IsOn()) return {};
+  return MixAlbedo(surface_.albedo, config_.scene.albedo.low, config_.scene.albedo.high, config_.color.truth_low_srgb,
+                   config_.color.truth_high_srgb);
+}
+
+bool ColorCamera::IsValid(std::string* why) const {
+  if (mosaic.empty()) return true;
+  if (mosaic != "RGGB" && mosaic != "BGGR" && mosaic != "GRBG" && mosaic != "GBRG") {
+    *why = "unknown Bayer pattern '" + mosaic + "' (known: RGGB, BGGR, GRBG, GBRG)";
+    return false;
+  }
+  for (const Eigen::Vector3d* v : {&low_rgb, &high_rgb, &light_rgb})
+    if (!(v->minCoeff() >= 0.0 && v->maxCoeff() <= 10.0)) {
+      *why = "channel responses must lie in [0, 10]";
+      return false;
+    }
+  return true;
+}
+
+cv::Mat MixAlbedo(const cv::Mat& albedo, double texture_low, double texture_high, const Eigen::Vector3d& low,
+                  const Eigen::Vector3d& high) {
+  cv::Mat rgb(albedo.size(), CV_32FC3);
+  const double span = texture_high - texture_low;
+  for (int r = 0; r < albedo.rows; ++r) {
+    const float* a = albedo.ptr<float>(r);
+    auto* out = rgb.ptr<cv::Vec3f>(r);
+    for (int c = 0; c < albedo.cols; ++c) {
+      if (std::isnan(a[c])) {
+        out[c] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
+        continue;
+      }
+      const double t = span > 0.0 ? std::clamp((a[c] - texture_low) / span, 0.0, 1.0) : 1.0;
+      const Eigen::Vector3d mixed = (1.0 - t) * low + t * high;
+      out[c] = cv::Vec3f(static_cast<float>(mixed[0]), static_cast<float>(mixed[1]), static_cast<float>(mixed[2]));
+    }
+  }
+  return rgb;
+}
+
+cv::Mat MosaicOf(const std::array<cv::Mat, 3>& rgb, const std::string& pattern) {
+  // Channel of each site of the 2 x 2 block, row-major.
+  const auto channel_of = [](char filter) { return filter == 'R' ? 0 : filter == 'G' ? 1 : 2; };
+  cv::Mat out(rgb[0].size(), CV_32F);
+  for (int r = 0; r < out.rows; ++r) {
+    float* o = out.ptr<float>(r);
+    for (int c = 0; c < out.cols; ++c) o[c] = rgb[channel_of(pattern[(r % 2) * 2 + c % 2])].at<float>(r, c);
+  }
+  return out;
 }
 
 void World::SetLevels(std::vector<double> levels) {
@@ -84,14 +166,22 @@ cv::Mat World::RenderRadiance() const {
   // The backlight belongs to the scene, not to the dome: it is always on.
   if (config_.scene.shape == Scene::Shape::kVolume)
     return RenderTransmission(surface_.line_integrals, config_.scene.backlight_radiance);
-  cv::Mat radiance = sim::RenderRadiance(surface_, *brdf_, cast_shadows_, config_.lights, emitted);
+  if (!config_.color.IsOn()) return RenderChannel(surface_, sky_response_, emitted);
+  std::array<cv::Mat, 3> channels;
+  for (int c = 0; c < 3; ++c) channels[c] = RenderChannel(channel_surface_[c], channel_sky_response_[c], emitted);
+  return MosaicOf(channels, config_.color.mosaic);
+}
+
+cv::Mat World::RenderChannel(const SurfaceMaps& surface, const cv::Mat& sky_response,
+                             const std::vector<double>& emitted) const {
+  cv::Mat radiance = sim::RenderRadiance(surface, *brdf_, cast_shadows_, config_.lights, emitted);
   if (config_.scene.interreflection_samples > 0)
-    radiance += RenderOneBounce(surface_, *brdf_, radiance, config_.scene.interreflection_samples, config_.seed);
-  if (!sky_response_.empty()) {
+    radiance += RenderOneBounce(surface, *brdf_, radiance, config_.scene.interreflection_samples, config_.seed);
+  if (!sky_response.empty()) {
     double sky_irradiance = config_.ambient.stray_irradiance;
     for (std::size_t k = 0; k < emitted.size() && k < config_.lights.size(); ++k)
       sky_irradiance += config_.ambient.dome_fraction * emitted[k] * config_.lights[k].irradiance;
-    radiance += sky_response_ * sky_irradiance;
+    radiance += sky_response * sky_irradiance;
   }
   return radiance;
 }

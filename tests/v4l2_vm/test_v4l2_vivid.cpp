@@ -393,15 +393,35 @@ TEST_F(VividTest, UnsupportedSizeAndDepthAreAdjustedAndReported) {
   EXPECT_EQ(camera.settings().bit_depth, 16);
   EXPECT_EQ(camera.settings().pixel_format, "Mono16");
 
-  s.pixel_format = "BayerRG8";
+  s.pixel_format = "RGB8";  // RGB frames are not decoded by this driver
   const auto refused = camera.Configure(s);
   EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
-  EXPECT_NE(refused.status().message().find("BayerRG8"), std::string::npos);
+  EXPECT_NE(refused.status().message().find("RGB8"), std::string::npos);
   EXPECT_EQ(camera.settings().pixel_format, "Mono16") << "a refused Configure changes nothing";
 
   s.trigger = TriggerMode::kHardware;
   s.pixel_format = "";
   EXPECT_EQ(camera.Configure(s).status().code(), StatusCode::kInvalidArgument);
+}
+
+// A Bayer raw asked for by name arrives as the one-channel mosaic, 8 bits a sample.
+TEST_F(VividTest, BayerRawArrivesAsTheMosaic) {
+  V4l2Camera camera("vivid", Options());
+  StartCamera(&camera, Settings("BayerRG8"));
+  EXPECT_EQ(camera.settings().pixel_format, "BayerRG8");
+  EXPECT_EQ(camera.settings().bit_depth, 8);
+  const auto frame = camera.WaitFrame(3000);
+  ASSERT_TRUE(frame.ok()) << frame.status().ToString();
+  EXPECT_EQ(frame.value().pixel_format, "BayerRG8");
+  ASSERT_EQ(frame.value().pixels.size(), static_cast<std::size_t>(frame.value().width) * frame.value().height);
+  // vivid's colour bars through an RGGB filter: the four sites of a 2 x 2 block differ somewhere.
+  const auto& p = frame.value().pixels;
+  const int w = frame.value().width;
+  bool sites_differ = false;
+  for (int x = 0; x + 1 < w && !sites_differ; x += 2) sites_differ = p[x] != p[x + 1] || p[x] != p[w + x + 1];
+  EXPECT_TRUE(sites_differ);
+  EXPECT_LE(*std::max_element(p.begin(), p.end()), 255);
+  EXPECT_TRUE(camera.Stop().ok());
 }
 
 // vivid has a user gain control (with autogain) but no exposure control.

@@ -16,6 +16,17 @@ void PrintPhotometricStereoSummary(const daemon::PhotometricStereoResult& result
                 gt.mean_deg, gt.median_deg, 100.0 * gt.fraction_under_5deg, 100.0 * gt.fraction_under_10deg,
                 100.0 * gt.fraction_under_15deg, gt.pixels_unresolved, gt.pixels_with_truth);
   }
+  if (result.color) {
+    const daemon::ColorProvenance& c = *result.color;
+    std::printf("  colour: %s, demosaic %s, albedo in %s%s%s\n", c.mosaic.c_str(), c.demosaic.c_str(),
+                c.color_space.c_str(), c.color_model_path.empty() ? "" : " via ", c.color_model_path.c_str());
+  }
+  if (result.albedo_ciede2000_vs_truth) {
+    const auto& e = *result.albedo_ciede2000_vs_truth;
+    std::printf("  albedo vs ground truth: CIEDE2000 mean %.2f, median %.2f, 95th percentile %.2f over %d pixels; "
+                "inside the paints (5 x 5 from an edge) mean %.2f, 95th percentile %.2f over %d pixels\n",
+                e.all.mean, e.all.median, e.all.p95, e.all.pixels, e.interior.mean, e.interior.p95, e.interior.pixels);
+  }
 }
 
 }  // namespace photorig::app

@@ -1,4 +1,5 @@
-// photorig solve ps (--run DIR | --dataset DIR) [--method ...] [--mask PNG] [--out DIR] ...
+// photorig solve ps (--run DIR | --dataset DIR) [--method ...] [--mask PNG] [--out DIR]
+//                  [--demosaic bilinear|edge-aware] [--color-model FILE] ...
 // photorig export diligent --run DIR --out DIR
 
 #include "../command.h"
@@ -22,6 +23,8 @@ namespace {
 struct Options {
   std::string run_dir, dataset_dir, mask, out;
   std::string commit_gate;  // tests: hold the finished solve while this file exists
+  std::string demosaic = "bilinear";
+  std::string color_model;
   daemon::PhotometricStereoRequest request;
 };
 
@@ -45,8 +48,13 @@ int Execute(const Options& options) {
   const std::string source = from_run ? options.run_dir : options.dataset_dir;
   const std::string destination =
       options.out.empty() ? (std::filesystem::path(source) / "results" / "ps").string() : options.out;
+  daemon::ColorStackOptions color;
+  color.demosaic = *daemon::ParseDemosaicMethod(options.demosaic);
+  color.color_model_path = options.color_model;
+  if (!from_run && !options.color_model.empty())
+    return Fail(kExitUsage, "--color-model applies to runs (a DiLiGenT folder's images are already RGB)");
   daemon::PhotometricStereoInput input =
-      from_run ? daemon::LoadRunStack(options.run_dir) : daemon::LoadDiligent(options.dataset_dir);
+      from_run ? daemon::LoadRunStack(options.run_dir, color) : daemon::LoadDiligent(options.dataset_dir);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
   daemon::PhotometricStereoRequest request = options.request;
@@ -91,6 +99,12 @@ CommandRunner SetupSolve(CLI::App& app) {
   // For tests of pre-emption (tests/slurm): a task held with its results written but not yet in place.
   ps->add_option("--commit-gate", options->commit_gate, "wait while FILE exists before putting the results in place")
       ->group("");
+  ps->add_option("--demosaic", options->demosaic,
+                 "Bayer runs: bilinear (default; linear, so exact with dark subtraction) | edge-aware")
+      ->check(CLI::IsMember({"bilinear", "edge-aware"}));
+  ps->add_option("--color-model", options->color_model,
+                 "colour model (photorig calibrate color) for a colour run (default: the one its rig named)")
+      ->check(CLI::ExistingFile);
   return {ps, [options] { return Execute(*options); }};
 }
 

@@ -35,17 +35,26 @@ std::int64_t RealtimeNs() {
       .count();
 }
 
-// Single-plane monochrome formats (and YUYV, whose luma is used).
+// Single-plane monochrome formats, YUYV (whose luma is used) and unpacked
+// Bayer raws (one sample per pixel, stored as the mosaic; asked for by name
+// only, never chosen for a bit depth, since they make the camera a colour one).
 struct Format {
   std::uint32_t fourcc;
   const char* v4l2_name;
   const char* genicam_name;
   int bits;  // significant bits delivered per sample
+  bool bayer = false;
 };
 constexpr Format kFormats[] = {
     {V4L2_PIX_FMT_GREY, "GREY", "Mono8", 8},   {V4L2_PIX_FMT_Y10, "Y10", "Mono10", 10},
     {V4L2_PIX_FMT_Y12, "Y12", "Mono12", 12},   {V4L2_PIX_FMT_Y16, "Y16", "Mono16", 16},
     {V4L2_PIX_FMT_YUYV, "YUYV", "YUV422_8", 8},
+    {V4L2_PIX_FMT_SRGGB8, "RGGB", "BayerRG8", 8, true},     {V4L2_PIX_FMT_SGRBG8, "GRBG", "BayerGR8", 8, true},
+    {V4L2_PIX_FMT_SGBRG8, "GBRG", "BayerGB8", 8, true},     {V4L2_PIX_FMT_SBGGR8, "BA81", "BayerBG8", 8, true},
+    {V4L2_PIX_FMT_SRGGB12, "RG12", "BayerRG12", 12, true},  {V4L2_PIX_FMT_SGRBG12, "BA12", "BayerGR12", 12, true},
+    {V4L2_PIX_FMT_SGBRG12, "GB12", "BayerGB12", 12, true},  {V4L2_PIX_FMT_SBGGR12, "BG12", "BayerBG12", 12, true},
+    {V4L2_PIX_FMT_SRGGB16, "RG16", "BayerRG16", 16, true},  {V4L2_PIX_FMT_SGRBG16, "GR16", "BayerGR16", 16, true},
+    {V4L2_PIX_FMT_SGBRG16, "GB16", "BayerGB16", 16, true},  {V4L2_PIX_FMT_SBGGR16, "BYR2", "BayerBG16", 16, true},
 };
 
 const Format* FindFormat(std::uint32_t fourcc) {
@@ -193,12 +202,13 @@ Result<std::vector<SettingAdjustment>> V4l2Camera::DoConfigure(CameraSettings* s
   const Format* requested = FindFormat(requested_name);
   if (!requested && !s->pixel_format.empty())
     return Fail(StatusCode::kInvalidArgument,
-                "pixel format " + s->pixel_format + " is not supported (GREY/Mono8, Y10, Y12, Y16/Mono16, YUYV)");
+                "pixel format " + s->pixel_format +
+                    " is not supported (GREY/Mono8, Y10, Y12, Y16/Mono16, YUYV, Bayer{RG,GR,GB,BG}{8,12,16})");
   const int wanted_bits = requested ? requested->bits : s->bit_depth;
   const Format* chosen = is_offered(requested) ? requested : nullptr;
   if (!chosen && s->pixel_format.empty()) {
     for (const Format& f : kFormats) {
-      if (f.fourcc == V4L2_PIX_FMT_YUYV || !is_offered(&f)) continue;
+      if (f.fourcc == V4L2_PIX_FMT_YUYV || f.bayer || !is_offered(&f)) continue;
       const bool holds = f.bits >= wanted_bits;
       if (!chosen || (holds && (chosen->bits < wanted_bits || f.bits < chosen->bits)) ||
           (!holds && chosen->bits < wanted_bits && f.bits > chosen->bits))
@@ -407,7 +417,8 @@ Result<Frame> V4l2Camera::DoWaitFrame(int timeout_ms) {
       return Fail(StatusCode::kDataLoss, "frame " + std::to_string(sequence) + " flagged as damaged by the driver");
     }
     const CameraSettings& s = settings();
-    const std::size_t bytes_per_sample = fourcc_ == V4L2_PIX_FMT_GREY ? 1 : 2;
+    const bool one_byte = fourcc_ == V4L2_PIX_FMT_GREY || FindFormat(fourcc_)->bits == 8;  // YUYV: 2 bytes a pixel
+    const std::size_t bytes_per_sample = one_byte && fourcc_ != V4L2_PIX_FMT_YUYV ? 1 : 2;
     const std::size_t row_bytes = static_cast<std::size_t>(s.width) * bytes_per_sample;
     const std::size_t stride = std::max<std::size_t>(bytes_per_line_, row_bytes);
     if (buffer.bytesused < stride * (s.height - 1) + row_bytes) {
@@ -432,7 +443,7 @@ Result<Frame> V4l2Camera::DoWaitFrame(int timeout_ms) {
     for (int y = 0; y < s.height; ++y) {
       const std::uint8_t* row = base + static_cast<std::size_t>(y) * stride;
       std::uint16_t* out = frame.pixels.data() + static_cast<std::size_t>(y) * s.width;
-      if (fourcc_ == V4L2_PIX_FMT_GREY) {
+      if (bytes_per_sample == 1) {  // GREY and 8-bit Bayer
         std::copy(row, row + s.width, out);
       } else if (fourcc_ == V4L2_PIX_FMT_YUYV) {
         for (int x = 0; x < s.width; ++x) out[x] = row[2 * x];  // Y0 U Y1 V: luma at even bytes

@@ -15,7 +15,11 @@ namespace photorig::daemon {
 
 // Each image becomes grey as the mean over channels of I_c * mean(L) / L_c,
 // with light scale mean(L): colour-balanced, in the sensor's units, albedo
-// relative to the intensities' unit. Throws ConfigError naming the file and
+// relative to the intensities' unit; the normals are solved on it. RGB images
+// are also kept as a colour stack (input.color: R, G, B frames, each channel
+// scaled by its own light intensity L_c, samples at the top code clipped), so
+// the albedo comes out per channel, in camera RGB. Images whose three
+// channels agree everywhere (grey saved as RGB, e.g. ExportDiligent's) stay grey. Throws ConfigError naming the file and
 // line of anything malformed: a missing or unreadable file, images that differ
 // in size, bit depth or channels, a name listed twice, a line without exactly
 // three finite numbers, a light at or below the horizon, intensities outside

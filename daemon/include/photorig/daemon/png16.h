@@ -25,7 +25,8 @@ class Png16Encoder {
   // returns the CRC-32 of the pixels as native 16-bit words (what LoadFrame
   // checks). Throws std::invalid_argument for an empty frame or one too large
   // for a single IDAT chunk.
-  std::uint32_t Encode(const std::uint16_t* pixels, int width, int height, const Sink& sink);
+  // `channels` 3: pixels hold R, G, B per pixel and the file is an RGB PNG.
+  std::uint32_t Encode(const std::uint16_t* pixels, int width, int height, const Sink& sink, int channels = 1);
 
   // Stored blocks per piece: large enough that a write per piece costs
   // little, small enough that writeback of the first piece starts early.

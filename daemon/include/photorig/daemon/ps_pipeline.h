@@ -12,6 +12,7 @@
 //                       the mappings and the legends are in report.json "previews"
 //   report.json         timings, counts, noise model, metrics
 
+#include "photorig/daemon/color_stack.h"
 #include "photorig/daemon/recipe.h"
 #include "photorig/ps/evaluation.h"
 #include "photorig/ps/integration.h"
@@ -40,6 +41,11 @@ struct PhotometricStereoInput {
   cv::Mat truth_height;      // optional CV_32F, same unit as pixel_pitch
   cv::Mat object_mask;       // optional CV_8U: solve only here (DiLiGenT's mask.png, --mask)
   std::string mask_source;   // where object_mask came from, for the report ("" when there is none)
+  // Colour data (a Bayer or RGB run, an RGB DiLiGenT folder): the frames per
+  // channel. `stack` is then their channel sum in camera units, on which the
+  // normals are solved; each channel's albedo is fitted with those normals fixed.
+  std::optional<ColorImageStack> color;
+  cv::Mat truth_albedo_rgb;  // optional CV_32FC3 (R, G, B), linear sRGB
 };
 
 // 1.4826 x the median absolute deviation of a CV_32F image's values (every
@@ -60,7 +66,10 @@ cv::Mat AutomaticObjectMask(const ps::PhotometricStack& stack, double sigmas);
 // Reads a run directory (manifest, frames, ground truth). Dark frames are
 // averaged and their noise becomes the stack's read noise. Throws
 // std::runtime_error naming the file for unreadable or inconsistent runs.
-PhotometricStereoInput LoadRunStack(const std::string& run_directory);
+// A colour run (manifest camera.mosaic not "mono") is demosaiced with
+// `color.demosaic` and put through its colour model (`color`, else the one the
+// manifest names); its `stack` is the sum of the camera channels.
+PhotometricStereoInput LoadRunStack(const std::string& run_directory, const ColorStackOptions& color = {});
 
 // The level at or above which samples count as clipped: the input's own, or,
 // for data that do not say (DiLiGenT folders), the full-scale code 2^n - 1
@@ -94,6 +103,21 @@ struct PhotometricStereoResult {
   std::optional<PhotometricStereoDepth> depth;   // unless the integrator is "none"
   std::optional<ps::AngularErrorStats> normals_vs_truth;  // when the source has ground-truth normals
   std::optional<double> mean_relative_albedo_error;      // ... and albedo; over solved pixels
+  // Colour: where the numbers came from, and CIEDE2000 of the albedo against
+  // a linear-sRGB ground truth (CIELAB of D65, white Y = 1) over the solved pixels.
+  std::optional<ColorProvenance> color;
+  std::optional<ps::SolverSummary> color_albedo_summary;  // the green channel's fit (the others alike)
+  struct ColorError {
+    double mean = 0.0, median = 0.0, p95 = 0.0;
+    int pixels = 0;
+  };
+  // Over every solved pixel, and over the interior of each paint: pixels whose
+  // true colour is the same over the 5 x 5 pixels around them, away from
+  // texture edges (which demosaicing blurs across) and the object's rim.
+  struct ColorErrors {
+    ColorError all, interior;
+  };
+  std::optional<ColorErrors> albedo_ciede2000_vs_truth;
   std::string mask_source;         // "" when every pixel was solved for
   int mask_pixels = 0;             // pixels inside the mask
   nlohmann::json previews;         // file name -> its mapping (previews.h), when usable
@@ -118,8 +142,12 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
 
 inline PhotometricStereoResult SolvePhotometricStereoRun(const std::string& run_directory,
                                                          const PhotometricStereoRequest& request,
-                                                         const std::string& output_directory) {
-  return SolveAndWrite(LoadRunStack(run_directory), request, output_directory);
+                                                         const std::string& output_directory,
+                                                         const ColorStackOptions& color = {}) {
+  return SolveAndWrite(LoadRunStack(run_directory, color), request, output_directory);
 }
+
+// CIEDE2000 between two linear-sRGB colours (CIELAB of D65, white Y = 1).
+double Ciede2000OfLinearSrgb(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 
 }  // namespace photorig::daemon

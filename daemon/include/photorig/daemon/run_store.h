@@ -33,6 +33,7 @@ struct FrameRecord {
   double exposure_us = 0.0;
   double gain_db = 0.0;
   int bit_depth = 0;
+  std::string pixel_format;  // as the camera delivered it (GenICam name); "" in runs stored before it was recorded
   std::uint64_t frame_id = 0;
   std::int64_t device_timestamp_ns = 0;
   std::int64_t host_timestamp_ns = 0;
@@ -81,6 +82,16 @@ struct RunManifest {
   double dn_per_radiance_per_us = 1.0;
   double e_per_dn = 0.0;  // 0 = unknown
   double pixel_pitch_mm = 0.0;  // object-space pixel size (orthographic); 0 = unknown
+  // The colour filter in front of the sensor, as frames are stored: "mono",
+  // a Bayer pattern ("RGGB", "BGGR", "GRBG", "GBRG": the top-left 2 x 2 block;
+  // frames are the raw one-channel mosaic) or "RGB" (frames hold R, G, B per
+  // pixel). Runs stored before it was recorded read as "mono".
+  std::string mosaic = "mono";
+  std::string pixel_format;  // the camera's GenICam pixel format, e.g. "BayerRG12"; "" when not recorded
+  // The rig's camera.color_model when the run was captured: its path and
+  // content hash (color_stack.h ContentHash); empty without one.
+  std::string color_model_path;
+  std::string color_model_hash;
   std::vector<LedConfig> lights;
   std::vector<FrameRecord> frames;
   bool has_ground_truth = false;
@@ -124,7 +135,10 @@ class RunWriter {
   // volumes, line integrals, as ground_truth/*.tiff|png; the lights as they
   // really are (which may differ from the rig's nominal ones) as
   // ground_truth/light_directions.txt, one "x y z" line per light.
-  void WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights);
+  // A colour camera's scene also has its albedo in linear sRGB (albedo_rgb,
+  // CV_32FC3 R, G, B) as ground_truth/albedo_rgb.tiff.
+  void WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights,
+                        const cv::Mat& albedo_rgb = cv::Mat());
   bool HasFrame(int step_index) const;
   // Appends the stop record to the journal and writes manifest.json.
   void Finish(const StopRecord& stop);
@@ -143,7 +157,8 @@ class RunWriter {
 // Reads manifest.json. Throws std::runtime_error naming the file on a missing
 // or corrupt manifest.
 RunManifest LoadRunManifest(const std::string& directory);
-// Loads a frame as 16-bit and checks size and checksum against its record.
+// Loads a frame as 16-bit (one channel, or three in R, G, B order for an RGB
+// run) and checks the checksum against its record.
 cv::Mat LoadFrame(const std::string& directory, const FrameRecord& record);
 // Checks a finished run: every step's frame present exactly once, intact, and
 // nothing else in frames/. Returns the problems found (empty when sound).

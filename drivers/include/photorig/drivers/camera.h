@@ -107,4 +107,11 @@ class Camera {
 
 const char* CameraStateName(Camera::State state);
 
+// The colour filter a GenICam pixel format implies: "mono" (Mono*), the Bayer
+// pattern of the top-left 2 x 2 block ("RGGB" for BayerRG*, "GRBG", "GBRG",
+// "BGGR"), "RGB" (RGB8, RGB16); "" for a format not listed.
+std::string MosaicOfPixelFormat(const std::string& pixel_format);
+// Significant bits per sample of those formats (BayerRG12 -> 12); 0 otherwise.
+int BitsOfPixelFormat(const std::string& pixel_format);
+
 }  // namespace photorig::drivers

@@ -4,6 +4,7 @@
 // Loading checks everything, each driver's own settings included, so a rig
 // that loads builds its devices without configuration errors.
 
+#include "photorig/config/color_model.h"
 #include "photorig/config/driver_options.h"
 #include "photorig/config/yaml_node.h"
 #include "photorig/drivers/camera.h"
@@ -103,6 +104,16 @@ struct CameraConfig {
   double e_per_dn = 0.0;
   // Fixed chart position for colour calibration, used when detection fails.
   std::optional<ColorChartPlacement> color_chart;
+  // GenICam pixel format asked of the camera: Mono8/10/12/16,
+  // Bayer{RG,GR,GB,BG}{8,10,12,16}; "" = Mono<bit_depth>. A Bayer format makes
+  // the camera a colour one: frames are stored as the raw mosaic and `mosaic`
+  // names its top-left 2 x 2 block (drivers::MosaicOfPixelFormat).
+  std::string pixel_format;
+  std::string mosaic = "mono";
+  // camera.color_model: the colour model of this camera (photorig calibrate
+  // color), loaded and checked when the rig loads; applied when colour runs
+  // are solved.
+  std::optional<LoadedColorModel> color_model;
 };
 
 // A gonioreflectometer's axes (kind: gonioreflectometer). Axis ids
@@ -128,6 +139,14 @@ struct MotionConfig {
   std::string CheckPose(const std::map<std::string, double>& positions_deg) const;
 };
 
+// The simulated colour camera (sim.color), used when camera.pixel_format is a
+// Bayer format: whose measured sensitivities its channels have and the
+// spectrum of the dome's LEDs (a CIE illuminant).
+struct SimColorConfig {
+  std::string camera = "nikon-5100";  // color::CameraNames()
+  color::Illuminant illuminant = color::Illuminant::kD65;
+};
+
 struct SimConfig {
   std::uint64_t seed = 1;
   // The simulated dome as built: each LED tilted off its nominal direction by
@@ -140,6 +159,7 @@ struct SimConfig {
   sim::AmbientLight ambient;
   sim::SensorModel sensor;
   sim::Scene scene;  // default scene; a recipe's sample.sim_scene replaces it
+  SimColorConfig color;
   sim::CameraFaults camera_faults;
   sim::LightFaults light_faults;
   std::map<std::string, sim::AxisFaults> axis_faults;  // by axis id

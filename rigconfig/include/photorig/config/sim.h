@@ -24,4 +24,16 @@ double FrameWidthMm(const RigConfig& rig);
 // camera's frame, the sensor and the injected faults.
 sim::WorldConfig MakeWorldConfig(const RigConfig& rig, const sim::Scene& scene);
 
+// Index (0..23) of a ColorChecker patch by its name, case-insensitive; -1 if none.
+int ColorCheckerPatch(const std::string& name);
+// Rec. 709 / sRGB luminance weights: Y = w . (R, G, B) linear.
+Eigen::Vector3d LuminanceOfLinearSrgb();
+// The colour camera's per-channel responses to the texture's two paints and
+// to the light (sim::ColorCamera), integrated over wavelength:
+//   rho_c = sum R(l) E(l) S_c(l) / sum E(l) S_g(l)
+// (reflectance R, the LEDs' spectrum E = the named illuminant, the camera's
+// measured sensitivity S_c), and the paints' true linear sRGB albedo (XYZ
+// under E, adapted to D65 by Bradford). Without paints both are white.
+sim::ColorCamera ColorSceneResponses(const SimColorConfig& color, const sim::AlbedoTexture& albedo);
+
 }  // namespace photorig::config

@@ -48,6 +48,7 @@ class SimCamera : public drivers::Camera {
 
  private:
   Status Capture();
+  std::string SensorPixelFormat() const;
 
   std::shared_ptr<World> world_;
   std::mutex frames_mutex_;  // a hardware pulse arrives on the trigger output's thread

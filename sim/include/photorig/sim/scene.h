@@ -23,6 +23,11 @@ struct AlbedoTexture {
   double low = 0.35;       // albedo of the dark squares / rings
   double high = 0.85;      // albedo of the bright squares / rings (and of kUniform)
   double period_mm = 6.0;  // checker square size or ring spacing
+  // For a colour camera: the paints of the low and high squares / rings, by
+  // ColorChecker patch name ("red", "blue", ...). The world's builder turns
+  // them into camera responses (sim::ColorCamera) and sets low and high to
+  // their luminance Y, which is what a monochrome camera sees.
+  std::vector<std::string> paints;
 
   double At(double x_mm, double y_mm) const;
 };

@@ -1,0 +1,83 @@
+// Turning a colour run's raw frames into a colour stack, per 1 MP 12-bit
+// RGGB frame: demosaicing (bilinear and edge-aware), then demosaicing plus the
+// colour model (root-poly-2 from the simulated Nikon 5100 chart), against a
+// bandwidth floor: the 16-bit -> float conversion of a demosaiced frame, the
+// least any per-pixel pass to a float colour stack does. Bytes processed
+// count the raw frame, so the figures compare as frames per second.
+
+#include "chart_capture.h"
+#include "photorig/daemon/color_stack.h"
+
+#include <benchmark/benchmark.h>
+#include <opencv2/imgproc.hpp>
+
+
+namespace photorig::daemon {
+namespace {
+
+constexpr int kSide = 1024;
+
+cv::Mat RawMosaic() {
+  cv::Mat raw(kSide, kSide, CV_16U);
+  cv::randu(raw, cv::Scalar(64), cv::Scalar(4000));
+  return raw;
+}
+
+const color::ColorModel& RootPoly2() {
+  static const color::ColorModel model = [] {
+    const auto chart = color::bench::SimulatedChart("nikon-5100", color::Illuminant::kD65, color::CalibrationOptions{});
+    for (const auto& m : chart.summary.models)
+      if (m.spec.Name() == "root-poly-2") return m.model;
+    return chart.summary.chosen_model();
+  }();
+  return model;
+}
+
+void SetRawBytes(benchmark::State& state) {
+  state.SetBytesProcessed(state.iterations() * static_cast<std::int64_t>(kSide) * kSide * 2);
+}
+
+void BM_Demosaic(benchmark::State& state) {
+  const DemosaicMethod method = state.range(0) ? DemosaicMethod::kEdgeAware : DemosaicMethod::kBilinear;
+  const cv::Mat raw = RawMosaic();
+  for (auto _ : state) benchmark::DoNotOptimize(DemosaicToRgb(raw, "RGGB", method).data);
+  SetRawBytes(state);
+  state.SetLabel(DemosaicMethodName(method));
+}
+BENCHMARK(BM_Demosaic)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// What LoadRunColorStack does per lit frame: demosaic, to float, subtract the dark, colour model.
+void BM_DemosaicAndColorModel(benchmark::State& state) {
+  const cv::Mat raw = RawMosaic();
+  const cv::Mat dark(kSide, kSide, CV_32FC3, cv::Scalar::all(64));
+  const color::ColorModel& model = RootPoly2();
+  for (auto _ : state) {
+    cv::Mat rgb;
+    DemosaicToRgb(raw, "RGGB", DemosaicMethod::kBilinear).convertTo(rgb, CV_32F);
+    rgb -= dark;
+    ApplyColorModelInPlace(model, &rgb);
+    benchmark::DoNotOptimize(rgb.data);
+  }
+  SetRawBytes(state);
+  state.SetLabel(model.spec.Name());
+}
+BENCHMARK(BM_DemosaicAndColorModel)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The least a pass to a float colour stack must do: read 16-bit R, G, B and
+// write float R, G, B (6 bytes in, 12 out per pixel), one convertTo.
+void BM_BandwidthFloor(benchmark::State& state) {
+  cv::Mat rgb16(kSide, kSide, CV_16UC3);
+  cv::randu(rgb16, cv::Scalar::all(64), cv::Scalar::all(4000));
+  cv::Mat out;
+  for (auto _ : state) {
+    rgb16.convertTo(out, CV_32F);
+    benchmark::DoNotOptimize(out.data);
+  }
+  SetRawBytes(state);
+}
+BENCHMARK(BM_BandwidthFloor)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+}  // namespace photorig::daemon
+
+BENCHMARK_MAIN();

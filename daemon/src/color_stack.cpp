@@ -1,0 +1,218 @@
+#include "photorig/daemon/color_stack.h"
+
+#include "photorig/color/apply.h"
+#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/run_store.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+#include <tuple>
+
+namespace photorig::daemon {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr const char* kBayerPatterns[] = {"RGGB", "BGGR", "GRBG", "GBRG"};
+
+// OpenCV names a Bayer pattern by the second row's first two filters
+// (COLOR_BayerBG2BGR is an RGGB sensor); the B, G, R codes are used and the
+// result swapped to R, G, B so the mapping stays the one cv::cvtColor documents.
+int BayerCode(const std::string& pattern, DemosaicMethod method) {
+  const bool ea = method == DemosaicMethod::kEdgeAware;
+  if (pattern == "RGGB") return ea ? cv::COLOR_BayerBG2BGR_EA : cv::COLOR_BayerBG2BGR;
+  if (pattern == "BGGR") return ea ? cv::COLOR_BayerRG2BGR_EA : cv::COLOR_BayerRG2BGR;
+  if (pattern == "GRBG") return ea ? cv::COLOR_BayerGB2BGR_EA : cv::COLOR_BayerGB2BGR;
+  if (pattern == "GBRG") return ea ? cv::COLOR_BayerGR2BGR_EA : cv::COLOR_BayerGR2BGR;
+  throw std::invalid_argument("unknown Bayer pattern '" + pattern + "' (known: RGGB, BGGR, GRBG, GBRG)");
+}
+
+cv::Mat ToFloatRgb(const cv::Mat& frame_rgb) {
+  cv::Mat out;
+  frame_rgb.convertTo(out, CV_32F);
+  return out;
+}
+
+}  // namespace
+
+bool IsBayerPattern(const std::string& mosaic) {
+  for (const char* p : kBayerPatterns)
+    if (mosaic == p) return true;
+  return false;
+}
+
+bool IsKnownMosaic(const std::string& mosaic) { return mosaic == "mono" || mosaic == "RGB" || IsBayerPattern(mosaic); }
+
+int MosaicChannels(const std::string& mosaic) { return mosaic == "RGB" ? 3 : 1; }
+
+const char* DemosaicMethodName(DemosaicMethod method) {
+  return method == DemosaicMethod::kEdgeAware ? "edge-aware" : "bilinear";
+}
+
+std::optional<DemosaicMethod> ParseDemosaicMethod(const std::string& name) {
+  if (name == "bilinear") return DemosaicMethod::kBilinear;
+  if (name == "edge-aware") return DemosaicMethod::kEdgeAware;
+  return std::nullopt;
+}
+
+cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, DemosaicMethod method) {
+  if (raw.channels() != 1 || (raw.depth() != CV_16U && raw.depth() != CV_8U))
+    throw std::invalid_argument("demosaicing needs a one-channel 8- or 16-bit raw frame");
+  cv::Mat bgr;
+  cv::demosaicing(raw, bgr, BayerCode(pattern, method));
+  cv::cvtColor(bgr, bgr, cv::COLOR_BGR2RGB);
+  return bgr;
+}
+
+nlohmann::json ToJson(const ColorProvenance& p) {
+  nlohmann::json out = {{"mosaic", p.mosaic},
+                        {"demosaic", p.demosaic},
+                        {"color_space", p.color_space},
+                        {"light_colors", p.light_colors}};
+  if (!p.color_model_path.empty())
+    out["color_model"] = {{"path", p.color_model_path}, {"hash", p.color_model_hash}, {"model", p.color_model_kind}};
+  else
+    out["color_model"] = nullptr;
+  return out;
+}
+
+ps::PhotometricStack ColorImageStack::Channel(int c) const {
+  ps::PhotometricStack stack;
+  stack.light_directions = light_directions;
+  stack.images.reserve(images.size());
+  for (std::size_t k = 0; k < images.size(); ++k) {
+    cv::Mat channel;
+    cv::extractChannel(images[k], channel, c);
+    stack.images.push_back(channel);
+    stack.light_scales.push_back(light_scales[k][c]);
+  }
+  stack.noise.read_sigma = read_sigma[c];
+  return stack;
+}
+
+void ApplyColorModelInPlace(const color::ColorModel& model, cv::Mat* rgb) {
+  CV_Assert(rgb->type() == CV_32FC3);
+  const cv::Mat clipped = *rgb == std::numeric_limits<float>::infinity();  // per channel
+  cv::Mat any_clipped;
+  cv::transform(clipped, any_clipped, cv::Matx13f(1, 1, 1));
+  cv::Mat finite = rgb->clone();
+  finite.setTo(0.0f, clipped);
+  cv::Mat bgr, xyz;
+  cv::cvtColor(finite, bgr, cv::COLOR_RGB2BGR);
+  // The model's own exposure normalisation is undone, so it acts on DN and
+  // returns the same scale (exact for an exposure-invariant model).
+  color::ApplyOptions apply;
+  apply.exposure_ratio = model.input_scale;
+  solvers::Summary summary = color::CameraToXyz(model, bgr, cv::Mat(), apply, &xyz);
+  if (!summary.IsSolutionUsable()) throw std::runtime_error("colour model: " + summary.message);
+  summary = color::XyzToLinearSrgbBgr(xyz, model.white_xyz, &bgr);
+  if (!summary.IsSolutionUsable()) throw std::runtime_error("colour model: " + summary.message);
+  cv::cvtColor(bgr, *rgb, cv::COLOR_BGR2RGB);
+  rgb->setTo(cv::Scalar::all(std::numeric_limits<float>::infinity()), any_clipped != 0);
+}
+
+ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorStackOptions& options) {
+  const RunManifest manifest = LoadRunManifest(run_directory);
+  if (manifest.mosaic == "mono")
+    throw std::invalid_argument(run_directory + ": a monochrome run (manifest camera.mosaic is \"mono\")");
+  ColorImageStack out;
+  out.provenance.mosaic = manifest.mosaic;
+  const bool bayer = IsBayerPattern(manifest.mosaic);
+  out.provenance.demosaic = bayer ? DemosaicMethodName(options.demosaic) : "none";
+  const std::string model_path = !options.color_model_path.empty() ? options.color_model_path : manifest.color_model_path;
+  std::optional<LoadedColorModel> model;
+  if (!model_path.empty()) model = LoadColorModelFile(model_path);
+
+  const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
+  const double saturation = manifest.saturation_dn > 0.0 ? std::min(manifest.saturation_dn, top_code) : top_code;
+  // Frame -> camera RGB (float) and where a raw sample it drew on was clipped.
+  auto to_rgb = [&](const cv::Mat& raw, cv::Mat* clipped) {
+    if (clipped) {
+      cv::Mat at_top = raw >= saturation;
+      if (bayer) {
+        cv::dilate(at_top, at_top, cv::Mat::ones(3, 3, CV_8U));  // the demosaic reaches one pixel out
+        *clipped = at_top;
+      } else {
+        cv::Mat any;
+        cv::transform(at_top, any, cv::Matx13f(1, 1, 1));
+        *clipped = any != 0;
+      }
+    }
+    return ToFloatRgb(bayer ? DemosaicToRgb(raw, manifest.mosaic, options.demosaic) : raw);
+  };
+
+  std::vector<cv::Mat> darks;
+  for (const FrameRecord& record : manifest.frames)
+    if (record.kind == "dark") darks.push_back(to_rgb(LoadFrame(run_directory, record), nullptr));
+  cv::Mat mean_dark;
+  if (!darks.empty()) {
+    mean_dark = cv::Mat::zeros(darks.front().size(), CV_32FC3);
+    for (const cv::Mat& dark : darks) mean_dark += dark;
+    mean_dark /= static_cast<double>(darks.size());
+  }
+  for (const FrameRecord& record : manifest.frames) {
+    if (record.kind != "light" || record.led < 0) continue;
+    if (record.led >= static_cast<int>(manifest.lights.size()))
+      throw std::runtime_error(run_directory + "/manifest.json: frame " + record.file + " names LED index " +
+                               std::to_string(record.led) + " outside the rig's " +
+                               std::to_string(manifest.lights.size()) + " LEDs");
+    cv::Mat clipped;
+    cv::Mat rgb = to_rgb(LoadFrame(run_directory, record), &clipped);
+    if (!mean_dark.empty()) rgb -= mean_dark;
+    if (model) ApplyColorModelInPlace(model->model, &rgb);
+    rgb.setTo(cv::Scalar::all(std::numeric_limits<float>::infinity()), clipped);
+    out.images.push_back(rgb);
+    const LedConfig& led = manifest.lights[record.led];
+    out.light_directions.push_back(led.direction);
+    const double scale = led.intensity * record.level * manifest.dn_per_radiance_per_us * record.exposure_us *
+                         std::pow(10.0, record.gain_db / 20.0);
+    out.light_scales.push_back(scale * led.rgb_intensity);
+  }
+  out.provenance.light_colors = "rig lights' rgb_intensity";
+  // Channel noise: the darks' temporal spread after the same processing (one
+  // dark: its robust spatial spread), including the subtracted mean's.
+  if (!darks.empty()) {
+    std::vector<cv::Mat> residuals;
+    for (const cv::Mat& dark : darks) {
+      const cv::Mat reference = darks.size() >= 2 ? mean_dark : cv::Mat(dark.size(), CV_32FC3, cv::mean(dark));
+      cv::Mat residual = dark - reference;
+      if (model) ApplyColorModelInPlace(model->model, &residual);
+      residuals.push_back(residual);
+    }
+    const double n = static_cast<double>(darks.size());
+    const double temporal = darks.size() >= 2 ? std::sqrt(n / (n - 1.0)) : 1.0;
+    for (int c = 0; c < 3; ++c) {
+      std::vector<float> values;
+      for (const cv::Mat& residual : residuals) {
+        cv::Mat channel;
+        cv::extractChannel(residual, channel, c);
+        values.insert(values.end(), channel.begin<float>(), channel.end<float>());
+      }
+      auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+      std::nth_element(values.begin(), middle, values.end());
+      const float median = *middle;
+      for (float& v : values) v = std::abs(v - median);
+      std::nth_element(values.begin(), middle, values.end());
+      out.read_sigma[c] = 1.4826 * *middle * temporal * std::sqrt(1.0 + 1.0 / n);
+    }
+  }
+  if (model) {
+    out.provenance.color_space = "linear-srgb";
+    out.provenance.color_model_path = fs::absolute(model->path).lexically_normal().string();
+    out.provenance.color_model_hash = model->content_hash;
+    out.provenance.color_model_kind = model->model.spec.Name();
+  } else {
+    out.provenance.color_space = "camera-rgb";
+  }
+  return out;
+}
+
+}  // namespace photorig::daemon
