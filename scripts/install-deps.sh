@@ -30,6 +30,8 @@ packages=(
   libdeflate-dev
   # fuzzers: libFuzzer, the sanitizer runtimes and clang's OpenMP (scripts/fuzz.sh)
   clang libclang-rt-14-dev libomp-14-dev
+  # tomography distributed over MPI processes (solvers/tomography_mpi, solve tomography --mpi, its mpirun test)
+  libopenmpi-dev openmpi-bin
 )
 
 if [ "$(id -u)" = 0 ]; then

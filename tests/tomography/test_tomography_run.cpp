@@ -4,6 +4,7 @@
 // projections, and the input it refuses.
 
 #include "../daemon/test_support.h"
+#include "simulated_scan.h"
 #include "photorig/daemon/tomography_pipeline.h"
 #include "photorig/sim/phantom.h"
 #include "photorig/solvers/tomography/nrrd.h"
@@ -48,27 +49,6 @@ json Document(const Outcome& outcome) {
     EXPECT_EQ(document.value("ok", outcome.exit_code != 0), outcome.exit_code == 0);
   }
   return document;
-}
-
-// The recipe's scan, made in memory: 64 x 8 pixels of 0.5 mm, 64 views over
-// 180 degrees of the 3D phantom, four flats and darks (the recipe's numbers).
-TomographyInput SimulatedScan(int views = 64) {
-  TomographyInput input;
-  input.source = "simulated scan";
-  input.geometry.detector_cols = 64;
-  input.geometry.detector_rows = 8;
-  input.geometry.pixel_mm = 0.5;
-  input.geometry.angles_rad = tomography::EvenAngles(views, 180.0);
-  input.phantom = sim::Phantom::SheppLogan3d(12.8, 0.1);
-  sim::TomographyScanOptions options;
-  options.flats = 4;
-  options.darks = 4;
-  options.supersample = 2;
-  const sim::TomographyScan scan = sim::ScanPhantom(*input.phantom, input.geometry, options);
-  input.projections = scan.projections;
-  input.flats = scan.flats;
-  input.darks = scan.darks;
-  return input;
 }
 
 // SIRT's stopped error on this 64^2 x 8 scan is about 0.2 (measured 0.19 to

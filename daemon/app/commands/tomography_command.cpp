@@ -6,6 +6,8 @@
 // Exit 0 when the rule stopped it; 1 when the solve failed or cannot be
 // trusted (the residual never reached the noise level, inconsistent data);
 // 2 for missing flats or darks or a geometry that does not fit the frames.
+// With --mpi, under `mpirun -np N`, the views are shared by the N processes
+// (solvers/tomography_mpi); the first writes the results.
 
 #include "../command.h"
 #include "../command_output.h"
@@ -16,6 +18,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
+
+#if PHOTORIG_HAVE_TOMOGRAPHY_MPI
+#include "photorig/solvers/tomography_mpi/distributed_projector.h"
+#endif
 
 namespace photorig::app {
 namespace {
@@ -25,6 +32,7 @@ namespace fs = std::filesystem;
 struct Options {
   std::string run_dir, projections_dir, out;
   std::vector<int> volume;
+  bool mpi = false;
   daemon::TomographyRequest request;
 };
 
@@ -38,14 +46,37 @@ int Execute(const Options& options) {
   const std::string source = from_run ? options.run_dir : options.projections_dir;
   const std::string destination =
       options.out.empty() ? (fs::path(source) / "results" / "tomography").string() : options.out;
+  daemon::SystemMatrixFactory factory = daemon::InProcessSystemMatrix();
+  int ranks = 1;
+#if PHOTORIG_HAVE_TOMOGRAPHY_MPI
+  // Under mpirun: every process loads the scan and solves its block of views;
+  // the first writes the results and speaks for all.
+  std::optional<tomography::mpi::Session> session;
+  if (options.mpi) {
+    session.emplace(nullptr, nullptr);
+    ranks = session->size();
+    if (session->rank() != 0) SilenceOutput();
+    factory = [](const tomography::VolumeGrid& grid, const tomography::Geometry& geometry,
+                 const tomography::ProjectorOptions& projector_options,
+                 std::unique_ptr<tomography::SystemMatrix>* matrix, std::int64_t* first_ray) {
+      return tomography::mpi::MakeDistributedProjector(grid, geometry, projector_options, MPI_COMM_WORLD, matrix,
+                                                       first_ray);
+    };
+    if (request.method == "art") return Fail(kExitUsage, "--mpi solves by sirt or cgls (ART visits one ray at a time)");
+  }
+  const bool writes = !session || session->rank() == 0;
+#else
+  if (options.mpi) return Fail(kExitUsage, "this photorig was built without MPI (libopenmpi-dev): no --mpi");
+  const bool writes = true;
+#endif
   const daemon::TomographyInput input =
       from_run ? daemon::LoadTomographyRun(source) : daemon::LoadProjectionFolder(source);
 
   ProgressDisplay progress;
   request.progress = progress.Callback();
-  const daemon::TomographyResult result = daemon::SolveTomography(input, request);
+  const daemon::TomographyResult result = daemon::SolveTomography(input, request, factory);
   progress.EndLine();
-  daemon::WriteTomographyResults(input, result, destination);
+  if (writes) daemon::WriteTomographyResults(input, result, destination);
 
   const tomography::ReconstructionSummary& r = result.reconstruction;
   std::printf("tomography (%s, %s): %s, %d views, %d x %d x %d voxels of %.3g mm\n", tomography::MethodName(r.method),
@@ -65,6 +96,7 @@ int Execute(const Options& options) {
 
   ResultFields() = result.ToJson();
   ResultFields()["source"] = source;
+  ResultFields()["processes"] = ranks;
   ResultFields()["results_directory"] = destination;
   if (!result.trusted())
     return Fail(kExitFailed, r.IsSolutionUsable() ? "the reconstruction cannot be trusted: " + r.message
@@ -97,6 +129,8 @@ CommandRunner Setup(CLI::App& app) {
   sub->add_option("--cor-offset-mm", options->request.cor_offset_mm,
                   "centre of rotation on the detector, added to the stored geometry's");
   sub->add_option("--out", options->out, "output directory (default: SOURCE/results/tomography)");
+  sub->add_flag("--mpi", options->mpi,
+                "distribute the views over the MPI processes this runs in (under mpirun; sirt or cgls)");
   return {sub, [options] { return Execute(*options); }};
 }
 
