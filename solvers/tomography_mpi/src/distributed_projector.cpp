@@ -1,6 +1,6 @@
 #include "photorig/solvers/tomography_mpi/distributed_projector.h"
 
-#include <stdexcept>
+#include <algorithm>
 
 namespace photorig::tomography::mpi {
 
