@@ -38,6 +38,8 @@ packages=(
   clang libclang-rt-14-dev libomp-14-dev
   # batch solves on Slurm: the tests start a single-node cluster (tests/slurm/slurm-node.sh, docs/scaling.md)
   slurm-wlm munge
+  # tomography distributed over MPI processes (solvers/tomography_mpi, solve tomography --mpi, its mpirun test)
+  libopenmpi-dev openmpi-bin
 )
 
 if [ "$(id -u)" = 0 ]; then

@@ -1,5 +1,6 @@
 #include "command_output.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -31,6 +32,16 @@ int Fail(ExitCode code, const std::string& why) {
   std::fflush(stdout);  // under --json both reach stderr: keep them in order
   std::fprintf(stderr, "%s: %s\n", State().name.c_str(), why.c_str());
   return code;
+}
+
+void SilenceOutput() {
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const int null_fd = ::open("/dev/null", O_WRONLY);
+  if (null_fd < 0) return;
+  for (int fd : {STDOUT_FILENO, STDERR_FILENO, State().json_fd})
+    if (fd >= 0) ::dup2(null_fd, fd);
+  ::close(null_fd);
 }
 
 namespace internal {

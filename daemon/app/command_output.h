@@ -35,6 +35,11 @@ nlohmann::json& ResultFields();
 // stderr, and returns `code` for the command to return.
 int Fail(ExitCode code, const std::string& why);
 
+// Sends this process's text and JSON document to /dev/null: for the
+// processes of a distributed solve (solve tomography --mpi) other than the
+// first, which speaks for all of them.
+void SilenceOutput();
+
 namespace internal {
 // Used by main only.
 void BeginCommand(const std::string& name, bool json_output);

@@ -66,9 +66,11 @@ void CheckLightSafety(const RigConfig& rig, const std::map<int, std::vector<std:
 }  // namespace
 
 std::map<std::string, double> PoseTargets(const GonioPose& pose) {
-  return {{"light_arm", pose.light_arm_deg},
-          {"camera_arm", pose.camera_arm_deg},
-          {"sample_rotation", pose.sample_rotation_deg}};
+  std::map<std::string, double> targets = {{"light_arm", pose.light_arm_deg},
+                                           {"camera_arm", pose.camera_arm_deg},
+                                           {"sample_rotation", pose.sample_rotation_deg}};
+  if (pose.sample_changer_deg) targets["sample_changer"] = *pose.sample_changer_deg;
+  return targets;
 }
 
 bool PlanOptions::IsValid(std::string* why) const {

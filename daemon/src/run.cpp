@@ -1,5 +1,6 @@
 #include "photorig/daemon/run.h"
 
+#include "photorig/daemon/image_io.h"
 #include "photorig/daemon/plan.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/rig_devices.h"
@@ -85,6 +86,14 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
         CalibrateLights(LoadLightCalibrationInputs(directory.string()), calibration, results.string());
     finish(ReportSolveStage(*outcome->light_calibration, directory.string(), MillisecondsSince(started)));
   }
+  if (recipe.tomography && start("tomography")) {
+    TomographyRequest solve = *recipe.tomography;
+    solve.progress = request.solve_progress;
+    const TomographyInput input = LoadTomographyRun(directory.string());
+    outcome->tomography = SolveTomography(input, solve);
+    WriteTomographyResults(input, *outcome->tomography, fresh_results("tomography").string());
+    finish(ReportSolveStage(*outcome->tomography));
+  }
 }
 
 }  // namespace
@@ -146,6 +155,25 @@ SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const 
   return report;
 }
 
+SolveStageReport ReportSolveStage(const TomographyResult& result) {
+  SolveStageReport report;
+  report.stage = "tomography";
+  report.usable = result.trusted();
+  report.termination = solvers::TerminationName(result.reconstruction.termination);
+  report.message = result.reconstruction.message;
+  report.results = "results/tomography";
+  report.figures = {{"method", tomography::MethodName(result.reconstruction.method)},
+                    {"views", result.geometry.views()},
+                    {"iterations", result.reconstruction.iterations},
+                    {"stop_reason", tomography::StopReasonName(result.reconstruction.stop_reason)},
+                    {"volume", {result.grid.nx, result.grid.ny, result.grid.nz}}};
+  if (result.relative_error_vs_truth) report.figures["relative_error_vs_truth"] = *result.relative_error_vs_truth;
+  report.timings_ms = {{"setup", result.reconstruction.setup_ms},
+                       {"solve", result.reconstruction.solve_ms},
+                       {"total", result.total_ms}};
+  return report;
+}
+
 RunOutcome ExecuteRun(const RunRequest& request) {
   const RigConfig rig = LoadRigConfig(RecipeRigPath(request.recipe_path, request.rig_path));
   const Recipe recipe = LoadRecipe(request.recipe_path, rig);
@@ -201,6 +229,10 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   if (devices.world && !writer.manifest().has_ground_truth) {
     const sim::SurfaceMaps& truth = devices.world->surface();
     writer.WriteGroundTruth(truth, devices.world->config().lights, devices.world->TruthColorAlbedo());
+    // A tomography phantom has no surface: its truth is the phantom itself.
+    if (devices.world->config().scene.shape == sim::Scene::Shape::kPhantom)
+      WriteFileDurably((fs::path(outcome.directory) / "ground_truth" / "phantom.json").string(),
+                       PhantomToJson(devices.world->config().scene.phantom).dump(2) + "\n");
   }
 
   spdlog::info("run {}: recipe {} on rig {} ({} steps) -> {}", header.run_id, recipe.name, rig.name, steps.size(),

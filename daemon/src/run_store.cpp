@@ -67,6 +67,7 @@ json ToJson(const FrameRecord& f) {
     out["pose"] = {{"light_arm_deg", f.pose->light_arm_deg},
                    {"camera_arm_deg", f.pose->camera_arm_deg},
                    {"sample_rotation_deg", f.pose->sample_rotation_deg}};
+  if (f.pose && f.pose->sample_changer_deg) out["pose"]["sample_changer_deg"] = *f.pose->sample_changer_deg;
   return out;
 }
 
@@ -90,7 +91,8 @@ FrameRecord FrameRecordFromJson(const json& j) {
   if (j.contains("pose")) {
     const json& p = j.at("pose");
     f.pose = GonioPose{p.at("light_arm_deg").get<double>(), p.at("camera_arm_deg").get<double>(),
-                       p.at("sample_rotation_deg").get<double>()};
+                       p.at("sample_rotation_deg").get<double>(), std::nullopt};
+    if (p.contains("sample_changer_deg")) f.pose->sample_changer_deg = p.at("sample_changer_deg").get<double>();
   }
   return f;
 }

@@ -3,6 +3,7 @@
 #include "photorig/config/sim.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -46,11 +47,22 @@ std::vector<int> LedIdsIn(const YamlNode& body) {
   return {};
 }
 
-// One axis of a pose grid: a single angle or a list of them.
+// One axis of a pose grid: a single angle, a list of them, or evenly spaced
+// ones {start, step, count} (a turntable's scan).
 std::vector<double> AnglesIn(const YamlNode& grid, const char* key) {
   if (!grid.Has(key)) return {0.0};
   const YamlNode node = grid[key];
   if (node.IsScalar()) return {node.AsDouble()};
+  if (node.IsMap()) {
+    node.ExpectKeys({"start", "step", "count"});
+    const double start = node["start"].AsDouble(), step = node["step"].AsDouble();
+    const int count = node["count"].AsInt();
+    if (count < 1 || count > kMaxGridPoses) node["count"].Fail("must be within [1, " + std::to_string(kMaxGridPoses) + "]");
+    if (!(step != 0.0) || !std::isfinite(step)) node["step"].Fail("must be a finite angle other than 0");
+    std::vector<double> angles;
+    for (int i = 0; i < count; ++i) angles.push_back(start + i * step);
+    return angles;
+  }
   std::vector<double> angles;
   for (const YamlNode& item : node.Items()) angles.push_back(item.AsDouble());
   if (angles.empty()) node.Fail("needs at least one angle");
@@ -62,15 +74,18 @@ std::vector<GonioPose> PosesIn(const YamlNode& body) {
   std::vector<GonioPose> poses;
   if (auto list = body.Find("list")) {
     for (const YamlNode& item : list->Items()) {
-      item.ExpectKeys({"light_arm_deg", "camera_arm_deg", "sample_rotation_deg"});
+      item.ExpectKeys({"light_arm_deg", "camera_arm_deg", "sample_rotation_deg", "sample_changer_deg"});
       poses.push_back({item["light_arm_deg"].AsDouble(), item["camera_arm_deg"].AsDouble(),
-                       item.Double("sample_rotation_deg", 0.0)});
+                       item.Double("sample_rotation_deg", 0.0), std::nullopt});
+      if (auto changer = item.Find("sample_changer_deg")) poses.back().sample_changer_deg = changer->AsDouble();
     }
     if (poses.empty()) list->Fail("needs at least one pose");
     return poses;
   }
   const YamlNode grid = body["grid"];
-  grid.ExpectKeys({"light_arm_deg", "camera_arm_deg", "sample_rotation_deg"});
+  grid.ExpectKeys({"light_arm_deg", "camera_arm_deg", "sample_rotation_deg", "sample_changer_deg"});
+  std::optional<double> changer;  // one position for the whole grid
+  if (auto node = grid.Find("sample_changer_deg")) changer = node->AsDouble();
   const std::vector<double> rotations = AnglesIn(grid, "sample_rotation_deg");
   const std::vector<double> lights = AnglesIn(grid, "light_arm_deg");
   const std::vector<double> cameras = AnglesIn(grid, "camera_arm_deg");
@@ -82,7 +97,7 @@ std::vector<GonioPose> PosesIn(const YamlNode& body) {
   poses.reserve(static_cast<std::size_t>(size));
   for (double rotation : rotations)
     for (double light : lights)
-      for (double camera : cameras) poses.push_back({light, camera, rotation});
+      for (double camera : cameras) poses.push_back({light, camera, rotation, changer});
   return poses;
 }
 
@@ -207,7 +222,8 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
       if (keys.size() != 1) stage.Fail("each solve stage is a map with exactly one key");
       if (keys[0] == "photometric_stereo") recipe.photometric_stereo = ParsePhotometricStereoRequest(stage[keys[0]]);
       else if (keys[0] == "light_calibration") recipe.light_calibration = ParseLightCalibrationRequest(stage[keys[0]]);
-      else stage.Fail("unknown solver '" + keys[0] + "' (expected photometric_stereo or light_calibration)");
+      else if (keys[0] == "tomography") recipe.tomography = ParseTomographyRequest(stage[keys[0]]);
+      else stage.Fail("unknown solver '" + keys[0] + "' (expected photometric_stereo, light_calibration or tomography)");
     }
   }
   return recipe;

@@ -11,7 +11,8 @@ namespace photorig::config {
 sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
   node.ExpectKeys({"shape", "radius_mm", "albedo", "cast_shadows", "brdf", "path", "depth_scale_mm", "depth_pitch_mm",
                    "mesh_scale", "tilt_deg", "bowl_radius_mm", "rim_radius_mm", "step_width_mm", "step_height_mm",
-                   "step_slope", "backlight_radiance", "peak_density_per_mm", "interreflection_samples"});
+                   "step_slope", "backlight_radiance", "peak_density_per_mm", "interreflection_samples", "phantom",
+                   "half_extent_mm"});
   sim::Scene scene;
   const YamlNode shape = node["shape"];
   try {
@@ -36,9 +37,23 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
   scene.depth_pitch_mm = node.Double("depth_pitch_mm", scene.depth_pitch_mm);
   scene.mesh_scale = node.Double("mesh_scale", scene.mesh_scale);
   scene.backlight_radiance = node.Double("backlight_radiance", scene.backlight_radiance);
-  if (auto density = node.Find("peak_density_per_mm")) {
-    if (!(density->AsDouble() >= 0)) density->Fail("must be >= 0");
-    scene.volume = sim::DensityGrid::Blobs(0.8 * frame_width_mm, 64, density->AsDouble());
+  if (scene.shape == sim::Scene::Shape::kPhantom) {
+    // phantom: shepp_logan_3d | shepp_logan_2d, half_extent_mm, peak_density_per_mm (sigma of amplitude 1)
+    const std::string kind = node.String("phantom", "shepp_logan_3d");
+    const double half_extent_mm = node.Double("half_extent_mm", scene.phantom.half_extent_mm);
+    const double sigma_per_mm = node.Double("peak_density_per_mm", scene.phantom.sigma_per_mm);
+    if (!(half_extent_mm > 0)) node["half_extent_mm"].Fail("must be > 0");
+    if (!(sigma_per_mm >= 0)) node["peak_density_per_mm"].Fail("must be >= 0");
+    if (kind == "shepp_logan_3d") scene.phantom = sim::Phantom::SheppLogan3d(half_extent_mm, sigma_per_mm);
+    else if (kind == "shepp_logan_2d") scene.phantom = sim::Phantom::SheppLogan2d(half_extent_mm, sigma_per_mm);
+    else node["phantom"].Fail("unknown phantom '" + kind + "' (expected shepp_logan_3d or shepp_logan_2d)");
+  } else {
+    for (const char* key : {"phantom", "half_extent_mm"})
+      if (node.Has(key)) node[key].Fail("only a phantom scene takes this key");
+    if (auto density = node.Find("peak_density_per_mm")) {
+      if (!(density->AsDouble() >= 0)) density->Fail("must be >= 0");
+      scene.volume = sim::DensityGrid::Blobs(0.8 * frame_width_mm, 64, density->AsDouble());
+    }
   }
   // Files named in a recipe are relative to the recipe, and must load now, not mid-run.
   if (auto path = node.Find("path")) {

@@ -1,9 +1,12 @@
 #include "photorig/config/solve_requests.h"
 
 #include "photorig/ps/integration.h"
+#include "photorig/solvers/tomography/ray_trace.h"
+#include "photorig/solvers/tomography/reconstruct.h"
 
 #include <Eigen/Core>
 
+#include <cmath>
 #include <filesystem>
 #include <stdexcept>
 
@@ -94,6 +97,40 @@ LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node) {
     const std::string extension = fs::path(request.out_rig).extension().string();
     if (extension != ".yaml" && extension != ".yml") out_rig->Fail("must name a .yaml file");
   }
+  return request;
+}
+
+bool TomographyRequest::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (!tomography::ParseMethod(method)) return fail("method '" + method + "' (expected sirt, art or cgls)");
+  if (!tomography::ParseInterpolation(projector)) return fail("projector '" + projector + "' (expected joseph or siddon)");
+  if (max_iterations < 1 || max_iterations > 100000) return fail("max_iterations must be within [1, 100000]");
+  if (!(discrepancy_factor > 0) || !std::isfinite(discrepancy_factor)) return fail("discrepancy_factor must be > 0");
+  for (int n : volume)
+    if (n < 0 || n > 4096) return fail("volume sizes must be within [0, 4096] (0: from the detector)");
+  if (!(voxel_mm >= 0) || !std::isfinite(voxel_mm)) return fail("voxel_mm must be >= 0 (0: the detector pitch)");
+  if (!std::isfinite(cor_offset_mm)) return fail("cor_offset_mm must be finite");
+  return true;
+}
+
+TomographyRequest ParseTomographyRequest(const YamlNode& node) {
+  node.ExpectKeys({"method", "projector", "max_iterations", "discrepancy_factor", "volume", "voxel_mm", "cor_offset_mm"});
+  TomographyRequest request;
+  request.method = node.String("method", request.method);
+  request.projector = node.String("projector", request.projector);
+  request.max_iterations = node.Int("max_iterations", request.max_iterations);
+  request.discrepancy_factor = node.Double("discrepancy_factor", request.discrepancy_factor);
+  if (auto volume = node.Find("volume")) {
+    const std::vector<int> sizes = volume->AsIntList();
+    if (sizes.size() != 3) volume->Fail("expected [nx, ny, nz]");
+    request.volume = {sizes[0], sizes[1], sizes[2]};
+  }
+  request.voxel_mm = node.Double("voxel_mm", request.voxel_mm);
+  request.cor_offset_mm = node.Double("cor_offset_mm", request.cor_offset_mm);
+  if (std::string why; !request.IsValid(&why)) node.Fail(why);
   return request;
 }
 

@@ -26,6 +26,38 @@ void CheckGonioScene(const Scene& scene) {
     throw std::invalid_argument("a gonioreflectometer scene cannot use the mirror (delta) BRDF");
 }
 
+tomography::Geometry PhantomScanGeometry(const CameraModel& camera, const std::vector<double>& angles_deg) {
+  tomography::Geometry geometry;
+  geometry.beam = tomography::Beam::kParallel;
+  geometry.detector_cols = camera.width;
+  geometry.detector_rows = camera.height;
+  geometry.pixel_mm = camera.pixel_pitch_mm;
+  for (double deg : angles_deg) geometry.angles_rad.push_back(deg * kDegToRad);
+  return geometry;
+}
+
+cv::Mat RenderPhantomTransmission(const Scene& scene, const CameraModel& camera, const std::vector<Light>& lights,
+                                  const std::vector<double>& levels, const ArmAngles& arms) {
+  if (scene.shape != Scene::Shape::kPhantom) throw std::invalid_argument("not a phantom scene");
+  double level = 0.0;
+  for (std::size_t k = 0; k < lights.size() && k < levels.size(); ++k) level += levels[k] * lights[k].irradiance;
+  const bool on_beam_line = std::abs(arms.camera_arm_deg - 90.0) <= 0.5 && std::abs(arms.light_arm_deg + 90.0) <= 0.5;
+  cv::Mat radiance(camera.height, camera.width, CV_32F, cv::Scalar(0));
+  if (level <= 0.0 || !on_beam_line) return radiance;
+  const double open_beam = level * scene.backlight_radiance;
+  if (std::abs(arms.sample_changer_deg) > 0.5) {
+    radiance.setTo(open_beam);
+    return radiance;
+  }
+  const tomography::Geometry geometry = PhantomScanGeometry(camera, {arms.sample_rotation_deg});
+  const std::vector<float> tau = ProjectPhantom(scene.phantom, geometry, 2);
+  for (int row = 0; row < camera.height; ++row)
+    for (int col = 0; col < camera.width; ++col)
+      radiance.at<float>(row, col) =
+          static_cast<float>(open_beam * std::exp(-tau[static_cast<std::size_t>(geometry.RayIndex(0, row, col))]));
+  return radiance;
+}
+
 cv::Mat RenderGonioRadiance(const Scene& scene, const Brdf& brdf, const CameraModel& camera,
                             const std::vector<Light>& lights, const std::vector<double>& levels,
                             const ArmAngles& arms) {

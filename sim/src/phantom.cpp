@@ -30,6 +30,16 @@ LocalFrame Frame(const Ellipsoid& e, double scale_mm) {
   return {inverse_axes.asDiagonal() * rotation.transpose(), scale_mm * Eigen::Vector3d(e.x0, e.y0, e.z0)};
 }
 
+// The chord through the unit ball of frame f along (origin, direction), in mm.
+double Chord(const LocalFrame& f, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) {
+  // |o' + t d'|^2 = 1 in the ellipsoid's unit-ball frame; t is in mm along the ray.
+  const Eigen::Vector3d o = f.to_unit * (origin - f.centre), d = f.to_unit * direction;
+  const double qa = d.squaredNorm(), qb = 2.0 * o.dot(d), qc = o.squaredNorm() - 1.0;
+  const double disc = qb * qb - 4.0 * qa * qc;
+  if (qa <= 0.0 || disc <= 0.0) return 0.0;
+  return std::sqrt(disc) / qa;
+}
+
 }  // namespace
 
 Phantom Phantom::SheppLogan3d(double half_extent_mm, double sigma_per_mm) {
@@ -79,15 +89,7 @@ double Phantom::Sigma(const Eigen::Vector3d& point_mm) const {
 
 double Phantom::LineIntegral(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const {
   double sum = 0.0;
-  for (const Ellipsoid& e : ellipsoids) {
-    const LocalFrame f = Frame(e, half_extent_mm);
-    // |o' + t d'|^2 = 1 in the ellipsoid's unit-ball frame; t is in mm along the ray.
-    const Eigen::Vector3d o = f.to_unit * (origin - f.centre), d = f.to_unit * direction;
-    const double qa = d.squaredNorm(), qb = 2.0 * o.dot(d), qc = o.squaredNorm() - 1.0;
-    const double disc = qb * qb - 4.0 * qa * qc;
-    if (qa <= 0.0 || disc <= 0.0) continue;
-    sum += e.amplitude * std::sqrt(disc) / qa;
-  }
+  for (const Ellipsoid& e : ellipsoids) sum += e.amplitude * Chord(Frame(e, half_extent_mm), origin, direction);
   return sum * sigma_per_mm;
 }
 
@@ -124,7 +126,10 @@ std::vector<float> ProjectPhantom(const Phantom& phantom, const tomography::Geom
   fine.detector_cols *= s;
   fine.detector_rows *= sub_rows;
   fine.pixel_mm /= s;
-#pragma omp parallel for schedule(dynamic, 1)
+  // Each ellipsoid's frame once, not once a ray (a scan of one view is a frame of the simulated rig).
+  std::vector<LocalFrame> frames;
+  for (const Ellipsoid& e : phantom.ellipsoids) frames.push_back(Frame(e, phantom.half_extent_mm));
+#pragma omp parallel for collapse(2) schedule(dynamic, 1)
   for (int view = 0; view < geometry.views(); ++view)
     for (int row = 0; row < geometry.detector_rows; ++row)
       for (int col = 0; col < geometry.detector_cols; ++col) {
@@ -133,7 +138,8 @@ std::vector<float> ProjectPhantom(const Phantom& phantom, const tomography::Geom
         for (int c = 0; c < sub_rows; ++c)
           for (int a = 0; a < s; ++a) {
             fine.Ray(view, sub_rows * row + c, s * col + a, &origin, &direction);
-            sum += phantom.LineIntegral(origin, direction);
+            for (std::size_t k = 0; k < frames.size(); ++k)
+              sum += phantom.ellipsoids[k].amplitude * phantom.sigma_per_mm * Chord(frames[k], origin, direction);
           }
         b[static_cast<std::size_t>(geometry.RayIndex(view, row, col))] = static_cast<float>(sum / (sub_rows * s));
       }

@@ -250,7 +250,10 @@ bool Scene::IsValid(std::string* why) const {
   if (shape == Shape::kMesh && mesh_path.empty()) return fail("a mesh scene needs a path");
   if (shape == Shape::kMesh && !(mesh_scale > 0)) return fail("mesh_scale must be > 0");
   if (shape == Shape::kVolume && !volume.IsValid(why)) return false;
-  if (shape == Shape::kVolume && !(backlight_radiance > 0)) return fail("backlight_radiance must be > 0");
+  if ((shape == Shape::kVolume || shape == Shape::kPhantom) && !(backlight_radiance > 0))
+    return fail("backlight_radiance must be > 0");
+  if (shape == Shape::kPhantom && (phantom.ellipsoids.empty() || !(phantom.half_extent_mm > 0) || !(phantom.sigma_per_mm >= 0)))
+    return fail("a phantom needs ellipsoids, half_extent_mm > 0 and sigma_per_mm >= 0");
   return true;
 }
 
@@ -259,7 +262,7 @@ constexpr Scene::Shape kAllShapes[] = {
     Scene::Shape::kSphere,       Scene::Shape::kBumps,       Scene::Shape::kConcave,
     Scene::Shape::kSteps,        Scene::Shape::kDepthMap,    Scene::Shape::kMesh,
     Scene::Shape::kMirrorSphere, Scene::Shape::kWhiteSphere, Scene::Shape::kSamplePlane,
-    Scene::Shape::kVolume};
+    Scene::Shape::kVolume,       Scene::Shape::kPhantom};
 }  // namespace
 
 Scene::Shape Scene::ParseShape(const std::string& name) {
@@ -267,7 +270,7 @@ Scene::Shape Scene::ParseShape(const std::string& name) {
     if (name == ShapeName(shape)) return shape;
   throw std::invalid_argument("unknown shape '" + name +
                               "' (expected sphere, bumps, concave, steps, depth_map, mesh, mirror_sphere, "
-                              "white_sphere, sample_plane or volume)");
+                              "white_sphere, sample_plane, volume or phantom)");
 }
 
 const char* Scene::ShapeName(Shape shape) {
@@ -282,6 +285,7 @@ const char* Scene::ShapeName(Shape shape) {
     case Shape::kWhiteSphere: return "white_sphere";
     case Shape::kSamplePlane: return "sample_plane";
     case Shape::kVolume: return "volume";
+    case Shape::kPhantom: return "phantom";
   }
   return "?";
 }
@@ -312,6 +316,8 @@ void Scene::ApplyShapeDefaults(double frame_width_mm) {
   step_width_mm = frame_width_mm / 5.0;
   step_height_mm = 0.05 * frame_width_mm;
   if (shape == Shape::kVolume) volume = DensityGrid::Blobs(0.8 * frame_width_mm, 64, 0.2);
+  // Inside the field of view whatever the turntable's angle, sigma up to 0.1/mm.
+  if (shape == Shape::kPhantom) phantom = Phantom::SheppLogan3d(0.4 * frame_width_mm, 0.1);
   if (shape == Shape::kMirrorSphere) {
     material.model = Brdf::Model::kMirror;
     material.rho_s = 0.9;
@@ -357,6 +363,8 @@ SurfaceMaps SampleSurface(const Scene& scene, const CameraModel& camera) {
     maps.line_integrals = LineIntegrals(scene.volume, camera);
     return maps;
   }
+  // No surface: what the camera sees depends on the turntable (RenderPhantomTransmission).
+  if (scene.shape == Scene::Shape::kPhantom) return maps;
   cv::Mat mesh_height, mesh_normals;
   if (scene.shape == Scene::Shape::kMesh) {
     TriangleMesh mesh = LoadPly(scene.mesh_path);

@@ -16,7 +16,10 @@ const WorldConfig& Validated(const WorldConfig& config) {
   if (!config.scene.IsValid(&why)) throw std::invalid_argument("simulated scene: " + why);
   if (config.scene.shape == Scene::Shape::kMesh && config.camera.projection != CameraModel::Projection::kOrthographic)
     throw std::invalid_argument("simulated scene: meshes are rasterised orthographically only");
-  if (config.gonioreflectometer) CheckGonioScene(config.scene);
+  if (config.gonioreflectometer && config.scene.shape != Scene::Shape::kPhantom) CheckGonioScene(config.scene);
+  if (config.scene.shape == Scene::Shape::kPhantom &&
+      (!config.gonioreflectometer || config.camera.projection != CameraModel::Projection::kOrthographic))
+    throw std::invalid_argument("simulated scene: a phantom sits on a gonioreflectometer's turntable, seen orthographically");
   if (!config.ambient.IsValid(&why)) throw std::invalid_argument("simulated ambient light: " + why);
   if (!config.color.IsValid(&why)) throw std::invalid_argument("simulated colour camera: " + why);
   if (config.color.IsOn() && (config.gonioreflectometer || config.scene.shape == Scene::Shape::kVolume))
@@ -127,6 +130,7 @@ void World::SetArm(const std::string& axis, double position_deg) {
   if (axis == "light_arm") arms_.light_arm_deg = position_deg;
   else if (axis == "camera_arm") arms_.camera_arm_deg = position_deg;
   else if (axis == "sample_rotation") arms_.sample_rotation_deg = position_deg;
+  else if (axis == "sample_changer") arms_.sample_changer_deg = position_deg;
   else throw std::invalid_argument("simulated gonioreflectometer has no axis '" + axis + "'");
 }
 
@@ -161,6 +165,8 @@ std::vector<double> World::EmittedLevels() const {
 
 cv::Mat World::RenderRadiance() const {
   const std::vector<double> emitted = EmittedLevels();
+  if (config_.scene.shape == Scene::Shape::kPhantom)
+    return RenderPhantomTransmission(config_.scene, config_.camera, config_.lights, emitted, arms());
   if (config_.gonioreflectometer)
     return RenderGonioRadiance(config_.scene, *brdf_, config_.camera, config_.lights, emitted, arms());
   // The backlight belongs to the scene, not to the dome: it is always on.

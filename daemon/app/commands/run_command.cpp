@@ -70,6 +70,19 @@ int Execute(const Options& options) {
     ResultFields()["light_calibration"] = LightCalibrationJson(lights);
     if (!lights.success) return Fail(kExitFailed, "light calibration failed: " + lights.message);
   }
+  if (outcome.tomography) {
+    const daemon::TomographyResult& tomo = *outcome.tomography;
+    const std::string results = outcome.directory + "/results/tomography";
+    std::printf("tomography (%s): %s, %d iterations, stopped by %s%s\n", tomography::MethodName(tomo.reconstruction.method),
+                solvers::TerminationName(tomo.reconstruction.termination), tomo.reconstruction.iterations,
+                tomography::StopReasonName(tomo.reconstruction.stop_reason),
+                tomo.reconstruction.message.empty() ? "" : ("; " + tomo.reconstruction.message).c_str());
+    if (tomo.relative_error_vs_truth) std::printf("  vs the phantom: relative L2 error %.3f\n", *tomo.relative_error_vs_truth);
+    std::printf("results: %s/\n", results.c_str());
+    ResultFields()["tomography"] = tomo.ToJson();
+    ResultFields()["tomography"]["results_directory"] = results;
+    if (!tomo.trusted()) return Fail(kExitFailed, "the tomographic reconstruction cannot be trusted: " + tomo.reconstruction.message);
+  }
   return kExitOk;
 }
 

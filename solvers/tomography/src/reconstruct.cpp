@@ -103,7 +103,7 @@ std::string Format(double value) {
 
 }  // namespace
 
-ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& measurements,
+ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbance& measurements,
                                   const ReconstructOptions& options, Eigen::VectorXf* sigma) {
   solvers::SolveTimer timer;
   ReconstructionSummary summary;
@@ -116,6 +116,12 @@ ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& 
   std::string why;
   if (!options.IsValid(&why)) return end(solvers::Termination::kInvalidOptions, why);
   if (!sigma) return end(solvers::Termination::kInvalidInput, "no output volume given");
+  const auto* whole = dynamic_cast<const Projector*>(&projector);
+  if (options.method == Method::kArt && !whole)
+    return end(solvers::Termination::kInvalidOptions,
+               "ART visits one ray at a time and needs every row of W in one process; use SIRT or CGLS");
+  // Sums over rays cover the whole scan, whatever part of it this process holds.
+  auto ray_sum = [&projector](double held_here) { return projector.SumOverRays(held_here); };
   const std::int64_t rays = projector.rays(), voxels = projector.voxels();
   if (measurements.b.size() != rays)
     return end(solvers::Termination::kInvalidInput,
@@ -134,6 +140,7 @@ ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& 
     b[i] = valid ? measurements.b[i] : 0.0f;
     summary.rays_used += valid;
   }
+  summary.rays_used = static_cast<std::int64_t>(ray_sum(static_cast<double>(summary.rays_used)));
   if (summary.rays_used == 0)
     return end(solvers::Termination::kFailure, "no valid ray: every pixel was flagged (see the absorbance summary)");
 
@@ -148,7 +155,7 @@ ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& 
   summary.underdetermined = summary.rays_used < summary.voxels_reached;
   const double rays_per_voxel = static_cast<double>(summary.rays_used) / static_cast<double>(summary.voxels_reached);
   if (rays_per_voxel < options.min_rays_per_voxel) {
-    const int views = projector.geometry().views();
+    const int views = projector.views();
     const int needed = static_cast<int>(std::ceil(views * options.min_rays_per_voxel / rays_per_voxel));
     return end(solvers::Termination::kFailure,
                "too few views for the volume: " + std::to_string(summary.rays_used) + " valid rays for " +
@@ -165,6 +172,7 @@ ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& 
   } else if (options.noise_sigma > 0.0) {
     noise_sum = static_cast<double>(summary.rays_used) * options.noise_sigma * options.noise_sigma;
   }
+  if (measurements.variance.size() == rays) noise_sum = ray_sum(noise_sum);
   const bool have_noise = noise_sum > 0.0;
   summary.discrepancy_target = options.discrepancy_factor * std::sqrt(noise_sum);
   if (options.stop_rule == StopRule::kDiscrepancy && !have_noise)
@@ -173,7 +181,7 @@ ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& 
                "or stop after max_iterations");
   // |b|^2 of pure noise is chi-square with rays_used degrees of freedom: more
   // than three of its standard deviations above its mean is a signal.
-  const double b_norm = std::sqrt(SquaredNorm(b));
+  const double b_norm = std::sqrt(ray_sum(SquaredNorm(b)));
   const double noise_ceiling = noise_sum * (1.0 + 3.0 * std::sqrt(2.0 / static_cast<double>(summary.rays_used)));
   if (have_noise ? b_norm * b_norm <= noise_ceiling : b_norm == 0.0)
     return end(solvers::Termination::kFailure,
@@ -191,14 +199,14 @@ ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& 
   Eigen::VectorXf wx, r, g;
   projector.Forward(x, &wx);
   MaskedResidual(b, wx, mask, &r);
-  summary.residual_history.push_back(std::sqrt(SquaredNorm(r)));
+  summary.residual_history.push_back(std::sqrt(ray_sum(SquaredNorm(r))));
   timer.SetupDone(&summary);
 
   // Method state.
   Eigen::VectorXf inv_rows, inv_columns;  // SIRT
   Eigen::VectorXf s, p, q;                // CGLS
   double gamma = 0.0, gamma_floor = 0.0;  // |W^T r|^2 now, and where float precision ends
-  std::vector<int> order(static_cast<std::size_t>(projector.geometry().views()));  // ART
+  std::vector<int> order(static_cast<std::size_t>(projector.views()));  // ART
   if (options.method == Method::kSirt) {
     inv_rows = row_sums.unaryExpr([](float v) { return v > 0.0f ? 1.0f / v : 0.0f; });
     inv_columns = column_sums.unaryExpr([](float v) { return v > 0.0f ? 1.0f / v : 0.0f; });
@@ -219,7 +227,7 @@ ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& 
   int flat_steps = 0;
   for (int iteration = 1; iteration <= options.max_iterations; ++iteration) {
     if (options.method == Method::kArt) {
-      ArtSweep(projector, b, mask, order, lambda, non_negative, &x);
+      ArtSweep(*whole, b, mask, order, lambda, non_negative, &x);
       projector.Forward(x, &wx);
       MaskedResidual(b, wx, mask, &r);
     } else if (options.method == Method::kSirt) {
@@ -231,7 +239,7 @@ ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& 
     } else {
       projector.Forward(p, &q);
       q = q.cwiseProduct(mask);
-      const double delta = SquaredNorm(q);
+      const double delta = ray_sum(SquaredNorm(q));
       // At the least-squares point (|W^T r| down by 1e6, float precision) a
       // further step divides rounding noise by rounding noise.
       if (delta <= 0.0 || gamma <= gamma_floor) {
@@ -246,7 +254,7 @@ ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& 
       p = s + static_cast<float>(gamma_next / gamma) * p;
       gamma = gamma_next;
     }
-    const double residual = std::sqrt(SquaredNorm(r));
+    const double residual = std::sqrt(ray_sum(SquaredNorm(r)));
     const double previous = summary.residual_history.back();
     summary.residual_history.push_back(residual);
     summary.iterations = iteration;

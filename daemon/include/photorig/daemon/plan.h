@@ -52,7 +52,8 @@ struct RunPlan {
 RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<CaptureStep>& steps,
                 const PlanOptions& options = {});
 
-// A pose as goniometer targets by axis id (light_arm, camera_arm, sample_rotation).
+// A pose as goniometer targets by axis id (light_arm, camera_arm, sample_rotation,
+// and sample_changer when the pose sets it).
 std::map<std::string, double> PoseTargets(const GonioPose& pose);
 
 // Free bytes for an unprivileged writer on the filesystem holding `path`

@@ -6,6 +6,7 @@
 #include "photorig/daemon/light_calibration.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/sequencer.h"
+#include "photorig/daemon/tomography_pipeline.h"
 
 #include <nlohmann/json.hpp>
 
@@ -20,7 +21,7 @@ namespace photorig::daemon {
 // What one solve stage of a run produced, in the words the daemon's run
 // record, its events and `photorig watch` use.
 struct SolveStageReport {
-  std::string stage;        // the recipe's key: "photometric_stereo" | "light_calibration"
+  std::string stage;        // the recipe's key: "photometric_stereo" | "light_calibration" | "tomography"
   bool usable = false;      // the stage's result can be used (PS: IsSolutionUsable; lights: success)
   std::string termination;  // solvers::TerminationName for PS; "success" | "failure" for light calibration
   std::string message;
@@ -37,6 +38,8 @@ SolveStageReport ReportSolveStage(const PhotometricStereoResult& result);
 SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& report, bool usable);
 SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const std::string& run_directory,
                                   double total_ms);
+// Usable only when trusted (TomographyResult::trusted).
+SolveStageReport ReportSolveStage(const TomographyResult& result);
 
 struct RunRequest {
   std::string recipe_path;
@@ -71,6 +74,7 @@ struct RunOutcome {
   CaptureReport capture;
   std::optional<PhotometricStereoResult> photometric_stereo;  // stored as results/ps/report.json
   std::optional<LightCalibrationSummary> light_calibration;
+  std::optional<TomographyResult> tomography;  // stored in results/tomography
   std::vector<SolveStageReport> solve_stages;  // in the order they ran
 };
 

@@ -20,6 +20,9 @@ struct GonioPose {
   double light_arm_deg = 0.0;
   double camera_arm_deg = 0.0;
   double sample_rotation_deg = 0.0;
+  // A fourth axis only some rigs have: a tomograph's sample changer (0: the
+  // sample in the beam; elsewhere the open beam of a flat field). Unset: not moved.
+  std::optional<double> sample_changer_deg;
 };
 
 struct Recipe {
@@ -41,7 +44,7 @@ struct Recipe {
       kFlat,     // flat: {count, level, leds, exposure_us}: the listed LEDs (default all) lit together
       kEachLed,  // each_led: {leds, level, exposures_us}: one frame per LED per bracket exposure
       kPattern,  // pattern: {name, leds: [{id, level} | id], level, count, exposure_us}
-      kPoses,    // poses: {list: [{light_arm_deg, camera_arm_deg, sample_rotation_deg}] | grid: {...}, level}
+      kPoses,    // poses: {list: [{light_arm_deg, camera_arm_deg, sample_rotation_deg, sample_changer_deg}] | grid: {...}, level}
     };
     Kind kind = Kind::kDark;
     int count = 1;             // kDark, kFlat, kPattern: frames per repetition
@@ -57,6 +60,7 @@ struct Recipe {
   std::vector<Group> groups;
   std::optional<PhotometricStereoRequest> photometric_stereo;
   std::optional<LightCalibrationRequest> light_calibration;
+  std::optional<TomographyRequest> tomography;
 };
 
 struct CaptureStep {

@@ -7,6 +7,7 @@
 #include "photorig/lighting/sphere.h"
 #include "photorig/ps/photometric_stereo.h"
 
+#include <array>
 #include <optional>
 #include <string>
 
@@ -53,5 +54,34 @@ struct LightCalibrationRequest {
 // {silhouette: IMAGE} | {from: highlights, radius_mm: R}, out_rig: FILE}`;
 // paths are relative to the recipe. Throws ConfigError naming file:line:column.
 LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node);
+
+// The recipe stage `tomography: {method, projector, max_iterations,
+// discrepancy_factor, volume: [nx, ny, nz], voxel_mm, cor_offset_mm}` and
+// `photorig solve tomography`'s flags: a turntable scan's frames -> absorbance
+// -> a reconstructed volume (solvers/tomography, docs/tomography.md).
+struct TomographyRequest {
+  // sirt (default: the docs' choice for a scan of many views, stopped by the
+  // discrepancy rule) | art | cgls.
+  std::string method = "sirt";
+  std::string projector = "joseph";  // joseph (default: the lower error) | siddon
+  int max_iterations = 300;
+  // tau of the discrepancy rule. Default 1.2, not Morozov's 1: a scan's
+  // residual keeps the model error of the voxel grid (pixels integrate the
+  // sample over their area, edges cut voxels) on top of the noise, and on the
+  // simulated tomograph SIRT is still 1.16 x the noise level after 300
+  // iterations (docs/tomography.md); the theory asks tau > 1 for that reason.
+  double discrepancy_factor = 1.2;
+  // Voxels along x, y, z; 0: the detector's columns, columns and rows.
+  std::array<int, 3> volume = {0, 0, 0};
+  double voxel_mm = 0.0;             // 0: the detector pitch
+  double cor_offset_mm = 0.0;        // the rotation axis on the detector (tomography::Geometry)
+  // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
+  solvers::ProgressCallback progress;
+
+  bool IsValid(std::string* why) const;
+};
+
+// Throws ConfigError naming file:line:column for unknown keys or values.
+TomographyRequest ParseTomographyRequest(const YamlNode& node);
 
 }  // namespace photorig::config

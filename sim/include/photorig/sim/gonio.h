@@ -19,6 +19,7 @@
 #include "photorig/sim/faults.h"
 #include "photorig/sim/renderer.h"
 #include "photorig/sim/scene.h"
+#include "photorig/solvers/tomography/geometry.h"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -36,6 +37,7 @@ struct ArmAngles {
   double light_arm_deg = 0.0;
   double camera_arm_deg = 0.0;
   double sample_rotation_deg = 0.0;
+  double sample_changer_deg = 0.0;  // tomography: 0 holds the sample in the beam (RenderPhantomTransmission)
 };
 
 // Unit direction of an arm at `angle_deg` in the sample's frame after the
@@ -49,6 +51,22 @@ cv::Mat RenderGonioRadiance(const Scene& scene, const Brdf& brdf, const CameraMo
                             const std::vector<Light>& lights, const std::vector<double>& levels,
                             const ArmAngles& arms);
 void CheckGonioScene(const Scene& scene);  // the same checks, before any frame
+
+// The same rig as a tomograph (Scene::Shape::kPhantom): the arms are parked on
+// one horizontal beam line across the turntable, the camera at +90 deg and the
+// lamps (a diffuse backlight) opposite at -90 deg; elsewhere the camera does
+// not see the backlight and the frame is black. The camera is orthographic
+// (a telecentric lens, a parallel beam) with its rows along the turntable's
+// axis, so the frame is view `sample_rotation_deg` of a parallel-beam
+// tomography::Geometry with the camera's size and pitch. A sample changer
+// holds the phantom in the beam at sample_changer_deg = 0 and an empty slot
+// anywhere else more than 0.5 deg away (the open beam of flat fields):
+//   L = sum_k level_k * E_k * backlight_radiance * exp(-tau),
+// tau the phantom's line integral averaged over 2 x 2 rays per pixel.
+cv::Mat RenderPhantomTransmission(const Scene& scene, const CameraModel& camera, const std::vector<Light>& lights,
+                                  const std::vector<double>& levels, const ArmAngles& arms);
+// The turntable geometry those frames follow, for a scan at `angles_deg`.
+tomography::Geometry PhantomScanGeometry(const CameraModel& camera, const std::vector<double>& angles_deg);
 
 // A trapezoidal (or, when too short to reach the velocity, triangular)
 // velocity profile from rest to rest over `distance_deg`.

@@ -6,6 +6,7 @@
 #include "photorig/sim/brdf.h"
 #include "photorig/sim/camera_model.h"
 #include "photorig/sim/mesh.h"
+#include "photorig/sim/phantom.h"
 #include "photorig/sim/volume.h"
 
 #include <opencv2/core.hpp>
@@ -67,6 +68,7 @@ struct Scene {
     kWhiteSphere,   // diffuse white sphere: a sphere, Lambertian, uniform albedo
     kSamplePlane,   // flat material sample, disc of sphere_radius_mm, tilted by tilt_deg about y
     kVolume,        // absorbing medium in front of a backlight
+    kPhantom,       // tomography phantom on a gonioreflectometer's turntable, backlit (sim/gonio.h)
   };
   Shape shape = Shape::kSphere;
   double sphere_radius_mm = 18.0;
@@ -80,6 +82,7 @@ struct Scene {
   double mesh_scale = 1.0;        // PLY units to mm
   double tilt_deg = 0.0;
   DensityGrid volume;
+  Phantom phantom;                // kPhantom: the 3D Shepp-Logan head unless a recipe says otherwise
   double backlight_radiance = 1.0;
   AlbedoTexture albedo;
   Material material;

@@ -84,7 +84,7 @@ class World {
 
   void SetLevels(std::vector<double> levels);
   std::vector<double> levels() const;
-  // Gonioreflectometers: "light_arm", "camera_arm" or "sample_rotation"
+  // Gonioreflectometers: "light_arm", "camera_arm", "sample_rotation" or "sample_changer"
   // (std::invalid_argument otherwise), as the simulated axes report them.
   void SetArm(const std::string& axis, double position_deg);
   ArmAngles arms() const;

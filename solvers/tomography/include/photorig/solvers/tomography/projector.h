@@ -42,21 +42,39 @@ struct ProjectorOptions {
 
 using SparseMatrix = Eigen::SparseMatrix<float, Eigen::RowMajor, std::int32_t>;
 
-class Projector {
+// What the simultaneous iterations (SIRT, CGLS) need of W: its two products
+// and sums over its rays. A Projector holds every row; a distributed form
+// (solvers/tomography_mpi) holds a block of views per process, so that its
+// ray-space vectors are that block's rows while volumes are whole, and it
+// sums back projections and ray sums over the processes.
+class SystemMatrix {
+ public:
+  virtual ~SystemMatrix() = default;
+  virtual std::int64_t rays() const = 0;    // rows held here (ray-space vectors have this size)
+  virtual std::int64_t voxels() const = 0;
+  virtual int views() const = 0;            // views of the whole scan
+  virtual void Forward(const Eigen::VectorXf& x, Eigen::VectorXf* y) const = 0;  // y = W x, rows held here
+  virtual void Back(const Eigen::VectorXf& y, Eigen::VectorXf* x) const = 0;     // x = W^T y over every row
+  // A sum over rays (a squared norm, a count) from this part's share: the whole scan's.
+  virtual double SumOverRays(double held_here) const { return held_here; }
+};
+
+class Projector : public SystemMatrix {
  public:
   Projector(const VolumeGrid& grid, const Geometry& geometry, Interpolation interpolation);
 
   const VolumeGrid& grid() const { return grid_; }
   const Geometry& geometry() const { return geometry_; }
   Interpolation interpolation() const { return interpolation_; }
-  std::int64_t rays() const { return geometry_.rays(); }
-  std::int64_t voxels() const { return grid_.voxels(); }
+  std::int64_t rays() const override { return geometry_.rays(); }
+  std::int64_t voxels() const override { return grid_.voxels(); }
+  int views() const override { return geometry_.views(); }
   bool is_sparse() const { return w_ != nullptr; }
   std::int64_t nonzeros() const;  // stored entries of W (0 when matrix-free)
   std::size_t stored_bytes() const;
 
-  void Forward(const Eigen::VectorXf& x, Eigen::VectorXf* y) const;  // y = W x
-  void Back(const Eigen::VectorXf& y, Eigen::VectorXf* x) const;     // x = W^T y
+  void Forward(const Eigen::VectorXf& x, Eigen::VectorXf* y) const override;  // y = W x
+  void Back(const Eigen::VectorXf& y, Eigen::VectorXf* x) const override;     // x = W^T y
   // Row `ray` of W, for row-action methods.
   void Row(std::int64_t ray, std::vector<RayWeight>* weights) const;
 

@@ -103,9 +103,12 @@ struct ReconstructionSummary : solvers::Summary {
   bool inconsistent = false;     // the residual stalled above 1.5 x the noise level
 };
 
-// Fills *sigma (voxels, 1/mm) from the measurements. *sigma is the starting
-// point when it has the right size, otherwise it starts from zero.
-ReconstructionSummary Reconstruct(const Projector& projector, const Absorbance& measurements,
+// Fills *sigma (voxels, 1/mm) from the measurements of the rays `system`
+// holds. *sigma is the starting point when it has the right size, otherwise
+// it starts from zero. ART visits one ray at a time and needs a Projector
+// (every row in this process); another SystemMatrix with ART ends
+// kInvalidOptions.
+ReconstructionSummary Reconstruct(const SystemMatrix& system, const Absorbance& measurements,
                                   const ReconstructOptions& options, Eigen::VectorXf* sigma);
 
 }  // namespace photorig::tomography

@@ -1,0 +1,140 @@
+// photorig solve tomography (--run DIR | --projections DIR) [--method sirt|art|cgls] [--projector joseph|siddon]
+//                           [--max-iterations N] [--volume NX NY NZ] [--voxel-mm MM] [--cor-offset-mm MM] [--out DIR]
+//
+// A turntable scan's frames -> absorbance (flats and darks) -> a volume by
+// SIRT, ART or CGLS stopped by the discrepancy rule (docs/tomography.md).
+// Exit 0 when the rule stopped it; 1 when the solve failed or cannot be
+// trusted (the residual never reached the noise level, inconsistent data);
+// 2 for missing flats or darks or a geometry that does not fit the frames.
+// With --mpi, under `mpirun -np N`, the views are shared by the N processes
+// (solvers/tomography_mpi); the first writes the results.
+
+#include "../command.h"
+#include "../command_output.h"
+#include "../progress_display.h"
+#include "photorig/daemon/recipe.h"
+#include "photorig/daemon/tomography_pipeline.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <optional>
+
+#if PHOTORIG_HAVE_TOMOGRAPHY_MPI
+#include "photorig/solvers/tomography_mpi/distributed_projector.h"
+#endif
+
+namespace photorig::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Options {
+  std::string run_dir, projections_dir, out;
+  std::vector<int> volume;
+  bool mpi = false;
+  daemon::TomographyRequest request;
+};
+
+int Execute(const Options& options) {
+  if (options.run_dir.empty() && options.projections_dir.empty())
+    return Fail(kExitUsage, "give --run DIR or --projections DIR");
+  daemon::TomographyRequest request = options.request;
+  if (!options.volume.empty()) request.volume = {options.volume[0], options.volume[1], options.volume[2]};
+  if (std::string why; !request.IsValid(&why)) return Fail(kExitUsage, why);
+  const bool from_run = !options.run_dir.empty();
+  const std::string source = from_run ? options.run_dir : options.projections_dir;
+  const std::string destination =
+      options.out.empty() ? (fs::path(source) / "results" / "tomography").string() : options.out;
+  daemon::SystemMatrixFactory factory = daemon::InProcessSystemMatrix();
+  int ranks = 1;
+#if PHOTORIG_HAVE_TOMOGRAPHY_MPI
+  // Under mpirun: every process loads the scan and solves its block of views;
+  // the first writes the results and speaks for all.
+  std::optional<tomography::mpi::Session> session;
+  if (options.mpi) {
+    session.emplace(nullptr, nullptr);
+    ranks = session->size();
+    if (session->rank() != 0) SilenceOutput();
+    factory = [](const tomography::VolumeGrid& grid, const tomography::Geometry& geometry,
+                 const tomography::ProjectorOptions& projector_options,
+                 std::unique_ptr<tomography::SystemMatrix>* matrix, std::int64_t* first_ray) {
+      return tomography::mpi::MakeDistributedProjector(grid, geometry, projector_options, MPI_COMM_WORLD, matrix,
+                                                       first_ray);
+    };
+    if (request.method == "art") return Fail(kExitUsage, "--mpi solves by sirt or cgls (ART visits one ray at a time)");
+  }
+  const bool writes = !session || session->rank() == 0;
+#else
+  if (options.mpi) return Fail(kExitUsage, "this photorig was built without MPI (libopenmpi-dev): no --mpi");
+  const bool writes = true;
+#endif
+  const daemon::TomographyInput input =
+      from_run ? daemon::LoadTomographyRun(source) : daemon::LoadProjectionFolder(source);
+
+  ProgressDisplay progress;
+  request.progress = progress.Callback();
+  const daemon::TomographyResult result = daemon::SolveTomography(input, request, factory);
+  progress.EndLine();
+  if (writes) daemon::WriteTomographyResults(input, result, destination);
+
+  const tomography::ReconstructionSummary& r = result.reconstruction;
+  std::printf("tomography (%s, %s): %s, %d views, %d x %d x %d voxels of %.3g mm\n", tomography::MethodName(r.method),
+              request.projector.c_str(), solvers::TerminationName(r.termination), result.geometry.views(),
+              result.grid.nx, result.grid.ny, result.grid.nz, result.grid.voxel_mm);
+  if (r.iterations > 0)
+    std::printf("  %d iterations, stopped by %s: residual %.4g against the noise level %.4g\n", r.iterations,
+                tomography::StopReasonName(r.stop_reason), r.residual_history.back(), r.discrepancy_target);
+  if (!r.message.empty()) std::printf("  %s\n", r.message.c_str());
+  if (result.absorbance.flagged() > 0)
+    std::printf("  %lld of %lld pixels flagged by the absorbance (saturated, dark or without flat signal)\n",
+                static_cast<long long>(result.absorbance.flagged()), static_cast<long long>(result.absorbance.rays));
+  if (result.relative_error_vs_truth)
+    std::printf("  vs the phantom: relative L2 error %.3f\n", *result.relative_error_vs_truth);
+  std::printf("  %.0f ms (absorbance %.0f, projector %.0f, solve %.0f)\nresults: %s/\n", result.total_ms,
+              result.absorbance_ms, result.projector.total_ms, r.solve_ms, destination.c_str());
+
+  ResultFields() = result.ToJson();
+  ResultFields()["source"] = source;
+  ResultFields()["processes"] = ranks;
+  ResultFields()["results_directory"] = destination;
+  if (!result.trusted())
+    return Fail(kExitFailed, r.IsSolutionUsable() ? "the reconstruction cannot be trusted: " + r.message
+                                                  : "no usable reconstruction: " + r.message);
+  return kExitOk;
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto options = std::make_shared<Options>();
+  CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
+  CLI::App* sub = solve->add_subcommand("tomography", "reconstruct a volume from a turntable scan (run or projection folder)");
+  auto* run = sub->add_option("--run", options->run_dir, "run directory")->check(CLI::ExistingDirectory);
+  auto* folder = sub->add_option("--projections", options->projections_dir,
+                                 "folder with geometry.json, projections/, flats/, darks/ (docs/tomography.md)")
+                     ->check(CLI::ExistingDirectory);
+  run->excludes(folder);
+  sub->add_option("--method", options->request.method, "sirt (default) | art | cgls")
+      ->check(CLI::IsMember({"sirt", "art", "cgls"}));
+  sub->add_option("--projector", options->request.projector, "joseph (default) | siddon")
+      ->check(CLI::IsMember({"joseph", "siddon"}));
+  sub->add_option("--max-iterations", options->request.max_iterations, "iteration limit (default 300)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--discrepancy-factor", options->request.discrepancy_factor,
+                  "stop when the residual reaches this times the noise level (default 1.2)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--volume", options->volume, "voxels NX NY NZ (default: detector columns, columns, rows)")
+      ->expected(3);
+  sub->add_option("--voxel-mm", options->request.voxel_mm, "voxel size (default: the detector pitch)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--cor-offset-mm", options->request.cor_offset_mm,
+                  "centre of rotation on the detector, added to the stored geometry's");
+  sub->add_option("--out", options->out, "output directory (default: SOURCE/results/tomography)");
+  sub->add_flag("--mpi", options->mpi,
+                "distribute the views over the MPI processes this runs in (under mpirun; sirt or cgls)");
+  return {sub, [options] { return Execute(*options); }};
+}
+
+const bool registered = RegisterCommand(Setup);
+
+}  // namespace
+}  // namespace photorig::app

@@ -1,0 +1,30 @@
+#pragma once
+// The scan config/recipes/tomography.yaml takes, made in memory: 64 x 8
+// pixels of 0.5 mm, views over 180 degrees of the 3D Shepp-Logan phantom
+// (25.6 mm across, sigma up to 0.1/mm), four flats and four darks.
+
+#include "photorig/daemon/tomography_pipeline.h"
+#include "photorig/sim/phantom.h"
+
+namespace photorig::daemon {
+
+inline TomographyInput SimulatedScan(int views = 64) {
+  TomographyInput input;
+  input.source = "simulated scan";
+  input.geometry.detector_cols = 64;
+  input.geometry.detector_rows = 8;
+  input.geometry.pixel_mm = 0.5;
+  input.geometry.angles_rad = tomography::EvenAngles(views, 180.0);
+  input.phantom = sim::Phantom::SheppLogan3d(12.8, 0.1);
+  sim::TomographyScanOptions options;
+  options.flats = 4;
+  options.darks = 4;
+  options.supersample = 2;
+  const sim::TomographyScan scan = sim::ScanPhantom(*input.phantom, input.geometry, options);
+  input.projections = scan.projections;
+  input.flats = scan.flats;
+  input.darks = scan.darks;
+  return input;
+}
+
+}  // namespace photorig::daemon
