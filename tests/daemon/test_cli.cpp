@@ -30,22 +30,8 @@ using photorig::testing::Daemon;
 using photorig::testing::ReadText;
 using photorig::testing::SmallRigYaml;
 using photorig::testing::TempDir;
-
-struct Outcome {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-// Runs build/bin/photorig with `arguments`, stdout and stderr kept apart.
-Outcome Photorig(const std::string& arguments, const TempDir& dir) {
-  static int calls = 0;
-  const fs::path out = dir.path() / ("out" + std::to_string(calls)), err = dir.path() / ("err" + std::to_string(calls));
-  ++calls;
-  const std::string command = std::string(PHOTORIG_BIN_DIR) + "/photorig " + arguments + " > " + out.string() +
-                              " 2> " + err.string() + " < /dev/null";
-  const int status = std::system(command.c_str());
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadText(out), ReadText(err)};
-}
+using Outcome = photorig::testing::CommandOutcome;
+using photorig::testing::Photorig;
 
 // The one JSON document a --json command printed, checked for the common
 // fields against the exit code; null (and a test failure) when it is not one.

@@ -88,6 +88,24 @@ inline int RunPhotorig(const std::string& arguments, const std::filesystem::path
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+struct CommandOutcome {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+// Runs build/bin/photorig with `arguments`, stdout and stderr kept apart
+// (files in `dir`, so a --json document can be parsed on its own).
+inline CommandOutcome Photorig(const std::string& arguments, const TempDir& dir) {
+  static int calls = 0;
+  const std::filesystem::path out = dir.path() / ("out" + std::to_string(calls)),
+                              err = dir.path() / ("err" + std::to_string(calls));
+  ++calls;
+  const std::string command = std::string(PHOTORIG_BIN_DIR) + "/photorig " + arguments + " > " + out.string() +
+                              " 2> " + err.string() + " < /dev/null";
+  const int status = std::system(command.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ReadText(out), ReadText(err)};
+}
+
 // photorigd on any free port, for as long as the object lives.
 class Daemon {
  public:
