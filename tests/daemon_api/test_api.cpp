@@ -4,6 +4,7 @@
 #include "photorig/daemon/api_client.h"
 #include "photorig/daemon/api_server.h"
 #include "photorig/daemon/run_store.h"
+#include "served_api.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -32,28 +33,13 @@ class Api : public ::testing::Test {
     options.solve = false;
     options.retry.initial_backoff_ms = 1;
     options.retry.max_backoff_ms = 4;
-    service_ = std::make_unique<RunService>(options);
     ApiOptions api;
     api.port = 0;
     api.token = token;
     api.max_body_bytes = 64 * 1024;
-    server_ = std::make_unique<ApiServer>(*service_, api);
-    server_->Bind();
-    service_->Start();
-    serving_ = std::thread([this] { server_->Serve(); });
+    served_ = std::make_unique<ServedApi>(options, api);
   }
-  void TearDown() override {
-    if (service_) service_->Stop();
-    if (server_) server_->Stop();
-    if (serving_.joinable()) serving_.join();
-  }
-  ApiClient Client(const std::string& token = "") {
-    ApiClientOptions options;
-    options.url = "http://127.0.0.1:" + std::to_string(server_->port());
-    options.token = token;
-    options.timeout_s = 20;
-    return ApiClient(options);
-  }
+  ApiClient Client(const std::string& token = "") { return served_->Client(token); }
   // Follows the events of `id` to its end; returns the stop event.
   json WaitForStop(ApiClient& client, const std::string& id, std::vector<std::string>* types = nullptr) {
     json stop;
@@ -67,9 +53,7 @@ class Api : public ::testing::Test {
   }
 
   TempDir dir_;
-  std::unique_ptr<RunService> service_;
-  std::unique_ptr<ApiServer> server_;
-  std::thread serving_;
+  std::unique_ptr<ServedApi> served_;
 };
 
 TEST_F(Api, SubmitWatchAndFetchAFrame) {
@@ -106,7 +90,7 @@ TEST_F(Api, SubmitWatchAndFetchAFrame) {
 TEST_F(Api, AnErrorQuotingBytesThatAreNotUtf8IsA400WithValidJson) {
   StartDaemon("");
   // The JSON parser's message quotes the bad byte; serialising it used to throw, and the answer became a 500.
-  httplib::Client http("127.0.0.1", server_->port());
+  httplib::Client http("127.0.0.1", served_->port());
   const std::string body = "{\"name\": \"x.yaml\", \"recipe\": \"recipe: {name: small}\\ncapture:\\n  steps:\\n    - each_le\xA7" "d: {}\\n\"}";
   const auto res = http.Post("/api/v1/runs", body, "application/json");
   ASSERT_TRUE(res);

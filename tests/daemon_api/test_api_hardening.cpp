@@ -5,6 +5,7 @@
 #include "photorig/daemon/api_client.h"
 #include "photorig/daemon/api_server.h"
 #include "photorig/daemon/run_queue.h"
+#include "served_api.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -64,30 +65,16 @@ class Hardening : public ::testing::Test {
     options.rig_path = dir_.Write("rig.yaml", SmallRigYaml());
     options.solve = false;
     if (before) before(options.data_root);
-    service_ = std::make_unique<RunService>(options);
     ApiOptions api;
     api.port = 0;
     api.token = token;
     api.max_body_bytes = 64 * 1024;
     api.worker_threads = 24;
     api.max_event_streams = 12;
-    server_ = std::make_unique<ApiServer>(*service_, api);
-    server_->Bind();
-    service_->Start();
-    serving_ = std::thread([this] { server_->Serve(); });
+    served_ = std::make_unique<ServedApi>(options, api);
   }
-  void TearDown() override {
-    if (service_) service_->Stop();
-    if (server_) server_->Stop();
-    if (serving_.joinable()) serving_.join();
-  }
-  ApiClient Client() {
-    ApiClientOptions options;
-    options.url = Url();
-    options.timeout_s = 20;
-    return ApiClient(options);
-  }
-  std::string Url() const { return "http://127.0.0.1:" + std::to_string(server_->port()); }
+  ApiClient Client() { return served_->Client(); }
+  std::string Url() const { return served_->Url(); }
   httplib::Client Raw() {
     httplib::Client client(Url());
     client.set_read_timeout(20, 0);
@@ -95,9 +82,7 @@ class Hardening : public ::testing::Test {
   }
 
   TempDir dir_;
-  std::unique_ptr<RunService> service_;
-  std::unique_ptr<ApiServer> server_;
-  std::thread serving_;
+  std::unique_ptr<ServedApi> served_;
 };
 
 // Finding 1: four lines that expand to four million steps.
@@ -185,7 +170,7 @@ TEST_F(Hardening, ForeignPagesCannotChangeAnything) {
   EXPECT_TRUE(Client().Get("/api/v1/runs").body["runs"].empty());
 
   // The daemon's own origin, the CLI (no Origin) and localhost are served.
-  const std::string own = "127.0.0.1:" + std::to_string(server_->port());
+  const std::string own = "127.0.0.1:" + std::to_string(served_->port());
   const auto same = raw.Post("/api/v1/runs", {{"Origin", "http://" + own}}, body, "application/json");
   ASSERT_TRUE(same);
   EXPECT_EQ(same->status, 201) << same->body;
@@ -245,7 +230,7 @@ TEST_F(Hardening, AValidTokenIsAcceptedUnderAnyHost) {
 // Finding 6: a chunked body was read whole before the size limit applied.
 TEST_F(Hardening, AChunkedUploadIsRefusedBeforeItsBodyIsRead) {
   StartDaemon();
-  RawConnection connection(server_->port());
+  RawConnection connection(served_->port());
   ASSERT_TRUE(connection.connected());
   // Headers only: the answer must come without a byte of the body.
   ASSERT_TRUE(connection.Send("POST /api/v1/dry-run HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
@@ -302,7 +287,7 @@ TEST_F(Hardening, HealthAnswersWhileStreamsAndSlowClientsHoldConnections) {
   std::vector<std::unique_ptr<RawConnection>> held;
   int streams = 0, refused = 0;
   while (refused == 0 && streams <= 12) {
-    held.push_back(std::make_unique<RawConnection>(server_->port()));
+    held.push_back(std::make_unique<RawConnection>(served_->port()));
     ASSERT_TRUE(held.back()->Send("GET /api/v1/runs/" + queued + "/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
     const int status = held.back()->ReadStatus();
     streams += status == 200;
@@ -312,7 +297,7 @@ TEST_F(Hardening, HealthAnswersWhileStreamsAndSlowClientsHoldConnections) {
   EXPECT_GE(streams, 11);
   EXPECT_EQ(refused, 1);
   for (int i = 0; i < 9; ++i) {  // clients that never finish their headers
-    held.push_back(std::make_unique<RawConnection>(server_->port()));
+    held.push_back(std::make_unique<RawConnection>(served_->port()));
     ASSERT_TRUE(held.back()->Send("GET /api/v1/health HTTP/1.1\r\nHo"));
   }
   for (int i = 0; i < 3; ++i) {

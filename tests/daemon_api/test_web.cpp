@@ -5,6 +5,7 @@
 #include "photorig/daemon/api_client.h"
 #include "photorig/daemon/api_server.h"
 #include "photorig/daemon/image_io.h"
+#include "served_api.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -41,7 +42,6 @@ class Web : public ::testing::Test {
     dir_.Write("config-recipes/small.yaml", SmallRecipeYaml());
     dir_.Write("config-recipes/broken.yaml", "recipe: [\n");
     dir_.Write("config-recipes/notes.txt", "not a recipe");
-    service_ = std::make_unique<RunService>(options);
     ApiOptions api;
     api.port = 0;
     api.token = token;
@@ -50,23 +50,9 @@ class Web : public ::testing::Test {
     dir_.Write("web/app.js", "export const page = 1;");
     api.javascript_root = (dir_.path() / "javascript").string();
     dir_.Write("javascript/three/build/three.module.js", "export const REVISION = '111';");
-    server_ = std::make_unique<ApiServer>(*service_, api);
-    server_->Bind();
-    service_->Start();
-    serving_ = std::thread([this] { server_->Serve(); });
+    served_ = std::make_unique<ServedApi>(options, api);
   }
-  void TearDown() override {
-    if (service_) service_->Stop();
-    if (server_) server_->Stop();
-    if (serving_.joinable()) serving_.join();
-  }
-  ApiClient Client(const std::string& token = "") {
-    ApiClientOptions options;
-    options.url = "http://127.0.0.1:" + std::to_string(server_->port());
-    options.token = token;
-    options.timeout_s = 20;
-    return ApiClient(options);
-  }
+  ApiClient Client(const std::string& token = "") { return served_->Client(token); }
   // A finished 5-frame run of the small dome; its id.
   std::string FinishedRun() {
     ApiClient client = Client();
@@ -78,14 +64,12 @@ class Web : public ::testing::Test {
   }
 
   TempDir dir_;
-  std::unique_ptr<RunService> service_;
-  std::unique_ptr<ApiServer> server_;
-  std::thread serving_;
+  std::unique_ptr<ServedApi> served_;
 };
 
 TEST_F(Web, PagesAndLibrariesNeedNoTokenButTheApiDoesAndForeignHostsAreRefused) {
   StartDaemon(kToken);
-  httplib::Client http("127.0.0.1", server_->port());
+  httplib::Client http("127.0.0.1", served_->port());
   const auto page = http.Get("/");
   ASSERT_TRUE(page);
   EXPECT_EQ(page->status, 200);
@@ -135,7 +119,7 @@ TEST_F(Web, PreviewsStatsAndValuesDescribeTheFrameOnDisk) {
   const double saturation = (low + high) / 2;
   const int above = cv::countNonZero(frame >= saturation);
 
-  httplib::Client http("127.0.0.1", server_->port());
+  httplib::Client http("127.0.0.1", served_->port());
   const std::string base = "/api/v1/runs/" + id;
   const auto values = http.Get(base + "/values/" + file);
   ASSERT_TRUE(values);
@@ -185,7 +169,7 @@ TEST_F(Web, PreviewsStatsAndValuesDescribeTheFrameOnDisk) {
 TEST_F(Web, ImageRoutesKeepToTheRunAndToImages) {
   StartDaemon();
   const std::string id = FinishedRun();
-  httplib::Client http("127.0.0.1", server_->port());
+  httplib::Client http("127.0.0.1", served_->port());
   const std::string base = "/api/v1/runs/" + id;
   EXPECT_EQ(http.Get(base + "/values/../../queue.sqlite")->status, 400);
   EXPECT_EQ(http.Get(base + "/preview/%2E%2E/%2E%2E/queue.sqlite")->status, 400);
