@@ -94,6 +94,13 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
     WriteTomographyResults(input, *outcome->tomography, fresh_results("tomography").string());
     finish(ReportSolveStage(*outcome->tomography));
   }
+  if (recipe.svbrdf && start("svbrdf")) {
+    SvbrdfRequest solve = *recipe.svbrdf;
+    solve.progress = request.solve_progress;
+    outcome->svbrdf =
+        SolveSvbrdfAndWrite(LoadRunStack(directory.string()), solve, fresh_results("svbrdf").string());
+    finish(ReportSolveStage(*outcome->svbrdf));
+  }
 }
 
 }  // namespace
@@ -171,6 +178,27 @@ SolveStageReport ReportSolveStage(const TomographyResult& result) {
   report.timings_ms = {{"setup", result.reconstruction.setup_ms},
                        {"solve", result.reconstruction.solve_ms},
                        {"total", result.total_ms}};
+  return report;
+}
+
+SolveStageReport ReportSolveStage(const SvbrdfResult& result) {
+  SolveStageReport report;
+  report.stage = "svbrdf";
+  report.usable = result.usable();
+  report.termination = solvers::TerminationName(result.summary.termination);
+  report.message = result.summary.message;
+  report.results = "results/svbrdf";
+  nlohmann::json models = nlohmann::json::array();
+  for (const auto& m : result.material_fits) models.push_back(solvers::brdf::ModelName(m.model));
+  report.figures = {{"pixels_fitted", result.summary.pixels_fitted},
+                    {"materials", result.summary.materials},
+                    {"models", models},
+                    {"gltf", !result.gltf_path.empty()}};
+  if (result.relighting && result.relighting->IsSolutionUsable())
+    for (int m = 0; m < 3; ++m)
+      report.figures[std::string("held_out_rmse_") + solvers::reflectance::MethodName(static_cast<solvers::reflectance::Method>(m))] =
+          result.relighting->mean_rmse[m];
+  report.timings_ms = {{"setup", result.summary.setup_ms}, {"solve", result.summary.solve_ms}, {"total", result.total_ms}};
   return report;
 }
 

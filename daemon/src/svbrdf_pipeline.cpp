@@ -43,10 +43,30 @@ nlohmann::json MaterialJson(const refl::MaterialFit& m) {
 refl::ReflectanceStack ToReflectanceStack(const PhotometricStereoInput& input) {
   refl::ReflectanceStack stack;
   const ps::PhotometricStack& ps = input.stack;
-  const double saturation = EffectiveSaturationLevel(input);
   // Clipped samples become +max so the solver's saturation test finds them
   // after the dark has been subtracted.
   const float clipped = std::numeric_limits<float>::max();
+  if (input.color) {
+    // Colour runs: reflectance is fitted per channel on the demosaiced,
+    // colour-corrected frames, whose clipped samples are already +infinity.
+    const ColorImageStack& color = *input.color;
+    bool any_clipped = false;
+    for (const cv::Mat& frame : color.images) {
+      cv::Mat image = frame.clone();
+      const cv::Mat infinite = image == std::numeric_limits<float>::infinity();
+      if (cv::countNonZero(infinite.reshape(1)) > 0) {
+        any_clipped = true;
+        image.setTo(cv::Scalar::all(clipped), infinite);
+      }
+      stack.images.push_back(image);
+    }
+    stack.light_directions = color.light_directions;
+    stack.light_intensities = color.light_scales;
+    stack.view_direction = ps.view_direction;
+    if (any_clipped) stack.saturation_level = clipped;
+    return stack;
+  }
+  const double saturation = EffectiveSaturationLevel(input);
   for (std::size_t j = 0; j < ps.images.size(); ++j) {
     cv::Mat image;
     if (ps.dark.empty()) image = ps.images[j].clone(); else image = ps.images[j] - ps.dark;

@@ -223,7 +223,8 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
       if (keys[0] == "photometric_stereo") recipe.photometric_stereo = ParsePhotometricStereoRequest(stage[keys[0]]);
       else if (keys[0] == "light_calibration") recipe.light_calibration = ParseLightCalibrationRequest(stage[keys[0]]);
       else if (keys[0] == "tomography") recipe.tomography = ParseTomographyRequest(stage[keys[0]]);
-      else stage.Fail("unknown solver '" + keys[0] + "' (expected photometric_stereo, light_calibration or tomography)");
+      else if (keys[0] == "svbrdf") recipe.svbrdf = ParseSvbrdfRequest(stage[keys[0]]);
+      else stage.Fail("unknown solver '" + keys[0] + "' (expected photometric_stereo, light_calibration, tomography or svbrdf)");
     }
   }
   return recipe;

@@ -90,9 +90,10 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
       albedo->Fail("albedo needs 0 <= low <= high <= 1");
     if (!(scene.albedo.period_mm > 0)) (*albedo)["period_mm"].Fail("must be > 0");
   }
-  // brdf: {model: lambertian|blinn_phong|ggx|mirror|tabulated, rho_s, exponent, roughness, f0, table}
+  // brdf: {model: lambertian|blinn_phong|ggx|mirror|tabulated, rho_s, exponent, roughness, f0, table,
+  //        paint_rho_s: [low paint, high paint] (blinn_phong)}
   if (auto brdf = node.Find("brdf")) {
-    brdf->ExpectKeys({"model", "rho_s", "exponent", "roughness", "f0", "table"});
+    brdf->ExpectKeys({"model", "rho_s", "exponent", "roughness", "f0", "table", "paint_rho_s"});
     sim::Material& m = scene.material;
     try {
       m.model = sim::Brdf::ParseModel((*brdf)["model"].AsString());
@@ -103,6 +104,8 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
     m.exponent = brdf->Double("exponent", m.exponent);
     m.roughness = brdf->Double("roughness", m.roughness);
     m.f0 = brdf->Double("f0", m.f0);
+    if (auto paint_rho_s = brdf->Find("paint_rho_s"))
+      for (const YamlNode& item : paint_rho_s->Items()) m.paint_rho_s.push_back(item.AsDouble());
     if (auto table = brdf->Find("table")) {
       if (m.model != sim::Brdf::Model::kTabulated) table->Fail("only the tabulated model reads a table");
       try {

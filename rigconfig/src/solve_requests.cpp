@@ -134,4 +134,20 @@ TomographyRequest ParseTomographyRequest(const YamlNode& node) {
   return request;
 }
 
+SvbrdfRequest ParseSvbrdfRequest(const YamlNode& node) {
+  node.ExpectKeys({"photometric_stereo", "max_materials", "held_out_lights", "gltf"});
+  SvbrdfRequest request;
+  if (auto ps = node.Find("photometric_stereo")) request.ps = ParsePhotometricStereoRequest(*ps);
+  if (auto materials = node.Find("max_materials")) {
+    request.max_materials = materials->AsInt();
+    if (request.max_materials < 1 || request.max_materials > 16) materials->Fail("must lie in [1, 16]");
+  }
+  if (auto held_out = node.Find("held_out_lights")) {
+    request.held_out_lights = held_out->AsInt();
+    if (request.held_out_lights < -1) held_out->Fail("must be >= -1 (-1: no held-out check, 0: every light)");
+  }
+  request.export_gltf = node.Bool("gltf", request.export_gltf);
+  return request;
+}
+
 }  // namespace photorig::config

@@ -166,28 +166,40 @@ bool IntersectSphere(double radius, const Vector3d& origin, const Vector3d& dir,
 
 }  // namespace
 
-double AlbedoTexture::At(double x_mm, double y_mm) const {
+double AlbedoTexture::HighWeight(double x_mm, double y_mm) const {
   switch (pattern) {
-    case Pattern::kUniform: return high;
+    case Pattern::kUniform: return 1.0;
     case Pattern::kChecker: {
       const long cx = static_cast<long>(std::floor(x_mm / period_mm));
       const long cy = static_cast<long>(std::floor(y_mm / period_mm));
-      return ((cx + cy) & 1) ? low : high;
+      return ((cx + cy) & 1) ? 0.0 : 1.0;
     }
     case Pattern::kRings: {
       // Smooth rings: albedo varies continuously, as a painted object would.
       const double r = std::hypot(x_mm, y_mm);
-      return low + (high - low) * 0.5 * (1.0 + std::cos(2.0 * M_PI * r / period_mm));
+      return 0.5 * (1.0 + std::cos(2.0 * M_PI * r / period_mm));
     }
   }
-  return high;
+  return 1.0;
 }
+
+double AlbedoTexture::At(double x_mm, double y_mm) const {
+  const double w = HighWeight(x_mm, y_mm);
+  return w == 1.0 ? high : w == 0.0 ? low : low + (high - low) * w;
+}
+
+int AlbedoTexture::PaintAt(double x_mm, double y_mm) const { return HighWeight(x_mm, y_mm) < 0.5 ? 0 : 1; }
 
 bool Material::IsValid(std::string* why) const {
   auto fail = [why](const std::string& message) {
     if (why) *why = message;
     return false;
   };
+  if (!paint_rho_s.empty()) {
+    if (model != Brdf::Model::kBlinnPhong) return fail("paint_rho_s needs the blinn_phong model");
+    if (paint_rho_s.size() != 2) return fail("paint_rho_s needs two values: [low paint, high paint]");
+    if (!(paint_rho_s[0] >= 0 && paint_rho_s[1] >= 0)) return fail("paint_rho_s must be >= 0");
+  }
   switch (model) {
     case Brdf::Model::kBlinnPhong:
     case Brdf::Model::kTabulated:
@@ -234,8 +246,12 @@ bool Scene::IsValid(std::string* why) const {
     return fail("albedo needs 0 <= low <= high <= 1");
   // Blinn-Phong's (e + 2) / (2 pi) lobe reflects up to 4 rho_s at normal view
   // (the half-vector Jacobian); this keeps the white furnace test true.
-  if (material.model == Brdf::Model::kBlinnPhong && albedo.high + 4.0 * material.rho_s > 1.0 + 1e-9)
-    return fail("blinn_phong conserves energy only if albedo + 4 rho_s <= 1");
+  if (material.model == Brdf::Model::kBlinnPhong) {
+    const bool per_paint = !material.paint_rho_s.empty();
+    const double low = albedo.low + 4.0 * (per_paint ? material.paint_rho_s[0] : material.rho_s);
+    const double high = albedo.high + 4.0 * (per_paint ? material.paint_rho_s[1] : material.rho_s);
+    if (std::max(low, high) > 1.0 + 1e-9) return fail("blinn_phong conserves energy only if albedo + 4 rho_s <= 1");
+  }
   if (IsSphere() && !(sphere_radius_mm > 0)) return fail("radius_mm must be > 0");
   if (shape == Shape::kMirrorSphere && material.model != Brdf::Model::kMirror)
     return fail("a mirror_sphere has the mirror BRDF");
@@ -402,7 +418,8 @@ SurfaceMaps SampleSurface(const Scene& scene, const CameraModel& camera) {
       maps.normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
       maps.position.at<cv::Vec3f>(r, c) = cv::Vec3f(float(p.x()), float(p.y()), float(p.z()));
       maps.view.at<cv::Vec3f>(r, c) = cv::Vec3f(float(wo.x()), float(wo.y()), float(wo.z()));
-      maps.brdf_params.at<cv::Vec4f>(r, c) = cv::Vec4f(rho_d, float(m.rho_s), shininess, float(m.f0));
+      const double rho_s = m.paint_rho_s.empty() ? m.rho_s : m.paint_rho_s[scene.albedo.PaintAt(p.x(), p.y())];
+      maps.brdf_params.at<cv::Vec4f>(r, c) = cv::Vec4f(rho_d, float(rho_s), shininess, float(m.f0));
       maps.albedo.at<float>(r, c) = rho_d;
       maps.height.at<float>(r, c) = static_cast<float>(p.z());
       maps.depth.at<float>(r, c) = static_cast<float>(

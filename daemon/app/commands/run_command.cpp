@@ -83,6 +83,16 @@ int Execute(const Options& options) {
     ResultFields()["tomography"]["results_directory"] = results;
     if (!tomo.trusted()) return Fail(kExitFailed, "the tomographic reconstruction cannot be trusted: " + tomo.reconstruction.message);
   }
+  if (outcome.svbrdf) {
+    const daemon::SvbrdfResult& svbrdf = *outcome.svbrdf;
+    const std::string results = outcome.directory + "/results/svbrdf";
+    std::printf("svbrdf: %s, %d pixels fitted, %d materials%s\n", solvers::TerminationName(svbrdf.summary.termination),
+                svbrdf.summary.pixels_fitted, svbrdf.summary.materials, svbrdf.gltf_path.empty() ? "" : ", glTF asset");
+    std::printf("results: %s/\n", results.c_str());
+    ResultFields()["svbrdf"] = daemon::ToJson(svbrdf);
+    ResultFields()["svbrdf"]["results_directory"] = results;
+    if (!svbrdf.usable()) return Fail(kExitFailed, "svbrdf gave no usable result: " + svbrdf.summary.message);
+  }
   return kExitOk;
 }
 

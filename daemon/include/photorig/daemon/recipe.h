@@ -23,6 +23,7 @@ using config::ParsePhotometricStereoRequest;
 using config::PhotometricStereoRequest;
 using config::Recipe;
 using config::RecipeRigPath;
+using config::SvbrdfRequest;
 using config::TomographyRequest;
 using config::ValidatePhotometricStereoRequest;
 

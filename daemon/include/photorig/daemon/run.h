@@ -6,6 +6,7 @@
 #include "photorig/daemon/light_calibration.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/sequencer.h"
+#include "photorig/daemon/svbrdf_pipeline.h"
 #include "photorig/daemon/tomography_pipeline.h"
 
 #include <nlohmann/json.hpp>
@@ -40,6 +41,7 @@ SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const 
                                   double total_ms);
 // Usable only when trusted (TomographyResult::trusted).
 SolveStageReport ReportSolveStage(const TomographyResult& result);
+SolveStageReport ReportSolveStage(const SvbrdfResult& result);
 
 struct RunRequest {
   std::string recipe_path;
@@ -75,6 +77,7 @@ struct RunOutcome {
   std::optional<PhotometricStereoResult> photometric_stereo;  // stored as results/ps/report.json
   std::optional<LightCalibrationSummary> light_calibration;
   std::optional<TomographyResult> tomography;  // stored in results/tomography
+  std::optional<SvbrdfResult> svbrdf;          // stored in results/svbrdf
   std::vector<SolveStageReport> solve_stages;  // in the order they ran
 };
 

@@ -23,13 +23,6 @@
 
 namespace photorig::daemon {
 
-struct SvbrdfRequest {
-  PhotometricStereoRequest ps;   // how the normals are solved
-  int max_materials = 4;         // ReflectanceOptions::max_materials
-  int held_out_lights = 8;       // RelightingOptions::held_out_lights (0 = every light); -1 = skip the check
-  bool export_gltf = true;
-  solvers::ProgressCallback progress;
-};
 
 // The stack as the reflectance solver takes it: dark subtracted, light
 // scales as per-channel intensities, clipped samples marked so the solver

@@ -61,6 +61,7 @@ struct Recipe {
   std::optional<PhotometricStereoRequest> photometric_stereo;
   std::optional<LightCalibrationRequest> light_calibration;
   std::optional<TomographyRequest> tomography;
+  std::optional<SvbrdfRequest> svbrdf;
 };
 
 struct CaptureStep {

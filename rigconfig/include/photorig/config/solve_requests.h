@@ -84,4 +84,20 @@ struct TomographyRequest {
 // Throws ConfigError naming file:line:column for unknown keys or values.
 TomographyRequest ParseTomographyRequest(const YamlNode& node);
 
+// The recipe stage `svbrdf: {photometric_stereo: {...}, max_materials,
+// held_out_lights, gltf}` and `photorig solve svbrdf`'s flags: normals by
+// photometric stereo, then per-pixel albedo and per-material lobes
+// (solvers/reflectance, docs/reflectance.md).
+struct SvbrdfRequest {
+  PhotometricStereoRequest ps;   // how the normals are solved
+  int max_materials = 4;         // ReflectanceOptions::max_materials
+  int held_out_lights = 8;       // RelightingOptions::held_out_lights (0 = every light); -1 = skip the check
+  bool export_gltf = true;
+  // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
+  solvers::ProgressCallback progress;
+};
+
+// Throws ConfigError naming file:line:column for unknown keys or values.
+SvbrdfRequest ParseSvbrdfRequest(const YamlNode& node);
+
 }  // namespace photorig::config

@@ -31,6 +31,11 @@ struct AlbedoTexture {
   std::vector<std::string> paints;
 
   double At(double x_mm, double y_mm) const;
+  // Which paint covers the point: 0 low, 1 high (the nearer, in rings).
+  int PaintAt(double x_mm, double y_mm) const;
+
+ private:
+  double HighWeight(double x_mm, double y_mm) const;  // 0 = low, 1 = high
 };
 
 // The reflectance of the whole object: a model and its parameters. rho_d
@@ -42,6 +47,10 @@ struct Material {
   double roughness = 0.3;   // ggx a (width of the microfacet distribution)
   double f0 = 0.04;         // ggx Fresnel at normal incidence
   std::shared_ptr<const MerlTable> table;  // tabulated; null: the Blinn-Phong stand-in of rho_s/exponent
+  // blinn_phong: rho_s of the texture's low and high paint (AlbedoTexture::PaintAt)
+  // in place of rho_s, so one paint can be matte (0) and the other glossy: an
+  // object of two materials. Empty: rho_s everywhere.
+  std::vector<double> paint_rho_s;
 
   bool IsValid(std::string* why) const;
   // `stand_in_rho_d`: the diffuse part of the Blinn-Phong stand-in table
