@@ -13,6 +13,7 @@ import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -126,9 +127,31 @@ def write_nrrd(path, n=24):
         out.write(header.encode() + struct.pack(f"<{len(values)}f", *values))
 
 
-def start_browser(profile_dir):
+def start_chromedriver(log_path):
+    """chromedriver on a free port of 127.0.0.1, started here rather than by
+    Selenium, which waits for it at "localhost" and hides why it did not come
+    up; its log names the reason."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    process = subprocess.Popen(["/usr/bin/chromedriver", f"--port={port}", f"--log-path={log_path}"],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if process.poll() is not None:
+            break
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+            return process, f"http://127.0.0.1:{port}"
+        except OSError:
+            time.sleep(0.2)
+    process.kill()
+    log = open(log_path, errors="replace").read()[-2000:] if os.path.exists(log_path) else "(no log)"
+    fail(f"chromedriver did not listen on 127.0.0.1:{port} (exit {process.poll()}); its log:\n{log}")
+
+
+def start_browser(profile_dir, chromedriver_url):
     from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
 
     options = webdriver.ChromeOptions()
     options.binary_location = "/usr/bin/chromium"
@@ -138,7 +161,7 @@ def start_browser(profile_dir):
         options.add_argument(flag)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     try:
-        return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+        return webdriver.Remote(command_executor=chromedriver_url, options=options)
     except Exception as error:  # installed but cannot start: a failure, not a skip
         fail(f"Chromium did not start under chromedriver: {error}")
 
@@ -169,8 +192,10 @@ def main():
     temp = tempfile.mkdtemp(prefix="photorig-browser-")
     daemon, url = start_daemon(args, os.path.join(temp, "data"), os.path.join(args.artefacts, "photorigd.log"))
     driver = None
+    chromedriver = None
     try:
-        driver = start_browser(os.path.join(temp, "chromium-profile"))
+        chromedriver, chromedriver_url = start_chromedriver(os.path.join(args.artefacts, "chromedriver.log"))
+        driver = start_browser(os.path.join(temp, "chromium-profile"), chromedriver_url)
         wait = lambda seconds, condition, what: WebDriverWait(driver, seconds).until(  # noqa: E731
             lambda d: condition(d), message=what)
         shots = {}
@@ -347,6 +372,9 @@ def main():
     finally:
         if driver is not None:
             driver.quit()
+        if chromedriver is not None:
+            chromedriver.terminate()
+            chromedriver.wait(15)
         daemon.send_signal(signal.SIGTERM)
         try:
             daemon.wait(15)
