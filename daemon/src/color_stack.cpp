@@ -23,18 +23,6 @@ namespace {
 
 constexpr const char* kBayerPatterns[] = {"RGGB", "BGGR", "GRBG", "GBRG"};
 
-// OpenCV names a Bayer pattern by the second row's first two filters
-// (COLOR_BayerBG2BGR is an RGGB sensor); the B, G, R codes are used and the
-// result swapped to R, G, B so the mapping stays the one cv::cvtColor documents.
-int BayerCode(const std::string& pattern, DemosaicMethod method) {
-  const bool ea = method == DemosaicMethod::kEdgeAware;
-  if (pattern == "RGGB") return ea ? cv::COLOR_BayerBG2BGR_EA : cv::COLOR_BayerBG2BGR;
-  if (pattern == "BGGR") return ea ? cv::COLOR_BayerRG2BGR_EA : cv::COLOR_BayerRG2BGR;
-  if (pattern == "GRBG") return ea ? cv::COLOR_BayerGB2BGR_EA : cv::COLOR_BayerGB2BGR;
-  if (pattern == "GBRG") return ea ? cv::COLOR_BayerGR2BGR_EA : cv::COLOR_BayerGR2BGR;
-  throw std::invalid_argument("unknown Bayer pattern '" + pattern + "' (known: RGGB, BGGR, GRBG, GBRG)");
-}
-
 cv::Mat ToFloatRgb(const cv::Mat& frame_rgb) {
   cv::Mat out;
   frame_rgb.convertTo(out, CV_32F);
@@ -64,10 +52,9 @@ std::optional<DemosaicMethod> ParseDemosaicMethod(const std::string& name) {
 }
 
 cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, DemosaicMethod method) {
-  if (raw.channels() != 1 || (raw.depth() != CV_16U && raw.depth() != CV_8U))
-    throw std::invalid_argument("demosaicing needs a one-channel 8- or 16-bit raw frame");
   cv::Mat bgr;
-  cv::demosaicing(raw, bgr, BayerCode(pattern, method));
+  const solvers::Summary demosaiced = color::Demosaic(raw, pattern, &bgr, method);
+  if (!demosaiced.IsSolutionUsable()) throw std::invalid_argument("demosaicing: " + demosaiced.message);
   cv::cvtColor(bgr, bgr, cv::COLOR_BGR2RGB);
   return bgr;
 }

@@ -87,7 +87,7 @@ solvers::Summary CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr,
   return timer.Succeeded();
 }
 
-solvers::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Mat* bgr) {
+solvers::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Mat* bgr, DemosaicMethod method) {
   const solvers::SolveTimer timer;
   if (raw.empty() || raw.channels() != 1) {
     return Ended(Termination::kInvalidInput, "a Bayer raw has one channel, got " + std::to_string(raw.channels()));
@@ -95,11 +95,12 @@ solvers::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Ma
   if (raw.depth() != CV_8U && raw.depth() != CV_16U) {
     return Ended(Termination::kInvalidInput, "a Bayer raw must be 8- or 16-bit");
   }
+  const bool ea = method == DemosaicMethod::kEdgeAware;
   int code = 0;
-  if (pattern == "RGGB") code = cv::COLOR_BayerRGGB2BGR;
-  else if (pattern == "BGGR") code = cv::COLOR_BayerBGGR2BGR;
-  else if (pattern == "GRBG") code = cv::COLOR_BayerGRBG2BGR;
-  else if (pattern == "GBRG") code = cv::COLOR_BayerGBRG2BGR;
+  if (pattern == "RGGB") code = ea ? cv::COLOR_BayerRGGB2BGR_EA : cv::COLOR_BayerRGGB2BGR;
+  else if (pattern == "BGGR") code = ea ? cv::COLOR_BayerBGGR2BGR_EA : cv::COLOR_BayerBGGR2BGR;
+  else if (pattern == "GRBG") code = ea ? cv::COLOR_BayerGRBG2BGR_EA : cv::COLOR_BayerGRBG2BGR;
+  else if (pattern == "GBRG") code = ea ? cv::COLOR_BayerGBRG2BGR_EA : cv::COLOR_BayerGBRG2BGR;
   else {
     return Ended(Termination::kInvalidOptions,
                  "unknown Bayer pattern '" + pattern + "' (expected RGGB, BGGR, GRBG or GBRG)");

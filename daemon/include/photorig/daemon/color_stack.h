@@ -13,6 +13,7 @@
 // reflector has albedo 1 in the green camera channel (the normalisation the
 // colour model's exposure scale assumes; docs/color.md).
 
+#include "photorig/color/apply.h"
 #include "photorig/color/model.h"
 #include "photorig/config/color_model.h"
 #include "photorig/ps/stack.h"
@@ -35,24 +36,13 @@ bool IsBayerPattern(const std::string& mosaic);
 bool IsKnownMosaic(const std::string& mosaic);
 int MosaicChannels(const std::string& mosaic);  // samples per stored pixel: 3 for RGB, else 1
 
-// How Bayer raws are interpolated (cv::demosaicing).
-enum class DemosaicMethod {
-  // Bilinear (COLOR_Bayer*2BGR): linear in the raw values, so dark
-  // subtraction, exposure scaling and averaging commute with it, and its
-  // noise is a fixed linear filter of the raw noise. The default: photometric
-  // stereo divides images by each other, and that is exact only for a linear
-  // interpolation.
-  kBilinear,
-  // Edge-aware (COLOR_Bayer*2BGR_EA): interpolates along edges, fewer colour
-  // fringes at texture edges, but chooses its direction from the data, so it
-  // is not linear in the raw values.
-  kEdgeAware,
-};
+using color::DemosaicMethod;  // bilinear (the default) or edge-aware: photorig/color/apply.h
 const char* DemosaicMethodName(DemosaicMethod method);  // "bilinear" | "edge-aware"
 std::optional<DemosaicMethod> ParseDemosaicMethod(const std::string& name);
 
-// One-channel raw (CV_16U or CV_8U) -> (R, G, B) of the same depth. Throws
-// std::invalid_argument for an unknown pattern or a multi-channel raw.
+// One-channel raw (CV_16U or CV_8U) -> (R, G, B) of the same depth, through
+// color::Demosaic. Throws std::invalid_argument with its message for an
+// unknown pattern or a multi-channel raw.
 cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, DemosaicMethod method);
 
 // camera.color_model files: loaded and checked when a rig loads (rigconfig).

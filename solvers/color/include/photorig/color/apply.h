@@ -30,11 +30,26 @@ struct ApplyOptions {
 solvers::Summary CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv::Mat& dark_bgr,
                              const ApplyOptions& options, cv::Mat* xyz);
 
+// How Bayer raws are interpolated (OpenCV).
+enum class DemosaicMethod {
+  // Bilinear (COLOR_Bayer*2BGR): linear in the raw values, so dark
+  // subtraction, exposure scaling and averaging commute with it, and its
+  // noise is a fixed linear filter of the raw noise. The default: photometric
+  // stereo divides images by each other, and that is exact only for a linear
+  // interpolation.
+  kBilinear,
+  // Edge-aware (COLOR_Bayer*2BGR_EA): interpolates along edges, fewer colour
+  // fringes at texture edges, but chooses its direction from the data, so it
+  // is not linear in the raw values.
+  kEdgeAware,
+};
+
 // A single-chip sensor's raw Bayer mosaic (one channel, 8/16-bit) -> B, G, R of
-// the same depth by bilinear interpolation (OpenCV). `pattern` names the
-// top-left 2 x 2 filter block: RGGB, BGGR, GRBG or GBRG. Demosaicing is linear,
-// so a dark frame may be demosaiced the same way and subtracted afterwards.
-solvers::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Mat* bgr);
+// the same depth. `pattern` names the top-left 2 x 2 filter block: RGGB, BGGR,
+// GRBG or GBRG. Bilinear demosaicing is linear, so a dark frame may be
+// demosaiced the same way and subtracted afterwards.
+solvers::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Mat* bgr,
+                          DemosaicMethod method = DemosaicMethod::kBilinear);
 
 // XYZ (CV_32FC3, white = `white_xyz`) -> linear sRGB, adapting the white to
 // D65 (Bradford). CV_32FC3 in B, G, R order, unclipped.
