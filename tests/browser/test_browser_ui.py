@@ -127,15 +127,25 @@ def write_nrrd(path, n=24):
         out.write(header.encode() + struct.pack(f"<{len(values)}f", *values))
 
 
-def start_chromedriver(log_path):
+def log_tail(path, lines=40):
+    """The end of a log without the D-Bus complaints a headless Chromium makes
+    where no session bus runs (they say nothing about why it failed)."""
+    if not os.path.exists(path):
+        return f"(no {os.path.basename(path)})"
+    kept = [line for line in open(path, errors="replace").read().splitlines() if "dbus" not in line]
+    return "\n".join(kept[-lines:])
+
+
+def start_chromedriver(log_path, output_path):
     """chromedriver on a free port of 127.0.0.1, started here rather than by
     Selenium, which waits for it at "localhost" and hides why it did not come
-    up; its log names the reason."""
+    up; its log names the reason, and Chromium's own output lands beside it."""
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    process = subprocess.Popen(["/usr/bin/chromedriver", f"--port={port}", f"--log-path={log_path}"],
-                               stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    with open(output_path, "wb") as output:
+        process = subprocess.Popen(["/usr/bin/chromedriver", f"--port={port}", f"--log-path={log_path}", "--verbose"],
+                                   stdout=output, stderr=subprocess.STDOUT)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         if process.poll() is not None:
@@ -146,11 +156,10 @@ def start_chromedriver(log_path):
         except OSError:
             time.sleep(0.2)
     process.kill()
-    log = open(log_path, errors="replace").read()[-2000:] if os.path.exists(log_path) else "(no log)"
-    fail(f"chromedriver did not listen on 127.0.0.1:{port} (exit {process.poll()}); its log:\n{log}")
+    fail(f"chromedriver did not listen on 127.0.0.1:{port} (exit {process.poll()}); its log:\n{log_tail(log_path)}")
 
 
-def start_browser(profile_dir, chromedriver_url):
+def start_browser(profile_dir, chromedriver_url, log_paths):
     from selenium import webdriver
 
     options = webdriver.ChromeOptions()
@@ -167,6 +176,8 @@ def start_browser(profile_dir, chromedriver_url):
         # never connects: "session not created ... unable to connect to
         # renderer"): a skip that says why, never a silent pass.
         print(f"SKIP: Chromium did not start under chromedriver: {str(error).splitlines()[0]}", flush=True)
+        for path in log_paths:
+            print(f"--- {path}:\n{log_tail(path)}", flush=True)
         sys.exit(SKIP)
 
 
@@ -198,8 +209,9 @@ def main():
     driver = None
     chromedriver = None
     try:
-        chromedriver, chromedriver_url = start_chromedriver(os.path.join(args.artefacts, "chromedriver.log"))
-        driver = start_browser(os.path.join(temp, "chromium-profile"), chromedriver_url)
+        driver_logs = [os.path.join(args.artefacts, name) for name in ("chromedriver.log", "chromium-output.log")]
+        chromedriver, chromedriver_url = start_chromedriver(*driver_logs)
+        driver = start_browser(os.path.join(temp, "chromium-profile"), chromedriver_url, driver_logs)
         wait = lambda seconds, condition, what: WebDriverWait(driver, seconds).until(  # noqa: E731
             lambda d: condition(d), message=what)
         shots = {}
