@@ -60,8 +60,9 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
   };
   if (recipe.photometric_stereo && start("photometric_stereo")) {
     PhotometricStereoRequest solve = *recipe.photometric_stereo;
-    if (rig.solve.executor == "slurm") {
-      const SlurmSolveOutcome submitted = SolvePhotometricStereoOnSlurm(directory.string(), solve, rig.solve, request);
+    if (recipe.solve_executor.executor == "slurm") {
+      const SlurmSolveOutcome submitted =
+          SolvePhotometricStereoOnSlurm(directory.string(), solve, recipe.solve_executor, request);
       if (!submitted.report) {
         // The daemon is stopping: the run goes back to the queue, and the next start follows the same job.
         outcome->capture.status = CaptureStatus::kAborted;

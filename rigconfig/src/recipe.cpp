@@ -216,8 +216,16 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
   for (const YamlNode& step : capture["steps"].Items()) recipe.groups.push_back(ParseGroup(step));
   if (recipe.groups.empty()) capture["steps"].Fail("a recipe needs at least one capture step");
 
+  recipe.solve_executor = rig.solve;
   if (auto solve = root.Find("solve")) {
-    for (const YamlNode& stage : solve->Items()) {
+    // A list of stages, or {executor, partition, time, mem, photorig, poll_ms, stages} to choose where they run.
+    std::optional<YamlNode> stages = solve;
+    if (solve->IsMap()) {
+      solve->ExpectKeys({"executor", "partition", "time", "mem", "photorig", "poll_ms", "stages"});
+      recipe.solve_executor = ParseSolveExecutor(*solve, rig.solve);
+      stages = solve->Find("stages");
+    }
+    for (const YamlNode& stage : stages ? stages->Items() : std::vector<YamlNode>{}) {
       const auto keys = stage.Keys();
       if (keys.size() != 1) stage.Fail("each solve stage is a map with exactly one key");
       if (keys[0] == "photometric_stereo") recipe.photometric_stereo = ParsePhotometricStereoRequest(stage[keys[0]]);

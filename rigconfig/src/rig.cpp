@@ -252,22 +252,6 @@ MotionConfig ParseMotion(const YamlNode& node) {
   return motion;
 }
 
-// solve: {executor: local | slurm, partition, time, mem, photorig, poll_ms}
-SolveExecutorConfig ParseSolveExecutor(const YamlNode& node) {
-  node.ExpectKeys({"executor", "partition", "time", "mem", "photorig", "poll_ms"});
-  SolveExecutorConfig solve;
-  solve.executor = node.String("executor", solve.executor);
-  if (solve.executor != "local" && solve.executor != "slurm")
-    node["executor"].Fail("expected local or slurm, got '" + solve.executor + "'");
-  solve.partition = node.String("partition", "");
-  solve.time = node.String("time", "");
-  solve.mem = node.String("mem", "");
-  solve.photorig = node.String("photorig", "");
-  solve.poll_ms = node.Int("poll_ms", solve.poll_ms);
-  if (solve.poll_ms < 100 || solve.poll_ms > 600000) node["poll_ms"].Fail("must lie in [100, 600000]");
-  return solve;
-}
-
 // health: {enabled, lit_sigma, max_clipped_fraction, saturation_dn, min_neighbour_ratio, neighbours,
 //          max_brightness_ratio}; `health` holds the defaults.
 HealthConfig ParseHealth(const YamlNode& node, HealthConfig health) {
@@ -397,7 +381,10 @@ RigConfig LoadRigConfig(const std::string& path) {
     cam.color_model = LoadColorModelFile(model->AsPath());
   }
 
-  if (auto solve = root.Find("solve")) rig.solve = ParseSolveExecutor(*solve);
+  if (auto solve = root.Find("solve")) {
+    solve->ExpectKeys({"executor", "partition", "time", "mem", "photorig", "poll_ms"});
+    rig.solve = ParseSolveExecutor(*solve, rig.solve);
+  }
   if (auto sim_node = root.Find("sim")) {
     sim_node->ExpectKeys(
         {"seed", "sensor", "scene", "faults", "led_direction_error_deg", "led_intensity_error_pct", "ambient", "color"});
@@ -449,6 +436,19 @@ RigConfig LoadRigConfig(const std::string& path) {
   if ((rig.lights.driver == "sim" || cam.driver == "sim") && !rig.sim)
     root.Fail("simulated devices need a 'sim:' section");
   return rig;
+}
+
+SolveExecutorConfig ParseSolveExecutor(const YamlNode& node, SolveExecutorConfig solve) {
+  solve.executor = node.String("executor", solve.executor);
+  if (solve.executor != "local" && solve.executor != "slurm")
+    node["executor"].Fail("expected local or slurm, got '" + solve.executor + "'");
+  solve.partition = node.String("partition", solve.partition);
+  solve.time = node.String("time", solve.time);
+  solve.mem = node.String("mem", solve.mem);
+  solve.photorig = node.String("photorig", solve.photorig);
+  solve.poll_ms = node.Int("poll_ms", solve.poll_ms);
+  if (solve.poll_ms < 100 || solve.poll_ms > 600000) node["poll_ms"].Fail("must lie in [100, 600000]");
+  return solve;
 }
 
 }  // namespace photorig::config

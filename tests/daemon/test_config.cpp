@@ -279,6 +279,33 @@ TEST(Recipe, SimSceneIsParsedAtLoadForTheRigsFrame) {
                                          "sample.sim_scene.shape");
 }
 
+// Where the solve stages run: the rig's `solve:` unless the recipe's own
+// `solve: {executor, ..., stages}` says otherwise, key by key.
+TEST(Recipe, SolveExecutorComesFromTheRigUnlessTheRecipeChoosesOne) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", std::string(kRig) + "solve: {partition: lab, time: \"00:10:00\"}\n"));
+  const std::string head = "recipe: {name: s, rig: rig.yaml}\ncapture:\n  steps:\n    - dark: {count: 1}\n";
+  const Recipe listed = LoadRecipe(dir.Write("list.yaml", head + "solve:\n  - photometric_stereo: {}\n"), rig);
+  EXPECT_EQ(listed.solve_executor.executor, "local");
+  EXPECT_EQ(listed.solve_executor.partition, "lab");
+  EXPECT_TRUE(listed.photometric_stereo.has_value());
+
+  const Recipe chosen = LoadRecipe(
+      dir.Write("map.yaml", head + "solve:\n  executor: slurm\n  time: \"01:00:00\"\n  stages:\n"
+                                   "    - photometric_stereo: {method: robust}\n"),
+      rig);
+  EXPECT_EQ(chosen.solve_executor.executor, "slurm");
+  EXPECT_EQ(chosen.solve_executor.partition, "lab");  // left out: the rig's
+  EXPECT_EQ(chosen.solve_executor.time, "01:00:00");
+  ASSERT_TRUE(chosen.photometric_stereo.has_value());
+
+  const std::string typo = dir.Write("typo.yaml", head + "solve:\n  executor: slurm\n  stage: []\n");
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(typo, rig); }, typo, 7, 3, "unknown key 'stage'", "solve.stage");
+  const std::string bad = dir.Write("bad.yaml", head + "solve: {executor: mpi}\n");
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(bad, rig); }, bad, 5, 19, "expected local or slurm",
+                                         "solve.executor");
+}
+
 }  // namespace
 }  // namespace photorig::daemon
 

@@ -230,10 +230,13 @@ TEST_F(SlurmBatch, CancelledTaskKeepsThePreviousResultAndRetryCompletes) {
   ExpectSameAsInProcess(dir_, "auto", kHeldRuns);
 }
 
+// The recipe chooses Slurm here (its `solve:` map overrides a rig that solves locally); the restart test below
+// has the rig choose it.
 TEST_F(SlurmBatch, DaemonHandsTheRecipesSolveToSlurmAndTracksTheJob) {
-  const std::string rig = dir_.Write("slurm-rig.yaml", SmallRigYaml("", 8) + "solve: {executor: slurm, poll_ms: 200}\n");
-  const std::string recipe =
-      dir_.Write("slurm-recipe.yaml", SmallRecipeYaml() + "solve:\n  - photometric_stereo: {method: robust}\n");
+  const std::string rig = dir_.Write("slurm-rig.yaml", SmallRigYaml("", 8) + "solve: {executor: local, poll_ms: 200}\n");
+  const std::string recipe = dir_.Write(
+      "slurm-recipe.yaml",
+      SmallRecipeYaml() + "solve:\n  executor: slurm\n  stages:\n    - photometric_stereo: {method: robust}\n");
   const Daemon daemon(dir_.path() / "data", rig, dir_.path() / "photorigd.log");
   const std::string url = daemon.WaitReady();
   ASSERT_FALSE(url.empty()) << ReadText(dir_.path() / "photorigd.log");

@@ -62,7 +62,7 @@ struct RunRequest {
   // `control` while a stage runs skips the stages after it.
   std::function<void(const std::string& stage)> on_solve_started;
   std::function<void(const SolveStageReport&)> on_solve_finished;
-  // A stage handed to Slurm (rig solve.executor: slurm): its job ("JOB_TASK")
+  // A stage handed to Slurm (the recipe's or the rig's solve executor): its job ("JOB_TASK")
   // and batch folder, when submitted or, after a restart, followed again.
   std::function<void(const std::string& stage, const std::string& job_id, const std::string& batch)>
       on_solve_submitted;

@@ -62,6 +62,10 @@ struct Recipe {
   std::optional<LightCalibrationRequest> light_calibration;
   std::optional<TomographyRequest> tomography;
   std::optional<SvbrdfRequest> svbrdf;
+  // Where the solve stages run: the rig's `solve:` unless the recipe's
+  // `solve: {executor: ..., stages: [...]}` overrides it (keys it leaves out
+  // keep the rig's values).
+  SolveExecutorConfig solve_executor;
 };
 
 struct CaptureStep {

@@ -225,4 +225,9 @@ struct RigConfig {
 // Throws ConfigError naming file:line:column and key.
 RigConfig LoadRigConfig(const std::string& path);
 
+// The executor keys of a rig's or a recipe's `solve:` (executor, partition,
+// time, mem, photorig, poll_ms), each absent key keeping its value in
+// `solve`; the caller checks which keys the node may hold. Throws ConfigError.
+SolveExecutorConfig ParseSolveExecutor(const YamlNode& node, SolveExecutorConfig solve);
+
 }  // namespace photorig::config
