@@ -27,7 +27,7 @@ const FRAGMENT = `#version 300 es
 precision highp float;
 uniform highp sampler2D u_normals;    // RGB32F: (x, y, z), NaN where unsolved
 uniform highp sampler2D u_albedo;     // RGB32F: the diffuse albedo rho (grey repeated where the run has one channel)
-uniform highp sampler2D u_ps_albedo;  // R32F: photometric stereo's albedo, which the per-pixel lobe goes with
+uniform highp sampler2D u_ps_albedo;  // RGB32F: photometric stereo's albedo, which the per-pixel lobe goes with
 uniform highp sampler2D u_lobe;       // RG32F: (rho_s, exponent); 0 where no lobe was fitted
 uniform highp sampler2D u_material;   // R32F: material index, 255 where the fit left the pixel out
 uniform highp sampler2D u_materials;  // RGBA32F, one row per material: (model, shape, 0, 0), (specular rgb, 0)
@@ -87,13 +87,13 @@ vec3 shade(vec3 n, vec2 uv) {
   if (u_model == 3) return perMaterial(n, l, uv) / u_scale;
   float ndotl = max(dot(n, l), 0.0);
   if (u_model == 0) return texture(u_albedo, uv).rgb * ndotl / u_scale;
-  float radiance = texture(u_ps_albedo, uv).r * ndotl;
+  vec3 radiance = texture(u_ps_albedo, uv).rgb * ndotl;
   if (ndotl > 0.0) {
     vec2 lobe = texture(u_lobe, uv).rg;
     vec3 h = normalize(l + VIEW);
     radiance += lobe.x * pow(max(dot(n, h), 0.0), max(lobe.y, 1.0));
   }
-  return vec3(radiance / u_scale);
+  return radiance / u_scale;
 }
 
 void main() {
@@ -159,7 +159,7 @@ function materialTable(materials) {
   return { width: 2, height: Math.max(1, materials.length), data };
 }
 
-// {root, setLight(x, y)}: normals {width, height, channels 3}, albedo (1 channel),
+// {root, setLight(x, y)}: normals {width, height, channels 3}, albedo (1 or 3 channels),
 // lobe (specular.tiff, 3 channels: rho_s, exponent, 0) or null; envmaps:
 // [{name, bytes: async () => Uint8Array}], the run's .hdr maps (a file from
 // this computer can be chosen too); perMaterial: null, or a per-material
@@ -182,7 +182,7 @@ export function relightView(normals, albedo, lobe, envmaps = [], perMaterial = n
   const diffuse = perMaterial ? perMaterial.albedo : albedo;
   texture(gl, 0, normals, gl.RGB32F, gl.RGB);
   texture(gl, 1, asRgb(diffuse), gl.RGB32F, gl.RGB);
-  texture(gl, 2, albedo, gl.R32F, gl.RED);
+  texture(gl, 2, asRgb(albedo), gl.RGB32F, gl.RGB);
   const lobeRg = lobe ? { width: lobe.width, height: lobe.height, data: new Float32Array(lobe.width * lobe.height * 2) }
     : none(2);
   if (lobe) for (let i = 0; i < lobe.width * lobe.height; ++i) {
