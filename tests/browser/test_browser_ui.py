@@ -207,11 +207,14 @@ def check_per_material_relighting(args, driver, url, run_id, data_root, screensh
     js = driver.execute_script
     js("arguments[0].scrollIntoView({block: 'center'})", canvas)
     before = canvas_rgb(driver, canvas)
-    ActionChains(driver).move_to_element_with_offset(pad, 28, -20).click().perform()
+    ActionChains(driver).move_to_element_with_offset(pad, -30, -38).click().perform()  # 11 deg from the nearest LED
     per_material = canvas_rgb(driver, canvas)
     check(numpy.abs(per_material - before).max() > 20, "the per-material canvas did not change when the light moved")
     screenshot("relight-per-material", driver.find_element(By.ID, "relight"))
     light = [float(v) for v in canvas.get_attribute("data-light").split(",")]
+    leds = [led["direction"] for led in api_get(url, f"/runs/{run_id}/files/manifest.json")["lights"]]
+    nearest_deg = min(numpy.degrees(numpy.arccos(numpy.clip(numpy.dot(light, d) / numpy.linalg.norm(d), -1, 1))) for d in leds)
+    check(nearest_deg > 5, f"the light {light} is within {nearest_deg:.1f} deg of an LED: not a held-out direction")
     white = float(canvas.get_attribute("data-white"))
     model.select_by_value("0")
     lambertian = canvas_rgb(driver, canvas)
@@ -241,7 +244,8 @@ def check_per_material_relighting(args, driver, url, run_id, data_root, screensh
     expected = 255 * numpy.clip(numpy.pi * relit / white, 0, 1) ** (1 / 2.2)
     fitted = material < len(report["materials"])
     difference = numpy.abs(per_material[fitted] - expected[fitted])
-    print(f"page against photorig relight, light ({', '.join(f'{v:.3f}' for v in light)}), {fitted.sum()} pixels: "
+    print(f"page against photorig relight, light ({', '.join(f'{v:.3f}' for v in light)}; {nearest_deg:.1f} deg from the "
+          f"nearest LED), {fitted.sum()} pixels: "
           f"mean {difference.mean():.2f} levels, 99th percentile {numpy.percentile(difference, 99):.1f}, "
           f"largest {difference.max():.1f}", flush=True)
     check(difference.mean() < 0.75 and numpy.percentile(difference, 99) <= 2.0,
