@@ -2,7 +2,8 @@
 """The browser interface in a real Chromium: each page opens, ps-shiny-sphere
 is submitted from the Queue page and watched to `done` on the Run page, the
 normal map decodes at the camera's size, the relighting canvas changes when the
-light is dragged, and the browser logs no errors. Screenshots go to
+light is dragged, an svbrdf run on the colour dome is relit per material as
+`photorig relight --model svbrdf` renders it, and the browser logs no errors. Screenshots go to
 --artefacts; --screenshots DIR also writes the README's (docs/screenshots).
 
 Exit codes: 0 passed, 1 failed, 77 skipped (Chromium, chromedriver or Selenium
@@ -176,7 +177,7 @@ def check_per_material_relighting(args, driver, url, run_id, data_root, screensh
     model and shows it first, redraws when the light moves, adds the lobe on
     the glossy paint only (against the Lambertian render of the same colour
     albedo), and agrees with `photorig relight --model svbrdf` for the light
-    it was left at (a direction no LED of the dome has)."""
+    it was left at (checked to be away from every LED of the run)."""
     import numpy
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
