@@ -34,6 +34,8 @@ packages=(
   libjs-three libjs-chart.js
   # the browser interface's test: headless Chromium over WebDriver (tests/browser)
   chromium chromium-driver python3-selenium
+  # ... which reads the canvases back as PNG (Pillow) and compares them with numpy
+  python3-pil
   # fuzzers: libFuzzer, the sanitizer runtimes and clang's OpenMP (scripts/fuzz.sh)
   clang libclang-rt-14-dev libomp-14-dev
   # batch solves on Slurm: the tests start a single-node cluster (tests/slurm/slurm-node.sh, docs/scaling.md)

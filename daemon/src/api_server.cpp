@@ -286,6 +286,7 @@ bool ApiOptions::IsValid(std::string* why) const {
     return fail("binding to " + bind_address + " (not loopback) requires a bearer token");
   if (!token.empty() && token.size() < 16) return fail("the bearer token must be at least 16 characters");
   if (max_body_bytes == 0) return fail("max_body_bytes must be > 0");
+  if (max_image_values == 0) return fail("max_image_values must be > 0");
   if (max_event_streams < 1) return fail("max_event_streams must be >= 1");
   if (worker_threads < max_event_streams + 8)
     return fail("worker_threads must exceed max_event_streams by at least 8, so short requests are served");
@@ -474,7 +475,14 @@ void ApiServer::Routes() {
   image_route("stats", [](const cv::Mat& values, const httplib::Request& req, httplib::Response& res) {
     Reply(res, {200, ImageStats(values, req)});
   });
-  image_route("values", [](const cv::Mat& values, const httplib::Request&, httplib::Response& res) {
+  image_route("values", [limit = options_.max_image_values](const cv::Mat& values, const httplib::Request&,
+                                                             httplib::Response& res) {
+    const std::size_t count = values.total() * static_cast<std::size_t>(values.channels());
+    if (count > limit)
+      return ErrorReply(res, 413, "the image has " + std::to_string(count) + " values (" + std::to_string(values.cols) +
+                                      " x " + std::to_string(values.rows) + " x " + std::to_string(values.channels()) +
+                                      "), more than the " + std::to_string(limit) +
+                                      " one request answers; read it shrunk with preview, or its stats");
     const cv::Mat contiguous = values.isContinuous() ? values : values.clone();
     res.set_header("X-Image-Width", std::to_string(values.cols));
     res.set_header("X-Image-Height", std::to_string(values.rows));

@@ -1,12 +1,13 @@
-// Interactive relighting of a photometric-stereo result in WebGL2: drag the
-// light over the pad, the object is shaded from its per-pixel normals with
-//   model 0 (Lambertian):      albedo * max(n.l, 0)
+// Interactive relighting of a reflectance result in WebGL2: drag the light
+// over the pad, the object is shaded from its per-pixel normals with
+//   model 0 (Lambertian):      rho * max(n.l, 0)
 //   model 1 (per-pixel lobe):  + rho_s * max(n.h, 0)^exponent where specular.tiff has a lobe
-//   model 2 (environment map): albedo * E(n), E the map's irradiance from 9 SH coefficients
-// Every reflectance result reaches the shader the same way: per-pixel float
-// textures (normals, albedo, lobe) and a model switch. A per-material result
-// (a material-index map and a table of lobe parameters per material) adds a
-// texture pair and one branch in shade() (docs/ui.md, "Relighting").
+//   model 2 (environment map): rho * E(n), E the map's irradiance from 9 SH coefficients
+//   model 3 (per-material):    (rho + pi f_lobe(material)) * max(n.l, 0), the lobes of solvers/brdf/models.h
+// rho is the diffuse albedo: the colour albedo of the per-material fit where
+// the run has one (so models 0 and 3 differ by the lobes alone), else the
+// photometric-stereo albedo; model 1 keeps the latter, the albedo its lobe was
+// fitted against (docs/ui.md, "Relighting").
 import { el, errorBox } from './api.js';
 import { decodeHdr, irradianceSh } from './envmap.js';
 
@@ -24,32 +25,75 @@ const SH_GLSL = '0.282095, 0.488603 * n.y, 0.488603 * n.z, 0.488603 * n.x, 1.092
 
 const FRAGMENT = `#version 300 es
 precision highp float;
-uniform highp sampler2D u_normals;  // RGB32F: (x, y, z), NaN where unsolved
-uniform highp sampler2D u_albedo;   // R32F
-uniform highp sampler2D u_lobe;     // RG32F: (rho_s, exponent); 0 where no lobe was fitted
-uniform int u_model;                // 0 Lambertian, 1 with the per-pixel lobe, 2 environment map
-uniform vec3 u_light;               // unit vector towards the light, camera coordinates
-uniform float u_scale;              // albedo value shown as white
-uniform vec3 u_sh[9];               // model 2: irradiance SH coefficients (RGB), envmap.js
+uniform highp sampler2D u_normals;    // RGB32F: (x, y, z), NaN where unsolved
+uniform highp sampler2D u_albedo;     // RGB32F: the diffuse albedo rho (grey repeated where the run has one channel)
+uniform highp sampler2D u_ps_albedo;  // RGB32F: photometric stereo's albedo, which the per-pixel lobe goes with
+uniform highp sampler2D u_lobe;       // RG32F: (rho_s, exponent); 0 where no lobe was fitted
+uniform highp sampler2D u_material;   // R32F: material index, 255 where the fit left the pixel out
+uniform highp sampler2D u_materials;  // RGBA32F, one row per material: (model, shape, 0, 0), (specular rgb, 0)
+uniform int u_model;                  // 0 Lambertian, 1 with the per-pixel lobe, 2 environment map, 3 per-material
+uniform int u_material_count;
+uniform vec3 u_light;                 // unit vector towards the light, camera coordinates
+uniform float u_scale;                // radiance shown as white
+uniform vec3 u_sh[9];                 // model 2: irradiance SH coefficients (RGB), envmap.js
 in vec2 v_uv;
 out vec4 color;
+
+const float PI = 3.14159265358979;
+const vec3 VIEW = vec3(0.0, 0.0, 1.0);  // orthographic camera looking down -z
+
+// The lobe of solvers/brdf/src/lobes.h, f_r in 1/sr per channel: 1 Blinn-Phong
+// (k_s, exponent; Giesen's normalisation), 2 GGX (F0, roughness; Trowbridge-Reitz
+// D, separable Smith G, Schlick F).
+vec3 materialLobe(int model, vec3 specular, float shape, float cos_i, float cos_o, float cos_h, float cos_d) {
+  if (model == 1) {
+    float normalisation = (shape + 2.0) * (shape + 4.0) / (8.0 * PI * (exp2(-0.5 * shape) + shape));
+    return specular * normalisation * pow(cos_h, shape);
+  }
+  if (model == 2) {
+    float a2 = shape * shape;
+    float t = cos_h * cos_h * (a2 - 1.0) + 1.0;
+    float d = a2 / (PI * t * t);
+    float g_i = 2.0 * cos_i / (cos_i + sqrt(a2 + (1.0 - a2) * cos_i * cos_i));
+    float g_o = 2.0 * cos_o / (cos_o + sqrt(a2 + (1.0 - a2) * cos_o * cos_o));
+    vec3 fresnel = specular + (1.0 - specular) * pow(1.0 - cos_d, 5.0);
+    return d * g_i * g_o * fresnel / (4.0 * cos_i * cos_o);
+  }
+  return vec3(0.0);
+}
+
+// As RenderReflectance (solvers/reflectance) with unit irradiance, times pi so
+// that the diffuse part reads rho cos(theta_i) like the other models.
+vec3 perMaterial(vec3 n, vec3 l, vec2 uv) {
+  float index = texture(u_material, uv).r;
+  if (!(index >= 0.0 && index < float(u_material_count))) return vec3(0.0);
+  float cos_i = dot(n, l), cos_o = dot(n, VIEW);
+  if (cos_i <= 0.0 || cos_o <= 0.0) return vec3(0.0);
+  vec3 h = normalize(l + VIEW);
+  vec4 row = texelFetch(u_materials, ivec2(0, int(index)), 0);
+  vec3 specular = texelFetch(u_materials, ivec2(1, int(index)), 0).rgb;
+  vec3 lobe = materialLobe(int(row.x + 0.5), specular, row.y, cos_i, cos_o, dot(n, h), dot(l, h));
+  return (texture(u_albedo, uv).rgb + PI * lobe) * cos_i;
+}
 
 vec3 shade(vec3 n, vec2 uv) {
   if (u_model == 2) {
     float y[9] = float[9](${SH_GLSL});
     vec3 irradiance = vec3(0.0);
     for (int k = 0; k < 9; ++k) irradiance += u_sh[k] * y[k];
-    return texture(u_albedo, uv).r * max(irradiance, 0.0) / u_scale;
+    return texture(u_albedo, uv).rgb * max(irradiance, 0.0) / u_scale;
   }
   vec3 l = normalize(u_light);
+  if (u_model == 3) return perMaterial(n, l, uv) / u_scale;
   float ndotl = max(dot(n, l), 0.0);
-  float radiance = texture(u_albedo, uv).r * ndotl;
-  if (u_model == 1 && ndotl > 0.0) {
+  if (u_model == 0) return texture(u_albedo, uv).rgb * ndotl / u_scale;
+  vec3 radiance = texture(u_ps_albedo, uv).rgb * ndotl;
+  if (ndotl > 0.0) {
     vec2 lobe = texture(u_lobe, uv).rg;
-    vec3 h = normalize(l + vec3(0.0, 0.0, 1.0));  // orthographic camera looking down -z
+    vec3 h = normalize(l + VIEW);
     radiance += lobe.x * pow(max(dot(n, h), 0.0), max(lobe.y, 1.0));
   }
-  return vec3(radiance / u_scale);
+  return radiance / u_scale;
 }
 
 void main() {
@@ -84,17 +128,45 @@ function program(gl) {
   return p;
 }
 
-// The brightness shown as white: the albedo's 99th percentile over solved pixels.
+// The brightness shown as white: the albedo's 99th percentile over solved pixels and channels.
 function albedoScale(albedo) {
   const finite = albedo.data.filter((v) => Number.isFinite(v) && v > 0).sort();
   return finite.length ? finite[Math.floor(0.99 * (finite.length - 1))] : 1;
 }
 
-// {root, setLight(x, y)}: normals {width, height, channels 3}, albedo (1 channel),
+// An image of 1 or 3 channels as 3 (grey repeated), NaN as 0 (left out: shaded black).
+function asRgb(image) {
+  const n = image.width * image.height, data = new Float32Array(3 * n);
+  for (let i = 0; i < n; ++i)
+    for (let c = 0; c < 3; ++c) {
+      const v = image.data[image.channels === 3 ? 3 * i + c : i];
+      data[3 * i + c] = Number.isFinite(v) ? v : 0;
+    }
+  return { width: image.width, height: image.height, data };
+}
+
+const LOBE_MODELS = { lambertian: 0, blinn_phong: 1, ggx: 2 };
+
+// The lobe table of a per-material result (report.json `materials`): row m is
+// (model, shape, 0, 0), (specular r, g, b, 0).
+function materialTable(materials) {
+  const data = new Float32Array(8 * Math.max(1, materials.length));
+  materials.forEach((m, i) => {
+    const model = LOBE_MODELS[m.model];
+    if (model === undefined) throw new Error(`material ${i}: lobe model '${m.model}' is not one the page can shade`);
+    data.set([model, m.shape, 0, 0, ...m.specular.slice(0, 3), 0], 8 * i);
+  });
+  return { width: 2, height: Math.max(1, materials.length), data };
+}
+
+// {root, setLight(x, y)}: normals {width, height, channels 3}, albedo (1 or 3 channels),
 // lobe (specular.tiff, 3 channels: rho_s, exponent, 0) or null; envmaps:
 // [{name, bytes: async () => Uint8Array}], the run's .hdr maps (a file from
-// this computer can be chosen too).
-export function relightView(normals, albedo, lobe, envmaps = []) {
+// this computer can be chosen too); perMaterial: null, or a per-material
+// result {albedo (1 or 3 channels), material (index image), materials
+// (report.json's list)}, which then gives the diffuse albedo of every model
+// but the per-pixel lobe.
+export function relightView(normals, albedo, lobe, envmaps = [], perMaterial = null) {
   const canvas = el('canvas', { id: 'relight-canvas', width: normals.width, height: normals.height });
   const gl = canvas.getContext('webgl2', { preserveDrawingBuffer: true });
   if (!gl) throw new Error('relighting needs WebGL2, which this browser does not offer');
@@ -106,25 +178,33 @@ export function relightView(normals, albedo, lobe, envmaps = []) {
   const a = gl.getAttribLocation(p, 'a_position');
   gl.enableVertexAttribArray(a);
   gl.vertexAttribPointer(a, 2, gl.FLOAT, false, 0, 0);
+  const none = (channels) => ({ width: 1, height: 1, data: new Float32Array(channels) });
+  const diffuse = perMaterial ? perMaterial.albedo : albedo;
   texture(gl, 0, normals, gl.RGB32F, gl.RGB);
-  texture(gl, 1, albedo, gl.R32F, gl.RED);
+  texture(gl, 1, asRgb(diffuse), gl.RGB32F, gl.RGB);
+  texture(gl, 2, asRgb(albedo), gl.RGB32F, gl.RGB);
   const lobeRg = lobe ? { width: lobe.width, height: lobe.height, data: new Float32Array(lobe.width * lobe.height * 2) }
-    : { width: 1, height: 1, data: new Float32Array(2) };
+    : none(2);
   if (lobe) for (let i = 0; i < lobe.width * lobe.height; ++i) {
     lobeRg.data[2 * i] = lobe.data[3 * i];
     lobeRg.data[2 * i + 1] = lobe.data[3 * i + 1];
   }
-  texture(gl, 2, lobeRg, gl.RG32F, gl.RG);
+  texture(gl, 3, lobeRg, gl.RG32F, gl.RG);
+  texture(gl, 4, perMaterial ? perMaterial.material : none(1), gl.R32F, gl.RED);
+  texture(gl, 5, materialTable(perMaterial ? perMaterial.materials : []), gl.RGBA32F, gl.RGBA);
   const uniform = (name) => gl.getUniformLocation(p, name);
-  gl.uniform1i(uniform('u_normals'), 0);
-  gl.uniform1i(uniform('u_albedo'), 1);
-  gl.uniform1i(uniform('u_lobe'), 2);
-  const scale = albedoScale(albedo);
+  ['u_normals', 'u_albedo', 'u_ps_albedo', 'u_lobe', 'u_material', 'u_materials'].forEach((name, unit) => gl.uniform1i(uniform(name), unit));
+  gl.uniform1i(uniform('u_material_count'), perMaterial ? perMaterial.materials.length : 0);
+  // White is each model's own albedo's 99th percentile (times 2^exposure).
+  const diffuseScale = albedoScale(diffuse), lobeScale = albedoScale(albedo);
 
   const light = { x: -0.4, y: 0.4 };
-  const model = el('select', { id: 'relight-model' }, el('option', { value: 0 }, 'Lambertian (normals + albedo)'),
-    lobe ? el('option', { value: 1, selected: true }, 'with the per-pixel lobe (specular.tiff)') : null,
-    el('option', { value: 2 }, 'environment map (Lambertian)'));
+  // The richest model the run has is shown first.
+  const model = el('select', { id: 'relight-model' },
+    el('option', { value: 0 }, perMaterial ? 'Lambertian (normals + colour albedo)' : 'Lambertian (normals + albedo)'),
+    lobe ? el('option', { value: 1, selected: !perMaterial }, 'with the per-pixel lobe (specular.tiff)') : null,
+    el('option', { value: 2 }, 'environment map (Lambertian)'),
+    perMaterial ? el('option', { value: 3, selected: true }, `per-material (${perMaterial.materials.map((m) => m.model).join(', ')})`) : null);
   const mapSelect = el('select', { id: 'envmap-select' }, envmaps.map((m, i) => el('option', { value: i }, m.name)));
   const mapFile = el('input', { type: 'file', accept: '.hdr', id: 'envmap-file' });
   const azimuth = el('input', { type: 'range', min: -180, max: 180, step: 5, value: 0, id: 'envmap-azimuth' });
@@ -161,8 +241,11 @@ export function relightView(normals, albedo, lobe, envmaps = []) {
     const z = Math.sqrt(Math.max(0, 1 - light.x ** 2 - light.y ** 2));
     gl.viewport(0, 0, canvas.width, canvas.height);
     gl.uniform3f(uniform('u_light'), light.x, light.y, z);
+    canvas.dataset.light = [light.x, light.y, z].join(',');  // the exact direction drawn, for scripts and tests
     gl.uniform1i(uniform('u_model'), +model.value);
-    gl.uniform1f(uniform('u_scale'), scale / 2 ** +exposure.value);
+    const white = (model.value === '1' ? lobeScale : diffuseScale) / 2 ** +exposure.value;
+    gl.uniform1f(uniform('u_scale'), white);
+    canvas.dataset.white = white;  // the linear value drawn white, for scripts and tests
     gl.drawArrays(gl.TRIANGLE_STRIP, 0, 4);
     const g = pad.getContext('2d');
     g.clearRect(0, 0, 160, 160);

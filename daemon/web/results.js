@@ -29,16 +29,34 @@ export async function resultsPage(main, runId) {
       : el('p', { class: 'muted' }, 'This run has no results (yet).')));
   const cleanups = [];
   const folders = [...new Set([...files].filter((f) => f.endsWith('/report.json')).map((f) => f.slice(0, -'report.json'.length)))];
+  const reports = new Map();
+  for (const folder of folders) reports.set(folder, await (await api(`/runs/${runId}/files/${folder}report.json`)).json());
+  // A per-material fit (photorig solve svbrdf) keeps the normals it used in its ps/ folder.
+  const perMaterial = (folder) => reports.get(folder)?.materials && files.has(`${folder}material.png`) && files.has(`${folder}albedo.tiff`);
   for (const folder of folders) {
-    const report = await (await api(`/runs/${runId}/files/${folder}report.json`)).json();
-    if (files.has(`${folder}normals.tiff`)) cleanups.push(await psResults(main, runId, folder, report, files));
+    const report = reports.get(folder);
+    const parent = folder.replace(/ps\/$/, '');
+    if (files.has(`${folder}normals.tiff`))
+      cleanups.push(await psResults(main, runId, folder, report, files,
+        parent !== folder && perMaterial(parent) ? { folder: parent, report: reports.get(parent) } : null));
     else if (report.candidates) await brdfResults(main, runId, folder, report, files);
+    else if (perMaterial(folder)) materialsTable(main, folder, report);
   }
   for (const volume of [...files].filter((f) => f.endsWith('.nrrd'))) await volumeSlices(main, runId, volume);
   return () => cleanups.forEach((c) => c && c());
 }
 
-async function psResults(main, runId, folder, report, files) {
+// The materials of a per-material fit with their lobes (docs/reflectance.md).
+function materialsTable(main, folder, report) {
+  const f = (x) => (+x.toPrecision(3)).toString();
+  main.append(el('section', { id: 'materials' }, el('h2', {}, `Materials (${folder})`),
+    table(report.materials.map((m, i) => [i, m.model, m.pixels, m.specular.map(f).join(', '),
+      m.model === 'lambertian' ? '' : `${m.model === 'ggx' ? 'roughness' : 'exponent'} ${f(m.shape)}`, m.warnings.join(', ')]),
+    ['material', 'lobe', 'pixels', 'k_s or F0 (r, g, b)', 'shape', 'warnings'])));
+}
+
+// `svbrdf`: {folder, report} of a per-material fit made on these normals, or null.
+async function psResults(main, runId, folder, report, files, svbrdf) {
   const maps = MAPS.filter((m) => files.has(folder + m.values));
   const image = el('img', { id: 'map-image', alt: 'map' });
   const legend = el('div', { id: 'map-legend', class: 'muted' });
@@ -88,7 +106,13 @@ async function psResults(main, runId, folder, report, files) {
     const envmaps = [...files].filter((f) => f.endsWith('.hdr')).map((f) => ({
       name: f, bytes: async () => new Uint8Array(await (await api(`/runs/${runId}/files/${f}`)).arrayBuffer()),
     }));
-    section.append(relightView(normals, albedo, hasLobe ? lobe : null, envmaps).root);
+    let perMaterial = null;
+    if (svbrdf) {
+      const [colour, material] = await Promise.all([imageValues(runId, `${svbrdf.folder}albedo.tiff`),
+        imageValues(runId, `${svbrdf.folder}material.png`)]);
+      perMaterial = { albedo: colour, material, materials: svbrdf.report.materials };
+    }
+    section.append(relightView(normals, albedo, hasLobe ? lobe : null, envmaps, perMaterial).root);
   } catch (error) {
     section.append(errorBox(error));
   }

@@ -2,13 +2,15 @@
 """The browser interface in a real Chromium: each page opens, ps-shiny-sphere
 is submitted from the Queue page and watched to `done` on the Run page, the
 normal map decodes at the camera's size, the relighting canvas changes when the
-light is dragged, and the browser logs no errors. Screenshots go to
+light is dragged, an svbrdf run on the colour dome is relit per material as
+`photorig relight --model svbrdf` renders it, and the browser logs no errors. Screenshots go to
 --artefacts; --screenshots DIR also writes the README's (docs/screenshots).
 
 Exit codes: 0 passed, 1 failed, 77 skipped (Chromium, chromedriver or Selenium
 not installed, or Chromium cannot start on this machine: the reason is printed)."""
 
 import argparse
+import json
 import os
 import re
 import shutil
@@ -33,9 +35,9 @@ def check(condition, message):
         fail(message)
 
 
-def start_daemon(args, data_root, log_path, token=None):
+def start_daemon(args, data_root, log_path, token=None, rig="config/rigs/sim-dome.yaml"):
     command = [os.path.join(args.bin_dir, "photorigd"), "--data-root", data_root, "--port", "0",
-               "--rig", os.path.join(args.source_dir, "config/rigs/sim-dome.yaml"),
+               "--rig", os.path.join(args.source_dir, rig),
                "--recipes", os.path.join(args.source_dir, "config/recipes")]
     log = open(log_path, "w")
     env = dict(os.environ)
@@ -127,6 +129,157 @@ def write_nrrd(path, n=24):
         out.write(header.encode() + struct.pack(f"<{len(values)}f", *values))
 
 
+def api_get(url, path, raw=False):
+    import urllib.request
+    with urllib.request.urlopen(url + "api/v1" + path, timeout=30) as reply:
+        body = reply.read()
+        return (body, reply.headers) if raw else json.loads(body)
+
+
+def submit_svbrdf_run(args, url):
+    """config/recipes/svbrdf-dome.yaml submitted over the API with two
+    materials at most (its two paints) and without its held-out-light check
+    and glTF asset: a quarter of its solve time, and nothing the relighting
+    view shows is left out. Returns the run's id."""
+    import urllib.request
+    path = os.path.join(os.path.abspath(args.source_dir), "config/recipes/svbrdf-dome.yaml")
+    text = open(path).read()
+    for key in ("held_out_lights: 4", "max_materials: 3"):
+        check(key in text, f"svbrdf-dome.yaml no longer says {key}")
+    text = text.replace("held_out_lights: 4", "held_out_lights: -1\n      gltf: false").replace("max_materials: 3", "max_materials: 2")
+    request = urllib.request.Request(url + "api/v1/runs", method="POST", headers={"Content-Type": "application/json"},
+                                     data=json.dumps({"name": "svbrdf-dome.yaml", "recipe": text, "path": path}).encode())
+    with urllib.request.urlopen(request, timeout=30) as reply:
+        return json.loads(reply.read())["id"]
+
+
+def image_values(url, run_id, path):
+    """A run's image from the values endpoint as a numpy array (rows, cols, channels)."""
+    import numpy
+    body, headers = api_get(url, f"/runs/{run_id}/values/{path}", raw=True)
+    shape = (int(headers["X-Image-Height"]), int(headers["X-Image-Width"]), int(headers["X-Image-Channels"]))
+    return numpy.frombuffer(body, dtype="<f4").reshape(shape)
+
+
+def canvas_rgb(driver, canvas):
+    """The pixels a canvas shows, as a numpy uint8 array (rows, cols, 3)."""
+    import base64
+    import io
+    import numpy
+    from PIL import Image
+    data_url = driver.execute_script("return arguments[0].toDataURL('image/png')", canvas)
+    return numpy.asarray(Image.open(io.BytesIO(base64.b64decode(data_url.split(",", 1)[1]))).convert("RGB")).astype(int)
+
+
+def check_per_material_relighting(args, driver, url, run_id, data_root, screenshot, phase):
+    """A run solved with svbrdf: the relighting view offers the per-material
+    model and shows it first, redraws when the light moves, adds the lobe on
+    the glossy paint only (against the Lambertian render of the same colour
+    albedo), and agrees with `photorig relight --model svbrdf` for the light
+    it was left at (checked to be away from every LED of the run)."""
+    import numpy
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select, WebDriverWait
+    wait = lambda seconds, condition, what: WebDriverWait(driver, seconds).until(  # noqa: E731
+        lambda d: condition(d), message=what)
+
+    deadline = time.monotonic() + 180
+    while (run := api_get(url, f"/runs/{run_id}"))["state"] not in ("done", "failed", "aborted", "interrupted"):
+        check(time.monotonic() < deadline, f"svbrdf run {run_id} still {run['state']} after 180 s")
+        time.sleep(0.5)
+    check(run["state"] == "done", f"svbrdf run {run_id} ended {run['state']}: {run.get('reason')}")
+    phase("svbrdf run done")
+    report = api_get(url, f"/runs/{run_id}/files/results/svbrdf/report.json")
+    lobes = [m for m in report["materials"] if m["model"] != "lambertian"]
+    check(lobes, f"the svbrdf fit found no material with a lobe: {report['materials']}")
+    glossy = max(range(len(report["materials"])), key=lambda i: sum(report["materials"][i]["specular"]))
+    matte = min(range(len(report["materials"])), key=lambda i: sum(report["materials"][i]["specular"]))
+
+    driver.get(url + f"#/results/{run_id}")
+    canvas = wait(60, lambda d: d.find_elements(By.ID, "relight-canvas"), "no relighting canvas for the svbrdf run")[0]
+    model = Select(driver.find_element(By.ID, "relight-model"))
+    check(model.first_selected_option.get_attribute("value") == "3",
+          f"the per-material model is not shown first: {model.first_selected_option.text!r}")
+    check("materials" in [s.get_attribute("id") for s in driver.find_elements(By.CSS_SELECTOR, "section")],
+          "no materials table for the svbrdf run")
+    pad = driver.find_element(By.ID, "light-pad")
+    js = driver.execute_script
+    js("arguments[0].scrollIntoView({block: 'center'})", canvas)
+    before = canvas_rgb(driver, canvas)
+    ActionChains(driver).move_to_element_with_offset(pad, -30, -38).click().perform()  # 11 deg from the nearest LED
+    per_material = canvas_rgb(driver, canvas)
+    check(numpy.abs(per_material - before).max() > 20, "the per-material canvas did not change when the light moved")
+    screenshot("relight-per-material", driver.find_element(By.ID, "relight"))
+    light = [float(v) for v in canvas.get_attribute("data-light").split(",")]
+    white = float(canvas.get_attribute("data-white"))
+    model.select_by_value("0")
+    lambertian = canvas_rgb(driver, canvas)
+    model.select_by_value("3")
+
+    # The lobe adds light on the glossy paint, next to nothing on the matte one
+    # (compared in linear units: in gamma-encoded levels a weak white lobe
+    # shows large where a channel of the paint is dark, e.g. orange's blue).
+    material = image_values(url, run_id, "results/svbrdf/material.png")[:, :, 0]
+    linear = lambda levels: (levels / 255.0) ** 2.2  # noqa: E731
+    added = (linear(per_material) - linear(lambertian)).mean(axis=2)
+    on_glossy, on_matte = added[material == glossy], added[material == matte]
+    print(f"per-material minus Lambertian (linear, white = 1): glossy material {glossy}: mean {on_glossy.mean():.4f}, "
+          f"{(on_glossy >= 0.1).sum()} of {on_glossy.size} pixels >= 0.1; matte material {matte}: mean {on_matte.mean():.4f}, "
+          f"largest {on_matte.max():.3f}", flush=True)
+    check((on_glossy >= 0.1).sum() >= 50, "the per-material render does not add a highlight on the glossy material")
+    check(on_glossy.mean() > 5 * on_matte.mean(), "the per-material render adds about as much on the matte material")
+
+    check_matches_photorig_relight(args, url, run_id, data_root, per_material, light, white, material, "blinn_phong")
+
+    # The GGX branch (Fresnel, masking): the glossy material's lobe swapped in
+    # report.json for a GGX one, the page reloaded and compared again.
+    report_file = os.path.join(data_root, "runs", run_id, "results", "svbrdf", "report.json")
+    report["materials"][glossy].update(model="ggx", specular=[0.3, 0.25, 0.2], shape=0.25)
+    with open(report_file, "w") as out:
+        json.dump(report, out)
+    driver.refresh()
+    canvas = wait(60, lambda d: d.find_elements(By.ID, "relight-canvas"), "no relighting canvas after the lobe changed")[0]
+    check("ggx" in Select(driver.find_element(By.ID, "relight-model")).first_selected_option.text,
+          "the per-material model does not name the GGX lobe")
+    js("arguments[0].scrollIntoView({block: 'center'})", canvas)
+    ActionChains(driver).move_to_element_with_offset(driver.find_element(By.ID, "light-pad"), -30, -38).click().perform()
+    light = [float(v) for v in canvas.get_attribute("data-light").split(",")]
+    check_matches_photorig_relight(args, url, run_id, data_root, canvas_rgb(driver, canvas), light,
+                                   float(canvas.get_attribute("data-white")), material, "ggx")
+    for box in driver.find_elements(By.CSS_SELECTOR, "#page .error"):
+        fail(f"the svbrdf Results page shows an error: {box.text}")
+    errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
+    check(not errors, "the browser logged errors on the svbrdf run:\n" + "\n".join(e["message"] for e in errors))
+    phase("per-material relighting")
+
+
+def check_matches_photorig_relight(args, url, run_id, data_root, shown, light, white, material, lobe):
+    """The canvas `shown` against `photorig relight --model svbrdf` for the
+    same light, held out (more than 5 deg from every LED of the run), tone-mapped
+    as the page does it: white = `white` (linear, after the page's factor
+    pi), gamma 2.2; over the pixels the fit kept."""
+    import numpy
+    leds = [led["direction"] for led in api_get(url, f"/runs/{run_id}/files/manifest.json")["lights"]]
+    nearest_deg = min(numpy.degrees(numpy.arccos(numpy.clip(numpy.dot(light, d) / numpy.linalg.norm(d), -1, 1))) for d in leds)
+    check(nearest_deg > 5, f"the light {light} is within {nearest_deg:.1f} deg of an LED: not a held-out direction")
+    relit_file = os.path.join(data_root, "runs", run_id, "results", "relit-check", f"{lobe}.tiff")
+    os.makedirs(os.path.dirname(relit_file), exist_ok=True)
+    done = subprocess.run([os.path.join(args.bin_dir, "photorig"), "relight", "--run", os.path.join(data_root, "runs", run_id),
+                           "--light", ",".join(f"{v:.9g}" for v in light), "--model", "svbrdf", "--out", relit_file],
+                          capture_output=True, text=True, timeout=60)
+    check(done.returncode == 0, f"photorig relight failed: {done.stderr}")
+    relit = image_values(url, run_id, f"results/relit-check/{lobe}.tiff")
+    expected = 255 * numpy.clip(numpy.pi * relit / white, 0, 1) ** (1 / 2.2)
+    fitted = material < 255
+    difference = numpy.abs(shown[fitted] - expected[fitted])
+    print(f"page against photorig relight, {lobe} lobe, light ({', '.join(f'{v:.3f}' for v in light)}; {nearest_deg:.1f} deg "
+          f"from the nearest LED), {fitted.sum()} pixels: mean {difference.mean():.2f} levels, 99th percentile "
+          f"{numpy.percentile(difference, 99):.1f}, largest {difference.max():.1f}", flush=True)
+    check(difference.mean() < 0.75 and numpy.percentile(difference, 99) <= 2.0,
+          f"the page's per-material render ({lobe}) departs from photorig relight --model svbrdf")
+
+
 def log_tail(path, lines=40):
     """The end of a log without the D-Bus complaints a headless Chromium makes
     where no session bus runs (they say nothing about why it failed)."""
@@ -208,7 +361,13 @@ def main():
     daemon, url = start_daemon(args, os.path.join(temp, "data"), os.path.join(args.artefacts, "photorigd.log"))
     driver = None
     chromedriver = None
+    colour = None
     try:
+        # The colour dome's daemon solves an svbrdf run meanwhile (checked after the other pages).
+        colour_root = os.path.join(temp, "data-colour")
+        colour, colour_url = start_daemon(args, colour_root, os.path.join(args.artefacts, "photorigd-colour.log"),
+                                          rig="config/rigs/sim-dome-colour.yaml")
+        svbrdf_run = submit_svbrdf_run(args, colour_url)
         driver_logs = [os.path.join(args.artefacts, name) for name in ("chromedriver.log", "chromium-output.log")]
         chromedriver, chromedriver_url = start_chromedriver(*driver_logs)
         driver = start_browser(os.path.join(temp, "chromium-profile"), chromedriver_url, driver_logs)
@@ -304,11 +463,17 @@ def main():
         for button in driver.find_elements(By.CSS_SELECTOR, "#maps button[data-map]"):
             key = button.get_attribute("data-map")
             button.click()
-            wait(15, lambda d: d.find_element(By.ID, "map-image").get_attribute("data-map") == key, f"map {key} not shown")
+            wait(15, lambda d: d.find_element(By.ID, "map-image").get_attribute("data-map") == key
+                 and js("const i = arguments[0]; return i.complete && i.naturalWidth > 0", d.find_element(By.ID, "map-image")),
+                 f"map {key} not shown")
             js("document.getElementById('map-readout').textContent = ''")
-            hover_pixel(camera["width"] // 2, camera["height"] // 2)
-            wait(15, lambda d: driver.find_element(By.ID, "map-readout").text.startswith("(")
-                 and driver.find_element(By.ID, "map-legend").text, f"map {key}: no read-out or legend")
+            hovers = []
+
+            def read_out(d):  # the cursor moved by a pixel each time: the values may arrive after the first move
+                hovers.append(1)
+                hover_pixel(camera["width"] // 2 + len(hovers) % 2, camera["height"] // 2)
+                return d.find_element(By.ID, "map-readout").text.startswith("(") and d.find_element(By.ID, "map-legend").text
+            wait(15, read_out, f"map {key}: no read-out or legend")
             if key == "flags":
                 check("solved" in driver.find_element(By.ID, "map-readout").text,
                       f"the flag at the sphere's centre reads {driver.find_element(By.ID, 'map-readout').text!r}")
@@ -361,6 +526,8 @@ def main():
         errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
         check(not errors, "the browser logged errors:\n" + "\n".join(e["message"] for e in errors))
 
+        check_per_material_relighting(args, driver, colour_url, svbrdf_run, colour_root, screenshot, phase)
+
         # A daemon with a token: given once in the address, kept for the tab, gone from the address.
         token = "browser-test-token-0123456789"
         secured, secured_url = start_daemon(args, os.path.join(temp, "data-token"),
@@ -380,7 +547,7 @@ def main():
         if args.screenshots:  # the README's, in 128 colours to keep the repository small
             from PIL import Image
             os.makedirs(args.screenshots, exist_ok=True)
-            for name in ("queue", "run", "relight"):
+            for name in ("queue", "run", "relight", "relight-per-material"):
                 Image.open(shots[name]).convert("RGB").quantize(128).save(
                     os.path.join(args.screenshots, f"ui-{name}.png"), optimize=True)
         print(f"passed in {time.monotonic() - started:.1f} s; screenshots in {args.artefacts}")
@@ -391,11 +558,12 @@ def main():
         if chromedriver is not None:
             chromedriver.terminate()
             chromedriver.wait(15)
-        daemon.send_signal(signal.SIGTERM)
-        try:
-            daemon.wait(15)
-        except subprocess.TimeoutExpired:
-            daemon.kill()
+        for process in (p for p in (daemon, colour) if p is not None):
+            process.send_signal(signal.SIGTERM)
+            try:
+                process.wait(15)
+            except subprocess.TimeoutExpired:
+                process.kill()
         shutil.rmtree(temp, ignore_errors=True)
 
 

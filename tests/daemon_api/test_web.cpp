@@ -33,7 +33,7 @@ cv::Mat DecodePng(const std::string& bytes) {
 
 class Web : public ::testing::Test {
  protected:
-  void StartDaemon(const std::string& token = "") {
+  void StartDaemon(const std::string& token = "", std::size_t max_image_values = ApiOptions{}.max_image_values) {
     ServiceOptions options;
     options.data_root = (dir_.path() / "data").string();
     options.rig_path = dir_.Write("rig.yaml", SmallRigYaml());
@@ -45,6 +45,7 @@ class Web : public ::testing::Test {
     ApiOptions api;
     api.port = 0;
     api.token = token;
+    api.max_image_values = max_image_values;
     api.web_root = (dir_.path() / "web").string();
     dir_.Write("web/index.html", "<!doctype html><title>photorig</title>");
     dir_.Write("web/app.js", "export const page = 1;");
@@ -164,6 +165,29 @@ TEST_F(Web, PreviewsStatsAndValuesDescribeTheFrameOnDisk) {
   ASSERT_TRUE(small);
   const cv::Mat shrunk = DecodePng(small->body);
   EXPECT_EQ(shrunk.size(), cv::Size(16, 16));
+}
+
+TEST_F(Web, ValuesAnswersImagesUpToItsLimitAndRefusesLargerOnesSayingWhy) {
+  StartDaemon("", 32 * 32);  // the small dome's frames are 32 x 32, one channel
+  const std::string id = FinishedRun();
+  const std::string base = "/api/v1/runs/" + id;
+  // A 3-channel float map of the same size holds three times the limit.
+  cv::Mat normals(32, 32, CV_32FC3, cv::Scalar(0, 0, 1));
+  fs::create_directories(dir_.path() / "data/runs" / id / "results");
+  WriteFloatTiff((dir_.path() / "data/runs" / id / "results/normals.tiff").string(), normals);
+  httplib::Client http("127.0.0.1", served_->port());
+  const auto frame = http.Get(base + "/values/frames/0001_led00.png");
+  ASSERT_TRUE(frame);
+  EXPECT_EQ(frame->status, 200) << frame->body;
+  EXPECT_EQ(frame->body.size(), 32u * 32u * sizeof(float));
+  const auto refused = Client().Get(base + "/values/results/normals.tiff");
+  EXPECT_EQ(refused.http_status, 413);
+  EXPECT_NE(refused.body.value("error", "").find("3072 values (32 x 32 x 3), more than the 1024"), std::string::npos)
+      << refused.body.dump();
+  // The same map stays readable shrunk.
+  const auto preview = http.Get(base + "/preview/results/normals.tiff");
+  ASSERT_TRUE(preview);
+  EXPECT_EQ(preview->status, 200);
 }
 
 TEST_F(Web, ImageRoutesKeepToTheRunAndToImages) {

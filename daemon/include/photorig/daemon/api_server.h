@@ -42,6 +42,10 @@ struct ApiOptions {
   int port = 8750;                        // 0: any free port (see ApiServer::port())
   std::string token;                      // bearer token; required off loopback
   std::size_t max_body_bytes = 1 << 20;
+  // Largest image GET .../values answers, in values (width x height x
+  // channels); beyond it 413. Default 2^24 (64 MiB of float32): a 2048 x 2048
+  // colour map, four times the largest result the rigs here write.
+  std::size_t max_image_values = std::size_t{1} << 24;
   int sse_keepalive_ms = 15000;
   // Host names accepted besides loopback and bind_address (a request with a
   // valid token is accepted under any Host).
