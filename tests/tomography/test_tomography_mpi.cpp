@@ -108,14 +108,15 @@ TEST(TomographyMpi, DecompositionIsCheckedAndChosenFromTheVolumeBudget) {
   EXPECT_NE(why.find("slabs must be >= 0"), std::string::npos) << why;
 }
 
-// Solves the scan in one process and under `mpirun -np 2` with `mpi_flags`,
-// and compares the two.
-void ExpectTwoProcessesGiveTheSingleProcessSolve(const std::string& mpi_flags, int view_groups, int slabs) {
+// Solves the scan with `solve_flags` in one process and under `mpirun -np 2`
+// with `mpi_flags` too, and compares the two.
+void ExpectTwoProcessesGiveTheSingleProcessSolve(tomography::Beam beam, const std::string& solve_flags,
+                                                 const std::string& mpi_flags, int view_groups, int slabs) {
   TempDir dir;
   const Outcome probe = Shell(kMpirun + "true", dir);
   if (probe.exit_code != 0) GTEST_SKIP() << "mpirun cannot start two processes here: " << probe.err;
 
-  const TomographyInput input = SimulatedScan();
+  const TomographyInput input = SimulatedScan(64, beam);
   const std::string folder = (dir.path() / "scan").string();
   WriteProjectionFolder(input, folder);
 
@@ -127,7 +128,8 @@ void ExpectTwoProcessesGiveTheSingleProcessSolve(const std::string& mpi_flags, i
   for (const char* method : {"sirt", "cgls"}) {
     const std::string one = (dir.path() / (std::string(method) + "-1")).string();
     const std::string two = (dir.path() / (std::string(method) + "-2")).string();
-    const std::string arguments = " solve tomography --projections " + folder + " --method " + method + " --json";
+    const std::string arguments =
+        " solve tomography --projections " + folder + " --method " + method + " " + solve_flags + " --json";
     const Outcome single = Shell(kEnvironment + Photorig() + arguments + " --out " + one, dir);
     ASSERT_EQ(single.exit_code, 0) << single.err;
     const Outcome distributed = Shell(kMpirun + Photorig() + arguments + " --mpi " + mpi_flags + " --out " + two, dir);
@@ -153,13 +155,18 @@ void ExpectTwoProcessesGiveTheSingleProcessSolve(const std::string& mpi_flags, i
 }
 
 TEST(TomographyMpi, TwoProcessesSplittingTheViewsGiveTheSingleProcessSolve) {
-  ExpectTwoProcessesGiveTheSingleProcessSolve("", 2, 1);
+  ExpectTwoProcessesGiveTheSingleProcessSolve(tomography::Beam::kParallel, "", "", 2, 1);
 }
 
 // Each process holds four of the eight slices: partial ray sums added over
 // the processes, every sum over voxels too, the slabs gathered for writing.
+// A cone beam, so that rays cross from one slab into the other (a parallel
+// beam's rays each stay in one slice). Its grid of the detector's pitch
+// leaves a model error of 1.56 x the noise level after 300 SIRT iterations,
+// hence the discrepancy factor 1.8.
 TEST(TomographyMpi, TwoProcessesSplittingTheVolumeInSlabsGiveTheSingleProcessSolve) {
-  ExpectTwoProcessesGiveTheSingleProcessSolve("--mpi-slabs 2", 1, 2);
+  ExpectTwoProcessesGiveTheSingleProcessSolve(tomography::Beam::kCone, "--discrepancy-factor 1.8", "--mpi-slabs 2", 1,
+                                              2);
 }
 
 TEST(TomographyMpi, SlabsThatDoNotDivideTheProcessesAreRefusedSayingWhy) {
