@@ -287,6 +287,7 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   held.b = all.b.segment(first_ray, n);
   if (!all.valid.empty()) held.valid.assign(all.valid.begin() + first_ray, all.valid.begin() + first_ray + n);
   if (all.variance.size() > 0) held.variance = all.variance.segment(first_ray, n);
+  all = tomography::Absorbance();  // a process of a distributed solve keeps its rays only
 
   tomography::ReconstructOptions options;
   options.method = *tomography::ParseMethod(request.method);
