@@ -122,7 +122,8 @@ TEST_P(Slabs, ProjectionsOfTheSlabsAddUpToTheWholeGrids) {
     std::vector<RayWeight> weights;
     for (std::int64_t ray = 0; ray < geometry.rays(); ++ray) {
       slab->Row(ray, &weights);
-      for (const RayWeight& w : weights) rows[static_cast<std::size_t>(ray)].push_back({w.voxel + first * per_slice, w.weight_mm});
+      for (const RayWeight& w : weights)
+        rows[static_cast<std::size_t>(ray)].push_back({w.voxel + first * per_slice, w.weight_mm});
     }
   }
   EXPECT_LT((sum - whole_forward).norm(), 1e-6 * whole_forward.norm());

@@ -75,7 +75,10 @@ int Execute(const Options& options) {
       }
       return summary;
     };
-    if (request.method == "art") return Fail(kExitUsage, "--mpi solves by sirt or cgls (ART visits one ray at a time)");
+    // Only the simultaneous iterations run on distributed products and sums.
+    if (request.method != "sirt" && request.method != "cgls")
+      return Fail(kExitUsage, "--mpi solves by sirt or cgls, not " + request.method +
+                                  (request.method == "art" ? " (ART visits one ray at a time)" : ""));
   }
   const bool writes = !session || session->rank() == 0;
 #else
@@ -152,7 +155,8 @@ CommandRunner Setup(CLI::App& app) {
                 "sirt or cgls)");
   sub->add_option("--mpi-slabs", options->mpi_slabs,
                   "with --mpi: slabs of the volume along z; the processes are view groups x slabs "
-                  "(default 0: views alone when one process's volume vectors fit 4 GiB, else the fewest slabs that fit)")
+                  "(default 0: views alone when one process's volume vectors fit 4 GiB, "
+                  "else the fewest slabs that fit)")
       ->check(CLI::NonNegativeNumber);
   return {sub, [options] { return Execute(*options); }};
 }

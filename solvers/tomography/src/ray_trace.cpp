@@ -153,15 +153,13 @@ void TraceRayInSlices(const VolumeGrid& grid, int first_slice, int slices, const
   const double z0 = origin.z() + t0 * direction.z(), z1 = origin.z() + t1 * direction.z();
   const double low = first_slice * grid.voxel_mm - half.z(), high = (first_slice + slices) * grid.voxel_mm - half.z();
   if (std::max(z0, z1) < low - grid.voxel_mm || std::min(z0, z1) > high + grid.voxel_mm) return;
-  if (interpolation == Interpolation::kSiddon)
-    Siddon(grid, origin, direction, t0, t1, weights);
-  else
-    Joseph(grid, origin, direction, weights);
+  TraceRay(grid, origin, direction, interpolation, weights);
   const std::int64_t per_slice = static_cast<std::int64_t>(grid.nx) * grid.ny;
   const std::int64_t begin = first_slice * per_slice, end = (first_slice + slices) * per_slice;
   std::size_t kept = 0;
   for (const RayWeight& w : *weights)
-    if (w.voxel >= begin && w.voxel < end) (*weights)[kept++] = {static_cast<std::int32_t>(w.voxel - begin), w.weight_mm};
+    if (w.voxel >= begin && w.voxel < end)
+      (*weights)[kept++] = {static_cast<std::int32_t>(w.voxel - begin), w.weight_mm};
   weights->resize(kept);
 }
 

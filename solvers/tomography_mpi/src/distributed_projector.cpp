@@ -183,7 +183,8 @@ ProjectorSummary MakeDistributedProjector(const VolumeGrid& grid, const Geometry
   MPI_Allreduce(MPI_IN_PLACE, &built_everywhere, 1, MPI_INT, MPI_MIN, comm);
   if (!summary.IsSolutionUsable()) return summary;
   if (!built_everywhere) {
-    summary.End(solvers::Termination::kFailure, "another process could not build its block of W: it does not fit memory_budget_bytes there");
+    summary.End(solvers::Termination::kFailure,
+                "another process could not build its block of W: it does not fit memory_budget_bytes there");
     return summary;
   }
   *first_ray = geometry.RayIndex(views.first, 0, 0);
