@@ -287,6 +287,7 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   held.b = all.b.segment(first_ray, n);
   if (!all.valid.empty()) held.valid.assign(all.valid.begin() + first_ray, all.valid.begin() + first_ray + n);
   if (all.variance.size() > 0) held.variance = all.variance.segment(first_ray, n);
+  all = tomography::Absorbance();  // a process of a distributed solve keeps its rays only
 
   tomography::ReconstructOptions options;
   options.method = *tomography::ParseMethod(request.method);
@@ -294,8 +295,10 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   options.discrepancy_factor = request.discrepancy_factor;
   options.progress = request.progress;
   result.reconstruction = tomography::Reconstruct(*matrix, held, options, &result.sigma);
+  // A process of a slab decomposition holds its slab: the whole volume goes to the one that writes.
+  if (result.sigma.size() == matrix->voxels()) matrix->GatherVolume(&result.sigma);
 
-  if (input.phantom && result.reconstruction.IsSolutionUsable()) {
+  if (input.phantom && result.reconstruction.IsSolutionUsable() && result.sigma.size() == result.grid.voxels()) {
     const std::vector<float> truth = input.phantom->Rasterise(result.grid, 4);
     const double radius = 0.5 * g.detector_cols * g.pixel_mm;
     double error2 = 0.0, truth2 = 0.0;

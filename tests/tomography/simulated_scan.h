@@ -1,20 +1,25 @@
 #pragma once
 // The scan config/recipes/tomography.yaml takes, made in memory: 64 x 8
 // pixels of 0.5 mm, views over 180 degrees of the 3D Shepp-Logan phantom
-// (25.6 mm across, sigma up to 0.1/mm), four flats and four darks.
+// (25.6 mm across, sigma up to 0.1/mm), four flats and four darks. A cone
+// beam puts the source 60 mm before the axis and the detector 20 mm behind
+// it: its rays climb or fall by up to about two slices across the volume.
 
 #include "photorig/daemon/tomography_pipeline.h"
 #include "photorig/sim/phantom.h"
 
 namespace photorig::daemon {
 
-inline TomographyInput SimulatedScan(int views = 64) {
+inline TomographyInput SimulatedScan(int views = 64, tomography::Beam beam = tomography::Beam::kParallel) {
   TomographyInput input;
   input.source = "simulated scan";
   input.geometry.detector_cols = 64;
   input.geometry.detector_rows = 8;
   input.geometry.pixel_mm = 0.5;
   input.geometry.angles_rad = tomography::EvenAngles(views, 180.0);
+  input.geometry.beam = beam;
+  input.geometry.source_to_axis_mm = 60.0;
+  input.geometry.axis_to_detector_mm = 20.0;
   input.phantom = sim::Phantom::SheppLogan3d(12.8, 0.1);
   sim::TomographyScanOptions options;
   options.flats = 4;

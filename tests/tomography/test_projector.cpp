@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <ostream>
+#include <utility>
+#include <vector>
 #include <random>
 #include <string>
 
@@ -75,6 +78,91 @@ INSTANTIATE_TEST_SUITE_P(
                     AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kSparse},
                     AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kMatrixFree}),
     [](const testing::TestParamInfo<AdjointCase>& info) { return info.param.Name(); });
+
+// A slab decomposition's W (solvers/tomography_mpi) is the whole grid's W
+// cut by columns into runs of z-slices: each slab's rows are exactly the
+// whole rows' entries on its voxels, so that forward projections of the
+// slabs add up to the whole grid's and back projections are its pieces.
+class Slabs : public testing::TestWithParam<AdjointCase> {};
+
+TEST_P(Slabs, ProjectionsOfTheSlabsAddUpToTheWholeGrids) {
+  const AdjointCase c = GetParam();
+  const VolumeGrid grid{12, 10, 8, 1.0};
+  // Nine rows of the voxel pitch: parallel rows at whole millimetres, and the
+  // cone's central row at z = 0, lie exactly on the faces between slices,
+  // where the slabs below start (z = -1: slice 3, z = 0: slice 4).
+  const Geometry geometry = Scan(c.beam, 9, 20, 9, 1.0);
+  ProjectorOptions options;
+  options.interpolation = c.interpolation;
+  options.storage = c.storage;
+  std::unique_ptr<Projector> whole;
+  ASSERT_TRUE(MakeProjector(grid, geometry, options, &whole).IsSolutionUsable());
+  const Eigen::VectorXf x = Random(grid.voxels(), 5), y = Random(geometry.rays(), 6);
+  Eigen::VectorXf whole_forward, whole_back;
+  whole->Forward(x, &whole_forward);
+  whole->Back(y, &whole_back);
+  ASSERT_GT(whole_forward.norm(), 0.0f);
+
+  const int per_slice = grid.nx * grid.ny;
+  Eigen::VectorXf sum = Eigen::VectorXf::Zero(geometry.rays());
+  std::vector<std::vector<RayWeight>> rows(static_cast<std::size_t>(geometry.rays()));
+  for (const auto& [first, count] : {std::pair{0, 3}, std::pair{3, 1}, std::pair{4, 4}}) {
+    ProjectorOptions slab_options = options;
+    slab_options.first_slice = first;
+    slab_options.slices = count;
+    std::unique_ptr<Projector> slab;
+    ASSERT_TRUE(MakeProjector(grid, geometry, slab_options, &slab).IsSolutionUsable());
+    ASSERT_EQ(slab->voxels(), std::int64_t{per_slice} * count);
+    Eigen::VectorXf forward, back;
+    slab->Forward(x.segment(std::int64_t{first} * per_slice, slab->voxels()), &forward);
+    sum += forward;
+    slab->Back(y, &back);
+    const Eigen::VectorXf piece = whole_back.segment(std::int64_t{first} * per_slice, slab->voxels());
+    EXPECT_LT((back - piece).norm(), 1e-6 * piece.norm()) << "slices " << first << " + " << count;
+    std::vector<RayWeight> weights;
+    for (std::int64_t ray = 0; ray < geometry.rays(); ++ray) {
+      slab->Row(ray, &weights);
+      for (const RayWeight& w : weights)
+        rows[static_cast<std::size_t>(ray)].push_back({w.voxel + first * per_slice, w.weight_mm});
+    }
+  }
+  EXPECT_LT((sum - whole_forward).norm(), 1e-6 * whole_forward.norm());
+  // Entry by entry: the same voxels with the very same weights.
+  std::vector<RayWeight> weights;
+  for (std::int64_t ray = 0; ray < geometry.rays(); ++ray) {
+    whole->Row(ray, &weights);
+    auto& pieces = rows[static_cast<std::size_t>(ray)];
+    auto by_voxel = [](const RayWeight& l, const RayWeight& r) { return l.voxel < r.voxel; };
+    std::sort(weights.begin(), weights.end(), by_voxel);
+    std::sort(pieces.begin(), pieces.end(), by_voxel);
+    ASSERT_EQ(pieces.size(), weights.size()) << "ray " << ray;
+    for (std::size_t i = 0; i < weights.size(); ++i) {
+      EXPECT_EQ(pieces[i].voxel, weights[i].voxel) << "ray " << ray;
+      EXPECT_EQ(pieces[i].weight_mm, weights[i].weight_mm) << "ray " << ray;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    AllProjectors, Slabs,
+    testing::Values(AdjointCase{Beam::kParallel, Interpolation::kSiddon, Storage::kSparse},
+                    AdjointCase{Beam::kParallel, Interpolation::kJoseph, Storage::kMatrixFree},
+                    AdjointCase{Beam::kCone, Interpolation::kSiddon, Storage::kMatrixFree},
+                    AdjointCase{Beam::kCone, Interpolation::kJoseph, Storage::kSparse}),
+    [](const testing::TestParamInfo<AdjointCase>& info) { return info.param.Name(); });
+
+TEST(Projector, SlicesPastTheGridAreInvalidOptions) {
+  ProjectorOptions options;
+  options.first_slice = 6;
+  options.slices = 3;
+  std::unique_ptr<Projector> w;
+  const ProjectorSummary s = MakeProjector({8, 8, 8, 0.5}, Scan(Beam::kParallel, 4, 8, 8, 0.5), options, &w);
+  EXPECT_EQ(s.termination, solvers::Termination::kInvalidOptions);
+  EXPECT_NE(s.message.find("past the grid"), std::string::npos) << s.message;
+  options.slices = 2;
+  ASSERT_TRUE(MakeProjector({8, 8, 8, 0.5}, Scan(Beam::kParallel, 4, 8, 8, 0.5), options, &w).IsSolutionUsable());
+  EXPECT_EQ(w->voxels(), 8 * 8 * 2);
+}
 
 TEST(Projector, SparseAndMatrixFreeGiveTheSameProducts) {
   const VolumeGrid grid{16, 16, 4, 0.5};

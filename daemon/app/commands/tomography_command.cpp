@@ -6,8 +6,9 @@
 // Exit 0 when the rule stopped it; 1 when the solve failed or cannot be
 // trusted (the residual never reached the noise level, inconsistent data);
 // 2 for missing flats or darks or a geometry that does not fit the frames.
-// With --mpi, under `mpirun -np N`, the views are shared by the N processes
-// (solvers/tomography_mpi); the first writes the results.
+// With --mpi, under `mpirun -np N`, the views and slabs of the volume are
+// shared by the N processes (solvers/tomography_mpi; --mpi-slabs S: N / S
+// groups of views x S slabs); the first writes the results.
 
 #include "../command.h"
 #include "../command_output.h"
@@ -19,6 +20,7 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <utility>
 
 #if PHOTORIG_HAVE_TOMOGRAPHY_MPI
 #include "photorig/solvers/tomography_mpi/distributed_projector.h"
@@ -33,6 +35,7 @@ struct Options {
   std::string run_dir, projections_dir, out;
   std::vector<int> volume;
   bool mpi = false;
+  int mpi_slabs = 0;  // 0: chosen from the volume's size (DecompositionOptions)
   daemon::TomographyRequest request;
 };
 
@@ -48,6 +51,7 @@ int Execute(const Options& options) {
       options.out.empty() ? (fs::path(source) / "results" / "tomography").string() : options.out;
   daemon::SystemMatrixFactory factory = daemon::InProcessSystemMatrix();
   int ranks = 1;
+  std::optional<std::pair<int, int>> view_groups_and_slabs;
 #if PHOTORIG_HAVE_TOMOGRAPHY_MPI
   // Under mpirun: every process loads the scan and solves its block of views;
   // the first writes the results and speaks for all.
@@ -56,19 +60,32 @@ int Execute(const Options& options) {
     session.emplace(nullptr, nullptr);
     ranks = session->size();
     if (session->rank() != 0) SilenceOutput();
-    factory = [](const tomography::VolumeGrid& grid, const tomography::Geometry& geometry,
-                 const tomography::ProjectorOptions& projector_options,
-                 std::unique_ptr<tomography::SystemMatrix>* matrix, std::int64_t* first_ray) {
-      return tomography::mpi::MakeDistributedProjector(grid, geometry, projector_options, MPI_COMM_WORLD, matrix,
-                                                       first_ray);
+    tomography::mpi::DecompositionOptions decomposition;
+    decomposition.slabs = options.mpi_slabs;
+    if (std::string why; !decomposition.IsValid(&why)) return Fail(kExitUsage, "--mpi-slabs: " + why);
+    factory = [decomposition, &view_groups_and_slabs](
+                  const tomography::VolumeGrid& grid, const tomography::Geometry& geometry,
+                  const tomography::ProjectorOptions& projector_options,
+                  std::unique_ptr<tomography::SystemMatrix>* matrix, std::int64_t* first_ray) {
+      tomography::ProjectorSummary summary = tomography::mpi::MakeDistributedProjector(
+          grid, geometry, projector_options, decomposition, MPI_COMM_WORLD, matrix, first_ray);
+      if (summary.IsSolutionUsable()) {
+        const auto& used = static_cast<const tomography::mpi::DistributedProjector&>(**matrix).decomposition();
+        view_groups_and_slabs = {used.view_groups, used.slabs};
+      }
+      return summary;
     };
-    if (request.method == "art") return Fail(kExitUsage, "--mpi solves by sirt or cgls (ART visits one ray at a time)");
+    // Only the simultaneous iterations run on distributed products and sums.
+    if (request.method != "sirt" && request.method != "cgls")
+      return Fail(kExitUsage, "--mpi solves by sirt or cgls, not " + request.method +
+                                  (request.method == "art" ? " (ART visits one ray at a time)" : ""));
   }
   const bool writes = !session || session->rank() == 0;
 #else
   if (options.mpi) return Fail(kExitUsage, "this photorig was built without MPI (libopenmpi-dev): no --mpi");
   const bool writes = true;
 #endif
+  if (!options.mpi && options.mpi_slabs != 0) return Fail(kExitUsage, "--mpi-slabs needs --mpi");
   const daemon::TomographyInput input =
       from_run ? daemon::LoadTomographyRun(source) : daemon::LoadProjectionFolder(source);
 
@@ -97,6 +114,10 @@ int Execute(const Options& options) {
   ResultFields() = result.ToJson();
   ResultFields()["source"] = source;
   ResultFields()["processes"] = ranks;
+  if (view_groups_and_slabs) {
+    ResultFields()["view_groups"] = view_groups_and_slabs->first;
+    ResultFields()["slabs"] = view_groups_and_slabs->second;
+  }
   ResultFields()["results_directory"] = destination;
   if (!result.trusted())
     return Fail(kExitFailed, r.IsSolutionUsable() ? "the reconstruction cannot be trusted: " + r.message
@@ -130,7 +151,13 @@ CommandRunner Setup(CLI::App& app) {
                   "centre of rotation on the detector, added to the stored geometry's");
   sub->add_option("--out", options->out, "output directory (default: SOURCE/results/tomography)");
   sub->add_flag("--mpi", options->mpi,
-                "distribute the views over the MPI processes this runs in (under mpirun; sirt or cgls)");
+                "distribute the views and slabs of the volume over the MPI processes this runs in (under mpirun; "
+                "sirt or cgls)");
+  sub->add_option("--mpi-slabs", options->mpi_slabs,
+                  "with --mpi: slabs of the volume along z; the processes are view groups x slabs "
+                  "(default 0: views alone when one process's volume vectors fit 4 GiB, "
+                  "else the fewest slabs that fit)")
+      ->check(CLI::NonNegativeNumber);
   return {sub, [options] { return Execute(*options); }};
 }
 

@@ -12,11 +12,20 @@ bool ProjectorOptions::IsValid(std::string* why) const {
     if (why) *why = "a sparse W needs memory_budget_bytes > 0";
     return false;
   }
+  if (first_slice < 0 || slices < 0) {
+    if (why) *why = "first_slice and slices must be >= 0";
+    return false;
+  }
   return true;
 }
 
-Projector::Projector(const VolumeGrid& grid, const Geometry& geometry, Interpolation interpolation)
-    : grid_(grid), geometry_(geometry), interpolation_(interpolation) {}
+Projector::Projector(const VolumeGrid& grid, const Geometry& geometry, Interpolation interpolation, int first_slice,
+                     int slices)
+    : grid_(grid),
+      geometry_(geometry),
+      interpolation_(interpolation),
+      first_slice_(first_slice),
+      slices_(slices > 0 ? slices : grid.nz - first_slice) {}
 
 std::int64_t Projector::nonzeros() const { return w_ ? w_->nonZeros() : 0; }
 
@@ -38,9 +47,16 @@ void Projector::Row(std::int64_t ray, std::vector<RayWeight>* weights) const {
   const int cols = geometry_.detector_cols, rows = geometry_.detector_rows;
   const int view = static_cast<int>(ray / (static_cast<std::int64_t>(rows) * cols));
   const int row = static_cast<int>(ray / cols % rows), col = static_cast<int>(ray % cols);
+  Trace(view, row, col, weights);
+}
+
+void Projector::Trace(int view, int row, int col, std::vector<RayWeight>* weights) const {
   Eigen::Vector3d origin, direction;
   geometry_.Ray(view, row, col, &origin, &direction);
-  TraceRay(grid_, origin, direction, interpolation_, weights);
+  if (slices_ == grid_.nz)
+    TraceRay(grid_, origin, direction, interpolation_, weights);
+  else
+    TraceRayInSlices(grid_, first_slice_, slices_, origin, direction, interpolation_, weights);
 }
 
 namespace {
@@ -116,14 +132,12 @@ void Projector::StoreSparse(const solvers::ProgressCallback& progress) {
 #pragma omp parallel
   {
     std::vector<RayWeight> weights;
-    Eigen::Vector3d origin, direction;
 #pragma omp for schedule(dynamic, 1)
     for (int view = 0; view < views; ++view) {
       counts[view].reserve(per_view);
       for (int row = 0; row < geometry_.detector_rows; ++row)
         for (int col = 0; col < geometry_.detector_cols; ++col) {
-          geometry_.Ray(view, row, col, &origin, &direction);
-          TraceRay(grid_, origin, direction, interpolation_, &weights);
+          Trace(view, row, col, &weights);
           counts[view].push_back(static_cast<std::int32_t>(weights.size()));
           for (const RayWeight& w : weights) {
             inner[view].push_back(w.voxel);
@@ -183,7 +197,13 @@ ProjectorSummary MakeProjector(const VolumeGrid& grid, const Geometry& geometry,
     summary.End(solvers::Termination::kInvalidInput, why);
     return summary;
   }
-  auto result = std::make_unique<Projector>(grid, geometry, options.interpolation);
+  if (options.first_slice + std::max(options.slices, 1) > grid.nz) {
+    summary.End(solvers::Termination::kInvalidOptions,
+                "slices from " + std::to_string(options.first_slice) + " (" + std::to_string(options.slices) +
+                    " of them) run past the grid's " + std::to_string(grid.nz));
+    return summary;
+  }
+  auto result = std::make_unique<Projector>(grid, geometry, options.interpolation, options.first_slice, options.slices);
   // Entries per ray from a sample of about 2000 rays spread over the scan.
   const std::int64_t rays = geometry.rays();
   const std::int64_t stride = std::max<std::int64_t>(1, rays / 2000);
@@ -195,7 +215,7 @@ ProjectorSummary MakeProjector(const VolumeGrid& grid, const Geometry& geometry,
   }
   const double entries = static_cast<double>(sampled_entries) / std::max<std::int64_t>(1, sampled) * rays;
   summary.estimated_sparse_bytes = static_cast<std::size_t>(
-      2 * entries * (sizeof(float) + sizeof(std::int32_t)) + (rays + grid.voxels() + 2) * sizeof(std::int32_t));
+      2 * entries * (sizeof(float) + sizeof(std::int32_t)) + (rays + result->voxels() + 2) * sizeof(std::int32_t));
   // Eigen's 32-bit indices also bound the entries.
   const bool fits = summary.estimated_sparse_bytes <= options.memory_budget_bytes && entries < 2.0e9;
   timer.SetupDone(&summary);

@@ -142,4 +142,25 @@ void TraceRay(const VolumeGrid& grid, const Eigen::Vector3d& origin, const Eigen
     Joseph(grid, origin, direction, weights);
 }
 
+void TraceRayInSlices(const VolumeGrid& grid, int first_slice, int slices, const Eigen::Vector3d& origin,
+                      const Eigen::Vector3d& direction, Interpolation interpolation, std::vector<RayWeight>* weights) {
+  weights->clear();
+  double t0 = 0.0, t1 = 0.0;
+  const Eigen::Vector3d half = grid.half_extent_mm();
+  if (!ClipToBox(half, origin, direction, &t0, &t1)) return;
+  // Most rays of a scan run nearly across z and miss most slabs: skip those
+  // without tracing. The margin of a voxel covers Joseph's neighbours.
+  const double z0 = origin.z() + t0 * direction.z(), z1 = origin.z() + t1 * direction.z();
+  const double low = first_slice * grid.voxel_mm - half.z(), high = (first_slice + slices) * grid.voxel_mm - half.z();
+  if (std::max(z0, z1) < low - grid.voxel_mm || std::min(z0, z1) > high + grid.voxel_mm) return;
+  TraceRay(grid, origin, direction, interpolation, weights);
+  const std::int64_t per_slice = static_cast<std::int64_t>(grid.nx) * grid.ny;
+  const std::int64_t begin = first_slice * per_slice, end = (first_slice + slices) * per_slice;
+  std::size_t kept = 0;
+  for (const RayWeight& w : *weights)
+    if (w.voxel >= begin && w.voxel < end)
+      (*weights)[kept++] = {static_cast<std::int32_t>(w.voxel - begin), w.weight_mm};
+  weights->resize(kept);
+}
+
 }  // namespace photorig::tomography

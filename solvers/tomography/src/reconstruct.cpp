@@ -148,8 +148,12 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
   Eigen::VectorXf row_sums, column_sums;
   projector.Forward(Eigen::VectorXf::Ones(voxels), &row_sums);
   projector.Back(mask, &column_sums);
-  for (std::int64_t j = 0; j < voxels; ++j) summary.voxels_reached += column_sums[j] > 0.0f;
-  summary.voxels_unreached = voxels - summary.voxels_reached;
+  // Counts over the whole volume, whatever part of it this process holds.
+  std::int64_t reached_here = 0;
+  for (std::int64_t j = 0; j < voxels; ++j) reached_here += column_sums[j] > 0.0f;
+  summary.voxels_reached = static_cast<std::int64_t>(projector.SumOverVoxels(static_cast<double>(reached_here)));
+  summary.voxels_unreached =
+      static_cast<std::int64_t>(projector.SumOverVoxels(static_cast<double>(voxels))) - summary.voxels_reached;
   if (summary.voxels_reached == 0)
     return end(solvers::Termination::kFailure, "no valid ray crosses the volume: check the grid against the geometry");
   summary.underdetermined = summary.rays_used < summary.voxels_reached;
@@ -213,7 +217,7 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
   } else if (options.method == Method::kCgls) {
     projector.Back(r, &s);
     p = s;
-    gamma = SquaredNorm(s);
+    gamma = projector.SumOverVoxels(SquaredNorm(s));
     gamma_floor = gamma * 1e-12;
   } else {
     // Views in a shuffled order: consecutive updates from nearby angles are
@@ -250,7 +254,7 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
       x += alpha * p;
       r -= alpha * q;
       projector.Back(r, &s);
-      const double gamma_next = SquaredNorm(s);
+      const double gamma_next = projector.SumOverVoxels(SquaredNorm(s));
       p = s + static_cast<float>(gamma_next / gamma) * p;
       gamma = gamma_next;
     }

@@ -36,6 +36,13 @@ struct ProjectorOptions {
   // 128^2 about 7 GB, so it runs matrix-free under the default.
   std::size_t memory_budget_bytes = std::size_t{4} << 30;
   solvers::ProgressCallback progress;  // stage "projector": views traced while building W
+  // W's columns: the z-slices [first_slice, first_slice + slices) of the
+  // grid; slices 0 (default): every slice from first_slice on. A process of a
+  // slab decomposition (solvers/tomography_mpi) holds its slab's columns, so
+  // that the products of every slab's W add up to the whole grid's
+  // (TraceRayInSlices).
+  int first_slice = 0;
+  int slices = 0;
 
   bool IsValid(std::string* why) const;
 };
@@ -43,31 +50,41 @@ struct ProjectorOptions {
 using SparseMatrix = Eigen::SparseMatrix<float, Eigen::RowMajor, std::int32_t>;
 
 // What the simultaneous iterations (SIRT, CGLS) need of W: its two products
-// and sums over its rays. A Projector holds every row; a distributed form
-// (solvers/tomography_mpi) holds a block of views per process, so that its
-// ray-space vectors are that block's rows while volumes are whole, and it
-// sums back projections and ray sums over the processes.
+// and sums over its rays and voxels. A Projector holds every row; a
+// distributed form (solvers/tomography_mpi) holds a block of views and a slab
+// of the volume per process, so that its ray-space vectors are that block's
+// rows and its volumes that slab's voxels, and it sums products, ray sums and
+// voxel sums over the processes.
 class SystemMatrix {
  public:
   virtual ~SystemMatrix() = default;
   virtual std::int64_t rays() const = 0;    // rows held here (ray-space vectors have this size)
-  virtual std::int64_t voxels() const = 0;
+  virtual std::int64_t voxels() const = 0;  // columns held here (volumes have this size)
   virtual int views() const = 0;            // views of the whole scan
   virtual void Forward(const Eigen::VectorXf& x, Eigen::VectorXf* y) const = 0;  // y = W x, rows held here
   virtual void Back(const Eigen::VectorXf& y, Eigen::VectorXf* x) const = 0;     // x = W^T y over every row
   // A sum over rays (a squared norm, a count) from this part's share: the whole scan's.
   virtual double SumOverRays(double held_here) const { return held_here; }
+  // A sum over voxels (a squared norm, a count) from this part's share: the whole volume's.
+  virtual double SumOverVoxels(double held_here) const { return held_here; }
+  // *volume holds the voxels held here; on return, the whole volume where it
+  // is written (a distributed form: the first process; empty on the others).
+  virtual void GatherVolume(Eigen::VectorXf* /*volume*/) const {}
 };
 
 class Projector : public SystemMatrix {
  public:
-  Projector(const VolumeGrid& grid, const Geometry& geometry, Interpolation interpolation);
+  // Columns: the grid's z-slices [first_slice, first_slice + slices); slices 0: to the last.
+  Projector(const VolumeGrid& grid, const Geometry& geometry, Interpolation interpolation, int first_slice = 0,
+            int slices = 0);
 
   const VolumeGrid& grid() const { return grid_; }
   const Geometry& geometry() const { return geometry_; }
   Interpolation interpolation() const { return interpolation_; }
   std::int64_t rays() const override { return geometry_.rays(); }
-  std::int64_t voxels() const override { return grid_.voxels(); }
+  std::int64_t voxels() const override { return static_cast<std::int64_t>(grid_.nx) * grid_.ny * slices_; }
+  int first_slice() const { return first_slice_; }
+  int slices() const { return slices_; }
   int views() const override { return geometry_.views(); }
   bool is_sparse() const { return w_ != nullptr; }
   std::int64_t nonzeros() const;  // stored entries of W (0 when matrix-free)
@@ -85,7 +102,10 @@ class Projector : public SystemMatrix {
   VolumeGrid grid_;
   Geometry geometry_;
   Interpolation interpolation_;
+  int first_slice_, slices_;
   std::unique_ptr<SparseMatrix> w_, wt_;
+
+  void Trace(int view, int row, int col, std::vector<RayWeight>* weights) const;
 };
 
 struct ProjectorSummary : solvers::Summary {

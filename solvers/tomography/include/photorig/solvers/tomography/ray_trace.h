@@ -39,4 +39,12 @@ struct RayWeight {
 void TraceRay(const VolumeGrid& grid, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
               Interpolation interpolation, std::vector<RayWeight>* weights);
 
+// The same ray's weights on the z-slices [first_slice, first_slice + slices)
+// of `grid` only, indexed in that slab (a grid of nx x ny x slices): the
+// whole grid's row cut to the slab's voxels, never the row of a smaller grid,
+// so that Joseph's weights across the slab's faces, and a ray lying exactly
+// on a face, stay those of the whole grid and the slabs' rows add up to it.
+void TraceRayInSlices(const VolumeGrid& grid, int first_slice, int slices, const Eigen::Vector3d& origin,
+                      const Eigen::Vector3d& direction, Interpolation interpolation, std::vector<RayWeight>* weights);
+
 }  // namespace photorig::tomography
