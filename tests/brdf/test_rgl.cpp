@@ -1,3 +1,4 @@
+#include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/models.h"
 #include "photorig/solvers/brdf/rgl.h"
 #include "photorig/solvers/brdf/tensor_file.h"
@@ -181,6 +182,61 @@ TEST(RglBrdf, LambertianThroughAnyNdfIsFlat) {
   EXPECT_LT(e.rms, 0.02);
   EXPECT_LT(e.max, 0.15);
   EXPECT_FALSE(rgl.Evaluate(Direction(0.3, 0), Direction(95 * kDeg, 0)).has_value());  // below the horizon
+}
+
+// Either format opens behind one evaluation; the samples drawn from it stay
+// within the angle limit and carry the table's values.
+TEST(MeasuredTable, OpensByExtensionAndSamplesWithinTheLimit) {
+  const ModelParams model = Ggx(0.3);
+  TensorFile file;
+  ASSERT_TRUE(TabulateRgl([&](const DirectionPair& d) { return Evaluate(model, d.wi, d.wo); },
+                          Tabulation(4, 8, 16, 0.3), &file)
+                  .IsSolutionUsable());
+  const std::string path = TempPath("measured.bsdf");
+  ASSERT_TRUE(WriteTensorFile(path, file).IsSolutionUsable());
+  MeasuredBrdf table;
+  ASSERT_TRUE(ReadMeasured(path, &table).IsSolutionUsable());
+  RglBrdf direct;
+  ASSERT_TRUE(ReadRgl(path, &direct).IsSolutionUsable());
+  TableSampling sampling;
+  sampling.theta_h_steps = sampling.theta_d_steps = sampling.phi_d_steps = 8;
+  const std::vector<BrdfSample> samples = SampleMeasured(table, sampling);
+  EXPECT_GT(samples.size(), 200u);
+  for (const BrdfSample& s : samples) {
+    EXPECT_GE(std::min(s.wi.z(), s.wo.z()), std::cos(80 * kDeg) - 1e-12);
+    EXPECT_EQ(s.value, *direct.Evaluate(s.wi, s.wo));
+  }
+  std::filesystem::remove(path);
+  const Summary other = ReadMeasured(TempPath("table.txt"), &table);
+  EXPECT_EQ(other.termination, Termination::kInvalidInput);
+  EXPECT_NE(other.message.find("not a measured-BRDF file"), std::string::npos) << other.message;
+}
+
+TEST(SamplesCsv, WrittenAndReadBackAndABadLineNamed) {
+  std::vector<BrdfSample> samples(2);
+  samples[0].wi = Direction(0.3, 0.1);
+  samples[0].wo = Direction(0.7, 2.0);
+  samples[0].value = {0.1, 0.2, 1.0 / 3.0};
+  samples[0].sigma = {0.01, 0.02, 0.03};
+  samples[1].value = {5, 6, 7};
+  const std::string path = TempPath("samples.csv");
+  ASSERT_TRUE(WriteSamplesCsv(path, samples).IsSolutionUsable());
+  std::vector<BrdfSample> read;
+  const Summary s = ReadSamplesCsv(path, &read);
+  ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+  ASSERT_EQ(read.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {  // 17 digits: every double comes back exactly
+    EXPECT_EQ(read[i].wi, samples[i].wi);
+    EXPECT_EQ(read[i].wo, samples[i].wo);
+    EXPECT_EQ(read[i].value, samples[i].value);
+    EXPECT_EQ(read[i].sigma, samples[i].sigma);
+  }
+  std::ofstream(path, std::ios::app) << "1,2,3\n";
+  const Summary bad = ReadSamplesCsv(path, &read);
+  EXPECT_EQ(bad.termination, Termination::kInvalidInput);
+  EXPECT_NE(bad.message.find(path + "':4: not 12"), std::string::npos) << bad.message;
+  EXPECT_EQ(read.size(), 2u);  // untouched
+  std::filesystem::remove(path);
 }
 
 // ----- Bad files: each refused with the file and the fault named, nothing crashes.
