@@ -60,7 +60,7 @@ TEST(BrdfEndToEnd, MeasuredTablesOfEitherFormatFitTheModelTheyWereMadeFrom) {
   ggx.shape = 0.25;
   // Finer than the default tabulation: fitted to the default one (1.2 % RMS
   // interpolation error) rho_d comes out 7-11 % high; at this one every
-  // parameter lies within 3.5 % (docs/brdf.md).
+  // parameter lies within 3.6 % (docs/brdf.md).
   brdf::RglTabulation tab;
   tab.theta_i_count = 32;
   tab.sample_resolution = 64;
@@ -84,7 +84,7 @@ TEST(BrdfEndToEnd, MeasuredTablesOfEitherFormatFitTheModelTheyWereMadeFrom) {
     const auto& fit = report["candidates"][2];
     ASSERT_EQ(fit["model"], "ggx");
     // MERL's nearest-cell lookup biases the diffuse term: a MERL table filled
-    // straight from the model gives rho_d 7-12 % low through the same fit.
+    // straight from the model gives rho_d 10-15 % low through the same fit.
     const double diffuse_tolerance = table == merl ? 0.15 : 0.05;
     for (int c = 0; c < 3; ++c) {
       EXPECT_NEAR(fit["diffuse"][c].get<double>(), ggx.diffuse[c], diffuse_tolerance * ggx.diffuse[c]) << table << " " << c;
