@@ -19,7 +19,7 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${PHOTORIG_FUZZ_BUILD:-$root/build-fuzz}"
 jobs="${FUZZ_JOBS:-2}"
 workers="${FUZZ_WORKERS:-2}"
-targets=(fuzz_rig fuzz_recipe fuzz_diligent fuzz_run_store fuzz_color_model fuzz_light_files fuzz_api)
+targets=(fuzz_rig fuzz_recipe fuzz_diligent fuzz_run_store fuzz_color_model fuzz_light_files fuzz_api fuzz_merl fuzz_rgl_tensor)
 # Limits of every run: a finding is a crash, a sanitizer report, an escaped
 # exception, more than 2 GiB of memory or one input taking more than 10 s.
 limits=(-rss_limit_mb=2048 -timeout=10)
@@ -73,7 +73,7 @@ make_seeds() {
   case "$t" in
     fuzz_rig) cp "$root"/config/rigs/*.yaml "$out/" ;;
     fuzz_recipe) cp "$root"/config/recipes/*.yaml "$out/" ;;
-    fuzz_diligent | fuzz_run_store | fuzz_color_model)
+    fuzz_diligent | fuzz_run_store | fuzz_color_model | fuzz_merl | fuzz_rgl_tensor)
       PHOTORIG_FUZZ_SEEDS="$out" "$build/bin/$t" -runs=1 "$out" >/dev/null 2>&1 ||
         die "$t: writing its seeds failed" ;;
     fuzz_api)

@@ -11,6 +11,7 @@
 
 #include "../command.h"
 #include "../command_output.h"
+#include "brdf_report.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/solvers/brdf/fit.h"
 #include "photorig/solvers/brdf/pose_plan.h"
@@ -94,25 +95,6 @@ Extraction ExtractSamples(const std::string& run_dir, const daemon::RunManifest&
   return out;
 }
 
-nlohmann::json Vec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
-
-nlohmann::json FitJson(const brdf::FitSummary& f) {
-  return {{"model", brdf::ModelName(f.params.model)},
-          {"termination", solvers::TerminationName(f.termination)},
-          {"message", f.message},
-          {"bic", f.bic},
-          {"held_out_rms", f.held_out_rms},
-          {"cost", f.cost},
-          {"parameters", f.parameters},
-          {"diffuse", Vec(f.params.diffuse)},
-          {"diffuse_sigma", Vec(f.diffuse_sigma)},
-          {"specular", Vec(f.params.specular)},
-          {"specular_sigma", Vec(f.specular_sigma)},
-          {"shape", f.params.shape},
-          {"shape_sigma", f.shape_sigma},
-          {"lobe_identifiable", f.lobe_identifiable}};
-}
-
 int Execute(const Options& options) {
   nlohmann::json doc = {{"run", options.run_dir}};
   // The report is also the command's --json document (main adds command, ok, exit_code).
@@ -134,40 +116,20 @@ int Execute(const Options& options) {
   doc["below_horizon_frames"] = extraction.below_horizon;
   if (extraction.samples.empty()) return finish(kExitFailed, "no usable pose frames");
   const brdf::SelectionSummary s = brdf::SelectModel(extraction.samples, selection);
-  doc["termination"] = solvers::TerminationName(s.termination);
-  doc["message"] = s.message;
-  doc["min_theta_h_deg"] = s.min_theta_h_deg;
-  doc["peak_sampled"] = s.peak_sampled;
-  doc["candidates"] = nlohmann::json::array();
-  for (const brdf::FitSummary& f : s.candidates) doc["candidates"].push_back(FitJson(f));
-  if (s.chosen) doc["chosen"] = brdf::ModelName(*s.chosen);
+  doc.update(SelectionJson(s));
 
   const std::string out = options.out.empty() ? (fs::path(options.run_dir) / "results" / "brdf").string() : options.out;
   fs::create_directories(out);
   std::ofstream(fs::path(out) / "report.json") << doc.dump(2) << "\n";
-  std::ofstream csv(fs::path(out) / "samples.csv");
-  csv << "wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b\n";
-  for (const brdf::BrdfSample& b : extraction.samples) {
-    for (const Eigen::Vector3d* v : {&b.wi, &b.wo, &b.value, &b.sigma})
-      for (int c = 0; c < 3; ++c) csv << (*v)[c] << ((v == &b.sigma && c == 2) ? "\n" : ",");
-  }
+  const solvers::Summary written = brdf::WriteSamplesCsv((fs::path(out) / "samples.csv").string(), extraction.samples);
+  if (!written.IsSolutionUsable()) return finish(kExitFailed, written.message);
   doc["results"] = out;
 
   FILE* text = stdout;  // under --json main points it at stderr
   std::fprintf(text, "%zu samples from %d pose frames (%d clipped, %d below the horizon), closest theta_h %.1f deg\n",
                extraction.samples.size(), extraction.pose_frames, extraction.clipped, extraction.below_horizon,
                s.min_theta_h_deg);
-  for (const brdf::FitSummary& f : s.candidates) {
-    std::fprintf(text, "  %-12s %-14s BIC %12.1f  held-out rms %8.3f  rho_d %.4f +- %.4f",
-                 brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic, f.held_out_rms,
-                 f.params.diffuse[0], f.diffuse_sigma[0]);
-    if (f.params.model != brdf::Model::kLambertian)
-      std::fprintf(text, "  specular %.4f +- %.4f  shape %.4g +- %.2g%s", f.params.specular[0], f.specular_sigma[0],
-                   f.params.shape, f.shape_sigma, f.lobe_identifiable ? "" : "  (not identifiable)");
-    std::fprintf(text, "\n");
-  }
-  if (s.chosen) std::fprintf(text, "chosen: %s\n", brdf::ModelName(*s.chosen));
-  if (!s.message.empty()) std::fprintf(text, "%s\n", s.message.c_str());
+  PrintSelection(text, s);
   std::fprintf(text, "results: %s/\n", out.c_str());
   return finish(s.IsSolutionUsable() ? kExitOk : kExitFailed, s.IsSolutionUsable() ? "" : s.message);
 }

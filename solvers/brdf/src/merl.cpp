@@ -63,13 +63,15 @@ void MerlTable::SetCellInvalid(std::size_t cell) {
   for (auto& plane : planes_) plane[cell] = -1.0;
 }
 
-MerlTable MerlTable::FromFunction(const std::function<Eigen::Vector3d(const DirectionPair&)>& brdf) {
+MerlTable MerlTable::FromFunction(
+    const std::function<std::optional<Eigen::Vector3d>(const DirectionPair&)>& brdf) {
   MerlTable table;
   for (int ih = 0; ih < kThetaHBins; ++ih)
     for (int id = 0; id < kThetaDBins; ++id)
       for (int ip = 0; ip < kPhiDBins; ++ip) {
         const DirectionPair dirs = FromHalfDiff(CellCentre(ih, id, ip));
-        if (dirs.wi.z() > 0.0 && dirs.wo.z() > 0.0) table.SetCell(CellIndex(ih, id, ip), brdf(dirs));
+        if (dirs.wi.z() <= 0.0 || dirs.wo.z() <= 0.0) continue;
+        if (const std::optional<Eigen::Vector3d> value = brdf(dirs)) table.SetCell(CellIndex(ih, id, ip), *value);
       }
   return table;
 }

@@ -59,8 +59,9 @@ class MerlTable {
   void SetCellInvalid(std::size_t cell);
 
   // A table of `brdf` (1/sr per channel) sampled at every cell centre; cells
-  // whose centre lies below the horizon stay invalid.
-  static MerlTable FromFunction(const std::function<Eigen::Vector3d(const DirectionPair&)>& brdf);
+  // whose centre lies below the horizon, or where `brdf` gives nothing (a
+  // measured table converted), stay invalid.
+  static MerlTable FromFunction(const std::function<std::optional<Eigen::Vector3d>(const DirectionPair&)>& brdf);
 
   // The values as stored in the file, one plane per channel.
   const std::vector<double>& plane(int channel) const { return planes_[channel]; }
