@@ -216,7 +216,11 @@ void ParseLightsOptions(const YamlNode& lights_node, bool simulated, LightsConfi
   const std::optional<YamlNode> options = lights_node.Find("options");
   const int channels = static_cast<int>(lights->leds.size());
   if (lights->driver == "sim") {
-    if (options) options->Fail("the simulated dome takes no options");
+    // Only the safety limits: a simulated lamp is rated like the real one it stands for.
+    if (options) {
+      options->ExpectKeys({"safety"});
+      if (auto safety = options->Find("safety")) lights->safety = ParseLightSafety(*safety, channels);
+    }
     return;
   }
   if (lights->driver == "modbus-tcp" || lights->driver == "modbus-rtu") {

@@ -43,8 +43,8 @@ struct LightsConfig {
   std::optional<GpioLightsOptions> gpio;
 #endif
   std::optional<UsbRelayOptions> usb_relay;
-  // options.safety of a hardware controller: {max_on_ms, max_duty, duty_window_ms, watchdog_ms,
-  // channels: {<index>: {max_on_ms, max_duty}}}. The simulated dome takes the defaults.
+  // options.safety: {max_on_ms, max_duty, duty_window_ms, watchdog_ms,
+  // channels: {<index>: {max_on_ms, max_duty}}}; simulated lights take it too (their only option).
   drivers::LightSafetyOptions safety;
 };
 
