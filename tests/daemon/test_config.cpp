@@ -173,6 +173,22 @@ TEST(RigConfig, WrongVectorLengthNamesTheKey) {
   ExpectConfigError(dir.Write("rig.yaml", text), text, 7, 19, "lights.leds[1].direction", "expected a list of 3 numbers");
 }
 
+// Simulated lights take the safety limits (a simulated backlight rated for
+// continuous light) and nothing else.
+TEST(RigConfig, SimulatedLightsTakeSafetyLimitsOnly) {
+  TempDir dir;
+  std::string text = kRig;
+  text.replace(text.find("  driver: sim\n  leds:"), 14, "  driver: sim\n  options: {safety: {max_duty: 1.0, max_on_ms: 0}}\n");
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", text));
+  EXPECT_DOUBLE_EQ(rig.lights.safety.defaults.max_duty, 1.0);
+  EXPECT_DOUBLE_EQ(rig.lights.safety.defaults.max_on_ms, 0.0);
+  EXPECT_DOUBLE_EQ(LoadRigConfig(dir.Write("plain.yaml", kRig)).lights.safety.defaults.max_duty, 0.5);
+
+  std::string serial = kRig;
+  serial.replace(serial.find("  driver: sim\n  leds:"), 14, "  driver: sim\n  options: {serial: A1}\n");
+  ExpectConfigError(dir.Write("serial.yaml", serial), serial, 5, 13, "lights.options.serial", "unknown key 'serial'");
+}
+
 TEST(RigConfig, UnknownKeyIsReportedWhereItIs) {
   TempDir dir;
   std::string text = kRig;
