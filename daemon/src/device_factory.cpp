@@ -42,6 +42,18 @@ std::unique_ptr<drivers::LightController> MakeLightController(const DeviceContex
   NotBuilt("light", driver);
 }
 
+bool LightsOutliveTheProcess(const RigConfig& rig) {
+  return rig.lights.driver != "sim" && !(rig.lights.modbus && rig.lights.modbus->simulated);
+}
+
+Status DarkenLights(const RigConfig& rig) {
+  if (!LightsOutliveTheProcess(rig)) return Status::Ok();
+  const std::unique_ptr<drivers::LightController> lights = MakeLightController(DeviceContext{rig, nullptr});
+  const Status opened = lights->Open();
+  const Status closed = lights->Close();
+  return opened.ok() ? closed : opened;
+}
+
 std::unique_ptr<drivers::Camera> MakeCamera(const DeviceContext& context) {
   const std::string& driver = context.rig.camera.driver;
   if (driver == "sim") {

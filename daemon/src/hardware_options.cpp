@@ -75,7 +75,8 @@ std::unique_ptr<drivers::LightController> MakeModbusLights(const DeviceContext& 
 std::unique_ptr<drivers::LightController> MakeGpioLights(const DeviceContext& context) {
   const LightsConfig& lights = context.rig.lights;
   return WithSafety(
-      std::make_unique<drivers::GpioLightController>(lights.id, lights.gpio->lines, drivers::MakeLibgpiodBackend()),
+      std::make_unique<drivers::GpioLightController>(lights.id, lights.gpio->lines, drivers::MakeLibgpiodBackend(),
+                                                     lights.gpio->heartbeat),
       context);
 }
 #endif

@@ -12,13 +12,15 @@
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
+#include <system_error>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
 namespace {
 
+// A system_error keeps errno, so callers can tell a full disk from other failures.
 [[noreturn]] void Fail(const std::string& what, const std::string& path) {
-  throw std::runtime_error(what + " " + path + ": " + std::strerror(errno));
+  throw std::system_error(errno, std::generic_category(), what + " " + path);
 }
 
 std::string Extension(const std::string& path) { return fs::path(path).extension().string(); }

@@ -407,88 +407,92 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
 
   ResultsFolder folder(output_directory);
   const fs::path out(folder.path());
-  if (result.usable()) {
-    const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
-    result.mean_confidence = cv::mean(map.confidence, solved)[0];
-    WriteFloatTiff((out / "normals.tiff").string(), map.normals);
-    cv::Mat albedo_rgb;  // colour data: per-channel albedo with the normals fixed
-    if (input.color) {
-      albedo_rgb = SolveColorAlbedo(*input.color, map.normals, request.shadow_threshold_sigma, &result);
-      WriteFloatTiff((out / "albedo.tiff").string(), albedo_rgb);
-    } else {
-      WriteFloatTiff((out / "albedo.tiff").string(), map.albedo);
-    }
-    WriteFloatTiff((out / "confidence.tiff").string(), map.confidence);
-    cv::Mat specular;
-    cv::Mat channels[] = {cv::Mat(), cv::Mat(), cv::Mat::zeros(map.specular.size(), CV_32F)};
-    cv::split(map.specular, channels);
-    cv::merge(channels, 3, specular);
-    WriteFloatTiff((out / "specular.tiff").string(), specular);
-
-    cv::Mat depth;  // stays empty unless integrated
-    if (request.integrator != "none") {
-      ps::IntegrationOptions integration;
-      ps::ParseIntegrator(request.integrator, &integration.integrator);
-      integration.pixel_pitch = input.pixel_pitch;
-      PhotometricStereoDepth& integrated = result.depth.emplace();
-      integrated.integrator = request.integrator;
-      integrated.pixel_pitch = input.pixel_pitch;
-      integrated.summary = ps::IntegrateNormals(integration, map.normals, solved, &depth);
-      if (integrated.summary.IsSolutionUsable()) {
-        WriteFloatTiff((out / "depth.tiff").string(), depth);
-        WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
-        if (!input.truth_height.empty()) {
-          // Depth is known up to a constant per region: compare after removing the mean difference.
-          cv::Mat both = (depth == depth) & (input.truth_height == input.truth_height);
-          cv::Mat difference = depth - input.truth_height;
-          cv::patchNaNs(difference, 0.0);
-          const double offset = cv::mean(difference, both)[0];
-          cv::Mat centred = difference - offset;
-          centred.setTo(0.0, ~both);
-          const double pixels = std::max(1, cv::countNonZero(both));
-          integrated.rms_error_vs_truth = std::sqrt(centred.dot(centred) / pixels);
-        }
+  try {  // a write that fails (a full disk) leaves no partial folder and says what to do
+    if (result.usable()) {
+      const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
+      result.mean_confidence = cv::mean(map.confidence, solved)[0];
+      WriteFloatTiff((out / "normals.tiff").string(), map.normals);
+      cv::Mat albedo_rgb;  // colour data: per-channel albedo with the normals fixed
+      if (input.color) {
+        albedo_rgb = SolveColorAlbedo(*input.color, map.normals, request.shadow_threshold_sigma, &result);
+        WriteFloatTiff((out / "albedo.tiff").string(), albedo_rgb);
       } else {
-        depth.release();
+        WriteFloatTiff((out / "albedo.tiff").string(), map.albedo);
       }
-    }
-    result.previews = WritePhotometricStereoPreviews(map, solved, depth, folder.path());
-    if (!albedo_rgb.empty()) {
-      const bool calibrated = result.color->color_space == "linear-srgb";
-      // Calibrated albedo is absolute: 1 is a perfect white. Camera RGB and
-      // DiLiGenT's DN are not, so they map from their own 99.5th percentile.
-      const double top = calibrated ? 1.0 : std::max(1e-12, PercentileOverMask(albedo_rgb.reshape(1, albedo_rgb.rows * albedo_rgb.cols * 3),
-                                                                                 RepeatMask3(solved), 99.5));
-      WriteImage((out / "albedo.png").string(), ColorAlbedoPreview(albedo_rgb, solved, top));
-      result.previews["albedo.png"] = {{"low", 0.0},
-                                       {"high", top},
-                                       {"scale", "linear " + std::string(calibrated ? "sRGB" : "camera RGB") + " 0.." +
-                                                     std::to_string(top) + " -> sRGB-encoded 0..255 per channel"}};
-      if (!calibrated) result.previews["albedo.png"]["percentile"] = 99.5;
-    }
+      WriteFloatTiff((out / "confidence.tiff").string(), map.confidence);
+      cv::Mat specular;
+      cv::Mat channels[] = {cv::Mat(), cv::Mat(), cv::Mat::zeros(map.specular.size(), CV_32F)};
+      cv::split(map.specular, channels);
+      cv::merge(channels, 3, specular);
+      WriteFloatTiff((out / "specular.tiff").string(), specular);
 
-    cv::Mat error_deg;
-    const ps::AngularErrorStats vs_truth =
-        input.truth_normals.empty() ? ps::AngularErrorStats{}
-                                    : ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
-    if (!input.truth_normals.empty() && !vs_truth.IsSolutionUsable()) {
-      spdlog::warn("{}: ground-truth normals not compared: {}", input.source, vs_truth.message);
-    } else if (!input.truth_normals.empty()) {  // compared: error map and figures
-      result.normals_vs_truth = vs_truth;
-      WriteFloatTiff((out / "angular_error.tiff").string(), error_deg);
-      if (!albedo_rgb.empty() && !input.truth_albedo_rgb.empty()) {
-        result.albedo_ciede2000_vs_truth = CompareColorAlbedo(albedo_rgb, input.truth_albedo_rgb, solved);
-      } else if (!input.truth_albedo.empty() && albedo_rgb.empty()) {
-        cv::Mat relative;
-        cv::absdiff(map.albedo, input.truth_albedo, relative);
-        relative /= input.truth_albedo;
-        cv::patchNaNs(relative, 0.0);
-        result.mean_relative_albedo_error = cv::mean(relative, solved)[0];
+      cv::Mat depth;  // stays empty unless integrated
+      if (request.integrator != "none") {
+        ps::IntegrationOptions integration;
+        ps::ParseIntegrator(request.integrator, &integration.integrator);
+        integration.pixel_pitch = input.pixel_pitch;
+        PhotometricStereoDepth& integrated = result.depth.emplace();
+        integrated.integrator = request.integrator;
+        integrated.pixel_pitch = input.pixel_pitch;
+        integrated.summary = ps::IntegrateNormals(integration, map.normals, solved, &depth);
+        if (integrated.summary.IsSolutionUsable()) {
+          WriteFloatTiff((out / "depth.tiff").string(), depth);
+          WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
+          if (!input.truth_height.empty()) {
+            // Depth is known up to a constant per region: compare after removing the mean difference.
+            cv::Mat both = (depth == depth) & (input.truth_height == input.truth_height);
+            cv::Mat difference = depth - input.truth_height;
+            cv::patchNaNs(difference, 0.0);
+            const double offset = cv::mean(difference, both)[0];
+            cv::Mat centred = difference - offset;
+            centred.setTo(0.0, ~both);
+            const double pixels = std::max(1, cv::countNonZero(both));
+            integrated.rms_error_vs_truth = std::sqrt(centred.dot(centred) / pixels);
+          }
+        } else {
+          depth.release();
+        }
+      }
+      result.previews = WritePhotometricStereoPreviews(map, solved, depth, folder.path());
+      if (!albedo_rgb.empty()) {
+        const bool calibrated = result.color->color_space == "linear-srgb";
+        // Calibrated albedo is absolute: 1 is a perfect white. Camera RGB and
+        // DiLiGenT's DN are not, so they map from their own 99.5th percentile.
+        const double top = calibrated ? 1.0 : std::max(1e-12, PercentileOverMask(albedo_rgb.reshape(1, albedo_rgb.rows * albedo_rgb.cols * 3),
+                                                                                   RepeatMask3(solved), 99.5));
+        WriteImage((out / "albedo.png").string(), ColorAlbedoPreview(albedo_rgb, solved, top));
+        result.previews["albedo.png"] = {{"low", 0.0},
+                                         {"high", top},
+                                         {"scale", "linear " + std::string(calibrated ? "sRGB" : "camera RGB") + " 0.." +
+                                                       std::to_string(top) + " -> sRGB-encoded 0..255 per channel"}};
+        if (!calibrated) result.previews["albedo.png"]["percentile"] = 99.5;
+      }
+
+      cv::Mat error_deg;
+      const ps::AngularErrorStats vs_truth =
+          input.truth_normals.empty() ? ps::AngularErrorStats{}
+                                      : ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
+      if (!input.truth_normals.empty() && !vs_truth.IsSolutionUsable()) {
+        spdlog::warn("{}: ground-truth normals not compared: {}", input.source, vs_truth.message);
+      } else if (!input.truth_normals.empty()) {  // compared: error map and figures
+        result.normals_vs_truth = vs_truth;
+        WriteFloatTiff((out / "angular_error.tiff").string(), error_deg);
+        if (!albedo_rgb.empty() && !input.truth_albedo_rgb.empty()) {
+          result.albedo_ciede2000_vs_truth = CompareColorAlbedo(albedo_rgb, input.truth_albedo_rgb, solved);
+        } else if (!input.truth_albedo.empty() && albedo_rgb.empty()) {
+          cv::Mat relative;
+          cv::absdiff(map.albedo, input.truth_albedo, relative);
+          relative /= input.truth_albedo;
+          cv::patchNaNs(relative, 0.0);
+          result.mean_relative_albedo_error = cv::mean(relative, solved)[0];
+        }
       }
     }
+    result.total_ms = Ms(start);
+    WriteFileDurably((out / "report.json").string(), ToJson(result).dump(2) + "\n");
+  } catch (...) {
+    folder.Abandon(std::current_exception());
   }
-  result.total_ms = Ms(start);
-  WriteFileDurably((out / "report.json").string(), ToJson(result).dump(2) + "\n");
   if (before_commit) before_commit();
   folder.Commit();
   return result;

@@ -1,6 +1,7 @@
 #include "photorig/daemon/results_folder.h"
 
 #include "photorig/daemon/image_io.h"
+#include "photorig/daemon/plan.h"
 
 #include <fcntl.h>
 #include <stdio.h>
@@ -10,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
+#include <system_error>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
@@ -28,7 +30,22 @@ std::string HostName() {
   return name;
 }
 
+// Less than this free after a failed write: the disk is what failed.
+constexpr std::uint64_t kNearlyFullBytes = 1 << 20;
+
+bool IsOutOfSpace(const std::error_code& code) {
+  return code == std::errc::no_space_on_device || code.value() == EDQUOT;
+}
+
 }  // namespace
+
+ResultsWriteError::ResultsWriteError(const std::string& destination, const std::string& cause, bool disk_full)
+    : std::runtime_error("cannot write the results to " + destination + ": " + cause + "; nothing was put there" +
+                         (disk_full ? " (the filesystem holding it is full: free space on it, then solve again)"
+                                    : " (fix that, then solve again)")),
+      destination(destination),
+      cause(cause),
+      disk_full(disk_full) {}
 
 ResultsFolder::ResultsFolder(const std::string& destination) {
   // "results/ps/" and "results/ps" name the same folder; its parent holds the partial one.
@@ -44,7 +61,8 @@ ResultsFolder::ResultsFolder(const std::string& destination) {
   for (const fs::directory_entry& entry : fs::directory_iterator(normal.parent_path()))
     if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(entry.path(), error);
   partial_ = (normal.parent_path() / (prefix + HostName() + "-" + std::to_string(::getpid()))).string();
-  fs::create_directories(partial_);
+  if (!fs::create_directories(partial_, error) && error)
+    throw ResultsWriteError(destination_, "cannot create " + partial_ + ": " + error.message(), IsOutOfSpace(error));
 }
 
 ResultsFolder::~ResultsFolder() {
@@ -77,6 +95,24 @@ void ResultsFolder::Commit() {
   FsyncDirectory(fs::path(destination_).parent_path().string());
   // After an exchange the previous result sits at the partial folder's name.
   fs::remove_all(partial_, error);
+}
+
+void ResultsFolder::Abandon(std::exception_ptr error) {
+  // Measured before the partial folder goes: a writer that fails without
+  // errno (an encoder, a stream) leaves its part-written file there.
+  const bool no_room = FreeBytes(fs::path(destination_).parent_path().string()) < kNearlyFullBytes;
+  std::error_code ignored;
+  fs::remove_all(partial_, ignored);
+  try {
+    std::rethrow_exception(error);
+  } catch (const ResultsWriteError& e) {  // a folder inside this one (svbrdf's ps/)
+    throw ResultsWriteError(destination_, e.cause, e.disk_full || no_room);
+  } catch (const std::system_error& e) {  // includes std::filesystem::filesystem_error
+    throw ResultsWriteError(destination_, e.what(), IsOutOfSpace(e.code()) || no_room);
+  } catch (const std::exception& e) {
+    if (!no_room) throw;
+    throw ResultsWriteError(destination_, e.what(), true);
+  }
 }
 
 }  // namespace photorig::daemon

@@ -3,6 +3,7 @@
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/plan.h"
 #include "photorig/daemon/ps_pipeline.h"
+#include "photorig/daemon/results_folder.h"
 #include "photorig/daemon/rig_devices.h"
 #include "photorig/daemon/slurm_solve.h"
 
@@ -11,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <functional>
 #include <filesystem>
 
 namespace photorig::daemon {
@@ -51,12 +53,23 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
   };
   // A stage's folder holds only what this solve wrote: a run resumed after a
   // crash mid-solve solves again from the frames, and its calibrated rig is
-  // a new file again. Photometric stereo replaces its folder whole as it
-  // ends (results_folder.h), so the previous result stays until then.
+  // a new file again. Photometric stereo, tomography and svbrdf replace their
+  // folders whole as they end (results_folder.h), so the previous result
+  // stays until then.
   auto fresh_results = [&directory](const char* name) {
     const fs::path results = directory / "results" / name;
     fs::remove_all(results);
     return results;
+  };
+  // Results that cannot be written (a full disk) fail the run saying how to
+  // finish it: the frames are stored, so only the solve is repeated.
+  auto writing = [&directory](const char* solver, const std::function<void()>& stage) {
+    try {
+      stage();
+    } catch (const ResultsWriteError& e) {
+      throw std::runtime_error(std::string(e.what()) + "; the captured frames are intact: `photorig solve " + solver +
+                               " --run " + directory.string() + "` solves again");
+    }
   };
   if (recipe.photometric_stereo && start("photometric_stereo")) {
     PhotometricStereoRequest solve = *recipe.photometric_stereo;
@@ -72,8 +85,10 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
       finish(*submitted.report);
     } else {
       solve.progress = request.solve_progress;
-      outcome->photometric_stereo =
-          SolvePhotometricStereoRun(directory.string(), solve, (directory / "results" / "ps").string());
+      writing("ps", [&] {
+        outcome->photometric_stereo =
+            SolvePhotometricStereoRun(directory.string(), solve, (directory / "results" / "ps").string());
+      });
       finish(ReportSolveStage(*outcome->photometric_stereo));
     }
   }
@@ -92,14 +107,16 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
     solve.progress = request.solve_progress;
     const TomographyInput input = LoadTomographyRun(directory.string());
     outcome->tomography = SolveTomography(input, solve);
-    WriteTomographyResults(input, *outcome->tomography, fresh_results("tomography").string());
+    writing("tomography", [&] { WriteTomographyResults(input, *outcome->tomography, (directory / "results" / "tomography").string()); });
     finish(ReportSolveStage(*outcome->tomography));
   }
   if (recipe.svbrdf && start("svbrdf")) {
     SvbrdfRequest solve = *recipe.svbrdf;
     solve.progress = request.solve_progress;
-    outcome->svbrdf =
-        SolveSvbrdfAndWrite(LoadRunStack(directory.string()), solve, fresh_results("svbrdf").string());
+    writing("svbrdf", [&] {
+      outcome->svbrdf =
+          SolveSvbrdfAndWrite(LoadRunStack(directory.string()), solve, (directory / "results" / "svbrdf").string());
+    });
     finish(ReportSolveStage(*outcome->svbrdf));
   }
 }

@@ -126,22 +126,15 @@ RunService::~RunService() { Stop(); }
 
 namespace {
 
-// Whatever a previous process left lit (killed outright mid-exposure, a
-// power cut of the PC) goes dark now, before any run: opening a light
-// controller switches every output off, and closing it leaves them off. Only
-// a controller outside this process can be lit from before (the simulated
-// dome, and a Modbus controller served in-process, start dark with it), and
-// it needs no simulated world. A controller that cannot be reached is
-// reported, not fatal: runs will say so.
-void DarkenLights(const std::string& rig_path) {
+// Whatever a previous process left lit goes dark now, before any run
+// (device_factory.h). A controller that cannot be reached is reported, not
+// fatal: runs will say so.
+void DarkenLightsAtStart(const std::string& rig_path) {
   try {
     const RigConfig rig = LoadRigConfig(rig_path);
-    if (rig.lights.driver == "sim" || (rig.lights.modbus && rig.lights.modbus->simulated)) return;
-    const std::unique_ptr<drivers::LightController> lights = MakeLightController(DeviceContext{rig, nullptr});
-    const Status opened = lights->Open();
-    const Status closed = lights->Close();
-    if (!opened.ok() || !closed.ok())
-      spdlog::warn("event=lights_unreachable error={}", json((opened.ok() ? closed : opened).ToString()).dump());
+    if (!LightsOutliveTheProcess(rig)) return;
+    if (const Status darkened = DarkenLights(rig); !darkened.ok())
+      spdlog::warn("event=lights_unreachable error={}", json(darkened.ToString()).dump());
     else
       spdlog::info("event=lights_off lights={}", rig.lights.id);
   } catch (const std::exception& e) {
@@ -152,7 +145,7 @@ void DarkenLights(const std::string& rig_path) {
 }  // namespace
 
 void RunService::Start() {
-  DarkenLights(options_.rig_path);
+  DarkenLightsAtStart(options_.rig_path);
   std::vector<QueuedRun> unfinished;
   try {
     unfinished = queue_->Unfinished();

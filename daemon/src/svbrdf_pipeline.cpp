@@ -2,6 +2,7 @@
 
 #include "photorig/daemon/gltf_export.h"
 #include "photorig/daemon/image_io.h"
+#include "photorig/daemon/results_folder.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
 
 #include <opencv2/imgcodecs.hpp>
@@ -130,63 +131,71 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
 SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const SvbrdfRequest& request,
                                  const std::string& output_directory) {
   const auto start = std::chrono::steady_clock::now();
-  const fs::path out(output_directory);
-  fs::create_directories(out);
+  // Whole or not at all, like photometric stereo's folder (results_folder.h).
+  ResultsFolder folder(output_directory);
+  const fs::path out(folder.path());
   SvbrdfResult result;
-  PhotometricStereoRequest ps_request = request.ps;
-  ps_request.progress = request.progress;
-  result.ps = SolveAndWrite(input, ps_request, (out / "ps").string());
-  if (!result.ps.usable()) {
-    result.summary.End(solvers::Termination::kFailure, "photometric stereo found no normals: " + result.ps.summary.message);
-  } else {
-    const cv::Mat normals = ReadFloatTiff((out / "ps" / "normals.tiff").string());
-    cv::Mat mask = input.object_mask;
-    const refl::ReflectanceStack stack = ToReflectanceStack(input);
-    refl::ReflectanceOptions options;
-    options.max_materials = request.max_materials;
-    options.progress = request.progress;
-    refl::ReflectanceMaps maps;
-    result.summary = refl::FitReflectance(options, stack, normals, mask, &maps);
-    if (result.summary.IsSolutionUsable()) {
-      result.material_fits = maps.materials;
-      WriteFloatTiff((out / "albedo.tiff").string(), maps.albedo);
-      WriteFloatTiff((out / "albedo_sigma.tiff").string(), maps.albedo_sigma);
-      WriteFloatTiff((out / "rms_residual.tiff").string(), maps.rms_residual);
-      WriteImage((out / "material.png").string(), maps.material);
-      WriteImage((out / "flags.png").string(), maps.flags);
-      for (const auto& m : maps.materials)
-        result.gltf_mapping_error.push_back(refl::GltfMappingError(m, stack.light_directions, stack.view_direction));
-      if (!input.truth_albedo.empty() && input.truth_albedo.size() == maps.albedo.size()) {
-        std::vector<double> errors;
-        const int C = maps.albedo.channels();
-        for (int i = 0; i < static_cast<int>(maps.flags.total()); ++i) {
-          if (maps.flags.at<std::uint8_t>(i) != static_cast<std::uint8_t>(refl::PixelFlag::kFitted)) continue;
-          const double t = input.truth_albedo.ptr<float>()[i];
-          double f = 0.0;
-          for (int ch = 0; ch < C; ++ch) f += maps.albedo.ptr<float>()[i * C + ch] / C;
-          if (std::isfinite(t) && t > 0.0) errors.push_back(std::abs(f - t) / t);
+  try {
+    PhotometricStereoRequest ps_request = request.ps;
+    ps_request.progress = request.progress;
+    result.ps = SolveAndWrite(input, ps_request, (out / "ps").string());
+    if (!result.ps.usable()) {
+      result.summary.End(solvers::Termination::kFailure, "photometric stereo found no normals: " + result.ps.summary.message);
+    } else {
+      const cv::Mat normals = ReadFloatTiff((out / "ps" / "normals.tiff").string());
+      cv::Mat mask = input.object_mask;
+      const refl::ReflectanceStack stack = ToReflectanceStack(input);
+      refl::ReflectanceOptions options;
+      options.max_materials = request.max_materials;
+      options.progress = request.progress;
+      refl::ReflectanceMaps maps;
+      result.summary = refl::FitReflectance(options, stack, normals, mask, &maps);
+      if (result.summary.IsSolutionUsable()) {
+        result.material_fits = maps.materials;
+        WriteFloatTiff((out / "albedo.tiff").string(), maps.albedo);
+        WriteFloatTiff((out / "albedo_sigma.tiff").string(), maps.albedo_sigma);
+        WriteFloatTiff((out / "rms_residual.tiff").string(), maps.rms_residual);
+        WriteImage((out / "material.png").string(), maps.material);
+        WriteImage((out / "flags.png").string(), maps.flags);
+        for (const auto& m : maps.materials)
+          result.gltf_mapping_error.push_back(refl::GltfMappingError(m, stack.light_directions, stack.view_direction));
+        if (!input.truth_albedo.empty() && input.truth_albedo.size() == maps.albedo.size()) {
+          std::vector<double> errors;
+          const int C = maps.albedo.channels();
+          for (int i = 0; i < static_cast<int>(maps.flags.total()); ++i) {
+            if (maps.flags.at<std::uint8_t>(i) != static_cast<std::uint8_t>(refl::PixelFlag::kFitted)) continue;
+            const double t = input.truth_albedo.ptr<float>()[i];
+            double f = 0.0;
+            for (int ch = 0; ch < C; ++ch) f += maps.albedo.ptr<float>()[i * C + ch] / C;
+            if (std::isfinite(t) && t > 0.0) errors.push_back(std::abs(f - t) / t);
+          }
+          if (!errors.empty()) {
+            std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+            result.albedo_error_vs_truth = errors[errors.size() / 2];
+          }
         }
-        if (!errors.empty()) {
-          std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
-          result.albedo_error_vs_truth = errors[errors.size() / 2];
+        if (request.held_out_lights >= 0) {
+          refl::RelightingOptions relight;
+          relight.fit = options;
+          relight.fit.progress = nullptr;
+          relight.held_out_lights = request.held_out_lights;
+          relight.progress = request.progress;
+          result.relighting = refl::EvaluateHeldOutLights(relight, stack, normals, mask);
         }
-      }
-      if (request.held_out_lights >= 0) {
-        refl::RelightingOptions relight;
-        relight.fit = options;
-        relight.fit.progress = nullptr;
-        relight.held_out_lights = request.held_out_lights;
-        relight.progress = request.progress;
-        result.relighting = refl::EvaluateHeldOutLights(relight, stack, normals, mask);
-      }
-      if (request.export_gltf && fs::exists(out / "ps" / "depth.tiff")) {
-        const cv::Mat depth = ReadFloatTiff((out / "ps" / "depth.tiff").string());
-        result.gltf_path = WriteGltfAsset((out / "asset").string(), maps, depth, input.pixel_pitch).gltf_path;
+        if (request.export_gltf && fs::exists(out / "ps" / "depth.tiff")) {
+          const cv::Mat depth = ReadFloatTiff((out / "ps" / "depth.tiff").string());
+          result.gltf_path = WriteGltfAsset((out / "asset").string(), maps, depth, input.pixel_pitch).gltf_path;
+        }
       }
     }
+    result.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    WriteFileDurably((out / "report.json").string(), ToJson(result).dump(2) + "\n");
+  } catch (...) {
+    folder.Abandon(std::current_exception());
   }
-  result.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  WriteFileDurably((out / "report.json").string(), ToJson(result).dump(2) + "\n");
+  folder.Commit();
+  if (!result.gltf_path.empty())  // it was written inside the partial folder
+    result.gltf_path = (fs::path(output_directory) / fs::path(result.gltf_path).lexically_relative(out)).string();
   return result;
 }
 

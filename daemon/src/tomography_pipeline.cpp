@@ -1,6 +1,7 @@
 #include "photorig/daemon/tomography_pipeline.h"
 
 #include "photorig/daemon/image_io.h"
+#include "photorig/daemon/results_folder.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/solvers/tomography/nrrd.h"
 
@@ -359,9 +360,9 @@ json TomographyResult::ToJson() const {
   return doc;
 }
 
-void WriteTomographyResults(const TomographyInput& input, const TomographyResult& result, const std::string& destination) {
-  fs::create_directories(destination);
-  const fs::path out = destination;
+namespace {
+
+void WriteTomographyFiles(const TomographyInput& input, const TomographyResult& result, const fs::path& out) {
   WriteFileDurably((out / "report.json").string(), result.ToJson().dump(2) + "\n");
   WriteFileDurably((out / "geometry.json").string(), GeometryToJson(result.geometry, input.saturation_dn).dump(2) + "\n");
   if (result.sigma.size() != result.grid.voxels()) return;  // nothing reconstructed
@@ -382,6 +383,18 @@ void WriteTomographyResults(const TomographyInput& input, const TomographyResult
     WriteImage((out / "truth_z.png").string(), SliceImage(result.grid, truth, true, top));
     WriteImage((out / "truth_y.png").string(), SliceImage(result.grid, truth, false, top));
   }
+}
+
+}  // namespace
+
+void WriteTomographyResults(const TomographyInput& input, const TomographyResult& result, const std::string& destination) {
+  ResultsFolder folder(destination);
+  try {
+    WriteTomographyFiles(input, result, folder.path());
+  } catch (...) {
+    folder.Abandon(std::current_exception());
+  }
+  folder.Commit();
 }
 
 }  // namespace photorig::daemon

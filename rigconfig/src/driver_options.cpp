@@ -165,9 +165,10 @@ ModbusLightsOptions ParseModbusLights(const YamlNode& options, int channels, boo
 }
 
 #if PHOTORIG_HAVE_DRIVERS_GPIO
-// options: {chip: gpiochip0, active_low: false, lines: [offset per LED] or [{chip, offset, active_low}], safety}
+// options: {chip: gpiochip0, active_low: false, lines: [offset per LED] or [{chip, offset, active_low}],
+//           heartbeat: {chip, offset, active_low}, safety}
 GpioLightsOptions ParseGpioLights(const YamlNode& options, std::size_t leds) {
-  options.ExpectKeys({"chip", "active_low", "lines", "safety"});
+  options.ExpectKeys({"chip", "active_low", "lines", "heartbeat", "safety"});
   const std::string chip = options.String("chip", "gpiochip0");
   const bool active_low = options.Bool("active_low", false);
   GpioLightsOptions gpio;
@@ -188,6 +189,15 @@ GpioLightsOptions ParseGpioLights(const YamlNode& options, std::size_t leds) {
   if (gpio.lines.size() != leds)
     options["lines"].Fail("lists " + std::to_string(gpio.lines.size()) + " lines for " + std::to_string(leds) +
                           " LEDs");
+  if (const std::optional<YamlNode> heartbeat = options.Find("heartbeat")) {
+    heartbeat->ExpectKeys({"chip", "offset", "active_low"});
+    drivers::GpioLine line{heartbeat->String("chip", chip), static_cast<unsigned>(IntIn(*heartbeat, "offset", -1, 0, 4095)),
+                           heartbeat->Bool("active_low", false)};
+    for (const drivers::GpioLine& led : gpio.lines)
+      if (led.chip == line.chip && led.offset == line.offset)
+        (*heartbeat)["offset"].Fail("line " + std::to_string(line.offset) + " of " + line.chip + " also drives an LED");
+    gpio.heartbeat = line;
+  }
   return gpio;
 }
 #endif

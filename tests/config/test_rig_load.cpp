@@ -68,6 +68,20 @@ TEST(RigLoad, AnLedChannelOtherThanItsPlaceIsRefused) {
   EXPECT_NO_THROW(LoadRigConfig(dir.Write("rig.yaml", text)));
 }
 
+#if PHOTORIG_HAVE_DRIVERS_GPIO
+TEST(RigLoad, AGpioHeartbeatLineIsParsedAndMayNotDriveAnLed) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write(
+      "rig.yaml", Rig("  driver: gpio\n  options: {lines: [4, 5], heartbeat: {offset: 9, active_low: true}}\n", kSimCamera)));
+  ASSERT_TRUE(rig.lights.gpio && rig.lights.gpio->heartbeat);
+  EXPECT_EQ(rig.lights.gpio->heartbeat->chip, "gpiochip0");
+  EXPECT_EQ(rig.lights.gpio->heartbeat->offset, 9u);
+  EXPECT_TRUE(rig.lights.gpio->heartbeat->active_low);
+  ExpectLoadError(Rig("  driver: gpio\n  options: {lines: [4, 5], heartbeat: {offset: 5}}\n", kSimCamera), 4, 48,
+                  "lights.options.heartbeat.offset", "also drives an LED");
+}
+#endif
+
 TEST(RigLoad, ABadDriverOptionFailsTheLoadWithItsPosition) {
   const std::string lights =
       "  driver: modbus-tcp\n"

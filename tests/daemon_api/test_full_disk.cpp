@@ -1,8 +1,11 @@
 // A data root on a full filesystem (a small tmpfs, mounted by the test as
 // root): the run fails cleanly, no temp file holds space, the daemon keeps
 // running, starts while the disk is full and says so on /health, and the run
-// gets its stop record and manifest once there is room again.
+// gets its stop record and manifest once there is room again. A solve that
+// runs out of space part way fails saying what to do, leaves the frames as
+// they were and no partial results, and solves once there is room.
 
+#include "photorig/daemon/run.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/daemon/service.h"
 #include "test_support.h"
@@ -16,12 +19,16 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <cmath>
 
 namespace photorig::daemon {
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using photorig::testing::Photorig;
+using photorig::testing::ReadText;
 using photorig::testing::SmallRecipeYaml;
 using photorig::testing::SmallRigYaml;
 using photorig::testing::TempDir;
@@ -41,12 +48,16 @@ class FullDisk : public ::testing::Test {
   void TearDown() override {
     if (mounted_) ::umount2(data_.c_str(), MNT_DETACH);
   }
-  // Writes until the filesystem refuses.
-  void Fill() {
-    std::ofstream filler(data_ / "filler", std::ios::binary);
-    const std::string block(64 * 1024, 'x');
-    while (filler.write(block.data(), block.size()) && filler.flush()) {
+  // Writes until the filesystem refuses; then, given `leave_bytes`, frees that much.
+  void Fill(std::uintmax_t leave_bytes = 0) {
+    {
+      std::ofstream filler(data_ / "filler", std::ios::binary);
+      const std::string block(4096, 'x');
+      while (filler.write(block.data(), block.size()) && filler.flush()) {
+      }
     }
+    const std::uintmax_t size = fs::file_size(data_ / "filler");
+    fs::resize_file(data_ / "filler", size - std::min(size, leave_bytes));
   }
   // Waits for the run's stop event; returns it.
   static json WaitForStop(const RunService& service, const std::string& id) {
@@ -137,6 +148,139 @@ TEST_F(FullDisk, ARunFailsCleanlyAndTheDaemonStartsAndSaysSo) {
     EXPECT_EQ(service.Health().http_status, 200) << service.Health().body.dump();
     service.Stop();
   }
+}
+
+// A small dome for solves: 12 LEDs on two rings, a sphere on a 48 x 48 camera.
+std::string SolveRigYaml() {
+  std::string text = "rig: {name: solve-dome}\nlights:\n  driver: sim\n  id: solve-dome\n  leds:\n";
+  for (int i = 0; i < 12; ++i) {
+    const double azimuth = i * 2.0 * M_PI / 6.0 + (i >= 6 ? M_PI / 6.0 : 0.0);
+    const double elevation = i < 6 ? 0.6 : 1.0;
+    text += "    - {id: " + std::to_string(i) + ", direction: [" + std::to_string(std::cos(elevation) * std::cos(azimuth)) +
+            ", " + std::to_string(std::cos(elevation) * std::sin(azimuth)) + ", " + std::to_string(std::sin(elevation)) +
+            "]}\n";
+  }
+  text +=
+      "camera: {driver: sim, id: solve-cam, width: 48, height: 48, pixel_pitch_mm: 0.5, bit_depth: 12, "
+      "exposure_us: 1000}\n"
+      "sim:\n  seed: 7\n  scene: {shape: sphere, radius_mm: 10}\n";
+  return text;
+}
+
+// Photometric stereo, then svbrdf (normals again, albedo maps, EXR and a glTF asset).
+std::string SolveRecipeYaml() {
+  return "recipe: {name: solve-full, rig: rig.yaml}\n"
+         "capture:\n  exposure_us: 1000\n  steps:\n    - dark: {count: 2}\n    - each_led: {leds: all}\n"
+         "solve:\n"
+         "  - photometric_stereo: {method: lambertian, shadow_threshold_sigma: 3}\n"
+         "  - svbrdf: {photometric_stereo: {method: lambertian, shadow_threshold_sigma: 3}, max_materials: 1, "
+         "held_out_lights: -1}\n";
+}
+
+std::uintmax_t BytesUnder(const fs::path& folder) {
+  std::uintmax_t bytes = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(folder))
+    if (entry.is_regular_file()) bytes += entry.file_size();
+  return bytes;
+}
+
+// Every stored file of a run but its results, with its bytes.
+std::map<std::string, std::string> CapturedFiles(const fs::path& run) {
+  std::map<std::string, std::string> files;
+  for (const auto& entry : fs::recursive_directory_iterator(run)) {
+    const std::string relative = entry.path().lexically_relative(run).string();
+    if (entry.is_regular_file() && relative.rfind("results", 0) != 0) files[relative] = ReadText(entry.path());
+  }
+  return files;
+}
+
+// What a solve that failed must not leave: partial folders, temp files.
+void ExpectNoPartialResults(const fs::path& data) {
+  for (const auto& entry : fs::recursive_directory_iterator(data)) {
+    const std::string name = entry.path().filename().string();
+    EXPECT_EQ(name.find(".partial-"), std::string::npos) << entry.path();
+    EXPECT_NE(entry.path().extension(), ".tmp") << entry.path();
+  }
+}
+
+TEST_F(FullDisk, ASolveThatRunsOutOfSpaceLeavesTheFramesAndSolvesOnceThereIsRoom) {
+  const std::string recipe = dir_.Write("recipe.yaml", SolveRecipeYaml());
+  dir_.Write("rig.yaml", SolveRigYaml());
+  // The same run on a roomy disk: how much each stage writes.
+  RunRequest request;
+  request.recipe_path = recipe;
+  request.output_directory = (dir_.path() / "reference").string();
+  const RunOutcome reference = ExecuteRun(request);
+  ASSERT_EQ(reference.solve_stages.size(), 2u);
+  for (const SolveStageReport& stage : reference.solve_stages) ASSERT_TRUE(stage.usable) << stage.message;
+  const std::map<std::string, std::uintmax_t> written = {
+      {"photometric_stereo", BytesUnder(dir_.path() / "reference" / "results" / "ps")},
+      {"svbrdf", BytesUnder(dir_.path() / "reference" / "results" / "svbrdf")}};
+  ASSERT_GT(written.at("svbrdf"), 64u * 1024) << "the svbrdf results are too small to fill a disk part way";
+  RecordProperty("ps_bytes", static_cast<int>(written.at("photometric_stereo")));
+  RecordProperty("svbrdf_bytes", static_cast<int>(written.at("svbrdf")));
+
+  // Each stage in turn runs out of space half way through its results.
+  for (const auto& [stage_name, results] : {std::pair{"photometric_stereo", "ps"}, std::pair{"svbrdf", "svbrdf"}}) {
+    const std::string full_stage = stage_name;
+    SCOPED_TRACE(full_stage);
+    const fs::path run = data_ / "runs" / full_stage;
+    std::map<std::string, std::string> captured;
+    request.output_directory = run.string();
+    request.on_solve_started = [&](const std::string& stage) {
+      if (stage != full_stage) return;
+      captured = CapturedFiles(run);
+      Fill(written.at(full_stage) / 2);
+    };
+    try {
+      ExecuteRun(request);
+      ADD_FAILURE() << "the solve wrote its results on a full disk";
+    } catch (const std::runtime_error& e) {
+      const std::string message = e.what();
+      RecordProperty(full_stage + "_message", message);
+      EXPECT_NE(message.find("cannot write the results to " + (run / "results" / results).string()), std::string::npos)
+          << message;
+      EXPECT_NE(message.find("No space left on device"), std::string::npos) << message;
+      EXPECT_NE(message.find("free space on it, then solve again"), std::string::npos) << message;
+      EXPECT_NE(message.find(std::string("`photorig solve ") + results + " --run " + run.string() + "`"),
+                std::string::npos)
+          << message;
+    }
+    ASSERT_FALSE(captured.empty());
+    EXPECT_TRUE(CapturedFiles(run) == captured) << "the captured files changed";
+    EXPECT_FALSE(fs::exists(run / "results" / results));
+    ExpectNoPartialResults(data_);
+    if (full_stage == "svbrdf")  // the stage before it ended whole
+      EXPECT_TRUE(fs::exists(run / "results" / "ps" / "report.json"));
+    fs::remove(data_ / "filler");
+  }
+
+  // `photorig solve` on the same disk: a full disk part way through is exit 1
+  // naming the folder; with room again, the same command solves.
+  const fs::path run = data_ / "runs" / "svbrdf";
+  const std::map<std::string, std::string> captured = CapturedFiles(run);
+  Fill(written.at("svbrdf") / 2);
+  const photorig::testing::CommandOutcome full = Photorig("solve svbrdf --held-out=-1 --max-materials 1 --json --run " + run.string(), dir_);
+  EXPECT_EQ(full.exit_code, 1) << full.err;
+  const json document = json::parse(full.out, nullptr, false);
+  ASSERT_TRUE(document.is_object()) << full.out;
+  EXPECT_EQ(document.value("exit_code", -1), 1);
+  EXPECT_NE(document.value("error", "").find("cannot write the results to " + (run / "results" / "svbrdf").string()),
+            std::string::npos)
+      << document.dump();
+  EXPECT_NE(document.value("error", "").find("free space on it"), std::string::npos) << document.dump();
+  EXPECT_FALSE(fs::exists(run / "results" / "svbrdf"));
+  ExpectNoPartialResults(data_);
+  fs::remove(data_ / "filler");
+
+  for (const std::string solver : {"ps", "svbrdf --held-out=-1 --max-materials 1"}) {
+    const photorig::testing::CommandOutcome solved = Photorig("solve " + solver + " --run " + run.string(), dir_);
+    EXPECT_EQ(solved.exit_code, 0) << solver << ": " << solved.err;
+    EXPECT_TRUE(fs::exists(run / "results" / solver.substr(0, solver.find(' ')) / "report.json")) << solver;
+  }
+  EXPECT_TRUE(fs::exists(run / "results" / "svbrdf" / "asset" / "asset.gltf"));
+  EXPECT_TRUE(CapturedFiles(run) == captured) << "the captured files changed";
+  ExpectNoPartialResults(data_);
 }
 
 }  // namespace

@@ -2,8 +2,12 @@
 // that behave like the kernel's (physical levels, busy lines).
 
 #include "photorig/drivers/gpio/internal/gpio_memory.h"
+#include "photorig/drivers/light_safety.h"
 
 #include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
 
 namespace photorig::drivers {
 namespace {
@@ -62,6 +66,56 @@ TEST(GpioLights, CloseSwitchesOffAndReleases) {
   }
   EXPECT_EQ(chips->physical("gpiochip1", 2), 0);
   EXPECT_FALSE(chips->requested("gpiochip1", 2));
+}
+
+// A process that dies leaves released lines as the chip keeps them: the
+// heartbeat line's edges are what an external watchdog powering the LEDs sees stop.
+TEST(GpioLights, KeepAliveTogglesTheHeartbeatLineAndNothingElse) {
+  auto chips = Chips();
+  GpioLightController lights("dome", Lines(), chips->MakeBackend(), GpioLine{"gpiochip1", 7, false});
+  EXPECT_EQ(lights.channel_count(), 4);
+  ASSERT_TRUE(lights.Open().ok());
+  EXPECT_TRUE(chips->requested("gpiochip1", 7));
+  EXPECT_EQ(chips->physical("gpiochip1", 7), 0);
+  ASSERT_TRUE(lights.SetPattern({{1.0, 0.0, 0.0, 0.0}}).ok());
+  EXPECT_EQ(chips->physical("gpiochip1", 7), 0);  // a pattern is no heartbeat
+  for (int level : {1, 0, 1}) {
+    ASSERT_TRUE(lights.KeepAlive().ok());
+    EXPECT_EQ(chips->physical("gpiochip1", 7), level);
+    EXPECT_EQ(chips->physical("gpiochip0", 4), 1);  // the lit LED stays lit
+    EXPECT_EQ(chips->physical("gpiochip0", 5), 1);
+  }
+  auto back = lights.ReadBack();
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(back->levels, (std::vector<double>{1.0, 0.0, 0.0, 0.0}));
+  ASSERT_TRUE(lights.Close().ok());
+  EXPECT_FALSE(chips->requested("gpiochip1", 7));
+  EXPECT_EQ(chips->physical("gpiochip0", 4), 0);
+}
+
+TEST(GpioLights, TheSafetyLayerKeepsTheHeartbeatGoingWhileOpen) {
+  auto chips = Chips();
+  LightSafetyOptions options;
+  options.keepalive_period_ms = 10;
+  SafeLightController lights(
+      std::make_unique<GpioLightController>("dome", Lines(), chips->MakeBackend(), GpioLine{"gpiochip1", 7, true}),
+      options);
+  ASSERT_TRUE(lights.Open().ok());
+  EXPECT_EQ(chips->physical("gpiochip1", 7), 1);  // active-low heartbeat: logical 0 is high
+  auto edges = [&] {
+    int n = 0;
+    for (const InMemoryGpioChips::Change& change : chips->changes()) n += change.chip == "gpiochip1" && change.offset == 7;
+    return n;
+  };
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);  // a hang guard, not a measurement
+  while (edges() < 4 && std::chrono::steady_clock::now() < give_up)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_GE(edges(), 4);
+  ASSERT_TRUE(lights.Close().ok());
+  const int after_close = edges();
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(edges(), after_close) << "the heartbeat went on after Close";
+  EXPECT_FALSE(chips->requested("gpiochip1", 7));
 }
 
 TEST(GpioLights, MissingOrBusyLineFailsOpenNamingIt) {

@@ -149,6 +149,46 @@ TEST(SimModbusProcess, AnLedLitByAKilledProcessGoesDarkWithinTheControllersTimeo
 // An LED left lit by a process that is gone (here: set by hand on a
 // controller without a watchdog) goes dark when photorigd starts, even with
 // --no-resume, before any run.
+// `rig_path` as a lab's rig would be: the controller at the server's address,
+// not served in-process. Written into `dir` as rig.yaml.
+fs::path ExternalControllerRig(const std::string& rig_path, int port, const fs::path& dir) {
+  fs::create_directories(dir);
+  std::ifstream in(rig_path);
+  std::string rig((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  rig.replace(rig.find("    host: sim"), 13, "    host: 127.0.0.1");
+  rig.replace(rig.find("    port: 0 "), 12, "    port: " + std::to_string(port) + " ");
+  std::ofstream(dir / "rig.yaml") << rig;
+  return dir / "rig.yaml";
+}
+
+// What systemd's ExecStopPost runs after photorigd ended however it ended:
+// an LED a dead process left lit goes dark.
+TEST(SimModbusProcess, LightsOffDarkensWhatAProcessLeftLit) {
+  const std::string rig_path = SourceDir() + "/config/rigs/sim-dome-modbus.yaml";
+  ServerProcess server({"--rig", rig_path});
+  const int port = std::stoi(server.where.substr(std::string("tcp 127.0.0.1:").size()));
+  const drivers::ModbusLightMap map = config::LoadRigConfig(rig_path).lights.modbus->map;
+  drivers::ModbusLinkOptions link;
+  link.port = port;
+  drivers::ModbusLink probe("probe", link);
+  ASSERT_TRUE(probe.Connect().ok());
+  ASSERT_TRUE(probe.WriteRegisters(map.intensity_address + 3, {1000}).ok());
+  ASSERT_TRUE(probe.WriteCoils(map.on_off_address + 3, {1}).ok());
+  const fs::path dir = fs::temp_directory_path() / ("photorig-lights-off-" + std::to_string(::getpid()));
+  const fs::path rig = ExternalControllerRig(rig_path, port, dir);
+  const std::string command = std::string(PHOTORIG_BIN_DIR) + "/photorig lights off --json --rig " + rig.string() +
+                              " > " + (dir / "out.json").string() + " 2> " + (dir / "err.txt").string();
+  const int status = std::system(command.c_str());
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  std::ifstream out(dir / "out.json");
+  const nlohmann::json document = nlohmann::json::parse(out, nullptr, false);
+  EXPECT_TRUE(document.is_object() && document.value("touched", false)) << document.dump();
+  EXPECT_EQ(probe.ReadCoils(map.on_off_address + 3, 1).value()[0], 0);
+  probe.Disconnect();
+  fs::remove_all(dir);
+  EXPECT_EQ(server.Terminate(), 0);
+}
+
 TEST(SimModbusProcess, PhotorigdStartsByDarkeningTheLights) {
   const std::string rig_path = SourceDir() + "/config/rigs/sim-dome-modbus.yaml";
   ServerProcess server({"--rig", rig_path});
@@ -161,14 +201,8 @@ TEST(SimModbusProcess, PhotorigdStartsByDarkeningTheLights) {
   ASSERT_TRUE(probe.WriteRegisters(map.intensity_address + 7, {1000}).ok());
   ASSERT_TRUE(probe.WriteCoils(map.on_off_address + 7, {1}).ok());
 
-  // The rig as a lab's would be: the controller at its address, not served in-process.
   const fs::path dir = fs::temp_directory_path() / ("photorig-darken-" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  std::ifstream in(rig_path);
-  std::string rig((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  rig.replace(rig.find("    host: sim"), 13, "    host: 127.0.0.1");
-  rig.replace(rig.find("    port: 0 "), 12, "    port: " + std::to_string(port) + " ");
-  std::ofstream(dir / "rig.yaml") << rig;
+  ExternalControllerRig(rig_path, port, dir);
   const pid_t daemon = ::fork();
   if (daemon == 0) {
     const std::string binary = std::string(PHOTORIG_BIN_DIR) + "/photorigd";

@@ -16,33 +16,50 @@ std::string Describe(const GpioLine& line) { return line.chip + ":" + std::to_st
 }  // namespace
 
 GpioLightController::GpioLightController(std::string id, std::vector<GpioLine> lines,
-                                         std::unique_ptr<GpioBackend> backend)
-    : LightController(std::move(id)), lines_(std::move(lines)), backend_(std::move(backend)) {}
+                                         std::unique_ptr<GpioBackend> backend, std::optional<GpioLine> heartbeat)
+    : LightController(std::move(id)),
+      leds_(lines.size()),
+      lines_(std::move(lines)),
+      has_heartbeat_(heartbeat.has_value()),
+      backend_(std::move(backend)) {
+  if (heartbeat) lines_.push_back(*heartbeat);
+}
 
 GpioLightController::~GpioLightController() { (void)Close(); }
 
 Status GpioLightController::DoOpen() {
-  if (lines_.empty()) return {StatusCode::kInvalidArgument, "light controller " + id() + ": no GPIO lines"};
-  Status status = backend_->Request("photorig:" + id(), lines_, Physical(lines_, std::vector<int>(lines_.size(), 0)));
+  if (leds_ == 0) return {StatusCode::kInvalidArgument, "light controller " + id() + ": no GPIO lines"};
+  logical_.assign(lines_.size(), 0);
+  Status status = backend_->Request("photorig:" + id(), lines_, Physical(lines_, logical_));
+  if (!status.ok()) return {status.code(), "light controller " + id() + ": " + status.message()};
+  return Status::Ok();
+}
+
+Status GpioLightController::Drive() {
+  Status status = backend_->Set(Physical(lines_, logical_));
   if (!status.ok()) return {status.code(), "light controller " + id() + ": " + status.message()};
   return Status::Ok();
 }
 
 Status GpioLightController::DoSetPattern(const LightPattern& pattern) {
-  std::vector<int> logical(lines_.size());
-  for (std::size_t i = 0; i < lines_.size(); ++i) logical[i] = pattern.levels[i] > 0.0 ? 1 : 0;
-  Status status = backend_->Set(Physical(lines_, logical));
-  if (!status.ok()) return {status.code(), "light controller " + id() + ": " + status.message()};
-  return Status::Ok();
+  for (std::size_t i = 0; i < leds_; ++i) logical_[i] = pattern.levels[i] > 0.0 ? 1 : 0;
+  return Drive();
 }
 
 Result<LightPattern> GpioLightController::DoReadBack() {
   auto physical = backend_->Get();
   if (!physical.ok()) return physical.status();
   LightPattern pattern = LightPattern::AllOff(channel_count());
-  for (std::size_t i = 0; i < lines_.size(); ++i)
+  for (std::size_t i = 0; i < leds_; ++i)
     pattern.levels[i] = (physical.value()[i] != 0) != lines_[i].active_low ? 1.0 : 0.0;
   return pattern;
+}
+
+Status GpioLightController::DoKeepAlive() {
+  if (!has_heartbeat_) return Status::Ok();
+  // An edge every call: the external watchdog is retriggered by edges, not levels.
+  logical_.back() ^= 1;
+  return Drive();
 }
 
 Status GpioLightController::DoClose() {

@@ -1,6 +1,7 @@
 #include "photorig/solvers/tomography/nrrd.h"
 
 #include <bit>
+#include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -40,7 +41,9 @@ solvers::Summary WriteNrrd(const std::string& path, const VolumeGrid& grid, cons
     if constexpr (std::endian::native == std::endian::big) bits = SwapBytes(bits);
     out.write(reinterpret_cast<const char*>(&bits), sizeof bits);
   }
-  if (!out) return solvers::Ended(solvers::Termination::kInvalidInput, "writing " + path + " failed");
+  // The last buffer reaches the file only here: a full disk shows at the flush.
+  out.flush();
+  if (!out) return solvers::Ended(solvers::Termination::kInvalidInput, "writing " + path + " failed: " + std::strerror(errno));
   return timer.Succeeded();
 }
 

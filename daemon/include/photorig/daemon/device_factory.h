@@ -32,6 +32,17 @@ std::unique_ptr<drivers::Camera> MakeCamera(const DeviceContext& context);
 // The output that fires a hardware-triggered camera; null for software triggers.
 std::unique_ptr<drivers::TriggerOutput> MakeTriggerOutput(const DeviceContext& context);
 
+// Whether the rig's lights are a controller outside this process, which can
+// still be lit from an earlier process (one killed mid-exposure, a power cut
+// of the PC). Simulated lights, and a Modbus controller served in-process,
+// start dark with the process.
+bool LightsOutliveTheProcess(const RigConfig& rig);
+// Opens and closes such a controller: opening switches every output off and
+// closing leaves them off. photorigd does it as it starts, and `photorig
+// lights off` (systemd's ExecStopPost) after photorigd ended, however it
+// ended. Does nothing for lights that do not outlive the process.
+Status DarkenLights(const RigConfig& rig);
+
 // A gonioreflectometer's axes and the Goniometer that moves them under the
 // rig's separation constraints. Empty for a rig without `motion:`.
 struct MotionRig {

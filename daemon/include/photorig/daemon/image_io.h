@@ -11,7 +11,9 @@
 namespace photorig::daemon {
 
 // Writes bytes to `path` so that after a crash the file is either absent or
-// complete: temp file, fsync, rename, fsync of the directory.
+// complete: temp file, fsync, rename, fsync of the directory. Throws
+// std::system_error carrying errno (ENOSPC for a full disk), having removed
+// the temp file.
 void WriteFileDurably(const std::string& path, const void* data, std::size_t size);
 void WriteFileDurably(const std::string& path, const std::string& text);
 // Makes a directory's entries (files created, renamed or removed in it) durable.

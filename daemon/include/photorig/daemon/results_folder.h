@@ -5,9 +5,21 @@
 // batch task that is cancelled, pre-empted or re-queued mid-solve leaves the
 // previous result (or none), never half of a new one.
 
+#include <exception>
+#include <stdexcept>
 #include <string>
 
 namespace photorig::daemon {
+
+// Results that could not be written (a full disk, a read-only folder). The
+// message names the destination, says that nothing was put there, and what to
+// do before solving again.
+struct ResultsWriteError : std::runtime_error {
+  ResultsWriteError(const std::string& destination, const std::string& cause, bool disk_full);
+  std::string destination;
+  std::string cause;       // the failed operation, with the file and the system's reason
+  bool disk_full = false;  // the filesystem holding the destination ran out of space
+};
 
 class ResultsFolder {
  public:
@@ -26,6 +38,11 @@ class ResultsFolder {
   // Makes the folder durable and puts it at `destination` in one rename (an
   // exchange with the previous result, which is then removed).
   void Commit();
+  // For a catch block around the writes: removes the partial folder (so its
+  // files hold no space) and throws ResultsWriteError for `error` when it is a
+  // file-system error (errno-carrying, or on a disk that is now full, or
+  // another folder's ResultsWriteError); rethrows any other error unchanged.
+  [[noreturn]] void Abandon(std::exception_ptr error);
 
  private:
   std::string destination_;

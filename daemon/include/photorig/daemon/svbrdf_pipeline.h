@@ -43,6 +43,9 @@ struct SvbrdfResult {
 
 nlohmann::json ToJson(const SvbrdfResult& result);
 
+// Solves and writes the folder above into `output_directory`, replaced whole
+// as it ends (results_folder.h); a write that fails throws ResultsWriteError
+// and leaves `output_directory` as it was.
 SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const SvbrdfRequest& request,
                                  const std::string& output_directory);
 

@@ -48,9 +48,12 @@ struct ModbusLightsOptions {
 };
 
 #if PHOTORIG_HAVE_DRIVERS_GPIO
-// lights: {driver: gpio, options: {chip, active_low, lines: [offset | {chip, offset, active_low}] (one per LED)}}
+// lights: {driver: gpio, options: {chip, active_low, lines: [offset | {chip, offset, active_low}] (one per LED),
+//                                  heartbeat: {chip, offset, active_low}}}
 struct GpioLightsOptions {
   std::vector<drivers::GpioLine> lines;
+  // Toggled while the process lives, for an external watchdog that powers the LEDs (gpio_lights.h).
+  std::optional<drivers::GpioLine> heartbeat;
 };
 #endif
 
