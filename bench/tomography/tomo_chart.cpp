@@ -133,14 +133,42 @@ void WriteProblem(const std::string& out, const Slice& slice, int n, int views) 
   WritePng(out + "/tomo_slice_truth.png", slice.grid, slice.truth, 0.1);
 }
 
-tomo::ReconstructOptions Options(tomo::Method method, int iterations) {
-  tomo::ReconstructOptions options;
-  options.method = method;
-  options.max_iterations = iterations;
-  return options;
+// A method as charted: SART with and without total variation.
+struct Variant {
+  const char* name;
+  tomo::Method method;
+  bool total_variation;
+};
+
+constexpr Variant kVariants[] = {{"art", tomo::Method::kArt, false},
+                                 {"sirt", tomo::Method::kSirt, false},
+                                 {"cgls", tomo::Method::kCgls, false},
+                                 {"sart", tomo::Method::kSart, false},
+                                 {"sart-tv", tomo::Method::kSart, true}};
+
+const Variant* FindVariant(const std::string& name) {
+  for (const Variant& v : kVariants)
+    if (name == v.name) return &v;
+  return nullptr;
 }
 
-int Iterations(tomo::Method method) { return method == tomo::Method::kArt ? 30 : method == tomo::Method::kSirt ? 400 : 60; }
+int Iterations(tomo::Method method) {
+  switch (method) {
+    case tomo::Method::kArt: return 30;
+    case tomo::Method::kSart: return 40;
+    case tomo::Method::kSirt: return 400;
+    case tomo::Method::kCgls: return 60;
+  }
+  return 0;
+}
+
+tomo::ReconstructOptions Options(const Variant& variant) {
+  tomo::ReconstructOptions options;
+  options.method = variant.method;
+  options.total_variation = variant.total_variation;
+  options.max_iterations = Iterations(variant.method);
+  return options;
+}
 
 }  // namespace
 
@@ -155,8 +183,8 @@ int main(int argc, char** argv) {
   const std::string mode = argc > 4 ? argv[4] : "";
   if (mode == "--solve" && argc > 5) {
     // Only what a user's run does: the geometry, the sinogram from disk, W, the stopped solve.
-    const auto method = tomo::ParseMethod(argv[5]);
-    if (!method) return 2;
+    const Variant* variant = FindVariant(argv[5]);
+    if (!variant) return 2;
     tomo::VolumeGrid grid{n, n, 1, 32.0 / n};
     tomo::Geometry geometry;
     geometry.detector_cols = n;
@@ -174,7 +202,7 @@ int main(int argc, char** argv) {
       if (key == "noise_sigma") meta >> noise_sigma;
     std::unique_ptr<tomo::Projector> projector;
     tomo::MakeProjector(grid, geometry, ProjectorChoice(), &projector);
-    tomo::ReconstructOptions options = Options(*method, Iterations(*method));
+    tomo::ReconstructOptions options = Options(*variant);
     options.noise_sigma = noise_sigma;
     Eigen::VectorXf x;
     const tomo::ReconstructionSummary s = tomo::Reconstruct(*projector, data, options, &x);
@@ -195,19 +223,18 @@ int main(int argc, char** argv) {
   if (problem_only) return 0;
   std::ofstream iterations(out + "/tomo_iterations.csv");
   iterations << "method,noise,iteration,elapsed_ms,error,residual,stopped\n";
-  const tomo::Method methods[] = {tomo::Method::kArt, tomo::Method::kSirt, tomo::Method::kCgls};
-  for (tomo::Method method : methods)
+  for (const Variant& variant : kVariants)
     for (int noisy = 0; noisy < 2; ++noisy) {
       const tomo::Absorbance& data = noisy ? slice.noisy : slice.clean;
       // The stopped solve, timed on its own, then the full curve (errors
       // computed outside the timed part: the callback's time is subtracted).
-      tomo::ReconstructOptions stopped = Options(method, Iterations(method));
+      tomo::ReconstructOptions stopped = Options(variant);
       stopped.noise_sigma = noisy ? slice.noise_sigma : 0.002 * slice.noise_sigma;
       Eigen::VectorXf x;
       const tomo::ReconstructionSummary s = tomo::Reconstruct(*slice.projector, data, stopped, &x);
-      if (noisy) WritePng(out + "/tomo_slice_" + tomo::MethodName(method) + ".png", slice.grid, x, 0.1);
+      if (noisy) WritePng(out + "/tomo_slice_" + variant.name + ".png", slice.grid, x, 0.1);
 
-      tomo::ReconstructOptions full = Options(method, Iterations(method));
+      tomo::ReconstructOptions full = Options(variant);
       full.stop_rule = tomo::StopRule::kIterations;
       full.stagnation_tolerance = 0.0;
       std::vector<double> errors, elapsed;
@@ -222,12 +249,12 @@ int main(int argc, char** argv) {
       x.resize(0);
       const tomo::ReconstructionSummary f = tomo::Reconstruct(*slice.projector, data, full, &x);
       for (std::size_t i = 0; i < errors.size(); ++i)
-        iterations << tomo::MethodName(method) << ',' << noisy << ',' << i + 1 << ',' << elapsed[i] << ','
+        iterations << variant.name << ',' << noisy << ',' << i + 1 << ',' << elapsed[i] << ','
                    << errors[i] << ',' << f.residual_history[i + 1] << ','
                    << (s.stop_reason == tomo::StopReason::kDiscrepancy && static_cast<int>(i + 1) == s.iterations)
                    << '\n';
-      std::fprintf(stderr, "%-4s noise=%d: stopped after %d (%s, %s) error %.4f; best %.4f at %d\n",
-                   tomo::MethodName(method), noisy, s.iterations, tomo::StopReasonName(s.stop_reason),
+      std::fprintf(stderr, "%-7s noise=%d: stopped after %d (%s, %s) error %.4f; best %.4f at %d\n",
+                   variant.name, noisy, s.iterations, tomo::StopReasonName(s.stop_reason),
                    photorig::solvers::TerminationName(s.termination),
                    errors[static_cast<std::size_t>(std::max(0, s.iterations - 1))],
                    *std::min_element(errors.begin(), errors.end()),
@@ -239,13 +266,13 @@ int main(int argc, char** argv) {
   by_views << "method,noise,views,iterations,error\n";
   for (int v : {16, 32, 64, 128, 180}) {
     const Slice s(n, v);
-    for (tomo::Method method : methods)
+    for (const Variant& variant : kVariants)
       for (int noisy = 0; noisy < 2; ++noisy) {
-        tomo::ReconstructOptions options = Options(method, Iterations(method));
+        tomo::ReconstructOptions options = Options(variant);
         options.noise_sigma = noisy ? s.noise_sigma : 0.002 * s.noise_sigma;
         Eigen::VectorXf x;
         const tomo::ReconstructionSummary r = tomo::Reconstruct(*s.projector, noisy ? s.noisy : s.clean, options, &x);
-        by_views << tomo::MethodName(method) << ',' << noisy << ',' << v << ',' << r.iterations << ','
+        by_views << variant.name << ',' << noisy << ',' << v << ',' << r.iterations << ','
                  << (r.IsSolutionUsable() ? s.Error(x) : std::nan("")) << '\n';
       }
   }
