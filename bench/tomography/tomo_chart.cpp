@@ -85,13 +85,14 @@ struct Slice {
     tomo::MakeProjector(grid, geometry, ProjectorChoice(), &projector);
     // scikit-image's pixel grid: its centre pixel (n/2, n/2) on the axis, image
     // rows downwards from +y; 4 x 4 samples per pixel as for ours.
+    const photorig::sim::PhantomSampler sampler(phantom);
     peer_truth.resize(n * n);
     for (int r = 0; r < n; ++r)
       for (int c = 0; c < n; ++c) {
         double sum = 0.0;
         for (int b = 0; b < 4; ++b)
           for (int a = 0; a < 4; ++a)
-            sum += phantom.Sigma(grid.voxel_mm * Eigen::Vector3d(c - 0.5 * n + (a + 0.5) / 4 - 0.5,
+            sum += sampler.Sigma(grid.voxel_mm * Eigen::Vector3d(c - 0.5 * n + (a + 0.5) / 4 - 0.5,
                                                                  0.5 * n - r + (b + 0.5) / 4 - 0.5, 0.0));
         peer_truth[r * n + c] = static_cast<float>(sum / 16);
       }
