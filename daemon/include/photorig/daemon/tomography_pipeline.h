@@ -88,9 +88,10 @@ struct TomographyResult {
 TomographyResult SolveTomography(const TomographyInput& input, const config::TomographyRequest& request,
                                  const SystemMatrixFactory& factory = InProcessSystemMatrix());
 
-// volume.nrrd, report.json, geometry.json and PNG previews of the central
-// slices (slice_z.png, slice_y.png, and truth_z.png beside them when the
-// phantom is known), into `destination` (created).
+// volume.nrrd, volume.vdb (where built with OpenVDB: vdb_volume.h),
+// report.json, geometry.json and PNG previews of the central slices
+// (slice_z.png, slice_y.png, and truth_z.png beside them when the phantom is
+// known), into `destination` (created).
 void WriteTomographyResults(const TomographyInput& input, const TomographyResult& result, const std::string& destination);
 
 }  // namespace photorig::daemon
