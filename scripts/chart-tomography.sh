@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Tomography: ART, SIRT and CGLS on the 128 x 128 Shepp-Logan slice from 64
+# Tomography: ART, SIRT, CGLS and SART (with and without total variation) on
+# the 128 x 128 Shepp-Logan slice from 64
 # views (noise-free and 1 % noise), error against processor time and against
 # the number of views, beside scikit-image's SART and filtered back-projection
 # on the same sinograms -> docs/charts/tomography_*.png and tomo_*.csv. Both
@@ -15,7 +16,7 @@ export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 # Whole processes: read the noisy sinogram, reconstruct, write the result.
 processes="$out/tomo_processes.csv"
 echo "process,user_s,system_s,wall_s" > "$processes"
-for method in sirt art; do
+for method in sirt art sart sart-tv; do
   /usr/bin/time -a -o "$processes" -f "photorig $method (stopped),%U,%S,%e" \
     "$build_dir/bin/photorig-tomo-chart" "$out" 128 64 --solve "$method" 2>/dev/null
 done

@@ -42,6 +42,9 @@ packages=(
   slurm-wlm munge
   # tomography distributed over MPI processes (solvers/tomography_mpi, solve tomography --mpi, its mpirun test)
   libopenmpi-dev openmpi-bin
+  # tomography's volume.vdb (daemon/src/vdb_volume.cpp); Debian's FindOpenVDB.cmake requires
+  # Boost.Iostreams, which libopenvdb-dev does not pull in
+  libopenvdb-dev libboost-iostreams-dev
 )
 
 if [ "$(id -u)" = 0 ]; then

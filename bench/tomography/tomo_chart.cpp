@@ -1,10 +1,11 @@
-// Accuracy and speed of ART, SIRT and CGLS on the 2D Shepp-Logan slice
+// Accuracy and speed of ART, SIRT, CGLS and SART (with and without total
+// variation) on the 2D Shepp-Logan slice
 // (parallel beam over 180 degrees, exact ellipse line integrals, ground truth
 // rasterised with 4 x 4 samples per pixel), for scripts/chart-tomography.sh.
 //
 //   photorig-tomo-chart OUT_DIR [n] [views]
 //   photorig-tomo-chart OUT_DIR n views --problem-only   the peer's files alone
-//   photorig-tomo-chart OUT_DIR n views --solve METHOD   one stopped solve of the noisy
+//   photorig-tomo-chart OUT_DIR n views --solve VARIANT  one stopped solve (art, sirt, cgls, sart, sart-tv) of the noisy
 //        sinogram read back from OUT_DIR, written as tomo_slice_METHOD.nrrd: the
 //        whole-process run timed against the peer's
 //
@@ -15,7 +16,8 @@
 //   tomo_views.csv       method,noise,views,iterations,error  (the automatically stopped solve)
 //   tomo_slice_{truth,sinogram_clean,sinogram_noisy}.f32 and tomo_slice.txt: the problem for the
 //                        scikit-image peer (raw little-endian float32; sinogram views x columns)
-//   tomo_slice_{truth,art,sirt,cgls}.png: the slice and the stopped reconstructions of the noisy data
+//   tomo_slice_{truth,art,sirt,cgls,sart,sart-tv}.png: the slice and the stopped reconstructions of the
+//                        noisy data
 // Error: relative L2 inside the reconstruction circle. Noise: Gaussian, 1 % of b's peak.
 
 #include "photorig/sim/phantom.h"
@@ -85,13 +87,14 @@ struct Slice {
     tomo::MakeProjector(grid, geometry, ProjectorChoice(), &projector);
     // scikit-image's pixel grid: its centre pixel (n/2, n/2) on the axis, image
     // rows downwards from +y; 4 x 4 samples per pixel as for ours.
+    const photorig::sim::PhantomSampler sampler(phantom);
     peer_truth.resize(n * n);
     for (int r = 0; r < n; ++r)
       for (int c = 0; c < n; ++c) {
         double sum = 0.0;
         for (int b = 0; b < 4; ++b)
           for (int a = 0; a < 4; ++a)
-            sum += phantom.Sigma(grid.voxel_mm * Eigen::Vector3d(c - 0.5 * n + (a + 0.5) / 4 - 0.5,
+            sum += sampler.Sigma(grid.voxel_mm * Eigen::Vector3d(c - 0.5 * n + (a + 0.5) / 4 - 0.5,
                                                                  0.5 * n - r + (b + 0.5) / 4 - 0.5, 0.0));
         peer_truth[r * n + c] = static_cast<float>(sum / 16);
       }
@@ -133,14 +136,45 @@ void WriteProblem(const std::string& out, const Slice& slice, int n, int views) 
   WritePng(out + "/tomo_slice_truth.png", slice.grid, slice.truth, 0.1);
 }
 
-tomo::ReconstructOptions Options(tomo::Method method, int iterations) {
-  tomo::ReconstructOptions options;
-  options.method = method;
-  options.max_iterations = iterations;
-  return options;
+// A method as charted: SART with and without total variation.
+struct Variant {
+  const char* name;
+  tomo::Method method;
+  bool total_variation;
+};
+
+constexpr Variant kVariants[] = {{"art", tomo::Method::kArt, false},
+                                 {"sirt", tomo::Method::kSirt, false},
+                                 {"cgls", tomo::Method::kCgls, false},
+                                 {"sart", tomo::Method::kSart, false},
+                                 {"sart-tv", tomo::Method::kSart, true}};
+
+const Variant* FindVariant(const std::string& name) {
+  for (const Variant& v : kVariants)
+    if (name == v.name) return &v;
+  return nullptr;
 }
 
-int Iterations(tomo::Method method) { return method == tomo::Method::kArt ? 30 : method == tomo::Method::kSirt ? 400 : 60; }
+int Iterations(tomo::Method method) {
+  switch (method) {
+    case tomo::Method::kArt: return 30;
+    case tomo::Method::kSart: return 40;
+    case tomo::Method::kSirt: return 400;
+    case tomo::Method::kCgls: return 60;
+  }
+  return 0;
+}
+
+tomo::ReconstructOptions Options(const Variant& variant) {
+  tomo::ReconstructOptions options;
+  options.method = variant.method;
+  options.total_variation = variant.total_variation;
+  options.max_iterations = Iterations(variant.method);
+  // As `photorig solve tomography`: the pixel model's own error (|W truth - b|
+  // is 0.8 of the 1 % noise's norm here) adds to the noise (docs/tomography.md).
+  options.discrepancy_factor = 1.2;
+  return options;
+}
 
 }  // namespace
 
@@ -155,8 +189,8 @@ int main(int argc, char** argv) {
   const std::string mode = argc > 4 ? argv[4] : "";
   if (mode == "--solve" && argc > 5) {
     // Only what a user's run does: the geometry, the sinogram from disk, W, the stopped solve.
-    const auto method = tomo::ParseMethod(argv[5]);
-    if (!method) return 2;
+    const Variant* variant = FindVariant(argv[5]);
+    if (!variant) return 2;
     tomo::VolumeGrid grid{n, n, 1, 32.0 / n};
     tomo::Geometry geometry;
     geometry.detector_cols = n;
@@ -174,7 +208,7 @@ int main(int argc, char** argv) {
       if (key == "noise_sigma") meta >> noise_sigma;
     std::unique_ptr<tomo::Projector> projector;
     tomo::MakeProjector(grid, geometry, ProjectorChoice(), &projector);
-    tomo::ReconstructOptions options = Options(*method, Iterations(*method));
+    tomo::ReconstructOptions options = Options(*variant);
     options.noise_sigma = noise_sigma;
     Eigen::VectorXf x;
     const tomo::ReconstructionSummary s = tomo::Reconstruct(*projector, data, options, &x);
@@ -195,19 +229,18 @@ int main(int argc, char** argv) {
   if (problem_only) return 0;
   std::ofstream iterations(out + "/tomo_iterations.csv");
   iterations << "method,noise,iteration,elapsed_ms,error,residual,stopped\n";
-  const tomo::Method methods[] = {tomo::Method::kArt, tomo::Method::kSirt, tomo::Method::kCgls};
-  for (tomo::Method method : methods)
+  for (const Variant& variant : kVariants)
     for (int noisy = 0; noisy < 2; ++noisy) {
       const tomo::Absorbance& data = noisy ? slice.noisy : slice.clean;
       // The stopped solve, timed on its own, then the full curve (errors
       // computed outside the timed part: the callback's time is subtracted).
-      tomo::ReconstructOptions stopped = Options(method, Iterations(method));
+      tomo::ReconstructOptions stopped = Options(variant);
       stopped.noise_sigma = noisy ? slice.noise_sigma : 0.002 * slice.noise_sigma;
       Eigen::VectorXf x;
       const tomo::ReconstructionSummary s = tomo::Reconstruct(*slice.projector, data, stopped, &x);
-      if (noisy) WritePng(out + "/tomo_slice_" + tomo::MethodName(method) + ".png", slice.grid, x, 0.1);
+      if (noisy) WritePng(out + "/tomo_slice_" + variant.name + ".png", slice.grid, x, 0.1);
 
-      tomo::ReconstructOptions full = Options(method, Iterations(method));
+      tomo::ReconstructOptions full = Options(variant);
       full.stop_rule = tomo::StopRule::kIterations;
       full.stagnation_tolerance = 0.0;
       std::vector<double> errors, elapsed;
@@ -222,12 +255,12 @@ int main(int argc, char** argv) {
       x.resize(0);
       const tomo::ReconstructionSummary f = tomo::Reconstruct(*slice.projector, data, full, &x);
       for (std::size_t i = 0; i < errors.size(); ++i)
-        iterations << tomo::MethodName(method) << ',' << noisy << ',' << i + 1 << ',' << elapsed[i] << ','
+        iterations << variant.name << ',' << noisy << ',' << i + 1 << ',' << elapsed[i] << ','
                    << errors[i] << ',' << f.residual_history[i + 1] << ','
                    << (s.stop_reason == tomo::StopReason::kDiscrepancy && static_cast<int>(i + 1) == s.iterations)
                    << '\n';
-      std::fprintf(stderr, "%-4s noise=%d: stopped after %d (%s, %s) error %.4f; best %.4f at %d\n",
-                   tomo::MethodName(method), noisy, s.iterations, tomo::StopReasonName(s.stop_reason),
+      std::fprintf(stderr, "%-7s noise=%d: stopped after %d (%s, %s) error %.4f; best %.4f at %d\n",
+                   variant.name, noisy, s.iterations, tomo::StopReasonName(s.stop_reason),
                    photorig::solvers::TerminationName(s.termination),
                    errors[static_cast<std::size_t>(std::max(0, s.iterations - 1))],
                    *std::min_element(errors.begin(), errors.end()),
@@ -239,13 +272,13 @@ int main(int argc, char** argv) {
   by_views << "method,noise,views,iterations,error\n";
   for (int v : {16, 32, 64, 128, 180}) {
     const Slice s(n, v);
-    for (tomo::Method method : methods)
+    for (const Variant& variant : kVariants)
       for (int noisy = 0; noisy < 2; ++noisy) {
-        tomo::ReconstructOptions options = Options(method, Iterations(method));
+        tomo::ReconstructOptions options = Options(variant);
         options.noise_sigma = noisy ? s.noise_sigma : 0.002 * s.noise_sigma;
         Eigen::VectorXf x;
         const tomo::ReconstructionSummary r = tomo::Reconstruct(*s.projector, noisy ? s.noisy : s.clean, options, &x);
-        by_views << tomo::MethodName(method) << ',' << noisy << ',' << v << ',' << r.iterations << ','
+        by_views << variant.name << ',' << noisy << ',' << v << ',' << r.iterations << ','
                  << (r.IsSolutionUsable() ? s.Error(x) : std::nan("")) << '\n';
       }
   }

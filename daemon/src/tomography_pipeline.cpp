@@ -1,5 +1,9 @@
 #include "photorig/daemon/tomography_pipeline.h"
 
+#if PHOTORIG_HAVE_OPENVDB
+#include "photorig/daemon/vdb_volume.h"
+#endif
+
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/results_folder.h"
 #include "photorig/daemon/run_store.h"
@@ -292,6 +296,7 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
 
   tomography::ReconstructOptions options;
   options.method = *tomography::ParseMethod(request.method);
+  options.total_variation = request.total_variation;
   options.max_iterations = request.max_iterations;
   options.discrepancy_factor = request.discrepancy_factor;
   options.progress = request.progress;
@@ -329,6 +334,7 @@ json TomographyResult::ToJson() const {
       {"iterations", r.iterations},
       {"stop_reason", tomography::StopReasonName(r.stop_reason)},
       {"relaxation", r.relaxation},
+      {"tv_strength", r.tv_strength},
       {"residual", r.residual_history.empty() ? 0.0 : r.residual_history.back()},
       {"discrepancy_target", r.discrepancy_target},
       {"residual_history", r.residual_history},
@@ -369,6 +375,11 @@ void WriteTomographyFiles(const TomographyInput& input, const TomographyResult& 
   if (const solvers::Summary written = tomography::WriteNrrd((out / "volume.nrrd").string(), result.grid, result.sigma);
       !written.IsSolutionUsable())
     throw std::runtime_error(written.message);
+#if PHOTORIG_HAVE_OPENVDB
+  if (const solvers::Summary written = WriteVdb((out / "volume.vdb").string(), result.grid, result.sigma);
+      !written.IsSolutionUsable())
+    throw std::runtime_error(written.message);
+#endif
   // One scale for the reconstruction and the truth: the phantom's peak, else the volume's.
   double top = result.sigma.maxCoeff();
   Eigen::VectorXf truth;

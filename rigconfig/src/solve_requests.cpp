@@ -105,7 +105,8 @@ bool TomographyRequest::IsValid(std::string* why) const {
     if (why) *why = message;
     return false;
   };
-  if (!tomography::ParseMethod(method)) return fail("method '" + method + "' (expected sirt, art or cgls)");
+  if (!tomography::ParseMethod(method)) return fail("method '" + method + "' (expected sirt, art, cgls or sart)");
+  if (total_variation && method != "sart") return fail("total_variation needs method sart");
   if (!tomography::ParseInterpolation(projector)) return fail("projector '" + projector + "' (expected joseph or siddon)");
   if (max_iterations < 1 || max_iterations > 100000) return fail("max_iterations must be within [1, 100000]");
   if (!(discrepancy_factor > 0) || !std::isfinite(discrepancy_factor)) return fail("discrepancy_factor must be > 0");
@@ -117,9 +118,11 @@ bool TomographyRequest::IsValid(std::string* why) const {
 }
 
 TomographyRequest ParseTomographyRequest(const YamlNode& node) {
-  node.ExpectKeys({"method", "projector", "max_iterations", "discrepancy_factor", "volume", "voxel_mm", "cor_offset_mm"});
+  node.ExpectKeys({"method", "total_variation", "projector", "max_iterations", "discrepancy_factor", "volume",
+                   "voxel_mm", "cor_offset_mm"});
   TomographyRequest request;
   request.method = node.String("method", request.method);
+  request.total_variation = node.Bool("total_variation", request.total_variation);
   request.projector = node.String("projector", request.projector);
   request.max_iterations = node.Int("max_iterations", request.max_iterations);
   request.discrepancy_factor = node.Double("discrepancy_factor", request.discrepancy_factor);

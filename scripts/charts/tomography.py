@@ -77,19 +77,21 @@ def plot(d, out):
 
     ours = list(csv.DictReader(open(f"{d}/tomo_iterations.csv")))
     peer_rows = list(csv.DictReader(open(f"{d}/tomo_peer.csv")))
-    colours = {"art": "C0", "sirt": "C1", "cgls": "C2", "sart": "C3", "fbp": "C4"}
+    colours = {"art": "C0", "sirt": "C1", "cgls": "C2", "sart": "C5", "sart-tv": "C6", "peer-sart": "C3", "fbp": "C4"}
+    ours_methods = ("art", "sirt", "cgls", "sart", "sart-tv")
+    label = {"art": "ART", "sirt": "SIRT", "cgls": "CGLS", "sart": "SART", "sart-tv": "SART + TV"}
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
     for noisy, ax in zip((0, 1), axes):
-        for m in ("art", "sirt", "cgls"):
+        for m in ours_methods:
             rows = [r for r in ours if r["method"] == m and int(r["noise"]) == noisy]
             ax.plot([float(r["elapsed_ms"]) for r in rows], [float(r["error"]) for r in rows], color=colours[m],
-                    label=f"photorig {m.upper()}")
+                    label=f"photorig {label[m]}")
             for r in rows:
                 if r["stopped"] == "1":
                     ax.scatter(float(r["elapsed_ms"]), float(r["error"]), color=colours[m], marker="*", s=160,
-                               zorder=5, label=f"{m.upper()} stopped (discrepancy)")
+                               zorder=5, label=f"{label[m]} stopped (discrepancy)")
         rows = [r for r in peer_rows if r["method"] == "sart" and int(r["noise"]) == noisy]
-        ax.plot([float(r["elapsed_ms"]) for r in rows], [float(r["error"]) for r in rows], "o-", color=colours["sart"],
+        ax.plot([float(r["elapsed_ms"]) for r in rows], [float(r["error"]) for r in rows], "o-", color=colours["peer-sart"],
                 ms=3, label="scikit-image SART (passes 1-20)")
         for r in peer_rows:
             if r["method"] == "fbp" and int(r["noise"]) == noisy:
@@ -107,11 +109,11 @@ def plot(d, out):
 
     views = list(csv.DictReader(open(f"{d}/tomo_views.csv")))
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for m in ("art", "sirt", "cgls"):
+    for m in ours_methods:
         for noisy, style in ((0, "--"), (1, "-")):
             rows = [r for r in views if r["method"] == m and int(r["noise"]) == noisy]
             ax.plot([int(r["views"]) for r in rows], [float(r["error"]) for r in rows], style, marker="o",
-                    color=colours[m], label=f"{m.upper()} {'1 % noise' if noisy else 'noise-free'}")
+                    color=colours[m], label=f"{label[m]} {'1 % noise' if noisy else 'noise-free'}")
     ax.set_xlabel("views over 180 degrees")
     ax.set_ylabel("relative L2 error (automatic stop)")
     ax.grid(True, alpha=0.3)

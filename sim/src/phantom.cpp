@@ -78,23 +78,36 @@ Phantom Phantom::SheppLogan2d(double half_extent_mm, double sigma_per_mm) {
   return p;
 }
 
-double Phantom::Sigma(const Eigen::Vector3d& point_mm) const {
-  double sum = 0.0;
-  for (const Ellipsoid& e : ellipsoids) {
-    const LocalFrame f = Frame(e, half_extent_mm);
-    if ((f.to_unit * (point_mm - f.centre)).squaredNorm() <= 1.0) sum += e.amplitude;
+PhantomSampler::PhantomSampler(const Phantom& phantom) : sigma_per_mm_(phantom.sigma_per_mm) {
+  frames_.reserve(phantom.ellipsoids.size());
+  for (const Ellipsoid& e : phantom.ellipsoids) {
+    const LocalFrame f = Frame(e, phantom.half_extent_mm);
+    frames_.push_back({f.to_unit, f.centre, e.amplitude});
   }
-  return sum * sigma_per_mm;
 }
 
-double Phantom::LineIntegral(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const {
+double PhantomSampler::Sigma(const Eigen::Vector3d& point_mm) const {
   double sum = 0.0;
-  for (const Ellipsoid& e : ellipsoids) sum += e.amplitude * Chord(Frame(e, half_extent_mm), origin, direction);
-  return sum * sigma_per_mm;
+  for (const EllipsoidFrame& f : frames_)
+    if ((f.to_unit * (point_mm - f.centre)).squaredNorm() <= 1.0) sum += f.amplitude;
+  return sum * sigma_per_mm_;
+}
+
+double PhantomSampler::LineIntegral(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const {
+  double sum = 0.0;
+  for (const EllipsoidFrame& f : frames_) sum += f.amplitude * Chord({f.to_unit, f.centre}, origin, direction);
+  return sum * sigma_per_mm_;
+}
+
+double Phantom::Sigma(const Eigen::Vector3d& point_mm) const { return PhantomSampler(*this).Sigma(point_mm); }
+
+double Phantom::LineIntegral(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const {
+  return PhantomSampler(*this).LineIntegral(origin, direction);
 }
 
 std::vector<float> Phantom::Rasterise(const tomography::VolumeGrid& grid, int supersample) const {
   std::vector<float> sigma(static_cast<std::size_t>(grid.voxels()));
+  const PhantomSampler sampler(*this);
   const int sz = grid.nz == 1 ? 1 : supersample;
 #pragma omp parallel for schedule(dynamic, 1)
   for (int k = 0; k < grid.nz; ++k)
@@ -107,7 +120,7 @@ std::vector<float> Phantom::Rasterise(const tomography::VolumeGrid& grid, int su
             for (int a = 0; a < supersample; ++a) {
               const Eigen::Vector3d offset((a + 0.5) / supersample - 0.5, (b + 0.5) / supersample - 0.5,
                                            sz == 1 ? 0.0 : (c + 0.5) / sz - 0.5);
-              sum += Sigma(centre + grid.voxel_mm * offset);
+              sum += sampler.Sigma(centre + grid.voxel_mm * offset);
             }
         sigma[static_cast<std::size_t>(grid.Index(i, j, k))] =
             static_cast<float>(sum / (supersample * supersample * sz));

@@ -69,6 +69,9 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
   const fs::path results = fs::path(run) / "results" / "tomography";
   for (const char* file : {"volume.nrrd", "report.json", "geometry.json", "slice_z.png", "slice_y.png", "truth_z.png"})
     EXPECT_TRUE(fs::exists(results / file)) << file;
+#if PHOTORIG_HAVE_OPENVDB
+  EXPECT_TRUE(fs::exists(results / "volume.vdb"));  // its contents: test_vdb_volume.cpp
+#endif
   tomography::VolumeGrid grid;
   Eigen::VectorXf sigma;
   ASSERT_TRUE(tomography::ReadNrrd((results / "volume.nrrd").string(), &grid, &sigma).IsSolutionUsable());

@@ -1,8 +1,10 @@
-// photorig solve tomography (--run DIR | --projections DIR) [--method sirt|art|cgls] [--projector joseph|siddon]
+// photorig solve tomography (--run DIR | --projections DIR) [--method sirt|art|cgls|sart] [--tv] [--projector joseph|siddon]
 //                           [--max-iterations N] [--volume NX NY NZ] [--voxel-mm MM] [--cor-offset-mm MM] [--out DIR]
 //
 // A turntable scan's frames -> absorbance (flats and darks) -> a volume by
-// SIRT, ART or CGLS stopped by the discrepancy rule (docs/tomography.md).
+// SIRT, ART, CGLS or SART (optionally with total variation) stopped by the
+// discrepancy rule (docs/tomography.md); volume.nrrd and, where built with
+// OpenVDB, volume.vdb.
 // Exit 0 when the rule stopped it; 1 when the solve failed or cannot be
 // trusted (the residual never reached the noise level, inconsistent data);
 // 2 for missing flats or darks or a geometry that does not fit the frames.
@@ -134,8 +136,10 @@ CommandRunner Setup(CLI::App& app) {
                                  "folder with geometry.json, projections/, flats/, darks/ (docs/tomography.md)")
                      ->check(CLI::ExistingDirectory);
   run->excludes(folder);
-  sub->add_option("--method", options->request.method, "sirt (default) | art | cgls")
-      ->check(CLI::IsMember({"sirt", "art", "cgls"}));
+  sub->add_option("--method", options->request.method, "sirt (default) | art | cgls | sart")
+      ->check(CLI::IsMember({"sirt", "art", "cgls", "sart"}));
+  sub->add_flag("--tv", options->request.total_variation,
+                "SART with total-variation regularisation: for piecewise-constant samples (docs/tomography.md)");
   sub->add_option("--projector", options->request.projector, "joseph (default) | siddon")
       ->check(CLI::IsMember({"joseph", "siddon"}));
   sub->add_option("--max-iterations", options->request.max_iterations, "iteration limit (default 300)")

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numbers>
 #include <numeric>
 #include <random>
 #include <sstream>
@@ -12,6 +14,7 @@ std::optional<Method> ParseMethod(std::string_view name) {
   if (name == "art") return Method::kArt;
   if (name == "sirt") return Method::kSirt;
   if (name == "cgls") return Method::kCgls;
+  if (name == "sart") return Method::kSart;
   return std::nullopt;
 }
 
@@ -20,6 +23,7 @@ const char* MethodName(Method method) {
     case Method::kArt: return "art";
     case Method::kSirt: return "sirt";
     case Method::kCgls: return "cgls";
+    case Method::kSart: return "sart";
   }
   return "?";
 }
@@ -30,6 +34,7 @@ const char* StopReasonName(StopReason reason) {
     case StopReason::kDiscrepancy: return "discrepancy";
     case StopReason::kMaxIterations: return "max-iterations";
     case StopReason::kStagnation: return "stagnation";
+    case StopReason::kLimitCycle: return "limit-cycle";
   }
   return "?";
 }
@@ -43,6 +48,10 @@ bool ReconstructOptions::IsValid(std::string* why) const {
   if (!(relaxation >= 0) || !std::isfinite(relaxation)) return fail("relaxation must be finite and >= 0 (0: the method's default)");
   if (method == Method::kSirt && relaxation >= 2.0) return fail("SIRT converges only for relaxation in (0, 2)");
   if (method == Method::kArt && relaxation >= 2.0) return fail("ART converges only for relaxation in (0, 2)");
+  if (method == Method::kSart && relaxation >= 2.0) return fail("SART converges only for relaxation in (0, 2)");
+  if (total_variation && method != Method::kSart) return fail("total_variation is implemented for SART only");
+  if (!(tv_strength >= 0) || !std::isfinite(tv_strength)) return fail("tv_strength must be finite and >= 0");
+  if (tv_steps < 1) return fail("tv_steps must be >= 1");
   if (!(discrepancy_factor > 0) || !std::isfinite(discrepancy_factor)) return fail("discrepancy_factor must be > 0");
   if (!(noise_sigma >= 0) || !std::isfinite(noise_sigma)) return fail("noise_sigma must be finite and >= 0");
   if (!(min_rays_per_voxel >= 0) || !std::isfinite(min_rays_per_voxel)) return fail("min_rays_per_voxel must be >= 0");
@@ -52,6 +61,11 @@ bool ReconstructOptions::IsValid(std::string* why) const {
 }
 
 namespace {
+
+// SART's default relaxation (see ReconstructOptions::relaxation).
+constexpr double kSartRelaxation = 0.25;
+// Stands in for a zero column sum, whose back projection is zero too.
+constexpr float kTinyWeight = 1e-30f;
 
 double SquaredNorm(const Eigen::VectorXf& v) {
   double sum = 0.0;
@@ -94,6 +108,143 @@ void ArtSweep(const Projector& projector, const Eigen::VectorXf& b, const Eigen:
     }
 }
 
+// What ordered-subsets SART keeps between passes: the views' order, the
+// span of voxels each view reaches (its update touches only those), and a
+// scratch volume of (back projection, column sum) pairs, interleaved so that
+// a ray's scatter touches one cache line per voxel, zero between views.
+struct SartState {
+  std::vector<int> order;
+  std::vector<std::pair<std::int32_t, std::int32_t>> span;  // per view: first and last voxel reached
+  std::vector<float> scratch;                                // 2 per voxel
+};
+
+// One ordered-subsets SART pass, a subset being a view: each view's rays
+// simultaneously, sigma += lambda C_v W_v^T R_v (b_v - W_v sigma), then
+// sigma >= 0, with R the inverse row sums and C_v the inverse column sums
+// over the view's valid rays (summed as the rows are visited).
+void SartPass(const Projector& projector, const Eigen::VectorXf& b, const Eigen::VectorXf& mask,
+              const Eigen::VectorXf& inv_rows, double lambda, bool non_negative, SartState* state, Eigen::VectorXf* x) {
+  float* xs = x->data();
+  float* gc = state->scratch.data();
+  const auto relaxation = static_cast<float>(lambda);
+  for (int view : state->order) {
+    const auto [first, last] = state->span[static_cast<std::size_t>(view)];
+    if (last < first) continue;
+    projector.VisitViewRows(view, [&](std::int64_t ray, const std::int32_t* voxel, const float* w, std::int32_t n) {
+      if (mask[ray] == 0.0f) return;
+      float dot = 0.0f;
+      for (std::int32_t k = 0; k < n; ++k) dot += w[k] * xs[voxel[k]];
+      const float residual = (b[ray] - dot) * inv_rows[ray];
+      for (std::int32_t k = 0; k < n; ++k) {
+        float* pair = gc + 2 * static_cast<std::int64_t>(voxel[k]);
+        pair[0] += w[k] * residual;
+        pair[1] += w[k];
+      }
+    });
+    // Branch-free, so that it vectorises: where the view adds no weight, the
+    // back projection is 0 too and the voxel keeps its value.
+    for (std::int64_t j = first; j <= last; ++j) {
+      const float v = xs[j] + relaxation * gc[2 * j] / std::max(gc[2 * j + 1], kTinyWeight);
+      xs[j] = non_negative ? std::max(v, 0.0f) : v;
+    }
+    std::fill(gc + 2 * static_cast<std::int64_t>(first), gc + 2 * (static_cast<std::int64_t>(last) + 1), 0.0f);
+  }
+}
+
+// Views in a spread-out order: sorted by angle (modulo the half turn that
+// repeats a parallel view), then visited in bit-reversed order, so that
+// consecutive subsets see the sample from far-apart directions (Herman &
+// Meyer 1993); neighbouring views nearly repeat each other's correction.
+std::vector<int> SpreadViewOrder(const Geometry& geometry) {
+  const int views = geometry.views();
+  const double period = geometry.beam == Beam::kParallel ? std::numbers::pi : 2.0 * std::numbers::pi;
+  std::vector<int> by_angle(static_cast<std::size_t>(views));
+  std::iota(by_angle.begin(), by_angle.end(), 0);
+  auto wrapped = [&](int v) {
+    const double a = std::fmod(geometry.angles_rad[static_cast<std::size_t>(v)], period);
+    return a < 0.0 ? a + period : a;
+  };
+  std::stable_sort(by_angle.begin(), by_angle.end(), [&](int a, int b) { return wrapped(a) < wrapped(b); });
+  int bits = 0;
+  while ((1 << bits) < views) ++bits;
+  std::vector<int> order;
+  order.reserve(by_angle.size());
+  for (int i = 0; i < (1 << bits); ++i) {
+    int reversed = 0;
+    for (int k = 0; k < bits; ++k)
+      if (i & (1 << k)) reversed |= 1 << (bits - 1 - k);
+    if (reversed < views) order.push_back(by_angle[static_cast<std::size_t>(reversed)]);
+  }
+  return order;
+}
+
+// The gradient of the volume's isotropic total variation, sum over voxels of
+// sqrt(|forward differences|^2 + eps^2) (eps keeps it differentiable where
+// the volume is flat). A one-slice grid has no z differences. Row by row
+// without branches inside a row, so that the loops vectorise.
+void TotalVariationGradient(const VolumeGrid& grid, const Eigen::VectorXf& volume, float eps,
+                            Eigen::VectorXf* gradient) {
+  const std::int64_t n = volume.size(), nx = grid.nx, sy = grid.nx, sz = static_cast<std::int64_t>(grid.nx) * grid.ny;
+  // Each forward difference divided by its voxel's gradient magnitude.
+  Eigen::VectorXf px(n), py(n), pz(n);
+  const float* x = volume.data();
+  for (int k = 0; k < grid.nz; ++k)
+    for (int j = 0; j < grid.ny; ++j) {
+      const std::int64_t row = grid.Index(0, j, k);
+      float* ax = px.data() + row;
+      float* ay = py.data() + row;
+      float* az = pz.data() + row;
+      const float* xr = x + row;
+      for (std::int64_t i = 0; i + 1 < nx; ++i) ax[i] = xr[i + 1] - xr[i];
+      ax[nx - 1] = 0.0f;
+      if (j + 1 < grid.ny)
+        for (std::int64_t i = 0; i < nx; ++i) ay[i] = xr[i + sy] - xr[i];
+      else
+        std::fill(ay, ay + nx, 0.0f);
+      if (k + 1 < grid.nz)
+        for (std::int64_t i = 0; i < nx; ++i) az[i] = xr[i + sz] - xr[i];
+      else
+        std::fill(az, az + nx, 0.0f);
+      for (std::int64_t i = 0; i < nx; ++i) {
+        const float inv = 1.0f / std::sqrt(ax[i] * ax[i] + ay[i] * ay[i] + az[i] * az[i] + eps * eps);
+        ax[i] *= inv;
+        ay[i] *= inv;
+        az[i] *= inv;
+      }
+    }
+  gradient->resize(n);
+  for (int k = 0; k < grid.nz; ++k)
+    for (int j = 0; j < grid.ny; ++j) {
+      const std::int64_t row = grid.Index(0, j, k);
+      const float* ax = px.data() + row;
+      const float* ay = py.data() + row;
+      const float* az = pz.data() + row;
+      float* g = gradient->data() + row;
+      for (std::int64_t i = 0; i < nx; ++i) g[i] = -(ax[i] + ay[i] + az[i]);
+      for (std::int64_t i = 1; i < nx; ++i) g[i] += ax[i - 1];
+      if (j > 0)
+        for (std::int64_t i = 0; i < nx; ++i) g[i] += ay[i - sy];
+      if (k > 0)
+        for (std::int64_t i = 0; i < nx; ++i) g[i] += az[i - sz];
+    }
+}
+
+// ASD-POCS's TV phase: `steps` normalised steepest-descent steps of total
+// length `length` (in the volume's units, 1/mm).
+void TotalVariationSteps(const VolumeGrid& grid, int steps, double length, bool non_negative, Eigen::VectorXf* x) {
+  if (!(length > 0.0)) return;
+  // eps: a thousandth of the volume's range, far below any edge worth keeping.
+  const float eps = std::max(1e-3f * x->maxCoeff(), 1e-12f);
+  Eigen::VectorXf gradient;
+  for (int step = 0; step < steps; ++step) {
+    TotalVariationGradient(grid, *x, eps, &gradient);
+    const double norm = std::sqrt(SquaredNorm(gradient));
+    if (!(norm > 0.0)) break;
+    *x -= static_cast<float>(length / steps / norm) * gradient;
+  }
+  if (non_negative) ClampNonNegative(x);
+}
+
 std::string Format(double value) {
   std::ostringstream out;
   out.precision(3);
@@ -117,9 +268,10 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
   if (!options.IsValid(&why)) return end(solvers::Termination::kInvalidOptions, why);
   if (!sigma) return end(solvers::Termination::kInvalidInput, "no output volume given");
   const auto* whole = dynamic_cast<const Projector*>(&projector);
-  if (options.method == Method::kArt && !whole)
+  if ((options.method == Method::kArt || options.method == Method::kSart) && !whole)
     return end(solvers::Termination::kInvalidOptions,
-               "ART visits one ray at a time and needs every row of W in one process; use SIRT or CGLS");
+               std::string(options.method == Method::kArt ? "ART visits one ray" : "SART visits one view") +
+                   " at a time and needs every row of W in one process; use SIRT or CGLS");
   // Sums over rays cover the whole scan, whatever part of it this process holds.
   auto ray_sum = [&projector](double held_here) { return projector.SumOverRays(held_here); };
   const std::int64_t rays = projector.rays(), voxels = projector.voxels();
@@ -194,9 +346,12 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
 
   if (sigma->size() != voxels) sigma->setZero(voxels);
   Eigen::VectorXf& x = *sigma;
-  const double lambda =
-      options.relaxation > 0.0 ? options.relaxation : (options.method == Method::kArt ? 0.25 : 1.9);
+  const double lambda = options.relaxation > 0.0             ? options.relaxation
+                        : options.method == Method::kArt  ? 0.25
+                        : options.method == Method::kSart ? kSartRelaxation
+                                                          : 1.9;
   summary.relaxation = options.method == Method::kCgls ? 0.0 : lambda;
+  summary.tv_strength = options.total_variation ? options.tv_strength : 0.0;
   const bool non_negative = options.non_negative && options.method != Method::kCgls;
   if (non_negative) ClampNonNegative(&x);
 
@@ -208,6 +363,8 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
 
   // Method state.
   Eigen::VectorXf inv_rows, inv_columns;  // SIRT
+  SartState sart;
+  Eigen::VectorXf before;                 // SART with TV: the volume before the pass
   Eigen::VectorXf s, p, q;                // CGLS
   double gamma = 0.0, gamma_floor = 0.0;  // |W^T r|^2 now, and where float precision ends
   std::vector<int> order(static_cast<std::size_t>(projector.views()));  // ART
@@ -219,6 +376,20 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
     p = s;
     gamma = projector.SumOverVoxels(SquaredNorm(s));
     gamma_floor = gamma * 1e-12;
+  } else if (options.method == Method::kSart) {
+    inv_rows = row_sums.unaryExpr([](float v) { return v > 0.0f ? 1.0f / v : 0.0f; });
+    sart.order = SpreadViewOrder(whole->geometry());
+    sart.scratch.assign(static_cast<std::size_t>(2 * voxels), 0.0f);
+    sart.span.assign(static_cast<std::size_t>(projector.views()), {std::numeric_limits<std::int32_t>::max(), -1});
+    for (int view = 0; view < projector.views(); ++view)
+      whole->VisitViewRows(view, [&](std::int64_t ray, const std::int32_t* voxel, const float*, std::int32_t n) {
+        if (mask[ray] == 0.0f) return;
+        auto& [first, last] = sart.span[static_cast<std::size_t>(view)];
+        for (std::int32_t k = 0; k < n; ++k) {
+          first = std::min(first, voxel[k]);
+          last = std::max(last, voxel[k]);
+        }
+      });
   } else {
     // Views in a shuffled order: consecutive updates from nearby angles are
     // nearly parallel hyperplanes and make slow progress.
@@ -228,10 +399,20 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
 
   solvers::ProgressThrottle throttle(options.progress, MethodName(options.method), options.max_iterations);
   summary.stop_reason = StopReason::kMaxIterations;
+  // A fixed relaxation keeps ART's and SART's updates from shrinking to zero.
+  const bool row_action = options.method == Method::kArt || options.method == Method::kSart;
   int flat_steps = 0;
   for (int iteration = 1; iteration <= options.max_iterations; ++iteration) {
     if (options.method == Method::kArt) {
       ArtSweep(*whole, b, mask, order, lambda, non_negative, &x);
+      projector.Forward(x, &wx);
+      MaskedResidual(b, wx, mask, &r);
+    } else if (options.method == Method::kSart) {
+      if (summary.tv_strength > 0.0) before = x;
+      SartPass(*whole, b, mask, inv_rows, lambda, non_negative, &sart, &x);
+      if (summary.tv_strength > 0.0)
+        TotalVariationSteps(whole->grid(), options.tv_steps, summary.tv_strength * (x - before).norm(), non_negative,
+                            &x);
       projector.Forward(x, &wx);
       MaskedResidual(b, wx, mask, &r);
     } else if (options.method == Method::kSirt) {
@@ -271,7 +452,7 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
     // Three iterations in a row that barely lower the residual: it has stalled.
     flat_steps = previous - residual < options.stagnation_tolerance * previous ? flat_steps + 1 : 0;
     if (options.stagnation_tolerance > 0.0 && flat_steps >= 3) {
-      summary.stop_reason = StopReason::kStagnation;
+      summary.stop_reason = row_action ? StopReason::kLimitCycle : StopReason::kStagnation;
       break;
     }
   }
@@ -280,8 +461,8 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
     if (column_sums[j] <= 0.0f) x[j] = 0.0f;
 
   const double final_residual = summary.residual_history.back();
-  summary.inconsistent =
-      have_noise && summary.stop_reason == StopReason::kStagnation && final_residual > 1.5 * std::sqrt(noise_sum);
+  const bool stalled = summary.stop_reason == StopReason::kStagnation || summary.stop_reason == StopReason::kLimitCycle;
+  summary.inconsistent = have_noise && stalled && final_residual > 1.5 * std::sqrt(noise_sum);
   std::string notes;
   if (summary.underdetermined)
     notes += "; underdetermined (" + std::to_string(summary.rays_used) + " rays for " +
@@ -289,7 +470,19 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
   if (summary.voxels_unreached > 0)
     notes += "; " + std::to_string(summary.voxels_unreached) + " voxels no valid ray reaches, left at 0";
   timer.Finish(&summary);
-  if (summary.inconsistent) {
+  if (summary.stop_reason == StopReason::kLimitCycle && !(have_noise && final_residual <= summary.discrepancy_target)) {
+    // Where the cycle settles depends on the relaxation and the order, not on the data.
+    summary.termination = solvers::Termination::kFailure;
+    summary.message = std::string(MethodName(options.method)) + " ended in a limit cycle: the residual stopped at " +
+                      (have_noise ? Format(final_residual / std::sqrt(noise_sum)) + " times the noise level"
+                                  : Format(final_residual) + " with no noise level to judge it by") +
+                      " after " + std::to_string(summary.iterations) +
+                      " passes; the volume is not usable: lower the relaxation or use SIRT" +
+                      (summary.inconsistent ? "; the data may be inconsistent: check the centre of rotation, the "
+                                              "flats and the geometry"
+                                            : "") +
+                      notes;
+  } else if (summary.inconsistent) {
     summary.termination = solvers::Termination::kNoConvergence;
     summary.message = "inconsistent data: the residual stalls at " + Format(final_residual / std::sqrt(noise_sum)) +
                       " times the noise level; check the centre of rotation, the flats and the geometry" + notes;

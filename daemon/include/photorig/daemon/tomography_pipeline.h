@@ -88,11 +88,11 @@ struct TomographyResult {
 TomographyResult SolveTomography(const TomographyInput& input, const config::TomographyRequest& request,
                                  const SystemMatrixFactory& factory = InProcessSystemMatrix());
 
-// volume.nrrd, report.json, geometry.json and PNG previews of the central
-// slices (slice_z.png, slice_y.png, and truth_z.png beside them when the
-// phantom is known), into `destination`, replaced whole as it ends
-// (results_folder.h); a write that fails throws ResultsWriteError and leaves
-// `destination` as it was.
+// volume.nrrd, volume.vdb (where built with OpenVDB: vdb_volume.h),
+// report.json, geometry.json and PNG previews of the central slices
+// (slice_z.png, slice_y.png, and truth_z.png beside them when the phantom is
+// known), into `destination`, replaced whole as it ends (results_folder.h); a
+// write that fails throws ResultsWriteError and leaves `destination` as it was.
 void WriteTomographyResults(const TomographyInput& input, const TomographyResult& result, const std::string& destination);
 
 }  // namespace photorig::daemon

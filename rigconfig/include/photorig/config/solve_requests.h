@@ -61,8 +61,11 @@ LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node);
 // -> a reconstructed volume (solvers/tomography, docs/tomography.md).
 struct TomographyRequest {
   // sirt (default: the docs' choice for a scan of many views, stopped by the
-  // discrepancy rule) | art | cgls.
+  // discrepancy rule) | art | cgls | sart.
   std::string method = "sirt";
+  // SART's total-variation regularisation (docs/tomography.md): for samples
+  // known to be piecewise constant. Off by default: the data do not say so.
+  bool total_variation = false;
   std::string projector = "joseph";  // joseph (default: the lower error) | siddon
   int max_iterations = 300;
   // tau of the discrepancy rule. Default 1.2, not Morozov's 1: a scan's

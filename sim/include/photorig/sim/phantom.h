@@ -39,12 +39,35 @@ struct Phantom {
   // scikit-image's shepp_logan_phantom) extruded along z.
   static Phantom SheppLogan2d(double half_extent_mm, double sigma_per_mm);
 
+  // One point or line: each builds the ellipsoids' frames again (a few
+  // trigonometric calls each); PhantomSampler builds them once for many.
   double Sigma(const Eigen::Vector3d& point_mm) const;  // 1/mm
   // The exact integral of sigma along the line (origin, unit direction).
   double LineIntegral(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const;
   // The phantom averaged over each voxel (supersample^3 points per voxel; a
   // single z sample for a one-slice grid).
   std::vector<float> Rasterise(const tomography::VolumeGrid& grid, int supersample = 4) const;
+};
+
+// A phantom with each ellipsoid's frame (its rotation and axes) computed
+// once, for evaluating many points or lines: the same values as Phantom's own
+// Sigma and LineIntegral, bit for bit. It copies what it needs; the phantom
+// may change or go afterwards.
+class PhantomSampler {
+ public:
+  explicit PhantomSampler(const Phantom& phantom);
+
+  double Sigma(const Eigen::Vector3d& point_mm) const;  // 1/mm
+  double LineIntegral(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const;
+
+ private:
+  struct EllipsoidFrame {
+    Eigen::Matrix3d to_unit;  // into the ellipsoid's frame, where it is the unit ball
+    Eigen::Vector3d centre;   // mm
+    double amplitude;
+  };
+  std::vector<EllipsoidFrame> frames_;
+  double sigma_per_mm_;
 };
 
 // The line integrals every pixel of the scan sees, laid out as b: exact

@@ -94,6 +94,11 @@ class Projector : public SystemMatrix {
   void Back(const Eigen::VectorXf& y, Eigen::VectorXf* x) const override;     // x = W^T y
   // Row `ray` of W, for row-action methods.
   void Row(std::int64_t ray, std::vector<RayWeight>* weights) const;
+  // Calls visit(ray, voxels, weights_mm, count) for every ray of `view` in
+  // order, for methods that work a view at a time: the stored rows when
+  // sparse (no copy), traced into scratch arrays otherwise.
+  template <typename Visit>
+  void VisitViewRows(int view, Visit&& visit) const;
 
   // Stores W and W^T (called by MakeProjector when they fit).
   void StoreSparse(const solvers::ProgressCallback& progress);
@@ -107,6 +112,31 @@ class Projector : public SystemMatrix {
 
   void Trace(int view, int row, int col, std::vector<RayWeight>* weights) const;
 };
+
+template <typename Visit>
+void Projector::VisitViewRows(int view, Visit&& visit) const {
+  const std::int64_t per_view = geometry_.pixels_per_view();
+  const std::int64_t first = view * per_view;
+  if (w_) {
+    const std::int32_t* outer = w_->outerIndexPtr();
+    for (std::int64_t ray = first; ray < first + per_view; ++ray)
+      visit(ray, w_->innerIndexPtr() + outer[ray], w_->valuePtr() + outer[ray], outer[ray + 1] - outer[ray]);
+    return;
+  }
+  std::vector<RayWeight> weights;
+  std::vector<std::int32_t> voxels;
+  std::vector<float> values;
+  for (std::int64_t ray = first; ray < first + per_view; ++ray) {
+    Row(ray, &weights);
+    voxels.resize(weights.size());
+    values.resize(weights.size());
+    for (std::size_t k = 0; k < weights.size(); ++k) {
+      voxels[k] = weights[k].voxel;
+      values[k] = weights[k].weight_mm;
+    }
+    visit(ray, voxels.data(), values.data(), static_cast<std::int32_t>(weights.size()));
+  }
+}
 
 struct ProjectorSummary : solvers::Summary {
   bool sparse = false;
