@@ -89,7 +89,7 @@ TEST(Svbrdf, TwoMaterialsInMonochromeAreTold) {
 // the blends are flagged mixed before the materials are chosen, and
 // assigned a material once they are. (The count of materials is not asserted:
 // here, as on the colour dome, the glossy band still splits in two.)
-TEST(Svbrdf, BlendsAlongAPaintEdgeAreFlaggedMixedAndMakeNoMaterial) {
+TEST(Svbrdf, BlendsAlongAPaintEdgeAreFlaggedMixedThenAssigned) {
   SceneSpec spec;
   spec.materials = {Matte(), Phong(0.3, 40.0)};
   spec.band_colour = {Eigen::Vector3d(0.9, 0.6, 0.4), Eigen::Vector3d(0.4, 0.7, 0.9)};
