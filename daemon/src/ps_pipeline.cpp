@@ -125,6 +125,8 @@ PhotometricStereoResult::ColorError Summarise(std::vector<double> errors) {
   return out;
 }
 
+}  // namespace
+
 PhotometricStereoResult::ColorErrors CompareColorAlbedo(const cv::Mat& albedo_rgb, const cv::Mat& truth_rgb,
                                                         const cv::Mat& solved) {
   // Interior: the truth's 5 x 5 range is zero in every channel (NaN off the object counts as a change).
@@ -148,8 +150,6 @@ PhotometricStereoResult::ColorErrors CompareColorAlbedo(const cv::Mat& albedo_rg
     }
   return {Summarise(std::move(all)), Summarise(std::move(interior))};
 }
-
-}  // namespace
 
 double Ciede2000OfLinearSrgb(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   const Eigen::Matrix3d& to_xyz = color::LinearSrgbToXyzD65();
@@ -256,6 +256,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
     const fs::path truth = fs::path(run_directory) / "ground_truth";
     input.truth_normals = ReadFloatTiff((truth / "normals.tiff").string());
     input.truth_albedo = ReadFloatTiff((truth / "albedo.tiff").string());
+    if (fs::exists(truth / "material.png")) input.truth_material = ReadImage((truth / "material.png").string());
     if (fs::exists(truth / "height.tiff")) input.truth_height = ReadFloatTiff((truth / "height.tiff").string());
     if (fs::exists(truth / "albedo_rgb.tiff"))
       input.truth_albedo_rgb = ReadFloatTiff((truth / "albedo_rgb.tiff").string());

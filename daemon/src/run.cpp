@@ -209,6 +209,7 @@ SolveStageReport ReportSolveStage(const SvbrdfResult& result) {
   nlohmann::json models = nlohmann::json::array();
   for (const auto& m : result.material_fits) models.push_back(solvers::brdf::ModelName(m.model));
   report.figures = {{"pixels_fitted", result.summary.pixels_fitted},
+                    {"pixels_mixed", result.summary.pixels_mixed},
                     {"materials", result.summary.materials},
                     {"models", models},
                     {"gltf", !result.gltf_path.empty()}};

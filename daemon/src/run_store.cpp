@@ -438,6 +438,7 @@ void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vec
   WriteFloatTiff((truth / "albedo.tiff").string(), surface.albedo);
   if (!albedo_rgb.empty()) WriteFloatTiff((truth / "albedo_rgb.tiff").string(), albedo_rgb);
   WriteImage((truth / "mask.png").string(), surface.mask);
+  if (!surface.material.empty()) WriteImage((truth / "material.png").string(), surface.material);
   if (!surface.height.empty()) WriteFloatTiff((truth / "height.tiff").string(), surface.height);
   if (!surface.brdf_params.empty()) {
     // (rho_s, shininess, f0): rho_d is albedo.tiff.

@@ -7,11 +7,13 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 
 namespace photorig::daemon {
@@ -37,6 +39,40 @@ nlohmann::json MaterialJson(const refl::MaterialFit& m) {
   j["warnings"] = nlohmann::json::array();
   for (refl::Warning w : m.warnings) j["warnings"].push_back(refl::WarningName(w));
   return j;
+}
+
+// Fraction of the unflagged pixels with a true material (truth < 255) whose
+// fitted material is the true one, under the one-to-one relabelling of
+// fitted materials that agrees best (tried exhaustively: a handful of labels).
+std::optional<double> MaterialAgreement(const refl::ReflectanceMaps& maps, const cv::Mat& truth, int* pixels) {
+  if (truth.type() != CV_8U || truth.size() != maps.material.size()) return std::nullopt;
+  int labels = static_cast<int>(maps.materials.size());
+  for (int i = 0; i < static_cast<int>(truth.total()); ++i)
+    if (truth.at<std::uint8_t>(i) != 255) labels = std::max(labels, truth.at<std::uint8_t>(i) + 1);
+  if (labels > 8) return std::nullopt;  // 8! relabellings at most
+  std::vector<long long> counts(static_cast<std::size_t>(labels) * labels, 0);  // [fitted][true]
+  *pixels = 0;
+  for (int i = 0; i < static_cast<int>(truth.total()); ++i) {
+    const int t = truth.at<std::uint8_t>(i), m = maps.material.at<std::uint8_t>(i);
+    if (t == 255 || m >= labels || maps.flags.at<std::uint8_t>(i) != static_cast<std::uint8_t>(refl::PixelFlag::kFitted))
+      continue;
+    ++counts[static_cast<std::size_t>(m) * labels + t];
+    ++*pixels;
+  }
+  if (*pixels == 0) return std::nullopt;
+  std::vector<int> relabel(labels);
+  std::iota(relabel.begin(), relabel.end(), 0);
+  long long best = 0;
+  do {
+    long long agree = 0;
+    for (int m = 0; m < labels; ++m) agree += counts[static_cast<std::size_t>(m) * labels + relabel[m]];
+    best = std::max(best, agree);
+  } while (std::next_permutation(relabel.begin(), relabel.end()));
+  return static_cast<double>(best) / *pixels;
+}
+
+nlohmann::json ColorErrorJson(const PhotometricStereoResult::ColorError& e) {
+  return {{"mean", e.mean}, {"median", e.median}, {"p95", e.p95}, {"pixels", e.pixels}};
 }
 
 }  // namespace
@@ -90,7 +126,9 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
                  {"outside_mask", result.summary.pixels_outside_mask},
                  {"no_normal", result.summary.pixels_no_normal},
                  {"too_few_samples", result.summary.pixels_too_few_samples},
-                 {"poor_fit", result.summary.pixels_poor_fit}};
+                 {"poor_fit", result.summary.pixels_poor_fit},
+                 {"mixed", result.summary.pixels_mixed},
+                 {"mixed_assigned", result.summary.pixels_mixed_assigned}};
   j["saturated_samples"] = result.summary.saturated_samples;
   j["materials"] = nlohmann::json::array();
   for (std::size_t m = 0; m < result.material_fits.size(); ++m) {
@@ -108,6 +146,15 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
     j["normals_vs_truth_deg"] = {{"mean", result.ps.normals_vs_truth->mean_deg},
                                  {"median", result.ps.normals_vs_truth->median_deg}};
   if (result.albedo_error_vs_truth) j["albedo_median_relative_error_vs_truth"] = *result.albedo_error_vs_truth;
+  if (result.albedo_ciede2000_unflagged) {
+    nlohmann::json& e = j["albedo_ciede2000_vs_truth"];
+    e["unflagged"] = ColorErrorJson(result.albedo_ciede2000_unflagged->all);
+    e["unflagged_interior"] = ColorErrorJson(result.albedo_ciede2000_unflagged->interior);
+    e["with_albedo"] = ColorErrorJson(result.albedo_ciede2000_with_albedo->all);
+  }
+  if (result.material_agreement)
+    j["material_agreement_vs_truth"] = {{"fraction", *result.material_agreement},
+                                        {"pixels", result.material_agreement_pixels}};
   if (result.relighting) {
     const refl::RelightingSummary& r = *result.relighting;
     nlohmann::json h;
@@ -159,9 +206,9 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
         WriteImage((out / "flags.png").string(), maps.flags);
         for (const auto& m : maps.materials)
           result.gltf_mapping_error.push_back(refl::GltfMappingError(m, stack.light_directions, stack.view_direction));
+        const int C = maps.albedo.channels();
         if (!input.truth_albedo.empty() && input.truth_albedo.size() == maps.albedo.size()) {
           std::vector<double> errors;
-          const int C = maps.albedo.channels();
           for (int i = 0; i < static_cast<int>(maps.flags.total()); ++i) {
             if (maps.flags.at<std::uint8_t>(i) != static_cast<std::uint8_t>(refl::PixelFlag::kFitted)) continue;
             const double t = input.truth_albedo.ptr<float>()[i];
@@ -174,6 +221,14 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
             result.albedo_error_vs_truth = errors[errors.size() / 2];
           }
         }
+        if (!input.truth_albedo_rgb.empty() && C == 3 && input.truth_albedo_rgb.size() == maps.albedo.size()) {
+          const cv::Mat unflagged = maps.flags == static_cast<int>(refl::PixelFlag::kFitted);
+          const cv::Mat with_albedo = maps.material != 255;
+          result.albedo_ciede2000_unflagged = CompareColorAlbedo(maps.albedo, input.truth_albedo_rgb, unflagged);
+          result.albedo_ciede2000_with_albedo = CompareColorAlbedo(maps.albedo, input.truth_albedo_rgb, with_albedo);
+        }
+        if (!input.truth_material.empty())
+          result.material_agreement = MaterialAgreement(maps, input.truth_material, &result.material_agreement_pixels);
         if (request.held_out_lights >= 0) {
           refl::RelightingOptions relight;
           relight.fit = options;

@@ -374,6 +374,7 @@ SurfaceMaps SampleSurface(const Scene& scene, const CameraModel& camera) {
   maps.depth.create(height, width, CV_32F);
   maps.depth.setTo(nan);
   maps.mask = cv::Mat::zeros(height, width, CV_8U);
+  if (!scene.material.paint_rho_s.empty()) maps.material = cv::Mat(height, width, CV_8U, cv::Scalar(255));
 
   if (scene.shape == Scene::Shape::kVolume) {
     maps.line_integrals = LineIntegrals(scene.volume, camera);
@@ -418,7 +419,9 @@ SurfaceMaps SampleSurface(const Scene& scene, const CameraModel& camera) {
       maps.normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
       maps.position.at<cv::Vec3f>(r, c) = cv::Vec3f(float(p.x()), float(p.y()), float(p.z()));
       maps.view.at<cv::Vec3f>(r, c) = cv::Vec3f(float(wo.x()), float(wo.y()), float(wo.z()));
-      const double rho_s = m.paint_rho_s.empty() ? m.rho_s : m.paint_rho_s[scene.albedo.PaintAt(p.x(), p.y())];
+      const int paint = scene.albedo.PaintAt(p.x(), p.y());
+      const double rho_s = m.paint_rho_s.empty() ? m.rho_s : m.paint_rho_s[paint];
+      if (!maps.material.empty()) maps.material.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(paint);
       maps.brdf_params.at<cv::Vec4f>(r, c) = cv::Vec4f(rho_d, float(rho_s), shininess, float(m.f0));
       maps.albedo.at<float>(r, c) = rho_d;
       maps.height.at<float>(r, c) = static_cast<float>(p.z());

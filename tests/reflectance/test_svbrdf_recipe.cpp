@@ -31,18 +31,34 @@ TEST(SvbrdfRecipe, FindsTheMatteAndTheGlossyPaintAndWritesALoadableAsset) {
   const daemon::SvbrdfResult& result = *outcome.svbrdf;
   ASSERT_TRUE(result.usable()) << result.summary.message;
 
-  // The glossy paint: a Blinn-Phong lobe in every channel. The matte paint: a
-  // material over at least a third of the pixels with next to no lobe.
-  const auto glossy = std::max_element(result.material_fits.begin(), result.material_fits.end(),
-                                       [](const auto& a, const auto& b) { return a.specular.minCoeff() < b.specular.minCoeff(); });
-  EXPECT_EQ(glossy->model, solvers::brdf::Model::kBlinnPhong);
-  EXPECT_GT(glossy->specular.minCoeff(), 0.1);
-  EXPECT_GT(glossy->pixels, result.summary.pixels_fitted / 3);
+  // Mixed pixels (the demosaic's blends along the paints' edges and the rim)
+  // are flagged and kept out of the choice of materials: a band a few pixels
+  // wide, not the paints themselves (measured 1,459 of 6,685).
+  EXPECT_GT(result.summary.pixels_mixed, 300);
+  EXPECT_LT(result.summary.pixels_mixed, result.summary.pixels_fitted / 2);
+
+  // The glossy paint: Blinn-Phong lobes in every channel over at least a
+  // third of the unflagged pixels. The matte paint: a material over at least
+  // a third of them with next to no lobe.
+  int glossy_pixels = 0;
+  for (const auto& m : result.material_fits)
+    if (m.model == solvers::brdf::Model::kBlinnPhong && m.specular.minCoeff() > 0.1) glossy_pixels += m.pixels;
+  EXPECT_GT(glossy_pixels, result.summary.pixels_fitted / 3);
   const bool matte_found = std::any_of(result.material_fits.begin(), result.material_fits.end(), [&](const auto& m) {
     return m.pixels > result.summary.pixels_fitted / 3 && m.specular.maxCoeff() < 0.01;
   });
   EXPECT_TRUE(matte_found);
   RecordProperty("materials", result.summary.materials);
+
+  // Against the simulator's truth: albedo within CIEDE2000 2 over the
+  // unflagged pixels (measured mean 1.26), and the material map (measured
+  // 0.87 of the unflagged pixels on the true paint's material).
+  ASSERT_TRUE(result.albedo_ciede2000_unflagged.has_value());
+  EXPECT_LE(result.albedo_ciede2000_unflagged->all.mean, 2.0);
+  EXPECT_EQ(result.albedo_ciede2000_unflagged->all.pixels, result.summary.pixels_fitted);
+  ASSERT_TRUE(result.material_agreement.has_value());
+  EXPECT_GT(*result.material_agreement, 0.8);
+  EXPECT_EQ(result.material_agreement_pixels, result.summary.pixels_fitted);
 
   ASSERT_TRUE(result.relighting && result.relighting->IsSolutionUsable());
   const auto& rmse = result.relighting->mean_rmse;

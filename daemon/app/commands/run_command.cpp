@@ -86,8 +86,8 @@ int Execute(const Options& options) {
   if (outcome.svbrdf) {
     const daemon::SvbrdfResult& svbrdf = *outcome.svbrdf;
     const std::string results = outcome.directory + "/results/svbrdf";
-    std::printf("svbrdf: %s, %d pixels fitted, %d materials%s\n", solvers::TerminationName(svbrdf.summary.termination),
-                svbrdf.summary.pixels_fitted, svbrdf.summary.materials, svbrdf.gltf_path.empty() ? "" : ", glTF asset");
+    std::printf("svbrdf: %s, %d pixels fitted (%d mixed), %d materials%s\n", solvers::TerminationName(svbrdf.summary.termination),
+                svbrdf.summary.pixels_fitted, svbrdf.summary.pixels_mixed, svbrdf.summary.materials, svbrdf.gltf_path.empty() ? "" : ", glTF asset");
     std::printf("results: %s/\n", results.c_str());
     ResultFields()["svbrdf"] = daemon::ToJson(svbrdf);
     ResultFields()["svbrdf"]["results_directory"] = results;

@@ -3,6 +3,7 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
+#include "photorig/daemon/color_stack.h"
 #include "photorig/daemon/diligent.h"
 #include "photorig/daemon/svbrdf_pipeline.h"
 
@@ -17,13 +18,15 @@ namespace refl = solvers::reflectance;
 
 struct Options {
   std::string run_dir, dataset_dir, mask, out;
+  std::string demosaic = "bilinear";
   daemon::SvbrdfRequest request;
   bool no_gltf = false;
 };
 
 void PrintSummary(const daemon::SvbrdfResult& result) {
-  std::fprintf(stderr, "svbrdf: %s, %d pixels fitted, %d materials\n", solvers::TerminationName(result.summary.termination),
-               result.summary.pixels_fitted, result.summary.materials);
+  std::fprintf(stderr, "svbrdf: %s, %d pixels fitted (%d mixed), %d materials\n",
+               solvers::TerminationName(result.summary.termination), result.summary.pixels_fitted,
+               result.summary.pixels_mixed, result.summary.materials);
   for (std::size_t m = 0; m < result.material_fits.size(); ++m) {
     const refl::MaterialFit& f = result.material_fits[m];
     std::fprintf(stderr, "  material %zu: %s, %d pixels, specular %.4g, shape %.4g\n", m,
@@ -45,7 +48,8 @@ int Execute(const Options& options) {
   const std::string destination =
       options.out.empty() ? (std::filesystem::path(source) / "results" / "svbrdf").string() : options.out;
   daemon::PhotometricStereoInput input =
-      from_run ? daemon::LoadRunStack(options.run_dir) : daemon::LoadDiligent(options.dataset_dir);
+      from_run ? daemon::LoadRunStack(options.run_dir, {*daemon::ParseDemosaicMethod(options.demosaic), ""})
+               : daemon::LoadDiligent(options.dataset_dir);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
   daemon::SvbrdfRequest request = options.request;
@@ -79,6 +83,8 @@ CommandRunner SetupSolveSvbrdf(CLI::App& app) {
   svbrdf->add_option("--held-out", options->request.held_out_lights,
                      "lights held out one at a time for the relighting check, a stratified subset (default 8; 0 = all; -1 = skip)")
       ->check(CLI::Range(-1, 100000));
+  svbrdf->add_option("--demosaic", options->demosaic, "Bayer runs: bilinear (default) | edge-aware")
+      ->check(CLI::IsMember({"bilinear", "edge-aware"}));
   svbrdf->add_flag("--no-gltf", options->no_gltf, "do not write the glTF asset");
   return {svbrdf, [options] { return Execute(*options); }};
 }

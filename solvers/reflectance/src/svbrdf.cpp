@@ -52,6 +52,7 @@ const char* PixelFlagName(PixelFlag flag) {
     case PixelFlag::kNoNormal: return "no-normal";
     case PixelFlag::kTooFewSamples: return "too-few-samples";
     case PixelFlag::kPoorFit: return "poor-fit";
+    case PixelFlag::kMixed: return "mixed";
   }
   return "?";
 }
@@ -77,6 +78,7 @@ bool ReflectanceOptions::IsValid(std::string* why) const {
   if (!(min_cosine >= 0.0 && min_cosine < 1.0)) return fail("min_cosine must be in [0, 1)");
   if (min_samples < 3) return fail("min_samples must be at least 3");
   if (!(poor_fit_ratio > 1.0)) return fail("poor_fit_ratio must exceed 1");
+  if (!(mixed_pixel_alpha >= 0.0 && mixed_pixel_alpha < 1.0)) return fail("mixed_pixel_alpha must be in [0, 1)");
   if (shape_search_pixels < 10) return fail("shape_search_pixels must be at least 10");
   if (kmeans_restarts < 1) return fail("kmeans_restarts must be at least 1");
   if (min_highlight_lights < 1) return fail("min_highlight_lights must be at least 1");
@@ -332,6 +334,75 @@ double LobeHalfWidth(const MaterialFit& m) {
   return std::acos(std::pow(0.5, 1.0 / exponent));
 }
 
+// Pixels whose colour mixes two paints, or a paint and the background: a
+// colour camera's demosaicing fills each pixel's missing channels from its
+// neighbourhood, so a pixel next to a paint edge holds a blend of both paints
+// (and a blend's lobe is a fraction of the glossy one). Left in, such pixels
+// form a material of their own before anything else can reject them: a blend
+// is explained well by its own albedo and lobe, and fits no material badly
+// until the materials exist. The test is the geometry of a blend: its
+// chromaticity lies between those of the pixels on either side of the edge,
+// where a pure pixel next to the edge equals the pixels on its own side. For
+// each line (a, p, b) through p (four directions; a and b one and two pixels
+// away, as the blend is up to two pixels wide), p is mixed when a and b
+// differ, p differs from both by more than the chi-square (2 dof) quantile
+// at `alpha`, and p projects inside the segment ab. (Not on it: each channel
+// is interpolated from different neighbours, so a blend's channels mix in
+// different proportions.) Distances are in units of the noise of a
+// chromaticity difference, measured on the object (MAD of neighbour
+// differences; most neighbours show one paint). A pixel whose 3 x 3 window
+// reaches off the object blends in the background: mixed as well.
+std::vector<std::uint8_t> MixedPixels(const Samples& s, const std::vector<int>& active,
+                                      const std::vector<Eigen::Vector2d>& chroma, double alpha) {
+  std::vector<std::uint8_t> mixed(s.pixels, 0);
+  if (chroma.empty() || alpha <= 0.0) return mixed;
+  std::vector<int> gathered(static_cast<std::size_t>(s.width) * s.height, -1), lit(gathered.size(), -1);
+  for (int p = 0; p < s.pixels; ++p) gathered[s.pixel_index[p]] = p;
+  for (int p : active) lit[s.pixel_index[p]] = p;
+  auto at = [&](const std::vector<int>& grid, int r, int c) {
+    return r < 0 || c < 0 || r >= s.height || c >= s.width ? -1 : grid[static_cast<std::size_t>(r) * s.width + c];
+  };
+  std::vector<double> dx, dy;
+  for (int p : active) {
+    const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
+    for (const int q : {at(lit, r, c + 1), at(lit, r + 1, c)})
+      if (q >= 0) {
+        dx.push_back(std::abs(chroma[p].x() - chroma[q].x()));
+        dy.push_back(std::abs(chroma[p].y() - chroma[q].y()));
+      }
+  }
+  if (dx.empty()) return mixed;
+  const Eigen::Vector2d scale(std::max(1.4826 * Median(dx), 1e-9), std::max(1.4826 * Median(dy), 1e-9));
+  const double threshold = -2.0 * std::log(alpha);  // chi-square quantile, 2 dof
+  auto d2 = [&](const Eigen::Vector2d& u, const Eigen::Vector2d& v) { return (u - v).cwiseQuotient(scale).squaredNorm(); };
+  for (int p : active) {
+    const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
+    bool rim = false;
+    for (int dr = -1; dr <= 1 && !rim; ++dr)
+      for (int dc = -1; dc <= 1 && !rim; ++dc) rim = at(gathered, r + dr, c + dc) < 0;
+    if (rim) {
+      mixed[p] = 1;
+      continue;
+    }
+    for (int span = 1; span <= 2 && !mixed[p]; ++span)
+      for (const auto& [dr, dc] : {std::pair{0, 1}, std::pair{1, 0}, std::pair{1, 1}, std::pair{1, -1}}) {
+        const int a = at(lit, r - span * dr, c - span * dc), b = at(lit, r + span * dr, c + span * dc);
+        if (a < 0 || b < 0) continue;
+        const Eigen::Vector2d pa = (chroma[p] - chroma[a]).cwiseQuotient(scale);
+        const Eigen::Vector2d ba = (chroma[b] - chroma[a]).cwiseQuotient(scale);
+        if (ba.squaredNorm() <= threshold || d2(chroma[p], chroma[a]) <= threshold ||
+            d2(chroma[p], chroma[b]) <= threshold)
+          continue;
+        const double t = pa.dot(ba) / ba.squaredNorm();
+        if (t > 0.0 && t < 1.0) {
+          mixed[p] = 1;
+          break;
+        }
+      }
+  }
+  return mixed;
+}
+
 }  // namespace
 
 ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const ReflectanceStack& stack,
@@ -387,29 +458,43 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
 
   // Features for the clustering: chromaticity and each pixel's own lobe.
   const std::vector<internal::PixelLobe> own = internal::FitPixelLobes(s, active, {}, options.progress);
-  std::vector<Eigen::VectorXd> features(active.size());
-  std::vector<Eigen::Vector2d> chroma(s.channels == 3 ? s.pixels : 0, Eigen::Vector2d::Zero());
-  for (std::size_t i = 0; i < active.size(); ++i) {
-    const internal::PixelLobe& pl = own[i];
-    const int chroma_dims = s.channels == 3 ? 2 : 0;
-    Eigen::VectorXd f(chroma_dims + 2);
-    if (chroma_dims) {
-      const double total = std::max(pl.rho.sum(), 1e-6);
-      f[0] = 3.0 * pl.rho[0] / total;
-      f[1] = 3.0 * pl.rho[1] / total;
-      chroma[active[i]] = f.head<2>();
+  const int chroma_dims = s.channels == 3 ? 2 : 0;
+  std::vector<Eigen::Vector2d> chroma(chroma_dims ? s.pixels : 0, Eigen::Vector2d::Zero());
+  if (chroma_dims)
+    for (std::size_t i = 0; i < active.size(); ++i) {
+      const double total = std::max(own[i].rho.sum(), 1e-6);
+      chroma[active[i]] = {3.0 * own[i].rho[0] / total, 3.0 * own[i].rho[1] / total};
     }
+  // Mixed pixels are flagged before the materials are chosen, so that they
+  // cannot form one of their own; they are assigned once the materials exist.
+  const std::vector<std::uint8_t> is_mixed = MixedPixels(s, active, chroma, options.mixed_pixel_alpha);
+  std::vector<int> clustered, mixed;
+  std::vector<Eigen::VectorXd> features;
+  for (std::size_t i = 0; i < active.size(); ++i) {
+    if (is_mixed[active[i]]) {
+      mixed.push_back(active[i]);
+      continue;
+    }
+    const internal::PixelLobe& pl = own[i];
+    Eigen::VectorXd f(chroma_dims + 2);
+    if (chroma_dims) f.head<2>() = chroma[active[i]];
     // Bounded: a grazing pixel's own lobe can take any weight, and must not outweigh its colour.
     const double strength = std::min(1.0, std::sqrt(std::max(0.0, pl.weight.head(s.channels).mean())));
     f[chroma_dims] = strength;
     f[chroma_dims + 1] = pl.exponent > 0.0 ? strength * std::log10(pl.exponent) / 2.0 : 0.0;
-    features[i] = f;
+    clustered.push_back(active[i]);
+    features.push_back(f);
+  }
+  if (clustered.empty()) {
+    summary.End(Termination::kFailure, "every pixel mixes two colours or the background (" +
+                                           std::to_string(mixed.size()) + " mixed pixels); no material can be chosen");
+    return summary;
   }
 
   std::vector<brdf::Model> candidates{brdf::Model::kLambertian};
   candidates.insert(candidates.end(), options.lobes.begin(), options.lobes.end());
   Partition best;
-  const int max_k = std::min<int>(options.max_materials, static_cast<int>(active.size()));
+  const int max_k = std::min<int>(options.max_materials, static_cast<int>(clustered.size()));
   for (int k = 1; k <= max_k; ++k) {
     ProgressThrottle throttle(options.progress, "materials", max_k);
     throttle.Update(k - 1);
@@ -423,7 +508,7 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
       }
     }
     Partition part;
-    part.groups = Groups(active, best_labels, k);
+    part.groups = Groups(clustered, best_labels, k);
     FitPartition(s, candidates, options.shape_search_pixels, &part);
     for (int it = 0; it < 4 && part.groups.size() > 1; ++it) {
       if (!Reassign(s, chroma, &part)) break;
@@ -472,6 +557,27 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   ProgressThrottle albedo_progress(options.progress, "albedo", static_cast<std::int64_t>(best.groups.size()));
   std::vector<int> material_of(s.pixels, -1);
   std::vector<double> pixel_rms(s.pixels, 0.0);
+  // Writes pixel p's albedo, its deviation, residual and material; returns the RMS residual.
+  auto write_pixel = [&](int p, int m, const internal::PixelSums& sums, const MaterialFit& fit) {
+    const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
+    float* albedo = maps->albedo.ptr<float>(r) + c * C;
+    float* sigma = maps->albedo_sigma.ptr<float>(r) + c * C;
+    double cost = 0.0;
+    for (int ch = 0; ch < C; ++ch) {
+      double rho;
+      const double channel_cost = internal::PixelCost(sums.c[ch], fit.specular[ch], &rho);
+      cost += channel_cost;
+      albedo[ch] = static_cast<float>(rho);
+      // Least squares with the pixel's own residual variance (one dof per channel used by rho).
+      const double dof = std::max(1, sums.samples - 1);
+      sigma[ch] = static_cast<float>(std::sqrt(channel_cost / dof / std::max(sums.c[ch].uu, 1e-300)));
+    }
+    const double rms = std::sqrt(cost / std::max(1, sums.samples * C));
+    maps->rms_residual.at<float>(r, c) = static_cast<float>(rms);
+    maps->material.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(m);
+    return rms;
+  };
+  std::vector<double> typical_rms(best.groups.size(), 0.0);
   for (std::size_t m = 0; m < best.groups.size(); ++m) {
     MaterialFit fit = best.materials[m].fit;
     const std::vector<int>& group = best.groups[m];
@@ -481,26 +587,12 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
     for (std::size_t i = 0; i < group.size(); ++i) {
       const int p = group[i];
       material_of[p] = static_cast<int>(m);
-      const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
-      float* albedo = maps->albedo.ptr<float>(r) + c * C;
-      float* sigma = maps->albedo_sigma.ptr<float>(r) + c * C;
-      double cost = 0.0;
-      for (int ch = 0; ch < C; ++ch) {
-        double rho;
-        const double channel_cost = internal::PixelCost(sums[i].c[ch], fit.specular[ch], &rho);
-        cost += channel_cost;
-        albedo[ch] = static_cast<float>(rho);
-        // Least squares with the pixel's own residual variance (one dof per channel used by rho).
-        const double dof = std::max(1, sums[i].samples - 1);
-        sigma[ch] = static_cast<float>(std::sqrt(channel_cost / dof / std::max(sums[i].c[ch].uu, 1e-300)));
-      }
-      rms[i] = std::sqrt(cost / std::max(1, sums[i].samples * C));
+      rms[i] = write_pixel(p, static_cast<int>(m), sums[i], fit);
       pixel_rms[p] = rms[i];
-      maps->rms_residual.at<float>(r, c) = static_cast<float>(rms[i]);
-      maps->material.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(m);
     }
     // Poor fits: far above the material's typical residual.
     const double typical = Median(rms);
+    typical_rms[m] = typical;
     for (std::size_t i = 0; i < group.size(); ++i)
       if (rms[i] > options.poor_fit_ratio * typical && rms[i] > 0.0) {
         const int p = group[i];
@@ -543,6 +635,34 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   }
   albedo_progress.Finish();
 
+  // Mixed pixels: the material that explains each best, if it explains it as
+  // well as the poor-fit test asks of its own pixels; otherwise none. Either
+  // way the flag stays: a blend's albedo is not either paint's.
+  for (int p : mixed) {
+    const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
+    flags.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelFlag::kMixed);
+    ++summary.pixels_mixed;
+    int best_m = -1;
+    double best_cost = std::numeric_limits<double>::infinity();
+    internal::PixelSums best_sums;
+    for (std::size_t m = 0; m < maps->materials.size(); ++m) {
+      const MaterialFit& fit = maps->materials[m];
+      const internal::PixelSums sums = internal::SumsOf(s, p, {fit.model, fit.shape}, {});
+      double cost = 0.0, rho;
+      for (int ch = 0; ch < C; ++ch) cost += internal::PixelCost(sums.c[ch], fit.specular[ch], &rho);
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_m = static_cast<int>(m);
+        best_sums = sums;
+      }
+    }
+    if (best_m < 0) continue;
+    const double rms = std::sqrt(best_cost / std::max(1, best_sums.samples * C));
+    if (rms > options.poor_fit_ratio * typical_rms[best_m] && rms > 0.0) continue;
+    write_pixel(p, best_m, best_sums, maps->materials[best_m]);
+    ++summary.pixels_mixed_assigned;
+  }
+
   // Per light: measured over predicted where the diffuse term dominates.
   summary.light_intensity_ratio.assign(s.lights, std::numeric_limits<double>::quiet_NaN());
   for (int j = 0; j < s.lights; ++j) {
@@ -571,7 +691,7 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
 
   maps->flags = flags;
   summary.materials = static_cast<int>(maps->materials.size());
-  summary.pixels_fitted = static_cast<int>(active.size()) - summary.pixels_poor_fit;
+  summary.pixels_fitted = static_cast<int>(active.size()) - summary.pixels_poor_fit - summary.pixels_mixed;
   summary.termination = Termination::kSuccess;
   if (!summary.warnings.empty()) {
     summary.message = "warnings:";

@@ -46,6 +46,7 @@ struct PhotometricStereoInput {
   // normals are solved; each channel's albedo is fitted with those normals fixed.
   std::optional<ColorImageStack> color;
   cv::Mat truth_albedo_rgb;  // optional CV_32FC3 (R, G, B), linear sRGB
+  cv::Mat truth_material;    // optional CV_8U material (paint) per pixel, 255 off the object
 };
 
 // 1.4826 x the median absolute deviation of a CV_32F image's values (every
@@ -146,6 +147,11 @@ inline PhotometricStereoResult SolvePhotometricStereoRun(const std::string& run_
                                                          const ColorStackOptions& color = {}) {
   return SolveAndWrite(LoadRunStack(run_directory, color), request, output_directory);
 }
+
+// CIEDE2000 of a linear-sRGB albedo against the truth over the pixels where
+// `solved` (CV_8U) is non-zero, and over the interior of each paint.
+PhotometricStereoResult::ColorErrors CompareColorAlbedo(const cv::Mat& albedo_rgb, const cv::Mat& truth_rgb,
+                                                        const cv::Mat& solved);
 
 // CIEDE2000 between two linear-sRGB colours (CIELAB of D65, white Y = 1).
 double Ciede2000OfLinearSrgb(const Eigen::Vector3d& a, const Eigen::Vector3d& b);

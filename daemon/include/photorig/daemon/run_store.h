@@ -136,7 +136,9 @@ class RunWriter {
   // really are (which may differ from the rig's nominal ones) as
   // ground_truth/light_directions.txt, one "x y z" line per light.
   // A colour camera's scene also has its albedo in linear sRGB (albedo_rgb,
-  // CV_32FC3 R, G, B) as ground_truth/albedo_rgb.tiff.
+  // CV_32FC3 R, G, B) as ground_truth/albedo_rgb.tiff. A scene whose paints
+  // have their own lobes has its material map (the paint per pixel, 255 off
+  // the object) as ground_truth/material.png.
   void WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights,
                         const cv::Mat& albedo_rgb = cv::Mat());
   bool HasFrame(int step_index) const;

@@ -36,6 +36,13 @@ struct SvbrdfResult {
   std::optional<solvers::reflectance::RelightingSummary> relighting;
   std::vector<double> gltf_mapping_error;   // per material, relative RMS (gltf_material.h)
   std::optional<double> albedo_error_vs_truth;  // median relative, over fitted pixels
+  // Colour runs with true albedo: CIEDE2000 over the unflagged pixels (flag
+  // fitted), and over every pixel given an albedo (mixed and poor fits too).
+  std::optional<PhotometricStereoResult::ColorErrors> albedo_ciede2000_unflagged, albedo_ciede2000_with_albedo;
+  // With a true material map: the fraction of unflagged pixels assigned the
+  // true material, under the relabelling of materials that agrees best.
+  std::optional<double> material_agreement;
+  int material_agreement_pixels = 0;
   std::string gltf_path;                    // empty when not exported
   double total_ms = 0.0;
   bool usable() const { return ps.usable() && summary.IsSolutionUsable(); }

@@ -124,6 +124,10 @@ struct SurfaceMaps {
   cv::Mat view;         // CV_32FC3 unit direction towards the camera (w_o)
   cv::Mat brdf_params;  // CV_32FC4 (rho_d, rho_s, shininess, f0), see BrdfParams
   cv::Mat mask;         // CV_8U, 255 on the object
+  // CV_8U which paint's material a pixel shows (0 low, 1 high; 255 off the
+  // object), where the scene gives each paint its own lobe (Material::paint_rho_s);
+  // empty otherwise (one material).
+  cv::Mat material;
   cv::Mat line_integrals;  // CV_32F tau per pixel; volume scenes only
   double pixel_pitch_mm = 0.1;
   bool height_on_pixel_grid = true;  // orthographic: `height` is a regular heightfield grid

@@ -61,6 +61,10 @@ enum class PixelFlag : std::uint8_t {
   kNoNormal = 2,       // the normal map is NaN here
   kTooFewSamples = 3,  // fewer than min_samples lit, unsaturated samples
   kPoorFit = 4,        // residual far above its material's: the model does not explain it
+  // The demosaiced colour mixes two paints or the background (MixedPixels):
+  // kept out of the choice of materials, then given the material that
+  // explains it best (albedo filled) or, where none does, left without one.
+  kMixed = 5,
 };
 const char* PixelFlagName(PixelFlag flag);
 
@@ -110,6 +114,12 @@ struct ReflectanceOptions {
   int min_samples = 6;
   // A pixel whose residual exceeds this many times its material's is flagged kPoorFit. Default 6.
   double poor_fit_ratio = 6.0;
+  // False-alarm probability of the mixed-pixel test (three-channel stacks):
+  // a pixel is flagged kMixed when its albedo chromaticity lies between those
+  // of two opposite neighbours and differs from each by more than the
+  // chi-square (2 dof) quantile at this level, or when its demosaicing window
+  // reaches off the object. 0 turns the test off. Default 0.001.
+  double mixed_pixel_alpha = 1e-3;
   // Pixels per material used for the lobe-shape search (a deterministic
   // subsample); the albedos are then solved for every pixel. Default 2000.
   int shape_search_pixels = 2000;
@@ -137,6 +147,8 @@ struct ReflectanceSummary : Summary {
   int pixels_no_normal = 0;
   int pixels_too_few_samples = 0;
   int pixels_poor_fit = 0;
+  int pixels_mixed = 0;           // flagged kMixed (kept out of the choice of materials)
+  int pixels_mixed_assigned = 0;  // of those, given the material that explains them
   long long saturated_samples = 0;
   int materials = 0;
   std::vector<double> bic_by_materials;  // [k - 1]: BIC of the best fit with k materials
