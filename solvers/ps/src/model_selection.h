@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 namespace photorig::ps::internal {
@@ -20,6 +21,8 @@ namespace photorig::ps::internal {
 // freedom, by Wilson-Hilferty: accurate to a few per cent for dof >= 3, plenty
 // for a test threshold. Entry 0 is 0.
 std::vector<double> ChiSquareQuantiles(int max_dof, double p);
+// The same for one number of degrees of freedom (>= 1).
+double ChiSquareQuantile(int dof, double p);
 
 // The normal's two degrees of freedom, rho_d, rho_s and e.
 inline constexpr int kBlinnPhongParameters = 5;
@@ -27,8 +30,8 @@ inline constexpr int kBlinnPhongParameters = 5;
 // as many of its own as the Lambertian fit.
 inline constexpr int kSharedLobeParameters = 3;
 
-// A region's lobe (step 5): the medians of rho_s and e over its confidently
-// glossy pixels.
+// A lobe step 5 holds for a pixel: the medians of rho_s and e over
+// confidently glossy pixels (its region's, or its nearest ones').
 struct SharedLobe {
   double specular_albedo = 0.0, exponent = 0.0;
 };
@@ -93,7 +96,8 @@ struct LadderStep {
     kTrim,        // fit LadderFits::robust by trimming
     kReweight,    // fit LadderFits::robust by IRLS
     kFitLobe,     // fit LadderFits::blinn_phong, starting from `start`
-    kFitSharedLobe  // step 5: fit SharedLobeFits::lobe with the region's exponent, starting from `start`
+    kFitSharedLobe,  // step 5: fit SharedLobeFits::lobe with the lobe held, starting from `start`
+    kFitOwnLobes     // step 5: fit SharedLobeFits::own from `start` and own_from_lobe from SharedLobeFits::lobe
   };
   Action action = Action::kKeep;
   const PixelFit* keep = nullptr;   // kKeep: one of the fits asked about
@@ -106,14 +110,32 @@ struct LadderStep {
   double evidence = 0.0;
 };
 
-// Step 5's fits of a pixel that steps 1-4 kept without a lobe, in a region
-// whose lobe is known (SharedLobe): the fit kept, the Lambertian fit on all
-// its usable samples (LambertianOnRow), and the fit with the region's lobe
-// held (null: not fitted yet).
+// Step 5's fits of a pixel that steps 1-4 kept without a lobe, in a glossy
+// region: the fit kept, the Lambertian fit on all its usable samples
+// (LambertianOnRow), the fit with a lobe held (SharedLobe), and, in a region
+// whose samples reject one lobe shape (own_lobes), the pixel's own lobe
+// fitted from the grid at the kept normal and from the held fit (null: not
+// fitted yet).
 struct SharedLobeFits {
   const PixelFit* kept = nullptr;
   const PixelFit* lambertian = nullptr;
   const PixelFit* lobe = nullptr;
+  bool own_lobes = false;
+  const PixelFit* own = nullptr;
+  const PixelFit* own_from_lobe = nullptr;
+};
+
+// Whether a glossy region's pixels reject the lobe it shares, by a likelihood
+// ratio: over pixels the held lobe explains (adequate, and below the
+// Lambertian fit), the sum of its chi-square less that of the pixel's own
+// lobe (the better of its two starts). Where the region's lobe is the
+// pixels' own, that sum is chi-square with two degrees of freedom per pixel
+// (the two the own lobe frees). Pixels the held lobe does not explain (a
+// matte pixel, one with spikes from inter-reflection) say nothing about the
+// lobe's shape.
+struct SharedShapeTest {
+  double chi2_gain = 0.0;
+  int pixels = 0;
 };
 
 class ModelLadder {
@@ -166,7 +188,20 @@ class ModelLadder {
   // the Lambertian fit stays; where they cannot tell, the region's lobe
   // removes the tilt its tails put into the Lambertian normal. Elsewhere
   // `kept` stands.
+  // In a region whose pixels reject the shared shape (RejectsSharedShape),
+  // the lobe held is the one pooled from the pixel's nearest confidently
+  // glossy pixels, and the pixel's own lobe is fitted too, from the grid at
+  // the kept normal and from the held fit: the lowest chi-square of the three
+  // stands where it is below the Lambertian fit's. There a lobe's best
+  // Blinn-Phong exponent varies over the object, and a pixel's own fit
+  // follows it where no pooled one does.
   inline LadderStep NextWithSharedLobe(const SharedLobeFits& fits) const;
+  // A pixel's part in its region's SharedShapeTest, from fits that climbed
+  // NextWithSharedLobe with own_lobes to the end.
+  void AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const;
+  // The test's sum is above the adequacy quantile of chi-square with two
+  // degrees of freedom per pixel.
+  bool RejectsSharedShape(const SharedShapeTest& test) const;
 
   // Per usable sample count, the Lambertian pass's confidence at or above
   // which a pixel passes step 1 without a closer look (infinity where none
@@ -195,7 +230,7 @@ class ModelLadder {
 
   Method method_;
   std::vector<double> quantile_, lambertian_quantile_;
-  double gross_u2_, max_rejected_fraction_;
+  double gross_u2_, max_rejected_fraction_, adequacy_quantile_;
 };
 
 inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
@@ -248,8 +283,26 @@ inline LadderStep ModelLadder::NextWithSharedLobe(const SharedLobeFits& fits) co
     return Keep(kept);
   if (!fits.lobe) return {LadderStep::Action::kFitSharedLobe, nullptr, &kept};
   const PixelFit& lobe = *fits.lobe;
-  if (lobe.ok && lobe.chi2 < fits.lambertian->chi2) return Keep(lobe);
+  if (!fits.own_lobes || fits.lambertian->used <= kBlinnPhongParameters) {
+    if (lobe.ok && lobe.chi2 < fits.lambertian->chi2) return Keep(lobe);
+    return Keep(kept);
+  }
+  if (!fits.own) return {LadderStep::Action::kFitOwnLobes, nullptr, &kept};
+  const PixelFit* best = nullptr;
+  for (const PixelFit* fit : {&lobe, fits.own, fits.own_from_lobe})
+    if (fit->ok && (!best || fit->chi2 < best->chi2)) best = fit;
+  if (best && best->chi2 < fits.lambertian->chi2) return Keep(*best);
   return Keep(kept);
+}
+
+inline void ModelLadder::AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const {
+  if (!fits.lobe || !fits.own || !Adequate(*fits.lobe) || !(fits.lobe->chi2 < fits.lambertian->chi2)) return;
+  double own = std::numeric_limits<double>::infinity();
+  for (const PixelFit* fit : {fits.own, fits.own_from_lobe})
+    if (fit->ok) own = std::min(own, fit->chi2);
+  if (!std::isfinite(own)) return;
+  test->chi2_gain += fits.lobe->chi2 - own;
+  ++test->pixels;
 }
 
 }  // namespace photorig::ps::internal
