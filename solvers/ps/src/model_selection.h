@@ -97,7 +97,7 @@ struct LadderStep {
     kReweight,    // fit LadderFits::robust by IRLS
     kFitLobe,     // fit LadderFits::blinn_phong, starting from `start`
     kFitSharedLobe,  // step 5: fit SharedLobeFits::lobe with the lobe held, starting from `start`
-    kFitOwnLobes     // step 5: fit SharedLobeFits::own from `start` and own_from_lobe from SharedLobeFits::lobe
+    kFitOwnLobes     // step 5's shape test: fit SharedLobeFits::own from `start` and own_from_lobe from SharedLobeFits::lobe
   };
   Action action = Action::kKeep;
   const PixelFit* keep = nullptr;   // kKeep: one of the fits asked about
@@ -112,15 +112,15 @@ struct LadderStep {
 
 // Step 5's fits of a pixel that steps 1-4 kept without a lobe, in a glossy
 // region: the fit kept, the Lambertian fit on all its usable samples
-// (LambertianOnRow), the fit with a lobe held (SharedLobe), and, in a region
-// whose samples reject one lobe shape (own_lobes), the pixel's own lobe
+// (LambertianOnRow), the fit with a lobe held (SharedLobe), and, for a pixel
+// of its region's shape test (test_shape, SharedShapeTest), its own lobe
 // fitted from the grid at the kept normal and from the held fit (null: not
 // fitted yet).
 struct SharedLobeFits {
   const PixelFit* kept = nullptr;
   const PixelFit* lambertian = nullptr;
   const PixelFit* lobe = nullptr;
-  bool own_lobes = false;
+  bool test_shape = false;
   const PixelFit* own = nullptr;
   const PixelFit* own_from_lobe = nullptr;
 };
@@ -190,14 +190,12 @@ class ModelLadder {
   // `kept` stands.
   // In a region whose pixels reject the shared shape (RejectsSharedShape),
   // the lobe held is the one pooled from the pixel's nearest confidently
-  // glossy pixels, and the pixel's own lobe is fitted too, from the grid at
-  // the kept normal and from the held fit: the lowest chi-square of the three
-  // stands where it is below the Lambertian fit's. There a lobe's best
-  // Blinn-Phong exponent varies over the object, and a pixel's own fit
-  // follows it where no pooled one does.
+  // glossy pixels: there a lobe's best Blinn-Phong exponent varies over the
+  // object. A pixel of the shape test (test_shape) is fitted its own lobe
+  // too, for the test only.
   inline LadderStep NextWithSharedLobe(const SharedLobeFits& fits) const;
   // A pixel's part in its region's SharedShapeTest, from fits that climbed
-  // NextWithSharedLobe with own_lobes to the end.
+  // NextWithSharedLobe with test_shape to the end.
   void AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const;
   // The test's sum is above the adequacy quantile of chi-square with two
   // degrees of freedom per pixel.
@@ -282,16 +280,10 @@ inline LadderStep ModelLadder::NextWithSharedLobe(const SharedLobeFits& fits) co
       fits.lambertian->used <= kSharedLobeParameters)
     return Keep(kept);
   if (!fits.lobe) return {LadderStep::Action::kFitSharedLobe, nullptr, &kept};
+  if (fits.test_shape && !fits.own && fits.lambertian->used > kBlinnPhongParameters)
+    return {LadderStep::Action::kFitOwnLobes, nullptr, &kept};
   const PixelFit& lobe = *fits.lobe;
-  if (!fits.own_lobes || fits.lambertian->used <= kBlinnPhongParameters) {
-    if (lobe.ok && lobe.chi2 < fits.lambertian->chi2) return Keep(lobe);
-    return Keep(kept);
-  }
-  if (!fits.own) return {LadderStep::Action::kFitOwnLobes, nullptr, &kept};
-  const PixelFit* best = nullptr;
-  for (const PixelFit* fit : {&lobe, fits.own, fits.own_from_lobe})
-    if (fit->ok && (!best || fit->chi2 < best->chi2)) best = fit;
-  if (best && best->chi2 < fits.lambertian->chi2) return Keep(*best);
+  if (lobe.ok && lobe.chi2 < fits.lambertian->chi2) return Keep(lobe);
   return Keep(kept);
 }
 

@@ -340,14 +340,14 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
   }
 }
 
-PixelFit PerPixelFits::ShareLobe(int pixel, const PixelFit& kept, const SharedLobe& shared, bool own_lobes,
+PixelFit PerPixelFits::ShareLobe(int pixel, const PixelFit& kept, const SharedLobe& shared, bool test_shape,
                                  PixelScratch* scratch, SharedShapeTest* test) const {
   PixelSamples& s = scratch->samples;
   reader_.Usable(pixel, &s);
   const PixelFit lambertian =
       LambertianOnRow(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), kept.normal * kept.albedo / M_PI);
   PixelFit lobe, own, own_from_lobe;
-  SharedLobeFits fits{&kept, &lambertian, nullptr, own_lobes};
+  SharedLobeFits fits{&kept, &lambertian, nullptr, test_shape};
   for (;;) {
     const LadderStep step = ladder_.NextWithSharedLobe(fits);
     switch (step.action) {

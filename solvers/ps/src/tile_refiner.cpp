@@ -215,7 +215,7 @@ struct TileRefiner::ThreadState {
     std::size_t row = 0;  // of the thread's rows
     bool lobe_fitted = false, own_fitted = false;
     SharedLobeFits Fits() const {
-      return {&kept, &lambertian, lobe_fitted ? &lobe : nullptr, item->own_lobes, own_fitted ? &own : nullptr,
+      return {&kept, &lambertian, lobe_fitted ? &lobe : nullptr, item->test_shape, own_fitted ? &own : nullptr,
               own_fitted ? &own_from_lobe : nullptr};
     }
   };
@@ -516,7 +516,7 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
       const PixelFit kept = KeptFit(item.pixel);
       SharedShapeTest test;
       const PixelFit chosen =
-          per_pixel_.ShareLobe(item.pixel, kept, item.lobe, item.own_lobes, &state.scratch, tests ? &test : nullptr);
+          per_pixel_.ShareLobe(item.pixel, kept, item.lobe, item.test_shape, &state.scratch, tests ? &test : nullptr);
       if (tests) {
         (*tests)[item.region].chi2_gain += test.chi2_gain;
         (*tests)[item.region].pixels += test.pixels;
@@ -636,7 +636,7 @@ void TileRefiner::ShareLobe() {
   std::vector<SharedLobeItem> sample;
   for (std::size_t i = 0; i < items.size(); i += kShapeTestStride) {
     sample.push_back(items[i]);
-    sample.back().own_lobes = true;
+    sample.back().test_shape = true;
   }
   std::vector<std::vector<SharedShapeTest>> tests(threads_, std::vector<SharedShapeTest>(regions));
   auto in_parallel = [this](std::size_t count, const auto& run) {
@@ -665,10 +665,7 @@ void TileRefiner::ShareLobe() {
   in_parallel(items.size(), [&](int thread, std::size_t begin, std::size_t end) {
     std::vector<std::pair<int, int>> near;
     for (std::size_t i = begin; i < end; ++i)
-      if (rejects[items[i].region]) {
-        items[i].lobe = nearest->At(items[i].pixel, &near);
-        items[i].own_lobes = true;
-      }
+      if (rejects[items[i].region]) items[i].lobe = nearest->At(items[i].pixel, &near);
     ShareLobe(thread, std::span(items).subspan(begin, end - begin), nullptr);
   });
 }

@@ -52,8 +52,8 @@ class TileRefiner {
   // their median rho_s and e are the region's lobe, and the region's pixels
   // kept Lambertian or trimmed are offered it (ModelLadder::NextWithSharedLobe);
   // in a region whose pixels reject that one shape (tested on a sample,
-  // ModelLadder::RejectsSharedShape), the lobe of their nearest confident
-  // pixels and their own. Runs its own threads.
+  // ModelLadder::RejectsSharedShape), each is offered the lobe of its
+  // nearest confidently glossy pixels instead. Runs its own threads.
   void ShareLobe();
 
   // The counts of models, rejected samples and failed fits, into a summary of
@@ -72,12 +72,12 @@ class TileRefiner {
   // The fit steps 1-4 kept for solved pixel p, as the map holds it.
   PixelFit KeptFit(int p) const;
   // Step 5 on `items`: with `tests` (per region), their parts in their
-  // regions' shape tests, the map unchanged; else the fits the ladder keeps,
-  // into the map.
+  // regions' shape tests (items with test_shape), the map unchanged; else
+  // the fits the ladder keeps, into the map.
   struct SharedLobeItem {
     int pixel, region;
     SharedLobe lobe;
-    bool own_lobes;
+    bool test_shape;
   };
   void ShareLobe(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests);
   // Pixel p, kept as `kept`, takes the lobe fitted with its region's exponent.
