@@ -12,7 +12,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <vector>
 
 namespace photorig::ps::internal {
@@ -97,7 +96,7 @@ struct LadderStep {
     kReweight,    // fit LadderFits::robust by IRLS
     kFitLobe,     // fit LadderFits::blinn_phong, starting from `start`
     kFitSharedLobe,  // step 5: fit SharedLobeFits::lobe with the lobe held, starting from `start`
-    kFitOwnLobes     // step 5's shape test: fit SharedLobeFits::own from `start` and own_from_lobe from SharedLobeFits::lobe
+    kFitOwnLobe      // step 5's shape test: fit SharedLobeFits::own, starting from `start`
   };
   Action action = Action::kKeep;
   const PixelFit* keep = nullptr;   // kKeep: one of the fits asked about
@@ -114,21 +113,19 @@ struct LadderStep {
 // region: the fit kept, the Lambertian fit on all its usable samples
 // (LambertianOnRow), the fit with a lobe held (SharedLobe), and, for a pixel
 // of its region's shape test (test_shape, SharedShapeTest), its own lobe
-// fitted from the grid at the kept normal and from the held fit (null: not
-// fitted yet).
+// fitted from the grid at the kept normal (null: not fitted yet).
 struct SharedLobeFits {
   const PixelFit* kept = nullptr;
   const PixelFit* lambertian = nullptr;
   const PixelFit* lobe = nullptr;
   bool test_shape = false;
   const PixelFit* own = nullptr;
-  const PixelFit* own_from_lobe = nullptr;
 };
 
 // Whether a glossy region's pixels reject the lobe it shares, by a likelihood
 // ratio: over pixels the held lobe explains (adequate, and below the
 // Lambertian fit), the sum of its chi-square less that of the pixel's own
-// lobe (the better of its two starts). Where the region's lobe is the
+// lobe. Where the region's lobe is the
 // pixels' own, that sum is chi-square with two degrees of freedom per pixel
 // (the two the own lobe frees). Pixels the held lobe does not explain (a
 // matte pixel, one with spikes from inter-reflection) say nothing about the
@@ -281,19 +278,17 @@ inline LadderStep ModelLadder::NextWithSharedLobe(const SharedLobeFits& fits) co
     return Keep(kept);
   if (!fits.lobe) return {LadderStep::Action::kFitSharedLobe, nullptr, &kept};
   if (fits.test_shape && !fits.own && fits.lambertian->used > kBlinnPhongParameters)
-    return {LadderStep::Action::kFitOwnLobes, nullptr, &kept};
+    return {LadderStep::Action::kFitOwnLobe, nullptr, &kept};
   const PixelFit& lobe = *fits.lobe;
   if (lobe.ok && lobe.chi2 < fits.lambertian->chi2) return Keep(lobe);
   return Keep(kept);
 }
 
 inline void ModelLadder::AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const {
-  if (!fits.lobe || !fits.own || !Adequate(*fits.lobe) || !(fits.lobe->chi2 < fits.lambertian->chi2)) return;
-  double own = std::numeric_limits<double>::infinity();
-  for (const PixelFit* fit : {fits.own, fits.own_from_lobe})
-    if (fit->ok) own = std::min(own, fit->chi2);
-  if (!std::isfinite(own)) return;
-  test->chi2_gain += fits.lobe->chi2 - own;
+  if (!fits.lobe || !fits.own || !fits.own->ok || !Adequate(*fits.lobe) ||
+      !(fits.lobe->chi2 < fits.lambertian->chi2))
+    return;
+  test->chi2_gain += fits.lobe->chi2 - fits.own->chi2;
   ++test->pixels;
 }
 

@@ -175,11 +175,9 @@ PixelFit FitTrimmed(const PixelSamples& s, const ModelLadder& ladder, TrimScratc
 
 // The lobe fitted to a pixel's usable samples from `start`'s normal and
 // albedo, its material from the grid's best start; or, with `shared` (step
-// 5), from that lobe, held there with `hold` (only the normal and rho_d
-// fitted).
+// 5), the lobe held at the region's and only the normal and rho_d fitted.
 PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& start,
-                       const BlinnPhongOptions& options, autodiff::Tape* tape, const SharedLobe* shared = nullptr,
-                       bool hold = true) {
+                       const BlinnPhongOptions& options, autodiff::Tape* tape, const SharedLobe* shared = nullptr) {
   const int n = s.size();
   Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
   Eigen::VectorXd observed(n), inverse_sigma(n);
@@ -238,13 +236,13 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
     }
     if (ok) *cost = residuals.cwiseProduct(inverse_sigma).squaredNorm();
     // A shared lobe has no derivatives: the step leaves rho_s and e where they are.
-    if (ok && with_jacobian && shared && hold) jacobian.rightCols<2>().setZero();
+    if (ok && with_jacobian && shared) jacobian.rightCols<2>().setZero();
     return ok;
   };
   double cost = 0.0;
   if (!cost_at(p, true, &cost) || !std::isfinite(cost)) {
     // As the lane fitter: once more from the diffuse start with no lobe.
-    if (shared && hold) {
+    if (shared) {
       p << start.normal, start.albedo, shared->specular_albedo, shared->exponent;
     } else {
       p << start.normal, start.albedo, 0.0, options.min_exponent;
@@ -289,7 +287,7 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
   fit.specular_albedo = p(4);
   fit.exponent = p(5);
   fit.chi2 = cost;
-  fit.parameters = shared && hold ? kSharedLobeParameters : kBlinnPhongParameters;
+  fit.parameters = shared ? kSharedLobeParameters : kBlinnPhongParameters;
   fit.used = n;
   fit.model = PixelModel::kBlinnPhong;
   return fit;
@@ -314,7 +312,7 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
         *evidence = step.evidence;
         return *step.keep;
       case Action::kFitSharedLobe:
-      case Action::kFitOwnLobes: return *fits.lambertian;  // Next never asks for them (NextWithSharedLobe does)
+      case Action::kFitOwnLobe: return *fits.lambertian;  // Next never asks for them (NextWithSharedLobe does)
       case Action::kRefitLit:
         FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);  // ok stays false without one
         fits.lit = &lit;
@@ -346,7 +344,7 @@ PixelFit PerPixelFits::ShareLobe(int pixel, const PixelFit& kept, const SharedLo
   reader_.Usable(pixel, &s);
   const PixelFit lambertian =
       LambertianOnRow(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), kept.normal * kept.albedo / M_PI);
-  PixelFit lobe, own, own_from_lobe;
+  PixelFit lobe, own;
   SharedLobeFits fits{&kept, &lambertian, nullptr, test_shape};
   for (;;) {
     const LadderStep step = ladder_.NextWithSharedLobe(fits);
@@ -355,11 +353,9 @@ PixelFit PerPixelFits::ShareLobe(int pixel, const PixelFit& kept, const SharedLo
         lobe = FitBlinnPhong(s, view_, *step.start, blinn_phong_, &scratch->tape, &shared);
         fits.lobe = &lobe;
         break;
-      case LadderStep::Action::kFitOwnLobes:
+      case LadderStep::Action::kFitOwnLobe:
         own = FitBlinnPhong(s, view_, *step.start, blinn_phong_, &scratch->tape);
-        own_from_lobe = FitBlinnPhong(s, view_, lobe, blinn_phong_, &scratch->tape, &shared, false);
         fits.own = &own;
-        fits.own_from_lobe = &own_from_lobe;
         break;
       default:
         if (test) ladder_.AddToShapeTest(fits, test);

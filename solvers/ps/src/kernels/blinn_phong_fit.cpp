@@ -383,7 +383,7 @@ struct BlinnPhongLaneFitter::State {
   double positive[kFloatLanes], predicted_decrease[kFloatLanes];
   int iterations[kFloatLanes];
   bool restarted[kFloatLanes];  // the start had no finite cost and the lane started again
-  double shared_exponent[kFloatLanes];  // > 0: the lane's lobe is held (BlinnPhongProblem's, if held)
+  double shared_exponent[kFloatLanes];  // > 0: the lane's lobe is held (BlinnPhongProblem's)
   int problem[kFloatLanes];  // index into the problems being fitted, -1 for an idle lane
 };
 
@@ -431,7 +431,7 @@ void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem, cons
   s.lambda[lane] = 1e-3;
   s.iterations[lane] = 0;
   s.restarted[lane] = false;
-  s.shared_exponent[lane] = problem.hold_shared_lobe ? problem.shared_exponent : 0.0;
+  s.shared_exponent[lane] = problem.shared_exponent;
 }
 
 void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problems) {

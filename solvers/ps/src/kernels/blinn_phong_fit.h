@@ -66,11 +66,10 @@ struct BlinnPhongProblem {
   const double* inverse_sigma = nullptr;
   Eigen::Vector3d start_normal = Eigen::Vector3d::UnitZ();
   double start_albedo = 0.0;  // rho_d if no grid point fits
-  // shared_exponent > 0: the lobe starts at (shared_specular_albedo,
-  // shared_exponent), one the pixel's neighbours share, and, with
-  // hold_shared_lobe, stays there: only the normal and rho_d are fitted.
+  // shared_exponent > 0: the lobe is held at (shared_specular_albedo,
+  // shared_exponent), the one the pixel's region shares, and only the normal
+  // and rho_d are fitted.
   double shared_specular_albedo = 0.0, shared_exponent = 0.0;
-  bool hold_shared_lobe = true;
 };
 
 struct BlinnPhongSolution {
