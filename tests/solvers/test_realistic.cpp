@@ -37,13 +37,14 @@ double GgxBrdf(const Eigen::Vector3d& n, const Eigen::Vector3d& l, const Eigen::
 
 // A sphere of radius 28 px in a 64 x 64 image under 48 lights, seen along +z.
 // The stack states the lights' nominal directions and scales; the frames are
-// rendered with each light 1 deg (RMS) off its direction and 3 % (RMS) off
-// its intensity, through a response DN ~ S^(1 / 1.1), with read noise 2 DN and
-// shot noise 0.25 DN per DN, which the stack's noise model gives (as from a
-// rig with dark frames and the camera's conversion gain).
-RealisticScene CaptureRealisticSphere(unsigned seed = 23) {
+// rendered (with `errors`) with each light 1 deg (RMS) off its direction and
+// 3 % (RMS) off its intensity, through a response DN ~ S^(1 / 1.1), with read
+// noise 2 DN and shot noise 0.25 DN per DN, which the stack's noise model
+// gives (as from a rig with dark frames and the camera's conversion gain).
+RealisticScene CaptureRealisticSphere(unsigned seed = 23, bool errors = true) {
   constexpr int kSize = 64;
-  constexpr double kRadius = 28.0, kScale = 2000.0, kDark = 16.0, kFullScale = 4095.0, kGamma = 1.1;
+  constexpr double kRadius = 28.0, kScale = 2000.0, kDark = 16.0, kFullScale = 4095.0;
+  const double gamma = errors ? 1.1 : 1.0;
   const std::vector<Eigen::Vector3d> lights = testing::RingLights(48, 20, 85, 17);
   std::mt19937 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
@@ -67,8 +68,9 @@ RealisticScene CaptureRealisticSphere(unsigned seed = 23) {
     // The light as built: its direction turned by a random 1 deg (RMS) rotation, its intensity 3 % off.
     const Eigen::Vector3d axis = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
     const double angle = std::abs(gauss(rng)) * (M_PI / 180.0) / std::sqrt(2.0 / M_PI) * std::sqrt(2.0 / 3.0);
-    const Eigen::Vector3d w = Eigen::AngleAxisd(angle, axis) * stated;
-    const double intensity = kScale * (1.0 + 0.03 * gauss(rng));
+    const double intensity_error = 0.03 * gauss(rng);
+    const Eigen::Vector3d w = errors ? Eigen::Vector3d(Eigen::AngleAxisd(angle, axis) * stated) : stated;
+    const double intensity = kScale * (1.0 + (errors ? intensity_error : 0.0));
     cv::Mat image(kSize, kSize, CV_32F);
     for (int r = 0; r < kSize; ++r)
       for (int c = 0; c < kSize; ++c) {
@@ -78,7 +80,7 @@ RealisticScene CaptureRealisticSphere(unsigned seed = 23) {
         const double linear = scene.stack.mask.at<std::uint8_t>(r, c) && cosine > 0.0
                                   ? intensity * GgxBrdf(n, w, view, 0.6, 0.18, 0.3) * cosine
                                   : 0.0;
-        const double response = kFullScale * std::pow(linear / kFullScale, 1.0 / kGamma);
+        const double response = kFullScale * std::pow(linear / kFullScale, 1.0 / gamma);
         const double noisy = response + std::sqrt(scene.stack.noise.Variance(response)) * gauss(rng);
         image.at<float>(r, c) = static_cast<float>(kDark + noisy);
       }
@@ -123,6 +125,30 @@ TEST(RealisticSphere, AutoIsAsAccurateAsBlinnPhongAndNoMethodLeavesAPixelWithThr
   // up to 0.15 deg; the tolerance leaves room for another platform's
   // rounding only. Without step 5 this draw gives +0.0057 deg and fails.
   EXPECT_LE(automatic, blinn_phong + 0.002) << "blinn-phong " << blinn_phong << " deg";
+}
+
+// The GGX lobe alone: its best Blinn-Phong exponent varies over the sphere, the
+// region's pixels reject one shared lobe, and step 5 gives each pixel the lobe
+// of its nearest confidently glossy pixels. Over six draws of noise `auto`
+// was 3.2-4.5 % more accurate than `blinn-phong`, 4.0 % on this one (with
+// the region's median lobe: 2.7 % on three draws, which fails; with each
+// pixel's own lobe in step 5: within 0.1 % either way, which fails too).
+TEST(RealisticSphere, AutoIsMoreAccurateThanBlinnPhongWhereTheLobeIsGgx) {
+  const RealisticScene scene = CaptureRealisticSphere(23, false);
+  double error[2] = {};
+  SolverSummary auto_summary;
+  for (Method method : {Method::kBlinnPhong, Method::kAuto}) {
+    PhotometricStereoOptions options;
+    options.method = method;
+    options.lambertian.shadow_threshold = 6.0;
+    NormalMap map;
+    const SolverSummary summary = SolvePhotometricStereo(options, scene.stack, &map);
+    ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+    error[method == Method::kAuto] = CompareNormals(map.normals, scene.truth, scene.stack.mask).mean_deg;
+    if (method == Method::kAuto) auto_summary = summary;
+  }
+  EXPECT_GT(auto_summary.pixels_shared_lobe, 0u) << auto_summary.BriefReport();
+  EXPECT_LE(error[1], 0.967 * error[0]) << "auto " << error[1] << " deg, blinn-phong " << error[0] << " deg";
 }
 
 }  // namespace

@@ -18,14 +18,19 @@ double InverseNormalCdf(double p) {
 
 }  // namespace
 
+double ChiSquareQuantile(int dof, double p) {
+  const double z = InverseNormalCdf(p), v = dof, t = 1.0 - 2.0 / (9.0 * v) + z * std::sqrt(2.0 / (9.0 * v));
+  return v * t * t * t;
+}
+
 std::vector<double> ChiSquareQuantiles(int max_dof, double p) {
-  const double z = InverseNormalCdf(p);
   std::vector<double> quantile(max_dof + 1, 0.0);
-  for (int dof = 1; dof <= max_dof; ++dof) {
-    const double v = dof, t = 1.0 - 2.0 / (9.0 * v) + z * std::sqrt(2.0 / (9.0 * v));
-    quantile[dof] = v * t * t * t;
-  }
+  for (int dof = 1; dof <= max_dof; ++dof) quantile[dof] = ChiSquareQuantile(dof, p);
   return quantile;
+}
+
+bool ModelLadder::RejectsSharedShape(const SharedShapeTest& test) const {
+  return test.pixels > 0 && test.chi2_gain > ChiSquareQuantile(2 * test.pixels, adequacy_quantile_);
 }
 
 ModelLadder::ModelLadder(Method method, const ModelSelectionOptions& options, int lights)
@@ -33,7 +38,8 @@ ModelLadder::ModelLadder(Method method, const ModelSelectionOptions& options, in
       quantile_(ChiSquareQuantiles(lights, options.adequacy_quantile)),
       lambertian_quantile_(ChiSquareQuantiles(lights, options.lambertian_quantile)),
       gross_u2_(options.gross_outlier_sigma * options.gross_outlier_sigma),
-      max_rejected_fraction_(options.max_rejected_fraction) {}
+      max_rejected_fraction_(options.max_rejected_fraction),
+      adequacy_quantile_(options.adequacy_quantile) {}
 
 std::vector<float> ModelLadder::ScreenThresholds() const {
   const int lights = static_cast<int>(quantile_.size()) - 1;

@@ -20,6 +20,8 @@ namespace photorig::ps::internal {
 // freedom, by Wilson-Hilferty: accurate to a few per cent for dof >= 3, plenty
 // for a test threshold. Entry 0 is 0.
 std::vector<double> ChiSquareQuantiles(int max_dof, double p);
+// The same for one number of degrees of freedom (>= 1).
+double ChiSquareQuantile(int dof, double p);
 
 // The normal's two degrees of freedom, rho_d, rho_s and e.
 inline constexpr int kBlinnPhongParameters = 5;
@@ -27,8 +29,8 @@ inline constexpr int kBlinnPhongParameters = 5;
 // as many of its own as the Lambertian fit.
 inline constexpr int kSharedLobeParameters = 3;
 
-// A region's lobe (step 5): the medians of rho_s and e over its confidently
-// glossy pixels.
+// A lobe step 5 holds for a pixel: the medians of rho_s and e over
+// confidently glossy pixels (its region's, or its nearest ones').
 struct SharedLobe {
   double specular_albedo = 0.0, exponent = 0.0;
 };
@@ -93,7 +95,8 @@ struct LadderStep {
     kTrim,        // fit LadderFits::robust by trimming
     kReweight,    // fit LadderFits::robust by IRLS
     kFitLobe,     // fit LadderFits::blinn_phong, starting from `start`
-    kFitSharedLobe  // step 5: fit SharedLobeFits::lobe with the region's exponent, starting from `start`
+    kFitSharedLobe,  // step 5: fit SharedLobeFits::lobe with the lobe held, starting from `start`
+    kFitOwnLobe      // step 5's shape test: fit SharedLobeFits::own, starting from `start`
   };
   Action action = Action::kKeep;
   const PixelFit* keep = nullptr;   // kKeep: one of the fits asked about
@@ -106,14 +109,30 @@ struct LadderStep {
   double evidence = 0.0;
 };
 
-// Step 5's fits of a pixel that steps 1-4 kept without a lobe, in a region
-// whose lobe is known (SharedLobe): the fit kept, the Lambertian fit on all
-// its usable samples (LambertianOnRow), and the fit with the region's lobe
-// held (null: not fitted yet).
+// Step 5's fits of a pixel that steps 1-4 kept without a lobe, in a glossy
+// region: the fit kept, the Lambertian fit on all its usable samples
+// (LambertianOnRow), the fit with a lobe held (SharedLobe), and, for a pixel
+// of its region's shape test (test_shape, SharedShapeTest), its own lobe
+// fitted from the grid at the kept normal (null: not fitted yet).
 struct SharedLobeFits {
   const PixelFit* kept = nullptr;
   const PixelFit* lambertian = nullptr;
   const PixelFit* lobe = nullptr;
+  bool test_shape = false;
+  const PixelFit* own = nullptr;
+};
+
+// Whether a glossy region's pixels reject the lobe it shares, by a likelihood
+// ratio: over pixels the held lobe explains (adequate, and below the
+// Lambertian fit), the sum of its chi-square less that of the pixel's own
+// lobe. Where the region's lobe is the
+// pixels' own, that sum is chi-square with two degrees of freedom per pixel
+// (the two the own lobe frees). Pixels the held lobe does not explain (a
+// matte pixel, one with spikes from inter-reflection) say nothing about the
+// lobe's shape.
+struct SharedShapeTest {
+  double chi2_gain = 0.0;
+  int pixels = 0;
 };
 
 class ModelLadder {
@@ -166,7 +185,18 @@ class ModelLadder {
   // the Lambertian fit stays; where they cannot tell, the region's lobe
   // removes the tilt its tails put into the Lambertian normal. Elsewhere
   // `kept` stands.
+  // In a region whose pixels reject the shared shape (RejectsSharedShape),
+  // the lobe held is the one pooled from the pixel's nearest confidently
+  // glossy pixels: there a lobe's best Blinn-Phong exponent varies over the
+  // object. A pixel of the shape test (test_shape) is fitted its own lobe
+  // too, for the test only.
   inline LadderStep NextWithSharedLobe(const SharedLobeFits& fits) const;
+  // A pixel's part in its region's SharedShapeTest, from fits that climbed
+  // NextWithSharedLobe with test_shape to the end.
+  void AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const;
+  // The test's sum is above the adequacy quantile of chi-square with two
+  // degrees of freedom per pixel.
+  bool RejectsSharedShape(const SharedShapeTest& test) const;
 
   // Per usable sample count, the Lambertian pass's confidence at or above
   // which a pixel passes step 1 without a closer look (infinity where none
@@ -195,7 +225,7 @@ class ModelLadder {
 
   Method method_;
   std::vector<double> quantile_, lambertian_quantile_;
-  double gross_u2_, max_rejected_fraction_;
+  double gross_u2_, max_rejected_fraction_, adequacy_quantile_;
 };
 
 inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
@@ -247,9 +277,19 @@ inline LadderStep ModelLadder::NextWithSharedLobe(const SharedLobeFits& fits) co
       fits.lambertian->used <= kSharedLobeParameters)
     return Keep(kept);
   if (!fits.lobe) return {LadderStep::Action::kFitSharedLobe, nullptr, &kept};
+  if (fits.test_shape && !fits.own && fits.lambertian->used > kBlinnPhongParameters)
+    return {LadderStep::Action::kFitOwnLobe, nullptr, &kept};
   const PixelFit& lobe = *fits.lobe;
   if (lobe.ok && lobe.chi2 < fits.lambertian->chi2) return Keep(lobe);
   return Keep(kept);
+}
+
+inline void ModelLadder::AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const {
+  if (!fits.lobe || !fits.own || !fits.own->ok || !Adequate(*fits.lobe) ||
+      !(fits.lobe->chi2 < fits.lambertian->chi2))
+    return;
+  test->chi2_gain += fits.lobe->chi2 - fits.own->chi2;
+  ++test->pixels;
 }
 
 }  // namespace photorig::ps::internal

@@ -311,7 +311,8 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
         *fell_back = step.fell_back;
         *evidence = step.evidence;
         return *step.keep;
-      case Action::kFitSharedLobe: return *fits.lambertian;  // Next never asks for it (NextWithSharedLobe does)
+      case Action::kFitSharedLobe:
+      case Action::kFitOwnLobe: return *fits.lambertian;  // Next never asks for them (NextWithSharedLobe does)
       case Action::kRefitLit:
         FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);  // ok stays false without one
         fits.lit = &lit;
@@ -337,19 +338,30 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
   }
 }
 
-std::optional<PixelFit> PerPixelFits::ShareLobe(int pixel, const PixelFit& kept, const SharedLobe& shared,
-                                                PixelScratch* scratch) const {
+PixelFit PerPixelFits::ShareLobe(int pixel, const PixelFit& kept, const SharedLobe& shared, bool test_shape,
+                                 PixelScratch* scratch, SharedShapeTest* test) const {
   PixelSamples& s = scratch->samples;
   reader_.Usable(pixel, &s);
   const PixelFit lambertian =
       LambertianOnRow(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), kept.normal * kept.albedo / M_PI);
-  SharedLobeFits fits{&kept, &lambertian};
-  const LadderStep step = ladder_.NextWithSharedLobe(fits);
-  if (step.action != LadderStep::Action::kFitSharedLobe) return std::nullopt;
-  const PixelFit lobe = FitBlinnPhong(s, view_, *step.start, blinn_phong_, &scratch->tape, &shared);
-  fits.lobe = &lobe;
-  if (ladder_.NextWithSharedLobe(fits).keep != &lobe) return std::nullopt;
-  return lobe;
+  PixelFit lobe, own;
+  SharedLobeFits fits{&kept, &lambertian, nullptr, test_shape};
+  for (;;) {
+    const LadderStep step = ladder_.NextWithSharedLobe(fits);
+    switch (step.action) {
+      case LadderStep::Action::kFitSharedLobe:
+        lobe = FitBlinnPhong(s, view_, *step.start, blinn_phong_, &scratch->tape, &shared);
+        fits.lobe = &lobe;
+        break;
+      case LadderStep::Action::kFitOwnLobe:
+        own = FitBlinnPhong(s, view_, *step.start, blinn_phong_, &scratch->tape);
+        fits.own = &own;
+        break;
+      default:
+        if (test) ladder_.AddToShapeTest(fits, test);
+        return *step.keep;
+    }
+  }
 }
 
 }  // namespace photorig::ps::internal

@@ -14,7 +14,6 @@
 
 #include <Eigen/Core>
 
-#include <optional>
 #include <vector>
 
 namespace photorig::ps::internal {
@@ -55,10 +54,12 @@ class PerPixelFits {
   // LadderStep's.
   PixelFit Refine(int pixel, const Eigen::Vector3d& x, PixelScratch* scratch, RobustLambertianLanes* irls,
                   bool* fell_back, double* evidence) const;
-  // Step 5 for `pixel`, which steps 1-4 left with `kept`, in a region whose
-  // lobe is `shared`: the lobe fit if the ladder keeps it, else nullopt.
-  std::optional<PixelFit> ShareLobe(int pixel, const PixelFit& kept, const SharedLobe& shared,
-                                    PixelScratch* scratch) const;
+  // Step 5 for `pixel`, which steps 1-4 left with `kept`, with the lobe
+  // `shared` held and, with test_shape, its own lobe fitted too
+  // (NextWithSharedLobe): the fit the ladder keeps (`kept` or the held lobe).
+  // With `test`, the pixel's part in its region's SharedShapeTest is added to it.
+  PixelFit ShareLobe(int pixel, const PixelFit& kept, const SharedLobe& shared, bool test_shape, PixelScratch* scratch,
+                     SharedShapeTest* test = nullptr) const;
 
  private:
   const ModelLadder& ladder_;

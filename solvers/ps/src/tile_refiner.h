@@ -29,6 +29,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 namespace photorig::ps::internal {
@@ -49,8 +50,10 @@ class TileRefiner {
   // `auto`'s step 5, once every tile is refined: in each connected region of
   // solved pixels where enough pixels kept a lobe with very strong evidence,
   // their median rho_s and e are the region's lobe, and the region's pixels
-  // kept Lambertian or trimmed are offered it (ModelLadder::NextWithSharedLobe).
-  // Runs its own threads.
+  // kept Lambertian or trimmed are offered it (ModelLadder::NextWithSharedLobe);
+  // in a region whose pixels reject that one shape (tested on a sample,
+  // ModelLadder::RejectsSharedShape), each is offered the lobe of its
+  // nearest confidently glossy pixels instead. Runs its own threads.
   void ShareLobe();
 
   // The counts of models, rejected samples and failed fits, into a summary of
@@ -68,9 +71,15 @@ class TileRefiner {
   void Record(ThreadState& state, int p, const PixelFit& chosen, bool fell_back, double evidence = 0.0);
   // The fit steps 1-4 kept for solved pixel p, as the map holds it.
   PixelFit KeptFit(int p) const;
-  // Step 5 on pixels [begin, end) of `candidates`, with their regions' lobes.
-  void ShareLobe(int thread, const std::vector<int>& candidates, const std::vector<SharedLobe>& lobes,
-                 std::size_t begin, std::size_t end);
+  // Step 5 on `items`: with `tests` (per region), their parts in their
+  // regions' shape tests (items with test_shape), the map unchanged; else
+  // the fits the ladder keeps, into the map.
+  struct SharedLobeItem {
+    int pixel, region;
+    SharedLobe lobe;
+    bool test_shape;
+  };
+  void ShareLobe(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests);
   // Pixel p, kept as `kept`, takes the lobe fitted with its region's exponent.
   void RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe, int usable);
   // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps

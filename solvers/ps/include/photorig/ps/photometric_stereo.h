@@ -107,12 +107,14 @@ struct ModelSelectionOptions {
   // lobe per material. In a connected region of solved pixels where at least
   // glossy_region_fraction of the pixels (and 16 or more) kept a lobe with
   // very strong evidence (information criterion 10 below the Lambertian
-  // fit's), the pixels kept Lambertian or trimmed are fitted with the lobe at
-  // the region's median exponent, and keep it where it lowers chi-square by
-  // more than 2 (Akaike's criterion for its one extra parameter). Their own
-  // samples cannot tell the lobe apart, yet it tilts their normals (on the
-  // realistic shiny spheres, a fifth to a third of the pixels). 5 %: fifty
-  // times the rate at which chance sends a matte pixel to the lobe.
+  // fit's), the pixels kept Lambertian or trimmed are fitted with the lobe
+  // held at the region's median rho_s and exponent (at their nearest glossy
+  // pixels' where a likelihood-ratio test on a sample of them rejects one
+  // shape for the region, as a GGX lobe's), and keep it where it lowers
+  // chi-square below the Lambertian fit's. Their own samples cannot tell the
+  // lobe apart, yet it tilts their normals (on the realistic shiny spheres,
+  // a tenth to a third of the pixels). 5 %: fifty times the rate at which
+  // chance sends a matte pixel to the lobe.
   bool share_lobe = true;
   double glossy_region_fraction = 0.05;
   bool IsValid(std::string* why) const;
