@@ -117,9 +117,12 @@ TEST(RigLoad, SceneDefaultsAreSizedToTheRigsFrame) {
   EXPECT_DOUBLE_EQ(rig.sim->scene.sphere_radius_mm, 0.45 * 40 * 0.1);
 }
 
+// A simulated camera takes no options; simulated lights take only their safety limits.
 TEST(RigLoad, OptionsOnASimulatedDeviceAreRefused) {
-  ExpectLoadError(Rig("  driver: sim\n  options: {host: sim}\n", kSimCamera), 4, 12, "lights.options",
-                  "takes no options");
+  ExpectLoadError(Rig(kSimLights, "  driver: sim\n  options: {host: sim}\n"), 9, 12, "camera.options",
+                  "the simulated camera takes no options");
+  ExpectLoadError(Rig("  driver: sim\n  options: {host: sim}\n", kSimCamera), 4, 13, "lights.options.host",
+                  "unknown key 'host'");
 }
 
 // A driver whose module this build left out is still known by name; a rig
