@@ -161,19 +161,38 @@ fs::path ExternalControllerRig(const std::string& rig_path, int port, const fs::
   return dir / "rig.yaml";
 }
 
+// The simulated controller as its own process, the port it serves and its
+// register map, and a probe connection that lights an LED the way a process
+// that died mid-capture leaves it.
+struct ControllerProcess {
+  std::string rig_path = SourceDir() + "/config/rigs/sim-dome-modbus.yaml";
+  ServerProcess server{{"--rig", rig_path}};
+  int port = std::stoi(server.where.substr(std::string("tcp 127.0.0.1:").size()));
+  drivers::ModbusLightMap map = config::LoadRigConfig(rig_path).lights.modbus->map;
+  drivers::ModbusLink probe{"probe", LinkTo(port)};
+
+  static drivers::ModbusLinkOptions LinkTo(int port) {
+    drivers::ModbusLinkOptions link;
+    link.port = port;
+    return link;
+  }
+
+  bool LightFromOutside(int led) {
+    return probe.Connect().ok() && probe.WriteRegisters(map.intensity_address + led, {1000}).ok() &&
+           probe.WriteCoils(map.on_off_address + led, {1}).ok();
+  }
+};
+
 // What systemd's ExecStopPost runs after photorigd ended however it ended:
 // an LED a dead process left lit goes dark.
 TEST(SimModbusProcess, LightsOffDarkensWhatAProcessLeftLit) {
-  const std::string rig_path = SourceDir() + "/config/rigs/sim-dome-modbus.yaml";
-  ServerProcess server({"--rig", rig_path});
-  const int port = std::stoi(server.where.substr(std::string("tcp 127.0.0.1:").size()));
-  const drivers::ModbusLightMap map = config::LoadRigConfig(rig_path).lights.modbus->map;
-  drivers::ModbusLinkOptions link;
-  link.port = port;
-  drivers::ModbusLink probe("probe", link);
-  ASSERT_TRUE(probe.Connect().ok());
-  ASSERT_TRUE(probe.WriteRegisters(map.intensity_address + 3, {1000}).ok());
-  ASSERT_TRUE(probe.WriteCoils(map.on_off_address + 3, {1}).ok());
+  ControllerProcess controller;
+  ASSERT_TRUE(controller.LightFromOutside(3));
+  const std::string& rig_path = controller.rig_path;
+  const int port = controller.port;
+  const drivers::ModbusLightMap& map = controller.map;
+  drivers::ModbusLink& probe = controller.probe;
+  ServerProcess& server = controller.server;
   const fs::path dir = fs::temp_directory_path() / ("photorig-lights-off-" + std::to_string(::getpid()));
   const fs::path rig = ExternalControllerRig(rig_path, port, dir);
   const std::string command = std::string(PHOTORIG_BIN_DIR) + "/photorig lights off --json --rig " + rig.string() +
@@ -190,16 +209,13 @@ TEST(SimModbusProcess, LightsOffDarkensWhatAProcessLeftLit) {
 }
 
 TEST(SimModbusProcess, PhotorigdStartsByDarkeningTheLights) {
-  const std::string rig_path = SourceDir() + "/config/rigs/sim-dome-modbus.yaml";
-  ServerProcess server({"--rig", rig_path});
-  const int port = std::stoi(server.where.substr(std::string("tcp 127.0.0.1:").size()));
-  const drivers::ModbusLightMap map = config::LoadRigConfig(rig_path).lights.modbus->map;
-  drivers::ModbusLinkOptions link;
-  link.port = port;
-  drivers::ModbusLink probe("probe", link);
-  ASSERT_TRUE(probe.Connect().ok());
-  ASSERT_TRUE(probe.WriteRegisters(map.intensity_address + 7, {1000}).ok());
-  ASSERT_TRUE(probe.WriteCoils(map.on_off_address + 7, {1}).ok());
+  ControllerProcess controller;
+  ASSERT_TRUE(controller.LightFromOutside(7));
+  const std::string& rig_path = controller.rig_path;
+  const int port = controller.port;
+  const drivers::ModbusLightMap& map = controller.map;
+  drivers::ModbusLink& probe = controller.probe;
+  ServerProcess& server = controller.server;
 
   const fs::path dir = fs::temp_directory_path() / ("photorig-darken-" + std::to_string(::getpid()));
   ExternalControllerRig(rig_path, port, dir);

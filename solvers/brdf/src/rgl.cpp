@@ -119,13 +119,16 @@ double Warp2D::Lookup(const std::vector<double>& table, std::size_t stride, std:
   return v;
 }
 
+Warp2D::Cell Warp2D::Locate(Eigen::Vector2d pos) const {
+  const double sx = std::clamp(pos.x(), 0.0, 1.0) * (nx_ - 1), sy = std::clamp(pos.y(), 0.0, 1.0) * (ny_ - 1);
+  const int px = std::min(static_cast<int>(sx), nx_ - 2), py = std::min(static_cast<int>(sy), ny_ - 2);
+  return {px, py, std::size_t(py) * nx_ + px, sx - px, sy - py};
+}
+
 double Warp2D::Eval(Eigen::Vector2d pos, const std::vector<double>& param) const {
   const Weights w = Interpolate(param);
   const std::size_t n = std::size_t(nx_) * ny_;
-  const double sx = std::clamp(pos.x(), 0.0, 1.0) * (nx_ - 1), sy = std::clamp(pos.y(), 0.0, 1.0) * (ny_ - 1);
-  const int px = std::min(static_cast<int>(sx), nx_ - 2), py = std::min(static_cast<int>(sy), ny_ - 2);
-  const double tx = sx - px, ty = sy - py;
-  const std::size_t i = std::size_t(py) * nx_ + px;
+  const auto [px, py, i, tx, ty] = Locate(pos);
   return (1 - ty) * ((1 - tx) * Lookup(data_, n, i, w) + tx * Lookup(data_, n, i + 1, w)) +
          ty * ((1 - tx) * Lookup(data_, n, i + nx_, w) + tx * Lookup(data_, n, i + nx_ + 1, w));
 }
@@ -133,10 +136,7 @@ double Warp2D::Eval(Eigen::Vector2d pos, const std::vector<double>& param) const
 Eigen::Vector2d Warp2D::Invert(Eigen::Vector2d pos, const std::vector<double>& param) const {
   const Weights w = Interpolate(param);
   const std::size_t n = std::size_t(nx_) * ny_;
-  const double sx = std::clamp(pos.x(), 0.0, 1.0) * (nx_ - 1), sy = std::clamp(pos.y(), 0.0, 1.0) * (ny_ - 1);
-  const int px = std::min(static_cast<int>(sx), nx_ - 2), py = std::min(static_cast<int>(sy), ny_ - 2);
-  const double tx = sx - px, ty = sy - py;
-  const std::size_t i = std::size_t(py) * nx_ + px;
+  const auto [px, py, i, tx, ty] = Locate(pos);
   // Along x: the conditional CDF at the patch's start plus the integral of the
   // density (linear in x at this y) across the patch, over the row's total.
   const double c0 = (1 - ty) * Lookup(data_, n, i, w) + ty * Lookup(data_, n, i + nx_, w);

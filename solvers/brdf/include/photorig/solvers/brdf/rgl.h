@@ -64,6 +64,14 @@ class Warp2D {
     std::vector<double> weights;
   };
   Weights Interpolate(const std::vector<double>& param) const;
+  // The grid cell holding a point of the unit square: its corner (px, py),
+  // the corner's index i, and the point's fractions (tx, ty) across the cell.
+  struct Cell {
+    int px, py;
+    std::size_t i;
+    double tx, ty;
+  };
+  Cell Locate(Eigen::Vector2d pos) const;
   double Lookup(const std::vector<double>& table, std::size_t stride, std::size_t index, const Weights& w) const;
 
   int nx_ = 0, ny_ = 0;
