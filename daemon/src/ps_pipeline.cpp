@@ -337,7 +337,9 @@ json ToJson(const PhotometricStereoResult& result) {
                    {"too_few_lights", summary.pixels_too_few_lights},
                    {"ill_conditioned", summary.pixels_ill_conditioned},
                    {"rejected_by_model", summary.pixels_rejected_by_model},
-                   {"fell_back", summary.pixels_fell_back}}},
+                   {"fell_back", summary.pixels_fell_back},
+                   // of models.blinn_phong: auto's step 5, with the lobe of its region or nearest glossy pixels
+                   {"shared_lobe", summary.pixels_shared_lobe}}},
                  {"models",
                   {{"lambertian", summary.pixels_lambertian},
                    {"trimmed", summary.pixels_trimmed},
