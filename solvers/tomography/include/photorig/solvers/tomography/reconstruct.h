@@ -125,7 +125,10 @@ struct ReconstructionSummary : solvers::Summary {
   int iterations = 0;
   double relaxation = 0.0;               // the lambda used
   double tv_strength = 0.0;              // 0: no TV regularisation
-  std::vector<double> residual_history;  // ||W sigma - b|| over valid rays; [0] before the first iteration
+  // ||W sigma - b|| over valid rays; [0] before the first iteration. SART's
+  // entries far from the stopping target are the residual its views met during
+  // the pass (no extra forward projection); the last entry is always exact.
+  std::vector<double> residual_history;
   double discrepancy_target = 0.0;       // tau sqrt(sum var(b)); 0 when no noise estimate
   StopReason stop_reason = StopReason::kNone;
   std::int64_t rays_used = 0;
