@@ -21,6 +21,8 @@ nlohmann::json FitJson(const brdf::FitSummary& f) {
           {"specular_sigma", Vec(f.specular_sigma)},
           {"shape", f.params.shape},
           {"shape_sigma", f.shape_sigma},
+          {"fresnel_f0", f.params.fresnel_f0},
+          {"fresnel_f0_sigma", f.fresnel_f0_sigma},
           {"lobe_identifiable", f.lobe_identifiable}};
 }
 
