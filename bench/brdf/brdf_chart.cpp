@@ -56,8 +56,9 @@ int main(int argc, char** argv) {
     const auto held_out = synthetic::SyntheticSamples(m.truth, held_spec);
     for (int count : {20, 40, 80, 160, 320, 640, 1280, 2560}) {
       constexpr int kRepeats = 5;
-      std::vector<std::vector<double>> ms(3), err(3), bic(3);
-      std::vector<int> chosen(3, 0);
+      const std::vector<Model> models = SelectionOptions{}.candidates;
+      std::vector<std::vector<double>> ms(models.size()), err(models.size()), bic(models.size());
+      std::vector<int> chosen(models.size(), 0);
       for (int r = 0; r < kRepeats; ++r) {
         synthetic::SyntheticSpec spec;
         spec.count = count;
@@ -77,8 +78,8 @@ int main(int argc, char** argv) {
         std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
         return v[v.size() / 2];
       };
-      for (int i = 0; i < 3; ++i)
-        out << m.name << ',' << ModelName(static_cast<Model>(i)) << ',' << count << ',' << median(ms[i]) << ','
+      for (std::size_t i = 0; i < models.size(); ++i)
+        out << m.name << ',' << ModelName(models[i]) << ',' << count << ',' << median(ms[i]) << ','
             << median(err[i]) << ',' << median(bic[i]) << ',' << chosen[i] << '\n';
       std::cerr << m.name << ' ' << count << " samples done\n";
     }

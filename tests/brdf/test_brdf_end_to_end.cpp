@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <regex>
@@ -81,8 +82,10 @@ TEST(BrdfEndToEnd, MeasuredTablesOfEitherFormatFitTheModelTheyWereMadeFrom) {
     const auto report = nlohmann::json::parse(ReadText(out / "report.json"));
     EXPECT_EQ(report["loss"], "log");
     EXPECT_EQ(report["chosen"], "ggx") << report.dump(2);
-    const auto& fit = report["candidates"][2];
-    ASSERT_EQ(fit["model"], "ggx");
+    const auto ggx_fit = std::find_if(report["candidates"].begin(), report["candidates"].end(),
+                                      [](const nlohmann::json& c) { return c["model"] == "ggx"; });
+    ASSERT_NE(ggx_fit, report["candidates"].end());
+    const auto& fit = *ggx_fit;
     // MERL's nearest-cell lookup biases the diffuse term: a MERL table filled
     // straight from the model gives rho_d 10-15 % low through the same fit.
     const double diffuse_tolerance = table == merl ? 0.15 : 0.05;

@@ -21,6 +21,8 @@ nlohmann::json FitJson(const brdf::FitSummary& f) {
           {"specular_sigma", Vec(f.specular_sigma)},
           {"shape", f.params.shape},
           {"shape_sigma", f.shape_sigma},
+          {"fresnel_f0", f.params.fresnel_f0},
+          {"fresnel_f0_sigma", f.fresnel_f0_sigma},
           {"lobe_identifiable", f.lobe_identifiable}};
 }
 
@@ -39,12 +41,15 @@ nlohmann::json SelectionJson(const brdf::SelectionSummary& s) {
 
 void PrintSelection(std::FILE* text, const brdf::SelectionSummary& s) {
   for (const brdf::FitSummary& f : s.candidates) {
-    std::fprintf(text, "  %-12s %-14s BIC %12.1f  held-out rms %8.3f  rho_d %.4f +- %.4f",
+    std::fprintf(text, "  %-13s %-14s BIC %12.1f  held-out rms %8.3f  rho_d %.4f +- %.4f",
                  brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic, f.held_out_rms,
                  f.params.diffuse[0], f.diffuse_sigma[0]);
     if (f.params.model != brdf::Model::kLambertian)
-      std::fprintf(text, "  specular %.4f +- %.4f  shape %.4g +- %.2g%s", f.params.specular[0], f.specular_sigma[0],
-                   f.params.shape, f.shape_sigma, f.lobe_identifiable ? "" : "  (not identifiable)");
+      std::fprintf(text, "  specular %.4f +- %.4f  shape %.4g +- %.2g", f.params.specular[0], f.specular_sigma[0],
+                   f.params.shape, f.shape_sigma);
+    if (f.params.model == brdf::Model::kCookTorrance)
+      std::fprintf(text, "  F0 %.4f +- %.4f", f.params.fresnel_f0, f.fresnel_f0_sigma);
+    if (!f.lobe_identifiable) std::fprintf(text, "  (not identifiable)");
     std::fprintf(text, "\n");
   }
   if (s.chosen) std::fprintf(text, "chosen: %s\n", brdf::ModelName(*s.chosen));

@@ -20,17 +20,24 @@ struct Prepared {
 };
 
 // The residuals of one sample. `kd` holds rho_d per channel; `lobe` (absent
-// for Lambertian) holds the specular parameter per channel and log(shape).
+// for Lambertian) holds the specular parameter per channel and log(shape);
+// `f0` (Cook-Torrance only) its Fresnel F0.
 class SampleResidual {
  public:
   SampleResidual(Model model, const Prepared& sample, FitLoss loss) : model_(model), s_(sample), loss_(loss) {}
 
   template <typename T>
-  bool operator()(const T* kd, const T* lobe, T* residual) const {
+  bool operator()(const T* kd, const T* lobe, const T* f0, T* residual) const {
     using std::exp;
     const T shape = exp(lobe[3]);
-    for (int c = 0; c < 3; ++c) Finish(c, kd[c] / M_PI + internal::Lobe(model_, lobe[c], shape, s_.geometry), residual);
+    for (int c = 0; c < 3; ++c)
+      Finish(c, kd[c] / M_PI + internal::Lobe(model_, lobe[c], shape, *f0, s_.geometry), residual);
     return true;
+  }
+  template <typename T>
+  bool operator()(const T* kd, const T* lobe, T* residual) const {
+    const T no_f0(0.0);
+    return (*this)(kd, lobe, &no_f0, residual);
   }
   template <typename T>
   bool operator()(const T* kd, T* residual) const {
@@ -62,6 +69,12 @@ struct ShapeRange {
 };
 ShapeRange RangeOf(Model model) {
   return model == Model::kBlinnPhong ? ShapeRange{1.0, 1.0e4, 41} : ShapeRange{0.005, 1.0, 41};
+}
+
+// Cook-Torrance's F0 is not linear in the lobe: the starting grid tries these.
+std::vector<double> StartingF0s(Model model) {
+  return model == Model::kCookTorrance ? std::vector<double>{0.05, 0.2, 0.4, 0.6, 0.8, 0.95}
+                                       : std::vector<double>{0.0};
 }
 
 // Weighted least squares of one channel's value against
@@ -103,9 +116,9 @@ double FitLinearChannel(const std::vector<Prepared>& prepared, const std::vector
   return error;
 }
 
-// The starting point: the best shape on a geometric grid, each with its
-// channels' linear parameters solved exactly.
-void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd[3], double lobe[4]) {
+// The starting point: the best shape on a geometric grid (and F0 on a coarse
+// one), each with its channels' linear parameters solved exactly.
+void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd[3], double lobe[4], double* f0_start) {
   const std::size_t n = prepared.size();
   std::vector<double> basis(n, 0.0), offset(n, 0.0);
   if (model == Model::kLambertian) {
@@ -119,19 +132,22 @@ void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd
   double best = std::numeric_limits<double>::infinity();
   for (int step = 0; step < range.steps; ++step) {
     const double shape = range.min * std::pow(range.max / range.min, step / (range.steps - 1.0));
-    for (std::size_t k = 0; k < n; ++k) {
-      offset[k] = internal::Lobe(model, 0.0, shape, prepared[k].geometry);
-      basis[k] = internal::Lobe(model, 1.0, shape, prepared[k].geometry) - offset[k];
-    }
-    double error = 0.0, trial_kd[3], trial_ks[3];
-    for (int c = 0; c < 3; ++c) error += FitLinearChannel(prepared, basis, offset, c, &trial_kd[c], &trial_ks[c]);
-    if (error < best) {
-      best = error;
-      for (int c = 0; c < 3; ++c) {
-        kd[c] = trial_kd[c];
-        lobe[c] = model == Model::kGgx ? std::min(trial_ks[c], 1.0) : trial_ks[c];
+    for (double f0 : StartingF0s(model)) {
+      for (std::size_t k = 0; k < n; ++k) {
+        offset[k] = internal::Lobe(model, 0.0, shape, f0, prepared[k].geometry);
+        basis[k] = internal::Lobe(model, 1.0, shape, f0, prepared[k].geometry) - offset[k];
       }
-      lobe[3] = std::log(shape);
+      double error = 0.0, trial_kd[3], trial_ks[3];
+      for (int c = 0; c < 3; ++c) error += FitLinearChannel(prepared, basis, offset, c, &trial_kd[c], &trial_ks[c]);
+      if (error < best) {
+        best = error;
+        for (int c = 0; c < 3; ++c) {
+          kd[c] = trial_kd[c];
+          lobe[c] = model == Model::kGgx ? std::min(trial_ks[c], 1.0) : trial_ks[c];
+        }
+        lobe[3] = std::log(shape);
+        *f0_start = f0;
+      }
     }
   }
 }
@@ -249,14 +265,18 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
     return summary;
   }
 
-  double kd[3] = {0, 0, 0}, lobe[4] = {0, 0, 0, 0};
-  StartingPoint(model, prepared, kd, lobe);
+  double kd[3] = {0, 0, 0}, lobe[4] = {0, 0, 0, 0}, f0 = 0.0;
+  StartingPoint(model, prepared, kd, lobe, &f0);
   ceres::Problem problem;
   for (const Prepared& p : prepared) {
     if (model == Model::kLambertian) {
       problem.AddResidualBlock(
           new ceres::AutoDiffCostFunction<SampleResidual, 3, 3>(new SampleResidual(model, p, options.loss)), nullptr,
           kd);
+    } else if (model == Model::kCookTorrance) {
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4, 1>(new SampleResidual(model, p, options.loss)),
+          nullptr, kd, lobe, &f0);
     } else {
       problem.AddResidualBlock(
           new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4>(new SampleResidual(model, p, options.loss)),
@@ -271,6 +291,10 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
       for (int c = 0; c < 3; ++c) problem.SetParameterUpperBound(lobe, c, 1.0);
     problem.SetParameterLowerBound(lobe, 3, std::log(range.min));
     problem.SetParameterUpperBound(lobe, 3, std::log(range.max));
+    if (model == Model::kCookTorrance) {
+      problem.SetParameterLowerBound(&f0, 0, 0.0);
+      problem.SetParameterUpperBound(&f0, 0, 1.0);
+    }
   }
   timer.SetupDone(&summary);
 
@@ -296,6 +320,7 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
   if (model != Model::kLambertian) {
     summary.params.specular = Eigen::Vector3d(lobe[0], lobe[1], lobe[2]);
     summary.params.shape = std::exp(lobe[3]);
+    if (model == Model::kCookTorrance) summary.params.fresnel_f0 = f0;
   }
 
   // Uncertainties: the inverse of J^T J at the solution (DENSE_SVD refuses a
@@ -305,6 +330,7 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
   ceres::Covariance covariance(covariance_options);
   std::vector<const double*> blocks = {kd};
   if (model != Model::kLambertian) blocks.push_back(lobe);
+  if (model == Model::kCookTorrance) blocks.push_back(&f0);
   std::vector<std::pair<const double*, const double*>> pairs;
   for (const double* a : blocks)
     for (const double* b : blocks) pairs.emplace_back(a, b);
@@ -321,6 +347,7 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
     if (model != Model::kLambertian) {
       summary.specular_sigma = sd.segment<3>(3);
       summary.shape_sigma = summary.params.shape * sd[6];  // d shape = shape * d log(shape)
+      if (model == Model::kCookTorrance) summary.fresnel_f0_sigma = sd[7];
     }
   }
   if (model != Model::kLambertian) {

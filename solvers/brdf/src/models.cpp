@@ -11,18 +11,23 @@ const char* ModelName(Model model) {
   switch (model) {
     case Model::kLambertian: return "lambertian";
     case Model::kBlinnPhong: return "blinn_phong";
+    case Model::kWard: return "ward";
     case Model::kGgx: return "ggx";
+    case Model::kCookTorrance: return "cook_torrance";
   }
   return "?";
 }
 
 std::optional<Model> ParseModel(std::string_view name) {
-  for (Model m : {Model::kLambertian, Model::kBlinnPhong, Model::kGgx})
+  for (Model m : {Model::kLambertian, Model::kBlinnPhong, Model::kWard, Model::kGgx, Model::kCookTorrance})
     if (name == ModelName(m)) return m;
   return std::nullopt;
 }
 
-int ParameterCount(Model model) { return model == Model::kLambertian ? 3 : 7; }
+int ParameterCount(Model model) {
+  if (model == Model::kLambertian) return 3;
+  return model == Model::kCookTorrance ? 8 : 7;
+}
 
 Geometry GeometryOf(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) {
   const Eigen::Vector3d h = (wi + wo).normalized();
@@ -33,7 +38,7 @@ Eigen::Vector3d Evaluate(const ModelParams& p, const Eigen::Vector3d& wi, const 
   if (wi.z() <= 0.0 || wo.z() <= 0.0) return Eigen::Vector3d::Zero();
   const Geometry g = GeometryOf(wi, wo);
   Eigen::Vector3d f;
-  for (int c = 0; c < 3; ++c) f[c] = p.diffuse[c] / M_PI + internal::Lobe(p.model, p.specular[c], p.shape, g);
+  for (int c = 0; c < 3; ++c) f[c] = p.diffuse[c] / M_PI + internal::Lobe(p.model, p.specular[c], p.shape, p.fresnel_f0, g);
   return f;
 }
 

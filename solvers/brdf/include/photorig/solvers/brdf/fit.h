@@ -49,6 +49,7 @@ struct FitSummary : Summary {
   Eigen::Vector3d diffuse_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   Eigen::Vector3d specular_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   double shape_sigma = std::numeric_limits<double>::quiet_NaN();
+  double fresnel_f0_sigma = std::numeric_limits<double>::quiet_NaN();  // cook_torrance only
   bool covariance_available = false;
   // False when the lobe's shape is not pinned down (see FitOptions); always
   // true for Lambertian. A fit with an unidentifiable lobe is not a result.
@@ -72,7 +73,8 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
 
 struct SelectionOptions {
   FitOptions fit;
-  std::vector<Model> candidates = {Model::kLambertian, Model::kBlinnPhong, Model::kGgx};
+  std::vector<Model> candidates = {Model::kLambertian, Model::kBlinnPhong, Model::kWard, Model::kGgx,
+                                   Model::kCookTorrance};
   // A lobe model is chosen over a simpler one only when its BIC is lower by
   // more than this (10: "very strong" evidence on Kass and Raftery's scale).
   double min_bic_improvement = 10.0;
