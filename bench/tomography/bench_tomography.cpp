@@ -4,10 +4,13 @@
 // same threads, the fastest any product over W can be. The ratio of
 // BM_SparseForward to BM_StreamingRead is the figure in docs/performance.md.
 // BM_MatrixFree* trace the rays in every product (volumes whose W does not
-// fit); BM_Iteration/<method> is one SIRT or CGLS iteration, or one ART sweep.
+// fit); BM_Iteration/<method> is one SIRT or CGLS iteration, or one ART or
+// SART pass. BM_MatrixFreeSirt is one SIRT iteration on the large case
+// (256^3 from 180 views of 256^2: W would take some 55 GB), matrix-free; its
+// peak resident memory is the figure that says it fits.
 //
 // Problems: an n^3 volume seen by parallel views of n x n pixels: 90 views at
-// n = 64, 20 at n = 128 (W and W^T then take about 1.2 GB).
+// n = 64, 20 at n = 128 (W and W^T then take about 1.2 GB), 180 at n = 256.
 
 #include "photorig/solvers/tomography/projector.h"
 #include "photorig/solvers/tomography/reconstruct.h"
@@ -31,13 +34,14 @@ struct Problem {
 
 const Problem& Get(int n, tomo::Storage storage) {
   static std::map<std::pair<int, int>, std::unique_ptr<Problem>> cache;
+  const int views = n <= 64 ? 90 : n <= 128 ? 20 : 180;
   auto& slot = cache[{n, static_cast<int>(storage)}];
   if (!slot) {
     slot = std::make_unique<Problem>();
     slot->grid = {n, n, n, 32.0 / n};
     slot->geometry.detector_cols = slot->geometry.detector_rows = n;
     slot->geometry.pixel_mm = 32.0 / n;
-    slot->geometry.angles_rad = tomo::EvenAngles(n <= 64 ? 90 : 20, 180.0);
+    slot->geometry.angles_rad = tomo::EvenAngles(views, 180.0);
     tomo::ProjectorOptions options;
     options.storage = storage;
     options.memory_budget_bytes = std::size_t{8} << 30;
@@ -111,8 +115,8 @@ void BM_MatrixFreeBack(benchmark::State& state) {
                                                     benchmark::Counter::kIsRate);
 }
 
-void BM_Iteration(benchmark::State& state) {
-  const Problem& p = Get(static_cast<int>(state.range(0)), tomo::Storage::kSparse);
+void RunOneIteration(benchmark::State& state, tomo::Storage storage) {
+  const Problem& p = Get(static_cast<int>(state.range(0)), storage);
   tomo::ReconstructOptions options;
   options.method = static_cast<tomo::Method>(state.range(1));
   options.stop_rule = tomo::StopRule::kIterations;
@@ -129,6 +133,9 @@ void BM_Iteration(benchmark::State& state) {
   state.SetLabel(tomo::MethodName(options.method));
 }
 
+void BM_Iteration(benchmark::State& state) { RunOneIteration(state, tomo::Storage::kSparse); }
+void BM_MatrixFreeSirt(benchmark::State& state) { RunOneIteration(state, tomo::Storage::kMatrixFree); }
+
 }  // namespace
 
 BENCHMARK(BM_StreamingRead)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
@@ -139,8 +146,13 @@ BENCHMARK(BM_MatrixFreeBack)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Iteration)
     ->ArgsProduct({{64, 128},
                    {static_cast<int>(tomo::Method::kArt), static_cast<int>(tomo::Method::kSirt),
-                    static_cast<int>(tomo::Method::kCgls)}})
+                    static_cast<int>(tomo::Method::kCgls), static_cast<int>(tomo::Method::kSart)}})
     ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MatrixFreeSirt)
+    ->Args({256, static_cast<int>(tomo::Method::kSirt)})
+    ->UseManualTime()
+    ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

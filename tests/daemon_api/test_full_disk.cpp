@@ -250,8 +250,9 @@ TEST_F(FullDisk, ASolveThatRunsOutOfSpaceLeavesTheFramesAndSolvesOnceThereIsRoom
     EXPECT_TRUE(CapturedFiles(run) == captured) << "the captured files changed";
     EXPECT_FALSE(fs::exists(run / "results" / results));
     ExpectNoPartialResults(data_);
-    if (full_stage == "svbrdf")  // the stage before it ended whole
+    if (full_stage == "svbrdf") {  // the stage before it ended whole
       EXPECT_TRUE(fs::exists(run / "results" / "ps" / "report.json"));
+    }
     fs::remove(data_ / "filler");
   }
 

@@ -28,6 +28,16 @@ SceneSpec OneGlossy(double exponent) {
   return spec;
 }
 
+// Lobes the per-material fit has no shape search for are refused by name.
+TEST(Stability, LobesFittedOnlyToWholeTablesAreRefused) {
+  refl::ReflectanceOptions options;
+  std::string why;
+  EXPECT_TRUE(options.IsValid(&why)) << why;
+  options.lobes = {brdf::Model::kGgx, brdf::Model::kWard};
+  EXPECT_FALSE(options.IsValid(&why));
+  EXPECT_NE(why.find("ward"), std::string::npos) << why;
+}
+
 TEST(Stability, TooFewLightsOnASpecularLobeAreFlagged) {
   SceneSpec spec = OneGlossy(150.0);
   spec.lights = DomeLights(1, 8, 40.0, 40.0);  // the zenith and a ring: only the zenith lights the cap's highlight

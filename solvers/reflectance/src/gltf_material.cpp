@@ -12,6 +12,10 @@ GltfMaterial ToGltf(const MaterialFit& material) {
   switch (material.model) {
     case brdf::Model::kLambertian: break;
     case brdf::Model::kGgx:
+    // Near the peak Beckmann's m and Ward's alpha play GGX's alpha (the
+    // spatially varying fit refuses both lobes; the switch stays whole).
+    case brdf::Model::kWard:
+    case brdf::Model::kCookTorrance:
       out.roughness = std::sqrt(material.shape);
       out.specular_colour = material.specular / 0.04;
       break;

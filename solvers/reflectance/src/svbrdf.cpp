@@ -68,13 +68,17 @@ const char* WarningName(Warning warning) {
 }
 
 bool ReflectanceOptions::IsValid(std::string* why) const {
-  auto fail = [&](const char* text) {
+  auto fail = [&](const std::string& text) {
     if (why) *why = text;
     return false;
   };
   if (max_materials < 1 || max_materials > 16) return fail("max_materials must be in [1, 16]");
-  for (brdf::Model m : lobes)
+  for (brdf::Model m : lobes) {
     if (m == brdf::Model::kLambertian) return fail("lobes lists specular lobes only (no lobe is always a candidate)");
+    if (m != brdf::Model::kBlinnPhong && m != brdf::Model::kGgx)
+      return fail(std::string("lobes may hold blinn_phong and ggx; ") + brdf::ModelName(m) +
+                  " is fitted to whole tables (photorig brdf fit), not per material");
+  }
   if (!(min_cosine >= 0.0 && min_cosine < 1.0)) return fail("min_cosine must be in [0, 1)");
   if (min_samples < 3) return fail("min_samples must be at least 3");
   if (!(poor_fit_ratio > 1.0)) return fail("poor_fit_ratio must exceed 1");
