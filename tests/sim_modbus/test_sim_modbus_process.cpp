@@ -188,13 +188,8 @@ struct ControllerProcess {
 TEST(SimModbusProcess, LightsOffDarkensWhatAProcessLeftLit) {
   ControllerProcess controller;
   ASSERT_TRUE(controller.LightFromOutside(3));
-  const std::string& rig_path = controller.rig_path;
-  const int port = controller.port;
-  const drivers::ModbusLightMap& map = controller.map;
-  drivers::ModbusLink& probe = controller.probe;
-  ServerProcess& server = controller.server;
   const fs::path dir = fs::temp_directory_path() / ("photorig-lights-off-" + std::to_string(::getpid()));
-  const fs::path rig = ExternalControllerRig(rig_path, port, dir);
+  const fs::path rig = ExternalControllerRig(controller.rig_path, controller.port, dir);
   const std::string command = std::string(PHOTORIG_BIN_DIR) + "/photorig lights off --json --rig " + rig.string() +
                               " > " + (dir / "out.json").string() + " 2> " + (dir / "err.txt").string();
   const int status = std::system(command.c_str());
@@ -202,23 +197,18 @@ TEST(SimModbusProcess, LightsOffDarkensWhatAProcessLeftLit) {
   std::ifstream out(dir / "out.json");
   const nlohmann::json document = nlohmann::json::parse(out, nullptr, false);
   EXPECT_TRUE(document.is_object() && document.value("touched", false)) << document.dump();
-  EXPECT_EQ(probe.ReadCoils(map.on_off_address + 3, 1).value()[0], 0);
-  probe.Disconnect();
+  EXPECT_EQ(controller.probe.ReadCoils(controller.map.on_off_address + 3, 1).value()[0], 0);
+  controller.probe.Disconnect();
   fs::remove_all(dir);
-  EXPECT_EQ(server.Terminate(), 0);
+  EXPECT_EQ(controller.server.Terminate(), 0);
 }
 
 TEST(SimModbusProcess, PhotorigdStartsByDarkeningTheLights) {
   ControllerProcess controller;
   ASSERT_TRUE(controller.LightFromOutside(7));
-  const std::string& rig_path = controller.rig_path;
-  const int port = controller.port;
-  const drivers::ModbusLightMap& map = controller.map;
-  drivers::ModbusLink& probe = controller.probe;
-  ServerProcess& server = controller.server;
 
   const fs::path dir = fs::temp_directory_path() / ("photorig-darken-" + std::to_string(::getpid()));
-  ExternalControllerRig(rig_path, port, dir);
+  ExternalControllerRig(controller.rig_path, controller.port, dir);
   const pid_t daemon = ::fork();
   if (daemon == 0) {
     const std::string binary = std::string(PHOTORIG_BIN_DIR) + "/photorigd";
@@ -230,14 +220,14 @@ TEST(SimModbusProcess, PhotorigdStartsByDarkeningTheLights) {
   bool dark = false;
   for (int i = 0; i < 100 && !dark; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    dark = probe.ReadCoils(map.on_off_address + 7, 1).value()[0] == 0;
+    dark = controller.probe.ReadCoils(controller.map.on_off_address + 7, 1).value()[0] == 0;
   }
   EXPECT_TRUE(dark) << "LED 7 still lit 10 s after photorigd started";
   ::kill(daemon, SIGTERM);
   ::waitpid(daemon, nullptr, 0);
-  probe.Disconnect();
+  controller.probe.Disconnect();
   fs::remove_all(dir);
-  EXPECT_EQ(server.Terminate(), 0);
+  EXPECT_EQ(controller.server.Terminate(), 0);
 }
 
 TEST(SimModbusProcess, ServesRtuOnAPseudoTerminal) {
