@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # A single-node Slurm cluster on this machine, for the batch tests:
-#   tests/slurm/slurm-node.sh start DIR   writes slurm.conf, cgroup.conf and a munge key into DIR,
+#   tests/slurm/slurm-node.sh start DIR [OWNER_PID]
+#                                         writes slurm.conf, cgroup.conf and a munge key into DIR,
 #                                         starts munged, slurmctld and slurmd (as root) with their
 #                                         state, logs and pid files in DIR, and waits for the node
-#                                         to be idle; then `export SLURM_CONF=DIR/slurm.conf` reaches it
+#                                         to be idle; then `export SLURM_CONF=DIR/slurm.conf` reaches it.
+#                                         With OWNER_PID, the daemons are stopped when that process
+#                                         ends, however it ends (a test killed by a timeout included).
 #   tests/slurm/slurm-node.sh stop DIR    stops the three daemons it started, by their pid files
 # Exit 77 from start: Slurm cannot run here (not root, a package missing), the
 # reason on the last line of stderr; the caller skips saying so. Any other
@@ -11,6 +14,17 @@
 set -uo pipefail
 
 cannot() { echo "slurm-node: cannot start Slurm here: $*" >&2; exit 77; }
+
+# A TCP port in 20000-59999 nothing listens on, other than $1.
+free_port() {
+  local port
+  for _ in $(seq 200); do
+    port=$(( 20000 + RANDOM % 40000 ))
+    [ "$port" = "${1:-}" ] && continue
+    (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null || { echo "$port"; return 0; }
+  done
+  return 1
+}
 
 stop() {
   local dir=$1 pid
@@ -27,19 +41,18 @@ stop() {
 }
 
 start() {
-  local dir=$1
+  local dir=$1 owner=${2:-}
   [ "$(id -u)" = 0 ] || cannot "slurmd must run as root (running as uid $(id -u))"
   for tool in munged slurmctld slurmd sbatch squeue sinfo scontrol; do
     command -v "$tool" >/dev/null 2>&1 || [ -x "/usr/sbin/$tool" ] ||
       cannot "$tool is missing (Debian packages slurm-wlm munge; scripts/install-deps.sh installs them)"
   done
   export PATH="$PATH:/usr/sbin"
-  for port in 16817 16818; do
-    if (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null; then
-      echo "slurm-node: port $port is in use (another test node still running?)" >&2
-      exit 1
-    fi
-  done
+  # Ports chosen free rather than fixed, so a node of another checkout's tests on this machine
+  # (or one a killed test left) does not collide with this one; a system Slurm's 6817/6818 lie below the range.
+  local ctld_port slurmd_port
+  ctld_port=$(free_port) || { echo "slurm-node: no free TCP port found in 20000-59999" >&2; exit 1; }
+  slurmd_port=$(free_port "$ctld_port") || { echo "slurm-node: no free TCP port found in 20000-59999" >&2; exit 1; }
   mkdir -p "$dir"/{state,spool,log}
   chmod 700 "$dir"
   local host cpus memory_mb
@@ -56,12 +69,11 @@ start() {
          --log-file="$dir/log/munged.log" --seed-file="$dir/munged.seed" ||
     { cat "$dir/log/munged.log" >&2; exit 1; }
 
-  # Ports apart from a system Slurm's (6817/6818).
   cat > "$dir/slurm.conf" <<CONF
 ClusterName=photorig-test
 SlurmctldHost=$host(127.0.0.1)
-SlurmctldPort=16817
-SlurmdPort=16818
+SlurmctldPort=$ctld_port
+SlurmdPort=$slurmd_port
 SlurmUser=root
 SlurmdUser=root
 AuthType=auth/munge
@@ -105,7 +117,13 @@ CONF
   local state=""
   for _ in $(seq 150); do
     state=$(sinfo -h -N -n "$host" -o %t 2>/dev/null)
-    case "$state" in idle) echo "slurm-node: $host idle, SLURM_CONF=$dir/slurm.conf" >&2; return 0 ;; esac
+    case "$state" in
+      idle)
+        echo "slurm-node: $host idle (ports $ctld_port, $slurmd_port), SLURM_CONF=$dir/slurm.conf" >&2
+        [ -n "$owner" ] && setsid bash -c 'while kill -0 "$1" 2>/dev/null; do sleep 1; done; "$2" stop "$3"' \
+          reaper "$owner" "$(readlink -f "$0")" "$dir" > /dev/null 2>&1 < /dev/null &
+        return 0 ;;
+    esac
     for daemon in slurmctld slurmd; do
       if [ -f "$dir/$daemon.pid" ] && ! kill -0 "$(cat "$dir/$daemon.pid")" 2>/dev/null; then
         echo "slurm-node: $daemon exited; logs:" >&2
@@ -123,7 +141,7 @@ CONF
 }
 
 case "${1:-}" in
-  start) [ -n "${2:-}" ] || { echo "usage: $0 start|stop DIR" >&2; exit 2; }; start "$2" ;;
-  stop) [ -n "${2:-}" ] || { echo "usage: $0 start|stop DIR" >&2; exit 2; }; stop "$2" ;;
-  *) echo "usage: $0 start|stop DIR" >&2; exit 2 ;;
+  start) [ -n "${2:-}" ] || { echo "usage: $0 start DIR [OWNER_PID] | stop DIR" >&2; exit 2; }; start "$2" "${3:-}" ;;
+  stop) [ -n "${2:-}" ] || { echo "usage: $0 start DIR [OWNER_PID] | stop DIR" >&2; exit 2; }; stop "$2" ;;
+  *) echo "usage: $0 start DIR [OWNER_PID] | stop DIR" >&2; exit 2 ;;
 esac

@@ -17,6 +17,7 @@
 #include <regex>
 #include <string>
 #include <sys/wait.h>
+#include <unistd.h>
 #include <thread>
 
 namespace photorig::daemon {
@@ -130,7 +131,9 @@ class SlurmBatch : public ::testing::Test {
   void SetUp() override {
     const std::string script = SourceDir() + "/tests/slurm/slurm-node.sh";
     const fs::path log = slurm_.path() / "start.log";
-    const int status = std::system((script + " start " + (slurm_.path() / "node").string() + " > " + log.string() + " 2>&1").c_str());
+    // This process's pid: the node is stopped when the test ends, even if it is killed before TearDown.
+    const int status = std::system((script + " start " + (slurm_.path() / "node").string() + " " +
+                                    std::to_string(::getpid()) + " > " + log.string() + " 2>&1").c_str());
     const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     if (code == 77) GTEST_SKIP() << ReadText(log);
     ASSERT_EQ(code, 0) << ReadText(log);
