@@ -38,6 +38,10 @@ std::shared_ptr<sim::World> MakeWorld() {
   return std::make_shared<sim::World>(config);
 }
 
+// Generous: a frame that does come arrives within milliseconds, but on a machine loaded by a
+// parallel build the fake's UDP stream can stall for seconds; the expected-timeout cases use short waits.
+constexpr int kFrameTimeoutMs = 10000;
+
 sim::GigeFakeCameraOptions FakeOptions(const std::string& serial) {
   sim::GigeFakeCameraOptions options;
   options.serial = serial;
@@ -116,7 +120,7 @@ TEST(AravisCamera, SoftwareTriggeredSequenceShowsTheWorldsLights) {
     levels[light] = 1.0;
     world->SetLevels(levels);
     ASSERT_TRUE(camera.Trigger().ok());
-    auto frame = camera.WaitFrame(2000);
+    auto frame = camera.WaitFrame(kFrameTimeoutMs);
     ASSERT_TRUE(frame.ok()) << frame.status().ToString();
     EXPECT_EQ(frame->width, 72);
     EXPECT_EQ(frame->height, 56);
@@ -170,7 +174,7 @@ TEST(AravisCamera, ExposureAndGainRoundTripWithReportedAdjustments) {
     ASSERT_TRUE(camera.Configure(Settings(exposures[i], 0.0)).ok());
     ASSERT_TRUE(camera.Start().ok());
     ASSERT_TRUE(camera.Trigger().ok());
-    auto frame = camera.WaitFrame(2000);
+    auto frame = camera.WaitFrame(kFrameTimeoutMs);
     ASSERT_TRUE(frame.ok()) << frame.status().ToString();
     EXPECT_DOUBLE_EQ(frame->exposure_us, exposures[i]);
     double sum = 0;
@@ -207,7 +211,7 @@ TEST(AravisCamera, PixelFormatsArriveAsSixteenBitSamples) {
     EXPECT_EQ(adjustments->size(), c.bit_depth == c.bits ? 0u : 1u) << c.applied;
     ASSERT_TRUE(camera.Start().ok());
     ASSERT_TRUE(camera.Trigger().ok());
-    auto frame = camera.WaitFrame(2000);
+    auto frame = camera.WaitFrame(kFrameTimeoutMs);
     ASSERT_TRUE(frame.ok()) << frame.status().ToString();
     EXPECT_EQ(frame->bit_depth, c.bits);
     EXPECT_EQ(frame->pixels, Expected(*world, c.bits, 300.0, 0.0)) << c.applied;
@@ -305,7 +309,7 @@ TEST(AravisCamera, ReconnectsAndReappliesSettingsWhenTheCameraRestarts) {
   ASSERT_TRUE(camera.Configure(Settings(2000.0, 2.0)).ok());
   ASSERT_TRUE(camera.Start().ok());
   ASSERT_TRUE(camera.Trigger().ok());
-  const auto first = camera.WaitFrame(2000);
+  const auto first = camera.WaitFrame(kFrameTimeoutMs);
   ASSERT_TRUE(first.ok()) << first.status().ToString();
 
   // The camera power-cycles: a new device with default registers (Mono8, 10 ms, gain 0) and no controller.
@@ -314,7 +318,7 @@ TEST(AravisCamera, ReconnectsAndReappliesSettingsWhenTheCameraRestarts) {
   ASSERT_TRUE(fake);
 
   ASSERT_TRUE(camera.Trigger().ok());
-  auto frame = camera.WaitFrame(2000);
+  auto frame = camera.WaitFrame(kFrameTimeoutMs);
   ASSERT_TRUE(frame.ok()) << frame.status().ToString();
   EXPECT_EQ(camera.statistics().reconnects, 1u);
   EXPECT_EQ(frame->pixel_format, "Mono12");
