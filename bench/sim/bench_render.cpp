@@ -34,7 +34,7 @@ void BM_ShadowedHeightfield(benchmark::State& state) {
   const auto model = static_cast<Brdf::Model>(state.range(0));
   const Scene scene = Bumps(model);
   const SurfaceMaps maps = SampleSurface(scene, kSide, kSide, 0.05);
-  const auto brdf = scene.material.MakeBrdf(0.5);
+  const auto brdf = scene.material.MakeBrdf();
   const std::vector<Light> lights = {{Eigen::Vector3d(0.8, 0.3, 0.5).normalized(), 1.0}};
   for (auto _ : state) benchmark::DoNotOptimize(RenderRadiance(maps, *brdf, true, lights, {1.0}).data);
   state.SetLabel(Brdf::ModelName(model));

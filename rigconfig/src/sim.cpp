@@ -108,11 +108,10 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
       for (const YamlNode& item : paint_rho_s->Items()) m.paint_rho_s.push_back(item.AsDouble());
     if (auto table = brdf->Find("table")) {
       if (m.model != sim::Brdf::Model::kTabulated) table->Fail("only the tabulated model reads a table");
-      try {
-        m.table = std::make_shared<sim::MerlTable>(sim::MerlTable::Load(table->AsPath()));
-      } catch (const std::runtime_error& e) {
-        table->Fail(e.what());
-      }
+      solvers::brdf::MeasuredBrdf measured;
+      const solvers::Summary read = solvers::brdf::ReadMeasured(table->AsPath(), &measured);
+      if (!read.IsSolutionUsable()) table->Fail(read.message);
+      m.table = std::make_shared<const solvers::brdf::MeasuredBrdf>(std::move(measured));
     }
     std::string why;
     if (!m.IsValid(&why)) brdf->Fail(why);

@@ -202,9 +202,11 @@ bool Material::IsValid(std::string* why) const {
   }
   switch (model) {
     case Brdf::Model::kBlinnPhong:
-    case Brdf::Model::kTabulated:
       if (!(rho_s >= 0)) return fail("rho_s must be >= 0");
       if (!(exponent >= 0)) return fail("exponent must be >= 0");
+      break;
+    case Brdf::Model::kTabulated:
+      if (!table || !*table) return fail("the tabulated model needs a table: a MERL .binary or EPFL RGL .bsdf file");
       break;
     case Brdf::Model::kGgx:
       if (!(roughness > 0 && roughness <= 1)) return fail("roughness must lie in (0, 1]");
@@ -218,10 +220,9 @@ bool Material::IsValid(std::string* why) const {
   return true;
 }
 
-std::unique_ptr<Brdf> Material::MakeBrdf(double stand_in_rho_d) const {
+std::unique_ptr<Brdf> Material::MakeBrdf(int channel) const {
   if (model != Brdf::Model::kTabulated) return sim::MakeBrdf(model);
-  return sim::MakeBrdf(model, table ? table
-                                    : std::make_shared<MerlTable>(MerlTable::FromBlinnPhong(stand_in_rho_d, rho_s, exponent)));
+  return sim::MakeBrdf(model, table, channel);
 }
 
 bool Scene::IsHeightfield() const {

@@ -32,7 +32,7 @@ const WorldConfig& Validated(const WorldConfig& config) {
 World::World(WorldConfig config)
     : config_(Validated(config)),
       surface_(SampleSurface(config_.scene, config_.camera)),
-      brdf_(config_.scene.material.MakeBrdf(config_.scene.albedo.high)),
+      brdf_(config_.scene.material.MakeBrdf()),
       // The sweep needs the heightfield on the pixel grid, i.e. an orthographic view.
       cast_shadows_(config_.scene.cast_shadows && config_.scene.IsHeightfield() && surface_.height_on_pixel_grid),
       levels_(config_.lights.size(), 0.0) {
@@ -44,6 +44,7 @@ World::World(WorldConfig config)
     const cv::Mat rgb = MixAlbedo(surface_.albedo, config_.scene.albedo.low, config_.scene.albedo.high, color.low_rgb,
                                   color.high_rgb);
     for (int c = 0; c < 3; ++c) {
+      channel_brdf_[c] = config_.scene.material.MakeBrdf(c);
       SurfaceMaps& channel = channel_surface_[c];
       channel = surface_;
       channel.brdf_params = surface_.brdf_params.clone();
@@ -59,7 +60,7 @@ World::World(WorldConfig config)
       channel.albedo = cv::Mat();  // the copy shares surface_'s buffer; extract into a new one
       cv::extractChannel(rgb, channel.albedo, c);
       if (!sky_response_.empty())
-        channel_sky_response_[c] = RenderSkyResponse(channel, *brdf_, config_.ambient.samples, config_.seed);
+        channel_sky_response_[c] = RenderSkyResponse(channel, *channel_brdf_[c], config_.ambient.samples, config_.seed);
     }
   }
 }
@@ -172,17 +173,17 @@ cv::Mat World::RenderRadiance() const {
   // The backlight belongs to the scene, not to the dome: it is always on.
   if (config_.scene.shape == Scene::Shape::kVolume)
     return RenderTransmission(surface_.line_integrals, config_.scene.backlight_radiance);
-  if (!config_.color.IsOn()) return RenderChannel(surface_, sky_response_, emitted);
+  if (!config_.color.IsOn()) return RenderChannel(surface_, *brdf_, sky_response_, emitted);
   std::array<cv::Mat, 3> channels;
-  for (int c = 0; c < 3; ++c) channels[c] = RenderChannel(channel_surface_[c], channel_sky_response_[c], emitted);
+  for (int c = 0; c < 3; ++c) channels[c] = RenderChannel(channel_surface_[c], *channel_brdf_[c], channel_sky_response_[c], emitted);
   return MosaicOf(channels, config_.color.mosaic);
 }
 
-cv::Mat World::RenderChannel(const SurfaceMaps& surface, const cv::Mat& sky_response,
+cv::Mat World::RenderChannel(const SurfaceMaps& surface, const Brdf& brdf, const cv::Mat& sky_response,
                              const std::vector<double>& emitted) const {
-  cv::Mat radiance = sim::RenderRadiance(surface, *brdf_, cast_shadows_, config_.lights, emitted);
+  cv::Mat radiance = sim::RenderRadiance(surface, brdf, cast_shadows_, config_.lights, emitted);
   if (config_.scene.interreflection_samples > 0)
-    radiance += RenderOneBounce(surface, *brdf_, radiance, config_.scene.interreflection_samples, config_.seed);
+    radiance += RenderOneBounce(surface, brdf, radiance, config_.scene.interreflection_samples, config_.seed);
   if (!sky_response.empty()) {
     double sky_irradiance = config_.ambient.stray_irradiance;
     for (std::size_t k = 0; k < emitted.size() && k < config_.lights.size(); ++k)

@@ -2,6 +2,8 @@
 #include "photorig/daemon/rig_config.h"
 #include "photorig/daemon/rig_devices.h"
 #include "photorig/daemon/run.h"
+#include "photorig/sim/brdf.h"
+#include "photorig/solvers/brdf/merl.h"
 #include "config_error_check.h"
 #include "test_support.h"
 
@@ -293,6 +295,37 @@ TEST(Recipe, SimSceneIsParsedAtLoadForTheRigsFrame) {
   const std::string shape = dir.Write("shape.yaml", recipe_with("{shape: torus}"));
   photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(shape, rig); }, shape, 3, 22, "unknown shape 'torus'",
                                          "sample.sim_scene.shape");
+}
+
+// A measured material: the table file is read when the recipe is loaded, so
+// the simulator renders exactly what the file holds; a file its reader
+// refuses is a configuration error at the key, naming the file.
+TEST(Recipe, SimSceneReadsAMeasuredTableAsItsMaterial) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", kRig));
+  const auto white = solvers::brdf::MerlTable::FromFunction(
+      [](const solvers::brdf::DirectionPair&) { return std::optional<Eigen::Vector3d>(Eigen::Vector3d(0.1, 0.2, 0.3)); });
+  ASSERT_TRUE(solvers::brdf::WriteMerl((dir.path() / "grey.binary").string(), white).IsSolutionUsable());
+  const auto recipe_with = [](const std::string& table) {
+    return "recipe: {name: s, rig: rig.yaml}\nsample:\n  sim_scene: {shape: sphere, brdf: {model: tabulated, table: " +
+           table + "}}\ncapture:\n  steps:\n    - dark: {count: 1}\n";
+  };
+  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", recipe_with("grey.binary")), rig);
+  ASSERT_TRUE(recipe.sim_scene.has_value());
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ(), wi = Eigen::Vector3d(0.3, 0.1, 0.9).normalized(),
+                        wo = Eigen::Vector3d(-0.2, 0.4, 0.8).normalized();
+  EXPECT_NEAR(recipe.sim_scene->material.MakeBrdf()->Eval(n, wi, wo, {}), 0.2, 1e-9);  // the channels' mean
+  EXPECT_NEAR(recipe.sim_scene->material.MakeBrdf(2)->Eval(n, wi, wo, {}), 0.3, 1e-9);
+
+  std::filesystem::resize_file(dir.path() / "grey.binary", 1000);
+  const std::string truncated = dir.Write("short.yaml", recipe_with("grey.binary"));
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(truncated, rig); }, truncated, 3, 62, "grey.binary",
+                                         "sample.sim_scene.brdf.table");
+  const std::string missing = dir.Write("missing.yaml", "recipe: {name: s, rig: rig.yaml}\nsample:\n  sim_scene: "
+                                                        "{shape: sphere, brdf: {model: tabulated}}\ncapture:\n"
+                                                        "  steps:\n    - dark: {count: 1}\n");
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(missing, rig); }, missing, 3, 36, "needs a table",
+                                         "sample.sim_scene.brdf");
 }
 
 // Where the solve stages run: the rig's `solve:` unless the recipe's own

@@ -1,4 +1,6 @@
 #include "photorig/sim/brdf.h"
+#include "photorig/sim/scene.h"
+#include "photorig/solvers/brdf/merl.h"
 
 #include <gtest/gtest.h>
 
@@ -15,6 +17,23 @@ namespace {
 using Eigen::Vector3d;
 
 const Vector3d kNormal = Vector3d::UnitZ();
+
+double BlinnPhong(double rho_d, double rho_s, double exponent, const Vector3d& wi, const Vector3d& wo,
+                  const Vector3d& n = kNormal) {
+  const double nh = n.dot((wi + wo).normalized());
+  return rho_d / M_PI + rho_s * (exponent + 2) / (2 * M_PI) * std::pow(std::max(0.0, nh), exponent);
+}
+
+// A MERL table of Blinn-Phong (rho_d 0.4, rho_s 0.1, e 30) in R, and twice and
+// three times it in G and B, as the simulator reads a measured material.
+std::shared_ptr<const solvers::brdf::MeasuredBrdf> BlinnPhongTable() {
+  static const auto table = std::make_shared<const solvers::brdf::MerlTable>(
+      solvers::brdf::MerlTable::FromFunction([](const solvers::brdf::DirectionPair& d) {
+        return std::optional<Vector3d>(Vector3d(1, 2, 3) * BlinnPhong(0.4, 0.1, 30.0, d.wi, d.wo));
+      }));
+  return std::make_shared<const solvers::brdf::MeasuredBrdf>(
+      [](const Vector3d& wi, const Vector3d& wo) { return table->Evaluate(wi, wo); });
+}
 
 Vector3d FromAngles(double theta, double phi) {
   return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
@@ -105,7 +124,6 @@ TEST(Brdf, BlinnPhongLobeIsNormalisedAboutItsPeak) {
 TEST(Brdf, HelmholtzReciprocity) {
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> theta(0.0, 1.5), phi(0.0, 2 * M_PI);
-  const auto table = std::make_shared<MerlTable>(MerlTable::FromBlinnPhong(0.3, 0.1, 40.0));
   for (const Case& c : EnergyConservingCases()) {
     const auto brdf = MakeBrdf(c.model);
     for (int i = 0; i < 1000; ++i) {
@@ -113,9 +131,9 @@ TEST(Brdf, HelmholtzReciprocity) {
       EXPECT_NEAR(brdf->Eval(kNormal, wi, wo, c.params), brdf->Eval(kNormal, wo, wi, c.params), 1e-9);
     }
   }
-  // Nearest-bin lookup: swapping the directions moves phi_d by pi, which the
-  // table folds back; only rounding at a bin edge may differ.
-  const auto tabulated = MakeBrdf(Brdf::Model::kTabulated, table);
+  // Swapping the directions moves phi_d by pi, which the table folds back;
+  // only rounding at a bin edge may differ.
+  const auto tabulated = MakeBrdf(Brdf::Model::kTabulated, BlinnPhongTable());
   int mismatches = 0;
   for (int i = 0; i < 1000; ++i) {
     const Vector3d wi = FromAngles(theta(rng), phi(rng)), wo = FromAngles(theta(rng), phi(rng));
@@ -156,30 +174,41 @@ TEST(Brdf, GgxMatchesTheDocumentedFormula) {
   EXPECT_NEAR(ggx->Eval(kNormal, wi, wo, {float(rho), 0, float(a), float(f0)}), expected, 1e-6);
 }
 
-TEST(MerlTable, BlinnPhongStandInMatchesTheModelWithinABin) {
-  const auto table = std::make_shared<MerlTable>(MerlTable::FromBlinnPhong(0.4, 0.1, 30.0));
-  const auto tabulated = MakeBrdf(Brdf::Model::kTabulated, table);
-  const auto analytic = MakeBrdf(Brdf::Model::kBlinnPhong);
+TEST(TabulatedBrdf, AMeasuredTableMatchesTheFunctionItWasMadeFromChannelByChannel) {
+  const auto table = BlinnPhongTable();
+  const auto grey = MakeBrdf(Brdf::Model::kTabulated, table);
   std::mt19937_64 rng(9);
   std::uniform_real_distribution<double> theta(0.0, 1.4), phi(0.0, 2 * M_PI);
   for (int i = 0; i < 500; ++i) {
     const Vector3d wi = FromAngles(theta(rng), phi(rng)), wo = FromAngles(theta(rng), phi(rng));
-    const double exact = analytic->Eval(kNormal, wi, wo, {0.4f, 0.1f, 30.0f, 0.0f});
-    EXPECT_NEAR(tabulated->Eval(kNormal, wi, wo, {}), exact, 0.03 * exact + 0.01);
+    const double exact = BlinnPhong(0.4, 0.1, 30.0, wi, wo);
+    for (int channel = 0; channel < 3; ++channel)
+      EXPECT_NEAR(MakeBrdf(Brdf::Model::kTabulated, table, channel)->Eval(kNormal, wi, wo, {}), (channel + 1) * exact,
+                  (channel + 1) * (0.03 * exact + 0.01));
+    // A grey camera sees the mean of the channels.
+    EXPECT_NEAR(grey->Eval(kNormal, wi, wo, {}), 2 * exact, 2 * (0.03 * exact + 0.01));
+  }
+  // Below the horizon nothing is reflected; about a tilted normal the table is read in its frame.
+  EXPECT_EQ(grey->Eval(kNormal, FromAngles(1.7, 0.0), FromAngles(0.3, 1.0), {}), 0.0);
+  const Vector3d tilted = FromAngles(0.4, 0.7);
+  for (int i = 0; i < 200; ++i) {
+    const Vector3d wi = FromAngles(theta(rng), phi(rng)), wo = FromAngles(theta(rng), phi(rng));
+    if (tilted.dot(wi) <= 0.05 || tilted.dot(wo) <= 0.05) continue;
+    const double exact = BlinnPhong(0.4, 0.1, 30.0, wi, wo, tilted);
+    EXPECT_NEAR(grey->Eval(tilted, wi, wo, {}), 2 * exact, 2 * (0.03 * exact + 0.01));
   }
 }
 
-TEST(MerlTable, SavesAndLoadsTheMerlBinaryFormat) {
-  const MerlTable table = MerlTable::FromBlinnPhong(0.2, 0.2, 10.0);
-  const std::string path = (std::filesystem::temp_directory_path() / "photorig_test_merl.binary").string();
-  table.Save(path);
-  EXPECT_EQ(std::filesystem::file_size(path), 12u + 3u * 1458000u * 8u);
-  const MerlTable loaded = MerlTable::Load(path);
-  for (std::size_t i = 0; i < table.values().size(); i += 997)
-    EXPECT_NEAR(loaded.values()[i], table.values()[i], 1e-6 * table.values()[i]);
-  std::filesystem::resize_file(path, 1000);
-  EXPECT_THROW(MerlTable::Load(path), std::runtime_error);
-  std::filesystem::remove(path);
+TEST(TabulatedBrdf, IsRefusedWithoutATableOrWithABadChannel) {
+  Material material;
+  material.model = Brdf::Model::kTabulated;
+  std::string why;
+  EXPECT_FALSE(material.IsValid(&why));
+  EXPECT_NE(why.find("needs a table"), std::string::npos) << why;
+  EXPECT_THROW(MakeBrdf(Brdf::Model::kTabulated), std::invalid_argument);
+  EXPECT_THROW(MakeBrdf(Brdf::Model::kTabulated, BlinnPhongTable(), 3), std::invalid_argument);
+  material.table = BlinnPhongTable();
+  EXPECT_TRUE(material.IsValid(&why)) << why;
 }
 
 }  // namespace

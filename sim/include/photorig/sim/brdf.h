@@ -13,8 +13,12 @@
 //                G1(v) = 2 (n.v) / ((n.v) + sqrt(a^2 + (1 - a^2)(n.v)^2))  (separable Smith)
 //                F(c)  = F0 + (1 - F0)(1 - c)^5                            (Schlick)
 //   mirror       delta lobe about 2 (n.w_o) n - w_o with reflectance rho_s
-//   tabulated    nearest-bin lookup in a MERL-layout table (see MerlTable)
+//   tabulated    a measured table (MERL .binary or EPFL RGL .bsdf) as
+//                solvers/brdf evaluates it: trilinear between MERL's cells, RGL's
+//                own interpolation; one channel of it, or their mean for a grey camera
 // docs/simulation.md discusses energy conservation of each model.
+
+#include "photorig/solvers/brdf/measured.h"
 
 #include <Eigen/Core>
 
@@ -31,32 +35,6 @@ struct BrdfParams {
   float rho_s = 0.0f;      // specular weight (blinn_phong), mirror reflectance (mirror)
   float shininess = 0.0f;  // Blinn-Phong exponent e, or GGX roughness a
   float f0 = 0.04f;        // GGX Fresnel reflectance at normal incidence
-};
-
-// A tabulated isotropic BRDF in MERL's layout: 90 theta_h x 90 theta_d x 180
-// phi_d bins, theta_h indexed by sqrt(theta_h / (pi/2)) * 90 (dense near the
-// specular peak), phi_d folded into [0, pi) by reciprocity. One channel, 1/sr.
-class MerlTable {
- public:
-  static constexpr int kThetaH = 90, kThetaD = 90, kPhiD = 180;
-
-  // The analytic stand-in: Blinn-Phong sampled at bin centres.
-  static MerlTable FromBlinnPhong(double rho_d, double rho_s, double exponent);
-  // A MERL .binary file (int32 dims, then 3 x dims doubles); the channels
-  // are scaled by MERL's constants and averaged. Throws std::runtime_error
-  // naming the file.
-  static MerlTable Load(const std::string& path);
-  // Writes the table as a MERL .binary with the three channels equal.
-  void Save(const std::string& path) const;
-
-  double Lookup(double theta_h, double theta_d, double phi_d) const;
-  // Converts the directions (in a frame where n = z) to MERL's coordinates.
-  static void HalfDiff(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, double* theta_h, double* theta_d,
-                       double* phi_d);
-  const std::vector<float>& values() const { return values_; }
-
- private:
-  std::vector<float> values_;  // [theta_h][theta_d][phi_d]
 };
 
 class Brdf {
@@ -81,6 +59,10 @@ class Brdf {
 Eigen::Vector3d MirrorDirection(const Eigen::Vector3d& n, const Eigen::Vector3d& wo);
 
 // `table` is needed by (and only by) kTabulated.
-std::unique_ptr<Brdf> MakeBrdf(Brdf::Model model, std::shared_ptr<const MerlTable> table = nullptr);
+// `table`: the tabulated model's measured BRDF (required for it, ignored by the
+// others); `channel`: which of its channels (0 R, 1 G, 2 B) a colour camera's
+// channel sees, or -1 for the mean of the three (a grey camera).
+std::unique_ptr<Brdf> MakeBrdf(Brdf::Model model, std::shared_ptr<const solvers::brdf::MeasuredBrdf> table = nullptr,
+                               int channel = -1);
 
 }  // namespace photorig::sim

@@ -46,16 +46,16 @@ struct Material {
   double exponent = 50.0;   // blinn_phong
   double roughness = 0.3;   // ggx a (width of the microfacet distribution)
   double f0 = 0.04;         // ggx Fresnel at normal incidence
-  std::shared_ptr<const MerlTable> table;  // tabulated; null: the Blinn-Phong stand-in of rho_s/exponent
+  std::shared_ptr<const solvers::brdf::MeasuredBrdf> table;  // tabulated (required for it)
   // blinn_phong: rho_s of the texture's low and high paint (AlbedoTexture::PaintAt)
   // in place of rho_s, so one paint can be matte (0) and the other glossy: an
   // object of two materials. Empty: rho_s everywhere.
   std::vector<double> paint_rho_s;
 
   bool IsValid(std::string* why) const;
-  // `stand_in_rho_d`: the diffuse part of the Blinn-Phong stand-in table
-  // (a measured table carries its own, and the albedo texture does not apply).
-  std::unique_ptr<Brdf> MakeBrdf(double stand_in_rho_d) const;
+  // `channel`: the table channel a colour camera's channel sees (0 R, 1 G,
+  // 2 B), -1 for their mean; only the tabulated model has channels.
+  std::unique_ptr<Brdf> MakeBrdf(int channel = -1) const;
 };
 
 // A Gaussian bump (amplitude > 0) or dimple (amplitude < 0) on a flat base.

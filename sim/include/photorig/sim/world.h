@@ -103,7 +103,8 @@ class World {
 
  private:
   std::vector<double> EmittedLevels() const;
-  cv::Mat RenderChannel(const SurfaceMaps& surface, const cv::Mat& sky_response, const std::vector<double>& emitted) const;
+  cv::Mat RenderChannel(const SurfaceMaps& surface, const Brdf& brdf, const cv::Mat& sky_response,
+                        const std::vector<double>& emitted) const;
 
   WorldConfig config_;
   SurfaceMaps surface_;
@@ -112,6 +113,7 @@ class World {
   cv::Mat sky_response_;  // RenderSkyResponse, when config_.ambient is on
   // A colour camera: the surface and sky response as each channel sees them.
   std::array<SurfaceMaps, 3> channel_surface_;
+  std::array<std::unique_ptr<Brdf>, 3> channel_brdf_;  // a measured table's own channel; the others: brdf_'s model
   std::array<cv::Mat, 3> channel_sky_response_;
   mutable std::mutex mutex_;
   std::vector<double> levels_;
