@@ -399,3 +399,37 @@ TEST(ModelChoice, StepsThroughTheSimplestModelsFirst) {
 
 }  // namespace
 }  // namespace photorig::solvers::brdf
+
+namespace photorig::solvers::brdf {
+namespace {
+
+// A large set is fitted on an even subsample; the cost is every sample's at
+// that solution, so it is never below the full fit's, and the two fits agree
+// within their deviations.
+TEST(BrdfFit, LargeSetsAreFittedOnASubsampleAndCostedOnAll) {
+  SyntheticSpec spec;
+  spec.count = 60000;
+  const std::vector<BrdfSample> samples = SyntheticSamples(GlossyGgx(), spec);
+  FitOptions full_options;
+  full_options.max_fit_samples = 0;
+  const FitSummary full = FitModel(Model::kGgx, samples, full_options);
+  const FitSummary sub = FitModel(Model::kGgx, samples);  // default: 20000
+  ASSERT_TRUE(full.IsSolutionUsable() && sub.IsSolutionUsable());
+  EXPECT_EQ(full.fitted_samples, 60000u);
+  EXPECT_EQ(sub.fitted_samples, 20000u);
+  EXPECT_EQ(sub.samples, 60000u);
+  EXPECT_GE(sub.cost, full.cost * (1.0 - 1e-12));
+  EXPECT_LT(sub.cost, full.cost * 1.001);
+  EXPECT_LT(std::abs(sub.bic - full.bic), 0.001 * full.bic);
+  // The deviations are the whole set's (the subsample's scaled by 20000 / 60000).
+  EXPECT_NEAR(sub.shape_sigma / full.shape_sigma, 1.0, 0.1);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_LT(std::abs(sub.params.diffuse[c] - full.params.diffuse[c]), 3.0 * sub.diffuse_sigma[c] * std::sqrt(3.0)) << c;
+    EXPECT_LT(std::abs(sub.params.specular[c] - full.params.specular[c]), 3.0 * sub.specular_sigma[c] * std::sqrt(3.0))
+        << c;
+  }
+  EXPECT_LT(std::abs(sub.params.shape - full.params.shape), 3.0 * sub.shape_sigma * std::sqrt(3.0));
+}
+
+}  // namespace
+}  // namespace photorig::solvers::brdf

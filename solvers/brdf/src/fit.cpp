@@ -103,36 +103,40 @@ std::vector<double> StartingF0s(Model model) {
 // then each ks_j. Returns the weighted squared error.
 double FitLinearChannel(const std::vector<Prepared>& prepared, const std::vector<const std::vector<double>*>& bases,
                         const std::vector<double>& offset, int c, double* coefficients) {
+  // At most three terms: fixed-capacity matrices, no allocation in the grid search.
+  using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3>;
+  using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3, 1>;
   const int m = 1 + static_cast<int>(bases.size());
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(m, m);
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(m), x(m);
-  double yy = 0.0;
+  Small a = Small::Zero(m, m);
+  SmallVector b = SmallVector::Zero(m);
+  double yy = 0.0, x[3];
   for (std::size_t k = 0; k < prepared.size(); ++k) {
     const double w2 = prepared[k].weight[c] * prepared[k].weight[c];
     x[0] = 1.0 / M_PI;
     for (int j = 1; j < m; ++j) x[j] = (*bases[j - 1])[k];
     const double y = prepared[k].value[c] - offset[k];
-    a.selfadjointView<Eigen::Lower>().rankUpdate(x, w2);
-    b += w2 * y * x;
+    for (int i = 0; i < m; ++i) {
+      for (int j = 0; j <= i; ++j) a(i, j) += w2 * x[i] * x[j];
+      b[i] += w2 * y * x[i];
+    }
     yy += w2 * y * y;
   }
   a = a.selfadjointView<Eigen::Lower>();
   double best = yy;  // every coefficient zero
-  Eigen::VectorXd best_x = Eigen::VectorXd::Zero(m);
+  SmallVector best_x = SmallVector::Zero(m);
   for (int subset = 1; subset < (1 << m); ++subset) {
-    std::vector<int> terms;
+    int terms[3], t = 0;
     for (int j = 0; j < m; ++j)
-      if (subset & (1 << j)) terms.push_back(j);
-    const int t = static_cast<int>(terms.size());
-    Eigen::MatrixXd as(t, t);
-    Eigen::VectorXd bs(t);
+      if (subset & (1 << j)) terms[t++] = j;
+    Small as(t, t);
+    SmallVector bs(t);
     for (int i = 0; i < t; ++i) {
       bs[i] = b[terms[i]];
       for (int j = 0; j < t; ++j) as(i, j) = a(terms[i], terms[j]);
     }
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(as);
+    const Eigen::LDLT<Small> ldlt(as);
     if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0.0).all()) continue;
-    const Eigen::VectorXd xs = ldlt.solve(bs);
+    const SmallVector xs = ldlt.solve(bs);
     if ((xs.array() < 0.0).any() || !xs.allFinite()) continue;
     const double error = yy - xs.dot(bs);  // at the subset's optimum: y'y - x'b
     if (error < best) {
