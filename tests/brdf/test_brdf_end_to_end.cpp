@@ -194,6 +194,12 @@ TEST(BrdfEndToEnd, AFittedModelConvertsToATableForRenderers) {
   }
   EXPECT_NEAR(fit["shape"].get<double>(), truth.shape, 0.02 * truth.shape);
   EXPECT_NEAR(fit["shape2"].get<double>(), truth.shape2, 0.02 * truth.shape2);
+  // Training and held-out errors of every model: the one-lobe fits' far above the two lobes'.
+  for (const nlohmann::json& c : report["candidates"]) {
+    if (c["model"] == "two_blinn_phong") continue;
+    EXPECT_GT(c["train_rms"].get<double>(), 10.0 * fit["train_rms"].get<double>()) << c["model"];
+    EXPECT_GT(c["held_out_rms"].get<double>(), 10.0 * fit["held_out_rms"].get<double>()) << c["model"];
+  }
   // The report tabulated: its chosen model, or a candidate named, to either format.
   const std::string again = (dir.path() / "again.binary").string();
   ASSERT_EQ(RunPhotorig("brdf convert " + (out / "report.json").string() + " " + again, dir.path() / "again.log"), 0)

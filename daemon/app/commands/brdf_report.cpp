@@ -14,6 +14,7 @@ nlohmann::json FitJson(const brdf::FitSummary& f) {
           {"termination", solvers::TerminationName(f.termination)},
           {"message", f.message},
           {"bic", f.bic},
+          {"train_rms", f.residuals > 0 ? std::sqrt(f.cost / static_cast<double>(f.residuals)) : NAN},
           {"held_out_rms", f.held_out_rms},
           {"cost", f.cost},
           {"parameters", f.parameters},
@@ -113,8 +114,9 @@ bool ModelFromJson(const nlohmann::json& doc, const std::string& name, brdf::Mod
 
 void PrintSelection(std::FILE* text, const brdf::SelectionSummary& s) {
   for (const brdf::FitSummary& f : s.candidates) {
-    std::fprintf(text, "  %-15s %-14s BIC %12.1f  held-out rms %8.3f  rho_d %.4f +- %.4f",
-                 brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic, f.held_out_rms,
+    std::fprintf(text, "  %-15s %-14s BIC %12.1f  rms train %8.3f held-out %8.3f  rho_d %.4f +- %.4f",
+                 brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic,
+                 f.residuals > 0 ? std::sqrt(f.cost / static_cast<double>(f.residuals)) : NAN, f.held_out_rms,
                  f.params.diffuse[0], f.diffuse_sigma[0]);
     if (f.params.model != brdf::Model::kLambertian)
       std::fprintf(text, "  specular %.4f +- %.4f  shape %.4g +- %.2g", f.params.specular[0], f.specular_sigma[0],

@@ -12,7 +12,7 @@
 namespace photorig::app {
 
 // termination, message, min_theta_h_deg, peak_sampled, candidates (each fit's
-// model, parameters with deviations, BIC, held-out error, flags), chosen and
+// model, parameters with deviations, BIC, training and held-out RMS, flags), chosen and
 // the reason for it.
 nlohmann::json SelectionJson(const solvers::brdf::SelectionSummary& selection);
 
