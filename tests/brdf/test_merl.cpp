@@ -1,3 +1,5 @@
+#include "photorig/solvers/brdf/fit.h"
+#include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/merl.h"
 #include "photorig/solvers/brdf/models.h"
 
@@ -9,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <memory>
 #include <random>
 
 namespace photorig::solvers::brdf {
@@ -85,9 +88,89 @@ TEST(MerlTable, EvaluationMatchesTheModelAtBinCentres) {
     ASSERT_TRUE(value.has_value());
     const Eigen::Vector3d truth = Evaluate(Ggx(), dirs.wi, dirs.wo);
     EXPECT_LT(((*value - truth).array().abs() / truth.array()).maxCoeff(), 1e-12);
+    // At a centre the lookup is the stored cell, bit for bit.
+    const HalfDiff a = ToHalfDiff(dirs.wi, dirs.wo);
+    const auto cell = table.EvaluateCell(
+        MerlTable::CellIndex(MerlTable::ThetaHBin(a.theta_h), MerlTable::ThetaDBin(a.theta_d), MerlTable::PhiDBin(a.phi_d)));
+    ASSERT_TRUE(cell.has_value());
+    EXPECT_TRUE(*value == *cell);
     ++compared;
   }
   EXPECT_GT(compared, 1000);
+}
+
+// Between centres the lookup interpolates: against the model it came from,
+// several times closer than the nearest cell.
+TEST(MerlTable, TrilinearLookupBeatsTheNearestCellBetweenCentres) {
+  const MerlTable& table = GgxTable();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> h(0.0, 60.0 * kDeg), d(0.0, 60.0 * kDeg), p(-M_PI, M_PI);
+  double trilinear = 0.0, nearest = 0.0;
+  int compared = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const HalfDiff a{h(rng), d(rng), p(rng)};
+    const DirectionPair dirs = FromHalfDiff(a, 0.7);
+    if (dirs.wi.z() < 0.2 || dirs.wo.z() < 0.2) continue;
+    const Eigen::Vector3d truth = Evaluate(Ggx(), dirs.wi, dirs.wo);
+    const auto value = table.Evaluate(dirs.wi, dirs.wo);
+    const auto cell = table.EvaluateCell(
+        MerlTable::CellIndex(MerlTable::ThetaHBin(a.theta_h), MerlTable::ThetaDBin(a.theta_d), MerlTable::PhiDBin(a.phi_d)));
+    ASSERT_TRUE(value && cell);
+    trilinear += ((*value - truth).array() / truth.array()).square().sum();
+    nearest += ((*cell - truth).array() / truth.array()).square().sum();
+    ++compared;
+  }
+  ASSERT_GT(compared, 1000);
+  EXPECT_LT(std::sqrt(trilinear / compared), std::sqrt(nearest / compared) / 4.0)
+      << "trilinear RMS " << std::sqrt(trilinear / compared) << ", nearest " << std::sqrt(nearest / compared);
+}
+
+// An unmeasured neighbour is left out; phi_d wraps around (0 and pi are the
+// same configuration by reciprocity).
+TEST(MerlTable, TrilinearLookupSkipsUnmeasuredNeighboursAndWrapsPhiD) {
+  MerlTable table;
+  const int ih = 40, id = 30;
+  table.SetCell(MerlTable::CellIndex(ih, id, 0), Eigen::Vector3d(0.1, 0.1, 0.1));
+  table.SetCell(MerlTable::CellIndex(ih, id, 179), Eigen::Vector3d(0.3, 0.3, 0.3));
+  const HalfDiff centre = MerlTable::CellCentre(ih, id, 0);
+  // A quarter of a bin below cell 0's centre in phi_d: three quarters of cell
+  // 0 and one of cell 179 (theta_h, theta_d at their centres).
+  const double quarter_bin = 0.25 * M_PI / MerlTable::kPhiDBins;
+  const DirectionPair wrapped = FromHalfDiff({centre.theta_h, centre.theta_d, centre.phi_d - quarter_bin});
+  const auto value = table.Evaluate(wrapped.wi, wrapped.wo);
+  ASSERT_TRUE(value.has_value());
+  EXPECT_NEAR((*value)[0], 0.75 * 0.1 + 0.25 * 0.3, 1e-9);
+  // Without cell 179, only cell 0 remains.
+  table.SetCellInvalid(MerlTable::CellIndex(ih, id, 179));
+  EXPECT_NEAR((*table.Evaluate(wrapped.wi, wrapped.wo))[0], 0.1, 1e-12);
+  // A configuration falling in an unmeasured cell has no value, measured neighbours or not.
+  const DirectionPair in_cell_1 = FromHalfDiff({centre.theta_h, centre.theta_d, centre.phi_d + 4.0 * quarter_bin});
+  EXPECT_FALSE(table.Evaluate(in_cell_1.wi, in_cell_1.wo).has_value());
+}
+
+// A table filled from a model and fitted through the default sampling gives
+// the model back (measured: rho_d 0.1-0.2 % high, F0 and a within 0.03 %);
+// with the nearest-cell lookup the grid's configurations, which fall between
+// cell centres, gave rho_d 10-15 % low.
+TEST(MerlTable, FittingATableFilledFromAModelGivesItsDiffuseAlbedoBack) {
+  ModelParams truth;
+  truth.model = Model::kGgx;
+  truth.diffuse = {0.2, 0.15, 0.1};
+  truth.specular = {0.9, 0.8, 0.6};
+  truth.shape = 0.25;
+  const auto table = std::make_shared<MerlTable>(
+      MerlTable::FromFunction([&](const DirectionPair& d) { return Evaluate(truth, d.wi, d.wo); }));
+  const std::vector<BrdfSample> samples = SampleMeasured(
+      [&](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return table->Evaluate(wi, wo); }, TableSampling{});
+  FitOptions options;
+  options.loss = FitLoss::kLog;
+  const FitSummary fit = FitModel(Model::kGgx, samples, options);
+  ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(fit.params.diffuse[c], truth.diffuse[c], 0.01 * truth.diffuse[c]) << c;
+    EXPECT_NEAR(fit.params.specular[c], truth.specular[c], 0.01 * truth.specular[c]) << c;
+  }
+  EXPECT_NEAR(fit.params.shape, truth.shape, 0.01 * truth.shape);
 }
 
 TEST(MerlTable, NoValueBelowTheHorizonOrInUnmeasuredCells) {
@@ -112,6 +195,18 @@ TEST(MerlFile, WriteReadWriteIsByteExact) {
   ASSERT_EQ(summary.termination, Termination::kSuccess) << summary.message;
   EXPECT_GE(summary.invalid_cells, 1u);
   for (int c = 0; c < 3; ++c) EXPECT_TRUE(read.plane(c) == table.plane(c));
+  // Evaluated anywhere, the table read back gives the same bits.
+  std::mt19937 rng(9);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int k = 0; k < 500; ++k) {
+    const Eigen::Vector3d wi = Eigen::Vector3d(g(rng), g(rng), std::abs(g(rng))).normalized();
+    const Eigen::Vector3d wo = Eigen::Vector3d(g(rng), g(rng), std::abs(g(rng))).normalized();
+    const auto before = table.Evaluate(wi, wo), after = read.Evaluate(wi, wo);
+    ASSERT_EQ(before.has_value(), after.has_value());
+    if (before) {
+      EXPECT_TRUE(*before == *after);
+    }
+  }
   ASSERT_TRUE(WriteMerl(second, read).IsSolutionUsable());
   EXPECT_TRUE(Bytes(first) == Bytes(second));
   // The header and the first R value as the format defines them.

@@ -1,6 +1,6 @@
 // photorig brdf fit FILE [--loss weighted|log] [--steps N] [--out DIR]
 // photorig brdf eval FILE --wi THETA PHI --wo THETA PHI
-// photorig brdf convert IN OUT [--ndf-roughness A]
+// photorig brdf convert IN OUT [--model NAME] [--ndf-roughness A]
 //   (--json as every command: docs/cli.md)
 //
 // Measured-BRDF files: MERL .binary and EPFL RGL .bsdf tables, and the
@@ -8,6 +8,8 @@
 // evaluation (solvers/brdf/measured.h) whatever its format; `fit` turns it into
 // samples on a half/difference grid and hands them to the same model
 // selection, and the same report, as a gonioreflectometer run's samples.
+// `convert` also tabulates a fitted model (a fit's report.json, or one
+// model's JSON) for renderers that read tables.
 
 #include "../command.h"
 #include "../command_output.h"
@@ -37,6 +39,7 @@ struct Options {
   int steps = 16;
   std::vector<double> wi_deg, wo_deg;
   std::string convert_to;
+  std::string model;  // convert from a report: which candidate (default: the chosen one)
   double ndf_roughness = 0.5;
 };
 
@@ -118,8 +121,24 @@ int Convert(const Options& o) {
   const std::optional<brdf::TableFormat> to = brdf::TableFormatOf(o.convert_to);
   if (!to) return finish(kExitUsage, "'" + o.convert_to + "': the output must end in .binary (MERL) or .bsdf (RGL)");
   brdf::MeasuredBrdf table;
-  const solvers::Summary read = brdf::ReadMeasured(o.file, &table);
-  if (!read.IsSolutionUsable()) return finish(kExitUsage, read.message);
+  if (fs::path(o.file).extension() == ".json") {
+    // A fitted model: its f_r wherever both directions are above the horizon.
+    std::ifstream in(o.file);
+    if (!in) return finish(kExitUsage, "'" + o.file + "': cannot open the file");
+    const nlohmann::json spec = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+    if (spec.is_discarded()) return finish(kExitUsage, "'" + o.file + "': not valid JSON");
+    brdf::ModelParams params;
+    if (std::string why; !ModelFromJson(spec, o.model, &params, &why)) return finish(kExitUsage, "'" + o.file + "': " + why);
+    doc["model"] = brdf::ModelName(params.model);
+    table = [params](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) -> std::optional<Eigen::Vector3d> {
+      if (wi.z() <= 0.0 || wo.z() <= 0.0) return std::nullopt;
+      return brdf::Evaluate(params, wi, wo);
+    };
+  } else {
+    if (!o.model.empty()) return finish(kExitUsage, "--model names a candidate of a fit report (.json)");
+    const solvers::Summary read = brdf::ReadMeasured(o.file, &table);
+    if (!read.IsSolutionUsable()) return finish(kExitUsage, read.message);
+  }
   solvers::Summary written;
   if (*to == brdf::TableFormat::kMerl) {
     written = brdf::WriteMerl(o.convert_to, brdf::MerlTable::FromFunction(
@@ -165,8 +184,12 @@ CommandRunner SetupEval(CLI::App& app) {
 
 CommandRunner SetupConvert(CLI::App& app) {
   auto options = std::make_shared<Options>();
-  CLI::App* convert = Group(app)->add_subcommand("convert", "a table from one format to the other (.binary <-> .bsdf)");
-  convert->add_option("in", options->file, "a .binary or .bsdf file")->required();
+  CLI::App* convert = Group(app)->add_subcommand(
+      "convert", "a table from one format to the other (.binary <-> .bsdf), or a fitted model to a table");
+  convert->add_option("in", options->file, "a .binary or .bsdf file, a fit's report.json or one model's .json")
+      ->required();
+  convert->add_option("--model", options->model,
+                      "from a report: the candidate to tabulate (default: the chosen one), e.g. ggx");
   convert->add_option("out", options->convert_to, "the file to write: .binary or .bsdf")->required();
   convert->add_option("--ndf-roughness", options->ndf_roughness,
                       "to .bsdf: the GGX roughness of the parameterising NDF (default 0.5)")

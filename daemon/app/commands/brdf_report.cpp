@@ -1,5 +1,7 @@
 #include "brdf_report.h"
 
+#include <cmath>
+
 namespace photorig::app {
 namespace {
 
@@ -12,6 +14,7 @@ nlohmann::json FitJson(const brdf::FitSummary& f) {
           {"termination", solvers::TerminationName(f.termination)},
           {"message", f.message},
           {"bic", f.bic},
+          {"train_rms", f.residuals > 0 ? std::sqrt(f.cost / static_cast<double>(f.residuals)) : NAN},
           {"held_out_rms", f.held_out_rms},
           {"cost", f.cost},
           {"parameters", f.parameters},
@@ -23,7 +26,23 @@ nlohmann::json FitJson(const brdf::FitSummary& f) {
           {"shape_sigma", f.shape_sigma},
           {"fresnel_f0", f.params.fresnel_f0},
           {"fresnel_f0_sigma", f.fresnel_f0_sigma},
-          {"lobe_identifiable", f.lobe_identifiable}};
+          {"specular2", Vec(f.params.specular2)},
+          {"specular2_sigma", Vec(f.specular2_sigma)},
+          {"shape2", f.params.shape2},
+          {"shape2_sigma", f.shape2_sigma},
+          {"lobe_identifiable", f.lobe_identifiable},
+          {"samples_fitted", f.fitted_samples}};
+}
+
+bool ReadVec(const nlohmann::json& j, const char* key, Eigen::Vector3d* v, std::string* error) {
+  if (!j.contains(key)) return true;
+  const nlohmann::json& a = j[key];
+  if (!a.is_array() || a.size() != 3 || !a[0].is_number() || !a[1].is_number() || !a[2].is_number()) {
+    *error = std::string("'") + key + "' must be three numbers";
+    return false;
+  }
+  *v = {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
+  return true;
 }
 
 }  // namespace
@@ -35,24 +54,82 @@ nlohmann::json SelectionJson(const brdf::SelectionSummary& s) {
                         {"peak_sampled", s.peak_sampled},
                         {"candidates", nlohmann::json::array()}};
   for (const brdf::FitSummary& f : s.candidates) doc["candidates"].push_back(FitJson(f));
-  if (s.chosen) doc["chosen"] = brdf::ModelName(*s.chosen);
+  if (s.chosen) {
+    doc["chosen"] = brdf::ModelName(*s.chosen);
+    doc["reason"] = s.reason;
+  }
   return doc;
+}
+
+bool ModelFromJson(const nlohmann::json& doc, const std::string& name, brdf::ModelParams* params, std::string* error) {
+  const nlohmann::json* spec = &doc;
+  if (doc.contains("candidates")) {  // a fit report: the chosen candidate, or the one named
+    const std::string wanted = !name.empty() ? name : doc.value("chosen", std::string());
+    if (wanted.empty()) {
+      *error = "the report chose no model (name one)";
+      return false;
+    }
+    spec = nullptr;
+    for (const nlohmann::json& c : doc["candidates"])
+      if (c.value("model", std::string()) == wanted) spec = &c;
+    if (!spec) {
+      *error = "the report has no '" + wanted + "' fit";
+      return false;
+    }
+  }
+  if (!spec->is_object() || !spec->contains("model") || !(*spec)["model"].is_string()) {
+    *error = "neither a fit report nor a model (an object with \"model\")";
+    return false;
+  }
+  const std::optional<brdf::Model> model = brdf::ParseModel((*spec)["model"].get<std::string>());
+  if (!model) {
+    *error = "unknown model '" + (*spec)["model"].get<std::string>() + "'";
+    return false;
+  }
+  brdf::ModelParams p;
+  p.model = *model;
+  if (!ReadVec(*spec, "diffuse", &p.diffuse, error) || !ReadVec(*spec, "specular", &p.specular, error) ||
+      !ReadVec(*spec, "specular2", &p.specular2, error))
+    return false;
+  for (auto [key, value] : {std::pair{"shape", &p.shape}, {"fresnel_f0", &p.fresnel_f0}, {"shape2", &p.shape2}})
+    if (spec->contains(key)) {
+      if (!(*spec)[key].is_number()) {
+        *error = std::string("'") + key + "' must be a number";
+        return false;
+      }
+      *value = (*spec)[key].get<double>();
+    }
+  const bool lobe = p.model != brdf::Model::kLambertian;
+  if (!p.diffuse.allFinite() || (p.diffuse.array() < 0.0).any() || !p.specular.allFinite() ||
+      (p.specular.array() < 0.0).any() || !p.specular2.allFinite() || (p.specular2.array() < 0.0).any() ||
+      (lobe && !(p.shape > 0.0 && std::isfinite(p.shape))) ||
+      (brdf::HasSecondLobe(p.model) && !(p.shape2 > 0.0 && std::isfinite(p.shape2)))) {
+    *error = std::string("the ") + brdf::ModelName(p.model) +
+             " parameters must be finite, non-negative, and every lobe's shape positive";
+    return false;
+  }
+  *params = p;
+  return true;
 }
 
 void PrintSelection(std::FILE* text, const brdf::SelectionSummary& s) {
   for (const brdf::FitSummary& f : s.candidates) {
-    std::fprintf(text, "  %-13s %-14s BIC %12.1f  held-out rms %8.3f  rho_d %.4f +- %.4f",
-                 brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic, f.held_out_rms,
+    std::fprintf(text, "  %-15s %-14s BIC %12.1f  rms train %8.3f held-out %8.3f  rho_d %.4f +- %.4f",
+                 brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic,
+                 f.residuals > 0 ? std::sqrt(f.cost / static_cast<double>(f.residuals)) : NAN, f.held_out_rms,
                  f.params.diffuse[0], f.diffuse_sigma[0]);
     if (f.params.model != brdf::Model::kLambertian)
       std::fprintf(text, "  specular %.4f +- %.4f  shape %.4g +- %.2g", f.params.specular[0], f.specular_sigma[0],
                    f.params.shape, f.shape_sigma);
     if (f.params.model == brdf::Model::kCookTorrance)
       std::fprintf(text, "  F0 %.4f +- %.4f", f.params.fresnel_f0, f.fresnel_f0_sigma);
+    if (brdf::HasSecondLobe(f.params.model))
+      std::fprintf(text, "  specular2 %.4f +- %.4f  shape2 %.4g +- %.2g", f.params.specular2[0], f.specular2_sigma[0],
+                   f.params.shape2, f.shape2_sigma);
     if (!f.lobe_identifiable) std::fprintf(text, "  (not identifiable)");
     std::fprintf(text, "\n");
   }
-  if (s.chosen) std::fprintf(text, "chosen: %s\n", brdf::ModelName(*s.chosen));
+  if (s.chosen) std::fprintf(text, "chosen: %s (%s)\n", brdf::ModelName(*s.chosen), s.reason.c_str());
   if (!s.message.empty()) std::fprintf(text, "%s\n", s.message.c_str());
 }
 

@@ -7,14 +7,23 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
+#include <string>
 
 namespace photorig::app {
 
 // termination, message, min_theta_h_deg, peak_sampled, candidates (each fit's
-// model, parameters with deviations, BIC, held-out error, flags) and chosen.
+// model, parameters with deviations, BIC, training and held-out RMS, flags), chosen and
+// the reason for it.
 nlohmann::json SelectionJson(const solvers::brdf::SelectionSummary& selection);
 
-// One line per candidate, then the choice and the selection's message.
+// One line per candidate, then the choice with its reason and the selection's message.
 void PrintSelection(std::FILE* out, const solvers::brdf::SelectionSummary& selection);
+
+// A model from a fit report (SelectionJson: the chosen candidate, or the one
+// named by `name`) or from a model spec (one candidate's fields: "model",
+// "diffuse", "specular", "shape", "fresnel_f0", "specular2", "shape2"; absent
+// ones zero). False, saying why in `error`, for anything else.
+bool ModelFromJson(const nlohmann::json& doc, const std::string& name, solvers::brdf::ModelParams* params,
+                   std::string* error);
 
 }  // namespace photorig::app

@@ -45,7 +45,7 @@ class SampleResidual {
     return true;
   }
 
- private:
+ protected:
   template <typename T>
   void Finish(int c, const T& f, T* residual) const {
     using std::log;
@@ -62,13 +62,32 @@ class SampleResidual {
   FitLoss loss_;
 };
 
+// two_blinn_phong: `lobe` and `lobe2` each hold k_s per channel and log(e).
+class TwoLobeResidual : public SampleResidual {
+ public:
+  using SampleResidual::SampleResidual;
+
+  template <typename T>
+  bool operator()(const T* kd, const T* lobe, const T* lobe2, T* residual) const {
+    using std::exp;
+    const T e1 = exp(lobe[3]), e2 = exp(lobe2[3]);
+    for (int c = 0; c < 3; ++c)
+      Finish(c,
+             kd[c] / M_PI + internal::BlinnPhongLobe(lobe[c], e1, s_.geometry) +
+                 internal::BlinnPhongLobe(lobe2[c], e2, s_.geometry),
+             residual);
+    return true;
+  }
+};
+
 // The shape values the starting grid tries, and the bounds of the fit (as log shape).
 struct ShapeRange {
   double min, max;
   int steps;
 };
 ShapeRange RangeOf(Model model) {
-  return model == Model::kBlinnPhong ? ShapeRange{1.0, 1.0e4, 41} : ShapeRange{0.005, 1.0, 41};
+  return model == Model::kBlinnPhong || model == Model::kTwoBlinnPhong ? ShapeRange{1.0, 1.0e4, 41}
+                                                                      : ShapeRange{0.005, 1.0, 41};
 }
 
 // Cook-Torrance's F0 is not linear in the lobe: the starting grid tries these.
@@ -77,111 +96,171 @@ std::vector<double> StartingF0s(Model model) {
                                        : std::vector<double>{0.0};
 }
 
-// Weighted least squares of one channel's value against
-// f = kd / pi + ks * basis + offset with kd, ks >= 0 (a lobe affine in its
-// specular parameter). Returns the weighted squared error.
-double FitLinearChannel(const std::vector<Prepared>& prepared, const std::vector<double>& basis,
-                        const std::vector<double>& offset, int c, double* kd, double* ks) {
-  double a00 = 0, a01 = 0, a11 = 0, b0 = 0, b1 = 0;
+// Weighted non-negative least squares of one channel's value against
+// f = kd / pi + sum_j ks_j * basis_j + offset (lobes affine in their specular
+// parameters): every subset of the terms is solved and the best one with no
+// negative coefficient kept (at most three terms). `coefficients` gets kd,
+// then each ks_j. Returns the weighted squared error.
+double FitLinearChannel(const std::vector<Prepared>& prepared, const std::vector<const std::vector<double>*>& bases,
+                        const std::vector<double>& offset, int c, double* coefficients) {
+  // At most three terms: fixed-capacity matrices, no allocation in the grid search.
+  using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3>;
+  using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3, 1>;
+  const int m = 1 + static_cast<int>(bases.size());
+  Small a = Small::Zero(m, m);
+  SmallVector b = SmallVector::Zero(m);
+  double yy = 0.0, x[3];
   for (std::size_t k = 0; k < prepared.size(); ++k) {
     const double w2 = prepared[k].weight[c] * prepared[k].weight[c];
-    const double x0 = 1.0 / M_PI, x1 = basis[k], y = prepared[k].value[c] - offset[k];
-    a00 += w2 * x0 * x0;
-    a01 += w2 * x0 * x1;
-    a11 += w2 * x1 * x1;
-    b0 += w2 * x0 * y;
-    b1 += w2 * x1 * y;
+    x[0] = 1.0 / M_PI;
+    for (int j = 1; j < m; ++j) x[j] = (*bases[j - 1])[k];
+    const double y = prepared[k].value[c] - offset[k];
+    for (int i = 0; i < m; ++i) {
+      for (int j = 0; j <= i; ++j) a(i, j) += w2 * x[i] * x[j];
+      b[i] += w2 * y * x[i];
+    }
+    yy += w2 * y * y;
   }
-  const double det = a00 * a11 - a01 * a01;
-  *kd = det > 0 ? (a11 * b0 - a01 * b1) / det : 0.0;
-  *ks = det > 0 ? (a00 * b1 - a01 * b0) / det : 0.0;
-  // On a negative coefficient, the best fit with it at zero.
-  if (*kd < 0.0 || *ks < 0.0) {
-    const double kd_only = std::max(0.0, b0 / a00), ks_only = a11 > 0 ? std::max(0.0, b1 / a11) : 0.0;
-    // Compare the two one-term fits by the error they remove.
-    if (kd_only * b0 >= ks_only * b1) {
-      *kd = kd_only;
-      *ks = 0.0;
-    } else {
-      *kd = 0.0;
-      *ks = ks_only;
+  a = a.selfadjointView<Eigen::Lower>();
+  double best = yy;  // every coefficient zero
+  SmallVector best_x = SmallVector::Zero(m);
+  for (int subset = 1; subset < (1 << m); ++subset) {
+    int terms[3], t = 0;
+    for (int j = 0; j < m; ++j)
+      if (subset & (1 << j)) terms[t++] = j;
+    Small as(t, t);
+    SmallVector bs(t);
+    for (int i = 0; i < t; ++i) {
+      bs[i] = b[terms[i]];
+      for (int j = 0; j < t; ++j) as(i, j) = a(terms[i], terms[j]);
+    }
+    const Eigen::LDLT<Small> ldlt(as);
+    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0.0).all()) continue;
+    const SmallVector xs = ldlt.solve(bs);
+    if ((xs.array() < 0.0).any() || !xs.allFinite()) continue;
+    const double error = yy - xs.dot(bs);  // at the subset's optimum: y'y - x'b
+    if (error < best) {
+      best = error;
+      best_x.setZero();
+      for (int i = 0; i < t; ++i) best_x[terms[i]] = xs[i];
     }
   }
-  double error = 0.0;
-  for (std::size_t k = 0; k < prepared.size(); ++k) {
-    const double r =
-        (*kd / M_PI + *ks * basis[k] + offset[k] - prepared[k].value[c]) * prepared[k].weight[c];
-    error += r * r;
-  }
-  return error;
+  for (int j = 0; j < m; ++j) coefficients[j] = best_x[j];
+  return std::max(best, 0.0);
 }
 
 // The starting point: the best shape on a geometric grid (and F0 on a coarse
-// one), each with its channels' linear parameters solved exactly.
-void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd[3], double lobe[4], double* f0_start) {
+// one; for two lobes, the best pair of shapes at least 2.5x apart on a
+// coarser grid), each with its channels' linear parameters solved exactly.
+void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd[3], double lobe[4], double extra[4]) {
   const std::size_t n = prepared.size();
-  std::vector<double> basis(n, 0.0), offset(n, 0.0);
+  std::vector<double> offset(n, 0.0);
   if (model == Model::kLambertian) {
-    for (int c = 0; c < 3; ++c) {
-      double ks;
-      FitLinearChannel(prepared, basis, offset, c, &kd[c], &ks);
-    }
+    for (int c = 0; c < 3; ++c) FitLinearChannel(prepared, {}, offset, c, &kd[c]);
     return;
   }
   const ShapeRange range = RangeOf(model);
+  auto shape_at = [&](int step) { return range.min * std::pow(range.max / range.min, step / (range.steps - 1.0)); };
   double best = std::numeric_limits<double>::infinity();
+  if (HasSecondLobe(model)) {
+    // Every other grid shape, each lobe's basis computed once.
+    std::vector<std::vector<double>> basis;
+    std::vector<double> shapes;
+    for (int step = 0; step < range.steps; step += 2) {
+      shapes.push_back(shape_at(step));
+      basis.emplace_back(n);
+      for (std::size_t k = 0; k < n; ++k)
+        basis.back()[k] = internal::BlinnPhongLobe(1.0, shapes.back(), prepared[k].geometry);
+    }
+    for (std::size_t narrow = 0; narrow < shapes.size(); ++narrow)
+      for (std::size_t broad = 0; broad + 2 <= narrow; ++broad) {
+        double error = 0.0, trial[3][3];
+        for (int c = 0; c < 3; ++c) error += FitLinearChannel(prepared, {&basis[narrow], &basis[broad]}, offset, c, trial[c]);
+        if (error < best) {
+          best = error;
+          for (int c = 0; c < 3; ++c) {
+            kd[c] = trial[c][0];
+            lobe[c] = trial[c][1];
+            extra[c] = trial[c][2];
+          }
+          lobe[3] = std::log(shapes[narrow]);
+          extra[3] = std::log(shapes[broad]);
+        }
+      }
+    return;
+  }
+  std::vector<double> basis(n);
   for (int step = 0; step < range.steps; ++step) {
-    const double shape = range.min * std::pow(range.max / range.min, step / (range.steps - 1.0));
+    const double shape = shape_at(step);
     for (double f0 : StartingF0s(model)) {
       for (std::size_t k = 0; k < n; ++k) {
         offset[k] = internal::Lobe(model, 0.0, shape, f0, prepared[k].geometry);
         basis[k] = internal::Lobe(model, 1.0, shape, f0, prepared[k].geometry) - offset[k];
       }
-      double error = 0.0, trial_kd[3], trial_ks[3];
-      for (int c = 0; c < 3; ++c) error += FitLinearChannel(prepared, basis, offset, c, &trial_kd[c], &trial_ks[c]);
+      double error = 0.0, trial[3][2];
+      for (int c = 0; c < 3; ++c) error += FitLinearChannel(prepared, {&basis}, offset, c, trial[c]);
       if (error < best) {
         best = error;
         for (int c = 0; c < 3; ++c) {
-          kd[c] = trial_kd[c];
-          lobe[c] = model == Model::kGgx ? std::min(trial_ks[c], 1.0) : trial_ks[c];
+          kd[c] = trial[c][0];
+          lobe[c] = model == Model::kGgx ? std::min(trial[c][1], 1.0) : trial[c][1];
         }
         lobe[3] = std::log(shape);
-        *f0_start = f0;
+        extra[0] = f0;
       }
     }
   }
 }
 
-// RMS residual of `samples` under `params`, in the units of `loss`.
-double RmsResidual(const ModelParams& params, const std::vector<BrdfSample>& samples, FitLoss loss) {
+// Squared residual of one sample under `params`, mean over the channels, in
+// the units of `loss`.
+double SquaredResidual(const ModelParams& params, const BrdfSample& s, FitLoss loss) {
+  const Eigen::Vector3d f = Evaluate(params, s.wi, s.wo);
   double sum = 0.0;
-  for (const BrdfSample& s : samples) {
-    const Eigen::Vector3d f = Evaluate(params, s.wi, s.wo);
-    for (int c = 0; c < 3; ++c) {
-      const double r = loss == FitLoss::kWeighted
-                           ? (f[c] - s.value[c]) / s.sigma[c]
-                           : std::log(1.0 + f[c] * s.wi.z()) - std::log(1.0 + s.value[c] * s.wi.z());
-      sum += r * r;
-    }
+  for (int c = 0; c < 3; ++c) {
+    const double r = loss == FitLoss::kWeighted
+                         ? (f[c] - s.value[c]) / s.sigma[c]
+                         : std::log(1.0 + f[c] * s.wi.z()) - std::log(1.0 + s.value[c] * s.wi.z());
+    sum += r * r;
   }
-  return std::sqrt(sum / (3.0 * static_cast<double>(samples.size())));
+  return sum / 3.0;
 }
 
-// k-fold held-out RMS residual of `model`; NaN when a fold's fit fails.
-double HeldOutRms(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options, int folds) {
-  double sum = 0.0;
-  std::size_t count = 0;
+// k-fold held-out squared residual of each sample under `model`; empty when
+// a fold's fit fails.
+std::vector<double> HeldOutErrors(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options,
+                                  int folds) {
+  std::vector<double> errors(samples.size(), 0.0);
   for (int fold = 0; fold < folds; ++fold) {
-    std::vector<BrdfSample> train, test;
-    for (std::size_t k = 0; k < samples.size(); ++k) (static_cast<int>(k % folds) == fold ? test : train).push_back(samples[k]);
-    if (test.empty()) continue;
+    std::vector<BrdfSample> train;
+    train.reserve(samples.size());
+    for (std::size_t k = 0; k < samples.size(); ++k)
+      if (static_cast<int>(k % folds) != fold) train.push_back(samples[k]);
+    if (train.size() == samples.size()) continue;
     const FitSummary fit = FitModel(model, train, options);
-    if (!fit.IsSolutionUsable()) return std::numeric_limits<double>::quiet_NaN();
-    const double rms = RmsResidual(fit.params, test, options.loss);
-    sum += rms * rms * static_cast<double>(test.size());
-    count += test.size();
+    if (!fit.IsSolutionUsable()) return {};
+    for (std::size_t k = fold; k < samples.size(); k += folds) errors[k] = SquaredResidual(fit.params, samples[k], options.loss);
   }
-  return count > 0 ? std::sqrt(sum / static_cast<double>(count)) : std::numeric_limits<double>::quiet_NaN();
+  return errors;
+}
+
+// Mean of a - b over the samples and its standard error.
+std::pair<double, double> MeanDifference(const std::vector<double>& a, const std::vector<double>& b) {
+  const double n = static_cast<double>(a.size());
+  double sum = 0.0, sum2 = 0.0;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    const double d = a[k] - b[k];
+    sum += d;
+    sum2 += d * d;
+  }
+  const double mean = sum / n, variance = std::max(0.0, sum2 / n - mean * mean) * n / std::max(1.0, n - 1.0);
+  return {mean, std::sqrt(variance / n)};
+}
+
+std::string Number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.4g", v);
+  return text;
 }
 
 }  // namespace
@@ -265,22 +344,35 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
     return summary;
   }
 
-  double kd[3] = {0, 0, 0}, lobe[4] = {0, 0, 0, 0}, f0 = 0.0;
-  StartingPoint(model, prepared, kd, lobe, &f0);
+  // The least squares see an evenly spaced subsample of a large set.
+  std::vector<Prepared> subsample;
+  if (options.max_fit_samples > 0 && prepared.size() > options.max_fit_samples) {
+    subsample.reserve(options.max_fit_samples);
+    for (std::size_t j = 0; j < options.max_fit_samples; ++j)
+      subsample.push_back(prepared[j * prepared.size() / options.max_fit_samples]);
+  }
+  const std::vector<Prepared>& fitted = subsample.empty() ? prepared : subsample;
+  summary.fitted_samples = fitted.size();
+
+  // `extra`: Cook-Torrance's F0 (extra[0]) or the second lobe (as `lobe`).
+  double kd[3] = {0, 0, 0}, lobe[4] = {0, 0, 0, 0}, extra[4] = {0, 0, 0, 0};
+  StartingPoint(model, fitted, kd, lobe, extra);
   ceres::Problem problem;
-  for (const Prepared& p : prepared) {
+  for (const Prepared& p : fitted) {
+    if (HasSecondLobe(model)) {
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<TwoLobeResidual, 3, 3, 4, 4>(new TwoLobeResidual(model, p, options.loss)),
+          nullptr, kd, lobe, extra);
+      continue;
+    }
+    auto* residual = new SampleResidual(model, p, options.loss);
     if (model == Model::kLambertian) {
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<SampleResidual, 3, 3>(new SampleResidual(model, p, options.loss)), nullptr,
-          kd);
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3>(residual), nullptr, kd);
     } else if (model == Model::kCookTorrance) {
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4, 1>(new SampleResidual(model, p, options.loss)),
-          nullptr, kd, lobe, &f0);
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4, 1>(residual), nullptr, kd,
+                               lobe, extra);
     } else {
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4>(new SampleResidual(model, p, options.loss)),
-          nullptr, kd, lobe);
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4>(residual), nullptr, kd, lobe);
     }
   }
   for (int c = 0; c < 3; ++c) problem.SetParameterLowerBound(kd, c, 0.0);
@@ -292,8 +384,13 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
     problem.SetParameterLowerBound(lobe, 3, std::log(range.min));
     problem.SetParameterUpperBound(lobe, 3, std::log(range.max));
     if (model == Model::kCookTorrance) {
-      problem.SetParameterLowerBound(&f0, 0, 0.0);
-      problem.SetParameterUpperBound(&f0, 0, 1.0);
+      problem.SetParameterLowerBound(extra, 0, 0.0);
+      problem.SetParameterUpperBound(extra, 0, 1.0);
+    }
+    if (HasSecondLobe(model)) {
+      for (int c = 0; c < 3; ++c) problem.SetParameterLowerBound(extra, c, 0.0);
+      problem.SetParameterLowerBound(extra, 3, std::log(range.min));
+      problem.SetParameterUpperBound(extra, 3, std::log(range.max));
     }
   }
   timer.SetupDone(&summary);
@@ -313,6 +410,21 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
   summary.termination =
       ceres_summary.termination_type == ceres::CONVERGENCE ? Termination::kSuccess : Termination::kNoConvergence;
   summary.cost = 2.0 * ceres_summary.final_cost;  // Ceres reports half the sum of squares
+  if (fitted.size() < prepared.size()) {
+    // The cost of every sample at the subsample's solution.
+    summary.cost = 0.0;
+    double r[3];
+    for (const Prepared& p : prepared) {
+      if (HasSecondLobe(model)) {
+        TwoLobeResidual(model, p, options.loss)(kd, lobe, extra, r);
+      } else if (model == Model::kLambertian) {
+        SampleResidual(model, p, options.loss)(kd, r);
+      } else {
+        SampleResidual(model, p, options.loss)(kd, lobe, extra, r);
+      }
+      summary.cost += r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+    }
+  }
   const double n = static_cast<double>(summary.residuals), k = summary.parameters;
   summary.bic = options.loss == FitLoss::kWeighted ? summary.cost + k * std::log(n)
                                                    : n * std::log(std::max(summary.cost, 1e-300) / n) + k * std::log(n);
@@ -320,7 +432,11 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
   if (model != Model::kLambertian) {
     summary.params.specular = Eigen::Vector3d(lobe[0], lobe[1], lobe[2]);
     summary.params.shape = std::exp(lobe[3]);
-    if (model == Model::kCookTorrance) summary.params.fresnel_f0 = f0;
+    if (model == Model::kCookTorrance) summary.params.fresnel_f0 = extra[0];
+  }
+  if (HasSecondLobe(model)) {
+    summary.params.specular2 = Eigen::Vector3d(extra[0], extra[1], extra[2]);
+    summary.params.shape2 = std::exp(extra[3]);
   }
 
   // Uncertainties: the inverse of J^T J at the solution (DENSE_SVD refuses a
@@ -330,13 +446,15 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
   ceres::Covariance covariance(covariance_options);
   std::vector<const double*> blocks = {kd};
   if (model != Model::kLambertian) blocks.push_back(lobe);
-  if (model == Model::kCookTorrance) blocks.push_back(&f0);
+  if (model == Model::kCookTorrance || HasSecondLobe(model)) blocks.push_back(extra);
   std::vector<std::pair<const double*, const double*>> pairs;
   for (const double* a : blocks)
     for (const double* b : blocks) pairs.emplace_back(a, b);
   const int p = summary.parameters;
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> cov(p, p);
   if (covariance.Compute(pairs, &problem) && covariance.GetCovarianceMatrix(blocks, cov.data())) {
+    // A subsample's J^T J is about fitted/all of the whole set's.
+    cov *= static_cast<double>(fitted.size()) / static_cast<double>(prepared.size());
     // The log loss carries no absolute scale: use the residual variance.
     if (options.loss == FitLoss::kLog) cov *= summary.cost / std::max(1.0, n - k);
     summary.covariance_available = cov.allFinite();
@@ -349,19 +467,102 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
       summary.shape_sigma = summary.params.shape * sd[6];  // d shape = shape * d log(shape)
       if (model == Model::kCookTorrance) summary.fresnel_f0_sigma = sd[7];
     }
+    if (HasSecondLobe(model)) {
+      summary.specular2_sigma = sd.segment<3>(7);
+      summary.shape2_sigma = summary.params.shape2 * sd[10];
+    }
+  }
+  // The lobes are reported narrower first (the fit's labels are arbitrary).
+  if (HasSecondLobe(model) && summary.params.shape2 > summary.params.shape) {
+    std::swap(summary.params.specular, summary.params.specular2);
+    std::swap(summary.params.shape, summary.params.shape2);
+    std::swap(summary.specular_sigma, summary.specular2_sigma);
+    std::swap(summary.shape_sigma, summary.shape2_sigma);
   }
   if (model != Model::kLambertian) {
-    summary.lobe_identifiable =
-        summary.covariance_available && summary.shape_sigma <= options.max_relative_shape_sigma * summary.params.shape;
-    if (!summary.lobe_identifiable)
+    const double limit = options.max_relative_shape_sigma;
+    const bool first = summary.covariance_available && summary.shape_sigma <= limit * summary.params.shape;
+    const bool second = !HasSecondLobe(model) ||
+                        (summary.covariance_available && summary.shape2_sigma <= limit * summary.params.shape2);
+    summary.lobe_identifiable = first && second;
+    auto relative = [&](double sigma, double shape) {
+      return summary.covariance_available ? Number(sigma / shape) : std::string("unknown: singular covariance");
+    };
+    if (!first)
       summary.message = std::string("the ") + ModelName(model) +
                         " lobe's shape is not identifiable from these samples (relative sd " +
-                        (summary.covariance_available ? std::to_string(summary.shape_sigma / summary.params.shape)
-                                                      : std::string("unknown: singular covariance")) +
-                        "); sample nearer the specular peak";
+                        relative(summary.shape_sigma, summary.params.shape) + "); sample nearer the specular peak";
+    else if (!second)
+      summary.message = std::string("the ") + ModelName(model) +
+                        " second lobe is not pinned down by these samples (relative sd of its exponent " +
+                        relative(summary.shape2_sigma, summary.params.shape2) +
+                        "): the samples support one lobe, or two too alike to separate";
   }
   timer.Finish(&summary);
   return summary;
+}
+
+std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, double min_bic_improvement,
+                                       std::string* reason) {
+  auto trusted = [](const FitSummary& f) { return f.IsSolutionUsable() && f.lobe_identifiable; };
+  std::optional<std::size_t> current;
+  for (std::size_t i = 0; i < fits.size(); ++i)
+    if (trusted(fits[i]) && (!current || fits[i].parameters < fits[*current].parameters ||
+                             (fits[i].parameters == fits[*current].parameters && fits[i].bic < fits[*current].bic)))
+      current = i;
+  if (!current) {
+    *reason = "no candidate is usable and identifiable";
+    return std::nullopt;
+  }
+  const auto name = [&](std::size_t i) { return std::string(ModelName(fits[i].params.model)); };
+  *reason = name(*current) + " has the fewest parameters";
+  // Forward, one step at a time: the fewest parameters, then the lowest BIC.
+  const auto better_move = [&](std::size_t i, const std::optional<std::size_t>& other) {
+    return !other || fits[i].parameters < fits[*other].parameters ||
+           (fits[i].parameters == fits[*other].parameters && fits[i].bic < fits[*other].bic);
+  };
+  // What kept a more complex model out, reported when nothing better is found.
+  std::string refused;
+  for (;;) {
+    std::optional<std::size_t> next;
+    std::string why;
+    for (std::size_t i = 0; i < fits.size(); ++i) {
+      const FitSummary &f = fits[i], &c = fits[*current];
+      if (i == *current || !trusted(f) || f.parameters < c.parameters) continue;
+      if (f.parameters == c.parameters) {
+        if (!(f.bic < c.bic)) continue;
+        if (better_move(i, next)) {
+          next = i;
+          why = name(i) + ": as many parameters as " + name(*current) + ", BIC lower by " + Number(c.bic - f.bic);
+        }
+        continue;
+      }
+      if (!(f.bic < c.bic - min_bic_improvement)) continue;
+      std::string held_out;
+      if (!f.held_out_errors.empty() && f.held_out_errors.size() == c.held_out_errors.size()) {
+        const auto [gain, se] = MeanDifference(c.held_out_errors, f.held_out_errors);
+        held_out = ", held-out mean squared error lower by " + Number(gain) + " (" + Number(gain / se) +
+                   " standard errors)";
+        if (!(gain > se)) {
+          refused = "; " + name(i) + "'s BIC is lower by " + Number(c.bic - f.bic) +
+                    " but its held-out error is not lower by more than one standard error (" +
+                    Number(gain / se) + "): not chosen";
+          continue;
+        }
+      }
+      if (better_move(i, next)) {
+        next = i;
+        why = name(i) + ": BIC lower than " + name(*current) + "'s by " + Number(c.bic - f.bic) + held_out;
+      }
+    }
+    if (!next) break;
+    current = next;
+    *reason = why;
+    refused.clear();
+  }
+  *reason += refused;
+  if (refused.empty()) *reason += "; no other model improves on it";
+  return current;
 }
 
 SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const SelectionOptions& options) {
@@ -386,39 +587,36 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   ProgressThrottle progress(options.progress, "fit", static_cast<std::int64_t>(options.candidates.size()));
   for (Model model : options.candidates) {
     summary.candidates.push_back(FitModel(model, samples, options.fit));
-    const FitSummary& fit = summary.candidates.back();
+    FitSummary& fit = summary.candidates.back();
     // Input and options are the same for every candidate: the first refusal is everyone's.
     if (fit.termination == Termination::kInvalidInput || fit.termination == Termination::kInvalidOptions) {
       summary.End(fit.termination, fit.message);
       return summary;
     }
-    if (options.held_out_folds > 0 && fit.IsSolutionUsable())
-      summary.candidates.back().held_out_rms = HeldOutRms(model, samples, options.fit, options.held_out_folds);
+    if (options.held_out_folds > 0 && fit.IsSolutionUsable()) {
+      fit.held_out_errors = HeldOutErrors(model, samples, options.fit, options.held_out_folds);
+      if (!fit.held_out_errors.empty()) {
+        double sum = 0.0;
+        for (double e : fit.held_out_errors) sum += e;
+        fit.held_out_rms = std::sqrt(sum / static_cast<double>(fit.held_out_errors.size()));
+      }
+    }
     progress.Update(static_cast<std::int64_t>(summary.candidates.size()));
   }
   progress.Finish();
-  auto trusted = [](const FitSummary& f) { return f.IsSolutionUsable() && f.lobe_identifiable; };
-  std::optional<std::size_t> best;
-  for (std::size_t i = 0; i < summary.candidates.size(); ++i)
-    if (trusted(summary.candidates[i]) && (!best || summary.candidates[i].bic < summary.candidates[*best].bic)) best = i;
-  if (!best) {
+  const std::optional<std::size_t> choice = ChooseModel(summary.candidates, options.min_bic_improvement, &summary.reason);
+  if (!choice) {
     summary.End(Termination::kFailure, "no candidate model gives a usable, identifiable fit to " +
                                            std::to_string(samples.size()) + " samples");
     timer.Finish(&summary);
     return summary;
   }
-  // The simplest trusted model within min_bic_improvement of the best.
-  std::size_t chosen = *best;
-  for (std::size_t i = 0; i < summary.candidates.size(); ++i) {
-    const FitSummary& f = summary.candidates[i];
-    if (!trusted(f) || f.bic > summary.candidates[*best].bic + options.min_bic_improvement) continue;
-    const FitSummary& c = summary.candidates[chosen];
-    if (f.parameters < c.parameters || (f.parameters == c.parameters && f.bic < c.bic)) chosen = i;
-  }
+  const std::size_t chosen = *choice;
   summary.chosen = summary.candidates[chosen].params.model;
   summary.chosen_index = chosen;
+  // (A second lobe not pinned down is not this: the first is, and one-lobe candidates stand for it.)
   for (const FitSummary& f : summary.candidates)
-    if (f.IsSolutionUsable() && !f.lobe_identifiable &&
+    if (f.IsSolutionUsable() && !f.lobe_identifiable && !HasSecondLobe(f.params.model) &&
         f.bic < summary.candidates[chosen].bic - options.min_bic_improvement) {
       summary.End(Termination::kFailure, std::string("the samples show a lobe (") + ModelName(f.params.model) +
                                              " fits far better than " + ModelName(*summary.chosen) +

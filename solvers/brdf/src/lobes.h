@@ -70,7 +70,9 @@ T CookTorranceLobe(const T& k_s, const T& m, const T& f0, const Geometry& g) {
 template <typename T>
 T Lobe(Model model, const T& specular, const T& shape, const T& f0, const Geometry& g) {
   switch (model) {
-    case Model::kBlinnPhong: return BlinnPhongLobe(specular, shape, g);
+    case Model::kBlinnPhong:
+    case Model::kTwoBlinnPhong:  // the first lobe; the second is another Blinn-Phong
+      return BlinnPhongLobe(specular, shape, g);
     case Model::kWard: return WardLobe(specular, shape, g);
     case Model::kGgx: return GgxLobe(specular, shape, g);
     case Model::kCookTorrance: return CookTorranceLobe(specular, shape, f0, g);

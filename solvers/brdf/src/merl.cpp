@@ -49,10 +49,60 @@ std::optional<Eigen::Vector3d> MerlTable::EvaluateCell(std::size_t cell) const {
   return value;
 }
 
+namespace {
+
+// A continuous bin coordinate: cell k's centre at k. Within 1e-9 of a centre
+// it is snapped onto it, so a configuration at a cell centre (a round trip
+// through FromHalfDiff and ToHalfDiff) reads the stored value bit for bit.
+double Snapped(double u) {
+  const double nearest = std::round(u);
+  return std::abs(u - nearest) < 1e-6 ? nearest : u;
+}
+
+// The two cells bracketing coordinate `u` on a clamped axis of `bins` cells
+// and the weight of the upper one (constant beyond the outer centres).
+void Bracket(double u, int bins, int* lower, int* upper, double* t) {
+  u = std::clamp(u, 0.0, bins - 1.0);
+  *lower = std::min(static_cast<int>(std::floor(u)), bins - 1);
+  *upper = std::min(*lower + 1, bins - 1);
+  *t = u - *lower;
+}
+
+}  // namespace
+
 std::optional<Eigen::Vector3d> MerlTable::Evaluate(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const {
   if (wi.z() <= 0.0 || wo.z() <= 0.0) return std::nullopt;
   const HalfDiff a = ToHalfDiff(wi, wo);
-  return EvaluateCell(CellIndex(ThetaHBin(a.theta_h), ThetaDBin(a.theta_d), PhiDBin(a.phi_d)));
+  // The cell the configuration falls in must be measured; its measured
+  // neighbours then share the interpolation (an unmeasured one's weight goes
+  // to the others).
+  if (!EvaluateCell(CellIndex(ThetaHBin(a.theta_h), ThetaDBin(a.theta_d), PhiDBin(a.phi_d)))) return std::nullopt;
+  // Trilinear in bin coordinates: theta_h in its square-root mapping (the
+  // cells are uniform there), theta_d linear, phi_d periodic over pi.
+  const double u_h = Snapped(90.0 * std::sqrt(std::max(a.theta_h, 0.0) / (M_PI / 2.0)) - 0.5);
+  const double u_d = Snapped(a.theta_d / (M_PI / 2.0) * kThetaDBins - 0.5);
+  const double phi_d = a.phi_d < 0.0 ? a.phi_d + M_PI : a.phi_d;
+  const double u_p = Snapped(phi_d / M_PI * kPhiDBins - 0.5);
+  int h[2], d[2];
+  double th, td;
+  Bracket(u_h, kThetaHBins, &h[0], &h[1], &th);
+  Bracket(u_d, kThetaDBins, &d[0], &d[1], &td);
+  const int p_floor = static_cast<int>(std::floor(u_p));
+  const double tp = u_p - p_floor;
+  const int p[2] = {(p_floor % kPhiDBins + kPhiDBins) % kPhiDBins, ((p_floor + 1) % kPhiDBins + kPhiDBins) % kPhiDBins};
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double weight_sum = 0.0;
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j)
+      for (int k = 0; k < 2; ++k) {
+        const double w = (i ? th : 1.0 - th) * (j ? td : 1.0 - td) * (k ? tp : 1.0 - tp);
+        if (w == 0.0) continue;
+        if (const std::optional<Eigen::Vector3d> v = EvaluateCell(CellIndex(h[i], d[j], p[k]))) {
+          sum += w * *v;
+          weight_sum += w;
+        }
+      }
+  return sum / weight_sum;
 }
 
 void MerlTable::SetCell(std::size_t cell, const Eigen::Vector3d& value_per_sr) {

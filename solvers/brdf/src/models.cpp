@@ -14,20 +14,25 @@ const char* ModelName(Model model) {
     case Model::kWard: return "ward";
     case Model::kGgx: return "ggx";
     case Model::kCookTorrance: return "cook_torrance";
+    case Model::kTwoBlinnPhong: return "two_blinn_phong";
   }
   return "?";
 }
 
 std::optional<Model> ParseModel(std::string_view name) {
-  for (Model m : {Model::kLambertian, Model::kBlinnPhong, Model::kWard, Model::kGgx, Model::kCookTorrance})
+  for (Model m : {Model::kLambertian, Model::kBlinnPhong, Model::kWard, Model::kGgx, Model::kCookTorrance,
+                  Model::kTwoBlinnPhong})
     if (name == ModelName(m)) return m;
   return std::nullopt;
 }
 
 int ParameterCount(Model model) {
   if (model == Model::kLambertian) return 3;
+  if (model == Model::kTwoBlinnPhong) return 11;
   return model == Model::kCookTorrance ? 8 : 7;
 }
+
+bool HasSecondLobe(Model model) { return model == Model::kTwoBlinnPhong; }
 
 Geometry GeometryOf(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) {
   const Eigen::Vector3d h = (wi + wo).normalized();
@@ -39,6 +44,8 @@ Eigen::Vector3d Evaluate(const ModelParams& p, const Eigen::Vector3d& wi, const 
   const Geometry g = GeometryOf(wi, wo);
   Eigen::Vector3d f;
   for (int c = 0; c < 3; ++c) f[c] = p.diffuse[c] / M_PI + internal::Lobe(p.model, p.specular[c], p.shape, p.fresnel_f0, g);
+  if (HasSecondLobe(p.model))
+    for (int c = 0; c < 3; ++c) f[c] += internal::BlinnPhongLobe(p.specular2[c], p.shape2, g);
   return f;
 }
 

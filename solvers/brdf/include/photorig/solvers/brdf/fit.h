@@ -14,6 +14,10 @@
 // The lobe's shape (exponent or roughness) is fitted as its logarithm, so its
 // reported uncertainty is relative in essence and the solver never tries a
 // negative one.
+//
+// Large sample sets (a whole measured table) are fitted on an evenly spaced
+// subsample (FitOptions::max_fit_samples); the cost and BIC are then those of
+// every sample at the subsample's solution.
 
 #include "photorig/solvers/brdf/models.h"
 #include "photorig/solvers/brdf/samples.h"
@@ -38,6 +42,11 @@ struct FitOptions {
   // (or no covariance at all) is flagged not identifiable: the samples do not
   // pin its width down, typically because none lies near the specular peak.
   double max_relative_shape_sigma = 0.25;
+  // Above this many samples the least squares see every (n / max)-th sample
+  // only (in the order given: a table's grid order makes that a stratified
+  // subsample over theta_h, theta_d and phi_d); 0 = always all of them.
+  // The final cost, BIC and the covariance's scale come from all samples.
+  std::size_t max_fit_samples = 20000;
 
   bool IsValid(std::string* why) const;
 };
@@ -50,12 +59,17 @@ struct FitSummary : Summary {
   Eigen::Vector3d specular_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   double shape_sigma = std::numeric_limits<double>::quiet_NaN();
   double fresnel_f0_sigma = std::numeric_limits<double>::quiet_NaN();  // cook_torrance only
+  // two_blinn_phong only: the second lobe's.
+  Eigen::Vector3d specular2_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double shape2_sigma = std::numeric_limits<double>::quiet_NaN();
   bool covariance_available = false;
-  // False when the lobe's shape is not pinned down (see FitOptions); always
-  // true for Lambertian. A fit with an unidentifiable lobe is not a result.
+  // False when a lobe's shape is not pinned down (see FitOptions), for two
+  // lobes either one's; always true for Lambertian. A fit with an
+  // unidentifiable lobe is not a result.
   bool lobe_identifiable = true;
 
   std::size_t samples = 0;
+  std::size_t fitted_samples = 0;  // the subsample the least squares saw (FitOptions::max_fit_samples)
   std::size_t residuals = 0;  // samples x 3 channels
   int parameters = 0;
   double cost = 0.0;  // sum of squared residuals (a chi-square for kWeighted)
@@ -67,22 +81,28 @@ struct FitSummary : Summary {
   // fit did not see, over SelectionOptions::held_out_folds folds; NaN when
   // not computed. About 1 for the right model with the weighted loss.
   double held_out_rms = std::numeric_limits<double>::quiet_NaN();
+  // Each sample's held-out squared residual (mean over channels) when its
+  // fold was left out; empty when not computed. SelectModel compares models
+  // sample by sample on these.
+  std::vector<double> held_out_errors;
 };
 
 FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options = {});
 
 struct SelectionOptions {
   FitOptions fit;
-  std::vector<Model> candidates = {Model::kLambertian, Model::kBlinnPhong, Model::kWard, Model::kGgx,
-                                   Model::kCookTorrance};
-  // A lobe model is chosen over a simpler one only when its BIC is lower by
-  // more than this (10: "very strong" evidence on Kass and Raftery's scale).
+  std::vector<Model> candidates = {Model::kLambertian, Model::kBlinnPhong,   Model::kWard,
+                                   Model::kGgx,        Model::kCookTorrance, Model::kTwoBlinnPhong};
+  // A model is chosen over one with fewer parameters only when its BIC is
+  // lower by more than this (10: "very strong" evidence on Kass and
+  // Raftery's scale) and, with held-out folds, its held-out error is lower
+  // too (see ChooseModel).
   double min_bic_improvement = 10.0;
   // The samples are said to see the specular peak when one has theta_h below this.
   double peak_theta_h_deg = 5.0;
-  // Folds of the held-out error reported beside BIC (sample k in fold
-  // k mod folds; 0 = none). Each costs one more fit per candidate; the
-  // choice itself is by BIC.
+  // Folds of the held-out error (sample k, i.e. pose k, in fold k mod
+  // folds; 0 = none, BIC alone chooses). Each costs one more fit per
+  // candidate.
   int held_out_folds = 5;
   // Called after each candidate's fit (stage "fit", done = candidates fitted):
   // a whole measured table takes seconds per lobe model.
@@ -97,14 +117,27 @@ struct SelectionSummary : Summary {
   std::size_t chosen_index = 0;
   double min_theta_h_deg = 0.0;  // the sample nearest the specular peak
   bool peak_sampled = false;     // min_theta_h_deg < peak_theta_h_deg
+  std::string reason;            // why the chosen model, in words (ChooseModel)
 };
 
-// Fits every candidate and chooses the one with the lowest BIC among those
-// whose fit is usable and identifiable, preferring the simpler (listed first)
-// unless a more complex one improves the BIC by min_bic_improvement. Ends
-// kFailure when no candidate is usable, or when a lobe model is far better
-// than every trusted one but its shape is not identifiable (the data show a
-// lobe whose width they cannot give).
+// The choice among fitted candidates. Only trusted fits (usable, lobes
+// identifiable) take part. Starting from the trusted fit with the fewest
+// parameters (ties: lower BIC), the choice moves to another fit when that one
+//   - has as many parameters and a lower BIC, or
+//   - has more parameters, a BIC lower by more than min_bic_improvement and,
+//     when both carry held-out errors, a held-out mean squared error lower by
+//     more than one standard error of the sample-by-sample difference;
+// among the fits it may move to, to the one with the fewest parameters (ties:
+// the lowest BIC), and again from there until none qualifies. So BIC ranks,
+// and a more complex model must also predict samples it did not see better. Returns the chosen index
+// into `fits` (nothing when no fit is trusted) and says why in `reason`.
+std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, double min_bic_improvement,
+                                       std::string* reason);
+
+// Fits every candidate (and its held-out folds) and chooses by ChooseModel.
+// Ends kFailure when no candidate is usable, or when a lobe model is far
+// better than every trusted one but its shape is not identifiable (the data
+// show a lobe whose width they cannot give).
 SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const SelectionOptions& options = {});
 
 }  // namespace photorig::solvers::brdf

@@ -48,10 +48,15 @@ class MerlTable {
   // The angles at the centre of a cell (theta_h at the centre of its square-root bin).
   static HalfDiff CellCentre(int theta_h_bin, int theta_d_bin, int phi_d_bin);
 
-  // The BRDF in 1/sr per channel (R, G, B) in the cell nearest to the
-  // configuration; empty below the horizon (w_i.z <= 0 or w_o.z <= 0) and for
-  // a cell not measured.
+  // The BRDF in 1/sr per channel (R, G, B), trilinear between the centres of
+  // the eight cells around the configuration (in bin coordinates: theta_h in
+  // its square-root mapping; phi_d periodic over pi; constant beyond the outer
+  // centres), unmeasured neighbours left out and the weights renormalised. At
+  // a cell centre it is the stored value bit for bit. Empty below the horizon
+  // (w_i.z <= 0 or w_o.z <= 0) and when the cell the configuration falls in
+  // is not measured.
   std::optional<Eigen::Vector3d> Evaluate(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const;
+  // One cell's stored value in 1/sr; empty when not measured.
   std::optional<Eigen::Vector3d> EvaluateCell(std::size_t cell) const;
 
   // Stores a BRDF value in 1/sr (divided by the channel scales, as the file holds it).

@@ -18,6 +18,9 @@
 //                D = exp(-tan^2 theta_h / m^2) / (m^2 cos^4 theta_h)      (Beckmann, Ngan's scale: no 1/pi)
 //                G = min(1, 2 cos_h cos_o / (w_o.h), 2 cos_h cos_i / (w_i.h))  (V-groove)
 //                F Schlick's with one F0 for all channels; k_s per channel
+//   two_blinn_phong f = rho_d / pi + k_s1 N(e1) cos^e1 theta_h + k_s2 N(e2) cos^e2 theta_h
+//                two normalised Blinn-Phong lobes, the narrower first (e1 > e2):
+//                a sharp coat over a broader base. k_s2 = 0 is blinn_phong.
 //
 // The Blinn-Phong here is normalised for energy, not like the simulator's
 // (e + 2) / (2 pi) lobe: a simulated rho_s corresponds to k_s = rho_s / c(e)
@@ -32,13 +35,14 @@
 
 namespace photorig::solvers::brdf {
 
-enum class Model { kLambertian, kBlinnPhong, kWard, kGgx, kCookTorrance };
+enum class Model { kLambertian, kBlinnPhong, kWard, kGgx, kCookTorrance, kTwoBlinnPhong };
 
-// "lambertian", "blinn_phong", "ward", "ggx", "cook_torrance"
+// "lambertian", "blinn_phong", "ward", "ggx", "cook_torrance", "two_blinn_phong"
 const char* ModelName(Model model);
 std::optional<Model> ParseModel(std::string_view name);
-// Free parameters: 3 diffuse (+ 3 specular + 1 shape for a lobe, + F0 for cook_torrance).
+// Free parameters: 3 diffuse (+ 3 specular + 1 shape per lobe, + F0 for cook_torrance).
 int ParameterCount(Model model);
+bool HasSecondLobe(Model model);  // two_blinn_phong
 
 struct ModelParams {
   Model model = Model::kLambertian;
@@ -46,6 +50,9 @@ struct ModelParams {
   Eigen::Vector3d specular = Eigen::Vector3d::Zero();  // blinn_phong, cook_torrance: k_s; ward: rho_s; ggx: F0
   double shape = 0.0;       // blinn_phong: exponent e; ward: a; ggx: roughness a; cook_torrance: Beckmann m
   double fresnel_f0 = 0.0;  // cook_torrance only: Schlick's F0, one for all channels
+  // two_blinn_phong only: the second (broader) lobe's k_s and exponent.
+  Eigen::Vector3d specular2 = Eigen::Vector3d::Zero();
+  double shape2 = 0.0;
 };
 
 // The cosines every isotropic model here reads.
