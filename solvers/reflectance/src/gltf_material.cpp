@@ -20,6 +20,7 @@ GltfMaterial ToGltf(const MaterialFit& material) {
       out.specular_colour = material.specular / 0.04;
       break;
     case brdf::Model::kBlinnPhong:
+    case brdf::Model::kTwoBlinnPhong:  // refused by the spatially varying fit; its first lobe would map so
       out.roughness = std::sqrt(std::sqrt(2.0 / (material.shape + 2.0)));
       out.specular_colour = material.specular / 0.04;
       break;
