@@ -8,6 +8,8 @@
 #include "fuzz_support.h"
 #include "photorig/daemon/api_server.h"
 
+#include <spdlog/spdlog.h>
+
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -16,6 +18,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <thread>
 
@@ -23,7 +26,15 @@ namespace {
 
 using namespace photorig::daemon;
 
+// Never destroyed: the server serves until the process ends.
+ApiServer* server = nullptr;
+std::thread* serving = nullptr;
+
 int StartServer() {
+  // The server logs each request after answering it, so the logger registry
+  // could be created after StopServingAtExit is registered and then be
+  // destroyed before it runs: create it first.
+  spdlog::default_logger();
   ServiceOptions options;
   options.data_root = (photorig::fuzz::WorkDir() / "data").string();
   options.rig_path = photorig::fuzz::SourcePath("config/rigs/sim-dome.yaml");
@@ -34,10 +45,21 @@ int StartServer() {
   api.port = 0;
   api.max_body_bytes = 64 * 1024;
   api.sse_keepalive_ms = 500;  // an abandoned event stream notices within half a second
-  auto* server = new ApiServer(*service, api);
+  server = new ApiServer(*service, api);
   server->Bind();
-  std::thread([server] { server->Serve(); }).detach();
+  serving = new std::thread([] { server->Serve(); });
   return server->port();
+}
+
+// libFuzzer ends the process with exit(), which destroys static objects
+// (the logger among them) while a serving thread may still be answering the
+// last request: a use-after-free that is the harness's, not the server's.
+// Runs at exit before the destruction of every static object that existed
+// when it was registered (after the first request, so the ones requests
+// create are among them): stop accepting and wait for the serving threads.
+void StopServingAtExit() {
+  server->Stop();
+  serving->join();
 }
 
 int Connect(int port) {
@@ -82,6 +104,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   char buffer[4096];
   for (ssize_t n; (n = ::recv(fd, buffer, sizeof(buffer), 0)) > 0;) response.append(buffer, static_cast<std::size_t>(n));
   ::close(fd);
+  static const bool stop_registered = std::atexit(StopServingAtExit) == 0;
+  (void)stop_registered;
   if (response.rfind("HTTP/1.1 500", 0) == 0) {
     std::fprintf(stderr, "fuzz_api: 500 answer:\n%s\n", response.c_str());
     std::abort();
