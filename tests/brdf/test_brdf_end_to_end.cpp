@@ -97,7 +97,7 @@ TEST(BrdfEndToEnd, WithoutABracketTheClippedPeakIsFlagged) {
   // The run's health checks would stop at the first overexposed frame; here the solve is on trial.
   const std::string rig = GonioRig(dir, "sim:\n  seed", "health: {max_clipped_fraction: 1}\nsim:\n  seed");
   const std::string recipe = GonioRecipe(dir, "single.yaml",
-                                         "    - dark: {count: 2, exposures_us: [32000]}\n"
+                                         "    - dark: {count: 2, exposures_us: [8000, 32000]}\n"
                                          "    - reference_target: {count: 2, exposures_us: [8000]}\n"
                                          "    - poses:\n        exposures_us: [32000]\n        grid:\n"
                                          "          light_arm_deg: [-40, -25]\n"
@@ -129,6 +129,18 @@ TEST(BrdfEndToEnd, PropagatedDeviationsMatchTheRepeatsSpread) {
   EXPECT_EQ(noise["shot_from"], "camera e_per_dn");
   // The read noise measured from the darks: the simulated 6 e at 4 e/DN, plus quantisation.
   EXPECT_NEAR(noise["read_sigma_dn"].get<double>(), std::sqrt(1.5 * 1.5 + 1.0 / 12.0), 0.1);
+
+  // A camera that states no conversion gain: the shot term comes from the
+  // repeats' spread, 1 / (4 e/DN) here.
+  const auto manifest_path = dir.path() / "repeats" / "manifest.json";
+  auto manifest = nlohmann::json::parse(ReadText(manifest_path));
+  manifest["camera"]["e_per_dn"] = 0.0;
+  dir.Write("repeats/manifest.json", manifest.dump());
+  ASSERT_EQ(RunPhotorig("solve brdf --run " + (dir.path() / "repeats").string(), dir.path() / "estimated.log"), 0)
+      << ReadText(dir.path() / "estimated.log");
+  const auto estimated = Report(dir, "repeats")["noise"];
+  EXPECT_EQ(estimated["shot_from"], "repeats");
+  EXPECT_NEAR(estimated["shot_dn_per_dn"].get<double>(), 0.25, 0.25 * 0.1) << estimated.dump();
 }
 
 // The reference target sets the scale, not the camera's stated response:
@@ -189,6 +201,13 @@ TEST(BrdfEndToEnd, ASaturatedOrDarkReferenceTargetIsRefused) {
         << ReadText(dir.path() / (std::string(c.name) + ".log"));
     EXPECT_FALSE(std::filesystem::exists(dir.path() / c.name / "results" / "brdf" / "report.json"));
   }
+  // Darks at another exposure than the poses': the offsets there are not known (exit 2).
+  const std::string recipe = GonioRecipe(dir, "undark.yaml",
+                                         "    - dark: {count: 2, exposures_us: [2000]}\n"
+                                         "    - reference_target: {count: 2, exposures_us: [2000]}\n" + poses);
+  EXPECT_EQ(RunAndSolve(dir, recipe, rig, "undark"), 2);
+  EXPECT_NE(ReadText(dir.path() / "undark.log").find("no dark frame at exposure 8000 us"), std::string::npos)
+      << ReadText(dir.path() / "undark.log");
 }
 
 // A GGX written as an RGL .bsdf by the library, converted to MERL by the

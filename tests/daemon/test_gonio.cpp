@@ -337,13 +337,13 @@ TEST(Gonio, BracketsRepeatsAndTheReferenceTargetCompileToSteps) {
                                          "names no reference_target");
   const std::string twice = dir.Write(
       "twice.yaml", GonioRecipe("        exposures_us: [1000, 1000]\n        list: [{light_arm_deg: 0, camera_arm_deg: 30}]\n"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(twice, rig); }, twice, 7, 37, "listed twice");
-  ExpectConfigError(Replace(GonioRigWithTarget(), "albedo: 0.9", "albedo: 1.5"), 17, 28, "albedo");
-  ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 10, sample_changer_deg: 90}"), 17, 41,
-                    "closer than");
-  ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 45, sample_changer_deg: 0}"), 17, 102,
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(twice, rig); }, twice, 7, 30, "listed twice");
+  ExpectConfigError(Replace(GonioRigWithTarget(), "albedo: 0.9", "albedo: 1.5"), 18, 28, "must lie in [0.01, 1]");
+  ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 10, sample_changer_deg: 90}"), 18, 39,
+                    "below the minimum 15");
+  ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 45, sample_changer_deg: 0}"), 18, 98,
                     "the sample's slot");
-  ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 45}"), 17, 41,
+  ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 45}"), 18, 39,
                     "give sample_changer_deg");
 }
 
