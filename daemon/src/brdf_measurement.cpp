@@ -169,13 +169,13 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
   std::vector<PoseFrames> poses, target;
   std::map<PoseKey, std::size_t> pose_index;
   for (const FrameRecord& r : manifest.frames) {
+    if (r.kind != "dark" && !(r.kind == "pose" && r.pose)) continue;
     const cv::Mat block = CentralBlock(LoadFrame(run_dir, r), options.block_px);
     if (r.kind == "dark") {
       darks[r.exposure_us].push_back(block);
       ++out.dark_frames;
       continue;
     }
-    if (r.kind != "pose" || !r.pose) continue;
     const bool is_target = r.group == "reference_target";
     std::vector<PoseFrames>& list = is_target ? target : poses;
     if (is_target) {

@@ -109,8 +109,10 @@ int Execute(const Options& options) {
   doc.update(SelectionJson(s));
   // A clipped peak leaves the lobe's height unmeasured: the fit cannot say so itself.
   if (m.peak_clipped)
-    doc["warning"] = "the specular peak was clipped (a pose within 5 deg of it saturated at every exposure): the "
-                     "lobe's height and width are not measured there; capture it with an exposure bracket";
+    doc["warning"] = "the specular peak was clipped (a pose within " +
+                     std::to_string(static_cast<int>(measuring.peak_theta_h_deg)) +
+                     " deg of it saturated at every exposure): the lobe's height and width are not measured there; "
+                     "capture it with an exposure bracket";
 
   const std::string out = options.out.empty() ? (fs::path(options.run_dir) / "results" / "brdf").string() : options.out;
   fs::create_directories(out);
