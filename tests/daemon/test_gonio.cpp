@@ -320,7 +320,7 @@ TEST(Gonio, BracketsRepeatsAndTheReferenceTargetCompileToSteps) {
   EXPECT_EQ(steps[4].label, "0004_target_l+0.0_c+45.0_r+0.0_e1000");
   ASSERT_TRUE(steps[5].pose && steps[5].pose->sample_changer_deg);
   EXPECT_EQ(*steps[5].pose->sample_changer_deg, 90.0);
-  // A pose naming no slot holds the sample; each exposure `count` times, shortest first.
+  // A pose naming no slot holds the sample; each exposure `count` times, as listed.
   EXPECT_EQ(steps[6].label, "0006_pose_l-30.0_c+30.0_r+0.0_e1000");
   ASSERT_TRUE(steps[6].pose && steps[6].pose->sample_changer_deg);
   EXPECT_EQ(*steps[6].pose->sample_changer_deg, 0.0);
