@@ -117,10 +117,17 @@ FrameHealth::FrameHealth(HealthConfig config, const std::vector<CaptureStep>& st
   int last_index = -1;
   for (const CaptureStep& step : steps) last_index = std::max(last_index, step.index);
   bracket_long_.assign(static_cast<std::size_t>(last_index + 1), false);
+  // A gonioreflectometer's bracket is one pose's exposures.
+  const auto same_pose = [](const CaptureStep& a, const CaptureStep& b) {
+    if (!a.pose || !b.pose) return !a.pose && !b.pose;
+    return a.pose->light_arm_deg == b.pose->light_arm_deg && a.pose->camera_arm_deg == b.pose->camera_arm_deg &&
+           a.pose->sample_rotation_deg == b.pose->sample_rotation_deg &&
+           a.pose->sample_changer_deg == b.pose->sample_changer_deg;
+  };
   for (const CaptureStep& step : steps)
     for (const CaptureStep& other : steps)
       if (other.exposure_us < step.exposure_us && other.group == step.group && other.repeat == step.repeat &&
-          other.pattern.levels == step.pattern.levels && other.gain_db == step.gain_db && !other.pose && !step.pose) {
+          other.pattern.levels == step.pattern.levels && other.gain_db == step.gain_db && same_pose(other, step)) {
         bracket_long_[step.index] = true;
         break;
       }

@@ -258,6 +258,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
     header.color_model_hash = rig.camera.color_model->content_hash;
   }
   header.lights = rig.lights.leds;
+  if (rig.reference_target) header.reference_albedo = rig.reference_target->albedo;
   std::unique_ptr<RunWriter> writer_storage;
   if (request.resume) {
     writer_storage = RunWriter::Reopen(outcome.directory, &outcome.recovery);

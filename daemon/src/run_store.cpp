@@ -180,6 +180,7 @@ json ToJson(const RunManifest& m) {
           {"ground_truth", m.has_ground_truth}};
   if (!m.color_model_path.empty())
     out["camera"]["color_model"] = {{"path", m.color_model_path}, {"hash", m.color_model_hash}};
+  if (m.reference_albedo) out["reference_target"] = {{"albedo", *m.reference_albedo}};
   if (m.stop) out["stop"] = ToJson(*m.stop);
   return out;
 }
@@ -231,6 +232,7 @@ RunManifest RunManifestFromJson(const json& j) {
     }
     m.lights.push_back(led);
   }
+  if (j.contains("reference_target")) m.reference_albedo = j.at("reference_target").at("albedo").get<double>();
   for (const json& frame : j.at("frames")) m.frames.push_back(FrameRecordFromJson(frame));
   m.has_ground_truth = j.value("ground_truth", false);
   if (j.contains("stop")) m.stop = StopRecordFromJson(j.at("stop"));

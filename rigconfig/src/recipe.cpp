@@ -19,7 +19,7 @@ std::string RelativeToRecipe(const std::string& recipe_path, const std::string& 
   return (p.is_absolute() ? p : fs::path(recipe_path).parent_path() / p).lexically_normal().string();
 }
 
-constexpr const char* kGroupNames = "dark, flat, each_led, pattern or poses";
+constexpr const char* kGroupNames = "dark, flat, each_led, pattern, poses or reference_target";
 // Per-group bounds that keep parsing itself cheap (the duplicate checks are
 // quadratic); the whole expansion is bounded by CaptureLimits.
 constexpr int kMaxGridPoses = CaptureLimits{}.max_frames;
@@ -39,6 +39,23 @@ double LevelIn(const YamlNode& node, const char* key, double fallback) {
 }
 
 double ExposureIn(const YamlNode& node) { return node.AsDoubleIn(kMinExposureUs, kMaxExposureUs); }
+
+// `exposures_us: [..]`: an HDR bracket of distinct exposures (absent: none).
+std::vector<double> BracketIn(const YamlNode& body) {
+  std::vector<double> exposures;
+  if (auto bracket = body.Find("exposures_us")) {
+    for (const YamlNode& item : bracket->Items()) {
+      const double exposure_us = ExposureIn(item);
+      for (double seen : exposures)
+        if (seen == exposure_us) item.Fail("exposure listed twice in the bracket");
+      exposures.push_back(exposure_us);
+      if (exposures.size() > kMaxBracketExposures)
+        item.Fail("a bracket has at most " + std::to_string(kMaxBracketExposures) + " exposures");
+    }
+    if (exposures.empty()) bracket->Fail("needs at least one exposure");
+  }
+  return exposures;
+}
 
 // `leds: all` (or absent) is every LED; otherwise a list of LED ids.
 std::vector<int> LedIdsIn(const YamlNode& body) {
@@ -111,8 +128,9 @@ Recipe::Group ParseGroup(const YamlNode& step) {
   const YamlNode body = step[kind];
   if (kind == "dark") {
     group.kind = Kind::kDark;
-    body.ExpectKeys({"count", "repeat"});
+    body.ExpectKeys({"count", "exposures_us", "repeat"});
     group.count = CountIn(body, "count");
+    group.exposures_us = BracketIn(body);
   } else if (kind == "flat") {
     group.kind = Kind::kFlat;
     body.ExpectKeys({"count", "level", "leds", "exposure_us", "repeat"});
@@ -125,17 +143,7 @@ Recipe::Group ParseGroup(const YamlNode& step) {
     body.ExpectKeys({"leds", "level", "exposures_us", "repeat"});
     group.led_ids = LedIdsIn(body);
     group.level = LevelIn(body, "level", 1.0);
-    if (auto bracket = body.Find("exposures_us")) {
-      for (const YamlNode& item : bracket->Items()) {
-        const double exposure_us = ExposureIn(item);
-        for (double seen : group.exposures_us)
-          if (seen == exposure_us) item.Fail("exposure listed twice in the bracket");
-        group.exposures_us.push_back(exposure_us);
-        if (group.exposures_us.size() > kMaxBracketExposures)
-          item.Fail("a bracket has at most " + std::to_string(kMaxBracketExposures) + " exposures");
-      }
-      if (group.exposures_us.empty()) bracket->Fail("needs at least one exposure");
-    }
+    group.exposures_us = BracketIn(body);
   } else if (kind == "pattern") {
     group.kind = Kind::kPattern;
     body.ExpectKeys({"name", "leds", "level", "count", "exposure_us", "repeat"});
@@ -163,9 +171,17 @@ Recipe::Group ParseGroup(const YamlNode& step) {
     if (group.pattern.empty()) body["leds"].Fail("a pattern lights at least one LED");
   } else if (kind == "poses") {
     group.kind = Kind::kPoses;
-    body.ExpectKeys({"list", "grid", "level", "repeat"});
+    body.ExpectKeys({"list", "grid", "level", "exposures_us", "count", "repeat"});
     group.level = LevelIn(body, "level", 1.0);
+    group.exposures_us = BracketIn(body);
+    group.count = CountIn(body, "count");
     group.poses = PosesIn(body);
+  } else if (kind == "reference_target") {
+    group.kind = Kind::kReferenceTarget;
+    body.ExpectKeys({"level", "exposures_us", "count", "repeat"});
+    group.level = LevelIn(body, "level", 1.0);
+    group.exposures_us = BracketIn(body);
+    group.count = CountIn(body, "count");
   } else {
     step.Fail("unknown step '" + kind + "' (expected " + kGroupNames + ")");
   }
@@ -255,6 +271,15 @@ std::string RecipeRigPath(const std::string& recipe_path, const std::string& ove
   throw ConfigError(recipe_path, 0, 0, "recipe.rig", "the recipe names no rig; pass --rig FILE");
 }
 
+namespace {
+// "_e2000": a bracketed frame's exposure in its label.
+std::string ExposureSuffix(double exposure_us) {
+  char suffix[32];
+  std::snprintf(suffix, sizeof(suffix), "_e%.0f", exposure_us);
+  return suffix;
+}
+}  // namespace
+
 const char* CaptureStepKindName(CaptureStep::Kind kind) {
   switch (kind) {
     case CaptureStep::Kind::kDark: return "dark";
@@ -336,7 +361,10 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
     switch (group.kind) {
       case Kind::kDark:
         base.group = "dark";
-        for (int i = 0; i < group.count; ++i) emit(base, "dark", default_exposure_us);
+        for (double exposure_us : group.exposures_us.empty() ? std::vector<double>{default_exposure_us}
+                                                             : group.exposures_us)
+          for (int i = 0; i < group.count; ++i)
+            emit(base, group.exposures_us.empty() ? "dark" : "dark" + ExposureSuffix(exposure_us), exposure_us);
         break;
       case Kind::kFlat:
         base.kind = CaptureStep::Kind::kFlat;
@@ -362,25 +390,38 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
             step.led = i;
             step.pattern = drivers::LightPattern::Single(channels, i, group.level);
             char name[48];
-            if (bracket) std::snprintf(name, sizeof(name), "led%02d_e%.0f", rig.lights.leds[i].id, exposure_us);
-            else std::snprintf(name, sizeof(name), "led%02d", rig.lights.leds[i].id);
-            emit(std::move(step), name, exposure_us);
+            std::snprintf(name, sizeof(name), "led%02d", rig.lights.leds[i].id);
+            emit(std::move(step), bracket ? name + ExposureSuffix(exposure_us) : name, exposure_us);
           }
         break;
       }
-      case Kind::kPoses: {
+      case Kind::kPoses:
+      case Kind::kReferenceTarget: {
         if (!rig.motion) group.source->Fail("poses need a rig with a motion: section; rig '" + rig.name + "' has none");
+        const bool target = group.kind == Kind::kReferenceTarget;
+        if (target && !rig.reference_target)
+          group.source->Fail("rig '" + rig.name + "' names no reference_target to capture");
         base.kind = CaptureStep::Kind::kPose;
-        base.group = "poses";
+        base.group = target ? "reference_target" : "poses";
         base.pattern = drivers::LightPattern::AllOff(channels);
         for (double& level : base.pattern.levels) level = group.level;
-        for (const GonioPose& pose : group.poses) {
-          CaptureStep step = base;
-          step.pose = pose;
+        const bool bracket = !group.exposures_us.empty();
+        const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};
+        const std::vector<GonioPose> poses = target ? std::vector<GonioPose>{rig.reference_target->pose} : group.poses;
+        for (GonioPose pose : poses) {
+          // With the target in a changer slot, a pose that names no slot must still see the sample.
+          if (!target && !pose.sample_changer_deg && rig.reference_target &&
+              rig.reference_target->pose.sample_changer_deg)
+            pose.sample_changer_deg = 0.0;
           char name[96];
-          std::snprintf(name, sizeof(name), "pose_l%+.1f_c%+.1f_r%+.1f", pose.light_arm_deg, pose.camera_arm_deg,
-                        pose.sample_rotation_deg);
-          emit(std::move(step), name, default_exposure_us);
+          std::snprintf(name, sizeof(name), "%s_l%+.1f_c%+.1f_r%+.1f", target ? "target" : "pose", pose.light_arm_deg,
+                        pose.camera_arm_deg, pose.sample_rotation_deg);
+          for (double exposure_us : exposures)
+            for (int i = 0; i < group.count; ++i) {
+              CaptureStep step = base;
+              step.pose = pose;
+              emit(std::move(step), bracket ? name + ExposureSuffix(exposure_us) : name, exposure_us);
+            }
         }
         break;
       }

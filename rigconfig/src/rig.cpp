@@ -277,6 +277,34 @@ HealthConfig ParseHealth(const YamlNode& node, HealthConfig health) {
   return health;
 }
 
+// reference_target: {albedo, pose: {light_arm_deg, camera_arm_deg, sample_rotation_deg, sample_changer_deg}}
+ReferenceTargetConfig ParseReferenceTarget(const YamlNode& node, const RigConfig& rig) {
+  if (!rig.motion) node.Fail("only a gonioreflectometer rig has a reference target");
+  node.ExpectKeys({"albedo", "pose"});
+  ReferenceTargetConfig target;
+  // Above 1 would be a fluorescent or retro-reflecting target, not a diffuse standard.
+  target.albedo = node["albedo"].AsDoubleIn(0.01, 1.0);
+  const YamlNode pose = node["pose"];
+  pose.ExpectKeys({"light_arm_deg", "camera_arm_deg", "sample_rotation_deg", "sample_changer_deg"});
+  target.pose = {pose["light_arm_deg"].AsDouble(), pose["camera_arm_deg"].AsDouble(),
+                 pose.Double("sample_rotation_deg", 0.0), std::nullopt};
+  std::map<std::string, double> at = {{"light_arm", target.pose.light_arm_deg},
+                                      {"camera_arm", target.pose.camera_arm_deg},
+                                      {"sample_rotation", target.pose.sample_rotation_deg}};
+  if (auto changer = pose.Find("sample_changer_deg")) {
+    target.pose.sample_changer_deg = changer->AsDouble();
+    // 0 holds the sample: the target needs a slot of its own.
+    if (std::abs(*target.pose.sample_changer_deg) <= 0.5) changer->Fail("0 is the sample's slot, not the target's");
+    at["sample_changer"] = *target.pose.sample_changer_deg;
+  }
+  if (const std::string why = rig.motion->CheckPose(at); !why.empty()) pose.Fail("the arms cannot reach it: " + why);
+  // The target is measured at the one pose: a grazing one would weigh its
+  // departure from Lambertian and its tilt error most.
+  if (std::abs(target.pose.light_arm_deg) > 60.0 || std::abs(target.pose.camera_arm_deg) > 60.0)
+    pose.Fail("light and camera arms within 60 deg of the normal (a diffuse standard is Lambertian only there)");
+  return target;
+}
+
 }  // namespace
 
 const AxisConfig* MotionConfig::axis(const std::string& id) const {
@@ -306,7 +334,7 @@ std::string MotionConfig::CheckPose(const std::map<std::string, double>& positio
 
 RigConfig LoadRigConfig(const std::string& path) {
   const YamlNode root = YamlNode::LoadFile(path);
-  root.ExpectKeys({"rig", "lights", "camera", "sim", "motion", "health", "solve"});
+  root.ExpectKeys({"rig", "lights", "camera", "sim", "motion", "health", "solve", "reference_target"});
   RigConfig rig;
   rig.path = path;
   const YamlNode header = root["rig"];
@@ -323,6 +351,7 @@ RigConfig LoadRigConfig(const std::string& path) {
   } else if (rig.kind == "gonioreflectometer") {
     root.Fail("a gonioreflectometer rig needs a 'motion:' section");
   }
+  if (auto target = root.Find("reference_target")) rig.reference_target = ParseReferenceTarget(*target, rig);
 
   const YamlNode lights = root["lights"];
   lights.ExpectKeys({"driver", "id", "leds", "options"});
@@ -417,6 +446,10 @@ RigConfig LoadRigConfig(const std::string& path) {
     cam.dn_per_radiance_per_us = sim.sensor.response_e_per_us / sim.sensor.e_per_dn;
     cam.e_per_dn = sim.sensor.e_per_dn;
     rig.sim = sim;
+    // The simulator shows its target in a sample changer slot, nowhere else.
+    if (rig.reference_target && !rig.reference_target->pose.sample_changer_deg)
+      root["reference_target"]["pose"].Fail(
+          "a simulated gonioreflectometer shows its reference target in a sample changer slot: give sample_changer_deg");
   }
   if (auto conversion = camera.Find("e_per_dn")) {
     cam.e_per_dn = conversion->AsDouble();

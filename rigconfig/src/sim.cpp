@@ -133,6 +133,9 @@ sim::WorldConfig MakeWorldConfig(const RigConfig& rig, const sim::Scene& scene) 
   world.scene = scene;
   world.camera = {rig.camera.width, rig.camera.height, rig.camera.pixel_pitch_mm};
   world.gonioreflectometer = rig.kind == "gonioreflectometer";
+  if (rig.reference_target && rig.reference_target->pose.sample_changer_deg)
+    world.reference_target = sim::ReferenceTarget{rig.reference_target->albedo,
+                                                  *rig.reference_target->pose.sample_changer_deg};
   for (const LedConfig& led : rig.lights.leds) {
     sim::Light light(led.direction, led.intensity);
     if (led.position_mm) {

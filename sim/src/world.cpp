@@ -20,6 +20,9 @@ const WorldConfig& Validated(const WorldConfig& config) {
   if (config.scene.shape == Scene::Shape::kPhantom &&
       (!config.gonioreflectometer || config.camera.projection != CameraModel::Projection::kOrthographic))
     throw std::invalid_argument("simulated scene: a phantom sits on a gonioreflectometer's turntable, seen orthographically");
+  if (config.reference_target && !(config.gonioreflectometer && config.reference_target->albedo > 0.0 &&
+                                   config.reference_target->albedo <= 1.0))
+    throw std::invalid_argument("simulated reference target: a gonioreflectometer's, of albedo within (0, 1]");
   if (!config.ambient.IsValid(&why)) throw std::invalid_argument("simulated ambient light: " + why);
   if (!config.color.IsValid(&why)) throw std::invalid_argument("simulated colour camera: " + why);
   if (config.color.IsOn() && (config.gonioreflectometer || config.scene.shape == Scene::Shape::kVolume))
@@ -168,8 +171,19 @@ cv::Mat World::RenderRadiance() const {
   const std::vector<double> emitted = EmittedLevels();
   if (config_.scene.shape == Scene::Shape::kPhantom)
     return RenderPhantomTransmission(config_.scene, config_.camera, config_.lights, emitted, arms());
-  if (config_.gonioreflectometer)
-    return RenderGonioRadiance(config_.scene, *brdf_, config_.camera, config_.lights, emitted, arms());
+  if (config_.gonioreflectometer) {
+    const ArmAngles at = arms();
+    if (config_.reference_target &&
+        std::abs(at.sample_changer_deg - config_.reference_target->sample_changer_deg) <= 0.5) {
+      Scene target = config_.scene;
+      target.albedo.pattern = AlbedoTexture::Pattern::kUniform;
+      target.albedo.high = config_.reference_target->albedo;
+      target.material = Material{};  // Lambertian
+      return RenderGonioRadiance(target, *target.material.MakeBrdf(target.albedo.high), config_.camera,
+                                 config_.lights, emitted, at);
+    }
+    return RenderGonioRadiance(config_.scene, *brdf_, config_.camera, config_.lights, emitted, at);
+  }
   // The backlight belongs to the scene, not to the dome: it is always on.
   if (config_.scene.shape == Scene::Shape::kVolume)
     return RenderTransmission(surface_.line_integrals, config_.scene.backlight_radiance);

@@ -290,6 +290,90 @@ TEST(Gonio, MotionFaultsNameAnAxisOfTheRig) {
   ExpectConfigError(GonioRig("{motion: {tilt_arm: {refused_moves: [1]}}}"), 25, 31, "no axis 'tilt_arm'");
 }
 
+// The rig with a sample changer holding a reference target of albedo 0.9 in slot 90.
+std::string GonioRigWithTarget(const std::string& target_pose = "{light_arm_deg: 0, camera_arm_deg: 45, "
+                                                                 "sample_changer_deg: 90}") {
+  return Replace(Replace(GonioRig(), "    - {id: sample_rotation, min_deg: -180, max_deg: 180}\n",
+                         "    - {id: sample_rotation, min_deg: -180, max_deg: 180}\n"
+                         "    - {id: sample_changer, min_deg: -5, max_deg: 95}\n"),
+                 "sim:\n", "reference_target: {albedo: 0.9, pose: " + target_pose + "}\nsim:\n");
+}
+
+TEST(Gonio, BracketsRepeatsAndTheReferenceTargetCompileToSteps) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRigWithTarget()));
+  ASSERT_TRUE(rig.reference_target.has_value());
+  EXPECT_EQ(rig.reference_target->albedo, 0.9);
+  const Recipe recipe = LoadRecipe(
+      dir.Write("r.yaml", "recipe: {name: gonio, rig: rig.yaml}\ncapture:\n  exposure_us: 4000\n  steps:\n"
+                          "    - dark: {count: 2, exposures_us: [1000, 4000]}\n"
+                          "    - reference_target: {count: 2, exposures_us: [1000]}\n"
+                          "    - poses: {exposures_us: [1000, 4000], count: 2, list: [{light_arm_deg: -30, "
+                          "camera_arm_deg: 30}]}\n"),
+      rig);
+  const auto steps = CompileSteps(recipe, rig);
+  ASSERT_EQ(steps.size(), 10u);
+  EXPECT_EQ(steps[0].label, "0000_dark_e1000");
+  EXPECT_EQ(steps[3].exposure_us, 4000.0);
+  // The target: at its pose, the changer on its slot.
+  EXPECT_EQ(steps[4].group, "reference_target");
+  EXPECT_EQ(steps[4].label, "0004_target_l+0.0_c+45.0_r+0.0_e1000");
+  ASSERT_TRUE(steps[5].pose && steps[5].pose->sample_changer_deg);
+  EXPECT_EQ(*steps[5].pose->sample_changer_deg, 90.0);
+  // A pose naming no slot holds the sample; each exposure `count` times, as listed.
+  EXPECT_EQ(steps[6].label, "0006_pose_l-30.0_c+30.0_r+0.0_e1000");
+  ASSERT_TRUE(steps[6].pose && steps[6].pose->sample_changer_deg);
+  EXPECT_EQ(*steps[6].pose->sample_changer_deg, 0.0);
+  const double exposures[] = {1000, 1000, 4000, 4000};
+  for (int k = 0; k < 4; ++k) EXPECT_EQ(steps[6 + k].exposure_us, exposures[k]) << k;
+  EXPECT_TRUE(PlanRun(recipe, rig, steps).ok());
+
+  // Refusals, each at its line.
+  const std::string no_target = dir.Write("plain.yaml", GonioRig());
+  const RigConfig plain = LoadRigConfig(no_target);
+  const std::string asks = dir.Write("asks.yaml", "recipe: {name: gonio, rig: rig.yaml}\ncapture:\n  steps:\n"
+                                                  "    - dark: {count: 2}\n    - reference_target: {count: 1}\n");
+  photorig::testing::ExpectConfigErrorAt([&] { CompileSteps(LoadRecipe(asks, plain), plain); }, asks, 5, 7,
+                                         "names no reference_target");
+  const std::string twice = dir.Write(
+      "twice.yaml", GonioRecipe("        exposures_us: [1000, 1000]\n        list: [{light_arm_deg: 0, camera_arm_deg: 30}]\n"));
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(twice, rig); }, twice, 7, 30, "listed twice");
+  ExpectConfigError(Replace(GonioRigWithTarget(), "albedo: 0.9", "albedo: 1.5"), 18, 28, "must lie in [0.01, 1]");
+  ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 10, sample_changer_deg: 90}"), 18, 39,
+                    "below the minimum 15");
+  ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 45, sample_changer_deg: 0}"), 18, 98,
+                    "the sample's slot");
+  ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 45}"), 18, 39,
+                    "give sample_changer_deg");
+}
+
+// The simulator shows the target in its slot: a Lambertian plane of its albedo.
+TEST(Gonio, TheSimulatedReferenceTargetIsLambertianOfItsAlbedo) {
+  TempDir dir;
+  dir.Write("rig.yaml", GonioRigWithTarget());
+  RunRequest request;
+  request.recipe_path = dir.Write(
+      "r.yaml", "recipe: {name: gonio, rig: rig.yaml}\ncapture:\n  exposure_us: 4000\n  steps:\n"
+                "    - dark: {count: 1}\n    - reference_target: {count: 1}\n"
+                "    - poses: {list: [{light_arm_deg: -30, camera_arm_deg: 30}]}\n");
+  request.output_directory = (dir.path() / "run").string();
+  const RunOutcome outcome = ExecuteRun(request);
+  ASSERT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;
+  const RunManifest manifest = LoadRunManifest(request.output_directory);
+  ASSERT_EQ(manifest.frames.size(), 3u);
+  ASSERT_TRUE(manifest.reference_albedo.has_value());
+  EXPECT_EQ(*manifest.reference_albedo, 0.9);
+  EXPECT_EQ(manifest.frames[1].group, "reference_target");
+  cv::Mat target, sample;
+  LoadFrame(request.output_directory, manifest.frames[1]).convertTo(target, CV_64F);
+  LoadFrame(request.output_directory, manifest.frames[2]).convertTo(sample, CV_64F);
+  // Light on the normal: L = 0.9 / pi at unit irradiance.
+  EXPECT_NEAR(target.at<double>(16, 16), kBlack + 0.9 / M_PI * kResponse * kExposureUs / kEPerDn, 0.51);
+  // After the target, the changer brings the sample back.
+  const double expected_dn = kBlack + ExpectedRadiance(-30, 30) * kResponse * kExposureUs / kEPerDn;
+  EXPECT_NEAR(sample.at<double>(16, 16), expected_dn, 0.5 + 1e-3 * expected_dn);
+}
+
 TEST(Gonio, ShippedRecipeDryRunsClean) {
   const std::string path = SourceDir() + "/config/recipes/gonio-sample.yaml";
   const RigConfig rig = LoadRigConfig(RecipeRigPath(path, ""));

@@ -55,7 +55,7 @@ TEST(RecipeGroups, ErrorsNameTheOffendingValue) {
   ExpectRecipeError("    - each_led: {exposures_us: [1000, 1000]}\n", 5, 39, "listed twice");
   ExpectRecipeError("    - each_led: {exposures_us: []}\n", 5, 32, "at least one exposure");
   ExpectRecipeError("    - dark: {count: 1, repeat: 0}\n", 5, 32, "must be within [1, 1000]");
-  ExpectRecipeError("    - strobe: {count: 1}\n", 5, 7, "expected dark, flat, each_led, pattern or poses");
+  ExpectRecipeError("    - strobe: {count: 1}\n", 5, 7, "expected dark, flat, each_led, pattern, poses or reference_target");
   ExpectRecipeError("    - poses: {list: [{light_arm_deg: 10, camera_arm_deg: -20}]}\n", 5, 7,
                     "poses need a rig with a motion: section");
 }

@@ -1,25 +1,21 @@
-// photorig solve brdf --run DIR [--loss weighted|log] [--out DIR]   (--json as every command: docs/cli.md)
+// photorig solve brdf --run DIR [--loss weighted|log] [--calibration reference|camera] [--out DIR]
+//   (--json as every command: docs/cli.md)
 //
-// Gonioreflectometer frames -> BRDF samples -> every candidate model fitted
-// and the one the data support chosen (solvers/brdf). Each pose frame gives
-// one sample: the mean of a central block of pixels (every pixel of the
-// orthographic camera sees the sample under the same directions), minus the
-// dark frames' mean, divided by what a perfect white diffuser would give
-// without the 1/pi (lamp irradiance x level x camera response x exposure x
-// gain x cos theta_i). Its sigma is the block's standard error. A grey camera
-// gives the same value in all three channels.
+// Gonioreflectometer frames -> BRDF samples (daemon/brdf_measurement.h: the
+// bracket merged per pixel, calibrated against the rig's reference target,
+// deviations from the sensor's noise model) -> every candidate model fitted
+// and the one the data support chosen (solvers/brdf). A grey camera gives
+// the same value in all three channels.
 
 #include "../command.h"
 #include "../command_output.h"
 #include "brdf_report.h"
+#include "photorig/daemon/brdf_measurement.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/solvers/brdf/fit.h"
-#include "photorig/solvers/brdf/pose_plan.h"
 
 #include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
 
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -31,68 +27,40 @@ namespace {
 namespace brdf = photorig::solvers::brdf;
 namespace fs = std::filesystem;
 
-// A block the sample fills up to a camera arm at 80 deg on config/rigs/sim-gonio.yaml
-// (a 12 mm sample seen through 0.5 mm pixels, foreshortened by cos 80 deg: +-2.1 mm).
-constexpr int kBlockPx = 8;
-
 struct Options {
-  std::string run_dir, out, loss = "weighted";
+  std::string run_dir, out, loss = "weighted", calibration = "reference";
 };
 
-struct Extraction {
-  std::vector<brdf::BrdfSample> samples;
-  int pose_frames = 0, dark_frames = 0, clipped = 0, below_horizon = 0;
-};
-
-cv::Mat CentralBlock(const cv::Mat& frame) {
-  const int x = (frame.cols - kBlockPx) / 2, y = (frame.rows - kBlockPx) / 2;
-  cv::Mat block;
-  frame(cv::Rect(x, y, kBlockPx, kBlockPx)).convertTo(block, CV_64F);
-  return block;
-}
-
-Extraction ExtractSamples(const std::string& run_dir, const daemon::RunManifest& manifest) {
-  Extraction out;
-  if (manifest.lights.empty()) throw std::runtime_error(run_dir + "/manifest.json: the run has no lamp");
-  double dark_sum = 0.0;
-  for (const daemon::FrameRecord& r : manifest.frames)
-    if (r.kind == "dark") {
-      dark_sum += cv::mean(CentralBlock(daemon::LoadFrame(run_dir, r)))[0];
-      ++out.dark_frames;
-    }
-  // Without dark frames the black level stays in the signal; say so rather than guess it.
-  if (out.dark_frames == 0) throw std::runtime_error(run_dir + ": no dark frames to subtract (add a dark step)");
-  const double dark_dn = dark_sum / out.dark_frames;
-  for (const daemon::FrameRecord& r : manifest.frames) {
-    if (r.kind != "pose" || !r.pose) continue;
-    ++out.pose_frames;
-    const cv::Mat block = CentralBlock(daemon::LoadFrame(run_dir, r));
-    double max_dn;
-    cv::minMaxLoc(block, nullptr, &max_dn);
-    const int bits = r.bit_depth > 0 ? r.bit_depth : manifest.bit_depth;
-    if (max_dn >= std::ldexp(1.0, bits) - 1.0) {
-      ++out.clipped;
-      continue;
-    }
-    const brdf::DirectionPair dirs =
-        brdf::ArmDirections({r.pose->light_arm_deg, r.pose->camera_arm_deg, r.pose->sample_rotation_deg});
-    if (dirs.wi.z() <= 0.0 || dirs.wo.z() <= 0.0) {
-      ++out.below_horizon;
-      continue;
-    }
-    cv::Scalar mean, sd;
-    cv::meanStdDev(block, mean, sd);
-    const double level = r.level > 0.0 ? r.level : 1.0;
-    const double scale = manifest.lights[0].intensity * level * manifest.dn_per_radiance_per_us * r.exposure_us *
-                         std::pow(10.0, r.gain_db / 20.0) * dirs.wi.z();
-    brdf::BrdfSample s;
-    s.wi = dirs.wi;
-    s.wo = dirs.wo;
-    s.value.setConstant((mean[0] - dark_dn) / scale);
-    s.sigma.setConstant(std::max(sd[0], 0.5) / std::sqrt(double(block.total())) / scale);  // >= half a DN
-    out.samples.push_back(s);
-  }
-  return out;
+nlohmann::json MeasurementJson(const daemon::BrdfMeasurement& m) {
+  nlohmann::json clipped = nlohmann::json::array();
+  for (const daemon::ClippedPose& c : m.clipped)
+    clipped.push_back({{"light_arm_deg", c.pose.light_arm_deg},
+                       {"camera_arm_deg", c.pose.camera_arm_deg},
+                       {"sample_rotation_deg", c.pose.sample_rotation_deg},
+                       {"theta_h_deg", c.theta_h_deg},
+                       {"shortest_exposure_us", c.shortest_exposure_us}});
+  return {{"pose_frames", m.pose_frames},
+          {"dark_frames", m.dark_frames},
+          {"reference_frames", m.target_frames},
+          {"poses", m.poses},
+          {"bracketed_poses", m.bracketed_poses},
+          {"samples", m.samples.size()},
+          {"clipped_poses", clipped},
+          {"peak_clipped", m.peak_clipped},
+          {"below_horizon_poses", m.below_horizon},
+          {"calibration",
+           {{"source", m.calibration},
+            {"dn_per_radiance_per_us", m.dn_per_radiance_per_us},
+            {"relative_sigma", m.calibration_relative_sigma},
+            {"reference_albedo", m.reference_albedo},
+            {"camera_dn_per_radiance_per_us", m.camera_dn_per_radiance_per_us}}},
+          {"noise",
+           {{"read_sigma_dn", m.read_sigma_dn},
+            {"read_from", "darks"},
+            {"shot_dn_per_dn", m.shot_dn_per_dn},
+            {"shot_from", m.shot_estimated ? "repeats" : "camera e_per_dn"},
+            {"repeat_sigma_ratio", m.repeat_sigma_ratio},
+            {"repeat_dof", m.repeat_dof}}}};
 }
 
 int Execute(const Options& options) {
@@ -104,32 +72,58 @@ int Execute(const Options& options) {
   };
   brdf::SelectionOptions selection;
   selection.fit.loss = options.loss == "log" ? brdf::FitLoss::kLog : brdf::FitLoss::kWeighted;
-  Extraction extraction;
+  daemon::BrdfMeasurementOptions measuring;
+  if (options.calibration == "camera")
+    measuring.calibration = daemon::BrdfMeasurementOptions::Calibration::kCameraResponse;
+  daemon::BrdfMeasurement m;
   try {
-    extraction = ExtractSamples(options.run_dir, daemon::LoadRunManifest(options.run_dir));
-  } catch (const std::exception& e) {
+    m = daemon::MeasureBrdf(options.run_dir, daemon::LoadRunManifest(options.run_dir), measuring);
+  } catch (const std::exception& e) {  // an unreadable manifest or frame
     return finish(kExitUsage, e.what());
   }
-  doc["pose_frames"] = extraction.pose_frames;
-  doc["samples"] = extraction.samples.size();
-  doc["clipped_frames"] = extraction.clipped;
-  doc["below_horizon_frames"] = extraction.below_horizon;
-  if (extraction.samples.empty()) return finish(kExitFailed, "no usable pose frames");
-  const brdf::SelectionSummary s = brdf::SelectModel(extraction.samples, selection);
+  if (!m.IsSolutionUsable())
+    return finish(m.termination == solvers::Termination::kFailure ? kExitFailed : kExitUsage, m.message);
+  doc.update(MeasurementJson(m));
+  FILE* text = stdout;  // under --json main points it at stderr
+  std::fprintf(text, "%zu samples from %d poses (%d frames, %d bracketed), %zu clipped, %d below the horizon\n",
+               m.samples.size(), m.poses, m.pose_frames, m.bracketed_poses, m.clipped.size(), m.below_horizon);
+  for (const daemon::ClippedPose& c : m.clipped)
+    std::fprintf(text, "  clipped: light %+.1f camera %+.1f deg (theta_h %.1f deg) even at %.0f us: no sample\n",
+                 c.pose.light_arm_deg, c.pose.camera_arm_deg, c.theta_h_deg, c.shortest_exposure_us);
+  if (m.calibration == "reference_target")
+    std::fprintf(text, "calibration: reference target of albedo %.3f: %.5g DN per radiance per us +- %.2g %% "
+                 "(a scale every f_r shares; the camera states %.5g)\n",
+                 m.reference_albedo, m.dn_per_radiance_per_us, 100.0 * m.calibration_relative_sigma,
+                 m.camera_dn_per_radiance_per_us);
+  else
+    std::fprintf(text, "calibration: the camera's stated response, %.5g DN per radiance per us (uncertainty not known)\n",
+                 m.dn_per_radiance_per_us);
+  std::fprintf(text, "noise: read %.2f DN (from the darks), shot %.4g DN^2 per DN (%s)", m.read_sigma_dn,
+               m.shot_dn_per_dn, m.shot_estimated ? "estimated from the repeats" : "from the camera's e_per_dn");
+  if (m.repeat_dof > 0)
+    std::fprintf(text, "; repeats scatter %.2f x the propagated deviation (%d dof)", m.repeat_sigma_ratio,
+                 m.repeat_dof);
+  std::fprintf(text, "\n");
+  if (m.samples.empty()) return finish(kExitFailed, "no usable pose frames");
+  const brdf::SelectionSummary s = brdf::SelectModel(m.samples, selection);
   doc.update(SelectionJson(s));
+  // A clipped peak leaves the lobe's height unmeasured: the fit cannot say so itself.
+  if (m.peak_clipped)
+    doc["warning"] = "the specular peak was clipped (a pose within " +
+                     std::to_string(static_cast<int>(measuring.peak_theta_h_deg)) +
+                     " deg of it saturated at every exposure): the lobe's height and width are not measured there; "
+                     "capture it with an exposure bracket";
 
   const std::string out = options.out.empty() ? (fs::path(options.run_dir) / "results" / "brdf").string() : options.out;
   fs::create_directories(out);
   std::ofstream(fs::path(out) / "report.json") << doc.dump(2) << "\n";
-  const solvers::Summary written = brdf::WriteSamplesCsv((fs::path(out) / "samples.csv").string(), extraction.samples);
+  const solvers::Summary written = brdf::WriteSamplesCsv((fs::path(out) / "samples.csv").string(), m.samples);
   if (!written.IsSolutionUsable()) return finish(kExitFailed, written.message);
   doc["results"] = out;
 
-  FILE* text = stdout;  // under --json main points it at stderr
-  std::fprintf(text, "%zu samples from %d pose frames (%d clipped, %d below the horizon), closest theta_h %.1f deg\n",
-               extraction.samples.size(), extraction.pose_frames, extraction.clipped, extraction.below_horizon,
-               s.min_theta_h_deg);
+  std::fprintf(text, "closest theta_h %.1f deg\n", s.min_theta_h_deg);
   PrintSelection(text, s);
+  if (m.peak_clipped) std::fprintf(text, "warning: %s\n", doc["warning"].get<std::string>().c_str());
   std::fprintf(text, "results: %s/\n", out.c_str());
   return finish(s.IsSolutionUsable() ? kExitOk : kExitFailed, s.IsSolutionUsable() ? "" : s.message);
 }
@@ -141,6 +135,9 @@ CommandRunner Setup(CLI::App& app) {
   sub->add_option("--run", options->run_dir, "run directory")->required()->check(CLI::ExistingDirectory);
   sub->add_option("--loss", options->loss, "weighted (by each sample's deviation, default) | log")
       ->check(CLI::IsMember({"weighted", "log"}));
+  sub->add_option("--calibration", options->calibration,
+                  "reference (the rig's reference target, default) | camera (the camera's stated response)")
+      ->check(CLI::IsMember({"reference", "camera"}));
   sub->add_option("--out", options->out, "output directory (default: RUN/results/brdf)");
   return {sub, [options] { return Execute(*options); }};
 }

@@ -26,7 +26,7 @@ struct FrameRecord {
   int index = 0;
   std::string file;        // relative to the run directory
   std::string kind;        // "dark" | "light" | "flat" | "pattern" | "pose" (CaptureStepKindName)
-  std::string group;       // the recipe group: "dark", "each_led", "flat", "pattern:<name>", "poses"
+  std::string group;       // the recipe group: "dark", "each_led", "flat", "pattern:<name>", "poses", "reference_target"
   int repeat = 0;          // 0-based repetition of its group
   int led = -1;            // kind "light": index into `lights`; -1 otherwise
   double level = 0.0;      // drive level of that LED
@@ -93,6 +93,10 @@ struct RunManifest {
   std::string color_model_path;
   std::string color_model_hash;
   std::vector<LedConfig> lights;
+  // A gonioreflectometer's reference target (rig `reference_target:`), whose
+  // frames are those of group "reference_target": its diffuse albedo, unset
+  // when the rig names none.
+  std::optional<double> reference_albedo;
   std::vector<FrameRecord> frames;
   bool has_ground_truth = false;
   std::optional<StopRecord> stop;

@@ -14,17 +14,6 @@
 
 namespace photorig::config {
 
-// Where a gonioreflectometer's three axes stand for one frame (degrees, axis
-// zero = the arm on the sample normal / the sample's reference orientation).
-struct GonioPose {
-  double light_arm_deg = 0.0;
-  double camera_arm_deg = 0.0;
-  double sample_rotation_deg = 0.0;
-  // A fourth axis only some rigs have: a tomograph's sample changer (0: the
-  // sample in the beam; elsewhere the open beam of a flat field). Unset: not moved.
-  std::optional<double> sample_changer_deg;
-};
-
 struct Recipe {
   std::string path;
   std::string name;
@@ -44,14 +33,24 @@ struct Recipe {
       kFlat,     // flat: {count, level, leds, exposure_us}: the listed LEDs (default all) lit together
       kEachLed,  // each_led: {leds, level, exposures_us}: one frame per LED per bracket exposure
       kPattern,  // pattern: {name, leds: [{id, level} | id], level, count, exposure_us}
-      kPoses,    // poses: {list: [{light_arm_deg, camera_arm_deg, sample_rotation_deg, sample_changer_deg}] | grid: {...}, level}
+      // poses: {list: [{light_arm_deg, camera_arm_deg, sample_rotation_deg, sample_changer_deg}] | grid: {...},
+      //         level, exposures_us, count}: per pose, `count` frames at each bracket exposure
+      kPoses,
+      // reference_target: {count, exposures_us, level}: frames of the rig's
+      // reference target at its pose, for the radiometric calibration
+      kReferenceTarget,
     };
     Kind kind = Kind::kDark;
-    int count = 1;             // kDark, kFlat, kPattern: frames per repetition
+    // kDark, kFlat, kPattern: frames per repetition; kPoses, kReferenceTarget:
+    // frames per pose and exposure (repeats the solve merges and checks its noise model with)
+    int count = 1;
     int repeat = 1;
     std::vector<int> led_ids;  // kFlat, kEachLed: empty = all LEDs
     double level = 1.0;        // kFlat, kEachLed, kPoses (every LED), kPattern (entries given as bare ids)
-    std::vector<double> exposures_us;  // kEachLed: the HDR bracket; kFlat, kPattern: at most one. Empty = capture's
+    // kEachLed, kPoses, kReferenceTarget: the HDR bracket; kDark: one set of
+    // darks per exposure (dark current grows with it); kFlat, kPattern: at
+    // most one. Empty = the capture's exposure.
+    std::vector<double> exposures_us;
     std::string name;                  // kPattern: goes into the labels
     std::vector<std::pair<int, double>> pattern;  // kPattern: (LED id, level)
     std::vector<GonioPose> poses;                 // kPoses, in capture order
@@ -76,7 +75,7 @@ struct CaptureStep {
   int index = 0;
   Kind kind = Kind::kDark;
   std::string label;         // file stem, unique in the run: "0000_dark", "0001_led07", "0003_led02_e4000"
-  std::string group;         // the recipe group it came from: "dark", "each_led", "flat", "pattern:<name>", "poses"
+  std::string group;         // the recipe group it came from: "dark", "each_led", "flat", "pattern:<name>", "poses", "reference_target"
   int repeat = 0;            // 0-based repetition of its group
   int led = -1;              // kLight: index into RigConfig::lights.leds; -1 otherwise
   drivers::LightPattern pattern;
@@ -124,7 +123,8 @@ Recipe LoadRecipeText(const std::string& text, const std::string& name, const Ri
 // when neither names one.
 std::string RecipeRigPath(const std::string& recipe_path, const std::string& override_path);
 // Throws ConfigError (naming the recipe) when the recipe asks for LEDs the rig
-// lacks, or for poses on a rig without motion; CaptureLimitError when it
+// lacks, for poses on a rig without motion, or for a reference target the rig
+// does not name; CaptureLimitError when it
 // expands beyond `limits` (checked before the steps are built).
 std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig, const CaptureLimits& limits = {});
 

@@ -116,6 +116,18 @@ struct CameraConfig {
   std::optional<LoadedColorModel> color_model;
 };
 
+// Where a gonioreflectometer's three axes stand for one frame (degrees, axis
+// zero = the arm on the sample normal / the sample's reference orientation).
+struct GonioPose {
+  double light_arm_deg = 0.0;
+  double camera_arm_deg = 0.0;
+  double sample_rotation_deg = 0.0;
+  // A fourth axis only some rigs have: a sample changer (0: the sample in the
+  // beam; elsewhere a tomograph's open beam of a flat field, or a
+  // gonioreflectometer's reference target). Unset: not moved.
+  std::optional<double> sample_changer_deg;
+};
+
 // A gonioreflectometer's axes (kind: gonioreflectometer). Axis ids
 // light_arm, camera_arm and sample_rotation are what recipe poses move.
 struct AxisConfig {
@@ -208,6 +220,17 @@ struct SolveExecutorConfig {
   int poll_ms = 2000;
 };
 
+// A reflectance standard of known diffuse albedo (a Spectralon-like
+// target) the gonioreflectometer can bring under its arms: `photorig solve
+// brdf` scales f_r from its frames, so values come out in 1/sr whatever the
+// camera's stated response. `pose` is where its frames are taken; on a rig
+// whose target sits in a sample changer slot (pose.sample_changer_deg), every
+// recipe pose that names no changer position holds the sample (changer at 0).
+struct ReferenceTargetConfig {
+  double albedo = 0.99;  // Lambertian: f_r = albedo / pi
+  GonioPose pose;
+};
+
 struct RigConfig {
   std::string path;
   std::string name;
@@ -216,6 +239,7 @@ struct RigConfig {
   CameraConfig camera;
   std::optional<SimConfig> sim;  // present when any device is simulated
   std::optional<MotionConfig> motion;  // gonioreflectometers only
+  std::optional<ReferenceTargetConfig> reference_target;  // gonioreflectometers only
   HealthConfig health;
   SolveExecutorConfig solve;
 

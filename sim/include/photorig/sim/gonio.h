@@ -40,6 +40,14 @@ struct ArmAngles {
   double sample_changer_deg = 0.0;  // tomography: 0 holds the sample in the beam (RenderPhantomTransmission)
 };
 
+// A reflectance standard in a sample changer slot: while the changer stands
+// within 0.5 deg of `sample_changer_deg` the arms see a Lambertian sample
+// plane of `albedo` (the scene's radius) instead of the sample.
+struct ReferenceTarget {
+  double albedo = 0.99;
+  double sample_changer_deg = 90.0;
+};
+
 // Unit direction of an arm at `angle_deg` in the sample's frame after the
 // turntable turned it by `rotation_deg` (the arm is fixed, the sample turns).
 Eigen::Vector3d ArmDirectionInSample(double angle_deg, double rotation_deg);

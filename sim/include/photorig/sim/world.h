@@ -67,6 +67,7 @@ struct WorldConfig {
   // The camera and lamps ride gonioreflectometer arms: frames come from
   // RenderGonioRadiance at the arms' current angles (sim/gonio.h).
   bool gonioreflectometer = false;
+  std::optional<ReferenceTarget> reference_target;  // gonioreflectometers only
   ColorCamera color;  // off: a monochrome camera
 };
 

@@ -1,0 +1,376 @@
+#include "photorig/daemon/brdf_measurement.h"
+
+#include "photorig/solvers/brdf/half_diff.h"
+#include "photorig/solvers/brdf/pose_plan.h"
+
+#include <opencv2/core.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <tuple>
+
+namespace photorig::daemon {
+namespace {
+
+namespace brdf = solvers::brdf;
+using solvers::Termination;
+
+std::string Format(const char* format, double a, double b = 0.0, double c = 0.0) {
+  char text[256];
+  std::snprintf(text, sizeof(text), format, a, b, c);
+  return text;
+}
+
+// The frames of one exposure at one pose (or the darks of one exposure), as
+// the central block of pixels in DN.
+struct Exposure {
+  double exposure_us = 0.0, gain = 1.0, level = 1.0;
+  std::vector<cv::Mat> blocks;  // CV_64F, block_px x block_px
+};
+
+// Everything taken at one pose, by exposure (ascending).
+struct PoseFrames {
+  GonioPose pose;
+  std::map<double, Exposure> exposures;
+};
+
+using PoseKey = std::tuple<double, double, double, double>;
+PoseKey KeyOf(const GonioPose& p) {
+  return {p.light_arm_deg, p.camera_arm_deg, p.sample_rotation_deg, p.sample_changer_deg.value_or(0.0)};
+}
+
+cv::Mat CentralBlock(const cv::Mat& frame, int block_px) {
+  const int x = (frame.cols - block_px) / 2, y = (frame.rows - block_px) / 2;
+  cv::Mat block;
+  frame(cv::Rect(x, y, block_px, block_px)).convertTo(block, CV_64F);
+  return block;
+}
+
+cv::Mat MeanOf(const std::vector<cv::Mat>& blocks) {
+  cv::Mat sum = cv::Mat::zeros(blocks.front().size(), CV_64F);
+  for (const cv::Mat& b : blocks) sum += b;
+  return sum / static_cast<double>(blocks.size());
+}
+
+// The darks of one exposure: their mean per pixel and how many.
+struct Dark {
+  cv::Mat mean;
+  int count = 0;
+};
+
+// A block's rate (DN per us at 0 dB) merged over a pose's exposures.
+struct Merged {
+  double rate = 0.0, variance = 0.0;
+  bool clipped = false;  // some pixel unclipped at no exposure
+  int exposures_used = 0;
+};
+
+class Merger {
+ public:
+  Merger(const std::map<double, Dark>& darks, double saturation_dn, double read_var, double shot)
+      : darks_(darks), saturation_dn_(saturation_dn), read_var_(read_var), shot_(shot) {}
+
+  Merged Merge(const PoseFrames& pose) const {
+    Merged out;
+    const int n_pixels = pose.exposures.begin()->second.blocks.front().rows *
+                         pose.exposures.begin()->second.blocks.front().cols;
+    std::vector<bool> used(pose.exposures.size(), false);
+    for (int p = 0; p < n_pixels; ++p) {
+      // Rates of the exposures that do not clip this pixel, and the best one:
+      // the longest exposure's, which carries the most signal.
+      struct Reading {
+        double rate, scale, gain, n, n_dark;
+        std::size_t index;
+      };
+      std::vector<Reading> readings;
+      std::size_t index = 0;
+      for (const auto& [exposure_us, e] : pose.exposures) {
+        const Dark& dark = darks_.at(exposure_us);
+        double sum = 0.0;
+        bool clips = false;
+        for (const cv::Mat& b : e.blocks) {
+          const double dn = b.at<double>(p);
+          clips = clips || dn >= saturation_dn_;
+          sum += dn;
+        }
+        const double scale = exposure_us * e.gain;
+        if (!clips)
+          readings.push_back({(sum / e.blocks.size() - dark.mean.at<double>(p)) / scale, scale, e.gain,
+                              static_cast<double>(e.blocks.size()), static_cast<double>(dark.count), index});
+        ++index;
+      }
+      if (readings.empty()) {
+        out.clipped = true;
+        return out;
+      }
+      const double best_rate = std::max(readings.back().rate, 0.0);
+      double weight_sum = 0.0, weighted = 0.0;
+      for (const Reading& r : readings) {
+        // Per-frame variance at the signal the best rate predicts, averaged
+        // over the repeats, plus the subtracted dark mean's.
+        const double signal_dn = best_rate * r.scale;
+        const double var_dn = (read_var_ + shot_ * r.gain * signal_dn) / r.n + read_var_ / r.n_dark;
+        const double weight = r.scale * r.scale / var_dn;
+        weight_sum += weight;
+        weighted += weight * r.rate;
+        used[r.index] = true;
+      }
+      out.rate += weighted / weight_sum / n_pixels;
+      out.variance += 1.0 / weight_sum / (double(n_pixels) * n_pixels);
+    }
+    out.exposures_used = static_cast<int>(std::count(used.begin(), used.end(), true));
+    return out;
+  }
+
+ private:
+  const std::map<double, Dark>& darks_;
+  double saturation_dn_, read_var_, shot_;
+};
+
+}  // namespace
+
+bool BrdfMeasurementOptions::IsValid(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (block_px < 1 || block_px > 1024) return fail("block_px must be within [1, 1024]");
+  if (!(max_target_relative_sigma > 0.0 && max_target_relative_sigma < 1.0))
+    return fail("max_target_relative_sigma must be within (0, 1)");
+  if (!(peak_theta_h_deg >= 0.0 && peak_theta_h_deg < 90.0)) return fail("peak_theta_h_deg must be within [0, 90)");
+  return true;
+}
+
+BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manifest,
+                            const BrdfMeasurementOptions& options) {
+  BrdfMeasurement out;
+  solvers::SolveTimer timer;
+  if (std::string why; !options.IsValid(&why)) {
+    out.End(Termination::kInvalidOptions, why);
+    return out;
+  }
+  const std::string where = run_dir + ": ";
+  if (manifest.lights.empty()) {
+    out.End(Termination::kInvalidInput, where + "the run has no lamp");
+    return out;
+  }
+  if (manifest.mosaic != "mono") {
+    out.End(Termination::kInvalidInput, where + "a colour camera's frames (" + manifest.mosaic +
+                                            ") are not measured: the gonioreflectometer path is monochrome");
+    return out;
+  }
+  const int bits = manifest.bit_depth > 0 ? manifest.bit_depth : 16;
+  const double saturation_dn = manifest.saturation_dn > 0.0 ? manifest.saturation_dn : std::ldexp(1.0, bits) - 1.0;
+
+  // Frames by kind: darks by exposure, poses and the target by pose and exposure.
+  std::map<double, std::vector<cv::Mat>> darks;
+  std::vector<PoseFrames> poses, target;
+  std::map<PoseKey, std::size_t> pose_index;
+  for (const FrameRecord& r : manifest.frames) {
+    if (r.kind != "dark" && !(r.kind == "pose" && r.pose)) continue;
+    const cv::Mat block = CentralBlock(LoadFrame(run_dir, r), options.block_px);
+    if (r.kind == "dark") {
+      darks[r.exposure_us].push_back(block);
+      ++out.dark_frames;
+      continue;
+    }
+    const bool is_target = r.group == "reference_target";
+    std::vector<PoseFrames>& list = is_target ? target : poses;
+    if (is_target) {
+      ++out.target_frames;
+      if (list.empty()) list.push_back({*r.pose, {}});
+    } else {
+      ++out.pose_frames;
+      const auto [it, inserted] = pose_index.emplace(KeyOf(*r.pose), list.size());
+      if (inserted) list.push_back({*r.pose, {}});
+    }
+    PoseFrames& pose = is_target ? list.front() : list[pose_index.at(KeyOf(*r.pose))];
+    Exposure& e = pose.exposures[r.exposure_us];
+    e.exposure_us = r.exposure_us;
+    e.gain = std::pow(10.0, r.gain_db / 20.0);
+    e.level = r.level > 0.0 ? r.level : 1.0;
+    e.blocks.push_back(block);
+  }
+
+  // Darks: the mean per exposure, and the read noise from their temporal spread.
+  if (darks.empty()) {
+    out.End(Termination::kInvalidInput, where + "no dark frames to subtract (add a dark step)");
+    return out;
+  }
+  std::map<double, Dark> dark_means;
+  double squares = 0.0;
+  long dof = 0;
+  for (const auto& [exposure_us, blocks] : darks) {
+    const cv::Mat mean = MeanOf(blocks);
+    for (const cv::Mat& b : blocks) squares += cv::norm(b - mean, cv::NORM_L2SQR);
+    dof += static_cast<long>(blocks.size() - 1) * mean.rows * mean.cols;
+    dark_means[exposure_us] = {mean, static_cast<int>(blocks.size())};
+  }
+  if (dof == 0) {
+    out.End(Termination::kInvalidInput,
+            where + "the read noise needs two or more dark frames at one exposure (add `dark: {count: 2}`)");
+    return out;
+  }
+  // Quantisation's 1/12 DN^2 is a floor even for a noise-free sensor.
+  const double read_var = std::max(squares / dof, 1.0 / 12.0);
+  out.read_sigma_dn = std::sqrt(read_var);
+  for (const std::vector<PoseFrames>* list : {&poses, &target})
+    for (const PoseFrames& pose : *list)
+      for (const auto& [exposure_us, e] : pose.exposures)
+        if (!dark_means.count(exposure_us)) {
+          out.End(Termination::kInvalidInput,
+                  where + Format("no dark frame at exposure %.0f us, which a pose was taken at: dark current and "
+                                 "offsets depend on the exposure (add it to the dark step's exposures_us)",
+                                 exposure_us));
+          return out;
+        }
+
+  // Shot noise: the camera's conversion gain, else the repeats' per-pixel
+  // spread above the read noise, regressed on the signal.
+  if (manifest.e_per_dn > 0.0) {
+    out.shot_dn_per_dn = 1.0 / manifest.e_per_dn;
+  } else {
+    double num = 0.0, den = 0.0;
+    for (const PoseFrames& pose : poses)
+      for (const auto& [exposure_us, e] : pose.exposures) {
+        if (e.blocks.size() < 2) continue;
+        const cv::Mat mean = MeanOf(e.blocks);
+        for (int p = 0; p < mean.rows * mean.cols; ++p) {
+          double var = 0.0;
+          bool clips = false;
+          for (const cv::Mat& b : e.blocks) {
+            var += std::pow(b.at<double>(p) - mean.at<double>(p), 2);
+            clips = clips || b.at<double>(p) >= saturation_dn;
+          }
+          // var = read_var + shot g S, S the signal in DN at gain g.
+          const double x = e.gain * (mean.at<double>(p) - dark_means.at(exposure_us).mean.at<double>(p));
+          if (clips || x <= 0.0) continue;
+          num += (var / (e.blocks.size() - 1) - read_var) * x;
+          den += x * x;
+        }
+      }
+    if (den <= 0.0) {
+      out.End(Termination::kInvalidInput, where + "the rig states no camera e_per_dn and no pose was repeated to "
+                                                  "measure the shot noise from (give camera.e_per_dn, or count: 2 "
+                                                  "or more in the poses step)");
+      return out;
+    }
+    out.shot_dn_per_dn = std::max(num / den, 0.0);
+    out.shot_estimated = true;
+  }
+  const Merger merger(dark_means, saturation_dn, read_var, out.shot_dn_per_dn);
+
+  // The radiometric scale: K E, DN per us at 0 dB per unit f_r cos theta_i.
+  out.camera_dn_per_radiance_per_us = manifest.dn_per_radiance_per_us;
+  const double lamp = manifest.lights[0].intensity;
+  double k_times_e = 0.0;
+  if (options.calibration == BrdfMeasurementOptions::Calibration::kCameraResponse) {
+    out.calibration = "camera_response";
+    out.dn_per_radiance_per_us = manifest.dn_per_radiance_per_us;
+    k_times_e = manifest.dn_per_radiance_per_us * lamp;
+  } else {
+    out.calibration = "reference_target";
+    if (!manifest.reference_albedo) {
+      out.End(Termination::kInvalidInput,
+              where + "the rig names no reference_target to calibrate against (name one in the rig, or pass "
+                      "--calibration camera to trust the camera's stated response)");
+      return out;
+    }
+    out.reference_albedo = *manifest.reference_albedo;
+    if (target.empty()) {
+      out.End(Termination::kInvalidInput,
+              where + "the run has no reference_target frames (add a `reference_target:` step to the recipe, or "
+                      "pass --calibration camera to trust the camera's stated response)");
+      return out;
+    }
+    const PoseFrames& t = target.front();
+    const brdf::DirectionPair dirs =
+        brdf::ArmDirections({t.pose.light_arm_deg, t.pose.camera_arm_deg, t.pose.sample_rotation_deg});
+    const Merged m = merger.Merge(t);
+    const double shortest_us = t.exposures.begin()->first;
+    if (m.clipped) {
+      out.End(Termination::kFailure, where + Format("the reference target is saturated even at its shortest "
+                                                    "exposure (%.0f us): shorten the exposure or lower the lamp",
+                                                    shortest_us));
+      return out;
+    }
+    const double relative = m.rate > 0.0 ? std::sqrt(m.variance) / m.rate : INFINITY;
+    if (!(relative <= options.max_target_relative_sigma)) {
+      out.End(Termination::kFailure,
+              where + Format("the reference target is too dark: %.4g DN/us known to %.2g %% (at most %.2g %%); "
+                             "lengthen its exposure or raise the lamp",
+                             m.rate, 100.0 * relative, 100.0 * options.max_target_relative_sigma));
+      return out;
+    }
+    const double level = t.exposures.begin()->second.level;
+    k_times_e = m.rate * M_PI / (out.reference_albedo * level * dirs.wi.z());
+    out.dn_per_radiance_per_us = k_times_e / lamp;
+    out.calibration_relative_sigma = relative;
+  }
+
+  // The samples.
+  out.poses = static_cast<int>(poses.size());
+  double read_and_shot = 0.0;  // the repeat check's pooled variance ratio
+  for (const PoseFrames& pose : poses) {
+    if (pose.exposures.size() > 1) ++out.bracketed_poses;
+    const brdf::DirectionPair dirs =
+        brdf::ArmDirections({pose.pose.light_arm_deg, pose.pose.camera_arm_deg, pose.pose.sample_rotation_deg});
+    if (dirs.wi.z() <= 0.0 || dirs.wo.z() <= 0.0) {
+      ++out.below_horizon;
+      continue;
+    }
+    const Merged m = merger.Merge(pose);
+    if (m.clipped) {
+      const double theta_h = brdf::ToHalfDiff(dirs.wi, dirs.wo).theta_h;
+      out.clipped.push_back({pose.pose, theta_h * 180.0 / M_PI, pose.exposures.begin()->first});
+      out.peak_clipped = out.peak_clipped || out.clipped.back().theta_h_deg < options.peak_theta_h_deg;
+      continue;
+    }
+    const double scale = k_times_e * pose.exposures.begin()->second.level * dirs.wi.z();
+    brdf::BrdfSample s;
+    s.wi = dirs.wi;
+    s.wo = dirs.wo;
+    s.value.setConstant(m.rate / scale);
+    s.sigma.setConstant(std::sqrt(m.variance) / scale);
+    out.samples.push_back(s);
+    out.sample_poses.push_back(pose.pose);
+
+    // Repeats: a single frame's block mean scatters about the pose's by the
+    // propagated noise (the dark, common to all, drops out).
+    for (const auto& [exposure_us, e] : pose.exposures) {
+      const int n = static_cast<int>(e.blocks.size());
+      if (n < 2) continue;
+      bool clips = false;
+      for (const cv::Mat& b : e.blocks) {
+        double peak;
+        cv::minMaxLoc(b, nullptr, &peak);
+        clips = clips || peak >= saturation_dn;
+      }
+      if (clips) continue;
+      const cv::Mat signal = MeanOf(e.blocks) - dark_means.at(exposure_us).mean;
+      const double pixels = signal.rows * signal.cols;
+      double propagated = 0.0;
+      for (int p = 0; p < signal.rows * signal.cols; ++p)
+        propagated += read_var + out.shot_dn_per_dn * e.gain * std::max(signal.at<double>(p), 0.0);
+      propagated /= pixels * pixels;
+      std::vector<double> means;
+      double mean_of_means = 0.0;
+      for (const cv::Mat& b : e.blocks) {
+        means.push_back(cv::mean(b)[0]);
+        mean_of_means += means.back() / n;
+      }
+      double spread = 0.0;
+      for (double v : means) spread += (v - mean_of_means) * (v - mean_of_means);
+      read_and_shot += spread / propagated;  // (n - 1) s^2 / sigma^2
+      out.repeat_dof += n - 1;
+    }
+  }
+  if (out.repeat_dof > 0) out.repeat_sigma_ratio = std::sqrt(read_and_shot / out.repeat_dof);
+  timer.Finish(&out);
+  out.termination = Termination::kSuccess;
+  return out;
+}
+
+}  // namespace photorig::daemon
