@@ -9,6 +9,7 @@
 
 #include "../command.h"
 #include "../command_output.h"
+#include "photorig/daemon/recipe.h"
 #include "photorig/daemon/rig_config.h"
 #include "photorig/solvers/brdf/pose_plan.h"
 
@@ -16,6 +17,7 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <optional>
 
 namespace photorig::app {
 namespace {
@@ -30,20 +32,8 @@ struct Options {
 
 int Execute(const Options& o) {
   const daemon::RigConfig rig = daemon::LoadRigConfig(o.rig);
-  const daemon::AxisConfig* light = rig.motion ? rig.motion->axis("light_arm") : nullptr;
-  const daemon::AxisConfig* camera = rig.motion ? rig.motion->axis("camera_arm") : nullptr;
-  if (!light || !camera) return Fail(kExitUsage, o.rig + " has no light_arm and camera_arm axes (not a gonioreflectometer)");
-  brdf::GonioArms arms;
-  arms.light_min_deg = light->limits.min_deg;
-  arms.light_max_deg = light->limits.max_deg;
-  arms.light_home_deg = light->limits.home_deg;
-  arms.camera_min_deg = camera->limits.min_deg;
-  arms.camera_max_deg = camera->limits.max_deg;
-  arms.camera_home_deg = camera->limits.home_deg;
-  arms.min_separation_deg = 0.0;
-  for (const auto& c : rig.motion->constraints)
-    if ((c.axis_a == "light_arm" && c.axis_b == "camera_arm") || (c.axis_a == "camera_arm" && c.axis_b == "light_arm"))
-      arms.min_separation_deg = std::max(arms.min_separation_deg, c.min_deg);
+  const std::optional<brdf::GonioArms> arms = rig.motion ? config::GonioArmsOf(*rig.motion) : std::nullopt;
+  if (!arms) return Fail(kExitUsage, o.rig + " has no light_arm and camera_arm axes (not a gonioreflectometer)");
 
   brdf::SamplingSpec spec;
   spec.theta_h_min_deg = o.theta_h[0];
@@ -58,7 +48,7 @@ int Execute(const Options& o) {
   if (std::string why; !spec.IsValid(&why)) return Fail(kExitUsage, why);
   brdf::PosePlanOptions plan_options;
   plan_options.sample_rotation_deg = o.rotation_deg;
-  const brdf::PosePlan plan = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), arms, plan_options);
+  const brdf::PosePlan plan = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), *arms, plan_options);
   if (plan.termination == solvers::Termination::kInvalidOptions) return Fail(kExitUsage, o.rig + ": " + plan.message);
   constexpr double kDeg = 180.0 / M_PI;
   for (const brdf::RefusedPose& r : plan.refused)
