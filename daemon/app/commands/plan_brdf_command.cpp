@@ -3,8 +3,9 @@
 //
 // A gonioreflectometer pose plan uniform in Rusinkiewicz's angles
 // (solvers/brdf/pose_plan.h) for the rig's arms, printed as a recipe `poses:`
-// step to paste into a recipe's capture steps. Refused configurations and why
-// go to stderr. Every planned pose is checked again by the rig's own limits and
+// step to paste into a recipe's capture steps (a recipe's `poses: {plan: ...}`
+// step makes the same plan itself when it loads). Refused configurations and
+// why go to stderr. Every planned pose is checked again by the rig's own limits and
 // separation constraints, as dry-run will.
 
 #include "../command.h"
@@ -55,11 +56,16 @@ int Execute(const Options& o) {
     std::fprintf(stderr, "refused theta_h %.2f theta_d %.2f phi_d %.2f: %s\n", r.requested.theta_h * kDeg,
                  r.requested.theta_d * kDeg, r.requested.phi_d * kDeg, r.reason.c_str());
   std::printf("# %zu poses uniform in theta_h [%g, %g] x%d, theta_d [%g, %g] x%d, phi_d [%g, %g] x%d on %s;\n"
-              "# %zu refused; arm travel %.0f deg (%.0f deg in grid order)\n",
+              "# %zu refused, %d grazing; arm travel %.0f deg (%.0f deg in grid order)\n"
+              "# in a recipe, the same plan: - poses: {plan: {theta_h_deg: {min: %g, max: %g, steps: %d}, "
+              "theta_d_deg: {min: %g, max: %g, steps: %d}, phi_d_deg: {min: %g, max: %g, steps: %d}, "
+              "sample_rotation_deg: %g}}\n",
               plan.poses.size(), spec.theta_h_min_deg, spec.theta_h_max_deg, spec.theta_h_steps,
               spec.theta_d_min_deg, spec.theta_d_max_deg, spec.theta_d_steps, spec.phi_d_min_deg, spec.phi_d_max_deg,
-              spec.phi_d_steps, o.rig.c_str(), plan.refused.size(), plan.planned_move_deg,
-              plan.requested_order_move_deg);
+              spec.phi_d_steps, o.rig.c_str(), plan.refused.size(), plan.grazing, plan.planned_move_deg,
+              plan.requested_order_move_deg, spec.theta_h_min_deg, spec.theta_h_max_deg, spec.theta_h_steps,
+              spec.theta_d_min_deg, spec.theta_d_max_deg, spec.theta_d_steps, spec.phi_d_min_deg, spec.phi_d_max_deg,
+              spec.phi_d_steps, o.rotation_deg);
   std::printf("- poses:\n    list:\n");
   for (const brdf::PlannedPose& p : plan.poses) {
     const std::map<std::string, double> target = {{"light_arm", p.arms.light_arm_deg},
@@ -73,6 +79,7 @@ int Execute(const Options& o) {
   ResultFields() = {{"rig", o.rig},
                     {"poses", plan.poses.size()},
                     {"refused", plan.refused.size()},
+                    {"grazing", plan.grazing},
                     {"arm_travel_deg", plan.planned_move_deg},
                     {"grid_order_travel_deg", plan.requested_order_move_deg}};
   return plan.IsSolutionUsable() ? kExitOk : Fail(kExitFailed, plan.message);
