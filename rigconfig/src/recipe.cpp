@@ -125,10 +125,12 @@ std::vector<GonioPose> PlannedPosesIn(const YamlNode& plan, const RigConfig& rig
   if (!planned.IsSolutionUsable()) {
     plan.Fail(planned.message + (planned.refused.empty() ? "" : " (first: " + group->plan_notes.front() + ")"));
   }
-  if (planned.grazing > 0)
-    group->plan_notes.push_back(std::to_string(planned.grazing) + " of " + std::to_string(planned.poses.size()) +
-                                " planned poses are grazing (an arm beyond " + std::to_string(options.grazing_deg) +
-                                " deg): the footprint stretches and the cosine-weighted signal is small there");
+  if (planned.grazing > 0) {
+    char text[160];
+    std::snprintf(text, sizeof text, "%d of %zu planned poses are grazing (an arm beyond %g deg)", planned.grazing,
+                  planned.poses.size(), options.grazing_deg);
+    group->plan_notes.push_back(std::string(text) + ": the footprint stretches and the cosine-weighted signal is small there");
+  }
   // Three values per pose (R, G, B); a grey camera repeats one.
   for (const brdf::Model model : brdf::SelectionOptions{}.candidates)
     if (static_cast<int>(planned.poses.size()) < brdf::ParameterCount(model)) {
