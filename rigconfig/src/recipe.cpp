@@ -71,12 +71,9 @@ std::vector<double> AnglesIn(const YamlNode& grid, const char* key) {
   return angles;
 }
 
-// One angle of a plan's sampling spec: {min, max, steps}, or a single angle.
-void SamplingIn(const YamlNode& plan, const char* key, double fallback_min, double fallback_max, int fallback_steps,
-                double* min, double* max, int* steps) {
-  *min = fallback_min;
-  *max = fallback_max;
-  *steps = fallback_steps;
+// One angle of a plan's sampling spec: {min, max, steps}, or a single angle;
+// absent, the spec's default stays.
+void SamplingIn(const YamlNode& plan, const char* key, double* min, double* max, int* steps) {
   const auto node = plan.Find(key);
   if (!node) return;
   if (node->IsScalar()) {
@@ -87,7 +84,7 @@ void SamplingIn(const YamlNode& plan, const char* key, double fallback_min, doub
   node->ExpectKeys({"min", "max", "steps"});
   *min = (*node)["min"].AsDouble();
   *max = (*node)["max"].AsDouble();
-  *steps = node->Int("steps", 1);
+  *steps = (*node)["steps"].AsInt();
   if (*steps < 1 || *steps > 1000) (*node)["steps"].Fail("must be within [1, 1000]");
 }
 
@@ -100,12 +97,9 @@ std::vector<GonioPose> PlannedPosesIn(const YamlNode& plan, const RigConfig& rig
   const std::optional<brdf::GonioArms> arms = rig.motion ? GonioArmsOf(*rig.motion) : std::nullopt;
   if (!arms) plan.Fail("a pose plan needs a rig with light_arm and camera_arm axes; rig '" + rig.name + "' has none");
   brdf::SamplingSpec spec;
-  SamplingIn(plan, "theta_h_deg", spec.theta_h_min_deg, spec.theta_h_max_deg, spec.theta_h_steps, &spec.theta_h_min_deg,
-             &spec.theta_h_max_deg, &spec.theta_h_steps);
-  SamplingIn(plan, "theta_d_deg", spec.theta_d_min_deg, spec.theta_d_max_deg, spec.theta_d_steps, &spec.theta_d_min_deg,
-             &spec.theta_d_max_deg, &spec.theta_d_steps);
-  SamplingIn(plan, "phi_d_deg", spec.phi_d_min_deg, spec.phi_d_max_deg, spec.phi_d_steps, &spec.phi_d_min_deg,
-             &spec.phi_d_max_deg, &spec.phi_d_steps);
+  SamplingIn(plan, "theta_h_deg", &spec.theta_h_min_deg, &spec.theta_h_max_deg, &spec.theta_h_steps);
+  SamplingIn(plan, "theta_d_deg", &spec.theta_d_min_deg, &spec.theta_d_max_deg, &spec.theta_d_steps);
+  SamplingIn(plan, "phi_d_deg", &spec.phi_d_min_deg, &spec.phi_d_max_deg, &spec.phi_d_steps);
   if (std::string why; !spec.IsValid(&why)) plan.Fail(why);
   const double size = static_cast<double>(spec.theta_h_steps) * spec.theta_d_steps * spec.phi_d_steps;
   if (size > kMaxGridPoses) plan.Fail("asks for more than " + std::to_string(kMaxGridPoses) + " configurations");

@@ -106,8 +106,7 @@ TEST(PlanMaterials, AdaptivePassesFindTheNearMirrorsLobe) {
   int near_peak = 0;
   for (const PlannedPose& p : adaptive.poses) near_peak += p.requested.theta_h > 0.0 && p.requested.theta_h < 5.0 * M_PI / 180;
   EXPECT_GE(near_peak, 8);  // poses at 0 < theta_h < 5 deg, which the coarse grid has none of
-  FitOptions options;
-  const FitSummary fit = FitModel(m.truth.model, adaptive.samples, options);
+  const FitSummary fit = FitModel(m.truth.model, adaptive.samples);
   ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
   EXPECT_TRUE(fit.lobe_identifiable);
   EXPECT_NEAR(fit.params.shape, m.truth.shape, 0.05 * m.truth.shape);
