@@ -151,6 +151,10 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
                           std::to_string(options.max_led_duty * 100) + "% limit");
   CheckLightSafety(rig, lit_intervals, &plan);
   if (steps.empty()) plan.warnings.push_back("recipe " + recipe.path + " compiles to no steps");
+  for (const Recipe::Group& group : recipe.groups)
+    for (const std::string& note : group.plan_notes)
+      plan.warnings.push_back((group.source ? group.source->file() + ":" + std::to_string(group.source->line()) + ": "
+                                            : std::string()) + "pose plan: " + note);
   return plan;
 }
 

@@ -1,6 +1,8 @@
 #include "photorig/config/recipe.h"
 
 #include "photorig/config/sim.h"
+#include "photorig/solvers/brdf/fit.h"
+#include "photorig/solvers/brdf/pose_plan.h"
 
 #include <algorithm>
 #include <cmath>
@@ -86,8 +88,77 @@ std::vector<double> AnglesIn(const YamlNode& grid, const char* key) {
   return angles;
 }
 
-std::vector<GonioPose> PosesIn(const YamlNode& body) {
-  if (body.Has("list") == body.Has("grid")) body.Fail("give exactly one of 'list' or 'grid'");
+// One angle of a plan's sampling spec: {min, max, steps}, or a single angle;
+// absent, the spec's default stays.
+void SamplingIn(const YamlNode& plan, const char* key, double* min, double* max, int* steps) {
+  const auto node = plan.Find(key);
+  if (!node) return;
+  if (node->IsScalar()) {
+    *min = *max = node->AsDouble();
+    *steps = 1;
+    return;
+  }
+  node->ExpectKeys({"min", "max", "steps"});
+  *min = (*node)["min"].AsDouble();
+  *max = (*node)["max"].AsDouble();
+  *steps = (*node)["steps"].AsInt();
+  if (*steps < 1 || *steps > 1000) (*node)["steps"].Fail("must be within [1, 1000]");
+}
+
+// `plan:` poses uniform in (theta_h, theta_d, phi_d), planned for the rig's
+// arms when the recipe loads. Refused configurations go to `group` notes; a
+// plan that reaches none is an error here.
+std::vector<GonioPose> PlannedPosesIn(const YamlNode& plan, const RigConfig& rig, Recipe::Group* group) {
+  namespace brdf = solvers::brdf;
+  plan.ExpectKeys({"theta_h_deg", "theta_d_deg", "phi_d_deg", "sample_rotation_deg", "grazing_deg"});
+  const std::optional<brdf::GonioArms> arms = rig.motion ? GonioArmsOf(*rig.motion) : std::nullopt;
+  if (!arms) plan.Fail("a pose plan needs a rig with light_arm and camera_arm axes; rig '" + rig.name + "' has none");
+  brdf::SamplingSpec spec;
+  SamplingIn(plan, "theta_h_deg", &spec.theta_h_min_deg, &spec.theta_h_max_deg, &spec.theta_h_steps);
+  SamplingIn(plan, "theta_d_deg", &spec.theta_d_min_deg, &spec.theta_d_max_deg, &spec.theta_d_steps);
+  SamplingIn(plan, "phi_d_deg", &spec.phi_d_min_deg, &spec.phi_d_max_deg, &spec.phi_d_steps);
+  if (std::string why; !spec.IsValid(&why)) plan.Fail(why);
+  const double size = static_cast<double>(spec.theta_h_steps) * spec.theta_d_steps * spec.phi_d_steps;
+  if (size > kMaxGridPoses) plan.Fail("asks for more than " + std::to_string(kMaxGridPoses) + " configurations");
+  brdf::PosePlanOptions options;
+  options.sample_rotation_deg = plan.DoubleIn("sample_rotation_deg", 0.0, -180.0, 180.0);
+  options.grazing_deg = plan.DoubleIn("grazing_deg", options.grazing_deg, 1.0, 90.0);
+  const brdf::PosePlan planned = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), *arms, options);
+  if (planned.termination == solvers::Termination::kInvalidOptions)
+    plan.Fail("rig '" + rig.name + "' arms: " + planned.message);
+  constexpr double kDeg = 180.0 / M_PI;
+  for (const brdf::RefusedPose& r : planned.refused) {
+    char text[96];
+    std::snprintf(text, sizeof text, "theta_h %.2f theta_d %.2f phi_d %.2f deg refused: ", r.requested.theta_h * kDeg,
+                  r.requested.theta_d * kDeg, r.requested.phi_d * kDeg);
+    group->plan_notes.push_back(text + r.reason);
+  }
+  if (!planned.IsSolutionUsable()) {
+    plan.Fail(planned.message + (planned.refused.empty() ? "" : " (first: " + group->plan_notes.front() + ")"));
+  }
+  if (planned.grazing > 0) {
+    char text[160];
+    std::snprintf(text, sizeof text, "%d of %zu planned poses are grazing (an arm beyond %g deg)", planned.grazing,
+                  planned.poses.size(), options.grazing_deg);
+    group->plan_notes.push_back(std::string(text) + ": the footprint stretches and the cosine-weighted signal is small there");
+  }
+  // Three values per pose (R, G, B); a grey camera repeats one.
+  for (const brdf::Model model : brdf::SelectionOptions{}.candidates)
+    if (static_cast<int>(planned.poses.size()) < brdf::ParameterCount(model)) {
+      group->plan_notes.push_back(std::to_string(planned.poses.size()) + " planned poses: fewer than the " +
+                                  std::to_string(brdf::ParameterCount(model)) + " parameters of " +
+                                  brdf::ModelName(model) + " (a grey camera's channels repeat one value)");
+      break;
+    }
+  std::vector<GonioPose> poses;
+  for (const brdf::PlannedPose& p : planned.poses)
+    poses.push_back({p.arms.light_arm_deg, p.arms.camera_arm_deg, p.arms.sample_rotation_deg, std::nullopt});
+  return poses;
+}
+
+std::vector<GonioPose> PosesIn(const YamlNode& body, const RigConfig& rig, Recipe::Group* group) {
+  if (body.Has("list") + body.Has("grid") + body.Has("plan") != 1) body.Fail("give exactly one of 'list', 'grid' or 'plan'");
+  if (auto plan = body.Find("plan")) return PlannedPosesIn(*plan, rig, group);
   std::vector<GonioPose> poses;
   if (auto list = body.Find("list")) {
     for (const YamlNode& item : list->Items()) {
@@ -118,7 +189,7 @@ std::vector<GonioPose> PosesIn(const YamlNode& body) {
   return poses;
 }
 
-Recipe::Group ParseGroup(const YamlNode& step) {
+Recipe::Group ParseGroup(const YamlNode& step, const RigConfig& rig) {
   using Kind = Recipe::Group::Kind;
   const auto keys = step.Keys();
   if (keys.size() != 1) step.Fail(std::string("each step is a map with exactly one key: ") + kGroupNames);
@@ -171,11 +242,11 @@ Recipe::Group ParseGroup(const YamlNode& step) {
     if (group.pattern.empty()) body["leds"].Fail("a pattern lights at least one LED");
   } else if (kind == "poses") {
     group.kind = Kind::kPoses;
-    body.ExpectKeys({"list", "grid", "level", "exposures_us", "count", "repeat"});
+    body.ExpectKeys({"list", "grid", "plan", "level", "exposures_us", "count", "repeat"});
     group.level = LevelIn(body, "level", 1.0);
     group.exposures_us = BracketIn(body);
     group.count = CountIn(body, "count");
-    group.poses = PosesIn(body);
+    group.poses = PosesIn(body, rig, &group);
   } else if (kind == "reference_target") {
     group.kind = Kind::kReferenceTarget;
     body.ExpectKeys({"level", "exposures_us", "count", "repeat"});
@@ -229,7 +300,7 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
   capture.ExpectKeys({"exposure_us", "gain_db", "steps"});
   if (auto exposure = capture.Find("exposure_us")) recipe.exposure_us = ExposureIn(*exposure);
   if (auto gain = capture.Find("gain_db")) recipe.gain_db = gain->AsDoubleIn(kMinGainDb, kMaxGainDb);
-  for (const YamlNode& step : capture["steps"].Items()) recipe.groups.push_back(ParseGroup(step));
+  for (const YamlNode& step : capture["steps"].Items()) recipe.groups.push_back(ParseGroup(step, rig));
   if (recipe.groups.empty()) capture["steps"].Fail("a recipe needs at least one capture step");
 
   recipe.solve_executor = rig.solve;
@@ -279,6 +350,24 @@ std::string ExposureSuffix(double exposure_us) {
   return suffix;
 }
 }  // namespace
+
+std::optional<solvers::brdf::GonioArms> GonioArmsOf(const MotionConfig& motion) {
+  const AxisConfig* light = motion.axis("light_arm");
+  const AxisConfig* camera = motion.axis("camera_arm");
+  if (!light || !camera) return std::nullopt;
+  solvers::brdf::GonioArms arms;
+  arms.light_min_deg = light->limits.min_deg;
+  arms.light_max_deg = light->limits.max_deg;
+  arms.light_home_deg = light->limits.home_deg;
+  arms.camera_min_deg = camera->limits.min_deg;
+  arms.camera_max_deg = camera->limits.max_deg;
+  arms.camera_home_deg = camera->limits.home_deg;
+  arms.min_separation_deg = 0.0;
+  for (const auto& c : motion.constraints)
+    if ((c.axis_a == "light_arm" && c.axis_b == "camera_arm") || (c.axis_a == "camera_arm" && c.axis_b == "light_arm"))
+      arms.min_separation_deg = std::max(arms.min_separation_deg, c.min_deg);
+  return arms;
+}
 
 const char* CaptureStepKindName(CaptureStep::Kind kind) {
   switch (kind) {

@@ -279,7 +279,7 @@ TEST(BrdfEndToEnd, PlannedPosesPassTheRigsDryRun) {
       << ReadText(dir.path() / "plan.log");
   const std::string plan = ReadText(dir.path() / "plan.log");
   EXPECT_NE(plan.find("# 16 poses"), std::string::npos) << plan;
-  EXPECT_NE(plan.find("# 0 refused"), std::string::npos) << plan;
+  EXPECT_NE(plan.find("# 0 refused, 0 grazing"), std::string::npos) << plan;
   std::string steps;
   for (std::size_t start = 0, end; start < plan.size(); start = end + 1) {
     end = plan.find('\n', start);
@@ -291,6 +291,18 @@ TEST(BrdfEndToEnd, PlannedPosesPassTheRigsDryRun) {
                                                            "capture:\n  exposure_us: 4000\n  steps:\n" + steps);
   ASSERT_EQ(RunPhotorig("dry-run " + recipe, dir.path() / "dry.log"), 0) << ReadText(dir.path() / "dry.log");
   EXPECT_NE(ReadText(dir.path() / "dry.log").find("16 frames"), std::string::npos) << ReadText(dir.path() / "dry.log");
+  // The plan step the command names makes the same 16 poses when the recipe loads.
+  const std::string marker = "# in a recipe, the same plan: ";
+  const std::size_t at = plan.find(marker);
+  ASSERT_NE(at, std::string::npos) << plan;
+  const std::string plan_step = plan.substr(at + marker.size(), plan.find('\n', at) - at - marker.size());
+  const std::string planned_recipe =
+      dir.Write("plan_step.yaml", "recipe:\n  name: planned\n  rig: " + rig +
+                                      "\ncapture:\n  exposure_us: 4000\n  steps:\n    " + plan_step + "\n");
+  ASSERT_EQ(RunPhotorig("dry-run " + planned_recipe + " --steps", dir.path() / "dry_plan.log"), 0)
+      << ReadText(dir.path() / "dry_plan.log");
+  EXPECT_NE(ReadText(dir.path() / "dry_plan.log").find("16 frames"), std::string::npos)
+      << ReadText(dir.path() / "dry_plan.log");
 
   // Arms 10 deg apart on a rig that needs 15: refused with the reason, the rest planned.
   ASSERT_EQ(RunPhotorig("plan brdf --rig " + rig + " --theta-h 20 20 1 --theta-d 5 30 2", dir.path() / "close.log"), 0);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <random>
 
 namespace photorig::solvers::brdf {
@@ -88,6 +89,101 @@ TEST(PosePlan, OrderKeepsMovesShort) {
   // walks it mostly a grid step at a time.
   EXPECT_LT(plan.planned_move_deg, 0.25 * plan.requested_order_move_deg)
       << plan.planned_move_deg << " vs " << plan.requested_order_move_deg;
+}
+
+TEST(PosePlan, EveryMoveHasAnOrderThatKeepsTheArmsApart) {
+  // From home, through a shuffled grid and a plan started elsewhere: the arm
+  // that moves first is the one whose sweep clears the other, checked here
+  // point by point.
+  std::vector<HalfDiff> requested = UniformHalfDiffGrid(SamplingSpec());
+  std::shuffle(requested.begin(), requested.end(), std::mt19937(7));
+  const GonioArms arms;
+  for (const std::optional<ArmPose>& start : {std::optional<ArmPose>(), std::optional<ArmPose>(ArmPose{-5, 10, 0})}) {
+    PosePlanOptions options;
+    options.start = start;
+    const PosePlan plan = PlanPoses(requested, arms, options);
+    ASSERT_TRUE(plan.IsSolutionUsable());
+    ArmPose at = start.value_or(ArmPose{arms.light_home_deg, arms.camera_home_deg, 0.0});
+    int camera_first = 0;
+    for (const PlannedPose& p : plan.poses) {
+      const ArmPose& to = p.arms;
+      camera_first += !p.light_arm_first;
+      for (int k = 0; k <= 100; ++k) {
+        const double t = k / 100.0;
+        const double light_sweep = at.light_arm_deg + t * (to.light_arm_deg - at.light_arm_deg);
+        const double camera_sweep = at.camera_arm_deg + t * (to.camera_arm_deg - at.camera_arm_deg);
+        const double first = p.light_arm_first ? at.camera_arm_deg - light_sweep : camera_sweep - at.light_arm_deg;
+        const double second = p.light_arm_first ? camera_sweep - to.light_arm_deg : to.camera_arm_deg - light_sweep;
+        ASSERT_GE(first, arms.min_separation_deg - 1e-9);
+        ASSERT_GE(second, arms.min_separation_deg - 1e-9);
+      }
+      at = to;
+    }
+    EXPECT_GT(camera_first, 0);  // both orders are needed
+  }
+  // Light first is wrong when the light arm would sweep into the camera arm's place.
+  EXPECT_FALSE(LightArmFirstKeepsSeparation({-60, -45, 0}, {-20, -5, 0}, 15.0));
+  EXPECT_TRUE(LightArmFirstKeepsSeparation({-20, -5, 0}, {-60, -45, 0}, 15.0));
+}
+
+TEST(PosePlan, GrazingPosesAreFlagged) {
+  const std::vector<HalfDiff> requested = {{10 * kDeg, 72 * kDeg, 0.0}, {10 * kDeg, 30 * kDeg, 0.0}};
+  const PosePlan plan = PlanPoses(requested, GonioArms());
+  ASSERT_EQ(plan.poses.size(), 2u);
+  EXPECT_EQ(plan.grazing, 1);  // light arm at -82 deg
+  for (const PlannedPose& p : plan.poses) EXPECT_EQ(p.grazing, p.requested.theta_d > 70 * kDeg);
+  EXPECT_NE(plan.message.find("1 poses grazing (an arm beyond 80.00 deg)"), std::string::npos) << plan.message;
+}
+
+TEST(AdaptivePlan, SplitsWhereTheValueChangesMost) {
+  // A 5 x 5 grid in (theta_h, theta_d) whose value drops sharply between
+  // theta_h = 10 and 20 deg, and a little between 20 and 30.
+  std::vector<PlanSample> measured;
+  for (double th : {0.0, 10.0, 20.0, 30.0, 40.0})
+    for (double td : {10.0, 20.0, 30.0, 40.0, 44.0})
+      measured.push_back({{th * kDeg, td * kDeg, 0.0}, th <= 10.0 ? 10.0 : th <= 20.0 ? 0.1 : 0.05});
+  AdaptiveOptions options;
+  options.added_poses = 5;
+  const AdaptiveProposal proposal = ProposeDenserPoses(measured, GonioArms(), {}, options);
+  ASSERT_TRUE(proposal.IsSolutionUsable()) << proposal.message;
+  ASSERT_EQ(proposal.proposed.size(), 5u);
+  // The five rows' (10, 20) intervals, at theta_h = 15 deg; but theta_h 15 +
+  // theta_d 44 = 59 is reachable, so all five.
+  for (const HalfDiff& p : proposal.proposed) EXPECT_NEAR(p.theta_h, 15 * kDeg, 1e-12);
+  EXPECT_NEAR(proposal.score[0], std::log(10.001 / 0.101), 1e-9);
+  EXPECT_EQ(proposal.plan.poses.size(), 5u);
+
+  // Asking more: next the (20, 30) intervals, at log(0.101 / 0.051).
+  options.added_poses = 10;
+  const AdaptiveProposal more = ProposeDenserPoses(measured, GonioArms(), {}, options);
+  ASSERT_EQ(more.proposed.size(), 10u);
+  for (int i = 5; i < 10; ++i) EXPECT_NEAR(more.proposed[i].theta_h, 25 * kDeg, 1e-12);
+
+  // Intervals the arms cannot reach are skipped and counted: theta_h + theta_d beyond 85 deg.
+  GonioArms short_arms;
+  short_arms.light_min_deg = -55.0;
+  short_arms.camera_max_deg = 55.0;
+  options.added_poses = 5;
+  const AdaptiveProposal reachable = ProposeDenserPoses(measured, short_arms, {}, options);
+  ASSERT_TRUE(reachable.IsSolutionUsable());
+  EXPECT_GT(reachable.unreachable, 0);
+  for (const HalfDiff& p : reachable.proposed) EXPECT_LE(p.theta_h + p.theta_d, 55 * kDeg + 1e-9);
+}
+
+TEST(AdaptivePlan, RefusesBadSamplesAndStopsAtTheFinestInterval) {
+  std::vector<PlanSample> measured = {{{0.0, 20 * kDeg, 0.0}, 1.0}, {{0.8 * kDeg, 20 * kDeg, 0.0}, 0.1}};
+  AdaptiveOptions options;
+  EXPECT_EQ(ProposeDenserPoses(measured, GonioArms(), {}, options).termination, Termination::kFailure);  // 0.8 < 2 x 0.5 deg
+  options.min_interval_deg = 0.25;
+  const AdaptiveProposal split = ProposeDenserPoses(measured, GonioArms(), {}, options);
+  ASSERT_EQ(split.proposed.size(), 1u);
+  EXPECT_NEAR(split.proposed[0].theta_h, 0.4 * kDeg, 1e-12);
+  measured[1].value = std::nan("");
+  const AdaptiveProposal bad = ProposeDenserPoses(measured, GonioArms(), {}, options);
+  EXPECT_EQ(bad.termination, Termination::kInvalidInput);
+  EXPECT_NE(bad.message.find("sample 1"), std::string::npos) << bad.message;
+  options.added_poses = 0;
+  EXPECT_EQ(ProposeDenserPoses(measured, GonioArms(), {}, options).termination, Termination::kInvalidOptions);
 }
 
 }  // namespace

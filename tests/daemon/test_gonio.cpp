@@ -9,7 +9,9 @@
 #include "photorig/daemon/run.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/daemon/sequencer.h"
+#include "photorig/drivers/motion/goniometer.h"
 #include "photorig/sim/gonio.h"
+#include "photorig/solvers/brdf/pose_plan.h"
 #include "capture_fixtures.h"
 #include "config_error_check.h"
 #include "test_support.h"
@@ -19,6 +21,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
+#include <mutex>
 
 namespace photorig::daemon {
 namespace {
@@ -134,7 +138,7 @@ TEST(Gonio, RigAndPoseErrorsNameTheirPosition) {
   const std::string both = dir.Write(
       "both.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_arm_deg: 30}]\n        grid: {light_arm_deg: 0}\n"));
   photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(both, rig); }, both, 7, 9,
-                                         "exactly one of 'list' or 'grid'");
+                                         "exactly one of 'list', 'grid' or 'plan'");
   const std::string typo = dir.Write("typo.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_deg: 30}]\n"));
   photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(typo, rig); }, typo, 7, 35, "camera_deg");
 }
@@ -372,6 +376,147 @@ TEST(Gonio, TheSimulatedReferenceTargetIsLambertianOfItsAlbedo) {
   // After the target, the changer brings the sample back.
   const double expected_dn = kBlack + ExpectedRadiance(-30, 30) * kResponse * kExposureUs / kEPerDn;
   EXPECT_NEAR(sample.at<double>(16, 16), expected_dn, 0.5 + 1e-3 * expected_dn);
+}
+
+// A pose plan on the test rig (arms to +-80 deg, 15 deg apart, homes -60 and +60).
+std::string PlanStep(const std::string& plan) { return "        plan: " + plan + "\n"; }
+
+TEST(Gonio, PlanStepPlansForTheRigAndDryRunListsWhatItRefused) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+  const std::string path = dir.Write(
+      "r.yaml", GonioRecipe(PlanStep("{theta_h_deg: {min: 0, max: 60, steps: 7}, theta_d_deg: {min: 5, max: 75, steps: 8}}")));
+  const Recipe recipe = LoadRecipe(path, rig);
+  const auto steps = CompileSteps(recipe, rig);
+  // The same plan as the solver makes for these arms.
+  solvers::brdf::SamplingSpec spec;
+  spec.theta_h_steps = 7;
+  spec.theta_d_min_deg = 5;
+  spec.theta_d_max_deg = 75;
+  spec.theta_d_steps = 8;
+  const solvers::brdf::PosePlan expected =
+      solvers::brdf::PlanPoses(solvers::brdf::UniformHalfDiffGrid(spec), *config::GonioArmsOf(*rig.motion));
+  ASSERT_EQ(steps.size(), 1 + expected.poses.size());
+  ASSERT_GT(expected.refused.size(), 0u);
+  for (std::size_t i = 0; i < expected.poses.size(); ++i) {
+    ASSERT_TRUE(steps[i + 1].pose.has_value());
+    EXPECT_NEAR(steps[i + 1].pose->light_arm_deg, expected.poses[i].arms.light_arm_deg, 1e-12);
+    EXPECT_NEAR(steps[i + 1].pose->camera_arm_deg, expected.poses[i].arms.camera_arm_deg, 1e-12);
+  }
+  const RunPlan plan = PlanRun(recipe, rig, steps);
+  EXPECT_TRUE(plan.ok()) << plan.errors.front();
+  // Every refused configuration is listed with its reason and where the plan is.
+  int refused = 0, apart = 0, limits = 0, grazing = 0;
+  for (const std::string& w : plan.warnings) {
+    EXPECT_EQ(w.rfind(path + ":6: pose plan: ", 0), 0u) << w;
+    refused += w.find("refused") != std::string::npos;
+    apart += w.find("closer than 15.00") != std::string::npos;
+    limits += w.find("beyond its limits [-80.00, 80.00]") != std::string::npos;
+    grazing += w.find("grazing") != std::string::npos;
+  }
+  EXPECT_EQ(refused, static_cast<int>(expected.refused.size()));
+  EXPECT_GT(apart, 0);   // theta_d = 5 deg: arms 10 deg apart
+  EXPECT_GT(limits, 0);  // theta_h + theta_d beyond 80 deg
+  EXPECT_EQ(grazing, expected.grazing > 0 ? 1 : 0);
+}
+
+TEST(Gonio, PlanStepErrorsNameTheirPosition) {
+  struct Case {
+    const char* plan;
+    int line, column;
+    const char* fragment;
+  };
+  const Case cases[] = {
+      // Every configuration beyond the arms: an error, with the first reason.
+      {"{theta_h_deg: 60, theta_d_deg: {min: 40, max: 60, steps: 3}}", 7, 15,
+       "none of the 3 requested configurations is reachable by the arms (first: theta_h 60.00 theta_d 40.00"},
+      {"{theta_h_deg: 30, theta_d_deg: 30, phi_d_deg: 90}", 7, 15, "out of the arms' plane"},
+      {"{theta_h: 30}", 7, 16, "theta_h"},
+      {"{theta_h_deg: {min: 50, max: 10, steps: 3}}", 7, 15, "ranges must be ordered"},
+      {"{theta_h_deg: {min: 0, max: 10, steps: 0}}", 7, 54, "must be within [1, 1000]"},
+  };
+  for (const Case& c : cases) {
+    TempDir dir;
+    const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+    const std::string path = dir.Write("r.yaml", GonioRecipe(PlanStep(c.plan)));
+    photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(path, rig); }, path, c.line, c.column, c.fragment);
+  }
+  // Two ways of giving poses at once.
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+  const std::string both = dir.Write(
+      "r.yaml", GonioRecipe(PlanStep("{theta_h_deg: 0}") + "        list: [{light_arm_deg: -30, camera_arm_deg: 30}]\n"));
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(both, rig); }, both, 7, 9, "exactly one of 'list', 'grid' or 'plan'");
+}
+
+// Homing and every planned move through the simulated goniometer: the arms'
+// positions, read at every poll of every move, never come closer than the
+// rig's separation.
+TEST(Gonio, HomingAndEveryPlannedMoveKeepTheArmsApart) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+  const Recipe recipe = LoadRecipe(
+      dir.Write("r.yaml", GonioRecipe(PlanStep("{theta_h_deg: {min: 0, max: 60, steps: 5}, theta_d_deg: {min: 8, max: 72, steps: 5}}"))),
+      rig);
+  const auto steps = CompileSteps(recipe, rig);
+  ASSERT_GT(steps.size(), 10u);
+  std::mutex mutex;
+  std::map<std::string, double> at;  // rig degrees
+  double closest = 1e9;
+  int readings = 0;
+  std::vector<std::unique_ptr<sim::SimRotaryAxis>> axes;
+  std::vector<drivers::Motion*> motions;
+  for (const AxisConfig& axis : rig.motion->axes) {
+    sim::SimAxisOptions options = rig.motion->sim_axis;
+    // Power on away from home, each arm on its own side.
+    options.power_on_deg = axis.id == "light_arm" ? 40.0 : axis.id == "camera_arm" ? -30.0 : 0.0;
+    at[axis.id] = axis.limits.home_deg + options.power_on_deg;
+    axes.push_back(std::make_unique<sim::SimRotaryAxis>(
+        axis.id, axis.limits, rig.motion->settle, options, [&, id = axis.id, home = axis.limits.home_deg](double deg) {
+          std::lock_guard lock(mutex);
+          at[id] = deg + home;
+          closest = std::min(closest, at["camera_arm"] - at["light_arm"]);
+          ++readings;
+        }));
+    motions.push_back(axes.back().get());
+  }
+  drivers::Goniometer goniometer(motions, rig.motion->constraints);
+  for (drivers::Motion* m : motions) ASSERT_TRUE(m->Open().ok());
+  const Status homed = goniometer.HomeAll();
+  ASSERT_TRUE(homed.ok()) << homed.ToString();
+  for (const CaptureStep& step : steps) {
+    if (!step.pose) continue;
+    const Status moved = goniometer.MoveTo(PoseTargets(*step.pose), rig.motion->profile);
+    ASSERT_TRUE(moved.ok()) << step.label << ": " << moved.ToString();
+    EXPECT_NEAR(at["light_arm"], step.pose->light_arm_deg, 0.05) << step.label;
+    EXPECT_NEAR(at["camera_arm"], step.pose->camera_arm_deg, 0.05) << step.label;
+  }
+  EXPECT_GT(readings, 10 * static_cast<int>(steps.size()));  // the sweeps were watched, not just their ends
+  EXPECT_GE(closest, 15.0 - rig.motion->settle.tolerance_deg) << "arms came within " << closest << " deg";
+  EXPECT_TRUE(goniometer.CloseAll().ok());
+}
+
+TEST(Gonio, PlanStepRunsThroughTheSequencer) {
+  TempDir dir;
+  dir.Write("rig.yaml", GonioRig());
+  RunRequest request;
+  request.recipe_path = dir.Write(
+      "r.yaml", GonioRecipe(PlanStep("{theta_h_deg: {min: 0, max: 40, steps: 3}, theta_d_deg: {min: 10, max: 40, steps: 3}}")));
+  request.output_directory = (dir.path() / "run").string();
+  const RunOutcome outcome = ExecuteRun(request);
+  ASSERT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;
+  const RunManifest manifest = LoadRunManifest(request.output_directory);
+  ASSERT_EQ(manifest.frames.size(), 1u + 9u);
+  // Each frame's arms give back a configuration of the plan.
+  for (std::size_t k = 1; k < manifest.frames.size(); ++k) {
+    ASSERT_TRUE(manifest.frames[k].pose.has_value());
+    const auto d = solvers::brdf::ArmDirections({manifest.frames[k].pose->light_arm_deg,
+                                                 manifest.frames[k].pose->camera_arm_deg, 0.0});
+    const solvers::brdf::HalfDiff hd = solvers::brdf::ToHalfDiff(d.wi, d.wo);
+    const double th = hd.theta_h * 180 / M_PI, td = hd.theta_d * 180 / M_PI;
+    EXPECT_NEAR(std::remainder(th, 20.0), 0.0, 1e-6) << th;
+    EXPECT_NEAR(std::remainder(td - 10.0, 15.0), 0.0, 1e-6) << td;
+  }
 }
 
 TEST(Gonio, ShippedRecipeDryRunsClean) {

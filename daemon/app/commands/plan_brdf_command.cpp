@@ -3,12 +3,14 @@
 //
 // A gonioreflectometer pose plan uniform in Rusinkiewicz's angles
 // (solvers/brdf/pose_plan.h) for the rig's arms, printed as a recipe `poses:`
-// step to paste into a recipe's capture steps. Refused configurations and why
-// go to stderr. Every planned pose is checked again by the rig's own limits and
+// step to paste into a recipe's capture steps (a recipe's `poses: {plan: ...}`
+// step makes the same plan itself when it loads). Refused configurations and
+// why go to stderr. Every planned pose is checked again by the rig's own limits and
 // separation constraints, as dry-run will.
 
 #include "../command.h"
 #include "../command_output.h"
+#include "photorig/daemon/recipe.h"
 #include "photorig/daemon/rig_config.h"
 #include "photorig/solvers/brdf/pose_plan.h"
 
@@ -16,6 +18,7 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <optional>
 
 namespace photorig::app {
 namespace {
@@ -30,20 +33,8 @@ struct Options {
 
 int Execute(const Options& o) {
   const daemon::RigConfig rig = daemon::LoadRigConfig(o.rig);
-  const daemon::AxisConfig* light = rig.motion ? rig.motion->axis("light_arm") : nullptr;
-  const daemon::AxisConfig* camera = rig.motion ? rig.motion->axis("camera_arm") : nullptr;
-  if (!light || !camera) return Fail(kExitUsage, o.rig + " has no light_arm and camera_arm axes (not a gonioreflectometer)");
-  brdf::GonioArms arms;
-  arms.light_min_deg = light->limits.min_deg;
-  arms.light_max_deg = light->limits.max_deg;
-  arms.light_home_deg = light->limits.home_deg;
-  arms.camera_min_deg = camera->limits.min_deg;
-  arms.camera_max_deg = camera->limits.max_deg;
-  arms.camera_home_deg = camera->limits.home_deg;
-  arms.min_separation_deg = 0.0;
-  for (const auto& c : rig.motion->constraints)
-    if ((c.axis_a == "light_arm" && c.axis_b == "camera_arm") || (c.axis_a == "camera_arm" && c.axis_b == "light_arm"))
-      arms.min_separation_deg = std::max(arms.min_separation_deg, c.min_deg);
+  const std::optional<brdf::GonioArms> arms = rig.motion ? config::GonioArmsOf(*rig.motion) : std::nullopt;
+  if (!arms) return Fail(kExitUsage, o.rig + " has no light_arm and camera_arm axes (not a gonioreflectometer)");
 
   brdf::SamplingSpec spec;
   spec.theta_h_min_deg = o.theta_h[0];
@@ -58,18 +49,23 @@ int Execute(const Options& o) {
   if (std::string why; !spec.IsValid(&why)) return Fail(kExitUsage, why);
   brdf::PosePlanOptions plan_options;
   plan_options.sample_rotation_deg = o.rotation_deg;
-  const brdf::PosePlan plan = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), arms, plan_options);
+  const brdf::PosePlan plan = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), *arms, plan_options);
   if (plan.termination == solvers::Termination::kInvalidOptions) return Fail(kExitUsage, o.rig + ": " + plan.message);
   constexpr double kDeg = 180.0 / M_PI;
   for (const brdf::RefusedPose& r : plan.refused)
     std::fprintf(stderr, "refused theta_h %.2f theta_d %.2f phi_d %.2f: %s\n", r.requested.theta_h * kDeg,
                  r.requested.theta_d * kDeg, r.requested.phi_d * kDeg, r.reason.c_str());
   std::printf("# %zu poses uniform in theta_h [%g, %g] x%d, theta_d [%g, %g] x%d, phi_d [%g, %g] x%d on %s;\n"
-              "# %zu refused; arm travel %.0f deg (%.0f deg in grid order)\n",
+              "# %zu refused, %d grazing; arm travel %.0f deg (%.0f deg in grid order)\n"
+              "# in a recipe, the same plan: - poses: {plan: {theta_h_deg: {min: %g, max: %g, steps: %d}, "
+              "theta_d_deg: {min: %g, max: %g, steps: %d}, phi_d_deg: {min: %g, max: %g, steps: %d}, "
+              "sample_rotation_deg: %g}}\n",
               plan.poses.size(), spec.theta_h_min_deg, spec.theta_h_max_deg, spec.theta_h_steps,
               spec.theta_d_min_deg, spec.theta_d_max_deg, spec.theta_d_steps, spec.phi_d_min_deg, spec.phi_d_max_deg,
-              spec.phi_d_steps, o.rig.c_str(), plan.refused.size(), plan.planned_move_deg,
-              plan.requested_order_move_deg);
+              spec.phi_d_steps, o.rig.c_str(), plan.refused.size(), plan.grazing, plan.planned_move_deg,
+              plan.requested_order_move_deg, spec.theta_h_min_deg, spec.theta_h_max_deg, spec.theta_h_steps,
+              spec.theta_d_min_deg, spec.theta_d_max_deg, spec.theta_d_steps, spec.phi_d_min_deg, spec.phi_d_max_deg,
+              spec.phi_d_steps, o.rotation_deg);
   std::printf("- poses:\n    list:\n");
   for (const brdf::PlannedPose& p : plan.poses) {
     const std::map<std::string, double> target = {{"light_arm", p.arms.light_arm_deg},
@@ -83,6 +79,7 @@ int Execute(const Options& o) {
   ResultFields() = {{"rig", o.rig},
                     {"poses", plan.poses.size()},
                     {"refused", plan.refused.size()},
+                    {"grazing", plan.grazing},
                     {"arm_travel_deg", plan.planned_move_deg},
                     {"grid_order_travel_deg", plan.requested_order_move_deg}};
   return plan.IsSolutionUsable() ? kExitOk : Fail(kExitFailed, plan.message);

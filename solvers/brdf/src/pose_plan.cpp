@@ -27,6 +27,12 @@ double MoveDeg(const ArmPose& a, const ArmPose& b) {
   return std::max(std::abs(a.light_arm_deg - b.light_arm_deg), std::abs(a.camera_arm_deg - b.camera_arm_deg));
 }
 
+// The least distance to `fixed_deg` of an arm sweeping from `from_deg` to `to_deg`.
+double SweepClearanceDeg(double from_deg, double to_deg, double fixed_deg) {
+  if (std::min(from_deg, to_deg) <= fixed_deg && fixed_deg <= std::max(from_deg, to_deg)) return 0.0;
+  return std::min(std::abs(from_deg - fixed_deg), std::abs(to_deg - fixed_deg));
+}
+
 }  // namespace
 
 bool SamplingSpec::IsValid(std::string* why) const {
@@ -76,7 +82,16 @@ bool PosePlanOptions::IsValid(std::string* why) const {
     *why = "coplanar_tolerance_deg must be non-negative and sample_rotation_deg within [-180, 180]";
     return false;
   }
+  if (!(grazing_deg > 0.0 && grazing_deg <= 90.0)) {
+    *why = "grazing_deg must be within (0, 90]";
+    return false;
+  }
   return true;
+}
+
+bool LightArmFirstKeepsSeparation(const ArmPose& from, const ArmPose& to, double min_separation_deg) {
+  return SweepClearanceDeg(from.light_arm_deg, to.light_arm_deg, from.camera_arm_deg) >= min_separation_deg &&
+         SweepClearanceDeg(from.camera_arm_deg, to.camera_arm_deg, to.light_arm_deg) >= min_separation_deg;
 }
 
 DirectionPair ArmDirections(const ArmPose& pose) {
@@ -143,9 +158,12 @@ PosePlan PlanPoses(const std::vector<HalfDiff>& requested, const GonioArms& arms
       refuse("arms " + Deg(camera - light) + " deg apart, closer than " + Deg(arms.min_separation_deg));
       continue;
     }
-    reachable.push_back({want, {light, camera, options.sample_rotation_deg}});
+    PlannedPose planned{want, {light, camera, options.sample_rotation_deg}};
+    planned.grazing = std::max(std::abs(light), std::abs(camera)) > options.grazing_deg;
+    reachable.push_back(planned);
   }
-  const ArmPose home{arms.light_home_deg, arms.camera_home_deg, options.sample_rotation_deg};
+  const ArmPose home =
+      options.start.value_or(ArmPose{arms.light_home_deg, arms.camera_home_deg, options.sample_rotation_deg});
   ArmPose at = home;
   for (const PlannedPose& p : reachable) {
     plan.requested_order_move_deg += MoveDeg(at, p.arms);
@@ -164,8 +182,11 @@ PosePlan PlanPoses(const std::vector<HalfDiff>& requested, const GonioArms& arms
       }
     used[next] = true;
     plan.planned_move_deg += best;
-    at = reachable[next].arms;
-    plan.poses.push_back(reachable[next]);
+    PlannedPose pose = reachable[next];
+    pose.light_arm_first = LightArmFirstKeepsSeparation(at, pose.arms, arms.min_separation_deg);
+    plan.grazing += pose.grazing;
+    at = pose.arms;
+    plan.poses.push_back(pose);
   }
   if (plan.poses.empty()) {
     plan.End(Termination::kFailure, "none of the " + std::to_string(requested.size()) +
@@ -175,9 +196,91 @@ PosePlan PlanPoses(const std::vector<HalfDiff>& requested, const GonioArms& arms
     if (!plan.refused.empty())
       plan.message = std::to_string(plan.refused.size()) + " of " + std::to_string(requested.size()) +
                      " configurations refused (first: " + plan.refused.front().reason + ")";
+    if (plan.grazing > 0)
+      plan.message += std::string(plan.message.empty() ? "" : "; ") + std::to_string(plan.grazing) +
+                      " poses grazing (an arm beyond " + Deg(options.grazing_deg) + " deg)";
   }
   timer.Finish(&plan);
   return plan;
+}
+
+bool AdaptiveOptions::IsValid(std::string* why) const {
+  if (added_poses < 1) {
+    *why = "added_poses must be at least 1";
+    return false;
+  }
+  if (!(min_interval_deg > 0.0) || !(value_floor > 0.0)) {
+    *why = "min_interval_deg and value_floor must be positive";
+    return false;
+  }
+  return true;
+}
+
+AdaptiveProposal ProposeDenserPoses(const std::vector<PlanSample>& measured, const GonioArms& arms,
+                                    const PosePlanOptions& plan_options, const AdaptiveOptions& options) {
+  SolveTimer timer;
+  AdaptiveProposal proposal;
+  std::string why;
+  if (!options.IsValid(&why) || !arms.IsValid(&why) || !plan_options.IsValid(&why)) {
+    proposal.End(Termination::kInvalidOptions, why);
+    return proposal;
+  }
+  for (std::size_t i = 0; i < measured.size(); ++i)
+    if (!std::isfinite(measured[i].value)) {
+      proposal.End(Termination::kInvalidInput, "sample " + std::to_string(i) + " has a value that is not finite");
+      return proposal;
+    }
+  timer.SetupDone(&proposal);
+  struct Interval {
+    HalfDiff midpoint;
+    double score;
+  };
+  std::vector<Interval> intervals;
+  // Angles equal within this count as the same row of the grid.
+  constexpr double kSame = 1e-9;
+  // Split along theta_h (axis 0) and theta_d (axis 1): neighbours share the other two angles.
+  for (int axis = 0; axis < 2; ++axis) {
+    auto along = [axis](const HalfDiff& a) { return axis == 0 ? a.theta_h : a.theta_d; };
+    auto across = [axis](const HalfDiff& a) { return axis == 0 ? a.theta_d : a.theta_h; };
+    std::vector<std::size_t> order(measured.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      const HalfDiff &x = measured[a].at, &y = measured[b].at;
+      if (std::abs(across(x) - across(y)) > kSame) return across(x) < across(y);
+      if (std::abs(x.phi_d - y.phi_d) > kSame) return x.phi_d < y.phi_d;
+      return along(x) < along(y);
+    });
+    for (std::size_t k = 1; k < order.size(); ++k) {
+      const PlanSample &a = measured[order[k - 1]], &b = measured[order[k]];
+      if (std::abs(across(a.at) - across(b.at)) > kSame || std::abs(a.at.phi_d - b.at.phi_d) > kSame) continue;
+      if (along(b.at) - along(a.at) < 2.0 * options.min_interval_deg * kDeg) continue;
+      HalfDiff mid = a.at;
+      (axis == 0 ? mid.theta_h : mid.theta_d) = 0.5 * (along(a.at) + along(b.at));
+      // A value below zero is noise about a dark one: it counts as zero.
+      intervals.push_back({mid, std::abs(std::log(std::max(a.value, 0.0) + options.value_floor) -
+                                         std::log(std::max(b.value, 0.0) + options.value_floor))});
+    }
+  }
+  std::stable_sort(intervals.begin(), intervals.end(),
+                   [](const Interval& a, const Interval& b) { return a.score > b.score; });
+  for (const Interval& interval : intervals) {
+    if (static_cast<int>(proposal.proposed.size()) == options.added_poses) break;
+    if (!PlanPoses({interval.midpoint}, arms, plan_options).IsSolutionUsable()) {
+      ++proposal.unreachable;
+      continue;
+    }
+    proposal.proposed.push_back(interval.midpoint);
+    proposal.score.push_back(interval.score);
+  }
+  if (proposal.proposed.empty()) {
+    proposal.End(Termination::kFailure, "no interval between " + std::to_string(measured.size()) +
+                                            " samples splits into a configuration the arms reach");
+    return proposal;
+  }
+  proposal.plan = PlanPoses(proposal.proposed, arms, plan_options);
+  proposal.termination = Termination::kSuccess;
+  timer.Finish(&proposal);
+  return proposal;
 }
 
 }  // namespace photorig::solvers::brdf

@@ -5,6 +5,7 @@
 #include "photorig/config/rig.h"
 #include "photorig/config/solve_requests.h"
 #include "photorig/drivers/light_controller.h"
+#include "photorig/solvers/brdf/pose_plan.h"
 
 #include <cstdint>
 #include <optional>
@@ -33,8 +34,10 @@ struct Recipe {
       kFlat,     // flat: {count, level, leds, exposure_us}: the listed LEDs (default all) lit together
       kEachLed,  // each_led: {leds, level, exposures_us}: one frame per LED per bracket exposure
       kPattern,  // pattern: {name, leds: [{id, level} | id], level, count, exposure_us}
-      // poses: {list: [{light_arm_deg, camera_arm_deg, sample_rotation_deg, sample_changer_deg}] | grid: {...},
-      //         level, exposures_us, count}: per pose, `count` frames at each bracket exposure
+      // poses: {list: [{light_arm_deg, camera_arm_deg, sample_rotation_deg, sample_changer_deg}] | grid: {...} |
+      //         plan: {theta_h_deg, theta_d_deg, phi_d_deg: {min, max, steps} | angle, sample_rotation_deg, grazing_deg},
+      //         level, exposures_us, count}: per pose, `count` frames at each bracket exposure.
+      // A plan is made for the rig's arms when the recipe loads (solvers/brdf/pose_plan.h).
       kPoses,
       // reference_target: {count, exposures_us, level}: frames of the rig's
       // reference target at its pose, for the radiometric calibration
@@ -54,6 +57,9 @@ struct Recipe {
     std::string name;                  // kPattern: goes into the labels
     std::vector<std::pair<int, double>> pattern;  // kPattern: (LED id, level)
     std::vector<GonioPose> poses;                 // kPoses, in capture order
+    // kPoses from a plan: the configurations refused and why, grazing poses,
+    // too few poses for a model; dry-run lists them as warnings.
+    std::vector<std::string> plan_notes;
     std::optional<YamlNode> source;  // for errors found once the rig is known
   };
   std::vector<Group> groups;
@@ -104,6 +110,11 @@ class CaptureLimitError : public ConfigError {
  public:
   using ConfigError::ConfigError;
 };
+
+// A gonioreflectometer's light and camera arms as the pose planner sees them
+// (limits, homes, the separation between them); nothing when the rig lacks
+// either axis.
+std::optional<solvers::brdf::GonioArms> GonioArmsOf(const MotionConfig& motion);
 
 // "dark" | "light" | "flat" | "pattern" | "pose": the kind as journals and manifests spell it.
 const char* CaptureStepKindName(CaptureStep::Kind kind);
