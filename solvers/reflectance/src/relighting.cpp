@@ -72,7 +72,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
   summary.materials = fitted.materials;
   cv::Mat flags;
   long long saturated = 0;
-  const internal::Samples s = internal::Gather(stack, normals, mask, options.fit.min_cosine, &flags, &saturated);
+  internal::Samples s = internal::Gather(stack, normals, mask, options.fit.min_cosine, &flags, &saturated);
   // Pixels the full fit resolved, grouped by material.
   std::vector<int> pixels;
   std::vector<std::vector<int>> groups(full.materials.size());
@@ -82,6 +82,9 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
     pixels.push_back(p);
     groups[full.material.at<std::uint8_t>(r, c)].push_back(p);
   }
+  // Every method weights the samples by the noise model of the full fit, at
+  // the signal each pixel's own lobe predicts (as FitReflectance does).
+  internal::WeightSamples(fitted.noise, pixels, internal::FitPixelLobes(s, pixels, {}, nullptr), &s);
   summary.held_out = StratifiedLights(stack.light_directions, options.held_out_lights);
   timer.SetupDone(&summary);
   ProgressThrottle throttle(options.progress, "held-out", static_cast<std::int64_t>(summary.held_out.size()) * 3);
