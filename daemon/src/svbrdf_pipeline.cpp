@@ -178,6 +178,12 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
       const char* name = refl::MethodName(static_cast<refl::Method>(m));
       h["mean"][name] = {{"rmse", r.mean_rmse[m]}, {"psnr_db", r.mean_psnr_db[m]}, {"fit_ms", r.mean_fit_ms[m]}};
     }
+    h["by_material"] = nlohmann::json::array();
+    for (const auto& rmse : r.material_rmse) {
+      nlohmann::json mj;
+      for (int m = 0; m < 3; ++m) mj[refl::MethodName(static_cast<refl::Method>(m))] = rmse[m];
+      h["by_material"].push_back(mj);
+    }
     h["errors"] = nlohmann::json::array();
     for (const auto& e : r.errors)
       h["errors"].push_back({{"light", e.light}, {"method", refl::MethodName(e.method)}, {"rmse", e.rmse},

@@ -325,6 +325,21 @@ bool Reassign(const Samples& s, const std::vector<Eigen::Vector2d>& chroma, Part
   return moved;
 }
 
+bool SplitIsChance(const Samples& s, const std::vector<int>& a, const std::vector<int>& b, const MaterialFit& joint,
+                   double alpha);
+
+// Whether two of the partition's materials of one lobe model are one cut in
+// two (two without a lobe always are), judged at the first one's lobe.
+bool CutsOneMaterial(const Samples& s, const Partition& part, double alpha) {
+  for (std::size_t a = 0; a < part.groups.size(); ++a)
+    for (std::size_t b = a + 1; b < part.groups.size(); ++b) {
+      const MaterialFit& fa = part.materials[a].fit;
+      if (fa.model != part.materials[b].fit.model) continue;
+      if (fa.model == brdf::Model::kLambertian || SplitIsChance(s, part.groups[a], part.groups[b], fa, alpha)) return true;
+    }
+  return false;
+}
+
 void FitPartition(const Samples& s, const std::vector<brdf::Model>& candidates, int search_pixels, Partition* part) {
   part->materials.clear();
   for (const auto& g : part->groups) part->materials.push_back(internal::FitMaterial(s, g, candidates, {}, search_pixels));
@@ -589,6 +604,9 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
     Partition part;
     part.groups = Groups(clustered, best_labels, k);
     FitPartition(s, candidates, options.shape_search_pixels, &part);
+    // A clustering that cuts one material in two says the data hold fewer
+    // than k materials; larger k only cut further, so the search ends.
+    if (k > 1 && CutsOneMaterial(s, part, options.split_alpha)) break;
     for (int it = 0; it < 4 && part.groups.size() > 1; ++it) {
       if (!Reassign(s, chroma, &part)) break;
       FitPartition(s, candidates, options.shape_search_pixels, &part);

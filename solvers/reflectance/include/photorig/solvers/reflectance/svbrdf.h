@@ -34,6 +34,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <string>
@@ -235,6 +236,11 @@ struct RelightingSummary : Summary {
   double mean_psnr_db[3] = {0.0, 0.0, 0.0};
   double mean_fit_ms[3] = {0.0, 0.0, 0.0};
   int materials = 0;  // chosen on all lights and kept for every held-out fit
+  // [material][method]: RMSE over every held-out sample of the material's
+  // pixels (all held-out lights pooled): where a lobe was chosen the
+  // per-material error should lie below the Lambertian one, where none was
+  // they should agree within noise.
+  std::vector<std::array<double, 3>> material_rmse;
 };
 
 // For each held-out light: fit each method on the other lights (the number
