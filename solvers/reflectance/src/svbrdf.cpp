@@ -653,41 +653,46 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   ProgressThrottle albedo_progress(options.progress, "albedo", static_cast<std::int64_t>(best.groups.size()));
   std::vector<int> material_of(s.pixels, -1);
   std::vector<double> pixel_rms(s.pixels, 0.0);
-  // Writes pixel p's albedo, its deviation, residual (image units) and
-  // material; returns the residual in units of the noise (sqrt(chi^2 per
-  // sample)), which the poor-fit test compares: bright pixels' residuals are
-  // larger in image units by their shot noise alone.
+  // Pixel p's RMS residual in image units under a material (what the
+  // poor-fit test compares: a residual the model leaves, in the units the
+  // relit images are judged in) and its chi-square.
   struct PixelResidual {
-    double normalised = 0.0, squared_sum = 0.0, chi_square = 0.0;
+    double rms = 0.0, squared_sum = 0.0, chi_square = 0.0;
     long long count = 0;
   };
-  auto write_pixel = [&](int p, int m, const internal::PixelSums& sums, const MaterialFit& fit) {
-    const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
-    float* albedo = maps->albedo.ptr<float>(r) + c * C;
-    float* sigma = maps->albedo_sigma.ptr<float>(r) + c * C;
+  auto residual_of = [&](int p, const internal::PixelSums& sums, const MaterialFit& fit, double* rho) {
     PixelResidual out;
-    for (int ch = 0; ch < C; ++ch) {
-      double rho;
-      const double channel_cost = internal::PixelCost(sums.c[ch], fit.specular[ch], &rho);
-      out.chi_square += channel_cost;
-      albedo[ch] = static_cast<float>(rho);
-      // Weighted least squares, scaled by the pixel's own chi^2 per dof (one dof per channel used by rho).
-      const double dof = std::max(1, sums.samples - 1);
-      sigma[ch] = static_cast<float>(std::sqrt(channel_cost / dof / std::max(sums.c[ch].uu, 1e-300)));
-    }
+    for (int ch = 0; ch < C; ++ch) out.chi_square += internal::PixelCost(sums.c[ch], fit.specular[ch], &rho[ch]);
     for (int j = 0; j < s.lights; ++j) {
       const std::size_t cell = s.At(p, j);
       if (!s.usable[cell]) continue;
       for (int ch = 0; ch < C; ++ch) {
-        const double d = s.value[cell * C + ch] - internal::Predict(s, p, s.wi[cell], {fit.model, fit.shape},
-                                                                     fit.specular[ch], albedo[ch], s.intensity[j][ch]);
+        const double d = s.value[cell * C + ch] -
+                         internal::Predict(s, p, s.wi[cell], {fit.model, fit.shape}, fit.specular[ch], rho[ch], s.intensity[j][ch]);
         out.squared_sum += d * d;
         ++out.count;
       }
     }
-    out.normalised = std::sqrt(out.chi_square / std::max(1, sums.samples * C));
-    pixel_rms[p] = std::sqrt(out.squared_sum / std::max<long long>(1, out.count));
-    maps->rms_residual.at<float>(r, c) = static_cast<float>(pixel_rms[p]);
+    out.rms = std::sqrt(out.squared_sum / std::max<long long>(1, out.count));
+    return out;
+  };
+  // Writes pixel p's albedo, its deviation, residual and material.
+  auto write_pixel = [&](int p, int m, const internal::PixelSums& sums, const MaterialFit& fit) {
+    const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
+    float* albedo = maps->albedo.ptr<float>(r) + c * C;
+    float* sigma = maps->albedo_sigma.ptr<float>(r) + c * C;
+    double rho[3] = {0.0, 0.0, 0.0};
+    const PixelResidual out = residual_of(p, sums, fit, rho);
+    for (int ch = 0; ch < C; ++ch) {
+      albedo[ch] = static_cast<float>(rho[ch]);
+      // Weighted least squares, scaled by the pixel's own chi^2 per dof (one dof per channel used by rho).
+      double unused;
+      const double channel_cost = internal::PixelCost(sums.c[ch], fit.specular[ch], &unused);
+      const double dof = std::max(1, sums.samples - 1);
+      sigma[ch] = static_cast<float>(std::sqrt(channel_cost / dof / std::max(sums.c[ch].uu, 1e-300)));
+    }
+    pixel_rms[p] = out.rms;
+    maps->rms_residual.at<float>(r, c) = static_cast<float>(out.rms);
     maps->material.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(m);
     return out;
   };
@@ -706,7 +711,7 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
       const int p = group[i];
       material_of[p] = static_cast<int>(m);
       const PixelResidual residual = write_pixel(p, static_cast<int>(m), sums[i], fit);
-      rms[i] = residual.normalised;
+      rms[i] = residual.rms;
       squared_sum += residual.squared_sum;
       count += residual.count;
       chi_square += residual.chi_square;
@@ -780,8 +785,9 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
       }
     }
     if (best_m < 0) continue;
-    const double normalised = std::sqrt(best_cost / std::max(1, best_sums.samples * C));
-    if (normalised > options.poor_fit_ratio * typical_rms[best_m] && normalised > 0.0) continue;
+    double rho[3];
+    const double rms = residual_of(p, best_sums, maps->materials[best_m], rho).rms;
+    if (rms > options.poor_fit_ratio * typical_rms[best_m] && rms > 0.0) continue;
     write_pixel(p, best_m, best_sums, maps->materials[best_m]);
     ++summary.pixels_mixed_assigned;
   }
