@@ -100,6 +100,9 @@ refl::ReflectanceStack ToReflectanceStack(const PhotometricStereoInput& input) {
     stack.light_directions = color.light_directions;
     stack.light_intensities = color.light_scales;
     stack.view_direction = ps.view_direction;
+    // The darks give each processed channel's read noise; the shot noise after
+    // demosaicing and the colour model is left to the solver to estimate.
+    stack.noise.read_sigma = color.read_sigma;
     if (any_clipped) stack.saturation_level = clipped;
     return stack;
   }
@@ -111,6 +114,9 @@ refl::ReflectanceStack ToReflectanceStack(const PhotometricStereoInput& input) {
     stack.images.push_back(image);
     stack.light_intensities.push_back(Eigen::Vector3d::Constant(ps.light_scales.empty() ? 1.0 : ps.light_scales[j]));
   }
+  // The rig's noise model: read noise from the darks, shot noise from the camera's electrons per DN.
+  stack.noise.read_sigma.setConstant(ps.noise.read_sigma);
+  stack.noise.shot_gain.setConstant(ps.noise.shot_gain);
   stack.light_directions = ps.light_directions;
   stack.view_direction = ps.view_direction;
   if (std::isfinite(saturation)) stack.saturation_level = clipped;
@@ -137,6 +143,13 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
     j["materials"].push_back(mj);
   }
   j["bic_by_materials"] = result.summary.bic_by_materials;
+  j["materials_merged"] = result.summary.materials_merged;
+  const refl::SensorNoise& noise = result.summary.noise;
+  j["noise"] = {{"source", result.summary.noise_source},
+                {"read_sigma", {noise.read_sigma[0], noise.read_sigma[1], noise.read_sigma[2]}},
+                {"shot_gain", {noise.shot_gain[0], noise.shot_gain[1], noise.shot_gain[2]}},
+                {"relative", {noise.relative[0], noise.relative[1], noise.relative[2]}},
+                {"reduced_chi_square", result.summary.reduced_chi_square}};
   j["warnings"] = nlohmann::json::array();
   for (refl::Warning w : result.summary.warnings) j["warnings"].push_back(refl::WarningName(w));
   j["inconsistent_lights"] = result.summary.inconsistent_lights;
@@ -164,6 +177,12 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
     for (int m = 0; m < 3; ++m) {
       const char* name = refl::MethodName(static_cast<refl::Method>(m));
       h["mean"][name] = {{"rmse", r.mean_rmse[m]}, {"psnr_db", r.mean_psnr_db[m]}, {"fit_ms", r.mean_fit_ms[m]}};
+    }
+    h["by_material"] = nlohmann::json::array();
+    for (const auto& rmse : r.material_rmse) {
+      nlohmann::json mj;
+      for (int m = 0; m < 3; ++m) mj[refl::MethodName(static_cast<refl::Method>(m))] = rmse[m];
+      h["by_material"].push_back(mj);
     }
     h["errors"] = nlohmann::json::array();
     for (const auto& e : r.errors)

@@ -87,8 +87,7 @@ TEST(Svbrdf, TwoMaterialsInMonochromeAreTold) {
 // A colour camera's demosaicing blends the pixels on either side of a paint
 // edge (here two thirds of the pixel's own paint, a third of the other's):
 // the blends are flagged mixed before the materials are chosen, and
-// assigned a material once they are. (The count of materials is not asserted:
-// here, as on the colour dome, the glossy band still splits in two.)
+// assigned a material once they are; the two paints stay two materials.
 TEST(Svbrdf, BlendsAlongAPaintEdgeAreFlaggedMixedThenAssigned) {
   SceneSpec spec;
   spec.materials = {Matte(), Phong(0.3, 40.0)};
@@ -126,6 +125,7 @@ TEST(Svbrdf, BlendsAlongAPaintEdgeAreFlaggedMixedThenAssigned) {
   EXPECT_GT(summary.pixels_mixed_assigned, 0);
   // The rim (whose window reaches off the object) and the blends, little else.
   EXPECT_LT(summary.pixels_mixed, 0.35 * (summary.pixels_fitted + summary.pixels_mixed));
+  EXPECT_EQ(summary.materials, 2);
 }
 
 TEST(Svbrdf, AMatteObjectIsOneMaterialWithoutALobe) {

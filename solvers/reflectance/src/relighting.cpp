@@ -72,7 +72,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
   summary.materials = fitted.materials;
   cv::Mat flags;
   long long saturated = 0;
-  const internal::Samples s = internal::Gather(stack, normals, mask, options.fit.min_cosine, &flags, &saturated);
+  internal::Samples s = internal::Gather(stack, normals, mask, options.fit.min_cosine, &flags, &saturated);
   // Pixels the full fit resolved, grouped by material.
   std::vector<int> pixels;
   std::vector<std::vector<int>> groups(full.materials.size());
@@ -82,8 +82,16 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
     pixels.push_back(p);
     groups[full.material.at<std::uint8_t>(r, c)].push_back(p);
   }
+  // Every method weights the samples by the noise model of the full fit, at
+  // the signal each pixel's own lobe predicts (as FitReflectance does).
+  internal::WeightSamples(fitted.noise, pixels, internal::FitPixelLobes(s, pixels, {}, nullptr), &s);
   summary.held_out = StratifiedLights(stack.light_directions, options.held_out_lights);
   timer.SetupDone(&summary);
+  std::vector<int> material_of(s.pixels, -1);
+  for (std::size_t m = 0; m < groups.size(); ++m)
+    for (int p : groups[m]) material_of[p] = static_cast<int>(m);
+  std::vector<std::array<double, 3>> material_sum(groups.size(), {0.0, 0.0, 0.0});
+  std::vector<long long> material_count(groups.size(), 0);
   ProgressThrottle throttle(options.progress, "held-out", static_cast<std::int64_t>(summary.held_out.size()) * 3);
   const int C = s.channels;
   int done = 0;
@@ -143,6 +151,8 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
           const double d = predicted - s.value[cell * C + ch];
           sum += d * d;
           ++count;
+          material_sum[material_of[p]][static_cast<int>(method)] += d * d;
+          if (method == Method::kLambertian) ++material_count[material_of[p]];
         }
       }
       HeldOutError error;
@@ -160,6 +170,12 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
     }
   }
   throttle.Finish();
+  for (std::size_t m = 0; m < groups.size(); ++m) {
+    std::array<double, 3> rmse{0.0, 0.0, 0.0};
+    for (int mi = 0; mi < 3; ++mi)
+      rmse[mi] = material_count[m] > 0 ? std::sqrt(material_sum[m][mi] / static_cast<double>(material_count[m])) : 0.0;
+    summary.material_rmse.push_back(rmse);
+  }
   summary.termination = Termination::kSuccess;
   summary.message = fitted.message;
   timer.Finish(&summary);

@@ -59,6 +59,7 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
   s.pixels = static_cast<int>(s.pixel_index.size());
   const std::size_t cells = static_cast<std::size_t>(s.pixels) * s.lights;
   s.value.resize(cells * s.channels);
+  s.weight.assign(cells * s.channels, 1.0f);
   s.usable.assign(cells, 0);
   s.saturated.assign(cells, 0);
   s.wi.resize(cells);
@@ -123,13 +124,14 @@ PixelSums SumsOf(const Samples& s, int p, const Lobe& lobe, const std::vector<st
       const double e = s.intensity[j][ch] * wi.z();
       const double u = e / M_PI, g = e * a0, h = e * (a1 - a0);
       const double y = s.value[cell * s.channels + ch] - g;
+      const double w = s.weight[cell * s.channels + ch];
       ChannelSums& cs = sums.c[ch];
-      cs.uu += u * u;
-      cs.uh += u * h;
-      cs.hh += h * h;
-      cs.uy += u * y;
-      cs.hy += h * y;
-      cs.yy += y * y;
+      cs.uu += w * u * u;
+      cs.uh += w * u * h;
+      cs.hh += w * h * h;
+      cs.uy += w * u * y;
+      cs.hy += w * h * y;
+      cs.yy += w * y * y;
     }
   }
   return sums;
@@ -179,7 +181,14 @@ GroupFit FitGroup(const Samples& s, const std::vector<int>& pixels, const Lobe& 
     for (int ch = 0; ch < s.channels; ++ch) {
       double rho;
       fit.cost += PixelCost(ps.c[ch], fit.weight[ch], &rho);
+      const ChannelSums& cs = ps.c[ch];
+      if (cs.uu <= 0.0) continue;
+      // The pixel's share of the weight's normal equation, off balance at the shared weight.
+      const double score = (cs.hy - cs.uh * cs.uy / cs.uu) - fit.weight[ch] * (cs.hh - cs.uh * cs.uh / cs.uu);
+      fit.weight_variance[ch] += score * score;
     }
+  for (int ch = 0; ch < s.channels; ++ch)
+    fit.weight_variance[ch] = fit.reduced_hh[ch] > 0.0 ? fit.weight_variance[ch] / (fit.reduced_hh[ch] * fit.reduced_hh[ch]) : 0.0;
   return fit;
 }
 
@@ -217,15 +226,10 @@ ShapeSearch SearchShape(const Samples& s, const std::vector<int>& pixels, brdf::
   }
   const double x = f1 < f2 ? x1 : x2, fx = std::min(f1, f2);
   if (fx < out.cost) out = {std::exp(x), fx, 0.0};
-  // Curvature of the cost in log(shape): var = 2 sigma^2 / cost''.
+  // Curvature of the cost in log(shape): the cost is a chi-square, so var = 2 / cost''.
   const double step = 0.05, xs = std::log(out.shape);
   const double curvature = (cost_at(xs + step) - 2.0 * out.cost + cost_at(xs - step)) / (step * step);
-  long long residuals = 0;
-  for (int p : pixels)
-    for (int j = 0; j < s.lights; ++j)
-      if (s.usable[s.At(p, j)] && (enabled.empty() || enabled[j])) residuals += s.channels;
-  const double variance = residuals > 0 ? out.cost / static_cast<double>(residuals) : 0.0;
-  out.log_shape_sigma = curvature > 0.0 ? std::sqrt(2.0 * variance / curvature) : std::numeric_limits<double>::infinity();
+  out.log_shape_sigma = curvature > 0.0 ? std::sqrt(2.0 / curvature) : std::numeric_limits<double>::infinity();
   return out;
 }
 
@@ -240,9 +244,9 @@ std::vector<int> Subsample(const std::vector<int>& pixels, int count) {
   return out;
 }
 
-double Bic(double cost, long long residuals, int parameters) {
-  const double n = static_cast<double>(std::max<long long>(residuals, 1));
-  return n * std::log(std::max(cost, 1e-300) / n) + parameters * std::log(n);
+// The cost is a chi-square (samples weighted by their noise): -2 log L up to a constant.
+double Bic(double chi_square, long long residuals, int parameters) {
+  return chi_square + parameters * std::log(static_cast<double>(std::max<long long>(residuals, 1)));
 }
 
 }  // namespace
@@ -269,19 +273,149 @@ MaterialResult FitMaterial(const Samples& s, const std::vector<int>& pixels, con
       best.fit.model = model;
       best.fit.specular = fit.weight;
       best.fit.shape = lobe.shape;
-      best.fit.shape_sigma = log_sigma;
-      const double variance = fit.residuals > 0 ? fit.cost / fit.residuals : 0.0;
-      for (int ch = 0; ch < 3; ++ch)
-        best.fit.specular_sigma[ch] =
-            fit.reduced_hh[ch] > 0.0 && model != brdf::Model::kLambertian ? std::sqrt(variance / fit.reduced_hh[ch]) : 0.0;
+      // One standard deviation with pixels as the independent units; the
+      // shape's, from the cost's curvature, inflated by the same factor
+      // over the per-sample noise model's variance (at least 1).
+      double inflation = 1.0;
+      for (int ch = 0; ch < s.channels; ++ch) {
+        best.fit.specular_sigma[ch] = model != brdf::Model::kLambertian ? std::sqrt(fit.weight_variance[ch]) : 0.0;
+        if (model != brdf::Model::kLambertian && fit.reduced_hh[ch] > 0.0)
+          inflation = std::max(inflation, fit.weight_variance[ch] * fit.reduced_hh[ch]);
+      }
+      best.fit.shape_sigma = log_sigma * std::sqrt(inflation);
       best.fit.bic = bic;
       best.fit.pixels = static_cast<int>(pixels.size());
-      best.fit.rms_residual = fit.residuals > 0 ? std::sqrt(fit.cost / fit.residuals) : 0.0;
       best.cost = fit.cost;
       best.residuals = fit.residuals;
     }
   }
   return best;
+}
+
+namespace {
+
+// The pixel's own lobe as a Lobe.
+Lobe OwnLobe(const PixelLobe& own) {
+  return {own.exponent > 0.0 ? brdf::Model::kBlinnPhong : brdf::Model::kLambertian, own.exponent};
+}
+
+// Least squares of v_b = a + b m_b + c m_b^2 over bins, each bin's error
+// relative to its value (a median's spread scales with it), with every
+// coefficient >= 0: the unconstrained fits of each subset of free terms,
+// the feasible one of least error kept. `fixed_a` >= 0 holds a.
+Eigen::Vector3d FitVariance(const std::vector<double>& m, const std::vector<double>& v, double fixed_a) {
+  Eigen::Vector3d best = Eigen::Vector3d::Zero();
+  double best_error = std::numeric_limits<double>::infinity();
+  for (int subset = 1; subset < 8; ++subset) {
+    const bool use[3] = {fixed_a < 0.0 && (subset & 1), (subset & 2) != 0, (subset & 4) != 0};
+    std::vector<int> terms;
+    for (int t = 0; t < 3; ++t)
+      if (use[t]) terms.push_back(t);
+    if (terms.empty() || static_cast<int>(terms.size()) > static_cast<int>(m.size())) continue;
+    Eigen::MatrixXd A(m.size(), terms.size());
+    Eigen::VectorXd y(m.size());
+    for (std::size_t b = 0; b < m.size(); ++b) {
+      const double scale = 1.0 / std::max(v[b], 1e-300);
+      for (std::size_t t = 0; t < terms.size(); ++t) A(b, t) = std::pow(m[b], terms[t]) * scale;
+      y[b] = (v[b] - std::max(fixed_a, 0.0)) * scale;
+    }
+    const Eigen::VectorXd x = A.colPivHouseholderQr().solve(y);
+    if (x.minCoeff() < 0.0) continue;
+    const double error = (A * x - y).squaredNorm();
+    if (error < best_error) {
+      best_error = error;
+      best.setZero();
+      for (std::size_t t = 0; t < terms.size(); ++t) best[terms[t]] = x[t];
+    }
+  }
+  if (fixed_a >= 0.0) best[0] = fixed_a;
+  return best;
+}
+
+}  // namespace
+
+SensorNoise EstimateNoise(const Samples& s, const std::vector<int>& pixels, const std::vector<PixelLobe>& own,
+                          const SensorNoise& given, std::string* source) {
+  const bool read_given = given.read_sigma.head(s.channels).minCoeff() > 0.0;
+  const bool shot_given = given.shot_gain.head(s.channels).minCoeff() > 0.0;
+  if (read_given && shot_given) {
+    *source = "given";
+    return given;
+  }
+  *source = read_given ? "read noise given, shot noise estimated" : "estimated";
+  // Squared residuals of each pixel's own fit, scaled up for the parameters
+  // it spent (n / (n - k)), against the fit's prediction per channel.
+  std::vector<std::vector<std::pair<double, double>>> points(s.channels);
+  for (std::size_t i = 0; i < pixels.size(); ++i) {
+    const int p = pixels[i];
+    const Lobe lobe = OwnLobe(own[i]);
+    const int n = s.usable_count[p];
+    const double k = 1.0 + (lobe.model == brdf::Model::kLambertian ? 0.0 : 1.0 + 1.0 / s.channels);
+    if (n <= k + 1.0) continue;
+    const double correction = n / (n - k);
+    for (int j = 0; j < s.lights; ++j) {
+      const std::size_t cell = s.At(p, j);
+      if (!s.usable[cell]) continue;
+      for (int ch = 0; ch < s.channels; ++ch) {
+        const double predicted = Predict(s, p, s.wi[cell], lobe, own[i].weight[ch], own[i].rho[ch], s.intensity[j][ch]);
+        const double r = s.value[cell * s.channels + ch] - predicted;
+        points[ch].emplace_back(predicted, r * r * correction);
+      }
+    }
+  }
+  SensorNoise noise = given;
+  for (int ch = 0; ch < s.channels; ++ch) {
+    auto& pts = points[ch];
+    if (pts.size() < 100) continue;
+    // Equal-count bins of the prediction; each bin's variance from its median
+    // squared residual (a chi-square(1) has median 0.455): what a few
+    // pixels the model does not fit (edges, blends) cannot move.
+    std::sort(pts.begin(), pts.end());
+    const int bins = 24;
+    std::vector<double> m, v;
+    for (int b = 0; b < bins; ++b) {
+      const std::size_t lo = pts.size() * b / bins, hi = pts.size() * (b + 1) / bins;
+      if (hi <= lo) continue;
+      std::vector<double> r2;
+      double mean = 0.0;
+      for (std::size_t i = lo; i < hi; ++i) {
+        mean += pts[i].first;
+        r2.push_back(pts[i].second);
+      }
+      auto mid = r2.begin() + static_cast<std::ptrdiff_t>(r2.size() / 2);
+      std::nth_element(r2.begin(), mid, r2.end());
+      m.push_back(std::max(0.0, mean / (hi - lo)));
+      v.push_back(*mid / 0.4549);
+    }
+    const double fixed_read = read_given ? given.read_sigma[ch] * given.read_sigma[ch] : -1.0;
+    const Eigen::Vector3d c = FitVariance(m, v, fixed_read);
+    noise.read_sigma[ch] = std::sqrt(c[0]);
+    noise.shot_gain[ch] = c[1];
+    noise.relative[ch] = std::sqrt(c[2]);
+  }
+  return noise;
+}
+
+void WeightSamples(const SensorNoise& noise, const std::vector<int>& pixels, const std::vector<PixelLobe>& own,
+                   Samples* s) {
+  // A floor for a model that says a dark sample has no noise at all.
+  double floor = std::numeric_limits<double>::infinity();
+  for (int ch = 0; ch < s->channels; ++ch) floor = std::min(floor, noise.Variance(ch, 1.0));
+  floor = std::max(1e-6 * floor, 1e-300);
+  const int count = static_cast<int>(pixels.size());
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < count; ++i) {
+    const int p = pixels[i];
+    const Lobe lobe = OwnLobe(own[i]);
+    for (int j = 0; j < s->lights; ++j) {
+      const std::size_t cell = s->At(p, j);
+      if (!s->usable[cell]) continue;
+      for (int ch = 0; ch < s->channels; ++ch) {
+        const double predicted = Predict(*s, p, s->wi[cell], lobe, own[i].weight[ch], own[i].rho[ch], s->intensity[j][ch]);
+        s->weight[cell * s->channels + ch] = static_cast<float>(1.0 / std::max(noise.Variance(ch, predicted), floor));
+      }
+    }
+  }
 }
 
 double Predict(const Samples& s, int p, const Eigen::Vector3d& wi_local, const Lobe& lobe, double weight, double rho,

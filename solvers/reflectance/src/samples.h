@@ -23,6 +23,7 @@ struct Samples {
   int width = 0, height = 0;
   std::vector<int> pixel_index;          // row * width + col, per gathered pixel
   std::vector<float> value;              // [pixel][light][channel]
+  std::vector<float> weight;             // [pixel][light][channel]: 1 / noise variance (1 until WeightSamples)
   std::vector<std::uint8_t> usable;      // [pixel][light]: lit and unsaturated
   std::vector<std::uint8_t> saturated;   // [pixel][light]: lit and clipped
   std::vector<Eigen::Vector3d> wi;       // [pixel][light] light direction in the pixel's frame
@@ -64,6 +65,10 @@ double PixelCost(const ChannelSums& sums, double weight, double* rho);
 struct GroupFit {
   Eigen::Vector3d weight = Eigen::Vector3d::Zero();
   Eigen::Vector3d reduced_hh = Eigen::Vector3d::Zero();  // the weight's normal-equation coefficient
+  // The weight's variance with pixels as the independent units (a
+  // cluster-robust sandwich): a pixel's samples share its normal's and its
+  // demosaicing's errors, which the per-sample noise model does not know.
+  Eigen::Vector3d weight_variance = Eigen::Vector3d::Zero();
   double cost = 0.0;
   long long residuals = 0;
 };
@@ -116,6 +121,18 @@ std::vector<PixelLobe> FitPixelLobes(const Samples& s, const std::vector<int>& p
 // Per-pixel Lambertian albedo.
 std::vector<Eigen::Vector3d> FitLambertian(const Samples& s, const std::vector<int>& pixels,
                                            const std::vector<std::uint8_t>& enabled);
+
+// The noise model to weight by: what `given` knows, the rest estimated from
+// the residuals of each pixel's own lobe (`own`, index-aligned with `pixels`).
+// *source says which ("given", "estimated", "read noise given, shot noise estimated").
+SensorNoise EstimateNoise(const Samples& s, const std::vector<int>& pixels, const std::vector<PixelLobe>& own,
+                          const SensorNoise& given, std::string* source);
+
+// Weights every sample of `pixels` by 1 / variance at its pixel's own-lobe
+// prediction (a smooth signal: a weight taken from the noisy sample itself
+// would favour the samples that noise pulled down).
+void WeightSamples(const SensorNoise& noise, const std::vector<int>& pixels, const std::vector<PixelLobe>& own,
+                   Samples* s);
 
 // Albedos of `pixels` under a material's lobe and weights.
 std::vector<Eigen::Vector3d> FitAlbedo(const Samples& s, const std::vector<int>& pixels, const MaterialFit& material,

@@ -13,6 +13,12 @@ namespace photorig::solvers::reflectance {
 using internal::Lobe;
 using internal::Samples;
 
+double SensorNoise::Variance(int channel, double signal) const {
+  const double positive = std::max(signal, 0.0);
+  return read_sigma[channel] * read_sigma[channel] + shot_gain[channel] * positive +
+         relative[channel] * relative[channel] * positive * positive;
+}
+
 Eigen::Vector3d ReflectanceStack::Intensity(int light) const {
   return light_intensities.empty() ? Eigen::Vector3d::Ones() : light_intensities[light];
 }
@@ -42,6 +48,9 @@ bool ReflectanceStack::IsValid(std::string* why) const {
       return fail("light intensity " + std::to_string(j) + " is not positive");
   }
   if (std::abs(view_direction.norm() - 1.0) > 1e-3) return fail("the view direction is not a unit vector");
+  if (!(noise.read_sigma.minCoeff() >= 0.0 && noise.shot_gain.minCoeff() >= 0.0 && noise.relative.minCoeff() >= 0.0) ||
+      !noise.read_sigma.allFinite() || !noise.shot_gain.allFinite() || !noise.relative.allFinite())
+    return fail("the noise model's terms must be finite and >= 0");
   return true;
 }
 
@@ -83,6 +92,7 @@ bool ReflectanceOptions::IsValid(std::string* why) const {
   if (min_samples < 3) return fail("min_samples must be at least 3");
   if (!(poor_fit_ratio > 1.0)) return fail("poor_fit_ratio must exceed 1");
   if (!(mixed_pixel_alpha >= 0.0 && mixed_pixel_alpha < 1.0)) return fail("mixed_pixel_alpha must be in [0, 1)");
+  if (!(split_alpha > 0.0 && split_alpha < 0.5)) return fail("split_alpha must be in (0, 0.5)");
   if (shape_search_pixels < 10) return fail("shape_search_pixels must be at least 10");
   if (kmeans_restarts < 1) return fail("kmeans_restarts must be at least 1");
   if (min_highlight_lights < 1) return fail("min_highlight_lights must be at least 1");
@@ -247,18 +257,18 @@ struct Partition {
   double bic = std::numeric_limits<double>::infinity();
 };
 
+// chi^2 + parameters ln(samples) of a set of materials (the costs are chi-square values).
 double PooledBic(const std::vector<internal::MaterialResult>& materials, int channels) {
-  double cost = 0.0;
+  double chi_square = 0.0;
   long long n = 0;
   int parameters = 0;
   for (const auto& m : materials) {
-    cost += m.cost;
+    chi_square += m.cost;
     n += m.residuals;
     // The material's label and lobe choice count as one parameter; a lobe adds its weights and shape.
     parameters += 1 + (m.fit.model == brdf::Model::kLambertian ? 0 : channels + 1);
   }
-  const double nn = static_cast<double>(std::max<long long>(n, 1));
-  return nn * std::log(std::max(cost, 1e-300) / nn) + parameters * std::log(nn);
+  return chi_square + parameters * std::log(static_cast<double>(std::max<long long>(n, 1)));
 }
 
 // Each pixel to the material whose lobe explains it best; returns whether any moved.
@@ -313,6 +323,21 @@ bool Reassign(const Samples& s, const std::vector<Eigen::Vector2d>& chroma, Part
   groups.erase(std::remove_if(groups.begin(), groups.end(), [](const auto& g) { return g.empty(); }), groups.end());
   part->groups = std::move(groups);
   return moved;
+}
+
+bool SplitIsChance(const Samples& s, const std::vector<int>& a, const std::vector<int>& b, const MaterialFit& joint,
+                   double alpha);
+
+// Whether two of the partition's materials of one lobe model are one cut in
+// two (two without a lobe always are), judged at the first one's lobe.
+bool CutsOneMaterial(const Samples& s, const Partition& part, double alpha) {
+  for (std::size_t a = 0; a < part.groups.size(); ++a)
+    for (std::size_t b = a + 1; b < part.groups.size(); ++b) {
+      const MaterialFit& fa = part.materials[a].fit;
+      if (fa.model != part.materials[b].fit.model) continue;
+      if (fa.model == brdf::Model::kLambertian || SplitIsChance(s, part.groups[a], part.groups[b], fa, alpha)) return true;
+    }
+  return false;
 }
 
 void FitPartition(const Samples& s, const std::vector<brdf::Model>& candidates, int search_pixels, Partition* part) {
@@ -407,6 +432,66 @@ std::vector<std::uint8_t> MixedPixels(const Samples& s, const std::vector<int>& 
   return mixed;
 }
 
+// The standard normal's quantile p (bisection on the CDF; called a few times a fit).
+double NormalQuantile(double p) {
+  double lo = -40.0, hi = 40.0;
+  for (int it = 0; it < 200; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+// Whether two groups of pixels of one lobe model are one group cut in two.
+// Each pixel's own weight w_i for the joint lobe (its reduced normal
+// equation B_i / A_i, channels pooled) has precision A_i. The split's
+// cluster index, the within-group over the total weighted sum of squares,
+// is compared with its value when one Gaussian spread is cut at its best
+// point: 1 - 2/pi, with a standard deviation of about 0.35 / sqrt(n) for n
+// pixels (simulated; n the effective count (sum A)^2 / sum A^2). Two groups
+// that are really two lie below by more than the one-sided normal quantile
+// at `alpha` (SigClust, Liu, Hayes, Nobel and Marron 2008, in one dimension).
+bool SplitIsChance(const Samples& s, const std::vector<int>& a, const std::vector<int>& b, const MaterialFit& joint,
+                   double alpha) {
+  struct Moments {
+    double weight = 0.0, sum = 0.0, squares = 0.0, weight_squared = 0.0;
+    void Add(double w, double precision) {
+      weight += precision;
+      sum += precision * w;
+      squares += precision * w * w;
+      weight_squared += precision * precision;
+    }
+    double Spread() const { return weight > 0.0 ? squares - sum * sum / weight : 0.0; }
+  };
+  auto moments_of = [&](const std::vector<int>& pixels) {
+    Moments m;
+    for (int p : pixels) {
+      const internal::PixelSums sums = internal::SumsOf(s, p, {joint.model, joint.shape}, {});
+      double precision = 0.0, score = 0.0;
+      for (int ch = 0; ch < s.channels; ++ch) {
+        const internal::ChannelSums& cs = sums.c[ch];
+        if (cs.uu <= 0.0) continue;
+        precision += cs.hh - cs.uh * cs.uh / cs.uu;
+        score += cs.hy - cs.uh * cs.uy / cs.uu;
+      }
+      if (precision > 0.0) m.Add(score / precision, precision);
+    }
+    return m;
+  };
+  const Moments ma = moments_of(a), mb = moments_of(b);
+  Moments all = ma;
+  all.weight += mb.weight;
+  all.sum += mb.sum;
+  all.squares += mb.squares;
+  all.weight_squared += mb.weight_squared;
+  const double total = all.Spread();
+  if (!(total > 0.0) || !(all.weight_squared > 0.0)) return true;
+  const double index = (ma.Spread() + mb.Spread()) / total;
+  const double effective_pixels = all.weight * all.weight / all.weight_squared;
+  const double z = -NormalQuantile(alpha);
+  return index >= 1.0 - 2.0 / M_PI - z * 0.35 / std::sqrt(effective_pixels);
+}
+
 }  // namespace
 
 ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const ReflectanceStack& stack,
@@ -435,7 +520,7 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
     return summary;
   }
   cv::Mat flags;
-  const Samples s = internal::Gather(stack, normals, mask, options.min_cosine, &flags, &summary.saturated_samples);
+  Samples s = internal::Gather(stack, normals, mask, options.min_cosine, &flags, &summary.saturated_samples);
   std::vector<int> active;
   for (int p = 0; p < s.pixels; ++p) {
     if (s.usable_count[p] >= options.min_samples) {
@@ -460,14 +545,19 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   }
   timer.SetupDone(&summary);
 
-  // Features for the clustering: chromaticity and each pixel's own lobe.
+  // The noise model (given, or estimated from each pixel's own lobe fitted
+  // with equal weights), then every sample weighted by it and the own lobes
+  // refitted: the features for the clustering are chromaticity and these lobes.
+  const std::vector<internal::PixelLobe> equal_weights = internal::FitPixelLobes(s, active, {}, nullptr);
+  summary.noise = internal::EstimateNoise(s, active, equal_weights, stack.noise, &summary.noise_source);
+  internal::WeightSamples(summary.noise, active, equal_weights, &s);
   const std::vector<internal::PixelLobe> own = internal::FitPixelLobes(s, active, {}, options.progress);
   const int chroma_dims = s.channels == 3 ? 2 : 0;
   std::vector<Eigen::Vector2d> chroma(chroma_dims ? s.pixels : 0, Eigen::Vector2d::Zero());
   if (chroma_dims)
     for (std::size_t i = 0; i < active.size(); ++i) {
-      const double total = std::max(own[i].rho.sum(), 1e-6);
-      chroma[active[i]] = {3.0 * own[i].rho[0] / total, 3.0 * own[i].rho[1] / total};
+      const double total = std::max(equal_weights[i].rho.sum(), 1e-6);
+      chroma[active[i]] = {3.0 * equal_weights[i].rho[0] / total, 3.0 * equal_weights[i].rho[1] / total};
     }
   // Mixed pixels are flagged before the materials are chosen, so that they
   // cannot form one of their own; they are assigned once the materials exist.
@@ -514,6 +604,9 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
     Partition part;
     part.groups = Groups(clustered, best_labels, k);
     FitPartition(s, candidates, options.shape_search_pixels, &part);
+    // A clustering that cuts one material in two says the data hold fewer
+    // than k materials; larger k only cut further, so the search ends.
+    if (k > 1 && CutsOneMaterial(s, part, options.split_alpha)) break;
     for (int it = 0; it < 4 && part.groups.size() > 1; ++it) {
       if (!Reassign(s, chroma, &part)) break;
       FitPartition(s, candidates, options.shape_search_pixels, &part);
@@ -523,29 +616,28 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
     if (k == max_k) throttle.Finish();
   }
 
-  // Materials the clustering split but whose lobes agree are one material
-  // (the albedo is per pixel anyway): merged. Agreement is judged on the
-  // parameters, not the BIC, whose Gaussian likelihood overstates small
-  // gains when the noise grows with the signal.
-  auto same_lobe = [](const MaterialFit& a, const MaterialFit& b) {
-    if (a.model != b.model) return false;
-    if (a.model == brdf::Model::kLambertian) return true;
-    if (std::abs(std::log(a.shape / b.shape)) > std::max(0.1, 3.0 * std::hypot(a.shape_sigma, b.shape_sigma))) return false;
-    for (int ch = 0; ch < 3; ++ch) {
-      const double tolerance = 0.1 * std::max(a.specular[ch], b.specular[ch]) + 3.0 * std::hypot(a.specular_sigma[ch], b.specular_sigma[ch]);
-      if (std::abs(a.specular[ch] - b.specular[ch]) > tolerance) return false;
-    }
-    return true;
-  };
+  // Materials the clustering split but one paint explains are merged (the
+  // albedo is per pixel anyway). Comparing the two fits by chi^2 or by their
+  // parameters' errors cannot tell: the pixels were sorted into the two by
+  // those very fits, and cutting any spread of pixels in two yields two
+  // "significantly" different means. So the test is whether the pixels'
+  // own lobe weights form two groups at all (SplitIndex).
   for (bool merged = true; merged && best.groups.size() > 1;) {
     merged = false;
     for (std::size_t a = 0; a < best.groups.size() && !merged; ++a)
       for (std::size_t b = a + 1; b < best.groups.size() && !merged; ++b) {
-        if (!same_lobe(best.materials[a].fit, best.materials[b].fit)) continue;
-        best.groups[a].insert(best.groups[a].end(), best.groups[b].begin(), best.groups[b].end());
+        if (best.materials[a].fit.model != best.materials[b].fit.model) continue;
+        std::vector<int> joint = best.groups[a];
+        joint.insert(joint.end(), best.groups[b].begin(), best.groups[b].end());
+        internal::MaterialResult fit = internal::FitMaterial(s, joint, candidates, {}, options.shape_search_pixels);
+        if (fit.fit.model != brdf::Model::kLambertian &&
+            !SplitIsChance(s, best.groups[a], best.groups[b], fit.fit, options.split_alpha))
+          continue;
+        best.groups[a] = std::move(joint);
         best.groups.erase(best.groups.begin() + static_cast<std::ptrdiff_t>(b));
         best.materials.erase(best.materials.begin() + static_cast<std::ptrdiff_t>(b));
-        best.materials[a] = internal::FitMaterial(s, best.groups[a], candidates, {}, options.shape_search_pixels);
+        best.materials[a] = std::move(fit);
+        ++summary.materials_merged;
         merged = true;
       }
   }
@@ -561,26 +653,51 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   ProgressThrottle albedo_progress(options.progress, "albedo", static_cast<std::int64_t>(best.groups.size()));
   std::vector<int> material_of(s.pixels, -1);
   std::vector<double> pixel_rms(s.pixels, 0.0);
-  // Writes pixel p's albedo, its deviation, residual and material; returns the RMS residual.
+  // Pixel p's RMS residual in image units under a material (what the
+  // poor-fit test compares: a residual the model leaves, in the units the
+  // relit images are judged in) and its chi-square.
+  struct PixelResidual {
+    double rms = 0.0, squared_sum = 0.0, chi_square = 0.0;
+    long long count = 0;
+  };
+  auto residual_of = [&](int p, const internal::PixelSums& sums, const MaterialFit& fit, double* rho) {
+    PixelResidual out;
+    for (int ch = 0; ch < C; ++ch) out.chi_square += internal::PixelCost(sums.c[ch], fit.specular[ch], &rho[ch]);
+    for (int j = 0; j < s.lights; ++j) {
+      const std::size_t cell = s.At(p, j);
+      if (!s.usable[cell]) continue;
+      for (int ch = 0; ch < C; ++ch) {
+        const double d = s.value[cell * C + ch] -
+                         internal::Predict(s, p, s.wi[cell], {fit.model, fit.shape}, fit.specular[ch], rho[ch], s.intensity[j][ch]);
+        out.squared_sum += d * d;
+        ++out.count;
+      }
+    }
+    out.rms = std::sqrt(out.squared_sum / std::max<long long>(1, out.count));
+    return out;
+  };
+  // Writes pixel p's albedo, its deviation, residual and material.
   auto write_pixel = [&](int p, int m, const internal::PixelSums& sums, const MaterialFit& fit) {
     const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
     float* albedo = maps->albedo.ptr<float>(r) + c * C;
     float* sigma = maps->albedo_sigma.ptr<float>(r) + c * C;
-    double cost = 0.0;
+    double rho[3] = {0.0, 0.0, 0.0};
+    const PixelResidual out = residual_of(p, sums, fit, rho);
     for (int ch = 0; ch < C; ++ch) {
-      double rho;
-      const double channel_cost = internal::PixelCost(sums.c[ch], fit.specular[ch], &rho);
-      cost += channel_cost;
-      albedo[ch] = static_cast<float>(rho);
-      // Least squares with the pixel's own residual variance (one dof per channel used by rho).
+      albedo[ch] = static_cast<float>(rho[ch]);
+      // Weighted least squares, scaled by the pixel's own chi^2 per dof (one dof per channel used by rho).
+      double unused;
+      const double channel_cost = internal::PixelCost(sums.c[ch], fit.specular[ch], &unused);
       const double dof = std::max(1, sums.samples - 1);
       sigma[ch] = static_cast<float>(std::sqrt(channel_cost / dof / std::max(sums.c[ch].uu, 1e-300)));
     }
-    const double rms = std::sqrt(cost / std::max(1, sums.samples * C));
-    maps->rms_residual.at<float>(r, c) = static_cast<float>(rms);
+    pixel_rms[p] = out.rms;
+    maps->rms_residual.at<float>(r, c) = static_cast<float>(out.rms);
     maps->material.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(m);
-    return rms;
+    return out;
   };
+  double chi_square = 0.0;
+  long long residuals = 0;
   std::vector<double> typical_rms(best.groups.size(), 0.0);
   for (std::size_t m = 0; m < best.groups.size(); ++m) {
     MaterialFit fit = best.materials[m].fit;
@@ -588,12 +705,19 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
     std::vector<internal::PixelSums> sums;
     internal::FitGroup(s, group, {fit.model, fit.shape}, {}, &sums);
     std::vector<double> rms(group.size());
+    double squared_sum = 0.0;
+    long long count = 0;
     for (std::size_t i = 0; i < group.size(); ++i) {
       const int p = group[i];
       material_of[p] = static_cast<int>(m);
-      rms[i] = write_pixel(p, static_cast<int>(m), sums[i], fit);
-      pixel_rms[p] = rms[i];
+      const PixelResidual residual = write_pixel(p, static_cast<int>(m), sums[i], fit);
+      rms[i] = residual.rms;
+      squared_sum += residual.squared_sum;
+      count += residual.count;
+      chi_square += residual.chi_square;
+      residuals += residual.count;
     }
+    fit.rms_residual = std::sqrt(squared_sum / std::max<long long>(1, count));
     // Poor fits: far above the material's typical residual.
     const double typical = Median(rms);
     typical_rms[m] = typical;
@@ -661,7 +785,8 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
       }
     }
     if (best_m < 0) continue;
-    const double rms = std::sqrt(best_cost / std::max(1, best_sums.samples * C));
+    double rho[3];
+    const double rms = residual_of(p, best_sums, maps->materials[best_m], rho).rms;
     if (rms > options.poor_fit_ratio * typical_rms[best_m] && rms > 0.0) continue;
     write_pixel(p, best_m, best_sums, maps->materials[best_m]);
     ++summary.pixels_mixed_assigned;
@@ -694,6 +819,7 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   if (!summary.inconsistent_lights.empty()) AddWarning(&summary.warnings, Warning::kInconsistentIntensities);
 
   maps->flags = flags;
+  summary.reduced_chi_square = residuals > 0 ? chi_square / static_cast<double>(residuals) : 0.0;
   summary.materials = static_cast<int>(maps->materials.size());
   summary.pixels_fitted = static_cast<int>(active.size()) - summary.pixels_poor_fit - summary.pixels_mixed;
   summary.termination = Termination::kSuccess;

@@ -18,6 +18,14 @@
 // albedo chromaticity (three-channel stacks) and the pixel's own Blinn-Phong
 // lobe (its weight and sharpness). Each k is scored by the BIC of the fit it
 // leads to; the smallest wins.
+//
+// Every fit is weighted least squares under the sensor's noise model
+// (SensorNoise: read noise plus shot noise that grows with the signal), so
+// costs are chi-square values and every choice (a material's lobe, the number
+// of materials, whether two materials are one) compares chi-square gains with
+// the BIC's penalty: chi^2 + parameters ln(samples). With equal weights a
+// bright highlight's shot noise would pass for structure that a split or a
+// tiny lobe explains.
 
 #include "photorig/solvers/brdf/models.h"
 #include "photorig/solvers/progress.h"
@@ -26,12 +34,27 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <string>
 #include <vector>
 
 namespace photorig::solvers::reflectance {
+
+// Noise of one sample in image units, per channel:
+//   variance = read_sigma^2 + shot_gain * max(signal, 0) + (relative * signal)^2
+// For a linear camera shot_gain = camera gain / (electrons per DN); the
+// relative term covers errors proportional to the signal (light-intensity
+// flicker, a colour model's residual). All zero = unknown: FitReflectance
+// estimates what is unknown from the data.
+struct SensorNoise {
+  Eigen::Vector3d read_sigma = Eigen::Vector3d::Zero();
+  Eigen::Vector3d shot_gain = Eigen::Vector3d::Zero();
+  Eigen::Vector3d relative = Eigen::Vector3d::Zero();
+  double Variance(int channel, double signal) const;
+  bool IsKnown() const { return read_sigma.maxCoeff() > 0.0 || shot_gain.maxCoeff() > 0.0 || relative.maxCoeff() > 0.0; }
+};
 
 // N images of C channels (C = 1 or 3), linear, dark already subtracted.
 struct ReflectanceStack {
@@ -45,6 +68,10 @@ struct ReflectanceStack {
   // Samples at or above this value are clipped by the sensor: left out of
   // every fit and counted (SaturatedHighlights).
   double saturation_level = std::numeric_limits<double>::infinity();
+  // The sensor's noise. Where read_sigma is given but shot_gain is not (a
+  // colour stack: demosaicing and the colour model change the shot noise per
+  // channel) the shot and relative terms are estimated; all zero: all three.
+  SensorNoise noise;
 
   int width() const { return images.empty() ? 0 : images.front().cols; }
   int height() const { return images.empty() ? 0 : images.front().rows; }
@@ -120,6 +147,10 @@ struct ReflectanceOptions {
   // chi-square (2 dof) quantile at this level, or when its demosaicing window
   // reaches off the object. 0 turns the test off. Default 0.001.
   double mixed_pixel_alpha = 1e-3;
+  // False-alarm probability of telling two materials of one lobe model apart:
+  // materials the clustering split are merged unless their pixels' own lobe
+  // weights form two groups at this level (docs/reflectance.md). Default 0.001.
+  double split_alpha = 1e-3;
   // Pixels per material used for the lobe-shape search (a deterministic
   // subsample); the albedos are then solved for every pixel. Default 2000.
   int shape_search_pixels = 2000;
@@ -152,6 +183,10 @@ struct ReflectanceSummary : Summary {
   long long saturated_samples = 0;
   int materials = 0;
   std::vector<double> bic_by_materials;  // [k - 1]: BIC of the best fit with k materials
+  SensorNoise noise;                     // the noise model the fit weighted by
+  std::string noise_source;              // "given", "estimated" or "read noise given, shot noise estimated"
+  double reduced_chi_square = 0.0;       // chi^2 per residual of the chosen fit (about 1 when the noise model holds)
+  int materials_merged = 0;              // materials the clustering split whose pixels form one group (split test)
   std::vector<Warning> warnings;         // the union over materials, plus stack-wide ones
   std::vector<int> inconsistent_lights;  // lights behind kInconsistentIntensities
   std::vector<double> light_intensity_ratio;  // per light: median measured / predicted
@@ -201,6 +236,11 @@ struct RelightingSummary : Summary {
   double mean_psnr_db[3] = {0.0, 0.0, 0.0};
   double mean_fit_ms[3] = {0.0, 0.0, 0.0};
   int materials = 0;  // chosen on all lights and kept for every held-out fit
+  // [material][method]: RMSE over every held-out sample of the material's
+  // pixels (all held-out lights pooled): where a lobe was chosen the
+  // per-material error should lie below the Lambertian one, where none was
+  // they should agree within noise.
+  std::vector<std::array<double, 3>> material_rmse;
 };
 
 // For each held-out light: fit each method on the other lights (the number
