@@ -707,7 +707,7 @@ void TileRefiner::OfferGgx(int thread, int p) {
 
 void TileRefiner::AddCounts(SolverSummary* summary) const {
   std::size_t failed = 0;
-  // Step 5 moved pixels between models counted on other threads: subtract
+  // Steps 5 and 6 moved pixels between models counted on other threads: subtract
   // after summing.
   std::size_t from_lambertian = 0, from_trimmed = 0, from_blinn_phong = 0, from_held_lobe = 0, restored = 0;
   for (const ThreadState& state : states_) {
