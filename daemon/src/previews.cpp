@@ -92,7 +92,8 @@ const std::vector<Category>& ModelCategories() {
        {int(ps::PixelModel::kLambertian), {65, 105, 225}},
        {int(ps::PixelModel::kTrimmed), {0, 206, 209}},
        {int(ps::PixelModel::kBlinnPhong), {255, 215, 0}},
-       {int(ps::PixelModel::kIrls), {199, 21, 133}}},
+       {int(ps::PixelModel::kIrls), {199, 21, 133}},
+       {int(ps::PixelModel::kGgx), {255, 127, 80}}},
       [](int code) { return ps::PixelModelName(static_cast<ps::PixelModel>(code)); });
   return categories;
 }

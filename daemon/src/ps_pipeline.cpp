@@ -344,7 +344,8 @@ json ToJson(const PhotometricStereoResult& result) {
                   {{"lambertian", summary.pixels_lambertian},
                    {"trimmed", summary.pixels_trimmed},
                    {"irls", summary.pixels_irls},
-                   {"blinn_phong", summary.pixels_blinn_phong}}},
+                   {"blinn_phong", summary.pixels_blinn_phong},
+                   {"ggx", summary.pixels_ggx}}},
                  {"samples_rejected", summary.samples_rejected},
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets},
                  {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}, {"total", result.total_ms}}}};

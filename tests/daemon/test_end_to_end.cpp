@@ -147,7 +147,10 @@ TEST(EndToEnd, AutoAtLeastHalvesTheL2ErrorOnHighlightsAndCastShadows) {
     const double auto_error = auto_report["ground_truth"]["mean_angular_error_deg"];
     EXPECT_LT(auto_error, 0.5 * l2_error) << scene;
     // Non-Lambertian pixels were recognised as such, and depth came out of the normals.
-    EXPECT_GT(auto_report["models"]["trimmed"].get<int>() + auto_report["models"]["blinn_phong"].get<int>(), 0) << scene;
+    EXPECT_GT(auto_report["models"]["trimmed"].get<int>() + auto_report["models"]["blinn_phong"].get<int>() +
+                  auto_report["models"]["ggx"].get<int>(),
+              0)
+        << scene;
     EXPECT_LE(auto_report["pixels"]["shared_lobe"].get<int>(), auto_report["models"]["blinn_phong"].get<int>()) << scene;
     EXPECT_TRUE(auto_report["depth"]["success"].get<bool>()) << scene;
     EXPECT_TRUE(fs::exists(automatic / "mesh.ply")) << scene;

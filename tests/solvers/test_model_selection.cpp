@@ -10,6 +10,7 @@
 namespace photorig::ps {
 namespace {
 
+using internal::GgxFits;
 using internal::kNoFit;
 using internal::LadderFits;
 using internal::LadderStep;
@@ -195,6 +196,34 @@ TEST(ModelLadder, EachMethodFallsBackWhereItsOwnFitFails) {
   step = Ladder(Method::kAuto).Next({&lambertian, &kNoFit, &trimmed, &kNoFit, &lambertian});
   EXPECT_EQ(step.keep, &lambertian);
   EXPECT_TRUE(step.fell_back);
+}
+
+// Step 6: a GGX lobe replaces the kept fit only where the information
+// criterion prefers it on the same samples; its two parameters over a held
+// lobe's (or a Lambertian fit's) cost 2 ln n, none over a lobe of its own.
+TEST(ModelLadder, AutoTakesGgxWhereItsInformationCriterionIsLower) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit held = FitWith(40, 1.2, PixelModel::kBlinnPhong, 3);  // chi2 44.4
+  GgxFits fits{&held};
+  const LadderStep fit = ladder.NextWithGgx(fits);
+  ASSERT_EQ(fit.action, Action::kFitGgx);
+  EXPECT_EQ(fit.start, &held);
+  PixelFit ggx = FitWith(40, 1.0, PixelModel::kGgx, 5);  // chi2 35: 9.4 lower, 2 ln 40 = 7.4 dearer
+  fits.ggx = &ggx;
+  LadderStep step = ladder.NextWithGgx(fits);
+  ASSERT_EQ(step.action, Action::kKeep);
+  EXPECT_EQ(step.keep, &ggx);
+  EXPECT_NEAR(step.evidence, 9.4 - 2.0 * std::log(40.0), 1e-9);
+  ggx.chi2 = 38.0;  // 6.4 lower: not enough
+  EXPECT_EQ(ladder.NextWithGgx(fits).keep, &held);
+  const PixelFit own = FitWith(40, 1.1, PixelModel::kBlinnPhong, 5);  // chi2 38.5, as many parameters
+  EXPECT_EQ(ladder.NextWithGgx({&own, &ggx}).keep, &ggx);
+  ggx.ok = false;
+  EXPECT_EQ(ladder.NextWithGgx({&own, &ggx}).keep, &own);
+  // Not for a pixel with no sample beyond the lobe's parameters, nor for another method.
+  const PixelFit few = FitWith(5, 2.0);
+  EXPECT_EQ(ladder.NextWithGgx({&few}).keep, &few);
+  EXPECT_EQ(Ladder(Method::kBlinnPhong).NextWithGgx({&held}).keep, &held);
 }
 
 TEST(ModelLadder, OnlyAutoScreensOnTheLambertianConfidence) {

@@ -1,7 +1,7 @@
 // Every method on a small shiny sphere with what a real capture adds to the
 // simulated one (docs/photometric-stereo.md, "Realistic scenes"): a GGX lobe
-// where the solver models Blinn-Phong, lights off their stated directions and
-// intensities, and a camera response that is not linear.
+// where the single methods model Blinn-Phong, lights off their stated
+// directions and intensities, and a camera response that is not linear.
 #include "photorig/ps/evaluation.h"
 #include "photorig/ps/photometric_stereo.h"
 #include "ps_test_scene.h"
@@ -35,13 +35,23 @@ double GgxBrdf(const Eigen::Vector3d& n, const Eigen::Vector3d& l, const Eigen::
   return rho_d / M_PI + d * fresnel * g1(nl) * g1(nv) / (4.0 * nl * nv);
 }
 
+// The Blinn-Phong lobe of the same width (e = 60: a^2 = 2 / (e + 2)) and a
+// similar peak (0.99 /sr against GGX's 0.74).
+double BlinnPhongBrdf(const Eigen::Vector3d& n, const Eigen::Vector3d& l, const Eigen::Vector3d& v, double rho_d) {
+  constexpr double kSpecularAlbedo = 0.1, kExponent = 60.0;
+  const double nh = std::max(0.0, n.dot((l + v).normalized()));
+  return rho_d / M_PI + kSpecularAlbedo * (kExponent + 2.0) / (2.0 * M_PI) * std::pow(nh, kExponent);
+}
+
+enum class Lobe { kGgx, kBlinnPhong };
+
 // A sphere of radius 28 px in a 64 x 64 image under 48 lights, seen along +z.
 // The stack states the lights' nominal directions and scales; the frames are
 // rendered (with `errors`) with each light 1 deg (RMS) off its direction and
 // 3 % (RMS) off its intensity, through a response DN ~ S^(1 / 1.1), with read
 // noise 2 DN and shot noise 0.25 DN per DN, which the stack's noise model
 // gives (as from a rig with dark frames and the camera's conversion gain).
-RealisticScene CaptureRealisticSphere(unsigned seed = 23, bool errors = true) {
+RealisticScene CaptureRealisticSphere(unsigned seed = 23, bool errors = true, Lobe lobe = Lobe::kGgx) {
   constexpr int kSize = 64;
   constexpr double kRadius = 28.0, kScale = 2000.0, kDark = 16.0, kFullScale = 4095.0;
   const double gamma = errors ? 1.1 : 1.0;
@@ -77,9 +87,9 @@ RealisticScene CaptureRealisticSphere(unsigned seed = 23, bool errors = true) {
         const cv::Vec3f t = scene.truth.at<cv::Vec3f>(r, c);
         const Eigen::Vector3d n(t[0], t[1], t[2]);
         const double cosine = n.dot(w);
-        const double linear = scene.stack.mask.at<std::uint8_t>(r, c) && cosine > 0.0
-                                  ? intensity * GgxBrdf(n, w, view, 0.6, 0.18, 0.3) * cosine
-                                  : 0.0;
+        const double brdf =
+            lobe == Lobe::kGgx ? GgxBrdf(n, w, view, 0.6, 0.18, 0.3) : BlinnPhongBrdf(n, w, view, 0.6);
+        const double linear = scene.stack.mask.at<std::uint8_t>(r, c) && cosine > 0.0 ? intensity * brdf * cosine : 0.0;
         const double response = kFullScale * std::pow(linear / kFullScale, 1.0 / gamma);
         const double noisy = response + std::sqrt(scene.stack.noise.Variance(response)) * gauss(rng);
         image.at<float>(r, c) = static_cast<float>(kDark + noisy);
@@ -128,11 +138,10 @@ TEST(RealisticSphere, AutoIsAsAccurateAsBlinnPhongAndNoMethodLeavesAPixelWithThr
 }
 
 // The GGX lobe alone: its best Blinn-Phong exponent varies over the sphere, the
-// region's pixels reject one shared lobe, and step 5 gives each pixel the lobe
-// of its nearest confidently glossy pixels. Over six draws of noise `auto`
-// was 3.2-4.5 % more accurate than `blinn-phong`, 4.0 % on this one (with
-// the region's median lobe: 2.7 % on three draws, which fails; with each
-// pixel's own lobe in step 5: within 0.1 % either way, which fails too).
+// region's pixels reject one shared lobe, and step 6 fits them GGX. Over
+// twelve draws of noise (seeds 1-11 and this one) `auto`'s mean error was
+// 0.432-0.453 of `blinn-phong`'s, 0.446 on this one, with 68-70 % of the
+// pixels GGX (before step 6: 0.955-0.968, from step 5's nearest lobes).
 TEST(RealisticSphere, AutoIsMoreAccurateThanBlinnPhongWhereTheLobeIsGgx) {
   const RealisticScene scene = CaptureRealisticSphere(23, false);
   double error[2] = {};
@@ -147,8 +156,34 @@ TEST(RealisticSphere, AutoIsMoreAccurateThanBlinnPhongWhereTheLobeIsGgx) {
     error[method == Method::kAuto] = CompareNormals(map.normals, scene.truth, scene.stack.mask).mean_deg;
     if (method == Method::kAuto) auto_summary = summary;
   }
-  EXPECT_GT(auto_summary.pixels_shared_lobe, 0u) << auto_summary.BriefReport();
-  EXPECT_LE(error[1], 0.967 * error[0]) << "auto " << error[1] << " deg, blinn-phong " << error[0] << " deg";
+  EXPECT_GT(auto_summary.pixels_ggx, auto_summary.pixels_solved / 2) << auto_summary.BriefReport();
+  EXPECT_LE(error[1], 0.5 * error[0]) << "auto " << error[1] << " deg, blinn-phong " << error[0] << " deg";
+}
+
+// A Blinn-Phong lobe of the same width: the region keeps one shape, and step
+// 6 (GGX) is not offered: at most 1 % of the pixels may take GGX (none does,
+// with or without the light errors and the camera's response), and `auto`
+// stays at least as accurate as `blinn-phong`.
+TEST(RealisticSphere, AutoKeepsBlinnPhongWhereTheLobeIsBlinnPhong) {
+  for (bool errors : {false, true}) {
+    const RealisticScene scene = CaptureRealisticSphere(23, errors, Lobe::kBlinnPhong);
+    double error[2] = {};
+    SolverSummary auto_summary;
+    for (Method method : {Method::kBlinnPhong, Method::kAuto}) {
+      PhotometricStereoOptions options;
+      options.method = method;
+      options.lambertian.shadow_threshold = 6.0;
+      NormalMap map;
+      const SolverSummary summary = SolvePhotometricStereo(options, scene.stack, &map);
+      ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+      error[method == Method::kAuto] = CompareNormals(map.normals, scene.truth, scene.stack.mask).mean_deg;
+      if (method == Method::kAuto) auto_summary = summary;
+    }
+    EXPECT_GT(auto_summary.pixels_blinn_phong, auto_summary.pixels_solved / 2) << auto_summary.BriefReport();
+    EXPECT_LE(auto_summary.pixels_ggx, auto_summary.pixels_solved / 100) << "errors " << errors;
+    EXPECT_LE(error[1], error[0]) << "errors " << errors << ": auto " << error[1] << " deg, blinn-phong " << error[0]
+                                  << " deg";
+  }
 }
 
 }  // namespace

@@ -28,6 +28,8 @@ inline constexpr int kBlinnPhongParameters = 5;
 // The same with the lobe (rho_s and e) shared by the pixel's region (step 5):
 // as many of its own as the Lambertian fit.
 inline constexpr int kSharedLobeParameters = 3;
+// The normal's two degrees of freedom, rho_d, rho_s and the roughness a.
+inline constexpr int kGgxParameters = 5;
 
 // A lobe step 5 holds for a pixel: the medians of rho_s and e over
 // confidently glossy pixels (its region's, or its nearest ones').
@@ -44,7 +46,8 @@ struct PixelFit {
   bool ok = false;
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
   double albedo = 0.0;
-  double specular_albedo = 0.0, exponent = 0.0;
+  double specular_albedo = 0.0;
+  double exponent = 0.0;   // Blinn-Phong's e; GGX's roughness a (the model says which)
   double chi2 = 0.0;     // sum of squared residuals over variance, on the samples used
   int parameters = 3;
   int used = 0;          // samples with weight >= inlier threshold (all for least squares)
@@ -96,7 +99,8 @@ struct LadderStep {
     kReweight,    // fit LadderFits::robust by IRLS
     kFitLobe,     // fit LadderFits::blinn_phong, starting from `start`
     kFitSharedLobe,  // step 5: fit SharedLobeFits::lobe with the lobe held, starting from `start`
-    kFitOwnLobe      // step 5's shape test: fit SharedLobeFits::own, starting from `start`
+    kFitOwnLobe,     // step 5's shape test: fit SharedLobeFits::own, starting from `start`
+    kFitGgx          // step 6: fit GgxFits::ggx, starting from `start`
   };
   Action action = Action::kKeep;
   const PixelFit* keep = nullptr;   // kKeep: one of the fits asked about
@@ -133,6 +137,16 @@ struct SharedLobeFits {
 struct SharedShapeTest {
   double chi2_gain = 0.0;
   int pixels = 0;
+};
+
+// Step 6's fits of a pixel in a region whose pixels reject one Blinn-Phong
+// shape: the fit steps 1-5 kept, re-evaluated on all its usable samples
+// (chi-square and parameters: a Lambertian or trimmed fit as
+// LambertianOnRow, a lobe of its own 5, a lobe held by step 5 3), and the GGX
+// fit of those samples (null: not fitted yet).
+struct GgxFits {
+  const PixelFit* kept = nullptr;
+  const PixelFit* ggx = nullptr;
 };
 
 class ModelLadder {
@@ -197,6 +211,14 @@ class ModelLadder {
   // The test's sum is above the adequacy quantile of chi-square with two
   // degrees of freedom per pixel.
   bool RejectsSharedShape(const SharedShapeTest& test) const;
+
+  // Step 6 (`auto` only), for the pixels of a region that RejectsSharedShape
+  // (there the lobe is not Blinn-Phong): a GGX lobe of the pixel's own,
+  // fitted from the kept normal, replaces the kept fit where its information
+  // criterion is lower on the same samples. Only there: on a Blinn-Phong
+  // object GGX fits a pixel's samples about as well as the lobe that made
+  // them, and per pixel the criterion would pick either by chance.
+  inline LadderStep NextWithGgx(const GgxFits& fits) const;
 
   // Per usable sample count, the Lambertian pass's confidence at or above
   // which a pixel passes step 1 without a closer look (infinity where none
@@ -282,6 +304,18 @@ inline LadderStep ModelLadder::NextWithSharedLobe(const SharedLobeFits& fits) co
   const PixelFit& lobe = *fits.lobe;
   if (lobe.ok && lobe.chi2 < fits.lambertian->chi2) return Keep(lobe);
   return Keep(kept);
+}
+
+inline LadderStep ModelLadder::NextWithGgx(const GgxFits& fits) const {
+  const PixelFit& kept = *fits.kept;
+  // As in step 4: a lobe is fitted only where a sample is left to test it.
+  if (method_ != Method::kAuto || !kept.ok || kept.used <= kGgxParameters) return Keep(kept);
+  if (!fits.ggx) return {LadderStep::Action::kFitGgx, nullptr, &kept};
+  const PixelFit& ggx = *fits.ggx;
+  if (!(ggx.ok && ggx.Bic() < kept.Bic())) return Keep(kept);
+  LadderStep step = Keep(ggx);
+  step.evidence = kept.Bic() - ggx.Bic();
+  return step;
 }
 
 inline void ModelLadder::AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const {

@@ -4,11 +4,13 @@
 #include "kernels/trimmed_lambertian_fit.h"
 
 #include "photorig/autodiff/blinn_phong_jacobian.h"
+#include "photorig/autodiff/ggx.h"
 
 #include <Eigen/Dense>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace photorig::ps::internal {
 
@@ -173,6 +175,51 @@ PixelFit FitTrimmed(const PixelSamples& s, const ModelLadder& ladder, TrimScratc
 
 
 
+// Levenberg-Marquardt on the six parameters of a pixel model (the normal as
+// three components, then three of the material) from p, whose cost (chi-square)
+// and weighted residuals and Jacobian cost_at has just computed; cost_at(q,
+// with_jacobian, &cost) evaluates q (refreshing `residuals` and `jacobian`
+// with the Jacobian), project(&q) puts a step back into the parameters'
+// domain. Returns the cost at the final p.
+template <typename CostAt, typename Project>
+double LevenbergMarquardt(Eigen::Matrix<double, 6, 1>* parameters, double cost, const Eigen::VectorXd& inverse_sigma,
+                          const Eigen::VectorXd& residuals, const Eigen::MatrixXd& jacobian, const CostAt& cost_at,
+                          const Project& project, const BlinnPhongOptions& options) {
+  Eigen::Matrix<double, 6, 1>& p = *parameters;
+  double lambda = 1e-3;
+  Eigen::Matrix<double, Eigen::Dynamic, 6> jw;  // fixed width: J^T J without a general GEMM
+  Eigen::VectorXd rw;
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    jw = inverse_sigma.asDiagonal() * jacobian;
+    rw = residuals.cwiseProduct(inverse_sigma);
+    // Coefficient-wise products: for 6 columns and tens of rows a general
+    // matrix product's packing costs more than the arithmetic.
+    const Eigen::Matrix<double, 6, 6> h = jw.transpose().lazyProduct(jw);
+    const Eigen::Matrix<double, 6, 1> g = jw.transpose().lazyProduct(rw);
+    bool improved = false;
+    while (lambda < 1e12) {
+      Eigen::Matrix<double, 6, 6> damped = h;
+      damped.diagonal() += lambda * h.diagonal() + Eigen::Matrix<double, 6, 1>::Constant(1e-12);
+      Eigen::Matrix<double, 6, 1> candidate = p - damped.ldlt().solve(g);
+      project(&candidate);
+      double candidate_cost = 0.0;
+      if (cost_at(candidate, false, &candidate_cost) && candidate_cost < cost) {
+        const double decrease = (cost - candidate_cost) / std::max(cost, 1e-300);
+        p = candidate;
+        cost = candidate_cost;
+        lambda = std::max(lambda / 3.0, 1e-12);
+        // A step that lowers chi-square by less than this fraction changes
+        // the normal by far less than the noise does: stop there.
+        improved = decrease > options.relative_tolerance;
+        break;
+      }
+      lambda *= 4.0;
+    }
+    if (!improved || !cost_at(p, true, &cost)) break;
+  }
+  return cost;
+}
+
 // The lobe fitted to a pixel's usable samples from `start`'s normal and
 // albedo, its material from the grid's best start; or, with `shared` (step
 // 5), the lobe held at the region's and only the normal and rho_d fitted.
@@ -249,37 +296,7 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
     }
     if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
   }
-  double lambda = 1e-3;
-  Eigen::Matrix<double, Eigen::Dynamic, 6> jw;  // fixed width: J^T J without a general GEMM
-  Eigen::VectorXd rw;
-  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-    jw = inverse_sigma.asDiagonal() * jacobian;
-    rw = residuals.cwiseProduct(inverse_sigma);
-    // Coefficient-wise products: for 6 columns and tens of rows a general
-    // matrix product's packing costs more than the arithmetic.
-    const Eigen::Matrix<double, 6, 6> h = jw.transpose().lazyProduct(jw);
-    const Eigen::Matrix<double, 6, 1> g = jw.transpose().lazyProduct(rw);
-    bool improved = false;
-    while (lambda < 1e12) {
-      Eigen::Matrix<double, 6, 6> damped = h;
-      damped.diagonal() += lambda * h.diagonal() + Eigen::Matrix<double, 6, 1>::Constant(1e-12);
-      Eigen::Matrix<double, 6, 1> candidate = p - damped.ldlt().solve(g);
-      project(&candidate);
-      double candidate_cost = 0.0;
-      if (cost_at(candidate, false, &candidate_cost) && candidate_cost < cost) {
-        const double decrease = (cost - candidate_cost) / std::max(cost, 1e-300);
-        p = candidate;
-        cost = candidate_cost;
-        lambda = std::max(lambda / 3.0, 1e-12);
-        // A step that lowers chi-square by less than this fraction changes
-        // the normal by far less than the noise does: stop there.
-        improved = decrease > options.relative_tolerance;
-        break;
-      }
-      lambda *= 4.0;
-    }
-    if (!improved || !cost_at(p, true, &cost)) break;
-  }
+  cost = LevenbergMarquardt(&p, cost, inverse_sigma, residuals, jacobian, cost_at, project, options);
   PixelFit fit;
   fit.ok = std::isfinite(cost);
   fit.normal = p.head<3>().normalized();
@@ -290,6 +307,113 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
   fit.parameters = shared ? kSharedLobeParameters : kBlinnPhongParameters;
   fit.used = n;
   fit.model = PixelModel::kBlinnPhong;
+  return fit;
+}
+
+// Step 6's GGX roughness: a grid from which the fit starts (each a factor
+// 1.4 from the last, so the best point is within a sixth of the width of
+// the lobe that made the samples), and the range the fit keeps to (below
+// 0.01 the lobe falls between the lights of any practical dome; 1 is the
+// broadest lobe GGX has).
+constexpr double kGgxStartRoughness[] = {0.03, 0.042, 0.06, 0.084, 0.12, 0.17, 0.24, 0.33, 0.47, 0.66};
+constexpr double kMinRoughness = 0.01, kMaxRoughness = 1.0;
+
+// The samples of a pixel as the autodiff models take them.
+struct ModelSamples {
+  Eigen::Matrix<double, Eigen::Dynamic, 3> directions;
+  Eigen::VectorXd observed, inverse_sigma;
+  explicit ModelSamples(const PixelSamples& s) : directions(s.size(), 3), observed(s.size()), inverse_sigma(s.size()) {
+    for (int k = 0; k < s.size(); ++k) {
+      directions.row(k) = s.w[k].transpose();
+      observed[k] = s.b[k];
+      inverse_sigma[k] = 1.0 / std::sqrt(s.variance[k]);
+    }
+  }
+};
+
+// Chi-square of a Blinn-Phong fit (normal, rho_d, rho_s, e) on a pixel's
+// usable samples.
+double BlinnPhongChi2(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& fit) {
+  const ModelSamples m(s);
+  const autodiff::BlinnPhongPixel pixel(m.directions, Eigen::VectorXd::Ones(s.size()), view, m.observed);
+  const double q[6] = {fit.normal.x(), fit.normal.y(), fit.normal.z(), fit.albedo, fit.specular_albedo, fit.exponent};
+  Eigen::VectorXd residuals(s.size());
+  if (!pixel(q, residuals.data())) return std::numeric_limits<double>::infinity();
+  return residuals.cwiseProduct(m.inverse_sigma).squaredNorm();
+}
+
+// A GGX lobe fitted to a pixel's usable samples from `start`'s normal: rho_d
+// and rho_s from the best point of the roughness grid (weighted least
+// squares, both non-negative), then Levenberg-Marquardt on all six
+// parameters with Jacobians from solvers/autodiff by `options.derivative`
+// (forward mode where that names the lane fitter's closed form, which GGX
+// does not have).
+PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& start,
+                const BlinnPhongOptions& options, autodiff::Tape* tape) {
+  const int n = s.size();
+  const ModelSamples m(s);
+  const autodiff::GgxPixel pixel(m.directions, Eigen::VectorXd::Ones(n), view, m.observed);
+  Eigen::Matrix<double, 6, 1> p;
+  double best = std::numeric_limits<double>::infinity();
+  Eigen::VectorXd diffuse(n), lobe(n);
+  for (double roughness : kGgxStartRoughness) {
+    // The model is linear in rho_d and rho_s: its two columns at this normal and roughness.
+    const double unit_diffuse[6] = {start.normal.x(), start.normal.y(), start.normal.z(), 1.0, 0.0, roughness};
+    const double unit_lobe[6] = {start.normal.x(), start.normal.y(), start.normal.z(), 0.0, 1.0, roughness};
+    if (!pixel.Predict(unit_diffuse, diffuse.data()) || !pixel.Predict(unit_lobe, lobe.data())) return PixelFit{};
+    const Eigen::VectorXd wd = diffuse.cwiseProduct(m.inverse_sigma), wl = lobe.cwiseProduct(m.inverse_sigma),
+                          wb = m.observed.cwiseProduct(m.inverse_sigma);
+    Eigen::Matrix2d g;
+    g << wd.dot(wd), wd.dot(wl), wd.dot(wl), wl.dot(wl);
+    const Eigen::Vector2d r(wd.dot(wb), wl.dot(wb));
+    // Non-negative least squares in two unknowns: the free solution, else the
+    // better of the two with one held at 0.
+    Eigen::Vector2d c = g.ldlt().solve(r);
+    if (!(c.minCoeff() >= 0.0)) {
+      const Eigen::Vector2d only_diffuse(std::max(0.0, r(0) / g(0, 0)), 0.0),
+          only_lobe(0.0, std::max(0.0, r(1) / g(1, 1)));
+      auto reduction = [&](const Eigen::Vector2d& x) { return 2.0 * x.dot(r) - x.dot(g * x); };
+      c = reduction(only_diffuse) >= reduction(only_lobe) ? only_diffuse : only_lobe;
+    }
+    const double chi2 = (wb - c(0) * wd - c(1) * wl).squaredNorm();
+    if (std::isfinite(chi2) && chi2 < best) {
+      best = chi2;
+      p << start.normal, c(0), c(1), roughness;
+    }
+  }
+  if (!std::isfinite(best)) return PixelFit{};
+  auto project = [](Eigen::Matrix<double, 6, 1>* q) {
+    q->head<3>().normalize();
+    (*q)(3) = std::max(0.0, (*q)(3));
+    (*q)(4) = std::max(0.0, (*q)(4));
+    (*q)(5) = std::clamp((*q)(5), kMinRoughness, kMaxRoughness);
+  };
+  Eigen::VectorXd residuals;
+  Eigen::MatrixXd jacobian;
+  auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
+    bool ok;
+    if (with_jacobian) {
+      ok = autodiff::GgxResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
+    } else {
+      residuals.resize(n);
+      ok = pixel(q.data(), residuals.data());
+    }
+    if (ok) *cost = residuals.cwiseProduct(m.inverse_sigma).squaredNorm();
+    return ok;
+  };
+  double cost = 0.0;
+  if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
+  cost = LevenbergMarquardt(&p, cost, m.inverse_sigma, residuals, jacobian, cost_at, project, options);
+  PixelFit fit;
+  fit.ok = std::isfinite(cost);
+  fit.normal = p.head<3>().normalized();
+  fit.albedo = p(3);
+  fit.specular_albedo = p(4);
+  fit.exponent = p(5);
+  fit.chi2 = cost;
+  fit.parameters = kGgxParameters;
+  fit.used = n;
+  fit.model = PixelModel::kGgx;
   return fit;
 }
 
@@ -312,7 +436,8 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
         *evidence = step.evidence;
         return *step.keep;
       case Action::kFitSharedLobe:
-      case Action::kFitOwnLobe: return *fits.lambertian;  // Next never asks for them (NextWithSharedLobe does)
+      case Action::kFitOwnLobe:
+      case Action::kFitGgx: return *fits.lambertian;  // Next never asks for them (steps 5 and 6 do)
       case Action::kRefitLit:
         FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);  // ok stays false without one
         fits.lit = &lit;
@@ -361,6 +486,32 @@ PixelFit PerPixelFits::ShareLobe(int pixel, const PixelFit& kept, const SharedLo
         if (test) ladder_.AddToShapeTest(fits, test);
         return *step.keep;
     }
+  }
+}
+
+PixelFit PerPixelFits::OfferGgx(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const {
+  PixelSamples& s = scratch->samples;
+  reader_.Usable(pixel, &s);
+  // The kept fit on the samples the GGX fit takes: every usable one.
+  PixelFit on_samples;
+  if (kept.model == PixelModel::kBlinnPhong) {
+    on_samples = kept;
+    on_samples.chi2 = BlinnPhongChi2(s, view_, kept);
+    on_samples.ok = std::isfinite(on_samples.chi2);
+    on_samples.used = s.size();
+    on_samples.parameters = held_lobe ? kSharedLobeParameters : kBlinnPhongParameters;
+  } else {
+    on_samples = LambertianOnRow(reader_, s.row_observed.data(), s.row_inverse_sigma.data(),
+                                 kept.normal * kept.albedo / M_PI);
+    on_samples.normal = kept.normal;  // the kept fit is where the GGX fit starts
+  }
+  PixelFit ggx;
+  GgxFits fits{&on_samples};
+  for (;;) {
+    const LadderStep step = ladder_.NextWithGgx(fits);
+    if (step.action != LadderStep::Action::kFitGgx) return step.keep == &ggx ? ggx : kept;
+    ggx = FitGgx(s, view_, *step.start, blinn_phong_, &scratch->tape);
+    fits.ggx = &ggx;
   }
 }
 

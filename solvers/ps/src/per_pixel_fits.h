@@ -60,6 +60,11 @@ class PerPixelFits {
   // With `test`, the pixel's part in its region's SharedShapeTest is added to it.
   PixelFit ShareLobe(int pixel, const PixelFit& kept, const SharedLobe& shared, bool test_shape, PixelScratch* scratch,
                      SharedShapeTest* test = nullptr) const;
+  // Step 6 for `pixel`, which steps 1-5 left with `kept` (held_lobe: a lobe
+  // step 5 held) in a region whose pixels reject one Blinn-Phong shape
+  // (ModelLadder::NextWithGgx): its GGX fit where the ladder takes it, else
+  // `kept`.
+  PixelFit OfferGgx(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const;
 
  private:
   const ModelLadder& ladder_;

@@ -53,6 +53,7 @@ const char* PixelModelName(PixelModel model) {
     case PixelModel::kTrimmed: return "trimmed";
     case PixelModel::kBlinnPhong: return "blinn_phong";
     case PixelModel::kIrls: return "irls";
+    case PixelModel::kGgx: return "ggx";
   }
   return "unknown";
 }

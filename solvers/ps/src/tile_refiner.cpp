@@ -222,7 +222,11 @@ struct TileRefiner::ThreadState {
   };
   std::vector<Sharing> sharing;
   std::vector<std::size_t> owning;  // of `sharing`: those the ladder asks for their own lobe
-  std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0, shared_samples_restored = 0;
+  std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0;
+  // Step 6: the pixels that took a GGX lobe, by the model they had kept.
+  std::size_t ggx = 0, ggx_from_lambertian = 0, ggx_from_trimmed = 0, ggx_from_blinn_phong = 0, ggx_from_held_lobe = 0;
+  // Samples a kept fit had left out (trimmed or unlit) that steps 5 and 6's lobe uses again.
+  std::size_t samples_restored = 0;
 };
 
 TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const LambertianOptions& lambertian,
@@ -282,6 +286,7 @@ __attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& stat
       if (evidence >= kConfidentLobeEvidence)
         state.glossy.push_back({p, static_cast<float>(chosen.specular_albedo), static_cast<float>(chosen.exponent)});
       break;
+    case PixelModel::kGgx:  // only step 6 keeps a GGX lobe, after every Record
     case PixelModel::kNone: break;
   }
 }
@@ -311,7 +316,8 @@ __attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p,
     case LadderStep::Action::kKeep: Record(state, p, *step.keep, step.fell_back, step.evidence); return;
     case LadderStep::Action::kRefitLit: return;  // not asked: the recheck refits every pixel it looks at
     case LadderStep::Action::kFitSharedLobe:
-    case LadderStep::Action::kFitOwnLobe: return;  // Next never asks for them (NextWithSharedLobe does)
+    case LadderStep::Action::kFitOwnLobe:
+    case LadderStep::Action::kFitGgx: return;  // Next never asks for them (steps 5 and 6 do)
     case LadderStep::Action::kTrim: {
       state.trimming.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used});
       const std::size_t at = state.trim_rows.size();
@@ -490,16 +496,20 @@ PixelFit TileRefiner::KeptFit(int p) const {
   fit.albedo = result_->albedo.ptr<float>()[p];
   fit.used = result_->usable_lights.ptr<std::uint16_t>()[p];
   fit.model = static_cast<PixelModel>(result_->model.ptr<std::uint8_t>()[p]);
+  const cv::Vec2f lobe = result_->specular.ptr<cv::Vec2f>()[p];
+  fit.specular_albedo = lobe[0];
+  fit.exponent = lobe[1];
   return fit;
 }
 
 void TileRefiner::RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe,
                                    int usable) {
   WriteFit(p, lobe, result_);
+  held_lobe_[p] = 1;
   ++state.shared_lobes;
   (kept.model == PixelModel::kTrimmed ? state.shared_from_trimmed : state.shared_from_lambertian) += 1;
   // The kept fit left out what it did not use (trimmed or unlit samples); the lobe uses them all.
-  state.shared_samples_restored += static_cast<std::size_t>(std::max(0, usable - kept.used));
+  state.samples_restored += static_cast<std::size_t>(std::max(0, usable - kept.used));
 }
 
 void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests) {
@@ -659,19 +669,47 @@ void TileRefiner::ShareLobe() {
   }
   std::unique_ptr<NearestLobes> nearest;
   if (any_rejects) nearest = std::make_unique<NearestLobes>(labels, std::move(glossy), region_confident);
+  held_lobe_.assign(pixels, 0);
   in_parallel(items.size(), [&](int thread, std::size_t begin, std::size_t end) {
     std::vector<std::pair<int, int>> near;
     for (std::size_t i = begin; i < end; ++i)
       if (rejects[items[i].region]) items[i].lobe = nearest->At(items[i].pixel, &near);
     ShareLobe(thread, std::span(items).subspan(begin, end - begin), nullptr);
   });
+  if (!any_rejects) return;
+  // Step 6: where the lobe is not Blinn-Phong, each pixel of the region is offered a GGX lobe of its own.
+  std::vector<int> offered;
+  for (int p = 0; p < pixels; ++p)
+    if (rejects[label[p]] && (model[p] == static_cast<std::uint8_t>(PixelModel::kLambertian) ||
+                              model[p] == static_cast<std::uint8_t>(PixelModel::kTrimmed) ||
+                              model[p] == static_cast<std::uint8_t>(PixelModel::kBlinnPhong)))
+      offered.push_back(p);
+  in_parallel(offered.size(), [&](int thread, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) OfferGgx(thread, offered[i]);
+  });
+}
+
+void TileRefiner::OfferGgx(int thread, int p) {
+  ThreadState& state = states_[thread];
+  const PixelFit kept = KeptFit(p);
+  const bool held = held_lobe_[p] != 0;
+  const PixelFit chosen = per_pixel_.OfferGgx(p, kept, held, &state.scratch);
+  if (chosen.model != PixelModel::kGgx) return;
+  WriteFit(p, chosen, result_);
+  ++state.ggx;
+  switch (kept.model) {
+    case PixelModel::kLambertian: ++state.ggx_from_lambertian; break;
+    case PixelModel::kTrimmed: ++state.ggx_from_trimmed; break;
+    default: ++(held ? state.ggx_from_held_lobe : state.ggx_from_blinn_phong); break;
+  }
+  state.samples_restored += static_cast<std::size_t>(std::max(0, chosen.used - kept.used));
 }
 
 void TileRefiner::AddCounts(SolverSummary* summary) const {
   std::size_t failed = 0;
-  // Step 5 moved pixels between models counted on other threads: subtract
+  // Steps 5 and 6 moved pixels between models counted on other threads: subtract
   // after summing.
-  std::size_t from_lambertian = 0, from_trimmed = 0, restored = 0;
+  std::size_t from_lambertian = 0, from_trimmed = 0, from_blinn_phong = 0, from_held_lobe = 0, restored = 0;
   for (const ThreadState& state : states_) {
     summary->pixels_lambertian += state.lambertian;
     summary->pixels_trimmed += state.trimmed;
@@ -679,14 +717,19 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
     summary->pixels_blinn_phong += state.blinn_phong + state.shared_lobes;
     summary->pixels_shared_lobe += state.shared_lobes;
     summary->samples_rejected += state.rejected;
-    from_lambertian += state.shared_from_lambertian;
-    from_trimmed += state.shared_from_trimmed;
-    restored += state.shared_samples_restored;
+    summary->pixels_ggx += state.ggx;
+    from_lambertian += state.shared_from_lambertian + state.ggx_from_lambertian;
+    from_trimmed += state.shared_from_trimmed + state.ggx_from_trimmed;
+    from_blinn_phong += state.ggx_from_blinn_phong + state.ggx_from_held_lobe;
+    from_held_lobe += state.ggx_from_held_lobe;
+    restored += state.samples_restored;
     summary->pixels_fell_back += state.fell_back;
     failed += state.failed;
   }
   summary->pixels_lambertian -= from_lambertian;
   summary->pixels_trimmed -= from_trimmed;
+  summary->pixels_blinn_phong -= from_blinn_phong;
+  summary->pixels_shared_lobe -= from_held_lobe;
   summary->samples_rejected -= restored;
   summary->pixels_solved -= failed;
   summary->pixels_rejected_by_model += failed;

@@ -53,7 +53,8 @@ class TileRefiner {
   // kept Lambertian or trimmed are offered it (ModelLadder::NextWithSharedLobe);
   // in a region whose pixels reject that one shape (tested on a sample,
   // ModelLadder::RejectsSharedShape), each is offered the lobe of its
-  // nearest confidently glossy pixels instead. Runs its own threads.
+  // nearest confidently glossy pixels instead, and then (step 6,
+  // ModelLadder::NextWithGgx) a GGX lobe of its own. Runs its own threads.
   void ShareLobe();
 
   // The counts of models, rejected samples and failed fits, into a summary of
@@ -82,6 +83,8 @@ class TileRefiner {
   void ShareLobe(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests);
   // Pixel p, kept as `kept`, takes the lobe fitted with its region's exponent.
   void RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe, int usable);
+  // Step 6 for pixel p: its GGX fit, into the map where the ladder takes it.
+  void OfferGgx(int thread, int p);
   // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps
   // the pixel's answer, or queues it for the stage the ladder asks for.
   // samples: the pixel's samples as copied for trimming, if they were.
@@ -112,6 +115,8 @@ class TileRefiner {
   std::vector<ThreadState> states_;
   std::vector<BlinnPhongLaneFitter> lobe_fitters_;
   std::vector<TrimmedLambertianLanes> trimmers_;
+  // Per pixel: 1 where step 5 gave it a held lobe (as many parameters of its own as the Lambertian fit).
+  std::vector<std::uint8_t> held_lobe_;
 };
 
 }  // namespace photorig::ps::internal

@@ -22,7 +22,10 @@
 //                few samples, else the Lambertian fit. Then, in each region
 //                of the image glossy enough to know its lobe, the pixels
 //                kept without one take that lobe where it explains their
-//                samples better (ModelSelectionOptions::share_lobe).
+//                samples better (ModelSelectionOptions::share_lobe); in a
+//                region whose pixels reject one Blinn-Phong shape, each
+//                pixel takes a GGX lobe of its own (PixelModel::kGgx) where
+//                the information criterion prefers it.
 //   Where a method's own fit fails, the pixel falls back to a simpler one
 //   (SolverSummary::pixels_fell_back).
 

@@ -68,7 +68,8 @@ enum class PixelModel : std::uint8_t {
   kLambertian = 1,  // least squares on the unshadowed, unsaturated samples
   kTrimmed = 2,     // Lambertian with its worst samples left out (`auto`'s trimming)
   kBlinnPhong = 3,  // diffuse + normalised Blinn-Phong lobe
-  kIrls = 4         // Lambertian with outlying samples down-weighted (IRLS, the `robust` method)
+  kIrls = 4,        // Lambertian with outlying samples down-weighted (IRLS, the `robust` method)
+  kGgx = 5          // diffuse + GGX lobe (`auto`'s step 6, where the lobe is not Blinn-Phong)
 };
 const char* PixelModelName(PixelModel model);
 
@@ -84,7 +85,7 @@ struct NormalMap {
   // fit is exactly determined (3 usable samples for a Lambertian normal), so
   // that no residual tests it.
   cv::Mat confidence;
-  cv::Mat specular;       // CV_32FC2 (rho_s, exponent) where model == kBlinnPhong, else 0
+  cv::Mat specular;       // CV_32FC2 (rho_s, exponent) where model == kBlinnPhong, (rho_s, roughness) where kGgx, else 0
 };
 
 }  // namespace photorig::ps

@@ -35,6 +35,8 @@ struct SolverSummary : solvers::Summary {
   // Of pixels_blinn_phong: fitted by `auto`'s step 5 with the exponent their
   // region shares (pixels whose own samples could not tell the lobe apart).
   std::size_t pixels_shared_lobe = 0;
+  // Diffuse + GGX lobe: `auto`'s step 6, in regions whose lobe is not Blinn-Phong.
+  std::size_t pixels_ggx = 0;
   // Pixels whose method's own fit failed and which kept a simpler fit instead
   // (`blinn-phong`: the trimmed, then the Lambertian fit; `robust` and `auto`:
   // the Lambertian fit), counted among the models above by the fit they kept.
