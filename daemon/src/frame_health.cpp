@@ -112,11 +112,13 @@ std::string DescribeGroup(HealthCheck check, const std::vector<const HealthFindi
 
 FrameHealth::FrameHealth(HealthConfig config, const std::vector<CaptureStep>& steps, std::vector<LedConfig> leds)
     : config_(config), leds_(std::move(leds)) {
-  // A bracket takes one pattern at several exposures and expects the longer
-  // ones to clip: clipping is judged on its shortest exposure only.
+  // A bracket takes one pattern at several exposures: the longer ones may
+  // clip and the shorter ones may show a dim pose below the noise, so
+  // clipping is judged on its shortest exposure only and light on its longest.
   int last_index = -1;
   for (const CaptureStep& step : steps) last_index = std::max(last_index, step.index);
   bracket_long_.assign(static_cast<std::size_t>(last_index + 1), false);
+  bracket_short_.assign(static_cast<std::size_t>(last_index + 1), false);
   // A gonioreflectometer's bracket is one pose's exposures.
   const auto same_pose = [](const CaptureStep& a, const CaptureStep& b) {
     if (!a.pose || !b.pose) return !a.pose && !b.pose;
@@ -126,10 +128,10 @@ FrameHealth::FrameHealth(HealthConfig config, const std::vector<CaptureStep>& st
   };
   for (const CaptureStep& step : steps)
     for (const CaptureStep& other : steps)
-      if (other.exposure_us < step.exposure_us && other.group == step.group && other.repeat == step.repeat &&
+      if (other.exposure_us != step.exposure_us && other.group == step.group && other.repeat == step.repeat &&
           other.pattern.levels == step.pattern.levels && other.gain_db == step.gain_db && same_pose(other, step)) {
-        bracket_long_[step.index] = true;
-        break;
+        (other.exposure_us < step.exposure_us ? bracket_long_ : bracket_short_)[step.index] = true;
+        if (bracket_long_[step.index] && bracket_short_[step.index]) break;
       }
 }
 
@@ -200,7 +202,10 @@ std::optional<HealthFinding> FrameHealth::Judge(const CaptureStep& step, const F
 
   const bool known = darks_ > 0 && !std::isnan(stats.mean_response_dn);
   const double lit_dn = config_.lit_sigma * response_sigma_dn();
-  if (known && IsLit(step) && stats.peak_response_dn < lit_dn) {
+  const auto in_bracket = [&step](const std::vector<bool>& flags) {
+    return step.index >= 0 && step.index < static_cast<int>(flags.size()) && flags[step.index];
+  };
+  if (known && IsLit(step) && !in_bracket(bracket_short_) && stats.peak_response_dn < lit_dn) {
     HealthFinding finding = Finding(HealthCheck::kNoLight, step, stats.peak_response_dn, lit_dn);
     finding.mean_response_dn = stats.mean_response_dn;
     return finding;
@@ -210,9 +215,7 @@ std::optional<HealthFinding> FrameHealth::Judge(const CaptureStep& step, const F
   if (known && !IsLit(step) && stats.mean_response_dn >= lit_dn)
     return Finding(HealthCheck::kLightInDark, step, stats.mean_response_dn, lit_dn);
 
-  const bool bracket_long = step.index >= 0 && step.index < static_cast<int>(bracket_long_.size()) &&
-                            bracket_long_[step.index];
-  if (!bracket_long && stats.clipped_fraction > config_.max_clipped_fraction)
+  if (!in_bracket(bracket_long_) && stats.clipped_fraction > config_.max_clipped_fraction)
     return Finding(HealthCheck::kClipped, step, stats.clipped_fraction, config_.max_clipped_fraction);
 
   // Against the latest accepted frame of the same pattern and gain: the
@@ -269,6 +272,9 @@ void FrameHealth::Accept(const CaptureStep& step, const cv::Mat& frame, const Fr
     return;
   }
   if (std::isnan(stats.mean_response_dn)) return;
+  // A bracket's short exposure in the noise (the only lit frame without light
+  // that is accepted) scales to nothing: it is no reference for the others.
+  if (darks_ > 0 && stats.peak_response_dn < config_.lit_sigma * response_sigma_dn()) return;
   lit_.push_back({step.pattern, step.gain_db, step.exposure_us, stats.mean_response_dn, stats.clipped_fraction,
                   step.label});
   if (step.kind == CaptureStep::Kind::kLight && step.led >= 0 && stats.clipped_fraction <= config_.max_clipped_fraction)

@@ -95,6 +95,36 @@ TEST(BrdfEndToEnd, GonioRunFitsTheSimulatedMaterial) {
   ExpectTheMaterial(report);
 }
 
+// A measured material through the instrument: Ngan et al. 2005's
+// Cook-Torrance fit of MERL blue-metallic-paint, tabulated as a MERL file by
+// `brdf convert`, is the simulated sample of the shipped recipe. The grey
+// camera sees the mean of the table's channels; the fit must find the model
+// and its lobe from what the arms and the camera measured.
+TEST(BrdfEndToEnd, TheInstrumentMeasuresAMeasuredMaterial) {
+  TempDir dir;
+  const std::string model = dir.Write("blue.json", R"({"model": "cook_torrance", "diffuse": [0.0135, 0.00848, 0.0244],
+      "specular": [0.0719, 0.0589, 0.0813], "shape": 0.231, "fresnel_f0": 0.638})");
+  const std::string table = (dir.path() / "blue-metallic-paint.binary").string();
+  ASSERT_EQ(RunPhotorig("brdf convert " + model + " " + table, dir.path() / "convert.log"), 0)
+      << ReadText(dir.path() / "convert.log");
+  std::string recipe = ReadText(SourceDir() + "/config/recipes/brdf-gonio.yaml");
+  const std::string material = "brdf: {model: blinn_phong, rho_s: 0.15, exponent: 20}";
+  ASSERT_NE(recipe.find(material), std::string::npos);
+  recipe.replace(recipe.find(material), material.size(), "brdf: {model: tabulated, table: " + table + "}");
+  ASSERT_EQ(RunAndSolve(dir, dir.Write("measured.yaml", recipe), GonioRig(dir), "measured"), 0)
+      << ReadText(dir.path() / "measured.log");
+  const auto report = Report(dir, "measured");
+  EXPECT_TRUE(report["clipped_poses"].empty()) << report["clipped_poses"].dump();
+  ASSERT_EQ(report["chosen"], "cook_torrance") << report.dump(2);
+  const auto& fit = *std::find_if(report["candidates"].begin(), report["candidates"].end(),
+                                  [](const nlohmann::json& c) { return c["model"] == "cook_torrance"; });
+  const double diffuse = (0.0135 + 0.00848 + 0.0244) / 3, specular = (0.0719 + 0.0589 + 0.0813) / 3;
+  EXPECT_NEAR(fit["diffuse"][0].get<double>(), diffuse, 0.05 * diffuse);
+  EXPECT_NEAR(fit["specular"][0].get<double>(), specular, 0.05 * specular);
+  EXPECT_NEAR(fit["shape"].get<double>(), 0.231, 0.05 * 0.231);
+  EXPECT_NEAR(fit["fresnel_f0"].get<double>(), 0.638, 0.05 * 0.638);
+}
+
 // Without a bracket the peak poses clip at the long exposure: each is
 // dropped, counted and listed, and the report says the peak was clipped.
 TEST(BrdfEndToEnd, WithoutABracketTheClippedPeakIsFlagged) {

@@ -122,6 +122,31 @@ TEST(CaptureHealth, SaturatedFramesAreReported) {
   EXPECT_GT(outcome.capture.health[0].value, 0.02);
 }
 
+// A bracket's short exposure of a dim subject sits in the noise by design:
+// only its longest exposure must show light (as only its shortest must not clip).
+TEST(CaptureHealth, ABracketsShortExposureMayBeDimButItsLongestMustLight) {
+  const auto capture = [](const TempDir& dir, const std::string& exposures) {
+    dir.Write("rig.yaml", SmallRigYaml(""));
+    const std::string recipe = std::regex_replace(SmallRecipeYaml("rig.yaml"), std::regex("each_led: \\{leds: all\\}"),
+                                                  "each_led: {leds: all, exposures_us: " + exposures + "}");
+    RunRequest request;
+    request.recipe_path = dir.Write("recipe.yaml", recipe);
+    request.output_directory = (dir.path() / "run").string();
+    request.solve = false;
+    request.retry.initial_backoff_ms = 1;
+    request.retry.max_backoff_ms = 4;
+    return ExecuteRun(request);
+  };
+  TempDir bracketed;
+  const RunOutcome ok = capture(bracketed, "[1, 1000]");
+  EXPECT_EQ(ok.capture.status, CaptureStatus::kComplete) << ok.capture.reason;
+  EXPECT_EQ(StoredFiles(ok.directory).size(), 9u);
+  TempDir dim;
+  const RunOutcome failed = capture(dim, "[1, 2]");
+  ASSERT_EQ(failed.capture.status, CaptureStatus::kFailed);
+  EXPECT_TRUE(Contains(failed.capture.reason, "did not light")) << failed.capture.reason;
+}
+
 TEST(CaptureHealth, DimLedIsNamedByItsNeighbours) {
   TempDir dir;
   const RunOutcome outcome = Capture(dir, "{lights: {dim_channels: {1: 0.15}}}", "", 4000);

@@ -99,7 +99,8 @@ class FrameHealth {
 
   HealthConfig config_;
   std::vector<LedConfig> leds_;
-  std::vector<bool> bracket_long_;  // by step index: a longer exposure of a bracket, expected to clip
+  std::vector<bool> bracket_long_;   // by step index: a longer exposure of a bracket, expected to clip
+  std::vector<bool> bracket_short_;  // by step index: a shorter exposure of a bracket, may be too dark
   cv::Mat dark_sum_;                // CV_64F sum of the accepted darks
   cv::Mat dark_mean_;               // CV_32F, their mean: the reference
   cv::Mat first_dark_;              // CV_32F, for the temporal noise of a second dark
