@@ -28,13 +28,8 @@ using photorig::testing::SmallRigYaml;
 using photorig::testing::SourceDir;
 using photorig::testing::TempDir;
 
-// Captures the small dome (4 LEDs, one dark) with `faults` injected and the
-// rig's YAML extended by `rig_tail` (e.g. a health: section).
-RunOutcome Capture(const TempDir& dir, const std::string& faults, const std::string& rig_tail = "",
-                   double exposure_us = 1000) {
-  dir.Write("rig.yaml", SmallRigYaml(faults) + rig_tail);
-  std::string recipe = SmallRecipeYaml("rig.yaml");
-  recipe = std::regex_replace(recipe, std::regex("exposure_us: 1000"), "exposure_us: " + std::to_string(exposure_us));
+// Captures `recipe` (YAML) into DIR/run with short retry back-offs, unsolved.
+RunOutcome CaptureRecipe(const TempDir& dir, const std::string& recipe) {
   RunRequest request;
   request.recipe_path = dir.Write("recipe.yaml", recipe);
   request.output_directory = (dir.path() / "run").string();
@@ -42,6 +37,16 @@ RunOutcome Capture(const TempDir& dir, const std::string& faults, const std::str
   request.retry.initial_backoff_ms = 1;
   request.retry.max_backoff_ms = 4;
   return ExecuteRun(request);
+}
+
+// Captures the small dome (4 LEDs, one dark) with `faults` injected and the
+// rig's YAML extended by `rig_tail` (e.g. a health: section).
+RunOutcome Capture(const TempDir& dir, const std::string& faults, const std::string& rig_tail = "",
+                   double exposure_us = 1000) {
+  dir.Write("rig.yaml", SmallRigYaml(faults) + rig_tail);
+  const std::string recipe = std::regex_replace(SmallRecipeYaml("rig.yaml"), std::regex("exposure_us: 1000"),
+                                                "exposure_us: " + std::to_string(exposure_us));
+  return CaptureRecipe(dir, recipe);
 }
 
 bool Contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
@@ -127,15 +132,8 @@ TEST(CaptureHealth, SaturatedFramesAreReported) {
 TEST(CaptureHealth, ABracketsShortExposureMayBeDimButItsLongestMustLight) {
   const auto capture = [](const TempDir& dir, const std::string& exposures) {
     dir.Write("rig.yaml", SmallRigYaml(""));
-    const std::string recipe = std::regex_replace(SmallRecipeYaml("rig.yaml"), std::regex("each_led: \\{leds: all\\}"),
-                                                  "each_led: {leds: all, exposures_us: " + exposures + "}");
-    RunRequest request;
-    request.recipe_path = dir.Write("recipe.yaml", recipe);
-    request.output_directory = (dir.path() / "run").string();
-    request.solve = false;
-    request.retry.initial_backoff_ms = 1;
-    request.retry.max_backoff_ms = 4;
-    return ExecuteRun(request);
+    return CaptureRecipe(dir, std::regex_replace(SmallRecipeYaml("rig.yaml"), std::regex("each_led: \\{leds: all\\}"),
+                                                 "each_led: {leds: all, exposures_us: " + exposures + "}"));
   };
   TempDir bracketed;
   const RunOutcome ok = capture(bracketed, "[1, 1000]");
