@@ -1,5 +1,5 @@
 // Every method on a small shiny sphere with what a real capture adds to the
-// simulated one (docs/photometric-stereo.md, "Realistic scenes"): a GGX lobe
+// simulated one (docs/photometric-stereo-accuracy.md, "Realistic scenes"): a GGX lobe
 // where the single methods model Blinn-Phong, lights off their stated
 // directions and intensities, and a camera response that is not linear.
 #include "photorig/ps/evaluation.h"
