@@ -220,20 +220,51 @@ double LevenbergMarquardt(Eigen::Matrix<double, 6, 1>* parameters, double cost, 
   return cost;
 }
 
+// A lobe fit's parameters (normal, rho_d, rho_s, shape) kept valid after a
+// step: a unit normal, non-negative albedos, the shape within its range.
+void ProjectLobe(double min_shape, double max_shape, Eigen::Matrix<double, 6, 1>* q) {
+  q->head<3>().normalize();
+  (*q)(3) = std::max(0.0, (*q)(3));
+  (*q)(4) = std::max(0.0, (*q)(4));
+  (*q)(5) = std::clamp((*q)(5), min_shape, max_shape);
+}
+
+// The record of a lobe fit that ended at `p` with chi-square `cost`.
+PixelFit LobeFit(const Eigen::Matrix<double, 6, 1>& p, double cost, int parameters, int used, PixelModel model) {
+  PixelFit fit;
+  fit.ok = std::isfinite(cost);
+  fit.normal = p.head<3>().normalized();
+  fit.albedo = p(3);
+  fit.specular_albedo = p(4);
+  fit.exponent = p(5);  // Blinn-Phong's e, GGX's roughness
+  fit.chi2 = cost;
+  fit.parameters = parameters;
+  fit.used = used;
+  fit.model = model;
+  return fit;
+}
+
+// The samples of a pixel as the autodiff models take them.
+struct ModelSamples {
+  Eigen::Matrix<double, Eigen::Dynamic, 3> directions;
+  Eigen::VectorXd observed, inverse_sigma;
+  explicit ModelSamples(const PixelSamples& s) : directions(s.size(), 3), observed(s.size()), inverse_sigma(s.size()) {
+    for (int k = 0; k < s.size(); ++k) {
+      directions.row(k) = s.w[k].transpose();
+      observed[k] = s.b[k];
+      inverse_sigma[k] = 1.0 / std::sqrt(s.variance[k]);
+    }
+  }
+};
+
 // The lobe fitted to a pixel's usable samples from `start`'s normal and
 // albedo, its material from the grid's best start; or, with `shared` (step
 // 5), the lobe held at the region's and only the normal and rho_d fitted.
 PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& start,
                        const BlinnPhongOptions& options, autodiff::Tape* tape, const SharedLobe* shared = nullptr) {
   const int n = s.size();
-  Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
-  Eigen::VectorXd observed(n), inverse_sigma(n);
-  for (int k = 0; k < n; ++k) {
-    directions.row(k) = s.w[k].transpose();
-    observed[k] = s.b[k];
-    inverse_sigma[k] = 1.0 / std::sqrt(s.variance[k]);
-  }
-  const autodiff::BlinnPhongPixel pixel(directions, Eigen::VectorXd::Ones(n), view, observed);
+  const ModelSamples m(s);
+  const autodiff::BlinnPhongPixel pixel(m.directions, Eigen::VectorXd::Ones(n), view, m.observed);
 
   // Start: the normal of the robust fit and the material of the best point
   // of the exponent grid.
@@ -265,12 +296,7 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
   }
   Eigen::Matrix<double, 6, 1> p;
   p << start.normal, material.diffuse_albedo, material.specular_albedo, material.exponent;
-  auto project = [&options](Eigen::Matrix<double, 6, 1>* q) {
-    q->head<3>().normalize();
-    (*q)(3) = std::max(0.0, (*q)(3));
-    (*q)(4) = std::max(0.0, (*q)(4));
-    (*q)(5) = std::clamp((*q)(5), options.min_exponent, options.max_exponent);
-  };
+  auto project = [&options](Eigen::Matrix<double, 6, 1>* q) { ProjectLobe(options.min_exponent, options.max_exponent, q); };
   Eigen::VectorXd residuals;
   Eigen::MatrixXd jacobian;
   auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
@@ -281,7 +307,7 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
       residuals.resize(n);
       ok = pixel(q.data(), residuals.data());
     }
-    if (ok) *cost = residuals.cwiseProduct(inverse_sigma).squaredNorm();
+    if (ok) *cost = residuals.cwiseProduct(m.inverse_sigma).squaredNorm();
     // A shared lobe has no derivatives: the step leaves rho_s and e where they are.
     if (ok && with_jacobian && shared) jacobian.rightCols<2>().setZero();
     return ok;
@@ -296,18 +322,8 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
     }
     if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
   }
-  cost = LevenbergMarquardt(&p, cost, inverse_sigma, residuals, jacobian, cost_at, project, options);
-  PixelFit fit;
-  fit.ok = std::isfinite(cost);
-  fit.normal = p.head<3>().normalized();
-  fit.albedo = p(3);
-  fit.specular_albedo = p(4);
-  fit.exponent = p(5);
-  fit.chi2 = cost;
-  fit.parameters = shared ? kSharedLobeParameters : kBlinnPhongParameters;
-  fit.used = n;
-  fit.model = PixelModel::kBlinnPhong;
-  return fit;
+  cost = LevenbergMarquardt(&p, cost, m.inverse_sigma, residuals, jacobian, cost_at, project, options);
+  return LobeFit(p, cost, shared ? kSharedLobeParameters : kBlinnPhongParameters, n, PixelModel::kBlinnPhong);
 }
 
 // Step 6's GGX roughness: a grid from which the fit starts (each a factor
@@ -317,19 +333,6 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
 // broadest lobe GGX has).
 constexpr double kGgxStartRoughness[] = {0.03, 0.042, 0.06, 0.084, 0.12, 0.17, 0.24, 0.33, 0.47, 0.66};
 constexpr double kMinRoughness = 0.01, kMaxRoughness = 1.0;
-
-// The samples of a pixel as the autodiff models take them.
-struct ModelSamples {
-  Eigen::Matrix<double, Eigen::Dynamic, 3> directions;
-  Eigen::VectorXd observed, inverse_sigma;
-  explicit ModelSamples(const PixelSamples& s) : directions(s.size(), 3), observed(s.size()), inverse_sigma(s.size()) {
-    for (int k = 0; k < s.size(); ++k) {
-      directions.row(k) = s.w[k].transpose();
-      observed[k] = s.b[k];
-      inverse_sigma[k] = 1.0 / std::sqrt(s.variance[k]);
-    }
-  }
-};
 
 // Chi-square of a Blinn-Phong fit (normal, rho_d, rho_s, e) on a pixel's
 // usable samples.
@@ -382,12 +385,7 @@ PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelF
     }
   }
   if (!std::isfinite(best)) return PixelFit{};
-  auto project = [](Eigen::Matrix<double, 6, 1>* q) {
-    q->head<3>().normalize();
-    (*q)(3) = std::max(0.0, (*q)(3));
-    (*q)(4) = std::max(0.0, (*q)(4));
-    (*q)(5) = std::clamp((*q)(5), kMinRoughness, kMaxRoughness);
-  };
+  auto project = [](Eigen::Matrix<double, 6, 1>* q) { ProjectLobe(kMinRoughness, kMaxRoughness, q); };
   Eigen::VectorXd residuals;
   Eigen::MatrixXd jacobian;
   auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
@@ -404,17 +402,7 @@ PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelF
   double cost = 0.0;
   if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
   cost = LevenbergMarquardt(&p, cost, m.inverse_sigma, residuals, jacobian, cost_at, project, options);
-  PixelFit fit;
-  fit.ok = std::isfinite(cost);
-  fit.normal = p.head<3>().normalized();
-  fit.albedo = p(3);
-  fit.specular_albedo = p(4);
-  fit.exponent = p(5);
-  fit.chi2 = cost;
-  fit.parameters = kGgxParameters;
-  fit.used = n;
-  fit.model = PixelModel::kGgx;
-  return fit;
+  return LobeFit(p, cost, kGgxParameters, n, PixelModel::kGgx);
 }
 
 }  // namespace
