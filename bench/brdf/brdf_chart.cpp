@@ -25,16 +25,6 @@ struct Material {
   ModelParams truth;
 };
 
-double RelativeError(const ModelParams& fit, const ModelParams& truth, const std::vector<BrdfSample>& held_out) {
-  double diff = 0.0, norm = 0.0;
-  for (const BrdfSample& s : held_out) {
-    const Eigen::Vector3d t = Evaluate(truth, s.wi, s.wo) * s.wi.z(), f = Evaluate(fit, s.wi, s.wo) * s.wi.z();
-    diff += (f - t).squaredNorm();
-    norm += t.squaredNorm();
-  }
-  return std::sqrt(diff / norm);
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -68,7 +58,7 @@ int main(int argc, char** argv) {
           const FitSummary& f = s.candidates[i];
           if (!f.IsSolutionUsable()) continue;
           ms[i].push_back(f.total_ms);
-          err[i].push_back(RelativeError(f.params, m.truth, held_out));
+          err[i].push_back(synthetic::RelativeError(f.params, m.truth, held_out));
           bic[i].push_back(f.bic);
         }
         if (s.IsSolutionUsable()) ++chosen[s.chosen_index];

@@ -35,16 +35,6 @@ constexpr double kExposureUs = 4000.0;     // config/recipes/brdf-gonio.yaml
 constexpr double kStepOverheadMs = 40.0;   // daemon PlanOptions::step_overhead_ms
 constexpr int kRepeats = 5;
 
-double RelativeError(const ModelParams& fit, const ModelParams& truth, const std::vector<BrdfSample>& held_out) {
-  double diff = 0.0, norm = 0.0;
-  for (const BrdfSample& s : held_out) {
-    const Eigen::Vector3d t = Evaluate(truth, s.wi, s.wo) * s.wi.z(), f = Evaluate(fit, s.wi, s.wo) * s.wi.z();
-    diff += (f - t).squaredNorm();
-    norm += t.squaredNorm();
-  }
-  return std::sqrt(diff / norm);
-}
-
 double Median(std::vector<double> v) {
   if (v.empty()) return std::nan("");
   std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
@@ -79,7 +69,7 @@ void Fit(const measure::PlanMaterial& m, const std::vector<BrdfSample>& samples,
          Point* point) {
   const FitSummary fit = FitModel(m.truth.model, samples);
   if (!fit.IsSolutionUsable() || !fit.lobe_identifiable) ++point->unidentified;
-  point->error.push_back(fit.IsSolutionUsable() ? RelativeError(fit.params, m.truth, held_out) : std::nan(""));
+  point->error.push_back(fit.IsSolutionUsable() ? measure::RelativeError(fit.params, m.truth, held_out) : std::nan(""));
 }
 
 }  // namespace
@@ -155,7 +145,7 @@ int main(int argc, char** argv) {
         const FitSummary& f = s.candidates[i];
         if (!f.IsSolutionUsable()) continue;
         held[i].push_back(f.held_out_rms);
-        error[i].push_back(RelativeError(f.params, m.truth, held_out));
+        error[i].push_back(measure::RelativeError(f.params, m.truth, held_out));
         bic[i].push_back(f.bic);
       }
       if (s.IsSolutionUsable()) ++chosen[s.chosen_index];

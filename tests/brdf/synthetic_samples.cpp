@@ -31,4 +31,14 @@ std::vector<BrdfSample> SyntheticSamples(const ModelParams& truth, const Synthet
   return samples;
 }
 
+double RelativeError(const ModelParams& fit, const ModelParams& truth, const std::vector<BrdfSample>& held_out) {
+  double diff = 0.0, norm = 0.0;
+  for (const BrdfSample& s : held_out) {
+    const Eigen::Vector3d t = Evaluate(truth, s.wi, s.wo) * s.wi.z(), f = Evaluate(fit, s.wi, s.wo) * s.wi.z();
+    diff += (f - t).squaredNorm();
+    norm += t.squaredNorm();
+  }
+  return std::sqrt(diff / norm);
+}
+
 }  // namespace photorig::solvers::brdf::testing

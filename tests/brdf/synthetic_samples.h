@@ -23,4 +23,8 @@ struct SyntheticSpec {
 // Configurations below the horizon are drawn again, so there are always `count`.
 std::vector<BrdfSample> SyntheticSamples(const ModelParams& truth, const SyntheticSpec& spec);
 
+// The charts' error of a fit: relative RMS of f_r cos theta_i against the
+// truth over held-out configurations, all channels together.
+double RelativeError(const ModelParams& fit, const ModelParams& truth, const std::vector<BrdfSample>& held_out);
+
 }  // namespace photorig::solvers::brdf::testing
