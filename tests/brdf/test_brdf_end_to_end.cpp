@@ -347,10 +347,6 @@ TEST(BrdfEndToEnd, NotARunIsAUsageError) {
   EXPECT_NE(ReadText(dir.path() / "solve.log").find("manifest.json"), std::string::npos);
 }
 
-}  // namespace
-
-namespace {
-
 // A fitted model tabulated for renderers: a model's JSON to a MERL table (its
 // values at the cell centres), that table fitted back to the same model, and
 // the fit's report.json tabulated in turn.
