@@ -265,12 +265,13 @@ void ParseCameraOptions(const YamlNode& camera_node, bool simulated, CameraConfi
     AravisOptions aravis;
     if (options) {
       const YamlNode& node = *options;
-      node.ExpectKeys({"device", "buffer_count", "packet_resend", "timeout_margin_ms", "link_bandwidth_mbps",
+      node.ExpectKeys({"device", "buffer_count", "packet_resend", "packet_socket", "timeout_margin_ms", "link_bandwidth_mbps",
                        "reconnect_attempts", "reconnect_delay_ms", "sim_gige"});
       drivers::AravisCameraOptions& o = aravis.camera;
       o.device = node.String("device", o.device);
       o.buffer_count = node.Int("buffer_count", o.buffer_count);
       o.packet_resend = node.Bool("packet_resend", o.packet_resend);
+      o.packet_socket = node.Bool("packet_socket", o.packet_socket);
       o.timeout_margin_ms = node.Int("timeout_margin_ms", o.timeout_margin_ms);
       o.link_bandwidth_mbps = node.Double("link_bandwidth_mbps", o.link_bandwidth_mbps);
       o.reconnect_attempts = node.Int("reconnect_attempts", o.reconnect_attempts);

@@ -144,6 +144,28 @@ TEST(AravisCamera, SoftwareTriggeredSequenceShowsTheWorldsLights) {
   EXPECT_TRUE(camera.Close().ok());
 }
 
+// A trigger sent the moment the stream starts must still give its frame: the receive path has to
+// exist before the start (a packet ring attached later by the stream's thread loses such frames).
+TEST(AravisCamera, FrameTriggeredAsTheStreamStartsArrives) {
+  auto world = MakeWorld();
+  auto fake = StartFake(world, FakeOptions("RESTART1"));
+  ASSERT_TRUE(fake);
+  AravisCamera camera("cam", CameraOptions("RESTART1"));
+  ASSERT_TRUE(camera.Open().ok());
+  ASSERT_TRUE(camera.Configure(Settings(300.0)).ok());
+  constexpr int kCycles = 12;
+  for (int cycle = 0; cycle < kCycles; ++cycle) {
+    ASSERT_TRUE(camera.Start().ok());
+    ASSERT_TRUE(camera.Trigger().ok());
+    auto frame = camera.WaitFrame(kFrameTimeoutMs);
+    ASSERT_TRUE(frame.ok()) << "cycle " << cycle << ": " << frame.status().ToString();
+    EXPECT_EQ(frame->pixels, Expected(*world, 12, 300.0, 0.0)) << "cycle " << cycle;
+    ASSERT_TRUE(camera.Stop().ok());
+  }
+  EXPECT_EQ(camera.statistics().frames, static_cast<std::uint64_t>(kCycles));
+  EXPECT_EQ(camera.statistics().timeouts, 0u);
+}
+
 TEST(AravisCamera, ExposureAndGainRoundTripWithReportedAdjustments) {
   auto world = MakeWorld();
   world->SetLevels({0.0, 0.0, 1.0});

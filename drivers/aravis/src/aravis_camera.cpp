@@ -330,6 +330,10 @@ Result<std::vector<SettingAdjustment>> AravisCamera::DoConfigure(CameraSettings*
 
 Status AravisCamera::StartStream() {
   GErrorBox error;
+  if (handles_->is_gv)
+    arv_camera_gv_set_stream_options(handles_->camera, options_.packet_socket
+                                                           ? ARV_GV_STREAM_OPTION_NONE
+                                                           : ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
   ArvStream* stream = arv_camera_create_stream(handles_->camera, nullptr, nullptr, error.out());
   if (!stream) return Error(StatusCode::kUnavailable, "cannot create the stream: " + error.message());
   if (ARV_IS_GV_STREAM(stream))

@@ -8,6 +8,7 @@
 //       device: "192.168.1.20"      # Aravis id, serial number or IP address; absent = the only camera
 //       buffer_count: 4
 //       packet_resend: true
+//       packet_socket: false
 //       timeout_margin_ms: 200
 //       link_bandwidth_mbps: 1000
 //       reconnect_attempts: 3

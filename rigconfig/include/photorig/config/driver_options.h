@@ -63,8 +63,8 @@ struct UsbRelayOptions {
 };
 
 #if PHOTORIG_HAVE_DRIVERS_ARAVIS
-// camera: {driver: aravis, options: {device, buffer_count, packet_resend, timeout_margin_ms, link_bandwidth_mbps,
-//          reconnect_attempts, reconnect_delay_ms, sim_gige: {address, serial, lost_packet_ratio, trigger_poll_hz}}}
+// camera: {driver: aravis, options: {device, buffer_count, packet_resend, packet_socket, timeout_margin_ms,
+//          link_bandwidth_mbps, reconnect_attempts, reconnect_delay_ms, sim_gige: {address, serial, lost_packet_ratio, trigger_poll_hz}}}
 struct AravisOptions {
   drivers::AravisCameraOptions camera;
 #if PHOTORIG_HAVE_SIM_GIGE

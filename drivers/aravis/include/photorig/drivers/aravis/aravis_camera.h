@@ -33,6 +33,11 @@ struct AravisCameraOptions {
   double link_bandwidth_mbps = 1000;  // estimates readout time for the frame timeout
   int timeout_margin_ms = 200;        // added to exposure + readout
   bool packet_resend = true;          // GigE Vision: ask the camera to resend lost packets
+  // GigE Vision: receive through a kernel packet ring (needs CAP_NET_RAW) instead of the UDP socket.
+  // Off by default: the ring is attached by the stream's own thread after acquisition starts, so a
+  // frame triggered at once can pass before it exists and is lost; the UDP socket is bound first and
+  // queues it. Worth turning on only for free-running streams near the link's bandwidth.
+  bool packet_socket = false;
   int reconnect_attempts = 3;         // after the control link is lost
   int reconnect_delay_ms = 250;       // between attempts
 
