@@ -218,7 +218,8 @@ TEST(SamplesCsv, WrittenAndReadBackAndABadLineNamed) {
   samples[0].wo = Direction(0.7, 2.0);
   samples[0].value = {0.1, 0.2, 1.0 / 3.0};
   samples[0].sigma = {0.01, 0.02, 0.03};
-  samples[1].value = {5, 6, 7};
+  samples[0].origin = SampleOrigin{-35.5, 20.25, 90.0, 4000.0, 6};
+  samples[1].value = {5, 6, 7};  // no origin: drawn from a table
   const std::string path = TempPath("samples.csv");
   ASSERT_TRUE(WriteSamplesCsv(path, samples).IsSolutionUsable());
   std::vector<BrdfSample> read;
@@ -231,11 +232,43 @@ TEST(SamplesCsv, WrittenAndReadBackAndABadLineNamed) {
     EXPECT_EQ(read[i].value, samples[i].value);
     EXPECT_EQ(read[i].sigma, samples[i].sigma);
   }
+  ASSERT_TRUE(read[0].origin.has_value());
+  EXPECT_EQ(read[0].origin->light_arm_deg, -35.5);
+  EXPECT_EQ(read[0].origin->camera_arm_deg, 20.25);
+  EXPECT_EQ(read[0].origin->sample_rotation_deg, 90.0);
+  EXPECT_EQ(read[0].origin->exposure_us, 4000.0);
+  EXPECT_EQ(read[0].origin->frames, 6);
+  EXPECT_FALSE(read[1].origin.has_value());
+
   std::ofstream(path, std::ios::app) << "1,2,3\n";
   const Summary bad = ReadSamplesCsv(path, &read);
   EXPECT_EQ(bad.termination, Termination::kInvalidInput);
-  EXPECT_NE(bad.message.find(path + "':4: not 12"), std::string::npos) << bad.message;
+  EXPECT_NE(bad.message.find(path + "':4: 3 cells, not 17"), std::string::npos) << bad.message;
   EXPECT_EQ(read.size(), 2u);  // untouched
+
+  // An origin given in part is refused: a pose without its exposure cannot be traced.
+  std::ofstream(path, std::ios::trunc)
+      << "wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b,light_arm_deg,camera_arm_deg,"
+         "sample_rotation_deg,exposure_us,frames\n"
+      << "0,0,1,0,0,1,1,1,1,0,0,0,10,20,,,\n";
+  const Summary partial = ReadSamplesCsv(path, &read);
+  EXPECT_EQ(partial.termination, Termination::kInvalidInput);
+  EXPECT_NE(partial.message.find(":2: the origin"), std::string::npos) << partial.message;
+  std::filesystem::remove(path);
+}
+
+// Files written before the origin columns existed still read.
+TEST(SamplesCsv, ReadsTheFileWithoutOriginColumns) {
+  const std::string path = TempPath("samples_v1.csv");
+  std::ofstream(path) << "wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b\n"
+                      << "0,0,1,0.6,0,0.8,0.25,0.5,0.75,0.01,0.02,0.03\n";
+  std::vector<BrdfSample> read;
+  const Summary s = ReadSamplesCsv(path, &read);
+  ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+  ASSERT_EQ(read.size(), 1u);
+  EXPECT_EQ(read[0].value, Eigen::Vector3d(0.25, 0.5, 0.75));
+  EXPECT_EQ(read[0].wo, Eigen::Vector3d(0.6, 0, 0.8));
+  EXPECT_FALSE(read[0].origin.has_value());
   std::filesystem::remove(path);
 }
 
