@@ -101,16 +101,22 @@ TEST(GpioLights, TheSafetyLayerKeepsTheHeartbeatGoingWhileOpen) {
       std::make_unique<GpioLightController>("dome", Lines(), chips->MakeBackend(), GpioLine{"gpiochip1", 7, true}),
       options);
   ASSERT_TRUE(lights.Open().ok());
-  EXPECT_EQ(chips->physical("gpiochip1", 7), 1);  // active-low heartbeat: logical 0 is high
-  auto edges = [&] {
-    int n = 0;
-    for (const InMemoryGpioChips::Change& change : chips->changes()) n += change.chip == "gpiochip1" && change.offset == 7;
-    return n;
+  // The recorded levels of the heartbeat line, oldest first. Read from the record, not the line's
+  // level now: the monitor may already have toggled it by the time this thread runs again.
+  auto levels = [&] {
+    std::vector<int> seen;
+    for (const InMemoryGpioChips::Change& change : chips->changes())
+      if (change.chip == "gpiochip1" && change.offset == 7) seen.push_back(change.physical);
+    return seen;
   };
+  auto edges = [&] { return static_cast<int>(levels().size()); };
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);  // a hang guard, not a measurement
   while (edges() < 4 && std::chrono::steady_clock::now() < give_up)
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  EXPECT_GE(edges(), 4);
+  const std::vector<int> seen = levels();
+  ASSERT_GE(seen.size(), 4u);
+  EXPECT_EQ(seen.front(), 1);  // active-low heartbeat: it starts at logical 0, high
+  for (std::size_t i = 1; i < seen.size(); ++i) EXPECT_NE(seen[i], seen[i - 1]) << "keep-alive " << i << " is no edge";
   ASSERT_TRUE(lights.Close().ok());
   const int after_close = edges();
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
