@@ -261,6 +261,24 @@ void BM_FitModelWholeTable(benchmark::State& state) {
 }
 BENCHMARK(BM_FitModelWholeTable)->Arg(5000)->Arg(20000)->Arg(0)->Iterations(1)->Unit(benchmark::kMillisecond);
 
+// The whole choice on the whole table: six candidates, each fitted to all
+// samples and to 5 held-out folds (36 fits), as `photorig brdf fit` does.
+void BM_SelectModelWholeTable(benchmark::State& state) {
+  const std::vector<BrdfSample>& samples = WholeTable();
+  SelectionOptions options;
+  options.fit.loss = FitLoss::kLog;
+  SelectionSummary selection;
+  for (auto _ : state) selection = SelectModel(samples, options);
+  state.counters["cells"] = static_cast<double>(samples.size());
+  state.counters["chose_ggx"] = selection.chosen == Model::kGgx ? 1.0 : 0.0;
+  for (const FitSummary& fit : selection.candidates) {
+    state.counters[std::string("ms_") + ModelName(fit.params.model)] = fit.total_ms;
+    state.counters[std::string("it_") + ModelName(fit.params.model)] = fit.iterations;
+  }
+  state.SetLabel("six candidates, 5 folds");
+}
+BENCHMARK(BM_SelectModelWholeTable)->Iterations(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 }  // namespace
 
 BENCHMARK_MAIN();

@@ -277,12 +277,6 @@ TEST(BrdfSelection, InvalidInputAndOptionsAreRefused) {
   EXPECT_EQ(SelectModel(samples, options).termination, Termination::kInvalidOptions);
 }
 
-}  // namespace
-}  // namespace photorig::solvers::brdf
-
-namespace photorig::solvers::brdf {
-namespace {
-
 TEST(BrdfFit, TwoLobesRecoveredNoiseFreeNarrowerFirst) {
   const ModelParams truth = TwoLobes();
   const FitSummary fit = FitModel(Model::kTwoBlinnPhong, NoiseFreeSamples(truth, 600));
@@ -397,11 +391,6 @@ TEST(ModelChoice, StepsThroughTheSimplestModelsFirst) {
   EXPECT_FALSE(ChooseModel(fits, 10.0, &reason).has_value());
 }
 
-}  // namespace
-}  // namespace photorig::solvers::brdf
-
-namespace photorig::solvers::brdf {
-namespace {
 
 // A large set is fitted on an even subsample; the cost is every sample's at
 // that solution, so it is never below the full fit's, and the two fits agree
@@ -429,6 +418,37 @@ TEST(BrdfFit, LargeSetsAreFittedOnASubsampleAndCostedOnAll) {
         << c;
   }
   EXPECT_LT(std::abs(sub.params.shape - full.params.shape), 3.0 * sub.shape_sigma * std::sqrt(3.0));
+}
+
+// A start near the optimum (as each held-out fold gets: the fit to all
+// samples) reaches the grid start's solution in fewer iterations.
+TEST(BrdfFit, AStartNearTheOptimumReachesTheSameSolution) {
+  const std::vector<BrdfSample> samples = SyntheticSamples(GlossyGgx(), {});
+  const FitSummary grid = FitModel(Model::kGgx, samples);
+  ASSERT_TRUE(grid.IsSolutionUsable()) << grid.message;
+  FitOptions options;
+  options.start = GlossyGgx();  // the truth, not the optimum of these noisy samples
+  options.start->shape *= 1.3;
+  const FitSummary started = FitModel(Model::kGgx, samples, options);
+  ASSERT_TRUE(started.IsSolutionUsable()) << started.message;
+  EXPECT_NEAR(started.params.shape, grid.params.shape, 1e-4 * grid.params.shape);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(started.params.diffuse[c], grid.params.diffuse[c], 1e-4 * grid.params.diffuse[c]) << c;
+    EXPECT_NEAR(started.params.specular[c], grid.params.specular[c], 1e-4 * grid.params.specular[c]) << c;
+  }
+  EXPECT_NEAR(started.cost, grid.cost, 1e-6 * grid.cost);
+
+  // A start of another model is a caller's mistake, named.
+  options.start = GlossyBlinnPhong();
+  const FitSummary wrong = FitModel(Model::kGgx, samples, options);
+  EXPECT_EQ(wrong.termination, Termination::kInvalidOptions);
+  EXPECT_NE(wrong.message.find("blinn_phong"), std::string::npos) << wrong.message;
+  options.start->shape = std::nan("");
+  EXPECT_EQ(FitModel(Model::kBlinnPhong, samples, options).termination, Termination::kInvalidOptions);
+  // SelectModel fits several models: one start cannot serve them all.
+  SelectionOptions selection;
+  selection.fit.start = GlossyGgx();
+  EXPECT_EQ(SelectModel(samples, selection).termination, Termination::kInvalidOptions);
 }
 
 }  // namespace

@@ -226,22 +226,23 @@ double SquaredResidual(const ModelParams& params, const BrdfSample& s, FitLoss l
   return sum / 3.0;
 }
 
-// k-fold held-out squared residual of each sample under `model`; empty when
-// a fold's fit fails.
-std::vector<double> HeldOutErrors(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options,
-                                  int folds) {
-  std::vector<double> errors(samples.size(), 0.0);
-  for (int fold = 0; fold < folds; ++fold) {
-    std::vector<BrdfSample> train;
-    train.reserve(samples.size());
-    for (std::size_t k = 0; k < samples.size(); ++k)
-      if (static_cast<int>(k % folds) != fold) train.push_back(samples[k]);
-    if (train.size() == samples.size()) continue;
-    const FitSummary fit = FitModel(model, train, options);
-    if (!fit.IsSolutionUsable()) return {};
-    for (std::size_t k = fold; k < samples.size(); k += folds) errors[k] = SquaredResidual(fit.params, samples[k], options.loss);
+// The least squares' parameter blocks at `p` (log shapes), inside the bounds
+// FitModel sets.
+void StartAt(const ModelParams& p, double kd[3], double lobe[4], double extra[4]) {
+  const ShapeRange range = RangeOf(p.model);
+  const double log_min = std::log(range.min), log_max = std::log(range.max);
+  for (int c = 0; c < 3; ++c) {
+    kd[c] = std::max(p.diffuse[c], 0.0);
+    lobe[c] = std::max(p.specular[c], 0.0);
+    if (p.model == Model::kGgx) lobe[c] = std::min(lobe[c], 1.0);
   }
-  return errors;
+  if (p.model == Model::kLambertian) return;
+  lobe[3] = std::clamp(std::log(std::max(p.shape, range.min)), log_min, log_max);
+  if (p.model == Model::kCookTorrance) extra[0] = std::clamp(p.fresnel_f0, 0.0, 1.0);
+  if (HasSecondLobe(p.model)) {
+    for (int c = 0; c < 3; ++c) extra[c] = std::max(p.specular2[c], 0.0);
+    extra[3] = std::clamp(std::log(std::max(p.shape2, range.min)), log_min, log_max);
+  }
 }
 
 // Mean of a - b over the samples and its standard error.
@@ -274,11 +275,24 @@ bool FitOptions::IsValid(std::string* why) const {
     *why = "max_relative_shape_sigma must be positive";
     return false;
   }
+  if (start) {
+    const ModelParams& p = *start;
+    const bool finite = p.diffuse.allFinite() && p.specular.allFinite() && std::isfinite(p.shape) &&
+                        std::isfinite(p.fresnel_f0) && p.specular2.allFinite() && std::isfinite(p.shape2);
+    if (!finite) {
+      *why = "start has a non-finite parameter";
+      return false;
+    }
+  }
   return true;
 }
 
 bool SelectionOptions::IsValid(std::string* why) const {
   if (!fit.IsValid(why)) return false;
+  if (fit.start) {
+    *why = "fit.start is for one model's fit: each candidate starts from its own grid";
+    return false;
+  }
   if (candidates.empty()) {
     *why = "no candidate models";
     return false;
@@ -294,70 +308,73 @@ bool SelectionOptions::IsValid(std::string* why) const {
   return true;
 }
 
-FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options) {
-  SolveTimer timer;
-  FitSummary summary;
-  summary.params.model = model;
-  summary.samples = samples.size();
-  summary.residuals = 3 * samples.size();
-  summary.parameters = ParameterCount(model);
-  if (std::string why; !options.IsValid(&why)) {
-    summary.End(Termination::kInvalidOptions, why);
-    return summary;
-  }
-  std::vector<Prepared> prepared;
-  prepared.reserve(samples.size());
+namespace {
+
+// Checks every sample for `options.loss` and prepares it; false (with
+// `summary` ended kInvalidInput naming the sample) at the first bad one.
+bool PrepareSamples(const std::vector<BrdfSample>& samples, const FitOptions& options, std::vector<Prepared>* prepared,
+                    FitSummary* summary) {
+  prepared->clear();
+  prepared->reserve(samples.size());
   for (std::size_t k = 0; k < samples.size(); ++k) {
     const BrdfSample& s = samples[k];
-    const std::string which = "sample " + std::to_string(k) + ": ";
+    auto refuse = [&](const std::string& why) {
+      summary->End(Termination::kInvalidInput, "sample " + std::to_string(k) + ": " + why);
+      return false;
+    };
     if (!s.wi.allFinite() || !s.wo.allFinite() || std::abs(s.wi.norm() - 1.0) > 1e-6 ||
-        std::abs(s.wo.norm() - 1.0) > 1e-6) {
-      summary.End(Termination::kInvalidInput, which + "directions must be finite unit vectors");
-      return summary;
-    }
-    if (s.wi.z() <= 0.0 || s.wo.z() <= 0.0) {
-      summary.End(Termination::kInvalidInput, which + "a direction is below the horizon (no BRDF value there)");
-      return summary;
-    }
-    if (!s.value.allFinite() || !s.sigma.allFinite() || (s.sigma.array() < 0.0).any()) {
-      summary.End(Termination::kInvalidInput, which + "value and sigma must be finite, sigma non-negative");
-      return summary;
-    }
-    if (options.loss == FitLoss::kWeighted && (s.sigma.array() <= 0.0).any()) {
-      summary.End(Termination::kInvalidInput,
-                  which + "the weighted loss needs sigma > 0 in every channel (use the log loss without deviations)");
-      return summary;
-    }
-    if (options.loss == FitLoss::kLog && (s.value.array() * s.wi.z() <= -1.0).any()) {
-      summary.End(Termination::kInvalidInput, which + "value too negative for the log loss");
-      return summary;
-    }
+        std::abs(s.wo.norm() - 1.0) > 1e-6)
+      return refuse("directions must be finite unit vectors");
+    if (s.wi.z() <= 0.0 || s.wo.z() <= 0.0) return refuse("a direction is below the horizon (no BRDF value there)");
+    if (!s.value.allFinite() || !s.sigma.allFinite() || (s.sigma.array() < 0.0).any())
+      return refuse("value and sigma must be finite, sigma non-negative");
+    if (options.loss == FitLoss::kWeighted && (s.sigma.array() <= 0.0).any())
+      return refuse("the weighted loss needs sigma > 0 in every channel (use the log loss without deviations)");
+    if (options.loss == FitLoss::kLog && (s.value.array() * s.wi.z() <= -1.0).any())
+      return refuse("value too negative for the log loss");
     Prepared p{GeometryOf(s.wi, s.wo), s.value, Eigen::Vector3d::Ones()};
     if (options.loss == FitLoss::kWeighted) p.weight = s.sigma.cwiseInverse();
-    prepared.push_back(p);
+    prepared->push_back(p);
   }
-  if (summary.residuals <= static_cast<std::size_t>(summary.parameters)) {
-    summary.End(Termination::kFailure, std::to_string(samples.size()) + " samples (" +
-                                           std::to_string(summary.residuals) + " values) cannot fit the " +
-                                           std::to_string(summary.parameters) + " parameters of " + ModelName(model));
-    if (model != Model::kLambertian) summary.lobe_identifiable = false;
-    return summary;
-  }
+  return true;
+}
 
-  // The least squares see an evenly spaced subsample of a large set.
-  std::vector<Prepared> subsample;
-  if (options.max_fit_samples > 0 && prepared.size() > options.max_fit_samples) {
-    subsample.reserve(options.max_fit_samples);
-    for (std::size_t j = 0; j < options.max_fit_samples; ++j)
-      subsample.push_back(prepared[j * prepared.size() / options.max_fit_samples]);
-  }
-  const std::vector<Prepared>& fitted = subsample.empty() ? prepared : subsample;
-  summary.fitted_samples = fitted.size();
-
-  // `extra`: Cook-Torrance's F0 (extra[0]) or the second lobe (as `lobe`).
+// The Levenberg-Marquardt problem of one model on some prepared samples, its
+// parameter blocks and Ceres' account of the solve. `extra`: Cook-Torrance's
+// F0 (extra[0]) or the second lobe (as `lobe`).
+struct LeastSquares {
   double kd[3] = {0, 0, 0}, lobe[4] = {0, 0, 0, 0}, extra[4] = {0, 0, 0, 0};
-  StartingPoint(model, fitted, kd, lobe, extra);
   ceres::Problem problem;
+  ceres::Solver::Summary solved;
+
+  ModelParams Params(Model model) const {
+    ModelParams p;
+    p.model = model;
+    p.diffuse = Eigen::Vector3d(kd[0], kd[1], kd[2]);
+    if (model != Model::kLambertian) {
+      p.specular = Eigen::Vector3d(lobe[0], lobe[1], lobe[2]);
+      p.shape = std::exp(lobe[3]);
+      if (model == Model::kCookTorrance) p.fresnel_f0 = extra[0];
+    }
+    if (HasSecondLobe(model)) {
+      p.specular2 = Eigen::Vector3d(extra[0], extra[1], extra[2]);
+      p.shape2 = std::exp(extra[3]);
+    }
+    return p;
+  }
+};
+
+// Solves for `model` on `fitted`, from options.start or the starting grid.
+void SolveLeastSquares(Model model, const std::vector<Prepared>& fitted, const FitOptions& options, LeastSquares* ls) {
+  double* kd = ls->kd;
+  double* lobe = ls->lobe;
+  double* extra = ls->extra;
+  if (options.start) {
+    StartAt(*options.start, kd, lobe, extra);
+  } else {
+    StartingPoint(model, fitted, kd, lobe, extra);
+  }
+  ceres::Problem& problem = ls->problem;
   for (const Prepared& p : fitted) {
     if (HasSecondLobe(model)) {
       problem.AddResidualBlock(
@@ -393,14 +410,82 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
       problem.SetParameterUpperBound(extra, 3, std::log(range.max));
     }
   }
-  timer.SetupDone(&summary);
-
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_QR;
   solver_options.max_num_iterations = options.max_iterations;
   solver_options.num_threads = 1;
-  ceres::Solver::Summary ceres_summary;
-  ceres::Solve(solver_options, &problem, &ceres_summary);
+  ceres::Solve(solver_options, &problem, &ls->solved);
+}
+
+// The samples the least squares see among those at `indices`: all of them, or
+// an evenly spaced subsample of max_fit_samples (a table's grid order makes
+// that stratified over theta_h, theta_d and phi_d).
+std::vector<Prepared> FittedSubset(const std::vector<Prepared>& prepared, const std::vector<std::size_t>& indices,
+                                   std::size_t max_fit_samples) {
+  const std::size_t n = indices.size();
+  const std::size_t m = max_fit_samples > 0 && n > max_fit_samples ? max_fit_samples : n;
+  std::vector<Prepared> fitted;
+  fitted.reserve(m);
+  for (std::size_t j = 0; j < m; ++j) fitted.push_back(prepared[indices[m == n ? j : j * n / m]]);
+  return fitted;
+}
+
+// k-fold held-out squared residual of each sample under the model of `all`
+// (the fit to every sample): sample k is left out with fold k mod folds, and
+// each fold's fit starts from `all`'s parameters. Empty when a fold's fit
+// fails. The folds are independent and run in parallel; each needs only its
+// parameters, so none computes a covariance or the cost over its training set.
+std::vector<double> HeldOutErrors(const FitSummary& all, const std::vector<BrdfSample>& samples,
+                                  const std::vector<Prepared>& prepared, const FitOptions& options, int folds) {
+  FitOptions fold_options = options;
+  fold_options.start = all.params;
+  std::vector<double> errors(samples.size(), 0.0);
+  std::vector<char> failed(static_cast<std::size_t>(folds), 0);
+#pragma omp parallel for schedule(dynamic)
+  for (int fold = 0; fold < folds; ++fold) {
+    std::vector<std::size_t> train;
+    train.reserve(samples.size());
+    for (std::size_t k = 0; k < samples.size(); ++k)
+      if (static_cast<int>(k % folds) != fold) train.push_back(k);
+    if (train.size() == samples.size()) continue;
+    LeastSquares ls;
+    SolveLeastSquares(all.params.model, FittedSubset(prepared, train, options.max_fit_samples), fold_options, &ls);
+    if (!ls.solved.IsSolutionUsable()) {
+      failed[fold] = 1;
+      continue;
+    }
+    const ModelParams params = ls.Params(all.params.model);
+    for (std::size_t k = fold; k < samples.size(); k += folds)
+      errors[k] = SquaredResidual(params, samples[k], options.loss);
+  }
+  if (std::find(failed.begin(), failed.end(), 1) != failed.end()) return {};
+  return errors;
+}
+
+// FitModel on prepared samples.
+FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const FitOptions& options) {
+  SolveTimer timer;
+  FitSummary summary;
+  summary.params.model = model;
+  summary.samples = prepared.size();
+  summary.residuals = 3 * prepared.size();
+  summary.parameters = ParameterCount(model);
+  if (summary.residuals <= static_cast<std::size_t>(summary.parameters)) {
+    summary.End(Termination::kFailure, std::to_string(prepared.size()) + " samples (" +
+                                           std::to_string(summary.residuals) + " values) cannot fit the " +
+                                           std::to_string(summary.parameters) + " parameters of " + ModelName(model));
+    if (model != Model::kLambertian) summary.lobe_identifiable = false;
+    return summary;
+  }
+  std::vector<std::size_t> every(prepared.size());
+  for (std::size_t k = 0; k < every.size(); ++k) every[k] = k;
+  const std::vector<Prepared> fitted = FittedSubset(prepared, every, options.max_fit_samples);
+  summary.fitted_samples = fitted.size();
+  timer.SetupDone(&summary);
+
+  LeastSquares ls;
+  SolveLeastSquares(model, fitted, options, &ls);
+  const ceres::Solver::Summary& ceres_summary = ls.solved;
   summary.iterations = static_cast<int>(ceres_summary.iterations.size());
   if (!ceres_summary.IsSolutionUsable()) {
     summary.End(Termination::kFailure, "the fit failed: " + ceres_summary.message);
@@ -410,6 +495,9 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
   summary.termination =
       ceres_summary.termination_type == ceres::CONVERGENCE ? Termination::kSuccess : Termination::kNoConvergence;
   summary.cost = 2.0 * ceres_summary.final_cost;  // Ceres reports half the sum of squares
+  const double* kd = ls.kd;
+  const double* lobe = ls.lobe;
+  const double* extra = ls.extra;
   if (fitted.size() < prepared.size()) {
     // The cost of every sample at the subsample's solution.
     summary.cost = 0.0;
@@ -428,16 +516,8 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
   const double n = static_cast<double>(summary.residuals), k = summary.parameters;
   summary.bic = options.loss == FitLoss::kWeighted ? summary.cost + k * std::log(n)
                                                    : n * std::log(std::max(summary.cost, 1e-300) / n) + k * std::log(n);
-  summary.params.diffuse = Eigen::Vector3d(kd[0], kd[1], kd[2]);
-  if (model != Model::kLambertian) {
-    summary.params.specular = Eigen::Vector3d(lobe[0], lobe[1], lobe[2]);
-    summary.params.shape = std::exp(lobe[3]);
-    if (model == Model::kCookTorrance) summary.params.fresnel_f0 = extra[0];
-  }
-  if (HasSecondLobe(model)) {
-    summary.params.specular2 = Eigen::Vector3d(extra[0], extra[1], extra[2]);
-    summary.params.shape2 = std::exp(extra[3]);
-  }
+  summary.params = ls.Params(model);
+  ceres::Problem& problem = ls.problem;
 
   // Uncertainties: the inverse of J^T J at the solution (DENSE_SVD refuses a
   // rank-deficient Jacobian instead of inventing a variance for it).
@@ -500,6 +580,33 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
   }
   timer.Finish(&summary);
   return summary;
+}
+
+}  // namespace
+
+FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options) {
+  SolveTimer timer;
+  FitSummary summary;
+  summary.params.model = model;
+  summary.samples = samples.size();
+  summary.residuals = 3 * samples.size();
+  summary.parameters = ParameterCount(model);
+  if (std::string why; !options.IsValid(&why)) {
+    summary.End(Termination::kInvalidOptions, why);
+    return summary;
+  }
+  if (options.start && options.start->model != model) {
+    summary.End(Termination::kInvalidOptions, std::string("start is a ") + ModelName(options.start->model) +
+                                                  " point, the fit is of " + ModelName(model));
+    return summary;
+  }
+  std::vector<Prepared> prepared;
+  if (!PrepareSamples(samples, options, &prepared, &summary)) return summary;
+  const double preparation_ms = timer.ElapsedMs();
+  FitSummary fit = FitPrepared(model, prepared, options);
+  fit.setup_ms += preparation_ms;
+  fit.total_ms += preparation_ms;
+  return fit;
 }
 
 std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, double min_bic_improvement,
@@ -582,19 +689,24 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
       min_theta_h = std::min(min_theta_h, std::acos(std::clamp((s.wi + s.wo).normalized().z(), -1.0, 1.0)));
   summary.min_theta_h_deg = min_theta_h * 180.0 / M_PI;
   summary.peak_sampled = summary.min_theta_h_deg < options.peak_theta_h_deg;
+
+  // The samples are checked and prepared once for every candidate and fold.
+  std::vector<Prepared> prepared;
+  {
+    FitSummary refused;
+    if (!PrepareSamples(samples, options.fit, &prepared, &refused)) {
+      summary.End(refused.termination, refused.message);
+      return summary;
+    }
+  }
   timer.SetupDone(&summary);
 
   ProgressThrottle progress(options.progress, "fit", static_cast<std::int64_t>(options.candidates.size()));
   for (Model model : options.candidates) {
-    summary.candidates.push_back(FitModel(model, samples, options.fit));
+    summary.candidates.push_back(FitPrepared(model, prepared, options.fit));
     FitSummary& fit = summary.candidates.back();
-    // Input and options are the same for every candidate: the first refusal is everyone's.
-    if (fit.termination == Termination::kInvalidInput || fit.termination == Termination::kInvalidOptions) {
-      summary.End(fit.termination, fit.message);
-      return summary;
-    }
     if (options.held_out_folds > 0 && fit.IsSolutionUsable()) {
-      fit.held_out_errors = HeldOutErrors(model, samples, options.fit, options.held_out_folds);
+      fit.held_out_errors = HeldOutErrors(fit, samples, prepared, options.fit, options.held_out_folds);
       if (!fit.held_out_errors.empty()) {
         double sum = 0.0;
         for (double e : fit.held_out_errors) sum += e;

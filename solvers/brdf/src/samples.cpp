@@ -65,7 +65,7 @@ Summary ReadSamplesCsv(const std::string& path, std::vector<BrdfSample>* samples
     if (cells.size() != columns)
       return Ended(Termination::kInvalidInput,
                    where + std::to_string(cells.size()) + " cells, not " + std::to_string(columns));
-    double v[kValueCount + kOriginCount];
+    double v[kValueCount + kOriginCount] = {};
     for (int i = 0; i < kValueCount; ++i)
       if (!Number(cells[i], &v[i]))
         return Ended(Termination::kInvalidInput, where + "cell " + std::to_string(i + 1) + " is not a number");

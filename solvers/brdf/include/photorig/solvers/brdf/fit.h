@@ -47,6 +47,12 @@ struct FitOptions {
   // subsample over theta_h, theta_d and phi_d); 0 = always all of them.
   // The final cost, BIC and the covariance's scale come from all samples.
   std::size_t max_fit_samples = 20000;
+  // Where the least squares start; absent = the best point of a grid over the
+  // lobe's shape (and F0), with the linear parameters solved at each. Its
+  // model must be the one fitted. SelectModel starts each held-out fold from
+  // the fit to all samples: a fold lacks only 1/folds of them, so its optimum
+  // is near, and the grid (most of a fit's cost) is not needed again.
+  std::optional<ModelParams> start;
 
   bool IsValid(std::string* why) const;
 };
