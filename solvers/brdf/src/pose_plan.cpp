@@ -23,8 +23,11 @@ std::vector<double> Steps(double min, double max, int steps) {
 }
 
 // The move between two poses: the arms move together, so the longer one sets it.
+// The sequencer moves one axis at a time (so that the swept paths can be
+// checked for separation), so a move takes the sum of the axes' travel.
 double MoveDeg(const ArmPose& a, const ArmPose& b) {
-  return std::max(std::abs(a.light_arm_deg - b.light_arm_deg), std::abs(a.camera_arm_deg - b.camera_arm_deg));
+  return std::abs(a.light_arm_deg - b.light_arm_deg) + std::abs(a.camera_arm_deg - b.camera_arm_deg) +
+         std::abs(a.sample_rotation_deg - b.sample_rotation_deg);
 }
 
 // The least distance to `fixed_deg` of an arm sweeping from `from_deg` to `to_deg`.

@@ -93,8 +93,9 @@ struct RefusedPose {
 struct PosePlan : Summary {
   std::vector<PlannedPose> poses;    // in the order to visit them
   std::vector<RefusedPose> refused;  // with why
-  // Sum over the moves from home through every pose of the larger arm move
-  // (the arms move together), in the requested order and in the plan's.
+  // Axis travel from home through every pose (each move: the light arm's,
+  // the camera arm's and the rotation's travel added, as the axes move one at
+  // a time), in the requested order and in the plan's.
   double requested_order_move_deg = 0.0;
   double planned_move_deg = 0.0;
   int grazing = 0;  // planned poses flagged grazing
