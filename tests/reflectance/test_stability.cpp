@@ -112,8 +112,9 @@ TEST(Stability, AnUncalibratedLightIntensityIsFlagged) {
 // whose half vectors lie 22 degrees or more left of the plane x = 0, so none
 // comes within 20 degrees of a right-band normal (or within 2 degrees of the
 // band's edge at the pixel grid): the GGX paint's highlights are never seen.
-SvbrdfScene TwoGlossyPaints(bool one_sided) {
+SvbrdfScene TwoGlossyPaints(bool one_sided, int channels = 3) {
   SceneSpec spec;
+  spec.channels = channels;
   spec.materials = {Phong(0.35, 60.0), Ggx(0.25, 0.25)};
   spec.band_colour = {Eigen::Vector3d(0.4, 0.7, 0.9), Eigen::Vector3d(0.9, 0.6, 0.4)};
   spec.lights = DomeLights(4, 24, 25.0, 45.0);
@@ -181,6 +182,24 @@ TEST(Stability, APaintWhoseHighlightsNoLightReachesIsFlaggedNotMerged) {
   EXPECT_GT(u.min_half_angle_deg, options.unobserved_half_angle_deg);
   EXPECT_FALSE(u.model == g.model && u.shape == g.shape);
   EXPECT_GT(summary.pixels_highlight_unseen, u.pixels / 2);
+}
+
+// In monochrome nothing but position tells the unseen paint apart: its
+// pixels join the material beside them, which then holds mostly pixels that
+// saw no highlight and is flagged; the pixels themselves say so.
+TEST(Stability, InMonochromeAnUnseenPaintJoinsItsNeighboursFlagged) {
+  const SvbrdfScene scene = TwoGlossyPaints(true, 1);
+  refl::ReflectanceMaps fit;
+  refl::ReflectanceOptions options;
+  options.max_materials = 3;
+  const auto summary = refl::FitReflectance(options, scene.stack, scene.truth.normals, scene.mask, &fit);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  // Measured: one material (Blinn-Phong, e 60), 424 of its 1,310 pixels saw a highlight.
+  ASSERT_EQ(summary.materials, 1);
+  EXPECT_TRUE(Has(fit.materials[0].warnings, Warning::kHighlightsUnobserved));
+  EXPECT_LT(2 * fit.materials[0].highlight_pixels, fit.materials[0].pixels);
+  EXPECT_EQ(BandOf(scene, fit, 1).seen, 0.0);
+  EXPECT_GT(BandOf(scene, fit, 0).seen, 0.5);
 }
 
 // The control: every light, so both paints' highlights are seen.
