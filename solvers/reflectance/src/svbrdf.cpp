@@ -537,12 +537,32 @@ std::vector<double> SmallestHalfAngles(const Samples& s) {
   return smallest;
 }
 
+// The material whose lobe explains pixel p best (its chi-square), with the
+// pixel's normal-equation sums under it; -1 when there is none.
+int LowestCostMaterial(const Samples& s, int p, const std::vector<MaterialFit>& materials, internal::PixelSums* sums) {
+  int best = -1;
+  double best_cost = std::numeric_limits<double>::infinity();
+  for (std::size_t m = 0; m < materials.size(); ++m) {
+    const internal::PixelSums trial = internal::SumsOf(s, p, {materials[m].model, materials[m].shape}, {});
+    double cost = 0.0, rho;
+    for (int ch = 0; ch < s.channels; ++ch) cost += internal::PixelCost(trial.c[ch], materials[m].specular[ch], &rho);
+    if (cost < best_cost) {
+      best_cost = cost;
+      best = static_cast<int>(m);
+      *sums = trial;
+    }
+  }
+  return best;
+}
+
 // Gives each pixel that saw no highlight a material by what it does show.
-// Colour stacks: the material of the nearest mean chromaticity; where the
-// pixels nearest a material are a colour group apart from its own pixels
-// (ColourIsOneGroup), they are a paint whose highlights no light reached,
-// and become a material of their own (appended to *groups, returned true)
-// before every such pixel takes the nearest colour again. Monochrome
+// Colour stacks: the material of the nearest mean chromaticity; where a
+// material's pixels together with the unseen ones nearest it fall into two
+// colours (2-means, the cut tested by ColourIsOneGroup) and one side is
+// mostly unseen pixels, that side's unseen pixels are a paint whose
+// highlights no light reached. Together they become one material of their
+// own (appended to *groups, returned true) before every unseen pixel takes
+// the nearest colour again. Monochrome
 // stacks: nothing but position tells paints apart, so the material of the
 // nearest pixel that has one (8-neighbour flood); pixels no flood reaches
 // take the material whose lobe explains them best.
@@ -624,19 +644,8 @@ bool AssignUnseen(const Samples& s, const std::vector<Eigen::Vector2d>& chroma, 
       }
   }
   for (int p : unseen) {
-    if (!waiting[s.pixel_index[p]]) continue;
-    int best = 0;
-    double best_cost = std::numeric_limits<double>::infinity();
-    for (std::size_t m = 0; m < materials.size(); ++m) {
-      const internal::PixelSums sums = internal::SumsOf(s, p, {materials[m].model, materials[m].shape}, {});
-      double cost = 0.0, rho;
-      for (int ch = 0; ch < s.channels; ++ch) cost += internal::PixelCost(sums.c[ch], materials[m].specular[ch], &rho);
-      if (cost < best_cost) {
-        best_cost = cost;
-        best = static_cast<int>(m);
-      }
-    }
-    (*groups)[best].push_back(p);
+    internal::PixelSums sums;
+    if (waiting[s.pixel_index[p]]) (*groups)[LowestCostMaterial(s, p, materials, &sums)].push_back(p);
   }
   return false;
 }
@@ -952,20 +961,8 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
     const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
     flags.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelFlag::kMixed);
     ++summary.pixels_mixed;
-    int best_m = -1;
-    double best_cost = std::numeric_limits<double>::infinity();
     internal::PixelSums best_sums;
-    for (std::size_t m = 0; m < maps->materials.size(); ++m) {
-      const MaterialFit& fit = maps->materials[m];
-      const internal::PixelSums sums = internal::SumsOf(s, p, {fit.model, fit.shape}, {});
-      double cost = 0.0, rho;
-      for (int ch = 0; ch < C; ++ch) cost += internal::PixelCost(sums.c[ch], fit.specular[ch], &rho);
-      if (cost < best_cost) {
-        best_cost = cost;
-        best_m = static_cast<int>(m);
-        best_sums = sums;
-      }
-    }
+    const int best_m = LowestCostMaterial(s, p, maps->materials, &best_sums);
     if (best_m < 0) continue;
     double rho[3];
     const double rms = residual_of(p, best_sums, maps->materials[best_m], rho).rms;
