@@ -36,6 +36,11 @@ nlohmann::json MaterialJson(const refl::MaterialFit& m) {
   j["bic_lambertian"] = m.bic_lambertian;
   j["min_half_angle_deg"] = m.min_half_angle_deg;
   j["highlight_lights"] = m.highlight_lights;
+  j["highlight_pixels"] = m.highlight_pixels;
+  // A lobe (or its absence) is measured only where most of the material's
+  // pixels saw a highlight; otherwise it is what a few pixels show, or nothing.
+  j["lobe_measured"] = std::find(m.warnings.begin(), m.warnings.end(), refl::Warning::kHighlightsUnobserved) ==
+                       m.warnings.end();
   j["warnings"] = nlohmann::json::array();
   for (refl::Warning w : m.warnings) j["warnings"].push_back(refl::WarningName(w));
   return j;
@@ -134,7 +139,8 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
                  {"too_few_samples", result.summary.pixels_too_few_samples},
                  {"poor_fit", result.summary.pixels_poor_fit},
                  {"mixed", result.summary.pixels_mixed},
-                 {"mixed_assigned", result.summary.pixels_mixed_assigned}};
+                 {"mixed_assigned", result.summary.pixels_mixed_assigned},
+                 {"highlight_unseen", result.summary.pixels_highlight_unseen}};
   j["saturated_samples"] = result.summary.saturated_samples;
   j["materials"] = nlohmann::json::array();
   for (std::size_t m = 0; m < result.material_fits.size(); ++m) {
@@ -144,6 +150,7 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
   }
   j["bic_by_materials"] = result.summary.bic_by_materials;
   j["materials_merged"] = result.summary.materials_merged;
+  j["materials_unobserved"] = result.summary.materials_unobserved;
   const refl::SensorNoise& noise = result.summary.noise;
   j["noise"] = {{"source", result.summary.noise_source},
                 {"read_sigma", {noise.read_sigma[0], noise.read_sigma[1], noise.read_sigma[2]}},
@@ -223,6 +230,7 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
         WriteFloatTiff((out / "rms_residual.tiff").string(), maps.rms_residual);
         WriteImage((out / "material.png").string(), maps.material);
         WriteImage((out / "flags.png").string(), maps.flags);
+        WriteImage((out / "highlight_seen.png").string(), maps.highlight_seen);
         for (const auto& m : maps.materials)
           result.gltf_mapping_error.push_back(refl::GltfMappingError(m, stack.light_directions, stack.view_direction));
         const int C = maps.albedo.channels();

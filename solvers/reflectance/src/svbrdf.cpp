@@ -442,27 +442,50 @@ double NormalQuantile(double p) {
   return 0.5 * (lo + hi);
 }
 
-// Whether two groups of pixels of one lobe model are one group cut in two.
-// Each pixel's own weight w_i for the joint lobe (its reduced normal
-// equation B_i / A_i, channels pooled) has precision A_i. The split's
+// Weighted moments of one group of values (a pixel's lobe weight, or its
+// colour along one axis) with their precisions.
+struct Moments {
+  double weight = 0.0, sum = 0.0, squares = 0.0, weight_squared = 0.0;
+  void Add(double value, double precision) {
+    weight += precision;
+    sum += precision * value;
+    squares += precision * value * value;
+    weight_squared += precision * precision;
+  }
+  void Add(const Moments& m) {
+    weight += m.weight;
+    sum += m.sum;
+    squares += m.squares;
+    weight_squared += m.weight_squared;
+  }
+  double Spread() const { return weight > 0.0 ? squares - sum * sum / weight : 0.0; }
+};
+
+// Whether two groups of values are one group cut in two. The split's
 // cluster index, the within-group over the total weighted sum of squares,
 // is compared with its value when one Gaussian spread is cut at its best
 // point: 1 - 2/pi, with a standard deviation of about 0.35 / sqrt(n) for n
-// pixels (simulated; n the effective count (sum A)^2 / sum A^2). Two groups
-// that are really two lie below by more than the one-sided normal quantile
-// at `alpha` (SigClust, Liu, Hayes, Nobel and Marron 2008, in one dimension).
+// values (simulated; n the effective count (sum A)^2 / sum A^2 of the
+// precisions A). Two groups that are really two lie below by more than the
+// one-sided normal quantile at `alpha` (SigClust, Liu, Hayes, Nobel and
+// Marron 2008, in one dimension). A given cut has an index at least the
+// best cut's, so the test errs towards one group.
+bool IsOneGroup(const Moments& a, const Moments& b, double alpha) {
+  Moments all = a;
+  all.Add(b);
+  const double total = all.Spread();
+  if (!(total > 0.0) || !(all.weight_squared > 0.0)) return true;
+  const double index = (a.Spread() + b.Spread()) / total;
+  const double effective_count = all.weight * all.weight / all.weight_squared;
+  const double z = -NormalQuantile(alpha);
+  return index >= 1.0 - 2.0 / M_PI - z * 0.35 / std::sqrt(effective_count);
+}
+
+// Whether two groups of pixels of one lobe model are one group cut in two:
+// each pixel's own weight w_i for the joint lobe (its reduced normal
+// equation B_i / A_i, channels pooled) with precision A_i (IsOneGroup).
 bool SplitIsChance(const Samples& s, const std::vector<int>& a, const std::vector<int>& b, const MaterialFit& joint,
                    double alpha) {
-  struct Moments {
-    double weight = 0.0, sum = 0.0, squares = 0.0, weight_squared = 0.0;
-    void Add(double w, double precision) {
-      weight += precision;
-      sum += precision * w;
-      squares += precision * w * w;
-      weight_squared += precision * precision;
-    }
-    double Spread() const { return weight > 0.0 ? squares - sum * sum / weight : 0.0; }
-  };
   auto moments_of = [&](const std::vector<int>& pixels) {
     Moments m;
     for (int p : pixels) {
@@ -478,18 +501,153 @@ bool SplitIsChance(const Samples& s, const std::vector<int>& a, const std::vecto
     }
     return m;
   };
-  const Moments ma = moments_of(a), mb = moments_of(b);
-  Moments all = ma;
-  all.weight += mb.weight;
-  all.sum += mb.sum;
-  all.squares += mb.squares;
-  all.weight_squared += mb.weight_squared;
-  const double total = all.Spread();
-  if (!(total > 0.0) || !(all.weight_squared > 0.0)) return true;
-  const double index = (ma.Spread() + mb.Spread()) / total;
-  const double effective_pixels = all.weight * all.weight / all.weight_squared;
-  const double z = -NormalQuantile(alpha);
-  return index >= 1.0 - 2.0 / M_PI - z * 0.35 / std::sqrt(effective_pixels);
+  return IsOneGroup(moments_of(a), moments_of(b), alpha);
+}
+
+Eigen::Vector2d MeanChroma(const std::vector<Eigen::Vector2d>& chroma, const std::vector<int>& pixels) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (int p : pixels) mean += chroma[p];
+  return pixels.empty() ? mean : Eigen::Vector2d(mean / static_cast<double>(pixels.size()));
+}
+
+// Whether two groups of pixels have one colour: their chromaticities along
+// the line through the two groups' means, equally weighted (IsOneGroup).
+bool ColourIsOneGroup(const std::vector<Eigen::Vector2d>& chroma, const std::vector<int>& a, const std::vector<int>& b,
+                      double alpha) {
+  const Eigen::Vector2d axis = MeanChroma(chroma, b) - MeanChroma(chroma, a);
+  if (!(axis.norm() > 0.0)) return true;
+  const Eigen::Vector2d unit = axis.normalized();
+  Moments ma, mb;
+  for (int p : a) ma.Add(chroma[p].dot(unit), 1.0);
+  for (int p : b) mb.Add(chroma[p].dot(unit), 1.0);
+  return IsOneGroup(ma, mb, alpha);
+}
+
+// Per gathered pixel: the smallest angle between its normal and the half
+// vector of a usable (lit, unclipped) sample, radians; pi when none.
+std::vector<double> SmallestHalfAngles(const Samples& s) {
+  std::vector<double> smallest(s.pixels, M_PI);
+  for (int p = 0; p < s.pixels; ++p)
+    for (int j = 0; j < s.lights; ++j) {
+      const std::size_t cell = s.At(p, j);
+      if (!s.usable[cell]) continue;
+      const Eigen::Vector3d h = (s.wi[cell] + s.wo[p]).normalized();
+      smallest[p] = std::min(smallest[p], std::acos(std::clamp(h.z(), -1.0, 1.0)));
+    }
+  return smallest;
+}
+
+// The material whose lobe explains pixel p best (its chi-square), with the
+// pixel's normal-equation sums under it; -1 when there is none.
+int LowestCostMaterial(const Samples& s, int p, const std::vector<MaterialFit>& materials, internal::PixelSums* sums) {
+  int best = -1;
+  double best_cost = std::numeric_limits<double>::infinity();
+  for (std::size_t m = 0; m < materials.size(); ++m) {
+    const internal::PixelSums trial = internal::SumsOf(s, p, {materials[m].model, materials[m].shape}, {});
+    double cost = 0.0, rho;
+    for (int ch = 0; ch < s.channels; ++ch) cost += internal::PixelCost(trial.c[ch], materials[m].specular[ch], &rho);
+    if (cost < best_cost) {
+      best_cost = cost;
+      best = static_cast<int>(m);
+      *sums = trial;
+    }
+  }
+  return best;
+}
+
+// Gives each pixel that saw no highlight a material by what it does show.
+// Colour stacks: the material of the nearest mean chromaticity; where a
+// material's pixels together with the unseen ones nearest it fall into two
+// colours (2-means, the cut tested by ColourIsOneGroup) and one side is
+// mostly unseen pixels, that side's unseen pixels are a paint whose
+// highlights no light reached. Together they become one material of their
+// own (appended to *groups, returned true) before every unseen pixel takes
+// the nearest colour again. Monochrome
+// stacks: nothing but position tells paints apart, so the material of the
+// nearest pixel that has one (8-neighbour flood); pixels no flood reaches
+// take the material whose lobe explains them best.
+bool AssignUnseen(const Samples& s, const std::vector<Eigen::Vector2d>& chroma, const std::vector<int>& unseen,
+                  double alpha, const std::vector<MaterialFit>& materials, std::vector<std::vector<int>>* groups) {
+  if (unseen.empty() || groups->empty()) return false;
+  bool formed = false;
+  if (!chroma.empty()) {
+    std::vector<Eigen::Vector2d> centre;
+    for (const auto& g : *groups) centre.push_back(MeanChroma(chroma, g));
+    auto nearest = [&](int p) {
+      int best = 0;
+      for (std::size_t m = 1; m < centre.size(); ++m)
+        if ((chroma[p] - centre[m]).squaredNorm() < (chroma[p] - centre[best]).squaredNorm()) best = static_cast<int>(m);
+      return best;
+    };
+    std::vector<std::vector<int>> near(centre.size());
+    for (int p : unseen) near[nearest(p)].push_back(p);
+    // Per material: its own pixels and the unseen ones nearest it, cut in
+    // two colours (2-means); where the cut is real (ColourIsOneGroup) and
+    // one side is mostly pixels that saw no highlight, that side's unseen
+    // pixels are another paint.
+    std::vector<int> apart;
+    for (std::size_t m = 0; m < near.size(); ++m) {
+      if (near[m].empty()) continue;
+      std::vector<int> pixels = (*groups)[m];
+      const std::size_t own = pixels.size();
+      pixels.insert(pixels.end(), near[m].begin(), near[m].end());
+      std::vector<Eigen::VectorXd> x;
+      for (int p : pixels) x.push_back(chroma[p]);
+      std::vector<int> labels;
+      KMeans(x, 2, 4321u + static_cast<unsigned>(m), &labels);
+      std::vector<int> side[2];
+      int seen_on[2] = {0, 0};
+      for (std::size_t i = 0; i < pixels.size(); ++i) {
+        side[labels[i]].push_back(pixels[i]);
+        seen_on[labels[i]] += i < own;
+      }
+      if (side[0].empty() || side[1].empty() || ColourIsOneGroup(chroma, side[0], side[1], alpha)) continue;
+      const int other = seen_on[0] * side[1].size() < seen_on[1] * side[0].size() ? 0 : 1;
+      if (2 * seen_on[other] >= static_cast<int>(side[other].size())) continue;
+      for (std::size_t i = own; i < pixels.size(); ++i)
+        if (labels[i] == other) apart.push_back(pixels[i]);
+    }
+    if (!apart.empty()) {
+      centre.push_back(MeanChroma(chroma, apart));
+      groups->emplace_back();
+      formed = true;
+    }
+    for (int p : unseen) (*groups)[nearest(p)].push_back(p);
+    if (formed && groups->back().empty()) {
+      groups->pop_back();
+      formed = false;
+    }
+    return formed;
+  }
+  std::vector<int> label(static_cast<std::size_t>(s.width) * s.height, -1), gathered(label.size(), -1);
+  for (int p = 0; p < s.pixels; ++p) gathered[s.pixel_index[p]] = p;
+  std::vector<int> queue;
+  for (std::size_t m = 0; m < groups->size(); ++m)
+    for (int p : (*groups)[m]) {
+      label[s.pixel_index[p]] = static_cast<int>(m);
+      queue.push_back(s.pixel_index[p]);
+    }
+  std::vector<std::uint8_t> waiting(label.size(), 0);
+  for (int p : unseen) waiting[s.pixel_index[p]] = 1;
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    const int r = queue[head] / s.width, c = queue[head] % s.width;
+    for (int dr = -1; dr <= 1; ++dr)
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int rr = r + dr, cc = c + dc;
+        if (rr < 0 || cc < 0 || rr >= s.height || cc >= s.width) continue;
+        const int i = rr * s.width + cc;
+        if (!waiting[i]) continue;
+        waiting[i] = 0;
+        label[i] = label[queue[head]];
+        (*groups)[label[i]].push_back(gathered[i]);
+        queue.push_back(i);
+      }
+  }
+  for (int p : unseen) {
+    internal::PixelSums sums;
+    if (waiting[s.pixel_index[p]]) (*groups)[LowestCostMaterial(s, p, materials, &sums)].push_back(p);
+  }
+  return false;
 }
 
 }  // namespace
@@ -562,11 +720,32 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   // Mixed pixels are flagged before the materials are chosen, so that they
   // cannot form one of their own; they are assigned once the materials exist.
   const std::vector<std::uint8_t> is_mixed = MixedPixels(s, active, chroma, options.mixed_pixel_alpha);
-  std::vector<int> clustered, mixed;
+  // Which pixels saw a highlight (ReflectanceOptions::unobserved_half_angle_deg).
+  // A pixel that saw none says nothing about any lobe: its own lobe is none
+  // whatever its paint's is. Left among the others it would pull a glossy
+  // paint's materials towards no lobe, and, a paint all of whose pixels saw
+  // none, be absorbed into whichever material its colour sits beside (the
+  // split test cannot tell lobes apart on pixels that show none). So only
+  // pixels that saw a highlight choose the materials and their lobes; the
+  // others are given one afterwards by their colour (AssignUnseen). When no
+  // pixel saw one, all choose (and every material is flagged).
+  const std::vector<double> smallest_half_angle = SmallestHalfAngles(s);
+  const double seen_within = options.unobserved_half_angle_deg * M_PI / 180.0;
+  std::vector<std::uint8_t> seen(s.pixels, 0);
+  bool any_seen = false;
+  for (int p : active) {
+    seen[p] = smallest_half_angle[p] <= seen_within;
+    any_seen = any_seen || (seen[p] && !is_mixed[p]);
+  }
+  std::vector<int> clustered, mixed, unseen;
   std::vector<Eigen::VectorXd> features;
   for (std::size_t i = 0; i < active.size(); ++i) {
     if (is_mixed[active[i]]) {
       mixed.push_back(active[i]);
+      continue;
+    }
+    if (any_seen && !seen[active[i]]) {
+      unseen.push_back(active[i]);
       continue;
     }
     const internal::PixelLobe& pl = own[i];
@@ -640,6 +819,18 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
         ++summary.materials_merged;
         merged = true;
       }
+  }
+  if (AssignUnseen(s, chroma, unseen, options.split_alpha,
+                   [&] {
+                     std::vector<MaterialFit> fits;
+                     for (const auto& m : best.materials) fits.push_back(m.fit);
+                     return fits;
+                   }(),
+                   &best.groups)) {
+    // A paint no pixel of which saw a highlight: its lobe is what its own
+    // pixels show (mostly none), never a neighbouring paint's.
+    best.materials.push_back(internal::FitMaterial(s, best.groups.back(), candidates, {}, options.shape_search_pixels));
+    ++summary.materials_unobserved;
   }
 
   // Final albedos, their deviations and residuals per pixel.
@@ -734,27 +925,27 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
     std::set<int> highlight_lights;
     long long saturated = 0, lit = 0;
     const double half_width = fit.model == brdf::Model::kLambertian ? 0.0 : LobeHalfWidth(fit);
+    fit.pixels = static_cast<int>(group.size());
+    fit.highlight_pixels = 0;
     for (int p : group) {
-      double smallest = M_PI;
       for (int j = 0; j < s.lights; ++j) {
         const std::size_t cell = s.At(p, j);
         saturated += s.saturated[cell];
         lit += s.saturated[cell] + s.usable[cell];
-        if (!s.usable[cell]) continue;
+        if (!s.usable[cell] || half_width <= 0.0) continue;
         const Eigen::Vector3d h = (s.wi[cell] + s.wo[p]).normalized();
-        const double angle = std::acos(std::clamp(h.z(), -1.0, 1.0));
-        smallest = std::min(smallest, angle);
-        if (angle < half_width) highlight_lights.insert(j);
+        if (std::acos(std::clamp(h.z(), -1.0, 1.0)) < half_width) highlight_lights.insert(j);
       }
-      min_angle.push_back(smallest);
+      min_angle.push_back(smallest_half_angle[p]);
+      fit.highlight_pixels += seen[p];
     }
     fit.min_half_angle_deg = Median(min_angle) * 180.0 / M_PI;
     fit.highlight_lights = static_cast<int>(highlight_lights.size());
     if (fit.model != brdf::Model::kLambertian && fit.highlight_lights < options.min_highlight_lights)
       AddWarning(&fit.warnings, Warning::kTooFewHighlightLights);
-    // A fitted lobe was seen; without one, a lobe narrower than the nearest half vector could hide.
-    if (fit.model == brdf::Model::kLambertian && fit.min_half_angle_deg > options.unobserved_half_angle_deg)
-      AddWarning(&fit.warnings, Warning::kHighlightsUnobserved);
+    // Most pixels saw no highlight: whatever lobe (or none) the few that did
+    // show, the material's lobe is not measured where it lies.
+    if (2 * fit.highlight_pixels < fit.pixels) AddWarning(&fit.warnings, Warning::kHighlightsUnobserved);
     if (lit > 0 && static_cast<double>(saturated) / lit > options.max_saturated_fraction)
       AddWarning(&fit.warnings, Warning::kSaturatedHighlights);
     for (Warning w : fit.warnings) AddWarning(&summary.warnings, w);
@@ -770,20 +961,8 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
     const int r = s.pixel_index[p] / s.width, c = s.pixel_index[p] % s.width;
     flags.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelFlag::kMixed);
     ++summary.pixels_mixed;
-    int best_m = -1;
-    double best_cost = std::numeric_limits<double>::infinity();
     internal::PixelSums best_sums;
-    for (std::size_t m = 0; m < maps->materials.size(); ++m) {
-      const MaterialFit& fit = maps->materials[m];
-      const internal::PixelSums sums = internal::SumsOf(s, p, {fit.model, fit.shape}, {});
-      double cost = 0.0, rho;
-      for (int ch = 0; ch < C; ++ch) cost += internal::PixelCost(sums.c[ch], fit.specular[ch], &rho);
-      if (cost < best_cost) {
-        best_cost = cost;
-        best_m = static_cast<int>(m);
-        best_sums = sums;
-      }
-    }
+    const int best_m = LowestCostMaterial(s, p, maps->materials, &best_sums);
     if (best_m < 0) continue;
     double rho[3];
     const double rms = residual_of(p, best_sums, maps->materials[best_m], rho).rms;
@@ -819,6 +998,12 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   if (!summary.inconsistent_lights.empty()) AddWarning(&summary.warnings, Warning::kInconsistentIntensities);
 
   maps->flags = flags;
+  maps->highlight_seen = cv::Mat(s.height, s.width, CV_8U, cv::Scalar(255));
+  for (int p : active) {
+    if (maps->material.at<std::uint8_t>(s.pixel_index[p]) == 255) continue;
+    maps->highlight_seen.at<std::uint8_t>(s.pixel_index[p]) = seen[p];
+    summary.pixels_highlight_unseen += !seen[p];
+  }
   summary.reduced_chi_square = residuals > 0 ? chi_square / static_cast<double>(residuals) : 0.0;
   summary.materials = static_cast<int>(maps->materials.size());
   summary.pixels_fitted = static_cast<int>(active.size()) - summary.pixels_poor_fit - summary.pixels_mixed;

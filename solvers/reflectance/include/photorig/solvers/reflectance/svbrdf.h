@@ -16,8 +16,10 @@
 //
 // Materials are k-means clusters (k = 1..max_materials) of per-pixel features:
 // albedo chromaticity (three-channel stacks) and the pixel's own Blinn-Phong
-// lobe (its weight and sharpness). Each k is scored by the BIC of the fit it
-// leads to; the smallest wins.
+// lobe (its weight and sharpness), of the pixels that saw a highlight (the
+// others say nothing of a lobe, and take a material by their colour once the
+// materials exist). Each k is scored by the BIC of the fit it leads to; the
+// smallest wins.
 //
 // Every fit is weighted least squares under the sensor's noise model
 // (SensorNoise: read noise plus shot noise that grows with the signal), so
@@ -99,7 +101,7 @@ const char* PixelFlagName(PixelFlag flag);
 // raised on the materials it concerns and listed in the summary.
 enum class Warning : std::uint8_t {
   kTooFewHighlightLights,  // a lobe seen under fewer than min_highlight_lights lights: shape unreliable
-  kHighlightsUnobserved,   // no light comes near a material's mirror direction: a lobe would go unseen
+  kHighlightsUnobserved,   // most of a material's pixels saw no highlight: its lobe is unconstrained there
   kSaturatedHighlights,    // clipped samples in a material: its lobe's peak was never measured
   kInconsistentIntensities // a light's images disagree with the others by more than max_intensity_error
 };
@@ -116,6 +118,10 @@ struct MaterialFit {
   double bic = 0.0;                   // of the chosen lobe
   double bic_lambertian = 0.0;        // of no lobe, for comparison
   double min_half_angle_deg = 0.0;    // median over pixels of the smallest angle between n and h
+  // Pixels that saw a highlight (ReflectanceMaps::highlight_seen); the lobe
+  // was chosen and fitted on these alone. Under half of `pixels`: the lobe is
+  // unconstrained (kHighlightsUnobserved), whatever model it shows.
+  int highlight_pixels = 0;
   int highlight_lights = 0;           // lights that put samples inside the fitted lobe's half width
   std::vector<Warning> warnings;
 };
@@ -127,6 +133,11 @@ struct ReflectanceMaps {
   cv::Mat flags;         // CV_8U PixelFlag
   cv::Mat rms_residual;  // CV_32F per pixel, image units; NaN where not fitted
   cv::Mat normals;       // CV_32FC3, the normals the reflectance was fitted with
+  // CV_8U per pixel: 1 when one of its usable samples has its half vector
+  // within unobserved_half_angle_deg of the normal (it saw a highlight), 0
+  // when none has (its lobe was never seen: it took its material by colour
+  // or by its neighbours), 255 where no reflectance was fitted.
+  cv::Mat highlight_seen;
   std::vector<MaterialFit> materials;
 };
 
@@ -158,8 +169,11 @@ struct ReflectanceOptions {
   int kmeans_restarts = 4;
   // Fewer distinct lights inside a lobe's half width raise kTooFewHighlightLights. Default 3.
   int min_highlight_lights = 3;
-  // A material whose median smallest half-vector angle exceeds this raises
-  // kHighlightsUnobserved (a lobe narrower than that cannot be seen). Default 20 degrees.
+  // A pixel saw a highlight when one of its usable (lit, unclipped) samples
+  // has its half vector within this angle of the normal: a lobe at least
+  // this wide puts half its peak or more into that sample. Only such pixels
+  // choose the materials and their lobes; a material most of whose pixels
+  // saw none raises kHighlightsUnobserved. Default 20 degrees.
   double unobserved_half_angle_deg = 20.0;
   // Clipped samples above this fraction of a material's samples raise kSaturatedHighlights. Default 0.002.
   double max_saturated_fraction = 0.002;
@@ -180,6 +194,8 @@ struct ReflectanceSummary : Summary {
   int pixels_poor_fit = 0;
   int pixels_mixed = 0;           // flagged kMixed (kept out of the choice of materials)
   int pixels_mixed_assigned = 0;  // of those, given the material that explains them
+  int pixels_highlight_unseen = 0;  // fitted pixels that saw no highlight (highlight_seen = 0)
+  int materials_unobserved = 0;     // materials formed by pixels that saw no highlight, told apart by colour
   long long saturated_samples = 0;
   int materials = 0;
   std::vector<double> bic_by_materials;  // [k - 1]: BIC of the best fit with k materials
