@@ -336,10 +336,18 @@ Status AravisCamera::StartStream() {
                                                            : ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
   ArvStream* stream = arv_camera_create_stream(handles_->camera, nullptr, nullptr, error.out());
   if (!stream) return Error(StatusCode::kUnavailable, "cannot create the stream: " + error.message());
-  if (ARV_IS_GV_STREAM(stream))
+  if (ARV_IS_GV_STREAM(stream)) {
     g_object_set(stream, "packet-resend",
                  options_.packet_resend ? ARV_GV_STREAM_PACKET_RESEND_ALWAYS : ARV_GV_STREAM_PACKET_RESEND_NEVER,
                  nullptr);
+    // A camera sends a frame as one burst, faster than the stream's thread may
+    // drain the socket: the kernel's default receive buffer (208 KiB) drops the
+    // tail of a larger frame. Room for the pool's frames, at least 1 MiB (the
+    // kernel caps it at net.core.rmem_max).
+    const guint64 buffer_bytes = std::max<guint64>(1u << 20, payload_bytes_ * std::max(options_.buffer_count, 1));
+    g_object_set(stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size",
+                 static_cast<gint>(std::min<guint64>(buffer_bytes, G_MAXINT)), nullptr);
+  }
   for (int i = 0; i < options_.buffer_count; ++i) arv_stream_push_buffer(stream, arv_buffer_new_allocate(payload_bytes_));
   handles_->stream = stream;
   arv_camera_start_acquisition(handles_->camera, error.out());
