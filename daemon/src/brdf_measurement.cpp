@@ -1,5 +1,7 @@
 #include "photorig/daemon/brdf_measurement.h"
 
+#include "photorig/color/colorimetry.h"
+#include "photorig/config/color_model.h"
 #include "photorig/daemon/color_stack.h"
 #include "photorig/solvers/brdf/half_diff.h"
 #include "photorig/solvers/brdf/pose_plan.h"
@@ -16,6 +18,8 @@ namespace photorig::daemon {
 namespace {
 
 namespace brdf = solvers::brdf;
+using config::LoadedColorModel;
+using config::LoadColorModelFile;
 using solvers::Termination;
 
 std::string Format(const char* format, double a, double b = 0.0, double c = 0.0) {
@@ -174,6 +178,60 @@ class Merger {
 
 const char* const kChannelNames[3] = {"R", "G", "B"};
 
+// The rig's colour model (camera.color_model, camera RGB -> XYZ) on f_r per
+// camera channel. Only a linear (3 x 3) model is well defined there: it maps
+// a sum of BRDF terms (diffuse + lobe) to the sum of their images and a
+// sample's independent channel deviations to known ones, so the fitted models
+// keep their form. A root-polynomial model is homogeneous but not linear
+// (sqrt(r g) of a sum is not the sum of sqrt(r g)s): applied per sample it
+// would bend every model's colour with the angle; f_r stays in camera
+// channels and the summary says why.
+void ApplyColorModel(const RunManifest& manifest, const Eigen::Vector3d& k_times_e, BrdfMeasurement* out) {
+  out->color_model_path = manifest.color_model_path;
+  LoadedColorModel loaded;
+  try {
+    loaded = LoadColorModelFile(manifest.color_model_path);
+  } catch (const std::exception& e) {
+    out->color_model_note = std::string("not applied: the colour model could not be read (") + e.what() +
+                            "); f_r is per camera channel";
+    return;
+  }
+  const color::ColorModel& model = loaded.model;
+  out->color_model_kind = model.spec.Name();
+  if (model.spec.kind != color::ModelSpec::Kind::kLinear) {
+    out->color_model_note = "not applied: " + model.spec.Name() +
+                            " is not a 3 x 3 matrix, and only a linear map carries a BRDF's sum of terms and its "
+                            "deviations to linear sRGB; f_r is per camera channel, white-balanced by the grey "
+                            "reference target";
+    return;
+  }
+  // The camera's raw response to f_r is K_c f_r,c (K per channel from the
+  // target); the model takes raw RGB to XYZ (relative to its white), adapted
+  // to D65 and taken to linear sRGB. Scaled so the grey target keeps its
+  // luminance: a grey f_r maps to the camera white's sRGB at the same Y.
+  const Eigen::Vector3d d65 = color::LinearSrgbToXyzD65() * Eigen::Vector3d::Ones();
+  const Eigen::Matrix3d to_srgb = color::XyzD65ToLinearSrgb() * color::BradfordAdaptation(model.white_xyz, d65) *
+                                  model.coefficients.transpose() * k_times_e.asDiagonal();
+  const Eigen::Vector3d white = to_srgb * Eigen::Vector3d::Ones();
+  const double luminance = color::LinearSrgbToXyzD65().row(1).dot(white);
+  if (!(luminance > 0.0) || !to_srgb.allFinite()) {
+    out->color_model_note = "not applied: the linear colour model maps the camera's white to no luminance";
+    return;
+  }
+  out->camera_to_linear_srgb = to_srgb / luminance;
+  const Eigen::Matrix3d squared = out->camera_to_linear_srgb.cwiseAbs2();
+  for (solvers::brdf::BrdfSample& s : out->samples) {
+    s.value = out->camera_to_linear_srgb * s.value;
+    s.sigma = (squared * s.sigma.cwiseAbs2()).cwiseSqrt();  // the channels' noise is independent
+  }
+  out->color_model_applied = true;
+  char white_text[128];
+  std::snprintf(white_text, sizeof(white_text), "(%.4f, %.4f, %.4f)", white[0] / luminance, white[1] / luminance,
+                white[2] / luminance);
+  out->color_model_note = "applied: f_r converted from camera channels to linear sRGB (D65) by the linear model's "
+                          "3 x 3 matrix; a grey f_r of luminance 1 becomes " + std::string(white_text);
+}
+
 }  // namespace
 
 bool BrdfMeasurementOptions::IsValid(std::string* why) const {
@@ -314,6 +372,7 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
   }
   const std::vector<int> site_channels = BlockChannels(manifest.mosaic, options.block_px);
   for (int channel : site_channels) ++out.channel_sites[channel];
+  if (grey) out.channel_sites.setConstant(static_cast<int>(site_channels.size()));
   const Merger merger(dark_means, saturation_dn, read_var, out.shot_dn_per_dn, site_channels, grey);
 
   // The radiometric scale: K E, DN per us at 0 dB per unit f_r cos theta_i,
@@ -432,6 +491,7 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
     }
   }
   if (out.repeat_dof > 0) out.repeat_sigma_ratio = std::sqrt(read_and_shot / out.repeat_dof);
+  if (!grey && !manifest.color_model_path.empty()) ApplyColorModel(manifest, k_times_e, &out);
   timer.Finish(&out);
   out.termination = Termination::kSuccess;
   return out;

@@ -101,6 +101,16 @@ struct BrdfMeasurement : solvers::Summary {
   Eigen::Vector3d channel_dn_per_radiance_per_us = Eigen::Vector3d::Zero();
   Eigen::Vector3d channel_calibration_relative_sigma = Eigen::Vector3d::Zero();
   Eigen::Vector3i channel_sites = Eigen::Vector3i::Zero();
+  // The rig's colour model (camera.color_model) when the run was captured,
+  // and what was done with it: a linear (3 x 3) model converts the samples to
+  // linear sRGB (camera_to_linear_srgb, applied to f_r per camera channel);
+  // any other is not applied, and the note says why. Empty for a grey camera
+  // or a rig without one.
+  std::string color_model_path;
+  std::string color_model_kind;  // e.g. "root-poly-2", "linear"
+  bool color_model_applied = false;
+  std::string color_model_note;
+  Eigen::Matrix3d camera_to_linear_srgb = Eigen::Matrix3d::Identity();
 };
 
 // Reads the run's frames. Ends kInvalidInput when the run lacks what the
