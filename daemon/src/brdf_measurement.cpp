@@ -46,10 +46,14 @@ PoseKey KeyOf(const GonioPose& p) {
   return {p.light_arm_deg, p.camera_arm_deg, p.sample_rotation_deg, p.sample_changer_deg.value_or(0.0)};
 }
 
-// The block starts on an even row and column, so a mosaic's block begins
-// with its pattern's top-left site.
-cv::Mat CentralBlock(const cv::Mat& frame, int block_px) {
-  const int x = (frame.cols - block_px) / 2 / 2 * 2, y = (frame.rows - block_px) / 2 / 2 * 2;
+// A mosaic's block starts on an even row and column, i.e. on its pattern's
+// top-left site.
+cv::Mat CentralBlock(const cv::Mat& frame, int block_px, bool mosaic) {
+  int x = (frame.cols - block_px) / 2, y = (frame.rows - block_px) / 2;
+  if (mosaic) {
+    x -= x % 2;
+    y -= y % 2;
+  }
   cv::Mat block;
   frame(cv::Rect(x, y, block_px, block_px)).convertTo(block, CV_64F);
   return block;
@@ -280,7 +284,7 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
   std::map<PoseKey, std::size_t> pose_index;
   for (const FrameRecord& r : manifest.frames) {
     if (r.kind != "dark" && !(r.kind == "pose" && r.pose)) continue;
-    const cv::Mat block = CentralBlock(LoadFrame(run_dir, r), options.block_px);
+    const cv::Mat block = CentralBlock(LoadFrame(run_dir, r), options.block_px, !grey);
     if (r.kind == "dark") {
       darks[r.exposure_us].push_back(block);
       ++out.dark_frames;
