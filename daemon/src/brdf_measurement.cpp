@@ -1,5 +1,8 @@
 #include "photorig/daemon/brdf_measurement.h"
 
+#include "photorig/color/colorimetry.h"
+#include "photorig/config/color_model.h"
+#include "photorig/daemon/color_stack.h"
 #include "photorig/solvers/brdf/half_diff.h"
 #include "photorig/solvers/brdf/pose_plan.h"
 
@@ -15,6 +18,8 @@ namespace photorig::daemon {
 namespace {
 
 namespace brdf = solvers::brdf;
+using config::LoadedColorModel;
+using config::LoadColorModelFile;
 using solvers::Termination;
 
 std::string Format(const char* format, double a, double b = 0.0, double c = 0.0) {
@@ -41,8 +46,14 @@ PoseKey KeyOf(const GonioPose& p) {
   return {p.light_arm_deg, p.camera_arm_deg, p.sample_rotation_deg, p.sample_changer_deg.value_or(0.0)};
 }
 
-cv::Mat CentralBlock(const cv::Mat& frame, int block_px) {
-  const int x = (frame.cols - block_px) / 2, y = (frame.rows - block_px) / 2;
+// A mosaic's block starts on an even row and column, i.e. on its pattern's
+// top-left site.
+cv::Mat CentralBlock(const cv::Mat& frame, int block_px, bool mosaic) {
+  int x = (frame.cols - block_px) / 2, y = (frame.rows - block_px) / 2;
+  if (mosaic) {
+    x -= x % 2;
+    y -= y % 2;
+  }
   cv::Mat block;
   frame(cv::Rect(x, y, block_px, block_px)).convertTo(block, CV_64F);
   return block;
@@ -60,23 +71,50 @@ struct Dark {
   int count = 0;
 };
 
-// A block's rate (DN per us at 0 dB) merged over a pose's exposures.
+// The channel (0 R, 1 G, 2 B) each pixel of the block records, row-major:
+// a Bayer pattern's top-left 2 x 2 block repeated (the block starts on it,
+// CentralBlock); a grey camera's pixels all give channel 0.
+std::vector<int> BlockChannels(const std::string& mosaic, int block_px) {
+  std::vector<int> channels(static_cast<std::size_t>(block_px) * block_px, 0);
+  if (mosaic == "mono") return channels;
+  for (int r = 0; r < block_px; ++r)
+    for (int c = 0; c < block_px; ++c) {
+      const char filter = mosaic[static_cast<std::size_t>((r % 2) * 2 + c % 2)];
+      channels[static_cast<std::size_t>(r) * block_px + c] = filter == 'R' ? 0 : filter == 'G' ? 1 : 2;
+    }
+  return channels;
+}
+
+// A block's rate (DN per us at 0 dB) per camera channel, merged over a
+// pose's exposures; a grey camera's three channels are equal.
 struct Merged {
-  double rate = 0.0, variance = 0.0;
+  Eigen::Vector3d rate = Eigen::Vector3d::Zero(), variance = Eigen::Vector3d::Zero();
   bool clipped = false;  // some pixel unclipped at no exposure
   int exposures_used = 0;
 };
 
 class Merger {
  public:
-  Merger(const std::map<double, Dark>& darks, double saturation_dn, double read_var, double shot)
-      : darks_(darks), saturation_dn_(saturation_dn), read_var_(read_var), shot_(shot) {}
+  Merger(const std::map<double, Dark>& darks, double saturation_dn, double read_var, double shot,
+         std::vector<int> site_channels, bool grey)
+      : darks_(darks),
+        saturation_dn_(saturation_dn),
+        read_var_(read_var),
+        shot_(shot),
+        site_channels_(std::move(site_channels)),
+        grey_(grey) {}
 
   Merged Merge(const PoseFrames& pose) const {
     Merged out;
     const int n_pixels = pose.exposures.begin()->second.blocks.front().rows *
                          pose.exposures.begin()->second.blocks.front().cols;
     std::vector<bool> used(pose.exposures.size(), false);
+    // The sample fills the block uniformly, so every site of a channel sees
+    // the same radiance through the same filter: the channel's rate is the
+    // mean over its own sites, with no demosaicing (which would only blend
+    // neighbouring sites of other channels back in, and correlate their noise).
+    Eigen::Vector3d rate_sum = Eigen::Vector3d::Zero(), variance_sum = Eigen::Vector3d::Zero();
+    Eigen::Vector3d sites = Eigen::Vector3d::Zero();
     for (int p = 0; p < n_pixels; ++p) {
       // Rates of the exposures that do not clip this pixel, and the best one:
       // the longest exposure's, which carries the most signal.
@@ -117,8 +155,19 @@ class Merger {
         weighted += weight * r.rate;
         used[r.index] = true;
       }
-      out.rate += weighted / weight_sum / n_pixels;
-      out.variance += 1.0 / weight_sum / (double(n_pixels) * n_pixels);
+      const int channel = site_channels_[static_cast<std::size_t>(p)];
+      rate_sum[channel] += weighted / weight_sum;
+      variance_sum[channel] += 1.0 / weight_sum;
+      sites[channel] += 1.0;
+    }
+    for (int c = 0; c < 3; ++c)
+      if (sites[c] > 0.0) {
+        out.rate[c] = rate_sum[c] / sites[c];
+        out.variance[c] = variance_sum[c] / (sites[c] * sites[c]);
+      }
+    if (grey_) {
+      out.rate.setConstant(out.rate[0]);
+      out.variance.setConstant(out.variance[0]);
     }
     out.exposures_used = static_cast<int>(std::count(used.begin(), used.end(), true));
     return out;
@@ -127,7 +176,65 @@ class Merger {
  private:
   const std::map<double, Dark>& darks_;
   double saturation_dn_, read_var_, shot_;
+  std::vector<int> site_channels_;
+  bool grey_;
 };
+
+const char* const kChannelNames[3] = {"R", "G", "B"};
+
+// The rig's colour model (camera.color_model, camera RGB -> XYZ) on f_r per
+// camera channel. Only a linear (3 x 3) model is well defined there: it maps
+// a sum of BRDF terms (diffuse + lobe) to the sum of their images and a
+// sample's independent channel deviations to known ones, so the fitted models
+// keep their form. A root-polynomial model is homogeneous but not linear
+// (sqrt(r g) of a sum is not the sum of sqrt(r g)s): applied per sample it
+// would bend every model's colour with the angle; f_r stays in camera
+// channels and the summary says why.
+void ApplyColorModel(const RunManifest& manifest, const Eigen::Vector3d& k_times_e, BrdfMeasurement* out) {
+  out->color_model_path = manifest.color_model_path;
+  LoadedColorModel loaded;
+  try {
+    loaded = LoadColorModelFile(manifest.color_model_path);
+  } catch (const std::exception& e) {
+    out->color_model_note = std::string("not applied: the colour model could not be read (") + e.what() +
+                            "); f_r is per camera channel";
+    return;
+  }
+  const color::ColorModel& model = loaded.model;
+  out->color_model_kind = model.spec.Name();
+  if (model.spec.kind != color::ModelSpec::Kind::kLinear) {
+    out->color_model_note = "not applied: " + model.spec.Name() +
+                            " is not a 3 x 3 matrix, and only a linear map carries a BRDF's sum of terms and its "
+                            "deviations to linear sRGB; f_r is per camera channel, white-balanced by the grey "
+                            "reference target";
+    return;
+  }
+  // The camera's raw response to f_r is K_c f_r,c (K per channel from the
+  // target); the model takes raw RGB to XYZ (relative to its white), adapted
+  // to D65 and taken to linear sRGB. Scaled so the grey target keeps its
+  // luminance: a grey f_r maps to the camera white's sRGB at the same Y.
+  const Eigen::Vector3d d65 = color::LinearSrgbToXyzD65() * Eigen::Vector3d::Ones();
+  const Eigen::Matrix3d to_srgb = color::XyzD65ToLinearSrgb() * color::BradfordAdaptation(model.white_xyz, d65) *
+                                  model.coefficients.transpose() * k_times_e.asDiagonal();
+  const Eigen::Vector3d white = to_srgb * Eigen::Vector3d::Ones();
+  const double luminance = color::LinearSrgbToXyzD65().row(1).dot(white);
+  if (!(luminance > 0.0) || !to_srgb.allFinite()) {
+    out->color_model_note = "not applied: the linear colour model maps the camera's white to no luminance";
+    return;
+  }
+  out->camera_to_linear_srgb = to_srgb / luminance;
+  const Eigen::Matrix3d squared = out->camera_to_linear_srgb.cwiseAbs2();
+  for (solvers::brdf::BrdfSample& s : out->samples) {
+    s.value = out->camera_to_linear_srgb * s.value;
+    s.sigma = (squared * s.sigma.cwiseAbs2()).cwiseSqrt();  // the channels' noise is independent
+  }
+  out->color_model_applied = true;
+  char white_text[128];
+  std::snprintf(white_text, sizeof(white_text), "(%.4f, %.4f, %.4f)", white[0] / luminance, white[1] / luminance,
+                white[2] / luminance);
+  out->color_model_note = "applied: f_r converted from camera channels to linear sRGB (D65) by the linear model's "
+                          "3 x 3 matrix; a grey f_r of luminance 1 becomes " + std::string(white_text);
+}
 
 }  // namespace
 
@@ -156,11 +263,18 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
     out.End(Termination::kInvalidInput, where + "the run has no lamp");
     return out;
   }
-  if (manifest.mosaic != "mono") {
-    out.End(Termination::kInvalidInput, where + "a colour camera's frames (" + manifest.mosaic +
-                                            ") are not measured: the gonioreflectometer path is monochrome");
+  const bool grey = manifest.mosaic == "mono";
+  if (!grey && !IsBayerPattern(manifest.mosaic)) {
+    out.End(Termination::kInvalidInput, where + "frames of mosaic '" + manifest.mosaic +
+                                            "' are not measured: a gonioreflectometer camera is grey (mono) or a "
+                                            "Bayer mosaic (RGGB, BGGR, GRBG, GBRG)");
     return out;
   }
+  if (!grey && options.block_px % 2 != 0) {
+    out.End(Termination::kInvalidOptions, "block_px must be even for a Bayer mosaic (whole 2 x 2 blocks)");
+    return out;
+  }
+  out.mosaic = manifest.mosaic;
   const int bits = manifest.bit_depth > 0 ? manifest.bit_depth : 16;
   const double saturation_dn = manifest.saturation_dn > 0.0 ? manifest.saturation_dn : std::ldexp(1.0, bits) - 1.0;
 
@@ -170,7 +284,7 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
   std::map<PoseKey, std::size_t> pose_index;
   for (const FrameRecord& r : manifest.frames) {
     if (r.kind != "dark" && !(r.kind == "pose" && r.pose)) continue;
-    const cv::Mat block = CentralBlock(LoadFrame(run_dir, r), options.block_px);
+    const cv::Mat block = CentralBlock(LoadFrame(run_dir, r), options.block_px, !grey);
     if (r.kind == "dark") {
       darks[r.exposure_us].push_back(block);
       ++out.dark_frames;
@@ -260,16 +374,23 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
     out.shot_dn_per_dn = std::max(num / den, 0.0);
     out.shot_estimated = true;
   }
-  const Merger merger(dark_means, saturation_dn, read_var, out.shot_dn_per_dn);
+  const std::vector<int> site_channels = BlockChannels(manifest.mosaic, options.block_px);
+  for (int channel : site_channels) ++out.channel_sites[channel];
+  if (grey) out.channel_sites.setConstant(static_cast<int>(site_channels.size()));
+  const Merger merger(dark_means, saturation_dn, read_var, out.shot_dn_per_dn, site_channels, grey);
 
-  // The radiometric scale: K E, DN per us at 0 dB per unit f_r cos theta_i.
+  // The radiometric scale: K E, DN per us at 0 dB per unit f_r cos theta_i,
+  // per camera channel. From the grey target each channel gets its own K, so
+  // the channels' gains (sensitivity, white balance) cancel and f_r comes out
+  // per camera channel; the camera's stated response is one K for all.
   out.camera_dn_per_radiance_per_us = manifest.dn_per_radiance_per_us;
   const double lamp = manifest.lights[0].intensity;
-  double k_times_e = 0.0;
+  Eigen::Vector3d k_times_e = Eigen::Vector3d::Zero();
   if (options.calibration == BrdfMeasurementOptions::Calibration::kCameraResponse) {
     out.calibration = "camera_response";
     out.dn_per_radiance_per_us = manifest.dn_per_radiance_per_us;
-    k_times_e = manifest.dn_per_radiance_per_us * lamp;
+    out.channel_dn_per_radiance_per_us.setConstant(manifest.dn_per_radiance_per_us);
+    k_times_e.setConstant(manifest.dn_per_radiance_per_us * lamp);
   } else {
     out.calibration = "reference_target";
     if (!manifest.reference_albedo) {
@@ -296,18 +417,24 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
                                                     shortest_us));
       return out;
     }
-    const double relative = m.rate > 0.0 ? std::sqrt(m.variance) / m.rate : INFINITY;
-    if (!(relative <= options.max_target_relative_sigma)) {
-      out.End(Termination::kFailure,
-              where + Format("the reference target is too dark: %.4g DN/us known to %.2g %% (at most %.2g %%); "
-                             "lengthen its exposure or raise the lamp",
-                             m.rate, 100.0 * relative, 100.0 * options.max_target_relative_sigma));
-      return out;
+    for (int c = 0; c < 3; ++c) {
+      const double relative = m.rate[c] > 0.0 ? std::sqrt(m.variance[c]) / m.rate[c] : INFINITY;
+      if (!(relative <= options.max_target_relative_sigma)) {
+        out.End(Termination::kFailure,
+                where + (grey ? std::string() : std::string("in channel ") + kChannelNames[c] + " ") +
+                    Format("the reference target is too dark: %.4g DN/us known to %.2g %% (at most %.2g %%); "
+                           "lengthen its exposure or raise the lamp",
+                           m.rate[c], 100.0 * relative, 100.0 * options.max_target_relative_sigma));
+        return out;
+      }
+      out.channel_calibration_relative_sigma[c] = relative;
     }
     const double level = t.exposures.begin()->second.level;
     k_times_e = m.rate * M_PI / (out.reference_albedo * level * dirs.wi.z());
-    out.dn_per_radiance_per_us = k_times_e / lamp;
-    out.calibration_relative_sigma = relative;
+    out.channel_dn_per_radiance_per_us = k_times_e / lamp;
+    // The scalars: a grey camera's K, or a colour camera's green (twice the sites of red or blue).
+    out.dn_per_radiance_per_us = out.channel_dn_per_radiance_per_us[1];
+    out.calibration_relative_sigma = out.channel_calibration_relative_sigma.maxCoeff();
   }
 
   // The samples.
@@ -328,12 +455,12 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
       out.peak_clipped = out.peak_clipped || out.clipped.back().theta_h_deg < options.peak_theta_h_deg;
       continue;
     }
-    const double scale = k_times_e * pose.exposures.begin()->second.level * dirs.wi.z();
+    const Eigen::Vector3d scale = k_times_e * pose.exposures.begin()->second.level * dirs.wi.z();
     brdf::BrdfSample s;
     s.wi = dirs.wi;
     s.wo = dirs.wo;
-    s.value.setConstant(m.rate / scale);
-    s.sigma.setConstant(std::sqrt(m.variance) / scale);
+    s.value = m.rate.cwiseQuotient(scale);
+    s.sigma = m.variance.cwiseSqrt().cwiseQuotient(scale);
     out.samples.push_back(s);
     out.sample_poses.push_back(pose.pose);
 
@@ -368,6 +495,7 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
     }
   }
   if (out.repeat_dof > 0) out.repeat_sigma_ratio = std::sqrt(read_and_shot / out.repeat_dof);
+  if (!grey && !manifest.color_model_path.empty()) ApplyColorModel(manifest, k_times_e, &out);
   timer.Finish(&out);
   out.termination = Termination::kSuccess;
   return out;

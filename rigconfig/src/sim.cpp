@@ -75,7 +75,17 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
     else if (pattern == "rings") scene.albedo.pattern = sim::AlbedoTexture::Pattern::kRings;
     else (*albedo)["pattern"].Fail("unknown pattern '" + pattern + "' (expected uniform, checker or rings)");
     scene.albedo.low = albedo->Double("low", scene.albedo.low);
-    scene.albedo.high = albedo->Double("high", scene.albedo.high);
+    // high: [r, g, b] is a uniform sample's albedo per camera channel; a grey camera sees their mean.
+    if (auto high = albedo->Find("high"); high && high->IsSequence()) {
+      if (scene.albedo.pattern != sim::AlbedoTexture::Pattern::kUniform)
+        high->Fail("an albedo per channel [r, g, b] needs pattern: uniform");
+      const Eigen::Vector3d channels = high->AsVector3();
+      if (!(channels.minCoeff() >= 0 && channels.maxCoeff() <= 1)) high->Fail("every channel's albedo must lie in [0, 1]");
+      scene.albedo.high_channels = channels;
+      scene.albedo.low = scene.albedo.high = channels.mean();
+    } else {
+      scene.albedo.high = albedo->Double("high", scene.albedo.high);
+    }
     if (auto paints = albedo->Find("paints")) {
       const auto items = paints->Items();
       if (items.size() != 2) paints->Fail("needs two ColorChecker patch names: [low, high]");
@@ -90,7 +100,7 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
       albedo->Fail("albedo needs 0 <= low <= high <= 1");
     if (!(scene.albedo.period_mm > 0)) (*albedo)["period_mm"].Fail("must be > 0");
   }
-  // brdf: {model: lambertian|blinn_phong|ggx|mirror|tabulated, rho_s, exponent, roughness, f0, table,
+  // brdf: {model: lambertian|blinn_phong|ggx|cook_torrance|mirror|tabulated, rho_s, exponent, roughness, f0, table,
   //        paint_rho_s: [low paint, high paint] (blinn_phong)}
   if (auto brdf = node.Find("brdf")) {
     brdf->ExpectKeys({"model", "rho_s", "exponent", "roughness", "f0", "table", "paint_rho_s"});
@@ -100,7 +110,13 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
     } catch (const std::invalid_argument& e) {
       (*brdf)["model"].Fail(e.what());
     }
-    m.rho_s = brdf->Double("rho_s", m.rho_s);
+    // rho_s: [r, g, b] per camera channel (blinn_phong, cook_torrance); a grey camera sees their mean.
+    if (auto rho_s = brdf->Find("rho_s"); rho_s && rho_s->IsSequence()) {
+      m.rho_s_channels = rho_s->AsVector3();
+      m.rho_s = m.rho_s_channels->mean();
+    } else {
+      m.rho_s = brdf->Double("rho_s", m.rho_s);
+    }
     m.exponent = brdf->Double("exponent", m.exponent);
     m.roughness = brdf->Double("roughness", m.roughness);
     m.f0 = brdf->Double("f0", m.f0);

@@ -1,5 +1,7 @@
 #include "photorig/sim/brdf.h"
 
+#include "photorig/solvers/brdf/models.h"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -62,6 +64,24 @@ class Ggx final : public Brdf {
   }
 };
 
+class CookTorrance final : public Brdf {
+ public:
+  Model model() const override { return Model::kCookTorrance; }
+  double Eval(const Vector3d& n, const Vector3d& wi, const Vector3d& wo, const BrdfParams& p) const override {
+    if (n.dot(wi) <= 0.0 || n.dot(wo) <= 0.0) return 0.0;
+    solvers::brdf::ModelParams model;
+    model.model = solvers::brdf::Model::kCookTorrance;
+    model.diffuse.setConstant(p.rho_d);
+    model.specular.setConstant(p.rho_s);
+    model.shape = p.shininess;
+    model.fresnel_f0 = p.f0;
+    Vector3d t, b;  // isotropic: any tangent frame about n
+    Frame(n, &t, &b);
+    return solvers::brdf::Evaluate(model, Vector3d(t.dot(wi), b.dot(wi), n.dot(wi)),
+                                   Vector3d(t.dot(wo), b.dot(wo), n.dot(wo)))[0];
+  }
+};
+
 class Mirror final : public Brdf {
  public:
   Model model() const override { return Model::kMirror; }
@@ -95,10 +115,11 @@ class Tabulated final : public Brdf {
 Vector3d MirrorDirection(const Vector3d& n, const Vector3d& wo) { return 2.0 * n.dot(wo) * n - wo; }
 
 Brdf::Model Brdf::ParseModel(const std::string& name) {
-  for (Model m : {Model::kLambertian, Model::kBlinnPhong, Model::kGgx, Model::kMirror, Model::kTabulated})
+  for (Model m : {Model::kLambertian, Model::kBlinnPhong, Model::kGgx, Model::kCookTorrance, Model::kMirror,
+                  Model::kTabulated})
     if (name == ModelName(m)) return m;
   throw std::invalid_argument("unknown BRDF '" + name +
-                              "' (expected lambertian, blinn_phong, ggx, mirror or tabulated)");
+                              "' (expected lambertian, blinn_phong, ggx, cook_torrance, mirror or tabulated)");
 }
 
 const char* Brdf::ModelName(Model model) {
@@ -106,6 +127,7 @@ const char* Brdf::ModelName(Model model) {
     case Model::kLambertian: return "lambertian";
     case Model::kBlinnPhong: return "blinn_phong";
     case Model::kGgx: return "ggx";
+    case Model::kCookTorrance: return "cook_torrance";
     case Model::kMirror: return "mirror";
     case Model::kTabulated: return "tabulated";
   }
@@ -118,6 +140,7 @@ std::unique_ptr<Brdf> MakeBrdf(Brdf::Model model, std::shared_ptr<const solvers:
     case Brdf::Model::kLambertian: return std::make_unique<Lambertian>();
     case Brdf::Model::kBlinnPhong: return std::make_unique<BlinnPhong>();
     case Brdf::Model::kGgx: return std::make_unique<Ggx>();
+    case Brdf::Model::kCookTorrance: return std::make_unique<CookTorrance>();
     case Brdf::Model::kMirror: return std::make_unique<Mirror>();
     case Brdf::Model::kTabulated:
       if (!table || !*table) throw std::invalid_argument("a tabulated BRDF needs a table");

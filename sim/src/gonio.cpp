@@ -74,7 +74,7 @@ cv::Mat RenderGonioRadiance(const Scene& scene, const Brdf& brdf, const CameraMo
   const Material& m = scene.material;
   BrdfParams params;
   params.rho_s = static_cast<float>(m.rho_s);
-  params.shininess = static_cast<float>(m.model == Brdf::Model::kGgx ? m.roughness : m.exponent);
+  params.shininess = static_cast<float>(m.LobeShape());
   params.f0 = static_cast<float>(m.f0);
   const double phi = -arms.sample_rotation_deg * kDegToRad, c = std::cos(phi), s = std::sin(phi);
   const double radius2 = scene.sphere_radius_mm * scene.sphere_radius_mm;

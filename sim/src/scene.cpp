@@ -200,6 +200,12 @@ bool Material::IsValid(std::string* why) const {
     if (paint_rho_s.size() != 2) return fail("paint_rho_s needs two values: [low paint, high paint]");
     if (!(paint_rho_s[0] >= 0 && paint_rho_s[1] >= 0)) return fail("paint_rho_s must be >= 0");
   }
+  if (rho_s_channels) {
+    if (model != Brdf::Model::kBlinnPhong && model != Brdf::Model::kCookTorrance)
+      return fail("rho_s per channel needs the blinn_phong or cook_torrance model");
+    if (!paint_rho_s.empty()) return fail("rho_s per channel and paint_rho_s exclude each other");
+    if (!(rho_s_channels->minCoeff() >= 0)) return fail("rho_s must be >= 0 in every channel");
+  }
   switch (model) {
     case Brdf::Model::kBlinnPhong:
       if (!(rho_s >= 0)) return fail("rho_s must be >= 0");
@@ -212,6 +218,11 @@ bool Material::IsValid(std::string* why) const {
       if (!(roughness > 0 && roughness <= 1)) return fail("roughness must lie in (0, 1]");
       if (!(f0 >= 0 && f0 < 1)) return fail("f0 must lie in [0, 1)");
       break;
+    case Brdf::Model::kCookTorrance:
+      if (!(rho_s >= 0)) return fail("rho_s must be >= 0");
+      if (!(roughness > 0 && roughness <= 1)) return fail("roughness (Beckmann m) must lie in (0, 1]");
+      if (!(f0 >= 0 && f0 <= 1)) return fail("f0 must lie in [0, 1]");
+      break;
     case Brdf::Model::kMirror:
       if (!(rho_s >= 0 && rho_s <= 1)) return fail("mirror reflectance rho_s must lie in [0, 1]");
       break;
@@ -223,6 +234,10 @@ bool Material::IsValid(std::string* why) const {
 std::unique_ptr<Brdf> Material::MakeBrdf(int channel) const {
   if (model != Brdf::Model::kTabulated) return sim::MakeBrdf(model);
   return sim::MakeBrdf(model, table, channel);
+}
+
+double Material::LobeShape() const {
+  return model == Brdf::Model::kGgx || model == Brdf::Model::kCookTorrance ? roughness : exponent;
 }
 
 bool Scene::IsHeightfield() const {
@@ -245,6 +260,11 @@ bool Scene::IsValid(std::string* why) const {
   if (!material.IsValid(why)) return false;
   if (!(albedo.low >= 0 && albedo.high <= 1 && albedo.low <= albedo.high))
     return fail("albedo needs 0 <= low <= high <= 1");
+  if (albedo.high_channels) {
+    if (albedo.pattern != AlbedoTexture::Pattern::kUniform) return fail("an albedo per channel needs the uniform pattern");
+    if (!(albedo.high_channels->minCoeff() >= 0 && albedo.high_channels->maxCoeff() <= 1))
+      return fail("albedo needs 0 <= high <= 1 in every channel");
+  }
   // Blinn-Phong's (e + 2) / (2 pi) lobe reflects up to 4 rho_s at normal view
   // (the half-vector Jacobian); this keeps the white furnace test true.
   if (material.model == Brdf::Model::kBlinnPhong) {
@@ -391,7 +411,7 @@ SurfaceMaps SampleSurface(const Scene& scene, const CameraModel& camera) {
   }
   const HeightFunction heightfield = MakeHeightFunction(scene, camera.pixel_pitch_mm);
   const Material& m = scene.material;
-  const float shininess = static_cast<float>(m.model == Brdf::Model::kGgx ? m.roughness : m.exponent);
+  const float shininess = static_cast<float>(m.LobeShape());
 
 #pragma omp parallel for schedule(dynamic, 16)
   for (int r = 0; r < height; ++r) {

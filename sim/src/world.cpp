@@ -25,8 +25,15 @@ const WorldConfig& Validated(const WorldConfig& config) {
     throw std::invalid_argument("simulated reference target: a gonioreflectometer's, of albedo within (0, 1]");
   if (!config.ambient.IsValid(&why)) throw std::invalid_argument("simulated ambient light: " + why);
   if (!config.color.IsValid(&why)) throw std::invalid_argument("simulated colour camera: " + why);
-  if (config.color.IsOn() && (config.gonioreflectometer || config.scene.shape == Scene::Shape::kVolume))
-    throw std::invalid_argument("simulated colour camera: only light-dome scenes are rendered in colour");
+  if (config.color.IsOn() && (config.scene.shape == Scene::Shape::kVolume || config.scene.shape == Scene::Shape::kPhantom))
+    throw std::invalid_argument("simulated colour camera: transmission scenes are rendered in monochrome only");
+  if (config.color.IsOn() && !config.gonioreflectometer &&
+      (config.scene.albedo.high_channels || config.scene.material.rho_s_channels))
+    throw std::invalid_argument("simulated colour camera: a light dome's colours are paints (albedo paints: [low, "
+                                "high]); parameters per channel are a gonioreflectometer sample's");
+  if (config.color.IsOn() && config.gonioreflectometer && !config.scene.albedo.paints.empty())
+    throw std::invalid_argument("simulated colour camera: a gonioreflectometer sample's colour is its albedo per "
+                                "channel (albedo high: [r, g, b]), not paints");
   return config;
 }
 
@@ -172,17 +179,10 @@ cv::Mat World::RenderRadiance() const {
   if (config_.scene.shape == Scene::Shape::kPhantom)
     return RenderPhantomTransmission(config_.scene, config_.camera, config_.lights, emitted, arms());
   if (config_.gonioreflectometer) {
-    const ArmAngles at = arms();
-    if (config_.reference_target &&
-        std::abs(at.sample_changer_deg - config_.reference_target->sample_changer_deg) <= 0.5) {
-      Scene target = config_.scene;
-      target.albedo.pattern = AlbedoTexture::Pattern::kUniform;
-      target.albedo.high = config_.reference_target->albedo;
-      target.material = Material{};  // Lambertian
-      return RenderGonioRadiance(target, *target.material.MakeBrdf(target.albedo.high), config_.camera,
-                                 config_.lights, emitted, at);
-    }
-    return RenderGonioRadiance(config_.scene, *brdf_, config_.camera, config_.lights, emitted, at);
+    if (!config_.color.IsOn()) return RenderGonioChannel(-1, emitted);
+    std::array<cv::Mat, 3> channels;
+    for (int c = 0; c < 3; ++c) channels[c] = RenderGonioChannel(c, emitted);
+    return MosaicOf(channels, config_.color.mosaic);
   }
   // The backlight belongs to the scene, not to the dome: it is always on.
   if (config_.scene.shape == Scene::Shape::kVolume)
@@ -191,6 +191,30 @@ cv::Mat World::RenderRadiance() const {
   std::array<cv::Mat, 3> channels;
   for (int c = 0; c < 3; ++c) channels[c] = RenderChannel(channel_surface_[c], *channel_brdf_[c], channel_sky_response_[c], emitted);
   return MosaicOf(channels, config_.color.mosaic);
+}
+
+cv::Mat World::RenderGonioChannel(int channel, const std::vector<double>& emitted) const {
+  const ArmAngles at = arms();
+  // A colour camera's channel sees the lamp through its own filter: the
+  // channel's response to the light scales the irradiance, and the sample
+  // reflects with its parameters for that channel.
+  std::vector<Light> lights = config_.lights;
+  if (channel >= 0)
+    for (Light& light : lights) light.irradiance *= config_.color.light_rgb[channel];
+  if (config_.reference_target &&
+      std::abs(at.sample_changer_deg - config_.reference_target->sample_changer_deg) <= 0.5) {
+    Scene target = config_.scene;  // a spectrally flat (grey) Lambertian standard
+    target.albedo = AlbedoTexture{};
+    target.albedo.pattern = AlbedoTexture::Pattern::kUniform;
+    target.albedo.high = config_.reference_target->albedo;
+    target.material = Material{};
+    return RenderGonioRadiance(target, *target.material.MakeBrdf(), config_.camera, lights, emitted, at);
+  }
+  if (channel < 0) return RenderGonioRadiance(config_.scene, *brdf_, config_.camera, lights, emitted, at);
+  Scene sample = config_.scene;
+  if (sample.albedo.high_channels) sample.albedo.low = sample.albedo.high = (*sample.albedo.high_channels)[channel];
+  if (sample.material.rho_s_channels) sample.material.rho_s = (*sample.material.rho_s_channels)[channel];
+  return RenderGonioRadiance(sample, *channel_brdf_[channel], config_.camera, lights, emitted, at);
 }
 
 cv::Mat World::RenderChannel(const SurfaceMaps& surface, const Brdf& brdf, const cv::Mat& sky_response,

@@ -97,7 +97,7 @@ TEST(BrdfEndToEnd, GonioRunFitsTheSimulatedMaterial) {
 
 // A measured material through the instrument: Ngan et al. 2005's
 // Cook-Torrance fit of MERL blue-metallic-paint, tabulated as a MERL file by
-// `brdf convert`, is the simulated sample of the shipped recipe. The grey
+// `brdf convert`, is the rig's simulated sample under the shipped recipe. The grey
 // camera sees the mean of the table's channels; the fit must find the model
 // and its lobe from what the arms and the camera measured.
 TEST(BrdfEndToEnd, TheInstrumentMeasuresAMeasuredMaterial) {
@@ -107,11 +107,9 @@ TEST(BrdfEndToEnd, TheInstrumentMeasuresAMeasuredMaterial) {
   const std::string table = (dir.path() / "blue-metallic-paint.binary").string();
   ASSERT_EQ(RunPhotorig("brdf convert " + model + " " + table, dir.path() / "convert.log"), 0)
       << ReadText(dir.path() / "convert.log");
-  std::string recipe = ReadText(SourceDir() + "/config/recipes/brdf-gonio.yaml");
-  const std::string material = "brdf: {model: blinn_phong, rho_s: 0.15, exponent: 20}";
-  ASSERT_NE(recipe.find(material), std::string::npos);
-  recipe.replace(recipe.find(material), material.size(), "brdf: {model: tabulated, table: " + table + "}");
-  ASSERT_EQ(RunAndSolve(dir, dir.Write("measured.yaml", recipe), GonioRig(dir), "measured"), 0)
+  const std::string rig = GonioRig(dir, "brdf: {model: blinn_phong, rho_s: 0.15, exponent: 20}",
+                                    "brdf: {model: tabulated, table: " + table + "}");
+  ASSERT_EQ(RunAndSolve(dir, SourceDir() + "/config/recipes/brdf-gonio.yaml", rig, "measured"), 0)
       << ReadText(dir.path() / "measured.log");
   const auto report = Report(dir, "measured");
   EXPECT_TRUE(report["clipped_poses"].empty()) << report["clipped_poses"].dump();
@@ -123,6 +121,98 @@ TEST(BrdfEndToEnd, TheInstrumentMeasuresAMeasuredMaterial) {
   EXPECT_NEAR(fit["specular"][0].get<double>(), specular, 0.05 * specular);
   EXPECT_NEAR(fit["shape"].get<double>(), 0.231, 0.05 * 0.231);
   EXPECT_NEAR(fit["fresnel_f0"].get<double>(), 0.638, 0.05 * 0.638);
+}
+
+const nlohmann::json& Candidate(const nlohmann::json& report, const std::string& model) {
+  return *std::find_if(report["candidates"].begin(), report["candidates"].end(),
+                       [&](const nlohmann::json& c) { return c["model"] == model; });
+}
+
+// A colour camera: config/rigs/sim-gonio-colour.yaml (an RGGB mosaic with the
+// Nikon D5100's sensitivities under D65) measures its blue-metallic-paint
+// sample, given per channel, under the shipped recipe. Each channel has its
+// own K from the grey target (the sensitivities differ), and the fit gives
+// each channel's diffuse and specular back. The rig's colour model is
+// root-polynomial, so it is reported and not applied; a linear one, put in
+// the manifest's place, converts the samples, and the fitted weights follow it.
+TEST(BrdfEndToEnd, AColourCameraGivesOneCalibratedValuePerChannel) {
+  TempDir dir;
+  std::string rig_text = std::regex_replace(ReadText(SourceDir() + "/config/rigs/sim-gonio-colour.yaml"),
+                                            std::regex("time_scale: [0-9.]+"), "time_scale: 200");
+  rig_text = std::regex_replace(rig_text, std::regex("\\.\\./color/"),
+                                std::filesystem::absolute(SourceDir() + "/config/color/").string());
+  ASSERT_EQ(RunAndSolve(dir, SourceDir() + "/config/recipes/brdf-gonio.yaml", dir.Write("colour.yaml", rig_text),
+                        "colour"),
+            0)
+      << ReadText(dir.path() / "colour.log");
+  const auto report = Report(dir, "colour");
+  EXPECT_EQ(report["mosaic"], "RGGB");
+  EXPECT_EQ(report["channels"], "camera");
+  EXPECT_EQ(report["samples"], 50);
+  EXPECT_TRUE(report["clipped_poses"].empty()) << report["clipped_poses"].dump();
+  const auto& k = report["calibration"]["channel_dn_per_radiance_per_us"];
+  EXPECT_EQ(report["calibration"]["channel_sites"], nlohmann::json({16, 32, 16}));
+  // Green is the simulated camera's unit (a white gives 1 in green): the sensor's 0.375.
+  EXPECT_NEAR(k[1].get<double>(), 0.375, 0.02 * 0.375);
+  EXPECT_LT(k[0].get<double>(), 0.8 * k[1].get<double>()) << k;
+  EXPECT_LT(k[2].get<double>(), 0.95 * k[1].get<double>()) << k;
+  EXPECT_GT(std::abs(k[0].get<double>() - k[2].get<double>()), 0.1 * k[1].get<double>()) << k;
+  ASSERT_EQ(report["chosen"], "cook_torrance") << report.dump(2);
+  const auto& fit = Candidate(report, "cook_torrance");
+  const double diffuse[3] = {0.0135, 0.00848, 0.0244}, specular[3] = {0.0719, 0.0589, 0.0813};
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(fit["diffuse"][c].get<double>(), diffuse[c], 0.03 * diffuse[c]) << c;
+    EXPECT_NEAR(fit["specular"][c].get<double>(), specular[c], 0.03 * specular[c]) << c;
+  }
+  EXPECT_NEAR(fit["shape"].get<double>(), 0.231, 0.03 * 0.231);
+  EXPECT_NEAR(fit["fresnel_f0"].get<double>(), 0.638, 0.05 * 0.638);
+  EXPECT_EQ(report["color_model"]["model"], "root-poly-2");
+  EXPECT_FALSE(report["color_model"]["applied"]);
+  EXPECT_NE(report["color_model"]["note"].get<std::string>().find("not a 3 x 3 matrix"), std::string::npos);
+  const std::string log = ReadText(dir.path() / "colour.log");
+  EXPECT_NE(log.find("K per channel R "), std::string::npos) << log;
+  EXPECT_NE(log.find("not applied"), std::string::npos) << log;
+
+  // A linear model that reads camera RGB as linear sRGB: the conversion is
+  // then diag(K) / Y(K), which undoes the target's white balance, and the
+  // fit's per-channel weights are the camera fit's times it.
+  const std::string linear = dir.Write("linear.yaml", R"(format: photorig-color-model/1
+model: linear
+loss: xyz
+illuminant: D65
+input_scale: 1
+coefficients:
+  - [0.4123908, 0.2126390, 0.0193308]
+  - [0.3575843, 0.7151687, 0.1191948]
+  - [0.1804808, 0.0721923, 0.9505322]
+white_xyz: [0.9504559, 1.0, 1.0890578]
+)");
+  const auto manifest_path = dir.path() / "colour" / "manifest.json";
+  auto manifest = nlohmann::json::parse(ReadText(manifest_path));
+  manifest["camera"]["color_model"]["path"] = linear;
+  dir.Write("colour/manifest.json", manifest.dump());
+  ASSERT_EQ(RunPhotorig("solve brdf --run " + (dir.path() / "colour").string(), dir.path() / "linear.log"), 0)
+      << ReadText(dir.path() / "linear.log");
+  const auto srgb = Report(dir, "colour");
+  EXPECT_EQ(srgb["channels"], "linear_srgb");
+  ASSERT_TRUE(srgb["color_model"]["applied"]) << srgb["color_model"].dump();
+  const double y = 0.2126 * k[0].get<double>() + 0.7152 * k[1].get<double>() + 0.0722 * k[2].get<double>();
+  const auto& matrix = srgb["color_model"]["camera_to_linear_srgb"];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(matrix[r][c].get<double>(), r == c ? k[c].get<double>() / y : 0.0, 2e-3) << r << " " << c;
+  ASSERT_EQ(srgb["chosen"], "cook_torrance");
+  const auto& converted = Candidate(srgb, "cook_torrance");
+  for (int c = 0; c < 3; ++c) {
+    double d = 0.0, s = 0.0;
+    for (int j = 0; j < 3; ++j) {
+      d += matrix[c][j].get<double>() * fit["diffuse"][j].get<double>();
+      s += matrix[c][j].get<double>() * fit["specular"][j].get<double>();
+    }
+    EXPECT_NEAR(converted["diffuse"][c].get<double>(), d, 0.01 * d) << c;
+    EXPECT_NEAR(converted["specular"][c].get<double>(), s, 0.01 * s) << c;
+  }
+  EXPECT_NEAR(converted["shape"].get<double>(), fit["shape"].get<double>(), 1e-3 * fit["shape"].get<double>());
 }
 
 // Without a bracket the peak poses clip at the long exposure: each is

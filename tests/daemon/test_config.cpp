@@ -4,6 +4,7 @@
 #include "photorig/daemon/run.h"
 #include "photorig/sim/brdf.h"
 #include "photorig/solvers/brdf/merl.h"
+#include "photorig/solvers/brdf/models.h"
 #include "config_error_check.h"
 #include "test_support.h"
 
@@ -325,6 +326,65 @@ TEST(Recipe, SimSceneReadsAMeasuredTableAsItsMaterial) {
                                                         "{shape: sphere, brdf: {model: tabulated}}\ncapture:\n"
                                                         "  steps:\n    - dark: {count: 1}\n");
   photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(missing, rig); }, missing, 3, 36, "needs a table",
+                                         "sample.sim_scene.brdf");
+}
+
+// A gonioreflectometer sample for a colour camera: albedo and rho_s per
+// camera channel (a grey camera sees their mean), and Cook-Torrance as the
+// fit defines it; a list where it cannot apply is an error at its position.
+TEST(Recipe, SimSceneTakesParametersPerChannel) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", kRig));
+  const auto line_with = [](const std::string& scene) { return "  sim_scene: " + scene; };
+  const auto recipe_with = [&](const std::string& scene) {
+    return "recipe: {name: s, rig: rig.yaml}\nsample:\n" + line_with(scene) + "\ncapture:\n  steps:\n    - dark: {count: 1}\n";
+  };
+  const Recipe recipe = LoadRecipe(
+      dir.Write("r.yaml", recipe_with("{shape: sample_plane, albedo: {pattern: uniform, high: [0.1, 0.2, 0.3]}, brdf: "
+                                      "{model: cook_torrance, rho_s: [0.05, 0.06, 0.07], roughness: 0.2, f0: 0.6}}")),
+      rig);
+  ASSERT_TRUE(recipe.sim_scene.has_value());
+  const sim::Scene& scene = *recipe.sim_scene;
+  ASSERT_TRUE(scene.albedo.high_channels.has_value());
+  EXPECT_EQ(*scene.albedo.high_channels, Eigen::Vector3d(0.1, 0.2, 0.3));
+  EXPECT_DOUBLE_EQ(scene.albedo.high, 0.2);
+  ASSERT_TRUE(scene.material.rho_s_channels.has_value());
+  EXPECT_EQ(*scene.material.rho_s_channels, Eigen::Vector3d(0.05, 0.06, 0.07));
+  EXPECT_DOUBLE_EQ(scene.material.rho_s, 0.06);
+  // The simulator's Cook-Torrance is the fit's (solvers/brdf/models.h), channel by channel.
+  solvers::brdf::ModelParams truth;
+  truth.model = solvers::brdf::Model::kCookTorrance;
+  truth.diffuse = {0.1, 0.2, 0.3};
+  truth.specular = {0.05, 0.06, 0.07};
+  truth.shape = 0.2;
+  truth.fresnel_f0 = 0.6;
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ(), wi = Eigen::Vector3d(0.3, 0.1, 0.9).normalized(),
+                        wo = Eigen::Vector3d(-0.25, -0.05, 0.9).normalized();
+  const Eigen::Vector3d expected = solvers::brdf::Evaluate(truth, wi, wo);
+  for (int c = 0; c < 3; ++c) {
+    sim::BrdfParams params;
+    params.rho_d = static_cast<float>(truth.diffuse[c]);
+    params.rho_s = static_cast<float>(truth.specular[c]);
+    params.shininess = static_cast<float>(scene.material.LobeShape());
+    params.f0 = static_cast<float>(scene.material.f0);
+    EXPECT_NEAR(scene.material.MakeBrdf(c)->Eval(n, wi, wo, params), expected[c], 1e-6 * expected[c]) << c;
+  }
+
+  const std::string checker = "{shape: sample_plane, albedo: {pattern: checker, high: [0.1, 0.2, 0.3]}}";
+  const std::string checker_path = dir.Write("checker.yaml", recipe_with(checker));
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(checker_path, rig); }, checker_path, 3,
+                                         static_cast<int>(line_with(checker).find('[')) + 1, "needs pattern: uniform",
+                                         "sample.sim_scene.albedo.high");
+  const std::string two = "{shape: sample_plane, brdf: {model: cook_torrance, rho_s: [0.1, 0.2]}}";
+  const std::string two_path = dir.Write("two.yaml", recipe_with(two));
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(two_path, rig); }, two_path, 3,
+                                         static_cast<int>(line_with(two).find('[')) + 1, "a list of 3 numbers",
+                                         "sample.sim_scene.brdf.rho_s");
+  const std::string ggx = "{shape: sample_plane, brdf: {model: ggx, rho_s: [0.1, 0.2, 0.3]}}";
+  const std::string ggx_path = dir.Write("ggx.yaml", recipe_with(ggx));
+  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(ggx_path, rig); }, ggx_path, 3,
+                                         static_cast<int>(line_with(ggx).find("{model")) + 1,
+                                         "rho_s per channel needs the blinn_phong or cook_torrance model",
                                          "sample.sim_scene.brdf");
 }
 

@@ -5,7 +5,8 @@
 // bracket merged per pixel, calibrated against the rig's reference target,
 // deviations from the sensor's noise model) -> every candidate model fitted
 // and the one the data support chosen (solvers/brdf). A grey camera gives
-// the same value in all three channels.
+// the same value in all three channels; a colour camera's are its own
+// channels, each calibrated against the grey target.
 
 #include "../command.h"
 #include "../command_output.h"
@@ -39,7 +40,24 @@ nlohmann::json MeasurementJson(const daemon::BrdfMeasurement& m) {
                        {"sample_rotation_deg", c.pose.sample_rotation_deg},
                        {"theta_h_deg", c.theta_h_deg},
                        {"shortest_exposure_us", c.shortest_exposure_us}});
-  return {{"pose_frames", m.pose_frames},
+  const auto vec = [](const auto& v) { return nlohmann::json{v[0], v[1], v[2]}; };
+  nlohmann::json color_model = nullptr;
+  if (!m.color_model_path.empty()) {
+    color_model = {{"path", m.color_model_path},
+                   {"model", m.color_model_kind},
+                   {"applied", m.color_model_applied},
+                   {"note", m.color_model_note}};
+    if (m.color_model_applied) {
+      nlohmann::json rows = nlohmann::json::array();
+      for (int r = 0; r < 3; ++r) rows.push_back(vec(m.camera_to_linear_srgb.row(r)));
+      color_model["camera_to_linear_srgb"] = rows;
+    }
+  }
+  return {{"mosaic", m.mosaic},
+          // What the samples' and fits' three channels are.
+          {"channels", m.mosaic == "mono" ? "grey" : m.color_model_applied ? "linear_srgb" : "camera"},
+          {"color_model", color_model},
+          {"pose_frames", m.pose_frames},
           {"dark_frames", m.dark_frames},
           {"reference_frames", m.target_frames},
           {"poses", m.poses},
@@ -53,7 +71,10 @@ nlohmann::json MeasurementJson(const daemon::BrdfMeasurement& m) {
             {"dn_per_radiance_per_us", m.dn_per_radiance_per_us},
             {"relative_sigma", m.calibration_relative_sigma},
             {"reference_albedo", m.reference_albedo},
-            {"camera_dn_per_radiance_per_us", m.camera_dn_per_radiance_per_us}}},
+            {"camera_dn_per_radiance_per_us", m.camera_dn_per_radiance_per_us},
+            {"channel_dn_per_radiance_per_us", vec(m.channel_dn_per_radiance_per_us)},
+            {"channel_relative_sigma", vec(m.channel_calibration_relative_sigma)},
+            {"channel_sites", vec(m.channel_sites)}}},
           {"noise",
            {{"read_sigma_dn", m.read_sigma_dn},
             {"read_from", "darks"},
@@ -98,6 +119,17 @@ int Execute(const Options& options) {
   else
     std::fprintf(text, "calibration: the camera's stated response, %.5g DN per radiance per us (uncertainty not known)\n",
                  m.dn_per_radiance_per_us);
+  if (m.mosaic != "mono") {
+    const Eigen::Vector3d& k = m.channel_dn_per_radiance_per_us;
+    const Eigen::Vector3d& r = m.channel_calibration_relative_sigma;
+    std::fprintf(text, "colour camera (%s): K per channel R %.5g +- %.2g %%, G %.5g +- %.2g %%, B %.5g +- %.2g %% "
+                 "from %d/%d/%d sites of the block; f_r per channel\n",
+                 m.mosaic.c_str(), k[0], 100.0 * r[0], k[1], 100.0 * r[1], k[2], 100.0 * r[2], m.channel_sites[0],
+                 m.channel_sites[1], m.channel_sites[2]);
+    if (!m.color_model_path.empty())
+      std::fprintf(text, "colour model %s (%s): %s\n", m.color_model_path.c_str(), m.color_model_kind.c_str(),
+                   m.color_model_note.c_str());
+  }
   std::fprintf(text, "noise: read %.2f DN (from the darks), shot %.4g DN^2 per DN (%s)", m.read_sigma_dn,
                m.shot_dn_per_dn, m.shot_estimated ? "estimated from the repeats" : "from the camera's e_per_dn");
   if (m.repeat_dof > 0)

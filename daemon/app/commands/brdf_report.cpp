@@ -1,6 +1,7 @@
 #include "brdf_report.h"
 
 #include <cmath>
+#include <string>
 
 namespace photorig::app {
 namespace {
@@ -112,19 +113,34 @@ bool ModelFromJson(const nlohmann::json& doc, const std::string& name, brdf::Mod
   return true;
 }
 
+namespace {
+
+// One value per channel, or one for all when the channels agree (a grey camera).
+std::string Channels(const Eigen::Vector3d& value, const Eigen::Vector3d& sigma) {
+  char text[160];
+  if (value[0] == value[1] && value[1] == value[2])
+    std::snprintf(text, sizeof(text), "%.4f +- %.4f", value[0], sigma[0]);
+  else
+    std::snprintf(text, sizeof(text), "(%.4f, %.4f, %.4f) +- (%.4f, %.4f, %.4f)", value[0], value[1], value[2],
+                  sigma[0], sigma[1], sigma[2]);
+  return text;
+}
+
+}  // namespace
+
 void PrintSelection(std::FILE* text, const brdf::SelectionSummary& s) {
   for (const brdf::FitSummary& f : s.candidates) {
-    std::fprintf(text, "  %-15s %-14s BIC %12.1f  rms train %8.3f held-out %8.3f  rho_d %.4f +- %.4f",
+    std::fprintf(text, "  %-15s %-14s BIC %12.1f  rms train %8.3f held-out %8.3f  rho_d %s",
                  brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic,
                  f.residuals > 0 ? std::sqrt(f.cost / static_cast<double>(f.residuals)) : NAN, f.held_out_rms,
-                 f.params.diffuse[0], f.diffuse_sigma[0]);
+                 Channels(f.params.diffuse, f.diffuse_sigma).c_str());
     if (f.params.model != brdf::Model::kLambertian)
-      std::fprintf(text, "  specular %.4f +- %.4f  shape %.4g +- %.2g", f.params.specular[0], f.specular_sigma[0],
+      std::fprintf(text, "  specular %s  shape %.4g +- %.2g", Channels(f.params.specular, f.specular_sigma).c_str(),
                    f.params.shape, f.shape_sigma);
     if (f.params.model == brdf::Model::kCookTorrance)
       std::fprintf(text, "  F0 %.4f +- %.4f", f.params.fresnel_f0, f.fresnel_f0_sigma);
     if (brdf::HasSecondLobe(f.params.model))
-      std::fprintf(text, "  specular2 %.4f +- %.4f  shape2 %.4g +- %.2g", f.params.specular2[0], f.specular2_sigma[0],
+      std::fprintf(text, "  specular2 %s  shape2 %.4g +- %.2g", Channels(f.params.specular2, f.specular2_sigma).c_str(),
                    f.params.shape2, f.shape2_sigma);
     if (!f.lobe_identifiable) std::fprintf(text, "  (not identifiable)");
     std::fprintf(text, "\n");

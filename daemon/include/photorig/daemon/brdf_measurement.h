@@ -12,13 +12,17 @@
 //     evaluated at the pixel's best rate (so a low reading does not weigh more
 //     for being low), plus the dark mean's own variance;
 //   * the block's rate is the mean of its pixels' rates, its variance the sum
-//     of theirs over the pixel count squared;
+//     of theirs over the pixel count squared; a colour camera's (a Bayer
+//     mosaic's) per channel, over that channel's own sites in the block (the
+//     sample fills the block uniformly: no demosaicing);
 //   * f_r = rate / (K E level cos theta_i), with K the DN per unit radiance
 //     per us at 0 dB and E the lamp's irradiance at normal incidence. K comes
 //     from the reference target's frames (a Lambertian standard of albedo rho:
 //     K E = rate_target pi / (rho level_target cos theta_i,target), so the
 //     lamp's stated irradiance cancels), or, when asked, from the camera's
-//     stated response.
+//     stated response. K is per camera channel: the grey target gives each
+//     channel its own, so the channels' gains cancel and f_r is in 1/sr per
+//     camera channel.
 // The read noise is measured from the dark frames' temporal spread (two or
 // more darks at one exposure); the shot term from the camera's e_per_dn, or,
 // where the rig does not state it, from the spread of the pose repeats.
@@ -26,6 +30,8 @@
 #include "photorig/daemon/run_store.h"
 #include "photorig/solvers/brdf/samples.h"
 #include "photorig/solvers/summary.h"
+
+#include <Eigen/Core>
 
 #include <string>
 #include <vector>
@@ -85,12 +91,32 @@ struct BrdfMeasurement : solvers::Summary {
   double calibration_relative_sigma = 0.0;  // shared by every sample (0: not known)
   double reference_albedo = 0.0;
   double camera_dn_per_radiance_per_us = 0.0;  // what the camera states, for comparison
+
+  // The camera's colour filter as stored ("mono" or a Bayer pattern, e.g.
+  // "RGGB"). K and its relative deviation per channel (R, G, B), and the
+  // block's sites of each; a grey camera's three channels are equal (all 64
+  // sites count as channel R's). The scalars above are then a grey camera's
+  // K, or a colour camera's green K and its worst channel's deviation.
+  std::string mosaic = "mono";
+  Eigen::Vector3d channel_dn_per_radiance_per_us = Eigen::Vector3d::Zero();
+  Eigen::Vector3d channel_calibration_relative_sigma = Eigen::Vector3d::Zero();
+  Eigen::Vector3i channel_sites = Eigen::Vector3i::Zero();
+  // The rig's colour model (camera.color_model) when the run was captured,
+  // and what was done with it: a linear (3 x 3) model converts the samples to
+  // linear sRGB (camera_to_linear_srgb, applied to f_r per camera channel);
+  // any other is not applied, and the note says why. Empty for a grey camera
+  // or a rig without one.
+  std::string color_model_path;
+  std::string color_model_kind;  // e.g. "root-poly-2", "linear"
+  bool color_model_applied = false;
+  std::string color_model_note;
+  Eigen::Matrix3d camera_to_linear_srgb = Eigen::Matrix3d::Identity();
 };
 
 // Reads the run's frames. Ends kInvalidInput when the run lacks what the
 // measurement needs (dark frames at a pose's exposure, two darks at one
-// exposure, a reference target when calibrating against one, a monochrome
-// camera) and kFailure when the reference target is saturated at every
+// exposure, a reference target when calibrating against one, a grey camera
+// or a Bayer mosaic) and kFailure when the reference target is saturated at every
 // exposure or too dark; the message says which and what to do.
 BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manifest,
                             const BrdfMeasurementOptions& options = {});

@@ -12,6 +12,9 @@
 //                D(h)  = a^2 / (pi ((n.h)^2 (a^2 - 1) + 1)^2)            a = roughness
 //                G1(v) = 2 (n.v) / ((n.v) + sqrt(a^2 + (1 - a^2)(n.v)^2))  (separable Smith)
 //                F(c)  = F0 + (1 - F0)(1 - c)^5                            (Schlick)
+//   cook_torrance f = rho_d / pi + k_s D G F(w_i.h) / (pi (n.w_i)(n.w_o))   k_s = rho_s, m = shininess
+//                Ngan et al. 2005's form (Beckmann D, V-groove G, Schlick F with F0),
+//                evaluated by solvers/brdf (models.h), so the fit and the simulator agree
 //   mirror       delta lobe about 2 (n.w_o) n - w_o with reflectance rho_s
 //   tabulated    a measured table (MERL .binary or EPFL RGL .bsdf) as
 //                solvers/brdf evaluates it: trilinear between MERL's cells, RGL's
@@ -32,14 +35,14 @@ namespace photorig::sim {
 // parameter maps can be written beside the frames as ground truth.
 struct BrdfParams {
   float rho_d = 0.5f;      // diffuse albedo
-  float rho_s = 0.0f;      // specular weight (blinn_phong), mirror reflectance (mirror)
-  float shininess = 0.0f;  // Blinn-Phong exponent e, or GGX roughness a
-  float f0 = 0.04f;        // GGX Fresnel reflectance at normal incidence
+  float rho_s = 0.0f;      // specular weight (blinn_phong, cook_torrance k_s), mirror reflectance (mirror)
+  float shininess = 0.0f;  // Blinn-Phong exponent e, GGX roughness a, or Cook-Torrance's Beckmann m
+  float f0 = 0.04f;        // GGX and Cook-Torrance Fresnel reflectance at normal incidence
 };
 
 class Brdf {
  public:
-  enum class Model { kLambertian, kBlinnPhong, kGgx, kMirror, kTabulated };
+  enum class Model { kLambertian, kBlinnPhong, kGgx, kCookTorrance, kMirror, kTabulated };
 
   virtual ~Brdf() = default;
   virtual Model model() const = 0;

@@ -11,7 +11,10 @@
 
 #include <opencv2/core.hpp>
 
+#include <Eigen/Core>
+
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,6 +32,10 @@ struct AlbedoTexture {
   // them into camera responses (sim::ColorCamera) and sets low and high to
   // their luminance Y, which is what a monochrome camera sees.
   std::vector<std::string> paints;
+  // A uniform texture's albedo per camera channel (R, G, B), for a colour
+  // camera (sim::ColorCamera scales it by the channel's response to the
+  // light); `high` holds their mean, what a grey camera sees. Unset: grey.
+  std::optional<Eigen::Vector3d> high_channels;
 
   double At(double x_mm, double y_mm) const;
   // Which paint covers the point: 0 low, 1 high (the nearer, in rings).
@@ -42,10 +49,13 @@ struct AlbedoTexture {
 // comes from the scene's albedo texture, so every model can be textured.
 struct Material {
   Brdf::Model model = Brdf::Model::kLambertian;
-  double rho_s = 0.1;       // blinn_phong specular weight; mirror reflectance
+  double rho_s = 0.1;       // blinn_phong specular weight; cook_torrance k_s; mirror reflectance
   double exponent = 50.0;   // blinn_phong
-  double roughness = 0.3;   // ggx a (width of the microfacet distribution)
-  double f0 = 0.04;         // ggx Fresnel at normal incidence
+  double roughness = 0.3;   // ggx a, cook_torrance Beckmann m (width of the microfacet distribution)
+  double f0 = 0.04;         // ggx and cook_torrance Fresnel at normal incidence
+  // rho_s per camera channel (R, G, B) for a colour camera; rho_s holds
+  // their mean, what a grey camera sees. Unset: one rho_s for all.
+  std::optional<Eigen::Vector3d> rho_s_channels;
   std::shared_ptr<const solvers::brdf::MeasuredBrdf> table;  // tabulated (required for it)
   // blinn_phong: rho_s of the texture's low and high paint (AlbedoTexture::PaintAt)
   // in place of rho_s, so one paint can be matte (0) and the other glossy: an
@@ -56,6 +66,8 @@ struct Material {
   // `channel`: the table channel a colour camera's channel sees (0 R, 1 G,
   // 2 B), -1 for their mean; only the tabulated model has channels.
   std::unique_ptr<Brdf> MakeBrdf(int channel = -1) const;
+  // BrdfParams::shininess: roughness for ggx and cook_torrance, else exponent.
+  double LobeShape() const;
 };
 
 // A Gaussian bump (amplitude > 0) or dimple (amplitude < 0) on a flat base.

@@ -25,6 +25,10 @@ namespace photorig::sim {
 // the scene rendered with that channel's albedo, so the spectral integral
 // (reflectance x light spectrum x channel sensitivity) is done once per
 // material by whoever builds the world (rigconfig: ColorSceneResponses).
+// A gonioreflectometer's sample is given per channel instead (its albedo's
+// high_channels, its material's rho_s_channels, a table's channels: the
+// reflectance as the channel sees it against a grey standard), lit by the
+// lamp at the channel's light_rgb; the reference target stays grey.
 struct ColorCamera {
   std::string mosaic;  // "" = monochrome; else the top-left 2 x 2 block: RGGB, BGGR, GRBG, GBRG
   // Camera-channel albedo (R, G, B) of the albedo texture's `low` and `high`
@@ -104,6 +108,10 @@ class World {
 
  private:
   std::vector<double> EmittedLevels() const;
+  // A gonioreflectometer's frame as one colour channel (0 R, 1 G, 2 B) sees
+  // it, or a grey camera (-1): the sample, or the reference target while the
+  // sample changer holds it.
+  cv::Mat RenderGonioChannel(int channel, const std::vector<double>& emitted) const;
   cv::Mat RenderChannel(const SurfaceMaps& surface, const Brdf& brdf, const cv::Mat& sky_response,
                         const std::vector<double>& emitted) const;
 
