@@ -311,7 +311,7 @@ void CheckAdaptivePlan(const Recipe& recipe, const RigConfig& rig) {
   bool two_darks = false, target = false;
   const double default_us = recipe.exposure_us.value_or(rig.camera.exposure_us);
   for (const Recipe::Group& group : recipe.groups) {
-    std::vector<double> exposures_us = group.exposures_us.empty() ? std::vector<double>{default_us} : group.exposures_us;
+    const std::vector<double> exposures_us = group.exposures_us.empty() ? std::vector<double>{default_us} : group.exposures_us;
     if (group.adaptive) {
       if (adaptive) group.adaptive->source->Fail("a recipe has at most one adaptive plan (the first is at line " +
                                                  std::to_string(adaptive->adaptive->source->line()) + ")");
