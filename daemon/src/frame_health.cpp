@@ -112,13 +112,17 @@ std::string DescribeGroup(HealthCheck check, const std::vector<const HealthFindi
 
 FrameHealth::FrameHealth(HealthConfig config, const std::vector<CaptureStep>& steps, std::vector<LedConfig> leds)
     : config_(config), leds_(std::move(leds)) {
+  AddSteps(steps);
+}
+
+void FrameHealth::AddSteps(const std::vector<CaptureStep>& steps) {
   // A bracket takes one pattern at several exposures: the longer ones may
   // clip and the shorter ones may show a dim pose below the noise, so
   // clipping is judged on its shortest exposure only and light on its longest.
-  int last_index = -1;
+  int last_index = static_cast<int>(bracket_long_.size()) - 1;
   for (const CaptureStep& step : steps) last_index = std::max(last_index, step.index);
-  bracket_long_.assign(static_cast<std::size_t>(last_index + 1), false);
-  bracket_short_.assign(static_cast<std::size_t>(last_index + 1), false);
+  bracket_long_.resize(static_cast<std::size_t>(last_index + 1), false);
+  bracket_short_.resize(static_cast<std::size_t>(last_index + 1), false);
   // A gonioreflectometer's bracket is one pose's exposures.
   const auto same_pose = [](const CaptureStep& a, const CaptureStep& b) {
     if (!a.pose || !b.pose) return !a.pose && !b.pose;

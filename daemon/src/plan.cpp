@@ -138,6 +138,32 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
     }
   }
   plan.estimate.duration_s = total_ms / 1000.0;
+  if (const Recipe::Group* group = config::AdaptivePlanGroup(recipe); group && rig.motion) {
+    const Recipe::Group::AdaptivePlan& a = *group->adaptive;
+    AdaptiveBound bound;
+    bound.coarse_poses = static_cast<int>(group->poses.size());
+    bound.passes = a.passes;
+    bound.added_poses = a.options.added_poses;
+    const int poses = a.passes * a.options.added_poses;
+    const std::vector<double> exposures =
+        group->exposures_us.empty() ? std::vector<double>{recipe.exposure_us.value_or(rig.camera.exposure_us)}
+                                    : group->exposures_us;
+    bound.max_frames = poses * group->count * static_cast<int>(exposures.size());
+    double pose_ms = 0.0;
+    for (double exposure_us : exposures) pose_ms += group->count * (exposure_us / 1000.0 + options.step_overhead_ms);
+    auto span = [&](auto arm) {
+      const auto [lo, hi] = std::minmax_element(group->poses.begin(), group->poses.end(),
+                                                [&](const GonioPose& x, const GonioPose& y) { return arm(x) < arm(y); });
+      return lo == group->poses.end() ? 0.0 : arm(*hi) - arm(*lo);
+    };
+    pose_ms += MoveMs(*rig.motion, {{"light_arm", 0.0}, {"camera_arm", 0.0}},
+                      {{"light_arm", span([](const GonioPose& p) { return p.light_arm_deg; })},
+                       {"camera_arm", span([](const GonioPose& p) { return p.camera_arm_deg; })}});
+    bound.max_duration_s = poses * pose_ms / 1000.0;
+    bound.max_bytes = static_cast<std::uint64_t>(bound.max_frames) * (plan.estimate.bytes_per_frame + 512);
+    plan.estimate.bytes += bound.max_bytes;
+    plan.adaptive = bound;
+  }
   for (const auto& [channel, ms] : lit_ms) {
     const double duty = total_ms > 0 ? ms / total_ms : 0.0;
     if (duty > plan.max_led_duty) {
@@ -177,7 +203,7 @@ nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps, std::size_
                    {"sample_rotation_deg", step.pose->sample_rotation_deg}};
     list.push_back(std::move(s));
   }
-  return {{"ok", ok()},
+  nlohmann::json out = {{"ok", ok()},
           {"errors", errors},
           {"warnings", warnings},
           {"frames", estimate.frames},
@@ -189,6 +215,11 @@ nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps, std::size_
           {"max_duty_led", max_duty_led},
           {"steps_listed", listed},
           {"steps", list}};
+  if (adaptive)
+    out["adaptive"] = {{"coarse_poses", adaptive->coarse_poses},   {"passes", adaptive->passes},
+                       {"added_poses_per_pass", adaptive->added_poses}, {"max_added_frames", adaptive->max_frames},
+                       {"max_added_duration_s", adaptive->max_duration_s}, {"max_added_bytes", adaptive->max_bytes}};
+  return out;
 }
 
 std::uint64_t FreeBytes(const std::string& path) {

@@ -300,7 +300,23 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   options.on_frame = [&request, &writer](const CaptureStep& step, const FrameRecord& record, int total) {
     if (request.on_frame) request.on_frame(step, record, static_cast<int>(writer.manifest().frames.size()), total);
   };
+  std::optional<AdaptivePoses> adaptive;
+  if (const Recipe::Group* group = config::AdaptivePlanGroup(recipe)) {
+    adaptive.emplace(recipe, *group, rig);
+    options.next_pass = [&](const std::vector<CaptureStep>& so_far, std::size_t ended, const RunWriter& run) {
+      CaptureOptions::AddedSteps added = adaptive->NextPass(so_far, ended, run);
+      if (request.on_adaptive_pass && adaptive->passes().size() > outcome.adaptive_passes.size())
+        request.on_adaptive_pass(adaptive->passes().back());
+      outcome.adaptive_passes = adaptive->passes();
+      return added;
+    };
+  }
   outcome.capture = RunCapture(steps, rig.camera, *devices.lights, *devices.camera, writer, options);
+  if (adaptive) {
+    nlohmann::json passes = nlohmann::json::array();
+    for (const AdaptivePassReport& pass : outcome.adaptive_passes) passes.push_back(pass.ToJson());
+    WriteFileDurably((fs::path(outcome.directory) / "adaptive_passes.json").string(), passes.dump(2) + "\n");
+  }
   writer.Finish(outcome.capture.ToStopRecord());
   spdlog::info("capture {}: {} of {} frames in {:.0f} ms{}{}", CaptureStatusName(outcome.capture.status), outcome.capture.frames_written,
                outcome.capture.steps_total, outcome.capture.elapsed_ms, outcome.capture.reason.empty() ? "" : ": ",

@@ -68,6 +68,7 @@ json ToJson(const FrameRecord& f) {
                    {"camera_arm_deg", f.pose->camera_arm_deg},
                    {"sample_rotation_deg", f.pose->sample_rotation_deg}};
   if (f.pose && f.pose->sample_changer_deg) out["pose"]["sample_changer_deg"] = *f.pose->sample_changer_deg;
+  if (f.pass > 0) out["pass"] = f.pass;
   return out;
 }
 
@@ -94,6 +95,7 @@ FrameRecord FrameRecordFromJson(const json& j) {
                        p.at("sample_rotation_deg").get<double>(), std::nullopt};
     if (p.contains("sample_changer_deg")) f.pose->sample_changer_deg = p.at("sample_changer_deg").get<double>();
   }
+  f.pass = j.value("pass", 0);
   return f;
 }
 
@@ -380,6 +382,7 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
   record.led = step.led;
   record.level = step.led >= 0 ? step.pattern.levels.at(step.led) : 0.0;
   record.pose = step.pose;
+  record.pass = step.pass;
   record.exposure_us = frame.exposure_us;
   record.gain_db = frame.gain_db;
   record.bit_depth = frame.bit_depth;

@@ -260,7 +260,19 @@ class Capture {
     report_.reason = std::move(reason);
   }
 
-  void Run(const std::vector<CaptureStep>& steps) {
+  // After step `ended` (stored now or before a resume): an adaptive plan's
+  // next pass goes in right after it.
+  void AddNextPass(std::vector<CaptureStep>& steps, std::size_t ended) {
+    if (!steps[ended].ends_pass || !options_.next_pass) return;
+    CaptureOptions::AddedSteps added = options_.next_pass(steps, ended, writer_);
+    if (!added.detail.empty()) Notify(RunState::kRunning, added.detail);
+    if (added.steps.empty()) return;
+    health_.AddSteps(added.steps);
+    report_.steps_total += static_cast<int>(added.steps.size());
+    steps.insert(steps.begin() + static_cast<std::ptrdiff_t>(ended + 1), added.steps.begin(), added.steps.end());
+  }
+
+  void Run(std::vector<CaptureStep> steps) {
     const RetryPolicy& retry = options_.retry;
     bool devices_open = false;
     // Once a step has failed its health checks on every attempt, the run
@@ -273,6 +285,7 @@ class Capture {
       const CaptureStep& step = steps[i];
       if (writer_.HasFrame(step.index)) {
         AcceptStored(step);
+        AddNextPass(steps, i);
         ++i;
         continue;
       }
@@ -287,6 +300,7 @@ class Capture {
       std::optional<HealthFinding> unhealthy;
       if (status.ok()) status = Step(step, &unhealthy);
       if (status.ok() && !unhealthy) {
+        if (!surveying) AddNextPass(steps, i);  // a run bound to fail adds no pass
         ++i;
         attempts = 0;
         backoff_ms = retry.initial_backoff_ms;

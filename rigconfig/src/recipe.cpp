@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 
 namespace photorig::config {
 namespace fs = std::filesystem;
@@ -105,12 +106,30 @@ void SamplingIn(const YamlNode& plan, const char* key, double* min, double* max,
   if (*steps < 1 || *steps > 1000) (*node)["steps"].Fail("must be within [1, 1000]");
 }
 
+// `adaptive: {passes, added_poses, min_interval_deg, value_floor}` of a plan;
+// absent keys keep AdaptivePlan's defaults.
+Recipe::Group::AdaptivePlan AdaptivePlanIn(const YamlNode& node, const solvers::brdf::PosePlanOptions& plan) {
+  node.ExpectKeys({"passes", "added_poses", "min_interval_deg", "value_floor"});
+  Recipe::Group::AdaptivePlan adaptive;
+  adaptive.source = node;
+  adaptive.plan = plan;
+  adaptive.passes = node.Int("passes", adaptive.passes);
+  if (adaptive.passes < 1 || adaptive.passes > 100) node["passes"].Fail("must be within [1, 100]");
+  solvers::brdf::AdaptiveOptions& options = adaptive.options;
+  options.added_poses = node.Int("added_poses", options.added_poses);
+  if (options.added_poses < 1 || options.added_poses > 1000) node["added_poses"].Fail("must be within [1, 1000]");
+  options.min_interval_deg = node.DoubleIn("min_interval_deg", options.min_interval_deg, 1e-3, 90.0);
+  options.value_floor = node.DoubleIn("value_floor", options.value_floor, 1e-9, 1e3);
+  if (std::string why; !options.IsValid(&why)) node.Fail(why);
+  return adaptive;
+}
+
 // `plan:` poses uniform in (theta_h, theta_d, phi_d), planned for the rig's
 // arms when the recipe loads. Refused configurations go to `group` notes; a
 // plan that reaches none is an error here.
 std::vector<GonioPose> PlannedPosesIn(const YamlNode& plan, const RigConfig& rig, Recipe::Group* group) {
   namespace brdf = solvers::brdf;
-  plan.ExpectKeys({"theta_h_deg", "theta_d_deg", "phi_d_deg", "sample_rotation_deg", "grazing_deg"});
+  plan.ExpectKeys({"theta_h_deg", "theta_d_deg", "phi_d_deg", "sample_rotation_deg", "grazing_deg", "adaptive"});
   const std::optional<brdf::GonioArms> arms = rig.motion ? GonioArmsOf(*rig.motion) : std::nullopt;
   if (!arms) plan.Fail("a pose plan needs a rig with light_arm and camera_arm axes; rig '" + rig.name + "' has none");
   brdf::SamplingSpec spec;
@@ -123,6 +142,7 @@ std::vector<GonioPose> PlannedPosesIn(const YamlNode& plan, const RigConfig& rig
   brdf::PosePlanOptions options;
   options.sample_rotation_deg = plan.DoubleIn("sample_rotation_deg", 0.0, -180.0, 180.0);
   options.grazing_deg = plan.DoubleIn("grazing_deg", options.grazing_deg, 1.0, 90.0);
+  if (auto adaptive = plan.Find("adaptive")) group->adaptive = AdaptivePlanIn(*adaptive, options);
   const brdf::PosePlan planned = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), *arms, options);
   if (planned.termination == solvers::Termination::kInvalidOptions)
     plan.Fail("rig '" + rig.name + "' arms: " + planned.message);
@@ -258,6 +278,8 @@ Recipe::Group ParseGroup(const YamlNode& step, const RigConfig& rig) {
   }
   group.repeat = body.Int("repeat", 1);
   if (group.repeat < 1 || group.repeat > 1000) body["repeat"].Fail("must be within [1, 1000]");
+  if (group.adaptive && group.repeat > 1)
+    body["repeat"].Fail("an adaptive plan cannot repeat: its passes follow the coarse poses once (give count for repeats)");
   return group;
 }
 }  // namespace
@@ -278,6 +300,49 @@ Recipe LoadRecipeText(const std::string& text, const std::string& name, const Ri
 }
 
 namespace {
+// An adaptive plan measures the BRDF of the poses taken so far between its
+// passes (daemon/brdf_measurement.h): darks at each of its exposures, two at
+// one of them (the read noise), and the reference target must be taken before
+// it. A recipe has at most one: every pose frame feeds the same measurement.
+void CheckAdaptivePlan(const Recipe& recipe, const RigConfig& rig) {
+  using Kind = Recipe::Group::Kind;
+  const Recipe::Group* adaptive = nullptr;
+  std::vector<double> dark_exposures_us, target_exposures_us;
+  bool two_darks = false, target = false;
+  const double default_us = recipe.exposure_us.value_or(rig.camera.exposure_us);
+  for (const Recipe::Group& group : recipe.groups) {
+    const std::vector<double> exposures_us = group.exposures_us.empty() ? std::vector<double>{default_us} : group.exposures_us;
+    if (group.adaptive) {
+      if (adaptive) group.adaptive->source->Fail("a recipe has at most one adaptive plan (the first is at line " +
+                                                 std::to_string(adaptive->adaptive->source->line()) + ")");
+      adaptive = &group;
+      const YamlNode& at = *group.adaptive->source;
+      const std::string move = "; an adaptive plan measures the poses taken so far between its passes, so put the "
+                               "dark and reference_target steps before this poses step";
+      if (!target) at.Fail("no reference_target step before the adaptive plan" + move);
+      std::vector<double> needed_us = exposures_us;
+      needed_us.insert(needed_us.end(), target_exposures_us.begin(), target_exposures_us.end());
+      for (double exposure_us : needed_us)
+        if (std::find(dark_exposures_us.begin(), dark_exposures_us.end(), exposure_us) == dark_exposures_us.end()) {
+          char text[112];
+          std::snprintf(text, sizeof text, "no dark frames at %.0f us (a pose or reference target exposure) before "
+                        "the adaptive plan", exposure_us);
+          at.Fail(text + move);
+        }
+      if (!two_darks) at.Fail("fewer than two dark frames at one exposure before the adaptive plan (they give the "
+                              "read noise)" + move);
+    }
+    if (group.kind == Kind::kReferenceTarget) {
+      target = true;
+      target_exposures_us.insert(target_exposures_us.end(), exposures_us.begin(), exposures_us.end());
+    }
+    if (group.kind == Kind::kDark) {
+      dark_exposures_us.insert(dark_exposures_us.end(), exposures_us.begin(), exposures_us.end());
+      two_darks = two_darks || group.count * group.repeat >= 2;
+    }
+  }
+}
+
 Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfig& rig) {
   root.ExpectKeys({"recipe", "sample", "capture", "solve"});
   Recipe recipe;
@@ -302,6 +367,7 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
   if (auto gain = capture.Find("gain_db")) recipe.gain_db = gain->AsDoubleIn(kMinGainDb, kMaxGainDb);
   for (const YamlNode& step : capture["steps"].Items()) recipe.groups.push_back(ParseGroup(step, rig));
   if (recipe.groups.empty()) capture["steps"].Fail("a recipe needs at least one capture step");
+  CheckAdaptivePlan(recipe, rig);
 
   recipe.solve_executor = rig.solve;
   if (auto solve = root.Find("solve")) {
@@ -348,6 +414,46 @@ std::string ExposureSuffix(double exposure_us) {
   char suffix[32];
   std::snprintf(suffix, sizeof(suffix), "_e%.0f", exposure_us);
   return suffix;
+}
+
+// "0007_<name>": a step's label, from its index.
+void Label(CaptureStep* step, int index, const std::string& name) {
+  step->index = index;
+  char label[128];
+  std::snprintf(label, sizeof(label), "%04d_%s", index, name.c_str());
+  step->label = label;
+}
+
+// The frames of a poses or reference_target group at `poses`: per pose,
+// `count` at each exposure of the group's bracket (or the capture's
+// exposure), every LED at the group's level; `emit` gets each with its name.
+void PoseFrames(const Recipe::Group& group, const std::vector<GonioPose>& poses, const RigConfig& rig,
+                double default_exposure_us, double gain_db,
+                const std::function<void(CaptureStep, const std::string&)>& emit) {
+  const bool target = group.kind == Recipe::Group::Kind::kReferenceTarget;
+  CaptureStep base;
+  base.kind = CaptureStep::Kind::kPose;
+  base.group = target ? "reference_target" : "poses";
+  base.pattern = drivers::LightPattern::AllOff(static_cast<int>(rig.lights.leds.size()));
+  for (double& level : base.pattern.levels) level = group.level;
+  base.gain_db = gain_db;
+  const bool bracket = !group.exposures_us.empty();
+  const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};
+  for (GonioPose pose : poses) {
+    // With the target in a changer slot, a pose that names no slot must still see the sample.
+    if (!target && !pose.sample_changer_deg && rig.reference_target && rig.reference_target->pose.sample_changer_deg)
+      pose.sample_changer_deg = 0.0;
+    char name[96];
+    std::snprintf(name, sizeof(name), "%s_l%+.1f_c%+.1f_r%+.1f", target ? "target" : "pose", pose.light_arm_deg,
+                  pose.camera_arm_deg, pose.sample_rotation_deg);
+    for (double exposure_us : exposures)
+      for (int i = 0; i < group.count; ++i) {
+        CaptureStep step = base;
+        step.pose = pose;
+        step.exposure_us = exposure_us;
+        emit(std::move(step), bracket ? name + ExposureSuffix(exposure_us) : name);
+      }
+  }
 }
 }  // namespace
 
@@ -430,6 +536,8 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
     for (int id : group.led_ids) indices.push_back(led_index(group, id));
     return indices;
   };
+  // An adaptive plan's added passes, at their largest, count towards every limit after their group.
+  double adaptive_frames = 0.0, adaptive_s = 0.0;
   for (const Recipe::Group& group : recipe.groups) {
     const double group_exposure_us = group.exposures_us.empty() ? default_exposure_us : group.exposures_us.front();
     std::vector<CaptureStep> once;  // one repetition; labels are made below
@@ -490,27 +598,23 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
         const bool target = group.kind == Kind::kReferenceTarget;
         if (target && !rig.reference_target)
           group.source->Fail("rig '" + rig.name + "' names no reference_target to capture");
-        base.kind = CaptureStep::Kind::kPose;
-        base.group = target ? "reference_target" : "poses";
-        base.pattern = drivers::LightPattern::AllOff(channels);
-        for (double& level : base.pattern.levels) level = group.level;
-        const bool bracket = !group.exposures_us.empty();
-        const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};
-        const std::vector<GonioPose> poses = target ? std::vector<GonioPose>{rig.reference_target->pose} : group.poses;
-        for (GonioPose pose : poses) {
-          // With the target in a changer slot, a pose that names no slot must still see the sample.
-          if (!target && !pose.sample_changer_deg && rig.reference_target &&
-              rig.reference_target->pose.sample_changer_deg)
-            pose.sample_changer_deg = 0.0;
-          char name[96];
-          std::snprintf(name, sizeof(name), "%s_l%+.1f_c%+.1f_r%+.1f", target ? "target" : "pose", pose.light_arm_deg,
-                        pose.camera_arm_deg, pose.sample_rotation_deg);
-          for (double exposure_us : exposures)
-            for (int i = 0; i < group.count; ++i) {
-              CaptureStep step = base;
-              step.pose = pose;
-              emit(std::move(step), bracket ? name + ExposureSuffix(exposure_us) : name, exposure_us);
-            }
+        PoseFrames(group, target ? std::vector<GonioPose>{rig.reference_target->pose} : group.poses, rig,
+                   default_exposure_us, gain, [&](CaptureStep step, const std::string& name) {
+                     const double exposure_us = step.exposure_us;
+                     emit(std::move(step), name, exposure_us);
+                   });
+        if (group.adaptive) {
+          // The largest the plan can grow: every pass adds all its poses.
+          const auto& a = *group.adaptive;
+          const double per_pose = static_cast<double>(group.count) *
+                                  (group.exposures_us.empty() ? 1 : group.exposures_us.size());
+          const double frames = per_pose * a.passes * a.options.added_poses;
+          double exposures_s = 0.0;
+          for (double exposure_us : group.exposures_us.empty() ? std::vector<double>{default_exposure_us}
+                                                               : group.exposures_us)
+            exposures_s += group.count * (exposure_us / 1000.0 + limits.step_overhead_ms) / 1000.0;
+          adaptive_frames += frames;
+          adaptive_s += exposures_s * a.passes * a.options.added_poses;
         }
         break;
       }
@@ -518,19 +622,36 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
     const double repeats = group.repeat;
     total_bytes += bytes_per_frame * static_cast<double>(once.size()) * repeats;
     total_s += once_s * repeats;
-    over_limit(group, static_cast<double>(steps.size()) + static_cast<double>(once.size()) * repeats, total_bytes,
-               total_s);
+    over_limit(group, static_cast<double>(steps.size()) + static_cast<double>(once.size()) * repeats + adaptive_frames,
+               total_bytes + bytes_per_frame * adaptive_frames, total_s + adaptive_s);
     for (int repeat = 0; repeat < group.repeat; ++repeat)
       for (std::size_t k = 0; k < once.size(); ++k) {
         CaptureStep step = once[k];
-        step.index = static_cast<int>(steps.size());
         step.repeat = repeat;
-        char label[128];
-        std::snprintf(label, sizeof(label), "%04d_%s", step.index, names[k].c_str());
-        step.label = label;
+        Label(&step, static_cast<int>(steps.size()), names[k]);
         steps.push_back(std::move(step));
       }
+    if (group.adaptive && !steps.empty()) steps.back().ends_pass = true;  // the coarse pass
   }
+  return steps;
+}
+
+const Recipe::Group* AdaptivePlanGroup(const Recipe& recipe) {
+  for (const Recipe::Group& group : recipe.groups)
+    if (group.adaptive) return &group;
+  return nullptr;
+}
+
+std::vector<CaptureStep> CompileAdaptivePass(const Recipe& recipe, const Recipe::Group& group, const RigConfig& rig,
+                                             const std::vector<GonioPose>& poses, int first_index, int pass) {
+  std::vector<CaptureStep> steps;
+  PoseFrames(group, poses, rig, recipe.exposure_us.value_or(rig.camera.exposure_us),
+             recipe.gain_db.value_or(rig.camera.gain_db), [&](CaptureStep step, const std::string& name) {
+               step.pass = pass;
+               Label(&step, first_index + static_cast<int>(steps.size()), name);
+               steps.push_back(std::move(step));
+             });
+  if (!steps.empty()) steps.back().ends_pass = true;
   return steps;
 }
 

@@ -521,4 +521,38 @@ TEST(BrdfEndToEnd, AFittedModelConvertsToATableForRenderers) {
   EXPECT_NE(log.find("unknown model 'phong'"), std::string::npos) << log;
 }
 
+// config/recipes/brdf-gonio-adaptive.yaml: a near-mirror lobe (Blinn-Phong
+// e = 5000, about 1 deg wide) that a uniform plan steps over. Dry-run states
+// the most the passes add; the run adds two passes of 12 poses on the lobe's
+// flanks and the fit of all 51 poses recovers the material (the coarse poses
+// alone do not: tests/daemon/test_gonio.cpp).
+TEST(BrdfEndToEnd, AnAdaptivePlanMeasuresANarrowLobe) {
+  TempDir dir;
+  const std::string adaptive = SourceDir() + "/config/recipes/brdf-gonio-adaptive.yaml";
+  ASSERT_EQ(RunPhotorig("dry-run " + adaptive + " --rig " + GonioRig(dir), dir.path() / "dry.log"), 0)
+      << ReadText(dir.path() / "dry.log");
+  EXPECT_NE(ReadText(dir.path() / "dry.log").find("a coarse pass of 27 poses, then up to 2 x 12 poses added after the "
+                                                  "coarse pass (at most 144 frames"),
+            std::string::npos)
+      << ReadText(dir.path() / "dry.log");
+
+  ASSERT_EQ(RunAndSolve(dir, adaptive, GonioRig(dir), "adaptive"), 0) << ReadText(dir.path() / "adaptive.log");
+  const std::string run_log = ReadText(dir.path() / "adaptive_run.log");
+  EXPECT_NE(run_log.find("adaptive pass 1: 12 poses added (72 frames) from 27 samples"), std::string::npos) << run_log;
+  EXPECT_NE(run_log.find("adaptive pass 2: 12 poses added (72 frames) from 39 samples"), std::string::npos) << run_log;
+  const auto passes = nlohmann::json::parse(ReadText(dir.path() / "adaptive" / "adaptive_passes.json"));
+  ASSERT_EQ(passes.size(), 2u) << passes.dump();
+  EXPECT_EQ(passes[1]["poses_added"], 12);
+  const auto report = Report(dir, "adaptive");
+  EXPECT_EQ(report["samples"], 27 + 24);
+  EXPECT_TRUE(report["clipped_poses"].empty()) << report["clipped_poses"].dump();
+  ASSERT_EQ(report["chosen"], "blinn_phong") << report.dump(2);
+  const auto& fit = report["candidates"][1];
+  const double e = 5000.0, ks = 0.15 * 4.0 * e / (e + 4.0);
+  EXPECT_NEAR(fit["diffuse"][0].get<double>(), 0.4, 0.05 * 0.4);
+  EXPECT_NEAR(fit["specular"][0].get<double>(), ks, 0.05 * ks);
+  EXPECT_NEAR(fit["shape"].get<double>(), e, 0.05 * e);
+
+}
+
 }  // namespace

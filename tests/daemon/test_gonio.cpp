@@ -3,6 +3,8 @@
 // whose frames match the analytic BRDF at several poses, and every exit path
 // leaving the arms stopped and the lamp off, or retried after a drive fault.
 
+#include "photorig/daemon/adaptive_poses.h"
+#include "photorig/daemon/brdf_measurement.h"
 #include "photorig/daemon/plan.h"
 #include "photorig/daemon/recipe.h"
 #include "photorig/daemon/rig_devices.h"
@@ -11,6 +13,8 @@
 #include "photorig/daemon/sequencer.h"
 #include "photorig/drivers/motion/goniometer.h"
 #include "photorig/sim/gonio.h"
+#include "photorig/solvers/brdf/fit.h"
+#include "photorig/solvers/brdf/half_diff.h"
 #include "photorig/solvers/brdf/pose_plan.h"
 #include "capture_fixtures.h"
 #include "config_error_check.h"
@@ -19,6 +23,8 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -449,6 +455,38 @@ TEST(Gonio, PlanStepErrorsNameTheirPosition) {
   photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(both, rig); }, both, 7, 9, "exactly one of 'list', 'grid' or 'plan'");
 }
 
+// The rig's axes as simulated drives that record the position each reports
+// at every poll of every move, and pass it on to `world` (when given, so the
+// simulated frames see the arms where they are); the closest the arms came.
+struct WatchedArms {
+  // `away`: each arm powers on away from its home, on its own side.
+  WatchedArms(const RigConfig& rig, std::shared_ptr<sim::World> world, bool away) {
+    std::vector<drivers::Motion*> motions;
+    for (const AxisConfig& axis : rig.motion->axes) {
+      sim::SimAxisOptions options = rig.motion->sim_axis;
+      if (away) options.power_on_deg = axis.id == "light_arm" ? 40.0 : axis.id == "camera_arm" ? -30.0 : 0.0;
+      at[axis.id] = axis.limits.home_deg + options.power_on_deg;
+      motion.axes.push_back(std::make_unique<sim::SimRotaryAxis>(
+          axis.id, axis.limits, rig.motion->settle, options,
+          [this, world, id = axis.id, home = axis.limits.home_deg](double deg) {
+            if (world) world->SetArm(id, deg + home);
+            std::lock_guard lock(mutex);
+            at[id] = deg + home;
+            closest = std::min(closest, at["camera_arm"] - at["light_arm"]);
+            ++readings;
+          }));
+      motions.push_back(motion.axes.back().get());
+    }
+    motion.goniometer = std::make_unique<drivers::Goniometer>(motions, rig.motion->constraints);
+  }
+
+  MotionRig motion;
+  std::mutex mutex;
+  std::map<std::string, double> at;  // rig degrees
+  double closest = 1e9;
+  int readings = 0;
+};
+
 // Homing and every planned move through the simulated goniometer: the arms'
 // positions, read at every poll of every move, never come closer than the
 // rig's separation.
@@ -460,39 +498,20 @@ TEST(Gonio, HomingAndEveryPlannedMoveKeepTheArmsApart) {
       rig);
   const auto steps = CompileSteps(recipe, rig);
   ASSERT_GT(steps.size(), 10u);
-  std::mutex mutex;
-  std::map<std::string, double> at;  // rig degrees
-  double closest = 1e9;
-  int readings = 0;
-  std::vector<std::unique_ptr<sim::SimRotaryAxis>> axes;
-  std::vector<drivers::Motion*> motions;
-  for (const AxisConfig& axis : rig.motion->axes) {
-    sim::SimAxisOptions options = rig.motion->sim_axis;
-    // Power on away from home, each arm on its own side.
-    options.power_on_deg = axis.id == "light_arm" ? 40.0 : axis.id == "camera_arm" ? -30.0 : 0.0;
-    at[axis.id] = axis.limits.home_deg + options.power_on_deg;
-    axes.push_back(std::make_unique<sim::SimRotaryAxis>(
-        axis.id, axis.limits, rig.motion->settle, options, [&, id = axis.id, home = axis.limits.home_deg](double deg) {
-          std::lock_guard lock(mutex);
-          at[id] = deg + home;
-          closest = std::min(closest, at["camera_arm"] - at["light_arm"]);
-          ++readings;
-        }));
-    motions.push_back(axes.back().get());
-  }
-  drivers::Goniometer goniometer(motions, rig.motion->constraints);
-  for (drivers::Motion* m : motions) ASSERT_TRUE(m->Open().ok());
+  WatchedArms arms(rig, nullptr, true);
+  drivers::Goniometer& goniometer = *arms.motion.goniometer;
+  for (auto& m : arms.motion.axes) ASSERT_TRUE(m->Open().ok());
   const Status homed = goniometer.HomeAll();
   ASSERT_TRUE(homed.ok()) << homed.ToString();
   for (const CaptureStep& step : steps) {
     if (!step.pose) continue;
     const Status moved = goniometer.MoveTo(PoseTargets(*step.pose), rig.motion->profile);
     ASSERT_TRUE(moved.ok()) << step.label << ": " << moved.ToString();
-    EXPECT_NEAR(at["light_arm"], step.pose->light_arm_deg, 0.05) << step.label;
-    EXPECT_NEAR(at["camera_arm"], step.pose->camera_arm_deg, 0.05) << step.label;
+    EXPECT_NEAR(arms.at["light_arm"], step.pose->light_arm_deg, 0.05) << step.label;
+    EXPECT_NEAR(arms.at["camera_arm"], step.pose->camera_arm_deg, 0.05) << step.label;
   }
-  EXPECT_GT(readings, 10 * static_cast<int>(steps.size()));  // the sweeps were watched, not just their ends
-  EXPECT_GE(closest, 15.0 - rig.motion->settle.tolerance_deg) << "arms came within " << closest << " deg";
+  EXPECT_GT(arms.readings, 10 * static_cast<int>(steps.size()));  // the sweeps were watched, not just their ends
+  EXPECT_GE(arms.closest, 15.0 - rig.motion->settle.tolerance_deg) << "arms came within " << arms.closest << " deg";
   EXPECT_TRUE(goniometer.CloseAll().ok());
 }
 
@@ -528,6 +547,277 @@ TEST(Gonio, ShippedRecipeDryRunsClean) {
   EXPECT_TRUE(plan.ok()) << (plan.errors.empty() ? "" : plan.errors[0]);
   EXPECT_EQ(steps.size(), 13u);
   EXPECT_GT(plan.move_s, 0.0);
+}
+
+// Adaptive plans. The test rig with the reference target and a noisy sensor
+// (the measurement between passes reads the noise from the darks), and a
+// near-mirror sample: Blinn-Phong e = 2000, a lobe about 2 deg wide, which a
+// plan every 10 deg in theta_h sees only at its peak.
+constexpr double kMirrorExponent = 2000.0;
+// k_s in solvers/brdf's normalisation for the simulator's rho_s 0.15 (docs/brdf.md).
+const double kMirrorKs = 0.15 * 4.0 * (std::pow(2.0, -kMirrorExponent / 2.0) + kMirrorExponent) / (kMirrorExponent + 4.0);
+
+std::string NoisyGonioRigWithTarget() {
+  return Replace(GonioRigWithTarget(), "read_noise_e: 0, shot_noise: false", "read_noise_e: 6, shot_noise: true");
+}
+
+const char* const kDarksAndTarget = "    - dark: {count: 2, exposures_us: [100, 4000]}\n"
+                                    "    - reference_target: {count: 1, exposures_us: [4000]}\n";
+
+// The coarse plan (theta_h 0, 10, 20 by theta_d 15, 30, 45 deg) with `adaptive`, after `before` and before `after`.
+std::string AdaptiveRecipe(const std::string& adaptive = "{passes: 2, added_poses: 4}",
+                           const std::string& before = kDarksAndTarget, const std::string& after = "") {
+  return "recipe: {name: adaptive, rig: rig.yaml}\n"
+         "sample:\n"
+         "  sim_scene: {shape: sample_plane, radius_mm: 12, albedo: {pattern: uniform, high: 0.4},\n"
+         "              brdf: {model: blinn_phong, rho_s: 0.15, exponent: 2000}}\n"
+         "capture:\n  exposure_us: 4000\n  steps:\n" +
+         before +
+         "    - poses:\n"
+         "        exposures_us: [100, 4000]\n"
+         "        plan:\n"
+         "          theta_h_deg: {min: 0, max: 20, steps: 3}\n"
+         "          theta_d_deg: {min: 15, max: 45, steps: 3}\n"
+         "          adaptive: " + adaptive + "\n" + after;
+}
+
+// An adaptive recipe captured through RunCapture with the rig's own camera and
+// world, arms watched at every poll, and the passes planned by AdaptivePoses.
+struct AdaptiveCapture {
+  explicit AdaptiveCapture(TempDir& dir)
+      : directory(dir.path() / "run"),
+        rig(LoadRigConfig(dir.Write("rig.yaml", NoisyGonioRigWithTarget()))),
+        recipe(LoadRecipe(dir.Write("r.yaml", AdaptiveRecipe()), rig)),
+        devices(MakeRigDevices(rig, &recipe)),
+        arms(rig, devices.world, false),
+        passes(recipe, *config::AdaptivePlanGroup(recipe), rig) {}
+
+  RunManifest Header() const {
+    RunManifest header;
+    header.width = rig.camera.width;
+    header.height = rig.camera.height;
+    header.bit_depth = rig.camera.bit_depth;
+    header.saturation_dn = rig.health.saturation_dn;
+    header.dn_per_radiance_per_us = rig.camera.dn_per_radiance_per_us;
+    header.e_per_dn = rig.camera.e_per_dn;
+    header.pixel_pitch_mm = rig.camera.pixel_pitch_mm;
+    header.lights = rig.lights.leds;
+    header.reference_albedo = rig.reference_target->albedo;
+    return header;
+  }
+
+  CaptureReport Run(RunWriter& writer, drivers::LightController& lights, CaptureOptions options = {}) {
+    options.motion = &arms.motion;
+    options.motion_profile = rig.motion->profile;
+    options.health = rig.health;
+    options.leds = rig.lights.leds;
+    options.next_pass = [this](const std::vector<CaptureStep>& steps, std::size_t ended, const RunWriter& run) {
+      return passes.NextPass(steps, ended, run);
+    };
+    return RunCapture(CompileSteps(recipe, rig), rig.camera, lights, *devices.camera, writer, options);
+  }
+
+  std::filesystem::path directory;
+  RigConfig rig;
+  Recipe recipe;
+  RigDevices devices;
+  WatchedArms arms;
+  AdaptivePoses passes;
+};
+
+double ThetaHDeg(const GonioPose& pose) {
+  const auto d = solvers::brdf::ArmDirections({pose.light_arm_deg, pose.camera_arm_deg, pose.sample_rotation_deg});
+  return solvers::brdf::ToHalfDiff(d.wi, d.wo).theta_h * 180.0 / M_PI;
+}
+
+// The distinct poses of the run's pose frames, by pass.
+std::map<int, std::vector<GonioPose>> PosesByPass(const RunManifest& manifest) {
+  std::map<int, std::vector<GonioPose>> by_pass;
+  for (const FrameRecord& r : manifest.frames) {
+    if (r.group != "poses" || r.exposure_us != 100.0) continue;  // one frame per pose
+    by_pass[r.pass].push_back(*r.pose);
+  }
+  return by_pass;
+}
+
+solvers::brdf::FitSummary FitBlinnPhong(const std::string& directory, RunManifest manifest, int max_pass) {
+  std::erase_if(manifest.frames, [&](const FrameRecord& r) { return r.pass > max_pass; });
+  const BrdfMeasurement m = MeasureBrdf(directory, manifest);
+  EXPECT_TRUE(m.IsSolutionUsable()) << m.message;
+  return solvers::brdf::FitModel(solvers::brdf::Model::kBlinnPhong, m.samples);
+}
+
+TEST(Gonio, AnAdaptivePlanAddsPosesOnTheLobesFlanksAndTheFitUsesThemAll) {
+  TempDir dir;
+  AdaptiveCapture capture(dir);
+  RunWriter writer(capture.directory.string(), capture.Header());
+  const CaptureReport report = capture.Run(writer, *capture.devices.lights);
+  ASSERT_EQ(report.status, CaptureStatus::kComplete) << report.reason;
+
+  // Two passes of four poses each, at both exposures: 4 darks, 1 target frame, 9 coarse poses, 8 added.
+  const auto& passes = capture.passes.passes();
+  ASSERT_EQ(passes.size(), 2u);
+  for (const AdaptivePassReport& pass : passes) {
+    EXPECT_EQ(pass.poses_added, 4) << pass.pass;
+    EXPECT_EQ(pass.frames_added, 8) << pass.pass;
+    EXPECT_EQ(pass.stopped, "") << pass.pass;
+  }
+  EXPECT_EQ(passes[0].samples, 9);
+  EXPECT_EQ(passes[1].samples, 13);
+  EXPECT_EQ(report.steps_total, 4 + 1 + 2 * (9 + 8));
+  EXPECT_EQ(report.frames_written, report.steps_total);
+  const std::map<int, std::vector<GonioPose>> by_pass = PosesByPass(writer.manifest());
+  ASSERT_EQ(by_pass.size(), 3u);
+  EXPECT_EQ(by_pass.at(0).size(), 9u);
+  // The lobe falls off between the peak and theta_h 10 deg: the first pass
+  // splits that interval in every theta_d row, the second the half nearer the peak.
+  auto count_at = [&](int pass, double theta_h_deg) {
+    return std::count_if(by_pass.at(pass).begin(), by_pass.at(pass).end(),
+                         [&](const GonioPose& p) { return std::abs(ThetaHDeg(p) - theta_h_deg) < 1e-6; });
+  };
+  EXPECT_EQ(count_at(1, 5.0), 3);
+  EXPECT_EQ(count_at(2, 2.5), 3);
+
+  // Every move, added ones too, kept the arms apart, watched at every poll.
+  EXPECT_GT(capture.arms.readings, 100);
+  EXPECT_GE(capture.arms.closest, 15.0 - capture.rig.motion->settle.tolerance_deg)
+      << "arms came within " << capture.arms.closest << " deg";
+
+  writer.Finish(report.ToStopRecord());
+  EXPECT_EQ(VerifyRun(capture.directory.string()), std::vector<std::string>{});
+  // The pass each frame came from is in the stored manifest.
+  const RunManifest stored = LoadRunManifest(capture.directory.string());
+  EXPECT_EQ(PosesByPass(stored).at(2).size(), 4u);
+
+  // The fit of every frame recovers the lobe; the coarse poses alone see its
+  // peak only and cannot tell its width.
+  const solvers::brdf::FitSummary all = FitBlinnPhong(capture.directory.string(), stored, 2);
+  ASSERT_TRUE(all.IsSolutionUsable()) << all.message;
+  EXPECT_TRUE(all.lobe_identifiable);
+  EXPECT_NEAR(all.params.shape, kMirrorExponent, 0.05 * kMirrorExponent);
+  EXPECT_NEAR(all.params.specular[0], kMirrorKs, 0.05 * kMirrorKs);
+  EXPECT_NEAR(all.params.diffuse[0], 0.4, 0.05 * 0.4);
+  const solvers::brdf::FitSummary coarse = FitBlinnPhong(capture.directory.string(), stored, 0);
+  EXPECT_FALSE(coarse.lobe_identifiable && std::abs(coarse.params.shape - kMirrorExponent) < 0.05 * kMirrorExponent)
+      << "the coarse poses alone fitted e = " << coarse.params.shape;
+}
+
+TEST(Gonio, AStopDuringAnAdaptivePassLeavesTheLampOffAndItsFramesKept) {
+  TempDir dir;
+  AdaptiveCapture capture(dir);
+  WatchedDome dome("lamp", capture.devices.world);
+  std::atomic<bool> stop{false};
+  CaptureOptions options;
+  options.stop_requested = &stop;
+  options.on_frame = [&stop](const CaptureStep& step, const FrameRecord&, int) {
+    if (step.pass == 1) stop = true;  // the first frame of the first added pass
+  };
+  std::vector<FrameRecord> kept;
+  {
+    RunWriter writer(capture.directory.string(), capture.Header());
+    const CaptureReport report = capture.Run(writer, dome, options);
+    EXPECT_EQ(report.status, CaptureStatus::kAborted) << report.reason;
+    writer.Finish(report.ToStopRecord());
+    kept = writer.manifest().frames;
+  }
+  ASSERT_EQ(kept.size(), 4u + 1u + 18u + 1u);
+  EXPECT_EQ(kept.back().pass, 1);
+  EXPECT_EQ(LoadRunManifest(capture.directory.string()).frames.back().pass, 1);
+  // Lamp closed dark, every axis stopped and closed.
+  EXPECT_EQ(dome.state(), drivers::LightController::State::kClosed);
+  ASSERT_FALSE(dome.levels_at_close.empty());
+  for (const auto& levels : dome.levels_at_close) EXPECT_EQ(levels, std::vector<double>{0.0});
+  for (const auto& axis : capture.arms.motion.axes) {
+    EXPECT_EQ(axis->state(), drivers::Motion::State::kClosed) << axis->id();
+    EXPECT_GE(static_cast<sim::SimRotaryAxis&>(*axis).stops(), 2) << axis->id();
+  }
+
+  // Resumed, the run plans the same passes from the same frames and takes only what it lacks.
+  RecoveryReport recovery;
+  const auto reopened = RunWriter::Reopen(capture.directory.string(), &recovery);
+  EXPECT_EQ(recovery.frames_kept, static_cast<int>(kept.size()));
+  const CaptureReport resumed = capture.Run(*reopened, dome);
+  ASSERT_EQ(resumed.status, CaptureStatus::kComplete) << resumed.reason;
+  EXPECT_EQ(resumed.frames_resumed, static_cast<int>(kept.size()));
+  EXPECT_EQ(resumed.steps_total, 4 + 1 + 2 * (9 + 8));
+  EXPECT_EQ(resumed.frames_written, resumed.steps_total - static_cast<int>(kept.size()));
+  const std::vector<FrameRecord>& all = reopened->manifest().frames;
+  for (std::size_t k = 0; k < kept.size(); ++k) EXPECT_EQ(all[k].file, kept[k].file);
+  EXPECT_EQ(PosesByPass(reopened->manifest()).at(2).size(), 4u);
+  EXPECT_GE(capture.arms.closest, 15.0 - capture.rig.motion->settle.tolerance_deg);
+}
+
+TEST(Gonio, AnAdaptivePlanBeforeItsDarksOrTargetIsRefusedAtItsLine) {
+  struct Case {
+    std::string recipe;
+    int line, column;
+    const char* fragment;
+  };
+  const std::string dark = "    - dark: {count: 2, exposures_us: [100, 4000]}\n";
+  const std::string target = "    - reference_target: {count: 1, exposures_us: [4000]}\n";
+  const Case cases[] = {
+      // The target after the plan: the passes could not be calibrated.
+      {AdaptiveRecipe("{passes: 2}", dark, target), 14, 21, "no reference_target step before the adaptive plan"},
+      // The darks after it, or not at one of its exposures.
+      {AdaptiveRecipe("{passes: 2}", target, dark), 14, 21, "no dark frames at"},
+      {AdaptiveRecipe("{passes: 2}", "    - dark: {count: 2, exposures_us: [4000]}\n" + target), 15, 21,
+       "no dark frames at 100 us"},
+      {AdaptiveRecipe("{passes: 2}", "    - dark: {count: 1, exposures_us: [100, 4000]}\n" + target), 15, 21,
+       "fewer than two dark frames"},
+      {AdaptiveRecipe("{passes: 0}"), 15, 30, "must be within [1, 100]"},
+      {AdaptiveRecipe("{added: 3}"), 15, 22, "added"},
+      {AdaptiveRecipe("{min_interval_deg: 0}"), 15, 40, "must lie in [0.001, 90]"},
+      {Replace(AdaptiveRecipe(), "        exposures_us: [100, 4000]\n", "        exposures_us: [100, 4000]\n        repeat: 2\n"),
+       12, 17, "an adaptive plan cannot repeat"},
+      {AdaptiveRecipe("{passes: 2}", kDarksAndTarget,
+                      "    - poses:\n        plan: {theta_h_deg: 0, theta_d_deg: 30, adaptive: {passes: 1}}\n"),
+       17, 59, "at most one adaptive plan (the first is at line 15)"},
+  };
+  for (const Case& c : cases) {
+    TempDir dir;
+    const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", NoisyGonioRigWithTarget()));
+    const std::string path = dir.Write("r.yaml", c.recipe);
+    photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(path, rig); }, path, c.line, c.column, c.fragment);
+  }
+}
+
+// Dry-run states the coarse plan and the most the passes can add, and the
+// shipped adaptive recipe plans clean.
+TEST(Gonio, DryRunBoundsWhatTheAdaptivePassesAdd) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", NoisyGonioRigWithTarget()));
+  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", AdaptiveRecipe("{passes: 3, added_poses: 5}")), rig);
+  const auto steps = CompileSteps(recipe, rig);
+  ASSERT_EQ(steps.size(), 4u + 1u + 18u);
+  EXPECT_TRUE(steps.back().ends_pass);
+  EXPECT_EQ(std::count_if(steps.begin(), steps.end(), [](const CaptureStep& s) { return s.ends_pass; }), 1);
+  PlanOptions options;
+  options.step_overhead_ms = 0.0;
+  const RunPlan plan = PlanRun(recipe, rig, steps, options);
+  ASSERT_TRUE(plan.ok()) << plan.errors.front();
+  ASSERT_TRUE(plan.adaptive.has_value());
+  EXPECT_EQ(plan.adaptive->coarse_poses, 9);
+  EXPECT_EQ(plan.adaptive->passes, 3);
+  EXPECT_EQ(plan.adaptive->added_poses, 5);
+  EXPECT_EQ(plan.adaptive->max_frames, 3 * 5 * 2);
+  // Per added pose: both exposures, and at most a sweep of each arm across the coarse plan's range.
+  double light_lo = 1e9, light_hi = -1e9, camera_lo = 1e9, camera_hi = -1e9;
+  for (const GonioPose& p : recipe.groups[2].poses) {
+    light_lo = std::min(light_lo, p.light_arm_deg), light_hi = std::max(light_hi, p.light_arm_deg);
+    camera_lo = std::min(camera_lo, p.camera_arm_deg), camera_hi = std::max(camera_hi, p.camera_arm_deg);
+  }
+  auto move = [](double deg) { return deg / 30.0 + 30.0 / 120.0 + 0.005; };  // trapezoid plus settle (rig above)
+  EXPECT_NEAR(plan.adaptive->max_duration_s,
+              15 * (0.0041 + move(light_hi - light_lo) + move(camera_hi - camera_lo)), 1e-9);
+  EXPECT_EQ(plan.ToJson(steps)["adaptive"]["max_added_frames"], 30);
+
+  const std::string shipped = SourceDir() + "/config/recipes/brdf-gonio-adaptive.yaml";
+  const RigConfig sim_gonio = LoadRigConfig(RecipeRigPath(shipped, ""));
+  const Recipe adaptive = LoadRecipe(shipped, sim_gonio);
+  const RunPlan shipped_plan = PlanRun(adaptive, sim_gonio, CompileSteps(adaptive, sim_gonio));
+  EXPECT_TRUE(shipped_plan.ok()) << shipped_plan.errors.front();
+  ASSERT_TRUE(shipped_plan.adaptive.has_value());
+  EXPECT_EQ(shipped_plan.adaptive->passes, 2);
 }
 
 }  // namespace

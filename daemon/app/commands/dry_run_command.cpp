@@ -48,6 +48,11 @@ int Execute(const Options& options) {
               rig.name.c_str(), plan.estimate.frames, plan.estimate.duration_s, plan.estimate.bytes / 1048576.0,
               free_bytes / 1048576.0);
   if (plan.move_s > 0) std::printf("arm moves: about %.1f s of that\n", plan.move_s);
+  if (const auto& a = plan.adaptive)
+    std::printf("adaptive plan: a coarse pass of %d poses, then up to %d x %d poses added after the coarse pass "
+                "(at most %d frames, %.1f s more: at most %.1f s in all)\n",
+                a->coarse_poses, a->passes, a->added_poses, a->max_frames, a->max_duration_s,
+                plan.estimate.duration_s + a->max_duration_s);
   if (plan.max_duty_led >= 0)
     std::printf("busiest LED: %d, lit %.1f%% of the run\n", plan.max_duty_led, 100.0 * plan.max_led_duty);
   for (const auto& warning : plan.warnings) std::printf("warning: %s\n", warning.c_str());

@@ -35,12 +35,27 @@ int Execute(const Options& options) {
   request.on_frame = [&progress](const daemon::CaptureStep& step, const daemon::FrameRecord&, int frames, int total) {
     progress.Update("captured", frames, total, step.label);
   };
+  request.on_adaptive_pass = [&progress](const daemon::AdaptivePassReport& pass) {
+    progress.EndLine();
+    std::fprintf(stderr, "adaptive pass %d: %d poses added (%d frames) from %d samples%s%s\n", pass.pass,
+                 pass.poses_added, pass.frames_added, pass.samples, pass.stopped.empty() ? "" : "; stopped early: ",
+                 pass.stopped.c_str());
+  };
   request.solve_progress = progress.Callback();
   request.stop_requested = &g_stop_requested;
   const daemon::RunOutcome outcome = daemon::ExecuteRun(request);
   progress.EndLine();
   ResultFields()["run_directory"] = outcome.directory;
   ResultFields()["capture"] = CaptureJson(outcome.capture);
+  if (!outcome.adaptive_passes.empty()) {
+    nlohmann::json passes = nlohmann::json::array();
+    for (const daemon::AdaptivePassReport& pass : outcome.adaptive_passes) {
+      passes.push_back(pass.ToJson());
+      std::printf("adaptive pass %d: %d poses added%s%s\n", pass.pass, pass.poses_added,
+                  pass.stopped.empty() ? "" : "; stopped early: ", pass.stopped.c_str());
+    }
+    ResultFields()["adaptive_passes"] = passes;
+  }
   std::printf("run directory: %s\n", outcome.directory.c_str());
   std::printf("capture: %s, %d/%d frames, %.0f ms%s%s\n", daemon::CaptureStatusName(outcome.capture.status),
               outcome.capture.frames_written, outcome.capture.steps_total, outcome.capture.elapsed_ms,

@@ -63,6 +63,9 @@ class FrameHealth {
   // indexes them), for LED ids in messages and the neighbour comparison.
   FrameHealth(HealthConfig config, const std::vector<CaptureStep>& steps, std::vector<LedConfig> leds);
 
+  // Steps added to the plan while it runs (an adaptive pose plan's passes): brackets among them.
+  void AddSteps(const std::vector<CaptureStep>& steps);
+
   bool enabled() const { return config_.enabled; }
 
   // One pass over a CV_16U frame against the current dark reference.

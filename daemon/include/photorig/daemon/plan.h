@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,8 +36,23 @@ struct RunEstimate {
   std::uint64_t bytes = 0;            // frames, ground truth, journal and manifest
 };
 
+// An adaptive pose plan's passes, at their largest: every pass adds all its
+// poses, each taken with the plan step's bracket and count, and each move at
+// most as long as the coarse plan's whole range of each arm (the added
+// configurations split intervals between coarse ones, so the arms stay in
+// that range).
+struct AdaptiveBound {
+  int coarse_poses = 0;
+  int passes = 0;
+  int added_poses = 0;  // per pass
+  int max_frames = 0;
+  double max_duration_s = 0.0;
+  std::uint64_t max_bytes = 0;
+};
+
 struct RunPlan {
-  RunEstimate estimate;
+  RunEstimate estimate;  // the steps compiled; bytes also holds the adaptive passes at their largest
+  std::optional<AdaptiveBound> adaptive;
   double move_s = 0.0;        // of estimate.duration_s: arm moves and settling
   double max_led_duty = 0.0;  // over all LEDs
   int max_duty_led = -1;      // its LED id

@@ -3,6 +3,7 @@
 // rig's devices into a run directory, then run the recipe's solvers on it.
 // Shared by the `photorig` CLI and the `photorigd` daemon.
 
+#include "photorig/daemon/adaptive_poses.h"
 #include "photorig/daemon/light_calibration.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/sequencer.h"
@@ -57,6 +58,8 @@ struct RunRequest {
   // After each stored frame; `frames_in_run` counts resumed frames too.
   std::function<void(const CaptureStep&, const FrameRecord&, int frames_in_run, int total)> on_frame;
   std::function<void(RunState, const std::string& detail)> on_state;
+  // After each pass of an adaptive pose plan is planned (on_state hears its detail too).
+  std::function<void(const AdaptivePassReport&)> on_adaptive_pass;
   // Around each solve stage after a complete capture; on_state hears
   // kSolving (detail: the stage) before the first. An abort requested through
   // `control` while a stage runs skips the stages after it.
@@ -74,6 +77,9 @@ struct RunOutcome {
   std::string directory;
   RecoveryReport recovery;  // when resumed
   CaptureReport capture;
+  // An adaptive pose plan's passes after the coarse one, as planned (also in
+  // the run directory's adaptive_passes.json); empty without one.
+  std::vector<AdaptivePassReport> adaptive_passes;
   std::optional<PhotometricStereoResult> photometric_stereo;  // stored as results/ps/report.json
   std::optional<LightCalibrationSummary> light_calibration;
   std::optional<TomographyResult> tomography;  // stored in results/tomography

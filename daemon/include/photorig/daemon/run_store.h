@@ -39,6 +39,7 @@ struct FrameRecord {
   std::int64_t host_timestamp_ns = 0;
   std::uint32_t crc32 = 0;  // of the pixel data as stored in the file
   std::optional<GonioPose> pose;  // gonioreflectometer arms when the frame was taken
+  int pass = 0;  // an adaptive pose plan's added pass (CaptureStep::pass); 0 otherwise, and not stored then
 };
 
 // Where a capture stands: kRunning until it ends, then how it ended

@@ -6,7 +6,9 @@
 // up at its last checkpoint. A transient device fault (timeout, disconnect,
 // dropped or damaged frame, unanswered light command) suspends the run: the
 // devices are closed, reopened after a backoff and the step is retried, up to
-// the bounds of the RetryPolicy. On a gonioreflectometer a pose step first
+// the bounds of the RetryPolicy. An adaptive pose plan adds the steps of its
+// next pass after the last step of a pass (CaptureOptions::next_pass); they
+// run through the same code as every other step. On a gonioreflectometer a pose step first
 // moves the arms (lights off) through the Goniometer, which refuses targets
 // outside soft limits or separation before anything moves. Lights are
 // switched off, the camera stopped and every axis stopped and closed on every
@@ -66,6 +68,16 @@ struct CaptureOptions {
   // LEDs, which name them in messages and find each LED's neighbours.
   HealthConfig health;
   std::vector<LedConfig> leds;
+  // Adaptive pose plans: after each step that ends a pass (CaptureStep::ends_pass),
+  // once it is stored, with every step so far and the index of that one; the
+  // steps returned are taken next (none: the plan is done). Also called for a
+  // stored step of a resumed run, so it must give the same pass again from the
+  // same frames. An exception it throws fails the run like a storage error.
+  struct AddedSteps {
+    std::vector<CaptureStep> steps;
+    std::string detail;  // what the pass adds, for on_state
+  };
+  std::function<AddedSteps(const std::vector<CaptureStep>& steps, std::size_t ended, const RunWriter& writer)> next_pass;
   std::function<void(const CaptureStep&, const FrameRecord&, int total)> on_frame;
   // Every state change of the run: kRunning, kPaused, kSuspended (detail: the fault), kAborting.
   std::function<void(RunState, const std::string& detail)> on_state;
@@ -79,7 +91,7 @@ struct CaptureReport {
   StatusCode fault = StatusCode::kOk;
   int frames_written = 0;   // by this call
   int frames_resumed = 0;   // already in the run when this call started
-  int steps_total = 0;
+  int steps_total = 0;  // with the steps adaptive passes added
   int retries = 0;
   int dropped_frames = 0;   // frames that timed out or arrived damaged
   int frames_rejected = 0;  // frames that failed a health check (retries included), never stored

@@ -37,7 +37,8 @@ struct Recipe {
       // poses: {list: [{light_arm_deg, camera_arm_deg, sample_rotation_deg, sample_changer_deg}] | grid: {...} |
       //         plan: {theta_h_deg, theta_d_deg, phi_d_deg: {min, max, steps} | angle, sample_rotation_deg, grazing_deg},
       //         level, exposures_us, count}: per pose, `count` frames at each bracket exposure.
-      // A plan is made for the rig's arms when the recipe loads (solvers/brdf/pose_plan.h).
+      // A plan is made for the rig's arms when the recipe loads (solvers/brdf/pose_plan.h);
+      // plan: {..., adaptive: {passes, added_poses, min_interval_deg, value_floor}} adds passes after it (AdaptivePlan).
       kPoses,
       // reference_target: {count, exposures_us, level}: frames of the rig's
       // reference target at its pose, for the radiometric calibration
@@ -60,6 +61,16 @@ struct Recipe {
     // kPoses from a plan: the configurations refused and why, grazing poses,
     // too few poses for a model; dry-run lists them as warnings.
     std::vector<std::string> plan_notes;
+    // kPoses from a plan with `adaptive:`: passes taken after the planned (coarse) poses.
+    struct AdaptivePlan {
+      int passes = 2;  // passes after the coarse one; a pass with nothing left to split ends the plan early
+      // added_poses (16), min_interval_deg (0.5), value_floor (1e-3 1/sr): ProposeDenserPoses's options.
+      solvers::brdf::AdaptiveOptions options;
+      // The coarse plan's sample_rotation_deg and grazing_deg; `start` is set per pass.
+      solvers::brdf::PosePlanOptions plan;
+      std::optional<YamlNode> source;  // the `adaptive:` node
+    };
+    std::optional<AdaptivePlan> adaptive;
     std::optional<YamlNode> source;  // for errors found once the rig is known
   };
   std::vector<Group> groups;
@@ -88,6 +99,11 @@ struct CaptureStep {
   double exposure_us = 0.0;
   double gain_db = 0.0;
   std::optional<GonioPose> pose;  // kPose only
+  // A pose of an adaptive plan: 0 for the coarse pass (and any other step), k
+  // for the k-th added pass; `ends_pass` marks the last step of a pass, after
+  // which the next pass is planned from the frames taken so far.
+  int pass = 0;
+  bool ends_pass = false;
 };
 
 // Bounds on what one recipe may expand to. Counts, repeats and YAML aliases
@@ -110,6 +126,16 @@ class CaptureLimitError : public ConfigError {
  public:
   using ConfigError::ConfigError;
 };
+
+// The recipe's poses group with an adaptive plan (a recipe has at most one); null without.
+const Recipe::Group* AdaptivePlanGroup(const Recipe& recipe);
+
+// The steps of one added pass of `group`'s adaptive plan: `count` frames of
+// each pose at each exposure of its bracket, as CompileSteps makes a poses
+// group's, numbered from `first_index`, each marked with `pass`, the last one
+// ending the pass.
+std::vector<CaptureStep> CompileAdaptivePass(const Recipe& recipe, const Recipe::Group& group, const RigConfig& rig,
+                                             const std::vector<GonioPose>& poses, int first_index, int pass);
 
 // A gonioreflectometer's light and camera arms as the pose planner sees them
 // (limits, homes, the separation between them); nothing when the rig lacks
@@ -136,7 +162,8 @@ std::string RecipeRigPath(const std::string& recipe_path, const std::string& ove
 // Throws ConfigError (naming the recipe) when the recipe asks for LEDs the rig
 // lacks, for poses on a rig without motion, or for a reference target the rig
 // does not name; CaptureLimitError when it
-// expands beyond `limits` (checked before the steps are built).
+// expands beyond `limits` (checked before the steps are built; an adaptive
+// plan counts as its largest: every pass adding all its poses).
 std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig, const CaptureLimits& limits = {});
 
 }  // namespace photorig::config
