@@ -91,6 +91,8 @@ struct Merged {
   Eigen::Vector3d rate = Eigen::Vector3d::Zero(), variance = Eigen::Vector3d::Zero();
   bool clipped = false;  // some pixel unclipped at no exposure
   int exposures_used = 0;
+  double longest_used_exposure_us = 0.0;  // weighs most in the merge
+  int frames_used = 0;                    // the repeats at the exposures used
 };
 
 class Merger {
@@ -170,6 +172,13 @@ class Merger {
       out.variance.setConstant(out.variance[0]);
     }
     out.exposures_used = static_cast<int>(std::count(used.begin(), used.end(), true));
+    std::size_t index = 0;
+    for (const auto& [exposure_us, e] : pose.exposures) {
+      if (used[index++]) {
+        out.longest_used_exposure_us = exposure_us;  // ascending: the last used is the longest
+        out.frames_used += static_cast<int>(e.blocks.size());
+      }
+    }
     return out;
   }
 
@@ -461,6 +470,8 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
     s.wo = dirs.wo;
     s.value = m.rate.cwiseQuotient(scale);
     s.sigma = m.variance.cwiseSqrt().cwiseQuotient(scale);
+    s.origin = brdf::SampleOrigin{pose.pose.light_arm_deg, pose.pose.camera_arm_deg, pose.pose.sample_rotation_deg,
+                                  m.longest_used_exposure_us, m.frames_used};
     out.samples.push_back(s);
     out.sample_poses.push_back(pose.pose);
 

@@ -6,7 +6,9 @@
 #include "../daemon/test_support.h"
 #include "photorig/solvers/brdf/merl.h"
 #include "photorig/solvers/brdf/models.h"
+#include "photorig/solvers/brdf/pose_plan.h"
 #include "photorig/solvers/brdf/rgl.h"
+#include "photorig/solvers/brdf/samples.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -93,6 +95,34 @@ TEST(BrdfEndToEnd, GonioRunFitsTheSimulatedMaterial) {
   EXPECT_LT(report["calibration"]["relative_sigma"].get<double>(), 0.01);
   EXPECT_NEAR(report["calibration"]["dn_per_radiance_per_us"].get<double>(), 0.375, 0.375 * 0.02);
   ExpectTheMaterial(report);
+
+  // The stored samples say where each came from: its pose, and the longest
+  // exposure the bracket merge used (32000 us unless the pose clipped there).
+  std::vector<photorig::solvers::brdf::BrdfSample> samples;
+  const auto read =
+      photorig::solvers::brdf::ReadSamplesCsv((dir.path() / "run" / "results" / "brdf" / "samples.csv").string(), &samples);
+  ASSERT_TRUE(read.IsSolutionUsable()) << read.message;
+  ASSERT_EQ(samples.size(), 50u);
+  // What clips is the signal, f_r cos theta_i: every pose whose longest exposure was left out is
+  // brighter than every pose that kept it (give or take the block's spread).
+  double dimmest_shortened = INFINITY, brightest_full = 0.0;
+  for (const auto& sample : samples) {
+    ASSERT_TRUE(sample.origin.has_value());
+    const auto& o = *sample.origin;
+    const auto dirs = photorig::solvers::brdf::ArmDirections({o.light_arm_deg, o.camera_arm_deg, o.sample_rotation_deg});
+    EXPECT_LT((dirs.wi - sample.wi).norm(), 1e-9);
+    EXPECT_LT((dirs.wo - sample.wo).norm(), 1e-9);
+    EXPECT_TRUE(o.exposure_us == 2000 || o.exposure_us == 8000 || o.exposure_us == 32000) << o.exposure_us;
+    EXPECT_EQ(o.frames % 2, 0);  // two repeats per exposure used
+    const double signal = sample.value.maxCoeff() * sample.wi.z();
+    if (o.exposure_us < 32000) {
+      dimmest_shortened = std::min(dimmest_shortened, signal);
+    } else {
+      brightest_full = std::max(brightest_full, signal);
+    }
+  }
+  ASSERT_TRUE(std::isfinite(dimmest_shortened));  // the peak, at least, clips at 32000 us
+  EXPECT_GT(dimmest_shortened, 0.9 * brightest_full);
 }
 
 // A measured material through the instrument: Ngan et al. 2005's
