@@ -119,6 +119,14 @@ void SolveStages(const RunRequest& request, const Recipe& recipe, const RigConfi
     });
     finish(ReportSolveStage(*outcome->svbrdf));
   }
+  if (recipe.brdf && start("brdf")) {
+    BrdfRequest solve = *recipe.brdf;
+    solve.progress = request.solve_progress;
+    writing("brdf", [&] {
+      outcome->brdf = SolveBrdfAndWrite(directory.string(), solve, (directory / "results" / "brdf").string());
+    });
+    finish(ReportSolveStage(*outcome->brdf));
+  }
 }
 
 }  // namespace
@@ -199,6 +207,32 @@ SolveStageReport ReportSolveStage(const TomographyResult& result) {
   return report;
 }
 
+SolveStageReport ReportSolveStage(const BrdfSolveResult& result) {
+  SolveStageReport report;
+  report.stage = "brdf";
+  report.usable = result.usable();
+  const solvers::Summary& ended =
+      result.selection ? static_cast<const solvers::Summary&>(*result.selection) : result.measurement;
+  report.termination = result.selection || !result.measurement.IsSolutionUsable()
+                           ? solvers::TerminationName(ended.termination)
+                           : solvers::TerminationName(solvers::Termination::kFailure);
+  report.message = result.usable() ? (result.warning.empty() ? result.selection->message : result.warning)
+                                   : result.failure();
+  report.results = result.results.empty() ? "" : "results/brdf";
+  const BrdfMeasurement& m = result.measurement;
+  report.figures = {{"samples", m.samples.size()}, {"poses", m.poses}, {"clipped_poses", m.clipped.size()},
+                    {"peak_clipped", m.peak_clipped}};
+  if (result.selection && result.selection->chosen) {
+    const solvers::brdf::FitSummary& chosen = result.selection->candidates[result.selection->chosen_index];
+    report.figures["chosen"] = solvers::brdf::ModelName(*result.selection->chosen);
+    report.figures["held_out_rms"] = chosen.held_out_rms;
+  }
+  report.timings_ms = {{"measure", m.total_ms},
+                       {"fit", result.selection ? result.selection->total_ms : 0.0},
+                       {"total", result.total_ms}};
+  return report;
+}
+
 SolveStageReport ReportSolveStage(const SvbrdfResult& result) {
   SolveStageReport report;
   report.stage = "svbrdf";
@@ -221,28 +255,10 @@ SolveStageReport ReportSolveStage(const SvbrdfResult& result) {
   return report;
 }
 
-RunOutcome ExecuteRun(const RunRequest& request) {
-  const RigConfig rig = LoadRigConfig(RecipeRigPath(request.recipe_path, request.rig_path));
-  const Recipe recipe = LoadRecipe(request.recipe_path, rig);
-  const std::vector<CaptureStep> steps = CompileSteps(recipe, rig);
-  const RunPlan plan = PlanRun(recipe, rig, steps);
-  if (!plan.ok()) {
-    std::string why;
-    for (const std::string& error : plan.errors) why += "\n  " + error;
-    throw std::runtime_error("recipe " + recipe.path + " refused before any device was touched:" + why);
-  }
-  RigDevices devices = MakeRigDevices(rig, &recipe);
-
-  RunOutcome outcome;
-  outcome.directory = request.output_directory.empty() ? (fs::path("runs") / (recipe.name + "-" + UtcStamp())).string()
-                                                       : request.output_directory;
+RunManifest ManifestHeaderFor(const RigConfig& rig) {
   RunManifest header;
-  header.run_id = fs::path(outcome.directory).filename().string();
-  header.recipe_path = recipe.path;
-  header.recipe_name = recipe.name;
   header.rig_path = rig.path;
   header.rig_name = rig.name;
-  header.sample_name = recipe.sample_name;
   header.camera_id = rig.camera.id;
   header.width = rig.camera.width;
   header.height = rig.camera.height;
@@ -259,6 +275,29 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   }
   header.lights = rig.lights.leds;
   if (rig.reference_target) header.reference_albedo = rig.reference_target->albedo;
+  return header;
+}
+
+RunOutcome ExecuteRun(const RunRequest& request) {
+  const RigConfig rig = LoadRigConfig(RecipeRigPath(request.recipe_path, request.rig_path));
+  const Recipe recipe = LoadRecipe(request.recipe_path, rig);
+  const std::vector<CaptureStep> steps = CompileSteps(recipe, rig);
+  const RunPlan plan = PlanRun(recipe, rig, steps);
+  if (!plan.ok()) {
+    std::string why;
+    for (const std::string& error : plan.errors) why += "\n  " + error;
+    throw std::runtime_error("recipe " + recipe.path + " refused before any device was touched:" + why);
+  }
+  RigDevices devices = MakeRigDevices(rig, &recipe);
+
+  RunOutcome outcome;
+  outcome.directory = request.output_directory.empty() ? (fs::path("runs") / (recipe.name + "-" + UtcStamp())).string()
+                                                       : request.output_directory;
+  RunManifest header = ManifestHeaderFor(rig);
+  header.run_id = fs::path(outcome.directory).filename().string();
+  header.recipe_path = recipe.path;
+  header.recipe_name = recipe.name;
+  header.sample_name = recipe.sample_name;
   std::unique_ptr<RunWriter> writer_storage;
   if (request.resume) {
     writer_storage = RunWriter::Reopen(outcome.directory, &outcome.recovery);

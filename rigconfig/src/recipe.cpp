@@ -385,7 +385,9 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
       else if (keys[0] == "light_calibration") recipe.light_calibration = ParseLightCalibrationRequest(stage[keys[0]]);
       else if (keys[0] == "tomography") recipe.tomography = ParseTomographyRequest(stage[keys[0]]);
       else if (keys[0] == "svbrdf") recipe.svbrdf = ParseSvbrdfRequest(stage[keys[0]]);
-      else stage.Fail("unknown solver '" + keys[0] + "' (expected photometric_stereo, light_calibration, tomography or svbrdf)");
+      else if (keys[0] == "brdf") recipe.brdf = ParseBrdfRequest(stage[keys[0]]);
+      else stage.Fail("unknown solver '" + keys[0] +
+                      "' (expected photometric_stereo, light_calibration, tomography, svbrdf or brdf)");
     }
   }
   return recipe;

@@ -153,4 +153,22 @@ SvbrdfRequest ParseSvbrdfRequest(const YamlNode& node) {
   return request;
 }
 
+BrdfRequest ParseBrdfRequest(const YamlNode& node) {
+  node.ExpectKeys({"loss", "calibration"});
+  BrdfRequest request;
+  if (auto loss = node.Find("loss")) {
+    const std::string name = loss->AsString();
+    if (name != "weighted" && name != "log") loss->Fail("'" + name + "' is no loss (expected weighted or log)");
+    request.loss = name == "log" ? solvers::brdf::FitLoss::kLog : solvers::brdf::FitLoss::kWeighted;
+  }
+  if (auto calibration = node.Find("calibration")) {
+    const std::string name = calibration->AsString();
+    if (name != "reference" && name != "camera")
+      calibration->Fail("'" + name + "' is no calibration (expected reference: the rig's reference target, or camera: "
+                        "the camera's stated response)");
+    request.calibrate_with_target = name == "reference";
+  }
+  return request;
+}
+
 }  // namespace photorig::config

@@ -77,10 +77,17 @@ void ExpectTheMaterial(const nlohmann::json& report) {
 
 TEST(BrdfEndToEnd, GonioRunFitsTheSimulatedMaterial) {
   TempDir dir;
-  // The run completes under the rig's default health checks: a pose's longer
-  // exposures may clip, only its shortest is judged.
-  ASSERT_EQ(RunAndSolve(dir, SourceDir() + "/config/recipes/brdf-gonio.yaml", GonioRig(dir), "run"), 0)
+  // The run completes under the rig's default health checks (a pose's longer
+  // exposures may clip, only its shortest is judged) and ends with the fit:
+  // the recipe's brdf solve stage.
+  const std::string run = (dir.path() / "run").string();
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/brdf-gonio.yaml --rig " + GonioRig(dir) + " --out " +
+                            run + " --json",
+                        dir.path() / "run.log"),
+            0)
       << ReadText(dir.path() / "run.log");
+  const std::string printed = ReadText(dir.path() / "run.log");
+  EXPECT_NE(printed.find("\"chosen\": \"blinn_phong\""), std::string::npos) << printed;
   const auto report = Report(dir, "run");
   // The recipe's plan: 9 x 6 configurations, 4 beyond the arms or the horizon.
   EXPECT_EQ(report["samples"], 50);

@@ -33,6 +33,7 @@
 namespace photorig::daemon {
 namespace {
 
+using photorig::testing::ReadText;
 using photorig::testing::SourceDir;
 using photorig::testing::TempDir;
 using photorig::testing::WatchedDome;
@@ -592,19 +593,7 @@ struct AdaptiveCapture {
         arms(rig, devices.world, false),
         passes(recipe, *config::AdaptivePlanGroup(recipe), rig) {}
 
-  RunManifest Header() const {
-    RunManifest header;
-    header.width = rig.camera.width;
-    header.height = rig.camera.height;
-    header.bit_depth = rig.camera.bit_depth;
-    header.saturation_dn = rig.health.saturation_dn;
-    header.dn_per_radiance_per_us = rig.camera.dn_per_radiance_per_us;
-    header.e_per_dn = rig.camera.e_per_dn;
-    header.pixel_pitch_mm = rig.camera.pixel_pitch_mm;
-    header.lights = rig.lights.leds;
-    header.reference_albedo = rig.reference_target->albedo;
-    return header;
-  }
+  RunManifest Header() const { return ManifestHeaderFor(rig); }
 
   CaptureReport Run(RunWriter& writer, drivers::LightController& lights, CaptureOptions options = {}) {
     options.motion = &arms.motion;
@@ -818,6 +807,50 @@ TEST(Gonio, DryRunBoundsWhatTheAdaptivePassesAdd) {
   EXPECT_TRUE(shipped_plan.ok()) << shipped_plan.errors.front();
   ASSERT_TRUE(shipped_plan.adaptive.has_value());
   EXPECT_EQ(shipped_plan.adaptive->passes, 2);
+}
+
+// The shipped BRDF recipe ends with the brdf solve stage; its settings are
+// checked when the recipe loads, a bad one named at its line and column.
+TEST(Gonio, TheBrdfSolveStageIsParsedAndCheckedAtLoad) {
+  const std::string shipped = SourceDir() + "/config/recipes/brdf-gonio.yaml";
+  const RigConfig rig = LoadRigConfig(RecipeRigPath(shipped, ""));
+  const Recipe recipe = LoadRecipe(shipped, rig);
+  ASSERT_TRUE(recipe.brdf.has_value());
+  EXPECT_EQ(recipe.brdf->loss, solvers::brdf::FitLoss::kWeighted);
+  EXPECT_TRUE(recipe.brdf->calibrate_with_target);
+
+  const std::string text = ReadText(shipped);
+  const std::string stage = "  - brdf: {loss: weighted, calibration: reference}";
+  const std::size_t at = text.find(stage);
+  ASSERT_NE(at, std::string::npos);
+  const int line = static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n')) + 1;
+  struct Case {
+    std::string stage;
+    int column;
+    const char* fragment;
+  };
+  const Case cases[] = {
+      {"  - brdf: {loss: log, calibration: camera}", 0, ""},
+      {"  - brdf: {loss: squared}", 18, "'squared' is no loss (expected weighted or log)"},
+      {"  - brdf: {calibration: lamp}", 25, "'lamp' is no calibration"},
+      {"  - brdf: {folds: 5}", 12, "folds"},
+  };
+  for (const Case& c : cases) {
+    TempDir dir;
+    std::string edited = text;
+    edited.replace(at, stage.size(), c.stage);
+    // The recipe's relative rig path resolves from its own folder.
+    const std::string path = dir.Write("brdf.yaml", Replace(edited, "rig: ../rigs/sim-gonio.yaml",
+                                                             "rig: " + SourceDir() + "/config/rigs/sim-gonio.yaml"));
+    if (c.column == 0) {
+      const Recipe loaded = LoadRecipe(path, rig);
+      ASSERT_TRUE(loaded.brdf.has_value());
+      EXPECT_EQ(loaded.brdf->loss, solvers::brdf::FitLoss::kLog);
+      EXPECT_FALSE(loaded.brdf->calibrate_with_target);
+      continue;
+    }
+    photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(path, rig); }, path, line, c.column, c.fragment);
+  }
 }
 
 }  // namespace

@@ -152,14 +152,20 @@ BandFit BandOf(const SvbrdfScene& scene, const refl::ReflectanceMaps& fit, int b
   return out;
 }
 
+// The reflectance fit of a two-paint scene, free to find up to three materials.
+refl::ReflectanceSummary FitUpToThreeMaterials(const SvbrdfScene& scene, refl::ReflectanceOptions* options,
+                                               refl::ReflectanceMaps* fit) {
+  options->max_materials = 3;
+  return refl::FitReflectance(*options, scene.stack, scene.truth.normals, scene.mask, fit);
+}
+
 // Before, the GGX paint's pixels (no lobe seen) joined the glossy paint's
 // material and were reported with its Blinn-Phong lobe, unflagged.
 TEST(Stability, APaintWhoseHighlightsNoLightReachesIsFlaggedNotMerged) {
   const SvbrdfScene scene = TwoGlossyPaints(true);
   refl::ReflectanceMaps fit;
   refl::ReflectanceOptions options;
-  options.max_materials = 3;
-  const auto summary = refl::FitReflectance(options, scene.stack, scene.truth.normals, scene.mask, &fit);
+  const auto summary = FitUpToThreeMaterials(scene, &options, &fit);
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   ASSERT_EQ(summary.materials, 2) << summary.message;
   EXPECT_EQ(summary.materials_unobserved, 1);
@@ -191,8 +197,7 @@ TEST(Stability, InMonochromeAnUnseenPaintJoinsItsNeighboursFlagged) {
   const SvbrdfScene scene = TwoGlossyPaints(true, 1);
   refl::ReflectanceMaps fit;
   refl::ReflectanceOptions options;
-  options.max_materials = 3;
-  const auto summary = refl::FitReflectance(options, scene.stack, scene.truth.normals, scene.mask, &fit);
+  const auto summary = FitUpToThreeMaterials(scene, &options, &fit);
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   // Measured: one material (Blinn-Phong, e 60), 424 of its 1,310 pixels saw a highlight.
   ASSERT_EQ(summary.materials, 1);
@@ -207,8 +212,7 @@ TEST(Stability, TwoPaintsWhoseHighlightsAreAllObservedRaiseNothing) {
   const SvbrdfScene scene = TwoGlossyPaints(false);
   refl::ReflectanceMaps fit;
   refl::ReflectanceOptions options;
-  options.max_materials = 3;
-  const auto summary = refl::FitReflectance(options, scene.stack, scene.truth.normals, scene.mask, &fit);
+  const auto summary = FitUpToThreeMaterials(scene, &options, &fit);
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   ASSERT_EQ(summary.materials, 2);
   EXPECT_EQ(summary.materials_unobserved, 0);

@@ -13,7 +13,7 @@
 
 #include "../command.h"
 #include "../command_output.h"
-#include "brdf_report.h"
+#include "photorig/daemon/brdf_report.h"
 #include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/merl.h"
 #include "photorig/solvers/brdf/rgl.h"
@@ -74,11 +74,11 @@ int Fit(const Options& o) {
   brdf::SelectionOptions selection;
   selection.fit.loss = loss == "log" ? brdf::FitLoss::kLog : brdf::FitLoss::kWeighted;
   const brdf::SelectionSummary s = brdf::SelectModel(samples, selection);
-  doc.update(SelectionJson(s));
+  doc.update(daemon::SelectionJson(s));
   FILE* text = stdout;  // under --json main points it at stderr
   std::fprintf(text, "%zu samples from %s (%s loss), closest theta_h %.2f deg\n", samples.size(), o.file.c_str(),
                loss.c_str(), s.min_theta_h_deg);
-  PrintSelection(text, s);
+  daemon::PrintSelection(text, s);
   if (!o.out.empty()) {
     fs::create_directories(o.out);
     std::ofstream(fs::path(o.out) / "report.json") << doc.dump(2) << "\n";
@@ -128,7 +128,7 @@ int Convert(const Options& o) {
     const nlohmann::json spec = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
     if (spec.is_discarded()) return finish(kExitUsage, "'" + o.file + "': not valid JSON");
     brdf::ModelParams params;
-    if (std::string why; !ModelFromJson(spec, o.model, &params, &why)) return finish(kExitUsage, "'" + o.file + "': " + why);
+    if (std::string why; !daemon::ModelFromJson(spec, o.model, &params, &why)) return finish(kExitUsage, "'" + o.file + "': " + why);
     doc["model"] = brdf::ModelName(params.model);
     table = [params](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) -> std::optional<Eigen::Vector3d> {
       if (wi.z() <= 0.0 || wo.z() <= 0.0) return std::nullopt;

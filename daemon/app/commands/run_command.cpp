@@ -4,6 +4,7 @@
 #include "../command_output.h"
 #include "../progress_display.h"
 #include "../signals.h"
+#include "photorig/daemon/brdf_report.h"
 #include "photorig/daemon/run.h"
 #include "ps_report.h"
 
@@ -107,6 +108,21 @@ int Execute(const Options& options) {
     ResultFields()["svbrdf"] = daemon::ToJson(svbrdf);
     ResultFields()["svbrdf"]["results_directory"] = results;
     if (!svbrdf.usable()) return Fail(kExitFailed, "svbrdf gave no usable result: " + svbrdf.summary.message);
+  }
+  if (outcome.brdf) {
+    const daemon::BrdfSolveResult& brdf = *outcome.brdf;
+    std::printf("brdf:\n");
+    if (brdf.measurement.IsSolutionUsable()) daemon::PrintMeasurement(stdout, brdf.measurement);
+    if (brdf.selection) daemon::PrintSelection(stdout, *brdf.selection);
+    if (!brdf.warning.empty()) std::printf("warning: %s\n", brdf.warning.c_str());
+    ResultFields()["brdf"] = brdf.report;
+    if (!brdf.results.empty()) {
+      const std::string results = outcome.directory + "/results/brdf";
+      std::printf("results: %s/\n", results.c_str());
+      ResultFields()["brdf"]["results_directory"] = results;
+    }
+    if (!brdf.usable())
+      return Fail(brdf.refused_input() ? kExitUsage : kExitFailed, "brdf gave no usable result: " + brdf.failure());
   }
   return kExitOk;
 }

@@ -462,14 +462,20 @@ std::vector<double> HeldOutErrors(const FitSummary& all, const std::vector<BrdfS
   return errors;
 }
 
+// A fit's summary before the fit: the model and the counts.
+FitSummary FitOf(Model model, std::size_t samples) {
+  FitSummary summary;
+  summary.params.model = model;
+  summary.samples = samples;
+  summary.residuals = 3 * samples;
+  summary.parameters = ParameterCount(model);
+  return summary;
+}
+
 // FitModel on prepared samples.
 FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const FitOptions& options) {
   SolveTimer timer;
-  FitSummary summary;
-  summary.params.model = model;
-  summary.samples = prepared.size();
-  summary.residuals = 3 * prepared.size();
-  summary.parameters = ParameterCount(model);
+  FitSummary summary = FitOf(model, prepared.size());
   if (summary.residuals <= static_cast<std::size_t>(summary.parameters)) {
     summary.End(Termination::kFailure, std::to_string(prepared.size()) + " samples (" +
                                            std::to_string(summary.residuals) + " values) cannot fit the " +
@@ -586,11 +592,7 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
 
 FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options) {
   SolveTimer timer;
-  FitSummary summary;
-  summary.params.model = model;
-  summary.samples = samples.size();
-  summary.residuals = 3 * samples.size();
-  summary.parameters = ParameterCount(model);
+  FitSummary summary = FitOf(model, samples.size());
   if (std::string why; !options.IsValid(&why)) {
     summary.End(Termination::kInvalidOptions, why);
     return summary;

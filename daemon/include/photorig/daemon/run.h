@@ -4,6 +4,7 @@
 // Shared by the `photorig` CLI and the `photorigd` daemon.
 
 #include "photorig/daemon/adaptive_poses.h"
+#include "photorig/daemon/brdf_solve.h"
 #include "photorig/daemon/light_calibration.h"
 #include "photorig/daemon/ps_pipeline.h"
 #include "photorig/daemon/sequencer.h"
@@ -43,6 +44,7 @@ SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const 
 // Usable only when trusted (TomographyResult::trusted).
 SolveStageReport ReportSolveStage(const TomographyResult& result);
 SolveStageReport ReportSolveStage(const SvbrdfResult& result);
+SolveStageReport ReportSolveStage(const BrdfSolveResult& result);
 
 struct RunRequest {
   std::string recipe_path;
@@ -84,8 +86,13 @@ struct RunOutcome {
   std::optional<LightCalibrationSummary> light_calibration;
   std::optional<TomographyResult> tomography;  // stored in results/tomography
   std::optional<SvbrdfResult> svbrdf;          // stored in results/svbrdf
+  std::optional<BrdfSolveResult> brdf;         // stored in results/brdf
   std::vector<SolveStageReport> solve_stages;  // in the order they ran
 };
+
+// What a run's manifest takes from the rig: camera geometry and response,
+// mosaic and colour model, saturation, lamps, reference target.
+RunManifest ManifestHeaderFor(const RigConfig& rig);
 
 // Throws ConfigError for bad configuration (before any device is touched) and
 // std::runtime_error for storage failures or too little free space for the

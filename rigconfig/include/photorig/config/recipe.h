@@ -78,6 +78,7 @@ struct Recipe {
   std::optional<LightCalibrationRequest> light_calibration;
   std::optional<TomographyRequest> tomography;
   std::optional<SvbrdfRequest> svbrdf;
+  std::optional<BrdfRequest> brdf;
   // Where the solve stages run: the rig's `solve:` unless the recipe's
   // `solve: {executor: ..., stages: [...]}` overrides it (keys it leaves out
   // keep the rig's values).

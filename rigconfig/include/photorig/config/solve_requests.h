@@ -5,6 +5,7 @@
 
 #include "photorig/config/yaml_node.h"
 #include "photorig/lighting/sphere.h"
+#include "photorig/solvers/brdf/fit.h"
 #include "photorig/ps/photometric_stereo.h"
 
 #include <array>
@@ -102,5 +103,23 @@ struct SvbrdfRequest {
 
 // Throws ConfigError naming file:line:column for unknown keys or values.
 SvbrdfRequest ParseSvbrdfRequest(const YamlNode& node);
+
+// The recipe stage `brdf: {loss, calibration}` and `photorig solve brdf`'s
+// flags: a gonioreflectometer run's frames -> calibrated BRDF samples -> every
+// candidate model fitted and the one the data support chosen
+// (docs/brdf-measurement.md, docs/brdf.md).
+struct BrdfRequest {
+  // weighted: each sample by its propagated deviation; log: Löw et al.'s log
+  // loss, for samples without deviations.
+  solvers::brdf::FitLoss loss = solvers::brdf::FitLoss::kWeighted;
+  // The radiometric scale from the run's reference-target frames; false: from
+  // the camera's stated response.
+  bool calibrate_with_target = true;
+  // Not from YAML: whoever runs the solve listens here.
+  solvers::ProgressCallback progress;
+};
+
+// Throws ConfigError naming file:line:column for unknown keys or values.
+BrdfRequest ParseBrdfRequest(const YamlNode& node);
 
 }  // namespace photorig::config

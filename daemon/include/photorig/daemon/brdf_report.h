@@ -1,6 +1,7 @@
 #pragma once
-// What `photorig solve brdf` and `photorig brdf fit` report about a model
-// selection: the same JSON fields and the same lines of text.
+// What `photorig solve brdf`, a recipe's brdf stage and `photorig brdf fit`
+// report about a measurement and a model selection: the same JSON fields and
+// the same lines of text.
 
 #include "photorig/solvers/brdf/fit.h"
 
@@ -9,7 +10,9 @@
 #include <cstdio>
 #include <string>
 
-namespace photorig::app {
+namespace photorig::daemon {
+
+struct BrdfMeasurement;
 
 // termination, message, min_theta_h_deg, peak_sampled, candidates (each fit's
 // model, parameters with deviations, BIC, training and held-out RMS, flags), chosen and
@@ -26,4 +29,8 @@ void PrintSelection(std::FILE* out, const solvers::brdf::SelectionSummary& selec
 bool ModelFromJson(const nlohmann::json& doc, const std::string& name, solvers::brdf::ModelParams* params,
                    std::string* error);
 
-}  // namespace photorig::app
+// What a gonioreflectometer measurement found (samples, clipped poses, the
+// calibration, colour channels, noise), in lines of text.
+void PrintMeasurement(std::FILE* out, const BrdfMeasurement& measurement);
+
+}  // namespace photorig::daemon

@@ -1,9 +1,11 @@
-#include "brdf_report.h"
+#include "photorig/daemon/brdf_report.h"
+
+#include "photorig/daemon/brdf_measurement.h"
 
 #include <cmath>
 #include <string>
 
-namespace photorig::app {
+namespace photorig::daemon {
 namespace {
 
 namespace brdf = photorig::solvers::brdf;
@@ -149,4 +151,38 @@ void PrintSelection(std::FILE* text, const brdf::SelectionSummary& s) {
   if (!s.message.empty()) std::fprintf(text, "%s\n", s.message.c_str());
 }
 
-}  // namespace photorig::app
+// What the measurement found, in lines of text.
+void PrintMeasurement(std::FILE* text, const BrdfMeasurement& m) {
+  std::fprintf(text, "%zu samples from %d poses (%d frames, %d bracketed), %zu clipped, %d below the horizon\n",
+               m.samples.size(), m.poses, m.pose_frames, m.bracketed_poses, m.clipped.size(), m.below_horizon);
+  for (const ClippedPose& c : m.clipped)
+    std::fprintf(text, "  clipped: light %+.1f camera %+.1f deg (theta_h %.1f deg) even at %.0f us: no sample\n",
+                 c.pose.light_arm_deg, c.pose.camera_arm_deg, c.theta_h_deg, c.shortest_exposure_us);
+  if (m.calibration == "reference_target")
+    std::fprintf(text, "calibration: reference target of albedo %.3f: %.5g DN per radiance per us +- %.2g %% "
+                 "(a scale every f_r shares; the camera states %.5g)\n",
+                 m.reference_albedo, m.dn_per_radiance_per_us, 100.0 * m.calibration_relative_sigma,
+                 m.camera_dn_per_radiance_per_us);
+  else
+    std::fprintf(text, "calibration: the camera's stated response, %.5g DN per radiance per us (uncertainty not known)\n",
+                 m.dn_per_radiance_per_us);
+  if (m.mosaic != "mono") {
+    const Eigen::Vector3d& k = m.channel_dn_per_radiance_per_us;
+    const Eigen::Vector3d& r = m.channel_calibration_relative_sigma;
+    std::fprintf(text, "colour camera (%s): K per channel R %.5g +- %.2g %%, G %.5g +- %.2g %%, B %.5g +- %.2g %% "
+                 "from %d/%d/%d sites of the block; f_r per channel\n",
+                 m.mosaic.c_str(), k[0], 100.0 * r[0], k[1], 100.0 * r[1], k[2], 100.0 * r[2], m.channel_sites[0],
+                 m.channel_sites[1], m.channel_sites[2]);
+    if (!m.color_model_path.empty())
+      std::fprintf(text, "colour model %s (%s): %s\n", m.color_model_path.c_str(), m.color_model_kind.c_str(),
+                   m.color_model_note.c_str());
+  }
+  std::fprintf(text, "noise: read %.2f DN (from the darks), shot %.4g DN^2 per DN (%s)", m.read_sigma_dn,
+               m.shot_dn_per_dn, m.shot_estimated ? "estimated from the repeats" : "from the camera's e_per_dn");
+  if (m.repeat_dof > 0)
+    std::fprintf(text, "; repeats scatter %.2f x the propagated deviation (%d dof)", m.repeat_sigma_ratio,
+                 m.repeat_dof);
+  std::fprintf(text, "\n");
+}
+
+}  // namespace photorig::daemon
