@@ -4,6 +4,7 @@
 #include "photorig/solvers/brdf/tensor_file.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
@@ -18,8 +19,10 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
+// Unique to this process: CTest runs each test as a process of its own, two
+// at a time, and tests of one fixture write files of the same name.
 std::string TempPath(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("photorig_rgl_" + name)).string();
+  return (std::filesystem::temp_directory_path() / ("photorig_rgl_" + std::to_string(::getpid()) + "_" + name)).string();
 }
 
 std::vector<char> Bytes(const std::string& path) {

@@ -1,6 +1,7 @@
 #include "photorig/lighting/light_files.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -8,8 +9,9 @@
 namespace photorig::lighting {
 namespace {
 
+// Unique to this process: CTest runs tests of one file in parallel processes.
 std::string TempPath(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("photorig_lighting_" + name)).string();
+  return (std::filesystem::temp_directory_path() / ("photorig_lighting_" + std::to_string(::getpid()) + "_" + name)).string();
 }
 
 void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }

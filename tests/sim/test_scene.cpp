@@ -4,6 +4,7 @@
 #include "photorig/sim/world.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -18,8 +19,9 @@ namespace {
 
 using Eigen::Vector3d;
 
+// Unique to this process: CTest runs tests of one file in parallel processes.
 std::string TempPath(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("photorig_test_" + name)).string();
+  return (std::filesystem::temp_directory_path() / ("photorig_test_" + std::to_string(::getpid()) + "_" + name)).string();
 }
 
 Vector3d NormalAt(const SurfaceMaps& maps, int r, int c) {
