@@ -51,10 +51,7 @@ CaptureOptions::AddedSteps AdaptivePoses::NextPass(const std::vector<CaptureStep
   std::vector<brdf::PlanSample> samples, on_peak;
   std::set<double> rows;  // the phi_d of the samples off the peak
   for (std::size_t k = 0; k < measured.samples.size(); ++k) {
-    const GonioPose& pose = measured.sample_poses[k];
-    const brdf::DirectionPair d =
-        brdf::ArmDirections({pose.light_arm_deg, pose.camera_arm_deg, pose.sample_rotation_deg});
-    brdf::HalfDiff at = brdf::ToHalfDiff(d.wi, d.wo);
+    brdf::HalfDiff at = brdf::ToHalfDiff(measured.samples[k].wi, measured.samples[k].wo);
     // In the arms' plane phi_d is 0 or pi; rounding must not split one grid row in two.
     if (std::abs(at.phi_d) < 1e-9) at.phi_d = 0.0;
     if (std::abs(std::abs(at.phi_d) - M_PI) < 1e-9) at.phi_d = M_PI;

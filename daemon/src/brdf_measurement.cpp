@@ -473,7 +473,6 @@ BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manif
     s.origin = brdf::SampleOrigin{pose.pose.light_arm_deg, pose.pose.camera_arm_deg, pose.pose.sample_rotation_deg,
                                   m.longest_used_exposure_us, m.frames_used};
     out.samples.push_back(s);
-    out.sample_poses.push_back(pose.pose);
 
     // Repeats: a single frame's block mean scatters about the pose's by the
     // propagated noise (the dark, common to all, drops out).

@@ -65,8 +65,7 @@ struct ClippedPose {
 };
 
 struct BrdfMeasurement : solvers::Summary {
-  std::vector<solvers::brdf::BrdfSample> samples;  // one per usable pose, in capture order
-  std::vector<GonioPose> sample_poses;             // the pose of each sample
+  std::vector<solvers::brdf::BrdfSample> samples;  // one per usable pose, in capture order, each with its origin
   int pose_frames = 0, dark_frames = 0, target_frames = 0;
   int poses = 0;
   int bracketed_poses = 0;  // poses taken at more than one exposure
