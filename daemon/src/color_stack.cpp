@@ -1,6 +1,7 @@
 #include "photorig/daemon/color_stack.h"
 
 #include "photorig/color/apply.h"
+#include "photorig/color/region_demosaic.h"
 #include "photorig/daemon/rig_config.h"
 #include "photorig/daemon/run_store.h"
 
@@ -106,6 +107,48 @@ void ApplyColorModelInPlace(const color::ColorModel& model, cv::Mat* rgb) {
   rgb->setTo(cv::Scalar::all(std::numeric_limits<float>::infinity()), any_clipped != 0);
 }
 
+namespace {
+
+// The region labels after color::RegionEdgeVote over the run's lit frames,
+// dark subtracted (the mean of the raw darks), with a floor of four times the
+// raw read noise (the darks' temporal spread; 1 DN with one dark or none).
+cv::Mat SettleRegionEdges(const std::string& run_directory, const RunManifest& manifest, const cv::Mat& regions,
+                          double saturation_dn, int* moved) {
+  std::vector<cv::Mat> darks;
+  for (const FrameRecord& record : manifest.frames) {
+    if (record.kind != "dark") continue;
+    darks.emplace_back();
+    LoadFrame(run_directory, record).convertTo(darks.back(), CV_32F);
+  }
+  cv::Mat dark;
+  color::RegionEdgeVote::Options options;
+  if (!darks.empty()) {
+    dark = cv::Mat::zeros(darks.front().size(), CV_32F);
+    for (const cv::Mat& d : darks) dark += d;
+    dark /= static_cast<double>(darks.size());
+  }
+  if (darks.size() >= 2) {
+    double squares = 0.0;
+    for (const cv::Mat& d : darks) squares += cv::norm(d - dark, cv::NORM_L2SQR);
+    const double sigma = std::sqrt(squares / (static_cast<double>(dark.total()) * (darks.size() - 1)));
+    options.floor_dn = std::max(4.0 * sigma, 1.0);
+  }
+  color::RegionEdgeVote vote(manifest.mosaic, regions, options);
+  if (!vote.status().IsSolutionUsable()) throw std::invalid_argument("region edges: " + vote.status().message);
+  for (const FrameRecord& record : manifest.frames) {
+    if (record.kind != "light" || record.led < 0) continue;
+    const cv::Mat frame = LoadFrame(run_directory, record);
+    cv::Mat raw;
+    frame.convertTo(raw, CV_32F);
+    if (!dark.empty()) raw -= dark;
+    const solvers::Summary added = vote.Add(raw, frame >= saturation_dn);
+    if (!added.IsSolutionUsable()) throw std::runtime_error(run_directory + "/" + record.file + ": " + added.message);
+  }
+  return vote.Regions(moved);
+}
+
+}  // namespace
+
 ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorStackOptions& options) {
   const RunManifest manifest = LoadRunManifest(run_directory);
   if (manifest.mosaic == "mono")
@@ -113,18 +156,43 @@ ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorS
   ColorImageStack out;
   out.provenance.mosaic = manifest.mosaic;
   const bool bayer = IsBayerPattern(manifest.mosaic);
-  out.provenance.demosaic = bayer ? DemosaicMethodName(options.demosaic) : "none";
+  const bool within_regions = bayer && !options.demosaic_regions.empty();
+  out.provenance.demosaic = !bayer ? "none" : within_regions ? "bilinear within materials" : DemosaicMethodName(options.demosaic);
+  if (bayer) {
+    out.bayer_run_directory = run_directory;
+    out.loaded_with = options;
+  }
   const std::string model_path = !options.color_model_path.empty() ? options.color_model_path : manifest.color_model_path;
   std::optional<LoadedColorModel> model;
   if (!model_path.empty()) model = LoadColorModelFile(model_path);
 
   const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
   const double saturation = manifest.saturation_dn > 0.0 ? std::min(manifest.saturation_dn, top_code) : top_code;
+  // Regions given: their edges are first settled by the raw sites (one read
+  // of the frames), then every frame is demosaiced within them.
+  cv::Mat regions;
+  if (within_regions) {
+    if (options.demosaic_regions.type() != CV_8U || options.demosaic_regions.size() != cv::Size(manifest.width, manifest.height))
+      throw std::invalid_argument(run_directory + ": the demosaic's region map must be CV_8U and " +
+                                  std::to_string(manifest.width) + " x " +
+                                  std::to_string(manifest.height) + " like the frames");
+    regions = SettleRegionEdges(run_directory, manifest, options.demosaic_regions, saturation, &out.region_edges_moved);
+    out.loaded_with.demosaic_regions = regions;
+  }
   // Frame -> camera RGB (float) and where a raw sample it drew on was clipped.
   auto to_rgb = [&](const cv::Mat& raw, cv::Mat* clipped) {
     if (clipped) {
       cv::Mat at_top = raw >= saturation;
-      if (bayer) {
+      if (within_regions) {
+        // Demosaicing the clipped sites' indicator within the same regions
+        // marks every pixel whose channels drew on one.
+        cv::Mat reached;
+        const solvers::Summary marked = color::DemosaicWithinRegions(at_top, manifest.mosaic, regions, &reached);
+        if (!marked.IsSolutionUsable()) throw std::invalid_argument("demosaicing: " + marked.message);
+        cv::Mat any;
+        cv::transform(reached, any, cv::Matx13f(1, 1, 1));
+        *clipped = any > 0;
+      } else if (bayer) {
         cv::dilate(at_top, at_top, cv::Mat::ones(3, 3, CV_8U));  // the demosaic reaches one pixel out
         *clipped = at_top;
       } else {
@@ -133,7 +201,12 @@ ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorS
         *clipped = any != 0;
       }
     }
-    return ToFloatRgb(bayer ? DemosaicToRgb(raw, manifest.mosaic, options.demosaic) : raw);
+    if (!within_regions) return ToFloatRgb(bayer ? DemosaicToRgb(raw, manifest.mosaic, options.demosaic) : raw);
+    cv::Mat bgr, rgb;
+    const solvers::Summary demosaiced = color::DemosaicWithinRegions(raw, manifest.mosaic, regions, &bgr);
+    if (!demosaiced.IsSolutionUsable()) throw std::invalid_argument("demosaicing: " + demosaiced.message);
+    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    return rgb;
   };
 
   std::vector<cv::Mat> darks;

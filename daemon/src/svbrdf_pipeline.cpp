@@ -1,11 +1,13 @@
 #include "photorig/daemon/svbrdf_pipeline.h"
 
+#include "photorig/color/region_demosaic.h"
 #include "photorig/daemon/gltf_export.h"
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/results_folder.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -78,6 +80,71 @@ std::optional<double> MaterialAgreement(const refl::ReflectanceMaps& maps, const
 
 nlohmann::json ColorErrorJson(const PhotometricStereoResult::ColorError& e) {
   return {{"mean", e.mean}, {"median", e.median}, {"p95", e.p95}, {"pixels", e.pixels}};
+}
+
+// The material map for demosaicing within materials. A pixel the fit left
+// without a material (a blend no material explained, too few samples, a poor
+// fit) takes its nearest labelled pixel's, so its channels come from one side
+// of an edge and the raw sites settle which (color::RegionEdgeVote). A pixel
+// whose 3 x 3 window reaches off the object (masked out, no normal) is left
+// unlabelled, given a material or not: at the rim the object covers part of
+// a pixel, and its site would carry the background into its neighbours.
+cv::Mat MaterialsOverTheObject(const refl::ReflectanceMaps& maps) {
+  cv::Mat off_object(maps.flags.size(), CV_8U, cv::Scalar(0));
+  for (int i = 0; i < static_cast<int>(off_object.total()); ++i) {
+    const auto flag = static_cast<refl::PixelFlag>(maps.flags.data[i]);
+    off_object.data[i] = flag == refl::PixelFlag::kOutsideMask || flag == refl::PixelFlag::kNoNormal ? 255 : 0;
+  }
+  cv::Mat near_off_object;
+  cv::dilate(off_object, near_off_object, cv::Mat::ones(3, 3, CV_8U), cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
+             cv::Scalar(255));
+  const cv::Mat unlabelled = maps.material == color::kNoRegion;
+  cv::Mat out = maps.material.clone();
+  out.setTo(color::kNoRegion, near_off_object);
+  if (cv::countNonZero(unlabelled) == static_cast<int>(unlabelled.total())) return out;
+  cv::Mat distance, nearest;
+  cv::distanceTransform(unlabelled, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+  // DIST_LABEL_PIXEL gives each labelled pixel an index of its own; map indices to materials.
+  std::vector<std::uint8_t> material_of(static_cast<std::size_t>(unlabelled.total()) + 1, color::kNoRegion);
+  for (int i = 0; i < static_cast<int>(maps.material.total()); ++i)
+    if (!unlabelled.data[i]) material_of[static_cast<std::size_t>(nearest.ptr<int>()[i])] = maps.material.data[i];
+  for (int i = 0; i < static_cast<int>(out.total()); ++i)
+    if (unlabelled.data[i] && !near_off_object.data[i])
+      out.data[i] = material_of[static_cast<std::size_t>(nearest.ptr<int>()[i])];
+  return out;
+}
+
+// A bilinear demosaic fills a pixel's missing channels from its neighbours on
+// both sides of a paint edge, so the pixels along every edge carry a blend of
+// two albedos (flagged mixed, their colour off by CIEDE2000 ~10). Once the
+// materials are known the raw frames are demosaiced again, each pixel's
+// channels taken only from sites of its own material (its label first
+// settled by its own site: color::RegionEdgeVote), and the reflectance is
+// refitted once. Not repeated until the map stops changing: on the shipped
+// recipe a second refit moves no edge it did not already move, but lets the
+// colour test of the pixels that saw no highlight split a glossy paint's rim
+// off as a paint of its own in some runs (docs/reflectance.md).
+void RefitDemosaicedWithinMaterials(const PhotometricStereoInput& input, const cv::Mat& normals,
+                                    const refl::ReflectanceOptions& options, refl::ReflectanceStack* stack,
+                                    refl::ReflectanceMaps* maps, SvbrdfResult* result) {
+  ColorStackOptions within = input.color->loaded_with;
+  within.demosaic_regions = MaterialsOverTheObject(*maps);
+  PhotometricStereoInput regional = input;
+  regional.color = LoadRunColorStack(input.color->bayer_run_directory, within);
+  refl::ReflectanceStack refit_stack = ToReflectanceStack(regional);
+  refl::ReflectanceMaps refit;
+  const refl::ReflectanceSummary summary = refl::FitReflectance(options, refit_stack, normals, input.object_mask, &refit);
+  // A refit that fails keeps the first fit, and the report says why.
+  if (!summary.IsSolutionUsable()) {
+    result->demosaic_refit_failure = summary.message;
+    return;
+  }
+  *stack = std::move(refit_stack);
+  *maps = std::move(refit);
+  result->summary = summary;
+  result->demosaic = regional.color->provenance.demosaic;
+  result->region_edges_moved = regional.color->region_edges_moved;
+  result->fit_passes = 2;
 }
 
 }  // namespace
@@ -160,6 +227,9 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
   j["warnings"] = nlohmann::json::array();
   for (refl::Warning w : result.summary.warnings) j["warnings"].push_back(refl::WarningName(w));
   j["inconsistent_lights"] = result.summary.inconsistent_lights;
+  j["demosaic"] = {{"method", result.demosaic}, {"fit_passes", result.fit_passes},
+                   {"region_edges_moved", result.region_edges_moved}};
+  if (!result.demosaic_refit_failure.empty()) j["demosaic"]["refit_failure"] = result.demosaic_refit_failure;
   j["timings_ms"] = {{"setup", result.summary.setup_ms}, {"solve", result.summary.solve_ms},
                      {"total", result.summary.total_ms}, {"pipeline", result.total_ms}};
   if (result.ps.normals_vs_truth)
@@ -217,12 +287,16 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
     } else {
       const cv::Mat normals = ReadFloatTiff((out / "ps" / "normals.tiff").string());
       cv::Mat mask = input.object_mask;
-      const refl::ReflectanceStack stack = ToReflectanceStack(input);
+      refl::ReflectanceStack stack = ToReflectanceStack(input);
       refl::ReflectanceOptions options;
       options.max_materials = request.max_materials;
       options.progress = request.progress;
       refl::ReflectanceMaps maps;
       result.summary = refl::FitReflectance(options, stack, normals, mask, &maps);
+      result.demosaic = input.color ? input.color->provenance.demosaic : "none";
+      result.fit_passes = 1;
+      if (result.summary.IsSolutionUsable() && input.color && !input.color->bayer_run_directory.empty())
+        RefitDemosaicedWithinMaterials(input, normals, options, &stack, &maps, &result);
       if (result.summary.IsSolutionUsable()) {
         result.material_fits = maps.materials;
         WriteFloatTiff((out / "albedo.tiff").string(), maps.albedo);

@@ -47,9 +47,10 @@ int Execute(const Options& options) {
   const std::string source = from_run ? options.run_dir : options.dataset_dir;
   const std::string destination =
       options.out.empty() ? (std::filesystem::path(source) / "results" / "svbrdf").string() : options.out;
+  daemon::ColorStackOptions color;
+  color.demosaic = *daemon::ParseDemosaicMethod(options.demosaic);
   daemon::PhotometricStereoInput input =
-      from_run ? daemon::LoadRunStack(options.run_dir, {*daemon::ParseDemosaicMethod(options.demosaic), ""})
-               : daemon::LoadDiligent(options.dataset_dir);
+      from_run ? daemon::LoadRunStack(options.run_dir, color) : daemon::LoadDiligent(options.dataset_dir);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
   daemon::SvbrdfRequest request = options.request;

@@ -571,16 +571,40 @@ bool AssignUnseen(const Samples& s, const std::vector<Eigen::Vector2d>& chroma, 
   if (unseen.empty() || groups->empty()) return false;
   bool formed = false;
   if (!chroma.empty()) {
+    // An unseen pixel's own colour (its albedo fitted with a lobe of its own,
+    // which it cannot show) keeps whatever tail of its paint's lobe reached
+    // it: a glossy paint's pixels beyond every highlight look paler than
+    // those that saw one, and would pass for another paint. So an unseen
+    // pixel is compared with material m in the colour of its albedo under
+    // m's lobe, under[m][p], and so are m's own pixels (one estimator on
+    // both sides, or its bias would pass for a second colour).
+    const std::size_t materials_count = groups->size();
+    std::vector<std::vector<Eigen::Vector2d>> under(materials_count, chroma);
+    for (std::size_t m = 0; m < materials_count; ++m) {
+      std::vector<int> pixels = (*groups)[m];
+      pixels.insert(pixels.end(), unseen.begin(), unseen.end());
+#pragma omp parallel for schedule(static)
+      for (std::size_t i = 0; i < pixels.size(); ++i) {
+        const int p = pixels[i];
+        const internal::PixelSums sums = internal::SumsOf(s, p, {materials[m].model, materials[m].shape}, {});
+        Eigen::Vector3d rho = Eigen::Vector3d::Zero();
+        for (int ch = 0; ch < 3; ++ch) internal::PixelCost(sums.c[ch], materials[m].specular[ch], &rho[ch]);
+        const double total = std::max(rho.sum(), 1e-6);
+        under[m][p] = {3.0 * rho[0] / total, 3.0 * rho[1] / total};
+      }
+    }
     std::vector<Eigen::Vector2d> centre;
-    for (const auto& g : *groups) centre.push_back(MeanChroma(chroma, g));
+    for (std::size_t m = 0; m < materials_count; ++m) centre.push_back(MeanChroma(under[m], (*groups)[m]));
     auto nearest = [&](int p) {
       int best = 0;
-      for (std::size_t m = 1; m < centre.size(); ++m)
-        if ((chroma[p] - centre[m]).squaredNorm() < (chroma[p] - centre[best]).squaredNorm()) best = static_cast<int>(m);
+      for (std::size_t m = 1; m < materials_count; ++m)
+        if ((under[m][p] - centre[m]).squaredNorm() < (under[best][p] - centre[best]).squaredNorm())
+          best = static_cast<int>(m);
       return best;
     };
-    std::vector<std::vector<int>> near(centre.size());
-    for (int p : unseen) near[nearest(p)].push_back(p);
+    std::vector<int> parent(s.pixels, -1);
+    std::vector<std::vector<int>> near(materials_count);
+    for (int p : unseen) near[parent[p] = nearest(p)].push_back(p);
     // Per material: its own pixels and the unseen ones nearest it, cut in
     // two colours (2-means); where the cut is real (ColourIsOneGroup) and
     // one side is mostly pixels that saw no highlight, that side's unseen
@@ -592,7 +616,7 @@ bool AssignUnseen(const Samples& s, const std::vector<Eigen::Vector2d>& chroma, 
       const std::size_t own = pixels.size();
       pixels.insert(pixels.end(), near[m].begin(), near[m].end());
       std::vector<Eigen::VectorXd> x;
-      for (int p : pixels) x.push_back(chroma[p]);
+      for (int p : pixels) x.push_back(under[m][p]);
       std::vector<int> labels;
       KMeans(x, 2, 4321u + static_cast<unsigned>(m), &labels);
       std::vector<int> side[2];
@@ -601,18 +625,23 @@ bool AssignUnseen(const Samples& s, const std::vector<Eigen::Vector2d>& chroma, 
         side[labels[i]].push_back(pixels[i]);
         seen_on[labels[i]] += i < own;
       }
-      if (side[0].empty() || side[1].empty() || ColourIsOneGroup(chroma, side[0], side[1], alpha)) continue;
+      if (side[0].empty() || side[1].empty() || ColourIsOneGroup(under[m], side[0], side[1], alpha)) continue;
       const int other = seen_on[0] * side[1].size() < seen_on[1] * side[0].size() ? 0 : 1;
       if (2 * seen_on[other] >= static_cast<int>(side[other].size())) continue;
       for (std::size_t i = own; i < pixels.size(); ++i)
         if (labels[i] == other) apart.push_back(pixels[i]);
     }
-    if (!apart.empty()) {
-      centre.push_back(MeanChroma(chroma, apart));
-      groups->emplace_back();
-      formed = true;
+    // The new paint's colour: its pixels' under the material they were cut from.
+    Eigen::Vector2d apart_centre = Eigen::Vector2d::Zero();
+    for (int p : apart) apart_centre += under[parent[p]][p] / static_cast<double>(apart.size());
+    if (!apart.empty()) groups->emplace_back();
+    for (int p : unseen) {
+      const int m = nearest(p);
+      const bool to_new = !apart.empty() && (under[parent[p]][p] - apart_centre).squaredNorm() <
+                                                (under[m][p] - centre[m]).squaredNorm();
+      (*groups)[to_new ? materials_count : m].push_back(p);
     }
-    for (int p : unseen) (*groups)[nearest(p)].push_back(p);
+    formed = !apart.empty();
     if (formed && groups->back().empty()) {
       groups->pop_back();
       formed = false;

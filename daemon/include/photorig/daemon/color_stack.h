@@ -62,6 +62,20 @@ struct ColorProvenance {
 };
 nlohmann::json ToJson(const ColorProvenance& provenance);
 
+struct ColorStackOptions {
+  DemosaicMethod demosaic = DemosaicMethod::kBilinear;
+  // The colour model file; empty: the one the run's manifest names (the rig's
+  // camera.color_model at capture), if any; without one the stack stays in
+  // camera RGB.
+  std::string color_model_path;
+  // Optional CV_8U labels of the frames' size (a material map; 255 = none):
+  // the labels along the regions' edges are settled by the raw sites
+  // (color::RegionEdgeVote), then Bayer frames are demosaiced within them
+  // (color::DemosaicWithinRegions), whatever `demosaic` says, so no colour
+  // blends across a region's edge. Empty: `demosaic` over the whole frame.
+  cv::Mat demosaic_regions;
+};
+
 struct ColorImageStack {
   // K frames, CV_32FC3 (R, G, B), dark subtracted, linear. Samples whose raw
   // value (or any raw value the demosaic drew on) was clipped are +infinity.
@@ -72,6 +86,12 @@ struct ColorImageStack {
   // from the dark frames; 0 when unknown.
   Eigen::Vector3d read_sigma = Eigen::Vector3d::Zero();
   ColorProvenance provenance;
+  // For a Bayer run: where it was read from and how (with the regions as
+  // settled at their edges), so it can be read again demosaiced within
+  // regions (LoadRunColorStack); empty otherwise.
+  std::string bayer_run_directory;
+  ColorStackOptions loaded_with;
+  int region_edges_moved = 0;  // pixels whose label the raw sites changed (color::RegionEdgeVote)
 
   int width() const { return images.empty() ? 0 : images.front().cols; }
   int height() const { return images.empty() ? 0 : images.front().rows; }
@@ -81,13 +101,6 @@ struct ColorImageStack {
   ps::PhotometricStack Channel(int c) const;
 };
 
-struct ColorStackOptions {
-  DemosaicMethod demosaic = DemosaicMethod::kBilinear;
-  // The colour model file; empty: the one the run's manifest names (the rig's
-  // camera.color_model at capture), if any; without one the stack stays in
-  // camera RGB.
-  std::string color_model_path;
-};
 
 // Reads a run whose manifest records a colour mosaic. Throws ConfigError for
 // a bad model file, std::runtime_error naming the file for unreadable frames,

@@ -43,6 +43,15 @@ struct SvbrdfResult {
   // true material, under the relabelling of materials that agrees best.
   std::optional<double> material_agreement;
   int material_agreement_pixels = 0;
+  // How the fitted colour frames were demosaiced (ColorProvenance::demosaic;
+  // "none" for monochrome and RGB frames), and how many fits it took: a Bayer
+  // run is refitted once on frames demosaiced within the first fit's
+  // materials (2 fits). A refit that failed keeps the first fit and gives its
+  // reason here.
+  std::string demosaic;
+  int fit_passes = 0;
+  int region_edges_moved = 0;  // labels the raw sites changed before the refit (color::RegionEdgeVote)
+  std::string demosaic_refit_failure;
   std::string gltf_path;                    // empty when not exported
   double total_ms = 0.0;
   bool usable() const { return ps.usable() && summary.IsSolutionUsable(); }
