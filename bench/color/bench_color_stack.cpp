@@ -6,11 +6,11 @@
 // count the raw frame, so the figures compare as frames per second.
 
 #include "chart_capture.h"
+#include "photorig/color/region_demosaic.h"
 #include "photorig/daemon/color_stack.h"
 
 #include <benchmark/benchmark.h>
 #include <opencv2/imgproc.hpp>
-
 
 namespace photorig::daemon {
 namespace {
@@ -45,6 +45,39 @@ void BM_Demosaic(benchmark::State& state) {
   state.SetLabel(DemosaicMethodName(method));
 }
 BENCHMARK(BM_Demosaic)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Demosaicing within regions (the SVBRDF refit), on a checker of two labels
+// in 16 px squares: most pixels see one label, as on a painted object, and
+// the edges take the 5 x 5 fallback. Arg: 1 = one label everywhere.
+void BM_DemosaicWithinRegions(benchmark::State& state) {
+  const cv::Mat raw = RawMosaic();
+  cv::Mat regions(kSide, kSide, CV_8U);
+  for (int y = 0; y < kSide; ++y)
+    for (int x = 0; x < kSide; ++x)
+      regions.at<std::uint8_t>(y, x) = state.range(0) ? 0 : static_cast<std::uint8_t>(((y / 16) + (x / 16)) & 1);
+  cv::Mat bgr;
+  for (auto _ : state) {
+    color::DemosaicWithinRegions(raw, "RGGB", regions, &bgr);
+    benchmark::DoNotOptimize(bgr.data);
+  }
+  SetRawBytes(state);
+  state.SetLabel(state.range(0) ? "one region" : "16 px checker");
+}
+BENCHMARK(BM_DemosaicWithinRegions)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// One frame's vote on the edges of the same checker (every pixel within 2 px
+// of an edge is contested: 44 % of the frame).
+void BM_RegionEdgeVote(benchmark::State& state) {
+  const cv::Mat raw = RawMosaic();
+  cv::Mat regions(kSide, kSide, CV_8U);
+  for (int y = 0; y < kSide; ++y)
+    for (int x = 0; x < kSide; ++x) regions.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(((y / 16) + (x / 16)) & 1);
+  color::RegionEdgeVote vote("RGGB", regions, {});
+  for (auto _ : state) benchmark::DoNotOptimize(vote.Add(raw).termination);
+  SetRawBytes(state);
+  state.counters["contested"] = vote.contested_pixels();
+}
+BENCHMARK(BM_RegionEdgeVote)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // What LoadRunColorStack does per lit frame: demosaic, to float, subtract the dark, colour model.
 void BM_DemosaicAndColorModel(benchmark::State& state) {
