@@ -336,7 +336,7 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
           relight.fit.progress = nullptr;
           relight.held_out_lights = request.held_out_lights;
           relight.progress = request.progress;
-          result.relighting = refl::EvaluateHeldOutLights(relight, stack, normals, mask);
+          result.relighting = refl::EvaluateHeldOutLights(relight, stack, normals, mask, maps, result.summary);
         }
         if (request.export_gltf && fs::exists(out / "ps" / "depth.tiff")) {
           const cv::Mat depth = ReadFloatTiff((out / "ps" / "depth.tiff").string());

@@ -51,6 +51,20 @@ std::vector<int> StratifiedLights(const std::vector<Eigen::Vector3d>& directions
 
 RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
                                         const cv::Mat& normals, const cv::Mat& mask) {
+  // Materials and their lobes chosen once, on every light.
+  ReflectanceMaps full;
+  const ReflectanceSummary fitted = FitReflectance(options.fit, stack, normals, mask, &full);
+  if (!fitted.IsSolutionUsable()) {
+    RelightingSummary summary;
+    summary.End(fitted.termination, fitted.message);
+    return summary;
+  }
+  return EvaluateHeldOutLights(options, stack, normals, mask, full, fitted);
+}
+
+RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
+                                        const cv::Mat& normals, const cv::Mat& mask, const ReflectanceMaps& full,
+                                        const ReflectanceSummary& fitted) {
   SolveTimer timer;
   RelightingSummary summary;
   std::string why;
@@ -58,11 +72,9 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
     summary.End(Termination::kInvalidOptions, why);
     return summary;
   }
-  // Materials and their lobes chosen once, on every light.
-  ReflectanceMaps full;
-  const ReflectanceSummary fitted = FitReflectance(options.fit, stack, normals, mask, &full);
-  if (!fitted.IsSolutionUsable()) {
-    summary.End(fitted.termination, fitted.message);
+  if (!fitted.IsSolutionUsable() || full.material.size() != cv::Size(stack.width(), stack.height()) ||
+      static_cast<int>(full.materials.size()) != fitted.materials) {
+    summary.End(Termination::kInvalidInput, "the full fit is not a usable fit of this stack");
     return summary;
   }
   if (stack.light_count() < options.fit.min_samples + 1) {

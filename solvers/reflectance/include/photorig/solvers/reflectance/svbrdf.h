@@ -264,6 +264,11 @@ struct RelightingSummary : Summary {
 // weights and albedos refitted), render the held-out light, compare.
 RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
                                         const cv::Mat& normals, const cv::Mat& mask);
+// The same with the fit on every light already made (FitReflectance with
+// options.fit on this stack, normals and mask), so it is not made again.
+RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
+                                        const cv::Mat& normals, const cv::Mat& mask, const ReflectanceMaps& full,
+                                        const ReflectanceSummary& fitted);
 
 // The stratified subset EvaluateHeldOutLights holds out.
 std::vector<int> StratifiedLights(const std::vector<Eigen::Vector3d>& directions, int count);
