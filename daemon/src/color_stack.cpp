@@ -176,7 +176,9 @@ ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorS
       throw std::invalid_argument(run_directory + ": the demosaic's region map must be CV_8U and " +
                                   std::to_string(manifest.width) + " x " +
                                   std::to_string(manifest.height) + " like the frames");
-    regions = SettleRegionEdges(run_directory, manifest, options.demosaic_regions, saturation, &out.region_edges_moved);
+    regions = options.settle_region_edges ? SettleRegionEdges(run_directory, manifest, options.demosaic_regions,
+                                                              saturation, &out.region_edges_moved)
+                                          : options.demosaic_regions;
     out.loaded_with.demosaic_regions = regions;
   }
   // Frame -> camera RGB (float) and where a raw sample it drew on was clipped.

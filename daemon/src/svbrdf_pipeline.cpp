@@ -144,6 +144,7 @@ void RefitDemosaicedWithinMaterials(const PhotometricStereoInput& input, const c
   result->summary = summary;
   result->demosaic = regional.color->provenance.demosaic;
   result->region_edges_moved = regional.color->region_edges_moved;
+  result->demosaic_regions = regional.color->loaded_with.demosaic_regions;
   result->fit_passes = 2;
 }
 
@@ -227,6 +228,7 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
   j["warnings"] = nlohmann::json::array();
   for (refl::Warning w : result.summary.warnings) j["warnings"].push_back(refl::WarningName(w));
   j["inconsistent_lights"] = result.summary.inconsistent_lights;
+  j["options"] = {{"max_materials", result.max_materials}};
   j["demosaic"] = {{"method", result.demosaic}, {"fit_passes", result.fit_passes},
                    {"region_edges_moved", result.region_edges_moved}};
   if (!result.demosaic_refit_failure.empty()) j["demosaic"]["refit_failure"] = result.demosaic_refit_failure;
@@ -278,6 +280,7 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
   ResultsFolder folder(output_directory);
   const fs::path out(folder.path());
   SvbrdfResult result;
+  result.max_materials = request.max_materials;
   try {
     PhotometricStereoRequest ps_request = request.ps;
     ps_request.progress = request.progress;
@@ -305,6 +308,7 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
         WriteImage((out / "material.png").string(), maps.material);
         WriteImage((out / "flags.png").string(), maps.flags);
         WriteImage((out / "highlight_seen.png").string(), maps.highlight_seen);
+        if (!result.demosaic_regions.empty()) WriteImage((out / "demosaic_regions.png").string(), result.demosaic_regions);
         for (const auto& m : maps.materials)
           result.gltf_mapping_error.push_back(refl::GltfMappingError(m, stack.light_directions, stack.view_direction));
         const int C = maps.albedo.channels();
@@ -377,6 +381,56 @@ refl::ReflectanceMaps ReadSvbrdfResult(const std::string& output_directory) {
     maps.materials.push_back(fit);
   }
   return maps;
+}
+
+HeldOutLightImages PredictHeldOutLight(const std::string& run_directory, const std::string& svbrdf_directory,
+                                       int light) {
+  const fs::path dir(svbrdf_directory);
+  const fs::path report_path = dir / "report.json";
+  std::ifstream file(report_path);
+  if (!file) throw std::runtime_error(report_path.string() + " not found: run `photorig solve svbrdf` first");
+  const nlohmann::json report = nlohmann::json::parse(file);
+  const refl::ReflectanceMaps maps = ReadSvbrdfResult(svbrdf_directory);
+  ColorStackOptions color;
+  if (report.contains("demosaic") && report["demosaic"].value("method", "") == "edge-aware")
+    color.demosaic = DemosaicMethod::kEdgeAware;
+  PhotometricStereoInput input = LoadRunStack(run_directory, color);
+  if (light < 0 || light >= input.stack.light_count())
+    throw std::invalid_argument("light " + std::to_string(light) + " is not one of " + run_directory + "'s " +
+                                std::to_string(input.stack.light_count()) + " lights (0.." +
+                                std::to_string(input.stack.light_count() - 1) + ")");
+  if (maps.flags.size() != input.stack.images.front().size())
+    throw std::runtime_error(svbrdf_directory + " is not a solve of " + run_directory + ": its maps are " +
+                             std::to_string(maps.flags.cols) + " x " + std::to_string(maps.flags.rows));
+  if (fs::exists(dir / "demosaic_regions.png")) {
+    if (!input.color || input.color->bayer_run_directory.empty())
+      throw std::runtime_error((dir / "demosaic_regions.png").string() + " names regions, but " + run_directory +
+                               " is not a Bayer run");
+    ColorStackOptions again = input.color->loaded_with;
+    again.demosaic_regions = ReadImage((dir / "demosaic_regions.png").string());
+    again.settle_region_edges = false;
+    input.color = LoadRunColorStack(input.color->bayer_run_directory, again);
+  }
+  // The solve's mask is where it did not flag a pixel as outside it.
+  const cv::Mat mask = maps.flags != static_cast<int>(refl::PixelFlag::kOutsideMask);
+  const refl::ReflectanceStack stack = ToReflectanceStack(input);
+  refl::RelightingOptions options;
+  options.fit.max_materials = report.contains("options") ? report["options"].value("max_materials", 4) : 4;
+  options.lights = {light};
+  options.keep_predictions = true;
+  refl::ReflectanceMaps full;
+  const refl::ReflectanceSummary fitted = refl::FitReflectance(options.fit, stack, maps.normals, mask, &full);
+  HeldOutLightImages out;
+  if (!fitted.IsSolutionUsable()) {
+    out.summary.End(fitted.termination, "the fit on every light: " + fitted.message);
+    return out;
+  }
+  out.summary = refl::EvaluateHeldOutLights(options, stack, maps.normals, mask, full, fitted);
+  out.measured = stack.images[light].clone();
+  if (std::isfinite(stack.saturation_level))
+    out.measured.setTo(cv::Scalar::all(std::numeric_limits<float>::quiet_NaN()),
+                       stack.images[light] >= stack.saturation_level);
+  return out;
 }
 
 }  // namespace photorig::daemon

@@ -62,6 +62,39 @@ TEST(SvbrdfCli, SolvesTheSimulatedGlossySphere) {
             0)
       << ReadText(dir.path() / "relight.log");
   EXPECT_TRUE(std::filesystem::exists(dir.path() / "relit.tiff"));
+
+  // One held-out light, shown: the same error as the solve's check for that
+  // light, and the written frames give it back.
+  const auto& first = json["held_out"]["errors"][0];
+  const int light = first["light"].get<int>();
+  double solve_rmse = 0.0;
+  for (const auto& e : json["held_out"]["errors"])
+    if (e["light"] == light && e["method"] == "per_material") solve_rmse = e["rmse"].get<double>();
+  const std::string held = (dir.path() / "held.tiff").string();
+  ASSERT_EQ(RunPhotorig("relight --json --model svbrdf --held-out " + std::to_string(light) + " --run " + run + " --out " + held,
+                        dir.path() / "held.json"),
+            0)
+      << ReadText(dir.path() / "held.json");
+  const std::string held_text = ReadText(dir.path() / "held.json");
+  const auto held_json = nlohmann::json::parse(held_text.substr(held_text.find('{'), held_text.rfind('}') - held_text.find('{') + 1));
+  EXPECT_EQ(held_json["method"], "per_material");
+  EXPECT_NEAR(held_json["rmse"].get<double>(), solve_rmse, 1e-9 * solve_rmse);
+  EXPECT_LT(held_json["rmse"].get<double>(), 0.5 * held_json["methods"]["lambertian"]["rmse"].get<double>());
+  const cv::Mat predicted = cv::imread(held, cv::IMREAD_UNCHANGED);
+  const cv::Mat measured = cv::imread(held_json["measured"].get<std::string>(), cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(predicted.empty());
+  ASSERT_EQ(predicted.size(), measured.size());
+  double sum = 0.0;
+  long long count = 0;
+  for (int i = 0; i < static_cast<int>(predicted.total()); ++i) {
+    const float p = predicted.ptr<float>()[i], m = measured.ptr<float>()[i];
+    if (std::isfinite(p) && std::isfinite(m)) sum += (p - m) * (p - m), ++count;
+  }
+  ASSERT_GT(count, 1000);
+  EXPECT_NEAR(std::sqrt(sum / count), solve_rmse, 1e-4 * solve_rmse);
+  EXPECT_TRUE(std::filesystem::exists(held_json["preview"].get<std::string>()));
+  EXPECT_EQ(RunPhotorig("relight --held-out 9999 --run " + run + " --out " + held, dir.path() / "bad.log"), 2)
+      << ReadText(dir.path() / "bad.log");
 }
 
 TEST(SvbrdfCli, UsageErrorsExitTwo) {
@@ -76,6 +109,11 @@ TEST(SvbrdfCli, UsageErrorsExitTwo) {
                         dir.path() / "relight.log"),
             2)
       << ReadText(dir.path() / "relight.log");
+  EXPECT_EQ(RunPhotorig("relight --held-out 0 --run " + dir.path().string() + " --out x.tiff", dir.path() / "held.log"), 2)
+      << ReadText(dir.path() / "held.log");
+  EXPECT_EQ(RunPhotorig("relight --held-out 0 --light 0,0,1 --run " + dir.path().string() + " --out x.tiff",
+                        dir.path() / "both.log"),
+            2);
 }
 
 }  // namespace

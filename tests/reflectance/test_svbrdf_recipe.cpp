@@ -95,6 +95,18 @@ TEST(SvbrdfRecipe, FindsTheMatteAndTheGlossyPaintAndWritesALoadableAsset) {
   EXPECT_LT(on_glossy[material], 0.5 * on_glossy[lambertian]);
   EXPECT_NEAR(on_matte[material] / on_matte[lambertian], 1.0, 0.02);
 
+  // `photorig relight --held-out` reads the run again within the saved
+  // regions and refits: the same error for the same light as the solve's.
+  const refl::HeldOutError& checked = result.relighting->errors.front();
+  const daemon::HeldOutLightImages held =
+      daemon::PredictHeldOutLight(out.string(), (out / "results" / "svbrdf").string(), checked.light);
+  ASSERT_TRUE(held.summary.IsSolutionUsable()) << held.summary.message;
+  for (const refl::HeldOutError& e : held.summary.errors)
+    if (e.method == checked.method) {
+      EXPECT_NEAR(e.rmse, checked.rmse, 1e-9 * checked.rmse);
+    }
+  EXPECT_EQ(held.summary.predictions.size(), 3u);
+
   ASSERT_FALSE(result.gltf_path.empty());
   tinygltf::TinyGLTF loader;
   tinygltf::Model model;

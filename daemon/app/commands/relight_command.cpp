@@ -1,4 +1,5 @@
-// photorig relight --run RUN (--envmap MAP.hdr | --light X,Y,Z[,INTENSITY]... [--model lambertian|svbrdf]) --out IMAGE.tiff
+// photorig relight --run RUN (--envmap MAP.hdr | --light X,Y,Z[,INTENSITY]... [--model lambertian|svbrdf]
+//                  | --held-out LIGHT [--model lambertian|per_pixel_lobe|svbrdf]) --out IMAGE.tiff
 // photorig envmap --ball IMAGE --circle CX CY R [--dark FILE | --black-level DN] [--width W] --out MAP.hdr
 
 #include "../command.h"
@@ -29,23 +30,96 @@ struct RelightOptions {
   std::string run_dir, envmap, out;
   std::vector<std::vector<double>> lights;  // x, y, z[, intensity]
   std::string model = "lambertian";          // with --light: lambertian (results/ps) | svbrdf (results/svbrdf)
+  int held_out = -1;                          // a light index: predict it from the others, beside the measured frame
 };
 
 // Writes the float result and an 8-bit view scaled to its 99.5th percentile.
 void WriteRelit(const std::string& path, const cv::Mat& image) {
   daemon::WriteFloatTiff(path, image);
   cv::Mat grey = image.channels() == 1 ? image : cv::Mat();
-  if (grey.empty()) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  if (grey.empty()) cv::cvtColor(image, grey, cv::COLOR_RGB2GRAY);
   std::vector<float> values(grey.begin<float>(), grey.end<float>());
   std::nth_element(values.begin(), values.begin() + values.size() * 995 / 1000, values.end());
   const double top = std::max(1e-12, double(values[values.size() * 995 / 1000]));
   cv::Mat view;
   image.convertTo(view, CV_8U, 255.0 / top);
+  if (view.channels() == 3) cv::cvtColor(view, view, cv::COLOR_RGB2BGR);  // images are R, G, B; files want B, G, R
   daemon::WriteImage(fs::path(path).replace_extension(".png").string(), view);
 }
 
+// --held-out: the light's frame predicted by the fit on the other lights
+// (daemon::PredictHeldOutLight), written beside the measured frame, and a
+// preview of measured | predicted | 4 x |difference| on one scale.
+int RelightHeldOut(const RelightOptions& options) {
+  namespace refl = solvers::reflectance;
+  const fs::path svbrdf = fs::path(options.run_dir) / "results" / "svbrdf";
+  if (!fs::exists(svbrdf / "report.json"))
+    return Fail(kExitUsage, (svbrdf / "report.json").string() + " not found: run `photorig solve svbrdf --run " +
+                                options.run_dir + "` first");
+  const refl::Method method = options.model == "svbrdf"           ? refl::Method::kPerMaterial
+                              : options.model == "per_pixel_lobe" ? refl::Method::kPerPixelLobe
+                                                                  : refl::Method::kLambertian;
+  std::fprintf(stderr, "relight: fitting every method without light %d ...\n", options.held_out);
+  const daemon::HeldOutLightImages held = daemon::PredictHeldOutLight(options.run_dir, svbrdf.string(), options.held_out);
+  if (!held.summary.IsSolutionUsable())
+    return Fail(kExitFailed, svbrdf.string() + ": " + held.summary.message);
+  nlohmann::json methods = nlohmann::json::object();
+  const refl::HeldOutError* chosen = nullptr;
+  for (const refl::HeldOutError& e : held.summary.errors) {
+    methods[refl::MethodName(e.method)] = {{"rmse", e.rmse}, {"psnr_db", e.psnr_db}, {"fit_ms", e.fit_ms}};
+    if (e.method == method) chosen = &e;
+  }
+  cv::Mat predicted;
+  for (const refl::HeldOutPrediction& p : held.summary.predictions)
+    if (p.method == method) predicted = p.image;
+  if (!chosen || predicted.empty()) return Fail(kExitFailed, "no prediction for " + options.model);
+  const fs::path out(options.out);
+  const std::string measured_path = (out.parent_path() / (out.stem().string() + "-measured.tiff")).string();
+  daemon::WriteFloatTiff(options.out, predicted);
+  daemon::WriteFloatTiff(measured_path, held.measured);
+  // One scale for all three panels: the measured frame's 99.5th percentile.
+  // Pixels the check did not evaluate (no prediction) or that the sensor
+  // clipped (no measurement) show 0 difference.
+  cv::Mat measured = held.measured.clone(), guess = predicted.clone();
+  const cv::Mat unknown = (measured != measured) | (guess != guess);
+  cv::patchNaNs(measured, 0.0);
+  cv::patchNaNs(guess, 0.0);
+  std::vector<float> values(measured.ptr<float>(), measured.ptr<float>() + measured.total() * measured.channels());
+  std::nth_element(values.begin(), values.begin() + values.size() * 995 / 1000, values.end());
+  const double top = std::max(1e-12, double(values[values.size() * 995 / 1000]));
+  cv::Mat difference = cv::abs(measured - guess) * 4.0, panels, view;
+  difference.setTo(cv::Scalar::all(0.0), unknown);
+  cv::hconcat(std::vector<cv::Mat>{measured, guess, difference}, panels);
+  panels.convertTo(view, CV_8U, 255.0 / top);
+  if (view.channels() == 3) cv::cvtColor(view, view, cv::COLOR_RGB2BGR);
+  const std::string preview = out.parent_path().empty() ? out.stem().string() + ".png"
+                                                         : (out.parent_path() / (out.stem().string() + ".png")).string();
+  daemon::WriteImage(preview, view);
+  std::printf("light %d held out: %s RMSE %.4g (PSNR %.1f dB); wrote %s, %s and %s (measured | predicted | 4 x difference)\n",
+              options.held_out, refl::MethodName(method), chosen->rmse, chosen->psnr_db, options.out.c_str(),
+              measured_path.c_str(), preview.c_str());
+  for (const auto& [name, e] : methods.items())
+    std::printf("  %-15s RMSE %.4g  PSNR %.1f dB\n", name.c_str(), e["rmse"].get<double>(), e["psnr_db"].get<double>());
+  ResultFields()["out"] = options.out;
+  ResultFields()["measured"] = measured_path;
+  ResultFields()["preview"] = preview;
+  ResultFields()["light"] = options.held_out;
+  ResultFields()["method"] = refl::MethodName(method);
+  ResultFields()["rmse"] = chosen->rmse;
+  ResultFields()["psnr_db"] = chosen->psnr_db;
+  ResultFields()["methods"] = methods;
+  ResultFields()["width"] = predicted.cols;
+  ResultFields()["height"] = predicted.rows;
+  return kExitOk;
+}
+
 int Relight(const RelightOptions& options) {
-  if (options.envmap.empty() == options.lights.empty()) return Fail(kExitUsage, "give either --envmap or --light");
+  if (options.held_out >= 0) {
+    if (!options.envmap.empty() || !options.lights.empty()) return Fail(kExitUsage, "--held-out takes neither --envmap nor --light");
+    return RelightHeldOut(options);
+  }
+  if (options.model == "per_pixel_lobe") return Fail(kExitUsage, "--model per_pixel_lobe is only for --held-out");
+  if (options.envmap.empty() == options.lights.empty()) return Fail(kExitUsage, "give either --envmap, --light or --held-out");
   cv::Mat relit;
   if (!options.envmap.empty()) {
     // Image-based: the captured one-light frames, weighted so the dome approximates the map.
@@ -122,10 +196,14 @@ CommandRunner SetupRelight(CLI::App& app) {
   sub->add_option("--light", options->lights, "X,Y,Z[,INTENSITY] directional light (repeatable): from normals and albedo")
       ->delimiter(',')
       ->allow_extra_args(false);
+  sub->add_option("--held-out", options->held_out,
+                  "light index: predict that light's frame from a fit to the other lights (results/svbrdf), "
+                  "written beside the measured frame, with each method's error")
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--model", options->model,
-                  "with --light: lambertian (results/ps normals and albedo, default) or svbrdf (results/svbrdf: "
-                  "albedo and the materials' lobes)")
-      ->check(CLI::IsMember({"lambertian", "svbrdf"}));
+                  "lambertian (with --light: results/ps normals and albedo, default), svbrdf (results/svbrdf: "
+                  "albedo and the materials' lobes), per_pixel_lobe (--held-out only)")
+      ->check(CLI::IsMember({"lambertian", "svbrdf", "per_pixel_lobe"}));
   sub->add_option("--out", options->out, "output float TIFF (an 8-bit PNG view is written beside it)")->required();
   return {sub, [options] { return Relight(*options); }};
 }

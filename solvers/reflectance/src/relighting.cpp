@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace photorig::solvers::reflectance {
 
@@ -21,6 +22,11 @@ bool RelightingOptions::IsValid(std::string* why) const {
     if (why) *why = "held_out_lights must be >= 0 (0 = every light)";
     return false;
   }
+  for (int j : lights)
+    if (j < 0) {
+      if (why) *why = "a held-out light index is negative: " + std::to_string(j);
+      return false;
+    }
   return fit.IsValid(why);
 }
 
@@ -97,7 +103,14 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
   // Every method weights the samples by the noise model of the full fit, at
   // the signal each pixel's own lobe predicts (as FitReflectance does).
   internal::WeightSamples(fitted.noise, pixels, internal::FitPixelLobes(s, pixels, {}, nullptr), &s);
-  summary.held_out = StratifiedLights(stack.light_directions, options.held_out_lights);
+  summary.held_out = options.lights.empty() ? StratifiedLights(stack.light_directions, options.held_out_lights)
+                                            : options.lights;
+  for (int j : summary.held_out)
+    if (j >= stack.light_count()) {
+      summary.End(Termination::kInvalidOptions, "held-out light " + std::to_string(j) + " is not one of the stack's " +
+                                                    std::to_string(stack.light_count()) + " lights");
+      return summary;
+    }
   timer.SetupDone(&summary);
   std::vector<int> material_of(s.pixels, -1);
   for (std::size_t m = 0; m < groups.size(); ++m)
@@ -152,10 +165,16 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
         }
       }
       const double fit_ms = fit_timer.ElapsedMs();
+      cv::Mat image;
+      if (options.keep_predictions)
+        image = cv::Mat(s.height, s.width, CV_32FC(C), cv::Scalar::all(std::numeric_limits<float>::quiet_NaN()));
       double sum = 0.0;
       long long count = 0;
       for (int p : pixels) {
         const std::size_t cell = s.At(p, j);
+        for (int ch = 0; ch < C && !image.empty(); ++ch)
+          image.ptr<float>()[static_cast<std::size_t>(s.pixel_index[p]) * C + ch] = static_cast<float>(
+              internal::Predict(s, p, s.wi[cell], lobe[p], weight[p][ch], rho[p][ch], s.intensity[j][ch]));
         if (s.saturated[cell]) continue;
         for (int ch = 0; ch < C; ++ch) {
           const double predicted =
@@ -174,6 +193,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
       error.psnr_db = error.rmse > 0.0 ? 20.0 * std::log10(peak / error.rmse) : 99.0;
       error.fit_ms = fit_ms;
       summary.errors.push_back(error);
+      if (!image.empty()) summary.predictions.push_back({j, method, image});
       const int mi = static_cast<int>(method);
       summary.mean_rmse[mi] += error.rmse / summary.held_out.size();
       summary.mean_psnr_db[mi] += error.psnr_db / summary.held_out.size();

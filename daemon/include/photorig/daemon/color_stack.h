@@ -74,6 +74,9 @@ struct ColorStackOptions {
   // (color::DemosaicWithinRegions), whatever `demosaic` says, so no colour
   // blends across a region's edge. Empty: `demosaic` over the whole frame.
   cv::Mat demosaic_regions;
+  // False: the regions are used as given, not settled first (to read a run
+  // again exactly as it was read, with the regions it was read with). Default true.
+  bool settle_region_edges = true;
 };
 
 struct ColorImageStack {

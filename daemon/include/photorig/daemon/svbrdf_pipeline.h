@@ -10,6 +10,7 @@
 //   material.png           material index per pixel (255 = not fitted)
 //   flags.png              solvers::reflectance::PixelFlag per pixel
 //   rms_residual.tiff      per-pixel RMS residual (image units)
+//   demosaic_regions.png   for a Bayer run: the labels the frames were demosaiced within (255 = none)
 //   asset/                 asset.gltf, asset.bin, PNG textures, EXR maps (gltf_export.h)
 //   report.json            materials with their lobes, warnings, held-out errors, timings, truth comparisons
 
@@ -52,6 +53,8 @@ struct SvbrdfResult {
   int fit_passes = 0;
   int region_edges_moved = 0;  // labels the raw sites changed before the refit (color::RegionEdgeVote)
   std::string demosaic_refit_failure;
+  cv::Mat demosaic_regions;  // CV_8U, the labels of the refit's demosaic; empty without one
+  int max_materials = 0;     // as requested, for report.json "options" (what a later relight needs to refit)
   std::string gltf_path;                    // empty when not exported
   double total_ms = 0.0;
   bool usable() const { return ps.usable() && summary.IsSolutionUsable(); }
@@ -67,5 +70,20 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
 
 // Reads back what SolveSvbrdfAndWrite wrote (maps, normals, materials), for relighting.
 solvers::reflectance::ReflectanceMaps ReadSvbrdfResult(const std::string& output_directory);
+
+// One held-out light, as `photorig relight --held-out` shows it: the run's
+// stack read as the solve in `svbrdf_directory` read it (a Bayer run
+// demosaiced within its demosaic_regions.png), the fit on every light made
+// again on it (deterministic, so the solve's own), then the light held out
+// and predicted by each method from the others. Errors match the solve's
+// held_out figures for that light. Throws std::runtime_error naming the file
+// when the solve's output is missing or does not fit the run, and
+// std::invalid_argument for a light index outside the run's.
+struct HeldOutLightImages {
+  cv::Mat measured;  // CV_32FC(C), dark subtracted, NaN where clipped
+  solvers::reflectance::RelightingSummary summary;  // errors and predictions (one per method)
+};
+HeldOutLightImages PredictHeldOutLight(const std::string& run_directory, const std::string& svbrdf_directory,
+                                       int light);
 
 }  // namespace photorig::daemon

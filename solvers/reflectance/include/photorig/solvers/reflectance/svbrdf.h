@@ -232,6 +232,12 @@ struct RelightingOptions {
   // How many lights to hold out, one at a time: a stratified subset spread
   // over the light directions by farthest-point sampling (0 = every light). Default 8.
   int held_out_lights = 8;
+  // The lights to hold out, by index, in this order; empty: the stratified
+  // subset of held_out_lights. Default empty.
+  std::vector<int> lights;
+  // Keep each held-out light's predicted image per method
+  // (RelightingSummary::predictions). Default false.
+  bool keep_predictions = false;
   ProgressCallback progress;  // one unit per held-out light and method
   bool IsValid(std::string* why) const;
 };
@@ -244,9 +250,20 @@ struct HeldOutError {
   double fit_ms = 0.0;   // time to fit without the light
 };
 
+// A held-out light's image as a method predicts it from the other lights:
+// CV_32FC(C) in the stack's units, NaN where the pixel was not evaluated (not
+// fitted by every method), 0 where the light does not reach the surface.
+// Clipped samples are predicted, though left out of the errors.
+struct HeldOutPrediction {
+  int light = 0;
+  Method method = Method::kLambertian;
+  cv::Mat image;
+};
+
 struct RelightingSummary : Summary {
   std::vector<int> held_out;  // light indices, in evaluation order
   std::vector<HeldOutError> errors;
+  std::vector<HeldOutPrediction> predictions;  // with RelightingOptions::keep_predictions
   // Mean RMSE over the held-out lights per method, indexed by Method.
   double mean_rmse[3] = {0.0, 0.0, 0.0};
   double mean_psnr_db[3] = {0.0, 0.0, 0.0};
