@@ -114,6 +114,23 @@ cv::Mat MaterialsOverTheObject(const refl::ReflectanceMaps& maps) {
   return out;
 }
 
+// Mean angle (degrees) between two normal maps over the pixels `where` != 255
+// and both normals are finite.
+double MeanAngleDeg(const cv::Mat& a, const cv::Mat& b, const cv::Mat& where) {
+  double sum = 0.0;
+  int count = 0;
+  for (int i = 0; i < static_cast<int>(where.total()); ++i) {
+    if (where.data[i] == 255) continue;
+    const cv::Vec3f& u = a.at<cv::Vec3f>(i);
+    const cv::Vec3f& v = b.at<cv::Vec3f>(i);
+    const double nu = cv::norm(u), nv = cv::norm(v);
+    if (!(nu > 0.0 && nv > 0.0) || !std::isfinite(nu) || !std::isfinite(nv)) continue;
+    sum += std::acos(std::clamp(u.dot(v) / (nu * nv), -1.0, 1.0)) * 180.0 / M_PI;
+    ++count;
+  }
+  return count > 0 ? sum / count : std::numeric_limits<double>::quiet_NaN();
+}
+
 // A bilinear demosaic fills a pixel's missing channels from its neighbours on
 // both sides of a paint edge, so the pixels along every edge carry a blend of
 // two albedos (flagged mixed, their colour off by CIEDE2000 ~10). Once the
@@ -228,7 +245,19 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
   j["warnings"] = nlohmann::json::array();
   for (refl::Warning w : result.summary.warnings) j["warnings"].push_back(refl::WarningName(w));
   j["inconsistent_lights"] = result.summary.inconsistent_lights;
-  j["options"] = {{"max_materials", result.max_materials}};
+  j["options"] = {{"max_materials", result.max_materials}, {"refine_normals", result.normal_refinement.has_value()}};
+  if (result.normal_refinement) {
+    const refl::NormalRefinementSummary& n = *result.normal_refinement;
+    nlohmann::json& nj = j["normal_refinement"];
+    nj = {{"termination", solvers::TerminationName(n.termination)}, {"message", n.message}, {"rounds", n.rounds},
+          {"pixels_refined", n.pixels_refined}, {"pixels_held", n.pixels_held},
+          {"median_change_deg", n.median_change_deg}, {"p95_change_deg", n.p95_change_deg},
+          {"reduced_chi_square_before", n.reduced_chi_square_before},
+          {"reduced_chi_square_after", n.reduced_chi_square_after}, {"total_ms", n.total_ms}};
+    if (result.refined_normals_vs_truth_mean_deg)
+      nj["normals_vs_truth_mean_deg"] = {{"before", *result.unrefined_normals_vs_truth_mean_deg},
+                                         {"after", *result.refined_normals_vs_truth_mean_deg}};
+  }
   j["demosaic"] = {{"method", result.demosaic}, {"fit_passes", result.fit_passes},
                    {"region_edges_moved", result.region_edges_moved}};
   if (!result.demosaic_refit_failure.empty()) j["demosaic"]["refit_failure"] = result.demosaic_refit_failure;
@@ -288,7 +317,7 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
     if (!result.ps.usable()) {
       result.summary.End(solvers::Termination::kFailure, "photometric stereo found no normals: " + result.ps.summary.message);
     } else {
-      const cv::Mat normals = ReadFloatTiff((out / "ps" / "normals.tiff").string());
+      cv::Mat normals = ReadFloatTiff((out / "ps" / "normals.tiff").string());
       cv::Mat mask = input.object_mask;
       refl::ReflectanceStack stack = ToReflectanceStack(input);
       refl::ReflectanceOptions options;
@@ -300,6 +329,24 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
       result.fit_passes = 1;
       if (result.summary.IsSolutionUsable() && input.color && !input.color->bayer_run_directory.empty())
         RefitDemosaicedWithinMaterials(input, normals, options, &stack, &maps, &result);
+      if (result.summary.IsSolutionUsable() && request.refine_normals) {
+        refl::NormalRefinementOptions refine;
+        refine.fit = options;
+        refine.progress = request.progress;
+        cv::Mat refined;
+        refl::ReflectanceMaps refined_maps;
+        result.normal_refinement = refl::RefineNormalsAndReflectance(refine, stack, normals, mask, &refined, &refined_maps);
+        if (result.normal_refinement->IsSolutionUsable() && result.normal_refinement->rounds > 0) {
+          if (!input.truth_normals.empty()) {
+            result.unrefined_normals_vs_truth_mean_deg = MeanAngleDeg(normals, input.truth_normals, refined_maps.material);
+            result.refined_normals_vs_truth_mean_deg = MeanAngleDeg(refined, input.truth_normals, refined_maps.material);
+          }
+          normals = refined;
+          maps = std::move(refined_maps);
+          result.summary = result.normal_refinement->reflectance;
+          WriteFloatTiff((out / "normals.tiff").string(), normals);
+        }
+      }
       if (result.summary.IsSolutionUsable()) {
         result.material_fits = maps.materials;
         WriteFloatTiff((out / "albedo.tiff").string(), maps.albedo);
@@ -367,7 +414,8 @@ refl::ReflectanceMaps ReadSvbrdfResult(const std::string& output_directory) {
   const nlohmann::json report = nlohmann::json::parse(file);
   refl::ReflectanceMaps maps;
   maps.albedo = ReadFloatTiff((dir / "albedo.tiff").string());
-  maps.normals = ReadFloatTiff((dir / "ps" / "normals.tiff").string());
+  // The refined normals when the solve refined them, else photometric stereo's.
+  maps.normals = ReadFloatTiff((fs::exists(dir / "normals.tiff") ? dir / "normals.tiff" : dir / "ps" / "normals.tiff").string());
   maps.material = ReadImage((dir / "material.png").string());
   maps.flags = ReadImage((dir / "flags.png").string());
   for (const auto& m : report.at("materials")) {

@@ -138,7 +138,7 @@ TomographyRequest ParseTomographyRequest(const YamlNode& node) {
 }
 
 SvbrdfRequest ParseSvbrdfRequest(const YamlNode& node) {
-  node.ExpectKeys({"photometric_stereo", "max_materials", "held_out_lights", "gltf"});
+  node.ExpectKeys({"photometric_stereo", "max_materials", "held_out_lights", "gltf", "refine_normals"});
   SvbrdfRequest request;
   if (auto ps = node.Find("photometric_stereo")) request.ps = ParsePhotometricStereoRequest(*ps);
   if (auto materials = node.Find("max_materials")) {
@@ -150,6 +150,7 @@ SvbrdfRequest ParseSvbrdfRequest(const YamlNode& node) {
     if (request.held_out_lights < -1) held_out->Fail("must be >= -1 (-1: no held-out check, 0: every light)");
   }
   request.export_gltf = node.Bool("gltf", request.export_gltf);
+  request.refine_normals = node.Bool("refine_normals", request.refine_normals);
   return request;
 }
 

@@ -1,4 +1,5 @@
 // photorig solve svbrdf (--run DIR | --dataset DIR) [--mask PNG] [--out DIR] [--max-materials K] [--held-out N] [--no-gltf]
+//                      [--refine-normals]
 
 #include "../command.h"
 #include "../command_output.h"
@@ -33,6 +34,8 @@ void PrintSummary(const daemon::SvbrdfResult& result) {
                  solvers::brdf::ModelName(f.model), f.pixels, f.specular[0], f.shape);
   }
   for (refl::Warning w : result.summary.warnings) std::fprintf(stderr, "  warning: %s\n", refl::WarningName(w));
+  if (result.normal_refinement)
+    std::fprintf(stderr, "  normals refined: %s\n", result.normal_refinement->message.c_str());
   if (result.relighting && result.relighting->IsSolutionUsable())
     for (int m = 0; m < 3; ++m)
       std::fprintf(stderr, "  held-out RMSE %-15s %.5g (PSNR %.1f dB) over %zu lights\n",
@@ -87,6 +90,8 @@ CommandRunner SetupSolveSvbrdf(CLI::App& app) {
   svbrdf->add_option("--demosaic", options->demosaic, "Bayer runs: bilinear (default) | edge-aware")
       ->check(CLI::IsMember({"bilinear", "edge-aware"}));
   svbrdf->add_flag("--no-gltf", options->no_gltf, "do not write the glTF asset");
+  svbrdf->add_flag("--refine-normals", options->request.refine_normals,
+                   "refine the normals with the materials' lobes, alternating with the reflectance fit");
   return {svbrdf, [options] { return Execute(*options); }};
 }
 

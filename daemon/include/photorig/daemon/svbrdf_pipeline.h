@@ -11,6 +11,7 @@
 //   flags.png              solvers::reflectance::PixelFlag per pixel
 //   rms_residual.tiff      per-pixel RMS residual (image units)
 //   demosaic_regions.png   for a Bayer run: the labels the frames were demosaiced within (255 = none)
+//   normals.tiff           with refine_normals: the refined normals the reflectance was fitted with
 //   asset/                 asset.gltf, asset.bin, PNG textures, EXR maps (gltf_export.h)
 //   report.json            materials with their lobes, warnings, held-out errors, timings, truth comparisons
 
@@ -35,6 +36,10 @@ struct SvbrdfResult {
   solvers::reflectance::ReflectanceSummary summary;
   std::vector<solvers::reflectance::MaterialFit> material_fits;  // as fitted, for the report
   std::optional<solvers::reflectance::RelightingSummary> relighting;
+  // With SvbrdfRequest::refine_normals: the alternation's summary, and the
+  // mean angle to the true normals before and after it where the truth is known.
+  std::optional<solvers::reflectance::NormalRefinementSummary> normal_refinement;
+  std::optional<double> refined_normals_vs_truth_mean_deg, unrefined_normals_vs_truth_mean_deg;
   std::vector<double> gltf_mapping_error;   // per material, relative RMS (gltf_material.h)
   std::optional<double> albedo_error_vs_truth;  // median relative, over fitted pixels
   // Colour runs with true albedo: CIEDE2000 over the unflagged pixels (flag

@@ -97,6 +97,9 @@ struct SvbrdfRequest {
   int max_materials = 4;         // ReflectanceOptions::max_materials
   int held_out_lights = 8;       // RelightingOptions::held_out_lights (0 = every light); -1 = skip the check
   bool export_gltf = true;
+  // Refine the normals with the materials' lobes, alternating with the
+  // reflectance fit (RefineNormalsAndReflectance). Default off.
+  bool refine_normals = false;
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
   solvers::ProgressCallback progress;
 };

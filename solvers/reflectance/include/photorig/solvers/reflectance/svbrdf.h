@@ -218,6 +218,51 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
 Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
                           const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image);
 
+// ---- Joint refinement of normals and reflectance ----
+//
+// Photometric stereo's normals come from a model without the materials'
+// lobes (or with a per-pixel one fitted to few samples), so inside a glossy
+// paint's highlights they carry errors the sharp lobe then magnifies into
+// poor fits. The refinement alternates: with the materials, lobes and
+// albedos fixed, each fitted pixel's normal moves to minimise its weighted
+// residual (Levenberg-Marquardt over two tangent-plane angles, the albedos
+// eliminated in closed form at every step); then FitReflectance runs again
+// with the new normals, choosing the materials and lobes afresh.
+struct NormalRefinementOptions {
+  ReflectanceOptions fit;
+  // Alternations (normals, then reflectance). Default 2.
+  int rounds = 2;
+  // A pixel whose normal would move further than this is left where it was
+  // and counted in pixels_held: a move that large is a fit escaping into a
+  // wrong minimum (a mixed pixel fitted with one paint's lobe), not a
+  // correction. Default 10 degrees.
+  double max_change_deg = 10.0;
+  // The alternation stops when the median move of a round falls below this. Default 0.02 degrees.
+  double converged_deg = 0.02;
+  ProgressCallback progress;  // "normals" per round, then the fit's own stages
+  bool IsValid(std::string* why) const;
+};
+
+struct NormalRefinementSummary : Summary {
+  int rounds = 0;                      // alternations made
+  int pixels_refined = 0;              // normals moved in the last round
+  int pixels_held = 0;                 // left in place in the last round (max_change_deg, or no descent)
+  std::vector<double> median_change_deg;  // per round, over the refined pixels
+  std::vector<double> p95_change_deg;
+  double reduced_chi_square_before = 0.0;  // of the fit with the given normals
+  double reduced_chi_square_after = 0.0;   // of the final fit
+  ReflectanceSummary reflectance;          // the final fit's summary
+};
+
+// Fits the reflectance with `normals`, then alternates as above.
+// *refined_normals (CV_32FC3) holds the final normals (the given ones where
+// no reflectance was fitted), *maps the final fit on them. Fails as
+// FitReflectance does when the first fit fails.
+NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOptions& options,
+                                                    const ReflectanceStack& stack, const cv::Mat& normals,
+                                                    const cv::Mat& mask, cv::Mat* refined_normals,
+                                                    ReflectanceMaps* maps);
+
 // ---- Held-out-light relighting: the check that needs no ground truth ----
 
 enum class Method {

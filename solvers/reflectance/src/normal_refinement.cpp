@@ -1,0 +1,247 @@
+// Joint refinement of normals and reflectance (svbrdf.h): per-pixel
+// Levenberg-Marquardt on the normal with the material's lobe fixed and the
+// albedos eliminated, alternated with FitReflectance.
+#include "photorig/solvers/reflectance/svbrdf.h"
+
+#include "samples.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace photorig::solvers::reflectance {
+namespace {
+
+constexpr double kDegPerRad = 180.0 / M_PI;
+
+// One pixel's usable samples and what its material says of them.
+struct PixelProblem {
+  int channels = 1;
+  std::vector<Eigen::Vector3d> light;  // directions (camera frame)
+  std::vector<double> value;           // [sample][channel]
+  std::vector<double> irradiance;      // [sample][channel]
+  std::vector<double> weight;          // [sample][channel]: 1 / variance
+  Eigen::Vector3d view;
+  internal::Lobe lobe;
+  Eigen::Vector3d specular = Eigen::Vector3d::Zero();
+  Eigen::Vector3d t0, b0, n0;  // the starting normal and its tangent plane
+
+  int samples() const { return static_cast<int>(light.size()); }
+
+  Eigen::Vector3d Normal(const Eigen::Vector2d& x) const { return (n0 + x[0] * t0 + x[1] * b0).normalized(); }
+
+  // Weighted residuals at normal n with each channel's albedo at its
+  // weighted least-squares value (clamped at 0); returns the squared norm.
+  double Residuals(const Eigen::Vector3d& n, Eigen::VectorXd* r, Eigen::Vector3d* rho = nullptr) const {
+    const int K = samples(), C = channels;
+    const Eigen::Vector3d wo = internal::ToLocal(n, view);
+    std::vector<double> u(static_cast<std::size_t>(K) * C), g(u.size());
+    for (int k = 0; k < K; ++k) {
+      const Eigen::Vector3d wi = internal::ToLocal(n, light[k]);
+      const double cosine = std::max(wi.z(), 0.0);
+      double a0 = 0.0, a1 = 0.0;
+      if (cosine > 0.0) internal::LobeBasis(lobe, wi, wo, &a0, &a1);
+      for (int c = 0; c < C; ++c) {
+        const std::size_t i = static_cast<std::size_t>(k) * C + c;
+        const double e = irradiance[i] * cosine;
+        u[i] = e / M_PI;
+        g[i] = e * (a0 + specular[c] * (a1 - a0));
+      }
+    }
+    r->resize(static_cast<Eigen::Index>(K) * C);
+    Eigen::Vector3d albedo = Eigen::Vector3d::Zero();
+    for (int c = 0; c < C; ++c) {
+      double uu = 0.0, uy = 0.0;
+      for (int k = 0; k < K; ++k) {
+        const std::size_t i = static_cast<std::size_t>(k) * C + c;
+        uu += weight[i] * u[i] * u[i];
+        uy += weight[i] * u[i] * (value[i] - g[i]);
+      }
+      albedo[c] = uu > 0.0 ? std::max(uy / uu, 0.0) : 0.0;
+      for (int k = 0; k < K; ++k) {
+        const std::size_t i = static_cast<std::size_t>(k) * C + c;
+        (*r)[static_cast<Eigen::Index>(i)] = std::sqrt(weight[i]) * (value[i] - u[i] * albedo[c] - g[i]);
+      }
+    }
+    if (rho) *rho = albedo;
+    return r->squaredNorm();
+  }
+};
+
+// Levenberg-Marquardt over the two tangent-plane offsets, central-difference
+// Jacobian. Returns the final normal; *improved says whether the cost fell.
+Eigen::Vector3d Minimise(const PixelProblem& problem, bool* improved) {
+  Eigen::Vector2d x = Eigen::Vector2d::Zero();
+  Eigen::VectorXd r, r_plus, r_minus, trial;
+  const double start_cost = problem.Residuals(problem.Normal(x), &r);
+  double cost = start_cost, lambda = 1e-3;
+  constexpr double kStep = 1e-5;
+  for (int iteration = 0; iteration < 30; ++iteration) {
+    Eigen::MatrixXd jacobian(r.size(), 2);
+    for (int a = 0; a < 2; ++a) {
+      Eigen::Vector2d dx = Eigen::Vector2d::Zero();
+      dx[a] = kStep;
+      problem.Residuals(problem.Normal(x + dx), &r_plus);
+      problem.Residuals(problem.Normal(x - dx), &r_minus);
+      jacobian.col(a) = (r_plus - r_minus) / (2.0 * kStep);
+    }
+    const Eigen::Matrix2d jtj = jacobian.transpose() * jacobian;
+    const Eigen::Vector2d gradient = jacobian.transpose() * r;
+    bool accepted = false;
+    while (lambda < 1e10) {
+      Eigen::Matrix2d damped = jtj;
+      damped.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
+      const Eigen::Vector2d step = damped.ldlt().solve(-gradient);
+      const double trial_cost = problem.Residuals(problem.Normal(x + step), &trial);
+      if (trial_cost < cost) {
+        const double gain = cost - trial_cost;
+        x += step;
+        r = trial;
+        cost = trial_cost;
+        lambda = std::max(lambda / 3.0, 1e-9);
+        accepted = true;
+        if (step.norm() < 1e-8 || gain < 1e-10 * cost) iteration = 30;
+        break;
+      }
+      lambda *= 4.0;
+    }
+    if (!accepted) break;
+  }
+  *improved = cost < start_cost;
+  return problem.Normal(x);
+}
+
+double Quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const auto it = v.begin() + static_cast<std::ptrdiff_t>(q * (v.size() - 1));
+  std::nth_element(v.begin(), it, v.end());
+  return *it;
+}
+
+}  // namespace
+
+bool NormalRefinementOptions::IsValid(std::string* why) const {
+  auto fail = [&](const char* text) {
+    if (why) *why = text;
+    return false;
+  };
+  if (rounds < 1) return fail("rounds must be >= 1");
+  if (!(max_change_deg > 0.0 && max_change_deg <= 90.0)) return fail("max_change_deg must be in (0, 90]");
+  if (!(converged_deg >= 0.0)) return fail("converged_deg must be >= 0");
+  return fit.IsValid(why);
+}
+
+NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOptions& options,
+                                                    const ReflectanceStack& stack, const cv::Mat& normals,
+                                                    const cv::Mat& mask, cv::Mat* refined_normals,
+                                                    ReflectanceMaps* maps) {
+  SolveTimer timer;
+  NormalRefinementSummary summary;
+  std::string why;
+  if (!options.IsValid(&why)) {
+    summary.End(Termination::kInvalidOptions, why);
+    return summary;
+  }
+  ReflectanceMaps current;
+  ReflectanceSummary fitted = FitReflectance(options.fit, stack, normals, mask, &current);
+  if (!fitted.IsSolutionUsable()) {
+    summary.End(fitted.termination, fitted.message);
+    summary.reflectance = fitted;
+    return summary;
+  }
+  summary.reduced_chi_square_before = fitted.reduced_chi_square;
+  timer.SetupDone(&summary);
+  cv::Mat n = normals.clone();
+  const int C = stack.channels();
+  const double max_change = options.max_change_deg / kDegPerRad;
+  for (int round = 0; round < options.rounds; ++round) {
+    if (options.progress) options.progress({"normals", round, options.rounds});
+    std::vector<int> fitted_pixels;
+    for (int i = 0; i < static_cast<int>(current.material.total()); ++i)
+      if (current.material.data[i] != 255) fitted_pixels.push_back(i);
+    cv::Mat next = n.clone();
+    std::vector<double> change(fitted_pixels.size(), -1.0);  // radians; < 0: held
+#pragma omp parallel for schedule(dynamic, 64)
+    for (std::size_t f = 0; f < fitted_pixels.size(); ++f) {
+      const int i = fitted_pixels[f];
+      const cv::Vec3f& nv = n.at<cv::Vec3f>(i);
+      PixelProblem problem;
+      problem.channels = C;
+      problem.view = stack.view_direction;
+      problem.n0 = Eigen::Vector3d(nv[0], nv[1], nv[2]).normalized();
+      const Eigen::Vector3d a = std::abs(problem.n0.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+      problem.t0 = a.cross(problem.n0).normalized();
+      problem.b0 = problem.n0.cross(problem.t0);
+      const MaterialFit& material = current.materials[current.material.data[i]];
+      problem.lobe = {material.model, material.shape};
+      problem.specular = material.specular;
+      for (int j = 0; j < stack.light_count(); ++j) {
+        if (problem.n0.dot(stack.light_directions[j]) < options.fit.min_cosine) continue;
+        const float* px = stack.images[j].ptr<float>() + static_cast<std::size_t>(i) * C;
+        bool usable = true;
+        for (int c = 0; c < C; ++c) usable = usable && std::isfinite(px[c]) && px[c] < stack.saturation_level;
+        if (!usable) continue;
+        problem.light.push_back(stack.light_directions[j]);
+        const Eigen::Vector3d e = stack.Intensity(j);
+        for (int c = 0; c < C; ++c) {
+          problem.value.push_back(px[c]);
+          problem.irradiance.push_back(e[c]);
+        }
+      }
+      if (problem.samples() < options.fit.min_samples) continue;
+      // Weights from the noise model at the signal predicted with the starting normal.
+      problem.weight.assign(problem.value.size(), 1.0);
+      Eigen::VectorXd r;
+      Eigen::Vector3d rho;
+      problem.Residuals(problem.n0, &r, &rho);
+      for (std::size_t s = 0; s < problem.value.size(); ++s) {
+        const int c = static_cast<int>(s % C);
+        const double predicted = problem.value[s] - r[static_cast<Eigen::Index>(s)];
+        problem.weight[s] = 1.0 / std::max(fitted.noise.Variance(c, predicted), 1e-12);
+      }
+      bool improved = false;
+      const Eigen::Vector3d moved = Minimise(problem, &improved);
+      const double angle = std::acos(std::clamp(moved.dot(problem.n0), -1.0, 1.0));
+      if (!improved || angle > max_change) continue;
+      next.at<cv::Vec3f>(i) = cv::Vec3f(static_cast<float>(moved.x()), static_cast<float>(moved.y()),
+                                        static_cast<float>(moved.z()));
+      change[f] = angle;
+    }
+    std::vector<double> moved_deg;
+    int held = 0;
+    for (double c : change) {
+      if (c < 0.0) ++held; else moved_deg.push_back(c * kDegPerRad);
+    }
+    ReflectanceMaps refit;
+    const ReflectanceSummary refitted = FitReflectance(options.fit, stack, next, mask, &refit);
+    if (!refitted.IsSolutionUsable()) break;  // keep the last good normals and fit
+    n = next;
+    current = std::move(refit);
+    fitted = refitted;
+    ++summary.rounds;
+    summary.pixels_refined = static_cast<int>(moved_deg.size());
+    summary.pixels_held = held;
+    summary.median_change_deg.push_back(Quantile(moved_deg, 0.5));
+    summary.p95_change_deg.push_back(Quantile(moved_deg, 0.95));
+    if (summary.median_change_deg.back() < options.converged_deg) break;
+  }
+  summary.reduced_chi_square_after = fitted.reduced_chi_square;
+  summary.reflectance = fitted;
+  *refined_normals = n;
+  *maps = std::move(current);
+  summary.termination = summary.rounds == options.rounds || (!summary.median_change_deg.empty() &&
+                                                             summary.median_change_deg.back() < options.converged_deg)
+                            ? Termination::kSuccess
+                            : Termination::kNoConvergence;
+  summary.message = std::to_string(summary.rounds) + " round(s); reduced chi-square " +
+                    std::to_string(summary.reduced_chi_square_before) + " -> " +
+                    std::to_string(summary.reduced_chi_square_after);
+  timer.Finish(&summary);
+  return summary;
+}
+
+}  // namespace photorig::solvers::reflectance
