@@ -9,8 +9,10 @@
 
 #include "photorig/solvers/reflectance/svbrdf.h"
 
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -113,6 +115,39 @@ inline SvbrdfScene MakeScene(const SceneSpec& spec) {
     scene.stack.images.push_back(image);
   }
   return scene;
+}
+
+// The true normals tilted by `tilt_deg` in a random direction per pixel of
+// the object: photometric stereo's error, in size if not in structure.
+inline cv::Mat TiltedNormals(const SvbrdfScene& scene, double tilt_deg, unsigned seed) {
+  cv::Mat out = scene.truth.normals.clone();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> azimuth(0.0, 2.0 * M_PI);
+  for (int i = 0; i < static_cast<int>(out.total()); ++i) {
+    if (!scene.mask.data[i]) continue;
+    const cv::Vec3f& v = out.at<cv::Vec3f>(i);
+    const Eigen::Vector3d n(v[0], v[1], v[2]);
+    const Eigen::Vector3d a = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+    const Eigen::Vector3d t = a.cross(n).normalized(), b = n.cross(t);
+    const double phi = azimuth(rng), tilt = tilt_deg * M_PI / 180.0;
+    const Eigen::Vector3d m = std::cos(tilt) * n + std::sin(tilt) * (std::cos(phi) * t + std::sin(phi) * b);
+    out.at<cv::Vec3f>(i) = cv::Vec3f(static_cast<float>(m.x()), static_cast<float>(m.y()), static_cast<float>(m.z()));
+  }
+  return out;
+}
+
+// Mean angle (degrees) to the true normals over the scene's object.
+inline double MeanNormalErrorDeg(const SvbrdfScene& scene, const cv::Mat& normals) {
+  double sum = 0.0;
+  int count = 0;
+  for (int i = 0; i < static_cast<int>(scene.mask.total()); ++i) {
+    if (!scene.mask.data[i]) continue;
+    const cv::Vec3f& a = normals.at<cv::Vec3f>(i);
+    const cv::Vec3f& b = scene.truth.normals.at<cv::Vec3f>(i);
+    sum += std::acos(std::clamp(static_cast<double>(a.dot(b)) / (cv::norm(a) * cv::norm(b)), -1.0, 1.0)) * 180.0 / M_PI;
+    ++count;
+  }
+  return sum / count;
 }
 
 // The three-material colour scene of the tests: matte, Blinn-Phong and GGX bands.
