@@ -31,16 +31,18 @@ export async function resultsPage(main, runId) {
   const folders = [...new Set([...files].filter((f) => f.endsWith('/report.json')).map((f) => f.slice(0, -'report.json'.length)))];
   const reports = new Map();
   for (const folder of folders) reports.set(folder, await (await api(`/runs/${runId}/files/${folder}report.json`)).json());
-  // A per-material fit (photorig solve svbrdf) keeps the normals it used in its ps/ folder.
+  // A per-material fit (photorig solve svbrdf) keeps photometric stereo's
+  // normals in its ps/ folder, and the refined ones, when it refined them,
+  // as its own normals.tiff.
   const perMaterial = (folder) => reports.get(folder)?.materials && files.has(`${folder}material.png`) && files.has(`${folder}albedo.tiff`);
   for (const folder of folders) {
     const report = reports.get(folder);
     const parent = folder.replace(/ps\/$/, '');
-    if (files.has(`${folder}normals.tiff`))
+    if (perMaterial(folder)) materialsTable(main, folder, report);
+    else if (files.has(`${folder}normals.tiff`))
       cleanups.push(await psResults(main, runId, folder, report, files,
         parent !== folder && perMaterial(parent) ? { folder: parent, report: reports.get(parent) } : null));
     else if (report.candidates) await brdfResults(main, runId, folder, report, files);
-    else if (perMaterial(folder)) materialsTable(main, folder, report);
   }
   for (const volume of [...files].filter((f) => f.endsWith('.nrrd'))) await volumeSlices(main, runId, volume);
   return () => cleanups.forEach((c) => c && c());
@@ -97,7 +99,9 @@ async function psResults(main, runId, folder, report, files, svbrdf) {
   charts(main, report).catch((error) => main.append(errorBox(error)));
   const cleanups = [];
   if (files.has(`${folder}mesh.ply`)) cleanups.push(await meshView(main, runId, `${folder}mesh.ply`));
-  const [normals, albedo] = await Promise.all([imageValues(runId, `${folder}normals.tiff`), imageValues(runId, `${folder}albedo.tiff`)]);
+  // Relit with the normals the per-material fit used (refined, when it refined them), as `photorig relight` does.
+  const normalsFile = svbrdf && files.has(`${svbrdf.folder}normals.tiff`) ? `${svbrdf.folder}normals.tiff` : `${folder}normals.tiff`;
+  const [normals, albedo] = await Promise.all([imageValues(runId, normalsFile), imageValues(runId, `${folder}albedo.tiff`)]);
   const lobe = files.has(`${folder}specular.tiff`) ? await imageValues(runId, `${folder}specular.tiff`) : null;
   const hasLobe = lobe && lobe.data.some((v, i) => i % 3 === 0 && v > 0);
   const section = el('section', { id: 'relight' }, el('h2', {}, 'Relighting'));

@@ -44,8 +44,15 @@ sim::ColorCamera ColorSceneResponses(const SimColorConfig& config, const sim::Al
   };
   sim::ColorCamera camera;
   camera.light_rgb = response(nullptr);
-  camera.low_rgb = camera.high_rgb = camera.light_rgb;
-  if (albedo.paints.size() != 2) return camera;
+  if (albedo.paints.size() != 2) {
+    // No paints: a spectrally flat (grey) texture, each channel seeing the
+    // texture's albedo times its response to the light.
+    camera.low_rgb = albedo.low * camera.light_rgb;
+    camera.high_rgb = albedo.high * camera.light_rgb;
+    camera.truth_low_srgb = Eigen::Vector3d::Constant(albedo.low);
+    camera.truth_high_srgb = Eigen::Vector3d::Constant(albedo.high);
+    return camera;
+  }
 
   const std::vector<double> truth_grid = color::WavelengthGrid(380.0, 730.0, 5.0);
   const Eigen::Matrix3d to_srgb =
