@@ -430,36 +430,27 @@ std::vector<Prepared> FittedSubset(const std::vector<Prepared>& prepared, const 
   return fitted;
 }
 
-// k-fold held-out squared residual of each sample under the model of `all`
-// (the fit to every sample): sample k is left out with fold k mod folds, and
-// each fold's fit starts from `all`'s parameters. Empty when a fold's fit
-// fails. The folds are independent and run in parallel; each needs only its
-// parameters, so none computes a covariance or the cost over its training set.
-std::vector<double> HeldOutErrors(const FitSummary& all, const std::vector<BrdfSample>& samples,
-                                  const std::vector<Prepared>& prepared, const FitOptions& options, int folds) {
+// One held-out fold of `all` (the fit to every sample): sample k is left out
+// with fold k mod folds, the fold's fit starts from `all`'s parameters and
+// sees at most fit_samples of its samples, and the left-out samples' squared
+// residuals go into *errors. False when the fold's fit fails. Needs only the
+// fold's parameters, so it computes no covariance and no cost over its
+// training set.
+bool HeldOutFold(const FitSummary& all, const std::vector<BrdfSample>& samples, const std::vector<Prepared>& prepared,
+                 const FitOptions& options, int folds, int fold, std::size_t fit_samples, std::vector<double>* errors) {
   FitOptions fold_options = options;
   fold_options.start = all.params;
-  std::vector<double> errors(samples.size(), 0.0);
-  std::vector<char> failed(static_cast<std::size_t>(folds), 0);
-#pragma omp parallel for schedule(dynamic)
-  for (int fold = 0; fold < folds; ++fold) {
-    std::vector<std::size_t> train;
-    train.reserve(samples.size());
-    for (std::size_t k = 0; k < samples.size(); ++k)
-      if (static_cast<int>(k % folds) != fold) train.push_back(k);
-    if (train.size() == samples.size()) continue;
-    LeastSquares ls;
-    SolveLeastSquares(all.params.model, FittedSubset(prepared, train, options.max_fit_samples), fold_options, &ls);
-    if (!ls.solved.IsSolutionUsable()) {
-      failed[fold] = 1;
-      continue;
-    }
-    const ModelParams params = ls.Params(all.params.model);
-    for (std::size_t k = fold; k < samples.size(); k += folds)
-      errors[k] = SquaredResidual(params, samples[k], options.loss);
-  }
-  if (std::find(failed.begin(), failed.end(), 1) != failed.end()) return {};
-  return errors;
+  std::vector<std::size_t> train;
+  train.reserve(samples.size());
+  for (std::size_t k = 0; k < samples.size(); ++k)
+    if (static_cast<int>(k % folds) != fold) train.push_back(k);
+  if (train.size() == samples.size()) return true;
+  LeastSquares ls;
+  SolveLeastSquares(all.params.model, FittedSubset(prepared, train, fit_samples), fold_options, &ls);
+  if (!ls.solved.IsSolutionUsable()) return false;
+  const ModelParams params = ls.Params(all.params.model);
+  for (std::size_t k = fold; k < samples.size(); k += folds) (*errors)[k] = SquaredResidual(params, samples[k], options.loss);
+  return true;
 }
 
 // A fit's summary before the fit: the model and the counts.
@@ -703,21 +694,40 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   }
   timer.SetupDone(&summary);
 
-  ProgressThrottle progress(options.progress, "fit", static_cast<std::int64_t>(options.candidates.size()));
-  for (Model model : options.candidates) {
-    summary.candidates.push_back(FitPrepared(model, prepared, options.fit));
-    FitSummary& fit = summary.candidates.back();
-    if (options.held_out_folds > 0 && fit.IsSolutionUsable()) {
-      fit.held_out_errors = HeldOutErrors(fit, samples, prepared, options.fit, options.held_out_folds);
-      if (!fit.held_out_errors.empty()) {
-        double sum = 0.0;
-        for (double e : fit.held_out_errors) sum += e;
-        fit.held_out_rms = std::sqrt(sum / static_cast<double>(fit.held_out_errors.size()));
-      }
+  // The candidates' fits, then their folds, each as one parallel loop: a
+  // whole table's fits take from 0.1 to 1 s each, so a loop per candidate
+  // would leave a core idle. Progress is reported from this thread, after
+  // each loop (stage "fit": the candidates, then "held-out": the folds).
+  const int candidates = static_cast<int>(options.candidates.size());
+  summary.candidates.resize(options.candidates.size());
+#pragma omp parallel for schedule(dynamic)
+  for (int c = 0; c < candidates; ++c) summary.candidates[c] = FitPrepared(options.candidates[c], prepared, options.fit);
+  if (options.progress) options.progress({"fit", candidates, candidates});
+  const int folds = options.held_out_folds;
+  if (folds > 0) {
+    const std::size_t fit_samples = options.fold_fit_samples > 0 ? options.fold_fit_samples : options.fit.max_fit_samples;
+    std::vector<std::vector<double>> errors(options.candidates.size());
+    std::vector<char> failed(static_cast<std::size_t>(candidates) * folds, 0);  // per task
+    for (int c = 0; c < candidates; ++c)
+      if (summary.candidates[c].IsSolutionUsable()) errors[c].assign(samples.size(), 0.0);
+#pragma omp parallel for schedule(dynamic)
+    for (int task = 0; task < candidates * folds; ++task) {
+      const int c = task / folds, fold = task % folds;
+      if (errors[c].empty()) continue;
+      if (!HeldOutFold(summary.candidates[c], samples, prepared, options.fit, folds, fold, fit_samples, &errors[c]))
+        failed[task] = 1;
     }
-    progress.Update(static_cast<std::int64_t>(summary.candidates.size()));
+    for (int c = 0; c < candidates; ++c) {
+      const auto first = failed.begin() + static_cast<std::ptrdiff_t>(c) * folds;
+      if (errors[c].empty() || std::find(first, first + folds, 1) != first + folds) continue;
+      FitSummary& fit = summary.candidates[c];
+      fit.held_out_errors = std::move(errors[c]);
+      double sum = 0.0;
+      for (double e : fit.held_out_errors) sum += e;
+      fit.held_out_rms = std::sqrt(sum / static_cast<double>(fit.held_out_errors.size()));
+    }
+    if (options.progress) options.progress({"held-out", candidates * folds, candidates * folds});
   }
-  progress.Finish();
   const std::optional<std::size_t> choice = ChooseModel(summary.candidates, options.min_bic_improvement, &summary.reason);
   if (!choice) {
     summary.End(Termination::kFailure, "no candidate model gives a usable, identifiable fit to " +

@@ -110,8 +110,14 @@ struct SelectionOptions {
   // folds; 0 = none, BIC alone chooses). Each costs one more fit per
   // candidate.
   int held_out_folds = 5;
-  // Called after each candidate's fit (stage "fit", done = candidates fitted):
-  // a whole measured table takes seconds per lobe model.
+  // The least squares of each held-out fold see at most this many of its
+  // samples (evenly spaced, as FitOptions::max_fit_samples), starting from
+  // the fit to all samples: a fold only needs its parameters near the
+  // optimum to predict the samples it left out, and on a whole table the
+  // folds were most of the choice's time. 0 = FitOptions::max_fit_samples. Default 5000.
+  std::size_t fold_fit_samples = 5000;
+  // Called once the candidates are fitted (stage "fit") and once their folds
+  // are (stage "held-out"); a whole measured table takes a second or two.
   ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
@@ -141,6 +147,7 @@ std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, doub
                                        std::string* reason);
 
 // Fits every candidate (and its held-out folds) and chooses by ChooseModel.
+// The candidates' fits run in parallel, then every (candidate, fold) pair.
 // Ends kFailure when no candidate is usable, or when a lobe model is far
 // better than every trusted one but its shape is not identifiable (the data
 // show a lobe whose width they cannot give).
