@@ -189,7 +189,13 @@ cv::Mat World::RenderRadiance() const {
     return RenderTransmission(surface_.line_integrals, config_.scene.backlight_radiance);
   if (!config_.color.IsOn()) return RenderChannel(surface_, *brdf_, sky_response_, emitted);
   std::array<cv::Mat, 3> channels;
-  for (int c = 0; c < 3; ++c) channels[c] = RenderChannel(channel_surface_[c], *channel_brdf_[c], channel_sky_response_[c], emitted);
+  for (int c = 0; c < 3; ++c) {
+    channels[c] = RenderChannel(channel_surface_[c], *channel_brdf_[c], channel_sky_response_[c], emitted);
+    // A table's channel is the reflectance as that channel sees it against a
+    // grey standard; the channel's response to the light scales all of it,
+    // as it scales a parametric lobe (and is inside a paint's albedo).
+    if (config_.scene.material.model == Brdf::Model::kTabulated) channels[c] *= config_.color.light_rgb[c];
+  }
   return MosaicOf(channels, config_.color.mosaic);
 }
 

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
+#include <optional>
 
 namespace photorig::sim {
 namespace {
@@ -230,6 +232,32 @@ TEST(SkyResponse, AMirrorReflectsTheSkyOnlyWhereItsMirrorDirectionPointsUp) {
     }
   EXPECT_GT(lit, 100);
   EXPECT_GT(dark, 100);
+}
+
+// On a colour dome a tabulated material is seen through each channel's
+// response to the light, as a parametric one is: a grey Lambertian table
+// renders as the Lambertian model of the same albedo.
+TEST(ColourDome, ATabulatedMaterialIsScaledByEachChannelsResponseToTheLight) {
+  WorldConfig config;
+  config.scene.shape = Scene::Shape::kSamplePlane;
+  config.scene.sphere_radius_mm = 2.0;
+  config.scene.albedo.pattern = AlbedoTexture::Pattern::kUniform;
+  config.scene.albedo.high = 0.5;
+  config.camera = {24, 24, 0.2};
+  config.lights = {{Eigen::Vector3d(0.3, 0.2, 0.93).normalized(), 2.0}};
+  config.color.mosaic = "RGGB";
+  config.color.light_rgb = Eigen::Vector3d(0.8, 1.0, 0.6);
+  config.color.low_rgb = config.color.high_rgb = 0.5 * config.color.light_rgb;  // a grey paint of albedo 0.5
+  World parametric(config);
+  config.scene.material.model = Brdf::Model::kTabulated;
+  config.scene.material.table = std::make_shared<const solvers::brdf::MeasuredBrdf>(
+      [](const Eigen::Vector3d&, const Eigen::Vector3d&) { return std::optional<Eigen::Vector3d>(Eigen::Vector3d::Constant(0.5 / M_PI)); });
+  World tabulated(config);
+  parametric.SetLevels({1.0});
+  tabulated.SetLevels({1.0});
+  const cv::Mat a = parametric.RenderRadiance(), b = tabulated.RenderRadiance();
+  ASSERT_GT(cv::countNonZero(a > 0.0f), 100);
+  EXPECT_LT(cv::norm(a, b, cv::NORM_INF), 1e-5 * cv::norm(a, cv::NORM_INF));
 }
 
 }  // namespace
