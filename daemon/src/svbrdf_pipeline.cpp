@@ -253,7 +253,8 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
           {"pixels_refined", n.pixels_refined}, {"pixels_held", n.pixels_held},
           {"median_change_deg", n.median_change_deg}, {"p95_change_deg", n.p95_change_deg},
           {"reduced_chi_square_before", n.reduced_chi_square_before},
-          {"reduced_chi_square_after", n.reduced_chi_square_after}, {"total_ms", n.total_ms}};
+          {"reduced_chi_square_after", n.reduced_chi_square_after}, {"total_ms", n.total_ms},
+          {"normals_ms", n.normals_ms}};
     if (result.refined_normals_vs_truth_mean_deg)
       nj["normals_vs_truth_mean_deg"] = {{"before", *result.unrefined_normals_vs_truth_mean_deg},
                                          {"after", *result.refined_normals_vs_truth_mean_deg}};
@@ -335,7 +336,8 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
         refine.progress = request.progress;
         cv::Mat refined;
         refl::ReflectanceMaps refined_maps;
-        result.normal_refinement = refl::RefineNormalsAndReflectance(refine, stack, normals, mask, &refined, &refined_maps);
+        result.normal_refinement =
+            refl::RefineNormalsAndReflectance(refine, stack, normals, mask, maps, result.summary, &refined, &refined_maps);
         if (result.normal_refinement->IsSolutionUsable() && result.normal_refinement->rounds > 0) {
           if (!input.truth_normals.empty()) {
             result.unrefined_normals_vs_truth_mean_deg = MeanAngleDeg(normals, input.truth_normals, refined_maps.material);

@@ -251,6 +251,7 @@ struct NormalRefinementSummary : Summary {
   std::vector<double> p95_change_deg;
   double reduced_chi_square_before = 0.0;  // of the fit with the given normals
   double reduced_chi_square_after = 0.0;   // of the final fit
+  double normals_ms = 0.0;  // in the per-pixel normal steps, over the rounds (the rest: the fits)
   ReflectanceSummary reflectance;          // the final fit's summary
 };
 
@@ -261,6 +262,13 @@ struct NormalRefinementSummary : Summary {
 NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOptions& options,
                                                     const ReflectanceStack& stack, const cv::Mat& normals,
                                                     const cv::Mat& mask, cv::Mat* refined_normals,
+                                                    ReflectanceMaps* maps);
+// The same with the first fit (FitReflectance with options.fit on this
+// stack, `normals` and `mask`) already made, so it is not made again.
+NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOptions& options,
+                                                    const ReflectanceStack& stack, const cv::Mat& normals,
+                                                    const cv::Mat& mask, const ReflectanceMaps& first,
+                                                    const ReflectanceSummary& first_summary, cv::Mat* refined_normals,
                                                     ReflectanceMaps* maps);
 
 // ---- Held-out-light relighting: the check that needs no ground truth ----
