@@ -137,10 +137,11 @@ double MeanAngleDeg(const cv::Mat& a, const cv::Mat& b, const cv::Mat& where) {
 // materials are known the raw frames are demosaiced again, each pixel's
 // channels taken only from sites of its own material (its label first
 // settled by its own site: color::RegionEdgeVote), and the reflectance is
-// refitted once. Not repeated until the map stops changing: on the shipped
-// recipe a second refit moves no edge it did not already move, but lets the
-// colour test of the pixels that saw no highlight split a glossy paint's rim
-// off as a paint of its own in some runs (docs/reflectance.md).
+// refitted once. Repeating until the map stops changing was tried before
+// the colour test of unseen pixels compared them under the material's lobe:
+// it moved no more edges, and split a glossy paint's rim off as a paint of
+// its own. With that test mended the loop was not brought back
+// (docs/reflectance.md).
 void RefitDemosaicedWithinMaterials(const PhotometricStereoInput& input, const cv::Mat& normals,
                                     const refl::ReflectanceOptions& options, refl::ReflectanceStack* stack,
                                     refl::ReflectanceMaps* maps, SvbrdfResult* result) {
