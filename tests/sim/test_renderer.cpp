@@ -184,16 +184,22 @@ TEST(SkyResponse, LambertianSphereMatchesTheClosedForm) {
   EXPECT_NEAR(sum_error / count, 0.0, 0.002);
 }
 
-// An upward-facing plane sees the whole sky: the ambient light adds exactly
-// the stated irradiance, dome_fraction * level * E per lit LED plus the stray
-// light, reflected as rho / pi of it.
-TEST(SkyResponse, AmbientLightAddsTheStatedIrradiance) {
+// A 24 x 24 view of an upward-facing plane of uniform albedo 0.5, no lights.
+WorldConfig GreyPlane() {
   WorldConfig config;
   config.scene.shape = Scene::Shape::kSamplePlane;
   config.scene.sphere_radius_mm = 2.0;
   config.scene.albedo.pattern = AlbedoTexture::Pattern::kUniform;
   config.scene.albedo.high = 0.5;
   config.camera = {24, 24, 0.2};
+  return config;
+}
+
+// An upward-facing plane sees the whole sky: the ambient light adds exactly
+// the stated irradiance, dome_fraction * level * E per lit LED plus the stray
+// light, reflected as rho / pi of it.
+TEST(SkyResponse, AmbientLightAddsTheStatedIrradiance) {
+  WorldConfig config = GreyPlane();
   config.lights = {{Eigen::Vector3d(0, 0, 1), 2.0}, {Eigen::Vector3d(0.6, 0, 0.8), 3.0}};
   const World direct_only(config);
   config.ambient.dome_fraction = 0.04;
@@ -238,12 +244,7 @@ TEST(SkyResponse, AMirrorReflectsTheSkyOnlyWhereItsMirrorDirectionPointsUp) {
 // response to the light, as a parametric one is: a grey Lambertian table
 // renders as the Lambertian model of the same albedo.
 TEST(ColourDome, ATabulatedMaterialIsScaledByEachChannelsResponseToTheLight) {
-  WorldConfig config;
-  config.scene.shape = Scene::Shape::kSamplePlane;
-  config.scene.sphere_radius_mm = 2.0;
-  config.scene.albedo.pattern = AlbedoTexture::Pattern::kUniform;
-  config.scene.albedo.high = 0.5;
-  config.camera = {24, 24, 0.2};
+  WorldConfig config = GreyPlane();
   config.lights = {{Eigen::Vector3d(0.3, 0.2, 0.93).normalized(), 2.0}};
   config.color.mosaic = "RGGB";
   config.color.light_rgb = Eigen::Vector3d(0.8, 1.0, 0.6);
