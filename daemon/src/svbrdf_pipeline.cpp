@@ -4,6 +4,7 @@
 #include "photorig/daemon/gltf_export.h"
 #include "photorig/daemon/image_io.h"
 #include "photorig/daemon/results_folder.h"
+#include "photorig/ps/evaluation.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
 
 #include <opencv2/imgcodecs.hpp>
@@ -112,23 +113,6 @@ cv::Mat MaterialsOverTheObject(const refl::ReflectanceMaps& maps) {
     if (unlabelled.data[i] && !near_off_object.data[i])
       out.data[i] = material_of[static_cast<std::size_t>(nearest.ptr<int>()[i])];
   return out;
-}
-
-// Mean angle (degrees) between two normal maps over the pixels `where` != 255
-// and both normals are finite.
-double MeanAngleDeg(const cv::Mat& a, const cv::Mat& b, const cv::Mat& where) {
-  double sum = 0.0;
-  int count = 0;
-  for (int i = 0; i < static_cast<int>(where.total()); ++i) {
-    if (where.data[i] == 255) continue;
-    const cv::Vec3f& u = a.at<cv::Vec3f>(i);
-    const cv::Vec3f& v = b.at<cv::Vec3f>(i);
-    const double nu = cv::norm(u), nv = cv::norm(v);
-    if (!(nu > 0.0 && nv > 0.0) || !std::isfinite(nu) || !std::isfinite(nv)) continue;
-    sum += std::acos(std::clamp(u.dot(v) / (nu * nv), -1.0, 1.0)) * 180.0 / M_PI;
-    ++count;
-  }
-  return count > 0 ? sum / count : std::numeric_limits<double>::quiet_NaN();
 }
 
 // A bilinear demosaic fills a pixel's missing channels from its neighbours on
@@ -341,8 +325,9 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
             refl::RefineNormalsAndReflectance(refine, stack, normals, mask, maps, result.summary, &refined, &refined_maps);
         if (result.normal_refinement->IsSolutionUsable() && result.normal_refinement->rounds > 0) {
           if (!input.truth_normals.empty()) {
-            result.unrefined_normals_vs_truth_mean_deg = MeanAngleDeg(normals, input.truth_normals, refined_maps.material);
-            result.refined_normals_vs_truth_mean_deg = MeanAngleDeg(refined, input.truth_normals, refined_maps.material);
+            const cv::Mat fitted = refined_maps.material != color::kNoRegion;
+            result.unrefined_normals_vs_truth_mean_deg = ps::CompareNormals(normals, input.truth_normals, fitted).mean_deg;
+            result.refined_normals_vs_truth_mean_deg = ps::CompareNormals(refined, input.truth_normals, fitted).mean_deg;
           }
           normals = refined;
           maps = std::move(refined_maps);
@@ -442,10 +427,20 @@ HeldOutLightImages PredictHeldOutLight(const std::string& run_directory, const s
   if (!file) throw std::runtime_error(report_path.string() + " not found: run `photorig solve svbrdf` first");
   const nlohmann::json report = nlohmann::json::parse(file);
   const refl::ReflectanceMaps maps = ReadSvbrdfResult(svbrdf_directory);
+  // Read as the solve read it: a Bayer run within the regions it saved (used
+  // as they are, not settled again), else with the solve's demosaic.
   ColorStackOptions color;
   if (report.contains("demosaic") && report["demosaic"].value("method", "") == "edge-aware")
     color.demosaic = DemosaicMethod::kEdgeAware;
-  PhotometricStereoInput input = LoadRunStack(run_directory, color);
+  const bool within_regions = fs::exists(dir / "demosaic_regions.png");
+  if (within_regions) {
+    color.demosaic_regions = ReadImage((dir / "demosaic_regions.png").string());
+    color.settle_region_edges = false;
+  }
+  const PhotometricStereoInput input = LoadRunStack(run_directory, color);
+  if (within_regions && (!input.color || input.color->bayer_run_directory.empty()))
+    throw std::runtime_error((dir / "demosaic_regions.png").string() + " names regions, but " + run_directory +
+                             " is not a Bayer run");
   if (light < 0 || light >= input.stack.light_count())
     throw std::invalid_argument("light " + std::to_string(light) + " is not one of " + run_directory + "'s " +
                                 std::to_string(input.stack.light_count()) + " lights (0.." +
@@ -453,15 +448,6 @@ HeldOutLightImages PredictHeldOutLight(const std::string& run_directory, const s
   if (maps.flags.size() != input.stack.images.front().size())
     throw std::runtime_error(svbrdf_directory + " is not a solve of " + run_directory + ": its maps are " +
                              std::to_string(maps.flags.cols) + " x " + std::to_string(maps.flags.rows));
-  if (fs::exists(dir / "demosaic_regions.png")) {
-    if (!input.color || input.color->bayer_run_directory.empty())
-      throw std::runtime_error((dir / "demosaic_regions.png").string() + " names regions, but " + run_directory +
-                               " is not a Bayer run");
-    ColorStackOptions again = input.color->loaded_with;
-    again.demosaic_regions = ReadImage((dir / "demosaic_regions.png").string());
-    again.settle_region_edges = false;
-    input.color = LoadRunColorStack(input.color->bayer_run_directory, again);
-  }
   // The solve's mask is where it did not flag a pixel as outside it.
   const cv::Mat mask = maps.flags != static_cast<int>(refl::PixelFlag::kOutsideMask);
   const refl::ReflectanceStack stack = ToReflectanceStack(input);

@@ -33,18 +33,27 @@ struct RelightOptions {
   int held_out = -1;                          // a light index: predict it from the others, beside the measured frame
 };
 
-// Writes the float result and an 8-bit view scaled to its 99.5th percentile.
-void WriteRelit(const std::string& path, const cv::Mat& image) {
-  daemon::WriteFloatTiff(path, image);
+// The 99.5th percentile of a float image's grey values: the white of its 8-bit view.
+double ViewWhite(const cv::Mat& image) {
   cv::Mat grey = image.channels() == 1 ? image : cv::Mat();
   if (grey.empty()) cv::cvtColor(image, grey, cv::COLOR_RGB2GRAY);
   std::vector<float> values(grey.begin<float>(), grey.end<float>());
   std::nth_element(values.begin(), values.begin() + values.size() * 995 / 1000, values.end());
-  const double top = std::max(1e-12, double(values[values.size() * 995 / 1000]));
+  return std::max(1e-12, double(values[values.size() * 995 / 1000]));
+}
+
+// An 8-bit view of a float image with `white` at 255.
+void WriteView(const std::string& png, const cv::Mat& image, double white) {
   cv::Mat view;
-  image.convertTo(view, CV_8U, 255.0 / top);
+  image.convertTo(view, CV_8U, 255.0 / white);
   if (view.channels() == 3) cv::cvtColor(view, view, cv::COLOR_RGB2BGR);  // images are R, G, B; files want B, G, R
-  daemon::WriteImage(fs::path(path).replace_extension(".png").string(), view);
+  daemon::WriteImage(png, view);
+}
+
+// Writes the float result and an 8-bit view scaled to its 99.5th percentile.
+void WriteRelit(const std::string& path, const cv::Mat& image) {
+  daemon::WriteFloatTiff(path, image);
+  WriteView(fs::path(path).replace_extension(".png").string(), image, ViewWhite(image));
 }
 
 // --held-out: the light's frame predicted by the fit on the other lights
@@ -84,17 +93,11 @@ int RelightHeldOut(const RelightOptions& options) {
   const cv::Mat unknown = (measured != measured) | (guess != guess);
   cv::patchNaNs(measured, 0.0);
   cv::patchNaNs(guess, 0.0);
-  std::vector<float> values(measured.ptr<float>(), measured.ptr<float>() + measured.total() * measured.channels());
-  std::nth_element(values.begin(), values.begin() + values.size() * 995 / 1000, values.end());
-  const double top = std::max(1e-12, double(values[values.size() * 995 / 1000]));
-  cv::Mat difference = cv::abs(measured - guess) * 4.0, panels, view;
+  cv::Mat difference = cv::abs(measured - guess) * 4.0, panels;
   difference.setTo(cv::Scalar::all(0.0), unknown);
   cv::hconcat(std::vector<cv::Mat>{measured, guess, difference}, panels);
-  panels.convertTo(view, CV_8U, 255.0 / top);
-  if (view.channels() == 3) cv::cvtColor(view, view, cv::COLOR_RGB2BGR);
-  const std::string preview = out.parent_path().empty() ? out.stem().string() + ".png"
-                                                         : (out.parent_path() / (out.stem().string() + ".png")).string();
-  daemon::WriteImage(preview, view);
+  const std::string preview = fs::path(options.out).replace_extension(".png").string();
+  WriteView(preview, panels, ViewWhite(measured));
   std::printf("light %d held out: %s RMSE %.4g (PSNR %.1f dB); wrote %s, %s and %s (measured | predicted | 4 x difference)\n",
               options.held_out, refl::MethodName(method), chosen->rmse, chosen->psnr_db, options.out.c_str(),
               measured_path.c_str(), preview.c_str());

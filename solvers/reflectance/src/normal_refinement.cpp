@@ -197,9 +197,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
       problem.channels = C;
       problem.view = stack.view_direction;
       problem.n0 = Eigen::Vector3d(nv[0], nv[1], nv[2]).normalized();
-      const Eigen::Vector3d a = std::abs(problem.n0.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-      problem.t0 = a.cross(problem.n0).normalized();
-      problem.b0 = problem.n0.cross(problem.t0);
+      internal::FrameOf(problem.n0, &problem.t0, &problem.b0);
       const MaterialFit& material = current.materials[current.material.data[i]];
       problem.lobe = {material.model, material.shape};
       problem.specular = material.specular;

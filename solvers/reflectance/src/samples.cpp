@@ -6,14 +6,13 @@
 
 namespace photorig::solvers::reflectance::internal {
 
-namespace {
-
-// An orthonormal frame with n as its z axis.
 void FrameOf(const Eigen::Vector3d& n, Eigen::Vector3d* t, Eigen::Vector3d* b) {
   const Eigen::Vector3d a = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
   *t = a.cross(n).normalized();
   *b = n.cross(*t);
 }
+
+namespace {
 
 std::vector<double> LogGrid(double lo, double hi, int count) {
   std::vector<double> grid(count);

@@ -101,7 +101,9 @@ MaterialResult FitMaterial(const Samples& s, const std::vector<int>& pixels, con
 double Predict(const Samples& s, int p, const Eigen::Vector3d& wi_local, const Lobe& lobe, double weight, double rho,
                double irradiance);
 
-// wi in pixel p's frame.
+// An orthonormal frame (t, b, n) with n as its z axis.
+void FrameOf(const Eigen::Vector3d& n, Eigen::Vector3d* t, Eigen::Vector3d* b);
+// w in the frame of normal n (FrameOf).
 Eigen::Vector3d ToLocal(const Eigen::Vector3d& n, const Eigen::Vector3d& w);
 
 }  // namespace photorig::solvers::reflectance::internal
