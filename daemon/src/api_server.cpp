@@ -2,6 +2,7 @@
 
 #include "photorig/config/yaml_node.h"
 #include "photorig/daemon/image_io.h"
+#include "http_front.h"
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -9,6 +10,8 @@
 #include <httplib.h>
 #include <spdlog/spdlog.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <sys/socket.h>
 
 #include <algorithm>
@@ -20,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <sstream>
 #include <vector>
 
 namespace photorig::daemon {
@@ -94,10 +98,21 @@ std::string Lower(std::string text) {
   return text;
 }
 
-// The host of a Host header ("127.0.0.1:8750", "[::1]:8750"), without the port.
+// The host of a Host header or an origin's authority ("127.0.0.1:8750",
+// "[::1]:8750"), without the port.
 std::string HostName(const std::string& authority) {
   if (!authority.empty() && authority.front() == '[') return Lower(authority.substr(1, authority.find(']') - 1));
   return Lower(authority.substr(0, authority.rfind(':')));
+}
+
+// Whether `host` (from a Host header or an Origin) names this daemon to a
+// browser: a loopback address, the address it listens on, or a name the
+// operator allowed. Exact comparisons: a prefix test lets a rebinding name
+// such as 127.0.0.1.attacker.example through.
+bool IsOwnHost(const std::string& host, const ApiOptions& options) {
+  return IsLoopbackAddress(host) || host == Lower(options.bind_address) ||
+         std::any_of(options.allowed_hosts.begin(), options.allowed_hosts.end(),
+                     [&](const std::string& name) { return Lower(name) == host; });
 }
 
 // What a web page may POST to another origin without the browser asking it
@@ -136,16 +151,15 @@ Refusal CheckRequest(const httplib::Request& req, const ApiOptions& options) {
   if (authenticated) return {};
   // A page served from elsewhere reaches a loopback daemon only through the
   // browser: under its own host name (DNS rebinding) or with its own Origin.
-  if (req.has_header("Host")) {
-    const std::string host = HostName(req.get_header_value("Host"));
-    const bool allowed = IsLoopbackAddress(host) || host == Lower(options.bind_address) ||
-                         std::any_of(options.allowed_hosts.begin(), options.allowed_hosts.end(),
-                                     [&](const std::string& name) { return Lower(name) == host; });
-    if (!allowed) return {403, "Host '" + host + "' is not this daemon's (see --allow-host)"};
+  if (req.has_header("Host") && !IsOwnHost(HostName(req.get_header_value("Host")), options))
+    return {403, "Host '" + HostName(req.get_header_value("Host")) + "' is not this daemon's (see --allow-host)"};
+  if (req.has_header("Origin")) {
+    const std::string origin = Lower(req.get_header_value("Origin"));
+    const bool own = origin.rfind("http://", 0) == 0 && IsOwnHost(HostName(origin.substr(7)), options);
+    if (!own) return {403, "requests from the page at '" + origin + "' are not accepted (see --allow-host)"};
+    if (state_changing && origin != "http://" + Lower(req.get_header_value("Host")))
+      return {403, "cross-origin requests may not change anything"};
   }
-  if (state_changing && req.has_header("Origin") &&
-      Lower(req.get_header_value("Origin")) != "http://" + Lower(req.get_header_value("Host")))
-    return {403, "cross-origin requests may not change anything"};
   return {};
 }
 
@@ -273,7 +287,11 @@ json ImageStats(const cv::Mat& values, const httplib::Request& req) {
 }  // namespace
 
 bool IsLoopbackAddress(const std::string& address) {
-  return address == "127.0.0.1" || address == "::1" || address == "localhost" || address.rfind("127.", 0) == 0;
+  in_addr v4{};
+  in6_addr v6{};
+  if (::inet_pton(AF_INET, address.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  if (::inet_pton(AF_INET6, address.c_str(), &v6) == 1) return IN6_IS_ADDR_LOOPBACK(&v6);
+  return Lower(address) == "localhost";
 }
 
 bool ApiOptions::IsValid(std::string* why) const {
@@ -292,40 +310,90 @@ bool ApiOptions::IsValid(std::string* why) const {
     return fail("worker_threads must exceed max_event_streams by at least 8, so short requests are served");
   if (read_timeout_ms < 100) return fail("read_timeout_ms must be >= 100");
   if (listen_backlog < 1) return fail("listen_backlog must be >= 1");
+  if (max_connections < worker_threads) return fail("max_connections must be >= worker_threads");
   return true;
 }
 
+namespace {
+
+FrontOptions FrontOf(const ApiOptions& options) {
+  FrontOptions front;
+  front.worker_threads = options.worker_threads;
+  front.header_timeout_ms = options.read_timeout_ms;
+  front.idle_timeout_ms = options.read_timeout_ms;
+  front.io_timeout_ms = options.read_timeout_ms;
+  front.max_connections = options.max_connections;
+  front.listen_backlog = options.listen_backlog;
+  return front;
+}
+
+// The inode of the socket listening on TCP `port` from /proc/net/tcp or
+// tcp6 (lines "sl local_address rem_address st ... inode"), 0 if none.
+std::string ListeningInode(int port) {
+  char wanted[8];
+  std::snprintf(wanted, sizeof(wanted), ":%04X", port);
+  for (const char* table : {"/proc/net/tcp", "/proc/net/tcp6"}) {
+    std::ifstream in(table);
+    std::string line;
+    std::getline(in, line);  // the column names
+    while (std::getline(in, line)) {
+      std::istringstream fields(line);
+      std::string slot, local, remote, state, queues, timer, retransmits, uid, timeout, inode;
+      fields >> slot >> local >> remote >> state >> queues >> timer >> retransmits >> uid >> timeout >> inode;
+      if (state == "0A" && local.size() > 5 && local.compare(local.size() - 5, 5, wanted) == 0) return inode;
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string PortHolder(int port) {
+  const std::string inode = ListeningInode(port);
+  if (inode.empty()) return "";
+  const std::string target = "socket:[" + inode + "]";
+  std::error_code error;
+  for (const auto& process : fs::directory_iterator("/proc", error)) {
+    const std::string pid = process.path().filename().string();
+    if (pid.find_first_not_of("0123456789") != std::string::npos) continue;
+    for (const auto& fd : fs::directory_iterator(process.path() / "fd", error)) {
+      if (fs::read_symlink(fd.path(), error).string() != target) continue;
+      std::string name;
+      std::getline(std::ifstream(process.path() / "comm"), name);
+      return "process " + pid + " (" + name + ")";
+    }
+    error.clear();  // processes of other users cannot be looked into
+  }
+  return "another user's process";
+}
+
 ApiServer::ApiServer(RunService& service, ApiOptions options)
-    : service_(service), options_(std::move(options)), server_(std::make_unique<httplib::Server>()) {
+    : service_(service), options_(std::move(options)) {
   std::string why;
   if (!options_.IsValid(&why)) throw std::runtime_error("API options: " + why);
+  server_ = std::make_unique<HttpFront>(FrontOf(options_));
   server_->set_payload_max_length(options_.max_body_bytes);
-  const std::size_t workers = static_cast<std::size_t>(options_.worker_threads);
-  server_->new_task_queue = [workers] { return new httplib::ThreadPool(workers); };
-  server_->set_read_timeout(std::chrono::milliseconds(options_.read_timeout_ms));
-  // The library listens with a fixed backlog of 5; the socket it binds is
-  // remembered here so Bind can raise it.
-  server_->set_socket_options([this](socket_t fd) {
-    httplib::default_socket_options(fd);
-    listen_fd_ = fd;
-  });
   Routes();
 }
 
 ApiServer::~ApiServer() { Stop(); }
 
 void ApiServer::Bind() {
-  port_ = options_.port == 0 ? server_->bind_to_any_port(options_.bind_address)
-                             : (server_->bind_to_port(options_.bind_address, options_.port) ? options_.port : -1);
-  if (port_ <= 0)
-    throw std::runtime_error("cannot listen on " + options_.bind_address + ":" + std::to_string(options_.port));
-  if (::listen(listen_fd_, options_.listen_backlog) != 0)
-    throw std::runtime_error("cannot set the listen backlog on " + options_.bind_address + ":" + std::to_string(port_) +
-                             ": " + std::strerror(errno));
+  int error_number = 0;
+  port_ = server_->Listen(options_.bind_address, options_.port, &error_number);
+  if (port_ > 0) return;
+  std::string message = "cannot listen on " + options_.bind_address + ":" + std::to_string(options_.port) + ": " +
+                        std::strerror(error_number);
+  if (error_number == EADDRINUSE) {
+    const std::string holder = PortHolder(options_.port);
+    message += holder.empty() ? "" : " (held by " + holder + ")";
+    message += "; stop that daemon first, or choose another --port";
+  }
+  throw BindError(message);
 }
 
-void ApiServer::Serve() { server_->listen_after_bind(); }
-void ApiServer::Stop() { server_->stop(); }
+void ApiServer::Serve() { server_->Serve(); }
+void ApiServer::Stop() { server_->Stop(); }
 
 void ApiServer::Routes() {
   httplib::Server& s = *server_;
@@ -394,6 +462,8 @@ void ApiServer::Routes() {
     auto slot = std::make_shared<StreamSlot>(open_event_streams_);
     res.set_header("Cache-Control", "no-cache");
     res.set_chunked_content_provider("text/event-stream", [this, id, last, idle_ms, slot](std::size_t, httplib::DataSink& sink) {
+      // A client that hung up frees its slot now, not at the next keepalive write.
+      if (!sink.is_writable()) return false;
       const auto events = service_.EventsAfter(id, *last, 500);
       for (const RunEvent& event : events) {
         const std::string text = SseEvent(event);

@@ -22,20 +22,20 @@
 // chunked uploads, so the body limit holds), a POST carries no form or
 // text/plain body (what a foreign web page can send without asking), and a
 // request without a valid token names a loopback or allowed Host and comes
-// from no foreign Origin.
+// from no foreign Origin (exact names: 127.0.0.0/8 and ::1 as addresses,
+// localhost, the bound address, --allow-host names).
 
 #include "photorig/daemon/service.h"
 
 #include <atomic>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
-namespace httplib {
-class Server;
-}
-
 namespace photorig::daemon {
+
+class HttpFront;
 
 struct ApiOptions {
   std::string bind_address = "127.0.0.1";
@@ -50,14 +50,19 @@ struct ApiOptions {
   // Host names accepted besides loopback and bind_address (a request with a
   // valid token is accepted under any Host).
   std::vector<std::string> allowed_hosts;
-  // Each connection holds a worker while it is served, an event stream for as
-  // long as it is open: streams are capped (503 beyond) below the pool size,
-  // so short requests such as /health always find a free worker.
+  // A connection holds a worker only while a request it sent whole is
+  // answered (idle and slow clients wait in the front's event loop, see
+  // http_front.h), an event stream for as long as it is open: streams are
+  // capped (503 beyond) below the pool size, so short requests such as
+  // /health always find a free worker.
   int worker_threads = 64;
   int max_event_streams = 32;
-  // A client silent this long (while sending its headers or body) is cut off.
+  // A request's headers must arrive whole within this time of its first
+  // byte; a keep-alive connection idle this long is closed; a body or an
+  // answer stalled this long is cut off.
   int read_timeout_ms = 5000;
-  int listen_backlog = 128;  // connections the kernel holds while every worker is busy
+  int max_connections = 512;  // open at once; beyond, 503 and closed
+  int listen_backlog = 128;   // connections the kernel holds before they are accepted
   // The browser interface's pages (daemon/web, installed to share/photorig/web);
   // empty: none served. Its libraries come from Debian's libjs-three and
   // libjs-chart.js under javascript_root, served as /vendor/three/ and /vendor/chart.js/.
@@ -67,13 +72,25 @@ struct ApiOptions {
   bool IsValid(std::string* why) const;
 };
 
+// 127.0.0.0/8 or ::1 written as an address, or "localhost".
 bool IsLoopbackAddress(const std::string& address);
+
+// The port could not be bound: in use, or an address this host lacks.
+class BindError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Who listens on TCP `port` on this host, from /proc: "process 1234
+// (photorigd)", "another user's process", or empty when nothing listens.
+std::string PortHolder(int port);
 
 class ApiServer {
  public:
   ApiServer(RunService& service, ApiOptions options);
   ~ApiServer();
-  // Binds the socket; throws std::runtime_error naming address and port.
+  // Binds the socket for this process alone; throws BindError naming address,
+  // port and, when the port is taken, the process that holds it.
   void Bind();
   int port() const { return port_; }
   // Serves until Stop(); call from its own thread.
@@ -86,8 +103,7 @@ class ApiServer {
   RunService& service_;
   ApiOptions options_;
   std::atomic<int> open_event_streams_{0};
-  int listen_fd_ = -1;  // the bound socket, to raise its backlog
-  std::unique_ptr<httplib::Server> server_;
+  std::unique_ptr<HttpFront> server_;
   int port_ = 0;
 };
 
