@@ -4,6 +4,9 @@
 //   photorigd --data-root DIR --rig RIG.yaml [--listen ADDR] [--port N] [--token-file FILE] [--allow-host NAME]
 //             [--web-root DIR] [--recipes DIR]
 // It prints the browser interface's address on stdout once it listens (docs/ui.md).
+// Listening off loopback without a token, it uses the one in DATA/api-token,
+// made at the first such start, and says so. A port another process holds
+// ends it with exit code 2, naming that process.
 // On SIGTERM or SIGINT the current run finishes its frame, the lights go off
 // and the run stays queued for the next start. Under systemd (Type=notify)
 // it reports readiness and feeds the watchdog while the worker is alive.
@@ -16,7 +19,10 @@
 #include <spdlog/spdlog.h>
 #include <systemd/sd-daemon.h>
 
+#include <sys/stat.h>
+
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -38,6 +44,33 @@ std::string DefaultWebRoot() {
   return "";
 }
 
+// The token of a daemon that listens off loopback and was given none: the
+// one in DATA/api-token, or a new random one written there (readable by its
+// owner alone) so clients can be given the file and it survives restarts.
+std::string StoredToken(const std::filesystem::path& file) {
+  std::string token;
+  if (std::ifstream in(file); in) {
+    std::getline(in, token);
+    if (!token.empty()) return token;
+  }
+  unsigned char bytes[24];
+  std::ifstream random("/dev/urandom", std::ios::binary);
+  if (!random.read(reinterpret_cast<char*>(bytes), sizeof(bytes)))
+    throw std::runtime_error("cannot read /dev/urandom to make a bearer token");
+  for (unsigned char byte : bytes) {
+    char hex[3];
+    std::snprintf(hex, sizeof(hex), "%02x", byte);
+    token += hex;
+  }
+  const mode_t before = ::umask(077);
+  std::ofstream out(file, std::ios::trunc);
+  out << token << "\n";
+  out.close();
+  ::umask(before);
+  if (!out) throw std::runtime_error("cannot write the bearer token to " + file.string());
+  return token;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -52,11 +85,13 @@ int main(int argc, char** argv) {
   app.add_option("--data-root", service_options.data_root, "queue, recipes and run directories live here")
       ->capture_default_str();
   app.add_option("--rig", service_options.rig_path, "rig YAML this daemon drives")->required()->check(CLI::ExistingFile);
-  app.add_option("--listen", api_options.bind_address, "address to bind (non-loopback needs a token)")
+  app.add_option("--listen", api_options.bind_address, "address to bind (off loopback every API request needs the token: --token-file, $PHOTORIG_TOKEN, else "
+                 "one kept in DATA/api-token)")
       ->capture_default_str();
   app.add_option("--port", api_options.port, "TCP port (0: any free port, printed at start)")->capture_default_str();
   app.add_option("--allow-host", api_options.allowed_hosts,
-                 "a Host name clients without a token may use besides loopback (repeatable)");
+                 "a host name browsers and clients without a token may use besides loopback addresses and localhost "
+                 "(exact, repeatable)");
   app.add_option("--token-file", token_file, "file holding the bearer token (default: $PHOTORIG_TOKEN)")
       ->check(CLI::ExistingFile);
   app.add_option("--web-root", api_options.web_root,
@@ -94,6 +129,12 @@ int main(int argc, char** argv) {
   photorig::app::InstallStopHandlers();
   try {
     photorig::daemon::RunService service(service_options);
+    if (api_options.token.empty() && !photorig::daemon::IsLoopbackAddress(api_options.bind_address)) {
+      const auto file = std::filesystem::absolute(service_options.data_root) / "api-token";
+      api_options.token = StoredToken(file);
+      std::cout << "photorigd: listening on " << api_options.bind_address << " needs a bearer token: it is in "
+                << file.string() << " (give clients --token-file " << file.string() << ")" << std::endl;
+    }
     photorig::daemon::ApiServer server(service, api_options);
     server.Bind();
     service.Start();
@@ -125,6 +166,10 @@ int main(int argc, char** argv) {
     server.Stop();
     serving.join();
     spdlog::info("event=stopped");
+  } catch (const photorig::daemon::BindError& e) {
+    spdlog::error("event=fatal error={}", nlohmann::json(e.what()).dump());
+    std::cerr << "photorigd: " << e.what() << std::endl;
+    return 2;
   } catch (const std::exception& e) {
     spdlog::error("event=fatal error={}", nlohmann::json(e.what()).dump());
     return 1;

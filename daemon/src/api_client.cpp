@@ -1,6 +1,12 @@
 #include "photorig/daemon/api_client.h"
 
+#include "photorig/daemon/run_control.h"
+
 #include <httplib.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <thread>
 
 namespace photorig::daemon {
 using nlohmann::json;
@@ -35,23 +41,28 @@ ServiceReply ApiClient::Post(const std::string& path, const json& body) {
   return FromResult(client_->Post(path.c_str(), body.dump(), "application/json"), options_.url);
 }
 
-std::string ApiClient::FollowEvents(const std::string& run_id,
-                                    const std::function<bool(const std::string&, const json&)>& on_event) {
-  std::string buffer, error;
-  bool stopped = false;
+ApiClient::StreamEnd ApiClient::FollowOnce(const std::string& run_id,
+                                           const std::function<bool(const std::string&, const json&)>& on_event,
+                                           std::uint64_t* last_seq) {
+  StreamEnd end;
+  std::string buffer;
+  httplib::Headers headers;
+  if (*last_seq > 0) headers.emplace("Last-Event-ID", std::to_string(*last_seq));
   auto result = client_->Get(
-      ("/api/v1/runs/" + run_id + "/events").c_str(),
+      ("/api/v1/runs/" + run_id + "/events").c_str(), headers,
       [&](const httplib::Response& response) {
-        if (response.status != 200) error = "HTTP " + std::to_string(response.status) + " for run '" + run_id + "'";
+        end.http_status = response.status;
+        if (response.status != 200) end.error = "HTTP " + std::to_string(response.status) + " for run '" + run_id + "'";
         return response.status == 200;
       },
       [&](const char* data, std::size_t length) {
         buffer.append(data, length);
-        std::size_t end;
-        while ((end = buffer.find("\n\n")) != std::string::npos) {
-          const std::string block = buffer.substr(0, end);
-          buffer.erase(0, end + 2);
+        std::size_t block_end;
+        while ((block_end = buffer.find("\n\n")) != std::string::npos) {
+          const std::string block = buffer.substr(0, block_end);
+          buffer.erase(0, block_end + 2);
           std::string type = "message", payload;
+          std::uint64_t seq = 0;
           std::size_t start = 0;
           while (start < block.size()) {
             std::size_t eol = block.find('\n', start);
@@ -59,6 +70,7 @@ std::string ApiClient::FollowEvents(const std::string& run_id,
             const std::string line = block.substr(start, eol - start);
             if (line.rfind("event: ", 0) == 0) type = line.substr(7);
             if (line.rfind("data: ", 0) == 0) payload += line.substr(6);
+            if (line.rfind("id: ", 0) == 0) seq = std::strtoull(line.c_str() + 4, nullptr, 10);
             start = eol + 1;
           }
           if (payload.empty()) continue;  // keepalive comment
@@ -66,19 +78,49 @@ std::string ApiClient::FollowEvents(const std::string& run_id,
           try {
             data = json::parse(payload);
           } catch (const std::exception& e) {
-            error = std::string("malformed event: ") + e.what();
+            end.error = std::string("malformed event: ") + e.what();
+            end.stopped = true;
             return false;
           }
+          if (seq > *last_seq) *last_seq = seq;
           if (!on_event(type, data) || type == "stop") {
-            stopped = true;
+            end.stopped = true;
             return false;
           }
         }
         return true;
       });
-  if (!error.empty()) return error;
-  if (!result && !stopped) return "cannot reach photorigd at " + options_.url + ": " + httplib::to_string(result.error());
-  return "";
+  if (end.http_status == 200 && !end.stopped) end.http_status = 0;  // broke off before the run's end
+  if (end.error.empty() && !result && !end.stopped)
+    end.error = "cannot reach photorigd at " + options_.url + ": " + httplib::to_string(result.error());
+  if (end.error.empty() && !end.stopped) end.error = "the event stream ended before the run did";
+  return end;
+}
+
+std::string ApiClient::FollowEvents(const std::string& run_id,
+                                    const std::function<bool(const std::string&, const json&)>& on_event,
+                                    const Reconnect* reconnect) {
+  std::uint64_t last_seq = 0;
+  auto last_answer = std::chrono::steady_clock::now();
+  for (;;) {
+    const StreamEnd end = FollowOnce(run_id, on_event, &last_seq);
+    if (end.stopped || !reconnect) return end.error;
+    // Only a refusal for want of slots or a broken connection are waited out.
+    if (end.http_status != 0 && end.http_status != 503) return end.error;
+    const ServiceReply run = Get("/api/v1/runs/" + run_id);
+    if (run.http_status == 200) {
+      last_answer = std::chrono::steady_clock::now();
+      if (const auto state = RunStateFromName(run.body.value("state", "")); state && IsFinal(*state)) {
+        on_event("stop", StopEventData(run.body));
+        return "";
+      }
+    } else if (run.http_status != 0) {
+      return run.body.value("error", end.error);
+    } else if (std::chrono::steady_clock::now() - last_answer > std::chrono::seconds(reconnect->give_up_s)) {
+      return end.error + " (no answer for " + std::to_string(reconnect->give_up_s) + " s)";
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(reconnect->retry_ms));
+  }
 }
 
 int ApiClient::Download(const std::string& run_id, const std::string& relative_path, std::string* bytes) {

@@ -313,7 +313,7 @@ def start_chromedriver(log_path, output_path):
     fail(f"chromedriver did not listen on 127.0.0.1:{port} (exit {process.poll()}); its log:\n{log_tail(log_path)}")
 
 
-def start_browser(profile_dir, chromedriver_url, log_paths):
+def start_browser(profile_dir, chromedriver_url, log_paths, extra_flags=()):
     from selenium import webdriver
 
     options = webdriver.ChromeOptions()
@@ -325,7 +325,7 @@ def start_browser(profile_dir, chromedriver_url, log_paths):
     for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", f"--user-data-dir={profile_dir}",
                  "--window-size=1280,1000", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
                  "--no-first-run", "--disable-extensions", "--disable-background-networking",
-                 "--remote-debugging-pipe"):
+                 "--remote-debugging-pipe", *extra_flags):
         options.add_argument(flag)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     try:

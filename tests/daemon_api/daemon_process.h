@@ -19,11 +19,11 @@ namespace photorig::testing {
 
 class DaemonProcess {
  public:
-  // photorigd --data-root DATA --rig RIG --port 0 ARGS...
+  // photorigd --data-root DATA --rig RIG --port PORT ARGS...
   DaemonProcess(const std::filesystem::path& data_root, const std::string& rig, const std::filesystem::path& log,
-                const std::vector<std::string>& args) {
+                const std::vector<std::string>& args, int port = 0) {
     std::vector<std::string> argv = {std::string(PHOTORIG_BIN_DIR) + "/photorigd", "--data-root", data_root.string(),
-                                     "--rig", rig, "--port", "0"};
+                                     "--rig", rig, "--port", std::to_string(port)};
     argv.insert(argv.end(), args.begin(), args.end());
     pid_ = ::fork();
     if (pid_ == 0) {
@@ -62,6 +62,19 @@ class DaemonProcess {
     ::kill(pid_, SIGKILL);
     ::waitpid(pid_, nullptr, 0);
     pid_ = -1;
+  }
+  pid_t pid() const { return pid_; }
+  // The exit code once the process ends by itself within `timeout`; -1 if
+  // it is still running then (or was killed by a signal).
+  int WaitExit(std::chrono::milliseconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    int status = 0;
+    while (::waitpid(pid_, &status, WNOHANG) == 0) {
+      if (std::chrono::steady_clock::now() > deadline) return -1;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
   // SIGTERM; the exit code.
   int Terminate() {

@@ -14,9 +14,12 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
+#include <functional>
 #include <thread>
 
 namespace photorig::daemon {
@@ -44,6 +47,7 @@ class RawConnection {
   bool connected() const { return connected_; }
   bool Send(const std::string& bytes) { return ::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(bytes.size()); }
   // Reads until the end of the response headers; returns the status code (0 if the connection ended first).
+  int fd() const { return fd_; }
   int ReadStatus() {
     std::string head;
     char c;
@@ -59,7 +63,8 @@ class RawConnection {
 
 class Hardening : public ::testing::Test {
  protected:
-  void StartDaemon(const std::string& token = "", const std::function<void(const std::string&)>& before = nullptr) {
+  void StartDaemon(const std::string& token = "", const std::function<void(const std::string&)>& before = nullptr,
+                   const std::function<void(ApiOptions&)>& adjust = nullptr) {
     ServiceOptions options;
     options.data_root = (dir_.path() / "data").string();
     options.rig_path = dir_.Write("rig.yaml", SmallRigYaml());
@@ -71,6 +76,7 @@ class Hardening : public ::testing::Test {
     api.max_body_bytes = 64 * 1024;
     api.worker_threads = 24;
     api.max_event_streams = 12;
+    if (adjust) adjust(api);
     served_ = std::make_unique<ServedApi>(options, api);
   }
   ApiClient Client() { return served_->Client(); }
@@ -306,6 +312,146 @@ TEST_F(Hardening, HealthAnswersWhileStreamsAndSlowClientsHoldConnections) {
   }
   held.clear();
   EXPECT_EQ(client.Post("/api/v1/runs/" + running + "/abort", json::object()).http_status, 202);
+}
+
+// Starts a long run and pauses it once running: streams on it stay open.
+std::string PausedRun(ApiClient& client, const std::function<ApiClient()>& another) {
+  const auto submitted = client.Post("/api/v1/runs", {{"recipe", SmallRecipeYaml("", 1000)}});
+  EXPECT_EQ(submitted.http_status, 201) << submitted.body.dump();
+  const std::string id = submitted.body.value("id", "");
+  bool paused = false;
+  client.FollowEvents(id, [&](const std::string& type, const json& data) {
+    if (type == "state" && data["state"] == "running")
+      EXPECT_EQ(another().Post("/api/v1/runs/" + id + "/pause", json::object()).http_status, 202);
+    if (type == "state" && data["state"] == "paused") paused = true;
+    return !paused;
+  });
+  EXPECT_TRUE(paused);
+  return id;
+}
+
+// #39.1: the Host test was a "127." prefix, so a rebinding name such as
+// 127.0.0.1.rebind.attacker.example passed, and its matching Origin too.
+TEST_F(Hardening, RebindingHostsAndTheirOriginsChangeNothing) {
+  StartDaemon("", nullptr, [](ApiOptions& api) { api.allowed_hosts = {"rig.lab.example"}; });
+  ApiClient client = Client();
+  const std::string id = PausedRun(client, [this] { return Client(); });
+  const std::string port = std::to_string(served_->port());
+  const std::string body = json{{"recipe", SmallRecipeYaml()}}.dump();
+  httplib::Client raw = Raw();
+  for (const std::string host : {"127.0.0.1.rebind.attacker.example", "127.attacker.example", "127.0.0.1.",
+                                 "localhost.attacker.example", "0x7f.0.0.1", "127.1", "rig.lab.example.attacker.example"}) {
+    const httplib::Headers as_page = {{"Host", host + ":" + port}, {"Origin", "http://" + host + ":" + port}};
+    EXPECT_EQ(raw.Get("/api/v1/runs", as_page)->status, 403) << host;
+    EXPECT_EQ(raw.Get("/api/v1/runs/" + id + "/files/journal.jsonl", as_page)->status, 403) << host;
+    EXPECT_EQ(raw.Post("/api/v1/runs", as_page, body, "application/json")->status, 403) << host;
+    EXPECT_EQ(raw.Post("/api/v1/runs/" + id + "/abort", as_page, "{}", "application/json")->status, 403) << host;
+    EXPECT_EQ(raw.Post("/api/v1/runs/" + id + "/resume", as_page, "{}", "application/json")->status, 403) << host;
+    // The rebinding page's Origin with the daemon's own Host: refused as well.
+    const httplib::Headers origin_only = {{"Origin", "http://" + host + ":" + port}};
+    EXPECT_EQ(raw.Get("/api/v1/runs", origin_only)->status, 403) << host;
+    EXPECT_EQ(raw.Post("/api/v1/runs/" + id + "/abort", origin_only, "{}", "application/json")->status, 403) << host;
+  }
+  // Nothing changed: one run, still paused.
+  const auto runs = client.Get("/api/v1/runs");
+  ASSERT_EQ(runs.body["runs"].size(), 1u) << runs.body.dump();
+  EXPECT_EQ(runs.body["runs"][0]["state"], "paused");
+
+  // Loopback literals, localhost and the allowed name are served.
+  for (const std::string host : {"127.0.0.1", "127.0.0.2", "127.255.255.254", "[::1]", "localhost", "LocalHost",
+                                 "rig.lab.example"}) {
+    const httplib::Headers as_page = {{"Host", host + ":" + port}, {"Origin", "http://" + host + ":" + port}};
+    EXPECT_EQ(raw.Get("/api/v1/runs", as_page)->status, 200) << host;
+  }
+  const httplib::Headers allowed = {{"Host", "rig.lab.example:" + port}, {"Origin", "http://rig.lab.example:" + port}};
+  EXPECT_EQ(raw.Post("/api/v1/runs/" + id + "/abort", allowed, "{}", "application/json")->status, 202);
+}
+
+TEST(LoopbackAddress, OnlyLoopbackLiteralsAndLocalhost) {
+  for (const char* yes : {"127.0.0.1", "127.1.2.3", "::1", "0:0:0:0:0:0:0:1", "localhost", "LOCALHOST"})
+    EXPECT_TRUE(IsLoopbackAddress(yes)) << yes;
+  for (const char* no : {"127.0.0.1.attacker.example", "127.", "127.1", "0177.0.0.1", "128.0.0.1", "10.0.0.1", "::2",
+                         "localhost.", "localhost.attacker.example", "", "0.0.0.0"})
+    EXPECT_FALSE(IsLoopbackAddress(no)) << no;
+}
+
+// #39.2: an abandoned stream kept its slot until the next keepalive write (~15 s).
+TEST_F(Hardening, ClosedStreamsFreeTheirSlotsWithinASecond) {
+  StartDaemon("", nullptr, [](ApiOptions& api) {
+    api.max_event_streams = 32;
+    api.worker_threads = 40;
+  });
+  ApiClient client = Client();
+  const std::string id = PausedRun(client, [this] { return Client(); });
+  const std::string request = "GET /api/v1/runs/" + id + "/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+  // Every slot taken (the stream followed above may still be closing on the server's side).
+  std::vector<std::unique_ptr<RawConnection>> streams;
+  for (int refused = 0; refused == 0;) {
+    ASSERT_LE(streams.size(), 33u);
+    auto stream = std::make_unique<RawConnection>(served_->port());
+    ASSERT_TRUE(stream->Send(request));
+    const int status = stream->ReadStatus();
+    ASSERT_TRUE(status == 200 || status == 503) << status;
+    if (status == 503) ++refused;
+    else streams.push_back(std::move(stream));
+  }
+  EXPECT_GE(streams.size(), 31u);
+  // The watchers go (closed tabs, Ctrl-C): a new one is served within 1 s.
+  const std::size_t closed = streams.size();
+  streams.clear();
+  const auto gone = std::chrono::steady_clock::now();
+  int status = 0;
+  while (status != 200 && std::chrono::steady_clock::now() - gone < std::chrono::seconds(3)) {
+    RawConnection watcher(served_->port());
+    ASSERT_TRUE(watcher.Send(request));
+    status = watcher.ReadStatus();
+    if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  const double waited_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - gone).count();
+  EXPECT_EQ(status, 200);
+  EXPECT_LT(waited_s, 1.0);
+  // Within a second more, every slot is free again.
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  for (std::size_t i = 0; i < closed; ++i) {
+    streams.push_back(std::make_unique<RawConnection>(served_->port()));
+    ASSERT_TRUE(streams.back()->Send(request));
+    EXPECT_EQ(streams.back()->ReadStatus(), 200) << i;
+  }
+  streams.clear();
+  EXPECT_EQ(client.Post("/api/v1/runs/" + id + "/abort", json::object()).http_status, 202);
+}
+
+// #39.2: with 64 or 100 slow-header clients /health stopped answering.
+TEST_F(Hardening, HealthAnswersWithin100MsUnder200IdleAndSlowConnections) {
+  StartDaemon("", nullptr, [](ApiOptions& api) { api.read_timeout_ms = 2000; });
+  std::vector<std::unique_ptr<RawConnection>> held;
+  for (int i = 0; i < 200; ++i) {
+    held.push_back(std::make_unique<RawConnection>(served_->port()));
+    ASSERT_TRUE(held.back()->connected()) << i;
+    // Half say nothing, half stop in the middle of their headers.
+    if (i % 2) ASSERT_TRUE(held.back()->Send("GET /api/v1/health HTTP/1.1\r\nHo"));
+  }
+  // A trickling client: a byte every 200 ms never completes its headers.
+  RawConnection trickle(served_->port());
+  ASSERT_TRUE(trickle.Send("GET /api/v1/health HTTP/1.1\r\n"));
+  const auto trickle_started = std::chrono::steady_clock::now();
+  double slowest_ms = 0;
+  for (int i = 0; i < 10; ++i) {
+    const auto asked = std::chrono::steady_clock::now();
+    const auto health = Client().Get("/api/v1/health");  // a new connection each time
+    slowest_ms = std::max(slowest_ms, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - asked).count());
+    EXPECT_EQ(health.http_status, 200) << health.body.dump();
+    trickle.Send("X");
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  EXPECT_LT(slowest_ms, 100.0);
+  // The header timeout runs from the first byte, so the trickle is cut off
+  // 2 s after it began (no status: the connection just ends) although it
+  // never paused for long.
+  timeval wait{4, 0};
+  ::setsockopt(trickle.fd(), SOL_SOCKET, SO_RCVTIMEO, &wait, sizeof(wait));
+  EXPECT_EQ(trickle.ReadStatus(), 0);
+  EXPECT_LT(std::chrono::steady_clock::now() - trickle_started, std::chrono::milliseconds(3000));
 }
 
 TEST(ApiOptionsCheck, StreamsMustLeaveWorkersFree) {

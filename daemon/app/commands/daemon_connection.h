@@ -1,6 +1,7 @@
 #pragma once
 // How a CLI command reaches photorigd: --url (default $PHOTORIG_URL or
-// http://127.0.0.1:8750) and --token-file (default $PHOTORIG_TOKEN); --json
+// http://127.0.0.1:8750) and --token-file (default $PHOTORIG_TOKEN, else the
+// file $PHOTORIG_TOKEN_FILE names, e.g. a daemon's DATA/api-token); --json
 // is every command's (docs/cli.md). Shared by the remote commands and
 // `photorig fetch`.
 
@@ -22,7 +23,7 @@ struct Connection {
     const char* env_url = std::getenv("PHOTORIG_URL");
     url = env_url ? env_url : "http://127.0.0.1:8750";
     sub->add_option("--url", url, "photorigd address ($PHOTORIG_URL)")->capture_default_str();
-    sub->add_option("--token-file", token_file, "bearer token file (default: $PHOTORIG_TOKEN)")
+    sub->add_option("--token-file", token_file, "bearer token file (default: $PHOTORIG_TOKEN, else $PHOTORIG_TOKEN_FILE)")
         ->check(CLI::ExistingFile);
   }
 
@@ -30,11 +31,12 @@ struct Connection {
     daemon::ApiClientOptions options;
     options.url = url;
     options.timeout_s = timeout_s;
-    if (!token_file.empty()) {
-      std::ifstream in(token_file);
+    const char* env_token = std::getenv("PHOTORIG_TOKEN");
+    const char* env_file = std::getenv("PHOTORIG_TOKEN_FILE");
+    if (token_file.empty() && env_token) {
+      options.token = env_token;
+    } else if (std::ifstream in(!token_file.empty() ? token_file : env_file ? env_file : ""); in) {
       std::getline(in, options.token);
-    } else if (const char* token = std::getenv("PHOTORIG_TOKEN")) {
-      options.token = token;
     }
     return daemon::ApiClient(options);
   }

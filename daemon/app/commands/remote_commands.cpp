@@ -95,7 +95,9 @@ std::optional<double> EtaSeconds(daemon::ApiClient& client, const json& run) {
 }
 
 // Follows a run's events until it stops: frames as a progress bar with an
-// ETA (on stderr), states as lines. Returns the exit code of how it ended.
+// ETA (on stderr), states as lines. A stream that breaks off or is refused
+// for want of slots is opened again while the run goes on (api_client.h,
+// Reconnect). Returns the exit code of how it ended.
 int Watch(const Connection& connection, const std::string& id) {
   auto client = connection.Client(24 * 3600);
   // The run as it stands: an unreachable daemon or an unknown run end here,
@@ -107,6 +109,7 @@ int Watch(const Connection& connection, const std::string& id) {
   ResultFields()["id"] = id;
   ProgressDisplay progress;
   json stop;
+  const daemon::Reconnect reconnect;
   const std::string error = client.FollowEvents(id, [&](const std::string& type, const json& data) {
     if (type == "frame") {
       const int done = data.value("frames", 0);
@@ -133,7 +136,7 @@ int Watch(const Connection& connection, const std::string& id) {
     }
     std::fflush(stdout);
     return true;
-  });
+  }, &reconnect);
   progress.EndLine();
   if (stop.is_object()) {
     ResultFields()["state"] = stop.value("state", "");
