@@ -141,7 +141,7 @@ async function psResults(main, heading, runId, folder, report, files, svbrdf) {
   // Relit with the normals the per-material fit used (refined, when it refined them), as `photorig relight` does.
   const normalsFile = svbrdf && files.has(`${svbrdf.folder}normals.tiff`) ? `${svbrdf.folder}normals.tiff` : `${folder}normals.tiff`;
   const [normals, albedo] = await Promise.all([imageValues(runId, normalsFile), imageValues(runId, `${folder}albedo.tiff`)]);
-  const lobe = files.has(`${folder}specular.tiff`) ? await imageValues(runId, `${folder}specular.tiff`) : null;
+  const lobe = files.has(`${folder}specular.tiff`) ? await valuesOf('specular.tiff') : null;
   const hasLobe = lobe && lobe.data.some((v, i) => i % 3 === 0 && v > 0);
   const section = el('section', { id: 'relight' }, el('h2', {}, 'Relighting'));
   main.append(section);
