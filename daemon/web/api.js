@@ -120,9 +120,45 @@ export function table(rows, head) {
     rows.map((row) => el('tr', {}, row.map((cell) => el('td', {}, cell)))));
 }
 
+// Calls the async `task` at once, then at most once every `ms` while calls
+// keep coming, and once more after the last: a stream of events faster than
+// `task` neither starves it (as restarting a timer on every event would) nor
+// runs it twice at a time. Returns the trigger; trigger.cancel() stops it.
+export function throttle(task, ms) {
+  let timer = null, running = false, again = false, cancelled = false, last = -Infinity;
+  async function run() {
+    timer = null;
+    running = true;
+    again = false;
+    last = performance.now();
+    try { await task(); } finally { running = false; }
+    if (again && !cancelled) trigger();
+  }
+  function trigger() {
+    if (running) again = true;
+    else if (!timer && !cancelled) timer = setTimeout(run, Math.max(0, last + ms - performance.now()));
+  }
+  trigger.cancel = () => { cancelled = true; clearTimeout(timer); };
+  return trigger;
+}
+
 export const bytes = (n) => n >= 2 ** 30 ? `${(n / 2 ** 30).toFixed(1)} GiB` : n >= 2 ** 20 ? `${(n / 2 ** 20).toFixed(1)} MiB` : `${(n / 1024).toFixed(0)} KiB`;
 export const seconds = (s) => s >= 3600 ? `${(s / 3600).toFixed(1)} h` : s >= 60 ? `${(s / 60).toFixed(1)} min` : `${s.toFixed(1)} s`;
 export const stateSpan = (state) => el('span', { class: `state-${state}`, 'data-state': state }, state);
+// The capture's verdict in a run record (GET /runs/{id}): its manifest's stop
+// status and reason once final (docs/run-format.md); a run solving or done
+// had a complete capture, as only a complete capture is solved.
+export function captureVerdict(run) {
+  const stop = run.stop ?? (['solving', 'done'].includes(run.state) ? { status: 'complete' } : null);
+  const [status, detail] = stop ? [stop.status, stop.reason]
+    : run.manifest_error ? ['unreadable', run.manifest_error]
+      : run.state === 'queued' ? ['not started', '']
+        : ['running', 'paused', 'suspended', 'aborting'].includes(run.state) ? ['in progress', '']
+          : [run.state, run.reason];  // final without a manifest: it ended before its first frame
+  const kind = status === 'complete' ? 'complete' : ['not started', 'in progress'].includes(status) ? 'pending' : 'bad';
+  return el('span', { class: `verdict verdict-${kind}`, 'data-verdict': status }, `capture ${status}${detail ? `: ${detail}` : ''}`);
+}
+
 export function errorBox(error) { return el('div', { class: 'error' }, String(error.message || error)); }
 
 // The first line of a run's journal: its header (camera, lights, ...).

@@ -4,10 +4,12 @@ import { api, getJson, imageUrl, el, runHeader } from './api.js';
 
 export class FrameView {
   constructor() {
-    this.image = el('img', { class: 'thumb', id: 'frame-image', alt: 'latest frame' });
-    this.caption = el('div', { class: 'muted', id: 'frame-caption' }, 'no frame yet');
-    this.histogram = el('canvas', { width: 384, height: 90, id: 'frame-histogram' });
-    this.root = el('div', {}, this.image, this.caption, this.histogram);
+    // Hidden until it has a frame: an <img> without one shows a broken-image icon.
+    this.image = el('img', { class: 'thumb', id: 'frame-image', alt: 'latest frame', hidden: true });
+    this.placeholder = el('div', { class: 'thumb frame-placeholder', id: 'frame-placeholder' }, 'no frame yet');
+    this.caption = el('div', { class: 'muted', id: 'frame-caption' });
+    this.histogram = el('canvas', { width: 384, height: 90, id: 'frame-histogram', hidden: true });
+    this.root = el('div', {}, this.placeholder, this.image, this.caption, this.histogram);
     this.shown = null;
     this.busy = false;
   }
@@ -26,6 +28,8 @@ export class FrameView {
       if (this.image.src) URL.revokeObjectURL(this.image.src);
       this.image.src = url;
       this.image.dataset.file = file;
+      this.image.hidden = this.histogram.hidden = false;
+      this.placeholder.remove();
       const exposure = record ? `${record.exposure_us} us, ${record.gain_db} dB, ` : '';
       this.caption.textContent = `${file}: ${exposure}${stats.width}×${stats.height}, ` +
         `${stats.min}..${stats.max} DN (shown ${(+headers.get('X-Preview-Low')).toFixed(0)}..` +

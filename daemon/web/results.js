@@ -1,7 +1,8 @@
-// Results of a run: the photometric-stereo maps with legends and read-outs,
-// metrics against ground truth, charts from report.json, the mesh in 3D,
-// relighting; BRDF samples and fits; slices of NRRD volumes.
-import { api, getJson, imageUrl, imageValues, el, table, bytes, errorBox } from './api.js';
+// Results of a run, each beside its capture's verdict: the photometric-stereo
+// maps with legends and read-outs, metrics against ground truth, charts from
+// report.json, the mesh in 3D, relighting; an svbrdf fit's materials and
+// figures; BRDF samples and fits; slices of NRRD volumes.
+import { api, getJson, imageUrl, imageValues, el, table, bytes, errorBox, captureVerdict } from './api.js';
 import { relightView } from './relight.js';
 
 // The maps a PS result can have: the file shown, the file read out, and how.
@@ -11,7 +12,9 @@ const MAPS = [
   { key: 'depth', values: 'depth.tiff', gamma: 1 },
   { key: 'confidence', values: 'confidence.tiff', gamma: 1 },
   { key: 'error', values: 'angular_error.tiff', gamma: 1, low: 0, high: 10, unit: '°' },
-  { key: 'specular', values: 'specular.tiff', gamma: 1, channels: ['rho_s', 'exponent'] },
+  // The lobe's two parameters differ by orders of magnitude: each on its own scale.
+  { key: 'rho_s', values: 'specular.tiff', channel: 0, gamma: 1 },
+  { key: 'exponent', values: 'specular.tiff', channel: 1, gamma: 1, note: 'roughness where model.png says GGX' },
   { key: 'flags', show: 'flags.png', values: 'flags.png', legendOf: 'flags.png' },
   { key: 'model', show: 'model.png', values: 'model.png', legendOf: 'model.png' },
 ];
@@ -21,9 +24,12 @@ export async function resultsPage(main, runId) {
     main.append(el('p', { class: 'muted' }, 'No runs yet.'));
     return null;
   }
-  const listing = await getJson(`/runs/${runId}/files?under=results`).catch(() => ({ files: [] }));
+  const [run, listing] = await Promise.all([getJson(`/runs/${runId}`),
+    getJson(`/runs/${runId}/files?under=results`).catch(() => ({ files: [] }))]);
   const files = new Set(listing.files.map((f) => f.path));
-  main.append(el('section', {}, el('h2', {}, `Results of ${runId}`),
+  // Every result's heading carries the verdict on the frames it was solved from.
+  const heading = (text) => el('h2', {}, text, captureVerdict(run));
+  main.append(el('section', {}, heading(`Results of ${runId}`),
     listing.files.length ? el('details', {}, el('summary', {}, `${listing.files.length} files, ${bytes(listing.bytes)}`),
       table(listing.files.map((f) => [f.path, bytes(f.size)])))
       : el('p', { class: 'muted' }, 'This run has no results (yet).')));
@@ -38,27 +44,50 @@ export async function resultsPage(main, runId) {
   for (const folder of folders) {
     const report = reports.get(folder);
     const parent = folder.replace(/ps\/$/, '');
-    if (perMaterial(folder)) materialsTable(main, folder, report);
+    if (perMaterial(folder)) materialsTable(main, heading, folder, report);
     else if (files.has(`${folder}normals.tiff`))
-      cleanups.push(await psResults(main, runId, folder, report, files,
+      cleanups.push(await psResults(main, heading, runId, folder, report, files,
         parent !== folder && perMaterial(parent) ? { folder: parent, report: reports.get(parent) } : null));
-    else if (report.candidates) await brdfResults(main, runId, folder, report, files);
+    else if (report.candidates) await brdfResults(main, heading, runId, folder, report, files);
   }
-  for (const volume of [...files].filter((f) => f.endsWith('.nrrd'))) await volumeSlices(main, runId, volume);
+  for (const volume of [...files].filter((f) => f.endsWith('.nrrd'))) await volumeSlices(main, heading, runId, volume);
   return () => cleanups.forEach((c) => c && c());
 }
 
-// The materials of a per-material fit with their lobes (docs/reflectance.md).
-function materialsTable(main, folder, report) {
+// The materials of a per-material fit with their lobes (docs/reflectance.md),
+// and its own figures.
+function materialsTable(main, heading, folder, report) {
   const f = (x) => (+x.toPrecision(3)).toString();
-  main.append(el('section', { id: 'materials' }, el('h2', {}, `Materials (${folder})`),
+  main.append(el('section', { id: 'materials' }, heading(`Materials (${folder})`),
     table(report.materials.map((m, i) => [i, m.model, m.pixels, m.specular.map(f).join(', '),
       m.model === 'lambertian' ? '' : `${m.model === 'ggx' ? 'roughness' : 'exponent'} ${f(m.shape)}`, m.warnings.join(', ')]),
     ['material', 'lobe', 'pixels', 'k_s or F0 (r, g, b)', 'shape', 'warnings'])));
+  const rows = [['termination', `${report.termination}${report.message ? `: ${report.message}` : ''}`],
+    ['pixels', figure(report.pixels)], ['materials', `${report.materials.length}, merged ${report.materials_merged}, unobserved ${figure(report.materials_unobserved)}`],
+    ['reduced chi-square', figure(report.noise?.reduced_chi_square)], ['warnings', figure(report.warnings)]];
+  if (report.normal_refinement) rows.push(['normal refinement', figure(report.normal_refinement)]);
+  if (report.held_out) rows.push(['held-out lights: mean', figure(report.held_out.mean)]);
+  const truth = { normals_vs_truth_deg: 'normals (deg)', albedo_median_relative_error_vs_truth: 'albedo median relative error',
+    albedo_ciede2000_vs_truth: 'albedo CIEDE2000', material_agreement_vs_truth: 'materials agreeing' };
+  for (const [key, label] of Object.entries(truth))
+    if (report[key] !== undefined) rows.push([`vs ground truth: ${label}`, figure(report[key])]);
+  metricsSection(main, folder, rows);
+}
+
+const metricsSection = (main, folder, rows) =>
+  main.append(el('section', { class: 'metrics', 'data-folder': folder }, el('h2', {}, `Metrics (${folder})`), table(rows)));
+
+// A report's value as text: numbers to 4 digits, lists joined, objects as "key value" lists.
+function figure(v) {
+  if (typeof v === 'number') return (+v.toPrecision(4)).toString();
+  if (Array.isArray(v)) return v.length ? v.map(figure).join(', ') : 'none';
+  if (v && typeof v === 'object')
+    return Object.entries(v).map(([k, x]) => `${k} ${x && typeof x === 'object' && !Array.isArray(x) ? `(${figure(x)})` : figure(x)}`).join(', ');
+  return v === null || v === undefined ? '—' : String(v);
 }
 
 // `svbrdf`: {folder, report} of a per-material fit made on these normals, or null.
-async function psResults(main, runId, folder, report, files, svbrdf) {
+async function psResults(main, heading, runId, folder, report, files, svbrdf) {
   const maps = MAPS.filter((m) => files.has(folder + m.values));
   const image = el('img', { id: 'map-image', alt: 'map' });
   const legend = el('div', { id: 'map-legend', class: 'muted' });
@@ -66,19 +95,29 @@ async function psResults(main, runId, folder, report, files, svbrdf) {
   const tabs = el('p', {}, maps.map((m) => el('button', { 'data-map': m.key, onclick: () => show(m) }, m.key)));
   let values = null, current = null;
   const cache = new Map();
+  // A file's float values, fetched once (the lobe's two maps both read specular.tiff).
+  const valuesOf = (file) => {
+    if (!cache.has(file)) cache.set(file, imageValues(runId, folder + file));
+    return cache.get(file);
+  };
+  // The daemon's PNG or tone-mapped preview, and the range it maps to black .. white.
+  async function served(map) {
+    const query = map.show ? null : new URLSearchParams({ gamma: map.gamma ?? 2.2, ...(map.low !== undefined ? { low: map.low, high: map.high } : {}) });
+    const { url, headers } = await imageUrl(map.show ? `/runs/${runId}/files/${folder}${map.show}` : `/runs/${runId}/preview/${folder}${map.values}?${query}`);
+    return { url, range: { low: +headers.get('X-Preview-Low'), high: +headers.get('X-Preview-High') } };
+  }
 
   async function show(map) {
     current = map;
     values = null;
-    const query = map.show ? null : new URLSearchParams({ gamma: map.gamma ?? 2.2, ...(map.low !== undefined ? { low: map.low, high: map.high } : {}) });
-    const { url, headers } = await imageUrl(map.show ? `/runs/${runId}/files/${folder}${map.show}` : `/runs/${runId}/preview/${folder}${map.values}?${query}`);
+    const { url, range } = map.channel !== undefined ? await channelImage(await valuesOf(map.values), map.channel) : await served(map);
     if (image.src) URL.revokeObjectURL(image.src);
     image.src = url;
     image.dataset.map = map.key;
     await image.decode();
-    legend.replaceChildren(legendFor(map, report, headers));
-    if (!cache.has(map.key)) cache.set(map.key, await imageValues(runId, folder + map.values));
-    if (current === map) values = cache.get(map.key);
+    legend.replaceChildren(legendFor(map, report, range));
+    const read = await valuesOf(map.values);
+    if (current === map) values = read;
   }
   image.addEventListener('mousemove', (event) => {
     if (!values) return;
@@ -91,18 +130,18 @@ async function psResults(main, runId, folder, report, files, svbrdf) {
     readout.textContent = `(${x}, ${y}): ${describe(current, v, report)}`;
   });
 
-  main.append(el('section', { id: 'maps' }, el('h2', {}, `Maps (${folder})`), tabs,
+  main.append(el('section', { id: 'maps' }, heading(`Maps (${folder})`), tabs,
     el('div', { class: 'map' }, image), readout, legend));
   if (maps.length) await show(maps[0]);
 
-  metrics(main, report);
+  metrics(main, folder, report);
   charts(main, report).catch((error) => main.append(errorBox(error)));
   const cleanups = [];
   if (files.has(`${folder}mesh.ply`)) cleanups.push(await meshView(main, runId, `${folder}mesh.ply`));
   // Relit with the normals the per-material fit used (refined, when it refined them), as `photorig relight` does.
   const normalsFile = svbrdf && files.has(`${svbrdf.folder}normals.tiff`) ? `${svbrdf.folder}normals.tiff` : `${folder}normals.tiff`;
   const [normals, albedo] = await Promise.all([imageValues(runId, normalsFile), imageValues(runId, `${folder}albedo.tiff`)]);
-  const lobe = files.has(`${folder}specular.tiff`) ? await imageValues(runId, `${folder}specular.tiff`) : null;
+  const lobe = files.has(`${folder}specular.tiff`) ? await valuesOf('specular.tiff') : null;
   const hasLobe = lobe && lobe.data.some((v, i) => i % 3 === 0 && v > 0);
   const section = el('section', { id: 'relight' }, el('h2', {}, 'Relighting'));
   main.append(section);
@@ -131,18 +170,17 @@ function describe(map, v, report) {
     return hit ? `${hit.name} (code ${hit.code})` : `RGB ${v.join(', ')}`;
   }
   if (map.key === 'normals') return `n = (${v.map(f).join(', ')})`;
-  if (map.channels) return map.channels.map((name, i) => `${name} ${f(v[i])}`).join(', ');
+  if (map.channel !== undefined) return `${map.key} ${f(v[map.channel])}`;
   return `${f(v[0])}${map.unit || ''}`;
 }
 
-function legendFor(map, report, headers) {
+function legendFor(map, report, { low, high }) {
   if (map.legend) return el('span', {}, map.legend);
   if (map.legendOf) {
     const legend = report.previews?.[map.legendOf]?.legend || [];
     return el('span', {}, legend.map((e) => el('span', { style: 'margin-right:1em' },
       el('span', { style: `display:inline-block;width:12px;height:12px;background:rgb(${e.rgb.join(',')});border:1px solid #999` }), ` ${e.name}`)));
   }
-  const low = +headers.get('X-Preview-Low'), high = +headers.get('X-Preview-High');
   const bar = el('canvas', { class: 'legend', width: 256, height: 12 });
   const g = bar.getContext('2d');
   const gamma = map.gamma ?? 2.2;
@@ -151,18 +189,39 @@ function legendFor(map, report, headers) {
     g.fillStyle = `rgb(${level},${level},${level})`;
     g.fillRect(i, 0, 1, 12);
   }
-  return el('div', {}, bar, `${+low.toPrecision(4)} … ${+high.toPrecision(4)}${map.unit || ''}` +
-    `${map.channels ? ` (each of ${map.channels.join(', ')})` : ''}; unsolved pixels black`);
+  return el('div', {}, bar, `${+low.toPrecision(4)} … ${+high.toPrecision(4)}${map.unit || ''}; ` +
+    `${map.channel !== undefined ? `${map.key}${map.note ? ` (${map.note})` : ''}; pixels without a lobe and ` : ''}unsolved pixels black`);
 }
 
-function metrics(main, report) {
+// One channel of a lobe map as a linear grey image of its own range: its
+// minimum .. 99.5th percentile over the pixels with a lobe (rho_s > 0), as
+// the daemon's preview chooses a range; the others black.
+async function channelImage(image, channel) {
+  const { width, height, channels, data } = image;
+  const lobe = (i) => data[i * channels] > 0 && Number.isFinite(data[i * channels + channel]);
+  const shown = [];
+  for (let i = 0; i < width * height; ++i) if (lobe(i)) shown.push(data[i * channels + channel]);
+  shown.sort((a, b) => a - b);
+  const low = shown.length ? shown[0] : 0, high = shown.length ? shown[Math.floor(0.995 * (shown.length - 1))] : 1;
+  const canvas = el('canvas', { width, height });
+  const g = canvas.getContext('2d'), pixels = g.createImageData(width, height);
+  for (let i = 0; i < width * height; ++i) {
+    const level = lobe(i) ? 255 * Math.min(1, Math.max(0, (data[i * channels + channel] - low) / (high - low || 1))) : 0;
+    pixels.data.set([level, level, level, 255], 4 * i);
+  }
+  g.putImageData(pixels, 0, 0);
+  const blob = await new Promise((resolve) => canvas.toBlob(resolve, 'image/png'));
+  return { url: URL.createObjectURL(blob), range: { low, high } };
+}
+
+function metrics(main, folder, report) {
   const rows = [['method', report.method], ['termination', report.termination], ['lights', report.lights],
     ['pixels solved', `${report.pixels?.solved} of ${report.pixels?.total}`], ['mean confidence', report.mean_confidence?.toFixed(3)]];
   const truth = report.ground_truth;
-  if (truth) for (const [k, v] of Object.entries(truth)) rows.push([`vs ground truth: ${k}`, typeof v === 'number' ? +v.toPrecision(4) : JSON.stringify(v)]);
+  if (truth) for (const [k, v] of Object.entries(truth)) rows.push([`vs ground truth: ${k}`, figure(v)]);
   if (report.depth) rows.push(['depth', `${report.depth.integrator}, residual rms ${report.depth.residual_rms?.toPrecision(3)}` +
     (report.depth.rms_error_vs_truth !== undefined ? `, rms vs truth ${report.depth.rms_error_vs_truth.toPrecision(3)}` : '')]);
-  main.append(el('section', { id: 'metrics' }, el('h2', {}, 'Metrics'), table(rows)));
+  metricsSection(main, folder, rows);
 }
 
 async function charts(main, report) {
@@ -221,11 +280,10 @@ async function meshView(main, runId, file) {
 // the half vector's angle theta_h from the normal (left of the axis: the half
 // vector's azimuth on the -x side): the measured samples, and each fitted
 // model in the plane of incidence at the samples' median difference angle theta_d.
-async function brdfResults(main, runId, folder, report, files) {
-  const section = el('section', { id: 'brdf' }, el('h2', {}, `BRDF (${folder}): chosen ${report.chosen || 'none'}`),
-    table(report.candidates.map((c) => [c.model, c.termination, c.held_out_rms?.toPrecision(3), c.bic?.toPrecision(4),
-      `rho_d ${c.diffuse?.map((x) => x.toPrecision(3)).join(', ')}; specular ${c.specular?.map((x) => x.toPrecision(3)).join(', ')}; shape ${c.shape}`]),
-    ['model', 'termination', 'held-out rms', 'BIC', 'parameters']));
+async function brdfResults(main, heading, runId, folder, report, files) {
+  const section = el('section', { id: 'brdf' }, heading(`BRDF (${folder}): chosen ${report.chosen || 'none'}`),
+    table(report.candidates.map((c) => [c.model, c.termination, figure(c.held_out_rms), figure(c.bic), brdfParameters(c)]),
+      ['model', 'termination', 'held-out rms', 'BIC', 'parameters']));
   main.append(section);
   if (!files.has(`${folder}samples.csv`)) return;
   const lines = (await (await api(`/runs/${runId}/files/${folder}samples.csv`)).text()).trim().split('\n').slice(1);
@@ -243,7 +301,7 @@ async function brdfResults(main, runId, folder, report, files) {
       if (cosI <= 0 || cosO <= 0) continue;
       points.push({ thetaH: deg * Math.PI / 180, fr: brdfRed(c, { cosI, cosO, cosH: Math.cos(th), cosD: Math.cos(thetaD) }) });
     }
-    return { label: `${c.model}${c.model === report.chosen ? ' (chosen)' : ''} at θd ${(thetaD * 180 / Math.PI).toFixed(0)}°`, points };
+    return { model: c.model, label: `${c.model}${c.model === report.chosen ? ' (chosen)' : ''} at θd ${(thetaD * 180 / Math.PI).toFixed(0)}°`, points };
   });
   const peak = Math.max(...samples.map((s) => s.fr), ...curves.flatMap((c) => c.points.map((p) => p.fr)));
   const polar = (p) => ({ x: p.fr / peak * Math.sin(p.thetaH), y: p.fr / peak * Math.cos(p.thetaH) });
@@ -251,13 +309,14 @@ async function brdfResults(main, runId, folder, report, files) {
   Chart.register(...registerables);
   const canvas = el('canvas', { width: 560, height: 320, id: 'brdf-polar' });
   section.append(canvas);
-  const colours = ['#d0502a', '#2a8a4a', '#8a3ab8'];
+  // Fill as well as line: Chart.js draws a legend's swatch with the fill.
+  const dataset = (label, data, colour, line) => ({ label, data, borderColor: colour, backgroundColor: colour,
+    ...(line ? { showLine: true, pointRadius: 0, borderWidth: 2 } : { pointRadius: 2 }) });
   new Chart(canvas, {
     type: 'scatter',
     data: {
-      datasets: [{ label: 'measured (red channel)', data: samples.map(polar), pointRadius: 2, backgroundColor: '#4a78b8' },
-        ...curves.map((c, i) => ({ label: c.label, data: c.points.map(polar), showLine: true, pointRadius: 0, borderWidth: 2,
-          borderColor: colours[i % colours.length] }))],
+      datasets: [dataset('measured (red channel)', samples.map(polar), MEASURED_COLOUR, false),
+        ...curves.map((c) => dataset(c.label, c.points.map(polar), MODEL_COLOURS[c.model] ?? '#000', true))],
     },
     options: {
       responsive: false, animation: false,
@@ -267,24 +326,52 @@ async function brdfResults(main, runId, folder, report, files) {
   });
 }
 
-// f_r of the red channel for a fitted model (solvers/brdf/models.h), from the cosines.
+// One colour per model of solvers/brdf/models.h, none the measured samples' blue.
+const MEASURED_COLOUR = '#4a78b8';
+const MODEL_COLOURS = { lambertian: '#777777', blinn_phong: '#d0502a', ward: '#2a8a4a', ggx: '#8a3ab8',
+  cook_torrance: '#c89b00', two_blinn_phong: '#16a3b3' };
+
+// A candidate's parameters as the models name them, to 3 digits.
+function brdfParameters(c) {
+  const f = (x) => (typeof x === 'number' ? (+x.toPrecision(3)).toString() : '—');
+  const channels = (v) => (v ?? []).map(f).join(', ');
+  const shape = { ggx: 'roughness', ward: 'alpha', cook_torrance: 'm' }[c.model] ?? 'exponent';
+  const parts = [`rho_d ${channels(c.diffuse)}`];
+  if (c.model !== 'lambertian') parts.push(`${c.model === 'ggx' ? 'F0' : c.model === 'ward' ? 'rho_s' : 'k_s'} ${channels(c.specular)}`, `${shape} ${f(c.shape)}`);
+  if (c.model === 'cook_torrance') parts.push(`F0 ${f(c.fresnel_f0)}`);
+  if (c.model === 'two_blinn_phong') parts.push(`k_s2 ${channels(c.specular2)}`, `exponent2 ${f(c.shape2)}`);
+  return parts.join('; ');
+}
+
+// f_r of the red channel for a fitted model, from the cosines: the lobes of
+// solvers/brdf/src/lobes.h written out once more.
 function brdfRed(c, g) {
   const diffuse = c.diffuse[0] / Math.PI;
   const ks = c.specular?.[0] ?? 0, e = c.shape;
-  if (c.model === 'blinn_phong')
-    return diffuse + ks * (e + 2) * (e + 4) / (8 * Math.PI * (2 ** (-e / 2) + e)) * g.cosH ** e;
-  if (c.model === 'ggx') {
-    const a2 = e * e, t = g.cosH * g.cosH * (a2 - 1) + 1, d = a2 / (Math.PI * t * t);
-    const g1 = (cos) => 2 * cos / (cos + Math.sqrt(a2 + (1 - a2) * cos * cos));
-    const fresnel = ks + (1 - ks) * (1 - g.cosD) ** 5;
-    return diffuse + d * g1(g.cosI) * g1(g.cosO) * fresnel / (4 * g.cosI * g.cosO);
+  const tan2H = (1 - g.cosH * g.cosH) / (g.cosH * g.cosH), cos4H = g.cosH ** 4;
+  const blinnPhong = (k, n) => k * (n + 2) * (n + 4) / (8 * Math.PI * (2 ** (-n / 2) + n)) * g.cosH ** n;
+  const schlick = (f0) => f0 + (1 - f0) * (1 - g.cosD) ** 5;
+  switch (c.model) {
+    case 'blinn_phong': return diffuse + blinnPhong(ks, e);
+    case 'two_blinn_phong': return diffuse + blinnPhong(ks, e) + blinnPhong(c.specular2[0], c.shape2);
+    case 'ward': return diffuse + ks * Math.exp(-tan2H / (e * e)) / (4 * Math.PI * e * e * g.cosD * g.cosD * cos4H);
+    case 'ggx': {
+      const a2 = e * e, t = g.cosH * g.cosH * (a2 - 1) + 1, d = a2 / (Math.PI * t * t);
+      const g1 = (cos) => 2 * cos / (cos + Math.sqrt(a2 + (1 - a2) * cos * cos));
+      return diffuse + d * g1(g.cosI) * g1(g.cosO) * schlick(ks) / (4 * g.cosI * g.cosO);
+    }
+    case 'cook_torrance': {
+      const d = Math.exp(-tan2H / (e * e)) / (e * e * cos4H);
+      const masking = Math.min(1, 2 * g.cosH * g.cosO / g.cosD, 2 * g.cosH * g.cosI / g.cosD);
+      return diffuse + ks * d * masking * schlick(c.fresnel_f0) / (Math.PI * g.cosI * g.cosO);
+    }
+    default: return diffuse;
   }
-  return diffuse;
 }
 
 // An NRRD volume (raw or gzip encoding, attached data): its slices along z.
-async function volumeSlices(main, runId, file) {
-  const section = el('section', { class: 'volume' }, el('h2', {}, `Volume ${file}`));
+async function volumeSlices(main, heading, runId, file) {
+  const section = el('section', { class: 'volume' }, heading(`Volume ${file}`));
   main.append(section);
   try {
     const buffer = new Uint8Array(await (await api(`/runs/${runId}/files/${file}`)).arrayBuffer());

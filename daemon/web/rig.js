@@ -26,7 +26,7 @@ export async function rigPage(main) {
         el('p', {}, 'Last fault: ', el('span', { id: 'last-fault' }, devices.last_fault || 'none')));
       devicesBox.replaceChildren(el('h2', {}, 'Devices'), body);
       if (last.run && last.file) await frame.show(last.run, last.file, last);
-      else frame.caption.textContent = 'no frame taken since the daemon started';
+      else frame.placeholder.textContent = 'no frame taken since the daemon started';
     } catch (error) {
       devicesBox.append(errorBox(error));
     }

@@ -1,7 +1,8 @@
 // Run: progress from the run's server-sent events (frames, ETA, retries,
 // dropped frames, suspensions and their reasons, solve stages), its latest
-// frame, its journal, and its results' key figures once solved.
-import { getJson, postJson, el, table, seconds, stateSpan, errorBox, runEvents } from './api.js';
+// frame and journal while it captures, the capture's verdict, and its
+// results' key figures once solved.
+import { getJson, postJson, el, table, seconds, stateSpan, errorBox, runEvents, throttle, captureVerdict } from './api.js';
 import { FrameView, journalRecords } from './frame_view.js';
 
 export async function runPage(main, runId) {
@@ -11,6 +12,7 @@ export async function runPage(main, runId) {
   }
   let run = await getJson(`/runs/${runId}`);
   const state = el('span', { id: 'run-state' });
+  const verdict = el('span', { id: 'run-verdict' });
   const reason = el('div', { id: 'run-reason' });
   const progress = el('progress', { id: 'run-progress', max: 1, value: 0 });
   const counters = el('div', { id: 'run-counters' });
@@ -22,7 +24,7 @@ export async function runPage(main, runId) {
     'data-action': action, onclick: () => postJson(`/runs/${runId}/${action}`).catch((error) => reason.append(errorBox(error))),
   }, action));
   main.append(
-    el('section', {}, el('h2', {}, `Run ${runId} (${run.recipe})`), el('p', {}, 'State: ', state, ' ', buttons), reason,
+    el('section', {}, el('h2', {}, `Run ${runId} (${run.recipe})`), el('p', {}, 'State: ', state, verdict, ' ', buttons), reason,
       el('p', {}, progress, ' ', counters), solve),
     el('div', { class: 'row' },
       el('section', {}, el('h2', {}, 'Latest frame'), frame.root),
@@ -32,8 +34,12 @@ export async function runPage(main, runId) {
   const started = performance.now();
   let firstFrames = null;  // frames when this page began watching, for the ETA
   let suspensions = 0;
+  // What each control can still do in each state (the daemon answers 409 otherwise).
+  const allowed = { pause: ['running', 'suspended'], resume: ['paused'], abort: ['queued', 'running', 'paused', 'suspended', 'solving'] };
   function render() {
     state.replaceChildren(stateSpan(run.state));
+    verdict.replaceChildren(captureVerdict(run));
+    for (const button of buttons) button.disabled = !allowed[button.dataset.action].includes(run.state);
     reason.textContent = run.reason ? `Reason: ${run.reason}` : '';
     const total = run.steps_total || 1;
     progress.max = total;
@@ -63,16 +69,17 @@ export async function runPage(main, runId) {
     }
   }
   const note = (text) => { log.textContent = `${text}\n${log.textContent}`.slice(0, 20000); };
+  // Frames arrive every 50-80 ms on the simulated dome: the journal and frame
+  // are fetched at most every 250 ms, the latest each time.
+  const refreshJournal = throttle(showJournal, 250);
   render();
-  if (run.frames > 0) showJournal();  // before its first frame a run may have no journal yet
-  let journalTimer = null;
+  if (run.frames > 0) refreshJournal();  // before its first frame a run may have no journal yet
   const stream = runEvents(runId, (type, data) => {
     if (type === 'frame') {
       if (firstFrames === null) firstFrames = data.frames - 1;
       run.frames = data.frames;
       run.steps_total = data.total;
-      clearTimeout(journalTimer);
-      journalTimer = setTimeout(showJournal, 300);
+      refreshJournal();
     } else if (type === 'state') {
       run.state = data.state;
       run.reason = data.reason;
@@ -84,9 +91,11 @@ export async function runPage(main, runId) {
     } else if (type === 'solve_started' || type === 'solve_finished') {
       note(`${type} ${data.stage}${type === 'solve_finished' ? (data.ok ? ' ok' : ` failed: ${data.message}`) : ''}`);
     } else if (type === 'stop') {
-      Object.assign(run, data);
+      // The record, not the event, carries the capture's verdict (its manifest's stop).
       note(`stop: ${data.state}${data.reason ? ` (${data.reason})` : ''}`);
-      if (run.frames > 0) showJournal();
+      getJson(`/runs/${runId}`).then((record) => { run = record; render(); }).catch((error) => reason.append(errorBox(error)));
+      if (data.frames > 0) refreshJournal();
+      return;
     }
     render();
   });
@@ -94,5 +103,5 @@ export async function runPage(main, runId) {
     run = await getJson(`/runs/${runId}`);
     render();
   }).catch((error) => reason.append(errorBox(error)));
-  return () => { stream.cancel(); clearTimeout(journalTimer); };
+  return () => { stream.cancel(); refreshJournal.cancel(); };
 }

@@ -92,7 +92,8 @@ def write_hdr(path, width=32, height=16):
 
 def write_brdf_results(folder):
     """What `photorig solve brdf` writes (report.json, samples.csv), for
-    in-plane samples of a Blinn-Phong BRDF (rho_d 0.5, k_s 0.2, e 40)."""
+    in-plane samples of a Blinn-Phong BRDF (rho_d 0.5, k_s 0.2, e 40), with a
+    fit of each of the six models."""
     import json
     import math
     os.makedirs(folder)
@@ -107,12 +108,15 @@ def write_brdf_results(folder):
             cos_h = h[2] / math.sqrt(sum(c * c for c in h))
             f = rho / math.pi + ks * norm * cos_h ** e
             lines.append(",".join(f"{v:.6g}" for v in (*wi, *wo, f, f, f, 0.01, 0.01, 0.01)))
-    candidate = lambda model, specular, shape: {  # noqa: E731
-        "model": model, "termination": "success", "message": "", "bic": -1.0, "held_out_rms": 0.01, "cost": 0.0,
-        "parameters": 7, "diffuse": [rho] * 3, "diffuse_sigma": [0.0] * 3, "specular": [specular] * 3,
-        "specular_sigma": [0.0] * 3, "shape": shape, "shape_sigma": 0.0, "lobe_identifiable": True}
+    candidate = lambda model, specular, shape: {  # noqa: E731  (unrounded, as a fit writes them)
+        "model": model, "termination": "success", "message": "", "bic": -1234.56789, "held_out_rms": 0.0123456789,
+        "cost": 0.0, "parameters": 7, "diffuse": [rho + 1.23456789e-5] * 3, "diffuse_sigma": [0.0] * 3,
+        "specular": [specular] * 3, "specular_sigma": [0.0] * 3, "shape": shape, "shape_sigma": 0.0,
+        "fresnel_f0": 0.0412345678, "specular2": [0.0123456789] * 3, "shape2": 3.14159265, "lobe_identifiable": True}
     report = {"samples": len(lines) - 1, "termination": "success", "chosen": "blinn_phong",
-              "candidates": [candidate("lambertian", 0.0, 0.0), candidate("blinn_phong", ks, e), candidate("ggx", 0.04, 0.2)]}
+              "candidates": [candidate("lambertian", 0.0, 0.0), candidate("blinn_phong", ks, e + 1.23456789e-4),
+                             candidate("ward", 0.05, 0.2123456789), candidate("ggx", 0.04, 0.2),
+                             candidate("cook_torrance", 1.0, 0.3123456789), candidate("two_blinn_phong", ks, e)]}
     with open(os.path.join(folder, "report.json"), "w") as out:
         json.dump(report, out)
     with open(os.path.join(folder, "samples.csv"), "w") as out:
@@ -137,21 +141,26 @@ def api_get(url, path, raw=False):
         return (body, reply.headers) if raw else json.loads(body)
 
 
+def submit_recipe(url, path, text):
+    """A recipe submitted over the API as read from `path`; returns the run's id."""
+    import urllib.request
+    request = urllib.request.Request(url + "api/v1/runs", method="POST", headers={"Content-Type": "application/json"},
+                                     data=json.dumps({"name": os.path.basename(path), "recipe": text, "path": path}).encode())
+    with urllib.request.urlopen(request, timeout=30) as reply:
+        return json.loads(reply.read())["id"]
+
+
 def submit_svbrdf_run(args, url):
     """config/recipes/svbrdf-dome.yaml submitted over the API with two
     materials at most (its two paints) and without its held-out-light check
     and glTF asset: a quarter of its solve time, and nothing the relighting
     view shows is left out. Returns the run's id."""
-    import urllib.request
     path = os.path.join(os.path.abspath(args.source_dir), "config/recipes/svbrdf-dome.yaml")
     text = open(path).read()
     for key in ("held_out_lights: 4", "max_materials: 3"):
         check(key in text, f"svbrdf-dome.yaml no longer says {key}")
     text = text.replace("held_out_lights: 4", "held_out_lights: -1\n      gltf: false").replace("max_materials: 3", "max_materials: 2")
-    request = urllib.request.Request(url + "api/v1/runs", method="POST", headers={"Content-Type": "application/json"},
-                                     data=json.dumps({"name": "svbrdf-dome.yaml", "recipe": text, "path": path}).encode())
-    with urllib.request.urlopen(request, timeout=30) as reply:
-        return json.loads(reply.read())["id"]
+    return submit_recipe(url, path, text)
 
 
 def image_values(url, run_id, path):
@@ -204,6 +213,16 @@ def check_per_material_relighting(args, driver, url, run_id, data_root, screensh
           f"the per-material model is not shown first: {model.first_selected_option.text!r}")
     check("materials" in [s.get_attribute("id") for s in driver.find_elements(By.CSS_SELECTOR, "section")],
           "no materials table for the svbrdf run")
+    check(driver.find_element(By.CSS_SELECTOR, "#materials h2 .verdict").get_attribute("data-verdict") == "complete",
+          "the svbrdf materials are not headed by a complete capture")
+    # The svbrdf fit's own figures, readable, beside its photometric stereo's.
+    metrics = wait(15, lambda d: d.find_elements(By.CSS_SELECTOR, 'section.metrics[data-folder="results/svbrdf/"]'),
+                   "no metrics of the svbrdf fit")[0].text
+    chi2 = report["noise"]["reduced_chi_square"]
+    for expected in (f"fitted {report['pixels']['fitted']}", f"reduced chi-square {float(f'{chi2:.4g}'):g}"):
+        check(expected in metrics, f"the svbrdf metrics lack {expected!r}: {metrics}")
+    for section in driver.find_elements(By.CSS_SELECTOR, "section.metrics"):
+        check("{" not in section.text and '"' not in section.text, f"raw JSON in the metrics: {section.text}")
     pad = driver.find_element(By.ID, "light-pad")
     js = driver.execute_script
     js("arguments[0].scrollIntoView({block: 'center'})", canvas)
@@ -396,6 +415,9 @@ def main():
         devices = js("return fetch('/api/v1/devices').then(r => r.json())")
         camera = next(d for d in devices["devices"] if d["role"] == "camera")
         check("sim-dome" in driver.find_element(By.ID, "devices").text, "the Rig page does not name the rig")
+        # Before the first frame: a placeholder, no <img> without a picture (a broken-image icon).
+        wait(5, lambda d: "no frame taken" in d.find_element(By.ID, "frame-placeholder").text, "no frame placeholder on the Rig page")
+        check(not driver.find_element(By.ID, "frame-image").is_displayed(), "the Rig page shows an image before any frame")
 
         phase("rig page")
         # Queue page: choose the recipe, see its plan, submit.
@@ -406,6 +428,15 @@ def main():
         frames = wait(20, lambda d: d.find_elements(By.ID, "plan-frames"), "no dry-run plan shown")[0]
         check(frames.text == "49", f"the plan of ps-shiny-sphere shows {frames.text} frames, expected 49 (dark + 48 LEDs)")
         screenshot("queue")
+        # Every frame the Run page shows, noted as it loads with the run's state then
+        # (the page is not reloaded from here on: the route changes, the document stays).
+        js("""window.framesShown = [];
+              document.addEventListener('load', (event) => {
+                if (event.target.id !== 'frame-image') return;
+                const state = document.querySelector('#run-state [data-state]');
+                window.framesShown.push({file: event.target.dataset.file, width: event.target.naturalWidth,
+                  state: state && state.dataset.state, journal: document.getElementById('run-journal').textContent});
+              }, true);""")
         driver.find_element(By.ID, "submit").click()
 
         phase("submitted")
@@ -420,6 +451,17 @@ def main():
               f"the Run page counts {driver.find_element(By.ID, 'run-counters').text!r}")
         wait(15, lambda d: d.find_element(By.ID, "frame-image").get_attribute("data-file"), "no latest frame shown")
         wait(15, lambda d: "frames/0048" in d.find_element(By.ID, "run-journal").text, "the journal lacks the last frame")
+        shown = js("return window.framesShown")
+        live = [f for f in shown if f["state"] == "running" and f["width"] > 0]
+        files = sorted({f["file"] for f in live})
+        print(f"run page: {len(files)} distinct frames shown while capturing ({', '.join(files)}); {len(shown)} in all", flush=True)
+        check(len(files) >= 5, f"the Run page showed {len(files)} distinct frames during the 49-frame capture, expected 5 or more")
+        check(all(f["file"].split("/")[-1].split(".")[0] in f["journal"] for f in live),
+              "a frame was shown while the journal beside it lacked it")
+        wait(10, lambda d: d.find_element(By.CSS_SELECTOR, "#run-verdict [data-verdict]").get_attribute("data-verdict") == "complete",
+             "the Run page does not say the capture was complete")
+        for button in driver.find_elements(By.CSS_SELECTOR, "button[data-action]"):
+            check(not button.is_enabled(), f"{button.text} stays enabled on the finished run")
         screenshot("run")
 
         phase("run done")
@@ -430,6 +472,30 @@ def main():
         screenshot("rig")
 
         phase("rig page with frame")
+        # A run aborted from its Run page (ps-shiny-sphere's LEDs six times over,
+        # unsolved: time to press abort): its controls disabled once it ended, and
+        # the capture's verdict beside the results written into it.
+        recipe_path = os.path.join(os.path.abspath(args.source_dir), "config/recipes/ps-shiny-sphere.yaml")
+        text = open(recipe_path).read()
+        check("    - each_led: {leds: all}\n" in text and "\nsolve:" in text, "ps-shiny-sphere.yaml no longer reads as expected")
+        text = text.replace("    - each_led: {leds: all}\n", "    - each_led: {leds: all}\n" * 6).split("\nsolve:")[0]
+        aborted_run = submit_recipe(url, recipe_path, text)
+        driver.get(url + f"#/run/{aborted_run}")
+        wait(60, lambda d: d.find_element(By.ID, "frame-image").get_attribute("data-file"), "the run to abort shows no frame")
+        driver.find_element(By.CSS_SELECTOR, "button[data-action=abort]").click()
+        wait(30, lambda d: d.find_elements(By.CSS_SELECTOR, "#run-state [data-state=aborted]"), "the run did not end aborted")
+        verdict = wait(10, lambda d: d.find_elements(By.CSS_SELECTOR, "#run-verdict [data-verdict=aborted]"),
+                       "the Run page does not say the capture was aborted")[0].text
+        for button in driver.find_elements(By.CSS_SELECTOR, "button[data-action]"):
+            check(not button.is_enabled(), f"{button.text} stays enabled on the aborted run")
+        write_brdf_results(os.path.join(temp, "data", "runs", aborted_run, "results", "brdf"))
+        driver.get(url + f"#/results/{aborted_run}")
+        brdf_heading = wait(30, lambda d: d.find_elements(By.CSS_SELECTOR, "#brdf h2 .verdict"), "no verdict beside the aborted run's BRDF")[0]
+        check(brdf_heading.get_attribute("data-verdict") == "aborted" and brdf_heading.text == verdict,
+              f"the aborted run's BRDF result reads {brdf_heading.text!r}, its Run page {verdict!r}")
+        print(f"aborted run: {verdict}", flush=True)
+
+        phase("aborted run")
         # Results page: the normal map at the camera's size, read-out, relighting.
         envmap_dir = os.path.join(temp, "data", "runs", run_id, "results", "envmaps")
         os.makedirs(envmap_dir)
@@ -462,6 +528,7 @@ def main():
             ActionChains(driver).move_to_element_with_offset(
                 image, int((x + 0.5) * scale - box[0] / 2), int((y + 0.5) * scale - box[1] / 2)).perform()
 
+        legends = {}
         for button in driver.find_elements(By.CSS_SELECTOR, "#maps button[data-map]"):
             key = button.get_attribute("data-map")
             button.click()
@@ -476,11 +543,33 @@ def main():
                 hover_pixel(camera["width"] // 2 + len(hovers) % 2, camera["height"] // 2)
                 return d.find_element(By.ID, "map-readout").text.startswith("(") and d.find_element(By.ID, "map-legend").text
             wait(15, read_out, f"map {key}: no read-out or legend")
+            legends[key] = driver.find_element(By.ID, "map-legend").text
             if key == "flags":
                 check("solved" in driver.find_element(By.ID, "map-readout").text,
                       f"the flag at the sphere's centre reads {driver.find_element(By.ID, 'map-readout').text!r}")
             if key == "albedo":
                 screenshot("maps", driver.find_element(By.ID, "maps"))
+        # The lobe's rho_s and exponent each on its own scale: the page's range
+        # is each channel's minimum .. 99.5th percentile over the pixels with a lobe.
+        import numpy
+        check({"rho_s", "exponent"} <= legends.keys(), f"no rho_s and exponent maps: {sorted(legends)}")
+        ps_folder = driver.find_element(By.CSS_SELECTOR, "#maps h2").text.split("(")[1].split(")")[0]
+        lobe = image_values(url, run_id, f"{ps_folder}specular.tiff")
+        has_lobe = (lobe[:, :, 0] > 0) & numpy.isfinite(lobe[:, :, 1])
+        ranges = {}
+        for key, channel in (("rho_s", 0), ("exponent", 1)):
+            low, high = (float(v) for v in re.match(r"(\S+) … (\S+);", legends[key]).groups())
+            values = numpy.sort(lobe[:, :, channel][has_lobe])
+            expected = (values[0], values[int(0.995 * (len(values) - 1))])
+            check(numpy.allclose((low, high), expected, rtol=1e-3),
+                  f"the {key} map spans {low} .. {high}, its values {expected[0]:.4g} .. {expected[1]:.4g}")
+            ranges[key] = high
+        print(f"lobe maps: rho_s up to {ranges['rho_s']:.3g}, exponent up to {ranges['exponent']:.3g}", flush=True)
+        check(ranges["exponent"] > 10 * ranges["rho_s"], f"rho_s and exponent read alike: {ranges}")
+        for section in driver.find_elements(By.CSS_SELECTOR, "section.metrics"):
+            check("{" not in section.text and '"' not in section.text, f"raw JSON in the metrics: {section.text}")
+        verdict = driver.find_element(By.CSS_SELECTOR, "#maps h2 .verdict")
+        check(verdict.get_attribute("data-verdict") == "complete", f"the maps are headed {verdict.text!r}")
         before = js("return arguments[0].toDataURL()", canvas)
         pad = driver.find_element(By.ID, "light-pad")
         ActionChains(driver).move_to_element_with_offset(pad, -50, 0).click_and_hold().move_by_offset(100, -30).release().perform()
@@ -510,6 +599,22 @@ def main():
         # BRDF results: the polar plot of samples and fitted lobes; a volume's slices.
         wait(15, lambda d: d.find_elements(By.ID, "brdf-polar"), "no BRDF polar plot")
         check("chosen blinn_phong" in driver.find_element(By.ID, "brdf").text, "the BRDF section does not name the chosen model")
+        # Each of the six models in its own colour, its lobe drawn, its parameters rounded.
+        datasets = driver.execute_async_script("""const done = arguments[arguments.length - 1];
+            import('/vendor/chart.js/chart.esm.js').then(({ Chart }) => done(Chart.getChart(document.getElementById('brdf-polar'))
+              .data.datasets.map((d) => [d.label.split(' ')[0], d.borderColor, d.backgroundColor, d.data.map((p) => p.y)])));""")
+        colours = [d[1] for d in datasets]
+        check(len(datasets) == 7 and len(set(colours)) == 7 and all(d[1] == d[2] for d in datasets),
+              f"the BRDF plot's colours: {[(d[0], d[1], d[2]) for d in datasets]}")
+        curves = {d[0]: numpy.array(d[3]) for d in datasets}
+        for model in ("blinn_phong", "ward", "ggx", "cook_torrance", "two_blinn_phong"):
+            check(curves[model].max() > 1.2 * curves["lambertian"].max(), f"the {model} curve shows no lobe above the Lambertian one")
+        rows = {r.find_elements(By.TAG_NAME, "td")[0].text: r.text for r in driver.find_elements(By.CSS_SELECTOR, "#brdf tr")[1:]}
+        for model, expected in (("blinn_phong", "rho_d 0.5, 0.5, 0.5; k_s 0.2, 0.2, 0.2; exponent 40"),
+                                ("ward", "rho_s 0.05, 0.05, 0.05; alpha 0.212"), ("cook_torrance", "m 0.312; F0 0.0412"),
+                                ("two_blinn_phong", "k_s2 0.0123, 0.0123, 0.0123; exponent2 3.14")):
+            check(expected in rows[model], f"the BRDF table's {model} row reads {rows[model]!r}, expected {expected!r} in it")
+        check("0.01235 -1235" in rows["ggx"], f"held-out rms and BIC not rounded: {rows['ggx']!r}")
         screenshot("brdf", driver.find_element(By.ID, "brdf"))
         volume = wait(15, lambda d: d.find_elements(By.CSS_SELECTOR, "section.volume canvas"), "no volume slices")[0]
         centre, corner = js("""const c = arguments[0], d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
