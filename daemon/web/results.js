@@ -277,7 +277,7 @@ function brdfRed(c, g) {
     const a2 = e * e, t = g.cosH * g.cosH * (a2 - 1) + 1, d = a2 / (Math.PI * t * t);
     const g1 = (cos) => 2 * cos / (cos + Math.sqrt(a2 + (1 - a2) * cos * cos));
     const fresnel = ks + (1 - ks) * (1 - g.cosD) ** 5;
-    return diffuse + d * g1(g.cosI) * g1(g.cosO) * fresnel / (4 * g.cosI * g.cosO);
+    return diffuse + (c.specular_scale ?? 1) * d * g1(g.cosI) * g1(g.cosO) * fresnel / (4 * g.cosI * g.cosO);
   }
   return diffuse;
 }
