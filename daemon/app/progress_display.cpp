@@ -41,10 +41,13 @@ void ProgressDisplay::EndLine() {
 }
 
 solvers::ProgressCallback ProgressDisplay::Callback() {
-  return [this](const solvers::Progress& progress) { Update(progress.stage, progress.done, progress.total); };
+  return [this](const solvers::Progress& progress) {
+    Update(progress.stage, progress.done, progress.total, {}, progress.stopped);
+  };
 }
 
-void ProgressDisplay::Update(std::string_view stage, std::int64_t done, std::int64_t total, std::string_view detail) {
+void ProgressDisplay::Update(std::string_view stage, std::int64_t done, std::int64_t total, std::string_view detail,
+                             std::string_view stopped) {
   if (silent_) return;
   std::lock_guard lock(mutex_);
   const Clock::time_point now = Clock::now();
@@ -56,7 +59,7 @@ void ProgressDisplay::Update(std::string_view stage, std::int64_t done, std::int
     stage_start_ = now;
     stage_first_done_ = done;
   }
-  const bool finished = total > 0 && done >= total;
+  const bool finished = (total > 0 && done >= total) || !stopped.empty();
   if (!new_stage && !finished && now - last_print_ < (terminal_ ? kTerminalInterval : kLogInterval)) return;
   last_print_ = now;
 
@@ -70,7 +73,13 @@ void ProgressDisplay::Update(std::string_view stage, std::int64_t done, std::int
     eta = "ETA " + FormatDuration(elapsed_s * double(total - done) / double(done - stage_first_done_));
   const double percent = total > 0 ? 100.0 * double(done) / double(total) : 0.0;
   const std::string name(stage), extra(detail);
-  if (terminal_) {
+  if (!stopped.empty()) {
+    // Where the rule stopped it, not a bar filled to a total it never reached.
+    std::fprintf(stderr, "%s%s stopped at %lld/%lld (%.*s), %s%s\n", terminal_ ? "\r" : "", name.c_str(),
+                 static_cast<long long>(done), static_cast<long long>(total), static_cast<int>(stopped.size()),
+                 stopped.data(), eta.c_str(), terminal_ ? "\033[K" : "");
+    line_open_ = false;
+  } else if (terminal_) {
     constexpr int kWidth = 30;
     const int filled = total > 0 ? static_cast<int>(std::min<std::int64_t>(kWidth, done * kWidth / total)) : 0;
     std::fprintf(stderr, "\r%s [%.*s%*s] %3.0f%% %lld/%lld %s %s\033[K", name.c_str(), filled,

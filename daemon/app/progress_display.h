@@ -23,8 +23,11 @@ class ProgressDisplay {
   ProgressDisplay& operator=(const ProgressDisplay&) = delete;
 
   // `done` of `total` units of `stage` (total 0: unknown); `detail` follows,
-  // e.g. the frame's label. A new stage starts its own ETA.
-  void Update(std::string_view stage, std::int64_t done, std::int64_t total, std::string_view detail = {});
+  // e.g. the frame's label. A new stage starts its own ETA. `stopped` (a rule
+  // ended the stage at `done`: why) ends the stage as "stage stopped at
+  // done/total (why)".
+  void Update(std::string_view stage, std::int64_t done, std::int64_t total, std::string_view detail = {},
+              std::string_view stopped = {});
   // For a solver's Options; the display must outlive the solve.
   solvers::ProgressCallback Callback();
   // Ends a bar left on the terminal's line.

@@ -29,6 +29,8 @@ nlohmann::json FitJson(const brdf::FitSummary& f) {
           {"shape_sigma", f.shape_sigma},
           {"fresnel_f0", f.params.fresnel_f0},
           {"fresnel_f0_sigma", f.fresnel_f0_sigma},
+          {"specular_scale", f.params.specular_scale},
+          {"specular_scale_sigma", f.specular_scale_sigma},
           {"specular2", Vec(f.params.specular2)},
           {"specular2_sigma", Vec(f.specular2_sigma)},
           {"shape2", f.params.shape2},
@@ -94,7 +96,8 @@ bool ModelFromJson(const nlohmann::json& doc, const std::string& name, brdf::Mod
   if (!ReadVec(*spec, "diffuse", &p.diffuse, error) || !ReadVec(*spec, "specular", &p.specular, error) ||
       !ReadVec(*spec, "specular2", &p.specular2, error))
     return false;
-  for (auto [key, value] : {std::pair{"shape", &p.shape}, {"fresnel_f0", &p.fresnel_f0}, {"shape2", &p.shape2}})
+  for (auto [key, value] : {std::pair{"shape", &p.shape}, {"fresnel_f0", &p.fresnel_f0}, {"shape2", &p.shape2},
+                            {"specular_scale", &p.specular_scale}})
     if (spec->contains(key)) {
       if (!(*spec)[key].is_number()) {
         *error = std::string("'") + key + "' must be a number";
@@ -105,7 +108,7 @@ bool ModelFromJson(const nlohmann::json& doc, const std::string& name, brdf::Mod
   const bool lobe = p.model != brdf::Model::kLambertian;
   if (!p.diffuse.allFinite() || (p.diffuse.array() < 0.0).any() || !p.specular.allFinite() ||
       (p.specular.array() < 0.0).any() || !p.specular2.allFinite() || (p.specular2.array() < 0.0).any() ||
-      (lobe && !(p.shape > 0.0 && std::isfinite(p.shape))) ||
+      (lobe && !(p.shape > 0.0 && std::isfinite(p.shape))) || !(p.specular_scale >= 0.0 && std::isfinite(p.specular_scale)) ||
       (brdf::HasSecondLobe(p.model) && !(p.shape2 > 0.0 && std::isfinite(p.shape2)))) {
     *error = std::string("the ") + brdf::ModelName(p.model) +
              " parameters must be finite, non-negative, and every lobe's shape positive";
@@ -141,6 +144,8 @@ void PrintSelection(std::FILE* text, const brdf::SelectionSummary& s) {
                    f.params.shape, f.shape_sigma);
     if (f.params.model == brdf::Model::kCookTorrance)
       std::fprintf(text, "  F0 %.4f +- %.4f", f.params.fresnel_f0, f.fresnel_f0_sigma);
+    if (f.params.model == brdf::Model::kGgx)
+      std::fprintf(text, "  scale %.4f +- %.4f", f.params.specular_scale, f.specular_scale_sigma);
     if (brdf::HasSecondLobe(f.params.model))
       std::fprintf(text, "  specular2 %s  shape2 %.4g +- %.2g", Channels(f.params.specular2, f.specular2_sigma).c_str(),
                    f.params.shape2, f.shape2_sigma);

@@ -317,7 +317,9 @@ void RunService::Execute(QueuedRun run) {
   request.on_solve_started = [this, id](const std::string& stage) { Publish(id, "solve_started", {{"stage", stage}}); };
   // Solvers report about every percent (solvers/progress.h): one event each.
   request.solve_progress = [this, id](const solvers::Progress& progress) {
-    Publish(id, "solve_progress", {{"stage", std::string(progress.stage)}, {"done", progress.done}, {"total", progress.total}});
+    json event = {{"stage", std::string(progress.stage)}, {"done", progress.done}, {"total", progress.total}};
+    if (!progress.stopped.empty()) event["stopped"] = std::string(progress.stopped);
+    Publish(id, "solve_progress", event);
   };
   request.on_solve_submitted = [this, id](const std::string& stage, const std::string& job_id, const std::string& batch) {
     Publish(id, "solve_submitted", {{"stage", stage}, {"executor", "slurm"}, {"job_id", job_id}, {"batch", batch}});

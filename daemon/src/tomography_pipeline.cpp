@@ -298,6 +298,7 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   options.method = *tomography::ParseMethod(request.method);
   options.total_variation = request.total_variation;
   options.max_iterations = request.max_iterations;
+  options.iteration_limit_name = request.iteration_limit_name;
   options.discrepancy_factor = request.discrepancy_factor;
   options.progress = request.progress;
   result.reconstruction = tomography::Reconstruct(*matrix, held, options, &result.sigma);

@@ -338,6 +338,7 @@ function brdfParameters(c) {
   const shape = { ggx: 'roughness', ward: 'alpha', cook_torrance: 'm' }[c.model] ?? 'exponent';
   const parts = [`rho_d ${channels(c.diffuse)}`];
   if (c.model !== 'lambertian') parts.push(`${c.model === 'ggx' ? 'F0' : c.model === 'ward' ? 'rho_s' : 'k_s'} ${channels(c.specular)}`, `${shape} ${f(c.shape)}`);
+  if (c.model === 'ggx') parts.push(`scale ${f(c.specular_scale ?? 1)}`);
   if (c.model === 'cook_torrance') parts.push(`F0 ${f(c.fresnel_f0)}`);
   if (c.model === 'two_blinn_phong') parts.push(`k_s2 ${channels(c.specular2)}`, `exponent2 ${f(c.shape2)}`);
   return parts.join('; ');
@@ -358,7 +359,7 @@ function brdfRed(c, g) {
     case 'ggx': {
       const a2 = e * e, t = g.cosH * g.cosH * (a2 - 1) + 1, d = a2 / (Math.PI * t * t);
       const g1 = (cos) => 2 * cos / (cos + Math.sqrt(a2 + (1 - a2) * cos * cos));
-      return diffuse + d * g1(g.cosI) * g1(g.cosO) * schlick(ks) / (4 * g.cosI * g.cosO);
+      return diffuse + (c.specular_scale ?? 1) * d * g1(g.cosI) * g1(g.cosO) * schlick(ks) / (4 * g.cosI * g.cosO);
     }
     case 'cook_torrance': {
       const d = Math.exp(-tan2H / (e * e)) / (e * e * cos4H);

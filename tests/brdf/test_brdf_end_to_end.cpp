@@ -592,4 +592,42 @@ TEST(BrdfEndToEnd, AnAdaptivePlanMeasuresANarrowLobe) {
 
 }
 
+
+// `photorig brdf fit` chooses the simplest family that made a table: a
+// one-lobe Blinn-Phong, not two lobes (whose held-out gain is within the
+// fits' precision), and GGX for a GGX lobe without a Fresnel rise (F0 = 1,
+// its height the scale s), not Ward, with its parameters back.
+TEST(BrdfEndToEnd, BrdfFitChoosesTheFamilyThatMadeTheTable) {
+  TempDir dir;
+  struct Case {
+    const char* name;
+    const char* spec;
+  };
+  for (const Case& c : {Case{"blinn_phong", R"({"model": "blinn_phong", "diffuse": [0.25, 0.15, 0.05],
+                                               "specular": [0.4, 0.3, 0.2], "shape": 60})"},
+                        Case{"ggx", R"({"model": "ggx", "diffuse": [0.3, 0.2, 0.1], "specular": [1, 1, 1],
+                                       "shape": 0.2, "specular_scale": 0.3})"}}) {
+    SCOPED_TRACE(c.name);
+    const std::string spec = dir.Write(std::string(c.name) + ".json", c.spec);
+    const std::string table = (dir.path() / (std::string(c.name) + ".binary")).string();
+    ASSERT_EQ(RunPhotorig("brdf convert " + spec + " " + table, dir.path() / "convert.log"), 0)
+        << ReadText(dir.path() / "convert.log");
+    const auto out = dir.path() / (std::string(c.name) + "_fit");
+    ASSERT_EQ(RunPhotorig("brdf fit " + table + " --out " + out.string(), dir.path() / "fit.log"), 0)
+        << ReadText(dir.path() / "fit.log");
+    const auto report = nlohmann::json::parse(ReadText(out / "report.json"));
+    EXPECT_EQ(report["chosen"], c.name) << report["reason"];
+    const auto fit = *std::find_if(report["candidates"].begin(), report["candidates"].end(),
+                                   [&](const nlohmann::json& f) { return f["model"] == c.name; });
+    EXPECT_EQ(fit["termination"], "success");
+    const auto truth = nlohmann::json::parse(c.spec);
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(fit["diffuse"][k].get<double>(), truth["diffuse"][k].get<double>(),
+                  0.01 * truth["diffuse"][k].get<double>());
+    if (truth.contains("specular_scale")) {
+      EXPECT_NEAR(fit["specular_scale"].get<double>(), 0.3, 0.003);
+    }
+  }
+}
+
 }  // namespace

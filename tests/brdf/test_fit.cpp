@@ -341,7 +341,7 @@ TEST(ModelChoice, BicAndHeldOutAgreeingMoveToTheComplexModel) {
   std::string reason;
   const auto chosen = ChooseModel({Scored(Model::kLambertian, 900.0, HeldOut(5.0)),
                                    Scored(Model::kBlinnPhong, 300.0, HeldOut(1.0))},
-                                  10.0, &reason);
+                                  10.0, 0.01, &reason);
   ASSERT_TRUE(chosen.has_value());
   EXPECT_EQ(*chosen, 1u) << reason;
   EXPECT_NE(reason.find("held-out"), std::string::npos) << reason;
@@ -354,13 +354,13 @@ TEST(ModelChoice, BicAloneDoesNotAdmitAModelThatPredictsNoBetter) {
   std::string reason;
   const auto chosen = ChooseModel({Scored(Model::kBlinnPhong, 500.0, HeldOut(1.0)),
                                    Scored(Model::kTwoBlinnPhong, 400.0, HeldOut(0.999, 0.5))},
-                                  10.0, &reason);
+                                  10.0, 0.01, &reason);
   ASSERT_TRUE(chosen.has_value());
   EXPECT_EQ(*chosen, 0u) << reason;
   EXPECT_NE(reason.find("not lower by more than one standard error"), std::string::npos) << reason;
   // Without held-out errors BIC alone decides.
   const auto by_bic = ChooseModel({Scored(Model::kBlinnPhong, 500.0, {}), Scored(Model::kTwoBlinnPhong, 400.0, {})},
-                                  10.0, &reason);
+                                  10.0, 0.01, &reason);
   EXPECT_EQ(by_bic, std::optional<std::size_t>(1u));
 }
 
@@ -370,7 +370,7 @@ TEST(ModelChoice, HeldOutAloneDoesNotAdmitAModelBicDoesNotSupport) {
   std::string reason;
   const auto chosen = ChooseModel({Scored(Model::kBlinnPhong, 500.0, HeldOut(1.0)),
                                    Scored(Model::kTwoBlinnPhong, 495.0, HeldOut(0.8))},
-                                  10.0, &reason);
+                                  10.0, 0.01, &reason);
   EXPECT_EQ(chosen, std::optional<std::size_t>(0u)) << reason;
 }
 
@@ -382,12 +382,57 @@ TEST(ModelChoice, StepsThroughTheSimplestModelsFirst) {
                                   Scored(Model::kBlinnPhong, 800.0, HeldOut(2.0)),
                                   Scored(Model::kGgx, 305.0, HeldOut(1.02)),
                                   Scored(Model::kTwoBlinnPhong, 300.0, HeldOut(1.0))};
-  EXPECT_EQ(ChooseModel(fits, 10.0, &reason), std::optional<std::size_t>(2u)) << reason;
+  EXPECT_EQ(ChooseModel(fits, 10.0, 0.01, &reason), std::optional<std::size_t>(2u)) << reason;
   // An untrusted fit never takes part.
   fits[2].lobe_identifiable = false;
-  EXPECT_EQ(ChooseModel(fits, 10.0, &reason), std::optional<std::size_t>(3u)) << reason;
+  EXPECT_EQ(ChooseModel(fits, 10.0, 0.01, &reason), std::optional<std::size_t>(3u)) << reason;
   for (FitSummary& f : fits) f.termination = Termination::kFailure;
-  EXPECT_FALSE(ChooseModel(fits, 10.0, &reason).has_value());
+  EXPECT_FALSE(ChooseModel(fits, 10.0, 0.01, &reason).has_value());
+}
+
+// A fit the iteration limit stopped is not at its optimum: however good its
+// BIC and held-out error look, it is never chosen, and the reason names it.
+TEST(ModelChoice, AFitThatDidNotConvergeIsNeverChosen) {
+  std::string reason;
+  std::vector<FitSummary> fits = {Scored(Model::kLambertian, 5000.0, HeldOut(9.0)),
+                                  Scored(Model::kBlinnPhong, 800.0, HeldOut(2.0)),
+                                  Scored(Model::kTwoBlinnPhong, 300.0, HeldOut(1.0))};
+  fits[2].termination = Termination::kNoConvergence;
+  fits[2].iterations = 200;
+  EXPECT_EQ(ChooseModel(fits, 10.0, 0.01, &reason), std::optional<std::size_t>(1u)) << reason;
+  EXPECT_NE(reason.find("two_blinn_phong (200 iterations)"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("did not converge"), std::string::npos) << reason;
+  // Nothing converged: no choice, and the reason still says why.
+  fits[0].termination = fits[1].termination = Termination::kNoConvergence;
+  EXPECT_FALSE(ChooseModel(fits, 10.0, 0.01, &reason).has_value());
+  EXPECT_NE(reason.find("did not converge"), std::string::npos) << reason;
+}
+
+// A held-out gain within what the data resolve is no gain, however many
+// standard errors it is: a noise-free table fitted by its own model and by a
+// richer one (the richer BIC lower by 100 under the log loss, the held-out
+// errors apart by 1e-9) keeps the simpler model.
+TEST(ModelChoice, AHeldOutGainWithinTheDatasResolutionKeepsTheSimplerModel) {
+  std::vector<double> simple(200), rich(200);
+  for (std::size_t k = 0; k < simple.size(); ++k) {
+    simple[k] = 2e-9 + 1e-10 * std::sin(0.7 * k);
+    rich[k] = simple[k] - 1e-9;
+  }
+  std::string reason;
+  const auto chosen = ChooseModel({Scored(Model::kBlinnPhong, -5000.0, simple),
+                                   Scored(Model::kTwoBlinnPhong, -5100.0, rich)},
+                                  10.0, 1e-6, &reason);
+  EXPECT_EQ(chosen, std::optional<std::size_t>(0u)) << reason;
+  EXPECT_NE(reason.find("within what the data resolve"), std::string::npos) << reason;
+  // The same margins well above the floor move to the richer model.
+  for (std::size_t k = 0; k < simple.size(); ++k) {
+    simple[k] *= 1e4;
+    rich[k] *= 1e4;
+  }
+  EXPECT_EQ(ChooseModel({Scored(Model::kBlinnPhong, -5000.0, simple), Scored(Model::kTwoBlinnPhong, -5100.0, rich)},
+                        10.0, 1e-6, &reason),
+            std::optional<std::size_t>(1u))
+      << reason;
 }
 
 

@@ -6,7 +6,10 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <memory>
 #include <random>
+#include <string>
 
 namespace photorig::tomography {
 namespace {
@@ -224,6 +227,154 @@ TEST(Reconstruct, SartWithTotalVariationStopsAtTheMeasuredError) {
   const ReconstructionSummary t = Reconstruct(*problem.projector, noisy, options, &y);
   ASSERT_TRUE(t.IsSolutionUsable()) << t.message;
   EXPECT_LT(error, 0.8 * problem.Error(y)) << "SIRT after " << t.iterations;
+}
+
+// SART with TV on the scan config/recipes/tomography.yaml takes (64 views of
+// 64 x 8 pixels, the 3D Shepp-Logan phantom through the sensor model, the
+// noise from the flats and darks), stopped as `photorig solve tomography
+// --method sart --tv` stops it (tau 1.2, 300 passes at most). TV holds the
+// residual above the target (measured 1.34 x the noise level, the target
+// 1.2 x) while each further pass fits noise (the error rises from its
+// minimum, 0.120 at pass 21, to 0.212 where the residual finally reaches the
+// target at pass 217): the passes end at the balance instead (measured: pass
+// 32, error 0.127, SIRT 0.172, SART without TV 0.192), trusted.
+TEST(Reconstruct, SartWithTotalVariationOnTheRecipesScanStopsAtItsBalance) {
+  Geometry geometry;
+  geometry.detector_cols = 64;
+  geometry.detector_rows = 8;
+  geometry.pixel_mm = 0.5;
+  geometry.angles_rad = EvenAngles(64, 180.0);
+  const sim::Phantom phantom = sim::Phantom::SheppLogan3d(12.8, 0.1);
+  sim::TomographyScanOptions scan_options;
+  scan_options.flats = 4;
+  scan_options.darks = 4;
+  scan_options.supersample = 2;
+  const sim::TomographyScan scan = sim::ScanPhantom(phantom, geometry, scan_options);
+  Absorbance data;
+  ASSERT_TRUE(ComputeAbsorbance(geometry, scan.projections, scan.flats, scan.darks, {}, &data).IsSolutionUsable());
+  const VolumeGrid grid{64, 64, 8, 0.5};
+  std::unique_ptr<Projector> w;
+  ProjectorOptions projector_options;
+  projector_options.interpolation = Interpolation::kJoseph;
+  ASSERT_TRUE(MakeProjector(grid, geometry, projector_options, &w).IsSolutionUsable());
+  const std::vector<float> raster = phantom.Rasterise(grid, 4);
+  const Eigen::Map<const Eigen::VectorXf> truth(raster.data(), static_cast<Eigen::Index>(raster.size()));
+  const auto error = [&](const Eigen::VectorXf& x) { return static_cast<double>((x - truth).norm() / truth.norm()); };
+
+  ReconstructOptions options;
+  options.method = Method::kSart;
+  options.total_variation = true;
+  options.discrepancy_factor = 1.2;
+  options.max_iterations = 300;
+  std::int64_t last_done = -1;
+  std::string stopped;
+  options.progress = [&](const solvers::Progress& p) {
+    last_done = p.done;
+    stopped = std::string(p.stopped);
+  };
+  Eigen::VectorXf x;
+  const ReconstructionSummary s = Reconstruct(*w, data, options, &x);
+  ASSERT_EQ(s.termination, solvers::Termination::kSuccess) << s.message;
+  EXPECT_EQ(s.stop_reason, StopReason::kStagnation);
+  EXPECT_LT(s.iterations, 100);
+  EXPECT_FALSE(s.inconsistent);
+  EXPECT_GT(s.residual_history.back(), s.discrepancy_target);
+  EXPECT_NE(s.message.find("balance"), std::string::npos) << s.message;
+  // The progress report's last line is where it stopped, not the limit.
+  EXPECT_EQ(last_done, s.iterations);
+  EXPECT_EQ(stopped, "converged");
+  const double tv_error = error(x);
+  RecordProperty("error_recipe_sart_tv", std::to_string(tv_error));
+
+  // Within 10 % of the best pass of the same iteration run on.
+  ReconstructOptions full = options;
+  full.progress = nullptr;
+  full.stop_rule = StopRule::kIterations;
+  full.stagnation_tolerance = 0.0;
+  full.max_iterations = s.iterations + 20;
+  double best = 1e9;
+  full.on_iteration = [&](int, const Eigen::VectorXf& v) { best = std::min(best, error(v)); };
+  Eigen::VectorXf z;
+  Reconstruct(*w, data, full, &z);
+  EXPECT_LE(tv_error, 1.10 * best) << "after " << s.iterations << " passes";
+
+  // And better than SIRT, which the discrepancy rule stops, on the same data.
+  ReconstructOptions sirt;
+  sirt.discrepancy_factor = 1.2;
+  sirt.max_iterations = 300;
+  Eigen::VectorXf y;
+  const ReconstructionSummary t = Reconstruct(*w, data, sirt, &y);
+  ASSERT_EQ(t.termination, solvers::Termination::kSuccess) << t.message;
+  EXPECT_LT(tv_error, 0.9 * error(y)) << "SIRT after " << t.iterations;
+}
+
+// The balance is trusted only where the data are consistent: a wrong centre
+// of rotation leaves SART with TV stalled far above the noise level, and that
+// is said, not passed off as converged.
+TEST(Reconstruct, SartWithTotalVariationOnInconsistentDataIsNotTrusted) {
+  SliceProblem shifted(32, 128, 360.0, 1.5);
+  Absorbance data = shifted.Exact();
+  const double noise_sigma = 0.03 * data.b.maxCoeff();
+  std::mt19937 rng(8);
+  std::normal_distribution<float> gauss(0.0f, static_cast<float>(noise_sigma));
+  for (auto& v : data.b) v += gauss(rng);
+  const SliceProblem centred(32, 128, 360.0, 0.0);
+  ReconstructOptions options;
+  options.method = Method::kSart;
+  options.total_variation = true;
+  options.noise_sigma = noise_sigma;
+  options.discrepancy_factor = 1.2;
+  options.max_iterations = 300;
+  Eigen::VectorXf x;
+  const ReconstructionSummary s = Reconstruct(*centred.projector, data, options, &x);
+  EXPECT_NE(s.termination, solvers::Termination::kSuccess) << s.message;
+  EXPECT_TRUE(s.inconsistent) << s.message;
+  EXPECT_NE(s.message.find("centre of rotation"), std::string::npos) << s.message;
+  // The right geometry: the same data fit within the noise level.
+  x.resize(0);
+  const ReconstructionSummary t = Reconstruct(*shifted.projector, data, options, &x);
+  EXPECT_EQ(t.termination, solvers::Termination::kSuccess) << t.message;
+}
+
+// An iteration that a rule ends early reports where it stopped and why; one
+// that runs to its limit reports the limit.
+TEST(Reconstruct, ProgressEndsWhereTheIterationsStopped) {
+  const SliceProblem problem(48, 48);
+  Absorbance data = problem.Exact();
+  const double noise_sigma = 0.03 * data.b.maxCoeff();
+  std::mt19937 rng(3);
+  std::normal_distribution<float> gauss(0.0f, static_cast<float>(noise_sigma));
+  for (auto& v : data.b) v += gauss(rng);
+  ReconstructOptions options;
+  options.noise_sigma = noise_sigma;
+  options.max_iterations = 300;
+  solvers::Progress last;
+  std::string stopped;
+  options.progress = [&](const solvers::Progress& p) {
+    last = p;
+    stopped = std::string(p.stopped);
+  };
+  Eigen::VectorXf x;
+  const ReconstructionSummary s = Reconstruct(*problem.projector, data, options, &x);
+  ASSERT_EQ(s.stop_reason, StopReason::kDiscrepancy) << s.message;
+  ASSERT_LT(s.iterations, 300);
+  EXPECT_EQ(last.done, s.iterations);
+  EXPECT_EQ(last.total, 300);
+  EXPECT_EQ(stopped, "residual at the noise level");
+
+  options.max_iterations = 3;
+  x.resize(0);
+  const ReconstructionSummary limited = Reconstruct(*problem.projector, data, options, &x);
+  ASSERT_EQ(limited.stop_reason, StopReason::kMaxIterations);
+  EXPECT_EQ(last.done, 3);
+  EXPECT_EQ(last.total, 3);
+  EXPECT_TRUE(stopped.empty());
+  // The message names the option as the caller names it.
+  EXPECT_NE(limited.message.find("raise max_iterations"), std::string::npos) << limited.message;
+  options.iteration_limit_name = "--max-iterations";
+  x.resize(0);
+  EXPECT_NE(Reconstruct(*problem.projector, data, options, &x).message.find("raise --max-iterations"),
+            std::string::npos);
 }
 
 // ART with a fixed relaxation on data its model cannot fit ends in a limit

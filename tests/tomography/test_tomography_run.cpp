@@ -89,6 +89,27 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
   EXPECT_EQ(solved["command"], "solve tomography");
   EXPECT_EQ(solved["iterations"], report["iterations"]);
   EXPECT_NEAR(solved["relative_error_vs_truth"].get<double>(), report["relative_error_vs_truth"].get<double>(), 1e-6);
+
+  // SART with TV as docs/cli.md shows it: trusted (TV holds the residual
+  // above the target; the passes end at its balance), better than SIRT, and
+  // the progress ends where the passes stopped, not at the limit.
+  const Outcome tv = Photorig("solve tomography --run " + run + " --method sart --tv --out " +
+                                  (dir.path() / "tv").string(),
+                              dir);
+  ASSERT_EQ(tv.exit_code, 0) << tv.out << tv.err;
+  const json tv_report = json::parse(ReadText(dir.path() / "tv" / "report.json"));
+  EXPECT_TRUE(tv_report["trusted"].get<bool>()) << tv_report["message"];
+  EXPECT_LT(tv_report["relative_error_vs_truth"].get<double>(), report["relative_error_vs_truth"].get<double>());
+  const std::string stopped = "sart stopped at " + std::to_string(tv_report["iterations"].get<int>()) + "/300 (";
+  EXPECT_NE(tv.err.find(stopped), std::string::npos) << tv.err;
+
+  // The iteration limit first: not trusted, and the message names the flag.
+  const Outcome limited = Photorig("solve tomography --run " + run + " --max-iterations 5 --out " +
+                                       (dir.path() / "limited").string() + " --json",
+                                   dir);
+  EXPECT_EQ(limited.exit_code, 1);
+  EXPECT_NE(Document(limited).value("error", "").find("raise --max-iterations"), std::string::npos)
+      << limited.out;
 }
 
 TEST(TomographyRun, EveryMethodReconstructsAFolderOfProjectionsWithinTheBound) {

@@ -122,7 +122,8 @@ int Watch(const Connection& connection, const std::string& id) {
       std::printf("solving: %s as Slurm job %s (%s)\n", data.value("stage", "").c_str(), data.value("job_id", "").c_str(),
                   data.value("batch", "").c_str());
     } else if (type == "solve_progress") {
-      progress.Update(data.value("stage", ""), data.value("done", 0), data.value("total", 0), "");
+      progress.Update(data.value("stage", ""), data.value("done", 0), data.value("total", 0), "",
+                      data.value("stopped", ""));
     } else if (type == "state" || type == "stop") {
       progress.EndLine();
       std::printf("%s %s%s%s\n", type == "stop" ? "stopped:" : "state:", data.value("state", "").c_str(),

@@ -45,6 +45,7 @@ int Execute(const Options& options) {
   if (options.run_dir.empty() && options.projections_dir.empty())
     return Fail(kExitUsage, "give --run DIR or --projections DIR");
   daemon::TomographyRequest request = options.request;
+  request.iteration_limit_name = "--max-iterations";
   if (!options.volume.empty()) request.volume = {options.volume[0], options.volume[1], options.volume[2]};
   if (std::string why; !request.IsValid(&why)) return Fail(kExitUsage, why);
   const bool from_run = !options.run_dir.empty();

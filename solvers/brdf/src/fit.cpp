@@ -21,23 +21,24 @@ struct Prepared {
 
 // The residuals of one sample. `kd` holds rho_d per channel; `lobe` (absent
 // for Lambertian) holds the specular parameter per channel and log(shape);
-// `f0` (Cook-Torrance only) its Fresnel F0.
+// `extra` (Cook-Torrance, GGX: HasSharedExtra) the one parameter the channels
+// share beyond the shape: Cook-Torrance's F0, GGX's scale.
 class SampleResidual {
  public:
   SampleResidual(Model model, const Prepared& sample, FitLoss loss) : model_(model), s_(sample), loss_(loss) {}
 
   template <typename T>
-  bool operator()(const T* kd, const T* lobe, const T* f0, T* residual) const {
+  bool operator()(const T* kd, const T* lobe, const T* extra, T* residual) const {
     using std::exp;
     const T shape = exp(lobe[3]);
     for (int c = 0; c < 3; ++c)
-      Finish(c, kd[c] / M_PI + internal::Lobe(model_, lobe[c], shape, *f0, s_.geometry), residual);
+      Finish(c, kd[c] / M_PI + internal::Lobe(model_, lobe[c], shape, *extra, s_.geometry), residual);
     return true;
   }
   template <typename T>
   bool operator()(const T* kd, const T* lobe, T* residual) const {
-    const T no_f0(0.0);
-    return (*this)(kd, lobe, &no_f0, residual);
+    const T no_extra(0.0);
+    return (*this)(kd, lobe, &no_extra, residual);
   }
   template <typename T>
   bool operator()(const T* kd, T* residual) const {
@@ -90,10 +91,15 @@ ShapeRange RangeOf(Model model) {
                                                                       : ShapeRange{0.005, 1.0, 41};
 }
 
-// Cook-Torrance's F0 is not linear in the lobe: the starting grid tries these.
-std::vector<double> StartingF0s(Model model) {
-  return model == Model::kCookTorrance ? std::vector<double>{0.05, 0.2, 0.4, 0.6, 0.8, 0.95}
-                                       : std::vector<double>{0.0};
+// Cook-Torrance and GGX have one parameter beyond the shape that the channels
+// share (Cook-Torrance's F0, GGX's scale); it is a parameter block of its own.
+bool HasSharedExtra(Model model) { return model == Model::kCookTorrance || model == Model::kGgx; }
+
+// That parameter is not linear in the lobe: the starting grid tries these.
+std::vector<double> StartingExtras(Model model) {
+  if (model == Model::kCookTorrance) return {0.05, 0.2, 0.4, 0.6, 0.8, 0.95};
+  if (model == Model::kGgx) return {0.05, 0.1, 0.2, 0.35, 0.6, 1.0};  // 1: Schlick's lobe alone
+  return {0.0};
 }
 
 // Weighted non-negative least squares of one channel's value against
@@ -192,10 +198,10 @@ void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd
   std::vector<double> basis(n);
   for (int step = 0; step < range.steps; ++step) {
     const double shape = shape_at(step);
-    for (double f0 : StartingF0s(model)) {
+    for (double shared : StartingExtras(model)) {
       for (std::size_t k = 0; k < n; ++k) {
-        offset[k] = internal::Lobe(model, 0.0, shape, f0, prepared[k].geometry);
-        basis[k] = internal::Lobe(model, 1.0, shape, f0, prepared[k].geometry) - offset[k];
+        offset[k] = internal::Lobe(model, 0.0, shape, shared, prepared[k].geometry);
+        basis[k] = internal::Lobe(model, 1.0, shape, shared, prepared[k].geometry) - offset[k];
       }
       double error = 0.0, trial[3][2];
       for (int c = 0; c < 3; ++c) error += FitLinearChannel(prepared, {&basis}, offset, c, trial[c]);
@@ -206,7 +212,7 @@ void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd
           lobe[c] = model == Model::kGgx ? std::min(trial[c][1], 1.0) : trial[c][1];
         }
         lobe[3] = std::log(shape);
-        extra[0] = f0;
+        extra[0] = shared;
       }
     }
   }
@@ -239,6 +245,7 @@ void StartAt(const ModelParams& p, double kd[3], double lobe[4], double extra[4]
   if (p.model == Model::kLambertian) return;
   lobe[3] = std::clamp(std::log(std::max(p.shape, range.min)), log_min, log_max);
   if (p.model == Model::kCookTorrance) extra[0] = std::clamp(p.fresnel_f0, 0.0, 1.0);
+  if (p.model == Model::kGgx) extra[0] = std::max(p.specular_scale, 0.0);
   if (HasSecondLobe(p.model)) {
     for (int c = 0; c < 3; ++c) extra[c] = std::max(p.specular2[c], 0.0);
     extra[3] = std::clamp(std::log(std::max(p.shape2, range.min)), log_min, log_max);
@@ -297,8 +304,10 @@ bool SelectionOptions::IsValid(std::string* why) const {
     *why = "no candidate models";
     return false;
   }
-  if (!(min_bic_improvement >= 0.0) || !(peak_theta_h_deg >= 0.0)) {
-    *why = "min_bic_improvement and peak_theta_h_deg must be non-negative";
+  if (!(min_bic_improvement >= 0.0) || !(peak_theta_h_deg >= 0.0) || !(min_held_out_gain_weighted >= 0.0) ||
+      !(min_held_out_gain_log >= 0.0)) {
+    *why = "min_bic_improvement, min_held_out_gain_weighted, min_held_out_gain_log and peak_theta_h_deg must be "
+           "non-negative";
     return false;
   }
   if (held_out_folds < 0 || held_out_folds == 1) {
@@ -341,7 +350,7 @@ bool PrepareSamples(const std::vector<BrdfSample>& samples, const FitOptions& op
 
 // The Levenberg-Marquardt problem of one model on some prepared samples, its
 // parameter blocks and Ceres' account of the solve. `extra`: Cook-Torrance's
-// F0 (extra[0]) or the second lobe (as `lobe`).
+// F0 or GGX's scale (extra[0]), or the second lobe (as `lobe`).
 struct LeastSquares {
   double kd[3] = {0, 0, 0}, lobe[4] = {0, 0, 0, 0}, extra[4] = {0, 0, 0, 0};
   ceres::Problem problem;
@@ -355,6 +364,7 @@ struct LeastSquares {
       p.specular = Eigen::Vector3d(lobe[0], lobe[1], lobe[2]);
       p.shape = std::exp(lobe[3]);
       if (model == Model::kCookTorrance) p.fresnel_f0 = extra[0];
+      if (model == Model::kGgx) p.specular_scale = extra[0];
     }
     if (HasSecondLobe(model)) {
       p.specular2 = Eigen::Vector3d(extra[0], extra[1], extra[2]);
@@ -385,7 +395,7 @@ void SolveLeastSquares(Model model, const std::vector<Prepared>& fitted, const F
     auto* residual = new SampleResidual(model, p, options.loss);
     if (model == Model::kLambertian) {
       problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3>(residual), nullptr, kd);
-    } else if (model == Model::kCookTorrance) {
+    } else if (HasSharedExtra(model)) {
       problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4, 1>(residual), nullptr, kd,
                                lobe, extra);
     } else {
@@ -400,10 +410,8 @@ void SolveLeastSquares(Model model, const std::vector<Prepared>& fitted, const F
       for (int c = 0; c < 3; ++c) problem.SetParameterUpperBound(lobe, c, 1.0);
     problem.SetParameterLowerBound(lobe, 3, std::log(range.min));
     problem.SetParameterUpperBound(lobe, 3, std::log(range.max));
-    if (model == Model::kCookTorrance) {
-      problem.SetParameterLowerBound(extra, 0, 0.0);
-      problem.SetParameterUpperBound(extra, 0, 1.0);
-    }
+    if (HasSharedExtra(model)) problem.SetParameterLowerBound(extra, 0, 0.0);
+    if (model == Model::kCookTorrance) problem.SetParameterUpperBound(extra, 0, 1.0);
     if (HasSecondLobe(model)) {
       for (int c = 0; c < 3; ++c) problem.SetParameterLowerBound(extra, c, 0.0);
       problem.SetParameterLowerBound(extra, 3, std::log(range.min));
@@ -523,7 +531,7 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
   ceres::Covariance covariance(covariance_options);
   std::vector<const double*> blocks = {kd};
   if (model != Model::kLambertian) blocks.push_back(lobe);
-  if (model == Model::kCookTorrance || HasSecondLobe(model)) blocks.push_back(extra);
+  if (HasSharedExtra(model) || HasSecondLobe(model)) blocks.push_back(extra);
   std::vector<std::pair<const double*, const double*>> pairs;
   for (const double* a : blocks)
     for (const double* b : blocks) pairs.emplace_back(a, b);
@@ -543,6 +551,7 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
       summary.specular_sigma = sd.segment<3>(3);
       summary.shape_sigma = summary.params.shape * sd[6];  // d shape = shape * d log(shape)
       if (model == Model::kCookTorrance) summary.fresnel_f0_sigma = sd[7];
+      if (model == Model::kGgx) summary.specular_scale_sigma = sd[7];
     }
     if (HasSecondLobe(model)) {
       summary.specular2_sigma = sd.segment<3>(7);
@@ -603,15 +612,25 @@ FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const F
 }
 
 std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, double min_bic_improvement,
-                                       std::string* reason) {
-  auto trusted = [](const FitSummary& f) { return f.IsSolutionUsable() && f.lobe_identifiable; };
+                                       double min_held_out_gain, std::string* reason) {
+  // A fit the iteration limit stopped is not at its optimum: its BIC and
+  // held-out error do not speak for the model.
+  auto trusted = [](const FitSummary& f) {
+    return f.termination == Termination::kSuccess && f.lobe_identifiable;
+  };
+  std::string unconverged;
+  for (const FitSummary& f : fits)
+    if (f.termination == Termination::kNoConvergence)
+      unconverged += std::string(unconverged.empty() ? "" : ", ") + ModelName(f.params.model) + " (" +
+                     std::to_string(f.iterations) + " iterations)";
+  if (!unconverged.empty()) unconverged = "; not considered, the fit did not converge: " + unconverged;
   std::optional<std::size_t> current;
   for (std::size_t i = 0; i < fits.size(); ++i)
     if (trusted(fits[i]) && (!current || fits[i].parameters < fits[*current].parameters ||
                              (fits[i].parameters == fits[*current].parameters && fits[i].bic < fits[*current].bic)))
       current = i;
   if (!current) {
-    *reason = "no candidate is usable and identifiable";
+    *reason = "no candidate is converged and identifiable" + unconverged;
     return std::nullopt;
   }
   const auto name = [&](std::size_t i) { return std::string(ModelName(fits[i].params.model)); };
@@ -649,6 +668,12 @@ std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, doub
                     Number(gain / se) + "): not chosen";
           continue;
         }
+        if (!(gain > min_held_out_gain)) {
+          refused = "; " + name(i) + "'s BIC is lower by " + Number(c.bic - f.bic) +
+                    " but its held-out mean squared error is lower by only " + Number(gain) +
+                    ", within what the data resolve (" + Number(min_held_out_gain) + "): not chosen";
+          continue;
+        }
       }
       if (better_move(i, next)) {
         next = i;
@@ -662,6 +687,7 @@ std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, doub
   }
   *reason += refused;
   if (refused.empty()) *reason += "; no other model improves on it";
+  *reason += unconverged;
   return current;
 }
 
@@ -728,10 +754,13 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
     }
     if (options.progress) options.progress({"held-out", candidates * folds, candidates * folds});
   }
-  const std::optional<std::size_t> choice = ChooseModel(summary.candidates, options.min_bic_improvement, &summary.reason);
+  const double min_held_out_gain = options.fit.loss == FitLoss::kWeighted ? options.min_held_out_gain_weighted
+                                                                           : options.min_held_out_gain_log;
+  const std::optional<std::size_t> choice =
+      ChooseModel(summary.candidates, options.min_bic_improvement, min_held_out_gain, &summary.reason);
   if (!choice) {
-    summary.End(Termination::kFailure, "no candidate model gives a usable, identifiable fit to " +
-                                           std::to_string(samples.size()) + " samples");
+    summary.End(Termination::kFailure, "no candidate model gives a converged, identifiable fit to " +
+                                           std::to_string(samples.size()) + " samples (" + summary.reason + ")");
     timer.Finish(&summary);
     return summary;
   }

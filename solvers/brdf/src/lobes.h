@@ -2,8 +2,8 @@
 // The specular lobes of models.h, templated so that the fitter differentiates
 // them with Ceres' jets. `specular` is one channel's k_s (Blinn-Phong,
 // Cook-Torrance), rho_s (Ward) or F0 (GGX); `shape` the exponent or the
-// roughness; `f0` Cook-Torrance's Fresnel reflectance at normal incidence
-// (the other lobes ignore it).
+// roughness; `extra` the one parameter the channels share beyond the shape:
+// Cook-Torrance's Fresnel F0, GGX's scale (the other lobes ignore it).
 
 #include "photorig/solvers/brdf/models.h"
 
@@ -22,7 +22,7 @@ T BlinnPhongLobe(const T& specular, const T& exponent, const Geometry& g) {
 }
 
 template <typename T>
-T GgxLobe(const T& f0, const T& roughness, const Geometry& g) {
+T GgxLobe(const T& f0, const T& roughness, const T& scale, const Geometry& g) {
   using std::sqrt;
   const T a2 = roughness * roughness;
   const T t = g.cos_h * g.cos_h * (a2 - 1.0) + 1.0;
@@ -31,7 +31,7 @@ T GgxLobe(const T& f0, const T& roughness, const Geometry& g) {
   const T g_o = 2.0 * g.cos_o / (g.cos_o + sqrt(a2 + (1.0 - a2) * g.cos_o * g.cos_o));
   const double m = 1.0 - g.cos_d, m5 = m * m * m * m * m;
   const T fresnel = f0 + (1.0 - f0) * m5;
-  return d * g_i * g_o * fresnel / (4.0 * g.cos_i * g.cos_o);
+  return scale * d * g_i * g_o * fresnel / (4.0 * g.cos_i * g.cos_o);
 }
 
 // exp(-tan^2 theta_h / width^2), the Beckmann-shaped factor Ward and Cook-Torrance share.
@@ -68,17 +68,20 @@ T CookTorranceLobe(const T& k_s, const T& m, const T& f0, const Geometry& g) {
 }
 
 template <typename T>
-T Lobe(Model model, const T& specular, const T& shape, const T& f0, const Geometry& g) {
+T Lobe(Model model, const T& specular, const T& shape, const T& extra, const Geometry& g) {
   switch (model) {
     case Model::kBlinnPhong:
     case Model::kTwoBlinnPhong:  // the first lobe; the second is another Blinn-Phong
       return BlinnPhongLobe(specular, shape, g);
     case Model::kWard: return WardLobe(specular, shape, g);
-    case Model::kGgx: return GgxLobe(specular, shape, g);
-    case Model::kCookTorrance: return CookTorranceLobe(specular, shape, f0, g);
+    case Model::kGgx: return GgxLobe(specular, shape, extra, g);
+    case Model::kCookTorrance: return CookTorranceLobe(specular, shape, extra, g);
     case Model::kLambertian: break;
   }
   return T(0.0);
 }
+
+// The shared parameter `extra` of Lobe for `p`.
+inline double ExtraOf(const ModelParams& p) { return p.model == Model::kGgx ? p.specular_scale : p.fresnel_f0; }
 
 }  // namespace photorig::solvers::brdf::internal

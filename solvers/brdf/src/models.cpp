@@ -29,7 +29,7 @@ std::optional<Model> ParseModel(std::string_view name) {
 int ParameterCount(Model model) {
   if (model == Model::kLambertian) return 3;
   if (model == Model::kTwoBlinnPhong) return 11;
-  return model == Model::kCookTorrance ? 8 : 7;
+  return model == Model::kCookTorrance || model == Model::kGgx ? 8 : 7;
 }
 
 bool HasSecondLobe(Model model) { return model == Model::kTwoBlinnPhong; }
@@ -43,7 +43,7 @@ Eigen::Vector3d Evaluate(const ModelParams& p, const Eigen::Vector3d& wi, const 
   if (wi.z() <= 0.0 || wo.z() <= 0.0) return Eigen::Vector3d::Zero();
   const Geometry g = GeometryOf(wi, wo);
   Eigen::Vector3d f;
-  for (int c = 0; c < 3; ++c) f[c] = p.diffuse[c] / M_PI + internal::Lobe(p.model, p.specular[c], p.shape, p.fresnel_f0, g);
+  for (int c = 0; c < 3; ++c) f[c] = p.diffuse[c] / M_PI + internal::Lobe(p.model, p.specular[c], p.shape, internal::ExtraOf(p), g);
   if (HasSecondLobe(p.model))
     for (int c = 0; c < 3; ++c) f[c] += internal::BlinnPhongLobe(p.specular2[c], p.shape2, g);
   return f;

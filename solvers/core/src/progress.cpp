@@ -19,4 +19,10 @@ void ProgressThrottle::Finish() {
   callback_(Progress{stage_, total_, total_});
 }
 
+void ProgressThrottle::StoppedAt(std::int64_t done, std::string_view why) {
+  if (!callback_) return;
+  last_reported_ = total_;
+  callback_(Progress{stage_, done, total_, why});
+}
+
 }  // namespace photorig::solvers

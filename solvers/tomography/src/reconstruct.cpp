@@ -253,6 +253,18 @@ void TotalVariationSteps(const VolumeGrid& grid, int steps, double length, bool 
   if (non_negative) ClampNonNegative(x);
 }
 
+// How the progress report's last line says why the iterations stopped early.
+const char* StopPhrase(StopReason reason) {
+  switch (reason) {
+    case StopReason::kDiscrepancy: return "residual at the noise level";
+    case StopReason::kStagnation: return "converged";
+    case StopReason::kLimitCycle: return "limit cycle";
+    case StopReason::kNone:
+    case StopReason::kMaxIterations: break;
+  }
+  return "stopped";
+}
+
 std::string Format(double value) {
   std::ostringstream out;
   out.precision(3);
@@ -409,6 +421,19 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
   summary.stop_reason = StopReason::kMaxIterations;
   // A fixed relaxation keeps ART's and SART's updates from shrinking to zero.
   const bool row_action = options.method == Method::kArt || options.method == Method::kSart;
+  // SART with TV approaches a balance between the data step and the TV step
+  // tied to it, whose residual stays above the noise level by what TV holds
+  // back, so the discrepancy rule may never act while each pass fits more
+  // noise. A pass that lowers the residual by less than the noise's own
+  // scatter in it (||noise|| has a standard deviation of
+  // sqrt(sum var(b) / (2 rays))) makes a change the data cannot resolve:
+  // three in a row are the balance, converged (kStagnation), and trusted if
+  // the residual is within 1.5 x the noise level like any stalled iteration.
+  const double resolvable_drop =
+      summary.tv_strength > 0.0 && have_noise && options.stop_rule == StopRule::kDiscrepancy &&
+              options.stagnation_tolerance > 0.0
+          ? std::sqrt(noise_sum / (2.0 * static_cast<double>(summary.rays_used)))
+          : 0.0;
   int flat_steps = 0;
   // SART's residual as the pass met it, when that stands for the exact one
   // (below); negative when r holds the exact residual.
@@ -471,13 +496,17 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
       break;
     }
     // Three iterations in a row that barely lower the residual: it has stalled.
-    flat_steps = previous - residual < options.stagnation_tolerance * previous ? flat_steps + 1 : 0;
+    const double flat_drop = std::max(options.stagnation_tolerance * previous, resolvable_drop);
+    flat_steps = previous - residual < flat_drop ? flat_steps + 1 : 0;
     if (options.stagnation_tolerance > 0.0 && flat_steps >= 3) {
-      summary.stop_reason = row_action ? StopReason::kLimitCycle : StopReason::kStagnation;
+      summary.stop_reason = row_action && resolvable_drop == 0.0 ? StopReason::kLimitCycle : StopReason::kStagnation;
       break;
     }
   }
-  throttle.Finish();
+  if (summary.stop_reason == StopReason::kMaxIterations)
+    throttle.Finish();
+  else
+    throttle.StoppedAt(summary.iterations, StopPhrase(summary.stop_reason));
   for (std::int64_t j = 0; j < voxels; ++j)
     if (column_sums[j] <= 0.0f) x[j] = 0.0f;
   if (residual_met >= 0.0) {  // the last entry was SART's estimate: the result's own residual instead
@@ -516,9 +545,13 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
     summary.termination = solvers::Termination::kNoConvergence;
     summary.message = "the residual " + Format(final_residual) + " is still above the noise level " +
                       Format(summary.discrepancy_target) + " after " + std::to_string(summary.iterations) +
-                      " iterations; raise max_iterations" + notes;
+                      " iterations; raise " + options.iteration_limit_name + notes;
   } else {
     summary.termination = solvers::Termination::kSuccess;
+    if (resolvable_drop > 0.0 && summary.stop_reason == StopReason::kStagnation)
+      notes = "; total variation holds the residual at " + Format(final_residual / std::sqrt(noise_sum)) +
+              " times the noise level: stopped at its balance, where a pass lowers it by less than the noise "
+              "resolves (" + Format(resolvable_drop) + ")" + notes;
     summary.message = notes.empty() ? std::string() : notes.substr(2);
   }
   return summary;

@@ -24,8 +24,8 @@ void PrintSelection(std::FILE* out, const solvers::brdf::SelectionSummary& selec
 
 // A model from a fit report (SelectionJson: the chosen candidate, or the one
 // named by `name`) or from a model spec (one candidate's fields: "model",
-// "diffuse", "specular", "shape", "fresnel_f0", "specular2", "shape2"; absent
-// ones zero). False, saying why in `error`, for anything else.
+// "diffuse", "specular", "shape", "fresnel_f0", "specular2", "shape2",
+// "specular_scale"; absent ones zero, specular_scale 1). False, saying why in `error`, for anything else.
 bool ModelFromJson(const nlohmann::json& doc, const std::string& name, solvers::brdf::ModelParams* params,
                    std::string* error);
 

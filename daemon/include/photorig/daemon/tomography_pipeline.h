@@ -77,8 +77,9 @@ struct TomographyResult {
   std::optional<double> relative_error_vs_truth;
   double absorbance_ms = 0.0, total_ms = 0.0;
 
-  // kSuccess only: the discrepancy rule stopped it. An iteration limit
-  // (residual above the noise) or inconsistent data is not to be trusted.
+  // kSuccess only: a stopping rule ended it within the noise (the
+  // discrepancy rule, a stall within 1.5 x the noise level). An iteration
+  // limit (residual above the noise) or inconsistent data is not to be trusted.
   bool trusted() const { return reconstruction.termination == solvers::Termination::kSuccess; }
   nlohmann::json ToJson() const;  // report.json
 };

@@ -81,6 +81,9 @@ struct TomographyRequest {
   double cor_offset_mm = 0.0;        // the rotation axis on the detector (tomography::Geometry)
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
   solvers::ProgressCallback progress;
+  // Not from YAML: how messages name max_iterations (the recipe's key; the
+  // CLI sets its flag, --max-iterations).
+  std::string iteration_limit_name = "max_iterations";
 
   bool IsValid(std::string* why) const;
 };

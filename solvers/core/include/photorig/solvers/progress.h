@@ -17,6 +17,9 @@ struct Progress {
   std::string_view stage;  // what is being done now, e.g. "lambertian", "blinn-phong", "sirt"
   std::int64_t done = 0;   // units finished in this stage
   std::int64_t total = 0;  // units in this stage (0 when unknown, e.g. iterate until a rule stops)
+  // Set on a stage's last report when a rule ended it before `total` (an
+  // iteration that converged): why, e.g. "converged"; `done` is where it stopped.
+  std::string_view stopped;
 };
 
 using ProgressCallback = std::function<void(const Progress&)>;
@@ -31,6 +34,8 @@ class ProgressThrottle {
   void Update(std::int64_t done);
   // Reports done == total.
   void Finish();
+  // Reports that a rule ended the stage at `done` of total, and why (Progress::stopped).
+  void StoppedAt(std::int64_t done, std::string_view why);
 
  private:
   const ProgressCallback& callback_;

@@ -1,7 +1,8 @@
 #pragma once
 // Fitting the analytic models of models.h to measured samples with Ceres
-// (Levenberg-Marquardt, automatic derivatives, bounds keeping the albedos
-// non-negative and F0 <= 1), and choosing the simplest model the data support.
+// (Levenberg-Marquardt, automatic derivatives, bounds keeping the albedos,
+// GGX's scale and every F0 non-negative and F0 <= 1), and choosing the
+// simplest model the data support.
 //
 // Fitting space (FitLoss):
 //   kWeighted  residual (f_model - f_measured) / sigma per sample and channel,
@@ -64,7 +65,8 @@ struct FitSummary : Summary {
   Eigen::Vector3d diffuse_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   Eigen::Vector3d specular_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   double shape_sigma = std::numeric_limits<double>::quiet_NaN();
-  double fresnel_f0_sigma = std::numeric_limits<double>::quiet_NaN();  // cook_torrance only
+  double fresnel_f0_sigma = std::numeric_limits<double>::quiet_NaN();      // cook_torrance only
+  double specular_scale_sigma = std::numeric_limits<double>::quiet_NaN();  // ggx only
   // two_blinn_phong only: the second lobe's.
   Eigen::Vector3d specular2_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   double shape2_sigma = std::numeric_limits<double>::quiet_NaN();
@@ -104,6 +106,15 @@ struct SelectionOptions {
   // Raftery's scale) and, with held-out folds, its held-out error is lower
   // too (see ChooseModel).
   double min_bic_improvement = 10.0;
+  // A held-out gain (the mean squared error's, in the loss's units) at or
+  // below this is no gain, however small its standard error: the data do
+  // not resolve it, and the simpler model stands. Weighted loss: 0.01
+  // sigma^2 (predicting half a percent of the noise's RMS better). Log loss:
+  // 1e-6, an RMS of 1e-3 in log(1 + f cos theta_i), 0.1 % of the value,
+  // far below any measured table's accuracy: a noise-free table fitted by
+  // its own model and by a richer one differs by the fits' precision there.
+  double min_held_out_gain_weighted = 0.01;
+  double min_held_out_gain_log = 1e-6;
   // The samples are said to see the specular peak when one has theta_h below this.
   double peak_theta_h_deg = 5.0;
   // Folds of the held-out error (sample k, i.e. pose k, in fold k mod
@@ -132,19 +143,22 @@ struct SelectionSummary : Summary {
   std::string reason;            // why the chosen model, in words (ChooseModel)
 };
 
-// The choice among fitted candidates. Only trusted fits (usable, lobes
-// identifiable) take part. Starting from the trusted fit with the fewest
-// parameters (ties: lower BIC), the choice moves to another fit when that one
+// The choice among fitted candidates. Only trusted fits (converged: kSuccess,
+// lobes identifiable) take part; one the iteration limit stopped
+// (kNoConvergence) is usable but never chosen, and `reason` names it.
+// Starting from the trusted fit with the fewest parameters (ties: lower
+// BIC), the choice moves to another fit when that one
 //   - has as many parameters and a lower BIC, or
 //   - has more parameters, a BIC lower by more than min_bic_improvement and,
 //     when both carry held-out errors, a held-out mean squared error lower by
-//     more than one standard error of the sample-by-sample difference;
+//     more than one standard error of the sample-by-sample difference and by
+//     more than min_held_out_gain;
 // among the fits it may move to, to the one with the fewest parameters (ties:
 // the lowest BIC), and again from there until none qualifies. So BIC ranks,
 // and a more complex model must also predict samples it did not see better. Returns the chosen index
 // into `fits` (nothing when no fit is trusted) and says why in `reason`.
 std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, double min_bic_improvement,
-                                       std::string* reason);
+                                       double min_held_out_gain, std::string* reason);
 
 // Fits every candidate (and its held-out folds) and chooses by ChooseModel.
 // The candidates' fits run in parallel, then every (candidate, fold) pair.

@@ -23,7 +23,10 @@
 // TV, together as long as tv_strength times that pass's own data step, so
 // that the prior fades as the data fit settles. It assumes a piecewise-
 // constant sample (it flattens smooth gradients and thin detail), which the
-// data do not say, so it is off unless asked for.
+// data do not say, so it is off unless asked for. The TV steps hold the
+// residual above what SART alone reaches: with the discrepancy rule, the
+// passes also end at the balance of the two, where a pass lowers the residual
+// by less than the noise resolves (kStagnation; see Reconstruct's loop).
 //
 // ART and SART with a fixed relaxation end in a limit cycle on inconsistent
 // data: their residual stops falling above the noise level. That ends
@@ -77,8 +80,8 @@ enum class StopReason {
   kNone,           // did not iterate (failed before)
   kDiscrepancy,    // the residual reached the noise level
   kMaxIterations,  // max_iterations came first
-  kStagnation,     // the residual stopped falling (SIRT, CGLS: converged)
-  kLimitCycle      // ART, SART: the residual stopped falling, the iterates cycling
+  kStagnation,     // the residual stopped falling (SIRT, CGLS, SART with TV at its balance: converged)
+  kLimitCycle      // ART, SART without TV: the residual stopped falling, the iterates cycling
 };
 
 const char* StopReasonName(StopReason reason);
@@ -86,6 +89,9 @@ const char* StopReasonName(StopReason reason);
 struct ReconstructOptions {
   Method method = Method::kSirt;
   int max_iterations = 200;  // sweeps for ART, passes for SART
+  // How messages name max_iterations to whoever set it: the CLI's flag
+  // (--max-iterations), a recipe's key.
+  std::string iteration_limit_name = "max_iterations";
   // Relaxation lambda; 0 picks the method's default: ART 0.25 (gentle sweeps,
   // so that the stopping rule has iterations to choose between), SART 0.25
   // (on the 128^2 Shepp-Logan slice at 1 % noise the error minimum comes at
@@ -115,7 +121,9 @@ struct ReconstructOptions {
   // Called after every iteration with its number (from 1) and the volume: for
   // error-against-iterations charts. It must not keep the reference.
   std::function<void(int, const Eigen::VectorXf&)> on_iteration;
-  solvers::ProgressCallback progress;  // stage: the method's name; total: max_iterations
+  // Stage: the method's name; total: max_iterations. A stopping rule that
+  // ends the iterations sooner is reported as Progress::stopped.
+  solvers::ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
 };
