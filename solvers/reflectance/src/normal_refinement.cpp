@@ -181,6 +181,11 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
   timer.SetupDone(&summary);
   cv::Mat n = normals.clone();
   const int C = stack.channels();
+  // The lights that judge the result are left out of the normal steps: normals
+  // fitted to a light predict it well whether or not they are nearer the truth.
+  std::vector<std::uint8_t> judging(stack.light_count(), 0);
+  if (options.keep_better)
+    for (int j : StratifiedLights(stack.light_directions, options.held_out_lights)) judging[j] = 1;
   const double max_change = options.max_change_deg / kDegPerRad;
   for (int round = 0; round < options.rounds; ++round) {
     if (options.progress) options.progress({"normals", round, options.rounds});
@@ -203,7 +208,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
       problem.lobe = {material.model, material.shape};
       problem.specular = material.specular;
       for (int j = 0; j < stack.light_count(); ++j) {
-        if (problem.n0.dot(stack.light_directions[j]) < options.fit.min_cosine) continue;
+        if (judging[j] || problem.n0.dot(stack.light_directions[j]) < options.fit.min_cosine) continue;
         const float* px = stack.images[j].ptr<float>() + static_cast<std::size_t>(i) * C;
         bool usable = true;
         for (int c = 0; c < C; ++c) usable = usable && std::isfinite(px[c]) && px[c] < stack.saturation_level;
