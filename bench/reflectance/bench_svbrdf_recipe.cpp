@@ -43,6 +43,11 @@ void BM_SvbrdfRecipeSolve(benchmark::State& state) {
     state.counters["refine_ms"] = result.normal_refinement->total_ms;
     state.counters["refine_judge_ms"] = result.normal_refinement->judge_ms;
     state.counters["kept_refined"] = result.normal_refinement->kept_refined;
+    if (result.refined_normals_vs_truth_mean_deg) {
+      state.counters["normals_deg_given"] = *result.unrefined_normals_vs_truth_mean_deg;
+      state.counters["normals_deg_kept"] = *result.refined_normals_vs_truth_mean_deg;
+    }
+    state.counters["reduced_chi_square"] = result.summary.reduced_chi_square;
   }
   if (result.relighting) state.counters["held_out_ms"] = result.relighting->total_ms;
   fs::remove_all(run);
