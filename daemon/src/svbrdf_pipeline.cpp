@@ -239,7 +239,9 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
           {"median_change_deg", n.median_change_deg}, {"p95_change_deg", n.p95_change_deg},
           {"reduced_chi_square_before", n.reduced_chi_square_before},
           {"reduced_chi_square_after", n.reduced_chi_square_after}, {"total_ms", n.total_ms},
-          {"normals_ms", n.normals_ms}};
+          {"normals_ms", n.normals_ms}, {"kept", n.kept_refined ? "refined" : "given"},
+          {"held_out_rmse", {{"given", n.held_out_rmse_given}, {"refined", n.held_out_rmse_refined}}},
+          {"judge_ms", n.judge_ms}};
     if (result.refined_normals_vs_truth_mean_deg)
       nj["normals_vs_truth_mean_deg"] = {{"before", *result.unrefined_normals_vs_truth_mean_deg},
                                          {"after", *result.refined_normals_vs_truth_mean_deg}};
@@ -332,7 +334,8 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
           normals = refined;
           maps = std::move(refined_maps);
           result.summary = result.normal_refinement->reflectance;
-          WriteFloatTiff((out / "normals.tiff").string(), normals);
+          // Given normals kept (the refined ones predicted the held-out lights no better): ps/normals.tiff stands.
+          if (result.normal_refinement->kept_refined) WriteFloatTiff((out / "normals.tiff").string(), normals);
         }
       }
       if (result.summary.IsSolutionUsable()) {

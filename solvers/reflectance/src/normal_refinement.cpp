@@ -44,7 +44,7 @@ struct PixelProblem {
       const Eigen::Vector3d wi = internal::ToLocal(n, light[k]);
       const double cosine = std::max(wi.z(), 0.0);
       double a0 = 0.0, a1 = 0.0;
-      if (cosine > 0.0) internal::LobeBasis(lobe, wi, wo, &a0, &a1);
+      if (cosine > 0.0) internal::LobeBasis(lobe, brdf::GeometryOf(wi, wo), &a0, &a1);
       for (int c = 0; c < C; ++c) {
         const std::size_t i = static_cast<std::size_t>(k) * C + c;
         const double e = irradiance[i] * cosine;
@@ -133,6 +133,7 @@ bool NormalRefinementOptions::IsValid(std::string* why) const {
   if (rounds < 1) return fail("rounds must be >= 1");
   if (!(max_change_deg > 0.0 && max_change_deg <= 90.0)) return fail("max_change_deg must be in (0, 90]");
   if (!(converged_deg >= 0.0)) return fail("converged_deg must be >= 0");
+  if (keep_better && held_out_lights < 0) return fail("held_out_lights must be >= 0 (0 = every light)");
   return fit.IsValid(why);
 }
 
@@ -180,6 +181,11 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
   timer.SetupDone(&summary);
   cv::Mat n = normals.clone();
   const int C = stack.channels();
+  // The lights that judge the result are left out of the normal steps: normals
+  // fitted to a light predict it well whether or not they are nearer the truth.
+  std::vector<std::uint8_t> judging(stack.light_count(), 0);
+  if (options.keep_better)
+    for (int j : StratifiedLights(stack.light_directions, options.held_out_lights)) judging[j] = 1;
   const double max_change = options.max_change_deg / kDegPerRad;
   for (int round = 0; round < options.rounds; ++round) {
     if (options.progress) options.progress({"normals", round, options.rounds});
@@ -202,7 +208,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
       problem.lobe = {material.model, material.shape};
       problem.specular = material.specular;
       for (int j = 0; j < stack.light_count(); ++j) {
-        if (problem.n0.dot(stack.light_directions[j]) < options.fit.min_cosine) continue;
+        if (judging[j] || problem.n0.dot(stack.light_directions[j]) < options.fit.min_cosine) continue;
         const float* px = stack.images[j].ptr<float>() + static_cast<std::size_t>(i) * C;
         bool usable = true;
         for (int c = 0; c < C; ++c) usable = usable && std::isfinite(px[c]) && px[c] < stack.saturation_level;
@@ -252,6 +258,40 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
     summary.p95_change_deg.push_back(Quantile(moved_deg, 0.95));
     if (summary.median_change_deg.back() < options.converged_deg) break;
   }
+  std::string verdict;
+  if (options.keep_better && summary.rounds > 0) {
+    const SolveTimer judge_timer;
+    // Both fits judged on the same pixels: those each of them resolved.
+    const int resolved = static_cast<int>(PixelFlag::kFitted);
+    const cv::Mat both = (first.flags == resolved) & (current.flags == resolved);
+    RelightingOptions judge;
+    judge.fit = options.fit;
+    judge.fit.progress = nullptr;
+    judge.held_out_lights = options.held_out_lights;
+    judge.methods = {Method::kPerMaterial};
+    const RelightingSummary on_given = EvaluateHeldOutLights(judge, stack, normals, both, first, first_summary);
+    const RelightingSummary on_refined = EvaluateHeldOutLights(judge, stack, n, both, current, fitted);
+    const int per_material = static_cast<int>(Method::kPerMaterial);
+    if (on_given.IsSolutionUsable() && on_refined.IsSolutionUsable()) {
+      summary.held_out_rmse_given = on_given.mean_rmse[per_material];
+      summary.held_out_rmse_refined = on_refined.mean_rmse[per_material];
+      summary.kept_refined = summary.held_out_rmse_refined < summary.held_out_rmse_given;
+      verdict = std::string("; kept the ") + (summary.kept_refined ? "refined" : "given") +
+                " normals (held-out RMSE given " + std::to_string(summary.held_out_rmse_given) + ", refined " +
+                std::to_string(summary.held_out_rmse_refined) + ")";
+    } else {
+      // Unjudged, the refinement cannot promise to be no worse: the given normals stay.
+      summary.kept_refined = false;
+      verdict = "; kept the given normals: the held-out check failed (" +
+                (on_given.IsSolutionUsable() ? on_refined.message : on_given.message) + ")";
+    }
+    if (!summary.kept_refined) {
+      n = normals.clone();
+      current = first;
+      fitted = first_summary;
+    }
+    summary.judge_ms = judge_timer.ElapsedMs();
+  }
   summary.reduced_chi_square_after = fitted.reduced_chi_square;
   summary.reflectance = fitted;
   *refined_normals = n;
@@ -262,7 +302,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
                             : Termination::kNoConvergence;
   summary.message = std::to_string(summary.rounds) + " round(s); reduced chi-square " +
                     std::to_string(summary.reduced_chi_square_before) + " -> " +
-                    std::to_string(summary.reduced_chi_square_after);
+                    std::to_string(summary.reduced_chi_square_after) + verdict;
   timer.Finish(&summary);
   return summary;
 }

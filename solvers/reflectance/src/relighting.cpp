@@ -22,6 +22,10 @@ bool RelightingOptions::IsValid(std::string* why) const {
     if (why) *why = "held_out_lights must be >= 0 (0 = every light)";
     return false;
   }
+  if (methods.empty()) {
+    if (why) *why = "methods must name at least one method";
+    return false;
+  }
   for (int j : lights)
     if (j < 0) {
       if (why) *why = "a held-out light index is negative: " + std::to_string(j);
@@ -117,7 +121,8 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
     for (int p : groups[m]) material_of[p] = static_cast<int>(m);
   std::vector<std::array<double, 3>> material_sum(groups.size(), {0.0, 0.0, 0.0});
   std::vector<long long> material_count(groups.size(), 0);
-  ProgressThrottle throttle(options.progress, "held-out", static_cast<std::int64_t>(summary.held_out.size()) * 3);
+  ProgressThrottle throttle(options.progress, "held-out",
+                            static_cast<std::int64_t>(summary.held_out.size() * options.methods.size()));
   const int C = s.channels;
   int done = 0;
   for (int j : summary.held_out) {
@@ -134,7 +139,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
       std::nth_element(measured_values.begin(), it, measured_values.end());
       peak = std::max(*it, 1e-12);
     }
-    for (Method method : {Method::kLambertian, Method::kPerPixelLobe, Method::kPerMaterial}) {
+    for (Method method : options.methods) {
       SolveTimer fit_timer;
       // Per pixel: lobe, weights and albedo to predict with.
       std::vector<internal::Lobe> lobe(s.pixels);
@@ -174,16 +179,16 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
         const std::size_t cell = s.At(p, j);
         for (int ch = 0; ch < C && !image.empty(); ++ch)
           image.ptr<float>()[static_cast<std::size_t>(s.pixel_index[p]) * C + ch] = static_cast<float>(
-              internal::Predict(s, p, s.wi[cell], lobe[p], weight[p][ch], rho[p][ch], s.intensity[j][ch]));
+              internal::Predict(s, cell, lobe[p], weight[p][ch], rho[p][ch], s.intensity[j][ch]));
         if (s.saturated[cell]) continue;
         for (int ch = 0; ch < C; ++ch) {
           const double predicted =
-              internal::Predict(s, p, s.wi[cell], lobe[p], weight[p][ch], rho[p][ch], s.intensity[j][ch]);
+              internal::Predict(s, cell, lobe[p], weight[p][ch], rho[p][ch], s.intensity[j][ch]);
           const double d = predicted - s.value[cell * C + ch];
           sum += d * d;
           ++count;
           material_sum[material_of[p]][static_cast<int>(method)] += d * d;
-          if (method == Method::kLambertian) ++material_count[material_of[p]];
+          if (method == options.methods.front()) ++material_count[material_of[p]];
         }
       }
       HeldOutError error;

@@ -61,8 +61,7 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
   s.weight.assign(cells * s.channels, 1.0f);
   s.usable.assign(cells, 0);
   s.saturated.assign(cells, 0);
-  s.wi.resize(cells);
-  s.wo.resize(s.pixels);
+  s.geometry.resize(cells);
   s.usable_count.assign(s.pixels, 0);
   long long clipped = 0;
 #pragma omp parallel for schedule(static) reduction(+ : clipped)
@@ -70,12 +69,12 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
     const Eigen::Vector3d& n = s.normal[p];
     Eigen::Vector3d t, b;
     FrameOf(n, &t, &b);
-    s.wo[p] = Eigen::Vector3d(t.dot(view), b.dot(view), n.dot(view));
+    const Eigen::Vector3d wo(t.dot(view), b.dot(view), n.dot(view));
     const int idx = s.pixel_index[p];
     for (int j = 0; j < s.lights; ++j) {
       const Eigen::Vector3d& w = stack.light_directions[j];
       const std::size_t cell = s.At(p, j);
-      s.wi[cell] = Eigen::Vector3d(t.dot(w), b.dot(w), n.dot(w));
+      s.geometry[cell] = brdf::GeometryOf(Eigen::Vector3d(t.dot(w), b.dot(w), n.dot(w)), wo);
       const float* px = stack.images[j].ptr<float>() + static_cast<std::size_t>(idx) * s.channels;
       bool clip = false, finite = true;
       for (int ch = 0; ch < s.channels; ++ch) {
@@ -83,7 +82,7 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
         clip = clip || px[ch] >= stack.saturation_level;
         finite = finite && std::isfinite(px[ch]);
       }
-      const bool lit = s.wi[cell].z() >= min_cosine;
+      const bool lit = s.geometry[cell].cos_i >= min_cosine;
       if (lit && clip) {
         s.saturated[cell] = 1;
         ++clipped;
@@ -96,31 +95,24 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
   return s;
 }
 
-void LobeBasis(const Lobe& lobe, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, double* a0, double* a1) {
-  if (lobe.model == brdf::Model::kLambertian) {
-    *a0 = *a1 = 0.0;
-    return;
-  }
-  // Channel 0 evaluates the lobe at weight 0, channel 1 at weight 1: the
-  // brdf module's own models, so the two stay one definition.
-  const brdf::ModelParams params{lobe.model, Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, 1.0, 0.0), lobe.shape};
-  const Eigen::Vector3d f = brdf::Evaluate(params, wi, wo);
-  *a0 = f[0];
-  *a1 = f[1];
+void LobeBasis(const Lobe& lobe, const brdf::Geometry& g, double* a0, double* a1) {
+  // The brdf module's own lobes, so the two stay one definition. A
+  // Blinn-Phong lobe is zero at weight 0; GGX's Schlick term is not.
+  *a0 = lobe.model == brdf::Model::kGgx ? brdf::EvaluateLobe(lobe.model, 0.0, lobe.shape, 0.0, g) : 0.0;
+  *a1 = lobe.model == brdf::Model::kLambertian ? 0.0 : brdf::EvaluateLobe(lobe.model, 1.0, lobe.shape, 0.0, g);
 }
 
 PixelSums SumsOf(const Samples& s, int p, const Lobe& lobe, const std::vector<std::uint8_t>& enabled) {
   PixelSums sums;
-  const Eigen::Vector3d& wo = s.wo[p];
   for (int j = 0; j < s.lights; ++j) {
     const std::size_t cell = s.At(p, j);
     if (!s.usable[cell] || (!enabled.empty() && !enabled[j])) continue;
-    const Eigen::Vector3d& wi = s.wi[cell];
+    const brdf::Geometry& g = s.geometry[cell];
     double a0, a1;
-    LobeBasis(lobe, wi, wo, &a0, &a1);
+    LobeBasis(lobe, g, &a0, &a1);
     ++sums.samples;
     for (int ch = 0; ch < s.channels; ++ch) {
-      const double e = s.intensity[j][ch] * wi.z();
+      const double e = s.intensity[j][ch] * g.cos_i;
       const double u = e / M_PI, g = e * a0, h = e * (a1 - a0);
       const double y = s.value[cell * s.channels + ch] - g;
       const double w = s.weight[cell * s.channels + ch];
@@ -255,14 +247,20 @@ MaterialResult FitMaterial(const Samples& s, const std::vector<int>& pixels, con
   MaterialResult best;
   double best_bic = std::numeric_limits<double>::infinity();
   const std::vector<int> subset = Subsample(pixels, search_pixels);
-  for (brdf::Model model : candidates) {
-    Lobe lobe{model, 0.0};
-    double log_sigma = 0.0;
-    if (model != brdf::Model::kLambertian) {
-      const ShapeSearch search = SearchShape(s, subset, model, enabled, true);
-      lobe.shape = search.shape;
-      log_sigma = search.log_shape_sigma;
-    }
+  // Each lobe's shape search on a thread of its own: one parallel region
+  // per material rather than one per trial shape (FitGroup's), since on a
+  // busy machine every region waits at its barrier for a descheduled thread.
+  const int count = static_cast<int>(candidates.size());
+  const int lobes = static_cast<int>(std::count_if(candidates.begin(), candidates.end(),
+                                                   [](brdf::Model m) { return m != brdf::Model::kLambertian; }));
+  std::vector<ShapeSearch> searches(candidates.size());
+#pragma omp parallel for schedule(dynamic, 1) if (lobes > 1)
+  for (int c = 0; c < count; ++c)
+    if (candidates[c] != brdf::Model::kLambertian) searches[c] = SearchShape(s, subset, candidates[c], enabled, true);
+  for (int c = 0; c < count; ++c) {
+    const brdf::Model model = candidates[c];
+    const Lobe lobe{model, searches[c].shape};
+    const double log_sigma = searches[c].log_shape_sigma;
     const GroupFit fit = FitGroup(s, pixels, lobe, enabled);
     const int parameters = model == brdf::Model::kLambertian ? 0 : s.channels + 1;
     const double bic = Bic(fit.cost, fit.residuals, parameters);
@@ -356,7 +354,7 @@ SensorNoise EstimateNoise(const Samples& s, const std::vector<int>& pixels, cons
       const std::size_t cell = s.At(p, j);
       if (!s.usable[cell]) continue;
       for (int ch = 0; ch < s.channels; ++ch) {
-        const double predicted = Predict(s, p, s.wi[cell], lobe, own[i].weight[ch], own[i].rho[ch], s.intensity[j][ch]);
+        const double predicted = Predict(s, cell, lobe, own[i].weight[ch], own[i].rho[ch], s.intensity[j][ch]);
         const double r = s.value[cell * s.channels + ch] - predicted;
         points[ch].emplace_back(predicted, r * r * correction);
       }
@@ -410,19 +408,19 @@ void WeightSamples(const SensorNoise& noise, const std::vector<int>& pixels, con
       const std::size_t cell = s->At(p, j);
       if (!s->usable[cell]) continue;
       for (int ch = 0; ch < s->channels; ++ch) {
-        const double predicted = Predict(*s, p, s->wi[cell], lobe, own[i].weight[ch], own[i].rho[ch], s->intensity[j][ch]);
+        const double predicted = Predict(*s, cell, lobe, own[i].weight[ch], own[i].rho[ch], s->intensity[j][ch]);
         s->weight[cell * s->channels + ch] = static_cast<float>(1.0 / std::max(noise.Variance(ch, predicted), floor));
       }
     }
   }
 }
 
-double Predict(const Samples& s, int p, const Eigen::Vector3d& wi_local, const Lobe& lobe, double weight, double rho,
-               double irradiance) {
-  if (wi_local.z() <= 0.0) return 0.0;
+double Predict(const Samples& s, std::size_t cell, const Lobe& lobe, double weight, double rho, double irradiance) {
+  const brdf::Geometry& g = s.geometry[cell];
+  if (g.cos_i <= 0.0) return 0.0;
   double a0, a1;
-  LobeBasis(lobe, wi_local, s.wo[p], &a0, &a1);
-  return irradiance * wi_local.z() * (rho / M_PI + a0 + weight * (a1 - a0));
+  LobeBasis(lobe, g, &a0, &a1);
+  return irradiance * g.cos_i * (rho / M_PI + a0 + weight * (a1 - a0));
 }
 
 }  // namespace photorig::solvers::reflectance::internal

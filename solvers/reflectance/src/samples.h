@@ -26,8 +26,9 @@ struct Samples {
   std::vector<float> weight;             // [pixel][light][channel]: 1 / noise variance (1 until WeightSamples)
   std::vector<std::uint8_t> usable;      // [pixel][light]: lit and unsaturated
   std::vector<std::uint8_t> saturated;   // [pixel][light]: lit and clipped
-  std::vector<Eigen::Vector3d> wi;       // [pixel][light] light direction in the pixel's frame
-  std::vector<Eigen::Vector3d> wo;       // [pixel] view direction in the pixel's frame
+  // [pixel][light]: the cosines of the light and view directions in the
+  // pixel's frame, computed once: every trial lobe shape reads them.
+  std::vector<brdf::Geometry> geometry;
   std::vector<Eigen::Vector3d> normal;   // [pixel] in camera frame
   std::vector<Eigen::Vector3d> intensity;  // [light]
   std::vector<int> usable_count;         // [pixel]
@@ -46,7 +47,7 @@ struct Lobe {
 };
 
 // Lobe values of s = 0 and s = 1 (per unit irradiance, without the cosine).
-void LobeBasis(const Lobe& lobe, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, double* a0, double* a1);
+void LobeBasis(const Lobe& lobe, const brdf::Geometry& g, double* a0, double* a1);
 
 // The per-pixel normal-equation sums of one channel.
 struct ChannelSums {
@@ -97,9 +98,8 @@ struct MaterialResult {
 MaterialResult FitMaterial(const Samples& s, const std::vector<int>& pixels, const std::vector<brdf::Model>& candidates,
                            const std::vector<std::uint8_t>& enabled, int search_pixels);
 
-// Radiance of pixel p under light direction w (camera frame) with albedo rho and a lobe.
-double Predict(const Samples& s, int p, const Eigen::Vector3d& wi_local, const Lobe& lobe, double weight, double rho,
-               double irradiance);
+// Radiance of one cell (pixel, light; Samples::At) with albedo rho and a lobe.
+double Predict(const Samples& s, std::size_t cell, const Lobe& lobe, double weight, double rho, double irradiance);
 
 // An orthonormal frame (t, b, n) with n as its z axis.
 void FrameOf(const Eigen::Vector3d& n, Eigen::Vector3d* t, Eigen::Vector3d* b);

@@ -531,8 +531,7 @@ std::vector<double> SmallestHalfAngles(const Samples& s) {
     for (int j = 0; j < s.lights; ++j) {
       const std::size_t cell = s.At(p, j);
       if (!s.usable[cell]) continue;
-      const Eigen::Vector3d h = (s.wi[cell] + s.wo[p]).normalized();
-      smallest[p] = std::min(smallest[p], std::acos(std::clamp(h.z(), -1.0, 1.0)));
+      smallest[p] = std::min(smallest[p], std::acos(std::clamp(s.geometry[cell].cos_h, -1.0, 1.0)));
     }
   return smallest;
 }
@@ -888,7 +887,7 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
       if (!s.usable[cell]) continue;
       for (int ch = 0; ch < C; ++ch) {
         const double d = s.value[cell * C + ch] -
-                         internal::Predict(s, p, s.wi[cell], {fit.model, fit.shape}, fit.specular[ch], rho[ch], s.intensity[j][ch]);
+                         internal::Predict(s, cell, {fit.model, fit.shape}, fit.specular[ch], rho[ch], s.intensity[j][ch]);
         out.squared_sum += d * d;
         ++out.count;
       }
@@ -962,8 +961,7 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
         saturated += s.saturated[cell];
         lit += s.saturated[cell] + s.usable[cell];
         if (!s.usable[cell] || half_width <= 0.0) continue;
-        const Eigen::Vector3d h = (s.wi[cell] + s.wo[p]).normalized();
-        if (std::acos(std::clamp(h.z(), -1.0, 1.0)) < half_width) highlight_lights.insert(j);
+        if (std::acos(std::clamp(s.geometry[cell].cos_h, -1.0, 1.0)) < half_width) highlight_lights.insert(j);
       }
       min_angle.push_back(smallest_half_angle[p]);
       fit.highlight_pixels += seen[p];
@@ -1014,8 +1012,8 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
       for (int ch = 0; ch < C; ++ch) {
         const double e = s.intensity[j][ch];
         measured += s.value[cell * C + ch];
-        predicted += internal::Predict(s, p, s.wi[cell], {fit.model, fit.shape}, fit.specular[ch], albedo[ch], e);
-        diffuse += e * s.wi[cell].z() * albedo[ch] / M_PI;
+        predicted += internal::Predict(s, cell, {fit.model, fit.shape}, fit.specular[ch], albedo[ch], e);
+        diffuse += e * s.geometry[cell].cos_i * albedo[ch] / M_PI;
       }
       if (predicted > 0.0 && diffuse > 0.9 * predicted && predicted > 4.0 * pixel_rms[p]) ratios.push_back(measured / predicted);
     }

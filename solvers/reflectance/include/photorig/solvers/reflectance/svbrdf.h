@@ -239,6 +239,16 @@ struct NormalRefinementOptions {
   double max_change_deg = 10.0;
   // The alternation stops when the median move of a round falls below this. Default 0.02 degrees.
   double converged_deg = 0.02;
+  // Normals fitted pixel by pixel to every light can be noisier than the
+  // ones given (photometric stereo's over many lights), and a lower
+  // chi-square does not say which are nearer the truth. So the refined
+  // normals are kept only when their fit predicts held-out lights better
+  // (per-material RMSE, EvaluateHeldOutLights over `held_out_lights`
+  // stratified lights, on the pixels both fits resolved); otherwise the
+  // given normals and their fit are returned. false: the refined ones are
+  // returned unjudged. Default true, 4 lights.
+  bool keep_better = true;
+  int held_out_lights = 4;
   ProgressCallback progress;  // "normals" per round, then the fit's own stages
   bool IsValid(std::string* why) const;
 };
@@ -250,14 +260,21 @@ struct NormalRefinementSummary : Summary {
   std::vector<double> median_change_deg;  // per round, over the refined pixels
   std::vector<double> p95_change_deg;
   double reduced_chi_square_before = 0.0;  // of the fit with the given normals
-  double reduced_chi_square_after = 0.0;   // of the final fit
+  double reduced_chi_square_after = 0.0;   // of the fit returned
   double normals_ms = 0.0;  // in the per-pixel normal steps, over the rounds (the rest: the fits)
+  // With keep_better: the per-material held-out RMSE (image units) of the
+  // fits on the given and on the refined normals, and which were returned.
+  double held_out_rmse_given = 0.0;
+  double held_out_rmse_refined = 0.0;
+  double judge_ms = 0.0;    // in that comparison
+  bool kept_refined = true;
   ReflectanceSummary reflectance;          // the final fit's summary
 };
 
 // Fits the reflectance with `normals`, then alternates as above.
 // *refined_normals (CV_32FC3) holds the final normals (the given ones where
-// no reflectance was fitted), *maps the final fit on them. Fails as
+// no reflectance was fitted, and everywhere when keep_better kept them),
+// *maps the fit on them. Fails as
 // FitReflectance does when the first fit fails.
 NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOptions& options,
                                                     const ReflectanceStack& stack, const cv::Mat& normals,
@@ -291,6 +308,8 @@ struct RelightingOptions {
   // Keep each held-out light's predicted image per method
   // (RelightingSummary::predictions). Default false.
   bool keep_predictions = false;
+  // The methods evaluated; the others' errors stay 0. Default all three.
+  std::vector<Method> methods = {Method::kLambertian, Method::kPerPixelLobe, Method::kPerMaterial};
   ProgressCallback progress;  // one unit per held-out light and method
   bool IsValid(std::string* why) const;
 };
