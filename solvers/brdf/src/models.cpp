@@ -49,9 +49,9 @@ Eigen::Vector3d Evaluate(const ModelParams& p, const Eigen::Vector3d& wi, const 
   return f;
 }
 
-double EvaluateLobe(Model model, double specular, double shape, double fresnel_f0, const Geometry& g) {
+double EvaluateLobe(Model model, double specular, double shape, double extra, const Geometry& g) {
   if (g.cos_i <= 0.0 || g.cos_o <= 0.0) return 0.0;
-  return internal::Lobe(model, specular, shape, fresnel_f0, g);
+  return internal::Lobe(model, specular, shape, extra, g);
 }
 
 Eigen::Vector3d DirectionalAlbedo(const ModelParams& params, const Eigen::Vector3d& wi, int theta_steps) {

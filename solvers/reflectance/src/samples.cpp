@@ -97,9 +97,11 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
 
 void LobeBasis(const Lobe& lobe, const brdf::Geometry& g, double* a0, double* a1) {
   // The brdf module's own lobes, so the two stay one definition. A
-  // Blinn-Phong lobe is zero at weight 0; GGX's Schlick term is not.
-  *a0 = lobe.model == brdf::Model::kGgx ? brdf::EvaluateLobe(lobe.model, 0.0, lobe.shape, 0.0, g) : 0.0;
-  *a1 = lobe.model == brdf::Model::kLambertian ? 0.0 : brdf::EvaluateLobe(lobe.model, 1.0, lobe.shape, 0.0, g);
+  // Blinn-Phong lobe is zero at weight 0; GGX's Schlick term is not. The
+  // per-material lobe's weight is GGX's F0, its lobe scale 1.
+  const double extra = lobe.model == brdf::Model::kGgx ? 1.0 : 0.0;
+  *a0 = lobe.model == brdf::Model::kGgx ? brdf::EvaluateLobe(lobe.model, 0.0, lobe.shape, extra, g) : 0.0;
+  *a1 = lobe.model == brdf::Model::kLambertian ? 0.0 : brdf::EvaluateLobe(lobe.model, 1.0, lobe.shape, extra, g);
 }
 
 PixelSums SumsOf(const Samples& s, int p, const Lobe& lobe, const std::vector<std::uint8_t>& enabled) {

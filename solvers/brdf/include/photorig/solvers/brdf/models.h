@@ -73,9 +73,10 @@ Geometry GeometryOf(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo);
 // f_r per channel in 1/sr; zero below the horizon.
 Eigen::Vector3d Evaluate(const ModelParams& params, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo);
 // One channel's specular lobe at the cosines g, Evaluate's term beside
-// rho_d / pi (zero below the horizon; fresnel_f0 is cook_torrance's): for
-// callers that evaluate one geometry under many shapes.
-double EvaluateLobe(Model model, double specular, double shape, double fresnel_f0, const Geometry& g);
+// rho_d / pi (zero below the horizon): for callers that evaluate one geometry
+// under many shapes. `extra` is the parameter the channels share: ggx's
+// specular_scale, cook_torrance's fresnel_f0 (unused by the other lobes).
+double EvaluateLobe(Model model, double specular, double shape, double extra, const Geometry& g);
 
 // The fraction of light arriving from `wi` that the model reflects, per
 // channel: the integral over the hemisphere of f_r cos theta_o, by the midpoint
