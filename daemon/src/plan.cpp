@@ -151,8 +151,8 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
       total_ms += move_ms;
       for (const auto& [id, deg] : target) axes_at[id] = deg;
     }
-    for (std::size_t channel = 0; channel < step.pattern.levels.size(); ++channel) {
-      const double level = step.pattern.levels[channel];
+    for (std::size_t channel = 0; channel < step.pattern->levels.size(); ++channel) {
+      const double level = step.pattern->levels[channel];
       if (level < 0.0 || level > 1.0)
         plan.errors.push_back("step " + step.label + ": channel " + std::to_string(channel) + " level " +
                               std::to_string(level) + " outside [0, 1]");
@@ -222,7 +222,7 @@ nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps, std::size_
                         {"repeat", step.repeat},
                         {"exposure_us", step.exposure_us},
                         {"gain_db", step.gain_db},
-                        {"levels", step.pattern.levels}};
+                        {"levels", step.pattern->levels}};
     if (step.pose)
       s["pose"] = {{"light_arm_deg", step.pose->light_arm_deg},
                    {"camera_arm_deg", step.pose->camera_arm_deg},
@@ -249,13 +249,15 @@ nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps, std::size_
 }
 
 std::uint64_t PlanMemoryBytes(std::size_t frames, std::size_t channels, std::size_t listed) {
-  // A step: the struct, its levels (a heap block per step) and a label too
-  // long for the string's own buffer; twice, as a group's steps are built
-  // once and then copied into the plan. A listed step: its JSON object (a
-  // node per key), a number per level, and its text in the answer.
-  const std::uint64_t step = sizeof(CaptureStep) + 8 * channels + 64;
+  // A step: the struct and a label too long for the string's own buffer;
+  // twice, as a group's steps are built once and then copied into the plan.
+  // Their patterns are shared: at most one per LED and group kind. A listed
+  // step: its JSON object (a node per key), a number per level, and its text
+  // in the answer.
+  const std::uint64_t step = sizeof(CaptureStep) + 64;
+  const std::uint64_t patterns = 4 * (channels + 1) * (8 * channels + 64);
   const std::uint64_t listed_step = 1536 + 24 * channels;
-  return 2 * step * frames + listed_step * listed;
+  return 2 * step * frames + patterns + listed_step * listed;
 }
 
 struct PlanMemoryBudget::Reservation::Pool {

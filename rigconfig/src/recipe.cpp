@@ -443,8 +443,8 @@ void PoseFrames(const Recipe::Group& group, const std::vector<GonioPose>& poses,
   CaptureStep base;
   base.kind = CaptureStep::Kind::kPose;
   base.group = target ? "reference_target" : "poses";
-  base.pattern = drivers::LightPattern::AllOff(static_cast<int>(rig.lights.leds.size()));
-  for (double& level : base.pattern.levels) level = group.level;
+  base.pattern = std::make_shared<const drivers::LightPattern>(
+      drivers::LightPattern{std::vector<double>(rig.lights.leds.size(), group.level)});
   base.gain_db = gain_db;
   const bool bracket = !group.exposures_us.empty();
   const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};
@@ -563,7 +563,8 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
       names.push_back(name);
     };
     CaptureStep base;
-    base.pattern = drivers::LightPattern::AllOff(channels);
+    drivers::LightPattern lit = drivers::LightPattern::AllOff(channels);  // a flat's or pattern's levels
+    base.pattern = std::make_shared<const drivers::LightPattern>(lit);
     switch (group.kind) {
       case Kind::kDark:
         base.group = "dark";
@@ -575,13 +576,15 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
       case Kind::kFlat:
         base.kind = CaptureStep::Kind::kFlat;
         base.group = "flat";
-        for (int i : led_indices(group)) base.pattern.levels[i] = group.level;
+        for (int i : led_indices(group)) lit.levels[i] = group.level;
+        base.pattern = std::make_shared<const drivers::LightPattern>(std::move(lit));
         for (int i = 0; i < group.count; ++i) emit(base, "flat", group_exposure_us);
         break;
       case Kind::kPattern: {
         base.kind = CaptureStep::Kind::kPattern;
         base.group = "pattern:" + group.name;
-        for (const auto& [id, level] : group.pattern) base.pattern.levels[led_index(group, id)] = level;
+        for (const auto& [id, level] : group.pattern) lit.levels[led_index(group, id)] = level;
+        base.pattern = std::make_shared<const drivers::LightPattern>(std::move(lit));
         for (int i = 0; i < group.count; ++i) emit(base, "pat_" + group.name, group_exposure_us);
         break;
       }
@@ -590,15 +593,18 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
         base.group = "each_led";
         const bool bracket = !group.exposures_us.empty();
         const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};
-        for (int i : led_indices(group))
+        for (int i : led_indices(group)) {
+          const auto single = std::make_shared<const drivers::LightPattern>(
+              drivers::LightPattern::Single(channels, i, group.level));
           for (double exposure_us : exposures) {
             CaptureStep step = base;
             step.led = i;
-            step.pattern = drivers::LightPattern::Single(channels, i, group.level);
+            step.pattern = single;
             char name[48];
             std::snprintf(name, sizeof(name), "led%02d", rig.lights.leds[i].id);
             emit(std::move(step), bracket ? name + ExposureSuffix(exposure_us) : name, exposure_us);
           }
+        }
         break;
       }
       case Kind::kPoses:

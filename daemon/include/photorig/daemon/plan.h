@@ -75,9 +75,8 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
 std::map<std::string, double> PoseTargets(const GonioPose& pose);
 
 // The most memory compiling a plan of `frames` steps for a rig of `channels`
-// LEDs and answering it with `listed` steps holds at once: the steps (each
-// with its levels for every LED) and the answer's JSON. Measured figures
-// with a margin (docs/daemon.md, "Plan memory").
+// LEDs and answering it with `listed` steps holds at once: the steps, their
+// shared patterns and the answer's JSON (docs/daemon.md, "Plan memory").
 std::uint64_t PlanMemoryBytes(std::size_t frames, std::size_t channels, std::size_t listed);
 
 // Memory that plans being compiled may hold at once, shared by concurrent
