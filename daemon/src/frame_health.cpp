@@ -228,7 +228,7 @@ std::optional<HealthFinding> FrameHealth::Judge(const CaptureStep& step, const F
   // frame clips (clipping compresses the mean).
   if (known && IsLit(step) && !step.pose && stats.clipped_fraction <= 0.001) {
     for (auto it = lit_.rbegin(); it != lit_.rend(); ++it) {
-      if (it->pattern->levels != step.pattern->levels || it->gain_db != step.gain_db) continue;
+      if (it->pattern.levels != step.pattern->levels || it->gain_db != step.gain_db) continue;
       const double expected = it->mean_response_dn * step.exposure_us / it->exposure_us;
       if (it->clipped_fraction > 0.001 || expected < lit_dn) break;
       const double ratio = stats.mean_response_dn / expected;
