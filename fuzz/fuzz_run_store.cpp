@@ -35,7 +35,8 @@ CaptureStep Step(int index, int led) {
   step.kind = led < 0 ? CaptureStep::Kind::kDark : CaptureStep::Kind::kLight;
   step.led = led;
   step.label = led < 0 ? "0000_dark" : "0001_led00";
-  step.pattern = led < 0 ? photorig::drivers::LightPattern::AllOff(1) : photorig::drivers::LightPattern::Single(1, 0, 0.5);
+  step.pattern = std::make_shared<const photorig::drivers::LightPattern>(
+      led < 0 ? photorig::drivers::LightPattern::AllOff(1) : photorig::drivers::LightPattern::Single(1, 0, 0.5));
   return step;
 }
 

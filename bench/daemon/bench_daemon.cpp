@@ -85,7 +85,7 @@ void BM_DaemonFrame(benchmark::State& state) {
   auto writer = std::make_unique<RunWriter>(dir.string(), header);
   CaptureStep step;
   step.kind = CaptureStep::Kind::kDark;
-  step.pattern = drivers::LightPattern::AllOff(48);
+  step.pattern = std::make_shared<const drivers::LightPattern>(drivers::LightPattern::AllOff(48));
   step.exposure_us = 10000;
   int index = 0;
   for (auto _ : state) {

@@ -38,6 +38,7 @@ void Reply(httplib::Response& res, const ServiceReply& reply) {
   // and runs stored before names were checked can hold bytes that are not
   // UTF-8: replaced (U+FFFD) rather than failing the whole answer.
   res.set_content(reply.body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
+  if (reply.retry_after_s > 0) res.set_header("Retry-After", std::to_string(reply.retry_after_s));
 }
 
 void ErrorReply(httplib::Response& res, int status, const std::string& message) {

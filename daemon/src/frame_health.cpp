@@ -18,7 +18,7 @@ constexpr double kQuantisationSigmaDn = 0.28867513459481287;
 
 double Gain(double gain_db) { return std::pow(10.0, gain_db / 20.0); }
 
-bool IsLit(const CaptureStep& step) { return step.kind != CaptureStep::Kind::kDark && !step.pattern.IsDark(); }
+bool IsLit(const CaptureStep& step) { return step.kind != CaptureStep::Kind::kDark && !step.pattern->IsDark(); }
 
 // "0-2, 5, 7-9" for sorted ids.
 std::string IdRanges(std::vector<int> ids) {
@@ -133,7 +133,7 @@ void FrameHealth::AddSteps(const std::vector<CaptureStep>& steps) {
   for (const CaptureStep& step : steps)
     for (const CaptureStep& other : steps)
       if (other.exposure_us != step.exposure_us && other.group == step.group && other.repeat == step.repeat &&
-          other.pattern.levels == step.pattern.levels && other.gain_db == step.gain_db && same_pose(other, step)) {
+          other.pattern->levels == step.pattern->levels && other.gain_db == step.gain_db && same_pose(other, step)) {
         (other.exposure_us < step.exposure_us ? bracket_long_ : bracket_short_)[step.index] = true;
         if (bracket_long_[step.index] && bracket_short_[step.index]) break;
       }
@@ -198,7 +198,7 @@ std::optional<HealthFinding> FrameHealth::Judge(const CaptureStep& step, const F
   // anyway: a noise-free simulated sensor repeats a repeated step exactly
   // (and restarts its noise when reopened), and a uniform frame (a
   // noise-free black) proves nothing.
-  const bool should_differ = step.pattern.levels != previous_step_.pattern.levels ||
+  const bool should_differ = step.pattern->levels != previous_step_.pattern->levels ||
                              step.exposure_us != previous_step_.exposure_us ||
                              step.gain_db != previous_step_.gain_db || step.pose || previous_step_.pose;
   const bool repeated = previous_hash_ && *previous_hash_ == stats.pixel_hash && !stats.uniform && should_differ;
@@ -228,7 +228,7 @@ std::optional<HealthFinding> FrameHealth::Judge(const CaptureStep& step, const F
   // frame clips (clipping compresses the mean).
   if (known && IsLit(step) && !step.pose && stats.clipped_fraction <= 0.001) {
     for (auto it = lit_.rbegin(); it != lit_.rend(); ++it) {
-      if (it->pattern.levels != step.pattern.levels || it->gain_db != step.gain_db) continue;
+      if (it->pattern.levels != step.pattern->levels || it->gain_db != step.gain_db) continue;
       const double expected = it->mean_response_dn * step.exposure_us / it->exposure_us;
       if (it->clipped_fraction > 0.001 || expected < lit_dn) break;
       const double ratio = stats.mean_response_dn / expected;
@@ -246,8 +246,8 @@ std::optional<HealthFinding> FrameHealth::Judge(const CaptureStep& step, const F
 
 double FrameHealth::LedScale(const CaptureStep& step) const {
   const double intensity = step.led >= 0 && step.led < static_cast<int>(leds_.size()) ? leds_[step.led].intensity : 1.0;
-  const double level = step.led >= 0 && step.led < static_cast<int>(step.pattern.levels.size())
-                           ? step.pattern.levels[step.led]
+  const double level = step.led >= 0 && step.led < static_cast<int>(step.pattern->levels.size())
+                           ? step.pattern->levels[step.led]
                            : 1.0;
   return step.exposure_us * Gain(step.gain_db) * level * intensity;
 }
@@ -279,7 +279,7 @@ void FrameHealth::Accept(const CaptureStep& step, const cv::Mat& frame, const Fr
   // A bracket's short exposure in the noise (the only lit frame without light
   // that is accepted) scales to nothing: it is no reference for the others.
   if (darks_ > 0 && stats.peak_response_dn < config_.lit_sigma * response_sigma_dn()) return;
-  lit_.push_back({step.pattern, step.gain_db, step.exposure_us, stats.mean_response_dn, stats.clipped_fraction,
+  lit_.push_back({*step.pattern, step.gain_db, step.exposure_us, stats.mean_response_dn, stats.clipped_fraction,
                   step.label});
   if (step.kind == CaptureStep::Kind::kLight && step.led >= 0 && stats.clipped_fraction <= config_.max_clipped_fraction)
     led_responses_[step.led].push_back({stats.mean_response_dn, LedScale(step)});

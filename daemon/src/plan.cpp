@@ -2,12 +2,16 @@
 
 #include "photorig/sim/gonio.h"
 
+#include <malloc.h>
 #include <sys/statvfs.h>
 
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
+#include <deque>
 #include <filesystem>
 #include <map>
+#include <mutex>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
@@ -26,36 +30,57 @@ double MoveMs(const MotionConfig& motion, const std::map<std::string, double>& f
   return ms;
 }
 
+// One LED's exposures against its safety limits, fed in capture order: the
+// longest exposure, and the most lit time in any window of window_ms. The
+// windows that hold the most start at an exposure's start; only the
+// exposures inside the current window are kept, so a plan of 100 000 flats
+// costs no more than a short one.
+class DutyWindow {
+ public:
+  explicit DutyWindow(double window_ms) : window_ms_(window_ms) {}
+  void Add(double start_ms, double length_ms) {
+    longest_ms_ = std::max(longest_ms_, length_ms);
+    while (!open_.empty() && start_ms >= open_.front().first + window_ms_) CloseFirst();
+    open_.emplace_back(start_ms, length_ms);
+    in_window_ms_ += length_ms;
+  }
+  double longest_ms() const { return longest_ms_; }
+  double WorstMs() {
+    while (!open_.empty()) CloseFirst();
+    return worst_ms_;
+  }
+
+ private:
+  // The window starting at the first open exposure holds every open one; the
+  // last may reach past the window's end: only its part inside counts.
+  void CloseFirst() {
+    const double window_end = open_.front().first + window_ms_;
+    const auto& last = open_.back();
+    worst_ms_ = std::max(worst_ms_, in_window_ms_ - std::max(0.0, last.first + last.second - window_end));
+    in_window_ms_ -= open_.front().second;
+    open_.pop_front();
+  }
+
+  double window_ms_;
+  std::deque<std::pair<double, double>> open_;  // (start, length) in ms
+  double in_window_ms_ = 0.0, worst_ms_ = 0.0, longest_ms_ = 0.0;
+};
+
 // The rig's LED limits (lights.options.safety, the same the driver layer
 // enforces) against the planned exposures: a plan that the safety layer would
-// cut mid-run is refused before it starts. Each lit exposure is one interval;
-// the duty is the most lit time in any window of duty_window_ms.
-void CheckLightSafety(const RigConfig& rig, const std::map<int, std::vector<std::pair<double, double>>>& lit_intervals,
-                      RunPlan* plan) {
+// cut mid-run is refused before it starts.
+void CheckLightSafety(const RigConfig& rig, std::map<int, DutyWindow>& lit, RunPlan* plan) {
   const drivers::LightSafetyOptions& safety = rig.lights.safety;
-  for (const auto& [channel, intervals] : lit_intervals) {
+  for (auto& [channel, window] : lit) {
     if (channel >= static_cast<int>(rig.lights.leds.size())) continue;
     const drivers::ChannelLimits& limits = safety.For(channel);
     const int led = rig.lights.leds[static_cast<std::size_t>(channel)].id;
-    double longest_ms = 0.0;
-    for (const auto& [start, length] : intervals) longest_ms = std::max(longest_ms, length);
-    if (limits.max_on_ms > 0 && longest_ms > limits.max_on_ms)
-      plan->errors.push_back("LED " + std::to_string(led) + " would stay lit " + std::to_string(longest_ms) +
+    if (limits.max_on_ms > 0 && window.longest_ms() > limits.max_on_ms)
+      plan->errors.push_back("LED " + std::to_string(led) + " would stay lit " + std::to_string(window.longest_ms()) +
                              " ms in one exposure, above the rig's max_on_ms of " + std::to_string(limits.max_on_ms) +
                              " ms (lights.options.safety)");
     if (limits.max_duty >= 1.0) continue;
-    // Windows that start at an exposure's start hold the most lit time.
-    double worst_ms = 0.0, in_window_ms = 0.0;
-    for (std::size_t first = 0, end = 0; first < intervals.size(); ++first) {
-      const double window_end = intervals[first].first + safety.duty_window_ms;
-      for (; end < intervals.size() && intervals[end].first < window_end; ++end) in_window_ms += intervals[end].second;
-      // The last interval may reach past the window: count only its part inside.
-      const auto& last = intervals[end - 1];
-      const double overhang = std::max(0.0, last.first + last.second - window_end);
-      worst_ms = std::max(worst_ms, in_window_ms - overhang);
-      in_window_ms -= intervals[first].second;
-    }
-    const double duty = worst_ms / safety.duty_window_ms;
+    const double duty = window.WorstMs() / safety.duty_window_ms;
     if (duty > limits.max_duty)
       plan->errors.push_back("LED " + std::to_string(led) + " would be lit " + std::to_string(duty * 100) + "% of a " +
                              std::to_string(safety.duty_window_ms / 1000.0) + " s window, above the rig's max_duty of " +
@@ -97,7 +122,7 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
   if (rig.IsSimulated()) plan.estimate.bytes += pixels * (12 + 4 + 1);  // ground truth maps
 
   std::map<int, double> lit_ms;  // by channel
-  std::map<int, std::vector<std::pair<double, double>>> lit_intervals;  // by channel: (start, length) in ms
+  std::map<int, DutyWindow> lit_windows;  // by channel
   double total_ms = 0.0;
   std::map<std::string, double> axes_at;  // every axis starts from its home
   if (rig.motion)
@@ -126,14 +151,15 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
       total_ms += move_ms;
       for (const auto& [id, deg] : target) axes_at[id] = deg;
     }
-    for (std::size_t channel = 0; channel < step.pattern.levels.size(); ++channel) {
-      const double level = step.pattern.levels[channel];
+    for (std::size_t channel = 0; channel < step.pattern->levels.size(); ++channel) {
+      const double level = step.pattern->levels[channel];
       if (level < 0.0 || level > 1.0)
         plan.errors.push_back("step " + step.label + ": channel " + std::to_string(channel) + " level " +
                               std::to_string(level) + " outside [0, 1]");
       if (level > 0.0) {
         lit_ms[static_cast<int>(channel)] += exposure_ms;
-        lit_intervals[static_cast<int>(channel)].emplace_back(step_start_ms, exposure_ms);
+        lit_windows.try_emplace(static_cast<int>(channel), rig.lights.safety.duty_window_ms)
+            .first->second.Add(step_start_ms, exposure_ms);
       }
     }
   }
@@ -175,7 +201,7 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
     plan.errors.push_back("LED " + std::to_string(plan.max_duty_led) + " would be lit " +
                           std::to_string(plan.max_led_duty * 100) + "% of the run, above the " +
                           std::to_string(options.max_led_duty * 100) + "% limit");
-  CheckLightSafety(rig, lit_intervals, &plan);
+  CheckLightSafety(rig, lit_windows, &plan);
   if (steps.empty()) plan.warnings.push_back("recipe " + recipe.path + " compiles to no steps");
   for (const Recipe::Group& group : recipe.groups)
     for (const std::string& note : group.plan_notes)
@@ -196,7 +222,7 @@ nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps, std::size_
                         {"repeat", step.repeat},
                         {"exposure_us", step.exposure_us},
                         {"gain_db", step.gain_db},
-                        {"levels", step.pattern.levels}};
+                        {"levels", step.pattern->levels}};
     if (step.pose)
       s["pose"] = {{"light_arm_deg", step.pose->light_arm_deg},
                    {"camera_arm_deg", step.pose->camera_arm_deg},
@@ -220,6 +246,65 @@ nlohmann::json RunPlan::ToJson(const std::vector<CaptureStep>& steps, std::size_
                        {"added_poses_per_pass", adaptive->added_poses}, {"max_added_frames", adaptive->max_frames},
                        {"max_added_duration_s", adaptive->max_duration_s}, {"max_added_bytes", adaptive->max_bytes}};
   return out;
+}
+
+std::uint64_t PlanMemoryBytes(std::size_t frames, std::size_t channels, std::size_t listed) {
+  // A step: the struct and a label too long for the string's own buffer;
+  // twice, as a group's steps are built once and then copied into the plan.
+  // Their patterns are shared: at most one per LED and group kind. A listed
+  // step: its JSON object (a node per key), a number per level, and its text
+  // in the answer.
+  const std::uint64_t step = sizeof(CaptureStep) + 64;
+  const std::uint64_t patterns = 4 * (channels + 1) * (8 * channels + 64);
+  const std::uint64_t listed_step = 1536 + 24 * channels;
+  return 2 * step * frames + patterns + listed_step * listed;
+}
+
+struct PlanMemoryBudget::Reservation::Pool {
+  std::mutex mutex;
+  std::condition_variable freed;
+  std::uint64_t capacity = 0;
+  std::uint64_t used = 0;
+
+  void Release(std::uint64_t bytes) {
+    {
+      std::lock_guard lock(mutex);
+      used -= std::min(used, bytes);
+    }
+    freed.notify_all();
+  }
+};
+
+namespace {
+
+constexpr std::uint64_t kTrimAboveBytes = std::uint64_t{32} << 20;
+
+}  // namespace
+
+PlanMemoryBudget::PlanMemoryBudget(std::uint64_t bytes) : pool_(std::make_shared<Reservation::Pool>()) {
+  pool_->capacity = bytes;
+}
+
+std::shared_ptr<PlanMemoryBudget::Reservation> PlanMemoryBudget::Reserve(std::uint64_t bytes,
+                                                                         std::chrono::milliseconds wait) {
+  const std::uint64_t held = std::min(bytes, pool_->capacity);
+  std::unique_lock lock(pool_->mutex);
+  if (!pool_->freed.wait_for(lock, wait, [&] { return pool_->used + held <= pool_->capacity; })) return nullptr;
+  pool_->used += held;
+  return std::shared_ptr<Reservation>(new Reservation(pool_, held));
+}
+
+void PlanMemoryBudget::Reservation::Shrink(std::uint64_t bytes) {
+  if (bytes >= bytes_) return;
+  pool_->Release(bytes_ - bytes);
+  bytes_ = bytes;
+}
+
+PlanMemoryBudget::Reservation::~Reservation() {
+  pool_->Release(bytes_);
+  // A large plan's memory (or a compilation cut short at a limit) goes back
+  // to the system: glibc would keep the freed heap of every thread's arena.
+  if (bytes_ >= kTrimAboveBytes) ::malloc_trim(0);
 }
 
 std::uint64_t FreeBytes(const std::string& path) {

@@ -55,28 +55,90 @@ nlohmann::json QueuedRun::ToJson() const {
 }
 
 RunQueue::RunQueue(const std::string& path) : path_(path) {
-  if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
+  std::string why;
+  if (!OpenWritable(&why)) OpenReadOnly(why);
+}
+
+bool RunQueue::OpenWritable(std::string* why) {
+  if (sqlite3_open_v2(path_.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
                       nullptr) != SQLITE_OK) {
-    const std::string message = db_ ? sqlite3_errmsg(db_) : "out of memory";
+    *why = db_ ? sqlite3_errmsg(db_) : "out of memory";
     sqlite3_close(db_);
-    throw std::runtime_error("cannot open the run queue " + path + ": " + message);
+    db_ = nullptr;
+    return false;
   }
-  sqlite3_busy_timeout(db_, 5000);
-  Exec("PRAGMA journal_mode=WAL");
-  Exec("PRAGMA synchronous=FULL");
-  Exec(
-      "CREATE TABLE IF NOT EXISTS runs (seq INTEGER PRIMARY KEY AUTOINCREMENT, id TEXT UNIQUE NOT NULL, "
-      "recipe_name TEXT NOT NULL, state TEXT NOT NULL, reason TEXT NOT NULL DEFAULT '', "
-      "frames INTEGER NOT NULL DEFAULT 0, steps_total INTEGER NOT NULL DEFAULT 0, "
-      "retries INTEGER NOT NULL DEFAULT 0, dropped_frames INTEGER NOT NULL DEFAULT 0, "
-      "created_ns INTEGER NOT NULL, updated_ns INTEGER NOT NULL, solve TEXT NOT NULL DEFAULT '')");
-  // Queues made before runs carried their solve stages gain the column.
-  bool has_solve = false;
-  {
-    Statement columns(db_, "PRAGMA table_info(runs)", path_);
-    while (sqlite3_step(columns.get()) == SQLITE_ROW) has_solve |= Column(columns.get(), 1) == "solve";
+  try {
+    sqlite3_busy_timeout(db_, 5000);
+    Exec("PRAGMA journal_mode=WAL");
+    Exec("PRAGMA synchronous=FULL");
+    Exec(
+        "CREATE TABLE IF NOT EXISTS runs (seq INTEGER PRIMARY KEY AUTOINCREMENT, id TEXT UNIQUE NOT NULL, "
+        "recipe_name TEXT NOT NULL, state TEXT NOT NULL, reason TEXT NOT NULL DEFAULT '', "
+        "frames INTEGER NOT NULL DEFAULT 0, steps_total INTEGER NOT NULL DEFAULT 0, "
+        "retries INTEGER NOT NULL DEFAULT 0, dropped_frames INTEGER NOT NULL DEFAULT 0, "
+        "created_ns INTEGER NOT NULL, updated_ns INTEGER NOT NULL, solve TEXT NOT NULL DEFAULT '')");
+    // Queues made before runs carried their solve stages gain the column.
+    bool has_solve = false;
+    {
+      Statement columns(db_, "PRAGMA table_info(runs)", path_);
+      while (sqlite3_step(columns.get()) == SQLITE_ROW) has_solve |= Column(columns.get(), 1) == "solve";
+    }
+    if (!has_solve) Exec("ALTER TABLE runs ADD COLUMN solve TEXT NOT NULL DEFAULT ''");
+  } catch (const std::exception& e) {
+    *why = e.what();
+    sqlite3_close(db_);
+    db_ = nullptr;
+    return false;
   }
-  if (!has_solve) Exec("ALTER TABLE runs ADD COLUMN solve TEXT NOT NULL DEFAULT ''");
+  read_only_reason_.clear();
+  return true;
+}
+
+void RunQueue::OpenReadOnly(const std::string& why_not_writable) {
+  // immutable: SQLite reads the file as it stands, without the write-ahead
+  // log's index it cannot create on a full disk (changes still in the log
+  // after a crash show once the queue is writable again).
+  std::string uri = "file:";
+  for (char c : path_) {
+    if (c == '%' || c == '?' || c == '#') {
+      char escaped[4];
+      std::snprintf(escaped, sizeof(escaped), "%%%02X", static_cast<unsigned char>(c));
+      uri += escaped;
+    } else {
+      uri += c;
+    }
+  }
+  uri += "?immutable=1";
+  const bool opened = sqlite3_open_v2(uri.c_str(), &db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI | SQLITE_OPEN_FULLMUTEX,
+                                      nullptr) == SQLITE_OK &&
+                      sqlite3_exec(db_, "SELECT count(*) FROM runs", nullptr, nullptr, nullptr) == SQLITE_OK;
+  if (!opened) {
+    sqlite3_close(db_);
+    db_ = nullptr;
+    throw std::runtime_error("cannot open the run queue " + path_ + ": " + why_not_writable);
+  }
+  read_only_reason_ = "the run queue " + path_ + " is read-only: " + why_not_writable +
+                      " (is the data disk full? it becomes writable once there is room)";
+}
+
+void RunQueue::MakeWritable() {
+  if (read_only_reason_.empty()) return;
+  sqlite3_close(db_);
+  db_ = nullptr;
+  std::string why;
+  if (OpenWritable(&why)) return;
+  OpenReadOnly(why);
+  throw std::runtime_error(read_only_reason_);
+}
+
+std::string RunQueue::ReadOnlyReason() {
+  std::lock_guard lock(mutex_);
+  try {
+    MakeWritable();
+  } catch (const std::exception&) {
+    // Still read-only: the reason says why.
+  }
+  return read_only_reason_;
 }
 
 RunQueue::~RunQueue() { sqlite3_close(db_); }
@@ -93,6 +155,7 @@ void RunQueue::Exec(const std::string& sql) const {
 QueuedRun RunQueue::Add(const std::string& recipe_name, int steps_total,
                         const std::function<void(const QueuedRun&)>& prepare) {
   std::lock_guard lock(mutex_);
+  MakeWritable();
   // Ids double as directory names: keep [A-Za-z0-9_-] of the name only.
   std::string safe;
   for (char c : recipe_name)
@@ -181,6 +244,7 @@ std::vector<QueuedRun> RunQueue::Unfinished() const {
 
 void RunQueue::Update(const QueuedRun& run) {
   std::lock_guard lock(mutex_);
+  MakeWritable();
   Statement update(db_,
                    "UPDATE runs SET state = ?1, reason = ?2, frames = ?3, steps_total = ?4, retries = ?5, "
                    "dropped_frames = ?6, updated_ns = ?7, solve = ?9 WHERE id = ?8",
@@ -199,6 +263,7 @@ void RunQueue::Update(const QueuedRun& run) {
 
 bool RunQueue::LeaveQueued(QueuedRun& run, RunState to, const std::string& reason) {
   std::lock_guard lock(mutex_);
+  MakeWritable();
   const std::int64_t now = NowNs();
   Statement update(db_, "UPDATE runs SET state = ?1, reason = ?2, updated_ns = ?3 WHERE id = ?4 AND state = 'queued'",
                    path_);

@@ -380,7 +380,7 @@ const FrameRecord& RunWriter::WriteFrame(const CaptureStep& step, const drivers:
   record.group = step.group;
   record.repeat = step.repeat;
   record.led = step.led;
-  record.level = step.led >= 0 ? step.pattern.levels.at(step.led) : 0.0;
+  record.level = step.led >= 0 ? step.pattern->levels.at(step.led) : 0.0;
   record.pose = step.pose;
   record.pass = step.pass;
   record.exposure_us = frame.exposure_us;

@@ -207,8 +207,8 @@ class Capture {
       if (Status s = options_.motion->goniometer->MoveTo(PoseTargets(*step.pose), options_.motion_profile); !s.ok())
         return s;
     }
-    if (Status s = lights_.SetPattern(step.pattern); !s.ok()) return s;
-    if (Status s = CheckPattern(step.pattern); !s.ok()) {
+    if (Status s = lights_.SetPattern(*step.pattern); !s.ok()) return s;
+    if (Status s = CheckPattern(*step.pattern); !s.ok()) {
       (void)lights_.AllOff();
       return s;
     }

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <regex>
+#include <set>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
@@ -21,6 +22,13 @@ namespace {
 constexpr std::size_t kMaxEvents = 20000;
 
 ServiceReply Error(int http_status, const std::string& message) { return {http_status, {{"error", message}}}; }
+
+// Plans being compiled hold all the memory they may (ServiceOptions::plan_memory_bytes).
+ServiceReply PlanMemorySpent() {
+  ServiceReply reply = Error(503, "busy: other plans being compiled hold the memory plans may use; try again shortly");
+  reply.retry_after_s = 1;
+  return reply;
+}
 
 bool IsValidRunId(const std::string& id) {
   static const std::regex pattern("[0-9]{6}-[A-Za-z0-9_-]{1,48}");
@@ -72,6 +80,19 @@ json SolveJson(const std::vector<SolveStageReport>& stages) {
   return solve;
 }
 
+// The steps a run's journal holds a frame of (each once): what an
+// interrupted run has kept, before resuming reopens it and checks the frames.
+int JournalledFrames(const std::string& directory) {
+  std::ifstream in(fs::path(directory) / "journal.jsonl");
+  std::set<int> steps;
+  for (std::string line; std::getline(in, line);) {
+    const json entry = json::parse(line, nullptr, /*allow_exceptions=*/false);
+    if (entry.is_object() && entry.contains("index") && entry["index"].is_number_integer())
+      steps.insert(entry["index"].get<int>());
+  }
+  return static_cast<int>(steps.size());
+}
+
 std::uint32_t FileCrc32(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   std::vector<char> buffer(1 << 20);
@@ -109,6 +130,8 @@ bool ServiceOptions::IsValid(std::string* why) const {
   if (!plan.IsValid(&detail)) return fail("plan: " + detail);
   if (!limits.IsValid(&detail)) return fail("limits: " + detail);
   if (max_listed_steps == 0) return fail("max_listed_steps must be > 0");
+  if (plan_memory_bytes == 0) return fail("plan_memory_bytes must be > 0");
+  if (plan_wait_ms < 0) return fail("plan_wait_ms must be >= 0");
   return true;
 }
 
@@ -119,6 +142,7 @@ RunService::RunService(ServiceOptions options) : options_(std::move(options)) {
   fs::create_directories(fs::path(options_.data_root) / "recipes");
   fs::create_directories(fs::path(options_.data_root) / "runs");
   queue_ = std::make_unique<RunQueue>((fs::path(options_.data_root) / "queue.sqlite").string());
+  plan_budget_ = std::make_unique<PlanMemoryBudget>(options_.plan_memory_bytes);
   started_ = std::chrono::steady_clock::now();
 }
 
@@ -160,7 +184,10 @@ void RunService::Start() {
   }
   for (QueuedRun run : unfinished) {
     if (options_.resume_interrupted) {
-      spdlog::warn("run={} event=recovered state={} action=resume", run.id, RunStateName(run.state));
+      // The queue's count is as of the run's last state change; its journal knows every frame kept.
+      run.frames = JournalledFrames(RunDirectory(run.id));
+      spdlog::warn("run={} event=recovered state={} frames={} action=resume", run.id, RunStateName(run.state),
+                   run.frames);
       SetState(run, RunState::kQueued, "interrupted by a daemon restart; resumes from its last checkpoint");
       continue;
     }
@@ -433,19 +460,31 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
     }
     CaptureLimits limits = options_.limits;
     limits.step_overhead_ms = options_.plan.step_overhead_ms;
-    const auto steps = CompileSteps(recipe, rig, limits);
+    // The recipe's size is known once it is expanded: its rig's worst case
+    // is reserved first, then what the plan holds.
+    const std::size_t channels = rig.lights.leds.size();
+    const auto reservation = plan_budget_->Reserve(
+        PlanMemoryBytes(static_cast<std::size_t>(limits.max_frames), channels, options_.max_listed_steps),
+        std::chrono::milliseconds(options_.plan_wait_ms));
+    if (!reservation) return PlanMemorySpent();
+    std::vector<CaptureStep> steps = CompileSteps(recipe, rig, limits);
+    reservation->Shrink(PlanMemoryBytes(steps.size(), channels, std::min(steps.size(), options_.max_listed_steps)));
     const RunPlan plan = PlanRun(recipe, rig, steps, options_.plan);
     json body = plan.ToJson(steps, options_.max_listed_steps);
+    steps = {};
     body["recipe"] = recipe.name;
     body["rig"] = rig.name;
-    if (!plan.ok()) return {422, {{"error", plan.errors.front()}, {"plan", body}}};
+    if (!plan.ok()) return {422, {{"error", plan.errors.front()}, {"plan", std::move(body)}}, 0, reservation};
     const std::uint64_t free_bytes = FreeBytes(options_.data_root);
     body["free_bytes"] = free_bytes;
     if (for_submit && free_bytes < plan.estimate.bytes)
       return {507, {{"error", "not enough free space: the run needs about " + std::to_string(plan.estimate.bytes >> 20) +
                                   " MiB, " + std::to_string(free_bytes >> 20) + " MiB free"},
-                    {"plan", body}}};
-    return {200, body};
+                    {"plan", std::move(body)}}, 0, reservation};
+    return {200, std::move(body), 0, reservation};
+  } catch (const std::bad_alloc&) {
+    // Memory ran out all the same (a limit on the process): this request fails, the daemon serves on.
+    return PlanMemorySpent();
   } catch (const ConfigError& e) {
     // A recipe that expands beyond the limits is too large, not malformed.
     const bool too_large = dynamic_cast<const CaptureLimitError*>(&e) != nullptr;
@@ -464,7 +503,7 @@ ServiceReply RunService::DryRun(const std::string& name, const std::string& reci
 ServiceReply RunService::Submit(const std::string& name, const std::string& recipe_yaml, const std::string& recipe_path) {
   ServiceReply reply = Validate(name, recipe_yaml, recipe_path, true);
   if (reply.http_status != 200) return reply;
-  const json plan = reply.body;
+  json plan = std::move(reply.body);
   // The recipe is on disk before the worker can see the run, and the run's
   // "queued" event goes out before the worker can publish its next state
   // (SetState waits for mutex_).
@@ -482,7 +521,7 @@ ServiceReply RunService::Submit(const std::string& name, const std::string& reci
   storage_error_.clear();
   spdlog::info("run={} event=submitted recipe={} steps={}", run.id, run.recipe_name, run.steps_total);
   PublishLocked(run.id, "state", {{"state", "queued"}, {"reason", ""}});
-  return {201, {{"id", run.id}, {"state", "queued"}, {"plan", plan}}};
+  return {201, {{"id", run.id}, {"state", "queued"}, {"plan", std::move(plan)}}, 0, reply.holds};
 }
 
 ServiceReply RunService::ListRuns() const {
@@ -657,7 +696,8 @@ ServiceReply RunService::ListRecipes() const {
 
 ServiceReply RunService::Health() const {
   int queued = 0;
-  std::string queue_error;
+  // A queue opened read-only on a full disk becomes writable here once there is room.
+  std::string queue_error = queue_->ReadOnlyReason();
   try {
     for (const QueuedRun& run : queue_->List()) queued += run.state == RunState::kQueued;
   } catch (const std::exception& e) {
@@ -666,9 +706,10 @@ ServiceReply RunService::Health() const {
   const std::uint64_t free_bytes = FreeBytes(options_.data_root);
   std::lock_guard lock(mutex_);
   const std::string storage_error = !queue_error.empty() ? queue_error : storage_error_;
+  // A full disk is the cause of the storage errors it brings: named first.
   const char* status = !worker_alive_.load()     ? "worker stopped"
-                       : !storage_error.empty() ? "storage error"
                        : free_bytes == 0        ? "disk full"
+                       : !storage_error.empty() ? "storage error"
                                                 : "ok";
   json body = {{"status", status},
                {"uptime_s", std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count()},

@@ -67,6 +67,12 @@ std::vector<int> LedIdsIn(const YamlNode& body) {
   return {};
 }
 
+// A pose grid or plan whose expansion is too large to build: a capture limit
+// (the API's 413, as CompileSteps' limits), not malformed YAML.
+[[noreturn]] void FailTooLarge(const YamlNode& node, const std::string& message) {
+  throw CaptureLimitError(node.file(), node.line(), node.column(), node.key(), message);
+}
+
 // One axis of a pose grid: a single angle, a list of them, or evenly spaced
 // ones {start, step, count} (a turntable's scan).
 std::vector<double> AnglesIn(const YamlNode& grid, const char* key) {
@@ -77,7 +83,8 @@ std::vector<double> AnglesIn(const YamlNode& grid, const char* key) {
     node.ExpectKeys({"start", "step", "count"});
     const double start = node["start"].AsDouble(), step = node["step"].AsDouble();
     const int count = node["count"].AsInt();
-    if (count < 1 || count > kMaxGridPoses) node["count"].Fail("must be within [1, " + std::to_string(kMaxGridPoses) + "]");
+    if (count < 1) node["count"].Fail("must be within [1, " + std::to_string(kMaxGridPoses) + "]");
+    if (count > kMaxGridPoses) FailTooLarge(node["count"], "must be within [1, " + std::to_string(kMaxGridPoses) + "]");
     if (!(step != 0.0) || !std::isfinite(step)) node["step"].Fail("must be a finite angle other than 0");
     std::vector<double> angles;
     for (int i = 0; i < count; ++i) angles.push_back(start + i * step);
@@ -138,7 +145,7 @@ std::vector<GonioPose> PlannedPosesIn(const YamlNode& plan, const RigConfig& rig
   SamplingIn(plan, "phi_d_deg", &spec.phi_d_min_deg, &spec.phi_d_max_deg, &spec.phi_d_steps);
   if (std::string why; !spec.IsValid(&why)) plan.Fail(why);
   const double size = static_cast<double>(spec.theta_h_steps) * spec.theta_d_steps * spec.phi_d_steps;
-  if (size > kMaxGridPoses) plan.Fail("asks for more than " + std::to_string(kMaxGridPoses) + " configurations");
+  if (size > kMaxGridPoses) FailTooLarge(plan, "asks for more than " + std::to_string(kMaxGridPoses) + " configurations");
   brdf::PosePlanOptions options;
   options.sample_rotation_deg = plan.DoubleIn("sample_rotation_deg", 0.0, -180.0, 180.0);
   options.grazing_deg = plan.DoubleIn("grazing_deg", options.grazing_deg, 1.0, 90.0);
@@ -200,7 +207,7 @@ std::vector<GonioPose> PosesIn(const YamlNode& body, const RigConfig& rig, Recip
   // Refused from its dimensions, before a single pose is built.
   const double size = static_cast<double>(rotations.size()) * lights.size() * cameras.size();
   if (size > kMaxGridPoses)
-    grid.Fail("expands to " + std::to_string(rotations.size()) + " x " + std::to_string(lights.size()) + " x " +
+    FailTooLarge(grid, "expands to " + std::to_string(rotations.size()) + " x " + std::to_string(lights.size()) + " x " +
               std::to_string(cameras.size()) + " poses, more than " + std::to_string(kMaxGridPoses));
   poses.reserve(static_cast<std::size_t>(size));
   for (double rotation : rotations)
@@ -436,8 +443,8 @@ void PoseFrames(const Recipe::Group& group, const std::vector<GonioPose>& poses,
   CaptureStep base;
   base.kind = CaptureStep::Kind::kPose;
   base.group = target ? "reference_target" : "poses";
-  base.pattern = drivers::LightPattern::AllOff(static_cast<int>(rig.lights.leds.size()));
-  for (double& level : base.pattern.levels) level = group.level;
+  base.pattern = std::make_shared<const drivers::LightPattern>(
+      drivers::LightPattern{std::vector<double>(rig.lights.leds.size(), group.level)});
   base.gain_db = gain_db;
   const bool bracket = !group.exposures_us.empty();
   const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};
@@ -556,7 +563,8 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
       names.push_back(name);
     };
     CaptureStep base;
-    base.pattern = drivers::LightPattern::AllOff(channels);
+    drivers::LightPattern lit = drivers::LightPattern::AllOff(channels);  // a flat's or pattern's levels
+    base.pattern = std::make_shared<const drivers::LightPattern>(lit);
     switch (group.kind) {
       case Kind::kDark:
         base.group = "dark";
@@ -568,13 +576,15 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
       case Kind::kFlat:
         base.kind = CaptureStep::Kind::kFlat;
         base.group = "flat";
-        for (int i : led_indices(group)) base.pattern.levels[i] = group.level;
+        for (int i : led_indices(group)) lit.levels[i] = group.level;
+        base.pattern = std::make_shared<const drivers::LightPattern>(std::move(lit));
         for (int i = 0; i < group.count; ++i) emit(base, "flat", group_exposure_us);
         break;
       case Kind::kPattern: {
         base.kind = CaptureStep::Kind::kPattern;
         base.group = "pattern:" + group.name;
-        for (const auto& [id, level] : group.pattern) base.pattern.levels[led_index(group, id)] = level;
+        for (const auto& [id, level] : group.pattern) lit.levels[led_index(group, id)] = level;
+        base.pattern = std::make_shared<const drivers::LightPattern>(std::move(lit));
         for (int i = 0; i < group.count; ++i) emit(base, "pat_" + group.name, group_exposure_us);
         break;
       }
@@ -583,15 +593,18 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
         base.group = "each_led";
         const bool bracket = !group.exposures_us.empty();
         const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};
-        for (int i : led_indices(group))
+        for (int i : led_indices(group)) {
+          const auto single = std::make_shared<const drivers::LightPattern>(
+              drivers::LightPattern::Single(channels, i, group.level));
           for (double exposure_us : exposures) {
             CaptureStep step = base;
             step.led = i;
-            step.pattern = drivers::LightPattern::Single(channels, i, group.level);
+            step.pattern = single;
             char name[48];
             std::snprintf(name, sizeof(name), "led%02d", rig.lights.leds[i].id);
             emit(std::move(step), bracket ? name + ExposureSuffix(exposure_us) : name, exposure_us);
           }
+        }
         break;
       }
       case Kind::kPoses:
@@ -626,6 +639,12 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
     total_s += once_s * repeats;
     over_limit(group, static_cast<double>(steps.size()) + static_cast<double>(once.size()) * repeats + adaptive_frames,
                total_bytes + bytes_per_frame * adaptive_frames, total_s + adaptive_s);
+    // Grown by this group's size, at least by half: doubling would hold up to
+    // twice the steps of a 100 000-frame plan, growing by each group alone
+    // would move them all once per group.
+    if (const std::size_t needed = steps.size() + once.size() * static_cast<std::size_t>(group.repeat);
+        needed > steps.capacity())
+      steps.reserve(std::max(needed, steps.capacity() + steps.capacity() / 2));
     for (int repeat = 0; repeat < group.repeat; ++repeat)
       for (std::size_t k = 0; k < once.size(); ++k) {
         CaptureStep step = once[k];

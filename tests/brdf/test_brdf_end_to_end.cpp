@@ -551,6 +551,17 @@ TEST(BrdfEndToEnd, AFittedModelConvertsToATableForRenderers) {
             2);
   EXPECT_NE(ReadText(dir.path() / "nope.log").find("no 'nope' fit"), std::string::npos)
       << ReadText(dir.path() / "nope.log");
+  // A model whose values overflow the table: refused (exit 1) naming where, and nothing written.
+  const std::string huge = dir.Write("huge.json", R"({"model": "lambertian", "diffuse": [1e308, 1e308, 1e308]})");
+  for (const char* extension : {".binary", ".bsdf"}) {
+    const std::string table = (dir.path() / (std::string("huge") + extension)).string();
+    EXPECT_EQ(RunPhotorig("brdf convert " + huge + " " + table, dir.path() / "huge.log"), 1) << extension;
+    const std::string refused = ReadText(dir.path() / "huge.log");
+    EXPECT_NE(refused.find(" is infinite"), std::string::npos) << refused;
+    EXPECT_NE(refused.find(extension == std::string(".binary") ? "theta_h bin" : "theta_i"), std::string::npos)
+        << refused;
+    EXPECT_FALSE(std::filesystem::exists(table)) << table;
+  }
   const std::string bad = dir.Write("bad.json", R"({"model": "phong", "diffuse": [0.1, 0.1, 0.1]})");
   EXPECT_EQ(RunPhotorig("brdf convert " + bad + " " + again, dir.path() / "bad.log"), 2);
   const std::string log = ReadText(dir.path() / "bad.log");

@@ -333,5 +333,20 @@ TEST(MerlTable, ATableOfEachFamilyChoosesThatFamily) {
   }
 }
 
+// A table ReadMerl would refuse is never written: the first value that is
+// not finite is named by plane and bins, and no file appears.
+TEST(MerlTable, ATableThatIsNotFiniteIsNotWritten) {
+  MerlTable table = MerlTable::FromFunction([](const DirectionPair&) { return Eigen::Vector3d(0.1, 0.1, 0.1); });
+  table.plane(1)[MerlTable::CellIndex(10, 20, 30)] = std::nan("");
+  const std::string path = TempPath("nan.binary");
+  const Summary written = WriteMerl(path, table);
+  EXPECT_EQ(written.termination, Termination::kInvalidInput);
+  EXPECT_NE(written.message.find("cell " + std::to_string(MerlTable::CellIndex(10, 20, 30)) +
+                                 " of the G plane (theta_h bin 10, theta_d bin 20, phi_d bin 30) is NaN"),
+            std::string::npos)
+      << written.message;
+  EXPECT_FALSE(std::filesystem::exists(path));
+}
+
 }  // namespace
 }  // namespace photorig::solvers::brdf

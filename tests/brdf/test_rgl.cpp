@@ -432,5 +432,38 @@ TEST_F(RglBadFile, RepeatedField) {
   ExpectRefused("appears twice");
 }
 
+// A device is refused before a byte is read (/dev/urandom would be read
+// until memory ran out), and so is a file beyond the format's size limit.
+TEST(TensorFile, ADeviceOrAnOversizedFileIsRefusedUnread) {
+  TensorFile file;
+  const Summary device = ReadTensorFile("/dev/urandom", &file);
+  EXPECT_EQ(device.termination, Termination::kInvalidInput);
+  EXPECT_NE(device.message.find("'/dev/urandom': not a regular file"), std::string::npos) << device.message;
+  const std::string huge = TempPath("huge.bsdf");
+  std::ofstream(huge).close();
+  std::filesystem::resize_file(huge, kMaxTensorFileBytes + 1);  // sparse: no disk used
+  const Summary oversized = ReadTensorFile(huge, &file);
+  std::filesystem::remove(huge);
+  EXPECT_EQ(oversized.termination, Termination::kInvalidInput);
+  EXPECT_NE(oversized.message.find("more than the 256 MiB"), std::string::npos) << oversized.message;
+  EXPECT_TRUE(file.fields.empty());
+}
+
+// A BRDF whose values leave a float's range makes no table: the value is named
+// by its place, as the reader would name it.
+TEST(RglBrdf, ATableThatIsNotFiniteIsNotMade) {
+  TensorFile file;
+  const Summary made = TabulateRgl(
+      [](const DirectionPair& d) {
+        return d.wo.z() > 0.5 ? Eigen::Vector3d(0.1, 1e300, 0.1) : Eigen::Vector3d(0.1, 0.1, 0.1);
+      },
+      Tabulation(3, 4, 8, 0.4), &file);
+  EXPECT_EQ(made.termination, Termination::kInvalidInput);
+  EXPECT_NE(made.message.find("field 'rgb' cell"), std::string::npos) << made.message;
+  EXPECT_NE(made.message.find("channel G"), std::string::npos) << made.message;
+  EXPECT_NE(made.message.find("is infinite"), std::string::npos) << made.message;
+  EXPECT_TRUE(file.fields.empty());
+}
+
 }  // namespace
 }  // namespace photorig::solvers::brdf

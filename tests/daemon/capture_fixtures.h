@@ -32,7 +32,8 @@ inline std::vector<daemon::CaptureStep> DarkThenEachLight(int lights) {
     step.kind = i < 0 ? daemon::CaptureStep::Kind::kDark : daemon::CaptureStep::Kind::kLight;
     step.led = i;
     step.label = "step" + std::to_string(i + 1);
-    step.pattern = i < 0 ? drivers::LightPattern::AllOff(lights) : drivers::LightPattern::Single(lights, i, 1.0);
+    step.pattern = std::make_shared<const drivers::LightPattern>(i < 0 ? drivers::LightPattern::AllOff(lights)
+                                                                 : drivers::LightPattern::Single(lights, i, 1.0));
     step.exposure_us = 1000;
     steps.push_back(step);
   }

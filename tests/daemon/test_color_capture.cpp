@@ -165,7 +165,7 @@ TEST(ColourCapture, RawBayerFramesAreStoredByteForByteWithThePatternRecorded) {
   step.kind = CaptureStep::Kind::kLight;
   step.label = "0000_led00";
   step.led = 0;
-  step.pattern.levels = {1.0};
+  step.pattern = std::make_shared<const drivers::LightPattern>(drivers::LightPattern{{1.0}});
   writer.WriteFrame(step, frame);
   writer.Finish({CaptureStatus::kComplete, "", 1, 1});
 

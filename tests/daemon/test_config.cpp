@@ -236,10 +236,10 @@ TEST(Recipe, ShippedRecipeCompilesToOneDarkAndOneFramePerLed) {
   const auto steps = CompileSteps(recipe, rig);
   ASSERT_EQ(steps.size(), rig.lights.leds.size() + 1);
   EXPECT_EQ(steps[0].kind, CaptureStep::Kind::kDark);
-  EXPECT_TRUE(steps[0].pattern.IsDark());
+  EXPECT_TRUE(steps[0].pattern->IsDark());
   for (std::size_t i = 1; i < steps.size(); ++i) {
     EXPECT_EQ(steps[i].led, static_cast<int>(i - 1));
-    EXPECT_EQ(steps[i].pattern.levels[i - 1], 1.0);
+    EXPECT_EQ(steps[i].pattern->levels[i - 1], 1.0);
     EXPECT_EQ(steps[i].index, static_cast<int>(i));
   }
   ASSERT_TRUE(recipe.photometric_stereo.has_value());

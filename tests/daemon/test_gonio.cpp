@@ -162,7 +162,7 @@ TEST(Gonio, GridCompilesToPosesAndThePlanCountsTheMoves) {
   ASSERT_TRUE(steps[4].pose.has_value());
   EXPECT_EQ(steps[4].pose->camera_arm_deg, 30.0);
   EXPECT_EQ(steps[4].pose->sample_rotation_deg, 90.0);
-  EXPECT_EQ(steps[4].pattern.levels, std::vector<double>{1.0});
+  EXPECT_EQ(steps[4].pattern->levels, std::vector<double>{1.0});
   PlanOptions options;
   options.step_overhead_ms = 0.0;
   const RunPlan plan = PlanRun(recipe, rig, steps, options);

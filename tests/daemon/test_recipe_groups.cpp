@@ -80,11 +80,11 @@ TEST(RecipeGroups, CompileToLabelledStepsWithKindsPatternsAndExposures) {
     EXPECT_EQ(steps[i].index, static_cast<int>(i));
   }
   EXPECT_EQ(steps[2].kind, CaptureStep::Kind::kFlat);
-  EXPECT_EQ(steps[2].pattern.levels, (std::vector<double>{0.5, 0.5, 0.5, 0.5}));
+  EXPECT_EQ(steps[2].pattern->levels, (std::vector<double>{0.5, 0.5, 0.5, 0.5}));
   EXPECT_EQ(steps[2].led, -1);
   EXPECT_EQ(steps[4].kind, CaptureStep::Kind::kPattern);
   EXPECT_EQ(steps[4].group, "pattern:diagonal");
-  EXPECT_EQ(steps[4].pattern.levels, (std::vector<double>{1.0, 0.0, 0.0, 0.25}));
+  EXPECT_EQ(steps[4].pattern->levels, (std::vector<double>{1.0, 0.0, 0.0, 0.25}));
   EXPECT_EQ(steps[4].repeat, 0);
   EXPECT_EQ(steps[5].repeat, 1);
   EXPECT_EQ(steps[9].kind, CaptureStep::Kind::kLight);

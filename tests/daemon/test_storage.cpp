@@ -74,7 +74,8 @@ CaptureStep Step(int index, int led) {
   step.kind = led < 0 ? CaptureStep::Kind::kDark : CaptureStep::Kind::kLight;
   step.led = led;
   step.label = "000" + std::to_string(index) + (led < 0 ? "_dark" : "_led00");
-  step.pattern = led < 0 ? drivers::LightPattern::AllOff(1) : drivers::LightPattern::Single(1, 0, 0.5);
+  step.pattern = std::make_shared<const drivers::LightPattern>(led < 0 ? drivers::LightPattern::AllOff(1)
+                                                                 : drivers::LightPattern::Single(1, 0, 0.5));
   return step;
 }
 

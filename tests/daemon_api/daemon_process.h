@@ -38,6 +38,7 @@ class DaemonProcess {
   ~DaemonProcess() {
     if (pid_ > 0) Kill();
   }
+  pid_t pid() const { return pid_; }
   DaemonProcess(const DaemonProcess&) = delete;
   DaemonProcess& operator=(const DaemonProcess&) = delete;
 

@@ -104,6 +104,19 @@ TEST_F(Hardening, AnAliasedRecipeIsRefusedWith413AndTheDaemonStaysUp) {
     EXPECT_EQ(reply.body["error"].get<std::string>().rfind("amp.yaml:4:", 0), 0u) << reply.body.dump();
     EXPECT_EQ(reply.body["line"], 4);
   }
+  // A pose grid whose expansion is too large: 413 too, as docs/api.md says, with its position.
+  const std::string grid =
+      "recipe: {name: grid}\ncapture:\n  steps:\n    - poses:\n        grid: {light_arm_deg: {start: 0, step: 0.01, "
+      "count: 1000}, camera_arm_deg: {start: 0, step: 0.01, count: 1000}}\n";
+  const std::string axis =
+      "recipe: {name: axis}\ncapture:\n  steps:\n    - poses:\n        grid: {light_arm_deg: {start: 0, step: 0.01, "
+      "count: 1000000}}\n";
+  for (const std::string& bomb : {grid, axis})
+    for (const char* route : {"/api/v1/dry-run", "/api/v1/runs"}) {
+      const auto reply = client.Post(route, {{"name", "grid.yaml"}, {"recipe", bomb}});
+      EXPECT_EQ(reply.http_status, 413) << reply.body.dump();
+      EXPECT_EQ(reply.body["line"], 5) << reply.body.dump();
+    }
   EXPECT_EQ(client.Get("/api/v1/health").http_status, 200);
   EXPECT_TRUE(client.Get("/api/v1/runs").body["runs"].empty());
 

@@ -147,5 +147,41 @@ TEST(Crash, KillNineAtRandomPointsLosesAndDuplicatesNoFrame) {
               kKills, kills_during_capture, suspensions, kSteps);
 }
 
+// A run resumed at a restart shows the frames its journal kept as soon as the
+// daemon answers, not 0 until its next frame.
+TEST(Crash, AResumedRunShowsTheFramesItKeptRightAfterARestart) {
+  TempDir dir;
+  const fs::path data = dir.path() / "data", log = dir.path() / "photorigd.log";
+  const std::string rig = dir.Write("rig.yaml", photorig::testing::SmallRigYaml());
+  auto daemon = StartDaemon(data, rig, log);
+  int port = daemon->WaitReady(log, 0);
+  ASSERT_GT(port, 0) << ReadText(log);
+  const auto submitted = Client(port).Post("/api/v1/runs", {{"recipe", photorig::testing::SmallRecipeYaml("", 2000)}});
+  ASSERT_EQ(submitted.http_status, 201) << submitted.body.dump();
+  const std::string id = submitted.body["id"];
+  const fs::path run = data / "runs" / id;
+  auto journal_frames = [&run] {
+    std::ifstream journal(run / "journal.jsonl");
+    int lines = 0;
+    for (std::string line; std::getline(journal, line);) lines += line.find("\"crc32\"") != std::string::npos;
+    return lines;
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);  // a hang guard
+  while (journal_frames() < 20 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  daemon->Kill();
+  const int kept = journal_frames();
+  ASSERT_GE(kept, 20);
+
+  daemon = StartDaemon(data, rig, log);
+  port = daemon->WaitReady(log, 1);
+  ASSERT_GT(port, 0) << ReadText(log);
+  const json shown = Client(port).Get("/api/v1/runs/" + id).body;
+  RecordProperty("frames_kept", kept);
+  RecordProperty("frames_shown", shown.value("frames", -1));
+  EXPECT_GE(shown.value("frames", 0), kept) << shown.dump();
+  EXPECT_EQ(daemon->Terminate(), 0);
+}
+
 }  // namespace
 }  // namespace photorig::daemon

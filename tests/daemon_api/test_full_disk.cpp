@@ -1,10 +1,14 @@
 // A data root on a full filesystem (a small tmpfs, mounted by the test as
 // root): the run fails cleanly, no temp file holds space, the daemon keeps
 // running, starts while the disk is full and says so on /health, and the run
-// gets its stop record and manifest once there is room again. A solve that
+// gets its stop record and manifest once there is room again. photorigd
+// started with no byte free comes up read-only (health 503 "disk full", runs
+// listed, submit 507) and takes runs once there is room, without a restart. A solve that
 // runs out of space part way fails saying what to do, leaves the frames as
 // they were and no partial results, and solves once there is room.
 
+#include "daemon_process.h"
+#include "photorig/daemon/api_client.h"
 #include "photorig/daemon/run.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/daemon/service.h"
@@ -21,6 +25,7 @@
 #include <fstream>
 #include <map>
 #include <cmath>
+#include <thread>
 
 namespace photorig::daemon {
 namespace {
@@ -148,6 +153,65 @@ TEST_F(FullDisk, ARunFailsCleanlyAndTheDaemonStartsAndSaysSo) {
     EXPECT_EQ(service.Health().http_status, 200) << service.Health().body.dump();
     service.Stop();
   }
+}
+
+TEST_F(FullDisk, PhotorigdStartsReadOnlyWithNoByteFreeAndTakesRunsOnceThereIsRoom) {
+  std::string id;
+  {
+    RunService service(options_);
+    service.Start();
+    const ServiceReply submitted = service.Submit("small.yaml", SmallRecipeYaml());
+    ASSERT_EQ(submitted.http_status, 201) << submitted.body.dump();
+    id = submitted.body["id"];
+    EXPECT_EQ(WaitForStop(service, id)["state"], "done");
+    service.Stop();
+  }
+  Fill();
+  ASSERT_EQ(FreeBytes(data_.string()), 0u);
+
+  const fs::path log = dir_.path() / "photorigd.log";
+  const auto started = std::chrono::steady_clock::now();
+  photorig::testing::DaemonProcess daemon(data_, options_.rig_path, log, {"--no-solve"});
+  const int port = daemon.WaitReady(log, 0);
+  ASSERT_GT(port, 0) << ReadText(log);
+  ApiClientOptions client_options;
+  client_options.url = "http://127.0.0.1:" + std::to_string(port);
+  client_options.timeout_s = 20;
+  ApiClient client(client_options);
+  const ServiceReply health = client.Get("/api/v1/health");
+  const double health_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  RecordProperty("health_after_ms", static_cast<int>(health_s * 1000));
+  EXPECT_LT(health_s, 2.0);
+  EXPECT_EQ(health.http_status, 503) << health.body.dump();
+  EXPECT_EQ(health.body["status"], "disk full") << health.body.dump();
+  EXPECT_EQ(health.body["free_bytes"], 0);
+  const ServiceReply runs = client.Get("/api/v1/runs");
+  ASSERT_EQ(runs.http_status, 200) << runs.body.dump();
+  ASSERT_EQ(runs.body["runs"].size(), 1u) << runs.body.dump();
+  EXPECT_EQ(runs.body["runs"][0]["id"], id);
+  EXPECT_EQ(runs.body["runs"][0]["state"], "done");
+  EXPECT_EQ(client.Get("/api/v1/runs/" + id + "/files/manifest.json").http_status, 200);
+  const ServiceReply refused = client.Post("/api/v1/runs", {{"name", "small.yaml"}, {"recipe", SmallRecipeYaml()}});
+  EXPECT_EQ(refused.http_status, 507) << refused.body.dump();
+
+  // Room again: the same daemon takes a run and completes it.
+  fs::remove(data_ / "filler");
+  const ServiceReply submitted = client.Post("/api/v1/runs", {{"name", "small.yaml"}, {"recipe", SmallRecipeYaml()}});
+  ASSERT_EQ(submitted.http_status, 201) << submitted.body.dump() << ReadText(log);
+  const std::string second = submitted.body["id"];
+  json run;
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::minutes(1);  // a hang guard, not a measurement
+  do {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    run = client.Get("/api/v1/runs/" + second).body;
+  } while (run.value("state", "") != "done" && run.value("state", "") != "failed" &&
+           std::chrono::steady_clock::now() < give_up);
+  EXPECT_EQ(run["state"], "done") << run.dump() << ReadText(log);
+  EXPECT_EQ(run["frames"], 5);
+  EXPECT_TRUE(fs::exists(data_ / "runs" / second / "manifest.json"));
+  const ServiceReply healthy = client.Get("/api/v1/health");
+  EXPECT_EQ(healthy.http_status, 200) << healthy.body.dump();
+  EXPECT_EQ(daemon.Terminate(), 0) << ReadText(log);
 }
 
 // A small dome for solves: 12 LEDs on two rings, a sphere on a 48 x 48 camera.

@@ -5,15 +5,19 @@
 
 #include "daemon_process.h"
 #include "photorig/daemon/api_client.h"
+#include "photorig/daemon/image_io.h"
 #include "photorig/daemon/run_queue.h"
 
 #include <gtest/gtest.h>
+#include <httplib.h>
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <set>
+#include <thread>
 
 namespace photorig::daemon {
 namespace {
@@ -290,6 +294,47 @@ TEST_F(Results, RecipeForAnotherOrAMissingRigIsRefused) {
   EXPECT_EQ(client.Post("/api/v1/dry-run", {{"name", "x.yaml"}, {"recipe", PsRecipe("small-dome.yaml")}}).http_status,
             200);
   EXPECT_TRUE(client.Get("/api/v1/runs").body["runs"].empty());
+}
+
+// A listing that names a file and a folder alike (no run directory can hold
+// both; a damaged or foreign server can list them): the file is reported,
+// every other file is fetched, and the fetch exits 1 instead of aborting.
+TEST(Fetch, AFileAndAFolderOfOneNameAreReportedAndTheRestFetched) {
+  TempDir dir;
+  const std::map<std::string, std::string> files = {{"frames/0000_dark.png", "first"},
+                                                    {"results", "a file named as the folder"},
+                                                    {"results/report.json", "second"}};
+  httplib::Server server;
+  server.Get("/api/v1/runs/000001-x", [](const httplib::Request&, httplib::Response& res) {
+    res.set_content(R"({"id": "000001-x", "state": "done"})", "application/json");
+  });
+  server.Get("/api/v1/runs/000001-x/files", [&](const httplib::Request&, httplib::Response& res) {
+    json listing = {{"id", "000001-x"}, {"under", ""}, {"files", json::array()}, {"bytes", 0}};
+    for (const auto& [path, bytes] : files)
+      listing["files"].push_back({{"path", path}, {"size", bytes.size()}, {"crc32", Crc32(bytes.data(), bytes.size())}});
+    res.set_content(listing.dump(), "application/json");
+  });
+  server.Get(R"(/api/v1/runs/000001-x/files/(.+))", [&](const httplib::Request& req, httplib::Response& res) {
+    const auto file = files.find(req.matches[1]);
+    if (file == files.end()) res.status = 404;
+    else res.set_content(file->second, "application/octet-stream");
+  });
+  const int port = server.bind_to_any_port("127.0.0.1");
+  ASSERT_GT(port, 0);
+  std::thread serving([&server] { server.listen_after_bind(); });
+  server.wait_until_ready();
+  const fs::path out = dir.path() / "out";
+  const int exit_code = RunPhotorig("fetch 000001-x --json --out " + out.string() + " --url http://127.0.0.1:" +
+                                        std::to_string(port),
+                                    dir.path() / "fetch.log");
+  server.stop();
+  serving.join();
+  const std::string log = ReadText(dir.path() / "fetch.log");
+  EXPECT_EQ(exit_code, 1) << log;
+  EXPECT_NE(log.find("both a file and a folder named 'results'"), std::string::npos) << log;
+  EXPECT_EQ(ReadText(out / "frames/0000_dark.png"), "first");
+  EXPECT_EQ(ReadText(out / "results/report.json"), "second");
+  EXPECT_TRUE(fs::is_directory(out / "results"));
 }
 
 }  // namespace

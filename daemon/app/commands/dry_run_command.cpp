@@ -36,7 +36,7 @@ int Execute(const Options& options) {
   if (options.list_steps)
     for (const auto& step : steps) {
       int lit = 0;
-      for (double level : step.pattern.levels) lit += level > 0.0;
+      for (double level : step.pattern->levels) lit += level > 0.0;
       std::printf("  %-32s %-7s exposure %8.0f us  gain %4.1f dB  %2d LED%s lit", step.label.c_str(),
                   daemon::CaptureStepKindName(step.kind), step.exposure_us, step.gain_db, lit, lit == 1 ? "" : "s");
       if (step.pose)

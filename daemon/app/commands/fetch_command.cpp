@@ -3,9 +3,10 @@
 // ./RUN), checking each file's size and CRC-32 against the daemon's listing.
 // Each file is written to a temporary name and renamed once it checks out, so
 // DIR never holds a partial file under a real name; files already there with
-// the listed size and checksum are kept. Exit codes: 0 every file fetched,
-// 1 a download failed or the run has not ended, 2 bad arguments or an unknown
-// run, 3 the daemon cannot be reached.
+// the listed size and checksum are kept; a listed file that is also a listed
+// folder's name is reported and skipped, the rest fetched. Exit codes: 0
+// every file fetched, 1 a download failed or was skipped, or the run has not
+// ended, 2 bad arguments or an unknown run, 3 the daemon cannot be reached.
 
 #include "../command.h"
 #include "../command_output.h"
@@ -17,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <set>
 #include <vector>
 
 namespace photorig::app {
@@ -104,7 +106,13 @@ Fetched FetchFile(daemon::ApiClient& client, const std::string& id, const json& 
     progress.Add(fetched.size);
     return fetched;
   }
-  fs::create_directories(target.parent_path());
+  std::error_code error;
+  fs::create_directories(target.parent_path(), error);
+  if (error) {
+    fetched.error = "cannot make the folder " + target.parent_path().string() + ": " + error.message() +
+                    " (a file of that name in the way?)";
+    return fetched;
+  }
   const fs::path temp = target.string() + ".fetching";
   std::ofstream file(temp, std::ios::binary | std::ios::trunc);
   if (!file) {
@@ -113,7 +121,7 @@ Fetched FetchFile(daemon::ApiClient& client, const std::string& id, const json& 
   }
   std::uint64_t received = 0;
   std::uint32_t crc = 0;
-  std::string error;
+  std::string download_error;
   const int status = client.Download(
       id, fetched.path,
       [&](const char* data, std::size_t size) {
@@ -123,22 +131,39 @@ Fetched FetchFile(daemon::ApiClient& client, const std::string& id, const json& 
         progress.Add(size);
         return static_cast<bool>(file);
       },
-      &error);
+      &download_error);
   file.close();
   if (status != 200 || !file) {
-    fetched.error = !file ? "cannot write " + temp.string() : error;
+    fetched.error = !file ? "cannot write " + temp.string() : download_error;
   } else if (received != fetched.size) {
     fetched.error = "received " + std::to_string(received) + " bytes, the daemon listed " + std::to_string(fetched.size);
   } else if (crc != expected_crc) {
     fetched.error = "CRC-32 mismatch: received " + std::to_string(crc) + ", the daemon listed " + std::to_string(expected_crc);
   }
-  std::error_code ignored;
-  if (!fetched.error.empty()) {
-    fs::remove(temp, ignored);
-    return fetched;
+  if (fetched.error.empty()) {
+    fs::rename(temp, target, error);
+    if (error)
+      fetched.error =
+          "cannot put it in place as " + target.string() + ": " + error.message() + " (a folder of that name in the way?)";
   }
-  fs::rename(temp, target);
+  if (!fetched.error.empty()) fs::remove(temp, error);
   return fetched;
+}
+
+// Listed paths that are also the folder of another listed path: a file and a
+// folder of one name cannot both be written.
+std::set<std::string> FileFolderConflicts(const json& files) {
+  std::set<std::string> paths, folders;
+  for (const json& listed : files) {
+    const std::string path = listed.value("path", "");
+    paths.insert(path);
+    for (fs::path folder = fs::path(path).parent_path(); !folder.empty(); folder = folder.parent_path())
+      folders.insert(folder.generic_string());
+  }
+  std::set<std::string> conflicts;
+  for (const std::string& path : paths)
+    if (folders.count(path)) conflicts.insert(path);
+  return conflicts;
 }
 
 // The report as the command's result; with an error, the command's failure.
@@ -177,8 +202,16 @@ int Execute(const Options& options) {
   std::uint64_t bytes = 0;
   int fetched = 0, kept = 0, failed = 0;
   json failures = json::array();
+  const std::set<std::string> conflicts = FileFolderConflicts(files);
   for (const json& listed : files) {
-    const Fetched file = FetchFile(client, options.id, listed, out, progress);
+    Fetched file;
+    if (const std::string path = listed.value("path", ""); conflicts.count(path)) {
+      file.path = path;
+      file.error = "the daemon listed both a file and a folder named '" + path + "'; the folder's files are fetched, "
+                   "this file is not";
+    } else {
+      file = FetchFile(client, options.id, listed, out, progress);
+    }
     progress.FileDone();
     if (!file.error.empty()) {
       ++failed;

@@ -178,6 +178,18 @@ MerlReadSummary ReadMerl(const std::string& path, MerlTable* table) {
 }
 
 Summary WriteMerl(const std::string& path, const MerlTable& table) {
+  // ReadMerl refuses a table that is not finite: it is never written.
+  for (int c = 0; c < 3; ++c)
+    for (std::size_t i = 0; i < MerlTable::kCells; ++i)
+      if (const double v = table.plane(c)[i]; !std::isfinite(v)) {
+        const std::size_t per_h = std::size_t{MerlTable::kThetaDBins} * MerlTable::kPhiDBins;
+        return Ended(Termination::kInvalidInput,
+                     "MERL BRDF '" + path + "' not written: cell " + std::to_string(i) + " of the " + "RGB"[c] +
+                         " plane (theta_h bin " + std::to_string(i / per_h) + ", theta_d bin " +
+                         std::to_string(i % per_h / MerlTable::kPhiDBins) + ", phi_d bin " +
+                         std::to_string(i % MerlTable::kPhiDBins) + ") is " + (std::isnan(v) ? "NaN" : "infinite") +
+                         ", which no reader accepts");
+      }
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) return Ended(Termination::kInvalidInput, "cannot open '" + path + "' for writing");
   const std::int32_t dims[3] = {MerlTable::kThetaHBins, MerlTable::kThetaDBins, MerlTable::kPhiDBins};

@@ -391,6 +391,16 @@ Summary TabulateRgl(const std::function<Eigen::Vector3d(const DirectionPair&)>& 
             static_cast<float>(std::max(0.0, 0.2126 * f[0] + 0.7152 * f[1] + 0.0722 * f[2]));
       }
   }
+  // BuildRglBrdf refuses a table that is not finite: it is never made.
+  for (std::size_t i = 0; i < rgb.size(); ++i)
+    if (!std::isfinite(rgb[i])) {
+      const std::size_t x = i % N, y = i / N % N, c = i / (std::size_t(N) * N) % 3, k = i / (std::size_t(N) * N * 3);
+      return Ended(Termination::kInvalidInput,
+                   "field 'rgb' cell " + std::to_string(i) + " (theta_i " + std::to_string(theta_i[k] * 180.0 / M_PI) +
+                       " deg, channel " + "RGB"[c] + ", sample " + std::to_string(x) + ", " + std::to_string(y) +
+                       ") is " + (std::isnan(rgb[i]) ? "NaN" : "infinite") +
+                       " (beyond a float's range or undefined there), which no reader accepts");
+    }
   TensorFile out;
   const auto t = static_cast<std::uint64_t>(T), m = static_cast<std::uint64_t>(M), n = static_cast<std::uint64_t>(N);
   out.fields.push_back(TensorField::FromBytes("description", {tab.description.size()},

@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <bit>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <limits>
 #include <set>
 
 namespace photorig::solvers::brdf {
+namespace fs = std::filesystem;
 
 // Fields are copied as raw little-endian bytes.
 static_assert(std::endian::native == std::endian::little);
@@ -119,9 +121,25 @@ const TensorField* TensorFile::Find(std::string_view name) const {
 Summary ReadTensorFile(const std::string& path, TensorFile* file) {
   SolveTimer timer;
   const std::string where = "tensor file '" + path + "': ";
+  // Only a regular file of bounded size is read: a device or a pipe
+  // (/dev/urandom) would be read until memory ran out.
+  std::error_code error;
+  const fs::file_status status = fs::status(path, error);
+  if (!error && fs::exists(status) && !fs::is_regular_file(status))
+    return Ended(Termination::kInvalidInput, where + "not a regular file (a device, pipe or folder); give a .bsdf file");
+  const std::uintmax_t size = fs::file_size(path, error);
+  if (error) return Ended(Termination::kInvalidInput, where + "cannot open the file: " + error.message());
+  if (size > kMaxTensorFileBytes)
+    return Ended(Termination::kInvalidInput, where + std::to_string(size) + " bytes, more than the " +
+                                                 std::to_string(kMaxTensorFileBytes >> 20) +
+                                                 " MiB this reader accepts (the largest RGL tables are a few MiB)");
   std::ifstream in(path, std::ios::binary);
   if (!in) return Ended(Termination::kInvalidInput, where + "cannot open the file");
-  const std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  std::vector<std::uint8_t> bytes(size);
+  in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size));
+  if (static_cast<std::uintmax_t>(in.gcount()) != size)
+    return Ended(Termination::kInvalidInput, where + "read " + std::to_string(in.gcount()) + " of its " +
+                                                 std::to_string(size) + " bytes (changed while read?)");
   Cursor cursor(bytes);
   char magic[12];
   std::uint8_t version[2];

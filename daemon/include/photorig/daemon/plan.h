@@ -10,9 +10,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -71,6 +73,46 @@ RunPlan PlanRun(const Recipe& recipe, const RigConfig& rig, const std::vector<Ca
 // A pose as goniometer targets by axis id (light_arm, camera_arm, sample_rotation,
 // and sample_changer when the pose sets it).
 std::map<std::string, double> PoseTargets(const GonioPose& pose);
+
+// The most memory compiling a plan of `frames` steps for a rig of `channels`
+// LEDs and answering it with `listed` steps holds at once: the steps, their
+// shared patterns and the answer's JSON (docs/daemon.md, "Plan memory").
+std::uint64_t PlanMemoryBytes(std::size_t frames, std::size_t channels, std::size_t listed);
+
+// Memory that plans being compiled may hold at once, shared by concurrent
+// dry-runs and submits. Each reserves the worst case of its rig before
+// compiling (a recipe's size is known only once it is expanded), shrinks the
+// reservation to its plan's size once compiled and keeps it while its answer
+// lives. A reservation of a large plan gives the freed memory back to the
+// system when it ends, so the daemon's size falls back after a burst.
+class PlanMemoryBudget {
+ public:
+  class Reservation {
+   public:
+    ~Reservation();
+    Reservation(const Reservation&) = delete;
+    Reservation& operator=(const Reservation&) = delete;
+    // Keeps `bytes` (at most what is held) and gives the rest back.
+    void Shrink(std::uint64_t bytes);
+    std::uint64_t bytes() const { return bytes_; }
+
+   private:
+    friend class PlanMemoryBudget;
+    struct Pool;
+    Reservation(std::shared_ptr<Pool> pool, std::uint64_t bytes) : pool_(std::move(pool)), bytes_(bytes) {}
+    std::shared_ptr<Pool> pool_;
+    std::uint64_t bytes_;
+  };
+
+  explicit PlanMemoryBudget(std::uint64_t bytes);
+  // `bytes` of the budget, waiting up to `wait` for them to be free; null
+  // when they were not (the budget is spent: try again later). A request
+  // larger than the whole budget waits until it is all free.
+  std::shared_ptr<Reservation> Reserve(std::uint64_t bytes, std::chrono::milliseconds wait);
+
+ private:
+  std::shared_ptr<Reservation::Pool> pool_;
+};
 
 // Free bytes for an unprivileged writer on the filesystem holding `path`
 // (or its nearest existing ancestor).

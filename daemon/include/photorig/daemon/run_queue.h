@@ -38,7 +38,11 @@ struct QueuedRun {
 
 class RunQueue {
  public:
-  // Opens or creates the database. Throws std::runtime_error naming the file.
+  // Opens or creates the database. On a full disk, where SQLite cannot make
+  // its write-ahead log, an existing queue opens read-only as it was last
+  // checkpointed; every write then tries to open it writable again, and
+  // throws naming the file while it cannot. Throws std::runtime_error naming
+  // the file when it cannot be opened at all.
   explicit RunQueue(const std::string& path);
   ~RunQueue();
   RunQueue(const RunQueue&) = delete;
@@ -59,13 +63,21 @@ class RunQueue {
   // worker claims a run and Abort cancels one this way, so a run is either
   // started or aborted, never both.
   bool LeaveQueued(QueuedRun& run, RunState to, const std::string& reason);
+  // Why the queue is read-only (a full disk); empty while it is writable.
+  // Tries to make it writable first.
+  std::string ReadOnlyReason();
 
  private:
+  // Opens db_ writable and readies the table; false (db_ closed, `why` set) when it cannot.
+  bool OpenWritable(std::string* why);
+  void OpenReadOnly(const std::string& why_not_writable);
+  void MakeWritable();  // mutex_ held; throws while the queue stays read-only
   void Exec(const std::string& sql) const;
   std::vector<QueuedRun> Select(const std::string& where, const std::string& text_argument) const;
 
   std::string path_;
   sqlite3* db_ = nullptr;
+  std::string read_only_reason_;  // empty while writable
   mutable std::mutex mutex_;
 };
 

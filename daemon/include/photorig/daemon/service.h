@@ -39,6 +39,11 @@ struct ServiceOptions {
   // dry-run and submit answer 413. Its step_overhead_ms is plan.step_overhead_ms.
   CaptureLimits limits;
   std::size_t max_listed_steps = 10000;  // steps listed in a dry-run or submit answer
+  // Memory the plans of concurrent dry-runs and submits may hold at once
+  // (PlanMemoryBudget); a request that finds it spent for plan_wait_ms
+  // answers 503 with Retry-After.
+  std::uint64_t plan_memory_bytes = std::uint64_t{512} << 20;
+  int plan_wait_ms = 2000;
   RetryPolicy retry;
   PlanOptions plan;
   // Folders whose *.yaml recipes GET /recipes lists besides <data_root>/recipes
@@ -59,6 +64,9 @@ struct RunEvent {
 struct ServiceReply {
   int http_status = 200;
   nlohmann::json body;
+  int retry_after_s = 0;  // > 0: try again after this many seconds (the Retry-After header)
+  // Plan memory reserved for as long as the body lives (PlanMemoryBudget).
+  std::shared_ptr<const void> holds = nullptr;
 };
 
 // The "stop" event's data for a run record (RunService::GetRun's body): how
@@ -130,6 +138,7 @@ class RunService {
 
   ServiceOptions options_;
   std::unique_ptr<RunQueue> queue_;
+  std::unique_ptr<PlanMemoryBudget> plan_budget_;
   std::atomic<bool> stopping_{false};
   std::thread worker_;
   std::atomic<bool> worker_alive_{false};

@@ -86,7 +86,8 @@ struct MerlReadSummary : Summary {
 // with the file and what is wrong; `table` is then untouched.
 MerlReadSummary ReadMerl(const std::string& path, MerlTable* table);
 
-// Writes `table` as a MERL .binary (byte for byte what ReadMerl read).
+// Writes `table` as a MERL .binary (byte for byte what ReadMerl read). A
+// NaN or infinite cell ends kInvalidInput naming it, before the file is opened.
 Summary WriteMerl(const std::string& path, const MerlTable& table);
 
 }  // namespace photorig::solvers::brdf

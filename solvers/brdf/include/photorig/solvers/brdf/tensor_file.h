@@ -49,7 +49,11 @@ struct TensorFile {
 
 inline constexpr std::uint8_t kTensorFileVersion[2] = {1, 0};
 
-// Reads a tensor file. Never throws: a missing or truncated file, a wrong
+// The largest tensor file ReadTensorFile reads: the RGL tables are a few MiB.
+inline constexpr std::uint64_t kMaxTensorFileBytes = std::uint64_t{256} << 20;
+
+// Reads a tensor file. Never throws: a missing or truncated file, one that
+// is not a regular file or is larger than kMaxTensorFileBytes, a wrong
 // magic or version, an unknown dtype, a field whose data lies outside the file
 // or a repeated field name ends kInvalidInput with a message naming the file
 // and the fault; `file` is then untouched.
