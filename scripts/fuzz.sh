@@ -16,7 +16,7 @@
 # FUZZ_SKIP_BUILD=1 (`run` without building first, e.g. while the tree is being built by another command).
 # A finding leaves its input in <build tree>/artifacts/<target>/; replay it with
 #   <build tree>/bin/<target> <file>
-# and keep it as a test: copy it to fuzz/regressions/<target>/ (CTest's fuzz_replay_<target> replays it
+# and keep it as a test: copy it to fuzz/regressions/<target>/ (CTest's <target>_replay replays it
 # in the normal build), then fix the parser.
 set -euo pipefail
 
@@ -125,10 +125,11 @@ fuzz_target() {
     -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="$artifacts/" \
     -jobs="$n" -workers="$n" >"$logs/main.log" 2>&1) || status=$?
   local elapsed=$((SECONDS - start))
-  # With -jobs the workers' logs are fuzz-<n>.log; executions are summed over them.
+  # With -jobs the workers' logs are fuzz-<n>.log (main.log repeats them):
+  # executions are summed over them.
   local execs findings
-  execs="$(cat "$logs"/*.log | awk '/stat::number_of_executed_units/ {s += $2} END {print s + 0}')"
-  findings="$(grep -l -E 'ERROR: (AddressSanitizer|UndefinedBehaviorSanitizer|LeakSanitizer|libFuzzer)|runtime error:|uncaught exception|terminate called' "$logs"/*.log | wc -l || true)"
+  execs="$(cat "$logs"/fuzz-*.log | awk '/stat::number_of_executed_units/ {s += $2} END {print s + 0}')"
+  findings="$(grep -l -E 'ERROR: (AddressSanitizer|UndefinedBehaviorSanitizer|LeakSanitizer|libFuzzer)|runtime error:|uncaught exception|terminate called' "$logs"/fuzz-*.log | wc -l || true)"
   printf '%-20s %12s executions  %8s exec/s  %d finding(s)  (%d s, %d worker(s), corpus %d files)\n' \
     "$t" "$execs" "$((execs / (elapsed > 0 ? elapsed : 1)))" "$findings" "$elapsed" "$n" "$(ls "$corpus" | wc -l)"
   if [ "$status" != 0 ] || [ "$findings" != 0 ]; then
