@@ -2,10 +2,12 @@
 # libFuzzer targets for every parser (fuzz/, docs/fuzzing.md), built with clang,
 # AddressSanitizer and UndefinedBehaviorSanitizer in their own build tree.
 #
-#   scripts/fuzz.sh build                   configure and build the fuzzers
+#   scripts/fuzz.sh build [TARGET...]       configure and build the fuzzers (only the named ones and the
+#                                           libraries they link, if any are named)
 #   scripts/fuzz.sh smoke                   build, then run each fuzzer for 5 s over its seeds; fails on any finding
 #   scripts/fuzz.sh run [TARGET] [SECONDS]  long runs (default: every target, 300 s each), corpus kept in
-#                                           the build tree; prints executions reached and their rate
+#                                           the build tree; builds only what they need; prints executions
+#                                           reached and their rate
 #   scripts/fuzz.sh seeds                   build, then rewrite the seeds the targets write themselves
 #                                           (fuzz/corpus/<target>/, committed) from the current formats
 #   scripts/fuzz.sh list                    the targets
@@ -60,7 +62,13 @@ build_fuzzers() {
     CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 "${launcher[@]}" \
       -DPHOTORIG_FUZZ=ON -DPHOTORIG_BUILD_TESTS=OFF -DPHOTORIG_BUILD_BENCH=OFF >/dev/null
   fi
-  cmake --build "$build" --target photorig_fuzzers -j "$jobs"
+  # A target links a few of the libraries (fuzz/CMakeLists.txt): the MERL
+  # target, for one, needs the BRDF library alone, not the whole tree.
+  if [ $# -gt 0 ]; then
+    cmake --build "$build" --target "$@" -j "$jobs"
+  else
+    cmake --build "$build" --target photorig_fuzzers -j "$jobs"
+  fi
 }
 
 check_target() {
@@ -142,9 +150,12 @@ fuzz_target() {
 command="${1:-}"
 case "$command" in
   list) printf '%s\n' "${targets[@]}" ;;
-  build) build_fuzzers ;;
+  build)
+    shift
+    for t in "$@"; do check_target "$t"; done
+    build_fuzzers "$@" ;;
   seeds)
-    build_fuzzers
+    build_fuzzers "${written_seeds[@]}"
     write_seeds ;;
   smoke)
     build_fuzzers
@@ -158,9 +169,9 @@ case "$command" in
       selected=("$2")
     fi
     seconds="${3:-300}"
-    [ "${FUZZ_SKIP_BUILD:-0}" = 1 ] || build_fuzzers
+    [ "${FUZZ_SKIP_BUILD:-0}" = 1 ] || build_fuzzers "${selected[@]}"
     failed=0
     for t in "${selected[@]}"; do fuzz_target "$t" "$seconds" "$workers" || failed=1; done
     exit "$failed" ;;
-  *) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2 ;;
+  *) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2 ;;
 esac
