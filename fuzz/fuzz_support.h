@@ -15,8 +15,9 @@
 
 namespace photorig::fuzz {
 
-// Created on first use, removed at exit. In /dev/shm where there is one:
-// the targets that write files per input run several times faster on tmpfs.
+// Created on first use, removed at exit. In /dev/shm where there is one: the
+// targets write files for every input, and the run store's go through
+// fdatasync, which on a disk waits for the disk every time.
 inline const std::filesystem::path& WorkDir() {
   static const std::filesystem::path dir = [] {
     const std::filesystem::path shm = "/dev/shm";
