@@ -8,6 +8,8 @@
 #include "fuzz_support.h"
 #include "photorig/solvers/brdf/merl.h"
 
+#include <algorithm>
+#include <array>
 #include <cstring>
 #include <sstream>
 #include <vector>

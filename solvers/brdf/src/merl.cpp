@@ -137,7 +137,7 @@ MerlReadSummary ReadMerlCells(std::istream& in, std::size_t size, const std::arr
                                                 std::to_string(cells) + " doubles)");
     return summary;
   }
-  std::int32_t header[3];
+  std::int32_t header[3] = {0, 0, 0};
   in.read(reinterpret_cast<char*>(header), sizeof header);
   if (!in || header[0] != dims[0] || header[1] != dims[1] || header[2] != dims[2]) {
     summary.End(Termination::kInvalidInput, where + "header is " + std::to_string(header[0]) + " x " +
