@@ -12,23 +12,29 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
 
 namespace photorig::fuzz {
 
 // Created on first use, removed at exit. In /dev/shm where there is one: the
 // targets write files for every input, and the run store's go through
-// fdatasync, which on a disk waits for the disk every time.
+// fdatasync, which on a disk waits for the disk every time. The path is never
+// destroyed: a static object would be destroyed before the exit handler
+// registered while constructing it runs, leaving the directory behind.
 inline const std::filesystem::path& WorkDir() {
-  static const std::filesystem::path dir = [] {
+  static const std::filesystem::path* dir = [] {
     const std::filesystem::path shm = "/dev/shm";
     const std::filesystem::path parent =
         std::filesystem::is_directory(shm) ? shm : std::filesystem::temp_directory_path();
     std::string pattern = (parent / "photorig-fuzz-XXXXXX").string();
     if (::mkdtemp(pattern.data()) == nullptr) std::abort();
-    std::atexit([] { std::filesystem::remove_all(WorkDir()); });
-    return std::filesystem::path(pattern);
+    std::atexit([] {
+      std::error_code ignored;
+      std::filesystem::remove_all(WorkDir(), ignored);
+    });
+    return new std::filesystem::path(pattern);
   }();
-  return dir;
+  return *dir;
 }
 
 inline void WriteBytes(const std::filesystem::path& path, const std::uint8_t* data, std::size_t size) {
