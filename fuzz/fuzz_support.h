@@ -12,18 +12,29 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
 
 namespace photorig::fuzz {
 
-// Created on first use, removed at exit.
+// Created on first use, removed at exit. In /dev/shm where there is one: the
+// targets write files for every input, and the run store's go through
+// fdatasync, which on a disk waits for the disk every time. The path is never
+// destroyed: a static object would be destroyed before the exit handler
+// registered while constructing it runs, leaving the directory behind.
 inline const std::filesystem::path& WorkDir() {
-  static const std::filesystem::path dir = [] {
-    std::string pattern = (std::filesystem::temp_directory_path() / "photorig-fuzz-XXXXXX").string();
+  static const std::filesystem::path* dir = [] {
+    const std::filesystem::path shm = "/dev/shm";
+    const std::filesystem::path parent =
+        std::filesystem::is_directory(shm) ? shm : std::filesystem::temp_directory_path();
+    std::string pattern = (parent / "photorig-fuzz-XXXXXX").string();
     if (::mkdtemp(pattern.data()) == nullptr) std::abort();
-    std::atexit([] { std::filesystem::remove_all(WorkDir()); });
-    return std::filesystem::path(pattern);
+    std::atexit([] {
+      std::error_code ignored;
+      std::filesystem::remove_all(WorkDir(), ignored);
+    });
+    return new std::filesystem::path(pattern);
   }();
-  return dir;
+  return *dir;
 }
 
 inline void WriteBytes(const std::filesystem::path& path, const std::uint8_t* data, std::size_t size) {
@@ -36,14 +47,19 @@ inline void WriteText(const std::filesystem::path& path, const std::string& text
   WriteBytes(path, reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
 }
 
-// Seeds for targets whose input is a selector byte and a file's bytes: when
-// PHOTORIG_FUZZ_SEEDS names a directory, a target writes the valid files it
-// starts from there, each prefixed by the byte that selects it
-// (scripts/fuzz.sh seeds; the corpus then follows the formats as they change).
-inline void WriteSeed(const std::string& name, std::uint8_t selector, const std::string& bytes) {
+// Seeds: when PHOTORIG_FUZZ_SEEDS names a directory, a target writes the valid
+// inputs it starts from there (`scripts/fuzz.sh seeds` writes fuzz/corpus/
+// this way, so the seeds follow the formats as they change). For a target
+// whose input is a selector byte and a file's bytes, each file is prefixed by
+// the byte that selects it.
+inline void WriteSeed(const std::string& name, const std::string& input) {
   const char* dir = std::getenv("PHOTORIG_FUZZ_SEEDS");
   if (dir == nullptr) return;
-  WriteText(std::filesystem::path(dir) / name, std::string(1, static_cast<char>(selector)) + bytes);
+  WriteText(std::filesystem::path(dir) / name, input);
+}
+
+inline void WriteSeed(const std::string& name, std::uint8_t selector, const std::string& bytes) {
+  WriteSeed(name, std::string(1, static_cast<char>(selector)) + bytes);
 }
 
 // A file of the source tree (config/rigs/..., the fixed rig the recipe and API targets use).

@@ -2,17 +2,24 @@
 # libFuzzer targets for every parser (fuzz/, docs/fuzzing.md), built with clang,
 # AddressSanitizer and UndefinedBehaviorSanitizer in their own build tree.
 #
-#   scripts/fuzz.sh build                   configure and build the fuzzers
+#   scripts/fuzz.sh build [TARGET...]       configure and build the fuzzers (only the named ones and the
+#                                           libraries they link, if any are named)
 #   scripts/fuzz.sh smoke                   build, then run each fuzzer for 5 s over its seeds; fails on any finding
 #   scripts/fuzz.sh run [TARGET] [SECONDS]  long runs (default: every target, 300 s each), corpus kept in
-#                                           the build tree; prints executions reached per target
+#                                           the build tree; builds only what they need; prints executions
+#                                           reached and their rate
+#   scripts/fuzz.sh seeds                   build, then rewrite the seeds the targets write themselves
+#                                           (fuzz/corpus/<target>/, committed) from the current formats
 #   scripts/fuzz.sh list                    the targets
 #
 # Environment: PHOTORIG_FUZZ_BUILD (build tree, default build-fuzz/), FUZZ_JOBS (build jobs, default 2),
-# FUZZ_WORKERS (parallel fuzzing processes per target in `run`, default 2), FUZZ_SKIP_BUILD=1 (`run`
-# without building first, e.g. while the tree is being built by another command).
+# FUZZ_WORKERS (parallel fuzzing processes per target in `run`, default 2), FUZZ_RUNS (`run` stops each
+# worker after this many executions, e.g. 10000000, or at SECONDS, whichever comes first),
+# FUZZ_SKIP_BUILD=1 (`run` without building first, e.g. while the tree is being built by another command).
 # A finding leaves its input in <build tree>/artifacts/<target>/; replay it with
 #   <build tree>/bin/<target> <file>
+# and keep it as a test: copy it to fuzz/regressions/<target>/ (CTest's <target>_replay replays it
+# in the normal build), then fix the parser.
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -55,7 +62,13 @@ build_fuzzers() {
     CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 "${launcher[@]}" \
       -DPHOTORIG_FUZZ=ON -DPHOTORIG_BUILD_TESTS=OFF -DPHOTORIG_BUILD_BENCH=OFF >/dev/null
   fi
-  cmake --build "$build" --target photorig_fuzzers -j "$jobs"
+  # A target links a few of the libraries (fuzz/CMakeLists.txt): the MERL
+  # target, for one, needs the BRDF library alone, not the whole tree.
+  if [ $# -gt 0 ]; then
+    cmake --build "$build" --target "$@" -j "$jobs"
+  else
+    cmake --build "$build" --target photorig_fuzzers -j "$jobs"
+  fi
 }
 
 check_target() {
@@ -64,8 +77,23 @@ check_target() {
   die "no target '$1' (targets: ${targets[*]})"
 }
 
+# Targets whose seeds they write themselves (PHOTORIG_FUZZ_SEEDS): valid inputs
+# made by the formats' own writers.
+written_seeds=(fuzz_diligent fuzz_run_store fuzz_color_model fuzz_merl fuzz_rgl_tensor)
+
+write_seeds() {
+  local t out
+  for t in "${written_seeds[@]}"; do
+    out="$root/fuzz/corpus/$t"
+    rm -rf "$out"
+    mkdir -p "$out"
+    PHOTORIG_FUZZ_SEEDS="$out" "$build/bin/$t" -runs=1 >/dev/null 2>&1 || die "$t: writing its seeds failed"
+    echo "$t: $(ls "$out" | wc -l) seed(s) in fuzz/corpus/$t/"
+  done
+}
+
 # Seeds: the committed ones in fuzz/corpus/<target>/, the rigs and recipes of
-# config/, and the valid files the selector-byte targets start from.
+# config/ (and each recipe as a dry-run request for the API).
 make_seeds() {
   local t="$1" out="$build/seeds/$1"
   rm -rf "$out"
@@ -74,9 +102,6 @@ make_seeds() {
   case "$t" in
     fuzz_rig) cp "$root"/config/rigs/*.yaml "$out/" ;;
     fuzz_recipe) cp "$root"/config/recipes/*.yaml "$out/" ;;
-    fuzz_diligent | fuzz_run_store | fuzz_color_model | fuzz_merl | fuzz_rgl_tensor)
-      PHOTORIG_FUZZ_SEEDS="$out" "$build/bin/$t" -runs=1 "$out" >/dev/null 2>&1 ||
-        die "$t: writing its seeds failed" ;;
     fuzz_api)
       local recipe body
       for recipe in "$root"/config/recipes/*.yaml; do
@@ -101,17 +126,20 @@ fuzz_target() {
   rm -rf "$logs"
   mkdir -p "$logs"
   make_seeds "$t"
-  local status=0
+  local status=0 start=$SECONDS runs=()
+  [ -n "${FUZZ_RUNS:-}" ] && runs=(-runs="$FUZZ_RUNS")
   # libFuzzer adds new inputs to the first directory only: the seeds stay as they are.
-  (cd "$logs" && "$build/bin/$t" "$corpus" "$build/seeds/$t" $(dict_flag "$t") "${limits[@]}" \
+  (cd "$logs" && "$build/bin/$t" "$corpus" "$build/seeds/$t" $(dict_flag "$t") "${limits[@]}" "${runs[@]}" \
     -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="$artifacts/" \
     -jobs="$n" -workers="$n" >"$logs/main.log" 2>&1) || status=$?
-  # With -jobs the workers' logs are fuzz-<n>.log; executions are summed over them.
+  local elapsed=$((SECONDS - start))
+  # With -jobs the workers' logs are fuzz-<n>.log (main.log repeats them):
+  # executions are summed over them.
   local execs findings
-  execs="$(cat "$logs"/*.log | awk '/stat::number_of_executed_units/ {s += $2} END {print s + 0}')"
-  findings="$(grep -l -E 'ERROR: (AddressSanitizer|UndefinedBehaviorSanitizer|LeakSanitizer|libFuzzer)|runtime error:|uncaught exception|terminate called' "$logs"/*.log | wc -l || true)"
-  printf '%-18s %12s executions  %d finding(s)  (%d s, %d worker(s), corpus %d files)\n' \
-    "$t" "$execs" "$findings" "$seconds" "$n" "$(ls "$corpus" | wc -l)"
+  execs="$(cat "$logs"/fuzz-*.log | awk '/stat::number_of_executed_units/ {s += $2} END {print s + 0}')"
+  findings="$(grep -l -E 'ERROR: (AddressSanitizer|UndefinedBehaviorSanitizer|LeakSanitizer|libFuzzer)|runtime error:|uncaught exception|terminate called' "$logs"/fuzz-*.log | wc -l || true)"
+  printf '%-20s %12s executions  %8s exec/s  %d finding(s)  (%d s, %d worker(s), corpus %d files)\n' \
+    "$t" "$execs" "$((execs / (elapsed > 0 ? elapsed : 1)))" "$findings" "$elapsed" "$n" "$(ls "$corpus" | wc -l)"
   if [ "$status" != 0 ] || [ "$findings" != 0 ]; then
     grep -h -E -A12 'ERROR: |runtime error:|uncaught exception|terminate called|500 answer' "$logs"/*.log | head -n 60 >&2 || true
     echo "fuzz: $t found a problem; inputs in $artifacts/, logs in $logs/" >&2
@@ -122,7 +150,13 @@ fuzz_target() {
 command="${1:-}"
 case "$command" in
   list) printf '%s\n' "${targets[@]}" ;;
-  build) build_fuzzers ;;
+  build)
+    shift
+    for t in "$@"; do check_target "$t"; done
+    build_fuzzers "$@" ;;
+  seeds)
+    build_fuzzers "${written_seeds[@]}"
+    write_seeds ;;
   smoke)
     build_fuzzers
     failed=0
@@ -135,9 +169,9 @@ case "$command" in
       selected=("$2")
     fi
     seconds="${3:-300}"
-    [ "${FUZZ_SKIP_BUILD:-0}" = 1 ] || build_fuzzers
+    [ "${FUZZ_SKIP_BUILD:-0}" = 1 ] || build_fuzzers "${selected[@]}"
     failed=0
     for t in "${selected[@]}"; do fuzz_target "$t" "$seconds" "$workers" || failed=1; done
     exit "$failed" ;;
-  *) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2 ;;
+  *) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2 ;;
 esac

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdint>
@@ -13,8 +14,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <memory>
 #include <random>
+#include <sstream>
 
 namespace photorig::solvers::brdf {
 namespace {
@@ -346,6 +349,36 @@ TEST(MerlTable, ATableThatIsNotFiniteIsNotWritten) {
             std::string::npos)
       << written.message;
   EXPECT_FALSE(std::filesystem::exists(path));
+}
+
+// The checks ReadMerl makes, on a table of another shape (what the fuzz target reads).
+TEST(MerlFile, TheChecksHoldForASmallShape) {
+  const std::array<std::int32_t, 3> dims = {1, 2, 2};
+  auto bytes = [&](const std::array<std::int32_t, 3>& header, std::vector<double> cells) {
+    std::string file(reinterpret_cast<const char*>(header.data()), sizeof header);
+    file.append(reinterpret_cast<const char*>(cells.data()), cells.size() * sizeof(double));
+    return file;
+  };
+  auto read = [&](const std::string& file, std::array<std::vector<double>, 3>* planes) {
+    std::istringstream in(file);
+    return ReadMerlCells(in, file.size(), dims, "t: ", planes);
+  };
+  std::vector<double> cells(12);
+  for (std::size_t i = 0; i < cells.size(); ++i) cells[i] = i == 5 ? -1.0 : 0.25 * static_cast<double>(i);
+  std::array<std::vector<double>, 3> planes;
+  const MerlReadSummary ok = read(bytes(dims, cells), &planes);
+  ASSERT_TRUE(ok.IsSolutionUsable()) << ok.message;
+  EXPECT_EQ(planes[0], std::vector<double>(cells.begin(), cells.begin() + 4));
+  EXPECT_EQ(planes[2], std::vector<double>(cells.begin() + 8, cells.end()));
+  EXPECT_EQ(ok.invalid_cells, 0u);  // the -1 is in the G plane; R's unmeasured cells are counted
+
+  std::array<std::vector<double>, 3> untouched = {std::vector<double>{7.0}};
+  EXPECT_EQ(read(bytes(dims, cells).substr(0, 100), &untouched).message,
+            "t: 100 bytes, a MERL table has 108 (a 12-byte header and 3 x 4 doubles)");
+  EXPECT_EQ(read(bytes({1, 2, 3}, cells), &untouched).message, "t: header is 1 x 2 x 3, not 1 x 2 x 2");
+  cells[9] = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(read(bytes(dims, cells), &untouched).message, "t: cell 1 of the B plane is infinite");
+  EXPECT_EQ(untouched[0], std::vector<double>{7.0}) << "a refused read left the planes changed";
 }
 
 }  // namespace

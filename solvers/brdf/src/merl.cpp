@@ -126,44 +126,38 @@ MerlTable MerlTable::FromFunction(
   return table;
 }
 
-MerlReadSummary ReadMerl(const std::string& path, MerlTable* table) {
-  SolveTimer timer;
+MerlReadSummary ReadMerlCells(std::istream& in, std::size_t size, const std::array<std::int32_t, 3>& dims,
+                              const std::string& where, std::array<std::vector<double>, 3>* planes) {
   MerlReadSummary summary;
-  summary.path = path;
-  const std::string where = "MERL BRDF '" + path + "': ";
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) {
-    summary.End(Termination::kInvalidInput, where + "cannot open the file");
-    return summary;
-  }
-  const auto size = static_cast<std::size_t>(in.tellg());
-  if (size != MerlTable::kFileBytes) {
+  const std::size_t cells = static_cast<std::size_t>(dims[0]) * dims[1] * dims[2];
+  const std::size_t expected_bytes = sizeof dims + 3 * cells * sizeof(double);
+  if (size != expected_bytes) {
     summary.End(Termination::kInvalidInput, where + std::to_string(size) + " bytes, a MERL table has " +
-                                                std::to_string(MerlTable::kFileBytes) +
-                                                " (a 12-byte header and 3 x 1458000 doubles)");
+                                                std::to_string(expected_bytes) + " (a 12-byte header and 3 x " +
+                                                std::to_string(cells) + " doubles)");
     return summary;
   }
-  in.seekg(0);
-  std::int32_t dims[3];
-  in.read(reinterpret_cast<char*>(dims), sizeof dims);
-  if (dims[0] != MerlTable::kThetaHBins || dims[1] != MerlTable::kThetaDBins || dims[2] != MerlTable::kPhiDBins) {
-    summary.End(Termination::kInvalidInput, where + "header is " + std::to_string(dims[0]) + " x " +
-                                                std::to_string(dims[1]) + " x " + std::to_string(dims[2]) +
-                                                ", not 90 x 90 x 180");
+  std::int32_t header[3] = {0, 0, 0};
+  in.read(reinterpret_cast<char*>(header), sizeof header);
+  if (!in || header[0] != dims[0] || header[1] != dims[1] || header[2] != dims[2]) {
+    summary.End(Termination::kInvalidInput, where + "header is " + std::to_string(header[0]) + " x " +
+                                                std::to_string(header[1]) + " x " + std::to_string(header[2]) +
+                                                ", not " + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) +
+                                                " x " + std::to_string(dims[2]));
     return summary;
   }
-  MerlTable read;
-  for (int c = 0; c < 3; ++c)
-    in.read(reinterpret_cast<char*>(read.plane(c).data()),
-            static_cast<std::streamsize>(MerlTable::kCells * sizeof(double)));
+  std::array<std::vector<double>, 3> read;
+  for (std::vector<double>& plane : read) {
+    plane.resize(cells);
+    in.read(reinterpret_cast<char*>(plane.data()), static_cast<std::streamsize>(cells * sizeof(double)));
+  }
   if (!in) {
     summary.End(Termination::kInvalidInput, where + "read failed");
     return summary;
   }
-  timer.SetupDone(&summary);
   for (int c = 0; c < 3; ++c)
-    for (std::size_t i = 0; i < MerlTable::kCells; ++i) {
-      const double v = read.plane(c)[i];
+    for (std::size_t i = 0; i < cells; ++i) {
+      const double v = read[c][i];
       if (!std::isfinite(v)) {
         summary.End(Termination::kInvalidInput, where + "cell " + std::to_string(i) + " of the " + "RGB"[c] +
                                                     " plane is " + (std::isnan(v) ? "NaN" : "infinite"));
@@ -171,8 +165,28 @@ MerlReadSummary ReadMerl(const std::string& path, MerlTable* table) {
       }
       if (v < 0.0 && c == 0) ++summary.invalid_cells;
     }
-  *table = std::move(read);
+  *planes = std::move(read);
   summary.termination = Termination::kSuccess;
+  return summary;
+}
+
+MerlReadSummary ReadMerl(const std::string& path, MerlTable* table) {
+  SolveTimer timer;
+  const std::string where = "MERL BRDF '" + path + "': ";
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  MerlReadSummary summary;
+  std::array<std::vector<double>, 3> planes;
+  if (!in)
+    summary.End(Termination::kInvalidInput, where + "cannot open the file");
+  else {
+    const auto size = static_cast<std::size_t>(in.tellg());
+    in.seekg(0);
+    summary = ReadMerlCells(in, size, {MerlTable::kThetaHBins, MerlTable::kThetaDBins, MerlTable::kPhiDBins}, where,
+                            &planes);
+  }
+  summary.path = path;
+  if (summary.IsSolutionUsable())
+    for (int c = 0; c < 3; ++c) table->plane(c) = std::move(planes[c]);
   timer.Finish(&summary);
   return summary;
 }

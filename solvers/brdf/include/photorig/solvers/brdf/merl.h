@@ -22,6 +22,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <istream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -85,6 +86,15 @@ struct MerlReadSummary : Summary {
 // header other than (90, 90, 180) or a NaN / infinite cell ends kInvalidInput
 // with the file and what is wrong; `table` is then untouched.
 MerlReadSummary ReadMerl(const std::string& path, MerlTable* table);
+
+// ReadMerl's checks on `size` bytes from `in`, for a table of
+// dims[0] x dims[1] x dims[2] cells per channel: the size, the header, then
+// every cell finite; `where` begins each message. On success `planes` holds
+// the three channels' cells. ReadMerl passes MERL's (90, 90, 180); the fuzz
+// target (fuzz/fuzz_merl.cpp) a small shape, so that each input is a whole
+// table of a few hundred bytes rather than 35 MB.
+MerlReadSummary ReadMerlCells(std::istream& in, std::size_t size, const std::array<std::int32_t, 3>& dims,
+                              const std::string& where, std::array<std::vector<double>, 3>* planes);
 
 // Writes `table` as a MERL .binary (byte for byte what ReadMerl read). A
 // NaN or infinite cell ends kInvalidInput naming it, before the file is opened.
