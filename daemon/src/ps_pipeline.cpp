@@ -141,7 +141,10 @@ void RequirePhotometricStereoRun(const std::string& run_directory, const RunMani
   bool tomograph = false;
   for (const FrameRecord& record : manifest.frames) {
     if (record.kind == "light" && record.led >= 0) return;
-    tomograph = tomograph || (record.pose && record.pose->sample_changer_deg);
+    // A tomograph's flat fields move the sample out of the beam; a
+    // gonioreflectometer's changer only brings in its reference target.
+    tomograph = tomograph || (record.pose && record.pose->sample_changer_deg.value_or(0.0) != 0.0 &&
+                              record.group != "reference_target");
   }
   const bool posed = std::any_of(manifest.frames.begin(), manifest.frames.end(),
                                  [](const FrameRecord& record) { return record.pose.has_value(); });
