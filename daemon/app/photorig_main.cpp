@@ -2,6 +2,7 @@
 
 #include "command.h"
 #include "command_output.h"
+#include "library_logging.h"
 #include "photorig/daemon/rig_config.h"
 #include "signals.h"
 
@@ -91,6 +92,7 @@ int main(int argc, char** argv) {
   internal::BeginCommand(CommandNameFromArguments(app, argc, argv), json_output);
 
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
+  QuietLibraryLogging(argv[0]);
   InstallStopHandlers();
   try {
     for (const auto& runner : runners)

@@ -1,7 +1,7 @@
 // photorigd: the rig daemon. Keeps a persistent queue of capture recipes,
 // runs them on its rig one at a time and serves the HTTP API (see
 // daemon/include/photorig/daemon/api_server.h and docs/api.md).
-//   photorigd --data-root DIR --rig RIG.yaml [--listen ADDR] [--port N] [--token-file FILE] [--allow-host NAME]
+//   photorigd [--data-root DIR] --rig RIG.yaml [--listen ADDR] [--port N] [--token-file FILE] [--allow-host NAME]
 //             [--web-root DIR] [--recipes DIR]
 // It prints the browser interface's address on stdout once it listens (docs/ui.md).
 // Listening off loopback without a token, it uses the one in DATA/api-token,
@@ -13,6 +13,7 @@
 
 #include "photorig/daemon/api_server.h"
 #include "photorig/daemon/service.h"
+#include "library_logging.h"
 #include "signals.h"
 
 #include <CLI/CLI.hpp>
@@ -71,6 +72,20 @@ std::string StoredToken(const std::filesystem::path& file) {
   return token;
 }
 
+// Where the queue and runs live without --data-root: systemd's
+// StateDirectory=, else the user's data directory (XDG), never the working
+// directory, where `photorig run` keeps its own runs/. Empty when there is no
+// home to put it in.
+std::string DefaultDataRoot() {
+  if (const char* state = std::getenv("STATE_DIRECTORY"); state && *state) {
+    const std::string first(state);  // several directories are separated by ':'
+    return first.substr(0, first.find(':'));
+  }
+  if (const char* xdg = std::getenv("XDG_DATA_HOME"); xdg && *xdg == '/') return std::string(xdg) + "/photorig";
+  if (const char* home = std::getenv("HOME"); home && *home == '/') return std::string(home) + "/.local/share/photorig";
+  return "";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -81,8 +96,10 @@ int main(int argc, char** argv) {
   bool no_resume = false;
   bool no_solve = false;
   std::string log_level = "info";
-  service_options.data_root = "runs";
-  app.add_option("--data-root", service_options.data_root, "queue, recipes and run directories live here")
+  service_options.data_root = DefaultDataRoot();
+  app.add_option("--data-root", service_options.data_root,
+                 "queue, recipes and run directories live here (default: $STATE_DIRECTORY under systemd, else "
+                 "$XDG_DATA_HOME/photorig, else ~/.local/share/photorig)")
       ->capture_default_str();
   app.add_option("--rig", service_options.rig_path, "rig YAML this daemon drives")->required()->check(CLI::ExistingFile);
   app.add_option("--listen", api_options.bind_address, "address to bind (off loopback every API request needs the token: --token-file, $PHOTORIG_TOKEN, else "
@@ -108,6 +125,10 @@ int main(int argc, char** argv) {
   app.add_option("--backoff-ms", service_options.retry.initial_backoff_ms, "first retry backoff")->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  if (service_options.data_root.empty()) {
+    std::cerr << "photorigd: no --data-root, and no $HOME for the default ~/.local/share/photorig: give --data-root DIR\n";
+    return 2;
+  }
   if (api_options.web_root.empty()) api_options.web_root = DefaultWebRoot();
   if (api_options.web_root == "none") api_options.web_root.clear();
   if (service_options.recipe_folders.empty()) {
@@ -126,6 +147,7 @@ int main(int argc, char** argv) {
   // logfmt: one event per line, key=value, easy for journald and grep alike.
   spdlog::set_pattern("ts=%Y-%m-%dT%H:%M:%S.%e%z level=%l %v");
   spdlog::set_level(spdlog::level::from_str(log_level));
+  photorig::app::QuietLibraryLogging(argv[0]);
   photorig::app::InstallStopHandlers();
   try {
     photorig::daemon::RunService service(service_options);

@@ -76,14 +76,17 @@ bool BrdfSolveResult::refused_input() const {
   return !measurement.IsSolutionUsable() && measurement.termination != solvers::Termination::kFailure;
 }
 
-BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const BrdfRequest& request, const std::string& out_dir) {
+BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const BrdfRequest& request, const std::string& out_dir,
+                                  FailedCapture failed) {
   const solvers::SolveTimer timer;
   BrdfSolveResult result;
   BrdfMeasurementOptions measuring;
   if (!request.calibrate_with_target) measuring.calibration = BrdfMeasurementOptions::Calibration::kCameraResponse;
-  result.measurement = MeasureBrdf(run_dir, LoadRunManifest(run_dir), measuring);
+  const RunManifest manifest = LoadRunManifest(run_dir);
+  result.capture = CheckCaptureForSolve(run_dir, manifest, failed);
+  result.measurement = MeasureBrdf(run_dir, manifest, measuring);
   const BrdfMeasurement& m = result.measurement;
-  result.report = {{"run", run_dir}};
+  result.report = {{"run", run_dir}, {"capture", result.capture->ToJson()}};
   if (!m.IsSolutionUsable()) {
     result.total_ms = timer.ElapsedMs();
     return result;

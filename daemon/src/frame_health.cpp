@@ -59,6 +59,13 @@ std::string Subject(const std::vector<const HealthFinding*>& group) {
   return subject;
 }
 
+// `value` to `digits` decimals, never "-0.0": a dead LED's mean response is
+// noise around zero, and a minus sign on nothing reads as a fault of its own.
+double Rounded(double value, int digits) {
+  const double scale = std::pow(10.0, digits);
+  return std::round(value * scale) / scale + 0.0;
+}
+
 std::string DescribeGroup(HealthCheck check, const std::vector<const HealthFinding*>& group) {
   // The worst of the group speaks for it: the highest value where the check
   // wants more, the one farthest from 1 for ratios.
@@ -75,7 +82,7 @@ std::string DescribeGroup(HealthCheck check, const std::vector<const HealthFindi
       return fmt::format(
           "{} did not light: brightest pixel {}{:.1f} DN above dark, mean response {:.1f} DN (needs a pixel >= {:g} "
           "sigma = {:.1f} DN above dark); {}",
-          subject, at_most, worst.value, worst.mean_response_dn, worst.threshold / worst.noise_sigma_dn,
+          subject, at_most, Rounded(worst.value, 1), Rounded(worst.mean_response_dn, 1), worst.threshold / worst.noise_sigma_dn,
           worst.threshold,
           several ? "check the LED controller's power and wiring, and that nothing covers the lens"
                   : "check that LED and its channel's wiring");
@@ -103,7 +110,7 @@ std::string DescribeGroup(HealthCheck check, const std::vector<const HealthFindi
       return fmt::format(
           "{} dead or dim: mean response {}{:.2f} of the median of its neighbours ({}) (needs >= {:g}); check the LED "
           "and its driver channel",
-          subject, at_most, worst.value, worst.reference, worst.threshold);
+          subject, at_most, Rounded(worst.value, 2), worst.reference, worst.threshold);
   }
   return subject;
 }

@@ -1,6 +1,7 @@
 #include "photorig/daemon/previews.h"
 
 #include "photorig/daemon/image_io.h"
+#include "photorig/solvers/reflectance/svbrdf.h"
 
 #include <opencv2/imgproc.hpp>
 
@@ -9,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <stdexcept>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
@@ -41,6 +43,8 @@ json ScalarMapping(const std::string& unit_range, double low, double high) {
   return {{"low", low}, {"high", high}, {"scale", unit_range + " -> 0..255"}, {"unsolved", 0}};
 }
 
+}  // namespace
+
 json LegendJson(const std::vector<Category>& categories, const cv::Mat& codes) {
   json legend = json::array();
   for (const Category& c : categories)
@@ -48,7 +52,22 @@ json LegendJson(const std::vector<Category>& categories, const cv::Mat& codes) {
   return {{"legend", legend}, {"map_size", {codes.cols, codes.rows}}, {"legend_x", codes.cols}};
 }
 
-}  // namespace
+cv::Mat CodesFromPreview(const cv::Mat& preview, cv::Size size, const std::vector<Category>& categories) {
+  if (preview.type() != CV_8UC3 || preview.cols < size.width || preview.rows < size.height)
+    throw std::runtime_error("not a categorical preview of a " + std::to_string(size.width) + " x " +
+                             std::to_string(size.height) + " map");
+  cv::Mat codes(size, CV_8U, cv::Scalar(255));
+  for (int r = 0; r < size.height; ++r)
+    for (int c = 0; c < size.width; ++c) {
+      const cv::Vec3b bgr = preview.at<cv::Vec3b>(r, c);
+      for (const Category& category : categories)
+        if (bgr == cv::Vec3b(category.rgb[2], category.rgb[1], category.rgb[0])) {
+          codes.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(category.code);
+          break;
+        }
+    }
+  return codes;
+}
 
 double PercentileOverMask(const cv::Mat& values, const cv::Mat& mask, double percent) {
   std::vector<float> selected;
@@ -95,6 +114,19 @@ const std::vector<Category>& ModelCategories() {
        {int(ps::PixelModel::kIrls), {199, 21, 133}},
        {int(ps::PixelModel::kGgx), {255, 127, 80}}},
       [](int code) { return ps::PixelModelName(static_cast<ps::PixelModel>(code)); });
+  return categories;
+}
+
+const std::vector<Category>& ReflectanceFlagCategories() {
+  namespace refl = solvers::reflectance;
+  static const std::vector<Category> categories = Named(
+      {{int(refl::PixelFlag::kFitted), {46, 139, 87}},
+       {int(refl::PixelFlag::kOutsideMask), {0, 0, 0}},
+       {int(refl::PixelFlag::kNoNormal), {186, 85, 211}},
+       {int(refl::PixelFlag::kTooFewSamples), {255, 165, 0}},
+       {int(refl::PixelFlag::kPoorFit), {220, 20, 60}},
+       {int(refl::PixelFlag::kMixed), {30, 144, 255}}},
+      [](int code) { return refl::PixelFlagName(static_cast<refl::PixelFlag>(code)); });
   return categories;
 }
 

@@ -125,6 +125,38 @@ PhotometricStereoResult::ColorError Summarise(std::vector<double> errors) {
   return out;
 }
 
+// Photometric stereo needs frames each lit by one LED of a surface; a
+// gonioreflectometer or tomography run has poses instead, and a
+// light-calibration run the highlights of a mirror sphere: each has its own solver.
+void RequirePhotometricStereoRun(const std::string& run_directory, const RunManifest& manifest) {
+  const auto stage = [&manifest](const char* name) {
+    return std::find(manifest.solve_stages.begin(), manifest.solve_stages.end(), name) != manifest.solve_stages.end();
+  };
+  if (stage("light_calibration") && !stage("photometric_stereo") && !stage("svbrdf"))
+    throw std::invalid_argument(run_directory + " was captured to calibrate the lights (recipe " +
+                                manifest.recipe_name +
+                                "): its frames show one highlight of the calibration sphere per LED, not a surface "
+                                "photometric stereo can solve; `photorig calibrate lights --run " + run_directory +
+                                "` solves it");
+  bool tomograph = false;
+  for (const FrameRecord& record : manifest.frames) {
+    if (record.kind == "light" && record.led >= 0) return;
+    // A tomograph's flat fields move the sample out of the beam; a
+    // gonioreflectometer's changer only brings in its reference target.
+    tomograph = tomograph || (record.pose && record.pose->sample_changer_deg.value_or(0.0) != 0.0 &&
+                              record.group != "reference_target");
+  }
+  const bool posed = std::any_of(manifest.frames.begin(), manifest.frames.end(),
+                                 [](const FrameRecord& record) { return record.pose.has_value(); });
+  std::string instead = "capture one frame per LED (a dome recipe's each_led step)";
+  if (posed)
+    instead = std::string("this is a ") + (tomograph ? "tomography" : "gonioreflectometer") + " run: solve it with `photorig solve " +
+              (tomograph ? "tomography" : "brdf") + " --run " + run_directory + "`";
+  throw std::invalid_argument(run_directory + ": no frame lit by a single LED among its " +
+                              std::to_string(manifest.frames.size()) +
+                              " frames, and photometric stereo needs one per LED; " + instead);
+}
+
 }  // namespace
 
 PhotometricStereoResult::ColorErrors CompareColorAlbedo(const cv::Mat& albedo_rgb, const cv::Mat& truth_rgb,
@@ -173,10 +205,13 @@ ps::PhotometricStereoOptions MakeSolverOptions(const PhotometricStereoRequest& r
   return options;
 }
 
-PhotometricStereoInput LoadRunStack(const std::string& run_directory, const ColorStackOptions& color) {
+PhotometricStereoInput LoadRunStack(const std::string& run_directory, const ColorStackOptions& color,
+                                    FailedCapture failed) {
   const RunManifest manifest = LoadRunManifest(run_directory);
   PhotometricStereoInput input;
   input.source = run_directory;
+  input.capture = CheckCaptureForSolve(run_directory, manifest, failed);
+  RequirePhotometricStereoRun(run_directory, manifest);
   ps::PhotometricStack& stack = input.stack;
   // Samples at the clipping level are dropped per pixel; a sensor whose full
   // well fills first clips below the ADC's top code.
@@ -252,8 +287,9 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   } else {
     spdlog::warn("{}: no dark frame; the solver assumes a zero black level", run_directory);
   }
-  if (manifest.has_ground_truth) {
-    const fs::path truth = fs::path(run_directory) / "ground_truth";
+  // A volume scene's truth has no surface (RunWriter::WriteVolumeGroundTruth).
+  if (const fs::path truth = fs::path(run_directory) / "ground_truth";
+      manifest.has_ground_truth && fs::exists(truth / "normals.tiff")) {
     input.truth_normals = ReadFloatTiff((truth / "normals.tiff").string());
     input.truth_albedo = ReadFloatTiff((truth / "albedo.tiff").string());
     if (fs::exists(truth / "material.png")) input.truth_material = ReadImage((truth / "material.png").string());
@@ -349,6 +385,7 @@ json ToJson(const PhotometricStereoResult& result) {
                  {"samples_rejected", summary.samples_rejected},
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets},
                  {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}, {"total", result.total_ms}}}};
+  if (result.capture) report["capture"] = result.capture->ToJson();
   if (result.mean_confidence) report["mean_confidence"] = *result.mean_confidence;
   if (!result.previews.is_null()) report["previews"] = result.previews;
   if (result.depth) {
@@ -405,6 +442,7 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   ps::NormalMap map;
   result.summary = ps::SolvePhotometricStereo(options, stack, &map);
   result.source = input.source;
+  result.capture = input.capture;
   result.dark_frames = input.dark_frames;
   result.noise_sigma_dn = stack.noise.read_sigma;
   result.saturation_level = saturation;

@@ -288,6 +288,11 @@ RunOutcome ExecuteRun(const RunRequest& request) {
     for (const std::string& error : plan.errors) why += "\n  " + error;
     throw std::runtime_error("recipe " + recipe.path + " refused before any device was touched:" + why);
   }
+  // A run never goes into another run's folder (or any folder with files): a usage error, found before the devices.
+  if (!request.resume && !request.output_directory.empty() && fs::exists(request.output_directory) &&
+      !fs::is_empty(request.output_directory))
+    throw std::invalid_argument("run directory " + request.output_directory +
+                                " already exists and is not empty; name a new one (photorig run --out DIR) or remove it");
   RigDevices devices = MakeRigDevices(rig, &recipe);
 
   RunOutcome outcome;
@@ -297,6 +302,12 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   header.run_id = fs::path(outcome.directory).filename().string();
   header.recipe_path = recipe.path;
   header.recipe_name = recipe.name;
+  for (const auto& [stage, present] :
+       {std::pair{"photometric_stereo", recipe.photometric_stereo.has_value()},
+        std::pair{"light_calibration", recipe.light_calibration.has_value()},
+        std::pair{"tomography", recipe.tomography.has_value()}, std::pair{"svbrdf", recipe.svbrdf.has_value()},
+        std::pair{"brdf", recipe.brdf.has_value()}})
+    if (present) header.solve_stages.push_back(stage);
   header.sample_name = recipe.sample_name;
   std::unique_ptr<RunWriter> writer_storage;
   if (request.resume) {
@@ -315,11 +326,13 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   RunWriter& writer = *writer_storage;
   if (devices.world && !writer.manifest().has_ground_truth) {
     const sim::SurfaceMaps& truth = devices.world->surface();
-    writer.WriteGroundTruth(truth, devices.world->config().lights, devices.world->TruthColorAlbedo());
-    // A tomography phantom has no surface: its truth is the phantom itself.
-    if (devices.world->config().scene.shape == sim::Scene::Shape::kPhantom)
-      WriteFileDurably((fs::path(outcome.directory) / "ground_truth" / "phantom.json").string(),
-                       PhantomToJson(devices.world->config().scene.phantom).dump(2) + "\n");
+    const sim::Scene& scene = devices.world->config().scene;
+    if (scene.shape == sim::Scene::Shape::kPhantom)
+      writer.WriteVolumeGroundTruth(cv::Mat(), PhantomToJson(scene.phantom).dump(2) + "\n");
+    else if (scene.shape == sim::Scene::Shape::kVolume)
+      writer.WriteVolumeGroundTruth(truth.line_integrals, "");
+    else
+      writer.WriteGroundTruth(truth, devices.world->config().lights, devices.world->TruthColorAlbedo());
   }
 
   spdlog::info("run {}: recipe {} on rig {} ({} steps) -> {}", header.run_id, recipe.name, rig.name, steps.size(),

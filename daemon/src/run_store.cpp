@@ -4,6 +4,7 @@
 #include "photorig/daemon/image_io.h"
 
 #include <opencv2/imgproc.hpp>
+#include <spdlog/fmt/fmt.h>
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -161,7 +162,7 @@ json ToJson(const RunManifest& m) {
   for (const FrameRecord& f : m.frames) frames.push_back(ToJson(f));
   json out = {{"format", m.format},
           {"run_id", m.run_id},
-          {"recipe", {{"path", m.recipe_path}, {"name", m.recipe_name}}},
+          {"recipe", {{"path", m.recipe_path}, {"name", m.recipe_name}, {"solve", m.solve_stages}}},
           {"rig", {{"path", m.rig_path}, {"name", m.rig_name}}},
           {"status", CaptureStatusName(m.status)},
           {"status_reason", m.status_reason},
@@ -194,6 +195,7 @@ RunManifest RunManifestFromJson(const json& j) {
   m.run_id = j.at("run_id").get<std::string>();
   m.recipe_path = j.at("recipe").at("path").get<std::string>();
   m.recipe_name = j.at("recipe").at("name").get<std::string>();
+  m.solve_stages = j.at("recipe").value("solve", std::vector<std::string>{});
   m.rig_path = j.at("rig").at("path").get<std::string>();
   m.rig_name = j.at("rig").at("name").get<std::string>();
   m.status = CaptureStatusFromJson(j.at("status"));
@@ -453,8 +455,14 @@ void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vec
     cv::merge(std::vector<cv::Mat>{channels[1], channels[2], channels[3]}, specular);
     WriteFloatTiff((truth / "specular.tiff").string(), specular);
   }
-  if (!surface.line_integrals.empty())
-    WriteFloatTiff((truth / "line_integrals.tiff").string(), surface.line_integrals);
+  manifest_.has_ground_truth = true;
+}
+
+void RunWriter::WriteVolumeGroundTruth(const cv::Mat& line_integrals, const std::string& phantom_json) {
+  const fs::path truth = fs::path(directory_) / "ground_truth";
+  fs::create_directories(truth);
+  if (!line_integrals.empty()) WriteFloatTiff((truth / "line_integrals.tiff").string(), line_integrals);
+  if (!phantom_json.empty()) WriteFileDurably((truth / "phantom.json").string(), phantom_json);
   manifest_.has_ground_truth = true;
 }
 
@@ -470,12 +478,57 @@ void RunWriter::Finish(const StopRecord& stop) {
 RunManifest LoadRunManifest(const std::string& directory) {
   const std::string path = (fs::path(directory) / "manifest.json").string();
   std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open " + path + " (is " + directory + " a run directory?)");
+  if (!in) {
+    if (!fs::exists(path))
+      throw std::invalid_argument(directory + " is not a run directory: it has no manifest.json (a run's folder "
+                                  "holds manifest.json and frames/; a run still capturing has only journal.jsonl)");
+    throw std::runtime_error("cannot open " + path);
+  }
   try {
     return RunManifestFromJson(json::parse(in));
   } catch (const std::exception& e) {
     throw std::runtime_error(path + ": corrupt manifest: " + e.what());
   }
+}
+
+json CaptureVerdict::ToJson() const {
+  return {{"status", CaptureStatusName(status)}, {"reasons", reasons}, {"accepted_failed_capture", accepted_failed_capture}};
+}
+
+CaptureVerdict CaptureVerdictOf(const RunManifest& manifest) {
+  CaptureVerdict verdict;
+  verdict.status = manifest.status;
+  // The sequencer joins its findings with "; also " (FrameHealth::Describe).
+  const std::string& reason = manifest.stop ? manifest.stop->reason : manifest.status_reason;
+  static const std::string kAlso = "; also ";
+  for (std::size_t begin = 0; !reason.empty();) {
+    const std::size_t end = reason.find(kAlso, begin);
+    verdict.reasons.push_back(reason.substr(begin, end == std::string::npos ? std::string::npos : end - begin));
+    if (end == std::string::npos) break;
+    begin = end + kAlso.size();
+  }
+  return verdict;
+}
+
+CaptureVerdict CheckCaptureForSolve(const std::string& directory, const RunManifest& manifest, FailedCapture failed) {
+  CaptureVerdict verdict = CaptureVerdictOf(manifest);
+  if (verdict.complete()) return verdict;
+  if (failed == FailedCapture::kRefuse) {
+    std::string why;
+    for (const std::string& reason : verdict.reasons) why += "\n  - " + reason;
+    const std::string ended = verdict.status == CaptureStatus::kFailed    ? "failed"
+                              : verdict.status == CaptureStatus::kRunning ? "never finished"
+                                                                          : std::string("was ") + CaptureStatusName(verdict.status);
+    throw FailedCaptureError(fmt::format(
+        "{}: the capture {} ({} of {} frames), so nothing solved from it can be trusted:{}\nFix what it names and "
+        "capture again; or, to look at it anyway, solve with --accept-failed-capture: every result and report is "
+        "then marked as from a failed capture",
+        directory, ended, manifest.frames.size(),
+        manifest.stop ? manifest.stop->steps_total : static_cast<int>(manifest.frames.size()),
+        why.empty() ? " (no reason recorded)" : why));
+  }
+  verdict.accepted_failed_capture = true;
+  return verdict;
 }
 
 cv::Mat LoadFrame(const std::string& directory, const FrameRecord& record) {

@@ -533,9 +533,21 @@ ServiceReply RunService::ListRuns() const {
 
 json RunService::RunJson(const QueuedRun& run) const {
   json body = run.ToJson();
-  if (fs::is_directory(fs::path(RunDirectory(run.id)) / "results"))
-    body["results"] = {{"path", "runs/" + run.id + "/results"},
-                       {"url", "/api/v1/runs/" + run.id + "/files?under=results"}};
+  if (!fs::is_directory(fs::path(RunDirectory(run.id)) / "results")) return body;
+  body["results"] = {{"path", "runs/" + run.id + "/results"},
+                     {"url", "/api/v1/runs/" + run.id + "/files?under=results"}};
+  // The verdict of the capture the results were solved from, for whoever shows
+  // them: results of a capture that did not complete exist only because a
+  // solve accepted it (--accept-failed-capture).
+  if (fs::exists(fs::path(RunDirectory(run.id)) / "manifest.json")) {
+    try {
+      CaptureVerdict capture = CaptureVerdictOf(LoadRunManifest(RunDirectory(run.id)));
+      capture.accepted_failed_capture = !capture.complete();
+      body["results"]["capture"] = capture.ToJson();
+    } catch (const std::exception& e) {
+      body["results"]["capture"] = {{"error", e.what()}};
+    }
+  }
   return body;
 }
 

@@ -3,6 +3,7 @@
 #include "photorig/color/region_demosaic.h"
 #include "photorig/daemon/gltf_export.h"
 #include "photorig/daemon/image_io.h"
+#include "photorig/daemon/previews.h"
 #include "photorig/daemon/results_folder.h"
 #include "photorig/ps/evaluation.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
@@ -201,6 +202,7 @@ refl::ReflectanceStack ToReflectanceStack(const PhotometricStereoInput& input) {
 nlohmann::json ToJson(const SvbrdfResult& result) {
   nlohmann::json j;
   j["source"] = result.ps.source;
+  if (result.ps.capture) j["capture"] = result.ps.capture->ToJson();
   j["termination"] = solvers::TerminationName(result.summary.termination);
   j["message"] = result.summary.message;
   j["pixels"] = {{"fitted", result.summary.pixels_fitted},
@@ -212,6 +214,7 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
                  {"mixed_assigned", result.summary.pixels_mixed_assigned},
                  {"highlight_unseen", result.summary.pixels_highlight_unseen}};
   j["saturated_samples"] = result.summary.saturated_samples;
+  if (!result.previews.is_null()) j["previews"] = result.previews;
   j["materials"] = nlohmann::json::array();
   for (std::size_t m = 0; m < result.material_fits.size(); ++m) {
     nlohmann::json mj = MaterialJson(result.material_fits[m]);
@@ -344,7 +347,8 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const Svbr
         WriteFloatTiff((out / "albedo_sigma.tiff").string(), maps.albedo_sigma);
         WriteFloatTiff((out / "rms_residual.tiff").string(), maps.rms_residual);
         WriteImage((out / "material.png").string(), maps.material);
-        WriteImage((out / "flags.png").string(), maps.flags);
+        WriteImage((out / "flags.png").string(), CategoricalPreview(maps.flags, ReflectanceFlagCategories()));
+        result.previews["flags.png"] = LegendJson(ReflectanceFlagCategories(), maps.flags);
         WriteImage((out / "highlight_seen.png").string(), maps.highlight_seen);
         if (!result.demosaic_regions.empty()) WriteImage((out / "demosaic_regions.png").string(), result.demosaic_regions);
         for (const auto& m : maps.materials)
@@ -409,6 +413,9 @@ refl::ReflectanceMaps ReadSvbrdfResult(const std::string& output_directory) {
   maps.normals = ReadFloatTiff((fs::exists(dir / "normals.tiff") ? dir / "normals.tiff" : dir / "ps" / "normals.tiff").string());
   maps.material = ReadImage((dir / "material.png").string());
   maps.flags = ReadImage((dir / "flags.png").string());
+  // The colours of the legend's categories; a folder written before flags.png
+  // had a legend holds the codes themselves.
+  if (maps.flags.channels() == 3) maps.flags = CodesFromPreview(maps.flags, maps.albedo.size(), ReflectanceFlagCategories());
   for (const auto& m : report.at("materials")) {
     refl::MaterialFit fit;
     const auto model = brdf::ParseModel(m.at("model").get<std::string>());
@@ -440,7 +447,8 @@ HeldOutLightImages PredictHeldOutLight(const std::string& run_directory, const s
     color.demosaic_regions = ReadImage((dir / "demosaic_regions.png").string());
     color.settle_region_edges = false;
   }
-  const PhotometricStereoInput input = LoadRunStack(run_directory, color);
+  // The solve that made the result judged the capture (and marked its report).
+  const PhotometricStereoInput input = LoadRunStack(run_directory, color, FailedCapture::kAccept);
   if (within_regions && (!input.color || input.color->bayer_run_directory.empty()))
     throw std::runtime_error((dir / "demosaic_regions.png").string() + " names regions, but " + run_directory +
                              " is not a Bayer run");

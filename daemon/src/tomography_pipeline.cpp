@@ -167,10 +167,11 @@ sim::Phantom PhantomFromJson(const json& j) {
   return phantom;
 }
 
-TomographyInput LoadTomographyRun(const std::string& run_directory) {
+TomographyInput LoadTomographyRun(const std::string& run_directory, FailedCapture failed) {
   const RunManifest manifest = LoadRunManifest(run_directory);
   TomographyInput input;
   input.source = run_directory;
+  input.capture = CheckCaptureForSolve(run_directory, manifest, failed);
   std::vector<double> angles_deg;
   for (const FrameRecord& record : manifest.frames) {
     if (record.kind == "dark") {
@@ -218,8 +219,8 @@ TomographyInput LoadProjectionFolder(const std::string& directory) {
   return input;
 }
 
-TomographyInput LoadTomographyInput(const std::string& path) {
-  return fs::exists(fs::path(path) / "manifest.json") ? LoadTomographyRun(path) : LoadProjectionFolder(path);
+TomographyInput LoadTomographyInput(const std::string& path, FailedCapture failed) {
+  return fs::exists(fs::path(path) / "manifest.json") ? LoadTomographyRun(path, failed) : LoadProjectionFolder(path);
 }
 
 void WriteProjectionFolder(const TomographyInput& input, const std::string& directory) {
@@ -258,6 +259,7 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   const auto started = std::chrono::steady_clock::now();
   if (std::string why; !request.IsValid(&why)) throw std::invalid_argument(why);
   TomographyResult result;
+  result.capture = input.capture;
   result.geometry = input.geometry;
   result.geometry.cor_offset_mm += request.cor_offset_mm;
   const tomography::Geometry& g = result.geometry;
@@ -364,6 +366,7 @@ json TomographyResult::ToJson() const {
   doc["geometry"].erase("saturation_dn");
   doc["geometry"]["views"] = geometry.views();
   if (relative_error_vs_truth) doc["relative_error_vs_truth"] = *relative_error_vs_truth;
+  if (capture) doc["capture"] = capture->ToJson();
   return doc;
 }
 

@@ -88,6 +88,11 @@ TEST(BrdfEndToEnd, GonioRunFitsTheSimulatedMaterial) {
       << ReadText(dir.path() / "run.log");
   const std::string printed = ReadText(dir.path() / "run.log");
   EXPECT_NE(printed.find("\"chosen\": \"blinn_phong\""), std::string::npos) << printed;
+  // Ceres' own logging (glog: "Logging before InitGoogleLogging", covariance
+  // errors as "E1128 12:00:00.000 ... covariance_impl.cc") stays out of it:
+  // the report says what a fit's covariance gave.
+  EXPECT_EQ(printed.find("InitGoogleLogging"), std::string::npos) << printed;
+  EXPECT_FALSE(std::regex_search(printed, std::regex("(^|\n)[IWEF][0-9]{4} [0-9:.]+ "))) << printed;
   const auto report = Report(dir, "run");
   // The recipe's plan: 9 x 6 configurations, 4 beyond the arms or the horizon.
   EXPECT_EQ(report["samples"], 50);

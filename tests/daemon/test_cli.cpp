@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <regex>
 #include <string>
 #include <thread>
@@ -29,6 +30,7 @@ using nlohmann::json;
 using photorig::testing::Daemon;
 using photorig::testing::ReadText;
 using photorig::testing::SmallRigYaml;
+using photorig::testing::SourceDir;
 using photorig::testing::TempDir;
 using Outcome = photorig::testing::CommandOutcome;
 using photorig::testing::Photorig;
@@ -318,6 +320,188 @@ TEST(Cli, SubmitWatchJsonExitsZeroForARunThatEndsDone) {
   const Outcome bad = Photorig("submit " + dir.Write("bad.yaml", "recipe: {name: bad}\n") + " --json --url " + url, dir);
   EXPECT_EQ(bad.exit_code, 2);
   Document(bad, "submit");
+}
+
+// The README demo's dome with LEDs 5 and 40 dark and LED 17 at a tenth of its light.
+std::string FaultyDomeRig(const TempDir& dir) {
+  const std::string rig = std::regex_replace(ReadText(SourceDir() + "/config/rigs/sim-dome.yaml"), std::regex("\nsim:\n"),
+                                             "\nsim:\n  faults: {lights: {dim_channels: {5: 0.0, 17: 0.1, 40: 0.0}}}\n");
+  return dir.Write("faulty-dome.yaml", rig);
+}
+
+// A run's manifest rewritten to say its capture ended `status` for `reason`,
+// as a run stopped part-way (aborted, a device fault) stores it.
+void MarkCapture(const std::string& run, const std::string& status, const std::string& reason) {
+  const fs::path path = fs::path(run) / "manifest.json";
+  json manifest = json::parse(ReadText(path));
+  manifest["status"] = status;
+  manifest["status_reason"] = reason;
+  manifest["stop"]["status"] = status;
+  manifest["stop"]["reason"] = reason;
+  std::ofstream(path) << manifest.dump(2);
+}
+
+bool Contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+TEST(Cli, AFailedCaptureIsNotSolvedUnlessAskedAndThenEveryOutputSaysSo) {
+  TempDir dir;
+  const std::string run = (dir.path() / "faulty").string();
+  const Outcome captured = Photorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + FaultyDomeRig(dir) +
+                                        " --out " + run + " --json",
+                                    dir);
+  ASSERT_EQ(captured.exit_code, 1) << captured.err;
+  ASSERT_EQ(Document(captured, "run")["capture"]["status"], "failed");
+  EXPECT_FALSE(fs::exists(fs::path(run) / "results"));
+
+  // Refused: the verdict, each reason, and what to do.
+  const Outcome refused = Photorig("solve ps --run " + run + " --json", dir);
+  EXPECT_EQ(refused.exit_code, 1) << refused.err;
+  const std::string error = Document(refused, "solve ps").value("error", "");
+  EXPECT_TRUE(Contains(error, run + ": the capture failed (47 of 49 frames)")) << error;
+  EXPECT_TRUE(Contains(error, "\n  - LEDs 5, 40 did not light")) << error;
+  EXPECT_TRUE(Contains(error, "\n  - LED 17 dead or dim")) << error;
+  EXPECT_TRUE(Contains(error, "capture again; or, to look at it anyway, solve with --accept-failed-capture")) << error;
+  EXPECT_FALSE(fs::exists(fs::path(run) / "results"));
+  for (const std::string& family : {"svbrdf", "tomography", "brdf"}) {
+    const Outcome other = Photorig("solve " + family + " --run " + run + " --json", dir);
+    EXPECT_EQ(other.exit_code, 1) << family << ": " << other.err;
+    EXPECT_TRUE(Contains(Document(other, "solve " + family).value("error", ""), "the capture failed")) << family;
+  }
+  EXPECT_FALSE(fs::exists(fs::path(run) / "results"));
+
+  // Accepted: solved, and the document, report.json and text all say from what.
+  const Outcome accepted = Photorig("solve ps --run " + run + " --accept-failed-capture --json", dir);
+  ASSERT_EQ(accepted.exit_code, 0) << accepted.err;
+  const json solved = Document(accepted, "solve ps");
+  const json& capture = solved["capture"];
+  EXPECT_EQ(capture["status"], "failed");
+  EXPECT_EQ(capture["accepted_failed_capture"], true);
+  ASSERT_EQ(capture["reasons"].size(), 2u) << capture.dump();
+  EXPECT_TRUE(Contains(capture["reasons"][0].get<std::string>(), "LEDs 5, 40 did not light")) << capture.dump();
+  EXPECT_TRUE(Contains(capture["reasons"][1].get<std::string>(), "LED 17 dead or dim")) << capture.dump();
+  EXPECT_EQ(json::parse(ReadText(fs::path(run) / "results/ps/report.json"))["capture"], capture);
+  EXPECT_TRUE(Contains(accepted.err, "warning: solved from a failed capture (--accept-failed-capture)")) << accepted.err;
+  EXPECT_TRUE(Contains(accepted.err, "  - LEDs 5, 40 did not light")) << accepted.err;
+
+  // A batch counts the run failed beside a good one, whose report says its capture was complete.
+  const SmallRun good(dir);
+  ASSERT_EQ(Photorig("run " + good.recipe + " --out " + good.run + " --no-solve", dir).exit_code, 0);
+  const Outcome batch = Photorig("batch solve --runs " + run + "," + good.run + " --local 2 --method lambertian --batch " +
+                                     (dir.path() / "batch").string() + " --json",
+                                 dir);
+  EXPECT_EQ(batch.exit_code, 1) << batch.err;
+  const json counted = Document(batch, "batch solve");
+  EXPECT_EQ(counted["counts"].value("failed", 0), 1) << counted.dump(2);
+  EXPECT_EQ(counted["counts"].value("completed", 0), 1) << counted.dump(2);
+  EXPECT_EQ(counted["tasks"][0]["state"], "failed");
+  EXPECT_TRUE(Contains(counted["tasks"][0].value("error", ""), "the capture failed")) << counted.dump(2);
+  EXPECT_EQ(counted["tasks"][1]["report"]["capture"]["status"], "complete");
+}
+
+TEST(Cli, AnAbortedCaptureIsRefusedByEverySolve) {
+  TempDir dir;
+  const SmallRun small(dir);
+  ASSERT_EQ(Photorig("run " + small.recipe + " --out " + small.run + " --no-solve", dir).exit_code, 0);
+  MarkCapture(small.run, "aborted", "aborted by request after 3 of 5 steps");
+  for (const std::string& family : {"ps", "svbrdf", "tomography", "brdf"}) {
+    const Outcome refused = Photorig("solve " + family + " --run " + small.run + " --json", dir);
+    EXPECT_EQ(refused.exit_code, 1) << family << ": " << refused.err;
+    const std::string error = Document(refused, "solve " + family).value("error", "");
+    EXPECT_TRUE(Contains(error, "the capture was aborted (5 of 5 frames)")) << error;
+    EXPECT_TRUE(Contains(error, "\n  - aborted by request after 3 of 5 steps")) << error;
+  }
+  EXPECT_FALSE(fs::exists(fs::path(small.run) / "results"));
+  const Outcome accepted = Photorig("solve svbrdf --run " + small.run + " --accept-failed-capture --held-out -1 --no-gltf --json", dir);
+  EXPECT_EQ(Document(accepted, "solve svbrdf")["capture"]["status"], "aborted") << accepted.err;
+  EXPECT_EQ(json::parse(ReadText(fs::path(small.run) / "results/svbrdf/report.json"))["capture"]["accepted_failed_capture"], true);
+}
+
+TEST(Cli, TheDaemonsRunRecordGivesTheCapturesVerdictWithItsResults) {
+  TempDir dir;
+  const std::string rig = dir.Write("rig.yaml", SmallRigYaml("{lights: {dim_channels: {2: 0.0}}}"));
+  const std::string recipe = dir.Write("recipe.yaml", photorig::testing::SmallRecipeYaml());
+  const Daemon daemon(dir.path() / "data", rig, dir.path() / "photorigd.log");
+  const std::string url = daemon.WaitReady();
+  ASSERT_FALSE(url.empty()) << ReadText(dir.path() / "photorigd.log");
+  const Outcome submitted = Photorig("submit " + recipe + " --watch --json --url " + url, dir);
+  EXPECT_EQ(submitted.exit_code, 1) << submitted.err;
+  const std::string id = Document(submitted, "submit").value("id", "");
+  ASSERT_FALSE(id.empty());
+  EXPECT_FALSE(Document(Photorig("status " + id + " --json --url " + url, dir), "status").contains("results"));
+
+  const std::string run = (dir.path() / "data" / "runs" / id).string();
+  ASSERT_EQ(Photorig("solve ps --run " + run + " --accept-failed-capture --method lambertian", dir).exit_code, 0);
+  const json record = Document(Photorig("status " + id + " --json --url " + url, dir), "status");
+  const json& capture = record["results"]["capture"];
+  EXPECT_EQ(capture["status"], "failed") << record.dump(2);
+  EXPECT_EQ(capture["accepted_failed_capture"], true);
+  ASSERT_EQ(capture["reasons"].size(), 1u);
+  EXPECT_TRUE(Contains(capture["reasons"][0].get<std::string>(), "LED 2 did not light")) << capture.dump();
+  const json listed = Document(Photorig("status --json --url " + url, dir), "status");
+  EXPECT_EQ(listed["runs"][0]["results"]["capture"], capture);
+}
+
+TEST(Cli, AFolderThatIsNoRunAndAnOccupiedOutAreUsageErrors) {
+  TempDir dir;
+  const Outcome empty = Photorig("solve ps --run " + dir.path().string() + " --json", dir);
+  EXPECT_EQ(empty.exit_code, 2) << empty.err;
+  EXPECT_TRUE(Contains(Document(empty, "solve ps").value("error", ""), dir.path().string() + " is not a run directory: it has no manifest.json"));
+
+  const SmallRun small(dir);
+  dir.Write("run/notes.txt", "not a run\n");
+  const Outcome occupied = Photorig("run " + small.recipe + " --out " + small.run + " --json", dir);
+  EXPECT_EQ(occupied.exit_code, 2) << occupied.err;
+  EXPECT_TRUE(Contains(Document(occupied, "run").value("error", ""), small.run + " already exists and is not empty"));
+  EXPECT_EQ(ReadText(fs::path(small.run) / "notes.txt"), "not a run\n");
+  EXPECT_EQ(std::distance(fs::directory_iterator(small.run), fs::directory_iterator()), 1);
+}
+
+// photorigd without --data-root keeps its queue and runs in the user's data
+// directory, not in ./runs where `photorig run` puts its own.
+TEST(Cli, PhotorigdWithoutADataRootUsesTheUsersDataDirectory) {
+  TempDir dir;
+  const fs::path home = dir.path() / "home", work = dir.path() / "work", log = dir.path() / "photorigd.log";
+  fs::create_directories(home);
+  fs::create_directories(work);
+  const std::string rig = dir.Write("rig.yaml", SmallRigYaml());
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::setenv("HOME", home.c_str(), 1);
+    ::unsetenv("XDG_DATA_HOME");
+    ::unsetenv("STATE_DIRECTORY");
+    if (::chdir(work.c_str()) != 0 || !std::freopen(log.c_str(), "w", stdout) || !std::freopen(log.c_str(), "a", stderr))
+      _exit(126);
+    const std::string bin = std::string(PHOTORIG_BIN_DIR) + "/photorigd";
+    ::execl(bin.c_str(), bin.c_str(), "--rig", rig.c_str(), "--port", "0", "--web-root", "none",
+            static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  const fs::path expected = home / ".local/share/photorig";
+  bool ready = false;
+  for (int i = 0; i < 1000 && !ready; ++i) {
+    ready = Contains(ReadText(log), "event=ready");
+    if (!ready) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ::kill(pid, SIGTERM);
+  ::waitpid(pid, nullptr, 0);
+  ASSERT_TRUE(ready) << ReadText(log);
+  EXPECT_TRUE(Contains(ReadText(log), "data_root=" + expected.string())) << ReadText(log);
+  EXPECT_TRUE(fs::exists(expected / "queue.sqlite"));
+  EXPECT_TRUE(fs::is_empty(work)) << "photorigd wrote into its working directory";
+}
+
+// A damaged frame is named once, by photorig, without OpenCV's own warnings.
+TEST(Cli, AnUnreadableFrameIsNamedWithoutTheLibrarysWarnings) {
+  TempDir dir;
+  const SmallRun small(dir);
+  ASSERT_EQ(Photorig("run " + small.recipe + " --out " + small.run + " --no-solve", dir).exit_code, 0);
+  const fs::path frame = fs::path(small.run) / "frames" / "0002_led01.png";
+  fs::resize_file(frame, 40);
+  const Outcome solve = Photorig("solve ps --run " + small.run, dir);
+  EXPECT_EQ(solve.exit_code, 1);
+  EXPECT_TRUE(Contains(solve.err, "cannot read image " + frame.string())) << solve.err;
+  EXPECT_FALSE(Contains(solve.err, "WARN")) << solve.err;
+  EXPECT_FALSE(Contains(solve.err, "imread_")) << solve.err;
 }
 
 }  // namespace

@@ -214,6 +214,20 @@ TEST(FrameHealthDescribe, GroupsLedsIntoRanges) {
   EXPECT_TRUE(Contains(text, "(needs a pixel >= 10 sigma = 21.0 DN above dark)")) << text;
 }
 
+// A dead LED's mean response is noise around zero: it reads 0.0, not -0.0.
+TEST(FrameHealthDescribe, ANoiseLevelResponseHasNoMinusSign) {
+  HealthFinding f;
+  f.check = HealthCheck::kNoLight;
+  f.led_id = 5;
+  f.value = 4.2;
+  f.mean_response_dn = -0.04;
+  f.threshold = 21.0;
+  f.noise_sigma_dn = 2.1;
+  const std::string text = FrameHealth::Describe({f});
+  EXPECT_TRUE(Contains(text, "mean response 0.0 DN")) << text;
+  EXPECT_FALSE(Contains(text, "-0.0")) << text;
+}
+
 // The reproduction from the issue: the lights are driven over Modbus TCP by a
 // separate photorig-sim-modbus process while the camera renders its own
 // in-process world, so no LED ever reaches the frames.

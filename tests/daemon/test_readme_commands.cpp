@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <regex>
 #include <set>
 #include <sstream>
 
@@ -39,10 +40,11 @@ class Workspace {
   Workspace() { fs::create_directories(work()); }
   fs::path work() const { return dir_.path() / "work"; }
   // Runs build/bin/photorig `arguments` in work(); returns its exit code.
-  int Run(const std::string& arguments) {
-    const std::string command = "cd '" + work().string() + "' && " + PHOTORIG_BIN_DIR + "/photorig " + arguments +
-                                " > '" + (dir_.path() / "stdout").string() + "' 2> '" +
-                                (dir_.path() / "stderr").string() + "'";
+  int Run(const std::string& arguments) { return Shell(std::string(PHOTORIG_BIN_DIR) + "/photorig " + arguments); }
+  // Runs a shell command line in work(); returns its exit code.
+  int Shell(const std::string& line) {
+    const std::string command = "cd '" + work().string() + "' && " + line + " > '" + (dir_.path() / "stdout").string() +
+                                "' 2> '" + (dir_.path() / "stderr").string() + "' < /dev/null";
     const int status = std::system(command.c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
@@ -228,9 +230,49 @@ TEST(ReadmeCommands, DryRunsDevicesAndTheGonioreflectometer) {
   EXPECT_TRUE(ws.Entries().empty()) << "a dry run wrote files";
   // photorig devices
   EXPECT_EQ(ws.Run("devices"), 0) << ws.Output();
-  // photorig run config/recipes/gonio-sample.yaml
+  // photorig run config/recipes/gonio-sample.yaml: 12 posed frames and a dark, nothing solved.
   EXPECT_EQ(ws.Run("run " + Config("recipes/gonio-sample.yaml")), 0) << ws.Output();
   EXPECT_EQ(ws.Entries(), std::set<std::string>{"runs"});
+  const fs::path run = fs::directory_iterator(ws.work() / "runs")->path();
+  const json manifest = Report(run / "manifest.json");
+  ASSERT_EQ(manifest["frames"].size(), 13u);
+  EXPECT_EQ(std::count_if(manifest["frames"].begin(), manifest["frames"].end(),
+                          [](const json& frame) { return frame["kind"] == "pose" && frame.contains("pose"); }),
+            12);
+  EXPECT_FALSE(fs::exists(run / "results"));
+  // Photometric stereo has nothing to solve there, and says which solver does.
+  EXPECT_EQ(ws.Run("solve ps --run " + run.string()), 2) << ws.Output();
+  EXPECT_NE(ws.Stderr().find("a gonioreflectometer run: solve it with `photorig solve brdf --run " + run.string()),
+            std::string::npos)
+      << ws.Stderr();
+  EXPECT_FALSE(fs::exists(run / "results"));
+}
+
+// The README's line that starts with `start`, as written up to its comment.
+std::string ReadmeLine(const std::string& start) {
+  std::istringstream readme(ReadText(SourceDir() + "/README.md"));
+  for (std::string line; std::getline(readme, line);)
+    if (line.rfind("    " + start, 0) == 0) return line.substr(4, line.find("  #") - 4);
+  return "";
+}
+
+TEST(ReadmeCommands, TomographyRunSolveAndTheMpirunLineAsRoot) {
+  Workspace ws;
+  // photorig run config/recipes/tomography.yaml --out runs/tomo
+  ASSERT_EQ(ws.Run("run " + Config("recipes/tomography.yaml") + " --out runs/tomo"), 0) << ws.Output();
+  // photorig solve tomography --run runs/tomo --method cgls
+  ASSERT_EQ(ws.Run("solve tomography --run runs/tomo --method cgls"), 0) << ws.Output();
+  EXPECT_EQ(Report(ws.work() / "runs/tomo/results/tomography/report.json")["method"], "cgls");
+  // The mpirun line as written (build/bin/ being this build's), whoever runs the tests.
+  const std::string line = ReadmeLine("mpirun ");
+  ASSERT_FALSE(line.empty()) << "README.md has no mpirun line";
+  if (std::system("command -v mpirun > /dev/null") != 0) GTEST_SKIP() << "no mpirun here (libopenmpi-dev)";
+  const int code = ws.Shell(std::regex_replace(line, std::regex("build/bin/"), std::string(PHOTORIG_BIN_DIR) + "/"));
+  if (code == 2 && ws.Stderr().find("built without MPI") != std::string::npos) GTEST_SKIP() << ws.Stderr();
+  ASSERT_EQ(code, 0) << line << "\n" << ws.Output();
+  const json report = Report(ws.work() / "runs/tomo/results/tomography/report.json");
+  EXPECT_EQ(report["method"], "sirt");
+  EXPECT_TRUE(report["trusted"].get<bool>()) << report.dump(2);
 }
 
 // Normalised correlation over the pixels where `mask` is set.
@@ -260,6 +302,13 @@ TEST(ReadmeCommands, LightCalibrationEnvironmentMapAndRelighting) {
   // Nothing but the asked-for rig outside the run's own results.
   EXPECT_EQ(ws.Entries(), (std::set<std::string>{"runs", "NEW_RIG.yaml"}));
   EXPECT_EQ(Report(ws.work() / "runs/lights/results/lights/report.json")["summary"]["unusable"], 0);
+  // Photometric stereo sees a calibration capture for what it is, and blames no light.
+  EXPECT_EQ(ws.Run("solve ps --run runs/lights"), 2) << ws.Output();
+  EXPECT_NE(ws.Stderr().find("runs/lights was captured to calibrate the lights (recipe light-calibration)"),
+            std::string::npos)
+      << ws.Stderr();
+  EXPECT_NE(ws.Stderr().find("`photorig calibrate lights --run runs/lights` solves it"), std::string::npos) << ws.Stderr();
+  EXPECT_FALSE(fs::exists(ws.work() / "runs/lights/results/ps"));
 
   // photorig envmap --ball runs/lights/frames/0010_led09.png --dark runs/lights/frames/0000_dark.png
   //     --circle 191.5 191.5 170 --out map.hdr

@@ -55,6 +55,24 @@ TEST(SvbrdfCli, SolvesTheSimulatedGlossySphere) {
   for (const char* file : {"albedo.tiff", "material.png", "flags.png", "report.json", "asset/asset.gltf", "asset/asset.bin",
                            "asset/base_colour.png", "asset/albedo.exr"})
     EXPECT_TRUE(std::filesystem::exists(results / file)) << file;
+  // flags.png is the map in the legend's colours with the legend drawn to its
+  // right: its "fitted" pixels are the fitted ones the report counts.
+  const auto& flags = json["previews"]["flags.png"];
+  const cv::Mat view = cv::imread((results / "flags.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(view.empty());
+  const int width = flags["map_size"][0], height = flags["map_size"][1];
+  EXPECT_EQ(flags["legend_x"].get<int>(), width);
+  EXPECT_GT(view.cols, width + 40) << "no legend panel";
+  cv::Vec3b fitted_bgr;
+  std::size_t names = 0;
+  for (const auto& entry : flags["legend"]) {
+    names += !entry["name"].get<std::string>().empty();
+    if (entry["name"] == "fitted") fitted_bgr = cv::Vec3b(entry["rgb"][2], entry["rgb"][1], entry["rgb"][0]);
+  }
+  EXPECT_EQ(names, 6u);
+  cv::Mat fitted;
+  cv::inRange(view(cv::Rect(0, 0, width, height)), fitted_bgr, fitted_bgr, fitted);
+  EXPECT_EQ(cv::countNonZero(fitted), json["pixels"]["fitted"].get<int>());
 
   EXPECT_EQ(RunPhotorig("relight --model svbrdf --light 0.3,0.2,0.9 --run " + run + " --out " +
                             (dir.path() / "relit.tiff").string(),

@@ -64,6 +64,18 @@ void CaptureRuns(const TempDir& dir, int runs = kRuns) {
 
 fs::path RunDir(const TempDir& dir, int i) { return dir.path() / "runs" / ("run" + std::to_string(i)); }
 
+// runs/run<index> captured with LED 3 dead: a failed capture, with its frames.
+void CaptureFailedRun(const TempDir& dir, int index) {
+  const std::string name = "run" + std::to_string(index);
+  dir.Write(name + "-rig.yaml", SmallRigYaml("{lights: {dim_channels: {3: 0.0}}}", 8));
+  RunRequest request;
+  request.recipe_path = dir.Write(name + "-recipe.yaml", SmallRecipeYaml(name + "-rig.yaml"));
+  request.output_directory = RunDir(dir, index).string();
+  request.solve = false;
+  request.retry.initial_backoff_ms = 1;
+  ASSERT_EQ(ExecuteRun(request).capture.status, CaptureStatus::kFailed);
+}
+
 // Each run's results/ps has the bytes of an in-process solve of the same run.
 void ExpectSameAsInProcess(const TempDir& dir, const std::string& method, int runs = kRuns) {
   for (int i = 0; i < runs; ++i) {
@@ -231,6 +243,25 @@ TEST_F(SlurmBatch, CancelledTaskKeepsThePreviousResultAndRetryCompletes) {
   EXPECT_EQ(CountState(status, "completed"), kHeldRuns);
   EXPECT_EQ(status["job_ids"].size(), 2u);
   ExpectSameAsInProcess(dir_, "auto", kHeldRuns);
+}
+
+// A task on a run whose capture failed refuses it: the batch counts it failed, saying why.
+TEST_F(SlurmBatch, ARunWhoseCaptureFailedIsAFailedTask) {
+  CaptureRuns(dir_, 2);
+  CaptureFailedRun(dir_, 2);
+  json submitted;
+  ASSERT_EQ(Photorig("batch solve --runs '" + (dir_.path() / "runs").string() + "/*' --slurm --method lambertian --batch " +
+                         batch(),
+                     &submitted, dir_.path() / "solve.log"),
+            0)
+      << ReadText(dir_.path() / "solve.log");
+  json status;
+  EXPECT_EQ(WaitForBatch(&status), 1) << status.dump(2);
+  EXPECT_EQ(CountState(status, "completed"), 2) << status.dump(2);
+  EXPECT_EQ(CountState(status, "failed"), 1) << status.dump(2);
+  EXPECT_EQ(status["tasks"][2]["state"], "failed");
+  EXPECT_NE(status["tasks"][2].value("error", "").find("the capture failed"), std::string::npos) << status.dump(2);
+  EXPECT_FALSE(fs::exists(RunDir(dir_, 2) / "results"));
 }
 
 // The recipe chooses Slurm here (its `solve:` map overrides a rig that solves locally); the restart test below

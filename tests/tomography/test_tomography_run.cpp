@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 
 namespace photorig::daemon {
@@ -89,6 +90,19 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
   EXPECT_EQ(solved["command"], "solve tomography");
   EXPECT_EQ(solved["iterations"], report["iterations"]);
   EXPECT_NEAR(solved["relative_error_vs_truth"].get<double>(), report["relative_error_vs_truth"].get<double>(), 1e-6);
+  EXPECT_EQ(solved["capture"], (json{{"status", "complete"}, {"reasons", json::array()}, {"accepted_failed_capture", false}}));
+
+  // Its truth is the phantom, nothing of a lit surface.
+  std::set<std::string> truth;
+  for (const auto& entry : fs::directory_iterator(fs::path(run) / "ground_truth")) truth.insert(entry.path().filename());
+  EXPECT_EQ(truth, std::set<std::string>{"phantom.json"});
+  // Photometric stereo refuses it, naming the solver that reads it, and writes nothing.
+  const Outcome ps = Photorig("solve ps --run " + run + " --json", dir);
+  EXPECT_EQ(ps.exit_code, 2) << ps.err;
+  EXPECT_NE(Document(ps).value("error", "").find("a tomography run: solve it with `photorig solve tomography --run " + run),
+            std::string::npos)
+      << ps.out;
+  EXPECT_FALSE(fs::exists(fs::path(run) / "results" / "ps"));
 
   // SART with TV as docs/cli.md shows it: trusted (TV holds the residual
   // above the target; the passes end at its balance), better than SIRT, and

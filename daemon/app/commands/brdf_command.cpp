@@ -1,4 +1,4 @@
-// photorig solve brdf --run DIR [--loss weighted|log] [--calibration reference|camera] [--out DIR]
+// photorig solve brdf --run DIR [--accept-failed-capture] [--loss weighted|log] [--calibration reference|camera] [--out DIR]
 //   (--json as every command: docs/cli.md)
 //
 // Gonioreflectometer frames -> BRDF samples (daemon/brdf_measurement.h: the
@@ -15,6 +15,7 @@
 #include "photorig/daemon/results_folder.h"
 #include "photorig/daemon/run_store.h"
 #include "photorig/solvers/brdf/fit.h"
+#include "ps_report.h"
 
 #include <nlohmann/json.hpp>
 
@@ -31,6 +32,7 @@ namespace fs = std::filesystem;
 
 struct Options {
   std::string run_dir, out, loss = "weighted", calibration = "reference";
+  bool accept_failed_capture = false;
 };
 
 int Execute(const Options& options) {
@@ -46,8 +48,10 @@ int Execute(const Options& options) {
   const std::string out = options.out.empty() ? (fs::path(options.run_dir) / "results" / "brdf").string() : options.out;
   daemon::BrdfSolveResult result;
   try {
-    result = daemon::SolveBrdfAndWrite(options.run_dir, request, out);
+    result = daemon::SolveBrdfAndWrite(options.run_dir, request, out, FailedCapturePolicy(options.accept_failed_capture));
   } catch (const daemon::ResultsWriteError& e) {
+    return finish(kExitFailed, e.what());
+  } catch (const daemon::FailedCaptureError& e) {
     return finish(kExitFailed, e.what());
   } catch (const std::exception& e) {  // an unreadable manifest or frame
     return finish(kExitUsage, e.what());
@@ -63,6 +67,7 @@ int Execute(const Options& options) {
   std::fprintf(text, "closest theta_h %.1f deg\n", s.min_theta_h_deg);
   daemon::PrintSelection(text, s);
   if (!result.warning.empty()) std::fprintf(text, "warning: %s\n", result.warning.c_str());
+  WarnOfFailedCapture(result.capture);
   std::fprintf(text, "results: %s/\n", out.c_str());
   return finish(result.usable() ? kExitOk : kExitFailed, result.failure());
 }
@@ -72,6 +77,7 @@ CommandRunner Setup(CLI::App& app) {
   CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
   CLI::App* sub = solve->add_subcommand("brdf", "fit BRDF models to a gonioreflectometer run and choose one");
   sub->add_option("--run", options->run_dir, "run directory")->required()->check(CLI::ExistingDirectory);
+  AddAcceptFailedCaptureFlag(sub, &options->accept_failed_capture);
   sub->add_option("--loss", options->loss, "weighted (by each sample's deviation, default) | log")
       ->check(CLI::IsMember({"weighted", "log"}));
   sub->add_option("--calibration", options->calibration,

@@ -4,6 +4,18 @@
 
 namespace photorig::app {
 
+void AddAcceptFailedCaptureFlag(CLI::App* solve, bool* accept) {
+  solve->add_flag("--accept-failed-capture", *accept,
+                  "solve a run whose capture failed or was aborted (refused otherwise); every result and report says so");
+}
+
+void WarnOfFailedCapture(const std::optional<daemon::CaptureVerdict>& capture) {
+  if (!capture || capture->complete()) return;
+  std::printf("warning: solved from a %s capture (--accept-failed-capture); not a measurement to rely on:\n",
+              daemon::CaptureStatusName(capture->status));
+  for (const std::string& reason : capture->reasons) std::printf("  - %s\n", reason.c_str());
+}
+
 void PrintPhotometricStereoSummary(const daemon::PhotometricStereoResult& result) {
   const ps::SolverSummary& summary = result.summary;
   std::printf("photometric stereo (%s): %s, %zu pixels solved, %.1f ms solve\n", summary.method.c_str(),

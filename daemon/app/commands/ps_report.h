@@ -5,9 +5,22 @@
 #include "photorig/daemon/light_calibration.h"
 #include "photorig/daemon/ps_pipeline.h"
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
+
+#include <optional>
 
 namespace photorig::app {
 void PrintPhotometricStereoSummary(const daemon::PhotometricStereoResult& result);
 nlohmann::json LightCalibrationJson(const daemon::LightCalibrationSummary& summary);
+
+// `--accept-failed-capture`, which every `solve <family> --run` takes: solve a
+// run whose capture failed or was aborted instead of refusing it.
+void AddAcceptFailedCaptureFlag(CLI::App* solve, bool* accept);
+inline daemon::FailedCapture FailedCapturePolicy(bool accept) {
+  return accept ? daemon::FailedCapture::kAccept : daemon::FailedCapture::kRefuse;
+}
+// A warning, with the capture's verdict and reasons, when a result comes from
+// a capture that did not complete (its report's "capture" says so too).
+void WarnOfFailedCapture(const std::optional<daemon::CaptureVerdict>& capture);
 }

@@ -1,4 +1,4 @@
-// photorig solve ps (--run DIR | --dataset DIR) [--method ...] [--mask PNG] [--out DIR]
+// photorig solve ps (--run DIR [--accept-failed-capture] | --dataset DIR) [--method ...] [--mask PNG] [--out DIR]
 //                  [--demosaic bilinear|edge-aware] [--color-model FILE] ...
 // photorig export diligent --run DIR --out DIR
 
@@ -25,6 +25,7 @@ struct Options {
   std::string commit_gate;  // tests: hold the finished solve while this file exists
   std::string demosaic = "bilinear";
   std::string color_model;
+  bool accept_failed_capture = false;
   daemon::PhotometricStereoRequest request;
 };
 
@@ -54,7 +55,8 @@ int Execute(const Options& options) {
   if (!from_run && !options.color_model.empty())
     return Fail(kExitUsage, "--color-model applies to runs (a DiLiGenT folder's images are already RGB)");
   daemon::PhotometricStereoInput input =
-      from_run ? daemon::LoadRunStack(options.run_dir, color) : daemon::LoadDiligent(options.dataset_dir);
+      from_run ? daemon::LoadRunStack(options.run_dir, color, FailedCapturePolicy(options.accept_failed_capture))
+               : daemon::LoadDiligent(options.dataset_dir);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
   daemon::PhotometricStereoRequest request = options.request;
@@ -68,6 +70,7 @@ int Execute(const Options& options) {
   }
   progress.EndLine();
   PrintPhotometricStereoSummary(result);
+  WarnOfFailedCapture(result.capture);
   std::printf("results: %s/\n", destination.c_str());
   ResultFields() = daemon::ToJson(result);
   ResultFields()["results_directory"] = destination;
@@ -82,6 +85,7 @@ CommandRunner SetupSolve(CLI::App& app) {
   auto* run = ps->add_option("--run", options->run_dir, "run directory")->check(CLI::ExistingDirectory);
   auto* dataset = ps->add_option("--dataset", options->dataset_dir, "DiLiGenT-layout folder")->check(CLI::ExistingDirectory);
   run->excludes(dataset);
+  AddAcceptFailedCaptureFlag(ps, &options->accept_failed_capture);
   ps->add_option("--method", options->request.method, "l2 | lambertian | robust | blinn-phong | auto (default auto)")
       ->check(CLI::IsMember({"l2", "lambertian", "robust", "blinn-phong", "auto"}));
   ps->add_option("--derivative", options->request.derivative,

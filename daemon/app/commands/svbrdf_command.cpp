@@ -1,4 +1,4 @@
-// photorig solve svbrdf (--run DIR | --dataset DIR) [--mask PNG] [--out DIR] [--max-materials K] [--held-out N] [--no-gltf]
+// photorig solve svbrdf (--run DIR [--accept-failed-capture] | --dataset DIR) [--mask PNG] [--out DIR] [--max-materials K] [--held-out N] [--no-gltf]
 //                      [--refine-normals]
 
 #include "../command.h"
@@ -7,6 +7,7 @@
 #include "photorig/daemon/color_stack.h"
 #include "photorig/daemon/diligent.h"
 #include "photorig/daemon/svbrdf_pipeline.h"
+#include "ps_report.h"
 
 #include <cstdio>
 #include <filesystem>
@@ -22,6 +23,7 @@ struct Options {
   std::string demosaic = "bilinear";
   daemon::SvbrdfRequest request;
   bool no_gltf = false;
+  bool accept_failed_capture = false;
 };
 
 void PrintSummary(const daemon::SvbrdfResult& result) {
@@ -53,7 +55,8 @@ int Execute(const Options& options) {
   daemon::ColorStackOptions color;
   color.demosaic = *daemon::ParseDemosaicMethod(options.demosaic);
   daemon::PhotometricStereoInput input =
-      from_run ? daemon::LoadRunStack(options.run_dir, color) : daemon::LoadDiligent(options.dataset_dir);
+      from_run ? daemon::LoadRunStack(options.run_dir, color, FailedCapturePolicy(options.accept_failed_capture))
+               : daemon::LoadDiligent(options.dataset_dir);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
   daemon::SvbrdfRequest request = options.request;
@@ -62,6 +65,7 @@ int Execute(const Options& options) {
   const daemon::SvbrdfResult result = daemon::SolveSvbrdfAndWrite(input, request, destination);
   progress.EndLine();
   PrintSummary(result);
+  WarnOfFailedCapture(result.ps.capture);
   std::printf("results: %s/\n", destination.c_str());
   ResultFields() = daemon::ToJson(result);
   ResultFields()["results_directory"] = destination;
@@ -78,6 +82,7 @@ CommandRunner SetupSolveSvbrdf(CLI::App& app) {
   auto* dataset =
       svbrdf->add_option("--dataset", options->dataset_dir, "DiLiGenT-layout folder")->check(CLI::ExistingDirectory);
   run->excludes(dataset);
+  AddAcceptFailedCaptureFlag(svbrdf, &options->accept_failed_capture);
   svbrdf->add_option("--mask", options->mask, "PNG, nonzero = object")->check(CLI::ExistingFile);
   svbrdf->add_option("--out", options->out, "output directory (default: SOURCE/results/svbrdf)");
   svbrdf->add_option("--method", options->request.ps.method, "photometric stereo for the normals (default auto)")

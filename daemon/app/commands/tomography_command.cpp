@@ -1,4 +1,4 @@
-// photorig solve tomography (--run DIR | --projections DIR) [--method sirt|art|cgls|sart] [--tv] [--projector joseph|siddon]
+// photorig solve tomography (--run DIR [--accept-failed-capture] | --projections DIR) [--method sirt|art|cgls|sart] [--tv] [--projector joseph|siddon]
 //                           [--max-iterations N] [--volume NX NY NZ] [--voxel-mm MM] [--cor-offset-mm MM] [--out DIR]
 //
 // A turntable scan's frames -> absorbance (flats and darks) -> a volume by
@@ -17,6 +17,7 @@
 #include "../progress_display.h"
 #include "photorig/daemon/recipe.h"
 #include "photorig/daemon/tomography_pipeline.h"
+#include "ps_report.h"
 
 #include <cstdio>
 #include <filesystem>
@@ -38,6 +39,7 @@ struct Options {
   std::vector<int> volume;
   bool mpi = false;
   int mpi_slabs = 0;  // 0: chosen from the volume's size (DecompositionOptions)
+  bool accept_failed_capture = false;
   daemon::TomographyRequest request;
 };
 
@@ -90,7 +92,8 @@ int Execute(const Options& options) {
 #endif
   if (!options.mpi && options.mpi_slabs != 0) return Fail(kExitUsage, "--mpi-slabs needs --mpi");
   const daemon::TomographyInput input =
-      from_run ? daemon::LoadTomographyRun(source) : daemon::LoadProjectionFolder(source);
+      from_run ? daemon::LoadTomographyRun(source, FailedCapturePolicy(options.accept_failed_capture))
+               : daemon::LoadProjectionFolder(source);
 
   ProgressDisplay progress;
   request.progress = progress.Callback();
@@ -111,8 +114,10 @@ int Execute(const Options& options) {
                 static_cast<long long>(result.absorbance.flagged()), static_cast<long long>(result.absorbance.rays));
   if (result.relative_error_vs_truth)
     std::printf("  vs the phantom: relative L2 error %.3f\n", *result.relative_error_vs_truth);
-  std::printf("  %.0f ms (absorbance %.0f, projector %.0f, solve %.0f)\nresults: %s/\n", result.total_ms,
-              result.absorbance_ms, result.projector.total_ms, r.solve_ms, destination.c_str());
+  std::printf("  %.0f ms (absorbance %.0f, projector %.0f, solve %.0f)\n", result.total_ms, result.absorbance_ms,
+              result.projector.total_ms, r.solve_ms);
+  WarnOfFailedCapture(result.capture);
+  std::printf("results: %s/\n", destination.c_str());
 
   ResultFields() = result.ToJson();
   ResultFields()["source"] = source;
@@ -137,6 +142,7 @@ CommandRunner Setup(CLI::App& app) {
                                  "folder with geometry.json, projections/, flats/, darks/ (docs/tomography.md)")
                      ->check(CLI::ExistingDirectory);
   run->excludes(folder);
+  AddAcceptFailedCaptureFlag(sub, &options->accept_failed_capture);
   sub->add_option("--method", options->request.method, "sirt (default) | art | cgls | sart")
       ->check(CLI::IsMember({"sirt", "art", "cgls", "sart"}));
   sub->add_flag("--tv", options->request.total_variation,

@@ -24,6 +24,7 @@ struct BrdfSolveResult {
   nlohmann::json report;  // report.json: the measurement, every model's fit and the choice
   std::string warning;    // a clipped specular peak; empty otherwise
   std::string results;    // the folder written; empty when nothing was
+  std::optional<CaptureVerdict> capture;  // the run's (also report.json "capture")
   double total_ms = 0.0;
 
   // A chosen model from a usable measurement.
@@ -37,9 +38,11 @@ struct BrdfSolveResult {
 
 // Reads the run at `run_dir` and, when there are samples, writes the report
 // and samples into `out_dir` whole (results_folder.h). Throws what the run
-// store throws for an unreadable manifest or frame, and ResultsWriteError
-// when the results cannot be written.
-BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const BrdfRequest& request, const std::string& out_dir);
+// store throws for an unreadable manifest or frame, FailedCaptureError for a
+// capture that did not complete unless `failed` accepts it (the report then
+// says so), and ResultsWriteError when the results cannot be written.
+BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const BrdfRequest& request, const std::string& out_dir,
+                                  FailedCapture failed = FailedCapture::kRefuse);
 
 // The measurement's part of the report: frames, calibration, noise, clipped poses.
 nlohmann::json MeasurementJson(const BrdfMeasurement& measurement);

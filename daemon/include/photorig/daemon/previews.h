@@ -43,11 +43,19 @@ struct Category {
 // The flags' and models' palettes (PixelFlag, PixelModel codes with their names).
 const std::vector<Category>& FlagCategories();
 const std::vector<Category>& ModelCategories();
+// The reflectance fit's flags (solvers/reflectance PixelFlag): results/svbrdf/flags.png.
+const std::vector<Category>& ReflectanceFlagCategories();
 
 // A colour image: the map's pixels in columns 0 .. codes.cols - 1 (rows
 // 0 .. codes.rows - 1), each its category's colour (codes not listed: white);
 // to its right a legend panel with a swatch and the name of every category.
 cv::Mat CategoricalPreview(const cv::Mat& codes, const std::vector<Category>& categories);
+// How to read a CategoricalPreview back (report.json "previews"): "legend"
+// (code, name, RGB of each category), "map_size" and "legend_x".
+nlohmann::json LegendJson(const std::vector<Category>& categories, const cv::Mat& codes);
+// The codes of a CategoricalPreview (as read, BGR) over its map's `size`;
+// a colour of no category reads as 255.
+cv::Mat CodesFromPreview(const cv::Mat& preview, cv::Size size, const std::vector<Category>& categories);
 
 // Writes every view above into `directory` (depth.png only when `depth` is
 // not empty) and returns {file name: its mapping}.

@@ -14,6 +14,7 @@
 
 #include "photorig/daemon/color_stack.h"
 #include "photorig/daemon/recipe.h"
+#include "photorig/daemon/run_store.h"
 #include "photorig/ps/evaluation.h"
 #include "photorig/ps/integration.h"
 #include "photorig/ps/photometric_stereo.h"
@@ -47,6 +48,8 @@ struct PhotometricStereoInput {
   std::optional<ColorImageStack> color;
   cv::Mat truth_albedo_rgb;  // optional CV_32FC3 (R, G, B), linear sRGB
   cv::Mat truth_material;    // optional CV_8U material (paint) per pixel, 255 off the object
+  // A run's capture verdict (CheckCaptureForSolve); unset for a dataset folder.
+  std::optional<CaptureVerdict> capture;
 };
 
 // 1.4826 x the median absolute deviation of a CV_32F image's values (every
@@ -70,7 +73,11 @@ cv::Mat AutomaticObjectMask(const ps::PhotometricStack& stack, double sigmas);
 // A colour run (manifest camera.mosaic not "mono") is demosaiced with
 // `color.demosaic` and put through its colour model (`color`, else the one the
 // manifest names); its `stack` is the sum of the camera channels.
-PhotometricStereoInput LoadRunStack(const std::string& run_directory, const ColorStackOptions& color = {});
+// A run whose capture did not complete is refused (FailedCaptureError) unless
+// `failed` accepts it; a run without one frame per LED (a gonioreflectometer
+// or tomography run) is refused with std::invalid_argument naming its solver.
+PhotometricStereoInput LoadRunStack(const std::string& run_directory, const ColorStackOptions& color = {},
+                                    FailedCapture failed = FailedCapture::kRefuse);
 
 // The level at or above which samples count as clipped: the input's own, or,
 // for data that do not say (DiLiGenT folders), the full-scale code 2^n - 1
@@ -119,6 +126,7 @@ struct PhotometricStereoResult {
     ColorError all, interior;
   };
   std::optional<ColorErrors> albedo_ciede2000_vs_truth;
+  std::optional<CaptureVerdict> capture;  // PhotometricStereoInput::capture
   std::string mask_source;         // "" when every pixel was solved for
   int mask_pixels = 0;             // pixels inside the mask
   nlohmann::json previews;         // file name -> its mapping (previews.h), when usable

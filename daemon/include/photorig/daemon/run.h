@@ -94,9 +94,10 @@ struct RunOutcome {
 // mosaic and colour model, saturation, lamps, reference target.
 RunManifest ManifestHeaderFor(const RigConfig& rig);
 
-// Throws ConfigError for bad configuration (before any device is touched) and
-// std::runtime_error for storage failures or too little free space for the
-// run's estimate; device faults end up in outcome.capture.status.
+// Throws ConfigError for bad configuration and std::invalid_argument for an
+// output directory that already holds files (both before any device is
+// touched), std::runtime_error for storage failures or too little free space
+// for the run's estimate; device faults end up in outcome.capture.status.
 RunOutcome ExecuteRun(const RunRequest& request);
 
 }  // namespace photorig::daemon

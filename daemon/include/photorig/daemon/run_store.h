@@ -17,6 +17,7 @@
 #include <iosfwd>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -67,6 +68,10 @@ struct RunManifest {
   std::string run_id;
   std::string recipe_path;
   std::string recipe_name;
+  // The recipe's solve stages, in its words ("photometric_stereo",
+  // "light_calibration", ...): what the capture was made for. Empty in runs
+  // stored before it was recorded.
+  std::vector<std::string> solve_stages;
   std::string rig_path;
   std::string rig_name;
   CaptureStatus status = CaptureStatus::kRunning;
@@ -146,6 +151,11 @@ class RunWriter {
   // the object) as ground_truth/material.png.
   void WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vector<sim::Light>& lights,
                         const cv::Mat& albedo_rgb = cv::Mat());
+  // A volume (a tomography phantom or density grid) has no surface and is
+  // not lit by LEDs: its truth is the phantom (`phantom_json`, as
+  // ground_truth/phantom.json) or the line integrals through the grid
+  // (line_integrals.tiff), whichever is given.
+  void WriteVolumeGroundTruth(const cv::Mat& line_integrals, const std::string& phantom_json);
   bool HasFrame(int step_index) const;
   // Appends the stop record to the journal and writes manifest.json.
   void Finish(const StopRecord& stop);
@@ -161,9 +171,40 @@ class RunWriter {
   Png16Encoder encoder_;
 };
 
-// Reads manifest.json. Throws std::runtime_error naming the file on a missing
-// or corrupt manifest.
+// Reads manifest.json. Throws std::invalid_argument naming the directory when
+// it holds no manifest (not a run: the caller named the wrong folder), and
+// std::runtime_error naming the file on a corrupt one.
 RunManifest LoadRunManifest(const std::string& directory);
+
+// What a run's capture says about solving it, from its manifest: a capture
+// that did not complete (failed health checks, a device fault, aborted,
+// interrupted) is not solved unless the caller accepts it, and then every
+// report solved from it carries this verdict.
+struct CaptureVerdict {
+  CaptureStatus status = CaptureStatus::kComplete;
+  std::vector<std::string> reasons;  // the stop record's findings, one each
+  bool accepted_failed_capture = false;
+
+  bool complete() const { return status == CaptureStatus::kComplete; }
+  // {"status", "reasons", "accepted_failed_capture"}: report.json's "capture".
+  nlohmann::json ToJson() const;
+};
+CaptureVerdict CaptureVerdictOf(const RunManifest& manifest);
+
+// Whether a solve goes ahead on a capture that did not complete.
+enum class FailedCapture { kRefuse, kAccept };
+
+// A solve refused because its run's capture did not complete: a failed
+// result, not a usage error (exit code 1).
+class FailedCaptureError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The run's verdict for a solve. Throws FailedCaptureError, naming the run,
+// its verdict and reasons and what to do, when the capture did not complete
+// and `failed` is kRefuse; with kAccept the verdict says it was accepted.
+CaptureVerdict CheckCaptureForSolve(const std::string& directory, const RunManifest& manifest, FailedCapture failed);
 // Loads a frame as 16-bit (one channel, or three in R, G, B order for an RGB
 // run) and checks the checksum against its record.
 cv::Mat LoadFrame(const std::string& directory, const FrameRecord& record);

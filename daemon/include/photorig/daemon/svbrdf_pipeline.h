@@ -60,6 +60,7 @@ struct SvbrdfResult {
   std::string demosaic_refit_failure;
   cv::Mat demosaic_regions;  // CV_8U, the labels of the refit's demosaic; empty without one
   int max_materials = 0;     // as requested, for report.json "options" (what a later relight needs to refit)
+  nlohmann::json previews;   // {"flags.png": its legend (previews.h LegendJson)}, when fitted
   std::string gltf_path;                    // empty when not exported
   double total_ms = 0.0;
   bool usable() const { return ps.usable() && summary.IsSolutionUsable(); }

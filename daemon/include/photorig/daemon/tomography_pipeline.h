@@ -13,6 +13,7 @@
 // "saturation_dn"}, projections/*.png (16-bit, one per angle in name order),
 // flats/*.png, darks/*.png, and optionally phantom.json (the ground truth).
 
+#include "photorig/daemon/run_store.h"
 #include "photorig/config/solve_requests.h"
 #include "photorig/sim/phantom.h"
 #include "photorig/solvers/tomography/absorbance.h"
@@ -36,6 +37,8 @@ struct TomographyInput {
   std::vector<std::vector<std::uint16_t>> projections, flats, darks;
   double saturation_dn = 4095.0;
   std::optional<sim::Phantom> phantom;  // ground truth of a simulated scan
+  // A run's capture verdict (CheckCaptureForSolve); unset for a projection folder.
+  std::optional<CaptureVerdict> capture;
 };
 
 // Both throw std::invalid_argument naming what is missing or inconsistent
@@ -45,10 +48,12 @@ struct TomographyInput {
 // (sample_changer_deg 0), flats the poses with it out, darks its dark frames;
 // the angles are the turntable's, the detector the camera's size and pitch,
 // the beam parallel (the simulated tomograph's telecentric camera).
-TomographyInput LoadTomographyRun(const std::string& run_directory);
+// A run whose capture did not complete is refused (FailedCaptureError) unless
+// `failed` accepts it.
+TomographyInput LoadTomographyRun(const std::string& run_directory, FailedCapture failed = FailedCapture::kRefuse);
 TomographyInput LoadProjectionFolder(const std::string& directory);
 // A run directory (manifest.json) or a folder of projections.
-TomographyInput LoadTomographyInput(const std::string& path);
+TomographyInput LoadTomographyInput(const std::string& path, FailedCapture failed = FailedCapture::kRefuse);
 
 // The phantom as JSON (ground_truth/phantom.json of a simulated run).
 nlohmann::json PhantomToJson(const sim::Phantom& phantom);
@@ -75,6 +80,7 @@ struct TomographyResult {
   // Relative L2 error against the phantom averaged over each voxel, inside
   // the cylinder every view sees (radius: half the detector width).
   std::optional<double> relative_error_vs_truth;
+  std::optional<CaptureVerdict> capture;  // TomographyInput::capture
   double absorbance_ms = 0.0, total_ms = 0.0;
 
   // kSuccess only: a stopping rule ended it within the noise (the
