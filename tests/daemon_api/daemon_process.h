@@ -64,7 +64,6 @@ class DaemonProcess {
     ::waitpid(pid_, nullptr, 0);
     pid_ = -1;
   }
-  pid_t pid() const { return pid_; }
   // The exit code once the process ends by itself within `timeout`; -1 if
   // it is still running then (or was killed by a signal).
   int WaitExit(std::chrono::milliseconds timeout) {

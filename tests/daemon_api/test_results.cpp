@@ -321,8 +321,8 @@ TEST(Fetch, AFileAndAFolderOfOneNameAreReportedAndTheRestFetched) {
   });
   const int port = server.bind_to_any_port("127.0.0.1");
   ASSERT_GT(port, 0);
+  // bind_to_any_port already listens: a request before the thread accepts waits in the backlog.
   std::thread serving([&server] { server.listen_after_bind(); });
-  server.wait_until_ready();
   const fs::path out = dir.path() / "out";
   const int exit_code = RunPhotorig("fetch 000001-x --json --out " + out.string() + " --url http://127.0.0.1:" +
                                         std::to_string(port),

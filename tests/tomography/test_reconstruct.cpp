@@ -308,16 +308,23 @@ TEST(Reconstruct, SartWithTotalVariationOnTheRecipesScanStopsAtItsBalance) {
   EXPECT_LT(tv_error, 0.9 * error(y)) << "SIRT after " << t.iterations;
 }
 
+// `exact` with Gaussian noise of `fraction` of its peak (seeded), whose
+// sigma goes to *noise_sigma.
+Absorbance WithNoise(Absorbance exact, double fraction, double* noise_sigma) {
+  *noise_sigma = fraction * exact.b.maxCoeff();
+  std::mt19937 rng(8);
+  std::normal_distribution<float> gauss(0.0f, static_cast<float>(*noise_sigma));
+  for (auto& v : exact.b) v += gauss(rng);
+  return exact;
+}
+
 // The balance is trusted only where the data are consistent: a wrong centre
 // of rotation leaves SART with TV stalled far above the noise level, and that
 // is said, not passed off as converged.
 TEST(Reconstruct, SartWithTotalVariationOnInconsistentDataIsNotTrusted) {
   SliceProblem shifted(32, 128, 360.0, 1.5);
-  Absorbance data = shifted.Exact();
-  const double noise_sigma = 0.03 * data.b.maxCoeff();
-  std::mt19937 rng(8);
-  std::normal_distribution<float> gauss(0.0f, static_cast<float>(noise_sigma));
-  for (auto& v : data.b) v += gauss(rng);
+  double noise_sigma = 0.0;
+  const Absorbance data = WithNoise(shifted.Exact(), 0.03, &noise_sigma);
   const SliceProblem centred(32, 128, 360.0, 0.0);
   ReconstructOptions options;
   options.method = Method::kSart;
@@ -446,11 +453,8 @@ TEST(Reconstruct, AWrongCentreOfRotationShowsAsInconsistentData) {
   // stalls far above the noise.
   // Noise of 3 % of b's peak stays above the pixel model's own error.
   SliceProblem shifted(32, 128, 360.0, 1.5);
-  Absorbance data = shifted.Exact();
-  const double noise_sigma = 0.03 * data.b.maxCoeff();
-  std::mt19937 rng(8);
-  std::normal_distribution<float> gauss(0.0f, static_cast<float>(noise_sigma));
-  for (auto& v : data.b) v += gauss(rng);
+  double noise_sigma = 0.0;
+  const Absorbance data = WithNoise(shifted.Exact(), 0.03, &noise_sigma);
   const SliceProblem centred(32, 128, 360.0, 0.0);
   ReconstructOptions options;
   options.method = Method::kCgls;
