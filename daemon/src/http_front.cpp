@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <stdexcept>
@@ -161,9 +162,14 @@ HttpFront::HttpFront(FrontOptions options)
     : options_(options), epoll_fd_(::epoll_create1(EPOLL_CLOEXEC)), wake_fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {
   if (epoll_fd_ < 0 || wake_fd_ < 0) throw std::runtime_error(std::string("HTTP front: ") + std::strerror(errno));
   set_keep_alive_timeout(std::max(1, options_.idle_timeout_ms / 1000));
-  set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
-    t_close_after_answer = res.get_header_value("Connection") == "close" || res.status == 400 || res.status == 411 ||
-                           res.status == 413 || res.status == 414;
+  set_post_routing_handler([](const httplib::Request& req, httplib::Response& res) {
+    // A request refused before its body was read (403, 401, 415, ...) leaves
+    // that body on the socket, where it would be parsed as the next request.
+    const bool body_unread =
+        req.body.empty() && std::strtoull(req.get_header_value("Content-Length").c_str(), nullptr, 10) > 0;
+    t_close_after_answer = body_unread || res.get_header_value("Connection") == "close" || res.status == 400 ||
+                           res.status == 411 || res.status == 413 || res.status == 414;
+    if (body_unread) res.set_header("Connection", "close");
   });
 }
 

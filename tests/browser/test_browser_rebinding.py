@@ -18,12 +18,16 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 import urllib.request
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from test_browser_ui import SKIP, api_get, check, start_browser, start_chromedriver, start_daemon  # noqa: E402
 
 RECIPE = "recipe: {name: darks}\ncapture:\n  steps:\n    - dark: {count: 2}\n"
+# The run the pages try to abort or resume: paused by the test itself, so
+# its state changes only if one of their requests gets through.
+HELD_RECIPE = "recipe: {name: held}\ncapture:\n  steps:\n    - dark: {count: 1000}\n"
 
 # What a page tries, from its own origin or across to the daemon's; each
 # entry's status, or "refused" when the browser let the page read none.
@@ -48,6 +52,13 @@ const tries = {
   done(seen);
 })();
 """
+
+
+def api_post(url, path, body):
+    request = urllib.request.Request(url + "api/v1" + path, method="POST", headers={"Content-Type": "application/json"},
+                                     data=json.dumps(body).encode())
+    with urllib.request.urlopen(request, timeout=30) as reply:
+        return json.loads(reply.read() or b"{}")
 
 
 def runs(url):
@@ -75,10 +86,12 @@ def main():
     port = url.rstrip("/").rsplit(":", 1)[1]
     chromedriver = driver = None
     try:
-        request = urllib.request.Request(url + "api/v1/runs", method="POST", headers={"Content-Type": "application/json"},
-                                         data=json.dumps({"name": "darks.yaml", "recipe": RECIPE}).encode())
-        with urllib.request.urlopen(request, timeout=30) as reply:
-            run_id = json.loads(reply.read())["id"]
+        run_id = api_post(url, "/runs", {"name": "held.yaml", "recipe": HELD_RECIPE})["id"]
+        api_post(url, f"/runs/{run_id}/pause", {})
+        deadline = time.monotonic() + 30
+        while dict(runs(url))[run_id] != "paused":
+            check(time.monotonic() < deadline, f"the held run never paused: {runs(url)}")
+            time.sleep(0.1)
         before = runs(url)
 
         logs = [os.path.join(args.artefacts, name) for name in ("chromedriver-rebinding.log", "chromium-rebinding.log")]

@@ -71,6 +71,14 @@ ApiClient Client(int port) {
   return ApiClient(options);
 }
 
+// The frames a run's journal holds (lines with a checksum).
+int JournalFrames(const fs::path& run) {
+  std::ifstream journal(run / "journal.jsonl");
+  int lines = 0;
+  for (std::string line; std::getline(journal, line);) lines += line.find("\"crc32\"") != std::string::npos;
+  return lines;
+}
+
 TEST(Crash, KillNineAtRandomPointsLosesAndDuplicatesNoFrame) {
   TempDir dir;
   const fs::path data = dir.path() / "data", log = dir.path() / "photorigd.log";
@@ -90,18 +98,12 @@ TEST(Crash, KillNineAtRandomPointsLosesAndDuplicatesNoFrame) {
 
   // Kill when the journal reaches a random frame count ahead of where it is, so
   // every kill lands mid-capture however fast this machine writes.
-  auto journal_frames = [&run] {
-    std::ifstream journal(run / "journal.jsonl");
-    int lines = 0;
-    for (std::string line; std::getline(journal, line);) lines += line.find("\"crc32\"") != std::string::npos;
-    return lines;
-  };
   int kills_during_capture = 0;
   for (int kill = 0; kill < kKills; ++kill) {
-    const int now = journal_frames();
+    const int now = JournalFrames(run);
     const int target = std::min(kSteps - 1, now + 1 + delay_ms(rng) % std::max(1, (kSteps - now) / (kKills - kill)));
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
-    while (journal_frames() < target && std::chrono::steady_clock::now() < deadline)
+    while (JournalFrames(run) < target && std::chrono::steady_clock::now() < deadline)
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     daemon->Kill();
     // What the journal vouches for is on disk and intact (checked on a copy,
@@ -156,21 +158,15 @@ TEST(Crash, AResumedRunShowsTheFramesItKeptRightAfterARestart) {
   auto daemon = StartDaemon(data, rig, log);
   int port = daemon->WaitReady(log, 0);
   ASSERT_GT(port, 0) << ReadText(log);
-  const auto submitted = Client(port).Post("/api/v1/runs", {{"recipe", photorig::testing::SmallRecipeYaml("", 2000)}});
+  const auto submitted = Client(port).Post("/api/v1/runs", {{"recipe", photorig::testing::SmallRecipeYaml("", 1000)}});
   ASSERT_EQ(submitted.http_status, 201) << submitted.body.dump();
   const std::string id = submitted.body["id"];
   const fs::path run = data / "runs" / id;
-  auto journal_frames = [&run] {
-    std::ifstream journal(run / "journal.jsonl");
-    int lines = 0;
-    for (std::string line; std::getline(journal, line);) lines += line.find("\"crc32\"") != std::string::npos;
-    return lines;
-  };
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);  // a hang guard
-  while (journal_frames() < 20 && std::chrono::steady_clock::now() < deadline)
+  while (JournalFrames(run) < 20 && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   daemon->Kill();
-  const int kept = journal_frames();
+  const int kept = JournalFrames(run);
   ASSERT_GE(kept, 20);
 
   daemon = StartDaemon(data, rig, log);
