@@ -433,9 +433,12 @@ def main():
         js("""window.framesShown = [];
               document.addEventListener('load', (event) => {
                 if (event.target.id !== 'frame-image') return;
+                // The Rig page shows frames too, without a journal: only the Run page's count.
                 const state = document.querySelector('#run-state [data-state]');
+                const journal = document.getElementById('run-journal');
+                if (!journal) return;
                 window.framesShown.push({file: event.target.dataset.file, width: event.target.naturalWidth,
-                  state: state && state.dataset.state, journal: document.getElementById('run-journal').textContent});
+                  state: state && state.dataset.state, journal: journal.textContent});
               }, true);""")
         driver.find_element(By.ID, "submit").click()
 
