@@ -13,16 +13,13 @@ chromedriver or Selenium not installed)."""
 import argparse
 import json
 import os
-import shutil
-import signal
-import subprocess
 import sys
 import tempfile
 import time
 import urllib.request
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_browser_ui import SKIP, api_get, check, start_browser, start_chromedriver, start_daemon  # noqa: E402
+from test_browser_ui import SKIP, api_get, check, shut_down, start_browser, start_chromedriver, start_daemon  # noqa: E402
 
 RECIPE = "recipe: {name: darks}\ncapture:\n  steps:\n    - dark: {count: 2}\n"
 # The run the pages try to abort or resume: paused by the test itself, so
@@ -123,17 +120,7 @@ def main():
         print(f"passed: the rebinding and foreign pages got 403 and the queue stayed {before}")
         return 0
     finally:
-        if driver is not None:
-            driver.quit()
-        if chromedriver is not None:
-            chromedriver.terminate()
-            chromedriver.wait(15)
-        daemon.send_signal(signal.SIGTERM)
-        try:
-            daemon.wait(15)
-        except subprocess.TimeoutExpired:
-            daemon.kill()
-        shutil.rmtree(temp, ignore_errors=True)
+        shut_down(driver, chromedriver, (daemon,), temp)
 
 
 if __name__ == "__main__":

@@ -36,6 +36,22 @@ def check(condition, message):
         fail(message)
 
 
+def shut_down(driver, chromedriver, daemons, temp):
+    """The browser, its driver and the daemons stopped (SIGTERM, then kill), the temporary folder removed."""
+    if driver is not None:
+        driver.quit()
+    if chromedriver is not None:
+        chromedriver.terminate()
+        chromedriver.wait(15)
+    for process in (p for p in daemons if p is not None):
+        process.send_signal(signal.SIGTERM)
+        try:
+            process.wait(15)
+        except subprocess.TimeoutExpired:
+            process.kill()
+    shutil.rmtree(temp, ignore_errors=True)
+
+
 def start_daemon(args, data_root, log_path, token=None, rig="config/rigs/sim-dome.yaml"):
     command = [os.path.join(args.bin_dir, "photorigd"), "--data-root", data_root, "--port", "0",
                "--rig", os.path.join(args.source_dir, rig),
@@ -663,18 +679,7 @@ def main():
         print(f"passed in {time.monotonic() - started:.1f} s; screenshots in {args.artefacts}")
         return 0
     finally:
-        if driver is not None:
-            driver.quit()
-        if chromedriver is not None:
-            chromedriver.terminate()
-            chromedriver.wait(15)
-        for process in (p for p in (daemon, colour) if p is not None):
-            process.send_signal(signal.SIGTERM)
-            try:
-                process.wait(15)
-            except subprocess.TimeoutExpired:
-                process.kill()
-        shutil.rmtree(temp, ignore_errors=True)
+        shut_down(driver, chromedriver, (daemon, colour), temp)
 
 
 if __name__ == "__main__":
