@@ -3,7 +3,8 @@
 //   model 0 (Lambertian):      rho * max(n.l, 0)
 //   model 1 (per-pixel lobe):  + rho_s * max(n.h, 0)^exponent where specular.tiff has a lobe
 //   model 2 (environment map): rho * E(n), E the map's irradiance from 9 SH coefficients
-//   model 3 (per-material):    (rho + pi f_lobe(material)) * max(n.l, 0), the lobes of solvers/brdf/models.h
+//   model 3 (per-material):    (rho + pi f_lobe(material)) * max(n.l, 0), the lobes of solvers/brdf/models.h;
+//                              a pixel without a material: rho_ps * max(n.l, 0), hatched blue
 // rho is the diffuse albedo: the colour albedo of the per-material fit where
 // the run has one (so models 0 and 3 differ by the lobes alone), else the
 // photometric-stereo albedo; model 1 keeps the latter, the albedo its lobe was
@@ -64,9 +65,17 @@ vec3 materialLobe(int model, vec3 specular, float shape, float cos_i, float cos_
 
 // As RenderReflectance (solvers/reflectance) with unit irradiance, times pi so
 // that the diffuse part reads rho cos(theta_i) like the other models.
-vec3 perMaterial(vec3 n, vec3 l, vec2 uv) {
+bool hasMaterial(vec2 uv) {
   float index = texture(u_material, uv).r;
-  if (!(index >= 0.0 && index < float(u_material_count))) return vec3(0.0);
+  return index >= 0.0 && index < float(u_material_count);
+}
+
+vec3 perMaterial(vec3 n, vec3 l, vec2 uv) {
+  // A pixel the fit left without a material (mixed, not assigned) has a
+  // normal and a photometric-stereo albedo but no lobe: shaded Lambertian
+  // from those, and hatched in main() so it never reads as a dark paint.
+  if (!hasMaterial(uv)) return texture(u_ps_albedo, uv).rgb * max(dot(n, l), 0.0);
+  float index = texture(u_material, uv).r;
   float cos_i = dot(n, l), cos_o = dot(n, VIEW);
   if (cos_i <= 0.0 || cos_o <= 0.0) return vec3(0.0);
   vec3 h = normalize(l + VIEW);
@@ -100,7 +109,10 @@ void main() {
   vec3 n = texture(u_normals, v_uv).xyz;
   if (any(isnan(n)) || dot(n, n) < 0.25) { color = vec4(0.08, 0.08, 0.1, 1.0); return; }
   vec3 linear = clamp(shade(normalize(n), v_uv), 0.0, 1.0);
-  color = vec4(pow(linear, vec3(1.0 / 2.2)), 1.0);
+  vec3 shown = pow(linear, vec3(1.0 / 2.2));
+  if (u_model == 3 && !hasMaterial(v_uv) && mod(gl_FragCoord.x + gl_FragCoord.y, 6.0) < 2.0)
+    shown = mix(shown, vec3(0.12, 0.56, 1.0), 0.6);  // the flags map's colour for mixed
+  color = vec4(shown, 1.0);
 }`;
 
 function texture(gl, unit, image, internal, format) {

@@ -266,6 +266,18 @@ def check_per_material_relighting(args, driver, url, run_id, data_root, screensh
     check((on_glossy >= 0.1).sum() >= 50, "the per-material render does not add a highlight on the glossy material")
     check(on_glossy.mean() > 5 * on_matte.mean(), "the per-material render adds about as much on the matte material")
 
+    # Pixels the fit left without a material inside the object (mixed ones,
+    # some under the highlight) are shaded, not black holes.
+    fitted = material != 255
+    inside = ~fitted
+    for axis in (0, 1):
+        inside &= numpy.maximum.accumulate(fitted, axis=axis) & numpy.flip(
+            numpy.maximum.accumulate(numpy.flip(fitted, axis), axis=axis), axis)
+    shaded = per_material[inside].max(axis=1) > 10
+    print(f"unfitted pixels inside the object: {inside.sum()}, {shaded.sum()} of them shaded", flush=True)
+    check(shaded.all() if inside.sum() < 20 else shaded.mean() > 0.95,
+          f"unfitted pixels inside the object drawn black: {(~shaded).sum()} of {inside.sum()}")
+
     check_matches_photorig_relight(args, url, run_id, data_root, per_material, light, white, material, "blinn_phong")
 
     # The GGX branch (Fresnel, masking): the glossy material's lobe swapped in
