@@ -19,7 +19,7 @@ import time
 import urllib.request
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_browser_ui import SKIP, api_get, check, shut_down, start_browser, start_chromedriver, start_daemon  # noqa: E402
+from test_browser_ui import SKIP, api_get, browser_installed, check, shut_down, start_browser, start_chromedriver, start_daemon  # noqa: E402
 
 RECIPE = "recipe: {name: darks}\ncapture:\n  steps:\n    - dark: {count: 2}\n"
 # The run the pages try to abort or resume: paused by the test itself, so
@@ -68,13 +68,7 @@ def main():
     parser.add_argument("--source-dir", required=True)
     parser.add_argument("--artefacts", required=True)
     args = parser.parse_args()
-    missing = [path for path in ("/usr/bin/chromium", "/usr/bin/chromedriver") if not os.path.exists(path)]
-    try:
-        import selenium  # noqa: F401
-    except ImportError:
-        missing.append("python3-selenium")
-    if missing:
-        print(f"SKIP: not installed: {', '.join(missing)}")
+    if not browser_installed():
         return SKIP
 
     os.makedirs(args.artefacts, exist_ok=True)

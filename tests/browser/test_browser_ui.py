@@ -36,6 +36,19 @@ def check(condition, message):
         fail(message)
 
 
+def browser_installed():
+    """Chromium, its driver and Selenium are there; else says which are missing (the test is then skipped)."""
+    missing = [path for path in ("/usr/bin/chromium", "/usr/bin/chromedriver") if not os.path.exists(path)]
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        missing.append("python3-selenium")
+    if missing:
+        print(f"SKIP: not installed: {', '.join(missing)} (scripts/install-deps.sh installs chromium, "
+              "chromium-driver and python3-selenium)")
+    return not missing
+
+
 def shut_down(driver, chromedriver, daemons, temp):
     """The browser, its driver and the daemons stopped (SIGTERM, then kill), the temporary folder removed."""
     if driver is not None:
@@ -391,14 +404,7 @@ def main():
     parser.add_argument("--screenshots", help="also write the README's screenshots here")
     args = parser.parse_args()
 
-    missing = [path for path in ("/usr/bin/chromium", "/usr/bin/chromedriver") if not os.path.exists(path)]
-    try:
-        import selenium  # noqa: F401
-    except ImportError:
-        missing.append("python3-selenium")
-    if missing:
-        print(f"SKIP: not installed: {', '.join(missing)} (scripts/install-deps.sh installs chromium, "
-              "chromium-driver and python3-selenium)")
+    if not browser_installed():
         return SKIP
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
