@@ -20,11 +20,6 @@ constexpr int kSize = 8;  // small: every input decodes all five images
 constexpr std::array<const char*, 6> kFiles = {"filenames.txt", "light_directions.txt", "light_intensities.txt",
                                               "mask.png",      "001.png",              "Normal_gt.mat"};
 
-std::string ReadBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 // Writes the valid folder and returns each fuzzed file's original bytes, to put back after each input.
 std::vector<std::string> WriteValidFolder(const fs::path& dir) {
   fs::create_directories(dir);
@@ -52,7 +47,7 @@ std::vector<std::string> WriteValidFolder(const fs::path& dir) {
   Mat_Close(file);
   std::vector<std::string> originals;
   for (std::size_t i = 0; i < kFiles.size(); ++i) {
-    originals.push_back(ReadBytes(dir / kFiles[i]));
+    originals.push_back(photorig::fuzz::ReadBytes(dir / kFiles[i]));
     photorig::fuzz::WriteSeed(kFiles[i], static_cast<std::uint8_t>(i), originals.back());
   }
   photorig::daemon::LoadDiligent(dir.string());  // the harness's own check: the folder is valid

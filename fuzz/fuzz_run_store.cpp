@@ -1,13 +1,17 @@
-// A stored run, read as `photorig` and the daemon read one: manifest.json
-// (LoadRunManifest, then LoadFrame for each frame it lists), the whole run
-// (VerifyRun) and the journal (RunWriter::Reopen, which repairs it). The input
+// A stored run, read as `photorig` and the daemon read one. The input
 // replaces one file of a valid two-frame run: the first byte picks
-// manifest.json, journal.jsonl or a frame PNG, the rest is its content. The
-// contract is a result or a std::runtime_error naming the file.
+// manifest.json, journal.jsonl or a frame PNG, the rest is its content. Each
+// input goes to the readers of the file it replaced: a manifest to
+// LoadRunManifest and LoadFrame of each frame it lists, then VerifyRun; a
+// journal to RunWriter::Reopen (which repairs it); a frame to LoadFrame and
+// VerifyRun. The contract is a result or a std::runtime_error naming the file.
 #include "fuzz_support.h"
 #include "photorig/daemon/run_store.h"
 
+#include <algorithm>
 #include <array>
+#include <utility>
+#include <vector>
 #include <stdexcept>
 
 namespace {
@@ -53,36 +57,57 @@ fs::path WriteValidRun(const fs::path& dir) {
   writer.WriteFrame(Step(1, 0), MakeFrame(2));
   writer.Finish({CaptureStatus::kComplete, "", 2, 2, 0, 0});
   if (!VerifyRun(dir.string()).empty()) std::abort();  // the harness's own check
-  for (std::size_t i = 0; i < kFiles.size(); ++i) {
-    std::ifstream in(dir / kFiles[i], std::ios::binary);
-    const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-    photorig::fuzz::WriteSeed(fs::path(kFiles[i]).filename().string(), static_cast<std::uint8_t>(i), bytes);
-  }
+  for (std::size_t i = 0; i < kFiles.size(); ++i)
+    photorig::fuzz::WriteSeed(fs::path(kFiles[i]).filename().string(), static_cast<std::uint8_t>(i),
+                              photorig::fuzz::ReadBytes(dir / kFiles[i]));
   return dir;
+}
+
+// Every file of the valid run, the fuzzed ones first in kFiles' order.
+std::vector<std::pair<fs::path, std::string>> ReadFiles(const fs::path& run) {
+  std::vector<std::pair<fs::path, std::string>> files;
+  for (const char* name : kFiles) files.emplace_back(run / name, std::string());
+  for (const auto& entry : fs::recursive_directory_iterator(run))
+    if (entry.is_regular_file() &&
+        std::find_if(files.begin(), files.end(), [&](const auto& f) { return f.first == entry.path(); }) == files.end())
+      files.emplace_back(entry.path(), std::string());
+  for (auto& [path, bytes] : files) bytes = photorig::fuzz::ReadBytes(path);
+  return files;
 }
 
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const fs::path valid = WriteValidRun(photorig::fuzz::WorkDir() / "valid");
-  static const fs::path run = photorig::fuzz::WorkDir() / "run";
+  static const fs::path run = WriteValidRun(photorig::fuzz::WorkDir() / "run");
+  static const std::vector<std::pair<fs::path, std::string>> originals = ReadFiles(run);
   if (size == 0) return 0;
-  fs::remove_all(run);
-  fs::copy(valid, run, fs::copy_options::recursive);
-  photorig::fuzz::WriteBytes(run / kFiles[data[0] % kFiles.size()], data + 1, size - 1);
-  try {
-    const RunManifest manifest = LoadRunManifest(run.string());
-    for (const FrameRecord& frame : manifest.frames) LoadFrame(run.string(), frame);
-  } catch (const std::runtime_error&) {
+  const std::size_t which = data[0] % kFiles.size();
+  photorig::fuzz::WriteBytes(run / kFiles[which], data + 1, size - 1);
+  if (which == 1) {
+    try {
+      RecoveryReport report;
+      RunWriter::Reopen(run.string(), &report);
+    } catch (const std::runtime_error&) {
+    }
+  } else {
+    try {
+      const RunManifest manifest = LoadRunManifest(run.string());
+      for (const FrameRecord& frame : manifest.frames) LoadFrame(run.string(), frame);
+    } catch (const std::runtime_error&) {
+    }
+    try {
+      VerifyRun(run.string());
+    } catch (const std::runtime_error&) {
+    }
   }
-  try {
-    VerifyRun(run.string());
-  } catch (const std::runtime_error&) {
-  }
-  try {
-    RecoveryReport report;
-    RunWriter::Reopen(run.string(), &report);
-  } catch (const std::runtime_error&) {
+  // Put the run back as it was: Reopen rewrites the journal and removes the
+  // frames a journal does not vouch for; the readers change nothing.
+  if (which == 1) {
+    fs::remove_all(run);
+    fs::create_directories(run / "frames");
+    for (const auto& [path, bytes] : originals) photorig::fuzz::WriteText(path, bytes);
+  } else {
+    photorig::fuzz::WriteText(run / kFiles[which], originals[which].second);
   }
   return 0;
 }

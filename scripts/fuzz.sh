@@ -100,8 +100,14 @@ make_seeds() {
   mkdir -p "$out"
   [ -d "$root/fuzz/corpus/$t" ] && cp -r "$root/fuzz/corpus/$t/." "$out/"
   case "$t" in
-    fuzz_rig) cp "$root"/config/rigs/*.yaml "$out/" ;;
-    fuzz_recipe) cp "$root"/config/recipes/*.yaml "$out/" ;;
+    # Without their comments: what the parser sees of a rig fits in the
+    # targets' input limit (max_len_flag) and the mutator spends no time on prose.
+    fuzz_rig | fuzz_recipe)
+      local dir=rigs f
+      [ "$t" = fuzz_recipe ] && dir=recipes
+      for f in "$root/config/$dir"/*.yaml; do
+        sed -e 's/[[:space:]]*#.*$//' -e '/^[[:space:]]*$/d' "$f" >"$out/$(basename "$f")"
+      done ;;
     fuzz_api)
       local recipe body
       for recipe in "$root"/config/recipes/*.yaml; do
@@ -119,6 +125,16 @@ dict_flag() {
   esac
 }
 
+# Inputs longer than this are never tried (libFuzzer's -max_len, whose default
+# is the longest seed). A YAML rig, recipe or colour model reaches every key
+# and check of its parser within 4 KiB (a rig's LED list only repeats one
+# entry); longer inputs cost time in the scanner without new paths.
+max_len_flag() {
+  case "$1" in
+    fuzz_rig | fuzz_recipe | fuzz_color_model) echo "-max_len=4096" ;;
+  esac
+}
+
 # Runs one target for `seconds` with `n` workers; prints "target executions findings".
 fuzz_target() {
   local t="$1" seconds="$2" n="$3" corpus="$build/corpus/$1" logs="$build/logs/$1" artifacts="$build/artifacts/$1"
@@ -129,7 +145,7 @@ fuzz_target() {
   local status=0 start=$SECONDS runs=()
   [ -n "${FUZZ_RUNS:-}" ] && runs=(-runs="$FUZZ_RUNS")
   # libFuzzer adds new inputs to the first directory only: the seeds stay as they are.
-  (cd "$logs" && "$build/bin/$t" "$corpus" "$build/seeds/$t" $(dict_flag "$t") "${limits[@]}" "${runs[@]}" \
+  (cd "$logs" && "$build/bin/$t" "$corpus" "$build/seeds/$t" $(dict_flag "$t") $(max_len_flag "$t") "${limits[@]}" "${runs[@]}" \
     -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="$artifacts/" \
     -jobs="$n" -workers="$n" >"$logs/main.log" 2>&1) || status=$?
   local elapsed=$((SECONDS - start))

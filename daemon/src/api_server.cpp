@@ -395,6 +395,7 @@ void ApiServer::Bind() {
 
 void ApiServer::Serve() { server_->Serve(); }
 void ApiServer::Stop() { server_->Stop(); }
+std::string ApiServer::AnswerInMemory(const std::string& request) { return server_->AnswerInMemory(request); }
 
 void ApiServer::Routes() {
   httplib::Server& s = *server_;

@@ -145,6 +145,40 @@ class ConnectionStream final : public httplib::Stream {
   std::function<void(std::size_t)> consume_;
 };
 
+// A client without a socket: it sends its bytes at once, half-closes, and
+// takes the answer's headers and first part of its body before it hangs up,
+// so an event stream or a download ends instead of waiting for more.
+class MemoryStream final : public httplib::Stream {
+ public:
+  explicit MemoryStream(const std::string& request) : request_(request) {}
+
+  bool is_readable() const override { return read_ < request_.size(); }
+  bool is_writable() const override { return writes_ < 2; }  // the headers, then one part of the body
+
+  ssize_t read(char* ptr, size_t size) override {
+    const std::size_t n = std::min(size, request_.size() - read_);
+    std::memcpy(ptr, request_.data() + read_, n);
+    read_ += n;
+    return static_cast<ssize_t>(n);
+  }
+  ssize_t write(const char* ptr, size_t size) override {
+    ++writes_;
+    answer_.append(ptr, size);
+    return static_cast<ssize_t>(size);
+  }
+  void get_remote_ip_and_port(std::string& ip, int& port) const override { ip = "127.0.0.1", port = 40000; }
+  void get_local_ip_and_port(std::string& ip, int& port) const override { ip = "127.0.0.1", port = 0; }
+  socket_t socket() const override { return INVALID_SOCKET; }
+
+  const std::string& answer() const { return answer_; }
+
+ private:
+  const std::string& request_;
+  std::size_t read_ = 0;
+  int writes_ = 0;
+  std::string answer_;
+};
+
 // A whole answer the loop sends itself before closing (best effort: the
 // socket is not waited for).
 void SendAndClose(int fd, int status, const char* reason, const std::string& message) {
@@ -413,6 +447,14 @@ void HttpFront::Answer(Connection& connection) {
     const bool answered = process_request(stream, stopping_, client_closes, nullptr);
     connection.keep = answered && !client_closes && !t_close_after_answer && !stopping_;
   } while (connection.keep && connection.HasHeader());
+}
+
+std::string HttpFront::AnswerInMemory(const std::string& request) {
+  MemoryStream stream(request);
+  bool client_closes = false;
+  t_close_after_answer = false;
+  process_request(stream, true, client_closes, nullptr);
+  return stream.answer();
 }
 
 }  // namespace photorig::daemon

@@ -51,6 +51,10 @@ class HttpFront : public httplib::Server {
   // Accepts and serves until Stop(); call from its own thread.
   void Serve();
   void Stop();
+  // Answers one request given as the bytes a loopback client would send,
+  // through the same parsing and routes but without a socket, and returns
+  // the bytes it would read (fuzz/fuzz_api.cpp drives the API this way).
+  std::string AnswerInMemory(const std::string& request);
 
  private:
   struct Connection;

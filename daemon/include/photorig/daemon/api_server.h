@@ -96,6 +96,9 @@ class ApiServer {
   // Serves until Stop(); call from its own thread.
   void Serve();
   void Stop();
+  // One request's answer without a socket or Bind(): the routes, limits and
+  // checks of a served request, from raw request bytes (the API's fuzz target).
+  std::string AnswerInMemory(const std::string& request);
 
  private:
   void Routes();
