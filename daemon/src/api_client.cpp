@@ -52,11 +52,11 @@ ApiClient::StreamEnd ApiClient::FollowOnce(const std::string& run_id,
       ("/api/v1/runs/" + run_id + "/events").c_str(), headers,
       [&](const httplib::Response& response) {
         end.http_status = response.status;
-        if (response.status != 200) end.error = "HTTP " + std::to_string(response.status) + " for run '" + run_id + "'";
-        return response.status == 200;
+        return true;
       },
       [&](const char* data, std::size_t length) {
         buffer.append(data, length);
+        if (end.http_status != 200) return buffer.size() < 64 * 1024;  // a refusal's body: its reason
         std::size_t block_end;
         while ((block_end = buffer.find("\n\n")) != std::string::npos) {
           const std::string block = buffer.substr(0, block_end);
@@ -90,6 +90,13 @@ ApiClient::StreamEnd ApiClient::FollowOnce(const std::string& run_id,
         }
         return true;
       });
+  if (end.http_status != 0 && end.http_status != 200) {
+    end.error = "HTTP " + std::to_string(end.http_status) + " for run '" + run_id + "'";
+    const json body = json::parse(buffer, nullptr, false);
+    if (body.is_object() && body.contains("error") && body["error"].is_string())
+      end.error += ": " + body["error"].get<std::string>();
+    return end;
+  }
   if (end.http_status == 200 && !end.stopped) end.http_status = 0;  // broke off before the run's end
   if (end.error.empty() && !result && !end.stopped)
     end.error = "cannot reach photorigd at " + options_.url + ": " + httplib::to_string(result.error());

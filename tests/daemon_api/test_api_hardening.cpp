@@ -17,9 +17,12 @@
 #include <sys/time.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <functional>
+#include <mutex>
 #include <thread>
 
 namespace photorig::daemon {
@@ -334,8 +337,9 @@ std::string PausedRun(ApiClient& client, const std::function<ApiClient()>& anoth
   const std::string id = submitted.body.value("id", "");
   bool paused = false;
   client.FollowEvents(id, [&](const std::string& type, const json& data) {
-    if (type == "state" && data["state"] == "running")
+    if (type == "state" && data["state"] == "running") {
       EXPECT_EQ(another().Post("/api/v1/runs/" + id + "/pause", json::object()).http_status, 202);
+    }
     if (type == "state" && data["state"] == "paused") paused = true;
     return !paused;
   });
@@ -434,6 +438,61 @@ TEST_F(Hardening, ClosedStreamsFreeTheirSlotsWithinASecond) {
   EXPECT_EQ(client.Post("/api/v1/runs/" + id + "/abort", json::object()).http_status, 202);
 }
 
+// #39.2: `photorig watch` and `submit --watch` exited 3 when every stream
+// slot was taken, while the run went on. They wait the refusal out now, and
+// follow the run to its end once a slot is free.
+TEST_F(Hardening, AWatcherRefusedForWantOfSlotsReconnectsAndFollowsTheRunToItsEnd) {
+  StartDaemon("", nullptr, [](ApiOptions& api) { api.max_event_streams = 2; });
+  ApiClient client = Client();
+  const std::string id = PausedRun(client, [this] { return Client(); });
+  const std::string request = "GET /api/v1/runs/" + id + "/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+  std::vector<std::unique_ptr<RawConnection>> streams;
+  for (int refused = 0; refused == 0;) {
+    ASSERT_LE(streams.size(), 3u);
+    auto stream = std::make_unique<RawConnection>(served_->port());
+    ASSERT_TRUE(stream->Send(request));
+    const int status = stream->ReadStatus();
+    ASSERT_TRUE(status == 200 || status == 503) << status;
+    if (status == 503) ++refused;
+    else streams.push_back(std::move(stream));
+  }
+  // Without reconnecting, the refusal is the answer.
+  const std::string refusal = Client().FollowEvents(id, [](const std::string&, const json&) { return true; });
+  EXPECT_NE(refusal.find("too many open event streams"), std::string::npos) << refusal;
+
+  std::mutex seen_mutex;
+  std::vector<std::string> seen;
+  const auto saw = [&](const std::string& type) {
+    std::lock_guard<std::mutex> lock(seen_mutex);
+    return std::find(seen.begin(), seen.end(), type) != seen.end();
+  };
+  std::string error = "not finished";
+  std::atomic<bool> finished{false};
+  const Reconnect reconnect{100, 10};
+  std::thread watcher([&] {
+    error = Client().FollowEvents(id, [&](const std::string& type, const json&) {
+      std::lock_guard<std::mutex> lock(seen_mutex);
+      seen.push_back(type);
+      return true;
+    }, &reconnect);
+    finished = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_FALSE(finished) << "the watcher gave up while every slot was taken: " << error;
+  streams.clear();  // the other watchers go: a slot is free within a second
+  const auto freed = std::chrono::steady_clock::now();
+  while (!saw("state") && !finished &&
+         std::chrono::steady_clock::now() - freed < std::chrono::seconds(5))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_LT(std::chrono::steady_clock::now() - freed, std::chrono::seconds(2));
+  EXPECT_EQ(client.Post("/api/v1/runs/" + id + "/abort", json::object()).http_status, 202);
+  watcher.join();
+  EXPECT_EQ(error, "");
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(seen.front(), "state");  // the run's history from its first event, once connected
+  EXPECT_EQ(seen.back(), "stop");
+}
+
 // #39.2: with 64 or 100 slow-header clients /health stopped answering.
 TEST_F(Hardening, HealthAnswersWithin100MsUnder200IdleAndSlowConnections) {
   StartDaemon("", nullptr, [](ApiOptions& api) { api.read_timeout_ms = 2000; });
@@ -442,7 +501,9 @@ TEST_F(Hardening, HealthAnswersWithin100MsUnder200IdleAndSlowConnections) {
     held.push_back(std::make_unique<RawConnection>(served_->port()));
     ASSERT_TRUE(held.back()->connected()) << i;
     // Half say nothing, half stop in the middle of their headers.
-    if (i % 2) ASSERT_TRUE(held.back()->Send("GET /api/v1/health HTTP/1.1\r\nHo"));
+    if (i % 2) {
+      ASSERT_TRUE(held.back()->Send("GET /api/v1/health HTTP/1.1\r\nHo"));
+    }
   }
   // A trickling client: a byte every 200 ms never completes its headers.
   RawConnection trickle(served_->port());
