@@ -5,6 +5,7 @@
 #include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <stdexcept>
 
 namespace photorig::daemon {
@@ -95,6 +96,15 @@ bool RunQueue::OpenWritable(std::string* why) {
 }
 
 void RunQueue::OpenReadOnly(const std::string& why_not_writable) {
+  // A queue never written (a new data root on a full disk) holds no run:
+  // it is read as empty until it can be created.
+  std::error_code error;
+  const auto size = std::filesystem::file_size(path_, error);
+  if (error || size == 0) {
+    read_only_reason_ = "the run queue " + path_ + " cannot be created: " + why_not_writable +
+                        " (is the data disk full? it is created once there is room)";
+    return;
+  }
   // immutable: SQLite reads the file as it stands, without the write-ahead
   // log's index it cannot create on a full disk (changes still in the log
   // after a crash show once the queue is writable again).
@@ -195,6 +205,7 @@ QueuedRun RunQueue::Add(const std::string& recipe_name, int steps_total,
 
 std::vector<QueuedRun> RunQueue::Select(const std::string& where, const std::string& text_argument) const {
   std::lock_guard lock(mutex_);
+  if (db_ == nullptr) return {};  // not yet created (OpenReadOnly)
   Statement select(db_,
                    "SELECT id, recipe_name, state, reason, frames, steps_total, retries, dropped_frames, created_ns, "
                    "updated_ns, solve FROM runs " +

@@ -8,6 +8,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -139,8 +140,14 @@ RunService::RunService(ServiceOptions options) : options_(std::move(options)) {
   std::string why;
   if (!options_.IsValid(&why)) throw std::runtime_error("daemon options: " + why);
   LoadRigConfig(options_.rig_path);  // a broken rig file stops the daemon at start, not at the first run
-  fs::create_directories(fs::path(options_.data_root) / "recipes");
-  fs::create_directories(fs::path(options_.data_root) / "runs");
+  // On a full disk the folders may not be creatable yet: the daemon starts
+  // read-only (health says "disk full") and a run creates them once there is room.
+  for (const char* folder : {"recipes", "runs"}) {
+    std::error_code error;
+    fs::create_directories(fs::path(options_.data_root) / folder, error);
+    if (error && error != std::errc::no_space_on_device && error.value() != EDQUOT)
+      throw fs::filesystem_error("cannot create the data folder", fs::path(options_.data_root) / folder, error);
+  }
   queue_ = std::make_unique<RunQueue>((fs::path(options_.data_root) / "queue.sqlite").string());
   plan_budget_ = std::make_unique<PlanMemoryBudget>(options_.plan_memory_bytes);
   started_ = std::chrono::steady_clock::now();

@@ -155,6 +155,26 @@ TEST_F(FullDisk, ARunFailsCleanlyAndTheDaemonStartsAndSaysSo) {
   }
 }
 
+// Submits the small recipe to a daemon that has room again; it must be
+// taken, captured whole and stored under `root`, and health must be 200.
+void ExpectARunCompletes(ApiClient& client, const fs::path& root, const fs::path& log) {
+  const ServiceReply submitted = client.Post("/api/v1/runs", {{"name", "small.yaml"}, {"recipe", SmallRecipeYaml()}});
+  ASSERT_EQ(submitted.http_status, 201) << submitted.body.dump() << ReadText(log);
+  const std::string id = submitted.body["id"];
+  json run;
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::minutes(1);  // a hang guard, not a measurement
+  do {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    run = client.Get("/api/v1/runs/" + id).body;
+  } while (run.value("state", "") != "done" && run.value("state", "") != "failed" &&
+           std::chrono::steady_clock::now() < give_up);
+  EXPECT_EQ(run["state"], "done") << run.dump() << ReadText(log);
+  EXPECT_EQ(run["frames"], 5);
+  EXPECT_TRUE(fs::exists(root / "runs" / id / "manifest.json"));
+  const ServiceReply healthy = client.Get("/api/v1/health");
+  EXPECT_EQ(healthy.http_status, 200) << healthy.body.dump();
+}
+
 TEST_F(FullDisk, PhotorigdStartsReadOnlyWithNoByteFreeAndTakesRunsOnceThereIsRoom) {
   std::string id;
   {
@@ -196,21 +216,37 @@ TEST_F(FullDisk, PhotorigdStartsReadOnlyWithNoByteFreeAndTakesRunsOnceThereIsRoo
 
   // Room again: the same daemon takes a run and completes it.
   fs::remove(data_ / "filler");
-  const ServiceReply submitted = client.Post("/api/v1/runs", {{"name", "small.yaml"}, {"recipe", SmallRecipeYaml()}});
-  ASSERT_EQ(submitted.http_status, 201) << submitted.body.dump() << ReadText(log);
-  const std::string second = submitted.body["id"];
-  json run;
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::minutes(1);  // a hang guard, not a measurement
-  do {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    run = client.Get("/api/v1/runs/" + second).body;
-  } while (run.value("state", "") != "done" && run.value("state", "") != "failed" &&
-           std::chrono::steady_clock::now() < give_up);
-  EXPECT_EQ(run["state"], "done") << run.dump() << ReadText(log);
-  EXPECT_EQ(run["frames"], 5);
-  EXPECT_TRUE(fs::exists(data_ / "runs" / second / "manifest.json"));
-  const ServiceReply healthy = client.Get("/api/v1/health");
-  EXPECT_EQ(healthy.http_status, 200) << healthy.body.dump();
+  ExpectARunCompletes(client, data_, log);
+  EXPECT_EQ(daemon.Terminate(), 0) << ReadText(log);
+}
+
+// A data root named for the first time on a full disk: there is no queue to
+// read, and none can be created yet.
+TEST_F(FullDisk, PhotorigdStartsOnANewDataRootWithNoByteFreeAndCreatesItOnceThereIsRoom) {
+  Fill();
+  ASSERT_EQ(FreeBytes(data_.string()), 0u);
+  const fs::path root = data_ / "new-root";
+  const fs::path log = dir_.path() / "photorigd.log";
+  const auto started = std::chrono::steady_clock::now();
+  photorig::testing::DaemonProcess daemon(root, options_.rig_path, log, {"--no-solve"});
+  const int port = daemon.WaitReady(log, 0);
+  ASSERT_GT(port, 0) << ReadText(log);
+  ApiClientOptions client_options;
+  client_options.url = "http://127.0.0.1:" + std::to_string(port);
+  client_options.timeout_s = 20;
+  ApiClient client(client_options);
+  const ServiceReply health = client.Get("/api/v1/health");
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 2.0);
+  EXPECT_EQ(health.http_status, 503) << health.body.dump();
+  EXPECT_EQ(health.body["status"], "disk full") << health.body.dump();
+  const ServiceReply runs = client.Get("/api/v1/runs");
+  ASSERT_EQ(runs.http_status, 200) << runs.body.dump();
+  EXPECT_EQ(runs.body["runs"].size(), 0u) << runs.body.dump();
+  EXPECT_EQ(client.Post("/api/v1/runs", {{"name", "small.yaml"}, {"recipe", SmallRecipeYaml()}}).http_status, 507);
+
+  fs::remove(data_ / "filler");
+  ExpectARunCompletes(client, root, log);
+  EXPECT_TRUE(fs::exists(root / "queue.sqlite"));
   EXPECT_EQ(daemon.Terminate(), 0) << ReadText(log);
 }
 
