@@ -9,7 +9,7 @@
 // finding. The socket side (slow clients, hang-ups, limits on connections)
 // is tested in tests/daemon.
 #include "fuzz_support.h"
-#include "photorig/daemon/api_server.h"
+#include "photorig/daemon/service/api_server.h"
 
 #include <spdlog/spdlog.h>
 

@@ -4,7 +4,7 @@
 // ConfigError naming the file and line.
 #include "fuzz_support.h"
 #include "photorig/config/yaml_node.h"
-#include "photorig/daemon/diligent.h"
+#include "photorig/daemon/pipelines/diligent.h"
 
 #include <matio.h>
 #include <opencv2/imgcodecs.hpp>

@@ -8,7 +8,7 @@
 // materials' roughness; or std::runtime_error when no fitted pixel has a
 // depth. Anything else aborts.
 #include "fuzz_support.h"
-#include "photorig/daemon/gltf_export.h"
+#include "photorig/daemon/io/gltf_export.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
 
 #define TINYGLTF_NO_STB_IMAGE

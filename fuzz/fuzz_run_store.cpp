@@ -6,7 +6,7 @@
 // journal to RunWriter::Reopen (which repairs it); a frame to LoadFrame and
 // VerifyRun. The contract is a result or a std::runtime_error naming the file.
 #include "fuzz_support.h"
-#include "photorig/daemon/run_store.h"
+#include "photorig/daemon/capture/run_store.h"
 
 #include <algorithm>
 #include <array>
@@ -33,10 +33,10 @@ photorig::drivers::Frame MakeFrame(std::uint64_t id) {
   return frame;
 }
 
-CaptureStep Step(int index, int led) {
-  CaptureStep step;
+photorig::config::CaptureStep Step(int index, int led) {
+  photorig::config::CaptureStep step;
   step.index = index;
-  step.kind = led < 0 ? CaptureStep::Kind::kDark : CaptureStep::Kind::kLight;
+  step.kind = led < 0 ? photorig::config::CaptureStep::Kind::kDark : photorig::config::CaptureStep::Kind::kLight;
   step.led = led;
   step.label = led < 0 ? "0000_dark" : "0001_led00";
   step.pattern = std::make_shared<const photorig::drivers::LightPattern>(

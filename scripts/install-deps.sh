@@ -6,6 +6,8 @@ set -euo pipefail
 packages=(
   # toolchain
   build-essential cmake pkg-config git
+  # the code-shape checks: function lengths (scripts/longest-functions.sh)
+  universal-ctags
   # maths and images
   libeigen3-dev libopencv-dev libopencv-contrib-dev libceres-dev
   # relightable assets: glTF 2.0 writer/reader (header-only; images through OpenCV, see docs/reflectance.md)
@@ -42,7 +44,7 @@ packages=(
   slurm-wlm munge
   # tomography distributed over MPI processes (solvers/tomography_mpi, solve tomography --mpi, its mpirun test)
   libopenmpi-dev openmpi-bin
-  # tomography's volume.vdb (daemon/src/vdb_volume.cpp); Debian's FindOpenVDB.cmake requires
+  # tomography's volume.vdb (daemon/src/io/vdb_volume.cpp); Debian's FindOpenVDB.cmake requires
   # Boost.Iostreams, which libopenvdb-dev does not pull in
   libopenvdb-dev libboost-iostreams-dev
 )

@@ -7,7 +7,7 @@
 
 #include "chart_capture.h"
 #include "photorig/color/region_demosaic.h"
-#include "photorig/daemon/color_stack.h"
+#include "photorig/daemon/pipelines/color_stack.h"
 
 #include <benchmark/benchmark.h>
 #include <opencv2/imgproc.hpp>

@@ -6,7 +6,7 @@
 // the filesystem's fsync cost.
 //   bench_daemon --benchmark_filter=. (scripts/run-benchmarks.sh runs it too)
 
-#include "photorig/daemon/run_store.h"
+#include "photorig/daemon/capture/run_store.h"
 
 #include <benchmark/benchmark.h>
 #include <fcntl.h>
@@ -83,8 +83,8 @@ void BM_DaemonFrame(benchmark::State& state) {
   header.height = kHeight;
   header.bit_depth = 12;
   auto writer = std::make_unique<RunWriter>(dir.string(), header);
-  CaptureStep step;
-  step.kind = CaptureStep::Kind::kDark;
+  config::CaptureStep step;
+  step.kind = config::CaptureStep::Kind::kDark;
   step.pattern = std::make_shared<const drivers::LightPattern>(drivers::LightPattern::AllOff(48));
   step.exposure_us = 10000;
   int index = 0;

@@ -5,9 +5,10 @@
 // is captured once by the simulator into a scratch folder; each iteration
 // loads it and solves, as the solve stage does.
 //   bench_svbrdf_recipe --benchmark_repetitions=3 (wall and process CPU time; counters: stage times, ms)
-#include "photorig/daemon/recipe.h"
-#include "photorig/daemon/run.h"
-#include "photorig/daemon/svbrdf_pipeline.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
+#include "photorig/daemon/service/run.h"
+#include "photorig/daemon/pipelines/svbrdf_pipeline.h"
 
 #include <benchmark/benchmark.h>
 #include <unistd.h>
@@ -32,7 +33,7 @@ void BM_SvbrdfRecipeSolve(benchmark::State& state) {
     state.SkipWithError(("capture failed: " + captured.capture.reason).c_str());
     return;
   }
-  const Recipe recipe = LoadRecipe(recipe_path, LoadRigConfig(RecipeRigPath(recipe_path, "")));
+  const config::Recipe recipe = config::LoadRecipe(recipe_path, config::LoadRigConfig(config::RecipeRigPath(recipe_path, "")));
   SvbrdfResult result;
   for (auto _ : state) {
     result = SolveSvbrdfAndWrite(LoadRunStack(run.string()), *recipe.svbrdf, (run / "results" / "svbrdf").string());

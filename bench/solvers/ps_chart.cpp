@@ -19,9 +19,9 @@
 //   photorig-ps-chart SOURCE_DIR OUT.csv [DILIGENT_DIR...]
 //   photorig-ps-chart SOURCE_DIR --realistic OUT.csv
 
-#include "photorig/daemon/diligent.h"
-#include "photorig/daemon/ps_pipeline.h"
-#include "photorig/daemon/run.h"
+#include "photorig/daemon/pipelines/diligent.h"
+#include "photorig/daemon/pipelines/ps_pipeline.h"
+#include "photorig/daemon/service/run.h"
 #include "photorig/ps/evaluation.h"
 #include "photorig/ps/photometric_stereo.h"
 
@@ -64,7 +64,7 @@ daemon::PhotometricStereoInput SubsetLights(const daemon::PhotometricStereoInput
 void Evaluate(std::ostream& csv, const std::string& source, const std::string& scene, double relative_noise,
               const daemon::PhotometricStereoInput& input) {
   for (ps::Method method : kMethods) {
-    daemon::PhotometricStereoRequest request;  // the thresholds `photorig solve ps` uses
+    config::PhotometricStereoRequest request;  // the thresholds `photorig solve ps` uses
     request.method = ps::MethodName(method);
     const ps::PhotometricStereoOptions options = daemon::MakeSolverOptions(request, input.saturation_level);
     ps::PhotometricStack stack = input.stack;
@@ -169,7 +169,7 @@ const Effect kEffects[] = {
 // Every method once on `input`, with the counts that say what was left unresolved and why.
 void EvaluateRealistic(std::ostream& csv, const std::string& scene, const daemon::PhotometricStereoInput& input) {
   for (ps::Method method : kMethods) {
-    daemon::PhotometricStereoRequest request;
+    config::PhotometricStereoRequest request;
     request.method = ps::MethodName(method);
     const double saturation = daemon::EffectiveSaturationLevel(input);
     const ps::PhotometricStereoOptions options = daemon::MakeSolverOptions(request, saturation);

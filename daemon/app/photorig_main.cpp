@@ -3,7 +3,9 @@
 #include "command.h"
 #include "command_output.h"
 #include "library_logging.h"
-#include "photorig/daemon/rig_config.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 #include "signals.h"
 
 #include <spdlog/spdlog.h>
@@ -97,7 +99,7 @@ int main(int argc, char** argv) {
   try {
     for (const auto& runner : runners)
       if (runner.subcommand->parsed()) return internal::EndCommand(runner.run(), "failed");
-  } catch (const photorig::daemon::ConfigError& e) {
+  } catch (const photorig::config::ConfigError& e) {
     return internal::EndCommand(Fail(kExitUsage, std::string("configuration error: ") + e.what()), "");
   } catch (const std::invalid_argument& e) {
     return internal::EndCommand(Fail(kExitUsage, e.what()), "");

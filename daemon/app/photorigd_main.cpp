@@ -1,6 +1,6 @@
 // photorigd: the rig daemon. Keeps a persistent queue of capture recipes,
 // runs them on its rig one at a time and serves the HTTP API (see
-// daemon/include/photorig/daemon/api_server.h and docs/api.md).
+// daemon/include/photorig/daemon/service/api_server.h and docs/api.md).
 //   photorigd [--data-root DIR] --rig RIG.yaml [--listen ADDR] [--port N] [--token-file FILE] [--allow-host NAME]
 //             [--web-root DIR] [--recipes DIR]
 // It prints the browser interface's address on stdout once it listens (docs/ui.md).
@@ -11,8 +11,8 @@
 // and the run stays queued for the next start. Under systemd (Type=notify)
 // it reports readiness and feeds the watchdog while the worker is alive.
 
-#include "photorig/daemon/api_server.h"
-#include "photorig/daemon/service.h"
+#include "photorig/daemon/service/api_server.h"
+#include "photorig/daemon/service/service.h"
 #include "library_logging.h"
 #include "signals.h"
 

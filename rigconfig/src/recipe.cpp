@@ -495,6 +495,13 @@ const char* CaptureStepKindName(CaptureStep::Kind kind) {
   return "unknown";
 }
 
+std::optional<CaptureStep::Kind> CaptureStepKindFromName(const std::string& name) {
+  for (CaptureStep::Kind kind : {CaptureStep::Kind::kDark, CaptureStep::Kind::kLight, CaptureStep::Kind::kFlat,
+                                 CaptureStep::Kind::kPattern, CaptureStep::Kind::kPose})
+    if (name == CaptureStepKindName(kind)) return kind;
+  return std::nullopt;
+}
+
 bool CaptureLimits::IsValid(std::string* why) const {
   auto fail = [why](const char* message) {
     if (why) *why = message;

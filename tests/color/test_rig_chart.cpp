@@ -5,8 +5,10 @@
 #include "../daemon/test_support.h"
 #include "photorig/color/apply.h"
 #include "photorig/color/calibration.h"
-#include "photorig/daemon/image_io.h"
-#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 #include "sim_chart.h"
 
 #include <gtest/gtest.h>
@@ -40,15 +42,15 @@ std::string ChartError(const std::string& chart, int* line) {
   TempDir dir;
   const std::string path = dir.Write("rig.yaml", SimDomeWithChart(chart));
   try {
-    daemon::LoadRigConfig(path);
-  } catch (const daemon::ConfigError& e) {
+    config::LoadRigConfig(path);
+  } catch (const config::ConfigError& e) {
     *line = e.line();
     return e.what();
   }
   return "";
 }
 
-std::array<cv::Point2f, 4> ToPoints(const daemon::ColorChartPlacement& chart) {
+std::array<cv::Point2f, 4> ToPoints(const config::ColorChartPlacement& chart) {
   std::array<cv::Point2f, 4> corners;
   for (std::size_t i = 0; i < 4; ++i)
     corners[i] = cv::Point2f(static_cast<float>(chart.corners_px[i].x()), static_cast<float>(chart.corners_px[i].y()));
@@ -56,7 +58,7 @@ std::array<cv::Point2f, 4> ToPoints(const daemon::ColorChartPlacement& chart) {
 }
 
 TEST(RigChart, SimDomeNamesTheChartBox) {
-  const daemon::RigConfig rig = daemon::LoadRigConfig(kSimDome);
+  const config::RigConfig rig = config::LoadRigConfig(kSimDome);
   ASSERT_TRUE(rig.camera.color_chart);
   const auto& c = rig.camera.color_chart->corners_px;
   EXPECT_EQ(c[0], Eigen::Vector2d(24, 80));
@@ -67,7 +69,7 @@ TEST(RigChart, CornersAreReadInOrder) {
   TempDir dir;
   const std::string path =
       dir.Write("rig.yaml", SimDomeWithChart("{corners_px: [[30, 90], [350, 84], [356, 300], [26, 306]]}"));
-  const daemon::RigConfig rig = daemon::LoadRigConfig(path);
+  const config::RigConfig rig = config::LoadRigConfig(path);
   ASSERT_TRUE(rig.camera.color_chart);
   EXPECT_EQ(rig.camera.color_chart->corners_px[1], Eigen::Vector2d(350, 84));
   EXPECT_EQ(rig.camera.color_chart->corners_px[3], Eigen::Vector2d(26, 306));
@@ -117,7 +119,7 @@ TEST(RigChart, PositionOutsideTheImageIsRefusedByName) {
 }
 
 TEST(RigChart, ChartRenderedWhereTheRigSaysCalibratesFromThatPosition) {
-  const daemon::RigConfig rig = daemon::LoadRigConfig(kSimDome);
+  const config::RigConfig rig = config::LoadRigConfig(kSimDome);
   const sim::ChartGeometry geometry =
       sim::ChartGeometry::PlacedIn(cv::Rect2d(24, 80, 336, 224), cv::Size(rig.camera.width, rig.camera.height));
   const std::array<cv::Point2f, 4> truth = geometry.GridCorners();
@@ -200,7 +202,7 @@ TEST(CalibrateColorCommand, SimulatedDomeOneCommandUsesTheRigPosition) {
             0)
       << photorig::testing::ReadText(dir.path() / "log3");
   const cv::Mat xyz = daemon::ReadFloatTiff((dir.path() / "applied" / "chart_xyz.tiff").string());
-  const cv::Point2f white = ChartLocation{ToPoints(*daemon::LoadRigConfig(kSimDome).camera.color_chart), ""}.PatchCentre(kWhitePatch);
+  const cv::Point2f white = ChartLocation{ToPoints(*config::LoadRigConfig(kSimDome).camera.color_chart), ""}.PatchCentre(kWhitePatch);
   const ChartReference reference = ColorCheckerReference(Illuminant::kD65, ReferenceGrid());
   EXPECT_NEAR(xyz.at<cv::Vec3f>(cv::Point(white))[1], reference.xyz[kWhitePatch].y(), 0.03);
 

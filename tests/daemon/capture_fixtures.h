@@ -1,7 +1,8 @@
 #pragma once
 // Devices and step lists shared by the sequencer and fault-injection tests.
 
-#include "photorig/daemon/recipe.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
 #include "photorig/sim/devices.h"
 
 #include <string>
@@ -24,12 +25,12 @@ class WatchedDome : public sim::SimLightDome {
 };
 
 // One dark frame, then one frame per light, at 1 ms exposure.
-inline std::vector<daemon::CaptureStep> DarkThenEachLight(int lights) {
-  std::vector<daemon::CaptureStep> steps;
+inline std::vector<config::CaptureStep> DarkThenEachLight(int lights) {
+  std::vector<config::CaptureStep> steps;
   for (int i = -1; i < lights; ++i) {
-    daemon::CaptureStep step;
+    config::CaptureStep step;
     step.index = i + 1;
-    step.kind = i < 0 ? daemon::CaptureStep::Kind::kDark : daemon::CaptureStep::Kind::kLight;
+    step.kind = i < 0 ? config::CaptureStep::Kind::kDark : config::CaptureStep::Kind::kLight;
     step.led = i;
     step.label = "step" + std::to_string(i + 1);
     step.pattern = std::make_shared<const drivers::LightPattern>(i < 0 ? drivers::LightPattern::AllOff(lights)

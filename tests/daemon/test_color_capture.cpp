@@ -6,13 +6,15 @@
 
 #include "photorig/color/colorimetry.h"
 #include "photorig/config/sim.h"
-#include "photorig/daemon/color_stack.h"
-#include "photorig/daemon/diligent.h"
-#include "photorig/daemon/image_io.h"
-#include "photorig/daemon/ps_pipeline.h"
-#include "photorig/daemon/rig_config.h"
-#include "photorig/daemon/run.h"
-#include "photorig/daemon/run_store.h"
+#include "photorig/daemon/pipelines/color_stack.h"
+#include "photorig/daemon/pipelines/diligent.h"
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/pipelines/ps_pipeline.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
+#include "photorig/daemon/service/run.h"
+#include "photorig/daemon/capture/run_store.h"
 #include "photorig/sim/devices.h"
 #include "photorig/sim/world.h"
 #include "test_support.h"
@@ -110,7 +112,7 @@ TEST(PixelFormats, BayerAndRgbFormatsNameTheirMosaicAndBits) {
 
 // The simulated colour camera on the colour rig, showing a uniform red sphere.
 struct ColourCamera {
-  config::RigConfig rig = LoadRigConfig(SourceDir() + "/config/rigs/sim-dome-colour.yaml");
+  config::RigConfig rig = config::LoadRigConfig(SourceDir() + "/config/rigs/sim-dome-colour.yaml");
   std::shared_ptr<sim::World> world;
   std::unique_ptr<sim::SimCamera> camera;
 
@@ -161,8 +163,8 @@ TEST(ColourCapture, RawBayerFramesAreStoredByteForByteWithThePatternRecorded) {
   header.pixel_format = colour.rig.camera.pixel_format;
   const std::string run = (dir.path() / "run").string();
   RunWriter writer(run, header);
-  CaptureStep step;
-  step.kind = CaptureStep::Kind::kLight;
+  config::CaptureStep step;
+  step.kind = config::CaptureStep::Kind::kLight;
   step.label = "0000_led00";
   step.led = 0;
   step.pattern = std::make_shared<const drivers::LightPattern>(drivers::LightPattern{{1.0}});
@@ -203,7 +205,7 @@ TEST(ColourCapture, RgbFramesAreStoredAsRgbAndLoadBackUnchanged) {
   for (int i = 0; i < 5 * 3 * 3; ++i) frame.pixels.push_back(static_cast<std::uint16_t>(1000 * i + 7));
   const std::string run = (dir.path() / "run").string();
   RunWriter writer(run, header);
-  CaptureStep step;
+  config::CaptureStep step;
   step.label = "0000_dark";
   const FrameRecord record = writer.WriteFrame(step, frame);
   const cv::Mat loaded = LoadFrame(run, record);  // checks the checksum too
@@ -237,7 +239,7 @@ TEST(ColourPhotometricStereo, AlbedoAfterCalibrationIsWithinCiede2000OfTwoAndNor
   EXPECT_EQ(manifest.pixel_format, "BayerRG12");
   EXPECT_FALSE(manifest.color_model_hash.empty());
 
-  PhotometricStereoRequest solve;
+  config::PhotometricStereoRequest solve;
   solve.method = "lambertian";
   solve.integrator = "none";
   ColorStackOptions options;
@@ -294,7 +296,7 @@ TEST(ColourModelFile, AMalformedModelIsNamedWithItsFileAndLine) {
   try {
     config::LoadColorModelFile(path);
     FAIL() << "a malformed model loaded";
-  } catch (const ConfigError& e) {
+  } catch (const config::ConfigError& e) {
     EXPECT_EQ(e.file(), path);
     EXPECT_EQ(e.line(), 4) << e.what();  // coefficients start on line 2
     EXPECT_EQ(e.key(), "coefficients.2");
@@ -305,7 +307,7 @@ TEST(ColourModelFile, AMalformedModelIsNamedWithItsFileAndLine) {
   try {
     config::LoadColorModelFile(broken);
     FAIL() << "broken YAML loaded";
-  } catch (const ConfigError& e) {
+  } catch (const config::ConfigError& e) {
     EXPECT_GT(e.line(), 0) << e.what();
   }
   // A rig naming it fails to load, naming the model file.
@@ -321,9 +323,9 @@ TEST(ColourModelFile, AMalformedModelIsNamedWithItsFileAndLine) {
   rig_text.replace(at, std::string("../color/sim-dome-colour-nikon-5100-d65.yaml").size(), path);
   const std::string rig = dir.Write("rig.yaml", rig_text);
   try {
-    LoadRigConfig(rig);
+    config::LoadRigConfig(rig);
     FAIL() << "a rig with a malformed colour model loaded";
-  } catch (const ConfigError& e) {
+  } catch (const config::ConfigError& e) {
     EXPECT_EQ(e.file(), path);
     EXPECT_EQ(e.line(), 4);
   }
@@ -339,7 +341,7 @@ TEST(ColourModelFile, AModelThatIsNotExposureInvariantIsRefusedForPhotometricSte
   try {
     config::LoadColorModelFile(path);
     FAIL() << "an affine model loaded";
-  } catch (const ConfigError& e) {
+  } catch (const config::ConfigError& e) {
     EXPECT_EQ(e.key(), "model");
     EXPECT_EQ(e.line(), 1);
   }
@@ -389,7 +391,7 @@ TEST(ColourDiligent, AnRgbFolderKeepsItsThreeChannelsWithPerChannelIntensities) 
   EXPECT_EQ(input.color->images.front().type(), CV_32FC3);
   EXPECT_EQ(input.color->provenance.mosaic, "RGB");
 
-  PhotometricStereoRequest request;
+  config::PhotometricStereoRequest request;
   request.method = "lambertian";
   request.integrator = "none";
   const std::string out = (dir.path() / "ps").string();

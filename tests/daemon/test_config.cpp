@@ -1,7 +1,10 @@
-#include "photorig/daemon/recipe.h"
-#include "photorig/daemon/rig_config.h"
-#include "photorig/daemon/rig_devices.h"
-#include "photorig/daemon/run.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
+#include "photorig/daemon/capture/internal/rig_devices.h"
+#include "photorig/daemon/service/run.h"
 #include "photorig/sim/brdf.h"
 #include "photorig/solvers/brdf/merl.h"
 #include "photorig/solvers/brdf/models.h"
@@ -41,15 +44,15 @@ sim:
 void ExpectConfigError(const std::string& path, const std::string& text, int line, int column,
                        const std::string& key, const std::string& fragment) {
   SCOPED_TRACE(text);
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRigConfig(path); }, path, line, column, fragment, key);
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRigConfig(path); }, path, line, column, fragment, key);
 }
 
 TEST(RigConfig, LoadsTheShippedSimulatedDome) {
-  const RigConfig rig = LoadRigConfig(SourceDir() + "/config/rigs/sim-dome.yaml");
+  const config::RigConfig rig = config::LoadRigConfig(SourceDir() + "/config/rigs/sim-dome.yaml");
   EXPECT_EQ(rig.name, "sim-dome");
   EXPECT_GE(rig.lights.leds.size(), 24u);
   EXPECT_LE(rig.lights.leds.size(), 96u);
-  for (const LedConfig& led : rig.lights.leds) {
+  for (const config::LedConfig& led : rig.lights.leds) {
     EXPECT_NEAR(led.direction.norm(), 1.0, 1e-12);
     EXPECT_GT(led.direction.z(), 0.0);
   }
@@ -62,7 +65,7 @@ TEST(RigConfig, LoadsTheShippedSimulatedDome) {
 // the way round, or its light matrix would be poorly conditioned (each is
 // about 1.16).
 TEST(RigConfig, TheNinetySixLedDomeAndItsSubsetsAreWellSpread) {
-  const RigConfig rig = LoadRigConfig(SourceDir() + "/config/rigs/sim-dome-96.yaml");
+  const config::RigConfig rig = config::LoadRigConfig(SourceDir() + "/config/rigs/sim-dome-96.yaml");
   EXPECT_EQ(rig.name, "sim-dome-96");
   ASSERT_EQ(rig.lights.leds.size(), 96u);
   for (std::size_t step : {8u, 4u, 2u, 1u}) {
@@ -84,7 +87,7 @@ TEST(RigConfig, TheNinetySixLedDomeAndItsSubsetsAreWellSpread) {
 
 TEST(RigConfig, PositionsBecomeDirections) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", kRig));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", kRig));
   EXPECT_NEAR(rig.lights.leds[2].direction.y(), 0.6, 1e-12);
   EXPECT_NEAR(rig.lights.leds[2].direction.z(), 0.8, 1e-12);
   EXPECT_DOUBLE_EQ(rig.lights.leds[1].intensity, 0.9);
@@ -100,7 +103,7 @@ TEST(RigConfig, SimulatedNearLedsAndABuiltDomeDifferFromTheDrawing) {
             ", 1.5]}\n";
   text += "    - {position_mm: [0, 60, 80]}\n";
   text += "camera: {driver: sim, width: 16, height: 16}\nsim:\n  seed: 5\n  led_direction_error_deg: 2\n";
-  const RigConfig rig = LoadRigConfig(dir.Write("ring.yaml", text));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("ring.yaml", text));
   ASSERT_TRUE(rig.lights.leds.back().position_mm.has_value());
   EXPECT_NEAR(rig.lights.leds.back().direction.dot(Eigen::Vector3d(0, 0.6, 0.8)), 1.0, 1e-12);
   const RigDevices devices = MakeRigDevices(rig, nullptr);
@@ -135,7 +138,7 @@ TEST(RigConfig, SimulatedIntensityErrorsAmbientLightAndResponseCurveReachTheWorl
             ", 1.5], intensity: " + std::to_string(1.0 + i / 400.0) + "}\n";
   text += "camera: {driver: sim, width: 16, height: 16}\nsim:\n  seed: 5\n  led_intensity_error_pct: 5\n"
           "  ambient: {dome_fraction: 0.02, stray_irradiance: 0.1}\n  sensor: {response_gamma: 1.1}\n";
-  const RigConfig rig = LoadRigConfig(dir.Write("ring.yaml", text));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("ring.yaml", text));
   const RigDevices devices = MakeRigDevices(rig, nullptr);
   const sim::WorldConfig& world = devices.world->config();
   EXPECT_DOUBLE_EQ(world.ambient.dome_fraction, 0.02);
@@ -159,9 +162,9 @@ TEST(RigConfig, SyntaxErrorNamesFileLineAndColumn) {
   const std::string text = "rig:\n  name: [unclosed\nlights: {}\n";
   const std::string path = dir.Write("bad.yaml", text);
   try {
-    LoadRigConfig(path);
+    config::LoadRigConfig(path);
     FAIL();
-  } catch (const ConfigError& e) {
+  } catch (const config::ConfigError& e) {
     EXPECT_EQ(e.file(), path);
     EXPECT_GE(e.line(), 2) << e.what();
     EXPECT_GT(e.column(), 0) << e.what();
@@ -182,10 +185,10 @@ TEST(RigConfig, SimulatedLightsTakeSafetyLimitsOnly) {
   TempDir dir;
   std::string text = kRig;
   text.replace(text.find("  driver: sim\n  leds:"), 14, "  driver: sim\n  options: {safety: {max_duty: 1.0, max_on_ms: 0}}\n");
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", text));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", text));
   EXPECT_DOUBLE_EQ(rig.lights.safety.defaults.max_duty, 1.0);
   EXPECT_DOUBLE_EQ(rig.lights.safety.defaults.max_on_ms, 0.0);
-  EXPECT_DOUBLE_EQ(LoadRigConfig(dir.Write("plain.yaml", kRig)).lights.safety.defaults.max_duty, 0.5);
+  EXPECT_DOUBLE_EQ(config::LoadRigConfig(dir.Write("plain.yaml", kRig)).lights.safety.defaults.max_duty, 0.5);
 
   std::string serial = kRig;
   serial.replace(serial.find("  driver: sim\n  leds:"), 14, "  driver: sim\n  options: {serial: A1}\n");
@@ -231,11 +234,11 @@ TEST(RigConfig, LightsBelowTheSampleAreRejected) {
 
 TEST(Recipe, ShippedRecipeCompilesToOneDarkAndOneFramePerLed) {
   const std::string path = SourceDir() + "/config/recipes/ps-sphere.yaml";
-  const RigConfig rig = LoadRigConfig(RecipeRigPath(path, ""));
-  const Recipe recipe = LoadRecipe(path, rig);
-  const auto steps = CompileSteps(recipe, rig);
+  const config::RigConfig rig = config::LoadRigConfig(config::RecipeRigPath(path, ""));
+  const config::Recipe recipe = config::LoadRecipe(path, rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   ASSERT_EQ(steps.size(), rig.lights.leds.size() + 1);
-  EXPECT_EQ(steps[0].kind, CaptureStep::Kind::kDark);
+  EXPECT_EQ(steps[0].kind, config::CaptureStep::Kind::kDark);
   EXPECT_TRUE(steps[0].pattern->IsDark());
   for (std::size_t i = 1; i < steps.size(); ++i) {
     EXPECT_EQ(steps[i].led, static_cast<int>(i - 1));
@@ -256,21 +259,21 @@ capture:
   steps:
     - each_led: {leds: [0, 7]}
 )");
-  ASSERT_EQ(RecipeRigPath(recipe_path, ""), rig_path);
-  const RigConfig rig = LoadRigConfig(rig_path);
-  const Recipe recipe = LoadRecipe(recipe_path, rig);
+  ASSERT_EQ(config::RecipeRigPath(recipe_path, ""), rig_path);
+  const config::RigConfig rig = config::LoadRigConfig(rig_path);
+  const config::Recipe recipe = config::LoadRecipe(recipe_path, rig);
   try {
-    CompileSteps(recipe, rig);
+    config::CompileSteps(recipe, rig);
     FAIL();
-  } catch (const ConfigError& e) {
+  } catch (const config::ConfigError& e) {
     EXPECT_EQ(e.line(), 6) << e.what();
     EXPECT_NE(std::string(e.what()).find("LED id 7 is not in rig 'tiny'"), std::string::npos) << e.what();
   }
   const std::string bad = dir.Write("s.yaml", "recipe: {name: s}\ncapture:\n  steps:\n    - flash: {}\n");
   try {
-    LoadRecipe(bad, rig);
+    config::LoadRecipe(bad, rig);
     FAIL();
-  } catch (const ConfigError& e) {
+  } catch (const config::ConfigError& e) {
     EXPECT_EQ(e.line(), 4) << e.what();
     EXPECT_NE(std::string(e.what()).find("unknown step 'flash'"), std::string::npos) << e.what();
   }
@@ -281,20 +284,20 @@ capture:
 // the load, with its position, before any device exists.
 TEST(Recipe, SimSceneIsParsedAtLoadForTheRigsFrame) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", kRig));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", kRig));
   auto recipe_with = [](const std::string& scene) {
     return "recipe: {name: s, rig: rig.yaml}\nsample:\n  sim_scene: " + scene +
            "\ncapture:\n  steps:\n    - dark: {count: 1}\n";
   };
-  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", recipe_with("{shape: sphere}")), rig);
+  const config::Recipe recipe = config::LoadRecipe(dir.Write("r.yaml", recipe_with("{shape: sphere}")), rig);
   ASSERT_TRUE(recipe.sim_scene.has_value());
   EXPECT_DOUBLE_EQ(recipe.sim_scene->sphere_radius_mm, 0.45 * 32 * 0.1);  // the rig's 32 pixels of 0.1 mm
 
   const std::string typo = dir.Write("typo.yaml", recipe_with("{shape: sphere, albedo: {pattern: checker, hi: 0.9}}"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(typo, rig); }, typo, 3, 57, "unknown key 'hi'",
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(typo, rig); }, typo, 3, 57, "unknown key 'hi'",
                                          "sample.sim_scene.albedo.hi");
   const std::string shape = dir.Write("shape.yaml", recipe_with("{shape: torus}"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(shape, rig); }, shape, 3, 22, "unknown shape 'torus'",
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(shape, rig); }, shape, 3, 22, "unknown shape 'torus'",
                                          "sample.sim_scene.shape");
 }
 
@@ -303,7 +306,7 @@ TEST(Recipe, SimSceneIsParsedAtLoadForTheRigsFrame) {
 // refuses is a configuration error at the key, naming the file.
 TEST(Recipe, SimSceneReadsAMeasuredTableAsItsMaterial) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", kRig));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", kRig));
   const auto white = solvers::brdf::MerlTable::FromFunction(
       [](const solvers::brdf::DirectionPair&) { return std::optional<Eigen::Vector3d>(Eigen::Vector3d(0.1, 0.2, 0.3)); });
   ASSERT_TRUE(solvers::brdf::WriteMerl((dir.path() / "grey.binary").string(), white).IsSolutionUsable());
@@ -311,7 +314,7 @@ TEST(Recipe, SimSceneReadsAMeasuredTableAsItsMaterial) {
     return "recipe: {name: s, rig: rig.yaml}\nsample:\n  sim_scene: {shape: sphere, brdf: {model: tabulated, table: " +
            table + "}}\ncapture:\n  steps:\n    - dark: {count: 1}\n";
   };
-  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", recipe_with("grey.binary")), rig);
+  const config::Recipe recipe = config::LoadRecipe(dir.Write("r.yaml", recipe_with("grey.binary")), rig);
   ASSERT_TRUE(recipe.sim_scene.has_value());
   const Eigen::Vector3d n = Eigen::Vector3d::UnitZ(), wi = Eigen::Vector3d(0.3, 0.1, 0.9).normalized(),
                         wo = Eigen::Vector3d(-0.2, 0.4, 0.8).normalized();
@@ -320,12 +323,12 @@ TEST(Recipe, SimSceneReadsAMeasuredTableAsItsMaterial) {
 
   std::filesystem::resize_file(dir.path() / "grey.binary", 1000);
   const std::string truncated = dir.Write("short.yaml", recipe_with("grey.binary"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(truncated, rig); }, truncated, 3, 62, "grey.binary",
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(truncated, rig); }, truncated, 3, 62, "grey.binary",
                                          "sample.sim_scene.brdf.table");
   const std::string missing = dir.Write("missing.yaml", "recipe: {name: s, rig: rig.yaml}\nsample:\n  sim_scene: "
                                                         "{shape: sphere, brdf: {model: tabulated}}\ncapture:\n"
                                                         "  steps:\n    - dark: {count: 1}\n");
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(missing, rig); }, missing, 3, 36, "needs a table",
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(missing, rig); }, missing, 3, 36, "needs a table",
                                          "sample.sim_scene.brdf");
 }
 
@@ -334,12 +337,12 @@ TEST(Recipe, SimSceneReadsAMeasuredTableAsItsMaterial) {
 // fit defines it; a list where it cannot apply is an error at its position.
 TEST(Recipe, SimSceneTakesParametersPerChannel) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", kRig));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", kRig));
   const auto line_with = [](const std::string& scene) { return "  sim_scene: " + scene; };
   const auto recipe_with = [&](const std::string& scene) {
     return "recipe: {name: s, rig: rig.yaml}\nsample:\n" + line_with(scene) + "\ncapture:\n  steps:\n    - dark: {count: 1}\n";
   };
-  const Recipe recipe = LoadRecipe(
+  const config::Recipe recipe = config::LoadRecipe(
       dir.Write("r.yaml", recipe_with("{shape: sample_plane, albedo: {pattern: uniform, high: [0.1, 0.2, 0.3]}, brdf: "
                                       "{model: cook_torrance, rho_s: [0.05, 0.06, 0.07], roughness: 0.2, f0: 0.6}}")),
       rig);
@@ -372,17 +375,17 @@ TEST(Recipe, SimSceneTakesParametersPerChannel) {
 
   const std::string checker = "{shape: sample_plane, albedo: {pattern: checker, high: [0.1, 0.2, 0.3]}}";
   const std::string checker_path = dir.Write("checker.yaml", recipe_with(checker));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(checker_path, rig); }, checker_path, 3,
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(checker_path, rig); }, checker_path, 3,
                                          static_cast<int>(line_with(checker).find('[')) + 1, "needs pattern: uniform",
                                          "sample.sim_scene.albedo.high");
   const std::string two = "{shape: sample_plane, brdf: {model: cook_torrance, rho_s: [0.1, 0.2]}}";
   const std::string two_path = dir.Write("two.yaml", recipe_with(two));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(two_path, rig); }, two_path, 3,
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(two_path, rig); }, two_path, 3,
                                          static_cast<int>(line_with(two).find('[')) + 1, "a list of 3 numbers",
                                          "sample.sim_scene.brdf.rho_s");
   const std::string ggx = "{shape: sample_plane, brdf: {model: ggx, rho_s: [0.1, 0.2, 0.3]}}";
   const std::string ggx_path = dir.Write("ggx.yaml", recipe_with(ggx));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(ggx_path, rig); }, ggx_path, 3,
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(ggx_path, rig); }, ggx_path, 3,
                                          static_cast<int>(line_with(ggx).find("{model")) + 1,
                                          "rho_s per channel needs the blinn_phong or cook_torrance model",
                                          "sample.sim_scene.brdf");
@@ -392,14 +395,14 @@ TEST(Recipe, SimSceneTakesParametersPerChannel) {
 // `solve: {executor, ..., stages}` says otherwise, key by key.
 TEST(Recipe, SolveExecutorComesFromTheRigUnlessTheRecipeChoosesOne) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", std::string(kRig) + "solve: {partition: lab, time: \"00:10:00\"}\n"));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", std::string(kRig) + "solve: {partition: lab, time: \"00:10:00\"}\n"));
   const std::string head = "recipe: {name: s, rig: rig.yaml}\ncapture:\n  steps:\n    - dark: {count: 1}\n";
-  const Recipe listed = LoadRecipe(dir.Write("list.yaml", head + "solve:\n  - photometric_stereo: {}\n"), rig);
+  const config::Recipe listed = config::LoadRecipe(dir.Write("list.yaml", head + "solve:\n  - photometric_stereo: {}\n"), rig);
   EXPECT_EQ(listed.solve_executor.executor, "local");
   EXPECT_EQ(listed.solve_executor.partition, "lab");
   EXPECT_TRUE(listed.photometric_stereo.has_value());
 
-  const Recipe chosen = LoadRecipe(
+  const config::Recipe chosen = config::LoadRecipe(
       dir.Write("map.yaml", head + "solve:\n  executor: slurm\n  time: \"01:00:00\"\n  stages:\n"
                                    "    - photometric_stereo: {method: robust}\n"),
       rig);
@@ -409,9 +412,9 @@ TEST(Recipe, SolveExecutorComesFromTheRigUnlessTheRecipeChoosesOne) {
   ASSERT_TRUE(chosen.photometric_stereo.has_value());
 
   const std::string typo = dir.Write("typo.yaml", head + "solve:\n  executor: slurm\n  stage: []\n");
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(typo, rig); }, typo, 7, 3, "unknown key 'stage'", "solve.stage");
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(typo, rig); }, typo, 7, 3, "unknown key 'stage'", "solve.stage");
   const std::string bad = dir.Write("bad.yaml", head + "solve: {executor: mpi}\n");
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(bad, rig); }, bad, 5, 19, "expected local or slurm",
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(bad, rig); }, bad, 5, 19, "expected local or slurm",
                                          "solve.executor");
 }
 
@@ -450,7 +453,7 @@ TEST(HardwareTriggerConfig, SimWireRunsAndAMissingGpioChipFailsByName) {
   request.rig_path = dir.Write("gpio.yaml", TriggeredRig("{mode: hardware, output: {driver: gpio, chip: gpiochip77, offset: 3}}"));
 #if !PHOTORIG_HAVE_DRIVERS_GPIO
   // Without the module the rig does not load at all.
-  EXPECT_THROW(ExecuteRun(request), ConfigError);
+  EXPECT_THROW(ExecuteRun(request), config::ConfigError);
 #else
   request.output_directory = (dir.path() / "gpio-run").string();
   request.retry.initial_backoff_ms = 1;

@@ -2,8 +2,10 @@
 // way a folder can be subtly wrong (and used to solve with "success") is an
 // error naming the file and line.
 
-#include "photorig/daemon/diligent.h"
-#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/pipelines/diligent.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 #include "test_support.h"
 
 #include <matio.h>
@@ -68,7 +70,7 @@ class DiligentFolder : public ::testing::Test {
   std::string LoadError() {
     try {
       Load();
-    } catch (const ConfigError& e) {
+    } catch (const config::ConfigError& e) {
       return e.what();
     }
     return "";

@@ -1,7 +1,9 @@
 // Runs the photorig executable on the shipped recipe and checks what it leaves on disk.
 
-#include "photorig/daemon/image_io.h"
-#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 #include "photorig/lighting/envmap.h"
 #include "test_support.h"
 
@@ -224,8 +226,8 @@ TEST(EndToEnd, LightCalibrationRecipeFindsTheDomeAsBuilt) {
   const fs::path calibrated = run / "results/lights/rig.yaml";
   ASSERT_TRUE(fs::exists(calibrated)) << ReadText(dir.path() / "log");
   const auto truth = ReadDirections(run / "ground_truth/light_directions.txt");
-  const auto nominal = photorig::daemon::LoadRigConfig(rig.string());
-  const auto estimate = photorig::daemon::LoadRigConfig(calibrated.string());
+  const auto nominal = photorig::config::LoadRigConfig(rig.string());
+  const auto estimate = photorig::config::LoadRigConfig(calibrated.string());
   ASSERT_EQ(truth.size(), nominal.lights.leds.size());
   ASSERT_EQ(estimate.lights.leds.size(), truth.size());
   double nominal_deg = 0.0, calibrated_deg = 0.0;

@@ -2,7 +2,7 @@
 // every frame intact or fails cleanly after its retry bound, the stop record
 // says which, and the dome is dark afterwards either way.
 
-#include "photorig/daemon/sequencer.h"
+#include "photorig/daemon/capture/sequencer.h"
 #include "photorig/sim/devices.h"
 #include "capture_fixtures.h"
 #include "test_support.h"
@@ -64,12 +64,12 @@ TEST_P(FaultInjection, RunCompletesIntactOrFailsCleanlyWithTheLightsOff) {
   WatchedDome dome("dome", world);
   sim::SimCamera camera("cam", world);
 
-  const std::vector<CaptureStep> steps = photorig::testing::DarkThenEachLight(kLeds);
+  const std::vector<config::CaptureStep> steps = photorig::testing::DarkThenEachLight(kLeds);
   RunManifest header;
   header.width = 16;
   header.height = 12;
   RunWriter writer((dir.path() / "run").string(), header);
-  CameraConfig camera_config;
+  config::CameraConfig camera_config;
   camera_config.width = 16;
   camera_config.height = 12;
   CaptureOptions options;

@@ -3,14 +3,15 @@
 // whose frames match the analytic BRDF at several poses, and every exit path
 // leaving the arms stopped and the lamp off, or retried after a drive fault.
 
-#include "photorig/daemon/adaptive_poses.h"
-#include "photorig/daemon/brdf_measurement.h"
-#include "photorig/daemon/plan.h"
-#include "photorig/daemon/recipe.h"
-#include "photorig/daemon/rig_devices.h"
-#include "photorig/daemon/run.h"
-#include "photorig/daemon/run_store.h"
-#include "photorig/daemon/sequencer.h"
+#include "photorig/daemon/pipelines/adaptive_poses.h"
+#include "photorig/daemon/pipelines/brdf_measurement.h"
+#include "photorig/daemon/capture/plan.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
+#include "photorig/daemon/capture/internal/rig_devices.h"
+#include "photorig/daemon/service/run.h"
+#include "photorig/daemon/capture/run_store.h"
+#include "photorig/daemon/capture/sequencer.h"
 #include "photorig/drivers/motion/goniometer.h"
 #include "photorig/sim/gonio.h"
 #include "photorig/solvers/brdf/fit.h"
@@ -90,7 +91,7 @@ double ExpectedRadiance(double light_deg, double camera_deg) {
 void ExpectConfigError(const std::string& rig_text, int line, int column, const std::string& fragment) {
   TempDir dir;
   const std::string path = dir.Write("rig.yaml", rig_text);
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRigConfig(path); }, path, line, column, fragment);
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRigConfig(path); }, path, line, column, fragment);
 }
 
 std::string Replace(std::string text, const std::string& from, const std::string& to) {
@@ -104,8 +105,8 @@ std::string Replace(std::string text, const std::string& from, const std::string
 struct GonioCapture {
   GonioCapture(TempDir& dir, const std::string& faults, const std::string& poses)
       : directory(dir.path()),
-        rig(LoadRigConfig(dir.Write("rig.yaml", GonioRig(faults)))),
-        recipe(LoadRecipe(dir.Write("r.yaml", GonioRecipe(poses)), rig)),
+        rig(config::LoadRigConfig(dir.Write("rig.yaml", GonioRig(faults)))),
+        recipe(config::LoadRecipe(dir.Write("r.yaml", GonioRecipe(poses)), rig)),
         devices(MakeRigDevices(rig, &recipe)) {}
 
   CaptureReport Run(drivers::LightController& lights, CaptureOptions options) {
@@ -114,12 +115,12 @@ struct GonioCapture {
     RunWriter writer((directory / "run").string(), header);
     options.motion = &devices.motion;
     options.motion_profile = rig.motion->profile;
-    return RunCapture(CompileSteps(recipe, rig), rig.camera, lights, *devices.camera, writer, options);
+    return RunCapture(config::CompileSteps(recipe, rig), rig.camera, lights, *devices.camera, writer, options);
   }
 
   std::filesystem::path directory;
-  RigConfig rig;
-  Recipe recipe;
+  config::RigConfig rig;
+  config::Recipe recipe;
   RigDevices devices;
 };
 
@@ -141,23 +142,23 @@ TEST(Gonio, RigAndPoseErrorsNameTheirPosition) {
                     "unknown motion driver 'stepper'");
 
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
   const std::string both = dir.Write(
       "both.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_arm_deg: 30}]\n        grid: {light_arm_deg: 0}\n"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(both, rig); }, both, 7, 9,
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(both, rig); }, both, 7, 9,
                                          "exactly one of 'list', 'grid' or 'plan'");
   const std::string typo = dir.Write("typo.yaml", GonioRecipe("        list: [{light_arm_deg: 0, camera_deg: 30}]\n"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(typo, rig); }, typo, 7, 35, "camera_deg");
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(typo, rig); }, typo, 7, 35, "camera_deg");
 }
 
 TEST(Gonio, GridCompilesToPosesAndThePlanCountsTheMoves) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
-  const Recipe recipe = LoadRecipe(dir.Write(
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+  const config::Recipe recipe = config::LoadRecipe(dir.Write(
       "r.yaml", GonioRecipe("        grid: {light_arm_deg: -30, camera_arm_deg: [0, 30], sample_rotation_deg: [0, 90]}\n")), rig);
-  const auto steps = CompileSteps(recipe, rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   ASSERT_EQ(steps.size(), 5u);
-  EXPECT_EQ(steps[1].kind, CaptureStep::Kind::kPose);
+  EXPECT_EQ(steps[1].kind, config::CaptureStep::Kind::kPose);
   EXPECT_EQ(steps[1].label, "0001_pose_l-30.0_c+0.0_r+0.0");
   ASSERT_TRUE(steps[4].pose.has_value());
   EXPECT_EQ(steps[4].pose->camera_arm_deg, 30.0);
@@ -190,10 +191,10 @@ TEST(Gonio, DryRunAndRunRefuseBadPosesBeforeAnythingMoves) {
   };
   for (const Case& c : cases) {
     TempDir dir;
-    const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+    const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
     const std::string path = dir.Write("r.yaml", GonioRecipe(c.poses));
-    const Recipe recipe = LoadRecipe(path, rig);
-    const RunPlan plan = PlanRun(recipe, rig, CompileSteps(recipe, rig));
+    const config::Recipe recipe = config::LoadRecipe(path, rig);
+    const RunPlan plan = PlanRun(recipe, rig, config::CompileSteps(recipe, rig));
     ASSERT_EQ(plan.errors.size(), 1u) << c.poses;
     EXPECT_NE(plan.errors[0].find(c.fragment), std::string::npos) << plan.errors[0];
 
@@ -233,7 +234,7 @@ TEST(Gonio, FramesMatchTheAnalyticBrdfAtEachPose) {
     cv::Mat frame;
     const FrameRecord& record = manifest.frames[k + 1];
     // The manifest says where the arms were.
-    EXPECT_EQ(record.kind, "pose");
+    EXPECT_EQ(record.kind, config::CaptureStep::Kind::kPose);
     EXPECT_EQ(record.group, "poses");
     ASSERT_TRUE(record.pose.has_value()) << "pose " << k;
     EXPECT_EQ(record.pose->light_arm_deg, poses[k][0]);
@@ -312,17 +313,17 @@ std::string GonioRigWithTarget(const std::string& target_pose = "{light_arm_deg:
 
 TEST(Gonio, BracketsRepeatsAndTheReferenceTargetCompileToSteps) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRigWithTarget()));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", GonioRigWithTarget()));
   ASSERT_TRUE(rig.reference_target.has_value());
   EXPECT_EQ(rig.reference_target->albedo, 0.9);
-  const Recipe recipe = LoadRecipe(
+  const config::Recipe recipe = config::LoadRecipe(
       dir.Write("r.yaml", "recipe: {name: gonio, rig: rig.yaml}\ncapture:\n  exposure_us: 4000\n  steps:\n"
                           "    - dark: {count: 2, exposures_us: [1000, 4000]}\n"
                           "    - reference_target: {count: 2, exposures_us: [1000]}\n"
                           "    - poses: {exposures_us: [1000, 4000], count: 2, list: [{light_arm_deg: -30, "
                           "camera_arm_deg: 30}]}\n"),
       rig);
-  const auto steps = CompileSteps(recipe, rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   ASSERT_EQ(steps.size(), 10u);
   EXPECT_EQ(steps[0].label, "0000_dark_e1000");
   EXPECT_EQ(steps[3].exposure_us, 4000.0);
@@ -341,14 +342,14 @@ TEST(Gonio, BracketsRepeatsAndTheReferenceTargetCompileToSteps) {
 
   // Refusals, each at its line.
   const std::string no_target = dir.Write("plain.yaml", GonioRig());
-  const RigConfig plain = LoadRigConfig(no_target);
+  const config::RigConfig plain = config::LoadRigConfig(no_target);
   const std::string asks = dir.Write("asks.yaml", "recipe: {name: gonio, rig: rig.yaml}\ncapture:\n  steps:\n"
                                                   "    - dark: {count: 2}\n    - reference_target: {count: 1}\n");
-  photorig::testing::ExpectConfigErrorAt([&] { CompileSteps(LoadRecipe(asks, plain), plain); }, asks, 5, 7,
+  photorig::testing::ExpectConfigErrorAt([&] { config::CompileSteps(config::LoadRecipe(asks, plain), plain); }, asks, 5, 7,
                                          "names no reference_target");
   const std::string twice = dir.Write(
       "twice.yaml", GonioRecipe("        exposures_us: [1000, 1000]\n        list: [{light_arm_deg: 0, camera_arm_deg: 30}]\n"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(twice, rig); }, twice, 7, 30, "listed twice");
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(twice, rig); }, twice, 7, 30, "listed twice");
   ExpectConfigError(Replace(GonioRigWithTarget(), "albedo: 0.9", "albedo: 1.5"), 18, 28, "must lie in [0.01, 1]");
   ExpectConfigError(GonioRigWithTarget("{light_arm_deg: 0, camera_arm_deg: 10, sample_changer_deg: 90}"), 18, 39,
                     "below the minimum 15");
@@ -390,11 +391,11 @@ std::string PlanStep(const std::string& plan) { return "        plan: " + plan +
 
 TEST(Gonio, PlanStepPlansForTheRigAndDryRunListsWhatItRefused) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
   const std::string path = dir.Write(
       "r.yaml", GonioRecipe(PlanStep("{theta_h_deg: {min: 0, max: 60, steps: 7}, theta_d_deg: {min: 5, max: 75, steps: 8}}")));
-  const Recipe recipe = LoadRecipe(path, rig);
-  const auto steps = CompileSteps(recipe, rig);
+  const config::Recipe recipe = config::LoadRecipe(path, rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   // The same plan as the solver makes for these arms.
   solvers::brdf::SamplingSpec spec;
   spec.theta_h_steps = 7;
@@ -444,16 +445,16 @@ TEST(Gonio, PlanStepErrorsNameTheirPosition) {
   };
   for (const Case& c : cases) {
     TempDir dir;
-    const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+    const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
     const std::string path = dir.Write("r.yaml", GonioRecipe(PlanStep(c.plan)));
-    photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(path, rig); }, path, c.line, c.column, c.fragment);
+    photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(path, rig); }, path, c.line, c.column, c.fragment);
   }
   // Two ways of giving poses at once.
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
   const std::string both = dir.Write(
       "r.yaml", GonioRecipe(PlanStep("{theta_h_deg: 0}") + "        list: [{light_arm_deg: -30, camera_arm_deg: 30}]\n"));
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(both, rig); }, both, 7, 9, "exactly one of 'list', 'grid' or 'plan'");
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(both, rig); }, both, 7, 9, "exactly one of 'list', 'grid' or 'plan'");
 }
 
 // The rig's axes as simulated drives that record the position each reports
@@ -461,9 +462,9 @@ TEST(Gonio, PlanStepErrorsNameTheirPosition) {
 // simulated frames see the arms where they are); the closest the arms came.
 struct WatchedArms {
   // `away`: each arm powers on away from its home, on its own side.
-  WatchedArms(const RigConfig& rig, std::shared_ptr<sim::World> world, bool away) {
+  WatchedArms(const config::RigConfig& rig, std::shared_ptr<sim::World> world, bool away) {
     std::vector<drivers::Motion*> motions;
-    for (const AxisConfig& axis : rig.motion->axes) {
+    for (const config::AxisConfig& axis : rig.motion->axes) {
       sim::SimAxisOptions options = rig.motion->sim_axis;
       if (away) options.power_on_deg = axis.id == "light_arm" ? 40.0 : axis.id == "camera_arm" ? -30.0 : 0.0;
       at[axis.id] = axis.limits.home_deg + options.power_on_deg;
@@ -493,18 +494,18 @@ struct WatchedArms {
 // rig's separation.
 TEST(Gonio, HomingAndEveryPlannedMoveKeepTheArmsApart) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
-  const Recipe recipe = LoadRecipe(
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", GonioRig()));
+  const config::Recipe recipe = config::LoadRecipe(
       dir.Write("r.yaml", GonioRecipe(PlanStep("{theta_h_deg: {min: 0, max: 60, steps: 5}, theta_d_deg: {min: 8, max: 72, steps: 5}}"))),
       rig);
-  const auto steps = CompileSteps(recipe, rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   ASSERT_GT(steps.size(), 10u);
   WatchedArms arms(rig, nullptr, true);
   drivers::Goniometer& goniometer = *arms.motion.goniometer;
   for (auto& m : arms.motion.axes) ASSERT_TRUE(m->Open().ok());
   const Status homed = goniometer.HomeAll();
   ASSERT_TRUE(homed.ok()) << homed.ToString();
-  for (const CaptureStep& step : steps) {
+  for (const config::CaptureStep& step : steps) {
     if (!step.pose) continue;
     const Status moved = goniometer.MoveTo(PoseTargets(*step.pose), rig.motion->profile);
     ASSERT_TRUE(moved.ok()) << step.label << ": " << moved.ToString();
@@ -541,9 +542,9 @@ TEST(Gonio, PlanStepRunsThroughTheSequencer) {
 
 TEST(Gonio, ShippedRecipeDryRunsClean) {
   const std::string path = SourceDir() + "/config/recipes/gonio-sample.yaml";
-  const RigConfig rig = LoadRigConfig(RecipeRigPath(path, ""));
-  const Recipe recipe = LoadRecipe(path, rig);
-  const auto steps = CompileSteps(recipe, rig);
+  const config::RigConfig rig = config::LoadRigConfig(config::RecipeRigPath(path, ""));
+  const config::Recipe recipe = config::LoadRecipe(path, rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   const RunPlan plan = PlanRun(recipe, rig, steps);
   EXPECT_TRUE(plan.ok()) << (plan.errors.empty() ? "" : plan.errors[0]);
   EXPECT_EQ(steps.size(), 13u);
@@ -587,8 +588,8 @@ std::string AdaptiveRecipe(const std::string& adaptive = "{passes: 2, added_pose
 struct AdaptiveCapture {
   explicit AdaptiveCapture(TempDir& dir)
       : directory(dir.path() / "run"),
-        rig(LoadRigConfig(dir.Write("rig.yaml", NoisyGonioRigWithTarget()))),
-        recipe(LoadRecipe(dir.Write("r.yaml", AdaptiveRecipe()), rig)),
+        rig(config::LoadRigConfig(dir.Write("rig.yaml", NoisyGonioRigWithTarget()))),
+        recipe(config::LoadRecipe(dir.Write("r.yaml", AdaptiveRecipe()), rig)),
         devices(MakeRigDevices(rig, &recipe)),
         arms(rig, devices.world, false),
         passes(recipe, *config::AdaptivePlanGroup(recipe), rig) {}
@@ -600,28 +601,28 @@ struct AdaptiveCapture {
     options.motion_profile = rig.motion->profile;
     options.health = rig.health;
     options.leds = rig.lights.leds;
-    options.next_pass = [this](const std::vector<CaptureStep>& steps, std::size_t ended, const RunWriter& run) {
+    options.next_pass = [this](const std::vector<config::CaptureStep>& steps, std::size_t ended, const RunWriter& run) {
       return passes.NextPass(steps, ended, run);
     };
-    return RunCapture(CompileSteps(recipe, rig), rig.camera, lights, *devices.camera, writer, options);
+    return RunCapture(config::CompileSteps(recipe, rig), rig.camera, lights, *devices.camera, writer, options);
   }
 
   std::filesystem::path directory;
-  RigConfig rig;
-  Recipe recipe;
+  config::RigConfig rig;
+  config::Recipe recipe;
   RigDevices devices;
   WatchedArms arms;
   AdaptivePoses passes;
 };
 
-double ThetaHDeg(const GonioPose& pose) {
+double ThetaHDeg(const config::GonioPose& pose) {
   const auto d = solvers::brdf::ArmDirections({pose.light_arm_deg, pose.camera_arm_deg, pose.sample_rotation_deg});
   return solvers::brdf::ToHalfDiff(d.wi, d.wo).theta_h * 180.0 / M_PI;
 }
 
 // The distinct poses of the run's pose frames, by pass.
-std::map<int, std::vector<GonioPose>> PosesByPass(const RunManifest& manifest) {
-  std::map<int, std::vector<GonioPose>> by_pass;
+std::map<int, std::vector<config::GonioPose>> PosesByPass(const RunManifest& manifest) {
+  std::map<int, std::vector<config::GonioPose>> by_pass;
   for (const FrameRecord& r : manifest.frames) {
     if (r.group != "poses" || r.exposure_us != 100.0) continue;  // one frame per pose
     by_pass[r.pass].push_back(*r.pose);
@@ -655,14 +656,14 @@ TEST(Gonio, AnAdaptivePlanAddsPosesOnTheLobesFlanksAndTheFitUsesThemAll) {
   EXPECT_EQ(passes[1].samples, 13);
   EXPECT_EQ(report.steps_total, 4 + 1 + 2 * (9 + 8));
   EXPECT_EQ(report.frames_written, report.steps_total);
-  const std::map<int, std::vector<GonioPose>> by_pass = PosesByPass(writer.manifest());
+  const std::map<int, std::vector<config::GonioPose>> by_pass = PosesByPass(writer.manifest());
   ASSERT_EQ(by_pass.size(), 3u);
   EXPECT_EQ(by_pass.at(0).size(), 9u);
   // The lobe falls off between the peak and theta_h 10 deg: the first pass
   // splits that interval in every theta_d row, the second the half nearer the peak.
   auto count_at = [&](int pass, double theta_h_deg) {
     return std::count_if(by_pass.at(pass).begin(), by_pass.at(pass).end(),
-                         [&](const GonioPose& p) { return std::abs(ThetaHDeg(p) - theta_h_deg) < 1e-6; });
+                         [&](const config::GonioPose& p) { return std::abs(ThetaHDeg(p) - theta_h_deg) < 1e-6; });
   };
   EXPECT_EQ(count_at(1, 5.0), 3);
   EXPECT_EQ(count_at(2, 2.5), 3);
@@ -698,7 +699,7 @@ TEST(Gonio, AStopDuringAnAdaptivePassLeavesTheLampOffAndItsFramesKept) {
   std::atomic<bool> stop{false};
   CaptureOptions options;
   options.stop_requested = &stop;
-  options.on_frame = [&stop](const CaptureStep& step, const FrameRecord&, int) {
+  options.on_frame = [&stop](const config::CaptureStep& step, const FrameRecord&, int) {
     if (step.pass == 1) stop = true;  // the first frame of the first added pass
   };
   std::vector<FrameRecord> kept;
@@ -764,9 +765,9 @@ TEST(Gonio, AnAdaptivePlanBeforeItsDarksOrTargetIsRefusedAtItsLine) {
   };
   for (const Case& c : cases) {
     TempDir dir;
-    const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", NoisyGonioRigWithTarget()));
+    const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", NoisyGonioRigWithTarget()));
     const std::string path = dir.Write("r.yaml", c.recipe);
-    photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(path, rig); }, path, c.line, c.column, c.fragment);
+    photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(path, rig); }, path, c.line, c.column, c.fragment);
   }
 }
 
@@ -774,12 +775,12 @@ TEST(Gonio, AnAdaptivePlanBeforeItsDarksOrTargetIsRefusedAtItsLine) {
 // shipped adaptive recipe plans clean.
 TEST(Gonio, DryRunBoundsWhatTheAdaptivePassesAdd) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", NoisyGonioRigWithTarget()));
-  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", AdaptiveRecipe("{passes: 3, added_poses: 5}")), rig);
-  const auto steps = CompileSteps(recipe, rig);
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", NoisyGonioRigWithTarget()));
+  const config::Recipe recipe = config::LoadRecipe(dir.Write("r.yaml", AdaptiveRecipe("{passes: 3, added_poses: 5}")), rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   ASSERT_EQ(steps.size(), 4u + 1u + 18u);
   EXPECT_TRUE(steps.back().ends_pass);
-  EXPECT_EQ(std::count_if(steps.begin(), steps.end(), [](const CaptureStep& s) { return s.ends_pass; }), 1);
+  EXPECT_EQ(std::count_if(steps.begin(), steps.end(), [](const config::CaptureStep& s) { return s.ends_pass; }), 1);
   PlanOptions options;
   options.step_overhead_ms = 0.0;
   const RunPlan plan = PlanRun(recipe, rig, steps, options);
@@ -791,7 +792,7 @@ TEST(Gonio, DryRunBoundsWhatTheAdaptivePassesAdd) {
   EXPECT_EQ(plan.adaptive->max_frames, 3 * 5 * 2);
   // Per added pose: both exposures, and at most a sweep of each arm across the coarse plan's range.
   double light_lo = 1e9, light_hi = -1e9, camera_lo = 1e9, camera_hi = -1e9;
-  for (const GonioPose& p : recipe.groups[2].poses) {
+  for (const config::GonioPose& p : recipe.groups[2].poses) {
     light_lo = std::min(light_lo, p.light_arm_deg), light_hi = std::max(light_hi, p.light_arm_deg);
     camera_lo = std::min(camera_lo, p.camera_arm_deg), camera_hi = std::max(camera_hi, p.camera_arm_deg);
   }
@@ -801,9 +802,9 @@ TEST(Gonio, DryRunBoundsWhatTheAdaptivePassesAdd) {
   EXPECT_EQ(plan.ToJson(steps)["adaptive"]["max_added_frames"], 30);
 
   const std::string shipped = SourceDir() + "/config/recipes/brdf-gonio-adaptive.yaml";
-  const RigConfig sim_gonio = LoadRigConfig(RecipeRigPath(shipped, ""));
-  const Recipe adaptive = LoadRecipe(shipped, sim_gonio);
-  const RunPlan shipped_plan = PlanRun(adaptive, sim_gonio, CompileSteps(adaptive, sim_gonio));
+  const config::RigConfig sim_gonio = config::LoadRigConfig(config::RecipeRigPath(shipped, ""));
+  const config::Recipe adaptive = config::LoadRecipe(shipped, sim_gonio);
+  const RunPlan shipped_plan = PlanRun(adaptive, sim_gonio, config::CompileSteps(adaptive, sim_gonio));
   EXPECT_TRUE(shipped_plan.ok()) << shipped_plan.errors.front();
   ASSERT_TRUE(shipped_plan.adaptive.has_value());
   EXPECT_EQ(shipped_plan.adaptive->passes, 2);
@@ -813,8 +814,8 @@ TEST(Gonio, DryRunBoundsWhatTheAdaptivePassesAdd) {
 // checked when the recipe loads, a bad one named at its line and column.
 TEST(Gonio, TheBrdfSolveStageIsParsedAndCheckedAtLoad) {
   const std::string shipped = SourceDir() + "/config/recipes/brdf-gonio.yaml";
-  const RigConfig rig = LoadRigConfig(RecipeRigPath(shipped, ""));
-  const Recipe recipe = LoadRecipe(shipped, rig);
+  const config::RigConfig rig = config::LoadRigConfig(config::RecipeRigPath(shipped, ""));
+  const config::Recipe recipe = config::LoadRecipe(shipped, rig);
   ASSERT_TRUE(recipe.brdf.has_value());
   EXPECT_EQ(recipe.brdf->loss, solvers::brdf::FitLoss::kWeighted);
   EXPECT_TRUE(recipe.brdf->calibrate_with_target);
@@ -843,13 +844,13 @@ TEST(Gonio, TheBrdfSolveStageIsParsedAndCheckedAtLoad) {
     const std::string path = dir.Write("brdf.yaml", Replace(edited, "rig: ../rigs/sim-gonio.yaml",
                                                              "rig: " + SourceDir() + "/config/rigs/sim-gonio.yaml"));
     if (c.column == 0) {
-      const Recipe loaded = LoadRecipe(path, rig);
+      const config::Recipe loaded = config::LoadRecipe(path, rig);
       ASSERT_TRUE(loaded.brdf.has_value());
       EXPECT_EQ(loaded.brdf->loss, solvers::brdf::FitLoss::kLog);
       EXPECT_FALSE(loaded.brdf->calibrate_with_target);
       continue;
     }
-    photorig::testing::ExpectConfigErrorAt([&] { LoadRecipe(path, rig); }, path, line, c.column, c.fragment);
+    photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(path, rig); }, path, line, c.column, c.fragment);
   }
 }
 

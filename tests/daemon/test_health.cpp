@@ -2,8 +2,8 @@
 // what the plan asked for fails, naming the LEDs or frames and the statistic;
 // a healthy capture raises no alarm; photometric stereo refuses a black stack.
 
-#include "photorig/daemon/frame_health.h"
-#include "photorig/daemon/run.h"
+#include "photorig/daemon/capture/frame_health.h"
+#include "photorig/daemon/service/run.h"
 #include "config_error_check.h"
 #include "test_support.h"
 
@@ -160,7 +160,7 @@ TEST(CaptureHealth, ChecksOffLetABlackCaptureThroughAndPhotometricStereoRefusesI
   TempDir dir;
   const RunOutcome outcome = Capture(dir, "{camera: {lens_cap: true}}", "health: {enabled: false}\n");
   ASSERT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;
-  PhotometricStereoRequest request;
+  config::PhotometricStereoRequest request;
   request.method = "lambertian";
   request.integrator = "none";
   const PhotometricStereoResult result =
@@ -172,13 +172,13 @@ TEST(CaptureHealth, ChecksOffLetABlackCaptureThroughAndPhotometricStereoRefusesI
 
 TEST(CaptureHealth, RigHealthSectionIsReadAndRangeChecked) {
   TempDir dir;
-  const RigConfig defaults = LoadRigConfig(dir.Write("default.yaml", SmallRigYaml()));
+  const config::RigConfig defaults = config::LoadRigConfig(dir.Write("default.yaml", SmallRigYaml()));
   EXPECT_TRUE(defaults.health.enabled);
   EXPECT_EQ(defaults.health.lit_sigma, 10.0);
   EXPECT_EQ(defaults.health.max_clipped_fraction, 0.02);
   // The simulated sensor's full well (15000 e at 4 e/DN) fills before its 12-bit ADC does.
   EXPECT_NEAR(defaults.health.saturation_dn, 64 + 15000.0 / 4 - 3 * 6.0 / 4, 1e-9);
-  const RigConfig set = LoadRigConfig(dir.Write(
+  const config::RigConfig set = config::LoadRigConfig(dir.Write(
       "set.yaml", SmallRigYaml() + "health: {lit_sigma: 20, max_clipped_fraction: 0.1, min_neighbour_ratio: 0, "
                                    "neighbours: 6, max_brightness_ratio: 3}\n"));
   EXPECT_EQ(set.health.lit_sigma, 20.0);
@@ -190,12 +190,12 @@ TEST(CaptureHealth, RigHealthSectionIsReadAndRangeChecked) {
   const std::string rig = SmallRigYaml();
   const int line = static_cast<int>(std::count(rig.begin(), rig.end(), '\n')) + 2;
   const std::string low = dir.Write("low.yaml", rig + "health:\n  lit_sigma: 1\n");
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRigConfig(low); }, low, line, 14, "must lie in [3, 1000]",
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRigConfig(low); }, low, line, 14, "must lie in [3, 1000]",
                                          "health.lit_sigma");
   const std::string unknown = dir.Write("unknown.yaml", rig + "health:\n  lit_sigmas: 5\n");
-  photorig::testing::ExpectConfigErrorAt([&] { LoadRigConfig(unknown); }, unknown, line, 3, "lit_sigmas");
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRigConfig(unknown); }, unknown, line, 3, "lit_sigmas");
   const std::string channel = dir.Write("channel.yaml", SmallRigYaml("{lights: {dim_channels: {two: 0.5}}}"));
-  EXPECT_THROW(LoadRigConfig(channel), config::ConfigError);
+  EXPECT_THROW(config::LoadRigConfig(channel), config::ConfigError);
 }
 
 TEST(FrameHealthDescribe, GroupsLedsIntoRanges) {

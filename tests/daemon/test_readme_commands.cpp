@@ -6,8 +6,8 @@
 // not here.
 
 #include "photorig/config/modules.h"
-#include "photorig/daemon/image_io.h"
-#include "photorig/daemon/previews.h"
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/internal/previews.h"
 #include "photorig/lighting/envmap.h"
 #include "test_support.h"
 

@@ -2,11 +2,12 @@
 // repeats. Validation positions, the compiled step list, the plan, and a real
 // capture on the simulated dome whose frames and labels are checked on disk.
 
-#include "photorig/daemon/plan.h"
-#include "photorig/daemon/ps_pipeline.h"
-#include "photorig/daemon/recipe.h"
-#include "photorig/daemon/run.h"
-#include "photorig/daemon/run_store.h"
+#include "photorig/daemon/capture/plan.h"
+#include "photorig/daemon/pipelines/ps_pipeline.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
+#include "photorig/daemon/service/run.h"
+#include "photorig/daemon/capture/run_store.h"
 #include "config_error_check.h"
 #include "test_support.h"
 
@@ -34,10 +35,10 @@ const char* kMixedSteps =
 // The message names file:line:column of the offending value.
 void ExpectRecipeError(const std::string& steps, int line, int column, const std::string& fragment) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", SmallRigYaml()));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", SmallRigYaml()));
   const std::string path = dir.Write("r.yaml", RecipeWithSteps(steps));
   SCOPED_TRACE(steps);
-  photorig::testing::ExpectConfigErrorAt([&] { CompileSteps(LoadRecipe(path, rig), rig); }, path, line, column,
+  photorig::testing::ExpectConfigErrorAt([&] { config::CompileSteps(config::LoadRecipe(path, rig), rig); }, path, line, column,
                                          fragment);
 }
 
@@ -62,9 +63,9 @@ TEST(RecipeGroups, ErrorsNameTheOffendingValue) {
 
 TEST(RecipeGroups, CompileToLabelledStepsWithKindsPatternsAndExposures) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", SmallRigYaml()));
-  const Recipe recipe = LoadRecipe(dir.Write("r.yaml", RecipeWithSteps(kMixedSteps)), rig);
-  const auto steps = CompileSteps(recipe, rig);
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", SmallRigYaml()));
+  const config::Recipe recipe = config::LoadRecipe(dir.Write("r.yaml", RecipeWithSteps(kMixedSteps)), rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   std::vector<std::string> labels = {"0000_dark", "0001_dark", "0002_flat", "0003_flat", "0004_pat_diagonal",
                                      "0005_pat_diagonal"};
   for (int repeat = 0; repeat < 2; ++repeat)
@@ -79,15 +80,15 @@ TEST(RecipeGroups, CompileToLabelledStepsWithKindsPatternsAndExposures) {
     EXPECT_EQ(steps[i].label, labels[i]);
     EXPECT_EQ(steps[i].index, static_cast<int>(i));
   }
-  EXPECT_EQ(steps[2].kind, CaptureStep::Kind::kFlat);
+  EXPECT_EQ(steps[2].kind, config::CaptureStep::Kind::kFlat);
   EXPECT_EQ(steps[2].pattern->levels, (std::vector<double>{0.5, 0.5, 0.5, 0.5}));
   EXPECT_EQ(steps[2].led, -1);
-  EXPECT_EQ(steps[4].kind, CaptureStep::Kind::kPattern);
+  EXPECT_EQ(steps[4].kind, config::CaptureStep::Kind::kPattern);
   EXPECT_EQ(steps[4].group, "pattern:diagonal");
   EXPECT_EQ(steps[4].pattern->levels, (std::vector<double>{1.0, 0.0, 0.0, 0.25}));
   EXPECT_EQ(steps[4].repeat, 0);
   EXPECT_EQ(steps[5].repeat, 1);
-  EXPECT_EQ(steps[9].kind, CaptureStep::Kind::kLight);
+  EXPECT_EQ(steps[9].kind, config::CaptureStep::Kind::kLight);
   EXPECT_EQ(steps[9].led, 1);
   EXPECT_EQ(steps[9].exposure_us, 2000.0);
   EXPECT_EQ(steps[0].exposure_us, 1000.0);
@@ -157,12 +158,12 @@ TEST(RecipeGroups, CaptureWritesEveryFrameAndPhotometricStereoUsesOnlySingleLedF
 // per 10 s window) is refused before it starts, naming the LED and the limit.
 TEST(RecipeGroups, PlansBeyondTheRigsLedLimitsAreRefused) {
   TempDir dir;
-  const RigConfig rig = LoadRigConfig(dir.Write("rig.yaml", SmallRigYaml()));
+  const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", SmallRigYaml()));
   const auto plan_of = [&](const std::string& exposure_us, const std::string& steps) {
     const std::string path = dir.Write("r.yaml", "recipe: {name: hot, rig: rig.yaml}\ncapture:\n  exposure_us: " +
                                                      exposure_us + "\n  steps:\n" + steps);
-    const Recipe recipe = LoadRecipe(path, rig);
-    return PlanRun(recipe, rig, CompileSteps(recipe, rig));
+    const config::Recipe recipe = config::LoadRecipe(path, rig);
+    return PlanRun(recipe, rig, config::CompileSteps(recipe, rig));
   };
   const RunPlan usual = plan_of("1000", "    - dark: {count: 1}\n    - each_led: {leds: all}\n");
   EXPECT_TRUE(usual.ok()) << usual.errors.front();

@@ -1,4 +1,4 @@
-#include "photorig/daemon/sequencer.h"
+#include "photorig/daemon/capture/sequencer.h"
 #include "photorig/drivers/light_safety.h"
 #include "photorig/sim/devices.h"
 #include "capture_fixtures.h"
@@ -75,8 +75,8 @@ RunManifest Header() {
   return header;
 }
 
-CameraConfig Camera() {
-  CameraConfig camera;
+config::CameraConfig Camera() {
+  config::CameraConfig camera;
   camera.width = 16;
   camera.height = 12;
   return camera;
@@ -117,7 +117,7 @@ TEST(Sequencer, AnExposureLongerThanTheLightWatchdogIsNotCut) {
     CaptureOptions options;
     options.lights_keepalive_ms = keep_alive ? 100 : 5000;
     options.retry.max_attempts_per_step = 1;
-    std::vector<CaptureStep> steps = DarkThenEachLight(2);
+    std::vector<config::CaptureStep> steps = DarkThenEachLight(2);
     steps.resize(2);  // the dark and one lit frame
     const CaptureReport report = RunCapture(steps, Camera(), lights, camera, writer, options);
     if (keep_alive) {
@@ -140,7 +140,7 @@ TEST(Sequencer, StopRequestAbortsBetweenStepsWithTheLightsOff) {
   std::atomic<bool> stop{false};
   CaptureOptions options;
   options.stop_requested = &stop;
-  options.on_frame = [&](const CaptureStep& step, const FrameRecord&, int) {
+  options.on_frame = [&](const config::CaptureStep& step, const FrameRecord&, int) {
     if (step.index == 2) stop = true;
   };
   const CaptureReport report = RunCapture(DarkThenEachLight(5), Camera(), dome, camera, writer, options);
@@ -172,8 +172,8 @@ TEST(Sequencer, CompleteRunWritesEveryStepInOrder) {
 namespace photorig::daemon {
 namespace {
 
-CameraConfig HardwareTriggered() {
-  CameraConfig camera = Camera();
+config::CameraConfig HardwareTriggered() {
+  config::CameraConfig camera = Camera();
   camera.trigger.mode = drivers::TriggerMode::kHardware;
   return camera;
 }

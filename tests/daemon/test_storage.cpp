@@ -1,6 +1,6 @@
-#include "photorig/daemon/image_io.h"
-#include "photorig/daemon/png16.h"
-#include "photorig/daemon/run_store.h"
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/png16.h"
+#include "photorig/daemon/capture/run_store.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -68,10 +68,10 @@ RunManifest Header() {
   return header;
 }
 
-CaptureStep Step(int index, int led) {
-  CaptureStep step;
+config::CaptureStep Step(int index, int led) {
+  config::CaptureStep step;
   step.index = index;
-  step.kind = led < 0 ? CaptureStep::Kind::kDark : CaptureStep::Kind::kLight;
+  step.kind = led < 0 ? config::CaptureStep::Kind::kDark : config::CaptureStep::Kind::kLight;
   step.led = led;
   step.label = "000" + std::to_string(index) + (led < 0 ? "_dark" : "_led00");
   step.pattern = std::make_shared<const drivers::LightPattern>(led < 0 ? drivers::LightPattern::AllOff(1)
@@ -124,7 +124,7 @@ TEST(RunStore, FramesLandOnDiskBitExactWithJournalAndManifest) {
   EXPECT_EQ(manifest.status, CaptureStatus::kComplete);
   ASSERT_EQ(manifest.frames.size(), 2u);
   EXPECT_EQ(manifest.frames[1].level, 0.5);
-  EXPECT_EQ(manifest.frames[1].kind, "light");
+  EXPECT_EQ(manifest.frames[1].kind, config::CaptureStep::Kind::kLight);
   const cv::Mat image = LoadFrame(run, manifest.frames[1]);
   const drivers::Frame expected = MakeFrame(20, 10, 1);
   for (int i = 0; i < 200; ++i) ASSERT_EQ(image.ptr<std::uint16_t>()[i], expected.pixels[i]);

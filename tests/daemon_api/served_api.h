@@ -2,9 +2,9 @@
 // A RunService and its ApiServer on a free loopback port, served from a
 // thread for as long as the object lives: the in-process daemon the API
 // tests talk to over real sockets.
-#include "photorig/daemon/api_client.h"
-#include "photorig/daemon/api_server.h"
-#include "photorig/daemon/service.h"
+#include "photorig/daemon/service/internal/api_client.h"
+#include "photorig/daemon/service/api_server.h"
+#include "photorig/daemon/service/service.h"
 
 #include <memory>
 #include <string>

@@ -1,9 +1,9 @@
 // The photorigd API over loopback: an in-process service and server on a free
 // port, driven with the same client the CLI uses.
 
-#include "photorig/daemon/api_client.h"
-#include "photorig/daemon/api_server.h"
-#include "photorig/daemon/run_store.h"
+#include "photorig/daemon/service/internal/api_client.h"
+#include "photorig/daemon/service/api_server.h"
+#include "photorig/daemon/capture/run_store.h"
 #include "served_api.h"
 #include "test_support.h"
 

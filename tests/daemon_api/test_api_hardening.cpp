@@ -2,9 +2,9 @@
 // bound, bytes that are not UTF-8, requests from other web origins, chunked
 // uploads, and many slow or long-lived connections.
 
-#include "photorig/daemon/api_client.h"
-#include "photorig/daemon/api_server.h"
-#include "photorig/daemon/run_queue.h"
+#include "photorig/daemon/service/internal/api_client.h"
+#include "photorig/daemon/service/api_server.h"
+#include "photorig/daemon/service/run_queue.h"
 #include "served_api.h"
 #include "test_support.h"
 

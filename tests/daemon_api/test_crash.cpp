@@ -7,8 +7,8 @@
 // same test at any scale (PHOTORIG_SOAK_KILLS, PHOTORIG_SOAK_DARKS,
 // PHOTORIG_SOAK_SEED).
 
-#include "photorig/daemon/api_client.h"
-#include "photorig/daemon/run_store.h"
+#include "photorig/daemon/service/internal/api_client.h"
+#include "photorig/daemon/capture/run_store.h"
 #include "daemon_process.h"
 
 #include <gtest/gtest.h>

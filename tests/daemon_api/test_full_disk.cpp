@@ -8,10 +8,10 @@
 // they were and no partial results, and solves once there is room.
 
 #include "daemon_process.h"
-#include "photorig/daemon/api_client.h"
-#include "photorig/daemon/run.h"
-#include "photorig/daemon/run_store.h"
-#include "photorig/daemon/service.h"
+#include "photorig/daemon/service/internal/api_client.h"
+#include "photorig/daemon/service/run.h"
+#include "photorig/daemon/capture/run_store.h"
+#include "photorig/daemon/service/service.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>

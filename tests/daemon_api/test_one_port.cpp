@@ -3,8 +3,8 @@
 // connection still reaches the first (SO_REUSEPORT would have let both
 // listen and shared the connections between them).
 
-#include "photorig/daemon/api_client.h"
-#include "photorig/daemon/api_server.h"
+#include "photorig/daemon/service/internal/api_client.h"
+#include "photorig/daemon/service/api_server.h"
 #include "daemon_process.h"
 
 #include <gtest/gtest.h>

@@ -4,9 +4,9 @@
 // fetch` downloads it byte for byte, and a recipe for another rig is refused.
 
 #include "daemon_process.h"
-#include "photorig/daemon/api_client.h"
-#include "photorig/daemon/image_io.h"
-#include "photorig/daemon/run_queue.h"
+#include "photorig/daemon/service/internal/api_client.h"
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/service/run_queue.h"
 
 #include <gtest/gtest.h>
 #include <httplib.h>

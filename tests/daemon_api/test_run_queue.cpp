@@ -1,7 +1,7 @@
 // The persistent run queue: what the worker can see, and when, and who
 // takes a run out of it.
 
-#include "photorig/daemon/run_queue.h"
+#include "photorig/daemon/service/run_queue.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>

@@ -2,9 +2,9 @@
 // token but under the Host rule, the recipes to choose from, and a run's
 // images as previews, statistics and values.
 
-#include "photorig/daemon/api_client.h"
-#include "photorig/daemon/api_server.h"
-#include "photorig/daemon/image_io.h"
+#include "photorig/daemon/service/internal/api_client.h"
+#include "photorig/daemon/service/api_server.h"
+#include "photorig/daemon/io/image_io.h"
 #include "served_api.h"
 #include "test_support.h"
 

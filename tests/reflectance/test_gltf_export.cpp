@@ -1,7 +1,7 @@
 // The glTF asset loads back with tinygltf, and a render of what it holds
 // (its mesh, normals and textures, shaded with glTF's BRDF at the camera view)
 // matches the relit image of the fitted reflectance.
-#include "photorig/daemon/gltf_export.h"
+#include "photorig/daemon/io/gltf_export.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
 #include "svbrdf_scene.h"
 

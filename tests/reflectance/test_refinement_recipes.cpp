@@ -4,8 +4,8 @@
 // --refine-normals` solves them: photometric stereo's `auto` normals, the
 // CLI's default). Where the refined normals predict the held-out lights no
 // better, the given ones are kept, and the report says which.
-#include "photorig/daemon/run.h"
-#include "photorig/daemon/svbrdf_pipeline.h"
+#include "photorig/daemon/service/run.h"
+#include "photorig/daemon/pipelines/svbrdf_pipeline.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -51,7 +51,7 @@ TEST_P(RefinementOnRecipe, RefinedNormalsAreNoFurtherFromTheTruth) {
     window(scene.window).setTo(255);
     input.object_mask = input.object_mask.empty() ? window : (input.object_mask & window);
   }
-  daemon::SvbrdfRequest request;  // the CLI's defaults: `auto` normals, 4 materials at most
+  config::SvbrdfRequest request;  // the CLI's defaults: `auto` normals, 4 materials at most
   request.refine_normals = true;
   request.held_out_lights = -1;
   request.export_gltf = false;

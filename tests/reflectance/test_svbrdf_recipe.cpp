@@ -1,7 +1,7 @@
 // config/recipes/svbrdf-dome.yaml through ExecuteRun (what `photorig run`
 // calls): a colour capture of a sphere painted matte and glossy, then the
 // svbrdf solve stage, whose materials, held-out errors and glTF asset are checked.
-#include "photorig/daemon/run.h"
+#include "photorig/daemon/service/run.h"
 
 #define TINYGLTF_NO_STB_IMAGE
 #define TINYGLTF_NO_STB_IMAGE_WRITE

@@ -3,8 +3,8 @@
 // in-process solve; a task cancelled mid-solve leaves the run's previous
 // result (or none), never part of a new one; --retry-failed completes the batch.
 
-#include "photorig/daemon/ps_pipeline.h"
-#include "photorig/daemon/run.h"
+#include "photorig/daemon/pipelines/ps_pipeline.h"
+#include "photorig/daemon/service/run.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -79,7 +79,7 @@ void CaptureFailedRun(const TempDir& dir, int index) {
 // Each run's results/ps has the bytes of an in-process solve of the same run.
 void ExpectSameAsInProcess(const TempDir& dir, const std::string& method, int runs = kRuns) {
   for (int i = 0; i < runs; ++i) {
-    PhotometricStereoRequest request;
+    config::PhotometricStereoRequest request;
     request.method = method;
     const fs::path reference = dir.path() / "reference" / std::to_string(i);
     SolvePhotometricStereoRun(RunDir(dir, i).string(), request, reference.string());
@@ -194,7 +194,7 @@ TEST_F(SlurmBatch, CancelledTaskKeepsThePreviousResultAndRetryCompletes) {
   constexpr int kHeldRuns = 3;  // one to cancel, two that finish
   CaptureRuns(dir_, kHeldRuns);
   // Run 0 has an earlier result; a cancelled task must leave it whole.
-  PhotometricStereoRequest earlier;
+  config::PhotometricStereoRequest earlier;
   earlier.method = "l2";
   SolvePhotometricStereoRun(RunDir(dir_, 0).string(), earlier, (RunDir(dir_, 0) / "results" / "ps").string());
   const std::string earlier_normals = ReadText(RunDir(dir_, 0) / "results" / "ps" / "normals.tiff");
@@ -297,7 +297,7 @@ TEST_F(SlurmBatch, DaemonHandsTheRecipesSolveToSlurmAndTracksTheJob) {
   // The task solved the daemon's run as an in-process solve would.
   const fs::path run_directory = dir_.path() / "data" / "runs" / run["id"].get<std::string>();
   EXPECT_EQ(json::parse(ReadText(run_directory / "batch" / "batch.json"))["job_ids"][0].get<std::string>() + "_0", job[1].str());
-  PhotometricStereoRequest request;
+  config::PhotometricStereoRequest request;
   request.method = "robust";
   SolvePhotometricStereoRun(run_directory.string(), request, (dir_.path() / "reference").string());
   for (const char* file : kComparedFiles)

@@ -5,7 +5,7 @@
 // beam puts the source 60 mm before the axis and the detector 20 mm behind
 // it: its rays climb or fall by up to about two slices across the volume.
 
-#include "photorig/daemon/tomography_pipeline.h"
+#include "photorig/daemon/pipelines/tomography_pipeline.h"
 #include "photorig/sim/phantom.h"
 
 namespace photorig::daemon {
@@ -20,7 +20,7 @@ inline TomographyInput SimulatedScan(int views = 64, tomography::Beam beam = tom
   input.geometry.beam = beam;
   input.geometry.source_to_axis_mm = 60.0;
   input.geometry.axis_to_detector_mm = 20.0;
-  input.phantom = sim::Phantom::SheppLogan3d(12.8, 0.1);
+  input.phantom = std::make_shared<const sim::Phantom>(sim::Phantom::SheppLogan3d(12.8, 0.1));
   sim::TomographyScanOptions options;
   options.flats = 4;
   options.darks = 4;

@@ -8,7 +8,7 @@
 
 #include "../daemon/test_support.h"
 #include "simulated_scan.h"
-#include "photorig/daemon/tomography_pipeline.h"
+#include "photorig/daemon/pipelines/tomography_pipeline.h"
 #include "photorig/sim/phantom.h"
 #include "photorig/solvers/tomography/nrrd.h"
 #include "photorig/solvers/tomography_mpi/distributed_projector.h"

@@ -2,8 +2,8 @@
 // read back with OpenVDB: the same voxels, the same voxel size and position.
 
 #include "../daemon/test_support.h"
-#include "photorig/daemon/tomography_pipeline.h"
-#include "photorig/daemon/vdb_volume.h"
+#include "photorig/daemon/pipelines/tomography_pipeline.h"
+#include "photorig/daemon/io/internal/vdb_volume.h"
 #include "photorig/solvers/tomography/nrrd.h"
 
 #include <gtest/gtest.h>

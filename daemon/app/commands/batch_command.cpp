@@ -2,13 +2,13 @@
 // photorig batch solve --retry-failed --batch DIR [--slurm | --local N]
 // photorig batch status --batch DIR [--wait]
 // One `photorig solve ps` per run directory, as a Slurm job array or N
-// processes on this machine (photorig/daemon/batch.h, docs/scaling.md).
+// processes on this machine (photorig/daemon/service/internal/batch.h, docs/scaling.md).
 
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
 #include "../signals.h"
-#include "photorig/daemon/batch.h"
+#include "photorig/daemon/service/internal/batch.h"
 
 #include <chrono>
 #include <cstdio>

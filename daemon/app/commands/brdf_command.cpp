@@ -10,10 +10,10 @@
 
 #include "../command.h"
 #include "../command_output.h"
-#include "photorig/daemon/brdf_report.h"
-#include "photorig/daemon/brdf_solve.h"
-#include "photorig/daemon/results_folder.h"
-#include "photorig/daemon/run_store.h"
+#include "photorig/daemon/pipelines/internal/brdf_report.h"
+#include "photorig/daemon/pipelines/brdf_solve.h"
+#include "photorig/daemon/pipelines/internal/results_folder.h"
+#include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/brdf/fit.h"
 #include "ps_report.h"
 

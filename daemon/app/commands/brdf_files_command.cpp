@@ -13,7 +13,7 @@
 
 #include "../command.h"
 #include "../command_output.h"
-#include "photorig/daemon/brdf_report.h"
+#include "photorig/daemon/pipelines/internal/brdf_report.h"
 #include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/merl.h"
 #include "photorig/solvers/brdf/rgl.h"

@@ -10,8 +10,10 @@
 #include "photorig/color/apply.h"
 #include "photorig/color/calibration.h"
 #include "photorig/color/model_io.h"
-#include "photorig/daemon/image_io.h"
-#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 #include "photorig/sim/color_chart.h"
 
 #include <algorithm>
@@ -62,7 +64,7 @@ std::string ReadText(const std::string& path) {
 // written to `out`. With a rig, its sensor and frame size are used and the chart
 // lies where the rig's camera.color_chart says; otherwise a bare chart.
 void RenderSimulatedChart(CalibrateOptions& options, color::Illuminant illuminant,
-                          const std::optional<daemon::RigConfig>& rig) {
+                          const std::optional<config::RigConfig>& rig) {
   const color::ChartCaptureSpectra s =
       color::ChartCaptureSpectraFor(options.sim_camera, illuminant, color::WavelengthGrid(400.0, 680.0, 5.0));
   sim::SensorModel sensor;
@@ -144,7 +146,7 @@ int ExecuteCalibrate(CalibrateOptions options) {
   color::Illuminant illuminant;
   color::LocateOptions locate;
   color::CalibrationOptions calibration;
-  std::optional<daemon::RigConfig> rig;
+  std::optional<config::RigConfig> rig;
   try {
     illuminant = Known(color::ParseIlluminant(options.illuminant), "illuminant", options.illuminant, "D50, D65, A");
     calibration.loss = Known(color::ParseFitLoss(options.loss), "fit loss", options.loss, "xyz, ciede2000");
@@ -156,7 +158,7 @@ int ExecuteCalibrate(CalibrateOptions options) {
       }
     }
     if (!options.rig.empty()) {
-      rig = daemon::LoadRigConfig(options.rig);
+      rig = config::LoadRigConfig(options.rig);
       if (const auto& chart = rig->camera.color_chart) {
         std::array<cv::Point2f, 4> corners;
         for (std::size_t i = 0; i < 4; ++i)
@@ -174,7 +176,7 @@ int ExecuteCalibrate(CalibrateOptions options) {
       if (rig && !(rig->sim && rig->camera.color_chart))
         throw std::invalid_argument(options.rig + ": --sim-camera with --rig needs a simulated rig with camera.color_chart");
     }
-  } catch (const daemon::ConfigError& e) {
+  } catch (const config::ConfigError& e) {
     return Fail(kExitUsage, e.what());
   } catch (const std::invalid_argument& e) {
     return Fail(kExitUsage, e.what());

@@ -5,7 +5,7 @@
 // is every command's (docs/cli.md). Shared by the remote commands and
 // `photorig fetch`.
 
-#include "photorig/daemon/api_client.h"
+#include "photorig/daemon/service/internal/api_client.h"
 
 #include <CLI/CLI.hpp>
 

@@ -4,8 +4,9 @@
 
 #include "../command.h"
 #include "../command_output.h"
-#include "photorig/daemon/plan.h"
-#include "photorig/daemon/recipe.h"
+#include "photorig/daemon/capture/plan.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
 
 #include <cstdio>
 #include <memory>
@@ -20,9 +21,9 @@ struct Options {
 };
 
 int Execute(const Options& options) {
-  const daemon::RigConfig rig = daemon::LoadRigConfig(daemon::RecipeRigPath(options.recipe, options.rig));
-  const daemon::Recipe recipe = daemon::LoadRecipe(options.recipe, rig);
-  const auto steps = daemon::CompileSteps(recipe, rig);
+  const config::RigConfig rig = config::LoadRigConfig(config::RecipeRigPath(options.recipe, options.rig));
+  const config::Recipe recipe = config::LoadRecipe(options.recipe, rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   daemon::PlanOptions plan_options;
   plan_options.max_led_duty = options.max_led_duty;
   daemon::RunPlan plan = daemon::PlanRun(recipe, rig, steps, plan_options);
@@ -38,7 +39,7 @@ int Execute(const Options& options) {
       int lit = 0;
       for (double level : step.pattern->levels) lit += level > 0.0;
       std::printf("  %-32s %-7s exposure %8.0f us  gain %4.1f dB  %2d LED%s lit", step.label.c_str(),
-                  daemon::CaptureStepKindName(step.kind), step.exposure_us, step.gain_db, lit, lit == 1 ? "" : "s");
+                  config::CaptureStepKindName(step.kind), step.exposure_us, step.gain_db, lit, lit == 1 ? "" : "s");
       if (step.pose)
         std::printf("  light %+.1f camera %+.1f rotation %+.1f deg", step.pose->light_arm_deg, step.pose->camera_arm_deg,
                     step.pose->sample_rotation_deg);

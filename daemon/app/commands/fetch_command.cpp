@@ -11,8 +11,8 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "daemon_connection.h"
-#include "photorig/daemon/image_io.h"
-#include "photorig/daemon/run_control.h"
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/capture/run_control.h"
 
 #include <cstdio>
 #include <filesystem>

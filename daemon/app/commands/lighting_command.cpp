@@ -7,8 +7,10 @@
 
 #include "../command.h"
 #include "../command_output.h"
-#include "photorig/daemon/light_calibration.h"
-#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/pipelines/light_calibration.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 #include "ps_report.h"
 
 #include <opencv2/imgcodecs.hpp>
@@ -50,7 +52,7 @@ int Execute(const Options& o) {
       inputs.names.push_back(fs::path(path).filename().string());
     }
     if (!o.rig.empty()) {  // nominal directions for locating the sphere from its highlights
-      const daemon::RigConfig rig = daemon::LoadRigConfig(o.rig);
+      const config::RigConfig rig = config::LoadRigConfig(o.rig);
       for (const auto& led : rig.lights.leds) inputs.nominal_directions.push_back(led.direction);
       inputs.pixel_pitch_mm = rig.camera.pixel_pitch_mm;
     }
@@ -58,7 +60,7 @@ int Execute(const Options& o) {
   for (const auto& path : o.white_images)
     inputs.white_frames.push_back(cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR));
 
-  daemon::LightCalibrationRequest request;
+  config::LightCalibrationRequest request;
   if (o.camera == "pinhole") {
     request.camera.projection = lighting::CameraModel::Projection::kPinhole;
     request.camera.fx_px = o.fx;

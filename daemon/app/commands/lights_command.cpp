@@ -5,8 +5,10 @@
 
 #include "../command.h"
 #include "../command_output.h"
-#include "photorig/daemon/device_factory.h"
-#include "photorig/daemon/rig_config.h"
+#include "photorig/daemon/capture/device_factory.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 
 #include <cstdio>
 #include <memory>
@@ -19,7 +21,7 @@ struct Options {
 };
 
 int Execute(const Options& options) {
-  const daemon::RigConfig rig = daemon::LoadRigConfig(options.rig);
+  const config::RigConfig rig = config::LoadRigConfig(options.rig);
   const bool outside = daemon::LightsOutliveTheProcess(rig);
   ResultFields() = {{"rig", rig.path}, {"lights", rig.lights.id}, {"driver", rig.lights.driver}, {"touched", outside}};
   if (!outside) {

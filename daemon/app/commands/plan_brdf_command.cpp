@@ -10,8 +10,11 @@
 
 #include "../command.h"
 #include "../command_output.h"
-#include "photorig/daemon/recipe.h"
-#include "photorig/daemon/rig_config.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
 #include "photorig/solvers/brdf/pose_plan.h"
 
 #include <cmath>
@@ -32,7 +35,7 @@ struct Options {
 };
 
 int Execute(const Options& o) {
-  const daemon::RigConfig rig = daemon::LoadRigConfig(o.rig);
+  const config::RigConfig rig = config::LoadRigConfig(o.rig);
   const std::optional<brdf::GonioArms> arms = rig.motion ? config::GonioArmsOf(*rig.motion) : std::nullopt;
   if (!arms) return Fail(kExitUsage, o.rig + " has no light_arm and camera_arm axes (not a gonioreflectometer)");
 

@@ -2,8 +2,8 @@
 // The short summaries of solver results that several commands print, and
 // their JSON form (docs/cli.md).
 
-#include "photorig/daemon/light_calibration.h"
-#include "photorig/daemon/ps_pipeline.h"
+#include "photorig/daemon/pipelines/light_calibration.h"
+#include "photorig/daemon/pipelines/ps_pipeline.h"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>

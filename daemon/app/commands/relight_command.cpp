@@ -4,11 +4,14 @@
 
 #include "../command.h"
 #include "../command_output.h"
-#include "photorig/daemon/image_io.h"
-#include "photorig/daemon/ps_pipeline.h"
-#include "photorig/daemon/rig_config.h"
-#include "photorig/daemon/run_store.h"
-#include "photorig/daemon/svbrdf_pipeline.h"
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/pipelines/ps_pipeline.h"
+#include "photorig/daemon/capture/frame_health.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
+#include "photorig/daemon/capture/run_store.h"
+#include "photorig/daemon/pipelines/svbrdf_pipeline.h"
 #include "photorig/lighting/envmap.h"
 #include "photorig/lighting/relight.h"
 #include "photorig/lighting/sphere.h"
@@ -228,7 +231,7 @@ cv::Mat BallOffset(const EnvmapOptions& options, cv::Size size, std::string* sai
     daemon::ReadImage(options.dark).convertTo(dark, CV_32F);
     if (dark.channels() > 1) cv::cvtColor(dark, dark, cv::COLOR_BGR2GRAY);
     if (dark.size() != size)
-      throw daemon::ConfigError(options.dark, 0, 0, "", "the dark frame is " + std::to_string(dark.cols) + "x" +
+      throw config::ConfigError(options.dark, 0, 0, "", "the dark frame is " + std::to_string(dark.cols) + "x" +
                                                             std::to_string(dark.rows) + ", the ball image is " +
                                                             std::to_string(size.width) + "x" + std::to_string(size.height));
     *said = "the dark frame " + options.dark;
@@ -244,7 +247,7 @@ cv::Mat BallOffset(const EnvmapOptions& options, cv::Size size, std::string* sai
   cv::Mat sum;
   int count = 0;
   for (const daemon::FrameRecord& record : daemon::LoadRunManifest(run.string()).frames) {
-    if (record.kind != "dark") continue;
+    if (record.kind != config::CaptureStep::Kind::kDark) continue;
     cv::Mat dark;
     daemon::LoadFrame(run.string(), record).convertTo(dark, CV_32F);
     if (dark.size() != size) continue;

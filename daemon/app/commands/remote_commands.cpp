@@ -10,7 +10,7 @@
 #include "../command_output.h"
 #include "../progress_display.h"
 #include "daemon_connection.h"
-#include "photorig/daemon/run_control.h"
+#include "photorig/daemon/capture/run_control.h"
 
 #include <cstdio>
 #include <cstdlib>

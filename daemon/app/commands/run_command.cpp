@@ -4,8 +4,8 @@
 #include "../command_output.h"
 #include "../progress_display.h"
 #include "../signals.h"
-#include "photorig/daemon/brdf_report.h"
-#include "photorig/daemon/run.h"
+#include "photorig/daemon/pipelines/internal/brdf_report.h"
+#include "photorig/daemon/service/run.h"
 #include "ps_report.h"
 
 #include <cstdio>
@@ -33,7 +33,7 @@ int Execute(const Options& options) {
   request.rig_path = options.rig;
   request.output_directory = options.out;
   request.solve = !options.no_solve;
-  request.on_frame = [&progress](const daemon::CaptureStep& step, const daemon::FrameRecord&, int frames, int total) {
+  request.on_frame = [&progress](const config::CaptureStep& step, const daemon::FrameRecord&, int frames, int total) {
     progress.Update("captured", frames, total, step.label);
   };
   request.on_adaptive_pass = [&progress](const daemon::AdaptivePassReport& pass) {

@@ -6,8 +6,8 @@
 #include "../command_output.h"
 #include "../progress_display.h"
 #include "../signals.h"
-#include "photorig/daemon/diligent.h"
-#include "photorig/daemon/ps_pipeline.h"
+#include "photorig/daemon/pipelines/diligent.h"
+#include "photorig/daemon/pipelines/ps_pipeline.h"
 #include "ps_report.h"
 
 #include <chrono>
@@ -26,7 +26,7 @@ struct Options {
   std::string demosaic = "bilinear";
   std::string color_model;
   bool accept_failed_capture = false;
-  daemon::PhotometricStereoRequest request;
+  config::PhotometricStereoRequest request;
 };
 
 struct StoppedBeforeCommit : std::runtime_error {
@@ -43,7 +43,7 @@ void BeforeCommit(const std::string& commit_gate) {
 }
 
 int Execute(const Options& options) {
-  daemon::ValidatePhotometricStereoRequest(options.request);
+  config::ValidatePhotometricStereoRequest(options.request);
   if (options.run_dir.empty() && options.dataset_dir.empty()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
   const bool from_run = !options.run_dir.empty();
   const std::string source = from_run ? options.run_dir : options.dataset_dir;
@@ -59,7 +59,7 @@ int Execute(const Options& options) {
                : daemon::LoadDiligent(options.dataset_dir);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
-  daemon::PhotometricStereoRequest request = options.request;
+  config::PhotometricStereoRequest request = options.request;
   request.progress = progress.Callback();
   daemon::PhotometricStereoResult result;
   try {

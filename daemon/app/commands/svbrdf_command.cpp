@@ -4,9 +4,9 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
-#include "photorig/daemon/color_stack.h"
-#include "photorig/daemon/diligent.h"
-#include "photorig/daemon/svbrdf_pipeline.h"
+#include "photorig/daemon/pipelines/color_stack.h"
+#include "photorig/daemon/pipelines/diligent.h"
+#include "photorig/daemon/pipelines/svbrdf_pipeline.h"
 #include "ps_report.h"
 
 #include <cstdio>
@@ -21,7 +21,7 @@ namespace refl = solvers::reflectance;
 struct Options {
   std::string run_dir, dataset_dir, mask, out;
   std::string demosaic = "bilinear";
-  daemon::SvbrdfRequest request;
+  config::SvbrdfRequest request;
   bool no_gltf = false;
   bool accept_failed_capture = false;
 };
@@ -46,7 +46,7 @@ void PrintSummary(const daemon::SvbrdfResult& result) {
 }
 
 int Execute(const Options& options) {
-  daemon::ValidatePhotometricStereoRequest(options.request.ps);
+  config::ValidatePhotometricStereoRequest(options.request.ps);
   if (options.run_dir.empty() && options.dataset_dir.empty()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
   const bool from_run = !options.run_dir.empty();
   const std::string source = from_run ? options.run_dir : options.dataset_dir;
@@ -59,7 +59,7 @@ int Execute(const Options& options) {
                : daemon::LoadDiligent(options.dataset_dir);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
-  daemon::SvbrdfRequest request = options.request;
+  config::SvbrdfRequest request = options.request;
   request.progress = progress.Callback();
   request.export_gltf = !options.no_gltf;
   const daemon::SvbrdfResult result = daemon::SolveSvbrdfAndWrite(input, request, destination);

@@ -15,8 +15,9 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
-#include "photorig/daemon/recipe.h"
-#include "photorig/daemon/tomography_pipeline.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
+#include "photorig/daemon/pipelines/tomography_pipeline.h"
 #include "ps_report.h"
 
 #include <cstdio>
@@ -40,13 +41,13 @@ struct Options {
   bool mpi = false;
   int mpi_slabs = 0;  // 0: chosen from the volume's size (DecompositionOptions)
   bool accept_failed_capture = false;
-  daemon::TomographyRequest request;
+  config::TomographyRequest request;
 };
 
 int Execute(const Options& options) {
   if (options.run_dir.empty() && options.projections_dir.empty())
     return Fail(kExitUsage, "give --run DIR or --projections DIR");
-  daemon::TomographyRequest request = options.request;
+  config::TomographyRequest request = options.request;
   request.iteration_limit_name = "--max-iterations";
   if (!options.volume.empty()) request.volume = {options.volume[0], options.volume[1], options.volume[2]};
   if (std::string why; !request.IsValid(&why)) return Fail(kExitUsage, why);

@@ -2,7 +2,8 @@
 
 #include "../command.h"
 #include "../command_output.h"
-#include "photorig/daemon/recipe.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
 
 #include <cstdio>
 #include <memory>
@@ -15,9 +16,9 @@ struct Options {
 };
 
 int Execute(const Options& options) {
-  const daemon::RigConfig rig = daemon::LoadRigConfig(daemon::RecipeRigPath(options.recipe, options.rig));
-  const daemon::Recipe recipe = daemon::LoadRecipe(options.recipe, rig);
-  const auto steps = daemon::CompileSteps(recipe, rig);
+  const config::RigConfig rig = config::LoadRigConfig(config::RecipeRigPath(options.recipe, options.rig));
+  const config::Recipe recipe = config::LoadRecipe(options.recipe, rig);
+  const auto steps = config::CompileSteps(recipe, rig);
   std::printf("%s: valid; %zu steps on rig '%s' (%zu LEDs, camera %dx%d)\n", options.recipe.c_str(), steps.size(),
               rig.name.c_str(), rig.lights.leds.size(), rig.camera.width, rig.camera.height);
   ResultFields() = {{"recipe", options.recipe}, {"rig", rig.path}, {"rig_name", rig.name}, {"steps", steps.size()},

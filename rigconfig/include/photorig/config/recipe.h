@@ -149,6 +149,8 @@ std::optional<solvers::brdf::GonioArms> GonioArmsOf(const MotionConfig& motion);
 
 // "dark" | "light" | "flat" | "pattern" | "pose": the kind as journals and manifests spell it.
 const char* CaptureStepKindName(CaptureStep::Kind kind);
+// The kind a name of CaptureStepKindName stands for (a stored frame's "kind"); nullopt for any other text.
+std::optional<CaptureStep::Kind> CaptureStepKindFromName(const std::string& name);
 
 // Reads a recipe for the rig it will run on. Throws ConfigError naming
 // file:line:column and key. Every path the recipe names (sample.sim_scene.path,

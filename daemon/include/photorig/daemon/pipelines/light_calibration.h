@@ -1,0 +1,57 @@
+#pragma once
+// Light calibration of a dome from images of a mirror sphere, one per LED:
+// the sphere located (a given circle, a silhouette image, or the highlights
+// themselves under the rig's nominal directions), each LED's direction from
+// its highlight, optional relative RGB intensities from a white sphere, and
+// the results as lights.lp, DiLiGenT's light_directions.txt /
+// light_intensities.txt, report.json and a new rig YAML (an existing file is
+// never overwritten). Used by the recipe stage `light_calibration:` and by
+// `photorig calibrate lights`.
+
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
+#include "photorig/lighting/mirror_sphere.h"
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace photorig::daemon {
+
+struct LightCalibrationInputs {
+  std::vector<cv::Mat> frames;  // mirror sphere, one single-channel frame per LED (empty Mat: no frame)
+  std::vector<std::string> names;
+  std::vector<Eigen::Vector3d> nominal_directions;  // the rig's, for the highlight fit; may be empty otherwise
+  std::vector<cv::Mat> white_frames;                // white sphere, one per LED, optional
+  double pixel_pitch_mm = 0.0;                      // object-space pixel size (orthographic); 0 = unknown
+};
+
+// The light frames of a run: one per LED, in LED order, with the rig's
+// nominal directions and pixel pitch from the manifest.
+LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directory);
+
+struct LightCalibrationSummary {
+  bool success = false;  // every light usable and all outputs written
+  std::string message;
+  lighting::Circle circle;
+  std::string sphere_source;  // "circle" | "silhouette" | "highlights"
+  double sphere_fit_rms_px = 0.0;
+  int lights = 0;
+  int unusable = 0;
+  double mean_uncertainty_deg = 0.0;  // includes circle_shift_deg's per-light shifts
+  // A given circle only: mean change of the directions had the sphere been
+  // placed from the highlights instead (0 when not checked).
+  double circle_shift_deg = 0.0;
+  std::string out_rig;  // written, or "" when none was asked for
+};
+
+// Never throws for bad data: an unusable light, a sphere that cannot be found
+// or an existing out_rig give success = false and a message. Throws only when
+// an output cannot be written.
+LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, const config::LightCalibrationRequest& request,
+                                        const std::string& out_directory);
+
+}  // namespace photorig::daemon

@@ -1,0 +1,164 @@
+#pragma once
+// Photometric stereo on stored data: a run directory or a DiLiGenT-layout
+// folder -> solver -> files.
+//   normals.tiff        float (x, y, z), NaN where unsolved
+//   albedo.tiff         float diffuse albedo
+//   confidence.tiff     0..1, how well the chosen model explains the pixel
+//   specular.tiff       (rho_s, exponent, 0) where Blinn-Phong was chosen
+//   depth.tiff, mesh.ply   integrated depth (units of the pixel pitch) and its triangle mesh
+//   angular_error.tiff  degrees, when ground truth exists
+//   normals.png, albedo.png, depth.png, confidence.png, mask.png, flags.png, model.png
+//                       8-bit views, each mapped from its own data's range (previews.h);
+//                       the mappings and the legends are in report.json "previews"
+//   report.json         timings, counts, noise model, metrics
+
+#include "photorig/daemon/pipelines/color_stack.h"
+#include "photorig/config/recipe.h"
+#include "photorig/config/solve_requests.h"
+#include "photorig/daemon/capture/run_store.h"
+#include "photorig/ps/evaluation.h"
+#include "photorig/ps/integration.h"
+#include "photorig/ps/photometric_stereo.h"
+#include "photorig/ps/stack.h"
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <limits>
+#include <optional>
+#include <string>
+
+namespace photorig::daemon {
+
+struct PhotometricStereoInput {
+  std::string source;        // run directory or dataset folder, for reports and errors
+  ps::PhotometricStack stack;
+  int dark_frames = 0;
+  double pixel_pitch = 1.0;  // object-space size of a pixel (mm for rigs that know it), for depth
+  // Samples at or above this are clipped; infinity = unknown, then taken as the
+  // full-scale code the data reach, if they reach one.
+  double saturation_level = std::numeric_limits<double>::infinity();
+  cv::Mat truth_normals;     // optional CV_32FC3 ground truth
+  cv::Mat truth_albedo;      // optional CV_32F
+  cv::Mat truth_height;      // optional CV_32F, same unit as pixel_pitch
+  cv::Mat object_mask;       // optional CV_8U: solve only here (DiLiGenT's mask.png, --mask)
+  std::string mask_source;   // where object_mask came from, for the report ("" when there is none)
+  // Colour data (a Bayer or RGB run, an RGB DiLiGenT folder): the frames per
+  // channel. `stack` is then their channel sum in camera units, on which the
+  // normals are solved; each channel's albedo is fitted with those normals fixed.
+  std::optional<ColorImageStack> color;
+  cv::Mat truth_albedo_rgb;  // optional CV_32FC3 (R, G, B), linear sRGB
+  cv::Mat truth_material;    // optional CV_8U material (paint) per pixel, 255 off the object
+  // A run's capture verdict (CheckCaptureForSolve); unset for a dataset folder.
+  std::optional<CaptureVerdict> capture;
+};
+
+// Replaces the input's object mask with a PNG file (nonzero = object). Throws
+// ConfigError naming the file and both sizes when it does not match the images.
+void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* input);
+
+// With dark frames and no mask, SolveAndWrite solves only the pixels whose
+// brightest lit frame rises above the dark by more than this many read-noise
+// sigmas (and by at least 1 DN): the rest see none of the lights, so a normal
+// there would be fitted to noise.
+inline constexpr double kAutomaticMaskSigmas = 5.0;
+cv::Mat AutomaticObjectMask(const ps::PhotometricStack& stack, double sigmas);
+
+// Reads a run directory (manifest, frames, ground truth). Dark frames are
+// averaged and their noise becomes the stack's read noise. Throws
+// std::runtime_error naming the file for unreadable or inconsistent runs.
+// A colour run (manifest camera.mosaic not "mono") is demosaiced with
+// `color.demosaic` and put through its colour model (`color`, else the one the
+// manifest names); its `stack` is the sum of the camera channels.
+// A run whose capture did not complete is refused (FailedCaptureError) unless
+// `failed` accepts it; a run without one frame per LED (a gonioreflectometer
+// or tomography run) is refused with std::invalid_argument naming its solver.
+PhotometricStereoInput LoadRunStack(const std::string& run_directory, const ColorStackOptions& color = {},
+                                    FailedCapture failed = FailedCapture::kRefuse);
+
+// The level at or above which samples count as clipped: the input's own, or,
+// for data that do not say (DiLiGenT folders), the full-scale code 2^n - 1
+// when the data reach one; infinity when nothing is known to be clipped.
+double EffectiveSaturationLevel(const PhotometricStereoInput& input);
+
+// The solver's options for a request that has passed
+// ValidatePhotometricStereoRequest; samples at or above saturation_level are
+// clipped.
+ps::PhotometricStereoOptions MakeSolverOptions(const config::PhotometricStereoRequest& request, double saturation_level);
+
+// The depth integrated from the solved normals.
+struct PhotometricStereoDepth {
+  std::string integrator;          // the request's integrator name
+  ps::IntegrationSummary summary;
+  double pixel_pitch = 1.0;        // depth units per pixel
+  // RMS of depth - true height after removing their mean difference (depth is
+  // known up to a constant); when the source has a ground-truth height.
+  std::optional<double> rms_error_vs_truth;
+};
+
+// What one solve produced. Callers use it as is; ToJson gives report.json.
+struct PhotometricStereoResult {
+  std::string source;              // PhotometricStereoInput::source
+  int dark_frames = 0;
+  double noise_sigma_dn = 0.0;     // the stack's read noise (from its darks)
+  double saturation_level = std::numeric_limits<double>::infinity();  // as applied; infinity = nothing clipped
+  ps::SolverSummary summary;       // method, termination, message, pixel counts, noise model, timings
+  // Measured on the output, so only when the solution is usable:
+  std::optional<double> mean_confidence;     // over solved pixels
+  std::optional<PhotometricStereoDepth> depth;   // unless the integrator is "none"
+  std::optional<ps::AngularErrorStats> normals_vs_truth;  // when the source has ground-truth normals
+  std::optional<double> mean_relative_albedo_error;      // ... and albedo; over solved pixels
+  // Colour: where the numbers came from, and CIEDE2000 of the albedo against
+  // a linear-sRGB ground truth (CIELAB of D65, white Y = 1) over the solved pixels.
+  std::optional<ColorProvenance> color;
+  std::optional<ps::SolverSummary> color_albedo_summary;  // the green channel's fit (the others alike)
+  struct ColorError {
+    double mean = 0.0, median = 0.0, p95 = 0.0;
+    int pixels = 0;
+  };
+  // Over every solved pixel, and over the interior of each paint: pixels whose
+  // true colour is the same over the 5 x 5 pixels around them, away from
+  // texture edges (which demosaicing blurs across) and the object's rim.
+  struct ColorErrors {
+    ColorError all, interior;
+  };
+  std::optional<ColorErrors> albedo_ciede2000_vs_truth;
+  std::optional<CaptureVerdict> capture;  // PhotometricStereoInput::capture
+  std::string mask_source;         // "" when every pixel was solved for
+  int mask_pixels = 0;             // pixels inside the mask
+  nlohmann::json previews;         // file name -> its mapping (previews.h), when usable
+  double total_ms = 0.0;
+
+  bool usable() const { return summary.IsSolutionUsable(); }
+};
+
+// report.json, the stored form of a result ("termination" is the solver's
+// termination name, solvers::TerminationName; the measured parts appear only when present).
+nlohmann::json ToJson(const PhotometricStereoResult& result);
+
+// Solves and writes every output into `output_directory`, report.json last.
+// A solver that cannot produce a result is not an exception: the result says
+// so (usable() false, summary.message the reason) and is written all the same.
+// The folder appears whole, replacing the previous result in one rename
+// (results_folder.h); `before_commit`, when given, runs just before that
+// rename (it may throw to leave the previous result in place).
+PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
+                                      const std::string& output_directory,
+                                      const std::function<void()>& before_commit = {});
+
+inline PhotometricStereoResult SolvePhotometricStereoRun(const std::string& run_directory,
+                                                         const config::PhotometricStereoRequest& request,
+                                                         const std::string& output_directory,
+                                                         const ColorStackOptions& color = {}) {
+  return SolveAndWrite(LoadRunStack(run_directory, color), request, output_directory);
+}
+
+// CIEDE2000 of a linear-sRGB albedo against the truth over the pixels where
+// `solved` (CV_8U) is non-zero, and over the interior of each paint.
+PhotometricStereoResult::ColorErrors CompareColorAlbedo(const cv::Mat& albedo_rgb, const cv::Mat& truth_rgb,
+                                                        const cv::Mat& solved);
+
+// CIEDE2000 between two linear-sRGB colours (CIELAB of D65, white Y = 1).
+double Ciede2000OfLinearSrgb(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+
+}  // namespace photorig::daemon

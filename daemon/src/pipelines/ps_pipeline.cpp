@@ -1,0 +1,534 @@
+#include "photorig/daemon/pipelines/ps_pipeline.h"
+#include "photorig/daemon/capture/frame_health.h"
+
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/internal/mesh_io.h"
+#include "photorig/daemon/io/internal/previews.h"
+#include "photorig/daemon/pipelines/internal/results_folder.h"
+#include "photorig/config/rig.h"
+#include "photorig/config/sim.h"
+#include "photorig/config/yaml_node.h"
+#include "photorig/daemon/capture/run_store.h"
+#include "photorig/ps/evaluation.h"
+#include "photorig/ps/integration.h"
+#include "photorig/ps/photometric_stereo.h"
+#include "photorig/ps/channel_albedo.h"
+#include "photorig/color/colorimetry.h"
+
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+namespace photorig::daemon {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+double Ms(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
+}
+
+// Dark noise in DN: temporal when there are several darks (the honest
+// measure), else a robust spatial estimate (median absolute deviation).
+double DarkNoiseSigma(const std::vector<cv::Mat>& darks, const cv::Mat& mean_dark) {
+  if (darks.size() >= 2) {
+    cv::Mat variance = cv::Mat::zeros(mean_dark.size(), CV_32F);
+    for (const cv::Mat& dark : darks) {
+      cv::Mat diff = dark - mean_dark;
+      variance += diff.mul(diff);
+    }
+    variance /= static_cast<double>(darks.size() - 1);
+    cv::Mat sigma;
+    cv::sqrt(variance, sigma);
+    return cv::mean(sigma)[0];
+  }
+  return RobustSigma(mean_dark);
+}
+
+json MetricsJson(const ps::AngularErrorStats& stats) {
+  return {{"pixels_with_truth", stats.pixels_with_truth},
+          {"pixels_evaluated", stats.pixels_evaluated},
+          {"pixels_unresolved", stats.pixels_unresolved},
+          {"mean_angular_error_deg", stats.mean_deg},
+          {"median_angular_error_deg", stats.median_deg},
+          {"max_angular_error_deg", stats.max_deg},
+          {"percent_under_5deg", 100.0 * stats.fraction_under_5deg},
+          {"percent_under_10deg", 100.0 * stats.fraction_under_10deg},
+          {"percent_under_15deg", 100.0 * stats.fraction_under_15deg}};
+}
+
+// B, G, R 8-bit: each channel of the linear albedo over `top`, clipped to
+// [0, 1] and sRGB-encoded; unsolved pixels black.
+cv::Mat ColorAlbedoPreview(const cv::Mat& albedo_rgb, const cv::Mat& solved, double top) {
+  cv::Mat out(albedo_rgb.size(), CV_8UC3, cv::Scalar::all(0));
+  for (int r = 0; r < albedo_rgb.rows; ++r) {
+    const auto* a = albedo_rgb.ptr<cv::Vec3f>(r);
+    const auto* m = solved.ptr<std::uint8_t>(r);
+    auto* o = out.ptr<cv::Vec3b>(r);
+    for (int c = 0; c < albedo_rgb.cols; ++c) {
+      if (!m[c]) continue;
+      for (int k = 0; k < 3; ++k) {
+        const double v = std::isfinite(a[c][k]) ? std::clamp(a[c][k] / top, 0.0, 1.0) : 0.0;
+        o[c][2 - k] = cv::saturate_cast<std::uint8_t>(255.0 * color::SrgbEncode(v));
+      }
+    }
+  }
+  return out;
+}
+
+// A one-channel mask repeated for the three interleaved channels of an image
+// reshaped to one channel (rows x cols*3 values as one column).
+cv::Mat RepeatMask3(const cv::Mat& mask) {
+  cv::Mat three;
+  cv::merge(std::vector<cv::Mat>{mask, mask, mask}, three);
+  return three.reshape(1, mask.rows * mask.cols * 3);
+}
+
+// Per-channel albedo with the normals fixed (ps::SolveChannelAlbedo): R, G, B
+// as CV_32FC3, NaN where a channel has too few usable samples.
+cv::Mat SolveColorAlbedo(const ColorImageStack& color, const cv::Mat& normals, double shadow_sigmas,
+                         PhotometricStereoResult* result) {
+  std::vector<cv::Mat> channels(3);
+  for (int c = 0; c < 3; ++c) {
+    ps::ChannelAlbedoOptions options;
+    // Clipped samples are +infinity in a colour stack; shadows sit at zero
+    // after the dark, within the channel's noise.
+    options.shadow_threshold = std::max(1.0, shadow_sigmas * color.read_sigma[c]);
+    options.saturation_level = std::numeric_limits<double>::infinity();
+    const ps::SolverSummary summary = ps::SolveChannelAlbedo(options, color.Channel(c), normals, &channels[c]);
+    if (c == 1) result->color_albedo_summary = summary;
+    if (!summary.IsSolutionUsable())
+      spdlog::warn("{}: channel {} albedo: {}", result->source, "RGB"[c], summary.message);
+  }
+  cv::Mat albedo;
+  cv::merge(channels, albedo);
+  result->color = color.provenance;
+  return albedo;
+}
+
+PhotometricStereoResult::ColorError Summarise(std::vector<double> errors) {
+  PhotometricStereoResult::ColorError out;
+  out.pixels = static_cast<int>(errors.size());
+  if (errors.empty()) return out;
+  double sum = 0.0;
+  for (double e : errors) sum += e;
+  out.mean = sum / static_cast<double>(errors.size());
+  std::sort(errors.begin(), errors.end());
+  out.median = errors[errors.size() / 2];
+  out.p95 = errors[std::min(errors.size() - 1, errors.size() * 95 / 100)];
+  return out;
+}
+
+// Photometric stereo needs frames each lit by one LED of a surface; a
+// gonioreflectometer or tomography run has poses instead, and a
+// light-calibration run the highlights of a mirror sphere: each has its own solver.
+void RequirePhotometricStereoRun(const std::string& run_directory, const RunManifest& manifest) {
+  const auto stage = [&manifest](const char* name) {
+    return std::find(manifest.solve_stages.begin(), manifest.solve_stages.end(), name) != manifest.solve_stages.end();
+  };
+  if (stage("light_calibration") && !stage("photometric_stereo") && !stage("svbrdf"))
+    throw std::invalid_argument(run_directory + " was captured to calibrate the lights (recipe " +
+                                manifest.recipe_name +
+                                "): its frames show one highlight of the calibration sphere per LED, not a surface "
+                                "photometric stereo can solve; `photorig calibrate lights --run " + run_directory +
+                                "` solves it");
+  bool tomograph = false;
+  for (const FrameRecord& record : manifest.frames) {
+    if (record.kind == config::CaptureStep::Kind::kLight && record.led >= 0) return;
+    // A tomograph's flat fields move the sample out of the beam; a
+    // gonioreflectometer's changer only brings in its reference target.
+    tomograph = tomograph || (record.pose && record.pose->sample_changer_deg.value_or(0.0) != 0.0 &&
+                              record.group != "reference_target");
+  }
+  const bool posed = std::any_of(manifest.frames.begin(), manifest.frames.end(),
+                                 [](const FrameRecord& record) { return record.pose.has_value(); });
+  std::string instead = "capture one frame per LED (a dome recipe's each_led step)";
+  if (posed)
+    instead = std::string("this is a ") + (tomograph ? "tomography" : "gonioreflectometer") + " run: solve it with `photorig solve " +
+              (tomograph ? "tomography" : "brdf") + " --run " + run_directory + "`";
+  throw std::invalid_argument(run_directory + ": no frame lit by a single LED among its " +
+                              std::to_string(manifest.frames.size()) +
+                              " frames, and photometric stereo needs one per LED; " + instead);
+}
+
+}  // namespace
+
+PhotometricStereoResult::ColorErrors CompareColorAlbedo(const cv::Mat& albedo_rgb, const cv::Mat& truth_rgb,
+                                                        const cv::Mat& solved) {
+  // Interior: the truth's 5 x 5 range is zero in every channel (NaN off the object counts as a change).
+  cv::Mat truth = truth_rgb.clone();
+  cv::patchNaNs(truth, -1.0);
+  cv::Mat high, low;
+  const cv::Mat box = cv::Mat::ones(5, 5, CV_8U);
+  cv::dilate(truth, high, box);
+  cv::erode(truth, low, box);
+  cv::Mat range;
+  cv::transform(high - low, range, cv::Matx13f(1, 1, 1));
+  std::vector<double> all, interior;
+  for (int r = 0; r < albedo_rgb.rows; ++r)
+    for (int c = 0; c < albedo_rgb.cols; ++c) {
+      if (!solved.at<std::uint8_t>(r, c)) continue;
+      const cv::Vec3f a = albedo_rgb.at<cv::Vec3f>(r, c), t = truth_rgb.at<cv::Vec3f>(r, c);
+      if (!std::isfinite(a[0] + a[1] + a[2]) || !std::isfinite(t[0] + t[1] + t[2])) continue;
+      const double e = Ciede2000OfLinearSrgb(Eigen::Vector3d(a[0], a[1], a[2]), Eigen::Vector3d(t[0], t[1], t[2]));
+      all.push_back(e);
+      if (range.at<float>(r, c) == 0.0f) interior.push_back(e);
+    }
+  return {Summarise(std::move(all)), Summarise(std::move(interior))};
+}
+
+double Ciede2000OfLinearSrgb(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Matrix3d& to_xyz = color::LinearSrgbToXyzD65();
+  const Eigen::Vector3d white = to_xyz * Eigen::Vector3d::Ones();
+  return color::Ciede2000(color::XyzToLab(to_xyz * a, white), color::XyzToLab(to_xyz * b, white));
+}
+
+ps::PhotometricStereoOptions MakeSolverOptions(const config::PhotometricStereoRequest& request, double saturation_level) {
+  ps::PhotometricStereoOptions options;
+  ps::ParseMethod(request.method, &options.method);
+  config::ParseDerivative(request.derivative, &options.blinn_phong);
+  // Never below one DN: quantisation alone leaves values within 1 DN of black
+  // in shadow. Above that, a multiple of the read noise: the stack's (which
+  // includes the subtracted dark's) or, for a data set without dark frames,
+  // the solver's estimate.
+  options.lambertian.shadow_threshold = 1.0;
+  options.shadow_threshold_read_sigmas = request.shadow_threshold_sigma;
+  options.lambertian.saturation_level = saturation_level;
+  options.lambertian.max_condition_number = request.max_condition_number;
+  options.progress = request.progress;
+  return options;
+}
+
+PhotometricStereoInput LoadRunStack(const std::string& run_directory, const ColorStackOptions& color,
+                                    FailedCapture failed) {
+  const RunManifest manifest = LoadRunManifest(run_directory);
+  PhotometricStereoInput input;
+  input.source = run_directory;
+  input.capture = CheckCaptureForSolve(run_directory, manifest, failed);
+  RequirePhotometricStereoRun(run_directory, manifest);
+  ps::PhotometricStack& stack = input.stack;
+  // Samples at the clipping level are dropped per pixel; a sensor whose full
+  // well fills first clips below the ADC's top code.
+  const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
+  const double saturation = manifest.saturation_dn > 0.0 ? std::min(manifest.saturation_dn, top_code) : top_code;
+  const bool colour = manifest.mosaic != "mono";
+  // A colour frame's luminance stand-in is the sum of its camera channels
+  // (after demosaicing); a pixel any clipped raw sample reached is clipped in it.
+  auto to_float = [&](const cv::Mat& raw) {
+    cv::Mat out;
+    if (!colour) {
+      raw.convertTo(out, CV_32F);
+      return out;
+    }
+    cv::Mat clipped = raw >= saturation;
+    cv::Mat rgb = raw;
+    if (IsBayerPattern(manifest.mosaic)) {
+      cv::dilate(clipped, clipped, cv::Mat::ones(3, 3, CV_8U));
+      rgb = DemosaicToRgb(raw, manifest.mosaic, color.demosaic);
+    } else {
+      cv::transform(clipped, clipped, cv::Matx13f(1, 1, 1));
+    }
+    rgb.convertTo(rgb, CV_32F);
+    cv::transform(rgb, out, cv::Matx13f(1, 1, 1));
+    out.setTo(3.0 * saturation, clipped);
+    return out;
+  };
+  std::vector<cv::Mat> darks;
+  for (const FrameRecord& record : manifest.frames) {
+    // Only darks and single-LED frames enter the stack: flats, patterns and
+    // gonioreflectometer poses (led -1) light several LEDs or none on their own.
+    // Bracketed and repeated frames of one LED are extra rows, each scaled by
+    // its own exposure; the solver drops their saturated samples, so a bracket
+    // merges into one least-squares fit.
+    if (record.kind != config::CaptureStep::Kind::kDark && (record.kind != config::CaptureStep::Kind::kLight || record.led < 0)) continue;
+    const cv::Mat frame = to_float(LoadFrame(run_directory, record));
+    if (frame.cols != manifest.width || frame.rows != manifest.height)
+      throw std::runtime_error(run_directory + "/" + record.file + ": frame is " + std::to_string(frame.cols) + "x" +
+                               std::to_string(frame.rows) + ", the run is " + std::to_string(manifest.width) + "x" +
+                               std::to_string(manifest.height));
+    if (record.kind == config::CaptureStep::Kind::kDark) {
+      darks.push_back(frame);
+      continue;
+    }
+    if (record.led < 0 || record.led >= static_cast<int>(manifest.lights.size()))
+      throw std::runtime_error(run_directory + "/manifest.json: frame " + record.file + " names LED index " +
+                               std::to_string(record.led) + " outside the rig's " +
+                               std::to_string(manifest.lights.size()) + " LEDs");
+    const config::LedConfig& led = manifest.lights[record.led];
+    stack.images.push_back(frame);
+    stack.light_directions.push_back(led.direction);
+    const double gain = std::pow(10.0, record.gain_db / 20.0);
+    stack.light_scales.push_back(led.intensity * record.level * manifest.dn_per_radiance_per_us *
+                                 record.exposure_us * gain);
+  }
+  input.dark_frames = static_cast<int>(darks.size());
+  if (manifest.pixel_pitch_mm > 0.0) input.pixel_pitch = manifest.pixel_pitch_mm;
+  // Photon noise in DN^2 per DN of signal: gain / (electrons per DN). All frames
+  // of a run share the gain in practice; the first light frame's is used.
+  if (manifest.e_per_dn > 0.0) {
+    for (const FrameRecord& record : manifest.frames)
+      if (record.kind == config::CaptureStep::Kind::kLight) {
+        stack.noise.shot_gain = std::pow(10.0, record.gain_db / 20.0) / manifest.e_per_dn;
+        break;
+      }
+  }
+  input.saturation_level = colour ? 3.0 * saturation : saturation;
+  if (!darks.empty()) {
+    stack.dark = cv::Mat::zeros(darks.front().size(), CV_32F);
+    for (const cv::Mat& dark : darks) stack.dark += dark;
+    stack.dark /= static_cast<double>(darks.size());
+    stack.noise.read_sigma = DarkNoiseSigma(darks, stack.dark) * std::sqrt(1.0 + 1.0 / darks.size());
+  } else {
+    spdlog::warn("{}: no dark frame; the solver assumes a zero black level", run_directory);
+  }
+  // A volume scene's truth has no surface (RunWriter::WriteVolumeGroundTruth).
+  if (const fs::path truth = fs::path(run_directory) / "ground_truth";
+      manifest.has_ground_truth && fs::exists(truth / "normals.tiff")) {
+    input.truth_normals = ReadFloatTiff((truth / "normals.tiff").string());
+    input.truth_albedo = ReadFloatTiff((truth / "albedo.tiff").string());
+    if (fs::exists(truth / "material.png")) input.truth_material = ReadImage((truth / "material.png").string());
+    if (fs::exists(truth / "height.tiff")) input.truth_height = ReadFloatTiff((truth / "height.tiff").string());
+    if (fs::exists(truth / "albedo_rgb.tiff"))
+      input.truth_albedo_rgb = ReadFloatTiff((truth / "albedo_rgb.tiff").string());
+  }
+  if (colour) input.color = LoadRunColorStack(run_directory, color);
+  return input;
+}
+
+void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* input) {
+  cv::Mat mask = ReadImage(path);
+  if (mask.channels() > 1) cv::extractChannel(mask, mask, 0);
+  const cv::Size images = input->stack.images.empty() ? mask.size() : input->stack.images.front().size();
+  if (mask.size() != images)
+    throw config::ConfigError(path, 0, 0, "", "the mask is " + std::to_string(mask.cols) + "x" + std::to_string(mask.rows) +
+                                          ", the images of " + input->source + " are " + std::to_string(images.width) +
+                                          "x" + std::to_string(images.height));
+  input->object_mask = mask != 0;
+  input->mask_source = path;
+}
+
+cv::Mat AutomaticObjectMask(const ps::PhotometricStack& stack, double sigmas) {
+  if (stack.dark.empty() || stack.images.empty()) return {};
+  cv::Mat brightest = stack.images.front().clone();
+  for (const cv::Mat& image : stack.images) cv::max(brightest, image, brightest);
+  const double threshold_dn = std::max(1.0, sigmas * stack.noise.read_sigma);
+  return (brightest - stack.dark) > threshold_dn;
+}
+
+double EffectiveSaturationLevel(const PhotometricStereoInput& input) {
+  if (std::isfinite(input.saturation_level)) return input.saturation_level;
+  double max_value = 0.0;
+  for (const cv::Mat& image : input.stack.images) {
+    double image_max = 0.0;
+    cv::minMaxLoc(image, nullptr, &image_max);
+    max_value = std::max(max_value, image_max);
+  }
+  // Clipped samples sit at the largest code the data reach when that is a
+  // full-scale code (2^n - 1); otherwise nothing is treated as clipped.
+  const double full_scale = std::exp2(std::ceil(std::log2(max_value + 1.0))) - 1.0;
+  return max_value >= full_scale ? full_scale : input.saturation_level;
+}
+
+json ToJson(const PhotometricStereoResult& result) {
+  const ps::SolverSummary& summary = result.summary;
+  const double saturation = result.saturation_level;
+  json report = {{"source", result.source},
+                 {"method", summary.method},
+                 {"termination", solvers::TerminationName(summary.termination)},
+                 {"message", summary.message},
+                 {"lights", summary.light_count},
+                 {"dark_frames", result.dark_frames},
+                 {"condition_number", summary.condition_number},
+                 {"noise",
+                  {{"read_sigma", summary.noise_read_sigma > 0 ? summary.noise_read_sigma : result.noise_sigma_dn},
+                   {"shot_gain", summary.noise_shot_gain},
+                   {"estimated", summary.noise_estimated}}},
+                 {"noise_sigma_dn", result.noise_sigma_dn},
+                 {"shadow_threshold", summary.shadow_threshold},
+                 {"saturation_level", std::isfinite(saturation) ? json(saturation) : json(nullptr)},
+                 {"mask", {{"source", result.mask_source.empty() ? json(nullptr) : json(result.mask_source)},
+                           {"pixels", result.mask_pixels}}},
+                 {"pixels",
+                  {{"total", summary.pixels_total},
+                   {"solved", summary.pixels_solved},
+                   {"outside_mask", summary.pixels_outside_mask},
+                   {"too_few_lights", summary.pixels_too_few_lights},
+                   {"ill_conditioned", summary.pixels_ill_conditioned},
+                   {"rejected_by_model", summary.pixels_rejected_by_model},
+                   {"fell_back", summary.pixels_fell_back},
+                   // of models.blinn_phong: auto's step 5, with the lobe of its region or nearest glossy pixels
+                   {"shared_lobe", summary.pixels_shared_lobe}}},
+                 {"models",
+                  {{"lambertian", summary.pixels_lambertian},
+                   {"trimmed", summary.pixels_trimmed},
+                   {"irls", summary.pixels_irls},
+                   {"blinn_phong", summary.pixels_blinn_phong},
+                   {"ggx", summary.pixels_ggx}}},
+                 {"samples_rejected", summary.samples_rejected},
+                 {"pixels_on_light_subsets", summary.pixels_on_light_subsets},
+                 {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}, {"total", result.total_ms}}}};
+  if (result.capture) report["capture"] = result.capture->ToJson();
+  if (result.mean_confidence) report["mean_confidence"] = *result.mean_confidence;
+  if (!result.previews.is_null()) report["previews"] = result.previews;
+  if (result.depth) {
+    const ps::IntegrationSummary& integrated = result.depth->summary;
+    report["depth"] = {{"integrator", result.depth->integrator},
+                       {"success", integrated.IsSolutionUsable()},
+                       {"message", integrated.message},
+                       {"pixels", integrated.pixels},
+                       {"pixels_dropped", integrated.pixels_dropped},
+                       {"residual_rms", integrated.residual_rms},
+                       {"pixel_pitch", result.depth->pixel_pitch}};
+    if (result.depth->rms_error_vs_truth) report["depth"]["rms_error_vs_truth"] = *result.depth->rms_error_vs_truth;
+    report["timings_ms"]["integrate"] = integrated.solve_ms;
+  }
+  if (result.color) {
+    report["color"] = ToJson(*result.color);
+    report["color"]["albedo"] = "per channel with the normals fixed (solved on the sum of the camera channels)";
+    if (result.color_albedo_summary)
+      report["color"]["green_channel_pixels_solved"] = result.color_albedo_summary->pixels_solved;
+  }
+  if (result.normals_vs_truth) {
+    report["ground_truth"] = MetricsJson(*result.normals_vs_truth);
+    if (result.albedo_ciede2000_vs_truth)
+      for (const auto& [name, e] : {std::pair{"all", result.albedo_ciede2000_vs_truth->all},
+                                    std::pair{"interior", result.albedo_ciede2000_vs_truth->interior}})
+        report["ground_truth"]["albedo_ciede2000"][name] = {
+            {"mean", e.mean}, {"median", e.median}, {"p95", e.p95}, {"pixels", e.pixels}};
+    if (result.mean_relative_albedo_error)
+      report["ground_truth"]["mean_relative_albedo_error"] = *result.mean_relative_albedo_error;
+  }
+  return report;
+}
+
+PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
+                                      const std::string& output_directory, const std::function<void()>& before_commit) {
+  const auto start = std::chrono::steady_clock::now();
+  config::ValidatePhotometricStereoRequest(request);
+  ps::PhotometricStack stack = input.stack;
+  PhotometricStereoResult result;
+  if (!input.object_mask.empty()) {
+    stack.mask = input.object_mask;
+    result.mask_source = input.mask_source;
+  } else if (!stack.dark.empty()) {
+    stack.mask = AutomaticObjectMask(stack, kAutomaticMaskSigmas);
+    char rule[96];
+    std::snprintf(rule, sizeof(rule), "automatic: brightest lit frame above the dark by %g read-noise sigmas",
+                  kAutomaticMaskSigmas);
+    result.mask_source = rule;
+  }
+  if (!stack.mask.empty()) result.mask_pixels = cv::countNonZero(stack.mask);
+  const double saturation = EffectiveSaturationLevel(input);
+  const ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
+
+  ps::NormalMap map;
+  result.summary = ps::SolvePhotometricStereo(options, stack, &map);
+  result.source = input.source;
+  result.capture = input.capture;
+  result.dark_frames = input.dark_frames;
+  result.noise_sigma_dn = stack.noise.read_sigma;
+  result.saturation_level = saturation;
+
+  ResultsFolder folder(output_directory);
+  const fs::path out(folder.path());
+  try {  // a write that fails (a full disk) leaves no partial folder and says what to do
+    if (result.usable()) {
+      const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
+      result.mean_confidence = cv::mean(map.confidence, solved)[0];
+      WriteFloatTiff((out / "normals.tiff").string(), map.normals);
+      cv::Mat albedo_rgb;  // colour data: per-channel albedo with the normals fixed
+      if (input.color) {
+        albedo_rgb = SolveColorAlbedo(*input.color, map.normals, request.shadow_threshold_sigma, &result);
+        WriteFloatTiff((out / "albedo.tiff").string(), albedo_rgb);
+      } else {
+        WriteFloatTiff((out / "albedo.tiff").string(), map.albedo);
+      }
+      WriteFloatTiff((out / "confidence.tiff").string(), map.confidence);
+      cv::Mat specular;
+      cv::Mat channels[] = {cv::Mat(), cv::Mat(), cv::Mat::zeros(map.specular.size(), CV_32F)};
+      cv::split(map.specular, channels);
+      cv::merge(channels, 3, specular);
+      WriteFloatTiff((out / "specular.tiff").string(), specular);
+
+      cv::Mat depth;  // stays empty unless integrated
+      if (request.integrator != "none") {
+        ps::IntegrationOptions integration;
+        ps::ParseIntegrator(request.integrator, &integration.integrator);
+        integration.pixel_pitch = input.pixel_pitch;
+        PhotometricStereoDepth& integrated = result.depth.emplace();
+        integrated.integrator = request.integrator;
+        integrated.pixel_pitch = input.pixel_pitch;
+        integrated.summary = ps::IntegrateNormals(integration, map.normals, solved, &depth);
+        if (integrated.summary.IsSolutionUsable()) {
+          WriteFloatTiff((out / "depth.tiff").string(), depth);
+          WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
+          if (!input.truth_height.empty()) {
+            // Depth is known up to a constant per region: compare after removing the mean difference.
+            cv::Mat both = (depth == depth) & (input.truth_height == input.truth_height);
+            cv::Mat difference = depth - input.truth_height;
+            cv::patchNaNs(difference, 0.0);
+            const double offset = cv::mean(difference, both)[0];
+            cv::Mat centred = difference - offset;
+            centred.setTo(0.0, ~both);
+            const double pixels = std::max(1, cv::countNonZero(both));
+            integrated.rms_error_vs_truth = std::sqrt(centred.dot(centred) / pixels);
+          }
+        } else {
+          depth.release();
+        }
+      }
+      result.previews = WritePhotometricStereoPreviews(map, solved, depth, folder.path());
+      if (!albedo_rgb.empty()) {
+        const bool calibrated = result.color->color_space == "linear-srgb";
+        // Calibrated albedo is absolute: 1 is a perfect white. Camera RGB and
+        // DiLiGenT's DN are not, so they map from their own 99.5th percentile.
+        const double top = calibrated ? 1.0 : std::max(1e-12, PercentileOverMask(albedo_rgb.reshape(1, albedo_rgb.rows * albedo_rgb.cols * 3),
+                                                                                   RepeatMask3(solved), 99.5));
+        WriteImage((out / "albedo.png").string(), ColorAlbedoPreview(albedo_rgb, solved, top));
+        result.previews["albedo.png"] = {{"low", 0.0},
+                                         {"high", top},
+                                         {"scale", "linear " + std::string(calibrated ? "sRGB" : "camera RGB") + " 0.." +
+                                                       std::to_string(top) + " -> sRGB-encoded 0..255 per channel"}};
+        if (!calibrated) result.previews["albedo.png"]["percentile"] = 99.5;
+      }
+
+      cv::Mat error_deg;
+      const ps::AngularErrorStats vs_truth =
+          input.truth_normals.empty() ? ps::AngularErrorStats{}
+                                      : ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
+      if (!input.truth_normals.empty() && !vs_truth.IsSolutionUsable()) {
+        spdlog::warn("{}: ground-truth normals not compared: {}", input.source, vs_truth.message);
+      } else if (!input.truth_normals.empty()) {  // compared: error map and figures
+        result.normals_vs_truth = vs_truth;
+        WriteFloatTiff((out / "angular_error.tiff").string(), error_deg);
+        if (!albedo_rgb.empty() && !input.truth_albedo_rgb.empty()) {
+          result.albedo_ciede2000_vs_truth = CompareColorAlbedo(albedo_rgb, input.truth_albedo_rgb, solved);
+        } else if (!input.truth_albedo.empty() && albedo_rgb.empty()) {
+          cv::Mat relative;
+          cv::absdiff(map.albedo, input.truth_albedo, relative);
+          relative /= input.truth_albedo;
+          cv::patchNaNs(relative, 0.0);
+          result.mean_relative_albedo_error = cv::mean(relative, solved)[0];
+        }
+      }
+    }
+    result.total_ms = Ms(start);
+    WriteFileDurably((out / "report.json").string(), ToJson(result).dump(2) + "\n");
+  } catch (...) {
+    folder.Abandon(std::current_exception());
+  }
+  if (before_commit) before_commit();
+  folder.Commit();
+  return result;
+}
+
+}  // namespace photorig::daemon

@@ -1,0 +1,258 @@
+#include "photorig/daemon/service/run.h"
+#include "photorig/daemon/pipelines/internal/phantom_json.h"
+
+#include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/capture/plan.h"
+#include "photorig/daemon/pipelines/ps_pipeline.h"
+#include "photorig/daemon/pipelines/internal/results_folder.h"
+#include "photorig/daemon/capture/internal/rig_devices.h"
+#include "photorig/daemon/service/internal/slurm_solve.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <functional>
+#include <filesystem>
+
+namespace photorig::daemon {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string UtcStamp() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y%m%dT%H%M%SZ", &utc);
+  return text;
+}
+
+double MillisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The recipe's solve: stages on the stored frames, in order, reported as they
+// start and end.
+void SolveStages(const RunRequest& request, const config::Recipe& recipe, const config::RigConfig& rig, RunOutcome* outcome) {
+  const fs::path directory = outcome->directory;
+  bool first = true;
+  // False when an abort arrived during the previous stage: the rest is skipped.
+  auto start = [&](const std::string& stage) {
+    if (request.control && request.control->abort_requested()) return false;
+    if (first && request.on_state) request.on_state(RunState::kSolving, stage);
+    first = false;
+    if (request.on_solve_started) request.on_solve_started(stage);
+    return true;
+  };
+  auto finish = [&](SolveStageReport report) {
+    spdlog::info("solve {}: {}{}{}", report.stage, report.termination, report.message.empty() ? "" : ": ", report.message);
+    if (request.on_solve_finished) request.on_solve_finished(report);
+    outcome->solve_stages.push_back(std::move(report));
+  };
+  // A stage's folder holds only what this solve wrote: a run resumed after a
+  // crash mid-solve solves again from the frames, and its calibrated rig is
+  // a new file again. Photometric stereo, tomography and svbrdf replace their
+  // folders whole as they end (results_folder.h), so the previous result
+  // stays until then.
+  auto fresh_results = [&directory](const char* name) {
+    const fs::path results = directory / "results" / name;
+    fs::remove_all(results);
+    return results;
+  };
+  // Results that cannot be written (a full disk) fail the run saying how to
+  // finish it: the frames are stored, so only the solve is repeated.
+  auto writing = [&directory](const char* solver, const std::function<void()>& stage) {
+    try {
+      stage();
+    } catch (const ResultsWriteError& e) {
+      throw std::runtime_error(std::string(e.what()) + "; the captured frames are intact: `photorig solve " + solver +
+                               " --run " + directory.string() + "` solves again");
+    }
+  };
+  if (recipe.photometric_stereo && start("photometric_stereo")) {
+    config::PhotometricStereoRequest solve = *recipe.photometric_stereo;
+    if (recipe.solve_executor.executor == "slurm") {
+      const SlurmSolveOutcome submitted =
+          SolvePhotometricStereoOnSlurm(directory.string(), solve, recipe.solve_executor, request);
+      if (!submitted.report) {
+        // The daemon is stopping: the run goes back to the queue, and the next start follows the same job.
+        outcome->capture.status = CaptureStatus::kAborted;
+        outcome->capture.reason = "stopped while Slurm job " + submitted.job_id + " solves; followed again at the next start";
+        return;
+      }
+      finish(*submitted.report);
+    } else {
+      solve.progress = request.solve_progress;
+      writing("ps", [&] {
+        outcome->photometric_stereo =
+            SolvePhotometricStereoRun(directory.string(), solve, (directory / "results" / "ps").string());
+      });
+      finish(ReportSolveStage(*outcome->photometric_stereo));
+    }
+  }
+  if (recipe.light_calibration && start("light_calibration")) {
+    const auto started = std::chrono::steady_clock::now();
+    config::LightCalibrationRequest calibration = *recipe.light_calibration;
+    const fs::path results = fresh_results("lights");
+    calibration.base_rig = rig.path;
+    if (calibration.out_rig.empty()) calibration.out_rig = (results / "rig.yaml").string();
+    outcome->light_calibration =
+        CalibrateLights(LoadLightCalibrationInputs(directory.string()), calibration, results.string());
+    finish(ReportSolveStage(*outcome->light_calibration, directory.string(), MillisecondsSince(started)));
+  }
+  if (recipe.tomography && start("tomography")) {
+    config::TomographyRequest solve = *recipe.tomography;
+    solve.progress = request.solve_progress;
+    const TomographyInput input = LoadTomographyRun(directory.string());
+    outcome->tomography = SolveTomography(input, solve);
+    writing("tomography", [&] { WriteTomographyResults(input, *outcome->tomography, (directory / "results" / "tomography").string()); });
+    finish(ReportSolveStage(*outcome->tomography));
+  }
+  if (recipe.svbrdf && start("svbrdf")) {
+    config::SvbrdfRequest solve = *recipe.svbrdf;
+    solve.progress = request.solve_progress;
+    writing("svbrdf", [&] {
+      outcome->svbrdf =
+          SolveSvbrdfAndWrite(LoadRunStack(directory.string()), solve, (directory / "results" / "svbrdf").string());
+    });
+    finish(ReportSolveStage(*outcome->svbrdf));
+  }
+  if (recipe.brdf && start("brdf")) {
+    BrdfRequest solve = *recipe.brdf;
+    solve.progress = request.solve_progress;
+    writing("brdf", [&] {
+      outcome->brdf = SolveBrdfAndWrite(directory.string(), solve, (directory / "results" / "brdf").string());
+    });
+    finish(ReportSolveStage(*outcome->brdf));
+  }
+}
+
+}  // namespace
+
+RunManifest ManifestHeaderFor(const config::RigConfig& rig) {
+  RunManifest header;
+  header.rig_path = rig.path;
+  header.rig_name = rig.name;
+  header.camera_id = rig.camera.id;
+  header.width = rig.camera.width;
+  header.height = rig.camera.height;
+  header.bit_depth = rig.camera.bit_depth;
+  header.saturation_dn = rig.health.saturation_dn;
+  header.dn_per_radiance_per_us = rig.camera.dn_per_radiance_per_us;
+  header.e_per_dn = rig.camera.e_per_dn;
+  header.pixel_pitch_mm = rig.camera.pixel_pitch_mm;
+  header.mosaic = rig.camera.mosaic;
+  header.pixel_format = rig.camera.pixel_format;
+  if (rig.camera.color_model) {
+    header.color_model_path = fs::absolute(rig.camera.color_model->path).lexically_normal().string();
+    header.color_model_hash = rig.camera.color_model->content_hash;
+  }
+  header.lights = rig.lights.leds;
+  if (rig.reference_target) header.reference_albedo = rig.reference_target->albedo;
+  return header;
+}
+
+RunOutcome ExecuteRun(const RunRequest& request) {
+  const config::RigConfig rig = config::LoadRigConfig(config::RecipeRigPath(request.recipe_path, request.rig_path));
+  const config::Recipe recipe = config::LoadRecipe(request.recipe_path, rig);
+  const std::vector<config::CaptureStep> steps = config::CompileSteps(recipe, rig);
+  const RunPlan plan = PlanRun(recipe, rig, steps);
+  if (!plan.ok()) {
+    std::string why;
+    for (const std::string& error : plan.errors) why += "\n  " + error;
+    throw std::runtime_error("recipe " + recipe.path + " refused before any device was touched:" + why);
+  }
+  // A run never goes into another run's folder (or any folder with files): a usage error, found before the devices.
+  if (!request.resume && !request.output_directory.empty() && fs::exists(request.output_directory) &&
+      !fs::is_empty(request.output_directory))
+    throw std::invalid_argument("run directory " + request.output_directory +
+                                " already exists and is not empty; name a new one (photorig run --out DIR) or remove it");
+  RigDevices devices = MakeRigDevices(rig, &recipe);
+
+  RunOutcome outcome;
+  outcome.directory = request.output_directory.empty() ? (fs::path("runs") / (recipe.name + "-" + UtcStamp())).string()
+                                                       : request.output_directory;
+  RunManifest header = ManifestHeaderFor(rig);
+  header.run_id = fs::path(outcome.directory).filename().string();
+  header.recipe_path = recipe.path;
+  header.recipe_name = recipe.name;
+  for (const auto& [stage, present] :
+       {std::pair{"photometric_stereo", recipe.photometric_stereo.has_value()},
+        std::pair{"light_calibration", recipe.light_calibration.has_value()},
+        std::pair{"tomography", recipe.tomography.has_value()}, std::pair{"svbrdf", recipe.svbrdf.has_value()},
+        std::pair{"brdf", recipe.brdf.has_value()}})
+    if (present) header.solve_stages.push_back(stage);
+  header.sample_name = recipe.sample_name;
+  std::unique_ptr<RunWriter> writer_storage;
+  if (request.resume) {
+    writer_storage = RunWriter::Reopen(outcome.directory, &outcome.recovery);
+    spdlog::info("run {}: resuming with {} frames on disk ({} discarded, {} stray files removed{})", header.run_id,
+                 outcome.recovery.frames_kept, outcome.recovery.frames_discarded,
+                 outcome.recovery.removed_files.size(), outcome.recovery.journal_tail_torn ? ", torn journal line cut" : "");
+  }
+  const std::uint64_t needed = plan.estimate.bytes - std::min<std::uint64_t>(plan.estimate.bytes,
+      writer_storage ? writer_storage->manifest().frames.size() * plan.estimate.bytes_per_frame : 0);
+  const std::uint64_t free_bytes = FreeBytes(outcome.directory);
+  if (free_bytes < needed)
+    throw std::runtime_error("not enough free space for " + outcome.directory + ": the run needs about " +
+                             std::to_string(needed >> 20) + " MiB, " + std::to_string(free_bytes >> 20) + " MiB free");
+  if (!writer_storage) writer_storage = std::make_unique<RunWriter>(outcome.directory, header);
+  RunWriter& writer = *writer_storage;
+  if (devices.world && !writer.manifest().has_ground_truth) {
+    const sim::SurfaceMaps& truth = devices.world->surface();
+    const sim::Scene& scene = devices.world->config().scene;
+    if (scene.shape == sim::Scene::Shape::kPhantom)
+      writer.WriteVolumeGroundTruth(cv::Mat(), PhantomToJson(scene.phantom).dump(2) + "\n");
+    else if (scene.shape == sim::Scene::Shape::kVolume)
+      writer.WriteVolumeGroundTruth(truth.line_integrals, "");
+    else
+      writer.WriteGroundTruth(truth, devices.world->config().lights, devices.world->TruthColorAlbedo());
+  }
+
+  spdlog::info("run {}: recipe {} on rig {} ({} steps) -> {}", header.run_id, recipe.name, rig.name, steps.size(),
+               outcome.directory);
+  CaptureOptions options;
+  options.stop_requested = request.stop_requested;
+  options.control = request.control;
+  options.retry = request.retry;
+  options.on_state = request.on_state;
+  options.trigger_output = devices.trigger.get();
+  options.health = rig.health;
+  options.leds = rig.lights.leds;
+  if (rig.motion) {
+    options.motion = &devices.motion;
+    options.motion_profile = rig.motion->profile;
+  }
+  options.on_frame = [&request, &writer](const config::CaptureStep& step, const FrameRecord& record, int total) {
+    if (request.on_frame) request.on_frame(step, record, static_cast<int>(writer.manifest().frames.size()), total);
+  };
+  std::optional<AdaptivePoses> adaptive;
+  if (const config::Recipe::Group* group = config::AdaptivePlanGroup(recipe)) {
+    adaptive.emplace(recipe, *group, rig);
+    options.next_pass = [&](const std::vector<config::CaptureStep>& so_far, std::size_t ended, const RunWriter& run) {
+      CaptureOptions::AddedSteps added = adaptive->NextPass(so_far, ended, run);
+      if (request.on_adaptive_pass && adaptive->passes().size() > outcome.adaptive_passes.size())
+        request.on_adaptive_pass(adaptive->passes().back());
+      outcome.adaptive_passes = adaptive->passes();
+      return added;
+    };
+  }
+  outcome.capture = RunCapture(steps, rig.camera, *devices.lights, *devices.camera, writer, options);
+  if (adaptive) {
+    nlohmann::json passes = nlohmann::json::array();
+    for (const AdaptivePassReport& pass : outcome.adaptive_passes) passes.push_back(pass.ToJson());
+    WriteFileDurably((fs::path(outcome.directory) / "adaptive_passes.json").string(), passes.dump(2) + "\n");
+  }
+  writer.Finish(outcome.capture.ToStopRecord());
+  spdlog::info("capture {}: {} of {} frames in {:.0f} ms{}{}", CaptureStatusName(outcome.capture.status), outcome.capture.frames_written,
+               outcome.capture.steps_total, outcome.capture.elapsed_ms, outcome.capture.reason.empty() ? "" : ": ",
+               outcome.capture.reason);
+
+  if (request.solve && outcome.capture.status == CaptureStatus::kComplete) SolveStages(request, recipe, rig, &outcome);
+  return outcome;
+}
+
+}  // namespace photorig::daemon

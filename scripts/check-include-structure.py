@@ -1,0 +1,101 @@
+#!/usr/bin/env python3
+"""Include structure of the product code (docs/architecture.md):
+
+- no two modules include each other, a module being a header and the source
+  of the same name (foo.h, foo.cpp) in one CMake module of solvers/, daemon/,
+  rigconfig/, sim/, drivers/ (beyond KNOWN_PAIRS, below);
+- no alias header: a daemon header that only renames another layer's types
+  with `using config::X;` (each type keeps one name);
+- the daemon's public headers (include/photorig/daemon/, outside internal/)
+  include no simulator header: the simulator is a private dependency.
+
+Prints each breach and exits 1 if there is one.
+
+    scripts/check-include-structure.py [SOURCE_DIR]
+"""
+import os
+import re
+import subprocess
+import sys
+
+root = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "..")
+os.chdir(root)
+files = subprocess.check_output(
+    ["git", "ls-files", "--", *[f"{d}/*.{e}" for d in ("solvers", "daemon", "rigconfig", "sim", "drivers") for e in ("h", "cpp")]],
+    text=True).split()
+include = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
+
+
+def module(path):
+    """A header and its source share a module: photorig/daemon/capture/plan.h ~ .../src/capture/plan.cpp."""
+    base = os.path.splitext(os.path.basename(path))[0]
+    return base
+
+
+# Header include paths ("photorig/...") to the files that hold them.
+by_include = {}
+for f in files:
+    if "/include/" in f and f.endswith(".h"):
+        by_include[f.split("/include/", 1)[1]] = f
+
+edges = {}  # file module key -> set of module keys it includes
+def owner(path):
+    """The nearest directory above the file with a CMakeLists.txt (solvers/ps, daemon, drivers/gpio)."""
+    d = os.path.dirname(path)
+    while d and not os.path.exists(os.path.join(d, "CMakeLists.txt")):
+        d = os.path.dirname(d)
+    return d
+
+
+def key(path):
+    # A header and the source of its name in one CMake module: daemon:plan for plan.h and plan.cpp.
+    return (owner(path), module(path))
+
+breaches = []
+for f in files:
+    text = open(f, encoding="utf-8", errors="replace").read()
+    for target in include.findall(text):
+        header = by_include.get(target) or (os.path.normpath(os.path.join(os.path.dirname(f), target))
+                                            if os.path.exists(os.path.join(os.path.dirname(f), target)) else None)
+        if header is None or key(header) == key(f):
+            continue
+        edges.setdefault(key(f), set()).add(key(header))
+    if f.startswith("daemon/include/") and "/internal/" not in f:
+        for target in include.findall(text):
+            if target.startswith("photorig/sim/"):
+                breaches.append(f"{f}: a public daemon header includes the simulator's {target}")
+    if f.startswith("daemon/") and f.endswith(".h"):
+        body = [l for l in text.splitlines() if l.strip() and not l.strip().startswith(("//", "#", "namespace", "}"))]
+        if body and all(re.match(r"\s*using config::\w+;", l) for l in body):
+            breaches.append(f"{f}: an alias header (it only renames config:: types)")
+
+# Pairs that remain, each a loader or solver whose helpers take its own types:
+# they go once the shared types have a header of their own. The list only
+# shrinks: a pair gone from the code must leave it, a new pair fails.
+KNOWN_PAIRS = {
+    ("rigconfig", "driver_options_parse", "rig"),
+    ("rigconfig", "rig", "sim"),
+    ("solvers/brdf", "lobes", "models"),
+    ("solvers/ps", "lambertian", "lambertian_tiles"),
+    ("solvers/ps", "model_selection", "photometric_stereo"),
+    ("solvers/ps", "noise_estimate", "photometric_stereo"),
+    ("solvers/ps", "photometric_stereo", "tile_refiner"),
+    ("solvers/reflectance", "samples", "svbrdf"),
+}
+found = set()
+for a, targets in edges.items():
+    for b in targets:
+        if a < b and a in edges.get(b, set()):
+            pair = (a[0], a[1], b[1]) if a[0] == b[0] else None
+            found.add(pair)
+            if pair not in KNOWN_PAIRS:
+                breaches.append(f"{a[0]}: {a[1]} and {b[0]}: {b[1]} include each other")
+for pair in sorted(KNOWN_PAIRS - found):
+    breaches.append(f"{pair[0]}: {pair[1]} and {pair[2]} no longer include each other: take them off KNOWN_PAIRS")
+
+for line in sorted(breaches):
+    print(line)
+if breaches:
+    sys.exit(1)
+print(f"include structure: {len(files)} files, no module pair including each other beyond the "
+      f"{len(KNOWN_PAIRS)} listed, no alias header, no simulator header in the daemon's public headers")
