@@ -1,7 +1,8 @@
-// Joint refinement of normals and reflectance (svbrdf.h): per-pixel
+// Joint refinement of normals and reflectance (normal_refinement.h): per-pixel
 // Levenberg-Marquardt on the normal with the material's lobe fixed and the
 // albedos eliminated, alternated with FitReflectance.
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/normal_refinement.h"
+#include "photorig/solvers/reflectance/relighting.h"
 
 #include "samples.h"
 

@@ -1,4 +1,4 @@
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/relighting.h"
 
 #include "samples.h"
 
@@ -7,6 +7,32 @@
 #include <limits>
 
 namespace photorig::solvers::reflectance {
+
+Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
+                          const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image) {
+  if (maps.albedo.empty() || maps.flags.size() != maps.albedo.size() || maps.normals.size() != maps.albedo.size())
+    return Ended(Termination::kInvalidInput, "the reflectance maps are empty or differ in size");
+  if (image == nullptr) return Ended(Termination::kInvalidInput, "no output image given");
+  const int C = maps.albedo.channels();
+  *image = cv::Mat(maps.albedo.size(), CV_32FC(C), cv::Scalar::all(0));
+  const Eigen::Vector3d w = light_direction.normalized(), v = view_direction.normalized();
+  for (int r = 0; r < image->rows; ++r)
+    for (int c = 0; c < image->cols; ++c) {
+      const std::uint8_t m = maps.material.at<std::uint8_t>(r, c);
+      if (m >= maps.materials.size()) continue;
+      const MaterialFit& fit = maps.materials[m];
+      const cv::Vec3f nf = maps.normals.at<cv::Vec3f>(r, c);
+      const Eigen::Vector3d n = Eigen::Vector3d(nf[0], nf[1], nf[2]).normalized();
+      const Eigen::Vector3d wi = internal::ToLocal(n, w), wo = internal::ToLocal(n, v);
+      brdf::ModelParams params{fit.model, Eigen::Vector3d::Zero(), fit.specular, fit.shape};
+      const float* albedo = maps.albedo.ptr<float>(r) + c * C;
+      for (int ch = 0; ch < C; ++ch) params.diffuse[ch] = albedo[ch];
+      const Eigen::Vector3d f = brdf::Evaluate(params, wi, wo);
+      float* out = image->ptr<float>(r) + c * C;
+      for (int ch = 0; ch < C; ++ch) out[ch] = static_cast<float>(intensity[ch] * f[ch] * std::max(0.0, wi.z()));
+    }
+  return Ended(Termination::kSuccess, "");
+}
 
 const char* MethodName(Method method) {
   switch (method) {
