@@ -46,15 +46,14 @@ class Art final : public Iteration {
 
   StepResult Step(Eigen::VectorXf* x, Eigen::VectorXf* r) override {
     ArtSweep(*in_.whole, in_.b, in_.mask, order_, in_.lambda, in_.non_negative, x);
-    in_.system.Forward(*x, &wx_);
-    MaskedResidual(in_.b, wx_, in_.mask, r);
+    in_.system.Forward(*x, in_.wx);
+    MaskedResidual(in_.b, *in_.wx, in_.mask, r);
     return {};
   }
 
  private:
   IterationInputs in_;
   std::vector<int> order_;
-  Eigen::VectorXf wx_;
 };
 
 }  // namespace

@@ -35,6 +35,9 @@ struct IterationInputs {
   const ReconstructOptions& options;
   double discrepancy_target = 0.0;     // ReconstructionSummary::discrepancy_target
   double tv_strength = 0.0;            // 0: no total variation
+  // Scratch for W x, ray-sized already: the methods' forward projections
+  // reuse Reconstruct's buffer rather than allocate their own.
+  Eigen::VectorXf* wx = nullptr;
 };
 
 struct StepResult {

@@ -379,7 +379,7 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
 
   const internal::IterationInputs inputs{projector, whole,       valid.b, valid.mask, row_sums, column_sums,
                                          lambda,    non_negative, options, summary.discrepancy_target,
-                                         summary.tv_strength};
+                                         summary.tv_strength, &wx};
   const std::unique_ptr<internal::Iteration> method = MakeMethod(inputs, r);
   const double resolvable_drop = ResolvableDrop(options, summary, noise_sum);
   const bool residual_met = Iterate(options, projector, resolvable_drop, method.get(), &x, &r, &summary);

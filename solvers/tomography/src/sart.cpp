@@ -194,8 +194,8 @@ class Sart final : public Iteration {
     // exact one by the pass's own progress, a few percent once the first
     // passes are done).
     if (in_.options.stop_rule == StopRule::kDiscrepancy && met <= kExactResidualMargin * in_.discrepancy_target) {
-      in_.system.Forward(*x, &wx_);
-      MaskedResidual(in_.b, wx_, in_.mask, r);
+      in_.system.Forward(*x, in_.wx);
+      MaskedResidual(in_.b, *in_.wx, in_.mask, r);
       return {};
     }
     return {false, met};
@@ -206,7 +206,6 @@ class Sart final : public Iteration {
   Eigen::VectorXf inv_rows_;
   SartState state_;
   Eigen::VectorXf before_;  // with TV: the volume before the pass
-  Eigen::VectorXf wx_;
 };
 
 }  // namespace

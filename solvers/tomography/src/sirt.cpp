@@ -13,15 +13,15 @@ class Sirt final : public Iteration {
     in_.system.Back(r->cwiseProduct(inv_rows_), &g_);
     *x += static_cast<float>(in_.lambda) * inv_columns_.cwiseProduct(g_);
     if (in_.non_negative) ClampNonNegative(x);
-    in_.system.Forward(*x, &wx_);
-    MaskedResidual(in_.b, wx_, in_.mask, r);
+    in_.system.Forward(*x, in_.wx);
+    MaskedResidual(in_.b, *in_.wx, in_.mask, r);
     return {};
   }
 
  private:
   IterationInputs in_;
   Eigen::VectorXf inv_rows_, inv_columns_;  // R and C
-  Eigen::VectorXf g_, wx_;
+  Eigen::VectorXf g_;
 };
 
 }  // namespace
