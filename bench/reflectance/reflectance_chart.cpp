@@ -6,6 +6,7 @@
 // photometric stereo's might be), and the same after the joint refinement of
 // normals and reflectance, with their normals' error.
 // Usage: photorig-reflectance-chart OUT.csv
+#include "photorig/solvers/reflectance/normal_refinement.h"
 #include "svbrdf_scene.h"
 
 #include <algorithm>

@@ -7,7 +7,8 @@
 // Rendered with the brdf module's models through RenderReflectance, with
 // Gaussian read noise and shot noise.
 
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/fit.h"
+#include "photorig/solvers/reflectance/relighting.h"
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>

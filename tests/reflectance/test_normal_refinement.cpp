@@ -1,6 +1,7 @@
 // Joint refinement of normals and reflectance against the scene's truth:
 // perturbed normals come back, true normals stay, and a normal that would
 // have to move too far is held and counted, not moved.
+#include "photorig/solvers/reflectance/normal_refinement.h"
 #include "svbrdf_scene.h"
 
 #include <gtest/gtest.h>

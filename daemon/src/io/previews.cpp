@@ -1,7 +1,7 @@
 #include "photorig/daemon/io/internal/previews.h"
 
 #include "photorig/daemon/io/image_io.h"
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/fit.h"
 
 #include <opencv2/imgproc.hpp>
 

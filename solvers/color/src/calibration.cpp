@@ -133,6 +133,35 @@ ColorModel FitModel(const ModelSpec& spec, const std::vector<Eigen::Vector3d>& c
   return model;
 }
 
+namespace {
+
+// Exposure normalisation on the white patch, or the brightest usable neutral:
+// *scale takes the camera's Y there to the reference's (summary->exposure_patch
+// says which). Ends *summary and returns false where none is usable.
+bool NormaliseExposure(const CalibrationInput& input, int white_patch, const std::vector<int>& used, double* scale,
+                       CalibrationSummary* summary) {
+  const std::size_t n = input.camera_rgb.size();
+  std::vector<int> whites = {white_patch};
+  if (n == 24)
+    for (int p = 18; p < 24; ++p) whites.push_back(p);
+  for (const int w : whites) {
+    if (w < static_cast<int>(n) && std::find(used.begin(), used.end(), w) != used.end() &&
+        input.camera_rgb[static_cast<std::size_t>(w)].y() > 0.0) {
+      summary->exposure_patch = w;
+      break;
+    }
+  }
+  if (summary->exposure_patch < 0) {
+    summary->End(solvers::Termination::kFailure, "no usable white or grey patch to normalise the exposure on");
+    return false;
+  }
+  const auto w = static_cast<std::size_t>(summary->exposure_patch);
+  *scale = input.reference_xyz[w].y() / input.camera_rgb[w].y();
+  return true;
+}
+
+}  // namespace
+
 CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOptions& options) {
   solvers::SolveTimer timer;
   CalibrationSummary summary;
@@ -157,26 +186,9 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
     return summary;
   }
 
-  // Exposure normalisation on the white patch, or the brightest usable neutral.
   double scale = 1.0;
-  if (options.normalise_exposure) {
-    std::vector<int> whites = {options.white_patch};
-    if (n == 24)
-      for (int p = 18; p < 24; ++p) whites.push_back(p);
-    for (const int w : whites) {
-      if (w < static_cast<int>(n) && std::find(used.begin(), used.end(), w) != used.end() &&
-          input.camera_rgb[static_cast<std::size_t>(w)].y() > 0.0) {
-        summary.exposure_patch = w;
-        break;
-      }
-    }
-    if (summary.exposure_patch < 0) {
-      summary.End(solvers::Termination::kFailure, "no usable white or grey patch to normalise the exposure on");
-      return summary;
-    }
-    const auto w = static_cast<std::size_t>(summary.exposure_patch);
-    scale = input.reference_xyz[w].y() / input.camera_rgb[w].y();
-  }
+  if (options.normalise_exposure && !NormaliseExposure(input, options.white_patch, used, &scale, &summary))
+    return summary;
 
   const std::vector<Eigen::Vector3d> rgb = Subset(input.camera_rgb, used);
   const std::vector<Eigen::Vector3d> xyz = Subset(input.reference_xyz, used);

@@ -33,6 +33,65 @@ bool HighlightOptions::IsValid(std::string* why) const {
   return true;
 }
 
+namespace {
+
+// The highlight's blob: the 8-connected pixels at or above the threshold
+// reached from the peak, and the pixels on the sphere above it elsewhere.
+struct Blob {
+  Eigen::Vector2d centroid_px = Eigen::Vector2d::Zero();
+  int area = 0;
+  bool touches_rim = false;  // reaches the image's edge or the sphere's silhouette
+  int stray = 0;             // pixels on the sphere within `window` above the threshold, outside the blob
+};
+
+Blob GrowBlob(const cv::Mat& values, const cv::Mat& on_sphere, cv::Point peak_at, double threshold, bool saturated,
+              const cv::Rect& window) {
+  cv::Mat in_blob(values.size(), CV_8U, cv::Scalar(0));
+  std::vector<cv::Point> stack{peak_at};
+  in_blob.at<std::uint8_t>(peak_at) = 1;
+  Blob blob;
+  double weight_sum = 0.0, su = 0.0, sv = 0.0;
+  while (!stack.empty()) {
+    const cv::Point p = stack.back();
+    stack.pop_back();
+    const double value = values.at<float>(p);
+    // Saturated blob: plain centroid (the clipped values carry no shape); otherwise intensity-weighted.
+    const double weight = saturated ? 1.0 : value - threshold + 1e-12;
+    weight_sum += weight;
+    su += weight * p.x;
+    sv += weight * p.y;
+    ++blob.area;
+    for (int dr = -1; dr <= 1; ++dr) {
+      for (int dc = -1; dc <= 1; ++dc) {
+        const cv::Point q(p.x + dc, p.y + dr);
+        if (q.x < 0 || q.y < 0 || q.x >= values.cols || q.y >= values.rows) {
+          blob.touches_rim = true;
+          continue;
+        }
+        if (!on_sphere.at<std::uint8_t>(q)) {
+          blob.touches_rim = true;
+          continue;
+        }
+        if (in_blob.at<std::uint8_t>(q) || values.at<float>(q) < threshold) continue;
+        in_blob.at<std::uint8_t>(q) = 1;
+        stack.push_back(q);
+      }
+    }
+  }
+  for (int r = window.y; r < window.y + window.height; ++r) {
+    for (int col = window.x; col < window.x + window.width; ++col) {
+      if (on_sphere.at<std::uint8_t>(r, col) && !in_blob.at<std::uint8_t>(r, col) &&
+          values.at<float>(r, col) >= threshold) {
+        ++blob.stray;
+      }
+    }
+  }
+  blob.centroid_px = {su / weight_sum, sv / weight_sum};
+  return blob;
+}
+
+}  // namespace
+
 LightDirectionEstimate EstimateLightDirection(const cv::Mat& image, const SphereGeometry& sphere,
                                               const HighlightOptions& options) {
   LightDirectionEstimate estimate;
@@ -102,52 +161,12 @@ LightDirectionEstimate EstimateLightDirection(const cv::Mat& image, const Sphere
       saturated ? saturation : background + options.threshold_fraction * (peak - background);
   if (saturated) estimate.flags |= kLightSaturated;
 
-  // Blob: 8-connected pixels above threshold reached from the peak.
-  cv::Mat in_blob(values.size(), CV_8U, cv::Scalar(0));
-  std::vector<cv::Point> stack{peak_at};
-  in_blob.at<std::uint8_t>(peak_at) = 1;
-  double weight_sum = 0.0, su = 0.0, sv = 0.0;
-  int area = 0;
-  bool touches_rim = false;
-  while (!stack.empty()) {
-    const cv::Point p = stack.back();
-    stack.pop_back();
-    const double value = values.at<float>(p);
-    // Saturated blob: plain centroid (the clipped values carry no shape); otherwise intensity-weighted.
-    const double weight = saturated ? 1.0 : value - threshold + 1e-12;
-    weight_sum += weight;
-    su += weight * p.x;
-    sv += weight * p.y;
-    ++area;
-    for (int dr = -1; dr <= 1; ++dr) {
-      for (int dc = -1; dc <= 1; ++dc) {
-        const cv::Point q(p.x + dc, p.y + dr);
-        if (q.x < 0 || q.y < 0 || q.x >= values.cols || q.y >= values.rows) {
-          touches_rim = true;
-          continue;
-        }
-        if (!on_sphere.at<std::uint8_t>(q)) {
-          touches_rim = true;
-          continue;
-        }
-        if (in_blob.at<std::uint8_t>(q) || values.at<float>(q) < threshold) continue;
-        in_blob.at<std::uint8_t>(q) = 1;
-        stack.push_back(q);
-      }
-    }
-  }
-  int stray = 0;
-  for (int r = r0; r <= r1; ++r) {
-    for (int col = c0; col <= c1; ++col) {
-      if (on_sphere.at<std::uint8_t>(r, col) && !in_blob.at<std::uint8_t>(r, col) &&
-          values.at<float>(r, col) >= threshold) {
-        ++stray;
-      }
-    }
-  }
-  if (stray > std::max(2, area / 4)) estimate.flags |= kLightMultipleHighlights;
+  const cv::Rect window(c0, r0, c1 - c0 + 1, r1 - r0 + 1);
+  const Blob blob = GrowBlob(values, on_sphere, peak_at, threshold, saturated, window);
+  const int area = blob.area;
+  if (blob.stray > std::max(2, area / 4)) estimate.flags |= kLightMultipleHighlights;
 
-  estimate.highlight_px = {su / weight_sum, sv / weight_sum};
+  estimate.highlight_px = blob.centroid_px;
   estimate.blob_area_px = area;
   const double disc_area = M_PI * c.radius_px * c.radius_px;
   if (area > options.max_blob_fraction * disc_area) estimate.flags |= kLightLargeHighlight;
@@ -166,7 +185,7 @@ LightDirectionEstimate EstimateLightDirection(const cv::Mat& image, const Sphere
 
   const double cos_normal = std::clamp(w_o.dot(n), 1e-6, 1.0);
   const double sin_normal = std::sqrt(1.0 - cos_normal * cos_normal);
-  if (touches_rim || cos_normal < std::sin(options.silhouette_margin_deg * M_PI / 180.0)) {
+  if (blob.touches_rim || cos_normal < std::sin(options.silhouette_margin_deg * M_PI / 180.0)) {
     estimate.flags |= kLightNearSilhouette;
   }
   // Centroid error: quantisation over the blob plus a blob-size share that grows

@@ -76,6 +76,15 @@ bool WriteSolution(int pixel, float x0, float x1, float x2, float confidence, No
   return true;
 }
 
+// Marks a pixel unsolved: NaN normal and albedo, no model, zero confidence.
+void WriteUnsolved(int pixel, PixelFlag flag, NormalMap* out) {
+  out->normals.ptr<cv::Vec3f>()[pixel] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
+  out->albedo.ptr<float>()[pixel] = std::numeric_limits<float>::quiet_NaN();
+  out->flags.ptr<std::uint8_t>()[pixel] = static_cast<std::uint8_t>(flag);
+  out->model.ptr<std::uint8_t>()[pixel] = static_cast<std::uint8_t>(PixelModel::kNone);
+  out->confidence.ptr<float>()[pixel] = 0.0f;
+}
+
 // What the per-tile kernels need from the solve's setup. Per-light arrays
 // are float (the kernels' precision) and indexed by light.
 struct TileConstants {
@@ -717,6 +726,126 @@ TileSetup::TileSetup(const LambertianOptions& options, const PhotometricStack& s
   c.max_frobenius_condition2 = static_cast<float>(0.99 * max_condition2 * max_condition2);
 }
 
+// Fails, ending *summary, where the options or the stack cannot be solved.
+bool CheckInputs(const LambertianOptions& options, const PhotometricStack& stack, SolverSummary* summary) {
+  std::string why;
+  if (!options.IsValid(&why)) {
+    summary->End(Termination::kInvalidOptions, "invalid options: " + why);
+    return false;
+  }
+  if (!stack.IsValid(&why)) {
+    summary->End(Termination::kInvalidInput, "invalid stack: " + why);
+    return false;
+  }
+  const int k = stack.light_count();
+  if (k < 3) {
+    summary->End(Termination::kInvalidInput, "photometric stereo needs at least 3 lights, got " + std::to_string(k));
+    return false;
+  }
+  if (k > kMaxLights) {
+    summary->End(Termination::kInvalidInput, "at most " + std::to_string(kMaxLights) + " lights are supported, got " +
+                                                 std::to_string(k));
+    return false;
+  }
+  return true;
+}
+
+// Every output map at the stack's size; the tile pass writes each pixel
+// once, so none is filled beforehand.
+void CreateOutputs(int width, int height, NormalMap* result) {
+  result->normals.create(height, width, CV_32FC3);
+  result->albedo.create(height, width, CV_32F);
+  result->flags.create(height, width, CV_8U);
+  result->usable_lights.create(height, width, CV_16U);
+  result->model.create(height, width, CV_8U);
+  result->confidence.create(height, width, CV_32F);
+  result->specular.create(height, width, CV_32FC2);
+}
+
+// Solves the tile of n pixels at `begin` into scratch->solution with the
+// kernels, its dark levels into scratch->sums.dark. `expect_lit`: whether the
+// thread's previous tile was fully lit; returns that for this tile.
+bool SolveTileKernels(const LambertianOptions& options, const TileConstants& constants, const float* dark,
+                      const std::uint8_t* mask, int begin, int n, bool expect_lit, TileScratch* scratch) {
+  TileSums* const sums = &scratch->sums;
+  TileSolution* const solution = &scratch->solution;
+  SubsetBlock* const block = &scratch->block;
+  const int k = constants.lights;
+  if (dark)
+    std::copy_n(dark + begin, n, sums->dark);
+  else
+    std::fill_n(sums->dark, n, 0.0f);
+  // Every sample is read exactly once from memory. A tile of fully lit
+  // pixels costs least with the pseudo-inverse pass; where pixels have
+  // shadowed or clipped samples, the subset kernel reads the tile itself.
+  // Which one a tile starts with is a guess from the thread's previous
+  // tile (neighbouring tiles look alike); a wrong guess of "lit" costs a
+  // second look at the affected chunks, from cache.
+  // Chunks without a pixel inside the mask are not solved at all: WriteTile
+  // marks their pixels outside whatever their (stale) solution says.
+  std::array<bool, kTilePixels / kChunkPixels> inside;
+  bool any_inside = false;
+  for (int chunk = 0; chunk < n; chunk += kChunkPixels) {
+    const int chunk_end = std::min(n, chunk + kChunkPixels);
+    bool in = mask == nullptr;
+    for (int i = chunk; !in && i < chunk_end; ++i) in = mask[begin + i] != 0;
+    inside[chunk / kChunkPixels] = in;
+    any_inside |= in;
+  }
+  auto inside_chunk = [&inside](int chunk, int) { return inside[chunk / kChunkPixels]; };
+  auto all_lit = [&](int chunk, int chunk_end) {
+    return CountPartlyUsable(solution->usable + chunk, chunk_end - chunk, static_cast<float>(k)) == 0;
+  };
+  auto solve_subsets = [&](int first, int end) {
+    SolveSubsetTile(constants, begin, first, end, sums->dark, block, solution);
+  };
+  if (!any_inside) {
+    // Nothing to solve; the guess for the next tile stands.
+  } else if (options.exclude_unusable_samples && !expect_lit) {
+    ForEachRunOfChunks(n, inside_chunk, solve_subsets);
+    expect_lit = true;
+    for (int chunk = 0; chunk < n; chunk += kChunkPixels)
+      expect_lit &= !inside[chunk / kChunkPixels] || all_lit(chunk, std::min(n, chunk + kChunkPixels));
+  } else {
+    ForEachRunOfChunks(n, inside_chunk, [&](int first, int end) {
+      AccumulateTile(constants, begin, first, end, sums);
+      SolveLitTile(constants, first, end, *sums, solution);
+    });
+    expect_lit = true;
+    if (options.exclude_unusable_samples) {
+      // The chunks with shadowed or clipped samples get their own subsets.
+      ForEachRunOfChunks(
+          n,
+          [&](int chunk, int chunk_end) {
+            const bool needed = inside[chunk / kChunkPixels] && !all_lit(chunk, chunk_end);
+            expect_lit &= !needed;
+            return needed;
+          },
+          solve_subsets);
+    }
+  }
+  return expect_lit;
+}
+
+// Subsets the float kernel could not vouch for get the exact verdict; most
+// tiles have none, which one vector pass finds out.
+void ResolveUnverified(const LambertianOptions& options, const PhotometricStack& stack, const TileConstants& constants,
+                       double max_condition2, int begin, int n, const TileScratch& scratch, NormalMap* result) {
+  const std::uint16_t* usable = result->usable_lights.ptr<std::uint16_t>() + begin;
+  const int unverified = CountUnverified(scratch.solution.certainly_conditioned, usable, n);
+  for (int i = 0; options.exclude_unusable_samples && unverified > 0 && i < n; ++i) {
+    const int p = begin + i;
+    if (scratch.solution.certainly_conditioned[i] != 0.0f || usable[i] < 3) continue;
+    const ExactSubset exact = SolveSubsetExactly(stack, constants, p, scratch.sums.dark[i], max_condition2);
+    if (!exact.conditioned) {
+      WriteUnsolved(p, PixelFlag::kIllConditioned, result);
+    } else if (!WriteSolution(p, float(exact.x(0)), float(exact.x(1)), float(exact.x(2)), exact.confidence,
+                              result)) {
+      WriteUnsolved(p, PixelFlag::kTooFewLights, result);
+    }
+  }
+}
+
 }  // namespace
 
 bool LambertianOptions::IsValid(std::string* why) const {
@@ -781,25 +910,8 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
   SolverSummary summary;
   summary.method = options.exclude_unusable_samples ? "lambertian" : "lambertian-l2";
   summary.light_count = stack.light_count();
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
-  if (!stack.IsValid(&why)) {
-    summary.End(Termination::kInvalidInput, "invalid stack: " + why);
-    return summary;
-  }
+  if (!CheckInputs(options, stack, &summary)) return summary;
   const int k = stack.light_count();
-  if (k < 3) {
-    summary.End(Termination::kInvalidInput, "photometric stereo needs at least 3 lights, got " + std::to_string(k));
-    return summary;
-  }
-  if (k > kMaxLights) {
-    summary.End(Termination::kInvalidInput, "at most " + std::to_string(kMaxLights) + " lights are supported, got " +
-                                                std::to_string(k));
-    return summary;
-  }
 
   const GlobalSolver global = BuildGlobalSolver(stack);
   summary.condition_number = global.condition_number;
@@ -813,14 +925,7 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
 
   const int width = stack.width(), height = stack.height();
   const int pixels = width * height;
-  // Every output pixel is written once by the pass below: no pre-fill passes.
-  result->normals.create(height, width, CV_32FC3);
-  result->albedo.create(height, width, CV_32F);
-  result->flags.create(height, width, CV_8U);
-  result->usable_lights.create(height, width, CV_16U);
-  result->model.create(height, width, CV_8U);
-  result->confidence.create(height, width, CV_32F);
-  result->specular.create(height, width, CV_32FC2);
+  CreateOutputs(width, height, result);
 
   const float* dark = stack.dark.empty() ? nullptr : stack.dark.ptr<float>();
   const std::uint8_t* mask = stack.mask.empty() ? nullptr : stack.mask.ptr<std::uint8_t>();
@@ -838,91 +943,15 @@ SolverSummary SolveLambertianTiles(const LambertianOptions& options, const Photo
     reduction(+ : rejected_samples, on_subset, solved, outside_mask, too_few, ill_conditioned)
   {
     TileScratch& scratch = ThreadTileScratch();
-    TileSums* const sums = &scratch.sums;
-    TileSolution* const solution = &scratch.solution;
-    SubsetBlock* const block = &scratch.block;
     bool expect_lit = true;
-    auto unsolved = [&](int p, PixelFlag flag) {
-      result->normals.ptr<cv::Vec3f>()[p] = cv::Vec3f::all(std::numeric_limits<float>::quiet_NaN());
-      result->albedo.ptr<float>()[p] = std::numeric_limits<float>::quiet_NaN();
-      result->flags.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(flag);
-      result->model.ptr<std::uint8_t>()[p] = static_cast<std::uint8_t>(PixelModel::kNone);
-      result->confidence.ptr<float>()[p] = 0.0f;
-    };
-
 #pragma omp for schedule(dynamic, 4) nowait
     for (int tile = 0; tile < tiles; ++tile) {
       const int begin = tile * kTilePixels;
       const int n = std::min(kTilePixels, pixels - begin);
-      if (dark)
-        std::copy_n(dark + begin, n, sums->dark);
-      else
-        std::fill_n(sums->dark, n, 0.0f);
-      // Every sample is read exactly once from memory. A tile of fully lit
-      // pixels costs least with the pseudo-inverse pass; where pixels have
-      // shadowed or clipped samples, the subset kernel reads the tile itself.
-      // Which one a tile starts with is a guess from the thread's previous
-      // tile (neighbouring tiles look alike); a wrong guess of "lit" costs a
-      // second look at the affected chunks, from cache.
-      // Chunks without a pixel inside the mask are not solved at all: WriteTile
-      // marks their pixels outside whatever their (stale) solution says.
-      std::array<bool, kTilePixels / kChunkPixels> inside;
-      bool any_inside = false;
-      for (int chunk = 0; chunk < n; chunk += kChunkPixels) {
-        const int chunk_end = std::min(n, chunk + kChunkPixels);
-        bool in = mask == nullptr;
-        for (int i = chunk; !in && i < chunk_end; ++i) in = mask[begin + i] != 0;
-        inside[chunk / kChunkPixels] = in;
-        any_inside |= in;
-      }
-      auto inside_chunk = [&inside](int chunk, int) { return inside[chunk / kChunkPixels]; };
-      auto all_lit = [&](int chunk, int chunk_end) {
-        return CountPartlyUsable(solution->usable + chunk, chunk_end - chunk, static_cast<float>(k)) == 0;
-      };
-      auto solve_subsets = [&](int first, int end) {
-        SolveSubsetTile(constants, begin, first, end, sums->dark, block, solution);
-      };
-      if (!any_inside) {
-        // Nothing to solve; the guess for the next tile stands.
-      } else if (options.exclude_unusable_samples && !expect_lit) {
-        ForEachRunOfChunks(n, inside_chunk, solve_subsets);
-        expect_lit = true;
-        for (int chunk = 0; chunk < n; chunk += kChunkPixels)
-          expect_lit &= !inside[chunk / kChunkPixels] || all_lit(chunk, std::min(n, chunk + kChunkPixels));
-      } else {
-        ForEachRunOfChunks(n, inside_chunk, [&](int first, int end) {
-          AccumulateTile(constants, begin, first, end, sums);
-          SolveLitTile(constants, first, end, *sums, solution);
-        });
-        expect_lit = true;
-        if (options.exclude_unusable_samples) {
-          // The chunks with shadowed or clipped samples get their own subsets.
-          ForEachRunOfChunks(
-              n,
-              [&](int chunk, int chunk_end) {
-                const bool needed = inside[chunk / kChunkPixels] && !all_lit(chunk, chunk_end);
-                expect_lit &= !needed;
-                return needed;
-              },
-              solve_subsets);
-        }
-      }
-      WriteTile(begin, n, *solution, mask, result);
-      // Subsets the float kernel could not vouch for get the exact verdict;
-      // most tiles have none, which one vector pass finds out.
+      expect_lit = SolveTileKernels(options, constants, dark, mask, begin, n, expect_lit, &scratch);
+      WriteTile(begin, n, scratch.solution, mask, result);
+      ResolveUnverified(options, stack, constants, max_condition2, begin, n, scratch, result);
       const std::uint16_t* usable = result->usable_lights.ptr<std::uint16_t>() + begin;
-      const int unverified = CountUnverified(solution->certainly_conditioned, usable, n);
-      for (int i = 0; options.exclude_unusable_samples && unverified > 0 && i < n; ++i) {
-        const int p = begin + i;
-        if (solution->certainly_conditioned[i] != 0.0f || usable[i] < 3) continue;
-        const ExactSubset exact = SolveSubsetExactly(stack, constants, p, sums->dark[i], max_condition2);
-        if (!exact.conditioned) {
-          unsolved(p, PixelFlag::kIllConditioned);
-        } else if (!WriteSolution(p, float(exact.x(0)), float(exact.x(1)), float(exact.x(2)), exact.confidence,
-                                  result)) {
-          unsolved(p, PixelFlag::kTooFewLights);
-        }
-      }
       const TileCounts counts = CountTile(result->flags.ptr<std::uint8_t>() + begin, usable, n, k);
       rejected_samples += counts.rejected_samples;
       on_subset += options.exclude_unusable_samples ? counts.on_subset : 0;

@@ -1,7 +1,8 @@
-// Joint refinement of normals and reflectance (svbrdf.h): per-pixel
+// Joint refinement of normals and reflectance (normal_refinement.h): per-pixel
 // Levenberg-Marquardt on the normal with the material's lobe fixed and the
 // albedos eliminated, alternated with FitReflectance.
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/normal_refinement.h"
+#include "photorig/solvers/reflectance/relighting.h"
 
 #include "samples.h"
 
@@ -71,6 +72,48 @@ struct PixelProblem {
     return r->squaredNorm();
   }
 };
+
+// Pixel i's problem from starting normal n0 under its material: its samples
+// under the lights not kept for judging that face n0 by min_cosine or more
+// and are unclipped, not yet weighted.
+PixelProblem ProblemAt(const ReflectanceStack& stack, int i, const Eigen::Vector3d& n0, const MaterialFit& material,
+                       const std::vector<std::uint8_t>& judging, double min_cosine) {
+  const int C = stack.channels();
+  PixelProblem problem;
+  problem.channels = C;
+  problem.view = stack.view_direction;
+  problem.n0 = n0;
+  internal::FrameOf(problem.n0, &problem.t0, &problem.b0);
+  problem.lobe = {material.model, material.shape};
+  problem.specular = material.specular;
+  for (int j = 0; j < stack.light_count(); ++j) {
+    if (judging[j] || problem.n0.dot(stack.light_directions[j]) < min_cosine) continue;
+    const float* px = stack.images[j].ptr<float>() + static_cast<std::size_t>(i) * C;
+    bool usable = true;
+    for (int c = 0; c < C; ++c) usable = usable && std::isfinite(px[c]) && px[c] < stack.saturation_level;
+    if (!usable) continue;
+    problem.light.push_back(stack.light_directions[j]);
+    const Eigen::Vector3d e = stack.Intensity(j);
+    for (int c = 0; c < C; ++c) {
+      problem.value.push_back(px[c]);
+      problem.irradiance.push_back(e[c]);
+    }
+  }
+  return problem;
+}
+
+// Weights from the noise model at the signal predicted with the starting normal.
+void WeightByNoise(const SensorNoise& noise, PixelProblem* problem) {
+  problem->weight.assign(problem->value.size(), 1.0);
+  Eigen::VectorXd r;
+  Eigen::Vector3d rho;
+  problem->Residuals(problem->n0, &r, &rho);
+  for (std::size_t s = 0; s < problem->value.size(); ++s) {
+    const int c = static_cast<int>(s % problem->channels);
+    const double predicted = problem->value[s] - r[static_cast<Eigen::Index>(s)];
+    problem->weight[s] = 1.0 / std::max(noise.Variance(c, predicted), 1e-12);
+  }
+}
 
 // Levenberg-Marquardt over the two tangent-plane offsets, forward-difference
 // Jacobian (3 residual evaluations an iteration; central differences took 5
@@ -180,7 +223,6 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
   summary.reduced_chi_square_before = fitted.reduced_chi_square;
   timer.SetupDone(&summary);
   cv::Mat n = normals.clone();
-  const int C = stack.channels();
   // The lights that judge the result are left out of the normal steps: normals
   // fitted to a light predict it well whether or not they are nearer the truth.
   std::vector<std::uint8_t> judging(stack.light_count(), 0);
@@ -199,38 +241,10 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
     for (std::size_t f = 0; f < fitted_pixels.size(); ++f) {
       const int i = fitted_pixels[f];
       const cv::Vec3f& nv = n.at<cv::Vec3f>(i);
-      PixelProblem problem;
-      problem.channels = C;
-      problem.view = stack.view_direction;
-      problem.n0 = Eigen::Vector3d(nv[0], nv[1], nv[2]).normalized();
-      internal::FrameOf(problem.n0, &problem.t0, &problem.b0);
-      const MaterialFit& material = current.materials[current.material.data[i]];
-      problem.lobe = {material.model, material.shape};
-      problem.specular = material.specular;
-      for (int j = 0; j < stack.light_count(); ++j) {
-        if (judging[j] || problem.n0.dot(stack.light_directions[j]) < options.fit.min_cosine) continue;
-        const float* px = stack.images[j].ptr<float>() + static_cast<std::size_t>(i) * C;
-        bool usable = true;
-        for (int c = 0; c < C; ++c) usable = usable && std::isfinite(px[c]) && px[c] < stack.saturation_level;
-        if (!usable) continue;
-        problem.light.push_back(stack.light_directions[j]);
-        const Eigen::Vector3d e = stack.Intensity(j);
-        for (int c = 0; c < C; ++c) {
-          problem.value.push_back(px[c]);
-          problem.irradiance.push_back(e[c]);
-        }
-      }
+      PixelProblem problem = ProblemAt(stack, i, Eigen::Vector3d(nv[0], nv[1], nv[2]).normalized(),
+                                       current.materials[current.material.data[i]], judging, options.fit.min_cosine);
       if (problem.samples() < options.fit.min_samples) continue;
-      // Weights from the noise model at the signal predicted with the starting normal.
-      problem.weight.assign(problem.value.size(), 1.0);
-      Eigen::VectorXd r;
-      Eigen::Vector3d rho;
-      problem.Residuals(problem.n0, &r, &rho);
-      for (std::size_t s = 0; s < problem.value.size(); ++s) {
-        const int c = static_cast<int>(s % C);
-        const double predicted = problem.value[s] - r[static_cast<Eigen::Index>(s)];
-        problem.weight[s] = 1.0 / std::max(fitted.noise.Variance(c, predicted), 1e-12);
-      }
+      WeightByNoise(fitted.noise, &problem);
       bool improved = false;
       const Eigen::Vector3d moved = Minimise(problem, &improved);
       const double angle = std::acos(std::clamp(moved.dot(problem.n0), -1.0, 1.0));

@@ -1,4 +1,4 @@
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/relighting.h"
 
 #include "samples.h"
 
@@ -7,6 +7,32 @@
 #include <limits>
 
 namespace photorig::solvers::reflectance {
+
+Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
+                          const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image) {
+  if (maps.albedo.empty() || maps.flags.size() != maps.albedo.size() || maps.normals.size() != maps.albedo.size())
+    return Ended(Termination::kInvalidInput, "the reflectance maps are empty or differ in size");
+  if (image == nullptr) return Ended(Termination::kInvalidInput, "no output image given");
+  const int C = maps.albedo.channels();
+  *image = cv::Mat(maps.albedo.size(), CV_32FC(C), cv::Scalar::all(0));
+  const Eigen::Vector3d w = light_direction.normalized(), v = view_direction.normalized();
+  for (int r = 0; r < image->rows; ++r)
+    for (int c = 0; c < image->cols; ++c) {
+      const std::uint8_t m = maps.material.at<std::uint8_t>(r, c);
+      if (m >= maps.materials.size()) continue;
+      const MaterialFit& fit = maps.materials[m];
+      const cv::Vec3f nf = maps.normals.at<cv::Vec3f>(r, c);
+      const Eigen::Vector3d n = Eigen::Vector3d(nf[0], nf[1], nf[2]).normalized();
+      const Eigen::Vector3d wi = internal::ToLocal(n, w), wo = internal::ToLocal(n, v);
+      brdf::ModelParams params{fit.model, Eigen::Vector3d::Zero(), fit.specular, fit.shape};
+      const float* albedo = maps.albedo.ptr<float>(r) + c * C;
+      for (int ch = 0; ch < C; ++ch) params.diffuse[ch] = albedo[ch];
+      const Eigen::Vector3d f = brdf::Evaluate(params, wi, wo);
+      float* out = image->ptr<float>(r) + c * C;
+      for (int ch = 0; ch < C; ++ch) out[ch] = static_cast<float>(intensity[ch] * f[ch] * std::max(0.0, wi.z()));
+    }
+  return Ended(Termination::kSuccess, "");
+}
 
 const char* MethodName(Method method) {
   switch (method) {
@@ -58,6 +84,52 @@ std::vector<int> StratifiedLights(const std::vector<Eigen::Vector3d>& directions
   }
   return chosen;
 }
+
+namespace {
+
+// Per pixel: the lobe, weights and albedo a method predicts with.
+struct Prediction {
+  std::vector<internal::Lobe> lobe;
+  std::vector<Eigen::Vector3d> weight, rho;
+};
+
+// `method` fitted to the lights `enabled` on `pixels` (for kPerMaterial, on
+// each material's pixels in `groups` with the full fit's lobe model).
+Prediction FitMethod(Method method, const internal::Samples& s, const std::vector<int>& pixels,
+                     const std::vector<std::vector<int>>& groups, const ReflectanceMaps& full,
+                     const std::vector<std::uint8_t>& enabled, int shape_search_pixels) {
+  Prediction out{std::vector<internal::Lobe>(s.pixels),
+                 std::vector<Eigen::Vector3d>(s.pixels, Eigen::Vector3d::Zero()),
+                 std::vector<Eigen::Vector3d>(s.pixels, Eigen::Vector3d::Zero())};
+  if (method == Method::kLambertian) {
+    const auto albedo = internal::FitLambertian(s, pixels, enabled);
+    for (std::size_t i = 0; i < pixels.size(); ++i) out.rho[pixels[i]] = albedo[i];
+  } else if (method == Method::kPerPixelLobe) {
+    const auto own = internal::FitPixelLobes(s, pixels, enabled, {});
+    for (std::size_t i = 0; i < pixels.size(); ++i) {
+      const int p = pixels[i];
+      out.lobe[p] = {own[i].exponent > 0.0 ? brdf::Model::kBlinnPhong : brdf::Model::kLambertian, own[i].exponent};
+      out.weight[p] = own[i].weight;
+      out.rho[p] = own[i].rho;
+    }
+  } else {
+    for (std::size_t m = 0; m < groups.size(); ++m) {
+      if (groups[m].empty()) continue;
+      const internal::MaterialResult refit =
+          internal::FitMaterial(s, groups[m], {full.materials[m].model}, enabled, shape_search_pixels);
+      const auto albedo = internal::FitAlbedo(s, groups[m], refit.fit, enabled);
+      for (std::size_t i = 0; i < groups[m].size(); ++i) {
+        const int p = groups[m][i];
+        out.lobe[p] = {refit.fit.model, refit.fit.shape};
+        out.weight[p] = refit.fit.specular;
+        out.rho[p] = albedo[i];
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
 
 RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
                                         const cv::Mat& normals, const cv::Mat& mask) {
@@ -141,34 +213,11 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
     }
     for (Method method : options.methods) {
       SolveTimer fit_timer;
-      // Per pixel: lobe, weights and albedo to predict with.
-      std::vector<internal::Lobe> lobe(s.pixels);
-      std::vector<Eigen::Vector3d> weight(s.pixels, Eigen::Vector3d::Zero()), rho(s.pixels, Eigen::Vector3d::Zero());
-      if (method == Method::kLambertian) {
-        const auto albedo = internal::FitLambertian(s, pixels, enabled);
-        for (std::size_t i = 0; i < pixels.size(); ++i) rho[pixels[i]] = albedo[i];
-      } else if (method == Method::kPerPixelLobe) {
-        const auto own = internal::FitPixelLobes(s, pixels, enabled, {});
-        for (std::size_t i = 0; i < pixels.size(); ++i) {
-          const int p = pixels[i];
-          lobe[p] = {own[i].exponent > 0.0 ? brdf::Model::kBlinnPhong : brdf::Model::kLambertian, own[i].exponent};
-          weight[p] = own[i].weight;
-          rho[p] = own[i].rho;
-        }
-      } else {
-        for (std::size_t m = 0; m < groups.size(); ++m) {
-          if (groups[m].empty()) continue;
-          const internal::MaterialResult refit = internal::FitMaterial(
-              s, groups[m], {full.materials[m].model}, enabled, options.fit.shape_search_pixels);
-          const auto albedo = internal::FitAlbedo(s, groups[m], refit.fit, enabled);
-          for (std::size_t i = 0; i < groups[m].size(); ++i) {
-            const int p = groups[m][i];
-            lobe[p] = {refit.fit.model, refit.fit.shape};
-            weight[p] = refit.fit.specular;
-            rho[p] = albedo[i];
-          }
-        }
-      }
+      const Prediction prediction =
+          FitMethod(method, s, pixels, groups, full, enabled, options.fit.shape_search_pixels);
+      const std::vector<internal::Lobe>& lobe = prediction.lobe;
+      const std::vector<Eigen::Vector3d>& weight = prediction.weight;
+      const std::vector<Eigen::Vector3d>& rho = prediction.rho;
       const double fit_ms = fit_timer.ElapsedMs();
       cv::Mat image;
       if (options.keep_predictions)

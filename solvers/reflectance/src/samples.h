@@ -8,7 +8,7 @@
 // albedos are eliminated exactly per pixel and s solved from the remainder.
 
 #include "photorig/solvers/brdf/models.h"
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/fit.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

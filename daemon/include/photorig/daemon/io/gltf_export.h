@@ -16,7 +16,7 @@
 //                          per-pixel vertex normals carry them)
 // EXR: albedo.exr, roughness.exr, specular.exr (F0), normals.exr.
 
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/fit.h"
 
 #include <opencv2/core.hpp>
 

@@ -16,7 +16,9 @@
 //   report.json            materials with their lobes, warnings, held-out errors, timings, truth comparisons
 
 #include "photorig/daemon/pipelines/ps_pipeline.h"
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/fit.h"
+#include "photorig/solvers/reflectance/normal_refinement.h"
+#include "photorig/solvers/reflectance/relighting.h"
 
 #include <nlohmann/json.hpp>
 

@@ -17,7 +17,7 @@
 // fitted models' is not, so the base colour makes up the part F0 takes at
 // normal incidence.
 
-#include "photorig/solvers/reflectance/svbrdf.h"
+#include "photorig/solvers/reflectance/fit.h"
 
 #include <Eigen/Core>
 
