@@ -80,7 +80,8 @@ KNOWN_PAIRS = {
     ("solvers/ps", "model_selection", "photometric_stereo"),
     ("solvers/ps", "noise_estimate", "photometric_stereo"),
     ("solvers/ps", "photometric_stereo", "tile_refiner"),
-    ("solvers/reflectance", "samples", "svbrdf"),
+    ("solvers/reflectance", "fit", "fit_stages"),
+    ("solvers/tomography", "iteration", "reconstruct"),
 }
 found = set()
 for a, targets in edges.items():
