@@ -21,7 +21,7 @@ endforeach()
 
 execute_process(COMMAND ${CMAKE_COMMAND} --build "${BINARY_DIR}" --target help
                 RESULT_VARIABLE status OUTPUT_VARIABLE targets ERROR_VARIABLE targets)
-foreach(target photorig_daemon photorig photorigd photorig-sim-modbus test_config)
+foreach(target photorig_capture photorig_service photorig photorigd photorig-sim-modbus test_config)
   string(REGEX MATCH "[ \n]${target}[ \n]" found "${targets}")
   if(NOT found)
     message(FATAL_ERROR "no target ${target} without aravis:\n${targets}")

@@ -330,6 +330,21 @@ TEST_F(Hardening, HealthAnswersWhileStreamsAndSlowClientsHoldConnections) {
   EXPECT_EQ(client.Post("/api/v1/runs/" + running + "/abort", json::object()).http_status, 202);
 }
 
+// Opens event streams with `request` until one is refused (503), keeping
+// the accepted ones open in *streams; at most `most` are expected.
+void HoldEveryStreamSlot(int port, const std::string& request, std::size_t most,
+                         std::vector<std::unique_ptr<RawConnection>>* streams) {
+  for (int refused = 0; refused == 0;) {
+    ASSERT_LE(streams->size(), most);
+    auto stream = std::make_unique<RawConnection>(port);
+    ASSERT_TRUE(stream->Send(request));
+    const int status = stream->ReadStatus();
+    ASSERT_TRUE(status == 200 || status == 503) << status;
+    if (status == 503) ++refused;
+    else streams->push_back(std::move(stream));
+  }
+}
+
 // Starts a long run and pauses it once running: streams on it stay open.
 std::string PausedRun(ApiClient& client, const std::function<ApiClient()>& another) {
   const auto submitted = client.Post("/api/v1/runs", {{"recipe", SmallRecipeYaml("", 1000)}});
@@ -403,15 +418,7 @@ TEST_F(Hardening, ClosedStreamsFreeTheirSlotsWithinASecond) {
   const std::string request = "GET /api/v1/runs/" + id + "/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
   // Every slot taken (the stream followed above may still be closing on the server's side).
   std::vector<std::unique_ptr<RawConnection>> streams;
-  for (int refused = 0; refused == 0;) {
-    ASSERT_LE(streams.size(), 33u);
-    auto stream = std::make_unique<RawConnection>(served_->port());
-    ASSERT_TRUE(stream->Send(request));
-    const int status = stream->ReadStatus();
-    ASSERT_TRUE(status == 200 || status == 503) << status;
-    if (status == 503) ++refused;
-    else streams.push_back(std::move(stream));
-  }
+  ASSERT_NO_FATAL_FAILURE(HoldEveryStreamSlot(served_->port(), request, 33, &streams));
   EXPECT_GE(streams.size(), 31u);
   // The watchers go (closed tabs, Ctrl-C): a new one is served within 1 s.
   const std::size_t closed = streams.size();
@@ -447,15 +454,7 @@ TEST_F(Hardening, AWatcherRefusedForWantOfSlotsReconnectsAndFollowsTheRunToItsEn
   const std::string id = PausedRun(client, [this] { return Client(); });
   const std::string request = "GET /api/v1/runs/" + id + "/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
   std::vector<std::unique_ptr<RawConnection>> streams;
-  for (int refused = 0; refused == 0;) {
-    ASSERT_LE(streams.size(), 3u);
-    auto stream = std::make_unique<RawConnection>(served_->port());
-    ASSERT_TRUE(stream->Send(request));
-    const int status = stream->ReadStatus();
-    ASSERT_TRUE(status == 200 || status == 503) << status;
-    if (status == 503) ++refused;
-    else streams.push_back(std::move(stream));
-  }
+  ASSERT_NO_FATAL_FAILURE(HoldEveryStreamSlot(served_->port(), request, 3, &streams));
   // Without reconnecting, the refusal is the answer.
   const std::string refusal = Client().FollowEvents(id, [](const std::string&, const json&) { return true; });
   EXPECT_NE(refusal.find("too many open event streams"), std::string::npos) << refusal;

@@ -155,6 +155,17 @@ TEST_F(FullDisk, ARunFailsCleanlyAndTheDaemonStartsAndSaysSo) {
   }
 }
 
+// A client of the daemon once it is ready (its port, from its log); a daemon
+// that never gets ready fails the test, and the client reaches nothing.
+ApiClient ClientOf(photorig::testing::DaemonProcess& daemon, const fs::path& log) {
+  const int port = daemon.WaitReady(log, 0);
+  EXPECT_GT(port, 0) << ReadText(log);
+  ApiClientOptions client_options;
+  client_options.url = "http://127.0.0.1:" + std::to_string(port);
+  client_options.timeout_s = 20;
+  return ApiClient(client_options);
+}
+
 // Submits the small recipe to a daemon that has room again; it must be
 // taken, captured whole and stored under `root`, and health must be 200.
 void ExpectARunCompletes(ApiClient& client, const fs::path& root, const fs::path& log) {
@@ -192,12 +203,7 @@ TEST_F(FullDisk, PhotorigdStartsReadOnlyWithNoByteFreeAndTakesRunsOnceThereIsRoo
   const fs::path log = dir_.path() / "photorigd.log";
   const auto started = std::chrono::steady_clock::now();
   photorig::testing::DaemonProcess daemon(data_, options_.rig_path, log, {"--no-solve"});
-  const int port = daemon.WaitReady(log, 0);
-  ASSERT_GT(port, 0) << ReadText(log);
-  ApiClientOptions client_options;
-  client_options.url = "http://127.0.0.1:" + std::to_string(port);
-  client_options.timeout_s = 20;
-  ApiClient client(client_options);
+  ApiClient client = ClientOf(daemon, log);
   const ServiceReply health = client.Get("/api/v1/health");
   const double health_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   RecordProperty("health_after_ms", static_cast<int>(health_s * 1000));
@@ -229,12 +235,7 @@ TEST_F(FullDisk, PhotorigdStartsOnANewDataRootWithNoByteFreeAndCreatesItOnceTher
   const fs::path log = dir_.path() / "photorigd.log";
   const auto started = std::chrono::steady_clock::now();
   photorig::testing::DaemonProcess daemon(root, options_.rig_path, log, {"--no-solve"});
-  const int port = daemon.WaitReady(log, 0);
-  ASSERT_GT(port, 0) << ReadText(log);
-  ApiClientOptions client_options;
-  client_options.url = "http://127.0.0.1:" + std::to_string(port);
-  client_options.timeout_s = 20;
-  ApiClient client(client_options);
+  ApiClient client = ClientOf(daemon, log);
   const ServiceReply health = client.Get("/api/v1/health");
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 2.0);
   EXPECT_EQ(health.http_status, 503) << health.body.dump();
