@@ -2,7 +2,7 @@
 // or a DiLiGenT triples file (ReadTriplesFile), the rest is the file. The
 // contract is the lights or a std::runtime_error naming file:line.
 #include "fuzz_support.h"
-#include "photorig/lighting/light_files.h"
+#include "photorig/solvers/lighting/light_files.h"
 
 #include <stdexcept>
 
@@ -12,9 +12,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   photorig::fuzz::WriteBytes(path, data + 1, size - 1);
   try {
     if (data[0] & 1)
-      photorig::lighting::ReadTriplesFile(path.string());
+      photorig::solvers::lighting::ReadTriplesFile(path.string());
     else
-      photorig::lighting::ReadLpFile(path.string());
+      photorig::solvers::lighting::ReadLpFile(path.string());
   } catch (const std::runtime_error&) {
   }
   return 0;

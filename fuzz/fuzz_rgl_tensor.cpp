@@ -62,7 +62,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size == 0) return 0;
   const auto path = photorig::fuzz::WorkDir() / "material.bsdf";
   photorig::fuzz::WriteBytes(path, data + 1, size - 1);
-  photorig::solvers::Summary summary;
+  photorig::solvers::core::Summary summary;
   if (data[0] & 1) {
     brdf::TensorFile file;
     summary = brdf::ReadTensorFile(path.string(), &file);

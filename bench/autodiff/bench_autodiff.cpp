@@ -15,14 +15,14 @@
 #include <ceres/jet.h>
 #include <Eigen/Core>
 
-#include "photorig/autodiff/blinn_phong.h"
-#include "photorig/autodiff/blinn_phong_symbolic.h"
-#include "photorig/autodiff/dual.h"
-#include "photorig/autodiff/finite_difference.h"
-#include "photorig/autodiff/random_pixel.h"
-#include "photorig/autodiff/tape.h"
+#include "photorig/solvers/autodiff/blinn_phong.h"
+#include "photorig/solvers/autodiff/blinn_phong_symbolic.h"
+#include "photorig/solvers/autodiff/dual.h"
+#include "photorig/solvers/autodiff/finite_difference.h"
+#include "photorig/solvers/autodiff/random_pixel.h"
+#include "photorig/solvers/autodiff/tape.h"
 
-namespace photorig::autodiff {
+namespace photorig::solvers::autodiff {
 namespace {
 
 constexpr int kNumParameters = BlinnPhongPixel::kNumParameters;
@@ -174,7 +174,7 @@ class RatioReporter : public benchmark::ConsoleReporter {
       return it->second;
     }
     const auto it = iteration_ns_.find(name);
-    return it == iteration_ns_.end() ? -1.0 : photorig::autodiff::Fastest(it->second);
+    return it == iteration_ns_.end() ? -1.0 : photorig::solvers::autodiff::Fastest(it->second);
   }
 
  private:
@@ -193,10 +193,10 @@ void PrintRatio(const RatioReporter& reporter, const char* label, const std::str
 }
 
 }  // namespace
-}  // namespace photorig::autodiff
+}  // namespace photorig::solvers::autodiff
 
 int main(int argc, char** argv) {
-  using namespace photorig::autodiff;
+  using namespace photorig::solvers::autodiff;
   const std::vector<int> light_counts = {16, 256};
   for (const int lights : light_counts) {
     const auto add = [lights](const std::string& name, auto function) {

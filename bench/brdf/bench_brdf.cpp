@@ -5,7 +5,7 @@
 // on photorig_autodiff's dual numbers, from the same start.
 
 #include "lobes.h"
-#include "photorig/autodiff/dual.h"
+#include "photorig/solvers/autodiff/dual.h"
 #include "photorig/solvers/brdf/fit.h"
 #include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/merl.h"
@@ -172,7 +172,7 @@ double SolveWithCeres(const std::vector<CellResidual>& cells, std::array<double,
 // same bounds. Stops as Ceres' function tolerance does (relative cost change
 // below 1e-6).
 double SolveWithOwnLm(const std::vector<CellResidual>& cells, std::array<double, 7>* x_out, int* iterations) {
-  using Dual7 = photorig::autodiff::Dual<7>;
+  using Dual7 = photorig::solvers::autodiff::Dual<7>;
   using Vector7 = Eigen::Matrix<double, 7, 1>;
   const Vector7 lower = (Vector7() << 0, 0, 0, 0, 0, 0, std::log(0.005)).finished();
   const Vector7 upper = (Vector7() << 1e300, 1e300, 1e300, 1, 1, 1, 0).finished();

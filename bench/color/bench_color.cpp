@@ -4,11 +4,11 @@
 // bandwidth-bound the model evaluation is.
 
 #include "chart_capture.h"
-#include "photorig/color/apply.h"
+#include "photorig/solvers/color/apply.h"
 
 #include <benchmark/benchmark.h>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 const ChartCalibration& Chart() {
@@ -78,6 +78,6 @@ void BM_Srgb8Megapixel(benchmark::State& state) {
 BENCHMARK(BM_Srgb8Megapixel)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color
 
 BENCHMARK_MAIN();

@@ -6,7 +6,7 @@
 // count the raw frame, so the figures compare as frames per second.
 
 #include "chart_capture.h"
-#include "photorig/color/region_demosaic.h"
+#include "photorig/solvers/color/region_demosaic.h"
 #include "photorig/daemon/pipelines/color_stack.h"
 
 #include <benchmark/benchmark.h>
@@ -23,9 +23,9 @@ cv::Mat RawMosaic() {
   return raw;
 }
 
-const color::ColorModel& RootPoly2() {
-  static const color::ColorModel model = [] {
-    const auto chart = color::bench::SimulatedChart("nikon-5100", color::Illuminant::kD65, color::CalibrationOptions{});
+const solvers::color::ColorModel& RootPoly2() {
+  static const solvers::color::ColorModel model = [] {
+    const auto chart = solvers::color::bench::SimulatedChart("nikon-5100", solvers::color::Illuminant::kD65, solvers::color::CalibrationOptions{});
     for (const auto& m : chart.summary.models)
       if (m.spec.Name() == "root-poly-2") return m.model;
     return chart.summary.chosen_model();
@@ -57,7 +57,7 @@ void BM_DemosaicWithinRegions(benchmark::State& state) {
       regions.at<std::uint8_t>(y, x) = state.range(0) ? 0 : static_cast<std::uint8_t>(((y / 16) + (x / 16)) & 1);
   cv::Mat bgr;
   for (auto _ : state) {
-    color::DemosaicWithinRegions(raw, "RGGB", regions, &bgr);
+    solvers::color::DemosaicWithinRegions(raw, "RGGB", regions, &bgr);
     benchmark::DoNotOptimize(bgr.data);
   }
   SetRawBytes(state);
@@ -72,7 +72,7 @@ void BM_RegionEdgeVote(benchmark::State& state) {
   cv::Mat regions(kSide, kSide, CV_8U);
   for (int y = 0; y < kSide; ++y)
     for (int x = 0; x < kSide; ++x) regions.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(((y / 16) + (x / 16)) & 1);
-  color::RegionEdgeVote vote("RGGB", regions, {});
+  solvers::color::RegionEdgeVote vote("RGGB", regions, {});
   for (auto _ : state) benchmark::DoNotOptimize(vote.Add(raw).termination);
   SetRawBytes(state);
   state.counters["contested"] = vote.contested_pixels();
@@ -83,7 +83,7 @@ BENCHMARK(BM_RegionEdgeVote)->Unit(benchmark::kMillisecond)->UseRealTime();
 void BM_DemosaicAndColorModel(benchmark::State& state) {
   const cv::Mat raw = RawMosaic();
   const cv::Mat dark(kSide, kSide, CV_32FC3, cv::Scalar::all(64));
-  const color::ColorModel& model = RootPoly2();
+  const solvers::color::ColorModel& model = RootPoly2();
   for (auto _ : state) {
     cv::Mat rgb;
     DemosaicToRgb(raw, "RGGB", DemosaicMethod::kBilinear).convertTo(rgb, CV_32F);

@@ -1,12 +1,12 @@
 #pragma once
 // The simulated chart measurement the colour benchmarks start from.
 
-#include "photorig/color/calibration.h"
+#include "photorig/solvers/color/calibration.h"
 #include "photorig/sim/color_chart.h"
 
 #include <string>
 
-namespace photorig::color::bench {
+namespace photorig::solvers::color::bench {
 
 inline ChartCalibration SimulatedChart(const std::string& camera, Illuminant illuminant, const CalibrationOptions& options,
                                        sim::ChartRender* render_out = nullptr) {
@@ -36,4 +36,4 @@ inline CalibrationInput InputOf(const ChartCalibration& chart) {
   return input;
 }
 
-}  // namespace photorig::color::bench
+}  // namespace photorig::solvers::color::bench

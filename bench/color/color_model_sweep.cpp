@@ -4,13 +4,13 @@
 // All on simulated D65 captures of the BabelColor chart.
 
 #include "chart_capture.h"
-#include "photorig/color/opencv_reference.h"
+#include "photorig/solvers/color/opencv_reference.h"
 
 #include <cstdio>
 #include <string>
 
 int main(int argc, char** argv) {
-  using namespace photorig::color;
+  using namespace photorig::solvers::color;
   if (argc < 2) {
     std::fprintf(stderr, "usage: color_model_sweep OPENCV_CCM_EXECUTABLE [--loss xyz|ciede2000]\n");
     return 2;

@@ -1,14 +1,14 @@
 // Inverse lighting and environment-map throughput on a 1024 x 1024 sphere.
-#include "photorig/lighting/envmap.h"
-#include "photorig/lighting/inverse_lighting.h"
-#include "photorig/lighting/relight.h"
+#include "photorig/solvers/lighting/envmap.h"
+#include "photorig/solvers/lighting/inverse_lighting.h"
+#include "photorig/solvers/lighting/relight.h"
 #include "synthetic_sphere.h"
 
 #include <benchmark/benchmark.h>
 
 namespace {
 
-using namespace photorig::lighting;
+using namespace photorig::solvers::lighting;
 
 struct Scene {
   cv::Mat normals, mask, albedo, image;

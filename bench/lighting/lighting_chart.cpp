@@ -2,8 +2,8 @@
 // error over a 48-LED dome vs sphere radius (noise 3 DN) and vs noise (radius
 // 100 px), orthographic camera, with the mean predicted uncertainty; and
 // lighting_envmap_roundtrip.csv: lat-long -> mirror ball -> lat-long error vs ball size.
-#include "photorig/lighting/envmap.h"
-#include "photorig/lighting/mirror_sphere.h"
+#include "photorig/solvers/lighting/envmap.h"
+#include "photorig/solvers/lighting/mirror_sphere.h"
 #include "synthetic_sphere.h"
 
 #include <cstdio>
@@ -12,7 +12,7 @@
 
 namespace {
 
-using namespace photorig::lighting;
+using namespace photorig::solvers::lighting;
 
 void Sweep(std::ofstream& out, const std::string& name, double radius_px, double noise_dn) {
   testing::SyntheticCamera camera;

@@ -3,9 +3,9 @@
 // solver that reads every sample once can be. The ratio of the two times is
 // the figure recorded in docs/performance.md.
 
-#include "photorig/ps/evaluation.h"
-#include "photorig/ps/lambertian.h"
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/evaluation.h"
+#include "photorig/solvers/ps/lambertian.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <benchmark/benchmark.h>
 #include <omp.h>
@@ -23,7 +23,7 @@
 
 namespace {
 
-using photorig::ps::PhotometricStack;
+using photorig::solvers::ps::PhotometricStack;
 
 // A tilted-plane scene: every sample lit (the all-lights fast path), or, with
 // `shadowed`, a sphere-like spread of normals so many pixels need their own subset.
@@ -118,13 +118,13 @@ void BM_EigenGemm(benchmark::State& state) {
 void BM_Lambertian(benchmark::State& state) {
   const bool shadowed = state.range(1) != 0;
   const PhotometricStack& stack = Stack(1024, 1024, static_cast<int>(state.range(0)), shadowed);
-  photorig::ps::LambertianOptions options;
+  photorig::solvers::ps::LambertianOptions options;
   options.shadow_threshold = 0.5;
   options.exclude_unusable_samples = state.range(2) == 0;
-  photorig::ps::NormalMap map;
-  photorig::ps::SolverSummary summary;
+  photorig::solvers::ps::NormalMap map;
+  photorig::solvers::ps::SolverSummary summary;
   for (auto _ : state) {
-    summary = photorig::ps::SolveLambertian(options, stack, &map);
+    summary = photorig::solvers::ps::SolveLambertian(options, stack, &map);
     benchmark::DoNotOptimize(map.normals.data);
   }
   state.counters["subset_pixels"] = static_cast<double>(summary.pixels_on_light_subsets);
@@ -186,26 +186,26 @@ const Scene& Sphere(int size, double shininess) {
 
 // Every method on the same sphere, so `auto` / `l2` is a ratio within one run.
 void BM_Method(benchmark::State& state) {
-  const auto method = static_cast<photorig::ps::Method>(state.range(0));
+  const auto method = static_cast<photorig::solvers::ps::Method>(state.range(0));
   const Scene& scene = Sphere(384, static_cast<double>(state.range(1)));
   PhotometricStack stack = scene.stack;
   if (state.range(3) == 0) stack.noise.shot_gain = 0.0;  // estimated from the data by the methods that need it
-  photorig::ps::PhotometricStereoOptions options;
+  photorig::solvers::ps::PhotometricStereoOptions options;
   options.method = method;
-  if (state.range(2) == 1) options.blinn_phong.fitter = photorig::ps::BlinnPhongOptions::Fitter::kPerPixel;
+  if (state.range(2) == 1) options.blinn_phong.fitter = photorig::solvers::ps::BlinnPhongOptions::Fitter::kPerPixel;
   options.lambertian.shadow_threshold = 6.0;  // 3 read-noise sigmas
-  photorig::ps::NormalMap map;
-  photorig::ps::SolverSummary summary;
+  photorig::solvers::ps::NormalMap map;
+  photorig::solvers::ps::SolverSummary summary;
   for (auto _ : state) {
-    summary = photorig::ps::SolvePhotometricStereo(options, stack, &map);
+    summary = photorig::solvers::ps::SolvePhotometricStereo(options, stack, &map);
     benchmark::DoNotOptimize(map.normals.data);
   }
-  state.SetLabel(std::string(photorig::ps::MethodName(method)) + (state.range(2) == 1 ? " per pixel" : "") +
+  state.SetLabel(std::string(photorig::solvers::ps::MethodName(method)) + (state.range(2) == 1 ? " per pixel" : "") +
                  (state.range(3) == 0 ? " noise estimated" : ""));
   const double solved = std::max<std::size_t>(1, summary.pixels_solved);
   state.counters["lambertian_pct"] = 100.0 * summary.pixels_lambertian / solved;
   state.counters["blinn_phong_pct"] = 100.0 * summary.pixels_blinn_phong / solved;
-  state.counters["mean_deg"] = photorig::ps::CompareNormals(map.normals, scene.truth_normals, stack.mask).mean_deg;
+  state.counters["mean_deg"] = photorig::solvers::ps::CompareNormals(map.normals, scene.truth_normals, stack.mask).mean_deg;
 }
 
 // A method and `l2` timed alternately on the same sphere, each iteration a
@@ -215,19 +215,19 @@ void BM_Method(benchmark::State& state) {
 void BM_MethodVsL2(benchmark::State& state) {
   using Clock = std::chrono::steady_clock;
   const Scene& scene = Sphere(384, static_cast<double>(state.range(1)));
-  photorig::ps::PhotometricStereoOptions options;
-  options.method = static_cast<photorig::ps::Method>(state.range(0));
+  photorig::solvers::ps::PhotometricStereoOptions options;
+  options.method = static_cast<photorig::solvers::ps::Method>(state.range(0));
   options.lambertian.shadow_threshold = 6.0;  // as BM_Method
-  photorig::ps::PhotometricStereoOptions l2 = options;
-  l2.method = photorig::ps::Method::kL2;
-  photorig::ps::NormalMap map, l2_map;
+  photorig::solvers::ps::PhotometricStereoOptions l2 = options;
+  l2.method = photorig::solvers::ps::Method::kL2;
+  photorig::solvers::ps::NormalMap map, l2_map;
   std::vector<double> ratios;
   double fastest = std::numeric_limits<double>::infinity(), fastest_l2 = fastest;
   for (auto _ : state) {
     const auto start = Clock::now();
-    photorig::ps::SolvePhotometricStereo(l2, scene.stack, &l2_map);
+    photorig::solvers::ps::SolvePhotometricStereo(l2, scene.stack, &l2_map);
     const auto middle = Clock::now();
-    photorig::ps::SolvePhotometricStereo(options, scene.stack, &map);
+    photorig::solvers::ps::SolvePhotometricStereo(options, scene.stack, &map);
     const auto end = Clock::now();
     benchmark::DoNotOptimize(map.normals.data);
     benchmark::DoNotOptimize(l2_map.normals.data);
@@ -242,7 +242,7 @@ void BM_MethodVsL2(benchmark::State& state) {
   state.counters["vs_l2_median"] = ratios[ratios.size() / 2];
   state.counters["vs_l2_fastest"] = fastest / fastest_l2;
   state.counters["l2_fastest_ms"] = 1e3 * fastest_l2;
-  state.SetLabel(photorig::ps::MethodName(options.method));
+  state.SetLabel(photorig::solvers::ps::MethodName(options.method));
 }
 
 BENCHMARK(BM_StreamingRead)->Arg(96)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -22,8 +22,8 @@
 #include "photorig/daemon/pipelines/diligent.h"
 #include "photorig/daemon/pipelines/ps_pipeline.h"
 #include "photorig/daemon/service/run.h"
-#include "photorig/ps/evaluation.h"
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/evaluation.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <spdlog/spdlog.h>
 
@@ -42,8 +42,8 @@ namespace {
 namespace fs = std::filesystem;
 using namespace photorig;
 
-const ps::Method kMethods[] = {ps::Method::kL2, ps::Method::kLambertian, ps::Method::kRobust, ps::Method::kBlinnPhong,
-                               ps::Method::kAuto};
+const solvers::ps::Method kMethods[] = {solvers::ps::Method::kL2, solvers::ps::Method::kLambertian, solvers::ps::Method::kRobust, solvers::ps::Method::kBlinnPhong,
+                               solvers::ps::Method::kAuto};
 
 constexpr int kRuns = 3;
 
@@ -63,36 +63,36 @@ daemon::PhotometricStereoInput SubsetLights(const daemon::PhotometricStereoInput
 
 void Evaluate(std::ostream& csv, const std::string& source, const std::string& scene, double relative_noise,
               const daemon::PhotometricStereoInput& input) {
-  for (ps::Method method : kMethods) {
+  for (solvers::ps::Method method : kMethods) {
     config::PhotometricStereoRequest request;  // the thresholds `photorig solve ps` uses
-    request.method = ps::MethodName(method);
-    const ps::PhotometricStereoOptions options = daemon::MakeSolverOptions(request, input.saturation_level);
-    ps::PhotometricStack stack = input.stack;
+    request.method = solvers::ps::MethodName(method);
+    const solvers::ps::PhotometricStereoOptions options = daemon::MakeSolverOptions(request, input.saturation_level);
+    solvers::ps::PhotometricStack stack = input.stack;
     if (!input.object_mask.empty()) stack.mask = input.object_mask;
-    ps::NormalMap map;
-    ps::SolverSummary summary;
+    solvers::ps::NormalMap map;
+    solvers::ps::SolverSummary summary;
     // The fastest of three runs: on a shared machine one run can be slowed
     // several-fold by other work; the solves themselves are deterministic.
     double ms = std::numeric_limits<double>::infinity();
     for (int run = 0; run < kRuns; ++run) {
       const auto start = std::chrono::steady_clock::now();
-      summary = ps::SolvePhotometricStereo(options, stack, &map);
+      summary = solvers::ps::SolvePhotometricStereo(options, stack, &map);
       ms = std::min(ms, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
     }
     if (!summary.IsSolutionUsable()) {
-      spdlog::warn("{} {} {}: {}", scene, stack.light_count(), ps::MethodName(method), summary.message);
+      spdlog::warn("{} {} {}: {}", scene, stack.light_count(), solvers::ps::MethodName(method), summary.message);
       continue;
     }
-    const ps::AngularErrorStats error = ps::CompareNormals(map.normals, input.truth_normals, stack.mask);
+    const solvers::ps::AngularErrorStats error = solvers::ps::CompareNormals(map.normals, input.truth_normals, stack.mask);
     const double solved = std::max<std::size_t>(1, summary.pixels_solved);
     csv << source << ',' << scene << ',' << stack.light_count() << ',' << relative_noise << ','
-        << ps::MethodName(method) << ',' << error.mean_deg << ',' << error.median_deg << ','
+        << solvers::ps::MethodName(method) << ',' << error.mean_deg << ',' << error.median_deg << ','
         << 100.0 * error.fraction_under_15deg << ',' << ms << ',' << 100.0 * summary.pixels_lambertian / solved << ','
         << 100.0 * summary.pixels_trimmed / solved << ','
         << 100.0 * summary.pixels_irls / solved << ',' << 100.0 * summary.pixels_blinn_phong / solved << ','
         << 100.0 * summary.pixels_ggx / solved << '\n';
     std::fprintf(stderr, "%-16s %2d lights noise x%-4g %-12s mean %7.3f deg  %8.1f ms\n", scene.c_str(),
-                 stack.light_count(), relative_noise, ps::MethodName(method), error.mean_deg, ms);
+                 stack.light_count(), relative_noise, solvers::ps::MethodName(method), error.mean_deg, ms);
   }
 }
 
@@ -168,22 +168,22 @@ const Effect kEffects[] = {
 
 // Every method once on `input`, with the counts that say what was left unresolved and why.
 void EvaluateRealistic(std::ostream& csv, const std::string& scene, const daemon::PhotometricStereoInput& input) {
-  for (ps::Method method : kMethods) {
+  for (solvers::ps::Method method : kMethods) {
     config::PhotometricStereoRequest request;
-    request.method = ps::MethodName(method);
+    request.method = solvers::ps::MethodName(method);
     const double saturation = daemon::EffectiveSaturationLevel(input);
-    const ps::PhotometricStereoOptions options = daemon::MakeSolverOptions(request, saturation);
-    ps::PhotometricStack stack = input.stack;
+    const solvers::ps::PhotometricStereoOptions options = daemon::MakeSolverOptions(request, saturation);
+    solvers::ps::PhotometricStack stack = input.stack;
     if (!input.object_mask.empty()) stack.mask = input.object_mask;
-    ps::NormalMap map;
+    solvers::ps::NormalMap map;
     const auto start = std::chrono::steady_clock::now();
-    const ps::SolverSummary summary = ps::SolvePhotometricStereo(options, stack, &map);
+    const solvers::ps::SolverSummary summary = solvers::ps::SolvePhotometricStereo(options, stack, &map);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     if (!summary.IsSolutionUsable()) {
-      spdlog::warn("{} {}: {}", scene, ps::MethodName(method), summary.message);
+      spdlog::warn("{} {}: {}", scene, solvers::ps::MethodName(method), summary.message);
       continue;
     }
-    const ps::AngularErrorStats error = ps::CompareNormals(map.normals, input.truth_normals, stack.mask);
+    const solvers::ps::AngularErrorStats error = solvers::ps::CompareNormals(map.normals, input.truth_normals, stack.mask);
     std::size_t usable3 = 0, flag_counts[5] = {};
     for (int r = 0; r < map.normals.rows; ++r)
       for (int c = 0; c < map.normals.cols; ++c) {
@@ -194,13 +194,13 @@ void EvaluateRealistic(std::ostream& csv, const std::string& scene, const daemon
         ++flag_counts[std::min<int>(4, map.flags.at<std::uint8_t>(r, c))];
         usable3 += map.usable_lights.at<std::uint16_t>(r, c) >= 3;
       }
-    const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
+    const cv::Mat solved = map.flags == static_cast<int>(solvers::ps::PixelFlag::kSolved);
     const double pixels = std::max<std::size_t>(1, summary.pixels_solved);
-    csv << scene << ',' << ps::MethodName(method) << ',' << error.mean_deg << ',' << error.median_deg << ','
+    csv << scene << ',' << solvers::ps::MethodName(method) << ',' << error.mean_deg << ',' << error.median_deg << ','
         << error.pixels_with_truth << ',' << error.pixels_unresolved << ',' << usable3 << ','
-        << flag_counts[static_cast<int>(ps::PixelFlag::kTooFewLights)] << ','
-        << flag_counts[static_cast<int>(ps::PixelFlag::kIllConditioned)] << ','
-        << flag_counts[static_cast<int>(ps::PixelFlag::kRejectedByModel)] << ','
+        << flag_counts[static_cast<int>(solvers::ps::PixelFlag::kTooFewLights)] << ','
+        << flag_counts[static_cast<int>(solvers::ps::PixelFlag::kIllConditioned)] << ','
+        << flag_counts[static_cast<int>(solvers::ps::PixelFlag::kRejectedByModel)] << ','
         << 100.0 * summary.pixels_lambertian / pixels << ',' << 100.0 * summary.pixels_trimmed / pixels << ','
         << 100.0 * summary.pixels_irls / pixels << ','
         << 100.0 * summary.pixels_blinn_phong / pixels << ',' << 100.0 * summary.pixels_ggx / pixels << ','
@@ -208,7 +208,7 @@ void EvaluateRealistic(std::ostream& csv, const std::string& scene, const daemon
         << summary.noise_read_sigma << ',' << summary.noise_shot_gain << ',' << summary.noise_estimated << ','
         << summary.shadow_threshold << ',' << (std::isfinite(saturation) ? saturation : -1.0) << ',' << ms << '\n';
     std::fprintf(stderr, "%-13s %-12s mean %6.3f deg  median %6.3f deg  unresolved %5zu (%zu with >= 3 usable)\n",
-                 scene.c_str(), ps::MethodName(method), error.mean_deg, error.median_deg, error.pixels_unresolved,
+                 scene.c_str(), solvers::ps::MethodName(method), error.mean_deg, error.median_deg, error.pixels_unresolved,
                  usable3);
   }
 }

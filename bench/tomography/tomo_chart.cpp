@@ -261,7 +261,7 @@ int main(int argc, char** argv) {
                    << '\n';
       std::fprintf(stderr, "%-7s noise=%d: stopped after %d (%s, %s) error %.4f; best %.4f at %d\n",
                    variant.name, noisy, s.iterations, tomo::StopReasonName(s.stop_reason),
-                   photorig::solvers::TerminationName(s.termination),
+                   photorig::solvers::core::TerminationName(s.termination),
                    errors[static_cast<std::size_t>(std::max(0, s.iterations - 1))],
                    *std::min_element(errors.begin(), errors.end()),
                    static_cast<int>(std::min_element(errors.begin(), errors.end()) - errors.begin()) + 1);

@@ -40,8 +40,8 @@ void ProgressDisplay::EndLine() {
   line_open_ = false;
 }
 
-solvers::ProgressCallback ProgressDisplay::Callback() {
-  return [this](const solvers::Progress& progress) {
+solvers::core::ProgressCallback ProgressDisplay::Callback() {
+  return [this](const solvers::core::Progress& progress) {
     Update(progress.stage, progress.done, progress.total, {}, progress.stopped);
   };
 }

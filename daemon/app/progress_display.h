@@ -3,9 +3,9 @@
 // redrawn in place at most ten times a second; otherwise (a log, a pipe) a
 // plain line every few seconds and at the end of each stage. Silent under
 // --json, whose stdout carries the result alone. Fed by captures (frame by
-// frame) and by solvers through solvers::ProgressCallback.
+// frame) and by solvers through solvers::core::ProgressCallback.
 
-#include "photorig/solvers/progress.h"
+#include "photorig/solvers/core/progress.h"
 
 #include <chrono>
 #include <cstdint>
@@ -29,7 +29,7 @@ class ProgressDisplay {
   void Update(std::string_view stage, std::int64_t done, std::int64_t total, std::string_view detail = {},
               std::string_view stopped = {});
   // For a solver's Options; the display must outlive the solve.
-  solvers::ProgressCallback Callback();
+  solvers::core::ProgressCallback Callback();
   // Ends a bar left on the terminal's line.
   void EndLine();
 

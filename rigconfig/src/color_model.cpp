@@ -1,6 +1,6 @@
 #include "photorig/config/color_model.h"
 
-#include "photorig/color/model_io.h"
+#include "photorig/solvers/color/model_io.h"
 #include "photorig/config/yaml_node.h"
 
 #include <nlohmann/json.hpp>
@@ -97,7 +97,7 @@ LoadedColorModel LoadColorModelFile(const std::string& path) {
     }
   }
   try {
-    loaded.model = color::ParseModel(text, path);
+    loaded.model = solvers::color::ParseModel(text, path);
   } catch (const std::invalid_argument& e) {
     // "path: key: what" from the model reader; place the key in the file.
     std::string message = e.what();

@@ -151,7 +151,7 @@ std::vector<GonioPose> PlannedPosesIn(const YamlNode& plan, const RigConfig& rig
   options.grazing_deg = plan.DoubleIn("grazing_deg", options.grazing_deg, 1.0, 90.0);
   if (auto adaptive = plan.Find("adaptive")) group->adaptive = AdaptivePlanIn(*adaptive, options);
   const brdf::PosePlan planned = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), *arms, options);
-  if (planned.termination == solvers::Termination::kInvalidOptions)
+  if (planned.termination == solvers::core::Termination::kInvalidOptions)
     plan.Fail("rig '" + rig.name + "' arms: " + planned.message);
   constexpr double kDeg = 180.0 / M_PI;
   for (const brdf::RefusedPose& r : planned.refused) {

@@ -3,7 +3,7 @@
 #include "driver_options_parse.h"
 #include "photorig/config/sim.h"
 #include "photorig/config/yaml_node.h"
-#include "photorig/color/spectrum.h"
+#include "photorig/solvers/color/spectrum.h"
 
 #include <algorithm>
 #include <cmath>
@@ -429,11 +429,11 @@ RigConfig LoadRigConfig(const std::string& path) {
     if (auto color = sim_node->Find("color")) {
       color->ExpectKeys({"camera", "illuminant"});
       sim.color.camera = color->String("camera", sim.color.camera);
-      const auto& cameras = color::CameraNames();
+      const auto& cameras = solvers::color::CameraNames();
       if (std::find(cameras.begin(), cameras.end(), sim.color.camera) == cameras.end())
         (*color)["camera"].Fail("unknown camera '" + sim.color.camera + "'");
       const std::string illuminant = color->String("illuminant", "D65");
-      const auto parsed = color::ParseIlluminant(illuminant);
+      const auto parsed = solvers::color::ParseIlluminant(illuminant);
       if (!parsed) (*color)["illuminant"].Fail("unknown illuminant '" + illuminant + "' (known: D50, D65, A)");
       sim.color.illuminant = *parsed;
     }

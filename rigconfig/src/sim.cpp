@@ -125,7 +125,7 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
     if (auto table = brdf->Find("table")) {
       if (m.model != sim::Brdf::Model::kTabulated) table->Fail("only the tabulated model reads a table");
       solvers::brdf::MeasuredBrdf measured;
-      const solvers::Summary read = solvers::brdf::ReadMeasured(table->AsPath(), &measured);
+      const solvers::core::Summary read = solvers::brdf::ReadMeasured(table->AsPath(), &measured);
       if (!read.IsSolutionUsable()) table->Fail(read.message);
       m.table = std::make_shared<const solvers::brdf::MeasuredBrdf>(std::move(measured));
     }

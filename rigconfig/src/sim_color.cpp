@@ -1,9 +1,9 @@
 // The simulated colour camera's responses: spectral integrals done once per
 // paint, so the renderer multiplies by three numbers per pixel.
 
-#include "photorig/color/chart.h"
-#include "photorig/color/colorimetry.h"
-#include "photorig/color/spectrum.h"
+#include "photorig/solvers/color/chart.h"
+#include "photorig/solvers/color/colorimetry.h"
+#include "photorig/solvers/color/spectrum.h"
 #include "photorig/config/sim.h"
 
 #include <algorithm>
@@ -20,18 +20,18 @@ std::string Lower(std::string text) {
 }  // namespace
 
 int ColorCheckerPatch(const std::string& name) {
-  const auto& names = color::ColorChecker24Names();
+  const auto& names = solvers::color::ColorChecker24Names();
   for (std::size_t p = 0; p < names.size(); ++p)
     if (Lower(names[p]) == Lower(name)) return static_cast<int>(p);
   return -1;
 }
 
-Eigen::Vector3d LuminanceOfLinearSrgb() { return color::LinearSrgbToXyzD65().row(1).transpose(); }
+Eigen::Vector3d LuminanceOfLinearSrgb() { return solvers::color::LinearSrgbToXyzD65().row(1).transpose(); }
 
 sim::ColorCamera ColorSceneResponses(const SimColorConfig& config, const sim::AlbedoTexture& albedo) {
   // The camera sensitivities' common range; the truth uses the CIE observer's own grid.
-  const std::vector<double> camera_grid = color::WavelengthGrid(400.0, 680.0, 5.0);
-  const color::ChartCaptureSpectra s = color::ChartCaptureSpectraFor(config.camera, config.illuminant, camera_grid);
+  const std::vector<double> camera_grid = solvers::color::WavelengthGrid(400.0, 680.0, 5.0);
+  const solvers::color::ChartCaptureSpectra s = solvers::color::ChartCaptureSpectraFor(config.camera, config.illuminant, camera_grid);
   auto response = [&s](const std::vector<double>* reflectance) {
     Eigen::Vector3d rgb = Eigen::Vector3d::Zero();
     double white_green = 0.0;
@@ -54,16 +54,16 @@ sim::ColorCamera ColorSceneResponses(const SimColorConfig& config, const sim::Al
     return camera;
   }
 
-  const std::vector<double> truth_grid = color::WavelengthGrid(380.0, 730.0, 5.0);
+  const std::vector<double> truth_grid = solvers::color::WavelengthGrid(380.0, 730.0, 5.0);
   const Eigen::Matrix3d to_srgb =
-      color::XyzD65ToLinearSrgb() *
-      color::BradfordAdaptation(color::WhitePointXyz(config.illuminant, truth_grid),
-                                color::WhitePointXyz(color::Illuminant::kD65, truth_grid));
+      solvers::color::XyzD65ToLinearSrgb() *
+      solvers::color::BradfordAdaptation(solvers::color::WhitePointXyz(config.illuminant, truth_grid),
+                                solvers::color::WhitePointXyz(solvers::color::Illuminant::kD65, truth_grid));
   std::array<Eigen::Vector3d, 2> rgb, truth;
   for (int m = 0; m < 2; ++m) {
     const int patch = ColorCheckerPatch(albedo.paints[static_cast<std::size_t>(m)]);
     rgb[m] = response(&s.patch_reflectance.at(static_cast<std::size_t>(patch)));
-    truth[m] = to_srgb * color::ReflectanceToXyz(color::ColorChecker24Reflectance(), static_cast<std::size_t>(patch),
+    truth[m] = to_srgb * solvers::color::ReflectanceToXyz(solvers::color::ColorChecker24Reflectance(), static_cast<std::size_t>(patch),
                                                  config.illuminant, truth_grid);
   }
   // The texture's low squares are the darker paint (its numbers become the paints' luminance).

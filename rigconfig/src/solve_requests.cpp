@@ -1,6 +1,6 @@
 #include "photorig/config/solve_requests.h"
 
-#include "photorig/ps/integration.h"
+#include "photorig/solvers/ps/integration.h"
 #include "photorig/solvers/tomography/ray_trace.h"
 #include "photorig/solvers/tomography/reconstruct.h"
 
@@ -13,15 +13,15 @@
 namespace photorig::config {
 namespace fs = std::filesystem;
 
-bool ParseDerivative(const std::string& name, ps::BlinnPhongOptions* options) {
+bool ParseDerivative(const std::string& name, solvers::ps::BlinnPhongOptions* options) {
   if (name == "lanes") {
-    options->fitter = ps::BlinnPhongOptions::Fitter::kLanes;
+    options->fitter = solvers::ps::BlinnPhongOptions::Fitter::kLanes;
     return true;
   }
-  for (auto m : {autodiff::DerivativeMethod::kForward, autodiff::DerivativeMethod::kReverse,
-                 autodiff::DerivativeMethod::kSymbolic, autodiff::DerivativeMethod::kCentralDifference}) {
-    if (name == autodiff::ToString(m)) {
-      options->fitter = ps::BlinnPhongOptions::Fitter::kPerPixel;
+  for (auto m : {solvers::autodiff::DerivativeMethod::kForward, solvers::autodiff::DerivativeMethod::kReverse,
+                 solvers::autodiff::DerivativeMethod::kSymbolic, solvers::autodiff::DerivativeMethod::kCentralDifference}) {
+    if (name == solvers::autodiff::ToString(m)) {
+      options->fitter = solvers::ps::BlinnPhongOptions::Fitter::kPerPixel;
       options->derivative = m;
       return true;
     }
@@ -30,15 +30,15 @@ bool ParseDerivative(const std::string& name, ps::BlinnPhongOptions* options) {
 }
 
 void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request) {
-  ps::Method method;
-  if (!ps::ParseMethod(request.method, &method))
+  solvers::ps::Method method;
+  if (!solvers::ps::ParseMethod(request.method, &method))
     throw std::invalid_argument("method '" + request.method + "' (expected l2, lambertian, robust, blinn-phong or auto)");
-  ps::BlinnPhongOptions blinn_phong;
+  solvers::ps::BlinnPhongOptions blinn_phong;
   if (!ParseDerivative(request.derivative, &blinn_phong))
     throw std::invalid_argument("derivative '" + request.derivative +
                                 "' (expected lanes, forward, reverse, symbolic or central-difference)");
-  ps::Integrator integrator;
-  if (request.integrator != "none" && !ps::ParseIntegrator(request.integrator, &integrator))
+  solvers::ps::Integrator integrator;
+  if (request.integrator != "none" && !solvers::ps::ParseIntegrator(request.integrator, &integrator))
     throw std::invalid_argument("integrator '" + request.integrator + "' (expected poisson, frankot-chellappa or none)");
   if (!(request.shadow_threshold_sigma >= 0)) throw std::invalid_argument("shadow_threshold_sigma must be >= 0");
   if (!(request.max_condition_number > 1)) throw std::invalid_argument("max_condition_number must be > 1");
@@ -80,7 +80,7 @@ LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node) {
     if (auto circle = sphere->Find("circle")) {
       const Eigen::Vector3d c = circle->AsVector3();
       if (!(c.z() > 0.0)) circle->Fail("the circle is [cx, cy, radius] in pixels with a positive radius");
-      request.circle = lighting::Circle{c.x(), c.y(), c.z()};
+      request.circle = solvers::lighting::Circle{c.x(), c.y(), c.z()};
     }
     if (auto silhouette = sphere->Find("silhouette")) request.silhouette_image = silhouette->AsPath();
     if (auto from = sphere->Find("from")) {
@@ -105,9 +105,9 @@ bool TomographyRequest::IsValid(std::string* why) const {
     if (why) *why = message;
     return false;
   };
-  if (!tomography::ParseMethod(method)) return fail("method '" + method + "' (expected sirt, art, cgls or sart)");
+  if (!solvers::tomography::ParseMethod(method)) return fail("method '" + method + "' (expected sirt, art, cgls or sart)");
   if (total_variation && method != "sart") return fail("total_variation needs method sart");
-  if (!tomography::ParseInterpolation(projector)) return fail("projector '" + projector + "' (expected joseph or siddon)");
+  if (!solvers::tomography::ParseInterpolation(projector)) return fail("projector '" + projector + "' (expected joseph or siddon)");
   if (max_iterations < 1 || max_iterations > 100000) return fail("max_iterations must be within [1, 100000]");
   if (!(discrepancy_factor > 0) || !std::isfinite(discrepancy_factor)) return fail("discrepancy_factor must be > 0");
   for (int n : volume)

@@ -26,9 +26,9 @@ void CheckGonioScene(const Scene& scene) {
     throw std::invalid_argument("a gonioreflectometer scene cannot use the mirror (delta) BRDF");
 }
 
-tomography::Geometry PhantomScanGeometry(const CameraModel& camera, const std::vector<double>& angles_deg) {
-  tomography::Geometry geometry;
-  geometry.beam = tomography::Beam::kParallel;
+solvers::tomography::Geometry PhantomScanGeometry(const CameraModel& camera, const std::vector<double>& angles_deg) {
+  solvers::tomography::Geometry geometry;
+  geometry.beam = solvers::tomography::Beam::kParallel;
   geometry.detector_cols = camera.width;
   geometry.detector_rows = camera.height;
   geometry.pixel_mm = camera.pixel_pitch_mm;
@@ -49,7 +49,7 @@ cv::Mat RenderPhantomTransmission(const Scene& scene, const CameraModel& camera,
     radiance.setTo(open_beam);
     return radiance;
   }
-  const tomography::Geometry geometry = PhantomScanGeometry(camera, {arms.sample_rotation_deg});
+  const solvers::tomography::Geometry geometry = PhantomScanGeometry(camera, {arms.sample_rotation_deg});
   const std::vector<float> tau = ProjectPhantom(scene.phantom, geometry, 2);
   for (int row = 0; row < camera.height; ++row)
     for (int col = 0; col < camera.width; ++col)

@@ -105,7 +105,7 @@ double Phantom::LineIntegral(const Eigen::Vector3d& origin, const Eigen::Vector3
   return PhantomSampler(*this).LineIntegral(origin, direction);
 }
 
-std::vector<float> Phantom::Rasterise(const tomography::VolumeGrid& grid, int supersample) const {
+std::vector<float> Phantom::Rasterise(const solvers::tomography::VolumeGrid& grid, int supersample) const {
   std::vector<float> sigma(static_cast<std::size_t>(grid.voxels()));
   const PhantomSampler sampler(*this);
   const int sz = grid.nz == 1 ? 1 : supersample;
@@ -128,14 +128,14 @@ std::vector<float> Phantom::Rasterise(const tomography::VolumeGrid& grid, int su
   return sigma;
 }
 
-std::vector<float> ProjectPhantom(const Phantom& phantom, const tomography::Geometry& geometry, int supersample) {
+std::vector<float> ProjectPhantom(const Phantom& phantom, const solvers::tomography::Geometry& geometry, int supersample) {
   std::vector<float> b(static_cast<std::size_t>(geometry.rays()));
   const int s = std::max(1, supersample);
   // Sub-rays of a pixel: the same geometry with a finer pitch, whose pixel
   // (s col + a, s row + c) lies inside pixel (col, row).
   // A one-row detector is a line through a slice: its sub-rays stay in the slice's plane.
   const int sub_rows = geometry.detector_rows == 1 ? 1 : s;
-  tomography::Geometry fine = geometry;
+  solvers::tomography::Geometry fine = geometry;
   fine.detector_cols *= s;
   fine.detector_rows *= sub_rows;
   fine.pixel_mm /= s;
@@ -159,7 +159,7 @@ std::vector<float> ProjectPhantom(const Phantom& phantom, const tomography::Geom
   return b;
 }
 
-TomographyScan ScanPhantom(const Phantom& phantom, const tomography::Geometry& geometry,
+TomographyScan ScanPhantom(const Phantom& phantom, const solvers::tomography::Geometry& geometry,
                            const TomographyScanOptions& options) {
   TomographyScan scan;
   const int rows = geometry.detector_rows, cols = geometry.detector_cols;

@@ -1,4 +1,4 @@
-#include "photorig/autodiff/blinn_phong.h"
+#include "photorig/solvers/autodiff/blinn_phong.h"
 
 #include <array>
 #include <cmath>
@@ -9,12 +9,12 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
-#include "photorig/autodiff/blinn_phong_jacobian.h"
-#include "photorig/autodiff/blinn_phong_symbolic.h"
-#include "photorig/autodiff/random_pixel.h"
+#include "photorig/solvers/autodiff/blinn_phong_jacobian.h"
+#include "photorig/solvers/autodiff/blinn_phong_symbolic.h"
+#include "photorig/solvers/autodiff/random_pixel.h"
 #include "test_util.h"
 
-namespace photorig::autodiff {
+namespace photorig::solvers::autodiff {
 namespace {
 
 using testing::ColumnRelativeError;
@@ -216,4 +216,4 @@ TEST(BlinnPhongTest, ResidualsAreScaleInvariantInTheNormal) {
 }
 
 }  // namespace
-}  // namespace photorig::autodiff
+}  // namespace photorig::solvers::autodiff

@@ -1,4 +1,4 @@
-#include "photorig/autodiff/dual.h"
+#include "photorig/solvers/autodiff/dual.h"
 
 #include <cmath>
 #include <limits>
@@ -8,12 +8,12 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
-#include "photorig/autodiff/finite_difference.h"
-#include "photorig/autodiff/jacobian.h"
-#include "photorig/autodiff/vector.h"
+#include "photorig/solvers/autodiff/finite_difference.h"
+#include "photorig/solvers/autodiff/jacobian.h"
+#include "photorig/solvers/autodiff/vector.h"
 #include "test_util.h"
 
-namespace photorig::autodiff {
+namespace photorig::solvers::autodiff {
 namespace {
 
 using testing::AllOperations;
@@ -210,4 +210,4 @@ TEST(NormalizeGuardedTest, DocumentsWhatPlainEigenDoesNearZero) {
 }
 
 }  // namespace
-}  // namespace photorig::autodiff
+}  // namespace photorig::solvers::autodiff

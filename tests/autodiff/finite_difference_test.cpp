@@ -1,4 +1,4 @@
-#include "photorig/autodiff/finite_difference.h"
+#include "photorig/solvers/autodiff/finite_difference.h"
 
 #include <cmath>
 #include <limits>
@@ -6,7 +6,7 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
-namespace photorig::autodiff {
+namespace photorig::solvers::autodiff {
 namespace {
 
 constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
@@ -106,4 +106,4 @@ TEST(FiniteDifferenceTest, FailedEvaluationIsReported) {
 }
 
 }  // namespace
-}  // namespace photorig::autodiff
+}  // namespace photorig::solvers::autodiff

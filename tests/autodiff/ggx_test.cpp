@@ -1,4 +1,4 @@
-#include "photorig/autodiff/ggx.h"
+#include "photorig/solvers/autodiff/ggx.h"
 
 #include <cmath>
 #include <numbers>
@@ -9,7 +9,7 @@
 
 #include "test_util.h"
 
-namespace photorig::autodiff {
+namespace photorig::solvers::autodiff {
 namespace {
 
 using testing::ColumnRelativeError;
@@ -89,4 +89,4 @@ TEST(GgxTest, ForwardReverseAndCentralDifferencesAgree) {
 }
 
 }  // namespace
-}  // namespace photorig::autodiff
+}  // namespace photorig::solvers::autodiff

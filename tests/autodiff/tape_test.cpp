@@ -1,4 +1,4 @@
-#include "photorig/autodiff/tape.h"
+#include "photorig/solvers/autodiff/tape.h"
 
 #include <cmath>
 #include <limits>
@@ -7,10 +7,10 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
-#include "photorig/autodiff/jacobian.h"
+#include "photorig/solvers/autodiff/jacobian.h"
 #include "test_util.h"
 
-namespace photorig::autodiff {
+namespace photorig::solvers::autodiff {
 namespace {
 
 using testing::AllOperations;
@@ -138,4 +138,4 @@ TEST(TapeTest, EigenVectorsOfVars) {
 }
 
 }  // namespace
-}  // namespace photorig::autodiff
+}  // namespace photorig::solvers::autodiff

@@ -7,7 +7,7 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
-namespace photorig::autodiff::testing {
+namespace photorig::solvers::autodiff::testing {
 
 // Two inputs (x > 0, y), four outputs, smooth near the points the tests use (x in [0.5, 2],
 // y in [-1, 1] away from the kinks of abs, max, min, clamp at y = 0.3, x = y, y = 0.1, 0.9).
@@ -49,4 +49,4 @@ inline double ColumnRelativeError(const Eigen::MatrixXd& a, const Eigen::MatrixX
   return worst;
 }
 
-}  // namespace photorig::autodiff::testing
+}  // namespace photorig::solvers::autodiff::testing

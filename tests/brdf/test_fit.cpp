@@ -165,7 +165,7 @@ TEST(BrdfFit, WardRecoveredNoiseFree) { ExpectNoiseFreeRecovery(GlossyWard()); }
 TEST(BrdfSelection, PicksCookTorranceAndWardOnTheirOwnSamples) {
   for (const ModelParams& truth : {BlueMetallicPaint(), GlossyWard()}) {
     const SelectionSummary s = SelectModel(NoiseFreeSamples(truth, 600));
-    ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+    ASSERT_EQ(s.termination, core::Termination::kSuccess) << s.message;
     EXPECT_EQ(s.chosen, truth.model) << ModelName(truth.model) << " chose "
                                      << (s.chosen ? ModelName(*s.chosen) : "none");
     for (const FitSummary& f : s.candidates)
@@ -177,7 +177,7 @@ TEST(BrdfSelection, PicksCookTorranceAndWardOnTheirOwnSamples) {
 
 TEST(BrdfSelection, PicksLambertianForAMatteSample) {
   const SelectionSummary s = SelectModel(SyntheticSamples(Matte(), {}));
-  ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+  ASSERT_EQ(s.termination, core::Termination::kSuccess) << s.message;
   ASSERT_EQ(s.candidates.size(), 6u);
   EXPECT_EQ(s.chosen, Model::kLambertian);
   EXPECT_TRUE(s.peak_sampled);
@@ -188,7 +188,7 @@ TEST(BrdfSelection, PicksLambertianForAMatteSample) {
 TEST(BrdfSelection, ReportsTheFitsThenTheFolds) {
   std::vector<std::pair<std::string, std::int64_t>> reports;
   SelectionOptions options;
-  options.progress = [&](const photorig::solvers::Progress& p) {
+  options.progress = [&](const photorig::solvers::core::Progress& p) {
     EXPECT_EQ(p.done, p.total);
     reports.emplace_back(std::string(p.stage), p.total);
   };
@@ -200,7 +200,7 @@ TEST(BrdfSelection, ReportsTheFitsThenTheFolds) {
 TEST(BrdfSelection, PicksTheLobeTheGlossySampleWasMadeWith) {
   for (const ModelParams& truth : {GlossyGgx(), GlossyBlinnPhong()}) {
     const SelectionSummary s = SelectModel(SyntheticSamples(truth, {}));
-    ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+    ASSERT_EQ(s.termination, core::Termination::kSuccess) << s.message;
     EXPECT_EQ(s.chosen, truth.model) << ModelName(truth.model);
     EXPECT_LT(s.candidates[s.chosen_index].bic + 10.0, s.candidates[0].bic);
     // Held out, the true model's residuals are the noise (about one sigma);
@@ -239,7 +239,7 @@ TEST(BrdfSelection, TooFewSamplesForALobeLeaveOnlyLambertian) {
   ASSERT_TRUE(s.IsSolutionUsable()) << s.message;
   EXPECT_EQ(s.chosen, Model::kLambertian);
   for (std::size_t i = 1; i < s.candidates.size(); ++i) {
-    EXPECT_EQ(s.candidates[i].termination, Termination::kFailure);
+    EXPECT_EQ(s.candidates[i].termination, core::Termination::kFailure);
     EXPECT_NE(s.candidates[i].message.find("cannot fit the " + std::to_string(s.candidates[i].parameters) + " parameters"),
               std::string::npos)
         << s.candidates[i].message;
@@ -248,21 +248,21 @@ TEST(BrdfSelection, TooFewSamplesForALobeLeaveOnlyLambertian) {
 
 TEST(BrdfSelection, InvalidInputAndOptionsAreRefused) {
   std::vector<BrdfSample> samples = SyntheticSamples(Matte(), {});
-  EXPECT_EQ(SelectModel({}).termination, Termination::kInvalidInput);
+  EXPECT_EQ(SelectModel({}).termination, core::Termination::kInvalidInput);
 
   samples[3].value[1] = std::nan("");
   SelectionSummary s = SelectModel(samples);
-  EXPECT_EQ(s.termination, Termination::kInvalidInput);
+  EXPECT_EQ(s.termination, core::Termination::kInvalidInput);
   EXPECT_NE(s.message.find("sample 3"), std::string::npos) << s.message;
 
   samples = SyntheticSamples(Matte(), {});
   samples[5].wo = Eigen::Vector3d(0.0, 0.6, -0.8);
-  EXPECT_EQ(FitModel(Model::kLambertian, samples).termination, Termination::kInvalidInput);
+  EXPECT_EQ(FitModel(Model::kLambertian, samples).termination, core::Termination::kInvalidInput);
 
   samples = SyntheticSamples(Matte(), {});
   samples[0].sigma = Eigen::Vector3d::Zero();
   const FitSummary weighted = FitModel(Model::kLambertian, samples);
-  EXPECT_EQ(weighted.termination, Termination::kInvalidInput);
+  EXPECT_EQ(weighted.termination, core::Termination::kInvalidInput);
   EXPECT_NE(weighted.message.find("log loss"), std::string::npos);
   FitOptions log_loss;
   log_loss.loss = FitLoss::kLog;
@@ -270,10 +270,10 @@ TEST(BrdfSelection, InvalidInputAndOptionsAreRefused) {
 
   SelectionOptions options;
   options.candidates.clear();
-  EXPECT_EQ(SelectModel(samples, options).termination, Termination::kInvalidOptions);
+  EXPECT_EQ(SelectModel(samples, options).termination, core::Termination::kInvalidOptions);
   options = {};
   options.fit.max_iterations = 0;
-  EXPECT_EQ(SelectModel(samples, options).termination, Termination::kInvalidOptions);
+  EXPECT_EQ(SelectModel(samples, options).termination, core::Termination::kInvalidOptions);
 }
 
 TEST(BrdfFit, TwoLobesRecoveredNoiseFreeNarrowerFirst) {
@@ -301,7 +301,7 @@ TEST(BrdfSelection, TwoLobesChosenForTwoLobesAndNeverForOne) {
     spec.seed = seed;
     const ModelParams truth = TwoLobes();
     const SelectionSummary two = SelectModel(SyntheticSamples(truth, spec));
-    ASSERT_EQ(two.termination, Termination::kSuccess) << two.message;
+    ASSERT_EQ(two.termination, core::Termination::kSuccess) << two.message;
     ASSERT_EQ(two.chosen, Model::kTwoBlinnPhong) << "seed " << seed << ": " << two.reason;
     const FitSummary& fit = two.candidates[two.chosen_index];
     for (int c = 0; c < 3; ++c) {
@@ -314,7 +314,7 @@ TEST(BrdfSelection, TwoLobesChosenForTwoLobesAndNeverForOne) {
     EXPECT_NE(two.reason.find("held-out"), std::string::npos) << two.reason;
 
     const SelectionSummary one = SelectModel(SyntheticSamples(GlossyBlinnPhong(), spec));
-    ASSERT_EQ(one.termination, Termination::kSuccess) << one.message;
+    ASSERT_EQ(one.termination, core::Termination::kSuccess) << one.message;
     EXPECT_EQ(one.chosen, Model::kBlinnPhong) << "seed " << seed << ": " << one.reason;
   }
 }
@@ -322,7 +322,7 @@ TEST(BrdfSelection, TwoLobesChosenForTwoLobesAndNeverForOne) {
 // A fit as ChooseModel sees it: parameters, BIC and held-out errors.
 FitSummary Scored(Model model, double bic, std::vector<double> held_out) {
   FitSummary f;
-  f.termination = Termination::kSuccess;
+  f.termination = core::Termination::kSuccess;
   f.params.model = model;
   f.parameters = ParameterCount(model);
   f.bic = bic;
@@ -386,7 +386,7 @@ TEST(ModelChoice, StepsThroughTheSimplestModelsFirst) {
   // An untrusted fit never takes part.
   fits[2].lobe_identifiable = false;
   EXPECT_EQ(ChooseModel(fits, 10.0, 0.01, &reason), std::optional<std::size_t>(3u)) << reason;
-  for (FitSummary& f : fits) f.termination = Termination::kFailure;
+  for (FitSummary& f : fits) f.termination = core::Termination::kFailure;
   EXPECT_FALSE(ChooseModel(fits, 10.0, 0.01, &reason).has_value());
 }
 
@@ -397,13 +397,13 @@ TEST(ModelChoice, AFitThatDidNotConvergeIsNeverChosen) {
   std::vector<FitSummary> fits = {Scored(Model::kLambertian, 5000.0, HeldOut(9.0)),
                                   Scored(Model::kBlinnPhong, 800.0, HeldOut(2.0)),
                                   Scored(Model::kTwoBlinnPhong, 300.0, HeldOut(1.0))};
-  fits[2].termination = Termination::kNoConvergence;
+  fits[2].termination = core::Termination::kNoConvergence;
   fits[2].iterations = 200;
   EXPECT_EQ(ChooseModel(fits, 10.0, 0.01, &reason), std::optional<std::size_t>(1u)) << reason;
   EXPECT_NE(reason.find("two_blinn_phong (200 iterations)"), std::string::npos) << reason;
   EXPECT_NE(reason.find("did not converge"), std::string::npos) << reason;
   // Nothing converged: no choice, and the reason still says why.
-  fits[0].termination = fits[1].termination = Termination::kNoConvergence;
+  fits[0].termination = fits[1].termination = core::Termination::kNoConvergence;
   EXPECT_FALSE(ChooseModel(fits, 10.0, 0.01, &reason).has_value());
   EXPECT_NE(reason.find("did not converge"), std::string::npos) << reason;
 }
@@ -485,14 +485,14 @@ TEST(BrdfFit, AStartNearTheOptimumReachesTheSameSolution) {
   // A start of another model is a caller's mistake, named.
   options.start = GlossyBlinnPhong();
   const FitSummary wrong = FitModel(Model::kGgx, samples, options);
-  EXPECT_EQ(wrong.termination, Termination::kInvalidOptions);
+  EXPECT_EQ(wrong.termination, core::Termination::kInvalidOptions);
   EXPECT_NE(wrong.message.find("blinn_phong"), std::string::npos) << wrong.message;
   options.start->shape = std::nan("");
-  EXPECT_EQ(FitModel(Model::kBlinnPhong, samples, options).termination, Termination::kInvalidOptions);
+  EXPECT_EQ(FitModel(Model::kBlinnPhong, samples, options).termination, core::Termination::kInvalidOptions);
   // SelectModel fits several models: one start cannot serve them all.
   SelectionOptions selection;
   selection.fit.start = GlossyGgx();
-  EXPECT_EQ(SelectModel(samples, selection).termination, Termination::kInvalidOptions);
+  EXPECT_EQ(SelectModel(samples, selection).termination, core::Termination::kInvalidOptions);
 }
 
 }  // namespace

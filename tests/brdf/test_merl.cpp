@@ -199,7 +199,7 @@ TEST(MerlFile, WriteReadWriteIsByteExact) {
   EXPECT_EQ(std::filesystem::file_size(first), MerlTable::kFileBytes);
   MerlTable read;
   const MerlReadSummary summary = ReadMerl(first, &read);
-  ASSERT_EQ(summary.termination, Termination::kSuccess) << summary.message;
+  ASSERT_EQ(summary.termination, core::Termination::kSuccess) << summary.message;
   EXPECT_GE(summary.invalid_cells, 1u);
   for (int c = 0; c < 3; ++c) EXPECT_TRUE(read.plane(c) == table.plane(c));
   // Evaluated anywhere, the table read back gives the same bits.
@@ -244,7 +244,7 @@ void ExpectRefused(const std::string& path, const std::string& what) {
   MerlTable table;
   table.SetCell(0, Eigen::Vector3d::Ones());
   const MerlReadSummary summary = ReadMerl(path, &table);
-  EXPECT_EQ(summary.termination, Termination::kInvalidInput);
+  EXPECT_EQ(summary.termination, core::Termination::kInvalidInput);
   EXPECT_NE(summary.message.find(path), std::string::npos) << summary.message;
   EXPECT_NE(summary.message.find(what), std::string::npos) << summary.message;
   EXPECT_EQ(table.plane(0)[0], 1500.0) << "a refused read left the table changed";
@@ -319,10 +319,10 @@ TEST(MerlTable, ATableOfEachFamilyChoosesThatFamily) {
     SelectionOptions options;
     options.fit.loss = FitLoss::kLog;
     const SelectionSummary s = SelectModel(samples, options);
-    ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+    ASSERT_EQ(s.termination, core::Termination::kSuccess) << s.message;
     ASSERT_EQ(s.chosen, truth.model) << "chose " << (s.chosen ? ModelName(*s.chosen) : "none") << ": " << s.reason;
     const FitSummary& fit = s.candidates[s.chosen_index];
-    EXPECT_EQ(fit.termination, Termination::kSuccess);
+    EXPECT_EQ(fit.termination, core::Termination::kSuccess);
     std::printf("%s: %s (%s)\n", family.name, ModelName(*s.chosen), s.reason.c_str());
     // Within 1 % and 0.001: the table's trilinear lookup between its cells
     // moves the paint's small albedo (0.0135) by 1.5 %.
@@ -342,8 +342,8 @@ TEST(MerlTable, ATableThatIsNotFiniteIsNotWritten) {
   MerlTable table = MerlTable::FromFunction([](const DirectionPair&) { return Eigen::Vector3d(0.1, 0.1, 0.1); });
   table.plane(1)[MerlTable::CellIndex(10, 20, 30)] = std::nan("");
   const std::string path = TempPath("nan.binary");
-  const Summary written = WriteMerl(path, table);
-  EXPECT_EQ(written.termination, Termination::kInvalidInput);
+  const core::Summary written = WriteMerl(path, table);
+  EXPECT_EQ(written.termination, core::Termination::kInvalidInput);
   EXPECT_NE(written.message.find("cell " + std::to_string(MerlTable::CellIndex(10, 20, 30)) +
                                  " of the G plane (theta_h bin 10, theta_d bin 20, phi_d bin 30) is NaN"),
             std::string::npos)

@@ -84,7 +84,7 @@ TEST(PlanMaterials, TooFewPosesForAModelAreFlaggedNotFitted) {
   const SelectionSummary s = SelectModel(testing::MeasurePoses(m.truth, plan.poses, MeasurementNoise()));
   for (const FitSummary& f : s.candidates) {
     if (f.params.model == Model::kLambertian) continue;
-    EXPECT_EQ(f.termination, Termination::kFailure) << ModelName(f.params.model);
+    EXPECT_EQ(f.termination, core::Termination::kFailure) << ModelName(f.params.model);
     EXPECT_NE(f.message.find("cannot fit the " + std::to_string(ParameterCount(f.params.model)) + " parameters"),
               std::string::npos)
         << f.message;

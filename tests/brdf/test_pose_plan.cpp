@@ -30,7 +30,7 @@ TEST(PosePlan, ArmsGiveBackTheRequestedHalfDiffAngles) {
   ASSERT_EQ(requested.size(), 13u * 13u * 2u);
   const GonioArms arms;
   const PosePlan plan = PlanPoses(requested, arms);
-  ASSERT_EQ(plan.termination, Termination::kSuccess) << plan.message;
+  ASSERT_EQ(plan.termination, core::Termination::kSuccess) << plan.message;
   EXPECT_EQ(plan.poses.size() + plan.refused.size(), requested.size());
   EXPECT_GT(plan.poses.size(), requested.size() / 2);
   for (const PlannedPose& p : plan.poses) {
@@ -74,10 +74,10 @@ TEST(PosePlan, RefusesWhatTwoArmsInOnePlaneCannotReach) {
   EXPECT_NEAR(plan.poses[0].arms.light_arm_deg, -30.0, 1e-9);
   EXPECT_NEAR(plan.poses[0].arms.camera_arm_deg, 30.0, 1e-9);
 
-  EXPECT_EQ(PlanPoses({requested[0]}, GonioArms()).termination, Termination::kFailure);
+  EXPECT_EQ(PlanPoses({requested[0]}, GonioArms()).termination, core::Termination::kFailure);
   GonioArms crossed;
   crossed.light_home_deg = 60.0;
-  EXPECT_EQ(PlanPoses(requested, crossed).termination, Termination::kInvalidOptions);
+  EXPECT_EQ(PlanPoses(requested, crossed).termination, core::Termination::kInvalidOptions);
 }
 
 TEST(PosePlan, OrderKeepsMovesShort) {
@@ -174,17 +174,17 @@ TEST(AdaptivePlan, SplitsWhereTheValueChangesMost) {
 TEST(AdaptivePlan, RefusesBadSamplesAndStopsAtTheFinestInterval) {
   std::vector<PlanSample> measured = {{{0.0, 20 * kDeg, 0.0}, 1.0}, {{0.8 * kDeg, 20 * kDeg, 0.0}, 0.1}};
   AdaptiveOptions options;
-  EXPECT_EQ(ProposeDenserPoses(measured, GonioArms(), {}, options).termination, Termination::kFailure);  // 0.8 < 2 x 0.5 deg
+  EXPECT_EQ(ProposeDenserPoses(measured, GonioArms(), {}, options).termination, core::Termination::kFailure);  // 0.8 < 2 x 0.5 deg
   options.min_interval_deg = 0.25;
   const AdaptiveProposal split = ProposeDenserPoses(measured, GonioArms(), {}, options);
   ASSERT_EQ(split.proposed.size(), 1u);
   EXPECT_NEAR(split.proposed[0].theta_h, 0.4 * kDeg, 1e-12);
   measured[1].value = std::nan("");
   const AdaptiveProposal bad = ProposeDenserPoses(measured, GonioArms(), {}, options);
-  EXPECT_EQ(bad.termination, Termination::kInvalidInput);
+  EXPECT_EQ(bad.termination, core::Termination::kInvalidInput);
   EXPECT_NE(bad.message.find("sample 1"), std::string::npos) << bad.message;
   options.added_poses = 0;
-  EXPECT_EQ(ProposeDenserPoses(measured, GonioArms(), {}, options).termination, Termination::kInvalidOptions);
+  EXPECT_EQ(ProposeDenserPoses(measured, GonioArms(), {}, options).termination, core::Termination::kInvalidOptions);
 }
 
 }  // namespace

@@ -90,13 +90,13 @@ RglTabulation Tabulation(int theta_i, int samples, int ndf, double roughness) {
 
 RglBrdf WriteAndRead(const ModelParams& model, const RglTabulation& tab, const std::string& name) {
   TensorFile file;
-  const Summary made = TabulateRgl([&](const DirectionPair& d) { return Evaluate(model, d.wi, d.wo); }, tab, &file);
-  EXPECT_EQ(made.termination, Termination::kSuccess) << made.message;
+  const core::Summary made = TabulateRgl([&](const DirectionPair& d) { return Evaluate(model, d.wi, d.wo); }, tab, &file);
+  EXPECT_EQ(made.termination, core::Termination::kSuccess) << made.message;
   const std::string path = TempPath(name);
-  EXPECT_EQ(WriteTensorFile(path, file).termination, Termination::kSuccess);
+  EXPECT_EQ(WriteTensorFile(path, file).termination, core::Termination::kSuccess);
   RglBrdf rgl;
-  const Summary read = ReadRgl(path, &rgl);
-  EXPECT_EQ(read.termination, Termination::kSuccess) << read.message;
+  const core::Summary read = ReadRgl(path, &rgl);
+  EXPECT_EQ(read.termination, core::Termination::kSuccess) << read.message;
   std::filesystem::remove(path);
   return rgl;
 }
@@ -107,15 +107,15 @@ TEST(TensorFile, WrittenAndReadBackFieldForField) {
   file.fields.push_back(TensorField::FromBytes("text", {5}, {'h', 'e', 'l', 'l', 'o'}));
   file.fields.push_back(TensorField::FromFloats("b", {1}, {-7.25f}));
   const std::string path = TempPath("roundtrip.bsdf");
-  ASSERT_EQ(WriteTensorFile(path, file).termination, Termination::kSuccess);
+  ASSERT_EQ(WriteTensorFile(path, file).termination, core::Termination::kSuccess);
   const std::vector<char> bytes = Bytes(path);
   ASSERT_GE(bytes.size(), 18u);
   EXPECT_EQ(std::memcmp(bytes.data(), "tensor_file\0", 12), 0);
   EXPECT_EQ(bytes[12], 1);  // version 1.0
   EXPECT_EQ(bytes[13], 0);
   TensorFile read;
-  const Summary s = ReadTensorFile(path, &read);
-  ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+  const core::Summary s = ReadTensorFile(path, &read);
+  ASSERT_EQ(s.termination, core::Termination::kSuccess) << s.message;
   ASSERT_EQ(read.fields.size(), 3u);
   for (std::size_t i = 0; i < 3; ++i) {
     EXPECT_EQ(read.fields[i].name, file.fields[i].name);
@@ -210,8 +210,8 @@ TEST(MeasuredTable, OpensByExtensionAndSamplesWithinTheLimit) {
     EXPECT_EQ(s.value, *direct.Evaluate(s.wi, s.wo));
   }
   std::filesystem::remove(path);
-  const Summary other = ReadMeasured(TempPath("table.txt"), &table);
-  EXPECT_EQ(other.termination, Termination::kInvalidInput);
+  const core::Summary other = ReadMeasured(TempPath("table.txt"), &table);
+  EXPECT_EQ(other.termination, core::Termination::kInvalidInput);
   EXPECT_NE(other.message.find("not a measured-BRDF file"), std::string::npos) << other.message;
 }
 
@@ -226,8 +226,8 @@ TEST(SamplesCsv, WrittenAndReadBackAndABadLineNamed) {
   const std::string path = TempPath("samples.csv");
   ASSERT_TRUE(WriteSamplesCsv(path, samples).IsSolutionUsable());
   std::vector<BrdfSample> read;
-  const Summary s = ReadSamplesCsv(path, &read);
-  ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+  const core::Summary s = ReadSamplesCsv(path, &read);
+  ASSERT_EQ(s.termination, core::Termination::kSuccess) << s.message;
   ASSERT_EQ(read.size(), 2u);
   for (std::size_t i = 0; i < 2; ++i) {  // 17 digits: every double comes back exactly
     EXPECT_EQ(read[i].wi, samples[i].wi);
@@ -244,8 +244,8 @@ TEST(SamplesCsv, WrittenAndReadBackAndABadLineNamed) {
   EXPECT_FALSE(read[1].origin.has_value());
 
   std::ofstream(path, std::ios::app) << "1,2,3\n";
-  const Summary bad = ReadSamplesCsv(path, &read);
-  EXPECT_EQ(bad.termination, Termination::kInvalidInput);
+  const core::Summary bad = ReadSamplesCsv(path, &read);
+  EXPECT_EQ(bad.termination, core::Termination::kInvalidInput);
   EXPECT_NE(bad.message.find(path + "':4: 3 cells, not 17"), std::string::npos) << bad.message;
   EXPECT_EQ(read.size(), 2u);  // untouched
 
@@ -254,8 +254,8 @@ TEST(SamplesCsv, WrittenAndReadBackAndABadLineNamed) {
       << "wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b,light_arm_deg,camera_arm_deg,"
          "sample_rotation_deg,exposure_us,frames\n"
       << "0,0,1,0,0,1,1,1,1,0,0,0,10,20,,,\n";
-  const Summary partial = ReadSamplesCsv(path, &read);
-  EXPECT_EQ(partial.termination, Termination::kInvalidInput);
+  const core::Summary partial = ReadSamplesCsv(path, &read);
+  EXPECT_EQ(partial.termination, core::Termination::kInvalidInput);
   EXPECT_NE(partial.message.find(":2: the origin"), std::string::npos) << partial.message;
   std::filesystem::remove(path);
 }
@@ -266,8 +266,8 @@ TEST(SamplesCsv, ReadsTheFileWithoutOriginColumns) {
   std::ofstream(path) << "wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b\n"
                       << "0,0,1,0.6,0,0.8,0.25,0.5,0.75,0.01,0.02,0.03\n";
   std::vector<BrdfSample> read;
-  const Summary s = ReadSamplesCsv(path, &read);
-  ASSERT_EQ(s.termination, Termination::kSuccess) << s.message;
+  const core::Summary s = ReadSamplesCsv(path, &read);
+  ASSERT_EQ(s.termination, core::Termination::kSuccess) << s.message;
   ASSERT_EQ(read.size(), 1u);
   EXPECT_EQ(read[0].value, Eigen::Vector3d(0.25, 0.5, 0.75));
   EXPECT_EQ(read[0].wo, Eigen::Vector3d(0.6, 0, 0.8));
@@ -284,7 +284,7 @@ class RglBadFile : public ::testing::Test {
     ASSERT_EQ(TabulateRgl([&](const DirectionPair& d) { return Evaluate(model, d.wi, d.wo); },
                           Tabulation(3, 4, 8, 0.4), &valid_)
                   .termination,
-              Termination::kSuccess);
+              core::Termination::kSuccess);
     path_ = TempPath("bad.bsdf");
   }
   void TearDown() override { std::filesystem::remove(path_); }
@@ -292,13 +292,13 @@ class RglBadFile : public ::testing::Test {
   // Reads path_ and expects a refusal whose message names the file and `fault`.
   void ExpectRefused(const std::string& fault) {
     RglBrdf rgl;
-    const Summary s = ReadRgl(path_, &rgl);
-    EXPECT_EQ(s.termination, Termination::kInvalidInput);
+    const core::Summary s = ReadRgl(path_, &rgl);
+    EXPECT_EQ(s.termination, core::Termination::kInvalidInput);
     EXPECT_NE(s.message.find(path_), std::string::npos) << s.message;
     EXPECT_NE(s.message.find(fault), std::string::npos) << s.message;
   }
   std::vector<char> ValidBytes() {
-    EXPECT_EQ(WriteTensorFile(path_, valid_).termination, Termination::kSuccess);
+    EXPECT_EQ(WriteTensorFile(path_, valid_).termination, core::Termination::kSuccess);
     return Bytes(path_);
   }
   // Where field `name`'s uint64 offset sits in the header.
@@ -316,8 +316,8 @@ class RglBadFile : public ::testing::Test {
 TEST_F(RglBadFile, TheValidFileReads) {
   ValidBytes();
   RglBrdf rgl;
-  const Summary s = ReadRgl(path_, &rgl);
-  EXPECT_EQ(s.termination, Termination::kSuccess) << s.message;
+  const core::Summary s = ReadRgl(path_, &rgl);
+  EXPECT_EQ(s.termination, core::Termination::kSuccess) << s.message;
 }
 
 TEST_F(RglBadFile, MissingFile) {
@@ -384,7 +384,7 @@ TEST_F(RglBadFile, WrongTensorDtype) {
         std::memcpy(f.bytes.data() + 8 * i, &d, 8);
       }
     }
-  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, Termination::kSuccess);
+  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, core::Termination::kSuccess);
   ExpectRefused("field 'ndf' is float64, the format stores float32");
 }
 
@@ -394,20 +394,20 @@ TEST_F(RglBadFile, NaNCell) {
       const float nan = std::numeric_limits<float>::quiet_NaN();
       std::memcpy(f.bytes.data() + 4 * 17, &nan, 4);
     }
-  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, Termination::kSuccess);
+  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, core::Termination::kSuccess);
   ExpectRefused("field 'rgb' cell 17 is NaN");
 }
 
 TEST_F(RglBadFile, MissingField) {
   std::erase_if(valid_.fields, [](const TensorField& f) { return f.name == "sigma"; });
-  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, Termination::kSuccess);
+  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, core::Termination::kSuccess);
   ExpectRefused("no field 'sigma'");
 }
 
 TEST_F(RglBadFile, WrongShape) {
   for (TensorField& f : valid_.fields)
     if (f.name == "luminance") f.shape = {1, 3, 2, 8};  // same count, not square
-  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, Termination::kSuccess);
+  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, core::Termination::kSuccess);
   ExpectRefused("field 'luminance' is 1 x 3 x 2 x 8");
 }
 
@@ -415,20 +415,20 @@ TEST_F(RglBadFile, SpectralFileIsRefusedSayingWhy) {
   for (TensorField& f : valid_.fields)
     if (f.name == "rgb") f.name = "spectra";
   valid_.fields.push_back(TensorField::FromFloats("wavelengths", {3}, {450, 550, 650}));
-  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, Termination::kSuccess);
+  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, core::Termination::kSuccess);
   ExpectRefused("a spectral file");
 }
 
 TEST_F(RglBadFile, AnisotropicFileIsRefusedSayingWhy) {
   for (TensorField& f : valid_.fields)
     if (f.name == "phi_i") f = TensorField::FromFloats("phi_i", {3}, {-1, 0, 1});
-  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, Termination::kSuccess);
+  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, core::Termination::kSuccess);
   ExpectRefused("anisotropic (3 phi_i values)");
 }
 
 TEST_F(RglBadFile, RepeatedField) {
   valid_.fields.push_back(valid_.fields.front());
-  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, Termination::kSuccess);
+  ASSERT_EQ(WriteTensorFile(path_, valid_).termination, core::Termination::kSuccess);
   ExpectRefused("appears twice");
 }
 
@@ -436,15 +436,15 @@ TEST_F(RglBadFile, RepeatedField) {
 // until memory ran out), and so is a file beyond the format's size limit.
 TEST(TensorFile, ADeviceOrAnOversizedFileIsRefusedUnread) {
   TensorFile file;
-  const Summary device = ReadTensorFile("/dev/urandom", &file);
-  EXPECT_EQ(device.termination, Termination::kInvalidInput);
+  const core::Summary device = ReadTensorFile("/dev/urandom", &file);
+  EXPECT_EQ(device.termination, core::Termination::kInvalidInput);
   EXPECT_NE(device.message.find("'/dev/urandom': not a regular file"), std::string::npos) << device.message;
   const std::string huge = TempPath("huge.bsdf");
   std::ofstream(huge).close();
   std::filesystem::resize_file(huge, kMaxTensorFileBytes + 1);  // sparse: no disk used
-  const Summary oversized = ReadTensorFile(huge, &file);
+  const core::Summary oversized = ReadTensorFile(huge, &file);
   std::filesystem::remove(huge);
-  EXPECT_EQ(oversized.termination, Termination::kInvalidInput);
+  EXPECT_EQ(oversized.termination, core::Termination::kInvalidInput);
   EXPECT_NE(oversized.message.find("more than the 256 MiB"), std::string::npos) << oversized.message;
   EXPECT_TRUE(file.fields.empty());
 }
@@ -453,12 +453,12 @@ TEST(TensorFile, ADeviceOrAnOversizedFileIsRefusedUnread) {
 // by its place, as the reader would name it.
 TEST(RglBrdf, ATableThatIsNotFiniteIsNotMade) {
   TensorFile file;
-  const Summary made = TabulateRgl(
+  const core::Summary made = TabulateRgl(
       [](const DirectionPair& d) {
         return d.wo.z() > 0.5 ? Eigen::Vector3d(0.1, 1e300, 0.1) : Eigen::Vector3d(0.1, 0.1, 0.1);
       },
       Tabulation(3, 4, 8, 0.4), &file);
-  EXPECT_EQ(made.termination, Termination::kInvalidInput);
+  EXPECT_EQ(made.termination, core::Termination::kInvalidInput);
   EXPECT_NE(made.message.find("field 'rgb' cell"), std::string::npos) << made.message;
   EXPECT_NE(made.message.find("channel G"), std::string::npos) << made.message;
   EXPECT_NE(made.message.find("is infinite"), std::string::npos) << made.message;

@@ -2,7 +2,7 @@
 // The simulated chart capture the colour tests share: the BabelColor chart
 // under an illuminant, photographed by a compiled-in camera over 400-680 nm.
 
-#include "photorig/color/chart.h"
+#include "photorig/solvers/color/chart.h"
 #include "photorig/sim/color_chart.h"
 
 #include <gtest/gtest.h>
@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-namespace photorig::color::testing {
+namespace photorig::solvers::color::testing {
 
 inline sim::ChartSpectra SimSpectra(const std::string& camera, Illuminant illuminant) {
   const ChartCaptureSpectra s = ChartCaptureSpectraFor(camera, illuminant, WavelengthGrid(400.0, 680.0, 5.0));
@@ -35,9 +35,9 @@ inline MeasureOptions SimMeasureOptions(const sim::ChartRender& render) {
 inline std::vector<PatchMeasurement> Measured(const cv::Mat& image_bgr, const cv::Mat& dark_bgr,
                                               const ChartLocation& location, const MeasureOptions& options) {
   std::vector<PatchMeasurement> patches;
-  const solvers::Summary summary = MeasurePatches(image_bgr, dark_bgr, location, options, &patches);
-  EXPECT_EQ(summary.termination, solvers::Termination::kSuccess) << summary.message;
+  const solvers::core::Summary summary = MeasurePatches(image_bgr, dark_bgr, location, options, &patches);
+  EXPECT_EQ(summary.termination, solvers::core::Termination::kSuccess) << summary.message;
   return patches;
 }
 
-}  // namespace photorig::color::testing
+}  // namespace photorig::solvers::color::testing

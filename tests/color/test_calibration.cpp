@@ -1,13 +1,13 @@
-#include "photorig/color/apply.h"
-#include "photorig/color/calibration.h"
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/color/apply.h"
+#include "photorig/solvers/color/calibration.h"
+#include "photorig/solvers/color/colorimetry.h"
 #include "sim_chart.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 using testing::RenderChart;
@@ -16,8 +16,8 @@ using testing::SimMeasureOptions;
 // CameraToXyz that must succeed.
 cv::Mat ToXyz(const ColorModel& model, const cv::Mat& image, const cv::Mat& dark, const ApplyOptions& options) {
   cv::Mat xyz;
-  const solvers::Summary summary = CameraToXyz(model, image, dark, options, &xyz);
-  EXPECT_EQ(summary.termination, solvers::Termination::kSuccess) << summary.message;
+  const solvers::core::Summary summary = CameraToXyz(model, image, dark, options, &xyz);
+  EXPECT_EQ(summary.termination, solvers::core::Termination::kSuccess) << summary.message;
   return xyz;
 }
 
@@ -181,13 +181,13 @@ TEST(ColorApply, CorrectedChartImageReproducesTheReferenceColours) {
   }
   // Bad input and bad options end in the summary, naming what is wrong, and leave the output alone.
   cv::Mat untouched;
-  const solvers::Summary one_channel = CameraToXyz(model, cv::Mat(4, 4, CV_32F), cv::Mat(), ApplyOptions{}, &untouched);
-  EXPECT_EQ(one_channel.termination, solvers::Termination::kInvalidInput);
+  const solvers::core::Summary one_channel = CameraToXyz(model, cv::Mat(4, 4, CV_32F), cv::Mat(), ApplyOptions{}, &untouched);
+  EXPECT_EQ(one_channel.termination, solvers::core::Termination::kInvalidInput);
   EXPECT_NE(one_channel.message.find("3-channel"), std::string::npos) << one_channel.message;
-  const solvers::Summary no_exposure = CameraToXyz(model, xyz, cv::Mat(), ApplyOptions{0.0, 0.0}, &untouched);
-  EXPECT_EQ(no_exposure.termination, solvers::Termination::kInvalidOptions);
+  const solvers::core::Summary no_exposure = CameraToXyz(model, xyz, cv::Mat(), ApplyOptions{0.0, 0.0}, &untouched);
+  EXPECT_EQ(no_exposure.termination, solvers::core::Termination::kInvalidOptions);
   EXPECT_NE(no_exposure.message.find("exposure_ratio"), std::string::npos) << no_exposure.message;
-  EXPECT_EQ(XyzToSrgb8(srgb, model.white_xyz, &untouched).termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(XyzToSrgb8(srgb, model.white_xyz, &untouched).termination, solvers::core::Termination::kInvalidInput);
   EXPECT_TRUE(untouched.empty());
 }
 
@@ -221,4 +221,4 @@ TEST(ColorApply, EveryModelAgreesPixelByPixelWithItsDoublePrecisionDefinition) {
 }
 
 }  // namespace
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

@@ -1,11 +1,11 @@
-#include "photorig/color/chart.h"
+#include "photorig/solvers/color/chart.h"
 #include "sim_chart.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 using testing::RenderChart;
@@ -119,12 +119,12 @@ TEST(ChartMeasure, FlagsSaturatedUnderexposedAndOutOfFramePatches) {
   EXPECT_EQ(missing[5].flag, PatchFlag::kTooFewPixels);
   // Mismatched dark frame.
   std::vector<PatchMeasurement> untouched;
-  const solvers::Summary mismatched =
+  const solvers::core::Summary mismatched =
       MeasurePatches(bright.raw, cv::Mat(10, 10, CV_16UC3), location, SimMeasureOptions(bright), &untouched);
-  EXPECT_EQ(mismatched.termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(mismatched.termination, solvers::core::Termination::kInvalidInput);
   EXPECT_NE(mismatched.message.find("dark frame"), std::string::npos) << mismatched.message;
   EXPECT_TRUE(untouched.empty());
 }
 
 }  // namespace
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

@@ -2,11 +2,11 @@
 // calibrated from the chart: normals solved once on luminance, each channel's
 // albedo fitted with them fixed, then camera RGB -> XYZ.
 
-#include "photorig/color/apply.h"
-#include "photorig/color/calibration.h"
-#include "photorig/color/colorimetry.h"
-#include "photorig/ps/channel_albedo.h"
-#include "photorig/ps/lambertian.h"
+#include "photorig/solvers/color/apply.h"
+#include "photorig/solvers/color/calibration.h"
+#include "photorig/solvers/color/colorimetry.h"
+#include "photorig/solvers/ps/channel_albedo.h"
+#include "photorig/solvers/ps/lambertian.h"
 #include "photorig/sim/renderer.h"
 #include "photorig/sim/scene.h"
 #include "sim_chart.h"
@@ -15,7 +15,7 @@
 
 #include <cmath>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 constexpr int kSize = 96;
@@ -81,8 +81,8 @@ TEST(ColourAlbedo, CorrectedPhotometricStereoAlbedoMatchesTheChartCalibratedTarg
   }
   const double exposure_us = 0.8 * sensor.full_well_e / sensor.response_e_per_us;
   const double dn_per_radiance = sensor.DnPerRadiance(exposure_us, 0.0);
-  std::array<ps::PhotometricStack, 3> channels;
-  ps::PhotometricStack luminance;
+  std::array<solvers::ps::PhotometricStack, 3> channels;
+  solvers::ps::PhotometricStack luminance;
   for (int c = 0; c < 3; ++c) {
     // The renderer reads rho_d from the BRDF parameters.
     sim::SurfaceMaps surface = sphere.surface;
@@ -105,26 +105,26 @@ TEST(ColourAlbedo, CorrectedPhotometricStereoAlbedoMatchesTheChartCalibratedTarg
       else luminance.images[static_cast<std::size_t>(k)] += frame / 3.0;
     }
   }
-  for (ps::PhotometricStack* stack : {&channels[0], &channels[1], &channels[2], &luminance}) {
+  for (solvers::ps::PhotometricStack* stack : {&channels[0], &channels[1], &channels[2], &luminance}) {
     stack->dark = cv::Mat(kSize, kSize, CV_32F, cv::Scalar(sensor.black_level_dn));
     stack->light_directions = directions;
     // DN per unit radiance times the irradiance (1), as the PS pipeline builds them.
     stack->light_scales.assign(12, dn_per_radiance);
     stack->mask = sphere.surface.mask;
   }
-  ps::NormalMap normals;
-  ps::LambertianOptions lambertian;
+  solvers::ps::NormalMap normals;
+  solvers::ps::LambertianOptions lambertian;
   lambertian.shadow_threshold = 20.0;
-  ASSERT_TRUE(ps::SolveLambertian(lambertian, luminance, &normals).IsSolutionUsable());
+  ASSERT_TRUE(solvers::ps::SolveLambertian(lambertian, luminance, &normals).IsSolutionUsable());
 
   std::array<cv::Mat, 3> albedo;
   // No shadow threshold here: with the normal known, unlit samples are those
   // with n . w < min_cosine, and cutting dim samples on their noisy value would
   // bias a dark channel's albedo upwards.
-  const ps::ChannelAlbedoOptions options;
+  const solvers::ps::ChannelAlbedoOptions options;
   for (int c = 0; c < 3; ++c) {
-    const ps::SolverSummary summary =
-        ps::SolveChannelAlbedo(options, channels[static_cast<std::size_t>(c)], normals.normals, &albedo[static_cast<std::size_t>(c)]);
+    const solvers::ps::SolverSummary summary =
+        solvers::ps::SolveChannelAlbedo(options, channels[static_cast<std::size_t>(c)], normals.normals, &albedo[static_cast<std::size_t>(c)]);
     ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   }
   // Camera-RGB albedo in B, G, R order, as a chart capture would be: the chart's
@@ -172,7 +172,7 @@ TEST(ColourAlbedo, CorrectedPhotometricStereoAlbedoMatchesTheChartCalibratedTarg
 }
 
 TEST(ColourAlbedo, MissingNormalsAndDarkChannelsAreFlaggedNotGuessed) {
-  ps::PhotometricStack stack;
+  solvers::ps::PhotometricStack stack;
   for (int k = 0; k < 3; ++k) {
     stack.images.push_back(cv::Mat(2, 2, CV_32F, cv::Scalar(k == 0 ? 100.0 : 0.0)));
     stack.light_directions.push_back(Eigen::Vector3d(k == 1 ? 0.6 : 0.0, k == 2 ? 0.6 : 0.0, k == 0 ? 1.0 : 0.8));
@@ -181,22 +181,22 @@ TEST(ColourAlbedo, MissingNormalsAndDarkChannelsAreFlaggedNotGuessed) {
   cv::Mat normals(2, 2, CV_32FC3, cv::Vec3f(0, 0, 1));
   normals.at<cv::Vec3f>(0, 0) = cv::Vec3f(NAN, NAN, NAN);
   cv::Mat albedo;
-  ps::ChannelAlbedoOptions options;
+  solvers::ps::ChannelAlbedoOptions options;
   options.min_samples = 2;
   // Two of three samples are zero (shadowed): too few usable samples.
-  ps::SolverSummary summary = ps::SolveChannelAlbedo(options, stack, normals, &albedo);
+  solvers::ps::SolverSummary summary = solvers::ps::SolveChannelAlbedo(options, stack, normals, &albedo);
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   EXPECT_EQ(summary.pixels_solved, 0u);
   EXPECT_EQ(summary.pixels_too_few_lights, 3u);
   EXPECT_TRUE(std::isnan(albedo.at<float>(0, 0)));
   options.min_samples = 1;
-  summary = ps::SolveChannelAlbedo(options, stack, normals, &albedo);
+  summary = solvers::ps::SolveChannelAlbedo(options, stack, normals, &albedo);
   EXPECT_EQ(summary.pixels_solved, 3u);
   EXPECT_NEAR(albedo.at<float>(1, 1), M_PI * 100.0, 1e-3);  // b = rho / pi * 1
   EXPECT_TRUE(std::isnan(albedo.at<float>(0, 0)));
   // Wrong-sized normals are refused.
-  EXPECT_FALSE(ps::SolveChannelAlbedo(options, stack, cv::Mat(3, 3, CV_32FC3), &albedo).IsSolutionUsable());
+  EXPECT_FALSE(solvers::ps::SolveChannelAlbedo(options, stack, cv::Mat(3, 3, CV_32FC3), &albedo).IsSolutionUsable());
 }
 
 }  // namespace
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

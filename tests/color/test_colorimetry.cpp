@@ -1,12 +1,12 @@
-#include "photorig/color/colorimetry.h"
-#include "photorig/color/chart.h"
-#include "photorig/color/model.h"
+#include "photorig/solvers/color/colorimetry.h"
+#include "photorig/solvers/color/chart.h"
+#include "photorig/solvers/color/model.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 struct SharmaPair {
@@ -130,4 +130,4 @@ TEST(Tables, UnknownNamesAreClearErrors) {
 }
 
 }  // namespace
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

@@ -1,8 +1,8 @@
-#include "photorig/color/model_io.h"
+#include "photorig/solvers/color/model_io.h"
 
 #include <gtest/gtest.h>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 ColorModel SampleModel() {
@@ -50,4 +50,4 @@ TEST(ColorModelIo, MalformedModelsNameTheFileAndKey) {
 }
 
 }  // namespace
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

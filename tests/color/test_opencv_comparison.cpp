@@ -2,13 +2,13 @@
 // CIEDE2000 loss) on the same simulated captures, camera by camera, each OpenCV
 // fit in its own process.
 
-#include "photorig/color/calibration.h"
-#include "photorig/color/opencv_reference.h"
+#include "photorig/solvers/color/calibration.h"
+#include "photorig/solvers/color/opencv_reference.h"
 #include "sim_chart.h"
 
 #include <gtest/gtest.h>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 TEST(ColorVersusOpenCv, ChosenModelBeatsOpenCvOnEveryCamera) {
@@ -38,4 +38,4 @@ TEST(ColorVersusOpenCv, ChosenModelBeatsOpenCvOnEveryCamera) {
 }
 
 }  // namespace
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

@@ -1,8 +1,8 @@
 // Demosaicing within regions and the raw sites' vote on the regions' edges:
 // against OpenCV's bilinear demosaic where there is one region, and against
 // the exact colours of two flat paints where there are two.
-#include "photorig/color/apply.h"
-#include "photorig/color/region_demosaic.h"
+#include "photorig/solvers/color/apply.h"
+#include "photorig/solvers/color/region_demosaic.h"
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -37,8 +37,8 @@ TEST(RegionDemosaic, OneRegionIsOpenCvsBilinearAwayFromTheBorder) {
   cv::Mat raw(40, 52, CV_16U);
   for (int i = 0; i < static_cast<int>(raw.total()); ++i) raw.ptr<std::uint16_t>()[i] = static_cast<std::uint16_t>(value(rng));
   cv::Mat ours, opencv;
-  ASSERT_TRUE(color::DemosaicWithinRegions(raw, "RGGB", cv::Mat::zeros(raw.size(), CV_8U), &ours).IsSolutionUsable());
-  ASSERT_TRUE(color::Demosaic(raw, "RGGB", &opencv).IsSolutionUsable());
+  ASSERT_TRUE(solvers::color::DemosaicWithinRegions(raw, "RGGB", cv::Mat::zeros(raw.size(), CV_8U), &ours).IsSolutionUsable());
+  ASSERT_TRUE(solvers::color::Demosaic(raw, "RGGB", &opencv).IsSolutionUsable());
   ASSERT_EQ(ours.type(), CV_32FC3);
   // OpenCV rounds its means to the raw's depth: agreement within half a code.
   double worst = 0.0;
@@ -49,7 +49,7 @@ TEST(RegionDemosaic, OneRegionIsOpenCvsBilinearAwayFromTheBorder) {
   EXPECT_LE(worst, 0.5 + 1e-3);
   // Unlabelled pixels are interpolated the same way.
   cv::Mat unlabelled;
-  ASSERT_TRUE(color::DemosaicWithinRegions(raw, "RGGB", cv::Mat(raw.size(), CV_8U, cv::Scalar(color::kNoRegion)),
+  ASSERT_TRUE(solvers::color::DemosaicWithinRegions(raw, "RGGB", cv::Mat(raw.size(), CV_8U, cv::Scalar(solvers::color::kNoRegion)),
                                            &unlabelled)
                   .IsSolutionUsable());
   EXPECT_EQ(cv::norm(unlabelled, ours, cv::NORM_INF), 0.0);
@@ -64,8 +64,8 @@ TEST(RegionDemosaic, TwoPaintsKeepTheirOwnColoursAcrossTheEdge) {
   for (int y = 0; y < rows; ++y)
     for (int x = 0; x < cols; ++x) regions.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(label(y, x));
   cv::Mat within, bilinear;
-  ASSERT_TRUE(color::DemosaicWithinRegions(raw, "RGGB", regions, &within).IsSolutionUsable());
-  ASSERT_TRUE(color::Demosaic(raw, "RGGB", &bilinear).IsSolutionUsable());
+  ASSERT_TRUE(solvers::color::DemosaicWithinRegions(raw, "RGGB", regions, &within).IsSolutionUsable());
+  ASSERT_TRUE(solvers::color::Demosaic(raw, "RGGB", &bilinear).IsSolutionUsable());
   double worst_within = 0.0, worst_bilinear = 0.0;
   for (int y = 0; y < rows; ++y)
     for (int x = edge - 2; x <= edge + 1; ++x)
@@ -89,8 +89,8 @@ TEST(RegionDemosaic, TheRawSitesMoveAnEdgeLabelledOneColumnOff) {
   for (int y = 0; y < rows; ++y)
     for (int x = 0; x < cols; ++x) regions.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(x < edge + 1 ? 0 : 1);
   // The off-object corner stays out of the vote.
-  regions.at<std::uint8_t>(0, 0) = color::kNoRegion;
-  color::RegionEdgeVote vote("RGGB", regions, {});
+  regions.at<std::uint8_t>(0, 0) = solvers::color::kNoRegion;
+  solvers::color::RegionEdgeVote vote("RGGB", regions, {});
   ASSERT_TRUE(vote.status().IsSolutionUsable()) << vote.status().message;
   std::mt19937 rng(3);
   std::normal_distribution<float> noise(0.0f, 2.0f);
@@ -113,20 +113,20 @@ TEST(RegionDemosaic, TheRawSitesMoveAnEdgeLabelledOneColumnOff) {
   EXPECT_EQ(changed, rows);  // the whole mislabelled column
   for (int y = 0; y < rows; ++y)
     for (int x = 1; x < cols; ++x) EXPECT_EQ(settled.at<std::uint8_t>(y, x), truth(y, x)) << y << ", " << x;
-  EXPECT_EQ(settled.at<std::uint8_t>(0, 0), color::kNoRegion);
+  EXPECT_EQ(settled.at<std::uint8_t>(0, 0), solvers::color::kNoRegion);
 }
 
 TEST(RegionDemosaic, BadInputIsRefusedNotGuessed) {
   const cv::Mat raw = cv::Mat::zeros(8, 8, CV_16U);
   cv::Mat out;
-  EXPECT_FALSE(color::DemosaicWithinRegions(raw, "RGBG", cv::Mat::zeros(8, 8, CV_8U), &out).IsSolutionUsable());
-  EXPECT_FALSE(color::DemosaicWithinRegions(raw, "RGGB", cv::Mat::zeros(8, 9, CV_8U), &out).IsSolutionUsable());
-  EXPECT_FALSE(color::DemosaicWithinRegions(cv::Mat::zeros(8, 8, CV_16UC3), "RGGB", cv::Mat::zeros(8, 8, CV_8U), &out)
+  EXPECT_FALSE(solvers::color::DemosaicWithinRegions(raw, "RGBG", cv::Mat::zeros(8, 8, CV_8U), &out).IsSolutionUsable());
+  EXPECT_FALSE(solvers::color::DemosaicWithinRegions(raw, "RGGB", cv::Mat::zeros(8, 9, CV_8U), &out).IsSolutionUsable());
+  EXPECT_FALSE(solvers::color::DemosaicWithinRegions(cv::Mat::zeros(8, 8, CV_16UC3), "RGGB", cv::Mat::zeros(8, 8, CV_8U), &out)
                    .IsSolutionUsable());
-  color::RegionEdgeVote::Options options;
+  solvers::color::RegionEdgeVote::Options options;
   options.switch_ratio = 0.0;
-  EXPECT_FALSE(color::RegionEdgeVote("RGGB", cv::Mat::zeros(8, 8, CV_8U), options).status().IsSolutionUsable());
-  color::RegionEdgeVote vote("RGGB", cv::Mat::zeros(8, 8, CV_8U), {});
+  EXPECT_FALSE(solvers::color::RegionEdgeVote("RGGB", cv::Mat::zeros(8, 8, CV_8U), options).status().IsSolutionUsable());
+  solvers::color::RegionEdgeVote vote("RGGB", cv::Mat::zeros(8, 8, CV_8U), {});
   EXPECT_FALSE(vote.Add(cv::Mat::zeros(8, 9, CV_16U)).IsSolutionUsable());
 }
 

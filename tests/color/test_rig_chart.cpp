@@ -3,8 +3,8 @@
 // calibration on the simulated dome.
 
 #include "../daemon/test_support.h"
-#include "photorig/color/apply.h"
-#include "photorig/color/calibration.h"
+#include "photorig/solvers/color/apply.h"
+#include "photorig/solvers/color/calibration.h"
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/config/rig.h"
 #include "photorig/config/sim.h"
@@ -17,7 +17,7 @@
 #include <cmath>
 #include <regex>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 using photorig::testing::TempDir;
@@ -25,8 +25,8 @@ using photorig::testing::TempDir;
 // Demosaic that must succeed.
 cv::Mat Demosaiced(const cv::Mat& raw, const std::string& pattern) {
   cv::Mat bgr;
-  const solvers::Summary summary = Demosaic(raw, pattern, &bgr);
-  EXPECT_EQ(summary.termination, solvers::Termination::kSuccess) << summary.message;
+  const solvers::core::Summary summary = Demosaic(raw, pattern, &bgr);
+  EXPECT_EQ(summary.termination, solvers::core::Termination::kSuccess) << summary.message;
   return bgr;
 }
 
@@ -170,9 +170,9 @@ TEST(Bayer, PatchMeansAfterDemosaicMatchTheRgbRender) {
   const auto wrong = testing::Measured(swapped, cv::Mat(), location, options);
   EXPECT_NEAR(wrong[14].rgb.z(), rgb[14].rgb.x() + sim::SensorModel{}.black_level_dn, 0.1 * rgb[14].rgb.x());  // red patch
   cv::Mat untouched;
-  EXPECT_EQ(Demosaic(render.raw, "RGGB", &untouched).termination, solvers::Termination::kInvalidInput);
-  const solvers::Summary unknown = Demosaic(sim::BayerMosaic(render.raw, "RGGB"), "RGBG", &untouched);
-  EXPECT_EQ(unknown.termination, solvers::Termination::kInvalidOptions);
+  EXPECT_EQ(Demosaic(render.raw, "RGGB", &untouched).termination, solvers::core::Termination::kInvalidInput);
+  const solvers::core::Summary unknown = Demosaic(sim::BayerMosaic(render.raw, "RGGB"), "RGBG", &untouched);
+  EXPECT_EQ(unknown.termination, solvers::core::Termination::kInvalidOptions);
   EXPECT_NE(unknown.message.find("'RGBG'"), std::string::npos) << unknown.message;
   EXPECT_TRUE(untouched.empty());
   EXPECT_THROW(sim::BayerMosaic(render.raw, "XYZW"), std::invalid_argument);
@@ -218,4 +218,4 @@ TEST(CalibrateColorCommand, SimulatedDomeOneCommandUsesTheRigPosition) {
 }
 
 }  // namespace
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

@@ -4,7 +4,7 @@
 // colours after calibrating the simulated camera on its chart, RGB DiLiGenT
 // folders, and colour model files that are wrong.
 
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/color/colorimetry.h"
 #include "photorig/config/sim.h"
 #include "photorig/daemon/pipelines/color_stack.h"
 #include "photorig/daemon/pipelines/diligent.h"

@@ -4,7 +4,7 @@
 #include "photorig/config/rig.h"
 #include "photorig/config/sim.h"
 #include "photorig/config/yaml_node.h"
-#include "photorig/lighting/envmap.h"
+#include "photorig/solvers/lighting/envmap.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
@@ -259,7 +259,7 @@ TEST(EndToEnd, LightCalibrationRecipeFindsTheDomeAsBuilt) {
   cv::cvtColor(radiance, radiance, cv::COLOR_BGR2GRAY);
   cv::Point brightest;
   cv::minMaxLoc(radiance, nullptr, nullptr, nullptr, &brightest);
-  const Eigen::Vector3d seen = photorig::lighting::LatLongDirection(brightest.x, brightest.y, radiance.cols, radiance.rows);
+  const Eigen::Vector3d seen = photorig::solvers::lighting::LatLongDirection(brightest.x, brightest.y, radiance.cols, radiance.rows);
   EXPECT_LT(AngleDeg(seen, truth[9]), 2.0);
   // The calibrated rig is a working rig file.
   ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + calibrated.string() +
@@ -309,7 +309,7 @@ TEST(EndToEnd, RelightingMatchesTheCapturedFrameOfTheSameLight) {
   const Eigen::Vector3d led(d[0].get<double>(), d[1].get<double>(), d[2].get<double>());
   for (int r = 0; r < map.rows; ++r)
     for (int c = 0; c < map.cols; ++c)
-      if (photorig::lighting::LatLongDirection(c, r, map.cols, map.rows).dot(led) > std::cos(3.0 * M_PI / 180))
+      if (photorig::solvers::lighting::LatLongDirection(c, r, map.cols, map.rows).dot(led) > std::cos(3.0 * M_PI / 180))
         map.at<cv::Vec3f>(r, c) = cv::Vec3f(1, 1, 1);
   ASSERT_TRUE(cv::imwrite((dir.path() / "map.hdr").string(), map));
   ASSERT_EQ(RunPhotorig("relight --run " + run.string() + " --envmap " + (dir.path() / "map.hdr").string() +

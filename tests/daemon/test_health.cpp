@@ -166,7 +166,7 @@ TEST(CaptureHealth, ChecksOffLetABlackCaptureThroughAndPhotometricStereoRefusesI
   const PhotometricStereoResult result =
       SolvePhotometricStereoRun(outcome.directory, request, (dir.path() / "ps").string());
   EXPECT_FALSE(result.usable());
-  EXPECT_EQ(result.summary.termination, solvers::Termination::kFailure);
+  EXPECT_EQ(result.summary.termination, solvers::core::Termination::kFailure);
   EXPECT_TRUE(Contains(result.summary.message, "no usable signal: 0 of 4 images")) << result.summary.message;
 }
 

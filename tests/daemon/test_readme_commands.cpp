@@ -8,7 +8,7 @@
 #include "photorig/config/modules.h"
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/io/internal/previews.h"
-#include "photorig/lighting/envmap.h"
+#include "photorig/solvers/lighting/envmap.h"
 #include "test_support.h"
 
 #include <Eigen/Core>
@@ -335,7 +335,7 @@ TEST(ReadmeCommands, LightCalibrationEnvironmentMapAndRelighting) {
   double near = 0.0, total = 0.0;
   for (int r = 0; r < map.rows; ++r)
     for (int c = 0; c < map.cols; ++c) {
-      const Eigen::Vector3d w = photorig::lighting::LatLongDirection(c, r, map.cols, map.rows);
+      const Eigen::Vector3d w = photorig::solvers::lighting::LatLongDirection(c, r, map.cols, map.rows);
       const double e = map.at<float>(r, c) * std::sqrt(std::max(0.0, 1.0 - w.y() * w.y()));  // x solid angle
       total += e;
       if (w.dot(led9.normalized()) > std::cos(10.0 * M_PI / 180.0)) near += e;

@@ -3,18 +3,18 @@
 //   const cv::Mat image = OutputOf<cv::Mat>([&](cv::Mat* out) { return RenderShLighting(n, a, sh, out); });
 // A termination other than kSuccess fails the test with the solver's message.
 
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <gtest/gtest.h>
 
-namespace photorig::lighting::testing {
+namespace photorig::solvers::lighting::testing {
 
 template <typename Output, typename Operation>
 Output OutputOf(Operation operation) {
   Output output{};
-  const solvers::Summary summary = operation(&output);
-  EXPECT_EQ(summary.termination, solvers::Termination::kSuccess) << summary.message;
+  const solvers::core::Summary summary = operation(&output);
+  EXPECT_EQ(summary.termination, solvers::core::Termination::kSuccess) << summary.message;
   return output;
 }
 
-}  // namespace photorig::lighting::testing
+}  // namespace photorig::solvers::lighting::testing

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-namespace photorig::lighting::testing {
+namespace photorig::solvers::lighting::testing {
 namespace {
 
 // Camera-frame ray origin and direction through image point (u, v).
@@ -157,4 +157,4 @@ double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
 }
 
-}  // namespace photorig::lighting::testing
+}  // namespace photorig::solvers::lighting::testing

@@ -7,7 +7,7 @@
 
 #include <vector>
 
-namespace photorig::lighting::testing {
+namespace photorig::solvers::lighting::testing {
 
 struct SyntheticCamera {
   bool pinhole = false;
@@ -57,4 +57,4 @@ std::vector<Eigen::Vector3d> DomeDirections();
 
 double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 
-}  // namespace photorig::lighting::testing
+}  // namespace photorig::solvers::lighting::testing

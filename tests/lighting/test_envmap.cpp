@@ -1,7 +1,7 @@
-#include "photorig/lighting/envmap.h"
-#include "photorig/lighting/inverse_lighting.h"
-#include "photorig/lighting/relight.h"
-#include "photorig/lighting/spherical_harmonics.h"
+#include "photorig/solvers/lighting/envmap.h"
+#include "photorig/solvers/lighting/inverse_lighting.h"
+#include "photorig/solvers/lighting/relight.h"
+#include "photorig/solvers/lighting/spherical_harmonics.h"
 #include "solver_output.h"
 #include "synthetic_sphere.h"
 
@@ -10,7 +10,7 @@
 
 #include <filesystem>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
 using testing::OutputOf;
@@ -75,8 +75,8 @@ TEST(EnvMap, ExposureBracketsMergeToRadianceAndFlagUnresolvedPixels) {
   options.black_level = 64.0;
   options.saturation_level = 4095.0;
   HdrMerge merge;
-  const solvers::Summary merged = MergeExposures(frames, exposures, options, &merge);
-  ASSERT_EQ(merged.termination, solvers::Termination::kSuccess);
+  const solvers::core::Summary merged = MergeExposures(frames, exposures, options, &merge);
+  ASSERT_EQ(merged.termination, solvers::core::Termination::kSuccess);
   EXPECT_NE(merged.message.find("saturated in every exposure"), std::string::npos) << merged.message;
   for (int i = 0; i < 64; ++i) {
     const float truth = radiance.at<float>(i / 8, i % 8);
@@ -141,4 +141,4 @@ TEST(EnvMap, RelightingWithAnEnvironmentBySphericalHarmonicsAndByTheDome) {
 }
 
 }  // namespace
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

@@ -1,7 +1,7 @@
-#include "photorig/lighting/inverse_lighting.h"
-#include "photorig/lighting/nnls.h"
-#include "photorig/lighting/relight.h"
-#include "photorig/lighting/spherical_harmonics.h"
+#include "photorig/solvers/lighting/inverse_lighting.h"
+#include "photorig/solvers/lighting/nnls.h"
+#include "photorig/solvers/lighting/relight.h"
+#include "photorig/solvers/lighting/spherical_harmonics.h"
 #include "solver_output.h"
 #include "synthetic_sphere.h"
 
@@ -10,7 +10,7 @@
 
 #include <random>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
 using testing::OutputOf;
@@ -52,7 +52,7 @@ TEST(Nnls, MatchesBruteForceOverActiveSets) {
     for (int j = 0; j < 5; ++j) a(i, j) = normal(rng);
   }
   Eigen::VectorXd x;
-  ASSERT_EQ(SolveNnls(a, b, &x).termination, solvers::Termination::kSuccess);
+  ASSERT_EQ(SolveNnls(a, b, &x).termination, solvers::core::Termination::kSuccess);
   EXPECT_GE(x.minCoeff(), 0.0);
   double best = HUGE_VAL;
   for (int set = 0; set < 32; ++set) {  // every subset: unconstrained solve, keep feasible ones
@@ -141,31 +141,31 @@ TEST_F(InverseLighting, LedWeightsRecoverADomeMixtureAndImageBasedRelightingMatc
 
 TEST_F(InverseLighting, RejectsMismatchedInputs) {
   const ShLightingSummary fit = FitShLighting(normals_, albedo_, cv::Mat::zeros(10, 10, CV_32F), mask_);
-  EXPECT_EQ(fit.termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(fit.termination, solvers::core::Termination::kInvalidInput);
   EXPECT_NE(fit.message.find("image"), std::string::npos);
   ShFitOptions bad;
   bad.pixel_stride = 0;
-  EXPECT_EQ(FitShLighting(normals_, albedo_, normals_, mask_, bad).termination, solvers::Termination::kInvalidOptions);
+  EXPECT_EQ(FitShLighting(normals_, albedo_, normals_, mask_, bad).termination, solvers::core::Termination::kInvalidOptions);
   // Relighting with mismatched inputs says what is wrong and leaves the output alone.
   cv::Mat untouched;
-  const solvers::Summary render = RenderShLighting(normals_, albedo_, Eigen::MatrixXd::Zero(5, 1), &untouched);
-  EXPECT_EQ(render.termination, solvers::Termination::kInvalidInput);
+  const solvers::core::Summary render = RenderShLighting(normals_, albedo_, Eigen::MatrixXd::Zero(5, 1), &untouched);
+  EXPECT_EQ(render.termination, solvers::core::Termination::kInvalidInput);
   EXPECT_NE(render.message.find("5 SH coefficients"), std::string::npos) << render.message;
   EXPECT_EQ(RelightFromFrames({albedo_}, Eigen::MatrixXd::Ones(2, 1), &untouched).termination,
-            solvers::Termination::kInvalidInput);
+            solvers::core::Termination::kInvalidInput);
   EXPECT_EQ(RenderDirectionalLights(normals_, albedo_, {Eigen::Vector3d::UnitZ()}, {}, &untouched).termination,
-            solvers::Termination::kInvalidInput);
+            solvers::core::Termination::kInvalidInput);
   EXPECT_TRUE(untouched.empty());
   // NNLS: an iteration limit is a usable, unconverged result; sizes that disagree are invalid input.
   Eigen::VectorXd x;
   EXPECT_EQ(SolveNnls(Eigen::MatrixXd::Identity(3, 3), Eigen::VectorXd::Ones(2), &x).termination,
-            solvers::Termination::kInvalidInput);
+            solvers::core::Termination::kInvalidInput);
   NnlsOptions one_step;
   one_step.max_iterations = 1;
   const NnlsSummary limited = SolveNnls(Eigen::MatrixXd::Identity(3, 3), Eigen::VectorXd::Ones(3), &x, one_step);
-  EXPECT_EQ(limited.termination, solvers::Termination::kNoConvergence);
+  EXPECT_EQ(limited.termination, solvers::core::Termination::kNoConvergence);
   EXPECT_TRUE(limited.IsSolutionUsable());
 }
 
 }  // namespace
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

@@ -1,4 +1,4 @@
-#include "photorig/lighting/light_files.h"
+#include "photorig/solvers/lighting/light_files.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
 // Unique to this process: CTest runs tests of one file in parallel processes.
@@ -63,4 +63,4 @@ TEST(LightFiles, DiligentTriplesRoundTripAndRejectShortRows) {
 }
 
 }  // namespace
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

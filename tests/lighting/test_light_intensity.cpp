@@ -1,9 +1,9 @@
-#include "photorig/lighting/light_intensity.h"
+#include "photorig/solvers/lighting/light_intensity.h"
 #include "synthetic_sphere.h"
 
 #include <gtest/gtest.h>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
 TEST(LightIntensity, RelativeRgbFromAWhiteSphere) {
@@ -55,4 +55,4 @@ TEST(LightIntensity, PlaneAndSaturationAndTooFewSamples) {
 }
 
 }  // namespace
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

@@ -1,4 +1,4 @@
-#include "photorig/lighting/mirror_sphere.h"
+#include "photorig/solvers/lighting/mirror_sphere.h"
 #include "synthetic_sphere.h"
 
 #include <Eigen/Geometry>
@@ -7,7 +7,7 @@
 #include <cmath>
 #include <random>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
 using testing::AngleDeg;
@@ -184,9 +184,9 @@ TEST(MirrorSphere, TwoSpheresTriangulateANearLight) {
 }
 
 }  // namespace
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
 // Mirror-sphere frames of the dome, the true directions, and nominal ones
@@ -275,4 +275,4 @@ TEST(HighlightCircle, WrongDirectionsAndMissingHighlightsAreReportedNotFitted) {
 }
 
 }  // namespace
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

@@ -1,9 +1,9 @@
-#include "photorig/lighting/sphere.h"
+#include "photorig/solvers/lighting/sphere.h"
 #include "synthetic_sphere.h"
 
 #include <gtest/gtest.h>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
 using testing::SyntheticCamera;
@@ -68,4 +68,4 @@ TEST(SphereFit, PinholeSilhouetteIsAnEllipseAndTheConeRecoversTheCentre) {
 }
 
 }  // namespace
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

@@ -84,12 +84,12 @@ TEST(NormalRefinement, BadOptionsEndWithoutAResult) {
   refl::ReflectanceMaps maps;
   EXPECT_EQ(refl::RefineNormalsAndReflectance(options, scene.stack, scene.truth.normals, scene.mask, &refined, &maps)
                 .termination,
-            solvers::Termination::kInvalidOptions);
+            solvers::core::Termination::kInvalidOptions);
   options.rounds = 2;
   options.max_change_deg = 0.0;
   EXPECT_EQ(refl::RefineNormalsAndReflectance(options, scene.stack, scene.truth.normals, scene.mask, &refined, &maps)
                 .termination,
-            solvers::Termination::kInvalidOptions);
+            solvers::core::Termination::kInvalidOptions);
   EXPECT_TRUE(refined.empty());
 }
 

@@ -165,20 +165,20 @@ TEST(Svbrdf, BadOptionsAndInputsEndWithoutAResult) {
   ReflectanceOptions options;
   options.max_materials = 0;
   EXPECT_EQ(FitReflectance(options, scene.stack, scene.truth.normals, scene.mask, &fit).termination,
-            solvers::Termination::kInvalidOptions);
+            solvers::core::Termination::kInvalidOptions);
   options = {};
   options.lobes = {brdf::Model::kLambertian};
   EXPECT_EQ(FitReflectance(options, scene.stack, scene.truth.normals, scene.mask, &fit).termination,
-            solvers::Termination::kInvalidOptions);
+            solvers::core::Termination::kInvalidOptions);
   auto stack = scene.stack;
   stack.light_directions.pop_back();
   EXPECT_EQ(FitReflectance({}, stack, scene.truth.normals, scene.mask, &fit).termination,
-            solvers::Termination::kInvalidInput);
+            solvers::core::Termination::kInvalidInput);
   EXPECT_EQ(FitReflectance({}, scene.stack, cv::Mat(3, 3, CV_32FC3), scene.mask, &fit).termination,
-            solvers::Termination::kInvalidInput);
+            solvers::core::Termination::kInvalidInput);
   EXPECT_EQ(FitReflectance({}, scene.stack, scene.truth.normals, cv::Mat::zeros(scene.mask.size(), CV_8U), &fit)
                 .termination,
-            solvers::Termination::kFailure);
+            solvers::core::Termination::kFailure);
 }
 
 TEST(Svbrdf, RenderingAFlatPixelIsTheBrdfModel) {

@@ -1,7 +1,7 @@
 #pragma once
 // Synthetic photometric-stereo stacks with exactly known answers.
 
-#include "photorig/ps/stack.h"
+#include "photorig/solvers/ps/stack.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-namespace photorig::ps::testing {
+namespace photorig::solvers::ps::testing {
 
 // Lights on a cone of the given elevation band around +z.
 inline std::vector<Eigen::Vector3d> RingLights(int count, double min_elevation_deg, double max_elevation_deg,
@@ -76,9 +76,9 @@ inline double AngleDeg(const cv::Vec3f& a, const cv::Vec3f& b) {
   return std::atan2(u.cross(v).norm(), u.dot(v)) * 180.0 / M_PI;
 }
 
-}  // namespace photorig::ps::testing
+}  // namespace photorig::solvers::ps::testing
 
-namespace photorig::ps::testing {
+namespace photorig::solvers::ps::testing {
 
 struct Specular {
   double albedo = 0.0;    // rho_s
@@ -151,4 +151,4 @@ inline UsableLeastSquares SolveUsableInDouble(const PhotometricStack& stack, int
   return out;
 }
 
-}  // namespace photorig::ps::testing
+}  // namespace photorig::solvers::ps::testing

@@ -1,10 +1,10 @@
-#include "photorig/ps/evaluation.h"
+#include "photorig/solvers/ps/evaluation.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 cv::Vec3f Tilted(double degrees) {
@@ -41,9 +41,9 @@ TEST(CompareNormals, SmallAnglesKeepTheirPrecision) {
   EXPECT_NEAR(CompareNormals(estimate, truth).mean_deg, 0.001, 1e-5);
   // Maps that cannot be compared say so instead of throwing.
   const AngularErrorStats mismatched = CompareNormals(estimate, cv::Mat(2, 2, CV_32FC3));
-  EXPECT_EQ(mismatched.termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(mismatched.termination, solvers::core::Termination::kInvalidInput);
   EXPECT_EQ(mismatched.pixels_with_truth, 0u);
 }
 
 }  // namespace
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

@@ -1,10 +1,10 @@
-#include "photorig/ps/integration.h"
+#include "photorig/solvers/ps/integration.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 // A hemisphere of radius R pixels centred in the image, and its height.
@@ -107,14 +107,14 @@ TEST(IntegrateNormals, GrazingNormalsAreDroppedAndEmptyInputIsAnError) {
   EXPECT_TRUE(std::isnan(depth.at<float>(3, 3)));
   const cv::Mat nothing(8, 8, CV_32FC3, cv::Scalar::all(NAN));
   const IntegrationSummary empty = IntegrateNormals(IntegrationOptions{}, nothing, cv::Mat(), &depth);
-  EXPECT_EQ(empty.termination, solvers::Termination::kFailure);
+  EXPECT_EQ(empty.termination, solvers::core::Termination::kFailure);
   EXPECT_NE(empty.message.find("no pixel"), std::string::npos);
   IntegrationOptions flat;
   flat.min_normal_z = 1.5;
-  EXPECT_EQ(IntegrateNormals(flat, nothing, cv::Mat(), &depth).termination, solvers::Termination::kInvalidOptions);
+  EXPECT_EQ(IntegrateNormals(flat, nothing, cv::Mat(), &depth).termination, solvers::core::Termination::kInvalidOptions);
   EXPECT_EQ(IntegrateNormals(IntegrationOptions{}, cv::Mat(8, 8, CV_32F), cv::Mat(), &depth).termination,
-            solvers::Termination::kInvalidInput);
+            solvers::core::Termination::kInvalidInput);
 }
 
 }  // namespace
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

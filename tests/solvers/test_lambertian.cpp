@@ -1,5 +1,5 @@
-#include "photorig/ps/evaluation.h"
-#include "photorig/ps/lambertian.h"
+#include "photorig/solvers/ps/evaluation.h"
+#include "photorig/solvers/ps/lambertian.h"
 #include "lambertian_tiles.h"
 #include "ps_test_scene.h"
 
@@ -11,7 +11,7 @@
 #include <limits>
 #include <vector>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 using testing::RandomSurface;
@@ -333,4 +333,4 @@ TEST(LambertianOptions, ValidationExplainsTheProblem) {
 }
 
 }  // namespace
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

@@ -8,7 +8,7 @@
 #include "kernels/trimmed_lambertian_fit.h"
 #include "lambertian_tiles.h"
 
-#include "photorig/autodiff/blinn_phong_jacobian.h"
+#include "photorig/solvers/autodiff/blinn_phong_jacobian.h"
 #include "ps_test_scene.h"
 
 #include <gtest/gtest.h>
@@ -18,7 +18,7 @@
 #include <limits>
 #include <random>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 using internal::BlinnPhongLaneFitter;
@@ -135,12 +135,12 @@ TEST(BlinnPhongLanes, NormalEquationsMatchForwardModeAutodiff) {
     // a tangent step t moves m by t, so its column is J_m t.
     Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
     for (int k = 0; k < n; ++k) directions.row(k) = pixel.lights[k].transpose();
-    const autodiff::BlinnPhongPixel model(directions, Eigen::VectorXd::Ones(n), Eigen::Vector3d::UnitZ(),
+    const solvers::autodiff::BlinnPhongPixel model(directions, Eigen::VectorXd::Ones(n), Eigen::Vector3d::UnitZ(),
                                           Eigen::Map<const Eigen::VectorXd>(pixel.observed.data(), n));
     const double parameters[6] = {pixel.normal.x(), pixel.normal.y(), pixel.normal.z(), rho_d, rho_s, exponent};
     Eigen::VectorXd residuals;
     Eigen::MatrixXd jacobian;
-    ASSERT_TRUE(autodiff::BlinnPhongResidualsAndJacobian(model, parameters, autodiff::DerivativeMethod::kForward,
+    ASSERT_TRUE(solvers::autodiff::BlinnPhongResidualsAndJacobian(model, parameters, solvers::autodiff::DerivativeMethod::kForward,
                                                          &residuals, &jacobian));
     Eigen::MatrixXd j(n, 5);
     j.col(0) = jacobian.leftCols<3>() * lanes.tangent[0];
@@ -618,4 +618,4 @@ TEST(PhotometricStereoLanes, AutoMatchesThePerPixelReferenceWithFewDoubtfulPixel
 }
 
 }  // namespace
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

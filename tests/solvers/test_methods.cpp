@@ -1,5 +1,5 @@
-#include "photorig/ps/evaluation.h"
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/evaluation.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 #include "ps_test_scene.h"
 
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 #include <vector>
 #include <cmath>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 using testing::AngleDeg;
@@ -450,13 +450,13 @@ TEST(PhotometricStereo, ProgressCountsEveryPixelFromTheCallingThread) {
   const auto stack = RenderShinyStack(truth, RingLights(24, 30, 80), 1000.0, Specular{0.3, 30.0}, 0.0f, 0.5);
   const std::thread::id caller = std::this_thread::get_id();
   for (Method method : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
-    std::vector<solvers::Progress> seen;
+    std::vector<solvers::core::Progress> seen;
     bool other_thread = false;
     PhotometricStereoOptions options = Options(method, 2.0);
     options.lambertian.num_threads = 2;
     NormalMap quiet, reported;
     ASSERT_TRUE(SolvePhotometricStereo(options, stack, &quiet).IsSolutionUsable());
-    options.progress = [&](const solvers::Progress& p) {
+    options.progress = [&](const solvers::core::Progress& p) {
       other_thread |= std::this_thread::get_id() != caller;
       seen.push_back(p);
     };
@@ -476,4 +476,4 @@ TEST(PhotometricStereo, ProgressCountsEveryPixelFromTheCallingThread) {
 }
 
 }  // namespace
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

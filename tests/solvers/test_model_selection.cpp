@@ -7,7 +7,7 @@
 #include <cmath>
 #include <vector>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 using internal::GgxFits;
@@ -236,4 +236,4 @@ TEST(ModelLadder, OnlyAutoScreensOnTheLambertianConfidence) {
 }
 
 }  // namespace
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

@@ -1,13 +1,13 @@
 // The progress throttle: about a hundred reports per stage however many units
 // it has, always one at the end, and nothing when no callback is set.
 
-#include "photorig/solvers/progress.h"
+#include "photorig/solvers/core/progress.h"
 
 #include <gtest/gtest.h>
 
 #include <vector>
 
-namespace photorig::solvers {
+namespace photorig::solvers::core {
 namespace {
 
 std::vector<Progress> ReportsFor(std::int64_t total) {
@@ -44,4 +44,4 @@ TEST(ProgressThrottle, WithoutACallbackNothingIsCalled) {
 }
 
 }  // namespace
-}  // namespace photorig::solvers
+}  // namespace photorig::solvers::core

@@ -2,8 +2,8 @@
 // simulated one (docs/photometric-stereo-accuracy.md, "Realistic scenes"): a GGX lobe
 // where the single methods model Blinn-Phong, lights off their stated
 // directions and intensities, and a camera response that is not linear.
-#include "photorig/ps/evaluation.h"
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/evaluation.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 #include "ps_test_scene.h"
 
 #include <gtest/gtest.h>
@@ -13,7 +13,7 @@
 #include <limits>
 #include <random>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 struct RealisticScene {
@@ -184,4 +184,4 @@ TEST(RealisticSphere, AutoKeepsBlinnPhongWhereTheLobeIsBlinnPhong) {
 }
 
 }  // namespace
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

@@ -10,13 +10,13 @@
 
 namespace photorig::daemon {
 
-inline TomographyInput SimulatedScan(int views = 64, tomography::Beam beam = tomography::Beam::kParallel) {
+inline TomographyInput SimulatedScan(int views = 64, solvers::tomography::Beam beam = solvers::tomography::Beam::kParallel) {
   TomographyInput input;
   input.source = "simulated scan";
   input.geometry.detector_cols = 64;
   input.geometry.detector_rows = 8;
   input.geometry.pixel_mm = 0.5;
-  input.geometry.angles_rad = tomography::EvenAngles(views, 180.0);
+  input.geometry.angles_rad = solvers::tomography::EvenAngles(views, 180.0);
   input.geometry.beam = beam;
   input.geometry.source_to_axis_mm = 60.0;
   input.geometry.axis_to_detector_mm = 20.0;

@@ -11,7 +11,7 @@
 
 #include <memory>
 
-namespace photorig::tomography::testing_support {
+namespace photorig::solvers::tomography::testing_support {
 
 struct SliceProblem {
   VolumeGrid grid;
@@ -57,4 +57,4 @@ struct SliceProblem {
   }
 };
 
-}  // namespace photorig::tomography::testing_support
+}  // namespace photorig::solvers::tomography::testing_support

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <limits>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 namespace {
 
 Geometry OneView(int cols, int rows) {
@@ -25,7 +25,7 @@ TEST(Absorbance, IsMinusTheLogOfTheDarkCorrectedRatio) {
       darks{{100, 100, 100}};
   Absorbance a;
   const AbsorbanceSummary s = ComputeAbsorbance(g, frames, flats, darks, {}, &a);
-  ASSERT_EQ(s.termination, solvers::Termination::kSuccess) << s.message;
+  ASSERT_EQ(s.termination, solvers::core::Termination::kSuccess) << s.message;
   EXPECT_NEAR(a.b[0], std::log(2.0), 1e-6);
   EXPECT_NEAR(a.b[1], 0.0, 1e-6);
   EXPECT_NEAR(a.b[2], std::log(10.0), 1e-6);
@@ -48,7 +48,7 @@ TEST(Absorbance, FlagsNonPositiveSaturatedAndUnlitPixelsInsteadOfClipping) {
   EXPECT_NE(s.message.find("4 of 5"), std::string::npos) << s.message;
   // Every pixel flagged: nothing to reconstruct from.
   const std::vector<std::vector<std::uint16_t>> dark_frames{{50, 50, 50, 50, 50}};
-  EXPECT_EQ(ComputeAbsorbance(g, dark_frames, flats, darks, {}, &a).termination, solvers::Termination::kFailure);
+  EXPECT_EQ(ComputeAbsorbance(g, dark_frames, flats, darks, {}, &a).termination, solvers::core::Termination::kFailure);
 }
 
 TEST(Absorbance, NoiseEstimateFromFlatsAndDarksMatchesTheScatterOfB) {
@@ -80,4 +80,4 @@ TEST(Absorbance, NoiseEstimateFromFlatsAndDarksMatchesTheScatterOfB) {
 }
 
 }  // namespace
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

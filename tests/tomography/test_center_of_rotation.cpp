@@ -6,7 +6,7 @@
 
 #include <random>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 namespace {
 
 using testing_support::SliceProblem;
@@ -21,7 +21,7 @@ TEST(CentreOfRotation, RecoversAKnownOffsetFromOpposingViews) {
     Geometry assumed = problem.geometry;
     assumed.cor_offset_mm = 0.0;  // what a rig file that knows nothing would say
     const CorEstimateSummary s = EstimateCorOffset(assumed, data);
-    ASSERT_EQ(s.termination, solvers::Termination::kSuccess) << s.message;
+    ASSERT_EQ(s.termination, solvers::core::Termination::kSuccess) << s.message;
     EXPECT_EQ(s.pairs, 30);
     // A tenth of a pixel (0.05 mm).
     EXPECT_NEAR(s.offset_mm, offset_mm, 0.05);
@@ -31,7 +31,7 @@ TEST(CentreOfRotation, RecoversAKnownOffsetFromOpposingViews) {
 TEST(CentreOfRotation, SaysWhyItCannotEstimate) {
   SliceProblem half_scan(32, 32, 180.0);  // 0..180 without its end view: no opposing pair
   const CorEstimateSummary s = EstimateCorOffset(half_scan.geometry, half_scan.Exact());
-  EXPECT_EQ(s.termination, solvers::Termination::kFailure);
+  EXPECT_EQ(s.termination, solvers::core::Termination::kFailure);
   EXPECT_NE(s.message.find("180 degrees apart"), std::string::npos) << s.message;
   Geometry with_end = half_scan.geometry;
   with_end.angles_rad = EvenAngles(32, 180.0, true);
@@ -40,8 +40,8 @@ TEST(CentreOfRotation, SaysWhyItCannotEstimate) {
   EXPECT_EQ(EstimateCorOffset(with_end, problem.Exact()).pairs, 1);
   Geometry cone = half_scan.geometry;
   cone.beam = Beam::kCone;
-  EXPECT_EQ(EstimateCorOffset(cone, half_scan.Exact()).termination, solvers::Termination::kFailure);
+  EXPECT_EQ(EstimateCorOffset(cone, half_scan.Exact()).termination, solvers::core::Termination::kFailure);
 }
 
 }  // namespace
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -5,7 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 namespace {
 
 TEST(Nrrd, WritesAHeaderAndRawFloatsThatReadBack) {
@@ -13,7 +13,7 @@ TEST(Nrrd, WritesAHeaderAndRawFloatsThatReadBack) {
   Eigen::VectorXf sigma(grid.voxels());
   for (std::int64_t i = 0; i < sigma.size(); ++i) sigma[i] = 0.01f * static_cast<float>(i) - 0.2f;
   const std::string path = (std::filesystem::temp_directory_path() / "photorig_test_volume.nrrd").string();
-  ASSERT_EQ(WriteNrrd(path, grid, sigma).termination, solvers::Termination::kSuccess);
+  ASSERT_EQ(WriteNrrd(path, grid, sigma).termination, solvers::core::Termination::kSuccess);
 
   std::ifstream in(path, std::ios::binary);
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -25,7 +25,7 @@ TEST(Nrrd, WritesAHeaderAndRawFloatsThatReadBack) {
 
   VolumeGrid read;
   Eigen::VectorXf back;
-  ASSERT_EQ(ReadNrrd(path, &read, &back).termination, solvers::Termination::kSuccess);
+  ASSERT_EQ(ReadNrrd(path, &read, &back).termination, solvers::core::Termination::kSuccess);
   EXPECT_EQ(read.nx, 5);
   EXPECT_EQ(read.ny, 4);
   EXPECT_EQ(read.nz, 3);
@@ -37,15 +37,15 @@ TEST(Nrrd, WritesAHeaderAndRawFloatsThatReadBack) {
 TEST(Nrrd, RefusesWhatItCannotRead) {
   VolumeGrid grid;
   Eigen::VectorXf sigma;
-  EXPECT_EQ(ReadNrrd("/nonexistent/volume.nrrd", &grid, &sigma).termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(ReadNrrd("/nonexistent/volume.nrrd", &grid, &sigma).termination, solvers::core::Termination::kInvalidInput);
   const std::string path = (std::filesystem::temp_directory_path() / "photorig_test_gzip.nrrd").string();
   std::ofstream(path) << "NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: gzip\n\n";
-  const solvers::Summary s = ReadNrrd(path, &grid, &sigma);
-  EXPECT_EQ(s.termination, solvers::Termination::kInvalidInput);
+  const solvers::core::Summary s = ReadNrrd(path, &grid, &sigma);
+  EXPECT_EQ(s.termination, solvers::core::Termination::kInvalidInput);
   EXPECT_NE(s.message.find("gzip"), std::string::npos);
-  EXPECT_EQ(WriteNrrd(path, {2, 2, 2, 1.0}, Eigen::VectorXf(3)).termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(WriteNrrd(path, {2, 2, 2, 1.0}, Eigen::VectorXf(3)).termination, solvers::core::Termination::kInvalidInput);
   std::filesystem::remove(path);
 }
 
 }  // namespace
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

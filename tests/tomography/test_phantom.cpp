@@ -30,7 +30,7 @@ TEST(Phantom, SheppLoganCentralSliceHasTheTableValues) {
   EXPECT_NEAR(p.Sigma({0.22 * 32.0, 0, 0}), 0.0, 1e-12);
   // Rasterised and projected agree: the sum of a slice's line integrals
   // along x times the pitch is the slice's mass.
-  const tomography::VolumeGrid grid{64, 64, 1, 1.0};
+  const solvers::tomography::VolumeGrid grid{64, 64, 1, 1.0};
   const std::vector<float> slice = p.Rasterise(grid, 4);
   double mass = 0.0;
   for (float s : slice) mass += s;  // voxel area 1 mm^2
@@ -57,7 +57,7 @@ TEST(Phantom, SamplerGivesThePhantomsValuesExactly) {
     const Eigen::Vector3d direction = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
     EXPECT_EQ(sampler.LineIntegral(point, direction), p.LineIntegral(point, direction));
   }
-  const tomography::VolumeGrid grid{6, 5, 4, 4.0};
+  const solvers::tomography::VolumeGrid grid{6, 5, 4, 4.0};
   const std::vector<float> raster = p.Rasterise(grid, 2);
   for (int k = 0; k < grid.nz; ++k)
     for (int j = 0; j < grid.ny; ++j)
@@ -77,7 +77,7 @@ TEST(Phantom, ScanFramesFollowTheBeerLambertLaw) {
   ball.half_extent_mm = 4.0;
   ball.sigma_per_mm = 0.1;
   ball.ellipsoids = {{1.0, 1.0, 1.0, 1.0, 0, 0, 0, 0, 0, 0}};
-  tomography::Geometry g;
+  solvers::tomography::Geometry g;
   g.detector_cols = 3;
   g.detector_rows = 3;
   g.pixel_mm = 1.0;

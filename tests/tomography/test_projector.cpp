@@ -9,7 +9,7 @@
 #include <random>
 #include <string>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 namespace {
 
 Geometry Scan(Beam beam, int views, int cols, int rows, double pixel_mm) {
@@ -157,7 +157,7 @@ TEST(Projector, SlicesPastTheGridAreInvalidOptions) {
   options.slices = 3;
   std::unique_ptr<Projector> w;
   const ProjectorSummary s = MakeProjector({8, 8, 8, 0.5}, Scan(Beam::kParallel, 4, 8, 8, 0.5), options, &w);
-  EXPECT_EQ(s.termination, solvers::Termination::kInvalidOptions);
+  EXPECT_EQ(s.termination, solvers::core::Termination::kInvalidOptions);
   EXPECT_NE(s.message.find("past the grid"), std::string::npos) << s.message;
   options.slices = 2;
   ASSERT_TRUE(MakeProjector({8, 8, 8, 0.5}, Scan(Beam::kParallel, 4, 8, 8, 0.5), options, &w).IsSolutionUsable());
@@ -206,7 +206,7 @@ TEST(Projector, SparseStorageOverTheBudgetFails) {
   options.memory_budget_bytes = 1024;
   std::unique_ptr<Projector> w;
   const ProjectorSummary s = MakeProjector({16, 16, 16, 0.5}, Scan(Beam::kParallel, 8, 16, 16, 0.5), options, &w);
-  EXPECT_EQ(s.termination, solvers::Termination::kFailure);
+  EXPECT_EQ(s.termination, solvers::core::Termination::kFailure);
   EXPECT_NE(s.message.find("memory_budget_bytes"), std::string::npos);
   EXPECT_GT(s.estimated_sparse_bytes, 1024u);
   EXPECT_EQ(w, nullptr);
@@ -220,10 +220,10 @@ TEST(Projector, BadGeometryIsInvalidInput) {
   Geometry g = Scan(Beam::kParallel, 4, 8, 8, 0.5);
   g.angles_rad.clear();
   std::unique_ptr<Projector> w;
-  EXPECT_EQ(MakeProjector({8, 8, 8, 0.5}, g, {}, &w).termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(MakeProjector({8, 8, 8, 0.5}, g, {}, &w).termination, solvers::core::Termination::kInvalidInput);
   EXPECT_EQ(MakeProjector({0, 8, 8, 0.5}, Scan(Beam::kParallel, 4, 8, 8, 0.5), {}, &w).termination,
-            solvers::Termination::kInvalidInput);
+            solvers::core::Termination::kInvalidInput);
 }
 
 }  // namespace
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <map>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 namespace {
 
 double Sum(const std::vector<RayWeight>& weights) {
@@ -77,4 +77,4 @@ TEST(RayTrace, NamesParse) {
 }
 
 }  // namespace
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

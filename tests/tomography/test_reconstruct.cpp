@@ -11,7 +11,7 @@
 #include <random>
 #include <string>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 namespace {
 
 using testing_support::SliceProblem;
@@ -176,7 +176,7 @@ TEST(Reconstruct, DiscrepancyStopLandsNearTheErrorMinimum) {
       stopped.noise_sigma = noise_sigma;
       x.resize(0);
       const ReconstructionSummary s = Reconstruct(*problem.projector, noisy, stopped, &x);
-      ASSERT_EQ(s.termination, solvers::Termination::kSuccess) << s.message;
+      ASSERT_EQ(s.termination, solvers::core::Termination::kSuccess) << s.message;
       EXPECT_EQ(s.stop_reason, StopReason::kDiscrepancy);
       EXPECT_LE(problem.Error(x), 1.10 * best) << MethodName(method) << (variant.total_variation ? " with TV" : "")
                                                  << " seed " << seed << " after " << s.iterations << " iterations";
@@ -204,7 +204,7 @@ TEST(Reconstruct, SartWithTotalVariationStopsAtTheMeasuredError) {
   options.max_iterations = 60;
   Eigen::VectorXf x;
   const ReconstructionSummary s = Reconstruct(*problem.projector, noisy, options, &x);
-  ASSERT_EQ(s.termination, solvers::Termination::kSuccess) << s.message;
+  ASSERT_EQ(s.termination, solvers::core::Termination::kSuccess) << s.message;
   EXPECT_EQ(s.stop_reason, StopReason::kDiscrepancy);
   EXPECT_DOUBLE_EQ(s.tv_strength, 1.0);
   const double error = problem.Error(x);
@@ -268,13 +268,13 @@ TEST(Reconstruct, SartWithTotalVariationOnTheRecipesScanStopsAtItsBalance) {
   options.max_iterations = 300;
   std::int64_t last_done = -1;
   std::string stopped;
-  options.progress = [&](const solvers::Progress& p) {
+  options.progress = [&](const solvers::core::Progress& p) {
     last_done = p.done;
     stopped = std::string(p.stopped);
   };
   Eigen::VectorXf x;
   const ReconstructionSummary s = Reconstruct(*w, data, options, &x);
-  ASSERT_EQ(s.termination, solvers::Termination::kSuccess) << s.message;
+  ASSERT_EQ(s.termination, solvers::core::Termination::kSuccess) << s.message;
   EXPECT_EQ(s.stop_reason, StopReason::kStagnation);
   EXPECT_LT(s.iterations, 100);
   EXPECT_FALSE(s.inconsistent);
@@ -304,7 +304,7 @@ TEST(Reconstruct, SartWithTotalVariationOnTheRecipesScanStopsAtItsBalance) {
   sirt.max_iterations = 300;
   Eigen::VectorXf y;
   const ReconstructionSummary t = Reconstruct(*w, data, sirt, &y);
-  ASSERT_EQ(t.termination, solvers::Termination::kSuccess) << t.message;
+  ASSERT_EQ(t.termination, solvers::core::Termination::kSuccess) << t.message;
   EXPECT_LT(tv_error, 0.9 * error(y)) << "SIRT after " << t.iterations;
 }
 
@@ -334,13 +334,13 @@ TEST(Reconstruct, SartWithTotalVariationOnInconsistentDataIsNotTrusted) {
   options.max_iterations = 300;
   Eigen::VectorXf x;
   const ReconstructionSummary s = Reconstruct(*centred.projector, data, options, &x);
-  EXPECT_NE(s.termination, solvers::Termination::kSuccess) << s.message;
+  EXPECT_NE(s.termination, solvers::core::Termination::kSuccess) << s.message;
   EXPECT_TRUE(s.inconsistent) << s.message;
   EXPECT_NE(s.message.find("centre of rotation"), std::string::npos) << s.message;
   // The right geometry: the same data fit within the noise level.
   x.resize(0);
   const ReconstructionSummary t = Reconstruct(*shifted.projector, data, options, &x);
-  EXPECT_EQ(t.termination, solvers::Termination::kSuccess) << t.message;
+  EXPECT_EQ(t.termination, solvers::core::Termination::kSuccess) << t.message;
 }
 
 // An iteration that a rule ends early reports where it stopped and why; one
@@ -355,9 +355,9 @@ TEST(Reconstruct, ProgressEndsWhereTheIterationsStopped) {
   ReconstructOptions options;
   options.noise_sigma = noise_sigma;
   options.max_iterations = 300;
-  solvers::Progress last;
+  solvers::core::Progress last;
   std::string stopped;
-  options.progress = [&](const solvers::Progress& p) {
+  options.progress = [&](const solvers::core::Progress& p) {
     last = p;
     stopped = std::string(p.stopped);
   };
@@ -403,7 +403,7 @@ TEST(Reconstruct, ArtsLimitCycleAboveTheNoiseLevelIsNotUsable) {
   Eigen::VectorXf x;
   const ReconstructionSummary s = Reconstruct(*problem.projector, data, options, &x);
   EXPECT_EQ(s.stop_reason, StopReason::kLimitCycle) << s.message;
-  EXPECT_EQ(s.termination, solvers::Termination::kFailure);
+  EXPECT_EQ(s.termination, solvers::core::Termination::kFailure);
   EXPECT_FALSE(s.IsSolutionUsable());
   EXPECT_NE(s.message.find("limit cycle"), std::string::npos) << s.message;
   EXPECT_GT(s.residual_history.back(), s.discrepancy_target);
@@ -413,7 +413,7 @@ TEST(Reconstruct, ArtsLimitCycleAboveTheNoiseLevelIsNotUsable) {
   x.resize(0);
   const ReconstructionSummary t = Reconstruct(*problem.projector, data, options, &x);
   EXPECT_EQ(t.stop_reason, StopReason::kLimitCycle) << t.message;
-  EXPECT_EQ(t.termination, solvers::Termination::kSuccess) << t.message;
+  EXPECT_EQ(t.termination, solvers::core::Termination::kSuccess) << t.message;
 }
 
 TEST(Reconstruct, TooFewViewsAreFlagged) {
@@ -422,7 +422,7 @@ TEST(Reconstruct, TooFewViewsAreFlagged) {
   options.stop_rule = StopRule::kIterations;
   Eigen::VectorXf x;
   const ReconstructionSummary s = Reconstruct(*problem.projector, problem.Exact(), options, &x);
-  EXPECT_EQ(s.termination, solvers::Termination::kFailure);
+  EXPECT_EQ(s.termination, solvers::core::Termination::kFailure);
   EXPECT_NE(s.message.find("too few views"), std::string::npos) << s.message;
   EXPECT_EQ(x.size(), 0) << "nothing computed";
   // Enough to go on, still fewer rays than voxels: usable, and said so.
@@ -443,7 +443,7 @@ TEST(Reconstruct, NoSignalIsAFailureNotAFlatVolume) {
   options.noise_sigma = 0.01;
   Eigen::VectorXf x;
   const ReconstructionSummary s = Reconstruct(*problem.projector, noise_only, options, &x);
-  EXPECT_EQ(s.termination, solvers::Termination::kFailure);
+  EXPECT_EQ(s.termination, solvers::core::Termination::kFailure);
   EXPECT_NE(s.message.find("no signal"), std::string::npos) << s.message;
 }
 
@@ -462,14 +462,14 @@ TEST(Reconstruct, AWrongCentreOfRotationShowsAsInconsistentData) {
   options.stagnation_tolerance = 1e-3;
   Eigen::VectorXf x;
   const ReconstructionSummary s = Reconstruct(*centred.projector, data, options, &x);
-  EXPECT_EQ(s.termination, solvers::Termination::kNoConvergence) << s.message;
+  EXPECT_EQ(s.termination, solvers::core::Termination::kNoConvergence) << s.message;
   EXPECT_TRUE(s.inconsistent);
   EXPECT_NE(s.message.find("centre of rotation"), std::string::npos) << s.message;
   // The right geometry fits the same data to its noise level.
   x.resize(0);
   const ReconstructionSummary t = Reconstruct(*shifted.projector, data, options, &x);
   EXPECT_FALSE(t.inconsistent) << t.message;
-  EXPECT_EQ(t.termination, solvers::Termination::kSuccess) << t.message;
+  EXPECT_EQ(t.termination, solvers::core::Termination::kSuccess) << t.message;
 }
 
 TEST(Reconstruct, RefusesBadOptionsAndMismatchedInput) {
@@ -478,13 +478,13 @@ TEST(Reconstruct, RefusesBadOptionsAndMismatchedInput) {
   ReconstructOptions options;
   options.relaxation = 2.5;
   EXPECT_EQ(Reconstruct(*problem.projector, problem.Exact(), options, &x).termination,
-            solvers::Termination::kInvalidOptions);
+            solvers::core::Termination::kInvalidOptions);
   options = {};
   EXPECT_EQ(Reconstruct(*problem.projector, Absorbance{Eigen::VectorXf::Zero(3), {}, {}}, options, &x).termination,
-            solvers::Termination::kInvalidInput);
+            solvers::core::Termination::kInvalidInput);
   // The discrepancy rule without any noise estimate.
   const ReconstructionSummary s = Reconstruct(*problem.projector, problem.Exact(), options, &x);
-  EXPECT_EQ(s.termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(s.termination, solvers::core::Termination::kInvalidInput);
   EXPECT_NE(s.message.find("noise"), std::string::npos);
   EXPECT_EQ(ParseMethod("cgls"), Method::kCgls);
   EXPECT_FALSE(ParseMethod("fbp"));
@@ -504,7 +504,7 @@ TEST(Reconstruct, FlaggedRaysAreLeftOutAndProgressIsReported) {
   options.max_iterations = 100;
   int reports = 0;
   std::int64_t last_done = -1;
-  options.progress = [&](const solvers::Progress& p) {
+  options.progress = [&](const solvers::core::Progress& p) {
     ++reports;
     last_done = p.done;
     EXPECT_EQ(p.stage, "sirt");
@@ -519,9 +519,9 @@ TEST(Reconstruct, FlaggedRaysAreLeftOutAndProgressIsReported) {
 }
 
 }  // namespace
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 namespace {
 
 // End to end in 3D: the simulator's frames of the 3D Shepp-Logan head in a
@@ -545,7 +545,7 @@ TEST(Reconstruct, ConeBeamScanOfTheSheppLoganHeadEndToEnd) {
   const sim::TomographyScan scan = sim::ScanPhantom(head, geometry, scan_options);
   Absorbance data;
   const AbsorbanceSummary a = ComputeAbsorbance(geometry, scan.projections, scan.flats, scan.darks, {}, &data);
-  ASSERT_EQ(a.termination, solvers::Termination::kSuccess) << a.message;
+  ASSERT_EQ(a.termination, solvers::core::Termination::kSuccess) << a.message;
   ASSERT_TRUE(a.noise_estimated);
 
   std::unique_ptr<Projector> w;
@@ -554,7 +554,7 @@ TEST(Reconstruct, ConeBeamScanOfTheSheppLoganHeadEndToEnd) {
   options.max_iterations = 300;
   Eigen::VectorXf x;
   const ReconstructionSummary s = Reconstruct(*w, data, options, &x);
-  ASSERT_EQ(s.termination, solvers::Termination::kSuccess) << s.message;
+  ASSERT_EQ(s.termination, solvers::core::Termination::kSuccess) << s.message;
   // Its own rule ends it (measured: the residual stalls just above the
   // noise level after 91 iterations, short of 1.5 x it, so not inconsistent).
   EXPECT_NE(s.stop_reason, StopReason::kMaxIterations);
@@ -569,4 +569,4 @@ TEST(Reconstruct, ConeBeamScanOfTheSheppLoganHeadEndToEnd) {
 }
 
 }  // namespace
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -52,9 +52,9 @@ const std::string kMpirun = kEnvironment + "mpirun --allow-run-as-root --oversub
 std::string Photorig() { return std::string(PHOTORIG_BIN_DIR) + "/photorig"; }
 
 Eigen::VectorXf Volume(const fs::path& nrrd) {
-  tomography::VolumeGrid grid;
+  solvers::tomography::VolumeGrid grid;
   Eigen::VectorXf sigma;
-  EXPECT_TRUE(tomography::ReadNrrd(nrrd.string(), &grid, &sigma).IsSolutionUsable()) << nrrd;
+  EXPECT_TRUE(solvers::tomography::ReadNrrd(nrrd.string(), &grid, &sigma).IsSolutionUsable()) << nrrd;
   return sigma;
 }
 
@@ -63,7 +63,7 @@ TEST(TomographyMpi, BlocksCoverTheItemsOnceInOrder) {
     for (int views : {7, 64, 181}) {
       int next = 0;
       for (int rank = 0; rank < ranks; ++rank) {
-        const tomography::mpi::Block block = tomography::mpi::BlockOfRank(views, rank, ranks);
+        const solvers::tomography_mpi::Block block = solvers::tomography_mpi::BlockOfRank(views, rank, ranks);
         EXPECT_EQ(block.first, next);
         EXPECT_GE(block.count, views / ranks);
         EXPECT_LE(block.count, views / ranks + 1);
@@ -74,10 +74,10 @@ TEST(TomographyMpi, BlocksCoverTheItemsOnceInOrder) {
 }
 
 TEST(TomographyMpi, DecompositionIsCheckedAndChosenFromTheVolumeBudget) {
-  using tomography::mpi::ChooseDecomposition;
-  using tomography::mpi::Decomposition;
-  using tomography::mpi::DecompositionOptions;
-  const tomography::VolumeGrid grid{64, 64, 8, 0.5};
+  using solvers::tomography_mpi::ChooseDecomposition;
+  using solvers::tomography_mpi::Decomposition;
+  using solvers::tomography_mpi::DecompositionOptions;
+  const solvers::tomography::VolumeGrid grid{64, 64, 8, 0.5};
   DecompositionOptions options;
   Decomposition chosen;
   std::string why;
@@ -110,7 +110,7 @@ TEST(TomographyMpi, DecompositionIsCheckedAndChosenFromTheVolumeBudget) {
 
 // Solves the scan with `solve_flags` in one process and under `mpirun -np 2`
 // with `mpi_flags` too, and compares the two.
-void ExpectTwoProcessesGiveTheSingleProcessSolve(tomography::Beam beam, const std::string& solve_flags,
+void ExpectTwoProcessesGiveTheSingleProcessSolve(solvers::tomography::Beam beam, const std::string& solve_flags,
                                                  const std::string& mpi_flags, int view_groups, int slabs) {
   TempDir dir;
   const Outcome probe = Shell(kMpirun + "true", dir);
@@ -155,7 +155,7 @@ void ExpectTwoProcessesGiveTheSingleProcessSolve(tomography::Beam beam, const st
 }
 
 TEST(TomographyMpi, TwoProcessesSplittingTheViewsGiveTheSingleProcessSolve) {
-  ExpectTwoProcessesGiveTheSingleProcessSolve(tomography::Beam::kParallel, "", "", 2, 1);
+  ExpectTwoProcessesGiveTheSingleProcessSolve(solvers::tomography::Beam::kParallel, "", "", 2, 1);
 }
 
 // Each process holds four of the eight slices: partial ray sums added over
@@ -165,7 +165,7 @@ TEST(TomographyMpi, TwoProcessesSplittingTheViewsGiveTheSingleProcessSolve) {
 // leaves a model error of 1.56 x the noise level after 300 SIRT iterations,
 // hence the discrepancy factor 1.8.
 TEST(TomographyMpi, TwoProcessesSplittingTheVolumeInSlabsGiveTheSingleProcessSolve) {
-  ExpectTwoProcessesGiveTheSingleProcessSolve(tomography::Beam::kCone, "--discrepancy-factor 1.8", "--mpi-slabs 2", 1,
+  ExpectTwoProcessesGiveTheSingleProcessSolve(solvers::tomography::Beam::kCone, "--discrepancy-factor 1.8", "--mpi-slabs 2", 1,
                                               2);
 }
 

@@ -73,9 +73,9 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
 #if PHOTORIG_HAVE_OPENVDB
   EXPECT_TRUE(fs::exists(results / "volume.vdb"));  // its contents: test_vdb_volume.cpp
 #endif
-  tomography::VolumeGrid grid;
+  solvers::tomography::VolumeGrid grid;
   Eigen::VectorXf sigma;
-  ASSERT_TRUE(tomography::ReadNrrd((results / "volume.nrrd").string(), &grid, &sigma).IsSolutionUsable());
+  ASSERT_TRUE(solvers::tomography::ReadNrrd((results / "volume.nrrd").string(), &grid, &sigma).IsSolutionUsable());
   EXPECT_EQ(grid.nx, 64);
   EXPECT_EQ(grid.nz, 8);
   const json report = json::parse(ReadText(results / "report.json"));

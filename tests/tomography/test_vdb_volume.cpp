@@ -35,9 +35,9 @@ TEST(VdbVolume, TheResultsVdbHoldsTheNrrdsVoxelsAndVoxelSize) {
   TempDir dir;
   WriteTomographyResults(TomographyInput{}, result, dir.path().string());
 
-  tomography::VolumeGrid grid;
+  solvers::tomography::VolumeGrid grid;
   Eigen::VectorXf nrrd;
-  ASSERT_TRUE(tomography::ReadNrrd((dir.path() / "volume.nrrd").string(), &grid, &nrrd).IsSolutionUsable());
+  ASSERT_TRUE(solvers::tomography::ReadNrrd((dir.path() / "volume.nrrd").string(), &grid, &nrrd).IsSolutionUsable());
   openvdb::initialize();
   openvdb::io::File file((dir.path() / "volume.vdb").string());
   ASSERT_NO_THROW(file.open());
@@ -80,9 +80,9 @@ TEST(VdbVolume, TheResultsVdbHoldsTheNrrdsVoxelsAndVoxelSize) {
 
 TEST(VdbVolume, RefusesAVolumeThatDoesNotFitItsGrid) {
   TempDir dir;
-  const solvers::Summary s =
+  const solvers::core::Summary s =
       WriteVdb((dir.path() / "v.vdb").string(), {4, 4, 4, 1.0}, Eigen::VectorXf::Zero(10));
-  EXPECT_EQ(s.termination, solvers::Termination::kInvalidInput);
+  EXPECT_EQ(s.termination, solvers::core::Termination::kInvalidInput);
   EXPECT_FALSE(fs::exists(dir.path() / "v.vdb"));
 }
 

@@ -55,12 +55,12 @@ int Fit(const Options& o) {
   };
   std::vector<brdf::BrdfSample> samples;
   if (IsCsv(o.file)) {
-    const solvers::Summary read = brdf::ReadSamplesCsv(o.file, &samples);
+    const solvers::core::Summary read = brdf::ReadSamplesCsv(o.file, &samples);
     if (!read.IsSolutionUsable()) return finish(kExitUsage, read.message);
     doc["format"] = "samples";
   } else {
     brdf::MeasuredBrdf table;
-    const solvers::Summary read = brdf::ReadMeasured(o.file, &table);
+    const solvers::core::Summary read = brdf::ReadMeasured(o.file, &table);
     if (!read.IsSolutionUsable()) return finish(kExitUsage, read.message);
     doc["format"] = brdf::TableFormatName(*brdf::TableFormatOf(o.file));
     samples = brdf::SampleMeasured(table, {o.steps, o.steps, o.steps});
@@ -82,7 +82,7 @@ int Fit(const Options& o) {
   if (!o.out.empty()) {
     fs::create_directories(o.out);
     std::ofstream(fs::path(o.out) / "report.json") << doc.dump(2) << "\n";
-    const solvers::Summary written = brdf::WriteSamplesCsv((fs::path(o.out) / "samples.csv").string(), samples);
+    const solvers::core::Summary written = brdf::WriteSamplesCsv((fs::path(o.out) / "samples.csv").string(), samples);
     if (!written.IsSolutionUsable()) return finish(kExitFailed, written.message);
     doc["results"] = o.out;
     std::fprintf(text, "results: %s/\n", o.out.c_str());
@@ -102,7 +102,7 @@ int Eval(const Options& o) {
     return error.empty() ? static_cast<int>(code) : Fail(code, error);
   };
   brdf::MeasuredBrdf table;
-  const solvers::Summary read = brdf::ReadMeasured(o.file, &table);
+  const solvers::core::Summary read = brdf::ReadMeasured(o.file, &table);
   if (!read.IsSolutionUsable()) return finish(kExitUsage, read.message);
   doc["format"] = brdf::TableFormatName(*brdf::TableFormatOf(o.file));
   const std::optional<Eigen::Vector3d> f = table(Direction(o.wi_deg), Direction(o.wo_deg));
@@ -136,10 +136,10 @@ int Convert(const Options& o) {
     };
   } else {
     if (!o.model.empty()) return finish(kExitUsage, "--model names a candidate of a fit report (.json)");
-    const solvers::Summary read = brdf::ReadMeasured(o.file, &table);
+    const solvers::core::Summary read = brdf::ReadMeasured(o.file, &table);
     if (!read.IsSolutionUsable()) return finish(kExitUsage, read.message);
   }
-  solvers::Summary written;
+  solvers::core::Summary written;
   if (*to == brdf::TableFormat::kMerl) {
     written = brdf::WriteMerl(o.convert_to, brdf::MerlTable::FromFunction(
                                                 [&](const brdf::DirectionPair& d) { return table(d.wi, d.wo); }));
@@ -154,7 +154,7 @@ int Convert(const Options& o) {
         &file);
     if (written.IsSolutionUsable()) written = brdf::WriteTensorFile(o.convert_to, file);
   }
-  if (!written.IsSolutionUsable()) return finish(written.termination == solvers::Termination::kInvalidOptions ? kExitUsage : kExitFailed, written.message);
+  if (!written.IsSolutionUsable()) return finish(written.termination == solvers::core::Termination::kInvalidOptions ? kExitUsage : kExitFailed, written.message);
   std::printf("wrote %s\n", o.convert_to.c_str());
   return finish(kExitOk, "");
 }

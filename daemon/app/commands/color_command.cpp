@@ -7,9 +7,9 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
-#include "photorig/color/apply.h"
-#include "photorig/color/calibration.h"
-#include "photorig/color/model_io.h"
+#include "photorig/solvers/color/apply.h"
+#include "photorig/solvers/color/calibration.h"
+#include "photorig/solvers/color/model_io.h"
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/config/rig.h"
 #include "photorig/config/sim.h"
@@ -32,7 +32,7 @@ namespace fs = std::filesystem;
 
 // The image a colour operation produced, or std::invalid_argument naming `what`
 // and the solver's reason: the commands report it and exit 2.
-cv::Mat Produced(const solvers::Summary& summary, cv::Mat image, const std::string& what) {
+cv::Mat Produced(const solvers::core::Summary& summary, cv::Mat image, const std::string& what) {
   if (!summary.IsSolutionUsable()) throw std::invalid_argument(what + ": " + summary.message);
   return image;
 }
@@ -63,10 +63,10 @@ std::string ReadText(const std::string& path) {
 // The simulated rig's chart capture: spectral render, raw frame and dark frame
 // written to `out`. With a rig, its sensor and frame size are used and the chart
 // lies where the rig's camera.color_chart says; otherwise a bare chart.
-void RenderSimulatedChart(CalibrateOptions& options, color::Illuminant illuminant,
+void RenderSimulatedChart(CalibrateOptions& options, solvers::color::Illuminant illuminant,
                           const std::optional<config::RigConfig>& rig) {
-  const color::ChartCaptureSpectra s =
-      color::ChartCaptureSpectraFor(options.sim_camera, illuminant, color::WavelengthGrid(400.0, 680.0, 5.0));
+  const solvers::color::ChartCaptureSpectra s =
+      solvers::color::ChartCaptureSpectraFor(options.sim_camera, illuminant, solvers::color::WavelengthGrid(400.0, 680.0, 5.0));
   sim::SensorModel sensor;
   sim::ChartGeometry geometry;
   if (rig) {
@@ -86,7 +86,7 @@ void RenderSimulatedChart(CalibrateOptions& options, color::Illuminant illuminan
   daemon::WriteImage(options.image, mosaic ? sim::BayerMosaic(render.raw, options.bayer) : render.raw);
   daemon::WriteImage(options.dark, mosaic ? sim::BayerMosaic(render.dark, options.bayer) : render.dark);
   if (options.white_level == 0.0) options.white_level = render.clip_level_dn;
-  std::printf("rendered %s chart under %s%s: %s, %s\n", options.sim_camera.c_str(), color::IlluminantName(illuminant),
+  std::printf("rendered %s chart under %s%s: %s, %s\n", options.sim_camera.c_str(), solvers::color::IlluminantName(illuminant),
               mosaic ? (" through a " + options.bayer + " Bayer mosaic").c_str() : "", options.image.c_str(),
               options.dark.c_str());
 }
@@ -135,7 +135,7 @@ cv::Mat ReadCapture(const std::string& path, const std::string& bayer) {
     throw std::invalid_argument(path + ": --bayer needs a one-channel raw, got " + std::to_string(image.channels()) +
                                 " channels");
   cv::Mat bgr;
-  const solvers::Summary demosaiced = color::Demosaic(image, bayer, &bgr);
+  const solvers::core::Summary demosaiced = solvers::color::Demosaic(image, bayer, &bgr);
   return Produced(demosaiced, bgr, path + ": --bayer " + bayer);
 }
 
@@ -143,18 +143,18 @@ int ExecuteCalibrate(CalibrateOptions options) {
   if (options.image.empty() == options.sim_camera.empty()) {
     return Fail(kExitUsage, "give exactly one of --image or --sim-camera");
   }
-  color::Illuminant illuminant;
-  color::LocateOptions locate;
-  color::CalibrationOptions calibration;
+  solvers::color::Illuminant illuminant;
+  solvers::color::LocateOptions locate;
+  solvers::color::CalibrationOptions calibration;
   std::optional<config::RigConfig> rig;
   try {
-    illuminant = Known(color::ParseIlluminant(options.illuminant), "illuminant", options.illuminant, "D50, D65, A");
-    calibration.loss = Known(color::ParseFitLoss(options.loss), "fit loss", options.loss, "xyz, ciede2000");
+    illuminant = Known(solvers::color::ParseIlluminant(options.illuminant), "illuminant", options.illuminant, "D50, D65, A");
+    calibration.loss = Known(solvers::color::ParseFitLoss(options.loss), "fit loss", options.loss, "xyz, ciede2000");
     if (!options.models.empty()) {
       calibration.candidates.clear();
       for (const auto& name : options.models) {
         calibration.candidates.push_back(
-            Known(color::ModelSpec::Parse(name), "colour model", name, color::ModelSpec::KnownNames()));
+            Known(solvers::color::ModelSpec::Parse(name), "colour model", name, solvers::color::ModelSpec::KnownNames()));
       }
     }
     if (!options.rig.empty()) {
@@ -168,11 +168,11 @@ int ExecuteCalibrate(CalibrateOptions options) {
       }
     }
     if (!options.chart_roi.empty()) {
-      locate.fixed_corners = color::ParseChartCorners(options.chart_roi);
+      locate.fixed_corners = solvers::color::ParseChartCorners(options.chart_roi);
       locate.fixed_source = "--chart-roi " + options.chart_roi;
     }
     if (!options.sim_camera.empty()) {
-      color::CameraSensitivity(options.sim_camera);
+      solvers::color::CameraSensitivity(options.sim_camera);
       if (rig && !(rig->sim && rig->camera.color_chart))
         throw std::invalid_argument(options.rig + ": --sim-camera with --rig needs a simulated rig with camera.color_chart");
     }
@@ -191,19 +191,19 @@ int ExecuteCalibrate(CalibrateOptions options) {
   } catch (const std::exception& e) {
     return Fail(kExitUsage, e.what());
   }
-  color::MeasureOptions measure;
+  solvers::color::MeasureOptions measure;
   measure.clip_level = options.white_level;
   measure.black_level = options.black_level;
   ProgressDisplay progress;
   calibration.progress = progress.Callback();
-  const color::ChartCalibration result =
-      color::CalibrateChartImage(image, dark, illuminant, locate, measure, calibration);
+  const solvers::color::ChartCalibration result =
+      solvers::color::CalibrateChartImage(image, dark, illuminant, locate, measure, calibration);
   progress.EndLine();
 
-  std::vector<std::string> names(color::ColorChecker24Names().begin(), color::ColorChecker24Names().end());
+  std::vector<std::string> names(solvers::color::ColorChecker24Names().begin(), solvers::color::ColorChecker24Names().end());
   std::printf("%s\n", result.located.message.c_str());
-  std::printf("%s", color::FormatCalibrationReport(result.summary, names).c_str());
-  nlohmann::json report = color::CalibrationReport(result.summary, result.patches, names);
+  std::printf("%s", solvers::color::FormatCalibrationReport(result.summary, names).c_str());
+  nlohmann::json report = solvers::color::CalibrationReport(result.summary, result.patches, names);
   report["image"] = options.image;
   report["dark"] = options.dark;
   report["illuminant"] = options.illuminant;
@@ -218,22 +218,22 @@ int ExecuteCalibrate(CalibrateOptions options) {
   if (!options.rig.empty()) report["rig"] = options.rig;
   daemon::WriteFileDurably((fs::path(options.out) / "report.json").string(), report.dump(2) + "\n");
   daemon::WriteFileDurably((fs::path(options.out) / "report.txt").string(),
-                           color::FormatCalibrationReport(result.summary, names));
+                           solvers::color::FormatCalibrationReport(result.summary, names));
   ResultFields()["out"] = options.out;
   ResultFields()["report"] = report;
   if (!result.summary.IsSolutionUsable()) return Fail(kExitFailed, "no usable colour model: " + result.summary.message);
 
-  const color::ColorModel& model = result.summary.chosen_model();
+  const solvers::color::ColorModel& model = result.summary.chosen_model();
   for (const char* name : {"model.json", "model.yaml"}) {
     const std::string path = (fs::path(options.out) / name).string();
-    daemon::WriteFileDurably(path, color::SerializeModel(model, path));
+    daemon::WriteFileDurably(path, solvers::color::SerializeModel(model, path));
   }
-  color::ApplyOptions apply;
+  solvers::color::ApplyOptions apply;
   apply.black_level = options.black_level;
   cv::Mat xyz, srgb;
-  const solvers::Summary corrected = color::CameraToXyz(model, image, dark, apply, &xyz);
-  const solvers::Summary encoded =
-      corrected.IsSolutionUsable() ? color::XyzToSrgb8(xyz, model.white_xyz, &srgb) : corrected;
+  const solvers::core::Summary corrected = solvers::color::CameraToXyz(model, image, dark, apply, &xyz);
+  const solvers::core::Summary encoded =
+      corrected.IsSolutionUsable() ? solvers::color::XyzToSrgb8(xyz, model.white_xyz, &srgb) : corrected;
   if (!encoded.IsSolutionUsable()) {
     return Fail(kExitFailed, "applying the model to " + options.image + " failed: " + encoded.message);
   }
@@ -250,13 +250,13 @@ struct ApplyCommandOptions {
 };
 
 int ExecuteApply(const ApplyCommandOptions& options) {
-  color::ColorModel model;
+  solvers::color::ColorModel model;
   try {
-    model = color::ParseModel(ReadText(options.model), options.model);
+    model = solvers::color::ParseModel(ReadText(options.model), options.model);
   } catch (const std::invalid_argument& e) {
     return Fail(kExitUsage, e.what());
   }
-  color::ApplyOptions apply;
+  solvers::color::ApplyOptions apply;
   apply.black_level = options.black_level;
   apply.exposure_ratio = options.exposure_ratio;
   cv::Mat dark;
@@ -277,9 +277,9 @@ int ExecuteApply(const ApplyCommandOptions& options) {
       return Fail(kExitUsage, input + " has " + std::to_string(image.channels()) +
                                   " channel(s); colour correction needs 3 (B, G, R)");
     cv::Mat xyz, srgb;
-    const solvers::Summary corrected = color::CameraToXyz(model, image, dark, apply, &xyz);
-    const solvers::Summary encoded =
-        corrected.IsSolutionUsable() ? color::XyzToSrgb8(xyz, model.white_xyz, &srgb) : corrected;
+    const solvers::core::Summary corrected = solvers::color::CameraToXyz(model, image, dark, apply, &xyz);
+    const solvers::core::Summary encoded =
+        corrected.IsSolutionUsable() ? solvers::color::XyzToSrgb8(xyz, model.white_xyz, &srgb) : corrected;
     if (!encoded.IsSolutionUsable()) return Fail(kExitUsage, input + ": " + encoded.message);
     const std::string stem = (fs::path(options.out) / fs::path(input).stem()).string();
     daemon::WriteFloatTiff(stem + "_xyz.tiff", xyz);

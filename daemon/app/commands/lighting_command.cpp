@@ -62,13 +62,13 @@ int Execute(const Options& o) {
 
   config::LightCalibrationRequest request;
   if (o.camera == "pinhole") {
-    request.camera.projection = lighting::CameraModel::Projection::kPinhole;
+    request.camera.projection = solvers::lighting::CameraModel::Projection::kPinhole;
     request.camera.fx_px = o.fx;
     request.camera.fy_px = o.fy > 0 ? o.fy : o.fx;
     request.camera.cx_px = o.cx;
     request.camera.cy_px = o.cy;
   }
-  if (o.circle.size() == 3) request.circle = lighting::Circle{o.circle[0], o.circle[1], o.circle[2]};
+  if (o.circle.size() == 3) request.circle = solvers::lighting::Circle{o.circle[0], o.circle[1], o.circle[2]};
   request.silhouette_image = o.silhouette;
   request.sphere_radius_mm = o.radius_mm;
   request.base_rig = o.out_rig.empty() ? "" : o.rig;

@@ -53,7 +53,7 @@ int Execute(const Options& o) {
   brdf::PosePlanOptions plan_options;
   plan_options.sample_rotation_deg = o.rotation_deg;
   const brdf::PosePlan plan = brdf::PlanPoses(brdf::UniformHalfDiffGrid(spec), *arms, plan_options);
-  if (plan.termination == solvers::Termination::kInvalidOptions) return Fail(kExitUsage, o.rig + ": " + plan.message);
+  if (plan.termination == solvers::core::Termination::kInvalidOptions) return Fail(kExitUsage, o.rig + ": " + plan.message);
   constexpr double kDeg = 180.0 / M_PI;
   for (const brdf::RefusedPose& r : plan.refused)
     std::fprintf(stderr, "refused theta_h %.2f theta_d %.2f phi_d %.2f: %s\n", r.requested.theta_h * kDeg,

@@ -17,12 +17,12 @@ void WarnOfFailedCapture(const std::optional<daemon::CaptureVerdict>& capture) {
 }
 
 void PrintPhotometricStereoSummary(const daemon::PhotometricStereoResult& result) {
-  const ps::SolverSummary& summary = result.summary;
+  const solvers::ps::SolverSummary& summary = result.summary;
   std::printf("photometric stereo (%s): %s, %zu pixels solved, %.1f ms solve\n", summary.method.c_str(),
-              solvers::TerminationName(summary.termination), summary.pixels_solved, summary.solve_ms);
+              solvers::core::TerminationName(summary.termination), summary.pixels_solved, summary.solve_ms);
   if (!summary.message.empty()) std::printf("  solver says: %s\n", summary.message.c_str());
   if (result.normals_vs_truth) {
-    const ps::AngularErrorStats& gt = *result.normals_vs_truth;
+    const solvers::ps::AngularErrorStats& gt = *result.normals_vs_truth;
     std::printf("  vs ground truth: mean %.3f deg, median %.3f deg, <5 deg %.1f%%, <10 deg %.1f%%, <15 deg %.1f%%, "
                 "%zu of %zu pixels unresolved\n",
                 gt.mean_deg, gt.median_deg, 100.0 * gt.fraction_under_5deg, 100.0 * gt.fraction_under_10deg,

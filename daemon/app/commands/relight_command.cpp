@@ -12,9 +12,9 @@
 #include "photorig/config/yaml_node.h"
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/daemon/pipelines/svbrdf_pipeline.h"
-#include "photorig/lighting/envmap.h"
-#include "photorig/lighting/relight.h"
-#include "photorig/lighting/sphere.h"
+#include "photorig/solvers/lighting/envmap.h"
+#include "photorig/solvers/lighting/relight.h"
+#include "photorig/solvers/lighting/sphere.h"
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -135,9 +135,9 @@ int Relight(const RelightOptions& options) {
     std::vector<cv::Mat> frames;
     for (const cv::Mat& frame : input.stack.images) frames.push_back(input.stack.dark.empty() ? frame : frame - input.stack.dark);
     Eigen::MatrixXd weights;
-    solvers::Summary done = lighting::LatLongToLedWeights(map, input.stack.light_directions, input.stack.light_scales,
+    solvers::core::Summary done = solvers::lighting::LatLongToLedWeights(map, input.stack.light_directions, input.stack.light_scales,
                                                           &weights);
-    if (done.IsSolutionUsable()) done = lighting::RelightFromFrames(frames, weights, &relit);
+    if (done.IsSolutionUsable()) done = solvers::lighting::RelightFromFrames(frames, weights, &relit);
     if (!done.IsSolutionUsable())
       return Fail(kExitFailed, options.run_dir + " with " + options.envmap + ": " + done.message);
   } else if (options.model == "svbrdf") {
@@ -152,7 +152,7 @@ int Relight(const RelightOptions& options) {
       const Eigen::Vector3d d(light[0], light[1], light[2]);
       if (!(d.norm() > 0)) throw std::invalid_argument("--light: zero direction");
       cv::Mat one;
-      const solvers::Summary rendered = solvers::reflectance::RenderReflectance(
+      const solvers::core::Summary rendered = solvers::reflectance::RenderReflectance(
           maps, d.normalized(), Eigen::Vector3d::Constant(light.size() == 4 ? light[3] : 1.0), Eigen::Vector3d::UnitZ(), &one);
       if (!rendered.IsSolutionUsable()) return Fail(kExitFailed, svbrdf.string() + ": " + rendered.message);
       if (relit.empty()) relit = one; else relit += one;
@@ -180,8 +180,8 @@ int Relight(const RelightOptions& options) {
     cv::Mat clean_normals = normals.clone(), clean_albedo = albedo.clone();
     cv::patchNaNs(clean_normals, 0.0);  // unsolved pixels render black
     cv::patchNaNs(clean_albedo, 0.0);
-    const solvers::Summary rendered =
-        lighting::RenderDirectionalLights(clean_normals, clean_albedo, directions, intensities, &relit);
+    const solvers::core::Summary rendered =
+        solvers::lighting::RenderDirectionalLights(clean_normals, clean_albedo, directions, intensities, &relit);
     if (!rendered.IsSolutionUsable()) return Fail(kExitFailed, ps.string() + ": " + rendered.message);
   }
   WriteRelit(options.out, relit);
@@ -291,13 +291,13 @@ int Envmap(const EnvmapOptions& options) {
     std::fprintf(stderr, "envmap: subtracting %s; values under %g noise sigmas (%.1f DN) count as no light\n",
                  said.c_str(), options.noise_floor_sigmas, floor_dn);
   }
-  lighting::CameraModel camera;
-  const lighting::SphereGeometry sphere = lighting::LocateSphere(camera, {cx, cy, r});
+  solvers::lighting::CameraModel camera;
+  const solvers::lighting::SphereGeometry sphere = solvers::lighting::LocateSphere(camera, {cx, cy, r});
   if (!sphere.valid) return Fail(kExitUsage, sphere.message);
-  lighting::UnwrapOptions unwrap;
+  solvers::lighting::UnwrapOptions unwrap;
   unwrap.width = options.width;
-  lighting::LatLongMap map;
-  const solvers::Summary unwrapped = lighting::MirrorBallToLatLong(ball, sphere, unwrap, &map);
+  solvers::lighting::LatLongMap map;
+  const solvers::core::Summary unwrapped = solvers::lighting::MirrorBallToLatLong(ball, sphere, unwrap, &map);
   if (!unwrapped.IsSolutionUsable()) return Fail(kExitFailed, options.ball + ": " + unwrapped.message);
   if (!cv::imwrite(options.out, map.radiance)) throw std::runtime_error("cannot write " + options.out);
   const double seen = double(cv::countNonZero(map.valid)) / double(map.valid.total());

@@ -89,9 +89,9 @@ int Execute(const Options& options) {
   if (outcome.tomography) {
     const daemon::TomographyResult& tomo = *outcome.tomography;
     const std::string results = outcome.directory + "/results/tomography";
-    std::printf("tomography (%s): %s, %d iterations, stopped by %s%s\n", tomography::MethodName(tomo.reconstruction.method),
-                solvers::TerminationName(tomo.reconstruction.termination), tomo.reconstruction.iterations,
-                tomography::StopReasonName(tomo.reconstruction.stop_reason),
+    std::printf("tomography (%s): %s, %d iterations, stopped by %s%s\n", solvers::tomography::MethodName(tomo.reconstruction.method),
+                solvers::core::TerminationName(tomo.reconstruction.termination), tomo.reconstruction.iterations,
+                solvers::tomography::StopReasonName(tomo.reconstruction.stop_reason),
                 tomo.reconstruction.message.empty() ? "" : ("; " + tomo.reconstruction.message).c_str());
     if (tomo.relative_error_vs_truth) std::printf("  vs the phantom: relative L2 error %.3f\n", *tomo.relative_error_vs_truth);
     std::printf("results: %s/\n", results.c_str());
@@ -102,7 +102,7 @@ int Execute(const Options& options) {
   if (outcome.svbrdf) {
     const daemon::SvbrdfResult& svbrdf = *outcome.svbrdf;
     const std::string results = outcome.directory + "/results/svbrdf";
-    std::printf("svbrdf: %s, %d pixels fitted (%d mixed), %d materials%s\n", solvers::TerminationName(svbrdf.summary.termination),
+    std::printf("svbrdf: %s, %d pixels fitted (%d mixed), %d materials%s\n", solvers::core::TerminationName(svbrdf.summary.termination),
                 svbrdf.summary.pixels_fitted, svbrdf.summary.pixels_mixed, svbrdf.summary.materials, svbrdf.gltf_path.empty() ? "" : ", glTF asset");
     std::printf("results: %s/\n", results.c_str());
     ResultFields()["svbrdf"] = daemon::ToJson(svbrdf);

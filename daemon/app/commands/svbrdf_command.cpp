@@ -28,7 +28,7 @@ struct Options {
 
 void PrintSummary(const daemon::SvbrdfResult& result) {
   std::fprintf(stderr, "svbrdf: %s, %d pixels fitted (%d mixed), %d materials\n",
-               solvers::TerminationName(result.summary.termination), result.summary.pixels_fitted,
+               solvers::core::TerminationName(result.summary.termination), result.summary.pixels_fitted,
                result.summary.pixels_mixed, result.summary.materials);
   for (std::size_t m = 0; m < result.material_fits.size(); ++m) {
     const refl::MaterialFit& f = result.material_fits[m];

@@ -61,22 +61,22 @@ int Execute(const Options& options) {
 #if PHOTORIG_HAVE_TOMOGRAPHY_MPI
   // Under mpirun: every process loads the scan and solves its block of views;
   // the first writes the results and speaks for all.
-  std::optional<tomography::mpi::Session> session;
+  std::optional<solvers::tomography_mpi::Session> session;
   if (options.mpi) {
     session.emplace(nullptr, nullptr);
     ranks = session->size();
     if (session->rank() != 0) SilenceOutput();
-    tomography::mpi::DecompositionOptions decomposition;
+    solvers::tomography_mpi::DecompositionOptions decomposition;
     decomposition.slabs = options.mpi_slabs;
     if (std::string why; !decomposition.IsValid(&why)) return Fail(kExitUsage, "--mpi-slabs: " + why);
     factory = [decomposition, &view_groups_and_slabs](
-                  const tomography::VolumeGrid& grid, const tomography::Geometry& geometry,
-                  const tomography::ProjectorOptions& projector_options,
-                  std::unique_ptr<tomography::SystemMatrix>* matrix, std::int64_t* first_ray) {
-      tomography::ProjectorSummary summary = tomography::mpi::MakeDistributedProjector(
+                  const solvers::tomography::VolumeGrid& grid, const solvers::tomography::Geometry& geometry,
+                  const solvers::tomography::ProjectorOptions& projector_options,
+                  std::unique_ptr<solvers::tomography::SystemMatrix>* matrix, std::int64_t* first_ray) {
+      solvers::tomography::ProjectorSummary summary = solvers::tomography_mpi::MakeDistributedProjector(
           grid, geometry, projector_options, decomposition, MPI_COMM_WORLD, matrix, first_ray);
       if (summary.IsSolutionUsable()) {
-        const auto& used = static_cast<const tomography::mpi::DistributedProjector&>(**matrix).decomposition();
+        const auto& used = static_cast<const solvers::tomography_mpi::DistributedProjector&>(**matrix).decomposition();
         view_groups_and_slabs = {used.view_groups, used.slabs};
       }
       return summary;
@@ -102,13 +102,13 @@ int Execute(const Options& options) {
   progress.EndLine();
   if (writes) daemon::WriteTomographyResults(input, result, destination);
 
-  const tomography::ReconstructionSummary& r = result.reconstruction;
-  std::printf("tomography (%s, %s): %s, %d views, %d x %d x %d voxels of %.3g mm\n", tomography::MethodName(r.method),
-              request.projector.c_str(), solvers::TerminationName(r.termination), result.geometry.views(),
+  const solvers::tomography::ReconstructionSummary& r = result.reconstruction;
+  std::printf("tomography (%s, %s): %s, %d views, %d x %d x %d voxels of %.3g mm\n", solvers::tomography::MethodName(r.method),
+              request.projector.c_str(), solvers::core::TerminationName(r.termination), result.geometry.views(),
               result.grid.nx, result.grid.ny, result.grid.nz, result.grid.voxel_mm);
   if (r.iterations > 0)
     std::printf("  %d iterations, stopped by %s: residual %.4g against the noise level %.4g\n", r.iterations,
-                tomography::StopReasonName(r.stop_reason), r.residual_history.back(), r.discrepancy_target);
+                solvers::tomography::StopReasonName(r.stop_reason), r.residual_history.back(), r.discrepancy_target);
   if (!r.message.empty()) std::printf("  %s\n", r.message.c_str());
   if (result.absorbance.flagged() > 0)
     std::printf("  %lld of %lld pixels flagged by the absorbance (saturated, dark or without flat signal)\n",

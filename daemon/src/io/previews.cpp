@@ -96,24 +96,24 @@ cv::Mat ToneMap(const cv::Mat& values, const cv::Mat& mask, double low, double h
 
 const std::vector<Category>& FlagCategories() {
   static const std::vector<Category> categories = Named(
-      {{int(ps::PixelFlag::kSolved), {46, 139, 87}},
-       {int(ps::PixelFlag::kOutsideMask), {0, 0, 0}},
-       {int(ps::PixelFlag::kTooFewLights), {255, 165, 0}},
-       {int(ps::PixelFlag::kIllConditioned), {186, 85, 211}},
-       {int(ps::PixelFlag::kRejectedByModel), {220, 20, 60}}},
-      [](int code) { return ps::PixelFlagName(static_cast<ps::PixelFlag>(code)); });
+      {{int(solvers::ps::PixelFlag::kSolved), {46, 139, 87}},
+       {int(solvers::ps::PixelFlag::kOutsideMask), {0, 0, 0}},
+       {int(solvers::ps::PixelFlag::kTooFewLights), {255, 165, 0}},
+       {int(solvers::ps::PixelFlag::kIllConditioned), {186, 85, 211}},
+       {int(solvers::ps::PixelFlag::kRejectedByModel), {220, 20, 60}}},
+      [](int code) { return solvers::ps::PixelFlagName(static_cast<solvers::ps::PixelFlag>(code)); });
   return categories;
 }
 
 const std::vector<Category>& ModelCategories() {
   static const std::vector<Category> categories = Named(
-      {{int(ps::PixelModel::kNone), {0, 0, 0}},
-       {int(ps::PixelModel::kLambertian), {65, 105, 225}},
-       {int(ps::PixelModel::kTrimmed), {0, 206, 209}},
-       {int(ps::PixelModel::kBlinnPhong), {255, 215, 0}},
-       {int(ps::PixelModel::kIrls), {199, 21, 133}},
-       {int(ps::PixelModel::kGgx), {255, 127, 80}}},
-      [](int code) { return ps::PixelModelName(static_cast<ps::PixelModel>(code)); });
+      {{int(solvers::ps::PixelModel::kNone), {0, 0, 0}},
+       {int(solvers::ps::PixelModel::kLambertian), {65, 105, 225}},
+       {int(solvers::ps::PixelModel::kTrimmed), {0, 206, 209}},
+       {int(solvers::ps::PixelModel::kBlinnPhong), {255, 215, 0}},
+       {int(solvers::ps::PixelModel::kIrls), {199, 21, 133}},
+       {int(solvers::ps::PixelModel::kGgx), {255, 127, 80}}},
+      [](int code) { return solvers::ps::PixelModelName(static_cast<solvers::ps::PixelModel>(code)); });
   return categories;
 }
 
@@ -163,7 +163,7 @@ cv::Mat CategoricalPreview(const cv::Mat& codes, const std::vector<Category>& ca
   return out;
 }
 
-json WritePhotometricStereoPreviews(const ps::NormalMap& map, const cv::Mat& solved, const cv::Mat& depth,
+json WritePhotometricStereoPreviews(const solvers::ps::NormalMap& map, const cv::Mat& solved, const cv::Mat& depth,
                                     const std::string& directory) {
   const fs::path out(directory);
   json previews;

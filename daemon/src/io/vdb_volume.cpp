@@ -7,16 +7,16 @@
 
 namespace photorig::daemon {
 
-solvers::Summary WriteVdb(const std::string& path, const tomography::VolumeGrid& grid, const Eigen::VectorXf& sigma,
+solvers::core::Summary WriteVdb(const std::string& path, const solvers::tomography::VolumeGrid& grid, const Eigen::VectorXf& sigma,
                           const VdbOptions& options) {
-  solvers::Summary summary;
+  solvers::core::Summary summary;
   if (sigma.size() != grid.voxels()) {
-    summary.End(solvers::Termination::kInvalidInput, "the volume has " + std::to_string(sigma.size()) +
+    summary.End(solvers::core::Termination::kInvalidInput, "the volume has " + std::to_string(sigma.size()) +
                                                          " values; the grid " + std::to_string(grid.voxels()));
     return summary;
   }
   if (!sigma.allFinite()) {
-    summary.End(solvers::Termination::kInvalidInput, "the volume holds a non-finite value");
+    summary.End(solvers::core::Termination::kInvalidInput, "the volume holds a non-finite value");
     return summary;
   }
   // Registers the grid types; OpenVDB asks for it once before any file work.
@@ -46,10 +46,10 @@ solvers::Summary WriteVdb(const std::string& path, const tomography::VolumeGrid&
     file.write({vdb});
     file.close();
   } catch (const openvdb::Exception& e) {
-    summary.End(solvers::Termination::kFailure, "cannot write " + path + ": " + e.what());
+    summary.End(solvers::core::Termination::kFailure, "cannot write " + path + ": " + e.what());
     return summary;
   }
-  summary.End(solvers::Termination::kSuccess, "");
+  summary.End(solvers::core::Termination::kSuccess, "");
   return summary;
 }
 

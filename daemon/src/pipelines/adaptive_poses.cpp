@@ -73,7 +73,7 @@ CaptureOptions::AddedSteps AdaptivePoses::NextPass(const std::vector<config::Cap
   const brdf::AdaptiveProposal proposal =
       brdf::ProposeDenserPoses(samples, *config::GonioArmsOf(*rig_.motion), plan_options, plan.options);
   report.unreachable = proposal.unreachable;
-  if (proposal.termination == solvers::Termination::kFailure)
+  if (proposal.termination == solvers::core::Termination::kFailure)
     return end_plan("nothing left to split (" + proposal.message + ")");
   if (!proposal.IsSolutionUsable()) return end_plan("no poses proposed: " + proposal.message);
 

@@ -1,6 +1,6 @@
 #include "photorig/daemon/pipelines/brdf_measurement.h"
 
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/color/colorimetry.h"
 #include "photorig/config/color_model.h"
 #include "photorig/daemon/pipelines/color_stack.h"
 #include "photorig/solvers/brdf/half_diff.h"
@@ -21,7 +21,7 @@ namespace {
 namespace brdf = solvers::brdf;
 using config::LoadedColorModel;
 using config::LoadColorModelFile;
-using solvers::Termination;
+using solvers::core::Termination;
 
 std::string Format(const char* format, double a, double b = 0.0, double c = 0.0) {
   char text[256];
@@ -210,9 +210,9 @@ void ApplyColorModel(const RunManifest& manifest, const Eigen::Vector3d& k_times
                             "); f_r is per camera channel";
     return;
   }
-  const color::ColorModel& model = loaded.model;
+  const solvers::color::ColorModel& model = loaded.model;
   out->color_model_kind = model.spec.Name();
-  if (model.spec.kind != color::ModelSpec::Kind::kLinear) {
+  if (model.spec.kind != solvers::color::ModelSpec::Kind::kLinear) {
     out->color_model_note = "not applied: " + model.spec.Name() +
                             " is not a 3 x 3 matrix, and only a linear map carries a BRDF's sum of terms and its "
                             "deviations to linear sRGB; f_r is per camera channel, white-balanced by the grey "
@@ -223,11 +223,11 @@ void ApplyColorModel(const RunManifest& manifest, const Eigen::Vector3d& k_times
   // target); the model takes raw RGB to XYZ (relative to its white), adapted
   // to D65 and taken to linear sRGB. Scaled so the grey target keeps its
   // luminance: a grey f_r maps to the camera white's sRGB at the same Y.
-  const Eigen::Vector3d d65 = color::LinearSrgbToXyzD65() * Eigen::Vector3d::Ones();
-  const Eigen::Matrix3d to_srgb = color::XyzD65ToLinearSrgb() * color::BradfordAdaptation(model.white_xyz, d65) *
+  const Eigen::Vector3d d65 = solvers::color::LinearSrgbToXyzD65() * Eigen::Vector3d::Ones();
+  const Eigen::Matrix3d to_srgb = solvers::color::XyzD65ToLinearSrgb() * solvers::color::BradfordAdaptation(model.white_xyz, d65) *
                                   model.coefficients.transpose() * k_times_e.asDiagonal();
   const Eigen::Vector3d white = to_srgb * Eigen::Vector3d::Ones();
-  const double luminance = color::LinearSrgbToXyzD65().row(1).dot(white);
+  const double luminance = solvers::color::LinearSrgbToXyzD65().row(1).dot(white);
   if (!(luminance > 0.0) || !to_srgb.allFinite()) {
     out->color_model_note = "not applied: the linear colour model maps the camera's white to no luminance";
     return;
@@ -535,7 +535,7 @@ void AddSamples(const Measurement& m, const Merger& merger, const Eigen::Vector3
 BrdfMeasurement MeasureBrdf(const std::string& run_dir, const RunManifest& manifest,
                             const BrdfMeasurementOptions& options) {
   BrdfMeasurement out;
-  solvers::SolveTimer timer;
+  solvers::core::SolveTimer timer;
   Measurement m{run_dir, manifest, options, run_dir + ": "};
   if (!CheckRun(m, &out)) return out;
   SortFrames(m, &out);

@@ -14,7 +14,7 @@ nlohmann::json Vec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
 
 nlohmann::json FitJson(const brdf::FitSummary& f) {
   return {{"model", brdf::ModelName(f.params.model)},
-          {"termination", solvers::TerminationName(f.termination)},
+          {"termination", solvers::core::TerminationName(f.termination)},
           {"message", f.message},
           {"bic", f.bic},
           {"train_rms", f.residuals > 0 ? std::sqrt(f.cost / static_cast<double>(f.residuals)) : NAN},
@@ -53,7 +53,7 @@ bool ReadVec(const nlohmann::json& j, const char* key, Eigen::Vector3d* v, std::
 }  // namespace
 
 nlohmann::json SelectionJson(const brdf::SelectionSummary& s) {
-  nlohmann::json doc = {{"termination", solvers::TerminationName(s.termination)},
+  nlohmann::json doc = {{"termination", solvers::core::TerminationName(s.termination)},
                         {"message", s.message},
                         {"min_theta_h_deg", s.min_theta_h_deg},
                         {"peak_sampled", s.peak_sampled},
@@ -136,7 +136,7 @@ std::string Channels(const Eigen::Vector3d& value, const Eigen::Vector3d& sigma)
 void PrintSelection(std::FILE* text, const brdf::SelectionSummary& s) {
   for (const brdf::FitSummary& f : s.candidates) {
     std::fprintf(text, "  %-15s %-14s BIC %12.1f  rms train %8.3f held-out %8.3f  rho_d %s",
-                 brdf::ModelName(f.params.model), solvers::TerminationName(f.termination), f.bic,
+                 brdf::ModelName(f.params.model), solvers::core::TerminationName(f.termination), f.bic,
                  f.residuals > 0 ? std::sqrt(f.cost / static_cast<double>(f.residuals)) : NAN, f.held_out_rms,
                  Channels(f.params.diffuse, f.diffuse_sigma).c_str());
     if (f.params.model != brdf::Model::kLambertian)

@@ -4,7 +4,7 @@
 #include "photorig/daemon/pipelines/internal/results_folder.h"
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/brdf/samples.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <filesystem>
 #include <fstream>
@@ -73,12 +73,12 @@ std::string BrdfSolveResult::failure() const {
 }
 
 bool BrdfSolveResult::refused_input() const {
-  return !measurement.IsSolutionUsable() && measurement.termination != solvers::Termination::kFailure;
+  return !measurement.IsSolutionUsable() && measurement.termination != solvers::core::Termination::kFailure;
 }
 
 BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const BrdfRequest& request, const std::string& out_dir,
                                   FailedCapture failed) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   BrdfSolveResult result;
   BrdfMeasurementOptions measuring;
   if (!request.calibrate_with_target) measuring.calibration = BrdfMeasurementOptions::Calibration::kCameraResponse;
@@ -116,7 +116,7 @@ BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const BrdfRequest&
     report << result.report.dump(2) << "\n";
     report.close();
     if (!report) throw std::runtime_error("writing " + (fs::path(out_dir) / "report.json").string() + " failed");
-    const solvers::Summary written = brdf::WriteSamplesCsv((fs::path(folder.path()) / "samples.csv").string(), m.samples);
+    const solvers::core::Summary written = brdf::WriteSamplesCsv((fs::path(folder.path()) / "samples.csv").string(), m.samples);
     if (!written.IsSolutionUsable()) throw std::runtime_error(written.message);
     folder.Commit();
   } catch (...) {

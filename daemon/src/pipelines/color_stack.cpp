@@ -1,7 +1,7 @@
 #include "photorig/daemon/pipelines/color_stack.h"
 
-#include "photorig/color/apply.h"
-#include "photorig/color/region_demosaic.h"
+#include "photorig/solvers/color/apply.h"
+#include "photorig/solvers/color/region_demosaic.h"
 #include "photorig/config/rig.h"
 #include "photorig/config/sim.h"
 #include "photorig/config/yaml_node.h"
@@ -44,7 +44,7 @@ std::optional<DemosaicMethod> ParseDemosaicMethod(const std::string& name) {
 
 cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, DemosaicMethod method) {
   cv::Mat bgr;
-  const solvers::Summary demosaiced = color::Demosaic(raw, pattern, &bgr, method);
+  const solvers::core::Summary demosaiced = solvers::color::Demosaic(raw, pattern, &bgr, method);
   if (!demosaiced.IsSolutionUsable()) throw std::invalid_argument("demosaicing: " + demosaiced.message);
   cv::cvtColor(bgr, bgr, cv::COLOR_BGR2RGB);
   return bgr;
@@ -62,8 +62,8 @@ nlohmann::json ToJson(const ColorProvenance& p) {
   return out;
 }
 
-ps::PhotometricStack ColorImageStack::Channel(int c) const {
-  ps::PhotometricStack stack;
+solvers::ps::PhotometricStack ColorImageStack::Channel(int c) const {
+  solvers::ps::PhotometricStack stack;
   stack.light_directions = light_directions;
   stack.images.reserve(images.size());
   for (std::size_t k = 0; k < images.size(); ++k) {
@@ -76,7 +76,7 @@ ps::PhotometricStack ColorImageStack::Channel(int c) const {
   return stack;
 }
 
-void ApplyColorModelInPlace(const color::ColorModel& model, cv::Mat* rgb) {
+void ApplyColorModelInPlace(const solvers::color::ColorModel& model, cv::Mat* rgb) {
   CV_Assert(rgb->type() == CV_32FC3);
   const cv::Mat clipped = *rgb == std::numeric_limits<float>::infinity();  // per channel
   cv::Mat any_clipped;
@@ -87,11 +87,11 @@ void ApplyColorModelInPlace(const color::ColorModel& model, cv::Mat* rgb) {
   cv::cvtColor(finite, bgr, cv::COLOR_RGB2BGR);
   // The model's own exposure normalisation is undone, so it acts on DN and
   // returns the same scale (exact for an exposure-invariant model).
-  color::ApplyOptions apply;
+  solvers::color::ApplyOptions apply;
   apply.exposure_ratio = model.input_scale;
-  solvers::Summary summary = color::CameraToXyz(model, bgr, cv::Mat(), apply, &xyz);
+  solvers::core::Summary summary = solvers::color::CameraToXyz(model, bgr, cv::Mat(), apply, &xyz);
   if (!summary.IsSolutionUsable()) throw std::runtime_error("colour model: " + summary.message);
-  summary = color::XyzToLinearSrgbBgr(xyz, model.white_xyz, &bgr);
+  summary = solvers::color::XyzToLinearSrgbBgr(xyz, model.white_xyz, &bgr);
   if (!summary.IsSolutionUsable()) throw std::runtime_error("colour model: " + summary.message);
   cv::cvtColor(bgr, *rgb, cv::COLOR_BGR2RGB);
   rgb->setTo(cv::Scalar::all(std::numeric_limits<float>::infinity()), any_clipped != 0);
@@ -99,7 +99,7 @@ void ApplyColorModelInPlace(const color::ColorModel& model, cv::Mat* rgb) {
 
 namespace {
 
-// The region labels after color::RegionEdgeVote over the run's lit frames,
+// The region labels after solvers::color::RegionEdgeVote over the run's lit frames,
 // dark subtracted (the mean of the raw darks), with a floor of four times the
 // raw read noise (the darks' temporal spread; 1 DN with one dark or none).
 cv::Mat SettleRegionEdges(const std::string& run_directory, const RunManifest& manifest, const cv::Mat& regions,
@@ -111,7 +111,7 @@ cv::Mat SettleRegionEdges(const std::string& run_directory, const RunManifest& m
     LoadFrame(run_directory, record).convertTo(darks.back(), CV_32F);
   }
   cv::Mat dark;
-  color::RegionEdgeVote::Options options;
+  solvers::color::RegionEdgeVote::Options options;
   if (!darks.empty()) {
     dark = cv::Mat::zeros(darks.front().size(), CV_32F);
     for (const cv::Mat& d : darks) dark += d;
@@ -123,7 +123,7 @@ cv::Mat SettleRegionEdges(const std::string& run_directory, const RunManifest& m
     const double sigma = std::sqrt(squares / (static_cast<double>(dark.total()) * (darks.size() - 1)));
     options.floor_dn = std::max(4.0 * sigma, 1.0);
   }
-  color::RegionEdgeVote vote(manifest.mosaic, regions, options);
+  solvers::color::RegionEdgeVote vote(manifest.mosaic, regions, options);
   if (!vote.status().IsSolutionUsable()) throw std::invalid_argument("region edges: " + vote.status().message);
   for (const FrameRecord& record : manifest.frames) {
     if (record.kind != config::CaptureStep::Kind::kLight || record.led < 0) continue;
@@ -131,7 +131,7 @@ cv::Mat SettleRegionEdges(const std::string& run_directory, const RunManifest& m
     cv::Mat raw;
     frame.convertTo(raw, CV_32F);
     if (!dark.empty()) raw -= dark;
-    const solvers::Summary added = vote.Add(raw, frame >= saturation_dn);
+    const solvers::core::Summary added = vote.Add(raw, frame >= saturation_dn);
     if (!added.IsSolutionUsable()) throw std::runtime_error(run_directory + "/" + record.file + ": " + added.message);
   }
   return vote.Regions(moved);
@@ -179,7 +179,7 @@ ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorS
         // Demosaicing the clipped sites' indicator within the same regions
         // marks every pixel whose channels drew on one.
         cv::Mat reached;
-        const solvers::Summary marked = color::DemosaicWithinRegions(at_top, manifest.mosaic, regions, &reached);
+        const solvers::core::Summary marked = solvers::color::DemosaicWithinRegions(at_top, manifest.mosaic, regions, &reached);
         if (!marked.IsSolutionUsable()) throw std::invalid_argument("demosaicing: " + marked.message);
         cv::Mat any;
         cv::transform(reached, any, cv::Matx13f(1, 1, 1));
@@ -195,7 +195,7 @@ ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorS
     }
     if (!within_regions) return ToFloatRgb(bayer ? DemosaicToRgb(raw, manifest.mosaic, options.demosaic) : raw);
     cv::Mat bgr, rgb;
-    const solvers::Summary demosaiced = color::DemosaicWithinRegions(raw, manifest.mosaic, regions, &bgr);
+    const solvers::core::Summary demosaiced = solvers::color::DemosaicWithinRegions(raw, manifest.mosaic, regions, &bgr);
     if (!demosaiced.IsSolutionUsable()) throw std::invalid_argument("demosaicing: " + demosaiced.message);
     cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
     return rgb;

@@ -1,8 +1,8 @@
 #include "photorig/daemon/pipelines/light_calibration.h"
 
 #include "photorig/daemon/capture/run_store.h"
-#include "photorig/lighting/light_files.h"
-#include "photorig/lighting/light_intensity.h"
+#include "photorig/solvers/lighting/light_files.h"
+#include "photorig/solvers/lighting/light_intensity.h"
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -17,7 +17,7 @@ namespace photorig::daemon {
 namespace {
 
 namespace fs = std::filesystem;
-using namespace photorig::lighting;
+using namespace photorig::solvers::lighting;
 
 // A copy of `base_rig` whose LEDs carry the calibrated directions (and
 // intensities when measured). Lights that failed keep their previous values.

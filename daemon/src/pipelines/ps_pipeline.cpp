@@ -9,11 +9,11 @@
 #include "photorig/config/sim.h"
 #include "photorig/config/yaml_node.h"
 #include "photorig/daemon/capture/run_store.h"
-#include "photorig/ps/evaluation.h"
-#include "photorig/ps/integration.h"
-#include "photorig/ps/photometric_stereo.h"
-#include "photorig/ps/channel_albedo.h"
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/ps/evaluation.h"
+#include "photorig/solvers/ps/integration.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/channel_albedo.h"
+#include "photorig/solvers/color/colorimetry.h"
 
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
@@ -54,7 +54,7 @@ double DarkNoiseSigma(const std::vector<cv::Mat>& darks, const cv::Mat& mean_dar
   return RobustSigma(mean_dark);
 }
 
-json MetricsJson(const ps::AngularErrorStats& stats) {
+json MetricsJson(const solvers::ps::AngularErrorStats& stats) {
   return {{"pixels_with_truth", stats.pixels_with_truth},
           {"pixels_evaluated", stats.pixels_evaluated},
           {"pixels_unresolved", stats.pixels_unresolved},
@@ -78,7 +78,7 @@ cv::Mat ColorAlbedoPreview(const cv::Mat& albedo_rgb, const cv::Mat& solved, dou
       if (!m[c]) continue;
       for (int k = 0; k < 3; ++k) {
         const double v = std::isfinite(a[c][k]) ? std::clamp(a[c][k] / top, 0.0, 1.0) : 0.0;
-        o[c][2 - k] = cv::saturate_cast<std::uint8_t>(255.0 * color::SrgbEncode(v));
+        o[c][2 - k] = cv::saturate_cast<std::uint8_t>(255.0 * solvers::color::SrgbEncode(v));
       }
     }
   }
@@ -93,18 +93,18 @@ cv::Mat RepeatMask3(const cv::Mat& mask) {
   return three.reshape(1, mask.rows * mask.cols * 3);
 }
 
-// Per-channel albedo with the normals fixed (ps::SolveChannelAlbedo): R, G, B
+// Per-channel albedo with the normals fixed (solvers::ps::SolveChannelAlbedo): R, G, B
 // as CV_32FC3, NaN where a channel has too few usable samples.
 cv::Mat SolveColorAlbedo(const ColorImageStack& color, const cv::Mat& normals, double shadow_sigmas,
                          PhotometricStereoResult* result) {
   std::vector<cv::Mat> channels(3);
   for (int c = 0; c < 3; ++c) {
-    ps::ChannelAlbedoOptions options;
+    solvers::ps::ChannelAlbedoOptions options;
     // Clipped samples are +infinity in a colour stack; shadows sit at zero
     // after the dark, within the channel's noise.
     options.shadow_threshold = std::max(1.0, shadow_sigmas * color.read_sigma[c]);
     options.saturation_level = std::numeric_limits<double>::infinity();
-    const ps::SolverSummary summary = ps::SolveChannelAlbedo(options, color.Channel(c), normals, &channels[c]);
+    const solvers::ps::SolverSummary summary = solvers::ps::SolveChannelAlbedo(options, color.Channel(c), normals, &channels[c]);
     if (c == 1) result->color_albedo_summary = summary;
     if (!summary.IsSolutionUsable())
       spdlog::warn("{}: channel {} albedo: {}", result->source, "RGB"[c], summary.message);
@@ -187,14 +187,14 @@ PhotometricStereoResult::ColorErrors CompareColorAlbedo(const cv::Mat& albedo_rg
 }
 
 double Ciede2000OfLinearSrgb(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  const Eigen::Matrix3d& to_xyz = color::LinearSrgbToXyzD65();
+  const Eigen::Matrix3d& to_xyz = solvers::color::LinearSrgbToXyzD65();
   const Eigen::Vector3d white = to_xyz * Eigen::Vector3d::Ones();
-  return color::Ciede2000(color::XyzToLab(to_xyz * a, white), color::XyzToLab(to_xyz * b, white));
+  return solvers::color::Ciede2000(solvers::color::XyzToLab(to_xyz * a, white), solvers::color::XyzToLab(to_xyz * b, white));
 }
 
-ps::PhotometricStereoOptions MakeSolverOptions(const config::PhotometricStereoRequest& request, double saturation_level) {
-  ps::PhotometricStereoOptions options;
-  ps::ParseMethod(request.method, &options.method);
+solvers::ps::PhotometricStereoOptions MakeSolverOptions(const config::PhotometricStereoRequest& request, double saturation_level) {
+  solvers::ps::PhotometricStereoOptions options;
+  solvers::ps::ParseMethod(request.method, &options.method);
   config::ParseDerivative(request.derivative, &options.blinn_phong);
   // Never below one DN: quantisation alone leaves values within 1 DN of black
   // in shadow. Above that, a multiple of the read noise: the stack's (which
@@ -215,7 +215,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   input.source = run_directory;
   input.capture = CheckCaptureForSolve(run_directory, manifest, failed);
   RequirePhotometricStereoRun(run_directory, manifest);
-  ps::PhotometricStack& stack = input.stack;
+  solvers::ps::PhotometricStack& stack = input.stack;
   // Samples at the clipping level are dropped per pixel; a sensor whose full
   // well fills first clips below the ADC's top code.
   const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
@@ -316,7 +316,7 @@ void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* inpu
   input->mask_source = path;
 }
 
-cv::Mat AutomaticObjectMask(const ps::PhotometricStack& stack, double sigmas) {
+cv::Mat AutomaticObjectMask(const solvers::ps::PhotometricStack& stack, double sigmas) {
   if (stack.dark.empty() || stack.images.empty()) return {};
   cv::Mat brightest = stack.images.front().clone();
   for (const cv::Mat& image : stack.images) cv::max(brightest, image, brightest);
@@ -339,11 +339,11 @@ double EffectiveSaturationLevel(const PhotometricStereoInput& input) {
 }
 
 json ToJson(const PhotometricStereoResult& result) {
-  const ps::SolverSummary& summary = result.summary;
+  const solvers::ps::SolverSummary& summary = result.summary;
   const double saturation = result.saturation_level;
   json report = {{"source", result.source},
                  {"method", summary.method},
-                 {"termination", solvers::TerminationName(summary.termination)},
+                 {"termination", solvers::core::TerminationName(summary.termination)},
                  {"message", summary.message},
                  {"lights", summary.light_count},
                  {"dark_frames", result.dark_frames},
@@ -380,7 +380,7 @@ json ToJson(const PhotometricStereoResult& result) {
   if (result.mean_confidence) report["mean_confidence"] = *result.mean_confidence;
   if (!result.previews.is_null()) report["previews"] = result.previews;
   if (result.depth) {
-    const ps::IntegrationSummary& integrated = result.depth->summary;
+    const solvers::ps::IntegrationSummary& integrated = result.depth->summary;
     report["depth"] = {{"integrator", result.depth->integrator},
                        {"success", integrated.IsSolutionUsable()},
                        {"message", integrated.message},
@@ -414,7 +414,7 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
                                       const std::string& output_directory, const std::function<void()>& before_commit) {
   const auto start = std::chrono::steady_clock::now();
   config::ValidatePhotometricStereoRequest(request);
-  ps::PhotometricStack stack = input.stack;
+  solvers::ps::PhotometricStack stack = input.stack;
   PhotometricStereoResult result;
   if (!input.object_mask.empty()) {
     stack.mask = input.object_mask;
@@ -428,10 +428,10 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   }
   if (!stack.mask.empty()) result.mask_pixels = cv::countNonZero(stack.mask);
   const double saturation = EffectiveSaturationLevel(input);
-  const ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
+  const solvers::ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
 
-  ps::NormalMap map;
-  result.summary = ps::SolvePhotometricStereo(options, stack, &map);
+  solvers::ps::NormalMap map;
+  result.summary = solvers::ps::SolvePhotometricStereo(options, stack, &map);
   result.source = input.source;
   result.capture = input.capture;
   result.dark_frames = input.dark_frames;
@@ -442,7 +442,7 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   const fs::path out(folder.path());
   try {  // a write that fails (a full disk) leaves no partial folder and says what to do
     if (result.usable()) {
-      const cv::Mat solved = map.flags == static_cast<int>(ps::PixelFlag::kSolved);
+      const cv::Mat solved = map.flags == static_cast<int>(solvers::ps::PixelFlag::kSolved);
       result.mean_confidence = cv::mean(map.confidence, solved)[0];
       WriteFloatTiff((out / "normals.tiff").string(), map.normals);
       cv::Mat albedo_rgb;  // colour data: per-channel albedo with the normals fixed
@@ -461,13 +461,13 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
 
       cv::Mat depth;  // stays empty unless integrated
       if (request.integrator != "none") {
-        ps::IntegrationOptions integration;
-        ps::ParseIntegrator(request.integrator, &integration.integrator);
+        solvers::ps::IntegrationOptions integration;
+        solvers::ps::ParseIntegrator(request.integrator, &integration.integrator);
         integration.pixel_pitch = input.pixel_pitch;
         PhotometricStereoDepth& integrated = result.depth.emplace();
         integrated.integrator = request.integrator;
         integrated.pixel_pitch = input.pixel_pitch;
-        integrated.summary = ps::IntegrateNormals(integration, map.normals, solved, &depth);
+        integrated.summary = solvers::ps::IntegrateNormals(integration, map.normals, solved, &depth);
         if (integrated.summary.IsSolutionUsable()) {
           WriteFloatTiff((out / "depth.tiff").string(), depth);
           WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
@@ -502,9 +502,9 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
       }
 
       cv::Mat error_deg;
-      const ps::AngularErrorStats vs_truth =
-          input.truth_normals.empty() ? ps::AngularErrorStats{}
-                                      : ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
+      const solvers::ps::AngularErrorStats vs_truth =
+          input.truth_normals.empty() ? solvers::ps::AngularErrorStats{}
+                                      : solvers::ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
       if (!input.truth_normals.empty() && !vs_truth.IsSolutionUsable()) {
         spdlog::warn("{}: ground-truth normals not compared: {}", input.source, vs_truth.message);
       } else if (!input.truth_normals.empty()) {  // compared: error map and figures

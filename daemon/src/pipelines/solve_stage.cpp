@@ -66,13 +66,13 @@ SolveStageReport ReportSolveStage(const TomographyResult& result) {
   SolveStageReport report;
   report.stage = "tomography";
   report.usable = result.trusted();
-  report.termination = solvers::TerminationName(result.reconstruction.termination);
+  report.termination = solvers::core::TerminationName(result.reconstruction.termination);
   report.message = result.reconstruction.message;
   report.results = "results/tomography";
-  report.figures = {{"method", tomography::MethodName(result.reconstruction.method)},
+  report.figures = {{"method", solvers::tomography::MethodName(result.reconstruction.method)},
                     {"views", result.geometry.views()},
                     {"iterations", result.reconstruction.iterations},
-                    {"stop_reason", tomography::StopReasonName(result.reconstruction.stop_reason)},
+                    {"stop_reason", solvers::tomography::StopReasonName(result.reconstruction.stop_reason)},
                     {"volume", {result.grid.nx, result.grid.ny, result.grid.nz}}};
   if (result.relative_error_vs_truth) report.figures["relative_error_vs_truth"] = *result.relative_error_vs_truth;
   report.timings_ms = {{"setup", result.reconstruction.setup_ms},
@@ -85,11 +85,11 @@ SolveStageReport ReportSolveStage(const BrdfSolveResult& result) {
   SolveStageReport report;
   report.stage = "brdf";
   report.usable = result.usable();
-  const solvers::Summary& ended =
-      result.selection ? static_cast<const solvers::Summary&>(*result.selection) : result.measurement;
+  const solvers::core::Summary& ended =
+      result.selection ? static_cast<const solvers::core::Summary&>(*result.selection) : result.measurement;
   report.termination = result.selection || !result.measurement.IsSolutionUsable()
-                           ? solvers::TerminationName(ended.termination)
-                           : solvers::TerminationName(solvers::Termination::kFailure);
+                           ? solvers::core::TerminationName(ended.termination)
+                           : solvers::core::TerminationName(solvers::core::Termination::kFailure);
   report.message = result.usable() ? (result.warning.empty() ? result.selection->message : result.warning)
                                    : result.failure();
   report.results = result.results.empty() ? "" : "results/brdf";
@@ -111,7 +111,7 @@ SolveStageReport ReportSolveStage(const SvbrdfResult& result) {
   SolveStageReport report;
   report.stage = "svbrdf";
   report.usable = result.usable();
-  report.termination = solvers::TerminationName(result.summary.termination);
+  report.termination = solvers::core::TerminationName(result.summary.termination);
   report.message = result.summary.message;
   report.results = "results/svbrdf";
   nlohmann::json models = nlohmann::json::array();

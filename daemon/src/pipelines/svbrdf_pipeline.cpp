@@ -1,11 +1,11 @@
 #include "photorig/daemon/pipelines/svbrdf_pipeline.h"
 
-#include "photorig/color/region_demosaic.h"
+#include "photorig/solvers/color/region_demosaic.h"
 #include "photorig/daemon/io/gltf_export.h"
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/io/internal/previews.h"
 #include "photorig/daemon/pipelines/internal/results_folder.h"
-#include "photorig/ps/evaluation.h"
+#include "photorig/solvers/ps/evaluation.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
 
 #include <opencv2/imgcodecs.hpp>
@@ -87,7 +87,7 @@ nlohmann::json ColorErrorJson(const PhotometricStereoResult::ColorError& e) {
 // The material map for demosaicing within materials. A pixel the fit left
 // without a material (a blend no material explained, too few samples, a poor
 // fit) takes its nearest labelled pixel's, so its channels come from one side
-// of an edge and the raw sites settle which (color::RegionEdgeVote). A pixel
+// of an edge and the raw sites settle which (solvers::color::RegionEdgeVote). A pixel
 // whose 3 x 3 window reaches off the object (masked out, no normal) is left
 // unlabelled, given a material or not: at the rim the object covers part of
 // a pixel, and its site would carry the background into its neighbours.
@@ -100,14 +100,14 @@ cv::Mat MaterialsOverTheObject(const refl::ReflectanceMaps& maps) {
   cv::Mat near_off_object;
   cv::dilate(off_object, near_off_object, cv::Mat::ones(3, 3, CV_8U), cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
              cv::Scalar(255));
-  const cv::Mat unlabelled = maps.material == color::kNoRegion;
+  const cv::Mat unlabelled = maps.material == solvers::color::kNoRegion;
   cv::Mat out = maps.material.clone();
-  out.setTo(color::kNoRegion, near_off_object);
+  out.setTo(solvers::color::kNoRegion, near_off_object);
   if (cv::countNonZero(unlabelled) == static_cast<int>(unlabelled.total())) return out;
   cv::Mat distance, nearest;
   cv::distanceTransform(unlabelled, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
   // DIST_LABEL_PIXEL gives each labelled pixel an index of its own; map indices to materials.
-  std::vector<std::uint8_t> material_of(static_cast<std::size_t>(unlabelled.total()) + 1, color::kNoRegion);
+  std::vector<std::uint8_t> material_of(static_cast<std::size_t>(unlabelled.total()) + 1, solvers::color::kNoRegion);
   for (int i = 0; i < static_cast<int>(maps.material.total()); ++i)
     if (!unlabelled.data[i]) material_of[static_cast<std::size_t>(nearest.ptr<int>()[i])] = maps.material.data[i];
   for (int i = 0; i < static_cast<int>(out.total()); ++i)
@@ -121,7 +121,7 @@ cv::Mat MaterialsOverTheObject(const refl::ReflectanceMaps& maps) {
 // two albedos (flagged mixed, their colour off by CIEDE2000 ~10). Once the
 // materials are known the raw frames are demosaiced again, each pixel's
 // channels taken only from sites of its own material (its label first
-// settled by its own site: color::RegionEdgeVote), and the reflectance is
+// settled by its own site: solvers::color::RegionEdgeVote), and the reflectance is
 // refitted once. Repeating until the map stops changing was tried before
 // the colour test of unseen pixels compared them under the material's lobe:
 // it moved no more edges, and split a glossy paint's rim off as a paint of
@@ -155,7 +155,7 @@ void RefitDemosaicedWithinMaterials(const PhotometricStereoInput& input, const c
 
 refl::ReflectanceStack ToReflectanceStack(const PhotometricStereoInput& input) {
   refl::ReflectanceStack stack;
-  const ps::PhotometricStack& ps = input.stack;
+  const solvers::ps::PhotometricStack& ps = input.stack;
   // Clipped samples become +max so the solver's saturation test finds them
   // after the dark has been subtracted.
   const float clipped = std::numeric_limits<float>::max();
@@ -203,7 +203,7 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
   nlohmann::json j;
   j["source"] = result.ps.source;
   if (result.ps.capture) j["capture"] = result.ps.capture->ToJson();
-  j["termination"] = solvers::TerminationName(result.summary.termination);
+  j["termination"] = solvers::core::TerminationName(result.summary.termination);
   j["message"] = result.summary.message;
   j["pixels"] = {{"fitted", result.summary.pixels_fitted},
                  {"outside_mask", result.summary.pixels_outside_mask},
@@ -237,7 +237,7 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
   if (result.normal_refinement) {
     const refl::NormalRefinementSummary& n = *result.normal_refinement;
     nlohmann::json& nj = j["normal_refinement"];
-    nj = {{"termination", solvers::TerminationName(n.termination)}, {"message", n.message}, {"rounds", n.rounds},
+    nj = {{"termination", solvers::core::TerminationName(n.termination)}, {"message", n.message}, {"rounds", n.rounds},
           {"pixels_refined", n.pixels_refined}, {"pixels_held", n.pixels_held},
           {"median_change_deg", n.median_change_deg}, {"p95_change_deg", n.p95_change_deg},
           {"reduced_chi_square_before", n.reduced_chi_square_before},
@@ -272,7 +272,7 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
     nlohmann::json h;
     h["subset"] = "stratified (farthest-point over the light directions)";
     h["lights"] = r.held_out;
-    h["termination"] = solvers::TerminationName(r.termination);
+    h["termination"] = solvers::core::TerminationName(r.termination);
     for (int m = 0; m < 3; ++m) {
       const char* name = refl::MethodName(static_cast<refl::Method>(m));
       h["mean"][name] = {{"rmse", r.mean_rmse[m]}, {"psnr_db", r.mean_psnr_db[m]}, {"fit_ms", r.mean_fit_ms[m]}};
@@ -306,7 +306,7 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const conf
     ps_request.progress = request.progress;
     result.ps = SolveAndWrite(input, ps_request, (out / "ps").string());
     if (!result.ps.usable()) {
-      result.summary.End(solvers::Termination::kFailure, "photometric stereo found no normals: " + result.ps.summary.message);
+      result.summary.End(solvers::core::Termination::kFailure, "photometric stereo found no normals: " + result.ps.summary.message);
     } else {
       cv::Mat normals = ReadFloatTiff((out / "ps" / "normals.tiff").string());
       cv::Mat mask = input.object_mask;
@@ -330,9 +330,9 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const conf
             refl::RefineNormalsAndReflectance(refine, stack, normals, mask, maps, result.summary, &refined, &refined_maps);
         if (result.normal_refinement->IsSolutionUsable() && result.normal_refinement->rounds > 0) {
           if (!input.truth_normals.empty()) {
-            const cv::Mat fitted = refined_maps.material != color::kNoRegion;
-            result.unrefined_normals_vs_truth_mean_deg = ps::CompareNormals(normals, input.truth_normals, fitted).mean_deg;
-            result.refined_normals_vs_truth_mean_deg = ps::CompareNormals(refined, input.truth_normals, fitted).mean_deg;
+            const cv::Mat fitted = refined_maps.material != solvers::color::kNoRegion;
+            result.unrefined_normals_vs_truth_mean_deg = solvers::ps::CompareNormals(normals, input.truth_normals, fitted).mean_deg;
+            result.refined_normals_vs_truth_mean_deg = solvers::ps::CompareNormals(refined, input.truth_normals, fitted).mean_deg;
           }
           normals = refined;
           maps = std::move(refined_maps);

@@ -43,7 +43,7 @@ std::vector<std::uint16_t> Pixels(const cv::Mat& frame, const std::string& what)
 // Refuses input the solver would misread: frame sizes against the detector,
 // one angle per projection, at least one flat and one dark.
 void CheckInput(const TomographyInput& input) {
-  const tomography::Geometry& g = input.geometry;
+  const solvers::tomography::Geometry& g = input.geometry;
   if (std::string why; !g.IsValid(&why)) throw std::invalid_argument(input.source + ": geometry: " + why);
   if (input.projections.empty()) throw std::invalid_argument(input.source + ": no projections");
   if (static_cast<int>(input.projections.size()) != g.views())
@@ -68,29 +68,29 @@ void CheckInput(const TomographyInput& input) {
   check(input.darks, "dark");
 }
 
-json GeometryToJson(const tomography::Geometry& g, double saturation_dn) {
+json GeometryToJson(const solvers::tomography::Geometry& g, double saturation_dn) {
   json angles = json::array();
   for (double a : g.angles_rad) angles.push_back(a / kDeg);
-  json out = {{"beam", g.beam == tomography::Beam::kParallel ? "parallel" : "cone"},
+  json out = {{"beam", g.beam == solvers::tomography::Beam::kParallel ? "parallel" : "cone"},
               {"detector_cols", g.detector_cols},
               {"detector_rows", g.detector_rows},
               {"pixel_mm", g.pixel_mm},
               {"cor_offset_mm", g.cor_offset_mm},
               {"angles_deg", angles},
               {"saturation_dn", saturation_dn}};
-  if (g.beam == tomography::Beam::kCone) {
+  if (g.beam == solvers::tomography::Beam::kCone) {
     out["source_to_axis_mm"] = g.source_to_axis_mm;
     out["axis_to_detector_mm"] = g.axis_to_detector_mm;
   }
   return out;
 }
 
-tomography::Geometry GeometryFromJson(const json& j, const std::string& path, double* saturation_dn) {
-  tomography::Geometry g;
+solvers::tomography::Geometry GeometryFromJson(const json& j, const std::string& path, double* saturation_dn) {
+  solvers::tomography::Geometry g;
   try {
     const std::string beam = j.value("beam", "parallel");
     if (beam != "parallel" && beam != "cone") throw std::invalid_argument("beam '" + beam + "' (expected parallel or cone)");
-    g.beam = beam == "cone" ? tomography::Beam::kCone : tomography::Beam::kParallel;
+    g.beam = beam == "cone" ? solvers::tomography::Beam::kCone : solvers::tomography::Beam::kParallel;
     g.detector_cols = j.at("detector_cols").get<int>();
     g.detector_rows = j.at("detector_rows").get<int>();
     g.pixel_mm = j.at("pixel_mm").get<double>();
@@ -128,7 +128,7 @@ std::shared_ptr<const sim::Phantom> ReadPhantom(const fs::path& path) {
 }
 
 // 8-bit slice with +y (or +z) upwards, 0 .. top_per_mm mapped to 0 .. 255.
-cv::Mat SliceImage(const tomography::VolumeGrid& grid, const Eigen::VectorXf& v, bool axial, double top_per_mm) {
+cv::Mat SliceImage(const solvers::tomography::VolumeGrid& grid, const Eigen::VectorXf& v, bool axial, double top_per_mm) {
   const int width = grid.nx, height = axial ? grid.ny : grid.nz;
   cv::Mat image(height, width, CV_8U);
   for (int row = 0; row < height; ++row)
@@ -225,7 +225,7 @@ TomographyInput LoadTomographyInput(const std::string& path, FailedCapture faile
 }
 
 void WriteProjectionFolder(const TomographyInput& input, const std::string& directory) {
-  const tomography::Geometry& g = input.geometry;
+  const solvers::tomography::Geometry& g = input.geometry;
   auto write = [&](const std::vector<std::vector<std::uint16_t>>& frames, const char* folder) {
     fs::create_directories(fs::path(directory) / folder);
     for (std::size_t i = 0; i < frames.size(); ++i) {
@@ -244,11 +244,11 @@ void WriteProjectionFolder(const TomographyInput& input, const std::string& dire
 }
 
 SystemMatrixFactory InProcessSystemMatrix() {
-  return [](const tomography::VolumeGrid& grid, const tomography::Geometry& geometry,
-            const tomography::ProjectorOptions& options, std::unique_ptr<tomography::SystemMatrix>* matrix,
+  return [](const solvers::tomography::VolumeGrid& grid, const solvers::tomography::Geometry& geometry,
+            const solvers::tomography::ProjectorOptions& options, std::unique_ptr<solvers::tomography::SystemMatrix>* matrix,
             std::int64_t* first_ray) {
-    std::unique_ptr<tomography::Projector> projector;
-    tomography::ProjectorSummary summary = tomography::MakeProjector(grid, geometry, options, &projector);
+    std::unique_ptr<solvers::tomography::Projector> projector;
+    solvers::tomography::ProjectorSummary summary = solvers::tomography::MakeProjector(grid, geometry, options, &projector);
     *matrix = std::move(projector);
     *first_ray = 0;
     return summary;
@@ -263,17 +263,17 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   result.capture = input.capture;
   result.geometry = input.geometry;
   result.geometry.cor_offset_mm += request.cor_offset_mm;
-  const tomography::Geometry& g = result.geometry;
+  const solvers::tomography::Geometry& g = result.geometry;
   result.grid.nx = request.volume[0] > 0 ? request.volume[0] : g.detector_cols;
   result.grid.ny = request.volume[1] > 0 ? request.volume[1] : g.detector_cols;
   result.grid.nz = request.volume[2] > 0 ? request.volume[2] : g.detector_rows;
   result.grid.voxel_mm = request.voxel_mm > 0.0 ? request.voxel_mm : g.pixel_mm;
   if (std::string why; !result.grid.IsValid(&why)) throw std::invalid_argument("volume: " + why);
 
-  tomography::AbsorbanceOptions absorbance_options;
+  solvers::tomography::AbsorbanceOptions absorbance_options;
   absorbance_options.saturation_dn = input.saturation_dn;
-  tomography::Absorbance all;
-  result.absorbance = tomography::ComputeAbsorbance(g, input.projections, input.flats, input.darks, absorbance_options, &all);
+  solvers::tomography::Absorbance all;
+  result.absorbance = solvers::tomography::ComputeAbsorbance(g, input.projections, input.flats, input.darks, absorbance_options, &all);
   result.absorbance_ms = MillisecondsSince(started);
   if (!result.absorbance.IsSolutionUsable()) {
     result.reconstruction.End(result.absorbance.termination, "absorbance: " + result.absorbance.message);
@@ -281,30 +281,30 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
     return result;
   }
 
-  tomography::ProjectorOptions projector_options;
-  projector_options.interpolation = *tomography::ParseInterpolation(request.projector);
+  solvers::tomography::ProjectorOptions projector_options;
+  projector_options.interpolation = *solvers::tomography::ParseInterpolation(request.projector);
   projector_options.progress = request.progress;
-  std::unique_ptr<tomography::SystemMatrix> matrix;
+  std::unique_ptr<solvers::tomography::SystemMatrix> matrix;
   std::int64_t first_ray = 0;
   result.projector = factory(result.grid, g, projector_options, &matrix, &first_ray);
   if (!result.projector.IsSolutionUsable()) throw std::invalid_argument("projector: " + result.projector.message);
 
   // The rays this matrix holds.
-  tomography::Absorbance held;
+  solvers::tomography::Absorbance held;
   const std::int64_t n = matrix->rays();
   held.b = all.b.segment(first_ray, n);
   if (!all.valid.empty()) held.valid.assign(all.valid.begin() + first_ray, all.valid.begin() + first_ray + n);
   if (all.variance.size() > 0) held.variance = all.variance.segment(first_ray, n);
-  all = tomography::Absorbance();  // a process of a distributed solve keeps its rays only
+  all = solvers::tomography::Absorbance();  // a process of a distributed solve keeps its rays only
 
-  tomography::ReconstructOptions options;
-  options.method = *tomography::ParseMethod(request.method);
+  solvers::tomography::ReconstructOptions options;
+  options.method = *solvers::tomography::ParseMethod(request.method);
   options.total_variation = request.total_variation;
   options.max_iterations = request.max_iterations;
   options.iteration_limit_name = request.iteration_limit_name;
   options.discrepancy_factor = request.discrepancy_factor;
   options.progress = request.progress;
-  result.reconstruction = tomography::Reconstruct(*matrix, held, options, &result.sigma);
+  result.reconstruction = solvers::tomography::Reconstruct(*matrix, held, options, &result.sigma);
   // A process of a slab decomposition holds its slab: the whole volume goes to the one that writes.
   if (result.sigma.size() == matrix->voxels()) matrix->GatherVolume(&result.sigma);
 
@@ -329,14 +329,14 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
 }
 
 json TomographyResult::ToJson() const {
-  const tomography::ReconstructionSummary& r = reconstruction;
+  const solvers::tomography::ReconstructionSummary& r = reconstruction;
   json doc = {
-      {"method", tomography::MethodName(r.method)},
-      {"termination", solvers::TerminationName(r.termination)},
+      {"method", solvers::tomography::MethodName(r.method)},
+      {"termination", solvers::core::TerminationName(r.termination)},
       {"message", r.message},
       {"trusted", trusted()},
       {"iterations", r.iterations},
-      {"stop_reason", tomography::StopReasonName(r.stop_reason)},
+      {"stop_reason", solvers::tomography::StopReasonName(r.stop_reason)},
       {"relaxation", r.relaxation},
       {"tv_strength", r.tv_strength},
       {"residual", r.residual_history.empty() ? 0.0 : r.residual_history.back()},
@@ -350,7 +350,7 @@ json TomographyResult::ToJson() const {
       {"volume", {{"nx", grid.nx}, {"ny", grid.ny}, {"nz", grid.nz}, {"voxel_mm", grid.voxel_mm}}},
       {"projector", {{"sparse", projector.sparse}, {"nonzeros", projector.nonzeros}, {"stored_bytes", projector.stored_bytes}}},
       {"absorbance",
-       {{"termination", solvers::TerminationName(absorbance.termination)},
+       {{"termination", solvers::core::TerminationName(absorbance.termination)},
         {"rays", absorbance.rays},
         {"flagged_non_positive", absorbance.flagged_non_positive},
         {"flagged_saturated", absorbance.flagged_saturated},
@@ -377,11 +377,11 @@ void WriteTomographyFiles(const TomographyInput& input, const TomographyResult& 
   WriteFileDurably((out / "report.json").string(), result.ToJson().dump(2) + "\n");
   WriteFileDurably((out / "geometry.json").string(), GeometryToJson(result.geometry, input.saturation_dn).dump(2) + "\n");
   if (result.sigma.size() != result.grid.voxels()) return;  // nothing reconstructed
-  if (const solvers::Summary written = tomography::WriteNrrd((out / "volume.nrrd").string(), result.grid, result.sigma);
+  if (const solvers::core::Summary written = solvers::tomography::WriteNrrd((out / "volume.nrrd").string(), result.grid, result.sigma);
       !written.IsSolutionUsable())
     throw std::runtime_error(written.message);
 #if PHOTORIG_HAVE_OPENVDB
-  if (const solvers::Summary written = WriteVdb((out / "volume.vdb").string(), result.grid, result.sigma);
+  if (const solvers::core::Summary written = WriteVdb((out / "volume.vdb").string(), result.grid, result.sigma);
       !written.IsSolutionUsable())
     throw std::runtime_error(written.message);
 #endif

@@ -352,7 +352,7 @@ void RunService::Execute(QueuedRun run) {
   };
   request.on_solve_started = [this, id](const std::string& stage) { Publish(id, "solve_started", {{"stage", stage}}); };
   // Solvers report about every percent (solvers/progress.h): one event each.
-  request.solve_progress = [this, id](const solvers::Progress& progress) {
+  request.solve_progress = [this, id](const solvers::core::Progress& progress) {
     json event = {{"stage", std::string(progress.stage)}, {"done", progress.done}, {"total", progress.total}};
     if (!progress.stopped.empty()) event["stopped"] = std::string(progress.stopped);
     Publish(id, "solve_progress", event);

@@ -18,15 +18,15 @@
 
 #include <Eigen/Core>
 
-#include "photorig/autodiff/blinn_phong.h"
-#include "photorig/autodiff/blinn_phong_jacobian.h"
-#include "photorig/autodiff/blinn_phong_symbolic.h"
-#include "photorig/autodiff/finite_difference.h"
-#include "photorig/autodiff/jacobian.h"
-#include "photorig/autodiff/random_pixel.h"
-#include "photorig/autodiff/tape.h"
+#include "photorig/solvers/autodiff/blinn_phong.h"
+#include "photorig/solvers/autodiff/blinn_phong_jacobian.h"
+#include "photorig/solvers/autodiff/blinn_phong_symbolic.h"
+#include "photorig/solvers/autodiff/finite_difference.h"
+#include "photorig/solvers/autodiff/jacobian.h"
+#include "photorig/solvers/autodiff/random_pixel.h"
+#include "photorig/solvers/autodiff/tape.h"
 
-namespace photorig::autodiff {
+namespace photorig::solvers::autodiff {
 namespace {
 
 const std::vector<int> kSizes = {1, 2, 5, 10, 20, 50, 100, 200, 500, 1000};
@@ -272,10 +272,10 @@ std::vector<Row> MeasureAccuracy() {
 }
 
 }  // namespace
-}  // namespace photorig::autodiff
+}  // namespace photorig::solvers::autodiff
 
 int main(int argc, char** argv) {
-  using namespace photorig::autodiff;
+  using namespace photorig::solvers::autodiff;
   if (argc != 2) {
     std::fprintf(stderr, "usage: %s OUTPUT_DIR\n", argv[0]);
     return 2;

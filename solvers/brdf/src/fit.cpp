@@ -328,7 +328,7 @@ bool PrepareSamples(const std::vector<BrdfSample>& samples, const FitOptions& op
   for (std::size_t k = 0; k < samples.size(); ++k) {
     const BrdfSample& s = samples[k];
     auto refuse = [&](const std::string& why) {
-      summary->End(Termination::kInvalidInput, "sample " + std::to_string(k) + ": " + why);
+      summary->End(core::Termination::kInvalidInput, "sample " + std::to_string(k) + ": " + why);
       return false;
     };
     if (!s.wi.allFinite() || !s.wo.allFinite() || std::abs(s.wi.norm() - 1.0) > 1e-6 ||
@@ -473,10 +473,10 @@ FitSummary FitOf(Model model, std::size_t samples) {
 
 // FitModel on prepared samples.
 FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const FitOptions& options) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   FitSummary summary = FitOf(model, prepared.size());
   if (summary.residuals <= static_cast<std::size_t>(summary.parameters)) {
-    summary.End(Termination::kFailure, std::to_string(prepared.size()) + " samples (" +
+    summary.End(core::Termination::kFailure, std::to_string(prepared.size()) + " samples (" +
                                            std::to_string(summary.residuals) + " values) cannot fit the " +
                                            std::to_string(summary.parameters) + " parameters of " + ModelName(model));
     if (model != Model::kLambertian) summary.lobe_identifiable = false;
@@ -493,12 +493,12 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
   const ceres::Solver::Summary& ceres_summary = ls.solved;
   summary.iterations = static_cast<int>(ceres_summary.iterations.size());
   if (!ceres_summary.IsSolutionUsable()) {
-    summary.End(Termination::kFailure, "the fit failed: " + ceres_summary.message);
+    summary.End(core::Termination::kFailure, "the fit failed: " + ceres_summary.message);
     timer.Finish(&summary);
     return summary;
   }
   summary.termination =
-      ceres_summary.termination_type == ceres::CONVERGENCE ? Termination::kSuccess : Termination::kNoConvergence;
+      ceres_summary.termination_type == ceres::CONVERGENCE ? core::Termination::kSuccess : core::Termination::kNoConvergence;
   summary.cost = 2.0 * ceres_summary.final_cost;  // Ceres reports half the sum of squares
   const double* kd = ls.kd;
   const double* lobe = ls.lobe;
@@ -591,14 +591,14 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
 }  // namespace
 
 FitSummary FitModel(Model model, const std::vector<BrdfSample>& samples, const FitOptions& options) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   FitSummary summary = FitOf(model, samples.size());
   if (std::string why; !options.IsValid(&why)) {
-    summary.End(Termination::kInvalidOptions, why);
+    summary.End(core::Termination::kInvalidOptions, why);
     return summary;
   }
   if (options.start && options.start->model != model) {
-    summary.End(Termination::kInvalidOptions, std::string("start is a ") + ModelName(options.start->model) +
+    summary.End(core::Termination::kInvalidOptions, std::string("start is a ") + ModelName(options.start->model) +
                                                   " point, the fit is of " + ModelName(model));
     return summary;
   }
@@ -616,11 +616,11 @@ std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, doub
   // A fit the iteration limit stopped is not at its optimum: its BIC and
   // held-out error do not speak for the model.
   auto trusted = [](const FitSummary& f) {
-    return f.termination == Termination::kSuccess && f.lobe_identifiable;
+    return f.termination == core::Termination::kSuccess && f.lobe_identifiable;
   };
   std::string unconverged;
   for (const FitSummary& f : fits)
-    if (f.termination == Termination::kNoConvergence)
+    if (f.termination == core::Termination::kNoConvergence)
       unconverged += std::string(unconverged.empty() ? "" : ", ") + ModelName(f.params.model) + " (" +
                      std::to_string(f.iterations) + " iterations)";
   if (!unconverged.empty()) unconverged = "; not considered, the fit did not converge: " + unconverged;
@@ -692,14 +692,14 @@ std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, doub
 }
 
 SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const SelectionOptions& options) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   SelectionSummary summary;
   if (std::string why; !options.IsValid(&why)) {
-    summary.End(Termination::kInvalidOptions, why);
+    summary.End(core::Termination::kInvalidOptions, why);
     return summary;
   }
   if (samples.empty()) {
-    summary.End(Termination::kInvalidInput, "no samples");
+    summary.End(core::Termination::kInvalidInput, "no samples");
     return summary;
   }
   double min_theta_h = M_PI;
@@ -759,7 +759,7 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   const std::optional<std::size_t> choice =
       ChooseModel(summary.candidates, options.min_bic_improvement, min_held_out_gain, &summary.reason);
   if (!choice) {
-    summary.End(Termination::kFailure, "no candidate model gives a converged, identifiable fit to " +
+    summary.End(core::Termination::kFailure, "no candidate model gives a converged, identifiable fit to " +
                                            std::to_string(samples.size()) + " samples (" + summary.reason + ")");
     timer.Finish(&summary);
     return summary;
@@ -771,14 +771,14 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   for (const FitSummary& f : summary.candidates)
     if (f.IsSolutionUsable() && !f.lobe_identifiable && !HasSecondLobe(f.params.model) &&
         f.bic < summary.candidates[chosen].bic - options.min_bic_improvement) {
-      summary.End(Termination::kFailure, std::string("the samples show a lobe (") + ModelName(f.params.model) +
+      summary.End(core::Termination::kFailure, std::string("the samples show a lobe (") + ModelName(f.params.model) +
                                              " fits far better than " + ModelName(*summary.chosen) +
                                              ") but not its width; sample nearer the specular peak (closest theta_h " +
                                              std::to_string(summary.min_theta_h_deg) + " deg)");
       timer.Finish(&summary);
       return summary;
     }
-  summary.termination = Termination::kSuccess;
+  summary.termination = core::Termination::kSuccess;
   if (!summary.peak_sampled)
     summary.message = "no sample near the specular peak (closest theta_h " + std::to_string(summary.min_theta_h_deg) +
                       " deg): a lobe narrower than that cannot be ruled out";

@@ -19,20 +19,20 @@ std::optional<TableFormat> TableFormatOf(const std::string& path) {
   return std::nullopt;
 }
 
-Summary ReadMeasured(const std::string& path, MeasuredBrdf* brdf) {
+core::Summary ReadMeasured(const std::string& path, MeasuredBrdf* brdf) {
   const std::optional<TableFormat> format = TableFormatOf(path);
   if (!format)
-    return Ended(Termination::kInvalidInput,
+    return core::Ended(core::Termination::kInvalidInput,
                  "'" + path + "': not a measured-BRDF file (MERL .binary or EPFL RGL .bsdf, by extension)");
   if (*format == TableFormat::kMerl) {
     auto table = std::make_shared<MerlTable>();
-    const Summary read = ReadMerl(path, table.get());
+    const core::Summary read = ReadMerl(path, table.get());
     if (!read.IsSolutionUsable()) return read;
     *brdf = [table](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return table->Evaluate(wi, wo); };
     return read;
   }
   auto rgl = std::make_shared<RglBrdf>();
-  const Summary read = ReadRgl(path, rgl.get());
+  const core::Summary read = ReadRgl(path, rgl.get());
   if (!read.IsSolutionUsable()) return read;
   *brdf = [rgl](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return rgl->Evaluate(wi, wo); };
   return read;

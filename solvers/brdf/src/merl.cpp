@@ -132,7 +132,7 @@ MerlReadSummary ReadMerlCells(std::istream& in, std::size_t size, const std::arr
   const std::size_t cells = static_cast<std::size_t>(dims[0]) * dims[1] * dims[2];
   const std::size_t expected_bytes = sizeof dims + 3 * cells * sizeof(double);
   if (size != expected_bytes) {
-    summary.End(Termination::kInvalidInput, where + std::to_string(size) + " bytes, a MERL table has " +
+    summary.End(core::Termination::kInvalidInput, where + std::to_string(size) + " bytes, a MERL table has " +
                                                 std::to_string(expected_bytes) + " (a 12-byte header and 3 x " +
                                                 std::to_string(cells) + " doubles)");
     return summary;
@@ -140,7 +140,7 @@ MerlReadSummary ReadMerlCells(std::istream& in, std::size_t size, const std::arr
   std::int32_t header[3] = {0, 0, 0};
   in.read(reinterpret_cast<char*>(header), sizeof header);
   if (!in || header[0] != dims[0] || header[1] != dims[1] || header[2] != dims[2]) {
-    summary.End(Termination::kInvalidInput, where + "header is " + std::to_string(header[0]) + " x " +
+    summary.End(core::Termination::kInvalidInput, where + "header is " + std::to_string(header[0]) + " x " +
                                                 std::to_string(header[1]) + " x " + std::to_string(header[2]) +
                                                 ", not " + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) +
                                                 " x " + std::to_string(dims[2]));
@@ -152,32 +152,32 @@ MerlReadSummary ReadMerlCells(std::istream& in, std::size_t size, const std::arr
     in.read(reinterpret_cast<char*>(plane.data()), static_cast<std::streamsize>(cells * sizeof(double)));
   }
   if (!in) {
-    summary.End(Termination::kInvalidInput, where + "read failed");
+    summary.End(core::Termination::kInvalidInput, where + "read failed");
     return summary;
   }
   for (int c = 0; c < 3; ++c)
     for (std::size_t i = 0; i < cells; ++i) {
       const double v = read[c][i];
       if (!std::isfinite(v)) {
-        summary.End(Termination::kInvalidInput, where + "cell " + std::to_string(i) + " of the " + "RGB"[c] +
+        summary.End(core::Termination::kInvalidInput, where + "cell " + std::to_string(i) + " of the " + "RGB"[c] +
                                                     " plane is " + (std::isnan(v) ? "NaN" : "infinite"));
         return summary;
       }
       if (v < 0.0 && c == 0) ++summary.invalid_cells;
     }
   *planes = std::move(read);
-  summary.termination = Termination::kSuccess;
+  summary.termination = core::Termination::kSuccess;
   return summary;
 }
 
 MerlReadSummary ReadMerl(const std::string& path, MerlTable* table) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   const std::string where = "MERL BRDF '" + path + "': ";
   std::ifstream in(path, std::ios::binary | std::ios::ate);
   MerlReadSummary summary;
   std::array<std::vector<double>, 3> planes;
   if (!in)
-    summary.End(Termination::kInvalidInput, where + "cannot open the file");
+    summary.End(core::Termination::kInvalidInput, where + "cannot open the file");
   else {
     const auto size = static_cast<std::size_t>(in.tellg());
     in.seekg(0);
@@ -191,13 +191,13 @@ MerlReadSummary ReadMerl(const std::string& path, MerlTable* table) {
   return summary;
 }
 
-Summary WriteMerl(const std::string& path, const MerlTable& table) {
+core::Summary WriteMerl(const std::string& path, const MerlTable& table) {
   // ReadMerl refuses a table that is not finite: it is never written.
   for (int c = 0; c < 3; ++c)
     for (std::size_t i = 0; i < MerlTable::kCells; ++i)
       if (const double v = table.plane(c)[i]; !std::isfinite(v)) {
         const std::size_t per_h = std::size_t{MerlTable::kThetaDBins} * MerlTable::kPhiDBins;
-        return Ended(Termination::kInvalidInput,
+        return core::Ended(core::Termination::kInvalidInput,
                      "MERL BRDF '" + path + "' not written: cell " + std::to_string(i) + " of the " + "RGB"[c] +
                          " plane (theta_h bin " + std::to_string(i / per_h) + ", theta_d bin " +
                          std::to_string(i % per_h / MerlTable::kPhiDBins) + ", phi_d bin " +
@@ -205,15 +205,15 @@ Summary WriteMerl(const std::string& path, const MerlTable& table) {
                          ", which no reader accepts");
       }
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) return Ended(Termination::kInvalidInput, "cannot open '" + path + "' for writing");
+  if (!out) return core::Ended(core::Termination::kInvalidInput, "cannot open '" + path + "' for writing");
   const std::int32_t dims[3] = {MerlTable::kThetaHBins, MerlTable::kThetaDBins, MerlTable::kPhiDBins};
   out.write(reinterpret_cast<const char*>(dims), sizeof dims);
   for (int c = 0; c < 3; ++c)
     out.write(reinterpret_cast<const char*>(table.plane(c).data()),
               static_cast<std::streamsize>(MerlTable::kCells * sizeof(double)));
   out.close();
-  if (!out) return Ended(Termination::kFailure, "writing MERL BRDF '" + path + "' failed");
-  return Ended(Termination::kSuccess, "");
+  if (!out) return core::Ended(core::Termination::kFailure, "writing MERL BRDF '" + path + "' failed");
+  return core::Ended(core::Termination::kSuccess, "");
 }
 
 }  // namespace photorig::solvers::brdf

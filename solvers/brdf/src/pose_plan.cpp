@@ -107,11 +107,11 @@ DirectionPair ArmDirections(const ArmPose& pose) {
 }
 
 PosePlan PlanPoses(const std::vector<HalfDiff>& requested, const GonioArms& arms, const PosePlanOptions& options) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   PosePlan plan;
   std::string why;
   if (!arms.IsValid(&why) || !options.IsValid(&why)) {
-    plan.End(Termination::kInvalidOptions, why);
+    plan.End(core::Termination::kInvalidOptions, why);
     return plan;
   }
   timer.SetupDone(&plan);
@@ -192,10 +192,10 @@ PosePlan PlanPoses(const std::vector<HalfDiff>& requested, const GonioArms& arms
     plan.poses.push_back(pose);
   }
   if (plan.poses.empty()) {
-    plan.End(Termination::kFailure, "none of the " + std::to_string(requested.size()) +
+    plan.End(core::Termination::kFailure, "none of the " + std::to_string(requested.size()) +
                                         " requested configurations is reachable by the arms");
   } else {
-    plan.termination = Termination::kSuccess;
+    plan.termination = core::Termination::kSuccess;
     if (!plan.refused.empty())
       plan.message = std::to_string(plan.refused.size()) + " of " + std::to_string(requested.size()) +
                      " configurations refused (first: " + plan.refused.front().reason + ")";
@@ -221,16 +221,16 @@ bool AdaptiveOptions::IsValid(std::string* why) const {
 
 AdaptiveProposal ProposeDenserPoses(const std::vector<PlanSample>& measured, const GonioArms& arms,
                                     const PosePlanOptions& plan_options, const AdaptiveOptions& options) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   AdaptiveProposal proposal;
   std::string why;
   if (!options.IsValid(&why) || !arms.IsValid(&why) || !plan_options.IsValid(&why)) {
-    proposal.End(Termination::kInvalidOptions, why);
+    proposal.End(core::Termination::kInvalidOptions, why);
     return proposal;
   }
   for (std::size_t i = 0; i < measured.size(); ++i)
     if (!std::isfinite(measured[i].value)) {
-      proposal.End(Termination::kInvalidInput, "sample " + std::to_string(i) + " has a value that is not finite");
+      proposal.End(core::Termination::kInvalidInput, "sample " + std::to_string(i) + " has a value that is not finite");
       return proposal;
     }
   timer.SetupDone(&proposal);
@@ -276,12 +276,12 @@ AdaptiveProposal ProposeDenserPoses(const std::vector<PlanSample>& measured, con
     proposal.score.push_back(interval.score);
   }
   if (proposal.proposed.empty()) {
-    proposal.End(Termination::kFailure, "no interval between " + std::to_string(measured.size()) +
+    proposal.End(core::Termination::kFailure, "no interval between " + std::to_string(measured.size()) +
                                             " samples splits into a configuration the arms reach");
     return proposal;
   }
   proposal.plan = PlanPoses(proposal.proposed, arms, plan_options);
-  proposal.termination = Termination::kSuccess;
+  proposal.termination = core::Termination::kSuccess;
   timer.Finish(&proposal);
   return proposal;
 }

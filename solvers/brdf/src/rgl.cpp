@@ -190,9 +190,9 @@ std::optional<Eigen::Vector3d> RglBrdf::Evaluate(const Eigen::Vector3d& wi, cons
   return f;
 }
 
-Summary BuildRglBrdf(const std::string& path, const TensorFile& file, RglBrdf* brdf) {
-  SolveTimer timer;
-  auto fail = [&](const std::string& why) { return Ended(Termination::kInvalidInput, "RGL BRDF '" + path + "': " + why); };
+core::Summary BuildRglBrdf(const std::string& path, const TensorFile& file, RglBrdf* brdf) {
+  core::SolveTimer timer;
+  auto fail = [&](const std::string& why) { return core::Ended(core::Termination::kInvalidInput, "RGL BRDF '" + path + "': " + why); };
   const char* kNeeded = "an RGL material needs theta_i, phi_i, ndf, sigma, vndf, luminance, rgb and jacobian";
   if (!file.Find("rgb") && file.Find("spectra"))
     return fail("a spectral file ('wavelengths' and 'spectra', no 'rgb'): only the RGB variant of the "
@@ -310,9 +310,9 @@ Summary BuildRglBrdf(const std::string& path, const TensorFile& file, RglBrdf* b
   return timer.Succeeded();
 }
 
-Summary ReadRgl(const std::string& path, RglBrdf* brdf) {
+core::Summary ReadRgl(const std::string& path, RglBrdf* brdf) {
   TensorFile file;
-  const Summary read = ReadTensorFile(path, &file);
+  const core::Summary read = ReadTensorFile(path, &file);
   if (!read.IsSolutionUsable()) return read;
   return BuildRglBrdf(path, file, brdf);
 }
@@ -330,11 +330,11 @@ bool RglTabulation::IsValid(std::string* why) const {
   return true;
 }
 
-Summary TabulateRgl(const std::function<Eigen::Vector3d(const DirectionPair&)>& brdf, const RglTabulation& tab,
+core::Summary TabulateRgl(const std::function<Eigen::Vector3d(const DirectionPair&)>& brdf, const RglTabulation& tab,
                     TensorFile* file) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   std::string why;
-  if (!tab.IsValid(&why)) return Ended(Termination::kInvalidOptions, why);
+  if (!tab.IsValid(&why)) return core::Ended(core::Termination::kInvalidOptions, why);
   const double a = tab.ndf_roughness;
   const int T = tab.theta_i_count, M = tab.ndf_resolution, N = tab.sample_resolution;
   auto node = [](int i, int n) { return double(i) / (n - 1); };
@@ -395,7 +395,7 @@ Summary TabulateRgl(const std::function<Eigen::Vector3d(const DirectionPair&)>& 
   for (std::size_t i = 0; i < rgb.size(); ++i)
     if (!std::isfinite(rgb[i])) {
       const std::size_t x = i % N, y = i / N % N, c = i / (std::size_t(N) * N) % 3, k = i / (std::size_t(N) * N * 3);
-      return Ended(Termination::kInvalidInput,
+      return core::Ended(core::Termination::kInvalidInput,
                    "field 'rgb' cell " + std::to_string(i) + " (theta_i " + std::to_string(theta_i[k] * 180.0 / M_PI) +
                        " deg, channel " + "RGB"[c] + ", sample " + std::to_string(x) + ", " + std::to_string(y) +
                        ") is " + (std::isnan(rgb[i]) ? "NaN" : "infinite") +

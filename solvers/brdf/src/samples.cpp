@@ -19,9 +19,9 @@ bool Number(const std::string& cell, double* value) {
 }
 }  // namespace
 
-Summary WriteSamplesCsv(const std::string& path, const std::vector<BrdfSample>& samples) {
+core::Summary WriteSamplesCsv(const std::string& path, const std::vector<BrdfSample>& samples) {
   std::ofstream out(path, std::ios::trunc);
-  if (!out) return Ended(Termination::kInvalidInput, "cannot open '" + path + "' for writing");
+  if (!out) return core::Ended(core::Termination::kInvalidInput, "cannot open '" + path + "' for writing");
   out << kValueColumns << kOriginColumns << "\n";
   out.precision(17);
   for (const BrdfSample& b : samples) {
@@ -36,22 +36,22 @@ Summary WriteSamplesCsv(const std::string& path, const std::vector<BrdfSample>& 
     }
   }
   out.close();
-  if (!out) return Ended(Termination::kFailure, "writing samples '" + path + "' failed");
-  return Ended(Termination::kSuccess, "");
+  if (!out) return core::Ended(core::Termination::kFailure, "writing samples '" + path + "' failed");
+  return core::Ended(core::Termination::kSuccess, "");
 }
 
-Summary ReadSamplesCsv(const std::string& path, std::vector<BrdfSample>* samples) {
+core::Summary ReadSamplesCsv(const std::string& path, std::vector<BrdfSample>* samples) {
   std::ifstream in(path);
-  if (!in) return Ended(Termination::kInvalidInput, "samples '" + path + "': cannot open the file");
+  if (!in) return core::Ended(core::Termination::kInvalidInput, "samples '" + path + "': cannot open the file");
   const std::string with_origin = std::string(kValueColumns) + kOriginColumns;
   std::string line;
   if (!std::getline(in, line))
-    return Ended(Termination::kInvalidInput, "samples '" + path + "': the file is empty (expected the header " +
+    return core::Ended(core::Termination::kInvalidInput, "samples '" + path + "': the file is empty (expected the header " +
                                                  with_origin + ")");
   if (!line.empty() && line.back() == '\r') line.pop_back();
   const bool has_origin = line == with_origin;
   if (!has_origin && line != kValueColumns)
-    return Ended(Termination::kInvalidInput, "samples '" + path + "': the first line is not the header " + with_origin);
+    return core::Ended(core::Termination::kInvalidInput, "samples '" + path + "': the first line is not the header " + with_origin);
   const std::size_t columns = kValueCount + (has_origin ? kOriginCount : 0);
   std::vector<BrdfSample> read;
   for (int number = 2; std::getline(in, line); ++number) {
@@ -63,12 +63,12 @@ Summary ReadSamplesCsv(const std::string& path, std::vector<BrdfSample>* samples
     if (!line.empty() && line.back() == ',') cells.emplace_back();  // getline drops a trailing empty cell
     const std::string where = "samples '" + path + "':" + std::to_string(number) + ": ";
     if (cells.size() != columns)
-      return Ended(Termination::kInvalidInput,
+      return core::Ended(core::Termination::kInvalidInput,
                    where + std::to_string(cells.size()) + " cells, not " + std::to_string(columns));
     double v[kValueCount + kOriginCount] = {};
     for (int i = 0; i < kValueCount; ++i)
       if (!Number(cells[i], &v[i]))
-        return Ended(Termination::kInvalidInput, where + "cell " + std::to_string(i + 1) + " is not a number");
+        return core::Ended(core::Termination::kInvalidInput, where + "cell " + std::to_string(i + 1) + " is not a number");
     BrdfSample s;
     s.wi = {v[0], v[1], v[2]};
     s.wo = {v[3], v[4], v[5]};
@@ -80,18 +80,18 @@ Summary ReadSamplesCsv(const std::string& path, std::vector<BrdfSample>* samples
         if (cells[i].empty()) {
           ++empty;
         } else if (!Number(cells[i], &v[i])) {
-          return Ended(Termination::kInvalidInput, where + "cell " + std::to_string(i + 1) + " is not a number");
+          return core::Ended(core::Termination::kInvalidInput, where + "cell " + std::to_string(i + 1) + " is not a number");
         }
       }
       if (empty != 0 && empty != kOriginCount)
-        return Ended(Termination::kInvalidInput, where + "the origin (pose, exposure, frames) is given in part: "
+        return core::Ended(core::Termination::kInvalidInput, where + "the origin (pose, exposure, frames) is given in part: "
                                                          "give all five cells or leave all five empty");
       if (empty == 0) s.origin = SampleOrigin{v[12], v[13], v[14], v[15], static_cast<int>(v[16])};
     }
     read.push_back(s);
   }
   *samples = std::move(read);
-  return Ended(Termination::kSuccess, "");
+  return core::Ended(core::Termination::kSuccess, "");
 }
 
 }  // namespace photorig::solvers::brdf

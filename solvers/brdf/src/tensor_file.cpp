@@ -118,39 +118,39 @@ const TensorField* TensorFile::Find(std::string_view name) const {
   return nullptr;
 }
 
-Summary ReadTensorFile(const std::string& path, TensorFile* file) {
-  SolveTimer timer;
+core::Summary ReadTensorFile(const std::string& path, TensorFile* file) {
+  core::SolveTimer timer;
   const std::string where = "tensor file '" + path + "': ";
   // Only a regular file of bounded size is read: a device or a pipe
   // (/dev/urandom) would be read until memory ran out.
   std::error_code error;
   const fs::file_status status = fs::status(path, error);
   if (!error && fs::exists(status) && !fs::is_regular_file(status))
-    return Ended(Termination::kInvalidInput, where + "not a regular file (a device, pipe or folder); give a .bsdf file");
+    return core::Ended(core::Termination::kInvalidInput, where + "not a regular file (a device, pipe or folder); give a .bsdf file");
   const std::uintmax_t size = fs::file_size(path, error);
-  if (error) return Ended(Termination::kInvalidInput, where + "cannot open the file: " + error.message());
+  if (error) return core::Ended(core::Termination::kInvalidInput, where + "cannot open the file: " + error.message());
   if (size > kMaxTensorFileBytes)
-    return Ended(Termination::kInvalidInput, where + std::to_string(size) + " bytes, more than the " +
+    return core::Ended(core::Termination::kInvalidInput, where + std::to_string(size) + " bytes, more than the " +
                                                  std::to_string(kMaxTensorFileBytes >> 20) +
                                                  " MiB this reader accepts (the largest RGL tables are a few MiB)");
   std::ifstream in(path, std::ios::binary);
-  if (!in) return Ended(Termination::kInvalidInput, where + "cannot open the file");
+  if (!in) return core::Ended(core::Termination::kInvalidInput, where + "cannot open the file");
   std::vector<std::uint8_t> bytes(size);
   in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size));
   if (static_cast<std::uintmax_t>(in.gcount()) != size)
-    return Ended(Termination::kInvalidInput, where + "read " + std::to_string(in.gcount()) + " of its " +
+    return core::Ended(core::Termination::kInvalidInput, where + "read " + std::to_string(in.gcount()) + " of its " +
                                                  std::to_string(size) + " bytes (changed while read?)");
   Cursor cursor(bytes);
   char magic[12];
   std::uint8_t version[2];
   std::uint32_t n_fields = 0;
   if (!cursor.Read(&magic) || !cursor.Read(&version) || !cursor.Read(&n_fields))
-    return Ended(Termination::kInvalidInput,
+    return core::Ended(core::Termination::kInvalidInput,
                  where + std::to_string(bytes.size()) + " bytes, shorter than the 18-byte header (truncated?)");
   if (std::memcmp(magic, kMagic, sizeof kMagic) != 0)
-    return Ended(Termination::kInvalidInput, where + "wrong header: does not start with \"tensor_file\\0\"");
+    return core::Ended(core::Termination::kInvalidInput, where + "wrong header: does not start with \"tensor_file\\0\"");
   if (version[0] != kTensorFileVersion[0] || version[1] != kTensorFileVersion[1])
-    return Ended(Termination::kInvalidInput, where + "version " + std::to_string(version[0]) + "." +
+    return core::Ended(core::Termination::kInvalidInput, where + "version " + std::to_string(version[0]) + "." +
                                                  std::to_string(version[1]) + ", this reader knows 1.0");
   TensorFile read;
   std::set<std::string> names;
@@ -162,11 +162,11 @@ Summary ReadTensorFile(const std::string& path, TensorFile* file) {
     TensorField field;
     if (!cursor.Read(&name_length) || !cursor.ReadString(name_length, &field.name) || !cursor.Read(&ndim) ||
         !cursor.Read(&dtype) || !cursor.Read(&offset))
-      return Ended(Termination::kInvalidInput, where + "the header of " + which + " is cut short at byte " +
+      return core::Ended(core::Termination::kInvalidInput, where + "the header of " + which + " is cut short at byte " +
                                                    std::to_string(bytes.size()) + " (truncated?)");
     const std::string named = which + " '" + field.name + "'";
     if (!KnownType(dtype))
-      return Ended(Termination::kInvalidInput, where + named + " has unknown dtype " + std::to_string(dtype));
+      return core::Ended(core::Termination::kInvalidInput, where + named + " has unknown dtype " + std::to_string(dtype));
     field.type = static_cast<TensorType>(dtype);
     // The product of the shape in bytes, refusing any overflow on the way:
     // a damaged header must not make the reader size gigabytes.
@@ -175,18 +175,18 @@ Summary ReadTensorFile(const std::string& path, TensorFile* file) {
     for (std::uint16_t d = 0; d < ndim; ++d) {
       std::uint64_t extent = 0;
       if (!cursor.Read(&extent))
-        return Ended(Termination::kInvalidInput, where + "the shape of " + named + " is cut short (truncated?)");
+        return core::Ended(core::Termination::kInvalidInput, where + "the shape of " + named + " is cut short (truncated?)");
       field.shape.push_back(extent);
       if (extent != 0 && size_bytes > std::numeric_limits<std::uint64_t>::max() / extent) overflow = true;
       size_bytes *= extent;
     }
     if (overflow || offset > bytes.size() || size_bytes > bytes.size() - offset)
-      return Ended(Termination::kInvalidInput,
+      return core::Ended(core::Termination::kInvalidInput,
                    where + named + ": its data (" + (overflow ? std::string("more than 2^64") : std::to_string(size_bytes)) +
                        " bytes at offset " + std::to_string(offset) + ") lies beyond the end of the " +
                        std::to_string(bytes.size()) + "-byte file (short body or bad offset)");
     if (!names.insert(field.name).second)
-      return Ended(Termination::kInvalidInput, where + "field '" + field.name + "' appears twice");
+      return core::Ended(core::Termination::kInvalidInput, where + "field '" + field.name + "' appears twice");
     field.bytes.assign(bytes.begin() + static_cast<std::ptrdiff_t>(offset),
                        bytes.begin() + static_cast<std::ptrdiff_t>(offset + size_bytes));
     read.fields.push_back(std::move(field));
@@ -195,7 +195,7 @@ Summary ReadTensorFile(const std::string& path, TensorFile* file) {
   return timer.Succeeded();
 }
 
-Summary WriteTensorFile(const std::string& path, const TensorFile& file) {
+core::Summary WriteTensorFile(const std::string& path, const TensorFile& file) {
   std::vector<std::uint8_t> header;
   auto put = [&header](const void* data, std::size_t n) {
     const auto* p = static_cast<const std::uint8_t*>(data);
@@ -222,7 +222,7 @@ Summary WriteTensorFile(const std::string& path, const TensorFile& file) {
     offset = align8(offset + f.bytes.size());
   }
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) return Ended(Termination::kInvalidInput, "cannot open '" + path + "' for writing");
+  if (!out) return core::Ended(core::Termination::kInvalidInput, "cannot open '" + path + "' for writing");
   out.write(reinterpret_cast<const char*>(header.data()), static_cast<std::streamsize>(header.size()));
   std::uint64_t written = header.size();
   const char zeros[8] = {};
@@ -232,8 +232,8 @@ Summary WriteTensorFile(const std::string& path, const TensorFile& file) {
     written = align8(written) + f.bytes.size();
   }
   out.close();
-  if (!out) return Ended(Termination::kFailure, "writing tensor file '" + path + "' failed");
-  return Ended(Termination::kSuccess, "");
+  if (!out) return core::Ended(core::Termination::kFailure, "writing tensor file '" + path + "' failed");
+  return core::Ended(core::Termination::kSuccess, "");
 }
 
 }  // namespace photorig::solvers::brdf

@@ -1,13 +1,13 @@
-#include "photorig/color/apply.h"
+#include "photorig/solvers/color/apply.h"
 
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/color/colorimetry.h"
 
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <string>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 
 bool ApplyOptions::IsValid(std::string* why) const {
   if (!(exposure_ratio > 0.0)) {
@@ -17,12 +17,12 @@ bool ApplyOptions::IsValid(std::string* why) const {
   return true;
 }
 
-using solvers::Ended;
-using solvers::Termination;
+using solvers::core::Ended;
+using solvers::core::Termination;
 
-solvers::Summary CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv::Mat& dark_bgr,
+solvers::core::Summary CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr, const cv::Mat& dark_bgr,
                              const ApplyOptions& options, cv::Mat* xyz_out) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   std::string why;
   if (!options.IsValid(&why)) return Ended(Termination::kInvalidOptions, "invalid options: " + why);
   if (!model.IsValid(&why)) return Ended(Termination::kInvalidInput, "colour model: " + why);
@@ -87,8 +87,8 @@ solvers::Summary CameraToXyz(const ColorModel& model, const cv::Mat& camera_bgr,
   return timer.Succeeded();
 }
 
-solvers::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Mat* bgr, DemosaicMethod method) {
-  const solvers::SolveTimer timer;
+solvers::core::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Mat* bgr, DemosaicMethod method) {
+  const solvers::core::SolveTimer timer;
   if (raw.empty() || raw.channels() != 1) {
     return Ended(Termination::kInvalidInput, "a Bayer raw has one channel, got " + std::to_string(raw.channels()));
   }
@@ -109,8 +109,8 @@ solvers::Summary Demosaic(const cv::Mat& raw, const std::string& pattern, cv::Ma
   return timer.Succeeded();
 }
 
-solvers::Summary XyzToLinearSrgbBgr(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz, cv::Mat* bgr) {
-  const solvers::SolveTimer timer;
+solvers::core::Summary XyzToLinearSrgbBgr(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz, cv::Mat* bgr) {
+  const solvers::core::SolveTimer timer;
   if (xyz.type() != CV_32FC3) return Ended(Termination::kInvalidInput, "XYZ image must be CV_32FC3");
   if (!white_xyz.allFinite() || !(white_xyz.y() > 0.0)) {
     return Ended(Termination::kInvalidInput, "the white point must be finite with Y > 0");
@@ -125,10 +125,10 @@ solvers::Summary XyzToLinearSrgbBgr(const cv::Mat& xyz, const Eigen::Vector3d& w
   return timer.Succeeded();
 }
 
-solvers::Summary XyzToSrgb8(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz, cv::Mat* bgr) {
-  const solvers::SolveTimer timer;
+solvers::core::Summary XyzToSrgb8(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz, cv::Mat* bgr) {
+  const solvers::core::SolveTimer timer;
   cv::Mat linear;
-  const solvers::Summary converted = XyzToLinearSrgbBgr(xyz, white_xyz, &linear);
+  const solvers::core::Summary converted = XyzToLinearSrgbBgr(xyz, white_xyz, &linear);
   if (!converted.IsSolutionUsable()) return converted;
   // A 4096-entry table of the transfer function: exact to 8 bits and cheap per pixel.
   static const std::vector<std::uint8_t> table = [] {
@@ -149,4 +149,4 @@ solvers::Summary XyzToSrgb8(const cv::Mat& xyz, const Eigen::Vector3d& white_xyz
   return timer.Succeeded();
 }
 
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

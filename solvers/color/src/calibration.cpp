@@ -1,6 +1,6 @@
-#include "photorig/color/calibration.h"
+#include "photorig/solvers/color/calibration.h"
 
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/color/colorimetry.h"
 
 #include <Eigen/QR>
 #include <Eigen/SVD>
@@ -13,7 +13,7 @@
 #include <numeric>
 #include <sstream>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -152,7 +152,7 @@ bool NormaliseExposure(const CalibrationInput& input, int white_patch, const std
     }
   }
   if (summary->exposure_patch < 0) {
-    summary->End(solvers::Termination::kFailure, "no usable white or grey patch to normalise the exposure on");
+    summary->End(solvers::core::Termination::kFailure, "no usable white or grey patch to normalise the exposure on");
     return false;
   }
   const auto w = static_cast<std::size_t>(summary->exposure_patch);
@@ -163,16 +163,16 @@ bool NormaliseExposure(const CalibrationInput& input, int white_patch, const std
 }  // namespace
 
 CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOptions& options) {
-  solvers::SolveTimer timer;
+  solvers::core::SolveTimer timer;
   CalibrationSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   const std::size_t n = input.camera_rgb.size();
   if (input.usable.size() != n || input.reference_xyz.size() != n) {
-    summary.End(solvers::Termination::kInvalidInput, "camera_rgb, usable and reference_xyz must have one entry per patch");
+    summary.End(solvers::core::Termination::kInvalidInput, "camera_rgb, usable and reference_xyz must have one entry per patch");
     return summary;
   }
   std::vector<int> used;
@@ -181,7 +181,7 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
       used.push_back(static_cast<int>(i));
   summary.patches_used = static_cast<int>(used.size());
   if (used.size() < 4) {
-    summary.End(solvers::Termination::kFailure,
+    summary.End(solvers::core::Termination::kFailure,
                 "only " + std::to_string(used.size()) + " usable patches; at least 4 are needed");
     return summary;
   }
@@ -197,7 +197,7 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
     std::ostringstream message;
     message << "near-singular system: the usable patches span too little colour (chromaticity spread " << spread
             << " < " << options.min_chromaticity_spread << "); a chart of greys cannot calibrate colour";
-    summary.End(solvers::Termination::kFailure, message.str());
+    summary.End(solvers::core::Termination::kFailure, message.str());
     return summary;
   }
   timer.SetupDone(&summary);
@@ -206,7 +206,7 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
   const double nan = std::numeric_limits<double>::quiet_NaN();
 
   const std::int64_t fits_per_model = static_cast<std::int64_t>(used.size()) + 1;
-  solvers::ProgressThrottle progress(options.progress, "colour fits",
+  solvers::core::ProgressThrottle progress(options.progress, "colour fits",
                                      fits_per_model * static_cast<std::int64_t>(options.candidates.size()));
   std::int64_t fits_done = 0;  // a skipped model's fits count as done
   for (const ModelSpec& spec : options.candidates) {
@@ -277,7 +277,7 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
   if (summary.chosen < 0) {
     std::string reasons = "no candidate model is usable:";
     for (const auto& m : summary.models) reasons += " " + m.spec.Name() + ": " + m.note + ";";
-    summary.End(solvers::Termination::kFailure, reasons);
+    summary.End(solvers::core::Termination::kFailure, reasons);
     return summary;
   }
   const auto& chosen = summary.models[static_cast<std::size_t>(summary.chosen)];
@@ -285,7 +285,7 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
   message.precision(3);
   message << "chose " << chosen.spec.Name() << ": leave-one-out mean CIEDE2000 " << chosen.held_out_mean
           << " (training " << chosen.training_mean << ") over " << used.size() << " patches";
-  summary.End(solvers::Termination::kSuccess, message.str());
+  summary.End(solvers::core::Termination::kSuccess, message.str());
   return summary;
 }
 
@@ -298,10 +298,10 @@ ChartCalibration CalibrateChartImage(const cv::Mat& image_bgr, const cv::Mat& da
   out.reference = ColorCheckerReference(illuminant, ReferenceGrid());
   out.located = LocateChart(image_bgr, locate);
   if (!out.located.location) {
-    out.summary.End(solvers::Termination::kFailure, "chart not found: " + out.located.message);
+    out.summary.End(solvers::core::Termination::kFailure, "chart not found: " + out.located.message);
     return out;
   }
-  const solvers::Summary measured = MeasurePatches(image_bgr, dark_bgr, *out.located.location, measure, &out.patches);
+  const solvers::core::Summary measured = MeasurePatches(image_bgr, dark_bgr, *out.located.location, measure, &out.patches);
   if (!measured.IsSolutionUsable()) {
     out.summary.End(measured.termination, "measuring the chart's patches: " + measured.message);
     return out;
@@ -321,4 +321,4 @@ ChartCalibration CalibrateChartImage(const cv::Mat& image_bgr, const cv::Mat& da
   return out;
 }
 
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

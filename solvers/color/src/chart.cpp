@@ -1,6 +1,6 @@
-#include "photorig/color/chart.h"
+#include "photorig/solvers/color/chart.h"
 
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/color/colorimetry.h"
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/mcc.hpp>
@@ -11,7 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 cv::Matx33d GridToImage(const std::array<cv::Point2f, 4>& corners) {
@@ -169,16 +169,16 @@ bool MeasureOptions::IsValid(std::string* why) const {
   return true;
 }
 
-solvers::Summary MeasurePatches(const cv::Mat& image_bgr, const cv::Mat& dark_bgr, const ChartLocation& location,
+solvers::core::Summary MeasurePatches(const cv::Mat& image_bgr, const cv::Mat& dark_bgr, const ChartLocation& location,
                                 const MeasureOptions& options, std::vector<PatchMeasurement>* patches_out) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   std::string why;
-  if (!options.IsValid(&why)) return solvers::Ended(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+  if (!options.IsValid(&why)) return solvers::core::Ended(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
   if (image_bgr.empty() || image_bgr.channels() != 3) {
-    return solvers::Ended(solvers::Termination::kInvalidInput, "chart image must have 3 channels (B, G, R)");
+    return solvers::core::Ended(solvers::core::Termination::kInvalidInput, "chart image must have 3 channels (B, G, R)");
   }
   if (!dark_bgr.empty() && (dark_bgr.size() != image_bgr.size() || dark_bgr.type() != image_bgr.type())) {
-    return solvers::Ended(solvers::Termination::kInvalidInput, "dark frame must have the chart image's size and type");
+    return solvers::core::Ended(solvers::core::Termination::kInvalidInput, "dark frame must have the chart image's size and type");
   }
   double clip_level = options.clip_level;
   if (clip_level == 0.0) {
@@ -272,4 +272,4 @@ ChartCaptureSpectra ChartCaptureSpectraFor(const std::string& camera, Illuminant
   return out;
 }
 
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

@@ -1,11 +1,11 @@
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/color/colorimetry.h"
 
 #include <Eigen/LU>
 
 #include <cmath>
 #include <numbers>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 // Sum of reflectance x illuminant x CMF over the grid, and the Y of the white.
@@ -160,4 +160,4 @@ double Ciede2000(const Eigen::Vector3d& lab1, const Eigen::Vector3d& lab2, doubl
   return std::sqrt(tl * tl + tc * tc + th * th + r_t * tc * th);
 }
 
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

@@ -4,8 +4,8 @@
 #include <map>
 #include <string_view>
 
-namespace photorig::color::internal {
+namespace photorig::solvers::color::internal {
 
 const std::map<std::string_view, std::string_view>& EmbeddedTables();
 
-}  // namespace photorig::color::internal
+}  // namespace photorig::solvers::color::internal

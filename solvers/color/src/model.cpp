@@ -1,10 +1,10 @@
-#include "photorig/color/model.h"
+#include "photorig/solvers/color/model.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 
 std::string ModelSpec::Name() const {
   switch (kind) {
@@ -138,4 +138,4 @@ bool ColorModel::IsValid(std::string* why) const {
   return true;
 }
 
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

@@ -1,4 +1,4 @@
-#include "photorig/color/model_io.h"
+#include "photorig/solvers/color/model_io.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -7,7 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 constexpr const char* kFormat = "photorig-color-model/1";
@@ -149,7 +149,7 @@ ColorModel ParseModel(const std::string& text, const std::string& path) {
 nlohmann::json CalibrationReport(const CalibrationSummary& summary, const std::vector<PatchMeasurement>& measurements,
                                  const std::vector<std::string>& patch_names) {
   nlohmann::json report;
-  report["termination"] = solvers::TerminationName(summary.termination);
+  report["termination"] = solvers::core::TerminationName(summary.termination);
   report["message"] = summary.message;
   report["patches_used"] = summary.patches_used;
   report["exposure_patch"] = summary.exposure_patch;
@@ -223,4 +223,4 @@ std::string FormatCalibrationReport(const CalibrationSummary& summary, const std
   return out.str();
 }
 
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

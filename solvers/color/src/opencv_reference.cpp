@@ -1,6 +1,6 @@
-#include "photorig/color/opencv_reference.h"
+#include "photorig/solvers/color/opencv_reference.h"
 
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/color/colorimetry.h"
 
 #include <cstdio>
 #include <filesystem>
@@ -9,7 +9,7 @@
 #include <sstream>
 #include <unistd.h>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 
 OpenCvReference RunOpenCvReference(const std::string& executable, const CalibrationInput& input) {
   OpenCvReference out;
@@ -78,4 +78,4 @@ OpenCvReference RunOpenCvReference(const std::string& executable, const Calibrat
   return out;
 }
 
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

@@ -1,14 +1,14 @@
-#include "photorig/color/region_demosaic.h"
+#include "photorig/solvers/color/region_demosaic.h"
 
 #include <algorithm>
 #include <limits>
 #include <string>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
-using solvers::Ended;
-using solvers::Termination;
+using solvers::core::Ended;
+using solvers::core::Termination;
 
 bool IsBayer(const std::string& pattern) {
   return pattern == "RGGB" || pattern == "BGGR" || pattern == "GRBG" || pattern == "GBRG";
@@ -19,7 +19,7 @@ void SiteChannels(const std::string& pattern, int (*site_channel)[2]) {
   for (int i = 0; i < 4; ++i) site_channel[i / 2][i % 2] = pattern[i] == 'B' ? 0 : pattern[i] == 'G' ? 1 : 2;
 }
 
-solvers::Summary CheckRaw(const cv::Mat& raw) {
+solvers::core::Summary CheckRaw(const cv::Mat& raw) {
   if (raw.empty() || raw.channels() != 1)
     return Ended(Termination::kInvalidInput, "a Bayer raw has one channel, got " + std::to_string(raw.channels()));
   if (raw.depth() != CV_8U && raw.depth() != CV_16U && raw.depth() != CV_32F)
@@ -27,16 +27,16 @@ solvers::Summary CheckRaw(const cv::Mat& raw) {
   return Ended(Termination::kSuccess, "");
 }
 
-solvers::Summary UnknownPattern(const std::string& pattern) {
+solvers::core::Summary UnknownPattern(const std::string& pattern) {
   return Ended(Termination::kInvalidOptions, "unknown Bayer pattern '" + pattern + "' (expected RGGB, BGGR, GRBG or GBRG)");
 }
 
 }  // namespace
 
-solvers::Summary DemosaicWithinRegions(const cv::Mat& raw, const std::string& pattern, const cv::Mat& regions,
+solvers::core::Summary DemosaicWithinRegions(const cv::Mat& raw, const std::string& pattern, const cv::Mat& regions,
                                        cv::Mat* bgr) {
-  const solvers::SolveTimer timer;
-  if (const solvers::Summary checked = CheckRaw(raw); !checked.IsSolutionUsable()) return checked;
+  const solvers::core::SolveTimer timer;
+  if (const solvers::core::Summary checked = CheckRaw(raw); !checked.IsSolutionUsable()) return checked;
   if (regions.type() != CV_8U || regions.size() != raw.size())
     return Ended(Termination::kInvalidInput, "the region labels must be CV_8U and the raw's size");
   if (!IsBayer(pattern)) return UnknownPattern(pattern);
@@ -127,9 +127,9 @@ RegionEdgeVote::RegionEdgeVote(const std::string& pattern, const cv::Mat& region
   status_ = Ended(Termination::kSuccess, "");
 }
 
-solvers::Summary RegionEdgeVote::Add(const cv::Mat& raw, const cv::Mat& clipped) {
+solvers::core::Summary RegionEdgeVote::Add(const cv::Mat& raw, const cv::Mat& clipped) {
   if (!status_.IsSolutionUsable()) return status_;
-  if (const solvers::Summary checked = CheckRaw(raw); !checked.IsSolutionUsable()) return checked;
+  if (const solvers::core::Summary checked = CheckRaw(raw); !checked.IsSolutionUsable()) return checked;
   if (raw.size() != regions_.size()) return Ended(Termination::kInvalidInput, "the frame differs in size from the labels");
   if (!clipped.empty() && (clipped.type() != CV_8U || clipped.size() != regions_.size()))
     return Ended(Termination::kInvalidInput, "the clipped mask must be CV_8U and the frame's size");
@@ -184,4 +184,4 @@ cv::Mat RegionEdgeVote::Regions(int* changed) const {
   return out;
 }
 
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

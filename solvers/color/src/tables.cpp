@@ -1,7 +1,7 @@
 // Parses the compiled-in CSV tables once, on first use.
 
 #include "embedded_tables.h"
-#include "photorig/color/spectrum.h"
+#include "photorig/solvers/color/spectrum.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace photorig::color {
+namespace photorig::solvers::color {
 namespace {
 
 struct CsvTable {
@@ -199,4 +199,4 @@ Eigen::Matrix3d NamedMatrix(const std::string& name) {
   return m;
 }
 
-}  // namespace photorig::color
+}  // namespace photorig::solvers::color

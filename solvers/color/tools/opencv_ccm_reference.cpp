@@ -11,7 +11,7 @@
 //         loo_ms T
 // Fitting: 3x3 matrix, CIEDE2000 loss, no linearisation (the input is linear).
 
-#include "photorig/color/colorimetry.h"
+#include "photorig/solvers/color/colorimetry.h"
 
 #include <opencv2/mcc/ccm.hpp>
 
@@ -23,9 +23,9 @@
 
 namespace {
 
-using photorig::color::Ciede2000;
-using photorig::color::LinearSrgbToXyzD65;
-using photorig::color::XyzToLab;
+using photorig::solvers::color::Ciede2000;
+using photorig::solvers::color::LinearSrgbToXyzD65;
+using photorig::solvers::color::XyzToLab;
 
 std::unique_ptr<cv::ccm::ColorCorrectionModel> Fit(const std::vector<cv::Vec3d>& rgb, const std::vector<cv::Vec3d>& lab) {
   cv::Mat src(static_cast<int>(rgb.size()), 1, CV_64FC3), dst(static_cast<int>(lab.size()), 1, CV_64FC3);

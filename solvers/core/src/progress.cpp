@@ -1,8 +1,8 @@
-#include "photorig/solvers/progress.h"
+#include "photorig/solvers/core/progress.h"
 
 #include <algorithm>
 
-namespace photorig::solvers {
+namespace photorig::solvers::core {
 
 ProgressThrottle::ProgressThrottle(const ProgressCallback& callback, std::string_view stage, std::int64_t total)
     : callback_(callback), stage_(stage), total_(total), step_(std::max<std::int64_t>(1, total / 100)) {}
@@ -25,4 +25,4 @@ void ProgressThrottle::StoppedAt(std::int64_t done, std::string_view why) {
   callback_(Progress{stage_, done, total_, why});
 }
 
-}  // namespace photorig::solvers
+}  // namespace photorig::solvers::core

@@ -1,8 +1,8 @@
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <utility>
 
-namespace photorig::solvers {
+namespace photorig::solvers::core {
 namespace {
 double MillisecondsBetween(std::chrono::steady_clock::time_point from, std::chrono::steady_clock::time_point to) {
   return std::chrono::duration<double, std::milli>(to - from).count();
@@ -57,4 +57,4 @@ Summary SolveTimer::Succeeded(std::string note) const {
   return summary;
 }
 
-}  // namespace photorig::solvers
+}  // namespace photorig::solvers::core

@@ -1,6 +1,6 @@
-#include "photorig/lighting/envmap.h"
+#include "photorig/solvers/lighting/envmap.h"
 
-#include "photorig/lighting/spherical_harmonics.h"
+#include "photorig/solvers/lighting/spherical_harmonics.h"
 
 #include <opencv2/imgproc.hpp>
 
@@ -8,7 +8,7 @@
 #include <string>
 #include <utility>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 
 Eigen::Vector3d LatLongDirection(double u, double v, int width, int height) {
   const double theta = M_PI * (v + 0.5) / height;
@@ -45,16 +45,16 @@ bool ExposureMergeOptions::IsValid(std::string* why) const {
 
 namespace {
 
-using solvers::Ended;
-using solvers::Termination;
+using solvers::core::Ended;
+using solvers::core::Termination;
 
 bool IsLatLong(const cv::Mat& map) { return !map.empty() && map.cols == 2 * map.rows; }
 
 }  // namespace
 
-solvers::Summary MirrorBallToLatLong(const cv::Mat& ball_image, const SphereGeometry& sphere,
+solvers::core::Summary MirrorBallToLatLong(const cv::Mat& ball_image, const SphereGeometry& sphere,
                                      const UnwrapOptions& options, LatLongMap* map) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   std::string why;
   if (!options.IsValid(&why)) return Ended(Termination::kInvalidOptions, "invalid options: " + why);
   if (!sphere.valid || sphere.camera.projection != CameraModel::Projection::kOrthographic) {
@@ -89,8 +89,8 @@ solvers::Summary MirrorBallToLatLong(const cv::Mat& ball_image, const SphereGeom
   return timer.Succeeded();
 }
 
-solvers::Summary LatLongToMirrorBall(const cv::Mat& latlong, int size_px, cv::Mat* ball) {
-  const solvers::SolveTimer timer;
+solvers::core::Summary LatLongToMirrorBall(const cv::Mat& latlong, int size_px, cv::Mat* ball) {
+  const solvers::core::SolveTimer timer;
   if (!IsLatLong(latlong)) return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map");
   if (size_px < 2) {
     return Ended(Termination::kInvalidInput, "ball size must be >= 2 px, got " + std::to_string(size_px));
@@ -117,9 +117,9 @@ solvers::Summary LatLongToMirrorBall(const cv::Mat& latlong, int size_px, cv::Ma
   return timer.Succeeded();
 }
 
-solvers::Summary MergeExposures(const std::vector<cv::Mat>& frames, const std::vector<double>& exposure_us,
+solvers::core::Summary MergeExposures(const std::vector<cv::Mat>& frames, const std::vector<double>& exposure_us,
                                 const ExposureMergeOptions& options, HdrMerge* merge_out) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   std::string why;
   if (!options.IsValid(&why)) return Ended(Termination::kInvalidOptions, "invalid options: " + why);
   if (frames.empty() || frames.size() != exposure_us.size()) {
@@ -183,8 +183,8 @@ double PixelSolidAngle(int v, int width, int height) {
 
 }  // namespace
 
-solvers::Summary ProjectLatLongToSh(const cv::Mat& latlong, int band, Eigen::MatrixXd* coefficients_out) {
-  const solvers::SolveTimer timer;
+solvers::core::Summary ProjectLatLongToSh(const cv::Mat& latlong, int band, Eigen::MatrixXd* coefficients_out) {
+  const solvers::core::SolveTimer timer;
   if (band < 0 || band > 8) {
     return Ended(Termination::kInvalidOptions, "band must be in [0, 8], got " + std::to_string(band));
   }
@@ -208,9 +208,9 @@ solvers::Summary ProjectLatLongToSh(const cv::Mat& latlong, int band, Eigen::Mat
   return timer.Succeeded();
 }
 
-solvers::Summary LatLongToLedWeights(const cv::Mat& latlong, const std::vector<Eigen::Vector3d>& led_directions,
+solvers::core::Summary LatLongToLedWeights(const cv::Mat& latlong, const std::vector<Eigen::Vector3d>& led_directions,
                                      const std::vector<double>& led_intensities, Eigen::MatrixXd* weights_out) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   if (!IsLatLong(latlong)) return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map");
   if (led_directions.empty() || led_directions.size() != led_intensities.size()) {
     return Ended(Termination::kInvalidInput, std::to_string(led_directions.size()) + " LED directions for " +
@@ -251,4 +251,4 @@ solvers::Summary LatLongToLedWeights(const cv::Mat& latlong, const std::vector<E
   return timer.Succeeded();
 }
 
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

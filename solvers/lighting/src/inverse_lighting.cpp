@@ -1,14 +1,14 @@
-#include "photorig/lighting/inverse_lighting.h"
+#include "photorig/solvers/lighting/inverse_lighting.h"
 
-#include "photorig/lighting/nnls.h"
-#include "photorig/lighting/spherical_harmonics.h"
+#include "photorig/solvers/lighting/nnls.h"
+#include "photorig/solvers/lighting/spherical_harmonics.h"
 
 #include <Eigen/Dense>
 
 #include <cmath>
 #include <limits>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
 // Results are R, G, B columns; OpenCV stores B, G, R.
@@ -106,15 +106,15 @@ bool ShFitOptions::IsValid(std::string* why) const {
 
 ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, const cv::Mat& image,
                                 const cv::Mat& mask, const ShFitOptions& options) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   ShLightingSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   if (!(why = CheckInputs(normals, albedo, image, mask)).empty()) {
-    summary.End(solvers::Termination::kInvalidInput, why);
+    summary.End(solvers::core::Termination::kInvalidInput, why);
     return summary;
   }
   const int top_band = options.selection == ShFitOptions::Selection::kFixed ? options.fixed_band : options.max_band;
@@ -146,7 +146,7 @@ ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, c
     return index;
   };
   if (summary.pixels_used < static_cast<std::size_t>(2 * columns_of(bands.back()).size())) {
-    summary.End(solvers::Termination::kFailure, "too few valid pixels (" + std::to_string(summary.pixels_used) + ")");
+    summary.End(solvers::core::Termination::kFailure, "too few valid pixels (" + std::to_string(summary.pixels_used) + ")");
     return summary;
   }
 
@@ -215,9 +215,9 @@ ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, c
   summary.rms_residual = std::sqrt(sse / n_total);
   summary.relative_rms_residual = summary.rms_residual / std::max(std::abs(eq.sum_intensity / n_total), 1e-300);
   if (std::isfinite(summary.rms_residual)) {
-    summary.End(solvers::Termination::kSuccess, "band " + std::to_string(chosen) + " selected");
+    summary.End(solvers::core::Termination::kSuccess, "band " + std::to_string(chosen) + " selected");
   } else {
-    summary.End(solvers::Termination::kFailure, "the fit's residual is not finite (NaN or infinite input values?)");
+    summary.End(solvers::core::Termination::kFailure, "the fit's residual is not finite (NaN or infinite input values?)");
   }
   timer.Finish(&summary);
   return summary;
@@ -234,19 +234,19 @@ bool LedWeightsOptions::IsValid(std::string* why) const {
 LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, const cv::Mat& image,
                                 const cv::Mat& mask, const std::vector<Eigen::Vector3d>& led_directions,
                                 const std::vector<double>& led_intensities, const LedWeightsOptions& options) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   LedWeightsSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   if (!(why = CheckInputs(normals, albedo, image, mask)).empty()) {
-    summary.End(solvers::Termination::kInvalidInput, why);
+    summary.End(solvers::core::Termination::kInvalidInput, why);
     return summary;
   }
   if (led_directions.empty() || led_directions.size() != led_intensities.size()) {
-    summary.End(solvers::Termination::kInvalidInput, "need one intensity per LED direction");
+    summary.End(solvers::core::Termination::kInvalidInput, "need one intensity per LED direction");
     return summary;
   }
   const int leds = static_cast<int>(led_directions.size());
@@ -259,7 +259,7 @@ LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, c
                                         });
   summary.pixels_used = eq.samples[0] + eq.samples[1];
   if (summary.pixels_used < static_cast<std::size_t>(leds)) {
-    summary.End(solvers::Termination::kFailure, "too few valid pixels (" + std::to_string(summary.pixels_used) +
+    summary.End(solvers::core::Termination::kFailure, "too few valid pixels (" + std::to_string(summary.pixels_used) +
                                                      " for " + std::to_string(leds) + " LEDs)");
     return summary;
   }
@@ -272,7 +272,7 @@ LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, c
     const Eigen::VectorXd h = eq.rhs[k0] + eq.rhs[k1];
     Eigen::VectorXd x;
     const NnlsSummary nnls = SolveNnlsNormal(g, h, &x);
-    converged = converged && nnls.termination == solvers::Termination::kSuccess;
+    converged = converged && nnls.termination == solvers::core::Termination::kSuccess;
     summary.weights.col(ColourColumn(ch, eq.channels)) = x;
     sse += Sse(g, h, eq.sum_squares[k0] + eq.sum_squares[k1], x);
   }
@@ -283,12 +283,12 @@ LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, c
   summary.rms_residual = std::sqrt(sse / n_total);
   summary.relative_rms_residual = summary.rms_residual / std::max(std::abs(eq.sum_intensity / n_total), 1e-300);
   if (converged) {
-    summary.End(solvers::Termination::kSuccess, "");
+    summary.End(solvers::core::Termination::kSuccess, "");
   } else {
-    summary.End(solvers::Termination::kNoConvergence, "NNLS iteration limit reached");
+    summary.End(solvers::core::Termination::kNoConvergence, "NNLS iteration limit reached");
   }
   timer.Finish(&summary);
   return summary;
 }
 
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

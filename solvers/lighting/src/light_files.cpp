@@ -1,11 +1,11 @@
-#include "photorig/lighting/light_files.h"
+#include "photorig/solvers/lighting/light_files.h"
 
 #include <fstream>
 #include <iomanip>
 #include <sstream>
 #include <stdexcept>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
 [[noreturn]] void Fail(const std::string& path, int line, const std::string& what) {
@@ -105,4 +105,4 @@ void WriteTriplesFile(const std::string& path, const std::vector<Eigen::Vector3d
   WriteOrThrow(path, out.str());
 }
 
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

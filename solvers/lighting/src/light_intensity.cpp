@@ -1,8 +1,8 @@
-#include "photorig/lighting/light_intensity.h"
+#include "photorig/solvers/lighting/light_intensity.h"
 
 #include <cmath>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 
 bool DiffuseIntensityOptions::IsValid(std::string* why) const {
   if (!(albedo > 0.0) || !(min_cosine >= 0.0 && min_cosine < 1.0) ||
@@ -128,4 +128,4 @@ void NormaliseIntensities(std::vector<LightIntensityEstimate>* estimates) {
   }
 }
 
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

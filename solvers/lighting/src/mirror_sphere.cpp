@@ -1,4 +1,4 @@
-#include "photorig/lighting/mirror_sphere.h"
+#include "photorig/solvers/lighting/mirror_sphere.h"
 
 #include <Eigen/Dense>
 
@@ -6,7 +6,7 @@
 #include <cmath>
 #include <vector>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 
 std::string LightFlagsToString(unsigned flags) {
   static const std::pair<unsigned, const char*> kNames[] = {
@@ -213,15 +213,15 @@ bool HighlightCircleOptions::IsValid(std::string* why) const {
 HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& frames,
                                                   const std::vector<Eigen::Vector3d>& nominal_directions,
                                                   const HighlightCircleOptions& options) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   HighlightCircleSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   if (frames.size() != nominal_directions.size()) {
-    summary.termination = solvers::Termination::kInvalidInput;
+    summary.termination = solvers::core::Termination::kInvalidInput;
     summary.message = std::to_string(frames.size()) + " frames for " + std::to_string(nominal_directions.size()) +
                       " nominal light directions";
     return summary;
@@ -274,7 +274,7 @@ HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& fr
   };
 
   if (static_cast<int>(observations.size()) < options.min_highlights) {
-    summary.termination = solvers::Termination::kFailure;
+    summary.termination = solvers::core::Termination::kFailure;
     summary.message = "only " + std::to_string(observations.size()) + " highlights found (need " +
                       std::to_string(options.min_highlights) + ")";
     return summary;
@@ -286,7 +286,7 @@ HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& fr
     else summary.rejected.push_back(o.frame);
   }
   if (static_cast<int>(kept.size()) < options.min_highlights) {
-    summary.termination = solvers::Termination::kFailure;
+    summary.termination = solvers::core::Termination::kFailure;
     summary.message = "the highlights do not fit one sphere under the nominal light directions (" +
                       std::to_string(kept.size()) + " of " + std::to_string(observations.size()) + " within " +
                       std::to_string(options.outlier_px) + " px)";
@@ -300,11 +300,11 @@ HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& fr
   summary.highlights_used = static_cast<int>(kept.size());
   summary.rms_residual_px = std::sqrt(sum_squares / static_cast<double>(kept.size()));
   if (!(circle.radius_px > 0.0)) {
-    summary.termination = solvers::Termination::kFailure;
+    summary.termination = solvers::core::Termination::kFailure;
     summary.message = "the fitted radius is not positive: the nominal directions do not match the highlights";
     return summary;
   }
-  summary.End(solvers::Termination::kSuccess, "sphere from " + std::to_string(kept.size()) + " highlights");
+  summary.End(solvers::core::Termination::kSuccess, "sphere from " + std::to_string(kept.size()) + " highlights");
   timer.Finish(&summary);
   return summary;
 }
@@ -354,4 +354,4 @@ Eigen::Vector3d ReflectionPointMm(const SphereGeometry& sphere, const LightDirec
   return sphere_radius_mm * estimate.surface_position;
 }
 
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

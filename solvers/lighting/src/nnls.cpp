@@ -1,11 +1,11 @@
-#include "photorig/lighting/nnls.h"
+#include "photorig/solvers/lighting/nnls.h"
 
 #include <Eigen/Dense>
 
 #include <string>
 #include <vector>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 
 bool NnlsOptions::IsValid(std::string* why) const {
   if (max_iterations < 0) {
@@ -17,20 +17,20 @@ bool NnlsOptions::IsValid(std::string* why) const {
 
 NnlsSummary SolveNnlsNormal(const Eigen::MatrixXd& gram, const Eigen::VectorXd& rhs, Eigen::VectorXd* x,
                             const NnlsOptions& options) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   NnlsSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   const Eigen::Index n = rhs.size();
   if (gram.rows() != n || gram.cols() != n || x == nullptr) {
-    summary.End(solvers::Termination::kInvalidInput, "gram matrix and right-hand side sizes differ");
+    summary.End(solvers::core::Termination::kInvalidInput, "gram matrix and right-hand side sizes differ");
     return summary;
   }
   if (!gram.allFinite() || !rhs.allFinite()) {
-    summary.End(solvers::Termination::kInvalidInput, "gram matrix or right-hand side has NaN or infinite entries");
+    summary.End(solvers::core::Termination::kInvalidInput, "gram matrix or right-hand side has NaN or infinite entries");
     return summary;
   }
   const int max_iterations = options.max_iterations > 0 ? options.max_iterations : static_cast<int>(3 * n + 10);
@@ -100,9 +100,9 @@ NnlsSummary SolveNnlsNormal(const Eigen::MatrixXd& gram, const Eigen::VectorXd& 
   }
   for (Eigen::Index i = 0; i < n; ++i) summary.active_count += (*x)(i) > 0.0 ? 1 : 0;
   if (converged) {
-    summary.End(solvers::Termination::kSuccess, "");
+    summary.End(solvers::core::Termination::kSuccess, "");
   } else {
-    summary.End(solvers::Termination::kNoConvergence,
+    summary.End(solvers::core::Termination::kNoConvergence,
                 "iteration limit (" + std::to_string(max_iterations) + ") reached before the optimality conditions held");
   }
   timer.Finish(&summary);
@@ -113,11 +113,11 @@ NnlsSummary SolveNnls(const Eigen::MatrixXd& a, const Eigen::VectorXd& b, Eigen:
                       const NnlsOptions& options) {
   if (a.rows() != b.size()) {
     NnlsSummary summary;
-    summary.End(solvers::Termination::kInvalidInput, "A has " + std::to_string(a.rows()) + " rows, b " +
+    summary.End(solvers::core::Termination::kInvalidInput, "A has " + std::to_string(a.rows()) + " rows, b " +
                                                          std::to_string(b.size()) + " entries");
     return summary;
   }
   return SolveNnlsNormal(a.transpose() * a, a.transpose() * b, x, options);
 }
 
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

@@ -1,15 +1,15 @@
-#include "photorig/lighting/relight.h"
+#include "photorig/solvers/lighting/relight.h"
 
-#include "photorig/lighting/spherical_harmonics.h"
+#include "photorig/solvers/lighting/spherical_harmonics.h"
 
 #include <cmath>
 #include <string>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 namespace {
 
-using solvers::Ended;
-using solvers::Termination;
+using solvers::core::Ended;
+using solvers::core::Termination;
 
 // The band whose coefficient count is `rows`; -1 if `rows` is not a square.
 int ShBandOf(Eigen::Index rows) {
@@ -22,9 +22,9 @@ int ColourColumn(int stored_channel, int channels) { return channels == 3 ? 2 - 
 
 }  // namespace
 
-solvers::Summary RenderShLighting(const cv::Mat& normals, const cv::Mat& albedo, const Eigen::MatrixXd& coefficients,
+solvers::core::Summary RenderShLighting(const cv::Mat& normals, const cv::Mat& albedo, const Eigen::MatrixXd& coefficients,
                                   cv::Mat* image) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   if (normals.type() != CV_32FC3 || albedo.size() != normals.size() || albedo.depth() != CV_32F) {
     return Ended(Termination::kInvalidInput, "normals must be CV_32FC3 and albedo CV_32F of the same size");
   }
@@ -64,10 +64,10 @@ solvers::Summary RenderShLighting(const cv::Mat& normals, const cv::Mat& albedo,
   return timer.Succeeded();
 }
 
-solvers::Summary RenderDirectionalLights(const cv::Mat& normals, const cv::Mat& albedo,
+solvers::core::Summary RenderDirectionalLights(const cv::Mat& normals, const cv::Mat& albedo,
                                          const std::vector<Eigen::Vector3d>& directions,
                                          const std::vector<double>& intensities, cv::Mat* image) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   if (normals.type() != CV_32FC3 || albedo.size() != normals.size() || albedo.type() != CV_32FC1) {
     return Ended(Termination::kInvalidInput, "normals must be CV_32FC3 and albedo CV_32FC1 of the same size");
   }
@@ -91,8 +91,8 @@ solvers::Summary RenderDirectionalLights(const cv::Mat& normals, const cv::Mat& 
   return timer.Succeeded();
 }
 
-solvers::Summary RelightFromFrames(const std::vector<cv::Mat>& frames, const Eigen::MatrixXd& weights, cv::Mat* image) {
-  const solvers::SolveTimer timer;
+solvers::core::Summary RelightFromFrames(const std::vector<cv::Mat>& frames, const Eigen::MatrixXd& weights, cv::Mat* image) {
+  const solvers::core::SolveTimer timer;
   if (frames.empty() || static_cast<Eigen::Index>(frames.size()) != weights.rows() ||
       (weights.cols() != 1 && weights.cols() != 3)) {
     return Ended(Termination::kInvalidInput, "needs one weight row per frame and 1 or 3 columns (" +
@@ -121,4 +121,4 @@ solvers::Summary RelightFromFrames(const std::vector<cv::Mat>& frames, const Eig
   return timer.Succeeded();
 }
 
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

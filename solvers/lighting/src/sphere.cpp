@@ -1,4 +1,4 @@
-#include "photorig/lighting/sphere.h"
+#include "photorig/solvers/lighting/sphere.h"
 
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 
 bool CameraModel::IsValid(std::string* why) const {
   if (projection == Projection::kPinhole && !(fx_px > 0.0 && fy_px > 0.0)) {
@@ -81,15 +81,15 @@ Circle GeometricCircle(const std::vector<Eigen::Vector2d>& points, Circle c) {
 }  // namespace
 
 SphereFitSummary FitSphereSilhouette(const cv::Mat& image, const SphereFitOptions& options) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   SphereFitSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   if (image.empty() || image.channels() != 1) {
-    summary.End(solvers::Termination::kInvalidInput, "sphere fit needs a non-empty single-channel image");
+    summary.End(solvers::core::Termination::kInvalidInput, "sphere fit needs a non-empty single-channel image");
     return summary;
   }
   cv::Mat values;
@@ -105,7 +105,7 @@ SphereFitSummary FitSphereSilhouette(const cv::Mat& image, const SphereFitOption
     if (best < 0 || stats.at<int>(label, cv::CC_STAT_AREA) > stats.at<int>(best, cv::CC_STAT_AREA)) best = label;
   }
   if (best < 0 || stats.at<int>(best, cv::CC_STAT_AREA) < M_PI * options.min_radius_px * options.min_radius_px) {
-    summary.End(solvers::Termination::kFailure,
+    summary.End(solvers::core::Termination::kFailure,
                 "no blob above threshold " + std::to_string(threshold) + " large enough for a sphere");
     return summary;
   }
@@ -135,7 +135,7 @@ SphereFitSummary FitSphereSilhouette(const cv::Mat& image, const SphereFitOption
     }
   }
   if (points.size() < 8) {
-    summary.End(solvers::Termination::kFailure, "too few silhouette edge points");
+    summary.End(solvers::core::Termination::kFailure, "too few silhouette edge points");
     return summary;
   }
 
@@ -177,9 +177,9 @@ SphereFitSummary FitSphereSilhouette(const cv::Mat& image, const SphereFitOption
   summary.edge_points_rejected = static_cast<int>(total - points.size());
   summary.edge_points = std::move(points);
   if (circle.radius_px >= options.min_radius_px) {
-    summary.End(solvers::Termination::kSuccess, summary.touches_border ? "silhouette touches the image border" : "");
+    summary.End(solvers::core::Termination::kSuccess, summary.touches_border ? "silhouette touches the image border" : "");
   } else {
-    summary.End(solvers::Termination::kFailure, "fitted circle smaller than min_radius_px");
+    summary.End(solvers::core::Termination::kFailure, "fitted circle smaller than min_radius_px");
   }
   timer.Finish(&summary);
   return summary;
@@ -253,4 +253,4 @@ bool SurfaceAt(const SphereGeometry& sphere, double u, double v, SurfacePoint* p
   return true;
 }
 
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

@@ -1,9 +1,9 @@
-#include "photorig/lighting/spherical_harmonics.h"
+#include "photorig/solvers/lighting/spherical_harmonics.h"
 
 #include <cmath>
 #include <complex>
 
-namespace photorig::lighting {
+namespace photorig::solvers::lighting {
 
 void EvaluateSh(int band, const Eigen::Vector3d& direction, double* out) {
   const double x = direction.x(), y = direction.y(), z = direction.z();
@@ -53,4 +53,4 @@ double LambertianKernel(int l) {
   return 2.0 * M_PI * sign / ((l + 2.0) * (l - 1.0)) * factorial_ratio;
 }
 
-}  // namespace photorig::lighting
+}  // namespace photorig::solvers::lighting

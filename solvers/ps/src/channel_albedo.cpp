@@ -1,9 +1,9 @@
-#include "photorig/ps/channel_albedo.h"
+#include "photorig/solvers/ps/channel_albedo.h"
 
 #include <cmath>
 #include <vector>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 
 bool ChannelAlbedoOptions::IsValid(std::string* why) const {
   auto fail = [why](const char* message) {
@@ -18,7 +18,7 @@ bool ChannelAlbedoOptions::IsValid(std::string* why) const {
 
 SolverSummary SolveChannelAlbedo(const ChannelAlbedoOptions& options, const PhotometricStack& channel,
                                  const cv::Mat& normals, cv::Mat* albedo) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   SolverSummary summary;
   summary.method = "channel-albedo";
   std::string why;
@@ -89,4 +89,4 @@ SolverSummary SolveChannelAlbedo(const ChannelAlbedoOptions& options, const Phot
   return summary;
 }
 
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

@@ -1,18 +1,18 @@
-#include "photorig/ps/evaluation.h"
+#include "photorig/solvers/ps/evaluation.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 
 AngularErrorStats CompareNormals(const cv::Mat& estimate, const cv::Mat& truth, const cv::Mat& mask,
                                  cv::Mat* error_deg) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   AngularErrorStats stats;
   if (estimate.type() != CV_32FC3 || truth.type() != CV_32FC3 || estimate.size() != truth.size()) {
-    stats.End(solvers::Termination::kInvalidInput, "both normal maps must be CV_32FC3 of the same size");
+    stats.End(solvers::core::Termination::kInvalidInput, "both normal maps must be CV_32FC3 of the same size");
     return stats;
   }
   std::vector<double> errors;
@@ -44,7 +44,7 @@ AngularErrorStats CompareNormals(const cv::Mat& estimate, const cv::Mat& truth, 
   }
   stats.pixels_evaluated = errors.size();
   if (errors.empty()) {
-    stats.End(solvers::Termination::kSuccess, "no pixel has both a normal and a ground truth");
+    stats.End(solvers::core::Termination::kSuccess, "no pixel has both a normal and a ground truth");
     timer.Finish(&stats);
     return stats;
   }
@@ -68,9 +68,9 @@ AngularErrorStats CompareNormals(const cv::Mat& estimate, const cv::Mat& truth, 
   if (errors.size() % 2 == 0) {
     stats.median_deg = 0.5 * (stats.median_deg + *std::max_element(errors.begin(), middle));
   }
-  stats.End(solvers::Termination::kSuccess, "");
+  stats.End(solvers::core::Termination::kSuccess, "");
   timer.Finish(&stats);
   return stats;
 }
 
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

@@ -1,4 +1,4 @@
-#include "photorig/ps/integration.h"
+#include "photorig/solvers/ps/integration.h"
 
 #include <Eigen/Sparse>
 #include <opencv2/imgproc.hpp>
@@ -7,7 +7,7 @@
 #include <limits>
 #include <vector>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 struct Gradients {
@@ -185,40 +185,40 @@ bool IntegrationOptions::IsValid(std::string* why) const {
 
 IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask,
                                     cv::Mat* depth) {
-  solvers::SolveTimer timer;
+  solvers::core::SolveTimer timer;
   IntegrationSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidOptions, "invalid options: " + why);
+    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
     return summary;
   }
   if (normals.type() != CV_32FC3 || normals.empty()) {
-    summary.End(solvers::Termination::kInvalidInput, "normals must be a non-empty CV_32FC3 image");
+    summary.End(solvers::core::Termination::kInvalidInput, "normals must be a non-empty CV_32FC3 image");
     return summary;
   }
   if (!mask.empty() && (mask.type() != CV_8U || mask.size() != normals.size())) {
-    summary.End(solvers::Termination::kInvalidInput, "the mask must be an 8-bit image of the normals' size");
+    summary.End(solvers::core::Termination::kInvalidInput, "the mask must be an 8-bit image of the normals' size");
     return summary;
   }
   const Gradients g = ComputeGradients(options, normals, mask);
   summary.pixels_dropped = g.dropped;
   summary.pixels = static_cast<std::size_t>(cv::countNonZero(g.mask));
   if (summary.pixels == 0) {
-    summary.End(solvers::Termination::kFailure, "no pixel has a usable normal to integrate");
+    summary.End(solvers::core::Termination::kFailure, "no pixel has a usable normal to integrate");
     return summary;
   }
   timer.SetupDone(&summary);
   if (options.integrator == Integrator::kFrankotChellappa) {
     FrankotChellappa(g, depth);
   } else if (!Poisson(g, depth, &why)) {
-    summary.End(solvers::Termination::kFailure, why);
+    summary.End(solvers::core::Termination::kFailure, why);
     return summary;
   }
   CentreRegions(g.mask, depth);
   summary.residual_rms = ResidualRms(g, *depth);
-  summary.End(solvers::Termination::kSuccess, "");
+  summary.End(solvers::core::Termination::kSuccess, "");
   timer.Finish(&summary);
   return summary;
 }
 
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

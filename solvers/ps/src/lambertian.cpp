@@ -1,4 +1,4 @@
-#include "photorig/ps/lambertian.h"
+#include "photorig/solvers/ps/lambertian.h"
 #include "lambertian_tiles.h"
 #include "kernels/lane_math.h"
 
@@ -14,7 +14,7 @@
 #include <limits>
 #include <memory>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 constexpr int kMaxLights = 65535;  // NormalMap::usable_lights is 16-bit
@@ -906,7 +906,7 @@ bool Avx512SubsetKernelAvailable() { return Avx512Available(); }
 
 SolverSummary SolveLambertianTiles(const LambertianOptions& options, const PhotometricStack& stack,
                                    NormalMap* result, const TileVisitor& visit, const ThreadDone& done) {
-  solvers::SolveTimer timer;
+  solvers::core::SolveTimer timer;
   SolverSummary summary;
   summary.method = options.exclude_unusable_samples ? "lambertian" : "lambertian-l2";
   summary.light_count = stack.light_count();
@@ -983,4 +983,4 @@ SolverSummary SolveLambertian(const LambertianOptions& options, const Photometri
   return internal::SolveLambertianTiles(options, stack, result, {});
 }
 
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

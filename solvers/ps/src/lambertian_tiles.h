@@ -4,13 +4,13 @@
 // right after the tile is written, while its samples are still in cache, so
 // refining a pixel does not fetch its K samples from memory again.
 
-#include "photorig/ps/lambertian.h"
+#include "photorig/solvers/ps/lambertian.h"
 
 #include <functional>
 #include <memory>
 #include <span>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // thread: omp_get_thread_num() of the solving thread (< the solve's thread
 // count); the tile is pixels [begin, begin + count) in row-major order.
@@ -64,4 +64,4 @@ class PixelResiduals {
 void UseAvx512SubsetKernel(bool use);
 bool Avx512SubsetKernelAvailable();
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

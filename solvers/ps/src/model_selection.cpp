@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 namespace {
 
 double InverseNormalCdf(double p) {
@@ -50,4 +50,4 @@ std::vector<float> ModelLadder::ScreenThresholds() const {
   return threshold;
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

@@ -6,7 +6,7 @@
 // The per-pixel reference (per_pixel_fits.cpp) and the lane stages
 // (tile_refiner.cpp) both climb it through ModelLadder::Next.
 
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <Eigen/Core>
 
@@ -14,7 +14,7 @@
 #include <cmath>
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // Quantile p of the chi-square distribution for 0..max_dof degrees of
 // freedom, by Wilson-Hilferty: accurate to a few per cent for dof >= 3, plenty
@@ -326,4 +326,4 @@ inline void ModelLadder::AddToShapeTest(const SharedLobeFits& fits, SharedShapeT
   ++test->pixels;
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

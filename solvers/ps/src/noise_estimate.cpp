@@ -10,7 +10,7 @@
 #include <span>
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 NoiseModel EstimateNoise(const PhotometricStack& stack, const LambertianOptions& thresholds) {
   struct Sample {
@@ -145,4 +145,4 @@ SolveNoise NoiseForSolve(const PhotometricStereoOptions& options, bool refine, c
   return noise;
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

@@ -2,11 +2,11 @@
 // The noise model of a stack whose noise is not (fully) given: read noise and
 // shot-noise gain fitted to the Lambertian residuals of a sample of pixels.
 
-#include "photorig/ps/lambertian.h"
-#include "photorig/ps/photometric_stereo.h"
-#include "photorig/ps/stack.h"
+#include "photorig/solvers/ps/lambertian.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/stack.h"
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // Noise of the data when the stack does not (fully) say: a photon-transfer fit
 // var(I - D) = read^2 + gain * (I - D) to the Lambertian residual variance of a
@@ -36,4 +36,4 @@ struct SolveNoise {
 SolveNoise NoiseForSolve(const PhotometricStereoOptions& options, bool refine, const PhotometricStack& stack,
                          const LambertianOptions& lambertian);
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

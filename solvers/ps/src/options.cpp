@@ -1,9 +1,9 @@
 // The options of SolvePhotometricStereo: method names and validation.
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <cmath>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 
 const char* MethodName(Method method) {
   switch (method) {
@@ -77,4 +77,4 @@ bool PhotometricStereoOptions::IsValid(std::string* why) const {
   return lambertian.IsValid(why) && robust.IsValid(why) && blinn_phong.IsValid(why) && selection.IsValid(why);
 }
 
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

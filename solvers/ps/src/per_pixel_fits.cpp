@@ -3,8 +3,8 @@
 #include "kernels/blinn_phong_fit.h"
 #include "kernels/trimmed_lambertian_fit.h"
 
-#include "photorig/autodiff/blinn_phong_jacobian.h"
-#include "photorig/autodiff/ggx.h"
+#include "photorig/solvers/autodiff/blinn_phong_jacobian.h"
+#include "photorig/solvers/autodiff/ggx.h"
 
 #include <Eigen/Dense>
 
@@ -12,7 +12,7 @@
 #include <cmath>
 #include <limits>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 PixelFit IrlsFit(const RobustSolution& solution) {
   PixelFit fit;
@@ -261,10 +261,10 @@ struct ModelSamples {
 // albedo, its material from the grid's best start; or, with `shared` (step
 // 5), the lobe held at the region's and only the normal and rho_d fitted.
 PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& start,
-                       const BlinnPhongOptions& options, autodiff::Tape* tape, const SharedLobe* shared = nullptr) {
+                       const BlinnPhongOptions& options, solvers::autodiff::Tape* tape, const SharedLobe* shared = nullptr) {
   const int n = s.size();
   const ModelSamples m(s);
-  const autodiff::BlinnPhongPixel pixel(m.directions, Eigen::VectorXd::Ones(n), view, m.observed);
+  const solvers::autodiff::BlinnPhongPixel pixel(m.directions, Eigen::VectorXd::Ones(n), view, m.observed);
 
   // Start: the normal of the robust fit and the material of the best point
   // of the exponent grid.
@@ -302,7 +302,7 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
   auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
     bool ok;
     if (with_jacobian) {
-      ok = autodiff::BlinnPhongResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
+      ok = solvers::autodiff::BlinnPhongResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
     } else {
       residuals.resize(n);
       ok = pixel(q.data(), residuals.data());
@@ -338,7 +338,7 @@ constexpr double kMinRoughness = 0.01, kMaxRoughness = 1.0;
 // usable samples.
 double BlinnPhongChi2(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& fit) {
   const ModelSamples m(s);
-  const autodiff::BlinnPhongPixel pixel(m.directions, Eigen::VectorXd::Ones(s.size()), view, m.observed);
+  const solvers::autodiff::BlinnPhongPixel pixel(m.directions, Eigen::VectorXd::Ones(s.size()), view, m.observed);
   const double q[6] = {fit.normal.x(), fit.normal.y(), fit.normal.z(), fit.albedo, fit.specular_albedo, fit.exponent};
   Eigen::VectorXd residuals(s.size());
   if (!pixel(q, residuals.data())) return std::numeric_limits<double>::infinity();
@@ -352,10 +352,10 @@ double BlinnPhongChi2(const PixelSamples& s, const Eigen::Vector3d& view, const 
 // (forward mode where that names the lane fitter's closed form, which GGX
 // does not have).
 PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& start,
-                const BlinnPhongOptions& options, autodiff::Tape* tape) {
+                const BlinnPhongOptions& options, solvers::autodiff::Tape* tape) {
   const int n = s.size();
   const ModelSamples m(s);
-  const autodiff::GgxPixel pixel(m.directions, Eigen::VectorXd::Ones(n), view, m.observed);
+  const solvers::autodiff::GgxPixel pixel(m.directions, Eigen::VectorXd::Ones(n), view, m.observed);
   Eigen::Matrix<double, 6, 1> p;
   double best = std::numeric_limits<double>::infinity();
   Eigen::VectorXd diffuse(n), lobe(n);
@@ -391,7 +391,7 @@ PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelF
   auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
     bool ok;
     if (with_jacobian) {
-      ok = autodiff::GgxResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
+      ok = solvers::autodiff::GgxResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
     } else {
       residuals.resize(n);
       ok = pixel(q.data(), residuals.data());
@@ -503,4 +503,4 @@ PixelFit PerPixelFits::OfferGgx(int pixel, const PixelFit& kept, bool held_lobe,
   }
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

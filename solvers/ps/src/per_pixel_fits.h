@@ -10,13 +10,13 @@
 #include "model_selection.h"
 #include "sample_reader.h"
 
-#include "photorig/autodiff/tape.h"
+#include "photorig/solvers/autodiff/tape.h"
 
 #include <Eigen/Core>
 
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // The `robust` fit of a pixel from its IRLS solution.
 PixelFit IrlsFit(const RobustSolution& solution);
@@ -39,7 +39,7 @@ struct TrimScratch {
 struct PixelScratch {
   PixelSamples samples;
   TrimScratch trim;
-  autodiff::Tape tape;
+  solvers::autodiff::Tape tape;
 };
 
 class PerPixelFits {
@@ -73,4 +73,4 @@ class PerPixelFits {
   const BlinnPhongOptions& blinn_phong_;
 };
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

@@ -1,4 +1,4 @@
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include "lambertian_tiles.h"
 #include "model_selection.h"
@@ -12,7 +12,7 @@
 #include <cstdio>
 #include <string>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 namespace {
 
 // Counts the pixels of the tiles every thread has finished and reports them
@@ -20,7 +20,7 @@ namespace {
 // concurrently; one atomic add per tile, nothing when no one listens.
 class TileProgress {
  public:
-  TileProgress(const solvers::ProgressCallback& callback, const char* stage, std::int64_t pixels)
+  TileProgress(const solvers::core::ProgressCallback& callback, const char* stage, std::int64_t pixels)
       : throttle_(callback, stage, pixels), listening_(static_cast<bool>(callback)) {}
   void TileDone(int thread, int pixels) {
     if (!listening_) return;
@@ -30,7 +30,7 @@ class TileProgress {
   void Finish() { throttle_.Finish(); }
 
  private:
-  solvers::ProgressThrottle throttle_;
+  solvers::core::ProgressThrottle throttle_;
   const bool listening_;
   std::atomic<std::int64_t> done_{0};
 };
@@ -63,7 +63,7 @@ std::string MissingSignal(const PhotometricStereoOptions& options, const Photome
 
 SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, const PhotometricStack& stack,
                                      NormalMap* result) {
-  const solvers::SolveTimer timer;
+  const solvers::core::SolveTimer timer;
   std::string why;
   if (!options.IsValid(&why)) {
     SolverSummary summary;
@@ -143,4 +143,4 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   return summary;
 }
 
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

@@ -2,15 +2,15 @@
 // Reading one pixel's samples out of a stack's planes, in double.
 
 #include "kernels/sample_rows.h"
-#include "photorig/ps/lambertian.h"
-#include "photorig/ps/stack.h"
+#include "photorig/solvers/ps/lambertian.h"
+#include "photorig/solvers/ps/stack.h"
 
 #include <Eigen/Core>
 
 #include <array>
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // The usable samples of one pixel in solver units: b_k = (I_k - D) / s_k with
 // variance var_k = Var(I_k - D) / s_k^2.
@@ -99,4 +99,4 @@ class SampleReader {
   RowInputs inputs_;
 };
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

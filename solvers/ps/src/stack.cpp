@@ -1,9 +1,9 @@
-#include "photorig/ps/stack.h"
+#include "photorig/solvers/ps/stack.h"
 
 #include <cmath>
 #include <sstream>
 
-namespace photorig::ps {
+namespace photorig::solvers::ps {
 
 bool PhotometricStack::IsValid(std::string* why) const {
   auto fail = [why](const std::string& text) {
@@ -69,4 +69,4 @@ const char* PixelFlagName(PixelFlag flag) {
   return "unknown";
 }
 
-}  // namespace photorig::ps
+}  // namespace photorig::solvers::ps

@@ -12,7 +12,7 @@
 #include <limits>
 #include <span>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 namespace {
 
 // Queues longer than this run their stage; see Flush.
@@ -735,4 +735,4 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
   summary->pixels_rejected_by_model += failed;
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

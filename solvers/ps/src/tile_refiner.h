@@ -22,7 +22,7 @@
 #include "per_pixel_fits.h"
 #include "sample_reader.h"
 
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <Eigen/Core>
 
@@ -32,7 +32,7 @@
 #include <span>
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 class TileRefiner {
  public:
@@ -119,4 +119,4 @@ class TileRefiner {
   std::vector<std::uint8_t> held_lobe_;
 };
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

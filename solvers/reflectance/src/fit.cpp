@@ -107,23 +107,23 @@ bool CheckInputs(const ReflectanceOptions& options, const ReflectanceStack& stac
                  const cv::Mat& mask, const ReflectanceMaps* maps, ReflectanceSummary* summary) {
   std::string why;
   if (!options.IsValid(&why)) {
-    summary->End(Termination::kInvalidOptions, why);
+    summary->End(core::Termination::kInvalidOptions, why);
     return false;
   }
   if (!stack.IsValid(&why)) {
-    summary->End(Termination::kInvalidInput, why);
+    summary->End(core::Termination::kInvalidInput, why);
     return false;
   }
   if (normals.type() != CV_32FC3 || normals.size() != stack.images.front().size()) {
-    summary->End(Termination::kInvalidInput, "normals must be CV_32FC3 of the stack's size");
+    summary->End(core::Termination::kInvalidInput, "normals must be CV_32FC3 of the stack's size");
     return false;
   }
   if (!mask.empty() && (mask.type() != CV_8U || mask.size() != normals.size())) {
-    summary->End(Termination::kInvalidInput, "mask must be CV_8U of the stack's size");
+    summary->End(core::Termination::kInvalidInput, "mask must be CV_8U of the stack's size");
     return false;
   }
   if (maps == nullptr) {
-    summary->End(Termination::kInvalidInput, "no output maps given");
+    summary->End(core::Termination::kInvalidInput, "no output maps given");
     return false;
   }
   return true;
@@ -137,7 +137,7 @@ void Conclude(const std::vector<int>& active, const internal::FittedPixels& fitt
       fitted.residuals > 0 ? fitted.chi_square / static_cast<double>(fitted.residuals) : 0.0;
   summary->materials = static_cast<int>(maps.materials.size());
   summary->pixels_fitted = static_cast<int>(active.size()) - summary->pixels_poor_fit - summary->pixels_mixed;
-  summary->termination = Termination::kSuccess;
+  summary->termination = core::Termination::kSuccess;
   if (!summary->warnings.empty()) {
     summary->message = "warnings:";
     for (Warning w : summary->warnings) summary->message += std::string(" ") + WarningName(w);
@@ -148,7 +148,7 @@ void Conclude(const std::vector<int>& active, const internal::FittedPixels& fitt
 
 ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const ReflectanceStack& stack,
                                   const cv::Mat& normals, const cv::Mat& mask, ReflectanceMaps* maps) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   ReflectanceSummary summary;
   if (!CheckInputs(options, stack, normals, mask, maps, &summary)) return summary;
   cv::Mat flags;
@@ -157,7 +157,7 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   const std::vector<int> active = internal::ActivePixels(s, options.min_samples, &flags);
   internal::CountUnfitted(flags, &summary);
   if (active.empty()) {
-    summary.End(Termination::kFailure, "no pixel has a normal and " + std::to_string(options.min_samples) +
+    summary.End(core::Termination::kFailure, "no pixel has a normal and " + std::to_string(options.min_samples) +
                                            " lit, unsaturated samples; check the mask, the normals and the exposure");
     return summary;
   }
@@ -166,7 +166,7 @@ ReflectanceSummary FitReflectance(const ReflectanceOptions& options, const Refle
   const internal::OwnLobes own = internal::WeightByNoise(stack.noise, active, options.progress, &s, &summary);
   const internal::PixelClasses classes = internal::ClassifyPixels(options, s, active, own);
   if (classes.clustered.empty()) {
-    summary.End(Termination::kFailure, "every pixel mixes two colours or the background (" +
+    summary.End(core::Termination::kFailure, "every pixel mixes two colours or the background (" +
                                            std::to_string(classes.mixed.size()) +
                                            " mixed pixels); no material can be chosen");
     return summary;

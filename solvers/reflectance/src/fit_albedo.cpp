@@ -94,7 +94,7 @@ FittedPixels FitMaterialPixels(const ReflectanceOptions& options, const Samples&
   maps->rms_residual = cv::Mat(s.height, s.width, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
   maps->normals = normals.clone();
   maps->materials.clear();
-  ProgressThrottle albedo_progress(options.progress, "albedo", static_cast<std::int64_t>(best.groups.size()));
+  core::ProgressThrottle albedo_progress(options.progress, "albedo", static_cast<std::int64_t>(best.groups.size()));
   FittedPixels fitted;
   fitted.material_of.assign(s.pixels, -1);
   fitted.rms.assign(s.pixels, 0.0);

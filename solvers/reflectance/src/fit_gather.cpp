@@ -117,7 +117,7 @@ void CountUnfitted(const cv::Mat& flags, ReflectanceSummary* summary) {
   }
 }
 
-OwnLobes WeightByNoise(const SensorNoise& given, const std::vector<int>& active, const ProgressCallback& progress,
+OwnLobes WeightByNoise(const SensorNoise& given, const std::vector<int>& active, const core::ProgressCallback& progress,
                        Samples* s, ReflectanceSummary* summary) {
   OwnLobes own;
   own.equal_weights = FitPixelLobes(*s, active, {}, nullptr);

@@ -111,7 +111,7 @@ Partition ChooseMaterials(const ReflectanceOptions& options, const Samples& s, c
   Partition best;
   const int max_k = std::min<int>(options.max_materials, static_cast<int>(classes.clustered.size()));
   for (int k = 1; k <= max_k; ++k) {
-    ProgressThrottle throttle(options.progress, "materials", max_k);
+    core::ProgressThrottle throttle(options.progress, "materials", max_k);
     throttle.Update(k - 1);
     std::vector<int> labels, best_labels;
     double best_inertia = std::numeric_limits<double>::infinity();

@@ -44,7 +44,7 @@ struct OwnLobes {
 // The noise model (given, or estimated from each pixel's own lobe fitted
 // with equal weights), then every sample weighted by it and the own lobes
 // refitted. Sets the summary's noise and noise_source.
-OwnLobes WeightByNoise(const SensorNoise& given, const std::vector<int>& active, const ProgressCallback& progress,
+OwnLobes WeightByNoise(const SensorNoise& given, const std::vector<int>& active, const core::ProgressCallback& progress,
                        Samples* s, ReflectanceSummary* summary);
 
 // The active pixels by what they can tell about the materials.

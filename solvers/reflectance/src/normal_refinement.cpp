@@ -187,7 +187,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
   std::string why;
   if (!options.IsValid(&why)) {
     NormalRefinementSummary summary;
-    summary.End(Termination::kInvalidOptions, why);
+    summary.End(core::Termination::kInvalidOptions, why);
     return summary;
   }
   ReflectanceMaps first;
@@ -206,16 +206,16 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
                                                     const cv::Mat& mask, const ReflectanceMaps& first,
                                                     const ReflectanceSummary& first_summary, cv::Mat* refined_normals,
                                                     ReflectanceMaps* maps) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   NormalRefinementSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(Termination::kInvalidOptions, why);
+    summary.End(core::Termination::kInvalidOptions, why);
     return summary;
   }
   if (!first_summary.IsSolutionUsable() || first.material.size() != normals.size() ||
       static_cast<int>(first.materials.size()) != first_summary.materials) {
-    summary.End(Termination::kInvalidInput, "the first fit is not a usable fit of these normals");
+    summary.End(core::Termination::kInvalidInput, "the first fit is not a usable fit of these normals");
     return summary;
   }
   ReflectanceMaps current = first;
@@ -234,7 +234,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
     std::vector<int> fitted_pixels;
     for (int i = 0; i < static_cast<int>(current.material.total()); ++i)
       if (current.material.data[i] != 255) fitted_pixels.push_back(i);
-    const SolveTimer step_timer;
+    const core::SolveTimer step_timer;
     cv::Mat next = n.clone();
     std::vector<double> change(fitted_pixels.size(), -1.0);  // radians; < 0: held
 #pragma omp parallel for schedule(dynamic, 64)
@@ -274,7 +274,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
   }
   std::string verdict;
   if (options.keep_better && summary.rounds > 0) {
-    const SolveTimer judge_timer;
+    const core::SolveTimer judge_timer;
     // Both fits judged on the same pixels: those each of them resolved.
     const int resolved = static_cast<int>(PixelFlag::kFitted);
     const cv::Mat both = (first.flags == resolved) & (current.flags == resolved);
@@ -312,8 +312,8 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
   *maps = std::move(current);
   summary.termination = summary.rounds == options.rounds || (!summary.median_change_deg.empty() &&
                                                              summary.median_change_deg.back() < options.converged_deg)
-                            ? Termination::kSuccess
-                            : Termination::kNoConvergence;
+                            ? core::Termination::kSuccess
+                            : core::Termination::kNoConvergence;
   summary.message = std::to_string(summary.rounds) + " round(s); reduced chi-square " +
                     std::to_string(summary.reduced_chi_square_before) + " -> " +
                     std::to_string(summary.reduced_chi_square_after) + verdict;

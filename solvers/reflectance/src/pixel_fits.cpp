@@ -2,7 +2,7 @@
 // albedo under a material's lobe (samples.h).
 #include "samples.h"
 
-#include "photorig/solvers/progress.h"
+#include "photorig/solvers/core/progress.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,11 +10,11 @@
 namespace photorig::solvers::reflectance::internal {
 
 std::vector<PixelLobe> FitPixelLobes(const Samples& s, const std::vector<int>& pixels,
-                                     const std::vector<std::uint8_t>& enabled, const ProgressCallback& progress) {
+                                     const std::vector<std::uint8_t>& enabled, const core::ProgressCallback& progress) {
   const std::vector<double>& grid = ShapeGrid(brdf::Model::kBlinnPhong);
   std::vector<PixelLobe> out(pixels.size());
   const int count = static_cast<int>(pixels.size());
-  ProgressThrottle throttle(progress, "per-pixel", count);
+  core::ProgressThrottle throttle(progress, "per-pixel", count);
   const int block = 256;
   for (int start = 0; start < count; start += block) {
     const int end = std::min(count, start + block);

@@ -8,11 +8,11 @@
 
 namespace photorig::solvers::reflectance {
 
-Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
+core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
                           const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image) {
   if (maps.albedo.empty() || maps.flags.size() != maps.albedo.size() || maps.normals.size() != maps.albedo.size())
-    return Ended(Termination::kInvalidInput, "the reflectance maps are empty or differ in size");
-  if (image == nullptr) return Ended(Termination::kInvalidInput, "no output image given");
+    return core::Ended(core::Termination::kInvalidInput, "the reflectance maps are empty or differ in size");
+  if (image == nullptr) return core::Ended(core::Termination::kInvalidInput, "no output image given");
   const int C = maps.albedo.channels();
   *image = cv::Mat(maps.albedo.size(), CV_32FC(C), cv::Scalar::all(0));
   const Eigen::Vector3d w = light_direction.normalized(), v = view_direction.normalized();
@@ -31,7 +31,7 @@ Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& li
       float* out = image->ptr<float>(r) + c * C;
       for (int ch = 0; ch < C; ++ch) out[ch] = static_cast<float>(intensity[ch] * f[ch] * std::max(0.0, wi.z()));
     }
-  return Ended(Termination::kSuccess, "");
+  return core::Ended(core::Termination::kSuccess, "");
 }
 
 const char* MethodName(Method method) {
@@ -147,20 +147,20 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
 RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
                                         const cv::Mat& normals, const cv::Mat& mask, const ReflectanceMaps& full,
                                         const ReflectanceSummary& fitted) {
-  SolveTimer timer;
+  core::SolveTimer timer;
   RelightingSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(Termination::kInvalidOptions, why);
+    summary.End(core::Termination::kInvalidOptions, why);
     return summary;
   }
   if (!fitted.IsSolutionUsable() || full.material.size() != cv::Size(stack.width(), stack.height()) ||
       static_cast<int>(full.materials.size()) != fitted.materials) {
-    summary.End(Termination::kInvalidInput, "the full fit is not a usable fit of this stack");
+    summary.End(core::Termination::kInvalidInput, "the full fit is not a usable fit of this stack");
     return summary;
   }
   if (stack.light_count() < options.fit.min_samples + 1) {
-    summary.End(Termination::kFailure, "too few lights to hold one out");
+    summary.End(core::Termination::kFailure, "too few lights to hold one out");
     return summary;
   }
   summary.materials = fitted.materials;
@@ -183,7 +183,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
                                             : options.lights;
   for (int j : summary.held_out)
     if (j >= stack.light_count()) {
-      summary.End(Termination::kInvalidOptions, "held-out light " + std::to_string(j) + " is not one of the stack's " +
+      summary.End(core::Termination::kInvalidOptions, "held-out light " + std::to_string(j) + " is not one of the stack's " +
                                                     std::to_string(stack.light_count()) + " lights");
       return summary;
     }
@@ -193,7 +193,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
     for (int p : groups[m]) material_of[p] = static_cast<int>(m);
   std::vector<std::array<double, 3>> material_sum(groups.size(), {0.0, 0.0, 0.0});
   std::vector<long long> material_count(groups.size(), 0);
-  ProgressThrottle throttle(options.progress, "held-out",
+  core::ProgressThrottle throttle(options.progress, "held-out",
                             static_cast<std::int64_t>(summary.held_out.size() * options.methods.size()));
   const int C = s.channels;
   int done = 0;
@@ -212,7 +212,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
       peak = std::max(*it, 1e-12);
     }
     for (Method method : options.methods) {
-      SolveTimer fit_timer;
+      core::SolveTimer fit_timer;
       const Prediction prediction =
           FitMethod(method, s, pixels, groups, full, enabled, options.fit.shape_search_pixels);
       const std::vector<internal::Lobe>& lobe = prediction.lobe;
@@ -262,7 +262,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
       rmse[mi] = material_count[m] > 0 ? std::sqrt(material_sum[m][mi] / static_cast<double>(material_count[m])) : 0.0;
     summary.material_rmse.push_back(rmse);
   }
-  summary.termination = Termination::kSuccess;
+  summary.termination = core::Termination::kSuccess;
   summary.message = fitted.message;
   timer.Finish(&summary);
   return summary;

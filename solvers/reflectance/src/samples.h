@@ -118,7 +118,7 @@ struct PixelLobe {
   Eigen::Vector3d rho = Eigen::Vector3d::Zero();
 };
 std::vector<PixelLobe> FitPixelLobes(const Samples& s, const std::vector<int>& pixels,
-                                     const std::vector<std::uint8_t>& enabled, const ProgressCallback& progress);
+                                     const std::vector<std::uint8_t>& enabled, const core::ProgressCallback& progress);
 
 // Per-pixel Lambertian albedo.
 std::vector<Eigen::Vector3d> FitLambertian(const Samples& s, const std::vector<int>& pixels,

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 bool AbsorbanceOptions::IsValid(std::string* why) const {
   auto fail = [why](const char* message) {
@@ -38,31 +38,31 @@ AbsorbanceSummary ComputeAbsorbance(const Geometry& geometry, const std::vector<
                                     const std::vector<std::vector<std::uint16_t>>& flats,
                                     const std::vector<std::vector<std::uint16_t>>& darks,
                                     const AbsorbanceOptions& options, Absorbance* absorbance) {
-  solvers::SolveTimer timer;
+  solvers::core::SolveTimer timer;
   AbsorbanceSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidOptions, why);
+    summary.End(solvers::core::Termination::kInvalidOptions, why);
     return summary;
   }
   if (!geometry.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidInput, why);
+    summary.End(solvers::core::Termination::kInvalidInput, why);
     return summary;
   }
   const auto pixels = static_cast<std::size_t>(geometry.pixels_per_view());
   if (projections.size() != static_cast<std::size_t>(geometry.views())) {
-    summary.End(solvers::Termination::kInvalidInput, std::to_string(projections.size()) + " projections for " +
+    summary.End(solvers::core::Termination::kInvalidInput, std::to_string(projections.size()) + " projections for " +
                                                          std::to_string(geometry.views()) + " view angles");
     return summary;
   }
   if (flats.empty() || darks.empty()) {
-    summary.End(solvers::Termination::kInvalidInput, "dark/flat correction needs at least one flat and one dark frame");
+    summary.End(solvers::core::Termination::kInvalidInput, "dark/flat correction needs at least one flat and one dark frame");
     return summary;
   }
   for (const auto* set : {&projections, &flats, &darks})
     for (const auto& frame : *set)
       if (frame.size() != pixels) {
-        summary.End(solvers::Termination::kInvalidInput,
+        summary.End(solvers::core::Termination::kInvalidInput,
                     "a frame has " + std::to_string(frame.size()) + " pixels; the detector has " + std::to_string(pixels));
         return summary;
       }
@@ -135,13 +135,13 @@ AbsorbanceSummary ComputeAbsorbance(const Geometry& geometry, const std::vector<
   if (usable > 0) summary.mean_b_sigma = std::sqrt(sigma_sum / static_cast<double>(usable));
   timer.Finish(&summary);
   if (usable == 0) {
-    summary.End(solvers::Termination::kFailure,
+    summary.End(solvers::core::Termination::kFailure,
                 "no usable pixel: " + std::to_string(summary.flagged_saturated) + " saturated, " +
                     std::to_string(summary.flagged_no_flat) + " without flat signal, " +
                     std::to_string(summary.flagged_non_positive) + " at or below the dark level");
     return summary;
   }
-  summary.termination = solvers::Termination::kSuccess;
+  summary.termination = solvers::core::Termination::kSuccess;
   if (summary.flagged() > 0)
     summary.message = std::to_string(summary.flagged()) + " of " + std::to_string(rays) +
                       " pixels flagged and left out (" + std::to_string(summary.flagged_saturated) + " saturated, " +
@@ -150,4 +150,4 @@ AbsorbanceSummary ComputeAbsorbance(const Geometry& geometry, const std::vector<
   return summary;
 }
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

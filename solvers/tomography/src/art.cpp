@@ -6,7 +6,7 @@
 #include <random>
 #include <vector>
 
-namespace photorig::tomography::internal {
+namespace photorig::solvers::tomography::internal {
 namespace {
 
 // One Kaczmarz sweep: every valid ray once, views in `order`.
@@ -60,4 +60,4 @@ class Art final : public Iteration {
 
 std::unique_ptr<Iteration> MakeArt(const IterationInputs& in) { return std::make_unique<Art>(in); }
 
-}  // namespace photorig::tomography::internal
+}  // namespace photorig::solvers::tomography::internal

@@ -5,7 +5,7 @@
 #include <numbers>
 #include <vector>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 bool CorEstimateOptions::IsValid(std::string* why) const {
   auto fail = [why](const char* message) {
@@ -19,21 +19,21 @@ bool CorEstimateOptions::IsValid(std::string* why) const {
 
 CorEstimateSummary EstimateCorOffset(const Geometry& geometry, const Absorbance& measurements,
                                      const CorEstimateOptions& options) {
-  solvers::SolveTimer timer;
+  solvers::core::SolveTimer timer;
   CorEstimateSummary summary;
-  auto end = [&](solvers::Termination how, std::string why) {
+  auto end = [&](solvers::core::Termination how, std::string why) {
     summary.End(how, std::move(why));
     timer.Finish(&summary);
     return summary;
   };
   std::string why;
-  if (!options.IsValid(&why)) return end(solvers::Termination::kInvalidOptions, why);
-  if (!geometry.IsValid(&why)) return end(solvers::Termination::kInvalidInput, why);
+  if (!options.IsValid(&why)) return end(solvers::core::Termination::kInvalidOptions, why);
+  if (!geometry.IsValid(&why)) return end(solvers::core::Termination::kInvalidInput, why);
   if (measurements.b.size() != geometry.rays() ||
       (!measurements.valid.empty() && static_cast<std::int64_t>(measurements.valid.size()) != geometry.rays()))
-    return end(solvers::Termination::kInvalidInput, "the measurements do not match the scan's rays");
+    return end(solvers::core::Termination::kInvalidInput, "the measurements do not match the scan's rays");
   if (geometry.beam != Beam::kParallel)
-    return end(solvers::Termination::kFailure,
+    return end(solvers::core::Termination::kFailure,
                "the automatic estimate needs a parallel beam (opposite cone-beam views are not mirror images); "
                "take the offset from the rig configuration");
 
@@ -47,7 +47,7 @@ CorEstimateSummary EstimateCorOffset(const Geometry& geometry, const Absorbance&
       if (i < j && std::abs(diff) <= tolerance) pairs.emplace_back(i, j);
     }
   if (pairs.empty())
-    return end(solvers::Termination::kFailure,
+    return end(solvers::core::Termination::kFailure,
                "no two views are 180 degrees apart: scan 0..360, or 0..180 including its end view");
   summary.pairs = static_cast<int>(pairs.size());
 
@@ -80,9 +80,9 @@ CorEstimateSummary EstimateCorOffset(const Geometry& geometry, const Absorbance&
   for (std::size_t i = 1; i < cost.size(); ++i)
     if (cost[i] < cost[best]) best = i;
   if (!std::isfinite(cost[best]))
-    return end(solvers::Termination::kFailure, "no shift overlaps enough of the opposing views");
+    return end(solvers::core::Termination::kFailure, "no shift overlaps enough of the opposing views");
   if (best == 0 || best + 1 == cost.size() || !std::isfinite(cost[best - 1]) || !std::isfinite(cost[best + 1]))
-    return end(solvers::Termination::kFailure,
+    return end(solvers::core::Termination::kFailure,
                "the best match lies at the edge of the search: the offset exceeds max_offset_mm, or the views do not "
                "mirror each other");
   // Parabola through the minimum and its neighbours.
@@ -92,9 +92,9 @@ CorEstimateSummary EstimateCorOffset(const Geometry& geometry, const Absorbance&
   const double shift = static_cast<double>(best) - max_shift + fraction;
   summary.offset_mm = 0.5 * shift * geometry.pixel_mm;
   summary.match_rms = std::sqrt(std::max(0.0, c1));
-  summary.termination = solvers::Termination::kSuccess;
+  summary.termination = solvers::core::Termination::kSuccess;
   timer.Finish(&summary);
   return summary;
 }
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -1,7 +1,7 @@
 // CGLS: conjugate gradients on the normal equations W^T W sigma = W^T b (reconstruct.h).
 #include "iteration.h"
 
-namespace photorig::tomography::internal {
+namespace photorig::solvers::tomography::internal {
 namespace {
 
 class Cgls final : public Iteration {
@@ -42,4 +42,4 @@ std::unique_ptr<Iteration> MakeCgls(const IterationInputs& in, const Eigen::Vect
   return std::make_unique<Cgls>(in, r);
 }
 
-}  // namespace photorig::tomography::internal
+}  // namespace photorig::solvers::tomography::internal

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <numbers>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 bool Geometry::IsValid(std::string* why) const {
   auto fail = [why](const char* message) {
@@ -51,4 +51,4 @@ std::vector<double> EvenAngles(int views, double span_deg, bool include_end) {
   return angles;
 }
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -11,7 +11,7 @@
 
 #include <memory>
 
-namespace photorig::tomography::internal {
+namespace photorig::solvers::tomography::internal {
 
 // sum of v_i^2 in double, over this process's share.
 double SquaredNorm(const Eigen::VectorXf& v);
@@ -63,4 +63,4 @@ std::unique_ptr<Iteration> MakeSart(const IterationInputs& in);
 // r: the residual at the starting volume.
 std::unique_ptr<Iteration> MakeCgls(const IterationInputs& in, const Eigen::VectorXf& r);
 
-}  // namespace photorig::tomography::internal
+}  // namespace photorig::solvers::tomography::internal

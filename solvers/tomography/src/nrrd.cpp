@@ -7,7 +7,7 @@
 #include <sstream>
 #include <string>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 namespace {
 
@@ -17,14 +17,14 @@ std::uint32_t SwapBytes(std::uint32_t v) {
 
 }  // namespace
 
-solvers::Summary WriteNrrd(const std::string& path, const VolumeGrid& grid, const Eigen::VectorXf& sigma) {
-  solvers::SolveTimer timer;
+solvers::core::Summary WriteNrrd(const std::string& path, const VolumeGrid& grid, const Eigen::VectorXf& sigma) {
+  solvers::core::SolveTimer timer;
   std::string why;
-  if (!grid.IsValid(&why)) return solvers::Ended(solvers::Termination::kInvalidInput, why);
+  if (!grid.IsValid(&why)) return solvers::core::Ended(solvers::core::Termination::kInvalidInput, why);
   if (sigma.size() != grid.voxels())
-    return solvers::Ended(solvers::Termination::kInvalidInput, "the volume does not match the grid");
+    return solvers::core::Ended(solvers::core::Termination::kInvalidInput, "the volume does not match the grid");
   std::ofstream out(path, std::ios::binary);
-  if (!out) return solvers::Ended(solvers::Termination::kInvalidInput, "cannot write " + path);
+  if (!out) return solvers::core::Ended(solvers::core::Termination::kInvalidInput, "cannot write " + path);
   const Eigen::Vector3d min = grid.VoxelCentre(0, 0, 0);
   out << "NRRD0004\n"
       << "# photorig tomography: extinction coefficient sigma in 1/mm, voxel centres in mm\n"
@@ -43,15 +43,15 @@ solvers::Summary WriteNrrd(const std::string& path, const VolumeGrid& grid, cons
   }
   // The last buffer reaches the file only here: a full disk shows at the flush.
   out.flush();
-  if (!out) return solvers::Ended(solvers::Termination::kInvalidInput, "writing " + path + " failed: " + std::strerror(errno));
+  if (!out) return solvers::core::Ended(solvers::core::Termination::kInvalidInput, "writing " + path + " failed: " + std::strerror(errno));
   return timer.Succeeded();
 }
 
-solvers::Summary ReadNrrd(const std::string& path, VolumeGrid* grid, Eigen::VectorXf* sigma) {
-  solvers::SolveTimer timer;
+solvers::core::Summary ReadNrrd(const std::string& path, VolumeGrid* grid, Eigen::VectorXf* sigma) {
+  solvers::core::SolveTimer timer;
   std::ifstream in(path, std::ios::binary);
   auto fail = [&path](const std::string& why) {
-    return solvers::Ended(solvers::Termination::kInvalidInput, path + ": " + why);
+    return solvers::core::Ended(solvers::core::Termination::kInvalidInput, path + ": " + why);
   };
   if (!in) return fail("cannot open");
   std::string line;
@@ -99,4 +99,4 @@ solvers::Summary ReadNrrd(const std::string& path, VolumeGrid* grid, Eigen::Vect
   return timer.Succeeded();
 }
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -5,7 +5,7 @@
 
 #include <omp.h>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 bool ProjectorOptions::IsValid(std::string* why) const {
   if (memory_budget_bytes == 0 && storage == Storage::kSparse) {
@@ -121,13 +121,13 @@ void Projector::Back(const Eigen::VectorXf& y, Eigen::VectorXf* x) const {
   }
 }
 
-void Projector::StoreSparse(const solvers::ProgressCallback& progress) {
+void Projector::StoreSparse(const solvers::core::ProgressCallback& progress) {
   const int views = geometry_.views();
   const std::int64_t per_view = geometry_.pixels_per_view();
   // Each view's rows are traced on their own, then laid end to end.
   std::vector<std::vector<std::int32_t>> counts(views), inner(views);
   std::vector<std::vector<float>> values(views);
-  solvers::ProgressThrottle throttle(progress, "projector", views);
+  solvers::core::ProgressThrottle throttle(progress, "projector", views);
   int done = 0;
 #pragma omp parallel
   {
@@ -186,19 +186,19 @@ void Projector::StoreSparse(const solvers::ProgressCallback& progress) {
 
 ProjectorSummary MakeProjector(const VolumeGrid& grid, const Geometry& geometry, const ProjectorOptions& options,
                                std::unique_ptr<Projector>* projector) {
-  solvers::SolveTimer timer;
+  solvers::core::SolveTimer timer;
   ProjectorSummary summary;
   std::string why;
   if (!options.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidOptions, why);
+    summary.End(solvers::core::Termination::kInvalidOptions, why);
     return summary;
   }
   if (!grid.IsValid(&why) || !geometry.IsValid(&why)) {
-    summary.End(solvers::Termination::kInvalidInput, why);
+    summary.End(solvers::core::Termination::kInvalidInput, why);
     return summary;
   }
   if (options.first_slice + std::max(options.slices, 1) > grid.nz) {
-    summary.End(solvers::Termination::kInvalidOptions,
+    summary.End(solvers::core::Termination::kInvalidOptions,
                 "slices from " + std::to_string(options.first_slice) + " (" + std::to_string(options.slices) +
                     " of them) run past the grid's " + std::to_string(grid.nz));
     return summary;
@@ -220,7 +220,7 @@ ProjectorSummary MakeProjector(const VolumeGrid& grid, const Geometry& geometry,
   const bool fits = summary.estimated_sparse_bytes <= options.memory_budget_bytes && entries < 2.0e9;
   timer.SetupDone(&summary);
   if (options.storage == Storage::kSparse && !fits) {
-    summary.End(solvers::Termination::kFailure,
+    summary.End(solvers::core::Termination::kFailure,
                 "W and W^T need about " + std::to_string(summary.estimated_sparse_bytes >> 20) +
                     " MiB, over memory_budget_bytes; raise the budget or use the matrix-free storage");
     timer.Finish(&summary);
@@ -231,10 +231,10 @@ ProjectorSummary MakeProjector(const VolumeGrid& grid, const Geometry& geometry,
   summary.sparse = result->is_sparse();
   summary.nonzeros = result->nonzeros();
   summary.stored_bytes = result->stored_bytes();
-  summary.termination = solvers::Termination::kSuccess;
+  summary.termination = solvers::core::Termination::kSuccess;
   *projector = std::move(result);
   timer.Finish(&summary);
   return summary;
 }
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

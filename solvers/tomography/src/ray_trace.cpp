@@ -4,7 +4,7 @@
 #include <cmath>
 #include <limits>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 std::optional<Interpolation> ParseInterpolation(std::string_view name) {
   if (name == "siddon") return Interpolation::kSiddon;
@@ -163,4 +163,4 @@ void TraceRayInSlices(const VolumeGrid& grid, int first_slice, int slices, const
   weights->resize(kept);
 }
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

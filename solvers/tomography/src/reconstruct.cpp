@@ -8,7 +8,7 @@
 #include <memory>
 #include <sstream>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 std::optional<Method> ParseMethod(std::string_view name) {
   if (name == "art") return Method::kArt;
@@ -118,23 +118,23 @@ struct ValidRays {
 bool ReadValidRays(const SystemMatrix& system, const Absorbance& measurements, ValidRays* valid,
                    ReconstructionSummary* summary) {
   const std::int64_t rays = system.rays();
-  auto fail = [summary](solvers::Termination how, std::string why) {
+  auto fail = [summary](solvers::core::Termination how, std::string why) {
     summary->End(how, std::move(why));
     return false;
   };
   if (measurements.b.size() != rays)
-    return fail(solvers::Termination::kInvalidInput, "b has " + std::to_string(measurements.b.size()) +
+    return fail(solvers::core::Termination::kInvalidInput, "b has " + std::to_string(measurements.b.size()) +
                                                           " entries; the scan has " + std::to_string(rays) + " rays");
   if (!measurements.valid.empty() && static_cast<std::int64_t>(measurements.valid.size()) != rays)
-    return fail(solvers::Termination::kInvalidInput, "the validity flags do not match the rays");
+    return fail(solvers::core::Termination::kInvalidInput, "the validity flags do not match the rays");
   if (measurements.variance.size() != 0 && measurements.variance.size() != rays)
-    return fail(solvers::Termination::kInvalidInput, "the variances do not match the rays");
+    return fail(solvers::core::Termination::kInvalidInput, "the variances do not match the rays");
   valid->mask.resize(rays);
   valid->b.resize(rays);
   for (std::int64_t i = 0; i < rays; ++i) {
     const bool is_valid = measurements.valid.empty() || measurements.valid[static_cast<std::size_t>(i)] != 0;
     if (is_valid && !std::isfinite(measurements.b[i]))
-      return fail(solvers::Termination::kInvalidInput, "b holds a non-finite value on a ray marked valid");
+      return fail(solvers::core::Termination::kInvalidInput, "b holds a non-finite value on a ray marked valid");
     valid->mask[i] = is_valid ? 1.0f : 0.0f;
     valid->b[i] = is_valid ? measurements.b[i] : 0.0f;
     summary->rays_used += is_valid;
@@ -142,7 +142,7 @@ bool ReadValidRays(const SystemMatrix& system, const Absorbance& measurements, V
   // Sums over rays cover the whole scan, whatever part of it this process holds.
   summary->rays_used = static_cast<std::int64_t>(system.SumOverRays(static_cast<double>(summary->rays_used)));
   if (summary->rays_used == 0)
-    return fail(solvers::Termination::kFailure, "no valid ray: every pixel was flagged (see the absorbance summary)");
+    return fail(solvers::core::Termination::kFailure, "no valid ray: every pixel was flagged (see the absorbance summary)");
   return true;
 }
 
@@ -160,7 +160,7 @@ bool CheckCoverage(const SystemMatrix& system, const ReconstructOptions& options
   summary->voxels_unreached =
       static_cast<std::int64_t>(system.SumOverVoxels(static_cast<double>(voxels))) - summary->voxels_reached;
   if (summary->voxels_reached == 0) {
-    summary->End(solvers::Termination::kFailure,
+    summary->End(solvers::core::Termination::kFailure,
                  "no valid ray crosses the volume: check the grid against the geometry");
     return false;
   }
@@ -169,7 +169,7 @@ bool CheckCoverage(const SystemMatrix& system, const ReconstructOptions& options
   if (rays_per_voxel < options.min_rays_per_voxel) {
     const int views = system.views();
     const int needed = static_cast<int>(std::ceil(views * options.min_rays_per_voxel / rays_per_voxel));
-    summary->End(solvers::Termination::kFailure,
+    summary->End(solvers::core::Termination::kFailure,
                  "too few views for the volume: " + std::to_string(summary->rays_used) + " valid rays for " +
                      std::to_string(summary->voxels_reached) + " voxels (" + Format(rays_per_voxel) +
                      " per voxel, below " + Format(options.min_rays_per_voxel) + "); take about " +
@@ -196,7 +196,7 @@ bool MeasureNoise(const SystemMatrix& system, const Absorbance& measurements, co
   const bool have_noise = *noise_sum > 0.0;
   summary->discrepancy_target = options.discrepancy_factor * std::sqrt(*noise_sum);
   if (options.stop_rule == StopRule::kDiscrepancy && !have_noise) {
-    summary->End(solvers::Termination::kInvalidInput,
+    summary->End(solvers::core::Termination::kInvalidInput,
                  "the discrepancy rule needs a noise estimate: two or more flats and darks, or noise_sigma; "
                  "or stop after max_iterations");
     return false;
@@ -206,7 +206,7 @@ bool MeasureNoise(const SystemMatrix& system, const Absorbance& measurements, co
   const double b_norm = std::sqrt(system.SumOverRays(SquaredNorm(valid.b)));
   const double noise_ceiling = *noise_sum * (1.0 + 3.0 * std::sqrt(2.0 / static_cast<double>(summary->rays_used)));
   if (have_noise ? b_norm * b_norm <= noise_ceiling : b_norm == 0.0) {
-    summary->End(solvers::Termination::kFailure,
+    summary->End(solvers::core::Termination::kFailure,
                  "no signal: |b| = " + Format(b_norm) + " is within the noise (" + Format(std::sqrt(*noise_sum)) +
                      "); the sample absorbs too little, or the flats do not match the frames");
     return false;
@@ -244,7 +244,7 @@ double ResolvableDrop(const ReconstructOptions& options, const ReconstructionSum
 // than the exact one.
 bool Iterate(const ReconstructOptions& options, const SystemMatrix& system, double resolvable_drop,
              internal::Iteration* method, Eigen::VectorXf* x, Eigen::VectorXf* r, ReconstructionSummary* summary) {
-  solvers::ProgressThrottle throttle(options.progress, MethodName(options.method), options.max_iterations);
+  solvers::core::ProgressThrottle throttle(options.progress, MethodName(options.method), options.max_iterations);
   summary->stop_reason = StopReason::kMaxIterations;
   // A fixed relaxation keeps ART's and SART's updates from shrinking to zero.
   const bool row_action = options.method == Method::kArt || options.method == Method::kSart;
@@ -300,7 +300,7 @@ void Conclude(const ReconstructOptions& options, double noise_sum, double resolv
   if (summary->stop_reason == StopReason::kLimitCycle &&
       !(have_noise && final_residual <= summary->discrepancy_target)) {
     // Where the cycle settles depends on the relaxation and the order, not on the data.
-    summary->termination = solvers::Termination::kFailure;
+    summary->termination = solvers::core::Termination::kFailure;
     summary->message = std::string(MethodName(options.method)) + " ended in a limit cycle: the residual stopped at " +
                        (have_noise ? Format(final_residual / std::sqrt(noise_sum)) + " times the noise level"
                                    : Format(final_residual) + " with no noise level to judge it by") +
@@ -311,16 +311,16 @@ void Conclude(const ReconstructOptions& options, double noise_sum, double resolv
                                              : "") +
                        notes;
   } else if (summary->inconsistent) {
-    summary->termination = solvers::Termination::kNoConvergence;
+    summary->termination = solvers::core::Termination::kNoConvergence;
     summary->message = "inconsistent data: the residual stalls at " + Format(final_residual / std::sqrt(noise_sum)) +
                        " times the noise level; check the centre of rotation, the flats and the geometry" + notes;
   } else if (summary->stop_reason == StopReason::kMaxIterations && options.stop_rule == StopRule::kDiscrepancy) {
-    summary->termination = solvers::Termination::kNoConvergence;
+    summary->termination = solvers::core::Termination::kNoConvergence;
     summary->message = "the residual " + Format(final_residual) + " is still above the noise level " +
                        Format(summary->discrepancy_target) + " after " + std::to_string(summary->iterations) +
                        " iterations; raise " + options.iteration_limit_name + notes;
   } else {
-    summary->termination = solvers::Termination::kSuccess;
+    summary->termination = solvers::core::Termination::kSuccess;
     if (resolvable_drop > 0.0 && summary->stop_reason == StopReason::kStagnation)
       notes = "; total variation holds the residual at " + Format(final_residual / std::sqrt(noise_sum)) +
               " times the noise level: stopped at its balance, where a pass lowers it by less than the noise "
@@ -333,20 +333,20 @@ void Conclude(const ReconstructOptions& options, double noise_sum, double resolv
 
 ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbance& measurements,
                                   const ReconstructOptions& options, Eigen::VectorXf* sigma) {
-  solvers::SolveTimer timer;
+  solvers::core::SolveTimer timer;
   ReconstructionSummary summary;
   summary.method = options.method;
-  auto end = [&](solvers::Termination how, std::string why) {
+  auto end = [&](solvers::core::Termination how, std::string why) {
     summary.End(how, std::move(why));
     timer.Finish(&summary);
     return summary;
   };
   std::string why;
-  if (!options.IsValid(&why)) return end(solvers::Termination::kInvalidOptions, why);
-  if (!sigma) return end(solvers::Termination::kInvalidInput, "no output volume given");
+  if (!options.IsValid(&why)) return end(solvers::core::Termination::kInvalidOptions, why);
+  if (!sigma) return end(solvers::core::Termination::kInvalidInput, "no output volume given");
   const auto* whole = dynamic_cast<const Projector*>(&projector);
   if ((options.method == Method::kArt || options.method == Method::kSart) && !whole)
-    return end(solvers::Termination::kInvalidOptions,
+    return end(solvers::core::Termination::kInvalidOptions,
                std::string(options.method == Method::kArt ? "ART visits one ray" : "SART visits one view") +
                    " at a time and needs every row of W in one process; use SIRT or CGLS");
   ValidRays valid;
@@ -395,4 +395,4 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
   return summary;
 }
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-namespace photorig::tomography::internal {
+namespace photorig::solvers::tomography::internal {
 namespace {
 
 // SART checks its exact residual once the residual its views met comes within
@@ -212,4 +212,4 @@ class Sart final : public Iteration {
 
 std::unique_ptr<Iteration> MakeSart(const IterationInputs& in) { return std::make_unique<Sart>(in); }
 
-}  // namespace photorig::tomography::internal
+}  // namespace photorig::solvers::tomography::internal

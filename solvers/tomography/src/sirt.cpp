@@ -1,7 +1,7 @@
 // SIRT: every ray at once, sigma += lambda C W^T R (b - W sigma) (reconstruct.h).
 #include "iteration.h"
 
-namespace photorig::tomography::internal {
+namespace photorig::solvers::tomography::internal {
 namespace {
 
 class Sirt final : public Iteration {
@@ -28,4 +28,4 @@ class Sirt final : public Iteration {
 
 std::unique_ptr<Iteration> MakeSirt(const IterationInputs& in) { return std::make_unique<Sirt>(in); }
 
-}  // namespace photorig::tomography::internal
+}  // namespace photorig::solvers::tomography::internal

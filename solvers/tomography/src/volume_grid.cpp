@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 bool VolumeGrid::IsValid(std::string* why) const {
   auto fail = [why](const char* message) {
@@ -21,4 +21,4 @@ Eigen::Vector3d VolumeGrid::VoxelCentre(int i, int j, int k) const {
   return voxel_mm * Eigen::Vector3d(i + 0.5 - 0.5 * nx, j + 0.5 - 0.5 * ny, k + 0.5 - 0.5 * nz);
 }
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <vector>
 
-namespace photorig::tomography::mpi {
+namespace photorig::solvers::tomography_mpi {
 
 Session::Session(int* argc, char*** argv) {
   int provided = 0;
@@ -164,7 +164,7 @@ ProjectorSummary MakeDistributedProjector(const VolumeGrid& grid, const Geometry
   ProjectorSummary summary;
   Decomposition chosen;
   if (std::string why; !ChooseDecomposition(grid, geometry.views(), ranks, decomposition, &chosen, &why)) {
-    summary.End(solvers::Termination::kInvalidOptions, why);
+    summary.End(solvers::core::Termination::kInvalidOptions, why);
     return summary;
   }
   const Block views = BlockOfRank(geometry.views(), rank / chosen.slabs, chosen.view_groups);
@@ -183,7 +183,7 @@ ProjectorSummary MakeDistributedProjector(const VolumeGrid& grid, const Geometry
   MPI_Allreduce(MPI_IN_PLACE, &built_everywhere, 1, MPI_INT, MPI_MIN, comm);
   if (!summary.IsSolutionUsable()) return summary;
   if (!built_everywhere) {
-    summary.End(solvers::Termination::kFailure,
+    summary.End(solvers::core::Termination::kFailure,
                 "another process could not build its block of W: it does not fit memory_budget_bytes there");
     return summary;
   }
@@ -192,4 +192,4 @@ ProjectorSummary MakeDistributedProjector(const VolumeGrid& grid, const Geometry
   return summary;
 }
 
-}  // namespace photorig::tomography::mpi
+}  // namespace photorig::solvers::tomography_mpi

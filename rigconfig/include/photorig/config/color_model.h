@@ -2,7 +2,7 @@
 // A colour model file (photorig calibrate color's model.yaml or model.json) as
 // a rig names it (camera.color_model), loaded and checked when the rig loads.
 
-#include "photorig/color/model.h"
+#include "photorig/solvers/color/model.h"
 
 #include <string>
 
@@ -11,7 +11,7 @@ namespace photorig::config {
 struct LoadedColorModel {
   std::string path;
   std::string content_hash;  // ContentHash of the file's bytes
-  color::ColorModel model;
+  solvers::color::ColorModel model;
 };
 
 // Throws ConfigError with the file and, where the text says, the line and

@@ -155,8 +155,8 @@ struct MotionConfig {
 // Bayer format: whose measured sensitivities its channels have and the
 // spectrum of the dome's LEDs (a CIE illuminant).
 struct SimColorConfig {
-  std::string camera = "nikon-5100";  // color::CameraNames()
-  color::Illuminant illuminant = color::Illuminant::kD65;
+  std::string camera = "nikon-5100";  // solvers::color::CameraNames()
+  solvers::color::Illuminant illuminant = solvers::color::Illuminant::kD65;
 };
 
 struct SimConfig {

@@ -4,9 +4,9 @@
 // them: parsed and checked when the recipe is loaded.
 
 #include "photorig/config/yaml_node.h"
-#include "photorig/lighting/sphere.h"
+#include "photorig/solvers/lighting/sphere.h"
 #include "photorig/solvers/brdf/fit.h"
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <array>
 #include <optional>
@@ -26,7 +26,7 @@ struct PhotometricStereoRequest {
   std::string derivative = "lanes";
   std::string integrator = "poisson";   // depth from normals: poisson | frankot-chellappa | none
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
-  solvers::ProgressCallback progress;
+  solvers::core::ProgressCallback progress;
 };
 
 // Throws ConfigError naming file:line:column for unknown keys or values.
@@ -36,15 +36,15 @@ void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request);
 
 // "lanes" (the lane fitter) or an autodiff method name (the per-pixel
 // reference fit with that method) into `options`; false for another name.
-bool ParseDerivative(const std::string& name, ps::BlinnPhongOptions* options);
+bool ParseDerivative(const std::string& name, solvers::ps::BlinnPhongOptions* options);
 
 struct LightCalibrationRequest {
   // How the sphere is found, in this order of preference: a given circle, a
   // silhouette image, else the highlights (see LocateSphereFromHighlights).
-  std::optional<lighting::Circle> circle;
+  std::optional<solvers::lighting::Circle> circle;
   std::string silhouette_image;
   double sphere_radius_mm = 0.0;  // > 0 with a known pixel pitch fixes the radius of the highlight fit
-  lighting::CameraModel camera;   // orthographic unless pinhole intrinsics are given
+  solvers::lighting::CameraModel camera;   // orthographic unless pinhole intrinsics are given
   std::string base_rig;           // rig YAML to copy with the calibrated lights ("" = no rig output)
   std::string out_rig;            // the new rig YAML; must not exist
 
@@ -78,9 +78,9 @@ struct TomographyRequest {
   // Voxels along x, y, z; 0: the detector's columns, columns and rows.
   std::array<int, 3> volume = {0, 0, 0};
   double voxel_mm = 0.0;             // 0: the detector pitch
-  double cor_offset_mm = 0.0;        // the rotation axis on the detector (tomography::Geometry)
+  double cor_offset_mm = 0.0;        // the rotation axis on the detector (solvers::tomography::Geometry)
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
-  solvers::ProgressCallback progress;
+  solvers::core::ProgressCallback progress;
   // Not from YAML: how messages name max_iterations (the recipe's key; the
   // CLI sets its flag, --max-iterations).
   std::string iteration_limit_name = "max_iterations";
@@ -104,7 +104,7 @@ struct SvbrdfRequest {
   // reflectance fit (RefineNormalsAndReflectance). Default off.
   bool refine_normals = false;
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
-  solvers::ProgressCallback progress;
+  solvers::core::ProgressCallback progress;
 };
 
 // Throws ConfigError naming file:line:column for unknown keys or values.
@@ -122,7 +122,7 @@ struct BrdfRequest {
   // the camera's stated response.
   bool calibrate_with_target = true;
   // Not from YAML: whoever runs the solve listens here.
-  solvers::ProgressCallback progress;
+  solvers::core::ProgressCallback progress;
 };
 
 // Throws ConfigError naming file:line:column for unknown keys or values.

@@ -66,7 +66,7 @@ void CheckGonioScene(const Scene& scene);  // the same checks, before any frame
 // not see the backlight and the frame is black. The camera is orthographic
 // (a telecentric lens, a parallel beam) with its rows along the turntable's
 // axis, so the frame is view `sample_rotation_deg` of a parallel-beam
-// tomography::Geometry with the camera's size and pitch. A sample changer
+// solvers::tomography::Geometry with the camera's size and pitch. A sample changer
 // holds the phantom in the beam at sample_changer_deg = 0 and an empty slot
 // anywhere else more than 0.5 deg away (the open beam of flat fields):
 //   L = sum_k level_k * E_k * backlight_radiance * exp(-tau),
@@ -74,7 +74,7 @@ void CheckGonioScene(const Scene& scene);  // the same checks, before any frame
 cv::Mat RenderPhantomTransmission(const Scene& scene, const CameraModel& camera, const std::vector<Light>& lights,
                                   const std::vector<double>& levels, const ArmAngles& arms);
 // The turntable geometry those frames follow, for a scan at `angles_deg`.
-tomography::Geometry PhantomScanGeometry(const CameraModel& camera, const std::vector<double>& angles_deg);
+solvers::tomography::Geometry PhantomScanGeometry(const CameraModel& camera, const std::vector<double>& angles_deg);
 
 // A trapezoidal (or, when too short to reach the velocity, triangular)
 // velocity profile from rest to rest over `distance_deg`.

@@ -46,7 +46,7 @@ struct Phantom {
   double LineIntegral(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const;
   // The phantom averaged over each voxel (supersample^3 points per voxel; a
   // single z sample for a one-slice grid).
-  std::vector<float> Rasterise(const tomography::VolumeGrid& grid, int supersample = 4) const;
+  std::vector<float> Rasterise(const solvers::tomography::VolumeGrid& grid, int supersample = 4) const;
 };
 
 // A phantom with each ellipsoid's frame (its rotation and axes) computed
@@ -74,7 +74,7 @@ class PhantomSampler {
 // integrals along supersample x supersample rays spread over the pixel,
 // averaged, as a pixel integrates the light over its area (1: the pixel's
 // centre ray alone).
-std::vector<float> ProjectPhantom(const Phantom& phantom, const tomography::Geometry& geometry, int supersample = 4);
+std::vector<float> ProjectPhantom(const Phantom& phantom, const solvers::tomography::Geometry& geometry, int supersample = 4);
 
 struct TomographyScanOptions {
   SensorModel sensor;                 // its noise is the noise of every frame
@@ -95,7 +95,7 @@ struct TomographyScan {
 // radiance backlight * exp(-tau) per pixel (tau averaged over the pixel, which
 // for pixels small against the sample's detail is the mean of exp(-tau)),
 // exposed through the sensor.
-TomographyScan ScanPhantom(const Phantom& phantom, const tomography::Geometry& geometry,
+TomographyScan ScanPhantom(const Phantom& phantom, const solvers::tomography::Geometry& geometry,
                            const TomographyScanOptions& options);
 
 }  // namespace photorig::sim

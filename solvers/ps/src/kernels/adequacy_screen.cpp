@@ -1,9 +1,9 @@
 #include "adequacy_screen.h"
 
 #include "lane_math.h"
-#include "photorig/ps/stack.h"
+#include "photorig/solvers/ps/stack.h"
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 PHOTORIG_PS_MULTIVERSION
 std::size_t ScreenTile(const std::uint8_t* flags, const std::uint16_t* usable, const float* confidence, int count,
@@ -19,4 +19,4 @@ std::size_t ScreenTile(const std::uint8_t* flags, const std::uint16_t* usable, c
   return static_cast<std::size_t>(passed);
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

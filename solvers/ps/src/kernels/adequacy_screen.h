@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // Marks the solved pixels of a tile whose Lambertian confidence is below
 // threshold[usable samples] (they need a closer look); returns how many
@@ -13,4 +13,4 @@ namespace photorig::ps::internal {
 std::size_t ScreenTile(const std::uint8_t* flags, const std::uint16_t* usable, const float* confidence, int count,
                        const float* threshold, std::uint8_t* needs_refit);
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

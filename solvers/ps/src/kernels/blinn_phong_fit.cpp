@@ -2,14 +2,14 @@
 
 #include "lane_math.h"
 
-#include "photorig/autodiff/vector.h"
+#include "photorig/solvers/autodiff/vector.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 namespace {
 
 constexpr double kInvPi = std::numbers::inv_pi;
@@ -404,7 +404,7 @@ BlinnPhongLaneFitter::BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& l
   for (int k = 0; k < lights_; ++k) {
     const Eigen::Vector3d w = light_directions[k].normalized();
     // A light exactly opposite the camera has no half vector, hence no highlight.
-    const Eigen::Vector3d half = autodiff::NormalizeGuarded(Eigen::Vector3d(w + towards_camera)).direction;
+    const Eigen::Vector3d half = solvers::autodiff::NormalizeGuarded(Eigen::Vector3d(w + towards_camera)).direction;
     for (int i = 0; i < 3; ++i) geometry_[6 * k + i] = w[i], geometry_[6 * k + 3 + i] = half[i];
     for (int i = 0; i < 6; ++i) evaluation_geometry_[6 * k + i] = static_cast<float>(geometry_[6 * k + i]);
   }
@@ -634,4 +634,4 @@ BlinnPhongLaneFitter::Linearization BlinnPhongLaneFitter::Linearize(const BlinnP
   return out;
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

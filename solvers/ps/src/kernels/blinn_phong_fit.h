@@ -19,7 +19,7 @@
 // are well posed, where the three-component form is singular along n.
 
 #include "lane_math.h"
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <Eigen/Core>
 
@@ -27,7 +27,7 @@
 #include <span>
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // Start material for a Blinn-Phong fit at a fixed normal: the exponent from a
 // doubling grid over [min_exponent, max_exponent] (each grid lobe is the
@@ -123,4 +123,4 @@ class BlinnPhongLaneFitter {
   std::unique_ptr<State> state_;
 };
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

@@ -9,7 +9,7 @@
 #include <limits>
 #include <utility>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 namespace {
 
 // Tuning constants for 95 % efficiency under Gaussian noise.
@@ -237,4 +237,4 @@ void RobustLambertianLanes::Fit(std::span<const RobustProblem> problems, std::sp
   }
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

@@ -15,7 +15,7 @@
 //   redescending loss), x = argmin sum weight_k r_k^2 / sigma_k^2; until a
 //   step after the warm-up moves x by at most relative_tolerance |x|.
 
-#include "photorig/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <Eigen/Core>
 
@@ -24,7 +24,7 @@
 #include <utility>
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // One pixel: observed values in solver units for every light, 1 / sigma for
 // each (0 marks an unusable sample), and the solution to start from.
@@ -67,4 +67,4 @@ class RobustLambertianLanes {
   std::unique_ptr<State> state_;
 };
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <limits>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 namespace {
 
 constexpr int kPixels = kFloatLanes;
@@ -167,4 +167,4 @@ void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vec
   }
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

@@ -15,7 +15,7 @@
 #include <span>
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 struct Recheck {
   // The Lambertian pass's fit x on its usable samples.
@@ -44,4 +44,4 @@ class RecheckLanes {
   float max_frobenius_condition2_ = 0.0f;
 };
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

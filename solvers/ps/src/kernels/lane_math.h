@@ -11,7 +11,7 @@
 #include <bit>
 #include <cstdint>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 #define PHOTORIG_LANE_INLINE inline __attribute__((always_inline))
 
@@ -136,4 +136,4 @@ class LaneQueue {
   int count_, next_ = 0, busy_;
 };
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

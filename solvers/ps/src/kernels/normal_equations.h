@@ -9,7 +9,7 @@
 
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // w_k as three doubles per light, for kernels that use no Eigen.
 inline std::vector<double> DirectionArray(const std::vector<Eigen::Vector3d>& light_directions) {
@@ -35,4 +35,4 @@ PHOTORIG_LANE_INLINE void AddSample(LaneNormalEquations& sums, int j, double c, 
   sums.rhs[0][j] += c * b * wx, sums.rhs[1][j] += c * b * wy, sums.rhs[2][j] += c * b * wz;
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

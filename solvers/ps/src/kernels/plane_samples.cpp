@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 PlaneSamples::PlaneSamples(const PhotometricStack& stack, const LambertianOptions& options) {
   for (int k = 0; k < stack.light_count(); ++k) {
@@ -22,4 +22,4 @@ PlaneSamples::PlaneSamples(const PhotometricStack& stack, const LambertianOption
   shot_gain = static_cast<float>(stack.noise.shot_gain);
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

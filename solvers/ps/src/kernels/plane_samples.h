@@ -4,13 +4,13 @@
 // thresholds and noise as float arrays, and the test of a sample against them.
 
 #include "lane_math.h"
-#include "photorig/ps/lambertian.h"
-#include "photorig/ps/stack.h"
+#include "photorig/solvers/ps/lambertian.h"
+#include "photorig/solvers/ps/stack.h"
 
 #include <algorithm>
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 struct PlaneSamples {
   PlaneSamples(const PhotometricStack& stack, const LambertianOptions& options);
@@ -53,4 +53,4 @@ struct PlaneConstants {
   }
 };
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 PHOTORIG_PS_MULTIVERSION
 void ReadRow(const RowInputs& in, double dark, const double* x, double* observed, double* inverse_sigma, double* chi2,
@@ -68,4 +68,4 @@ LitSums SumLitSamples(int lights, const double* wx, const double* wy, const doub
   return {gxx, gyy, gzz, gxy, gxz, gyz, rx, ry, rz, chi2, used, unlit, moved, worst_lit, worst_unlit};
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

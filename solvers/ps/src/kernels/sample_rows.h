@@ -5,7 +5,7 @@
 // samples the solution leaves in attached shadow. Multi-versioned loops over
 // plain arrays (lane_math.h), no Eigen.
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 // One pixel's samples over every light: b = (I - D) / s, 1 / sigma with
 // sigma^2 = Var(I - D) / s^2 (0 for a shadowed or clipped sample, whose b is
@@ -42,4 +42,4 @@ struct LitSums {
 LitSums SumLitSamples(int lights, const double* wx, const double* wy, const double* wz, const double* observed,
                       const double* inverse_sigma, const double* x, const double* previous);
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 namespace {
 
 constexpr int kPixels = kFloatLanes;
@@ -241,4 +241,4 @@ void TrimmedLambertianLanes::Fit(std::span<const float> rows, std::span<const do
   }
 }
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

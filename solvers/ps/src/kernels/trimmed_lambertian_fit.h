@@ -22,7 +22,7 @@
 #include <span>
 #include <vector>
 
-namespace photorig::ps::internal {
+namespace photorig::solvers::ps::internal {
 
 struct TrimSolution {
   bool ok = false;             // a finite, non-zero solution on >= 3 samples
@@ -80,4 +80,4 @@ class TrimmedLambertianLanes {
   std::unique_ptr<State> state_;
 };
 
-}  // namespace photorig::ps::internal
+}  // namespace photorig::solvers::ps::internal

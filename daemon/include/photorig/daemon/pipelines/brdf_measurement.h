@@ -29,7 +29,7 @@
 
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/brdf/samples.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
 
@@ -64,7 +64,7 @@ struct ClippedPose {
   double shortest_exposure_us = 0.0;
 };
 
-struct BrdfMeasurement : solvers::Summary {
+struct BrdfMeasurement : solvers::core::Summary {
   std::vector<solvers::brdf::BrdfSample> samples;  // one per usable pose, in capture order, each with its origin
   int pose_frames = 0, dark_frames = 0, target_frames = 0;
   int poses = 0;

@@ -14,10 +14,10 @@
 // colour model's exposure scale assumes; docs/color.md).
 
 #include "photorig/daemon/capture/run_store.h"
-#include "photorig/color/apply.h"
-#include "photorig/color/model.h"
+#include "photorig/solvers/color/apply.h"
+#include "photorig/solvers/color/model.h"
 #include "photorig/config/color_model.h"
-#include "photorig/ps/stack.h"
+#include "photorig/solvers/ps/stack.h"
 
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
@@ -30,12 +30,12 @@
 
 namespace photorig::daemon {
 
-using color::DemosaicMethod;  // bilinear (the default) or edge-aware: photorig/color/apply.h
+using solvers::color::DemosaicMethod;  // bilinear (the default) or edge-aware: photorig/solvers/color/apply.h
 const char* DemosaicMethodName(DemosaicMethod method);  // "bilinear" | "edge-aware"
 std::optional<DemosaicMethod> ParseDemosaicMethod(const std::string& name);
 
 // One-channel raw (CV_16U or CV_8U) -> (R, G, B) of the same depth, through
-// color::Demosaic. Throws std::invalid_argument with its message for an
+// solvers::color::Demosaic. Throws std::invalid_argument with its message for an
 // unknown pattern or a multi-channel raw.
 cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, DemosaicMethod method);
 
@@ -64,8 +64,8 @@ struct ColorStackOptions {
   std::string color_model_path;
   // Optional CV_8U labels of the frames' size (a material map; 255 = none):
   // the labels along the regions' edges are settled by the raw sites
-  // (color::RegionEdgeVote), then Bayer frames are demosaiced within them
-  // (color::DemosaicWithinRegions), whatever `demosaic` says, so no colour
+  // (solvers::color::RegionEdgeVote), then Bayer frames are demosaiced within them
+  // (solvers::color::DemosaicWithinRegions), whatever `demosaic` says, so no colour
   // blends across a region's edge. Empty: `demosaic` over the whole frame.
   cv::Mat demosaic_regions;
   // False: the regions are used as given, not settled first (to read a run
@@ -88,14 +88,14 @@ struct ColorImageStack {
   // regions (LoadRunColorStack); empty otherwise.
   std::string bayer_run_directory;
   ColorStackOptions loaded_with;
-  int region_edges_moved = 0;  // pixels whose label the raw sites changed (color::RegionEdgeVote)
+  int region_edges_moved = 0;  // pixels whose label the raw sites changed (solvers::color::RegionEdgeVote)
 
   int width() const { return images.empty() ? 0 : images.front().cols; }
   int height() const { return images.empty() ? 0 : images.front().rows; }
   int light_count() const { return static_cast<int>(images.size()); }
   // Channel c (0 = R) as a photometric stack: its images, directions and
   // that channel's scales, no dark.
-  ps::PhotometricStack Channel(int c) const;
+  solvers::ps::PhotometricStack Channel(int c) const;
 };
 
 
@@ -106,6 +106,6 @@ ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorS
 
 // Applies a colour model (camera RGB in DN -> linear sRGB at the same scale)
 // to a CV_32FC3 (R, G, B) image in place; +infinity stays +infinity.
-void ApplyColorModelInPlace(const color::ColorModel& model, cv::Mat* rgb);
+void ApplyColorModelInPlace(const solvers::color::ColorModel& model, cv::Mat* rgb);
 
 }  // namespace photorig::daemon

@@ -10,7 +10,7 @@
 
 #include "photorig/config/recipe.h"
 #include "photorig/config/solve_requests.h"
-#include "photorig/lighting/mirror_sphere.h"
+#include "photorig/solvers/lighting/mirror_sphere.h"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -36,7 +36,7 @@ LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directo
 struct LightCalibrationSummary {
   bool success = false;  // every light usable and all outputs written
   std::string message;
-  lighting::Circle circle;
+  solvers::lighting::Circle circle;
   std::string sphere_source;  // "circle" | "silhouette" | "highlights"
   double sphere_fit_rms_px = 0.0;
   int lights = 0;

@@ -16,10 +16,10 @@
 #include "photorig/config/recipe.h"
 #include "photorig/config/solve_requests.h"
 #include "photorig/daemon/capture/run_store.h"
-#include "photorig/ps/evaluation.h"
-#include "photorig/ps/integration.h"
-#include "photorig/ps/photometric_stereo.h"
-#include "photorig/ps/stack.h"
+#include "photorig/solvers/ps/evaluation.h"
+#include "photorig/solvers/ps/integration.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/stack.h"
 
 #include <nlohmann/json.hpp>
 
@@ -32,7 +32,7 @@ namespace photorig::daemon {
 
 struct PhotometricStereoInput {
   std::string source;        // run directory or dataset folder, for reports and errors
-  ps::PhotometricStack stack;
+  solvers::ps::PhotometricStack stack;
   int dark_frames = 0;
   double pixel_pitch = 1.0;  // object-space size of a pixel (mm for rigs that know it), for depth
   // Samples at or above this are clipped; infinity = unknown, then taken as the
@@ -62,7 +62,7 @@ void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* inpu
 // sigmas (and by at least 1 DN): the rest see none of the lights, so a normal
 // there would be fitted to noise.
 inline constexpr double kAutomaticMaskSigmas = 5.0;
-cv::Mat AutomaticObjectMask(const ps::PhotometricStack& stack, double sigmas);
+cv::Mat AutomaticObjectMask(const solvers::ps::PhotometricStack& stack, double sigmas);
 
 // Reads a run directory (manifest, frames, ground truth). Dark frames are
 // averaged and their noise becomes the stack's read noise. Throws
@@ -84,12 +84,12 @@ double EffectiveSaturationLevel(const PhotometricStereoInput& input);
 // The solver's options for a request that has passed
 // ValidatePhotometricStereoRequest; samples at or above saturation_level are
 // clipped.
-ps::PhotometricStereoOptions MakeSolverOptions(const config::PhotometricStereoRequest& request, double saturation_level);
+solvers::ps::PhotometricStereoOptions MakeSolverOptions(const config::PhotometricStereoRequest& request, double saturation_level);
 
 // The depth integrated from the solved normals.
 struct PhotometricStereoDepth {
   std::string integrator;          // the request's integrator name
-  ps::IntegrationSummary summary;
+  solvers::ps::IntegrationSummary summary;
   double pixel_pitch = 1.0;        // depth units per pixel
   // RMS of depth - true height after removing their mean difference (depth is
   // known up to a constant); when the source has a ground-truth height.
@@ -102,16 +102,16 @@ struct PhotometricStereoResult {
   int dark_frames = 0;
   double noise_sigma_dn = 0.0;     // the stack's read noise (from its darks)
   double saturation_level = std::numeric_limits<double>::infinity();  // as applied; infinity = nothing clipped
-  ps::SolverSummary summary;       // method, termination, message, pixel counts, noise model, timings
+  solvers::ps::SolverSummary summary;       // method, termination, message, pixel counts, noise model, timings
   // Measured on the output, so only when the solution is usable:
   std::optional<double> mean_confidence;     // over solved pixels
   std::optional<PhotometricStereoDepth> depth;   // unless the integrator is "none"
-  std::optional<ps::AngularErrorStats> normals_vs_truth;  // when the source has ground-truth normals
+  std::optional<solvers::ps::AngularErrorStats> normals_vs_truth;  // when the source has ground-truth normals
   std::optional<double> mean_relative_albedo_error;      // ... and albedo; over solved pixels
   // Colour: where the numbers came from, and CIEDE2000 of the albedo against
   // a linear-sRGB ground truth (CIELAB of D65, white Y = 1) over the solved pixels.
   std::optional<ColorProvenance> color;
-  std::optional<ps::SolverSummary> color_albedo_summary;  // the green channel's fit (the others alike)
+  std::optional<solvers::ps::SolverSummary> color_albedo_summary;  // the green channel's fit (the others alike)
   struct ColorError {
     double mean = 0.0, median = 0.0, p95 = 0.0;
     int pixels = 0;
@@ -133,7 +133,7 @@ struct PhotometricStereoResult {
 };
 
 // report.json, the stored form of a result ("termination" is the solver's
-// termination name, solvers::TerminationName; the measured parts appear only when present).
+// termination name, solvers::core::TerminationName; the measured parts appear only when present).
 nlohmann::json ToJson(const PhotometricStereoResult& result);
 
 // Solves and writes every output into `output_directory`, report.json last.

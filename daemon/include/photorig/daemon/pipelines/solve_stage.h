@@ -19,7 +19,7 @@ namespace photorig::daemon {
 struct SolveStageReport {
   std::string stage;        // the recipe's key: "photometric_stereo" | "light_calibration" | "tomography"
   bool usable = false;      // the stage's result can be used (PS: IsSolutionUsable; lights: success)
-  std::string termination;  // solvers::TerminationName for PS; "success" | "failure" for light calibration
+  std::string termination;  // solvers::core::TerminationName for PS; "success" | "failure" for light calibration
   std::string message;
   std::string results;      // the stage's output folder, relative to the run directory: "results/ps"
   nlohmann::json figures;   // key figures: pixels solved, lights, errors against ground truth, ...

@@ -58,7 +58,7 @@ struct SvbrdfResult {
   // reason here.
   std::string demosaic;
   int fit_passes = 0;
-  int region_edges_moved = 0;  // labels the raw sites changed before the refit (color::RegionEdgeVote)
+  int region_edges_moved = 0;  // labels the raw sites changed before the refit (solvers::color::RegionEdgeVote)
   std::string demosaic_refit_failure;
   cv::Mat demosaic_regions;  // CV_8U, the labels of the refit's demosaic; empty without one
   int max_materials = 0;     // as requested, for report.json "options" (what a later relight needs to refit)

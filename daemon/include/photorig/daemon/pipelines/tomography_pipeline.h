@@ -36,7 +36,7 @@ namespace photorig::daemon {
 
 struct TomographyInput {
   std::string source;              // the run or folder it came from
-  tomography::Geometry geometry;   // one angle per projection; cor_offset_mm as stored
+  solvers::tomography::Geometry geometry;   // one angle per projection; cor_offset_mm as stored
   std::vector<std::vector<std::uint16_t>> projections, flats, darks;
   double saturation_dn = 4095.0;
   // Ground truth of a simulated scan (photorig/sim/phantom.h); null for a real one.
@@ -66,17 +66,17 @@ void WriteProjectionFolder(const TomographyInput& input, const std::string& dire
 // gives a factory whose matrix holds this process's block of views.
 // `first_ray` is the first of the scan's rays the matrix holds (its rows are
 // rays first_ray .. first_ray + rays() - 1).
-using SystemMatrixFactory = std::function<tomography::ProjectorSummary(
-    const tomography::VolumeGrid&, const tomography::Geometry&, const tomography::ProjectorOptions&,
-    std::unique_ptr<tomography::SystemMatrix>*, std::int64_t* first_ray)>;
+using SystemMatrixFactory = std::function<solvers::tomography::ProjectorSummary(
+    const solvers::tomography::VolumeGrid&, const solvers::tomography::Geometry&, const solvers::tomography::ProjectorOptions&,
+    std::unique_ptr<solvers::tomography::SystemMatrix>*, std::int64_t* first_ray)>;
 SystemMatrixFactory InProcessSystemMatrix();
 
 struct TomographyResult {
-  tomography::Geometry geometry;  // with the request's centre of rotation
-  tomography::VolumeGrid grid;
-  tomography::AbsorbanceSummary absorbance;
-  tomography::ProjectorSummary projector;
-  tomography::ReconstructionSummary reconstruction;
+  solvers::tomography::Geometry geometry;  // with the request's centre of rotation
+  solvers::tomography::VolumeGrid grid;
+  solvers::tomography::AbsorbanceSummary absorbance;
+  solvers::tomography::ProjectorSummary projector;
+  solvers::tomography::ReconstructionSummary reconstruction;
   Eigen::VectorXf sigma;  // 1/mm, VolumeGrid::Index order
   // Relative L2 error against the phantom averaged over each voxel, inside
   // the cylinder every view sees (radius: half the detector width).
@@ -87,7 +87,7 @@ struct TomographyResult {
   // kSuccess only: a stopping rule ended it within the noise (the
   // discrepancy rule, a stall within 1.5 x the noise level). An iteration
   // limit (residual above the noise) or inconsistent data is not to be trusted.
-  bool trusted() const { return reconstruction.termination == solvers::Termination::kSuccess; }
+  bool trusted() const { return reconstruction.termination == solvers::core::Termination::kSuccess; }
   nlohmann::json ToJson() const;  // report.json
 };
 

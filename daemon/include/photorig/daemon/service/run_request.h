@@ -6,7 +6,7 @@
 #include "photorig/daemon/capture/sequencer.h"
 #include "photorig/daemon/pipelines/adaptive_poses.h"
 #include "photorig/daemon/pipelines/solve_stage.h"
-#include "photorig/solvers/progress.h"
+#include "photorig/solvers/core/progress.h"
 
 #include <atomic>
 #include <functional>
@@ -40,7 +40,7 @@ struct RunRequest {
   std::function<void(const std::string& stage, const std::string& job_id, const std::string& batch)>
       on_solve_submitted;
   // Given to the recipe's solvers (solvers/progress.h).
-  solvers::ProgressCallback solve_progress;
+  solvers::core::ProgressCallback solve_progress;
 };
 
 }  // namespace photorig::daemon

@@ -12,7 +12,7 @@
 //   mask.png        255 where a normal was solved
 // Unsolved pixels are 0 (black) in every view.
 
-#include "photorig/ps/stack.h"
+#include "photorig/solvers/ps/stack.h"
 
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -59,7 +59,7 @@ cv::Mat CodesFromPreview(const cv::Mat& preview, cv::Size size, const std::vecto
 
 // Writes every view above into `directory` (depth.png only when `depth` is
 // not empty) and returns {file name: its mapping}.
-nlohmann::json WritePhotometricStereoPreviews(const ps::NormalMap& map, const cv::Mat& solved, const cv::Mat& depth,
+nlohmann::json WritePhotometricStereoPreviews(const solvers::ps::NormalMap& map, const cv::Mat& solved, const cv::Mat& depth,
                                               const std::string& directory);
 
 }  // namespace photorig::daemon

@@ -8,7 +8,7 @@
 // inactive, so empty space costs nothing. Built only where CMake finds
 // OpenVDB (PHOTORIG_HAVE_OPENVDB); the header itself needs no OpenVDB.
 
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 #include "photorig/solvers/tomography/volume_grid.h"
 
 #include <Eigen/Core>
@@ -27,7 +27,7 @@ struct VdbOptions {
 // Writes `sigma` (VolumeGrid::Index order) to `path`. kInvalidInput for sizes
 // that do not match or a non-finite value; kFailure when the file cannot be
 // written, with OpenVDB's reason.
-solvers::Summary WriteVdb(const std::string& path, const tomography::VolumeGrid& grid, const Eigen::VectorXf& sigma,
+solvers::core::Summary WriteVdb(const std::string& path, const solvers::tomography::VolumeGrid& grid, const Eigen::VectorXf& sigma,
                           const VdbOptions& options = {});
 
 }  // namespace photorig::daemon

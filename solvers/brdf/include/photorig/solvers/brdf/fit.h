@@ -22,8 +22,8 @@
 
 #include "photorig/solvers/brdf/models.h"
 #include "photorig/solvers/brdf/samples.h"
-#include "photorig/solvers/progress.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/progress.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
 
@@ -58,7 +58,7 @@ struct FitOptions {
   bool IsValid(std::string* why) const;
 };
 
-struct FitSummary : Summary {
+struct FitSummary : core::Summary {
   ModelParams params;
   // One standard deviation of each parameter from the covariance (NaN where
   // the covariance could not be computed).
@@ -129,12 +129,12 @@ struct SelectionOptions {
   std::size_t fold_fit_samples = 5000;
   // Called once the candidates are fitted (stage "fit") and once their folds
   // are (stage "held-out"); a whole measured table takes a second or two.
-  ProgressCallback progress;
+  core::ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
 };
 
-struct SelectionSummary : Summary {
+struct SelectionSummary : core::Summary {
   std::vector<FitSummary> candidates;  // one per SelectionOptions::candidates, in that order
   std::optional<Model> chosen;
   std::size_t chosen_index = 0;

@@ -5,7 +5,7 @@
 
 #include "photorig/solvers/brdf/half_diff.h"
 #include "photorig/solvers/brdf/samples.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
 
@@ -26,7 +26,7 @@ std::optional<TableFormat> TableFormatOf(const std::string& path);
 
 // Reads a table of either format (ReadMerl, ReadRgl). An extension that is
 // neither, or a file its reader refuses, ends kInvalidInput naming the file.
-Summary ReadMeasured(const std::string& path, MeasuredBrdf* brdf);
+core::Summary ReadMeasured(const std::string& path, MeasuredBrdf* brdf);
 
 // Configurations uniform in (theta_h, theta_d, phi_d) at cell centres, theta_h
 // in the square-root spacing MERL uses (dense near the specular peak), phi_d

@@ -14,7 +14,7 @@
 // below 0 (the files use -1) marks a cell that was not measured.
 
 #include "photorig/solvers/brdf/half_diff.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
 
@@ -77,7 +77,7 @@ class MerlTable {
   std::array<std::vector<double>, 3> planes_;
 };
 
-struct MerlReadSummary : Summary {
+struct MerlReadSummary : core::Summary {
   std::string path;
   std::size_t invalid_cells = 0;  // cells marked as not measured (negative)
 };
@@ -98,6 +98,6 @@ MerlReadSummary ReadMerlCells(std::istream& in, std::size_t size, const std::arr
 
 // Writes `table` as a MERL .binary (byte for byte what ReadMerl read). A
 // NaN or infinite cell ends kInvalidInput naming it, before the file is opened.
-Summary WriteMerl(const std::string& path, const MerlTable& table);
+core::Summary WriteMerl(const std::string& path, const MerlTable& table);
 
 }  // namespace photorig::solvers::brdf

@@ -14,7 +14,7 @@
 // The BRDF is taken isotropic: the turntable stays where the options say.
 
 #include "photorig/solvers/brdf/half_diff.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <optional>
 #include <string>
@@ -90,7 +90,7 @@ struct RefusedPose {
   std::string reason;
 };
 
-struct PosePlan : Summary {
+struct PosePlan : core::Summary {
   std::vector<PlannedPose> poses;    // in the order to visit them
   std::vector<RefusedPose> refused;  // with why
   // Axis travel from home through every pose (each move: the light arm's,
@@ -133,7 +133,7 @@ struct AdaptiveOptions {
   bool IsValid(std::string* why) const;
 };
 
-struct AdaptiveProposal : Summary {
+struct AdaptiveProposal : core::Summary {
   std::vector<HalfDiff> proposed;  // highest score first, all reachable
   std::vector<double> score;       // of each proposed configuration's interval
   PosePlan plan;                   // `proposed` planned from PosePlanOptions::start

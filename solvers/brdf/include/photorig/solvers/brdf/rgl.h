@@ -28,7 +28,7 @@
 
 #include "photorig/solvers/brdf/half_diff.h"
 #include "photorig/solvers/brdf/tensor_file.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
 
@@ -90,7 +90,7 @@ class RglBrdf {
   int sample_resolution() const { return resolution_; }
 
  private:
-  friend Summary BuildRglBrdf(const std::string& path, const TensorFile& file, RglBrdf* brdf);
+  friend core::Summary BuildRglBrdf(const std::string& path, const TensorFile& file, RglBrdf* brdf);
   std::string description_;
   std::vector<double> theta_i_, phi_i_;
   bool jacobian_ = true;
@@ -102,10 +102,10 @@ class RglBrdf {
 // its evaluator. A missing field, a wrong dtype or shape, an anisotropic or
 // spectral file, a NaN or infinite cell, a negative density or a
 // non-positive sigma ends kInvalidInput naming `path`, the field and the fault.
-Summary BuildRglBrdf(const std::string& path, const TensorFile& file, RglBrdf* brdf);
+core::Summary BuildRglBrdf(const std::string& path, const TensorFile& file, RglBrdf* brdf);
 
 // ReadTensorFile, then BuildRglBrdf; never throws, `brdf` untouched on error.
-Summary ReadRgl(const std::string& path, RglBrdf* brdf);
+core::Summary ReadRgl(const std::string& path, RglBrdf* brdf);
 
 // How to tabulate a BRDF in the format.
 struct RglTabulation {
@@ -126,7 +126,7 @@ struct RglTabulation {
 // ndf, sigma and vndf from the tabulation's NDF as the format defines them,
 // rgb = f_r 4 sigma(w_i) / D(w_m) at each sample node's direction (the VNDF
 // warp of that node), jacobian = 1.
-Summary TabulateRgl(const std::function<Eigen::Vector3d(const DirectionPair&)>& brdf,
+core::Summary TabulateRgl(const std::function<Eigen::Vector3d(const DirectionPair&)>& brdf,
                     const RglTabulation& tabulation, TensorFile* file);
 
 }  // namespace photorig::solvers::brdf

@@ -2,7 +2,7 @@
 // One measured BRDF value: the configuration and what was measured there; and
 // the CSV file such samples are kept in.
 
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
 
@@ -40,11 +40,11 @@ struct BrdfSample {
 // per sample wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b,
 // light_arm_deg,camera_arm_deg,sample_rotation_deg,exposure_us,frames; the
 // last five are empty for a sample without an origin.
-Summary WriteSamplesCsv(const std::string& path, const std::vector<BrdfSample>& samples);
+core::Summary WriteSamplesCsv(const std::string& path, const std::vector<BrdfSample>& samples);
 // Reads that file, and the earlier one without the origin columns. A missing
 // header, a line that is not 12 numbers followed (in the newer file) by five
 // numbers or five empty cells ends kInvalidInput naming the file and line;
 // `samples` is then untouched.
-Summary ReadSamplesCsv(const std::string& path, std::vector<BrdfSample>* samples);
+core::Summary ReadSamplesCsv(const std::string& path, std::vector<BrdfSample>* samples);
 
 }  // namespace photorig::solvers::brdf

@@ -13,7 +13,7 @@
 // dtype is Mitsuba's Struct::Type: 1 uint8, 2 int8, 3 uint16, 4 int16,
 // 5 uint32, 6 int32, 7 uint64, 8 int64, 9 float16, 10 float32, 11 float64.
 
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <cstddef>
 #include <cstdint>
@@ -57,9 +57,9 @@ inline constexpr std::uint64_t kMaxTensorFileBytes = std::uint64_t{256} << 20;
 // magic or version, an unknown dtype, a field whose data lies outside the file
 // or a repeated field name ends kInvalidInput with a message naming the file
 // and the fault; `file` is then untouched.
-Summary ReadTensorFile(const std::string& path, TensorFile* file);
+core::Summary ReadTensorFile(const std::string& path, TensorFile* file);
 
 // Writes `file` (fields in order, data after the headers, 8-byte aligned).
-Summary WriteTensorFile(const std::string& path, const TensorFile& file);
+core::Summary WriteTensorFile(const std::string& path, const TensorFile& file);
 
 }  // namespace photorig::solvers::brdf

@@ -30,8 +30,8 @@
 // tiny lobe explains.
 
 #include "photorig/solvers/brdf/models.h"
-#include "photorig/solvers/progress.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/progress.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -180,12 +180,12 @@ struct ReflectanceOptions {
   // more than this raises kInconsistentIntensities. Default 0.08.
   double max_intensity_error = 0.08;
   // Reports "per-pixel", "materials k=..", "albedo" stages.
-  ProgressCallback progress;
+  core::ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
 };
 
-struct ReflectanceSummary : Summary {
+struct ReflectanceSummary : core::Summary {
   int pixels_fitted = 0;
   int pixels_outside_mask = 0;
   int pixels_no_normal = 0;

@@ -10,9 +10,9 @@
 // eliminated in closed form at every step); then FitReflectance runs again
 // with the new normals, choosing the materials and lobes afresh.
 
-#include "photorig/solvers/progress.h"
+#include "photorig/solvers/core/progress.h"
 #include "photorig/solvers/reflectance/fit.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <opencv2/core.hpp>
 
@@ -42,11 +42,11 @@ struct NormalRefinementOptions {
   // returned unjudged. Default true, 4 lights.
   bool keep_better = true;
   int held_out_lights = 4;
-  ProgressCallback progress;  // "normals" per round, then the fit's own stages
+  core::ProgressCallback progress;  // "normals" per round, then the fit's own stages
   bool IsValid(std::string* why) const;
 };
 
-struct NormalRefinementSummary : Summary {
+struct NormalRefinementSummary : core::Summary {
   int rounds = 0;                      // alternations made
   int pixels_refined = 0;              // normals moved in the last round
   int pixels_held = 0;                 // left in place in the last round (max_change_deg, or no descent)

@@ -3,9 +3,9 @@
 // check that needs no ground truth, each light held out in turn and
 // predicted from the others.
 
-#include "photorig/solvers/progress.h"
+#include "photorig/solvers/core/progress.h"
 #include "photorig/solvers/reflectance/fit.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -18,7 +18,7 @@ namespace photorig::solvers::reflectance {
 
 // The image of the fitted reflectance under one light (radiance in the
 // stack's units): CV_32FC(C), zero where the pixel was not fitted.
-Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
+core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
                           const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image);
 
 // ---- Held-out-light relighting ----
@@ -43,7 +43,7 @@ struct RelightingOptions {
   bool keep_predictions = false;
   // The methods evaluated; the others' errors stay 0. Default all three.
   std::vector<Method> methods = {Method::kLambertian, Method::kPerPixelLobe, Method::kPerMaterial};
-  ProgressCallback progress;  // one unit per held-out light and method
+  core::ProgressCallback progress;  // one unit per held-out light and method
   bool IsValid(std::string* why) const;
 };
 
@@ -65,7 +65,7 @@ struct HeldOutPrediction {
   cv::Mat image;
 };
 
-struct RelightingSummary : Summary {
+struct RelightingSummary : core::Summary {
   std::vector<int> held_out;  // light indices, in evaluation order
   std::vector<HeldOutError> errors;
   std::vector<HeldOutPrediction> predictions;  // with RelightingOptions::keep_predictions

@@ -14,7 +14,7 @@
 //   var(b) = var(L) / (L - D)^2 + var(F) / (n_flats (F - D)^2).
 // That is what the discrepancy principle stops on.
 
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 #include "photorig/solvers/tomography/geometry.h"
 
 #include <Eigen/Core>
@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 // The measurements a reconstruction fits: one entry per ray (Geometry::RayIndex).
 struct Absorbance {
@@ -42,7 +42,7 @@ struct AbsorbanceOptions {
   bool IsValid(std::string* why) const;
 };
 
-struct AbsorbanceSummary : solvers::Summary {
+struct AbsorbanceSummary : solvers::core::Summary {
   std::int64_t rays = 0;
   std::int64_t flagged_non_positive = 0;  // L - D <= 0
   std::int64_t flagged_saturated = 0;     // frame or flat at saturation_dn
@@ -62,4 +62,4 @@ AbsorbanceSummary ComputeAbsorbance(const Geometry& geometry, const std::vector<
                                     const std::vector<std::vector<std::uint16_t>>& darks,
                                     const AbsorbanceOptions& options, Absorbance* absorbance);
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

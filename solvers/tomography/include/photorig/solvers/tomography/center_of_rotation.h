@@ -9,13 +9,13 @@
 // A scan needs views 180 degrees apart: 0..360, or 0..180 with its end view
 // (EvenAngles(n, 180, true)).
 
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/summary.h"
 #include "photorig/solvers/tomography/absorbance.h"
 #include "photorig/solvers/tomography/geometry.h"
 
 #include <string>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 struct CorEstimateOptions {
   // Largest |offset| searched, detector mm; 0: a quarter of the detector width.
@@ -26,7 +26,7 @@ struct CorEstimateOptions {
   bool IsValid(std::string* why) const;
 };
 
-struct CorEstimateSummary : solvers::Summary {
+struct CorEstimateSummary : solvers::core::Summary {
   double offset_mm = 0.0;    // the estimate, in Geometry::cor_offset_mm's convention
   int pairs = 0;             // opposing views used
   double match_rms = 0.0;    // RMS difference of b at the estimate
@@ -37,4 +37,4 @@ struct CorEstimateSummary : solvers::Summary {
 CorEstimateSummary EstimateCorOffset(const Geometry& geometry, const Absorbance& measurements,
                                      const CorEstimateOptions& options = {});
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 enum class Beam { kParallel, kCone };
 
@@ -55,4 +55,4 @@ struct Geometry {
 // first, which the centre-of-rotation estimate pairs with it).
 std::vector<double> EvenAngles(int views, double span_deg, bool include_end = false);
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -5,8 +5,8 @@
 // fit in the memory budget; otherwise every product traces its rays again
 // (matrix-free). Both give the same products through the same interface.
 
-#include "photorig/solvers/progress.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/progress.h"
+#include "photorig/solvers/core/summary.h"
 #include "photorig/solvers/tomography/geometry.h"
 #include "photorig/solvers/tomography/ray_trace.h"
 #include "photorig/solvers/tomography/volume_grid.h"
@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 enum class Storage {
   kAuto,       // sparse when W and W^T fit in memory_budget_bytes, matrix-free otherwise
@@ -35,7 +35,7 @@ struct ProjectorOptions {
   // from 90 views of 64^2 pixels takes about 0.4 GB; 128^3 from 180 views of
   // 128^2 about 7 GB, so it runs matrix-free under the default.
   std::size_t memory_budget_bytes = std::size_t{4} << 30;
-  solvers::ProgressCallback progress;  // stage "projector": views traced while building W
+  solvers::core::ProgressCallback progress;  // stage "projector": views traced while building W
   // W's columns: the z-slices [first_slice, first_slice + slices) of the
   // grid; slices 0 (default): every slice from first_slice on. A process of a
   // slab decomposition (solvers/tomography_mpi) holds its slab's columns, so
@@ -101,7 +101,7 @@ class Projector : public SystemMatrix {
   void VisitViewRows(int view, Visit&& visit) const;
 
   // Stores W and W^T (called by MakeProjector when they fit).
-  void StoreSparse(const solvers::ProgressCallback& progress);
+  void StoreSparse(const solvers::core::ProgressCallback& progress);
 
  private:
   VolumeGrid grid_;
@@ -138,7 +138,7 @@ void Projector::VisitViewRows(int view, Visit&& visit) const {
   }
 }
 
-struct ProjectorSummary : solvers::Summary {
+struct ProjectorSummary : solvers::core::Summary {
   bool sparse = false;
   std::int64_t nonzeros = 0;                // stored entries of W (sparse only)
   std::size_t estimated_sparse_bytes = 0;   // W and W^T, from a sample of rays
@@ -151,4 +151,4 @@ struct ProjectorSummary : solvers::Summary {
 ProjectorSummary MakeProjector(const VolumeGrid& grid, const Geometry& geometry, const ProjectorOptions& options,
                                std::unique_ptr<Projector>* projector);
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

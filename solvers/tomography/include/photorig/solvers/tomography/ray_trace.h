@@ -22,7 +22,7 @@
 #include <string_view>
 #include <vector>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 enum class Interpolation { kSiddon, kJoseph };
 
@@ -47,4 +47,4 @@ void TraceRay(const VolumeGrid& grid, const Eigen::Vector3d& origin, const Eigen
 void TraceRayInSlices(const VolumeGrid& grid, int first_slice, int slices, const Eigen::Vector3d& origin,
                       const Eigen::Vector3d& direction, Interpolation interpolation, std::vector<RayWeight>* weights);
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

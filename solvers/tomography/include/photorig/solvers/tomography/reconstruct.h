@@ -50,8 +50,8 @@
 //     centre of rotation, bad flats, scatter) -> kNoConvergence with the flag;
 //   * voxels no valid ray reaches: left at 0 and counted.
 
-#include "photorig/solvers/progress.h"
-#include "photorig/solvers/summary.h"
+#include "photorig/solvers/core/progress.h"
+#include "photorig/solvers/core/summary.h"
 #include "photorig/solvers/tomography/absorbance.h"
 #include "photorig/solvers/tomography/projector.h"
 
@@ -64,7 +64,7 @@
 #include <string_view>
 #include <vector>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 enum class Method { kArt, kSirt, kCgls, kSart };
 
@@ -123,12 +123,12 @@ struct ReconstructOptions {
   std::function<void(int, const Eigen::VectorXf&)> on_iteration;
   // Stage: the method's name; total: max_iterations. A stopping rule that
   // ends the iterations sooner is reported as Progress::stopped.
-  solvers::ProgressCallback progress;
+  solvers::core::ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
 };
 
-struct ReconstructionSummary : solvers::Summary {
+struct ReconstructionSummary : solvers::core::Summary {
   Method method = Method::kSirt;
   int iterations = 0;
   double relaxation = 0.0;               // the lambda used
@@ -154,4 +154,4 @@ struct ReconstructionSummary : solvers::Summary {
 ReconstructionSummary Reconstruct(const SystemMatrix& system, const Absorbance& measurements,
                                   const ReconstructOptions& options, Eigen::VectorXf* sigma);
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

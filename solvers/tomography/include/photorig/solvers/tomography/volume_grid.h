@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <string>
 
-namespace photorig::tomography {
+namespace photorig::solvers::tomography {
 
 struct VolumeGrid {
   int nx = 64;
@@ -26,4 +26,4 @@ struct VolumeGrid {
   Eigen::Vector3d VoxelCentre(int i, int j, int k) const;
 };
 
-}  // namespace photorig::tomography
+}  // namespace photorig::solvers::tomography

@@ -31,7 +31,7 @@
 #include <memory>
 #include <string>
 
-namespace photorig::tomography::mpi {
+namespace photorig::solvers::tomography_mpi {
 
 // MPI_Init_thread (funneled: OpenMP threads compute, the main thread
 // communicates) and MPI_Finalize around a scope.
@@ -129,4 +129,4 @@ ProjectorSummary MakeDistributedProjector(const VolumeGrid& grid, const Geometry
                                           MPI_Comm comm, std::unique_ptr<SystemMatrix>* matrix,
                                           std::int64_t* first_ray);
 
-}  // namespace photorig::tomography::mpi
+}  // namespace photorig::solvers::tomography_mpi

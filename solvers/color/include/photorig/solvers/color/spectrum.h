@@ -1,0 +1,48 @@
+#pragma once
+// Sampled spectra and the reference tables compiled into the library
+// (data/*.csv: CIE 1931 2 deg observer, CIE illuminants, BabelColor ColorChecker
+// reflectances, measured camera sensitivities). Wavelengths in nm.
+
+#include <Eigen/Core>
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace photorig::solvers::color {
+
+// One or more functions of wavelength sampled at common wavelengths (ascending).
+struct SampledSpectra {
+  std::vector<double> wavelength_nm;
+  std::vector<std::vector<double>> channels;  // channels[c][i] at wavelength_nm[i]
+
+  // Linear interpolation; 0 outside the sampled range (a sensor or a light that
+  // was not measured there is taken as not responding / not emitting).
+  double At(std::size_t channel, double wavelength_nm) const;
+  SampledSpectra Resampled(const std::vector<double>& grid_nm) const;
+};
+
+// An evenly spaced grid [first_nm, last_nm] with step_nm.
+std::vector<double> WavelengthGrid(double first_nm, double last_nm, double step_nm);
+
+enum class Illuminant { kD50, kD65, kA };
+std::optional<Illuminant> ParseIlluminant(const std::string& name);  // "D50" | "D65" | "A"; nullopt otherwise
+const char* IlluminantName(Illuminant illuminant);
+
+const SampledSpectra& Cie1931Observer();                 // xbar, ybar, zbar; 360-830 nm, 1 nm
+const SampledSpectra& IlluminantSpd(Illuminant illuminant);  // 1 channel; 300-780 nm, 5 nm
+const SampledSpectra& ColorChecker24Reflectance();       // 24 channels (patch order); 380-730 nm, 10 nm
+// ColorChecker24 L*a*b* (ICC D50) published by X-Rite for charts made after November 2014.
+const std::array<Eigen::Vector3d, 24>& ColorChecker24ReferenceLab();
+const std::array<std::string, 24>& ColorChecker24Names();
+
+// Cameras whose measured RGB sensitivities are compiled in.
+std::vector<std::string> CameraNames();                  // short names: "nikon-5100", ...
+const SampledSpectra& CameraSensitivity(const std::string& name);  // r, g, b; throws std::invalid_argument
+std::string CameraDescription(const std::string& name);
+
+// A named 3x3 matrix from data/rgb_xyz_matrices.csv (out = M * in).
+Eigen::Matrix3d NamedMatrix(const std::string& name);  // throws std::invalid_argument
+
+}  // namespace photorig::solvers::color
