@@ -65,7 +65,7 @@ void Evaluate(std::ostream& csv, const std::string& source, const std::string& s
               const daemon::PhotometricStereoInput& input) {
   for (solvers::ps::Method method : kMethods) {
     config::PhotometricStereoRequest request;  // the thresholds `photorig solve ps` uses
-    request.method = solvers::ps::MethodName(method);
+    request.method = method;
     const solvers::ps::PhotometricStereoOptions options = daemon::MakeSolverOptions(request, input.saturation_level);
     solvers::ps::PhotometricStack stack = input.stack;
     if (!input.object_mask.empty()) stack.mask = input.object_mask;
@@ -170,7 +170,7 @@ const Effect kEffects[] = {
 void EvaluateRealistic(std::ostream& csv, const std::string& scene, const daemon::PhotometricStereoInput& input) {
   for (solvers::ps::Method method : kMethods) {
     config::PhotometricStereoRequest request;
-    request.method = solvers::ps::MethodName(method);
+    request.method = method;
     const double saturation = daemon::EffectiveSaturationLevel(input);
     const solvers::ps::PhotometricStereoOptions options = daemon::MakeSolverOptions(request, saturation);
     solvers::ps::PhotometricStack stack = input.stack;

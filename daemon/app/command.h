@@ -18,9 +18,13 @@
 // people as it likes and puts its figures in ResultFields(): main prints
 // them as one JSON document under --json, which every command takes.
 
+#include "photorig/solvers/core/names.h"
+
 #include <CLI/CLI.hpp>
 
+#include <cstddef>
 #include <functional>
+#include <string>
 #include <vector>
 
 namespace photorig::app {
@@ -36,5 +40,15 @@ bool RegisterCommand(CommandSetup setup);
 // existing group or adds it, so `solve ps` and `solve color` can live apart.
 CLI::App* SubcommandGroup(CLI::App& app, const std::string& name, const std::string& description);
 const std::vector<CommandSetup>& RegisteredCommands();
+
+// An option naming one value of a solver's name table, parsed into the enum:
+// its choices, help and error come from the table, never from a copied list.
+template <typename Enum, std::size_t N>
+CLI::Option* AddChoice(CLI::App* app, const std::string& flag, Enum* value,
+                       const solvers::core::NameTable<Enum, N>& table, const std::string& description) {
+  const std::string help = description + ": " + solvers::core::JoinNames(table) + " (default " +
+                           solvers::core::NameOf(table, *value) + ")";
+  return app->add_option(flag, *value, help)->transform(CLI::CheckedTransformer(solvers::core::NameMap(table)).description(""));
+}
 
 }  // namespace photorig::app

@@ -13,50 +13,47 @@
 namespace photorig::config {
 namespace fs = std::filesystem;
 
-bool ParseDerivative(const std::string& name, solvers::ps::BlinnPhongOptions* options) {
-  if (name == "lanes") {
-    options->fitter = solvers::ps::BlinnPhongOptions::Fitter::kLanes;
-    return true;
-  }
-  for (auto m : {solvers::autodiff::DerivativeMethod::kForward, solvers::autodiff::DerivativeMethod::kReverse,
-                 solvers::autodiff::DerivativeMethod::kSymbolic, solvers::autodiff::DerivativeMethod::kCentralDifference}) {
-    if (name == solvers::autodiff::ToString(m)) {
-      options->fitter = solvers::ps::BlinnPhongOptions::Fitter::kPerPixel;
-      options->derivative = m;
-      return true;
-    }
-  }
-  return false;
+bool PhotometricStereoRequest::IsValid(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (!(shadow_threshold_sigma >= 0)) return fail("shadow_threshold_sigma must be >= 0");
+  if (!(max_condition_number > 1)) return fail("max_condition_number must be > 1");
+  return true;
 }
 
-void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request) {
-  solvers::ps::Method method;
-  if (!solvers::ps::ParseMethod(request.method, &method))
-    throw std::invalid_argument("method '" + request.method + "' (expected l2, lambertian, robust, blinn-phong or auto)");
-  solvers::ps::BlinnPhongOptions blinn_phong;
-  if (!ParseDerivative(request.derivative, &blinn_phong))
-    throw std::invalid_argument("derivative '" + request.derivative +
-                                "' (expected lanes, forward, reverse, symbolic or central-difference)");
-  solvers::ps::Integrator integrator;
-  if (request.integrator != "none" && !solvers::ps::ParseIntegrator(request.integrator, &integrator))
-    throw std::invalid_argument("integrator '" + request.integrator + "' (expected poisson, frankot-chellappa or none)");
-  if (!(request.shadow_threshold_sigma >= 0)) throw std::invalid_argument("shadow_threshold_sigma must be >= 0");
-  if (!(request.max_condition_number > 1)) throw std::invalid_argument("max_condition_number must be > 1");
+std::optional<std::optional<solvers::ps::Integrator>> ParseIntegratorChoice(std::string_view name) {
+  if (name == kNoIntegrator) return std::optional<solvers::ps::Integrator>();
+  if (auto integrator = solvers::ps::ParseIntegrator(name)) return integrator;
+  return std::nullopt;
+}
+
+const char* IntegratorChoiceName(const std::optional<solvers::ps::Integrator>& integrator) {
+  return integrator ? solvers::ps::IntegratorName(*integrator) : kNoIntegrator;
+}
+
+std::vector<std::string> IntegratorChoices() {
+  std::vector<std::string> names;
+  for (const auto& entry : solvers::ps::kIntegratorNames) names.emplace_back(entry.name);
+  names.emplace_back(kNoIntegrator);
+  return names;
 }
 
 PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
   node.ExpectKeys({"method", "shadow_threshold_sigma", "max_condition_number", "derivative", "integrator"});
   PhotometricStereoRequest request;
-  request.method = node.String("method", request.method);
+  request.method = node.Choice("method", solvers::ps::kMethodNames, request.method);
   request.shadow_threshold_sigma = node.Double("shadow_threshold_sigma", request.shadow_threshold_sigma);
   request.max_condition_number = node.Double("max_condition_number", request.max_condition_number);
-  request.derivative = node.String("derivative", request.derivative);
-  request.integrator = node.String("integrator", request.integrator);
-  try {
-    ValidatePhotometricStereoRequest(request);
-  } catch (const std::invalid_argument& e) {
-    node.Fail(e.what());
+  request.derivative = node.Choice("derivative", solvers::ps::kBlinnPhongDerivativeNames, request.derivative);
+  if (auto integrator = node.Find("integrator")) {
+    const std::string name = integrator->AsString();
+    const auto choice = ParseIntegratorChoice(name);
+    if (!choice) integrator->Fail("integrator '" + name + "' (expected poisson, frankot-chellappa or none)");
+    request.integrator = *choice;
   }
+  if (std::string why; !request.IsValid(&why)) node.Fail(why);
   return request;
 }
 
@@ -105,9 +102,7 @@ bool TomographyRequest::IsValid(std::string* why) const {
     if (why) *why = message;
     return false;
   };
-  if (!solvers::tomography::ParseMethod(method)) return fail("method '" + method + "' (expected sirt, art, cgls or sart)");
-  if (total_variation && method != "sart") return fail("total_variation needs method sart");
-  if (!solvers::tomography::ParseInterpolation(projector)) return fail("projector '" + projector + "' (expected joseph or siddon)");
+  if (total_variation && method != solvers::tomography::Method::kSart) return fail("total_variation needs method sart");
   if (max_iterations < 1 || max_iterations > 100000) return fail("max_iterations must be within [1, 100000]");
   if (!(discrepancy_factor > 0) || !std::isfinite(discrepancy_factor)) return fail("discrepancy_factor must be > 0");
   for (int n : volume)
@@ -121,9 +116,9 @@ TomographyRequest ParseTomographyRequest(const YamlNode& node) {
   node.ExpectKeys({"method", "total_variation", "projector", "max_iterations", "discrepancy_factor", "volume",
                    "voxel_mm", "cor_offset_mm"});
   TomographyRequest request;
-  request.method = node.String("method", request.method);
+  request.method = node.Choice("method", solvers::tomography::kMethodNames, request.method);
   request.total_variation = node.Bool("total_variation", request.total_variation);
-  request.projector = node.String("projector", request.projector);
+  request.projector = node.Choice("projector", solvers::tomography::kInterpolationNames, request.projector);
   request.max_iterations = node.Int("max_iterations", request.max_iterations);
   request.discrepancy_factor = node.Double("discrepancy_factor", request.discrepancy_factor);
   if (auto volume = node.Find("volume")) {
@@ -157,18 +152,9 @@ SvbrdfRequest ParseSvbrdfRequest(const YamlNode& node) {
 BrdfRequest ParseBrdfRequest(const YamlNode& node) {
   node.ExpectKeys({"loss", "calibration"});
   BrdfRequest request;
-  if (auto loss = node.Find("loss")) {
-    const std::string name = loss->AsString();
-    if (name != "weighted" && name != "log") loss->Fail("'" + name + "' is no loss (expected weighted or log)");
-    request.loss = name == "log" ? solvers::brdf::FitLoss::kLog : solvers::brdf::FitLoss::kWeighted;
-  }
-  if (auto calibration = node.Find("calibration")) {
-    const std::string name = calibration->AsString();
-    if (name != "reference" && name != "camera")
-      calibration->Fail("'" + name + "' is no calibration (expected reference: the rig's reference target, or camera: "
-                        "the camera's stated response)");
-    request.calibrate_with_target = name == "reference";
-  }
+  request.loss = node.Choice("loss", solvers::brdf::kFitLossNames, request.loss);
+  // reference: the rig's reference target; camera: the camera's stated response.
+  request.calibrate_with_target = node.Choice("calibration", BrdfRequest::kCalibrationNames, request.calibrate_with_target);
   return request;
 }
 

@@ -240,8 +240,8 @@ TEST(ColourPhotometricStereo, AlbedoAfterCalibrationIsWithinCiede2000OfTwoAndNor
   EXPECT_FALSE(manifest.color_model_hash.empty());
 
   config::PhotometricStereoRequest solve;
-  solve.method = "lambertian";
-  solve.integrator = "none";
+  solve.method = solvers::ps::Method::kLambertian;
+  solve.integrator = std::nullopt;  // normals only
   ColorStackOptions options;
   options.color_model_path = model;
   const std::string out = (dir.path() / "colour-ps").string();
@@ -392,8 +392,8 @@ TEST(ColourDiligent, AnRgbFolderKeepsItsThreeChannelsWithPerChannelIntensities) 
   EXPECT_EQ(input.color->provenance.mosaic, "RGB");
 
   config::PhotometricStereoRequest request;
-  request.method = "lambertian";
-  request.integrator = "none";
+  request.method = solvers::ps::Method::kLambertian;
+  request.integrator = std::nullopt;  // normals only
   const std::string out = (dir.path() / "ps").string();
   const PhotometricStereoResult result = SolveAndWrite(input, request, out);
   ASSERT_TRUE(result.usable()) << result.summary.message;

@@ -246,7 +246,7 @@ TEST(Recipe, ShippedRecipeCompilesToOneDarkAndOneFramePerLed) {
     EXPECT_EQ(steps[i].index, static_cast<int>(i));
   }
   ASSERT_TRUE(recipe.photometric_stereo.has_value());
-  EXPECT_EQ(recipe.photometric_stereo->method, "lambertian");
+  EXPECT_EQ(recipe.photometric_stereo->method, solvers::ps::Method::kLambertian);
 }
 
 TEST(Recipe, UnknownLedAndUnknownStepAreErrorsWithPositions) {

@@ -161,8 +161,8 @@ TEST(CaptureHealth, ChecksOffLetABlackCaptureThroughAndPhotometricStereoRefusesI
   const RunOutcome outcome = Capture(dir, "{camera: {lens_cap: true}}", "health: {enabled: false}\n");
   ASSERT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;
   config::PhotometricStereoRequest request;
-  request.method = "lambertian";
-  request.integrator = "none";
+  request.method = solvers::ps::Method::kLambertian;
+  request.integrator = std::nullopt;  // normals only
   const PhotometricStereoResult result =
       SolvePhotometricStereoRun(outcome.directory, request, (dir.path() / "ps").string());
   EXPECT_FALSE(result.usable());

@@ -80,7 +80,7 @@ void CaptureFailedRun(const TempDir& dir, int index) {
 void ExpectSameAsInProcess(const TempDir& dir, const std::string& method, int runs = kRuns) {
   for (int i = 0; i < runs; ++i) {
     config::PhotometricStereoRequest request;
-    request.method = method;
+    request.method = *solvers::ps::ParseMethod(method);
     const fs::path reference = dir.path() / "reference" / std::to_string(i);
     SolvePhotometricStereoRun(RunDir(dir, i).string(), request, reference.string());
     for (const char* file : kComparedFiles) {
@@ -298,7 +298,7 @@ TEST_F(SlurmBatch, DaemonHandsTheRecipesSolveToSlurmAndTracksTheJob) {
   const fs::path run_directory = dir_.path() / "data" / "runs" / run["id"].get<std::string>();
   EXPECT_EQ(json::parse(ReadText(run_directory / "batch" / "batch.json"))["job_ids"][0].get<std::string>() + "_0", job[1].str());
   config::PhotometricStereoRequest request;
-  request.method = "robust";
+  request.method = solvers::ps::Method::kRobust;
   SolvePhotometricStereoRun(run_directory.string(), request, (dir_.path() / "reference").string());
   for (const char* file : kComparedFiles)
     EXPECT_EQ(ReadText(run_directory / "results" / "ps" / file), ReadText(dir_.path() / "reference" / file)) << file;

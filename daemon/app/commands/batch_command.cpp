@@ -197,10 +197,12 @@ CommandRunner SetupSolve(CLI::App& app) {
   solve->add_option("--runs", options->runs, "run directories: GLOB patterns, comma-separated lists or paths");
   solve->add_option("--batch", options->batch_dir,
                     "batch folder, on a filesystem every node shares (default: batches/<UTC time>)");
+  // Forwarded as text to each task's `photorig solve ps`, checked here against the same names.
   solve->add_option("--method", options->method, "as photorig solve ps (default auto)")
-      ->check(CLI::IsMember({"l2", "lambertian", "robust", "blinn-phong", "auto"}));
-  solve->add_option("--derivative", options->derivative, "as photorig solve ps");
-  solve->add_option("--integrator", options->integrator, "as photorig solve ps");
+      ->check(CLI::IsMember(solvers::core::NameMap(solvers::ps::kMethodNames)));
+  solve->add_option("--derivative", options->derivative, "as photorig solve ps")
+      ->check(CLI::IsMember(solvers::core::NameMap(solvers::ps::kBlinnPhongDerivativeNames)));
+  solve->add_option("--integrator", options->integrator, "as photorig solve ps")->check(CLI::IsMember(config::IntegratorChoices()));
   solve->add_option("--shadow-sigma", options->shadow_sigma, "as photorig solve ps");
   solve->add_option("--commit-gate", options->commit_gate, "as photorig solve ps")->group("");
   solve->add_option("--photorig", options->photorig,

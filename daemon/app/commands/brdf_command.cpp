@@ -31,7 +31,9 @@ namespace brdf = photorig::solvers::brdf;
 namespace fs = std::filesystem;
 
 struct Options {
-  std::string run_dir, out, loss = "weighted", calibration = "reference";
+  std::string run_dir, out;
+  brdf::FitLoss loss = brdf::FitLoss::kWeighted;
+  bool calibrate_with_target = true;
   bool accept_failed_capture = false;
 };
 
@@ -43,8 +45,8 @@ int Execute(const Options& options) {
     return error.empty() ? static_cast<int>(code) : Fail(code, error);
   };
   daemon::BrdfRequest request;
-  request.loss = options.loss == "log" ? brdf::FitLoss::kLog : brdf::FitLoss::kWeighted;
-  request.calibrate_with_target = options.calibration == "reference";
+  request.loss = options.loss;
+  request.calibrate_with_target = options.calibrate_with_target;
   const std::string out = options.out.empty() ? (fs::path(options.run_dir) / "results" / "brdf").string() : options.out;
   daemon::BrdfSolveResult result;
   try {
@@ -78,11 +80,9 @@ CommandRunner Setup(CLI::App& app) {
   CLI::App* sub = solve->add_subcommand("brdf", "fit BRDF models to a gonioreflectometer run and choose one");
   sub->add_option("--run", options->run_dir, "run directory")->required()->check(CLI::ExistingDirectory);
   AddAcceptFailedCaptureFlag(sub, &options->accept_failed_capture);
-  sub->add_option("--loss", options->loss, "weighted (by each sample's deviation, default) | log")
-      ->check(CLI::IsMember({"weighted", "log"}));
-  sub->add_option("--calibration", options->calibration,
-                  "reference (the rig's reference target, default) | camera (the camera's stated response)")
-      ->check(CLI::IsMember({"reference", "camera"}));
+  AddChoice(sub, "--loss", &options->loss, brdf::kFitLossNames, "weighted: by each sample's deviation");
+  AddChoice(sub, "--calibration", &options->calibrate_with_target, config::BrdfRequest::kCalibrationNames,
+            "reference: the rig's reference target; camera: the camera's stated response");
   sub->add_option("--out", options->out, "output directory (default: RUN/results/brdf)");
   return {sub, [options] { return Execute(*options); }};
 }

@@ -35,7 +35,8 @@ namespace fs = std::filesystem;
 constexpr double kDeg = M_PI / 180.0;
 
 struct Options {
-  std::string file, out, loss;
+  std::string file, out;
+  std::optional<brdf::FitLoss> loss;  // default: log for a table, weighted for samples
   int steps = 16;
   std::vector<double> wi_deg, wo_deg;
   std::string convert_to;
@@ -67,17 +68,17 @@ int Fit(const Options& o) {
   }
   // A table carries no deviations: the log loss unless told otherwise; samples
   // with deviations are weighted by them.
-  const std::string loss = !o.loss.empty() ? o.loss : IsCsv(o.file) ? "weighted" : "log";
-  doc["loss"] = loss;
+  const brdf::FitLoss loss = o.loss.value_or(IsCsv(o.file) ? brdf::FitLoss::kWeighted : brdf::FitLoss::kLog);
+  doc["loss"] = brdf::FitLossName(loss);
   doc["samples"] = samples.size();
   if (samples.empty()) return finish(kExitFailed, o.file + ": no measured value to fit");
   brdf::SelectionOptions selection;
-  selection.fit.loss = loss == "log" ? brdf::FitLoss::kLog : brdf::FitLoss::kWeighted;
+  selection.fit.loss = loss;
   const brdf::SelectionSummary s = brdf::SelectModel(samples, selection);
   doc.update(daemon::SelectionJson(s));
   FILE* text = stdout;  // under --json main points it at stderr
   std::fprintf(text, "%zu samples from %s (%s loss), closest theta_h %.2f deg\n", samples.size(), o.file.c_str(),
-               loss.c_str(), s.min_theta_h_deg);
+               brdf::FitLossName(loss), s.min_theta_h_deg);
   daemon::PrintSelection(text, s);
   if (!o.out.empty()) {
     fs::create_directories(o.out);
@@ -165,8 +166,10 @@ CommandRunner SetupFit(CLI::App& app) {
   auto options = std::make_shared<Options>();
   CLI::App* fit = Group(app)->add_subcommand("fit", "fit BRDF models to a MERL or RGL table, or to samples.csv, and choose one");
   fit->add_option("file", options->file, "a .binary, .bsdf or samples .csv file")->required();
-  fit->add_option("--loss", options->loss, "weighted | log (default: log for a table, weighted for samples)")
-      ->check(CLI::IsMember({"weighted", "log"}));
+  fit->add_option_function<std::string>(
+         "--loss", [options](const std::string& name) { options->loss = solvers::core::ParseName(brdf::kFitLossNames, name); },
+         "weighted | log (default: log for a table, weighted for samples)")
+      ->check(CLI::IsMember(solvers::core::NameMap(brdf::kFitLossNames)));
   fit->add_option("--steps", options->steps, "a table's samples per half/difference angle (default 16: 16^3 configurations)")
       ->check(CLI::Range(1, 200));
   fit->add_option("--out", options->out, "write report.json and the samples fitted here");

@@ -75,7 +75,7 @@ int Execute(const Options& o) {
   request.out_rig = o.out_rig;
 
   const daemon::LightCalibrationSummary summary = daemon::CalibrateLights(inputs, request, out);
-  std::cout << "sphere (" << summary.sphere_source << "): centre " << summary.circle.cx_px << ", "
+  std::cout << "sphere (" << daemon::SphereSourceName(summary.sphere_source) << "): centre " << summary.circle.cx_px << ", "
             << summary.circle.cy_px << " px, radius " << summary.circle.radius_px << " px\n"
             << "lights: " << summary.lights << ", unusable: " << summary.unusable << ", mean uncertainty "
             << summary.mean_uncertainty_deg << " deg, outputs in " << out << "\n";
@@ -86,7 +86,7 @@ int Execute(const Options& o) {
   ResultFields()["out"] = out;
   // Before a sphere is located, what stops the calibration is its input (no
   // frames, a request that cannot work); after, the fit.
-  if (!summary.success) return Fail(summary.sphere_source.empty() ? kExitUsage : kExitFailed, summary.message);
+  if (!summary.success) return Fail(summary.sphere_source == daemon::SphereSource::kNone ? kExitUsage : kExitFailed, summary.message);
   return kExitOk;
 }
 

@@ -9,6 +9,13 @@ void AddAcceptFailedCaptureFlag(CLI::App* solve, bool* accept) {
                   "solve a run whose capture failed or was aborted (refused otherwise); every result and report says so");
 }
 
+void AddIntegratorOption(CLI::App* solve, config::PhotometricStereoRequest* request) {
+  solve->add_option_function<std::string>(
+           "--integrator", [request](const std::string& name) { request->integrator = *config::ParseIntegratorChoice(name); },
+           "depth from the normals: poisson (default) | frankot-chellappa | none")
+      ->check(CLI::IsMember(config::IntegratorChoices()));
+}
+
 void WarnOfFailedCapture(const std::optional<daemon::CaptureVerdict>& capture) {
   if (!capture || capture->complete()) return;
   std::printf("warning: solved from a %s capture (--accept-failed-capture); not a measurement to rely on:\n",
@@ -48,7 +55,7 @@ namespace photorig::app {
 nlohmann::json LightCalibrationJson(const daemon::LightCalibrationSummary& summary) {
   return {{"success", summary.success},
           {"message", summary.message},
-          {"sphere", {{"source", summary.sphere_source},
+          {"sphere", {{"source", daemon::SphereSourceName(summary.sphere_source)},
                       {"cx_px", summary.circle.cx_px},
                       {"cy_px", summary.circle.cy_px},
                       {"radius_px", summary.circle.radius_px},

@@ -17,6 +17,8 @@ nlohmann::json LightCalibrationJson(const daemon::LightCalibrationSummary& summa
 // `--accept-failed-capture`, which every `solve <family> --run` takes: solve a
 // run whose capture failed or was aborted instead of refusing it.
 void AddAcceptFailedCaptureFlag(CLI::App* solve, bool* accept);
+// `--integrator poisson | frankot-chellappa | none` into request->integrator.
+void AddIntegratorOption(CLI::App* solve, config::PhotometricStereoRequest* request);
 inline daemon::FailedCapture FailedCapturePolicy(bool accept) {
   return accept ? daemon::FailedCapture::kAccept : daemon::FailedCapture::kRefuse;
 }

@@ -29,10 +29,17 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// --model's names: the per-material fit is the svbrdf solve's result.
+constexpr solvers::core::NameTable<solvers::reflectance::Method, 3> kModelNames = {
+    {{solvers::reflectance::Method::kLambertian, "lambertian"},
+     {solvers::reflectance::Method::kPerMaterial, "svbrdf"},
+     {solvers::reflectance::Method::kPerPixelLobe, "per_pixel_lobe"}}};
+
 struct RelightOptions {
   std::string run_dir, envmap, out;
   std::vector<std::vector<double>> lights;  // x, y, z[, intensity]
-  std::string model = "lambertian";          // with --light: lambertian (results/ps) | svbrdf (results/svbrdf)
+  // With --light: lambertian (results/ps) | svbrdf (results/svbrdf).
+  solvers::reflectance::Method model = solvers::reflectance::Method::kLambertian;
   int held_out = -1;                          // a light index: predict it from the others, beside the measured frame
 };
 
@@ -68,9 +75,7 @@ int RelightHeldOut(const RelightOptions& options) {
   if (!fs::exists(svbrdf / "report.json"))
     return Fail(kExitUsage, (svbrdf / "report.json").string() + " not found: run `photorig solve svbrdf --run " +
                                 options.run_dir + "` first");
-  const refl::Method method = options.model == "svbrdf"           ? refl::Method::kPerMaterial
-                              : options.model == "per_pixel_lobe" ? refl::Method::kPerPixelLobe
-                                                                  : refl::Method::kLambertian;
+  const refl::Method method = options.model;
   std::fprintf(stderr, "relight: fitting every method without light %d ...\n", options.held_out);
   const daemon::HeldOutLightImages held = daemon::PredictHeldOutLight(options.run_dir, svbrdf.string(), options.held_out);
   if (!held.summary.IsSolutionUsable())
@@ -84,7 +89,7 @@ int RelightHeldOut(const RelightOptions& options) {
   cv::Mat predicted;
   for (const refl::HeldOutPrediction& p : held.summary.predictions)
     if (p.method == method) predicted = p.image;
-  if (!chosen || predicted.empty()) return Fail(kExitFailed, "no prediction for " + options.model);
+  if (!chosen || predicted.empty()) return Fail(kExitFailed, std::string("no prediction for ") + solvers::core::NameOf(kModelNames, method));
   const fs::path out(options.out);
   const std::string measured_path = (out.parent_path() / (out.stem().string() + "-measured.tiff")).string();
   daemon::WriteFloatTiff(options.out, predicted);
@@ -124,7 +129,7 @@ int Relight(const RelightOptions& options) {
     if (!options.envmap.empty() || !options.lights.empty()) return Fail(kExitUsage, "--held-out takes neither --envmap nor --light");
     return RelightHeldOut(options);
   }
-  if (options.model == "per_pixel_lobe") return Fail(kExitUsage, "--model per_pixel_lobe is only for --held-out");
+  if (options.model == solvers::reflectance::Method::kPerPixelLobe) return Fail(kExitUsage, "--model per_pixel_lobe is only for --held-out");
   if (options.envmap.empty() == options.lights.empty()) return Fail(kExitUsage, "give either --envmap, --light or --held-out");
   cv::Mat relit;
   if (!options.envmap.empty()) {
@@ -140,7 +145,7 @@ int Relight(const RelightOptions& options) {
     if (done.IsSolutionUsable()) done = solvers::lighting::RelightFromFrames(frames, weights, &relit);
     if (!done.IsSolutionUsable())
       return Fail(kExitFailed, options.run_dir + " with " + options.envmap + ": " + done.message);
-  } else if (options.model == "svbrdf") {
+  } else if (options.model == solvers::reflectance::Method::kPerMaterial) {
     // Model-based with the fitted reflectance: per-pixel albedo and the materials' lobes.
     const fs::path svbrdf = fs::path(options.run_dir) / "results" / "svbrdf";
     if (!fs::exists(svbrdf / "report.json"))
@@ -206,10 +211,9 @@ CommandRunner SetupRelight(CLI::App& app) {
                   "light index: predict that light's frame from a fit to the other lights (results/svbrdf), "
                   "written beside the measured frame, with each method's error")
       ->check(CLI::NonNegativeNumber);
-  sub->add_option("--model", options->model,
-                  "lambertian (with --light: results/ps normals and albedo, default), svbrdf (results/svbrdf: "
-                  "albedo and the materials' lobes), per_pixel_lobe (--held-out only)")
-      ->check(CLI::IsMember({"lambertian", "svbrdf", "per_pixel_lobe"}));
+  AddChoice(sub, "--model", &options->model, kModelNames,
+            "lambertian (with --light: results/ps normals and albedo), svbrdf (results/svbrdf: "
+            "albedo and the materials' lobes), per_pixel_lobe (--held-out only)");
   sub->add_option("--out", options->out, "output float TIFF (an 8-bit PNG view is written beside it)")->required();
   return {sub, [options] { return Relight(*options); }};
 }

@@ -23,7 +23,7 @@ namespace {
 struct Options {
   std::string run_dir, dataset_dir, mask, out;
   std::string commit_gate;  // tests: hold the finished solve while this file exists
-  std::string demosaic = "bilinear";
+  solvers::color::DemosaicMethod demosaic = solvers::color::DemosaicMethod::kBilinear;
   std::string color_model;
   bool accept_failed_capture = false;
   config::PhotometricStereoRequest request;
@@ -43,14 +43,14 @@ void BeforeCommit(const std::string& commit_gate) {
 }
 
 int Execute(const Options& options) {
-  config::ValidatePhotometricStereoRequest(options.request);
+  if (std::string why; !options.request.IsValid(&why)) return Fail(kExitUsage, why);
   if (options.run_dir.empty() && options.dataset_dir.empty()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
   const bool from_run = !options.run_dir.empty();
   const std::string source = from_run ? options.run_dir : options.dataset_dir;
   const std::string destination =
       options.out.empty() ? (std::filesystem::path(source) / "results" / "ps").string() : options.out;
   daemon::ColorStackOptions color;
-  color.demosaic = *daemon::ParseDemosaicMethod(options.demosaic);
+  color.demosaic = options.demosaic;
   color.color_model_path = options.color_model;
   if (!from_run && !options.color_model.empty())
     return Fail(kExitUsage, "--color-model applies to runs (a DiLiGenT folder's images are already RGB)");
@@ -86,11 +86,10 @@ CommandRunner SetupSolve(CLI::App& app) {
   auto* dataset = ps->add_option("--dataset", options->dataset_dir, "DiLiGenT-layout folder")->check(CLI::ExistingDirectory);
   run->excludes(dataset);
   AddAcceptFailedCaptureFlag(ps, &options->accept_failed_capture);
-  ps->add_option("--method", options->request.method, "l2 | lambertian | robust | blinn-phong | auto (default auto)")
-      ->check(CLI::IsMember({"l2", "lambertian", "robust", "blinn-phong", "auto"}));
-  ps->add_option("--derivative", options->request.derivative,
-                 "Blinn-Phong fit: lanes (default) | per pixel with forward | reverse | symbolic | central-difference");
-  ps->add_option("--integrator", options->request.integrator, "poisson | frankot-chellappa | none");
+  AddChoice(ps, "--method", &options->request.method, solvers::ps::kMethodNames, "photometric stereo method");
+  AddChoice(ps, "--derivative", &options->request.derivative, solvers::ps::kBlinnPhongDerivativeNames,
+            "Blinn-Phong fit: the lanes' closed form, or per pixel with an autodiff method");
+  AddIntegratorOption(ps, &options->request);
   ps->add_option("--shadow-sigma", options->request.shadow_threshold_sigma, "shadow threshold in read-noise sigmas (from dark frames, else estimated)")
       ->check(CLI::NonNegativeNumber);
   ps->add_option("--max-condition", options->request.max_condition_number,
@@ -103,9 +102,8 @@ CommandRunner SetupSolve(CLI::App& app) {
   // For tests of pre-emption (tests/slurm): a task held with its results written but not yet in place.
   ps->add_option("--commit-gate", options->commit_gate, "wait while FILE exists before putting the results in place")
       ->group("");
-  ps->add_option("--demosaic", options->demosaic,
-                 "Bayer runs: bilinear (default; linear, so exact with dark subtraction) | edge-aware")
-      ->check(CLI::IsMember({"bilinear", "edge-aware"}));
+  AddChoice(ps, "--demosaic", &options->demosaic, solvers::color::kDemosaicMethodNames,
+            "Bayer runs (bilinear is linear, so exact with dark subtraction)");
   ps->add_option("--color-model", options->color_model,
                  "colour model (photorig calibrate color) for a colour run (default: the one its rig named)")
       ->check(CLI::ExistingFile);

@@ -20,7 +20,7 @@ namespace refl = solvers::reflectance;
 
 struct Options {
   std::string run_dir, dataset_dir, mask, out;
-  std::string demosaic = "bilinear";
+  solvers::color::DemosaicMethod demosaic = solvers::color::DemosaicMethod::kBilinear;
   config::SvbrdfRequest request;
   bool no_gltf = false;
   bool accept_failed_capture = false;
@@ -46,14 +46,14 @@ void PrintSummary(const daemon::SvbrdfResult& result) {
 }
 
 int Execute(const Options& options) {
-  config::ValidatePhotometricStereoRequest(options.request.ps);
+  if (std::string why; !options.request.ps.IsValid(&why)) return Fail(kExitUsage, why);
   if (options.run_dir.empty() && options.dataset_dir.empty()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
   const bool from_run = !options.run_dir.empty();
   const std::string source = from_run ? options.run_dir : options.dataset_dir;
   const std::string destination =
       options.out.empty() ? (std::filesystem::path(source) / "results" / "svbrdf").string() : options.out;
   daemon::ColorStackOptions color;
-  color.demosaic = *daemon::ParseDemosaicMethod(options.demosaic);
+  color.demosaic = options.demosaic;
   daemon::PhotometricStereoInput input =
       from_run ? daemon::LoadRunStack(options.run_dir, color, FailedCapturePolicy(options.accept_failed_capture))
                : daemon::LoadDiligent(options.dataset_dir);
@@ -85,15 +85,14 @@ CommandRunner SetupSolveSvbrdf(CLI::App& app) {
   AddAcceptFailedCaptureFlag(svbrdf, &options->accept_failed_capture);
   svbrdf->add_option("--mask", options->mask, "PNG, nonzero = object")->check(CLI::ExistingFile);
   svbrdf->add_option("--out", options->out, "output directory (default: SOURCE/results/svbrdf)");
-  svbrdf->add_option("--method", options->request.ps.method, "photometric stereo for the normals (default auto)")
-      ->check(CLI::IsMember({"l2", "lambertian", "robust", "blinn-phong", "auto"}));
+  AddChoice(svbrdf, "--method", &options->request.ps.method, solvers::ps::kMethodNames,
+            "photometric stereo for the normals");
   svbrdf->add_option("--max-materials", options->request.max_materials, "largest number of materials tried (default 4)")
       ->check(CLI::Range(1, 16));
   svbrdf->add_option("--held-out", options->request.held_out_lights,
                      "lights held out one at a time for the relighting check, a stratified subset (default 8; 0 = all; -1 = skip)")
       ->check(CLI::Range(-1, 100000));
-  svbrdf->add_option("--demosaic", options->demosaic, "Bayer runs: bilinear (default) | edge-aware")
-      ->check(CLI::IsMember({"bilinear", "edge-aware"}));
+  AddChoice(svbrdf, "--demosaic", &options->demosaic, solvers::color::kDemosaicMethodNames, "Bayer runs");
   svbrdf->add_flag("--no-gltf", options->no_gltf, "do not write the glTF asset");
   svbrdf->add_flag("--refine-normals", options->request.refine_normals,
                    "refine the normals with the materials' lobes, alternating with the reflectance fit");

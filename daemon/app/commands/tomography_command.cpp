@@ -82,9 +82,10 @@ int Execute(const Options& options) {
       return summary;
     };
     // Only the simultaneous iterations run on distributed products and sums.
-    if (request.method != "sirt" && request.method != "cgls")
-      return Fail(kExitUsage, "--mpi solves by sirt or cgls, not " + request.method +
-                                  (request.method == "art" ? " (ART visits one ray at a time)" : ""));
+    using solvers::tomography::Method;
+    if (request.method != Method::kSirt && request.method != Method::kCgls)
+      return Fail(kExitUsage, std::string("--mpi solves by sirt or cgls, not ") + solvers::tomography::MethodName(request.method) +
+                                  (request.method == Method::kArt ? " (ART visits one ray at a time)" : ""));
   }
   const bool writes = !session || session->rank() == 0;
 #else
@@ -104,7 +105,7 @@ int Execute(const Options& options) {
 
   const solvers::tomography::ReconstructionSummary& r = result.reconstruction;
   std::printf("tomography (%s, %s): %s, %d views, %d x %d x %d voxels of %.3g mm\n", solvers::tomography::MethodName(r.method),
-              request.projector.c_str(), solvers::core::TerminationName(r.termination), result.geometry.views(),
+              solvers::tomography::InterpolationName(request.projector), solvers::core::TerminationName(r.termination), result.geometry.views(),
               result.grid.nx, result.grid.ny, result.grid.nz, result.grid.voxel_mm);
   if (r.iterations > 0)
     std::printf("  %d iterations, stopped by %s: residual %.4g against the noise level %.4g\n", r.iterations,
@@ -144,12 +145,11 @@ CommandRunner Setup(CLI::App& app) {
                      ->check(CLI::ExistingDirectory);
   run->excludes(folder);
   AddAcceptFailedCaptureFlag(sub, &options->accept_failed_capture);
-  sub->add_option("--method", options->request.method, "sirt (default) | art | cgls | sart")
-      ->check(CLI::IsMember({"sirt", "art", "cgls", "sart"}));
+  AddChoice(sub, "--method", &options->request.method, solvers::tomography::kMethodNames, "reconstruction method");
   sub->add_flag("--tv", options->request.total_variation,
                 "SART with total-variation regularisation: for piecewise-constant samples (docs/tomography.md)");
-  sub->add_option("--projector", options->request.projector, "joseph (default) | siddon")
-      ->check(CLI::IsMember({"joseph", "siddon"}));
+  AddChoice(sub, "--projector", &options->request.projector, solvers::tomography::kInterpolationNames,
+            "how rays sample the voxels");
   sub->add_option("--max-iterations", options->request.max_iterations, "iteration limit (default 300)")
       ->check(CLI::PositiveNumber);
   sub->add_option("--discrepancy-factor", options->request.discrepancy_factor,

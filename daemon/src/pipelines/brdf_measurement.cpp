@@ -315,7 +315,7 @@ void SortFrames(Measurement& m, BrdfMeasurement* out) {
       ++out->dark_frames;
       continue;
     }
-    const bool is_target = r.group == "reference_target";
+    const bool is_target = r.kind == config::CaptureStep::Kind::kReferenceTarget;
     std::vector<PoseFrames>& list = is_target ? m.target : m.poses;
     if (is_target) {
       ++out->target_frames;
@@ -415,12 +415,12 @@ std::optional<Eigen::Vector3d> Calibrate(const Measurement& m, const Merger& mer
   out->camera_dn_per_radiance_per_us = m.manifest.dn_per_radiance_per_us;
   const double lamp = m.manifest.lights[0].intensity;
   if (m.options.calibration == BrdfMeasurementOptions::Calibration::kCameraResponse) {
-    out->calibration = "camera_response";
+    out->calibration = BrdfMeasurementOptions::Calibration::kCameraResponse;
     out->dn_per_radiance_per_us = m.manifest.dn_per_radiance_per_us;
     out->channel_dn_per_radiance_per_us.setConstant(m.manifest.dn_per_radiance_per_us);
     return Eigen::Vector3d::Constant(m.manifest.dn_per_radiance_per_us * lamp);
   }
-  out->calibration = "reference_target";
+  out->calibration = BrdfMeasurementOptions::Calibration::kReferenceTarget;
   const char* otherwise = ", or pass --calibration camera to trust the camera's stated response)";
   if (!m.manifest.reference_albedo) {
     out->End(Termination::kInvalidInput,

@@ -163,7 +163,7 @@ void PrintMeasurement(std::FILE* text, const BrdfMeasurement& m) {
   for (const ClippedPose& c : m.clipped)
     std::fprintf(text, "  clipped: light %+.1f camera %+.1f deg (theta_h %.1f deg) even at %.0f us: no sample\n",
                  c.pose.light_arm_deg, c.pose.camera_arm_deg, c.theta_h_deg, c.shortest_exposure_us);
-  if (m.calibration == "reference_target")
+  if (m.calibration == BrdfMeasurementOptions::Calibration::kReferenceTarget)
     std::fprintf(text, "calibration: reference target of albedo %.3f: %.5g DN per radiance per us +- %.2g %% "
                  "(a scale every f_r shares; the camera states %.5g)\n",
                  m.reference_albedo, m.dn_per_radiance_per_us, 100.0 * m.calibration_relative_sigma,

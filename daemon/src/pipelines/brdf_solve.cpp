@@ -49,7 +49,7 @@ nlohmann::json MeasurementJson(const BrdfMeasurement& m) {
           {"peak_clipped", m.peak_clipped},
           {"below_horizon_poses", m.below_horizon},
           {"calibration",
-           {{"source", m.calibration},
+           {{"source", solvers::core::NameOf(BrdfMeasurementOptions::kCalibrationNames, m.calibration)},
             {"dn_per_radiance_per_us", m.dn_per_radiance_per_us},
             {"relative_sigma", m.calibration_relative_sigma},
             {"reference_albedo", m.reference_albedo},

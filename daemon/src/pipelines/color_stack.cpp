@@ -32,16 +32,6 @@ cv::Mat ToFloatRgb(const cv::Mat& frame_rgb) {
 
 }  // namespace
 
-const char* DemosaicMethodName(DemosaicMethod method) {
-  return method == DemosaicMethod::kEdgeAware ? "edge-aware" : "bilinear";
-}
-
-std::optional<DemosaicMethod> ParseDemosaicMethod(const std::string& name) {
-  if (name == "bilinear") return DemosaicMethod::kBilinear;
-  if (name == "edge-aware") return DemosaicMethod::kEdgeAware;
-  return std::nullopt;
-}
-
 cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, DemosaicMethod method) {
   cv::Mat bgr;
   const solvers::core::Summary demosaiced = solvers::color::Demosaic(raw, pattern, &bgr, method);

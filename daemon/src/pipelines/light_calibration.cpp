@@ -74,7 +74,7 @@ bool FindSphereCircle(const LightCalibrationInputs& inputs, const config::LightC
                       LightCalibrationSummary* summary, std::vector<Eigen::Vector2d>* edges) {
   if (request.circle) {
     summary->circle = *request.circle;
-    summary->sphere_source = "circle";
+    summary->sphere_source = SphereSource::kCircle;
     return true;
   }
   if (!request.silhouette_image.empty()) {
@@ -90,7 +90,7 @@ bool FindSphereCircle(const LightCalibrationInputs& inputs, const config::LightC
     }
     summary->circle = fit.circle;
     summary->sphere_fit_rms_px = fit.rms_residual_px;
-    summary->sphere_source = "silhouette";
+    summary->sphere_source = SphereSource::kSilhouette;
     *edges = fit.edge_points;
     return true;
   }
@@ -112,7 +112,7 @@ bool FindSphereCircle(const LightCalibrationInputs& inputs, const config::LightC
   }
   summary->circle = fit.circle;
   summary->sphere_fit_rms_px = fit.rms_residual_px;
-  summary->sphere_source = "highlights";
+  summary->sphere_source = SphereSource::kHighlights;
   return true;
 }
 
@@ -143,7 +143,7 @@ std::vector<LightDirectionEstimate> EstimateDirections(const LightCalibrationInp
 void CheckGivenCircle(const LightCalibrationInputs& inputs, const config::LightCalibrationRequest& request,
                       std::vector<LightDirectionEstimate>* directions, LightCalibrationSummary* summary,
                       nlohmann::json* report) {
-  if (summary->sphere_source != "circle" || inputs.nominal_directions.size() != inputs.frames.size() ||
+  if (summary->sphere_source != SphereSource::kCircle || inputs.nominal_directions.size() != inputs.frames.size() ||
       request.camera.projection != CameraModel::Projection::kOrthographic)
     return;
   const HighlightCircleSummary fit = LocateSphereFromHighlights(inputs.frames, inputs.nominal_directions);
@@ -215,7 +215,7 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
   }
 
   nlohmann::json report{{"sphere",
-                         {{"source", summary.sphere_source},
+                         {{"source", SphereSourceName(summary.sphere_source)},
                           {"cx_px", summary.circle.cx_px},
                           {"cy_px", summary.circle.cy_px},
                           {"radius_px", summary.circle.radius_px},
@@ -256,7 +256,7 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
   summary.success = rig_written && summary.unusable == 0;
   if (summary.message.empty())
     summary.message = std::to_string(usable) + " of " + std::to_string(summary.lights) + " lights calibrated (sphere from " +
-                      summary.sphere_source + ")";
+                      SphereSourceName(summary.sphere_source) + ")";
   return summary;
 }
 

@@ -147,7 +147,7 @@ void RequirePhotometricStereoRun(const std::string& run_directory, const RunMani
     // A tomograph's flat fields move the sample out of the beam; a
     // gonioreflectometer's changer only brings in its reference target.
     tomograph = tomograph || (record.pose && record.pose->sample_changer_deg.value_or(0.0) != 0.0 &&
-                              record.group != "reference_target");
+                              record.kind != config::CaptureStep::Kind::kReferenceTarget);
   }
   const bool posed = std::any_of(manifest.frames.begin(), manifest.frames.end(),
                                  [](const FrameRecord& record) { return record.pose.has_value(); });
@@ -194,8 +194,8 @@ double Ciede2000OfLinearSrgb(const Eigen::Vector3d& a, const Eigen::Vector3d& b)
 
 solvers::ps::PhotometricStereoOptions MakeSolverOptions(const config::PhotometricStereoRequest& request, double saturation_level) {
   solvers::ps::PhotometricStereoOptions options;
-  solvers::ps::ParseMethod(request.method, &options.method);
-  config::ParseDerivative(request.derivative, &options.blinn_phong);
+  options.method = request.method;
+  solvers::ps::UseDerivative(request.derivative, &options.blinn_phong);
   // Never below one DN: quantisation alone leaves values within 1 DN of black
   // in shadow. Above that, a multiple of the read noise: the stack's (which
   // includes the subtracted dark's) or, for a data set without dark frames,
@@ -381,7 +381,7 @@ json ToJson(const PhotometricStereoResult& result) {
   if (!result.previews.is_null()) report["previews"] = result.previews;
   if (result.depth) {
     const solvers::ps::IntegrationSummary& integrated = result.depth->summary;
-    report["depth"] = {{"integrator", result.depth->integrator},
+    report["depth"] = {{"integrator", solvers::ps::IntegratorName(result.depth->integrator)},
                        {"success", integrated.IsSolutionUsable()},
                        {"message", integrated.message},
                        {"pixels", integrated.pixels},
@@ -413,7 +413,7 @@ json ToJson(const PhotometricStereoResult& result) {
 PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
                                       const std::string& output_directory, const std::function<void()>& before_commit) {
   const auto start = std::chrono::steady_clock::now();
-  config::ValidatePhotometricStereoRequest(request);
+  if (std::string why; !request.IsValid(&why)) throw std::invalid_argument(why);
   solvers::ps::PhotometricStack stack = input.stack;
   PhotometricStereoResult result;
   if (!input.object_mask.empty()) {
@@ -460,12 +460,12 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
       WriteFloatTiff((out / "specular.tiff").string(), specular);
 
       cv::Mat depth;  // stays empty unless integrated
-      if (request.integrator != "none") {
+      if (request.integrator) {
         solvers::ps::IntegrationOptions integration;
-        solvers::ps::ParseIntegrator(request.integrator, &integration.integrator);
+        integration.integrator = *request.integrator;
         integration.pixel_pitch = input.pixel_pitch;
         PhotometricStereoDepth& integrated = result.depth.emplace();
-        integrated.integrator = request.integrator;
+        integrated.integrator = *request.integrator;
         integrated.pixel_pitch = input.pixel_pitch;
         integrated.summary = solvers::ps::IntegrateNormals(integration, map.normals, solved, &depth);
         if (integrated.summary.IsSolutionUsable()) {

@@ -1,6 +1,8 @@
 #include "photorig/daemon/pipelines/solve_stage.h"
 
+#include <chrono>
 #include <filesystem>
+#include <utility>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
@@ -10,13 +12,9 @@ nlohmann::json SolveStageReport::ToJson() const {
           {"results", results}, {"figures", figures},     {"timings_ms", timings_ms}};
 }
 
-SolveStageReport ReportSolveStage(const PhotometricStereoResult& result) {
-  return ReportPhotometricStereoStage(ToJson(result), result.usable());
-}
-
 SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& stored, bool usable) {
   SolveStageReport report;
-  report.stage = "photometric_stereo";
+  report.stage = SolveStageName(SolveStageKind::kPhotometricStereo);
   report.usable = usable;
   report.termination = stored.value("termination", "");
   report.message = stored.value("message", "");
@@ -40,10 +38,11 @@ SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& stored, bool
   return report;
 }
 
-SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const std::string& run_directory,
-                                  double total_ms) {
+namespace {
+
+SolveStageReport Report(const LightCalibrationSummary& summary, const std::string& run_directory, double total_ms) {
   SolveStageReport report;
-  report.stage = "light_calibration";
+  report.stage = SolveStageName(SolveStageKind::kLightCalibration);
   report.usable = summary.success;
   report.termination = summary.success ? "success" : "failure";
   report.message = summary.message;
@@ -51,7 +50,7 @@ SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const 
   report.figures = {{"lights", summary.lights},
                     {"unusable", summary.unusable},
                     {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
-                    {"sphere_source", summary.sphere_source},
+                    {"sphere_source", SphereSourceName(summary.sphere_source)},
                     {"sphere_fit_rms_px", summary.sphere_fit_rms_px}};
   // A rig written inside the run is named relative to it, like the results.
   if (!summary.out_rig.empty()) {
@@ -62,9 +61,9 @@ SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const 
   return report;
 }
 
-SolveStageReport ReportSolveStage(const TomographyResult& result) {
+SolveStageReport Report(const TomographyResult& result) {
   SolveStageReport report;
-  report.stage = "tomography";
+  report.stage = SolveStageName(SolveStageKind::kTomography);
   report.usable = result.trusted();
   report.termination = solvers::core::TerminationName(result.reconstruction.termination);
   report.message = result.reconstruction.message;
@@ -81,9 +80,9 @@ SolveStageReport ReportSolveStage(const TomographyResult& result) {
   return report;
 }
 
-SolveStageReport ReportSolveStage(const BrdfSolveResult& result) {
+SolveStageReport Report(const BrdfSolveResult& result) {
   SolveStageReport report;
-  report.stage = "brdf";
+  report.stage = SolveStageName(SolveStageKind::kBrdf);
   report.usable = result.usable();
   const solvers::core::Summary& ended =
       result.selection ? static_cast<const solvers::core::Summary&>(*result.selection) : result.measurement;
@@ -107,9 +106,9 @@ SolveStageReport ReportSolveStage(const BrdfSolveResult& result) {
   return report;
 }
 
-SolveStageReport ReportSolveStage(const SvbrdfResult& result) {
+SolveStageReport Report(const SvbrdfResult& result) {
   SolveStageReport report;
-  report.stage = "svbrdf";
+  report.stage = SolveStageName(SolveStageKind::kSvbrdf);
   report.usable = result.usable();
   report.termination = solvers::core::TerminationName(result.summary.termination);
   report.message = result.summary.message;
@@ -127,6 +126,126 @@ SolveStageReport ReportSolveStage(const SvbrdfResult& result) {
           result.relighting->mean_rmse[m];
   report.timings_ms = {{"setup", result.summary.setup_ms}, {"solve", result.summary.solve_ms}, {"total", result.total_ms}};
   return report;
+}
+
+
+double MillisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+// A stage's results folder, for stages that write into it as they go rather
+// than replacing it whole as they end (results_folder.h): emptied first, so
+// it holds only what this solve wrote (a run resumed after a crash mid-solve
+// solves again from the frames).
+fs::path FreshResults(const StageContext& context, const char* name) {
+  const fs::path results = fs::path(context.run_directory) / "results" / name;
+  fs::remove_all(results);
+  return results;
+}
+
+fs::path ResultsOf(const StageContext& context, const char* name) {
+  return fs::path(context.run_directory) / "results" / name;
+}
+
+class PhotometricStereoStage final : public SolveStage {
+ public:
+  explicit PhotometricStereoStage(config::PhotometricStereoRequest request) : request_(std::move(request)) {}
+  SolveStageKind kind() const override { return SolveStageKind::kPhotometricStereo; }
+  const char* command() const override { return "solve ps"; }
+  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
+    config::PhotometricStereoRequest solve = request_;
+    solve.progress = context.progress;
+    const PhotometricStereoResult& result = results->photometric_stereo.emplace(
+        SolvePhotometricStereoRun(context.run_directory, solve, ResultsOf(context, "ps").string()));
+    return ReportPhotometricStereoStage(ToJson(result), result.usable());
+  }
+
+ private:
+  config::PhotometricStereoRequest request_;
+};
+
+class LightCalibrationStage final : public SolveStage {
+ public:
+  explicit LightCalibrationStage(config::LightCalibrationRequest request) : request_(std::move(request)) {}
+  SolveStageKind kind() const override { return SolveStageKind::kLightCalibration; }
+  const char* command() const override { return "calibrate lights"; }
+  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
+    const auto started = std::chrono::steady_clock::now();
+    config::LightCalibrationRequest calibration = request_;
+    const fs::path folder = FreshResults(context, "lights");
+    calibration.base_rig = context.rig_path;
+    if (calibration.out_rig.empty()) calibration.out_rig = (folder / "rig.yaml").string();
+    const LightCalibrationSummary& summary = results->light_calibration.emplace(
+        CalibrateLights(LoadLightCalibrationInputs(context.run_directory), calibration, folder.string()));
+    return Report(summary, context.run_directory, MillisecondsSince(started));
+  }
+
+ private:
+  config::LightCalibrationRequest request_;
+};
+
+class TomographyStage final : public SolveStage {
+ public:
+  explicit TomographyStage(config::TomographyRequest request) : request_(std::move(request)) {}
+  SolveStageKind kind() const override { return SolveStageKind::kTomography; }
+  const char* command() const override { return "solve tomography"; }
+  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
+    config::TomographyRequest solve = request_;
+    solve.progress = context.progress;
+    const TomographyInput input = LoadTomographyRun(context.run_directory);
+    const TomographyResult& result = results->tomography.emplace(SolveTomography(input, solve));
+    WriteTomographyResults(input, result, ResultsOf(context, "tomography").string());
+    return Report(result);
+  }
+
+ private:
+  config::TomographyRequest request_;
+};
+
+class SvbrdfStage final : public SolveStage {
+ public:
+  explicit SvbrdfStage(config::SvbrdfRequest request) : request_(std::move(request)) {}
+  SolveStageKind kind() const override { return SolveStageKind::kSvbrdf; }
+  const char* command() const override { return "solve svbrdf"; }
+  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
+    config::SvbrdfRequest solve = request_;
+    solve.progress = context.progress;
+    const SvbrdfResult& result = results->svbrdf.emplace(
+        SolveSvbrdfAndWrite(LoadRunStack(context.run_directory), solve, ResultsOf(context, "svbrdf").string()));
+    return Report(result);
+  }
+
+ private:
+  config::SvbrdfRequest request_;
+};
+
+class BrdfStage final : public SolveStage {
+ public:
+  explicit BrdfStage(config::BrdfRequest request) : request_(std::move(request)) {}
+  SolveStageKind kind() const override { return SolveStageKind::kBrdf; }
+  const char* command() const override { return "solve brdf"; }
+  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
+    config::BrdfRequest solve = request_;
+    solve.progress = context.progress;
+    const BrdfSolveResult& result = results->brdf.emplace(
+        SolveBrdfAndWrite(context.run_directory, solve, ResultsOf(context, "brdf").string()));
+    return Report(result);
+  }
+
+ private:
+  config::BrdfRequest request_;
+};
+
+}  // namespace
+
+std::vector<std::unique_ptr<SolveStage>> StagesOf(const config::Recipe& recipe) {
+  std::vector<std::unique_ptr<SolveStage>> stages;
+  if (recipe.photometric_stereo) stages.push_back(std::make_unique<PhotometricStereoStage>(*recipe.photometric_stereo));
+  if (recipe.light_calibration) stages.push_back(std::make_unique<LightCalibrationStage>(*recipe.light_calibration));
+  if (recipe.tomography) stages.push_back(std::make_unique<TomographyStage>(*recipe.tomography));
+  if (recipe.svbrdf) stages.push_back(std::make_unique<SvbrdfStage>(*recipe.svbrdf));
+  if (recipe.brdf) stages.push_back(std::make_unique<BrdfStage>(*recipe.brdf));
+  return stages;
 }
 
 }  // namespace photorig::daemon

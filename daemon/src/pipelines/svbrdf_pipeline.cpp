@@ -440,8 +440,9 @@ HeldOutLightImages PredictHeldOutLight(const std::string& run_directory, const s
   // Read as the solve read it: a Bayer run within the regions it saved (used
   // as they are, not settled again), else with the solve's demosaic.
   ColorStackOptions color;
-  if (report.contains("demosaic") && report["demosaic"].value("method", "") == "edge-aware")
-    color.demosaic = DemosaicMethod::kEdgeAware;
+  if (report.contains("demosaic"))
+    color.demosaic = solvers::core::ParseName(solvers::color::kDemosaicMethodNames, report["demosaic"].value("method", ""))
+                         .value_or(DemosaicMethod::kBilinear);
   const bool within_regions = fs::exists(dir / "demosaic_regions.png");
   if (within_regions) {
     color.demosaic_regions = ReadImage((dir / "demosaic_regions.png").string());

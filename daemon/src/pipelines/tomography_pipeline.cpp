@@ -282,7 +282,7 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   }
 
   solvers::tomography::ProjectorOptions projector_options;
-  projector_options.interpolation = *solvers::tomography::ParseInterpolation(request.projector);
+  projector_options.interpolation = request.projector;
   projector_options.progress = request.progress;
   std::unique_ptr<solvers::tomography::SystemMatrix> matrix;
   std::int64_t first_ray = 0;
@@ -298,7 +298,7 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   all = solvers::tomography::Absorbance();  // a process of a distributed solve keeps its rays only
 
   solvers::tomography::ReconstructOptions options;
-  options.method = *solvers::tomography::ParseMethod(request.method);
+  options.method = request.method;
   options.total_variation = request.total_variation;
   options.max_iterations = request.max_iterations;
   options.iteration_limit_name = request.iteration_limit_name;

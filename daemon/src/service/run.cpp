@@ -30,103 +30,41 @@ std::string UtcStamp() {
   return text;
 }
 
-double MillisecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
-
-// The recipe's solve: stages on the stored frames, in order, reported as they
-// start and end.
+// The recipe's solve: its stages on the stored frames, in order, reported as
+// they start and end. Photometric stereo goes to Slurm when the recipe's (or
+// the rig's) solve executor says so; every other stage runs here.
 void SolveStages(const RunRequest& request, const config::Recipe& recipe, const config::RigConfig& rig, RunOutcome* outcome) {
-  const fs::path directory = outcome->directory;
+  const StageContext context{outcome->directory, rig.path, request.solve_progress};
   bool first = true;
-  // False when an abort arrived during the previous stage: the rest is skipped.
-  auto start = [&](const std::string& stage) {
-    if (request.control && request.control->abort_requested()) return false;
-    if (first && request.on_state) request.on_state(RunState::kSolving, stage);
+  for (const std::unique_ptr<SolveStage>& stage : StagesOf(recipe)) {
+    // An abort that arrived during the previous stage skips the rest.
+    if (request.control && request.control->abort_requested()) return;
+    if (first && request.on_state) request.on_state(RunState::kSolving, stage->name());
     first = false;
-    if (request.on_solve_started) request.on_solve_started(stage);
-    return true;
-  };
-  auto finish = [&](SolveStageReport report) {
-    spdlog::info("solve {}: {}{}{}", report.stage, report.termination, report.message.empty() ? "" : ": ", report.message);
-    if (request.on_solve_finished) request.on_solve_finished(report);
-    outcome->solve_stages.push_back(std::move(report));
-  };
-  // A stage's folder holds only what this solve wrote: a run resumed after a
-  // crash mid-solve solves again from the frames, and its calibrated rig is
-  // a new file again. Photometric stereo, tomography and svbrdf replace their
-  // folders whole as they end (results_folder.h), so the previous result
-  // stays until then.
-  auto fresh_results = [&directory](const char* name) {
-    const fs::path results = directory / "results" / name;
-    fs::remove_all(results);
-    return results;
-  };
-  // Results that cannot be written (a full disk) fail the run saying how to
-  // finish it: the frames are stored, so only the solve is repeated.
-  auto writing = [&directory](const char* solver, const std::function<void()>& stage) {
-    try {
-      stage();
-    } catch (const ResultsWriteError& e) {
-      throw std::runtime_error(std::string(e.what()) + "; the captured frames are intact: `photorig solve " + solver +
-                               " --run " + directory.string() + "` solves again");
-    }
-  };
-  if (recipe.photometric_stereo && start("photometric_stereo")) {
-    config::PhotometricStereoRequest solve = *recipe.photometric_stereo;
-    if (recipe.solve_executor.executor == "slurm") {
+    if (request.on_solve_started) request.on_solve_started(stage->name());
+    SolveStageReport report;
+    if (stage->kind() == SolveStageKind::kPhotometricStereo && recipe.solve_executor.executor == "slurm") {
       const SlurmSolveOutcome submitted =
-          SolvePhotometricStereoOnSlurm(directory.string(), solve, recipe.solve_executor, request);
+          SolvePhotometricStereoOnSlurm(outcome->directory, *recipe.photometric_stereo, recipe.solve_executor, request);
       if (!submitted.report) {
         // The daemon is stopping: the run goes back to the queue, and the next start follows the same job.
         outcome->capture.status = CaptureStatus::kAborted;
         outcome->capture.reason = "stopped while Slurm job " + submitted.job_id + " solves; followed again at the next start";
         return;
       }
-      finish(*submitted.report);
+      report = *submitted.report;
     } else {
-      solve.progress = request.solve_progress;
-      writing("ps", [&] {
-        outcome->photometric_stereo =
-            SolvePhotometricStereoRun(directory.string(), solve, (directory / "results" / "ps").string());
-      });
-      finish(ReportSolveStage(*outcome->photometric_stereo));
+      try {
+        report = stage->Run(context, outcome);
+      } catch (const ResultsWriteError& e) {
+        // The frames are stored, so only the solve is repeated.
+        throw std::runtime_error(std::string(e.what()) + "; the captured frames are intact: `photorig " + stage->command() +
+                                 " --run " + outcome->directory + "` solves again");
+      }
     }
-  }
-  if (recipe.light_calibration && start("light_calibration")) {
-    const auto started = std::chrono::steady_clock::now();
-    config::LightCalibrationRequest calibration = *recipe.light_calibration;
-    const fs::path results = fresh_results("lights");
-    calibration.base_rig = rig.path;
-    if (calibration.out_rig.empty()) calibration.out_rig = (results / "rig.yaml").string();
-    outcome->light_calibration =
-        CalibrateLights(LoadLightCalibrationInputs(directory.string()), calibration, results.string());
-    finish(ReportSolveStage(*outcome->light_calibration, directory.string(), MillisecondsSince(started)));
-  }
-  if (recipe.tomography && start("tomography")) {
-    config::TomographyRequest solve = *recipe.tomography;
-    solve.progress = request.solve_progress;
-    const TomographyInput input = LoadTomographyRun(directory.string());
-    outcome->tomography = SolveTomography(input, solve);
-    writing("tomography", [&] { WriteTomographyResults(input, *outcome->tomography, (directory / "results" / "tomography").string()); });
-    finish(ReportSolveStage(*outcome->tomography));
-  }
-  if (recipe.svbrdf && start("svbrdf")) {
-    config::SvbrdfRequest solve = *recipe.svbrdf;
-    solve.progress = request.solve_progress;
-    writing("svbrdf", [&] {
-      outcome->svbrdf =
-          SolveSvbrdfAndWrite(LoadRunStack(directory.string()), solve, (directory / "results" / "svbrdf").string());
-    });
-    finish(ReportSolveStage(*outcome->svbrdf));
-  }
-  if (recipe.brdf && start("brdf")) {
-    BrdfRequest solve = *recipe.brdf;
-    solve.progress = request.solve_progress;
-    writing("brdf", [&] {
-      outcome->brdf = SolveBrdfAndWrite(directory.string(), solve, (directory / "results" / "brdf").string());
-    });
-    finish(ReportSolveStage(*outcome->brdf));
+    spdlog::info("solve {}: {}{}{}", report.stage, report.termination, report.message.empty() ? "" : ": ", report.message);
+    if (request.on_solve_finished) request.on_solve_finished(report);
+    outcome->solve_stages.push_back(std::move(report));
   }
 }
 
@@ -179,12 +117,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   header.run_id = fs::path(outcome.directory).filename().string();
   header.recipe_path = recipe.path;
   header.recipe_name = recipe.name;
-  for (const auto& [stage, present] :
-       {std::pair{"photometric_stereo", recipe.photometric_stereo.has_value()},
-        std::pair{"light_calibration", recipe.light_calibration.has_value()},
-        std::pair{"tomography", recipe.tomography.has_value()}, std::pair{"svbrdf", recipe.svbrdf.has_value()},
-        std::pair{"brdf", recipe.brdf.has_value()}})
-    if (present) header.solve_stages.push_back(stage);
+  for (const std::unique_ptr<SolveStage>& stage : StagesOf(recipe)) header.solve_stages.push_back(stage->name());
   header.sample_name = recipe.sample_name;
   std::unique_ptr<RunWriter> writer_storage;
   if (request.resume) {

@@ -50,9 +50,17 @@ std::string PhotorigForTasks(const std::string& configured) {
 }
 
 std::vector<std::string> SolveArguments(const config::PhotometricStereoRequest& request) {
-  return {"ps",           "--method",     request.method,
-          "--derivative", request.derivative, "--integrator", request.integrator,
-          "--shadow-sigma", Number(request.shadow_threshold_sigma), "--max-condition",
+  // The task's command line: the request's values written back as the names the CLI parses.
+  return {"ps",
+          "--method",
+          solvers::ps::MethodName(request.method),
+          "--derivative",
+          solvers::core::NameOf(solvers::ps::kBlinnPhongDerivativeNames, request.derivative),
+          "--integrator",
+          config::IntegratorChoiceName(request.integrator),
+          "--shadow-sigma",
+          Number(request.shadow_threshold_sigma),
+          "--max-condition",
           Number(request.max_condition_number)};
 }
 

@@ -157,20 +157,6 @@ bool Poisson(const Gradients& g, cv::Mat* depth, std::string* message) {
 
 }  // namespace
 
-const char* IntegratorName(Integrator integrator) {
-  return integrator == Integrator::kPoisson ? "poisson" : "frankot-chellappa";
-}
-
-bool ParseIntegrator(const std::string& name, Integrator* integrator) {
-  for (Integrator i : {Integrator::kPoisson, Integrator::kFrankotChellappa}) {
-    if (name == IntegratorName(i)) {
-      *integrator = i;
-      return true;
-    }
-  }
-  return false;
-}
-
 bool IntegrationOptions::IsValid(std::string* why) const {
   if (!(pixel_pitch > 0.0)) {
     if (why) *why = "pixel_pitch must be > 0";

@@ -5,25 +5,17 @@
 
 namespace photorig::solvers::ps {
 
-const char* MethodName(Method method) {
-  switch (method) {
-    case Method::kL2: return "l2";
-    case Method::kLambertian: return "lambertian";
-    case Method::kRobust: return "robust";
-    case Method::kBlinnPhong: return "blinn-phong";
-    case Method::kAuto: return "auto";
+void UseDerivative(BlinnPhongDerivative derivative, BlinnPhongOptions* options) {
+  using autodiff::DerivativeMethod;
+  options->fitter = derivative == BlinnPhongDerivative::kLanes ? BlinnPhongOptions::Fitter::kLanes
+                                                                : BlinnPhongOptions::Fitter::kPerPixel;
+  switch (derivative) {
+    case BlinnPhongDerivative::kLanes: break;
+    case BlinnPhongDerivative::kForward: options->derivative = DerivativeMethod::kForward; break;
+    case BlinnPhongDerivative::kReverse: options->derivative = DerivativeMethod::kReverse; break;
+    case BlinnPhongDerivative::kSymbolic: options->derivative = DerivativeMethod::kSymbolic; break;
+    case BlinnPhongDerivative::kCentralDifference: options->derivative = DerivativeMethod::kCentralDifference; break;
   }
-  return "unknown";
-}
-
-bool ParseMethod(const std::string& name, Method* method) {
-  for (Method m : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
-    if (name == MethodName(m)) {
-      *method = m;
-      return true;
-    }
-  }
-  return false;
 }
 
 bool RobustOptions::IsValid(std::string* why) const {

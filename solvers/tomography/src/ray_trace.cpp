@@ -6,16 +6,6 @@
 
 namespace photorig::solvers::tomography {
 
-std::optional<Interpolation> ParseInterpolation(std::string_view name) {
-  if (name == "siddon") return Interpolation::kSiddon;
-  if (name == "joseph") return Interpolation::kJoseph;
-  return std::nullopt;
-}
-
-const char* InterpolationName(Interpolation interpolation) {
-  return interpolation == Interpolation::kSiddon ? "siddon" : "joseph";
-}
-
 namespace {
 
 constexpr double kParallelEps = 1e-12;

@@ -10,24 +10,6 @@
 
 namespace photorig::solvers::tomography {
 
-std::optional<Method> ParseMethod(std::string_view name) {
-  if (name == "art") return Method::kArt;
-  if (name == "sirt") return Method::kSirt;
-  if (name == "cgls") return Method::kCgls;
-  if (name == "sart") return Method::kSart;
-  return std::nullopt;
-}
-
-const char* MethodName(Method method) {
-  switch (method) {
-    case Method::kArt: return "art";
-    case Method::kSirt: return "sirt";
-    case Method::kCgls: return "cgls";
-    case Method::kSart: return "sart";
-  }
-  return "?";
-}
-
 const char* StopReasonName(StopReason reason) {
   switch (reason) {
     case StopReason::kNone: return "none";

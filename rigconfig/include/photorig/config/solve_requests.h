@@ -6,16 +6,20 @@
 #include "photorig/config/yaml_node.h"
 #include "photorig/solvers/lighting/sphere.h"
 #include "photorig/solvers/brdf/fit.h"
+#include "photorig/solvers/ps/integration.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
+#include "photorig/solvers/tomography/reconstruct.h"
 
 #include <array>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <vector>
 
 namespace photorig::config {
 
 struct PhotometricStereoRequest {
-  std::string method = "auto";          // l2 | lambertian | robust | blinn-phong | auto
+  solvers::ps::Method method = solvers::ps::Method::kAuto;
   // Samples within this many read-noise sigmas of black (and within 1 DN) are
   // shadows; the read noise comes from dark frames, or is estimated without them.
   double shadow_threshold_sigma = 3.0;
@@ -23,20 +27,23 @@ struct PhotometricStereoRequest {
   // Blinn-Phong fit: lanes (closed-form derivatives, sixteen pixels per SIMD
   // pass in float) | forward | reverse | symbolic | central-difference (one pixel at a
   // time, Jacobians by that method).
-  std::string derivative = "lanes";
-  std::string integrator = "poisson";   // depth from normals: poisson | frankot-chellappa | none
+  solvers::ps::BlinnPhongDerivative derivative = solvers::ps::BlinnPhongDerivative::kLanes;
+  // Depth from the normals by this integrator; nullopt: none (normals only).
+  std::optional<solvers::ps::Integrator> integrator = solvers::ps::Integrator::kPoisson;
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
   solvers::core::ProgressCallback progress;
+
+  bool IsValid(std::string* why) const;
 };
 
 // Throws ConfigError naming file:line:column for unknown keys or values.
 PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node);
-// Throws std::invalid_argument naming the field when a value is not allowed.
-void ValidatePhotometricStereoRequest(const PhotometricStereoRequest& request);
 
-// "lanes" (the lane fitter) or an autodiff method name (the per-pixel
-// reference fit with that method) into `options`; false for another name.
-bool ParseDerivative(const std::string& name, solvers::ps::BlinnPhongOptions* options);
+// The integrator as requests name it: an IntegratorName, or "none".
+inline constexpr const char* kNoIntegrator = "none";
+std::optional<std::optional<solvers::ps::Integrator>> ParseIntegratorChoice(std::string_view name);
+const char* IntegratorChoiceName(const std::optional<solvers::ps::Integrator>& integrator);
+std::vector<std::string> IntegratorChoices();  // poisson, frankot-chellappa, none
 
 struct LightCalibrationRequest {
   // How the sphere is found, in this order of preference: a given circle, a
@@ -63,11 +70,12 @@ LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node);
 struct TomographyRequest {
   // sirt (default: the docs' choice for a scan of many views, stopped by the
   // discrepancy rule) | art | cgls | sart.
-  std::string method = "sirt";
+  solvers::tomography::Method method = solvers::tomography::Method::kSirt;
   // SART's total-variation regularisation (docs/tomography.md): for samples
   // known to be piecewise constant. Off by default: the data do not say so.
   bool total_variation = false;
-  std::string projector = "joseph";  // joseph (default: the lower error) | siddon
+  // joseph (default: the lower error) | siddon
+  solvers::tomography::Interpolation projector = solvers::tomography::Interpolation::kJoseph;
   int max_iterations = 300;
   // tau of the discrepancy rule. Default 1.2, not Morozov's 1: a scan's
   // residual keeps the model error of the voxel grid (pixels integrate the
@@ -121,6 +129,7 @@ struct BrdfRequest {
   // The radiometric scale from the run's reference-target frames; false: from
   // the camera's stated response.
   bool calibrate_with_target = true;
+  static constexpr solvers::core::NameTable<bool, 2> kCalibrationNames = {{{true, "reference"}, {false, "camera"}}};
   // Not from YAML: whoever runs the solve listens here.
   solvers::core::ProgressCallback progress;
 };

@@ -3,6 +3,8 @@
 // error names file:line:column and the dotted key at fault, e.g.
 //   config/rigs/sim-dome.yaml:14:18: lights.leds[3].direction: expected 3 numbers, got 2
 
+#include "photorig/solvers/core/names.h"
+
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Core>
@@ -84,6 +86,16 @@ class YamlNode {
   double AsDoubleIn(double min, double max) const;
   double DoubleIn(const std::string& child, double fallback, double min, double max) const;
 
+  // The value the text of `child` names in `table`, or `fallback` when the key
+  // is absent. Other text fails naming the names allowed.
+  template <typename Enum, std::size_t N>
+  Enum Choice(const std::string& child, const solvers::core::NameTable<Enum, N>& table, Enum fallback) const {
+    const std::optional<YamlNode> node = Find(child);
+    if (!node) return fallback;
+    const std::string name = node->AsString();
+    if (const std::optional<Enum> value = solvers::core::ParseName(table, name)) return *value;
+    node->Fail("'" + name + "' is no " + child + " (expected " + solvers::core::NamesInProse(table) + ")");
+  }
   [[noreturn]] void Fail(const std::string& message) const;
 
  private:

@@ -29,6 +29,7 @@
 
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/brdf/samples.h"
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
@@ -43,6 +44,8 @@ struct BrdfMeasurementOptions {
     kReferenceTarget,  // K from the run's reference-target frames (default)
     kCameraResponse,   // K = the camera's stated dn_per_radiance_per_us, no target needed
   };
+  static constexpr solvers::core::NameTable<Calibration, 2> kCalibrationNames = {
+      {{Calibration::kReferenceTarget, "reference_target"}, {Calibration::kCameraResponse, "camera_response"}}};
   Calibration calibration = Calibration::kReferenceTarget;
   // Side of the central block of pixels averaged into a sample. 8 stays on a
   // 12 mm sample seen through 0.5 mm pixels up to a camera arm at 80 deg.
@@ -85,7 +88,7 @@ struct BrdfMeasurement : solvers::core::Summary {
   int repeat_dof = 0;
 
   // The radiometric scale.
-  std::string calibration;  // "reference_target" | "camera_response"
+  BrdfMeasurementOptions::Calibration calibration = BrdfMeasurementOptions::Calibration::kReferenceTarget;
   double dn_per_radiance_per_us = 0.0;  // K as applied (with E: the lamp's stated irradiance)
   double calibration_relative_sigma = 0.0;  // shared by every sample (0: not known)
   double reference_albedo = 0.0;

@@ -31,8 +31,6 @@
 namespace photorig::daemon {
 
 using solvers::color::DemosaicMethod;  // bilinear (the default) or edge-aware: photorig/solvers/color/apply.h
-const char* DemosaicMethodName(DemosaicMethod method);  // "bilinear" | "edge-aware"
-std::optional<DemosaicMethod> ParseDemosaicMethod(const std::string& name);
 
 // One-channel raw (CV_16U or CV_8U) -> (R, G, B) of the same depth, through
 // solvers::color::Demosaic. Throws std::invalid_argument with its message for an

@@ -10,6 +10,7 @@
 
 #include "photorig/config/recipe.h"
 #include "photorig/config/solve_requests.h"
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/lighting/mirror_sphere.h"
 
 #include <Eigen/Core>
@@ -33,11 +34,20 @@ struct LightCalibrationInputs {
 // nominal directions and pixel pitch from the manifest.
 LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directory);
 
+// How the sphere was located (kNone: not yet, or not at all).
+enum class SphereSource { kNone, kCircle, kSilhouette, kHighlights };
+inline constexpr solvers::core::NameTable<SphereSource, 4> kSphereSourceNames = {
+    {{SphereSource::kNone, "none"},
+     {SphereSource::kCircle, "circle"},
+     {SphereSource::kSilhouette, "silhouette"},
+     {SphereSource::kHighlights, "highlights"}}};
+inline const char* SphereSourceName(SphereSource source) { return solvers::core::NameOf(kSphereSourceNames, source); }
+
 struct LightCalibrationSummary {
   bool success = false;  // every light usable and all outputs written
   std::string message;
   solvers::lighting::Circle circle;
-  std::string sphere_source;  // "circle" | "silhouette" | "highlights"
+  SphereSource sphere_source = SphereSource::kNone;
   double sphere_fit_rms_px = 0.0;
   int lights = 0;
   int unusable = 0;

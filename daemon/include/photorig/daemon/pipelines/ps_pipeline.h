@@ -88,7 +88,7 @@ solvers::ps::PhotometricStereoOptions MakeSolverOptions(const config::Photometri
 
 // The depth integrated from the solved normals.
 struct PhotometricStereoDepth {
-  std::string integrator;          // the request's integrator name
+  solvers::ps::Integrator integrator = solvers::ps::Integrator::kPoisson;
   solvers::ps::IntegrationSummary summary;
   double pixel_pitch = 1.0;        // depth units per pixel
   // RMS of depth - true height after removing their mean difference (depth is
@@ -105,7 +105,7 @@ struct PhotometricStereoResult {
   solvers::ps::SolverSummary summary;       // method, termination, message, pixel counts, noise model, timings
   // Measured on the output, so only when the solution is usable:
   std::optional<double> mean_confidence;     // over solved pixels
-  std::optional<PhotometricStereoDepth> depth;   // unless the integrator is "none"
+  std::optional<PhotometricStereoDepth> depth;   // unless the request asked for no integrator
   std::optional<solvers::ps::AngularErrorStats> normals_vs_truth;  // when the source has ground-truth normals
   std::optional<double> mean_relative_albedo_error;      // ... and albedo; over solved pixels
   // Colour: where the numbers came from, and CIEDE2000 of the albedo against

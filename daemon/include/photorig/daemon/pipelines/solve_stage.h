@@ -1,25 +1,42 @@
 #pragma once
-// A solve stage's outcome in the daemon's words: what the run record, its
-// events, `photorig watch` and a Slurm task's follow-up report.
+// A run's solve stages behind one interface: each solves from the stored
+// frames, keeps its result and reports it in the daemon's words (the run
+// record, its events, `photorig watch`, a Slurm task's follow-up).
 
 #include "photorig/daemon/pipelines/brdf_solve.h"
 #include "photorig/daemon/pipelines/light_calibration.h"
 #include "photorig/daemon/pipelines/ps_pipeline.h"
 #include "photorig/daemon/pipelines/svbrdf_pipeline.h"
 #include "photorig/daemon/pipelines/tomography_pipeline.h"
+#include "photorig/config/recipe.h"
+#include "photorig/solvers/core/names.h"
+#include "photorig/solvers/core/progress.h"
 
 #include <nlohmann/json.hpp>
 
+#include <memory>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace photorig::daemon {
+
+// The solve stages a recipe may end with, by their recipe keys.
+enum class SolveStageKind { kPhotometricStereo, kLightCalibration, kTomography, kSvbrdf, kBrdf };
+inline constexpr solvers::core::NameTable<SolveStageKind, 5> kSolveStageNames = {
+    {{SolveStageKind::kPhotometricStereo, "photometric_stereo"},
+     {SolveStageKind::kLightCalibration, "light_calibration"},
+     {SolveStageKind::kTomography, "tomography"},
+     {SolveStageKind::kSvbrdf, "svbrdf"},
+     {SolveStageKind::kBrdf, "brdf"}}};
+inline const char* SolveStageName(SolveStageKind kind) { return solvers::core::NameOf(kSolveStageNames, kind); }
 
 // What one solve stage of a run produced, in the words the daemon's run
 // record, its events and `photorig watch` use.
 struct SolveStageReport {
-  std::string stage;        // the recipe's key: "photometric_stereo" | "light_calibration" | "tomography"
+  std::string stage;        // SolveStageName
   bool usable = false;      // the stage's result can be used (PS: IsSolutionUsable; lights: success)
-  std::string termination;  // solvers::core::TerminationName for PS; "success" | "failure" for light calibration
+  std::string termination;  // solvers::core::TerminationName; "success" | "failure" for light calibration
   std::string message;
   std::string results;      // the stage's output folder, relative to the run directory: "results/ps"
   nlohmann::json figures;   // key figures: pixels solved, lights, errors against ground truth, ...
@@ -28,15 +45,41 @@ struct SolveStageReport {
   nlohmann::json ToJson() const;
 };
 
-SolveStageReport ReportSolveStage(const PhotometricStereoResult& result);
-// The same from a stored report (report.json, ToJson's fields): a solve that
-// ran in another process, e.g. a Slurm task (service/internal/slurm_solve.h).
+// A photometric-stereo stage's report from its stored report.json (ToJson's
+// fields): a solve that ran in another process, e.g. a Slurm task
+// (service/internal/slurm_solve.h).
 SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& report, bool usable);
-SolveStageReport ReportSolveStage(const LightCalibrationSummary& summary, const std::string& run_directory,
-                                  double total_ms);
-// Usable only when trusted (TomographyResult::trusted).
-SolveStageReport ReportSolveStage(const TomographyResult& result);
-SolveStageReport ReportSolveStage(const SvbrdfResult& result);
-SolveStageReport ReportSolveStage(const BrdfSolveResult& result);
+
+// The results of a run's solve stages, each present once its stage has run.
+struct SolveResults {
+  std::optional<PhotometricStereoResult> photometric_stereo;  // stored as results/ps/report.json
+  std::optional<LightCalibrationSummary> light_calibration;   // stored in results/lights
+  std::optional<TomographyResult> tomography;                 // stored in results/tomography
+  std::optional<SvbrdfResult> svbrdf;                         // stored in results/svbrdf
+  std::optional<BrdfSolveResult> brdf;                        // stored in results/brdf
+};
+
+// What a stage reads besides its request: the run's stored frames.
+struct StageContext {
+  std::string run_directory;
+  std::string rig_path;                      // the run's rig (light calibration copies it)
+  solvers::core::ProgressCallback progress;  // the solver's progress, for stages that report it
+};
+
+// One solve stage of a recipe: solves from the run's stored frames into
+// results/<folder>/ and keeps its result. Run throws ResultsWriteError when
+// the results cannot be written; a solver's failure is in the report.
+class SolveStage {
+ public:
+  virtual ~SolveStage() = default;
+  virtual SolveStageKind kind() const = 0;
+  const char* name() const { return SolveStageName(kind()); }
+  // `photorig solve <command> --run DIR` repeats the stage from the frames.
+  virtual const char* command() const = 0;
+  virtual SolveStageReport Run(const StageContext& context, SolveResults* results) const = 0;
+};
+
+// The stages `recipe` asks for, in the order they run.
+std::vector<std::unique_ptr<SolveStage>> StagesOf(const config::Recipe& recipe);
 
 }  // namespace photorig::daemon

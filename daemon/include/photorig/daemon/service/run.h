@@ -16,18 +16,14 @@
 
 namespace photorig::daemon {
 
-struct RunOutcome {
+// A run: its capture, then the results of its solve stages (SolveResults).
+struct RunOutcome : SolveResults {
   std::string directory;
   RecoveryReport recovery;  // when resumed
   CaptureReport capture;
   // An adaptive pose plan's passes after the coarse one, as planned (also in
   // the run directory's adaptive_passes.json); empty without one.
   std::vector<AdaptivePassReport> adaptive_passes;
-  std::optional<PhotometricStereoResult> photometric_stereo;  // stored as results/ps/report.json
-  std::optional<LightCalibrationSummary> light_calibration;
-  std::optional<TomographyResult> tomography;  // stored in results/tomography
-  std::optional<SvbrdfResult> svbrdf;          // stored in results/svbrdf
-  std::optional<BrdfSolveResult> brdf;         // stored in results/brdf
   std::vector<SolveStageReport> solve_stages;  // in the order they ran
 };
 

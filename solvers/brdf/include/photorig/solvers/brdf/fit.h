@@ -22,6 +22,7 @@
 
 #include "photorig/solvers/brdf/models.h"
 #include "photorig/solvers/brdf/samples.h"
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/core/progress.h"
 #include "photorig/solvers/core/summary.h"
 
@@ -35,6 +36,8 @@
 namespace photorig::solvers::brdf {
 
 enum class FitLoss { kWeighted, kLog };
+inline constexpr core::NameTable<FitLoss, 2> kFitLossNames = {{{FitLoss::kWeighted, "weighted"}, {FitLoss::kLog, "log"}}};
+inline const char* FitLossName(FitLoss loss) { return core::NameOf(kFitLossNames, loss); }
 
 struct FitOptions {
   FitLoss loss = FitLoss::kWeighted;  // kWeighted needs sigma > 0 on every sample

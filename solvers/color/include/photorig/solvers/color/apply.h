@@ -6,6 +6,7 @@
 
 #include "photorig/solvers/color/model.h"
 
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/core/summary.h"
 
 #include <opencv2/core.hpp>
@@ -43,6 +44,9 @@ enum class DemosaicMethod {
   // is not linear in the raw values.
   kEdgeAware,
 };
+inline constexpr core::NameTable<DemosaicMethod, 2> kDemosaicMethodNames = {
+    {{DemosaicMethod::kBilinear, "bilinear"}, {DemosaicMethod::kEdgeAware, "edge-aware"}}};
+inline const char* DemosaicMethodName(DemosaicMethod method) { return core::NameOf(kDemosaicMethodNames, method); }
 
 // A single-chip sensor's raw Bayer mosaic (one channel, 8/16-bit) -> B, G, R of
 // the same depth. `pattern` names the top-left 2 x 2 filter block: RGGB, BGGR,

@@ -13,17 +13,22 @@
 // Each connected region's depth is defined up to a constant: both methods put
 // its mean at 0.
 
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/core/summary.h"
 
 #include <opencv2/core.hpp>
 
+#include <optional>
 #include <string>
+#include <string_view>
 
 namespace photorig::solvers::ps {
 
 enum class Integrator { kFrankotChellappa, kPoisson };
-const char* IntegratorName(Integrator integrator);
-bool ParseIntegrator(const std::string& name, Integrator* integrator);  // "frankot-chellappa", "poisson"
+inline constexpr core::NameTable<Integrator, 2> kIntegratorNames = {
+    {{Integrator::kPoisson, "poisson"}, {Integrator::kFrankotChellappa, "frankot-chellappa"}}};
+inline const char* IntegratorName(Integrator integrator) { return core::NameOf(kIntegratorNames, integrator); }
+inline std::optional<Integrator> ParseIntegrator(std::string_view name) { return core::ParseName(kIntegratorNames, name); }
 
 struct IntegrationOptions {
   Integrator integrator = Integrator::kPoisson;

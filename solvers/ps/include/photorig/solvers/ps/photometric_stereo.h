@@ -33,15 +33,23 @@
 #include "photorig/solvers/ps/lambertian.h"
 #include "photorig/solvers/ps/stack.h"
 #include "photorig/solvers/ps/summary.h"
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/core/progress.h"
 
+#include <optional>
 #include <string>
+#include <string_view>
 
 namespace photorig::solvers::ps {
 
 enum class Method { kL2, kLambertian, kRobust, kBlinnPhong, kAuto };
-const char* MethodName(Method method);
-bool ParseMethod(const std::string& name, Method* method);  // "l2", "lambertian", "robust", "blinn-phong", "auto"
+inline constexpr core::NameTable<Method, 5> kMethodNames = {{{Method::kL2, "l2"},
+                                                             {Method::kLambertian, "lambertian"},
+                                                             {Method::kRobust, "robust"},
+                                                             {Method::kBlinnPhong, "blinn-phong"},
+                                                             {Method::kAuto, "auto"}}};
+inline const char* MethodName(Method method) { return core::NameOf(kMethodNames, method); }
+inline std::optional<Method> ParseMethod(std::string_view name) { return core::ParseName(kMethodNames, name); }
 
 struct RobustOptions {
   enum class Loss {
@@ -82,6 +90,18 @@ struct BlinnPhongOptions {
   double max_exponent = 2000.0;  // narrower lobes fall between the lights of any practical dome
   bool IsValid(std::string* why) const;
 };
+
+// How the Blinn-Phong fit gets its Jacobians, as requests name it: the lane
+// fitter (closed form), or one pixel at a time by an autodiff method.
+enum class BlinnPhongDerivative { kLanes, kForward, kReverse, kSymbolic, kCentralDifference };
+inline constexpr core::NameTable<BlinnPhongDerivative, 5> kBlinnPhongDerivativeNames = {
+    {{BlinnPhongDerivative::kLanes, "lanes"},
+     {BlinnPhongDerivative::kForward, "forward"},
+     {BlinnPhongDerivative::kReverse, "reverse"},
+     {BlinnPhongDerivative::kSymbolic, "symbolic"},
+     {BlinnPhongDerivative::kCentralDifference, "central-difference"}}};
+// Sets options->fitter (and options->derivative for the per-pixel fit).
+void UseDerivative(BlinnPhongDerivative derivative, BlinnPhongOptions* options);
 
 struct ModelSelectionOptions {
   // A fit is adequate when its chi-square statistic is below this quantile of

@@ -13,6 +13,7 @@
 //            1(3)). Smoother rows and fewer aliasing artefacts; the weights
 //            also sum to the chord inside the grid, up to its edge layers.
 
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/tomography/volume_grid.h"
 
 #include <Eigen/Core>
@@ -25,9 +26,14 @@
 namespace photorig::solvers::tomography {
 
 enum class Interpolation { kSiddon, kJoseph };
-
-std::optional<Interpolation> ParseInterpolation(std::string_view name);  // "siddon", "joseph"
-const char* InterpolationName(Interpolation interpolation);
+inline constexpr core::NameTable<Interpolation, 2> kInterpolationNames = {
+    {{Interpolation::kJoseph, "joseph"}, {Interpolation::kSiddon, "siddon"}}};
+inline std::optional<Interpolation> ParseInterpolation(std::string_view name) {
+  return core::ParseName(kInterpolationNames, name);
+}
+inline const char* InterpolationName(Interpolation interpolation) {
+  return core::NameOf(kInterpolationNames, interpolation);
+}
 
 struct RayWeight {
   std::int32_t voxel;  // VolumeGrid::Index

@@ -50,6 +50,7 @@
 //     centre of rotation, bad flats, scatter) -> kNoConvergence with the flag;
 //   * voxels no valid ray reaches: left at 0 and counted.
 
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/core/progress.h"
 #include "photorig/solvers/core/summary.h"
 #include "photorig/solvers/tomography/absorbance.h"
@@ -67,9 +68,10 @@
 namespace photorig::solvers::tomography {
 
 enum class Method { kArt, kSirt, kCgls, kSart };
-
-std::optional<Method> ParseMethod(std::string_view name);  // "art", "sirt", "cgls", "sart"
-const char* MethodName(Method method);
+inline constexpr core::NameTable<Method, 4> kMethodNames = {
+    {{Method::kSirt, "sirt"}, {Method::kArt, "art"}, {Method::kCgls, "cgls"}, {Method::kSart, "sart"}}};
+inline std::optional<Method> ParseMethod(std::string_view name) { return core::ParseName(kMethodNames, name); }
+inline const char* MethodName(Method method) { return core::NameOf(kMethodNames, method); }
 
 enum class StopRule {
   kDiscrepancy,  // stop when the residual reaches the noise level (needs a noise estimate)
