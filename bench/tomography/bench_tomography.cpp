@@ -23,7 +23,7 @@
 
 namespace {
 
-namespace tomo = photorig::tomography;
+namespace tomo = photorig::solvers::tomography;
 
 struct Problem {
   tomo::VolumeGrid grid;

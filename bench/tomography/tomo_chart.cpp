@@ -37,7 +37,7 @@
 #include <random>
 #include <string>
 
-namespace tomo = photorig::tomography;
+namespace tomo = photorig::solvers::tomography;
 
 namespace {
 

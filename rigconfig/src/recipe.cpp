@@ -224,26 +224,25 @@ Recipe::Group ParseGroup(const YamlNode& step, const RigConfig& rig) {
   group.source = step;
   const std::string& kind = keys[0];
   const YamlNode body = step[kind];
-  if (kind == "dark") {
-    group.kind = Kind::kDark;
+  const std::optional<Kind> parsed = solvers::core::ParseName(Recipe::Group::kKindNames, kind);
+  if (!parsed) step.Fail("unknown step '" + kind + "' (expected " + kGroupNames + ")");
+  group.kind = *parsed;
+  if (group.kind == Kind::kDark) {
     body.ExpectKeys({"count", "exposures_us", "repeat"});
     group.count = CountIn(body, "count");
     group.exposures_us = BracketIn(body);
-  } else if (kind == "flat") {
-    group.kind = Kind::kFlat;
+  } else if (group.kind == Kind::kFlat) {
     body.ExpectKeys({"count", "level", "leds", "exposure_us", "repeat"});
     group.count = CountIn(body, "count");
     group.level = LevelIn(body, "level", 1.0);
     group.led_ids = LedIdsIn(body);
     if (auto exposure = body.Find("exposure_us")) group.exposures_us = {ExposureIn(*exposure)};
-  } else if (kind == "each_led") {
-    group.kind = Kind::kEachLed;
+  } else if (group.kind == Kind::kEachLed) {
     body.ExpectKeys({"leds", "level", "exposures_us", "repeat"});
     group.led_ids = LedIdsIn(body);
     group.level = LevelIn(body, "level", 1.0);
     group.exposures_us = BracketIn(body);
-  } else if (kind == "pattern") {
-    group.kind = Kind::kPattern;
+  } else if (group.kind == Kind::kPattern) {
     body.ExpectKeys({"name", "leds", "level", "count", "exposure_us", "repeat"});
     const YamlNode name = body["name"];
     group.name = name.AsString();
@@ -267,21 +266,17 @@ Recipe::Group ParseGroup(const YamlNode& step, const RigConfig& rig) {
         item.Fail("a pattern lists at most " + std::to_string(kMaxPatternLeds) + " LEDs");
     }
     if (group.pattern.empty()) body["leds"].Fail("a pattern lights at least one LED");
-  } else if (kind == "poses") {
-    group.kind = Kind::kPoses;
+  } else if (group.kind == Kind::kPoses) {
     body.ExpectKeys({"list", "grid", "plan", "level", "exposures_us", "count", "repeat"});
     group.level = LevelIn(body, "level", 1.0);
     group.exposures_us = BracketIn(body);
     group.count = CountIn(body, "count");
     group.poses = PosesIn(body, rig, &group);
-  } else if (kind == "reference_target") {
-    group.kind = Kind::kReferenceTarget;
+  } else if (group.kind == Kind::kReferenceTarget) {
     body.ExpectKeys({"level", "exposures_us", "count", "repeat"});
     group.level = LevelIn(body, "level", 1.0);
     group.exposures_us = BracketIn(body);
     group.count = CountIn(body, "count");
-  } else {
-    step.Fail("unknown step '" + kind + "' (expected " + kGroupNames + ")");
   }
   group.repeat = body.Int("repeat", 1);
   if (group.repeat < 1 || group.repeat > 1000) body["repeat"].Fail("must be within [1, 1000]");
@@ -442,7 +437,8 @@ void PoseFrames(const Recipe::Group& group, const std::vector<GonioPose>& poses,
   const bool target = group.kind == Recipe::Group::Kind::kReferenceTarget;
   CaptureStep base;
   base.kind = CaptureStep::Kind::kPose;
-  base.group = target ? "reference_target" : "poses";
+  base.group_kind = group.kind;
+  base.group = solvers::core::NameOf(Recipe::Group::kKindNames, group.kind);
   base.pattern = std::make_shared<const drivers::LightPattern>(
       drivers::LightPattern{std::vector<double>(rig.lights.leds.size(), group.level)});
   base.gain_db = gain_db;
@@ -493,6 +489,12 @@ const char* CaptureStepKindName(CaptureStep::Kind kind) {
     case CaptureStep::Kind::kPose: return "pose";
   }
   return "unknown";
+}
+
+std::optional<Recipe::Group::Kind> GroupKindOfLabel(std::string_view group) {
+  constexpr std::string_view kPatternPrefix = "pattern:";
+  if (group.substr(0, kPatternPrefix.size()) == kPatternPrefix) return Recipe::Group::Kind::kPattern;
+  return solvers::core::ParseName(Recipe::Group::kKindNames, group);
 }
 
 std::optional<CaptureStep::Kind> CaptureStepKindFromName(const std::string& name) {
@@ -574,7 +576,8 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
     base.pattern = std::make_shared<const drivers::LightPattern>(lit);
     switch (group.kind) {
       case Kind::kDark:
-        base.group = "dark";
+        base.group_kind = Kind::kDark;
+        base.group = solvers::core::NameOf(Recipe::Group::kKindNames, Kind::kDark);
         for (double exposure_us : group.exposures_us.empty() ? std::vector<double>{default_exposure_us}
                                                              : group.exposures_us)
           for (int i = 0; i < group.count; ++i)
@@ -582,13 +585,15 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
         break;
       case Kind::kFlat:
         base.kind = CaptureStep::Kind::kFlat;
-        base.group = "flat";
+        base.group_kind = Kind::kFlat;
+        base.group = solvers::core::NameOf(Recipe::Group::kKindNames, Kind::kFlat);
         for (int i : led_indices(group)) lit.levels[i] = group.level;
         base.pattern = std::make_shared<const drivers::LightPattern>(std::move(lit));
         for (int i = 0; i < group.count; ++i) emit(base, "flat", group_exposure_us);
         break;
       case Kind::kPattern: {
         base.kind = CaptureStep::Kind::kPattern;
+        base.group_kind = Kind::kPattern;
         base.group = "pattern:" + group.name;
         for (const auto& [id, level] : group.pattern) lit.levels[led_index(group, id)] = level;
         base.pattern = std::make_shared<const drivers::LightPattern>(std::move(lit));
@@ -597,7 +602,8 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
       }
       case Kind::kEachLed: {
         base.kind = CaptureStep::Kind::kLight;
-        base.group = "each_led";
+        base.group_kind = Kind::kEachLed;
+        base.group = solvers::core::NameOf(Recipe::Group::kKindNames, Kind::kEachLed);
         const bool bracket = !group.exposures_us.empty();
         const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};
         for (int i : led_indices(group)) {

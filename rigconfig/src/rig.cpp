@@ -340,15 +340,13 @@ RigConfig LoadRigConfig(const std::string& path) {
   const YamlNode header = root["rig"];
   header.ExpectKeys({"name", "kind", "description"});
   rig.name = header["name"].AsString();
-  rig.kind = header.String("kind", rig.kind);
-  if (rig.kind != "light_dome" && rig.kind != "gonioreflectometer")
-    header["kind"].Fail("unknown rig kind '" + rig.kind + "' (expected light_dome or gonioreflectometer)");
+  rig.kind = header.Choice("kind", kRigKindNames, rig.kind);
   if (auto motion = root.Find("motion")) {
-    if (rig.kind != "gonioreflectometer") motion->Fail("only a gonioreflectometer rig has motion");
+    if (rig.kind != RigKind::kGonioreflectometer) motion->Fail("only a gonioreflectometer rig has motion");
     rig.motion = ParseMotion(*motion);
     for (const char* axis : {"light_arm", "camera_arm", "sample_rotation"})
       if (!rig.motion->axis(axis)) (*motion)["axes"].Fail(std::string("a gonioreflectometer needs an axis '") + axis + "'");
-  } else if (rig.kind == "gonioreflectometer") {
+  } else if (rig.kind == RigKind::kGonioreflectometer) {
     root.Fail("a gonioreflectometer rig needs a 'motion:' section");
   }
   if (auto target = root.Find("reference_target")) rig.reference_target = ParseReferenceTarget(*target, rig);
@@ -472,9 +470,7 @@ RigConfig LoadRigConfig(const std::string& path) {
 }
 
 SolveExecutorConfig ParseSolveExecutor(const YamlNode& node, SolveExecutorConfig solve) {
-  solve.executor = node.String("executor", solve.executor);
-  if (solve.executor != "local" && solve.executor != "slurm")
-    node["executor"].Fail("expected local or slurm, got '" + solve.executor + "'");
+  solve.executor = node.Choice("executor", kExecutorNames, solve.executor);
   solve.partition = node.String("partition", solve.partition);
   solve.time = node.String("time", solve.time);
   solve.mem = node.String("mem", solve.mem);

@@ -148,7 +148,7 @@ sim::WorldConfig MakeWorldConfig(const RigConfig& rig, const sim::Scene& scene) 
   world.light_faults = rig.sim->light_faults;
   world.scene = scene;
   world.camera = {rig.camera.width, rig.camera.height, rig.camera.pixel_pitch_mm};
-  world.gonioreflectometer = rig.kind == "gonioreflectometer";
+  world.gonioreflectometer = rig.kind == RigKind::kGonioreflectometer;
   if (rig.reference_target && rig.reference_target->pose.sample_changer_deg)
     world.reference_target = sim::ReferenceTarget{rig.reference_target->albedo,
                                                   *rig.reference_target->pose.sample_changer_deg};

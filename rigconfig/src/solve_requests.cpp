@@ -20,6 +20,7 @@ bool PhotometricStereoRequest::IsValid(std::string* why) const {
   };
   if (!(shadow_threshold_sigma >= 0)) return fail("shadow_threshold_sigma must be >= 0");
   if (!(max_condition_number > 1)) return fail("max_condition_number must be > 1");
+  if (!(max_distant_bias_deg > 0) || !(max_distant_bias_deg <= 90)) return fail("max_distant_bias_deg must be within (0, 90]");
   return true;
 }
 
@@ -41,12 +42,15 @@ std::vector<std::string> IntegratorChoices() {
 }
 
 PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
-  node.ExpectKeys({"method", "shadow_threshold_sigma", "max_condition_number", "derivative", "integrator"});
+  node.ExpectKeys({"method", "shadow_threshold_sigma", "max_condition_number", "derivative", "integrator",
+                   "assume_distant", "max_distant_bias_deg"});
   PhotometricStereoRequest request;
   request.method = node.Choice("method", solvers::ps::kMethodNames, request.method);
   request.shadow_threshold_sigma = node.Double("shadow_threshold_sigma", request.shadow_threshold_sigma);
   request.max_condition_number = node.Double("max_condition_number", request.max_condition_number);
   request.derivative = node.Choice("derivative", solvers::ps::kBlinnPhongDerivativeNames, request.derivative);
+  request.assume_distant = node.Bool("assume_distant", request.assume_distant);
+  request.max_distant_bias_deg = node.Double("max_distant_bias_deg", request.max_distant_bias_deg);
   if (auto integrator = node.Find("integrator")) {
     const std::string name = integrator->AsString();
     const auto choice = ParseIntegratorChoice(name);

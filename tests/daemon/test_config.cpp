@@ -398,7 +398,7 @@ TEST(Recipe, SolveExecutorComesFromTheRigUnlessTheRecipeChoosesOne) {
   const config::RigConfig rig = config::LoadRigConfig(dir.Write("rig.yaml", std::string(kRig) + "solve: {partition: lab, time: \"00:10:00\"}\n"));
   const std::string head = "recipe: {name: s, rig: rig.yaml}\ncapture:\n  steps:\n    - dark: {count: 1}\n";
   const config::Recipe listed = config::LoadRecipe(dir.Write("list.yaml", head + "solve:\n  - photometric_stereo: {}\n"), rig);
-  EXPECT_EQ(listed.solve_executor.executor, "local");
+  EXPECT_EQ(listed.solve_executor.executor, config::Executor::kLocal);
   EXPECT_EQ(listed.solve_executor.partition, "lab");
   EXPECT_TRUE(listed.photometric_stereo.has_value());
 
@@ -406,7 +406,7 @@ TEST(Recipe, SolveExecutorComesFromTheRigUnlessTheRecipeChoosesOne) {
       dir.Write("map.yaml", head + "solve:\n  executor: slurm\n  time: \"01:00:00\"\n  stages:\n"
                                    "    - photometric_stereo: {method: robust}\n"),
       rig);
-  EXPECT_EQ(chosen.solve_executor.executor, "slurm");
+  EXPECT_EQ(chosen.solve_executor.executor, config::Executor::kSlurm);
   EXPECT_EQ(chosen.solve_executor.partition, "lab");  // left out: the rig's
   EXPECT_EQ(chosen.solve_executor.time, "01:00:00");
   ASSERT_TRUE(chosen.photometric_stereo.has_value());
@@ -414,7 +414,7 @@ TEST(Recipe, SolveExecutorComesFromTheRigUnlessTheRecipeChoosesOne) {
   const std::string typo = dir.Write("typo.yaml", head + "solve:\n  executor: slurm\n  stage: []\n");
   photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(typo, rig); }, typo, 7, 3, "unknown key 'stage'", "solve.stage");
   const std::string bad = dir.Write("bad.yaml", head + "solve: {executor: mpi}\n");
-  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(bad, rig); }, bad, 5, 19, "expected local or slurm",
+  photorig::testing::ExpectConfigErrorAt([&] { config::LoadRecipe(bad, rig); }, bad, 5, 19, "is no executor (expected local or slurm)",
                                          "solve.executor");
 }
 

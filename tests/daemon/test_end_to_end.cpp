@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -97,6 +98,56 @@ TEST(EndToEnd, NoiseFreeSphereIsAccurateToATenthOfADegree) {
   const auto report = Report(run);
   EXPECT_EQ(report["noise_sigma_dn"], 0.0);
   EXPECT_LT(report["ground_truth"]["mean_angular_error_deg"].get<double>(), 0.1);
+}
+
+// The shipped dome with its 48 LEDs moved to `radius_mm` from the sample,
+// each at its direction: position_mm replaces direction.
+std::string NearDome(double radius_mm) {
+  std::string rig = ReadText(SourceDir() + "/config/rigs/sim-dome.yaml");
+  const std::regex direction(R"(direction: \[ *([-0-9.]+), *([-0-9.]+), *([-0-9.]+)\])");
+  std::string out;
+  auto begin = std::sregex_iterator(rig.begin(), rig.end(), direction);
+  std::size_t last = 0;
+  for (auto it = begin; it != std::sregex_iterator(); ++it) {
+    const std::smatch& m = *it;
+    out += rig.substr(last, m.position() - last);
+    char position[128];
+    std::snprintf(position, sizeof(position), "position_mm: [%.4f, %.4f, %.4f]", radius_mm * std::stod(m[1]),
+                  radius_mm * std::stod(m[2]), radius_mm * std::stod(m[3]));
+    out += position;
+    last = m.position() + m.length();
+  }
+  return out + rig.substr(last);
+}
+
+TEST(EndToEnd, NearLedDomesAreSolvedWithTheNearLightModel) {
+  struct Case {
+    double radius_mm, max_error_deg;
+  };
+  for (const Case& c : {Case{80.0, 0.5}, Case{150.0, 0.4}, Case{400.0, 0.35}}) {
+    TempDir dir;
+    const std::string rig = dir.Write("near-dome.yaml", NearDome(c.radius_mm));
+    const fs::path run = dir.path() / "run";
+    ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + rig + " --out " + run.string(),
+                          dir.path() / "log"),
+              0)
+        << ReadText(dir.path() / "log");
+    const auto report = Report(run);
+    EXPECT_EQ(report["termination"], "success") << c.radius_mm << " mm: " << report["message"];
+    EXPECT_EQ(report["light_model"]["model"], "near");
+    EXPECT_LE(report["light_model"]["rounds"].get<int>(), 8) << c.radius_mm << " mm";
+    EXPECT_LT(report["ground_truth"]["mean_angular_error_deg"].get<double>(), c.max_error_deg) << c.radius_mm << " mm";
+    // The surface is placed at its own depth: the sphere's mean height over its disk is 2/3 of its radius.
+    EXPECT_NEAR(report["light_model"]["depth_offset_mm"].get<double>(), 2.0 / 3.0 * 17.0, 1.0) << c.radius_mm << " mm";
+    if (c.radius_mm != 150.0) continue;
+    // A method that fits one light matrix would be biased: refused, with the bias predicted from the geometry.
+    const fs::path log = dir.path() / "auto.log";
+    EXPECT_EQ(RunPhotorig("solve ps --run " + run.string() + " --method auto --out " + (dir.path() / "auto").string(), log), 1);
+    const std::string said = ReadText(log);
+    EXPECT_NE(said.find("biased by about"), std::string::npos) << said;
+    const auto refused = nlohmann::json::parse(ReadText(dir.path() / "auto/report.json"));
+    EXPECT_GT(refused["light_model"]["predicted_distant_bias_deg"].get<double>(), 2.0);
+  }
 }
 
 TEST(EndToEnd, BadRecipeFailsBeforeCapturingAndNamesTheLine) {

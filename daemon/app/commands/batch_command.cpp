@@ -8,7 +8,9 @@
 #include "../command_output.h"
 #include "../progress_display.h"
 #include "../signals.h"
+#include "photorig/config/solve_requests.h"
 #include "photorig/daemon/service/internal/batch.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <chrono>
 #include <cstdio>
@@ -64,7 +66,7 @@ int ReportStatuses(const BatchManifest& batch, const std::vector<TaskStatus>& st
   nlohmann::json tasks = nlohmann::json::array();
   for (const TaskStatus& status : statuses) tasks.push_back(status.ToJson());
   ResultFields()["batch"] = batch.directory;
-  ResultFields()["executor"] = batch.executor;
+  ResultFields()["executor"] = solvers::core::NameOf(config::kExecutorNames, batch.executor);
   ResultFields()["job_ids"] = batch.job_ids;
   ResultFields()["tasks"] = tasks;
   ResultFields()["counts"] = Counts(statuses);
@@ -131,7 +133,7 @@ int Submit(BatchManifest* batch, const std::vector<int>& indices) {
   std::printf("batch %s: job array %s, %zu tasks\n", batch->directory.c_str(), job_id.c_str(), indices.size());
   std::printf("  follow it with: photorig batch status --batch %s --wait\n", batch->directory.c_str());
   ResultFields()["batch"] = batch->directory;
-  ResultFields()["executor"] = batch->executor;
+  ResultFields()["executor"] = solvers::core::NameOf(config::kExecutorNames, batch->executor);
   ResultFields()["job_id"] = job_id;
   ResultFields()["job_ids"] = batch->job_ids;
   ResultFields()["tasks_submitted"] = indices;
@@ -152,8 +154,8 @@ int ExecuteSolve(const SolveOptions& options) {
       return ReportStatuses(batch, statuses);
     }
     daemon::ClearTaskRecords(batch, indices);
-    if (options.slurm) batch.executor = "slurm";
-    if (options.local > 0) batch.executor = "local";
+    if (options.slurm) batch.executor = config::Executor::kSlurm;
+    if (options.local > 0) batch.executor = config::Executor::kLocal;
     daemon::SaveBatch(batch);
   } else {
     if (options.runs.empty()) return Fail(kExitUsage, "give --runs GLOB|LIST (or --retry-failed --batch DIR)");
@@ -173,10 +175,11 @@ int ExecuteSolve(const SolveOptions& options) {
         options.photorig.empty() ? fs::read_symlink("/proc/self/exe").string() : fs::absolute(options.photorig).string();
     const std::vector<std::string> runs = daemon::ExpandRunArguments(options.runs);
     batch = daemon::CreateBatch(options.batch_dir.empty() ? DefaultBatchDirectory() : options.batch_dir, runs, photorig,
-                                arguments, options.slurm ? "slurm" : "local", options.slurm_options);
+                                arguments, options.slurm ? config::Executor::kSlurm : config::Executor::kLocal,
+                                options.slurm_options);
     for (const daemon::BatchTask& task : batch.tasks) indices.push_back(task.index);
   }
-  if (batch.executor == "slurm") return Submit(&batch, indices);
+  if (batch.executor == config::Executor::kSlurm) return Submit(&batch, indices);
   const int processes = options.local > 0 ? options.local : static_cast<int>(std::thread::hardware_concurrency());
   return RunLocally(batch, indices, std::max(1, processes));
 }

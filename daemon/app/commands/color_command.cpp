@@ -45,7 +45,9 @@ T Known(const std::optional<T>& parsed, const std::string& kind, const std::stri
 }
 
 struct CalibrateOptions {
-  std::string image, dark, sim_camera, rig, illuminant = "D65", chart_roi, bayer, loss = "xyz", out;
+  std::string image, dark, sim_camera, rig, chart_roi, bayer, out;
+  solvers::color::Illuminant illuminant = solvers::color::Illuminant::kD65;
+  solvers::color::FitLoss loss = solvers::color::FitLoss::kXyzLeastSquares;
   std::vector<std::string> models;
   bool no_detect = false;
   double white_level = 0.0, black_level = 0.0;
@@ -143,13 +145,12 @@ int ExecuteCalibrate(CalibrateOptions options) {
   if (options.image.empty() == options.sim_camera.empty()) {
     return Fail(kExitUsage, "give exactly one of --image or --sim-camera");
   }
-  solvers::color::Illuminant illuminant;
+  const solvers::color::Illuminant illuminant = options.illuminant;
   solvers::color::LocateOptions locate;
   solvers::color::CalibrationOptions calibration;
   std::optional<config::RigConfig> rig;
   try {
-    illuminant = Known(solvers::color::ParseIlluminant(options.illuminant), "illuminant", options.illuminant, "D50, D65, A");
-    calibration.loss = Known(solvers::color::ParseFitLoss(options.loss), "fit loss", options.loss, "xyz, ciede2000");
+    calibration.loss = options.loss;
     if (!options.models.empty()) {
       calibration.candidates.clear();
       for (const auto& name : options.models) {
@@ -206,7 +207,7 @@ int ExecuteCalibrate(CalibrateOptions options) {
   nlohmann::json report = solvers::color::CalibrationReport(result.summary, result.patches, names);
   report["image"] = options.image;
   report["dark"] = options.dark;
-  report["illuminant"] = options.illuminant;
+  report["illuminant"] = solvers::color::IlluminantName(illuminant);
   report["chart_location"] = result.located.message;
   if (result.located.location) {
     report["chart_location_method"] = result.located.location->method;
@@ -299,7 +300,7 @@ CommandRunner SetupCalibrate(CLI::App& app) {
   sub->add_option("--sim-camera", options->sim_camera,
                   "render the chart on the simulated rig with this camera (nikon-5100, sigma-sdmerill, canon-5d-mark-ii)");
   sub->add_option("--seed", options->seed, "noise seed for --sim-camera");
-  sub->add_option("--illuminant", options->illuminant, "light on the chart: D50 | D65 | A");
+  AddChoice(sub, "--illuminant", &options->illuminant, solvers::color::kIlluminantNames, "light on the chart");
   sub->add_option("--rig", options->rig,
                   "rig YAML: its camera.color_chart is the fixed chart position (with --sim-camera: the rig's "
                   "sensor, frame and chart placement)")
@@ -312,7 +313,8 @@ CommandRunner SetupCalibrate(CLI::App& app) {
                   "demosaiced before measuring (with --sim-camera: render through this mosaic)");
   sub->add_option("--white-level", options->white_level, "raw value at which pixels clip (default: type maximum)");
   sub->add_option("--black-level", options->black_level, "subtracted when there is no dark frame");
-  sub->add_option("--loss", options->loss, "xyz (least squares) | ciede2000 (refined with Ceres)");
+  AddChoice(sub, "--loss", &options->loss, solvers::color::kFitLossNames,
+            "xyz: least squares; ciede2000: refined with Ceres");
   sub->add_option("--models", options->models, "candidates (default all): linear affine root-poly-2 root-poly-3 poly-2 poly-3")
       ->delimiter(',');
   sub->add_option("--out", options->out, "output directory")->required();

@@ -25,7 +25,8 @@ namespace {
 namespace fs = std::filesystem;
 
 struct Options {
-  std::string run_dir, silhouette, rig, out_rig, out, camera = "orthographic";
+  std::string run_dir, silhouette, rig, out_rig, out;
+  solvers::lighting::CameraModel::Projection camera = solvers::lighting::CameraModel::Projection::kOrthographic;
   std::vector<std::string> images, white_images;
   std::vector<double> circle;
   double fx = 0, fy = 0, cx = 0, cy = 0, radius_mm = 0;
@@ -61,8 +62,8 @@ int Execute(const Options& o) {
     inputs.white_frames.push_back(cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR));
 
   config::LightCalibrationRequest request;
-  if (o.camera == "pinhole") {
-    request.camera.projection = solvers::lighting::CameraModel::Projection::kPinhole;
+  request.camera.projection = o.camera;
+  if (o.camera == solvers::lighting::CameraModel::Projection::kPinhole) {
     request.camera.fx_px = o.fx;
     request.camera.fy_px = o.fy > 0 ? o.fy : o.fx;
     request.camera.cx_px = o.cx;
@@ -101,7 +102,7 @@ CommandRunner Setup(CLI::App& app) {
   lights->add_option("--circle", o->circle, "sphere circle CX CY R in pixels (default: from the highlights)")
       ->expected(3)->delimiter(',')->excludes(silhouette);
   lights->add_option("--radius-mm", o->radius_mm, "sphere radius: fixes the radius when locating it from highlights");
-  lights->add_option("--camera", o->camera, "orthographic | pinhole")->check(CLI::IsMember({"orthographic", "pinhole"}));
+  AddChoice(lights, "--camera", &o->camera, solvers::lighting::CameraModel::kProjectionNames, "camera projection");
   lights->add_option("--fx", o->fx, "pinhole focal length (px)");
   lights->add_option("--fy", o->fy, "pinhole focal length y (px; default fx)");
   lights->add_option("--cx", o->cx, "pinhole principal point x (px)");

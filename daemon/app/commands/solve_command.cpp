@@ -90,6 +90,11 @@ CommandRunner SetupSolve(CLI::App& app) {
   AddChoice(ps, "--derivative", &options->request.derivative, solvers::ps::kBlinnPhongDerivativeNames,
             "Blinn-Phong fit: the lanes' closed form, or per pixel with an autodiff method");
   AddIntegratorOption(ps, &options->request);
+  ps->add_flag("--assume-distant", options->request.assume_distant,
+               "solve a rig with LED positions as if its LEDs were distant (refused beyond --max-distant-bias)");
+  ps->add_option("--max-distant-bias", options->request.max_distant_bias_deg,
+                 "largest predicted bias of the distant model, in degrees, that is solved (default 0.5)")
+      ->check(CLI::Range(1e-3, 90.0));
   ps->add_option("--shadow-sigma", options->request.shadow_threshold_sigma, "shadow threshold in read-noise sigmas (from dark frames, else estimated)")
       ->check(CLI::NonNegativeNumber);
   ps->add_option("--max-condition", options->request.max_condition_number,

@@ -91,6 +91,7 @@ FrameRecord FrameRecordFromJson(const json& j) {
   if (!parsed) throw std::runtime_error("frame " + f.file + " has an unknown kind '" + kind + "'");
   f.kind = *parsed;
   f.group = j.value("group", "");  // absent in runs stored before groups existed
+  f.group_kind = config::GroupKindOfLabel(f.group);
   f.repeat = j.value("repeat", 0);
   f.led = j.at("led").get<int>();
   f.level = j.at("level").get<double>();
@@ -392,6 +393,7 @@ const FrameRecord& RunWriter::WriteFrame(const config::CaptureStep& step, const 
   record.file = "frames/" + step.label + ".png";
   record.kind = step.kind;
   record.group = step.group;
+  record.group_kind = step.group_kind;
   record.repeat = step.repeat;
   record.led = step.led;
   record.level = step.led >= 0 ? step.pattern->levels.at(step.led) : 0.0;

@@ -315,7 +315,7 @@ void SortFrames(Measurement& m, BrdfMeasurement* out) {
       ++out->dark_frames;
       continue;
     }
-    const bool is_target = r.kind == config::CaptureStep::Kind::kReferenceTarget;
+    const bool is_target = r.group_kind == config::Recipe::Group::Kind::kReferenceTarget;
     std::vector<PoseFrames>& list = is_target ? m.target : m.poses;
     if (is_target) {
       ++out->target_frames;

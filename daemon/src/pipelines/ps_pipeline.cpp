@@ -147,7 +147,7 @@ void RequirePhotometricStereoRun(const std::string& run_directory, const RunMani
     // A tomograph's flat fields move the sample out of the beam; a
     // gonioreflectometer's changer only brings in its reference target.
     tomograph = tomograph || (record.pose && record.pose->sample_changer_deg.value_or(0.0) != 0.0 &&
-                              record.kind != config::CaptureStep::Kind::kReferenceTarget);
+                              record.group_kind != config::Recipe::Group::Kind::kReferenceTarget);
   }
   const bool posed = std::any_of(manifest.frames.begin(), manifest.frames.end(),
                                  [](const FrameRecord& record) { return record.pose.has_value(); });
@@ -158,6 +158,19 @@ void RequirePhotometricStereoRun(const std::string& run_directory, const RunMani
   throw std::invalid_argument(run_directory + ": no frame lit by a single LED among its " +
                               std::to_string(manifest.frames.size()) +
                               " frames, and photometric stereo needs one per LED; " + instead);
+}
+
+// The near LEDs of a run whose rig gives every LED's position, one per
+// image: aimed at the origin as a dome's LEDs are mounted, Lambertian
+// emitters (cos^1, as the simulator renders them). Empty when an LED has only
+// a direction.
+std::vector<solvers::ps::NearLight> NearLightsOf(const std::vector<const config::LedConfig*>& leds) {
+  std::vector<Eigen::Vector3d> positions;
+  for (const config::LedConfig* led : leds) {
+    if (!led->position_mm) return {};
+    positions.push_back(*led->position_mm);
+  }
+  return solvers::ps::LightsAimedAtOrigin(positions);
 }
 
 }  // namespace
@@ -243,6 +256,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
     return out;
   };
   std::vector<cv::Mat> darks;
+  std::vector<const config::LedConfig*> stack_leds;  // the LED of each image
   for (const FrameRecord& record : manifest.frames) {
     // Only darks and single-LED frames enter the stack: flats, patterns and
     // gonioreflectometer poses (led -1) light several LEDs or none on their own.
@@ -264,6 +278,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
                                std::to_string(record.led) + " outside the rig's " +
                                std::to_string(manifest.lights.size()) + " LEDs");
     const config::LedConfig& led = manifest.lights[record.led];
+    stack_leds.push_back(&led);
     stack.images.push_back(frame);
     stack.light_directions.push_back(led.direction);
     const double gain = std::pow(10.0, record.gain_db / 20.0);
@@ -272,6 +287,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   }
   input.dark_frames = static_cast<int>(darks.size());
   if (manifest.pixel_pitch_mm > 0.0) input.pixel_pitch = manifest.pixel_pitch_mm;
+  input.near_lights = NearLightsOf(stack_leds);
   // Photon noise in DN^2 per DN of signal: gain / (electrons per DN). All frames
   // of a run share the gain in practice; the first light frame's is used.
   if (manifest.e_per_dn > 0.0) {
@@ -376,6 +392,15 @@ json ToJson(const PhotometricStereoResult& result) {
                  {"samples_rejected", summary.samples_rejected},
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets},
                  {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}, {"total", result.total_ms}}}};
+  const LightModelReport& lights = result.light_model;
+  report["light_model"] = {{"model", lights.near ? "near" : "distant"}};
+  if (lights.near)
+    report["light_model"].update({{"rounds", lights.rounds},
+                                  {"normal_change_deg", lights.normal_change_deg},
+                                  {"depth_offset_mm", lights.depth_offset_mm},
+                                  {"depth_ms", lights.depth_ms}});
+  if (lights.predicted_distant_bias_deg)
+    report["light_model"]["predicted_distant_bias_deg"] = *lights.predicted_distant_bias_deg;
   if (result.capture) report["capture"] = result.capture->ToJson();
   if (result.mean_confidence) report["mean_confidence"] = *result.mean_confidence;
   if (!result.previews.is_null()) report["previews"] = result.previews;
@@ -410,6 +435,54 @@ json ToJson(const PhotometricStereoResult& result) {
   return report;
 }
 
+namespace {
+
+// The normals under the rig's near LEDs when it gives their positions and
+// the method fits per-pixel lights; else with the distant model, refused
+// when the geometry predicts its bias on an object this size above the
+// request's limit (a result a person at the bench would reject).
+solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
+                                        const solvers::ps::PhotometricStereoOptions& options,
+                                        const solvers::ps::PhotometricStack& stack, solvers::ps::NormalMap* map,
+                                        LightModelReport* report) {
+  using solvers::ps::Method;
+  const bool near_method = options.method == Method::kL2 || options.method == Method::kLambertian;
+  if (input.near_lights.empty()) return solvers::ps::SolvePhotometricStereo(options, stack, map);
+  if (near_method && !request.assume_distant) {
+    solvers::ps::NearLightOptions near;
+    near.pixel_pitch_mm = input.pixel_pitch;
+    cv::Mat height_mm;
+    const solvers::ps::NearLightSummary summary =
+        solvers::ps::SolveNearLightPhotometricStereo(options, near, stack, input.near_lights, map, &height_mm);
+    report->near = true;
+    report->rounds = summary.rounds;
+    report->normal_change_deg = summary.normal_change_deg;
+    report->depth_offset_mm = summary.depth_offset_mm;
+    report->depth_ms = summary.depth_ms;
+    return summary;
+  }
+  const int object_pixels = stack.mask.empty() ? stack.width() * stack.height() : cv::countNonZero(stack.mask);
+  const double radius_mm = std::sqrt(object_pixels / 3.14159265358979323846) * input.pixel_pitch;
+  const double bias_deg = solvers::ps::DistantModelBiasDeg(input.near_lights, stack.light_directions, radius_mm);
+  report->predicted_distant_bias_deg = bias_deg;
+  if (bias_deg > request.max_distant_bias_deg) {
+    solvers::ps::SolverSummary refused;
+    refused.method = solvers::ps::MethodName(options.method);
+    refused.light_count = stack.light_count();
+    char why[320];
+    std::snprintf(why, sizeof(why),
+                  "the rig's LEDs are near: solved as distant lights, an object this size (radius %.1f mm) would "
+                  "be biased by about %.2f deg, above max_distant_bias_deg %.2f; solve with method lambertian or l2 "
+                  "(the near-light model) or raise --max-distant-bias",
+                  radius_mm, bias_deg, request.max_distant_bias_deg);
+    refused.End(solvers::core::Termination::kFailure, why);
+    return refused;
+  }
+  return solvers::ps::SolvePhotometricStereo(options, stack, map);
+}
+
+}  // namespace
+
 PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
                                       const std::string& output_directory, const std::function<void()>& before_commit) {
   const auto start = std::chrono::steady_clock::now();
@@ -431,7 +504,7 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   const solvers::ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
 
   solvers::ps::NormalMap map;
-  result.summary = solvers::ps::SolvePhotometricStereo(options, stack, &map);
+  result.summary = SolveNormals(input, request, options, stack, &map, &result.light_model);
   result.source = input.source;
   result.capture = input.capture;
   result.dark_frames = input.dark_frames;

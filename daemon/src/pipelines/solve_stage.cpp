@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <utility>
 
 namespace photorig::daemon {
@@ -133,118 +134,102 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
+fs::path ResultsOf(const StageContext& context, const char* name) {
+  return fs::path(context.run_directory) / "results" / name;
+}
+
 // A stage's results folder, for stages that write into it as they go rather
 // than replacing it whole as they end (results_folder.h): emptied first, so
 // it holds only what this solve wrote (a run resumed after a crash mid-solve
 // solves again from the frames).
 fs::path FreshResults(const StageContext& context, const char* name) {
-  const fs::path results = fs::path(context.run_directory) / "results" / name;
+  const fs::path results = ResultsOf(context, name);
   fs::remove_all(results);
   return results;
 }
 
-fs::path ResultsOf(const StageContext& context, const char* name) {
-  return fs::path(context.run_directory) / "results" / name;
+// The request a stage hands its solver: the recipe's, listening to the run's progress.
+template <typename Request>
+Request WithProgress(Request request, const StageContext& context) {
+  request.progress = context.progress;
+  return request;
 }
 
-class PhotometricStereoStage final : public SolveStage {
+SolveStageReport RunPhotometricStereo(const config::PhotometricStereoRequest& request, const StageContext& context,
+                                      SolveResults* results) {
+  const PhotometricStereoResult& result = results->photometric_stereo.emplace(SolvePhotometricStereoRun(
+      context.run_directory, WithProgress(request, context), ResultsOf(context, "ps").string()));
+  return ReportPhotometricStereoStage(ToJson(result), result.usable());
+}
+
+SolveStageReport RunLightCalibration(config::LightCalibrationRequest calibration, const StageContext& context,
+                                     SolveResults* results) {
+  const auto started = std::chrono::steady_clock::now();
+  const fs::path folder = FreshResults(context, "lights");
+  calibration.base_rig = context.rig_path;
+  if (calibration.out_rig.empty()) calibration.out_rig = (folder / "rig.yaml").string();
+  const LightCalibrationSummary& summary = results->light_calibration.emplace(
+      CalibrateLights(LoadLightCalibrationInputs(context.run_directory), calibration, folder.string()));
+  return Report(summary, context.run_directory, MillisecondsSince(started));
+}
+
+SolveStageReport RunTomography(const config::TomographyRequest& request, const StageContext& context,
+                               SolveResults* results) {
+  const TomographyInput input = LoadTomographyRun(context.run_directory);
+  const TomographyResult& result = results->tomography.emplace(SolveTomography(input, WithProgress(request, context)));
+  WriteTomographyResults(input, result, ResultsOf(context, "tomography").string());
+  return Report(result);
+}
+
+SolveStageReport RunSvbrdf(const config::SvbrdfRequest& request, const StageContext& context, SolveResults* results) {
+  return Report(results->svbrdf.emplace(SolveSvbrdfAndWrite(LoadRunStack(context.run_directory),
+                                                            WithProgress(request, context),
+                                                            ResultsOf(context, "svbrdf").string())));
+}
+
+SolveStageReport RunBrdf(const config::BrdfRequest& request, const StageContext& context, SolveResults* results) {
+  return Report(results->brdf.emplace(
+      SolveBrdfAndWrite(context.run_directory, WithProgress(request, context), ResultsOf(context, "brdf").string())));
+}
+
+// A stage as its kind, its command and the function that runs it on its request.
+class RecipeStage final : public SolveStage {
  public:
-  explicit PhotometricStereoStage(config::PhotometricStereoRequest request) : request_(std::move(request)) {}
-  SolveStageKind kind() const override { return SolveStageKind::kPhotometricStereo; }
-  const char* command() const override { return "solve ps"; }
+  using RunFunction = std::function<SolveStageReport(const StageContext&, SolveResults*)>;
+  RecipeStage(SolveStageKind kind, const char* command, RunFunction run)
+      : kind_(kind), command_(command), run_(std::move(run)) {}
+  SolveStageKind kind() const override { return kind_; }
+  const char* command() const override { return command_; }
   SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
-    config::PhotometricStereoRequest solve = request_;
-    solve.progress = context.progress;
-    const PhotometricStereoResult& result = results->photometric_stereo.emplace(
-        SolvePhotometricStereoRun(context.run_directory, solve, ResultsOf(context, "ps").string()));
-    return ReportPhotometricStereoStage(ToJson(result), result.usable());
+    return run_(context, results);
   }
 
  private:
-  config::PhotometricStereoRequest request_;
+  SolveStageKind kind_;
+  const char* command_;
+  RunFunction run_;
 };
 
-class LightCalibrationStage final : public SolveStage {
- public:
-  explicit LightCalibrationStage(config::LightCalibrationRequest request) : request_(std::move(request)) {}
-  SolveStageKind kind() const override { return SolveStageKind::kLightCalibration; }
-  const char* command() const override { return "calibrate lights"; }
-  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
-    const auto started = std::chrono::steady_clock::now();
-    config::LightCalibrationRequest calibration = request_;
-    const fs::path folder = FreshResults(context, "lights");
-    calibration.base_rig = context.rig_path;
-    if (calibration.out_rig.empty()) calibration.out_rig = (folder / "rig.yaml").string();
-    const LightCalibrationSummary& summary = results->light_calibration.emplace(
-        CalibrateLights(LoadLightCalibrationInputs(context.run_directory), calibration, folder.string()));
-    return Report(summary, context.run_directory, MillisecondsSince(started));
-  }
-
- private:
-  config::LightCalibrationRequest request_;
-};
-
-class TomographyStage final : public SolveStage {
- public:
-  explicit TomographyStage(config::TomographyRequest request) : request_(std::move(request)) {}
-  SolveStageKind kind() const override { return SolveStageKind::kTomography; }
-  const char* command() const override { return "solve tomography"; }
-  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
-    config::TomographyRequest solve = request_;
-    solve.progress = context.progress;
-    const TomographyInput input = LoadTomographyRun(context.run_directory);
-    const TomographyResult& result = results->tomography.emplace(SolveTomography(input, solve));
-    WriteTomographyResults(input, result, ResultsOf(context, "tomography").string());
-    return Report(result);
-  }
-
- private:
-  config::TomographyRequest request_;
-};
-
-class SvbrdfStage final : public SolveStage {
- public:
-  explicit SvbrdfStage(config::SvbrdfRequest request) : request_(std::move(request)) {}
-  SolveStageKind kind() const override { return SolveStageKind::kSvbrdf; }
-  const char* command() const override { return "solve svbrdf"; }
-  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
-    config::SvbrdfRequest solve = request_;
-    solve.progress = context.progress;
-    const SvbrdfResult& result = results->svbrdf.emplace(
-        SolveSvbrdfAndWrite(LoadRunStack(context.run_directory), solve, ResultsOf(context, "svbrdf").string()));
-    return Report(result);
-  }
-
- private:
-  config::SvbrdfRequest request_;
-};
-
-class BrdfStage final : public SolveStage {
- public:
-  explicit BrdfStage(config::BrdfRequest request) : request_(std::move(request)) {}
-  SolveStageKind kind() const override { return SolveStageKind::kBrdf; }
-  const char* command() const override { return "solve brdf"; }
-  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
-    config::BrdfRequest solve = request_;
-    solve.progress = context.progress;
-    const BrdfSolveResult& result = results->brdf.emplace(
-        SolveBrdfAndWrite(context.run_directory, solve, ResultsOf(context, "brdf").string()));
-    return Report(result);
-  }
-
- private:
-  config::BrdfRequest request_;
-};
+// A stage that runs `run` on its copy of `request`.
+template <typename Request, typename Run>
+std::unique_ptr<SolveStage> MakeStage(SolveStageKind kind, const char* command, const Request& request, Run run) {
+  return std::make_unique<RecipeStage>(kind, command, [request, run](const StageContext& context, SolveResults* results) {
+    return run(request, context, results);
+  });
+}
 
 }  // namespace
 
 std::vector<std::unique_ptr<SolveStage>> StagesOf(const config::Recipe& recipe) {
   std::vector<std::unique_ptr<SolveStage>> stages;
-  if (recipe.photometric_stereo) stages.push_back(std::make_unique<PhotometricStereoStage>(*recipe.photometric_stereo));
-  if (recipe.light_calibration) stages.push_back(std::make_unique<LightCalibrationStage>(*recipe.light_calibration));
-  if (recipe.tomography) stages.push_back(std::make_unique<TomographyStage>(*recipe.tomography));
-  if (recipe.svbrdf) stages.push_back(std::make_unique<SvbrdfStage>(*recipe.svbrdf));
-  if (recipe.brdf) stages.push_back(std::make_unique<BrdfStage>(*recipe.brdf));
+  using Kind = SolveStageKind;
+  if (recipe.photometric_stereo)
+    stages.push_back(MakeStage(Kind::kPhotometricStereo, "solve ps", *recipe.photometric_stereo, RunPhotometricStereo));
+  if (recipe.light_calibration)
+    stages.push_back(MakeStage(Kind::kLightCalibration, "calibrate lights", *recipe.light_calibration, RunLightCalibration));
+  if (recipe.tomography) stages.push_back(MakeStage(Kind::kTomography, "solve tomography", *recipe.tomography, RunTomography));
+  if (recipe.svbrdf) stages.push_back(MakeStage(Kind::kSvbrdf, "solve svbrdf", *recipe.svbrdf, RunSvbrdf));
+  if (recipe.brdf) stages.push_back(MakeStage(Kind::kBrdf, "solve brdf", *recipe.brdf, RunBrdf));
   return stages;
 }
 

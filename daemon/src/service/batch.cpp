@@ -171,7 +171,7 @@ std::string TaskScript(const BatchManifest& batch) {
 json BatchManifest::ToJson() const {
   json document = {{"format", kBatchFormat},
                    {"directory", directory},
-                   {"executor", executor},
+                   {"executor", solvers::core::NameOf(config::kExecutorNames, executor)},
                    {"photorig", photorig},
                    {"solve_arguments", solve_arguments},
                    {"slurm", {{"partition", slurm.partition}, {"time", slurm.time}, {"mem", slurm.mem}}},
@@ -221,7 +221,7 @@ std::vector<std::string> ExpandRunArguments(const std::vector<std::string>& patt
 
 BatchManifest CreateBatch(const std::string& directory, const std::vector<std::string>& runs,
                           const std::string& photorig, const std::vector<std::string>& solve_arguments,
-                          const std::string& executor, const SlurmOptions& slurm) {
+                          config::Executor executor, const SlurmOptions& slurm) {
   BatchManifest batch;
   batch.directory = fs::absolute(directory).lexically_normal().string();
   if (fs::exists(fs::path(batch.directory) / "batch.json"))
@@ -253,7 +253,10 @@ BatchManifest LoadBatch(const std::string& directory) {
     BatchManifest batch;
     batch.directory = fs::absolute(directory).lexically_normal().string();
     if (!batch.directory.empty() && batch.directory.back() == '/') batch.directory.pop_back();
-    batch.executor = document.at("executor");
+    const std::string executor = document.at("executor");
+    const std::optional<config::Executor> parsed = solvers::core::ParseName(config::kExecutorNames, executor);
+    if (!parsed) throw std::invalid_argument(path.string() + ": unknown executor '" + executor + "' (expected local or slurm)");
+    batch.executor = *parsed;
     batch.photorig = document.at("photorig");
     batch.solve_arguments = document.at("solve_arguments").get<std::vector<std::string>>();
     batch.slurm.partition = document.at("slurm").value("partition", "");

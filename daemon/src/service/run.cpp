@@ -43,7 +43,7 @@ void SolveStages(const RunRequest& request, const config::Recipe& recipe, const 
     first = false;
     if (request.on_solve_started) request.on_solve_started(stage->name());
     SolveStageReport report;
-    if (stage->kind() == SolveStageKind::kPhotometricStereo && recipe.solve_executor.executor == "slurm") {
+    if (stage->kind() == SolveStageKind::kPhotometricStereo && recipe.solve_executor.executor == config::Executor::kSlurm) {
       const SlurmSolveOutcome submitted =
           SolvePhotometricStereoOnSlurm(outcome->directory, *recipe.photometric_stereo, recipe.solve_executor, request);
       if (!submitted.report) {

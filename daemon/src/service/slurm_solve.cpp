@@ -51,7 +51,7 @@ std::string PhotorigForTasks(const std::string& configured) {
 
 std::vector<std::string> SolveArguments(const config::PhotometricStereoRequest& request) {
   // The task's command line: the request's values written back as the names the CLI parses.
-  return {"ps",
+  std::vector<std::string> arguments = {"ps",
           "--method",
           solvers::ps::MethodName(request.method),
           "--derivative",
@@ -61,7 +61,11 @@ std::vector<std::string> SolveArguments(const config::PhotometricStereoRequest& 
           "--shadow-sigma",
           Number(request.shadow_threshold_sigma),
           "--max-condition",
-          Number(request.max_condition_number)};
+          Number(request.max_condition_number),
+          "--max-distant-bias",
+          Number(request.max_distant_bias_deg)};
+  if (request.assume_distant) arguments.push_back("--assume-distant");
+  return arguments;
 }
 
 SlurmSolveOutcome SolvePhotometricStereoOnSlurm(const std::string& run_directory, const config::PhotometricStereoRequest& solve,
@@ -85,7 +89,7 @@ SlurmSolveOutcome SolvePhotometricStereoOnSlurm(const std::string& run_directory
   }
   if (!follow) {
     batch = CreateBatch(batch_directory.string(), {fs::absolute(run_directory).lexically_normal().string()},
-                        PhotorigForTasks(executor.photorig), arguments, "slurm",
+                        PhotorigForTasks(executor.photorig), arguments, config::Executor::kSlurm,
                         {executor.partition, executor.time, executor.mem});
     SubmitSlurmArray(&batch, {0});
     SaveBatch(batch);

@@ -112,14 +112,6 @@ Eigen::VectorXd ModelFeatures(const ModelSpec& spec, const Eigen::Vector3d& rgb)
   return f;
 }
 
-const char* FitLossName(FitLoss loss) { return loss == FitLoss::kCiede2000 ? "ciede2000" : "xyz"; }
-
-std::optional<FitLoss> ParseFitLoss(const std::string& name) {
-  if (name == "xyz") return FitLoss::kXyzLeastSquares;
-  if (name == "ciede2000") return FitLoss::kCiede2000;
-  return std::nullopt;
-}
-
 Eigen::Vector3d ColorModel::ToXyz(const Eigen::Vector3d& camera_rgb) const {
   return coefficients.transpose() * ModelFeatures(spec, input_scale * camera_rgb);
 }

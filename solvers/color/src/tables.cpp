@@ -106,22 +106,6 @@ std::vector<double> WavelengthGrid(double first_nm, double last_nm, double step_
   return grid;
 }
 
-std::optional<Illuminant> ParseIlluminant(const std::string& name) {
-  if (name == "D50") return Illuminant::kD50;
-  if (name == "D65") return Illuminant::kD65;
-  if (name == "A") return Illuminant::kA;
-  return std::nullopt;
-}
-
-const char* IlluminantName(Illuminant illuminant) {
-  switch (illuminant) {
-    case Illuminant::kD50: return "D50";
-    case Illuminant::kD65: return "D65";
-    case Illuminant::kA: return "A";
-  }
-  return "?";
-}
-
 const SampledSpectra& Cie1931Observer() {
   static const SampledSpectra spectra = ParseSpectra("cie1931_2deg_cmf");
   return spectra;

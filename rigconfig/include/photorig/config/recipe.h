@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string_view>
 #include <string>
 #include <utility>
 #include <vector>
@@ -45,6 +46,13 @@ struct Recipe {
       // reference target at its pose, for the radiometric calibration
       kReferenceTarget,
     };
+    // The steps' keys, and a step's `group` ("pattern:<name>" for a pattern).
+    static constexpr solvers::core::NameTable<Kind, 6> kKindNames = {{{Kind::kDark, "dark"},
+                                                                     {Kind::kFlat, "flat"},
+                                                                     {Kind::kEachLed, "each_led"},
+                                                                     {Kind::kPattern, "pattern"},
+                                                                     {Kind::kPoses, "poses"},
+                                                                     {Kind::kReferenceTarget, "reference_target"}}};
     Kind kind = Kind::kDark;
     // kDark, kFlat, kPattern: frames per repetition; kPoses, kReferenceTarget:
     // frames per pose and exposure (repeats the solve merges and checks its noise model with)
@@ -95,6 +103,7 @@ struct CaptureStep {
   Kind kind = Kind::kDark;
   std::string label;         // file stem, unique in the run: "0000_dark", "0001_led07", "0003_led02_e4000"
   std::string group;         // the recipe group it came from: "dark", "each_led", "flat", "pattern:<name>", "poses", "reference_target"
+  Recipe::Group::Kind group_kind = Recipe::Group::Kind::kDark;  // that group's kind
   int repeat = 0;            // 0-based repetition of its group
   int led = -1;              // kLight: index into RigConfig::lights.leds; -1 otherwise
   // One level per rig LED, shared by the steps that light the LEDs alike (a
@@ -146,6 +155,10 @@ std::vector<CaptureStep> CompileAdaptivePass(const Recipe& recipe, const Recipe:
 // (limits, homes, the separation between them); nothing when the rig lacks
 // either axis.
 std::optional<solvers::brdf::GonioArms> GonioArmsOf(const MotionConfig& motion);
+
+// The kind of the group a stored step names (CaptureStep::group): its
+// Group::kKindNames name, "pattern:<name>" for a pattern; nullopt for other text.
+std::optional<Recipe::Group::Kind> GroupKindOfLabel(std::string_view group);
 
 // "dark" | "light" | "flat" | "pattern" | "pose": the kind as journals and manifests spell it.
 const char* CaptureStepKindName(CaptureStep::Kind kind);

@@ -7,6 +7,7 @@
 #include "photorig/config/color_model.h"
 #include "photorig/config/driver_options.h"
 #include "photorig/config/yaml_node.h"
+#include "photorig/solvers/core/names.h"
 #include "photorig/drivers/camera.h"
 #include "photorig/drivers/motion/goniometer.h"
 #include "photorig/sim/world.h"
@@ -208,8 +209,12 @@ struct HealthConfig {
 // Where the daemon runs a run's photometric-stereo stage (rig `solve:`,
 // docs/scaling.md): in its own process, or as a one-task Slurm batch on the
 // cluster this host submits to, the run staying `solving` until the job ends.
+enum class Executor { kLocal, kSlurm };
+inline constexpr solvers::core::NameTable<Executor, 2> kExecutorNames = {
+    {{Executor::kLocal, "local"}, {Executor::kSlurm, "slurm"}}};
+
 struct SolveExecutorConfig {
-  std::string executor = "local";  // local | slurm
+  Executor executor = Executor::kLocal;
   // sbatch's requests; empty: the cluster's defaults.
   std::string partition;
   std::string time;  // e.g. "00:30:00"
@@ -231,10 +236,15 @@ struct ReferenceTargetConfig {
   GonioPose pose;
 };
 
+// A gonioreflectometer needs `motion:`.
+enum class RigKind { kLightDome, kGonioreflectometer };
+inline constexpr solvers::core::NameTable<RigKind, 2> kRigKindNames = {
+    {{RigKind::kLightDome, "light_dome"}, {RigKind::kGonioreflectometer, "gonioreflectometer"}}};
+
 struct RigConfig {
   std::string path;
   std::string name;
-  std::string kind = "light_dome";  // or "gonioreflectometer" (needs `motion:`)
+  RigKind kind = RigKind::kLightDome;
   LightsConfig lights;
   CameraConfig camera;
   std::optional<SimConfig> sim;  // present when any device is simulated

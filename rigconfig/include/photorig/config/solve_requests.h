@@ -28,6 +28,13 @@ struct PhotometricStereoRequest {
   // pass in float) | forward | reverse | symbolic | central-difference (one pixel at a
   // time, Jacobians by that method).
   solvers::ps::BlinnPhongDerivative derivative = solvers::ps::BlinnPhongDerivative::kLanes;
+  // A rig that gives its LEDs' positions is solved with the near-light model
+  // (l2 and lambertian; solvers/ps/near_lights.h). With assume_distant, or a
+  // method that fits one light matrix for all pixels, it is solved as if the
+  // LEDs were distant, and refused when the geometry predicts that model's
+  // bias above max_distant_bias_deg (the error budget of a good solve).
+  bool assume_distant = false;
+  double max_distant_bias_deg = 0.5;
   // Depth from the normals by this integrator; nullopt: none (normals only).
   std::optional<solvers::ps::Integrator> integrator = solvers::ps::Integrator::kPoisson;
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).

@@ -37,6 +37,8 @@ struct FrameRecord {
   std::string file;        // relative to the run directory
   config::CaptureStep::Kind kind = config::CaptureStep::Kind::kDark;  // stored by CaptureStepKindName
   std::string group;       // the recipe group: "dark", "each_led", "flat", "pattern:<name>", "poses", "reference_target"
+  // That group's kind (config::GroupKindOfLabel); nullopt in runs stored before groups existed.
+  std::optional<config::Recipe::Group::Kind> group_kind;
   int repeat = 0;          // 0-based repetition of its group
   int led = -1;            // kind "light": index into `lights`; -1 otherwise
   double level = 0.0;      // drive level of that LED

@@ -18,6 +18,7 @@
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/ps/evaluation.h"
 #include "photorig/solvers/ps/integration.h"
+#include "photorig/solvers/ps/near_lights.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
 #include "photorig/solvers/ps/stack.h"
 
@@ -27,6 +28,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace photorig::daemon {
 
@@ -42,6 +44,9 @@ struct PhotometricStereoInput {
   cv::Mat truth_albedo;      // optional CV_32F
   cv::Mat truth_height;      // optional CV_32F, same unit as pixel_pitch
   cv::Mat object_mask;       // optional CV_8U: solve only here (DiLiGenT's mask.png, --mask)
+  // One per image when the rig gives its LEDs' positions (mm, the frame of
+  // pixel_pitch's grid); empty: distant lights.
+  std::vector<solvers::ps::NearLight> near_lights;
   std::string mask_source;   // where object_mask came from, for the report ("" when there is none)
   // Colour data (a Bayer or RGB run, an RGB DiLiGenT folder): the frames per
   // channel. `stack` is then their channel sum in camera units, on which the
@@ -96,6 +101,18 @@ struct PhotometricStereoDepth {
   std::optional<double> rms_error_vs_truth;
 };
 
+// Which light model solved the normals, and what it did.
+struct LightModelReport {
+  bool near = false;  // the near-light model (solvers/ps/near_lights.h); else the distant one
+  // For a rig with near LEDs solved with the distant model: the bias that
+  // model makes on a sphere the size of the object (DistantModelBiasDeg).
+  std::optional<double> predicted_distant_bias_deg;
+  int rounds = 0;                         // near: normal solves
+  std::vector<double> normal_change_deg;  // near: mean change per round after the first
+  double depth_offset_mm = 0.0;           // near: z of the surface's mean depth
+  double depth_ms = 0.0;                  // near: of the solve's time, integrating and placing the depth
+};
+
 // What one solve produced. Callers use it as is; ToJson gives report.json.
 struct PhotometricStereoResult {
   std::string source;              // PhotometricStereoInput::source
@@ -103,6 +120,7 @@ struct PhotometricStereoResult {
   double noise_sigma_dn = 0.0;     // the stack's read noise (from its darks)
   double saturation_level = std::numeric_limits<double>::infinity();  // as applied; infinity = nothing clipped
   solvers::ps::SolverSummary summary;       // method, termination, message, pixel counts, noise model, timings
+  LightModelReport light_model;
   // Measured on the output, so only when the solution is usable:
   std::optional<double> mean_confidence;     // over solved pixels
   std::optional<PhotometricStereoDepth> depth;   // unless the request asked for no integrator

@@ -13,6 +13,8 @@
 // on this machine; the solve writes its results folder whole or not at all
 // (results_folder.h), so a task that is cancelled or re-queued leaves no half result.
 
+#include "photorig/config/rig.h"
+
 #include <nlohmann/json.hpp>
 
 #include <atomic>
@@ -40,7 +42,7 @@ struct BatchTask {
 
 struct BatchManifest {
   std::string directory;                      // absolute batch folder
-  std::string executor;                       // "slurm" | "local"
+  config::Executor executor = config::Executor::kLocal;  // stored by name (config::kExecutorNames)
   std::string photorig;                       // the executable every task runs (same path on every node)
   std::vector<std::string> solve_arguments;   // after `photorig solve`, e.g. {"ps", "--method", "auto"}
   SlurmOptions slurm;
@@ -60,7 +62,7 @@ std::vector<std::string> ExpandRunArguments(const std::vector<std::string>& patt
 // std::invalid_argument when `directory` already holds a batch.
 BatchManifest CreateBatch(const std::string& directory, const std::vector<std::string>& runs,
                           const std::string& photorig, const std::vector<std::string>& solve_arguments,
-                          const std::string& executor, const SlurmOptions& slurm);
+                          config::Executor executor, const SlurmOptions& slurm);
 // Throws std::invalid_argument for a folder without a readable batch.json.
 BatchManifest LoadBatch(const std::string& directory);
 void SaveBatch(const BatchManifest& batch);

@@ -17,6 +17,7 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace photorig::solvers::color {
@@ -46,8 +47,10 @@ constexpr int kMaxModelTerms = 19;
 void FillModelFeatures(const ModelSpec& spec, int n, float* const* features);
 
 enum class FitLoss { kXyzLeastSquares, kCiede2000 };
-const char* FitLossName(FitLoss loss);
-std::optional<FitLoss> ParseFitLoss(const std::string& name);  // "xyz" | "ciede2000"; nullopt otherwise
+inline constexpr core::NameTable<FitLoss, 2> kFitLossNames = {
+    {{FitLoss::kXyzLeastSquares, "xyz"}, {FitLoss::kCiede2000, "ciede2000"}}};
+inline const char* FitLossName(FitLoss loss) { return core::NameOf(kFitLossNames, loss); }
+inline std::optional<FitLoss> ParseFitLoss(std::string_view name) { return core::ParseName(kFitLossNames, name); }
 
 struct ColorModel {
   ModelSpec spec;

@@ -3,11 +3,14 @@
 // (data/*.csv: CIE 1931 2 deg observer, CIE illuminants, BabelColor ColorChecker
 // reflectances, measured camera sensitivities). Wavelengths in nm.
 
+#include "photorig/solvers/core/names.h"
+
 #include <Eigen/Core>
 
 #include <array>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace photorig::solvers::color {
@@ -27,8 +30,10 @@ struct SampledSpectra {
 std::vector<double> WavelengthGrid(double first_nm, double last_nm, double step_nm);
 
 enum class Illuminant { kD50, kD65, kA };
-std::optional<Illuminant> ParseIlluminant(const std::string& name);  // "D50" | "D65" | "A"; nullopt otherwise
-const char* IlluminantName(Illuminant illuminant);
+inline constexpr core::NameTable<Illuminant, 3> kIlluminantNames = {
+    {{Illuminant::kD50, "D50"}, {Illuminant::kD65, "D65"}, {Illuminant::kA, "A"}}};
+inline std::optional<Illuminant> ParseIlluminant(std::string_view name) { return core::ParseName(kIlluminantNames, name); }
+inline const char* IlluminantName(Illuminant illuminant) { return core::NameOf(kIlluminantNames, illuminant); }
 
 const SampledSpectra& Cie1931Observer();                 // xbar, ybar, zbar; 360-830 nm, 1 nm
 const SampledSpectra& IlluminantSpd(Illuminant illuminant);  // 1 channel; 300-780 nm, 5 nm

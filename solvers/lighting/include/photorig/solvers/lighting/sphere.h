@@ -5,6 +5,7 @@
 // Conventions (as DiLiGenT): camera frame x right, y up, z towards the camera;
 // image row 0 is the top; pixel (col, row) has its centre at (u, v) = (col, row).
 
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
@@ -23,6 +24,8 @@ struct Circle {
 
 struct CameraModel {
   enum class Projection { kOrthographic, kPinhole };
+  static constexpr core::NameTable<Projection, 2> kProjectionNames = {
+      {{Projection::kOrthographic, "orthographic"}, {Projection::kPinhole, "pinhole"}}};
   Projection projection = Projection::kOrthographic;
   // Pinhole intrinsics (ignored for orthographic): focal lengths and principal point in pixels.
   double fx_px = 0.0;

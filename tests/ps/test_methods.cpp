@@ -41,13 +41,22 @@ Outcome Solve(Method method, const PhotometricStack& stack, const cv::Mat& truth
 }
 
 TEST(PhotometricStereo, MethodNamesRoundTrip) {
-  for (Method m : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto}) {
-    Method parsed;
-    ASSERT_TRUE(ParseMethod(MethodName(m), &parsed));
-    EXPECT_EQ(parsed, m);
-  }
-  Method unused;
-  EXPECT_FALSE(ParseMethod("phong", &unused));
+  for (Method m : {Method::kL2, Method::kLambertian, Method::kRobust, Method::kBlinnPhong, Method::kAuto})
+    EXPECT_EQ(ParseMethod(MethodName(m)), m);
+  EXPECT_FALSE(ParseMethod("phong"));
+}
+
+TEST(PhotometricStereo, EachDerivativeNameSetsItsFitter) {
+  using autodiff::DerivativeMethod;
+  BlinnPhongOptions options;
+  UseDerivative(*core::ParseName(kBlinnPhongDerivativeNames, "reverse"), &options);
+  EXPECT_EQ(options.fitter, BlinnPhongOptions::Fitter::kPerPixel);
+  EXPECT_EQ(options.derivative, DerivativeMethod::kReverse);
+  UseDerivative(*core::ParseName(kBlinnPhongDerivativeNames, "central-difference"), &options);
+  EXPECT_EQ(options.derivative, DerivativeMethod::kCentralDifference);
+  UseDerivative(*core::ParseName(kBlinnPhongDerivativeNames, "lanes"), &options);
+  EXPECT_EQ(options.fitter, BlinnPhongOptions::Fitter::kLanes);
+  EXPECT_FALSE(core::ParseName(kBlinnPhongDerivativeNames, "backward"));
 }
 
 TEST(PhotometricStereo, AutoKeepsLambertianPixelsLambertian) {

@@ -1,0 +1,89 @@
+#pragma once
+// Photometric stereo under near LEDs (Queau, Durix, Wu, Cremers, Lauze,
+// Durou, "LED-based photometric stereo: modeling, calibration and numerical
+// solution", JMIV 2018). A dome whose LEDs stand a few object sizes away
+// lights every surface point from its own directions, with irradiances that
+// fall off with distance and with the angle to each LED's axis; taking one
+// direction per LED for the whole object tilts the normals by degrees (a
+// 34 mm sphere under LEDs 80 mm away: 12.6 deg). The light vectors depend on
+// where the point is, which the normals give only once integrated, so normals
+// and depth are solved in turn until the normals stop moving.
+//
+// Geometry: an orthographic camera looking down -z; pixel (r, c) images the
+// line x = (c + 0.5 - W / 2) p, y = (H / 2 - r - 0.5) p (p the pixel pitch in
+// mm), the frame of the rig's LED positions, the sample plane z = 0. The
+// integrated depth fixes the shape; its offset along z is chosen where the
+// Lambertian model explains the samples best, since both the falloff and the
+// light directions change with it.
+
+#include "photorig/solvers/core/summary.h"
+#include "photorig/solvers/ps/integration.h"
+#include "photorig/solvers/ps/photometric_stereo.h"
+#include "photorig/solvers/ps/stack.h"
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <string>
+#include <vector>
+
+namespace photorig::solvers::ps {
+
+struct NearLight {
+  Eigen::Vector3d position_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d axis{0.0, 0.0, -1.0};  // unit: the direction the LED emits along
+  double cos_exponent = 1.0;             // mu in cos^mu(angle to the axis); 1: a Lambertian emitter
+
+  // The irradiance at `point_mm` at normal incidence relative to the one at
+  // the origin (PhotometricStack::light_scales hold the latter, as a dome's
+  // intensity calibration measures it), and the unit vector towards the LED.
+  // 0 behind the LED.
+  double RelativeIrradiance(const Eigen::Vector3d& point_mm, Eigen::Vector3d* towards_light) const;
+};
+
+// The LEDs of `positions_mm`, each aimed at the origin (as a dome's LEDs are
+// mounted) with the given exponent.
+std::vector<NearLight> LightsAimedAtOrigin(const std::vector<Eigen::Vector3d>& positions_mm, double cos_exponent = 1.0);
+
+struct NearLightOptions {
+  double pixel_pitch_mm = 0.0;  // > 0: the size of a pixel on the object
+  // Rounds of normals then depth. They stop once the mean change of the
+  // normals from one round to the next is below normal_change_tolerance_deg:
+  // a tenth of the accuracy the solve aims at (half a degree) leaves the
+  // rounds' own drift out of the error budget. Three to five rounds reach it
+  // on the simulated domes (docs/photometric-stereo.md).
+  int max_rounds = 12;
+  double normal_change_tolerance_deg = 0.05;
+  Integrator integrator = Integrator::kPoisson;
+  // The depth offset is chosen on every offset_stride-th pixel of every
+  // offset_stride-th row: a thousand pixels pin one number.
+  int offset_stride = 8;
+  bool IsValid(std::string* why) const;
+};
+
+struct NearLightSummary : SolverSummary {
+  int rounds = 0;                         // normal solves made
+  std::vector<double> normal_change_deg;  // mean change from the previous round, one per round after the first
+  double depth_offset_mm = 0.0;           // z of the integrated depth's mean, as chosen
+  double depth_ms = 0.0;                  // of solve_ms: integrating the normals and placing the depth
+};
+
+// The mean normal error the distant model (one direction per LED, from the
+// origin: `directions`) makes on a Lambertian hemisphere of `radius_mm`
+// centred on the origin under `lights`: the bias to expect from solving a
+// near dome as if it were distant, for an object of that size.
+double DistantModelBiasDeg(const std::vector<NearLight>& lights, const std::vector<Eigen::Vector3d>& directions,
+                           double radius_mm);
+
+// Lambertian photometric stereo (options.method kL2 or kLambertian; the
+// thresholds of options.lambertian and options.shadow_threshold_read_sigmas)
+// with one NearLight per image of `stack`. Fills *result as
+// SolvePhotometricStereo does and *height_mm (CV_32F, NaN off the solved
+// pixels) with the surface's z in the frame of the lights. Other methods end
+// kInvalidOptions: their reflectance fits take one light matrix for all pixels.
+NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions& options,
+                                                 const NearLightOptions& near_options,
+                                                 const PhotometricStack& stack, const std::vector<NearLight>& lights,
+                                                 NormalMap* result, cv::Mat* height_mm);
+
+}  // namespace photorig::solvers::ps
