@@ -1,10 +1,11 @@
 // The simulated colour camera's responses: spectral integrals done once per
 // paint, so the renderer multiplies by three numbers per pixel.
 
+#include "photorig/config/sim_color.h"
+
 #include "photorig/solvers/color/chart.h"
 #include "photorig/solvers/color/colorimetry.h"
 #include "photorig/solvers/color/spectrum.h"
-#include "photorig/config/sim.h"
 
 #include <algorithm>
 #include <cctype>
