@@ -34,17 +34,22 @@ struct ChartLocation {
 };
 
 struct LocateOptions {
-  bool use_detector = true;  // OpenCV mcc CCheckerDetector first
+  bool use_detector = true;  // OpenCV mcc CCheckerDetector first. Default on.
   // Where the chart sits on the rig (from the rig YAML or the command line);
-  // used when detection is off or finds nothing.
+  // used when detection is off or finds nothing. Finite corners, in order
+  // round a convex quadrilateral (the grid's homography needs one). Default none.
   std::optional<std::array<cv::Point2f, 4>> fixed_corners;
   // Where fixed_corners came from, for messages and reports (e.g. "--chart-roi").
   std::string fixed_source = "the fixed chart position";
+
+  bool IsValid(std::string* why) const;
 };
 
-struct LocateResult {
+// kSuccess with the location and how it was found (message); otherwise why
+// nothing was found: kInvalidOptions, kInvalidInput (not a B, G, R image, a
+// fixed corner outside it) or kFailure (no chart detected, no fixed position).
+struct LocateResult : solvers::core::Summary {
   std::optional<ChartLocation> location;
-  std::string message;  // why nothing was found, or how it was
 };
 
 // The detector first (if on), then the fixed position; a fixed position with a
