@@ -34,7 +34,7 @@ namespace {
 // Reconstruct's volume vectors (see DecompositionOptions::volume_budget_bytes).
 constexpr int kVolumeVectors = 4;
 
-std::size_t VolumeBytes(const VolumeGrid& grid, int slices) {
+std::size_t VolumeBytes(const tomography::VolumeGrid& grid, int slices) {
   return static_cast<std::size_t>(kVolumeVectors) * sizeof(float) * static_cast<std::size_t>(grid.nx) *
          static_cast<std::size_t>(grid.ny) * static_cast<std::size_t>(slices);
 }
@@ -60,8 +60,8 @@ int Size(MPI_Comm comm) {
 
 }  // namespace
 
-bool ChooseDecomposition(const VolumeGrid& grid, int views, int processes, const DecompositionOptions& options,
-                         Decomposition* chosen, std::string* why) {
+bool ChooseDecomposition(const tomography::VolumeGrid& grid, int views, int processes,
+                         const DecompositionOptions& options, Decomposition* chosen, std::string* why) {
   if (!options.IsValid(why)) return false;
   auto fail = [why](std::string message) {
     if (why) *why = std::move(message);
@@ -91,7 +91,7 @@ bool ChooseDecomposition(const VolumeGrid& grid, int views, int processes, const
   return true;
 }
 
-DistributedProjector::DistributedProjector(std::unique_ptr<Projector> here, int total_views,
+DistributedProjector::DistributedProjector(std::unique_ptr<tomography::Projector> here, int total_views,
                                            const Decomposition& decomposition, MPI_Comm comm)
     : local_(std::move(here)), total_views_(total_views), decomposition_(decomposition) {
   int rank = 0;
@@ -139,7 +139,7 @@ void DistributedProjector::GatherVolume(Eigen::VectorXf* volume) const {
   MPI_Comm_rank(same_views_, &slab);
   if (slabs == 1) return;
   // Slabs are contiguous runs of z, the slowest index: they lie end to end.
-  const VolumeGrid& grid = local_->grid();
+  const tomography::VolumeGrid& grid = local_->grid();
   const int per_slice = grid.nx * grid.ny;
   std::vector<int> counts(static_cast<std::size_t>(slabs)), offsets(static_cast<std::size_t>(slabs));
   for (int s = 0; s < slabs; ++s) {
@@ -154,14 +154,16 @@ void DistributedProjector::GatherVolume(Eigen::VectorXf* volume) const {
   *volume = std::move(whole);
 }
 
-ProjectorSummary MakeDistributedProjector(const VolumeGrid& grid, const Geometry& geometry,
-                                          const ProjectorOptions& options, const DecompositionOptions& decomposition,
-                                          MPI_Comm comm, std::unique_ptr<SystemMatrix>* matrix,
-                                          std::int64_t* first_ray) {
+tomography::ProjectorSummary MakeDistributedProjector(const tomography::VolumeGrid& grid,
+                                                      const tomography::Geometry& geometry,
+                                                      const tomography::ProjectorOptions& options,
+                                                      const DecompositionOptions& decomposition, MPI_Comm comm,
+                                                      std::unique_ptr<tomography::SystemMatrix>* matrix,
+                                                      std::int64_t* first_ray) {
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
-  ProjectorSummary summary;
+  tomography::ProjectorSummary summary;
   Decomposition chosen;
   if (std::string why; !ChooseDecomposition(grid, geometry.views(), ranks, decomposition, &chosen, &why)) {
     summary.End(solvers::core::Termination::kInvalidOptions, why);
@@ -169,13 +171,13 @@ ProjectorSummary MakeDistributedProjector(const VolumeGrid& grid, const Geometry
   }
   const Block views = BlockOfRank(geometry.views(), rank / chosen.slabs, chosen.view_groups);
   const Block slices = BlockOfRank(grid.nz, rank % chosen.slabs, chosen.slabs);
-  Geometry mine = geometry;
+  tomography::Geometry mine = geometry;
   mine.angles_rad.assign(geometry.angles_rad.begin() + views.first,
                          geometry.angles_rad.begin() + views.first + views.count);
-  ProjectorOptions slab = options;
+  tomography::ProjectorOptions slab = options;
   slab.first_slice = slices.first;
   slab.slices = slices.count;
-  std::unique_ptr<Projector> local;
+  std::unique_ptr<tomography::Projector> local;
   summary = MakeProjector(grid, mine, slab, &local);
   // A block that does not fit the budget on one process fails them all: the
   // others would wait for it in their first product.

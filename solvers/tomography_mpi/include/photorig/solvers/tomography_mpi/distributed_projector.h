@@ -82,15 +82,15 @@ struct DecompositionOptions {
 // resolved, and checked (the slabs divide the processes, processes = view
 // groups x slabs; no more slabs than slices, no more view groups than views).
 // False with the reason otherwise.
-bool ChooseDecomposition(const VolumeGrid& grid, int views, int processes, const DecompositionOptions& options,
-                         Decomposition* chosen, std::string* why);
+bool ChooseDecomposition(const tomography::VolumeGrid& grid, int views, int processes,
+                         const DecompositionOptions& options, Decomposition* chosen, std::string* why);
 
-class DistributedProjector : public SystemMatrix {
+class DistributedProjector : public tomography::SystemMatrix {
  public:
   // `here`: this process's Projector over its block of the scan's views and
   // its slab of the grid. `comm`: every process of the decomposition.
-  DistributedProjector(std::unique_ptr<Projector> here, int total_views, const Decomposition& decomposition,
-                       MPI_Comm comm);
+  DistributedProjector(std::unique_ptr<tomography::Projector> here, int total_views,
+                       const Decomposition& decomposition, MPI_Comm comm);
   ~DistributedProjector() override;
   DistributedProjector(const DistributedProjector&) = delete;
   DistributedProjector& operator=(const DistributedProjector&) = delete;
@@ -105,11 +105,11 @@ class DistributedProjector : public SystemMatrix {
   // The slabs to the first process (of the first view group), in z order.
   void GatherVolume(Eigen::VectorXf* volume) const override;
 
-  const Projector& local() const { return *local_; }
+  const tomography::Projector& local() const { return *local_; }
   const Decomposition& decomposition() const { return decomposition_; }
 
  private:
-  std::unique_ptr<Projector> local_;
+  std::unique_ptr<tomography::Projector> local_;
   int total_views_;
   Decomposition decomposition_;
   bool first_view_group_ = true;
@@ -124,9 +124,11 @@ class DistributedProjector : public SystemMatrix {
 // its first view). The summary counts this process's block; MakeProjector's
 // terminations, and kInvalidOptions for a decomposition ChooseDecomposition
 // refuses.
-ProjectorSummary MakeDistributedProjector(const VolumeGrid& grid, const Geometry& geometry,
-                                          const ProjectorOptions& options, const DecompositionOptions& decomposition,
-                                          MPI_Comm comm, std::unique_ptr<SystemMatrix>* matrix,
-                                          std::int64_t* first_ray);
+tomography::ProjectorSummary MakeDistributedProjector(const tomography::VolumeGrid& grid,
+                                                      const tomography::Geometry& geometry,
+                                                      const tomography::ProjectorOptions& options,
+                                                      const DecompositionOptions& decomposition, MPI_Comm comm,
+                                                      std::unique_ptr<tomography::SystemMatrix>* matrix,
+                                                      std::int64_t* first_ray);
 
 }  // namespace photorig::solvers::tomography_mpi
