@@ -89,10 +89,24 @@ TEST(ChartLocate, FixedCornersRoundNoConvexQuadrilateralAreRefused) {
 }
 
 TEST(ChartLocate, ChartPositionTextIsChecked) {
-  EXPECT_THROW(ParseChartCorners("1,2,3"), std::invalid_argument);
-  EXPECT_THROW(ParseChartCorners("1,2,x,4"), std::invalid_argument);
-  EXPECT_THROW(ParseChartCorners("1,2,-3,4"), std::invalid_argument);
-  EXPECT_NO_THROW(ParseChartCorners("0,0,10,0,10,5,0,5"));
+  const auto refused = [](const std::string& text, const std::string& reason) {
+    std::string why;
+    EXPECT_FALSE(ParseChartCorners(text, &why)) << text;
+    EXPECT_NE(why.find(reason), std::string::npos) << text << ": " << why;
+  };
+  refused("1,2,3", "3 numbers, not 4 (x,y,w,h) or 8");
+  refused("1,2,x,4", "'x' is not a number");
+  refused("1,2,3.5px,4", "'3.5px' is not a number");
+  refused("1,2,,4", "'' is not a number");
+  refused("1,2,1e99,4", "'1e99' is not a number");
+  refused("1,2,-3,4", "width and height must be > 0");
+  const auto corners = ParseChartCorners("0,0,10,0,10,5,0,5");
+  ASSERT_TRUE(corners);
+  EXPECT_EQ((*corners)[2], cv::Point2f(10, 5));
+  // Blanks after the commas, as people type them.
+  const auto box = ParseChartCorners("10, 20, 240, 160");
+  ASSERT_TRUE(box);
+  EXPECT_EQ((*box)[2], cv::Point2f(250, 180));
 }
 
 TEST(ChartMeasure, TrimmedMeansMatchTheNoiseFreeSignal) {

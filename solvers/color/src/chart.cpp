@@ -6,10 +6,11 @@
 #include <opencv2/mcc.hpp>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <sstream>
-#include <stdexcept>
 #include <utility>
 
 namespace photorig::solvers::color {
@@ -150,28 +151,31 @@ LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options)
              detector_note + " and no fixed chart position was given (--chart-roi or the rig's color_chart)");
 }
 
-std::array<cv::Point2f, 4> ParseChartCorners(const std::string& text) {
+std::optional<std::array<cv::Point2f, 4>> ParseChartCorners(const std::string& text, std::string* why) {
+  const auto fail = [why](std::string reason) -> std::optional<std::array<cv::Point2f, 4>> {
+    if (why) *why = std::move(reason);
+    return std::nullopt;
+  };
   std::vector<float> values;
   std::stringstream stream(text);
   std::string field;
   while (std::getline(stream, field, ',')) {
-    try {
-      std::size_t used = 0;
-      values.push_back(std::stof(field, &used));
-      if (used != field.size()) throw std::invalid_argument(field);
-    } catch (const std::exception&) {
-      throw std::invalid_argument("chart position '" + text + "': '" + field + "' is not a number");
-    }
+    // As std::stof (leading blanks allowed), with the whole field a number and in range.
+    char* end = nullptr;
+    errno = 0;
+    const float value = std::strtof(field.c_str(), &end);
+    if (end == field.c_str() || *end != '\0' || errno == ERANGE) return fail("'" + field + "' is not a number");
+    values.push_back(value);
   }
   if (values.size() == 4) {
     const float x = values[0], y = values[1], w = values[2], h = values[3];
-    if (w <= 0 || h <= 0) throw std::invalid_argument("chart position '" + text + "': width and height must be > 0");
-    return {cv::Point2f(x, y), cv::Point2f(x + w, y), cv::Point2f(x + w, y + h), cv::Point2f(x, y + h)};
+    if (w <= 0 || h <= 0) return fail("width and height must be > 0");
+    return std::array{cv::Point2f(x, y), cv::Point2f(x + w, y), cv::Point2f(x + w, y + h), cv::Point2f(x, y + h)};
   }
   if (values.size() == 8)
-    return {cv::Point2f(values[0], values[1]), cv::Point2f(values[2], values[3]), cv::Point2f(values[4], values[5]),
-            cv::Point2f(values[6], values[7])};
-  throw std::invalid_argument("chart position '" + text + "': expected x,y,w,h or four corners x0,y0,...,x3,y3");
+    return std::array{cv::Point2f(values[0], values[1]), cv::Point2f(values[2], values[3]),
+                      cv::Point2f(values[4], values[5]), cv::Point2f(values[6], values[7])};
+  return fail(std::to_string(values.size()) + " numbers, not 4 (x,y,w,h) or 8 (four corners x0,y0,...,x3,y3)");
 }
 
 const char* PatchFlagName(PatchFlag flag) {
@@ -288,14 +292,16 @@ ChartReference ColorCheckerReference(Illuminant illuminant, const std::vector<do
   return reference;
 }
 
-ChartCaptureSpectra ChartCaptureSpectraFor(const std::string& camera, Illuminant illuminant,
-                                           const std::vector<double>& grid_nm) {
+std::optional<ChartCaptureSpectra> ChartCaptureSpectraFor(const std::string& camera, Illuminant illuminant,
+                                                          const std::vector<double>& grid_nm) {
+  const SampledSpectra* camera_sensitivity = CameraSensitivity(camera);
+  if (!camera_sensitivity) return std::nullopt;
   ChartCaptureSpectra out;
   out.wavelength_nm = grid_nm;
   const SampledSpectra reflectance = ColorChecker24Reflectance().Resampled(grid_nm);
   out.patch_reflectance = reflectance.channels;
   out.illuminant = IlluminantSpd(illuminant).Resampled(grid_nm).channels[0];
-  const SampledSpectra sensitivity = CameraSensitivity(camera).Resampled(grid_nm);
+  const SampledSpectra sensitivity = camera_sensitivity->Resampled(grid_nm);
   for (int c = 0; c < 3; ++c) out.camera_sensitivity[static_cast<std::size_t>(c)] = sensitivity.channels[static_cast<std::size_t>(c)];
   return out;
 }

@@ -57,8 +57,10 @@ struct LocateResult : solvers::core::Summary {
 LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options);
 
 // Parses "x0,y0,x1,y1,x2,y2,x3,y3" (corners as in ChartLocation) or "x,y,w,h"
-// (an axis-aligned rectangle). Throws std::invalid_argument naming the text.
-std::array<cv::Point2f, 4> ParseChartCorners(const std::string& text);
+// (an axis-aligned rectangle), in pixels. nullopt, with *why (if given)
+// saying what is wrong, for a field that is no number, a count other than 4
+// or 8, or a width or height <= 0.
+std::optional<std::array<cv::Point2f, 4>> ParseChartCorners(const std::string& text, std::string* why = nullptr);
 
 enum class PatchFlag {
   kOk,
@@ -104,14 +106,15 @@ struct ChartReference {
 ChartReference ColorCheckerReference(Illuminant illuminant, const std::vector<double>& grid_nm);
 
 // What a spectral renderer needs to photograph the chart with a compiled-in
-// camera under an illuminant, all resampled to `grid_nm`.
+// camera under an illuminant, all resampled to `grid_nm`; nullopt for a
+// camera not in CameraNames().
 struct ChartCaptureSpectra {
   std::vector<double> wavelength_nm;
   std::vector<std::vector<double>> patch_reflectance;     // 24
   std::vector<double> illuminant;
   std::array<std::vector<double>, 3> camera_sensitivity;  // r, g, b
 };
-ChartCaptureSpectra ChartCaptureSpectraFor(const std::string& camera, Illuminant illuminant,
-                                           const std::vector<double>& grid_nm);
+std::optional<ChartCaptureSpectra> ChartCaptureSpectraFor(const std::string& camera, Illuminant illuminant,
+                                                          const std::vector<double>& grid_nm);
 
 }  // namespace photorig::solvers::color
