@@ -10,7 +10,7 @@ namespace photorig::solvers::color::bench {
 
 inline ChartCalibration SimulatedChart(const std::string& camera, Illuminant illuminant, const CalibrationOptions& options,
                                        sim::ChartRender* render_out = nullptr) {
-  const ChartCaptureSpectra s = ChartCaptureSpectraFor(camera, illuminant, WavelengthGrid(400.0, 680.0, 5.0));
+  const ChartCaptureSpectra s = ChartCaptureSpectraFor(camera, illuminant, WavelengthGrid(400.0, 680.0, 5.0)).value();
   const sim::SensorModel sensor;
   const sim::ChartGeometry geometry;
   sim::ChartRender render = sim::RenderColorChart({s.wavelength_nm, s.patch_reflectance, s.illuminant, s.camera_sensitivity},

@@ -3,7 +3,7 @@
 // the driver-specific parts of a rig. Each throws ConfigError naming
 // file:line:column and the dotted key.
 
-#include "photorig/config/rig.h"
+#include "photorig/config/device_config.h"
 #include "photorig/config/yaml_node.h"
 
 namespace photorig::config {

@@ -1,7 +1,7 @@
 #include "photorig/config/rig.h"
 
 #include "driver_options_parse.h"
-#include "photorig/config/sim.h"
+#include "photorig/config/scene.h"
 #include "photorig/config/yaml_node.h"
 #include "photorig/solvers/color/spectrum.h"
 
@@ -468,6 +468,8 @@ RigConfig LoadRigConfig(const std::string& path) {
     root.Fail("simulated devices need a 'sim:' section");
   return rig;
 }
+
+double FrameWidthMm(const RigConfig& rig) { return rig.camera.width * rig.camera.pixel_pitch_mm; }
 
 SolveExecutorConfig ParseSolveExecutor(const YamlNode& node, SolveExecutorConfig solve) {
   solve.executor = node.Choice("executor", kExecutorNames, solve.executor);

@@ -1,13 +1,16 @@
 // The simulated colour camera's responses: spectral integrals done once per
 // paint, so the renderer multiplies by three numbers per pixel.
 
+#include "photorig/config/sim_color.h"
+
 #include "photorig/solvers/color/chart.h"
 #include "photorig/solvers/color/colorimetry.h"
 #include "photorig/solvers/color/spectrum.h"
-#include "photorig/config/sim.h"
 
 #include <algorithm>
 #include <cctype>
+#include <optional>
+#include <stdexcept>
 
 namespace photorig::config {
 namespace {
@@ -31,7 +34,10 @@ Eigen::Vector3d LuminanceOfLinearSrgb() { return solvers::color::LinearSrgbToXyz
 sim::ColorCamera ColorSceneResponses(const SimColorConfig& config, const sim::AlbedoTexture& albedo) {
   // The camera sensitivities' common range; the truth uses the CIE observer's own grid.
   const std::vector<double> camera_grid = solvers::color::WavelengthGrid(400.0, 680.0, 5.0);
-  const solvers::color::ChartCaptureSpectra s = solvers::color::ChartCaptureSpectraFor(config.camera, config.illuminant, camera_grid);
+  const std::optional<solvers::color::ChartCaptureSpectra> spectra =
+      solvers::color::ChartCaptureSpectraFor(config.camera, config.illuminant, camera_grid);
+  if (!spectra) throw std::invalid_argument("sim.color.camera: unknown camera '" + config.camera + "'");
+  const solvers::color::ChartCaptureSpectra& s = *spectra;
   auto response = [&s](const std::vector<double>* reflectance) {
     Eigen::Vector3d rgb = Eigen::Vector3d::Zero();
     double white_green = 0.0;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <string>
 
 #include <Eigen/Core>
 #include <gtest/gtest.h>
@@ -71,6 +72,51 @@ TEST(TapeTest, ArenaGrowsPastItsInitialCapacity) {
   tape.Backward(product);
   const double expected = 1000.0 * std::pow(1.0001, 999.0);
   EXPECT_NEAR(tape.Adjoint(x), expected, 1e-12 * expected);
+}
+
+TEST(TapeTest, InvalidOptionsAreRefusedNamingTheField) {
+  std::string why;
+  EXPECT_TRUE(TapeOptions{}.IsValid(&why));
+  EXPECT_FALSE((TapeOptions{.initial_capacity = 0}).IsValid(&why));
+  EXPECT_NE(why.find("initial_capacity"), std::string::npos) << why;
+  EXPECT_FALSE((TapeOptions{.initial_capacity = 64, .max_nodes = 32}).IsValid(&why));
+  EXPECT_NE(why.find("initial_capacity"), std::string::npos) << why;
+  EXPECT_FALSE((TapeOptions{.max_nodes = kMaxTapeNodes + 1}).IsValid(&why));
+  EXPECT_NE(why.find("max_nodes"), std::string::npos) << why;
+
+  // A tape made with them records nothing, says why, and ReverseJacobian refuses it.
+  Tape tape(TapeOptions{.initial_capacity = 0});
+  EXPECT_FALSE(tape.ok());
+  EXPECT_NE(tape.error().find("initial_capacity"), std::string::npos) << tape.error();
+  EXPECT_TRUE(tape.Variable(2.0).is_constant());
+  const double x[2] = {1.2, 0.4};
+  Eigen::VectorXd value;
+  Eigen::MatrixXd jacobian;
+  EXPECT_FALSE(ReverseJacobian(AllOperations(), x, &tape, &value, &jacobian));
+}
+
+TEST(TapeTest, RecordingPastMaxNodesFailsAndResetRecordsAgain) {
+  Tape tape(TapeOptions{.initial_capacity = 4, .max_nodes = 16});
+  const Var x = tape.Variable(1.0001);
+  Var product = x;
+  for (int i = 1; i < 100; ++i) {
+    product *= x;
+  }
+  EXPECT_FALSE(tape.ok());
+  EXPECT_NE(tape.error().find("max_nodes = 16"), std::string::npos) << tape.error();
+  EXPECT_EQ(tape.size(), 16u);
+  EXPECT_EQ(tape.capacity(), 16u);
+  const double at[2] = {1.2, 0.4};
+  Eigen::VectorXd value;
+  Eigen::MatrixXd jacobian;
+  EXPECT_FALSE(ReverseJacobian(AllOperations(), at, &tape, &value, &jacobian));  // needs more than 16
+
+  tape.Reset();
+  EXPECT_TRUE(tape.ok());
+  EXPECT_TRUE(tape.error().empty());
+  const Var y = tape.Variable(3.0);
+  tape.Backward(y * y);
+  EXPECT_EQ(tape.Adjoint(y), 6.0);
 }
 
 TEST(TapeTest, OperationsOnConstantsAreNotRecorded) {

@@ -13,7 +13,7 @@
 namespace photorig::solvers::color::testing {
 
 inline sim::ChartSpectra SimSpectra(const std::string& camera, Illuminant illuminant) {
-  const ChartCaptureSpectra s = ChartCaptureSpectraFor(camera, illuminant, WavelengthGrid(400.0, 680.0, 5.0));
+  const ChartCaptureSpectra s = ChartCaptureSpectraFor(camera, illuminant, WavelengthGrid(400.0, 680.0, 5.0)).value();
   return {s.wavelength_nm, s.patch_reflectance, s.illuminant, s.camera_sensitivity};
 }
 

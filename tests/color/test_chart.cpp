@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <string>
 
 namespace photorig::solvers::color {
 namespace {
@@ -49,21 +51,62 @@ TEST(ChartLocate, FindsARotatedChart) {
 TEST(ChartLocate, FallsBackToTheFixedPositionWhenNothingIsDetected) {
   const cv::Mat blank(200, 300, CV_16UC3, cv::Scalar::all(1000));
   LocateOptions options;
-  EXPECT_FALSE(LocateChart(blank, options).location);
-  EXPECT_NE(LocateChart(blank, options).message.find("no fixed chart position"), std::string::npos);
+  const LocateResult nothing = LocateChart(blank, options);
+  EXPECT_FALSE(nothing.location);
+  EXPECT_EQ(nothing.termination, core::Termination::kFailure);
+  EXPECT_NE(nothing.message.find("no fixed chart position"), std::string::npos);
   options.fixed_corners = ParseChartCorners("10,20,240,160");
   const LocateResult result = LocateChart(blank, options);
   ASSERT_TRUE(result.location);
+  EXPECT_EQ(result.termination, core::Termination::kSuccess);
   EXPECT_EQ(result.location->method, "fixed-roi");
   EXPECT_FLOAT_EQ(result.location->PatchCentre(0).x, 10.0f + 20.0f);
   EXPECT_FLOAT_EQ(result.location->PatchCentre(0).y, 20.0f + 20.0f);
 }
 
+TEST(ChartLocate, FixedCornersRoundNoConvexQuadrilateralAreRefused) {
+  const cv::Mat blank(200, 300, CV_16UC3, cv::Scalar::all(1000));
+  LocateOptions options;
+  options.use_detector = false;
+  options.fixed_source = "--chart-roi test";
+  // Top-left, bottom-right, top-right, bottom-left: two edges cross.
+  options.fixed_corners = std::array<cv::Point2f, 4>{{{10, 20}, {250, 180}, {250, 20}, {10, 180}}};
+  std::string why;
+  EXPECT_FALSE(options.IsValid(&why));
+  EXPECT_NE(why.find("fixed_corners (--chart-roi test)"), std::string::npos) << why;
+  const LocateResult result = LocateChart(blank, options);
+  EXPECT_EQ(result.termination, core::Termination::kInvalidOptions);
+  EXPECT_FALSE(result.location);
+  EXPECT_NE(result.message.find("fixed_corners"), std::string::npos) << result.message;
+  // Three corners in line; a corner that is no number.
+  options.fixed_corners = std::array<cv::Point2f, 4>{{{10, 20}, {130, 20}, {250, 20}, {10, 180}}};
+  EXPECT_FALSE(options.IsValid(nullptr));
+  options.fixed_corners = std::array<cv::Point2f, 4>{{{10, 20}, {250, 20}, {250, NAN}, {10, 180}}};
+  EXPECT_FALSE(options.IsValid(nullptr));
+  // Either way round is a chart: a mirrored view lists its corners anticlockwise.
+  options.fixed_corners = std::array<cv::Point2f, 4>{{{250, 20}, {10, 20}, {10, 180}, {250, 180}}};
+  EXPECT_TRUE(options.IsValid(&why)) << why;
+}
+
 TEST(ChartLocate, ChartPositionTextIsChecked) {
-  EXPECT_THROW(ParseChartCorners("1,2,3"), std::invalid_argument);
-  EXPECT_THROW(ParseChartCorners("1,2,x,4"), std::invalid_argument);
-  EXPECT_THROW(ParseChartCorners("1,2,-3,4"), std::invalid_argument);
-  EXPECT_NO_THROW(ParseChartCorners("0,0,10,0,10,5,0,5"));
+  const auto refused = [](const std::string& text, const std::string& reason) {
+    std::string why;
+    EXPECT_FALSE(ParseChartCorners(text, &why)) << text;
+    EXPECT_NE(why.find(reason), std::string::npos) << text << ": " << why;
+  };
+  refused("1,2,3", "3 numbers, not 4 (x,y,w,h) or 8");
+  refused("1,2,x,4", "'x' is not a number");
+  refused("1,2,3.5px,4", "'3.5px' is not a number");
+  refused("1,2,,4", "'' is not a number");
+  refused("1,2,1e99,4", "'1e99' is not a number");
+  refused("1,2,-3,4", "width and height must be > 0");
+  const auto corners = ParseChartCorners("0,0,10,0,10,5,0,5");
+  ASSERT_TRUE(corners);
+  EXPECT_EQ((*corners)[2], cv::Point2f(10, 5));
+  // Blanks after the commas, as people type them.
+  const auto box = ParseChartCorners("10, 20, 240, 160");
+  ASSERT_TRUE(box);
+  EXPECT_EQ((*box)[2], cv::Point2f(250, 180));
 }
 
 TEST(ChartMeasure, TrimmedMeansMatchTheNoiseFreeSignal) {

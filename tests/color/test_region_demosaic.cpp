@@ -123,11 +123,24 @@ TEST(RegionDemosaic, BadInputIsRefusedNotGuessed) {
   EXPECT_FALSE(solvers::color::DemosaicWithinRegions(raw, "RGGB", cv::Mat::zeros(8, 9, CV_8U), &out).IsSolutionUsable());
   EXPECT_FALSE(solvers::color::DemosaicWithinRegions(cv::Mat::zeros(8, 8, CV_16UC3), "RGGB", cv::Mat::zeros(8, 8, CV_8U), &out)
                    .IsSolutionUsable());
-  solvers::color::RegionEdgeVote::Options options;
-  options.switch_ratio = 0.0;
-  EXPECT_FALSE(solvers::color::RegionEdgeVote("RGGB", cv::Mat::zeros(8, 8, CV_8U), options).status().IsSolutionUsable());
   solvers::color::RegionEdgeVote vote("RGGB", cv::Mat::zeros(8, 8, CV_8U), {});
   EXPECT_FALSE(vote.Add(cv::Mat::zeros(8, 9, CV_16U)).IsSolutionUsable());
+}
+
+TEST(RegionDemosaic, InvalidVoteOptionsAreRefusedNamingTheField) {
+  const cv::Mat labels = cv::Mat::zeros(8, 8, CV_8U);
+  const auto refused = [&labels](const solvers::color::RegionEdgeVote::Options& options, const std::string& field) {
+    std::string why;
+    EXPECT_FALSE(options.IsValid(&why));
+    EXPECT_NE(why.find(field), std::string::npos) << why;
+    const solvers::color::RegionEdgeVote vote("RGGB", labels, options);
+    EXPECT_EQ(vote.status().termination, solvers::core::Termination::kInvalidOptions);
+    EXPECT_NE(vote.status().message.find(field), std::string::npos) << vote.status().message;
+  };
+  refused({.floor_dn = 0.0}, "floor_dn");
+  refused({.switch_ratio = 1.5}, "switch_ratio");
+  refused({.min_difference = -0.01}, "min_difference");
+  EXPECT_TRUE(solvers::color::RegionEdgeVote::Options{}.IsValid(nullptr));
 }
 
 }  // namespace

@@ -217,5 +217,24 @@ TEST(CalibrateColorCommand, SimulatedDomeOneCommandUsesTheRigPosition) {
       << photorig::testing::ReadText(dir.path() / "log2");
 }
 
+TEST(CalibrateColorCommand, BadChartRoiAndUnknownCameraAreUsageErrors) {
+  TempDir dir;
+  EXPECT_EQ(photorig::testing::RunPhotorig("calibrate color --sim-camera nikon-5100 --no-detect --chart-roi 1,2,3 --out " +
+                                               (dir.path() / "x").string(),
+                                           dir.path() / "log"),
+            2);
+  const std::string roi = photorig::testing::ReadText(dir.path() / "log");
+  EXPECT_NE(roi.find("--chart-roi 1,2,3: 3 numbers, not 4 (x,y,w,h) or 8"), std::string::npos) << roi;
+  EXPECT_NE(roi.find("give the chart's outer corners in image pixels"), std::string::npos) << roi;
+
+  EXPECT_EQ(photorig::testing::RunPhotorig("calibrate color --sim-camera nikon-9999 --out " + (dir.path() / "y").string(),
+                                           dir.path() / "log2"),
+            2);
+  const std::string camera = photorig::testing::ReadText(dir.path() / "log2");
+  EXPECT_NE(camera.find("unknown camera 'nikon-9999' (known: nikon-5100, sigma-sdmerill, canon-5d-mark-ii)"),
+            std::string::npos)
+      << camera;
+}
+
 }  // namespace
 }  // namespace photorig::solvers::color

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <string>
+
 namespace photorig::testing {
 namespace {
 
@@ -22,6 +24,15 @@ TEST(Relighting, MaterialLobesPredictHeldOutLightsBetterThanLambertian) {
   // Close to the noise: the read noise is 0.002 and the shot noise 0.5 % of the signal.
   EXPECT_LT(material, 0.006);
   for (const auto& e : summary.errors) EXPECT_GT(e.psnr_db, 0.0);
+}
+
+TEST(Relighting, InvalidOptionsAreRefusedBeforeAnyFit) {
+  refl::RelightingOptions options;
+  options.held_out_lights = -1;
+  // An empty stack, which the fit would refuse as kInvalidInput: the options are checked first.
+  const auto summary = refl::EvaluateHeldOutLights(options, refl::ReflectanceStack{}, cv::Mat(), cv::Mat());
+  EXPECT_EQ(summary.termination, solvers::core::Termination::kInvalidOptions);
+  EXPECT_NE(summary.message.find("held_out_lights"), std::string::npos) << summary.message;
 }
 
 TEST(Relighting, OnAMatteObjectTheMaterialFitIsLambertianWithinNoise) {

@@ -67,8 +67,10 @@ std::string ReadText(const std::string& path) {
 // lies where the rig's camera.color_chart says; otherwise a bare chart.
 void RenderSimulatedChart(CalibrateOptions& options, solvers::color::Illuminant illuminant,
                           const std::optional<config::RigConfig>& rig) {
+  // ExecuteCalibrate checked the camera's name.
   const solvers::color::ChartCaptureSpectra s =
-      solvers::color::ChartCaptureSpectraFor(options.sim_camera, illuminant, solvers::color::WavelengthGrid(400.0, 680.0, 5.0));
+      solvers::color::ChartCaptureSpectraFor(options.sim_camera, illuminant, solvers::color::WavelengthGrid(400.0, 680.0, 5.0))
+          .value();
   sim::SensorModel sensor;
   sim::ChartGeometry geometry;
   if (rig) {
@@ -169,11 +171,18 @@ int ExecuteCalibrate(CalibrateOptions options) {
       }
     }
     if (!options.chart_roi.empty()) {
-      locate.fixed_corners = solvers::color::ParseChartCorners(options.chart_roi);
+      std::string why;
+      locate.fixed_corners = solvers::color::ParseChartCorners(options.chart_roi, &why);
+      if (!locate.fixed_corners)
+        return Fail(kExitUsage, "--chart-roi " + options.chart_roi + ": " + why +
+                                    "; give the chart's outer corners in image pixels as x,y,w,h or "
+                                    "x0,y0,x1,y1,x2,y2,x3,y3 (top-left first, then clockwise)");
       locate.fixed_source = "--chart-roi " + options.chart_roi;
     }
     if (!options.sim_camera.empty()) {
-      solvers::color::CameraSensitivity(options.sim_camera);
+      std::string cameras;
+      for (const std::string& name : solvers::color::CameraNames()) cameras += (cameras.empty() ? "" : ", ") + name;
+      Known(solvers::color::CameraDescription(options.sim_camera), "camera", options.sim_camera, cameras);
       if (rig && !(rig->sim && rig->camera.color_chart))
         throw std::invalid_argument(options.rig + ": --sim-camera with --rig needs a simulated rig with camera.color_chart");
     }

@@ -298,7 +298,7 @@ ChartCalibration CalibrateChartImage(const cv::Mat& image_bgr, const cv::Mat& da
   out.reference = ColorCheckerReference(illuminant, ReferenceGrid());
   out.located = LocateChart(image_bgr, locate);
   if (!out.located.location) {
-    out.summary.End(solvers::core::Termination::kFailure, "chart not found: " + out.located.message);
+    out.summary.End(out.located.termination, "chart not found: " + out.located.message);
     return out;
   }
   const solvers::core::Summary measured = MeasurePatches(image_bgr, dark_bgr, *out.located.location, measure, &out.patches);

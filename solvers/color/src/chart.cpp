@@ -6,13 +6,17 @@
 #include <opencv2/mcc.hpp>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <sstream>
-#include <stdexcept>
+#include <utility>
 
 namespace photorig::solvers::color {
 namespace {
+
+using solvers::core::Termination;
 
 cv::Matx33d GridToImage(const std::array<cv::Point2f, 4>& corners) {
   const cv::Point2f grid[4] = {{0.f, 0.f}, {6.f, 0.f}, {6.f, 4.f}, {0.f, 4.f}};
@@ -82,12 +86,40 @@ std::array<cv::Point2f, 4> ChartLocation::SamplingQuad(int patch, double fractio
           Map(h, cx - half, cy + half)};
 }
 
-LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options) {
-  LocateResult result;
-  if (image_bgr.empty() || image_bgr.channels() != 3) {
-    result.message = "chart image must have 3 channels (B, G, R)";
-    return result;
+bool LocateOptions::IsValid(std::string* why) const {
+  if (!fixed_corners) return true;
+  const std::array<cv::Point2f, 4>& corners = *fixed_corners;
+  const auto fail = [&](const char* what) {
+    if (why) *why = "fixed_corners (" + fixed_source + ") " + what;
+    return false;
+  };
+  for (const cv::Point2f& p : corners)
+    if (!std::isfinite(p.x) || !std::isfinite(p.y)) return fail("must be finite");
+  // Convex, in order round it: every corner turns the same way, none goes straight on.
+  int left = 0, right = 0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const cv::Point2f in = corners[(i + 1) % 4] - corners[i], out = corners[(i + 2) % 4] - corners[(i + 1) % 4];
+    const double turn = double(in.x) * out.y - double(in.y) * out.x;
+    left += turn > 0.0;
+    right += turn < 0.0;
   }
+  if (left != 4 && right != 4)
+    return fail("must go in order round a convex quadrilateral, top-left first (no three in line, no edges crossing)");
+  return true;
+}
+
+LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options) {
+  const solvers::core::SolveTimer timer;
+  LocateResult result;
+  const auto end = [&](Termination how, std::string message) {
+    result.End(how, std::move(message));
+    timer.Finish(&result);
+    return result;
+  };
+  std::string why;
+  if (!options.IsValid(&why)) return end(Termination::kInvalidOptions, "invalid options: " + why);
+  if (image_bgr.empty() || image_bgr.channels() != 3)
+    return end(Termination::kInvalidInput, "chart image must have 3 channels (B, G, R)");
   std::string detector_note = "detector off";
   if (options.use_detector) {
     cv::Ptr<cv::mcc::CCheckerDetector> detector = cv::mcc::CCheckerDetector::create();
@@ -99,8 +131,7 @@ LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options)
         location.corners = OrientCorners(location.corners, image_bgr);
         location.method = "detector";
         result.location = location;
-        result.message = "chart found by the mcc detector";
-        return result;
+        return end(Termination::kSuccess, "chart found by the mcc detector");
       }
     }
     detector_note = "the mcc detector found no 24-patch chart";
@@ -111,39 +142,40 @@ LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options)
         std::ostringstream message;
         message << detector_note << "; " << options.fixed_source << " has a corner at (" << p.x << ", " << p.y
                 << "), outside the " << image_bgr.cols << " x " << image_bgr.rows << " image";
-        result.message = message.str();
-        return result;
+        return end(Termination::kInvalidInput, message.str());
       }
     result.location = ChartLocation{*options.fixed_corners, "fixed-roi"};
-    result.message = detector_note + "; using " + options.fixed_source;
-    return result;
+    return end(Termination::kSuccess, detector_note + "; using " + options.fixed_source);
   }
-  result.message = detector_note + " and no fixed chart position was given (--chart-roi or the rig's color_chart)";
-  return result;
+  return end(Termination::kFailure,
+             detector_note + " and no fixed chart position was given (--chart-roi or the rig's color_chart)");
 }
 
-std::array<cv::Point2f, 4> ParseChartCorners(const std::string& text) {
+std::optional<std::array<cv::Point2f, 4>> ParseChartCorners(const std::string& text, std::string* why) {
+  const auto fail = [why](std::string reason) -> std::optional<std::array<cv::Point2f, 4>> {
+    if (why) *why = std::move(reason);
+    return std::nullopt;
+  };
   std::vector<float> values;
   std::stringstream stream(text);
   std::string field;
   while (std::getline(stream, field, ',')) {
-    try {
-      std::size_t used = 0;
-      values.push_back(std::stof(field, &used));
-      if (used != field.size()) throw std::invalid_argument(field);
-    } catch (const std::exception&) {
-      throw std::invalid_argument("chart position '" + text + "': '" + field + "' is not a number");
-    }
+    // As std::stof (leading blanks allowed), with the whole field a number and in range.
+    char* end = nullptr;
+    errno = 0;
+    const float value = std::strtof(field.c_str(), &end);
+    if (end == field.c_str() || *end != '\0' || errno == ERANGE) return fail("'" + field + "' is not a number");
+    values.push_back(value);
   }
   if (values.size() == 4) {
     const float x = values[0], y = values[1], w = values[2], h = values[3];
-    if (w <= 0 || h <= 0) throw std::invalid_argument("chart position '" + text + "': width and height must be > 0");
-    return {cv::Point2f(x, y), cv::Point2f(x + w, y), cv::Point2f(x + w, y + h), cv::Point2f(x, y + h)};
+    if (w <= 0 || h <= 0) return fail("width and height must be > 0");
+    return std::array{cv::Point2f(x, y), cv::Point2f(x + w, y), cv::Point2f(x + w, y + h), cv::Point2f(x, y + h)};
   }
   if (values.size() == 8)
-    return {cv::Point2f(values[0], values[1]), cv::Point2f(values[2], values[3]), cv::Point2f(values[4], values[5]),
-            cv::Point2f(values[6], values[7])};
-  throw std::invalid_argument("chart position '" + text + "': expected x,y,w,h or four corners x0,y0,...,x3,y3");
+    return std::array{cv::Point2f(values[0], values[1]), cv::Point2f(values[2], values[3]),
+                      cv::Point2f(values[4], values[5]), cv::Point2f(values[6], values[7])};
+  return fail(std::to_string(values.size()) + " numbers, not 4 (x,y,w,h) or 8 (four corners x0,y0,...,x3,y3)");
 }
 
 const char* PatchFlagName(PatchFlag flag) {
@@ -260,14 +292,16 @@ ChartReference ColorCheckerReference(Illuminant illuminant, const std::vector<do
   return reference;
 }
 
-ChartCaptureSpectra ChartCaptureSpectraFor(const std::string& camera, Illuminant illuminant,
-                                           const std::vector<double>& grid_nm) {
+std::optional<ChartCaptureSpectra> ChartCaptureSpectraFor(const std::string& camera, Illuminant illuminant,
+                                                          const std::vector<double>& grid_nm) {
+  const SampledSpectra* camera_sensitivity = CameraSensitivity(camera);
+  if (!camera_sensitivity) return std::nullopt;
   ChartCaptureSpectra out;
   out.wavelength_nm = grid_nm;
   const SampledSpectra reflectance = ColorChecker24Reflectance().Resampled(grid_nm);
   out.patch_reflectance = reflectance.channels;
   out.illuminant = IlluminantSpd(illuminant).Resampled(grid_nm).channels[0];
-  const SampledSpectra sensitivity = CameraSensitivity(camera).Resampled(grid_nm);
+  const SampledSpectra sensitivity = camera_sensitivity->Resampled(grid_nm);
   for (int c = 0; c < 3; ++c) out.camera_sensitivity[static_cast<std::size_t>(c)] = sensitivity.channels[static_cast<std::size_t>(c)];
   return out;
 }

@@ -1,12 +1,22 @@
 #include "photorig/solvers/color/colorimetry.h"
 
+#include "embedded_tables.h"
+
 #include <Eigen/LU>
 
 #include <cmath>
 #include <numbers>
+#include <optional>
 
 namespace photorig::solvers::color {
 namespace {
+
+// One of the compiled-in matrices this file is built on.
+Eigen::Matrix3d CompiledMatrix(const std::string& name) {
+  const std::optional<Eigen::Matrix3d> matrix = NamedMatrix(name);
+  if (!matrix) internal::BrokenTable("rgb_xyz_matrices has no 3x3 matrix " + name);
+  return *matrix;
+}
 
 // Sum of reflectance x illuminant x CMF over the grid, and the Y of the white.
 Eigen::Vector3d IntegrateXyz(const SampledSpectra* reflectance, std::size_t channel, Illuminant illuminant,
@@ -79,19 +89,19 @@ Eigen::Vector3d LabToXyz(const Eigen::Vector3d& lab, const Eigen::Vector3d& whit
 }
 
 Eigen::Matrix3d BradfordAdaptation(const Eigen::Vector3d& source_white, const Eigen::Vector3d& destination_white) {
-  static const Eigen::Matrix3d ma = NamedMatrix("bradford_ma");
+  static const Eigen::Matrix3d ma = CompiledMatrix("bradford_ma");
   static const Eigen::Matrix3d ma_inverse = ma.inverse();
   const Eigen::Vector3d gain = (ma * destination_white).cwiseQuotient(ma * source_white);
   return ma_inverse * gain.asDiagonal() * ma;
 }
 
 const Eigen::Matrix3d& XyzD65ToLinearSrgb() {
-  static const Eigen::Matrix3d m = NamedMatrix("srgb_xyz_to_rgb_npm");
+  static const Eigen::Matrix3d m = CompiledMatrix("srgb_xyz_to_rgb_npm");
   return m;
 }
 
 const Eigen::Matrix3d& LinearSrgbToXyzD65() {
-  static const Eigen::Matrix3d m = NamedMatrix("srgb_rgb_to_xyz_npm");
+  static const Eigen::Matrix3d m = CompiledMatrix("srgb_rgb_to_xyz_npm");
   return m;
 }
 

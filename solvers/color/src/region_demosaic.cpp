@@ -82,26 +82,29 @@ solvers::core::Summary DemosaicWithinRegions(const cv::Mat& raw, const std::stri
   return timer.Succeeded();
 }
 
+bool RegionEdgeVote::Options::IsValid(std::string* why) const {
+  const auto fail = [why](const char* reason) {
+    if (why) *why = reason;
+    return false;
+  };
+  if (!(switch_ratio > 0.0 && switch_ratio <= 1.0)) return fail("switch_ratio must be in (0, 1]");
+  if (!(min_difference >= 0.0)) return fail("min_difference must be >= 0");
+  if (!(floor_dn > 0.0)) return fail("floor_dn must be > 0");
+  return true;
+}
+
 RegionEdgeVote::RegionEdgeVote(const std::string& pattern, const cv::Mat& regions, const Options& options)
     : options_(options) {
+  if (std::string why; !options.IsValid(&why)) {
+    status_ = Ended(Termination::kInvalidOptions, "invalid options: " + why);
+    return;
+  }
   if (!IsBayer(pattern)) {
     status_ = UnknownPattern(pattern);
     return;
   }
   if (regions.type() != CV_8U || regions.empty()) {
     status_ = Ended(Termination::kInvalidInput, "the region labels must be a non-empty CV_8U image");
-    return;
-  }
-  if (!(options.switch_ratio > 0.0 && options.switch_ratio <= 1.0)) {
-    status_ = Ended(Termination::kInvalidOptions, "switch_ratio must be in (0, 1]");
-    return;
-  }
-  if (!(options.min_difference >= 0.0)) {
-    status_ = Ended(Termination::kInvalidOptions, "min_difference must be >= 0");
-    return;
-  }
-  if (!(options.floor_dn > 0.0)) {
-    status_ = Ended(Termination::kInvalidOptions, "floor_dn must be > 0");
     return;
   }
   regions_ = regions.clone();

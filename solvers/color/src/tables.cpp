@@ -5,9 +5,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <sstream>
-#include <stdexcept>
 
 namespace photorig::solvers::color {
 namespace {
@@ -29,7 +30,7 @@ std::vector<std::string> SplitComma(const std::string& line) {
 CsvTable ParseCsv(std::string_view name) {
   const auto& tables = internal::EmbeddedTables();
   const auto it = tables.find(name);
-  if (it == tables.end()) throw std::logic_error("color table not compiled in: " + std::string(name));
+  if (it == tables.end()) internal::BrokenTable("color table not compiled in: " + std::string(name));
   CsvTable table;
   std::stringstream stream{std::string(it->second)};
   std::string line;
@@ -41,7 +42,7 @@ CsvTable ParseCsv(std::string_view name) {
     } else {
       table.rows.push_back(SplitComma(line));
       if (table.rows.back().size() != table.header.size())
-        throw std::logic_error("color table " + std::string(name) + ": ragged row");
+        internal::BrokenTable("color table " + std::string(name) + ": ragged row");
     }
   }
   return table;
@@ -70,15 +71,18 @@ constexpr CameraEntry kCameras[] = {
     {"canon-5d-mark-ii", "camera_sensitivities_canon_eos_5d_mark_ii_rawtoaces", "Canon EOS 5D Mark II (RAW to ACES)"},
 };
 
-const CameraEntry& FindCamera(const std::string& name) {
+const CameraEntry* FindCamera(const std::string& name) {
   for (const auto& camera : kCameras)
-    if (name == camera.name) return camera;
-  std::string known;
-  for (const auto& camera : kCameras) known += std::string(known.empty() ? "" : ", ") + camera.name;
-  throw std::invalid_argument("unknown camera '" + name + "' (known: " + known + ")");
+    if (name == camera.name) return &camera;
+  return nullptr;
 }
 
 }  // namespace
+
+void internal::BrokenTable(const std::string& what) {
+  std::fprintf(stderr, "photorig: broken build: %s\n", what.c_str());
+  std::abort();
+}
 
 double SampledSpectra::At(std::size_t channel, double wavelength) const {
   const auto& w = wavelength_nm;
@@ -158,18 +162,23 @@ std::vector<std::string> CameraNames() {
   return names;
 }
 
-const SampledSpectra& CameraSensitivity(const std::string& name) {
+const SampledSpectra* CameraSensitivity(const std::string& name) {
   static const std::map<std::string, SampledSpectra> cache = [] {
     std::map<std::string, SampledSpectra> all;
     for (const auto& camera : kCameras) all[camera.name] = ParseSpectra(camera.table);
     return all;
   }();
-  return cache.at(FindCamera(name).name);
+  const CameraEntry* camera = FindCamera(name);
+  return camera ? &cache.find(camera->name)->second : nullptr;
 }
 
-std::string CameraDescription(const std::string& name) { return FindCamera(name).description; }
+std::optional<std::string> CameraDescription(const std::string& name) {
+  const CameraEntry* camera = FindCamera(name);
+  if (!camera) return std::nullopt;
+  return camera->description;
+}
 
-Eigen::Matrix3d NamedMatrix(const std::string& name) {
+std::optional<Eigen::Matrix3d> NamedMatrix(const std::string& name) {
   static const CsvTable table = ParseCsv("rgb_xyz_matrices");
   Eigen::Matrix3d m;
   int rows = 0;
@@ -179,7 +188,7 @@ Eigen::Matrix3d NamedMatrix(const std::string& name) {
     for (int c = 0; c < 3; ++c) m(r, c) = std::stod(row[static_cast<std::size_t>(2 + c)]);
     ++rows;
   }
-  if (rows != 3) throw std::invalid_argument("no 3x3 matrix named '" + name + "' in rgb_xyz_matrices");
+  if (rows != 3) return std::nullopt;
   return m;
 }
 

@@ -4,7 +4,9 @@
 // right after the tile is written, while its samples are still in cache, so
 // refining a pixel does not fetch its K samples from memory again.
 
-#include "photorig/solvers/ps/lambertian.h"
+#include "photorig/solvers/ps/lambertian_options.h"
+#include "photorig/solvers/ps/stack.h"
+#include "photorig/solvers/ps/summary.h"
 
 #include <functional>
 #include <memory>

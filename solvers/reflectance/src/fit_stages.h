@@ -1,6 +1,6 @@
 #pragma once
-// The stages of FitReflectance (fit.cpp), in the order it runs them, and
-// what they hand each other:
+// The stages of FitReflectance (fit_reflectance.cpp), in the order it runs
+// them, and what they hand each other:
 //   fit_gather.cpp     which pixels can be fitted, the noise model, and which
 //                      of them choose the materials (not mixed, saw a highlight)
 //   fit_materials.cpp  the number of materials and their lobes, then the

@@ -129,10 +129,20 @@ Prediction FitMethod(Method method, const internal::Samples& s, const std::vecto
   return out;
 }
 
+// True, ending *summary kInvalidOptions with the reason, when the options fail IsValid.
+bool RefusedOptions(const RelightingOptions& options, RelightingSummary* summary) {
+  std::string why;
+  if (options.IsValid(&why)) return false;
+  summary->End(core::Termination::kInvalidOptions, why);
+  return true;
+}
+
 }  // namespace
 
 RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
                                         const cv::Mat& normals, const cv::Mat& mask) {
+  // Before the fit on every light, which invalid options would waste.
+  if (RelightingSummary refused; RefusedOptions(options, &refused)) return refused;
   // Materials and their lobes chosen once, on every light.
   ReflectanceMaps full;
   const ReflectanceSummary fitted = FitReflectance(options.fit, stack, normals, mask, &full);
@@ -149,11 +159,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
                                         const ReflectanceSummary& fitted) {
   core::SolveTimer timer;
   RelightingSummary summary;
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(core::Termination::kInvalidOptions, why);
-    return summary;
-  }
+  if (RefusedOptions(options, &summary)) return summary;
   if (!fitted.IsSolutionUsable() || full.material.size() != cv::Size(stack.width(), stack.height()) ||
       static_cast<int>(full.materials.size()) != fitted.materials) {
     summary.End(core::Termination::kInvalidInput, "the full fit is not a usable fit of this stack");

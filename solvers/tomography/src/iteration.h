@@ -5,11 +5,16 @@
 // stopping rules and the summary are Reconstruct's (reconstruct.cpp).
 
 #include "photorig/solvers/tomography/projector.h"
-#include "photorig/solvers/tomography/reconstruct.h"
 
 #include <Eigen/Core>
 
 #include <memory>
+
+namespace photorig::solvers::tomography {
+// Declared, not included: reconstruct.cpp runs the methods, so their header
+// names its options only by reference (sart.cpp, which reads them, includes it).
+struct ReconstructOptions;
+}  // namespace photorig::solvers::tomography
 
 namespace photorig::solvers::tomography::internal {
 

@@ -1,6 +1,7 @@
 // Ordered-subsets SART, optionally with total-variation steps after each
 // pass (ASD-POCS) (reconstruct.h).
 #include "iteration.h"
+#include "photorig/solvers/tomography/reconstruct.h"
 
 #include <algorithm>
 #include <cmath>

@@ -60,8 +60,8 @@ int Size(MPI_Comm comm) {
 
 }  // namespace
 
-bool ChooseDecomposition(const tomography::VolumeGrid& grid, int views, int processes, const DecompositionOptions& options,
-                         Decomposition* chosen, std::string* why) {
+bool ChooseDecomposition(const tomography::VolumeGrid& grid, int views, int processes,
+                         const DecompositionOptions& options, Decomposition* chosen, std::string* why) {
   if (!options.IsValid(why)) return false;
   auto fail = [why](std::string message) {
     if (why) *why = std::move(message);
@@ -154,10 +154,12 @@ void DistributedProjector::GatherVolume(Eigen::VectorXf* volume) const {
   *volume = std::move(whole);
 }
 
-tomography::ProjectorSummary MakeDistributedProjector(const tomography::VolumeGrid& grid, const tomography::Geometry& geometry,
-                                          const tomography::ProjectorOptions& options, const DecompositionOptions& decomposition,
-                                          MPI_Comm comm, std::unique_ptr<tomography::SystemMatrix>* matrix,
-                                          std::int64_t* first_ray) {
+tomography::ProjectorSummary MakeDistributedProjector(const tomography::VolumeGrid& grid,
+                                                      const tomography::Geometry& geometry,
+                                                      const tomography::ProjectorOptions& options,
+                                                      const DecompositionOptions& decomposition, MPI_Comm comm,
+                                                      std::unique_ptr<tomography::SystemMatrix>* matrix,
+                                                      std::int64_t* first_ray) {
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
@@ -176,7 +178,7 @@ tomography::ProjectorSummary MakeDistributedProjector(const tomography::VolumeGr
   slab.first_slice = slices.first;
   slab.slices = slices.count;
   std::unique_ptr<tomography::Projector> local;
-  summary = tomography::MakeProjector(grid, mine, slab, &local);
+  summary = MakeProjector(grid, mine, slab, &local);
   // A block that does not fit the budget on one process fails them all: the
   // others would wait for it in their first product.
   int built_everywhere = summary.IsSolutionUsable() ? 1 : 0;

@@ -36,7 +36,8 @@ inline const char* ToString(DerivativeMethod method) {
 // Residuals (I_i - observed_i, N) and Jacobian (N x 6, parameter layout of BlinnPhongPixel) at
 // `parameters`. `tape` is scratch memory for kReverse: pass one tape that lives across calls to
 // avoid allocating; null allocates a fresh one. Returns false, leaving the outputs unspecified,
-// when the normal is degenerate (for kCentralDifference: when a step makes it degenerate).
+// when the normal is degenerate (for kCentralDifference: when a step makes it degenerate; for
+// kReverse: also when the tape cannot record the residuals, Tape::ok()).
 inline bool BlinnPhongResidualsAndJacobian(const BlinnPhongPixel& pixel, const double* parameters,
                                            DerivativeMethod method, Eigen::VectorXd* residuals,
                                            Eigen::MatrixXd* jacobian, Tape* tape = nullptr) {

@@ -61,7 +61,8 @@ bool ForwardJacobian(const F& f, const double* x, Eigen::VectorXd* value,
 }
 
 // Value and Jacobian by reverse mode: one recording on `tape` (reset first, memory kept), then
-// one backward sweep per output. Returns false, leaving the outputs unspecified, if f fails.
+// one backward sweep per output. Returns false, leaving the outputs unspecified, if f fails or
+// the tape could not record it (Tape::ok()).
 template <DifferentiableFunction F>
 bool ReverseJacobian(const F& f, const double* x, Tape* tape, Eigen::VectorXd* value,
                      Eigen::MatrixXd* jacobian) {
@@ -73,7 +74,7 @@ bool ReverseJacobian(const F& f, const double* x, Tape* tape, Eigen::VectorXd* v
   for (int j = 0; j < num_inputs; ++j) {
     inputs[j] = tape->Variable(x[j]);
   }
-  if (!f(inputs.data(), outputs.data())) {
+  if (!f(inputs.data(), outputs.data()) || !tape->ok()) {
     return false;
   }
   value->resize(num_outputs);

@@ -22,7 +22,8 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
-#include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -101,19 +102,41 @@ struct ScalarBinaryOpTraits<double, photorig::solvers::autodiff::Var, BinaryOp> 
 
 namespace photorig::solvers::autodiff {
 
+// The most nodes a tape can index: node indices are 32-bit.
+inline constexpr std::size_t kMaxTapeNodes = std::numeric_limits<std::uint32_t>::max();
+
 struct TapeOptions {
-  // Nodes reserved up front (24 bytes each). The Blinn-Phong least-squares loss records about
-  // 11 nodes per light; the arena doubles when full.
+  // Nodes reserved up front (24 bytes each), in [1, max_nodes]. The Blinn-Phong least-squares
+  // loss records about 11 nodes per light; the arena doubles when full. Default 4096.
   std::size_t initial_capacity = 4096;
+  // The most nodes one recording may hold, the constant sink included, in [1, kMaxTapeNodes]. A
+  // recording that needs more fails (Tape::ok()) rather than grow past it. Default kMaxTapeNodes.
+  std::size_t max_nodes = kMaxTapeNodes;
+
+  bool IsValid(std::string* why) const {
+    auto fail = [why](std::string reason) {
+      if (why) *why = std::move(reason);
+      return false;
+    };
+    if (!(max_nodes >= 1 && max_nodes <= kMaxTapeNodes))
+      return fail("max_nodes must be in [1, 2^32 - 1] (node indices are 32-bit), got " + std::to_string(max_nodes));
+    if (!(initial_capacity >= 1 && initial_capacity <= max_nodes))
+      return fail("initial_capacity must be in [1, max_nodes = " + std::to_string(max_nodes) + "], got " +
+                  std::to_string(initial_capacity));
+    return true;
+  }
 };
 
 class Tape {
  public:
   using Options = TapeOptions;
 
-  explicit Tape(const Options& options = Options())
-      : nodes_(new Node[std::max<std::size_t>(options.initial_capacity, 1)]),
-        capacity_(std::max<std::size_t>(options.initial_capacity, 1)) {
+  // Options that fail IsValid leave a tape that records nothing: ok() is false and error() says why.
+  explicit Tape(const Options& options = Options()) {
+    const bool valid = options.IsValid(&options_error_);
+    capacity_ = valid ? options.initial_capacity : 1;  // room for the constant sink alone
+    max_nodes_ = valid ? options.max_nodes : 1;
+    nodes_.reset(new Node[capacity_]);
     adjoints_.reserve(capacity_);
     Reset();
   }
@@ -121,10 +144,23 @@ class Tape {
   Tape(const Tape&) = delete;
   Tape& operator=(const Tape&) = delete;
 
-  // Forgets every recorded node (Vars recorded so far become invalid) and keeps the memory.
+  // Forgets every recorded node (Vars recorded so far become invalid) and keeps the memory; a
+  // tape that was full records again.
   void Reset() {
     nodes_[0] = Node{{0.0, 0.0}, {0, 0}};
     size_ = 1;
+    full_ = false;
+  }
+
+  // False when the options were invalid, or when the recording since the last Reset() needed more
+  // than max_nodes nodes: the operations past that point recorded nothing (their results are
+  // constants), so the derivatives it gives are wrong. ReverseJacobian checks it.
+  bool ok() const { return options_error_.empty() && !full_; }
+  // Why the tape is not ok(); empty when it is.
+  std::string error() const {
+    if (!options_error_.empty()) return "invalid TapeOptions: " + options_error_;
+    if (full_) return "the recording needed more than max_nodes = " + std::to_string(max_nodes_) + " nodes";
+    return {};
   }
 
   // A new independent input.
@@ -209,28 +245,35 @@ class Tape {
   PHOTORIG_AUTODIFF_INLINE Var Push(double value, std::uint32_t parent0, double partial0,
                                     std::uint32_t parent1, double partial1) {
     if (size_ == capacity_) [[unlikely]] {
-      Grow();
+      if (!Grow()) {
+        return Var(value);  // Full: a constant, and ok() is false until Reset().
+      }
     }
     nodes_[size_] = Node{{partial0, partial1}, {parent0, parent1}};
     return Var(value, static_cast<std::uint32_t>(size_++), this);
   }
 
-  // Doubles the arena; amortised O(1) per node, and never again once the tape is warm.
-  [[gnu::noinline]] void Grow() {
-    constexpr std::size_t kMaxNodes = std::numeric_limits<std::uint32_t>::max();
-    if (capacity_ >= kMaxNodes) {
-      throw std::length_error("photorig::solvers::autodiff::Tape: more than 2^32 - 1 nodes");
+  // Doubles the arena up to max_nodes; amortised O(1) per node, and never again once the tape is
+  // warm. False, marking the tape full, when it already holds max_nodes.
+  [[gnu::noinline]] bool Grow() {
+    if (capacity_ >= max_nodes_) {
+      full_ = true;
+      return false;
     }
-    const std::size_t capacity = std::min(2 * capacity_, kMaxNodes);
+    const std::size_t capacity = std::min(2 * capacity_, max_nodes_);
     std::unique_ptr<Node[]> nodes(new Node[capacity]);
     std::copy(nodes_.get(), nodes_.get() + size_, nodes.get());
     nodes_ = std::move(nodes);
     capacity_ = capacity;
+    return true;
   }
 
   std::unique_ptr<Node[]> nodes_;
   std::size_t size_ = 0;
   std::size_t capacity_ = 0;
+  std::size_t max_nodes_ = kMaxTapeNodes;
+  bool full_ = false;
+  std::string options_error_;  // empty when the options were valid
   std::vector<double> adjoints_;
 };
 

@@ -34,17 +34,22 @@ struct ChartLocation {
 };
 
 struct LocateOptions {
-  bool use_detector = true;  // OpenCV mcc CCheckerDetector first
+  bool use_detector = true;  // OpenCV mcc CCheckerDetector first. Default on.
   // Where the chart sits on the rig (from the rig YAML or the command line);
-  // used when detection is off or finds nothing.
+  // used when detection is off or finds nothing. Finite corners, in order
+  // round a convex quadrilateral (the grid's homography needs one). Default none.
   std::optional<std::array<cv::Point2f, 4>> fixed_corners;
   // Where fixed_corners came from, for messages and reports (e.g. "--chart-roi").
   std::string fixed_source = "the fixed chart position";
+
+  bool IsValid(std::string* why) const;
 };
 
-struct LocateResult {
+// kSuccess with the location and how it was found (message); otherwise why
+// nothing was found: kInvalidOptions, kInvalidInput (not a B, G, R image, a
+// fixed corner outside it) or kFailure (no chart detected, no fixed position).
+struct LocateResult : solvers::core::Summary {
   std::optional<ChartLocation> location;
-  std::string message;  // why nothing was found, or how it was
 };
 
 // The detector first (if on), then the fixed position; a fixed position with a
@@ -52,8 +57,10 @@ struct LocateResult {
 LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options);
 
 // Parses "x0,y0,x1,y1,x2,y2,x3,y3" (corners as in ChartLocation) or "x,y,w,h"
-// (an axis-aligned rectangle). Throws std::invalid_argument naming the text.
-std::array<cv::Point2f, 4> ParseChartCorners(const std::string& text);
+// (an axis-aligned rectangle), in pixels. nullopt, with *why (if given)
+// saying what is wrong, for a field that is no number, a count other than 4
+// or 8, or a width or height <= 0.
+std::optional<std::array<cv::Point2f, 4>> ParseChartCorners(const std::string& text, std::string* why = nullptr);
 
 enum class PatchFlag {
   kOk,
@@ -99,14 +106,15 @@ struct ChartReference {
 ChartReference ColorCheckerReference(Illuminant illuminant, const std::vector<double>& grid_nm);
 
 // What a spectral renderer needs to photograph the chart with a compiled-in
-// camera under an illuminant, all resampled to `grid_nm`.
+// camera under an illuminant, all resampled to `grid_nm`; nullopt for a
+// camera not in CameraNames().
 struct ChartCaptureSpectra {
   std::vector<double> wavelength_nm;
   std::vector<std::vector<double>> patch_reflectance;     // 24
   std::vector<double> illuminant;
   std::array<std::vector<double>, 3> camera_sensitivity;  // r, g, b
 };
-ChartCaptureSpectra ChartCaptureSpectraFor(const std::string& camera, Illuminant illuminant,
-                                           const std::vector<double>& grid_nm);
+std::optional<ChartCaptureSpectra> ChartCaptureSpectraFor(const std::string& camera, Illuminant illuminant,
+                                                          const std::vector<double>& grid_nm);
 
 }  // namespace photorig::solvers::color

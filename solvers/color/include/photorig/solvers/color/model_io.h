@@ -12,11 +12,14 @@
 namespace photorig::solvers::color {
 
 nlohmann::json ModelToJson(const ColorModel& model);
-// Throws std::invalid_argument naming `source` and the offending key.
+// A parser of files, not a solver: throws std::invalid_argument naming
+// `source` and the offending key.
 ColorModel ModelFromJson(const nlohmann::json& json, const std::string& source);
 
-// ".json", ".yaml" or ".yml". Throws std::runtime_error naming the file.
+// YAML for a path ending ".yaml" or ".yml", else JSON.
 std::string SerializeModel(const ColorModel& model, const std::string& path_for_format);
+// `text` read from `path` (its extension picks the format). Throws
+// std::invalid_argument naming `path`: not JSON or YAML, or as ModelFromJson.
 ColorModel ParseModel(const std::string& text, const std::string& path);
 
 // Per-model training and held-out errors, per-patch CIEDE2000 of every model,

@@ -58,9 +58,11 @@ class RegionEdgeVote {
     double floor_dn = 1.0;       // > 0; see above. Default 1 DN.
     double switch_ratio = 0.5;   // in (0, 1]. Default 0.5.
     double min_difference = 0.03;  // >= 0, mean per frame. Default 0.03 (paints 6 % apart in the channel).
+
+    bool IsValid(std::string* why) const;
   };
 
-  // Checks the pattern, the labels (CV_8U) and the options; on failure
+  // Checks the options, the pattern and the labels (CV_8U); on failure
   // status() says why, every later call does nothing and Regions() returns
   // the labels unchanged.
   RegionEdgeVote(const std::string& pattern, const cv::Mat& regions, const Options& options);

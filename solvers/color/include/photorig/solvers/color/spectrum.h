@@ -44,10 +44,13 @@ const std::array<std::string, 24>& ColorChecker24Names();
 
 // Cameras whose measured RGB sensitivities are compiled in.
 std::vector<std::string> CameraNames();                  // short names: "nikon-5100", ...
-const SampledSpectra& CameraSensitivity(const std::string& name);  // r, g, b; throws std::invalid_argument
-std::string CameraDescription(const std::string& name);
+// r, g, b of a camera of CameraNames(); null for any other name.
+const SampledSpectra* CameraSensitivity(const std::string& name);
+// Its make, model and source; nullopt for a name not in CameraNames().
+std::optional<std::string> CameraDescription(const std::string& name);
 
-// A named 3x3 matrix from data/rgb_xyz_matrices.csv (out = M * in).
-Eigen::Matrix3d NamedMatrix(const std::string& name);  // throws std::invalid_argument
+// A named 3x3 matrix from data/rgb_xyz_matrices.csv (out = M * in); nullopt
+// for a name the table lacks.
+std::optional<Eigen::Matrix3d> NamedMatrix(const std::string& name);
 
 }  // namespace photorig::solvers::color

@@ -82,15 +82,15 @@ struct DecompositionOptions {
 // resolved, and checked (the slabs divide the processes, processes = view
 // groups x slabs; no more slabs than slices, no more view groups than views).
 // False with the reason otherwise.
-bool ChooseDecomposition(const tomography::VolumeGrid& grid, int views, int processes, const DecompositionOptions& options,
-                         Decomposition* chosen, std::string* why);
+bool ChooseDecomposition(const tomography::VolumeGrid& grid, int views, int processes,
+                         const DecompositionOptions& options, Decomposition* chosen, std::string* why);
 
 class DistributedProjector : public tomography::SystemMatrix {
  public:
   // `here`: this process's Projector over its block of the scan's views and
   // its slab of the grid. `comm`: every process of the decomposition.
-  DistributedProjector(std::unique_ptr<tomography::Projector> here, int total_views, const Decomposition& decomposition,
-                       MPI_Comm comm);
+  DistributedProjector(std::unique_ptr<tomography::Projector> here, int total_views,
+                       const Decomposition& decomposition, MPI_Comm comm);
   ~DistributedProjector() override;
   DistributedProjector(const DistributedProjector&) = delete;
   DistributedProjector& operator=(const DistributedProjector&) = delete;
@@ -124,9 +124,11 @@ class DistributedProjector : public tomography::SystemMatrix {
 // its first view). The summary counts this process's block; MakeProjector's
 // terminations, and kInvalidOptions for a decomposition ChooseDecomposition
 // refuses.
-tomography::ProjectorSummary MakeDistributedProjector(const tomography::VolumeGrid& grid, const tomography::Geometry& geometry,
-                                          const tomography::ProjectorOptions& options, const DecompositionOptions& decomposition,
-                                          MPI_Comm comm, std::unique_ptr<tomography::SystemMatrix>* matrix,
-                                          std::int64_t* first_ray);
+tomography::ProjectorSummary MakeDistributedProjector(const tomography::VolumeGrid& grid,
+                                                      const tomography::Geometry& geometry,
+                                                      const tomography::ProjectorOptions& options,
+                                                      const DecompositionOptions& decomposition, MPI_Comm comm,
+                                                      std::unique_ptr<tomography::SystemMatrix>* matrix,
+                                                      std::int64_t* first_ray);
 
 }  // namespace photorig::solvers::tomography_mpi

@@ -1,3 +1,7 @@
+// SolvePhotometricStereo (photometric_stereo.h): the options and the signal
+// checked, the noise model completed, then the Lambertian pass with each tile
+// refined as it is written (tile_refiner.h). Apart from photometric_stereo.h
+// so that the helpers it runs can take that header's types.
 #include "photorig/solvers/ps/photometric_stereo.h"
 
 #include "lambertian_tiles.h"

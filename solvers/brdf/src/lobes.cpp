@@ -1,0 +1,23 @@
+// The lobe templates of lobes.h evaluated in double: models.h's Evaluate and EvaluateLobe.
+#include "lobes.h"
+
+#include <cmath>
+
+namespace photorig::solvers::brdf {
+
+Eigen::Vector3d Evaluate(const ModelParams& p, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) {
+  if (wi.z() <= 0.0 || wo.z() <= 0.0) return Eigen::Vector3d::Zero();
+  const Geometry g = GeometryOf(wi, wo);
+  Eigen::Vector3d f;
+  for (int c = 0; c < 3; ++c) f[c] = p.diffuse[c] / M_PI + internal::Lobe(p.model, p.specular[c], p.shape, internal::ExtraOf(p), g);
+  if (HasSecondLobe(p.model))
+    for (int c = 0; c < 3; ++c) f[c] += internal::BlinnPhongLobe(p.specular2[c], p.shape2, g);
+  return f;
+}
+
+double EvaluateLobe(Model model, double specular, double shape, double extra, const Geometry& g) {
+  if (g.cos_i <= 0.0 || g.cos_o <= 0.0) return 0.0;
+  return internal::Lobe(model, specular, shape, extra, g);
+}
+
+}  // namespace photorig::solvers::brdf
