@@ -5,6 +5,7 @@
 
 #include "photorig/solvers/ps/evaluation.h"
 #include "photorig/solvers/ps/lambertian.h"
+#include "photorig/solvers/ps/near_lights.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <benchmark/benchmark.h>
@@ -245,6 +246,83 @@ void BM_MethodVsL2(benchmark::State& state) {
   state.SetLabel(photorig::solvers::ps::MethodName(options.method));
 }
 
+// A 34 mm sphere filling a square image under the 48 LEDs of Sphere() moved
+// to `dome_radius_mm`, each aimed at the origin (Lambertian emitters), with
+// the same noise; the sphere's rim on the sample plane.
+struct NearScene {
+  Scene scene;
+  std::vector<photorig::solvers::ps::NearLight> lights;
+  double pixel_pitch_mm = 0.0;
+};
+
+const NearScene& NearSphere(int size, double dome_radius_mm) {
+  static std::map<std::pair<int, double>, NearScene> cache;
+  auto found = cache.find({size, dome_radius_mm});
+  if (found != cache.end()) return found->second;
+  constexpr double kRadiusMm = 17.0;
+  NearScene near;
+  near.pixel_pitch_mm = 2.0 * kRadiusMm / size;
+  near.scene = Sphere(size, 0.0);  // its mask, truth, lights' directions and noise model
+  PhotometricStack& stack = near.scene.stack;
+  std::mt19937 rng(3);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (std::size_t k = 0; k < stack.light_directions.size(); ++k) {
+    const Eigen::Vector3d w = stack.light_directions[k];
+    near.lights.push_back({dome_radius_mm * w, -w, 1.0});
+    float* out = stack.images[k].ptr<float>();
+    const cv::Vec3f* normal = near.scene.truth_normals.ptr<cv::Vec3f>();
+    for (int p = 0; p < size * size; ++p) {
+      if (!stack.mask.data[p]) continue;
+      const Eigen::Vector3d n(normal[p][0], normal[p][1], normal[p][2]);
+      const Eigen::Vector3d point = kRadiusMm * n;
+      Eigen::Vector3d towards;
+      const double irradiance = near.lights[k].RelativeIrradiance(point, &towards);
+      const double signal = stack.light_scales[k] * 0.6 / M_PI * std::max(0.0, n.dot(towards)) * irradiance;
+      out[p] = static_cast<float>(20.0 + signal + std::sqrt(4.0 + 0.05 * signal) * gauss(rng));
+    }
+  }
+  return cache.emplace(std::make_pair(size, dome_radius_mm), std::move(near)).first->second;
+}
+
+// The near-light solve and the distant one (lambertian both) timed
+// alternately on the same near-LED stack, each iteration a pair: the time
+// the rounds of normals and depth cost over one distant solve, and what they
+// buy in accuracy. The reported time is the near solve's.
+void BM_NearVsDistant(benchmark::State& state) {
+  using Clock = std::chrono::steady_clock;
+  const NearScene& near = NearSphere(384, static_cast<double>(state.range(0)));
+  photorig::solvers::ps::PhotometricStereoOptions options;
+  options.method = photorig::solvers::ps::Method::kLambertian;
+  options.lambertian.shadow_threshold = 6.0;  // as BM_Method
+  photorig::solvers::ps::NearLightOptions near_options;
+  near_options.pixel_pitch_mm = near.pixel_pitch_mm;
+  photorig::solvers::ps::NormalMap map, distant_map;
+  cv::Mat height;
+  photorig::solvers::ps::NearLightSummary summary;
+  std::vector<double> ratios;
+  for (auto _ : state) {
+    const auto start = Clock::now();
+    photorig::solvers::ps::SolvePhotometricStereo(options, near.scene.stack, &distant_map);
+    const auto middle = Clock::now();
+    summary = photorig::solvers::ps::SolveNearLightPhotometricStereo(options, near_options, near.scene.stack, near.lights,
+                                                                     &map, &height);
+    const auto end = Clock::now();
+    benchmark::DoNotOptimize(map.normals.data);
+    const double distant_s = std::chrono::duration<double>(middle - start).count();
+    const double near_s = std::chrono::duration<double>(end - middle).count();
+    state.SetIterationTime(near_s);
+    ratios.push_back(near_s / distant_s);
+  }
+  std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
+  state.counters["vs_distant_median"] = ratios[ratios.size() / 2];
+  state.counters["rounds"] = summary.rounds;
+  state.counters["depth_pct"] = 100.0 * summary.depth_ms / std::max(1e-9, summary.solve_ms);
+  const cv::Mat& truth = near.scene.truth_normals;
+  state.counters["near_mean_deg"] = photorig::solvers::ps::CompareNormals(map.normals, truth, near.scene.stack.mask).mean_deg;
+  state.counters["distant_mean_deg"] =
+      photorig::solvers::ps::CompareNormals(distant_map.normals, truth, near.scene.stack.mask).mean_deg;
+}
+
 BENCHMARK(BM_StreamingRead)->Arg(96)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_EigenGemm)->Arg(96)->Unit(benchmark::kMillisecond)->UseRealTime();
 // Args: lights, shadowed scene, plain L2 (every sample, as `--method l2`).
@@ -281,6 +359,8 @@ BENCHMARK(BM_MethodVsL2)
     ->Args({4, 50})
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
+// Arg: the LEDs' distance from the sample (mm). The target: near within 3x of distant.
+BENCHMARK(BM_NearVsDistant)->ArgName("dome_mm")->Arg(80)->Arg(400)->Unit(benchmark::kMillisecond)->UseManualTime();
 
 }  // namespace
 

@@ -13,7 +13,7 @@ namespace photorig::config {
 namespace {
 
 LedConfig ParseLed(const YamlNode& node, int index) {
-  node.ExpectKeys({"id", "direction", "position_mm", "intensity", "channel", "rgb_intensity"});
+  node.ExpectKeys({"id", "direction", "position_mm", "axis", "cos_exponent", "intensity", "channel", "rgb_intensity"});
   LedConfig led;
   led.id = node.Int("id", index);
   // LED i is driven on controller output i (Modbus coil/register offset i,
@@ -25,14 +25,25 @@ LedConfig ParseLed(const YamlNode& node, int index) {
                          "the LEDs in output order (or give channel: i)");
   const bool has_direction = node.Has("direction"), has_position = node.Has("position_mm");
   if (has_direction == has_position) node.Fail("give exactly one of 'direction' or 'position_mm'");
-  // The solvers take the direction to the LED from the object origin; the
-  // near-field falloff across the object is the renderer's business.
+  // A position makes the LED near: photometric stereo and the simulator take
+  // its light vector and falloff per point (docs/lights-and-motion.md).
   const YamlNode vector_node = has_direction ? node["direction"] : node["position_mm"];
   const Eigen::Vector3d vector = vector_node.AsVector3();
   if (vector.norm() < 1e-9) vector_node.Fail("must not be the zero vector");
   led.direction = vector.normalized();
   if (led.direction.z() <= 0.0) vector_node.Fail("points below the sample plane (z <= 0)");
   if (has_position) led.position_mm = vector;
+  if (!has_position && (node.Has("axis") || node.Has("cos_exponent")))
+    node.Fail("'axis' and 'cos_exponent' describe a near LED: give its position_mm");
+  if (auto axis = node.Find("axis")) {
+    const Eigen::Vector3d a = axis->AsVector3();
+    if (a.norm() < 1e-9) axis->Fail("must not be the zero vector");
+    led.axis = a.normalized();
+    // An LED that does not face the origin lights the sample with its profile's flank or not at all.
+    if (led.axis->dot(-vector.normalized()) <= 0.0) axis->Fail("points away from the sample (the origin)");
+  }
+  led.cos_exponent = node.Double("cos_exponent", led.cos_exponent);
+  if (!(led.cos_exponent >= 0.0 && led.cos_exponent <= 1000.0)) node["cos_exponent"].Fail("must lie in [0, 1000]");
   led.intensity = node.Double("intensity", 1.0);
   if (!(led.intensity > 0.0 && led.intensity <= kMaxLedIntensity))
     node["intensity"].Fail("must lie in (0, " + std::to_string(static_cast<int>(kMaxLedIntensity)) + "]");

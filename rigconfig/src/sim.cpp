@@ -23,7 +23,8 @@ sim::WorldConfig MakeWorldConfig(const RigConfig& rig, const sim::Scene& scene) 
     sim::Light light(led.direction, led.intensity);
     if (led.position_mm) {
       light.position_mm = led.position_mm;
-      light.axis = -led.position_mm->normalized();  // aimed at the object
+      light.axis = led.EmissionAxis();
+      light.cos_exponent = led.cos_exponent;
     }
     world.lights.push_back(light);
   }

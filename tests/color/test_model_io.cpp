@@ -49,5 +49,20 @@ TEST(ColorModelIo, MalformedModelsNameTheFileAndKey) {
   EXPECT_THROW(ParseModel("format: other/1\n", "m.yaml"), std::invalid_argument);
 }
 
+TEST(ColorModelIo, AYamlAliasThatHoldsItselfIsRefusedNotFollowed) {
+  // Found by fuzz_color_model: the alias made the YAML a cycle, read until the stack ran out.
+  try {
+    ParseModel("c':\n&a [<<: *a ,~ 0]\nformat: ~steps", "m.yaml");
+    FAIL() << "a self-referring alias was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("m.yaml"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("nested deeper than"), std::string::npos) << e.what();
+  }
+  std::string deep = "format: photorig-color-model/1\nextra: ";
+  for (int i = 0; i < 40; ++i) deep += "[";
+  for (int i = 0; i < 40; ++i) deep += "]";
+  EXPECT_THROW(ParseModel(deep + "\n", "deep.yaml"), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace photorig::solvers::color

@@ -188,6 +188,32 @@ TEST(Cli, UsageErrorsExitTwoInEveryCommand) {
   EXPECT_EQ(Photorig("no-such-command", dir).exit_code, 2);
 }
 
+TEST(Cli, ChoiceFlagsOfferTheSolversOwnNamesAndRefuseOthers) {
+  TempDir dir;
+  // Help lists each choice flag's names and default from the solver's name table.
+  const Outcome ps = Photorig("solve ps --help", dir);
+  EXPECT_NE((ps.out + ps.err).find("l2 | lambertian | robust | blinn-phong | auto (default auto)"), std::string::npos)
+      << ps.out;
+  EXPECT_NE((ps.out + ps.err).find("lanes | forward | reverse | symbolic | central-difference (default lanes)"),
+            std::string::npos);
+  const Outcome tomography = Photorig("solve tomography --help", dir);
+  EXPECT_NE((tomography.out + tomography.err).find("sirt | art | cgls | sart (default sirt)"), std::string::npos)
+      << tomography.out;
+  // A name outside the table is a usage error that names it.
+  for (const std::string& arguments :
+       {std::string("solve ps --dataset ") + dir.path().string() + " --method phong",
+        "solve tomography --projections " + dir.path().string() + " --projector cubic",
+        std::string("calibrate color --sim-camera nikon-5100 --illuminant D60 --out x")}) {
+    const Outcome outcome = Photorig(arguments + " --json", dir);
+    EXPECT_EQ(outcome.exit_code, 2) << arguments << "\n" << outcome.err;
+    const json document = json::parse(outcome.out, nullptr, false);
+    ASSERT_TRUE(document.is_object()) << arguments << ": " << outcome.out;
+    const std::string error = document.value("error", "");
+    for (const char* name : {"phong", "cubic", "D60"})
+      if (arguments.find(name) != std::string::npos) EXPECT_NE(error.find(name), std::string::npos) << error;
+  }
+}
+
 TEST(Cli, MissingRigFileNamesTheRecipeLineAndWherePathsResolveFrom) {
   TempDir dir;
   const std::string recipe = dir.Write("recipes/lost.yaml", photorig::testing::SmallRecipeYaml("../rigs/gone.yaml"));

@@ -195,7 +195,7 @@ TEST_F(SlurmBatch, CancelledTaskKeepsThePreviousResultAndRetryCompletes) {
   CaptureRuns(dir_, kHeldRuns);
   // Run 0 has an earlier result; a cancelled task must leave it whole.
   config::PhotometricStereoRequest earlier;
-  earlier.method = "l2";
+  earlier.method = solvers::ps::Method::kL2;
   SolvePhotometricStereoRun(RunDir(dir_, 0).string(), earlier, (RunDir(dir_, 0) / "results" / "ps").string());
   const std::string earlier_normals = ReadText(RunDir(dir_, 0) / "results" / "ps" / "normals.tiff");
 

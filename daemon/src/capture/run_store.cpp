@@ -169,7 +169,12 @@ json ToJson(const RunManifest& m) {
                       {"direction", {led.direction.x(), led.direction.y(), led.direction.z()}},
                       {"intensity", led.intensity},
                       {"rgb_intensity", {led.rgb_intensity.x(), led.rgb_intensity.y(), led.rgb_intensity.z()}}});
-    if (led.position_mm) lights.back()["position_mm"] = {led.position_mm->x(), led.position_mm->y(), led.position_mm->z()};
+    if (led.position_mm) {
+      const Eigen::Vector3d axis = led.EmissionAxis();
+      lights.back()["position_mm"] = {led.position_mm->x(), led.position_mm->y(), led.position_mm->z()};
+      lights.back()["axis"] = {axis.x(), axis.y(), axis.z()};
+      lights.back()["cos_exponent"] = led.cos_exponent;
+    }
   }
   json frames = json::array();
   for (const FrameRecord& f : m.frames) frames.push_back(ToJson(f));
@@ -246,6 +251,12 @@ RunManifest RunManifestFromJson(const json& j) {
       const auto p = light.at("position_mm").get<std::vector<double>>();
       if (p.size() != 3) throw std::runtime_error("light position_mm needs 3 components");
       led.position_mm = Eigen::Vector3d(p[0], p[1], p[2]);
+      if (light.contains("axis")) {  // absent in runs stored before LED axes were recorded: aimed at the origin
+        const auto a = light.at("axis").get<std::vector<double>>();
+        if (a.size() != 3) throw std::runtime_error("light axis needs 3 components");
+        led.axis = Eigen::Vector3d(a[0], a[1], a[2]);
+      }
+      led.cos_exponent = light.value("cos_exponent", 1.0);
     }
     m.lights.push_back(led);
   }

@@ -161,16 +161,14 @@ void RequirePhotometricStereoRun(const std::string& run_directory, const RunMani
 }
 
 // The near LEDs of a run whose rig gives every LED's position, one per
-// image: aimed at the origin as a dome's LEDs are mounted, Lambertian
-// emitters (cos^1, as the simulator renders them). Empty when an LED has only
-// a direction.
+// image. Empty when an LED has only a direction.
 std::vector<solvers::ps::NearLight> NearLightsOf(const std::vector<const config::LedConfig*>& leds) {
-  std::vector<Eigen::Vector3d> positions;
+  std::vector<solvers::ps::NearLight> lights;
   for (const config::LedConfig* led : leds) {
     if (!led->position_mm) return {};
-    positions.push_back(*led->position_mm);
+    lights.push_back({*led->position_mm, led->EmissionAxis(), led->cos_exponent});
   }
-  return solvers::ps::LightsAimedAtOrigin(positions);
+  return lights;
 }
 
 }  // namespace

@@ -20,16 +20,23 @@ bool IsYamlPath(const std::string& path) { return EndsWith(path, ".yaml") || End
 
 nlohmann::json NumberOrNull(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); }
 
+// A model nests three levels deep; an alias that refers to the node holding
+// it (`&a [*a]`) would nest without end.
+constexpr int kMaxYamlDepth = 16;
+
 // YAML -> JSON for the subset a model uses (maps, sequences, scalars).
-nlohmann::json YamlToJson(const YAML::Node& node) {
+nlohmann::json YamlToJson(const YAML::Node& node, int depth = 0) {
+  if ((node.IsMap() || node.IsSequence()) && depth >= kMaxYamlDepth)
+    throw std::invalid_argument("nested deeper than " + std::to_string(kMaxYamlDepth) +
+                                " levels (an alias that refers to itself?)");
   if (node.IsMap()) {
     nlohmann::json out = nlohmann::json::object();
-    for (const auto& item : node) out[item.first.as<std::string>()] = YamlToJson(item.second);
+    for (const auto& item : node) out[item.first.as<std::string>()] = YamlToJson(item.second, depth + 1);
     return out;
   }
   if (node.IsSequence()) {
     nlohmann::json out = nlohmann::json::array();
-    for (const auto& item : node) out.push_back(YamlToJson(item));
+    for (const auto& item : node) out.push_back(YamlToJson(item, depth + 1));
     return out;
   }
   if (node.IsScalar()) {

@@ -16,11 +16,36 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
 double RadiansToDegrees(double radians) { return radians * 180.0 / kPi; }
 
+// A NearLight with its per-light constants worked out once: the fits
+// evaluate it for every sample of every pixel in every round.
+struct PreparedLight {
+  Eigen::Vector3d position_mm, axis;
+  double cos_exponent = 1.0;
+  double scale = 1.0;  // |p|^2 / cos^mu(origin): the relative irradiance's constant
+
+  explicit PreparedLight(const NearLight& light)
+      : position_mm(light.position_mm), axis(light.axis), cos_exponent(light.cos_exponent) {
+    const double origin_squared = position_mm.squaredNorm();
+    const double origin_cos = std::max(1e-12, -axis.dot(position_mm) / std::sqrt(origin_squared));
+    scale = origin_squared / std::pow(origin_cos, cos_exponent);
+  }
+  // NearLight::RelativeIrradiance, without its constants' cost.
+  double RelativeIrradiance(const Eigen::Vector3d& point_mm, Eigen::Vector3d* towards_light) const {
+    const Eigen::Vector3d to = position_mm - point_mm;
+    const double distance_squared = to.squaredNorm();
+    *towards_light = to / std::sqrt(distance_squared);
+    const double cos_axis = -axis.dot(*towards_light);
+    if (cos_axis <= 0.0) return 0.0;
+    const double profile = cos_exponent == 1.0 ? cos_axis : std::pow(cos_axis, cos_exponent);
+    return scale * profile / distance_squared;
+  }
+};
+
 // What every pixel's fit reads: the stack's samples and the lights'
 // geometry, fixed for the whole solve.
 struct PixelProblem {
   const PhotometricStack& stack;
-  const std::vector<NearLight>& lights;
+  std::vector<PreparedLight> lights;
   double pixel_pitch_mm = 0.0;
   double shadow_threshold = 0.0;   // I - D at or below: shadowed
   double saturation_level = 0.0;   // I at or above: clipped
@@ -235,14 +260,7 @@ std::string CheckInputs(const PhotometricStack& stack, const std::vector<NearLig
 }  // namespace
 
 double NearLight::RelativeIrradiance(const Eigen::Vector3d& point_mm, Eigen::Vector3d* towards_light) const {
-  const Eigen::Vector3d to = position_mm - point_mm;
-  const double distance_squared = to.squaredNorm();
-  *towards_light = to / std::sqrt(distance_squared);
-  const double cos_axis = -axis.dot(*towards_light);
-  if (cos_axis <= 0.0) return 0.0;
-  const double origin_squared = position_mm.squaredNorm();
-  const double origin_cos = std::max(1e-12, -axis.dot(position_mm) / std::sqrt(origin_squared));
-  return origin_squared / distance_squared * std::pow(cos_axis / origin_cos, cos_exponent);
+  return PreparedLight(*this).RelativeIrradiance(point_mm, towards_light);
 }
 
 std::vector<NearLight> LightsAimedAtOrigin(const std::vector<Eigen::Vector3d>& positions_mm, double cos_exponent) {
@@ -320,7 +338,7 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     summary.End(Termination::kInvalidInput, bad);
     return summary;
   }
-  PixelProblem problem{stack, lights, near_options.pixel_pitch_mm};
+  PixelProblem problem{stack, {lights.begin(), lights.end()}, near_options.pixel_pitch_mm};
   problem.exclude_unusable = options.method != Method::kL2;
   problem.shadow_threshold = std::max(options.lambertian.shadow_threshold,
                                       options.shadow_threshold_read_sigmas * stack.noise.read_sigma);

@@ -23,11 +23,19 @@ struct LedConfig {
   Eigen::Vector3d direction{0, 0, 1};  // unit, camera frame, towards the LED
   double intensity = 1.0;              // relative irradiance at the sample for drive level 1
   Eigen::Vector3d rgb_intensity{1, 1, 1};  // relative [r, g, b] output, as calibrated
-  // Where the LED is, when the rig gives it (mm, camera frame). Solvers use
-  // `direction` (towards it from the object origin); a simulated rig renders
-  // it as a near LED aimed at the origin, with inverse-square falloff across
-  // the object, the error a distant-light model makes on a small dome.
+  // Where the LED is, when the rig gives it (mm, camera frame): photometric
+  // stereo then takes each pixel's own light vector and falloff from it
+  // (solvers/ps/near_lights.h), and a simulated rig renders it as a near LED.
+  // `direction` is towards it from the object origin.
   std::optional<Eigen::Vector3d> position_mm;
+  // With position_mm: the unit direction the LED emits along (default: aimed
+  // at the origin, as a dome's LEDs are mounted) and the exponent mu of its
+  // radiance profile cos^mu of the angle to that axis (1: a Lambertian emitter).
+  std::optional<Eigen::Vector3d> axis;
+  double cos_exponent = 1.0;
+
+  // The emission axis: `axis`, else towards the origin from position_mm.
+  Eigen::Vector3d EmissionAxis() const { return axis ? *axis : Eigen::Vector3d(-position_mm->normalized()); }
 };
 
 struct LightsConfig {
