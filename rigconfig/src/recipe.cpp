@@ -22,7 +22,6 @@ std::string RelativeToRecipe(const std::string& recipe_path, const std::string& 
   return (p.is_absolute() ? p : fs::path(recipe_path).parent_path() / p).lexically_normal().string();
 }
 
-constexpr const char* kGroupNames = "dark, flat, each_led, pattern, poses or reference_target";
 // Per-group bounds that keep parsing itself cheap (the duplicate checks are
 // quadratic); the whole expansion is bounded by CaptureLimits.
 constexpr int kMaxGridPoses = CaptureLimits{}.max_frames;
@@ -219,13 +218,13 @@ std::vector<GonioPose> PosesIn(const YamlNode& body, const RigConfig& rig, Recip
 Recipe::Group ParseGroup(const YamlNode& step, const RigConfig& rig) {
   using Kind = Recipe::Group::Kind;
   const auto keys = step.Keys();
-  if (keys.size() != 1) step.Fail(std::string("each step is a map with exactly one key: ") + kGroupNames);
+  if (keys.size() != 1) step.Fail("each step is a map with exactly one key: " + solvers::core::NamesInProse(Recipe::Group::kKindNames));
   Recipe::Group group;
   group.source = step;
   const std::string& kind = keys[0];
   const YamlNode body = step[kind];
   const std::optional<Kind> parsed = solvers::core::ParseName(Recipe::Group::kKindNames, kind);
-  if (!parsed) step.Fail("unknown step '" + kind + "' (expected " + kGroupNames + ")");
+  if (!parsed) step.Fail("unknown step '" + kind + "' (expected " + solvers::core::NamesInProse(Recipe::Group::kKindNames) + ")");
   group.kind = *parsed;
   if (group.kind == Kind::kDark) {
     body.ExpectKeys({"count", "exposures_us", "repeat"});
@@ -572,11 +571,11 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
       names.push_back(name);
     };
     CaptureStep base;
+    base.group_kind = group.kind;
     drivers::LightPattern lit = drivers::LightPattern::AllOff(channels);  // a flat's or pattern's levels
     base.pattern = std::make_shared<const drivers::LightPattern>(lit);
     switch (group.kind) {
       case Kind::kDark:
-        base.group_kind = Kind::kDark;
         base.group = solvers::core::NameOf(Recipe::Group::kKindNames, Kind::kDark);
         for (double exposure_us : group.exposures_us.empty() ? std::vector<double>{default_exposure_us}
                                                              : group.exposures_us)
@@ -585,7 +584,6 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
         break;
       case Kind::kFlat:
         base.kind = CaptureStep::Kind::kFlat;
-        base.group_kind = Kind::kFlat;
         base.group = solvers::core::NameOf(Recipe::Group::kKindNames, Kind::kFlat);
         for (int i : led_indices(group)) lit.levels[i] = group.level;
         base.pattern = std::make_shared<const drivers::LightPattern>(std::move(lit));
@@ -593,7 +591,6 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
         break;
       case Kind::kPattern: {
         base.kind = CaptureStep::Kind::kPattern;
-        base.group_kind = Kind::kPattern;
         base.group = "pattern:" + group.name;
         for (const auto& [id, level] : group.pattern) lit.levels[led_index(group, id)] = level;
         base.pattern = std::make_shared<const drivers::LightPattern>(std::move(lit));
@@ -602,7 +599,6 @@ std::vector<CaptureStep> CompileSteps(const Recipe& recipe, const RigConfig& rig
       }
       case Kind::kEachLed: {
         base.kind = CaptureStep::Kind::kLight;
-        base.group_kind = Kind::kEachLed;
         base.group = solvers::core::NameOf(Recipe::Group::kKindNames, Kind::kEachLed);
         const bool bracket = !group.exposures_us.empty();
         const std::vector<double> exposures = bracket ? group.exposures_us : std::vector<double>{default_exposure_us};

@@ -27,7 +27,8 @@ for ax in (error_ax, time_ax):
     ax.legend()
 error_ax.set_yscale("log")
 error_ax.set_ylabel("mean normal error on the 34 mm sphere (deg, log)")
-time_ax.set_ylabel("solve time (ms)")
+time_ax.set_yscale("log")
+time_ax.set_ylabel("solve time (ms, log)")
 for (_, r) in sorted((float(r["radius_mm"]), r) for r in rows if r["model"] == "near"):
     time_ax.annotate(f'{r["rounds"]} rounds', (float(r["radius_mm"]), float(r["solve_ms"])), fontsize=7)
 fig.suptitle("Photometric stereo under near LEDs (lambertian, sphere recipe)")
