@@ -107,4 +107,15 @@ int BitsOfPixelFormat(const std::string& pixel_format) {
   return 0;
 }
 
+Frame FrameTakenWith(const CameraSettings& settings, int width, int height) {
+  Frame frame;
+  frame.width = width;
+  frame.height = height;
+  frame.bit_depth = settings.bit_depth;
+  frame.pixel_format = settings.pixel_format;
+  frame.exposure_us = settings.exposure_us;
+  frame.gain_db = settings.gain_db;
+  return frame;
+}
+
 }  // namespace photorig::drivers

@@ -122,13 +122,7 @@ Status SimCamera::Capture() {
     return Status::Ok();
   }
   const drivers::CameraSettings& s = settings();
-  drivers::Frame frame;
-  frame.width = s.width;
-  frame.height = s.height;
-  frame.bit_depth = s.bit_depth;
-  frame.exposure_us = s.exposure_us;
-  frame.gain_db = s.gain_db;
-  frame.pixel_format = s.pixel_format;
+  drivers::Frame frame = drivers::FrameTakenWith(s, s.width, s.height);
   frame.frame_id = next_frame_id_++;
   frame.device_timestamp_ns = NowNs(false);
   if (faults.repeat_frames.count(trigger) && !last_pixels_.empty()) {

@@ -498,13 +498,7 @@ Result<Frame> AravisCamera::PopFrame(int timeout_ms) {
                                             " bytes for " + std::to_string(width) + "x" + std::to_string(height) + ")");
   }
 
-  Frame frame;
-  frame.width = width;
-  frame.height = height;
-  frame.bit_depth = applied_.bit_depth;
-  frame.pixel_format = applied_.pixel_format;
-  frame.exposure_us = applied_.exposure_us;
-  frame.gain_db = applied_.gain_db;
+  Frame frame = FrameTakenWith(applied_, width, height);
   frame.frame_id = frame_id;
   frame.dropped_before = dropped;
   frame.device_timestamp_ns = static_cast<std::int64_t>(arv_buffer_get_timestamp(buffer));

@@ -21,6 +21,26 @@ void SetTimeout(modbus_t* ctx, int timeout_ms, int (*set)(modbus_t*, uint32_t, u
   set(ctx, static_cast<uint32_t>(timeout_ms / 1000), static_cast<uint32_t>((timeout_ms % 1000) * 1000));
 }
 
+// Moves `count` items between `items` and the device from `address` on,
+// through transfer(address, n, data), in pieces of at most `most` items: one
+// libmodbus request carries no more. Stops at the first failure.
+template <typename T, typename Transfer>
+Status InPieces(int address, T* items, int count, int most, const Transfer& transfer) {
+  for (int first = 0; first < count; first += most) {
+    Status status = transfer(address + first, std::min(most, count - first), items + first);
+    if (!status.ok()) return status;
+  }
+  return Status::Ok();
+}
+
+// Reads `count` items from `address` on, in pieces as InPieces.
+template <typename T, typename Transfer>
+Result<std::vector<T>> ReadInPieces(int address, int count, int most, const Transfer& transfer) {
+  std::vector<T> items(count);
+  if (Status status = InPieces(address, items.data(), count, most, transfer); !status.ok()) return status;
+  return items;
+}
+
 }  // namespace
 
 bool ModbusLinkOptions::IsValid(std::string* why) const {
@@ -127,46 +147,26 @@ Status ModbusLink::Transfer(Op op, int address, int count, void* data) {
 }
 
 Status ModbusLink::WriteCoils(int address, const std::vector<std::uint8_t>& bits) {
-  std::vector<std::uint8_t> chunk;
-  for (std::size_t first = 0; first < bits.size(); first += MODBUS_MAX_WRITE_BITS) {
-    const std::size_t n = std::min<std::size_t>(MODBUS_MAX_WRITE_BITS, bits.size() - first);
-    chunk.assign(bits.begin() + first, bits.begin() + first + n);
-    Status status = Transfer(Op::kWriteCoils, address + static_cast<int>(first), static_cast<int>(n), chunk.data());
-    if (!status.ok()) return status;
-  }
-  return Status::Ok();
+  std::vector<std::uint8_t> copy = bits;  // libmodbus writes from a non-const buffer
+  return InPieces(address, copy.data(), static_cast<int>(copy.size()), MODBUS_MAX_WRITE_BITS,
+                  [this](int at, int n, void* data) { return Transfer(Op::kWriteCoils, at, n, data); });
 }
 
 Status ModbusLink::WriteRegisters(int address, const std::vector<std::uint16_t>& values) {
-  std::vector<std::uint16_t> chunk;
-  for (std::size_t first = 0; first < values.size(); first += MODBUS_MAX_WRITE_REGISTERS) {
-    const std::size_t n = std::min<std::size_t>(MODBUS_MAX_WRITE_REGISTERS, values.size() - first);
-    chunk.assign(values.begin() + first, values.begin() + first + n);
-    Status status =
-        Transfer(Op::kWriteRegisters, address + static_cast<int>(first), static_cast<int>(n), chunk.data());
-    if (!status.ok()) return status;
-  }
-  return Status::Ok();
+  std::vector<std::uint16_t> copy = values;
+  return InPieces(address, copy.data(), static_cast<int>(copy.size()), MODBUS_MAX_WRITE_REGISTERS,
+                  [this](int at, int n, void* data) { return Transfer(Op::kWriteRegisters, at, n, data); });
 }
 
 Result<std::vector<std::uint8_t>> ModbusLink::ReadCoils(int address, int count) {
-  std::vector<std::uint8_t> bits(count);
-  for (int first = 0; first < count; first += MODBUS_MAX_READ_BITS) {
-    const int n = std::min(MODBUS_MAX_READ_BITS, count - first);
-    Status status = Transfer(Op::kReadCoils, address + first, n, bits.data() + first);
-    if (!status.ok()) return status;
-  }
-  return bits;
+  return ReadInPieces<std::uint8_t>(address, count, MODBUS_MAX_READ_BITS,
+                                    [this](int at, int n, void* data) { return Transfer(Op::kReadCoils, at, n, data); });
 }
 
 Result<std::vector<std::uint16_t>> ModbusLink::ReadRegisters(int address, int count) {
-  std::vector<std::uint16_t> values(count);
-  for (int first = 0; first < count; first += MODBUS_MAX_READ_REGISTERS) {
-    const int n = std::min(MODBUS_MAX_READ_REGISTERS, count - first);
-    Status status = Transfer(Op::kReadRegisters, address + first, n, values.data() + first);
-    if (!status.ok()) return status;
-  }
-  return values;
+  return ReadInPieces<std::uint16_t>(address, count, MODBUS_MAX_READ_REGISTERS, [this](int at, int n, void* data) {
+    return Transfer(Op::kReadRegisters, at, n, data);
+  });
 }
 
 }  // namespace photorig::drivers

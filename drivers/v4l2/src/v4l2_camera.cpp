@@ -427,13 +427,7 @@ Result<Frame> V4l2Camera::DoWaitFrame(int timeout_ms) {
       return Fail(StatusCode::kDataLoss, "frame " + std::to_string(sequence) + " is short (" +
                                              std::to_string(buffer.bytesused) + " bytes)");
     }
-    Frame frame;
-    frame.width = s.width;
-    frame.height = s.height;
-    frame.bit_depth = s.bit_depth;
-    frame.pixel_format = s.pixel_format;
-    frame.exposure_us = s.exposure_us;
-    frame.gain_db = s.gain_db;
+    Frame frame = FrameTakenWith(s, s.width, s.height);
     frame.frame_id = sequence;
     frame.dropped_before = dropped;
     frame.device_timestamp_ns = stamp_ns;

@@ -58,11 +58,7 @@ Status SimModbusServer::StartTcp(const std::string& host, int port) {
   ::getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&address), &length);
   port_ = ntohs(address.sin_port);
   ctx_ = modbus_new_tcp(host.c_str(), port_);
-  rtu_ = false;
-  map_ = modbus_mapping_new(options_.coils, 0, options_.holding_registers, 0);
-  stop_ = false;
-  thread_ = std::thread([this] { Serve(); });
-  return Status::Ok();
+  return Launch(false);
 }
 
 Status SimModbusServer::StartRtu() {
@@ -82,7 +78,11 @@ Status SimModbusServer::StartRtu() {
   ctx_ = modbus_new_rtu(rtu_path_.c_str(), options_.rtu_baud, 'N', 8, 1);
   modbus_set_slave(ctx_, options_.unit_id);
   modbus_set_socket(ctx_, pty_master_);
-  rtu_ = true;
+  return Launch(true);
+}
+
+Status SimModbusServer::Launch(bool rtu) {
+  rtu_ = rtu;
   map_ = modbus_mapping_new(options_.coils, 0, options_.holding_registers, 0);
   stop_ = false;
   thread_ = std::thread([this] { Serve(); });

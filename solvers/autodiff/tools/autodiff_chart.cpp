@@ -134,63 +134,64 @@ std::vector<double> Intensities(const BlinnPhongPixel& pixel) {
   return intensities;
 }
 
-std::vector<Row> TimeInputs() {
+// A timing table and what its calls reuse: a tape and the value and Jacobian
+// buffers.
+struct Timings {
   std::vector<Row> rows;
-  std::mt19937 rng(1);
   Tape tape;
   Eigen::VectorXd value;
   Eigen::MatrixXd jacobian;
+  // Adds the row of `method` at size `size`: seconds per call of `call`.
+  void Time(const char* method, int size, const std::function<void()>& call) {
+    rows.push_back({method, static_cast<double>(size), SecondsPerCall(call)});
+  }
+};
+
+std::vector<Row> TimeInputs() {
+  Timings t;
+  std::mt19937 rng(1);
   Eigen::VectorXd gradient;
   for (const int n : kSizes) {
     const RandomPixel random = MakeRandomPixel(n, rng);
     const IntensityLoss f(random);
     const std::vector<double> x = Intensities(random.pixel);
-    const auto time = [&](const char* method, const std::function<void()>& call) {
-      rows.push_back({method, static_cast<double>(n), SecondsPerCall(call)});
-    };
-    value.resize(1);
-    time("evaluation", [&] { f(x.data(), value.data()); });
-    time("forward Dual<8>", [&] { ForwardJacobian<8>(f, x.data(), &value, &jacobian); });
-    time("forward DynamicDual", [&] { ForwardJacobian<kDynamic>(f, x.data(), &value, &jacobian); });
-    time("reverse", [&] { ReverseJacobian(f, x.data(), &tape, &value, &jacobian); });
-    time("forward difference", [&] {
-      FiniteDifferenceJacobian(f, x.data(), {.scheme = DifferenceScheme::kForward}, &value,
-                               &jacobian);
+    t.value.resize(1);
+    t.Time("evaluation", n, [&] { f(x.data(), t.value.data()); });
+    t.Time("forward Dual<8>", n, [&] { ForwardJacobian<8>(f, x.data(), &t.value, &t.jacobian); });
+    t.Time("forward DynamicDual", n, [&] { ForwardJacobian<kDynamic>(f, x.data(), &t.value, &t.jacobian); });
+    t.Time("reverse", n, [&] { ReverseJacobian(f, x.data(), &t.tape, &t.value, &t.jacobian); });
+    t.Time("forward difference", n, [&] {
+      FiniteDifferenceJacobian(f, x.data(), {.scheme = DifferenceScheme::kForward}, &t.value,
+                               &t.jacobian);
     });
-    time("central difference",
-         [&] { FiniteDifferenceJacobian(f, x.data(), {}, &value, &jacobian); });
-    time("symbolic", [&] { f.SymbolicGradient(x.data(), &gradient); });
+    t.Time("central difference", n,
+           [&] { FiniteDifferenceJacobian(f, x.data(), {}, &t.value, &t.jacobian); });
+    t.Time("symbolic", n, [&] { f.SymbolicGradient(x.data(), &gradient); });
     std::printf("inputs %4d done\n", n);
   }
-  return rows;
+  return t.rows;
 }
 
 std::vector<Row> TimeOutputs() {
-  std::vector<Row> rows;
+  Timings t;
   std::mt19937 rng(2);
-  Tape tape;
-  Eigen::VectorXd value;
-  Eigen::MatrixXd jacobian;
   for (const int m : kSizes) {
     const RandomPixel random = MakeRandomPixel(m, rng);
     const BlinnPhongPixel& f = random.pixel;
     const double* x = random.parameters.data();
-    value.resize(m);
-    const auto time = [&](const char* method, const std::function<void()>& call) {
-      rows.push_back({method, static_cast<double>(m), SecondsPerCall(call)});
-    };
-    time("evaluation", [&] { f(x, value.data()); });
-    time("forward Dual<6>",
-         [&] { ForwardJacobian<BlinnPhongPixel::kNumParameters>(f, x, &value, &jacobian); });
-    time("reverse", [&] { ReverseJacobian(f, x, &tape, &value, &jacobian); });
-    time("forward difference", [&] {
-      FiniteDifferenceJacobian(f, x, {.scheme = DifferenceScheme::kForward}, &value, &jacobian);
+    t.value.resize(m);
+    t.Time("evaluation", m, [&] { f(x, t.value.data()); });
+    t.Time("forward Dual<6>", m,
+           [&] { ForwardJacobian<BlinnPhongPixel::kNumParameters>(f, x, &t.value, &t.jacobian); });
+    t.Time("reverse", m, [&] { ReverseJacobian(f, x, &t.tape, &t.value, &t.jacobian); });
+    t.Time("forward difference", m, [&] {
+      FiniteDifferenceJacobian(f, x, {.scheme = DifferenceScheme::kForward}, &t.value, &t.jacobian);
     });
-    time("central difference", [&] { FiniteDifferenceJacobian(f, x, {}, &value, &jacobian); });
-    time("symbolic", [&] { SymbolicBlinnPhongJacobian(f, x, &value, &jacobian); });
+    t.Time("central difference", m, [&] { FiniteDifferenceJacobian(f, x, {}, &t.value, &t.jacobian); });
+    t.Time("symbolic", m, [&] { SymbolicBlinnPhongJacobian(f, x, &t.value, &t.jacobian); });
     std::printf("outputs %4d done\n", m);
   }
-  return rows;
+  return t.rows;
 }
 
 // True when no light of the pixel is within `margin` of a kink of the model (cos = 0 at

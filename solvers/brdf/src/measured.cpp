@@ -40,14 +40,8 @@ core::Summary ReadMeasured(const std::string& path, MeasuredBrdf* brdf) {
 
 bool TableSampling::IsValid(std::string* why) const {
   for (int steps : {theta_h_steps, theta_d_steps, phi_d_steps})
-    if (steps < 1 || steps > 1000) {
-      if (why) *why = "every step count must lie in [1, 1000]";
-      return false;
-    }
-  if (!(max_theta_deg > 0.0 && max_theta_deg <= 90.0)) {
-    if (why) *why = "max_theta_deg must lie in (0, 90]";
-    return false;
-  }
+    if (steps < 1 || steps > 1000) return core::Refuse(why, "every step count must lie in [1, 1000]");
+  if (!(max_theta_deg > 0.0 && max_theta_deg <= 90.0)) return core::Refuse(why, "max_theta_deg must lie in (0, 90]");
   return true;
 }
 

@@ -87,16 +87,12 @@ std::vector<T> Subset(const std::vector<T>& all, const std::vector<int>& indices
 }  // namespace
 
 bool CalibrationOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (candidates.empty()) return fail("no candidate models");
-  if (white_patch < 0) return fail("white_patch must be >= 0");
-  if (!(max_condition_number > 1.0)) return fail("max_condition_number must be > 1");
-  if (!(min_chromaticity_spread >= 0.0)) return fail("min_chromaticity_spread must be >= 0");
-  if (!(selection_tolerance >= 0.0)) return fail("selection_tolerance must be >= 0");
-  if (max_refinement_iterations < 1) return fail("max_refinement_iterations must be >= 1");
+  if (candidates.empty()) return core::Refuse(why, "no candidate models");
+  if (white_patch < 0) return core::Refuse(why, "white_patch must be >= 0");
+  if (!(max_condition_number > 1.0)) return core::Refuse(why, "max_condition_number must be > 1");
+  if (!(min_chromaticity_spread >= 0.0)) return core::Refuse(why, "min_chromaticity_spread must be >= 0");
+  if (!(selection_tolerance >= 0.0)) return core::Refuse(why, "selection_tolerance must be >= 0");
+  if (max_refinement_iterations < 1) return core::Refuse(why, "max_refinement_iterations must be >= 1");
   return true;
 }
 
@@ -165,11 +161,7 @@ bool NormaliseExposure(const CalibrationInput& input, int white_patch, const std
 CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOptions& options) {
   solvers::core::SolveTimer timer;
   CalibrationSummary summary;
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
+  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
   const std::size_t n = input.camera_rgb.size();
   if (input.usable.size() != n || input.reference_xyz.size() != n) {
     summary.End(solvers::core::Termination::kInvalidInput, "camera_rgb, usable and reference_xyz must have one entry per patch");

@@ -111,15 +111,10 @@ bool LocateOptions::IsValid(std::string* why) const {
 LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options) {
   const solvers::core::SolveTimer timer;
   LocateResult result;
-  const auto end = [&](Termination how, std::string message) {
-    result.End(how, std::move(message));
-    timer.Finish(&result);
-    return result;
-  };
   std::string why;
-  if (!options.IsValid(&why)) return end(Termination::kInvalidOptions, "invalid options: " + why);
+  if (!options.IsValid(&why)) return timer.End(&result, Termination::kInvalidOptions, "invalid options: " + why);
   if (image_bgr.empty() || image_bgr.channels() != 3)
-    return end(Termination::kInvalidInput, "chart image must have 3 channels (B, G, R)");
+    return timer.End(&result, Termination::kInvalidInput, "chart image must have 3 channels (B, G, R)");
   std::string detector_note = "detector off";
   if (options.use_detector) {
     cv::Ptr<cv::mcc::CCheckerDetector> detector = cv::mcc::CCheckerDetector::create();
@@ -131,7 +126,7 @@ LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options)
         location.corners = OrientCorners(location.corners, image_bgr);
         location.method = "detector";
         result.location = location;
-        return end(Termination::kSuccess, "chart found by the mcc detector");
+        return timer.End(&result, Termination::kSuccess, "chart found by the mcc detector");
       }
     }
     detector_note = "the mcc detector found no 24-patch chart";
@@ -142,13 +137,13 @@ LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options)
         std::ostringstream message;
         message << detector_note << "; " << options.fixed_source << " has a corner at (" << p.x << ", " << p.y
                 << "), outside the " << image_bgr.cols << " x " << image_bgr.rows << " image";
-        return end(Termination::kInvalidInput, message.str());
+        return timer.End(&result, Termination::kInvalidInput, message.str());
       }
     result.location = ChartLocation{*options.fixed_corners, "fixed-roi"};
-    return end(Termination::kSuccess, detector_note + "; using " + options.fixed_source);
+    return timer.End(&result, Termination::kSuccess, detector_note + "; using " + options.fixed_source);
   }
-  return end(Termination::kFailure,
-             detector_note + " and no fixed chart position was given (--chart-roi or the rig's color_chart)");
+  return timer.End(&result, Termination::kFailure,
+                            detector_note + " and no fixed chart position was given (--chart-roi or the rig's color_chart)");
 }
 
 std::optional<std::array<cv::Point2f, 4>> ParseChartCorners(const std::string& text, std::string* why) {
@@ -189,15 +184,11 @@ const char* PatchFlagName(PatchFlag flag) {
 }
 
 bool MeasureOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (!(sample_fraction > 0.0 && sample_fraction <= 1.0)) return fail("sample_fraction must be in (0, 1]");
-  if (!(trim_fraction >= 0.0 && trim_fraction < 0.5)) return fail("trim_fraction must be in [0, 0.5)");
-  if (!(max_clipped_fraction >= 0.0 && max_clipped_fraction <= 1.0)) return fail("max_clipped_fraction must be in [0, 1]");
-  if (clip_level < 0.0) return fail("clip_level must be >= 0");
-  if (min_pixels < 1) return fail("min_pixels must be >= 1");
+  if (!(sample_fraction > 0.0 && sample_fraction <= 1.0)) return core::Refuse(why, "sample_fraction must be in (0, 1]");
+  if (!(trim_fraction >= 0.0 && trim_fraction < 0.5)) return core::Refuse(why, "trim_fraction must be in [0, 0.5)");
+  if (!(max_clipped_fraction >= 0.0 && max_clipped_fraction <= 1.0)) return core::Refuse(why, "max_clipped_fraction must be in [0, 1]");
+  if (clip_level < 0.0) return core::Refuse(why, "clip_level must be >= 0");
+  if (min_pixels < 1) return core::Refuse(why, "min_pixels must be >= 1");
   return true;
 }
 

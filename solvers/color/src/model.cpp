@@ -1,4 +1,5 @@
 #include "photorig/solvers/color/model.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <algorithm>
 #include <cmath>
@@ -117,16 +118,12 @@ Eigen::Vector3d ColorModel::ToXyz(const Eigen::Vector3d& camera_rgb) const {
 }
 
 bool ColorModel::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
   if (coefficients.rows() != spec.TermCount() || coefficients.cols() != 3)
-    return fail(spec.Name() + " needs " + std::to_string(spec.TermCount()) + " x 3 coefficients, got " +
-                std::to_string(coefficients.rows()) + " x " + std::to_string(coefficients.cols()));
-  if (!coefficients.allFinite()) return fail("coefficients are not finite");
-  if (!(input_scale > 0.0) || !std::isfinite(input_scale)) return fail("input_scale must be positive");
-  if (!(white_xyz.minCoeff() > 0.0)) return fail("white_xyz must be positive");
+    return core::Refuse(why, spec.Name() + " needs " + std::to_string(spec.TermCount()) + " x 3 coefficients, got " +
+                             std::to_string(coefficients.rows()) + " x " + std::to_string(coefficients.cols()));
+  if (!coefficients.allFinite()) return core::Refuse(why, "coefficients are not finite");
+  if (!(input_scale > 0.0) || !std::isfinite(input_scale)) return core::Refuse(why, "input_scale must be positive");
+  if (!(white_xyz.minCoeff() > 0.0)) return core::Refuse(why, "white_xyz must be positive");
   return true;
 }
 

@@ -83,13 +83,9 @@ solvers::core::Summary DemosaicWithinRegions(const cv::Mat& raw, const std::stri
 }
 
 bool RegionEdgeVote::Options::IsValid(std::string* why) const {
-  const auto fail = [why](const char* reason) {
-    if (why) *why = reason;
-    return false;
-  };
-  if (!(switch_ratio > 0.0 && switch_ratio <= 1.0)) return fail("switch_ratio must be in (0, 1]");
-  if (!(min_difference >= 0.0)) return fail("min_difference must be >= 0");
-  if (!(floor_dn > 0.0)) return fail("floor_dn must be > 0");
+  if (!(switch_ratio > 0.0 && switch_ratio <= 1.0)) return core::Refuse(why, "switch_ratio must be in (0, 1]");
+  if (!(min_difference >= 0.0)) return core::Refuse(why, "min_difference must be >= 0");
+  if (!(floor_dn > 0.0)) return core::Refuse(why, "floor_dn must be > 0");
   return true;
 }
 

@@ -29,10 +29,21 @@ void Summary::End(Termination how, std::string why) {
   message = std::move(why);
 }
 
+bool Refuse(std::string* why, std::string reason) {
+  if (why) *why = std::move(reason);
+  return false;
+}
+
 Summary Ended(Termination how, std::string why) {
   Summary summary;
   summary.End(how, std::move(why));
   return summary;
+}
+
+bool EndIfBadInput(std::string problem, Summary* summary) {
+  if (problem.empty()) return false;
+  summary->End(Termination::kInvalidInput, std::move(problem));
+  return true;
 }
 
 SolveTimer::SolveTimer() : start_(Clock::now()), solve_start_(start_) {}

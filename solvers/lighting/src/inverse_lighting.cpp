@@ -108,15 +108,8 @@ ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, c
                                 const cv::Mat& mask, const ShFitOptions& options) {
   const solvers::core::SolveTimer timer;
   ShLightingSummary summary;
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
-  if (!(why = CheckInputs(normals, albedo, image, mask)).empty()) {
-    summary.End(solvers::core::Termination::kInvalidInput, why);
-    return summary;
-  }
+  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
+  if (solvers::core::EndIfBadInput(CheckInputs(normals, albedo, image, mask), &summary)) return summary;
   const int top_band = options.selection == ShFitOptions::Selection::kFixed ? options.fixed_band : options.max_band;
   const int columns = ShCoefficientCount(top_band);
   std::vector<double> kernel(static_cast<std::size_t>(columns));
@@ -236,15 +229,8 @@ LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, c
                                 const std::vector<double>& led_intensities, const LedWeightsOptions& options) {
   const solvers::core::SolveTimer timer;
   LedWeightsSummary summary;
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
-  if (!(why = CheckInputs(normals, albedo, image, mask)).empty()) {
-    summary.End(solvers::core::Termination::kInvalidInput, why);
-    return summary;
-  }
+  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
+  if (solvers::core::EndIfBadInput(CheckInputs(normals, albedo, image, mask), &summary)) return summary;
   if (led_directions.empty() || led_directions.size() != led_intensities.size()) {
     summary.End(solvers::core::Termination::kInvalidInput, "need one intensity per LED direction");
     return summary;

@@ -215,11 +215,7 @@ HighlightCircleSummary LocateSphereFromHighlights(const std::vector<cv::Mat>& fr
                                                   const HighlightCircleOptions& options) {
   const solvers::core::SolveTimer timer;
   HighlightCircleSummary summary;
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
+  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
   if (frames.size() != nominal_directions.size()) {
     summary.termination = solvers::core::Termination::kInvalidInput;
     summary.message = std::to_string(frames.size()) + " frames for " + std::to_string(nominal_directions.size()) +

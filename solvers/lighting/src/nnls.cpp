@@ -19,11 +19,7 @@ NnlsSummary SolveNnlsNormal(const Eigen::MatrixXd& gram, const Eigen::VectorXd& 
                             const NnlsOptions& options) {
   const solvers::core::SolveTimer timer;
   NnlsSummary summary;
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
+  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
   const Eigen::Index n = rhs.size();
   if (gram.rows() != n || gram.cols() != n || x == nullptr) {
     summary.End(solvers::core::Termination::kInvalidInput, "gram matrix and right-hand side sizes differ");

@@ -83,11 +83,7 @@ Circle GeometricCircle(const std::vector<Eigen::Vector2d>& points, Circle c) {
 SphereFitSummary FitSphereSilhouette(const cv::Mat& image, const SphereFitOptions& options) {
   const solvers::core::SolveTimer timer;
   SphereFitSummary summary;
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
+  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
   if (image.empty() || image.channels() != 1) {
     summary.End(solvers::core::Termination::kInvalidInput, "sphere fit needs a non-empty single-channel image");
     return summary;

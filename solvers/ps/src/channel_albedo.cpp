@@ -6,13 +6,9 @@
 namespace photorig::solvers::ps {
 
 bool ChannelAlbedoOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (!(min_cosine > 0.0 && min_cosine < 1.0)) return fail("min_cosine must lie in (0, 1)");
-  if (min_samples < 1) return fail("min_samples must be >= 1");
-  if (!(shadow_threshold >= 0.0)) return fail("shadow_threshold must be >= 0");
+  if (!(min_cosine > 0.0 && min_cosine < 1.0)) return core::Refuse(why, "min_cosine must lie in (0, 1)");
+  if (min_samples < 1) return core::Refuse(why, "min_samples must be >= 1");
+  if (!(shadow_threshold >= 0.0)) return core::Refuse(why, "shadow_threshold must be >= 0");
   return true;
 }
 
@@ -21,12 +17,8 @@ SolverSummary SolveChannelAlbedo(const ChannelAlbedoOptions& options, const Phot
   const solvers::core::SolveTimer timer;
   SolverSummary summary;
   summary.method = "channel-albedo";
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
-  if (!channel.IsValid(&why)) {
+  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
+  if (std::string why; !channel.IsValid(&why)) {
     summary.End(Termination::kInvalidInput, "invalid stack: " + why);
     return summary;
   }
@@ -84,8 +76,8 @@ SolverSummary SolveChannelAlbedo(const ChannelAlbedoOptions& options, const Phot
   summary.pixels_outside_mask = unsolved;
   summary.samples_rejected = rejected;
   timer.Finish(&summary);
-  summary.termination = Termination::kSuccess;
-  summary.message = std::to_string(solved) + " of " + std::to_string(summary.pixels_total) + " pixels given an albedo";
+  summary.End(Termination::kSuccess, std::to_string(solved) + " of " + std::to_string(summary.pixels_total) +
+                                         " pixels given an albedo");
   return summary;
 }
 

@@ -173,11 +173,7 @@ IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv:
                                     cv::Mat* depth) {
   solvers::core::SolveTimer timer;
   IntegrationSummary summary;
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
+  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
   if (normals.type() != CV_32FC3 || normals.empty()) {
     summary.End(solvers::core::Termination::kInvalidInput, "normals must be a non-empty CV_32FC3 image");
     return summary;
@@ -194,6 +190,7 @@ IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv:
     return summary;
   }
   timer.SetupDone(&summary);
+  std::string why;
   if (options.integrator == Integrator::kFrankotChellappa) {
     FrankotChellappa(g, depth);
   } else if (!Poisson(g, depth, &why)) {

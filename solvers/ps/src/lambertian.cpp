@@ -728,12 +728,8 @@ TileSetup::TileSetup(const LambertianOptions& options, const PhotometricStack& s
 
 // Fails, ending *summary, where the options or the stack cannot be solved.
 bool CheckInputs(const LambertianOptions& options, const PhotometricStack& stack, SolverSummary* summary) {
-  std::string why;
-  if (!options.IsValid(&why)) {
-    summary->End(Termination::kInvalidOptions, "invalid options: " + why);
-    return false;
-  }
-  if (!stack.IsValid(&why)) {
+  if (solvers::core::EndIfInvalid(options, summary)) return false;
+  if (std::string why; !stack.IsValid(&why)) {
     summary->End(Termination::kInvalidInput, "invalid stack: " + why);
     return false;
   }
@@ -849,15 +845,11 @@ void ResolveUnverified(const LambertianOptions& options, const PhotometricStack&
 }  // namespace
 
 bool LambertianOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* text) {
-    if (why) *why = text;
-    return false;
-  };
   if (!(shadow_threshold >= 0.0) || !std::isfinite(shadow_threshold))
-    return fail("shadow_threshold must be finite and >= 0");
-  if (!(saturation_level > shadow_threshold)) return fail("saturation_level must exceed shadow_threshold");
-  if (!(max_condition_number > 1.0)) return fail("max_condition_number must be > 1");
-  if (num_threads < 0) return fail("num_threads must be >= 0 (0 = all)");
+    return core::Refuse(why, "shadow_threshold must be finite and >= 0");
+  if (!(saturation_level > shadow_threshold)) return core::Refuse(why, "saturation_level must exceed shadow_threshold");
+  if (!(max_condition_number > 1.0)) return core::Refuse(why, "max_condition_number must be > 1");
+  if (num_threads < 0) return core::Refuse(why, "num_threads must be >= 0 (0 = all)");
   return true;
 }
 

@@ -19,41 +19,29 @@ void UseDerivative(BlinnPhongDerivative derivative, BlinnPhongOptions* options) 
 }
 
 bool RobustOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* text) {
-    if (why) *why = text;
-    return false;
-  };
-  if (warmup_iterations < 0 || max_iterations < 1) return fail("robust: iterations must be >= 0 (warm-up) and >= 1");
-  if (!(relative_tolerance > 0.0)) return fail("robust: relative_tolerance must be > 0");
-  if (!(inlier_weight > 0.0 && inlier_weight < 1.0)) return fail("robust: inlier_weight must be in (0, 1)");
+  if (warmup_iterations < 0 || max_iterations < 1) return core::Refuse(why, "robust: iterations must be >= 0 (warm-up) and >= 1");
+  if (!(relative_tolerance > 0.0)) return core::Refuse(why, "robust: relative_tolerance must be > 0");
+  if (!(inlier_weight > 0.0 && inlier_weight < 1.0)) return core::Refuse(why, "robust: inlier_weight must be in (0, 1)");
   return true;
 }
 
 bool BlinnPhongOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* text) {
-    if (why) *why = text;
-    return false;
-  };
-  if (max_iterations < 1) return fail("blinn_phong: max_iterations must be >= 1");
-  if (!(relative_tolerance > 0.0 && relative_tolerance < 1.0)) return fail("blinn_phong: relative_tolerance must be in (0, 1)");
-  if (!(min_exponent > 0.0 && min_exponent < max_exponent)) return fail("blinn_phong: need 0 < min_exponent < max_exponent");
+  if (max_iterations < 1) return core::Refuse(why, "blinn_phong: max_iterations must be >= 1");
+  if (!(relative_tolerance > 0.0 && relative_tolerance < 1.0)) return core::Refuse(why, "blinn_phong: relative_tolerance must be in (0, 1)");
+  if (!(min_exponent > 0.0 && min_exponent < max_exponent)) return core::Refuse(why, "blinn_phong: need 0 < min_exponent < max_exponent");
   return true;
 }
 
 bool ModelSelectionOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* text) {
-    if (why) *why = text;
-    return false;
-  };
-  if (!(adequacy_quantile > 0.5 && adequacy_quantile < 1.0)) return fail("selection: adequacy_quantile must be in (0.5, 1)");
+  if (!(adequacy_quantile > 0.5 && adequacy_quantile < 1.0)) return core::Refuse(why, "selection: adequacy_quantile must be in (0.5, 1)");
   if (!(lambertian_quantile > 0.5 && lambertian_quantile <= adequacy_quantile))
-    return fail("selection: lambertian_quantile must be in (0.5, adequacy_quantile]");
+    return core::Refuse(why, "selection: lambertian_quantile must be in (0.5, adequacy_quantile]");
   if (!(max_rejected_fraction >= 0.0 && max_rejected_fraction < 1.0))
-    return fail("selection: max_rejected_fraction must be in [0, 1)");
+    return core::Refuse(why, "selection: max_rejected_fraction must be in [0, 1)");
   if (!(gross_outlier_sigma > 0.0) || !std::isfinite(gross_outlier_sigma))
-    return fail("selection: gross_outlier_sigma must be finite and > 0");
+    return core::Refuse(why, "selection: gross_outlier_sigma must be finite and > 0");
   if (!(glossy_region_fraction > 0.0 && glossy_region_fraction <= 1.0))
-    return fail("selection: glossy_region_fraction must be in (0, 1]");
+    return core::Refuse(why, "selection: glossy_region_fraction must be in (0, 1]");
   return true;
 }
 

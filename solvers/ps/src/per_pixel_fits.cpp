@@ -257,6 +257,48 @@ struct ModelSamples {
   }
 };
 
+// Levenberg-Marquardt's cost_at for a lobe model: evaluates `pixel` at q,
+// refreshing the residuals (and, with_jacobian, their Jacobian by
+// `derivatives` with the options' method), and puts the chi-square in *cost;
+// false where the model cannot be evaluated at q. A held lobe has no
+// derivatives: the step leaves rho_s and the shape where they are.
+template <typename Pixel>
+class LobeCost {
+ public:
+  using Derivatives = bool (*)(const Pixel&, const double*, solvers::autodiff::DerivativeMethod, Eigen::VectorXd*,
+                               Eigen::MatrixXd*, solvers::autodiff::Tape*);
+  LobeCost(const Pixel& pixel, Derivatives derivatives, const ModelSamples& m, const BlinnPhongOptions& options,
+           solvers::autodiff::Tape* tape, bool hold_lobe = false)
+      : pixel_(pixel), derivatives_(derivatives), inverse_sigma_(m.inverse_sigma), method_(options.derivative),
+        tape_(tape), hold_lobe_(hold_lobe) {}
+
+  bool operator()(const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) const {
+    bool ok;
+    if (with_jacobian) {
+      ok = derivatives_(pixel_, q.data(), method_, &residuals_, &jacobian_, tape_);
+    } else {
+      residuals_.resize(inverse_sigma_.size());
+      ok = pixel_(q.data(), residuals_.data());
+    }
+    if (ok) *cost = residuals_.cwiseProduct(inverse_sigma_).squaredNorm();
+    if (ok && with_jacobian && hold_lobe_) jacobian_.rightCols<2>().setZero();
+    return ok;
+  }
+  const Eigen::VectorXd& residuals() const { return residuals_; }
+  const Eigen::MatrixXd& jacobian() const { return jacobian_; }
+
+ private:
+  const Pixel& pixel_;
+  Derivatives derivatives_;
+  const Eigen::VectorXd& inverse_sigma_;
+  solvers::autodiff::DerivativeMethod method_;
+  solvers::autodiff::Tape* tape_;
+  bool hold_lobe_;
+  // What the last call evaluated, which LevenbergMarquardt reads between calls.
+  mutable Eigen::VectorXd residuals_;
+  mutable Eigen::MatrixXd jacobian_;
+};
+
 // The lobe fitted to a pixel's usable samples from `start`'s normal and
 // albedo, its material from the grid's best start; or, with `shared` (step
 // 5), the lobe held at the region's and only the normal and rho_d fitted.
@@ -297,21 +339,8 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
   Eigen::Matrix<double, 6, 1> p;
   p << start.normal, material.diffuse_albedo, material.specular_albedo, material.exponent;
   auto project = [&options](Eigen::Matrix<double, 6, 1>* q) { ProjectLobe(options.min_exponent, options.max_exponent, q); };
-  Eigen::VectorXd residuals;
-  Eigen::MatrixXd jacobian;
-  auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
-    bool ok;
-    if (with_jacobian) {
-      ok = solvers::autodiff::BlinnPhongResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
-    } else {
-      residuals.resize(n);
-      ok = pixel(q.data(), residuals.data());
-    }
-    if (ok) *cost = residuals.cwiseProduct(m.inverse_sigma).squaredNorm();
-    // A shared lobe has no derivatives: the step leaves rho_s and e where they are.
-    if (ok && with_jacobian && shared) jacobian.rightCols<2>().setZero();
-    return ok;
-  };
+  const LobeCost<solvers::autodiff::BlinnPhongPixel> cost_at(
+      pixel, &solvers::autodiff::BlinnPhongResidualsAndJacobian, m, options, tape, shared != nullptr);
   double cost = 0.0;
   if (!cost_at(p, true, &cost) || !std::isfinite(cost)) {
     // As the lane fitter: once more from the diffuse start with no lobe.
@@ -322,7 +351,8 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
     }
     if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
   }
-  cost = LevenbergMarquardt(&p, cost, m.inverse_sigma, residuals, jacobian, cost_at, project, options);
+  cost = LevenbergMarquardt(&p, cost, m.inverse_sigma, cost_at.residuals(), cost_at.jacobian(), cost_at, project,
+                            options);
   return LobeFit(p, cost, shared ? kSharedLobeParameters : kBlinnPhongParameters, n, PixelModel::kBlinnPhong);
 }
 
@@ -386,22 +416,12 @@ PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelF
   }
   if (!std::isfinite(best)) return PixelFit{};
   auto project = [](Eigen::Matrix<double, 6, 1>* q) { ProjectLobe(kMinRoughness, kMaxRoughness, q); };
-  Eigen::VectorXd residuals;
-  Eigen::MatrixXd jacobian;
-  auto cost_at = [&](const Eigen::Matrix<double, 6, 1>& q, bool with_jacobian, double* cost) {
-    bool ok;
-    if (with_jacobian) {
-      ok = solvers::autodiff::GgxResidualsAndJacobian(pixel, q.data(), options.derivative, &residuals, &jacobian, tape);
-    } else {
-      residuals.resize(n);
-      ok = pixel(q.data(), residuals.data());
-    }
-    if (ok) *cost = residuals.cwiseProduct(m.inverse_sigma).squaredNorm();
-    return ok;
-  };
+  const LobeCost<solvers::autodiff::GgxPixel> cost_at(pixel, &solvers::autodiff::GgxResidualsAndJacobian, m, options,
+                                                      tape);
   double cost = 0.0;
   if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
-  cost = LevenbergMarquardt(&p, cost, m.inverse_sigma, residuals, jacobian, cost_at, project, options);
+  cost = LevenbergMarquardt(&p, cost, m.inverse_sigma, cost_at.residuals(), cost_at.jacobian(), cost_at, project,
+                            options);
   return LobeFit(p, cost, kGgxParameters, n, PixelModel::kGgx);
 }
 

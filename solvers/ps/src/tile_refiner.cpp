@@ -134,17 +134,16 @@ PixelFit TrimmedFit(const TrimSolution& trimmed) {
 
 // The lobe fitted to `used` samples.
 PixelFit BlinnPhongFit(const BlinnPhongSolution& solution, int used) {
-  PixelFit fit;
-  fit.ok = solution.ok;
-  fit.normal = solution.normal;
-  fit.albedo = solution.diffuse_albedo;
-  fit.specular_albedo = solution.specular_albedo;
-  fit.exponent = solution.exponent;
-  fit.chi2 = solution.chi2;
-  fit.parameters = kBlinnPhongParameters;
-  fit.used = used;
-  fit.model = PixelModel::kBlinnPhong;
-  return fit;
+  return {.ok = solution.ok,
+          .normal = solution.normal,
+          .albedo = solution.diffuse_albedo,
+          .specular_albedo = solution.specular_albedo,
+          .exponent = solution.exponent,
+          .chi2 = solution.chi2,
+          .parameters = kBlinnPhongParameters,
+          .used = used,
+          .rejected = 0,
+          .model = PixelModel::kBlinnPhong};
 }
 
 void WriteFit(int pixel, const PixelFit& fit, NormalMap* out) {

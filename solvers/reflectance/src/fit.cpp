@@ -18,33 +18,29 @@ Eigen::Vector3d ReflectanceStack::Intensity(int light) const {
 }
 
 bool ReflectanceStack::IsValid(std::string* why) const {
-  auto fail = [&](std::string text) {
-    if (why) *why = std::move(text);
-    return false;
-  };
-  if (images.size() < 3) return fail("the stack needs at least 3 images, has " + std::to_string(images.size()));
+  if (images.size() < 3) return core::Refuse(why, "the stack needs at least 3 images, has " + std::to_string(images.size()));
   if (light_directions.size() != images.size())
-    return fail(std::to_string(images.size()) + " images but " + std::to_string(light_directions.size()) +
-                " light directions");
+    return core::Refuse(why, std::to_string(images.size()) + " images but " + std::to_string(light_directions.size()) +
+                             " light directions");
   if (!light_intensities.empty() && light_intensities.size() != images.size())
-    return fail(std::to_string(images.size()) + " images but " + std::to_string(light_intensities.size()) +
-                " light intensities");
+    return core::Refuse(why, std::to_string(images.size()) + " images but " + std::to_string(light_intensities.size()) +
+                             " light intensities");
   for (std::size_t j = 0; j < images.size(); ++j) {
     const cv::Mat& m = images[j];
     if (m.type() != CV_32FC1 && m.type() != CV_32FC3)
-      return fail("image " + std::to_string(j) + " is not CV_32FC1 or CV_32FC3");
+      return core::Refuse(why, "image " + std::to_string(j) + " is not CV_32FC1 or CV_32FC3");
     if (m.size() != images.front().size() || m.type() != images.front().type())
-      return fail("image " + std::to_string(j) + " differs in size or channels from image 0");
-    if (!m.isContinuous()) return fail("image " + std::to_string(j) + " is not continuous");
+      return core::Refuse(why, "image " + std::to_string(j) + " differs in size or channels from image 0");
+    if (!m.isContinuous()) return core::Refuse(why, "image " + std::to_string(j) + " is not continuous");
     if (std::abs(light_directions[j].norm() - 1.0) > 1e-3)
-      return fail("light direction " + std::to_string(j) + " is not a unit vector");
+      return core::Refuse(why, "light direction " + std::to_string(j) + " is not a unit vector");
     if (!light_intensities.empty() && !(light_intensities[j].minCoeff() > 0.0))
-      return fail("light intensity " + std::to_string(j) + " is not positive");
+      return core::Refuse(why, "light intensity " + std::to_string(j) + " is not positive");
   }
-  if (std::abs(view_direction.norm() - 1.0) > 1e-3) return fail("the view direction is not a unit vector");
+  if (std::abs(view_direction.norm() - 1.0) > 1e-3) return core::Refuse(why, "the view direction is not a unit vector");
   if (!(noise.read_sigma.minCoeff() >= 0.0 && noise.shot_gain.minCoeff() >= 0.0 && noise.relative.minCoeff() >= 0.0) ||
       !noise.read_sigma.allFinite() || !noise.shot_gain.allFinite() || !noise.relative.allFinite())
-    return fail("the noise model's terms must be finite and >= 0");
+    return core::Refuse(why, "the noise model's terms must be finite and >= 0");
   return true;
 }
 
@@ -71,30 +67,26 @@ const char* WarningName(Warning warning) {
 }
 
 bool ReflectanceOptions::IsValid(std::string* why) const {
-  auto fail = [&](const std::string& text) {
-    if (why) *why = text;
-    return false;
-  };
-  if (max_materials < 1 || max_materials > 16) return fail("max_materials must be in [1, 16]");
+  if (max_materials < 1 || max_materials > 16) return core::Refuse(why, "max_materials must be in [1, 16]");
   for (brdf::Model m : lobes) {
-    if (m == brdf::Model::kLambertian) return fail("lobes lists specular lobes only (no lobe is always a candidate)");
+    if (m == brdf::Model::kLambertian) return core::Refuse(why, "lobes lists specular lobes only (no lobe is always a candidate)");
     if (m != brdf::Model::kBlinnPhong && m != brdf::Model::kGgx)
-      return fail(std::string("lobes may hold blinn_phong and ggx; ") + brdf::ModelName(m) +
-                  " is fitted to whole tables (photorig brdf fit), not per material");
+      return core::Refuse(why, std::string("lobes may hold blinn_phong and ggx; ") + brdf::ModelName(m) +
+                               " is fitted to whole tables (photorig brdf fit), not per material");
   }
-  if (!(min_cosine >= 0.0 && min_cosine < 1.0)) return fail("min_cosine must be in [0, 1)");
-  if (min_samples < 3) return fail("min_samples must be at least 3");
-  if (!(poor_fit_ratio > 1.0)) return fail("poor_fit_ratio must exceed 1");
-  if (!(mixed_pixel_alpha >= 0.0 && mixed_pixel_alpha < 1.0)) return fail("mixed_pixel_alpha must be in [0, 1)");
-  if (!(split_alpha > 0.0 && split_alpha < 0.5)) return fail("split_alpha must be in (0, 0.5)");
-  if (shape_search_pixels < 10) return fail("shape_search_pixels must be at least 10");
-  if (kmeans_restarts < 1) return fail("kmeans_restarts must be at least 1");
-  if (min_highlight_lights < 1) return fail("min_highlight_lights must be at least 1");
+  if (!(min_cosine >= 0.0 && min_cosine < 1.0)) return core::Refuse(why, "min_cosine must be in [0, 1)");
+  if (min_samples < 3) return core::Refuse(why, "min_samples must be at least 3");
+  if (!(poor_fit_ratio > 1.0)) return core::Refuse(why, "poor_fit_ratio must exceed 1");
+  if (!(mixed_pixel_alpha >= 0.0 && mixed_pixel_alpha < 1.0)) return core::Refuse(why, "mixed_pixel_alpha must be in [0, 1)");
+  if (!(split_alpha > 0.0 && split_alpha < 0.5)) return core::Refuse(why, "split_alpha must be in (0, 0.5)");
+  if (shape_search_pixels < 10) return core::Refuse(why, "shape_search_pixels must be at least 10");
+  if (kmeans_restarts < 1) return core::Refuse(why, "kmeans_restarts must be at least 1");
+  if (min_highlight_lights < 1) return core::Refuse(why, "min_highlight_lights must be at least 1");
   if (!(unobserved_half_angle_deg > 0.0 && unobserved_half_angle_deg < 90.0))
-    return fail("unobserved_half_angle_deg must be in (0, 90)");
+    return core::Refuse(why, "unobserved_half_angle_deg must be in (0, 90)");
   if (!(max_saturated_fraction >= 0.0 && max_saturated_fraction <= 1.0))
-    return fail("max_saturated_fraction must be in [0, 1]");
-  if (!(max_intensity_error > 0.0)) return fail("max_intensity_error must be positive");
+    return core::Refuse(why, "max_saturated_fraction must be in [0, 1]");
+  if (!(max_intensity_error > 0.0)) return core::Refuse(why, "max_intensity_error must be positive");
   return true;
 }
 

@@ -169,14 +169,10 @@ double Quantile(std::vector<double> v, double q) {
 }  // namespace
 
 bool NormalRefinementOptions::IsValid(std::string* why) const {
-  auto fail = [&](const char* text) {
-    if (why) *why = text;
-    return false;
-  };
-  if (rounds < 1) return fail("rounds must be >= 1");
-  if (!(max_change_deg > 0.0 && max_change_deg <= 90.0)) return fail("max_change_deg must be in (0, 90]");
-  if (!(converged_deg >= 0.0)) return fail("converged_deg must be >= 0");
-  if (keep_better && held_out_lights < 0) return fail("held_out_lights must be >= 0 (0 = every light)");
+  if (rounds < 1) return core::Refuse(why, "rounds must be >= 1");
+  if (!(max_change_deg > 0.0 && max_change_deg <= 90.0)) return core::Refuse(why, "max_change_deg must be in (0, 90]");
+  if (!(converged_deg >= 0.0)) return core::Refuse(why, "converged_deg must be >= 0");
+  if (keep_better && held_out_lights < 0) return core::Refuse(why, "held_out_lights must be >= 0 (0 = every light)");
   return fit.IsValid(why);
 }
 

@@ -5,13 +5,9 @@
 namespace photorig::solvers::tomography {
 
 bool AbsorbanceOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (!(saturation_dn >= 0) || !std::isfinite(saturation_dn)) return fail("saturation_dn must be finite and >= 0");
+  if (!(saturation_dn >= 0) || !std::isfinite(saturation_dn)) return core::Refuse(why, "saturation_dn must be finite and >= 0");
   if (!(min_flat_signal_dn > 0) || !std::isfinite(min_flat_signal_dn))
-    return fail("min_flat_signal_dn must be finite and > 0");
+    return core::Refuse(why, "min_flat_signal_dn must be finite and > 0");
   return true;
 }
 

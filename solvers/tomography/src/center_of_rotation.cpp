@@ -8,12 +8,8 @@
 namespace photorig::solvers::tomography {
 
 bool CorEstimateOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (!(max_offset_mm >= 0) || !std::isfinite(max_offset_mm)) return fail("max_offset_mm must be finite and >= 0");
-  if (!(pair_tolerance_deg > 0) || !std::isfinite(pair_tolerance_deg)) return fail("pair_tolerance_deg must be > 0");
+  if (!(max_offset_mm >= 0) || !std::isfinite(max_offset_mm)) return core::Refuse(why, "max_offset_mm must be finite and >= 0");
+  if (!(pair_tolerance_deg > 0) || !std::isfinite(pair_tolerance_deg)) return core::Refuse(why, "pair_tolerance_deg must be > 0");
   return true;
 }
 
@@ -21,21 +17,16 @@ CorEstimateSummary EstimateCorOffset(const Geometry& geometry, const Absorbance&
                                      const CorEstimateOptions& options) {
   solvers::core::SolveTimer timer;
   CorEstimateSummary summary;
-  auto end = [&](solvers::core::Termination how, std::string why) {
-    summary.End(how, std::move(why));
-    timer.Finish(&summary);
-    return summary;
-  };
   std::string why;
-  if (!options.IsValid(&why)) return end(solvers::core::Termination::kInvalidOptions, why);
-  if (!geometry.IsValid(&why)) return end(solvers::core::Termination::kInvalidInput, why);
+  if (!options.IsValid(&why)) return timer.End(&summary, solvers::core::Termination::kInvalidOptions, why);
+  if (!geometry.IsValid(&why)) return timer.End(&summary, solvers::core::Termination::kInvalidInput, why);
   if (measurements.b.size() != geometry.rays() ||
       (!measurements.valid.empty() && static_cast<std::int64_t>(measurements.valid.size()) != geometry.rays()))
-    return end(solvers::core::Termination::kInvalidInput, "the measurements do not match the scan's rays");
+    return timer.End(&summary, solvers::core::Termination::kInvalidInput, "the measurements do not match the scan's rays");
   if (geometry.beam != Beam::kParallel)
-    return end(solvers::core::Termination::kFailure,
-               "the automatic estimate needs a parallel beam (opposite cone-beam views are not mirror images); "
-               "take the offset from the rig configuration");
+    return timer.End(&summary, solvers::core::Termination::kFailure,
+                               "the automatic estimate needs a parallel beam (opposite cone-beam views are not mirror images); "
+                               "take the offset from the rig configuration");
 
   // Pairs of views 180 degrees apart.
   const double tolerance = options.pair_tolerance_deg * std::numbers::pi / 180.0;
@@ -47,8 +38,8 @@ CorEstimateSummary EstimateCorOffset(const Geometry& geometry, const Absorbance&
       if (i < j && std::abs(diff) <= tolerance) pairs.emplace_back(i, j);
     }
   if (pairs.empty())
-    return end(solvers::core::Termination::kFailure,
-               "no two views are 180 degrees apart: scan 0..360, or 0..180 including its end view");
+    return timer.End(&summary, solvers::core::Termination::kFailure,
+                               "no two views are 180 degrees apart: scan 0..360, or 0..180 including its end view");
   summary.pairs = static_cast<int>(pairs.size());
 
   const int cols = geometry.detector_cols, rows = geometry.detector_rows;
@@ -80,11 +71,11 @@ CorEstimateSummary EstimateCorOffset(const Geometry& geometry, const Absorbance&
   for (std::size_t i = 1; i < cost.size(); ++i)
     if (cost[i] < cost[best]) best = i;
   if (!std::isfinite(cost[best]))
-    return end(solvers::core::Termination::kFailure, "no shift overlaps enough of the opposing views");
+    return timer.End(&summary, solvers::core::Termination::kFailure, "no shift overlaps enough of the opposing views");
   if (best == 0 || best + 1 == cost.size() || !std::isfinite(cost[best - 1]) || !std::isfinite(cost[best + 1]))
-    return end(solvers::core::Termination::kFailure,
-               "the best match lies at the edge of the search: the offset exceeds max_offset_mm, or the views do not "
-               "mirror each other");
+    return timer.End(&summary, solvers::core::Termination::kFailure,
+                               "the best match lies at the edge of the search: the offset exceeds max_offset_mm, or the views do not "
+                               "mirror each other");
   // Parabola through the minimum and its neighbours.
   const double c0 = cost[best - 1], c1 = cost[best], c2 = cost[best + 1];
   const double curvature = c0 - 2.0 * c1 + c2;

@@ -1,4 +1,5 @@
 #include "photorig/solvers/tomography/geometry.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <cmath>
 #include <numbers>
@@ -6,21 +7,17 @@
 namespace photorig::solvers::tomography {
 
 bool Geometry::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (detector_cols < 1 || detector_rows < 1) return fail("the detector needs at least one column and one row");
-  if (!(pixel_mm > 0) || !std::isfinite(pixel_mm)) return fail("pixel_mm must be finite and > 0");
-  if (angles_rad.empty()) return fail("a scan needs at least one view angle");
+  if (detector_cols < 1 || detector_rows < 1) return core::Refuse(why, "the detector needs at least one column and one row");
+  if (!(pixel_mm > 0) || !std::isfinite(pixel_mm)) return core::Refuse(why, "pixel_mm must be finite and > 0");
+  if (angles_rad.empty()) return core::Refuse(why, "a scan needs at least one view angle");
   for (double a : angles_rad)
-    if (!std::isfinite(a)) return fail("view angles must be finite");
-  if (!std::isfinite(cor_offset_mm)) return fail("cor_offset_mm must be finite");
+    if (!std::isfinite(a)) return core::Refuse(why, "view angles must be finite");
+  if (!std::isfinite(cor_offset_mm)) return core::Refuse(why, "cor_offset_mm must be finite");
   if (beam == Beam::kCone) {
     if (!(source_to_axis_mm > 0) || !std::isfinite(source_to_axis_mm))
-      return fail("a cone beam needs source_to_axis_mm > 0");
+      return core::Refuse(why, "a cone beam needs source_to_axis_mm > 0");
     if (!(axis_to_detector_mm >= 0) || !std::isfinite(axis_to_detector_mm))
-      return fail("a cone beam needs axis_to_detector_mm >= 0");
+      return core::Refuse(why, "a cone beam needs axis_to_detector_mm >= 0");
   }
   return true;
 }

@@ -22,23 +22,19 @@ const char* StopReasonName(StopReason reason) {
 }
 
 bool ReconstructOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (max_iterations < 1) return fail("max_iterations must be >= 1");
-  if (!(relaxation >= 0) || !std::isfinite(relaxation)) return fail("relaxation must be finite and >= 0 (0: the method's default)");
-  if (method == Method::kSirt && relaxation >= 2.0) return fail("SIRT converges only for relaxation in (0, 2)");
-  if (method == Method::kArt && relaxation >= 2.0) return fail("ART converges only for relaxation in (0, 2)");
-  if (method == Method::kSart && relaxation >= 2.0) return fail("SART converges only for relaxation in (0, 2)");
-  if (total_variation && method != Method::kSart) return fail("total_variation is implemented for SART only");
-  if (!(tv_strength >= 0) || !std::isfinite(tv_strength)) return fail("tv_strength must be finite and >= 0");
-  if (tv_steps < 1) return fail("tv_steps must be >= 1");
-  if (!(discrepancy_factor > 0) || !std::isfinite(discrepancy_factor)) return fail("discrepancy_factor must be > 0");
-  if (!(noise_sigma >= 0) || !std::isfinite(noise_sigma)) return fail("noise_sigma must be finite and >= 0");
-  if (!(min_rays_per_voxel >= 0) || !std::isfinite(min_rays_per_voxel)) return fail("min_rays_per_voxel must be >= 0");
+  if (max_iterations < 1) return core::Refuse(why, "max_iterations must be >= 1");
+  if (!(relaxation >= 0) || !std::isfinite(relaxation)) return core::Refuse(why, "relaxation must be finite and >= 0 (0: the method's default)");
+  if (method == Method::kSirt && relaxation >= 2.0) return core::Refuse(why, "SIRT converges only for relaxation in (0, 2)");
+  if (method == Method::kArt && relaxation >= 2.0) return core::Refuse(why, "ART converges only for relaxation in (0, 2)");
+  if (method == Method::kSart && relaxation >= 2.0) return core::Refuse(why, "SART converges only for relaxation in (0, 2)");
+  if (total_variation && method != Method::kSart) return core::Refuse(why, "total_variation is implemented for SART only");
+  if (!(tv_strength >= 0) || !std::isfinite(tv_strength)) return core::Refuse(why, "tv_strength must be finite and >= 0");
+  if (tv_steps < 1) return core::Refuse(why, "tv_steps must be >= 1");
+  if (!(discrepancy_factor > 0) || !std::isfinite(discrepancy_factor)) return core::Refuse(why, "discrepancy_factor must be > 0");
+  if (!(noise_sigma >= 0) || !std::isfinite(noise_sigma)) return core::Refuse(why, "noise_sigma must be finite and >= 0");
+  if (!(min_rays_per_voxel >= 0) || !std::isfinite(min_rays_per_voxel)) return core::Refuse(why, "min_rays_per_voxel must be >= 0");
   if (!(stagnation_tolerance >= 0) || !std::isfinite(stagnation_tolerance))
-    return fail("stagnation_tolerance must be finite and >= 0");
+    return core::Refuse(why, "stagnation_tolerance must be finite and >= 0");
   return true;
 }
 namespace internal {
@@ -318,19 +314,14 @@ ReconstructionSummary Reconstruct(const SystemMatrix& projector, const Absorbanc
   solvers::core::SolveTimer timer;
   ReconstructionSummary summary;
   summary.method = options.method;
-  auto end = [&](solvers::core::Termination how, std::string why) {
-    summary.End(how, std::move(why));
-    timer.Finish(&summary);
-    return summary;
-  };
   std::string why;
-  if (!options.IsValid(&why)) return end(solvers::core::Termination::kInvalidOptions, why);
-  if (!sigma) return end(solvers::core::Termination::kInvalidInput, "no output volume given");
+  if (!options.IsValid(&why)) return timer.End(&summary, solvers::core::Termination::kInvalidOptions, why);
+  if (!sigma) return timer.End(&summary, solvers::core::Termination::kInvalidInput, "no output volume given");
   const auto* whole = dynamic_cast<const Projector*>(&projector);
   if ((options.method == Method::kArt || options.method == Method::kSart) && !whole)
-    return end(solvers::core::Termination::kInvalidOptions,
-               std::string(options.method == Method::kArt ? "ART visits one ray" : "SART visits one view") +
-                   " at a time and needs every row of W in one process; use SIRT or CGLS");
+    return timer.End(&summary, solvers::core::Termination::kInvalidOptions,
+                               std::string(options.method == Method::kArt ? "ART visits one ray" : "SART visits one view") +
+                                   " at a time and needs every row of W in one process; use SIRT or CGLS");
   ValidRays valid;
   Eigen::VectorXf row_sums, column_sums;
   double noise_sum = 0.0;

@@ -1,4 +1,5 @@
 #include "photorig/solvers/tomography/volume_grid.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <cmath>
 #include <limits>
@@ -6,14 +7,10 @@
 namespace photorig::solvers::tomography {
 
 bool VolumeGrid::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (nx < 1 || ny < 1 || nz < 1) return fail("a volume grid needs at least one voxel along x, y and z");
-  if (!(voxel_mm > 0) || !std::isfinite(voxel_mm)) return fail("voxel_mm must be finite and > 0");
+  if (nx < 1 || ny < 1 || nz < 1) return core::Refuse(why, "a volume grid needs at least one voxel along x, y and z");
+  if (!(voxel_mm > 0) || !std::isfinite(voxel_mm)) return core::Refuse(why, "voxel_mm must be finite and > 0");
   // Rows of W index voxels with 32-bit integers.
-  if (voxels() > std::numeric_limits<std::int32_t>::max()) return fail("the grid has more than 2^31 voxels");
+  if (voxels() > std::numeric_limits<std::int32_t>::max()) return core::Refuse(why, "the grid has more than 2^31 voxels");
   return true;
 }
 

@@ -20,12 +20,8 @@ Block BlockOfRank(int items, int rank, int ranks) {
 }
 
 bool DecompositionOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (slabs < 0) return fail("slabs must be >= 0 (0: chosen from volume_budget_bytes)");
-  if (volume_budget_bytes == 0) return fail("volume_budget_bytes must be > 0");
+  if (slabs < 0) return core::Refuse(why, "slabs must be >= 0 (0: chosen from volume_budget_bytes)");
+  if (volume_budget_bytes == 0) return core::Refuse(why, "volume_budget_bytes must be > 0");
   return true;
 }
 
@@ -63,10 +59,6 @@ int Size(MPI_Comm comm) {
 bool ChooseDecomposition(const tomography::VolumeGrid& grid, int views, int processes,
                          const DecompositionOptions& options, Decomposition* chosen, std::string* why) {
   if (!options.IsValid(why)) return false;
-  auto fail = [why](std::string message) {
-    if (why) *why = std::move(message);
-    return false;
-  };
   int slabs = options.slabs;
   if (slabs == 0) {
     // The fewest slabs that fit; failing that, the most there can be.
@@ -75,18 +67,18 @@ bool ChooseDecomposition(const tomography::VolumeGrid& grid, int views, int proc
       slabs = s;
       if (VolumeBytes(grid, (grid.nz + s - 1) / s) <= options.volume_budget_bytes) break;
     }
-    if (slabs == 0) return fail(std::to_string(processes) + " processes cannot share " + std::to_string(views) +
-                                " views and " + std::to_string(grid.nz) + " slices");
+    if (slabs == 0) return core::Refuse(why, std::to_string(processes) + " processes cannot share " + std::to_string(views) +
+                                             " views and " + std::to_string(grid.nz) + " slices");
   }
   if (processes % slabs != 0)
-    return fail(std::to_string(processes) + " processes cannot form " + std::to_string(slabs) +
-                " slabs: the processes are view groups x slabs, so the slabs must divide them");
+    return core::Refuse(why, std::to_string(processes) + " processes cannot form " + std::to_string(slabs) +
+                             " slabs: the processes are view groups x slabs, so the slabs must divide them");
   if (slabs > grid.nz)
-    return fail(std::to_string(slabs) + " slabs of a volume of " + std::to_string(grid.nz) +
-                " slices: at most one slab a slice");
+    return core::Refuse(why, std::to_string(slabs) + " slabs of a volume of " + std::to_string(grid.nz) +
+                             " slices: at most one slab a slice");
   if (processes / slabs > views)
-    return fail(std::to_string(processes / slabs) + " view groups (" + std::to_string(processes) + " processes / " +
-                std::to_string(slabs) + " slabs) cannot share " + std::to_string(views) + " views");
+    return core::Refuse(why, std::to_string(processes / slabs) + " view groups (" + std::to_string(processes) + " processes / " +
+                             std::to_string(slabs) + " slabs) cannot share " + std::to_string(views) + " views");
   *chosen = {processes / slabs, slabs};
   return true;
 }

@@ -52,6 +52,10 @@ struct Frame {
   std::uint64_t dropped_before = 0;  // frames the device counted since the previous delivered one but never delivered
 };
 
+// A `width` x `height` frame taken with `settings`: its size, bit depth, pixel
+// format, exposure and gain. The driver adds the pixels, counters and stamps.
+Frame FrameTakenWith(const CameraSettings& settings, int width, int height);
+
 // What discovery reports about a camera it can see (`photorig devices`).
 // Fields a driver could not read stay empty or 0; `error` says why.
 struct CameraInfo {

@@ -71,6 +71,8 @@ class SimModbusServer {
   void DropClients() { drop_clients_.store(true); }
 
  private:
+  // Maps the coils and registers and starts serving on the context just made.
+  Status Launch(bool rtu);
   void Serve();
   // Handles one received request on `fd`; false when the connection must close.
   bool Handle(const std::uint8_t* request, int length);

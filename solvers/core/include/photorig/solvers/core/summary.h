@@ -13,6 +13,7 @@
 
 #include <chrono>
 #include <string>
+#include <utility>
 
 namespace photorig::solvers::core {
 
@@ -44,9 +45,29 @@ struct Summary {
   void End(Termination how, std::string why);
 };
 
+// The refusal of an Options::IsValid: sets *why (when given) to `reason` and
+// returns false, so each check is one line:
+//   if (!(step > 0.0)) return Refuse(why, "step must be positive");
+bool Refuse(std::string* why, std::string reason);
+
 // A summary ended with `how` and `why`: the one-line early return of a solver
 // whose output is a plain value (an image, a matrix) rather than a Summary subclass.
 Summary Ended(Termination how, std::string why);
+
+// The checks every solver opens with, as one-line early returns:
+//   if (EndIfInvalid(options, &summary)) return summary;
+//   if (EndIfBadInput(CheckInputs(...), &summary)) return summary;
+// EndIfInvalid ends `summary` kInvalidOptions with "invalid options: " and the
+// reason when options.IsValid fails; EndIfBadInput ends it kInvalidInput with
+// `problem` when that is not empty. Both return true when they ended it.
+template <typename Options>
+bool EndIfInvalid(const Options& options, Summary* summary) {
+  std::string why;
+  if (options.IsValid(&why)) return false;
+  summary->End(Termination::kInvalidOptions, "invalid options: " + why);
+  return true;
+}
+bool EndIfBadInput(std::string problem, Summary* summary);
 
 // Measures the phases of a solve into a Summary's timings:
 //   SolveTimer timer;  ... timer.SetupDone(&summary); ... timer.Finish(&summary);
@@ -58,6 +79,15 @@ class SolveTimer {
   void SetupDone(Summary* summary);
   // Sets solve_ms (the whole call if SetupDone was never called) and total_ms.
   void Finish(Summary* summary) const;
+  // Ends *summary with `how` and `why`, finishes its timings and returns a
+  // copy: the early return of a solve whose every path is timed.
+  //   if (!sigma) return timer.End(&summary, Termination::kInvalidInput, "no output volume given");
+  template <typename SolverSummary>
+  SolverSummary End(SolverSummary* summary, Termination how, std::string why) const {
+    summary->End(how, std::move(why));
+    Finish(summary);
+    return *summary;
+  }
   // A kSuccess summary (with `note` as its message) timed by this timer.
   Summary Succeeded(std::string note = {}) const;
   // Milliseconds since construction (for a solve that keeps the setup and
