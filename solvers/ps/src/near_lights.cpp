@@ -360,7 +360,7 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     const cv::Mat previous = round > 1 ? result->normals.clone() : cv::Mat();
     FitAllPixels(problem, height, result);
     summary.rounds = round;
-    if (options.progress) options.progress({"near lights", round, near_options.max_rounds});
+    if (options.progress) options.progress({"near lights", round, near_options.max_rounds, {}});
     if (round > 1) {
       summary.normal_change_deg.push_back(MeanNormalChangeDeg(previous, result->normals));
       if (summary.normal_change_deg.back() < near_options.normal_change_tolerance_deg) {
