@@ -15,14 +15,12 @@ Prints each breach and exits 1 if there is one.
 """
 import os
 import re
-import subprocess
 import sys
 
-root = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "..")
-os.chdir(root)
-files = subprocess.check_output(
-    ["git", "ls-files", "--", *[f"{d}/*.{e}" for d in ("solvers", "daemon", "rigconfig", "sim", "drivers") for e in ("h", "cpp")]],
-    text=True).split()
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from product_sources import product_sources  # noqa: E402
+
+files = product_sources()
 include = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
 
 
