@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Near LEDs: the sphere recipe on the simulated dome with its LEDs moved to a
 # radius R, solved with the near-light model (lambertian) and as if the LEDs
-# were distant (--assume-distant), for R from 60 mm to 1 m ->
+# were distant (--assume-distant), for R from 60 mm to 1 m, and the same dome
+# seen through a pinhole camera (30 deg field of view, 300 mm above the
+# sample) solved with the near-light model through its lines of sight ->
 # docs/charts/near_lights.csv and near_lights.png (error and time against R).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,12 +24,23 @@ def position(m):
     return f"position_mm: [{x:.4f}, {y:.4f}, {z:.4f}]"
 print(re.sub(r"direction: \[ *([-0-9.]+), *([-0-9.]+), *([-0-9.]+)\]", position, text), end="")
 PY
+  /usr/bin/python3 - "$work/rig-$radius.yaml" >"$work/pinhole-rig-$radius.yaml" <<'PY'
+import re, sys
+text = open(sys.argv[1]).read()
+text = text.replace("  projection: orthographic\n",
+                    "  projection: pinhole\n  pinhole: {fx_px: 716.55, distance_mm: 300}\n")
+print(re.sub(r"  pixel_pitch_mm: [^\n]*\n", "", text), end="")
+PY
   run="$work/run-$radius"
   "$photorig" run config/recipes/ps-sphere.yaml --rig "$work/rig-$radius.yaml" --out "$run" >/dev/null
-  for model in near distant; do
+  "$photorig" run config/recipes/ps-sphere.yaml --rig "$work/pinhole-rig-$radius.yaml" --out "$work/pinhole-run-$radius" \
+    --no-solve >/dev/null
+  for model in near distant near-pinhole; do
     flags=(--method lambertian)
     [ "$model" = distant ] && flags+=(--assume-distant --max-distant-bias 90)
-    "$photorig" solve ps --run "$run" "${flags[@]}" --integrator none --out "$work/$model-$radius" --json >"$work/$model-$radius.json"
+    source_run=$run
+    [ "$model" = near-pinhole ] && source_run="$work/pinhole-run-$radius"
+    "$photorig" solve ps --run "$source_run" "${flags[@]}" --integrator none --out "$work/$model-$radius" --json >"$work/$model-$radius.json"
     /usr/bin/python3 - "$radius" "$model" "$work/$model-$radius/report.json" >>"$csv" <<'PY'
 import json, sys
 radius, model, path = sys.argv[1:]

@@ -295,7 +295,7 @@ void BM_NearVsDistant(benchmark::State& state) {
   options.method = photorig::solvers::ps::Method::kLambertian;
   options.lambertian.shadow_threshold = 6.0;  // as BM_Method
   photorig::solvers::ps::NearLightOptions near_options;
-  near_options.pixel_pitch_mm = near.pixel_pitch_mm;
+  near_options.camera = photorig::solvers::camera::Camera::Orthographic(384, 384, near.pixel_pitch_mm);
   photorig::solvers::ps::NormalMap map, distant_map;
   cv::Mat height;
   photorig::solvers::ps::NearLightSummary summary;

@@ -343,6 +343,41 @@ std::string MotionConfig::CheckPose(const std::map<std::string, double>& positio
   return {};
 }
 
+namespace {
+
+// camera.projection: orthographic with its pixel pitch, or pinhole with its
+// lens; a pinhole's pixel pitch is its pixel's size on the sample plane.
+void ParseProjection(const YamlNode& camera, CameraConfig* cam) {
+  cam->projection = camera.Choice("projection", solvers::camera::kProjectionNames, cam->projection);
+  if (cam->projection == solvers::camera::Projection::kOrthographic) {
+    if (auto lens = camera.Find("pinhole")) lens->Fail("a pinhole: lens needs projection: pinhole");
+    cam->pixel_pitch_mm = camera.Double("pixel_pitch_mm", cam->pixel_pitch_mm);
+    if (!(cam->pixel_pitch_mm > 0 && cam->pixel_pitch_mm <= 1000)) camera["pixel_pitch_mm"].Fail("must lie in (0, 1000]");
+    return;
+  }
+  if (auto pitch = camera.Find("pixel_pitch_mm"))
+    pitch->Fail("a pinhole camera's pixel size on the object follows from pinhole: fx_px and distance_mm; leave "
+                "pixel_pitch_mm out");
+  const YamlNode lens = camera["pinhole"];
+  lens.ExpectKeys({"fx_px", "fy_px", "cx_px", "cy_px", "distortion", "distance_mm"});
+  solvers::camera::PinholeLens& pinhole = cam->pinhole;
+  pinhole.fx_px = lens["fx_px"].AsDoubleIn(1.0, 1e6);
+  pinhole.fy_px = lens.DoubleIn("fy_px", pinhole.fx_px, 1.0, 1e6);
+  // OpenCV's convention: pixel centres at whole numbers, the middle of the image at (W - 1) / 2.
+  pinhole.cx_px = lens.DoubleIn("cx_px", 0.5 * (cam->width - 1), 0.0, cam->width - 1.0);
+  pinhole.cy_px = lens.DoubleIn("cy_px", 0.5 * (cam->height - 1), 0.0, cam->height - 1.0);
+  if (auto distortion = lens.Find("distortion")) {
+    const std::vector<YamlNode> k = distortion->Items();
+    if (k.size() != 5 && k.size() != 4) distortion->Fail("needs OpenCV's k1, k2, p1, p2[, k3]");
+    for (std::size_t i = 0; i < k.size(); ++i) pinhole.distortion[i] = k[i].AsDoubleIn(-10.0, 10.0);
+  }
+  pinhole.distance_mm = lens["distance_mm"].AsDoubleIn(1.0, 1e5);
+  cam->pixel_pitch_mm = pinhole.distance_mm / pinhole.fx_px;
+  if (std::string why; !cam->Geometry().IsValid(&why)) lens.Fail(why);
+}
+
+}  // namespace
+
 RigConfig LoadRigConfig(const std::string& path) {
   const YamlNode root = YamlNode::LoadFile(path);
   root.ExpectKeys({"rig", "lights", "camera", "sim", "motion", "health", "solve", "reference_target"});
@@ -379,7 +414,7 @@ RigConfig LoadRigConfig(const std::string& path) {
   ParseLightsOptions(lights, simulated, &rig.lights);
 
   const YamlNode camera = root["camera"];
-  camera.ExpectKeys({"driver", "id", "options", "projection", "width", "height", "pixel_pitch_mm", "bit_depth",
+  camera.ExpectKeys({"driver", "id", "options", "projection", "pinhole", "width", "height", "pixel_pitch_mm", "bit_depth",
                      "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart", "trigger",
                      "pixel_format", "color_model"});
   CameraConfig& cam = rig.camera;
@@ -387,14 +422,11 @@ RigConfig LoadRigConfig(const std::string& path) {
   cam.driver = camera["driver"].AsString();
   cam.id = camera.String("id", "camera");
   ParseCameraOptions(camera, simulated, &cam);
-  cam.projection = camera.String("projection", "orthographic");
-  if (cam.projection != "orthographic") camera["projection"].Fail("only 'orthographic' is supported so far");
   cam.width = camera["width"].AsInt();
   cam.height = camera["height"].AsInt();
   if (cam.width < 8 || cam.width > 16384) camera["width"].Fail("must be within [8, 16384]");
   if (cam.height < 8 || cam.height > 16384) camera["height"].Fail("must be within [8, 16384]");
-  cam.pixel_pitch_mm = camera.Double("pixel_pitch_mm", cam.pixel_pitch_mm);
-  if (!(cam.pixel_pitch_mm > 0 && cam.pixel_pitch_mm <= 1000)) camera["pixel_pitch_mm"].Fail("must lie in (0, 1000]");
+  ParseProjection(camera, &cam);
   cam.bit_depth = camera.Int("bit_depth", cam.bit_depth);
   if (cam.bit_depth != 8 && cam.bit_depth != 10 && cam.bit_depth != 12 && cam.bit_depth != 16)
     camera["bit_depth"].Fail("must be 8, 10, 12 or 16");

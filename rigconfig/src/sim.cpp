@@ -15,6 +15,17 @@ sim::WorldConfig MakeWorldConfig(const RigConfig& rig, const sim::Scene& scene) 
   world.light_faults = rig.sim->light_faults;
   world.scene = scene;
   world.camera = {rig.camera.width, rig.camera.height, rig.camera.pixel_pitch_mm};
+  if (rig.camera.projection == solvers::camera::Projection::kPinhole) {
+    const solvers::camera::PinholeLens& lens = rig.camera.pinhole;
+    world.camera.projection = sim::CameraModel::Projection::kPinhole;
+    world.camera.fx = lens.fx_px;
+    world.camera.fy = lens.fy_px;
+    // The simulator measures from the image's corner, OpenCV from the first pixel's centre.
+    world.camera.cx = lens.cx_px + 0.5;
+    world.camera.cy = lens.cy_px + 0.5;
+    world.camera.distortion = lens.distortion;
+    world.camera.distance_mm = lens.distance_mm;
+  }
   world.gonioreflectometer = rig.kind == RigKind::kGonioreflectometer;
   if (rig.reference_target && rig.reference_target->pose.sample_changer_deg)
     world.reference_target = sim::ReferenceTarget{rig.reference_target->albedo,

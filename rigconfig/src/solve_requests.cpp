@@ -24,10 +24,14 @@ bool PhotometricStereoRequest::IsValid(std::string* why) const {
   return true;
 }
 
-std::optional<std::optional<solvers::ps::Integrator>> ParseIntegratorChoice(std::string_view name) {
-  if (name == kNoIntegrator) return std::optional<solvers::ps::Integrator>();
-  if (auto integrator = solvers::ps::ParseIntegrator(name)) return integrator;
-  return std::nullopt;
+bool ParseIntegratorChoice(std::string_view name, std::optional<solvers::ps::Integrator>* integrator) {
+  if (name == kNoIntegrator) {
+    integrator->reset();
+    return true;
+  }
+  const std::optional<solvers::ps::Integrator> parsed = solvers::ps::ParseIntegrator(name);
+  if (parsed) *integrator = parsed;
+  return parsed.has_value();
 }
 
 const char* IntegratorChoiceName(const std::optional<solvers::ps::Integrator>& integrator) {
@@ -53,9 +57,8 @@ PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
   request.max_distant_bias_deg = node.Double("max_distant_bias_deg", request.max_distant_bias_deg);
   if (auto integrator = node.Find("integrator")) {
     const std::string name = integrator->AsString();
-    const auto choice = ParseIntegratorChoice(name);
-    if (!choice) integrator->Fail("integrator '" + name + "' (expected poisson, frankot-chellappa or none)");
-    request.integrator = *choice;
+    if (!ParseIntegratorChoice(name, &request.integrator))
+      integrator->Fail("'" + name + "' is no integrator (expected poisson, frankot-chellappa or none)");
   }
   if (std::string why; !request.IsValid(&why)) node.Fail(why);
   return request;

@@ -10,11 +10,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 rows = list(csv.DictReader(open(sys.argv[1])))
 out = sys.argv[2]
 fig, (error_ax, time_ax) = plt.subplots(1, 2, figsize=(11, 4.5))
-for model, marker in (("distant", "o"), ("near", "s")):
+labels = {"distant": "distant model", "near": "near model", "near-pinhole": "near model, pinhole camera"}
+for model, marker in (("distant", "o"), ("near", "s"), ("near-pinhole", "^")):
     pts = sorted((float(r["radius_mm"]), r) for r in rows if r["model"] == model)
+    if not pts:
+        continue
     radii = [p[0] for p in pts]
-    error_ax.plot(radii, [float(r["mean_deg"]) for _, r in pts], marker=marker, label=f"{model} model (measured)")
-    time_ax.plot(radii, [float(r["solve_ms"]) for _, r in pts], marker=marker, label=f"{model} model")
+    error_ax.plot(radii, [float(r["mean_deg"]) for _, r in pts], marker=marker, label=f"{labels[model]} (measured)")
+    time_ax.plot(radii, [float(r["solve_ms"]) for _, r in pts], marker=marker, label=labels[model])
 predicted = sorted((float(r["radius_mm"]), float(r["predicted_distant_bias_deg"])) for r in rows
                    if r["model"] == "distant" and r["predicted_distant_bias_deg"])
 if predicted:

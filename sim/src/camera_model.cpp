@@ -1,5 +1,11 @@
 #include "photorig/sim/camera_model.h"
 
+#include <opencv2/calib3d.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
 namespace photorig::sim {
 
 bool CameraModel::IsValid(std::string* why) const {
@@ -12,6 +18,8 @@ bool CameraModel::IsValid(std::string* why) const {
   if (projection == Projection::kPinhole) {
     if (!(fx > 0 && fy > 0)) return fail("fx and fy must be > 0");
     if (!(distance_mm > 0)) return fail("distance_mm must be > 0");
+    for (double k : distortion)
+      if (!std::isfinite(k)) return fail("distortion coefficients must be finite");
   }
   return true;
 }
@@ -24,7 +32,18 @@ void CameraModel::Ray(int col, int row, Eigen::Vector3d* origin, Eigen::Vector3d
     return;
   }
   *origin = {0.0, 0.0, distance_mm};
-  *direction = Eigen::Vector3d((col + 0.5 - principal_x()) / fx, -(row + 0.5 - principal_y()) / fy, -1.0).normalized();
+  double x = (col + 0.5 - principal_x()) / fx, y = (row + 0.5 - principal_y()) / fy;
+  if (std::any_of(distortion.begin(), distortion.end(), [](double k) { return k != 0.0; })) {
+    // The lens bends the ray: the pixel sees the undistorted direction.
+    // OpenCV puts pixel centres at whole numbers, half a pixel before ours.
+    const cv::Matx33d k(fx, 0.0, principal_x() - 0.5, 0.0, fy, principal_y() - 0.5, 0.0, 0.0, 1.0);
+    std::vector<cv::Point2d> undistorted;
+    cv::undistortPoints(std::vector<cv::Point2d>{{double(col), double(row)}}, undistorted, k,
+                        std::vector<double>(distortion.begin(), distortion.end()), cv::noArray(), cv::noArray(),
+                        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-12));
+    x = undistorted[0].x, y = undistorted[0].y;
+  }
+  *direction = Eigen::Vector3d(x, -y, -1.0).normalized();
 }
 
 Eigen::Vector3d CameraModel::ViewDirection(const Eigen::Vector3d& point_mm) const {

@@ -150,6 +150,52 @@ TEST(EndToEnd, NearLedDomesAreSolvedWithTheNearLightModel) {
   }
 }
 
+// The rig's camera made a pinhole one: a 384 px image 30 deg wide (a 35 mm
+// lens on a 19 mm sensor) 300 mm above the sample plane.
+std::string WithPinholeCamera(std::string rig) {
+  const std::string orthographic = "  projection: orthographic\n";
+  const std::size_t at = rig.find(orthographic);
+  if (at == std::string::npos) return rig;
+  rig.replace(at, orthographic.size(),
+              "  projection: pinhole\n  pinhole: {fx_px: 716.55, distortion: [-0.05, 0.01, 0, 0, 0], distance_mm: 300}\n");
+  return std::regex_replace(rig, std::regex("  pixel_pitch_mm: [^\n]*\n"), "");
+}
+
+TEST(EndToEnd, APinholeCameraIsSolvedThroughEachPixelsLineOfSight) {
+  struct Case {
+    std::string rig;
+    bool near;
+  };
+  for (const Case& c : {Case{WithPinholeCamera(NearDome(80.0)), true},
+                        Case{WithPinholeCamera(ReadText(SourceDir() + "/config/rigs/sim-dome.yaml")), false}}) {
+    TempDir dir;
+    const std::string rig = dir.Write("pinhole-dome.yaml", c.rig);
+    const fs::path run = dir.path() / "run";
+    ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + rig + " --out " + run.string(),
+                          dir.path() / "log"),
+              0)
+        << ReadText(dir.path() / "log");
+    const auto report = Report(run);
+    EXPECT_EQ(report["termination"], "success") << report["message"];
+    EXPECT_EQ(report["camera_model"]["projection"], "pinhole");
+    EXPECT_NEAR(report["camera_model"]["field_of_view_deg"].get<double>(), 30.0, 0.05);
+    EXPECT_EQ(report["light_model"]["model"], c.near ? "near" : "distant");
+    EXPECT_LT(report["ground_truth"]["mean_angular_error_deg"].get<double>(), 0.5) << (c.near ? "near" : "distant");
+    // Heights in mm through the lens: the sphere's shape, not a perspective-bent one.
+    EXPECT_TRUE(report["depth"]["perspective"].get<bool>());
+    EXPECT_EQ(report["depth"]["from_near_lights"].get<bool>(), c.near);
+    EXPECT_LT(report["depth"]["rms_error_vs_truth"].get<double>(), 0.3) << (c.near ? "near" : "distant");
+    if (c.near) continue;
+    // A specular fit with the view along the axis would tilt glossy pixels: refused, with the predicted tilt.
+    const fs::path log = dir.path() / "blinn.log";
+    EXPECT_EQ(RunPhotorig("solve ps --run " + run.string() + " --method blinn-phong --out " + (dir.path() / "blinn").string(), log), 1);
+    const std::string said = ReadText(log);
+    EXPECT_NE(said.find("pinhole"), std::string::npos) << said;
+    const auto refused = nlohmann::json::parse(ReadText(dir.path() / "blinn/report.json"));
+    EXPECT_GT(refused["camera_model"]["predicted_view_bias_deg"].get<double>(), 0.5);
+  }
+}
+
 TEST(EndToEnd, BadRecipeFailsBeforeCapturingAndNamesTheLine) {
   TempDir dir;
   const std::string recipe = dir.Write("bad.yaml", "recipe:\n  name: bad\n  rig: " + SourceDir() +

@@ -3,13 +3,16 @@
 // distant model's error on a small dome, the near model's, its rounds and the
 // depth it places.
 
+#include "photorig/solvers/camera/camera.h"
 #include "photorig/solvers/ps/evaluation.h"
+#include "photorig/solvers/ps/integration.h"
 #include "photorig/solvers/ps/near_lights.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
 
 #include "ps_test_scene.h"
 
 #include <gtest/gtest.h>
+#include <opencv2/calib3d.hpp>
 
 #include <cmath>
 #include <random>
@@ -24,14 +27,53 @@ constexpr int kSize = 128;
 struct NearScene {
   PhotometricStack stack;
   std::vector<NearLight> lights;
+  camera::Camera camera;
   cv::Mat normals, height_mm;  // truth
 };
+
+// The scenes' pinhole camera: 120 mm above the plane with a 128 px image 21
+// degrees wide, so the sphere fills it and its rim is seen 8 degrees off axis.
+camera::Camera Pinhole() {
+  camera::Camera camera;
+  camera.projection = camera::Projection::kPinhole;
+  camera.width_px = camera.height_px = kSize;
+  camera.pinhole.fx_px = camera.pinhole.fy_px = 350.0;
+  camera.pinhole.cx_px = camera.pinhole.cy_px = 0.5 * (kSize - 1);
+  camera.pinhole.distance_mm = 120.0;
+  return camera;
+}
+
+// Where pixel (r, c)'s line of sight first meets a sphere of kRadiusMm
+// centred on the origin, written out here rather than taken from the solver:
+// vertical lines for an orthographic camera, lines from (0, 0, D) along
+// ((c - cx) / fx, -(r - cy) / fy, -1) for an undistorted pinhole.
+bool HitSphere(const camera::Camera& camera, int r, int c, Eigen::Vector3d* point) {
+  if (!camera.IsPinhole()) {
+    const double x = (c + 0.5 - 0.5 * kSize) * kPitchMm, y = (0.5 * kSize - r - 0.5) * kPitchMm;
+    const double rho2 = x * x + y * y;
+    if (rho2 >= 0.97 * kRadiusMm * kRadiusMm) return false;
+    *point = {x, y, std::sqrt(kRadiusMm * kRadiusMm - rho2)};
+    return true;
+  }
+  const camera::PinholeLens& lens = camera.pinhole;
+  const Eigen::Vector3d centre(0.0, 0.0, lens.distance_mm);
+  const Eigen::Vector3d d = Eigen::Vector3d((c - lens.cx_px) / lens.fx_px, -(r - lens.cy_px) / lens.fy_px, -1.0).normalized();
+  // |C + t d|^2 = R^2: t^2 + 2 (C . d) t + |C|^2 - R^2 = 0.
+  const double half_b = centre.dot(d), discriminant = half_b * half_b - (centre.squaredNorm() - kRadiusMm * kRadiusMm);
+  if (discriminant <= 0.0) return false;
+  *point = centre + (-half_b - std::sqrt(discriminant)) * d;
+  // The same margin from the silhouette as the orthographic sphere's: the
+  // normal at least 10 deg from grazing.
+  return point->normalized().dot((centre - *point).normalized()) > std::sin(10.0 * M_PI / 180.0);
+}
 
 // A Lambertian sphere of albedo 0.6 centred on the origin (its rim on the
 // sample plane) under LEDs on a hemisphere of `dome_radius_mm`, each aimed at
 // the origin, Lambertian emitters (cos^1) of unit irradiance there.
-NearScene RenderNearSphere(double dome_radius_mm, double noise_sigma = 0.0) {
+NearScene RenderNearSphere(double dome_radius_mm, double noise_sigma = 0.0,
+                           const camera::Camera& camera = camera::Camera::Orthographic(kSize, kSize, kPitchMm)) {
   NearScene scene;
+  scene.camera = camera;
   for (const Eigen::Vector3d& direction : testing::RingLights(40, 25, 75))
     scene.lights.push_back({dome_radius_mm * direction, -direction, 1.0});
   scene.normals = cv::Mat(kSize, kSize, CV_32FC3, cv::Scalar::all(0));
@@ -42,10 +84,8 @@ NearScene RenderNearSphere(double dome_radius_mm, double noise_sigma = 0.0) {
   for (std::size_t k = 0; k < scene.lights.size(); ++k) scene.stack.images.emplace_back(kSize, kSize, CV_32F, cv::Scalar(0));
   for (int r = 0; r < kSize; ++r)
     for (int c = 0; c < kSize; ++c) {
-      const double x = (c + 0.5 - 0.5 * kSize) * kPitchMm, y = (0.5 * kSize - r - 0.5) * kPitchMm;
-      const double rho2 = x * x + y * y;
-      if (rho2 >= 0.97 * kRadiusMm * kRadiusMm) continue;
-      const Eigen::Vector3d point(x, y, std::sqrt(kRadiusMm * kRadiusMm - rho2));
+      Eigen::Vector3d point;
+      if (!HitSphere(camera, r, c, &point)) continue;
       const Eigen::Vector3d n = point / kRadiusMm;
       scene.normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
       scene.height_mm.at<float>(r, c) = static_cast<float>(point.z());
@@ -76,9 +116,9 @@ PhotometricStereoOptions Lambertian() {
   return options;
 }
 
-NearLightOptions Near() {
+NearLightOptions Near(const camera::Camera& camera = camera::Camera::Orthographic(kSize, kSize, kPitchMm)) {
   NearLightOptions options;
-  options.pixel_pitch_mm = kPitchMm;
+  options.camera = camera;
   return options;
 }
 
@@ -99,6 +139,9 @@ TEST(NearLights, RecoverTheSphereWhereTheDistantModelTiltsItByDegrees) {
   ASSERT_TRUE(SolvePhotometricStereo(Lambertian(), scene.stack, &distant).IsSolutionUsable());
   const AngularErrorStats distant_error = CompareNormals(distant.normals, scene.normals, scene.stack.mask);
   EXPECT_GT(distant_error.mean_deg, 5.0);
+  // The bias predicted from the geometry alone matches the distant solve's.
+  EXPECT_NEAR(DistantModelBiasDeg(scene.lights, scene.stack.light_directions, kRadiusMm), distant_error.mean_deg,
+              0.1 * distant_error.mean_deg);
 
   NormalMap near;
   cv::Mat height;
@@ -150,6 +193,96 @@ TEST(NearLights, AnLedBelowTheSamplePlaneIsInvalidInput) {
       SolveNearLightPhotometricStereo(Lambertian(), Near(), scene.stack, scene.lights, &near, &height);
   EXPECT_EQ(summary.termination, core::Termination::kInvalidInput);
   EXPECT_NE(summary.message.find("near light 3"), std::string::npos) << summary.message;
+}
+
+TEST(NearLights, APinholeCameraGivesEveryPixelItsOwnLineOfSight) {
+  const NearScene scene = RenderNearSphere(80.0, 0.0, Pinhole());
+  NormalMap near;
+  cv::Mat height;
+  const NearLightSummary summary =
+      SolveNearLightPhotometricStereo(Lambertian(), Near(scene.camera), scene.stack, scene.lights, &near, &height);
+  ASSERT_EQ(summary.termination, core::Termination::kSuccess) << summary.message;
+  EXPECT_LT(CompareNormals(near.normals, scene.normals, scene.stack.mask).mean_deg, 0.3);
+  // The scale about the camera's centre is placed where the model fits: the true heights.
+  cv::Mat difference;
+  cv::absdiff(height, scene.height_mm, difference);
+  EXPECT_LT(cv::mean(difference, (scene.stack.mask != 0) & (height == height))[0], 0.5);
+
+  // The same stack taken as orthographic (the pixel size at the sample plane) is measurably off.
+  NormalMap as_orthographic;
+  const NearLightSummary wrong = SolveNearLightPhotometricStereo(
+      Lambertian(), Near(camera::Camera::Orthographic(kSize, kSize, scene.camera.pinhole.distance_mm / scene.camera.pinhole.fx_px)),
+      scene.stack, scene.lights, &as_orthographic, &height);
+  ASSERT_TRUE(wrong.IsSolutionUsable()) << wrong.message;
+  EXPECT_GT(CompareNormals(as_orthographic.normals, scene.normals, scene.stack.mask).mean_deg, 1.0);
+}
+
+TEST(NearLights, ACameraOfAnotherSizeThanTheImagesIsInvalidInput) {
+  const NearScene scene = RenderNearSphere(400.0);
+  NormalMap near;
+  cv::Mat height;
+  const NearLightSummary summary = SolveNearLightPhotometricStereo(
+      Lambertian(), Near(camera::Camera::Orthographic(kSize + 1, kSize, kPitchMm)), scene.stack, scene.lights, &near, &height);
+  EXPECT_EQ(summary.termination, core::Termination::kInvalidInput);
+  EXPECT_NE(summary.message.find("129x128"), std::string::npos) << summary.message;
+}
+
+TEST(PerspectiveIntegration, RecoversTheSpheresHeightsInMillimetres) {
+  const NearScene scene = RenderNearSphere(400.0, 0.0, Pinhole());
+  const camera::PixelRays rays(scene.camera);
+  IntegrationOptions options;
+  cv::Mat height;
+  const IntegrationSummary summary = IntegrateNormalsPerspective(options, rays, scene.normals, scene.stack.mask, &height);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  // The shape is fixed up to a scale about the camera's centre: scale the
+  // truth's distances to the same geometric mean and compare heights.
+  const cv::Mat both = (scene.stack.mask != 0) & (height == height);
+  double log_sum = 0.0, count = 0.0;
+  for (int r = 0; r < kSize; ++r)
+    for (int c = 0; c < kSize; ++c)
+      if (both.at<std::uint8_t>(r, c)) log_sum += std::log(scene.camera.pinhole.distance_mm - scene.height_mm.at<float>(r, c)), ++count;
+  const double scale = scene.camera.pinhole.distance_mm / std::exp(log_sum / count);
+  double squared = 0.0;
+  for (int r = 0; r < kSize; ++r)
+    for (int c = 0; c < kSize; ++c)
+      if (both.at<std::uint8_t>(r, c)) {
+        const double truth = scene.camera.pinhole.distance_mm - scale * (scene.camera.pinhole.distance_mm - scene.height_mm.at<float>(r, c));
+        squared += std::pow(height.at<float>(r, c) - truth, 2);
+      }
+  const double rms_mm = std::sqrt(squared / count);
+  EXPECT_LT(rms_mm, 0.05) << "of a sphere " << 2 * kRadiusMm << " mm across";
+  EXPECT_LT(summary.residual_rms, 0.05);
+
+  // Integrating the same normals as if orthographic bends the shape by far more.
+  IntegrationOptions orthographic;
+  orthographic.pixel_pitch = scene.camera.pinhole.distance_mm / scene.camera.pinhole.fx_px;
+  cv::Mat flat_height;
+  ASSERT_TRUE(IntegrateNormals(orthographic, scene.normals, scene.stack.mask, &flat_height).IsSolutionUsable());
+  double wrong_squared = 0.0;
+  const double flat_mean = cv::mean(flat_height, both)[0], true_mean = cv::mean(scene.height_mm, both)[0];
+  for (int r = 0; r < kSize; ++r)
+    for (int c = 0; c < kSize; ++c)
+      if (both.at<std::uint8_t>(r, c))
+        wrong_squared += std::pow(flat_height.at<float>(r, c) - flat_mean - (scene.height_mm.at<float>(r, c) - true_mean), 2);
+  EXPECT_GT(std::sqrt(wrong_squared / count), 10.0 * rms_mm);
+}
+
+TEST(PixelRays, ALensesDistortedPixelSeesThePointOpenCvProjectsOntoIt) {
+  camera::Camera camera = Pinhole();
+  camera::PinholeLens& lens = camera.pinhole;
+  lens.distortion = {-0.2, 0.05, 0.001, -0.002, 0.0};
+  const camera::PixelRays rays(camera);
+  const cv::Matx33d k(lens.fx_px, 0, lens.cx_px, 0, lens.fy_px, lens.cy_px, 0, 0, 1);
+  for (const auto& [r, c] : {std::pair{0, 0}, std::pair{5, 120}, std::pair{64, 64}, std::pair{127, 3}}) {
+    const Eigen::Vector3d point = rays.Point(r, c, 12.5);
+    // OpenCV's camera frame: x right, y down, z forward (down -z here).
+    const std::vector<cv::Point3d> object{{point.x(), -point.y(), lens.distance_mm - point.z()}};
+    std::vector<cv::Point2d> image;
+    cv::projectPoints(object, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), k, lens.distortion, image);
+    EXPECT_NEAR(image[0].x, c, 1e-3);
+    EXPECT_NEAR(image[0].y, r, 1e-3);
+    EXPECT_NEAR((rays.ViewDirection(r, c) - (Eigen::Vector3d(0, 0, lens.distance_mm) - point).normalized()).norm(), 0.0, 1e-6);
+  }
 }
 
 }  // namespace

@@ -17,6 +17,7 @@
 
 #include <filesystem>
 #include <iostream>
+#include <algorithm>
 #include <memory>
 
 namespace photorig::app {
@@ -56,6 +57,8 @@ int Execute(const Options& o) {
       const config::RigConfig rig = config::LoadRigConfig(o.rig);
       for (const auto& led : rig.lights.leds) inputs.nominal_directions.push_back(led.direction);
       inputs.pixel_pitch_mm = rig.camera.pixel_pitch_mm;
+      inputs.projection = rig.camera.projection;
+      inputs.pinhole = rig.camera.pinhole;
     }
   }
   for (const auto& path : o.white_images)
@@ -68,6 +71,17 @@ int Execute(const Options& o) {
     request.camera.fy_px = o.fy > 0 ? o.fy : o.fx;
     request.camera.cx_px = o.cx;
     request.camera.cy_px = o.cy;
+  } else if (inputs.projection == solvers::camera::Projection::kPinhole) {
+    // The run's (or rig's) own lens, unless the command line says otherwise.
+    const solvers::camera::PinholeLens& lens = inputs.pinhole;
+    if (std::any_of(lens.distortion.begin(), lens.distortion.end(), [](double k) { return k != 0.0; }))
+      return Fail(kExitUsage, "calibrate lights: the camera's lens has distortion, which the sphere fit does not "
+                              "model; give --camera pinhole with the intrinsics of undistorted frames");
+    request.camera.projection = solvers::lighting::CameraModel::Projection::kPinhole;
+    request.camera.fx_px = lens.fx_px;
+    request.camera.fy_px = lens.fy_px;
+    request.camera.cx_px = lens.cx_px;
+    request.camera.cy_px = lens.cy_px;
   }
   if (o.circle.size() == 3) request.circle = solvers::lighting::Circle{o.circle[0], o.circle[1], o.circle[2]};
   request.silhouette_image = o.silhouette;

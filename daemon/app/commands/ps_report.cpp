@@ -11,7 +11,7 @@ void AddAcceptFailedCaptureFlag(CLI::App* solve, bool* accept) {
 
 void AddIntegratorOption(CLI::App* solve, config::PhotometricStereoRequest* request) {
   solve->add_option_function<std::string>(
-           "--integrator", [request](const std::string& name) { request->integrator = *config::ParseIntegratorChoice(name); },
+           "--integrator", [request](const std::string& name) { config::ParseIntegratorChoice(name, &request->integrator); },
            "depth from the normals: poisson (default) | frankot-chellappa | none")
       ->check(CLI::IsMember(config::IntegratorChoices()));
 }

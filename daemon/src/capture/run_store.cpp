@@ -199,6 +199,12 @@ json ToJson(const RunManifest& m) {
           {"lights", lights},
           {"frames", frames},
           {"ground_truth", m.has_ground_truth}};
+  if (m.projection == solvers::camera::Projection::kPinhole) {
+    const solvers::camera::PinholeLens& lens = m.pinhole;
+    out["camera"]["projection"] = solvers::camera::ProjectionName(m.projection);
+    out["camera"]["pinhole"] = {{"fx_px", lens.fx_px}, {"fy_px", lens.fy_px}, {"cx_px", lens.cx_px},
+                                {"cy_px", lens.cy_px}, {"distortion", lens.distortion}, {"distance_mm", lens.distance_mm}};
+  }
   if (!m.color_model_path.empty())
     out["camera"]["color_model"] = {{"path", m.color_model_path}, {"hash", m.color_model_hash}};
   if (m.reference_albedo) out["reference_target"] = {{"albedo", *m.reference_albedo}};
@@ -228,6 +234,20 @@ RunManifest RunManifestFromJson(const json& j) {
   m.dn_per_radiance_per_us = camera.at("dn_per_radiance_per_us").get<double>();
   m.e_per_dn = camera.value("e_per_dn", 0.0);
   m.pixel_pitch_mm = camera.value("pixel_pitch_mm", 0.0);
+  const std::string projection = camera.value("projection", "orthographic");
+  const std::optional<solvers::camera::Projection> parsed = solvers::camera::ParseProjection(projection);
+  if (!parsed) throw std::runtime_error("unknown camera projection '" + projection + "'");
+  m.projection = *parsed;
+  if (m.projection == solvers::camera::Projection::kPinhole) {
+    const json& lens = camera.at("pinhole");
+    m.pinhole.fx_px = lens.at("fx_px").get<double>();
+    m.pinhole.fy_px = lens.at("fy_px").get<double>();
+    m.pinhole.cx_px = lens.at("cx_px").get<double>();
+    m.pinhole.cy_px = lens.at("cy_px").get<double>();
+    m.pinhole.distortion = lens.at("distortion").get<std::array<double, 5>>();
+    m.pinhole.distance_mm = lens.at("distance_mm").get<double>();
+    if (std::string why; !m.pinhole.IsValid(&why)) throw std::runtime_error("camera pinhole: " + why);
+  }
   m.mosaic = camera.value("mosaic", "mono");  // runs stored before colour cameras are monochrome
   if (!IsKnownMosaic(m.mosaic)) throw std::runtime_error("unknown camera mosaic '" + m.mosaic + "'");
   m.pixel_format = camera.value("pixel_format", "");

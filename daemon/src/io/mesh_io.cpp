@@ -8,7 +8,10 @@
 
 namespace photorig::daemon {
 
-std::size_t WriteDepthMeshPly(const std::string& path, const cv::Mat& depth, double pixel_pitch) {
+namespace {
+
+std::size_t WriteMeshPly(const std::string& path, const cv::Mat& depth,
+                         const std::function<cv::Vec3f(int r, int c, float z)>& vertex_of) {
   CV_Assert(depth.type() == CV_32F);
   cv::Mat index(depth.size(), CV_32S, cv::Scalar(-1));
   std::vector<float> vertices;
@@ -17,7 +20,8 @@ std::size_t WriteDepthMeshPly(const std::string& path, const cv::Mat& depth, dou
       const float z = depth.at<float>(r, c);
       if (!std::isfinite(z)) continue;
       index.at<int>(r, c) = static_cast<int>(vertices.size() / 3);
-      vertices.insert(vertices.end(), {float((c + 0.5) * pixel_pitch), float(-(r + 0.5) * pixel_pitch), z});
+      const cv::Vec3f v = vertex_of(r, c, z);
+      vertices.insert(vertices.end(), {v[0], v[1], v[2]});
     }
   std::vector<std::int32_t> faces;
   for (int r = 0; r + 1 < depth.rows; ++r)
@@ -41,6 +45,21 @@ std::size_t WriteDepthMeshPly(const std::string& path, const cv::Mat& depth, dou
   }
   WriteFileDurably(path, bytes);
   return triangles;
+}
+
+}  // namespace
+
+std::size_t WriteDepthMeshPly(const std::string& path, const cv::Mat& depth, double pixel_pitch) {
+  return WriteMeshPly(path, depth, [pixel_pitch](int r, int c, float z) {
+    return cv::Vec3f(float((c + 0.5) * pixel_pitch), float(-(r + 0.5) * pixel_pitch), z);
+  });
+}
+
+std::size_t WriteDepthMeshPly(const std::string& path, const cv::Mat& height_mm, const solvers::camera::PixelRays& rays) {
+  return WriteMeshPly(path, height_mm, [&rays](int r, int c, float z) {
+    const Eigen::Vector3d p = rays.Point(r, c, z);
+    return cv::Vec3f(float(p.x()), float(p.y()), float(p.z()));
+  });
 }
 
 }  // namespace photorig::daemon

@@ -57,6 +57,8 @@ LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directo
   inputs.names.resize(manifest.lights.size());
   for (const config::LedConfig& led : manifest.lights) inputs.nominal_directions.push_back(led.direction);
   inputs.pixel_pitch_mm = manifest.pixel_pitch_mm;
+  inputs.projection = manifest.projection;
+  inputs.pinhole = manifest.pinhole;
   for (const FrameRecord& record : manifest.frames) {
     if (record.kind != config::CaptureStep::Kind::kLight || record.led < 0 || record.led >= static_cast<int>(inputs.frames.size())) continue;
     inputs.frames[static_cast<std::size_t>(record.led)] = LoadFrame(run_directory, record);

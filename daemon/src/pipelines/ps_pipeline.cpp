@@ -285,6 +285,8 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   }
   input.dark_frames = static_cast<int>(darks.size());
   if (manifest.pixel_pitch_mm > 0.0) input.pixel_pitch = manifest.pixel_pitch_mm;
+  input.camera = solvers::camera::Camera{manifest.projection, manifest.width, manifest.height, input.pixel_pitch,
+                                         manifest.pinhole};
   input.near_lights = NearLightsOf(stack_leds);
   // Photon noise in DN^2 per DN of signal: gain / (electrons per DN). All frames
   // of a run share the gain in practice; the first light frame's is used.
@@ -399,6 +401,17 @@ json ToJson(const PhotometricStereoResult& result) {
                                   {"depth_ms", lights.depth_ms}});
   if (lights.predicted_distant_bias_deg)
     report["light_model"]["predicted_distant_bias_deg"] = *lights.predicted_distant_bias_deg;
+  report["camera_model"] = {{"projection", solvers::camera::ProjectionName(result.camera.projection)}};
+  if (result.camera.IsPinhole()) {
+    const solvers::camera::PinholeLens& lens = result.camera.pinhole;
+    report["camera_model"].update({{"fx_px", lens.fx_px}, {"fy_px", lens.fy_px}, {"cx_px", lens.cx_px},
+                                   {"cy_px", lens.cy_px}, {"distortion", lens.distortion},
+                                   {"distance_mm", lens.distance_mm},
+                                   {"field_of_view_deg", result.camera.HorizontalFieldOfViewDeg()}});
+  } else {
+    report["camera_model"]["pixel_pitch_mm"] = result.camera.pixel_pitch_mm;
+  }
+  if (lights.predicted_view_bias_deg) report["camera_model"]["predicted_view_bias_deg"] = *lights.predicted_view_bias_deg;
   if (result.capture) report["capture"] = result.capture->ToJson();
   if (result.mean_confidence) report["mean_confidence"] = *result.mean_confidence;
   if (!result.previews.is_null()) report["previews"] = result.previews;
@@ -410,7 +423,9 @@ json ToJson(const PhotometricStereoResult& result) {
                        {"pixels", integrated.pixels},
                        {"pixels_dropped", integrated.pixels_dropped},
                        {"residual_rms", integrated.residual_rms},
-                       {"pixel_pitch", result.depth->pixel_pitch}};
+                       {"pixel_pitch", result.depth->pixel_pitch},
+                       {"perspective", result.depth->perspective},
+                       {"from_near_lights", result.depth->from_near_lights}};
     if (result.depth->rms_error_vs_truth) report["depth"]["rms_error_vs_truth"] = *result.depth->rms_error_vs_truth;
     report["timings_ms"]["integrate"] = integrated.solve_ms;
   }
@@ -435,23 +450,83 @@ json ToJson(const PhotometricStereoResult& result) {
 
 namespace {
 
+// RMS of depth - truth after removing their mean difference: integrated
+// depth is known up to a constant (an orthographic camera's offset; a
+// pinhole's scale moves a small object about as much).
+double DepthErrorVsTruth(const cv::Mat& depth, const cv::Mat& truth) {
+  const cv::Mat both = (depth == depth) & (truth == truth);
+  cv::Mat difference = depth - truth;
+  cv::patchNaNs(difference, 0.0);
+  const double offset = cv::mean(difference, both)[0];
+  cv::Mat centred = difference - offset;
+  centred.setTo(0.0, ~both);
+  const double pixels = std::max(1, cv::countNonZero(both));
+  return std::sqrt(centred.dot(centred) / pixels);
+}
+
+solvers::camera::Camera CameraOf(const PhotometricStereoInput& input) {
+  if (input.camera) return *input.camera;
+  return solvers::camera::Camera::Orthographic(input.stack.width(), input.stack.height(), input.pixel_pitch);
+}
+
+solvers::ps::SolverSummary Refused(const solvers::ps::PhotometricStereoOptions& options,
+                                   const solvers::ps::PhotometricStack& stack, const std::string& why) {
+  solvers::ps::SolverSummary refused;
+  refused.method = solvers::ps::MethodName(options.method);
+  refused.light_count = stack.light_count();
+  refused.End(solvers::core::Termination::kFailure, why);
+  return refused;
+}
+
+// Half the mean angle between the object's lines of sight and the camera's
+// axis: a specular lobe fitted with the view along the axis peaks at the
+// half vector of the light and that axis, tilted from the true one by half
+// the view's own tilt.
+double PredictedViewBiasDeg(const solvers::camera::Camera& camera, const cv::Mat& mask) {
+  const solvers::camera::PixelRays rays(camera);
+  double sum = 0.0;
+  std::size_t count = 0;
+  for (int r = 0; r < camera.height_px; ++r)
+    for (int c = 0; c < camera.width_px; ++c)
+      if (mask.empty() || mask.at<std::uint8_t>(r, c))
+        sum += std::acos(std::clamp(rays.ViewDirection(r, c).z(), -1.0, 1.0)), ++count;
+  return count ? 0.5 * sum / count * 180.0 / 3.14159265358979323846 : 0.0;
+}
+
 // The normals under the rig's near LEDs when it gives their positions and
 // the method fits per-pixel lights; else with the distant model, refused
 // when the geometry predicts its bias on an object this size above the
-// request's limit (a result a person at the bench would reject).
+// request's limit (a result a person at the bench would reject). Methods
+// that model specular reflection take the view along the camera's axis,
+// refused likewise for a pinhole camera whose lines of sight tilt too far.
+// *near_height_mm: the near solve's surface, else left empty.
 solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
                                         const solvers::ps::PhotometricStereoOptions& options,
                                         const solvers::ps::PhotometricStack& stack, solvers::ps::NormalMap* map,
-                                        LightModelReport* report) {
+                                        LightModelReport* report, cv::Mat* near_height_mm) {
   using solvers::ps::Method;
-  const bool near_method = options.method == Method::kL2 || options.method == Method::kLambertian;
+  const solvers::camera::Camera camera = CameraOf(input);
+  const bool views_matter = options.method == Method::kBlinnPhong || options.method == Method::kAuto;
+  if (camera.IsPinhole() && views_matter) {
+    const double bias_deg = PredictedViewBiasDeg(camera, stack.mask);
+    report->predicted_view_bias_deg = bias_deg;
+    if (bias_deg > request.max_distant_bias_deg) {
+      char why[400];
+      std::snprintf(why, sizeof(why),
+                    "the camera is a pinhole one: %s fits specular lobes with the view along the camera's axis, "
+                    "which would tilt glossy pixels by about %.2f deg here, above max_distant_bias_deg %.2f; solve "
+                    "with method lambertian, l2 or robust, or raise --max-distant-bias",
+                    solvers::ps::MethodName(options.method), bias_deg, request.max_distant_bias_deg);
+      return Refused(options, stack, why);
+    }
+  }
   if (input.near_lights.empty()) return solvers::ps::SolvePhotometricStereo(options, stack, map);
+  const bool near_method = options.method == Method::kL2 || options.method == Method::kLambertian;
   if (near_method && !request.assume_distant) {
     solvers::ps::NearLightOptions near;
-    near.pixel_pitch_mm = input.pixel_pitch;
-    cv::Mat height_mm;
+    near.camera = camera;
     const solvers::ps::NearLightSummary summary =
-        solvers::ps::SolveNearLightPhotometricStereo(options, near, stack, input.near_lights, map, &height_mm);
+        solvers::ps::SolveNearLightPhotometricStereo(options, near, stack, input.near_lights, map, near_height_mm);
     report->near = true;
     report->rounds = summary.rounds;
     report->normal_change_deg = summary.normal_change_deg;
@@ -460,21 +535,17 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
     return summary;
   }
   const int object_pixels = stack.mask.empty() ? stack.width() * stack.height() : cv::countNonZero(stack.mask);
-  const double radius_mm = std::sqrt(object_pixels / 3.14159265358979323846) * input.pixel_pitch;
+  const double radius_mm = std::sqrt(object_pixels / 3.14159265358979323846) * camera.PixelSizeOnPlaneMm();
   const double bias_deg = solvers::ps::DistantModelBiasDeg(input.near_lights, stack.light_directions, radius_mm);
   report->predicted_distant_bias_deg = bias_deg;
   if (bias_deg > request.max_distant_bias_deg) {
-    solvers::ps::SolverSummary refused;
-    refused.method = solvers::ps::MethodName(options.method);
-    refused.light_count = stack.light_count();
     char why[320];
     std::snprintf(why, sizeof(why),
                   "the rig's LEDs are near: solved as distant lights, an object this size (radius %.1f mm) would "
                   "be biased by about %.2f deg, above max_distant_bias_deg %.2f; solve with method lambertian or l2 "
                   "(the near-light model) or raise --max-distant-bias",
                   radius_mm, bias_deg, request.max_distant_bias_deg);
-    refused.End(solvers::core::Termination::kFailure, why);
-    return refused;
+    return Refused(options, stack, why);
   }
   return solvers::ps::SolvePhotometricStereo(options, stack, map);
 }
@@ -502,8 +573,10 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   const solvers::ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
 
   solvers::ps::NormalMap map;
-  result.summary = SolveNormals(input, request, options, stack, &map, &result.light_model);
+  cv::Mat near_height_mm;
+  result.summary = SolveNormals(input, request, options, stack, &map, &result.light_model, &near_height_mm);
   result.source = input.source;
+  result.camera = CameraOf(input);
   result.capture = input.capture;
   result.dark_frames = input.dark_frames;
   result.noise_sigma_dn = stack.noise.read_sigma;
@@ -532,27 +605,34 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
 
       cv::Mat depth;  // stays empty unless integrated
       if (request.integrator) {
-        solvers::ps::IntegrationOptions integration;
-        integration.integrator = *request.integrator;
-        integration.pixel_pitch = input.pixel_pitch;
+        const solvers::camera::Camera camera = CameraOf(input);
         PhotometricStereoDepth& integrated = result.depth.emplace();
         integrated.integrator = *request.integrator;
         integrated.pixel_pitch = input.pixel_pitch;
-        integrated.summary = solvers::ps::IntegrateNormals(integration, map.normals, solved, &depth);
+        integrated.perspective = camera.IsPinhole();
+        solvers::ps::IntegrationOptions integration;
+        integration.integrator = *request.integrator;
+        integration.pixel_pitch = input.pixel_pitch;
+        if (!near_height_mm.empty()) {
+          // The near-light rounds ended on a surface placed where the model fits
+          // best: its heights are absolute, which integrating again would lose.
+          integrated.from_near_lights = true;
+          depth = near_height_mm;
+          integrated.summary.pixels = static_cast<std::size_t>(cv::countNonZero(depth == depth));
+          integrated.summary.End(solvers::core::Termination::kSuccess, "the near-light solve's surface");
+        } else if (camera.IsPinhole()) {
+          integrated.summary = solvers::ps::IntegrateNormalsPerspective(integration, solvers::camera::PixelRays(camera),
+                                                                        map.normals, solved, &depth);
+        } else {
+          integrated.summary = solvers::ps::IntegrateNormals(integration, map.normals, solved, &depth);
+        }
         if (integrated.summary.IsSolutionUsable()) {
           WriteFloatTiff((out / "depth.tiff").string(), depth);
-          WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
-          if (!input.truth_height.empty()) {
-            // Depth is known up to a constant per region: compare after removing the mean difference.
-            cv::Mat both = (depth == depth) & (input.truth_height == input.truth_height);
-            cv::Mat difference = depth - input.truth_height;
-            cv::patchNaNs(difference, 0.0);
-            const double offset = cv::mean(difference, both)[0];
-            cv::Mat centred = difference - offset;
-            centred.setTo(0.0, ~both);
-            const double pixels = std::max(1, cv::countNonZero(both));
-            integrated.rms_error_vs_truth = std::sqrt(centred.dot(centred) / pixels);
-          }
+          if (camera.IsPinhole())
+            WriteDepthMeshPly((out / "mesh.ply").string(), depth, solvers::camera::PixelRays(camera));
+          else
+            WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
+          if (!input.truth_height.empty()) integrated.rms_error_vs_truth = DepthErrorVsTruth(depth, input.truth_height);
         } else {
           depth.release();
         }

@@ -2,7 +2,6 @@
 
 #include <chrono>
 #include <filesystem>
-#include <functional>
 #include <utility>
 
 namespace photorig::daemon {
@@ -192,36 +191,18 @@ SolveStageReport RunBrdf(const config::BrdfRequest& request, const StageContext&
       SolveBrdfAndWrite(context.run_directory, WithProgress(request, context), ResultsOf(context, "brdf").string())));
 }
 
-// A stage as its kind, its command and the function that runs it on its request.
-class RecipeStage final : public SolveStage {
- public:
-  using RunFunction = std::function<SolveStageReport(const StageContext&, SolveResults*)>;
-  RecipeStage(SolveStageKind kind, const char* command, RunFunction run)
-      : kind_(kind), command_(command), run_(std::move(run)) {}
-  SolveStageKind kind() const override { return kind_; }
-  const char* command() const override { return command_; }
-  SolveStageReport Run(const StageContext& context, SolveResults* results) const override {
-    return run_(context, results);
-  }
-
- private:
-  SolveStageKind kind_;
-  const char* command_;
-  RunFunction run_;
-};
-
 // A stage that runs `run` on its copy of `request`.
 template <typename Request, typename Run>
-std::unique_ptr<SolveStage> MakeStage(SolveStageKind kind, const char* command, const Request& request, Run run) {
-  return std::make_unique<RecipeStage>(kind, command, [request, run](const StageContext& context, SolveResults* results) {
+SolveStage MakeStage(SolveStageKind kind, const char* command, const Request& request, Run run) {
+  return SolveStage(kind, command, [request, run](const StageContext& context, SolveResults* results) {
     return run(request, context, results);
   });
 }
 
 }  // namespace
 
-std::vector<std::unique_ptr<SolveStage>> StagesOf(const config::Recipe& recipe) {
-  std::vector<std::unique_ptr<SolveStage>> stages;
+std::vector<SolveStage> StagesOf(const config::Recipe& recipe) {
+  std::vector<SolveStage> stages;
   using Kind = SolveStageKind;
   if (recipe.photometric_stereo)
     stages.push_back(MakeStage(Kind::kPhotometricStereo, "solve ps", *recipe.photometric_stereo, RunPhotometricStereo));

@@ -307,6 +307,15 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const conf
     result.ps = SolveAndWrite(input, ps_request, (out / "ps").string());
     if (!result.ps.usable()) {
       result.summary.End(solvers::core::Termination::kFailure, "photometric stereo found no normals: " + result.ps.summary.message);
+    } else if (result.ps.light_model.near || result.ps.camera.IsPinhole()) {
+      // The reflectance fits take one direction per LED and the view along
+      // the camera's axis: on this geometry they would be biased, not wrong
+      // by chance.
+      result.summary.End(solvers::core::Termination::kFailure,
+                         std::string("the SVBRDF fits take distant lights and an orthographic view; this rig has ") +
+                             (result.ps.light_model.near ? "near LEDs" : "a pinhole camera") +
+                             " (the normals in ps/ are solved with it): fit reflectance on a rig with distant LEDs "
+                             "and an orthographic (telecentric) camera");
     } else {
       cv::Mat normals = ReadFloatTiff((out / "ps" / "normals.tiff").string());
       cv::Mat mask = input.object_mask;

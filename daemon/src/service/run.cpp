@@ -36,14 +36,14 @@ std::string UtcStamp() {
 void SolveStages(const RunRequest& request, const config::Recipe& recipe, const config::RigConfig& rig, RunOutcome* outcome) {
   const StageContext context{outcome->directory, rig.path, request.solve_progress};
   bool first = true;
-  for (const std::unique_ptr<SolveStage>& stage : StagesOf(recipe)) {
+  for (const SolveStage& stage : StagesOf(recipe)) {
     // An abort that arrived during the previous stage skips the rest.
     if (request.control && request.control->abort_requested()) return;
-    if (first && request.on_state) request.on_state(RunState::kSolving, stage->name());
+    if (first && request.on_state) request.on_state(RunState::kSolving, stage.name());
     first = false;
-    if (request.on_solve_started) request.on_solve_started(stage->name());
+    if (request.on_solve_started) request.on_solve_started(stage.name());
     SolveStageReport report;
-    if (stage->kind() == SolveStageKind::kPhotometricStereo && recipe.solve_executor.executor == config::Executor::kSlurm) {
+    if (stage.kind() == SolveStageKind::kPhotometricStereo && recipe.solve_executor.executor == config::Executor::kSlurm) {
       const SlurmSolveOutcome submitted =
           SolvePhotometricStereoOnSlurm(outcome->directory, *recipe.photometric_stereo, recipe.solve_executor, request);
       if (!submitted.report) {
@@ -55,10 +55,10 @@ void SolveStages(const RunRequest& request, const config::Recipe& recipe, const 
       report = *submitted.report;
     } else {
       try {
-        report = stage->Run(context, outcome);
+        report = stage.Run(context, outcome);
       } catch (const ResultsWriteError& e) {
         // The frames are stored, so only the solve is repeated.
-        throw std::runtime_error(std::string(e.what()) + "; the captured frames are intact: `photorig " + stage->command() +
+        throw std::runtime_error(std::string(e.what()) + "; the captured frames are intact: `photorig " + stage.command() +
                                  " --run " + outcome->directory + "` solves again");
       }
     }
@@ -82,6 +82,8 @@ RunManifest ManifestHeaderFor(const config::RigConfig& rig) {
   header.dn_per_radiance_per_us = rig.camera.dn_per_radiance_per_us;
   header.e_per_dn = rig.camera.e_per_dn;
   header.pixel_pitch_mm = rig.camera.pixel_pitch_mm;
+  header.projection = rig.camera.projection;
+  header.pinhole = rig.camera.pinhole;
   header.mosaic = rig.camera.mosaic;
   header.pixel_format = rig.camera.pixel_format;
   if (rig.camera.color_model) {
@@ -117,7 +119,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   header.run_id = fs::path(outcome.directory).filename().string();
   header.recipe_path = recipe.path;
   header.recipe_name = recipe.name;
-  for (const std::unique_ptr<SolveStage>& stage : StagesOf(recipe)) header.solve_stages.push_back(stage->name());
+  for (const SolveStage& stage : StagesOf(recipe)) header.solve_stages.push_back(stage.name());
   header.sample_name = recipe.sample_name;
   std::unique_ptr<RunWriter> writer_storage;
   if (request.resume) {

@@ -1,5 +1,6 @@
 #include "photorig/solvers/ps/integration.h"
 
+#include <Eigen/Core>
 #include <Eigen/Sparse>
 #include <opencv2/imgproc.hpp>
 
@@ -16,7 +17,11 @@ struct Gradients {
   std::size_t dropped = 0;
 };
 
-Gradients ComputeGradients(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask) {
+// The gradient field of every masked pixel with a finite normal: `slope`
+// turns a normal into the integrand's change per column step and per step of
+// +y (one row up), or refuses one too close to grazing.
+template <typename Slope>
+Gradients ComputeGradients(const cv::Mat& normals, const cv::Mat& mask, Slope slope) {
   Gradients g;
   g.dzdx = cv::Mat::zeros(normals.size(), CV_64F);
   g.dzdy = cv::Mat::zeros(normals.size(), CV_64F);
@@ -26,15 +31,49 @@ Gradients ComputeGradients(const IntegrationOptions& options, const cv::Mat& nor
       if (!mask.empty() && mask.at<std::uint8_t>(r, c) == 0) continue;
       const cv::Vec3f n = normals.at<cv::Vec3f>(r, c);
       if (!std::isfinite(n[0]) || !std::isfinite(n[1]) || !std::isfinite(n[2])) continue;
-      if (n[2] < options.min_normal_z) {
+      if (!slope(r, c, n, &g.dzdx.at<double>(r, c), &g.dzdy.at<double>(r, c))) {
         ++g.dropped;
         continue;
       }
-      g.dzdx.at<double>(r, c) = -n[0] / n[2] * options.pixel_pitch;
-      g.dzdy.at<double>(r, c) = -n[1] / n[2] * options.pixel_pitch;
       g.mask.at<std::uint8_t>(r, c) = 255;
     }
   return g;
+}
+
+Gradients OrthographicGradients(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask) {
+  return ComputeGradients(normals, mask, [&options](int, int, const cv::Vec3f& n, double* dx, double* dy) {
+    if (n[2] < options.min_normal_z) return false;
+    *dx = -n[0] / n[2] * options.pixel_pitch;
+    *dy = -n[1] / n[2] * options.pixel_pitch;
+    return true;
+  });
+}
+
+// Under a pinhole camera the point of pixel (r, c) is C + s (a, b, -1), s its
+// distance along the axis and (a, b) the pixel's ray, so a normal n gives
+//   d(ln s)/dc = (n_x a_c + n_y b_c) / (n_z - n_x a - n_y b)
+// (likewise per row): the log of the distance is integrable like a height,
+// and the unknown constant becomes a scale (Durou et al., "Integrating the
+// normal field of a surface in the presence of discontinuities").
+Gradients PerspectiveGradients(const IntegrationOptions& options, const camera::PixelRays& rays, const cv::Mat& normals,
+                               const cv::Mat& mask) {
+  const int rows = normals.rows, cols = normals.cols;
+  auto ray = [&rays](int r, int c) -> Eigen::Vector2d { return -rays.Slope(r, c); };  // (a, b)
+  return ComputeGradients(normals, mask, [&](int r, int c, const cv::Vec3f& n, double* dx, double* dy) {
+    const Eigen::Vector2d ab = ray(r, c);
+    const double facing = n[2] - n[0] * ab.x() - n[1] * ab.y();  // n . (-a, -b, 1): towards the camera
+    if (facing < options.min_normal_z * std::sqrt(1.0 + ab.squaredNorm())) return false;
+    // The ray's change per column and per row, from the neighbours (exact
+    // for an undistorted lens, whose rays are linear in the pixel).
+    const int c0 = std::max(c - 1, 0), c1 = std::min(c + 1, cols - 1);
+    const int r0 = std::max(r - 1, 0), r1 = std::min(r + 1, rows - 1);
+    const Eigen::Vector2d per_column = (ray(r, c1) - ray(r, c0)) / std::max(c1 - c0, 1);
+    const Eigen::Vector2d per_row = (ray(r1, c) - ray(r0, c)) / std::max(r1 - r0, 1);
+    *dx = (n[0] * per_column.x() + n[1] * per_column.y()) / facing;
+    // dzdy is per step of +y, one row up: minus the per-row change.
+    *dy = -(n[0] * per_row.x() + n[1] * per_row.y()) / facing;
+    return true;
+  });
 }
 
 // Residual of the integrated depth against the gradient on every neighbour
@@ -169,37 +208,72 @@ bool IntegrationOptions::IsValid(std::string* why) const {
   return true;
 }
 
-IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask,
-                                    cv::Mat* depth) {
-  solvers::core::SolveTimer timer;
-  IntegrationSummary summary;
-  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
-  if (normals.type() != CV_32FC3 || normals.empty()) {
-    summary.End(solvers::core::Termination::kInvalidInput, "normals must be a non-empty CV_32FC3 image");
-    return summary;
+namespace {
+
+std::string CheckInputs(const cv::Mat& normals, const cv::Mat& mask) {
+  if (normals.type() != CV_32FC3 || normals.empty()) return "normals must be a non-empty CV_32FC3 image";
+  if (!mask.empty() && (mask.type() != CV_8U || mask.size() != normals.size()))
+    return "the mask must be an 8-bit image of the normals' size";
+  return {};
+}
+
+// Integrates g into *depth (each region's mean 0).
+void Integrate(const IntegrationOptions& options, const Gradients& g, solvers::core::SolveTimer& timer,
+               IntegrationSummary* summary, cv::Mat* depth) {
+  summary->pixels_dropped = g.dropped;
+  summary->pixels = static_cast<std::size_t>(cv::countNonZero(g.mask));
+  if (summary->pixels == 0) {
+    summary->End(solvers::core::Termination::kFailure, "no pixel has a usable normal to integrate");
+    return;
   }
-  if (!mask.empty() && (mask.type() != CV_8U || mask.size() != normals.size())) {
-    summary.End(solvers::core::Termination::kInvalidInput, "the mask must be an 8-bit image of the normals' size");
-    return summary;
-  }
-  const Gradients g = ComputeGradients(options, normals, mask);
-  summary.pixels_dropped = g.dropped;
-  summary.pixels = static_cast<std::size_t>(cv::countNonZero(g.mask));
-  if (summary.pixels == 0) {
-    summary.End(solvers::core::Termination::kFailure, "no pixel has a usable normal to integrate");
-    return summary;
-  }
-  timer.SetupDone(&summary);
+  timer.SetupDone(summary);
   std::string why;
   if (options.integrator == Integrator::kFrankotChellappa) {
     FrankotChellappa(g, depth);
   } else if (!Poisson(g, depth, &why)) {
-    summary.End(solvers::core::Termination::kFailure, why);
-    return summary;
+    summary->End(solvers::core::Termination::kFailure, why);
+    return;
   }
   CentreRegions(g.mask, depth);
-  summary.residual_rms = ResidualRms(g, *depth);
-  summary.End(solvers::core::Termination::kSuccess, "");
+  summary->residual_rms = ResidualRms(g, *depth);
+  summary->End(solvers::core::Termination::kSuccess, "");
+}
+
+}  // namespace
+
+IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask,
+                                    cv::Mat* depth) {
+  solvers::core::SolveTimer timer;
+  IntegrationSummary summary;
+  if (solvers::core::EndIfInvalid(options, &summary) ||
+      solvers::core::EndIfBadInput(CheckInputs(normals, mask), &summary))
+    return summary;
+  Integrate(options, OrthographicGradients(options, normals, mask), timer, &summary, depth);
+  timer.Finish(&summary);
+  return summary;
+}
+
+IntegrationSummary IntegrateNormalsPerspective(const IntegrationOptions& options, const camera::PixelRays& rays,
+                                               const cv::Mat& normals, const cv::Mat& mask, cv::Mat* height_mm) {
+  solvers::core::SolveTimer timer;
+  IntegrationSummary summary;
+  std::string inputs = CheckInputs(normals, mask);
+  if (inputs.empty() && !rays.camera().IsPinhole()) inputs = "perspective integration needs a pinhole camera's rays";
+  if (inputs.empty() && (rays.camera().width_px != normals.cols || rays.camera().height_px != normals.rows))
+    inputs = "the camera's image size differs from the normals'";
+  if (solvers::core::EndIfInvalid(options, &summary) || solvers::core::EndIfBadInput(inputs, &summary)) return summary;
+  cv::Mat log_distance;
+  Integrate(options, PerspectiveGradients(options, rays, normals, mask), timer, &summary, &log_distance);
+  if (summary.IsSolutionUsable()) {
+    // Each region's mean log distance is 0: its geometric-mean distance from
+    // the camera becomes the camera's distance, the object on the sample plane.
+    const double d = rays.camera().pinhole.distance_mm;
+    height_mm->create(normals.size(), CV_32F);
+    for (int r = 0; r < normals.rows; ++r)
+      for (int c = 0; c < normals.cols; ++c)
+        height_mm->at<float>(r, c) = static_cast<float>(d - d * std::exp(double(log_distance.at<float>(r, c))));
+    summary.residual_rms *= d;  // a change of log distance e moves the surface by about e d
+  }
   timer.Finish(&summary);
   return summary;
 }

@@ -1,5 +1,7 @@
 #include "photorig/solvers/ps/near_lights.h"
 
+#include "photorig/solvers/ps/evaluation.h"
+
 #include <opencv2/imgproc.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -46,15 +48,20 @@ struct PreparedLight {
 struct PixelProblem {
   const PhotometricStack& stack;
   std::vector<PreparedLight> lights;
-  double pixel_pitch_mm = 0.0;
+  camera::PixelRays rays;
   double shadow_threshold = 0.0;   // I - D at or below: shadowed
   double saturation_level = 0.0;   // I at or above: clipped
   bool exclude_unusable = true;    // false for l2: every sample enters
   double max_condition_number = 0.0;
 
-  Eigen::Vector3d Point(int r, int c, double z_mm) const {
-    const int rows = stack.height(), cols = stack.width();
-    return {(c + 0.5 - 0.5 * cols) * pixel_pitch_mm, (0.5 * rows - r - 0.5) * pixel_pitch_mm, z_mm};
+  Eigen::Vector3d Point(int r, int c, double z_mm) const { return rays.Point(r, c, z_mm); }
+  // The height of a pixel whose integrated height is `relative` (0 at the
+  // reference) with the surface placed at offset_mm: a shift along z for an
+  // orthographic camera, a scale about the pinhole's centre for a pinhole.
+  double Height(float relative, double offset_mm) const {
+    if (!rays.camera().IsPinhole()) return relative + offset_mm;
+    const double d = rays.camera().pinhole.distance_mm;
+    return d - (d - relative) * (d - offset_mm) / d;
   }
 };
 
@@ -151,30 +158,21 @@ void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* re
     }
 }
 
-// Mean angle between the normals of two rounds over the pixels both solved.
-double MeanNormalChangeDeg(const cv::Mat& before, const cv::Mat& after) {
-  double sum = 0.0;
-  long count = 0;
-  for (int r = 0; r < before.rows; ++r)
-    for (int c = 0; c < before.cols; ++c) {
-      const cv::Vec3f a = before.at<cv::Vec3f>(r, c), b = after.at<cv::Vec3f>(r, c);
-      if (!std::isfinite(a[0]) || !std::isfinite(b[0])) continue;
-      sum += std::acos(std::clamp(static_cast<double>(a.dot(b)), -1.0, 1.0));
-      ++count;
-    }
-  return count > 0 ? RadiansToDegrees(sum / count) : 0.0;
-}
-
-// The integrated depth (mean zero) on every masked pixel: the integrator
-// leaves out pixels too close to grazing, which take their nearest
-// neighbour's depth (a rim pixel sits at the height of the surface beside it).
-cv::Mat RelativeDepth(const NearLightOptions& options, const NormalMap& map, const cv::Mat& mask) {
+// The integrated height on every masked pixel, 0 at its reference (the
+// mean for an orthographic camera; for a pinhole one, the geometric-mean
+// distance from the camera at the sample plane). The integrator leaves out
+// pixels too close to grazing, which take their nearest neighbour's height (a
+// rim pixel sits at the height of the surface beside it).
+cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, const NormalMap& map, const cv::Mat& mask) {
   const cv::Mat solved = map.flags == static_cast<int>(PixelFlag::kSolved);
   IntegrationOptions integration;
   integration.integrator = options.integrator;
-  integration.pixel_pitch = options.pixel_pitch_mm;
+  const bool pinhole = options.camera.IsPinhole();
+  if (!pinhole) integration.pixel_pitch = options.camera.pixel_pitch_mm;
   cv::Mat depth;
-  const IntegrationSummary integrated = IntegrateNormals(integration, map.normals, solved, &depth);
+  const IntegrationSummary integrated =
+      pinhole ? IntegrateNormalsPerspective(integration, p.rays, map.normals, solved, &depth)
+              : IntegrateNormals(integration, map.normals, solved, &depth);
   cv::Mat relative = cv::Mat::zeros(map.normals.size(), CV_32F);
   if (!integrated.IsSolutionUsable() || integrated.pixels == 0) return relative;
   const cv::Mat known = depth == depth;  // not NaN
@@ -185,12 +183,12 @@ cv::Mat RelativeDepth(const NearLightOptions& options, const NormalMap& map, con
   for (int r = 0; r < depth.rows; ++r)
     for (int c = 0; c < depth.cols; ++c)
       if (known.at<std::uint8_t>(r, c)) value_of_label[labels.at<int>(r, c)] = depth.at<float>(r, c);
-  const double mean = cv::mean(depth, known)[0];
+  const double reference = pinhole ? 0.0 : cv::mean(depth, known)[0];
   for (int r = 0; r < depth.rows; ++r)
     for (int c = 0; c < depth.cols; ++c)
       if (mask.empty() || mask.at<std::uint8_t>(r, c))
         relative.at<float>(r, c) =
-            static_cast<float>((known.at<std::uint8_t>(r, c) ? depth.at<float>(r, c) : value_of_label[labels.at<int>(r, c)]) - mean);
+            static_cast<float>((known.at<std::uint8_t>(r, c) ? depth.at<float>(r, c) : value_of_label[labels.at<int>(r, c)]) - reference);
   return relative;
 }
 
@@ -203,7 +201,7 @@ double SparseChiSquare(const PixelProblem& p, const NearLightOptions& options, c
   for (int r = options.offset_stride / 2; r < relative.rows; r += options.offset_stride)
     for (int c = options.offset_stride / 2; c < relative.cols; c += options.offset_stride) {
       if (!solved.at<std::uint8_t>(r, c)) continue;
-      const PixelFit fit = FitPixel(p, r, c, relative.at<float>(r, c) + offset_mm);
+      const PixelFit fit = FitPixel(p, r, c, p.Height(relative.at<float>(r, c), offset_mm));
       if (fit.flag == PixelFlag::kSolved) total += fit.chi_square;
     }
   return total;
@@ -246,8 +244,11 @@ void CountPixels(const NormalMap& map, NearLightSummary* summary) {
   summary->pixels_lambertian = summary->pixels_solved;
 }
 
-std::string CheckInputs(const PhotometricStack& stack, const std::vector<NearLight>& lights) {
+std::string CheckInputs(const PhotometricStack& stack, const std::vector<NearLight>& lights, const camera::Camera& camera) {
   if (std::string why; !stack.IsValid(&why)) return why;
+  if (camera.width_px != stack.width() || camera.height_px != stack.height())
+    return "near lights: the camera is " + std::to_string(camera.width_px) + "x" + std::to_string(camera.height_px) +
+           " pixels, the images " + std::to_string(stack.width()) + "x" + std::to_string(stack.height());
   if (static_cast<int>(lights.size()) != stack.light_count())
     return "near lights: " + std::to_string(lights.size()) + " LEDs for " + std::to_string(stack.light_count()) + " images";
   // Every LED must stand above the object: the depth search stays below the lowest.
@@ -304,14 +305,10 @@ double DistantModelBiasDeg(const std::vector<NearLight>& lights, const std::vect
 }
 
 bool NearLightOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (!(pixel_pitch_mm > 0.0) || !std::isfinite(pixel_pitch_mm)) return fail("pixel_pitch_mm must be > 0");
-  if (max_rounds < 1 || max_rounds > 100) return fail("max_rounds must be within [1, 100]");
-  if (!(normal_change_tolerance_deg > 0.0)) return fail("normal_change_tolerance_deg must be > 0");
-  if (offset_stride < 1) return fail("offset_stride must be >= 1");
+  if (std::string camera_why; !camera.IsValid(&camera_why)) return core::Refuse(why, "camera: " + camera_why);
+  if (max_rounds < 1 || max_rounds > 100) return core::Refuse(why, "max_rounds must be within [1, 100]");
+  if (!(normal_change_tolerance_deg > 0.0)) return core::Refuse(why, "normal_change_tolerance_deg must be > 0");
+  if (offset_stride < 1) return core::Refuse(why, "offset_stride must be >= 1");
   return true;
 }
 
@@ -323,22 +320,15 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   NearLightSummary summary;
   summary.method = MethodName(options.method);
   summary.light_count = stack.light_count();
-  std::string why;
-  if (!options.IsValid(&why) || !near_options.IsValid(&why)) {
-    summary.End(Termination::kInvalidOptions, "invalid options: " + why);
-    return summary;
-  }
+  if (core::EndIfInvalid(options, &summary) || core::EndIfInvalid(near_options, &summary)) return summary;
   if (options.method != Method::kL2 && options.method != Method::kLambertian) {
     summary.End(Termination::kInvalidOptions,
                 std::string("near lights are solved with the l2 and lambertian methods; ") + MethodName(options.method) +
                     " fits one light matrix for every pixel");
     return summary;
   }
-  if (const std::string bad = CheckInputs(stack, lights); !bad.empty()) {
-    summary.End(Termination::kInvalidInput, bad);
-    return summary;
-  }
-  PixelProblem problem{stack, {lights.begin(), lights.end()}, near_options.pixel_pitch_mm};
+  if (core::EndIfBadInput(CheckInputs(stack, lights, near_options.camera), &summary)) return summary;
+  PixelProblem problem{stack, {lights.begin(), lights.end()}, camera::PixelRays(near_options.camera)};
   problem.exclude_unusable = options.method != Method::kL2;
   problem.shadow_threshold = std::max(options.lambertian.shadow_threshold,
                                       options.shadow_threshold_read_sigmas * stack.noise.read_sigma);
@@ -362,20 +352,25 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     summary.rounds = round;
     if (options.progress) options.progress({"near lights", round, near_options.max_rounds, {}});
     if (round > 1) {
-      summary.normal_change_deg.push_back(MeanNormalChangeDeg(previous, result->normals));
+      // The mean angle between the two rounds' normals, over the pixels both solved.
+      summary.normal_change_deg.push_back(CompareNormals(result->normals, previous).mean_deg);
       if (summary.normal_change_deg.back() < near_options.normal_change_tolerance_deg) {
         converged = true;
         break;
       }
     }
     const core::SolveTimer depth_timer;
-    const cv::Mat relative = RelativeDepth(near_options, *result, stack.mask);
+    const cv::Mat relative = RelativeDepth(near_options, problem, *result, stack.mask);
     const cv::Mat solved = result->flags == static_cast<int>(PixelFlag::kSolved);
-    // The offset lies below the lowest LED and no deeper than that under the plane.
-    summary.depth_offset_mm =
-        BestOffset(problem, near_options, solved, relative, -0.5 * lowest_led_mm, 0.5 * lowest_led_mm);
+    // The offset lies below the lowest LED and no deeper than that under the
+    // plane; a pinhole's scale stays positive.
+    double highest_mm = 0.5 * lowest_led_mm;
+    if (near_options.camera.IsPinhole()) highest_mm = std::min(highest_mm, 0.9 * near_options.camera.pinhole.distance_mm);
+    summary.depth_offset_mm = BestOffset(problem, near_options, solved, relative, -0.5 * lowest_led_mm, highest_mm);
     summary.depth_ms += depth_timer.ElapsedMs();
-    height = relative + summary.depth_offset_mm;
+    for (int r = 0; r < height.rows; ++r)
+      for (int c = 0; c < height.cols; ++c)
+        height.at<float>(r, c) = static_cast<float>(problem.Height(relative.at<float>(r, c), summary.depth_offset_mm));
   }
   CountPixels(*result, &summary);
   *height_mm = height.clone();

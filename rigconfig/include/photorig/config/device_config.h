@@ -6,6 +6,7 @@
 #include "photorig/config/color_model.h"
 #include "photorig/config/driver_options.h"
 #include "photorig/drivers/camera.h"
+#include "photorig/solvers/camera/camera.h"
 #include "photorig/drivers/motion/goniometer.h"
 
 #include <Eigen/Core>
@@ -84,7 +85,11 @@ struct CameraConfig {
 #if PHOTORIG_HAVE_DRIVERS_V4L2
   std::optional<drivers::V4l2CameraOptions> v4l2;  // options: {device, buffer_count}
 #endif
-  std::string projection = "orthographic";
+  // Orthographic (pixel_pitch_mm) or pinhole (`pinhole:` OpenCV intrinsics,
+  // distortion and distance above the sample plane; pixel_pitch_mm is then
+  // the pixel's size on the sample plane at the image centre).
+  solvers::camera::Projection projection = solvers::camera::Projection::kOrthographic;
+  solvers::camera::PinholeLens pinhole;
   int width = 0;
   int height = 0;
   double pixel_pitch_mm = 0.1;
@@ -110,6 +115,11 @@ struct CameraConfig {
   // color), loaded and checked when the rig loads; applied when colour runs
   // are solved.
   std::optional<LoadedColorModel> color_model;
+
+  // The geometry the solvers take (solvers/camera/camera.h).
+  solvers::camera::Camera Geometry() const {
+    return {projection, width, height, pixel_pitch_mm, pinhole};
+  }
 };
 
 // A gonioreflectometer's axes (kind: gonioreflectometer). Axis ids

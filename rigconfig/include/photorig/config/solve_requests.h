@@ -48,7 +48,8 @@ PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node);
 
 // The integrator as requests name it: an IntegratorName, or "none".
 inline constexpr const char* kNoIntegrator = "none";
-std::optional<std::optional<solvers::ps::Integrator>> ParseIntegratorChoice(std::string_view name);
+// Sets *integrator from `name` (nullopt for "none"); false for other text.
+bool ParseIntegratorChoice(std::string_view name, std::optional<solvers::ps::Integrator>* integrator);
 const char* IntegratorChoiceName(const std::optional<solvers::ps::Integrator>& integrator);
 std::vector<std::string> IntegratorChoices();  // poisson, frankot-chellappa, none
 

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <string>
 
 namespace photorig::sim {
@@ -24,6 +25,8 @@ struct CameraModel {
   // Pinhole intrinsics in pixels; cx, cy < 0 mean the image centre.
   double fx = 2000.0, fy = 2000.0, cx = -1.0, cy = -1.0;
   double distance_mm = 300.0;  // pinhole: camera centre above the object origin
+  // Pinhole: OpenCV's lens distortion k1, k2, p1, p2, k3 (all 0: none).
+  std::array<double, 5> distortion{};
 
   bool IsValid(std::string* why) const;
   // The ray through the centre of pixel (col, row): origin and unit direction.

@@ -11,6 +11,7 @@
 #include "photorig/config/recipe.h"
 #include "photorig/config/solve_requests.h"
 #include "photorig/drivers/camera.h"
+#include "photorig/solvers/camera/camera.h"
 
 #include <nlohmann/json.hpp>
 
@@ -98,7 +99,11 @@ struct RunManifest {
   double saturation_dn = 0.0;
   double dn_per_radiance_per_us = 1.0;
   double e_per_dn = 0.0;  // 0 = unknown
-  double pixel_pitch_mm = 0.0;  // object-space pixel size (orthographic); 0 = unknown
+  double pixel_pitch_mm = 0.0;  // object-space pixel size (pinhole: on the sample plane); 0 = unknown
+  // The camera's projection and, for a pinhole camera, its lens (runs stored
+  // before it was recorded read as orthographic).
+  solvers::camera::Projection projection = solvers::camera::Projection::kOrthographic;
+  solvers::camera::PinholeLens pinhole;
   // The colour filter in front of the sensor, as frames are stored: "mono",
   // a Bayer pattern ("RGGB", "BGGR", "GRBG", "GBRG": the top-left 2 x 2 block;
   // frames are the raw one-channel mosaic) or "RGB" (frames hold R, G, B per

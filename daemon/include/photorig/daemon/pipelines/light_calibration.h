@@ -10,6 +10,7 @@
 
 #include "photorig/config/recipe.h"
 #include "photorig/config/solve_requests.h"
+#include "photorig/solvers/camera/camera.h"
 #include "photorig/solvers/core/names.h"
 #include "photorig/solvers/lighting/mirror_sphere.h"
 
@@ -28,6 +29,10 @@ struct LightCalibrationInputs {
   std::vector<Eigen::Vector3d> nominal_directions;  // the rig's, for the highlight fit; may be empty otherwise
   std::vector<cv::Mat> white_frames;                // white sphere, one per LED, optional
   double pixel_pitch_mm = 0.0;                      // object-space pixel size (orthographic); 0 = unknown
+  // The run's or rig's camera: a pinhole one's lens locates the sphere unless
+  // the command line gives intrinsics of its own.
+  solvers::camera::Projection projection = solvers::camera::Projection::kOrthographic;
+  solvers::camera::PinholeLens pinhole;
 };
 
 // The light frames of a run: one per LED, in LED order, with the rig's

@@ -16,6 +16,7 @@
 #include "photorig/config/recipe.h"
 #include "photorig/config/solve_requests.h"
 #include "photorig/daemon/capture/run_store.h"
+#include "photorig/solvers/camera/camera.h"
 #include "photorig/solvers/ps/evaluation.h"
 #include "photorig/solvers/ps/integration.h"
 #include "photorig/solvers/ps/near_lights.h"
@@ -37,6 +38,8 @@ struct PhotometricStereoInput {
   solvers::ps::PhotometricStack stack;
   int dark_frames = 0;
   double pixel_pitch = 1.0;  // object-space size of a pixel (mm for rigs that know it), for depth
+  // The run's camera (solvers/camera/camera.h); unset: orthographic with pixel_pitch.
+  std::optional<solvers::camera::Camera> camera;
   // Samples at or above this are clipped; infinity = unknown, then taken as the
   // full-scale code the data reach, if they reach one.
   double saturation_level = std::numeric_limits<double>::infinity();
@@ -95,7 +98,9 @@ solvers::ps::PhotometricStereoOptions MakeSolverOptions(const config::Photometri
 struct PhotometricStereoDepth {
   solvers::ps::Integrator integrator = solvers::ps::Integrator::kPoisson;
   solvers::ps::IntegrationSummary summary;
-  double pixel_pitch = 1.0;        // depth units per pixel
+  double pixel_pitch = 1.0;        // depth units per pixel (orthographic)
+  bool perspective = false;        // integrated through the run's pinhole camera: heights in mm
+  bool from_near_lights = false;   // the near-light solve's own depth, placed by its model fit
   // RMS of depth - true height after removing their mean difference (depth is
   // known up to a constant); when the source has a ground-truth height.
   std::optional<double> rms_error_vs_truth;
@@ -111,6 +116,10 @@ struct LightModelReport {
   std::vector<double> normal_change_deg;  // near: mean change per round after the first
   double depth_offset_mm = 0.0;           // near: z of the surface's mean depth
   double depth_ms = 0.0;                  // near: of the solve's time, integrating and placing the depth
+  // For a pinhole camera solved by a method that models specular reflection
+  // with the view along the axis: the tilt to expect on glossy pixels (half
+  // the mean angle of the object's lines of sight to the axis).
+  std::optional<double> predicted_view_bias_deg;
 };
 
 // What one solve produced. Callers use it as is; ToJson gives report.json.
@@ -121,6 +130,7 @@ struct PhotometricStereoResult {
   double saturation_level = std::numeric_limits<double>::infinity();  // as applied; infinity = nothing clipped
   solvers::ps::SolverSummary summary;       // method, termination, message, pixel counts, noise model, timings
   LightModelReport light_model;
+  solvers::camera::Camera camera;  // the camera model the solve used
   // Measured on the output, so only when the solution is usable:
   std::optional<double> mean_confidence;     // over solved pixels
   std::optional<PhotometricStereoDepth> depth;   // unless the request asked for no integrator

@@ -14,9 +14,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include <memory>
+#include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace photorig::daemon {
@@ -71,15 +72,22 @@ struct StageContext {
 // the results cannot be written; a solver's failure is in the report.
 class SolveStage {
  public:
-  virtual ~SolveStage() = default;
-  virtual SolveStageKind kind() const = 0;
-  const char* name() const { return SolveStageName(kind()); }
-  // `photorig solve <command> --run DIR` repeats the stage from the frames.
-  virtual const char* command() const = 0;
-  virtual SolveStageReport Run(const StageContext& context, SolveResults* results) const = 0;
+  using RunFunction = std::function<SolveStageReport(const StageContext&, SolveResults*)>;
+  SolveStage(SolveStageKind kind, const char* command, RunFunction run)
+      : kind_(kind), command_(command), run_(std::move(run)) {}
+  SolveStageKind kind() const { return kind_; }
+  const char* name() const { return SolveStageName(kind_); }
+  // `photorig <command> --run DIR` repeats the stage from the frames.
+  const char* command() const { return command_; }
+  SolveStageReport Run(const StageContext& context, SolveResults* results) const { return run_(context, results); }
+
+ private:
+  SolveStageKind kind_;
+  const char* command_;
+  RunFunction run_;
 };
 
 // The stages `recipe` asks for, in the order they run.
-std::vector<std::unique_ptr<SolveStage>> StagesOf(const config::Recipe& recipe);
+std::vector<SolveStage> StagesOf(const config::Recipe& recipe);
 
 }  // namespace photorig::daemon

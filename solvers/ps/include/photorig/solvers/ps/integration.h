@@ -12,7 +12,12 @@
 //     any mask shape (holes, several objects); a sparse solve.
 // Each connected region's depth is defined up to a constant: both methods put
 // its mean at 0.
+//
+// Under a pinhole camera (IntegrateNormalsPerspective) the normals fix the
+// log of each point's distance from the camera up to a constant, so the shape
+// up to a scale; the same integrators solve for it.
 
+#include "photorig/solvers/camera/camera.h"
 #include "photorig/solvers/core/names.h"
 #include "photorig/solvers/core/summary.h"
 
@@ -35,6 +40,7 @@ struct IntegrationOptions {
   double pixel_pitch = 1.0;  // object-space size of a pixel; depth comes out in the same unit
   // Normals closer to grazing than this (n_z below it) give unbounded slopes;
   // such pixels are left out of the mask.
+  // Perspective: the cosine between the normal and the pixel's ray.
   double min_normal_z = 0.05;
   bool IsValid(std::string* why) const;
 };
@@ -42,12 +48,21 @@ struct IntegrationOptions {
 struct IntegrationSummary : solvers::core::Summary {
   std::size_t pixels = 0;       // pixels that received a depth
   std::size_t pixels_dropped = 0;  // in the mask but too close to grazing
-  double residual_rms = 0.0;    // RMS of (depth difference - integrated gradient) over neighbour pairs, in depth units
+  // RMS of (depth difference - integrated gradient) over neighbour pairs, in
+  // depth units (perspective: the log distance's, times the camera distance).
+  double residual_rms = 0.0;
 };
 
 // normals: CV_32FC3 (x, y, z), NaN where unknown; mask: CV_8U (empty = every
 // finite normal). *depth: CV_32F, NaN outside the integrated pixels.
 IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask,
                                     cv::Mat* depth);
+
+// The same for normals seen through the pinhole camera of `rays` (its frame:
+// camera/camera.h): *height_mm is the surface's z in mm, each region scaled
+// so its geometric-mean distance from the camera is the camera's distance_mm
+// (an object on the sample plane); options.pixel_pitch is not used.
+IntegrationSummary IntegrateNormalsPerspective(const IntegrationOptions& options, const camera::PixelRays& rays,
+                                               const cv::Mat& normals, const cv::Mat& mask, cv::Mat* height_mm);
 
 }  // namespace photorig::solvers::ps

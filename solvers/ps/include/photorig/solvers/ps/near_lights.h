@@ -9,13 +9,16 @@
 // where the point is, which the normals give only once integrated, so normals
 // and depth are solved in turn until the normals stop moving.
 //
-// Geometry: an orthographic camera looking down -z; pixel (r, c) images the
-// line x = (c + 0.5 - W / 2) p, y = (H / 2 - r - 0.5) p (p the pixel pitch in
-// mm), the frame of the rig's LED positions, the sample plane z = 0. The
-// integrated depth fixes the shape; its offset along z is chosen where the
-// Lambertian model explains the samples best, since both the falloff and the
-// light directions change with it.
+// Geometry: the frame of camera/camera.h (the rig's LED positions, the sample
+// plane z = 0), with an orthographic or a pinhole camera: each pixel sees its
+// own line, and the point on it follows from the surface's height. The
+// integrated normals fix the shape; where it stands along the lines (an
+// offset in z for an orthographic camera, a scale about the camera's centre
+// for a pinhole one) is chosen where the Lambertian model explains the
+// samples best, since both the falloff and the light directions change with
+// it.
 
+#include "photorig/solvers/camera/camera.h"
 #include "photorig/solvers/core/summary.h"
 #include "photorig/solvers/ps/integration.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
@@ -46,7 +49,9 @@ struct NearLight {
 std::vector<NearLight> LightsAimedAtOrigin(const std::vector<Eigen::Vector3d>& positions_mm, double cos_exponent = 1.0);
 
 struct NearLightOptions {
-  double pixel_pitch_mm = 0.0;  // > 0: the size of a pixel on the object
+  // The camera the stack was taken with (its size the stack's); no default:
+  // an orthographic one needs its pixel pitch, a pinhole one its intrinsics.
+  camera::Camera camera;
   // Rounds of normals then depth. They stop once the mean change of the
   // normals from one round to the next is below normal_change_tolerance_deg:
   // a tenth of the accuracy the solve aims at (half a degree) leaves the
@@ -55,7 +60,7 @@ struct NearLightOptions {
   int max_rounds = 12;
   double normal_change_tolerance_deg = 0.05;
   Integrator integrator = Integrator::kPoisson;
-  // The depth offset is chosen on every offset_stride-th pixel of every
+  // The depth's placement is chosen on every offset_stride-th pixel of every
   // offset_stride-th row: a thousand pixels pin one number.
   int offset_stride = 8;
   bool IsValid(std::string* why) const;
@@ -64,7 +69,9 @@ struct NearLightOptions {
 struct NearLightSummary : SolverSummary {
   int rounds = 0;                         // normal solves made
   std::vector<double> normal_change_deg;  // mean change from the previous round, one per round after the first
-  double depth_offset_mm = 0.0;           // z of the integrated depth's mean, as chosen
+  // The height chosen for the integrated surface's mean (orthographic), or
+  // for its geometric-mean distance from the camera (pinhole).
+  double depth_offset_mm = 0.0;
   double depth_ms = 0.0;                  // of solve_ms: integrating the normals and placing the depth
 };
 
