@@ -117,6 +117,40 @@ TEST(RigLoad, SceneDefaultsAreSizedToTheRigsFrame) {
   EXPECT_DOUBLE_EQ(rig.sim->scene.sphere_radius_mm, 0.45 * 40 * 0.1);
 }
 
+TEST(RigLoad, APinholeCameraTakesOpenCvIntrinsicsAndTheSimulatorRendersThem) {
+  TempDir dir;
+  const RigConfig rig = LoadRigConfig(dir.Write(
+      "rig.yaml", Rig(kSimLights, "  driver: sim\n  projection: pinhole\n"
+                                  "  pinhole: {fx_px: 50, distortion: [-0.1, 0.02, 0, 0], distance_mm: 100}\n")));
+  const solvers::camera::Camera camera = rig.camera.Geometry();
+  ASSERT_TRUE(camera.IsPinhole());
+  EXPECT_EQ(camera.pinhole.fy_px, 50.0);                    // fy defaults to fx
+  EXPECT_EQ(camera.pinhole.cx_px, 19.5);                    // the middle of 40 pixel centres 0 .. 39
+  EXPECT_EQ(camera.pinhole.cy_px, 14.5);
+  EXPECT_EQ(camera.pinhole.distortion[1], 0.02);
+  EXPECT_EQ(camera.pinhole.distortion[4], 0.0);             // k3 may be left out
+  EXPECT_DOUBLE_EQ(rig.camera.pixel_pitch_mm, 100.0 / 50.0);  // the pixel on the sample plane
+  const sim::WorldConfig world = MakeWorldConfig(rig, rig.sim->scene);
+  EXPECT_EQ(world.camera.projection, sim::CameraModel::Projection::kPinhole);
+  EXPECT_EQ(world.camera.principal_x(), 20.0);              // measured from the image's corner
+  EXPECT_EQ(world.camera.distortion[0], -0.1);
+
+  const RigConfig shipped = LoadRigConfig(SourceDir() + "/config/rigs/sim-dome-near.yaml");
+  EXPECT_TRUE(shipped.camera.Geometry().IsPinhole());
+  EXPECT_NEAR(shipped.camera.Geometry().HorizontalFieldOfViewDeg(), 30.0, 0.01);
+  for (const LedConfig& led : shipped.lights.leds) ASSERT_TRUE(led.position_mm.has_value()) << led.id;
+}
+
+TEST(RigLoad, APinholeCameraRefusesAPixelPitchAndAnUnknownProjectionIsNamed) {
+  ExpectLoadError(Rig(kSimLights, "  driver: sim\n  projection: pinhole\n  pinhole: {fx_px: 50, distance_mm: 100}\n"
+                                  "  pixel_pitch_mm: 0.2\n"),
+                  11, 19, "camera.pixel_pitch_mm", "follows from pinhole: fx_px and distance_mm");
+  ExpectLoadError(Rig(kSimLights, "  driver: sim\n  projection: fisheye\n"), 9, 15, "camera.projection",
+                  "'fisheye' is no projection (expected");
+  ExpectLoadError(Rig(kSimLights, "  driver: sim\n  projection: pinhole\n  pinhole: {fx_px: 50, distance_mm: -3}\n"),
+                  10, 37, "camera.pinhole.distance_mm", "must lie in");
+}
+
 // A simulated camera takes no options; simulated lights take only their safety limits.
 TEST(RigLoad, OptionsOnASimulatedDeviceAreRefused) {
   ExpectLoadError(Rig(kSimLights, "  driver: sim\n  options: {host: sim}\n"), 9, 12, "camera.options",
