@@ -207,7 +207,7 @@ TEST_F(FullDisk, PhotorigdStartsReadOnlyWithNoByteFreeAndTakesRunsOnceThereIsRoo
   const ServiceReply health = client.Get("/api/v1/health");
   const double health_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   RecordProperty("health_after_ms", static_cast<int>(health_s * 1000));
-  EXPECT_LT(health_s, 2.0);
+  EXPECT_LT(health_s, 15.0);  // a bound for a hang (retrying until there is room), not a speed figure
   EXPECT_EQ(health.http_status, 503) << health.body.dump();
   EXPECT_EQ(health.body["status"], "disk full") << health.body.dump();
   EXPECT_EQ(health.body["free_bytes"], 0);
@@ -237,7 +237,9 @@ TEST_F(FullDisk, PhotorigdStartsOnANewDataRootWithNoByteFreeAndCreatesItOnceTher
   photorig::testing::DaemonProcess daemon(root, options_.rig_path, log, {"--no-solve"});
   ApiClient client = ClientOf(daemon, log);
   const ServiceReply health = client.Get("/api/v1/health");
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 2.0);
+  // Up and answering, not waiting for room: a bound for a hang (a start
+  // that retried until the disk had room), far above a start on a busy machine.
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 15.0);
   EXPECT_EQ(health.http_status, 503) << health.body.dump();
   EXPECT_EQ(health.body["status"], "disk full") << health.body.dump();
   const ServiceReply runs = client.Get("/api/v1/runs");

@@ -469,13 +469,21 @@ solvers::camera::Camera CameraOf(const PhotometricStereoInput& input) {
   return solvers::camera::Camera::Orthographic(input.stack.width(), input.stack.height(), input.pixel_pitch);
 }
 
+// `why` and what else to do: a solve refused for its predicted bias.
 solvers::ps::SolverSummary Refused(const solvers::ps::PhotometricStereoOptions& options,
                                    const solvers::ps::PhotometricStack& stack, const std::string& why) {
   solvers::ps::SolverSummary refused;
   refused.method = solvers::ps::MethodName(options.method);
   refused.light_count = stack.light_count();
-  refused.End(solvers::core::Termination::kFailure, why);
+  refused.End(solvers::core::Termination::kFailure, why + ", or raise --max-distant-bias");
   return refused;
+}
+
+std::string BiasAboveLimit(double bias_deg, const config::PhotometricStereoRequest& request) {
+  char text[96];
+  std::snprintf(text, sizeof(text), " by about %.2f deg, above max_distant_bias_deg %.2f", bias_deg,
+                request.max_distant_bias_deg);
+  return text;
 }
 
 // Half the mean angle between the object's lines of sight and the camera's
@@ -510,15 +518,11 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
   if (camera.IsPinhole() && views_matter) {
     const double bias_deg = PredictedViewBiasDeg(camera, stack.mask);
     report->predicted_view_bias_deg = bias_deg;
-    if (bias_deg > request.max_distant_bias_deg) {
-      char why[400];
-      std::snprintf(why, sizeof(why),
-                    "the camera is a pinhole one: %s fits specular lobes with the view along the camera's axis, "
-                    "which would tilt glossy pixels by about %.2f deg here, above max_distant_bias_deg %.2f; solve "
-                    "with method lambertian, l2 or robust, or raise --max-distant-bias",
-                    solvers::ps::MethodName(options.method), bias_deg, request.max_distant_bias_deg);
-      return Refused(options, stack, why);
-    }
+    if (bias_deg > request.max_distant_bias_deg)
+      return Refused(options, stack,
+                     std::string("the camera is a pinhole one: ") + solvers::ps::MethodName(options.method) +
+                         " fits specular lobes with the view along the camera's axis, which would tilt glossy pixels" +
+                         BiasAboveLimit(bias_deg, request) + "; solve with method lambertian, l2 or robust");
   }
   if (input.near_lights.empty()) return solvers::ps::SolvePhotometricStereo(options, stack, map);
   const bool near_method = options.method == Method::kL2 || options.method == Method::kLambertian;
@@ -539,13 +543,11 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
   const double bias_deg = solvers::ps::DistantModelBiasDeg(input.near_lights, stack.light_directions, radius_mm);
   report->predicted_distant_bias_deg = bias_deg;
   if (bias_deg > request.max_distant_bias_deg) {
-    char why[320];
-    std::snprintf(why, sizeof(why),
-                  "the rig's LEDs are near: solved as distant lights, an object this size (radius %.1f mm) would "
-                  "be biased by about %.2f deg, above max_distant_bias_deg %.2f; solve with method lambertian or l2 "
-                  "(the near-light model) or raise --max-distant-bias",
-                  radius_mm, bias_deg, request.max_distant_bias_deg);
-    return Refused(options, stack, why);
+    char size[96];
+    std::snprintf(size, sizeof(size), "an object this size (radius %.1f mm) would be biased", radius_mm);
+    return Refused(options, stack,
+                   std::string("the rig's LEDs are near: solved as distant lights, ") + size +
+                       BiasAboveLimit(bias_deg, request) + "; solve with method lambertian or l2 (the near-light model)");
   }
   return solvers::ps::SolvePhotometricStereo(options, stack, map);
 }
