@@ -81,7 +81,4 @@ struct TableFitSummary : core::Summary {
 // the table has no valid cell within max_theta_deg.
 TableFitSummary FitTable(const MeasuredBrdf& table, const TableFitOptions& options = {});
 
-// The error of `params` over every cell of `table` (as FitTable's cells).
-CellErrors TableError(const MeasuredBrdf& table, const ModelParams& params, double max_theta_deg = 80.0);
-
 }  // namespace photorig::solvers::brdf
