@@ -294,6 +294,10 @@ bool FitOptions::IsValid(std::string* why) const {
     *why = "max_relative_shape_sigma must be positive";
     return false;
   }
+  if (!(min_log_residual_variance >= 0.0)) {
+    *why = "min_log_residual_variance must be non-negative";
+    return false;
+  }
   if (start) {
     const ModelParams& p = *start;
     const bool finite = p.diffuse.allFinite() && p.specular.allFinite() && std::isfinite(p.shape) &&
@@ -492,11 +496,12 @@ std::vector<int> FresnelIndices(Model model) {
 // data's noise explains: the score (Lagrange multiplier) test, statistic
 // g_i^2 (J^T J)^-1_ii / s^2 with g = J^T r (chi-square with one degree of
 // freedom when the bound does not bind; s^2 = 1 for the weighted loss, the
-// residual variance for the log loss), beyond 4 (two standard deviations)
+// residual variance for the log loss, at least min_log_residual_variance),
+// beyond 4 (two standard deviations)
 // with g_i < 0. F0 = 1 itself is a lobe without a Fresnel rise (a table
 // made with it does not press); pressing means the data want F0 > 1.
 // Returns each F0 index's statistic, 0 where it does not press.
-std::vector<double> FresnelScores(Model model, LeastSquares* ls, FitLoss loss, int parameters) {
+std::vector<double> FresnelScores(Model model, LeastSquares* ls, const FitOptions& options, int parameters) {
   const std::vector<int> indices = FresnelIndices(model);
   std::vector<double> scores(indices.size(), 0.0);
   const double* values[] = {&ls->lobe[0], &ls->lobe[1], &ls->lobe[2]};
@@ -515,7 +520,9 @@ std::vector<double> FresnelScores(Model model, LeastSquares* ls, FitLoss loss, i
         jtj(jacobian.cols[a], jacobian.cols[b]) += jacobian.values[a] * jacobian.values[b];
   const Eigen::MatrixXd inverse = jtj.completeOrthogonalDecomposition().pseudoInverse();
   const double m = static_cast<double>(residuals.size());
-  const double s2 = loss == FitLoss::kWeighted ? 1.0 : 2.0 * cost / std::max(1.0, m - parameters);
+  const double s2 = options.loss == FitLoss::kWeighted
+                        ? 1.0
+                        : std::max(2.0 * cost / std::max(1.0, m - parameters), options.min_log_residual_variance);
   for (std::size_t j = 0; j < indices.size(); ++j) {
     const double value = model == Model::kCookTorrance ? ls->extra[0] : *values[j];
     const int i = indices[j];
@@ -527,7 +534,7 @@ std::vector<double> FresnelScores(Model model, LeastSquares* ls, FitLoss loss, i
 
 // Sets `at_bound`, `normal_albedo` and `implausible` of a fit at `ls`'s
 // solution; a shape at a bound also makes the lobe not identifiable.
-void CheckBoundsAndPlausibility(Model model, LeastSquares* ls, FitLoss loss, FitSummary* summary) {
+void CheckBoundsAndPlausibility(Model model, LeastSquares* ls, const FitOptions& options, FitSummary* summary) {
   const ModelParams& p = summary->params;
   std::string& at_bound = summary->at_bound;
   auto add = [](std::string* list, const std::string& what) { *list += (list->empty() ? "" : ", ") + what; };
@@ -550,7 +557,7 @@ void CheckBoundsAndPlausibility(Model model, LeastSquares* ls, FitLoss loss, Fit
     }
   }
   std::string implausible;
-  const std::vector<double> scores = FresnelScores(model, ls, loss, summary->parameters);
+  const std::vector<double> scores = FresnelScores(model, ls, options, summary->parameters);
   for (std::size_t j = 0; j < scores.size(); ++j) {
     if (!(scores[j] > 4.0)) continue;
     const std::string channel = model == Model::kGgx ? std::string(" (") + "RGB"[j] + ")" : "";
@@ -699,7 +706,7 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
                         relative(summary.shape2_sigma, summary.params.shape2) +
                         "): the samples support one lobe, or two too alike to separate";
   }
-  CheckBoundsAndPlausibility(model, &ls, options.loss, &summary);
+  CheckBoundsAndPlausibility(model, &ls, options, &summary);
   timer.Finish(&summary);
   return summary;
 }
@@ -896,10 +903,19 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   const std::size_t chosen = *choice;
   summary.chosen = summary.candidates[chosen].params.model;
   summary.chosen_index = chosen;
-  // (A second lobe not pinned down is not this: the first is, and one-lobe candidates stand for it.)
+  // (A second lobe not pinned down is not this: the first is, and one-lobe
+  // candidates stand for it.) "Far better" is what a step of ChooseModel
+  // asks: the BIC margin and, with held-out errors, a held-out gain beyond
+  // what the data resolve (on a noise-free table the log loss's BIC parts
+  // fits by rounding).
+  const FitSummary& chosen_fit = summary.candidates[chosen];
+  auto far_better = [&](const FitSummary& f) {
+    if (!(f.bic < chosen_fit.bic - options.min_bic_improvement)) return false;
+    if (f.held_out_errors.empty() || f.held_out_errors.size() != chosen_fit.held_out_errors.size()) return true;
+    return MeanDifference(chosen_fit.held_out_errors, f.held_out_errors).first > min_held_out_gain;
+  };
   for (const FitSummary& f : summary.candidates)
-    if (f.IsSolutionUsable() && !f.lobe_identifiable && !HasSecondLobe(f.params.model) &&
-        f.bic < summary.candidates[chosen].bic - options.min_bic_improvement) {
+    if (f.IsSolutionUsable() && !f.lobe_identifiable && !HasSecondLobe(f.params.model) && far_better(f)) {
       summary.End(core::Termination::kFailure,
                   std::string("the samples show a lobe (") + ModelName(f.params.model) + " fits far better than " +
                       ModelName(*summary.chosen) + ") but not its width; " +

@@ -55,6 +55,11 @@ struct FitOptions {
   // (or no covariance at all) is flagged not identifiable: the samples do not
   // pin its width down, typically because none lies near the specular peak.
   double max_relative_shape_sigma = 0.25;
+  // The least residual variance the log loss's tests assume (the F0 bound's
+  // score test): 1e-6, an RMS of 0.1 % in log(1 + f cos theta_i), below any
+  // measured table's accuracy. A noise-free table's residuals are the
+  // optimiser's rounding, which is not noise to test against.
+  double min_log_residual_variance = 1e-6;
   // Above this many samples the least squares see every (n / max)-th sample
   // only (in the order given: a table's grid order makes that a stratified
   // subsample over theta_h, theta_d and phi_d); 0 = always all of them.
