@@ -390,6 +390,22 @@ TEST(ModelChoice, StepsThroughTheSimplestModelsFirst) {
   EXPECT_FALSE(ChooseModel(fits, 10.0, 0.01, &reason).has_value());
 }
 
+// An implausible fit (a Lambertian albedo of 3.6, F0 pressed against 1) is
+// never chosen, however good its BIC and held-out error, and the reason says why.
+TEST(ModelChoice, AnImplausibleFitIsNeverChosenAndTheReasonSaysWhy) {
+  std::string reason;
+  std::vector<FitSummary> fits = {Scored(Model::kLambertian, 5000.0, HeldOut(9.0)),
+                                  Scored(Model::kBlinnPhong, 800.0, HeldOut(2.0)),
+                                  Scored(Model::kCookTorrance, 300.0, HeldOut(1.0))};
+  fits[2].implausible = "F0 pressed against 1";
+  EXPECT_EQ(ChooseModel(fits, 10.0, 0.01, &reason), std::optional<std::size_t>(1u)) << reason;
+  EXPECT_NE(reason.find("implausible: cook_torrance (F0 pressed against 1)"), std::string::npos) << reason;
+  fits[0].implausible = "diffuse albedo rho_d (3.6, 3.6, 3.6) over 1";
+  fits[1].implausible = "the lobe's albedo at normal incidence (1.2, 1.2, 1.2) over 1";
+  EXPECT_FALSE(ChooseModel(fits, 10.0, 0.01, &reason).has_value());
+  EXPECT_NE(reason.find("lambertian (diffuse albedo rho_d (3.6, 3.6, 3.6) over 1)"), std::string::npos) << reason;
+}
+
 // A fit the iteration limit stopped is not at its optimum: however good its
 // BIC and held-out error look, it is never chosen, and the reason names it.
 TEST(ModelChoice, AFitThatDidNotConvergeIsNeverChosen) {

@@ -272,8 +272,9 @@ TEST(MerlFile, BadFilesAreRefusedNamingTheFileAndTheFault) {
   for (const char* name : {"short.binary", "header.binary", "nan.binary"}) std::filesystem::remove(TempPath(name));
 }
 
-// `photorig brdf fit` on a table made from each family: the table sampled as
-// the command samples it, fitted with the log loss, and the choice made. The
+// A table made from each family, sampled on a 16^3 grid, fitted with the log
+// loss, and the choice made (`photorig brdf fit` draws its cells instead:
+// test_table_fit.cpp, and the end-to-end tests). The
 // table's own family is chosen every time (the simplest model the data
 // support), and a richer one whose held-out gain is within the fits' own
 // precision (a noise-free table: two Blinn-Phong lobes for one) is not.

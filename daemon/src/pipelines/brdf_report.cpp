@@ -36,6 +36,9 @@ nlohmann::json FitJson(const brdf::FitSummary& f) {
           {"shape2", f.params.shape2},
           {"shape2_sigma", f.shape2_sigma},
           {"lobe_identifiable", f.lobe_identifiable},
+          {"at_bound", f.at_bound},
+          {"normal_albedo", Vec(f.normal_albedo)},
+          {"implausible", f.implausible},
           {"samples_fitted", f.fitted_samples}};
 }
 
@@ -150,6 +153,8 @@ void PrintSelection(std::FILE* text, const brdf::SelectionSummary& s) {
       std::fprintf(text, "  specular2 %s  shape2 %.4g +- %.2g", Channels(f.params.specular2, f.specular2_sigma).c_str(),
                    f.params.shape2, f.shape2_sigma);
     if (!f.lobe_identifiable) std::fprintf(text, "  (not identifiable)");
+    if (!f.at_bound.empty()) std::fprintf(text, "  (at a bound: %s)", f.at_bound.c_str());
+    if (!f.implausible.empty()) std::fprintf(text, "  (implausible: %s)", f.implausible.c_str());
     std::fprintf(text, "\n");
   }
   if (s.chosen) std::fprintf(text, "chosen: %s (%s)\n", brdf::ModelName(*s.chosen), s.reason.c_str());

@@ -12,7 +12,7 @@ namespace photorig::solvers::brdf {
 namespace {
 
 // Per sample: the geometry, the measurement and the per-channel weight of its
-// residual (1 / sigma for kWeighted, 1 for kLog).
+// residual: sqrt(BrdfSample::weight), divided by sigma for kWeighted.
 struct Prepared {
   Geometry geometry;
   Eigen::Vector3d value;
@@ -54,7 +54,7 @@ class SampleResidual {
       residual[c] = (f - s_.value[c]) * s_.weight[c];
     } else {
       const double ci = s_.geometry.cos_i;
-      residual[c] = log(1.0 + f * ci) - std::log(1.0 + s_.value[c] * ci);
+      residual[c] = (log(1.0 + f * ci) - std::log(1.0 + s_.value[c] * ci)) * s_.weight[c];
     }
   }
 
@@ -86,9 +86,21 @@ struct ShapeRange {
   double min, max;
   int steps;
 };
+// 41 grid steps: a factor of 1.16 in roughness, 1.36 = 1.16^2 in exponent
+// (the same step in lobe width).
 ShapeRange RangeOf(Model model) {
-  return model == Model::kBlinnPhong || model == Model::kTwoBlinnPhong ? ShapeRange{1.0, 1.0e4, 41}
-                                                                      : ShapeRange{0.005, 1.0, 41};
+  return model == Model::kBlinnPhong || model == Model::kTwoBlinnPhong ? ShapeRange{kMinExponent, kMaxExponent, 41}
+                                                                      : ShapeRange{kMinRoughness, kMaxRoughness, 41};
+}
+
+// What the shape is called in messages.
+const char* ShapeName(Model model) {
+  switch (model) {
+    case Model::kBlinnPhong:
+    case Model::kTwoBlinnPhong: return "exponent";
+    case Model::kCookTorrance: return "Beckmann m";
+    default: return "roughness";
+  }
 }
 
 // Cook-Torrance and GGX have one parameter beyond the shape that the channels
@@ -219,7 +231,7 @@ void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd
 }
 
 // Squared residual of one sample under `params`, mean over the channels, in
-// the units of `loss`.
+// the units of `loss`, times the sample's weight.
 double SquaredResidual(const ModelParams& params, const BrdfSample& s, FitLoss loss) {
   const Eigen::Vector3d f = Evaluate(params, s.wi, s.wo);
   double sum = 0.0;
@@ -229,7 +241,7 @@ double SquaredResidual(const ModelParams& params, const BrdfSample& s, FitLoss l
                          : std::log(1.0 + f[c] * s.wi.z()) - std::log(1.0 + s.value[c] * s.wi.z());
     sum += r * r;
   }
-  return sum / 3.0;
+  return s.weight * sum / 3.0;
 }
 
 // The least squares' parameter blocks at `p` (log shapes), inside the bounds
@@ -282,6 +294,10 @@ bool FitOptions::IsValid(std::string* why) const {
     *why = "max_relative_shape_sigma must be positive";
     return false;
   }
+  if (!(min_log_residual_variance >= 0.0)) {
+    *why = "min_log_residual_variance must be non-negative";
+    return false;
+  }
   if (start) {
     const ModelParams& p = *start;
     const bool finite = p.diffuse.allFinite() && p.specular.allFinite() && std::isfinite(p.shape) &&
@@ -314,6 +330,11 @@ bool SelectionOptions::IsValid(std::string* why) const {
     *why = "held_out_folds must be 0 (none) or at least 2";
     return false;
   }
+  for (int f : folds)
+    if (f < 0 || f >= held_out_folds) {
+      *why = "every entry of folds must lie in [0, held_out_folds)";
+      return false;
+    }
   return true;
 }
 
@@ -341,8 +362,9 @@ bool PrepareSamples(const std::vector<BrdfSample>& samples, const FitOptions& op
       return refuse("the weighted loss needs sigma > 0 in every channel (use the log loss without deviations)");
     if (options.loss == FitLoss::kLog && (s.value.array() * s.wi.z() <= -1.0).any())
       return refuse("value too negative for the log loss");
-    Prepared p{GeometryOf(s.wi, s.wo), s.value, Eigen::Vector3d::Ones()};
-    if (options.loss == FitLoss::kWeighted) p.weight = s.sigma.cwiseInverse();
+    if (!(s.weight > 0.0 && std::isfinite(s.weight))) return refuse("weight must be positive and finite");
+    Prepared p{GeometryOf(s.wi, s.wo), s.value, Eigen::Vector3d::Constant(std::sqrt(s.weight))};
+    if (options.loss == FitLoss::kWeighted) p.weight = p.weight.cwiseQuotient(s.sigma);
     prepared->push_back(p);
   }
   return true;
@@ -439,26 +461,126 @@ std::vector<Prepared> FittedSubset(const std::vector<Prepared>& prepared, const 
 }
 
 // One held-out fold of `all` (the fit to every sample): sample k is left out
-// with fold k mod folds, the fold's fit starts from `all`'s parameters and
+// when fold_of[k] is `fold`, the fold's fit starts from `all`'s parameters and
 // sees at most fit_samples of its samples, and the left-out samples' squared
 // residuals go into *errors. False when the fold's fit fails. Needs only the
 // fold's parameters, so it computes no covariance and no cost over its
 // training set.
 bool HeldOutFold(const FitSummary& all, const std::vector<BrdfSample>& samples, const std::vector<Prepared>& prepared,
-                 const FitOptions& options, int folds, int fold, std::size_t fit_samples, std::vector<double>* errors) {
+                 const FitOptions& options, const std::vector<int>& fold_of, int fold, std::size_t fit_samples,
+                 std::vector<double>* errors) {
   FitOptions fold_options = options;
   fold_options.start = all.params;
-  std::vector<std::size_t> train;
+  std::vector<std::size_t> train, held_out;
   train.reserve(samples.size());
-  for (std::size_t k = 0; k < samples.size(); ++k)
-    if (static_cast<int>(k % folds) != fold) train.push_back(k);
-  if (train.size() == samples.size()) return true;
+  for (std::size_t k = 0; k < samples.size(); ++k) (fold_of[k] == fold ? held_out : train).push_back(k);
+  if (held_out.empty()) return true;
+  if (train.empty()) return false;
   LeastSquares ls;
   SolveLeastSquares(all.params.model, FittedSubset(prepared, train, fit_samples), fold_options, &ls);
   if (!ls.solved.IsSolutionUsable()) return false;
   const ModelParams params = ls.Params(all.params.model);
-  for (std::size_t k = fold; k < samples.size(); k += folds) (*errors)[k] = SquaredResidual(params, samples[k], options.loss);
+  for (std::size_t k : held_out) (*errors)[k] = SquaredResidual(params, samples[k], options.loss);
   return true;
+}
+
+// Indices, in the least squares' parameter vector (kd, lobe, extra), of the
+// F0s bounded above by 1: Cook-Torrance's one, GGX's per channel.
+std::vector<int> FresnelIndices(Model model) {
+  if (model == Model::kCookTorrance) return {7};
+  if (model == Model::kGgx) return {3, 4, 5};
+  return {};
+}
+
+// Whether the loss still falls beyond F0 = 1 at the solution, more than the
+// data's noise explains: the score (Lagrange multiplier) test, statistic
+// g_i^2 (J^T J)^-1_ii / s^2 with g = J^T r (chi-square with one degree of
+// freedom when the bound does not bind; s^2 = 1 for the weighted loss, the
+// residual variance for the log loss, at least min_log_residual_variance),
+// beyond 4 (two standard deviations)
+// with g_i < 0. F0 = 1 itself is a lobe without a Fresnel rise (a table
+// made with it does not press); pressing means the data want F0 > 1.
+// Returns each F0 index's statistic, 0 where it does not press.
+std::vector<double> FresnelScores(Model model, LeastSquares* ls, const FitOptions& options, int parameters) {
+  const std::vector<int> indices = FresnelIndices(model);
+  std::vector<double> scores(indices.size(), 0.0);
+  const double* values[] = {&ls->lobe[0], &ls->lobe[1], &ls->lobe[2]};
+  bool any = false;
+  for (std::size_t j = 0; j < indices.size(); ++j)
+    any |= (model == Model::kCookTorrance ? ls->extra[0] : *values[j]) >= 1.0 - 1e-6;
+  if (!any) return scores;
+  double cost = 0.0;
+  std::vector<double> residuals, gradient;
+  ceres::CRSMatrix jacobian;
+  if (!ls->problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, &residuals, &gradient, &jacobian)) return scores;
+  Eigen::MatrixXd jtj = Eigen::MatrixXd::Zero(parameters, parameters);
+  for (int row = 0; row < jacobian.num_rows; ++row)
+    for (int a = jacobian.rows[row]; a < jacobian.rows[row + 1]; ++a)
+      for (int b = jacobian.rows[row]; b < jacobian.rows[row + 1]; ++b)
+        jtj(jacobian.cols[a], jacobian.cols[b]) += jacobian.values[a] * jacobian.values[b];
+  const Eigen::MatrixXd inverse = jtj.completeOrthogonalDecomposition().pseudoInverse();
+  const double m = static_cast<double>(residuals.size());
+  const double s2 = options.loss == FitLoss::kWeighted
+                        ? 1.0
+                        : std::max(2.0 * cost / std::max(1.0, m - parameters), options.min_log_residual_variance);
+  for (std::size_t j = 0; j < indices.size(); ++j) {
+    const double value = model == Model::kCookTorrance ? ls->extra[0] : *values[j];
+    const int i = indices[j];
+    if (value < 1.0 - 1e-6 || !(gradient[i] < 0.0) || !(s2 > 0.0)) continue;
+    scores[j] = gradient[i] * gradient[i] * inverse(i, i) / s2;
+  }
+  return scores;
+}
+
+// Sets `at_bound`, `normal_albedo` and `implausible` of a fit at `ls`'s
+// solution; a shape at a bound also makes the lobe not identifiable.
+void CheckBoundsAndPlausibility(Model model, LeastSquares* ls, const FitOptions& options, FitSummary* summary) {
+  const ModelParams& p = summary->params;
+  std::string& at_bound = summary->at_bound;
+  auto add = [](std::string* list, const std::string& what) { *list += (list->empty() ? "" : ", ") + what; };
+  if (model != Model::kLambertian) {
+    const ShapeRange range = RangeOf(model);
+    std::vector<double> shapes = {p.shape};
+    if (HasSecondLobe(model)) shapes.push_back(p.shape2);
+    for (std::size_t j = 0; j < shapes.size(); ++j) {
+      // Ceres projects a parameter that wants out onto its bound; 0.1 % covers one that stops just short.
+      const bool low = std::abs(std::log(shapes[j] / range.min)) < 1e-3;
+      const bool high = std::abs(std::log(shapes[j] / range.max)) < 1e-3;
+      if (!low && !high) continue;
+      const std::string which = std::string(j == 0 ? "" : "second lobe's ") + ShapeName(model) + " " +
+                                Number(shapes[j]) + " at its " + (low ? "lower" : "upper") + " bound";
+      add(&at_bound, which);
+      summary->lobe_identifiable = false;
+      summary->message = std::string("the ") + ModelName(model) + " " + which + " (" + Number(low ? range.min : range.max) +
+                         "): the data want a lobe " + (low ? "broader" : "narrower") +
+                         " than the range, its width is not identifiable";
+    }
+  }
+  std::string implausible;
+  const std::vector<double> scores = FresnelScores(model, ls, options, summary->parameters);
+  for (std::size_t j = 0; j < scores.size(); ++j) {
+    if (!(scores[j] > 4.0)) continue;
+    const std::string channel = model == Model::kGgx ? std::string(" (") + "RGB"[j] + ")" : "";
+    add(&at_bound, "F0" + channel + " pressed against its bound 1 (score " + Number(scores[j]) + ")");
+    add(&implausible, "F0" + channel + " pressed against 1: the data want a Fresnel reflectance above 1");
+  }
+  // Each term on its own reflects at most everything: rho_d <= 1, and the
+  // lobes' albedo at normal incidence (where these lobes reflect most) <= 1.
+  // Their sum is not held to 1: these additive models do not attenuate the
+  // diffuse term by the light the lobe reflects, as a layered surface does,
+  // so rho_d here is the diffuse albedo beneath the coat (docs/brdf.md).
+  // 1e-3: the quadrature's accuracy.
+  ModelParams lobes = p;
+  lobes.diffuse.setZero();
+  const Eigen::Vector3d lobe_albedo = model == Model::kLambertian ? Eigen::Vector3d::Zero() : NormalAlbedo(lobes);
+  summary->normal_albedo = p.diffuse + lobe_albedo;
+  auto over_one = [&](const char* what, const Eigen::Vector3d& v) {
+    if ((v.array() > 1.0 + 1e-3).any())
+      add(&implausible, std::string(what) + " (" + Number(v[0]) + ", " + Number(v[1]) + ", " + Number(v[2]) + ") over 1");
+  };
+  over_one("diffuse albedo rho_d", p.diffuse);
+  over_one("the lobe's albedo at normal incidence", lobe_albedo);
+  summary->implausible = implausible;
 }
 
 // A fit's summary before the fit: the model and the counts.
@@ -584,6 +706,7 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
                         relative(summary.shape2_sigma, summary.params.shape2) +
                         "): the samples support one lobe, or two too alike to separate";
   }
+  CheckBoundsAndPlausibility(model, &ls, options, &summary);
   timer.Finish(&summary);
   return summary;
 }
@@ -616,14 +739,18 @@ std::optional<std::size_t> ChooseModel(const std::vector<FitSummary>& fits, doub
   // A fit the iteration limit stopped is not at its optimum: its BIC and
   // held-out error do not speak for the model.
   auto trusted = [](const FitSummary& f) {
-    return f.termination == core::Termination::kSuccess && f.lobe_identifiable;
+    return f.termination == core::Termination::kSuccess && f.lobe_identifiable && f.implausible.empty();
   };
-  std::string unconverged;
-  for (const FitSummary& f : fits)
+  std::string unconverged, implausible;
+  for (const FitSummary& f : fits) {
     if (f.termination == core::Termination::kNoConvergence)
       unconverged += std::string(unconverged.empty() ? "" : ", ") + ModelName(f.params.model) + " (" +
                      std::to_string(f.iterations) + " iterations)";
+    if (f.IsSolutionUsable() && !f.implausible.empty())
+      implausible += std::string(implausible.empty() ? "" : "; ") + ModelName(f.params.model) + " (" + f.implausible + ")";
+  }
   if (!unconverged.empty()) unconverged = "; not considered, the fit did not converge: " + unconverged;
+  if (!implausible.empty()) unconverged += "; not considered, implausible: " + implausible;
   std::optional<std::size_t> current;
   for (std::size_t i = 0; i < fits.size(); ++i)
     if (trusted(fits[i]) && (!current || fits[i].parameters < fits[*current].parameters ||
@@ -702,6 +829,12 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
     summary.End(core::Termination::kInvalidInput, "no samples");
     return summary;
   }
+  if (!options.folds.empty() && options.folds.size() != samples.size()) {
+    summary.End(core::Termination::kInvalidOptions, "folds gives " + std::to_string(options.folds.size()) +
+                                                      " samples' folds for " + std::to_string(samples.size()) +
+                                                      " samples");
+    return summary;
+  }
   double min_theta_h = M_PI;
   for (const BrdfSample& s : samples)
     if (s.wi.allFinite() && s.wo.allFinite() && (s.wi + s.wo).norm() > 0.0)
@@ -732,6 +865,9 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   const int folds = options.held_out_folds;
   if (folds > 0) {
     const std::size_t fit_samples = options.fold_fit_samples > 0 ? options.fold_fit_samples : options.fit.max_fit_samples;
+    std::vector<int> fold_of = options.folds;
+    if (fold_of.empty())
+      for (std::size_t k = 0; k < samples.size(); ++k) fold_of.push_back(static_cast<int>(k % folds));
     std::vector<std::vector<double>> errors(options.candidates.size());
     std::vector<char> failed(static_cast<std::size_t>(candidates) * folds, 0);  // per task
     for (int c = 0; c < candidates; ++c)
@@ -740,7 +876,7 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
     for (int task = 0; task < candidates * folds; ++task) {
       const int c = task / folds, fold = task % folds;
       if (errors[c].empty()) continue;
-      if (!HeldOutFold(summary.candidates[c], samples, prepared, options.fit, folds, fold, fit_samples, &errors[c]))
+      if (!HeldOutFold(summary.candidates[c], samples, prepared, options.fit, fold_of, fold, fit_samples, &errors[c]))
         failed[task] = 1;
     }
     for (int c = 0; c < candidates; ++c) {
@@ -767,14 +903,25 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   const std::size_t chosen = *choice;
   summary.chosen = summary.candidates[chosen].params.model;
   summary.chosen_index = chosen;
-  // (A second lobe not pinned down is not this: the first is, and one-lobe candidates stand for it.)
+  // (A second lobe not pinned down is not this: the first is, and one-lobe
+  // candidates stand for it.) "Far better" is what a step of ChooseModel
+  // asks: the BIC margin and, with held-out errors, a held-out gain beyond
+  // what the data resolve (on a noise-free table the log loss's BIC parts
+  // fits by rounding).
+  const FitSummary& chosen_fit = summary.candidates[chosen];
+  auto far_better = [&](const FitSummary& f) {
+    if (!(f.bic < chosen_fit.bic - options.min_bic_improvement)) return false;
+    if (f.held_out_errors.empty() || f.held_out_errors.size() != chosen_fit.held_out_errors.size()) return true;
+    return MeanDifference(chosen_fit.held_out_errors, f.held_out_errors).first > min_held_out_gain;
+  };
   for (const FitSummary& f : summary.candidates)
-    if (f.IsSolutionUsable() && !f.lobe_identifiable && !HasSecondLobe(f.params.model) &&
-        f.bic < summary.candidates[chosen].bic - options.min_bic_improvement) {
-      summary.End(core::Termination::kFailure, std::string("the samples show a lobe (") + ModelName(f.params.model) +
-                                             " fits far better than " + ModelName(*summary.chosen) +
-                                             ") but not its width; sample nearer the specular peak (closest theta_h " +
-                                             std::to_string(summary.min_theta_h_deg) + " deg)");
+    if (f.IsSolutionUsable() && !f.lobe_identifiable && !HasSecondLobe(f.params.model) && far_better(f)) {
+      summary.End(core::Termination::kFailure,
+                  std::string("the samples show a lobe (") + ModelName(f.params.model) + " fits far better than " +
+                      ModelName(*summary.chosen) + ") but not its width; " +
+                      (f.at_bound.empty() ? "sample nearer the specular peak (closest theta_h " +
+                                                std::to_string(summary.min_theta_h_deg) + " deg)"
+                                          : f.message));
       timer.Finish(&summary);
       return summary;
     }

@@ -53,4 +53,18 @@ Eigen::Vector3d DirectionalAlbedo(const ModelParams& params, const Eigen::Vector
   return sum * cell_sr;
 }
 
+Eigen::Vector3d NormalAlbedo(const ModelParams& params, int theta_h_steps) {
+  // theta_h = (pi/4) u^2 over u in (0, 1): w_o from the normal to the horizon.
+  const Eigen::Vector3d wi = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (int k = 0; k < theta_h_steps; ++k) {
+    const double u = (k + 0.5) / theta_h_steps, theta_h = 0.25 * M_PI * u * u;
+    const double d_theta_h = 0.5 * M_PI * u / theta_h_steps;
+    const Eigen::Vector3d wo(std::sin(2.0 * theta_h), 0.0, std::cos(2.0 * theta_h));
+    // f cos theta_o d omega_o, d omega_o = 4 cos theta_h sin theta_h d theta_h d phi_h, phi_h over 2 pi.
+    sum += Evaluate(params, wi, wo) * (wo.z() * 4.0 * std::cos(theta_h) * std::sin(theta_h) * 2.0 * M_PI * d_theta_h);
+  }
+  return sum;
+}
+
 }  // namespace photorig::solvers::brdf

@@ -15,7 +15,8 @@ namespace photorig::daemon {
 struct BrdfMeasurement;
 
 // termination, message, min_theta_h_deg, peak_sampled, candidates (each fit's
-// model, parameters with deviations, BIC, training and held-out RMS, flags), chosen and
+// model, parameters with deviations, BIC, training and held-out RMS, flags:
+// lobe_identifiable, at_bound, normal_albedo, implausible), chosen and
 // the reason for it.
 nlohmann::json SelectionJson(const solvers::brdf::SelectionSummary& selection);
 

@@ -35,6 +35,15 @@
 
 namespace photorig::solvers::brdf {
 
+// The lobe shapes a fit may reach. Roughness (Ward's a, GGX's a,
+// Beckmann's m) from 0.003, a lobe about 0.2 deg wide, narrower than the
+// sharpest measured ones (MERL's need m of about 0.007), to 1; the
+// Blinn-Phong exponent from 1 to 2 / 0.003^2 = 222,222, the same width
+// (cos^e theta_h ~ exp(-e theta_h^2 / 2) against exp(-theta_h^2 / m^2)).
+// A shape at either end is a bound, not an estimate (FitSummary::at_bound).
+inline constexpr double kMinRoughness = 0.003, kMaxRoughness = 1.0;
+inline constexpr double kMinExponent = 1.0, kMaxExponent = 2.0 / (kMinRoughness * kMinRoughness);
+
 enum class FitLoss { kWeighted, kLog };
 inline constexpr core::NameTable<FitLoss, 2> kFitLossNames = {{{FitLoss::kWeighted, "weighted"}, {FitLoss::kLog, "log"}}};
 inline const char* FitLossName(FitLoss loss) { return core::NameOf(kFitLossNames, loss); }
@@ -46,6 +55,11 @@ struct FitOptions {
   // (or no covariance at all) is flagged not identifiable: the samples do not
   // pin its width down, typically because none lies near the specular peak.
   double max_relative_shape_sigma = 0.25;
+  // The least residual variance the log loss's tests assume (the F0 bound's
+  // score test): 1e-6, an RMS of 0.1 % in log(1 + f cos theta_i), below any
+  // measured table's accuracy. A noise-free table's residuals are the
+  // optimiser's rounding, which is not noise to test against.
+  double min_log_residual_variance = 1e-6;
   // Above this many samples the least squares see every (n / max)-th sample
   // only (in the order given: a table's grid order makes that a stratified
   // subsample over theta_h, theta_d and phi_d); 0 = always all of them.
@@ -74,10 +88,24 @@ struct FitSummary : core::Summary {
   Eigen::Vector3d specular2_sigma = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   double shape2_sigma = std::numeric_limits<double>::quiet_NaN();
   bool covariance_available = false;
-  // False when a lobe's shape is not pinned down (see FitOptions), for two
-  // lobes either one's; always true for Lambertian. A fit with an
-  // unidentifiable lobe is not a result.
+  // False when a lobe's shape is not pinned down (see FitOptions) or sits at
+  // a bound of its range, for two lobes either one's; always true for
+  // Lambertian. A fit with an unidentifiable lobe is not a result.
   bool lobe_identifiable = true;
+  // The parameters the fit left at a bound, in words ("exponent 2.222e+05 at
+  // its upper bound"); empty when none. A shape at a bound means the optimum
+  // lies beyond it; F0 (Cook-Torrance, GGX) counts only when the data press
+  // against 1, i.e. the loss still falls towards F0 > 1 (score test, below),
+  // since F0 = 1 is a lobe without a Fresnel rise, not a bound of the data.
+  std::string at_bound;
+  // The albedo at normal incidence per channel, rho_d plus the lobes' (by
+  // quadrature over theta_h, which resolves any lobe the bounds allow).
+  Eigen::Vector3d normal_albedo = Eigen::Vector3d::Zero();
+  // Why the parameters are not physically plausible, empty when they are:
+  // rho_d over 1, the lobes' albedo at normal incidence over 1, or F0 pressed
+  // against 1 (a Fresnel reflectance that would fall towards grazing).
+  // ChooseModel refuses such a fit.
+  std::string implausible;
 
   std::size_t samples = 0;
   std::size_t fitted_samples = 0;  // the subsample the least squares saw (FitOptions::max_fit_samples)
@@ -121,9 +149,13 @@ struct SelectionOptions {
   // The samples are said to see the specular peak when one has theta_h below this.
   double peak_theta_h_deg = 5.0;
   // Folds of the held-out error (sample k, i.e. pose k, in fold k mod
-  // folds; 0 = none, BIC alone chooses). Each costs one more fit per
-  // candidate.
+  // folds, unless `folds` says otherwise; 0 = none, BIC alone chooses). Each
+  // costs one more fit per candidate.
   int held_out_folds = 5;
+  // Each sample's fold in [0, held_out_folds), or empty (fold k mod
+  // held_out_folds). FitTable puts whole theta_h bands in one fold, so that
+  // no held-out sample shares its theta_h level with the fit that predicts it.
+  std::vector<int> folds;
   // The least squares of each held-out fold see at most this many of its
   // samples (evenly spaced, as FitOptions::max_fit_samples), starting from
   // the fit to all samples: a fold only needs its parameters near the
@@ -147,8 +179,9 @@ struct SelectionSummary : core::Summary {
 };
 
 // The choice among fitted candidates. Only trusted fits (converged: kSuccess,
-// lobes identifiable) take part; one the iteration limit stopped
-// (kNoConvergence) is usable but never chosen, and `reason` names it.
+// lobes identifiable, parameters plausible) take part; one the iteration
+// limit stopped (kNoConvergence) is usable but never chosen, and `reason`
+// names it, as it names each implausible fit with why.
 // Starting from the trusted fit with the fewest parameters (ties: lower
 // BIC), the choice moves to another fit when that one
 //   - has as many parameters and a lower BIC, or

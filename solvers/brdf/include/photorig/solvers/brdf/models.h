@@ -82,5 +82,11 @@ double EvaluateLobe(Model model, double specular, double shape, double extra, co
 // channel: the integral over the hemisphere of f_r cos theta_o, by the midpoint
 // rule on `theta_steps` x 4 * `theta_steps` cells in (cos theta_o, phi_o).
 Eigen::Vector3d DirectionalAlbedo(const ModelParams& params, const Eigen::Vector3d& wi, int theta_steps = 256);
+// The same at normal incidence, integrated over the half vector (w_o the
+// normal reflected about h, d omega_o = 4 cos theta_h d omega_h) on
+// `theta_h_steps` steps dense near theta_h = 0 (square-root spacing): it
+// resolves a lobe of any width the fit allows, where DirectionalAlbedo's grid
+// over w_o misses one narrower than a degree.
+Eigen::Vector3d NormalAlbedo(const ModelParams& params, int theta_h_steps = 4096);
 
 }  // namespace photorig::solvers::brdf

@@ -33,6 +33,11 @@ struct BrdfSample {
   Eigen::Vector3d value = Eigen::Vector3d::Zero();
   // Standard deviation of `value` per channel, 1/sr; 0 when not known.
   Eigen::Vector3d sigma = Eigen::Vector3d::Zero();
+  // The sample's weight in the fit's loss (its squared residuals are
+  // multiplied by it): 1 for a measured sample; for a cell drawn from a table
+  // at random, the inverse of its drawing density (mean 1), so that the loss
+  // estimates the loss over every cell (table_fit.h). Not kept in samples.csv.
+  double weight = 1.0;
   std::optional<SampleOrigin> origin;  // absent for samples drawn from a table or a model
 };
 
