@@ -45,6 +45,8 @@ json Document(const Outcome& outcome) {
 // contrast features a 0.5 mm grid resolves only in part. 0.3 fails a
 // reconstruction that lost them, a mirrored geometry or a wrong sign.
 constexpr double kErrorBound = 0.3;
+// The recipe's SART with TV: 0.127 measured.
+constexpr double kRecipeErrorBound = 0.15;
 
 TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutable) {
   TempDir dir;
@@ -56,7 +58,7 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
   ASSERT_TRUE(document.contains("tomography")) << outcome.out;
   const json& stage = document["tomography"];
   EXPECT_TRUE(stage["trusted"].get<bool>()) << stage.dump(2);
-  EXPECT_LT(stage["relative_error_vs_truth"].get<double>(), kErrorBound) << stage.dump(2);
+  EXPECT_LE(stage["relative_error_vs_truth"].get<double>(), kRecipeErrorBound) << stage.dump(2);
 
   // The run holds the geometry: 64 projections at the turntable's angles, 4 flats, 4 darks.
   const TomographyInput input = LoadTomographyRun(run);
@@ -80,12 +82,20 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
   EXPECT_EQ(grid.nx, 64);
   EXPECT_EQ(grid.nz, 8);
   const json report = json::parse(ReadText(results / "report.json"));
-  EXPECT_EQ(report["method"], "sirt");
-  EXPECT_EQ(report["stop_reason"], "discrepancy");
-  EXPECT_LE(report["residual"].get<double>(), report["discrepancy_target"].get<double>());
+  // SART with TV, stopped at its balance (TV holds the residual above the
+  // target), the centre found by the held-out search (a 0..180 scan without
+  // its end view) at the simulated axis, 0.
+  EXPECT_EQ(report["method"], "sart");
+  EXPECT_GT(report["tv_strength"].get<double>(), 0.0);
+  EXPECT_EQ(report["stop_reason"], "stagnation");
+  EXPECT_EQ(report["centre_of_rotation"]["method"], "held-out-search");
+  EXPECT_NEAR(report["centre_of_rotation"]["offset_px"].get<double>(), 0.0, 0.25);
 
-  // Solved again from the stored frames by the command: the same figures.
-  const Outcome again = Photorig("solve tomography --run " + run + " --out " + (dir.path() / "again").string() + " --json", dir);
+  // Solved again from the stored frames by the command as docs/cli.md shows
+  // it: the same figures.
+  const Outcome again = Photorig("solve tomography --run " + run + " --method sart --tv --out " +
+                                     (dir.path() / "again").string() + " --json",
+                                 dir);
   ASSERT_EQ(again.exit_code, 0) << again.err;
   const json solved = Document(again);
   EXPECT_EQ(solved["command"], "solve tomography");
@@ -105,18 +115,18 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
       << ps.out;
   EXPECT_FALSE(fs::exists(fs::path(run) / "results" / "ps"));
 
-  // SART with TV as docs/cli.md shows it: trusted (TV holds the residual
-  // above the target; the passes end at its balance), better than SIRT, and
-  // the progress ends where the passes stopped, not at the limit.
-  const Outcome tv = Photorig("solve tomography --run " + run + " --method sart --tv --out " +
-                                  (dir.path() / "tv").string(),
-                              dir);
-  ASSERT_EQ(tv.exit_code, 0) << tv.out << tv.err;
-  const json tv_report = json::parse(ReadText(dir.path() / "tv" / "report.json"));
-  EXPECT_TRUE(tv_report["trusted"].get<bool>()) << tv_report["message"];
-  EXPECT_LT(tv_report["relative_error_vs_truth"].get<double>(), report["relative_error_vs_truth"].get<double>());
-  const std::string stopped = "sart stopped at " + std::to_string(tv_report["iterations"].get<int>()) + "/300 (";
-  EXPECT_NE(tv.err.find(stopped), std::string::npos) << tv.err;
+  // SIRT, the command's default, stopped by the discrepancy rule: trusted,
+  // but worse than the recipe's SART with TV, by the phantom and by the
+  // held-out residual alike; its progress ends where it stopped, not at the limit.
+  const Outcome sirt = Photorig("solve tomography --run " + run + " --out " + (dir.path() / "sirt").string(), dir);
+  ASSERT_EQ(sirt.exit_code, 0) << sirt.out << sirt.err;
+  const json sirt_report = json::parse(ReadText(dir.path() / "sirt" / "report.json"));
+  EXPECT_EQ(sirt_report["stop_reason"], "discrepancy");
+  EXPECT_LE(sirt_report["residual"].get<double>(), sirt_report["discrepancy_target"].get<double>());
+  EXPECT_GT(sirt_report["relative_error_vs_truth"].get<double>(), report["relative_error_vs_truth"].get<double>());
+  EXPECT_GT(sirt_report["held_out"]["relative_residual"].get<double>(), report["held_out"]["relative_residual"].get<double>());
+  const std::string stopped = "sirt stopped at " + std::to_string(sirt_report["iterations"].get<int>()) + "/300 (";
+  EXPECT_NE(sirt.err.find(stopped), std::string::npos) << sirt.err;
 
   // The iteration limit first: not trusted, and the message names the flag.
   const Outcome limited = Photorig("solve tomography --run " + run + " --max-iterations 5 --out " +
