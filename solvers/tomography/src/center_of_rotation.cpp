@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numbers>
 #include <vector>
@@ -171,10 +172,14 @@ CorEstimateSummary EstimateCorOffset(const Geometry& geometry, const Absorbance&
       summary.tilt_sigma_deg = slope_sigma * 180.0 / std::numbers::pi;
       const double drift_mm = std::abs(slope) * rows * geometry.pixel_mm;
       if (drift_mm > std::max(summary.offset_sigma_mm, 0.25 * geometry.pixel_mm) &&
-          std::abs(slope) > 2.0 * slope_sigma)
-        summary.message = "the detector is tilted by " + std::to_string(summary.tilt_deg) +
-                          " deg: the axis moves by " + std::to_string(drift_mm / geometry.pixel_mm) +
-                          " px over the rows, which the reconstruction does not model";
+          std::abs(slope) > 2.0 * slope_sigma) {
+        char text[160];
+        std::snprintf(text, sizeof(text),
+                      "the detector is tilted by %.2f deg: the axis moves by %.2f px over the rows, which the "
+                      "reconstruction does not model",
+                      summary.tilt_deg, drift_mm / geometry.pixel_mm);
+        summary.message = text;
+      }
     }
   }
   summary.termination = solvers::core::Termination::kSuccess;

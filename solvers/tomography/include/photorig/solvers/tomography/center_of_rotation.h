@@ -47,9 +47,9 @@ struct CorEstimateSummary : solvers::core::Summary {
   // One standard deviation of the estimate (opposing views: from the blocks; search:
   // the offset at which the held-out residual rises by what its noise resolves).
   double offset_sigma_mm = 0.0;
-  // Opposing views: the axis' drift across the detector rows (a rotated
-  // detector), atan(d offset / d row), and its standard error; 0 with fewer
-  // than 8 rows. The reconstruction does not model it: a tilt that moves the
+  // Opposing views: the axis' drift across the detector rows (a detector
+  // turned in its plane), atan(d offset / d row) with rows counted
+  // downwards, and its standard error; 0 with fewer than 8 rows. The reconstruction does not model it: a tilt that moves the
   // axis by more than offset_sigma_mm over the rows is said in the message.
   double tilt_deg = 0.0;
   double tilt_sigma_deg = 0.0;
