@@ -240,17 +240,17 @@ CorEstimateSummary SearchCorOffset(const Geometry& geometry, const Absorbance& m
   const VolumeGrid grid{geometry.detector_cols, geometry.detector_cols, rows, geometry.pixel_mm / magnification};
   timer.SetupDone(&summary);
 
-  double best_residual = kInfinity;
-  HeldOutSummary best_fit;
+  HeldOutSummary best_fit;  // of the lowest residual so far
+  std::string failure;      // why the last candidate that failed did
   auto residual_at = [&](double offset_mm) {
     central.cor_offset_mm = offset_mm;
     const HeldOutSummary s = HeldOutResidual(grid, central, data, options.held_out);
     ++summary.candidates;
-    if (!s.IsSolutionUsable()) return kInfinity;
-    if (s.relative_residual < best_residual) {
-      best_residual = s.relative_residual;
-      best_fit = s;
+    if (!s.IsSolutionUsable()) {
+      failure = s.message;
+      return kInfinity;
     }
+    if (best_fit.held_out_rays == 0 || s.relative_residual < best_fit.relative_residual) best_fit = s;
     return s.relative_residual;
   };
 
@@ -261,11 +261,8 @@ CorEstimateSummary SearchCorOffset(const Geometry& geometry, const Absorbance& m
   std::vector<double> coarse;
   for (int i = -half; i <= half; ++i) coarse.push_back(residual_at(i * step));
   const std::size_t best = static_cast<std::size_t>(std::min_element(coarse.begin(), coarse.end()) - coarse.begin());
-  if (!std::isfinite(coarse[best])) {
-    timer.Finish(&summary);
-    return timer.End(&summary, solvers::core::Termination::kFailure,
-                     "no candidate centre could be reconstructed: " + best_fit.message);
-  }
+  if (!std::isfinite(coarse[best]))
+    return timer.End(&summary, solvers::core::Termination::kFailure, "no candidate centre could be reconstructed: " + failure);
   if (best == 0 || best + 1 == coarse.size())
     return timer.End(&summary, solvers::core::Termination::kFailure,
                      "the held-out residual is lowest at the edge of the search (" +

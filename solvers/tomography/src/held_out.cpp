@@ -104,11 +104,9 @@ HeldOutSummary HeldOutResidual(const VolumeGrid& grid, const Geometry& geometry,
 
   Eigen::VectorXf sigma;
   summary.reconstruction = Reconstruct(*fit_w, fit_b, reconstruct, &sigma);
-  if (!summary.reconstruction.IsSolutionUsable()) {
-    summary.End(solvers::core::Termination::kFailure, "the even views' reconstruction: " + summary.reconstruction.message);
-    timer.Finish(&summary);
-    return summary;
-  }
+  if (!summary.reconstruction.IsSolutionUsable())
+    return timer.End(&summary, solvers::core::Termination::kFailure,
+                     "the even views' reconstruction: " + summary.reconstruction.message);
   summary.relative_residual = relative_residual(sigma);
   timer.Finish(&summary);
   summary.noise_floor = std::sqrt(variance / b2);
