@@ -115,13 +115,13 @@ bool TomographyRequest::IsValid(std::string* why) const {
   for (int n : volume)
     if (n < 0 || n > 4096) return fail("volume sizes must be within [0, 4096] (0: from the detector)");
   if (!(voxel_mm >= 0) || !std::isfinite(voxel_mm)) return fail("voxel_mm must be >= 0 (0: the detector pitch)");
-  if (!std::isfinite(cor_offset_mm)) return fail("cor_offset_mm must be finite");
+  if (cor_offset_mm && !std::isfinite(*cor_offset_mm)) return fail("cor_offset_mm must be finite");
   return true;
 }
 
 TomographyRequest ParseTomographyRequest(const YamlNode& node) {
   node.ExpectKeys({"method", "total_variation", "projector", "max_iterations", "discrepancy_factor", "volume",
-                   "voxel_mm", "cor_offset_mm"});
+                   "voxel_mm", "cor_offset_mm", "ring_filter", "held_out"});
   TomographyRequest request;
   request.method = node.Choice("method", solvers::tomography::kMethodNames, request.method);
   request.total_variation = node.Bool("total_variation", request.total_variation);
@@ -134,7 +134,9 @@ TomographyRequest ParseTomographyRequest(const YamlNode& node) {
     request.volume = {sizes[0], sizes[1], sizes[2]};
   }
   request.voxel_mm = node.Double("voxel_mm", request.voxel_mm);
-  request.cor_offset_mm = node.Double("cor_offset_mm", request.cor_offset_mm);
+  if (node.Find("cor_offset_mm")) request.cor_offset_mm = node.Double("cor_offset_mm", 0.0);
+  request.ring_filter = node.Bool("ring_filter", request.ring_filter);
+  request.held_out = node.Bool("held_out", request.held_out);
   if (std::string why; !request.IsValid(&why)) node.Fail(why);
   return request;
 }

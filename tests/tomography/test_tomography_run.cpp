@@ -11,7 +11,9 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -44,6 +46,8 @@ json Document(const Outcome& outcome) {
 // contrast features a 0.5 mm grid resolves only in part. 0.3 fails a
 // reconstruction that lost them, a mirrored geometry or a wrong sign.
 constexpr double kErrorBound = 0.3;
+// The recipe's SART with TV: 0.127 measured.
+constexpr double kRecipeErrorBound = 0.15;
 
 TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutable) {
   TempDir dir;
@@ -55,7 +59,7 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
   ASSERT_TRUE(document.contains("tomography")) << outcome.out;
   const json& stage = document["tomography"];
   EXPECT_TRUE(stage["trusted"].get<bool>()) << stage.dump(2);
-  EXPECT_LT(stage["relative_error_vs_truth"].get<double>(), kErrorBound) << stage.dump(2);
+  EXPECT_LE(stage["relative_error_vs_truth"].get<double>(), kRecipeErrorBound) << stage.dump(2);
 
   // The run holds the geometry: 64 projections at the turntable's angles, 4 flats, 4 darks.
   const TomographyInput input = LoadTomographyRun(run);
@@ -79,12 +83,20 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
   EXPECT_EQ(grid.nx, 64);
   EXPECT_EQ(grid.nz, 8);
   const json report = json::parse(ReadText(results / "report.json"));
-  EXPECT_EQ(report["method"], "sirt");
-  EXPECT_EQ(report["stop_reason"], "discrepancy");
-  EXPECT_LE(report["residual"].get<double>(), report["discrepancy_target"].get<double>());
+  // SART with TV, stopped at its balance (TV holds the residual above the
+  // target), the centre found by the held-out search (a 0..180 scan without
+  // its end view) at the simulated axis, 0.
+  EXPECT_EQ(report["method"], "sart");
+  EXPECT_GT(report["tv_strength"].get<double>(), 0.0);
+  EXPECT_EQ(report["stop_reason"], "stagnation");
+  EXPECT_EQ(report["centre_of_rotation"]["method"], "held-out-search");
+  EXPECT_NEAR(report["centre_of_rotation"]["offset_px"].get<double>(), 0.0, 0.25);
 
-  // Solved again from the stored frames by the command: the same figures.
-  const Outcome again = Photorig("solve tomography --run " + run + " --out " + (dir.path() / "again").string() + " --json", dir);
+  // Solved again from the stored frames by the command as docs/cli.md shows
+  // it: the same figures.
+  const Outcome again = Photorig("solve tomography --run " + run + " --method sart --tv --out " +
+                                     (dir.path() / "again").string() + " --json",
+                                 dir);
   ASSERT_EQ(again.exit_code, 0) << again.err;
   const json solved = Document(again);
   EXPECT_EQ(solved["command"], "solve tomography");
@@ -104,18 +116,18 @@ TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutab
       << ps.out;
   EXPECT_FALSE(fs::exists(fs::path(run) / "results" / "ps"));
 
-  // SART with TV as docs/cli.md shows it: trusted (TV holds the residual
-  // above the target; the passes end at its balance), better than SIRT, and
-  // the progress ends where the passes stopped, not at the limit.
-  const Outcome tv = Photorig("solve tomography --run " + run + " --method sart --tv --out " +
-                                  (dir.path() / "tv").string(),
-                              dir);
-  ASSERT_EQ(tv.exit_code, 0) << tv.out << tv.err;
-  const json tv_report = json::parse(ReadText(dir.path() / "tv" / "report.json"));
-  EXPECT_TRUE(tv_report["trusted"].get<bool>()) << tv_report["message"];
-  EXPECT_LT(tv_report["relative_error_vs_truth"].get<double>(), report["relative_error_vs_truth"].get<double>());
-  const std::string stopped = "sart stopped at " + std::to_string(tv_report["iterations"].get<int>()) + "/300 (";
-  EXPECT_NE(tv.err.find(stopped), std::string::npos) << tv.err;
+  // SIRT, the command's default, stopped by the discrepancy rule: trusted,
+  // but worse than the recipe's SART with TV, by the phantom and by the
+  // held-out residual alike; its progress ends where it stopped, not at the limit.
+  const Outcome sirt = Photorig("solve tomography --run " + run + " --out " + (dir.path() / "sirt").string(), dir);
+  ASSERT_EQ(sirt.exit_code, 0) << sirt.out << sirt.err;
+  const json sirt_report = json::parse(ReadText(dir.path() / "sirt" / "report.json"));
+  EXPECT_EQ(sirt_report["stop_reason"], "discrepancy");
+  EXPECT_LE(sirt_report["residual"].get<double>(), sirt_report["discrepancy_target"].get<double>());
+  EXPECT_GT(sirt_report["relative_error_vs_truth"].get<double>(), report["relative_error_vs_truth"].get<double>());
+  EXPECT_GT(sirt_report["held_out"]["relative_residual"].get<double>(), report["held_out"]["relative_residual"].get<double>());
+  const std::string stopped = "sirt stopped at " + std::to_string(sirt_report["iterations"].get<int>()) + "/300 (";
+  EXPECT_NE(sirt.err.find(stopped), std::string::npos) << sirt.err;
 
   // The iteration limit first: not trusted, and the message names the flag.
   const Outcome limited = Photorig("solve tomography --run " + run + " --max-iterations 5 --out " +
@@ -140,6 +152,132 @@ TEST(TomographyRun, EveryMethodReconstructsAFolderOfProjectionsWithinTheBound) {
     EXPECT_EQ(document["stop_reason"], "discrepancy") << method;
     EXPECT_LT(document["relative_error_vs_truth"].get<double>(), kErrorBound) << method;
   }
+}
+
+// A scan as a beamline gives it: 16-bit TIFFs, the angles in a file, the
+// views over 360 degrees in shuffled order with one repeated, and the axis
+// 3 px off the detector's centre, where geometry.json does not say (a whole
+// pixel: at a half-pixel offset the opposite views interlace, sampling finer
+// than the 0.5 mm voxels hold, and the residual stays 1.5 x above the noise
+// level, flagged inconsistent at the true centre too). The
+// centre is found from the data within a quarter pixel, the volume within 5 %
+// of the error at the true centre, and the held-out residual reported.
+TEST(TomographyRun, TiffsWithAnAnglesFileAreSolvedAtTheCentreFoundInTheData) {
+  TempDir dir;
+  constexpr double kOffsetPx = -3.0;
+  TomographyInput input = SimulatedScan(64, solvers::tomography::Beam::kParallel, kOffsetPx * 0.5, 360.0);
+  std::vector<std::size_t> order(input.projections.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = (i * 37) % order.size();  // 37 is prime to 64
+  order.push_back(order[5]);
+  TomographyInput shuffled = input;
+  shuffled.projections.clear();
+  shuffled.geometry.angles_rad.clear();
+  for (std::size_t i : order) {
+    shuffled.projections.push_back(input.projections[i]);
+    shuffled.geometry.angles_rad.push_back(input.geometry.angles_rad[i]);
+  }
+  const fs::path folder = dir.path() / "scan";
+  WriteProjectionFolder(shuffled, folder.string());
+  for (const char* sub : {"projections", "flats", "darks"})
+    for (const auto& entry : fs::directory_iterator(folder / sub)) {
+      fs::path tiff = entry.path();
+      cv::imwrite(tiff.replace_extension(".tif").string(), cv::imread(entry.path().string(), cv::IMREAD_UNCHANGED));
+      fs::remove(entry.path());
+    }
+  json geometry = json::parse(ReadText(folder / "geometry.json"));
+  std::ofstream angles(folder / "angles.txt");
+  angles << "# degrees\n";
+  for (const json& deg : geometry["angles_deg"]) angles << deg.get<double>() << "\n";
+  angles.close();
+  geometry.erase("angles_deg");
+  std::ofstream(folder / "geometry.json") << geometry.dump();
+
+  // SART with TV: SIRT's residual stays above the noise level after 300 iterations on this scan.
+  const std::string solve = "solve tomography --method sart --tv --projections " + folder.string();
+  const Outcome found = Photorig(solve + " --out " +
+                                     (dir.path() / "found").string() + " --json",
+                                 dir);
+  ASSERT_EQ(found.exit_code, 0) << found.out << found.err;
+  const json document = Document(found);
+  EXPECT_EQ(document["geometry"]["views"], 65);
+  const json& centre = document["centre_of_rotation"];
+  EXPECT_EQ(centre["source"], "estimated");
+  EXPECT_EQ(centre["method"], "opposing-views");
+  EXPECT_NEAR(centre["offset_px"].get<double>(), kOffsetPx, 0.25) << centre.dump();
+  EXPECT_GT(centre["sigma_px"].get<double>(), 0.0);
+  const json& held_out = document["held_out"];
+  EXPECT_EQ(held_out["fit_views"].get<int>() + held_out["held_out_views"].get<int>(), 65);
+  EXPECT_GT(held_out["relative_residual"].get<double>(), held_out["noise_floor"].get<double>());
+
+  const Outcome given = Photorig(solve + " --cor-offset-mm " +
+                                     std::to_string(kOffsetPx * 0.5) + " --out " + (dir.path() / "given").string() +
+                                     " --json",
+                                 dir);
+  ASSERT_EQ(given.exit_code, 0) << given.out << given.err;
+  const json truth = Document(given);
+  EXPECT_EQ(truth["centre_of_rotation"]["source"], "given");
+  EXPECT_LT(document["relative_error_vs_truth"].get<double>(), 1.05 * truth["relative_error_vs_truth"].get<double>());
+  // The nominal centre, 3 px off: worse by both the held-out residual and the truth.
+  const Outcome nominal = Photorig(solve + " --cor-offset-mm 0 --out " +
+                                       (dir.path() / "nominal").string() + " --json",
+                                   dir);
+  const json off = Document(nominal);
+  EXPECT_GT(off["held_out"]["relative_residual"].get<double>(), held_out["relative_residual"].get<double>());
+  EXPECT_GT(off["relative_error_vs_truth"].get<double>(), document["relative_error_vs_truth"].get<double>());
+  std::printf("found %+.3f px (sigma %.3f): error %.4f, held-out %.4f; true centre: %.4f, %.4f; nominal: %.4f, %.4f\n",
+              centre["offset_px"].get<double>(), centre["sigma_px"].get<double>(),
+              document["relative_error_vs_truth"].get<double>(), held_out["relative_residual"].get<double>(),
+              truth["relative_error_vs_truth"].get<double>(), truth["held_out"]["relative_residual"].get<double>(),
+              off["relative_error_vs_truth"].get<double>(), off["held_out"]["relative_residual"].get<double>());
+}
+
+// One flat and one dark give no noise estimate for the discrepancy rule: the
+// iterations stop where the held-out residual is lowest instead.
+TEST(TomographyRun, OneFlatAndOneDarkStopWhereTheHeldOutResidualIsLowest) {
+  TempDir dir;
+  TomographyInput input = SimulatedScan();
+  input.flats.resize(1);
+  input.darks.resize(1);
+  const std::string folder = (dir.path() / "scan").string();
+  WriteProjectionFolder(input, folder);
+  const Outcome outcome = Photorig("solve tomography --projections " + folder + " --cor-offset-mm 0 --out " +
+                                       (dir.path() / "out").string() + " --json",
+                                   dir);
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.out << outcome.err;
+  const json document = Document(outcome);
+  EXPECT_EQ(document["stop_reason"], "held-out-minimum");
+  EXPECT_TRUE(document["held_out"]["stopping_rule"].get<bool>());
+  EXPECT_EQ(document["iterations"], document["held_out"]["iterations"]);
+  EXPECT_LT(document["relative_error_vs_truth"].get<double>(), kErrorBound);
+  std::printf("one flat, one dark: %d iterations, error %.4f, held-out residual %.4f\n", document["iterations"].get<int>(),
+              document["relative_error_vs_truth"].get<double>(), document["held_out"]["relative_residual"].get<double>());
+}
+
+// Three detector columns whose response drifted 6-8 % from their flats:
+// --ring-filter finds every pixel of them and brings the error down.
+TEST(TomographyRun, TheRingFilterRemovesTheStripesOfDriftedColumns) {
+  TempDir dir;
+  TomographyInput input = SimulatedScan();
+  const int cols = input.geometry.detector_cols, rows = input.geometry.detector_rows;
+  for (auto& frame : input.projections)
+    for (const auto& [col, gain] : {std::pair{20, 1.06}, std::pair{30, 0.92}, std::pair{41, 1.08}})
+      for (int row = 0; row < rows; ++row) {
+        std::uint16_t& dn = frame[static_cast<std::size_t>(row * cols + col)];
+        dn = static_cast<std::uint16_t>(std::lround(dn * gain));
+      }
+  const std::string folder = (dir.path() / "scan").string();
+  WriteProjectionFolder(input, folder);
+  const std::string solve = "solve tomography --projections " + folder + " --method sart --tv --cor-offset-mm 0 --no-held-out";
+  const json plain = Document(Photorig(solve + " --out " + (dir.path() / "plain").string() + " --json", dir));
+  const Outcome outcome = Photorig(solve + " --ring-filter --out " + (dir.path() / "filtered").string() + " --json", dir);
+  ASSERT_EQ(outcome.exit_code, 0) << outcome.out << outcome.err;
+  const json filtered = Document(outcome);
+  EXPECT_GE(filtered["ring_filter"]["stripes"].get<int>(), 3 * rows);
+  EXPECT_FALSE(filtered.contains("held_out"));
+  const double before = plain["relative_error_vs_truth"].get<double>(), after = filtered["relative_error_vs_truth"].get<double>();
+  std::printf("drifted columns: error %.4f, filtered %.4f (%d pixels corrected)\n", before, after,
+              filtered["ring_filter"]["stripes"].get<int>());
+  EXPECT_LT(after, 0.9 * before);
 }
 
 TEST(TomographyRun, MissingFlatsOrDarksAreRefusedSayingWhat) {

@@ -1,10 +1,13 @@
 // photorig solve tomography (--run DIR [--accept-failed-capture] | --projections DIR) [--method sirt|art|cgls|sart] [--tv] [--projector joseph|siddon]
-//                           [--max-iterations N] [--volume NX NY NZ] [--voxel-mm MM] [--cor-offset-mm MM] [--out DIR]
+//                           [--max-iterations N] [--volume NX NY NZ] [--voxel-mm MM] [--cor-offset-mm MM]
+//                           [--ring-filter] [--no-held-out] [--out DIR]
 //
-// A turntable scan's frames -> absorbance (flats and darks) -> a volume by
-// SIRT, ART, CGLS or SART (optionally with total variation) stopped by the
-// discrepancy rule (docs/tomography.md); volume.nrrd and, where built with
-// OpenVDB, volume.vdb.
+// A turntable scan's frames -> absorbance (flats and darks) -> optionally the
+// ring filter -> the centre of rotation estimated from the data (unless
+// --cor-offset-mm gives it) -> a volume by SIRT, ART, CGLS or SART
+// (optionally with total variation) stopped by the discrepancy rule, and the
+// held-out-angle residual as its quality figure (docs/tomography.md);
+// volume.nrrd and, where built with OpenVDB, volume.vdb.
 // Exit 0 when the rule stopped it; 1 when the solve failed or cannot be
 // trusted (the residual never reached the noise level, inconsistent data);
 // 2 for missing flats or darks or a geometry that does not fit the frames.
@@ -42,6 +45,9 @@ struct Options {
   int mpi_slabs = 0;  // 0: chosen from the volume's size (DecompositionOptions)
   bool accept_failed_capture = false;
   config::TomographyRequest request;
+  double cor_offset_mm = 0.0;  // with --cor-offset-mm only
+  CLI::Option* cor_offset_option = nullptr;
+  bool no_held_out = false;
 };
 
 int Execute(const Options& options) {
@@ -49,6 +55,9 @@ int Execute(const Options& options) {
     return Fail(kExitUsage, "give --run DIR or --projections DIR");
   config::TomographyRequest request = options.request;
   request.iteration_limit_name = "--max-iterations";
+  if (options.cor_offset_option->count() > 0) request.cor_offset_mm = options.cor_offset_mm;
+  // Under --mpi the held-out solve would run whole in every process.
+  request.held_out = !options.no_held_out && !options.mpi;
   if (!options.volume.empty()) request.volume = {options.volume[0], options.volume[1], options.volume[2]};
   if (std::string why; !request.IsValid(&why)) return Fail(kExitUsage, why);
   const bool from_run = !options.run_dir.empty();
@@ -107,10 +116,33 @@ int Execute(const Options& options) {
   std::printf("tomography (%s, %s): %s, %d views, %d x %d x %d voxels of %.3g mm\n", solvers::tomography::MethodName(r.method),
               solvers::tomography::InterpolationName(request.projector), solvers::core::TerminationName(r.termination), result.geometry.views(),
               result.grid.nx, result.grid.ny, result.grid.nz, result.grid.voxel_mm);
-  if (r.iterations > 0)
+  if (r.iterations > 0 && result.stopped_by_held_out)
+    std::printf("  %d iterations, where the held-out-angle residual was lowest (no noise estimate: fewer than two flats "
+                "or darks)\n",
+                r.iterations);
+  else if (r.iterations > 0)
     std::printf("  %d iterations, stopped by %s: residual %.4g against the noise level %.4g\n", r.iterations,
                 solvers::tomography::StopReasonName(r.stop_reason), r.residual_history.back(), r.discrepancy_target);
   if (!r.message.empty()) std::printf("  %s\n", r.message.c_str());
+  const double pixel_mm = result.geometry.pixel_mm;
+  if (result.cor && result.cor->IsSolutionUsable())
+    std::printf("  centre of rotation %+.3f px (%+.4g mm) +- %.3f px, estimated by %s%s%s\n",
+                result.geometry.cor_offset_mm / pixel_mm, result.geometry.cor_offset_mm, result.cor->offset_sigma_mm / pixel_mm,
+                solvers::tomography::CorMethodName(result.cor->method), result.cor->message.empty() ? "" : ": ",
+                result.cor->message.c_str());
+  else if (!result.cor)
+    std::printf("  centre of rotation %+.3f px (%+.4g mm), as given\n", result.geometry.cor_offset_mm / pixel_mm,
+                result.geometry.cor_offset_mm);
+  if (result.ring_filter)
+    std::printf("  ring filter: %d stripes, largest offset %.3g in b\n", result.ring_filter->stripes, result.ring_filter->max_offset);
+  if (result.held_out) {
+    if (result.held_out->IsSolutionUsable())
+      std::printf("  held-out-angle residual %.4f (noise floor %.4f): %d views reconstructed, %d predicted\n",
+                  result.held_out->relative_residual, result.held_out->noise_floor, result.held_out->fit_views,
+                  result.held_out->held_out_views);
+    else
+      std::printf("  no held-out-angle residual: %s\n", result.held_out->message.c_str());
+  }
   if (result.absorbance.flagged() > 0)
     std::printf("  %lld of %lld pixels flagged by the absorbance (saturated, dark or without flat signal)\n",
                 static_cast<long long>(result.absorbance.flagged()), static_cast<long long>(result.absorbance.rays));
@@ -159,8 +191,13 @@ CommandRunner Setup(CLI::App& app) {
       ->expected(3);
   sub->add_option("--voxel-mm", options->request.voxel_mm, "voxel size (default: the detector pitch)")
       ->check(CLI::NonNegativeNumber);
-  sub->add_option("--cor-offset-mm", options->request.cor_offset_mm,
-                  "centre of rotation on the detector, added to the stored geometry's");
+  options->cor_offset_option =
+      sub->add_option("--cor-offset-mm", options->cor_offset_mm,
+                      "centre of rotation on the detector, added to the stored geometry's (default: estimated from the data)");
+  sub->add_flag("--ring-filter", options->request.ring_filter,
+                "remove detector-column stripes from the sinogram (ring artefacts)");
+  sub->add_flag("--no-held-out", options->no_held_out,
+                "skip the held-out-angle residual (a second solve of half the views)");
   sub->add_option("--out", options->out, "output directory (default: SOURCE/results/tomography)");
   sub->add_flag("--mpi", options->mpi,
                 "distribute the views and slabs of the volume over the MPI processes this runs in (under mpirun; "

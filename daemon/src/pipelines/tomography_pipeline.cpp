@@ -19,6 +19,7 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <sstream>
 #include <stdexcept>
 
 namespace photorig::daemon {
@@ -97,7 +98,8 @@ solvers::tomography::Geometry GeometryFromJson(const json& j, const std::string&
     g.cor_offset_mm = j.value("cor_offset_mm", 0.0);
     g.source_to_axis_mm = j.value("source_to_axis_mm", g.source_to_axis_mm);
     g.axis_to_detector_mm = j.value("axis_to_detector_mm", g.axis_to_detector_mm);
-    for (double deg : j.at("angles_deg").get<std::vector<double>>()) g.angles_rad.push_back(deg * kDeg);
+    if (j.contains("angles_deg"))
+      for (double deg : j.at("angles_deg").get<std::vector<double>>()) g.angles_rad.push_back(deg * kDeg);
     *saturation_dn = j.value("saturation_dn", 4095.0);
   } catch (const json::exception& e) {
     throw std::invalid_argument(path + ": " + e.what());
@@ -109,12 +111,37 @@ std::vector<std::vector<std::uint16_t>> ReadFrames(const fs::path& folder) {
   std::vector<fs::path> files;
   if (fs::is_directory(folder))
     for (const auto& entry : fs::directory_iterator(folder))
-      if (entry.path().extension() == ".png") files.push_back(entry.path());
+      if (const fs::path ext = entry.path().extension(); ext == ".png" || ext == ".tif" || ext == ".tiff")
+        files.push_back(entry.path());
   std::sort(files.begin(), files.end());
   std::vector<std::vector<std::uint16_t>> frames;
   for (const fs::path& file : files)
     frames.push_back(Pixels(cv::imread(file.string(), cv::IMREAD_UNCHANGED), file.string()));
   return frames;
+}
+
+// angles.txt: the view angles in degrees, whitespace-separated, '#' to the end of a line a comment.
+std::vector<double> ReadAnglesFile(const fs::path& path) {
+  std::ifstream in(path);
+  std::vector<double> angles_rad;
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream words(line.substr(0, line.find('#')));
+    std::string word;
+    while (words >> word) {
+      std::size_t used = 0;
+      double deg = 0.0;
+      try {
+        deg = std::stod(word, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != word.size() || !std::isfinite(deg))
+        throw std::invalid_argument(path.string() + ": '" + word + "' is not an angle in degrees");
+      angles_rad.push_back(deg * kDeg);
+    }
+  }
+  return angles_rad;
 }
 
 std::shared_ptr<const sim::Phantom> ReadPhantom(const fs::path& path) {
@@ -212,6 +239,14 @@ TomographyInput LoadProjectionFolder(const std::string& directory) {
     throw std::invalid_argument(geometry_path.string() + ": " + e.what());
   }
   input.geometry = GeometryFromJson(j, geometry_path.string(), &input.saturation_dn);
+  const fs::path angles_path = fs::path(directory) / "angles.txt";
+  if (fs::exists(angles_path)) {
+    if (!input.geometry.angles_rad.empty())
+      throw std::invalid_argument(directory + ": angles both in geometry.json (angles_deg) and in angles.txt; keep one");
+    input.geometry.angles_rad = ReadAnglesFile(angles_path);
+  }
+  if (input.geometry.angles_rad.empty())
+    throw std::invalid_argument(directory + ": no view angles (angles_deg in geometry.json, or angles.txt)");
   input.projections = ReadFrames(fs::path(directory) / "projections");
   input.flats = ReadFrames(fs::path(directory) / "flats");
   input.darks = ReadFrames(fs::path(directory) / "darks");
@@ -262,7 +297,7 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   TomographyResult result;
   result.capture = input.capture;
   result.geometry = input.geometry;
-  result.geometry.cor_offset_mm += request.cor_offset_mm;
+  if (request.cor_offset_mm) result.geometry.cor_offset_mm += *request.cor_offset_mm;
   const solvers::tomography::Geometry& g = result.geometry;
   result.grid.nx = request.volume[0] > 0 ? request.volume[0] : g.detector_cols;
   result.grid.ny = request.volume[1] > 0 ? request.volume[1] : g.detector_cols;
@@ -275,11 +310,52 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   solvers::tomography::Absorbance all;
   result.absorbance = solvers::tomography::ComputeAbsorbance(g, input.projections, input.flats, input.darks, absorbance_options, &all);
   result.absorbance_ms = MillisecondsSince(started);
-  if (!result.absorbance.IsSolutionUsable()) {
-    result.reconstruction.End(result.absorbance.termination, "absorbance: " + result.absorbance.message);
+  auto fail = [&](solvers::core::Termination how, const std::string& why) {
+    result.reconstruction.End(how, why);
     result.total_ms = MillisecondsSince(started);
     return result;
+  };
+  if (!result.absorbance.IsSolutionUsable()) return fail(result.absorbance.termination, "absorbance: " + result.absorbance.message);
+  if (request.ring_filter) {
+    result.ring_filter = solvers::tomography::RemoveStripes(g, {}, &all);
+    if (!result.ring_filter->IsSolutionUsable()) return fail(result.ring_filter->termination, "ring filter: " + result.ring_filter->message);
   }
+  if (!request.cor_offset_mm) {
+    result.cor = solvers::tomography::FindCorOffset(g, all);
+    if (!result.cor->IsSolutionUsable())
+      return fail(solvers::core::Termination::kFailure,
+                  "centre of rotation: " + result.cor->message + "; give it (--cor-offset-mm, or cor_offset_mm in the recipe)");
+    result.geometry.cor_offset_mm = result.cor->offset_mm;
+  }
+
+  solvers::tomography::ReconstructOptions options;
+  options.method = request.method;
+  options.total_variation = request.total_variation;
+  options.max_iterations = request.max_iterations;
+  options.iteration_limit_name = request.iteration_limit_name;
+  options.discrepancy_factor = request.discrepancy_factor;
+  if (request.held_out) {
+    solvers::tomography::HeldOutOptions held_out;
+    held_out.reconstruct = options;
+    held_out.interpolation = request.projector;
+    // Without a noise estimate for the discrepancy rule, the held-out
+    // residual's minimum says where to stop.
+    result.stopped_by_held_out = all.variance.size() == 0;
+    if (result.stopped_by_held_out) {
+      held_out.reconstruct.stop_rule = solvers::tomography::StopRule::kIterations;
+      held_out.track_iterations = true;
+    }
+    result.held_out = solvers::tomography::HeldOutResidual(result.grid, g, all, held_out);
+    if (result.stopped_by_held_out) {
+      if (!result.held_out->IsSolutionUsable())
+        return fail(solvers::core::Termination::kFailure, "no noise estimate for the discrepancy rule, and the held-out "
+                                                          "stopping rule failed: " + result.held_out->message);
+      options.stop_rule = solvers::tomography::StopRule::kIterations;
+      options.max_iterations = result.held_out->best_iteration;
+      result.held_out->relative_residual = result.held_out->residual_history[result.held_out->best_iteration - 1];
+    }
+  }
+  options.progress = request.progress;
 
   solvers::tomography::ProjectorOptions projector_options;
   projector_options.interpolation = request.projector;
@@ -297,13 +373,6 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   if (all.variance.size() > 0) held.variance = all.variance.segment(first_ray, n);
   all = solvers::tomography::Absorbance();  // a process of a distributed solve keeps its rays only
 
-  solvers::tomography::ReconstructOptions options;
-  options.method = request.method;
-  options.total_variation = request.total_variation;
-  options.max_iterations = request.max_iterations;
-  options.iteration_limit_name = request.iteration_limit_name;
-  options.discrepancy_factor = request.discrepancy_factor;
-  options.progress = request.progress;
   result.reconstruction = solvers::tomography::Reconstruct(*matrix, held, options, &result.sigma);
   // A process of a slab decomposition holds its slab: the whole volume goes to the one that writes.
   if (result.sigma.size() == matrix->voxels()) matrix->GatherVolume(&result.sigma);
@@ -336,7 +405,7 @@ json TomographyResult::ToJson() const {
       {"message", r.message},
       {"trusted", trusted()},
       {"iterations", r.iterations},
-      {"stop_reason", solvers::tomography::StopReasonName(r.stop_reason)},
+      {"stop_reason", stopped_by_held_out ? "held-out-minimum" : solvers::tomography::StopReasonName(r.stop_reason)},
       {"relaxation", r.relaxation},
       {"tv_strength", r.tv_strength},
       {"residual", r.residual_history.empty() ? 0.0 : r.residual_history.back()},
@@ -366,6 +435,34 @@ json TomographyResult::ToJson() const {
         {"total", total_ms}}}};
   doc["geometry"].erase("saturation_dn");
   doc["geometry"]["views"] = geometry.views();
+  doc["centre_of_rotation"] = {{"source", cor ? "estimated" : "given"},
+                                {"offset_mm", geometry.cor_offset_mm},
+                                {"offset_px", geometry.cor_offset_mm / geometry.pixel_mm}};
+  if (cor) {
+    json& c = doc["centre_of_rotation"];
+    c["method"] = solvers::tomography::CorMethodName(cor->method);
+    c["termination"] = solvers::core::TerminationName(cor->termination);
+    c["message"] = cor->message;
+    c["sigma_mm"] = cor->offset_sigma_mm;
+    c["sigma_px"] = cor->offset_sigma_mm / geometry.pixel_mm;
+    c["tilt_deg"] = cor->tilt_deg;
+    c["tilt_sigma_deg"] = cor->tilt_sigma_deg;
+    c["pairs"] = cor->pairs;
+    c["candidates"] = cor->candidates;
+    c["ms"] = cor->total_ms;
+  }
+  if (held_out)
+    doc["held_out"] = {{"termination", solvers::core::TerminationName(held_out->termination)},
+                       {"message", held_out->message},
+                       {"relative_residual", held_out->relative_residual},
+                       {"noise_floor", held_out->noise_floor},
+                       {"fit_views", held_out->fit_views},
+                       {"held_out_views", held_out->held_out_views},
+                       {"iterations", stopped_by_held_out ? held_out->best_iteration : held_out->reconstruction.iterations},
+                       {"stopping_rule", stopped_by_held_out},
+                       {"ms", held_out->total_ms}};
+  if (ring_filter)
+    doc["ring_filter"] = {{"stripes", ring_filter->stripes}, {"max_offset", ring_filter->max_offset}, {"ms", ring_filter->total_ms}};
   if (relative_error_vs_truth) doc["relative_error_vs_truth"] = *relative_error_vs_truth;
   if (capture) doc["capture"] = capture->ToJson();
   return doc;

@@ -72,7 +72,8 @@ struct LightCalibrationRequest {
 LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node);
 
 // The recipe stage `tomography: {method, projector, max_iterations,
-// discrepancy_factor, volume: [nx, ny, nz], voxel_mm, cor_offset_mm}` and
+// discrepancy_factor, volume: [nx, ny, nz], voxel_mm, cor_offset_mm,
+// ring_filter, held_out}` and
 // `photorig solve tomography`'s flags: a turntable scan's frames -> absorbance
 // -> a reconstructed volume (solvers/tomography, docs/tomography.md).
 struct TomographyRequest {
@@ -94,7 +95,16 @@ struct TomographyRequest {
   // Voxels along x, y, z; 0: the detector's columns, columns and rows.
   std::array<int, 3> volume = {0, 0, 0};
   double voxel_mm = 0.0;             // 0: the detector pitch
-  double cor_offset_mm = 0.0;        // the rotation axis on the detector (solvers::tomography::Geometry)
+  // The rotation axis on the detector (solvers::tomography::Geometry), added
+  // to the stored geometry's. Unset (default): estimated from the data, since
+  // a rig's stored centre is never exact (solvers/tomography/center_of_rotation.h).
+  std::optional<double> cor_offset_mm;
+  // Removes detector-column stripes (ring artefacts) from the sinogram before
+  // the solve (solvers/tomography/ring_filter.h). Off by default.
+  bool ring_filter = false;
+  // Reports the held-out-angle residual (solvers/tomography/held_out.h), the
+  // quality figure without a ground truth: a second solve of half the views.
+  bool held_out = true;
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
   solvers::core::ProgressCallback progress;
   // Not from YAML: how messages name max_iterations (the recipe's key; the

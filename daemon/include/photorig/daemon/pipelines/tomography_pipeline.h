@@ -10,14 +10,19 @@
 // A folder of projections holds geometry.json {"beam": "parallel" | "cone",
 // "detector_cols", "detector_rows", "pixel_mm", "angles_deg": [...],
 // "cor_offset_mm", "source_to_axis_mm", "axis_to_detector_mm" (cone),
-// "saturation_dn"}, projections/*.png (16-bit, one per angle in name order),
-// flats/*.png, darks/*.png, and optionally phantom.json (the ground truth).
+// "saturation_dn"}, projections/ (16-bit PNG or TIFF, one per angle in name
+// order), flats/, darks/ (one or more each), and optionally phantom.json (the
+// ground truth). The angles may instead be in angles.txt (degrees, one per
+// projection in the same order); any order, repeats and any range are taken.
 
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/config/solve_requests.h"
 #include "photorig/solvers/tomography/absorbance.h"
+#include "photorig/solvers/tomography/center_of_rotation.h"
+#include "photorig/solvers/tomography/held_out.h"
 #include "photorig/solvers/tomography/projector.h"
 #include "photorig/solvers/tomography/reconstruct.h"
+#include "photorig/solvers/tomography/ring_filter.h"
 
 #include <nlohmann/json.hpp>
 
@@ -72,9 +77,19 @@ using SystemMatrixFactory = std::function<solvers::tomography::ProjectorSummary(
 SystemMatrixFactory InProcessSystemMatrix();
 
 struct TomographyResult {
-  solvers::tomography::Geometry geometry;  // with the request's centre of rotation
+  solvers::tomography::Geometry geometry;  // with the centre of rotation solved with
   solvers::tomography::VolumeGrid grid;
   solvers::tomography::AbsorbanceSummary absorbance;
+  std::optional<solvers::tomography::RingFilterSummary> ring_filter;  // when asked for
+  // The centre estimated from the data (FindCorOffset), unless the request gave one.
+  std::optional<solvers::tomography::CorEstimateSummary> cor;
+  // The held-out-angle residual of the same solve on half the views (held_out.h),
+  // unless the request turned it off.
+  std::optional<solvers::tomography::HeldOutSummary> held_out;
+  // The scan had no noise estimate (fewer than two flats or darks): the solve
+  // ran the iterations at which the held-out residual was lowest instead of
+  // the discrepancy rule.
+  bool stopped_by_held_out = false;
   solvers::tomography::ProjectorSummary projector;
   solvers::tomography::ReconstructionSummary reconstruction;
   Eigen::VectorXf sigma;  // 1/mm, VolumeGrid::Index order
@@ -82,7 +97,7 @@ struct TomographyResult {
   // the cylinder every view sees (radius: half the detector width).
   std::optional<double> relative_error_vs_truth;
   std::optional<CaptureVerdict> capture;  // TomographyInput::capture
-  double absorbance_ms = 0.0, total_ms = 0.0;
+  double absorbance_ms = 0.0, total_ms = 0.0;  // the centre's estimate and the held-out solve in their summaries
 
   // kSuccess only: a stopping rule ended it within the noise (the
   // discrepancy rule, a stall within 1.5 x the noise level). An iteration
@@ -91,8 +106,12 @@ struct TomographyResult {
   nlohmann::json ToJson() const;  // report.json
 };
 
-// Throws std::invalid_argument for a request the solver refuses or a volume
-// that does not fit the scan. Failed solves come back in the summaries.
+// Absorbance, the ring filter (request.ring_filter), the centre of rotation
+// (estimated unless request.cor_offset_mm gives it; a failed estimate fails
+// the solve, saying to give it), the held-out residual (request.held_out),
+// then the solve. Throws std::invalid_argument for a request the solver
+// refuses or a volume that does not fit the scan. Failed solves come back in
+// the summaries.
 TomographyResult SolveTomography(const TomographyInput& input, const config::TomographyRequest& request,
                                  const SystemMatrixFactory& factory = InProcessSystemMatrix());
 
