@@ -1,4 +1,5 @@
 #include "photorig/sim/camera_model.h"
+#include "photorig/sim/camera_rays.h"
 
 #include <opencv2/calib3d.hpp>
 
@@ -25,25 +26,41 @@ bool CameraModel::IsValid(std::string* why) const {
 }
 
 void CameraModel::Ray(int col, int row, Eigen::Vector3d* origin, Eigen::Vector3d* direction) const {
-  if (projection == Projection::kOrthographic) {
+  std::vector<Eigen::Vector3d> origins, directions;
+  CameraRays(*this, {Eigen::Vector2d(col + 0.5, row + 0.5)}, &origins, &directions);
+  *origin = origins[0];
+  *direction = directions[0];
+}
+
+void CameraRays(const CameraModel& camera, const std::vector<Eigen::Vector2d>& points_px,
+                std::vector<Eigen::Vector3d>* origins, std::vector<Eigen::Vector3d>* directions) {
+  const double fx = camera.fx, fy = camera.fy, pitch_mm = camera.pixel_pitch_mm;
+  origins->clear();
+  directions->clear();
+  if (camera.projection == CameraModel::Projection::kOrthographic) {
     // Starts high above anything in the scene; only the direction matters.
-    *origin = {(col + 0.5 - 0.5 * width) * pixel_pitch_mm, (0.5 * height - row - 0.5) * pixel_pitch_mm, 1e6};
-    *direction = {0.0, 0.0, -1.0};
+    for (const Eigen::Vector2d& p : points_px) {
+      origins->emplace_back((p.x() - 0.5 * camera.width) * pitch_mm, (0.5 * camera.height - p.y()) * pitch_mm, 1e6);
+      directions->emplace_back(0.0, 0.0, -1.0);
+    }
     return;
   }
-  *origin = {0.0, 0.0, distance_mm};
-  double x = (col + 0.5 - principal_x()) / fx, y = (row + 0.5 - principal_y()) / fy;
+  std::vector<cv::Point2d> normalised;
+  for (const Eigen::Vector2d& p : points_px)
+    normalised.emplace_back((p.x() - camera.principal_x()) / fx, (p.y() - camera.principal_y()) / fy);
+  const std::array<double, 5>& distortion = camera.distortion;
   if (std::any_of(distortion.begin(), distortion.end(), [](double k) { return k != 0.0; })) {
-    // The lens bends the ray: the pixel sees the undistorted direction.
+    // The lens bends the ray: the point sees the undistorted direction.
     // OpenCV puts pixel centres at whole numbers, half a pixel before ours.
-    const cv::Matx33d k(fx, 0.0, principal_x() - 0.5, 0.0, fy, principal_y() - 0.5, 0.0, 0.0, 1.0);
-    std::vector<cv::Point2d> undistorted;
-    cv::undistortPoints(std::vector<cv::Point2d>{{double(col), double(row)}}, undistorted, k,
-                        std::vector<double>(distortion.begin(), distortion.end()), cv::noArray(), cv::noArray(),
+    const cv::Matx33d k(fx, 0.0, camera.principal_x() - 0.5, 0.0, fy, camera.principal_y() - 0.5, 0.0, 0.0, 1.0);
+    std::vector<cv::Point2d> distorted;
+    for (const Eigen::Vector2d& p : points_px) distorted.emplace_back(p.x() - 0.5, p.y() - 0.5);
+    cv::undistortPoints(distorted, normalised, k, std::vector<double>(distortion.begin(), distortion.end()),
+                        cv::noArray(), cv::noArray(),
                         cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-12));
-    x = undistorted[0].x, y = undistorted[0].y;
   }
-  *direction = Eigen::Vector3d(x, -y, -1.0).normalized();
+  origins->assign(points_px.size(), Eigen::Vector3d(0.0, 0.0, camera.distance_mm));
+  for (const cv::Point2d& n : normalised) directions->push_back(Eigen::Vector3d(n.x, -n.y, -1.0).normalized());
 }
 
 Eigen::Vector3d CameraModel::ViewDirection(const Eigen::Vector3d& point_mm) const {

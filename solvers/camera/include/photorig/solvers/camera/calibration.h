@@ -1,0 +1,74 @@
+#pragma once
+// A pinhole lens (intrinsics and OpenCV's k1, k2, p1, p2, k3) from photographs
+// of a planar checkerboard in several poses: OpenCV finds the inner corners
+// (findChessboardCorners, refined by cornerSubPix) and fits the lens to all
+// of them (calibrateCamera). One of the photographs shows the board lying
+// flat on the sample plane: its pose gives the camera's height above the
+// plane (PinholeLens::distance_mm) and its tilt from the dome's axis, which
+// must be small because Camera models a lens looking straight down.
+
+#include "photorig/solvers/camera/camera.h"
+#include "photorig/solvers/core/progress.h"
+#include "photorig/solvers/core/summary.h"
+
+#include <opencv2/core.hpp>
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace photorig::solvers::camera {
+
+struct CheckerboardCalibrationOptions {
+  // Inner corners (where four squares meet) along a row and along a column
+  // of the board: a board of 10 x 7 squares has 9 x 6.
+  int inner_corners_cols = 0;
+  int inner_corners_rows = 0;
+  double square_mm = 0.0;  // side of one square
+  // The image (index into the images) of the board lying flat on the sample plane.
+  int plane_image = 0;
+  // Images with a board needed: 9 intrinsics and 6 pose parameters per image
+  // are fitted, and fewer than 4 poses leave the distortion ill-conditioned.
+  int min_images = 4;
+  // Above this overall RMS reprojection error (px) the corners or the model
+  // are wrong (a warped board, a lens the 5 coefficients do not describe).
+  double max_rms_px = 0.5;
+  // Above this angle between the optical axis and the sample plane's normal
+  // the looking-straight-down model misplaces pixels by more than it saves.
+  double max_tilt_deg = 2.0;
+  // cornerSubPix's search window: half its side (px). Must stay below half a
+  // square's size in the image.
+  int subpixel_half_window_px = 5;
+  // Stage "corners": one unit per image; stage "fit": one unit, at the end.
+  core::ProgressCallback progress;
+
+  bool IsValid(std::string* why) const;
+};
+
+struct CheckerboardCalibrationSummary : core::Summary {
+  int width_px = 0, height_px = 0;
+  PinholeLens lens;  // usable only when IsSolutionUsable()
+  // One standard deviation of fx, fy, cx, cy (px) and of the five distortion
+  // coefficients, from the fit's covariance.
+  double fx_std_px = 0.0, fy_std_px = 0.0, cx_std_px = 0.0, cy_std_px = 0.0;
+  std::array<double, 5> distortion_std{};
+  double rms_px = 0.0;     // reprojection error over every corner of every used image
+  double tilt_deg = 0.0;   // optical axis from the plane image's board normal
+  // The images whose board was found, each with its RMS reprojection error
+  // (px), and those without a board (by name).
+  std::vector<std::string> used;
+  std::vector<double> image_rms_px;
+  std::vector<std::string> rejected;
+};
+
+// Calibrates the lens from `images` (all the same size; 8- or 16-bit, grey
+// or colour), named in messages by `names` (when as many as the images,
+// otherwise "image <index>"). kSuccess with the lens; kInvalidOptions,
+// kInvalidInput (empty or mixed-size images, no plane image), or kFailure
+// (too few boards found, the plane image without one, RMS or tilt beyond
+// their limits) with the message naming the images and figures concerned.
+CheckerboardCalibrationSummary CalibrateFromCheckerboards(const CheckerboardCalibrationOptions& options,
+                                                          const std::vector<cv::Mat>& images,
+                                                          const std::vector<std::string>& names = {});
+
+}  // namespace photorig::solvers::camera

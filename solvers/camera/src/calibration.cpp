@@ -1,0 +1,170 @@
+#include "photorig/solvers/camera/calibration.h"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace photorig::solvers::camera {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::string ImageName(const std::vector<std::string>& names, std::size_t count, std::size_t index) {
+  return names.size() == count ? names[index] : "image " + std::to_string(index);
+}
+
+std::string JoinNames(const std::vector<std::string>& names) {
+  std::string joined;
+  for (const std::string& name : names) joined += (joined.empty() ? "" : ", ") + name;
+  return joined;
+}
+
+// The corner detector works on 8-bit grey: a 16-bit frame is stretched over
+// its own range so a dim 12-bit board keeps its contrast.
+cv::Mat EightBitGrey(const cv::Mat& image) {
+  cv::Mat grey = image;
+  if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  if (grey.depth() == CV_8U) return grey;
+  cv::Mat eight;
+  cv::normalize(grey, eight, 0, 255, cv::NORM_MINMAX, CV_8U);
+  return eight;
+}
+
+std::string CheckImages(const CheckerboardCalibrationOptions& options, const std::vector<cv::Mat>& images) {
+  if (images.empty()) return "no images";
+  if (options.plane_image >= static_cast<int>(images.size()))
+    return "the plane image is number " + std::to_string(options.plane_image) + " of " + std::to_string(images.size()) +
+           " images (counting from 0)";
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    const cv::Mat& image = images[i];
+    if (image.empty()) return "image " + std::to_string(i) + " is empty";
+    if (image.size() != images[0].size()) return "the images differ in size";
+    if ((image.channels() != 1 && image.channels() != 3) || (image.depth() != CV_8U && image.depth() != CV_16U))
+      return "image " + std::to_string(i) + " is neither 8- nor 16-bit grey or colour";
+  }
+  return {};
+}
+
+}  // namespace
+
+bool CheckerboardCalibrationOptions::IsValid(std::string* why) const {
+  // Fewer than 3 inner corners a side leave the detector nothing to order.
+  if (inner_corners_cols < 3 || inner_corners_rows < 3)
+    return core::Refuse(why, "the board needs at least 3 x 3 inner corners");
+  if (!(square_mm > 0.0) || !std::isfinite(square_mm)) return core::Refuse(why, "square_mm must be positive");
+  if (plane_image < 0) return core::Refuse(why, "plane_image must be an image index (>= 0)");
+  if (min_images < 3) return core::Refuse(why, "min_images must be at least 3 (two poses do not fix the intrinsics)");
+  if (!(max_rms_px > 0.0)) return core::Refuse(why, "max_rms_px must be positive");
+  if (!(max_tilt_deg > 0.0 && max_tilt_deg < 90.0)) return core::Refuse(why, "max_tilt_deg must lie in (0, 90)");
+  if (subpixel_half_window_px < 1) return core::Refuse(why, "subpixel_half_window_px must be at least 1");
+  return true;
+}
+
+CheckerboardCalibrationSummary CalibrateFromCheckerboards(const CheckerboardCalibrationOptions& options,
+                                                          const std::vector<cv::Mat>& images,
+                                                          const std::vector<std::string>& names) {
+  core::SolveTimer timer;
+  CheckerboardCalibrationSummary summary;
+  if (core::EndIfInvalid(options, &summary)) return summary;
+  if (core::EndIfBadInput(CheckImages(options, images), &summary)) return summary;
+  summary.width_px = images[0].cols;
+  summary.height_px = images[0].rows;
+  timer.SetupDone(&summary);
+
+  const cv::Size pattern(options.inner_corners_cols, options.inner_corners_rows);
+  std::vector<cv::Point3f> board;  // the corners on the board, row by row
+  for (int r = 0; r < pattern.height; ++r)
+    for (int c = 0; c < pattern.width; ++c)
+      board.emplace_back(static_cast<float>(c * options.square_mm), static_cast<float>(r * options.square_mm), 0.0f);
+
+  std::vector<std::vector<cv::Point2f>> corners;
+  std::vector<std::size_t> used_index;
+  core::ProgressThrottle corner_progress(options.progress, "corners", static_cast<std::int64_t>(images.size()));
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    const cv::Mat grey = EightBitGrey(images[i]);
+    std::vector<cv::Point2f> found;
+    if (cv::findChessboardCorners(grey, pattern, found, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE)) {
+      const int half = options.subpixel_half_window_px;
+      cv::cornerSubPix(grey, found, cv::Size(half, half), cv::Size(-1, -1),
+                       cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-3));
+      corners.push_back(std::move(found));
+      used_index.push_back(i);
+      summary.used.push_back(ImageName(names, images.size(), i));
+    } else {
+      summary.rejected.push_back(ImageName(names, images.size(), i));
+    }
+    corner_progress.Update(static_cast<std::int64_t>(i) + 1);
+  }
+  corner_progress.Finish();
+
+  const std::string plane_name = ImageName(names, images.size(), static_cast<std::size_t>(options.plane_image));
+  const auto plane = std::find(used_index.begin(), used_index.end(), static_cast<std::size_t>(options.plane_image));
+  if (plane == used_index.end())
+    return timer.End(&summary, core::Termination::kFailure,
+                     "no board found in the plane image " + plane_name + ", which gives the camera's height");
+  if (static_cast<int>(corners.size()) < options.min_images)
+    return timer.End(&summary, core::Termination::kFailure,
+                     "a board was found in " + std::to_string(corners.size()) + " images, at least " +
+                         std::to_string(options.min_images) + " are needed; none in: " + JoinNames(summary.rejected));
+
+  const std::vector<std::vector<cv::Point3f>> boards(corners.size(), board);
+  cv::Mat k, distortion, std_intrinsics, std_extrinsics, per_view_rms;
+  std::vector<cv::Mat> rotations, translations;
+  summary.rms_px = cv::calibrateCamera(boards, corners, images[0].size(), k, distortion, rotations, translations,
+                                       std_intrinsics, std_extrinsics, per_view_rms, 0,
+                                       cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-12));
+  core::ProgressThrottle fit_progress(options.progress, "fit", 1);
+  fit_progress.Finish();
+
+  PinholeLens& lens = summary.lens;
+  lens.fx_px = k.at<double>(0, 0);
+  lens.fy_px = k.at<double>(1, 1);
+  lens.cx_px = k.at<double>(0, 2);
+  lens.cy_px = k.at<double>(1, 2);
+  // stdDeviationsIntrinsics: fx, fy, cx, cy, then the coefficients in distCoeffs' order.
+  summary.fx_std_px = std_intrinsics.at<double>(0);
+  summary.fy_std_px = std_intrinsics.at<double>(1);
+  summary.cx_std_px = std_intrinsics.at<double>(2);
+  summary.cy_std_px = std_intrinsics.at<double>(3);
+  for (int i = 0; i < 5; ++i) {
+    lens.distortion[static_cast<std::size_t>(i)] = distortion.at<double>(i);
+    summary.distortion_std[static_cast<std::size_t>(i)] = std_intrinsics.at<double>(4 + i);
+  }
+  for (int i = 0; i < per_view_rms.rows; ++i) summary.image_rms_px.push_back(per_view_rms.at<double>(i));
+
+  // The plane image's board: its normal n in the camera's frame against the
+  // optical axis gives the tilt, and the plane n.x = n.t its distance from
+  // the camera centre.
+  const std::size_t plane_view = static_cast<std::size_t>(plane - used_index.begin());
+  cv::Matx33d rotation;
+  cv::Rodrigues(rotations[plane_view], rotation);
+  const cv::Vec3d normal(rotation(0, 2), rotation(1, 2), rotation(2, 2));
+  const cv::Vec3d t(translations[plane_view]);
+  summary.tilt_deg = std::acos(std::min(1.0, std::abs(normal[2]))) * 180.0 / kPi;
+  lens.distance_mm = std::abs(normal.dot(t));
+
+  std::ostringstream figures;
+  figures.precision(3);
+  if (!(summary.rms_px <= options.max_rms_px)) {
+    figures << "RMS reprojection error " << summary.rms_px << " px is above " << options.max_rms_px
+            << " px: check the board's flatness, its size and the images' focus";
+    return timer.End(&summary, core::Termination::kFailure, figures.str());
+  }
+  if (!(summary.tilt_deg <= options.max_tilt_deg)) {
+    figures << "the camera is tilted " << summary.tilt_deg << " deg from the normal of the board in " << plane_name
+            << " (limit " << options.max_tilt_deg
+            << " deg): the model needs a camera looking straight down on a board lying flat on the sample plane";
+    return timer.End(&summary, core::Termination::kFailure, figures.str());
+  }
+  std::string why;
+  if (!lens.IsValid(&why)) return timer.End(&summary, core::Termination::kFailure, "the fitted lens is unusable: " + why);
+  summary.termination = core::Termination::kSuccess;
+  if (!summary.rejected.empty()) summary.message = "no board found in: " + JoinNames(summary.rejected);
+  timer.Finish(&summary);
+  return summary;
+}
+
+}  // namespace photorig::solvers::camera
