@@ -652,4 +652,39 @@ TEST(BrdfEndToEnd, BrdfFitChoosesTheFamilyThatMadeTheTable) {
   }
 }
 
+// `photorig brdf fit` on a table reports every candidate's error over all
+// cells beside the sample estimate, and with --keep-table makes the table
+// itself the material, byte for byte.
+TEST(BrdfEndToEnd, BrdfFitReportsTheAllCellErrorAndKeepsTheTable) {
+  TempDir dir;
+  const std::string spec = dir.Write("ward.json", R"({"model": "ward", "diffuse": [0.25, 0.15, 0.05],
+                                                     "specular": [0.3, 0.25, 0.2], "shape": 0.05})");
+  const std::string table = (dir.path() / "ward.binary").string();
+  ASSERT_EQ(RunPhotorig("brdf convert " + spec + " " + table, dir.path() / "convert.log"), 0)
+      << ReadText(dir.path() / "convert.log");
+  const auto out = dir.path() / "fit";
+  ASSERT_EQ(RunPhotorig("brdf fit " + table + " --samples 6000 --out " + out.string() + " --keep-table",
+                        dir.path() / "fit.log"),
+            0)
+      << ReadText(dir.path() / "fit.log");
+  const auto report = nlohmann::json::parse(ReadText(out / "report.json"));
+  EXPECT_EQ(report["chosen"], "ward") << report["reason"];
+  EXPECT_GT(report["cells"].get<std::size_t>(), 1000000u);
+  EXPECT_FALSE(report["poor_fit"].get<bool>());
+  for (const nlohmann::json& c : report["candidates"]) {
+    ASSERT_TRUE(c.contains("all_cells_log_rms")) << c["model"];
+    if (c["model"] == "ward") {
+      EXPECT_LT(c["all_cells_log_rms"].get<double>(), 0.01);
+      EXPECT_EQ(c["at_bound"], "");
+      EXPECT_EQ(c["implausible"], "");
+    }
+  }
+  EXPECT_EQ(report["material"]["kind"], "table");
+  EXPECT_TRUE(ReadText(out / "material.binary") == ReadText(table));
+  EXPECT_NE(ReadText(dir.path() / "fit.log").find("over all"), std::string::npos);
+  // A table has no deviations: the weighted loss is refused, and --keep-table needs --out.
+  EXPECT_EQ(RunPhotorig("brdf fit " + table + " --loss weighted", dir.path() / "weighted.log"), 2);
+  EXPECT_EQ(RunPhotorig("brdf fit " + table + " --keep-table", dir.path() / "keep.log"), 2);
+}
+
 }  // namespace

@@ -1,13 +1,15 @@
-// photorig brdf fit FILE [--loss weighted|log] [--steps N] [--out DIR]
+// photorig brdf fit FILE [--loss weighted|log] [--samples N] [--out DIR [--keep-table]]
 // photorig brdf eval FILE --wi THETA PHI --wo THETA PHI
 // photorig brdf convert IN OUT [--model NAME] [--ndf-roughness A]
 //   (--json as every command: docs/cli.md)
 //
 // Measured-BRDF files: MERL .binary and EPFL RGL .bsdf tables, and the
 // samples.csv of `photorig solve brdf`. A table is read through one
-// evaluation (solvers/brdf/measured.h) whatever its format; `fit` turns it into
-// samples on a half/difference grid and hands them to the same model
-// selection, and the same report, as a gonioreflectometer run's samples.
+// evaluation (solvers/brdf/measured.h) whatever its format; `fit` draws cells
+// from it where it has energy and structure (solvers/brdf/table_fit.h), hands
+// them to the same model selection, and the same report, as a
+// gonioreflectometer run's samples, and reports each model's error over all
+// cells.
 // `convert` also tabulates a fitted model (a fit's report.json, or one
 // model's JSON) for renderers that read tables.
 
@@ -17,6 +19,7 @@
 #include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/merl.h"
 #include "photorig/solvers/brdf/rgl.h"
+#include "photorig/solvers/brdf/table_fit.h"
 
 #include <nlohmann/json.hpp>
 
@@ -37,7 +40,8 @@ constexpr double kDeg = M_PI / 180.0;
 struct Options {
   std::string file, out;
   std::optional<brdf::FitLoss> loss;  // default: log for a table, weighted for samples
-  int steps = 16;
+  std::size_t samples = brdf::TableFitOptions().samples;
+  bool keep_table = false;
   std::vector<double> wi_deg, wo_deg;
   std::string convert_to;
   std::string model;  // convert from a report: which candidate (default: the chosen one)
@@ -48,47 +52,108 @@ nlohmann::json Vec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
 
 bool IsCsv(const std::string& path) { return fs::path(path).extension() == ".csv"; }
 
+// Each candidate's error over all cells beside its report entry, and the
+// table fit's own findings.
+void AddTableErrors(const brdf::TableFitSummary& t, nlohmann::json* doc) {
+  (*doc)["cells"] = t.cells;
+  for (std::size_t c = 0; c < t.all_cells.size(); ++c) {
+    nlohmann::json& candidate = (*doc)["candidates"][c];
+    candidate["all_cells_log_rms"] = t.all_cells[c].log_rms;
+    candidate["all_cells_neutral_rms"] = t.all_cells[c].neutral_rms;
+    candidate["reported_over_all_cells"] = t.reported_over_all_cells[c];
+  }
+  (*doc)["poor_fit"] = t.poor_fit;
+  if (!t.warning.empty()) (*doc)["warning"] = t.warning;
+  if (t.selection.chosen || t.poor_fit)
+    (*doc)["worst_region"] = {{"theta_h_deg", {t.worst_theta_h_deg[0], t.worst_theta_h_deg[1]}},
+                              {"theta_d_deg", {t.worst_theta_d_deg[0], t.worst_theta_d_deg[1]}},
+                              {"log_rms", t.worst_log_rms}};
+}
+
 int Fit(const Options& o) {
   nlohmann::json doc = {{"file", o.file}};
   auto finish = [&](ExitCode code, const std::string& error) {
     ResultFields() = doc;
     return error.empty() ? static_cast<int>(code) : Fail(code, error);
   };
+  const bool csv = IsCsv(o.file);
+  if (o.keep_table && (csv || o.out.empty())) return finish(kExitUsage, "--keep-table needs a table and --out");
+  // A table carries no deviations: the log loss; samples with deviations are weighted by them.
+  const brdf::FitLoss loss = o.loss.value_or(csv ? brdf::FitLoss::kWeighted : brdf::FitLoss::kLog);
+  if (!csv && loss != brdf::FitLoss::kLog) return finish(kExitUsage, "a table carries no deviations: fit it with --loss log");
+  doc["loss"] = brdf::FitLossName(loss);
   std::vector<brdf::BrdfSample> samples;
-  if (IsCsv(o.file)) {
+  std::optional<brdf::TableFitSummary> table_fit;
+  FILE* text = stdout;  // under --json main points it at stderr
+  if (csv) {
     const solvers::core::Summary read = brdf::ReadSamplesCsv(o.file, &samples);
     if (!read.IsSolutionUsable()) return finish(kExitUsage, read.message);
     doc["format"] = "samples";
+    doc["samples"] = samples.size();
+    if (samples.empty()) return finish(kExitFailed, o.file + ": no measured value to fit");
   } else {
     brdf::MeasuredBrdf table;
     const solvers::core::Summary read = brdf::ReadMeasured(o.file, &table);
     if (!read.IsSolutionUsable()) return finish(kExitUsage, read.message);
     doc["format"] = brdf::TableFormatName(*brdf::TableFormatOf(o.file));
-    samples = brdf::SampleMeasured(table, {o.steps, o.steps, o.steps});
+    brdf::TableFitOptions options;
+    options.samples = o.samples;
+    table_fit = brdf::FitTable(table, options);
+    doc["samples"] = table_fit->samples;
+    if (table_fit->termination == solvers::core::Termination::kInvalidInput)
+      return finish(kExitFailed, o.file + ": " + table_fit->message);
   }
-  // A table carries no deviations: the log loss unless told otherwise; samples
-  // with deviations are weighted by them.
-  const brdf::FitLoss loss = o.loss.value_or(IsCsv(o.file) ? brdf::FitLoss::kWeighted : brdf::FitLoss::kLog);
-  doc["loss"] = brdf::FitLossName(loss);
-  doc["samples"] = samples.size();
-  if (samples.empty()) return finish(kExitFailed, o.file + ": no measured value to fit");
-  brdf::SelectionOptions selection;
-  selection.fit.loss = loss;
-  const brdf::SelectionSummary s = brdf::SelectModel(samples, selection);
+  brdf::SelectionSummary s;
+  if (table_fit) {
+    s = table_fit->selection;
+  } else {
+    brdf::SelectionOptions selection;
+    selection.fit.loss = loss;
+    s = brdf::SelectModel(samples, selection);
+  }
   doc.update(daemon::SelectionJson(s));
-  FILE* text = stdout;  // under --json main points it at stderr
-  std::fprintf(text, "%zu samples from %s (%s loss), closest theta_h %.2f deg\n", samples.size(), o.file.c_str(),
-               brdf::FitLossName(loss), s.min_theta_h_deg);
+  if (table_fit) {
+    AddTableErrors(*table_fit, &doc);
+    std::fprintf(text, "%zu cells of %zu drawn from %s (%s loss), closest theta_h %.3f deg\n", table_fit->samples,
+                 table_fit->cells, o.file.c_str(), brdf::FitLossName(loss), s.min_theta_h_deg);
+  } else {
+    std::fprintf(text, "%zu samples from %s (%s loss), closest theta_h %.2f deg\n", samples.size(), o.file.c_str(),
+                 brdf::FitLossName(loss), s.min_theta_h_deg);
+  }
   daemon::PrintSelection(text, s);
+  if (table_fit) {
+    std::fprintf(text, "over all %zu cells (log RMS, reported / all cells, cosine-weighted RMS of f_r in 1/sr):\n",
+                 table_fit->cells);
+    for (std::size_t c = 0; c < s.candidates.size(); ++c)
+      std::fprintf(text, "  %-15s %8.4f  %6.3f  %8.4f\n", brdf::ModelName(s.candidates[c].params.model),
+                   table_fit->all_cells[c].log_rms, table_fit->reported_over_all_cells[c],
+                   table_fit->all_cells[c].neutral_rms);
+    if (!table_fit->warning.empty()) std::fprintf(text, "warning: %s\n", table_fit->warning.c_str());
+  }
   if (!o.out.empty()) {
     fs::create_directories(o.out);
+    if (o.keep_table) {
+      // The measured table itself is the material; the fits stay in the report.
+      const fs::path kept = fs::path(o.out) / ("material" + fs::path(o.file).extension().string());
+      std::error_code error;
+      fs::copy_file(o.file, kept, fs::copy_options::overwrite_existing, error);
+      if (error) return finish(kExitFailed, "cannot copy the table to " + kept.string() + ": " + error.message());
+      doc["material"] = {{"kind", "table"}, {"file", kept.filename().string()}};
+      std::fprintf(text, "material: the measured table (%s)\n", kept.string().c_str());
+    } else if (s.chosen) {
+      doc["material"] = {{"kind", "model"}, {"model", brdf::ModelName(*s.chosen)}};
+    }
     std::ofstream(fs::path(o.out) / "report.json") << doc.dump(2) << "\n";
-    const solvers::core::Summary written = brdf::WriteSamplesCsv((fs::path(o.out) / "samples.csv").string(), samples);
-    if (!written.IsSolutionUsable()) return finish(kExitFailed, written.message);
+    if (csv) {
+      const solvers::core::Summary written = brdf::WriteSamplesCsv((fs::path(o.out) / "samples.csv").string(), samples);
+      if (!written.IsSolutionUsable()) return finish(kExitFailed, written.message);
+    }
     doc["results"] = o.out;
     std::fprintf(text, "results: %s/\n", o.out.c_str());
   }
-  return finish(s.IsSolutionUsable() ? kExitOk : kExitFailed, s.IsSolutionUsable() ? "" : s.message);
+  // With the table kept, the material does not depend on a model being chosen.
+  const bool ok = s.IsSolutionUsable() || o.keep_table;
+  return finish(ok ? kExitOk : kExitFailed, ok ? "" : s.message);
 }
 
 Eigen::Vector3d Direction(const std::vector<double>& theta_phi_deg) {
@@ -170,9 +235,12 @@ CommandRunner SetupFit(CLI::App& app) {
          "--loss", [options](const std::string& name) { options->loss = solvers::core::ParseName(brdf::kFitLossNames, name); },
          "weighted | log (default: log for a table, weighted for samples)")
       ->check(CLI::IsMember(solvers::core::NameMap(brdf::kFitLossNames)));
-  fit->add_option("--steps", options->steps, "a table's samples per half/difference angle (default 16: 16^3 configurations)")
-      ->check(CLI::Range(1, 200));
-  fit->add_option("--out", options->out, "write report.json and the samples fitted here");
+  fit->add_option("--samples", options->samples,
+                  "a table's cells the fits see, drawn where it has energy and structure (default 20000)")
+      ->check(CLI::Range(100, 1000000));
+  fit->add_option("--out", options->out, "write report.json (and, for samples.csv, the samples fitted)");
+  fit->add_flag("--keep-table", options->keep_table,
+                "with --out: keep the measured table as the material (material.binary|.bsdf), the fits reported beside it");
   return {fit, [options] { return Fit(*options); }};
 }
 
