@@ -54,13 +54,18 @@ cv::Mat RenderCheckerboard(const CameraModel& camera, const Checkerboard& board,
   const int n = options.samples_per_axis;
   const Eigen::Isometry3d dome_to_board = board_to_dome.inverse();
   cv::Mat reflectance(camera.height, camera.width, CV_64F);
-  // A row of pixels at a time: one batch of rays, n x n per pixel on a regular grid.
+  std::mt19937_64 random(options.seed);
+  std::uniform_real_distribution<double> jitter(0.0, 1.0);
+  // A row of pixels at a time: one batch of rays, n x n per pixel, each at a
+  // random place in its cell of the pixel. A regular grid would place every
+  // edge parallel to the pixels at a multiple of 1 / n px, a bias the corner
+  // finder sees; jittered, that error is noise.
   for (int row = 0; row < camera.height; ++row) {
     std::vector<Eigen::Vector2d> points;
     points.reserve(static_cast<std::size_t>(camera.width) * n * n);
     for (int col = 0; col < camera.width; ++col)
       for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) points.emplace_back(col + (j + 0.5) / n, row + (i + 0.5) / n);
+        for (int j = 0; j < n; ++j) points.emplace_back(col + (j + jitter(random)) / n, row + (i + jitter(random)) / n);
     std::vector<Eigen::Vector3d> origins, directions;
     CameraRays(camera, points, &origins, &directions);
     for (int col = 0; col < camera.width; ++col) {
@@ -77,7 +82,6 @@ cv::Mat RenderCheckerboard(const CameraModel& camera, const Checkerboard& board,
   }
   const double full_scale = options.bit_depth == 8 ? 255.0 : 65535.0;
   if (options.noise_sigma > 0.0) {
-    std::mt19937_64 random(options.seed);
     std::normal_distribution<double> noise(0.0, options.noise_sigma);
     for (auto it = reflectance.begin<double>(); it != reflectance.end<double>(); ++it) *it += noise(random);
   }

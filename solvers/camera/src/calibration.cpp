@@ -114,7 +114,8 @@ CheckerboardCalibrationSummary CalibrateFromCheckerboards(const CheckerboardCali
   cv::Mat k, distortion, std_intrinsics, std_extrinsics, per_view_rms;
   std::vector<cv::Mat> rotations, translations;
   summary.rms_px = cv::calibrateCamera(boards, corners, images[0].size(), k, distortion, rotations, translations,
-                                       std_intrinsics, std_extrinsics, per_view_rms, 0,
+                                       std_intrinsics, std_extrinsics, per_view_rms,
+                                       options.fit_k3 ? 0 : cv::CALIB_FIX_K3,
                                        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-12));
   core::ProgressThrottle fit_progress(options.progress, "fit", 1);
   fit_progress.Finish();

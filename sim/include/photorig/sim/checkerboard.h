@@ -29,10 +29,10 @@ struct Checkerboard {
 };
 
 struct CheckerboardRenderOptions {
-  int samples_per_axis = 3;  // n x n rays per pixel (anti-aliasing)
+  int samples_per_axis = 4;  // n x n rays per pixel, jittered (anti-aliasing)
   int bit_depth = 8;         // 8 (CV_8U) or 16 (CV_16U); reflectance 1 is full scale
   double noise_sigma = 0.0;  // Gaussian noise, as a fraction of full scale
-  std::uint64_t seed = 1;
+  std::uint64_t seed = 1;     // of the jitter and the noise
 
   bool IsValid(std::string* why) const;
 };

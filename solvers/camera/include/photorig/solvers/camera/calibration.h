@@ -36,6 +36,10 @@ struct CheckerboardCalibrationOptions {
   // Above this angle between the optical axis and the sample plane's normal
   // the looking-straight-down model misplaces pixels by more than it saves.
   double max_tilt_deg = 2.0;
+  // Fit k3 too. A dome's narrow lens (tens of degrees across) bends its
+  // corners too little for r^6 to tell k3 from k1, k2 and the focal length,
+  // which it then drags off by percents: k3 stays 0 unless the lens is wide.
+  bool fit_k3 = false;
   // cornerSubPix's search window: half its side (px). Must stay below half a
   // square's size in the image.
   int subpixel_half_window_px = 5;
