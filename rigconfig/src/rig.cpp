@@ -345,12 +345,31 @@ std::string MotionConfig::CheckPose(const std::map<std::string, double>& positio
 
 namespace {
 
+// camera.calibration: where a pinhole lens came from (`photorig calibrate
+// camera`). For people reading the rig; checked so a hand edit stays readable.
+void CheckCalibrationRecord(const YamlNode& record) {
+  record.ExpectKeys({"date", "rms_px", "tilt_deg", "board", "plane_image", "images", "rejected"});
+  record["date"].AsString();
+  record["rms_px"].AsDoubleIn(0.0, 1e3);
+  if (auto tilt = record.Find("tilt_deg")) tilt->AsDoubleIn(0.0, 90.0);
+  if (auto board = record.Find("board")) {
+    board->ExpectKeys({"inner_corners", "square_mm"});
+    if ((*board)["inner_corners"].AsIntList().size() != 2) (*board)["inner_corners"].Fail("needs [cols, rows]");
+    (*board)["square_mm"].AsDoubleIn(1e-3, 1e4);
+  }
+  if (auto plane = record.Find("plane_image")) plane->AsString();
+  for (const char* list : {"images", "rejected"})
+    if (auto files = record.Find(list))
+      for (const YamlNode& file : files->Items()) file.AsString();
+}
+
 // camera.projection: orthographic with its pixel pitch, or pinhole with its
 // lens; a pinhole's pixel pitch is its pixel's size on the sample plane.
 void ParseProjection(const YamlNode& camera, CameraConfig* cam) {
   cam->projection = camera.Choice("projection", solvers::camera::kProjectionNames, cam->projection);
   if (cam->projection == solvers::camera::Projection::kOrthographic) {
     if (auto lens = camera.Find("pinhole")) lens->Fail("a pinhole: lens needs projection: pinhole");
+    if (auto record = camera.Find("calibration")) record->Fail("a lens calibration needs projection: pinhole");
     cam->pixel_pitch_mm = camera.Double("pixel_pitch_mm", cam->pixel_pitch_mm);
     if (!(cam->pixel_pitch_mm > 0 && cam->pixel_pitch_mm <= 1000)) camera["pixel_pitch_mm"].Fail("must lie in (0, 1000]");
     return;
@@ -374,6 +393,7 @@ void ParseProjection(const YamlNode& camera, CameraConfig* cam) {
   pinhole.distance_mm = lens["distance_mm"].AsDoubleIn(1.0, 1e5);
   cam->pixel_pitch_mm = pinhole.distance_mm / pinhole.fx_px;
   if (std::string why; !cam->Geometry().IsValid(&why)) lens.Fail(why);
+  if (auto record = camera.Find("calibration")) CheckCalibrationRecord(*record);
 }
 
 }  // namespace
@@ -416,7 +436,7 @@ RigConfig LoadRigConfig(const std::string& path) {
   const YamlNode camera = root["camera"];
   camera.ExpectKeys({"driver", "id", "options", "projection", "pinhole", "width", "height", "pixel_pitch_mm", "bit_depth",
                      "exposure_us", "gain_db", "dn_per_radiance_per_us", "e_per_dn", "color_chart", "trigger",
-                     "pixel_format", "color_model"});
+                     "pixel_format", "color_model", "calibration"});
   CameraConfig& cam = rig.camera;
   CheckDriver(camera["driver"], "camera");
   cam.driver = camera["driver"].AsString();

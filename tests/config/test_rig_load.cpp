@@ -57,6 +57,25 @@ TEST(RigLoad, ModbusOptionsAreParsedIntoTypedSettings) {
   EXPECT_EQ(modbus.map.watchdog_timeout_ms, 2000);
 }
 
+// camera.calibration (written by `photorig calibrate camera`) records where a
+// pinhole lens came from: checked, and refused beside an orthographic camera.
+TEST(RigLoad, ALensCalibrationRecordIsCheckedAndNeedsAPinhole) {
+  const std::string record =
+      "  calibration: {date: 2026-11-29T10:30:00Z, rms_px: 0.05, tilt_deg: 0.1, board: {inner_corners: [9, 6], "
+      "square_mm: 10}, plane_image: a.png, images: [a.png, b.png]}\n";
+  const std::string pinhole = "  driver: sim\n  projection: pinhole\n  pinhole: {fx_px: 50, distance_mm: 300}\n";
+  TempDir dir;
+  EXPECT_NO_THROW(LoadRigConfig(dir.Write("pinhole.yaml", Rig(kSimLights, pinhole + record))));
+  std::string typo = record;
+  typo.replace(typo.find("rms_px"), 6, "rms_pix");
+  EXPECT_THROW(LoadRigConfig(dir.Write("typo.yaml", Rig(kSimLights, pinhole + typo))), ConfigError);
+  std::string negative = record;
+  negative.replace(negative.find("0.05"), 4, "-1.0");
+  EXPECT_THROW(LoadRigConfig(dir.Write("negative.yaml", Rig(kSimLights, pinhole + negative))), ConfigError);
+  const std::string orthographic = std::string(kSimCamera) + "  pixel_pitch_mm: 0.1\n";
+  EXPECT_THROW(LoadRigConfig(dir.Write("orthographic.yaml", Rig(kSimLights, orthographic + record))), ConfigError);
+}
+
 // An LED's `channel` other than its place in the list would be ignored and
 // light the wrong LED: refused, naming the order photorig drives.
 TEST(RigLoad, AnLedChannelOtherThanItsPlaceIsRefused) {

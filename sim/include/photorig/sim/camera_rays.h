@@ -2,13 +2,13 @@
 // Many rays of a CameraModel at once: undistorting is cheaper by the batch,
 // which renderers that sample each pixel several times need.
 
-#include "photorig/sim/camera_model.h"
-
 #include <Eigen/Core>
 
 #include <vector>
 
 namespace photorig::sim {
+
+struct CameraModel;  // camera_model.h, whose Ray is this for one pixel
 
 // The rays through points of the image, (x, y) in pixels from its top-left
 // corner (pixel (col, row)'s centre is (col + 0.5, row + 0.5)): origins and

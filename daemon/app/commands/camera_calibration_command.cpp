@@ -1,0 +1,149 @@
+// photorig calibrate camera --images F... --board COLSxROWS --square-mm S --plane-image F|INDEX
+//   --rig IN.yaml --out-rig NEW.yaml
+// The camera's pinhole intrinsics and distortion from checkerboard
+// photographs, and its height from the one of the board lying on the sample
+// plane, written as a new rig (an existing file is never overwritten).
+
+#include "../command.h"
+#include "../command_output.h"
+#include "../progress_display.h"
+#include "photorig/daemon/pipelines/camera_calibration.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <regex>
+
+namespace photorig::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Options {
+  std::vector<std::string> images;
+  std::string board, plane_image, rig, out_rig;
+  double square_mm = 0.0;
+};
+
+// --plane-image: one of --images (by its path or its index from 0), or
+// another photograph, which joins them. -1 when it names none of these.
+int PlaneImageIndex(const std::string& plane, std::vector<std::string>* images) {
+  for (std::size_t i = 0; i < images->size(); ++i) {
+    std::error_code error;
+    if ((*images)[i] == plane || fs::equivalent((*images)[i], plane, error)) return static_cast<int>(i);
+  }
+  if (std::regex_match(plane, std::regex("[0-9]+"))) {
+    const int index = std::stoi(plane);
+    return index < static_cast<int>(images->size()) ? index : -1;
+  }
+  if (!fs::is_regular_file(plane)) return -1;
+  images->push_back(plane);
+  return static_cast<int>(images->size()) - 1;
+}
+
+nlohmann::json SummaryJson(const solvers::camera::CheckerboardCalibrationSummary& s) {
+  const solvers::camera::PinholeLens& lens = s.lens;
+  return {{"termination", solvers::core::TerminationName(s.termination)},
+          {"message", s.message},
+          {"width_px", s.width_px},
+          {"height_px", s.height_px},
+          {"lens",
+           {{"fx_px", lens.fx_px},
+            {"fy_px", lens.fy_px},
+            {"cx_px", lens.cx_px},
+            {"cy_px", lens.cy_px},
+            {"distortion", lens.distortion},
+            {"distance_mm", lens.distance_mm}}},
+          {"std",
+           {{"fx_px", s.fx_std_px},
+            {"fy_px", s.fy_std_px},
+            {"cx_px", s.cx_std_px},
+            {"cy_px", s.cy_std_px},
+            {"distortion", s.distortion_std}}},
+          {"rms_px", s.rms_px},
+          {"tilt_deg", s.tilt_deg},
+          {"used", s.used},
+          {"image_rms_px", s.image_rms_px},
+          {"rejected", s.rejected},
+          {"setup_ms", s.setup_ms},
+          {"solve_ms", s.solve_ms},
+          {"total_ms", s.total_ms}};
+}
+
+int Execute(Options o) {
+  daemon::CameraCalibrationRequest request;
+  solvers::camera::CheckerboardCalibrationOptions& options = request.options;
+  std::smatch board;
+  if (!std::regex_match(o.board, board, std::regex("([0-9]+)x([0-9]+)")))
+    return Fail(kExitUsage, "calibrate camera: --board takes the inner corners as COLSxROWS, e.g. 9x6");
+  options.inner_corners_cols = std::stoi(board[1]);
+  options.inner_corners_rows = std::stoi(board[2]);
+  options.square_mm = o.square_mm;
+  options.plane_image = PlaneImageIndex(o.plane_image, &o.images);
+  if (options.plane_image < 0)
+    return Fail(kExitUsage, "calibrate camera: --plane-image " + o.plane_image +
+                                " is neither one of --images (a path or an index from 0) nor an image file");
+  if (std::string why; !options.IsValid(&why)) return Fail(kExitUsage, "calibrate camera: " + why);
+  request.images = o.images;
+  request.base_rig = o.rig;
+  request.out_rig = o.out_rig;
+
+  ProgressDisplay progress;
+  options.progress = progress.Callback();
+  const daemon::CameraCalibrationResult result = daemon::CalibrateCamera(request);
+  progress.EndLine();
+
+  const solvers::camera::CheckerboardCalibrationSummary& s = result.summary;
+  ResultFields() = SummaryJson(s);
+  ResultFields()["out_rig"] = result.rig_written ? o.out_rig : "";
+  std::printf("boards found in %zu of %zu images", s.used.size(), request.images.size());
+  for (std::size_t i = 0; i < s.used.size() && i < s.image_rms_px.size(); ++i)
+    std::printf("%s %s %.3f px", i == 0 ? ":" : ",", s.used[i].c_str(), s.image_rms_px[i]);
+  std::printf("\n");
+  if (!s.rejected.empty()) {
+    std::printf("no board in:");
+    for (const std::string& name : s.rejected) std::printf(" %s", name.c_str());
+    std::printf("\n");
+  }
+  if (s.lens.fx_px > 0.0) {  // the fit ran: a refused one shows its figures too
+    const solvers::camera::PinholeLens& lens = s.lens;
+    std::printf("fx %.2f +- %.2f px, fy %.2f +- %.2f px, cx %.2f +- %.2f px, cy %.2f +- %.2f px\n", lens.fx_px,
+                s.fx_std_px, lens.fy_px, s.fy_std_px, lens.cx_px, s.cx_std_px, lens.cy_px, s.cy_std_px);
+    std::printf("distortion k1 %.5f k2 %.5f p1 %.6f p2 %.6f k3 %.5f\n", lens.distortion[0], lens.distortion[1],
+                lens.distortion[2], lens.distortion[3], lens.distortion[4]);
+    std::printf("camera %.2f mm above the sample plane, tilted %.3f deg; RMS reprojection error %.3f px\n",
+                lens.distance_mm, s.tilt_deg, s.rms_px);
+  }
+  if (!s.IsSolutionUsable()) {
+    // Bad options or images are the caller's to fix; a fit the data do not support is a failed calibration.
+    const bool usage = s.termination == solvers::core::Termination::kInvalidOptions ||
+                       s.termination == solvers::core::Termination::kInvalidInput;
+    return Fail(usage ? kExitUsage : kExitFailed, "calibrate camera: " + s.message);
+  }
+  if (!s.message.empty()) std::printf("%s\n", s.message.c_str());
+  std::printf("rig written: %s\n", o.out_rig.c_str());
+  return kExitOk;
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto o = std::make_shared<Options>();
+  CLI::App* calibrate = SubcommandGroup(app, "calibrate", "calibrate the rig");
+  CLI::App* camera =
+      calibrate->add_subcommand("camera", "pinhole intrinsics and distortion from checkerboard photographs");
+  camera->add_option("--images", o->images, "checkerboard photographs in several poses")
+      ->required()->check(CLI::ExistingFile);
+  camera->add_option("--board", o->board, "inner corners of the board as COLSxROWS (10 x 7 squares: 9x6)")->required();
+  camera->add_option("--square-mm", o->square_mm, "side of one square (mm)")->required();
+  camera->add_option("--plane-image", o->plane_image,
+                     "the photograph of the board lying flat on the sample plane: a file or an index into --images")
+      ->required();
+  camera->add_option("--rig", o->rig, "rig YAML whose camera took the photographs")->required()->check(CLI::ExistingFile);
+  camera->add_option("--out-rig", o->out_rig, "new rig YAML to write, with the calibrated lens")->required();
+  return {camera, [o] { return Execute(*o); }};
+}
+
+const bool registered = RegisterCommand(Setup);
+
+}  // namespace
+}  // namespace photorig::app

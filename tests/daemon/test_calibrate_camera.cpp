@@ -1,0 +1,93 @@
+// photorig calibrate camera end to end: checkerboards the simulator renders
+// through a known lens, written as image files, calibrated by the executable
+// into a new rig that loads, carries that lens and captures.
+
+#include "../sim/checkerboard_fixtures.h"
+#include "photorig/config/rig.h"
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <string>
+#include <vector>
+
+namespace {
+
+using namespace photorig::testing;
+
+// The poses' images as PNG files in `dir`, the flat one first; their paths
+// joined by spaces for the command line.
+std::string WriteBoards(const TempDir& dir, const std::vector<Eigen::Isometry3d>& poses) {
+  std::string paths;
+  const std::vector<cv::Mat> images = Render(TrueCamera(), poses);
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    const std::string path = (dir.path() / ("board" + std::to_string(i) + ".png")).string();
+    cv::imwrite(path, images[i]);
+    paths += " " + path;
+  }
+  return paths;
+}
+
+const std::string kBaseRig = SourceDir() + "/config/rigs/sim-dome.yaml";
+
+TEST(CalibrateCamera, WritesARigWithTheLensThatLoadsAndCaptures) {
+  TempDir dir;
+  const std::string images = WriteBoards(dir, Poses());
+  const std::string out_rig = (dir.path() / "calibrated.yaml").string();
+  const CommandOutcome calibrated =
+      Photorig("calibrate camera --images" + images + " --board 9x6 --square-mm 10 --plane-image 0 --rig " +
+                   kBaseRig + " --out-rig " + out_rig + " --json",
+               dir);
+  ASSERT_EQ(calibrated.exit_code, 0) << calibrated.err;
+  const nlohmann::json summary = nlohmann::json::parse(calibrated.out);
+  EXPECT_EQ(summary["termination"], "success");
+  EXPECT_LT(summary["rms_px"].get<double>(), 0.3);
+  EXPECT_EQ(summary["out_rig"], out_rig);
+
+  const photorig::config::RigConfig rig = photorig::config::LoadRigConfig(out_rig);
+  const CameraModel truth = TrueCamera();
+  ASSERT_EQ(rig.camera.projection, photorig::solvers::camera::Projection::kPinhole);
+  const auto& lens = rig.camera.pinhole;
+  EXPECT_NEAR(lens.fx_px, truth.fx, 0.005 * truth.fx);
+  EXPECT_NEAR(lens.fy_px, truth.fy, 0.005 * truth.fy);
+  EXPECT_NEAR(lens.cx_px, truth.cx - 0.5, 1.0);
+  EXPECT_NEAR(lens.cy_px, truth.cy - 0.5, 1.0);
+  EXPECT_NEAR(lens.distortion[0], truth.distortion[0], 0.01);
+  EXPECT_NEAR(lens.distance_mm, truth.distance_mm, 0.01 * truth.distance_mm);
+  const std::string text = ReadText(out_rig);
+  EXPECT_NE(text.find("calibration:"), std::string::npos);
+  EXPECT_NE(text.find("board0.png"), std::string::npos);
+
+  const std::string recipe = SourceDir() + "/config/recipes/ps-sphere.yaml";
+  EXPECT_EQ(RunPhotorig("run " + recipe + " --rig " + out_rig + " --no-solve --out " + (dir.path() / "run").string(),
+                        dir.path() / "run.log"),
+            0)
+      << ReadText(dir.path() / "run.log");
+
+  // The rig is never overwritten.
+  const CommandOutcome again =
+      Photorig("calibrate camera --images" + images + " --board 9x6 --square-mm 10 --plane-image 0 --rig " +
+                   kBaseRig + " --out-rig " + out_rig,
+               dir);
+  EXPECT_EQ(again.exit_code, 2) << again.err;
+}
+
+TEST(CalibrateCamera, TooFewBoardsFailsAndWritesNoRig) {
+  TempDir dir;
+  std::vector<Eigen::Isometry3d> poses = Poses();
+  poses.resize(3);
+  poses.push_back(Pose(0, 0, 0, {500, 0, 0}));  // the board out of view
+  const std::string images = WriteBoards(dir, poses);
+  const std::string out_rig = (dir.path() / "calibrated.yaml").string();
+  const CommandOutcome failed =
+      Photorig("calibrate camera --images" + images + " --board 9x6 --square-mm 10 --plane-image 0 --rig " +
+                   kBaseRig + " --out-rig " + out_rig,
+               dir);
+  EXPECT_EQ(failed.exit_code, 1);
+  EXPECT_NE(failed.err.find("board3.png"), std::string::npos) << failed.err;
+  EXPECT_FALSE(std::filesystem::exists(out_rig));
+}
+
+}  // namespace
