@@ -49,13 +49,7 @@ TEST(CalibrateCamera, WritesARigWithTheLensThatLoadsAndCaptures) {
   const photorig::config::RigConfig rig = photorig::config::LoadRigConfig(out_rig);
   const CameraModel truth = TrueCamera();
   ASSERT_EQ(rig.camera.projection, photorig::solvers::camera::Projection::kPinhole);
-  const auto& lens = rig.camera.pinhole;
-  EXPECT_NEAR(lens.fx_px, truth.fx, 0.005 * truth.fx);
-  EXPECT_NEAR(lens.fy_px, truth.fy, 0.005 * truth.fy);
-  EXPECT_NEAR(lens.cx_px, truth.cx - 0.5, 1.0);
-  EXPECT_NEAR(lens.cy_px, truth.cy - 0.5, 1.0);
-  EXPECT_NEAR(lens.distortion[0], truth.distortion[0], 0.01);
-  EXPECT_NEAR(lens.distance_mm, truth.distance_mm, 0.01 * truth.distance_mm);
+  ExpectLensMatches(rig.camera.pinhole, truth);
   const std::string text = ReadText(out_rig);
   EXPECT_NE(text.find("calibration:"), std::string::npos);
   EXPECT_NE(text.find("board0.png"), std::string::npos);

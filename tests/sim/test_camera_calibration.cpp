@@ -35,13 +35,7 @@ TEST(CameraCalibration, RecoversTheSimulatedLens) {
             << lens.distortion[0] << " " << lens.distortion[1] << " " << lens.distortion[2] << " " << lens.distortion[3]
             << " " << lens.distortion[4] << " distance " << lens.distance_mm << " mm, rms " << summary.rms_px
             << " px, tilt " << summary.tilt_deg << " deg, fx std " << summary.fx_std_px << " px\n";
-  EXPECT_NEAR(lens.fx_px, truth.fx, 0.005 * truth.fx);
-  EXPECT_NEAR(lens.fy_px, truth.fy, 0.005 * truth.fy);
-  // OpenCV's principal point is half a pixel before the simulator's.
-  EXPECT_NEAR(lens.cx_px, truth.cx - 0.5, 1.0);
-  EXPECT_NEAR(lens.cy_px, truth.cy - 0.5, 1.0);
-  EXPECT_NEAR(lens.distortion[0], truth.distortion[0], 0.01);
-  EXPECT_NEAR(lens.distance_mm, truth.distance_mm, 0.01 * truth.distance_mm);
+  ExpectLensMatches(lens, truth);
   EXPECT_LT(summary.rms_px, 0.3);
   EXPECT_LT(summary.tilt_deg, 0.5);
   EXPECT_EQ(summary.used.size(), Poses().size());

@@ -78,6 +78,11 @@ int Execute(const Options& options) {
     solvers::tomography_mpi::DecompositionOptions decomposition;
     decomposition.slabs = options.mpi_slabs;
     if (std::string why; !decomposition.IsValid(&why)) return Fail(kExitUsage, "--mpi-slabs: " + why);
+    // Known before any work (the centre's search reconstructs whole in every process).
+    if (decomposition.slabs > 0 && ranks % decomposition.slabs != 0)
+      return Fail(kExitUsage, "--mpi-slabs: " + std::to_string(ranks) + " processes cannot hold " +
+                                  std::to_string(decomposition.slabs) +
+                                  " slabs: the processes are view groups x slabs, so the slabs must divide them");
     factory = [decomposition, &view_groups_and_slabs](
                   const solvers::tomography::VolumeGrid& grid, const solvers::tomography::Geometry& geometry,
                   const solvers::tomography::ProjectorOptions& projector_options,
