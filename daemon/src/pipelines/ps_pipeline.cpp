@@ -608,6 +608,9 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
       cv::Mat depth;  // stays empty unless integrated
       if (request.integrator) {
         const solvers::camera::Camera camera = CameraOf(input);
+        // Undistorting every pixel is worth doing once: integration and mesh share the rays.
+        const std::optional<solvers::camera::PixelRays> rays =
+            camera.IsPinhole() ? std::optional(solvers::camera::PixelRays(camera)) : std::nullopt;
         PhotometricStereoDepth& integrated = result.depth.emplace();
         integrated.integrator = *request.integrator;
         integrated.pixel_pitch = input.pixel_pitch;
@@ -623,15 +626,14 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
           integrated.summary.pixels = static_cast<std::size_t>(cv::countNonZero(depth == depth));
           integrated.summary.End(solvers::core::Termination::kSuccess, "the near-light solve's surface");
         } else if (camera.IsPinhole()) {
-          integrated.summary = solvers::ps::IntegrateNormalsPerspective(integration, solvers::camera::PixelRays(camera),
-                                                                        map.normals, solved, &depth);
+          integrated.summary = solvers::ps::IntegrateNormalsPerspective(integration, *rays, map.normals, solved, &depth);
         } else {
           integrated.summary = solvers::ps::IntegrateNormals(integration, map.normals, solved, &depth);
         }
         if (integrated.summary.IsSolutionUsable()) {
           WriteFloatTiff((out / "depth.tiff").string(), depth);
-          if (camera.IsPinhole())
-            WriteDepthMeshPly((out / "mesh.ply").string(), depth, solvers::camera::PixelRays(camera));
+          if (rays)
+            WriteDepthMeshPly((out / "mesh.ply").string(), depth, *rays);
           else
             WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
           if (!input.truth_height.empty()) integrated.rms_error_vs_truth = DepthErrorVsTruth(depth, input.truth_height);
