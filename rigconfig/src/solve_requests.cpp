@@ -47,7 +47,7 @@ std::vector<std::string> IntegratorChoices() {
 
 PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
   node.ExpectKeys({"method", "shadow_threshold_sigma", "max_condition_number", "derivative", "integrator",
-                   "assume_distant", "max_distant_bias_deg"});
+                   "assume_distant", "max_distant_bias_deg", "fill_unresolved"});
   PhotometricStereoRequest request;
   request.method = node.Choice("method", solvers::ps::kMethodNames, request.method);
   request.shadow_threshold_sigma = node.Double("shadow_threshold_sigma", request.shadow_threshold_sigma);
@@ -55,6 +55,7 @@ PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
   request.derivative = node.Choice("derivative", solvers::ps::kBlinnPhongDerivativeNames, request.derivative);
   request.assume_distant = node.Bool("assume_distant", request.assume_distant);
   request.max_distant_bias_deg = node.Double("max_distant_bias_deg", request.max_distant_bias_deg);
+  request.fill_unresolved = node.Bool("fill_unresolved", request.fill_unresolved);
   if (auto integrator = node.Find("integrator")) {
     const std::string name = integrator->AsString();
     if (!ParseIntegratorChoice(name, &request.integrator))

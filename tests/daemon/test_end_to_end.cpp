@@ -1,6 +1,7 @@
 // Runs the photorig executable on the shipped recipe and checks what it leaves on disk.
 
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/internal/previews.h"
 #include "photorig/config/rig.h"
 #include "photorig/config/sim.h"
 #include "photorig/config/yaml_node.h"
@@ -221,6 +222,59 @@ TEST(EndToEnd, SolveOnAStoredRunReproducesTheResult) {
   EXPECT_EQ(report["dark_frames"], 2);
   // Cast shadows are excluded per pixel, so the bumps stay within a degree or two.
   EXPECT_LT(report["ground_truth"]["mean_angular_error_deg"].get<double>(), 2.0);
+}
+
+TEST(EndToEnd, PixelsWithoutANormalOfTheirOwnAreFilledFromTheirNeighboursAndFlagged) {
+  // The bumps under six LEDs, four of them 25 deg above the horizon: the
+  // bumps' cast shadows leave some pixels fewer than 3 lit samples.
+  TempDir dir;
+  std::string recipe = ReadText(SourceDir() + "/config/recipes/ps-bumps.yaml");
+  recipe = std::regex_replace(recipe, std::regex("leds: all"), "leds: [0, 4, 8, 12, 16, 20]");
+  recipe = std::regex_replace(recipe, std::regex("rig: \\.\\./rigs/"), "rig: " + SourceDir() + "/config/rigs/");
+  { std::ofstream(dir.path() / "few-leds.yaml") << recipe; }
+  const fs::path run = dir.path() / "run";
+  ASSERT_EQ(RunPhotorig("run " + (dir.path() / "few-leds.yaml").string() + " --no-solve --out " + run.string(),
+                        dir.path() / "log"),
+            0)
+      << ReadText(dir.path() / "log");
+  const fs::path bare = dir.path() / "bare", filled = dir.path() / "filled";
+  ASSERT_EQ(RunPhotorig("solve ps --run " + run.string() + " --method lambertian --no-fill --out " + bare.string(),
+                        dir.path() / "log"),
+            0)
+      << ReadText(dir.path() / "log");
+  ASSERT_EQ(RunPhotorig("solve ps --run " + run.string() + " --method lambertian --out " + filled.string(),
+                        dir.path() / "log"),
+            0)
+      << ReadText(dir.path() / "log");
+  const auto bare_report = nlohmann::json::parse(ReadText(bare / "report.json"));
+  const auto report = nlohmann::json::parse(ReadText(filled / "report.json"));
+  EXPECT_FALSE(bare_report.contains("fill"));
+  const int unresolved = bare_report["ground_truth"]["pixels_unresolved"];
+  ASSERT_GT(unresolved, 0);
+  const int pixels_filled = report["fill"]["pixels_filled"], pixels_left = report["fill"]["pixels_left"];
+  EXPECT_EQ(pixels_filled + pixels_left, unresolved);
+  EXPECT_EQ(pixels_left, 0);
+  EXPECT_EQ(report["ground_truth"]["pixels_unresolved"], pixels_left);
+  EXPECT_EQ(report["ground_truth"]["filled"]["pixels_evaluated"], pixels_filled);
+  EXPECT_EQ(report["pixels"]["solved"], bare_report["pixels"]["solved"]);
+  // A prior, not a measurement: worse than the solved pixels (0.6 deg), yet
+  // within degrees where the bumps are smooth on the scale of a shadow.
+  const double filled_error = report["ground_truth"]["filled"]["mean_angular_error_deg"];
+  EXPECT_GT(filled_error, bare_report["ground_truth"]["mean_angular_error_deg"].get<double>());
+  EXPECT_LT(filled_error, 15.0);
+  // Depth now covers them too.
+  EXPECT_EQ(report["depth"]["pixels"].get<int>() - bare_report["depth"]["pixels"].get<int>(), pixels_filled);
+  EXPECT_GT(report["fill"]["mean_confidence"].get<double>(), 0.0);
+  EXPECT_LT(report["fill"]["mean_confidence"].get<double>(), report["mean_confidence"].get<double>());
+  // The flags map names them, and the normals file holds their normals.
+  const cv::Mat normals = photorig::daemon::ReadFloatTiff((filled / "normals.tiff").string());
+  const cv::Mat flags = photorig::daemon::CodesFromPreview(cv::imread((filled / "flags.png").string()), normals.size(),
+                                                           photorig::daemon::FlagCategories());
+  EXPECT_EQ(cv::countNonZero(flags == static_cast<int>(photorig::solvers::ps::PixelFlag::kFilled)), pixels_filled);
+  const cv::Mat bare_normals = photorig::daemon::ReadFloatTiff((bare / "normals.tiff").string());
+  EXPECT_EQ(cv::countNonZero(normals.reshape(1) == normals.reshape(1)) -
+                cv::countNonZero(bare_normals.reshape(1) == bare_normals.reshape(1)),
+            3 * pixels_filled);
 }
 
 }  // namespace

@@ -28,12 +28,18 @@ void PrintPhotometricStereoSummary(const daemon::PhotometricStereoResult& result
   std::printf("photometric stereo (%s): %s, %zu pixels solved, %.1f ms solve\n", summary.method.c_str(),
               solvers::core::TerminationName(summary.termination), summary.pixels_solved, summary.solve_ms);
   if (!summary.message.empty()) std::printf("  solver says: %s\n", summary.message.c_str());
+  if (result.fill && result.fill->pixels_filled + result.fill->pixels_left > 0)
+    std::printf("  %s\n", result.fill->BriefReport().c_str());
   if (result.normals_vs_truth) {
     const solvers::ps::AngularErrorStats& gt = *result.normals_vs_truth;
     std::printf("  vs ground truth: mean %.3f deg, median %.3f deg, <5 deg %.1f%%, <10 deg %.1f%%, <15 deg %.1f%%, "
                 "%zu of %zu pixels unresolved\n",
                 gt.mean_deg, gt.median_deg, 100.0 * gt.fraction_under_5deg, 100.0 * gt.fraction_under_10deg,
                 100.0 * gt.fraction_under_15deg, gt.pixels_unresolved, gt.pixels_with_truth);
+    if (result.filled_vs_truth)
+      std::printf("  ... of which filled from their neighbours: mean %.3f deg, median %.3f deg over %zu pixels\n",
+                  result.filled_vs_truth->mean_deg, result.filled_vs_truth->median_deg,
+                  result.filled_vs_truth->pixels_evaluated);
   }
   if (result.color) {
     const daemon::ColorProvenance& c = *result.color;

@@ -100,7 +100,8 @@ const std::vector<Category>& FlagCategories() {
        {int(solvers::ps::PixelFlag::kOutsideMask), {0, 0, 0}},
        {int(solvers::ps::PixelFlag::kTooFewLights), {255, 165, 0}},
        {int(solvers::ps::PixelFlag::kIllConditioned), {186, 85, 211}},
-       {int(solvers::ps::PixelFlag::kRejectedByModel), {220, 20, 60}}},
+       {int(solvers::ps::PixelFlag::kRejectedByModel), {220, 20, 60}},
+       {int(solvers::ps::PixelFlag::kFilled), {135, 206, 235}}},
       [](int code) { return solvers::ps::PixelFlagName(static_cast<solvers::ps::PixelFlag>(code)); });
   return categories;
 }

@@ -435,8 +435,19 @@ json ToJson(const PhotometricStereoResult& result) {
     if (result.color_albedo_summary)
       report["color"]["green_channel_pixels_solved"] = result.color_albedo_summary->pixels_solved;
   }
+  if (result.fill) {
+    const solvers::ps::FillSummary& fill = *result.fill;
+    report["fill"] = {{"termination", solvers::core::TerminationName(fill.termination)},
+                      {"message", fill.message},
+                      {"pixels_filled", fill.pixels_filled},
+                      {"pixels_left", fill.pixels_left},
+                      {"max_distance_px", fill.max_distance_px},
+                      {"mean_confidence", fill.mean_confidence}};
+    report["timings_ms"]["fill"] = fill.total_ms;
+  }
   if (result.normals_vs_truth) {
     report["ground_truth"] = MetricsJson(*result.normals_vs_truth);
+    if (result.filled_vs_truth) report["ground_truth"]["filled"] = MetricsJson(*result.filled_vs_truth);
     if (result.albedo_ciede2000_vs_truth)
       for (const auto& [name, e] : {std::pair{"all", result.albedo_ciede2000_vs_truth->all},
                                     std::pair{"interior", result.albedo_ciede2000_vs_truth->interior}})
@@ -590,6 +601,9 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
     if (result.usable()) {
       const cv::Mat solved = map.flags == static_cast<int>(solvers::ps::PixelFlag::kSolved);
       result.mean_confidence = cv::mean(map.confidence, solved)[0];
+      if (request.fill_unresolved) result.fill = solvers::ps::FillUnresolvedNormals({}, &map);
+      const cv::Mat filled = map.flags == static_cast<int>(solvers::ps::PixelFlag::kFilled);
+      const cv::Mat with_normal = solved | filled;  // what depth and the mesh are made of
       WriteFloatTiff((out / "normals.tiff").string(), map.normals);
       cv::Mat albedo_rgb;  // colour data: per-channel albedo with the normals fixed
       if (input.color) {
@@ -626,9 +640,10 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
           integrated.summary.pixels = static_cast<std::size_t>(cv::countNonZero(depth == depth));
           integrated.summary.End(solvers::core::Termination::kSuccess, "the near-light solve's surface");
         } else if (camera.IsPinhole()) {
-          integrated.summary = solvers::ps::IntegrateNormalsPerspective(integration, *rays, map.normals, solved, &depth);
+          integrated.summary =
+              solvers::ps::IntegrateNormalsPerspective(integration, *rays, map.normals, with_normal, &depth);
         } else {
-          integrated.summary = solvers::ps::IntegrateNormals(integration, map.normals, solved, &depth);
+          integrated.summary = solvers::ps::IntegrateNormals(integration, map.normals, with_normal, &depth);
         }
         if (integrated.summary.IsSolutionUsable()) {
           WriteFloatTiff((out / "depth.tiff").string(), depth);
@@ -664,6 +679,8 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
         spdlog::warn("{}: ground-truth normals not compared: {}", input.source, vs_truth.message);
       } else if (!input.truth_normals.empty()) {  // compared: error map and figures
         result.normals_vs_truth = vs_truth;
+        if (cv::countNonZero(filled) > 0)
+          result.filled_vs_truth = solvers::ps::CompareNormals(map.normals, input.truth_normals, filled);
         WriteFloatTiff((out / "angular_error.tiff").string(), error_deg);
         if (!albedo_rgb.empty() && !input.truth_albedo_rgb.empty()) {
           result.albedo_ciede2000_vs_truth = CompareColorAlbedo(albedo_rgb, input.truth_albedo_rgb, solved);

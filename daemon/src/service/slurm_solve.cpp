@@ -65,6 +65,7 @@ std::vector<std::string> SolveArguments(const config::PhotometricStereoRequest& 
           "--max-distant-bias",
           Number(request.max_distant_bias_deg)};
   if (request.assume_distant) arguments.push_back("--assume-distant");
+  if (!request.fill_unresolved) arguments.push_back("--no-fill");
   return arguments;
 }
 

@@ -239,6 +239,7 @@ void CountPixels(const NormalMap& map, NearLightSummary* summary) {
       case PixelFlag::kTooFewLights: ++summary->pixels_too_few_lights; break;
       case PixelFlag::kIllConditioned: ++summary->pixels_ill_conditioned; break;
       case PixelFlag::kRejectedByModel: ++summary->pixels_rejected_by_model; break;
+      case PixelFlag::kFilled: break;  // only FillUnresolvedNormals sets it, after a solve
     }
   }
   summary->pixels_lambertian = summary->pixels_solved;

@@ -62,6 +62,7 @@ const char* PixelFlagName(PixelFlag flag) {
     case PixelFlag::kTooFewLights: return "too_few_lights";
     case PixelFlag::kIllConditioned: return "ill_conditioned";
     case PixelFlag::kRejectedByModel: return "rejected_by_model";
+    case PixelFlag::kFilled: return "filled";
   }
   return "unknown";
 }

@@ -37,6 +37,10 @@ struct PhotometricStereoRequest {
   double max_distant_bias_deg = 0.5;
   // Depth from the normals by this integrator; nullopt: none (normals only).
   std::optional<solvers::ps::Integrator> integrator = solvers::ps::Integrator::kPoisson;
+  // Masked pixels left without a normal (too few usable samples, a rejected
+  // fit) get one interpolated from their solved neighbours, flagged `filled`
+  // (solvers/ps/fill_unresolved.h), so depth and meshes have no holes.
+  bool fill_unresolved = true;
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
   solvers::core::ProgressCallback progress;
 

@@ -18,6 +18,7 @@
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/camera/camera.h"
 #include "photorig/solvers/ps/evaluation.h"
+#include "photorig/solvers/ps/fill_unresolved.h"
 #include "photorig/solvers/ps/integration.h"
 #include "photorig/solvers/ps/near_lights.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
@@ -134,7 +135,10 @@ struct PhotometricStereoResult {
   // Measured on the output, so only when the solution is usable:
   std::optional<double> mean_confidence;     // over solved pixels
   std::optional<PhotometricStereoDepth> depth;   // unless the request asked for no integrator
-  std::optional<solvers::ps::AngularErrorStats> normals_vs_truth;  // when the source has ground-truth normals
+  // Normals given to masked pixels left without one, unless the request asked for none.
+  std::optional<solvers::ps::FillSummary> fill;
+  std::optional<solvers::ps::AngularErrorStats> normals_vs_truth;  // when the source has ground-truth normals (filled pixels too)
+  std::optional<solvers::ps::AngularErrorStats> filled_vs_truth;   // ... over the filled pixels alone
   std::optional<double> mean_relative_albedo_error;      // ... and albedo; over solved pixels
   // Colour: where the numbers came from, and CIEDE2000 of the albedo against
   // a linear-sRGB ground truth (CIELAB of D65, white Y = 1) over the solved pixels.

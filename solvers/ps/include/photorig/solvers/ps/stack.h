@@ -58,8 +58,13 @@ enum class PixelFlag : std::uint8_t {
   kOutsideMask = 1,     // masked out by the caller
   kTooFewLights = 2,    // fewer than 3 usable (unshadowed, unsaturated) samples
   kIllConditioned = 3,  // the usable lights are (nearly) coplanar
-  kRejectedByModel = 4  // a solver judged its own estimate untrustworthy
+  kRejectedByModel = 4,  // a solver judged its own estimate untrustworthy
+  // One of the three above, whose normal was then interpolated from its
+  // solved neighbours (FillUnresolvedNormals): a prior, not a measurement.
+  kFilled = 5
 };
+// Whether a pixel with this flag carries a normal (solved or filled).
+inline bool HasNormal(PixelFlag flag) { return flag == PixelFlag::kSolved || flag == PixelFlag::kFilled; }
 const char* PixelFlagName(PixelFlag flag);
 
 // The reflectance model a pixel was explained with (NormalMap::model).
@@ -74,7 +79,7 @@ enum class PixelModel : std::uint8_t {
 const char* PixelModelName(PixelModel model);
 
 struct NormalMap {
-  cv::Mat normals;        // CV_32FC3 (x, y, z); NaN where flags != kSolved
+  cv::Mat normals;        // CV_32FC3 (x, y, z); NaN where !HasNormal(flags)
   cv::Mat albedo;         // CV_32F diffuse albedo; NaN where flags != kSolved
   cv::Mat flags;          // CV_8U PixelFlag
   cv::Mat usable_lights;  // CV_16U count of samples that entered the fit
