@@ -4,7 +4,8 @@
 #
 #   scripts/fuzz.sh build [TARGET...]       configure and build the fuzzers (only the named ones and the
 #                                           libraries they link, if any are named)
-#   scripts/fuzz.sh smoke                   build, then run each fuzzer for 5 s over its seeds; fails on any finding
+#   scripts/fuzz.sh smoke                   build, then run each fuzzer for 1000 inputs from its seeds, with a
+#                                           fixed random seed so that a failure repeats; fails on any finding
 #   scripts/fuzz.sh run [TARGET] [SECONDS]  long runs (default: every target, 300 s each), corpus kept in
 #                                           the build tree; builds only what they need; prints executions
 #                                           reached and their rate
@@ -143,9 +144,12 @@ max_len_flag() {
   esac
 }
 
-# Runs one target for `seconds` with `n` workers; prints "target executions findings".
+# Runs one target for `seconds` with `n` workers, and any further libFuzzer
+# flags; prints "target executions findings".
 fuzz_target() {
   local t="$1" seconds="$2" n="$3" corpus="$build/corpus/$1" logs="$build/logs/$1" artifacts="$build/artifacts/$1"
+  shift 3
+  local extra=("$@")
   mkdir -p "$corpus" "$artifacts"
   rm -rf "$logs"
   mkdir -p "$logs"
@@ -155,7 +159,7 @@ fuzz_target() {
   # libFuzzer adds new inputs to the first directory only: the seeds stay as they are.
   (cd "$logs" && "$build/bin/$t" "$corpus" "$build/seeds/$t" $(dict_flag "$t") $(max_len_flag "$t") "${limits[@]}" "${runs[@]}" \
     -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="$artifacts/" \
-    -jobs="$n" -workers="$n" >"$logs/main.log" 2>&1) || status=$?
+    -jobs="$n" -workers="$n" "${extra[@]}" >"$logs/main.log" 2>&1) || status=$?
   local elapsed=$((SECONDS - start))
   # With -jobs the workers' logs are fuzz-<n>.log (main.log repeats them):
   # executions are summed over them.
@@ -167,6 +171,7 @@ fuzz_target() {
   if [ "$status" != 0 ] || [ "$findings" != 0 ]; then
     grep -h -E -A12 'ERROR: |runtime error:|uncaught exception|terminate called|500 answer' "$logs"/*.log | head -n 60 >&2 || true
     echo "fuzz: $t found a problem; inputs in $artifacts/, logs in $logs/" >&2
+    failures+=("$t: $(grep -h -m1 -E 'ERROR: |runtime error:|uncaught exception|terminate called' "$logs"/*.log | head -n1)")
     return 1
   fi
 }
@@ -183,8 +188,15 @@ case "$command" in
     write_seeds ;;
   smoke)
     build_fuzzers
+    # A fixed seed and a count of inputs rather than a time: the same inputs
+    # on every machine, so a finding here repeats where it is looked at. The
+    # time limit only guards against a hang.
     failed=0
-    for t in "${targets[@]}"; do fuzz_target "$t" 5 1 || failed=1; done
+    failures=()
+    for t in "${targets[@]}"; do fuzz_target "$t" 300 1 -seed=1 -runs=1000 || failed=1; done
+    # Last, where a log's tail shows it: what failed, and how to repeat it.
+    for f in "${failures[@]}"; do echo "fuzz smoke failed: $f" >&2; done
+    [ "$failed" = 0 ] || echo "repeat: scripts/fuzz.sh smoke (seed 1, 1000 inputs per target)" >&2
     exit "$failed" ;;
   run)
     selected=("${targets[@]}")
