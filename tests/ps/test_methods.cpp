@@ -36,6 +36,9 @@ Outcome Solve(Method method, const PhotometricStack& stack, const cv::Mat& truth
   Outcome outcome;
   outcome.summary = SolvePhotometricStereo(Options(method, shadow_threshold), stack, &outcome.map);
   EXPECT_TRUE(outcome.summary.IsSolutionUsable()) << outcome.summary.message;
+  // The timings add up: the solve's share covers every step, the refinement after the tiles included.
+  EXPECT_NEAR(outcome.summary.setup_ms + outcome.summary.solve_ms, outcome.summary.total_ms, 1e-9);
+  EXPECT_GT(outcome.summary.solve_ms, 0.0);
   outcome.error = CompareNormals(outcome.map.normals, truth);
   return outcome;
 }
