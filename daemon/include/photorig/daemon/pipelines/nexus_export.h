@@ -5,7 +5,7 @@
 // solve with the program, its version, the exact options, the input checksums
 // and its outputs. The layout is in docs/nexus.md.
 
-#include "photorig/daemon/io/nexus_writer.h"
+#include "photorig/daemon/io/nexus.h"
 #include "photorig/solvers/core/summary.h"
 
 #include <cstdint>
@@ -34,7 +34,7 @@ struct NexusExportSummary : solvers::core::Summary {
 };
 
 // Writes `run_directory` as the NeXus file `path` (written beside itself and
-// renamed into place whole, nexus_writer.h). kInvalidInput names the run and what is wrong
+// renamed into place whole, nexus.h). kInvalidInput names the run and what is wrong
 // (no manifest, an unreadable frame); kFailure an HDF5 write that failed.
 NexusExportSummary ExportNexus(const std::string& run_directory, const std::string& path,
                                const NexusExportOptions& options = {});

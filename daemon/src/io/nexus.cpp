@@ -1,4 +1,4 @@
-#include "photorig/daemon/io/nexus_writer.h"
+#include "photorig/daemon/io/nexus.h"
 
 #include <hdf5.h>
 
@@ -236,6 +236,30 @@ bool NexusWriter::Close() {
 void NexusWriter::Abandon(const std::string& why) {
   Failed(why);
   Close();
+}
+
+bool ReadNexusText(const std::string& file, const std::string& dataset, std::string* text, std::string* error) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const Handle opened(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
+  if (opened.id < 0) {
+    *error = "cannot open " + file + " as HDF5";
+    return false;
+  }
+  const Handle data(H5Dopen2(opened.id, dataset.c_str(), H5P_DEFAULT));
+  const Handle stored(data.id < 0 ? -1 : H5Dget_type(data.id));
+  if (data.id < 0 || H5Tget_class(stored.id) != H5T_STRING || !H5Tis_variable_str(stored.id)) {
+    *error = file + " has no text " + dataset;
+    return false;
+  }
+  const Handle type(StringType());
+  char* value = nullptr;
+  if (H5Dread(data.id, type.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0 || value == nullptr) {
+    *error = "cannot read " + dataset + " of " + file;
+    return false;
+  }
+  *text = value;
+  H5free_memory(value);
+  return true;
 }
 
 }  // namespace photorig::daemon

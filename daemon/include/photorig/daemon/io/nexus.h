@@ -1,5 +1,5 @@
 #pragma once
-// A NeXus file (HDF5) written group by group: groups carry their NX_class,
+// NeXus files (HDF5). NexusWriter writes one group by group: groups carry their NX_class,
 // datasets their units and attributes, and a frame stack is written one frame
 // at a time into a chunked, deflate-compressed dataset. The HDF5 C library
 // stays behind this header. Paths are absolute in the file ("/entry/sample").
@@ -88,5 +88,9 @@ class NexusWriter {
   std::unique_ptr<Handles> handles_;
   std::string error_;
 };
+
+// Reads the string dataset `dataset` ("/entry/ps/version") of a NeXus file
+// into *text; false with *error naming the file and what is missing.
+bool ReadNexusText(const std::string& file, const std::string& dataset, std::string* text, std::string* error);
 
 }  // namespace photorig::daemon
