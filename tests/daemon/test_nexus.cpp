@@ -79,7 +79,13 @@ TEST(Nexus, ADomeRunExportsAndItsPhotometricStereoIsSolvedAgainBitForBit) {
       "recipe.yaml", photorig::testing::SmallRecipeYaml(rig) +
                          "solve:\n  - photometric_stereo: {method: auto, shadow_threshold_sigma: 2.5, integrator: poisson}\n");
   const fs::path run = dir.path() / "run";
-  ASSERT_EQ(Photorig("run " + recipe + " --out " + run.string(), dir).exit_code, 0);
+  // Written at capture time, with the solve the recipe asks for ...
+  const photorig::testing::CommandOutcome captured = Photorig("run " + recipe + " --out " + run.string() + " --nexus --json", dir);
+  ASSERT_EQ(captured.exit_code, 0) << captured.err;
+  EXPECT_EQ(json::parse(captured.out)["nexus"]["processes"], json({"ps"}));
+  std::string findings;
+  EXPECT_EQ(CheckNexus(run / "run.nxs", run, &findings), 0) << findings;
+  // ... and exported again later.
   const json exported = ExportAndCheck(dir, run, {"ps"});
   EXPECT_EQ(exported["frames"], 5);
 

@@ -21,22 +21,12 @@ int Execute(const Options& options) {
       options.out.empty() ? (std::filesystem::path(options.run_dir) / "run.nxs").string() : options.out;
   const daemon::NexusExportSummary summary = daemon::ExportNexus(options.run_dir, path, options.exporting);
   for (const std::string& warning : summary.warnings) std::fprintf(stderr, "warning: %s\n", warning.c_str());
-  ResultFields() = {{"run_directory", options.run_dir},
-                    {"out", path},
-                    {"frames", summary.frames},
-                    {"processes", summary.processes},
-                    {"warnings", summary.warnings},
-                    {"file_bytes", summary.file_bytes},
-                    {"frame_bytes", summary.frame_bytes},
-                    {"total_ms", summary.total_ms}};
+  ResultFields() = summary.ToJson();
+  ResultFields()["run_directory"] = options.run_dir;
   if (!summary.IsSolutionUsable())
     return Fail(summary.termination == solvers::core::Termination::kFailure ? kExitFailed : kExitUsage,
                 summary.message);
-  std::string solves = "no solves";
-  for (std::size_t i = 0; i < summary.processes.size(); ++i)
-    solves = (i == 0 ? "solves: " : solves + ", ") + summary.processes[i];
-  std::printf("wrote %s: %d frames, %s, %.1f MB (the frames' PNGs %.1f MB), %.0f ms\n", path.c_str(), summary.frames,
-              solves.c_str(), summary.file_bytes / 1e6, summary.frame_bytes / 1e6, summary.total_ms);
+  std::printf("%s\n", summary.Line().c_str());
   return kExitOk;
 }
 

@@ -1,10 +1,11 @@
-// photorig run RECIPE [--rig FILE] [--out DIR] [--no-solve]
+// photorig run RECIPE [--rig FILE] [--out DIR] [--no-solve] [--nexus]
 
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
 #include "../signals.h"
 #include "photorig/daemon/pipelines/internal/brdf_report.h"
+#include "photorig/daemon/pipelines/nexus_export.h"
 #include "photorig/daemon/service/run.h"
 #include "ps_report.h"
 
@@ -17,6 +18,7 @@ namespace {
 struct Options {
   std::string recipe, rig, out;
   bool no_solve = false;
+  bool nexus = false;  // write RUN/run.nxs once the capture and its solves end
 };
 
 nlohmann::json CaptureJson(const daemon::CaptureReport& capture) {
@@ -61,6 +63,13 @@ int Execute(const Options& options) {
   std::printf("capture: %s, %d/%d frames, %.0f ms%s%s\n", daemon::CaptureStatusName(outcome.capture.status),
               outcome.capture.frames_written, outcome.capture.steps_total, outcome.capture.elapsed_ms,
               outcome.capture.reason.empty() ? "" : ": ", outcome.capture.reason.c_str());
+  if (options.nexus) {
+    const daemon::NexusExportSummary nexus = daemon::ExportNexus(outcome.directory, outcome.directory + "/run.nxs");
+    for (const std::string& warning : nexus.warnings) std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    ResultFields()["nexus"] = nexus.ToJson();
+    if (!nexus.IsSolutionUsable()) return Fail(kExitFailed, "the NeXus export failed: " + nexus.message);
+    std::printf("%s\n", nexus.Line().c_str());
+  }
   if (outcome.capture.status == daemon::CaptureStatus::kAborted)
     return Fail(kExitInterrupted, "capture aborted: " + outcome.capture.reason);
   if (outcome.capture.status != daemon::CaptureStatus::kComplete)
@@ -134,6 +143,7 @@ CommandRunner Setup(CLI::App& app) {
   sub->add_option("--rig", options->rig, "rig YAML (default: the rig the recipe names)")->check(CLI::ExistingFile);
   sub->add_option("--out", options->out, "run directory to create (default: runs/<recipe>-<UTC time>)");
   sub->add_flag("--no-solve", options->no_solve, "capture only");
+  sub->add_flag("--nexus", options->nexus, "write the run and its solves as RUN/run.nxs when they end (docs/nexus.md)");
   return {sub, [options] { return Execute(*options); }};
 }
 

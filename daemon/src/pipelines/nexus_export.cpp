@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <ctime>
 #include <filesystem>
@@ -65,7 +66,8 @@ std::int64_t ImageKey(const FrameRecord& frame) {
   if (frame.kind == Kind::kDark) return 2;
   if (frame.kind == Kind::kFlat) return 1;
   const bool sample_out = frame.pose && frame.pose->sample_changer_deg && *frame.pose->sample_changer_deg != 0.0;
-  return sample_out && frame.group != "reference_target" ? 1 : 0;
+  const bool reference = frame.group_kind == config::Recipe::Group::Kind::kReferenceTarget;
+  return sample_out && !reference ? 1 : 0;
 }
 
 void WriteInstrument(NexusWriter& out, const RunManifest& m, std::vector<std::string>* warnings) {
@@ -300,6 +302,25 @@ void WriteEntry(NexusWriter& out, const std::string& run, const RunManifest& m, 
 }
 
 }  // namespace
+
+nlohmann::json NexusExportSummary::ToJson() const {
+  return {{"out", path},
+          {"frames", frames},
+          {"processes", processes},
+          {"warnings", warnings},
+          {"file_bytes", file_bytes},
+          {"frame_bytes", frame_bytes},
+          {"total_ms", total_ms}};
+}
+
+std::string NexusExportSummary::Line() const {
+  std::string solves = "no solves";
+  for (std::size_t i = 0; i < processes.size(); ++i) solves = (i == 0 ? "solves: " : solves + ", ") + processes[i];
+  char sizes[128];
+  std::snprintf(sizes, sizeof(sizes), "%.1f MB (the frames' PNGs %.1f MB), %.0f ms", file_bytes / 1e6,
+                frame_bytes / 1e6, total_ms);
+  return "wrote " + path + ": " + std::to_string(frames) + " frames, " + solves + ", " + sizes;
+}
 
 bool NexusExportOptions::IsValid(std::string* why) const {
   if (!writer.IsValid(why)) return false;
