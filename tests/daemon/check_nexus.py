@@ -77,6 +77,8 @@ def check_process(f, path, folder):
     if not check_group(f, path, "NXprocess", fields=("program", "version", "date", "sequence_index")):
         return
     need(re.match(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d", text(f[path + "/date"][()])), f"{path}/date is not ISO 8601")
+    need(f[path + "/sequence_index"].shape == () and f[path + "/sequence_index"][()] >= 1,
+         f"{path}/sequence_index is not a positive integer")
     check_note(f, path + "/report", (folder / "report.json").read_text())
     report = json.loads((folder / "report.json").read_text())
     if "provenance" in report:

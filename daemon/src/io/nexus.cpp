@@ -78,7 +78,9 @@ NexusWriter::NexusWriter(const std::string& path, const std::string& creator, co
   Attribute("/", "default", default_entry);
 }
 
-NexusWriter::~NexusWriter() { Close(); }
+NexusWriter::~NexusWriter() {
+  if (handles_->file >= 0) Abandon("the writing stopped before Close()");
+}
 
 std::string NexusWriter::Partial() const { return path_ + ".partial"; }
 
@@ -146,8 +148,9 @@ void NexusWriter::Text(const std::string& path, const std::string& text) {
     Failed("cannot write " + path);
 }
 
-void NexusWriter::Numbers(const std::string& path, std::int64_t type, const void* values,
+void NexusWriter::Numbers(const std::string& path, std::int64_t file_type, const void* values,
                           const std::vector<std::uint64_t>& dims, const std::string& units) {
+  const hid_t type = file_type;
   if (!ok()) return;
   const std::vector<hsize_t> shape = Dims(dims);
   const Handle space(shape.empty() ? H5Screate(H5S_SCALAR)
@@ -178,6 +181,10 @@ void NexusWriter::Floats(const std::string& path, const float* values, const std
 
 void NexusWriter::Ints(const std::string& path, const std::vector<std::int64_t>& values, const std::string& units) {
   Numbers(path, H5T_STD_I64LE, values.data(), {values.size()}, units);
+}
+
+void NexusWriter::Integer(const std::string& path, std::int64_t value) {
+  Numbers(path, H5T_STD_I64LE, &value, {}, "");
 }
 
 void NexusWriter::BeginFrameStack(const std::string& path, std::uint64_t frames,

@@ -110,7 +110,7 @@ void WriteInstrument(NexusWriter& out, const RunManifest& m, std::vector<std::st
   out.Doubles(lights + "/direction", directions, {n, 3});
   out.Attribute(lights + "/direction", "description",
                 std::string("unit vector towards the LED, camera frame: x right, y up, z towards the camera"));
-  out.Doubles(lights + "/intensity", intensities, {n}, "");
+  out.Doubles(lights + "/intensity", intensities, {n});
   if (positioned) out.Doubles(lights + "/position", positions, {n, 3}, "mm");
 }
 
@@ -259,13 +259,14 @@ void WriteBrdfParameters(NexusWriter& out, const std::string& process, const jso
   }
 }
 
-void WriteProcess(NexusWriter& out, const fs::path& folder, const std::string& name, int sequence_index,
+// False, with a warning, when the report cannot be read: the solve is left out.
+bool WriteProcess(NexusWriter& out, const fs::path& folder, const std::string& name, int sequence_index,
                   std::vector<std::string>* warnings) {
   const std::string report_text = ReadBytes(folder / "report.json");
   const json report = json::parse(report_text, nullptr, false);
   if (report.is_discarded()) {
     warnings->push_back((folder / "report.json").string() + " is not JSON: results/" + name + " left out");
-    return;
+    return false;
   }
   const std::string process = "/entry/" + name;
   out.Group(process, "NXprocess");
@@ -273,7 +274,7 @@ void WriteProcess(NexusWriter& out, const fs::path& folder, const std::string& n
   out.Text(process + "/program", provenance.value("program", "photorig"));
   out.Text(process + "/version", provenance.value("version", "unrecorded"));
   out.Text(process + "/date", provenance.value("date", FileTime(folder / "report.json")));
-  out.Ints(process + "/sequence_index", {sequence_index});
+  out.Integer(process + "/sequence_index", sequence_index);
   Note(out, process + "/report", "application/json", "report.json", "the solve's report as written", report_text);
   if (provenance.contains("options"))
     Note(out, process + "/options", "application/json", "", "the solve's exact options (photorig solve --from reads them)",
@@ -283,6 +284,7 @@ void WriteProcess(NexusWriter& out, const fs::path& folder, const std::string& n
          provenance["inputs"].dump(2));
   WriteOutputs(out, process, folder, warnings);
   WriteBrdfParameters(out, process, report);
+  return true;
 }
 
 void WriteEntry(NexusWriter& out, const std::string& run, const RunManifest& m, const std::string& manifest_text) {
@@ -339,30 +341,31 @@ NexusExportSummary ExportNexus(const std::string& run_directory, const std::stri
     summary.End(solvers::core::Termination::kInvalidOptions, why);
     return summary;
   }
-  RunManifest manifest;
   try {
-    manifest = LoadRunManifest(run_directory);
+    const RunManifest manifest = LoadRunManifest(run_directory);
+    NexusWriter out(path, "photorig " PHOTORIG_VERSION, "entry", options.writer);
+    WriteEntry(out, run_directory, manifest, ReadBytes(fs::path(run_directory) / "manifest.json"));
+    WriteInstrument(out, manifest, &summary.warnings);
+    WritePositioners(out, manifest);
+    if (!WriteFrames(out, run_directory, manifest, &summary)) {
+      out.Abandon(summary.message);
+      return summary;
+    }
+    int sequence_index = 1;
+    for (const std::string& name : options.results) {
+      const fs::path folder = fs::path(run_directory) / "results" / name;
+      if (fs::exists(folder / "report.json") && WriteProcess(out, folder, name, sequence_index, &summary.warnings)) {
+        summary.processes.push_back(name);
+        ++sequence_index;
+      }
+    }
+    if (!out.Close()) {
+      summary.End(solvers::core::Termination::kFailure, out.error());
+      return summary;
+    }
   } catch (const std::exception& e) {
+    // No manifest, an unreadable result file: the writer, gone with its scope, left no file.
     summary.End(solvers::core::Termination::kInvalidInput, e.what());
-    return summary;
-  }
-  NexusWriter out(path, "photorig " PHOTORIG_VERSION, "entry", options.writer);
-  WriteEntry(out, run_directory, manifest, ReadBytes(fs::path(run_directory) / "manifest.json"));
-  WriteInstrument(out, manifest, &summary.warnings);
-  WritePositioners(out, manifest);
-  if (!WriteFrames(out, run_directory, manifest, &summary)) {
-    out.Abandon(summary.message);
-    return summary;
-  }
-  int sequence_index = 1;
-  for (const std::string& name : options.results) {
-    const fs::path folder = fs::path(run_directory) / "results" / name;
-    if (!fs::exists(folder / "report.json")) continue;
-    WriteProcess(out, folder, name, sequence_index++, &summary.warnings);
-    summary.processes.push_back(name);
-  }
-  if (!out.Close()) {
-    summary.End(solvers::core::Termination::kFailure, out.error());
     return summary;
   }
   summary.file_bytes = fs::file_size(path);

@@ -34,7 +34,7 @@ class NexusWriter {
   // (file_name, file_time, creator, HDF5_Version, default = `default_entry`).
   NexusWriter(const std::string& path, const std::string& creator, const std::string& default_entry,
               const NexusWriterOptions& options = {});
-  ~NexusWriter();  // closes the file if Close() was not called
+  ~NexusWriter();  // without Close() (an exception on the way), leaves no file
   NexusWriter(const NexusWriter&) = delete;
   NexusWriter& operator=(const NexusWriter&) = delete;
 
@@ -57,6 +57,7 @@ class NexusWriter {
   void Floats(const std::string& path, const float* values, const std::vector<std::uint64_t>& dims,
               const std::string& units = "");
   void Ints(const std::string& path, const std::vector<std::int64_t>& values, const std::string& units = "");
+  void Integer(const std::string& path, std::int64_t value);
 
   // A stack of `frames` uint16 images of `frame_dims` (rows, columns[,
   // channels]), chunked one frame per chunk; fill it with WriteFrame.
@@ -80,8 +81,9 @@ class NexusWriter {
   bool Failed(const std::string& what);  // records the first error; returns false
   void StringAttribute(const std::string& path, const std::string& name, bool scalar,
                        const std::vector<std::string>& values);
-  void Numbers(const std::string& path, std::int64_t type, const void* values, const std::vector<std::uint64_t>& dims,
-               const std::string& units);
+  // `file_type` is an HDF5 type id (hid_t): H5T_IEEE_F64LE, H5T_IEEE_F32LE or H5T_STD_I64LE.
+  void Numbers(const std::string& path, std::int64_t file_type, const void* values,
+               const std::vector<std::uint64_t>& dims, const std::string& units);
 
   std::string path_;
   NexusWriterOptions options_;
