@@ -154,9 +154,12 @@ TEST(Nexus, ATomographyRunExportsAndItsVolumeIsSolvedAgainBitForBit) {
   std::string recipe = ReadText(SourceDir() + "/config/recipes/tomography.yaml");
   recipe = std::regex_replace(recipe, std::regex("count: 64"), "count: 33");
   recipe = std::regex_replace(recipe, std::regex("step: 2.8125"), "step: 5.625");
+  recipe += "export: {nexus: true}\n";  // the file at capture time, asked for by the recipe
   const fs::path run = dir.path() / "run";
   ASSERT_EQ(Photorig("run " + dir.Write("tomo.yaml", recipe) + " --rig " + rig + " --out " + run.string(), dir).exit_code,
             0);
+  std::string findings;
+  EXPECT_EQ(CheckNexus(run / "run.nxs", run, &findings), 0) << findings;
   ExportAndCheck(dir, run, {"tomography"});
   ExpectSolvedAgainAlike(dir, (run / "results/tomography/report.json").string(), run / "results/tomography",
                          dir.path() / "again", {"volume.nrrd", "geometry.json"});
