@@ -38,6 +38,11 @@ packages=(
   chromium chromium-driver python3-selenium
   # ... which reads the canvases back as PNG (Pillow) and compares them with numpy
   python3-pil
+  # NeXus export: the HDF5 C library (daemon/src/io/nexus.cpp)
+  libhdf5-dev
+  # ... and its test: h5py and OpenCV read the file and the frames back, nexus-tools' nxdir and
+  # nxsummary are an independent reader (tests/daemon/check_nexus.py)
+  python3-h5py python3-opencv nexus-tools
   # fuzzers: libFuzzer, the sanitizer runtimes and clang's OpenMP (scripts/fuzz.sh)
   clang libclang-rt-14-dev libomp-14-dev
   # batch solves on Slurm: the tests start a single-node cluster (tests/slurm/slurm-node.sh, docs/scaling.md)

@@ -35,12 +35,14 @@ CLI::App* SubcommandGroup(CLI::App& app, const std::string& name, const std::str
 
 namespace {
 
-// Every command takes --json (command_output.h); a group ("solve") does not,
-// and a command that declares its own keeps it.
+// Every command takes --json (command_output.h), and so does a group that
+// runs without a subcommand (`solve --from`); other groups do not, and a
+// command that declares its own keeps it.
 void AddJsonFlag(CLI::App* app, bool* json_output) {
   const auto subcommands = app->get_subcommands(std::function<bool(CLI::App*)>([](CLI::App*) { return true; }));
   for (CLI::App* sub : subcommands) AddJsonFlag(sub, json_output);
-  if (subcommands.empty() && app->get_parent() != nullptr && app->get_option_no_throw("--json") == nullptr)
+  const bool runs = subcommands.empty() || app->get_require_subcommand_min() == 0;
+  if (runs && app->get_parent() != nullptr && app->get_option_no_throw("--json") == nullptr)
     app->add_flag("--json", *json_output, "print one JSON document on stdout (docs/cli.md); text goes to stderr");
 }
 
@@ -97,8 +99,10 @@ int main(int argc, char** argv) {
   QuietLibraryLogging(argv[0]);
   InstallStopHandlers();
   try {
+    // The innermost command parsed runs: `solve ps`, not the `solve` group around it.
     for (const auto& runner : runners)
-      if (runner.subcommand->parsed()) return internal::EndCommand(runner.run(), "failed");
+      if (runner.subcommand->parsed() && runner.subcommand->get_subcommands().empty())
+        return internal::EndCommand(runner.run(), "failed");
   } catch (const photorig::config::ConfigError& e) {
     return internal::EndCommand(Fail(kExitUsage, std::string("configuration error: ") + e.what()), "");
   } catch (const std::invalid_argument& e) {

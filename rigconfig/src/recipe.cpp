@@ -345,7 +345,7 @@ void CheckAdaptivePlan(const Recipe& recipe, const RigConfig& rig) {
 }
 
 Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfig& rig) {
-  root.ExpectKeys({"recipe", "sample", "capture", "solve"});
+  root.ExpectKeys({"recipe", "sample", "capture", "solve", "export"});
   Recipe recipe;
   recipe.path = path;
 
@@ -390,6 +390,10 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
       else stage.Fail("unknown solver '" + keys[0] +
                       "' (expected photometric_stereo, light_calibration, tomography, svbrdf or brdf)");
     }
+  }
+  if (auto exporting = root.Find("export")) {
+    exporting->ExpectKeys({"nexus"});
+    recipe.export_nexus = exporting->Bool("nexus", false);
   }
   return recipe;
 }

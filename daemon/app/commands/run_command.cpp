@@ -1,4 +1,4 @@
-// photorig run RECIPE [--rig FILE] [--out DIR] [--no-solve]
+// photorig run RECIPE [--rig FILE] [--out DIR] [--no-solve] [--nexus]
 
 #include "../command.h"
 #include "../command_output.h"
@@ -17,6 +17,7 @@ namespace {
 struct Options {
   std::string recipe, rig, out;
   bool no_solve = false;
+  bool nexus = false;  // RunRequest::nexus
 };
 
 nlohmann::json CaptureJson(const daemon::CaptureReport& capture) {
@@ -33,6 +34,7 @@ int Execute(const Options& options) {
   request.rig_path = options.rig;
   request.output_directory = options.out;
   request.solve = !options.no_solve;
+  request.nexus = options.nexus;
   request.on_frame = [&progress](const config::CaptureStep& step, const daemon::FrameRecord&, int frames, int total) {
     progress.Update("captured", frames, total, step.label);
   };
@@ -61,6 +63,12 @@ int Execute(const Options& options) {
   std::printf("capture: %s, %d/%d frames, %.0f ms%s%s\n", daemon::CaptureStatusName(outcome.capture.status),
               outcome.capture.frames_written, outcome.capture.steps_total, outcome.capture.elapsed_ms,
               outcome.capture.reason.empty() ? "" : ": ", outcome.capture.reason.c_str());
+  if (outcome.nexus) {
+    for (const std::string& warning : outcome.nexus->warnings) std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    ResultFields()["nexus"] = outcome.nexus->ToJson();
+    if (!outcome.nexus->IsSolutionUsable()) return Fail(kExitFailed, "the NeXus export failed: " + outcome.nexus->message);
+    std::printf("%s\n", outcome.nexus->Line().c_str());
+  }
   if (outcome.capture.status == daemon::CaptureStatus::kAborted)
     return Fail(kExitInterrupted, "capture aborted: " + outcome.capture.reason);
   if (outcome.capture.status != daemon::CaptureStatus::kComplete)
@@ -134,6 +142,7 @@ CommandRunner Setup(CLI::App& app) {
   sub->add_option("--rig", options->rig, "rig YAML (default: the rig the recipe names)")->check(CLI::ExistingFile);
   sub->add_option("--out", options->out, "run directory to create (default: runs/<recipe>-<UTC time>)");
   sub->add_flag("--no-solve", options->no_solve, "capture only");
+  sub->add_flag("--nexus", options->nexus, "write the run and its solves as RUN/run.nxs when they end, as the recipe's export: {nexus: true} does (docs/nexus.md)");
   return {sub, [options] { return Execute(*options); }};
 }
 

@@ -1,4 +1,5 @@
 #include "photorig/daemon/pipelines/brdf_solve.h"
+#include "photorig/daemon/pipelines/provenance.h"
 
 #include "photorig/daemon/pipelines/internal/brdf_report.h"
 #include "photorig/daemon/pipelines/internal/results_folder.h"
@@ -86,7 +87,11 @@ BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const BrdfRequest&
   result.capture = CheckCaptureForSolve(run_dir, manifest, failed);
   result.measurement = MeasureBrdf(run_dir, manifest, measuring);
   const BrdfMeasurement& m = result.measurement;
-  result.report = {{"run", run_dir}, {"capture", result.capture->ToJson()}};
+  result.report = {{"run", run_dir},
+                   {"capture", result.capture->ToJson()},
+                   {"provenance", MakeProvenance("brdf", run_dir, RequestJson(request),
+                                                 {{"accept_failed_capture", failed == FailedCapture::kAccept}})
+                                      .ToJson()}};
   if (!m.IsSolutionUsable()) {
     result.total_ms = timer.ElapsedMs();
     return result;

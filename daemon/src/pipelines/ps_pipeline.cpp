@@ -225,6 +225,9 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   PhotometricStereoInput input;
   input.source = run_directory;
   input.capture = CheckCaptureForSolve(run_directory, manifest, failed);
+  input.loading = {{"demosaic", solvers::color::DemosaicMethodName(color.demosaic)},
+                   {"color_model", color.color_model_path},
+                   {"accept_failed_capture", failed == FailedCapture::kAccept}};
   RequirePhotometricStereoRun(run_directory, manifest);
   solvers::ps::PhotometricStack& stack = input.stack;
   // Samples at the clipping level are dropped per pixel; a sensor whose full
@@ -330,6 +333,7 @@ void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* inpu
                                           "x" + std::to_string(images.height));
   input->object_mask = mask != 0;
   input->mask_source = path;
+  input->loading["mask"] = std::filesystem::absolute(path).string();
 }
 
 cv::Mat AutomaticObjectMask(const solvers::ps::PhotometricStack& stack, double sigmas) {
@@ -413,6 +417,7 @@ json ToJson(const PhotometricStereoResult& result) {
   }
   if (lights.predicted_view_bias_deg) report["camera_model"]["predicted_view_bias_deg"] = *lights.predicted_view_bias_deg;
   if (result.capture) report["capture"] = result.capture->ToJson();
+  report["provenance"] = result.provenance.ToJson();
   if (result.mean_confidence) report["mean_confidence"] = *result.mean_confidence;
   if (!result.previews.is_null()) report["previews"] = result.previews;
   if (result.depth) {
@@ -591,6 +596,7 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   result.source = input.source;
   result.camera = CameraOf(input);
   result.capture = input.capture;
+  result.provenance = MakeProvenance("photometric_stereo", input.source, RequestJson(request), input.loading);
   result.dark_frames = input.dark_frames;
   result.noise_sigma_dn = stack.noise.read_sigma;
   result.saturation_level = saturation;

@@ -200,6 +200,7 @@ TomographyInput LoadTomographyRun(const std::string& run_directory, FailedCaptur
   TomographyInput input;
   input.source = run_directory;
   input.capture = CheckCaptureForSolve(run_directory, manifest, failed);
+  input.loading = {{"accept_failed_capture", failed == FailedCapture::kAccept}};
   std::vector<double> angles_deg;
   for (const FrameRecord& record : manifest.frames) {
     if (record.kind == config::CaptureStep::Kind::kDark) {
@@ -296,6 +297,7 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
   if (std::string why; !request.IsValid(&why)) throw std::invalid_argument(why);
   TomographyResult result;
   result.capture = input.capture;
+  result.provenance = MakeProvenance("tomography", input.source, RequestJson(request), input.loading);
   result.geometry = input.geometry;
   if (request.cor_offset_mm) result.geometry.cor_offset_mm += *request.cor_offset_mm;
   const solvers::tomography::Geometry& g = result.geometry;
@@ -465,6 +467,7 @@ json TomographyResult::ToJson() const {
     doc["ring_filter"] = {{"stripes", ring_filter->stripes}, {"max_offset", ring_filter->max_offset}, {"ms", ring_filter->total_ms}};
   if (relative_error_vs_truth) doc["relative_error_vs_truth"] = *relative_error_vs_truth;
   if (capture) doc["capture"] = capture->ToJson();
+  doc["provenance"] = provenance.ToJson();
   return doc;
 }
 

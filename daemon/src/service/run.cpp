@@ -187,6 +187,11 @@ RunOutcome ExecuteRun(const RunRequest& request) {
                outcome.capture.reason);
 
   if (request.solve && outcome.capture.status == CaptureStatus::kComplete) SolveStages(request, recipe, rig, &outcome);
+  if (request.nexus || recipe.export_nexus) {
+    outcome.nexus = ExportNexus(outcome.directory, (fs::path(outcome.directory) / "run.nxs").string());
+    if (outcome.nexus->IsSolutionUsable()) spdlog::info("run {}: {}", header.run_id, outcome.nexus->Line());
+    else spdlog::error("run {}: the NeXus export failed: {}", header.run_id, outcome.nexus->message);
+  }
   return outcome;
 }
 

@@ -92,6 +92,9 @@ struct Recipe {
   // `solve: {executor: ..., stages: [...]}` overrides it (keys it leaves out
   // keep the rig's values).
   SolveExecutorConfig solve_executor;
+  // `export: {nexus: true}`: the run and its solves are also written as
+  // RUN/run.nxs when they end (docs/nexus.md). Default off.
+  bool export_nexus = false;
 };
 
 struct CaptureStep {

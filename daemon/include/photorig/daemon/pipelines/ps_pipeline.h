@@ -16,6 +16,7 @@
 #include "photorig/config/recipe.h"
 #include "photorig/config/solve_requests.h"
 #include "photorig/daemon/capture/run_store.h"
+#include "photorig/daemon/pipelines/provenance.h"
 #include "photorig/solvers/camera/camera.h"
 #include "photorig/solvers/ps/evaluation.h"
 #include "photorig/solvers/ps/fill_unresolved.h"
@@ -60,6 +61,10 @@ struct PhotometricStereoInput {
   cv::Mat truth_material;    // optional CV_8U material (paint) per pixel, 255 off the object
   // A run's capture verdict (CheckCaptureForSolve); unset for a dataset folder.
   std::optional<CaptureVerdict> capture;
+  // How the frames were read, for the result's provenance (provenance.h):
+  // "demosaic", "color_model", "accept_failed_capture", and "mask" once a
+  // mask file is set.
+  nlohmann::json loading = nlohmann::json::object();
 };
 
 // Replaces the input's object mask with a PNG file (nonzero = object). Throws
@@ -156,6 +161,7 @@ struct PhotometricStereoResult {
   };
   std::optional<ColorErrors> albedo_ciede2000_vs_truth;
   std::optional<CaptureVerdict> capture;  // PhotometricStereoInput::capture
+  Provenance provenance;                   // the request and the input it was solved from
   std::string mask_source;         // "" when every pixel was solved for
   int mask_pixels = 0;             // pixels inside the mask
   nlohmann::json previews;         // file name -> its mapping (previews.h), when usable

@@ -16,6 +16,7 @@
 // projection in the same order); any order, repeats and any range are taken.
 
 #include "photorig/daemon/capture/run_store.h"
+#include "photorig/daemon/pipelines/provenance.h"
 #include "photorig/config/solve_requests.h"
 #include "photorig/solvers/tomography/absorbance.h"
 #include "photorig/solvers/tomography/center_of_rotation.h"
@@ -48,6 +49,8 @@ struct TomographyInput {
   std::shared_ptr<const sim::Phantom> phantom;
   // A run's capture verdict (CheckCaptureForSolve); unset for a projection folder.
   std::optional<CaptureVerdict> capture;
+  // How the frames were read, for the result's provenance: "accept_failed_capture".
+  nlohmann::json loading = nlohmann::json::object();
 };
 
 // Both throw std::invalid_argument naming what is missing or inconsistent
@@ -97,6 +100,7 @@ struct TomographyResult {
   // the cylinder every view sees (radius: half the detector width).
   std::optional<double> relative_error_vs_truth;
   std::optional<CaptureVerdict> capture;  // TomographyInput::capture
+  Provenance provenance;                   // the request and the input it was solved from
   double absorbance_ms = 0.0, total_ms = 0.0;  // the centre's estimate and the held-out solve in their summaries
 
   // kSuccess only: a stopping rule ended it within the noise (the

@@ -3,6 +3,7 @@
 // rig's devices into a run directory, then run the recipe's solvers on it.
 // Shared by the `photorig` CLI and the `photorigd` daemon.
 
+#include "photorig/daemon/pipelines/nexus_export.h"
 #include "photorig/daemon/pipelines/solve_stage.h"
 #include "photorig/daemon/service/run_request.h"
 
@@ -25,6 +26,7 @@ struct RunOutcome : SolveResults {
   // the run directory's adaptive_passes.json); empty without one.
   std::vector<AdaptivePassReport> adaptive_passes;
   std::vector<SolveStageReport> solve_stages;  // in the order they ran
+  std::optional<NexusExportSummary> nexus;     // when asked for: RUN/run.nxs
 };
 
 // What a run's manifest takes from the rig: camera geometry and response,

@@ -19,6 +19,9 @@ struct RunRequest {
   std::string rig_path;       // empty: the rig the recipe names
   std::string output_directory;  // empty: runs/<recipe>-<UTC timestamp>
   bool solve = true;
+  // Also write RUN/run.nxs when the capture and its solves end (`run --nexus`;
+  // the recipe's `export: {nexus: true}` asks for it too).
+  bool nexus = false;
   // Reopen the interrupted run in output_directory and capture only the steps
   // it lacks (see RunWriter::Reopen) instead of creating a new run.
   bool resume = false;
