@@ -38,7 +38,8 @@ json RequestJson(const config::PhotometricStereoRequest& request) {
           {"derivative", NameOf(solvers::ps::kBlinnPhongDerivativeNames, request.derivative)},
           {"integrator", config::IntegratorChoiceName(request.integrator)},
           {"assume_distant", request.assume_distant},
-          {"max_distant_bias_deg", request.max_distant_bias_deg}};
+          {"max_distant_bias_deg", request.max_distant_bias_deg},
+          {"fill_unresolved", request.fill_unresolved}};
 }
 
 json RequestJson(const config::TomographyRequest& request) {
