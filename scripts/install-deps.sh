@@ -38,6 +38,9 @@ packages=(
   chromium chromium-driver python3-selenium
   # ... which reads the canvases back as PNG (Pillow) and compares them with numpy
   python3-pil
+  # `import photorig` (python/): pybind11 for the module, and its tests and benchmark under
+  # pytest compare with frames read by OpenCV's own Python binding (tests/python, bench/python)
+  pybind11-dev python3-pybind11 python3-dev python3-pytest python3-opencv
   # fuzzers: libFuzzer, the sanitizer runtimes and clang's OpenMP (scripts/fuzz.sh)
   clang libclang-rt-14-dev libomp-14-dev
   # batch solves on Slurm: the tests start a single-node cluster (tests/slurm/slurm-node.sh, docs/scaling.md)
