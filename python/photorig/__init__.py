@@ -3,7 +3,7 @@
 See docs/python.md for a tour.
 """
 
-from ._photorig import Run, open_run, solve_ps, solve_tomography
+from ._photorig import Run, open_run, run_recipe, solve_ps, solve_tomography
 from .client import Daemon, DaemonError
 
-__all__ = ["Daemon", "DaemonError", "Run", "open_run", "solve_ps", "solve_tomography"]
+__all__ = ["Daemon", "DaemonError", "Run", "open_run", "run_recipe", "solve_ps", "solve_tomography"]

@@ -8,5 +8,6 @@ namespace photorig::python {
 void BindRun(pybind11::module_& m);  // open_run, Run
 void BindPs(pybind11::module_& m);   // solve_ps
 void BindTomography(pybind11::module_& m);  // solve_tomography
+void BindCapture(pybind11::module_& m);     // run_recipe
 
 }  // namespace photorig::python

@@ -7,4 +7,5 @@ PYBIND11_MODULE(_photorig, m) {
   photorig::python::BindRun(m);
   photorig::python::BindPs(m);
   photorig::python::BindTomography(m);
+  photorig::python::BindCapture(m);
 }

@@ -19,13 +19,6 @@ struct Options {
   bool no_solve = false;
 };
 
-nlohmann::json CaptureJson(const daemon::CaptureReport& capture) {
-  return {{"status", daemon::CaptureStatusName(capture.status)}, {"reason", capture.reason},
-          {"frames_written", capture.frames_written},               {"steps_total", capture.steps_total},
-          {"retries", capture.retries},                              {"dropped_frames", capture.dropped_frames},
-          {"elapsed_ms", capture.elapsed_ms}};
-}
-
 int Execute(const Options& options) {
   ProgressDisplay progress;
   daemon::RunRequest request;
@@ -47,7 +40,7 @@ int Execute(const Options& options) {
   const daemon::RunOutcome outcome = daemon::ExecuteRun(request);
   progress.EndLine();
   ResultFields()["run_directory"] = outcome.directory;
-  ResultFields()["capture"] = CaptureJson(outcome.capture);
+  ResultFields()["capture"] = daemon::ToJson(outcome.capture);
   if (!outcome.adaptive_passes.empty()) {
     nlohmann::json passes = nlohmann::json::array();
     for (const daemon::AdaptivePassReport& pass : outcome.adaptive_passes) {
