@@ -14,15 +14,14 @@ def test_same_run_as_the_cli(demo_run, tmp_path):
                                   progress=lambda stage, done, total: heard.append((stage, done, total)))
     assert outcome["capture"]["status"] == "complete" and outcome["capture"]["frames_written"] == 49
     assert [s["stage"] for s in outcome["solve_stages"]] == ["photometric_stereo"]
-    assert outcome["solve_stages"][0]["usable"]
+    assert outcome["solve_stages"][0]["ok"] and outcome["solve_stages"][0]["results"] == "results/ps"
     captured = [done for stage, done, _ in heard if stage == "capture"]
     assert captured == list(range(1, 50))
     ours, cli = photorig.open_run(outcome["directory"]), photorig.open_run(str(demo_run))
     np.testing.assert_array_equal(ours.frames(), cli.frames())
-    for name in ["normals", "albedo"]:
-        np.testing.assert_array_equal(
-            cv2.imread(str(tmp_path / "run/results/ps" / f"{name}.tiff"), cv2.IMREAD_UNCHANGED),
-            cv2.imread(str(demo_run / "results/ps" / f"{name}.tiff"), cv2.IMREAD_UNCHANGED))
+    for name in ["normals.tiff", "albedo.tiff", "depth.tiff"]:  # compared as stored, channel order alike
+        np.testing.assert_array_equal(cv2.imread(str(tmp_path / "run/results/ps" / name), cv2.IMREAD_UNCHANGED),
+                                      cv2.imread(str(demo_run / "results/ps" / name), cv2.IMREAD_UNCHANGED))
 
 
 def test_bad_recipe_raises(tmp_path):

@@ -10,7 +10,9 @@ import photorig
 
 
 def read_tiff(path):
-    return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    """A float TIFF as the pipeline wrote it: three channels in the file's R, G, B order (x, y, z)."""
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    return image[..., ::-1] if image.ndim == 3 else image
 
 
 @pytest.mark.parametrize("method", ["auto", "lambertian"])
