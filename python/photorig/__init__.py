@@ -3,7 +3,10 @@
 See docs/python.md for a tour.
 """
 
-from ._photorig import Run, open_run, run_recipe, solve_ps, solve_tomography
+from ._photorig import Run, eval_brdf, open_run, read_merl, run_recipe, solve_ps, solve_tomography, write_merl
 from .client import Daemon, DaemonError
 
-__all__ = ["Daemon", "DaemonError", "Run", "open_run", "run_recipe", "solve_ps", "solve_tomography"]
+__all__ = [
+    "Daemon", "DaemonError", "Run", "eval_brdf", "open_run", "read_merl", "run_recipe", "solve_ps",
+    "solve_tomography", "write_merl",
+]

@@ -9,5 +9,6 @@ void BindRun(pybind11::module_& m);  // open_run, Run
 void BindPs(pybind11::module_& m);   // solve_ps
 void BindTomography(pybind11::module_& m);  // solve_tomography
 void BindCapture(pybind11::module_& m);     // run_recipe
+void BindBrdf(pybind11::module_& m);        // read_merl, write_merl, eval_brdf
 
 }  // namespace photorig::python

@@ -8,4 +8,5 @@ PYBIND11_MODULE(_photorig, m) {
   photorig::python::BindPs(m);
   photorig::python::BindTomography(m);
   photorig::python::BindCapture(m);
+  photorig::python::BindBrdf(m);
 }
