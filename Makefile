@@ -17,9 +17,13 @@ configure:
 build: configure
 	cmake --build $(BUILD_DIR) -j $(JOBS)
 
+# What the demo runs: the CLI, and the Python module (docs/python.md) to explore its run.
+DEMO_TARGETS ?= photorig photorig_python
+
 # The main job: capture the sphere recipe on the simulated dome and reconstruct its normals.
-demo: deps
-	$(MAKE) build
+# Builds only the demo's targets; `make build` (and `make test`) build everything.
+demo: deps configure
+	cmake --build $(BUILD_DIR) -j $(JOBS) --target $(DEMO_TARGETS)
 	rm -rf runs/demo
 	$(BUILD_DIR)/bin/photorig run config/recipes/ps-sphere.yaml --out runs/demo
 

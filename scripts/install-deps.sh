@@ -43,6 +43,9 @@ packages=(
   # ... and its test: h5py and OpenCV read the file and the frames back, nexus-tools' nxdir and
   # nxsummary are an independent reader (tests/daemon/check_nexus.py)
   python3-h5py python3-opencv nexus-tools
+  # `import photorig` (python/): pybind11 for the module, and its tests and benchmark under
+  # pytest compare with frames read by OpenCV's own Python binding (tests/python, bench/python)
+  pybind11-dev python3-pybind11 python3-dev python3-pytest
   # fuzzers: libFuzzer, the sanitizer runtimes and clang's OpenMP (scripts/fuzz.sh)
   clang libclang-rt-14-dev libomp-14-dev
   # batch solves on Slurm: the tests start a single-node cluster (tests/slurm/slurm-node.sh, docs/scaling.md)

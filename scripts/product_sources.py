@@ -1,12 +1,12 @@
 """The product code's C++ files, for the tree checks (check-include-structure.py,
 check-typed-names.py): the headers and sources git tracks under solvers/,
-daemon/, rigconfig/, sim/ and drivers/ of the tree given as the first argument
+daemon/, rigconfig/, sim/, drivers/ and python/ of the tree given as the first argument
 (default: this script's tree), which becomes the working directory."""
 import os
 import subprocess
 import sys
 
-PRODUCT_FOLDERS = ("solvers", "daemon", "rigconfig", "sim", "drivers")
+PRODUCT_FOLDERS = ("solvers", "daemon", "rigconfig", "sim", "drivers", "python")
 
 
 def product_sources():

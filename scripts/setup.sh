@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One command from a fresh Debian 12 machine (nothing but bash and apt):
-#   scripts/setup.sh demo   installs packages, builds, captures and solves the demo recipe
-#   scripts/setup.sh test   installs packages, builds, runs every test
+#   scripts/setup.sh demo   installs packages, builds what the demo runs (photorig and the
+#                           Python module), captures and solves the demo recipe
+#   scripts/setup.sh test   installs packages, builds everything, runs every test
 set -euo pipefail
 cd "$(dirname "$0")/.."
 case "${1:-}" in

@@ -20,13 +20,6 @@ struct Options {
   bool nexus = false;  // RunRequest::nexus
 };
 
-nlohmann::json CaptureJson(const daemon::CaptureReport& capture) {
-  return {{"status", daemon::CaptureStatusName(capture.status)}, {"reason", capture.reason},
-          {"frames_written", capture.frames_written},               {"steps_total", capture.steps_total},
-          {"retries", capture.retries},                              {"dropped_frames", capture.dropped_frames},
-          {"elapsed_ms", capture.elapsed_ms}};
-}
-
 int Execute(const Options& options) {
   ProgressDisplay progress;
   daemon::RunRequest request;
@@ -49,7 +42,7 @@ int Execute(const Options& options) {
   const daemon::RunOutcome outcome = daemon::ExecuteRun(request);
   progress.EndLine();
   ResultFields()["run_directory"] = outcome.directory;
-  ResultFields()["capture"] = CaptureJson(outcome.capture);
+  ResultFields()["capture"] = daemon::ToJson(outcome.capture);
   if (!outcome.adaptive_passes.empty()) {
     nlohmann::json passes = nlohmann::json::array();
     for (const daemon::AdaptivePassReport& pass : outcome.adaptive_passes) {

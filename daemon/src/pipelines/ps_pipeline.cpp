@@ -570,9 +570,8 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
 
 }  // namespace
 
-PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
-                                      const std::string& output_directory, const std::function<void()>& before_commit) {
-  const auto start = std::chrono::steady_clock::now();
+PhotometricStereoResult SolveToMaps(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
+                                    PhotometricStereoMaps* maps) {
   if (std::string why; !request.IsValid(&why)) throw std::invalid_argument(why);
   solvers::ps::PhotometricStack stack = input.stack;
   PhotometricStereoResult result;
@@ -590,7 +589,8 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   const double saturation = EffectiveSaturationLevel(input);
   const solvers::ps::PhotometricStereoOptions options = MakeSolverOptions(request, saturation);
 
-  solvers::ps::NormalMap map;
+  *maps = PhotometricStereoMaps();
+  solvers::ps::NormalMap& map = maps->map;
   cv::Mat near_height_mm;
   result.summary = SolveNormals(input, request, options, stack, &map, &result.light_model, &near_height_mm);
   result.source = input.source;
@@ -600,107 +600,122 @@ PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const
   result.dark_frames = input.dark_frames;
   result.noise_sigma_dn = stack.noise.read_sigma;
   result.saturation_level = saturation;
+  if (!result.usable()) return result;
 
-  ResultsFolder folder(output_directory);
-  const fs::path out(folder.path());
-  try {  // a write that fails (a full disk) leaves no partial folder and says what to do
-    if (result.usable()) {
-      const cv::Mat solved = map.flags == static_cast<int>(solvers::ps::PixelFlag::kSolved);
-      result.mean_confidence = cv::mean(map.confidence, solved)[0];
-      if (request.fill_unresolved) result.fill = solvers::ps::FillUnresolvedNormals({}, &map);
-      const cv::Mat filled = map.flags == static_cast<int>(solvers::ps::PixelFlag::kFilled);
-      const cv::Mat with_normal = solved | filled;  // what depth and the mesh are made of
-      WriteFloatTiff((out / "normals.tiff").string(), map.normals);
-      cv::Mat albedo_rgb;  // colour data: per-channel albedo with the normals fixed
-      if (input.color) {
-        albedo_rgb = SolveColorAlbedo(*input.color, map.normals, request.shadow_threshold_sigma, &result);
-        WriteFloatTiff((out / "albedo.tiff").string(), albedo_rgb);
-      } else {
-        WriteFloatTiff((out / "albedo.tiff").string(), map.albedo);
-      }
-      WriteFloatTiff((out / "confidence.tiff").string(), map.confidence);
-      cv::Mat specular;
-      cv::Mat channels[] = {cv::Mat(), cv::Mat(), cv::Mat::zeros(map.specular.size(), CV_32F)};
-      cv::split(map.specular, channels);
-      cv::merge(channels, 3, specular);
-      WriteFloatTiff((out / "specular.tiff").string(), specular);
-
-      cv::Mat depth;  // stays empty unless integrated
-      if (request.integrator) {
-        const solvers::camera::Camera camera = CameraOf(input);
-        // Undistorting every pixel is worth doing once: integration and mesh share the rays.
-        const std::optional<solvers::camera::PixelRays> rays =
-            camera.IsPinhole() ? std::optional(solvers::camera::PixelRays(camera)) : std::nullopt;
-        PhotometricStereoDepth& integrated = result.depth.emplace();
-        integrated.integrator = *request.integrator;
-        integrated.pixel_pitch = input.pixel_pitch;
-        integrated.perspective = camera.IsPinhole();
-        solvers::ps::IntegrationOptions integration;
-        integration.integrator = *request.integrator;
-        integration.pixel_pitch = input.pixel_pitch;
-        if (!near_height_mm.empty()) {
-          // The near-light rounds ended on a surface placed where the model fits
-          // best: its heights are absolute, which integrating again would lose.
-          integrated.from_near_lights = true;
-          depth = near_height_mm;
-          integrated.summary.pixels = static_cast<std::size_t>(cv::countNonZero(depth == depth));
-          integrated.summary.End(solvers::core::Termination::kSuccess, "the near-light solve's surface");
-        } else if (camera.IsPinhole()) {
-          integrated.summary =
-              solvers::ps::IntegrateNormalsPerspective(integration, *rays, map.normals, with_normal, &depth);
-        } else {
-          integrated.summary = solvers::ps::IntegrateNormals(integration, map.normals, with_normal, &depth);
-        }
-        if (integrated.summary.IsSolutionUsable()) {
-          WriteFloatTiff((out / "depth.tiff").string(), depth);
-          if (rays)
-            WriteDepthMeshPly((out / "mesh.ply").string(), depth, *rays);
-          else
-            WriteDepthMeshPly((out / "mesh.ply").string(), depth, input.pixel_pitch);
-          if (!input.truth_height.empty()) integrated.rms_error_vs_truth = DepthErrorVsTruth(depth, input.truth_height);
-        } else {
-          depth.release();
-        }
-      }
-      result.previews = WritePhotometricStereoPreviews(map, solved, depth, folder.path());
-      if (!albedo_rgb.empty()) {
-        const bool calibrated = result.color->color_space == "linear-srgb";
-        // Calibrated albedo is absolute: 1 is a perfect white. Camera RGB and
-        // DiLiGenT's DN are not, so they map from their own 99.5th percentile.
-        const double top = calibrated ? 1.0 : std::max(1e-12, PercentileOverMask(albedo_rgb.reshape(1, albedo_rgb.rows * albedo_rgb.cols * 3),
-                                                                                   RepeatMask3(solved), 99.5));
-        WriteImage((out / "albedo.png").string(), ColorAlbedoPreview(albedo_rgb, solved, top));
-        result.previews["albedo.png"] = {{"low", 0.0},
-                                         {"high", top},
-                                         {"scale", "linear " + std::string(calibrated ? "sRGB" : "camera RGB") + " 0.." +
-                                                       std::to_string(top) + " -> sRGB-encoded 0..255 per channel"}};
-        if (!calibrated) result.previews["albedo.png"]["percentile"] = 99.5;
-      }
-
-      cv::Mat error_deg;
-      const solvers::ps::AngularErrorStats vs_truth =
-          input.truth_normals.empty() ? solvers::ps::AngularErrorStats{}
-                                      : solvers::ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &error_deg);
-      if (!input.truth_normals.empty() && !vs_truth.IsSolutionUsable()) {
-        spdlog::warn("{}: ground-truth normals not compared: {}", input.source, vs_truth.message);
-      } else if (!input.truth_normals.empty()) {  // compared: error map and figures
-        result.normals_vs_truth = vs_truth;
-        if (cv::countNonZero(filled) > 0)
-          result.filled_vs_truth = solvers::ps::CompareNormals(map.normals, input.truth_normals, filled);
-        WriteFloatTiff((out / "angular_error.tiff").string(), error_deg);
-        if (!albedo_rgb.empty() && !input.truth_albedo_rgb.empty()) {
-          result.albedo_ciede2000_vs_truth = CompareColorAlbedo(albedo_rgb, input.truth_albedo_rgb, solved);
-        } else if (!input.truth_albedo.empty() && albedo_rgb.empty()) {
-          cv::Mat relative;
-          cv::absdiff(map.albedo, input.truth_albedo, relative);
-          relative /= input.truth_albedo;
-          cv::patchNaNs(relative, 0.0);
-          result.mean_relative_albedo_error = cv::mean(relative, solved)[0];
-        }
-      }
+  const cv::Mat solved = map.flags == static_cast<int>(solvers::ps::PixelFlag::kSolved);
+  result.mean_confidence = cv::mean(map.confidence, solved)[0];
+  if (request.fill_unresolved) result.fill = solvers::ps::FillUnresolvedNormals({}, &map);
+  const cv::Mat filled = map.flags == static_cast<int>(solvers::ps::PixelFlag::kFilled);
+  const cv::Mat with_normal = solved | filled;  // what depth and the mesh are made of
+  // Colour data: per-channel albedo with the normals fixed.
+  if (input.color) maps->albedo_rgb = SolveColorAlbedo(*input.color, map.normals, request.shadow_threshold_sigma, &result);
+  if (request.integrator) {
+    const solvers::camera::Camera camera = result.camera;
+    // Undistorting every pixel is worth doing once: integration and mesh share the rays.
+    if (camera.IsPinhole()) maps->rays.emplace(camera);
+    PhotometricStereoDepth& integrated = result.depth.emplace();
+    integrated.integrator = *request.integrator;
+    integrated.pixel_pitch = input.pixel_pitch;
+    integrated.perspective = camera.IsPinhole();
+    solvers::ps::IntegrationOptions integration;
+    integration.integrator = *request.integrator;
+    integration.pixel_pitch = input.pixel_pitch;
+    cv::Mat& depth = maps->depth;
+    if (!near_height_mm.empty()) {
+      // The near-light rounds ended on a surface placed where the model fits
+      // best: its heights are absolute, which integrating again would lose.
+      integrated.from_near_lights = true;
+      depth = near_height_mm;
+      integrated.summary.pixels = static_cast<std::size_t>(cv::countNonZero(depth == depth));
+      integrated.summary.End(solvers::core::Termination::kSuccess, "the near-light solve's surface");
+    } else if (camera.IsPinhole()) {
+      integrated.summary =
+          solvers::ps::IntegrateNormalsPerspective(integration, *maps->rays, map.normals, with_normal, &depth);
+    } else {
+      integrated.summary = solvers::ps::IntegrateNormals(integration, map.normals, with_normal, &depth);
     }
+    if (integrated.summary.IsSolutionUsable()) {
+      if (!input.truth_height.empty()) integrated.rms_error_vs_truth = DepthErrorVsTruth(depth, input.truth_height);
+    } else {
+      depth.release();
+    }
+  }
+
+  if (input.truth_normals.empty()) return result;
+  const solvers::ps::AngularErrorStats vs_truth =
+      solvers::ps::CompareNormals(map.normals, input.truth_normals, stack.mask, &maps->angular_error_deg);
+  if (!vs_truth.IsSolutionUsable()) {
+    spdlog::warn("{}: ground-truth normals not compared: {}", input.source, vs_truth.message);
+    maps->angular_error_deg.release();
+    return result;
+  }
+  result.normals_vs_truth = vs_truth;
+  if (cv::countNonZero(filled) > 0)
+    result.filled_vs_truth = solvers::ps::CompareNormals(map.normals, input.truth_normals, filled);
+  if (!maps->albedo_rgb.empty() && !input.truth_albedo_rgb.empty()) {
+    result.albedo_ciede2000_vs_truth = CompareColorAlbedo(maps->albedo_rgb, input.truth_albedo_rgb, solved);
+  } else if (!input.truth_albedo.empty() && maps->albedo_rgb.empty()) {
+    cv::Mat relative;
+    cv::absdiff(map.albedo, input.truth_albedo, relative);
+    relative /= input.truth_albedo;
+    cv::patchNaNs(relative, 0.0);
+    result.mean_relative_albedo_error = cv::mean(relative, solved)[0];
+  }
+  return result;
+}
+
+namespace {
+
+// Every file of a usable solve but report.json; sets the result's previews.
+void WriteMaps(const PhotometricStereoInput& input, const PhotometricStereoMaps& maps, const fs::path& out,
+               PhotometricStereoResult* result) {
+  const solvers::ps::NormalMap& map = maps.map;
+  const cv::Mat solved = map.flags == static_cast<int>(solvers::ps::PixelFlag::kSolved);
+  WriteFloatTiff((out / "normals.tiff").string(), map.normals);
+  WriteFloatTiff((out / "albedo.tiff").string(), maps.albedo_rgb.empty() ? map.albedo : maps.albedo_rgb);
+  WriteFloatTiff((out / "confidence.tiff").string(), map.confidence);
+  cv::Mat specular;
+  cv::Mat channels[] = {cv::Mat(), cv::Mat(), cv::Mat::zeros(map.specular.size(), CV_32F)};
+  cv::split(map.specular, channels);
+  cv::merge(channels, 3, specular);
+  WriteFloatTiff((out / "specular.tiff").string(), specular);
+  if (!maps.depth.empty()) {
+    WriteFloatTiff((out / "depth.tiff").string(), maps.depth);
+    if (maps.rays)
+      WriteDepthMeshPly((out / "mesh.ply").string(), maps.depth, *maps.rays);
+    else
+      WriteDepthMeshPly((out / "mesh.ply").string(), maps.depth, input.pixel_pitch);
+  }
+  result->previews = WritePhotometricStereoPreviews(map, solved, maps.depth, out.string());
+  if (!maps.albedo_rgb.empty()) {
+    const bool calibrated = result->color->color_space == "linear-srgb";
+    // Calibrated albedo is absolute: 1 is a perfect white. Camera RGB and
+    // DiLiGenT's DN are not, so they map from their own 99.5th percentile.
+    const cv::Mat& albedo_rgb = maps.albedo_rgb;
+    const double top = calibrated ? 1.0 : std::max(1e-12, PercentileOverMask(albedo_rgb.reshape(1, albedo_rgb.rows * albedo_rgb.cols * 3),
+                                                                               RepeatMask3(solved), 99.5));
+    WriteImage((out / "albedo.png").string(), ColorAlbedoPreview(albedo_rgb, solved, top));
+    result->previews["albedo.png"] = {{"low", 0.0},
+                                      {"high", top},
+                                      {"scale", "linear " + std::string(calibrated ? "sRGB" : "camera RGB") + " 0.." +
+                                                    std::to_string(top) + " -> sRGB-encoded 0..255 per channel"}};
+    if (!calibrated) result->previews["albedo.png"]["percentile"] = 99.5;
+  }
+  if (!maps.angular_error_deg.empty()) WriteFloatTiff((out / "angular_error.tiff").string(), maps.angular_error_deg);
+}
+
+}  // namespace
+
+PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
+                                      const std::string& output_directory, const std::function<void()>& before_commit) {
+  const auto start = std::chrono::steady_clock::now();
+  PhotometricStereoMaps maps;
+  PhotometricStereoResult result = SolveToMaps(input, request, &maps);
+  ResultsFolder folder(output_directory);
+  try {  // a write that fails (a full disk) leaves no partial folder and says what to do
+    if (result.usable()) WriteMaps(input, maps, folder.path(), &result);
     result.total_ms = Ms(start);
-    WriteFileDurably((out / "report.json").string(), ToJson(result).dump(2) + "\n");
+    WriteFileDurably((fs::path(folder.path()) / "report.json").string(), ToJson(result).dump(2) + "\n");
   } catch (...) {
     folder.Abandon(std::current_exception());
   }

@@ -70,6 +70,13 @@ void SolveStages(const RunRequest& request, const config::Recipe& recipe, const 
 
 }  // namespace
 
+nlohmann::json ToJson(const CaptureReport& capture) {
+  return {{"status", CaptureStatusName(capture.status)}, {"reason", capture.reason},
+          {"frames_written", capture.frames_written},      {"steps_total", capture.steps_total},
+          {"retries", capture.retries},                     {"dropped_frames", capture.dropped_frames},
+          {"elapsed_ms", capture.elapsed_ms}};
+}
+
 RunManifest ManifestHeaderFor(const config::RigConfig& rig) {
   RunManifest header;
   header.rig_path = rig.path;

@@ -174,6 +174,21 @@ struct PhotometricStereoResult {
 // termination name, solvers::core::TerminationName; the measured parts appear only when present).
 nlohmann::json ToJson(const PhotometricStereoResult& result);
 
+// A solve's arrays in memory: what SolveAndWrite writes as files.
+struct PhotometricStereoMaps {
+  solvers::ps::NormalMap map;  // normals, (mono) albedo, flags, model, confidence, specular
+  cv::Mat albedo_rgb;          // colour data: CV_32FC3 (R, G, B) albedo with the normals fixed; else empty
+  cv::Mat depth;               // CV_32F integrated depth; empty unless integrated
+  std::optional<solvers::camera::PixelRays> rays;  // a pinhole camera's, which depth was integrated along
+  cv::Mat angular_error_deg;   // CV_32F against ground-truth normals; empty without them
+};
+
+// The solve of SolveAndWrite without the files (the Python module's): the
+// result lacks only previews and total_ms. Throws std::invalid_argument for a
+// request that fails IsValid.
+PhotometricStereoResult SolveToMaps(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
+                                    PhotometricStereoMaps* maps);
+
 // Solves and writes every output into `output_directory`, report.json last.
 // A solver that cannot produce a result is not an exception: the result says
 // so (usable() false, summary.message the reason) and is written all the same.

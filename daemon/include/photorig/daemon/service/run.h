@@ -29,6 +29,11 @@ struct RunOutcome : SolveResults {
   std::optional<NexusExportSummary> nexus;     // when asked for: RUN/run.nxs
 };
 
+// {"status", "reason", "frames_written", "steps_total", "retries",
+// "dropped_frames", "elapsed_ms"}: the capture as `photorig run --json` and
+// the Python module report it.
+nlohmann::json ToJson(const CaptureReport& capture);
+
 // What a run's manifest takes from the rig: camera geometry and response,
 // mosaic and colour model, saturation, lamps, reference target.
 RunManifest ManifestHeaderFor(const config::RigConfig& rig);

@@ -1,0 +1,14 @@
+#pragma once
+// One function per part of the module; module.cpp calls them in order.
+
+#include <pybind11/pybind11.h>
+
+namespace photorig::python {
+
+void BindRun(pybind11::module_& m);  // open_run, Run
+void BindPs(pybind11::module_& m);   // solve_ps
+void BindTomography(pybind11::module_& m);  // solve_tomography
+void BindCapture(pybind11::module_& m);     // run_recipe
+void BindBrdf(pybind11::module_& m);        // read_merl, write_merl, eval_brdf
+
+}  // namespace photorig::python

@@ -1,0 +1,30 @@
+"""Fixtures: the CLI and the runs it captures, which the module is compared with."""
+
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+SOURCE_DIR = Path(os.environ.get("PHOTORIG_SOURCE_DIR", Path(__file__).resolve().parents[2]))
+BIN_DIR = Path(os.environ.get("PHOTORIG_BIN_DIR", SOURCE_DIR / "build" / "bin"))
+
+
+def photorig(*args):
+    """Runs the CLI; fails the test with its output when it fails."""
+    done = subprocess.run([str(BIN_DIR / "photorig"), *map(str, args)], capture_output=True, text=True)
+    assert done.returncode == 0, f"photorig {' '.join(map(str, args))}:\n{done.stdout}\n{done.stderr}"
+    return done.stdout
+
+
+@pytest.fixture(scope="session")
+def cli():
+    return photorig
+
+
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory):
+    """The demo's capture (`make demo`): the sphere on the simulated dome, solved by the CLI."""
+    run = tmp_path_factory.mktemp("runs") / "demo"
+    photorig("run", SOURCE_DIR / "config/recipes/ps-sphere.yaml", "--out", run)
+    return run

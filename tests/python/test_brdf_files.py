@@ -1,0 +1,62 @@
+"""photorig.read_merl, write_merl and eval_brdf against the file's bytes and `photorig brdf eval`."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import photorig
+
+SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])  # MERL's channel scales (merl.h)
+
+
+def direction(theta_deg, phi_deg):
+    """As `photorig brdf eval` turns degrees into a unit vector."""
+    t, p = theta_deg * (math.pi / 180.0), phi_deg * (math.pi / 180.0)
+    return [math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)]
+
+
+@pytest.fixture(scope="module")
+def table(tmp_path_factory):
+    """A glossy table over MERL's bins, a block of its cells unmeasured, written by write_merl."""
+    theta_h = (np.arange(90) + 0.5) / 90.0
+    values = np.empty((3, 90, 90, 180))
+    for c, albedo in enumerate([0.2, 0.3, 0.4]):
+        values[c] = albedo / math.pi + 2.0 * np.exp(-((theta_h / 0.1) ** 2))[:, None, None]
+    values[:, 80:85, 10:20, :] = np.nan  # grazing half vectors, away from the configurations below
+    path = tmp_path_factory.mktemp("brdf") / "glossy.binary"
+    photorig.write_merl(str(path), values)
+    return path, values
+
+
+def test_read_merl_is_the_files_cells(table):
+    path, values = table
+    raw = np.fromfile(path, dtype="<f8", offset=12).reshape(3, 90, 90, 180)
+    assert tuple(np.fromfile(path, dtype="<i4", count=3)) == (90, 90, 180)
+    expected = np.where(raw < 0, np.nan, raw * SCALE[:, None, None, None])
+    read = photorig.read_merl(str(path))
+    np.testing.assert_array_equal(read, expected)
+    np.testing.assert_allclose(read, values, rtol=1e-12)
+
+
+def test_eval_is_the_clis(table, cli):
+    path, _ = table
+    configurations = [((30, 0), (30, 180)), ((45, 90), (20, 10)), ((10, 0), (60, 300))]
+    wi = np.array([direction(*i) for i, _ in configurations])
+    wo = np.array([direction(*o) for _, o in configurations])
+    ours = photorig.eval_brdf(str(path), wi, wo)
+    for row, (i, o) in zip(ours, configurations):
+        doc = json.loads(cli("brdf", "eval", path, "--wi", *i, "--wo", *o, "--json"))
+        assert list(row) == doc["f_r"]
+    below = photorig.eval_brdf(str(path), np.array([[0.0, 0.0, -1.0]]), np.array([[0.0, 0.0, 1.0]]))
+    assert np.isnan(below).all()
+
+
+def test_bad_files_raise_the_readers_message(tmp_path):
+    short = tmp_path / "short.binary"
+    short.write_bytes(b"\0" * 100)
+    with pytest.raises(ValueError, match="short.binary"):
+        photorig.read_merl(str(short))
+    with pytest.raises(ValueError, match=r"\(3, 90, 90, 180\)"):
+        photorig.write_merl(str(tmp_path / "x.binary"), np.zeros((3, 90, 90)))
