@@ -15,7 +15,8 @@ namespace {
 
 py::dict SolvePs(const std::string& run_directory, const std::string& method, const std::string& derivative,
                  const std::string& integrator, double shadow_threshold_sigma, double max_condition_number,
-                 bool assume_distant, double max_distant_bias_deg, const std::optional<std::string>& mask,
+                 bool assume_distant, double max_distant_bias_deg, bool fill_unresolved,
+                 const std::optional<std::string>& mask,
                  const std::string& demosaic, const std::optional<std::string>& color_model,
                  bool accept_failed_capture, py::object progress) {
   config::PhotometricStereoRequest request;
@@ -27,6 +28,7 @@ py::dict SolvePs(const std::string& run_directory, const std::string& method, co
   request.max_condition_number = max_condition_number;
   request.assume_distant = assume_distant;
   request.max_distant_bias_deg = max_distant_bias_deg;
+  request.fill_unresolved = fill_unresolved;
   if (std::string why; !request.IsValid(&why)) throw py::value_error(why);
   daemon::ColorStackOptions color;
   color.demosaic = ParseChoice(solvers::color::kDemosaicMethodNames, demosaic, "demosaic");
@@ -68,12 +70,12 @@ void BindPs(py::module_& m) {
       "solve_ps",
       [](py::object run, const std::string& method, const std::string& derivative, const std::string& integrator,
          double shadow_threshold_sigma, double max_condition_number, bool assume_distant, double max_distant_bias_deg,
-         const std::optional<std::string>& mask, const std::string& demosaic,
+         bool fill_unresolved, const std::optional<std::string>& mask, const std::string& demosaic,
          const std::optional<std::string>& color_model, bool accept_failed_capture, py::object progress) {
         const std::string directory =
             py::isinstance<Run>(run) ? run.cast<const Run&>().directory() : py::str(run).cast<std::string>();
         return SolvePs(directory, method, derivative, integrator, shadow_threshold_sigma, max_condition_number,
-                       assume_distant, max_distant_bias_deg, mask, demosaic, color_model, accept_failed_capture,
+                       assume_distant, max_distant_bias_deg, fill_unresolved, mask, demosaic, color_model, accept_failed_capture,
                        std::move(progress));
       },
       py::arg("run"), py::kw_only(), py::arg("method") = solvers::ps::MethodName(defaults.method),
@@ -82,7 +84,8 @@ void BindPs(py::module_& m) {
       py::arg("shadow_threshold_sigma") = defaults.shadow_threshold_sigma,
       py::arg("max_condition_number") = defaults.max_condition_number,
       py::arg("assume_distant") = defaults.assume_distant,
-      py::arg("max_distant_bias_deg") = defaults.max_distant_bias_deg, py::arg("mask") = py::none(),
+      py::arg("max_distant_bias_deg") = defaults.max_distant_bias_deg,
+      py::arg("fill_unresolved") = defaults.fill_unresolved, py::arg("mask") = py::none(),
       py::arg("demosaic") = "bilinear", py::arg("color_model") = py::none(),
       py::arg("accept_failed_capture") = false, py::arg("progress") = py::none(),
       "Photometric stereo on a run (a Run or its directory), as `photorig solve ps --run`: a dict of arrays "
