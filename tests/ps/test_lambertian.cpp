@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -276,6 +277,35 @@ TEST(Lambertian, ResultDoesNotDependOnTheThreadCount) {
   cv::absdiff(a.normals.reshape(1), b.normals.reshape(1), diff);
   cv::patchNaNs(diff, 0.0);
   EXPECT_EQ(cv::countNonZero(diff), 0);
+}
+
+// Each tile starts on the path its thread's previous tile suggests (lit
+// pixels by the pseudo-inverse, or every pixel on its own subset), and the two
+// round differently. A fully lit chunk must come out the same whichever came
+// first: tiles that alternate between lit and partly shadowed, solved with
+// different thread counts, put different predecessors before many tiles.
+TEST(Lambertian, FullyLitPixelsDoNotDependOnTheTileSolvedBefore) {
+  auto truth = RandomSurface(128, 256, 20.0);  // 32 tiles of 8 rows; lights at >= 30 deg elevation light every pixel
+  for (int tile = 0; tile < 32; tile += 3)
+    for (int c = 0; c < 128; c += 2)  // a shadowed row: tilted 85 deg, away from half the lights
+      truth.normals.at<cv::Vec3f>(8 * tile + 3, c) = cv::Vec3f(0.9962f, 0.0f, 0.0872f);
+  const auto stack = RenderStack(truth, RingLights(24, 30, 80), Scales(24), 3.0f);
+  NormalMap reference;
+  LambertianOptions options;
+  options.num_threads = 1;
+  ASSERT_TRUE(SolveLambertian(options, stack, &reference).IsSolutionUsable());
+  for (int threads : {2, 3, 4}) {
+    options.num_threads = threads;
+    NormalMap map;
+    ASSERT_TRUE(SolveLambertian(options, stack, &map).IsSolutionUsable());
+    EXPECT_EQ(cv::countNonZero(map.flags != reference.flags), 0) << threads;
+    EXPECT_EQ(std::memcmp(map.normals.data, reference.normals.data, map.normals.total() * map.normals.elemSize()), 0)
+        << threads << " threads";
+    EXPECT_EQ(std::memcmp(map.confidence.data, reference.confidence.data,
+                          map.confidence.total() * map.confidence.elemSize()),
+              0)
+        << threads << " threads";
+  }
 }
 
 // The subset kernel's AVX-512 version sums G_S per group of four lights from

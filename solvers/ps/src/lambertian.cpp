@@ -799,9 +799,22 @@ bool SolveTileKernels(const LambertianOptions& options, const TileConstants& con
     // Nothing to solve; the guess for the next tile stands.
   } else if (options.exclude_unusable_samples && !expect_lit) {
     ForEachRunOfChunks(n, inside_chunk, solve_subsets);
+    std::array<bool, kTilePixels / kChunkPixels> lit;
     expect_lit = true;
-    for (int chunk = 0; chunk < n; chunk += kChunkPixels)
-      expect_lit &= !inside[chunk / kChunkPixels] || all_lit(chunk, std::min(n, chunk + kChunkPixels));
+    for (int chunk = 0; chunk < n; chunk += kChunkPixels) {
+      lit[chunk / kChunkPixels] = inside[chunk / kChunkPixels] && all_lit(chunk, std::min(n, chunk + kChunkPixels));
+      expect_lit &= !inside[chunk / kChunkPixels] || lit[chunk / kChunkPixels];
+    }
+    // A fully lit chunk takes the pseudo-inverse's answer whichever pass came
+    // first, as it does when the guess was "lit": the two round differently,
+    // and a pixel's result must not depend on which tile its thread solved
+    // before (thread scheduling). The second pass reads the chunk from cache.
+    ForEachRunOfChunks(
+        n, [&lit](int chunk, int) { return lit[chunk / kChunkPixels]; },
+        [&](int first, int end) {
+          AccumulateTile(constants, begin, first, end, sums);
+          SolveLitTile(constants, first, end, *sums, solution);
+        });
   } else {
     ForEachRunOfChunks(n, inside_chunk, [&](int first, int end) {
       AccumulateTile(constants, begin, first, end, sums);
