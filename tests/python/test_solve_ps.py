@@ -15,10 +15,7 @@ def read_tiff(path):
     return image[..., ::-1] if image.ndim == 3 else image
 
 
-# Not lambertian: its tile kernels guess from the thread's previous tile
-# whether a tile is fully lit, and the two paths round differently, so two
-# solves under different thread schedules can differ by an ulp.
-@pytest.mark.parametrize("method", ["auto"])
+@pytest.mark.parametrize("method", ["auto", "lambertian"])
 def test_same_maps_as_the_cli(demo_run, cli, tmp_path, method):
     out = tmp_path / method
     cli("solve", "ps", "--run", demo_run, "--method", method, "--out", out)
