@@ -1,4 +1,5 @@
 #include "photorig/daemon/io/nexus.h"
+#include "photorig/daemon/io/utc_time.h"
 
 #include <hdf5.h>
 
@@ -8,15 +9,6 @@
 
 namespace photorig::daemon {
 namespace {
-
-std::string UtcNow() {
-  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm utc{};
-  gmtime_r(&now, &utc);
-  char text[32];
-  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &utc);
-  return text;
-}
 
 // A variable-length UTF-8 string type: h5py reads it as str, silx shows it as text.
 hid_t StringType() {
@@ -72,7 +64,7 @@ NexusWriter::NexusWriter(const std::string& path, const std::string& creator, co
   unsigned major = 0, minor = 0, release = 0;
   H5get_libversion(&major, &minor, &release);
   Attribute("/", "file_name", std::filesystem::path(path).filename().string());
-  Attribute("/", "file_time", UtcNow());
+  Attribute("/", "file_time", UtcNowIso8601());
   Attribute("/", "creator", creator);
   Attribute("/", "HDF5_Version", std::to_string(major) + "." + std::to_string(minor) + "." + std::to_string(release));
   Attribute("/", "default", default_entry);

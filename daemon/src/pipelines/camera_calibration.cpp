@@ -1,6 +1,7 @@
 #include "photorig/daemon/pipelines/camera_calibration.h"
 
 #include "photorig/config/rig.h"
+#include "photorig/daemon/io/utc_time.h"
 
 #include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
@@ -14,15 +15,6 @@ namespace photorig::daemon {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string UtcNowIso8601() {
-  const std::time_t now = std::time(nullptr);
-  std::tm utc{};
-  gmtime_r(&now, &utc);
-  char text[32];
-  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &utc);
-  return text;
-}
 
 YAML::Node FlowSequence(const std::vector<std::string>& items) {
   YAML::Node node(YAML::NodeType::Sequence);

@@ -2,6 +2,7 @@
 
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/utc_time.h"
 #include "photorig/solvers/tomography/nrrd.h"
 
 #include <nlohmann/json.hpp>
@@ -26,15 +27,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 std::string ReadBytes(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-std::string IsoTime(std::int64_t unix_ns) {
-  const std::time_t seconds = static_cast<std::time_t>(unix_ns / 1000000000);
-  std::tm utc{};
-  gmtime_r(&seconds, &utc);
-  char text[32];
-  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &utc);
-  return text;
 }
 
 // A note holding a file's text as it is (NXnote: type, file_name, data).
@@ -198,6 +190,9 @@ bool WriteFrames(NexusWriter& out, const std::string& run, const RunManifest& m,
   summary->frames = static_cast<int>(m.frames.size());
   return true;
 }
+
+// UTC of a time stamp in nanoseconds since the epoch (the frames' host_timestamp_ns).
+std::string IsoTime(std::int64_t unix_ns) { return UtcIso8601(static_cast<std::time_t>(unix_ns / 1000000000)); }
 
 std::string FileTime(const fs::path& path) {
   const auto written = fs::last_write_time(path);

@@ -2,6 +2,7 @@
 
 #include "photorig/config/color_model.h"
 #include "photorig/daemon/capture/run_store.h"
+#include "photorig/daemon/io/utc_time.h"
 
 #include <chrono>
 #include <ctime>
@@ -15,15 +16,6 @@ using nlohmann::json;
 using solvers::core::NameOf;
 
 namespace {
-
-std::string UtcNow() {
-  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm utc{};
-  gmtime_r(&now, &utc);
-  char text[32];
-  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &utc);
-  return text;
-}
 
 }  // namespace
 
@@ -79,7 +71,7 @@ json RunInputs(const std::string& directory) {
 Provenance MakeProvenance(const std::string& stage, const std::string& directory, json request, json loading) {
   Provenance provenance;
   provenance.version = PHOTORIG_VERSION;
-  provenance.date = UtcNow();
+  provenance.date = UtcNowIso8601();
   provenance.options = {{"stage", stage}, {"request", std::move(request)}, {"loading", std::move(loading)}};
   provenance.inputs = RunInputs(directory);
   return provenance;

@@ -1,6 +1,7 @@
 #include "photorig/daemon/service/internal/batch.h"
 
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/utc_time.h"
 
 #include <fcntl.h>
 #include <glob.h>
@@ -25,15 +26,6 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 namespace {
-
-std::string UtcNow() {
-  const std::time_t now = std::time(nullptr);
-  std::tm utc{};
-  gmtime_r(&now, &utc);
-  char text[32];
-  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &utc);
-  return text;
-}
 
 // 'text' for bash, whatever it holds.
 std::string ShellQuote(const std::string& text) {
@@ -230,7 +222,7 @@ BatchManifest CreateBatch(const std::string& directory, const std::vector<std::s
   batch.photorig = photorig;
   batch.solve_arguments = solve_arguments;
   batch.slurm = slurm;
-  batch.created_utc = UtcNow();
+  batch.created_utc = UtcNowIso8601();
   for (std::size_t i = 0; i < runs.size(); ++i) batch.tasks.push_back({static_cast<int>(i), runs[i]});
   fs::create_directories(fs::path(batch.directory) / "tasks");
   fs::create_directories(fs::path(batch.directory) / "logs");

@@ -1,0 +1,13 @@
+#pragma once
+// Times as every file photorig writes states them: UTC, ISO 8601 to the
+// second ("2026-11-29T14:05:00Z").
+
+#include <ctime>
+#include <string>
+
+namespace photorig::daemon {
+
+std::string UtcIso8601(std::time_t seconds_since_epoch);
+std::string UtcNowIso8601();
+
+}  // namespace photorig::daemon
