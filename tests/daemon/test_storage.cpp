@@ -168,6 +168,40 @@ TEST(RunStore, CaptureStatusIsStoredAsTheFormatsWords) {
   }
 }
 
+// A number where the format has an integer, with a fraction or beyond its
+// type's range, is refused naming the field (it once reached a conversion
+// with undefined behaviour: found by fuzz_manifest).
+TEST(RunStore, IntegerFieldsWithAFractionOrOutOfRangeAreRefusedNamingTheField) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  {
+    RunWriter writer(run, Header());
+    writer.WriteFrame(Step(1, 0), MakeFrame(20, 10, 1));
+    writer.Finish({CaptureStatus::kComplete, "", 1, 1, 0, 0});
+  }
+  const std::filesystem::path file = std::filesystem::path(run) / "manifest.json";
+  const nlohmann::json stored = nlohmann::json::parse(std::ifstream(file));
+  ASSERT_EQ(LoadRunManifest(run).frames.size(), 1u);
+  const std::vector<std::pair<nlohmann::json::json_pointer, nlohmann::json>> tampering = {
+      {nlohmann::json::json_pointer("/camera/width"), 1.79596e137},
+      {nlohmann::json::json_pointer("/frames/0/led"), 2.5},
+      {nlohmann::json::json_pointer("/frames/0/crc32"), 8589934592LL},  // 2^33: not a CRC-32
+      {nlohmann::json::json_pointer("/frames/0/host_timestamp_ns"), -1e300}};
+  for (const auto& [where, value] : tampering) {
+    nlohmann::json tampered = stored;
+    tampered[where] = value;
+    std::ofstream(file) << tampered.dump();
+    const std::string field = where.back();
+    try {
+      LoadRunManifest(run);
+      ADD_FAILURE() << field << " = " << value.dump() << " loaded";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("'" + field + "' must be an integer"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("manifest.json: corrupt manifest"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(RunStore, CorruptFrameIsDetectedByItsChecksum) {
   TempDir dir;
   const std::string run = (dir.path() / "run").string();

@@ -14,10 +14,12 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 namespace photorig::daemon {
 
@@ -33,6 +35,29 @@ int MosaicChannels(const std::string& mosaic) { return mosaic == "RGB" ? 3 : 1; 
 namespace fs = std::filesystem;
 using nlohmann::json;
 namespace {
+
+// An integer field of a stored run. nlohmann's get<int> converts a JSON number
+// with a fraction or one beyond the type's range with undefined behaviour
+// (1e137 into an int); a corrupt file is refused instead, naming the field.
+template <typename Int>
+Int IntegerAt(const json& object, const char* key) {
+  const json& value = object.at(key);
+  if (value.is_number_unsigned()) {
+    const std::uint64_t v = value.get<std::uint64_t>();
+    if (std::in_range<Int>(v)) return static_cast<Int>(v);
+  } else if (value.is_number_integer()) {
+    const std::int64_t v = value.get<std::int64_t>();
+    if (std::in_range<Int>(v)) return static_cast<Int>(v);
+  }
+  throw std::runtime_error(std::string("'") + key + "' must be an integer from " +
+                           std::to_string(std::numeric_limits<Int>::min()) + " to " +
+                           std::to_string(std::numeric_limits<Int>::max()) + ", not " + value.dump());
+}
+
+template <typename Int>
+Int IntegerOr(const json& object, const char* key, Int absent) {
+  return object.contains(key) ? IntegerAt<Int>(object, key) : absent;
+}
 
 [[noreturn]] void FailIo(const std::string& what, const std::string& path) {
   throw std::runtime_error(what + " " + path + ": " + std::strerror(errno));
@@ -84,7 +109,7 @@ json ToJson(const FrameRecord& f) {
 
 FrameRecord FrameRecordFromJson(const json& j) {
   FrameRecord f;
-  f.index = j.at("index").get<int>();
+  f.index = IntegerAt<int>(j, "index");
   f.file = j.at("file").get<std::string>();
   const std::string kind = j.at("kind").get<std::string>();
   const auto parsed = config::CaptureStepKindFromName(kind);
@@ -92,24 +117,24 @@ FrameRecord FrameRecordFromJson(const json& j) {
   f.kind = *parsed;
   f.group = j.value("group", "");  // absent in runs stored before groups existed
   f.group_kind = config::GroupKindOfLabel(f.group);
-  f.repeat = j.value("repeat", 0);
-  f.led = j.at("led").get<int>();
+  f.repeat = IntegerOr(j, "repeat", 0);
+  f.led = IntegerAt<int>(j, "led");
   f.level = j.at("level").get<double>();
   f.exposure_us = j.at("exposure_us").get<double>();
   f.gain_db = j.at("gain_db").get<double>();
-  f.bit_depth = j.at("bit_depth").get<int>();
+  f.bit_depth = IntegerAt<int>(j, "bit_depth");
   f.pixel_format = j.value("pixel_format", "");  // absent in runs stored before it was recorded
-  f.frame_id = j.at("frame_id").get<std::uint64_t>();
-  f.device_timestamp_ns = j.at("device_timestamp_ns").get<std::int64_t>();
-  f.host_timestamp_ns = j.at("host_timestamp_ns").get<std::int64_t>();
-  f.crc32 = j.at("crc32").get<std::uint32_t>();
+  f.frame_id = IntegerAt<std::uint64_t>(j, "frame_id");
+  f.device_timestamp_ns = IntegerAt<std::int64_t>(j, "device_timestamp_ns");
+  f.host_timestamp_ns = IntegerAt<std::int64_t>(j, "host_timestamp_ns");
+  f.crc32 = IntegerAt<std::uint32_t>(j, "crc32");
   if (j.contains("pose")) {
     const json& p = j.at("pose");
     f.pose = config::GonioPose{p.at("light_arm_deg").get<double>(), p.at("camera_arm_deg").get<double>(),
                        p.at("sample_rotation_deg").get<double>(), std::nullopt};
     if (p.contains("sample_changer_deg")) f.pose->sample_changer_deg = p.at("sample_changer_deg").get<double>();
   }
-  f.pass = j.value("pass", 0);
+  f.pass = IntegerOr(j, "pass", 0);
   return f;
 }
 
@@ -155,10 +180,10 @@ StopRecord StopRecordFromJson(const json& j) {
   StopRecord s;
   s.status = CaptureStatusFromJson(j.at("status"));
   s.reason = j.value("reason", "");
-  s.frames = j.at("frames").get<int>();
-  s.steps_total = j.at("steps_total").get<int>();
-  s.retries = j.value("retries", 0);
-  s.dropped_frames = j.value("dropped_frames", 0);
+  s.frames = IntegerAt<int>(j, "frames");
+  s.steps_total = IntegerAt<int>(j, "steps_total");
+  s.retries = IntegerOr(j, "retries", 0);
+  s.dropped_frames = IntegerOr(j, "dropped_frames", 0);
   return s;
 }
 
@@ -227,9 +252,9 @@ RunManifest RunManifestFromJson(const json& j) {
   m.sample_name = j.value("sample", "");
   const json& camera = j.at("camera");
   m.camera_id = camera.at("id").get<std::string>();
-  m.width = camera.at("width").get<int>();
-  m.height = camera.at("height").get<int>();
-  m.bit_depth = camera.at("bit_depth").get<int>();
+  m.width = IntegerAt<int>(camera, "width");
+  m.height = IntegerAt<int>(camera, "height");
+  m.bit_depth = IntegerAt<int>(camera, "bit_depth");
   m.saturation_dn = camera.value("saturation_dn", 0.0);  // absent in runs of earlier versions
   m.dn_per_radiance_per_us = camera.at("dn_per_radiance_per_us").get<double>();
   m.e_per_dn = camera.value("e_per_dn", 0.0);
@@ -257,7 +282,7 @@ RunManifest RunManifestFromJson(const json& j) {
   }
   for (const json& light : j.at("lights")) {
     config::LedConfig led;
-    led.id = light.at("id").get<int>();
+    led.id = IntegerAt<int>(light, "id");
     const auto d = light.at("direction").get<std::vector<double>>();
     if (d.size() != 3) throw std::runtime_error("light direction needs 3 components");
     led.direction = Eigen::Vector3d(d[0], d[1], d[2]);
