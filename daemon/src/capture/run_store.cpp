@@ -1,6 +1,7 @@
 #include "photorig/daemon/capture/run_store.h"
 
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/json_fields.h"
 
 #include <opencv2/imgproc.hpp>
 #include <spdlog/fmt/fmt.h>
@@ -35,29 +36,6 @@ int MosaicChannels(const std::string& mosaic) { return mosaic == "RGB" ? 3 : 1; 
 namespace fs = std::filesystem;
 using nlohmann::json;
 namespace {
-
-// An integer field of a stored run. nlohmann's get<int> converts a JSON number
-// with a fraction or one beyond the type's range with undefined behaviour
-// (1e137 into an int); a corrupt file is refused instead, naming the field.
-template <typename Int>
-Int IntegerAt(const json& object, const char* key) {
-  const json& value = object.at(key);
-  if (value.is_number_unsigned()) {
-    const std::uint64_t v = value.get<std::uint64_t>();
-    if (std::in_range<Int>(v)) return static_cast<Int>(v);
-  } else if (value.is_number_integer()) {
-    const std::int64_t v = value.get<std::int64_t>();
-    if (std::in_range<Int>(v)) return static_cast<Int>(v);
-  }
-  throw std::runtime_error(std::string("'") + key + "' must be an integer from " +
-                           std::to_string(std::numeric_limits<Int>::min()) + " to " +
-                           std::to_string(std::numeric_limits<Int>::max()) + ", not " + value.dump());
-}
-
-template <typename Int>
-Int IntegerOr(const json& object, const char* key, Int absent) {
-  return object.contains(key) ? IntegerAt<Int>(object, key) : absent;
-}
 
 [[noreturn]] void FailIo(const std::string& what, const std::string& path) {
   throw std::runtime_error(what + " " + path + ": " + std::strerror(errno));

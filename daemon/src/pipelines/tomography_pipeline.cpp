@@ -6,6 +6,7 @@
 #endif
 
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/json_fields.h"
 #include "photorig/daemon/pipelines/internal/results_folder.h"
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/tomography/nrrd.h"
@@ -92,8 +93,8 @@ solvers::tomography::Geometry GeometryFromJson(const json& j, const std::string&
     const std::string beam = j.value("beam", "parallel");
     if (beam != "parallel" && beam != "cone") throw std::invalid_argument("beam '" + beam + "' (expected parallel or cone)");
     g.beam = beam == "cone" ? solvers::tomography::Beam::kCone : solvers::tomography::Beam::kParallel;
-    g.detector_cols = j.at("detector_cols").get<int>();
-    g.detector_rows = j.at("detector_rows").get<int>();
+    g.detector_cols = IntegerAt<int>(j, "detector_cols");
+    g.detector_rows = IntegerAt<int>(j, "detector_rows");
     g.pixel_mm = j.at("pixel_mm").get<double>();
     g.cor_offset_mm = j.value("cor_offset_mm", 0.0);
     g.source_to_axis_mm = j.value("source_to_axis_mm", g.source_to_axis_mm);
@@ -102,6 +103,8 @@ solvers::tomography::Geometry GeometryFromJson(const json& j, const std::string&
       for (double deg : j.at("angles_deg").get<std::vector<double>>()) g.angles_rad.push_back(deg * kDeg);
     *saturation_dn = j.value("saturation_dn", 4095.0);
   } catch (const json::exception& e) {
+    throw std::invalid_argument(path + ": " + e.what());
+  } catch (const std::runtime_error& e) {  // an integer field that is no integer (json_fields.h)
     throw std::invalid_argument(path + ": " + e.what());
   }
   return g;
