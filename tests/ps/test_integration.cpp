@@ -50,6 +50,24 @@ TEST(IntegrateNormals, PoissonRecoversASphereOnItsMask) {
   EXPECT_NEAR(cv::mean(depth, mask)[0], 0.0, 1e-4);
 }
 
+TEST(IntegrateNormals, BlocksGiveTheSurfaceSmoothedOverABlock) {
+  cv::Mat normals, height, mask, depth;
+  Sphere(96, 40.0, &normals, &height, &mask);
+  IntegrationOptions options;
+  options.block_px = 3;
+  const IntegrationSummary summary = IntegrateNormals(options, normals, mask, &depth);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  // Every pixel of the mask gets a height, interpolated between blocks.
+  EXPECT_EQ(summary.pixels, static_cast<std::size_t>(cv::countNonZero(mask)));
+  // Smoothing a sphere of radius R over b pixels moves it by about b^2 / (8 R)
+  // (0.03 px) inside; the rim's blocks, part outside the mask, by more: 0.34 px
+  // RMS in all, against 0.15 px at every pixel.
+  EXPECT_LT(RmsAfterRemovingMean(depth, height, mask), 0.4);
+  EXPECT_NEAR(cv::mean(depth, mask)[0], 0.0, 1e-4);
+  options.block_px = 0;
+  EXPECT_FALSE(IntegrateNormals(options, normals, mask, &depth).IsSolutionUsable());
+}
+
 TEST(IntegrateNormals, FrankotChellappaIsExactOnPeriodicSurfacesAndBendsAtMaskBorders) {
   // z = 3 sin(2 pi x / 64) cos(2 pi y / 32): periodic on a 64 x 64 image.
   const int n = 64;

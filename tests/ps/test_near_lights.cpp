@@ -69,13 +69,15 @@ bool HitSphere(const camera::Camera& camera, int r, int c, Eigen::Vector3d* poin
 
 // A Lambertian sphere of albedo 0.6 centred on the origin (its rim on the
 // sample plane) under LEDs on a hemisphere of `dome_radius_mm`, each aimed at
-// the origin, Lambertian emitters (cos^1) of unit irradiance there.
+// the origin, emitters of radiance profile cos^mu (Lambertian: mu 1) and unit
+// irradiance there.
 NearScene RenderNearSphere(double dome_radius_mm, double noise_sigma = 0.0,
-                           const camera::Camera& camera = camera::Camera::Orthographic(kSize, kSize, kPitchMm)) {
+                           const camera::Camera& camera = camera::Camera::Orthographic(kSize, kSize, kPitchMm),
+                           double cos_exponent = 1.0) {
   NearScene scene;
   scene.camera = camera;
   for (const Eigen::Vector3d& direction : testing::RingLights(40, 25, 75))
-    scene.lights.push_back({dome_radius_mm * direction, -direction, 1.0});
+    scene.lights.push_back({dome_radius_mm * direction, -direction, cos_exponent});
   scene.normals = cv::Mat(kSize, kSize, CV_32FC3, cv::Scalar::all(0));
   scene.height_mm = cv::Mat(kSize, kSize, CV_32F, cv::Scalar(std::nanf("")));
   scene.stack.mask = cv::Mat::zeros(kSize, kSize, CV_8U);
@@ -94,9 +96,9 @@ NearScene RenderNearSphere(double dome_radius_mm, double noise_sigma = 0.0,
         const NearLight& led = scene.lights[k];
         const Eigen::Vector3d to = led.position_mm - point;
         const double d = to.norm();
-        // Radiant intensity cos(axis angle) I0, with I0 = R^2 so that the
+        // Radiant intensity cos^mu(axis angle) I0, with I0 = R^2 so that the
         // irradiance at the origin, straight on the axis, is 1.
-        const double irradiance = dome_radius_mm * dome_radius_mm * (-led.axis.dot(to / d)) / (d * d);
+        const double irradiance = dome_radius_mm * dome_radius_mm * std::pow(-led.axis.dot(to / d), cos_exponent) / (d * d);
         const double value = 0.6 / M_PI * std::max(0.0, n.dot(to / d)) * irradiance * 1000.0;
         scene.stack.images[k].at<float>(r, c) = static_cast<float>(value) + noise(rng);
       }
@@ -171,6 +173,58 @@ TEST(NearLights, NoiseLeavesTheNearModelWithinHalfADegree) {
       SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &near, &height);
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   EXPECT_LT(CompareNormals(near.normals, scene.normals, scene.stack.mask).mean_deg, 0.5);
+}
+
+TEST(NearLights, AnLedsRadianceProfileIsPartOfTheModel) {
+  // Narrow emitters (cos^4: half the irradiance 33 deg off the axis) on a
+  // near dome, whose profile across the sphere the model must follow.
+  const NearScene scene = RenderNearSphere(80.0, 0.0, camera::Camera::Orthographic(kSize, kSize, kPitchMm), 4.0);
+  NormalMap near;
+  const NearLightSummary summary = SolveNearLightPhotometricStereo(Lambertian(), Near(), scene.stack, scene.lights, &near, nullptr);
+  ASSERT_EQ(summary.termination, core::Termination::kSuccess) << summary.message;
+  EXPECT_LT(CompareNormals(near.normals, scene.normals, scene.stack.mask).mean_deg, 0.3);
+  // Taken as Lambertian emitters, the same LEDs tilt the normals.
+  std::vector<NearLight> lambertian = scene.lights;
+  for (NearLight& led : lambertian) led.cos_exponent = 1.0;
+  NormalMap wrong;
+  ASSERT_TRUE(SolveNearLightPhotometricStereo(Lambertian(), Near(), scene.stack, lambertian, &wrong, nullptr).IsSolutionUsable());
+  EXPECT_GT(CompareNormals(wrong.normals, scene.normals, scene.stack.mask).mean_deg, 0.5);  // 0.71 deg
+}
+
+TEST(NearLights, TheRoundsSurfaceOnBlocksLeavesTheNormalsAsOnEveryPixel) {
+  const NearScene scene = RenderNearSphere(80.0);
+  NearLightOptions every_pixel = Near(), blocks = Near();
+  every_pixel.depth_block_px = 1;
+  blocks.depth_block_px = 4;
+  NormalMap fine, coarse;
+  cv::Mat fine_height, coarse_height;
+  ASSERT_TRUE(SolveNearLightPhotometricStereo(Lambertian(), every_pixel, scene.stack, scene.lights, &fine, &fine_height)
+                  .IsSolutionUsable());
+  const NearLightSummary summary =
+      SolveNearLightPhotometricStereo(Lambertian(), blocks, scene.stack, scene.lights, &coarse, &coarse_height);
+  ASSERT_EQ(summary.termination, core::Termination::kSuccess) << summary.message;
+  EXPECT_LT(CompareNormals(coarse.normals, fine.normals, scene.stack.mask).mean_deg, 0.02);
+  // The surface returned is integrated at every pixel either way.
+  cv::Mat difference;
+  cv::absdiff(coarse_height, fine_height, difference);
+  EXPECT_LT(cv::mean(difference, (scene.stack.mask != 0) & (fine_height == fine_height))[0], 0.02);
+  // Without a surface asked for, the normals are the same.
+  NormalMap normals_only;
+  ASSERT_TRUE(SolveNearLightPhotometricStereo(Lambertian(), blocks, scene.stack, scene.lights, &normals_only, nullptr)
+                  .IsSolutionUsable());
+  EXPECT_EQ(cv::norm(normals_only.normals, coarse.normals, cv::NORM_INF), 0.0);
+}
+
+TEST(NearLights, PixelsBeyondTheConditionLimitAreFlaggedNotSolved) {
+  const NearScene scene = RenderNearSphere(150.0);
+  PhotometricStereoOptions options = Lambertian();
+  // No three LEDs give a 3 x 3 fit this well conditioned.
+  options.lambertian.max_condition_number = 1.01;
+  NormalMap near;
+  const NearLightSummary summary = SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &near, nullptr);
+  EXPECT_EQ(summary.pixels_solved, 0u);
+  EXPECT_EQ(summary.pixels_ill_conditioned, static_cast<std::size_t>(cv::countNonZero(scene.stack.mask)));
+  EXPECT_EQ(summary.termination, core::Termination::kFailure);
 }
 
 TEST(NearLights, MethodsThatFitOneLightMatrixAreRefusedNotApproximated) {

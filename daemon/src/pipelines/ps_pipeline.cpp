@@ -523,7 +523,7 @@ double PredictedViewBiasDeg(const solvers::camera::Camera& camera, const cv::Mat
 // request's limit (a result a person at the bench would reject). Methods
 // that model specular reflection take the view along the camera's axis,
 // refused likewise for a pinhole camera whose lines of sight tilt too far.
-// *near_height_mm: the near solve's surface, else left empty.
+// *near_height_mm, unless null: the near solve's surface, else left empty.
 solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
                                         const solvers::ps::PhotometricStereoOptions& options,
                                         const solvers::ps::PhotometricStack& stack, solvers::ps::NormalMap* map,
@@ -592,7 +592,9 @@ PhotometricStereoResult SolveToMaps(const PhotometricStereoInput& input, const c
   *maps = PhotometricStereoMaps();
   solvers::ps::NormalMap& map = maps->map;
   cv::Mat near_height_mm;
-  result.summary = SolveNormals(input, request, options, stack, &map, &result.light_model, &near_height_mm);
+  // The near solve's full-resolution surface is made only where depth is asked for.
+  result.summary = SolveNormals(input, request, options, stack, &map, &result.light_model,
+                                request.integrator ? &near_height_mm : nullptr);
   result.source = input.source;
   result.camera = CameraOf(input);
   result.capture = input.capture;

@@ -194,6 +194,64 @@ bool Poisson(const Gradients& g, cv::Mat* depth, std::string* message) {
   return true;
 }
 
+// The gradient field on blocks of block x block pixels: each block's mean
+// slope over its usable pixels, per step of one block. A block enters when a
+// quarter of its pixels are usable, so the rim's few pixels do not carry it.
+Gradients BlockGradients(const Gradients& g, int block) {
+  const int rows = (g.mask.rows + block - 1) / block, cols = (g.mask.cols + block - 1) / block;
+  Gradients coarse;
+  coarse.dzdx = cv::Mat::zeros(rows, cols, CV_64F);
+  coarse.dzdy = cv::Mat::zeros(rows, cols, CV_64F);
+  coarse.mask = cv::Mat::zeros(rows, cols, CV_8U);
+  cv::Mat count = cv::Mat::zeros(rows, cols, CV_32S);
+  for (int r = 0; r < g.mask.rows; ++r)
+    for (int c = 0; c < g.mask.cols; ++c)
+      if (g.mask.at<std::uint8_t>(r, c)) {
+        coarse.dzdx.at<double>(r / block, c / block) += g.dzdx.at<double>(r, c);
+        coarse.dzdy.at<double>(r / block, c / block) += g.dzdy.at<double>(r, c);
+        ++count.at<int>(r / block, c / block);
+      }
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) {
+      const int n = count.at<int>(r, c);
+      if (4 * n < block * block) continue;
+      coarse.dzdx.at<double>(r, c) *= static_cast<double>(block) / n;
+      coarse.dzdy.at<double>(r, c) *= static_cast<double>(block) / n;
+      coarse.mask.at<std::uint8_t>(r, c) = 255;
+    }
+  return coarse;
+}
+
+// The blocks' depths at every pixel of *mask, bilinear between the centres
+// of the solved blocks around it (their weights renormalised); a pixel with
+// none around is taken out of *mask.
+void InterpolateBlocks(const cv::Mat& coarse, const cv::Mat& coarse_mask, int block, cv::Mat* mask, cv::Mat* depth) {
+  depth->create(mask->size(), CV_32F);
+  depth->setTo(0.0f);
+  for (int r = 0; r < mask->rows; ++r)
+    for (int c = 0; c < mask->cols; ++c) {
+      if (!mask->at<std::uint8_t>(r, c)) continue;
+      const double v = (r + 0.5) / block - 0.5, u = (c + 0.5) / block - 0.5;
+      const int r0 = static_cast<int>(std::floor(v)), c0 = static_cast<int>(std::floor(u));
+      const double fv = v - r0, fu = u - c0;
+      double sum = 0.0, weight = 0.0;
+      for (int dr = 0; dr < 2; ++dr)
+        for (int dc = 0; dc < 2; ++dc) {
+          const int rr = r0 + dr, cc = c0 + dc;
+          if (rr < 0 || cc < 0 || rr >= coarse.rows || cc >= coarse.cols || !coarse_mask.at<std::uint8_t>(rr, cc))
+            continue;
+          // + 1e-12: a solved block of weight 0 still stands in for an unsolved one.
+          const double w = (dr ? fv : 1.0 - fv) * (dc ? fu : 1.0 - fu) + 1e-12;
+          sum += w * coarse.at<float>(rr, cc);
+          weight += w;
+        }
+      if (weight > 0.0)
+        depth->at<float>(r, c) = static_cast<float>(sum / weight);
+      else
+        mask->at<std::uint8_t>(r, c) = 0;
+    }
+}
+
 }  // namespace
 
 bool IntegrationOptions::IsValid(std::string* why) const {
@@ -203,6 +261,10 @@ bool IntegrationOptions::IsValid(std::string* why) const {
   }
   if (!(min_normal_z > 0.0 && min_normal_z < 1.0)) {
     if (why) *why = "min_normal_z must be in (0, 1)";
+    return false;
+  }
+  if (block_px < 1 || block_px > 64) {
+    if (why) *why = "block_px must be within [1, 64]";
     return false;
   }
   return true;
@@ -217,23 +279,34 @@ std::string CheckInputs(const cv::Mat& normals, const cv::Mat& mask) {
   return {};
 }
 
+bool Solve(const IntegrationOptions& options, const Gradients& g, cv::Mat* depth, std::string* why) {
+  if (options.integrator == Integrator::kFrankotChellappa) {
+    FrankotChellappa(g, depth);
+    return true;
+  }
+  return Poisson(g, depth, why);
+}
+
 // Integrates g into *depth (each region's mean 0).
-void Integrate(const IntegrationOptions& options, const Gradients& g, solvers::core::SolveTimer& timer,
+void Integrate(const IntegrationOptions& options, Gradients g, solvers::core::SolveTimer& timer,
                IntegrationSummary* summary, cv::Mat* depth) {
   summary->pixels_dropped = g.dropped;
-  summary->pixels = static_cast<std::size_t>(cv::countNonZero(g.mask));
-  if (summary->pixels == 0) {
+  if (cv::countNonZero(g.mask) == 0) {
     summary->End(solvers::core::Termination::kFailure, "no pixel has a usable normal to integrate");
     return;
   }
   timer.SetupDone(summary);
   std::string why;
-  if (options.integrator == Integrator::kFrankotChellappa) {
-    FrankotChellappa(g, depth);
-  } else if (!Poisson(g, depth, &why)) {
-    summary->End(solvers::core::Termination::kFailure, why);
-    return;
+  if (options.block_px == 1) {
+    if (!Solve(options, g, depth, &why)) return summary->End(solvers::core::Termination::kFailure, why);
+  } else {
+    const Gradients coarse = BlockGradients(g, options.block_px);
+    cv::Mat coarse_depth;
+    if (!Solve(options, coarse, &coarse_depth, &why)) return summary->End(solvers::core::Termination::kFailure, why);
+    g.mask = g.mask.clone();
+    InterpolateBlocks(coarse_depth, coarse.mask, options.block_px, &g.mask, depth);
   }
+  summary->pixels = static_cast<std::size_t>(cv::countNonZero(g.mask));
   CentreRegions(g.mask, depth);
   summary->residual_rms = ResidualRms(g, *depth);
   summary->End(solvers::core::Termination::kSuccess, "");

@@ -2,6 +2,8 @@
 
 #include "photorig/solvers/ps/evaluation.h"
 
+#include "kernels/near_lambertian_sums.h"
+
 #include <opencv2/imgproc.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -9,12 +11,17 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <span>
+#include <vector>
 
 namespace photorig::solvers::ps {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+// The rounds' surfaces are integrated on blocks that leave at most this many
+// across the image (NearLightOptions::depth_block_px).
+constexpr int kRoundDepthSidePx = 128;
 
 double RadiansToDegrees(double radians) { return radians * 180.0 / kPi; }
 
@@ -47,12 +54,32 @@ struct PreparedLight {
 // geometry, fixed for the whole solve.
 struct PixelProblem {
   const PhotometricStack& stack;
-  std::vector<PreparedLight> lights;
+  internal::NearLightTable lights;
+  std::vector<const float*> planes;  // one per light, rows without padding
+  std::vector<cv::Mat> copies;       // the stack's images, where some have padding
+  int row_stride = 0;
   camera::PixelRays rays;
-  double shadow_threshold = 0.0;   // I - D at or below: shadowed
-  double saturation_level = 0.0;   // I at or above: clipped
-  bool exclude_unusable = true;    // false for l2: every sample enters
+  internal::NearSampleRules rules;
   double max_condition_number = 0.0;
+
+  PixelProblem(const PhotometricStack& stack, const std::vector<NearLight>& leds, const camera::Camera& camera)
+      : stack(stack), rays(camera) {
+    for (std::size_t k = 0; k < leds.size(); ++k) {
+      const PreparedLight light(leds[k]);
+      lights.position.insert(lights.position.end(), {light.position_mm.x(), light.position_mm.y(), light.position_mm.z()});
+      lights.axis.insert(lights.axis.end(), {light.axis.x(), light.axis.y(), light.axis.z()});
+      lights.cos_exponent.push_back(light.cos_exponent);
+      lights.constant.push_back(stack.light_scales[k] * light.scale);
+    }
+    // The kernel reads every plane at one index per pixel: planes with row
+    // padding are copied without it.
+    bool continuous = true;
+    for (const cv::Mat& image : stack.images) continuous = continuous && image.isContinuous();
+    if (!continuous)
+      for (const cv::Mat& image : stack.images) copies.push_back(image.clone());
+    for (const cv::Mat& image : continuous ? stack.images : copies) planes.push_back(image.ptr<float>());
+    row_stride = stack.width();
+  }
 
   Eigen::Vector3d Point(int r, int c, double z_mm) const { return rays.Point(r, c, z_mm); }
   // The height of a pixel whose integrated height is `relative` (0 at the
@@ -65,6 +92,11 @@ struct PixelProblem {
   }
 };
 
+struct PixelAt {
+  int r = 0, c = 0;
+  double z_mm = 0.0;  // the height of its surface point
+};
+
 struct PixelFit {
   PixelFlag flag = PixelFlag::kSolved;
   Eigen::Vector3d b = Eigen::Vector3d::Zero();  // rho / pi * n
@@ -72,44 +104,60 @@ struct PixelFit {
   double chi_square = 0.0;  // weighted by the noise where it is known
 };
 
-// Weighted least squares of I_k - D = s_k f_k(x) (b . l_k(x)) over the
-// pixel's usable samples, x its surface point at height z_mm.
-PixelFit FitPixel(const PixelProblem& p, int r, int c, double z_mm) {
-  const Eigen::Vector3d point = p.Point(r, c, z_mm);
-  const float dark = p.stack.dark.empty() ? 0.0f : p.stack.dark.at<float>(r, c);
-  Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-  double weighted_square_sum = 0.0;
+// Lane j's weighted least squares of I_k - D = s_k f_k(x) (b . l_k(x)),
+// from the lanes' solutions; a lane that failed the conditioning screen is
+// tested exactly (its normal matrix's eigenvalues) and solved again.
+PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneSums& sums,
+                   const internal::NearLaneSolutions& solutions, int j) {
   PixelFit fit;
-  for (int k = 0; k < p.stack.light_count(); ++k) {
-    const float value = p.stack.images[k].at<float>(r, c);
-    const double signal = value - dark;
-    if (p.exclude_unusable && (signal <= p.shadow_threshold || value >= p.saturation_level)) continue;
-    Eigen::Vector3d towards;
-    const double falloff = p.lights[k].RelativeIrradiance(point, &towards);
-    if (falloff <= 0.0) continue;  // behind the LED: it cannot light this point
-    const Eigen::Vector3d row = p.stack.light_scales[k] * falloff * towards;
-    const double weight = p.stack.noise.IsKnown() ? 1.0 / p.stack.noise.Variance(signal) : 1.0;
-    normal_matrix.noalias() += weight * row * row.transpose();
-    rhs.noalias() += weight * signal * row;
-    weighted_square_sum += weight * signal * signal;
-    ++fit.usable;
-  }
+  fit.usable = static_cast<int>(sums.usable[j]);
   if (fit.usable < 3) {
     fit.flag = PixelFlag::kTooFewLights;
     return fit;
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(normal_matrix, Eigen::EigenvaluesOnly);
-  const double smallest = eigen.eigenvalues()(0), largest = eigen.eigenvalues()(2);
-  // The normal matrix holds A^T W A: its eigenvalues are squared singular values.
-  if (!(smallest > 0.0) || std::sqrt(largest / smallest) > p.max_condition_number) {
-    fit.flag = PixelFlag::kIllConditioned;
-    return fit;
+  fit.b = Eigen::Vector3d(solutions.b[0][j], solutions.b[1][j], solutions.b[2][j]);
+  fit.chi_square = solutions.chi_square[j];
+  if (!solutions.conditioned[j]) {
+    const auto& m = sums.equations.matrix;
+    Eigen::Matrix3d normal_matrix;
+    normal_matrix << m[0][j], m[1][j], m[2][j], m[1][j], m[3][j], m[4][j], m[2][j], m[4][j], m[5][j];
+    const Eigen::Vector3d rhs(sums.equations.rhs[0][j], sums.equations.rhs[1][j], sums.equations.rhs[2][j]);
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+    eigen.computeDirect(normal_matrix, Eigen::EigenvaluesOnly);
+    const double smallest = eigen.eigenvalues()(0), largest = eigen.eigenvalues()(2);
+    // The normal matrix holds A^T W A: its eigenvalues are squared singular values.
+    if (!(smallest > 0.0) || std::sqrt(largest / smallest) > p.max_condition_number) {
+      fit.flag = PixelFlag::kIllConditioned;
+      return fit;
+    }
+    fit.b = normal_matrix.ldlt().solve(rhs);
+    fit.chi_square = std::max(0.0, sums.weighted_square_sum[j] - fit.b.dot(rhs));
   }
-  fit.b = normal_matrix.ldlt().solve(rhs);
-  fit.chi_square = std::max(0.0, weighted_square_sum - 2.0 * fit.b.dot(rhs) + fit.b.dot(normal_matrix * fit.b));
   if (!(fit.b.norm() > 0.0)) fit.flag = PixelFlag::kRejectedByModel;
   return fit;
+}
+
+// fits[i]: pixels[i]'s fit over its usable samples, kLanes pixels at a time.
+void FitPixels(const PixelProblem& p, std::span<const PixelAt> pixels, std::span<PixelFit> fits) {
+  using internal::kLanes;
+  const float* dark = p.stack.dark.empty() ? nullptr : p.stack.dark.ptr<float>();
+  const int dark_stride = p.stack.dark.empty() ? 0 : static_cast<int>(p.stack.dark.step1());
+  for (std::size_t start = 0; start < pixels.size(); start += kLanes) {
+    const int n = static_cast<int>(std::min<std::size_t>(kLanes, pixels.size() - start));
+    internal::NearLanePixels lanes;
+    for (int j = 0; j < kLanes; ++j) {
+      const PixelAt& at = pixels[start + std::min(j, n - 1)];  // spare lanes repeat the last pixel
+      const Eigen::Vector3d point = p.Point(at.r, at.c, at.z_mm);
+      lanes.x[j] = point.x(), lanes.y[j] = point.y(), lanes.z[j] = point.z();
+      lanes.dark[j] = dark ? dark[at.r * dark_stride + at.c] : 0.0;
+      lanes.offset[j] = at.r * p.row_stride + at.c;
+    }
+    internal::NearLaneSums sums;
+    internal::NearLambertianSums(p.lights, p.planes.data(), p.rules, lanes, &sums);
+    internal::NearLaneSolutions solutions;
+    internal::SolveNearLanes(sums, p.max_condition_number, &solutions);
+    for (int j = 0; j < n; ++j) fits[start + j] = SolveLane(p, sums, solutions, j);
+  }
 }
 
 bool InMask(const PhotometricStack& stack, int r, int c) {
@@ -132,41 +180,55 @@ void AllocateResult(const cv::Size size, NormalMap* result) {
 // Every pixel of the mask fitted with its surface at height_mm.
 void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* result) {
   const bool noise_known = p.stack.noise.IsKnown();
-#pragma omp parallel for schedule(dynamic, 4)
-  for (int r = 0; r < p.stack.height(); ++r)
-    for (int c = 0; c < p.stack.width(); ++c) {
-      if (!InMask(p.stack, r, c)) continue;
-      const PixelFit fit = FitPixel(p, r, c, height_mm.at<float>(r, c));
-      result->flags.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(fit.flag);
-      result->usable_lights.at<std::uint16_t>(r, c) = static_cast<std::uint16_t>(std::min(fit.usable, 65535));
-      if (fit.flag != PixelFlag::kSolved) {
-        result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(kNaN, kNaN, kNaN);
-        result->albedo.at<float>(r, c) = kNaN;
-        result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelModel::kNone);
-        result->confidence.at<float>(r, c) = 0.0f;
-        continue;
+#pragma omp parallel
+  {
+    std::vector<PixelAt> row;
+    std::vector<PixelFit> fits;
+#pragma omp for schedule(dynamic, 4)
+    for (int r = 0; r < p.stack.height(); ++r) {
+      row.clear();
+      for (int c = 0; c < p.stack.width(); ++c)
+        if (InMask(p.stack, r, c)) row.push_back({r, c, height_mm.at<float>(r, c)});
+      fits.resize(row.size());
+      FitPixels(p, row, fits);
+      for (std::size_t i = 0; i < row.size(); ++i) {
+        const int c = row[i].c;
+        const PixelFit& fit = fits[i];
+        result->flags.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(fit.flag);
+        result->usable_lights.at<std::uint16_t>(r, c) = static_cast<std::uint16_t>(std::min(fit.usable, 65535));
+        if (fit.flag != PixelFlag::kSolved) {
+          result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(kNaN, kNaN, kNaN);
+          result->albedo.at<float>(r, c) = kNaN;
+          result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelModel::kNone);
+          result->confidence.at<float>(r, c) = 0.0f;
+          continue;
+        }
+        const Eigen::Vector3d n = fit.b.normalized();
+        result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
+        result->albedo.at<float>(r, c) = static_cast<float>(kPi * fit.b.norm());
+        result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelModel::kLambertian);
+        // The residual variance against the noise's (1 at the noise level);
+        // nothing to test with exactly three samples or without a noise model.
+        const int dof = fit.usable - 3;
+        result->confidence.at<float>(r, c) =
+            noise_known && dof > 0 ? static_cast<float>(std::min(1.0, dof / std::max(fit.chi_square, 1e-300))) : 0.0f;
       }
-      const Eigen::Vector3d n = fit.b.normalized();
-      result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
-      result->albedo.at<float>(r, c) = static_cast<float>(kPi * fit.b.norm());
-      result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelModel::kLambertian);
-      // The residual variance against the noise's (1 at the noise level);
-      // nothing to test with exactly three samples or without a noise model.
-      const int dof = fit.usable - 3;
-      result->confidence.at<float>(r, c) =
-          noise_known && dof > 0 ? static_cast<float>(std::min(1.0, dof / std::max(fit.chi_square, 1e-300))) : 0.0f;
     }
+  }
 }
 
 // The integrated height on every masked pixel, 0 at its reference (the
 // mean for an orthographic camera; for a pinhole one, the geometric-mean
 // distance from the camera at the sample plane). The integrator leaves out
 // pixels too close to grazing, which take their nearest neighbour's height (a
-// rim pixel sits at the height of the surface beside it).
-cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, const NormalMap& map, const cv::Mat& mask) {
+// rim pixel sits at the height of the surface beside it). Integrated on
+// blocks of block_px pixels (IntegrationOptions::block_px).
+cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, const NormalMap& map, const cv::Mat& mask,
+                      int block_px) {
   const cv::Mat solved = map.flags == static_cast<int>(PixelFlag::kSolved);
   IntegrationOptions integration;
   integration.integrator = options.integrator;
+  integration.block_px = block_px;
   const bool pinhole = options.camera.IsPinhole();
   if (!pinhole) integration.pixel_pitch = options.camera.pixel_pitch_mm;
   cv::Mat depth;
@@ -192,18 +254,45 @@ cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, co
   return relative;
 }
 
-// The sum of the fits' chi-squares over a sparse grid of solved pixels with
-// the surface at relative + offset_mm.
-double SparseChiSquare(const PixelProblem& p, const NearLightOptions& options, const cv::Mat& solved,
-                       const cv::Mat& relative, double offset_mm) {
-  double total = 0.0;
-#pragma omp parallel for reduction(+ : total) schedule(dynamic, 1)
+// The solved pixels of every offset_stride-th row and column, with their
+// integrated heights (relative to the reference).
+struct SparseGrid {
+  std::vector<PixelAt> pixels;
+  std::vector<float> relative;
+};
+
+SparseGrid SparsePixels(const NearLightOptions& options, const cv::Mat& solved, const cv::Mat& relative) {
+  SparseGrid grid;
   for (int r = options.offset_stride / 2; r < relative.rows; r += options.offset_stride)
-    for (int c = options.offset_stride / 2; c < relative.cols; c += options.offset_stride) {
-      if (!solved.at<std::uint8_t>(r, c)) continue;
-      const PixelFit fit = FitPixel(p, r, c, p.Height(relative.at<float>(r, c), offset_mm));
-      if (fit.flag == PixelFlag::kSolved) total += fit.chi_square;
+    for (int c = options.offset_stride / 2; c < relative.cols; c += options.offset_stride)
+      if (solved.at<std::uint8_t>(r, c)) {
+        grid.pixels.push_back({r, c, 0.0});
+        grid.relative.push_back(relative.at<float>(r, c));
+      }
+  return grid;
+}
+
+// The sum of the grid's fits' chi-squares with the surface at relative +
+// offset_mm; summed in a fixed order, so the search takes the same steps
+// with any number of threads.
+double SparseChiSquare(const PixelProblem& p, SparseGrid& grid, double offset_mm) {
+  constexpr std::size_t kChunk = 8 * internal::kLanes;
+  const std::size_t count = grid.pixels.size(), chunks = (count + kChunk - 1) / kChunk;
+  for (std::size_t i = 0; i < count; ++i) grid.pixels[i].z_mm = p.Height(grid.relative[i], offset_mm);
+  std::vector<double> chunk_sum(chunks, 0.0);
+#pragma omp parallel
+  {
+    std::vector<PixelFit> fits(kChunk);
+#pragma omp for schedule(dynamic, 1)
+    for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
+      const std::size_t begin = chunk * kChunk, size = std::min(kChunk, count - begin);
+      FitPixels(p, std::span<const PixelAt>(grid.pixels).subspan(begin, size), std::span<PixelFit>(fits).first(size));
+      for (std::size_t i = 0; i < size; ++i)
+        if (fits[i].flag == PixelFlag::kSolved) chunk_sum[chunk] += fits[i].chi_square;
     }
+  }
+  double total = 0.0;
+  for (const double sum : chunk_sum) total += sum;
   return total;
 }
 
@@ -212,19 +301,20 @@ double BestOffset(const PixelProblem& p, const NearLightOptions& options, const 
                   const cv::Mat& relative, double low, double high) {
   constexpr double kInverseGolden = 0.6180339887498949;
   constexpr double kToleranceMm = 0.01;
+  SparseGrid grid = SparsePixels(options, solved, relative);
   double a = low, b = high;
   double x1 = b - kInverseGolden * (b - a), x2 = a + kInverseGolden * (b - a);
-  double f1 = SparseChiSquare(p, options, solved, relative, x1);
-  double f2 = SparseChiSquare(p, options, solved, relative, x2);
+  double f1 = SparseChiSquare(p, grid, x1);
+  double f2 = SparseChiSquare(p, grid, x2);
   while (b - a > kToleranceMm) {
     if (f1 <= f2) {
       b = x2, x2 = x1, f2 = f1;
       x1 = b - kInverseGolden * (b - a);
-      f1 = SparseChiSquare(p, options, solved, relative, x1);
+      f1 = SparseChiSquare(p, grid, x1);
     } else {
       a = x1, x1 = x2, f1 = f2;
       x2 = a + kInverseGolden * (b - a);
-      f2 = SparseChiSquare(p, options, solved, relative, x2);
+      f2 = SparseChiSquare(p, grid, x2);
     }
   }
   return 0.5 * (a + b);
@@ -310,6 +400,7 @@ bool NearLightOptions::IsValid(std::string* why) const {
   if (max_rounds < 1 || max_rounds > 100) return core::Refuse(why, "max_rounds must be within [1, 100]");
   if (!(normal_change_tolerance_deg > 0.0)) return core::Refuse(why, "normal_change_tolerance_deg must be > 0");
   if (offset_stride < 1) return core::Refuse(why, "offset_stride must be >= 1");
+  if (depth_block_px < 0 || depth_block_px > 64) return core::Refuse(why, "depth_block_px must be within [0, 64]");
   return true;
 }
 
@@ -329,13 +420,17 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     return summary;
   }
   if (core::EndIfBadInput(CheckInputs(stack, lights, near_options.camera), &summary)) return summary;
-  PixelProblem problem{stack, {lights.begin(), lights.end()}, camera::PixelRays(near_options.camera)};
-  problem.exclude_unusable = options.method != Method::kL2;
-  problem.shadow_threshold = std::max(options.lambertian.shadow_threshold,
-                                      options.shadow_threshold_read_sigmas * stack.noise.read_sigma);
-  problem.saturation_level = options.lambertian.saturation_level;
+  PixelProblem problem(stack, lights, near_options.camera);
+  internal::NearSampleRules& rules = problem.rules;
+  rules.exclude_unusable = options.method != Method::kL2;
+  rules.shadow_threshold = std::max(options.lambertian.shadow_threshold,
+                                    options.shadow_threshold_read_sigmas * stack.noise.read_sigma);
+  rules.saturation_level = options.lambertian.saturation_level;
+  rules.noise_known = stack.noise.IsKnown();
+  rules.read_variance = stack.noise.read_sigma * stack.noise.read_sigma;
+  rules.shot_gain = stack.noise.shot_gain;
   problem.max_condition_number = options.lambertian.max_condition_number;
-  summary.shadow_threshold = problem.shadow_threshold;
+  summary.shadow_threshold = rules.shadow_threshold;
   summary.noise_read_sigma = stack.noise.read_sigma;
   summary.noise_shot_gain = stack.noise.shot_gain;
 
@@ -343,6 +438,11 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   for (const NearLight& light : lights) lowest_led_mm = std::min(lowest_led_mm, light.position_mm.z());
   // Round 1 places the surface on the sample plane; each later round at the
   // depth integrated from the previous round's normals.
+  // The rounds place each pixel's point for its light vectors: a surface
+  // smoothed over a few pixels does that as well as one with every detail.
+  const int block_px = near_options.depth_block_px > 0
+                           ? near_options.depth_block_px
+                           : std::max(1, (std::max(stack.width(), stack.height()) + kRoundDepthSidePx - 1) / kRoundDepthSidePx);
   cv::Mat height = cv::Mat::zeros(stack.height(), stack.width(), CV_32F);
   AllocateResult(height.size(), result);
   timer.SetupDone(&summary);
@@ -361,7 +461,7 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
       }
     }
     const core::SolveTimer depth_timer;
-    const cv::Mat relative = RelativeDepth(near_options, problem, *result, stack.mask);
+    const cv::Mat relative = RelativeDepth(near_options, problem, *result, stack.mask, block_px);
     const cv::Mat solved = result->flags == static_cast<int>(PixelFlag::kSolved);
     // The offset lies below the lowest LED and no deeper than that under the
     // plane; a pinhole's scale stays positive.
@@ -374,8 +474,18 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
         height.at<float>(r, c) = static_cast<float>(problem.Height(relative.at<float>(r, c), summary.depth_offset_mm));
   }
   CountPixels(*result, &summary);
-  *height_mm = height.clone();
-  height_mm->setTo(kNaN, result->flags != static_cast<int>(PixelFlag::kSolved));
+  if (height_mm) {
+    // The surface itself, from the final normals at every pixel, where the
+    // last depth step placed it.
+    const core::SolveTimer depth_timer;
+    const cv::Mat relative = RelativeDepth(near_options, problem, *result, stack.mask, 1);
+    height_mm->create(height.size(), CV_32F);
+    for (int r = 0; r < height.rows; ++r)
+      for (int c = 0; c < height.cols; ++c)
+        height_mm->at<float>(r, c) = static_cast<float>(problem.Height(relative.at<float>(r, c), summary.depth_offset_mm));
+    height_mm->setTo(kNaN, result->flags != static_cast<int>(PixelFlag::kSolved));
+    summary.depth_ms += depth_timer.ElapsedMs();
+  }
   timer.Finish(&summary);
   if (summary.pixels_solved == 0) {
     summary.End(Termination::kFailure, "no pixel could be solved under the near lights");

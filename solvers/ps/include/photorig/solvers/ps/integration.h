@@ -42,6 +42,11 @@ struct IntegrationOptions {
   // such pixels are left out of the mask.
   // Perspective: the cosine between the normal and the pixel's ray.
   double min_normal_z = 0.05;
+  // 1: one unknown per pixel. b > 1: the slopes averaged over blocks of b x b
+  // pixels are integrated, and the depth interpolated bilinearly back to
+  // every pixel: a surface smoothed over b pixels for about 1 / b^2 of the
+  // unknowns (the near-light rounds need no more to place their points).
+  int block_px = 1;
   bool IsValid(std::string* why) const;
 };
 

@@ -1,0 +1,67 @@
+#pragma once
+// The near-light Lambertian fit's sums, one pixel per SIMD lane: each lane's
+// surface point x sees LED k along its own unit vector l_k(x) and with its
+// own relative irradiance f_k(x) (solvers/ps/near_lights.h), so unlike the
+// distant fits no light matrix is shared; the kernel builds every sample's
+// row s_k f_k(x) l_k(x) in the lane and adds it to the lane's weighted
+// normal equations. The 3 x 3 solves stay with the caller.
+
+#include "normal_equations.h"
+
+#include <vector>
+
+namespace photorig::solvers::ps::internal {
+
+// The LEDs as plain arrays, kernels using no Eigen: per light its position
+// (mm), emission axis (unit), cos exponent mu, and the constant that turns
+// cos^mu / d^2 into s_k f_k: s_k |p_k|^2 / cos_k(origin)^mu.
+struct NearLightTable {
+  std::vector<double> position, axis;  // three per light
+  std::vector<double> cos_exponent, constant;
+  int count() const { return static_cast<int>(constant.size()); }
+};
+
+// Which samples enter and with what weight (the distant Lambertian method's
+// rules): I - D at or below shadow_threshold is shadow, I at or above
+// saturation_level clipped; both are left out unless exclude_unusable is
+// false (l2). With a known noise each sample is weighted by 1 / Var(I - D).
+struct NearSampleRules {
+  double shadow_threshold = 0.0;
+  double saturation_level = 0.0;
+  bool exclude_unusable = true;
+  bool noise_known = false;
+  double read_variance = 0.0, shot_gain = 0.0;
+};
+
+// kLanes pixels: their surface points (mm), dark levels, and the index of
+// each pixel's sample in every light's image (all images share one layout).
+struct alignas(64) NearLanePixels {
+  double x[kLanes], y[kLanes], z[kLanes], dark[kLanes];
+  int offset[kLanes];
+};
+
+struct alignas(64) NearLaneSums {
+  LaneNormalEquations equations;
+  double weighted_square_sum[kLanes];  // sum c (I - D)^2: the chi-square's first term
+  double usable[kLanes];               // samples that entered
+};
+
+// Each lane's solution of its normal equations G b = r (G = A^T W A):
+// b = G^-1 r by the adjugate, chi-square = sum c (I - D)^2 - b . r, and a
+// screen of the conditioning, cond(A)^2 = cond(G) <= |G|_F |G^-1|_F.
+struct alignas(64) NearLaneSolutions {
+  double b[3][kLanes];
+  double chi_square[kLanes];
+  // 1: G is positive definite (det > 0) and the Frobenius bound keeps cond(A)
+  // within the limit; 0: the bound does not, and only an exact test can tell.
+  double conditioned[kLanes];
+};
+
+void SolveNearLanes(const NearLaneSums& sums, double max_condition_number, NearLaneSolutions* solutions);
+
+// planes[k]: light k's image. Lanes past the batch's end may repeat a pixel;
+// their sums are ignored.
+void NearLambertianSums(const NearLightTable& lights, const float* const* planes, const NearSampleRules& rules,
+                        const NearLanePixels& pixels, NearLaneSums* sums);
+
+}  // namespace photorig::solvers::ps::internal
