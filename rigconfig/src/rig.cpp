@@ -363,6 +363,17 @@ void CheckCalibrationRecord(const YamlNode& record) {
       for (const YamlNode& file : files->Items()) file.AsString();
 }
 
+// lights.radiance_calibration: where the LEDs' intensities and exponents
+// came from (`photorig calibrate radiance`, docs/lighting.md).
+void CheckRadianceCalibrationRecord(const YamlNode& record) {
+  record.ExpectKeys({"date", "source_run", "albedo", "exponent", "worst_model_error"});
+  record["date"].AsString();
+  record["source_run"].AsString();
+  record["albedo"].AsDoubleIn(1e-6, 1.0);
+  record["exponent"].AsString();
+  record["worst_model_error"].AsDoubleIn(0.0, 1.0);
+}
+
 // camera.projection: orthographic with its pixel pitch, or pinhole with its
 // lens; a pinhole's pixel pitch is its pixel's size on the sample plane.
 void ParseProjection(const YamlNode& camera, CameraConfig* cam) {
@@ -418,8 +429,9 @@ RigConfig LoadRigConfig(const std::string& path) {
   if (auto target = root.Find("reference_target")) rig.reference_target = ParseReferenceTarget(*target, rig);
 
   const YamlNode lights = root["lights"];
-  lights.ExpectKeys({"driver", "id", "leds", "options"});
+  lights.ExpectKeys({"driver", "id", "leds", "options", "radiance_calibration"});
   CheckDriver(lights["driver"], "light");
+  if (auto record = lights.Find("radiance_calibration")) CheckRadianceCalibrationRecord(*record);
   rig.lights.driver = lights["driver"].AsString();
   rig.lights.id = lights.String("id", "lights");
   std::set<int> ids;

@@ -1,0 +1,85 @@
+// photorig calibrate radiance --run DIR --albedo A [--exponent keep|fit|choose] [--plane-height-mm H]
+//   [--rig IN.yaml] [--out-rig NEW.yaml] [--out DIR (default RUN/results/led-radiance)]
+// Each near LED's intensity and radiance profile from a run that photographed
+// a matte plane of known albedo under every LED, written as a report and a
+// new rig YAML (an existing file is never overwritten).
+
+#include "../command.h"
+#include "../command_output.h"
+#include "photorig/daemon/pipelines/led_radiance.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+namespace photorig::app {
+namespace {
+
+struct Options {
+  daemon::LedRadianceRequest request;
+};
+
+int Execute(const Options& o) {
+  const daemon::LedRadianceRequest& request = o.request;
+  if (std::string why; !request.options.IsValid(&why)) return Fail(kExitUsage, "calibrate radiance: " + why);
+  const daemon::LedRadianceResult result = daemon::CalibrateLedRadianceRun(request);
+  const solvers::lighting::LedRadianceSummary& s = result.summary;
+  nlohmann::json leds = nlohmann::json::array();
+  std::printf("plane: %d pixels; %d of %zu LEDs usable\n", s.plane_pixels, s.usable, s.leds.size());
+  for (std::size_t k = 0; k < s.leds.size(); ++k) {
+    const solvers::lighting::LedRadianceEstimate& e = s.leds[k];
+    std::printf("LED %3d: intensity %.4f +- %.4f (stated %.4f), cos exponent %.3f%s, model error %.2f %%%s%s\n",
+                result.led_ids[k], e.intensity, e.intensity_std, result.stated_intensity[k], e.cos_exponent,
+                e.exponent_fitted ? " (fitted)" : " (kept)", 100.0 * e.model_error, e.usable ? "" : ": ",
+                e.usable ? "" : e.note.c_str());
+    leds.push_back({{"id", result.led_ids[k]},
+                    {"usable", e.usable},
+                    {"intensity", e.intensity},
+                    {"intensity_std", e.intensity_std},
+                    {"cos_exponent", e.cos_exponent},
+                    {"cos_exponent_std", e.cos_exponent_std},
+                    {"exponent_fitted", e.exponent_fitted},
+                    {"model_error", e.model_error}});
+  }
+  ResultFields() = {{"termination", solvers::core::TerminationName(s.termination)},
+                    {"message", s.message},
+                    {"plane_pixels", s.plane_pixels},
+                    {"usable", s.usable},
+                    {"leds", leds},
+                    {"out", result.output_directory},
+                    {"out_rig", result.rig_written ? request.out_rig : ""}};
+  if (!s.IsSolutionUsable()) {
+    const bool usage = s.termination == solvers::core::Termination::kInvalidOptions ||
+                       s.termination == solvers::core::Termination::kInvalidInput;
+    return Fail(usage ? kExitUsage : kExitFailed, "calibrate radiance: " + s.message);
+  }
+  std::printf("results: %s\n", result.output_directory.c_str());
+  if (result.rig_written) std::printf("rig written: %s\n", request.out_rig.c_str());
+  return kExitOk;
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto o = std::make_shared<Options>();
+  daemon::LedRadianceRequest& request = o->request;
+  CLI::App* calibrate = SubcommandGroup(app, "calibrate", "calibrate the rig");
+  CLI::App* radiance =
+      calibrate->add_subcommand("radiance", "near LEDs' intensities and radiance profiles from a matte plane");
+  radiance->add_option("--run", request.run_directory, "run with a dark frame and one frame of the plane per LED")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  radiance->add_option("--albedo", request.options.albedo, "the plane's diffuse albedo, (0, 1]")->required();
+  AddChoice(radiance, "--exponent", &request.options.exponent, solvers::lighting::kExponentRuleNames,
+            "the LEDs' cos exponents");
+  radiance->add_option("--plane-height-mm", request.options.plane_height_mm,
+                       "height of the plane's surface above the sample plane (mm)")
+      ->capture_default_str();
+  radiance->add_option("--rig", request.base_rig, "rig YAML to copy (default: the run's)")->check(CLI::ExistingFile);
+  radiance->add_option("--out-rig", request.out_rig, "new rig YAML with the calibrated LEDs; must not exist");
+  radiance->add_option("--out", request.output_directory, "output directory (default RUN/results/led-radiance)");
+  return {radiance, [o] { return Execute(*o); }};
+}
+
+const bool registered = RegisterCommand(Setup);
+
+}  // namespace
+}  // namespace photorig::app
