@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <regex>
 #include <string>
@@ -135,6 +136,27 @@ TEST(BatchLocal, FailedTaskIsReportedAndRetryCompletesTheBatch) {
       << ReadText(dir.path() / "retry.log");
   EXPECT_EQ(CountState(retried, "completed"), kRuns) << retried.dump(2);
   ExpectSameAsInProcess(dir, "auto");
+}
+
+TEST(BatchLocal, ATaskRecordWhoseExitCodeIsNoIntegerIsAFailedTaskNamingIt) {
+  TempDir dir;
+  CaptureRuns(dir, 2);
+  const std::string batch = (dir.path() / "batch").string();
+  json solved;
+  ASSERT_EQ(Photorig("batch solve --runs '" + (dir.path() / "runs").string() + "/*' --local 2 --batch " + batch, &solved,
+                     dir.path() / "solve.log"),
+            0)
+      << ReadText(dir.path() / "solve.log");
+  // A record damaged on disk: a number no int holds, which nlohmann's get<int> would convert with undefined behaviour.
+  const fs::path record = fs::path(batch) / "tasks" / "1.json";
+  json task = json::parse(ReadText(record));
+  task["exit_code"] = 1e137;
+  std::ofstream(record) << task.dump();
+  json status;
+  EXPECT_EQ(Photorig("batch status --batch " + batch, &status, dir.path() / "status.log"), 1);
+  EXPECT_EQ(status["tasks"][1]["state"], "failed") << status.dump(2);
+  EXPECT_NE(status["tasks"][1]["error"].get<std::string>().find("1.json"), std::string::npos) << status.dump(2);
+  EXPECT_EQ(status["tasks"][0]["state"], "completed");
 }
 
 // A single-node Slurm cluster for each test (tests/slurm/slurm-node.sh).

@@ -1,5 +1,7 @@
 #include "photorig/daemon/pipelines/svbrdf_pipeline.h"
 
+#include "photorig/daemon/io/json_fields.h"
+
 #include "photorig/solvers/color/region_demosaic.h"
 #include "photorig/daemon/io/gltf_export.h"
 #include "photorig/daemon/io/image_io.h"
@@ -432,7 +434,11 @@ refl::ReflectanceMaps ReadSvbrdfResult(const std::string& output_directory) {
     fit.model = *model;
     for (int ch = 0; ch < 3; ++ch) fit.specular[ch] = m.at("specular")[ch].get<double>();
     fit.shape = m.at("shape").get<double>();
-    fit.pixels = m.at("pixels").get<int>();
+    try {
+      fit.pixels = IntegerAt<int>(m, "pixels");
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(report_path.string() + ": " + e.what());
+    }
     maps.materials.push_back(fit);
   }
   return maps;

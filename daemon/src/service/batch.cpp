@@ -1,6 +1,7 @@
 #include "photorig/daemon/service/internal/batch.h"
 
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/json_fields.h"
 #include "photorig/daemon/io/utc_time.h"
 
 #include <fcntl.h>
@@ -335,9 +336,14 @@ std::vector<TaskStatus> CollectBatchStatus(const BatchManifest& batch) {
     if (live) {
       status.state = known->second.first;
     } else if (record.is_object() && record.contains("exit_code")) {
-      status.exit_code = record["exit_code"].get<int>();
-      status.state = *status.exit_code == 0 ? "completed" : "failed";
-      status.error = record.value("error", "");
+      try {
+        status.exit_code = IntegerAt<int>(record, "exit_code");
+        status.state = *status.exit_code == 0 ? "completed" : "failed";
+        status.error = record.value("error", "");
+      } catch (const std::runtime_error& e) {
+        status.state = "failed";
+        status.error = TaskRecord(batch, task.index).string() + ": " + e.what();
+      }
       status.report = record;
     } else if (known != scheduler.end() && known->second.first != "completed") {
       status.state = known->second.first;

@@ -1,5 +1,7 @@
 #include "photorig/daemon/service/service.h"
 
+#include "photorig/daemon/io/json_fields.h"
+
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/service/run.h"
 #include "photorig/config/rig.h"
@@ -90,8 +92,12 @@ int JournalledFrames(const std::string& directory) {
   std::set<int> steps;
   for (std::string line; std::getline(in, line);) {
     const json entry = json::parse(line, nullptr, /*allow_exceptions=*/false);
-    if (entry.is_object() && entry.contains("index") && entry["index"].is_number_integer())
-      steps.insert(entry["index"].get<int>());
+    if (!entry.is_object() || !entry.contains("index")) continue;
+    try {
+      steps.insert(IntegerAt<int>(entry, "index"));
+    } catch (const std::runtime_error&) {
+      // A line whose index is no step counts for nothing; resuming checks the frames themselves.
+    }
   }
   return static_cast<int>(steps.size());
 }
