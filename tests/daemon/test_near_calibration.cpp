@@ -1,12 +1,14 @@
-// The near dome's LED intensities and profiles from the led-radiance recipe's
-// matte plane, through the executable: `photorig run` then `photorig
-// calibrate radiance`, against the simulator's LEDs as built.
+// A near dome calibrated from its own captures, through the executable: the
+// LED intensities and profiles from the led-radiance recipe's matte plane
+// (`photorig calibrate radiance`), and a calibration applied to frames taken
+// before it (`photorig solve ps --rig`), against the simulator's LEDs as built.
 
 #include "photorig/config/rig.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <yaml-cpp/yaml.h>
 
 #include <cmath>
 #include <filesystem>
@@ -81,6 +83,71 @@ TEST(LedRadiance, ThePlaneRecipeFindsTheNearDomesIntensitiesAsBuilt) {
   const auto no_albedo = Photorig("calibrate radiance --run " + run.string() + " --albedo 1.5", dir);
   EXPECT_EQ(no_albedo.exit_code, 2);
   EXPECT_NE(no_albedo.err.find("albedo"), std::string::npos) << no_albedo.err;
+}
+
+// The dome as built, stated as drawn: LEDs 1.5 deg (6.5 mm) off their
+// drawn positions and 5 % off their stated intensities.
+fs::path AsBuiltNearDome(const TempDir& dir) {
+  const std::string drawing = ReadText(SourceDir() + "/config/rigs/sim-dome-near.yaml");
+  const std::string as_built = std::regex_replace(
+      drawing, std::regex("\nsim:\n"), "\nsim:\n  led_direction_error_deg: 1.5\n  led_intensity_error_pct: 5\n");
+  const fs::path rig = dir.path() / "as-built.yaml";
+  std::ofstream(rig) << as_built;
+  return rig;
+}
+
+double MeanErrorDeg(const fs::path& results) {
+  return nlohmann::json::parse(ReadText(results / "report.json"))["ground_truth"]["mean_angular_error_deg"].get<double>();
+}
+
+TEST(SolveWithACalibratedRig, FramesTakenBeforeTheCalibrationAreSolvedWithIt) {
+  TempDir dir;
+  const fs::path rig = AsBuiltNearDome(dir), run = dir.path() / "run";
+  const auto captured = Photorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --no-solve --rig " +
+                                     rig.string() + " --out " + run.string(),
+                                 dir);
+  ASSERT_EQ(captured.exit_code, 0) << captured.out << captured.err;
+  const auto as_stated = Photorig("solve ps --method lambertian --run " + run.string() + " --out " +
+                                      (dir.path() / "stated").string(),
+                                  dir);
+  ASSERT_EQ(as_stated.exit_code, 0) << as_stated.out << as_stated.err;
+
+  // The LEDs as they were built, from the simulator's ground truth: each
+  // swung about the origin at its distance, and its true irradiance.
+  YAML::Node truth = YAML::LoadFile(rig.string());
+  truth["sim"].remove("led_direction_error_deg");
+  truth["sim"].remove("led_intensity_error_pct");
+  std::ifstream directions(run / "ground_truth/light_directions.txt");
+  const std::vector<double> intensities = ReadColumn(run / "ground_truth/light_intensities.txt");
+  YAML::Node leds = truth["lights"]["leds"];
+  ASSERT_EQ(leds.size(), intensities.size());
+  for (std::size_t k = 0; k < leds.size(); ++k) {
+    const auto drawn = leds[k]["position_mm"].as<std::vector<double>>();
+    const double distance = std::hypot(drawn[0], drawn[1], drawn[2]);
+    double x = 0, y = 0, z = 0;
+    directions >> x >> y >> z;
+    leds[k]["position_mm"] = std::vector<double>{distance * x, distance * y, distance * z};
+    leds[k]["intensity"] = intensities[k];
+  }
+  const fs::path truth_rig = dir.path() / "truth.yaml";
+  std::ofstream(truth_rig) << truth;
+  const auto calibrated = Photorig("solve ps --json --method lambertian --run " + run.string() + " --rig " +
+                                       truth_rig.string() + " --out " + (dir.path() / "calibrated").string(),
+                                   dir);
+  ASSERT_EQ(calibrated.exit_code, 0) << calibrated.out << calibrated.err;
+  const double stated_deg = MeanErrorDeg(dir.path() / "stated"), calibrated_deg = MeanErrorDeg(dir.path() / "calibrated");
+  EXPECT_GT(stated_deg, 0.8);  // the dome as drawn is measurably off
+  EXPECT_LT(calibrated_deg, 0.35) << "as stated: " << stated_deg << " deg";
+  // The report says which rig the frames were solved with.
+  EXPECT_NE(nlohmann::json::parse(calibrated.out)["provenance"].dump().find("truth.yaml"), std::string::npos);
+
+  // A rig of another dome is refused naming it.
+  const auto other = Photorig("solve ps --run " + run.string() + " --rig " + SourceDir() +
+                                  "/config/rigs/sim-dome-96.yaml --out " + (dir.path() / "other").string(),
+                              dir);
+  EXPECT_EQ(other.exit_code, 2);
+  EXPECT_NE(other.err.find("sim-dome-96.yaml"), std::string::npos) << other.err;
+  EXPECT_NE(other.err.find("96 LEDs"), std::string::npos) << other.err;
 }
 
 }  // namespace

@@ -24,7 +24,6 @@ int Execute(const Options& o) {
   if (std::string why; !request.options.IsValid(&why)) return Fail(kExitUsage, "calibrate radiance: " + why);
   const daemon::LedRadianceResult result = daemon::CalibrateLedRadianceRun(request);
   const solvers::lighting::LedRadianceSummary& s = result.summary;
-  nlohmann::json leds = nlohmann::json::array();
   std::printf("plane: %d pixels; %d of %zu LEDs usable\n", s.plane_pixels, s.usable, s.leds.size());
   for (std::size_t k = 0; k < s.leds.size(); ++k) {
     const solvers::lighting::LedRadianceEstimate& e = s.leds[k];
@@ -32,22 +31,10 @@ int Execute(const Options& o) {
                 result.led_ids[k], e.intensity, e.intensity_std, result.stated_intensity[k], e.cos_exponent,
                 e.exponent_fitted ? " (fitted)" : " (kept)", 100.0 * e.model_error, e.usable ? "" : ": ",
                 e.usable ? "" : e.note.c_str());
-    leds.push_back({{"id", result.led_ids[k]},
-                    {"usable", e.usable},
-                    {"intensity", e.intensity},
-                    {"intensity_std", e.intensity_std},
-                    {"cos_exponent", e.cos_exponent},
-                    {"cos_exponent_std", e.cos_exponent_std},
-                    {"exponent_fitted", e.exponent_fitted},
-                    {"model_error", e.model_error}});
   }
-  ResultFields() = {{"termination", solvers::core::TerminationName(s.termination)},
-                    {"message", s.message},
-                    {"plane_pixels", s.plane_pixels},
-                    {"usable", s.usable},
-                    {"leds", leds},
-                    {"out", result.output_directory},
-                    {"out_rig", result.rig_written ? request.out_rig : ""}};
+  ResultFields() = daemon::ToJson(request, result);
+  ResultFields()["out"] = result.output_directory;
+  ResultFields()["out_rig"] = result.rig_written ? request.out_rig : "";
   if (!s.IsSolutionUsable()) {
     const bool usage = s.termination == solvers::core::Termination::kInvalidOptions ||
                        s.termination == solvers::core::Termination::kInvalidInput;
@@ -73,7 +60,10 @@ CommandRunner Setup(CLI::App& app) {
   radiance->add_option("--plane-height-mm", request.options.plane_height_mm,
                        "height of the plane's surface above the sample plane (mm)")
       ->capture_default_str();
-  radiance->add_option("--rig", request.base_rig, "rig YAML to copy (default: the run's)")->check(CLI::ExistingFile);
+  radiance->add_option("--rig", request.base_rig,
+                       "rig YAML to start from: its LED positions and camera are fitted with, and it is copied "
+                       "(default: the run's)")
+      ->check(CLI::ExistingFile);
   radiance->add_option("--out-rig", request.out_rig, "new rig YAML with the calibrated LEDs; must not exist");
   radiance->add_option("--out", request.output_directory, "output directory (default RUN/results/led-radiance)");
   return {radiance, [o] { return Execute(*o); }};

@@ -1,4 +1,4 @@
-// photorig solve ps (--run DIR [--accept-failed-capture] | --dataset DIR) [--method ...] [--mask PNG] [--out DIR]
+// photorig solve ps (--run DIR [--accept-failed-capture] [--rig RIG] | --dataset DIR) [--method ...] [--mask PNG] [--out DIR]
 //                  [--demosaic bilinear|edge-aware] [--color-model FILE] ...
 // photorig export diligent --run DIR --out DIR
 
@@ -21,7 +21,7 @@ namespace photorig::app {
 namespace {
 
 struct Options {
-  std::string run_dir, dataset_dir, mask, out;
+  std::string run_dir, dataset_dir, mask, out, rig;
   std::string commit_gate;  // tests: hold the finished solve while this file exists
   solvers::color::DemosaicMethod demosaic = solvers::color::DemosaicMethod::kBilinear;
   std::string color_model;
@@ -57,6 +57,7 @@ int Execute(const Options& options) {
   daemon::PhotometricStereoInput input =
       from_run ? daemon::LoadRunStack(options.run_dir, color, FailedCapturePolicy(options.accept_failed_capture))
                : daemon::LoadDiligent(options.dataset_dir);
+  if (!options.rig.empty()) daemon::ApplyRigCalibration(options.rig, &input);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
   config::PhotometricStereoRequest request = options.request;
@@ -106,6 +107,11 @@ CommandRunner SetupSolve(CLI::App& app) {
   ps->add_option("--mask", options->mask,
                  "PNG, nonzero = object: solve only there (default: the dataset's mask.png, else from the dark and lit frames)")
       ->check(CLI::ExistingFile);
+  auto* rig = ps->add_option("--rig", options->rig,
+                             "rig YAML whose LEDs and camera replace those the run recorded (a calibration made after "
+                             "the capture)")
+                  ->check(CLI::ExistingFile);
+  rig->excludes(dataset);
   ps->add_option("--out", options->out, "output directory, replaced whole as the solve ends (default: SOURCE/results/ps)");
   // For tests of pre-emption (tests/slurm): a task held with its results written but not yet in place.
   ps->add_option("--commit-gate", options->commit_gate, "wait while FILE exists before putting the results in place")

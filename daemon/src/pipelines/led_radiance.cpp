@@ -51,7 +51,68 @@ void WriteCalibratedRig(const LedRadianceRequest& request, const std::string& ba
   if (!out) throw std::runtime_error("cannot write " + request.out_rig);
 }
 
-nlohmann::json ReportJson(const LedRadianceRequest& request, const LedRadianceResult& result) {
+}  // namespace
+
+LedRadianceResult CalibrateLedRadianceRun(const LedRadianceRequest& request) {
+  if (!request.out_rig.empty() && fs::exists(request.out_rig))
+    throw std::invalid_argument(request.out_rig + " exists: a calibrated rig is always a new file");
+  const RunManifest manifest = LoadRunManifest(request.run_directory);
+  PhotometricStereoInput input = LoadRunStack(request.run_directory);
+  // A rig given to start from brings its LED positions and camera to the fit
+  // (positions from mirror spheres, a lens from checkerboards).
+  if (!request.base_rig.empty()) ApplyRigCalibration(request.base_rig, &input);
+  const solvers::ps::PhotometricStack& stack = input.stack;
+  const std::string run = request.run_directory;
+  if (input.near_lights.empty())
+    throw std::invalid_argument(run + ": the rig gives no LED positions (position_mm): the plane calibrates near LEDs");
+  if (stack.dark.empty())
+    throw std::invalid_argument(run + ": no dark frame: the plane's signal is measured above one (add a `dark` step)");
+  const std::vector<int>& image_leds = input.image_leds;
+  bool one_per_led = image_leds.size() == input.run_leds.size();
+  for (std::size_t k = 0; one_per_led && k < image_leds.size(); ++k) one_per_led = image_leds[k] == static_cast<int>(k);
+  if (!one_per_led)
+    throw std::invalid_argument(run + ": " + std::to_string(stack.light_count()) + " LED frames for the rig's " +
+                                std::to_string(input.run_leds.size()) +
+                                " LEDs: the plane needs one frame per LED, in the rig's order");
+  LedRadianceResult result;
+  std::vector<solvers::lighting::LedPlaneFrame> frames(input.run_leds.size());
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const config::LedConfig& led = input.run_leds[k];
+    solvers::lighting::LedPlaneFrame& frame = frames[k];
+    frame.raw = stack.images[k];
+    frame.signal = stack.images[k] - stack.dark;
+    frame.dn_per_radiance = stack.light_scales[k] / led.intensity;
+    frame.position_mm = input.near_lights[k].position_mm;
+    frame.axis = input.near_lights[k].axis;
+    frame.cos_exponent = input.near_lights[k].cos_exponent;
+    result.led_ids.push_back(led.id);
+    result.stated_intensity.push_back(led.intensity);
+  }
+  solvers::lighting::LedRadianceOptions options = request.options;
+  options.saturation_level_dn = EffectiveSaturationLevel(input);
+  result.summary = solvers::lighting::CalibrateLedRadiance(
+      options, *input.camera, {stack.noise.read_sigma, stack.noise.shot_gain}, frames);
+
+  result.output_directory = request.output_directory.empty()
+                                ? (fs::path(run) / "results" / "led-radiance").string()
+                                : request.output_directory;
+  fs::create_directories(result.output_directory);
+  const fs::path folder(result.output_directory);
+  std::ofstream report(folder / "report.json");
+  report << ToJson(request, result).dump(2) << "\n";
+  if (!report) throw std::runtime_error("cannot write " + (folder / "report.json").string());
+  if (!result.summary.plane_mask.empty() && !cv::imwrite((folder / "plane_mask.png").string(), result.summary.plane_mask))
+    throw std::runtime_error("cannot write " + (folder / "plane_mask.png").string());
+  if (result.summary.IsSolutionUsable() && !request.out_rig.empty()) {
+    const std::string base_rig = request.base_rig.empty() ? manifest.rig_path : request.base_rig;
+    WriteCalibratedRig(request, base_rig, result);
+    config::LoadRigConfig(request.out_rig);  // what was written loads, or this throws
+    result.rig_written = true;
+  }
+  return result;
+}
+
+nlohmann::json ToJson(const LedRadianceRequest& request, const LedRadianceResult& result) {
   const solvers::lighting::LedRadianceSummary& s = result.summary;
   nlohmann::json leds = nlohmann::json::array();
   for (std::size_t k = 0; k < s.leds.size(); ++k) {
@@ -81,60 +142,6 @@ nlohmann::json ReportJson(const LedRadianceRequest& request, const LedRadianceRe
           {"setup_ms", s.setup_ms},
           {"solve_ms", s.solve_ms},
           {"total_ms", s.total_ms}};
-}
-
-}  // namespace
-
-LedRadianceResult CalibrateLedRadianceRun(const LedRadianceRequest& request) {
-  if (!request.out_rig.empty() && fs::exists(request.out_rig))
-    throw std::invalid_argument(request.out_rig + " exists: a calibrated rig is always a new file");
-  const RunManifest manifest = LoadRunManifest(request.run_directory);
-  const PhotometricStereoInput input = LoadRunStack(request.run_directory);
-  const solvers::ps::PhotometricStack& stack = input.stack;
-  const std::string run = request.run_directory;
-  if (input.near_lights.empty())
-    throw std::invalid_argument(run + ": the rig gives no LED positions (position_mm): the plane calibrates near LEDs");
-  if (stack.dark.empty())
-    throw std::invalid_argument(run + ": no dark frame: the plane's signal is measured above one (add a `dark` step)");
-  if (stack.light_count() != static_cast<int>(manifest.lights.size()))
-    throw std::invalid_argument(run + ": " + std::to_string(stack.light_count()) + " LED frames for the rig's " +
-                                std::to_string(manifest.lights.size()) + " LEDs: the plane needs one frame per LED");
-  LedRadianceResult result;
-  std::vector<solvers::lighting::LedPlaneFrame> frames(manifest.lights.size());
-  for (std::size_t k = 0; k < frames.size(); ++k) {
-    const config::LedConfig& led = manifest.lights[k];
-    solvers::lighting::LedPlaneFrame& frame = frames[k];
-    frame.raw = stack.images[k];
-    frame.signal = stack.images[k] - stack.dark;
-    frame.dn_per_radiance = stack.light_scales[k] / led.intensity;
-    frame.position_mm = input.near_lights[k].position_mm;
-    frame.axis = input.near_lights[k].axis;
-    frame.cos_exponent = input.near_lights[k].cos_exponent;
-    result.led_ids.push_back(led.id);
-    result.stated_intensity.push_back(led.intensity);
-  }
-  solvers::lighting::LedRadianceOptions options = request.options;
-  options.saturation_level_dn = EffectiveSaturationLevel(input);
-  result.summary = solvers::lighting::CalibrateLedRadiance(
-      options, *input.camera, {stack.noise.read_sigma, stack.noise.shot_gain}, frames);
-
-  result.output_directory = request.output_directory.empty()
-                                ? (fs::path(run) / "results" / "led-radiance").string()
-                                : request.output_directory;
-  fs::create_directories(result.output_directory);
-  const fs::path folder(result.output_directory);
-  std::ofstream report(folder / "report.json");
-  report << ReportJson(request, result).dump(2) << "\n";
-  if (!report) throw std::runtime_error("cannot write " + (folder / "report.json").string());
-  if (!result.summary.plane_mask.empty() && !cv::imwrite((folder / "plane_mask.png").string(), result.summary.plane_mask))
-    throw std::runtime_error("cannot write " + (folder / "plane_mask.png").string());
-  if (result.summary.IsSolutionUsable() && !request.out_rig.empty()) {
-    const std::string base_rig = request.base_rig.empty() ? manifest.rig_path : request.base_rig;
-    WriteCalibratedRig(request, base_rig, result);
-    config::LoadRigConfig(request.out_rig);  // what was written loads, or this throws
-    result.rig_written = true;
-  }
-  return result;
 }
 
 }  // namespace photorig::daemon

@@ -280,6 +280,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
                                std::to_string(manifest.lights.size()) + " LEDs");
     const config::LedConfig& led = manifest.lights[record.led];
     stack_leds.push_back(&led);
+    input.image_leds.push_back(record.led);
     stack.images.push_back(frame);
     stack.light_directions.push_back(led.direction);
     const double gain = std::pow(10.0, record.gain_db / 20.0);
@@ -291,6 +292,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   input.camera = solvers::camera::Camera{manifest.projection, manifest.width, manifest.height, input.pixel_pitch,
                                          manifest.pinhole};
   input.near_lights = NearLightsOf(stack_leds);
+  input.run_leds = manifest.lights;
   // Photon noise in DN^2 per DN of signal: gain / (electrons per DN). All frames
   // of a run share the gain in practice; the first light frame's is used.
   if (manifest.e_per_dn > 0.0) {
@@ -321,6 +323,43 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   }
   if (colour) input.color = LoadRunColorStack(run_directory, color);
   return input;
+}
+
+void ApplyRigCalibration(const std::string& rig_path, PhotometricStereoInput* input) {
+  auto refuse = [&rig_path](const std::string& why) { throw config::ConfigError(rig_path, 0, 0, "", why); };
+  if (input->image_leds.empty()) refuse("a rig's calibration applies to a run's frames, not to " + input->source);
+  const config::RigConfig rig = config::LoadRigConfig(rig_path);
+  const std::vector<config::LedConfig>& leds = rig.lights.leds;
+  if (leds.size() != input->run_leds.size())
+    refuse("the rig has " + std::to_string(leds.size()) + " LEDs, the run " + input->source + " " +
+           std::to_string(input->run_leds.size()));
+  for (std::size_t i = 0; i < leds.size(); ++i)
+    if (leds[i].id != input->run_leds[i].id)
+      refuse("LED " + std::to_string(i) + " has id " + std::to_string(leds[i].id) + ", the run's " +
+             std::to_string(input->run_leds[i].id));
+  const cv::Size images = input->stack.images.front().size();
+  if (rig.camera.width != images.width || rig.camera.height != images.height)
+    refuse("the rig's camera takes " + std::to_string(rig.camera.width) + "x" + std::to_string(rig.camera.height) +
+           " frames, the run's are " + std::to_string(images.width) + "x" + std::to_string(images.height));
+  solvers::ps::PhotometricStack& stack = input->stack;
+  std::vector<const config::LedConfig*> image_leds;
+  for (std::size_t k = 0; k < input->image_leds.size(); ++k) {
+    const config::LedConfig& now = leds[input->image_leds[k]];
+    const config::LedConfig& then = input->run_leds[input->image_leds[k]];
+    image_leds.push_back(&now);
+    stack.light_directions[k] = now.direction;
+    // A frame's scale is the LED's intensity times what the capture set (level, exposure, gain).
+    stack.light_scales[k] *= now.intensity / then.intensity;
+    if (input->color)
+      input->color->light_scales[k] = input->color->light_scales[k].cwiseProduct(
+          (now.intensity * now.rgb_intensity).cwiseQuotient(then.intensity * then.rgb_intensity));
+  }
+  input->near_lights = NearLightsOf(image_leds);
+  if (rig.camera.pixel_pitch_mm > 0.0) input->pixel_pitch = rig.camera.pixel_pitch_mm;
+  input->camera = solvers::camera::Camera{rig.camera.projection, rig.camera.width, rig.camera.height,
+                                          input->pixel_pitch, rig.camera.pinhole};
+  input->run_leds = leds;
+  input->loading["rig"] = std::filesystem::absolute(rig_path).string();
 }
 
 void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* input) {

@@ -6,6 +6,8 @@
 
 #include "photorig/solvers/lighting/led_radiance.h"
 
+#include <nlohmann/json.hpp>
+
 #include <string>
 #include <vector>
 
@@ -14,7 +16,9 @@ namespace photorig::daemon {
 struct LedRadianceRequest {
   std::string run_directory;
   solvers::lighting::LedRadianceOptions options;
-  std::string base_rig;          // the rig to copy; "" = the run's
+  // The rig to start from: its LED positions and camera replace the run's
+  // for the fit (ApplyRigCalibration), and the new rig is its copy. "": the run's.
+  std::string base_rig;
   std::string out_rig;           // the new rig; "" = none; must not exist
   std::string output_directory;  // "" = RUN/results/led-radiance
 };
@@ -32,5 +36,9 @@ struct LedRadianceResult {
 // std::runtime_error when the results cannot be written. A calibration the
 // data do not support is in the summary, with no rig written.
 LedRadianceResult CalibrateLedRadianceRun(const LedRadianceRequest& request);
+
+// The calibration as report.json holds it: the request's settings, the
+// summary and one entry per LED (the rig's stated intensity beside the fit).
+nlohmann::json ToJson(const LedRadianceRequest& request, const LedRadianceResult& result);
 
 }  // namespace photorig::daemon

@@ -52,6 +52,10 @@ struct PhotometricStereoInput {
   // One per image when the rig gives its LEDs' positions (mm, the frame of
   // pixel_pitch's grid); empty: distant lights.
   std::vector<solvers::ps::NearLight> near_lights;
+  // A run's: the rig LED each image was lit by, and the LEDs as the run
+  // recorded them (what ApplyRigCalibration replaces). Empty for a dataset.
+  std::vector<int> image_leds;
+  std::vector<config::LedConfig> run_leds;
   std::string mask_source;   // where object_mask came from, for the report ("" when there is none)
   // Colour data (a Bayer or RGB run, an RGB DiLiGenT folder): the frames per
   // channel. `stack` is then their channel sum in camera units, on which the
@@ -66,6 +70,13 @@ struct PhotometricStereoInput {
   // mask file is set.
   nlohmann::json loading = nlohmann::json::object();
 };
+
+// The LEDs (directions, positions, axes, exponents, intensities) and camera
+// of `rig` in place of those the run recorded: a calibration made after the
+// capture, applied to its frames. Throws ConfigError naming the rig file when
+// its LEDs or camera do not match the run (count, ids, image size), or for a
+// dataset folder, which has no run to re-calibrate.
+void ApplyRigCalibration(const std::string& rig_path, PhotometricStereoInput* input);
 
 // Replaces the input's object mask with a PNG file (nonzero = object). Throws
 // ConfigError naming the file and both sizes when it does not match the images.
