@@ -227,6 +227,32 @@ TEST(NearLights, PixelsBeyondTheConditionLimitAreFlaggedNotSolved) {
   EXPECT_EQ(summary.termination, core::Termination::kFailure);
 }
 
+TEST(NearLights, RobustRefitsLeaveOutliersAsUnderDistantLights) {
+  NearScene scene = RenderNearSphere(80.0, 2.0);
+  scene.stack.noise.read_sigma = 2.0;
+  // A highlight-like outlier in each pixel: the sample of one light, picked
+  // at random, three times as bright as the model says.
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<int> pick(0, scene.stack.light_count() - 1);
+  for (int r = 0; r < kSize; ++r)
+    for (int c = 0; c < kSize; ++c)
+      if (scene.stack.mask.at<std::uint8_t>(r, c)) scene.stack.images[pick(rng)].at<float>(r, c) *= 3.0f;
+  PhotometricStereoOptions options = Lambertian();
+  options.shadow_threshold_read_sigmas = 3.0;
+  NormalMap lambertian, robust;
+  ASSERT_TRUE(SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &lambertian, nullptr)
+                  .IsSolutionUsable());
+  options.method = Method::kRobust;
+  const NearLightSummary summary = SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &robust, nullptr);
+  ASSERT_EQ(summary.termination, core::Termination::kSuccess) << summary.message;
+  const double lambertian_deg = CompareNormals(lambertian.normals, scene.normals, scene.stack.mask).mean_deg;
+  const double robust_deg = CompareNormals(robust.normals, scene.normals, scene.stack.mask).mean_deg;
+  EXPECT_GT(lambertian_deg, 2.0);
+  EXPECT_LT(robust_deg, 0.5) << "lambertian: " << lambertian_deg << " deg";
+  // The pixels whose outlier was left out say so.
+  EXPECT_GT(summary.pixels_irls, summary.pixels_solved / 2);
+}
+
 TEST(NearLights, MethodsThatFitOneLightMatrixAreRefusedNotApproximated) {
   const NearScene scene = RenderNearSphere(400.0);
   PhotometricStereoOptions options = Lambertian();

@@ -580,7 +580,8 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
                          BiasAboveLimit(bias_deg, request) + "; solve with method lambertian, l2 or robust");
   }
   if (input.near_lights.empty()) return solvers::ps::SolvePhotometricStereo(options, stack, map);
-  const bool near_method = options.method == Method::kL2 || options.method == Method::kLambertian;
+  const bool near_method =
+      options.method == Method::kL2 || options.method == Method::kLambertian || options.method == Method::kRobust;
   if (near_method && !request.assume_distant) {
     solvers::ps::NearLightOptions near;
     near.camera = camera;
@@ -602,7 +603,7 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
     std::snprintf(size, sizeof(size), "an object this size (radius %.1f mm) would be biased", radius_mm);
     return Refused(options, stack,
                    std::string("the rig's LEDs are near: solved as distant lights, ") + size +
-                       BiasAboveLimit(bias_deg, request) + "; solve with method lambertian or l2 (the near-light model)");
+                       BiasAboveLimit(bias_deg, request) + "; solve with method lambertian, l2 or robust (the near-light model)");
   }
   return solvers::ps::SolvePhotometricStereo(options, stack, map);
 }

@@ -2,6 +2,8 @@
 
 #include "photorig/solvers/ps/evaluation.h"
 
+#include "kernels/irls_lambertian_fit.h"
+#include "model_selection.h"
 #include "kernels/near_lambertian_sums.h"
 
 #include <opencv2/imgproc.hpp>
@@ -54,6 +56,7 @@ struct PreparedLight {
 // geometry, fixed for the whole solve.
 struct PixelProblem {
   const PhotometricStack& stack;
+  std::vector<PreparedLight> prepared;  // the same LEDs, for one sample at a time
   internal::NearLightTable lights;
   std::vector<const float*> planes;  // one per light, rows without padding
   std::vector<cv::Mat> copies;       // the stack's images, where some have padding
@@ -65,7 +68,7 @@ struct PixelProblem {
   PixelProblem(const PhotometricStack& stack, const std::vector<NearLight>& leds, const camera::Camera& camera)
       : stack(stack), rays(camera) {
     for (std::size_t k = 0; k < leds.size(); ++k) {
-      const PreparedLight light(leds[k]);
+      const PreparedLight& light = prepared.emplace_back(leds[k]);
       lights.position.insert(lights.position.end(), {light.position_mm.x(), light.position_mm.y(), light.position_mm.z()});
       lights.axis.insert(lights.axis.end(), {light.axis.x(), light.axis.y(), light.axis.z()});
       lights.cos_exponent.push_back(light.cos_exponent);
@@ -177,8 +180,10 @@ void AllocateResult(const cv::Size size, NormalMap* result) {
   result->specular = cv::Mat::zeros(size, CV_32FC2);
 }
 
-// Every pixel of the mask fitted with its surface at height_mm.
-void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* result) {
+// Every pixel of the mask fitted with its surface at height_mm; each fit's
+// chi-square into *chi_square (CV_32F) unless null.
+void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* result, cv::Mat* chi_square = nullptr) {
+  if (chi_square) chi_square->create(height_mm.size(), CV_32F);
   const bool noise_known = p.stack.noise.IsKnown();
 #pragma omp parallel
   {
@@ -194,6 +199,7 @@ void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* re
       for (std::size_t i = 0; i < row.size(); ++i) {
         const int c = row[i].c;
         const PixelFit& fit = fits[i];
+        if (chi_square) chi_square->at<float>(r, c) = static_cast<float>(fit.chi_square);
         result->flags.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(fit.flag);
         result->usable_lights.at<std::uint16_t>(r, c) = static_cast<std::uint16_t>(std::min(fit.usable, 65535));
         if (fit.flag != PixelFlag::kSolved) {
@@ -212,6 +218,75 @@ void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* re
         const int dof = fit.usable - 3;
         result->confidence.at<float>(r, c) =
             noise_known && dof > 0 ? static_cast<float>(std::min(1.0, dof / std::max(fit.chi_square, 1e-300))) : 0.0f;
+      }
+    }
+  }
+}
+
+// The `robust` method: the pixels whose Lambertian fit the noise does not
+// explain (chi-square above its adequacy quantile; every pixel where the
+// noise is unknown) refitted by iteratively reweighted least squares (the
+// distant method's lanes), each with its own rows s_k f_k(x) l_k(x), so that
+// highlights and inter-reflections lose their pull as under distant lights.
+void RefitRobust(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm,
+                 const cv::Mat& lambertian_chi_square, NormalMap* result) {
+  const int lights = p.lights.count();
+  const internal::NearSampleRules& rules = p.rules;
+  const std::vector<double> adequate = internal::ChiSquareQuantiles(lights, options.selection.adequacy_quantile);
+  auto explained = [&](int r, int c) {
+    const int dof = result->usable_lights.at<std::uint16_t>(r, c) - 3;
+    return rules.noise_known && dof > 0 && lambertian_chi_square.at<float>(r, c) <= adequate[dof];
+  };
+  const float* dark = p.stack.dark.empty() ? nullptr : p.stack.dark.ptr<float>();
+#pragma omp parallel
+  {
+    internal::RobustLambertianLanes lanes(lights, options.robust);
+    std::vector<double> observed, inverse_sigma, rows;
+    std::vector<internal::RobustProblem> problems;
+    std::vector<internal::RobustSolution> solutions;
+    std::vector<int> columns;
+#pragma omp for schedule(dynamic, 4)
+    for (int r = 0; r < p.stack.height(); ++r) {
+      columns.clear();
+      for (int c = 0; c < p.stack.width(); ++c)
+        if (result->flags.at<std::uint8_t>(r, c) == static_cast<std::uint8_t>(PixelFlag::kSolved) && !explained(r, c))
+          columns.push_back(c);
+      const std::size_t n = columns.size();
+      observed.resize(n * lights), inverse_sigma.resize(n * lights), rows.resize(3 * n * lights);
+      problems.resize(n), solutions.assign(n, {});
+      for (std::size_t i = 0; i < n; ++i) {
+        const int c = columns[i], pixel = r * p.row_stride + c;
+        const Eigen::Vector3d point = p.Point(r, c, height_mm.at<float>(r, c));
+        const double dark_dn = dark ? dark[r * p.stack.dark.step1() + c] : 0.0;
+        for (int k = 0; k < lights; ++k) {
+          const double value = p.planes[k][pixel], signal = value - dark_dn;
+          Eigen::Vector3d towards;
+          const double gain = p.stack.light_scales[k] * p.prepared[k].RelativeIrradiance(point, &towards);
+          const bool usable = signal > rules.shadow_threshold && value < rules.saturation_level && gain > 0.0;
+          const double variance = rules.read_variance + rules.shot_gain * std::max(signal, 0.0);
+          observed[i * lights + k] = signal;
+          inverse_sigma[i * lights + k] = !usable ? 0.0 : rules.noise_known ? 1.0 / std::sqrt(variance) : 1.0;
+          for (int axis = 0; axis < 3; ++axis) rows[3 * (i * lights + k) + axis] = gain * towards[axis];
+        }
+        const cv::Vec3f normal = result->normals.at<cv::Vec3f>(r, c);
+        const double b = result->albedo.at<float>(r, c) / kPi;
+        problems[i] = {&observed[i * lights], &inverse_sigma[i * lights],
+                       Eigen::Vector3d(normal[0] * b, normal[1] * b, normal[2] * b), &rows[3 * i * lights]};
+      }
+      lanes.Fit(problems, solutions);
+      for (std::size_t i = 0; i < n; ++i) {
+        const internal::RobustSolution& fit = solutions[i];
+        if (!fit.ok) continue;  // the Lambertian fit stands
+        const int c = columns[i];
+        const Eigen::Vector3d normal = fit.x.normalized();
+        result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(normal.x()), float(normal.y()), float(normal.z()));
+        result->albedo.at<float>(r, c) = static_cast<float>(kPi * fit.x.norm());
+        result->model.at<std::uint8_t>(r, c) =
+            static_cast<std::uint8_t>(fit.rejected > 0 ? PixelModel::kIrls : PixelModel::kLambertian);
+        result->usable_lights.at<std::uint16_t>(r, c) = static_cast<std::uint16_t>(fit.used);
+        const int dof = fit.used - 3;
+        result->confidence.at<float>(r, c) =
+            rules.noise_known && dof > 0 ? static_cast<float>(std::min(1.0, dof / std::max(fit.chi2, 1e-300))) : 0.0f;
       }
     }
   }
@@ -332,7 +407,10 @@ void CountPixels(const NormalMap& map, NearLightSummary* summary) {
       case PixelFlag::kFilled: break;  // only FillUnresolvedNormals sets it, after a solve
     }
   }
-  summary->pixels_lambertian = summary->pixels_solved;
+  for (auto it = map.model.begin<std::uint8_t>(); it != map.model.end<std::uint8_t>(); ++it) {
+    summary->pixels_lambertian += *it == static_cast<std::uint8_t>(PixelModel::kLambertian);
+    summary->pixels_irls += *it == static_cast<std::uint8_t>(PixelModel::kIrls);
+  }
 }
 
 std::string CheckInputs(const PhotometricStack& stack, const std::vector<NearLight>& lights, const camera::Camera& camera) {
@@ -413,10 +491,10 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   summary.method = MethodName(options.method);
   summary.light_count = stack.light_count();
   if (core::EndIfInvalid(options, &summary) || core::EndIfInvalid(near_options, &summary)) return summary;
-  if (options.method != Method::kL2 && options.method != Method::kLambertian) {
+  if (options.method != Method::kL2 && options.method != Method::kLambertian && options.method != Method::kRobust) {
     summary.End(Termination::kInvalidOptions,
-                std::string("near lights are solved with the l2 and lambertian methods; ") + MethodName(options.method) +
-                    " fits one light matrix for every pixel");
+                std::string("near lights are solved with the l2, lambertian and robust methods; ") +
+                    MethodName(options.method) + " fits one light matrix for every pixel");
     return summary;
   }
   if (core::EndIfBadInput(CheckInputs(stack, lights, near_options.camera), &summary)) return summary;
@@ -449,7 +527,10 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   bool converged = false;
   for (int round = 1; round <= near_options.max_rounds; ++round) {
     const cv::Mat previous = round > 1 ? result->normals.clone() : cv::Mat();
-    FitAllPixels(problem, height, result);
+    const bool robust = options.method == Method::kRobust;
+    cv::Mat chi_square;
+    FitAllPixels(problem, height, result, robust ? &chi_square : nullptr);
+    if (robust) RefitRobust(problem, options, height, chi_square, result);
     summary.rounds = round;
     if (options.progress) options.progress({"near lights", round, near_options.max_rounds, {}});
     if (round > 1) {

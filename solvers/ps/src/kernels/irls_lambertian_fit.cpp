@@ -19,17 +19,32 @@ struct alignas(64) LaneVector {
   double v[3][kLanes];
 };
 
+// Light k's direction for lane j: one row all lanes share (distant lights),
+// or each lane's own (near lights: directions[(3 k + axis) kLanes + j]).
+struct LaneDirection {
+  double x, y, z;
+};
+template <bool kPerLane>
+PHOTORIG_LANE_INLINE LaneDirection DirectionOf(const double* directions, int k, int j) {
+  if constexpr (kPerLane) {
+    const double* d = directions + 3 * k * kLanes + j;
+    return {d[0], d[kLanes], d[2 * kLanes]};
+  } else {
+    return {directions[3 * k], directions[3 * k + 1], directions[3 * k + 2]};
+  }
+}
+
 // Residuals at x, their magnitudes (+infinity for unusable samples, which
 // so sort after every usable one), and chi-square and the count of the
 // inliers under the current weights (what a lane that has just converged
 // reports).
-PHOTORIG_PS_MULTIVERSION
-void Residuals(int lights, const double* directions, const double* observed, const double* inverse_variance,
-               const double* weight, double inlier_weight, const LaneVector& x, double* residual, double* magnitude,
-               double* chi2_out, double* used_out) {
+template <bool kPerLane>
+PHOTORIG_LANE_INLINE void ResidualsOf(int lights, const double* directions, const double* observed,
+                                      const double* inverse_variance, const double* weight, double inlier_weight,
+                                      const LaneVector& x, double* residual, double* magnitude, double* chi2_out,
+                                      double* used_out) {
   alignas(64) double chi2[kLanes] = {}, used[kLanes] = {};
   for (int k = 0; k < lights; ++k) {
-    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
     const double* b = observed + k * kLanes;
     const double* v = inverse_variance + k * kLanes;
     const double* c = weight + k * kLanes;
@@ -37,7 +52,8 @@ void Residuals(int lights, const double* directions, const double* observed, con
     double* m = magnitude + k * kLanes;
 #pragma omp simd
     for (int j = 0; j < kLanes; ++j) {
-      r[j] = b[j] - wx * x.v[0][j] - wy * x.v[1][j] - wz * x.v[2][j];
+      const LaneDirection w = DirectionOf<kPerLane>(directions, k, j);
+      r[j] = b[j] - w.x * x.v[0][j] - w.y * x.v[1][j] - w.z * x.v[2][j];
       m[j] = v[j] > 0.0 ? std::abs(r[j]) : std::numeric_limits<double>::infinity();
       const double inlier = (v[j] > 0.0) & (c[j] >= inlier_weight) ? 1.0 : 0.0;
       chi2[j] += inlier * v[j] * r[j] * r[j];
@@ -47,17 +63,29 @@ void Residuals(int lights, const double* directions, const double* observed, con
   for (int j = 0; j < kLanes; ++j) chi2_out[j] = chi2[j], used_out[j] = used[j];
 }
 
+PHOTORIG_PS_MULTIVERSION
+void Residuals(bool per_lane, int lights, const double* directions, const double* observed,
+               const double* inverse_variance, const double* weight, double inlier_weight, const LaneVector& x,
+               double* residual, double* magnitude, double* chi2_out, double* used_out) {
+  if (per_lane)
+    ResidualsOf<true>(lights, directions, observed, inverse_variance, weight, inlier_weight, x, residual, magnitude,
+                      chi2_out, used_out);
+  else
+    ResidualsOf<false>(lights, directions, observed, inverse_variance, weight, inlier_weight, x, residual, magnitude,
+                       chi2_out, used_out);
+}
+
 // The weights of the loss each lane is in (one of the three selectors is 1,
 // the others 0: formulas without branches, so the loop vectorises), and the
 // weighted normal equations.
-PHOTORIG_PS_MULTIVERSION
-void WeightsAndNormalEquations(int lights, const double* directions, const double* observed,
-                               const double* inverse_variance, const double* inverse_sigma,
-                               const double* residual, const double* inverse_spread, const double* cauchy,
-                               const double* huber, const double* tukey, double* weight, LaneNormalEquations* eq) {
+template <bool kPerLane>
+PHOTORIG_LANE_INLINE void WeightsAndNormalEquationsOf(int lights, const double* directions, const double* observed,
+                                                      const double* inverse_variance, const double* inverse_sigma,
+                                                      const double* residual, const double* inverse_spread,
+                                                      const double* cauchy, const double* huber, const double* tukey,
+                                                      double* weight, LaneNormalEquations* eq) {
   LaneNormalEquations sums = {};  // in registers; stored once at the end
   for (int k = 0; k < lights; ++k) {
-    const double wx = directions[3 * k], wy = directions[3 * k + 1], wz = directions[3 * k + 2];
     const double* b = observed + k * kLanes;
     const double* v = inverse_variance + k * kLanes;
     const double* r = residual + k * kLanes;
@@ -74,10 +102,24 @@ void WeightsAndNormalEquations(int lights, const double* directions, const doubl
       const double huber_weight = std::min(1.0f, static_cast<float>(kHuberScale) / std::sqrt(u2f));
       const double w = cauchy[j] * cauchy_weight + huber[j] * huber_weight + tukey[j] * biweight * biweight;
       weight_k[j] = w;
-      AddSample(sums, j, w * v[j], b[j], wx, wy, wz);
+      const LaneDirection d = DirectionOf<kPerLane>(directions, k, j);
+      AddSample(sums, j, w * v[j], b[j], d.x, d.y, d.z);
     }
   }
   *eq = sums;
+}
+
+PHOTORIG_PS_MULTIVERSION
+void WeightsAndNormalEquations(bool per_lane, int lights, const double* directions, const double* observed,
+                               const double* inverse_variance, const double* inverse_sigma, const double* residual,
+                               const double* inverse_spread, const double* cauchy, const double* huber,
+                               const double* tukey, double* weight, LaneNormalEquations* eq) {
+  if (per_lane)
+    WeightsAndNormalEquationsOf<true>(lights, directions, observed, inverse_variance, inverse_sigma, residual,
+                                      inverse_spread, cauchy, huber, tukey, weight, eq);
+  else
+    WeightsAndNormalEquationsOf<false>(lights, directions, observed, inverse_variance, inverse_sigma, residual,
+                                       inverse_spread, cauchy, huber, tukey, weight, eq);
 }
 
 // Sorts every lane's values, [index * kLanes + lane], by a fixed sequence of
@@ -140,6 +182,12 @@ RobustLambertianLanes::RobustLambertianLanes(const std::vector<Eigen::Vector3d>&
       sorting_network_(SortingNetwork(lights_)),
       state_(std::make_unique<State>()) {}
 
+RobustLambertianLanes::RobustLambertianLanes(int lights, const RobustOptions& options)
+    : RobustLambertianLanes(std::vector<Eigen::Vector3d>(lights, Eigen::Vector3d::Zero()), options) {
+  per_lane_directions_ = true;
+  directions_.assign(3 * static_cast<std::size_t>(lights) * kLanes, 0.0);
+}
+
 RobustLambertianLanes::~RobustLambertianLanes() = default;
 RobustLambertianLanes::RobustLambertianLanes(RobustLambertianLanes&&) noexcept = default;
 
@@ -154,6 +202,9 @@ void RobustLambertianLanes::Load(int lane, const RobustProblem& problem) {
     inverse_sigma_[i] = inverse_sigma;
     usable += inverse_sigma > 0.0;
   }
+  if (per_lane_directions_)
+    for (int k = 0; k < lights_; ++k)
+      for (int axis = 0; axis < 3; ++axis) directions_[(3 * k + axis) * kLanes + lane] = problem.directions[3 * k + axis];
   for (int i = 0; i < 3; ++i) s.x.v[i][lane] = problem.start[i];
   s.usable[lane] = usable;
   s.iteration[lane] = 0;
@@ -176,7 +227,7 @@ void RobustLambertianLanes::Fit(std::span<const RobustProblem> problems, std::sp
   auto refill = [&](int lane) { queue.Refill(lane, s.problem, load, idle); };
   for (int lane = 0; lane < kLanes; ++lane) refill(lane);
   while (queue.busy() > 0) {
-    Residuals(lights_, directions_.data(), observed_.data(), inverse_variance_.data(), weight_.data(),
+    Residuals(per_lane_directions_, lights_, directions_.data(), observed_.data(), inverse_variance_.data(), weight_.data(),
               options_.inlier_weight, s.x, residual_.data(), magnitude_.data(), s.chi2, s.used);
     SortLanes(sorting_network_.data(), static_cast<int>(sorting_network_.size()), magnitude_.data());
     bool iterating[kLanes];
@@ -207,7 +258,7 @@ void RobustLambertianLanes::Fit(std::span<const RobustProblem> problems, std::sp
       s.tukey[lane] = loss == RobustOptions::Loss::kTukey;
       iterating[lane] = true;
     }
-    WeightsAndNormalEquations(lights_, directions_.data(), observed_.data(), inverse_variance_.data(),
+    WeightsAndNormalEquations(per_lane_directions_, lights_, directions_.data(), observed_.data(), inverse_variance_.data(),
                               inverse_sigma_.data(), residual_.data(), s.inverse_spread, s.cauchy, s.huber, s.tukey,
                               weight_.data(), &s.equations);
     for (int lane = 0; lane < kLanes; ++lane) {

@@ -27,11 +27,14 @@
 namespace photorig::solvers::ps::internal {
 
 // One pixel: observed values in solver units for every light, 1 / sigma for
-// each (0 marks an unusable sample), and the solution to start from.
+// each (0 marks an unusable sample), the solution to start from, and, for
+// lanes made without shared directions, the pixel's own row of every light
+// (three per light: its light vector times its irradiance, under near LEDs).
 struct RobustProblem {
   const double* observed = nullptr;
   const double* inverse_sigma = nullptr;
   Eigen::Vector3d start = Eigen::Vector3d::Zero();
+  const double* directions = nullptr;
 };
 
 struct RobustSolution {
@@ -45,6 +48,8 @@ struct RobustSolution {
 class RobustLambertianLanes {
  public:
   RobustLambertianLanes(const std::vector<Eigen::Vector3d>& light_directions, const RobustOptions& options);
+  // Lanes whose problems each bring their own directions (RobustProblem::directions).
+  RobustLambertianLanes(int lights, const RobustOptions& options);
   ~RobustLambertianLanes();
   RobustLambertianLanes(RobustLambertianLanes&&) noexcept;
 
@@ -58,7 +63,10 @@ class RobustLambertianLanes {
 
   int lights_;
   RobustOptions options_;
-  std::vector<double> directions_;  // per light: w (3)
+  // Per light: w (3), shared by every lane; or, with per_lane_directions_,
+  // each lane's, [(3 light + axis) * kLanes + lane].
+  std::vector<double> directions_;
+  bool per_lane_directions_ = false;
   // Struct-of-arrays over lanes, [light * kLanes + lane]: b, 1 / sigma^2 and
   // 1 / sigma (0: unusable), the last residuals and the last weights.
   std::vector<double> observed_, inverse_variance_, inverse_sigma_, residual_, weight_;

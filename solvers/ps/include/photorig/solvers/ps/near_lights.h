@@ -91,9 +91,10 @@ struct NearLightSummary : SolverSummary {
 double DistantModelBiasDeg(const std::vector<NearLight>& lights, const std::vector<Eigen::Vector3d>& directions,
                            double radius_mm);
 
-// Lambertian photometric stereo (options.method kL2 or kLambertian; the
-// thresholds of options.lambertian and options.shadow_threshold_read_sigmas)
-// with one NearLight per image of `stack`. Fills *result as
+// Lambertian photometric stereo (options.method kL2, kLambertian or kRobust:
+// the thresholds of options.lambertian and options.shadow_threshold_read_sigmas,
+// and for kRobust every solved pixel refitted by options.robust's IRLS) with
+// one NearLight per image of `stack`. Fills *result as
 // SolvePhotometricStereo does and *height_mm, unless null (CV_32F, NaN off
 // the solved pixels), with the surface's z in the frame of the lights. Other methods end
 // kInvalidOptions: their reflectance fits take one light matrix for all pixels.
