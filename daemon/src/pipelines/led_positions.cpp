@@ -8,6 +8,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 
@@ -17,9 +18,17 @@ namespace {
 namespace fs = std::filesystem;
 using namespace photorig::solvers::lighting;
 
+// Millimetres to 1e-4: far below the rays' residual, and readable (a YAML
+// node keeps a double with all 17 digits, whatever the emitter's precision).
+std::string Millimetres(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.4f", value);
+  return text;
+}
+
 YAML::Node FlowTriple(const Eigen::Vector3d& v) {
   YAML::Node node(YAML::NodeType::Sequence);
-  for (int i = 0; i < 3; ++i) node.push_back(v[i]);
+  for (int i = 0; i < 3; ++i) node.push_back(Millimetres(v[i]));
   node.SetStyle(YAML::EmitterStyle::Flow);
   return node;
 }
@@ -50,21 +59,18 @@ void WriteCalibratedRig(const LedPositionInputs& inputs, const config::LedPositi
   record["spheres_mm"] = spheres;
   record["radius_mm"] = request.sphere_radius_mm;
   record["leds_placed"] = result.solve.usable;
-  record["mean_rms_ray_distance_mm"] = result.solve.mean_rms_ray_distance_mm;
-  record["max_rms_ray_distance_mm"] = result.max_rms_ray_distance_mm;
-  record["mean_shift_mm"] = result.mean_shift_mm;
-  record["max_shift_mm"] = result.max_shift_mm;
+  record["mean_rms_ray_distance_mm"] = Millimetres(result.solve.mean_rms_ray_distance_mm);
+  record["max_rms_ray_distance_mm"] = Millimetres(result.max_rms_ray_distance_mm);
+  record["mean_shift_mm"] = Millimetres(result.mean_shift_mm);
+  record["max_shift_mm"] = Millimetres(result.max_shift_mm);
   rig["lights"]["calibration"] = record;
   // A simulated dome's LEDs are turned off the positions its file gives; in
   // the copy the calibrated positions are the truth, so the turn goes.
   if (rig["sim"] && rig["sim"]["led_direction_error_deg"]) rig["sim"].remove("led_direction_error_deg");
 
   if (!fs::path(request.out_rig).parent_path().empty()) fs::create_directories(fs::path(request.out_rig).parent_path());
-  YAML::Emitter emitter;
-  emitter.SetDoublePrecision(8);  // 1e-5 mm at a dome's size: far below the rays' residual, readable
-  emitter << rig;
   std::ofstream out(request.out_rig);
-  out << "# LED positions of " << request.base_rig << "\n" << emitter.c_str() << "\n";
+  out << "# LED positions of " << request.base_rig << "\n" << rig << "\n";
   if (!out) throw std::runtime_error("cannot write " + request.out_rig);
 }
 

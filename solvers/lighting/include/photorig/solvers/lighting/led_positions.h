@@ -34,10 +34,13 @@ struct LedPositionOptions {
   // max(min_ray_tolerance_mm, ray_tolerance_sigmas x the RMS distance the
   // highlights' predicted uncertainties imply); beyond it the rays do not
   // meet in one LED (a ball misplaced, a stray reflection) and the LED is
-  // flagged rays-apart. The floor keeps a highlight whose predicted
-  // uncertainty is optimistic (a saturated blob of a few pixels) from
-  // flagging a good LED.
-  double ray_tolerance_sigmas = 4.0;
+  // flagged rays-apart. The prediction is the highlight search's
+  // (LightDirectionEstimate::uncertainty_deg), made for its half-peak
+  // centroid: for the first-moment centre used here it is 5 to 10 times the
+  // error found on the simulated dome, so the rule catches gross failures
+  // (a ball 1 mm off its stated place) rather than mild ones. The floor keeps
+  // a prediction that is optimistic (a saturated blob) from flagging a good LED.
+  double ray_tolerance_sigmas = 3.0;
   double min_ray_tolerance_mm = 0.5;
 
   bool IsValid(std::string* why) const;
