@@ -49,20 +49,20 @@ int Execute(const Options& o) {
   for (const std::string& text : o.spheres) {
     Eigen::Vector3d centre;
     if (!ParseCentre(text, &centre))
-      return Fail(kExitUsage, "calibrate leds: --sphere '" + text + "' is not X,Y or X,Y,Z in millimetres");
+      return Fail(kExitUsage, "--sphere '" + text + "' is not X,Y or X,Y,Z in millimetres");
     request.sphere_centres_mm.push_back(centre);
   }
   if (request.sphere_centres_mm.size() < 2)
-    return Fail(kExitUsage, "calibrate leds: give --sphere X,Y[,Z] for each of two or more mirror spheres");
+    return Fail(kExitUsage, "give --sphere X,Y[,Z] for each of two or more mirror spheres");
   request.sphere_radius_mm = o.radius_mm;
   request.base_rig = o.out_rig.empty() ? "" : o.rig;
   request.out_rig = o.out_rig;
-  if (std::string why; !request.IsValid(&why)) return Fail(kExitUsage, "calibrate leds: " + why);
+  if (std::string why; !request.IsValid(&why)) return Fail(kExitUsage, why);
 
   const std::string out = o.out.empty() ? (fs::path(o.run_dir) / "results" / "leds").string() : o.out;
   const daemon::LedPositionCalibration result =
       daemon::CalibrateLedPositions(daemon::LoadLedPositionInputs(o.run_dir), request, out);
-  if (result.bad_input) return Fail(kExitUsage, "calibrate leds: " + result.message);
+  if (result.bad_input) return Fail(kExitUsage, result.message);
   std::cout << result.message << "; rays meet within " << result.solve.mean_rms_ray_distance_mm
             << " mm RMS on average; LEDs moved " << result.mean_shift_mm << " mm on average (at most "
             << result.max_shift_mm << " mm) from the rig's positions; outputs in " << out << "\n";
@@ -94,7 +94,8 @@ CommandRunner Setup(CLI::App& app) {
   leds->add_option("--run", o->run_dir, "run directory with one frame per LED")->required()->check(CLI::ExistingDirectory);
   leds->add_option("--sphere", o->spheres, "a mirror sphere's centre X,Y[,Z] in mm, dome frame (Z default 0); repeat per sphere")
       ->required()
-      ->expected(1);
+      ->expected(1)
+      ->take_all();
   leds->add_option("--radius-mm", o->radius_mm, "the spheres' radius")->required();
   leds->add_option("--rig", o->rig, "rig YAML to copy with the calibrated positions")->check(CLI::ExistingFile);
   leds->add_option("--out-rig", o->out_rig, "new rig YAML to write");
