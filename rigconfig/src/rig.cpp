@@ -345,9 +345,10 @@ std::string MotionConfig::CheckPose(const std::map<std::string, double>& positio
 
 namespace {
 
-// lights.calibration: where the LEDs' positions came from (`photorig
-// calibrate leds`). For people reading the rig; checked so a hand edit stays readable.
-void CheckLedCalibrationRecord(const YamlNode& record) {
+// lights.position_calibration: where the LEDs' positions came from
+// (`photorig calibrate leds`). For people reading the rig; checked so a hand
+// edit stays readable.
+void CheckPositionCalibrationRecord(const YamlNode& record) {
   record.ExpectKeys({"date", "source_run", "method", "spheres_mm", "radius_mm", "leds_placed",
                      "mean_rms_ray_distance_mm", "max_rms_ray_distance_mm", "mean_shift_mm", "max_shift_mm"});
   record["date"].AsString();
@@ -434,8 +435,8 @@ RigConfig LoadRigConfig(const std::string& path) {
   if (auto target = root.Find("reference_target")) rig.reference_target = ParseReferenceTarget(*target, rig);
 
   const YamlNode lights = root["lights"];
-  lights.ExpectKeys({"driver", "id", "leds", "options", "calibration"});
-  if (auto record = lights.Find("calibration")) CheckLedCalibrationRecord(*record);
+  lights.ExpectKeys({"driver", "id", "leds", "options", "position_calibration"});
+  if (auto record = lights.Find("position_calibration")) CheckPositionCalibrationRecord(*record);
   CheckDriver(lights["driver"], "light");
   rig.lights.driver = lights["driver"].AsString();
   rig.lights.id = lights.String("id", "lights");

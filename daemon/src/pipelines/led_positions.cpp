@@ -63,7 +63,7 @@ void WriteCalibratedRig(const LedPositionInputs& inputs, const config::LedPositi
   record["max_rms_ray_distance_mm"] = Millimetres(result.max_rms_ray_distance_mm);
   record["mean_shift_mm"] = Millimetres(result.mean_shift_mm);
   record["max_shift_mm"] = Millimetres(result.max_shift_mm);
-  rig["lights"]["calibration"] = record;
+  rig["lights"]["position_calibration"] = record;
   // A simulated dome's LEDs are turned off the positions its file gives; in
   // the copy the calibrated positions are the truth, so the turn goes.
   if (rig["sim"] && rig["sim"]["led_direction_error_deg"]) rig["sim"].remove("led_direction_error_deg");
