@@ -120,7 +120,7 @@ TEST(LedPositions, ThreeBallsPlaceNearLedsThroughAPinhole) {
   EXPECT_LT(e.mean_mm, 0.5);  // measured: 0.18 mean, 0.31 max
   EXPECT_LT(e.max_mm, 1.0);
   for (std::size_t k = 0; k < truth.size(); ++k) {
-    // The prediction covers the error (it is the highlight search's, and pessimistic: see LedPositionOptions).
+    // The predicted sigma (along the worst axis) covers the error.
     EXPECT_LT((summary.leds[k].position_mm - truth[k]).norm(), 2.0 * summary.leds[k].predicted_sigma_mm);
     EXPECT_LE(summary.leds[k].rms_ray_distance_mm, summary.leds[k].ray_tolerance_mm);
   }

@@ -34,12 +34,9 @@ struct LedPositionOptions {
   // max(min_ray_tolerance_mm, ray_tolerance_sigmas x the RMS distance the
   // highlights' predicted uncertainties imply); beyond it the rays do not
   // meet in one LED (a ball misplaced, a stray reflection) and the LED is
-  // flagged rays-apart. The prediction is the highlight search's
-  // (LightDirectionEstimate::uncertainty_deg), made for its half-peak
-  // centroid: for the first-moment centre used here it is 5 to 10 times the
-  // error found on the simulated dome, so the rule catches gross failures
-  // (a ball 1 mm off its stated place) rather than mild ones. The floor keeps
-  // a prediction that is optimistic (a saturated blob) from flagging a good LED.
+  // flagged rays-apart. The prediction is the highlight centre's: its noise
+  // and a 0.02 px model floor (led_positions.cpp). The floor in mm keeps a
+  // prediction that is optimistic (a saturated blob) from flagging a good LED.
   double ray_tolerance_sigmas = 3.0;
   double min_ray_tolerance_mm = 0.5;
 
@@ -64,7 +61,9 @@ struct LedPositionEstimate {
   // One sigma of the position along its worst axis (mostly along the rays),
   // propagated from the highlights' predicted direction uncertainties.
   double predicted_sigma_mm = 0.0;
-  std::vector<LightDirectionEstimate> highlights;  // per ball, in the layout's order
+  // Per ball, in the layout's order; a usable one's centre and uncertainty
+  // are the first moment's (see EstimateLedPositions).
+  std::vector<LightDirectionEstimate> highlights;
   std::vector<int> used_spheres;                   // balls whose rays were triangulated
   std::string note;
 };
