@@ -384,11 +384,12 @@ Recipe ParseRecipe(const YamlNode& root, const std::string& path, const RigConfi
       if (keys.size() != 1) stage.Fail("each solve stage is a map with exactly one key");
       if (keys[0] == "photometric_stereo") recipe.photometric_stereo = ParsePhotometricStereoRequest(stage[keys[0]]);
       else if (keys[0] == "light_calibration") recipe.light_calibration = ParseLightCalibrationRequest(stage[keys[0]]);
+      else if (keys[0] == "led_positions") recipe.led_positions = ParseLedPositionRequest(stage[keys[0]]);
       else if (keys[0] == "tomography") recipe.tomography = ParseTomographyRequest(stage[keys[0]]);
       else if (keys[0] == "svbrdf") recipe.svbrdf = ParseSvbrdfRequest(stage[keys[0]]);
       else if (keys[0] == "brdf") recipe.brdf = ParseBrdfRequest(stage[keys[0]]);
       else stage.Fail("unknown solver '" + keys[0] +
-                      "' (expected photometric_stereo, light_calibration, tomography, svbrdf or brdf)");
+                      "' (expected photometric_stereo, light_calibration, led_positions, tomography, svbrdf or brdf)");
     }
   }
   if (auto exporting = root.Find("export")) {

@@ -345,6 +345,23 @@ std::string MotionConfig::CheckPose(const std::map<std::string, double>& positio
 
 namespace {
 
+// lights.position_calibration: where the LEDs' positions came from
+// (`photorig calibrate leds`). For people reading the rig; checked so a hand
+// edit stays readable.
+void CheckPositionCalibrationRecord(const YamlNode& record) {
+  record.ExpectKeys({"date", "source_run", "method", "spheres_mm", "radius_mm", "leds_placed",
+                     "mean_rms_ray_distance_mm", "max_rms_ray_distance_mm", "mean_shift_mm", "max_shift_mm"});
+  record["date"].AsString();
+  if (auto run = record.Find("source_run")) run->AsString();
+  if (auto method = record.Find("method")) method->AsString();
+  if (auto spheres = record.Find("spheres_mm"))
+    for (const YamlNode& centre : spheres->Items()) centre.AsVector3();
+  if (auto radius = record.Find("radius_mm")) radius->AsDoubleIn(1e-3, 1e4);
+  if (auto placed = record.Find("leds_placed")) placed->AsInt();
+  for (const char* figure : {"mean_rms_ray_distance_mm", "max_rms_ray_distance_mm", "mean_shift_mm", "max_shift_mm"})
+    if (auto value = record.Find(figure)) value->AsDoubleIn(0.0, 1e4);
+}
+
 // camera.calibration: where a pinhole lens came from (`photorig calibrate
 // camera`). For people reading the rig; checked so a hand edit stays readable.
 void CheckCalibrationRecord(const YamlNode& record) {
@@ -429,7 +446,8 @@ RigConfig LoadRigConfig(const std::string& path) {
   if (auto target = root.Find("reference_target")) rig.reference_target = ParseReferenceTarget(*target, rig);
 
   const YamlNode lights = root["lights"];
-  lights.ExpectKeys({"driver", "id", "leds", "options", "radiance_calibration"});
+  lights.ExpectKeys({"driver", "id", "leds", "options", "position_calibration", "radiance_calibration"});
+  if (auto record = lights.Find("position_calibration")) CheckPositionCalibrationRecord(*record);
   CheckDriver(lights["driver"], "light");
   if (auto record = lights.Find("radiance_calibration")) CheckRadianceCalibrationRecord(*record);
   rig.lights.driver = lights["driver"].AsString();
@@ -489,7 +507,8 @@ RigConfig LoadRigConfig(const std::string& path) {
   }
   if (auto sim_node = root.Find("sim")) {
     sim_node->ExpectKeys(
-        {"seed", "sensor", "scene", "faults", "led_direction_error_deg", "led_intensity_error_pct", "ambient", "color"});
+        {"seed", "sensor", "scene", "faults", "led_direction_error_deg", "led_intensity_error_pct",
+         "led_emitter_radius_mm", "ambient", "color"});
     SimConfig sim;
     sim.seed = static_cast<std::uint64_t>(sim_node->Int("seed", 1));
     sim.led_direction_error_deg = sim_node->Double("led_direction_error_deg", 0.0);
@@ -498,6 +517,9 @@ RigConfig LoadRigConfig(const std::string& path) {
     sim.led_intensity_error_pct = sim_node->Double("led_intensity_error_pct", 0.0);
     if (!(sim.led_intensity_error_pct >= 0.0 && sim.led_intensity_error_pct < 30.0))
       (*sim_node)["led_intensity_error_pct"].Fail("must lie in [0, 30)");
+    sim.led_emitter_radius_mm = sim_node->Double("led_emitter_radius_mm", sim.led_emitter_radius_mm);
+    if (!(sim.led_emitter_radius_mm > 0.0 && sim.led_emitter_radius_mm <= 50.0))
+      (*sim_node)["led_emitter_radius_mm"].Fail("must lie in (0, 50]");
     if (auto ambient = sim_node->Find("ambient")) sim.ambient = ParseAmbient(*ambient);
     if (auto color = sim_node->Find("color")) {
       color->ExpectKeys({"camera", "illuminant"});

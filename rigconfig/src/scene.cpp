@@ -8,11 +8,29 @@
 
 namespace photorig::config {
 
+namespace {
+
+// centres_mm: [[x, y], ...]: several spheres on the sample plane (mirror balls
+// for near-LED positions); each an [x, y] pair, none overlapping another.
+void ParseSphereCentres(const YamlNode& centres, sim::Scene* scene) {
+  if (!scene->IsSphere()) centres.Fail("only sphere shapes take centres_mm");
+  for (const YamlNode& item : centres.Items()) {
+    const std::vector<YamlNode> xy = item.Items();
+    if (xy.size() != 2) item.Fail("each of centres_mm is [x, y] in millimetres");
+    scene->sphere_centres_mm.emplace_back(xy[0].AsDouble(), xy[1].AsDouble());
+  }
+  if (scene->sphere_centres_mm.empty()) centres.Fail("give at least one [x, y] centre (or leave centres_mm out)");
+  std::string why;
+  if (!scene->IsValid(&why)) centres.Fail(why);
+}
+
+}  // namespace
+
 sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
   node.ExpectKeys({"shape", "radius_mm", "albedo", "cast_shadows", "brdf", "path", "depth_scale_mm", "depth_pitch_mm",
                    "mesh_scale", "tilt_deg", "bowl_radius_mm", "rim_radius_mm", "step_width_mm", "step_height_mm",
                    "step_slope", "backlight_radiance", "peak_density_per_mm", "interreflection_samples", "phantom",
-                   "half_extent_mm"});
+                   "half_extent_mm", "centres_mm"});
   sim::Scene scene;
   const YamlNode shape = node["shape"];
   try {
@@ -23,6 +41,7 @@ sim::Scene ParseScene(const YamlNode& node, double frame_width_mm) {
   scene.ApplyShapeDefaults(frame_width_mm);
   scene.sphere_radius_mm = node.Double("radius_mm", scene.sphere_radius_mm);
   if (!(scene.sphere_radius_mm > 0)) node["radius_mm"].Fail("must be > 0");
+  if (auto centres = node.Find("centres_mm")) ParseSphereCentres(*centres, &scene);
   scene.cast_shadows = node.Bool("cast_shadows", true);
   scene.interreflection_samples = node.Int("interreflection_samples", 0);
   if (scene.interreflection_samples < 0 || scene.interreflection_samples > 4096)

@@ -36,6 +36,7 @@ sim::WorldConfig MakeWorldConfig(const RigConfig& rig, const sim::Scene& scene) 
       light.position_mm = led.position_mm;
       light.axis = led.EmissionAxis();
       light.cos_exponent = led.cos_exponent;
+      light.emitter_radius_mm = rig.sim->led_emitter_radius_mm;
     }
     world.lights.push_back(light);
   }

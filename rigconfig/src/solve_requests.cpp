@@ -77,6 +77,16 @@ bool LightCalibrationRequest::IsValid(std::string* why) const {
   return true;
 }
 
+namespace {
+// A rig file and nothing else: never the queue, a frame or a recipe.
+std::string ParseOutRig(const YamlNode& node) {
+  const std::string path = node.AsPath();
+  const std::string extension = fs::path(path).extension().string();
+  if (extension != ".yaml" && extension != ".yml") node.Fail("must name a .yaml file");
+  return path;
+}
+}  // namespace
+
 LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node) {
   node.ExpectKeys({"sphere", "out_rig"});
   LightCalibrationRequest request;
@@ -96,12 +106,33 @@ LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node) {
     request.sphere_radius_mm = sphere->Double("radius_mm", 0.0);
     if (!(request.sphere_radius_mm >= 0.0)) (*sphere)["radius_mm"].Fail("must be >= 0");
   }
-  if (auto out_rig = node.Find("out_rig")) {
-    request.out_rig = out_rig->AsPath();
-    // A rig file and nothing else: never the queue, a frame or a recipe.
-    const std::string extension = fs::path(request.out_rig).extension().string();
-    if (extension != ".yaml" && extension != ".yml") out_rig->Fail("must name a .yaml file");
+  if (auto out_rig = node.Find("out_rig")) request.out_rig = ParseOutRig(*out_rig);
+  return request;
+}
+
+bool LedPositionRequest::IsValid(std::string* why) const {
+  if (sphere_centres_mm.size() < 2) return solvers::core::Refuse(why, "LED positions need two or more spheres");
+  for (const Eigen::Vector3d& centre : sphere_centres_mm)
+    if (!centre.allFinite()) return solvers::core::Refuse(why, "sphere centres must be finite");
+  if (!(sphere_radius_mm > 0.0) || !std::isfinite(sphere_radius_mm))
+    return solvers::core::Refuse(why, "the spheres' radius_mm must be > 0");
+  if (base_rig.empty() != out_rig.empty())
+    return solvers::core::Refuse(why, "a new rig file needs both the rig to copy and the file to write");
+  return true;
+}
+
+LedPositionRequest ParseLedPositionRequest(const YamlNode& node) {
+  node.ExpectKeys({"spheres", "radius_mm", "out_rig"});
+  LedPositionRequest request;
+  for (const YamlNode& item : node["spheres"].Items()) {
+    const std::vector<YamlNode> xyz = item.Items();
+    if (xyz.size() != 2 && xyz.size() != 3) item.Fail("each sphere is [x, y] or [x, y, z] in millimetres");
+    request.sphere_centres_mm.emplace_back(xyz[0].AsDouble(), xyz[1].AsDouble(), xyz.size() == 3 ? xyz[2].AsDouble() : 0.0);
   }
+  if (request.sphere_centres_mm.size() < 2) node["spheres"].Fail("give two or more sphere centres");
+  request.sphere_radius_mm = node["radius_mm"].AsDouble();
+  if (!(request.sphere_radius_mm > 0.0)) node["radius_mm"].Fail("must be > 0");
+  if (auto out_rig = node.Find("out_rig")) request.out_rig = ParseOutRig(*out_rig);
   return request;
 }
 

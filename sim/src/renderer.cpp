@@ -134,6 +134,54 @@ cv::Mat CastShadowMask(const SurfaceMaps& surface, const Light& light) {
   return shadow;
 }
 
+namespace {
+
+// The fraction of pixel (r, c) whose mirror direction falls inside a near
+// LED's disc. Its image on a mirror ball spans a pixel or less, so a sample
+// at the pixel's centre would find it or miss it whole; a camera integrates
+// over the pixel. 4 x 4 sub-samples, the surface carried across the pixel by
+// its central differences (one-sided at the object's edge).
+double NearHighlightCoverage(const SurfaceMaps& surface, int r, int c, const Light& light) {
+  const auto at = [&surface](const cv::Mat& map, int row, int col) {
+    const cv::Vec3f& v = map.at<cv::Vec3f>(row, col);
+    return Vector3d(v[0], v[1], v[2]);
+  };
+  const auto on = [&surface](int row, int col) {
+    return row >= 0 && col >= 0 && row < surface.mask.rows && col < surface.mask.cols && surface.mask.at<std::uint8_t>(row, col);
+  };
+  // d/dcol and d/drow of a map at the pixel.
+  const auto slope = [&](const cv::Mat& map, int dr, int dc) -> Vector3d {
+    const bool plus = on(r + dr, c + dc), minus = on(r - dr, c - dc);
+    if (plus && minus) return 0.5 * (at(map, r + dr, c + dc) - at(map, r - dr, c - dc));
+    if (plus) return at(map, r + dr, c + dc) - at(map, r, c);
+    if (minus) return at(map, r, c) - at(map, r - dr, c - dc);
+    return Vector3d::Zero();
+  };
+  const Vector3d n0 = at(surface.normals, r, c), p0 = at(surface.position, r, c), w0 = at(surface.view, r, c);
+  const Vector3d dn_c = slope(surface.normals, 0, 1), dn_r = slope(surface.normals, 1, 0);
+  const Vector3d dp_c = slope(surface.position, 0, 1), dp_r = slope(surface.position, 1, 0);
+  const Vector3d dw_c = slope(surface.view, 0, 1), dw_r = slope(surface.view, 1, 0);
+  // Far from the disc (by more than the mirror direction turns across the pixel): none of it.
+  const double alpha = light.AngularRadiusAt(p0);
+  const Vector3d to_light0 = (*light.position_mm - p0).normalized();
+  const double turn = 2.0 * (dn_c.norm() + dn_r.norm()) + dw_c.norm() + dw_r.norm();
+  if (std::acos(std::clamp(MirrorDirection(n0, w0).dot(to_light0), -1.0, 1.0)) > alpha + turn) return 0.0;
+  constexpr int kSub = 4;
+  int inside = 0;
+  for (int i = 0; i < kSub; ++i)
+    for (int j = 0; j < kSub; ++j) {
+      const double dr = (i + 0.5) / kSub - 0.5, dc = (j + 0.5) / kSub - 0.5;
+      const Vector3d n = (n0 + dc * dn_c + dr * dn_r).normalized();
+      const Vector3d wo = (w0 + dc * dw_c + dr * dw_r).normalized();
+      const Vector3d p = p0 + dc * dp_c + dr * dp_r;
+      const Vector3d to_light = (*light.position_mm - p).normalized();
+      if (MirrorDirection(n, wo).dot(to_light) >= std::cos(light.AngularRadiusAt(p))) ++inside;
+    }
+  return static_cast<double>(inside) / (kSub * kSub);
+}
+
+}  // namespace
+
 cv::Mat RenderRadiance(const SurfaceMaps& surface, const Brdf& brdf, bool cast_shadows,
                        const std::vector<Light>& lights, const std::vector<double>& levels) {
   cv::Mat radiance = cv::Mat::zeros(surface.normals.size(), CV_32F);
@@ -164,9 +212,12 @@ cv::Mat RenderRadiance(const SurfaceMaps& surface, const Brdf& brdf, bool cast_s
         if (e <= 0.0 || cosine <= 0.0) continue;
         if (delta) {
           const double alpha = light.AngularRadiusAt(p);
-          if (MirrorDirection(n, wo).dot(wi) < std::cos(alpha)) continue;
+          // A distant light's disc is sampled at the pixel's centre, a near LED's integrated over the pixel.
+          const double coverage = light.position_mm ? NearHighlightCoverage(surface, r, c, light)
+                                                    : (MirrorDirection(n, wo).dot(wi) < std::cos(alpha) ? 0.0 : 1.0);
+          if (coverage == 0.0) continue;
           const double s = std::sin(alpha);
-          out[c] += static_cast<float>(level * brdf.DeltaReflectance(bp) * e / (M_PI * s * s));
+          out[c] += static_cast<float>(coverage * level * brdf.DeltaReflectance(bp) * e / (M_PI * s * s));
         } else {
           out[c] += static_cast<float>(level * brdf.Eval(n, wi, wo, bp) * e * cosine);
         }

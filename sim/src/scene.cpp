@@ -164,6 +164,28 @@ bool IntersectSphere(double radius, const Vector3d& origin, const Vector3d& dir,
   return true;
 }
 
+// The first of the scene's spheres the ray meets. A single sphere at the
+// origin is intersected as it always was, bit for bit.
+bool IntersectNearestSphere(const Scene& scene, const Vector3d& origin, const Vector3d& dir, Vector3d* point,
+                            Vector3d* normal) {
+  if (scene.sphere_centres_mm.empty()) return IntersectSphere(scene.sphere_radius_mm, origin, dir, point, normal);
+  bool hit = false;
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector2d& centre : scene.sphere_centres_mm) {
+    const Vector3d c(centre.x(), centre.y(), 0.0);
+    Vector3d p, n;
+    if (!IntersectSphere(scene.sphere_radius_mm, origin - c, dir, &p, &n)) continue;
+    p += c;
+    const double along = (p - origin).dot(dir);
+    if (along >= nearest) continue;
+    nearest = along;
+    *point = p;
+    *normal = n;
+    hit = true;
+  }
+  return hit;
+}
+
 }  // namespace
 
 double AlbedoTexture::HighWeight(double x_mm, double y_mm) const {
@@ -274,6 +296,14 @@ bool Scene::IsValid(std::string* why) const {
     if (std::max(low, high) > 1.0 + 1e-9) return fail("blinn_phong conserves energy only if albedo + 4 rho_s <= 1");
   }
   if (IsSphere() && !(sphere_radius_mm > 0)) return fail("radius_mm must be > 0");
+  if (!sphere_centres_mm.empty() && !IsSphere()) return fail("centres_mm places spheres: only sphere shapes take it");
+  for (std::size_t i = 0; i < sphere_centres_mm.size(); ++i) {
+    if (!sphere_centres_mm[i].allFinite()) return fail("centres_mm must be finite");
+    for (std::size_t j = 0; j < i; ++j)
+      if ((sphere_centres_mm[i] - sphere_centres_mm[j]).norm() < 2.0 * sphere_radius_mm)
+        return fail("centres_mm: spheres " + std::to_string(j) + " and " + std::to_string(i) +
+                    " overlap (centres closer than two radii)");
+  }
   if (shape == Shape::kMirrorSphere && material.model != Brdf::Model::kMirror)
     return fail("a mirror_sphere has the mirror BRDF");
   if (shape == Shape::kWhiteSphere && material.model != Brdf::Model::kLambertian)
@@ -420,7 +450,7 @@ SurfaceMaps SampleSurface(const Scene& scene, const CameraModel& camera) {
       camera.Ray(c, r, &origin, &dir);
       bool hit;
       if (scene.IsSphere()) {
-        hit = IntersectSphere(scene.sphere_radius_mm, origin, dir, &p, &n);
+        hit = IntersectNearestSphere(scene, origin, dir, &p, &n);
       } else if (scene.shape == Scene::Shape::kMesh) {
         const float z = mesh_height.at<float>(r, c);
         hit = std::isfinite(z);

@@ -127,6 +127,10 @@ TEST(RigLoad, ABadSimulatedSceneFailsTheLoadWithItsPosition) {
                   "unknown key 'radius'");
   ExpectLoadError(Rig(kSimLights, kSimCamera, "  scene: {shape: sphere, brdf: {model: ggx, roughness: 2}}\n"), 12,
                   32, "sim.scene.brdf", "roughness must lie in (0, 1]");
+  ExpectLoadError(Rig(kSimLights, kSimCamera, "  scene: {shape: mirror_sphere, radius_mm: 1, centres_mm: [[0, 0], [1, 0]]}\n"),
+                  12, 59, "sim.scene.centres_mm", "overlap");
+  ExpectLoadError(Rig(kSimLights, kSimCamera, "  scene: {shape: bumps, centres_mm: [[0, 0]]}\n"), 12, 37,
+                  "sim.scene.centres_mm", "only sphere shapes");
 }
 
 TEST(RigLoad, SceneDefaultsAreSizedToTheRigsFrame) {

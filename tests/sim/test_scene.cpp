@@ -262,6 +262,68 @@ TEST(Mirror, ChromeSphereShowsTheLightAsADiscAtTheMirrorPoint) {
   EXPECT_NEAR(pixels * 0.01, M_PI * 0.25 * 0.25 * h.z(), 0.03);
 }
 
+TEST(Mirror, SeveralBallsOnThePlaneEachPixelSeesItsOwn) {
+  Scene scene;
+  scene.shape = Scene::Shape::kMirrorSphere;
+  scene.ApplyShapeDefaults(40.0);
+  scene.sphere_radius_mm = 4;
+  scene.sphere_centres_mm = {{-5.0, 0.0}, {5.0, 1.0}};
+  std::string why;
+  ASSERT_TRUE(scene.IsValid(&why)) << why;
+  for (const bool pinhole : {false, true}) {
+    CameraModel camera(200, 100, 0.1);
+    if (pinhole) {
+      camera.projection = CameraModel::Projection::kPinhole;
+      camera.fx = camera.fy = 1000;
+      camera.distance_mm = 100;
+    }
+    const SurfaceMaps maps = SampleSurface(scene, camera);
+    int on = 0;
+    for (int r = 0; r < maps.mask.rows; ++r)
+      for (int c = 0; c < maps.mask.cols; ++c) {
+        if (!maps.mask.at<std::uint8_t>(r, c)) continue;
+        ++on;
+        const cv::Vec3f p = maps.position.at<cv::Vec3f>(r, c);
+        const Vector3d centre(p[0] < 0 ? -5.0 : 5.0, p[0] < 0 ? 0.0 : 1.0, 0.0);
+        const Vector3d offset = Vector3d(p[0], p[1], p[2]) - centre;
+        EXPECT_NEAR(offset.norm(), 4.0, 1e-4);
+        EXPECT_NEAR((NormalAt(maps, r, c) - offset / 4.0).norm(), 0.0, 1e-5);
+      }
+    // Two discs of 40 px radius (a little more through the pinhole, whose balls are nearer than the plane).
+    EXPECT_NEAR(on, 2 * M_PI * 40 * 40, 0.06 * 2 * M_PI * 40 * 40) << (pinhole ? "pinhole" : "orthographic");
+  }
+  scene.sphere_centres_mm = {{-3.0, 0.0}, {3.0, 0.0}};
+  EXPECT_FALSE(scene.IsValid(&why));
+  EXPECT_NE(why.find("overlap"), std::string::npos) << why;
+}
+
+// A near LED's highlight on a ball is a pixel or two across; integrated over
+// each pixel, its first moment lands where the LED's centre reflects.
+TEST(Mirror, ANearLedsHighlightIsIntegratedOverThePixel) {
+  Scene scene;
+  scene.shape = Scene::Shape::kMirrorSphere;
+  scene.ApplyShapeDefaults(40.0);
+  scene.sphere_radius_mm = 17;
+  const double pitch = 0.35;
+  const SurfaceMaps maps = SampleSurface(scene, 120, 120, pitch);
+  Light light;
+  light.position_mm = Vector3d(150.0, 60.0, 180.0);
+  light.axis = -light.position_mm->normalized();
+  light.emitter_radius_mm = 10;
+  const cv::Mat radiance = RenderRadiance(maps, *scene.material.MakeBrdf(0.0), false, {light}, {1.0});
+  // Where the view (0, 0, 1) reflects into the LED: n bisects them at p = R n.
+  Vector3d n = Vector3d::UnitZ();
+  for (int i = 0; i < 50; ++i) n = (Vector3d::UnitZ() + (*light.position_mm - 17.0 * n).normalized()).normalized();
+  const double u = 17.0 * n.x() / pitch + 59.5, v = 59.5 - 17.0 * n.y() / pitch;
+  const cv::Moments m = cv::moments(radiance);
+  EXPECT_NEAR(m.m10 / m.m00, u, 0.05);
+  EXPECT_NEAR(m.m01 / m.m00, v, 0.05);
+  // Partly covered pixels carry the edge: not every lit pixel is at the full radiance.
+  double peak = 0.0;
+  cv::minMaxLoc(radiance, nullptr, &peak);
+  EXPECT_GT(cv::countNonZero(radiance > 0), cv::countNonZero(radiance >= 0.999 * peak));
+}
+
 TEST(Pinhole, SphereSeenThroughAPinholeHasPerPixelViewDirections) {
   Scene scene;
   scene.sphere_radius_mm = 10;

@@ -87,6 +87,15 @@ int Execute(const Options& options) {
     ResultFields()["light_calibration"] = LightCalibrationJson(lights);
     if (!lights.success) return Fail(kExitFailed, "light calibration failed: " + lights.message);
   }
+  if (outcome.led_positions) {
+    const daemon::LedPositionCalibration& leds = *outcome.led_positions;
+    std::printf("LED positions: %s; rays meet within %.3f mm RMS on average; LEDs moved %.2f mm on average\n",
+                leds.message.c_str(), leds.solve.mean_rms_ray_distance_mm, leds.mean_shift_mm);
+    if (!leds.out_rig.empty()) std::printf("calibrated rig: %s\n", leds.out_rig.c_str());
+    ResultFields()["led_positions"] = {{"success", leds.success}, {"message", leds.message},
+                                       {"unusable", leds.solve.unusable}, {"out_rig", leds.out_rig}};
+    if (!leds.success) return Fail(kExitFailed, "LED positions failed: " + leds.message);
+  }
   if (outcome.tomography) {
     const daemon::TomographyResult& tomo = *outcome.tomography;
     const std::string results = outcome.directory + "/results/tomography";

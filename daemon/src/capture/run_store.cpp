@@ -489,6 +489,14 @@ void RunWriter::WriteGroundTruth(const sim::SurfaceMaps& surface, const std::vec
   }
   WriteFileDurably((truth / "light_directions.txt").string(), directions.str());
   WriteFileDurably((truth / "light_intensities.txt").string(), intensities.str());
+  // Near LEDs as built: what an LED-position calibration is scored against.
+  if (!lights.empty() && std::all_of(lights.begin(), lights.end(), [](const sim::Light& l) { return l.position_mm.has_value(); })) {
+    std::ostringstream positions;
+    positions.precision(17);
+    for (const sim::Light& light : lights)
+      positions << light.position_mm->x() << ' ' << light.position_mm->y() << ' ' << light.position_mm->z() << '\n';
+    WriteFileDurably((truth / "light_positions.txt").string(), positions.str());
+  }
   WriteFloatTiff((truth / "normals.tiff").string(), surface.normals);
   WriteFloatTiff((truth / "albedo.tiff").string(), surface.albedo);
   if (!albedo_rgb.empty()) WriteFloatTiff((truth / "albedo_rgb.tiff").string(), albedo_rgb);

@@ -135,12 +135,13 @@ void RequirePhotometricStereoRun(const std::string& run_directory, const RunMani
   const auto stage = [&manifest](const char* name) {
     return std::find(manifest.solve_stages.begin(), manifest.solve_stages.end(), name) != manifest.solve_stages.end();
   };
-  if (stage("light_calibration") && !stage("photometric_stereo") && !stage("svbrdf"))
+  const bool lights = stage("light_calibration"), leds = stage("led_positions");
+  if ((lights || leds) && !stage("photometric_stereo") && !stage("svbrdf"))
     throw std::invalid_argument(run_directory + " was captured to calibrate the lights (recipe " +
                                 manifest.recipe_name +
-                                "): its frames show one highlight of the calibration sphere per LED, not a surface "
-                                "photometric stereo can solve; `photorig calibrate lights --run " + run_directory +
-                                "` solves it");
+                                "): its frames show one highlight of each calibration sphere per LED, not a surface "
+                                "photometric stereo can solve; `photorig calibrate " + (leds ? "leds" : "lights") +
+                                " --run " + run_directory + "` solves it");
   bool tomograph = false;
   for (const FrameRecord& record : manifest.frames) {
     if (record.kind == config::CaptureStep::Kind::kLight && record.led >= 0) return;

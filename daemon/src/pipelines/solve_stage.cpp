@@ -40,6 +40,12 @@ SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& stored, bool
 
 namespace {
 
+// A rig written inside the run is named relative to it, like the results.
+std::string RigInRun(const std::string& out_rig, const std::string& run_directory) {
+  const fs::path relative = fs::path(out_rig).lexically_proximate(run_directory);
+  return relative.empty() || *relative.begin() == ".." ? out_rig : relative.string();
+}
+
 SolveStageReport Report(const LightCalibrationSummary& summary, const std::string& run_directory, double total_ms) {
   SolveStageReport report;
   report.stage = SolveStageName(SolveStageKind::kLightCalibration);
@@ -52,11 +58,28 @@ SolveStageReport Report(const LightCalibrationSummary& summary, const std::strin
                     {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
                     {"sphere_source", SphereSourceName(summary.sphere_source)},
                     {"sphere_fit_rms_px", summary.sphere_fit_rms_px}};
-  // A rig written inside the run is named relative to it, like the results.
-  if (!summary.out_rig.empty()) {
-    const fs::path relative = fs::path(summary.out_rig).lexically_proximate(run_directory);
-    report.figures["out_rig"] = relative.empty() || *relative.begin() == ".." ? summary.out_rig : relative.string();
+  if (!summary.out_rig.empty()) report.figures["out_rig"] = RigInRun(summary.out_rig, run_directory);
+  report.timings_ms = {{"total", total_ms}};
+  return report;
+}
+
+SolveStageReport Report(const LedPositionCalibration& result, const std::string& run_directory, double total_ms) {
+  SolveStageReport report;
+  report.stage = SolveStageName(SolveStageKind::kLedPositions);
+  report.usable = result.success;
+  report.termination = result.success ? "success" : "failure";
+  report.message = result.message;
+  report.results = "results/leds";
+  report.figures = {{"leds", result.solve.leds.size()},
+                    {"unusable", result.solve.unusable},
+                    {"mean_rms_ray_distance_mm", result.solve.mean_rms_ray_distance_mm},
+                    {"mean_shift_mm", result.mean_shift_mm},
+                    {"max_shift_mm", result.max_shift_mm}};
+  if (result.mean_error_mm >= 0.0) {
+    report.figures["positions_vs_truth_mean_mm"] = result.mean_error_mm;
+    report.figures["positions_vs_truth_max_mm"] = result.max_error_mm;
   }
+  if (!result.out_rig.empty()) report.figures["out_rig"] = RigInRun(result.out_rig, run_directory);
   report.timings_ms = {{"total", total_ms}};
   return report;
 }
@@ -172,6 +195,16 @@ SolveStageReport RunLightCalibration(config::LightCalibrationRequest calibration
   return Report(summary, context.run_directory, MillisecondsSince(started));
 }
 
+SolveStageReport RunLedPositions(config::LedPositionRequest request, const StageContext& context, SolveResults* results) {
+  const auto started = std::chrono::steady_clock::now();
+  const fs::path folder = FreshResults(context, "leds");
+  request.base_rig = context.rig_path;
+  if (request.out_rig.empty()) request.out_rig = (folder / "rig.yaml").string();
+  const LedPositionCalibration& result = results->led_positions.emplace(
+      CalibrateLedPositions(LoadLedPositionInputs(context.run_directory), request, folder.string()));
+  return Report(result, context.run_directory, MillisecondsSince(started));
+}
+
 SolveStageReport RunTomography(const config::TomographyRequest& request, const StageContext& context,
                                SolveResults* results) {
   const TomographyInput input = LoadTomographyRun(context.run_directory);
@@ -208,6 +241,8 @@ std::vector<SolveStage> StagesOf(const config::Recipe& recipe) {
     stages.push_back(MakeStage(Kind::kPhotometricStereo, "solve ps", *recipe.photometric_stereo, RunPhotometricStereo));
   if (recipe.light_calibration)
     stages.push_back(MakeStage(Kind::kLightCalibration, "calibrate lights", *recipe.light_calibration, RunLightCalibration));
+  if (recipe.led_positions)
+    stages.push_back(MakeStage(Kind::kLedPositions, "calibrate leds", *recipe.led_positions, RunLedPositions));
   if (recipe.tomography) stages.push_back(MakeStage(Kind::kTomography, "solve tomography", *recipe.tomography, RunTomography));
   if (recipe.svbrdf) stages.push_back(MakeStage(Kind::kSvbrdf, "solve svbrdf", *recipe.svbrdf, RunSvbrdf));
   if (recipe.brdf) stages.push_back(MakeStage(Kind::kBrdf, "solve brdf", *recipe.brdf, RunBrdf));

@@ -85,6 +85,7 @@ struct Recipe {
   std::vector<Group> groups;
   std::optional<PhotometricStereoRequest> photometric_stereo;
   std::optional<LightCalibrationRequest> light_calibration;
+  std::optional<LedPositionRequest> led_positions;
   std::optional<TomographyRequest> tomography;
   std::optional<SvbrdfRequest> svbrdf;
   std::optional<BrdfRequest> brdf;
@@ -170,7 +171,7 @@ std::optional<CaptureStep::Kind> CaptureStepKindFromName(const std::string& name
 
 // Reads a recipe for the rig it will run on. Throws ConfigError naming
 // file:line:column and key. Every path the recipe names (sample.sim_scene.path,
-// light_calibration's silhouette and out_rig) is relative to the recipe's
+// light_calibration's silhouette and out_rig, led_positions' out_rig) is relative to the recipe's
 // folder and must stay inside it.
 Recipe LoadRecipe(const std::string& path, const RigConfig& rig);
 // The same from text received over the API; errors name `name` as the file.

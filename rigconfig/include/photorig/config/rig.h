@@ -46,6 +46,9 @@ struct SimConfig {
   // ... and its irradiance off the stated intensity by a seeded random factor
   // of this RMS relative error, in percent (sim/light_errors.h).
   double led_intensity_error_pct = 0.0;
+  // The radius of a near LED's emitting disc (its diffuser): the size of the
+  // highlight a mirror ball shows of it (sim::Light::emitter_radius_mm).
+  double led_emitter_radius_mm = 1.5;
   // Light from the dome's walls and the room on every frame (sim/renderer.h).
   sim::AmbientLight ambient;
   sim::SensorModel sensor;

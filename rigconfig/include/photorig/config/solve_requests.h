@@ -1,6 +1,6 @@
 #pragma once
 // The solve stages a recipe may ask for (`solve: [photometric_stereo: ...,
-// light_calibration: ...]`), and the same settings as the command line gives
+// light_calibration: ..., led_positions: ...]`), and the same settings as the command line gives
 // them: parsed and checked when the recipe is loaded.
 
 #include "photorig/config/yaml_node.h"
@@ -74,6 +74,24 @@ struct LightCalibrationRequest {
 // {silhouette: IMAGE} | {from: highlights, radius_mm: R}, out_rig: FILE}`;
 // paths are relative to the recipe. Throws ConfigError naming file:line:column.
 LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node);
+
+// The recipe stage `led_positions: {spheres: [[x, y], [x, y, z], ...],
+// radius_mm: R, out_rig: FILE}` and `photorig calibrate leds`'s flags: a
+// near-LED dome's LED positions from two or more mirror spheres at known
+// places (solvers/lighting/led_positions.h). Paths are relative to the
+// recipe. Throws ConfigError naming file:line:column.
+struct LedPositionRequest {
+  // Dome frame, mm; z (default 0) is the centre's height above the sample
+  // plane: 0 for the simulator's balls, whose equator lies on it, the radius
+  // for a ball resting on it.
+  std::vector<Eigen::Vector3d> sphere_centres_mm;
+  double sphere_radius_mm = 0.0;
+  std::string base_rig;  // rig YAML to copy with the calibrated positions ("" = no rig output)
+  std::string out_rig;   // the new rig YAML; must not exist
+
+  bool IsValid(std::string* why) const;
+};
+LedPositionRequest ParseLedPositionRequest(const YamlNode& node);
 
 // The recipe stage `tomography: {method, projector, max_iterations,
 // discrepancy_factor, volume: [nx, ny, nz], voxel_mm, cor_offset_mm,

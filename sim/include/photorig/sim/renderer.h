@@ -5,7 +5,9 @@
 // the heightfield blocks light k (cast shadow). Delta BRDFs (mirror) instead
 // reflect the radiance of the source seen along the mirror direction:
 //   L(p) = level_k * R * E_k(p) / (pi sin^2 alpha_k)  if the mirror direction falls inside the source's disc
-// where alpha_k is the angular radius of light k seen from p.
+// where alpha_k is the angular radius of light k seen from p. A near LED's
+// highlight is a pixel or less across: it is weighted by the fraction of the
+// pixel whose mirror direction falls inside the disc, as a camera integrates it.
 // Radiance, irradiance: arbitrary but consistent units (the sensor's
 // response_e_per_us converts radiance to electrons).
 

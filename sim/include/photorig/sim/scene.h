@@ -79,7 +79,7 @@ struct Bump {
 
 struct Scene {
   enum class Shape {
-    kSphere,        // sphere_radius_mm, centred on the optical axis
+    kSphere,        // sphere_radius_mm, centred on the optical axis (or at sphere_centres_mm)
     kBumps,         // heightfield: sum of `bumps`
     kConcave,       // heightfield: a spherical bowl of radius bowl_radius_mm cut to rim_radius_mm
     kSteps,         // heightfield: tilted terraces with a vertical drop between them
@@ -93,6 +93,10 @@ struct Scene {
   };
   Shape shape = Shape::kSphere;
   double sphere_radius_mm = 18.0;
+  // Sphere shapes: one sphere per centre (x, y), each with its equator on the
+  // sample plane z = 0, so several calibration balls share one frame; a pixel
+  // sees the nearest. Empty: one sphere at the origin.
+  std::vector<Eigen::Vector2d> sphere_centres_mm;
   std::vector<Bump> bumps;
   double bowl_radius_mm = 15.0, rim_radius_mm = 12.0;
   double step_width_mm = 8.0, step_height_mm = 2.0, step_slope = 0.15;  // slope: dz/dx of each tread

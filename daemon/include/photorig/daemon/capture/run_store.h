@@ -160,7 +160,8 @@ class RunWriter {
   // normals, albedo, mask, height (mm), specular BRDF parameters and, for
   // volumes, line integrals, as ground_truth/*.tiff|png; the lights as they
   // really are (which may differ from the rig's nominal ones) as
-  // ground_truth/light_directions.txt, one "x y z" line per light.
+  // ground_truth/light_directions.txt, one "x y z" line per light, and for
+  // near LEDs their positions (mm) as ground_truth/light_positions.txt.
   // A colour camera's scene also has its albedo in linear sRGB (albedo_rgb,
   // CV_32FC3 R, G, B) as ground_truth/albedo_rgb.tiff. A scene whose paints
   // have their own lobes has its material map (the paint per pixel, 255 off

@@ -4,6 +4,7 @@
 // record, its events, `photorig watch`, a Slurm task's follow-up).
 
 #include "photorig/daemon/pipelines/brdf_solve.h"
+#include "photorig/daemon/pipelines/led_positions.h"
 #include "photorig/daemon/pipelines/light_calibration.h"
 #include "photorig/daemon/pipelines/ps_pipeline.h"
 #include "photorig/daemon/pipelines/svbrdf_pipeline.h"
@@ -23,10 +24,11 @@
 namespace photorig::daemon {
 
 // The solve stages a recipe may end with, by their recipe keys.
-enum class SolveStageKind { kPhotometricStereo, kLightCalibration, kTomography, kSvbrdf, kBrdf };
-inline constexpr solvers::core::NameTable<SolveStageKind, 5> kSolveStageNames = {
+enum class SolveStageKind { kPhotometricStereo, kLightCalibration, kLedPositions, kTomography, kSvbrdf, kBrdf };
+inline constexpr solvers::core::NameTable<SolveStageKind, 6> kSolveStageNames = {
     {{SolveStageKind::kPhotometricStereo, "photometric_stereo"},
      {SolveStageKind::kLightCalibration, "light_calibration"},
+     {SolveStageKind::kLedPositions, "led_positions"},
      {SolveStageKind::kTomography, "tomography"},
      {SolveStageKind::kSvbrdf, "svbrdf"},
      {SolveStageKind::kBrdf, "brdf"}}};
@@ -55,6 +57,7 @@ SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& report, bool
 struct SolveResults {
   std::optional<PhotometricStereoResult> photometric_stereo;  // stored as results/ps/report.json
   std::optional<LightCalibrationSummary> light_calibration;   // stored in results/lights
+  std::optional<LedPositionCalibration> led_positions;        // stored in results/leds
   std::optional<TomographyResult> tomography;                 // stored in results/tomography
   std::optional<SvbrdfResult> svbrdf;                         // stored in results/svbrdf
   std::optional<BrdfSolveResult> brdf;                        // stored in results/brdf
@@ -63,7 +66,7 @@ struct SolveResults {
 // What a stage reads besides its request: the run's stored frames.
 struct StageContext {
   std::string run_directory;
-  std::string rig_path;                      // the run's rig (light calibration copies it)
+  std::string rig_path;                      // the run's rig (light and LED calibrations copy it)
   solvers::core::ProgressCallback progress;  // the solver's progress, for stages that report it
 };
 

@@ -1,0 +1,109 @@
+// photorig calibrate leds --run DIR --sphere X,Y[,Z] --sphere X,Y[,Z] ... --radius-mm R
+//   [--rig IN.yaml --out-rig NEW.yaml] [--out DIR (default RUN/results/leds)]
+// A near-LED dome's LED positions from mirror spheres at known places, one
+// frame per LED: report.json and a new rig YAML (an existing file is never
+// overwritten; none is written while an LED is unusable).
+
+#include "../command.h"
+#include "../command_output.h"
+#include "photorig/daemon/pipelines/led_positions.h"
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+namespace photorig::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Options {
+  std::string run_dir, rig, out_rig, out;
+  std::vector<std::string> spheres;
+  double radius_mm = 0.0;
+};
+
+// "X,Y" or "X,Y,Z" in millimetres; false for anything else.
+bool ParseCentre(const std::string& text, Eigen::Vector3d* centre) {
+  std::vector<double> values;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    std::size_t used = 0;
+    try {
+      values.push_back(std::stod(item, &used));
+    } catch (const std::exception&) {
+      return false;
+    }
+    if (used != item.size() || !std::isfinite(values.back())) return false;
+  }
+  if (values.size() != 2 && values.size() != 3) return false;
+  *centre = {values[0], values[1], values.size() == 3 ? values[2] : 0.0};
+  return true;
+}
+
+int Execute(const Options& o) {
+  config::LedPositionRequest request;
+  for (const std::string& text : o.spheres) {
+    Eigen::Vector3d centre;
+    if (!ParseCentre(text, &centre))
+      return Fail(kExitUsage, "--sphere '" + text + "' is not X,Y or X,Y,Z in millimetres");
+    request.sphere_centres_mm.push_back(centre);
+  }
+  if (request.sphere_centres_mm.size() < 2)
+    return Fail(kExitUsage, "give --sphere X,Y[,Z] for each of two or more mirror spheres");
+  request.sphere_radius_mm = o.radius_mm;
+  request.base_rig = o.out_rig.empty() ? "" : o.rig;
+  request.out_rig = o.out_rig;
+  if (std::string why; !request.IsValid(&why)) return Fail(kExitUsage, why);
+
+  const std::string out = o.out.empty() ? (fs::path(o.run_dir) / "results" / "leds").string() : o.out;
+  const daemon::LedPositionCalibration result =
+      daemon::CalibrateLedPositions(daemon::LoadLedPositionInputs(o.run_dir), request, out);
+  if (result.bad_input) return Fail(kExitUsage, result.message);
+  std::cout << result.message << "; rays meet within " << result.solve.mean_rms_ray_distance_mm
+            << " mm RMS on average; LEDs moved " << result.mean_shift_mm << " mm on average (at most "
+            << result.max_shift_mm << " mm) from the rig's positions; outputs in " << out << "\n";
+  if (result.mean_error_mm >= 0.0)
+    std::cout << "against the simulated truth: mean error " << result.mean_error_mm << " mm, max " << result.max_error_mm
+              << " mm\n";
+  if (!result.out_rig.empty()) std::cout << "calibrated rig: " << result.out_rig << "\n";
+  ResultFields() = {{"success", result.success},
+                    {"message", result.message},
+                    {"leds", result.solve.leds.size()},
+                    {"unusable", result.solve.unusable},
+                    {"mean_rms_ray_distance_mm", result.solve.mean_rms_ray_distance_mm},
+                    {"mean_shift_mm", result.mean_shift_mm},
+                    {"max_shift_mm", result.max_shift_mm},
+                    {"out", out},
+                    {"out_rig", result.out_rig}};
+  if (result.mean_error_mm >= 0.0) {
+    ResultFields()["mean_error_vs_truth_mm"] = result.mean_error_mm;
+    ResultFields()["max_error_vs_truth_mm"] = result.max_error_mm;
+  }
+  if (!result.success) return Fail(kExitFailed, result.message);
+  return kExitOk;
+}
+
+CommandRunner Setup(CLI::App& app) {
+  auto o = std::make_shared<Options>();
+  CLI::App* calibrate = SubcommandGroup(app, "calibrate", "calibrate the rig");
+  CLI::App* leds = calibrate->add_subcommand("leds", "near-LED positions from two or more mirror spheres at known places");
+  leds->add_option("--run", o->run_dir, "run directory with one frame per LED")->required()->check(CLI::ExistingDirectory);
+  leds->add_option("--sphere", o->spheres, "a mirror sphere's centre X,Y[,Z] in mm, dome frame (Z default 0); repeat per sphere")
+      ->required()
+      ->expected(1)
+      ->take_all();
+  leds->add_option("--radius-mm", o->radius_mm, "the spheres' radius")->required();
+  leds->add_option("--rig", o->rig, "rig YAML to copy with the calibrated positions")->check(CLI::ExistingFile);
+  leds->add_option("--out-rig", o->out_rig, "new rig YAML to write");
+  leds->add_option("--out", o->out, "output directory (default: RUN/results/leds)");
+  return {leds, [o] { return Execute(*o); }};
+}
+
+const bool registered = RegisterCommand(Setup);
+
+}  // namespace
+}  // namespace photorig::app
