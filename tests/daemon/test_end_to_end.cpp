@@ -364,11 +364,8 @@ double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 TEST(EndToEnd, LightCalibrationRecipeFindsTheDomeAsBuilt) {
   TempDir dir;
   // The simulated dome as built: each LED about 1.5 degrees off its drawing.
-  const std::string drawing = ReadText(SourceDir() + "/config/rigs/sim-dome.yaml");
-  const std::string as_built = std::regex_replace(drawing, std::regex("\nsim:\n"), "\nsim:\n  led_direction_error_deg: 1.5\n");
-  ASSERT_NE(as_built, drawing);
-  const fs::path rig = dir.path() / "as-built.yaml";
-  std::ofstream(rig) << as_built;
+  const fs::path rig = photorig::testing::AsBuiltRig(dir.path(), "sim-dome.yaml", {"led_direction_error_deg: 1.5"});
+  const std::string as_built = ReadText(rig);
   const fs::path run = dir.path() / "run";
   ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/light-calibration.yaml --rig " + rig.string() +
                             " --out " + run.string(),
@@ -428,11 +425,8 @@ TEST(EndToEnd, LightCalibrationRecipeFindsTheDomeAsBuilt) {
 // 60 mm baselines) makes that four times more.
 TEST(EndToEnd, LedPositionsRecipeFindsTheNearDomeAsBuilt) {
   TempDir dir;
-  const std::string drawing = ReadText(SourceDir() + "/config/rigs/sim-dome-near.yaml");
-  const std::string as_built = std::regex_replace(drawing, std::regex("\nsim:\n"), "\nsim:\n  led_direction_error_deg: 1.5\n");
-  ASSERT_NE(as_built, drawing);
-  const fs::path rig = dir.path() / "as-built.yaml";
-  std::ofstream(rig) << as_built;
+  const fs::path rig = photorig::testing::AsBuiltRig(dir.path(), "sim-dome-near.yaml", {"led_direction_error_deg: 1.5"});
+  const std::string as_built = ReadText(rig);
   const fs::path run = dir.path() / "run";
   ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/led-positions.yaml --rig " + rig.string() + " --out " +
                             run.string(),

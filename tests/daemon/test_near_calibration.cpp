@@ -1,7 +1,8 @@
 // A near dome calibrated from its own captures, through the executable: the
 // LED intensities and profiles from the led-radiance recipe's matte plane
-// (`photorig calibrate radiance`), and a calibration applied to frames taken
-// before it (`photorig solve ps --rig`), against the simulator's LEDs as built.
+// (`photorig calibrate radiance`), a calibration applied to frames taken
+// before it (`photorig solve ps --rig`), and the whole chain from mirror balls
+// and the plane to solved objects, against the simulator's LEDs as built.
 
 #include "photorig/config/rig.h"
 #include "test_support.h"
@@ -13,11 +14,15 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <regex>
+#include <cstdio>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace {
 
 namespace fs = std::filesystem;
+using photorig::testing::AsBuiltRig;
 using photorig::testing::Photorig;
 using photorig::testing::ReadText;
 using photorig::testing::SourceDir;
@@ -33,11 +38,7 @@ std::vector<double> ReadColumn(const fs::path& path) {
 TEST(LedRadiance, ThePlaneRecipeFindsTheNearDomesIntensitiesAsBuilt) {
   TempDir dir;
   // The dome as built: each LED's irradiance off its stated figure by 5 % RMS.
-  const std::string drawing = ReadText(SourceDir() + "/config/rigs/sim-dome-near.yaml");
-  const std::string as_built = std::regex_replace(drawing, std::regex("\nsim:\n"), "\nsim:\n  led_intensity_error_pct: 5\n");
-  ASSERT_NE(as_built, drawing);
-  const fs::path rig = dir.path() / "as-built.yaml";
-  std::ofstream(rig) << as_built;
+  const fs::path rig = AsBuiltRig(dir.path(), "sim-dome-near.yaml", {"led_intensity_error_pct: 5"});
   const fs::path run = dir.path() / "run";
   const auto captured = Photorig("run " + SourceDir() + "/config/recipes/led-radiance.yaml --rig " + rig.string() +
                                      " --out " + run.string(),
@@ -85,15 +86,10 @@ TEST(LedRadiance, ThePlaneRecipeFindsTheNearDomesIntensitiesAsBuilt) {
   EXPECT_NE(no_albedo.err.find("albedo"), std::string::npos) << no_albedo.err;
 }
 
-// The dome as built, stated as drawn: LEDs 1.5 deg (6.5 mm) off their
+// The near dome as built, stated as drawn: LEDs 1.5 deg (6.5 mm) off their
 // drawn positions and 5 % off their stated intensities.
 fs::path AsBuiltNearDome(const TempDir& dir) {
-  const std::string drawing = ReadText(SourceDir() + "/config/rigs/sim-dome-near.yaml");
-  const std::string as_built = std::regex_replace(
-      drawing, std::regex("\nsim:\n"), "\nsim:\n  led_direction_error_deg: 1.5\n  led_intensity_error_pct: 5\n");
-  const fs::path rig = dir.path() / "as-built.yaml";
-  std::ofstream(rig) << as_built;
-  return rig;
+  return AsBuiltRig(dir.path(), "sim-dome-near.yaml", {"led_direction_error_deg: 1.5", "led_intensity_error_pct: 5"});
 }
 
 double MeanErrorDeg(const fs::path& results) {
@@ -112,21 +108,18 @@ TEST(SolveWithACalibratedRig, FramesTakenBeforeTheCalibrationAreSolvedWithIt) {
                                   dir);
   ASSERT_EQ(as_stated.exit_code, 0) << as_stated.out << as_stated.err;
 
-  // The LEDs as they were built, from the simulator's ground truth: each
-  // swung about the origin at its distance, and its true irradiance.
+  // The LEDs as they were built, from the simulator's ground truth.
   YAML::Node truth = YAML::LoadFile(rig.string());
   truth["sim"].remove("led_direction_error_deg");
   truth["sim"].remove("led_intensity_error_pct");
-  std::ifstream directions(run / "ground_truth/light_directions.txt");
+  std::ifstream positions(run / "ground_truth/light_positions.txt");
   const std::vector<double> intensities = ReadColumn(run / "ground_truth/light_intensities.txt");
   YAML::Node leds = truth["lights"]["leds"];
   ASSERT_EQ(leds.size(), intensities.size());
   for (std::size_t k = 0; k < leds.size(); ++k) {
-    const auto drawn = leds[k]["position_mm"].as<std::vector<double>>();
-    const double distance = std::hypot(drawn[0], drawn[1], drawn[2]);
     double x = 0, y = 0, z = 0;
-    directions >> x >> y >> z;
-    leds[k]["position_mm"] = std::vector<double>{distance * x, distance * y, distance * z};
+    ASSERT_TRUE(positions >> x >> y >> z);
+    leds[k]["position_mm"] = std::vector<double>{x, y, z};
     leds[k]["intensity"] = intensities[k];
   }
   const fs::path truth_rig = dir.path() / "truth.yaml";
@@ -148,6 +141,45 @@ TEST(SolveWithACalibratedRig, FramesTakenBeforeTheCalibrationAreSolvedWithIt) {
   EXPECT_EQ(other.exit_code, 2);
   EXPECT_NE(other.err.find("sim-dome-96.yaml"), std::string::npos) << other.err;
   EXPECT_NE(other.err.find("96 LEDs"), std::string::npos) << other.err;
+}
+
+
+// The acceptance of a near dome calibrated from its own captures only: LED
+// positions from three mirror balls (led-positions recipe), intensities and
+// profiles from a matte plane fitted at those positions (led-radiance recipe),
+// and a sphere and the bumps captured on the dome as built, solved with the
+// calibrated rig. Nothing of the truth reaches the solver but the frames.
+TEST(NearDomeCalibratedFromCaptures, SolvesTheSphereAndTheBumpsWithinTheirBudgets) {
+  TempDir dir;
+  const fs::path rig = AsBuiltNearDome(dir);
+  auto capture = [&](const std::string& recipe, const fs::path& out, const std::string& flags = "") {
+    const auto outcome =
+        Photorig("run " + SourceDir() + "/config/recipes/" + recipe + " --rig " + rig.string() + " --out " + out.string() + flags, dir);
+    EXPECT_EQ(outcome.exit_code, 0) << recipe << ": " << outcome.out << outcome.err;
+  };
+  capture("led-positions.yaml", dir.path() / "balls");
+  const fs::path positions = dir.path() / "balls/results/leds/rig.yaml";
+  ASSERT_TRUE(fs::exists(positions));
+  capture("led-radiance.yaml", dir.path() / "plane");
+  const fs::path calibrated = dir.path() / "calibrated.yaml";
+  const auto radiance = Photorig("calibrate radiance --run " + (dir.path() / "plane").string() + " --albedo 0.8 --rig " +
+                                     positions.string() + " --out-rig " + calibrated.string(),
+                                 dir);
+  ASSERT_EQ(radiance.exit_code, 0) << radiance.out << radiance.err;
+
+  for (const auto& [recipe, budget_deg] : {std::pair<std::string, double>{"ps-sphere.yaml", 1.0}, {"ps-bumps.yaml", 1.5}}) {
+    const fs::path run = dir.path() / recipe;
+    capture(recipe, run, " --no-solve");
+    const auto drawn = Photorig("solve ps --method lambertian --run " + run.string() + " --out " + (run / "drawn").string(), dir);
+    const auto solved = Photorig("solve ps --method lambertian --run " + run.string() + " --rig " + calibrated.string() +
+                                     " --out " + (run / "calibrated").string(),
+                                 dir);
+    ASSERT_EQ(solved.exit_code, 0) << solved.out << solved.err;
+    const double drawn_deg = MeanErrorDeg(run / "drawn"), calibrated_deg = MeanErrorDeg(run / "calibrated");
+    EXPECT_LT(calibrated_deg, budget_deg) << recipe << ", the dome as drawn: " << drawn_deg << " deg";
+    EXPECT_LT(calibrated_deg, drawn_deg) << recipe;
+    std::printf("%s: as drawn %.3f deg, calibrated from captures %.3f deg\n", recipe.c_str(), drawn_deg, calibrated_deg);
+  }
 }
 
 }  // namespace

@@ -13,8 +13,10 @@
 #include <chrono>
 #include <fstream>
 #include <regex>
+#include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 namespace photorig::testing {
 
@@ -71,6 +73,22 @@ inline std::string SmallRecipeYaml(const std::string& rig_path = "", int darks =
   text += "capture:\n  exposure_us: 1000\n  steps:\n    - dark: {count: " + std::to_string(darks) +
           "}\n    - each_led: {leds: all}\n";
   return text;
+}
+
+// A shipped simulated rig as built, not as drawn: `errors` (lines of its
+// `sim:` section, e.g. "led_direction_error_deg: 1.5") written into a copy in
+// `dir`, whose path is returned; the file states the rig as drawn, so what a
+// calibration finds is hidden from everything but the frames.
+inline std::filesystem::path AsBuiltRig(const std::filesystem::path& dir, const std::string& shipped_rig,
+                                        const std::vector<std::string>& errors) {
+  const std::string drawing = ReadText(SourceDir() + "/config/rigs/" + shipped_rig);
+  std::string lines;
+  for (const std::string& error : errors) lines += "  " + error + "\n";
+  const std::string as_built = std::regex_replace(drawing, std::regex("\nsim:\n"), "\nsim:\n" + lines);
+  if (as_built == drawing) throw std::runtime_error(shipped_rig + " has no sim: section to put errors in");
+  const std::filesystem::path rig = dir / "as-built.yaml";
+  std::ofstream(rig) << as_built;
+  return rig;
 }
 
 // A simulated rig's YAML with photon and read noise switched off.
