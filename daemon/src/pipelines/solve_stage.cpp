@@ -46,41 +46,44 @@ std::string RigInRun(const std::string& out_rig, const std::string& run_director
   return relative.empty() || *relative.begin() == ".." ? out_rig : relative.string();
 }
 
-SolveStageReport Report(const LightCalibrationSummary& summary, const std::string& run_directory, double total_ms) {
+// A calibration stage's report: success or failure, and the rig it wrote.
+SolveStageReport CalibrationReport(SolveStageKind kind, bool success, const std::string& message, const char* results,
+                                   const std::string& out_rig, const std::string& run_directory, double total_ms) {
   SolveStageReport report;
-  report.stage = SolveStageName(SolveStageKind::kLightCalibration);
-  report.usable = summary.success;
-  report.termination = summary.success ? "success" : "failure";
-  report.message = summary.message;
-  report.results = "results/lights";
-  report.figures = {{"lights", summary.lights},
-                    {"unusable", summary.unusable},
-                    {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
-                    {"sphere_source", SphereSourceName(summary.sphere_source)},
-                    {"sphere_fit_rms_px", summary.sphere_fit_rms_px}};
-  if (!summary.out_rig.empty()) report.figures["out_rig"] = RigInRun(summary.out_rig, run_directory);
+  report.stage = SolveStageName(kind);
+  report.usable = success;
+  report.termination = success ? "success" : "failure";
+  report.message = message;
+  report.results = results;
+  report.figures = nlohmann::json::object();
+  if (!out_rig.empty()) report.figures["out_rig"] = RigInRun(out_rig, run_directory);
   report.timings_ms = {{"total", total_ms}};
   return report;
 }
 
+SolveStageReport Report(const LightCalibrationSummary& summary, const std::string& run_directory, double total_ms) {
+  SolveStageReport report = CalibrationReport(SolveStageKind::kLightCalibration, summary.success, summary.message,
+                                              "results/lights", summary.out_rig, run_directory, total_ms);
+  report.figures.update(nlohmann::json{{"lights", summary.lights},
+                                       {"unusable", summary.unusable},
+                                       {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
+                                       {"sphere_source", SphereSourceName(summary.sphere_source)},
+                                       {"sphere_fit_rms_px", summary.sphere_fit_rms_px}});
+  return report;
+}
+
 SolveStageReport Report(const LedPositionCalibration& result, const std::string& run_directory, double total_ms) {
-  SolveStageReport report;
-  report.stage = SolveStageName(SolveStageKind::kLedPositions);
-  report.usable = result.success;
-  report.termination = result.success ? "success" : "failure";
-  report.message = result.message;
-  report.results = "results/leds";
-  report.figures = {{"leds", result.solve.leds.size()},
-                    {"unusable", result.solve.unusable},
-                    {"mean_rms_ray_distance_mm", result.solve.mean_rms_ray_distance_mm},
-                    {"mean_shift_mm", result.mean_shift_mm},
-                    {"max_shift_mm", result.max_shift_mm}};
+  SolveStageReport report = CalibrationReport(SolveStageKind::kLedPositions, result.success, result.message,
+                                              "results/leds", result.out_rig, run_directory, total_ms);
+  report.figures.update(nlohmann::json{{"leds", result.solve.leds.size()},
+                                       {"unusable", result.solve.unusable},
+                                       {"mean_rms_ray_distance_mm", result.solve.mean_rms_ray_distance_mm},
+                                       {"mean_shift_mm", result.mean_shift_mm},
+                                       {"max_shift_mm", result.max_shift_mm}});
   if (result.mean_error_mm >= 0.0) {
     report.figures["positions_vs_truth_mean_mm"] = result.mean_error_mm;
     report.figures["positions_vs_truth_max_mm"] = result.max_error_mm;
   }
-  if (!result.out_rig.empty()) report.figures["out_rig"] = RigInRun(result.out_rig, run_directory);
-  report.timings_ms = {{"total", total_ms}};
   return report;
 }
 

@@ -1,8 +1,11 @@
 #include "photorig/solvers/lighting/led_positions.h"
 
+#include "photorig/solvers/core/flags.h"
+
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace photorig::solvers::lighting {
@@ -17,15 +20,9 @@ bool LedPositionOptions::IsValid(std::string* why) const {
 }
 
 std::string LedFlagsToString(unsigned flags) {
-  static const std::pair<unsigned, const char*> kNames[] = {
-      {kLedTooFewRays, "too-few-rays"}, {kLedRaysApart, "rays-apart"}, {kLedNotTriangulated, "not-triangulated"}};
-  std::string text;
-  for (const auto& [bit, name] : kNames) {
-    if (!(flags & bit)) continue;
-    if (!text.empty()) text += ',';
-    text += name;
-  }
-  return text.empty() ? "ok" : text;
+  static constexpr std::array<std::pair<unsigned, const char*>, 3> kNames = {
+      {{kLedTooFewRays, "too-few-rays"}, {kLedRaysApart, "rays-apart"}, {kLedNotTriangulated, "not-triangulated"}}};
+  return core::FlagNames(flags, kNames);
 }
 
 namespace {

@@ -1,25 +1,25 @@
 #include "photorig/solvers/lighting/mirror_sphere.h"
 
+#include "photorig/solvers/core/flags.h"
+
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
 namespace photorig::solvers::lighting {
 
 std::string LightFlagsToString(unsigned flags) {
-  static const std::pair<unsigned, const char*> kNames[] = {
-      {kLightSaturated, "saturated"},       {kLightNearSilhouette, "near-silhouette"},
-      {kLightMissing, "missing"},           {kLightMultipleHighlights, "multiple-highlights"},
-      {kLightLargeHighlight, "large-highlight"}, {kLightUncertain, "uncertain"}};
-  std::string text;
-  for (const auto& [bit, name] : kNames) {
-    if (!(flags & bit)) continue;
-    if (!text.empty()) text += ',';
-    text += name;
-  }
-  return text.empty() ? "ok" : text;
+  static constexpr std::array<std::pair<unsigned, const char*>, 6> kNames = {
+      {{kLightSaturated, "saturated"},
+       {kLightNearSilhouette, "near-silhouette"},
+       {kLightMissing, "missing"},
+       {kLightMultipleHighlights, "multiple-highlights"},
+       {kLightLargeHighlight, "large-highlight"},
+       {kLightUncertain, "uncertain"}}};
+  return core::FlagNames(flags, kNames);
 }
 
 bool HighlightOptions::IsValid(std::string* why) const {
