@@ -361,18 +361,34 @@ double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
 }
 
+// A calibration recipe run on a shipped rig as built (its LEDs swung 1.5 deg
+// off their drawing): the rig, the run and the rig the recipe's stage wrote
+// into results/<folder>/rig.yaml, with the rig the run used left as it was.
+struct CalibrationRun {
+  fs::path rig, run, calibrated;
+};
+CalibrationRun RunCalibrationRecipe(const TempDir& dir, const std::string& shipped_rig, const std::string& recipe,
+                                    const std::string& folder) {
+  CalibrationRun out;
+  out.rig = photorig::testing::AsBuiltRig(dir.path(), shipped_rig, {"led_direction_error_deg: 1.5"});
+  const std::string as_built = ReadText(out.rig);
+  out.run = dir.path() / "run";
+  EXPECT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/" + recipe + " --rig " + out.rig.string() + " --out " +
+                            out.run.string(),
+                        dir.path() / "log"),
+            0)
+      << ReadText(dir.path() / "log");
+  EXPECT_EQ(ReadText(out.rig), as_built);  // the rig the run used is never overwritten
+  out.calibrated = out.run / "results" / folder / "rig.yaml";
+  return out;
+}
+
 TEST(EndToEnd, LightCalibrationRecipeFindsTheDomeAsBuilt) {
   TempDir dir;
   // The simulated dome as built: each LED about 1.5 degrees off its drawing.
-  const fs::path rig = photorig::testing::AsBuiltRig(dir.path(), "sim-dome.yaml", {"led_direction_error_deg: 1.5"});
-  const std::string as_built = ReadText(rig);
-  const fs::path run = dir.path() / "run";
-  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/light-calibration.yaml --rig " + rig.string() +
-                            " --out " + run.string(),
-                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
-  EXPECT_EQ(ReadText(rig), as_built);  // the rig the run used is never overwritten
-  const fs::path calibrated = run / "results/lights/rig.yaml";
-  ASSERT_TRUE(fs::exists(calibrated)) << ReadText(dir.path() / "log");
+  const CalibrationRun calibration = RunCalibrationRecipe(dir, "sim-dome.yaml", "light-calibration.yaml", "lights");
+  ASSERT_TRUE(fs::exists(calibration.calibrated)) << ReadText(dir.path() / "log");
+  const fs::path &rig = calibration.rig, &run = calibration.run, &calibrated = calibration.calibrated;
   const auto truth = ReadDirections(run / "ground_truth/light_directions.txt");
   const auto nominal = photorig::config::LoadRigConfig(rig.string());
   const auto estimate = photorig::config::LoadRigConfig(calibrated.string());
@@ -425,15 +441,9 @@ TEST(EndToEnd, LightCalibrationRecipeFindsTheDomeAsBuilt) {
 // 60 mm baselines) makes that four times more.
 TEST(EndToEnd, LedPositionsRecipeFindsTheNearDomeAsBuilt) {
   TempDir dir;
-  const fs::path rig = photorig::testing::AsBuiltRig(dir.path(), "sim-dome-near.yaml", {"led_direction_error_deg: 1.5"});
-  const std::string as_built = ReadText(rig);
-  const fs::path run = dir.path() / "run";
-  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/led-positions.yaml --rig " + rig.string() + " --out " +
-                            run.string(),
-                        dir.path() / "log"), 0) << ReadText(dir.path() / "log");
-  EXPECT_EQ(ReadText(rig), as_built);  // the rig the run used is never overwritten
-  const fs::path calibrated = run / "results/leds/rig.yaml";
-  ASSERT_TRUE(fs::exists(calibrated)) << ReadText(dir.path() / "log");
+  const CalibrationRun calibration = RunCalibrationRecipe(dir, "sim-dome-near.yaml", "led-positions.yaml", "leds");
+  ASSERT_TRUE(fs::exists(calibration.calibrated)) << ReadText(dir.path() / "log");
+  const fs::path &rig = calibration.rig, &run = calibration.run, &calibrated = calibration.calibrated;
   const auto truth = ReadDirections(run / "ground_truth/light_positions.txt");
   const auto nominal = photorig::config::LoadRigConfig(rig.string());
   const auto estimate = photorig::config::LoadRigConfig(calibrated.string());
