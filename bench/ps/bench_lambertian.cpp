@@ -269,6 +269,8 @@ const NearScene& NearSphere(int size, double dome_radius_mm) {
   for (std::size_t k = 0; k < stack.light_directions.size(); ++k) {
     const Eigen::Vector3d w = stack.light_directions[k];
     near.lights.push_back({dome_radius_mm * w, -w, 1.0});
+    // Its own pixels: the copied scene's images share their buffers with Sphere()'s cache.
+    stack.images[k] = stack.images[k].clone();
     float* out = stack.images[k].ptr<float>();
     const cv::Vec3f* normal = near.scene.truth_normals.ptr<cv::Vec3f>();
     for (int p = 0; p < size * size; ++p) {
@@ -284,7 +286,8 @@ const NearScene& NearSphere(int size, double dome_radius_mm) {
   return cache.emplace(std::make_pair(size, dome_radius_mm), std::move(near)).first->second;
 }
 
-// The near-light solve and the distant one (lambertian both) timed
+// The near-light solve and the distant one (the same method, lambertian or
+// robust) timed
 // alternately on the same near-LED stack, each iteration a pair: the time
 // the rounds of normals and depth cost over one distant solve, and what they
 // buy in accuracy. The reported time is the near solve's normals, as the
@@ -293,7 +296,8 @@ void BM_NearVsDistant(benchmark::State& state) {
   using Clock = std::chrono::steady_clock;
   const NearScene& near = NearSphere(384, static_cast<double>(state.range(0)));
   photorig::solvers::ps::PhotometricStereoOptions options;
-  options.method = photorig::solvers::ps::Method::kLambertian;
+  options.method =
+      state.range(1) ? photorig::solvers::ps::Method::kRobust : photorig::solvers::ps::Method::kLambertian;
   options.lambertian.shadow_threshold = 6.0;  // as BM_Method
   photorig::solvers::ps::NearLightOptions near_options;
   near_options.camera = photorig::solvers::camera::Camera::Orthographic(384, 384, near.pixel_pitch_mm);
@@ -365,7 +369,14 @@ BENCHMARK(BM_MethodVsL2)
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
 // Arg: the LEDs' distance from the sample (mm). The target: near within 3x of distant.
-BENCHMARK(BM_NearVsDistant)->ArgName("dome_mm")->Arg(80)->Arg(400)->Unit(benchmark::kMillisecond)->UseManualTime();
+// Args: the LEDs' distance (mm), and the method of both solves (0 lambertian, 1 robust).
+BENCHMARK(BM_NearVsDistant)
+    ->ArgNames({"dome_mm", "robust"})
+    ->Args({80, 0})
+    ->Args({400, 0})
+    ->Args({80, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->UseManualTime();
 
 }  // namespace
 

@@ -253,6 +253,23 @@ TEST(NearLights, RobustRefitsLeaveOutliersAsUnderDistantLights) {
   EXPECT_GT(summary.pixels_irls, summary.pixels_solved / 2);
 }
 
+TEST(NearLights, RobustOnSamplesWithoutOutliersIsTheLambertianFit) {
+  NearScene scene = RenderNearSphere(80.0, 2.0);
+  scene.stack.noise.read_sigma = 2.0;
+  PhotometricStereoOptions options = Lambertian();
+  options.shadow_threshold_read_sigmas = 3.0;
+  NormalMap lambertian, robust;
+  ASSERT_TRUE(SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &lambertian, nullptr)
+                  .IsSolutionUsable());
+  options.method = Method::kRobust;
+  const NearLightSummary summary = SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &robust, nullptr);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+  const double lambertian_deg = CompareNormals(lambertian.normals, scene.normals, scene.stack.mask).mean_deg;
+  const double robust_deg = CompareNormals(robust.normals, scene.normals, scene.stack.mask).mean_deg;
+  EXPECT_LT(robust_deg, 1.1 * lambertian_deg) << "lambertian " << lambertian_deg << " deg, irls pixels "
+                                               << summary.pixels_irls << " of " << summary.pixels_solved;
+}
+
 TEST(NearLights, MethodsThatFitOneLightMatrixAreRefusedNotApproximated) {
   const NearScene scene = RenderNearSphere(400.0);
   PhotometricStereoOptions options = Lambertian();
