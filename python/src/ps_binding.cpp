@@ -16,7 +16,7 @@ namespace {
 py::dict SolvePs(const std::string& run_directory, const std::string& method, const std::string& derivative,
                  const std::string& integrator, double shadow_threshold_sigma, double max_condition_number,
                  bool assume_distant, double max_distant_bias_deg, bool fill_unresolved,
-                 const std::optional<std::string>& mask,
+                 const std::optional<std::string>& mask, const std::optional<std::string>& rig,
                  const std::string& demosaic, const std::optional<std::string>& color_model,
                  bool accept_failed_capture, py::object progress) {
   config::PhotometricStereoRequest request;
@@ -42,6 +42,7 @@ py::dict SolvePs(const std::string& run_directory, const std::string& method, co
     py::gil_scoped_release unlocked;
     daemon::PhotometricStereoInput input = daemon::LoadRunStack(
         run_directory, color, accept_failed_capture ? daemon::FailedCapture::kAccept : daemon::FailedCapture::kRefuse);
+    if (rig) daemon::ApplyRigCalibration(*rig, &input);
     if (mask) daemon::SetObjectMaskFromFile(*mask, &input);
     result = daemon::SolveToMaps(input, request, &maps);
   }
@@ -70,13 +71,14 @@ void BindPs(py::module_& m) {
       "solve_ps",
       [](py::object run, const std::string& method, const std::string& derivative, const std::string& integrator,
          double shadow_threshold_sigma, double max_condition_number, bool assume_distant, double max_distant_bias_deg,
-         bool fill_unresolved, const std::optional<std::string>& mask, const std::string& demosaic,
-         const std::optional<std::string>& color_model, bool accept_failed_capture, py::object progress) {
+         bool fill_unresolved, const std::optional<std::string>& mask, const std::optional<std::string>& rig,
+         const std::string& demosaic, const std::optional<std::string>& color_model, bool accept_failed_capture,
+         py::object progress) {
         const std::string directory =
             py::isinstance<Run>(run) ? run.cast<const Run&>().directory() : py::str(run).cast<std::string>();
         return SolvePs(directory, method, derivative, integrator, shadow_threshold_sigma, max_condition_number,
-                       assume_distant, max_distant_bias_deg, fill_unresolved, mask, demosaic, color_model, accept_failed_capture,
-                       std::move(progress));
+                       assume_distant, max_distant_bias_deg, fill_unresolved, mask, rig, demosaic, color_model,
+                       accept_failed_capture, std::move(progress));
       },
       py::arg("run"), py::kw_only(), py::arg("method") = solvers::ps::MethodName(defaults.method),
       py::arg("derivative") = solvers::core::NameOf(solvers::ps::kBlinnPhongDerivativeNames, defaults.derivative),
@@ -85,12 +87,13 @@ void BindPs(py::module_& m) {
       py::arg("max_condition_number") = defaults.max_condition_number,
       py::arg("assume_distant") = defaults.assume_distant,
       py::arg("max_distant_bias_deg") = defaults.max_distant_bias_deg,
-      py::arg("fill_unresolved") = defaults.fill_unresolved, py::arg("mask") = py::none(),
+      py::arg("fill_unresolved") = defaults.fill_unresolved, py::arg("mask") = py::none(), py::arg("rig") = py::none(),
       py::arg("demosaic") = "bilinear", py::arg("color_model") = py::none(),
       py::arg("accept_failed_capture") = false, py::arg("progress") = py::none(),
       "Photometric stereo on a run (a Run or its directory), as `photorig solve ps --run`: a dict of arrays "
       "(normals, albedo, confidence, flags, model, specular, usable_lights, depth, angular_error_deg) and "
-      "summary, report.json's fields. Options are the recipe's photometric_stereo keys.");
+      "summary, report.json's fields. Options are the recipe's photometric_stereo keys; rig: a rig file whose LEDs "
+      "and camera replace the run's (`--rig`, a calibration made after the capture).");
 }
 
 }  // namespace photorig::python

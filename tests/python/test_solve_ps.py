@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import photorig
+from conftest import SOURCE_DIR
 
 
 def read_tiff(path):
@@ -33,6 +34,17 @@ def test_same_maps_as_the_cli(demo_run, cli, tmp_path, method):
     assert summary["pixels"] == report["pixels"] and summary["pixels"]["solved"] > 50000
     assert summary["ground_truth"] == report["ground_truth"]
     assert any(done == total > 0 for _, done, total in stages)
+
+
+def test_a_rig_given_replaces_the_runs_lights(demo_run):
+    # The rig the demo was captured with: the same lights, so the same normals.
+    as_captured = photorig.solve_ps(str(demo_run), method="lambertian")
+    with_rig = photorig.solve_ps(str(demo_run), method="lambertian", rig=str(SOURCE_DIR / "config/rigs/sim-dome.yaml"))
+    np.testing.assert_array_equal(with_rig["normals"], as_captured["normals"])
+    assert with_rig["summary"]["provenance"]["options"]["loading"]["rig"].endswith("sim-dome.yaml")
+    # Another dome's rig is refused, naming it and what does not match.
+    with pytest.raises(Exception, match="96 LEDs"):
+        photorig.solve_ps(str(demo_run), rig=str(SOURCE_DIR / "config/rigs/sim-dome-96.yaml"))
 
 
 def test_bad_options_raise_the_solvers_message(demo_run):
