@@ -227,9 +227,29 @@ TEST(NearLights, PixelsBeyondTheConditionLimitAreFlaggedNotSolved) {
   EXPECT_EQ(summary.termination, core::Termination::kFailure);
 }
 
+// The same near stack solved with `lambertian` and with `robust` (noise
+// known, shadows at 3 read-noise sigmas): each one's mean error, and the
+// robust solve's summary.
+struct LambertianAndRobust {
+  double lambertian_deg = 0.0, robust_deg = 0.0;
+  NearLightSummary robust;
+};
+LambertianAndRobust SolveBoth(const NearScene& scene) {
+  PhotometricStereoOptions options = Lambertian();
+  options.shadow_threshold_read_sigmas = 3.0;
+  NormalMap lambertian, robust;
+  LambertianAndRobust out;
+  EXPECT_TRUE(SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &lambertian, nullptr)
+                  .IsSolutionUsable());
+  options.method = Method::kRobust;
+  out.robust = SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &robust, nullptr);
+  out.lambertian_deg = CompareNormals(lambertian.normals, scene.normals, scene.stack.mask).mean_deg;
+  out.robust_deg = CompareNormals(robust.normals, scene.normals, scene.stack.mask).mean_deg;
+  return out;
+}
+
 TEST(NearLights, RobustRefitsLeaveOutliersAsUnderDistantLights) {
   NearScene scene = RenderNearSphere(80.0, 2.0);
-  scene.stack.noise.read_sigma = 2.0;
   // A highlight-like outlier in each pixel: the sample of one light, picked
   // at random, three times as bright as the model says.
   std::mt19937 rng(17);
@@ -237,37 +257,20 @@ TEST(NearLights, RobustRefitsLeaveOutliersAsUnderDistantLights) {
   for (int r = 0; r < kSize; ++r)
     for (int c = 0; c < kSize; ++c)
       if (scene.stack.mask.at<std::uint8_t>(r, c)) scene.stack.images[pick(rng)].at<float>(r, c) *= 3.0f;
-  PhotometricStereoOptions options = Lambertian();
-  options.shadow_threshold_read_sigmas = 3.0;
-  NormalMap lambertian, robust;
-  ASSERT_TRUE(SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &lambertian, nullptr)
-                  .IsSolutionUsable());
-  options.method = Method::kRobust;
-  const NearLightSummary summary = SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &robust, nullptr);
-  ASSERT_EQ(summary.termination, core::Termination::kSuccess) << summary.message;
-  const double lambertian_deg = CompareNormals(lambertian.normals, scene.normals, scene.stack.mask).mean_deg;
-  const double robust_deg = CompareNormals(robust.normals, scene.normals, scene.stack.mask).mean_deg;
-  EXPECT_GT(lambertian_deg, 2.0);
-  EXPECT_LT(robust_deg, 0.5) << "lambertian: " << lambertian_deg << " deg";
+  const LambertianAndRobust solved = SolveBoth(scene);
+  ASSERT_EQ(solved.robust.termination, core::Termination::kSuccess) << solved.robust.message;
+  EXPECT_GT(solved.lambertian_deg, 2.0);
+  EXPECT_LT(solved.robust_deg, 0.5) << "lambertian: " << solved.lambertian_deg << " deg";
   // The pixels whose outlier was left out say so.
-  EXPECT_GT(summary.pixels_irls, summary.pixels_solved / 2);
+  EXPECT_GT(solved.robust.pixels_irls, solved.robust.pixels_solved / 2);
 }
 
 TEST(NearLights, RobustOnSamplesWithoutOutliersIsTheLambertianFit) {
-  NearScene scene = RenderNearSphere(80.0, 2.0);
-  scene.stack.noise.read_sigma = 2.0;
-  PhotometricStereoOptions options = Lambertian();
-  options.shadow_threshold_read_sigmas = 3.0;
-  NormalMap lambertian, robust;
-  ASSERT_TRUE(SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &lambertian, nullptr)
-                  .IsSolutionUsable());
-  options.method = Method::kRobust;
-  const NearLightSummary summary = SolveNearLightPhotometricStereo(options, Near(), scene.stack, scene.lights, &robust, nullptr);
-  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
-  const double lambertian_deg = CompareNormals(lambertian.normals, scene.normals, scene.stack.mask).mean_deg;
-  const double robust_deg = CompareNormals(robust.normals, scene.normals, scene.stack.mask).mean_deg;
-  EXPECT_LT(robust_deg, 1.1 * lambertian_deg) << "lambertian " << lambertian_deg << " deg, irls pixels "
-                                               << summary.pixels_irls << " of " << summary.pixels_solved;
+  const LambertianAndRobust solved = SolveBoth(RenderNearSphere(80.0, 2.0));
+  ASSERT_TRUE(solved.robust.IsSolutionUsable()) << solved.robust.message;
+  EXPECT_LT(solved.robust_deg, 1.1 * solved.lambertian_deg)
+      << "lambertian " << solved.lambertian_deg << " deg, irls pixels " << solved.robust.pixels_irls << " of "
+      << solved.robust.pixels_solved;
 }
 
 TEST(NearLights, MethodsThatFitOneLightMatrixAreRefusedNotApproximated) {
