@@ -527,7 +527,10 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   bool converged = false;
   for (int round = 1; round <= near_options.max_rounds; ++round) {
     const cv::Mat previous = round > 1 ? result->normals.clone() : cv::Mat();
-    const bool robust = options.method == Method::kRobust;
+    // Round 1 sees the surface on the sample plane: its residuals are the
+    // geometry's, not outliers', so the chi-square test cannot tell which
+    // samples to distrust; refits start once the surface is placed.
+    const bool robust = options.method == Method::kRobust && round > 1;
     cv::Mat chi_square;
     FitAllPixels(problem, height, result, robust ? &chi_square : nullptr);
     if (robust) RefitRobust(problem, options, height, chi_square, result);
