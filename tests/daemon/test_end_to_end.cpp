@@ -141,13 +141,44 @@ TEST(EndToEnd, NearLedDomesAreSolvedWithTheNearLightModel) {
     // The surface is placed at its own depth: the sphere's mean height over its disk is 2/3 of its radius.
     EXPECT_NEAR(report["light_model"]["depth_offset_mm"].get<double>(), 2.0 / 3.0 * 17.0, 1.0) << c.radius_mm << " mm";
     if (c.radius_mm != 150.0) continue;
-    // A method that fits one light matrix would be biased: refused, with the bias predicted from the geometry.
-    const fs::path log = dir.path() / "auto.log";
-    EXPECT_EQ(RunPhotorig("solve ps --run " + run.string() + " --method auto --out " + (dir.path() / "auto").string(), log), 1);
+    // The distant model asked for on purpose would be biased: refused, with the bias predicted from the geometry.
+    const fs::path log = dir.path() / "distant.log";
+    EXPECT_EQ(RunPhotorig("solve ps --run " + run.string() + " --method auto --assume-distant --out " +
+                              (dir.path() / "distant").string(),
+                          log),
+              1);
     const std::string said = ReadText(log);
     EXPECT_NE(said.find("biased by about"), std::string::npos) << said;
-    const auto refused = nlohmann::json::parse(ReadText(dir.path() / "auto/report.json"));
+    const auto refused = nlohmann::json::parse(ReadText(dir.path() / "distant/report.json"));
     EXPECT_GT(refused["light_model"]["predicted_distant_bias_deg"].get<double>(), 2.0);
+  }
+}
+
+// The glossy sphere on the near dome seen through a pinhole: the lobe
+// methods fit each pixel's highlight with its own LED and line of sight.
+TEST(EndToEnd, LobesOnANearPinholeDomeAreFittedPerPixel) {
+  TempDir dir;
+  const fs::path run = dir.path() / "run";
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-shiny-sphere.yaml --rig " + SourceDir() +
+                            "/config/rigs/sim-dome-near.yaml --no-solve --out " + run.string(),
+                        dir.path() / "log"),
+            0)
+      << ReadText(dir.path() / "log");
+  for (const char* method : {"lambertian", "blinn-phong", "auto"}) {
+    const fs::path out = dir.path() / method;
+    ASSERT_EQ(RunPhotorig("solve ps --run " + run.string() + " --method " + method + " --out " + out.string(),
+                          dir.path() / "solve.log"),
+              0)
+        << ReadText(dir.path() / "solve.log");
+    const auto report = nlohmann::json::parse(ReadText(out / "report.json"));
+    EXPECT_EQ(report["light_model"]["model"], "near");
+    const double error_deg = report["ground_truth"]["mean_angular_error_deg"].get<double>();
+    if (std::string(method) == "lambertian") {
+      EXPECT_GT(error_deg, 2.0);  // the highlights' pull: 3.3 deg
+      continue;
+    }
+    EXPECT_LT(error_deg, 0.5) << method;  // 0.28 deg
+    EXPECT_GT(report["models"]["blinn_phong"].get<int>(), 1000) << method;
   }
 }
 

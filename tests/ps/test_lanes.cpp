@@ -236,6 +236,57 @@ TEST(BlinnPhongLanes, FitsAgreeWithThePerPixelReference) {
   EXPECT_GE(compared, pixels * 8 / 10);
 }
 
+// Pixels that each see their own lights and their own line of sight (near
+// LEDs, a perspective camera): the lanes read each pixel's geometry and land
+// on its true parameters, as with shared lights.
+TEST(BlinnPhongLanes, EachPixelsOwnLightsAndViewAreFittedToTheTruth) {
+  const auto ring = testing::RingLights(40, 25, 80);
+  const int pixels = 37, n = static_cast<int>(ring.size());  // 37: not a multiple of the lane count
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<double> observed(pixels * n), inverse_sigma(pixels * n, 100.0), geometry(6 * pixels * n);
+  std::vector<BlinnPhongProblem> problems;
+  std::vector<Eigen::Vector3d> normals;
+  std::vector<double> exponents;
+  for (int p = 0; p < pixels; ++p) {
+    // The ring tilted by up to 10 deg about a random axis, the view by up to 15 deg.
+    const Eigen::Vector3d axis = Eigen::Vector3d(unit(rng) - 0.5, unit(rng) - 0.5, 0.0).normalized();
+    const Eigen::Matrix3d tilt = Eigen::AngleAxisd(unit(rng) * 10.0 * M_PI / 180, axis).toRotationMatrix();
+    const Eigen::Vector3d view =
+        Eigen::AngleAxisd(unit(rng) * 15.0 * M_PI / 180, axis.unitOrthogonal()).toRotationMatrix() * Eigen::Vector3d::UnitZ();
+    std::vector<double> towards(3 * n);
+    for (int k = 0; k < n; ++k) {
+      const Eigen::Vector3d w = tilt * ring[k];
+      for (int i = 0; i < 3; ++i) towards[3 * k + i] = w[i];
+    }
+    internal::BlinnPhongGeometry(n, towards.data(), view, &geometry[6 * p * n]);
+    const Eigen::Vector3d normal =
+        (Eigen::Vector3d::UnitZ() + 0.4 * Eigen::Vector3d(unit(rng) - 0.5, unit(rng) - 0.5, 0.0)).normalized();
+    const double rho_d = 0.3 + 0.4 * unit(rng), rho_s = 0.2 + 0.5 * unit(rng), e = 10.0 + 40.0 * unit(rng);
+    for (int k = 0; k < n; ++k) {
+      const Eigen::Vector3d w = tilt * ring[k], half = (w + view).normalized();
+      const double c = std::max(0.0, w.dot(normal)), h = std::max(0.0, half.dot(normal));
+      observed[p * n + k] = (rho_d / M_PI + rho_s * (e + 2) / (2 * M_PI) * std::pow(h, e)) * c;
+    }
+    BlinnPhongProblem problem{&observed[p * n], &inverse_sigma[p * n], (normal + 0.05 * normal.unitOrthogonal()).normalized(), rho_d};
+    problem.geometry = &geometry[6 * p * n];
+    problems.push_back(problem);
+    normals.push_back(normal);
+    exponents.push_back(e);
+  }
+  BlinnPhongLaneFitter fitter(n, BlinnPhongOptions{});
+  std::vector<BlinnPhongSolution> solutions(pixels);
+  fitter.Fit(problems, solutions);
+  double worst_deg = 0.0, worst_exponent = 0.0;
+  for (int p = 0; p < pixels; ++p) {
+    ASSERT_TRUE(solutions[p].ok) << p;
+    worst_deg = std::max(worst_deg, std::acos(std::min(1.0, solutions[p].normal.dot(normals[p]))) * 180 / M_PI);
+    worst_exponent = std::max(worst_exponent, std::abs(solutions[p].exponent / exponents[p] - 1.0));
+  }
+  EXPECT_LT(worst_deg, 1e-4);
+  EXPECT_LT(worst_exponent, 1e-3);
+}
+
 TEST(BlinnPhongLanes, SamplesWithoutWeightAreIgnored) {
   const auto lights = testing::RingLights(16, 30, 70);
   const int n = static_cast<int>(lights.size());

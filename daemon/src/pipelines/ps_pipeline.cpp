@@ -557,11 +557,12 @@ double PredictedViewBiasDeg(const solvers::camera::Camera& camera, const cv::Mat
   return count ? 0.5 * sum / count * 180.0 / 3.14159265358979323846 : 0.0;
 }
 
-// The normals under the rig's near LEDs when it gives their positions and
-// the method fits per-pixel lights; else with the distant model, refused
-// when the geometry predicts its bias on an object this size above the
-// request's limit (a result a person at the bench would reject). Methods
-// that model specular reflection take the view along the camera's axis,
+// The normals under the rig's near LEDs when it gives their positions
+// (every method, each pixel with its own light vectors and line of sight),
+// unless the request assumes distant lights; else with the distant model,
+// refused when the geometry predicts its bias on an object this size above
+// the request's limit (a result a person at the bench would reject). The
+// distant model's specular lobes take the view along the camera's axis,
 // refused likewise for a pinhole camera whose lines of sight tilt too far.
 // *near_height_mm, unless null: the near solve's surface, else left empty.
 solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
@@ -570,20 +571,7 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
                                         LightModelReport* report, cv::Mat* near_height_mm) {
   using solvers::ps::Method;
   const solvers::camera::Camera camera = CameraOf(input);
-  const bool views_matter = options.method == Method::kBlinnPhong || options.method == Method::kAuto;
-  if (camera.IsPinhole() && views_matter) {
-    const double bias_deg = PredictedViewBiasDeg(camera, stack.mask);
-    report->predicted_view_bias_deg = bias_deg;
-    if (bias_deg > request.max_distant_bias_deg)
-      return Refused(options, stack,
-                     std::string("the camera is a pinhole one: ") + solvers::ps::MethodName(options.method) +
-                         " fits specular lobes with the view along the camera's axis, which would tilt glossy pixels" +
-                         BiasAboveLimit(bias_deg, request) + "; solve with method lambertian, l2 or robust");
-  }
-  if (input.near_lights.empty()) return solvers::ps::SolvePhotometricStereo(options, stack, map);
-  const bool near_method =
-      options.method == Method::kL2 || options.method == Method::kLambertian || options.method == Method::kRobust;
-  if (near_method && !request.assume_distant) {
+  if (!input.near_lights.empty() && !request.assume_distant) {
     solvers::ps::NearLightOptions near;
     near.camera = camera;
     const solvers::ps::NearLightSummary summary =
@@ -595,6 +583,20 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
     report->depth_ms = summary.depth_ms;
     return summary;
   }
+  const bool views_matter = options.method == Method::kBlinnPhong || options.method == Method::kAuto;
+  if (camera.IsPinhole() && views_matter) {
+    const double bias_deg = PredictedViewBiasDeg(camera, stack.mask);
+    report->predicted_view_bias_deg = bias_deg;
+    if (bias_deg > request.max_distant_bias_deg)
+      return Refused(options, stack,
+                     std::string("the camera is a pinhole one: ") + solvers::ps::MethodName(options.method) +
+                         " under distant lights fits specular lobes with the view along the camera's axis, which "
+                         "would tilt glossy pixels" +
+                         BiasAboveLimit(bias_deg, request) +
+                         "; give the LEDs' positions (the near-light model sees each pixel's line of sight) or "
+                         "solve with method lambertian, l2 or robust");
+  }
+  if (input.near_lights.empty()) return solvers::ps::SolvePhotometricStereo(options, stack, map);
   const int object_pixels = stack.mask.empty() ? stack.width() * stack.height() : cv::countNonZero(stack.mask);
   const double radius_mm = std::sqrt(object_pixels / 3.14159265358979323846) * camera.PixelSizeOnPlaneMm();
   const double bias_deg = solvers::ps::DistantModelBiasDeg(input.near_lights, stack.light_directions, radius_mm);
@@ -604,7 +606,7 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
     std::snprintf(size, sizeof(size), "an object this size (radius %.1f mm) would be biased", radius_mm);
     return Refused(options, stack,
                    std::string("the rig's LEDs are near: solved as distant lights, ") + size +
-                       BiasAboveLimit(bias_deg, request) + "; solve with method lambertian, l2 or robust (the near-light model)");
+                       BiasAboveLimit(bias_deg, request) + "; drop --assume-distant (recipe key assume_distant) to solve with the near-light model");
   }
   return solvers::ps::SolvePhotometricStereo(options, stack, map);
 }

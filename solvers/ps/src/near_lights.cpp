@@ -2,6 +2,7 @@
 
 #include "photorig/solvers/ps/evaluation.h"
 
+#include "kernels/blinn_phong_fit.h"
 #include "kernels/irls_lambertian_fit.h"
 #include "model_selection.h"
 #include "kernels/near_lambertian_sums.h"
@@ -13,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -20,6 +22,8 @@ namespace photorig::solvers::ps {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+// The robust losses' scales (RobustOptions::Loss), in sigmas.
+constexpr double kCauchyC = 2.385, kHuberC = 1.345, kTukeyC = 4.685;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 // The rounds' surfaces are integrated on blocks that leave at most this many
 // across the image (NearLightOptions::depth_block_px).
@@ -163,6 +167,14 @@ void FitPixels(const PixelProblem& p, std::span<const PixelAt> pixels, std::span
   }
 }
 
+// The residual variance against the noise's (1 at the noise level) of a fit
+// with `parameters` of its own; nothing to test with no sample to spare or
+// without a noise model.
+void WriteConfidence(const internal::NearSampleRules& rules, int used, int parameters, double chi_square, float* out) {
+  const int dof = used - parameters;
+  *out = rules.noise_known && dof > 0 ? static_cast<float>(std::min(1.0, dof / std::max(chi_square, 1e-300))) : 0.0f;
+}
+
 bool InMask(const PhotometricStack& stack, int r, int c) {
   return stack.mask.empty() || stack.mask.at<std::uint8_t>(r, c) != 0;
 }
@@ -184,7 +196,6 @@ void AllocateResult(const cv::Size size, NormalMap* result) {
 // chi-square into *chi_square (CV_32F) unless null.
 void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* result, cv::Mat* chi_square = nullptr) {
   if (chi_square) chi_square->create(height_mm.size(), CV_32F);
-  const bool noise_known = p.stack.noise.IsKnown();
 #pragma omp parallel
   {
     std::vector<PixelAt> row;
@@ -213,80 +224,240 @@ void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* re
         result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
         result->albedo.at<float>(r, c) = static_cast<float>(kPi * fit.b.norm());
         result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelModel::kLambertian);
-        // The residual variance against the noise's (1 at the noise level);
-        // nothing to test with exactly three samples or without a noise model.
-        const int dof = fit.usable - 3;
-        result->confidence.at<float>(r, c) =
-            noise_known && dof > 0 ? static_cast<float>(std::min(1.0, dof / std::max(fit.chi_square, 1e-300))) : 0.0f;
+        WriteConfidence(p.rules, fit.usable, 3, fit.chi_square, &result->confidence.at<float>(r, c));
       }
     }
   }
 }
 
-// The `robust` method: the pixels whose Lambertian fit the noise does not
-// explain (chi-square above its adequacy quantile; every pixel where the
-// noise is unknown) refitted by iteratively reweighted least squares (the
-// distant method's lanes), each with its own rows s_k f_k(x) l_k(x), so that
-// highlights and inter-reflections lose their pull as under distant lights.
-void RefitRobust(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm,
-                 const cv::Mat& lambertian_chi_square, NormalMap* result) {
-  const int lights = p.lights.count();
-  const internal::NearSampleRules& rules = p.rules;
-  const std::vector<double> adequate = internal::ChiSquareQuantiles(lights, options.selection.adequacy_quantile);
+// A pixel's samples as the fits past the Lambertian pass read them, with
+// its surface point at height z_mm: per light the dark-subtracted value,
+// 1 / sigma (0: unusable), the unit vector towards the LED and its
+// irradiance gain s_k f_k(x).
+struct NearPixelSamples {
+  std::vector<double> observed, inverse_sigma, towards, gain;
+
+  void Read(const PixelProblem& p, int r, int c, double z_mm) {
+    const int lights = p.lights.count();
+    observed.resize(lights), inverse_sigma.resize(lights), towards.resize(3 * lights), gain.resize(lights);
+    const internal::NearSampleRules& rules = p.rules;
+    const int pixel = r * p.row_stride + c;
+    const Eigen::Vector3d point = p.Point(r, c, z_mm);
+    const double dark_dn = p.stack.dark.empty() ? 0.0 : p.stack.dark.ptr<float>()[r * p.stack.dark.step1() + c];
+    for (int k = 0; k < lights; ++k) {
+      const double value = p.planes[k][pixel], signal = value - dark_dn;
+      Eigen::Vector3d to;
+      gain[k] = p.stack.light_scales[k] * p.prepared[k].RelativeIrradiance(point, &to);
+      const bool usable = signal > rules.shadow_threshold && value < rules.saturation_level && gain[k] > 0.0;
+      const double variance = rules.read_variance + rules.shot_gain * std::max(signal, 0.0);
+      observed[k] = signal;
+      inverse_sigma[k] = !usable ? 0.0 : rules.noise_known ? 1.0 / std::sqrt(variance) : 1.0;
+      for (int axis = 0; axis < 3; ++axis) towards[3 * k + axis] = to[axis];
+    }
+  }
+};
+
+// A pixel the method refits, with its surface at z_mm, from its Lambertian fit.
+struct RefitPixel {
+  int r = 0, c = 0;
+  double z_mm = 0.0;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  double albedo = 0.0;
+};
+
+struct RefitAnswer {
+  bool ok = false;
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  double albedo = 0.0, specular_albedo = 0.0, exponent = 0.0;
+  double chi_square = 0.0;
+  // What the depth search sums: chi_square, or for IRLS twice its loss over
+  // every usable sample (TwiceLoss), which does not jump as samples cross
+  // the inlier weight.
+  double objective = 0.0;
+  int used = 0, rejected = 0;
+  PixelModel model = PixelModel::kLambertian;
+};
+
+// Twice the robust loss of a residual of u sigmas: u^2 near 0, as a
+// chi-square term, and bounded (Tukey) or growing slower for outliers; what
+// the IRLS fit minimises, so the depth search weighs a pixel as its fit does.
+double TwiceLoss(RobustOptions::Loss loss, double u) {
+  const double u2 = u * u;
+  switch (loss) {
+    case RobustOptions::Loss::kCauchy: return kCauchyC * kCauchyC * std::log1p(u2 / (kCauchyC * kCauchyC));
+    case RobustOptions::Loss::kHuber:
+      return std::abs(u) <= kHuberC ? u2 : 2.0 * kHuberC * std::abs(u) - kHuberC * kHuberC;
+    case RobustOptions::Loss::kTukey: break;
+  }
+  const double t = 1.0 - std::min(u2 / (kTukeyC * kTukeyC), 1.0);
+  return kTukeyC * kTukeyC / 3.0 * (1.0 - t * t * t);
+}
+
+// The method's fit of pixels the Lambertian model leaves unexplained, each
+// with its own light vectors, gains and line of sight: `robust` by the
+// distant method's IRLS lanes, on rows s_k f_k(x) l_k(x), so that highlights
+// and inter-reflections lose their pull as under distant lights;
+// `blinn-phong` and `auto` by its Blinn-Phong lanes with a diffuse term and a
+// normalised lobe, the samples divided by their gains (which scale the whole
+// model) and their sigmas likewise. One per thread.
+class NearRefitter {
+ public:
+  NearRefitter(const PixelProblem& p, const PhotometricStereoOptions& options)
+      : p_(p), lights_(p.lights.count()), loss_(options.robust.loss) {
+    if (options.method == Method::kRobust)
+      irls_.emplace(lights_, options.robust);
+    else
+      lobes_.emplace(lights_, options.blinn_phong);
+  }
+
+  void Fit(std::span<const RefitPixel> pixels, std::span<RefitAnswer> answers) {
+    const std::size_t n = pixels.size();
+    observed_.resize(n * lights_), inverse_sigma_.resize(n * lights_);
+    rows_.resize((irls_ ? 3 : 6) * n * lights_);
+    for (std::size_t i = 0; i < n; ++i) {
+      const RefitPixel& at = pixels[i];
+      samples_.Read(p_, at.r, at.c, at.z_mm);
+      double* observed = &observed_[i * lights_];
+      double* inverse_sigma = &inverse_sigma_[i * lights_];
+      if (irls_) {
+        std::copy(samples_.observed.begin(), samples_.observed.end(), observed);
+        std::copy(samples_.inverse_sigma.begin(), samples_.inverse_sigma.end(), inverse_sigma);
+        for (int k = 0; k < lights_; ++k)
+          for (int axis = 0; axis < 3; ++axis)
+            rows_[3 * (i * lights_ + k) + axis] = samples_.gain[k] * samples_.towards[3 * k + axis];
+      } else {
+        for (int k = 0; k < lights_; ++k) {
+          const double gain = samples_.gain[k];
+          const bool lit = gain > 0.0 && samples_.inverse_sigma[k] > 0.0;
+          observed[k] = lit ? samples_.observed[k] / gain : 0.0;
+          inverse_sigma[k] = lit ? samples_.inverse_sigma[k] * gain : 0.0;
+        }
+        internal::BlinnPhongGeometry(lights_, samples_.towards.data(), p_.rays.ViewDirection(at.r, at.c),
+                                     &rows_[6 * i * lights_]);
+      }
+    }
+    if (irls_)
+      FitRobust(pixels, answers);
+    else
+      FitLobes(pixels, answers);
+  }
+
+ private:
+  void FitRobust(std::span<const RefitPixel> pixels, std::span<RefitAnswer> answers) {
+    const std::size_t n = pixels.size();
+    robust_problems_.resize(n), robust_solutions_.assign(n, {});
+    for (std::size_t i = 0; i < n; ++i)
+      robust_problems_[i] = {&observed_[i * lights_], &inverse_sigma_[i * lights_],
+                             pixels[i].normal * (pixels[i].albedo / kPi), &rows_[3 * i * lights_]};
+    irls_->Fit(robust_problems_, robust_solutions_);
+    for (std::size_t i = 0; i < n; ++i) {
+      const internal::RobustSolution& fit = robust_solutions_[i];
+      double objective = 0.0;
+      for (int k = 0; k < lights_; ++k) {
+        const double* row = &rows_[3 * (i * lights_ + k)];
+        const double residual = observed_[i * lights_ + k] - (row[0] * fit.x.x() + row[1] * fit.x.y() + row[2] * fit.x.z());
+        if (inverse_sigma_[i * lights_ + k] > 0.0) objective += TwiceLoss(loss_, residual * inverse_sigma_[i * lights_ + k]);
+      }
+      answers[i] = {.ok = fit.ok,
+                    .normal = fit.x.normalized(),
+                    .albedo = kPi * fit.x.norm(),
+                    .chi_square = fit.chi2,
+                    .objective = objective,
+                    .used = fit.used,
+                    .rejected = fit.rejected,
+                    .model = fit.rejected > 0 ? PixelModel::kIrls : PixelModel::kLambertian};
+    }
+  }
+
+  void FitLobes(std::span<const RefitPixel> pixels, std::span<RefitAnswer> answers) {
+    const std::size_t n = pixels.size();
+    lobe_problems_.resize(n), lobe_solutions_.assign(n, {});
+    for (std::size_t i = 0; i < n; ++i)
+      lobe_problems_[i] = {.observed = &observed_[i * lights_],
+                           .inverse_sigma = &inverse_sigma_[i * lights_],
+                           .start_normal = pixels[i].normal,
+                           .start_albedo = pixels[i].albedo,
+                           .geometry = &rows_[6 * i * lights_]};
+    lobes_->Fit(lobe_problems_, lobe_solutions_);
+    for (std::size_t i = 0; i < n; ++i) {
+      const internal::BlinnPhongSolution& fit = lobe_solutions_[i];
+      int used = 0;
+      for (int k = 0; k < lights_; ++k) used += inverse_sigma_[i * lights_ + k] > 0.0;
+      answers[i] = {.ok = fit.ok,
+                    .normal = fit.normal,
+                    .albedo = fit.diffuse_albedo,
+                    .specular_albedo = fit.specular_albedo,
+                    .exponent = fit.exponent,
+                    .chi_square = fit.chi2,
+                    .objective = fit.chi2,
+                    .used = used,
+                    .model = PixelModel::kBlinnPhong};
+    }
+  }
+
+  const PixelProblem& p_;
+  int lights_;
+  RobustOptions::Loss loss_;
+  std::optional<internal::RobustLambertianLanes> irls_;
+  std::optional<internal::BlinnPhongLaneFitter> lobes_;
+  NearPixelSamples samples_;
+  std::vector<double> observed_, inverse_sigma_, rows_;  // rows_: IRLS rows, or the lobe's geometry
+  std::vector<internal::RobustProblem> robust_problems_;
+  std::vector<internal::RobustSolution> robust_solutions_;
+  std::vector<internal::BlinnPhongProblem> lobe_problems_;
+  std::vector<internal::BlinnPhongSolution> lobe_solutions_;
+};
+
+// Whether the method keeps a refit over the pixel's Lambertian fit: IRLS
+// and `blinn-phong` wherever the refit succeeds; `auto` only where the
+// information criterion says the samples pay for the lobe's two parameters
+// (its step 4), on a pixel with a sample to spare.
+bool KeepsRefit(Method method, const RefitAnswer& refit, double lambertian_chi_square) {
+  if (!refit.ok) return false;
+  if (method != Method::kAuto) return true;
+  const int extra = internal::kBlinnPhongParameters - 3;
+  return refit.used > internal::kBlinnPhongParameters &&
+         refit.chi_square + extra * std::log(static_cast<double>(refit.used)) < lambertian_chi_square;
+}
+
+// From the second round on: the pixels whose Lambertian fit the noise does
+// not explain (chi-square above its adequacy quantile; every solved pixel
+// where the noise is unknown) refitted as the method says (NearRefitter).
+void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm,
+           const cv::Mat& lambertian_chi_square, NormalMap* result) {
+  const std::vector<double> adequate =
+      internal::ChiSquareQuantiles(p.lights.count(), options.selection.adequacy_quantile);
   auto explained = [&](int r, int c) {
     const int dof = result->usable_lights.at<std::uint16_t>(r, c) - 3;
-    return rules.noise_known && dof > 0 && lambertian_chi_square.at<float>(r, c) <= adequate[dof];
+    return p.rules.noise_known && dof > 0 && lambertian_chi_square.at<float>(r, c) <= adequate[dof];
   };
-  const float* dark = p.stack.dark.empty() ? nullptr : p.stack.dark.ptr<float>();
 #pragma omp parallel
   {
-    internal::RobustLambertianLanes lanes(lights, options.robust);
-    std::vector<double> observed, inverse_sigma, rows;
-    std::vector<internal::RobustProblem> problems;
-    std::vector<internal::RobustSolution> solutions;
-    std::vector<int> columns;
+    NearRefitter refitter(p, options);
+    std::vector<RefitPixel> pixels;
+    std::vector<RefitAnswer> answers;
 #pragma omp for schedule(dynamic, 4)
     for (int r = 0; r < p.stack.height(); ++r) {
-      columns.clear();
-      for (int c = 0; c < p.stack.width(); ++c)
-        if (result->flags.at<std::uint8_t>(r, c) == static_cast<std::uint8_t>(PixelFlag::kSolved) && !explained(r, c))
-          columns.push_back(c);
-      const std::size_t n = columns.size();
-      observed.resize(n * lights), inverse_sigma.resize(n * lights), rows.resize(3 * n * lights);
-      problems.resize(n), solutions.assign(n, {});
-      for (std::size_t i = 0; i < n; ++i) {
-        const int c = columns[i], pixel = r * p.row_stride + c;
-        const Eigen::Vector3d point = p.Point(r, c, height_mm.at<float>(r, c));
-        const double dark_dn = dark ? dark[r * p.stack.dark.step1() + c] : 0.0;
-        for (int k = 0; k < lights; ++k) {
-          const double value = p.planes[k][pixel], signal = value - dark_dn;
-          Eigen::Vector3d towards;
-          const double gain = p.stack.light_scales[k] * p.prepared[k].RelativeIrradiance(point, &towards);
-          const bool usable = signal > rules.shadow_threshold && value < rules.saturation_level && gain > 0.0;
-          const double variance = rules.read_variance + rules.shot_gain * std::max(signal, 0.0);
-          observed[i * lights + k] = signal;
-          inverse_sigma[i * lights + k] = !usable ? 0.0 : rules.noise_known ? 1.0 / std::sqrt(variance) : 1.0;
-          for (int axis = 0; axis < 3; ++axis) rows[3 * (i * lights + k) + axis] = gain * towards[axis];
-        }
-        const cv::Vec3f normal = result->normals.at<cv::Vec3f>(r, c);
-        const double b = result->albedo.at<float>(r, c) / kPi;
-        problems[i] = {&observed[i * lights], &inverse_sigma[i * lights],
-                       Eigen::Vector3d(normal[0] * b, normal[1] * b, normal[2] * b), &rows[3 * i * lights]};
+      pixels.clear();
+      for (int c = 0; c < p.stack.width(); ++c) {
+        if (result->flags.at<std::uint8_t>(r, c) != static_cast<std::uint8_t>(PixelFlag::kSolved) || explained(r, c))
+          continue;
+        const cv::Vec3f n = result->normals.at<cv::Vec3f>(r, c);
+        pixels.push_back({r, c, height_mm.at<float>(r, c), Eigen::Vector3d(n[0], n[1], n[2]), result->albedo.at<float>(r, c)});
       }
-      lanes.Fit(problems, solutions);
-      for (std::size_t i = 0; i < n; ++i) {
-        const internal::RobustSolution& fit = solutions[i];
-        if (!fit.ok) continue;  // the Lambertian fit stands
-        const int c = columns[i];
-        const Eigen::Vector3d normal = fit.x.normalized();
-        result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(normal.x()), float(normal.y()), float(normal.z()));
-        result->albedo.at<float>(r, c) = static_cast<float>(kPi * fit.x.norm());
-        result->model.at<std::uint8_t>(r, c) =
-            static_cast<std::uint8_t>(fit.rejected > 0 ? PixelModel::kIrls : PixelModel::kLambertian);
+      answers.resize(pixels.size());
+      refitter.Fit(pixels, answers);
+      for (std::size_t i = 0; i < pixels.size(); ++i) {
+        const RefitAnswer& fit = answers[i];
+        const int c = pixels[i].c;
+        if (!KeepsRefit(options.method, fit, lambertian_chi_square.at<float>(r, c))) continue;
+        result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(fit.normal.x()), float(fit.normal.y()), float(fit.normal.z()));
+        result->albedo.at<float>(r, c) = static_cast<float>(fit.albedo);
+        result->specular.at<cv::Vec2f>(r, c) = cv::Vec2f(float(fit.specular_albedo), float(fit.exponent));
+        result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(fit.model);
         result->usable_lights.at<std::uint16_t>(r, c) = static_cast<std::uint16_t>(fit.used);
-        const int dof = fit.used - 3;
-        result->confidence.at<float>(r, c) =
-            rules.noise_known && dof > 0 ? static_cast<float>(std::min(1.0, dof / std::max(fit.chi2, 1e-300))) : 0.0f;
+        const int parameters = fit.model == PixelModel::kBlinnPhong ? internal::kBlinnPhongParameters : 3;
+        WriteConfidence(p.rules, fit.used, parameters, fit.chi_square, &result->confidence.at<float>(r, c));
       }
     }
   }
@@ -330,38 +501,64 @@ cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, co
 }
 
 // The solved pixels of every offset_stride-th row and column, with their
-// integrated heights (relative to the reference).
+// integrated heights (relative to the reference); those the method refitted
+// (a lobe, or IRLS that left samples out) with the refit to start from.
 struct SparseGrid {
   std::vector<PixelAt> pixels;
   std::vector<float> relative;
+  std::vector<RefitPixel> refits;  // refits[i].r < 0: pixel i keeps its Lambertian fit
 };
 
-SparseGrid SparsePixels(const NearLightOptions& options, const cv::Mat& solved, const cv::Mat& relative) {
+SparseGrid SparsePixels(const NearLightOptions& options, const NormalMap& map, const cv::Mat& relative) {
   SparseGrid grid;
   for (int r = options.offset_stride / 2; r < relative.rows; r += options.offset_stride)
-    for (int c = options.offset_stride / 2; c < relative.cols; c += options.offset_stride)
-      if (solved.at<std::uint8_t>(r, c)) {
-        grid.pixels.push_back({r, c, 0.0});
-        grid.relative.push_back(relative.at<float>(r, c));
-      }
+    for (int c = options.offset_stride / 2; c < relative.cols; c += options.offset_stride) {
+      if (map.flags.at<std::uint8_t>(r, c) != static_cast<std::uint8_t>(PixelFlag::kSolved)) continue;
+      grid.pixels.push_back({r, c, 0.0});
+      grid.relative.push_back(relative.at<float>(r, c));
+      const auto model = static_cast<PixelModel>(map.model.at<std::uint8_t>(r, c));
+      const cv::Vec3f n = map.normals.at<cv::Vec3f>(r, c);
+      const bool refitted = model == PixelModel::kIrls || model == PixelModel::kBlinnPhong;
+      grid.refits.push_back({refitted ? r : -1, c, 0.0, Eigen::Vector3d(n[0], n[1], n[2]), map.albedo.at<float>(r, c)});
+    }
   return grid;
 }
 
-// The sum of the grid's fits' chi-squares with the surface at relative +
-// offset_mm; summed in a fixed order, so the search takes the same steps
-// with any number of threads.
-double SparseChiSquare(const PixelProblem& p, SparseGrid& grid, double offset_mm) {
+// The sum over the grid of each pixel's misfit with the surface at relative
+// + offset_mm: the Lambertian chi-square, or for a pixel the method refitted
+// its refit's (RefitAnswer::objective), so that the highlights the refit
+// models or leaves out do not pull the surface. Summed in a fixed order, so
+// the search takes the same steps with any number of threads.
+double SparseMisfit(const PixelProblem& p, const PhotometricStereoOptions& options, SparseGrid& grid, double offset_mm) {
   constexpr std::size_t kChunk = 8 * internal::kLanes;
   const std::size_t count = grid.pixels.size(), chunks = (count + kChunk - 1) / kChunk;
-  for (std::size_t i = 0; i < count; ++i) grid.pixels[i].z_mm = p.Height(grid.relative[i], offset_mm);
+  for (std::size_t i = 0; i < count; ++i)
+    grid.pixels[i].z_mm = grid.refits[i].z_mm = p.Height(grid.relative[i], offset_mm);
   std::vector<double> chunk_sum(chunks, 0.0);
+  const bool any_refit =
+      std::any_of(grid.refits.begin(), grid.refits.end(), [](const RefitPixel& refit) { return refit.r >= 0; });
 #pragma omp parallel
   {
     std::vector<PixelFit> fits(kChunk);
+    std::optional<NearRefitter> refitter;
+    if (any_refit) refitter.emplace(p, options);
+    std::vector<RefitPixel> refits;
+    std::vector<std::size_t> refit_index;
+    std::vector<RefitAnswer> answers;
 #pragma omp for schedule(dynamic, 1)
     for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
       const std::size_t begin = chunk * kChunk, size = std::min(kChunk, count - begin);
       FitPixels(p, std::span<const PixelAt>(grid.pixels).subspan(begin, size), std::span<PixelFit>(fits).first(size));
+      refits.clear(), refit_index.clear();
+      for (std::size_t i = 0; i < size; ++i) {
+        if (grid.refits[begin + i].r < 0) continue;
+        refits.push_back(grid.refits[begin + i]);
+        refit_index.push_back(i);
+      }
+      answers.resize(refits.size());
+      if (!refits.empty()) refitter->Fit(refits, answers);
+      for (std::size_t j = 0; j < refits.size(); ++j)
+        if (answers[j].ok) fits[refit_index[j]].chi_square = answers[j].objective;
       for (std::size_t i = 0; i < size; ++i)
         if (fits[i].flag == PixelFlag::kSolved) chunk_sum[chunk] += fits[i].chi_square;
     }
@@ -372,24 +569,25 @@ double SparseChiSquare(const PixelProblem& p, SparseGrid& grid, double offset_mm
 }
 
 // Golden-section search for the depth offset within [low, high].
-double BestOffset(const PixelProblem& p, const NearLightOptions& options, const cv::Mat& solved,
-                  const cv::Mat& relative, double low, double high) {
+double BestOffset(const PixelProblem& p, const PhotometricStereoOptions& options, const NearLightOptions& near_options,
+                  const NormalMap& map, const cv::Mat& relative, double low, double high) {
   constexpr double kInverseGolden = 0.6180339887498949;
   constexpr double kToleranceMm = 0.01;
-  SparseGrid grid = SparsePixels(options, solved, relative);
+  SparseGrid grid = SparsePixels(near_options, map, relative);
+  auto misfit = [&](double offset_mm) { return SparseMisfit(p, options, grid, offset_mm); };
   double a = low, b = high;
   double x1 = b - kInverseGolden * (b - a), x2 = a + kInverseGolden * (b - a);
-  double f1 = SparseChiSquare(p, grid, x1);
-  double f2 = SparseChiSquare(p, grid, x2);
+  double f1 = misfit(x1);
+  double f2 = misfit(x2);
   while (b - a > kToleranceMm) {
     if (f1 <= f2) {
       b = x2, x2 = x1, f2 = f1;
       x1 = b - kInverseGolden * (b - a);
-      f1 = SparseChiSquare(p, grid, x1);
+      f1 = misfit(x1);
     } else {
       a = x1, x1 = x2, f1 = f2;
       x2 = a + kInverseGolden * (b - a);
-      f2 = SparseChiSquare(p, grid, x2);
+      f2 = misfit(x2);
     }
   }
   return 0.5 * (a + b);
@@ -410,6 +608,7 @@ void CountPixels(const NormalMap& map, NearLightSummary* summary) {
   for (auto it = map.model.begin<std::uint8_t>(); it != map.model.end<std::uint8_t>(); ++it) {
     summary->pixels_lambertian += *it == static_cast<std::uint8_t>(PixelModel::kLambertian);
     summary->pixels_irls += *it == static_cast<std::uint8_t>(PixelModel::kIrls);
+    summary->pixels_blinn_phong += *it == static_cast<std::uint8_t>(PixelModel::kBlinnPhong);
   }
 }
 
@@ -491,12 +690,6 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   summary.method = MethodName(options.method);
   summary.light_count = stack.light_count();
   if (core::EndIfInvalid(options, &summary) || core::EndIfInvalid(near_options, &summary)) return summary;
-  if (options.method != Method::kL2 && options.method != Method::kLambertian && options.method != Method::kRobust) {
-    summary.End(Termination::kInvalidOptions,
-                std::string("near lights are solved with the l2, lambertian and robust methods; ") +
-                    MethodName(options.method) + " fits one light matrix for every pixel");
-    return summary;
-  }
   if (core::EndIfBadInput(CheckInputs(stack, lights, near_options.camera), &summary)) return summary;
   PixelProblem problem(stack, lights, near_options.camera);
   internal::NearSampleRules& rules = problem.rules;
@@ -530,10 +723,10 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     // Round 1 sees the surface on the sample plane: its residuals are the
     // geometry's, not outliers', so the chi-square test cannot tell which
     // samples to distrust; refits start once the surface is placed.
-    const bool robust = options.method == Method::kRobust && round > 1;
+    const bool refit = round > 1 && options.method != Method::kL2 && options.method != Method::kLambertian;
     cv::Mat chi_square;
-    FitAllPixels(problem, height, result, robust ? &chi_square : nullptr);
-    if (robust) RefitRobust(problem, options, height, chi_square, result);
+    FitAllPixels(problem, height, result, refit ? &chi_square : nullptr);
+    if (refit) Refit(problem, options, height, chi_square, result);
     summary.rounds = round;
     if (options.progress) options.progress({"near lights", round, near_options.max_rounds, {}});
     if (round > 1) {
@@ -546,12 +739,12 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     }
     const core::SolveTimer depth_timer;
     const cv::Mat relative = RelativeDepth(near_options, problem, *result, stack.mask, block_px);
-    const cv::Mat solved = result->flags == static_cast<int>(PixelFlag::kSolved);
     // The offset lies below the lowest LED and no deeper than that under the
     // plane; a pinhole's scale stays positive.
     double highest_mm = 0.5 * lowest_led_mm;
     if (near_options.camera.IsPinhole()) highest_mm = std::min(highest_mm, 0.9 * near_options.camera.pinhole.distance_mm);
-    summary.depth_offset_mm = BestOffset(problem, near_options, solved, relative, -0.5 * lowest_led_mm, highest_mm);
+    summary.depth_offset_mm =
+        BestOffset(problem, options, near_options, *result, relative, -0.5 * lowest_led_mm, highest_mm);
     summary.depth_ms += depth_timer.ElapsedMs();
     for (int r = 0; r < height.rows; ++r)
       for (int c = 0; c < height.cols; ++c)

@@ -66,9 +66,20 @@ PHOTORIG_LANE_INLINE void TangentBasis(double nx, double ny, double nz, double t
 //   dI/drho_d = c / pi, dI/drho_s = c k h^e, dI/de = c rho_s h^e (1 / (2 pi) + k ln h),
 // all zero where c <= 0, the h terms zero where h <= 0. A tangent step t moves
 // the normal by t to first order, so dI/dt = dI/dn . t.
-PHOTORIG_PS_MULTIVERSION
-void EvaluateLanes(const LanePoint& q, int lights, const float* geometry, const float* observed,
-                   const float* inverse_sigma, LaneEquations* out) {
+// Entry i of light k's geometry (w then w_h) for lane j: one row all lanes
+// share, or each lane's own (near lights, a perspective camera).
+template <bool kPerLane>
+PHOTORIG_LANE_INLINE float GeometryOf(const float* geometry, int k, int i, int j) {
+  if constexpr (kPerLane) {
+    return geometry[(6 * k + i) * kFloatLanes + j];
+  } else {
+    return geometry[6 * k + i];
+  }
+}
+
+template <bool kPerLane>
+PHOTORIG_LANE_INLINE void EvaluateLanesOf(const LanePoint& q, int lights, const float* geometry, const float* observed,
+                                          const float* inverse_sigma, LaneEquations* out) {
   constexpr float kInvPiF = static_cast<float>(kInvPi);
   // The point in float, one array per quantity, so that each lane loop reads
   // whole registers.
@@ -91,11 +102,12 @@ void EvaluateLanes(const LanePoint& q, int lights, const float* geometry, const 
     bool used = false;
     for (int j = 0; j < kFloatLanes; ++j) used |= sigma_k[j] != 0.0f;
     if (!used) continue;  // shadowed in every lane
-    const float* g = geometry + 6 * k;
-    const float wx = g[0], wy = g[1], wz = g[2], hx = g[3], hy = g[4], hz = g[5];
     const float* observed_k = observed + k * kFloatLanes;
 #pragma omp simd
     for (int j = 0; j < kFloatLanes; ++j) {
+      const float wx = GeometryOf<kPerLane>(geometry, k, 0, j), wy = GeometryOf<kPerLane>(geometry, k, 1, j);
+      const float wz = GeometryOf<kPerLane>(geometry, k, 2, j), hx = GeometryOf<kPerLane>(geometry, k, 3, j);
+      const float hy = GeometryOf<kPerLane>(geometry, k, 4, j), hz = GeometryOf<kPerLane>(geometry, k, 5, j);
       const float c = wx * nx[j] + wy * ny[j] + wz * nz[j];
       const float h = hx * nx[j] + hy * ny[j] + hz * nz[j];
       // Clamps as max() and two selects: GCC gives up on a lane loop with more conditions.
@@ -133,6 +145,15 @@ void EvaluateLanes(const LanePoint& q, int lights, const float* geometry, const 
     for (int e = 0; e < kHessianEntries; ++e) out->hessian[e][j] = acc[1 + e][j];
     for (int p = 0; p < kParameters; ++p) out->gradient[p][j] = acc[1 + kHessianEntries + p][j];
   }
+}
+
+PHOTORIG_PS_MULTIVERSION
+void EvaluateLanes(bool per_lane, const LanePoint& q, int lights, const float* geometry, const float* observed,
+                   const float* inverse_sigma, LaneEquations* out) {
+  if (per_lane)
+    EvaluateLanesOf<true>(q, lights, geometry, observed, inverse_sigma, out);
+  else
+    EvaluateLanesOf<false>(q, lights, geometry, observed, inverse_sigma, out);
 }
 
 // The damped Gauss-Newton step of every lane from its current point p:
@@ -389,24 +410,37 @@ struct BlinnPhongLaneFitter::State {
 
 BlinnPhongLaneFitter::BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& light_directions,
                                            const Eigen::Vector3d& view, const BlinnPhongOptions& options)
-    : lights_(static_cast<int>(light_directions.size())),
-      options_(options),
-      geometry_(6 * light_directions.size()),
-      evaluation_geometry_(6 * light_directions.size()),
-      observed_(light_directions.size() * kFloatLanes),
-      inverse_sigma_(light_directions.size() * kFloatLanes),
-      cos_light_(light_directions.size() * kFloatLanes),
-      cos_half_(light_directions.size() * kFloatLanes),
-      start_observed_(light_directions.size() * kFloatLanes),
-      weight_(light_directions.size() * kFloatLanes),
-      state_(std::make_unique<State>()) {
-  const Eigen::Vector3d towards_camera = view.normalized();
+    : BlinnPhongLaneFitter(static_cast<int>(light_directions.size()), options) {
+  per_lane_geometry_ = false;
+  std::vector<double> towards_light(3 * light_directions.size());
   for (int k = 0; k < lights_; ++k) {
     const Eigen::Vector3d w = light_directions[k].normalized();
-    // A light exactly opposite the camera has no half vector, hence no highlight.
+    for (int i = 0; i < 3; ++i) towards_light[3 * k + i] = w[i];
+  }
+  geometry_.resize(6 * light_directions.size());
+  BlinnPhongGeometry(lights_, towards_light.data(), view, geometry_.data());
+  evaluation_geometry_.assign(geometry_.begin(), geometry_.end());
+}
+
+BlinnPhongLaneFitter::BlinnPhongLaneFitter(int lights, const BlinnPhongOptions& options)
+    : lights_(lights),
+      options_(options),
+      evaluation_geometry_(6 * static_cast<std::size_t>(lights) * kFloatLanes, 0.0f),
+      per_lane_geometry_(true),
+      observed_(static_cast<std::size_t>(lights) * kFloatLanes),
+      inverse_sigma_(static_cast<std::size_t>(lights) * kFloatLanes),
+      cos_light_(static_cast<std::size_t>(lights) * kFloatLanes),
+      cos_half_(static_cast<std::size_t>(lights) * kFloatLanes),
+      start_observed_(static_cast<std::size_t>(lights) * kFloatLanes),
+      weight_(static_cast<std::size_t>(lights) * kFloatLanes),
+      state_(std::make_unique<State>()) {}
+
+void BlinnPhongGeometry(int lights, const double* towards_light, const Eigen::Vector3d& view, double* geometry) {
+  const Eigen::Vector3d towards_camera = view.normalized();
+  for (int k = 0; k < lights; ++k) {
+    const Eigen::Vector3d w(towards_light[3 * k], towards_light[3 * k + 1], towards_light[3 * k + 2]);
     const Eigen::Vector3d half = solvers::autodiff::NormalizeGuarded(Eigen::Vector3d(w + towards_camera)).direction;
-    for (int i = 0; i < 3; ++i) geometry_[6 * k + i] = w[i], geometry_[6 * k + 3 + i] = half[i];
-    for (int i = 0; i < 6; ++i) evaluation_geometry_[6 * k + i] = static_cast<float>(geometry_[6 * k + i]);
+    for (int i = 0; i < 3; ++i) geometry[6 * k + i] = w[i], geometry[6 * k + 3 + i] = half[i];
   }
 }
 
@@ -420,6 +454,9 @@ void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem, cons
     observed_[k * kFloatLanes + lane] = static_cast<float>(problem.observed[k]);
     inverse_sigma_[k * kFloatLanes + lane] = static_cast<float>(problem.inverse_sigma[k]);
   }
+  if (per_lane_geometry_)
+    for (int i = 0; i < 6 * lights_; ++i)
+      evaluation_geometry_[i * kFloatLanes + lane] = static_cast<float>(problem.geometry[i]);
   LanePoint& q = s.candidate;
   double t1[3], t2[3];
   TangentBasis(n.x(), n.y(), n.z(), t1, t2);
@@ -451,14 +488,25 @@ void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problem
         weight_[k * kFloatLanes + j] = inverse_sigma * inverse_sigma;
       }
     }
-    for (int k = 0; k < lights_; ++k) {
-      const double* g = &geometry_[6 * k];
-      double* cos_light = &cos_light_[k * kFloatLanes];
-      double* cos_half = &cos_half_[k * kFloatLanes];
-#pragma omp simd
+    if (per_lane_geometry_) {
       for (int j = 0; j < kFloatLanes; ++j) {
-        cos_light[j] = std::max(0.0, g[0] * normal[0][j] + g[1] * normal[1][j] + g[2] * normal[2][j]);
-        cos_half[j] = std::max(0.0, g[3] * normal[0][j] + g[4] * normal[1][j] + g[5] * normal[2][j]);
+        const double* g = first + j < count ? problems[first + j].geometry : nullptr;
+        for (int k = 0; k < lights_; ++k, g += g ? 6 : 0) {
+          const Eigen::Vector3d n(normal[0][j], normal[1][j], normal[2][j]);
+          cos_light_[k * kFloatLanes + j] = g ? std::max(0.0, g[0] * n.x() + g[1] * n.y() + g[2] * n.z()) : 0.0;
+          cos_half_[k * kFloatLanes + j] = g ? std::max(0.0, g[3] * n.x() + g[4] * n.y() + g[5] * n.z()) : 0.0;
+        }
+      }
+    } else {
+      for (int k = 0; k < lights_; ++k) {
+        const double* g = &geometry_[6 * k];
+        double* cos_light = &cos_light_[k * kFloatLanes];
+        double* cos_half = &cos_half_[k * kFloatLanes];
+#pragma omp simd
+        for (int j = 0; j < kFloatLanes; ++j) {
+          cos_light[j] = std::max(0.0, g[0] * normal[0][j] + g[1] * normal[1][j] + g[2] * normal[2][j]);
+          cos_half[j] = std::max(0.0, g[3] * normal[0][j] + g[4] * normal[1][j] + g[5] * normal[2][j]);
+        }
       }
     }
     // Problems with a shared lobe start from it, the others from the grid
@@ -521,8 +569,8 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
   const double tolerance = std::max(options_.relative_tolerance, kEvaluationPrecision);
   bool stepping[kFloatLanes];  // lanes whose next candidate is a step from their current point
   while (queue.busy() > 0) {
-    EvaluateLanes(s.candidate, lights_, evaluation_geometry_.data(), observed_.data(), inverse_sigma_.data(),
-                  &s.candidate_equations);
+    EvaluateLanes(per_lane_geometry_, s.candidate, lights_, evaluation_geometry_.data(), observed_.data(),
+                  inverse_sigma_.data(), &s.candidate_equations);
     HoldSharedLobes(s.shared_exponent, &s.candidate_equations);
     for (int lane = 0; lane < kFloatLanes; ++lane) {
       stepping[lane] = false;
@@ -621,8 +669,11 @@ BlinnPhongLaneFitter::Linearization BlinnPhongLaneFitter::Linearize(const BlinnP
     observed_[k * kFloatLanes] = static_cast<float>(problem.observed[k]);
     inverse_sigma_[k * kFloatLanes] = static_cast<float>(problem.inverse_sigma[k]);
   }
+  if (per_lane_geometry_)
+    for (int i = 0; i < 6 * lights_; ++i) evaluation_geometry_[i * kFloatLanes] = static_cast<float>(problem.geometry[i]);
   LaneEquations equations;
-  EvaluateLanes(point, lights_, evaluation_geometry_.data(), observed_.data(), inverse_sigma_.data(), &equations);
+  EvaluateLanes(per_lane_geometry_, point, lights_, evaluation_geometry_.data(), observed_.data(),
+                inverse_sigma_.data(), &equations);
   Linearization out;
   out.cost = equations.cost[0];
   int entry = 0;

@@ -60,7 +60,10 @@ void BlinnPhongSharedStartLanes(int lights, const double* cos_light, const doubl
                                 const double* exponent, LaneMaterial* out);
 
 // One pixel: observed values in solver units for every light of the set, and
-// 1 / sigma for each (0 marks a sample the fit must not use).
+// 1 / sigma for each (0 marks a sample the fit must not use); for a fitter
+// made without shared lights, the pixel's own geometry (BlinnPhongGeometry:
+// under near LEDs and a perspective camera every pixel has its own light and
+// half vectors).
 struct BlinnPhongProblem {
   const double* observed = nullptr;
   const double* inverse_sigma = nullptr;
@@ -70,6 +73,7 @@ struct BlinnPhongProblem {
   // shared_exponent), the one the pixel's region shares, and only the normal
   // and rho_d are fitted.
   double shared_specular_albedo = 0.0, shared_exponent = 0.0;
+  const double* geometry = nullptr;
 };
 
 struct BlinnPhongSolution {
@@ -80,11 +84,19 @@ struct BlinnPhongSolution {
   int iterations = 0;  // accepted steps
 };
 
+// The geometry the fit reads for one pixel: per light its unit vector
+// towards the light w (3) then the half vector of w and `view` (3), the unit
+// vector towards the camera; six doubles per light into `geometry`. A light
+// exactly opposite the camera has no half vector (zero): no highlight.
+void BlinnPhongGeometry(int lights, const double* towards_light, const Eigen::Vector3d& view, double* geometry);
+
 class BlinnPhongLaneFitter {
  public:
   // light_directions: unit vectors towards the lights; view: towards the camera.
   BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& light_directions, const Eigen::Vector3d& view,
                        const BlinnPhongOptions& options);
+  // A fitter whose problems each bring their own geometry (BlinnPhongProblem::geometry).
+  BlinnPhongLaneFitter(int lights, const BlinnPhongOptions& options);
   ~BlinnPhongLaneFitter();
   BlinnPhongLaneFitter(BlinnPhongLaneFitter&&) noexcept;
 
@@ -113,8 +125,11 @@ class BlinnPhongLaneFitter {
 
   int lights_;
   BlinnPhongOptions options_;
-  std::vector<double> geometry_;  // per light: w (3), w_h (3)
+  // Per light: w (3), w_h (3), shared by every lane; or, with
+  // per_lane_geometry_, each lane's in float, [(6 light + i) * kFloatLanes + lane].
+  std::vector<double> geometry_;
   std::vector<float> evaluation_geometry_;  // the same in float
+  bool per_lane_geometry_ = false;
   // Struct-of-arrays over lanes: [light * kFloatLanes + lane].
   std::vector<float> observed_, inverse_sigma_;
   // The start grid's inputs, [light * kFloatLanes + lane], and its answers per problem.

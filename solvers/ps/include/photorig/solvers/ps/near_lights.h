@@ -91,13 +91,19 @@ struct NearLightSummary : SolverSummary {
 double DistantModelBiasDeg(const std::vector<NearLight>& lights, const std::vector<Eigen::Vector3d>& directions,
                            double radius_mm);
 
-// Lambertian photometric stereo (options.method kL2, kLambertian or kRobust:
-// the thresholds of options.lambertian and options.shadow_threshold_read_sigmas,
-// and for kRobust every solved pixel refitted by options.robust's IRLS) with
-// one NearLight per image of `stack`. Fills *result as
+// Photometric stereo with one NearLight per image of `stack`: each round
+// fits every pixel's Lambertian model (the thresholds of options.lambertian
+// and options.shadow_threshold_read_sigmas), which places the surface; from
+// the second round on, the pixels whose Lambertian fit the noise does not
+// explain are refitted as the method says: kRobust by options.robust's IRLS,
+// kBlinnPhong with a Blinn-Phong lobe (options.blinn_phong's bounds and
+// tolerances; the lane fitter whatever its `derivative`), kAuto with the
+// lobe kept where the information criterion prefers it; kL2 and kLambertian
+// keep the Lambertian fit. Every refit sees the pixel's own light vectors,
+// gains and line of sight. (`auto`'s shared and GGX lobes, steps 5 and 6,
+// are fitted under distant lights only.) Fills *result as
 // SolvePhotometricStereo does and *height_mm, unless null (CV_32F, NaN off
-// the solved pixels), with the surface's z in the frame of the lights. Other methods end
-// kInvalidOptions: their reflectance fits take one light matrix for all pixels.
+// the solved pixels), with the surface's z in the frame of the lights.
 NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions& options,
                                                  const NearLightOptions& near_options,
                                                  const PhotometricStack& stack, const std::vector<NearLight>& lights,
