@@ -251,7 +251,7 @@ void BM_MethodVsL2(benchmark::State& state) {
 // the same noise; the sphere's rim on the sample plane.
 struct NearScene {
   Scene scene;
-  std::vector<photorig::solvers::ps::NearLight> lights;
+  std::vector<photorig::solvers::camera::NearLight> lights;
   double pixel_pitch_mm = 0.0;
 };
 

@@ -26,7 +26,7 @@ constexpr int kSize = 128;
 
 struct NearScene {
   PhotometricStack stack;
-  std::vector<NearLight> lights;
+  std::vector<camera::NearLight> lights;
   camera::Camera camera;
   cv::Mat normals, height_mm;  // truth
 };
@@ -94,7 +94,7 @@ NearScene RenderNearSphere(double dome_radius_mm, double noise_sigma = 0.0,
       scene.height_mm.at<float>(r, c) = static_cast<float>(point.z());
       scene.stack.mask.at<std::uint8_t>(r, c) = 255;
       for (std::size_t k = 0; k < scene.lights.size(); ++k) {
-        const NearLight& led = scene.lights[k];
+        const camera::NearLight& led = scene.lights[k];
         const Eigen::Vector3d to = led.position_mm - point;
         const double d = to.norm();
         // Radiant intensity cos^mu(axis angle) I0, with I0 = R^2 so that the
@@ -109,7 +109,7 @@ NearScene RenderNearSphere(double dome_radius_mm, double noise_sigma = 0.0,
         scene.stack.images[k].at<float>(r, c) = static_cast<float>(value) + noise(rng);
       }
     }
-  for (const NearLight& led : scene.lights) {
+  for (const camera::NearLight& led : scene.lights) {
     scene.stack.light_directions.push_back(led.position_mm.normalized());
     scene.stack.light_scales.push_back(1000.0);
   }
@@ -131,7 +131,7 @@ NearLightOptions Near(const camera::Camera& camera = camera::Camera::Orthographi
 }
 
 TEST(NearLights, IrradianceFallsWithTheSquareOfDistanceAndTheCosineToTheAxis) {
-  const NearLight led{{0.0, 0.0, 100.0}, {0.0, 0.0, -1.0}, 2.0};
+  const camera::NearLight led{{0.0, 0.0, 100.0}, {0.0, 0.0, -1.0}, 2.0};
   Eigen::Vector3d towards;
   EXPECT_DOUBLE_EQ(led.RelativeIrradiance(Eigen::Vector3d::Zero(), &towards), 1.0);
   EXPECT_NEAR(led.RelativeIrradiance({0.0, 0.0, 50.0}, &towards), 4.0, 1e-12);
@@ -190,8 +190,8 @@ TEST(NearLights, AnLedsRadianceProfileIsPartOfTheModel) {
   ASSERT_EQ(summary.termination, core::Termination::kSuccess) << summary.message;
   EXPECT_LT(CompareNormals(near.normals, scene.normals, scene.stack.mask).mean_deg, 0.3);
   // Taken as Lambertian emitters, the same LEDs tilt the normals.
-  std::vector<NearLight> lambertian = scene.lights;
-  for (NearLight& led : lambertian) led.cos_exponent = 1.0;
+  std::vector<camera::NearLight> lambertian = scene.lights;
+  for (camera::NearLight& led : lambertian) led.cos_exponent = 1.0;
   NormalMap wrong;
   ASSERT_TRUE(SolveNearLightPhotometricStereo(Lambertian(), Near(), scene.stack, lambertian, &wrong, nullptr).IsSolutionUsable());
   EXPECT_GT(CompareNormals(wrong.normals, scene.normals, scene.stack.mask).mean_deg, 0.5);  // 0.71 deg

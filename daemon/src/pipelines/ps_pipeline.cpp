@@ -163,8 +163,8 @@ void RequirePhotometricStereoRun(const std::string& run_directory, const RunMani
 
 // The near LEDs of a run whose rig gives every LED's position, one per
 // image. Empty when an LED has only a direction.
-std::vector<solvers::ps::NearLight> NearLightsOf(const std::vector<const config::LedConfig*>& leds) {
-  std::vector<solvers::ps::NearLight> lights;
+std::vector<solvers::camera::NearLight> NearLightsOf(const std::vector<const config::LedConfig*>& leds) {
+  std::vector<solvers::camera::NearLight> lights;
   for (const config::LedConfig* led : leds) {
     if (!led->position_mm) return {};
     lights.push_back({*led->position_mm, led->EmissionAxis(), led->cos_exponent});
@@ -520,11 +520,6 @@ double DepthErrorVsTruth(const cv::Mat& depth, const cv::Mat& truth) {
   return std::sqrt(centred.dot(centred) / pixels);
 }
 
-solvers::camera::Camera CameraOf(const PhotometricStereoInput& input) {
-  if (input.camera) return *input.camera;
-  return solvers::camera::Camera::Orthographic(input.stack.width(), input.stack.height(), input.pixel_pitch);
-}
-
 // `why` and what else to do: a solve refused for its predicted bias.
 solvers::ps::SolverSummary Refused(const solvers::ps::PhotometricStereoOptions& options,
                                    const solvers::ps::PhotometricStack& stack, const std::string& why) {
@@ -612,6 +607,11 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
 }
 
 }  // namespace
+
+solvers::camera::Camera CameraOf(const PhotometricStereoInput& input) {
+  if (input.camera) return *input.camera;
+  return solvers::camera::Camera::Orthographic(input.stack.width(), input.stack.height(), input.pixel_pitch);
+}
 
 PhotometricStereoResult SolveToMaps(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
                                     PhotometricStereoMaps* maps) {

@@ -137,6 +137,9 @@ void RefitDemosaicedWithinMaterials(const PhotometricStereoInput& input, const c
   PhotometricStereoInput regional = input;
   regional.color = LoadRunColorStack(input.color->bayer_run_directory, within);
   refl::ReflectanceStack refit_stack = ToReflectanceStack(regional);
+  refit_stack.near_lights = stack->near_lights;  // the same pixels see the same LEDs and camera
+  refit_stack.points_mm = stack->points_mm;
+  refit_stack.views = stack->views;
   refl::ReflectanceMaps refit;
   const refl::ReflectanceSummary summary = refl::FitReflectance(options, refit_stack, normals, input.object_mask, &refit);
   // A refit that fails keeps the first fit, and the report says why.
@@ -199,6 +202,46 @@ refl::ReflectanceStack ToReflectanceStack(const PhotometricStereoInput& input) {
   stack.view_direction = ps.view_direction;
   if (std::isfinite(saturation)) stack.saturation_level = clipped;
   return stack;
+}
+
+namespace {
+
+// The surface a near-light solve placed (heights in mm), or empty.
+cv::Mat NearSurface(const PhotometricStereoResult& ps, const fs::path& ps_directory) {
+  if (!ps.light_model.near || !ps.depth || !ps.depth->from_near_lights || !fs::exists(ps_directory / "depth.tiff"))
+    return {};
+  return ReadFloatTiff((ps_directory / "depth.tiff").string());
+}
+
+}  // namespace
+
+std::string AddPixelGeometry(const PhotometricStereoInput& input, bool near, const cv::Mat& height_mm,
+                             refl::ReflectanceStack* stack) {
+  const solvers::camera::Camera camera = CameraOf(input);
+  const solvers::camera::PixelRays rays(camera);
+  const int rows = input.stack.height(), cols = input.stack.width();
+  if (camera.IsPinhole()) {
+    stack->views.create(rows, cols, CV_32FC3);
+    for (int r = 0; r < rows; ++r)
+      for (int c = 0; c < cols; ++c) {
+        const Eigen::Vector3d v = rays.ViewDirection(r, c);
+        stack->views.at<cv::Vec3f>(r, c) = cv::Vec3f(float(v.x()), float(v.y()), float(v.z()));
+      }
+  }
+  if (!near) return {};
+  if (height_mm.size() != cv::Size(cols, rows) || height_mm.type() != CV_32F)
+    return "the rig's LEDs are near: the reflectance fits need the surface the photometric-stereo solve placed "
+           "(its depth.tiff); solve with an integrator";
+  stack->near_lights = input.near_lights;
+  stack->points_mm.create(rows, cols, CV_32FC3);
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) {
+      // An unsolved pixel gets no reflectance; its point only has to be finite.
+      const float z = height_mm.at<float>(r, c);
+      const Eigen::Vector3d point = rays.Point(r, c, std::isfinite(z) ? z : 0.0);
+      stack->points_mm.at<cv::Vec3f>(r, c) = cv::Vec3f(float(point.x()), float(point.y()), float(point.z()));
+    }
+  return {};
 }
 
 nlohmann::json ToJson(const SvbrdfResult& result) {
@@ -307,21 +350,17 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const conf
     config::PhotometricStereoRequest ps_request = request.ps;
     ps_request.progress = request.progress;
     result.ps = SolveAndWrite(input, ps_request, (out / "ps").string());
+    refl::ReflectanceStack stack = ToReflectanceStack(input);
+    const std::string geometry_why =
+        result.ps.usable() ? AddPixelGeometry(input, result.ps.light_model.near, NearSurface(result.ps, out / "ps"), &stack)
+                           : std::string();
     if (!result.ps.usable()) {
       result.summary.End(solvers::core::Termination::kFailure, "photometric stereo found no normals: " + result.ps.summary.message);
-    } else if (result.ps.light_model.near || result.ps.camera.IsPinhole()) {
-      // The reflectance fits take one direction per LED and the view along
-      // the camera's axis: on this geometry they would be biased, not wrong
-      // by chance.
-      result.summary.End(solvers::core::Termination::kFailure,
-                         std::string("the SVBRDF fits take distant lights and an orthographic view; this rig has ") +
-                             (result.ps.light_model.near ? "near LEDs" : "a pinhole camera") +
-                             " (the normals in ps/ are solved with it): fit reflectance on a rig with distant LEDs "
-                             "and an orthographic (telecentric) camera");
+    } else if (!geometry_why.empty()) {
+      result.summary.End(solvers::core::Termination::kFailure, geometry_why);
     } else {
       cv::Mat normals = ReadFloatTiff((out / "ps" / "normals.tiff").string());
       cv::Mat mask = input.object_mask;
-      refl::ReflectanceStack stack = ToReflectanceStack(input);
       refl::ReflectanceOptions options;
       options.max_materials = request.max_materials;
       options.progress = request.progress;
@@ -477,7 +516,15 @@ HeldOutLightImages PredictHeldOutLight(const std::string& run_directory, const s
                              std::to_string(maps.flags.cols) + " x " + std::to_string(maps.flags.rows));
   // The solve's mask is where it did not flag a pixel as outside it.
   const cv::Mat mask = maps.flags != static_cast<int>(refl::PixelFlag::kOutsideMask);
-  const refl::ReflectanceStack stack = ToReflectanceStack(input);
+  refl::ReflectanceStack stack = ToReflectanceStack(input);
+  // Seen as the solve saw it: under near LEDs, from the surface it placed.
+  std::ifstream ps_file(dir / "ps" / "report.json");
+  const nlohmann::json ps_report = ps_file ? nlohmann::json::parse(ps_file, nullptr, false) : nlohmann::json();
+  const bool near = ps_report.is_object() && ps_report.contains("light_model") &&
+                    ps_report["light_model"].value("model", std::string()) == "near";
+  const cv::Mat surface = near && fs::exists(dir / "ps" / "depth.tiff") ? ReadFloatTiff((dir / "ps" / "depth.tiff").string()) : cv::Mat();
+  if (const std::string why = AddPixelGeometry(input, near, surface, &stack); !why.empty())
+    throw std::runtime_error(svbrdf_directory + ": " + why);
   refl::RelightingOptions options;
   options.fit.max_materials = report.contains("options") ? report["options"].value("max_materials", 4) : 4;
   options.lights = {light};

@@ -31,36 +31,11 @@ constexpr int kRoundDepthSidePx = 128;
 
 double RadiansToDegrees(double radians) { return radians * 180.0 / kPi; }
 
-// A NearLight with its per-light constants worked out once: the fits
-// evaluate it for every sample of every pixel in every round.
-struct PreparedLight {
-  Eigen::Vector3d position_mm, axis;
-  double cos_exponent = 1.0;
-  double scale = 1.0;  // |p|^2 / cos^mu(origin): the relative irradiance's constant
-
-  explicit PreparedLight(const NearLight& light)
-      : position_mm(light.position_mm), axis(light.axis), cos_exponent(light.cos_exponent) {
-    const double origin_squared = position_mm.squaredNorm();
-    const double origin_cos = std::max(1e-12, -axis.dot(position_mm) / std::sqrt(origin_squared));
-    scale = origin_squared / std::pow(origin_cos, cos_exponent);
-  }
-  // NearLight::RelativeIrradiance, without its constants' cost.
-  double RelativeIrradiance(const Eigen::Vector3d& point_mm, Eigen::Vector3d* towards_light) const {
-    const Eigen::Vector3d to = position_mm - point_mm;
-    const double distance_squared = to.squaredNorm();
-    *towards_light = to / std::sqrt(distance_squared);
-    const double cos_axis = -axis.dot(*towards_light);
-    if (cos_axis <= 0.0) return 0.0;
-    const double profile = cos_exponent == 1.0 ? cos_axis : std::pow(cos_axis, cos_exponent);
-    return scale * profile / distance_squared;
-  }
-};
-
 // What every pixel's fit reads: the stack's samples and the lights'
 // geometry, fixed for the whole solve.
 struct PixelProblem {
   const PhotometricStack& stack;
-  std::vector<PreparedLight> prepared;  // the same LEDs, for one sample at a time
+  std::vector<camera::PreparedNearLight> prepared;  // the same LEDs, for one sample at a time
   internal::NearLightTable lights;
   std::vector<const float*> planes;  // one per light, rows without padding
   std::vector<cv::Mat> copies;       // the stack's images, where some have padding
@@ -69,10 +44,10 @@ struct PixelProblem {
   internal::NearSampleRules rules;
   double max_condition_number = 0.0;
 
-  PixelProblem(const PhotometricStack& stack, const std::vector<NearLight>& leds, const camera::Camera& camera)
+  PixelProblem(const PhotometricStack& stack, const std::vector<camera::NearLight>& leds, const camera::Camera& camera)
       : stack(stack), rays(camera) {
     for (std::size_t k = 0; k < leds.size(); ++k) {
-      const PreparedLight& light = prepared.emplace_back(leds[k]);
+      const camera::PreparedNearLight& light = prepared.emplace_back(leds[k]);
       lights.position.insert(lights.position.end(), {light.position_mm.x(), light.position_mm.y(), light.position_mm.z()});
       lights.axis.insert(lights.axis.end(), {light.axis.x(), light.axis.y(), light.axis.z()});
       lights.cos_exponent.push_back(light.cos_exponent);
@@ -612,7 +587,7 @@ void CountPixels(const NormalMap& map, NearLightSummary* summary) {
   }
 }
 
-std::string CheckInputs(const PhotometricStack& stack, const std::vector<NearLight>& lights, const camera::Camera& camera) {
+std::string CheckInputs(const PhotometricStack& stack, const std::vector<camera::NearLight>& lights, const camera::Camera& camera) {
   if (std::string why; !stack.IsValid(&why)) return why;
   if (camera.width_px != stack.width() || camera.height_px != stack.height())
     return "near lights: the camera is " + std::to_string(camera.width_px) + "x" + std::to_string(camera.height_px) +
@@ -628,18 +603,7 @@ std::string CheckInputs(const PhotometricStack& stack, const std::vector<NearLig
 
 }  // namespace
 
-double NearLight::RelativeIrradiance(const Eigen::Vector3d& point_mm, Eigen::Vector3d* towards_light) const {
-  return PreparedLight(*this).RelativeIrradiance(point_mm, towards_light);
-}
-
-std::vector<NearLight> LightsAimedAtOrigin(const std::vector<Eigen::Vector3d>& positions_mm, double cos_exponent) {
-  std::vector<NearLight> lights;
-  for (const Eigen::Vector3d& position : positions_mm)
-    lights.push_back({position, -position.normalized(), cos_exponent});
-  return lights;
-}
-
-double DistantModelBiasDeg(const std::vector<NearLight>& lights, const std::vector<Eigen::Vector3d>& directions,
+double DistantModelBiasDeg(const std::vector<camera::NearLight>& lights, const std::vector<Eigen::Vector3d>& directions,
                            double radius_mm) {
   // A grid of 41 x 41 points over the disk, each seen on the hemisphere.
   constexpr int kSteps = 41;
@@ -683,7 +647,7 @@ bool NearLightOptions::IsValid(std::string* why) const {
 
 NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions& options,
                                                  const NearLightOptions& near_options,
-                                                 const PhotometricStack& stack, const std::vector<NearLight>& lights,
+                                                 const PhotometricStack& stack, const std::vector<camera::NearLight>& lights,
                                                  NormalMap* result, cv::Mat* height_mm) {
   core::SolveTimer timer;
   NearLightSummary summary;
@@ -706,7 +670,7 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   summary.noise_shot_gain = stack.noise.shot_gain;
 
   double lowest_led_mm = std::numeric_limits<double>::infinity();
-  for (const NearLight& light : lights) lowest_led_mm = std::min(lowest_led_mm, light.position_mm.z());
+  for (const camera::NearLight& light : lights) lowest_led_mm = std::min(lowest_led_mm, light.position_mm.z());
   // Round 1 places the surface on the sample plane; each later round at the
   // depth integrated from the previous round's normals.
   // The rounds place each pixel's point for its light vectors: a surface

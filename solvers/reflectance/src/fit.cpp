@@ -38,6 +38,13 @@ bool ReflectanceStack::IsValid(std::string* why) const {
       return core::Refuse(why, "light intensity " + std::to_string(j) + " is not positive");
   }
   if (std::abs(view_direction.norm() - 1.0) > 1e-3) return core::Refuse(why, "the view direction is not a unit vector");
+  if (!near_lights.empty() && near_lights.size() != images.size())
+    return core::Refuse(why, std::to_string(images.size()) + " images but " + std::to_string(near_lights.size()) +
+                             " near LEDs");
+  if (!near_lights.empty() && (points_mm.type() != CV_32FC3 || points_mm.size() != images.front().size()))
+    return core::Refuse(why, "near LEDs need points_mm: CV_32FC3 of the images' size");
+  if (!views.empty() && (views.type() != CV_32FC3 || views.size() != images.front().size()))
+    return core::Refuse(why, "views must be CV_32FC3 of the images' size");
   if (!(noise.read_sigma.minCoeff() >= 0.0 && noise.shot_gain.minCoeff() >= 0.0 && noise.relative.minCoeff() >= 0.0) ||
       !noise.read_sigma.allFinite() || !noise.shot_gain.allFinite() || !noise.relative.allFinite())
     return core::Refuse(why, "the noise model's terms must be finite and >= 0");

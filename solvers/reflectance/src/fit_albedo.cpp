@@ -53,7 +53,7 @@ PixelResidual ResidualOf(const Samples& s, int p, const PixelSums& sums, const M
     if (!s.usable[cell]) continue;
     for (int ch = 0; ch < C; ++ch) {
       const double d = s.value[cell * C + ch] -
-                       Predict(s, cell, {fit.model, fit.shape}, fit.specular[ch], rho[ch], s.intensity[j][ch]);
+                       Predict(s, cell, {fit.model, fit.shape}, fit.specular[ch], rho[ch], s.Irradiance(cell, j, ch));
       out.squared_sum += d * d;
       ++out.count;
     }

@@ -66,7 +66,7 @@ void CheckLightIntensities(const ReflectanceOptions& options, const Samples& s, 
       const float* albedo = maps.albedo.ptr<float>(r) + c * C;
       double measured = 0.0, predicted = 0.0, diffuse = 0.0;
       for (int ch = 0; ch < C; ++ch) {
-        const double e = s.intensity[j][ch];
+        const double e = s.Irradiance(cell, j, ch);
         measured += s.value[cell * C + ch];
         predicted += Predict(s, cell, {fit.model, fit.shape}, fit.specular[ch], albedo[ch], e);
         diffuse += e * s.geometry[cell].cos_i * albedo[ch] / M_PI;

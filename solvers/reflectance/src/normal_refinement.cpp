@@ -76,24 +76,27 @@ struct PixelProblem {
 // Pixel i's problem from starting normal n0 under its material: its samples
 // under the lights not kept for judging that face n0 by min_cosine or more
 // and are unclipped, not yet weighted.
-PixelProblem ProblemAt(const ReflectanceStack& stack, int i, const Eigen::Vector3d& n0, const MaterialFit& material,
-                       const std::vector<std::uint8_t>& judging, double min_cosine) {
+PixelProblem ProblemAt(const ReflectanceStack& stack, const internal::PixelLights& lights, int i,
+                       const Eigen::Vector3d& n0, const MaterialFit& material, const std::vector<std::uint8_t>& judging,
+                       double min_cosine) {
   const int C = stack.channels();
   PixelProblem problem;
   problem.channels = C;
-  problem.view = stack.view_direction;
+  problem.view = lights.View(i);
   problem.n0 = n0;
   internal::FrameOf(problem.n0, &problem.t0, &problem.b0);
   problem.lobe = {material.model, material.shape};
   problem.specular = material.specular;
   for (int j = 0; j < stack.light_count(); ++j) {
-    if (judging[j] || problem.n0.dot(stack.light_directions[j]) < min_cosine) continue;
+    Eigen::Vector3d towards;
+    const double gain = lights.At(i, j, &towards);
+    if (judging[j] || !(gain > 0.0) || problem.n0.dot(towards) < min_cosine) continue;
     const float* px = stack.images[j].ptr<float>() + static_cast<std::size_t>(i) * C;
     bool usable = true;
     for (int c = 0; c < C; ++c) usable = usable && std::isfinite(px[c]) && px[c] < stack.saturation_level;
     if (!usable) continue;
-    problem.light.push_back(stack.light_directions[j]);
-    const Eigen::Vector3d e = stack.Intensity(j);
+    problem.light.push_back(towards);
+    const Eigen::Vector3d e = gain * stack.Intensity(j);
     for (int c = 0; c < C; ++c) {
       problem.value.push_back(px[c]);
       problem.irradiance.push_back(e[c]);
@@ -225,6 +228,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
   if (options.keep_better)
     for (int j : StratifiedLights(stack.light_directions, options.held_out_lights)) judging[j] = 1;
   const double max_change = options.max_change_deg / kDegPerRad;
+  const internal::PixelLights lights(stack);
   for (int round = 0; round < options.rounds; ++round) {
     if (options.progress) options.progress({"normals", round, options.rounds});
     std::vector<int> fitted_pixels;
@@ -237,7 +241,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
     for (std::size_t f = 0; f < fitted_pixels.size(); ++f) {
       const int i = fitted_pixels[f];
       const cv::Vec3f& nv = n.at<cv::Vec3f>(i);
-      PixelProblem problem = ProblemAt(stack, i, Eigen::Vector3d(nv[0], nv[1], nv[2]).normalized(),
+      PixelProblem problem = ProblemAt(stack, lights, i, Eigen::Vector3d(nv[0], nv[1], nv[2]).normalized(),
                                        current.materials[current.material.data[i]], judging, options.fit.min_cosine);
       if (problem.samples() < options.fit.min_samples) continue;
       WeightByNoise(fitted.noise, &problem);

@@ -234,11 +234,11 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
         const std::size_t cell = s.At(p, j);
         for (int ch = 0; ch < C && !image.empty(); ++ch)
           image.ptr<float>()[static_cast<std::size_t>(s.pixel_index[p]) * C + ch] = static_cast<float>(
-              internal::Predict(s, cell, lobe[p], weight[p][ch], rho[p][ch], s.intensity[j][ch]));
+              internal::Predict(s, cell, lobe[p], weight[p][ch], rho[p][ch], s.Irradiance(cell, j, ch)));
         if (s.saturated[cell]) continue;
         for (int ch = 0; ch < C; ++ch) {
           const double predicted =
-              internal::Predict(s, cell, lobe[p], weight[p][ch], rho[p][ch], s.intensity[j][ch]);
+              internal::Predict(s, cell, lobe[p], weight[p][ch], rho[p][ch], s.Irradiance(cell, j, ch));
           const double d = predicted - s.value[cell * C + ch];
           sum += d * d;
           ++count;

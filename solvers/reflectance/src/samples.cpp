@@ -28,8 +28,28 @@ Eigen::Vector3d ToLocal(const Eigen::Vector3d& n, const Eigen::Vector3d& w) {
   return {t.dot(w), b.dot(w), n.dot(w)};
 }
 
+PixelLights::PixelLights(const ReflectanceStack& stack) : stack_(stack) {
+  for (const camera::NearLight& light : stack.near_lights) near_.emplace_back(light);
+}
+
+double PixelLights::At(int index, int j, Eigen::Vector3d* towards) const {
+  if (near_.empty()) {
+    *towards = stack_.light_directions[j];
+    return 1.0;
+  }
+  const cv::Vec3f point = stack_.points_mm.ptr<cv::Vec3f>()[index];
+  return near_[j].RelativeIrradiance(Eigen::Vector3d(point[0], point[1], point[2]), towards);
+}
+
+Eigen::Vector3d PixelLights::View(int index) const {
+  if (stack_.views.empty()) return stack_.view_direction.normalized();
+  const cv::Vec3f v = stack_.views.ptr<cv::Vec3f>()[index];
+  return Eigen::Vector3d(v[0], v[1], v[2]).normalized();
+}
+
 Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::Mat& mask, double min_cosine,
                cv::Mat* flags, long long* saturated_samples) {
+  const PixelLights lights(stack);
   Samples s;
   s.width = stack.width();
   s.height = stack.height();
@@ -38,7 +58,6 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
   *flags = cv::Mat(s.height, s.width, CV_8U, cv::Scalar(static_cast<int>(PixelFlag::kFitted)));
   for (int j = 0; j < s.lights; ++j) s.intensity.push_back(stack.Intensity(j));
   *saturated_samples = 0;
-  const Eigen::Vector3d view = stack.view_direction.normalized();
   for (int r = 0; r < s.height; ++r) {
     for (int c = 0; c < s.width; ++c) {
       if (!mask.empty() && mask.at<std::uint8_t>(r, c) == 0) {
@@ -47,7 +66,7 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
       }
       const cv::Vec3f nf = normals.at<cv::Vec3f>(r, c);
       const Eigen::Vector3d n(nf[0], nf[1], nf[2]);
-      if (!n.allFinite() || n.norm() < 0.5 || n.normalized().dot(view) <= 0.0) {
+      if (!n.allFinite() || n.norm() < 0.5 || n.normalized().dot(lights.View(r * s.width + c)) <= 0.0) {
         flags->at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelFlag::kNoNormal);
         continue;
       }
@@ -62,6 +81,7 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
   s.usable.assign(cells, 0);
   s.saturated.assign(cells, 0);
   s.geometry.resize(cells);
+  if (!stack.near_lights.empty()) s.gain.resize(cells);
   s.usable_count.assign(s.pixels, 0);
   long long clipped = 0;
 #pragma omp parallel for schedule(static) reduction(+ : clipped)
@@ -69,11 +89,14 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
     const Eigen::Vector3d& n = s.normal[p];
     Eigen::Vector3d t, b;
     FrameOf(n, &t, &b);
-    const Eigen::Vector3d wo(t.dot(view), b.dot(view), n.dot(view));
     const int idx = s.pixel_index[p];
+    const Eigen::Vector3d view = lights.View(idx);
+    const Eigen::Vector3d wo(t.dot(view), b.dot(view), n.dot(view));
     for (int j = 0; j < s.lights; ++j) {
-      const Eigen::Vector3d& w = stack.light_directions[j];
+      Eigen::Vector3d w;
+      const double gain = lights.At(idx, j, &w);
       const std::size_t cell = s.At(p, j);
+      if (!s.gain.empty()) s.gain[cell] = static_cast<float>(gain);
       s.geometry[cell] = brdf::GeometryOf(Eigen::Vector3d(t.dot(w), b.dot(w), n.dot(w)), wo);
       const float* px = stack.images[j].ptr<float>() + static_cast<std::size_t>(idx) * s.channels;
       bool clip = false, finite = true;
@@ -82,7 +105,7 @@ Samples Gather(const ReflectanceStack& stack, const cv::Mat& normals, const cv::
         clip = clip || px[ch] >= stack.saturation_level;
         finite = finite && std::isfinite(px[ch]);
       }
-      const bool lit = s.geometry[cell].cos_i >= min_cosine;
+      const bool lit = s.geometry[cell].cos_i >= min_cosine && gain > 0.0;
       if (lit && clip) {
         s.saturated[cell] = 1;
         ++clipped;
@@ -114,7 +137,7 @@ PixelSums SumsOf(const Samples& s, int p, const Lobe& lobe, const std::vector<st
     LobeBasis(lobe, g, &a0, &a1);
     ++sums.samples;
     for (int ch = 0; ch < s.channels; ++ch) {
-      const double e = s.intensity[j][ch] * g.cos_i;
+      const double e = s.Irradiance(cell, j, ch) * g.cos_i;
       const double u = e / M_PI, g = e * a0, h = e * (a1 - a0);
       const double y = s.value[cell * s.channels + ch] - g;
       const double w = s.weight[cell * s.channels + ch];
@@ -356,7 +379,7 @@ SensorNoise EstimateNoise(const Samples& s, const std::vector<int>& pixels, cons
       const std::size_t cell = s.At(p, j);
       if (!s.usable[cell]) continue;
       for (int ch = 0; ch < s.channels; ++ch) {
-        const double predicted = Predict(s, cell, lobe, own[i].weight[ch], own[i].rho[ch], s.intensity[j][ch]);
+        const double predicted = Predict(s, cell, lobe, own[i].weight[ch], own[i].rho[ch], s.Irradiance(cell, j, ch));
         const double r = s.value[cell * s.channels + ch] - predicted;
         points[ch].emplace_back(predicted, r * r * correction);
       }
@@ -410,7 +433,7 @@ void WeightSamples(const SensorNoise& noise, const std::vector<int>& pixels, con
       const std::size_t cell = s->At(p, j);
       if (!s->usable[cell]) continue;
       for (int ch = 0; ch < s->channels; ++ch) {
-        const double predicted = Predict(*s, cell, lobe, own[i].weight[ch], own[i].rho[ch], s->intensity[j][ch]);
+        const double predicted = Predict(*s, cell, lobe, own[i].weight[ch], own[i].rho[ch], s->Irradiance(cell, j, ch));
         s->weight[cell * s->channels + ch] = static_cast<float>(1.0 / std::max(noise.Variance(ch, predicted), floor));
       }
     }

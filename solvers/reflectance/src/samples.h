@@ -31,9 +31,33 @@ struct Samples {
   std::vector<brdf::Geometry> geometry;
   std::vector<Eigen::Vector3d> normal;   // [pixel] in camera frame
   std::vector<Eigen::Vector3d> intensity;  // [light]
+  // [pixel][light]: the factor on `intensity` where the stack has near LEDs
+  // (ReflectanceStack::near_lights); empty under distant lights.
+  std::vector<float> gain;
   std::vector<int> usable_count;         // [pixel]
 
   std::size_t At(int p, int j) const { return static_cast<std::size_t>(p) * lights + j; }
+  // The irradiance of a cell's light at normal incidence, in channel ch.
+  double Irradiance(std::size_t cell, int j, int ch) const {
+    return intensity[j][ch] * (gain.empty() ? 1.0 : static_cast<double>(gain[cell]));
+  }
+};
+
+// Where a stack's pixels see its lights and camera from
+// (ReflectanceStack::near_lights, views), with the LEDs' constants worked
+// out once.
+class PixelLights {
+ public:
+  explicit PixelLights(const ReflectanceStack& stack);
+  // Light j seen from pixel `index` (row * width + col): the unit vector
+  // towards it, and the factor on Intensity(j) (1 under distant lights).
+  double At(int index, int j, Eigen::Vector3d* towards) const;
+  // The unit vector from pixel `index` towards the camera.
+  Eigen::Vector3d View(int index) const;
+
+ private:
+  const ReflectanceStack& stack_;
+  std::vector<camera::PreparedNearLight> near_;
 };
 
 // Gathers every masked pixel with a finite normal facing the camera; the

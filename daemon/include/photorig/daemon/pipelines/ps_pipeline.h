@@ -51,7 +51,7 @@ struct PhotometricStereoInput {
   cv::Mat object_mask;       // optional CV_8U: solve only here (DiLiGenT's mask.png, --mask)
   // One per image when the rig gives its LEDs' positions (mm, the frame of
   // pixel_pitch's grid); empty: distant lights.
-  std::vector<solvers::ps::NearLight> near_lights;
+  std::vector<solvers::camera::NearLight> near_lights;
   // A run's: the rig LED each image was lit by, and the LEDs as the run
   // recorded them (what ApplyRigCalibration replaces). Empty for a dataset.
   std::vector<int> image_leds;
@@ -105,6 +105,10 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
 // for data that do not say (DiLiGenT folders), the full-scale code 2^n - 1
 // when the data reach one; infinity when nothing is known to be clipped.
 double EffectiveSaturationLevel(const PhotometricStereoInput& input);
+
+// The camera the run's frames were taken with: its rig's, else orthographic
+// with the run's pixel pitch.
+solvers::camera::Camera CameraOf(const PhotometricStereoInput& input);
 
 // The solver's options for a request that has passed
 // ValidatePhotometricStereoRequest; samples at or above saturation_level are

@@ -33,6 +33,14 @@ namespace photorig::daemon {
 // leaves them out and counts them.
 solvers::reflectance::ReflectanceStack ToReflectanceStack(const PhotometricStereoInput& input);
 
+// Each pixel's own view of the LEDs and the camera where the rig makes them
+// differ over the image: with `near`, the rig's LED positions seen from the
+// surface the photometric-stereo solve placed (height_mm: its depth.tiff,
+// heights in mm, NaN where unsolved); for a pinhole camera, every pixel's
+// line of sight. Empty, or why it cannot (near LEDs without that surface).
+std::string AddPixelGeometry(const PhotometricStereoInput& input, bool near, const cv::Mat& height_mm,
+                             solvers::reflectance::ReflectanceStack* stack);
+
 struct SvbrdfResult {
   PhotometricStereoResult ps;
   solvers::reflectance::ReflectanceSummary summary;

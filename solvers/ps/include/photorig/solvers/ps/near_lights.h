@@ -19,6 +19,7 @@
 // it.
 
 #include "photorig/solvers/camera/camera.h"
+#include "photorig/solvers/camera/near_light.h"
 #include "photorig/solvers/core/summary.h"
 #include "photorig/solvers/ps/integration.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
@@ -31,22 +32,6 @@
 #include <vector>
 
 namespace photorig::solvers::ps {
-
-struct NearLight {
-  Eigen::Vector3d position_mm = Eigen::Vector3d::Zero();
-  Eigen::Vector3d axis{0.0, 0.0, -1.0};  // unit: the direction the LED emits along
-  double cos_exponent = 1.0;             // mu in cos^mu(angle to the axis); 1: a Lambertian emitter
-
-  // The irradiance at `point_mm` at normal incidence relative to the one at
-  // the origin (PhotometricStack::light_scales hold the latter, as a dome's
-  // intensity calibration measures it), and the unit vector towards the LED.
-  // 0 behind the LED.
-  double RelativeIrradiance(const Eigen::Vector3d& point_mm, Eigen::Vector3d* towards_light) const;
-};
-
-// The LEDs of `positions_mm`, each aimed at the origin (as a dome's LEDs are
-// mounted) with the given exponent.
-std::vector<NearLight> LightsAimedAtOrigin(const std::vector<Eigen::Vector3d>& positions_mm, double cos_exponent = 1.0);
 
 struct NearLightOptions {
   // The camera the stack was taken with (its size the stack's); no default:
@@ -88,10 +73,10 @@ struct NearLightSummary : SolverSummary {
 // origin: `directions`) makes on a Lambertian hemisphere of `radius_mm`
 // centred on the origin under `lights`: the bias to expect from solving a
 // near dome as if it were distant, for an object of that size.
-double DistantModelBiasDeg(const std::vector<NearLight>& lights, const std::vector<Eigen::Vector3d>& directions,
+double DistantModelBiasDeg(const std::vector<camera::NearLight>& lights, const std::vector<Eigen::Vector3d>& directions,
                            double radius_mm);
 
-// Photometric stereo with one NearLight per image of `stack`: each round
+// Photometric stereo with one camera::NearLight per image of `stack`: each round
 // fits every pixel's Lambertian model (the thresholds of options.lambertian
 // and options.shadow_threshold_read_sigmas), which places the surface; from
 // the second round on, the pixels whose Lambertian fit the noise does not
@@ -106,7 +91,7 @@ double DistantModelBiasDeg(const std::vector<NearLight>& lights, const std::vect
 // the solved pixels), with the surface's z in the frame of the lights.
 NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions& options,
                                                  const NearLightOptions& near_options,
-                                                 const PhotometricStack& stack, const std::vector<NearLight>& lights,
+                                                 const PhotometricStack& stack, const std::vector<camera::NearLight>& lights,
                                                  NormalMap* result, cv::Mat* height_mm);
 
 }  // namespace photorig::solvers::ps

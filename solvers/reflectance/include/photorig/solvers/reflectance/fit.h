@@ -30,6 +30,7 @@
 // tiny lobe explains.
 
 #include "photorig/solvers/brdf/models.h"
+#include "photorig/solvers/camera/near_light.h"
 #include "photorig/solvers/core/progress.h"
 #include "photorig/solvers/core/summary.h"
 
@@ -66,6 +67,16 @@ struct ReflectanceStack {
   // calibrated stack whose albedo is relative. Empty = all ones.
   std::vector<Eigen::Vector3d> light_intensities;
   Eigen::Vector3d view_direction{0.0, 0.0, 1.0};     // towards the camera (orthographic)
+  // Where each pixel sees the lights and the camera from, where that varies
+  // over the image; empty: light_directions and view_direction for every
+  // pixel. near_lights: one LED per image (a near dome); then points_mm
+  // (CV_32FC3, the surface point each pixel sees, in the LEDs' frame) is
+  // required, and a sample sees its LED along its own direction with
+  // Intensity(j) times the LED's RelativeIrradiance there. views (CV_32FC3):
+  // each pixel's unit vector towards the camera (a pinhole camera).
+  std::vector<camera::NearLight> near_lights;
+  cv::Mat points_mm;
+  cv::Mat views;
   // Samples at or above this value are clipped by the sensor: left out of
   // every fit and counted (SaturatedHighlights).
   double saturation_level = std::numeric_limits<double>::infinity();
