@@ -87,11 +87,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       maps.normals.at<cv::Vec3f>(r, c) = length > 1e-3f ? n / length : cv::Vec3f(0, 0, 1);
     }
 
+  const photorig::solvers::camera::PixelRays rays(photorig::solvers::camera::Camera::Orthographic(cols, rows, pixel_pitch));
   const std::filesystem::path dir = photorig::fuzz::WorkDir() / "asset";
   std::filesystem::remove_all(dir);
   photorig::daemon::GltfExport written;
   try {
-    written = photorig::daemon::WriteGltfAsset(dir.string(), maps, depth, pixel_pitch);
+    written = photorig::daemon::WriteGltfAsset(dir.string(), maps, depth, rays);
   } catch (const std::runtime_error& e) {
     Check(std::strstr(e.what(), "no fitted pixel has a depth") != nullptr, e.what());
     return 0;
@@ -113,8 +114,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const float z = depth.at<float>(r, c);
       if (maps.material.at<std::uint8_t>(r, c) >= maps.materials.size() || !std::isfinite(z)) continue;
       const cv::Vec3f n = maps.normals.at<cv::Vec3f>(r, c);
-      expected.push_back({static_cast<float>((c + 0.5) * pixel_pitch), static_cast<float>(-(r + 0.5) * pixel_pitch), z,
-                          n[0], n[1], n[2]});
+      // The dome's frame: x right and y up from the image's centre.
+      expected.push_back({static_cast<float>((c + 0.5 - 0.5 * cols) * pixel_pitch),
+                          static_cast<float>((0.5 * rows - r - 0.5) * pixel_pitch), z, n[0], n[1], n[2]});
     }
   Check(written.vertices == expected.size(), "vertex count reported wrong");
   const std::size_t vertices = expected.size();

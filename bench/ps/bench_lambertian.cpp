@@ -248,16 +248,17 @@ void BM_MethodVsL2(benchmark::State& state) {
 
 // A 34 mm sphere filling a square image under the 48 LEDs of Sphere() moved
 // to `dome_radius_mm`, each aimed at the origin (Lambertian emitters), with
-// the same noise; the sphere's rim on the sample plane.
+// the same noise and, for a shininess above 0, Sphere()'s lobe seen from
+// +z; the sphere's rim on the sample plane.
 struct NearScene {
   Scene scene;
   std::vector<photorig::solvers::camera::NearLight> lights;
   double pixel_pitch_mm = 0.0;
 };
 
-const NearScene& NearSphere(int size, double dome_radius_mm) {
-  static std::map<std::pair<int, double>, NearScene> cache;
-  auto found = cache.find({size, dome_radius_mm});
+const NearScene& NearSphere(int size, double dome_radius_mm, double shininess) {
+  static std::map<std::tuple<int, double, double>, NearScene> cache;
+  auto found = cache.find({size, dome_radius_mm, shininess});
   if (found != cache.end()) return found->second;
   constexpr double kRadiusMm = 17.0;
   NearScene near;
@@ -279,25 +280,27 @@ const NearScene& NearSphere(int size, double dome_radius_mm) {
       const Eigen::Vector3d point = kRadiusMm * n;
       Eigen::Vector3d towards;
       const double irradiance = near.lights[k].RelativeIrradiance(point, &towards);
-      const double signal = stack.light_scales[k] * 0.6 / M_PI * std::max(0.0, n.dot(towards)) * irradiance;
+      double brdf = 0.6 / M_PI;
+      if (shininess > 0.0)
+        brdf += 0.3 * (shininess + 2.0) / (2.0 * M_PI) *
+                std::pow(std::max(0.0, n.dot((towards + Eigen::Vector3d::UnitZ()).normalized())), shininess);
+      const double signal = stack.light_scales[k] * brdf * std::max(0.0, n.dot(towards)) * irradiance;
       out[p] = static_cast<float>(20.0 + signal + std::sqrt(4.0 + 0.05 * signal) * gauss(rng));
     }
   }
-  return cache.emplace(std::make_pair(size, dome_radius_mm), std::move(near)).first->second;
+  return cache.emplace(std::make_tuple(size, dome_radius_mm, shininess), std::move(near)).first->second;
 }
 
-// The near-light solve and the distant one (the same method, lambertian or
-// robust) timed
+// The near-light solve and the distant one (the same method) timed
 // alternately on the same near-LED stack, each iteration a pair: the time
 // the rounds of normals and depth cost over one distant solve, and what they
 // buy in accuracy. The reported time is the near solve's normals, as the
 // distant solve gives; with_surface_ms adds the full-resolution surface.
 void BM_NearVsDistant(benchmark::State& state) {
   using Clock = std::chrono::steady_clock;
-  const NearScene& near = NearSphere(384, static_cast<double>(state.range(0)));
+  const NearScene& near = NearSphere(384, static_cast<double>(state.range(0)), static_cast<double>(state.range(2)));
   photorig::solvers::ps::PhotometricStereoOptions options;
-  options.method =
-      state.range(1) ? photorig::solvers::ps::Method::kRobust : photorig::solvers::ps::Method::kLambertian;
+  options.method = static_cast<photorig::solvers::ps::Method>(state.range(1));
   options.lambertian.shadow_threshold = 6.0;  // as BM_Method
   photorig::solvers::ps::NearLightOptions near_options;
   near_options.camera = photorig::solvers::camera::Camera::Orthographic(384, 384, near.pixel_pitch_mm);
@@ -330,6 +333,7 @@ void BM_NearVsDistant(benchmark::State& state) {
   state.counters["near_mean_deg"] = photorig::solvers::ps::CompareNormals(map.normals, truth, near.scene.stack.mask).mean_deg;
   state.counters["distant_mean_deg"] =
       photorig::solvers::ps::CompareNormals(distant_map.normals, truth, near.scene.stack.mask).mean_deg;
+  state.SetLabel(photorig::solvers::ps::MethodName(options.method));
 }
 
 BENCHMARK(BM_StreamingRead)->Arg(96)->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -368,13 +372,16 @@ BENCHMARK(BM_MethodVsL2)
     ->Args({4, 50})
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
-// Arg: the LEDs' distance from the sample (mm). The target: near within 3x of distant.
-// Args: the LEDs' distance (mm), and the method of both solves (0 lambertian, 1 robust).
+// Args: the LEDs' distance (mm), the method of both solves (as BM_Method's),
+// the Blinn-Phong exponent (0 = matte). The target: near within 3x of distant.
 BENCHMARK(BM_NearVsDistant)
-    ->ArgNames({"dome_mm", "robust"})
-    ->Args({80, 0})
-    ->Args({400, 0})
-    ->Args({80, 1})
+    ->ArgNames({"dome_mm", "method", "shininess"})
+    ->Args({80, 1, 0})
+    ->Args({400, 1, 0})
+    ->Args({80, 2, 0})
+    ->Args({80, 2, 50})
+    ->Args({80, 3, 50})
+    ->Args({80, 4, 50})
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
 

@@ -46,7 +46,8 @@ TEST(GltfExport, TheAssetLoadsBackAndRendersLikeTheFit) {
     for (int c = 0; c < depth.cols; ++c)
       if (scene.mask.at<std::uint8_t>(r, c)) depth.at<float>(r, c) = maps.normals.at<cv::Vec3f>(r, c)[2];
   const fs::path dir = fs::temp_directory_path() / ("gltf_export_" + std::to_string(::getpid()));
-  const daemon::GltfExport written = daemon::WriteGltfAsset(dir.string(), maps, depth, 1.0);
+  const daemon::GltfExport written = daemon::WriteGltfAsset(
+      dir.string(), maps, depth, solvers::camera::PixelRays(solvers::camera::Camera::Orthographic(depth.cols, depth.rows, 1.0)));
   EXPECT_EQ(written.vertices, static_cast<std::size_t>(cv::countNonZero(scene.mask)));
   EXPECT_GT(written.triangles, written.vertices);
 
@@ -75,7 +76,9 @@ TEST(GltfExport, TheAssetLoadsBackAndRendersLikeTheFit) {
     ASSERT_TRUE(refl::RenderReflectance(maps, light, Eigen::Vector3d::Ones(), view, &relit).IsSolutionUsable());
     double diff_file = 0.0, diff_fit = 0.0, norm = 0.0;
     for (int v = 0; v < vertices; ++v) {
-      const int c = static_cast<int>(std::floor(position[3 * v])), r = static_cast<int>(std::floor(-position[3 * v + 1]));
+      // The dome's frame: x right and y up from the image's centre, 1 mm a pixel.
+      const int c = static_cast<int>(std::floor(position[3 * v] + 0.5 * depth.cols));
+      const int r = static_cast<int>(std::floor(0.5 * depth.rows - position[3 * v + 1]));
       const int tc = static_cast<int>(uv[2 * v] * base.cols), tr = static_cast<int>(uv[2 * v + 1] * base.rows);
       ASSERT_EQ(tc, c);
       ASSERT_EQ(tr, r);

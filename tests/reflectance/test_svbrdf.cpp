@@ -196,6 +196,29 @@ TEST(Svbrdf, RenderingAFlatPixelIsTheBrdfModel) {
   for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(image.at<cv::Vec3f>(0, 0)[ch], (ch + 1) * f[ch] * wi.z(), 1e-5);
 }
 
+// Through a pinhole every pixel has its own view: each pixel renders as the
+// fixed-view render along its own line of sight does.
+TEST(Svbrdf, RenderingAlongEachPixelsLineOfSightIsTheFixedViewRenderThere) {
+  refl::ReflectanceMaps maps;
+  maps.materials = {Phong(0.4, 30.0)};
+  maps.normals = cv::Mat(1, 2, CV_32FC3, cv::Scalar(0.1, 0.0, 0.995));
+  maps.albedo = cv::Mat(1, 2, CV_32FC1, cv::Scalar(0.5));
+  maps.material = cv::Mat(1, 2, CV_8U, cv::Scalar(0));
+  maps.flags = cv::Mat(1, 2, CV_8U, cv::Scalar(0));
+  const Eigen::Vector3d light = Eigen::Vector3d(-0.2, 0.1, 0.97).normalized();
+  const Eigen::Vector3d view[2] = {Eigen::Vector3d(0.25, 0.0, 0.97).normalized(), Eigen::Vector3d(-0.2, 0.1, 0.97).normalized()};
+  cv::Mat views(1, 2, CV_32FC3), per_pixel;
+  for (int c = 0; c < 2; ++c) views.at<cv::Vec3f>(0, c) = cv::Vec3f(float(view[c].x()), float(view[c].y()), float(view[c].z()));
+  ASSERT_TRUE(refl::RenderReflectance(maps, light, Eigen::Vector3d::Ones(), views, &per_pixel).IsSolutionUsable());
+  for (int c = 0; c < 2; ++c) {
+    cv::Mat fixed;
+    ASSERT_TRUE(refl::RenderReflectance(maps, light, Eigen::Vector3d::Ones(), view[c], &fixed).IsSolutionUsable());
+    EXPECT_NEAR(per_pixel.at<float>(0, c), fixed.at<float>(0, c), 1e-6f * fixed.at<float>(0, c)) << c;
+  }
+  // The first line of sight meets the light's highlight (n . h = 0.996), the second does not (0.94).
+  EXPECT_GT(per_pixel.at<float>(0, 0), 2.0f * per_pixel.at<float>(0, 1));
+}
+
 // A glossy sphere (17 mm, seen orthographically at 0.4 mm a pixel) under
 // LEDs 80 mm from the origin: each point sees every LED along its own
 // direction and with its own irradiance. Given the surface's points, the

@@ -152,13 +152,23 @@ int Relight(const RelightOptions& options) {
       return Fail(kExitUsage, (svbrdf / "report.json").string() + " not found: run `photorig solve svbrdf --run " +
                                   options.run_dir + "` first");
     const solvers::reflectance::ReflectanceMaps maps = daemon::ReadSvbrdfResult(svbrdf.string());
+    // Seen as the run was: through a pinhole each pixel has its own line of sight.
+    const daemon::RunManifest manifest = daemon::LoadRunManifest(options.run_dir);
+    const cv::Mat views =
+        manifest.projection == solvers::camera::Projection::kPinhole
+            ? solvers::camera::PixelRays({manifest.projection, manifest.width, manifest.height, manifest.pixel_pitch_mm,
+                                          manifest.pinhole})
+                  .ViewDirections()
+            : cv::Mat();
     for (const auto& light : options.lights) {
       if (light.size() != 3 && light.size() != 4) throw std::invalid_argument("--light takes X,Y,Z or X,Y,Z,INTENSITY");
       const Eigen::Vector3d d(light[0], light[1], light[2]);
       if (!(d.norm() > 0)) throw std::invalid_argument("--light: zero direction");
       cv::Mat one;
-      const solvers::core::Summary rendered = solvers::reflectance::RenderReflectance(
-          maps, d.normalized(), Eigen::Vector3d::Constant(light.size() == 4 ? light[3] : 1.0), Eigen::Vector3d::UnitZ(), &one);
+      const Eigen::Vector3d intensity = Eigen::Vector3d::Constant(light.size() == 4 ? light[3] : 1.0);
+      const solvers::core::Summary rendered =
+          views.empty() ? solvers::reflectance::RenderReflectance(maps, d.normalized(), intensity, Eigen::Vector3d::UnitZ(), &one)
+                        : solvers::reflectance::RenderReflectance(maps, d.normalized(), intensity, views, &one);
       if (!rendered.IsSolutionUsable()) return Fail(kExitFailed, svbrdf.string() + ": " + rendered.message);
       if (relit.empty()) relit = one; else relit += one;
     }

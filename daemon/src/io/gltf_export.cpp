@@ -99,7 +99,7 @@ void GltfParameterMaps(const refl::ReflectanceMaps& maps, cv::Mat* roughness, cv
 }
 
 GltfExport WriteGltfAsset(const std::string& directory, const refl::ReflectanceMaps& maps, const cv::Mat& depth,
-                          double pixel_pitch) {
+                          const solvers::camera::PixelRays& rays) {
   const fs::path dir(directory);
   fs::create_directories(dir);
   const int rows = maps.albedo.rows, cols = maps.albedo.cols, C = maps.albedo.channels();
@@ -148,7 +148,7 @@ GltfExport WriteGltfAsset(const std::string& directory, const refl::ReflectanceM
       if (maps.material.at<std::uint8_t>(r, c) >= maps.materials.size() || !std::isfinite(z) || !std::isfinite(n[0]))
         continue;
       index.at<int>(r, c) = static_cast<int>(positions.size() / 3);
-      const Eigen::Vector3f p(static_cast<float>((c + 0.5) * pixel_pitch), static_cast<float>(-(r + 0.5) * pixel_pitch), z);
+      const Eigen::Vector3f p = rays.Point(r, c, z).cast<float>();
       lo = lo.cwiseMin(p);
       hi = hi.cwiseMax(p);
       positions.insert(positions.end(), {p.x(), p.y(), p.z()});

@@ -220,14 +220,7 @@ std::string AddPixelGeometry(const PhotometricStereoInput& input, bool near, con
   const solvers::camera::Camera camera = CameraOf(input);
   const solvers::camera::PixelRays rays(camera);
   const int rows = input.stack.height(), cols = input.stack.width();
-  if (camera.IsPinhole()) {
-    stack->views.create(rows, cols, CV_32FC3);
-    for (int r = 0; r < rows; ++r)
-      for (int c = 0; c < cols; ++c) {
-        const Eigen::Vector3d v = rays.ViewDirection(r, c);
-        stack->views.at<cv::Vec3f>(r, c) = cv::Vec3f(float(v.x()), float(v.y()), float(v.z()));
-      }
-  }
+  if (camera.IsPinhole()) stack->views = rays.ViewDirections();
   if (!near) return {};
   if (height_mm.size() != cv::Size(cols, rows) || height_mm.type() != CV_32F)
     return "the rig's LEDs are near: the reflectance fits need the surface the photometric-stereo solve placed "
@@ -436,7 +429,7 @@ SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const conf
         }
         if (request.export_gltf && fs::exists(out / "ps" / "depth.tiff")) {
           const cv::Mat depth = ReadFloatTiff((out / "ps" / "depth.tiff").string());
-          result.gltf_path = WriteGltfAsset((out / "asset").string(), maps, depth, input.pixel_pitch).gltf_path;
+          result.gltf_path = WriteGltfAsset((out / "asset").string(), maps, depth, solvers::camera::PixelRays(CameraOf(input))).gltf_path;
         }
       }
     }

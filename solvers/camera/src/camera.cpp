@@ -89,4 +89,14 @@ PixelRays::PixelRays(const Camera& camera) : camera_(camera), lines_(camera.heig
     }
 }
 
+cv::Mat PixelRays::ViewDirections() const {
+  cv::Mat views(lines_.size(), CV_32FC3);
+  for (int r = 0; r < views.rows; ++r)
+    for (int c = 0; c < views.cols; ++c) {
+      const Eigen::Vector3d v = ViewDirection(r, c);
+      views.at<cv::Vec3f>(r, c) = cv::Vec3f(static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z()));
+    }
+  return views;
+}
+
 }  // namespace photorig::solvers::camera

@@ -8,14 +8,18 @@
 
 namespace photorig::solvers::reflectance {
 
-core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
-                          const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image) {
+namespace {
+
+// RenderReflectance with the view of pixel (r, c) from view_of(r, c).
+template <typename ViewOf>
+core::Summary Render(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction, const Eigen::Vector3d& intensity,
+                     ViewOf view_of, cv::Mat* image) {
   if (maps.albedo.empty() || maps.flags.size() != maps.albedo.size() || maps.normals.size() != maps.albedo.size())
     return core::Ended(core::Termination::kInvalidInput, "the reflectance maps are empty or differ in size");
   if (image == nullptr) return core::Ended(core::Termination::kInvalidInput, "no output image given");
   const int C = maps.albedo.channels();
   *image = cv::Mat(maps.albedo.size(), CV_32FC(C), cv::Scalar::all(0));
-  const Eigen::Vector3d w = light_direction.normalized(), v = view_direction.normalized();
+  const Eigen::Vector3d w = light_direction.normalized();
   for (int r = 0; r < image->rows; ++r)
     for (int c = 0; c < image->cols; ++c) {
       const std::uint8_t m = maps.material.at<std::uint8_t>(r, c);
@@ -23,7 +27,7 @@ core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector
       const MaterialFit& fit = maps.materials[m];
       const cv::Vec3f nf = maps.normals.at<cv::Vec3f>(r, c);
       const Eigen::Vector3d n = Eigen::Vector3d(nf[0], nf[1], nf[2]).normalized();
-      const Eigen::Vector3d wi = internal::ToLocal(n, w), wo = internal::ToLocal(n, v);
+      const Eigen::Vector3d wi = internal::ToLocal(n, w), wo = internal::ToLocal(n, view_of(r, c));
       brdf::ModelParams params{fit.model, Eigen::Vector3d::Zero(), fit.specular, fit.shape};
       const float* albedo = maps.albedo.ptr<float>(r) + c * C;
       for (int ch = 0; ch < C; ++ch) params.diffuse[ch] = albedo[ch];
@@ -32,6 +36,26 @@ core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector
       for (int ch = 0; ch < C; ++ch) out[ch] = static_cast<float>(intensity[ch] * f[ch] * std::max(0.0, wi.z()));
     }
   return core::Ended(core::Termination::kSuccess, "");
+}
+
+}  // namespace
+
+core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
+                          const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image) {
+  const Eigen::Vector3d v = view_direction.normalized();
+  return Render(maps, light_direction, intensity, [&](int, int) { return v; }, image);
+}
+
+core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
+                                const Eigen::Vector3d& intensity, const cv::Mat& views, cv::Mat* image) {
+  if (views.type() != CV_32FC3 || views.size() != maps.albedo.size())
+    return core::Ended(core::Termination::kInvalidInput, "views must be CV_32FC3 of the maps' size");
+  return Render(maps, light_direction, intensity,
+                [&](int r, int c) -> Eigen::Vector3d {
+                  const cv::Vec3f v = views.at<cv::Vec3f>(r, c);
+                  return Eigen::Vector3d(v[0], v[1], v[2]).normalized();
+                },
+                image);
 }
 
 const char* MethodName(Method method) {

@@ -18,6 +18,8 @@
 
 #include "photorig/solvers/reflectance/fit.h"
 
+#include "photorig/solvers/camera/camera.h"
+
 #include <opencv2/core.hpp>
 
 #include <string>
@@ -32,10 +34,13 @@ struct GltfExport {
   std::size_t triangles = 0;
 };
 
-// Writes asset.gltf (+ asset.bin and the textures) into `directory`. Throws
+// Writes asset.gltf (+ asset.bin and the textures) into `directory`: a
+// vertex per fitted pixel with a finite depth, at the point of its line of
+// sight (`rays`, the run's camera) at that height, in mm in the dome's frame;
+// through a pinhole the mesh has the object's shape, not the image's. Throws
 // std::runtime_error naming the file when one cannot be written.
 GltfExport WriteGltfAsset(const std::string& directory, const solvers::reflectance::ReflectanceMaps& maps,
-                          const cv::Mat& depth, double pixel_pitch);
+                          const cv::Mat& depth, const solvers::camera::PixelRays& rays);
 
 // The per-pixel glTF parameters of a fit: roughness (CV_32F) and specular
 // colour F0 (CV_32FC3), 0 where not fitted.

@@ -78,6 +78,8 @@ class PixelRays {
     const cv::Vec4f& l = lines_.at<cv::Vec4f>(r, c);
     return Eigen::Vector3d(l[2], l[3], 1.0).normalized();
   }
+  // ViewDirection of every pixel: CV_32FC3.
+  cv::Mat ViewDirections() const;
   // The slope of pixel (r, c)'s line: (dx, dy) per mm of height (0 when
   // orthographic); for a pinhole camera -(x_n, -y_n).
   Eigen::Vector2d Slope(int r, int c) const {

@@ -20,6 +20,10 @@ namespace photorig::solvers::reflectance {
 // stack's units): CV_32FC(C), zero where the pixel was not fitted.
 core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
                           const Eigen::Vector3d& intensity, const Eigen::Vector3d& view_direction, cv::Mat* image);
+// The same seen along each pixel's own line of sight (a pinhole camera):
+// views, CV_32FC3 of the maps' size, the unit vectors towards the camera.
+core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector3d& light_direction,
+                                const Eigen::Vector3d& intensity, const cv::Mat& views, cv::Mat* image);
 
 // ---- Held-out-light relighting ----
 
