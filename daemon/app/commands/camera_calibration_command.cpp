@@ -12,7 +12,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 #include <regex>
 
 namespace photorig::app {
@@ -126,11 +125,9 @@ int Execute(Options o) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto o = std::make_shared<Options>();
-  CLI::App* calibrate = SubcommandGroup(app, "calibrate", "calibrate the rig");
+CLI::App* Setup(CLI::App& app, Options* o) {
   CLI::App* camera =
-      calibrate->add_subcommand("camera", "pinhole intrinsics and distortion from checkerboard photographs");
+      CalibrateGroup(app)->add_subcommand("camera", "pinhole intrinsics and distortion from checkerboard photographs");
   camera->add_option("--images", o->images, "checkerboard photographs in several poses")
       ->required()->check(CLI::ExistingFile);
   camera->add_option("--board", o->board, "inner corners of the board as COLSxROWS (10 x 7 squares: 9x6)")->required();
@@ -140,10 +137,10 @@ CommandRunner Setup(CLI::App& app) {
       ->required();
   camera->add_option("--rig", o->rig, "rig YAML whose camera took the photographs")->required()->check(CLI::ExistingFile);
   camera->add_option("--out-rig", o->out_rig, "new rig YAML to write, with the calibrated lens")->required();
-  return {camera, [o] { return Execute(*o); }};
+  return camera;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app
