@@ -2,6 +2,7 @@
 
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/io/json_fields.h"
+#include "photorig/solvers/core/names.h"
 
 #include <opencv2/imgproc.hpp>
 #include <spdlog/fmt/fmt.h>
@@ -118,13 +119,10 @@ FrameRecord FrameRecordFromJson(const json& j) {
 
 namespace {
 
-constexpr struct {
-  CaptureStatus status;
-  const char* name;
-} kCaptureStatusNames[] = {
+constexpr solvers::core::NameTable<CaptureStatus, 5> kCaptureStatusNames = {{
     {CaptureStatus::kRunning, "running"}, {CaptureStatus::kComplete, "complete"}, {CaptureStatus::kFailed, "failed"},
     {CaptureStatus::kAborted, "aborted"}, {CaptureStatus::kInterrupted, "interrupted"},
-};
+}};
 
 CaptureStatus CaptureStatusFromJson(const json& j) {
   const std::string name = j.get<std::string>();
@@ -135,18 +133,12 @@ CaptureStatus CaptureStatusFromJson(const json& j) {
 
 }  // namespace
 
-const char* CaptureStatusName(CaptureStatus status) {
-  for (const auto& entry : kCaptureStatusNames)
-    if (entry.status == status) return entry.name;
-  return "unknown";
-}
+const char* CaptureStatusName(CaptureStatus status) { return solvers::core::NameOf(kCaptureStatusNames, status); }
 
 std::ostream& operator<<(std::ostream& out, CaptureStatus status) { return out << CaptureStatusName(status); }
 
 std::optional<CaptureStatus> CaptureStatusFromName(const std::string& name) {
-  for (const auto& entry : kCaptureStatusNames)
-    if (name == entry.name) return entry.status;
-  return std::nullopt;
+  return solvers::core::ParseName(kCaptureStatusNames, name);
 }
 
 json ToJson(const StopRecord& s) {
