@@ -7,6 +7,7 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
+#include "photorig/daemon/io/lens_json.h"
 #include "photorig/daemon/pipelines/camera_calibration.h"
 
 #include <algorithm>
@@ -42,18 +43,11 @@ int PlaneImageIndex(const std::string& plane, std::vector<std::string>* images) 
 }
 
 nlohmann::json SummaryJson(const solvers::camera::CheckerboardCalibrationSummary& s) {
-  const solvers::camera::PinholeLens& lens = s.lens;
   return {{"termination", solvers::core::TerminationName(s.termination)},
           {"message", s.message},
           {"width_px", s.width_px},
           {"height_px", s.height_px},
-          {"lens",
-           {{"fx_px", lens.fx_px},
-            {"fy_px", lens.fy_px},
-            {"cx_px", lens.cx_px},
-            {"cy_px", lens.cy_px},
-            {"distortion", lens.distortion},
-            {"distance_mm", lens.distance_mm}}},
+          {"lens", daemon::PinholeLensJson(s.lens)},
           {"std",
            {{"fx_px", s.fx_std_px},
             {"fy_px", s.fy_std_px},
