@@ -3,14 +3,16 @@
 // app/commands/ and registers itself at static-initialisation time:
 //
 //   namespace {
-//   photorig::app::CommandRunner Setup(CLI::App& app) {
+//   CLI::App* Setup(CLI::App& app, Options* options) {
 //     CLI::App* sub = app.add_subcommand("name", "what it does");
-//     auto options = std::make_shared<Options>();   // bound to CLI11 options
-//     ...
-//     return {sub, [options] { return Execute(*options); }};
+//     sub->add_option("--flag", options->flag, "...");   // bound to CLI11 options
+//     return sub;
 //   }
-//   const bool registered = photorig::app::RegisterCommand(Setup);
+//   const bool registered = photorig::app::RegisterCommand<Options, Setup, Execute>();
 //   }  // namespace
+//
+// A command whose runner does more than call Execute on its options writes
+// its own CommandSetup and registers that with RegisterCommand(setup).
 //
 // The runner returns the process exit code (command_output.h, docs/cli.md):
 // 0 success, 1 a failed run or solve, 2 a usage or configuration error,
@@ -24,6 +26,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -36,9 +39,24 @@ struct CommandRunner {
 using CommandSetup = CommandRunner (*)(CLI::App& app);
 
 bool RegisterCommand(CommandSetup setup);
+
+// Registers a command whose flags, added by `Setup`, fill an Options that
+// `Execute` then runs on; the options live as long as the runner.
+template <typename Options, CLI::App* (*Setup)(CLI::App&, Options*), auto Execute>
+bool RegisterCommand() {
+  return RegisterCommand([](CLI::App& app) -> CommandRunner {
+    auto options = std::make_shared<Options>();
+    CLI::App* subcommand = Setup(app, options.get());
+    return {subcommand, [options] { return Execute(*options); }};
+  });
+}
+
 // Subcommand groups shared by several files ("solve", "calibrate"): returns the
 // existing group or adds it, so `solve ps` and `solve color` can live apart.
 CLI::App* SubcommandGroup(CLI::App& app, const std::string& name, const std::string& description);
+// The groups that commands of several files join, each described once.
+CLI::App* SolveGroup(CLI::App& app);      // solve <family>, solve --from
+CLI::App* CalibrateGroup(CLI::App& app);  // calibrate <what>
 const std::vector<CommandSetup>& RegisteredCommands();
 
 // An option naming one value of a solver's name table, parsed into the enum:

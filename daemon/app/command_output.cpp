@@ -34,6 +34,11 @@ int Fail(ExitCode code, const std::string& why) {
   return code;
 }
 
+void ReportResultsDirectory(const std::string& directory, nlohmann::json& fields) {
+  std::printf("results: %s/\n", directory.c_str());
+  fields["results_directory"] = directory;
+}
+
 void SilenceOutput() {
   std::fflush(stdout);
   std::fflush(stderr);

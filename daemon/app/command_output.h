@@ -35,6 +35,10 @@ nlohmann::json& ResultFields();
 // stderr, and returns `code` for the command to return.
 int Fail(ExitCode code, const std::string& why);
 
+// Where a solve wrote its results: "results: DIR/" for people, and DIR as the
+// "results_directory" of `fields` (the document's own, or one solve's part).
+void ReportResultsDirectory(const std::string& directory, nlohmann::json& fields = ResultFields());
+
 // Sends this process's text and JSON document to /dev/null: for the
 // processes of a distributed solve (solve tomography --mpi) other than the
 // first, which speaks for all of them.

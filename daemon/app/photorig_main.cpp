@@ -33,6 +33,10 @@ CLI::App* SubcommandGroup(CLI::App& app, const std::string& name, const std::str
   return group;
 }
 
+CLI::App* SolveGroup(CLI::App& app) { return SubcommandGroup(app, "solve", "run a solver on stored data"); }
+
+CLI::App* CalibrateGroup(CLI::App& app) { return SubcommandGroup(app, "calibrate", "calibrate the rig"); }
+
 namespace {
 
 // Every command takes --json (command_output.h), and so does a group that

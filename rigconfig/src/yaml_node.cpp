@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 namespace photorig::config {
 namespace {
@@ -20,6 +21,17 @@ std::string Describe(const YAML::Node& node) {
   if (node.IsScalar()) return "'" + node.Scalar() + "'";
   if (node.IsSequence()) return "a list";
   return "a map";
+}
+
+// A scalar as T; nullopt for a list, a map or text that is no T.
+template <typename T>
+std::optional<T> ScalarAs(const YAML::Node& node) {
+  if (!node.IsScalar()) return std::nullopt;
+  try {
+    return node.as<T>();
+  } catch (const YAML::Exception&) {
+    return std::nullopt;
+  }
 }
 
 // A map key as a string. YAML allows any node as a key (`? [a, b]`, `? {a: 1}`,
@@ -178,33 +190,17 @@ std::string YamlNode::AsString() const {
 }
 
 double YamlNode::AsDouble() const {
-  if (node_.IsScalar()) {
-    try {
-      const double value = node_.as<double>();
-      if (std::isfinite(value)) return value;
-    } catch (const YAML::Exception&) {
-    }
-  }
+  if (const std::optional<double> value = ScalarAs<double>(node_); value && std::isfinite(*value)) return *value;
   Fail("expected a number, got " + Describe(node_));
 }
 
 int YamlNode::AsInt() const {
-  if (node_.IsScalar()) {
-    try {
-      return node_.as<int>();
-    } catch (const YAML::Exception&) {
-    }
-  }
+  if (const std::optional<int> value = ScalarAs<int>(node_)) return *value;
   Fail("expected an integer, got " + Describe(node_));
 }
 
 bool YamlNode::AsBool() const {
-  if (node_.IsScalar()) {
-    try {
-      return node_.as<bool>();
-    } catch (const YAML::Exception&) {
-    }
-  }
+  if (const std::optional<bool> value = ScalarAs<bool>(node_)) return *value;
   Fail("expected true or false, got " + Describe(node_));
 }
 

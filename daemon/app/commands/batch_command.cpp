@@ -9,12 +9,12 @@
 #include "../progress_display.h"
 #include "../signals.h"
 #include "photorig/config/solve_requests.h"
+#include "photorig/daemon/io/utc_time.h"
 #include "photorig/daemon/service/internal/batch.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
 
 #include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <functional>
 #include <filesystem>
 #include <map>
@@ -27,14 +27,7 @@ namespace fs = std::filesystem;
 using daemon::BatchManifest;
 using daemon::TaskStatus;
 
-std::string DefaultBatchDirectory() {
-  const std::time_t now = std::time(nullptr);
-  std::tm utc{};
-  gmtime_r(&now, &utc);
-  char text[40];
-  std::strftime(text, sizeof(text), "batches/%Y%m%dT%H%M%SZ", &utc);
-  return text;
-}
+std::string DefaultBatchDirectory() { return "batches/" + daemon::UtcNowInName(); }
 
 nlohmann::json Counts(const std::vector<TaskStatus>& statuses) {
   std::map<std::string, int> counts;

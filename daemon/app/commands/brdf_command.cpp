@@ -22,7 +22,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -74,20 +73,18 @@ int Execute(const Options& options) {
   return finish(result.usable() ? kExitOk : kExitFailed, result.failure());
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
-  CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
-  CLI::App* sub = solve->add_subcommand("brdf", "fit BRDF models to a gonioreflectometer run and choose one");
+CLI::App* Setup(CLI::App& app, Options* options) {
+  CLI::App* sub = SolveGroup(app)->add_subcommand("brdf", "fit BRDF models to a gonioreflectometer run and choose one");
   sub->add_option("--run", options->run_dir, "run directory")->required()->check(CLI::ExistingDirectory);
   AddAcceptFailedCaptureFlag(sub, &options->accept_failed_capture);
   AddChoice(sub, "--loss", &options->loss, brdf::kFitLossNames, "weighted: by each sample's deviation");
   AddChoice(sub, "--calibration", &options->calibrate_with_target, config::BrdfRequest::kCalibrationNames,
             "reference: the rig's reference target; camera: the camera's stated response");
   sub->add_option("--out", options->out, "output directory (default: RUN/results/brdf)");
-  return {sub, [options] { return Execute(*options); }};
+  return sub;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

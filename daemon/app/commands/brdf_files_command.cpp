@@ -27,7 +27,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -227,8 +226,7 @@ int Convert(const Options& o) {
 
 CLI::App* Group(CLI::App& app) { return SubcommandGroup(app, "brdf", "measured-BRDF files: fit, evaluate, convert"); }
 
-CommandRunner SetupFit(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* SetupFit(CLI::App& app, Options* options) {
   CLI::App* fit = Group(app)->add_subcommand("fit", "fit BRDF models to a MERL or RGL table, or to samples.csv, and choose one");
   fit->add_option("file", options->file, "a .binary, .bsdf or samples .csv file")->required();
   fit->add_option_function<std::string>(
@@ -241,20 +239,18 @@ CommandRunner SetupFit(CLI::App& app) {
   fit->add_option("--out", options->out, "write report.json (and, for samples.csv, the samples fitted)");
   fit->add_flag("--keep-table", options->keep_table,
                 "with --out: keep the measured table as the material (material.binary|.bsdf), the fits reported beside it");
-  return {fit, [options] { return Fit(*options); }};
+  return fit;
 }
 
-CommandRunner SetupEval(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* SetupEval(CLI::App& app, Options* options) {
   CLI::App* eval = Group(app)->add_subcommand("eval", "a table's f_r at one configuration");
   eval->add_option("file", options->file, "a .binary or .bsdf file")->required();
   eval->add_option("--wi", options->wi_deg, "towards the light: theta phi in degrees")->expected(2)->required();
   eval->add_option("--wo", options->wo_deg, "towards the camera: theta phi in degrees")->expected(2)->required();
-  return {eval, [options] { return Eval(*options); }};
+  return eval;
 }
 
-CommandRunner SetupConvert(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* SetupConvert(CLI::App& app, Options* options) {
   CLI::App* convert = Group(app)->add_subcommand(
       "convert", "a table from one format to the other (.binary <-> .bsdf), or a fitted model to a table");
   convert->add_option("in", options->file, "a .binary or .bsdf file, a fit's report.json or one model's .json")
@@ -265,12 +261,12 @@ CommandRunner SetupConvert(CLI::App& app) {
   convert->add_option("--ndf-roughness", options->ndf_roughness,
                       "to .bsdf: the GGX roughness of the parameterising NDF (default 0.5)")
       ->check(CLI::Range(1e-3, 1.0));
-  return {convert, [options] { return Convert(*options); }};
+  return convert;
 }
 
-const bool registered_fit = RegisterCommand(SetupFit);
-const bool registered_eval = RegisterCommand(SetupEval);
-const bool registered_convert = RegisterCommand(SetupConvert);
+const bool registered_fit = RegisterCommand<Options, SetupFit, Fit>();
+const bool registered_eval = RegisterCommand<Options, SetupEval, Eval>();
+const bool registered_convert = RegisterCommand<Options, SetupConvert, Convert>();
 
 }  // namespace
 }  // namespace photorig::app

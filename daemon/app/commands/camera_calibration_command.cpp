@@ -7,12 +7,12 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
+#include "photorig/daemon/io/lens_json.h"
 #include "photorig/daemon/pipelines/camera_calibration.h"
 
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 #include <regex>
 
 namespace photorig::app {
@@ -43,18 +43,11 @@ int PlaneImageIndex(const std::string& plane, std::vector<std::string>* images) 
 }
 
 nlohmann::json SummaryJson(const solvers::camera::CheckerboardCalibrationSummary& s) {
-  const solvers::camera::PinholeLens& lens = s.lens;
   return {{"termination", solvers::core::TerminationName(s.termination)},
           {"message", s.message},
           {"width_px", s.width_px},
           {"height_px", s.height_px},
-          {"lens",
-           {{"fx_px", lens.fx_px},
-            {"fy_px", lens.fy_px},
-            {"cx_px", lens.cx_px},
-            {"cy_px", lens.cy_px},
-            {"distortion", lens.distortion},
-            {"distance_mm", lens.distance_mm}}},
+          {"lens", daemon::PinholeLensJson(s.lens)},
           {"std",
            {{"fx_px", s.fx_std_px},
             {"fy_px", s.fy_std_px},
@@ -126,11 +119,9 @@ int Execute(Options o) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto o = std::make_shared<Options>();
-  CLI::App* calibrate = SubcommandGroup(app, "calibrate", "calibrate the rig");
+CLI::App* Setup(CLI::App& app, Options* o) {
   CLI::App* camera =
-      calibrate->add_subcommand("camera", "pinhole intrinsics and distortion from checkerboard photographs");
+      CalibrateGroup(app)->add_subcommand("camera", "pinhole intrinsics and distortion from checkerboard photographs");
   camera->add_option("--images", o->images, "checkerboard photographs in several poses")
       ->required()->check(CLI::ExistingFile);
   camera->add_option("--board", o->board, "inner corners of the board as COLSxROWS (10 x 7 squares: 9x6)")->required();
@@ -140,10 +131,10 @@ CommandRunner Setup(CLI::App& app) {
       ->required();
   camera->add_option("--rig", o->rig, "rig YAML whose camera took the photographs")->required()->check(CLI::ExistingFile);
   camera->add_option("--out-rig", o->out_rig, "new rig YAML to write, with the calibrated lens")->required();
-  return {camera, [o] { return Execute(*o); }};
+  return camera;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -21,7 +21,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <memory>
 #include <optional>
 #include <sstream>
 
@@ -300,10 +299,9 @@ int ExecuteApply(const ApplyCommandOptions& options) {
   return kExitOk;
 }
 
-CommandRunner SetupCalibrate(CLI::App& app) {
-  auto options = std::make_shared<CalibrateOptions>();
-  CLI::App* calibrate = SubcommandGroup(app, "calibrate", "calibrate the rig from captured targets");
-  CLI::App* sub = calibrate->add_subcommand("color", "colour-correction model from a 24-patch ColorChecker capture");
+CLI::App* SetupCalibrate(CLI::App& app, CalibrateOptions* options) {
+  CLI::App* sub =
+      CalibrateGroup(app)->add_subcommand("color", "colour-correction model from a 24-patch ColorChecker capture");
   sub->add_option("--image", options->image, "chart capture (B, G, R; 8/16-bit or float)")->check(CLI::ExistingFile);
   sub->add_option("--dark", options->dark, "dark frame at the same exposure")->check(CLI::ExistingFile);
   sub->add_option("--sim-camera", options->sim_camera,
@@ -327,11 +325,10 @@ CommandRunner SetupCalibrate(CLI::App& app) {
   sub->add_option("--models", options->models, "candidates (default all): linear affine root-poly-2 root-poly-3 poly-2 poly-3")
       ->delimiter(',');
   sub->add_option("--out", options->out, "output directory")->required();
-  return {sub, [options] { return ExecuteCalibrate(*options); }};
+  return sub;
 }
 
-CommandRunner SetupApply(CLI::App& app) {
-  auto options = std::make_shared<ApplyCommandOptions>();
+CLI::App* SetupApply(CLI::App& app, ApplyCommandOptions* options) {
   CLI::App* sub = app.add_subcommand("apply-color", "apply a colour model to captures or a colour albedo map");
   sub->add_option("--model", options->model, "model.json or model.yaml from calibrate color")
       ->required()
@@ -346,11 +343,11 @@ CommandRunner SetupApply(CLI::App& app) {
                   "exposure x gain relative to the chart capture; for an albedo map, 1 / (chart DN per unit albedo)")
       ->check(CLI::PositiveNumber);
   sub->add_option("--out", options->out, "output directory")->required();
-  return {sub, [options] { return ExecuteApply(*options); }};
+  return sub;
 }
 
-const bool registered_calibrate = RegisterCommand(SetupCalibrate);
-const bool registered_apply = RegisterCommand(SetupApply);
+const bool registered_calibrate = RegisterCommand<CalibrateOptions, SetupCalibrate, ExecuteCalibrate>();
+const bool registered_apply = RegisterCommand<ApplyCommandOptions, SetupApply, ExecuteApply>();
 
 }  // namespace
 }  // namespace photorig::app

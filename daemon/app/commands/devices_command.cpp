@@ -65,14 +65,13 @@ int Execute(const Options& options) {
   return 0;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* Setup(CLI::App& app, Options* options) {
   CLI::App* sub = app.add_subcommand("devices", "list the cameras this machine can see (Aravis, V4L2)");
   sub->add_flag("--no-details", options->no_details, "do not open GenICam cameras to read sensor size and formats");
-  return {sub, [options] { return Execute(*options); }};
+  return sub;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

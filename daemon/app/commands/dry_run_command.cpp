@@ -9,7 +9,6 @@
 #include "photorig/config/solve_requests.h"
 
 #include <cstdio>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -63,8 +62,7 @@ int Execute(const Options& options) {
   return Fail(kExitUsage, why);
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* Setup(CLI::App& app, Options* options) {
   CLI::App* sub = app.add_subcommand("dry-run", "compile a recipe, check limits and estimate time and size (no devices)");
   sub->add_option("recipe", options->recipe, "recipe YAML")->required()->check(CLI::ExistingFile);
   sub->add_option("--rig", options->rig, "rig YAML (default: the rig the recipe names)")->check(CLI::ExistingFile);
@@ -72,10 +70,10 @@ CommandRunner Setup(CLI::App& app) {
   sub->add_option("--max-led-duty", options->max_led_duty, "highest fraction of the run an LED may be lit")
       ->capture_default_str();
   sub->add_flag("--steps", options->list_steps, "list every step");
-  return {sub, [options] { return Execute(*options); }};
+  return sub;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -236,17 +236,16 @@ int Execute(const Options& options) {
   return Finish(report, kExitOk, "");
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* Setup(CLI::App& app, Options* options) {
   CLI::App* sub = app.add_subcommand("fetch", "download a finished run (or its results) from the photorigd daemon");
   sub->add_option("run", options->id, "run id")->required();
   sub->add_flag("--results", options->results_only, "only the run's results/ folder");
   sub->add_option("--out", options->out, "folder to write into (default: ./RUN)");
   options->connection.AddOptions(sub);
-  return {sub, [options] { return Execute(*options); }};
+  return sub;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -11,7 +11,6 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
-#include <memory>
 #include <sstream>
 
 namespace photorig::app {
@@ -87,10 +86,9 @@ int Execute(const Options& o) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto o = std::make_shared<Options>();
-  CLI::App* calibrate = SubcommandGroup(app, "calibrate", "calibrate the rig");
-  CLI::App* leds = calibrate->add_subcommand("leds", "near-LED positions from two or more mirror spheres at known places");
+CLI::App* Setup(CLI::App& app, Options* o) {
+  CLI::App* leds =
+      CalibrateGroup(app)->add_subcommand("leds", "near-LED positions from two or more mirror spheres at known places");
   leds->add_option("--run", o->run_dir, "run directory with one frame per LED")->required()->check(CLI::ExistingDirectory);
   leds->add_option("--sphere", o->spheres, "a mirror sphere's centre X,Y[,Z] in mm, dome frame (Z default 0); repeat per sphere")
       ->required()
@@ -100,10 +98,10 @@ CommandRunner Setup(CLI::App& app) {
   leds->add_option("--rig", o->rig, "rig YAML to copy with the calibrated positions")->check(CLI::ExistingFile);
   leds->add_option("--out-rig", o->out_rig, "new rig YAML to write");
   leds->add_option("--out", o->out, "output directory (default: RUN/results/leds)");
-  return {leds, [o] { return Execute(*o); }};
+  return leds;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

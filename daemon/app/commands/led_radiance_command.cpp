@@ -10,7 +10,6 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -45,12 +44,10 @@ int Execute(const Options& o) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto o = std::make_shared<Options>();
+CLI::App* Setup(CLI::App& app, Options* o) {
   daemon::LedRadianceRequest& request = o->request;
-  CLI::App* calibrate = SubcommandGroup(app, "calibrate", "calibrate the rig");
-  CLI::App* radiance =
-      calibrate->add_subcommand("radiance", "near LEDs' intensities and radiance profiles from a matte plane");
+  CLI::App* radiance = CalibrateGroup(app)->add_subcommand(
+      "radiance", "near LEDs' intensities and radiance profiles from a matte plane");
   radiance->add_option("--run", request.run_directory, "run with a dark frame and one frame of the plane per LED")
       ->required()
       ->check(CLI::ExistingDirectory);
@@ -66,10 +63,10 @@ CommandRunner Setup(CLI::App& app) {
       ->check(CLI::ExistingFile);
   radiance->add_option("--out-rig", request.out_rig, "new rig YAML with the calibrated LEDs; must not exist");
   radiance->add_option("--out", request.output_directory, "output directory (default RUN/results/led-radiance)");
-  return {radiance, [o] { return Execute(*o); }};
+  return radiance;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -18,7 +18,6 @@
 #include <filesystem>
 #include <iostream>
 #include <algorithm>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -105,10 +104,9 @@ int Execute(const Options& o) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto o = std::make_shared<Options>();
-  CLI::App* calibrate = SubcommandGroup(app, "calibrate", "calibrate the rig");
-  CLI::App* lights = calibrate->add_subcommand("lights", "light directions (mirror sphere) and intensities (white sphere)");
+CLI::App* Setup(CLI::App& app, Options* o) {
+  CLI::App* lights =
+      CalibrateGroup(app)->add_subcommand("lights", "light directions (mirror sphere) and intensities (white sphere)");
   auto* run = lights->add_option("--run", o->run_dir, "run directory with one frame per LED")->check(CLI::ExistingDirectory);
   lights->add_option("--images", o->images, "mirror-sphere images, one per light")->check(CLI::ExistingFile)->excludes(run);
   auto* silhouette =
@@ -126,10 +124,10 @@ CommandRunner Setup(CLI::App& app) {
       ->check(CLI::ExistingFile);
   lights->add_option("--out-rig", o->out_rig, "new rig YAML to write");
   lights->add_option("--out", o->out, "output directory (default: RUN/results/lights)");
-  return {lights, [o] { return Execute(*o); }};
+  return lights;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -11,7 +11,6 @@
 #include "photorig/config/yaml_node.h"
 
 #include <cstdio>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -34,15 +33,14 @@ int Execute(const Options& options) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* Setup(CLI::App& app, Options* options) {
   CLI::App* group = SubcommandGroup(app, "lights", "the rig's light controller");
   CLI::App* off = group->add_subcommand("off", "switch every output of the rig's light controller off");
   off->add_option("--rig", options->rig, "rig YAML")->required()->check(CLI::ExistingFile);
-  return {off, [options] { return Execute(*options); }};
+  return off;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -6,7 +6,6 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -30,8 +29,7 @@ int Execute(const Options& options) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* Setup(CLI::App& app, Options* options) {
   CLI::App* group = SubcommandGroup(app, "export", "write stored data in other tools' formats");
   CLI::App* sub = group->add_subcommand("nexus", "a run and its solves as one NeXus (HDF5) file (docs/nexus.md)");
   sub->add_option("--run", options->run_dir, "run directory")->required()->check(CLI::ExistingDirectory);
@@ -39,10 +37,10 @@ CommandRunner Setup(CLI::App& app) {
   sub->add_option("--deflate", options->exporting.writer.deflate_level,
                   "zlib level of the frame stack, 0 (stored) .. 9 (default 4)")
       ->check(CLI::Range(0, 9));
-  return {sub, [options] { return Execute(*options); }};
+  return sub;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -20,7 +20,6 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
-#include <memory>
 #include <optional>
 
 namespace photorig::app {
@@ -88,8 +87,7 @@ int Execute(const Options& o) {
   return plan.IsSolutionUsable() ? kExitOk : Fail(kExitFailed, plan.message);
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* Setup(CLI::App& app, Options* options) {
   CLI::App* group = SubcommandGroup(app, "plan", "plan captures without touching any device");
   CLI::App* sub = group->add_subcommand("brdf", "gonioreflectometer poses uniform in (theta_h, theta_d, phi_d), as a recipe step");
   sub->add_option("--rig", options->rig, "gonioreflectometer rig YAML")->required()->check(CLI::ExistingFile);
@@ -97,10 +95,10 @@ CommandRunner Setup(CLI::App& app) {
   sub->add_option("--theta-d", options->theta_d, "MIN MAX STEPS in degrees (default 10 70 13)")->expected(3);
   sub->add_option("--phi-d", options->phi_d, "MIN MAX STEPS in degrees (default 0 0 1: in-plane)")->expected(3);
   sub->add_option("--rotation", options->rotation_deg, "where the turntable stays, degrees (default 0)");
-  return {sub, [options] { return Execute(*options); }};
+  return sub;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -1,6 +1,9 @@
 #include "ps_report.h"
 
+#include "photorig/daemon/pipelines/diligent.h"
+
 #include <cstdio>
+#include <filesystem>
 
 namespace photorig::app {
 
@@ -14,6 +17,24 @@ void AddIntegratorOption(CLI::App* solve, config::PhotometricStereoRequest* requ
            "--integrator", [request](const std::string& name) { config::ParseIntegratorChoice(name, &request->integrator); },
            "depth from the normals: poisson (default) | frankot-chellappa | none")
       ->check(CLI::IsMember(config::IntegratorChoices()));
+}
+
+std::string StackSource::ResultsDirectory(const std::string& out, const std::string& family) const {
+  if (!out.empty()) return out;
+  return (std::filesystem::path(from_run() ? run_dir : dataset_dir) / "results" / family).string();
+}
+
+daemon::PhotometricStereoInput StackSource::Load(const daemon::ColorStackOptions& color) const {
+  return from_run() ? daemon::LoadRunStack(run_dir, color, FailedCapturePolicy(accept_failed_capture))
+                    : daemon::LoadDiligent(dataset_dir);
+}
+
+void AddStackSourceOptions(CLI::App* solve, StackSource* source) {
+  auto* run = solve->add_option("--run", source->run_dir, "run directory")->check(CLI::ExistingDirectory);
+  auto* dataset =
+      solve->add_option("--dataset", source->dataset_dir, "DiLiGenT-layout folder")->check(CLI::ExistingDirectory);
+  run->excludes(dataset);
+  AddAcceptFailedCaptureFlag(solve, &source->accept_failed_capture);
 }
 
 void WarnOfFailedCapture(const std::optional<daemon::CaptureVerdict>& capture) {

@@ -21,7 +21,6 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 #include <stdexcept>
 
 namespace photorig::app {
@@ -208,8 +207,7 @@ int Relight(const RelightOptions& options) {
   return kExitOk;
 }
 
-CommandRunner SetupRelight(CLI::App& app) {
-  auto options = std::make_shared<RelightOptions>();
+CLI::App* SetupRelight(CLI::App& app, RelightOptions* options) {
   CLI::App* sub = app.add_subcommand("relight", "render a captured object under new lighting");
   sub->add_option("--run", options->run_dir, "run directory (with results/ps for --light)")->required()->check(CLI::ExistingDirectory);
   sub->add_option("--envmap", options->envmap, "lat-long HDR map: image-based relighting from the one-light frames")
@@ -225,7 +223,7 @@ CommandRunner SetupRelight(CLI::App& app) {
             "lambertian (with --light: results/ps normals and albedo), svbrdf (results/svbrdf: "
             "albedo and the materials' lobes), per_pixel_lobe (--held-out only)");
   sub->add_option("--out", options->out, "output float TIFF (an 8-bit PNG view is written beside it)")->required();
-  return {sub, [options] { return Relight(*options); }};
+  return sub;
 }
 
 struct EnvmapOptions {
@@ -325,8 +323,7 @@ int Envmap(const EnvmapOptions& options) {
   return kExitOk;
 }
 
-CommandRunner SetupEnvmap(CLI::App& app) {
-  auto options = std::make_shared<EnvmapOptions>();
+CLI::App* SetupEnvmap(CLI::App& app, EnvmapOptions* options) {
   CLI::App* sub = app.add_subcommand("envmap", "unwrap a mirror-ball image into a lat-long environment map");
   sub->add_option("--ball", options->ball, "mirror-ball image (orthographic)")->required()->check(CLI::ExistingFile);
   sub->add_option("--circle", options->circle, "ball circle CX CY R in pixels")->expected(3)->required();
@@ -341,11 +338,11 @@ CommandRunner SetupEnvmap(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--width", options->width, "map width (height is half)")->check(CLI::Range(16, 16384));
   sub->add_option("--out", options->out, "output .hdr")->required();
-  return {sub, [options] { return Envmap(*options); }};
+  return sub;
 }
 
-const bool registered_relight = RegisterCommand(SetupRelight);
-const bool registered_envmap = RegisterCommand(SetupEnvmap);
+const bool registered_relight = RegisterCommand<RelightOptions, SetupRelight, Relight>();
+const bool registered_envmap = RegisterCommand<EnvmapOptions, SetupEnvmap, Envmap>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -175,13 +175,12 @@ int Submit(const SubmitOptions& options) {
   return options.watch ? Watch(options.connection, reply.body.value("id", "")) : kExitOk;
 }
 
-CommandRunner SetupSubmit(CLI::App& app) {
-  auto options = std::make_shared<SubmitOptions>();
+CLI::App* SetupSubmit(CLI::App& app, SubmitOptions* options) {
   CLI::App* sub = app.add_subcommand("submit", "queue a recipe on the photorigd daemon");
   sub->add_option("recipe", options->recipe, "recipe YAML")->required()->check(CLI::ExistingFile);
   sub->add_flag("--watch", options->watch, "follow the run until it ends");
   options->connection.AddOptions(sub);
-  return {sub, [options] { return Submit(*options); }};
+  return sub;
 }
 
 struct RunOptions {
@@ -210,12 +209,11 @@ int Status(const RunOptions& options) {
   return kExitOk;
 }
 
-CommandRunner SetupStatus(CLI::App& app) {
-  auto options = std::make_shared<RunOptions>();
+CLI::App* SetupStatus(CLI::App& app, RunOptions* options) {
   CLI::App* sub = app.add_subcommand("status", "list the daemon's runs, or show one");
   sub->add_option("run", options->id, "run id");
   options->connection.AddOptions(sub);
-  return {sub, [options] { return Status(*options); }};
+  return sub;
 }
 
 CommandRunner SetupWatch(CLI::App& app) {
@@ -245,7 +243,8 @@ CommandRunner SetupPause(CLI::App& app) { return SetupAction(app, "pause", "paus
 CommandRunner SetupResume(CLI::App& app) { return SetupAction(app, "resume", "resume a paused run"); }
 CommandRunner SetupAbort(CLI::App& app) { return SetupAction(app, "abort", "abort a queued or running run (lights off)"); }
 
-const bool registered = RegisterCommand(SetupSubmit) && RegisterCommand(SetupStatus) && RegisterCommand(SetupWatch) &&
+const bool registered = RegisterCommand<SubmitOptions, SetupSubmit, Submit>() &&
+                        RegisterCommand<RunOptions, SetupStatus, Status>() && RegisterCommand(SetupWatch) &&
                         RegisterCommand(SetupPause) && RegisterCommand(SetupResume) && RegisterCommand(SetupAbort);
 
 }  // namespace

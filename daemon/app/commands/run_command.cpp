@@ -9,7 +9,6 @@
 #include "ps_report.h"
 
 #include <cstdio>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -70,10 +69,8 @@ int Execute(const Options& options) {
                     outcome.capture.reason);
   if (outcome.photometric_stereo) {
     PrintPhotometricStereoSummary(*outcome.photometric_stereo);
-    const std::string results = outcome.directory + "/results/ps";
-    std::printf("results: %s/\n", results.c_str());
     ResultFields()["photometric_stereo"] = daemon::ToJson(*outcome.photometric_stereo);
-    ResultFields()["photometric_stereo"]["results_directory"] = results;
+    ReportResultsDirectory(outcome.directory + "/results/ps", ResultFields()["photometric_stereo"]);
     if (!outcome.photometric_stereo->usable())
       return Fail(kExitFailed, "photometric stereo gave no usable result: " +
                                    outcome.photometric_stereo->summary.message);
@@ -98,25 +95,21 @@ int Execute(const Options& options) {
   }
   if (outcome.tomography) {
     const daemon::TomographyResult& tomo = *outcome.tomography;
-    const std::string results = outcome.directory + "/results/tomography";
     std::printf("tomography (%s): %s, %d iterations, stopped by %s%s\n", solvers::tomography::MethodName(tomo.reconstruction.method),
                 solvers::core::TerminationName(tomo.reconstruction.termination), tomo.reconstruction.iterations,
                 solvers::tomography::StopReasonName(tomo.reconstruction.stop_reason),
                 tomo.reconstruction.message.empty() ? "" : ("; " + tomo.reconstruction.message).c_str());
     if (tomo.relative_error_vs_truth) std::printf("  vs the phantom: relative L2 error %.3f\n", *tomo.relative_error_vs_truth);
-    std::printf("results: %s/\n", results.c_str());
     ResultFields()["tomography"] = tomo.ToJson();
-    ResultFields()["tomography"]["results_directory"] = results;
+    ReportResultsDirectory(outcome.directory + "/results/tomography", ResultFields()["tomography"]);
     if (!tomo.trusted()) return Fail(kExitFailed, "the tomographic reconstruction cannot be trusted: " + tomo.reconstruction.message);
   }
   if (outcome.svbrdf) {
     const daemon::SvbrdfResult& svbrdf = *outcome.svbrdf;
-    const std::string results = outcome.directory + "/results/svbrdf";
     std::printf("svbrdf: %s, %d pixels fitted (%d mixed), %d materials%s\n", solvers::core::TerminationName(svbrdf.summary.termination),
                 svbrdf.summary.pixels_fitted, svbrdf.summary.pixels_mixed, svbrdf.summary.materials, svbrdf.gltf_path.empty() ? "" : ", glTF asset");
-    std::printf("results: %s/\n", results.c_str());
     ResultFields()["svbrdf"] = daemon::ToJson(svbrdf);
-    ResultFields()["svbrdf"]["results_directory"] = results;
+    ReportResultsDirectory(outcome.directory + "/results/svbrdf", ResultFields()["svbrdf"]);
     if (!svbrdf.usable()) return Fail(kExitFailed, "svbrdf gave no usable result: " + svbrdf.summary.message);
   }
   if (outcome.brdf) {
@@ -126,29 +119,24 @@ int Execute(const Options& options) {
     if (brdf.selection) daemon::PrintSelection(stdout, *brdf.selection);
     if (!brdf.warning.empty()) std::printf("warning: %s\n", brdf.warning.c_str());
     ResultFields()["brdf"] = brdf.report;
-    if (!brdf.results.empty()) {
-      const std::string results = outcome.directory + "/results/brdf";
-      std::printf("results: %s/\n", results.c_str());
-      ResultFields()["brdf"]["results_directory"] = results;
-    }
+    if (!brdf.results.empty()) ReportResultsDirectory(outcome.directory + "/results/brdf", ResultFields()["brdf"]);
     if (!brdf.usable())
       return Fail(brdf.refused_input() ? kExitUsage : kExitFailed, "brdf gave no usable result: " + brdf.failure());
   }
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* Setup(CLI::App& app, Options* options) {
   CLI::App* sub = app.add_subcommand("run", "capture a recipe on its rig and run its solvers (no daemon needed)");
   sub->add_option("recipe", options->recipe, "recipe YAML")->required()->check(CLI::ExistingFile);
   sub->add_option("--rig", options->rig, "rig YAML (default: the rig the recipe names)")->check(CLI::ExistingFile);
   sub->add_option("--out", options->out, "run directory to create (default: runs/<recipe>-<UTC time>)");
   sub->add_flag("--no-solve", options->no_solve, "capture only");
   sub->add_flag("--nexus", options->nexus, "write the run and its solves as RUN/run.nxs when they end, as the recipe's export: {nexus: true} does (docs/nexus.md)");
-  return {sub, [options] { return Execute(*options); }};
+  return sub;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

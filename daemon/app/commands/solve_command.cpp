@@ -21,11 +21,11 @@ namespace photorig::app {
 namespace {
 
 struct Options {
-  std::string run_dir, dataset_dir, mask, out, rig;
+  StackSource source;
+  std::string mask, out, rig;
   std::string commit_gate;  // tests: hold the finished solve while this file exists
   solvers::color::DemosaicMethod demosaic = solvers::color::DemosaicMethod::kBilinear;
   std::string color_model;
-  bool accept_failed_capture = false;
   config::PhotometricStereoRequest request;
 };
 
@@ -44,19 +44,14 @@ void BeforeCommit(const std::string& commit_gate) {
 
 int Execute(const Options& options) {
   if (std::string why; !options.request.IsValid(&why)) return Fail(kExitUsage, why);
-  if (options.run_dir.empty() && options.dataset_dir.empty()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
-  const bool from_run = !options.run_dir.empty();
-  const std::string source = from_run ? options.run_dir : options.dataset_dir;
-  const std::string destination =
-      options.out.empty() ? (std::filesystem::path(source) / "results" / "ps").string() : options.out;
+  if (!options.source.given()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
+  const std::string destination = options.source.ResultsDirectory(options.out, "ps");
   daemon::ColorStackOptions color;
   color.demosaic = options.demosaic;
   color.color_model_path = options.color_model;
-  if (!from_run && !options.color_model.empty())
+  if (!options.source.from_run() && !options.color_model.empty())
     return Fail(kExitUsage, "--color-model applies to runs (a DiLiGenT folder's images are already RGB)");
-  daemon::PhotometricStereoInput input =
-      from_run ? daemon::LoadRunStack(options.run_dir, color, FailedCapturePolicy(options.accept_failed_capture))
-               : daemon::LoadDiligent(options.dataset_dir);
+  daemon::PhotometricStereoInput input = options.source.Load(color);
   if (!options.rig.empty()) daemon::ApplyRigCalibration(options.rig, &input);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
@@ -72,21 +67,15 @@ int Execute(const Options& options) {
   progress.EndLine();
   PrintPhotometricStereoSummary(result);
   WarnOfFailedCapture(result.capture);
-  std::printf("results: %s/\n", destination.c_str());
   ResultFields() = daemon::ToJson(result);
-  ResultFields()["results_directory"] = destination;
+  ReportResultsDirectory(destination);
   if (!result.usable()) return Fail(kExitFailed, "no usable result: " + result.summary.message);
   return kExitOk;
 }
 
-CommandRunner SetupSolve(CLI::App& app) {
-  auto options = std::make_shared<Options>();
-  CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
-  CLI::App* ps = solve->add_subcommand("ps", "photometric stereo on a run or a DiLiGenT-layout folder");
-  auto* run = ps->add_option("--run", options->run_dir, "run directory")->check(CLI::ExistingDirectory);
-  auto* dataset = ps->add_option("--dataset", options->dataset_dir, "DiLiGenT-layout folder")->check(CLI::ExistingDirectory);
-  run->excludes(dataset);
-  AddAcceptFailedCaptureFlag(ps, &options->accept_failed_capture);
+CLI::App* SetupSolve(CLI::App& app, Options* options) {
+  CLI::App* ps = SolveGroup(app)->add_subcommand("ps", "photometric stereo on a run or a DiLiGenT-layout folder");
+  AddStackSourceOptions(ps, &options->source);
   AddChoice(ps, "--method", &options->request.method, solvers::ps::kMethodNames, "photometric stereo method");
   AddChoice(ps, "--derivative", &options->request.derivative, solvers::ps::kBlinnPhongDerivativeNames,
             "Blinn-Phong fit: the lanes' closed form, or per pixel with an autodiff method");
@@ -111,7 +100,7 @@ CommandRunner SetupSolve(CLI::App& app) {
                              "rig YAML whose LEDs and camera replace those the run recorded (a calibration made after "
                              "the capture)")
                   ->check(CLI::ExistingFile);
-  rig->excludes(dataset);
+  rig->excludes("--dataset");
   ps->add_option("--out", options->out, "output directory, replaced whole as the solve ends (default: SOURCE/results/ps)");
   // For tests of pre-emption (tests/slurm): a task held with its results written but not yet in place.
   ps->add_option("--commit-gate", options->commit_gate, "wait while FILE exists before putting the results in place")
@@ -121,7 +110,7 @@ CommandRunner SetupSolve(CLI::App& app) {
   ps->add_option("--color-model", options->color_model,
                  "colour model (photorig calibrate color) for a colour run (default: the one its rig named)")
       ->check(CLI::ExistingFile);
-  return {ps, [options] { return Execute(*options); }};
+  return ps;
 }
 
 struct ExportOptions {
@@ -143,7 +132,7 @@ CommandRunner SetupExport(CLI::App& app) {
           }};
 }
 
-const bool registered_solve = RegisterCommand(SetupSolve);
+const bool registered_solve = RegisterCommand<Options, SetupSolve, Execute>();
 const bool registered_export = RegisterCommand(SetupExport);
 
 }  // namespace

@@ -14,7 +14,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <memory>
 #include <stdexcept>
 
 namespace photorig::app {
@@ -129,9 +128,8 @@ int Execute(const Options& options) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
-  CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
+CLI::App* Setup(CLI::App& app, Options* options) {
+  CLI::App* solve = SolveGroup(app);
   // `solve --from` runs without a solver's subcommand: the result names it.
   solve->require_subcommand(0, 1);
   solve->add_option("--from", options->from,
@@ -139,10 +137,10 @@ CommandRunner Setup(CLI::App& app) {
   solve->add_option("--run", options->run_dir, "with --from: the run, when it has moved (default: where it was)")
       ->check(CLI::ExistingDirectory);
   solve->add_option("--out", options->out, "with --from: the folder for the results");
-  return {solve, [options] { return Execute(*options); }};
+  return solve;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -5,13 +5,10 @@
 #include "../command_output.h"
 #include "../progress_display.h"
 #include "photorig/daemon/pipelines/color_stack.h"
-#include "photorig/daemon/pipelines/diligent.h"
 #include "photorig/daemon/pipelines/svbrdf_pipeline.h"
 #include "ps_report.h"
 
 #include <cstdio>
-#include <filesystem>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -19,11 +16,11 @@ namespace {
 namespace refl = solvers::reflectance;
 
 struct Options {
-  std::string run_dir, dataset_dir, mask, out;
+  StackSource source;
+  std::string mask, out;
   solvers::color::DemosaicMethod demosaic = solvers::color::DemosaicMethod::kBilinear;
   config::SvbrdfRequest request;
   bool no_gltf = false;
-  bool accept_failed_capture = false;
 };
 
 void PrintSummary(const daemon::SvbrdfResult& result) {
@@ -47,16 +44,11 @@ void PrintSummary(const daemon::SvbrdfResult& result) {
 
 int Execute(const Options& options) {
   if (std::string why; !options.request.ps.IsValid(&why)) return Fail(kExitUsage, why);
-  if (options.run_dir.empty() && options.dataset_dir.empty()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
-  const bool from_run = !options.run_dir.empty();
-  const std::string source = from_run ? options.run_dir : options.dataset_dir;
-  const std::string destination =
-      options.out.empty() ? (std::filesystem::path(source) / "results" / "svbrdf").string() : options.out;
+  if (!options.source.given()) return Fail(kExitUsage, "give --run DIR or --dataset DIR");
+  const std::string destination = options.source.ResultsDirectory(options.out, "svbrdf");
   daemon::ColorStackOptions color;
   color.demosaic = options.demosaic;
-  daemon::PhotometricStereoInput input =
-      from_run ? daemon::LoadRunStack(options.run_dir, color, FailedCapturePolicy(options.accept_failed_capture))
-               : daemon::LoadDiligent(options.dataset_dir);
+  daemon::PhotometricStereoInput input = options.source.Load(color);
   if (!options.mask.empty()) daemon::SetObjectMaskFromFile(options.mask, &input);
   ProgressDisplay progress;
   config::SvbrdfRequest request = options.request;
@@ -66,23 +58,16 @@ int Execute(const Options& options) {
   progress.EndLine();
   PrintSummary(result);
   WarnOfFailedCapture(result.ps.capture);
-  std::printf("results: %s/\n", destination.c_str());
   ResultFields() = daemon::ToJson(result);
-  ResultFields()["results_directory"] = destination;
+  ReportResultsDirectory(destination);
   if (!result.usable()) return Fail(kExitFailed, "no usable result: " + result.summary.message);
   return kExitOk;
 }
 
-CommandRunner SetupSolveSvbrdf(CLI::App& app) {
-  auto options = std::make_shared<Options>();
-  CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
-  CLI::App* svbrdf = solve->add_subcommand(
+CLI::App* SetupSolveSvbrdf(CLI::App& app, Options* options) {
+  CLI::App* svbrdf = SolveGroup(app)->add_subcommand(
       "svbrdf", "normals, per-pixel albedo and per-material lobes, held-out relighting and a glTF asset");
-  auto* run = svbrdf->add_option("--run", options->run_dir, "run directory")->check(CLI::ExistingDirectory);
-  auto* dataset =
-      svbrdf->add_option("--dataset", options->dataset_dir, "DiLiGenT-layout folder")->check(CLI::ExistingDirectory);
-  run->excludes(dataset);
-  AddAcceptFailedCaptureFlag(svbrdf, &options->accept_failed_capture);
+  AddStackSourceOptions(svbrdf, &options->source);
   svbrdf->add_option("--mask", options->mask, "PNG, nonzero = object")->check(CLI::ExistingFile);
   svbrdf->add_option("--out", options->out, "output directory (default: SOURCE/results/svbrdf)");
   AddChoice(svbrdf, "--method", &options->request.ps.method, solvers::ps::kMethodNames,
@@ -96,10 +81,10 @@ CommandRunner SetupSolveSvbrdf(CLI::App& app) {
   svbrdf->add_flag("--no-gltf", options->no_gltf, "do not write the glTF asset");
   svbrdf->add_flag("--refine-normals", options->request.refine_normals,
                    "refine the normals with the materials' lobes, alternating with the reflectance fit");
-  return {svbrdf, [options] { return Execute(*options); }};
+  return svbrdf;
 }
 
-const bool registered = RegisterCommand(SetupSolveSvbrdf);
+const bool registered = RegisterCommand<Options, SetupSolveSvbrdf, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

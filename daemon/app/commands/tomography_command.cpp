@@ -156,7 +156,6 @@ int Execute(const Options& options) {
   std::printf("  %.0f ms (absorbance %.0f, projector %.0f, solve %.0f)\n", result.total_ms, result.absorbance_ms,
               result.projector.total_ms, r.solve_ms);
   WarnOfFailedCapture(result.capture);
-  std::printf("results: %s/\n", destination.c_str());
 
   ResultFields() = result.ToJson();
   ResultFields()["source"] = source;
@@ -165,17 +164,16 @@ int Execute(const Options& options) {
     ResultFields()["view_groups"] = view_groups_and_slabs->first;
     ResultFields()["slabs"] = view_groups_and_slabs->second;
   }
-  ResultFields()["results_directory"] = destination;
+  ReportResultsDirectory(destination);
   if (!result.trusted())
     return Fail(kExitFailed, r.IsSolutionUsable() ? "the reconstruction cannot be trusted: " + r.message
                                                   : "no usable reconstruction: " + r.message);
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
-  CLI::App* solve = SubcommandGroup(app, "solve", "run a solver on stored data");
-  CLI::App* sub = solve->add_subcommand("tomography", "reconstruct a volume from a turntable scan (run or projection folder)");
+CLI::App* Setup(CLI::App& app, Options* options) {
+  CLI::App* sub = SolveGroup(app)->add_subcommand(
+      "tomography", "reconstruct a volume from a turntable scan (run or projection folder)");
   auto* run = sub->add_option("--run", options->run_dir, "run directory")->check(CLI::ExistingDirectory);
   auto* folder = sub->add_option("--projections", options->projections_dir,
                                  "folder with geometry.json, projections/, flats/, darks/ (docs/tomography.md)")
@@ -212,10 +210,10 @@ CommandRunner Setup(CLI::App& app) {
                   "(default 0: views alone when one process's volume vectors fit 4 GiB, "
                   "else the fewest slabs that fit)")
       ->check(CLI::NonNegativeNumber);
-  return {sub, [options] { return Execute(*options); }};
+  return sub;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

@@ -6,7 +6,6 @@
 #include "photorig/config/solve_requests.h"
 
 #include <cstdio>
-#include <memory>
 
 namespace photorig::app {
 namespace {
@@ -26,15 +25,14 @@ int Execute(const Options& options) {
   return kExitOk;
 }
 
-CommandRunner Setup(CLI::App& app) {
-  auto options = std::make_shared<Options>();
+CLI::App* Setup(CLI::App& app, Options* options) {
   CLI::App* sub = app.add_subcommand("validate", "check a recipe and its rig without touching devices");
   sub->add_option("recipe", options->recipe, "recipe YAML")->required()->check(CLI::ExistingFile);
   sub->add_option("--rig", options->rig, "rig YAML")->check(CLI::ExistingFile);
-  return {sub, [options] { return Execute(*options); }};
+  return sub;
 }
 
-const bool registered = RegisterCommand(Setup);
+const bool registered = RegisterCommand<Options, Setup, Execute>();
 
 }  // namespace
 }  // namespace photorig::app

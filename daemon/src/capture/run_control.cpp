@@ -1,33 +1,24 @@
 #include "photorig/daemon/capture/run_control.h"
 
+#include "photorig/solvers/core/names.h"
+
 #include <chrono>
 
 namespace photorig::daemon {
 namespace {
 
-constexpr struct {
-  RunState state;
-  const char* name;
-} kStateNames[] = {
+constexpr solvers::core::NameTable<RunState, 10> kStateNames = {{
     {RunState::kQueued, "queued"},   {RunState::kRunning, "running"},     {RunState::kPaused, "paused"},
     {RunState::kSuspended, "suspended"}, {RunState::kAborting, "aborting"}, {RunState::kSolving, "solving"},
     {RunState::kDone, "done"},
     {RunState::kFailed, "failed"},   {RunState::kAborted, "aborted"},     {RunState::kInterrupted, "interrupted"},
-};
+}};
 
 }  // namespace
 
-const char* RunStateName(RunState state) {
-  for (const auto& entry : kStateNames)
-    if (entry.state == state) return entry.name;
-  return "unknown";
-}
+const char* RunStateName(RunState state) { return solvers::core::NameOf(kStateNames, state); }
 
-std::optional<RunState> RunStateFromName(const std::string& name) {
-  for (const auto& entry : kStateNames)
-    if (name == entry.name) return entry.state;
-  return std::nullopt;
-}
+std::optional<RunState> RunStateFromName(const std::string& name) { return solvers::core::ParseName(kStateNames, name); }
 
 bool IsFinal(RunState state) {
   return state == RunState::kDone || state == RunState::kFailed || state == RunState::kAborted ||

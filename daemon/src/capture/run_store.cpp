@@ -2,6 +2,8 @@
 
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/io/json_fields.h"
+#include "photorig/daemon/io/lens_json.h"
+#include "photorig/solvers/core/names.h"
 
 #include <opencv2/imgproc.hpp>
 #include <spdlog/fmt/fmt.h>
@@ -118,13 +120,10 @@ FrameRecord FrameRecordFromJson(const json& j) {
 
 namespace {
 
-constexpr struct {
-  CaptureStatus status;
-  const char* name;
-} kCaptureStatusNames[] = {
+constexpr solvers::core::NameTable<CaptureStatus, 5> kCaptureStatusNames = {{
     {CaptureStatus::kRunning, "running"}, {CaptureStatus::kComplete, "complete"}, {CaptureStatus::kFailed, "failed"},
     {CaptureStatus::kAborted, "aborted"}, {CaptureStatus::kInterrupted, "interrupted"},
-};
+}};
 
 CaptureStatus CaptureStatusFromJson(const json& j) {
   const std::string name = j.get<std::string>();
@@ -135,18 +134,12 @@ CaptureStatus CaptureStatusFromJson(const json& j) {
 
 }  // namespace
 
-const char* CaptureStatusName(CaptureStatus status) {
-  for (const auto& entry : kCaptureStatusNames)
-    if (entry.status == status) return entry.name;
-  return "unknown";
-}
+const char* CaptureStatusName(CaptureStatus status) { return solvers::core::NameOf(kCaptureStatusNames, status); }
 
 std::ostream& operator<<(std::ostream& out, CaptureStatus status) { return out << CaptureStatusName(status); }
 
 std::optional<CaptureStatus> CaptureStatusFromName(const std::string& name) {
-  for (const auto& entry : kCaptureStatusNames)
-    if (name == entry.name) return entry.status;
-  return std::nullopt;
+  return solvers::core::ParseName(kCaptureStatusNames, name);
 }
 
 json ToJson(const StopRecord& s) {
@@ -203,10 +196,8 @@ json ToJson(const RunManifest& m) {
           {"frames", frames},
           {"ground_truth", m.has_ground_truth}};
   if (m.projection == solvers::camera::Projection::kPinhole) {
-    const solvers::camera::PinholeLens& lens = m.pinhole;
     out["camera"]["projection"] = solvers::camera::ProjectionName(m.projection);
-    out["camera"]["pinhole"] = {{"fx_px", lens.fx_px}, {"fy_px", lens.fy_px}, {"cx_px", lens.cx_px},
-                                {"cy_px", lens.cy_px}, {"distortion", lens.distortion}, {"distance_mm", lens.distance_mm}};
+    out["camera"]["pinhole"] = PinholeLensJson(m.pinhole);
   }
   if (!m.color_model_path.empty())
     out["camera"]["color_model"] = {{"path", m.color_model_path}, {"hash", m.color_model_hash}};
@@ -242,13 +233,7 @@ RunManifest RunManifestFromJson(const json& j) {
   if (!parsed) throw std::runtime_error("unknown camera projection '" + projection + "'");
   m.projection = *parsed;
   if (m.projection == solvers::camera::Projection::kPinhole) {
-    const json& lens = camera.at("pinhole");
-    m.pinhole.fx_px = lens.at("fx_px").get<double>();
-    m.pinhole.fy_px = lens.at("fy_px").get<double>();
-    m.pinhole.cx_px = lens.at("cx_px").get<double>();
-    m.pinhole.cy_px = lens.at("cy_px").get<double>();
-    m.pinhole.distortion = lens.at("distortion").get<std::array<double, 5>>();
-    m.pinhole.distance_mm = lens.at("distance_mm").get<double>();
+    m.pinhole = PinholeLensFromJson(camera.at("pinhole"));
     if (std::string why; !m.pinhole.IsValid(&why)) throw std::runtime_error("camera pinhole: " + why);
   }
   m.mosaic = camera.value("mosaic", "mono");  // runs stored before colour cameras are monochrome

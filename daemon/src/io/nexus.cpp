@@ -20,6 +20,12 @@ hid_t StringType() {
 
 std::vector<hsize_t> Dims(const std::vector<std::uint64_t>& dims) { return {dims.begin(), dims.end()}; }
 
+// The native type that holds in memory what is stored as `file_type`.
+hid_t NativeTypeOf(hid_t file_type) {
+  if (file_type == H5T_IEEE_F64LE) return H5T_NATIVE_DOUBLE;
+  return file_type == H5T_IEEE_F32LE ? H5T_NATIVE_FLOAT : H5T_NATIVE_INT64;
+}
+
 // Closes an HDF5 handle of any kind when it goes out of scope.
 struct Handle {
   hid_t id;
@@ -114,20 +120,21 @@ void NexusWriter::Attribute(const std::string& path, const std::string& name, co
 }
 
 void NexusWriter::Attribute(const std::string& path, const std::string& name, double value) {
-  if (!ok()) return;
-  const Handle space(H5Screate(H5S_SCALAR));
-  const Handle attribute(H5Acreate_by_name(handles_->file, path.c_str(), name.c_str(), H5T_IEEE_F64LE, space.id,
-                                           H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
-  if (attribute.id < 0 || H5Awrite(attribute.id, H5T_NATIVE_DOUBLE, &value) < 0)
-    Failed("cannot write attribute " + name + " of " + path);
+  NumberAttribute(path, name, H5T_IEEE_F64LE, &value);
 }
 
 void NexusWriter::Attribute(const std::string& path, const std::string& name, std::int64_t value) {
+  NumberAttribute(path, name, H5T_STD_I64LE, &value);
+}
+
+void NexusWriter::NumberAttribute(const std::string& path, const std::string& name, std::int64_t file_type,
+                                  const void* value) {
+  const hid_t type = file_type;
   if (!ok()) return;
   const Handle space(H5Screate(H5S_SCALAR));
-  const Handle attribute(H5Acreate_by_name(handles_->file, path.c_str(), name.c_str(), H5T_STD_I64LE, space.id,
-                                           H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
-  if (attribute.id < 0 || H5Awrite(attribute.id, H5T_NATIVE_INT64, &value) < 0)
+  const Handle attribute(H5Acreate_by_name(handles_->file, path.c_str(), name.c_str(), type, space.id, H5P_DEFAULT,
+                                           H5P_DEFAULT, H5P_DEFAULT));
+  if (attribute.id < 0 || H5Awrite(attribute.id, NativeTypeOf(type), value) < 0)
     Failed("cannot write attribute " + name + " of " + path);
 }
 
@@ -148,9 +155,7 @@ void NexusWriter::Numbers(const std::string& path, std::int64_t file_type, const
   const Handle space(shape.empty() ? H5Screate(H5S_SCALAR)
                                    : H5Screate_simple(static_cast<int>(shape.size()), shape.data(), nullptr));
   const Handle dataset(H5Dcreate2(handles_->file, path.c_str(), type, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
-  const hid_t memory = type == H5T_IEEE_F64LE ? H5T_NATIVE_DOUBLE : type == H5T_IEEE_F32LE ? H5T_NATIVE_FLOAT
-                                                                                             : H5T_NATIVE_INT64;
-  if (dataset.id < 0 || H5Dwrite(dataset.id, memory, H5S_ALL, H5S_ALL, H5P_DEFAULT, values) < 0) {
+  if (dataset.id < 0 || H5Dwrite(dataset.id, NativeTypeOf(type), H5S_ALL, H5S_ALL, H5P_DEFAULT, values) < 0) {
     Failed("cannot write " + path);
     return;
   }

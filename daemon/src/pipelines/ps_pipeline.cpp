@@ -2,6 +2,7 @@
 #include "photorig/daemon/capture/frame_health.h"
 
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/lens_json.h"
 #include "photorig/daemon/io/internal/mesh_io.h"
 #include "photorig/daemon/io/internal/previews.h"
 #include "photorig/daemon/pipelines/internal/results_folder.h"
@@ -447,11 +448,8 @@ json ToJson(const PhotometricStereoResult& result) {
     report["light_model"]["predicted_distant_bias_deg"] = *lights.predicted_distant_bias_deg;
   report["camera_model"] = {{"projection", solvers::camera::ProjectionName(result.camera.projection)}};
   if (result.camera.IsPinhole()) {
-    const solvers::camera::PinholeLens& lens = result.camera.pinhole;
-    report["camera_model"].update({{"fx_px", lens.fx_px}, {"fy_px", lens.fy_px}, {"cx_px", lens.cx_px},
-                                   {"cy_px", lens.cy_px}, {"distortion", lens.distortion},
-                                   {"distance_mm", lens.distance_mm},
-                                   {"field_of_view_deg", result.camera.HorizontalFieldOfViewDeg()}});
+    report["camera_model"].update(PinholeLensJson(result.camera.pinhole));
+    report["camera_model"]["field_of_view_deg"] = result.camera.HorizontalFieldOfViewDeg();
   } else {
     report["camera_model"]["pixel_pitch_mm"] = result.camera.pixel_pitch_mm;
   }

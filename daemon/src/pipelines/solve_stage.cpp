@@ -12,13 +12,25 @@ nlohmann::json SolveStageReport::ToJson() const {
           {"results", results}, {"figures", figures},     {"timings_ms", timings_ms}};
 }
 
-SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& stored, bool usable) {
+namespace {
+
+// What every stage's report opens with; the figures and timings are its own.
+SolveStageReport StageReport(SolveStageKind kind, bool usable, std::string termination, std::string message,
+                             std::string results) {
   SolveStageReport report;
-  report.stage = SolveStageName(SolveStageKind::kPhotometricStereo);
+  report.stage = SolveStageName(kind);
   report.usable = usable;
-  report.termination = stored.value("termination", "");
-  report.message = stored.value("message", "");
-  report.results = "results/ps";
+  report.termination = std::move(termination);
+  report.message = std::move(message);
+  report.results = std::move(results);
+  return report;
+}
+
+}  // namespace
+
+SolveStageReport ReportPhotometricStereoStage(const nlohmann::json& stored, bool usable) {
+  SolveStageReport report = StageReport(SolveStageKind::kPhotometricStereo, usable, stored.value("termination", ""),
+                                        stored.value("message", ""), "results/ps");
   const nlohmann::json pixels = stored.value("pixels", nlohmann::json::object());
   report.figures = {{"method", stored.value("method", "")},
                     {"lights", stored.value("lights", 0)},
@@ -49,12 +61,7 @@ std::string RigInRun(const std::string& out_rig, const std::string& run_director
 // A calibration stage's report: success or failure, and the rig it wrote.
 SolveStageReport CalibrationReport(SolveStageKind kind, bool success, const std::string& message, const char* results,
                                    const std::string& out_rig, const std::string& run_directory, double total_ms) {
-  SolveStageReport report;
-  report.stage = SolveStageName(kind);
-  report.usable = success;
-  report.termination = success ? "success" : "failure";
-  report.message = message;
-  report.results = results;
+  SolveStageReport report = StageReport(kind, success, success ? "success" : "failure", message, results);
   report.figures = nlohmann::json::object();
   if (!out_rig.empty()) report.figures["out_rig"] = RigInRun(out_rig, run_directory);
   report.timings_ms = {{"total", total_ms}};
@@ -88,12 +95,9 @@ SolveStageReport Report(const LedPositionCalibration& result, const std::string&
 }
 
 SolveStageReport Report(const TomographyResult& result) {
-  SolveStageReport report;
-  report.stage = SolveStageName(SolveStageKind::kTomography);
-  report.usable = result.trusted();
-  report.termination = solvers::core::TerminationName(result.reconstruction.termination);
-  report.message = result.reconstruction.message;
-  report.results = "results/tomography";
+  SolveStageReport report = StageReport(SolveStageKind::kTomography, result.trusted(),
+                                        solvers::core::TerminationName(result.reconstruction.termination),
+                                        result.reconstruction.message, "results/tomography");
   report.figures = {{"method", solvers::tomography::MethodName(result.reconstruction.method)},
                     {"views", result.geometry.views()},
                     {"iterations", result.reconstruction.iterations},
@@ -107,17 +111,15 @@ SolveStageReport Report(const TomographyResult& result) {
 }
 
 SolveStageReport Report(const BrdfSolveResult& result) {
-  SolveStageReport report;
-  report.stage = SolveStageName(SolveStageKind::kBrdf);
-  report.usable = result.usable();
   const solvers::core::Summary& ended =
       result.selection ? static_cast<const solvers::core::Summary&>(*result.selection) : result.measurement;
-  report.termination = result.selection || !result.measurement.IsSolutionUsable()
-                           ? solvers::core::TerminationName(ended.termination)
-                           : solvers::core::TerminationName(solvers::core::Termination::kFailure);
-  report.message = result.usable() ? (result.warning.empty() ? result.selection->message : result.warning)
-                                   : result.failure();
-  report.results = result.results.empty() ? "" : "results/brdf";
+  const solvers::core::Termination termination = result.selection || !result.measurement.IsSolutionUsable()
+                                                     ? ended.termination
+                                                     : solvers::core::Termination::kFailure;
+  const std::string message =
+      result.usable() ? (result.warning.empty() ? result.selection->message : result.warning) : result.failure();
+  SolveStageReport report = StageReport(SolveStageKind::kBrdf, result.usable(), solvers::core::TerminationName(termination),
+                                        message, result.results.empty() ? "" : "results/brdf");
   const BrdfMeasurement& m = result.measurement;
   report.figures = {{"samples", m.samples.size()}, {"poses", m.poses}, {"clipped_poses", m.clipped.size()},
                     {"peak_clipped", m.peak_clipped}};
@@ -133,12 +135,9 @@ SolveStageReport Report(const BrdfSolveResult& result) {
 }
 
 SolveStageReport Report(const SvbrdfResult& result) {
-  SolveStageReport report;
-  report.stage = SolveStageName(SolveStageKind::kSvbrdf);
-  report.usable = result.usable();
-  report.termination = solvers::core::TerminationName(result.summary.termination);
-  report.message = result.summary.message;
-  report.results = "results/svbrdf";
+  SolveStageReport report = StageReport(SolveStageKind::kSvbrdf, result.usable(),
+                                        solvers::core::TerminationName(result.summary.termination),
+                                        result.summary.message, "results/svbrdf");
   nlohmann::json models = nlohmann::json::array();
   for (const auto& m : result.material_fits) models.push_back(solvers::brdf::ModelName(m.model));
   report.figures = {{"pixels_fitted", result.summary.pixels_fitted},
@@ -187,12 +186,20 @@ SolveStageReport RunPhotometricStereo(const config::PhotometricStereoRequest& re
   return ReportPhotometricStereoStage(ToJson(result), result.usable());
 }
 
+// A calibration stage's folder, emptied, and its request: based on the run's
+// rig, writing the new one into the folder unless the recipe names another.
+template <typename Request>
+fs::path PrepareCalibration(const StageContext& context, const char* name, Request* request) {
+  const fs::path folder = FreshResults(context, name);
+  request->base_rig = context.rig_path;
+  if (request->out_rig.empty()) request->out_rig = (folder / "rig.yaml").string();
+  return folder;
+}
+
 SolveStageReport RunLightCalibration(config::LightCalibrationRequest calibration, const StageContext& context,
                                      SolveResults* results) {
   const auto started = std::chrono::steady_clock::now();
-  const fs::path folder = FreshResults(context, "lights");
-  calibration.base_rig = context.rig_path;
-  if (calibration.out_rig.empty()) calibration.out_rig = (folder / "rig.yaml").string();
+  const fs::path folder = PrepareCalibration(context, "lights", &calibration);
   const LightCalibrationSummary& summary = results->light_calibration.emplace(
       CalibrateLights(LoadLightCalibrationInputs(context.run_directory), calibration, folder.string()));
   return Report(summary, context.run_directory, MillisecondsSince(started));
@@ -200,9 +207,7 @@ SolveStageReport RunLightCalibration(config::LightCalibrationRequest calibration
 
 SolveStageReport RunLedPositions(config::LedPositionRequest request, const StageContext& context, SolveResults* results) {
   const auto started = std::chrono::steady_clock::now();
-  const fs::path folder = FreshResults(context, "leds");
-  request.base_rig = context.rig_path;
-  if (request.out_rig.empty()) request.out_rig = (folder / "rig.yaml").string();
+  const fs::path folder = PrepareCalibration(context, "leds", &request);
   const LedPositionCalibration& result = results->led_positions.emplace(
       CalibrateLedPositions(LoadLedPositionInputs(context.run_directory), request, folder.string()));
   return Report(result, context.run_directory, MillisecondsSince(started));

@@ -2,6 +2,7 @@
 #include "photorig/daemon/pipelines/internal/phantom_json.h"
 
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/utc_time.h"
 #include "photorig/daemon/capture/plan.h"
 #include "photorig/daemon/pipelines/ps_pipeline.h"
 #include "photorig/daemon/pipelines/internal/results_folder.h"
@@ -12,7 +13,6 @@
 
 #include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <functional>
 #include <filesystem>
 
@@ -20,15 +20,6 @@ namespace photorig::daemon {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string UtcStamp() {
-  const std::time_t now = std::time(nullptr);
-  std::tm utc{};
-  gmtime_r(&now, &utc);
-  char text[32];
-  std::strftime(text, sizeof(text), "%Y%m%dT%H%M%SZ", &utc);
-  return text;
-}
 
 // The recipe's solve: its stages on the stored frames, in order, reported as
 // they start and end. Photometric stereo goes to Slurm when the recipe's (or
@@ -120,7 +111,7 @@ RunOutcome ExecuteRun(const RunRequest& request) {
   RigDevices devices = MakeRigDevices(rig, &recipe);
 
   RunOutcome outcome;
-  outcome.directory = request.output_directory.empty() ? (fs::path("runs") / (recipe.name + "-" + UtcStamp())).string()
+  outcome.directory = request.output_directory.empty() ? (fs::path("runs") / (recipe.name + "-" + UtcNowInName())).string()
                                                        : request.output_directory;
   RunManifest header = ManifestHeaderFor(rig);
   header.run_id = fs::path(outcome.directory).filename().string();

@@ -1,25 +1,14 @@
 #include "model_selection.h"
 
+#include "photorig/solvers/core/normal_quantile.h"
+
 #include <cmath>
 #include <limits>
 
 namespace photorig::solvers::ps::internal {
-namespace {
-
-double InverseNormalCdf(double p) {
-  // Bisection on the CDF: called once per solve, so speed is irrelevant.
-  double lo = -10.0, hi = 10.0;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi);
-}
-
-}  // namespace
 
 double ChiSquareQuantile(int dof, double p) {
-  const double z = InverseNormalCdf(p), v = dof, t = 1.0 - 2.0 / (9.0 * v) + z * std::sqrt(2.0 / (9.0 * v));
+  const double z = core::NormalQuantile(p), v = dof, t = 1.0 - 2.0 / (9.0 * v) + z * std::sqrt(2.0 / (9.0 * v));
   return v * t * t * t;
 }
 

@@ -1,6 +1,7 @@
 // The statistics the reflectance fit's stages share: k-means, and the
 // tests of whether two groups of pixels are one (fit_stages.h).
 #include "fit_stages.h"
+#include "photorig/solvers/core/normal_quantile.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,16 +10,6 @@
 
 namespace photorig::solvers::reflectance::internal {
 namespace {
-
-// The standard normal's quantile p (bisection on the CDF; called a few times a fit).
-double NormalQuantile(double p) {
-  double lo = -40.0, hi = 40.0;
-  for (int it = 0; it < 200; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi);
-}
 
 // Weighted moments of one group of values (a pixel's lobe weight, or its
 // colour along one axis) with their precisions.
@@ -55,7 +46,7 @@ bool IsOneGroup(const Moments& a, const Moments& b, double alpha) {
   if (!(total > 0.0) || !(all.weight_squared > 0.0)) return true;
   const double index = (a.Spread() + b.Spread()) / total;
   const double effective_count = all.weight * all.weight / all.weight_squared;
-  const double z = -NormalQuantile(alpha);
+  const double z = -core::NormalQuantile(alpha);
   return index >= 1.0 - 2.0 / M_PI - z * 0.35 / std::sqrt(effective_count);
 }
 

@@ -82,6 +82,7 @@ class NexusWriter {
   void StringAttribute(const std::string& path, const std::string& name, bool scalar,
                        const std::vector<std::string>& values);
   // `file_type` is an HDF5 type id (hid_t): H5T_IEEE_F64LE, H5T_IEEE_F32LE or H5T_STD_I64LE.
+  void NumberAttribute(const std::string& path, const std::string& name, std::int64_t file_type, const void* value);
   void Numbers(const std::string& path, std::int64_t file_type, const void* values,
                const std::vector<std::uint64_t>& dims, const std::string& units);
 
