@@ -41,7 +41,7 @@ py::dict SolvePs(const std::string& run_directory, const std::string& method, co
   {
     py::gil_scoped_release unlocked;
     daemon::PhotometricStereoInput input = daemon::LoadRunStack(
-        run_directory, color, accept_failed_capture ? daemon::FailedCapture::kAccept : daemon::FailedCapture::kRefuse);
+        run_directory, color, FailedCapturePolicy(accept_failed_capture));
     if (rig) daemon::ApplyRigCalibration(*rig, &input);
     if (mask) daemon::SetObjectMaskFromFile(*mask, &input);
     result = daemon::SolveToMaps(input, request, &maps);
@@ -74,9 +74,7 @@ void BindPs(py::module_& m) {
          bool fill_unresolved, const std::optional<std::string>& mask, const std::optional<std::string>& rig,
          const std::string& demosaic, const std::optional<std::string>& color_model, bool accept_failed_capture,
          py::object progress) {
-        const std::string directory =
-            py::isinstance<Run>(run) ? run.cast<const Run&>().directory() : py::str(run).cast<std::string>();
-        return SolvePs(directory, method, derivative, integrator, shadow_threshold_sigma, max_condition_number,
+        return SolvePs(RunDirectory(run), method, derivative, integrator, shadow_threshold_sigma, max_condition_number,
                        assume_distant, max_distant_bias_deg, fill_unresolved, mask, rig, demosaic, color_model,
                        accept_failed_capture, std::move(progress));
       },

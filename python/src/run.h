@@ -5,6 +5,7 @@
 #include "photorig/daemon/capture/run_store.h"
 
 #include <opencv2/core.hpp>
+#include <pybind11/pybind11.h>
 
 #include <optional>
 #include <string>
@@ -29,5 +30,12 @@ class Run {
   std::string directory_;
   daemon::RunManifest manifest_;
 };
+
+// A solver's `run` argument: a Run, or its directory as a str or path.
+std::string RunDirectory(const pybind11::object& run);
+
+inline daemon::FailedCapture FailedCapturePolicy(bool accept_failed_capture) {
+  return accept_failed_capture ? daemon::FailedCapture::kAccept : daemon::FailedCapture::kRefuse;
+}
 
 }  // namespace photorig::python

@@ -48,6 +48,10 @@ std::vector<cv::Mat> Run::Load(const std::vector<const daemon::FrameRecord*>& re
   return frames;
 }
 
+std::string RunDirectory(const py::object& run) {
+  return py::isinstance<Run>(run) ? run.cast<const Run&>().directory() : py::str(run).cast<std::string>();
+}
+
 namespace {
 
 // The frames' records as columns, row i describing frame i of frames(kind).

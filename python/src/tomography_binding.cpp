@@ -24,7 +24,7 @@ py::dict SolveTomographyOf(const std::string& source, const config::TomographyRe
   {
     py::gil_scoped_release unlocked;
     const daemon::TomographyInput input = daemon::LoadTomographyInput(
-        source, accept_failed_capture ? daemon::FailedCapture::kAccept : daemon::FailedCapture::kRefuse);
+        source, FailedCapturePolicy(accept_failed_capture));
     result = daemon::SolveTomography(input, request);
   }
   bridge->RethrowIfFailed();
@@ -63,9 +63,7 @@ void BindTomography(py::module_& m) {
         if (std::string why; !request.IsValid(&why)) throw py::value_error(why);
         ProgressBridge bridge(std::move(progress));
         request.progress = bridge.Callback();
-        const std::string source =
-            py::isinstance<Run>(run) ? run.cast<const Run&>().directory() : py::str(run).cast<std::string>();
-        return SolveTomographyOf(source, request, accept_failed_capture, &bridge);
+        return SolveTomographyOf(RunDirectory(run), request, accept_failed_capture, &bridge);
       },
       py::arg("run"), py::kw_only(), py::arg("method") = tomo::MethodName(defaults.method),
       py::arg("total_variation") = defaults.total_variation,
