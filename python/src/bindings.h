@@ -7,6 +7,7 @@ namespace photorig::python {
 
 void BindRun(pybind11::module_& m);  // open_run, Run
 void BindPs(pybind11::module_& m);   // solve_ps
+void BindSvbrdf(pybind11::module_& m);  // solve_svbrdf
 void BindTomography(pybind11::module_& m);  // solve_tomography
 void BindCapture(pybind11::module_& m);     // run_recipe
 void BindBrdf(pybind11::module_& m);        // read_merl, write_merl, eval_brdf

@@ -6,6 +6,7 @@ PYBIND11_MODULE(_photorig, m) {
   m.doc() = "photorig's runs and solvers in-process (docs/python.md)";
   photorig::python::BindRun(m);
   photorig::python::BindPs(m);
+  photorig::python::BindSvbrdf(m);
   photorig::python::BindTomography(m);
   photorig::python::BindCapture(m);
   photorig::python::BindBrdf(m);
