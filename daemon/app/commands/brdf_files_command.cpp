@@ -51,24 +51,6 @@ nlohmann::json Vec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
 
 bool IsCsv(const std::string& path) { return fs::path(path).extension() == ".csv"; }
 
-// Each candidate's error over all cells beside its report entry, and the
-// table fit's own findings.
-void AddTableErrors(const brdf::TableFitSummary& t, nlohmann::json* doc) {
-  (*doc)["cells"] = t.cells;
-  for (std::size_t c = 0; c < t.all_cells.size(); ++c) {
-    nlohmann::json& candidate = (*doc)["candidates"][c];
-    candidate["all_cells_log_rms"] = t.all_cells[c].log_rms;
-    candidate["all_cells_neutral_rms"] = t.all_cells[c].neutral_rms;
-    candidate["reported_over_all_cells"] = t.reported_over_all_cells[c];
-  }
-  (*doc)["poor_fit"] = t.poor_fit;
-  if (!t.warning.empty()) (*doc)["warning"] = t.warning;
-  if (t.selection.chosen || t.poor_fit)
-    (*doc)["worst_region"] = {{"theta_h_deg", {t.worst_theta_h_deg[0], t.worst_theta_h_deg[1]}},
-                              {"theta_d_deg", {t.worst_theta_d_deg[0], t.worst_theta_d_deg[1]}},
-                              {"log_rms", t.worst_log_rms}};
-}
-
 int Fit(const Options& o) {
   nlohmann::json doc = {{"file", o.file}};
   auto finish = [&](ExitCode code, const std::string& error) {
@@ -112,7 +94,7 @@ int Fit(const Options& o) {
   }
   doc.update(daemon::SelectionJson(s));
   if (table_fit) {
-    AddTableErrors(*table_fit, &doc);
+    daemon::AddTableFitJson(*table_fit, &doc);
     std::fprintf(text, "%zu cells of %zu drawn from %s (%s loss), closest theta_h %.3f deg\n", table_fit->samples,
                  table_fit->cells, o.file.c_str(), brdf::FitLossName(loss), s.min_theta_h_deg);
   } else {

@@ -69,6 +69,22 @@ nlohmann::json SelectionJson(const brdf::SelectionSummary& s) {
   return doc;
 }
 
+void AddTableFitJson(const brdf::TableFitSummary& t, nlohmann::json* doc) {
+  (*doc)["cells"] = t.cells;
+  for (std::size_t c = 0; c < t.all_cells.size(); ++c) {
+    nlohmann::json& candidate = (*doc)["candidates"][c];
+    candidate["all_cells_log_rms"] = t.all_cells[c].log_rms;
+    candidate["all_cells_neutral_rms"] = t.all_cells[c].neutral_rms;
+    candidate["reported_over_all_cells"] = t.reported_over_all_cells[c];
+  }
+  (*doc)["poor_fit"] = t.poor_fit;
+  if (!t.warning.empty()) (*doc)["warning"] = t.warning;
+  if (t.selection.chosen || t.poor_fit)
+    (*doc)["worst_region"] = {{"theta_h_deg", {t.worst_theta_h_deg[0], t.worst_theta_h_deg[1]}},
+                              {"theta_d_deg", {t.worst_theta_d_deg[0], t.worst_theta_d_deg[1]}},
+                              {"log_rms", t.worst_log_rms}};
+}
+
 bool ModelFromJson(const nlohmann::json& doc, const std::string& name, brdf::ModelParams* params, std::string* error) {
   const nlohmann::json* spec = &doc;
   if (doc.contains("candidates")) {  // a fit report: the chosen candidate, or the one named

@@ -4,6 +4,7 @@
 // the same lines of text.
 
 #include "photorig/solvers/brdf/fit.h"
+#include "photorig/solvers/brdf/table_fit.h"
 
 #include <nlohmann/json.hpp>
 
@@ -19,6 +20,10 @@ struct BrdfMeasurement;
 // lobe_identifiable, at_bound, normal_albedo, implausible), chosen and
 // the reason for it.
 nlohmann::json SelectionJson(const solvers::brdf::SelectionSummary& selection);
+
+// A table fit's findings beside SelectionJson(fit.selection) in `doc`: each
+// candidate's errors over all cells, cells, poor_fit, warning, worst_region.
+void AddTableFitJson(const solvers::brdf::TableFitSummary& fit, nlohmann::json* doc);
 
 // One line per candidate, then the choice with its reason and the selection's message.
 void PrintSelection(std::FILE* out, const solvers::brdf::SelectionSummary& selection);
