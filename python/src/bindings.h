@@ -10,6 +10,6 @@ void BindPs(pybind11::module_& m);   // solve_ps
 void BindSvbrdf(pybind11::module_& m);  // solve_svbrdf
 void BindTomography(pybind11::module_& m);  // solve_tomography
 void BindCapture(pybind11::module_& m);     // run_recipe
-void BindBrdf(pybind11::module_& m);        // read_merl, write_merl, eval_brdf
+void BindBrdf(pybind11::module_& m);        // read_merl, write_merl, eval_brdf, fit_brdf
 
 }  // namespace photorig::python

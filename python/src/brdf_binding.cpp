@@ -1,14 +1,22 @@
-// photorig.read_merl, write_merl and eval_brdf: measured-BRDF tables through
-// the solver's own readers and writers (solvers/brdf/merl.h, measured.h), as
-// `photorig brdf eval` and `convert` use them.
+// photorig.read_merl, write_merl, eval_brdf and fit_brdf: measured-BRDF
+// tables through the solver's own readers, writers and table fit
+// (solvers/brdf/merl.h, measured.h, table_fit.h), as `photorig brdf eval`,
+// `convert` and `fit` use them.
 
 #include "arrays.h"
 #include "bindings.h"
+#include "choices.h"
+#include "photorig/daemon/pipelines/internal/brdf_report.h"
 #include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/merl.h"
+#include "photorig/solvers/brdf/table_fit.h"
+
+#include <pybind11/stl.h>  // std::optional options
 
 #include <cmath>
+#include <filesystem>
 #include <limits>
+#include <memory>
 
 namespace photorig::python {
 namespace {
@@ -35,19 +43,26 @@ py::array_t<double> ReadMerl(const std::string& path) {
   return values;
 }
 
-void WriteMerl(const std::string& path, const py::array_t<double, py::array::c_style | py::array::forcecast>& values) {
+using TableArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// read_merl's layout as a table (NaN: a cell not measured).
+void ToTable(const TableArray& values, Table* table) {
   if (values.ndim() != 4 || values.shape(0) != 3 || values.shape(1) != Table::kThetaHBins ||
       values.shape(2) != Table::kThetaDBins || values.shape(3) != Table::kPhiDBins)
     throw py::value_error("a MERL table is (3, 90, 90, 180): R, G, B over theta_h, theta_d, phi_d");
-  Table table;
   const double* in = values.data();
   for (std::size_t cell = 0; cell < Table::kCells; ++cell) {
     const Eigen::Vector3d value(in[cell], in[Table::kCells + cell], in[2 * Table::kCells + cell]);
     if (value.array().isNaN().any())
-      table.SetCellInvalid(cell);
+      table->SetCellInvalid(cell);
     else
-      table.SetCell(cell, value);
+      table->SetCell(cell, value);
   }
+}
+
+void WriteMerl(const std::string& path, const TableArray& values) {
+  Table table;
+  ToTable(values, &table);
   py::gil_scoped_release unlocked;
   if (const solvers::core::Summary written = brdf::WriteMerl(path, table); !written.IsSolutionUsable())
     throw py::value_error(written.message);
@@ -76,6 +91,55 @@ py::array_t<double> EvalBrdf(const std::string& path,
   return f;
 }
 
+// A table as `photorig brdf fit` reads it: a .binary or .bsdf path, or read_merl's array.
+brdf::MeasuredBrdf MeasuredOf(const py::object& table_or_path, nlohmann::json* doc) {
+  if (py::isinstance<py::array>(table_or_path)) {
+    auto table = std::make_shared<Table>();
+    ToTable(table_or_path.cast<TableArray>(), table.get());
+    (*doc)["format"] = brdf::TableFormatName(brdf::TableFormat::kMerl);
+    return [table](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return table->Evaluate(wi, wo); };
+  }
+  const std::string path = py::str(table_or_path);
+  if (std::filesystem::path(path).extension() == ".csv")
+    throw py::value_error(path + ": fit_brdf fits tables (.binary, .bsdf); fit samples.csv with `photorig brdf fit`");
+  brdf::MeasuredBrdf table;
+  if (const solvers::core::Summary read = brdf::ReadMeasured(path, &table); !read.IsSolutionUsable())
+    throw py::value_error(read.message);
+  (*doc)["file"] = path;
+  (*doc)["format"] = brdf::TableFormatName(*brdf::TableFormatOf(path));
+  return table;
+}
+
+// report.json of `photorig brdf fit` as `summary`, with the chosen model and
+// its candidate's entry (parameters and their deviations) beside it.
+py::dict FitBrdf(const py::object& table_or_path, const std::string& loss, std::size_t samples) {
+  brdf::TableFitOptions options;
+  options.selection.fit.loss = ParseChoice(brdf::kFitLossNames, loss, "loss");
+  options.samples = samples;
+  if (std::string why; !options.IsValid(&why)) throw py::value_error(why);
+  nlohmann::json doc;
+  const brdf::MeasuredBrdf table = MeasuredOf(table_or_path, &doc);
+  doc["loss"] = loss;
+  brdf::TableFitSummary fit;
+  {
+    py::gil_scoped_release unlocked;
+    fit = brdf::FitTable(table, options);
+  }
+  if (fit.termination == solvers::core::Termination::kInvalidInput) throw py::value_error(fit.message);
+  doc["samples"] = fit.samples;
+  doc.update(daemon::SelectionJson(fit.selection));
+  daemon::AddTableFitJson(fit, &doc);
+  py::dict out;
+  out["summary"] = ToPython(doc);
+  out["model"] = py::none();
+  out["parameters"] = py::none();
+  if (fit.selection.chosen) {
+    out["model"] = brdf::ModelName(*fit.selection.chosen);
+    out["parameters"] = ToPython(doc["candidates"][fit.selection.chosen_index]);
+  }
+  return out;
+}
+
 }  // namespace
 
 void BindBrdf(py::module_& m) {
@@ -87,6 +151,12 @@ void BindBrdf(py::module_& m) {
   m.def("eval_brdf", &EvalBrdf, py::arg("path"), py::arg("wi"), py::arg("wo"),
         "A MERL .binary's or RGL .bsdf's f_r (1/sr, R, G, B) for each row of wi (towards the light) and wo "
         "(towards the camera), as `photorig brdf eval`: (n, 3), NaN rows where it has no value.");
+  m.def("fit_brdf", &FitBrdf, py::arg("table"), py::kw_only(),
+        py::arg("loss") = brdf::FitLossName(brdf::TableFitOptions().selection.fit.loss),
+        py::arg("samples") = brdf::TableFitOptions().samples,
+        "Fits BRDF models to a measured table (a .binary or .bsdf path, or read_merl's array) and chooses one, as "
+        "`photorig brdf fit`: model (the chosen one's name, or None), parameters (its report entry) and summary, "
+        "report.json's fields. Options are the CLI's (loss: log only, a table carries no deviations).");
 }
 
 }  // namespace photorig::python

@@ -60,3 +60,30 @@ def test_bad_files_raise_the_readers_message(tmp_path):
         photorig.read_merl(str(short))
     with pytest.raises(ValueError, match=r"\(3, 90, 90, 180\)"):
         photorig.write_merl(str(tmp_path / "x.binary"), np.zeros((3, 90, 90)))
+
+
+def test_fit_is_the_clis(table, cli, tmp_path):
+    path, values = table
+    cli("brdf", "fit", path, "--samples", 2000, "--out", tmp_path / "fit")
+    report = json.loads((tmp_path / "fit/report.json").read_text())
+    fitted = photorig.fit_brdf(str(path), samples=2000)
+    assert fitted["model"] == report["chosen"] and fitted["summary"]["reason"] == report["reason"]
+    assert fitted["summary"]["cells"] == report["cells"] and fitted["summary"]["poor_fit"] == report["poor_fit"]
+    for ours, theirs in zip(fitted["summary"]["candidates"], report["candidates"]):
+        assert {k: ours[k] for k in ["model", "bic", "all_cells_log_rms"]} == \
+               {k: theirs[k] for k in ["model", "bic", "all_cells_log_rms"]}
+    chosen = next(c for c in report["candidates"] if c["model"] == report["chosen"])
+    for key in ["diffuse", "specular", "shape"]:
+        assert fitted["parameters"][key] == chosen[key], key
+    # The array read_merl gives fits as its file does (the file stores float64, rescaled per channel).
+    from_array = photorig.fit_brdf(values, samples=2000)
+    assert from_array["model"] == fitted["model"]
+    np.testing.assert_allclose(from_array["parameters"]["shape"], fitted["parameters"]["shape"], rtol=1e-6)
+
+
+def test_fit_options_raise_the_solvers_message(table):
+    path, _ = table
+    with pytest.raises(ValueError, match="a table carries no deviations"):
+        photorig.fit_brdf(str(path), loss="weighted")
+    with pytest.raises(ValueError, match="samples must be at least 100"):
+        photorig.fit_brdf(str(path), samples=10)
