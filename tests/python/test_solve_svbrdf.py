@@ -49,3 +49,5 @@ def test_bad_options_raise_the_solvers_message(glossy_run):
         photorig.solve_svbrdf(str(run), max_materials=0)
     with pytest.raises(ValueError, match="lambertian"):
         photorig.solve_svbrdf(str(run), method="lambert")
+    with pytest.raises(ValueError, match="held_out_lights"):
+        photorig.solve_svbrdf(str(run), held_out=-2)
