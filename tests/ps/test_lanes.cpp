@@ -171,6 +171,23 @@ TEST(BlinnPhongLanes, NormalEquationsMatchForwardModeAutodiff) {
   EXPECT_GT(lights_past_horizon, 20);
 }
 
+// Fits noise-free problems and expects every pixel's true normal (within
+// 1e-4 deg) and exponent (0.1 %), each within the iteration limit.
+void ExpectTrueParameters(BlinnPhongLaneFitter* fitter, const std::vector<BlinnPhongProblem>& problems,
+                          const std::vector<Eigen::Vector3d>& normals, const std::vector<double>& exponents) {
+  std::vector<BlinnPhongSolution> solutions(problems.size());
+  fitter->Fit(problems, solutions);
+  double worst_deg = 0.0, worst_exponent = 0.0;
+  for (std::size_t p = 0; p < problems.size(); ++p) {
+    ASSERT_TRUE(solutions[p].ok) << p;
+    worst_deg = std::max(worst_deg, std::acos(std::min(1.0, solutions[p].normal.dot(normals[p]))) * 180 / M_PI);
+    worst_exponent = std::max(worst_exponent, std::abs(solutions[p].exponent / exponents[p] - 1.0));
+    EXPECT_LT(solutions[p].iterations, BlinnPhongOptions{}.max_iterations);
+  }
+  EXPECT_LT(worst_deg, 1e-4);
+  EXPECT_LT(worst_exponent, 1e-3);
+}
+
 // Noise-free shiny pixels: the lane fit must land where the per-pixel
 // reference fit (forward-mode autodiff) lands, at the true parameters.
 TEST(BlinnPhongLanes, FitsAgreeWithThePerPixelReference) {
@@ -200,19 +217,8 @@ TEST(BlinnPhongLanes, FitsAgreeWithThePerPixelReference) {
     normals.push_back(normal);
     exponents.push_back(e);
   }
-  BlinnPhongOptions options;
-  BlinnPhongLaneFitter fitter(lights, Eigen::Vector3d::UnitZ(), options);
-  std::vector<BlinnPhongSolution> solutions(pixels);
-  fitter.Fit(problems, solutions);
-  double worst_deg = 0.0, worst_exponent = 0.0;
-  for (int p = 0; p < pixels; ++p) {
-    ASSERT_TRUE(solutions[p].ok) << p;
-    worst_deg = std::max(worst_deg, std::acos(std::min(1.0, solutions[p].normal.dot(normals[p]))) * 180 / M_PI);
-    worst_exponent = std::max(worst_exponent, std::abs(solutions[p].exponent / exponents[p] - 1.0));
-    EXPECT_LT(solutions[p].iterations, options.max_iterations);
-  }
-  EXPECT_LT(worst_deg, 1e-4);
-  EXPECT_LT(worst_exponent, 1e-3);
+  BlinnPhongLaneFitter fitter(lights, Eigen::Vector3d::UnitZ(), BlinnPhongOptions{});
+  ExpectTrueParameters(&fitter, problems, normals, exponents);
 
   // The whole solver with either fitter on a noisy stack: the same answer to
   // within a small fraction of the error either makes.
@@ -275,16 +281,7 @@ TEST(BlinnPhongLanes, EachPixelsOwnLightsAndViewAreFittedToTheTruth) {
     exponents.push_back(e);
   }
   BlinnPhongLaneFitter fitter(n, BlinnPhongOptions{});
-  std::vector<BlinnPhongSolution> solutions(pixels);
-  fitter.Fit(problems, solutions);
-  double worst_deg = 0.0, worst_exponent = 0.0;
-  for (int p = 0; p < pixels; ++p) {
-    ASSERT_TRUE(solutions[p].ok) << p;
-    worst_deg = std::max(worst_deg, std::acos(std::min(1.0, solutions[p].normal.dot(normals[p]))) * 180 / M_PI);
-    worst_exponent = std::max(worst_exponent, std::abs(solutions[p].exponent / exponents[p] - 1.0));
-  }
-  EXPECT_LT(worst_deg, 1e-4);
-  EXPECT_LT(worst_exponent, 1e-3);
+  ExpectTrueParameters(&fitter, problems, normals, exponents);
 }
 
 TEST(BlinnPhongLanes, SamplesWithoutWeightAreIgnored) {

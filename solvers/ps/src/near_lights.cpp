@@ -2,10 +2,9 @@
 
 #include "photorig/solvers/ps/evaluation.h"
 
-#include "kernels/blinn_phong_fit.h"
-#include "kernels/irls_lambertian_fit.h"
-#include "model_selection.h"
 #include "kernels/near_lambertian_sums.h"
+#include "model_selection.h"
+#include "per_pixel_fits.h"
 
 #include <opencv2/imgproc.hpp>
 
@@ -240,17 +239,12 @@ struct RefitPixel {
   double albedo = 0.0;
 };
 
+// A refit, and what the depth search sums for it: its chi-square, or for
+// IRLS twice its loss over every usable sample (TwiceLoss), which does not
+// jump as samples cross the inlier weight.
 struct RefitAnswer {
-  bool ok = false;
-  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-  double albedo = 0.0, specular_albedo = 0.0, exponent = 0.0;
-  double chi_square = 0.0;
-  // What the depth search sums: chi_square, or for IRLS twice its loss over
-  // every usable sample (TwiceLoss), which does not jump as samples cross
-  // the inlier weight.
+  internal::PixelFit fit;
   double objective = 0.0;
-  int used = 0, rejected = 0;
-  PixelModel model = PixelModel::kLambertian;
 };
 
 // Twice the robust loss of a residual of u sigmas: u^2 near 0, as a
@@ -333,14 +327,9 @@ class NearRefitter {
         const double residual = observed_[i * lights_ + k] - (row[0] * fit.x.x() + row[1] * fit.x.y() + row[2] * fit.x.z());
         if (inverse_sigma_[i * lights_ + k] > 0.0) objective += TwiceLoss(loss_, residual * inverse_sigma_[i * lights_ + k]);
       }
-      answers[i] = {.ok = fit.ok,
-                    .normal = fit.x.normalized(),
-                    .albedo = kPi * fit.x.norm(),
-                    .chi_square = fit.chi2,
-                    .objective = objective,
-                    .used = fit.used,
-                    .rejected = fit.rejected,
-                    .model = fit.rejected > 0 ? PixelModel::kIrls : PixelModel::kLambertian};
+      answers[i] = {internal::IrlsFit(fit), objective};
+      // Nothing left out: the Lambertian fit itself.
+      if (fit.rejected == 0) answers[i].fit.model = PixelModel::kLambertian;
     }
   }
 
@@ -355,18 +344,9 @@ class NearRefitter {
                            .geometry = &rows_[6 * i * lights_]};
     lobes_->Fit(lobe_problems_, lobe_solutions_);
     for (std::size_t i = 0; i < n; ++i) {
-      const internal::BlinnPhongSolution& fit = lobe_solutions_[i];
       int used = 0;
       for (int k = 0; k < lights_; ++k) used += inverse_sigma_[i * lights_ + k] > 0.0;
-      answers[i] = {.ok = fit.ok,
-                    .normal = fit.normal,
-                    .albedo = fit.diffuse_albedo,
-                    .specular_albedo = fit.specular_albedo,
-                    .exponent = fit.exponent,
-                    .chi_square = fit.chi2,
-                    .objective = fit.chi2,
-                    .used = used,
-                    .model = PixelModel::kBlinnPhong};
+      answers[i] = {internal::BlinnPhongFit(lobe_solutions_[i], used), lobe_solutions_[i].chi2};
     }
   }
 
@@ -387,12 +367,11 @@ class NearRefitter {
 // and `blinn-phong` wherever the refit succeeds; `auto` only where the
 // information criterion says the samples pay for the lobe's two parameters
 // (its step 4), on a pixel with a sample to spare.
-bool KeepsRefit(Method method, const RefitAnswer& refit, double lambertian_chi_square) {
+bool KeepsRefit(Method method, const internal::PixelFit& refit, double lambertian_chi_square) {
   if (!refit.ok) return false;
   if (method != Method::kAuto) return true;
-  const int extra = internal::kBlinnPhongParameters - 3;
-  return refit.used > internal::kBlinnPhongParameters &&
-         refit.chi_square + extra * std::log(static_cast<double>(refit.used)) < lambertian_chi_square;
+  const internal::PixelFit lambertian{.ok = true, .chi2 = lambertian_chi_square, .used = refit.used};
+  return refit.used > internal::kBlinnPhongParameters && refit.Bic() < lambertian.Bic();
 }
 
 // From the second round on: the pixels whose Lambertian fit the noise does
@@ -423,7 +402,7 @@ void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const
       answers.resize(pixels.size());
       refitter.Fit(pixels, answers);
       for (std::size_t i = 0; i < pixels.size(); ++i) {
-        const RefitAnswer& fit = answers[i];
+        const internal::PixelFit& fit = answers[i].fit;
         const int c = pixels[i].c;
         if (!KeepsRefit(options.method, fit, lambertian_chi_square.at<float>(r, c))) continue;
         result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(fit.normal.x()), float(fit.normal.y()), float(fit.normal.z()));
@@ -431,8 +410,7 @@ void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const
         result->specular.at<cv::Vec2f>(r, c) = cv::Vec2f(float(fit.specular_albedo), float(fit.exponent));
         result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(fit.model);
         result->usable_lights.at<std::uint16_t>(r, c) = static_cast<std::uint16_t>(fit.used);
-        const int parameters = fit.model == PixelModel::kBlinnPhong ? internal::kBlinnPhongParameters : 3;
-        WriteConfidence(p.rules, fit.used, parameters, fit.chi_square, &result->confidence.at<float>(r, c));
+        WriteConfidence(p.rules, fit.used, fit.parameters, fit.chi2, &result->confidence.at<float>(r, c));
       }
     }
   }
@@ -533,7 +511,7 @@ double SparseMisfit(const PixelProblem& p, const PhotometricStereoOptions& optio
       answers.resize(refits.size());
       if (!refits.empty()) refitter->Fit(refits, answers);
       for (std::size_t j = 0; j < refits.size(); ++j)
-        if (answers[j].ok) fits[refit_index[j]].chi_square = answers[j].objective;
+        if (answers[j].fit.ok) fits[refit_index[j]].chi_square = answers[j].objective;
       for (std::size_t i = 0; i < size; ++i)
         if (fits[i].flag == PixelFlag::kSolved) chunk_sum[chunk] += fits[i].chi_square;
     }

@@ -27,6 +27,19 @@ PixelFit IrlsFit(const RobustSolution& solution) {
   return fit;
 }
 
+PixelFit BlinnPhongFit(const BlinnPhongSolution& solution, int used) {
+  return {.ok = solution.ok,
+          .normal = solution.normal,
+          .albedo = solution.diffuse_albedo,
+          .specular_albedo = solution.specular_albedo,
+          .exponent = solution.exponent,
+          .chi2 = solution.chi2,
+          .parameters = kBlinnPhongParameters,
+          .used = used,
+          .rejected = 0,
+          .model = PixelModel::kBlinnPhong};
+}
+
 PixelFit LambertianOnRow(const SampleReader& reader, const double* observed, const double* inverse_sigma,
                          const Eigen::Vector3d& kept) {
   const double *wx = reader.direction_axis(0), *wy = reader.direction_axis(1), *wz = reader.direction_axis(2);

@@ -6,6 +6,7 @@
 // same models. Also the fitter of `--derivative forward | reverse | symbolic |
 // central-difference`.
 
+#include "kernels/blinn_phong_fit.h"
 #include "kernels/irls_lambertian_fit.h"
 #include "model_selection.h"
 #include "sample_reader.h"
@@ -20,6 +21,8 @@ namespace photorig::solvers::ps::internal {
 
 // The `robust` fit of a pixel from its IRLS solution.
 PixelFit IrlsFit(const RobustSolution& solution);
+// The lobe fitted to `used` samples.
+PixelFit BlinnPhongFit(const BlinnPhongSolution& solution, int used);
 
 // Step 5's Lambertian fit of a row's usable samples, the one the shared lobe
 // must beat: least squares (unweighted, as the Lambertian pass fits), with

@@ -132,20 +132,6 @@ PixelFit TrimmedFit(const TrimSolution& trimmed) {
   return fit;
 }
 
-// The lobe fitted to `used` samples.
-PixelFit BlinnPhongFit(const BlinnPhongSolution& solution, int used) {
-  return {.ok = solution.ok,
-          .normal = solution.normal,
-          .albedo = solution.diffuse_albedo,
-          .specular_albedo = solution.specular_albedo,
-          .exponent = solution.exponent,
-          .chi2 = solution.chi2,
-          .parameters = kBlinnPhongParameters,
-          .used = used,
-          .rejected = 0,
-          .model = PixelModel::kBlinnPhong};
-}
-
 void WriteFit(int pixel, const PixelFit& fit, NormalMap* out) {
   out->normals.ptr<cv::Vec3f>()[pixel] = cv::Vec3f(float(fit.normal.x()), float(fit.normal.y()), float(fit.normal.z()));
   out->albedo.ptr<float>()[pixel] = static_cast<float>(fit.albedo);
