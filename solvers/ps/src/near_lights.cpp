@@ -272,43 +272,34 @@ double TwiceLoss(RobustOptions::Loss loss, double u) {
 class NearRefitter {
  public:
   NearRefitter(const PixelProblem& p, const PhotometricStereoOptions& options)
-      : p_(p), lights_(p.lights.count()), loss_(options.robust.loss) {
-    if (options.method == Method::kRobust)
-      irls_.emplace(lights_, options.robust);
-    else
-      lobes_.emplace(lights_, options.blinn_phong);
+      : p_(p), lights_(p.lights.count()), loss_(options.robust.loss), irls_(lights_, options.robust) {
+    if (options.method != Method::kRobust) lobes_.emplace(lights_, options.blinn_phong);
   }
 
   void Fit(std::span<const RefitPixel> pixels, std::span<RefitAnswer> answers) {
     const std::size_t n = pixels.size();
-    observed_.resize(n * lights_), inverse_sigma_.resize(n * lights_);
-    rows_.resize((irls_ ? 3 : 6) * n * lights_);
+    observed_.resize(n * lights_), inverse_sigma_.resize(n * lights_), rows_.resize(3 * n * lights_);
+    if (lobes_) scaled_.resize(n * lights_), scaled_inverse_sigma_.resize(n * lights_), geometry_.resize(6 * n * lights_);
     for (std::size_t i = 0; i < n; ++i) {
       const RefitPixel& at = pixels[i];
       samples_.Read(p_, at.r, at.c, at.z_mm);
-      double* observed = &observed_[i * lights_];
-      double* inverse_sigma = &inverse_sigma_[i * lights_];
-      if (irls_) {
-        std::copy(samples_.observed.begin(), samples_.observed.end(), observed);
-        std::copy(samples_.inverse_sigma.begin(), samples_.inverse_sigma.end(), inverse_sigma);
-        for (int k = 0; k < lights_; ++k)
-          for (int axis = 0; axis < 3; ++axis)
-            rows_[3 * (i * lights_ + k) + axis] = samples_.gain[k] * samples_.towards[3 * k + axis];
-      } else {
-        for (int k = 0; k < lights_; ++k) {
-          const double gain = samples_.gain[k];
-          const bool lit = gain > 0.0 && samples_.inverse_sigma[k] > 0.0;
-          observed[k] = lit ? samples_.observed[k] / gain : 0.0;
-          inverse_sigma[k] = lit ? samples_.inverse_sigma[k] * gain : 0.0;
-        }
-        internal::BlinnPhongGeometry(lights_, samples_.towards.data(), p_.rays.ViewDirection(at.r, at.c),
-                                     &rows_[6 * i * lights_]);
+      std::copy(samples_.observed.begin(), samples_.observed.end(), &observed_[i * lights_]);
+      std::copy(samples_.inverse_sigma.begin(), samples_.inverse_sigma.end(), &inverse_sigma_[i * lights_]);
+      for (int k = 0; k < lights_; ++k)
+        for (int axis = 0; axis < 3; ++axis)
+          rows_[3 * (i * lights_ + k) + axis] = samples_.gain[k] * samples_.towards[3 * k + axis];
+      if (!lobes_) continue;
+      for (int k = 0; k < lights_; ++k) {
+        const double gain = samples_.gain[k];
+        const bool lit = gain > 0.0 && samples_.inverse_sigma[k] > 0.0;
+        scaled_[i * lights_ + k] = lit ? samples_.observed[k] / gain : 0.0;
+        scaled_inverse_sigma_[i * lights_ + k] = lit ? samples_.inverse_sigma[k] * gain : 0.0;
       }
+      internal::BlinnPhongGeometry(lights_, samples_.towards.data(), p_.rays.ViewDirection(at.r, at.c),
+                                   &geometry_[6 * i * lights_]);
     }
-    if (irls_)
-      FitRobust(pixels, answers);
-    else
-      FitLobes(pixels, answers);
+    FitRobust(pixels, answers);
+    if (lobes_) FitLobes(pixels, answers);
   }
 
  private:
@@ -318,7 +309,7 @@ class NearRefitter {
     for (std::size_t i = 0; i < n; ++i)
       robust_problems_[i] = {&observed_[i * lights_], &inverse_sigma_[i * lights_],
                              pixels[i].normal * (pixels[i].albedo / kPi), &rows_[3 * i * lights_]};
-    irls_->Fit(robust_problems_, robust_solutions_);
+    irls_.Fit(robust_problems_, robust_solutions_);
     for (std::size_t i = 0; i < n; ++i) {
       const internal::RobustSolution& fit = robust_solutions_[i];
       double objective = 0.0;
@@ -333,19 +324,26 @@ class NearRefitter {
     }
   }
 
+  // The lobe from the IRLS fit of answers (the Lambertian start where IRLS
+  // failed): with the highlight's samples down-weighted its normal is near
+  // the surface's, where a Lambertian fit that strong highlights tilt by
+  // degrees can leave a narrow lobe's fit in a local minimum (as the distant
+  // method starts its lobes from the trimmed fit).
   void FitLobes(std::span<const RefitPixel> pixels, std::span<RefitAnswer> answers) {
     const std::size_t n = pixels.size();
     lobe_problems_.resize(n), lobe_solutions_.assign(n, {});
-    for (std::size_t i = 0; i < n; ++i)
-      lobe_problems_[i] = {.observed = &observed_[i * lights_],
-                           .inverse_sigma = &inverse_sigma_[i * lights_],
-                           .start_normal = pixels[i].normal,
-                           .start_albedo = pixels[i].albedo,
-                           .geometry = &rows_[6 * i * lights_]};
+    for (std::size_t i = 0; i < n; ++i) {
+      const internal::PixelFit& start = answers[i].fit;
+      lobe_problems_[i] = {.observed = &scaled_[i * lights_],
+                           .inverse_sigma = &scaled_inverse_sigma_[i * lights_],
+                           .start_normal = start.ok ? start.normal : pixels[i].normal,
+                           .start_albedo = start.ok ? start.albedo : pixels[i].albedo,
+                           .geometry = &geometry_[6 * i * lights_]};
+    }
     lobes_->Fit(lobe_problems_, lobe_solutions_);
     for (std::size_t i = 0; i < n; ++i) {
       int used = 0;
-      for (int k = 0; k < lights_; ++k) used += inverse_sigma_[i * lights_ + k] > 0.0;
+      for (int k = 0; k < lights_; ++k) used += scaled_inverse_sigma_[i * lights_ + k] > 0.0;
       answers[i] = {internal::BlinnPhongFit(lobe_solutions_[i], used), lobe_solutions_[i].chi2};
     }
   }
@@ -353,14 +351,34 @@ class NearRefitter {
   const PixelProblem& p_;
   int lights_;
   RobustOptions::Loss loss_;
-  std::optional<internal::RobustLambertianLanes> irls_;
+  internal::RobustLambertianLanes irls_;
   std::optional<internal::BlinnPhongLaneFitter> lobes_;
   NearPixelSamples samples_;
-  std::vector<double> observed_, inverse_sigma_, rows_;  // rows_: IRLS rows, or the lobe's geometry
+  std::vector<double> observed_, inverse_sigma_, rows_;  // the samples and IRLS rows s_k f_k(x) l_k(x)
+  // The lobe's: the samples over their gains, and its light and half vectors.
+  std::vector<double> scaled_, scaled_inverse_sigma_, geometry_;
   std::vector<internal::RobustProblem> robust_problems_;
   std::vector<internal::RobustSolution> robust_solutions_;
   std::vector<internal::BlinnPhongProblem> lobe_problems_;
   std::vector<internal::BlinnPhongSolution> lobe_solutions_;
+};
+
+// Whether a pixel's Lambertian fit explains its samples: chi-square at most
+// the adequacy quantile for its degrees of freedom; never where the noise is
+// unknown. The pixels it does not explain are the ones the method refits.
+class LambertianAdequacy {
+ public:
+  LambertianAdequacy(const PixelProblem& p, const PhotometricStereoOptions& options)
+      : noise_known_(p.rules.noise_known),
+        quantiles_(internal::ChiSquareQuantiles(p.lights.count(), options.selection.adequacy_quantile)) {}
+  bool Explains(double chi_square, int usable) const {
+    const int dof = usable - 3;
+    return noise_known_ && dof > 0 && chi_square <= quantiles_[dof];
+  }
+
+ private:
+  bool noise_known_;
+  std::vector<double> quantiles_;
 };
 
 // Whether the method keeps a refit over the pixel's Lambertian fit: IRLS
@@ -379,11 +397,9 @@ bool KeepsRefit(Method method, const internal::PixelFit& refit, double lambertia
 // where the noise is unknown) refitted as the method says (NearRefitter).
 void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm,
            const cv::Mat& lambertian_chi_square, NormalMap* result) {
-  const std::vector<double> adequate =
-      internal::ChiSquareQuantiles(p.lights.count(), options.selection.adequacy_quantile);
+  const LambertianAdequacy adequacy(p, options);
   auto explained = [&](int r, int c) {
-    const int dof = result->usable_lights.at<std::uint16_t>(r, c) - 3;
-    return p.rules.noise_known && dof > 0 && lambertian_chi_square.at<float>(r, c) <= adequate[dof];
+    return adequacy.Explains(lambertian_chi_square.at<float>(r, c), result->usable_lights.at<std::uint16_t>(r, c));
   };
 #pragma omp parallel
   {
@@ -454,12 +470,12 @@ cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, co
 }
 
 // The solved pixels of every offset_stride-th row and column, with their
-// integrated heights (relative to the reference); those the method refitted
-// (a lobe, or IRLS that left samples out) with the refit to start from.
+// integrated heights (relative to the reference) and their fits, from which
+// a refit at another depth starts.
 struct SparseGrid {
   std::vector<PixelAt> pixels;
   std::vector<float> relative;
-  std::vector<RefitPixel> refits;  // refits[i].r < 0: pixel i keeps its Lambertian fit
+  std::vector<RefitPixel> starts;
 };
 
 SparseGrid SparsePixels(const NearLightOptions& options, const NormalMap& map, const cv::Mat& relative) {
@@ -469,49 +485,51 @@ SparseGrid SparsePixels(const NearLightOptions& options, const NormalMap& map, c
       if (map.flags.at<std::uint8_t>(r, c) != static_cast<std::uint8_t>(PixelFlag::kSolved)) continue;
       grid.pixels.push_back({r, c, 0.0});
       grid.relative.push_back(relative.at<float>(r, c));
-      const auto model = static_cast<PixelModel>(map.model.at<std::uint8_t>(r, c));
       const cv::Vec3f n = map.normals.at<cv::Vec3f>(r, c);
-      const bool refitted = model == PixelModel::kIrls || model == PixelModel::kBlinnPhong;
-      grid.refits.push_back({refitted ? r : -1, c, 0.0, Eigen::Vector3d(n[0], n[1], n[2]), map.albedo.at<float>(r, c)});
+      grid.starts.push_back({r, c, 0.0, Eigen::Vector3d(n[0], n[1], n[2]), map.albedo.at<float>(r, c)});
     }
   return grid;
 }
 
 // The sum over the grid of each pixel's misfit with the surface at relative
-// + offset_mm: the Lambertian chi-square, or for a pixel the method refitted
-// its refit's (RefitAnswer::objective), so that the highlights the refit
-// models or leaves out do not pull the surface. Summed in a fixed order, so
-// the search takes the same steps with any number of threads.
+// + offset_mm, as the method would fit it there: the Lambertian chi-square
+// where that fit explains the samples, else (robust, blinn-phong, auto) the
+// refit's misfit (RefitAnswer::objective), so that the highlights a refit
+// models or leaves out do not pull the surface. Which pixels are refitted is
+// decided at each depth: fixed from the last round, a pixel that was
+// explained there but holds a highlight here would weigh that highlight at
+// full chi-square. Summed in a fixed order, so the search takes the same
+// steps with any number of threads.
 double SparseMisfit(const PixelProblem& p, const PhotometricStereoOptions& options, SparseGrid& grid, double offset_mm) {
   constexpr std::size_t kChunk = 8 * internal::kLanes;
   const std::size_t count = grid.pixels.size(), chunks = (count + kChunk - 1) / kChunk;
   for (std::size_t i = 0; i < count; ++i)
-    grid.pixels[i].z_mm = grid.refits[i].z_mm = p.Height(grid.relative[i], offset_mm);
+    grid.pixels[i].z_mm = grid.starts[i].z_mm = p.Height(grid.relative[i], offset_mm);
   std::vector<double> chunk_sum(chunks, 0.0);
-  const bool any_refit =
-      std::any_of(grid.refits.begin(), grid.refits.end(), [](const RefitPixel& refit) { return refit.r >= 0; });
+  const bool refits = options.method != Method::kL2 && options.method != Method::kLambertian;
+  const LambertianAdequacy adequacy(p, options);
 #pragma omp parallel
   {
     std::vector<PixelFit> fits(kChunk);
     std::optional<NearRefitter> refitter;
-    if (any_refit) refitter.emplace(p, options);
-    std::vector<RefitPixel> refits;
-    std::vector<std::size_t> refit_index;
+    if (refits) refitter.emplace(p, options);
+    std::vector<RefitPixel> unexplained;
+    std::vector<std::size_t> index;
     std::vector<RefitAnswer> answers;
 #pragma omp for schedule(dynamic, 1)
     for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
       const std::size_t begin = chunk * kChunk, size = std::min(kChunk, count - begin);
       FitPixels(p, std::span<const PixelAt>(grid.pixels).subspan(begin, size), std::span<PixelFit>(fits).first(size));
-      refits.clear(), refit_index.clear();
-      for (std::size_t i = 0; i < size; ++i) {
-        if (grid.refits[begin + i].r < 0) continue;
-        refits.push_back(grid.refits[begin + i]);
-        refit_index.push_back(i);
+      unexplained.clear(), index.clear();
+      for (std::size_t i = 0; refits && i < size; ++i) {
+        if (fits[i].flag != PixelFlag::kSolved || adequacy.Explains(fits[i].chi_square, fits[i].usable)) continue;
+        unexplained.push_back(grid.starts[begin + i]);
+        index.push_back(i);
       }
-      answers.resize(refits.size());
-      if (!refits.empty()) refitter->Fit(refits, answers);
-      for (std::size_t j = 0; j < refits.size(); ++j)
-        if (answers[j].fit.ok) fits[refit_index[j]].chi_square = answers[j].objective;
+      answers.resize(unexplained.size());
+      if (!unexplained.empty()) refitter->Fit(unexplained, answers);
+      for (std::size_t j = 0; j < unexplained.size(); ++j)
+        if (answers[j].fit.ok) fits[index[j]].chi_square = std::min(fits[index[j]].chi_square, answers[j].objective);
       for (std::size_t i = 0; i < size; ++i)
         if (fits[i].flag == PixelFlag::kSolved) chunk_sum[chunk] += fits[i].chi_square;
     }
