@@ -218,6 +218,7 @@ cv::Mat NearSurface(const PhotometricStereoResult& ps, const fs::path& ps_direct
 std::string AddPixelGeometry(const PhotometricStereoInput& input, bool near, const cv::Mat& height_mm,
                              refl::ReflectanceStack* stack) {
   const solvers::camera::Camera camera = CameraOf(input);
+  if (!near && !camera.IsPinhole()) return {};  // every pixel sees the stack's directions and view
   const solvers::camera::PixelRays rays(camera);
   const int rows = input.stack.height(), cols = input.stack.width();
   if (camera.IsPinhole()) stack->views = rays.ViewDirections();

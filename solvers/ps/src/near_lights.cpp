@@ -21,8 +21,6 @@ namespace photorig::solvers::ps {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-// The robust losses' scales (RobustOptions::Loss), in sigmas.
-constexpr double kCauchyC = 2.385, kHuberC = 1.345, kTukeyC = 4.685;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 // The rounds' surfaces are integrated on blocks that leave at most this many
 // across the image (NearLightOptions::depth_block_px).
@@ -247,21 +245,6 @@ struct RefitAnswer {
   double objective = 0.0;
 };
 
-// Twice the robust loss of a residual of u sigmas: u^2 near 0, as a
-// chi-square term, and bounded (Tukey) or growing slower for outliers; what
-// the IRLS fit minimises, so the depth search weighs a pixel as its fit does.
-double TwiceLoss(RobustOptions::Loss loss, double u) {
-  const double u2 = u * u;
-  switch (loss) {
-    case RobustOptions::Loss::kCauchy: return kCauchyC * kCauchyC * std::log1p(u2 / (kCauchyC * kCauchyC));
-    case RobustOptions::Loss::kHuber:
-      return std::abs(u) <= kHuberC ? u2 : 2.0 * kHuberC * std::abs(u) - kHuberC * kHuberC;
-    case RobustOptions::Loss::kTukey: break;
-  }
-  const double t = 1.0 - std::min(u2 / (kTukeyC * kTukeyC), 1.0);
-  return kTukeyC * kTukeyC / 3.0 * (1.0 - t * t * t);
-}
-
 // The method's fit of pixels the Lambertian model leaves unexplained, each
 // with its own light vectors, gains and line of sight: `robust` by the
 // distant method's IRLS lanes, on rows s_k f_k(x) l_k(x), so that highlights
@@ -316,7 +299,7 @@ class NearRefitter {
       for (int k = 0; k < lights_; ++k) {
         const double* row = &rows_[3 * (i * lights_ + k)];
         const double residual = observed_[i * lights_ + k] - (row[0] * fit.x.x() + row[1] * fit.x.y() + row[2] * fit.x.z());
-        if (inverse_sigma_[i * lights_ + k] > 0.0) objective += TwiceLoss(loss_, residual * inverse_sigma_[i * lights_ + k]);
+        if (inverse_sigma_[i * lights_ + k] > 0.0) objective += internal::TwiceLoss(loss_, residual * inverse_sigma_[i * lights_ + k]);
       }
       answers[i] = {internal::IrlsFit(fit), objective};
       // Nothing left out: the Lambertian fit itself.

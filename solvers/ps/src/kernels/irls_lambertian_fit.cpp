@@ -158,6 +158,18 @@ std::vector<std::pair<int, int>> SortingNetwork(int n) {
 
 }  // namespace
 
+double TwiceLoss(RobustOptions::Loss loss, double u) {
+  const double u2 = u * u;
+  switch (loss) {
+    case RobustOptions::Loss::kCauchy: return kCauchyScale * kCauchyScale * std::log1p(u2 / (kCauchyScale * kCauchyScale));
+    case RobustOptions::Loss::kHuber:
+      return std::abs(u) <= kHuberScale ? u2 : 2.0 * kHuberScale * std::abs(u) - kHuberScale * kHuberScale;
+    case RobustOptions::Loss::kTukey: break;
+  }
+  const double t = 1.0 - std::min(u2 / (kTukeyScale * kTukeyScale), 1.0);
+  return kTukeyScale * kTukeyScale / 3.0 * (1.0 - t * t * t);
+}
+
 struct RobustLambertianLanes::State {
   LaneVector x;
   LaneNormalEquations equations;

@@ -37,6 +37,11 @@ struct RobustProblem {
   const double* directions = nullptr;
 };
 
+// Twice the loss of a residual of u sigmas: u^2 near 0, as a chi-square
+// term, and bounded (Tukey) or growing slower for outliers; what the IRLS
+// fit minimises, for callers that weigh a fit as it weighs its samples.
+double TwiceLoss(RobustOptions::Loss loss, double u);
+
 struct RobustSolution {
   bool ok = false;  // false where a weighted system was singular, x = 0, or < 3 inliers remain
   Eigen::Vector3d x = Eigen::Vector3d::Zero();  // albedo / pi times the normal
