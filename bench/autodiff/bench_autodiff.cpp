@@ -19,6 +19,7 @@
 #include "photorig/solvers/autodiff/blinn_phong_symbolic.h"
 #include "photorig/solvers/autodiff/dual.h"
 #include "photorig/solvers/autodiff/finite_difference.h"
+#include "photorig/solvers/autodiff/ggx.h"
 #include "photorig/solvers/autodiff/random_pixel.h"
 #include "photorig/solvers/autodiff/tape.h"
 
@@ -192,6 +193,46 @@ void PrintRatio(const RatioReporter& reporter, const char* label, const std::str
   std::printf("  %-44s %6.2f   %s\n", label, a / b, target);
 }
 
+// The GGX pixel of the same lights and observations, and where to evaluate it
+// (the Blinn-Phong exponent's place holds a roughness of 0.2).
+struct BenchGgx {
+  GgxPixel pixel;
+  std::array<double, GgxPixel::kNumParameters> parameters;
+};
+BenchGgx MakeBenchGgx(int num_lights) {
+  const RandomPixel random = BenchPixel(num_lights);
+  Eigen::Matrix<double, Eigen::Dynamic, 3> lights(num_lights, 3);
+  Eigen::VectorXd intensities(num_lights), observed(num_lights);
+  for (int i = 0; i < num_lights; ++i) {
+    lights.row(i) = random.pixel.light_direction(i).transpose();
+    intensities[i] = random.pixel.light_intensity(i);
+    observed[i] = random.pixel.observed_intensity(i);
+  }
+  BenchGgx ggx{GgxPixel(lights, intensities, Eigen::Vector3d::UnitZ(), observed), random.parameters};
+  ggx.parameters[GgxPixel::kRoughness] = 0.2;
+  return ggx;
+}
+
+// Residuals and Jacobian of a GGX pixel, as its fit (step 6 of `auto`) asks for them each iteration.
+void GgxJacobian(benchmark::State& state, int num_lights, DerivativeMethod method) {
+  const BenchGgx ggx = MakeBenchGgx(num_lights);
+  Eigen::VectorXd residuals;
+  Eigen::MatrixXd jacobian;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(GgxResidualsAndJacobian(ggx.pixel, ggx.parameters.data(), method, &residuals, &jacobian));
+    benchmark::DoNotOptimize(jacobian.data());
+  }
+}
+
+void GgxResiduals(benchmark::State& state, int num_lights) {
+  const BenchGgx ggx = MakeBenchGgx(num_lights);
+  Eigen::VectorXd residuals(num_lights);
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(ggx.pixel(ggx.parameters.data(), residuals.data()));
+    benchmark::DoNotOptimize(residuals.data());
+  }
+}
+
 }  // namespace
 }  // namespace photorig::solvers::autodiff
 
@@ -211,6 +252,9 @@ int main(int argc, char** argv) {
     add("gradient/forward-jet", ForwardGradient<Jet>);
     add("gradient/symbolic", SymbolicGradient);
     add("gradient/central-difference", CentralDifferenceGradient);
+    add("ggx/residuals", GgxResiduals);
+    add("ggx/jacobian-forward", [](benchmark::State& state, int n) { GgxJacobian(state, n, DerivativeMethod::kForward); });
+    add("ggx/jacobian-symbolic", [](benchmark::State& state, int n) { GgxJacobian(state, n, DerivativeMethod::kSymbolic); });
   }
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) {
@@ -235,6 +279,10 @@ int main(int argc, char** argv) {
                name("loss/plain"), "");
     PrintRatio(reporter, "central-difference gradient / plain loss",
                name("gradient/central-difference"), name("loss/plain"), "");
+    PrintRatio(reporter, "GGX Jacobian, forward Dual<6> / residuals", name("ggx/jacobian-forward"),
+               name("ggx/residuals"), "");
+    PrintRatio(reporter, "GGX Jacobian, symbolic / residuals", name("ggx/jacobian-symbolic"), name("ggx/residuals"),
+               "");
   }
   benchmark::Shutdown();
   return 0;

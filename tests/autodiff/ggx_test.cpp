@@ -64,26 +64,30 @@ TEST(GgxTest, PredictsTheSimulatorsLobeTimesTheCosine) {
   EXPECT_GT(lit, 8);
 }
 
-TEST(GgxTest, ForwardReverseAndCentralDifferencesAgree) {
+TEST(GgxTest, ForwardReverseSymbolicAndCentralDifferencesAgree) {
   std::mt19937 rng(2024);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   Tape tape;
   for (int trial = 0; trial < 20; ++trial) {
     const int count = 4 + trial;
     const Scene scene = RandomScene(count, rng);
-    const GgxPixel pixel(scene.lights, Eigen::VectorXd::Ones(count), Eigen::Vector3d::UnitZ(),
-                         Eigen::VectorXd::Constant(count, 0.1));
+    // Lights of unequal intensity, so that every method must scale each row by its own.
+    const Eigen::VectorXd intensities = (Eigen::VectorXd::Random(count).array() * 0.5 + 1.0).matrix();
+    const GgxPixel pixel(scene.lights, intensities, Eigen::Vector3d::UnitZ(), Eigen::VectorXd::Constant(count, 0.1));
     // An iterate: the normal unnormalised, the material anywhere in its range.
     const double scale = 0.5 + unit(rng);
     const double x[6] = {scale * scene.normal.x(), scale * scene.normal.y(), scale * scene.normal.z(),
                          0.2 + 0.6 * unit(rng), 0.05 + 0.5 * unit(rng), 0.05 + 0.6 * unit(rng)};
-    Eigen::VectorXd rf, rr, rc;
-    Eigen::MatrixXd jf, jr, jc;
+    Eigen::VectorXd rf, rr, rs, rc;
+    Eigen::MatrixXd jf, jr, js, jc;
     ASSERT_TRUE(GgxResidualsAndJacobian(pixel, x, DerivativeMethod::kForward, &rf, &jf));
     ASSERT_TRUE(GgxResidualsAndJacobian(pixel, x, DerivativeMethod::kReverse, &rr, &jr, &tape));
+    ASSERT_TRUE(GgxResidualsAndJacobian(pixel, x, DerivativeMethod::kSymbolic, &rs, &js));
     ASSERT_TRUE(GgxResidualsAndJacobian(pixel, x, DerivativeMethod::kCentralDifference, &rc, &jc));
     EXPECT_LT((rf - rr).cwiseAbs().maxCoeff(), 1e-13 * (1.0 + rf.cwiseAbs().maxCoeff()));
+    EXPECT_LT((rf - rs).cwiseAbs().maxCoeff(), 1e-13 * (1.0 + rf.cwiseAbs().maxCoeff()));
     EXPECT_LT(ColumnRelativeError(jr, jf), 1e-12) << trial;
+    EXPECT_LT(ColumnRelativeError(js, jf), 1e-12) << trial;
     EXPECT_LT(ColumnRelativeError(jc, jf), 1e-6) << trial;
   }
 }

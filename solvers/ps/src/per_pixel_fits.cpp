@@ -391,9 +391,8 @@ double BlinnPhongChi2(const PixelSamples& s, const Eigen::Vector3d& view, const 
 // A GGX lobe fitted to a pixel's usable samples from `start`'s normal: rho_d
 // and rho_s from the best point of the roughness grid (weighted least
 // squares, both non-negative), then Levenberg-Marquardt on all six
-// parameters with Jacobians from solvers/autodiff by `options.derivative`
-// (forward mode where that names the lane fitter's closed form, which GGX
-// does not have).
+// parameters with Jacobians from solvers/autodiff: GGX's closed form beside
+// the lane fitter's, else by `options.derivative`.
 PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& start,
                 const BlinnPhongOptions& options, solvers::autodiff::Tape* tape) {
   const int n = s.size();
@@ -429,8 +428,11 @@ PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelF
   }
   if (!std::isfinite(best)) return PixelFit{};
   auto project = [](Eigen::Matrix<double, 6, 1>* q) { ProjectLobe(kMinRoughness, kMaxRoughness, q); };
-  const LobeCost<solvers::autodiff::GgxPixel> cost_at(pixel, &solvers::autodiff::GgxResidualsAndJacobian, m, options,
-                                                      tape);
+  BlinnPhongOptions derivatives = options;
+  if (options.fitter == BlinnPhongOptions::Fitter::kLanes)
+    derivatives.derivative = solvers::autodiff::DerivativeMethod::kSymbolic;
+  const LobeCost<solvers::autodiff::GgxPixel> cost_at(pixel, &solvers::autodiff::GgxResidualsAndJacobian, m,
+                                                      derivatives, tape);
   double cost = 0.0;
   if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
   cost = LevenbergMarquardt(&p, cost, m.inverse_sigma, cost_at.residuals(), cost_at.jacobian(), cost_at, project,

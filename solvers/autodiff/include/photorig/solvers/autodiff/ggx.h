@@ -91,20 +91,98 @@ class GgxPixel {
 
   Eigen::Vector3d light_direction(int i) const { return lights_.light_direction(i); }
   Eigen::Vector3d half_vector(int i) const { return lights_.half_vector(i); }
+  double light_intensity(int i) const { return lights_.light_intensity(i); }
+  double observed_intensity(int i) const { return lights_.observed_intensity(i); }
+  const Eigen::Vector3d& view_direction() const { return view_; }
 
  private:
   BlinnPhongPixel lights_;  // the lights, half vectors and observations (its lobe is not used)
   Eigen::Vector3d view_;
 };
 
+// G1 at c = w . n with its derivatives in c and in a^2. With r = sqrt(a^2 + (1 - a^2) c^2):
+// dG1/dc = 2 a^2 / (r (c + r)^2) and dG1/d(a^2) = -c (1 - c^2) / (r (c + r)^2).
+struct GgxShadowing {
+  double value, d_cos, d_a2;
+};
+inline GgxShadowing GgxG1(double cos_angle, double a2) {
+  const double r = std::sqrt(a2 + (1.0 - a2) * cos_angle * cos_angle), sum = cos_angle + r;
+  const double q = 1.0 / (r * sum * sum);
+  return {2.0 * cos_angle / sum, 2.0 * a2 * q, -cos_angle * (1.0 - cos_angle * cos_angle) * q};
+}
+
+// Residuals and N x 6 Jacobian of GgxPixel from hand-derived formulas (forward mode carries six
+// tangents through every operation; these cost about one evaluation more), chained through
+// n = m / |m| as SymbolicBlinnPhongJacobian. The lobe term is rho_s S(n) G1(w . n) / t^2 with
+// the per-pixel S = a^2 G1(v . n) / (4 pi v . n) and t = (h . n)^2 (a^2 - 1) + 1.
+// False if the normal is degenerate.
+inline bool SymbolicGgxJacobian(const GgxPixel& pixel, const double* parameters, Eigen::VectorXd* residuals,
+                                Eigen::MatrixXd* jacobian) {
+  constexpr double kInvPi = std::numbers::inv_pi;
+  const Eigen::Vector3d m(parameters[GgxPixel::kNormal], parameters[GgxPixel::kNormal + 1],
+                          parameters[GgxPixel::kNormal + 2]);
+  const NormalizeResult<double, 3> normal = NormalizeGuarded(m);
+  if (!normal.valid) return false;
+  const Eigen::Vector3d& n = normal.direction;
+  const Eigen::Matrix3d d_normal_d_m = (Eigen::Matrix3d::Identity() - n * n.transpose()) / m.norm();
+  const double rho_d = parameters[GgxPixel::kDiffuseAlbedo], rho_s = parameters[GgxPixel::kSpecularAlbedo];
+  const double a = parameters[GgxPixel::kRoughness], a2 = a * a;
+  const Eigen::Vector3d& view = pixel.view_direction();
+  const double cos_view = view.dot(n);
+  // A normal facing away from the camera shows no lobe (as Predict).
+  const bool lobe = cos_view > 0.0;
+  // S per unit rho_s, with its derivatives in v . n and in a^2.
+  double s = 0.0, ds_d_cos_view = 0.0, ds_d_a2 = 0.0;
+  if (lobe) {
+    const GgxShadowing g = GgxG1(cos_view, a2);
+    const double k = 0.25 * kInvPi / cos_view;
+    s = k * a2 * g.value;
+    ds_d_cos_view = k * a2 * (g.d_cos - g.value / cos_view);
+    ds_d_a2 = k * (g.value + a2 * g.d_a2);
+  }
+  const int num_lights = pixel.num_lights();
+  residuals->resize(num_lights);
+  jacobian->setZero(num_lights, GgxPixel::kNumParameters);
+  for (int i = 0; i < num_lights; ++i) {
+    const Eigen::Vector3d w = pixel.light_direction(i);
+    const double cos_light = w.dot(n), intensity = pixel.light_intensity(i);
+    if (cos_light <= 0.0) {
+      (*residuals)[i] = -pixel.observed_intensity(i);
+      continue;
+    }
+    double value = rho_d * kInvPi * cos_light, d_specular = 0.0, d_a2 = 0.0;
+    Eigen::Vector3d d_normal = rho_d * kInvPi * w;
+    if (lobe) {
+      const Eigen::Vector3d h = pixel.half_vector(i);
+      const double cos_half = std::max(0.0, h.dot(n));
+      const double t = cos_half * cos_half * (a2 - 1.0) + 1.0, inv_t2 = 1.0 / (t * t);
+      const GgxShadowing g = GgxG1(cos_light, a2);
+      d_specular = s * g.value * inv_t2;  // the lobe per unit rho_s
+      value += rho_s * d_specular;
+      // d(1/t^2) = -2 / t^3 dt, dt/dn = 2 (h . n)(a^2 - 1) h, dt/d(a^2) = (h . n)^2.
+      const double d_inv_t2_d_t = -2.0 * inv_t2 / t;
+      d_normal += rho_s * (ds_d_cos_view * g.value * inv_t2 * view + s * g.d_cos * inv_t2 * w +
+                           s * g.value * d_inv_t2_d_t * 2.0 * cos_half * (a2 - 1.0) * h);
+      d_a2 = rho_s * (ds_d_a2 * g.value * inv_t2 + s * g.d_a2 * inv_t2 + s * g.value * d_inv_t2_d_t * cos_half * cos_half);
+    }
+    (*residuals)[i] = intensity * value - pixel.observed_intensity(i);
+    // d_normal_d_m is symmetric, so row i is (d_normal_d_m * dI/dn)^T.
+    jacobian->block<1, 3>(i, GgxPixel::kNormal) = intensity * (d_normal_d_m * d_normal).transpose();
+    (*jacobian)(i, GgxPixel::kDiffuseAlbedo) = intensity * cos_light * kInvPi;
+    (*jacobian)(i, GgxPixel::kSpecularAlbedo) = intensity * d_specular;
+    (*jacobian)(i, GgxPixel::kRoughness) = intensity * d_a2 * 2.0 * a;
+  }
+  return true;
+}
+
 // Residuals and Jacobian (N x 6) of a GgxPixel by `method`, as BlinnPhongResidualsAndJacobian.
-// No hand-derived formulas: kSymbolic takes forward mode.
 inline bool GgxResidualsAndJacobian(const GgxPixel& pixel, const double* parameters, DerivativeMethod method,
                                     Eigen::VectorXd* residuals, Eigen::MatrixXd* jacobian, Tape* tape = nullptr) {
   switch (method) {
     case DerivativeMethod::kForward:
-    case DerivativeMethod::kSymbolic:
       return ForwardJacobian<GgxPixel::kNumParameters>(pixel, parameters, residuals, jacobian);
+    case DerivativeMethod::kSymbolic:
+      return SymbolicGgxJacobian(pixel, parameters, residuals, jacobian);
     case DerivativeMethod::kReverse: {
       if (tape != nullptr) return ReverseJacobian(pixel, parameters, tape, residuals, jacobian);
       Tape local_tape;
