@@ -28,14 +28,7 @@ config::SvbrdfRequest SvbrdfRequestOf(const std::string& method, int max_materia
   request.held_out_lights = held_out;
   request.refine_normals = refine_normals;
   request.export_gltf = export_gltf;
-  if (std::string why; !request.ps.IsValid(&why)) throw py::value_error(why);
-  refl::ReflectanceOptions fit;
-  fit.max_materials = max_materials;
-  if (std::string why; !fit.IsValid(&why)) throw py::value_error(why);
-  refl::RelightingOptions relight;
-  relight.held_out_lights = held_out;
-  // -1 skips the held-out check, as --held-out -1 does.
-  if (std::string why; held_out != -1 && !relight.IsValid(&why)) throw py::value_error(why);
+  if (std::string why; !request.IsValid(&why)) throw py::value_error(why);
   return request;
 }
 

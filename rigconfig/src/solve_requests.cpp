@@ -1,6 +1,8 @@
 #include "photorig/config/solve_requests.h"
 
+#include "photorig/solvers/core/summary.h"
 #include "photorig/solvers/ps/integration.h"
+#include "photorig/solvers/reflectance/fit.h"
 #include "photorig/solvers/tomography/ray_trace.h"
 #include "photorig/solvers/tomography/reconstruct.h"
 
@@ -173,20 +175,26 @@ TomographyRequest ParseTomographyRequest(const YamlNode& node) {
   return request;
 }
 
+bool SvbrdfRequest::IsValid(std::string* why) const {
+  if (!ps.IsValid(why)) return false;
+  solvers::reflectance::ReflectanceOptions fit;
+  fit.max_materials = max_materials;
+  if (!fit.IsValid(why)) return false;
+  // RelightingOptions takes 0 and more; -1 is the request's "no check".
+  if (held_out_lights < -1)
+    return solvers::core::Refuse(why, "held_out_lights must be >= -1 (-1: no held-out check, 0: every light)");
+  return true;
+}
+
 SvbrdfRequest ParseSvbrdfRequest(const YamlNode& node) {
   node.ExpectKeys({"photometric_stereo", "max_materials", "held_out_lights", "gltf", "refine_normals"});
   SvbrdfRequest request;
   if (auto ps = node.Find("photometric_stereo")) request.ps = ParsePhotometricStereoRequest(*ps);
-  if (auto materials = node.Find("max_materials")) {
-    request.max_materials = materials->AsInt();
-    if (request.max_materials < 1 || request.max_materials > 16) materials->Fail("must lie in [1, 16]");
-  }
-  if (auto held_out = node.Find("held_out_lights")) {
-    request.held_out_lights = held_out->AsInt();
-    if (request.held_out_lights < -1) held_out->Fail("must be >= -1 (-1: no held-out check, 0: every light)");
-  }
+  if (auto materials = node.Find("max_materials")) request.max_materials = materials->AsInt();
+  if (auto held_out = node.Find("held_out_lights")) request.held_out_lights = held_out->AsInt();
   request.export_gltf = node.Bool("gltf", request.export_gltf);
   request.refine_normals = node.Bool("refine_normals", request.refine_normals);
+  if (std::string why; !request.IsValid(&why)) node.Fail(why);
   return request;
 }
 

@@ -153,6 +153,11 @@ struct SvbrdfRequest {
   bool refine_normals = false;
   // Not from YAML: whoever runs the solve listens here (the CLI's progress bar).
   solvers::core::ProgressCallback progress;
+
+  // The photometric-stereo request, max_materials as ReflectanceOptions
+  // takes it, held_out_lights >= -1; the YAML reader, the CLI and the
+  // Python module refuse a request with this one message.
+  bool IsValid(std::string* why) const;
 };
 
 // Throws ConfigError naming file:line:column for unknown keys or values.
