@@ -484,16 +484,16 @@ std::optional<solvers::brdf::GonioArms> GonioArmsOf(const MotionConfig& motion) 
   return arms;
 }
 
-const char* CaptureStepKindName(CaptureStep::Kind kind) {
-  switch (kind) {
-    case CaptureStep::Kind::kDark: return "dark";
-    case CaptureStep::Kind::kLight: return "light";
-    case CaptureStep::Kind::kFlat: return "flat";
-    case CaptureStep::Kind::kPattern: return "pattern";
-    case CaptureStep::Kind::kPose: return "pose";
-  }
-  return "unknown";
-}
+namespace {
+
+constexpr solvers::core::NameTable<CaptureStep::Kind, 5> kCaptureStepKindNames = {{
+    {CaptureStep::Kind::kDark, "dark"}, {CaptureStep::Kind::kLight, "light"}, {CaptureStep::Kind::kFlat, "flat"},
+    {CaptureStep::Kind::kPattern, "pattern"}, {CaptureStep::Kind::kPose, "pose"},
+}};
+
+}  // namespace
+
+const char* CaptureStepKindName(CaptureStep::Kind kind) { return solvers::core::NameOf(kCaptureStepKindNames, kind); }
 
 std::optional<Recipe::Group::Kind> GroupKindOfLabel(std::string_view group) {
   constexpr std::string_view kPatternPrefix = "pattern:";
@@ -502,10 +502,7 @@ std::optional<Recipe::Group::Kind> GroupKindOfLabel(std::string_view group) {
 }
 
 std::optional<CaptureStep::Kind> CaptureStepKindFromName(const std::string& name) {
-  for (CaptureStep::Kind kind : {CaptureStep::Kind::kDark, CaptureStep::Kind::kLight, CaptureStep::Kind::kFlat,
-                                 CaptureStep::Kind::kPattern, CaptureStep::Kind::kPose})
-    if (name == CaptureStepKindName(kind)) return kind;
-  return std::nullopt;
+  return solvers::core::ParseName(kCaptureStepKindNames, name);
 }
 
 bool CaptureLimits::IsValid(std::string* why) const {
