@@ -1,5 +1,6 @@
 #include "photorig/solvers/reflectance/relighting.h"
 
+#include "photorig/solvers/core/names.h"
 #include "samples.h"
 
 #include <algorithm>
@@ -58,14 +59,15 @@ core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector
                 image);
 }
 
-const char* MethodName(Method method) {
-  switch (method) {
-    case Method::kLambertian: return "lambertian";
-    case Method::kPerPixelLobe: return "per_pixel_lobe";
-    case Method::kPerMaterial: return "per_material";
-  }
-  return "?";
-}
+namespace {
+
+constexpr core::NameTable<Method, 3> kMethodNames = {{
+    {Method::kLambertian, "lambertian"}, {Method::kPerPixelLobe, "per_pixel_lobe"}, {Method::kPerMaterial, "per_material"},
+}};
+
+}  // namespace
+
+const char* MethodName(Method method) { return core::NameOf(kMethodNames, method); }
 
 bool RelightingOptions::IsValid(std::string* why) const {
   if (held_out_lights < 0) {
