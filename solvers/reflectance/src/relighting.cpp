@@ -70,19 +70,10 @@ constexpr core::NameTable<Method, 3> kMethodNames = {{
 const char* MethodName(Method method) { return core::NameOf(kMethodNames, method); }
 
 bool RelightingOptions::IsValid(std::string* why) const {
-  if (held_out_lights < 0) {
-    if (why) *why = "held_out_lights must be >= 0 (0 = every light)";
-    return false;
-  }
-  if (methods.empty()) {
-    if (why) *why = "methods must name at least one method";
-    return false;
-  }
+  if (held_out_lights < 0) return core::Refuse(why, "held_out_lights must be >= 0 (0 = every light)");
+  if (methods.empty()) return core::Refuse(why, "methods must name at least one method");
   for (int j : lights)
-    if (j < 0) {
-      if (why) *why = "a held-out light index is negative: " + std::to_string(j);
-      return false;
-    }
+    if (j < 0) return core::Refuse(why, "a held-out light index is negative: " + std::to_string(j));
   return fit.IsValid(why);
 }
 
