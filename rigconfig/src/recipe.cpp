@@ -11,6 +11,7 @@
 #include <functional>
 
 namespace photorig::config {
+using solvers::core::Refuse;
 namespace fs = std::filesystem;
 
 namespace {
@@ -506,14 +507,10 @@ std::optional<CaptureStep::Kind> CaptureStepKindFromName(const std::string& name
 }
 
 bool CaptureLimits::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (max_frames < 1) return fail("max_frames must be >= 1");
-  if (max_bytes == 0) return fail("max_bytes must be > 0");
-  if (!(max_duration_s > 0)) return fail("max_duration_s must be > 0");
-  if (!(step_overhead_ms >= 0)) return fail("step_overhead_ms must be >= 0");
+  if (max_frames < 1) return Refuse(why, "max_frames must be >= 1");
+  if (max_bytes == 0) return Refuse(why, "max_bytes must be > 0");
+  if (!(max_duration_s > 0)) return Refuse(why, "max_duration_s must be > 0");
+  if (!(step_overhead_ms >= 0)) return Refuse(why, "step_overhead_ms must be >= 0");
   return true;
 }
 
