@@ -19,23 +19,19 @@ std::string Fmt(const char* format, double a, double b) {
 }  // namespace
 
 bool LightSafetyOptions::IsValid(int channels, std::string* why) const {
-  auto fail = [&](const std::string& text) {
-    if (why) *why = text;
-    return false;
-  };
   if (!per_channel.empty() && static_cast<int>(per_channel.size()) != channels)
-    return fail("per-channel limits list " + std::to_string(per_channel.size()) + " entries for " +
-                std::to_string(channels) + " channels");
+    return Refuse(why, "per-channel limits list " + std::to_string(per_channel.size()) + " entries for " +
+                           std::to_string(channels) + " channels");
   std::vector<ChannelLimits> all = per_channel;
   all.push_back(defaults);
   for (const ChannelLimits& limits : all) {
-    if (!(limits.max_on_ms >= 0)) return fail("max_on_ms must be >= 0");
-    if (!(limits.max_duty > 0 && limits.max_duty <= 1)) return fail("max_duty must be within (0, 1]");
+    if (!(limits.max_on_ms >= 0)) return Refuse(why, "max_on_ms must be >= 0");
+    if (!(limits.max_duty > 0 && limits.max_duty <= 1)) return Refuse(why, "max_duty must be within (0, 1]");
   }
-  if (!(duty_window_ms > 0)) return fail("duty_window_ms must be > 0");
-  if (!(watchdog_ms >= 0)) return fail("watchdog_ms must be >= 0");
-  if (monitor_period_ms <= 0) return fail("monitor_period_ms must be > 0");
-  if (keepalive_period_ms <= 0) return fail("keepalive_period_ms must be > 0");
+  if (!(duty_window_ms > 0)) return Refuse(why, "duty_window_ms must be > 0");
+  if (!(watchdog_ms >= 0)) return Refuse(why, "watchdog_ms must be >= 0");
+  if (monitor_period_ms <= 0) return Refuse(why, "monitor_period_ms must be > 0");
+  if (keepalive_period_ms <= 0) return Refuse(why, "keepalive_period_ms must be > 0");
   return true;
 }
 

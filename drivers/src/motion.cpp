@@ -25,14 +25,10 @@ std::string Degrees(double value) {
 }  // namespace
 
 bool SettleOptions::IsValid(std::string* why) const {
-  auto fail = [&](const char* text) {
-    if (why) *why = text;
-    return false;
-  };
-  if (!(tolerance_deg > 0)) return fail("tolerance_deg must be > 0");
-  if (settle_ms < 0 || poll_ms <= 0 || timeout_ms <= 0) return fail("settle_ms >= 0, poll_ms > 0, timeout_ms > 0");
-  if (stall_window_ms <= poll_ms) return fail("stall_window_ms must exceed poll_ms");
-  if (!(overshoot_deg >= tolerance_deg)) return fail("overshoot_deg must be >= tolerance_deg");
+  if (!(tolerance_deg > 0)) return Refuse(why, "tolerance_deg must be > 0");
+  if (settle_ms < 0 || poll_ms <= 0 || timeout_ms <= 0) return Refuse(why, "settle_ms >= 0, poll_ms > 0, timeout_ms > 0");
+  if (stall_window_ms <= poll_ms) return Refuse(why, "stall_window_ms must exceed poll_ms");
+  if (!(overshoot_deg >= tolerance_deg)) return Refuse(why, "overshoot_deg must be >= tolerance_deg");
   return true;
 }
 

@@ -15,6 +15,11 @@ const char* StatusCodeName(StatusCode code) {
   return "Unknown";
 }
 
+bool Refuse(std::string* why, std::string reason) {
+  if (why) *why = std::move(reason);
+  return false;
+}
+
 std::string Status::ToString() const {
   if (ok()) return "OK";
   return std::string(StatusCodeName(code_)) + ": " + message_;

@@ -11,6 +11,7 @@
 #include <functional>
 
 namespace photorig::config {
+using solvers::core::Refuse;
 namespace fs = std::filesystem;
 
 namespace {
@@ -484,16 +485,16 @@ std::optional<solvers::brdf::GonioArms> GonioArmsOf(const MotionConfig& motion) 
   return arms;
 }
 
-const char* CaptureStepKindName(CaptureStep::Kind kind) {
-  switch (kind) {
-    case CaptureStep::Kind::kDark: return "dark";
-    case CaptureStep::Kind::kLight: return "light";
-    case CaptureStep::Kind::kFlat: return "flat";
-    case CaptureStep::Kind::kPattern: return "pattern";
-    case CaptureStep::Kind::kPose: return "pose";
-  }
-  return "unknown";
-}
+namespace {
+
+constexpr solvers::core::NameTable<CaptureStep::Kind, 5> kCaptureStepKindNames = {{
+    {CaptureStep::Kind::kDark, "dark"}, {CaptureStep::Kind::kLight, "light"}, {CaptureStep::Kind::kFlat, "flat"},
+    {CaptureStep::Kind::kPattern, "pattern"}, {CaptureStep::Kind::kPose, "pose"},
+}};
+
+}  // namespace
+
+const char* CaptureStepKindName(CaptureStep::Kind kind) { return solvers::core::NameOf(kCaptureStepKindNames, kind); }
 
 std::optional<Recipe::Group::Kind> GroupKindOfLabel(std::string_view group) {
   constexpr std::string_view kPatternPrefix = "pattern:";
@@ -502,21 +503,14 @@ std::optional<Recipe::Group::Kind> GroupKindOfLabel(std::string_view group) {
 }
 
 std::optional<CaptureStep::Kind> CaptureStepKindFromName(const std::string& name) {
-  for (CaptureStep::Kind kind : {CaptureStep::Kind::kDark, CaptureStep::Kind::kLight, CaptureStep::Kind::kFlat,
-                                 CaptureStep::Kind::kPattern, CaptureStep::Kind::kPose})
-    if (name == CaptureStepKindName(kind)) return kind;
-  return std::nullopt;
+  return solvers::core::ParseName(kCaptureStepKindNames, name);
 }
 
 bool CaptureLimits::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (max_frames < 1) return fail("max_frames must be >= 1");
-  if (max_bytes == 0) return fail("max_bytes must be > 0");
-  if (!(max_duration_s > 0)) return fail("max_duration_s must be > 0");
-  if (!(step_overhead_ms >= 0)) return fail("step_overhead_ms must be >= 0");
+  if (max_frames < 1) return Refuse(why, "max_frames must be >= 1");
+  if (max_bytes == 0) return Refuse(why, "max_bytes must be > 0");
+  if (!(max_duration_s > 0)) return Refuse(why, "max_duration_s must be > 0");
+  if (!(step_overhead_ms >= 0)) return Refuse(why, "step_overhead_ms must be >= 0");
   return true;
 }
 

@@ -13,16 +13,14 @@
 #include <stdexcept>
 
 namespace photorig::config {
+using solvers::core::Refuse;
 namespace fs = std::filesystem;
 
 bool PhotometricStereoRequest::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (!(shadow_threshold_sigma >= 0)) return fail("shadow_threshold_sigma must be >= 0");
-  if (!(max_condition_number > 1)) return fail("max_condition_number must be > 1");
-  if (!(max_distant_bias_deg > 0) || !(max_distant_bias_deg <= 90)) return fail("max_distant_bias_deg must be within (0, 90]");
+  if (!(shadow_threshold_sigma >= 0)) return Refuse(why, "shadow_threshold_sigma must be >= 0");
+  if (!(max_condition_number > 1)) return Refuse(why, "max_condition_number must be > 1");
+  if (!(max_distant_bias_deg > 0) || !(max_distant_bias_deg <= 90))
+    return Refuse(why, "max_distant_bias_deg must be within (0, 90]");
   return true;
 }
 
@@ -68,14 +66,10 @@ PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
 }
 
 bool LightCalibrationRequest::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (circle && !(circle->radius_px > 0.0)) return fail("the sphere circle needs a positive radius");
-  if (!(sphere_radius_mm >= 0.0)) return fail("sphere radius_mm must be >= 0");
+  if (circle && !(circle->radius_px > 0.0)) return Refuse(why, "the sphere circle needs a positive radius");
+  if (!(sphere_radius_mm >= 0.0)) return Refuse(why, "sphere radius_mm must be >= 0");
   if (!camera.IsValid(why)) return false;
-  if (base_rig.empty() != out_rig.empty()) return fail("a new rig file needs both the rig to copy and the file to write");
+  if (base_rig.empty() != out_rig.empty()) return Refuse(why, "a new rig file needs both the rig to copy and the file to write");
   return true;
 }
 
@@ -139,17 +133,13 @@ LedPositionRequest ParseLedPositionRequest(const YamlNode& node) {
 }
 
 bool TomographyRequest::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (total_variation && method != solvers::tomography::Method::kSart) return fail("total_variation needs method sart");
-  if (max_iterations < 1 || max_iterations > 100000) return fail("max_iterations must be within [1, 100000]");
-  if (!(discrepancy_factor > 0) || !std::isfinite(discrepancy_factor)) return fail("discrepancy_factor must be > 0");
+  if (total_variation && method != solvers::tomography::Method::kSart) return Refuse(why, "total_variation needs method sart");
+  if (max_iterations < 1 || max_iterations > 100000) return Refuse(why, "max_iterations must be within [1, 100000]");
+  if (!(discrepancy_factor > 0) || !std::isfinite(discrepancy_factor)) return Refuse(why, "discrepancy_factor must be > 0");
   for (int n : volume)
-    if (n < 0 || n > 4096) return fail("volume sizes must be within [0, 4096] (0: from the detector)");
-  if (!(voxel_mm >= 0) || !std::isfinite(voxel_mm)) return fail("voxel_mm must be >= 0 (0: the detector pitch)");
-  if (cor_offset_mm && !std::isfinite(*cor_offset_mm)) return fail("cor_offset_mm must be finite");
+    if (n < 0 || n > 4096) return Refuse(why, "volume sizes must be within [0, 4096] (0: from the detector)");
+  if (!(voxel_mm >= 0) || !std::isfinite(voxel_mm)) return Refuse(why, "voxel_mm must be >= 0 (0: the detector pitch)");
+  if (cor_offset_mm && !std::isfinite(*cor_offset_mm)) return Refuse(why, "cor_offset_mm must be finite");
   return true;
 }
 

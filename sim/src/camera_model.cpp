@@ -1,5 +1,6 @@
 #include "photorig/sim/camera_model.h"
 #include "photorig/sim/camera_rays.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <opencv2/calib3d.hpp>
 
@@ -8,19 +9,16 @@
 #include <vector>
 
 namespace photorig::sim {
+using solvers::core::Refuse;
 
 bool CameraModel::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (width < 1 || height < 1) return fail("the image needs at least one pixel");
-  if (projection == Projection::kOrthographic && !(pixel_pitch_mm > 0)) return fail("pixel_pitch_mm must be > 0");
+  if (width < 1 || height < 1) return Refuse(why, "the image needs at least one pixel");
+  if (projection == Projection::kOrthographic && !(pixel_pitch_mm > 0)) return Refuse(why, "pixel_pitch_mm must be > 0");
   if (projection == Projection::kPinhole) {
-    if (!(fx > 0 && fy > 0)) return fail("fx and fy must be > 0");
-    if (!(distance_mm > 0)) return fail("distance_mm must be > 0");
+    if (!(fx > 0 && fy > 0)) return Refuse(why, "fx and fy must be > 0");
+    if (!(distance_mm > 0)) return Refuse(why, "distance_mm must be > 0");
     for (double k : distortion)
-      if (!std::isfinite(k)) return fail("distortion coefficients must be finite");
+      if (!std::isfinite(k)) return Refuse(why, "distortion coefficients must be finite");
   }
   return true;
 }

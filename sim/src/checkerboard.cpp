@@ -1,6 +1,7 @@
 #include "photorig/sim/checkerboard.h"
 
 #include "photorig/sim/camera_rays.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <cmath>
 #include <random>
@@ -8,6 +9,8 @@
 #include <vector>
 
 namespace photorig::sim {
+using solvers::core::Refuse;
+
 namespace {
 
 // The reflectance the board shows at (x, y) of its own plane.
@@ -23,26 +26,18 @@ double BoardReflectance(const Checkerboard& board, double x_mm, double y_mm) {
 }  // namespace
 
 bool Checkerboard::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (inner_corners_cols < 1 || inner_corners_rows < 1) return fail("the board needs inner corners");
-  if (!(square_mm > 0.0)) return fail("square_mm must be > 0");
-  if (!(border_mm >= 0.0)) return fail("border_mm must be >= 0");
+  if (inner_corners_cols < 1 || inner_corners_rows < 1) return Refuse(why, "the board needs inner corners");
+  if (!(square_mm > 0.0)) return Refuse(why, "square_mm must be > 0");
+  if (!(border_mm >= 0.0)) return Refuse(why, "border_mm must be >= 0");
   for (double r : {dark, light, background})
-    if (!(r >= 0.0 && r <= 1.0)) return fail("reflectances must lie in [0, 1]");
+    if (!(r >= 0.0 && r <= 1.0)) return Refuse(why, "reflectances must lie in [0, 1]");
   return true;
 }
 
 bool CheckerboardRenderOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (samples_per_axis < 1) return fail("samples_per_axis must be >= 1");
-  if (bit_depth != 8 && bit_depth != 16) return fail("bit_depth must be 8 or 16");
-  if (!(noise_sigma >= 0.0)) return fail("noise_sigma must be >= 0");
+  if (samples_per_axis < 1) return Refuse(why, "samples_per_axis must be >= 1");
+  if (bit_depth != 8 && bit_depth != 16) return Refuse(why, "bit_depth must be 8 or 16");
+  if (!(noise_sigma >= 0.0)) return Refuse(why, "noise_sigma must be >= 0");
   return true;
 }
 

@@ -1,11 +1,15 @@
 #include "photorig/sim/color_chart.h"
 
+#include "photorig/solvers/core/summary.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
 
 namespace photorig::sim {
+using solvers::core::Refuse;
+
 namespace {
 
 // Trapezoid weights on a possibly uneven grid.
@@ -32,19 +36,15 @@ std::array<double, 3> CameraSignal(const ChartSpectra& spectra, const std::vecto
 }  // namespace
 
 bool ChartSpectra::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
   const std::size_t n = wavelength_nm.size();
-  if (n < 2) return fail("need at least two wavelengths");
-  if (!std::is_sorted(wavelength_nm.begin(), wavelength_nm.end())) return fail("wavelengths must ascend");
-  if (patch_reflectance.size() != 24) return fail("need 24 patch reflectances");
+  if (n < 2) return Refuse(why, "need at least two wavelengths");
+  if (!std::is_sorted(wavelength_nm.begin(), wavelength_nm.end())) return Refuse(why, "wavelengths must ascend");
+  if (patch_reflectance.size() != 24) return Refuse(why, "need 24 patch reflectances");
   for (const auto& r : patch_reflectance)
-    if (r.size() != n) return fail("a patch reflectance has the wrong number of samples");
-  if (illuminant.size() != n) return fail("illuminant has the wrong number of samples");
+    if (r.size() != n) return Refuse(why, "a patch reflectance has the wrong number of samples");
+  if (illuminant.size() != n) return Refuse(why, "illuminant has the wrong number of samples");
   for (const auto& s : camera_sensitivity)
-    if (s.size() != n) return fail("a camera sensitivity has the wrong number of samples");
+    if (s.size() != n) return Refuse(why, "a camera sensitivity has the wrong number of samples");
   return true;
 }
 

@@ -5,6 +5,8 @@
 #include <stdexcept>
 
 namespace photorig::sim {
+using solvers::core::Refuse;
+
 namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
@@ -112,14 +114,9 @@ double TrapezoidMove::DistanceAt(double t) const {
 }
 
 bool SimAxisOptions::IsValid(std::string* why) const {
-  if (!(time_scale > 0)) {
-    if (why) *why = "time_scale must be > 0";
-    return false;
-  }
-  if (!(homing.velocity_deg_s > 0 && homing.acceleration_deg_s2 > 0)) {
-    if (why) *why = "homing velocity and acceleration must be > 0";
-    return false;
-  }
+  if (!(time_scale > 0)) return Refuse(why, "time_scale must be > 0");
+  if (!(homing.velocity_deg_s > 0 && homing.acceleration_deg_s2 > 0))
+    return Refuse(why, "homing velocity and acceleration must be > 0");
   return true;
 }
 

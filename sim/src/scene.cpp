@@ -9,6 +9,8 @@
 #include <stdexcept>
 
 namespace photorig::sim {
+using solvers::core::Refuse;
+
 namespace {
 
 using Eigen::Vector3d;
@@ -213,40 +215,36 @@ double AlbedoTexture::At(double x_mm, double y_mm) const {
 int AlbedoTexture::PaintAt(double x_mm, double y_mm) const { return HighWeight(x_mm, y_mm) < 0.5 ? 0 : 1; }
 
 bool Material::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
   if (!paint_rho_s.empty()) {
-    if (model != Brdf::Model::kBlinnPhong) return fail("paint_rho_s needs the blinn_phong model");
-    if (paint_rho_s.size() != 2) return fail("paint_rho_s needs two values: [low paint, high paint]");
-    if (!(paint_rho_s[0] >= 0 && paint_rho_s[1] >= 0)) return fail("paint_rho_s must be >= 0");
+    if (model != Brdf::Model::kBlinnPhong) return Refuse(why, "paint_rho_s needs the blinn_phong model");
+    if (paint_rho_s.size() != 2) return Refuse(why, "paint_rho_s needs two values: [low paint, high paint]");
+    if (!(paint_rho_s[0] >= 0 && paint_rho_s[1] >= 0)) return Refuse(why, "paint_rho_s must be >= 0");
   }
   if (rho_s_channels) {
     if (model != Brdf::Model::kBlinnPhong && model != Brdf::Model::kCookTorrance)
-      return fail("rho_s per channel needs the blinn_phong or cook_torrance model");
-    if (!paint_rho_s.empty()) return fail("rho_s per channel and paint_rho_s exclude each other");
-    if (!(rho_s_channels->minCoeff() >= 0)) return fail("rho_s must be >= 0 in every channel");
+      return Refuse(why, "rho_s per channel needs the blinn_phong or cook_torrance model");
+    if (!paint_rho_s.empty()) return Refuse(why, "rho_s per channel and paint_rho_s exclude each other");
+    if (!(rho_s_channels->minCoeff() >= 0)) return Refuse(why, "rho_s must be >= 0 in every channel");
   }
   switch (model) {
     case Brdf::Model::kBlinnPhong:
-      if (!(rho_s >= 0)) return fail("rho_s must be >= 0");
-      if (!(exponent >= 0)) return fail("exponent must be >= 0");
+      if (!(rho_s >= 0)) return Refuse(why, "rho_s must be >= 0");
+      if (!(exponent >= 0)) return Refuse(why, "exponent must be >= 0");
       break;
     case Brdf::Model::kTabulated:
-      if (!table || !*table) return fail("the tabulated model needs a table: a MERL .binary or EPFL RGL .bsdf file");
+      if (!table || !*table) return Refuse(why, "the tabulated model needs a table: a MERL .binary or EPFL RGL .bsdf file");
       break;
     case Brdf::Model::kGgx:
-      if (!(roughness > 0 && roughness <= 1)) return fail("roughness must lie in (0, 1]");
-      if (!(f0 >= 0 && f0 < 1)) return fail("f0 must lie in [0, 1)");
+      if (!(roughness > 0 && roughness <= 1)) return Refuse(why, "roughness must lie in (0, 1]");
+      if (!(f0 >= 0 && f0 < 1)) return Refuse(why, "f0 must lie in [0, 1)");
       break;
     case Brdf::Model::kCookTorrance:
-      if (!(rho_s >= 0)) return fail("rho_s must be >= 0");
-      if (!(roughness > 0 && roughness <= 1)) return fail("roughness (Beckmann m) must lie in (0, 1]");
-      if (!(f0 >= 0 && f0 <= 1)) return fail("f0 must lie in [0, 1]");
+      if (!(rho_s >= 0)) return Refuse(why, "rho_s must be >= 0");
+      if (!(roughness > 0 && roughness <= 1)) return Refuse(why, "roughness (Beckmann m) must lie in (0, 1]");
+      if (!(f0 >= 0 && f0 <= 1)) return Refuse(why, "f0 must lie in [0, 1]");
       break;
     case Brdf::Model::kMirror:
-      if (!(rho_s >= 0 && rho_s <= 1)) return fail("mirror reflectance rho_s must lie in [0, 1]");
+      if (!(rho_s >= 0 && rho_s <= 1)) return Refuse(why, "mirror reflectance rho_s must lie in [0, 1]");
       break;
     case Brdf::Model::kLambertian: break;
   }
@@ -275,17 +273,13 @@ bool Scene::IsHeightfield() const {
 }
 
 bool Scene::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
   if (!material.IsValid(why)) return false;
   if (!(albedo.low >= 0 && albedo.high <= 1 && albedo.low <= albedo.high))
-    return fail("albedo needs 0 <= low <= high <= 1");
+    return Refuse(why, "albedo needs 0 <= low <= high <= 1");
   if (albedo.high_channels) {
-    if (albedo.pattern != AlbedoTexture::Pattern::kUniform) return fail("an albedo per channel needs the uniform pattern");
+    if (albedo.pattern != AlbedoTexture::Pattern::kUniform) return Refuse(why, "an albedo per channel needs the uniform pattern");
     if (!(albedo.high_channels->minCoeff() >= 0 && albedo.high_channels->maxCoeff() <= 1))
-      return fail("albedo needs 0 <= high <= 1 in every channel");
+      return Refuse(why, "albedo needs 0 <= high <= 1 in every channel");
   }
   // Blinn-Phong's (e + 2) / (2 pi) lobe reflects up to 4 rho_s at normal view
   // (the half-vector Jacobian); this keeps the white furnace test true.
@@ -293,34 +287,34 @@ bool Scene::IsValid(std::string* why) const {
     const bool per_paint = !material.paint_rho_s.empty();
     const double low = albedo.low + 4.0 * (per_paint ? material.paint_rho_s[0] : material.rho_s);
     const double high = albedo.high + 4.0 * (per_paint ? material.paint_rho_s[1] : material.rho_s);
-    if (std::max(low, high) > 1.0 + 1e-9) return fail("blinn_phong conserves energy only if albedo + 4 rho_s <= 1");
+    if (std::max(low, high) > 1.0 + 1e-9) return Refuse(why, "blinn_phong conserves energy only if albedo + 4 rho_s <= 1");
   }
-  if (IsSphere() && !(sphere_radius_mm > 0)) return fail("radius_mm must be > 0");
-  if (!sphere_centres_mm.empty() && !IsSphere()) return fail("centres_mm places spheres: only sphere shapes take it");
+  if (IsSphere() && !(sphere_radius_mm > 0)) return Refuse(why, "radius_mm must be > 0");
+  if (!sphere_centres_mm.empty() && !IsSphere()) return Refuse(why, "centres_mm places spheres: only sphere shapes take it");
   for (std::size_t i = 0; i < sphere_centres_mm.size(); ++i) {
-    if (!sphere_centres_mm[i].allFinite()) return fail("centres_mm must be finite");
+    if (!sphere_centres_mm[i].allFinite()) return Refuse(why, "centres_mm must be finite");
     for (std::size_t j = 0; j < i; ++j)
       if ((sphere_centres_mm[i] - sphere_centres_mm[j]).norm() < 2.0 * sphere_radius_mm)
-        return fail("centres_mm: spheres " + std::to_string(j) + " and " + std::to_string(i) +
-                    " overlap (centres closer than two radii)");
+        return Refuse(why, "centres_mm: spheres " + std::to_string(j) + " and " + std::to_string(i) +
+                           " overlap (centres closer than two radii)");
   }
   if (shape == Shape::kMirrorSphere && material.model != Brdf::Model::kMirror)
-    return fail("a mirror_sphere has the mirror BRDF");
+    return Refuse(why, "a mirror_sphere has the mirror BRDF");
   if (shape == Shape::kWhiteSphere && material.model != Brdf::Model::kLambertian)
-    return fail("a white_sphere is Lambertian");
+    return Refuse(why, "a white_sphere is Lambertian");
   if (shape == Shape::kConcave && !(rim_radius_mm > 0 && bowl_radius_mm >= rim_radius_mm))
-    return fail("a bowl needs 0 < rim_radius_mm <= bowl_radius_mm");
+    return Refuse(why, "a bowl needs 0 < rim_radius_mm <= bowl_radius_mm");
   if (shape == Shape::kSteps && !(step_width_mm > 0 && step_height_mm >= 0))
-    return fail("steps need step_width_mm > 0 and step_height_mm >= 0");
-  if (shape == Shape::kSamplePlane && !(std::abs(tilt_deg) < 89.0)) return fail("tilt_deg must lie in (-89, 89)");
-  if (shape == Shape::kDepthMap && depth_map_path.empty()) return fail("a depth_map scene needs a path");
-  if (shape == Shape::kMesh && mesh_path.empty()) return fail("a mesh scene needs a path");
-  if (shape == Shape::kMesh && !(mesh_scale > 0)) return fail("mesh_scale must be > 0");
+    return Refuse(why, "steps need step_width_mm > 0 and step_height_mm >= 0");
+  if (shape == Shape::kSamplePlane && !(std::abs(tilt_deg) < 89.0)) return Refuse(why, "tilt_deg must lie in (-89, 89)");
+  if (shape == Shape::kDepthMap && depth_map_path.empty()) return Refuse(why, "a depth_map scene needs a path");
+  if (shape == Shape::kMesh && mesh_path.empty()) return Refuse(why, "a mesh scene needs a path");
+  if (shape == Shape::kMesh && !(mesh_scale > 0)) return Refuse(why, "mesh_scale must be > 0");
   if (shape == Shape::kVolume && !volume.IsValid(why)) return false;
   if ((shape == Shape::kVolume || shape == Shape::kPhantom) && !(backlight_radiance > 0))
-    return fail("backlight_radiance must be > 0");
+    return Refuse(why, "backlight_radiance must be > 0");
   if (shape == Shape::kPhantom && (phantom.ellipsoids.empty() || !(phantom.half_extent_mm > 0) || !(phantom.sigma_per_mm >= 0)))
-    return fail("a phantom needs ellipsoids, half_extent_mm > 0 and sigma_per_mm >= 0");
+    return Refuse(why, "a phantom needs ellipsoids, half_extent_mm > 0 and sigma_per_mm >= 0");
   return true;
 }
 

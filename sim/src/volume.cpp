@@ -1,20 +1,19 @@
 #include "photorig/sim/volume.h"
 
+#include "photorig/solvers/core/summary.h"
+
 #include <algorithm>
 #include <cmath>
 
 namespace photorig::sim {
+using solvers::core::Refuse;
 
 bool DensityGrid::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (nx < 1 || ny < 1 || nz < 1) return fail("a density grid needs at least one voxel");
-  if (!(voxel_mm > 0)) return fail("voxel_mm must be > 0");
-  if (sigma_per_mm.size() != static_cast<std::size_t>(nx) * ny * nz) return fail("density grid size mismatch");
+  if (nx < 1 || ny < 1 || nz < 1) return Refuse(why, "a density grid needs at least one voxel");
+  if (!(voxel_mm > 0)) return Refuse(why, "voxel_mm must be > 0");
+  if (sigma_per_mm.size() != static_cast<std::size_t>(nx) * ny * nz) return Refuse(why, "density grid size mismatch");
   for (float s : sigma_per_mm)
-    if (!(s >= 0)) return fail("densities must be finite and >= 0");
+    if (!(s >= 0)) return Refuse(why, "densities must be finite and >= 0");
   return true;
 }
 

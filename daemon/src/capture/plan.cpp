@@ -14,6 +14,7 @@
 #include <mutex>
 
 namespace photorig::daemon {
+using solvers::core::Refuse;
 namespace fs = std::filesystem;
 
 namespace {
@@ -99,14 +100,8 @@ std::map<std::string, double> PoseTargets(const config::GonioPose& pose) {
 }
 
 bool PlanOptions::IsValid(std::string* why) const {
-  if (!(step_overhead_ms >= 0)) {
-    if (why) *why = "step_overhead_ms must be >= 0";
-    return false;
-  }
-  if (!(max_led_duty > 0 && max_led_duty <= 1)) {
-    if (why) *why = "max_led_duty must be within (0, 1]";
-    return false;
-  }
+  if (!(step_overhead_ms >= 0)) return Refuse(why, "step_overhead_ms must be >= 0");
+  if (!(max_led_duty > 0 && max_led_duty <= 1)) return Refuse(why, "max_led_duty must be within (0, 1]");
   return true;
 }
 

@@ -10,6 +10,8 @@
 #include <thread>
 
 namespace photorig::daemon {
+using solvers::core::Refuse;
+
 namespace {
 
 // A light command can fail transiently (that is one of the faults we retry),
@@ -365,15 +367,11 @@ class Capture {
 }  // namespace
 
 bool RetryPolicy::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (max_attempts_per_step < 1) return fail("max_attempts_per_step must be >= 1");
-  if (max_retries_per_run < 0) return fail("max_retries_per_run must be >= 0");
+  if (max_attempts_per_step < 1) return Refuse(why, "max_attempts_per_step must be >= 1");
+  if (max_retries_per_run < 0) return Refuse(why, "max_retries_per_run must be >= 0");
   if (initial_backoff_ms < 0 || max_backoff_ms < initial_backoff_ms)
-    return fail("backoff must satisfy 0 <= initial_backoff_ms <= max_backoff_ms");
-  if (!(backoff_factor >= 1.0)) return fail("backoff_factor must be >= 1");
+    return Refuse(why, "backoff must satisfy 0 <= initial_backoff_ms <= max_backoff_ms");
+  if (!(backoff_factor >= 1.0)) return Refuse(why, "backoff_factor must be >= 1");
   return true;
 }
 

@@ -1,5 +1,6 @@
 #include "photorig/daemon/io/nexus.h"
 #include "photorig/daemon/io/utc_time.h"
+#include "photorig/solvers/core/summary.h"
 
 #include <hdf5.h>
 
@@ -8,6 +9,8 @@
 #include <filesystem>
 
 namespace photorig::daemon {
+using solvers::core::Refuse;
+
 namespace {
 
 // A variable-length UTF-8 string type: h5py reads it as str, silx shows it as text.
@@ -40,10 +43,7 @@ struct Handle {
 }  // namespace
 
 bool NexusWriterOptions::IsValid(std::string* why) const {
-  if (deflate_level < 0 || deflate_level > 9) {
-    if (why) *why = "deflate_level must be within [0, 9]";
-    return false;
-  }
+  if (deflate_level < 0 || deflate_level > 9) return Refuse(why, "deflate_level must be within [0, 9]");
   return true;
 }
 

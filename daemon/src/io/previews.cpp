@@ -1,6 +1,7 @@
 #include "photorig/daemon/io/internal/previews.h"
 
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/solvers/core/number_text.h"
 #include "photorig/solvers/reflectance/fit.h"
 
 #include <opencv2/imgproc.hpp>
@@ -8,7 +9,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <stdexcept>
 
@@ -18,11 +18,7 @@ using nlohmann::json;
 
 namespace {
 
-std::string Number(double value) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.6g", value);
-  return text;
-}
+std::string Number(double value) { return solvers::core::NumberText(value, 6); }
 
 std::vector<Category> Named(const std::vector<std::pair<int, cv::Vec3b>>& colours, const char* (*name)(int)) {
   std::vector<Category> categories;

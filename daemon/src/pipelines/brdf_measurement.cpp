@@ -16,6 +16,8 @@
 #include <tuple>
 
 namespace photorig::daemon {
+using solvers::core::Refuse;
+
 namespace {
 
 namespace brdf = solvers::brdf;
@@ -249,14 +251,10 @@ void ApplyColorModel(const RunManifest& manifest, const Eigen::Vector3d& k_times
 }  // namespace
 
 bool BrdfMeasurementOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (block_px < 1 || block_px > 1024) return fail("block_px must be within [1, 1024]");
+  if (block_px < 1 || block_px > 1024) return Refuse(why, "block_px must be within [1, 1024]");
   if (!(max_target_relative_sigma > 0.0 && max_target_relative_sigma < 1.0))
-    return fail("max_target_relative_sigma must be within (0, 1)");
-  if (!(peak_theta_h_deg >= 0.0 && peak_theta_h_deg < 90.0)) return fail("peak_theta_h_deg must be within [0, 90)");
+    return Refuse(why, "max_target_relative_sigma must be within (0, 1)");
+  if (!(peak_theta_h_deg >= 0.0 && peak_theta_h_deg < 90.0)) return Refuse(why, "peak_theta_h_deg must be within [0, 90)");
   return true;
 }
 

@@ -27,6 +27,7 @@
 #include <vector>
 
 namespace photorig::daemon {
+using solvers::core::Refuse;
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -296,22 +297,18 @@ bool IsLoopbackAddress(const std::string& address) {
 }
 
 bool ApiOptions::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (port < 0 || port > 65535) return fail("port must be within [0, 65535]");
+  if (port < 0 || port > 65535) return Refuse(why, "port must be within [0, 65535]");
   if (!IsLoopbackAddress(bind_address) && token.empty())
-    return fail("binding to " + bind_address + " (not loopback) requires a bearer token");
-  if (!token.empty() && token.size() < 16) return fail("the bearer token must be at least 16 characters");
-  if (max_body_bytes == 0) return fail("max_body_bytes must be > 0");
-  if (max_image_values == 0) return fail("max_image_values must be > 0");
-  if (max_event_streams < 1) return fail("max_event_streams must be >= 1");
+    return Refuse(why, "binding to " + bind_address + " (not loopback) requires a bearer token");
+  if (!token.empty() && token.size() < 16) return Refuse(why, "the bearer token must be at least 16 characters");
+  if (max_body_bytes == 0) return Refuse(why, "max_body_bytes must be > 0");
+  if (max_image_values == 0) return Refuse(why, "max_image_values must be > 0");
+  if (max_event_streams < 1) return Refuse(why, "max_event_streams must be >= 1");
   if (worker_threads < max_event_streams + 8)
-    return fail("worker_threads must exceed max_event_streams by at least 8, so short requests are served");
-  if (read_timeout_ms < 100) return fail("read_timeout_ms must be >= 100");
-  if (listen_backlog < 1) return fail("listen_backlog must be >= 1");
-  if (max_connections < worker_threads) return fail("max_connections must be >= worker_threads");
+    return Refuse(why, "worker_threads must exceed max_event_streams by at least 8, so short requests are served");
+  if (read_timeout_ms < 100) return Refuse(why, "read_timeout_ms must be >= 100");
+  if (listen_backlog < 1) return Refuse(why, "listen_backlog must be >= 1");
+  if (max_connections < worker_threads) return Refuse(why, "max_connections must be >= worker_threads");
   return true;
 }
 

@@ -19,6 +19,7 @@
 #include <set>
 
 namespace photorig::daemon {
+using solvers::core::Refuse;
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -127,20 +128,16 @@ json StopEventData(const json& run) {
 }
 
 bool ServiceOptions::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (data_root.empty()) return fail("data_root is required");
-  if (rig_path.empty()) return fail("rig_path is required");
-  if (max_recipe_bytes == 0) return fail("max_recipe_bytes must be > 0");
+  if (data_root.empty()) return Refuse(why, "data_root is required");
+  if (rig_path.empty()) return Refuse(why, "rig_path is required");
+  if (max_recipe_bytes == 0) return Refuse(why, "max_recipe_bytes must be > 0");
   std::string detail;
-  if (!retry.IsValid(&detail)) return fail("retry: " + detail);
-  if (!plan.IsValid(&detail)) return fail("plan: " + detail);
-  if (!limits.IsValid(&detail)) return fail("limits: " + detail);
-  if (max_listed_steps == 0) return fail("max_listed_steps must be > 0");
-  if (plan_memory_bytes == 0) return fail("plan_memory_bytes must be > 0");
-  if (plan_wait_ms < 0) return fail("plan_wait_ms must be >= 0");
+  if (!retry.IsValid(&detail)) return Refuse(why, "retry: " + detail);
+  if (!plan.IsValid(&detail)) return Refuse(why, "plan: " + detail);
+  if (!limits.IsValid(&detail)) return Refuse(why, "limits: " + detail);
+  if (max_listed_steps == 0) return Refuse(why, "max_listed_steps must be > 0");
+  if (plan_memory_bytes == 0) return Refuse(why, "plan_memory_bytes must be > 0");
+  if (plan_wait_ms < 0) return Refuse(why, "plan_wait_ms must be >= 0");
   return true;
 }
 

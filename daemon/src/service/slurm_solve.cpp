@@ -1,11 +1,11 @@
 #include "photorig/daemon/service/internal/slurm_solve.h"
 
 #include "photorig/daemon/service/internal/batch.h"
+#include "photorig/solvers/core/number_text.h"
 
 #include <spdlog/spdlog.h>
 
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
 #include <thread>
 
@@ -14,11 +14,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string Number(double value) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.17g", value);
-  return text;
-}
+std::string Number(double value) { return solvers::core::NumberText(value, 17); }
 
 // The stage's report from the task's record, or, for a task that left none,
 // from how Slurm says it ended.

@@ -130,15 +130,11 @@ struct AravisCamera::Handles {
 };
 
 bool AravisCameraOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (buffer_count < 1 || buffer_count > 64) return fail("buffer_count must be in [1, 64]");
-  if (!(link_bandwidth_mbps > 0)) return fail("link_bandwidth_mbps must be > 0");
-  if (timeout_margin_ms < 0) return fail("timeout_margin_ms must be >= 0");
-  if (reconnect_attempts < 0) return fail("reconnect_attempts must be >= 0");
-  if (reconnect_delay_ms < 0) return fail("reconnect_delay_ms must be >= 0");
+  if (buffer_count < 1 || buffer_count > 64) return Refuse(why, "buffer_count must be in [1, 64]");
+  if (!(link_bandwidth_mbps > 0)) return Refuse(why, "link_bandwidth_mbps must be > 0");
+  if (timeout_margin_ms < 0) return Refuse(why, "timeout_margin_ms must be >= 0");
+  if (reconnect_attempts < 0) return Refuse(why, "reconnect_attempts must be >= 0");
+  if (reconnect_delay_ms < 0) return Refuse(why, "reconnect_delay_ms must be >= 0");
   return true;
 }
 

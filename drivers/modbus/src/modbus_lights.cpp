@@ -6,30 +6,26 @@
 namespace photorig::drivers {
 
 bool ModbusLightMap::IsValid(std::string* why) const {
-  auto fail = [&](const std::string& text) {
-    if (why) *why = text;
-    return false;
-  };
-  if (channels <= 0) return fail("the map needs at least one channel");
-  if (on_off == Switch::kNone && !intensity) return fail("the map needs coils, a bitmask or intensity registers");
-  if (on_off_address < 0 || on_off_address > 65535) return fail("on/off address must be within [0, 65535]");
+  if (channels <= 0) return Refuse(why, "the map needs at least one channel");
+  if (on_off == Switch::kNone && !intensity) return Refuse(why, "the map needs coils, a bitmask or intensity registers");
+  if (on_off_address < 0 || on_off_address > 65535) return Refuse(why, "on/off address must be within [0, 65535]");
   if (intensity && (intensity_address < 0 || intensity_address + channels > 65536))
-    return fail("intensity registers must lie within [0, 65535]");
-  if (intensity && (full_scale < 1 || full_scale > 65535)) return fail("full scale must be within [1, 65535]");
+    return Refuse(why, "intensity registers must lie within [0, 65535]");
+  if (intensity && (full_scale < 1 || full_scale > 65535)) return Refuse(why, "full scale must be within [1, 65535]");
   if (watchdog_address >= 0) {
-    if (watchdog_address > 65535) return fail("watchdog address must be within [0, 65535]");
+    if (watchdog_address > 65535) return Refuse(why, "watchdog address must be within [0, 65535]");
     if (watchdog_timeout_ms < 1000 || watchdog_timeout_ms > 65535)
-      return fail("watchdog timeout must be within [1000, 65535] ms");
+      return Refuse(why, "watchdog timeout must be within [1000, 65535] ms");
     const bool in_intensity = intensity && watchdog_address >= intensity_address &&
                               watchdog_address < intensity_address + channels;
     const bool in_mask = on_off == Switch::kBitmask && watchdog_address >= on_off_address &&
                          watchdog_address < on_off_address + bitmask_registers();
-    if (in_intensity || in_mask) return fail("watchdog register overlaps the LED registers");
+    if (in_intensity || in_mask) return Refuse(why, "watchdog register overlaps the LED registers");
   }
   if (on_off == Switch::kBitmask && intensity) {
     const int mask_end = on_off_address + bitmask_registers();
     if (on_off_address < intensity_address + channels && intensity_address < mask_end)
-      return fail("bitmask and intensity registers overlap");
+      return Refuse(why, "bitmask and intensity registers overlap");
   }
   return true;
 }

@@ -44,21 +44,17 @@ Result<std::vector<T>> ReadInPieces(int address, int count, int most, const Tran
 }  // namespace
 
 bool ModbusLinkOptions::IsValid(std::string* why) const {
-  auto fail = [&](const std::string& text) {
-    if (why) *why = text;
-    return false;
-  };
-  if (transport == Transport::kTcp && (port < 0 || port > 65535)) return fail("port must be within [0, 65535]");
+  if (transport == Transport::kTcp && (port < 0 || port > 65535)) return Refuse(why, "port must be within [0, 65535]");
   if (transport == Transport::kRtu) {
-    if (serial_device.empty()) return fail("an RTU link needs a serial device");
-    if (parity != 'N' && parity != 'E' && parity != 'O') return fail("parity must be N, E or O");
-    if (data_bits < 5 || data_bits > 8) return fail("data bits must be within [5, 8]");
-    if (stop_bits != 1 && stop_bits != 2) return fail("stop bits must be 1 or 2");
-    if (baud <= 0) return fail("baud must be > 0");
+    if (serial_device.empty()) return Refuse(why, "an RTU link needs a serial device");
+    if (parity != 'N' && parity != 'E' && parity != 'O') return Refuse(why, "parity must be N, E or O");
+    if (data_bits < 5 || data_bits > 8) return Refuse(why, "data bits must be within [5, 8]");
+    if (stop_bits != 1 && stop_bits != 2) return Refuse(why, "stop bits must be 1 or 2");
+    if (baud <= 0) return Refuse(why, "baud must be > 0");
   }
-  if (unit_id < 0 || unit_id > 247) return fail("unit id must be within [0, 247]");
-  if (response_timeout_ms <= 0 || byte_timeout_ms <= 0) return fail("timeouts must be > 0 ms");
-  if (retries < 0 || retry_backoff_ms < 0) return fail("retries and backoff must be >= 0");
+  if (unit_id < 0 || unit_id > 247) return Refuse(why, "unit id must be within [0, 247]");
+  if (response_timeout_ms <= 0 || byte_timeout_ms <= 0) return Refuse(why, "timeouts must be > 0 ms");
+  if (retries < 0 || retry_backoff_ms < 0) return Refuse(why, "retries and backoff must be >= 0");
   return true;
 }
 

@@ -139,14 +139,8 @@ bool IsCaptureDevice(const v4l2_capability& caps) {
 }  // namespace
 
 bool V4l2CameraOptions::IsValid(std::string* why) const {
-  if (device.empty()) {
-    if (why) *why = "device is empty (e.g. /dev/video0)";
-    return false;
-  }
-  if (buffer_count < 2 || buffer_count > 32) {
-    if (why) *why = "buffer_count must be in [2, 32]";
-    return false;
-  }
+  if (device.empty()) return Refuse(why, "device is empty (e.g. /dev/video0)");
+  if (buffer_count < 2 || buffer_count > 32) return Refuse(why, "buffer_count must be in [2, 32]");
   return true;
 }
 

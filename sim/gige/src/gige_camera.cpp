@@ -10,6 +10,8 @@
 #include <cstring>
 
 namespace photorig::sim {
+using solvers::core::Refuse;
+
 namespace {
 
 // Aravis' own GenICam description of its fake camera, with the Mono10 and
@@ -98,14 +100,10 @@ struct GigeFakeCamera::Impl {
 };
 
 bool GigeFakeCameraOptions::IsValid(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (address.empty()) return fail("address is empty");
-  if (serial.empty() || serial.size() >= 16) return fail("serial must have 1 to 15 characters");
-  if (!(lost_packet_ratio >= 0.0 && lost_packet_ratio < 1.0)) return fail("lost_packet_ratio must be in [0, 1)");
-  if (!(trigger_poll_hz > 0.0 && trigger_poll_hz <= 10000.0)) return fail("trigger_poll_hz must be in (0, 10000]");
+  if (address.empty()) return Refuse(why, "address is empty");
+  if (serial.empty() || serial.size() >= 16) return Refuse(why, "serial must have 1 to 15 characters");
+  if (!(lost_packet_ratio >= 0.0 && lost_packet_ratio < 1.0)) return Refuse(why, "lost_packet_ratio must be in [0, 1)");
+  if (!(trigger_poll_hz > 0.0 && trigger_poll_hz <= 10000.0)) return Refuse(why, "trigger_poll_hz must be in (0, 10000]");
   return true;
 }
 

@@ -1,6 +1,7 @@
 #include "photorig/solvers/brdf/fit.h"
 
 #include "lobes.h"
+#include "photorig/solvers/core/number_text.h"
 
 #include <ceres/ceres.h>
 
@@ -277,11 +278,7 @@ std::pair<double, double> MeanDifference(const std::vector<double>& a, const std
   return {mean, std::sqrt(variance / n)};
 }
 
-std::string Number(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.4g", v);
-  return text;
-}
+std::string Number(double v) { return core::NumberText(v, 4); }
 
 }  // namespace
 

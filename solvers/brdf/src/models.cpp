@@ -1,28 +1,24 @@
 #include "photorig/solvers/brdf/models.h"
 
+#include "photorig/solvers/core/names.h"
+
 #include <algorithm>
 #include <cmath>
 
 namespace photorig::solvers::brdf {
 
-const char* ModelName(Model model) {
-  switch (model) {
-    case Model::kLambertian: return "lambertian";
-    case Model::kBlinnPhong: return "blinn_phong";
-    case Model::kWard: return "ward";
-    case Model::kGgx: return "ggx";
-    case Model::kCookTorrance: return "cook_torrance";
-    case Model::kTwoBlinnPhong: return "two_blinn_phong";
-  }
-  return "?";
-}
+namespace {
 
-std::optional<Model> ParseModel(std::string_view name) {
-  for (Model m : {Model::kLambertian, Model::kBlinnPhong, Model::kWard, Model::kGgx, Model::kCookTorrance,
-                  Model::kTwoBlinnPhong})
-    if (name == ModelName(m)) return m;
-  return std::nullopt;
-}
+constexpr core::NameTable<Model, 6> kModelNames = {{
+    {Model::kLambertian, "lambertian"}, {Model::kBlinnPhong, "blinn_phong"}, {Model::kWard, "ward"},
+    {Model::kGgx, "ggx"}, {Model::kCookTorrance, "cook_torrance"}, {Model::kTwoBlinnPhong, "two_blinn_phong"},
+}};
+
+}  // namespace
+
+const char* ModelName(Model model) { return core::NameOf(kModelNames, model); }
+
+std::optional<Model> ParseModel(std::string_view name) { return core::ParseName(kModelNames, name); }
 
 int ParameterCount(Model model) {
   if (model == Model::kLambertian) return 3;

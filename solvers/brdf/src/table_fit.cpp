@@ -1,10 +1,10 @@
 #include "photorig/solvers/brdf/table_fit.h"
 
 #include "photorig/solvers/brdf/merl.h"
+#include "photorig/solvers/core/number_text.h"
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <numeric>
 #include <optional>
 #include <random>
@@ -160,11 +160,7 @@ Pass ErrorsOverCells(const std::vector<Cell>& cells, const SelectionSummary& sel
   return pass;
 }
 
-std::string Number(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.3g", v);
-  return text;
-}
+std::string Number(double v) { return core::NumberText(v, 3); }
 
 }  // namespace
 

@@ -1,6 +1,7 @@
 #include "photorig/solvers/color/chart.h"
 
 #include "photorig/solvers/color/colorimetry.h"
+#include "photorig/solvers/core/names.h"
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/mcc.hpp>
@@ -173,15 +174,16 @@ std::optional<std::array<cv::Point2f, 4>> ParseChartCorners(const std::string& t
   return fail(std::to_string(values.size()) + " numbers, not 4 (x,y,w,h) or 8 (four corners x0,y0,...,x3,y3)");
 }
 
-const char* PatchFlagName(PatchFlag flag) {
-  switch (flag) {
-    case PatchFlag::kOk: return "ok";
-    case PatchFlag::kSaturated: return "saturated";
-    case PatchFlag::kUnderexposed: return "underexposed";
-    case PatchFlag::kTooFewPixels: return "too-few-pixels";
-  }
-  return "?";
-}
+namespace {
+
+constexpr core::NameTable<PatchFlag, 4> kPatchFlagNames = {{
+    {PatchFlag::kOk, "ok"}, {PatchFlag::kSaturated, "saturated"}, {PatchFlag::kUnderexposed, "underexposed"},
+    {PatchFlag::kTooFewPixels, "too-few-pixels"},
+}};
+
+}  // namespace
+
+const char* PatchFlagName(PatchFlag flag) { return core::NameOf(kPatchFlagNames, flag); }
 
 bool MeasureOptions::IsValid(std::string* why) const {
   if (!(sample_fraction > 0.0 && sample_fraction <= 1.0)) return core::Refuse(why, "sample_fraction must be in (0, 1]");

@@ -2,6 +2,8 @@
 // the names of flags and warnings. FitReflectance is fit_reflectance.cpp.
 #include "photorig/solvers/reflectance/fit.h"
 
+#include "photorig/solvers/core/names.h"
+
 #include <cmath>
 #include <string>
 
@@ -51,27 +53,23 @@ bool ReflectanceStack::IsValid(std::string* why) const {
   return true;
 }
 
-const char* PixelFlagName(PixelFlag flag) {
-  switch (flag) {
-    case PixelFlag::kFitted: return "fitted";
-    case PixelFlag::kOutsideMask: return "outside-mask";
-    case PixelFlag::kNoNormal: return "no-normal";
-    case PixelFlag::kTooFewSamples: return "too-few-samples";
-    case PixelFlag::kPoorFit: return "poor-fit";
-    case PixelFlag::kMixed: return "mixed";
-  }
-  return "?";
-}
+namespace {
 
-const char* WarningName(Warning warning) {
-  switch (warning) {
-    case Warning::kTooFewHighlightLights: return "too-few-highlight-lights";
-    case Warning::kHighlightsUnobserved: return "highlights-unobserved";
-    case Warning::kSaturatedHighlights: return "saturated-highlights";
-    case Warning::kInconsistentIntensities: return "inconsistent-intensities";
-  }
-  return "?";
-}
+constexpr core::NameTable<PixelFlag, 6> kPixelFlagNames = {{
+    {PixelFlag::kFitted, "fitted"}, {PixelFlag::kOutsideMask, "outside-mask"}, {PixelFlag::kNoNormal, "no-normal"},
+    {PixelFlag::kTooFewSamples, "too-few-samples"}, {PixelFlag::kPoorFit, "poor-fit"}, {PixelFlag::kMixed, "mixed"},
+}};
+
+constexpr core::NameTable<Warning, 4> kWarningNames = {{
+    {Warning::kTooFewHighlightLights, "too-few-highlight-lights"}, {Warning::kHighlightsUnobserved, "highlights-unobserved"},
+    {Warning::kSaturatedHighlights, "saturated-highlights"}, {Warning::kInconsistentIntensities, "inconsistent-intensities"},
+}};
+
+}  // namespace
+
+const char* PixelFlagName(PixelFlag flag) { return core::NameOf(kPixelFlagNames, flag); }
+
+const char* WarningName(Warning warning) { return core::NameOf(kWarningNames, warning); }
 
 bool ReflectanceOptions::IsValid(std::string* why) const {
   if (max_materials < 1 || max_materials > 16) return core::Refuse(why, "max_materials must be in [1, 16]");

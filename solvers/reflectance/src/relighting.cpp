@@ -1,5 +1,6 @@
 #include "photorig/solvers/reflectance/relighting.h"
 
+#include "photorig/solvers/core/names.h"
 #include "samples.h"
 
 #include <algorithm>
@@ -58,29 +59,21 @@ core::Summary RenderReflectance(const ReflectanceMaps& maps, const Eigen::Vector
                 image);
 }
 
-const char* MethodName(Method method) {
-  switch (method) {
-    case Method::kLambertian: return "lambertian";
-    case Method::kPerPixelLobe: return "per_pixel_lobe";
-    case Method::kPerMaterial: return "per_material";
-  }
-  return "?";
-}
+namespace {
+
+constexpr core::NameTable<Method, 3> kMethodNames = {{
+    {Method::kLambertian, "lambertian"}, {Method::kPerPixelLobe, "per_pixel_lobe"}, {Method::kPerMaterial, "per_material"},
+}};
+
+}  // namespace
+
+const char* MethodName(Method method) { return core::NameOf(kMethodNames, method); }
 
 bool RelightingOptions::IsValid(std::string* why) const {
-  if (held_out_lights < 0) {
-    if (why) *why = "held_out_lights must be >= 0 (0 = every light)";
-    return false;
-  }
-  if (methods.empty()) {
-    if (why) *why = "methods must name at least one method";
-    return false;
-  }
+  if (held_out_lights < 0) return core::Refuse(why, "held_out_lights must be >= 0 (0 = every light)");
+  if (methods.empty()) return core::Refuse(why, "methods must name at least one method");
   for (int j : lights)
-    if (j < 0) {
-      if (why) *why = "a held-out light index is negative: " + std::to_string(j);
-      return false;
-    }
+    if (j < 0) return core::Refuse(why, "a held-out light index is negative: " + std::to_string(j));
   return fit.IsValid(why);
 }
 

@@ -36,32 +36,23 @@ AbsorbanceSummary ComputeAbsorbance(const Geometry& geometry, const std::vector<
                                     const AbsorbanceOptions& options, Absorbance* absorbance) {
   solvers::core::SolveTimer timer;
   AbsorbanceSummary summary;
+  using solvers::core::Termination;
   std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidOptions, why);
-    return summary;
-  }
-  if (!geometry.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidInput, why);
-    return summary;
-  }
+  if (!options.IsValid(&why)) return timer.End(&summary, Termination::kInvalidOptions, why);
+  if (!geometry.IsValid(&why)) return timer.End(&summary, Termination::kInvalidInput, why);
   const auto pixels = static_cast<std::size_t>(geometry.pixels_per_view());
-  if (projections.size() != static_cast<std::size_t>(geometry.views())) {
-    summary.End(solvers::core::Termination::kInvalidInput, std::to_string(projections.size()) + " projections for " +
-                                                         std::to_string(geometry.views()) + " view angles");
-    return summary;
-  }
-  if (flats.empty() || darks.empty()) {
-    summary.End(solvers::core::Termination::kInvalidInput, "dark/flat correction needs at least one flat and one dark frame");
-    return summary;
-  }
+  if (projections.size() != static_cast<std::size_t>(geometry.views()))
+    return timer.End(&summary, Termination::kInvalidInput,
+                     std::to_string(projections.size()) + " projections for " + std::to_string(geometry.views()) +
+                         " view angles");
+  if (flats.empty() || darks.empty())
+    return timer.End(&summary, Termination::kInvalidInput, "dark/flat correction needs at least one flat and one dark frame");
   for (const auto* set : {&projections, &flats, &darks})
     for (const auto& frame : *set)
-      if (frame.size() != pixels) {
-        summary.End(solvers::core::Termination::kInvalidInput,
-                    "a frame has " + std::to_string(frame.size()) + " pixels; the detector has " + std::to_string(pixels));
-        return summary;
-      }
+      if (frame.size() != pixels)
+        return timer.End(&summary, Termination::kInvalidInput,
+                         "a frame has " + std::to_string(frame.size()) + " pixels; the detector has " +
+                             std::to_string(pixels));
   std::vector<double> dark, dark_var, flat, flat_var;
   MeanAndVariance(darks, pixels, &dark, &dark_var);
   MeanAndVariance(flats, pixels, &flat, &flat_var);

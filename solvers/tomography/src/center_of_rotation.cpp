@@ -1,5 +1,7 @@
 #include "photorig/solvers/tomography/center_of_rotation.h"
 
+#include "photorig/solvers/core/names.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -9,14 +11,15 @@
 
 namespace photorig::solvers::tomography {
 
-const char* CorMethodName(CorMethod method) {
-  switch (method) {
-    case CorMethod::kNone: return "none";
-    case CorMethod::kOpposingViews: return "opposing-views";
-    case CorMethod::kHeldOutSearch: return "held-out-search";
-  }
-  return "none";
-}
+namespace {
+
+constexpr core::NameTable<CorMethod, 3> kCorMethodNames = {{
+    {CorMethod::kNone, "none"}, {CorMethod::kOpposingViews, "opposing-views"}, {CorMethod::kHeldOutSearch, "held-out-search"},
+}};
+
+}  // namespace
+
+const char* CorMethodName(CorMethod method) { return core::NameOf(kCorMethodNames, method); }
 
 bool CorEstimateOptions::IsValid(std::string* why) const {
   if (!(max_offset_mm >= 0) || !std::isfinite(max_offset_mm)) return core::Refuse(why, "max_offset_mm must be finite and >= 0");

@@ -188,21 +188,14 @@ ProjectorSummary MakeProjector(const VolumeGrid& grid, const Geometry& geometry,
                                std::unique_ptr<Projector>* projector) {
   solvers::core::SolveTimer timer;
   ProjectorSummary summary;
+  using solvers::core::Termination;
   std::string why;
-  if (!options.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidOptions, why);
-    return summary;
-  }
-  if (!grid.IsValid(&why) || !geometry.IsValid(&why)) {
-    summary.End(solvers::core::Termination::kInvalidInput, why);
-    return summary;
-  }
-  if (options.first_slice + std::max(options.slices, 1) > grid.nz) {
-    summary.End(solvers::core::Termination::kInvalidOptions,
-                "slices from " + std::to_string(options.first_slice) + " (" + std::to_string(options.slices) +
-                    " of them) run past the grid's " + std::to_string(grid.nz));
-    return summary;
-  }
+  if (!options.IsValid(&why)) return timer.End(&summary, Termination::kInvalidOptions, why);
+  if (!grid.IsValid(&why) || !geometry.IsValid(&why)) return timer.End(&summary, Termination::kInvalidInput, why);
+  if (options.first_slice + std::max(options.slices, 1) > grid.nz)
+    return timer.End(&summary, Termination::kInvalidOptions,
+                     "slices from " + std::to_string(options.first_slice) + " (" + std::to_string(options.slices) +
+                         " of them) run past the grid's " + std::to_string(grid.nz));
   auto result = std::make_unique<Projector>(grid, geometry, options.interpolation, options.first_slice, options.slices);
   // Entries per ray from a sample of about 2000 rays spread over the scan.
   const std::int64_t rays = geometry.rays();
@@ -219,19 +212,16 @@ ProjectorSummary MakeProjector(const VolumeGrid& grid, const Geometry& geometry,
   // Eigen's 32-bit indices also bound the entries.
   const bool fits = summary.estimated_sparse_bytes <= options.memory_budget_bytes && entries < 2.0e9;
   timer.SetupDone(&summary);
-  if (options.storage == Storage::kSparse && !fits) {
-    summary.End(solvers::core::Termination::kFailure,
-                "W and W^T need about " + std::to_string(summary.estimated_sparse_bytes >> 20) +
-                    " MiB, over memory_budget_bytes; raise the budget or use the matrix-free storage");
-    timer.Finish(&summary);
-    return summary;
-  }
+  if (options.storage == Storage::kSparse && !fits)
+    return timer.End(&summary, Termination::kFailure,
+                     "W and W^T need about " + std::to_string(summary.estimated_sparse_bytes >> 20) +
+                         " MiB, over memory_budget_bytes; raise the budget or use the matrix-free storage");
   if (options.storage == Storage::kSparse || (options.storage == Storage::kAuto && fits))
     result->StoreSparse(options.progress);
   summary.sparse = result->is_sparse();
   summary.nonzeros = result->nonzeros();
   summary.stored_bytes = result->stored_bytes();
-  summary.termination = solvers::core::Termination::kSuccess;
+  summary.termination = Termination::kSuccess;
   *projector = std::move(result);
   timer.Finish(&summary);
   return summary;

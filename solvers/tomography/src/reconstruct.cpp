@@ -1,6 +1,7 @@
 #include "photorig/solvers/tomography/reconstruct.h"
 
 #include "iteration.h"
+#include "photorig/solvers/core/names.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,16 +11,16 @@
 
 namespace photorig::solvers::tomography {
 
-const char* StopReasonName(StopReason reason) {
-  switch (reason) {
-    case StopReason::kNone: return "none";
-    case StopReason::kDiscrepancy: return "discrepancy";
-    case StopReason::kMaxIterations: return "max-iterations";
-    case StopReason::kStagnation: return "stagnation";
-    case StopReason::kLimitCycle: return "limit-cycle";
-  }
-  return "?";
-}
+namespace {
+
+constexpr core::NameTable<StopReason, 5> kStopReasonNames = {{
+    {StopReason::kNone, "none"}, {StopReason::kDiscrepancy, "discrepancy"}, {StopReason::kMaxIterations, "max-iterations"},
+    {StopReason::kStagnation, "stagnation"}, {StopReason::kLimitCycle, "limit-cycle"},
+}};
+
+}  // namespace
+
+const char* StopReasonName(StopReason reason) { return core::NameOf(kStopReasonNames, reason); }
 
 bool ReconstructOptions::IsValid(std::string* why) const {
   if (max_iterations < 1) return core::Refuse(why, "max_iterations must be >= 1");

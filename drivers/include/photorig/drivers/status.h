@@ -21,6 +21,11 @@ enum class StatusCode {
 
 const char* StatusCodeName(StatusCode code);
 
+// The refusal of an Options::IsValid: sets *why (when given) to `reason` and
+// returns false, so each check is one line:
+//   if (buffer_count < 1) return Refuse(why, "buffer_count must be >= 1");
+bool Refuse(std::string* why, std::string reason);
+
 class [[nodiscard]] Status {
  public:
   Status() = default;

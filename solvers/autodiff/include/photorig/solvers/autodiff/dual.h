@@ -13,11 +13,10 @@
 #include <cassert>
 #include <cmath>
 #include <compare>
-#include <limits>
 
 #include <Eigen/Core>
 
-#include "photorig/solvers/autodiff/rules.h"
+#include "photorig/solvers/autodiff/scalar.h"
 
 namespace photorig::solvers::autodiff {
 
@@ -110,6 +109,11 @@ struct Dual {
 };
 
 using DynamicDual = Dual<kDynamic>;
+
+template <int N>
+PHOTORIG_AUTODIFF_INLINE double ValueOf(const Dual<N>& x) {
+  return x.value;
+}
 
 namespace internal {
 
@@ -222,48 +226,11 @@ PHOTORIG_AUTODIFF_INLINE std::partial_ordering operator<=>(const Dual<N>& x, dou
   return x.value <=> s;
 }
 
-// Elementary functions; edge cases are documented in rules.h.
-
-template <int N>
-PHOTORIG_AUTODIFF_INLINE Dual<N> sqrt(const Dual<N>& x) {
-  return internal::Apply(internal::Sqrt(x.value), x);
-}
-template <int N>
-PHOTORIG_AUTODIFF_INLINE Dual<N> exp(const Dual<N>& x) {
-  return internal::Apply(internal::Exp(x.value), x);
-}
-template <int N>
-PHOTORIG_AUTODIFF_INLINE Dual<N> log(const Dual<N>& x) {
-  return internal::Apply(internal::Log(x.value), x);
-}
-template <int N>
-PHOTORIG_AUTODIFF_INLINE Dual<N> sin(const Dual<N>& x) {
-  return internal::Apply(internal::Sin(x.value), x);
-}
-template <int N>
-PHOTORIG_AUTODIFF_INLINE Dual<N> cos(const Dual<N>& x) {
-  return internal::Apply(internal::Cos(x.value), x);
-}
-template <int N>
-PHOTORIG_AUTODIFF_INLINE Dual<N> abs(const Dual<N>& x) {
-  return internal::Apply(internal::Abs(x.value), x);
-}
-template <int N>
-PHOTORIG_AUTODIFF_INLINE Dual<N> atan2(const Dual<N>& y, const Dual<N>& x) {
-  return internal::Apply(internal::Atan2(y.value, x.value), y, x);
-}
-template <int N>
-PHOTORIG_AUTODIFF_INLINE Dual<N> pow(const Dual<N>& x, double e) {
-  return internal::Apply(internal::PowConstantExponent(x.value, e), x);
-}
+// The other elementary functions are scalar.h's.
 template <int N>
 PHOTORIG_AUTODIFF_INLINE Dual<N> pow(double x, const Dual<N>& y) {
   const internal::BinaryRule rule = internal::Pow(x, y.value);
   return internal::Apply(internal::UnaryRule{rule.value, rule.d_y}, y);
-}
-template <int N>
-PHOTORIG_AUTODIFF_INLINE Dual<N> pow(const Dual<N>& x, const Dual<N>& y) {
-  return internal::Apply(internal::Pow(x.value, y.value), x, y);
 }
 
 // Selections return one argument unchanged, ties resolved as std::max/min/clamp do: max and min
@@ -289,25 +256,13 @@ namespace Eigen {
 // Lets Eigen matrices hold Dual scalars: Matrix<Dual<N>, 3, 1> supports dot(), norm(),
 // normalized() and the rest of the dense API.
 template <int N>
-struct NumTraits<photorig::solvers::autodiff::Dual<N>> : GenericNumTraits<photorig::solvers::autodiff::Dual<N>> {
-  using Real = photorig::solvers::autodiff::Dual<N>;
-  using NonInteger = Real;
-  using Nested = Real;
-  using Literal = Real;
+struct NumTraits<photorig::solvers::autodiff::Dual<N>>
+    : photorig::solvers::autodiff::internal::DoubleNumTraits<photorig::solvers::autodiff::Dual<N>> {
   enum {
-    IsComplex = 0,
-    IsInteger = 0,
-    IsSigned = 1,
-    RequireInitialization = 1,
     ReadCost = N == Eigen::Dynamic ? HugeCost : N + 1,
     AddCost = N == Eigen::Dynamic ? HugeCost : N + 1,
     MulCost = N == Eigen::Dynamic ? HugeCost : 2 * N + 1,
   };
-  static Real epsilon() { return Real(std::numeric_limits<double>::epsilon()); }
-  static Real dummy_precision() { return Real(1e-12); }
-  static Real highest() { return Real(std::numeric_limits<double>::max()); }
-  static Real lowest() { return Real(std::numeric_limits<double>::lowest()); }
-  static int digits10() { return std::numeric_limits<double>::digits10; }
 };
 
 // Mixed double/Dual expressions (Vector3d.dot(Vector3<Dual>), Matrix3d * Vector3<Dual>) use the

@@ -28,7 +28,7 @@
 
 #include <Eigen/Core>
 
-#include "photorig/solvers/autodiff/rules.h"
+#include "photorig/solvers/autodiff/scalar.h"
 
 namespace photorig::solvers::autodiff {
 
@@ -63,30 +63,20 @@ class Var {
   Tape* tape_ = nullptr;
 };
 
+PHOTORIG_AUTODIFF_INLINE double ValueOf(const Var& x) { return x.value(); }
+
 }  // namespace photorig::solvers::autodiff
 
 namespace Eigen {
 
 template <>
-struct NumTraits<photorig::solvers::autodiff::Var> : GenericNumTraits<photorig::solvers::autodiff::Var> {
-  using Real = photorig::solvers::autodiff::Var;
-  using NonInteger = Real;
-  using Nested = Real;
-  using Literal = Real;
+struct NumTraits<photorig::solvers::autodiff::Var>
+    : photorig::solvers::autodiff::internal::DoubleNumTraits<photorig::solvers::autodiff::Var> {
   enum {
-    IsComplex = 0,
-    IsInteger = 0,
-    IsSigned = 1,
-    RequireInitialization = 1,
     ReadCost = 2,
     AddCost = 4,
     MulCost = 4,
   };
-  static Real epsilon() { return Real(std::numeric_limits<double>::epsilon()); }
-  static Real dummy_precision() { return Real(1e-12); }
-  static Real highest() { return Real(std::numeric_limits<double>::max()); }
-  static Real lowest() { return Real(std::numeric_limits<double>::lowest()); }
-  static int digits10() { return std::numeric_limits<double>::digits10; }
 };
 
 template <typename BinaryOp>
@@ -350,37 +340,10 @@ PHOTORIG_AUTODIFF_INLINE std::partial_ordering operator<=>(const Var& x, double 
   return x.value() <=> s;
 }
 
-// Elementary functions; edge cases are documented in rules.h.
-PHOTORIG_AUTODIFF_INLINE Var sqrt(const Var& x) {
-  return internal::Apply(internal::Sqrt(x.value()), x);
-}
-PHOTORIG_AUTODIFF_INLINE Var exp(const Var& x) {
-  return internal::Apply(internal::Exp(x.value()), x);
-}
-PHOTORIG_AUTODIFF_INLINE Var log(const Var& x) {
-  return internal::Apply(internal::Log(x.value()), x);
-}
-PHOTORIG_AUTODIFF_INLINE Var sin(const Var& x) {
-  return internal::Apply(internal::Sin(x.value()), x);
-}
-PHOTORIG_AUTODIFF_INLINE Var cos(const Var& x) {
-  return internal::Apply(internal::Cos(x.value()), x);
-}
-PHOTORIG_AUTODIFF_INLINE Var abs(const Var& x) {
-  return internal::Apply(internal::Abs(x.value()), x);
-}
-PHOTORIG_AUTODIFF_INLINE Var atan2(const Var& y, const Var& x) {
-  return internal::Apply(internal::Atan2(y.value(), x.value()), y, x);
-}
-PHOTORIG_AUTODIFF_INLINE Var pow(const Var& x, double e) {
-  return internal::Apply(internal::PowConstantExponent(x.value(), e), x);
-}
+// The other elementary functions are scalar.h's.
 PHOTORIG_AUTODIFF_INLINE Var pow(double x, const Var& y) {
   const internal::BinaryRule rule = internal::Pow(x, y.value());
   return Tape::Record(rule.value, y, rule.d_y);
-}
-PHOTORIG_AUTODIFF_INLINE Var pow(const Var& x, const Var& y) {
-  return internal::Apply(internal::Pow(x.value(), y.value()), x, y);
 }
 
 // w . v for a constant w as two fused nodes, (w0 v0 + w1 v1) then (+ w2 v2), instead of the
