@@ -141,10 +141,10 @@ bool ServiceOptions::IsValid(std::string* why) const {
   return true;
 }
 
-RunService::RunService(ServiceOptions options) : options_(std::move(options)) {
+RunService::RunService(ServiceOptions options) : options_(std::move(options)), rig_(options_.rig_path) {
   std::string why;
   if (!options_.IsValid(&why)) throw std::runtime_error("daemon options: " + why);
-  config::LoadRigConfig(options_.rig_path);  // a broken rig file stops the daemon at start, not at the first run
+  rig_.Get();  // a broken rig file stops the daemon at start, not at the first run
   // On a full disk the folders may not be creatable yet: the daemon starts
   // read-only (health says "disk full") and a run creates them once there is room.
   for (const char* folder : {"recipes", "runs"}) {
@@ -461,7 +461,8 @@ ServiceReply RunService::Validate(const std::string& name, const std::string& re
                           std::to_string(options_.max_recipe_bytes));
   if (recipe_yaml.empty()) return Error(400, "empty recipe");
   try {
-    const config::RigConfig rig = config::LoadRigConfig(options_.rig_path);
+    const std::shared_ptr<const config::RigConfig> loaded_rig = rig_.Get();
+    const config::RigConfig& rig = *loaded_rig;
     // Resolved where the run will read it from: the recipes folder of the data root.
     const config::Recipe recipe =
         config::LoadRecipeText(recipe_yaml, name, rig, (fs::path(options_.data_root) / "recipes").string());
@@ -664,7 +665,8 @@ ServiceReply RunService::ListFiles(const std::string& id, const std::string& und
 }
 
 ServiceReply RunService::Devices() const {
-  const config::RigConfig rig = config::LoadRigConfig(options_.rig_path);
+  const std::shared_ptr<const config::RigConfig> loaded_rig = rig_.Get();
+  const config::RigConfig& rig = *loaded_rig;
   std::lock_guard lock(mutex_);
   const std::string use = current_id_.empty() ? "idle" : "in use by run " + current_id_;
   json devices = json::array();

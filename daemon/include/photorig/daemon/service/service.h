@@ -10,6 +10,7 @@
 //   runs/<id>/           the run directory (run_store.h)
 
 #include "photorig/daemon/capture/plan.h"
+#include "photorig/daemon/service/rig_cache.h"
 #include "photorig/daemon/service/run_queue.h"
 #include "photorig/daemon/capture/sequencer.h"
 
@@ -137,6 +138,7 @@ class RunService {
   nlohmann::json RunJson(const QueuedRun& run) const;  // the record as GET /runs/{id} shows it
 
   ServiceOptions options_;
+  mutable RigFileCache rig_;  // options_.rig_path, loaded again when the file changes
   std::unique_ptr<RunQueue> queue_;
   std::unique_ptr<PlanMemoryBudget> plan_budget_;
   std::atomic<bool> stopping_{false};
