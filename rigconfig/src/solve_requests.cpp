@@ -172,7 +172,7 @@ bool SvbrdfRequest::IsValid(std::string* why) const {
   if (!fit.IsValid(why)) return false;
   // RelightingOptions takes 0 and more; -1 is the request's "no check".
   if (held_out_lights < -1)
-    return solvers::core::Refuse(why, "held_out_lights must be >= -1 (-1: no held-out check, 0: every light)");
+    return Refuse(why, "held_out_lights must be >= -1 (-1: no held-out check, 0: every light)");
   return true;
 }
 

@@ -112,7 +112,7 @@ inline GgxShadowing GgxG1(double cos_angle, double a2) {
 }
 
 // Residuals and N x 6 Jacobian of GgxPixel from hand-derived formulas (forward mode carries six
-// tangents through every operation; these cost about one evaluation more), chained through
+// tangents through every operation: 5.7x a residual evaluation against 3.5x here, bench_autodiff), chained through
 // n = m / |m| as SymbolicBlinnPhongJacobian. The lobe term is rho_s S(n) G1(w . n) / t^2 with
 // the per-pixel S = a^2 G1(v . n) / (4 pi v . n) and t = (h . n)^2 (a^2 - 1) + 1.
 // False if the normal is degenerate.
