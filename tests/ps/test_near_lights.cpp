@@ -197,26 +197,28 @@ TEST(NearLights, AnLedsRadianceProfileIsPartOfTheModel) {
   EXPECT_GT(CompareNormals(wrong.normals, scene.normals, scene.stack.mask).mean_deg, 0.5);  // 0.71 deg
 }
 
-TEST(NearLights, TheRoundsSurfaceOnBlocksLeavesTheNormalsAsOnEveryPixel) {
+TEST(NearLights, RoundsOnALatticeLeaveTheNormalsAsOnEveryPixel) {
   const NearScene scene = RenderNearSphere(80.0);
-  NearLightOptions every_pixel = Near(), blocks = Near();
-  every_pixel.depth_block_px = 1;
-  blocks.depth_block_px = 4;
+  NearLightOptions every_pixel = Near(), lattice = Near();
+  every_pixel.round_step_px = 1;
+  lattice.round_step_px = 4;
   NormalMap fine, coarse;
   cv::Mat fine_height, coarse_height;
   ASSERT_TRUE(SolveNearLightPhotometricStereo(Lambertian(), every_pixel, scene.stack, scene.lights, &fine, &fine_height)
                   .IsSolutionUsable());
   const NearLightSummary summary =
-      SolveNearLightPhotometricStereo(Lambertian(), blocks, scene.stack, scene.lights, &coarse, &coarse_height);
+      SolveNearLightPhotometricStereo(Lambertian(), lattice, scene.stack, scene.lights, &coarse, &coarse_height);
   ASSERT_EQ(summary.termination, core::Termination::kSuccess) << summary.message;
   EXPECT_LT(CompareNormals(coarse.normals, fine.normals, scene.stack.mask).mean_deg, 0.02);
+  EXPECT_EQ(cv::countNonZero(coarse.flags == static_cast<int>(PixelFlag::kSolved)),
+            cv::countNonZero(fine.flags == static_cast<int>(PixelFlag::kSolved)));
   // The surface returned is integrated at every pixel either way.
   cv::Mat difference;
   cv::absdiff(coarse_height, fine_height, difference);
   EXPECT_LT(cv::mean(difference, (scene.stack.mask != 0) & (fine_height == fine_height))[0], 0.02);
   // Without a surface asked for, the normals are the same.
   NormalMap normals_only;
-  ASSERT_TRUE(SolveNearLightPhotometricStereo(Lambertian(), blocks, scene.stack, scene.lights, &normals_only, nullptr)
+  ASSERT_TRUE(SolveNearLightPhotometricStereo(Lambertian(), lattice, scene.stack, scene.lights, &normals_only, nullptr)
                   .IsSolutionUsable());
   EXPECT_EQ(cv::norm(normals_only.normals, coarse.normals, cv::NORM_INF), 0.0);
 }
@@ -313,6 +315,33 @@ TEST(NearLights, LobesAreFittedWithEachPixelsLightsAndLineOfSight) {
 
 // On a matte sphere `auto` keeps the Lambertian fit: a lobe must pay for its
 // two parameters, and noise alone does not.
+TEST(NearLights, DistantLightsThroughAPinholeFitEachPixelsLineOfSight) {
+  // LEDs a kilometre away are distant to a 34 mm sphere to a millionth; the
+  // solver is given them as lights at infinity.
+  const NearScene scene = RenderNearSphere(1e6, 2.0, Pinhole(), 1.0, testing::Specular{0.1, 60.0});
+  std::vector<camera::NearLight> distant;
+  for (const Eigen::Vector3d& direction : scene.stack.light_directions) distant.push_back(camera::NearLight::AtInfinity(direction));
+  PhotometricStereoOptions options = Lambertian();
+  options.shadow_threshold_read_sigmas = 3.0;
+  options.method = Method::kBlinnPhong;
+  NormalMap map;
+  cv::Mat height;
+  const NearLightSummary summary =
+      SolveNearLightPhotometricStereo(options, Near(scene.camera), scene.stack, distant, &map, &height);
+  ASSERT_EQ(summary.termination, core::Termination::kSuccess) << summary.message;
+  EXPECT_EQ(summary.rounds, 1);  // nothing depends on the depth
+  const double per_pixel_deg = CompareNormals(map.normals, scene.normals, scene.stack.mask).mean_deg;
+  EXPECT_LT(per_pixel_deg, 0.3);
+  EXPECT_GT(summary.pixels_blinn_phong, summary.pixels_solved / 4);
+  // The distant solve fits the lobes with the view along the camera's axis:
+  // 0.65 deg here against 0.19 deg through each pixel's line of sight.
+  NormalMap along_axis;
+  ASSERT_TRUE(SolvePhotometricStereo(options, scene.stack, &along_axis).IsSolutionUsable());
+  EXPECT_GT(CompareNormals(along_axis.normals, scene.normals, scene.stack.mask).mean_deg, 2.0 * per_pixel_deg);
+  // The surface through the lens, placed with its geometric-mean distance on the sample plane.
+  EXPECT_EQ(cv::countNonZero(height == height), summary.pixels_solved);
+}
+
 TEST(NearLights, AutoFitsNoLobeWhereTheSamplesShowNone) {
   const NearScene scene = RenderNearSphere(80.0, 2.0, Pinhole());
   PhotometricStereoOptions options = Lambertian();
@@ -425,6 +454,27 @@ TEST(PixelRays, ALensesDistortedPixelSeesThePointOpenCvProjectsOntoIt) {
     EXPECT_NEAR(image[0].y, r, 1e-3);
     EXPECT_NEAR((rays.ViewDirection(r, c) - (Eigen::Vector3d(0, 0, lens.distance_mm) - point).normalized()).norm(), 0.0, 1e-6);
   }
+}
+
+TEST(PixelRays, ALatticeIsACameraOfItsOwnWhosePixelsSeeTheImagesRays) {
+  camera::Camera camera = Pinhole();
+  camera.pinhole.distortion = {-0.2, 0.05, 0.001, -0.002, 0.0};
+  const camera::PixelRays rays(camera);
+  const camera::PixelRays lattice = rays.Lattice(5, 2);
+  ASSERT_EQ(lattice.camera().width_px, 26);  // columns 2, 7, ..., 127
+  ASSERT_EQ(lattice.camera().height_px, 26);
+  // The lattice's own camera, its lines worked out afresh, sees the same rays.
+  const camera::PixelRays afresh(lattice.camera());
+  for (const auto& [r, c] : {std::pair{0, 0}, std::pair{3, 25}, std::pair{13, 13}, std::pair{25, 1}}) {
+    EXPECT_EQ(lattice.Point(r, c, 12.5), rays.Point(2 + 5 * r, 2 + 5 * c, 12.5));
+    EXPECT_NEAR((afresh.Point(r, c, 12.5) - lattice.Point(r, c, 12.5)).norm(), 0.0, 1e-4);
+  }
+  // An orthographic camera's lattice keeps its pixels' places, a step of pitches apart.
+  const camera::PixelRays flat(camera::Camera::Orthographic(kSize, kSize, kPitchMm));
+  const camera::PixelRays flat_lattice = flat.Lattice(4, 1);
+  EXPECT_DOUBLE_EQ(flat_lattice.camera().pixel_pitch_mm, 4 * kPitchMm);
+  EXPECT_EQ(flat_lattice.Point(3, 7, 0.0), flat.Point(13, 29, 0.0));
+  EXPECT_NEAR(flat_lattice.Point(3, 8, 0.0).x() - flat_lattice.Point(3, 7, 0.0).x(), 4 * kPitchMm, 1e-6);
 }
 
 }  // namespace

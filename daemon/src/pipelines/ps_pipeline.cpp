@@ -454,6 +454,7 @@ json ToJson(const PhotometricStereoResult& result) {
     report["camera_model"]["pixel_pitch_mm"] = result.camera.pixel_pitch_mm;
   }
   if (lights.predicted_view_bias_deg) report["camera_model"]["predicted_view_bias_deg"] = *lights.predicted_view_bias_deg;
+  if (lights.per_pixel_views) report["camera_model"]["lobe_views"] = "per_pixel";
   if (result.capture) report["capture"] = result.capture->ToJson();
   report["provenance"] = result.provenance.ToJson();
   if (result.mean_confidence) report["mean_confidence"] = *result.mean_confidence;
@@ -555,9 +556,11 @@ double PredictedViewBiasDeg(const solvers::camera::Camera& camera, const cv::Mat
 // unless the request assumes distant lights; else with the distant model,
 // refused when the geometry predicts its bias on an object this size above
 // the request's limit (a result a person at the bench would reject). The
-// distant model's specular lobes take the view along the camera's axis,
-// refused likewise for a pinhole camera whose lines of sight tilt too far.
-// *near_height_mm, unless null: the near solve's surface, else left empty.
+// distant model's specular lobes take the view along the camera's axis;
+// where a pinhole camera's lines of sight tilt too far for that, the lights
+// go to the near-light solve as lights at infinity, which fits each pixel
+// through its own line of sight. *near_height_mm, unless null: the near
+// solve's surface, else left empty.
 solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
                                         const solvers::ps::PhotometricStereoOptions& options,
                                         const solvers::ps::PhotometricStack& stack, solvers::ps::NormalMap* map,
@@ -576,30 +579,33 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
     report->depth_ms = summary.depth_ms;
     return summary;
   }
+  if (!input.near_lights.empty()) {
+    const int object_pixels = stack.mask.empty() ? stack.width() * stack.height() : cv::countNonZero(stack.mask);
+    const double radius_mm = std::sqrt(object_pixels / 3.14159265358979323846) * camera.PixelSizeOnPlaneMm();
+    const double bias_deg = solvers::ps::DistantModelBiasDeg(input.near_lights, stack.light_directions, radius_mm);
+    report->predicted_distant_bias_deg = bias_deg;
+    if (bias_deg > request.max_distant_bias_deg) {
+      char size[96];
+      std::snprintf(size, sizeof(size), "an object this size (radius %.1f mm) would be biased", radius_mm);
+      return Refused(options, stack,
+                     std::string("the rig's LEDs are near: solved as distant lights, ") + size +
+                         BiasAboveLimit(bias_deg, request) +
+                         "; drop --assume-distant (recipe key assume_distant) to solve with the near-light model");
+    }
+  }
   const bool views_matter = options.method == Method::kBlinnPhong || options.method == Method::kAuto;
   if (camera.IsPinhole() && views_matter) {
     const double bias_deg = PredictedViewBiasDeg(camera, stack.mask);
     report->predicted_view_bias_deg = bias_deg;
-    if (bias_deg > request.max_distant_bias_deg)
-      return Refused(options, stack,
-                     std::string("the camera is a pinhole one: ") + solvers::ps::MethodName(options.method) +
-                         " under distant lights fits specular lobes with the view along the camera's axis, which "
-                         "would tilt glossy pixels" +
-                         BiasAboveLimit(bias_deg, request) +
-                         "; give the LEDs' positions (the near-light model sees each pixel's line of sight) or "
-                         "solve with method lambertian, l2 or robust");
-  }
-  if (input.near_lights.empty()) return solvers::ps::SolvePhotometricStereo(options, stack, map);
-  const int object_pixels = stack.mask.empty() ? stack.width() * stack.height() : cv::countNonZero(stack.mask);
-  const double radius_mm = std::sqrt(object_pixels / 3.14159265358979323846) * camera.PixelSizeOnPlaneMm();
-  const double bias_deg = solvers::ps::DistantModelBiasDeg(input.near_lights, stack.light_directions, radius_mm);
-  report->predicted_distant_bias_deg = bias_deg;
-  if (bias_deg > request.max_distant_bias_deg) {
-    char size[96];
-    std::snprintf(size, sizeof(size), "an object this size (radius %.1f mm) would be biased", radius_mm);
-    return Refused(options, stack,
-                   std::string("the rig's LEDs are near: solved as distant lights, ") + size +
-                       BiasAboveLimit(bias_deg, request) + "; drop --assume-distant (recipe key assume_distant) to solve with the near-light model");
+    if (bias_deg > request.max_distant_bias_deg) {
+      std::vector<solvers::camera::NearLight> at_infinity;
+      for (const Eigen::Vector3d& direction : stack.light_directions)
+        at_infinity.push_back(solvers::camera::NearLight::AtInfinity(direction));
+      solvers::ps::NearLightOptions views;
+      views.camera = camera;
+      report->per_pixel_views = true;
+      return solvers::ps::SolveNearLightPhotometricStereo(options, views, stack, at_infinity, map, nullptr);
+    }
   }
   return solvers::ps::SolvePhotometricStereo(options, stack, map);
 }

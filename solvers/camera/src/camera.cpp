@@ -99,4 +99,21 @@ cv::Mat PixelRays::ViewDirections() const {
   return views;
 }
 
+PixelRays PixelRays::Lattice(int step, int origin) const {
+  PixelRays lattice;
+  Camera& camera = lattice.camera_ = camera_;
+  camera.width_px = (camera_.width_px - origin + step - 1) / step;
+  camera.height_px = (camera_.height_px - origin + step - 1) / step;
+  camera.pixel_pitch_mm *= step;
+  // Pixel u of this camera is (u - origin) / step of the lattice's.
+  camera.pinhole.fx_px /= step, camera.pinhole.fy_px /= step;
+  camera.pinhole.cx_px = (camera.pinhole.cx_px - origin) / step;
+  camera.pinhole.cy_px = (camera.pinhole.cy_px - origin) / step;
+  lattice.lines_.create(camera.height_px, camera.width_px, CV_32FC4);
+  for (int r = 0; r < camera.height_px; ++r)
+    for (int c = 0; c < camera.width_px; ++c)
+      lattice.lines_.at<cv::Vec4f>(r, c) = lines_.at<cv::Vec4f>(origin + step * r, origin + step * c);
+  return lattice;
+}
+
 }  // namespace photorig::solvers::camera

@@ -22,14 +22,16 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-// The rounds' surfaces are integrated on blocks that leave at most this many
-// across the image (NearLightOptions::depth_block_px).
-constexpr int kRoundDepthSidePx = 128;
+// The rounds' lattice leaves at most this many pixels across the image
+// (NearLightOptions::round_step_px).
+constexpr int kRoundLatticeSidePx = 64;
 
 double RadiansToDegrees(double radians) { return radians * 180.0 / kPi; }
 
 // What every pixel's fit reads: the stack's samples and the lights'
-// geometry, fixed for the whole solve.
+// geometry, fixed for the whole solve. Its pixels are those of a lattice of
+// the image (every step-th pixel of every step-th row from (origin,
+// origin)); its pixel (r, c) is the image's (origin + step r, origin + step c).
 struct PixelProblem {
   const PhotometricStack& stack;
   std::vector<camera::PreparedNearLight> prepared;  // the same LEDs, for one sample at a time
@@ -37,7 +39,8 @@ struct PixelProblem {
   std::vector<const float*> planes;  // one per light, rows without padding
   std::vector<cv::Mat> copies;       // the stack's images, where some have padding
   int row_stride = 0;
-  camera::PixelRays rays;
+  int step = 1, origin = 0;
+  camera::PixelRays rays;  // the lattice's
   internal::NearSampleRules rules;
   double max_condition_number = 0.0;
 
@@ -49,6 +52,7 @@ struct PixelProblem {
       lights.axis.insert(lights.axis.end(), {light.axis.x(), light.axis.y(), light.axis.z()});
       lights.cos_exponent.push_back(light.cos_exponent);
       lights.constant.push_back(stack.light_scales[k] * light.scale);
+      lights.w.push_back(light.w);
     }
     // The kernel reads every plane at one index per pixel: planes with row
     // padding are copied without it.
@@ -59,6 +63,23 @@ struct PixelProblem {
     for (const cv::Mat& image : continuous ? stack.images : copies) planes.push_back(image.ptr<float>());
     row_stride = stack.width();
   }
+
+  // The same problem on the lattice of every step-th pixel from (origin, origin).
+  PixelProblem Lattice(int lattice_step, int lattice_origin) const {
+    PixelProblem lattice = *this;
+    lattice.step = lattice_step, lattice.origin = lattice_origin;
+    lattice.rays = rays.Lattice(lattice_step, lattice_origin);
+    return lattice;
+  }
+  int rows() const { return rays.camera().height_px; }
+  int cols() const { return rays.camera().width_px; }
+  cv::Size size() const { return {cols(), rows()}; }
+  int ImageRow(int r) const { return origin + step * r; }
+  int ImageCol(int c) const { return origin + step * c; }
+  // Where pixel (r, c)'s sample lies in every plane.
+  int SampleIndex(int r, int c) const { return ImageRow(r) * row_stride + ImageCol(c); }
+  double Dark(int r, int c) const { return stack.dark.empty() ? 0.0 : stack.dark.at<float>(ImageRow(r), ImageCol(c)); }
+  bool InMask(int r, int c) const { return stack.mask.empty() || stack.mask.at<std::uint8_t>(ImageRow(r), ImageCol(c)) != 0; }
 
   Eigen::Vector3d Point(int r, int c, double z_mm) const { return rays.Point(r, c, z_mm); }
   // The height of a pixel whose integrated height is `relative` (0 at the
@@ -119,17 +140,16 @@ PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneSums& sums,
 // fits[i]: pixels[i]'s fit over its usable samples, kLanes pixels at a time.
 void FitPixels(const PixelProblem& p, std::span<const PixelAt> pixels, std::span<PixelFit> fits) {
   using internal::kLanes;
-  const float* dark = p.stack.dark.empty() ? nullptr : p.stack.dark.ptr<float>();
-  const int dark_stride = p.stack.dark.empty() ? 0 : static_cast<int>(p.stack.dark.step1());
   for (std::size_t start = 0; start < pixels.size(); start += kLanes) {
     const int n = static_cast<int>(std::min<std::size_t>(kLanes, pixels.size() - start));
     internal::NearLanePixels lanes;
     for (int j = 0; j < kLanes; ++j) {
       const PixelAt& at = pixels[start + std::min(j, n - 1)];  // spare lanes repeat the last pixel
       const Eigen::Vector3d point = p.Point(at.r, at.c, at.z_mm);
-      lanes.x[j] = point.x(), lanes.y[j] = point.y(), lanes.z[j] = point.z();
-      lanes.dark[j] = dark ? dark[at.r * dark_stride + at.c] : 0.0;
-      lanes.offset[j] = at.r * p.row_stride + at.c;
+      lanes.x[j] = static_cast<float>(point.x()), lanes.y[j] = static_cast<float>(point.y());
+      lanes.z[j] = static_cast<float>(point.z());
+      lanes.dark[j] = static_cast<float>(p.Dark(at.r, at.c));
+      lanes.offset[j] = p.SampleIndex(at.r, at.c);
     }
     internal::NearLaneSums sums;
     internal::NearLambertianSums(p.lights, p.planes.data(), p.rules, lanes, &sums);
@@ -145,10 +165,6 @@ void FitPixels(const PixelProblem& p, std::span<const PixelAt> pixels, std::span
 void WriteConfidence(const internal::NearSampleRules& rules, int used, int parameters, double chi_square, float* out) {
   const int dof = used - parameters;
   *out = rules.noise_known && dof > 0 ? static_cast<float>(std::min(1.0, dof / std::max(chi_square, 1e-300))) : 0.0f;
-}
-
-bool InMask(const PhotometricStack& stack, int r, int c) {
-  return stack.mask.empty() || stack.mask.at<std::uint8_t>(r, c) != 0;
 }
 
 void AllocateResult(const cv::Size size, NormalMap* result) {
@@ -173,10 +189,10 @@ void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* re
     std::vector<PixelAt> row;
     std::vector<PixelFit> fits;
 #pragma omp for schedule(dynamic, 4)
-    for (int r = 0; r < p.stack.height(); ++r) {
+    for (int r = 0; r < p.rows(); ++r) {
       row.clear();
-      for (int c = 0; c < p.stack.width(); ++c)
-        if (InMask(p.stack, r, c)) row.push_back({r, c, height_mm.at<float>(r, c)});
+      for (int c = 0; c < p.cols(); ++c)
+        if (p.InMask(r, c)) row.push_back({r, c, height_mm.at<float>(r, c)});
       fits.resize(row.size());
       FitPixels(p, row, fits);
       for (std::size_t i = 0; i < row.size(); ++i) {
@@ -213,9 +229,9 @@ struct NearPixelSamples {
     const int lights = p.lights.count();
     observed.resize(lights), inverse_sigma.resize(lights), towards.resize(3 * lights), gain.resize(lights);
     const internal::NearSampleRules& rules = p.rules;
-    const int pixel = r * p.row_stride + c;
+    const int pixel = p.SampleIndex(r, c);
     const Eigen::Vector3d point = p.Point(r, c, z_mm);
-    const double dark_dn = p.stack.dark.empty() ? 0.0 : p.stack.dark.ptr<float>()[r * p.stack.dark.step1() + c];
+    const double dark_dn = p.Dark(r, c);
     for (int k = 0; k < lights; ++k) {
       const double value = p.planes[k][pixel], signal = value - dark_dn;
       Eigen::Vector3d to;
@@ -390,9 +406,9 @@ void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const
     std::vector<RefitPixel> pixels;
     std::vector<RefitAnswer> answers;
 #pragma omp for schedule(dynamic, 4)
-    for (int r = 0; r < p.stack.height(); ++r) {
+    for (int r = 0; r < p.rows(); ++r) {
       pixels.clear();
-      for (int c = 0; c < p.stack.width(); ++c) {
+      for (int c = 0; c < p.cols(); ++c) {
         if (result->flags.at<std::uint8_t>(r, c) != static_cast<std::uint8_t>(PixelFlag::kSolved) || explained(r, c))
           continue;
         const cv::Vec3f n = result->normals.at<cv::Vec3f>(r, c);
@@ -415,20 +431,19 @@ void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const
   }
 }
 
-// The integrated height on every masked pixel, 0 at its reference (the
-// mean for an orthographic camera; for a pinhole one, the geometric-mean
-// distance from the camera at the sample plane). The integrator leaves out
-// pixels too close to grazing, which take their nearest neighbour's height (a
-// rim pixel sits at the height of the surface beside it). Integrated on
-// blocks of block_px pixels (IntegrationOptions::block_px).
-cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, const NormalMap& map, const cv::Mat& mask,
-                      int block_px) {
+// The integrated height of every pixel of p's lattice, 0 at its reference
+// (the mean for an orthographic camera; for a pinhole one, the
+// geometric-mean distance from the camera at the sample plane). The
+// integrator leaves out pixels too close to grazing, which take their
+// nearest neighbour's height (a rim pixel sits at the height of the surface
+// beside it), as do the pixels off the mask: the lattice is interpolated
+// between its pixels.
+cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, const NormalMap& map) {
   const cv::Mat solved = map.flags == static_cast<int>(PixelFlag::kSolved);
   IntegrationOptions integration;
   integration.integrator = options.integrator;
-  integration.block_px = block_px;
-  const bool pinhole = options.camera.IsPinhole();
-  if (!pinhole) integration.pixel_pitch = options.camera.pixel_pitch_mm;
+  const bool pinhole = p.rays.camera().IsPinhole();
+  if (!pinhole) integration.pixel_pitch = p.rays.camera().pixel_pitch_mm;
   cv::Mat depth;
   const IntegrationSummary integrated =
       pinhole ? IntegrateNormalsPerspective(integration, p.rays, map.normals, solved, &depth)
@@ -446,13 +461,41 @@ cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, co
   const double reference = pinhole ? 0.0 : cv::mean(depth, known)[0];
   for (int r = 0; r < depth.rows; ++r)
     for (int c = 0; c < depth.cols; ++c)
-      if (mask.empty() || mask.at<std::uint8_t>(r, c))
-        relative.at<float>(r, c) =
-            static_cast<float>((known.at<std::uint8_t>(r, c) ? depth.at<float>(r, c) : value_of_label[labels.at<int>(r, c)]) - reference);
+      relative.at<float>(r, c) = static_cast<float>(
+          (known.at<std::uint8_t>(r, c) ? depth.at<float>(r, c) : value_of_label[labels.at<int>(r, c)]) - reference);
   return relative;
 }
 
-// The solved pixels of every offset_stride-th row and column, with their
+// The lattice's relative heights (`lattice` of lattice_problem) at every
+// pixel of `image` (a step-1 problem), bilinear between the lattice pixels
+// around it; past the lattice's last row or column, the nearest one's.
+cv::Mat LatticeToImage(const PixelProblem& lattice_problem, const cv::Mat& lattice, const PixelProblem& image) {
+  cv::Mat relative(image.size(), CV_32F);
+  const double step = lattice_problem.step, origin = lattice_problem.origin;
+  auto position = [&](int pixel, int last, int* low, double* fraction) {
+    const double u = std::clamp((pixel - origin) / step, 0.0, static_cast<double>(last));
+    *low = std::min(static_cast<int>(u), std::max(last - 1, 0));
+    *fraction = u - *low;
+  };
+  for (int r = 0; r < relative.rows; ++r) {
+    int r0;
+    double fr;
+    position(r, lattice.rows - 1, &r0, &fr);
+    const int r1 = std::min(r0 + 1, lattice.rows - 1);
+    for (int c = 0; c < relative.cols; ++c) {
+      int c0;
+      double fc;
+      position(c, lattice.cols - 1, &c0, &fc);
+      const int c1 = std::min(c0 + 1, lattice.cols - 1);
+      const double top = (1.0 - fc) * lattice.at<float>(r0, c0) + fc * lattice.at<float>(r0, c1);
+      const double bottom = (1.0 - fc) * lattice.at<float>(r1, c0) + fc * lattice.at<float>(r1, c1);
+      relative.at<float>(r, c) = static_cast<float>((1.0 - fr) * top + fr * bottom);
+    }
+  }
+  return relative;
+}
+
+// The solved pixels of every stride-th row and column, with their
 // integrated heights (relative to the reference) and their fits, from which
 // a refit at another depth starts.
 struct SparseGrid {
@@ -461,10 +504,10 @@ struct SparseGrid {
   std::vector<RefitPixel> starts;
 };
 
-SparseGrid SparsePixels(const NearLightOptions& options, const NormalMap& map, const cv::Mat& relative) {
+SparseGrid SparsePixels(int stride, const NormalMap& map, const cv::Mat& relative) {
   SparseGrid grid;
-  for (int r = options.offset_stride / 2; r < relative.rows; r += options.offset_stride)
-    for (int c = options.offset_stride / 2; c < relative.cols; c += options.offset_stride) {
+  for (int r = stride / 2; r < relative.rows; r += stride)
+    for (int c = stride / 2; c < relative.cols; c += stride) {
       if (map.flags.at<std::uint8_t>(r, c) != static_cast<std::uint8_t>(PixelFlag::kSolved)) continue;
       grid.pixels.push_back({r, c, 0.0});
       grid.relative.push_back(relative.at<float>(r, c));
@@ -483,14 +526,14 @@ SparseGrid SparsePixels(const NearLightOptions& options, const NormalMap& map, c
 // explained there but holds a highlight here would weigh that highlight at
 // full chi-square. Summed in a fixed order, so the search takes the same
 // steps with any number of threads.
-double SparseMisfit(const PixelProblem& p, const PhotometricStereoOptions& options, SparseGrid& grid, double offset_mm) {
+double SparseMisfit(const PixelProblem& p, const PhotometricStereoOptions& options, const LambertianAdequacy& adequacy,
+                    SparseGrid& grid, double offset_mm) {
   constexpr std::size_t kChunk = 8 * internal::kLanes;
   const std::size_t count = grid.pixels.size(), chunks = (count + kChunk - 1) / kChunk;
   for (std::size_t i = 0; i < count; ++i)
     grid.pixels[i].z_mm = grid.starts[i].z_mm = p.Height(grid.relative[i], offset_mm);
   std::vector<double> chunk_sum(chunks, 0.0);
   const bool refits = options.method != Method::kL2 && options.method != Method::kLambertian;
-  const LambertianAdequacy adequacy(p, options);
 #pragma omp parallel
   {
     std::vector<PixelFit> fits(kChunk);
@@ -522,13 +565,31 @@ double SparseMisfit(const PixelProblem& p, const PhotometricStereoOptions& optio
   return total;
 }
 
-// Golden-section search for the depth offset within [low, high].
+// Where the depth search looks: below the lowest LED and no deeper than that
+// under the plane; a pinhole's scale stays positive.
+struct OffsetRange {
+  double low_mm = 0.0, high_mm = 0.0;
+};
+
+OffsetRange DepthOffsetRange(const std::vector<camera::NearLight>& lights, const camera::Camera& camera) {
+  double lowest_led_mm = std::numeric_limits<double>::infinity();
+  for (const camera::NearLight& light : lights)
+    if (!light.at_infinity) lowest_led_mm = std::min(lowest_led_mm, light.position_mm.z());
+  OffsetRange range{-0.5 * lowest_led_mm, 0.5 * lowest_led_mm};
+  if (camera.IsPinhole()) range.high_mm = std::min(range.high_mm, 0.9 * camera.pinhole.distance_mm);
+  return range;
+}
+
+// Golden-section search for the depth offset within the range.
 double BestOffset(const PixelProblem& p, const PhotometricStereoOptions& options, const NearLightOptions& near_options,
-                  const NormalMap& map, const cv::Mat& relative, double low, double high) {
+                  const NormalMap& map, const cv::Mat& relative, const OffsetRange& range) {
+  const double low = range.low_mm, high = range.high_mm;
   constexpr double kInverseGolden = 0.6180339887498949;
   constexpr double kToleranceMm = 0.01;
-  SparseGrid grid = SparsePixels(near_options, map, relative);
-  auto misfit = [&](double offset_mm) { return SparseMisfit(p, options, grid, offset_mm); };
+  // offset_stride counts the image's pixels, a lattice pixel p.step of them.
+  SparseGrid grid = SparsePixels((near_options.offset_stride + p.step - 1) / p.step, map, relative);
+  const LambertianAdequacy adequacy(p, options);  // its quantiles are worked out once for the whole search
+  auto misfit = [&](double offset_mm) { return SparseMisfit(p, options, adequacy, grid, offset_mm); };
   double a = low, b = high;
   double x1 = b - kInverseGolden * (b - a), x2 = a + kInverseGolden * (b - a);
   double f1 = misfit(x1);
@@ -547,23 +608,69 @@ double BestOffset(const PixelProblem& p, const PhotometricStereoOptions& options
   return 0.5 * (a + b);
 }
 
+// Each pixel's height with the surface `relative` placed at offset_mm.
+cv::Mat Heights(const PixelProblem& p, const cv::Mat& relative, double offset_mm) {
+  cv::Mat height(relative.size(), CV_32F);
+  for (int r = 0; r < height.rows; ++r)
+    for (int c = 0; c < height.cols; ++c)
+      height.at<float>(r, c) = static_cast<float>(p.Height(relative.at<float>(r, c), offset_mm));
+  return height;
+}
+
+// One fit of every pixel of p with its surface at height_mm: the Lambertian
+// fit, and once the surface is placed the method's refits.
+void FitRound(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm, bool placed,
+              NormalMap* map) {
+  // On an unplaced surface the residuals are the geometry's, not outliers',
+  // so the chi-square test cannot tell which samples to distrust.
+  const bool refit = placed && options.method != Method::kL2 && options.method != Method::kLambertian;
+  cv::Mat chi_square;
+  FitAllPixels(p, height_mm, map, refit ? &chi_square : nullptr);
+  if (refit) Refit(p, options, height_mm, chi_square, map);
+}
+
+// The rounds on p's lattice: round 1 with the surface on the sample plane,
+// each next one at the depth integrated from the previous round's normals
+// and placed by BestOffset, until the normals stop moving (true) or
+// max_rounds end. *relative: the surface the last round fitted on (empty
+// if none was placed), its offset in summary->depth_offset_mm.
+bool RunRounds(const PhotometricStereoOptions& options, const NearLightOptions& near_options, const PixelProblem& p,
+               const OffsetRange& range, NormalMap* map, cv::Mat* relative, NearLightSummary* summary) {
+  AllocateResult(p.size(), map);
+  cv::Mat height = cv::Mat::zeros(p.size(), CV_32F);
+  for (int round = 1; round <= near_options.max_rounds; ++round) {
+    const cv::Mat previous = round > 1 ? map->normals.clone() : cv::Mat();
+    FitRound(p, options, height, round > 1, map);
+    summary->rounds = round;
+    if (options.progress) options.progress({"near lights", round, near_options.max_rounds, {}});
+    if (round > 1) {
+      // The mean angle between the two rounds' normals, over the pixels both solved.
+      summary->normal_change_deg.push_back(CompareNormals(map->normals, previous).mean_deg);
+      if (summary->normal_change_deg.back() < near_options.normal_change_tolerance_deg) return true;
+    }
+    if (round == near_options.max_rounds) break;  // no round left to fit at a new depth
+    const core::SolveTimer depth_timer;
+    *relative = RelativeDepth(near_options, p, *map);
+    summary->depth_offset_mm = BestOffset(p, options, near_options, *map, *relative, range);
+    summary->depth_ms += depth_timer.ElapsedMs();
+    height = Heights(p, *relative, summary->depth_offset_mm);
+  }
+  return false;
+}
+
 void CountPixels(const NormalMap& map, NearLightSummary* summary) {
   summary->pixels_total = map.flags.total();
-  for (auto it = map.flags.begin<std::uint8_t>(); it != map.flags.end<std::uint8_t>(); ++it) {
-    switch (static_cast<PixelFlag>(*it)) {
-      case PixelFlag::kSolved: ++summary->pixels_solved; break;
-      case PixelFlag::kOutsideMask: ++summary->pixels_outside_mask; break;
-      case PixelFlag::kTooFewLights: ++summary->pixels_too_few_lights; break;
-      case PixelFlag::kIllConditioned: ++summary->pixels_ill_conditioned; break;
-      case PixelFlag::kRejectedByModel: ++summary->pixels_rejected_by_model; break;
-      case PixelFlag::kFilled: break;  // only FillUnresolvedNormals sets it, after a solve
-    }
-  }
-  for (auto it = map.model.begin<std::uint8_t>(); it != map.model.end<std::uint8_t>(); ++it) {
-    summary->pixels_lambertian += *it == static_cast<std::uint8_t>(PixelModel::kLambertian);
-    summary->pixels_irls += *it == static_cast<std::uint8_t>(PixelModel::kIrls);
-    summary->pixels_blinn_phong += *it == static_cast<std::uint8_t>(PixelModel::kBlinnPhong);
-  }
+  auto count = [](const cv::Mat& labels, auto label) {
+    return static_cast<std::size_t>(cv::countNonZero(labels == static_cast<int>(label)));
+  };
+  summary->pixels_solved = count(map.flags, PixelFlag::kSolved);
+  summary->pixels_outside_mask = count(map.flags, PixelFlag::kOutsideMask);
+  summary->pixels_too_few_lights = count(map.flags, PixelFlag::kTooFewLights);
+  summary->pixels_ill_conditioned = count(map.flags, PixelFlag::kIllConditioned);
+  summary->pixels_rejected_by_model = count(map.flags, PixelFlag::kRejectedByModel);
+  summary->pixels_lambertian = count(map.model, PixelModel::kLambertian);
+  summary->pixels_irls = count(map.model, PixelModel::kIrls);
+  summary->pixels_blinn_phong = count(map.model, PixelModel::kBlinnPhong);
 }
 
 std::string CheckInputs(const PhotometricStack& stack, const std::vector<camera::NearLight>& lights, const camera::Camera& camera) {
@@ -620,7 +727,7 @@ bool NearLightOptions::IsValid(std::string* why) const {
   if (max_rounds < 1 || max_rounds > 100) return core::Refuse(why, "max_rounds must be within [1, 100]");
   if (!(normal_change_tolerance_deg > 0.0)) return core::Refuse(why, "normal_change_tolerance_deg must be > 0");
   if (offset_stride < 1) return core::Refuse(why, "offset_stride must be >= 1");
-  if (depth_block_px < 0 || depth_block_px > 64) return core::Refuse(why, "depth_block_px must be within [0, 64]");
+  if (round_step_px < 0 || round_step_px > 64) return core::Refuse(why, "round_step_px must be within [0, 64]");
   return true;
 }
 
@@ -648,61 +755,44 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   summary.noise_read_sigma = stack.noise.read_sigma;
   summary.noise_shot_gain = stack.noise.shot_gain;
 
-  double lowest_led_mm = std::numeric_limits<double>::infinity();
-  for (const camera::NearLight& light : lights) lowest_led_mm = std::min(lowest_led_mm, light.position_mm.z());
-  // Round 1 places the surface on the sample plane; each later round at the
-  // depth integrated from the previous round's normals.
+  // With every light at infinity nothing depends on the depth: a line of
+  // sight keeps its direction along its length, and such a light reaches
+  // every point alike.
+  const bool depth_matters =
+      std::any_of(lights.begin(), lights.end(), [](const camera::NearLight& light) { return !light.at_infinity; });
+  const OffsetRange range = DepthOffsetRange(lights, near_options.camera);
   // The rounds place each pixel's point for its light vectors: a surface
-  // smoothed over a few pixels does that as well as one with every detail.
-  const int block_px = near_options.depth_block_px > 0
-                           ? near_options.depth_block_px
-                           : std::max(1, (std::max(stack.width(), stack.height()) + kRoundDepthSidePx - 1) / kRoundDepthSidePx);
-  cv::Mat height = cv::Mat::zeros(stack.height(), stack.width(), CV_32F);
-  AllocateResult(height.size(), result);
+  // sampled every few pixels does that as well as one with every detail.
+  const int step = !depth_matters              ? 1
+                   : near_options.round_step_px > 0 ? near_options.round_step_px
+                   : std::max(1, (std::max(stack.width(), stack.height()) + kRoundLatticeSidePx - 1) / kRoundLatticeSidePx);
+  const PixelProblem lattice = problem.Lattice(step, (step - 1) / 2);
   timer.SetupDone(&summary);
-  bool converged = false;
-  for (int round = 1; round <= near_options.max_rounds; ++round) {
-    const cv::Mat previous = round > 1 ? result->normals.clone() : cv::Mat();
-    // Round 1 sees the surface on the sample plane: its residuals are the
-    // geometry's, not outliers', so the chi-square test cannot tell which
-    // samples to distrust; refits start once the surface is placed.
-    const bool refit = round > 1 && options.method != Method::kL2 && options.method != Method::kLambertian;
-    cv::Mat chi_square;
-    FitAllPixels(problem, height, result, refit ? &chi_square : nullptr);
-    if (refit) Refit(problem, options, height, chi_square, result);
-    summary.rounds = round;
-    if (options.progress) options.progress({"near lights", round, near_options.max_rounds, {}});
-    if (round > 1) {
-      // The mean angle between the two rounds' normals, over the pixels both solved.
-      summary.normal_change_deg.push_back(CompareNormals(result->normals, previous).mean_deg);
-      if (summary.normal_change_deg.back() < near_options.normal_change_tolerance_deg) {
-        converged = true;
-        break;
-      }
-    }
-    const core::SolveTimer depth_timer;
-    const cv::Mat relative = RelativeDepth(near_options, problem, *result, stack.mask, block_px);
-    // The offset lies below the lowest LED and no deeper than that under the
-    // plane; a pinhole's scale stays positive.
-    double highest_mm = 0.5 * lowest_led_mm;
-    if (near_options.camera.IsPinhole()) highest_mm = std::min(highest_mm, 0.9 * near_options.camera.pinhole.distance_mm);
-    summary.depth_offset_mm =
-        BestOffset(problem, options, near_options, *result, relative, -0.5 * lowest_led_mm, highest_mm);
-    summary.depth_ms += depth_timer.ElapsedMs();
-    for (int r = 0; r < height.rows; ++r)
-      for (int c = 0; c < height.cols; ++c)
-        height.at<float>(r, c) = static_cast<float>(problem.Height(relative.at<float>(r, c), summary.depth_offset_mm));
+  bool converged = true;
+  cv::Mat relative;  // the lattice's surface the last round fitted on; empty: none placed
+  if (depth_matters) {
+    NormalMap lattice_map;
+    converged = RunRounds(options, near_options, lattice, range, step == 1 ? result : &lattice_map, &relative, &summary);
+  }
+  if (!depth_matters || step > 1) {
+    // Every pixel fitted once, at the surface the last round fitted on (or,
+    // with nothing depending on it, anywhere).
+    const cv::Mat height = relative.empty() ? cv::Mat::zeros(stack.height(), stack.width(), CV_32F)
+                                            : Heights(problem, LatticeToImage(lattice, relative, problem), summary.depth_offset_mm);
+    AllocateResult(height.size(), result);
+    FitRound(problem, options, height, !depth_matters || !relative.empty(), result);
+    if (!depth_matters) summary.rounds = 1;
   }
   CountPixels(*result, &summary);
   if (height_mm) {
-    // The surface itself, from the final normals at every pixel, where the
-    // last depth step placed it.
+    // The surface itself, from the final normals at every pixel, placed
+    // where the model fits it best: the rounds' surface, integrated on their
+    // lattice, is shaped by its coarser steps, which shifts its best
+    // placement by tens of micrometres on a sphere.
     const core::SolveTimer depth_timer;
-    const cv::Mat relative = RelativeDepth(near_options, problem, *result, stack.mask, 1);
-    height_mm->create(height.size(), CV_32F);
-    for (int r = 0; r < height.rows; ++r)
-      for (int c = 0; c < height.cols; ++c)
-        height_mm->at<float>(r, c) = static_cast<float>(problem.Height(relative.at<float>(r, c), summary.depth_offset_mm));
+    const cv::Mat whole = RelativeDepth(near_options, problem, *result);
+    if (step > 1 && !relative.empty()) summary.depth_offset_mm = BestOffset(problem, options, near_options, *result, whole, range);
+    *height_mm = Heights(problem, whole, summary.depth_offset_mm);
     height_mm->setTo(kNaN, result->flags != static_cast<int>(PixelFlag::kSolved));
     summary.depth_ms += depth_timer.ElapsedMs();
   }

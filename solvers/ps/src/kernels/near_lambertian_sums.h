@@ -13,11 +13,13 @@
 namespace photorig::solvers::ps::internal {
 
 // The LEDs as plain arrays, kernels using no Eigen: per light its position
-// (mm), emission axis (unit), cos exponent mu, and the constant that turns
-// cos^mu / d^2 into s_k f_k: s_k |p_k|^2 / cos_k(origin)^mu.
+// (mm), emission axis (unit), cos exponent mu, the constant that turns
+// cos^mu / d^2 into s_k f_k: s_k |p_k|^2 / cos_k(origin)^mu, and the
+// position's homogeneous coordinate w (0: a light at infinity, its
+// position the unit direction towards it).
 struct NearLightTable {
   std::vector<double> position, axis;  // three per light
-  std::vector<double> cos_exponent, constant;
+  std::vector<double> cos_exponent, constant, w;
   int count() const { return static_cast<int>(constant.size()); }
 };
 
@@ -35,8 +37,9 @@ struct NearSampleRules {
 
 // kLanes pixels: their surface points (mm), dark levels, and the index of
 // each pixel's sample in every light's image (all images share one layout).
+// Floats: the kernel's geometry runs in float (near_lambertian_sums.cpp).
 struct alignas(64) NearLanePixels {
-  double x[kLanes], y[kLanes], z[kLanes], dark[kLanes];
+  float x[kLanes], y[kLanes], z[kLanes], dark[kLanes];
   int offset[kLanes];
 };
 

@@ -138,9 +138,13 @@ struct LightModelReport {
   double depth_offset_mm = 0.0;           // near: z of the surface's mean depth
   double depth_ms = 0.0;                  // near: of the solve's time, integrating and placing the depth
   // For a pinhole camera solved by a method that models specular reflection
-  // with the view along the axis: the tilt to expect on glossy pixels (half
-  // the mean angle of the object's lines of sight to the axis).
+  // under distant lights: the tilt to expect on glossy pixels with the view
+  // along the axis (half the mean angle of the object's lines of sight to
+  // the axis).
   std::optional<double> predicted_view_bias_deg;
+  // Distant lights whose lobes were fitted through each pixel's line of
+  // sight, the predicted tilt being above the request's limit.
+  bool per_pixel_views = false;
 };
 
 // What one solve produced. Callers use it as is; ToJson gives report.json.

@@ -80,6 +80,12 @@ class PixelRays {
   }
   // ViewDirection of every pixel: CV_32FC3.
   cv::Mat ViewDirections() const;
+  // The rays of every step-th pixel of every step-th row from (origin,
+  // origin), as the pixels of a camera of their own: its pixel (r, c) is
+  // this one's (origin + step r, origin + step c), its pitch or focal
+  // lengths scaled so that its neighbours are a step apart (a pinhole's
+  // distortion acts on normalised coordinates and stays as it is).
+  PixelRays Lattice(int step, int origin) const;
   // The slope of pixel (r, c)'s line: (dx, dy) per mm of height (0 when
   // orthographic); for a pinhole camera -(x_n, -y_n).
   Eigen::Vector2d Slope(int r, int c) const {

@@ -46,22 +46,25 @@ struct NearLightOptions {
   double normal_change_tolerance_deg = 0.05;
   Integrator integrator = Integrator::kPoisson;
   // The depth's placement is chosen on every offset_stride-th pixel of every
-  // offset_stride-th row: a thousand pixels pin one number.
+  // offset_stride-th row (rounded up to the rounds' lattice): a thousand
+  // pixels pin one number.
   int offset_stride = 8;
-  // The rounds integrate their surfaces on blocks of depth_block_px pixels
-  // (IntegrationOptions::block_px); 0 picks blocks that leave 128 across the
-  // image's longer side. A height error dz turns a light vector by about
-  // dz / d (d the LED's distance) and changes its falloff by 2 dz / d; a
-  // surface smoothed over a block moves by about its curvature times the
-  // block's size squared over 8, micrometres on a 384 px sphere in 3 px
-  // blocks, so the normals do not notice, while the sparse solve has a ninth
-  // of the unknowns. The final surface (height_mm) is integrated at every pixel.
-  int depth_block_px = 0;
+  // The rounds fit and integrate only the lattice of every round_step_px-th
+  // pixel of every round_step_px-th row; once they stop, every pixel is
+  // fitted once at the surface the last round fitted on, interpolated
+  // between the lattice's pixels. 0 picks the step that leaves 64 pixels
+  // across the image's longer side; 1 fits every pixel in every round. A
+  // height error dz turns a light vector by about dz / d (d the LED's
+  // distance) and changes its falloff by 2 dz / d, and the interpolated
+  // surface is off by about its curvature times the step squared over 8:
+  // 2 um on a 34 mm sphere in 0.5 mm steps, against LEDs 80 mm away. So the
+  // normals do not notice, while the rounds cost a step squared less.
+  int round_step_px = 0;
   bool IsValid(std::string* why) const;
 };
 
 struct NearLightSummary : SolverSummary {
-  int rounds = 0;                         // normal solves made
+  int rounds = 0;  // rounds of normals then depth (the last pass over every pixel not counted)
   std::vector<double> normal_change_deg;  // mean change from the previous round, one per round after the first
   // The height chosen for the integrated surface's mean (orthographic), or
   // for its geometric-mean distance from the camera (pinhole).
@@ -86,7 +89,9 @@ double DistantModelBiasDeg(const std::vector<camera::NearLight>& lights, const s
 // lobe kept where the information criterion prefers it; kL2 and kLambertian
 // keep the Lambertian fit. Every refit sees the pixel's own light vectors,
 // gains and line of sight. (`auto`'s shared and GGX lobes, steps 5 and 6,
-// are fitted under distant lights only.) Fills *result as
+// are fitted by SolvePhotometricStereo only.) Lights at infinity
+// (NearLight::AtInfinity) are taken too: with no LED near, nothing depends
+// on the depth and the solve is one pass over the pixels (rounds 1). Fills *result as
 // SolvePhotometricStereo does and *height_mm, unless null (CV_32F, NaN off
 // the solved pixels), with the surface's z in the frame of the lights.
 NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions& options,
