@@ -22,7 +22,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-// The rounds' lattice leaves at most this many pixels across the image
+// The rounds' lattice leaves at least this many pixels across the object
 // (NearLightOptions::round_step_px).
 constexpr int kRoundLatticeSidePx = 64;
 
@@ -763,9 +763,10 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   const OffsetRange range = DepthOffsetRange(lights, near_options.camera);
   // The rounds place each pixel's point for its light vectors: a surface
   // sampled every few pixels does that as well as one with every detail.
-  const int step = !depth_matters              ? 1
+  const cv::Rect object = stack.mask.empty() ? cv::Rect(0, 0, stack.width(), stack.height()) : cv::boundingRect(stack.mask);
+  const int step = !depth_matters                 ? 1
                    : near_options.round_step_px > 0 ? near_options.round_step_px
-                   : std::max(1, (std::max(stack.width(), stack.height()) + kRoundLatticeSidePx - 1) / kRoundLatticeSidePx);
+                                                    : std::max(1, std::max(object.width, object.height) / kRoundLatticeSidePx);
   const PixelProblem lattice = problem.Lattice(step, (step - 1) / 2);
   timer.SetupDone(&summary);
   bool converged = true;

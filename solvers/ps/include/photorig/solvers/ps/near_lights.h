@@ -52,8 +52,9 @@ struct NearLightOptions {
   // The rounds fit and integrate only the lattice of every round_step_px-th
   // pixel of every round_step_px-th row; once they stop, every pixel is
   // fitted once at the surface the last round fitted on, interpolated
-  // between the lattice's pixels. 0 picks the step that leaves 64 pixels
-  // across the image's longer side; 1 fits every pixel in every round. A
+  // between the lattice's pixels. 0 picks the longest step that leaves 64
+  // pixels across the object (the mask's longer side); 1 fits every pixel
+  // in every round. A
   // height error dz turns a light vector by about dz / d (d the LED's
   // distance) and changes its falloff by 2 dz / d, and the interpolated
   // surface is off by about its curvature times the step squared over 8:
