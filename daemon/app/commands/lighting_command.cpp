@@ -17,7 +17,7 @@
 
 #include <filesystem>
 #include <iostream>
-#include <algorithm>
+#include <stdexcept>
 
 namespace photorig::app {
 namespace {
@@ -60,27 +60,19 @@ int Execute(const Options& o) {
       inputs.pinhole = rig.camera.pinhole;
     }
   }
-  for (const auto& path : o.white_images)
-    inputs.white_frames.push_back(cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR));
-
   config::LightCalibrationRequest request;
-  request.camera.projection = o.camera;
-  if (o.camera == solvers::lighting::CameraModel::Projection::kPinhole) {
-    request.camera.fx_px = o.fx;
-    request.camera.fy_px = o.fy > 0 ? o.fy : o.fx;
-    request.camera.cx_px = o.cx;
-    request.camera.cy_px = o.cy;
-  } else if (inputs.projection == solvers::camera::Projection::kPinhole) {
+  try {
+    daemon::LoadWhiteFrames(o.white_images, &inputs);
+    solvers::lighting::CameraModel given;
+    given.projection = o.camera;
+    given.fx_px = o.fx;
+    given.fy_px = o.fy;
+    given.cx_px = o.cx;
+    given.cy_px = o.cy;
     // The run's (or rig's) own lens, unless the command line says otherwise.
-    const solvers::camera::PinholeLens& lens = inputs.pinhole;
-    if (std::any_of(lens.distortion.begin(), lens.distortion.end(), [](double k) { return k != 0.0; }))
-      return Fail(kExitUsage, "calibrate lights: the camera's lens has distortion, which the sphere fit does not "
-                              "model; give --camera pinhole with the intrinsics of undistorted frames");
-    request.camera.projection = solvers::lighting::CameraModel::Projection::kPinhole;
-    request.camera.fx_px = lens.fx_px;
-    request.camera.fy_px = lens.fy_px;
-    request.camera.cx_px = lens.cx_px;
-    request.camera.cy_px = lens.cy_px;
+    request.camera = daemon::SphereCamera(inputs, given);
+  } catch (const std::invalid_argument& e) {
+    return Fail(kExitUsage, std::string("calibrate lights: ") + e.what());
   }
   if (o.circle.size() == 3) request.circle = solvers::lighting::Circle{o.circle[0], o.circle[1], o.circle[2]};
   request.silhouette_image = o.silhouette;
@@ -96,7 +88,7 @@ int Execute(const Options& o) {
   if (summary.circle_shift_deg > 0.0)
     std::cout << "circle check: the highlights' circle would move the directions by " << summary.circle_shift_deg
               << " deg on average (included in the uncertainty)\n";
-  ResultFields() = LightCalibrationJson(summary);
+  ResultFields() = daemon::ToJson(summary);
   ResultFields()["out"] = out;
   // Before a sphere is located, what stops the calibration is its input (no
   // frames, a request that cannot work); after, the fit.
