@@ -119,7 +119,7 @@ py::dict CalibrateColor(const daemon::ColorCalibrationRequest& request, const st
     terms.push_back(chosen.model.coefficients.row(t).transpose());
   calibrated["coefficients"] = VectorsToArray(terms);
   calibrated["input_scale"] = chosen.model.input_scale;
-  calibrated["white_xyz"] = VectorsToArray({chosen.model.white_xyz});
+  calibrated["white_xyz"] = py::array_t<double>(3, chosen.model.white_xyz.data());
   calibrated["training_de"] = ValuesToArray(chosen.training_de);
   calibrated["held_out_de"] = ValuesToArray(chosen.held_out_de);
   return calibrated;

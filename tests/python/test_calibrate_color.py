@@ -45,7 +45,7 @@ def test_same_model_as_the_cli(cli, tmp_path):
     assert calibrated["model"] == model["model"] == report["chosen"]
     np.testing.assert_array_equal(calibrated["coefficients"], model["coefficients"])
     assert calibrated["input_scale"] == model["input_scale"]
-    np.testing.assert_array_equal(calibrated["white_xyz"], [model["white_xyz"]])
+    np.testing.assert_array_equal(calibrated["white_xyz"], model["white_xyz"])
     chosen = next(entry for entry in report["models"] if entry["model"] == report["chosen"])
     np.testing.assert_array_equal(calibrated["training_de"], as_floats(chosen["training_de"]))
     np.testing.assert_array_equal(calibrated["held_out_de"], as_floats(chosen["held_out_de"]))
