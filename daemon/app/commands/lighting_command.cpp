@@ -26,10 +26,10 @@ namespace fs = std::filesystem;
 
 struct Options {
   std::string run_dir, silhouette, rig, out_rig, out;
-  solvers::lighting::CameraModel::Projection camera = solvers::lighting::CameraModel::Projection::kOrthographic;
+  solvers::lighting::CameraModel camera;  // --camera and its intrinsics (fy 0: fx)
   std::vector<std::string> images, white_images;
   std::vector<double> circle;
-  double fx = 0, fy = 0, cx = 0, cy = 0, radius_mm = 0;
+  double radius_mm = 0;
 };
 
 cv::Mat ReadSingleChannel(const std::string& path) {
@@ -63,14 +63,8 @@ int Execute(const Options& o) {
   config::LightCalibrationRequest request;
   try {
     daemon::LoadWhiteFrames(o.white_images, &inputs);
-    solvers::lighting::CameraModel given;
-    given.projection = o.camera;
-    given.fx_px = o.fx;
-    given.fy_px = o.fy;
-    given.cx_px = o.cx;
-    given.cy_px = o.cy;
     // The run's (or rig's) own lens, unless the command line says otherwise.
-    request.camera = daemon::SphereCamera(inputs, given);
+    request.camera = daemon::SphereCamera(inputs, o.camera);
   } catch (const std::invalid_argument& e) {
     return Fail(kExitUsage, std::string("calibrate lights: ") + e.what());
   }
@@ -106,11 +100,11 @@ CLI::App* Setup(CLI::App& app, Options* o) {
   lights->add_option("--circle", o->circle, "sphere circle CX CY R in pixels (default: from the highlights)")
       ->expected(3)->delimiter(',')->excludes(silhouette);
   lights->add_option("--radius-mm", o->radius_mm, "sphere radius: fixes the radius when locating it from highlights");
-  AddChoice(lights, "--camera", &o->camera, solvers::lighting::CameraModel::kProjectionNames, "camera projection");
-  lights->add_option("--fx", o->fx, "pinhole focal length (px)");
-  lights->add_option("--fy", o->fy, "pinhole focal length y (px; default fx)");
-  lights->add_option("--cx", o->cx, "pinhole principal point x (px)");
-  lights->add_option("--cy", o->cy, "pinhole principal point y (px)");
+  AddChoice(lights, "--camera", &o->camera.projection, solvers::lighting::CameraModel::kProjectionNames, "camera projection");
+  lights->add_option("--fx", o->camera.fx_px, "pinhole focal length (px)");
+  lights->add_option("--fy", o->camera.fy_px, "pinhole focal length y (px; default fx)");
+  lights->add_option("--cx", o->camera.cx_px, "pinhole principal point x (px)");
+  lights->add_option("--cy", o->camera.cy_px, "pinhole principal point y (px)");
   lights->add_option("--white-images", o->white_images, "white-sphere images, one per light")->check(CLI::ExistingFile);
   lights->add_option("--rig", o->rig, "rig YAML to copy with the calibrated lights (and, with --images, the nominal directions)")
       ->check(CLI::ExistingFile);

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
 
 namespace photorig::daemon {
 namespace {
@@ -203,6 +204,15 @@ void CheckGivenCircle(const LightCalibrationInputs& inputs, const config::LightC
                                   {"mean_direction_shift_deg", summary->circle_shift_deg}};
 }
 
+// Where the sphere was found and how: report.json's and the summary's "sphere".
+nlohmann::json SphereJson(const LightCalibrationSummary& summary) {
+  return {{"source", SphereSourceName(summary.sphere_source)},
+          {"cx_px", summary.circle.cx_px},
+          {"cy_px", summary.circle.cy_px},
+          {"radius_px", summary.circle.radius_px},
+          {"fit_rms_px", summary.sphere_fit_rms_px}};
+}
+
 // lights.lp and DiLiGenT's light_directions.txt and light_intensities.txt.
 void WriteLightFiles(const LightCalibrationInputs& inputs, const std::vector<LightDirectionEstimate>& directions,
                      const std::vector<LightIntensityEstimate>& intensities, const std::string& out_directory) {
@@ -243,13 +253,7 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
     return summary;
   }
 
-  nlohmann::json report{{"sphere",
-                         {{"source", SphereSourceName(summary.sphere_source)},
-                          {"cx_px", summary.circle.cx_px},
-                          {"cy_px", summary.circle.cy_px},
-                          {"radius_px", summary.circle.radius_px},
-                          {"fit_rms_px", summary.sphere_fit_rms_px}}},
-                        {"lights", nlohmann::json::array()}};
+  nlohmann::json report{{"sphere", SphereJson(summary)}, {"lights", nlohmann::json::array()}};
   std::vector<LightDirectionEstimate> directions = EstimateDirections(inputs, sphere, &summary, &report);
   CheckGivenCircle(inputs, request, &directions, &summary, &report);
   const int usable = summary.lights - summary.unusable;
@@ -293,11 +297,7 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
 nlohmann::json ToJson(const LightCalibrationSummary& summary) {
   return {{"success", summary.success},
           {"message", summary.message},
-          {"sphere", {{"source", SphereSourceName(summary.sphere_source)},
-                      {"cx_px", summary.circle.cx_px},
-                      {"cy_px", summary.circle.cy_px},
-                      {"radius_px", summary.circle.radius_px},
-                      {"fit_rms_px", summary.sphere_fit_rms_px}}},
+          {"sphere", SphereJson(summary)},
           {"lights", summary.lights},
           {"unusable", summary.unusable},
           {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
