@@ -1,12 +1,14 @@
-// photorig.calibrate_lights and calibrate_color: `photorig calibrate lights
-// --run` and `photorig calibrate color` in-process, through the same
-// pipelines (light_calibration.h, color_calibration.h), which write their
-// results folders as the CLI does.
+// photorig.calibrate_lights, calibrate_leds and calibrate_color: `photorig
+// calibrate lights --run`, `calibrate leds` and `calibrate color`
+// in-process, through the same pipelines (light_calibration.h,
+// led_positions.h, color_calibration.h), which write their results folders
+// as the CLI does.
 
 #include "arrays.h"
 #include "bindings.h"
 #include "choices.h"
 #include "photorig/daemon/pipelines/color_calibration.h"
+#include "photorig/daemon/pipelines/led_positions.h"
 #include "photorig/daemon/pipelines/light_calibration.h"
 #include "progress.h"
 #include "run.h"
@@ -16,6 +18,7 @@
 #include <array>
 #include <filesystem>
 #include <limits>
+#include <type_traits>
 
 namespace photorig::python {
 namespace {
@@ -38,32 +41,40 @@ config::LightCalibrationRequest LightRequestOf(const std::optional<std::array<do
   return request;
 }
 
-// Per light, NaN rows where a light is unusable: what lights.lp and the
-// DiLiGenT files hold for the usable ones.
+// field(e) of each estimate, NaN where it is not usable: (n,) for a number,
+// (n, 3) for a vector.
+template <typename Estimate, typename Field>
+py::array WhereUsable(const std::vector<Estimate>& estimates, Field field) {
+  if constexpr (std::is_same_v<decltype(field(estimates.front())), double>) {
+    py::array_t<double> values(static_cast<py::ssize_t>(estimates.size()));
+    for (std::size_t k = 0; k < estimates.size(); ++k)
+      values.mutable_at(k) = estimates[k].usable ? field(estimates[k]) : kNan;
+    return values;
+  } else {
+    std::vector<Eigen::Vector3d> vectors;
+    for (const Estimate& e : estimates)
+      vectors.push_back(e.usable ? Eigen::Vector3d(field(e)) : Eigen::Vector3d::Constant(kNan));
+    return VectorsToArray(vectors);
+  }
+}
+
+template <typename Estimate>
+py::array_t<bool> UsableOf(const std::vector<Estimate>& estimates) {
+  py::array_t<bool> usable(static_cast<py::ssize_t>(estimates.size()));
+  for (std::size_t k = 0; k < estimates.size(); ++k) usable.mutable_at(k) = estimates[k].usable;
+  return usable;
+}
+
+// What lights.lp and the DiLiGenT files hold for the usable lights.
 void AddEstimates(const daemon::LightCalibrationEstimates& estimates, py::dict* out) {
-  const std::size_t n = estimates.directions.size();
-  std::vector<Eigen::Vector3d> directions;
-  py::array_t<double> uncertainty(static_cast<py::ssize_t>(n));
-  py::array_t<bool> usable(static_cast<py::ssize_t>(n));
-  for (std::size_t k = 0; k < n; ++k) {
-    const lighting::LightDirectionEstimate& e = estimates.directions[k];
-    directions.push_back(e.usable ? e.direction : Eigen::Vector3d::Constant(kNan));
-    uncertainty.mutable_at(k) = e.usable ? e.uncertainty_deg : kNan;
-    usable.mutable_at(k) = e.usable;
-  }
-  (*out)["direction"] = VectorsToArray(directions);
-  (*out)["uncertainty_deg"] = uncertainty;
-  (*out)["usable"] = usable;
+  const auto& directions = estimates.directions;
+  (*out)["direction"] = WhereUsable(directions, [](const auto& e) { return e.direction; });
+  (*out)["uncertainty_deg"] = WhereUsable(directions, [](const auto& e) { return e.uncertainty_deg; });
+  (*out)["usable"] = UsableOf(directions);
   if (estimates.intensities.empty()) return;
-  std::vector<Eigen::Vector3d> rgb;
-  py::array_t<double> intensity(static_cast<py::ssize_t>(n));
-  for (std::size_t k = 0; k < n; ++k) {
-    const lighting::LightIntensityEstimate& e = estimates.intensities[k];
-    rgb.push_back(e.usable ? e.rgb : Eigen::Vector3d::Constant(kNan));
-    intensity.mutable_at(k) = e.usable ? e.rgb.mean() : kNan;  // as the calibrated rig's `intensity`
-  }
-  (*out)["rgb_intensity"] = VectorsToArray(rgb);
-  (*out)["intensity"] = intensity;
+  (*out)["rgb_intensity"] = WhereUsable(estimates.intensities, [](const auto& e) { return e.rgb; });
+  // As the calibrated rig's `intensity`.
+  (*out)["intensity"] = WhereUsable(estimates.intensities, [](const auto& e) { return e.rgb.mean(); });
 }
 
 py::dict CalibrateLights(const std::string& run_directory, config::LightCalibrationRequest request,
@@ -87,6 +98,44 @@ py::dict CalibrateLights(const std::string& run_directory, config::LightCalibrat
   out_dict["directory"] = destination;
   if (!estimates.directions.empty()) AddEstimates(estimates, &out_dict);
   return out_dict;
+}
+
+// The request `photorig calibrate leds` builds from its flags, refused with IsValid's message.
+config::LedPositionRequest LedRequestOf(const std::vector<std::vector<double>>& spheres, double sphere_radius_mm,
+                                        const std::optional<std::string>& rig, const std::optional<std::string>& out_rig) {
+  config::LedPositionRequest request;
+  for (const std::vector<double>& centre : spheres) {
+    if (centre.size() != 2 && centre.size() != 3)
+      throw py::value_error("each sphere centre is (x, y) or (x, y, z) in mm, not " + std::to_string(centre.size()) +
+                            " numbers");
+    request.sphere_centres_mm.emplace_back(centre[0], centre[1], centre.size() == 3 ? centre[2] : 0.0);
+  }
+  request.sphere_radius_mm = sphere_radius_mm;
+  request.base_rig = rig.value_or("");
+  request.out_rig = out_rig.value_or("");
+  if (std::string why; !request.IsValid(&why)) throw py::value_error(why);
+  return request;
+}
+
+py::dict CalibrateLeds(const std::string& run_directory, const config::LedPositionRequest& request,
+                       const std::optional<std::string>& out) {
+  // Where the CLI writes without --out.
+  const std::string destination = out.value_or((std::filesystem::path(run_directory) / "results" / "leds").string());
+  daemon::LedPositionCalibration result;
+  {
+    py::gil_scoped_release unlocked;
+    result = daemon::CalibrateLedPositions(daemon::LoadLedPositionInputs(run_directory), request, destination);
+  }
+  if (result.bad_input) throw py::value_error(result.message);
+  py::dict calibrated;
+  calibrated["summary"] = ToPython(daemon::ToJson(result));
+  calibrated["directory"] = destination;
+  const auto& leds = result.solve.leds;
+  calibrated["position_mm"] = WhereUsable(leds, [](const auto& e) { return e.position_mm; });
+  calibrated["rms_ray_distance_mm"] = WhereUsable(leds, [](const auto& e) { return e.rms_ray_distance_mm; });
+  calibrated["predicted_sigma_mm"] = WhereUsable(leds, [](const auto& e) { return e.predicted_sigma_mm; });
+  calibrated["usable"] = UsableOf(leds);
+  return calibrated;
 }
 
 namespace color = solvers::color;
@@ -158,6 +207,21 @@ void BindCalibration(py::module_& m) {
       "summary, the CLI's JSON result, and directory. Options are LightCalibrationRequest's: circle (cx, cy, r px), "
       "silhouette_image, sphere_radius_mm, camera with fx_px, fy_px, cx_px, cy_px, rig and out_rig (a copy of rig "
       "with the calibrated lights).");
+
+  m.def(
+      "calibrate_leds",
+      [](py::object run, const std::vector<std::vector<double>>& spheres, double sphere_radius_mm,
+         const std::optional<std::string>& rig, const std::optional<std::string>& out_rig,
+         const std::optional<std::string>& out) {
+        return CalibrateLeds(RunDirectory(run), LedRequestOf(spheres, sphere_radius_mm, rig, out_rig), out);
+      },
+      py::arg("run"), py::kw_only(), py::arg("spheres"), py::arg("sphere_radius_mm"), py::arg("rig") = py::none(),
+      py::arg("out_rig") = py::none(), py::arg("out") = py::none(),
+      "A near-LED dome's LED positions from a run of two or more mirror spheres at known places, one frame per "
+      "LED, as `photorig calibrate leds`: writes the same results folder (out, default RUN/results/leds) and "
+      "returns position_mm (n, 3) in the dome frame, rms_ray_distance_mm, predicted_sigma_mm and usable per LED "
+      "(NaN rows: unusable), summary, the CLI's JSON result, and directory. Options are LedPositionRequest's: "
+      "spheres ((x, y) or (x, y, z) mm each), sphere_radius_mm, rig and out_rig.");
 
   const color::CalibrationOptions fit;
   const daemon::ColorCalibrationRequest chart;
