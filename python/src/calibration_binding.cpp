@@ -16,7 +16,6 @@
 #include <pybind11/stl.h>  // std::optional, std::array and std::vector options
 
 #include <array>
-#include <filesystem>
 #include <limits>
 #include <type_traits>
 
@@ -27,7 +26,8 @@ namespace lighting = solvers::lighting;
 
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 
-// The request the CLI builds from its flags, refused with IsValid's message.
+// The request the CLI builds from its flags; checked once the run's camera is
+// in (CalibrateLights below).
 config::LightCalibrationRequest LightRequestOf(const std::optional<std::array<double, 3>>& circle,
                                                const std::optional<std::string>& silhouette_image,
                                                double sphere_radius_mm, const std::optional<std::string>& rig,
@@ -80,8 +80,7 @@ void AddEstimates(const daemon::LightCalibrationEstimates& estimates, py::dict* 
 py::dict CalibrateLights(const std::string& run_directory, config::LightCalibrationRequest request,
                          const lighting::CameraModel& camera, const std::vector<std::string>& white_images,
                          const std::optional<std::string>& out) {
-  // Where the CLI writes without --out.
-  const std::string destination = out.value_or((std::filesystem::path(run_directory) / "results" / "lights").string());
+  const std::string destination = ResultsFolder(run_directory, out, "lights");
   daemon::LightCalibrationSummary summary;
   daemon::LightCalibrationEstimates estimates;
   {
@@ -119,8 +118,7 @@ config::LedPositionRequest LedRequestOf(const std::vector<std::vector<double>>& 
 
 py::dict CalibrateLeds(const std::string& run_directory, const config::LedPositionRequest& request,
                        const std::optional<std::string>& out) {
-  // Where the CLI writes without --out.
-  const std::string destination = out.value_or((std::filesystem::path(run_directory) / "results" / "leds").string());
+  const std::string destination = ResultsFolder(run_directory, out, "leds");
   daemon::LedPositionCalibration result;
   {
     py::gil_scoped_release unlocked;

@@ -58,8 +58,7 @@ int ExecuteCalibrate(CalibrateOptions options) {
 
   if (!result.rendered.empty()) std::printf("%s\n", result.rendered.c_str());
   std::printf("%s\n", result.chart.located.message.c_str());
-  std::vector<std::string> names(solvers::color::ColorChecker24Names().begin(), solvers::color::ColorChecker24Names().end());
-  std::printf("%s", solvers::color::FormatCalibrationReport(result.chart.summary, names).c_str());
+  std::printf("%s", result.table.c_str());
   ResultFields()["out"] = options.out;
   ResultFields()["report"] = result.report;
   if (!result.chart.summary.IsSolutionUsable())

@@ -204,8 +204,8 @@ ColorCalibrationResult CalibrateColor(ColorCalibrationRequest request, const std
   const std::vector<std::string> names(color::ColorChecker24Names().begin(), color::ColorChecker24Names().end());
   result.report = ReportOf(request, result.chart, names);
   WriteFileDurably((fs::path(out_directory) / "report.json").string(), result.report.dump(2) + "\n");
-  WriteFileDurably((fs::path(out_directory) / "report.txt").string(),
-                   color::FormatCalibrationReport(result.chart.summary, names));
+  result.table = color::FormatCalibrationReport(result.chart.summary, names);
+  WriteFileDurably((fs::path(out_directory) / "report.txt").string(), result.table);
   if (!result.chart.summary.IsSolutionUsable()) return result;
 
   const color::ColorModel& model = result.chart.summary.chosen_model();

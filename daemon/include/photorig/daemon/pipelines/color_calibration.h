@@ -40,6 +40,7 @@ struct ColorCalibrationRequest {
 struct ColorCalibrationResult {
   solvers::color::ChartCalibration chart;
   nlohmann::json report;  // report.json
+  std::string table;      // report.txt: each model's errors, the chosen one's per patch
   std::string rendered;   // with sim_camera: what was rendered, in words
   // The chosen model applied to the chart failed: why (the model files are
   // written; corrected_srgb.png is not). Empty otherwise.
