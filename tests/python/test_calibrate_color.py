@@ -2,6 +2,7 @@
 
 import json
 
+import cv2
 import numpy as np
 import pytest
 
@@ -72,7 +73,6 @@ def test_a_capture_and_candidates_as_the_cli(cli, tmp_path):
 
 def test_a_chart_not_found_returns_why(tmp_path):
     blank = tmp_path / "blank.png"
-    import cv2
     cv2.imwrite(str(blank), np.full((240, 320, 3), 128, np.uint8))
     calibrated = photorig.calibrate_color(str(blank), out=str(tmp_path / "out"))
     assert calibrated["model"] is None and "coefficients" not in calibrated
@@ -99,3 +99,15 @@ def test_bad_options_raise_the_solvers_message(tmp_path):
     with pytest.raises(ValueError, match="chart_roi 1,2,3: 3 numbers"):
         photorig.calibrate_color(sim_camera="nikon-5100", chart_roi="1,2,3", out=out)
     assert not (tmp_path / "never").exists()
+
+
+def test_unreadable_captures_raise_before_writing(tmp_path):
+    with pytest.raises(ValueError, match="missing.png"):
+        photorig.calibrate_color(str(tmp_path / "missing.png"), out=str(tmp_path / "out"))
+    mosaic = tmp_path / "raw.png"
+    raw = np.zeros((64, 64), np.uint16)
+    raw[0::2, 0::2], raw[1::2, 1::2], raw[0::2, 1::2], raw[1::2, 0::2] = 4000, 1000, 2000, 2000  # R, B, G, G
+    cv2.imwrite(str(mosaic), raw)
+    with pytest.raises(ValueError, match="looks like a raw Bayer mosaic"):
+        photorig.calibrate_color(str(mosaic), out=str(tmp_path / "out"))
+    assert not (tmp_path / "out").exists()

@@ -191,11 +191,14 @@ ColorCalibrationResult CalibrateColor(ColorCalibrationRequest request, const std
       throw std::invalid_argument(request.rig + ": a simulated camera with a rig needs a simulated rig with "
                                   "camera.color_chart");
   }
-  fs::create_directories(out_directory);
   ColorCalibrationResult result;
-  if (!request.sim_camera.empty()) result.rendered = RenderSimulatedChart(&request, rig, out_directory);
+  if (!request.sim_camera.empty()) {
+    fs::create_directories(out_directory);
+    result.rendered = RenderSimulatedChart(&request, rig, out_directory);
+  }
   const cv::Mat image = ReadColorCapture(request.image, request.bayer);
   const cv::Mat dark = request.dark.empty() ? cv::Mat() : ReadColorCapture(request.dark, request.bayer);
+  fs::create_directories(out_directory);
 
   color::MeasureOptions measure;
   measure.clip_level = request.white_level;

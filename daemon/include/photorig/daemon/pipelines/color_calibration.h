@@ -48,13 +48,14 @@ struct ColorCalibrationResult {
   bool usable() const { return chart.summary.IsSolutionUsable() && apply_failure.empty(); }
 };
 
-// Throws std::invalid_argument for a request that cannot run (both or
-// neither of image and sim_camera, an unknown camera or model, options
+// Throws std::invalid_argument for a request that cannot run: both or
+// neither of image and sim_camera, an unknown camera, options
 // CalibrationOptions::IsValid refuses, a bad chart_roi, a rig file that does
-// not load, a capture that cannot be read or looks like an unnamed Bayer
-// raw), before anything is written. A chart that is not found or gives no
-// usable model is a result whose summary says why; report.json is written
-// either way, the model files only for a usable model.
+// not load (all before anything is written), or a capture that cannot be
+// read or looks like an unnamed Bayer raw (before anything but the
+// rendering is written). A chart that is not found or gives no usable model
+// is a result whose summary says why; report.json is written either way,
+// the model files only for a usable model.
 ColorCalibrationResult CalibrateColor(ColorCalibrationRequest request, const std::string& out_directory);
 
 // The candidates named (linear, affine, root-poly-2, ...), in order. Throws
