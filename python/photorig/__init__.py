@@ -3,11 +3,11 @@
 See docs/python.md for a tour.
 """
 
-from ._photorig import (Run, eval_brdf, fit_brdf, open_run, read_merl, run_recipe, solve_ps, solve_svbrdf,
-                        solve_tomography, write_merl)
+from ._photorig import (Run, calibrate_color, calibrate_leds, calibrate_lights, eval_brdf, fit_brdf, open_run, read_merl,
+                        run_recipe, solve_ps, solve_svbrdf, solve_tomography, write_merl)
 from .client import Daemon, DaemonError
 
 __all__ = [
-    "Daemon", "DaemonError", "Run", "eval_brdf", "fit_brdf", "open_run", "read_merl", "run_recipe", "solve_ps",
-    "solve_svbrdf", "solve_tomography", "write_merl",
+    "Daemon", "DaemonError", "Run", "calibrate_color", "calibrate_leds", "calibrate_lights", "eval_brdf", "fit_brdf",
+    "open_run", "read_merl", "run_recipe", "solve_ps", "solve_svbrdf", "solve_tomography", "write_merl",
 ]

@@ -1,7 +1,7 @@
 // photorig.read_merl, write_merl, eval_brdf and fit_brdf: measured-BRDF
-// tables through the solver's own readers, writers and table fit
-// (solvers/brdf/merl.h, measured.h, table_fit.h), as `photorig brdf eval`,
-// `convert` and `fit` use them.
+// tables and samples through the solver's own readers, writers and fits
+// (solvers/brdf/merl.h, measured.h, samples.h, table_fit.h), as `photorig
+// brdf eval`, `convert` and `fit` use them.
 
 #include "arrays.h"
 #include "bindings.h"
@@ -9,6 +9,7 @@
 #include "photorig/daemon/pipelines/internal/brdf_report.h"
 #include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/merl.h"
+#include "photorig/solvers/brdf/samples.h"
 #include "photorig/solvers/brdf/table_fit.h"
 
 #include <pybind11/stl.h>  // std::optional options
@@ -100,8 +101,6 @@ brdf::MeasuredBrdf MeasuredOf(const py::object& table_or_path, nlohmann::json* d
     return [table](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return table->Evaluate(wi, wo); };
   }
   const std::string path = py::str(table_or_path);
-  if (std::filesystem::path(path).extension() == ".csv")
-    throw py::value_error(path + ": fit_brdf fits tables (.binary, .bsdf); fit samples.csv with `photorig brdf fit`");
   brdf::MeasuredBrdf table;
   if (const solvers::core::Summary read = brdf::ReadMeasured(path, &table); !read.IsSolutionUsable())
     throw py::value_error(read.message);
@@ -110,16 +109,57 @@ brdf::MeasuredBrdf MeasuredOf(const py::object& table_or_path, nlohmann::json* d
   return table;
 }
 
-// report.json of `photorig brdf fit` as `summary`, with the chosen model and
-// its candidate's entry (parameters and their deviations) beside it.
-py::dict FitBrdf(const py::object& table_or_path, const std::string& loss, std::size_t samples) {
+// report.json of `photorig brdf fit` (`doc`) as `summary`, with the chosen
+// model and its candidate's entry (parameters and their deviations) beside it.
+py::dict FittedOf(const brdf::SelectionSummary& selection, const nlohmann::json& doc) {
+  py::dict out;
+  out["model"] = py::none();
+  out["parameters"] = py::none();
+  if (selection.chosen) {
+    out["model"] = brdf::ModelName(*selection.chosen);
+    out["parameters"] = ToPython(doc["candidates"][selection.chosen_index]);
+  }
+  out["summary"] = ToPython(doc);
+  return out;
+}
+
+// A gonioreflectometer's samples.csv (`photorig solve brdf`'s), fitted as
+// `photorig brdf fit samples.csv` fits it: weighted by the samples' deviations
+// unless `loss` says otherwise.
+py::dict FitSamples(const std::string& path, const std::optional<std::string>& loss) {
+  brdf::SelectionOptions options;
+  if (loss) options.fit.loss = ParseChoice(brdf::kFitLossNames, *loss, "loss");
+  if (std::string why; !options.IsValid(&why)) throw py::value_error(why);
+  std::vector<brdf::BrdfSample> samples;
+  if (const solvers::core::Summary read = brdf::ReadSamplesCsv(path, &samples); !read.IsSolutionUsable())
+    throw py::value_error(read.message);
+  if (samples.empty()) throw py::value_error(path + ": no measured value to fit");
+  brdf::SelectionSummary selection;
+  {
+    py::gil_scoped_release unlocked;
+    selection = brdf::SelectModel(samples, options);
+  }
+  nlohmann::json doc = {{"file", path},
+                        {"format", "samples"},
+                        {"loss", brdf::FitLossName(options.fit.loss)},
+                        {"samples", samples.size()}};
+  doc.update(daemon::SelectionJson(selection));
+  return FittedOf(selection, doc);
+}
+
+// fit_brdf: a table's fit, or FitSamples for a .csv path.
+py::dict FitBrdf(const py::object& table_or_path, const std::optional<std::string>& loss, std::size_t samples) {
+  if (!py::isinstance<py::array>(table_or_path)) {
+    const std::string path = py::str(table_or_path);
+    if (std::filesystem::path(path).extension() == ".csv") return FitSamples(path, loss);
+  }
   brdf::TableFitOptions options;
-  options.selection.fit.loss = ParseChoice(brdf::kFitLossNames, loss, "loss");
+  if (loss) options.selection.fit.loss = ParseChoice(brdf::kFitLossNames, *loss, "loss");
   options.samples = samples;
   if (std::string why; !options.IsValid(&why)) throw py::value_error(why);
   nlohmann::json doc;
   const brdf::MeasuredBrdf table = MeasuredOf(table_or_path, &doc);
-  doc["loss"] = loss;
+  doc["loss"] = brdf::FitLossName(options.selection.fit.loss);
   brdf::TableFitSummary fit;
   {
     py::gil_scoped_release unlocked;
@@ -129,15 +169,7 @@ py::dict FitBrdf(const py::object& table_or_path, const std::string& loss, std::
   doc["samples"] = fit.samples;
   doc.update(daemon::SelectionJson(fit.selection));
   daemon::AddTableFitJson(fit, &doc);
-  py::dict out;
-  out["summary"] = ToPython(doc);
-  out["model"] = py::none();
-  out["parameters"] = py::none();
-  if (fit.selection.chosen) {
-    out["model"] = brdf::ModelName(*fit.selection.chosen);
-    out["parameters"] = ToPython(doc["candidates"][fit.selection.chosen_index]);
-  }
-  return out;
+  return FittedOf(fit.selection, doc);
 }
 
 }  // namespace
@@ -152,11 +184,13 @@ void BindBrdf(py::module_& m) {
         "A MERL .binary's or RGL .bsdf's f_r (1/sr, R, G, B) for each row of wi (towards the light) and wo "
         "(towards the camera), as `photorig brdf eval`: (n, 3), NaN rows where it has no value.");
   m.def("fit_brdf", &FitBrdf, py::arg("table"), py::kw_only(),
-        py::arg("loss") = brdf::FitLossName(brdf::TableFitOptions().selection.fit.loss),
+        py::arg("loss") = py::none(),
         py::arg("samples") = brdf::TableFitOptions().samples,
-        "Fits BRDF models to a measured table (a .binary or .bsdf path, or read_merl's array) and chooses one, as "
-        "`photorig brdf fit`: model (the chosen one's name, or None), parameters (its report entry) and summary, "
-        "report.json's fields. Options are the CLI's (loss: log only, a table carries no deviations).");
+        "Fits BRDF models to a measured table (a .binary or .bsdf path, or read_merl's array) or to a "
+        "gonioreflectometer's samples.csv and chooses one, as `photorig brdf fit`: model (the chosen one's name, or "
+        "None), parameters (its report entry) and summary, report.json's fields. Options are the CLI's (loss: None "
+        "for log on a table, which carries no deviations, and weighted on samples; samples: a table's cells the "
+        "fits see).");
 }
 
 }  // namespace photorig::python

@@ -10,4 +10,5 @@ PYBIND11_MODULE(_photorig, m) {
   photorig::python::BindTomography(m);
   photorig::python::BindCapture(m);
   photorig::python::BindBrdf(m);
+  photorig::python::BindCalibration(m);
 }

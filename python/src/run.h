@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 #include <pybind11/pybind11.h>
 
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -33,6 +34,12 @@ class Run {
 
 // A solver's `run` argument: a Run, or its directory as a str or path.
 std::string RunDirectory(const pybind11::object& run);
+
+// A solver's `out`, else where the CLI writes without --out: RUN/results/<family>.
+inline std::string ResultsFolder(const std::string& run_directory, const std::optional<std::string>& out,
+                                 const char* family) {
+  return out.value_or((std::filesystem::path(run_directory) / "results" / family).string());
+}
 
 inline daemon::FailedCapture FailedCapturePolicy(bool accept_failed_capture) {
   return accept_failed_capture ? daemon::FailedCapture::kAccept : daemon::FailedCapture::kRefuse;

@@ -11,8 +11,6 @@
 
 #include <pybind11/stl.h>  // std::optional options
 
-#include <filesystem>
-
 namespace photorig::python {
 namespace {
 
@@ -37,9 +35,7 @@ py::dict SolveSvbrdf(const std::string& run_directory, config::SvbrdfRequest req
                      const std::string& demosaic, bool accept_failed_capture, py::object progress) {
   daemon::ColorStackOptions color;
   color.demosaic = ParseChoice(solvers::color::kDemosaicMethodNames, demosaic, "demosaic");
-  // Where the CLI writes without --out.
-  const std::string destination =
-      out.value_or((std::filesystem::path(run_directory) / "results" / "svbrdf").string());
+  const std::string destination = ResultsFolder(run_directory, out, "svbrdf");
   ProgressBridge bridge(std::move(progress));
   request.progress = bridge.Callback();
 

@@ -1,5 +1,6 @@
 """Fixtures: the CLI and the runs it captures, which the module is compared with."""
 
+import json
 import os
 import subprocess
 from pathlib import Path
@@ -15,6 +16,19 @@ def photorig(*args):
     done = subprocess.run([str(BIN_DIR / "photorig"), *map(str, args)], capture_output=True, text=True)
     assert done.returncode == 0, f"photorig {' '.join(map(str, args))}:\n{done.stdout}\n{done.stderr}"
     return done.stdout
+
+
+def photorig_json(*args):
+    """Runs the CLI with --json: its result's fields, without the command's own (`command`, `ok`, `exit_code`)."""
+    printed = json.loads(photorig(*args, "--json"))
+    return {key: value for key, value in printed.items() if key not in ["command", "ok", "exit_code"]}
+
+
+def capture(recipe, folder):
+    """The recipe (in config/recipes) captured by the CLI into folder/run, not solved."""
+    run = folder / "run"
+    photorig("run", SOURCE_DIR / "config/recipes" / recipe, "--no-solve", "--out", run)
+    return run
 
 
 @pytest.fixture(scope="session")

@@ -87,3 +87,58 @@ def test_fit_options_raise_the_solvers_message(table):
         photorig.fit_brdf(str(path), loss="weighted")
     with pytest.raises(ValueError, match="samples must be at least 100"):
         photorig.fit_brdf(str(path), samples=10)
+
+
+@pytest.fixture(scope="module")
+def samples_csv(tmp_path_factory):
+    """A glossy material (Lambertian plus Blinn-Phong of exponent 60) over a gonioreflectometer's arcs, with 2 %
+    deviations, as `photorig solve brdf` writes samples.csv (here without the origin columns)."""
+    rows = []
+    for theta_i in range(10, 75, 8):
+        for phi_o in [0, 30, 150, 180]:
+            for theta_o in range(5, 80, 3):
+                wi, wo = np.array(direction(theta_i, 180)), np.array(direction(theta_o, phi_o))
+                h = (wi + wo) / np.linalg.norm(wi + wo)
+                f = np.array([0.3, 0.4, 0.5]) / math.pi + 0.4 * (60 + 2) / (2 * math.pi) * h[2] ** 60
+                rows.append([*wi, *wo, *f, *(0.02 * f)])
+    path = tmp_path_factory.mktemp("samples") / "samples.csv"
+    lines = ["wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b"]
+    lines += [",".join(repr(float(v)) for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path, len(rows)
+
+
+def as_written(value):
+    """A summary as report.json holds it: JSON writes NaN (a deviation not estimated) as null."""
+    if isinstance(value, dict):
+        return {key: as_written(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [as_written(item) for item in value]
+    return None if isinstance(value, float) and math.isnan(value) else value
+
+
+def test_samples_fit_is_the_clis(samples_csv, cli, tmp_path):
+    path, count = samples_csv
+    cli("brdf", "fit", path, "--out", tmp_path / "fit")
+    report = json.loads((tmp_path / "fit/report.json").read_text())
+    fitted = photorig.fit_brdf(str(path))
+    summary = fitted["summary"]
+    assert summary["format"] == "samples" and summary["loss"] == "weighted" and summary["samples"] == count
+    # The CLI's report adds only the material it names; every fitted figure is the same double.
+    assert as_written(summary) == {key: value for key, value in report.items() if key != "material"}
+    assert fitted["model"] == report["chosen"] is not None
+    assert as_written(fitted["parameters"]) == next(c for c in report["candidates"] if c["model"] == fitted["model"])
+    # Noise-free samples of a Blinn-Phong lobe: its fit finds the exponent and the diffuse albedo.
+    blinn_phong = next(c for c in summary["candidates"] if c["model"] == "blinn_phong")
+    assert blinn_phong["shape"] == pytest.approx(60, rel=1e-6)
+    np.testing.assert_allclose(blinn_phong["diffuse"], [0.3, 0.4, 0.5], rtol=1e-6)
+
+
+def test_samples_fit_options_raise_the_solvers_message(samples_csv, tmp_path):
+    path, _ = samples_csv
+    with pytest.raises(ValueError, match="loss must be weighted or log"):
+        photorig.fit_brdf(str(path), loss="l2")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("theta,phi\n1,2\n")
+    with pytest.raises(ValueError, match="the first line is not the header"):
+        photorig.fit_brdf(str(bad))

@@ -7,15 +7,14 @@ import numpy as np
 import pytest
 
 import photorig
-from conftest import SOURCE_DIR
+from conftest import capture
 
 
 @pytest.fixture(scope="module")
-def glossy_run(cli, tmp_path_factory):
+def glossy_run(tmp_path_factory):
     """The simulated glossy sphere, captured only, and a mask of a block at its centre (a short solve)."""
     folder = tmp_path_factory.mktemp("glossy")
-    run = folder / "run"
-    cli("run", SOURCE_DIR / "config/recipes/ps-shiny-sphere.yaml", "--no-solve", "--out", run)
+    run = capture("ps-shiny-sphere.yaml", folder)
     rows, cols = cv2.imread(str(run / "ground_truth/normals.tiff"), cv2.IMREAD_UNCHANGED).shape[:2]
     mask = np.zeros((rows, cols), np.uint8)
     mask[rows // 2 - 30:rows // 2 + 30, cols // 2 - 30:cols // 2 + 30] = 255

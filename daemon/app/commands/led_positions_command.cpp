@@ -69,19 +69,8 @@ int Execute(const Options& o) {
     std::cout << "against the simulated truth: mean error " << result.mean_error_mm << " mm, max " << result.max_error_mm
               << " mm\n";
   if (!result.out_rig.empty()) std::cout << "calibrated rig: " << result.out_rig << "\n";
-  ResultFields() = {{"success", result.success},
-                    {"message", result.message},
-                    {"leds", result.solve.leds.size()},
-                    {"unusable", result.solve.unusable},
-                    {"mean_rms_ray_distance_mm", result.solve.mean_rms_ray_distance_mm},
-                    {"mean_shift_mm", result.mean_shift_mm},
-                    {"max_shift_mm", result.max_shift_mm},
-                    {"out", out},
-                    {"out_rig", result.out_rig}};
-  if (result.mean_error_mm >= 0.0) {
-    ResultFields()["mean_error_vs_truth_mm"] = result.mean_error_mm;
-    ResultFields()["max_error_vs_truth_mm"] = result.max_error_mm;
-  }
+  ResultFields() = daemon::ToJson(result);
+  ResultFields()["out"] = out;
   if (!result.success) return Fail(kExitFailed, result.message);
   return kExitOk;
 }

@@ -17,7 +17,7 @@
 
 #include <filesystem>
 #include <iostream>
-#include <algorithm>
+#include <stdexcept>
 
 namespace photorig::app {
 namespace {
@@ -26,10 +26,10 @@ namespace fs = std::filesystem;
 
 struct Options {
   std::string run_dir, silhouette, rig, out_rig, out;
-  solvers::lighting::CameraModel::Projection camera = solvers::lighting::CameraModel::Projection::kOrthographic;
+  solvers::lighting::CameraModel camera;  // --camera and its intrinsics (fy 0: fx)
   std::vector<std::string> images, white_images;
   std::vector<double> circle;
-  double fx = 0, fy = 0, cx = 0, cy = 0, radius_mm = 0;
+  double radius_mm = 0;
 };
 
 cv::Mat ReadSingleChannel(const std::string& path) {
@@ -60,27 +60,13 @@ int Execute(const Options& o) {
       inputs.pinhole = rig.camera.pinhole;
     }
   }
-  for (const auto& path : o.white_images)
-    inputs.white_frames.push_back(cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR));
-
   config::LightCalibrationRequest request;
-  request.camera.projection = o.camera;
-  if (o.camera == solvers::lighting::CameraModel::Projection::kPinhole) {
-    request.camera.fx_px = o.fx;
-    request.camera.fy_px = o.fy > 0 ? o.fy : o.fx;
-    request.camera.cx_px = o.cx;
-    request.camera.cy_px = o.cy;
-  } else if (inputs.projection == solvers::camera::Projection::kPinhole) {
+  try {
+    daemon::LoadWhiteFrames(o.white_images, &inputs);
     // The run's (or rig's) own lens, unless the command line says otherwise.
-    const solvers::camera::PinholeLens& lens = inputs.pinhole;
-    if (std::any_of(lens.distortion.begin(), lens.distortion.end(), [](double k) { return k != 0.0; }))
-      return Fail(kExitUsage, "calibrate lights: the camera's lens has distortion, which the sphere fit does not "
-                              "model; give --camera pinhole with the intrinsics of undistorted frames");
-    request.camera.projection = solvers::lighting::CameraModel::Projection::kPinhole;
-    request.camera.fx_px = lens.fx_px;
-    request.camera.fy_px = lens.fy_px;
-    request.camera.cx_px = lens.cx_px;
-    request.camera.cy_px = lens.cy_px;
+    request.camera = daemon::SphereCamera(inputs, o.camera);
+  } catch (const std::invalid_argument& e) {
+    return Fail(kExitUsage, std::string("calibrate lights: ") + e.what());
   }
   if (o.circle.size() == 3) request.circle = solvers::lighting::Circle{o.circle[0], o.circle[1], o.circle[2]};
   request.silhouette_image = o.silhouette;
@@ -96,7 +82,7 @@ int Execute(const Options& o) {
   if (summary.circle_shift_deg > 0.0)
     std::cout << "circle check: the highlights' circle would move the directions by " << summary.circle_shift_deg
               << " deg on average (included in the uncertainty)\n";
-  ResultFields() = LightCalibrationJson(summary);
+  ResultFields() = daemon::ToJson(summary);
   ResultFields()["out"] = out;
   // Before a sphere is located, what stops the calibration is its input (no
   // frames, a request that cannot work); after, the fit.
@@ -114,11 +100,11 @@ CLI::App* Setup(CLI::App& app, Options* o) {
   lights->add_option("--circle", o->circle, "sphere circle CX CY R in pixels (default: from the highlights)")
       ->expected(3)->delimiter(',')->excludes(silhouette);
   lights->add_option("--radius-mm", o->radius_mm, "sphere radius: fixes the radius when locating it from highlights");
-  AddChoice(lights, "--camera", &o->camera, solvers::lighting::CameraModel::kProjectionNames, "camera projection");
-  lights->add_option("--fx", o->fx, "pinhole focal length (px)");
-  lights->add_option("--fy", o->fy, "pinhole focal length y (px; default fx)");
-  lights->add_option("--cx", o->cx, "pinhole principal point x (px)");
-  lights->add_option("--cy", o->cy, "pinhole principal point y (px)");
+  AddChoice(lights, "--camera", &o->camera.projection, solvers::lighting::CameraModel::kProjectionNames, "camera projection");
+  lights->add_option("--fx", o->camera.fx_px, "pinhole focal length (px)");
+  lights->add_option("--fy", o->camera.fy_px, "pinhole focal length y (px; default fx)");
+  lights->add_option("--cx", o->camera.cx_px, "pinhole principal point x (px)");
+  lights->add_option("--cy", o->camera.cy_px, "pinhole principal point y (px)");
   lights->add_option("--white-images", o->white_images, "white-sphere images, one per light")->check(CLI::ExistingFile);
   lights->add_option("--rig", o->rig, "rig YAML to copy with the calibrated lights (and, with --images, the nominal directions)")
       ->check(CLI::ExistingFile);

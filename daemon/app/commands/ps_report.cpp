@@ -76,21 +76,3 @@ void PrintPhotometricStereoSummary(const daemon::PhotometricStereoResult& result
 }
 
 }  // namespace photorig::app
-
-namespace photorig::app {
-
-nlohmann::json LightCalibrationJson(const daemon::LightCalibrationSummary& summary) {
-  return {{"success", summary.success},
-          {"message", summary.message},
-          {"sphere", {{"source", daemon::SphereSourceName(summary.sphere_source)},
-                      {"cx_px", summary.circle.cx_px},
-                      {"cy_px", summary.circle.cy_px},
-                      {"radius_px", summary.circle.radius_px},
-                      {"fit_rms_px", summary.sphere_fit_rms_px}}},
-          {"lights", summary.lights},
-          {"unusable", summary.unusable},
-          {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
-          {"out_rig", summary.out_rig}};
-}
-
-}  // namespace photorig::app

@@ -12,7 +12,6 @@
 
 namespace photorig::app {
 void PrintPhotometricStereoSummary(const daemon::PhotometricStereoResult& result);
-nlohmann::json LightCalibrationJson(const daemon::LightCalibrationSummary& summary);
 
 // `--accept-failed-capture`, which every `solve <family> --run` takes: solve a
 // run whose capture failed or was aborted instead of refusing it.

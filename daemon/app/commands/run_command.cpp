@@ -81,7 +81,7 @@ int Execute(const Options& options) {
                 lights.message.c_str(), lights.circle.cx_px, lights.circle.cy_px, lights.circle.radius_px,
                 lights.mean_uncertainty_deg);
     if (!lights.out_rig.empty()) std::printf("calibrated rig: %s\n", lights.out_rig.c_str());
-    ResultFields()["light_calibration"] = LightCalibrationJson(lights);
+    ResultFields()["light_calibration"] = daemon::ToJson(lights);
     if (!lights.success) return Fail(kExitFailed, "light calibration failed: " + lights.message);
   }
   if (outcome.led_positions) {

@@ -222,4 +222,20 @@ LedPositionCalibration CalibrateLedPositions(const LedPositionInputs& inputs, co
   return result;
 }
 
+nlohmann::json ToJson(const LedPositionCalibration& result) {
+  nlohmann::json doc = {{"success", result.success},
+                        {"message", result.message},
+                        {"leds", result.solve.leds.size()},
+                        {"unusable", result.solve.unusable},
+                        {"mean_rms_ray_distance_mm", result.solve.mean_rms_ray_distance_mm},
+                        {"mean_shift_mm", result.mean_shift_mm},
+                        {"max_shift_mm", result.max_shift_mm},
+                        {"out_rig", result.out_rig}};
+  if (result.mean_error_mm >= 0.0) {
+    doc["mean_error_vs_truth_mm"] = result.mean_error_mm;
+    doc["max_error_vs_truth_mm"] = result.max_error_mm;
+  }
+  return doc;
+}
+
 }  // namespace photorig::daemon

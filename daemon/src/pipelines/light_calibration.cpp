@@ -12,6 +12,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
 
 namespace photorig::daemon {
 namespace {
@@ -65,6 +66,33 @@ LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directo
     inputs.names[static_cast<std::size_t>(record.led)] = fs::path(record.file).filename().string();
   }
   return inputs;
+}
+
+void LoadWhiteFrames(const std::vector<std::string>& paths, LightCalibrationInputs* inputs) {
+  for (const std::string& path : paths) {
+    cv::Mat image = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
+    if (image.empty()) throw std::invalid_argument(path + ": cannot read the white-sphere image");
+    inputs->white_frames.push_back(std::move(image));
+  }
+}
+
+CameraModel SphereCamera(const LightCalibrationInputs& inputs, CameraModel given) {
+  if (given.projection == CameraModel::Projection::kPinhole) {
+    if (given.fy_px <= 0.0) given.fy_px = given.fx_px;
+    return given;
+  }
+  if (inputs.projection != solvers::camera::Projection::kPinhole) return given;
+  const solvers::camera::PinholeLens& lens = inputs.pinhole;
+  if (std::any_of(lens.distortion.begin(), lens.distortion.end(), [](double k) { return k != 0.0; }))
+    throw std::invalid_argument("the camera's lens has distortion, which the sphere fit does not model; give a "
+                                "pinhole camera with the intrinsics of undistorted frames");
+  CameraModel own;
+  own.projection = CameraModel::Projection::kPinhole;
+  own.fx_px = lens.fx_px;
+  own.fy_px = lens.fy_px;
+  own.cx_px = lens.cx_px;
+  own.cy_px = lens.cy_px;
+  return own;
 }
 
 namespace {
@@ -176,6 +204,15 @@ void CheckGivenCircle(const LightCalibrationInputs& inputs, const config::LightC
                                   {"mean_direction_shift_deg", summary->circle_shift_deg}};
 }
 
+// Where the sphere was found and how: report.json's and the summary's "sphere".
+nlohmann::json SphereJson(const LightCalibrationSummary& summary) {
+  return {{"source", SphereSourceName(summary.sphere_source)},
+          {"cx_px", summary.circle.cx_px},
+          {"cy_px", summary.circle.cy_px},
+          {"radius_px", summary.circle.radius_px},
+          {"fit_rms_px", summary.sphere_fit_rms_px}};
+}
+
 // lights.lp and DiLiGenT's light_directions.txt and light_intensities.txt.
 void WriteLightFiles(const LightCalibrationInputs& inputs, const std::vector<LightDirectionEstimate>& directions,
                      const std::vector<LightIntensityEstimate>& intensities, const std::string& out_directory) {
@@ -195,7 +232,7 @@ void WriteLightFiles(const LightCalibrationInputs& inputs, const std::vector<Lig
 }  // namespace
 
 LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, const config::LightCalibrationRequest& request,
-                                        const std::string& out_directory) {
+                                        const std::string& out_directory, LightCalibrationEstimates* estimates) {
   LightCalibrationSummary summary;
   summary.lights = static_cast<int>(inputs.frames.size());
   if (!request.IsValid(&summary.message)) return summary;
@@ -216,13 +253,7 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
     return summary;
   }
 
-  nlohmann::json report{{"sphere",
-                         {{"source", SphereSourceName(summary.sphere_source)},
-                          {"cx_px", summary.circle.cx_px},
-                          {"cy_px", summary.circle.cy_px},
-                          {"radius_px", summary.circle.radius_px},
-                          {"fit_rms_px", summary.sphere_fit_rms_px}}},
-                        {"lights", nlohmann::json::array()}};
+  nlohmann::json report{{"sphere", SphereJson(summary)}, {"lights", nlohmann::json::array()}};
   std::vector<LightDirectionEstimate> directions = EstimateDirections(inputs, sphere, &summary, &report);
   CheckGivenCircle(inputs, request, &directions, &summary, &report);
   const int usable = summary.lights - summary.unusable;
@@ -240,6 +271,7 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
       report["lights"][k]["rgb_intensity"] = {intensities[k].rgb.x(), intensities[k].rgb.y(), intensities[k].rgb.z()};
   }
   WriteLightFiles(inputs, directions, intensities, out_directory);
+  if (estimates) *estimates = {directions, inputs.white_frames.empty() ? std::vector<LightIntensityEstimate>{} : intensities};
 
   bool rig_written = request.out_rig.empty();
   if (!request.out_rig.empty()) {
@@ -260,6 +292,16 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
     summary.message = std::to_string(usable) + " of " + std::to_string(summary.lights) + " lights calibrated (sphere from " +
                       SphereSourceName(summary.sphere_source) + ")";
   return summary;
+}
+
+nlohmann::json ToJson(const LightCalibrationSummary& summary) {
+  return {{"success", summary.success},
+          {"message", summary.message},
+          {"sphere", SphereJson(summary)},
+          {"lights", summary.lights},
+          {"unusable", summary.unusable},
+          {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
+          {"out_rig", summary.out_rig}};
 }
 
 }  // namespace photorig::daemon

@@ -11,6 +11,7 @@
 #include "photorig/solvers/camera/camera.h"
 #include "photorig/solvers/lighting/led_positions.h"
 
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
 #include <string>
@@ -49,5 +50,8 @@ struct LedPositionCalibration {
 // a bad request or run gives bad_input. Throws only when an output cannot be written.
 LedPositionCalibration CalibrateLedPositions(const LedPositionInputs& inputs, const config::LedPositionRequest& request,
                                              const std::string& out_directory);
+
+// The calibration as `photorig calibrate leds --json` gives it (without `out`).
+nlohmann::json ToJson(const LedPositionCalibration& result);
 
 }  // namespace photorig::daemon

@@ -12,9 +12,11 @@
 #include "photorig/config/solve_requests.h"
 #include "photorig/solvers/camera/camera.h"
 #include "photorig/solvers/core/names.h"
+#include "photorig/solvers/lighting/light_intensity.h"
 #include "photorig/solvers/lighting/mirror_sphere.h"
 
 #include <Eigen/Core>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
 #include <optional>
@@ -38,6 +40,17 @@ struct LightCalibrationInputs {
 // The light frames of a run: one per LED, in LED order, with the rig's
 // nominal directions and pixel pitch from the manifest.
 LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directory);
+
+// White-sphere images, one per light, read as they are (grey or B, G, R, any
+// depth) into inputs->white_frames. Throws std::invalid_argument naming an
+// image that cannot be read.
+void LoadWhiteFrames(const std::vector<std::string>& paths, LightCalibrationInputs* inputs);
+
+// The camera the sphere is located with: `given` when it is a pinhole (fy 0:
+// fx), else the inputs' own lens when theirs is a pinhole, else orthographic.
+// Throws std::invalid_argument for an own lens with distortion, which the
+// sphere fit does not model.
+solvers::lighting::CameraModel SphereCamera(const LightCalibrationInputs& inputs, solvers::lighting::CameraModel given);
 
 // How the sphere was located (kNone: not yet, or not at all).
 enum class SphereSource { kNone, kCircle, kSilhouette, kHighlights };
@@ -63,10 +76,21 @@ struct LightCalibrationSummary {
   std::string out_rig;  // written, or "" when none was asked for
 };
 
+// Each light's estimates, as lights.lp, the DiLiGenT files and report.json
+// hold them: intensities only when there are white-sphere frames.
+struct LightCalibrationEstimates {
+  std::vector<solvers::lighting::LightDirectionEstimate> directions;
+  std::vector<solvers::lighting::LightIntensityEstimate> intensities;
+};
+
 // Never throws for bad data: an unusable light, a sphere that cannot be found
 // or an existing out_rig give success = false and a message. Throws only when
-// an output cannot be written.
+// an output cannot be written. `estimates`, when given, receives each light's
+// estimates once the sphere is located.
 LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, const config::LightCalibrationRequest& request,
-                                        const std::string& out_directory);
+                                        const std::string& out_directory, LightCalibrationEstimates* estimates = nullptr);
+
+// The summary as `photorig calibrate lights --json` and `photorig run` give it.
+nlohmann::json ToJson(const LightCalibrationSummary& summary);
 
 }  // namespace photorig::daemon
