@@ -52,6 +52,8 @@ packages=(
   slurm-wlm munge
   # tomography distributed over MPI processes (solvers/tomography_mpi, solve tomography --mpi, its mpirun test)
   libopenmpi-dev openmpi-bin
+  # Brent's minimiser (Boost.Math, header-only) for the near-light depth search (solvers/ps)
+  libboost-dev
   # tomography's volume.vdb (daemon/src/io/vdb_volume.cpp); Debian's FindOpenVDB.cmake requires
   # Boost.Iostreams, which libopenvdb-dev does not pull in
   libopenvdb-dev libboost-iostreams-dev

@@ -6,6 +6,7 @@
 #include "model_selection.h"
 #include "per_pixel_fits.h"
 
+#include <boost/math/tools/minima.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -580,32 +581,25 @@ OffsetRange DepthOffsetRange(const std::vector<camera::NearLight>& lights, const
   return range;
 }
 
-// Golden-section search for the depth offset within the range.
+// The depth offset within the range where the grid's summed misfit is least.
 double BestOffset(const PixelProblem& p, const PhotometricStereoOptions& options, const NearLightOptions& near_options,
                   const NormalMap& map, const cv::Mat& relative, const OffsetRange& range) {
-  const double low = range.low_mm, high = range.high_mm;
-  constexpr double kInverseGolden = 0.6180339887498949;
   constexpr double kToleranceMm = 0.01;
   // offset_stride counts the image's pixels, a lattice pixel p.step of them.
   SparseGrid grid = SparsePixels((near_options.offset_stride + p.step - 1) / p.step, map, relative);
   const LambertianAdequacy adequacy(p, options);  // its quantiles are worked out once for the whole search
-  auto misfit = [&](double offset_mm) { return SparseMisfit(p, options, adequacy, grid, offset_mm); };
-  double a = low, b = high;
-  double x1 = b - kInverseGolden * (b - a), x2 = a + kInverseGolden * (b - a);
-  double f1 = misfit(x1);
-  double f2 = misfit(x2);
-  while (b - a > kToleranceMm) {
-    if (f1 <= f2) {
-      b = x2, x2 = x1, f2 = f1;
-      x1 = b - kInverseGolden * (b - a);
-      f1 = misfit(x1);
-    } else {
-      a = x1, x1 = x2, f1 = f2;
-      x2 = a + kInverseGolden * (b - a);
-      f2 = misfit(x2);
-    }
-  }
-  return 0.5 * (a + b);
+  // Brent's method: parabolic steps where the summed misfit is smooth in the
+  // offset (it is, away from samples crossing a threshold), golden-section
+  // ones where not. Its tolerance is relative to |t|, so t runs over [1, 2]
+  // for a near-uniform one in mm; the bracket it stops at is a few
+  // tolerances wide.
+  const double width_mm = range.high_mm - range.low_mm;
+  const int bits = static_cast<int>(std::ceil(1.0 - std::log2(kToleranceMm / (4.0 * width_mm))));
+  auto offset = [&](double t) { return range.low_mm + (t - 1.0) * width_mm; };
+  std::uintmax_t max_iterations = 200;
+  const auto [t, misfit] = boost::math::tools::brent_find_minima(
+      [&](double t) { return SparseMisfit(p, options, adequacy, grid, offset(t)); }, 1.0, 2.0, bits, max_iterations);
+  return offset(t);
 }
 
 // Each pixel's height with the surface `relative` placed at offset_mm.
