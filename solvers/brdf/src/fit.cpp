@@ -310,9 +310,19 @@ bool FitOptions::IsValid(std::string* why) const {
 bool SelectionOptions::IsValid(std::string* why) const {
   if (!fit.IsValid(why)) return false;
   if (fit.start) {
-    *why = "fit.start is for one model's fit: each candidate starts from its own grid";
+    *why = "fit.start is for one model's fit: give each candidate's in starts";
     return false;
   }
+  if (!starts.empty() && starts.size() != candidates.size()) {
+    *why = "starts must be empty or give one (possibly absent) start per candidate";
+    return false;
+  }
+  for (std::size_t c = 0; c < starts.size(); ++c)
+    if (starts[c] && starts[c]->model != candidates[c]) {
+      *why = std::string("starts[") + std::to_string(c) + "] is a " + ModelName(starts[c]->model) + " point for a " +
+             ModelName(candidates[c]) + " candidate";
+      return false;
+    }
   if (candidates.empty()) {
     *why = "no candidate models";
     return false;
@@ -857,7 +867,11 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   const int candidates = static_cast<int>(options.candidates.size());
   summary.candidates.resize(options.candidates.size());
 #pragma omp parallel for schedule(dynamic)
-  for (int c = 0; c < candidates; ++c) summary.candidates[c] = FitPrepared(options.candidates[c], prepared, options.fit);
+  for (int c = 0; c < candidates; ++c) {
+    FitOptions fit = options.fit;
+    if (!options.starts.empty()) fit.start = options.starts[c];
+    summary.candidates[c] = FitPrepared(options.candidates[c], prepared, fit);
+  }
   if (options.progress) options.progress({"fit", candidates, candidates});
   const int folds = options.held_out_folds;
   if (folds > 0) {

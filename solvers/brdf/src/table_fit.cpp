@@ -234,6 +234,14 @@ TableFitSummary FitTable(const MeasuredBrdf& table, const TableFitOptions& optio
     if (round < options.refinement_rounds) selection.held_out_folds = 0;
     if (selection.held_out_folds > 0)
       for (int bin : bins) selection.folds.push_back(fold_of_bin[bin]);
+    // A later draw estimates the same all-cell loss as the one before (with
+    // less variance where the models erred), so its optimum is near the
+    // previous fit's: each candidate starts there, and the grid that found
+    // the basin is not needed again.
+    if (round > 0)
+      for (const FitSummary& previous : summary.selection.candidates)
+        selection.starts.push_back(previous.IsSolutionUsable() ? std::optional<ModelParams>(previous.params)
+                                                               : std::nullopt);
     summary.selection = SelectModel(samples, selection);
     if (summary.selection.candidates.empty()) break;  // refused before any fit
     pass = ErrorsOverCells(cells, summary.selection,

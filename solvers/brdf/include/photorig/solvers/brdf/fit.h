@@ -162,6 +162,10 @@ struct SelectionOptions {
   // optimum to predict the samples it left out, and on a whole table the
   // folds were most of the choice's time. 0 = FitOptions::max_fit_samples. Default 5000.
   std::size_t fold_fit_samples = 5000;
+  // Each candidate's start (FitOptions::start), absent for its grid; empty:
+  // every candidate from its grid. FitTable starts a later draw's fits from
+  // the previous draw's, which estimate the same all-cell loss.
+  std::vector<std::optional<ModelParams>> starts;
   // Called once the candidates are fitted (stage "fit") and once their folds
   // are (stage "held-out"); a whole measured table takes a second or two.
   core::ProgressCallback progress;
