@@ -1,7 +1,8 @@
 #pragma once
-// Fitting the analytic models of models.h to measured samples with Ceres
-// (Levenberg-Marquardt, automatic derivatives, bounds keeping the albedos,
-// GGX's scale and every F0 non-negative and F0 <= 1), and choosing the
+// Fitting the analytic models of models.h to measured samples
+// (Levenberg-Marquardt on forward-mode automatic derivatives, the step
+// projected onto bounds keeping the albedos, GGX's scale and every F0
+// non-negative and F0 <= 1; the covariance from Ceres), and choosing the
 // simplest model the data support.
 //
 // Fitting space (FitLoss):
