@@ -499,7 +499,18 @@ void SolveProjectedLm(Model model, const std::vector<Prepared>& fitted, const Fi
     ++ls->iterations;
     Matrix damped = jtj;
     damped.diagonal() += jtj.diagonal().cwiseMax(1e-6).cwiseMin(1e32) / radius;
-    const Vector trial = (x - damped.ldlt().solve(jtr)).cwiseMax(lower).cwiseMin(upper);
+    // A parameter on a bound that the gradient pushes out of stays there this
+    // step: solving for it too and projecting afterwards would leave the
+    // others a step that counted on it moving.
+    Vector rhs = jtr;
+    for (int k = 0; k < P; ++k)
+      if ((x[k] <= lower[k] && jtr[k] > 0.0) || (x[k] >= upper[k] && jtr[k] < 0.0)) {
+        damped.row(k).setZero();
+        damped.col(k).setZero();
+        damped(k, k) = 1.0;
+        rhs[k] = 0.0;
+      }
+    const Vector trial = (x - damped.ldlt().solve(rhs)).cwiseMax(lower).cwiseMin(upper);
     const Vector step = trial - x;
     if (step.norm() <= 1e-8 * (x.norm() + 1e-8)) {
       ls->converged = true;
