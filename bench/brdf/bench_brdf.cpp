@@ -2,13 +2,15 @@
 // fit per model against the number of samples, and fitting a whole MERL table:
 // FitModel (a subsample, then every cell for the cost) against the same GGX
 // least squares over every cell solved by Ceres and by a Levenberg-Marquardt
-// on photorig_autodiff's dual numbers, from the same start.
+// on photorig_autodiff's dual numbers, from the same start; the choice among
+// six models, and FitTable as `photorig brdf fit TABLE` runs it.
 
 #include "lobes.h"
 #include "photorig/solvers/autodiff/dual.h"
 #include "photorig/solvers/brdf/fit.h"
 #include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/merl.h"
+#include "photorig/solvers/brdf/table_fit.h"
 
 #include "synthetic_samples.h"
 
@@ -93,24 +95,32 @@ ModelParams TableTruth() {
   return p;
 }
 
-// Every cell of a MERL table filled from TableTruth whose directions lie
-// within 80 deg of the normal, as FitModel's samples, each value with 2 %
-// Gaussian noise (a noise-free table would be fitted exactly from any subset).
+// A MERL table filled from TableTruth, each cell's value with 2 % Gaussian
+// noise (a noise-free table would be fitted exactly from any subset), as
+// `photorig brdf fit TABLE` reads one.
+const MeasuredBrdf& NoisyTable() {
+  static const MeasuredBrdf brdf = [] {
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    const auto table = std::make_shared<MerlTable>(MerlTable::FromFunction([&](const DirectionPair& d) {
+      Eigen::Vector3d f = Evaluate(TableTruth(), d.wi, d.wo);
+      for (int c = 0; c < 3; ++c) f[c] *= 1.0 + noise(rng);
+      return std::optional<Eigen::Vector3d>(f);
+    }));
+    return MeasuredBrdf([table](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return table->Evaluate(wi, wo); });
+  }();
+  return brdf;
+}
+
+// Every cell of NoisyTable whose directions lie within 80 deg of the normal,
+// as FitModel's samples.
 const std::vector<BrdfSample>& WholeTable() {
   static const std::vector<BrdfSample> samples = [] {
-    const auto table = std::make_shared<MerlTable>(
-        MerlTable::FromFunction([](const DirectionPair& d) { return Evaluate(TableTruth(), d.wi, d.wo); }));
     TableSampling cells;
     cells.theta_h_steps = MerlTable::kThetaHBins;
     cells.theta_d_steps = MerlTable::kThetaDBins;
     cells.phi_d_steps = MerlTable::kPhiDBins;
-    std::vector<BrdfSample> measured = SampleMeasured(
-        [table](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return table->Evaluate(wi, wo); }, cells);
-    std::mt19937 rng(7);
-    std::normal_distribution<double> noise(0.0, 0.02);
-    for (BrdfSample& s : measured)
-      for (int c = 0; c < 3; ++c) s.value[c] *= 1.0 + noise(rng);
-    return measured;
+    return SampleMeasured(NoisyTable(), cells);
   }();
   return samples;
 }
@@ -283,6 +293,28 @@ void BM_SelectModelWholeTable(benchmark::State& state) {
   state.SetLabel("six candidates, 5 folds");
 }
 BENCHMARK(BM_SelectModelWholeTable)->Arg(0)->Arg(5000)->Iterations(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// `photorig brdf fit TABLE` on NoisyTable: FitTable with its defaults (two
+// draws of 20,000 cells, the six candidates, 5 held-out folds on the last
+// draw, the passes over all cells). Wall time on the machine's cores.
+void BM_FitTableWholeTable(benchmark::State& state) {
+  TableFitSummary fit;
+  for (auto _ : state) fit = FitTable(NoisyTable());
+  const SelectionSummary& s = fit.selection;
+  state.counters["cells"] = static_cast<double>(fit.cells);
+  state.counters["chose_ggx"] = s.chosen == Model::kGgx ? 1.0 : 0.0;
+  if (s.chosen == Model::kGgx) {
+    const ModelParams& p = s.candidates[s.chosen_index].params;
+    const ModelParams t = TableTruth();
+    state.counters["a_rel_error"] = p.shape / t.shape - 1.0;
+    state.counters["rho_d_rel_error"] = p.diffuse[0] / t.diffuse[0] - 1.0;
+    state.counters["F0_rel_error"] = p.specular[0] / t.specular[0] - 1.0;
+  }
+  for (const FitSummary& f : s.candidates)
+    state.counters[std::string("it_") + ModelName(f.params.model)] = f.iterations;
+  state.SetLabel("FitTable, six candidates, two draws");
+}
+BENCHMARK(BM_FitTableWholeTable)->Iterations(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

@@ -246,6 +246,31 @@ TEST(BrdfSelection, TooFewSamplesForALobeLeaveOnlyLambertian) {
   }
 }
 
+// FitTable's later draw: each candidate started from an earlier fit (not its
+// grid) reaches the same optimum, and the truth.
+TEST(BrdfSelection, CandidatesStartedFromEarlierFitsReachTheSameOptimum) {
+  const ModelParams truth = GlossyGgx();
+  const std::vector<BrdfSample> samples = SyntheticSamples(truth, {});
+  const SelectionSummary grid = SelectModel(samples);
+  ASSERT_EQ(grid.chosen, Model::kGgx) << grid.reason;
+  SelectionOptions options;
+  for (const FitSummary& f : grid.candidates) options.starts.push_back(f.params);
+  options.starts[0].reset();  // absent: that candidate from its grid
+  const SelectionSummary started = SelectModel(samples, options);
+  ASSERT_EQ(started.chosen, Model::kGgx) << started.reason;
+  for (std::size_t c = 0; c < grid.candidates.size(); ++c)
+    EXPECT_NEAR(started.candidates[c].cost, grid.candidates[c].cost, 1e-5 * grid.candidates[c].cost)
+        << ModelName(grid.candidates[c].params.model);
+  const ModelParams& fit = started.candidates[started.chosen_index].params;
+  EXPECT_NEAR(fit.shape, truth.shape, 0.05 * truth.shape);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(fit.specular[c], truth.specular[c], 0.05 * truth.specular[c]);
+  // A start for another model, or too few starts, is refused.
+  options.starts[1] = truth;
+  EXPECT_EQ(SelectModel(samples, options).termination, core::Termination::kInvalidOptions);
+  options.starts.resize(2);
+  EXPECT_EQ(SelectModel(samples, options).termination, core::Termination::kInvalidOptions);
+}
+
 TEST(BrdfSelection, InvalidInputAndOptionsAreRefused) {
   std::vector<BrdfSample> samples = SyntheticSamples(Matte(), {});
   EXPECT_EQ(SelectModel({}).termination, core::Termination::kInvalidInput);

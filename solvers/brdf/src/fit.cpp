@@ -1,6 +1,7 @@
 #include "photorig/solvers/brdf/fit.h"
 
 #include "lobes.h"
+#include "photorig/solvers/autodiff/dual.h"
 #include "photorig/solvers/core/number_text.h"
 
 #include <ceres/ceres.h>
@@ -310,9 +311,19 @@ bool FitOptions::IsValid(std::string* why) const {
 bool SelectionOptions::IsValid(std::string* why) const {
   if (!fit.IsValid(why)) return false;
   if (fit.start) {
-    *why = "fit.start is for one model's fit: each candidate starts from its own grid";
+    *why = "fit.start is for one model's fit: give each candidate's in starts";
     return false;
   }
+  if (!starts.empty() && starts.size() != candidates.size()) {
+    *why = "starts must be empty or give one (possibly absent) start per candidate";
+    return false;
+  }
+  for (std::size_t c = 0; c < starts.size(); ++c)
+    if (starts[c] && starts[c]->model != candidates[c]) {
+      *why = std::string("starts[") + std::to_string(c) + "] is a " + ModelName(starts[c]->model) + " point for a " +
+             ModelName(candidates[c]) + " candidate";
+      return false;
+    }
   if (candidates.empty()) {
     *why = "no candidate models";
     return false;
@@ -372,8 +383,13 @@ bool PrepareSamples(const std::vector<BrdfSample>& samples, const FitOptions& op
 // F0 or GGX's scale (extra[0]), or the second lobe (as `lobe`).
 struct LeastSquares {
   double kd[3] = {0, 0, 0}, lobe[4] = {0, 0, 0, 0}, extra[4] = {0, 0, 0, 0};
+  // The residuals at the solution, for the covariance and the F0 score test
+  // (AddResiduals); the solve itself is Levenberg-Marquardt below.
   ceres::Problem problem;
-  ceres::Solver::Summary solved;
+  bool usable = false;     // the solution is finite
+  bool converged = false;  // a tolerance, not the iteration limit, ended the solve
+  double cost = 0.0;       // sum of squared residuals at the solution
+  int iterations = 0;      // steps tried, counting the start as one (as Ceres counts)
 
   ModelParams Params(Model model) const {
     ModelParams p;
@@ -393,55 +409,189 @@ struct LeastSquares {
   }
 };
 
+// The bounds of the least squares' parameters, laid out as (kd, lobe,
+// extra): weights, GGX's scale and F0 non-negative, GGX's per-channel F0 and
+// Cook-Torrance's F0 at most 1, log shapes within RangeOf.
+template <int P>
+void Bounds(Model model, Eigen::Matrix<double, P, 1>* lower, Eigen::Matrix<double, P, 1>* upper) {
+  lower->setZero();
+  upper->setConstant(std::numeric_limits<double>::infinity());
+  if constexpr (P >= 7) {
+    const ShapeRange range = RangeOf(model);
+    if (model == Model::kGgx) upper->template segment<3>(3).setOnes();
+    (*lower)[6] = std::log(range.min);
+    (*upper)[6] = std::log(range.max);
+  }
+  if constexpr (P == 8)
+    if (model == Model::kCookTorrance) (*upper)[7] = 1.0;
+  if constexpr (P == 11) {
+    (*lower)[10] = (*lower)[6];
+    (*upper)[10] = (*upper)[6];
+  }
+}
+
+// One sample's residuals at x = (kd, lobe, extra), P = ParameterCount(model).
+template <int P, typename T>
+void Residuals(Model model, const Prepared& p, FitLoss loss, const T* x, T* r) {
+  if constexpr (P == 3) {
+    SampleResidual(model, p, loss)(x, r);
+  } else if constexpr (P == 7) {
+    SampleResidual(model, p, loss)(x, x + 3, r);
+  } else if constexpr (P == 8) {
+    SampleResidual(model, p, loss)(x, x + 3, x + 7, r);
+  } else {
+    TwoLobeResidual(model, p, loss)(x, x + 3, x + 7, r);
+  }
+}
+
+// Levenberg-Marquardt on the normal equations, the step projected onto the
+// bounds, with Ceres' trust-region rules and tolerances (initial radius 1e4,
+// D = diag(J^T J) clamped to [1e-6, 1e32], a step kept when it achieves
+// 1e-3 of its predicted decrease; converged when the cost changes by less
+// than 1e-6 of itself, the projected gradient's largest component is below
+// 1e-10, or the step is below 1e-8 of |x|). Each iteration is one pass over
+// the samples with Dual<P> (forward mode, every derivative at once) building
+// J^T J and J^T r, no Jacobian stored: 3.4x faster than Ceres' DENSE_QR on
+// the same problem (docs/performance.md).
+template <int P>
+void SolveProjectedLm(Model model, const std::vector<Prepared>& fitted, const FitOptions& options, double* x_out,
+                      LeastSquares* ls) {
+  using Vector = Eigen::Matrix<double, P, 1>;
+  using Matrix = Eigen::Matrix<double, P, P>;
+  using Dual = autodiff::Dual<P>;
+  Vector lower, upper;
+  Bounds<P>(model, &lower, &upper);
+  auto cost_of = [&](const Vector& x) {
+    double cost = 0.0, r[3];
+    for (const Prepared& p : fitted) {
+      Residuals<P>(model, p, options.loss, x.data(), r);
+      cost += r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+    }
+    return cost;
+  };
+  auto normal_equations = [&](const Vector& x, Matrix* jtj, Vector* jtr) {
+    jtj->setZero();
+    jtr->setZero();
+    Dual xd[P], r[3];
+    for (int k = 0; k < P; ++k) xd[k] = Dual(x[k], k);
+    for (const Prepared& p : fitted) {
+      Residuals<P>(model, p, options.loss, xd, r);
+      for (int c = 0; c < 3; ++c) {
+        jtj->template selfadjointView<Eigen::Lower>().rankUpdate(r[c].tangent);
+        *jtr += r[c].value * r[c].tangent;
+      }
+    }
+    *jtj = jtj->template selfadjointView<Eigen::Lower>();
+  };
+  Vector x = Eigen::Map<const Vector>(x_out).cwiseMax(lower).cwiseMin(upper);
+  double cost = cost_of(x);
+  Matrix jtj;
+  Vector jtr;
+  normal_equations(x, &jtj, &jtr);
+  double radius = 1e4, decrease_factor = 2.0;
+  ls->iterations = 1;
+  ls->converged = false;
+  while (ls->iterations <= options.max_iterations && std::isfinite(cost)) {
+    if (((x - jtr).cwiseMax(lower).cwiseMin(upper) - x).cwiseAbs().maxCoeff() <= 1e-10) {
+      ls->converged = true;
+      break;
+    }
+    ++ls->iterations;
+    Matrix damped = jtj;
+    damped.diagonal() += jtj.diagonal().cwiseMax(1e-6).cwiseMin(1e32) / radius;
+    // A parameter on a bound that the gradient pushes out of stays there this
+    // step: solving for it too and projecting afterwards would leave the
+    // others a step that counted on it moving.
+    Vector rhs = jtr;
+    for (int k = 0; k < P; ++k)
+      if ((x[k] <= lower[k] && jtr[k] > 0.0) || (x[k] >= upper[k] && jtr[k] < 0.0)) {
+        damped.row(k).setZero();
+        damped.col(k).setZero();
+        damped(k, k) = 1.0;
+        rhs[k] = 0.0;
+      }
+    const Vector trial = (x - damped.ldlt().solve(rhs)).cwiseMax(lower).cwiseMin(upper);
+    const Vector step = trial - x;
+    if (step.norm() <= 1e-8 * (x.norm() + 1e-8)) {
+      ls->converged = true;
+      break;
+    }
+    const double trial_cost = cost_of(trial);
+    // The linear model's decrease of the sum of squares along the step taken.
+    const double predicted = -(2.0 * jtr.dot(step) + step.dot(jtj * step));
+    const double change = cost - trial_cost;
+    const bool small = std::abs(change) <= 1e-6 * cost;
+    if (std::isfinite(trial_cost) && predicted > 0.0 && change / predicted > 1e-3) {
+      const double rho = change / predicted;
+      x = trial;
+      cost = trial_cost;
+      radius = std::min(radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)), 1e16);
+      decrease_factor = 2.0;
+      if (small) {
+        ls->converged = true;
+        break;
+      }
+      normal_equations(x, &jtj, &jtr);
+    } else {
+      if (small && std::isfinite(trial_cost)) {
+        ls->converged = true;
+        break;
+      }
+      radius /= decrease_factor;
+      decrease_factor *= 2.0;
+      if (radius < 1e-32) break;
+    }
+  }
+  ls->usable = std::isfinite(cost) && x.allFinite();
+  ls->cost = cost;
+  Eigen::Map<Vector>{x_out} = x;
+}
+
 // Solves for `model` on `fitted`, from options.start or the starting grid.
 void SolveLeastSquares(Model model, const std::vector<Prepared>& fitted, const FitOptions& options, LeastSquares* ls) {
-  double* kd = ls->kd;
-  double* lobe = ls->lobe;
-  double* extra = ls->extra;
   if (options.start) {
-    StartAt(*options.start, kd, lobe, extra);
+    StartAt(*options.start, ls->kd, ls->lobe, ls->extra);
   } else {
-    StartingPoint(model, fitted, kd, lobe, extra);
+    StartingPoint(model, fitted, ls->kd, ls->lobe, ls->extra);
   }
+  double x[11];
+  std::copy(ls->kd, ls->kd + 3, x);
+  std::copy(ls->lobe, ls->lobe + 4, x + 3);
+  std::copy(ls->extra, ls->extra + 4, x + 7);
+  switch (ParameterCount(model)) {
+    case 3: SolveProjectedLm<3>(model, fitted, options, x, ls); break;
+    case 7: SolveProjectedLm<7>(model, fitted, options, x, ls); break;
+    case 8: SolveProjectedLm<8>(model, fitted, options, x, ls); break;
+    default: SolveProjectedLm<11>(model, fitted, options, x, ls); break;
+  }
+  const int p = ParameterCount(model);
+  std::copy(x, x + 3, ls->kd);
+  if (p > 3) std::copy(x + 3, x + 7, ls->lobe);
+  if (p > 7) std::copy(x + 7, x + p, ls->extra);
+}
+
+// The Ceres problem of the residuals at `ls`'s solution: what the covariance
+// and the F0 score test evaluate.
+void AddResiduals(Model model, const std::vector<Prepared>& fitted, const FitOptions& options, LeastSquares* ls) {
   ceres::Problem& problem = ls->problem;
   for (const Prepared& p : fitted) {
     if (HasSecondLobe(model)) {
       problem.AddResidualBlock(
           new ceres::AutoDiffCostFunction<TwoLobeResidual, 3, 3, 4, 4>(new TwoLobeResidual(model, p, options.loss)),
-          nullptr, kd, lobe, extra);
+          nullptr, ls->kd, ls->lobe, ls->extra);
       continue;
     }
     auto* residual = new SampleResidual(model, p, options.loss);
     if (model == Model::kLambertian) {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3>(residual), nullptr, kd);
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3>(residual), nullptr, ls->kd);
     } else if (HasSharedExtra(model)) {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4, 1>(residual), nullptr, kd,
-                               lobe, extra);
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4, 1>(residual), nullptr, ls->kd,
+                               ls->lobe, ls->extra);
     } else {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4>(residual), nullptr, kd, lobe);
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4>(residual), nullptr, ls->kd,
+                               ls->lobe);
     }
   }
-  for (int c = 0; c < 3; ++c) problem.SetParameterLowerBound(kd, c, 0.0);
-  if (model != Model::kLambertian) {
-    const ShapeRange range = RangeOf(model);
-    for (int c = 0; c < 3; ++c) problem.SetParameterLowerBound(lobe, c, 0.0);
-    if (model == Model::kGgx)
-      for (int c = 0; c < 3; ++c) problem.SetParameterUpperBound(lobe, c, 1.0);
-    problem.SetParameterLowerBound(lobe, 3, std::log(range.min));
-    problem.SetParameterUpperBound(lobe, 3, std::log(range.max));
-    if (HasSharedExtra(model)) problem.SetParameterLowerBound(extra, 0, 0.0);
-    if (model == Model::kCookTorrance) problem.SetParameterUpperBound(extra, 0, 1.0);
-    if (HasSecondLobe(model)) {
-      for (int c = 0; c < 3; ++c) problem.SetParameterLowerBound(extra, c, 0.0);
-      problem.SetParameterLowerBound(extra, 3, std::log(range.min));
-      problem.SetParameterUpperBound(extra, 3, std::log(range.max));
-    }
-  }
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_QR;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.num_threads = 1;
-  ceres::Solve(solver_options, &problem, &ls->solved);
 }
 
 // The samples the least squares see among those at `indices`: all of them, or
@@ -475,7 +625,7 @@ bool HeldOutFold(const FitSummary& all, const std::vector<BrdfSample>& samples, 
   if (train.empty()) return false;
   LeastSquares ls;
   SolveLeastSquares(all.params.model, FittedSubset(prepared, train, fit_samples), fold_options, &ls);
-  if (!ls.solved.IsSolutionUsable()) return false;
+  if (!ls.usable) return false;
   const ModelParams params = ls.Params(all.params.model);
   for (std::size_t k : held_out) (*errors)[k] = SquaredResidual(params, samples[k], options.loss);
   return true;
@@ -609,16 +759,15 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
 
   LeastSquares ls;
   SolveLeastSquares(model, fitted, options, &ls);
-  const ceres::Solver::Summary& ceres_summary = ls.solved;
-  summary.iterations = static_cast<int>(ceres_summary.iterations.size());
-  if (!ceres_summary.IsSolutionUsable()) {
-    summary.End(core::Termination::kFailure, "the fit failed: " + ceres_summary.message);
+  summary.iterations = ls.iterations;
+  if (!ls.usable) {
+    summary.End(core::Termination::kFailure, "the fit failed: the cost is not finite at the start");
     timer.Finish(&summary);
     return summary;
   }
   summary.termination =
-      ceres_summary.termination_type == ceres::CONVERGENCE ? core::Termination::kSuccess : core::Termination::kNoConvergence;
-  summary.cost = 2.0 * ceres_summary.final_cost;  // Ceres reports half the sum of squares
+      ls.converged ? core::Termination::kSuccess : core::Termination::kNoConvergence;
+  summary.cost = ls.cost;
   const double* kd = ls.kd;
   const double* lobe = ls.lobe;
   const double* extra = ls.extra;
@@ -641,6 +790,7 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
   summary.bic = options.loss == FitLoss::kWeighted ? summary.cost + k * std::log(n)
                                                    : n * std::log(std::max(summary.cost, 1e-300) / n) + k * std::log(n);
   summary.params = ls.Params(model);
+  AddResiduals(model, fitted, options, &ls);
   ceres::Problem& problem = ls.problem;
 
   // Uncertainties: the inverse of J^T J at the solution (DENSE_SVD refuses a
@@ -857,7 +1007,11 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
   const int candidates = static_cast<int>(options.candidates.size());
   summary.candidates.resize(options.candidates.size());
 #pragma omp parallel for schedule(dynamic)
-  for (int c = 0; c < candidates; ++c) summary.candidates[c] = FitPrepared(options.candidates[c], prepared, options.fit);
+  for (int c = 0; c < candidates; ++c) {
+    FitOptions fit = options.fit;
+    if (!options.starts.empty()) fit.start = options.starts[c];
+    summary.candidates[c] = FitPrepared(options.candidates[c], prepared, fit);
+  }
   if (options.progress) options.progress({"fit", candidates, candidates});
   const int folds = options.held_out_folds;
   if (folds > 0) {

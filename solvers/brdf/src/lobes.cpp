@@ -7,7 +7,11 @@ namespace photorig::solvers::brdf {
 
 Eigen::Vector3d Evaluate(const ModelParams& p, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) {
   if (wi.z() <= 0.0 || wo.z() <= 0.0) return Eigen::Vector3d::Zero();
-  const Geometry g = GeometryOf(wi, wo);
+  return EvaluateAt(p, GeometryOf(wi, wo));
+}
+
+Eigen::Vector3d EvaluateAt(const ModelParams& p, const Geometry& g) {
+  if (g.cos_i <= 0.0 || g.cos_o <= 0.0) return Eigen::Vector3d::Zero();
   Eigen::Vector3d f;
   for (int c = 0; c < 3; ++c) f[c] = p.diffuse[c] / M_PI + internal::Lobe(p.model, p.specular[c], p.shape, internal::ExtraOf(p), g);
   if (HasSecondLobe(p.model))

@@ -16,11 +16,14 @@ constexpr int kCellsPerThetaH = MerlTable::kThetaDBins * MerlTable::kPhiDBins;
 // The worst-region map: 6 x 6 regions of 15 x 15 bins in (theta_h, theta_d).
 constexpr int kRegionBins = 15, kRegions = MerlTable::kThetaHBins / kRegionBins;
 
-// A valid cell: its MERL index, the table's value and cos theta_i at its centre.
+// A valid cell: its MERL index, the table's value, the cosines at its centre
+// and the table's term of the log loss, log(1 + f_table cos theta_i) per
+// channel: each pass over the cells evaluates only the models.
 struct Cell {
   std::uint32_t index;
   Eigen::Vector3d value;
-  double cos_i;
+  Geometry geometry;
+  Eigen::Vector3d log_value;
 };
 
 DirectionPair CellDirections(std::uint32_t index) {
@@ -46,7 +49,10 @@ std::vector<Cell> ValidCells(const MeasuredBrdf& table, double max_theta_deg) {
         if (d.wi.z() <= 0.0 || d.wo.z() <= 0.0 || d.wi.z() < min_cos || d.wo.z() < min_cos) continue;
         const std::optional<Eigen::Vector3d> value = table(d.wi, d.wo);
         if (!value || !value->allFinite() || (value->array() * d.wi.z() <= -1.0).any()) continue;
-        per_bin[ih].push_back({static_cast<std::uint32_t>(MerlTable::CellIndex(ih, id, ip)), *value, d.wi.z()});
+        Eigen::Vector3d log_value;
+        for (int ch = 0; ch < 3; ++ch) log_value[ch] = std::log1p((*value)[ch] * d.wi.z());
+        per_bin[ih].push_back({static_cast<std::uint32_t>(MerlTable::CellIndex(ih, id, ip)), *value,
+                               GeometryOf(d.wi, d.wo), log_value});
       }
   std::vector<Cell> cells;
   for (const std::vector<Cell>& bin : per_bin) cells.insert(cells.end(), bin.begin(), bin.end());
@@ -122,14 +128,14 @@ Pass ErrorsOverCells(const std::vector<Cell>& cells, const SelectionSummary& sel
 #pragma omp for schedule(static)
     for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(cells.size()); ++i) {
       const Cell& cell = cells[static_cast<std::size_t>(i)];
-      const DirectionPair d = CellDirections(cell.index);
+      const double cos_i = cell.geometry.cos_i;
       double score = 0.0;
       for (std::size_t c : usable) {
-        const Eigen::Vector3d f = Evaluate(selection.candidates[c].params, d.wi, d.wo);
+        const Eigen::Vector3d f = EvaluateAt(selection.candidates[c].params, cell.geometry);
         double log2 = 0.0, neutral2 = 0.0;
         for (int ch = 0; ch < 3; ++ch) {
-          const double r = std::log1p(f[ch] * cell.cos_i) - std::log1p(cell.value[ch] * cell.cos_i);
-          const double q = (f[ch] - cell.value[ch]) * cell.cos_i;
+          const double r = std::log1p(f[ch] * cos_i) - cell.log_value[ch];
+          const double q = (f[ch] - cell.value[ch]) * cos_i;
           log2 += r * r;
           neutral2 += q * q;
         }
@@ -202,7 +208,7 @@ TableFitSummary FitTable(const MeasuredBrdf& table, const TableFitOptions& optio
   for (std::size_t c = 0; c < cells.size(); ++c) {
     double s = 0.0;
     for (int ch = 0; ch < 3; ++ch) {
-      const double r = std::log1p(cells[c].value[ch] * cells[c].cos_i) - std::log1p(median[ch] * cells[c].cos_i);
+      const double r = cells[c].log_value[ch] - std::log1p(median[ch] * cells[c].geometry.cos_i);
       s += r * r;
     }
     score[c] = s;
@@ -223,8 +229,19 @@ TableFitSummary FitTable(const MeasuredBrdf& table, const TableFitOptions& optio
     std::vector<int> bins;
     const std::vector<BrdfSample> samples = Draw(cells, Density(score, options.uniform_fraction), options.samples, &rng, &bins);
     SelectionOptions selection = options.selection;
+    // A draw before the last only places the next: its choice is not used,
+    // so it needs no held-out folds.
+    if (round < options.refinement_rounds) selection.held_out_folds = 0;
     if (selection.held_out_folds > 0)
       for (int bin : bins) selection.folds.push_back(fold_of_bin[bin]);
+    // A later draw estimates the same all-cell loss as the one before (with
+    // less variance where the models erred), so its optimum is near the
+    // previous fit's: each candidate starts there, and the grid that found
+    // the basin is not needed again.
+    if (round > 0)
+      for (const FitSummary& previous : summary.selection.candidates)
+        selection.starts.push_back(previous.IsSolutionUsable() ? std::optional<ModelParams>(previous.params)
+                                                               : std::nullopt);
     summary.selection = SelectModel(samples, selection);
     if (summary.selection.candidates.empty()) break;  // refused before any fit
     pass = ErrorsOverCells(cells, summary.selection,

@@ -1,7 +1,8 @@
 #pragma once
-// Fitting the analytic models of models.h to measured samples with Ceres
-// (Levenberg-Marquardt, automatic derivatives, bounds keeping the albedos,
-// GGX's scale and every F0 non-negative and F0 <= 1), and choosing the
+// Fitting the analytic models of models.h to measured samples
+// (Levenberg-Marquardt on forward-mode automatic derivatives, the step
+// projected onto bounds keeping the albedos, GGX's scale and every F0
+// non-negative and F0 <= 1; the covariance from Ceres), and choosing the
 // simplest model the data support.
 //
 // Fitting space (FitLoss):
@@ -162,6 +163,10 @@ struct SelectionOptions {
   // optimum to predict the samples it left out, and on a whole table the
   // folds were most of the choice's time. 0 = FitOptions::max_fit_samples. Default 5000.
   std::size_t fold_fit_samples = 5000;
+  // Each candidate's start (FitOptions::start), absent for its grid; empty:
+  // every candidate from its grid. FitTable starts a later draw's fits from
+  // the previous draw's, which estimate the same all-cell loss.
+  std::vector<std::optional<ModelParams>> starts;
   // Called once the candidates are fitted (stage "fit") and once their folds
   // are (stage "held-out"); a whole measured table takes a second or two.
   core::ProgressCallback progress;

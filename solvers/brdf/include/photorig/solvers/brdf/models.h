@@ -72,6 +72,9 @@ Geometry GeometryOf(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo);
 
 // f_r per channel in 1/sr; zero below the horizon.
 Eigen::Vector3d Evaluate(const ModelParams& params, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo);
+// The same at the cosines g (GeometryOf(wi, wo)): for callers that evaluate
+// many models at one geometry.
+Eigen::Vector3d EvaluateAt(const ModelParams& params, const Geometry& g);
 // One channel's specular lobe at the cosines g, Evaluate's term beside
 // rho_d / pi (zero below the horizon): for callers that evaluate one geometry
 // under many shapes. `extra` is the parameter the channels share: ggx's

@@ -12,9 +12,11 @@
 // estimate of its loss over all cells. `refinement_rounds` times the cells
 // are drawn again, half in proportion to the candidates' mean squared
 // residual over all cells (where the models fail), and every candidate
-// refitted. The held-out folds are whole theta_h bands (each of the 90
-// theta_h bins in one fold, shuffled), so a held-out sample's theta_h level
-// is never in its training set.
+// refitted, starting from its previous fit (the draws estimate the same
+// loss). The held-out folds, on the last draw only (an earlier draw's choice
+// is not used), are whole theta_h bands (each of the 90 theta_h bins in one
+// fold, shuffled), so a held-out sample's theta_h level is never in its
+// training set.
 //
 // Every candidate's error is then computed over all cells, in the fit's
 // loss (log) and in a loss no candidate was fitted in: the cosine-weighted
