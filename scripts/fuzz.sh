@@ -27,6 +27,7 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${PHOTORIG_FUZZ_BUILD:-$root/build-fuzz}"
 jobs="${FUZZ_JOBS:-2}"
 workers="${FUZZ_WORKERS:-2}"
+log_root="$build/logs"
 targets=(fuzz_rig fuzz_recipe fuzz_diligent fuzz_run_store fuzz_manifest fuzz_color_model fuzz_light_files fuzz_api fuzz_merl fuzz_rgl_tensor
          fuzz_gltf_roundtrip)
 # Limits of every run: a finding is a crash, a sanitizer report, an escaped
@@ -147,7 +148,7 @@ max_len_flag() {
 # Runs one target for `seconds` with `n` workers, and any further libFuzzer
 # flags; prints "target executions findings".
 fuzz_target() {
-  local t="$1" seconds="$2" n="$3" corpus="$build/corpus/$1" logs="$build/logs/$1" artifacts="$build/artifacts/$1"
+  local t="$1" seconds="$2" n="$3" corpus="$build/corpus/$1" logs="$log_root/$1" artifacts="$build/artifacts/$1"
   shift 3
   local extra=("$@")
   mkdir -p "$corpus" "$artifacts"
@@ -187,6 +188,9 @@ case "$command" in
     build_fuzzers "${written_seeds[@]}"
     write_seeds ;;
   smoke)
+    # Logs of their own: a long run in the same tree keeps its logs (and
+    # the executions counted from them) while the suite runs.
+    log_root="$build/logs/smoke"
     build_fuzzers
     # A fixed seed and a count of inputs rather than a time: the same inputs
     # on every machine, so a finding here repeats where it is looked at. The
