@@ -2,13 +2,14 @@
 // derivatives against forward-mode automatic differentiation, the trimming
 // against known outliers, IRLS against a plain implementation of the same
 // iteration, and `auto` in lanes against the per-pixel reference.
-#include "kernels/blinn_phong_fit.h"
+#include "kernels/lobe_lane_fit.h"
 #include "kernels/irls_lambertian_fit.h"
 #include "kernels/lane_math.h"
 #include "kernels/trimmed_lambertian_fit.h"
 #include "lambertian_tiles.h"
 
 #include "photorig/solvers/autodiff/blinn_phong_jacobian.h"
+#include "photorig/solvers/autodiff/ggx.h"
 #include "ps_test_scene.h"
 
 #include <gtest/gtest.h>
@@ -21,9 +22,10 @@
 namespace photorig::solvers::ps {
 namespace {
 
-using internal::BlinnPhongLaneFitter;
-using internal::BlinnPhongProblem;
-using internal::BlinnPhongSolution;
+using internal::LaneLobe;
+using internal::LobeLaneFitter;
+using internal::LobeProblem;
+using internal::LobeSolution;
 
 // Options for the test stacks, which carry their complete noise model.
 PhotometricStereoOptions LaneOptions(Method method) {
@@ -118,30 +120,33 @@ Pixel RandomPixel(std::mt19937& rng, int light_count) {
   return pixel;
 }
 
-TEST(BlinnPhongLanes, NormalEquationsMatchForwardModeAutodiff) {
+// The lanes' normal equations at random points against those built from the
+// forward-mode Jacobian of `Model` (autodiff::BlinnPhongPixel or GgxPixel)
+// over (m, rho_d, rho_s, shape) at |m| = 1; a tangent step t moves m by t, so
+// its column is J_m t. shape_of draws e or a from a uniform number.
+template <typename Model, typename Jacobian, typename Shape>
+void ExpectNormalEquationsMatchForwardMode(LaneLobe lobe, Jacobian residuals_and_jacobian, Shape shape_of,
+                                          double tolerance) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   int lights_past_horizon = 0;
   for (int trial = 0; trial < 40; ++trial) {
     const Pixel pixel = RandomPixel(rng, 24);
     const int n = static_cast<int>(pixel.lights.size());
-    const double rho_d = 0.2 + unit(rng), rho_s = unit(rng), exponent = 1.0 + 200.0 * unit(rng) * unit(rng);
-    BlinnPhongOptions options;
-    BlinnPhongLaneFitter fitter(pixel.lights, Eigen::Vector3d::UnitZ(), options);
-    const BlinnPhongProblem problem{pixel.observed.data(), pixel.inverse_sigma.data(), pixel.normal, rho_d};
-    const auto lanes = fitter.Linearize(problem, pixel.normal, rho_d, rho_s, exponent);
+    const double rho_d = 0.2 + unit(rng), rho_s = unit(rng), shape = shape_of(unit(rng), unit(rng));
+    LobeLaneFitter fitter(pixel.lights, Eigen::Vector3d::UnitZ(), BlinnPhongOptions{}, lobe);
+    const LobeProblem problem{pixel.observed.data(), pixel.inverse_sigma.data(), pixel.normal, rho_d};
+    const auto lanes = fitter.Linearize(problem, pixel.normal, rho_d, rho_s, shape);
 
-    // Reference: autodiff's N x 6 Jacobian w.r.t. (m, rho_d, rho_s, e) at |m| = 1;
-    // a tangent step t moves m by t, so its column is J_m t.
     Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
     for (int k = 0; k < n; ++k) directions.row(k) = pixel.lights[k].transpose();
-    const solvers::autodiff::BlinnPhongPixel model(directions, Eigen::VectorXd::Ones(n), Eigen::Vector3d::UnitZ(),
-                                          Eigen::Map<const Eigen::VectorXd>(pixel.observed.data(), n));
-    const double parameters[6] = {pixel.normal.x(), pixel.normal.y(), pixel.normal.z(), rho_d, rho_s, exponent};
+    const Model model(directions, Eigen::VectorXd::Ones(n), Eigen::Vector3d::UnitZ(),
+                      Eigen::Map<const Eigen::VectorXd>(pixel.observed.data(), n));
+    const double parameters[6] = {pixel.normal.x(), pixel.normal.y(), pixel.normal.z(), rho_d, rho_s, shape};
     Eigen::VectorXd residuals;
     Eigen::MatrixXd jacobian;
-    ASSERT_TRUE(solvers::autodiff::BlinnPhongResidualsAndJacobian(model, parameters, solvers::autodiff::DerivativeMethod::kForward,
-                                                         &residuals, &jacobian));
+    ASSERT_TRUE(residuals_and_jacobian(model, parameters, solvers::autodiff::DerivativeMethod::kForward, &residuals,
+                                       &jacobian, nullptr));
     Eigen::MatrixXd j(n, 5);
     j.col(0) = jacobian.leftCols<3>() * lanes.tangent[0];
     j.col(1) = jacobian.leftCols<3>() * lanes.tangent[1];
@@ -152,30 +157,44 @@ TEST(BlinnPhongLanes, NormalEquationsMatchForwardModeAutodiff) {
     const Eigen::MatrixXd hessian = jw.transpose() * jw;
     const Eigen::VectorXd gradient = jw.transpose() * rw;
 
-    // The lanes evaluate in float: h^e moves by e times the rounding of h
-    // (e <= 201 here, float epsilon 6e-8), so they agree to about 1e-5. A
-    // wrong term of a derivative is off by its whole size. The gradient
-    // J^T r sums terms of both signs: its rounding scales with |J| |r|.
-    EXPECT_NEAR(lanes.cost, rw.squaredNorm(), 2e-5 * rw.squaredNorm());
-    EXPECT_LT((lanes.hessian - hessian).norm(), 2e-5 * hessian.norm()) << "trial " << trial;
-    EXPECT_LT((lanes.gradient - gradient).norm(), 2e-5 * (gradient.norm() + jw.norm() * rw.norm())) << "trial " << trial;
+    // A wrong term of a derivative is off by its whole size; float rounding
+    // by `tolerance`. The gradient J^T r sums terms of both signs: its
+    // rounding scales with |J| |r|.
+    EXPECT_NEAR(lanes.cost, rw.squaredNorm(), tolerance * rw.squaredNorm());
+    EXPECT_LT((lanes.hessian - hessian).norm(), tolerance * hessian.norm()) << "trial " << trial;
+    EXPECT_LT((lanes.gradient - gradient).norm(), tolerance * (gradient.norm() + jw.norm() * rw.norm()))
+        << "trial " << trial;
     EXPECT_NEAR(lanes.tangent[0].dot(pixel.normal), 0.0, 1e-12);
     EXPECT_NEAR(lanes.tangent[1].dot(pixel.normal), 0.0, 1e-12);
     EXPECT_NEAR(lanes.tangent[0].dot(lanes.tangent[1]), 0.0, 1e-12);
-    for (int k = 0; k < n; ++k) {
-      lights_past_horizon += pixel.lights[k].dot(pixel.normal) <= 0.0;
-    }
+    for (int k = 0; k < n; ++k) lights_past_horizon += pixel.lights[k].dot(pixel.normal) <= 0.0;
   }
   // The horizon clamp was exercised, not just the smooth interior. (The lobe
   // clamp h <= 0 with c > 0 needs a normal facing away from the camera.)
   EXPECT_GT(lights_past_horizon, 20);
 }
 
+TEST(BlinnPhongLanes, NormalEquationsMatchForwardModeAutodiff) {
+  // Float: h^e moves by e times the rounding of h (e <= 201 here, float
+  // epsilon 6e-8), so they agree to about 1e-5.
+  ExpectNormalEquationsMatchForwardMode<solvers::autodiff::BlinnPhongPixel>(
+      LaneLobe::kBlinnPhong, &solvers::autodiff::BlinnPhongResidualsAndJacobian,
+      [](double u, double v) { return 1.0 + 200.0 * u * v; }, 2e-5);
+}
+
+TEST(GgxLanes, NormalEquationsMatchForwardModeAutodiff) {
+  // Roughness 0.03-0.7, the range step 6 starts from. Float: 1 / t^2 with
+  // t = 1 - h^2 (1 - a^2) loses h's rounding over a^2 near the peak.
+  ExpectNormalEquationsMatchForwardMode<solvers::autodiff::GgxPixel>(
+      LaneLobe::kGgx, &solvers::autodiff::GgxResidualsAndJacobian,
+      [](double u, double) { return 0.03 + 0.67 * u; }, 2e-5);
+}
+
 // Fits noise-free problems and expects every pixel's true normal (within
-// 1e-4 deg) and exponent (0.1 %), each within the iteration limit.
-void ExpectTrueParameters(BlinnPhongLaneFitter* fitter, const std::vector<BlinnPhongProblem>& problems,
+// 1e-4 deg) and exponent or roughness (0.1 %), each within the iteration limit.
+void ExpectTrueParameters(LobeLaneFitter* fitter, const std::vector<LobeProblem>& problems,
                           const std::vector<Eigen::Vector3d>& normals, const std::vector<double>& exponents) {
-  std::vector<BlinnPhongSolution> solutions(problems.size());
+  std::vector<LobeSolution> solutions(problems.size());
   fitter->Fit(problems, solutions);
   double worst_deg = 0.0, worst_exponent = 0.0;
   for (std::size_t p = 0; p < problems.size(); ++p) {
@@ -197,7 +216,7 @@ TEST(BlinnPhongLanes, FitsAgreeWithThePerPixelReference) {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const int pixels = truth.normals.rows * truth.normals.cols, n = static_cast<int>(lights.size());
   std::vector<double> observed(pixels * n), inverse_sigma(pixels * n, 100.0);
-  std::vector<BlinnPhongProblem> problems;
+  std::vector<LobeProblem> problems;
   std::vector<Eigen::Vector3d> normals;
   std::vector<double> exponents;
   for (int p = 0; p < pixels; ++p) {
@@ -217,7 +236,7 @@ TEST(BlinnPhongLanes, FitsAgreeWithThePerPixelReference) {
     normals.push_back(normal);
     exponents.push_back(e);
   }
-  BlinnPhongLaneFitter fitter(lights, Eigen::Vector3d::UnitZ(), BlinnPhongOptions{});
+  LobeLaneFitter fitter(lights, Eigen::Vector3d::UnitZ(), BlinnPhongOptions{});
   ExpectTrueParameters(&fitter, problems, normals, exponents);
 
   // The whole solver with either fitter on a noisy stack: the same answer to
@@ -242,6 +261,39 @@ TEST(BlinnPhongLanes, FitsAgreeWithThePerPixelReference) {
   EXPECT_GE(compared, pixels * 8 / 10);
 }
 
+// Noise-free GGX pixels (autodiff::GgxPixel renders them), started 3 deg off
+// as step 6 starts from the kept fit: the lanes land on the true normal and
+// roughness from the roughness grid's start.
+TEST(GgxLanes, NoiseFreePixelsAreFittedToTheTruth) {
+  const auto lights = testing::RingLights(40, 25, 80);
+  const auto truth = testing::RandomSurface(10, 7, 40.0, 19);  // 70 pixels: not a multiple of the lane count
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const int pixels = truth.normals.rows * truth.normals.cols, n = static_cast<int>(lights.size());
+  Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
+  for (int k = 0; k < n; ++k) directions.row(k) = lights[k].transpose();
+  const solvers::autodiff::GgxPixel model(directions, Eigen::VectorXd::Ones(n), Eigen::Vector3d::UnitZ(),
+                                          Eigen::VectorXd::Zero(n));
+  std::vector<double> observed(pixels * n), inverse_sigma(pixels * n, 100.0);
+  std::vector<LobeProblem> problems;
+  std::vector<Eigen::Vector3d> normals;
+  std::vector<double> roughness;
+  for (int p = 0; p < pixels; ++p) {
+    const cv::Vec3f t = truth.normals.ptr<cv::Vec3f>()[p];
+    const Eigen::Vector3d normal = Eigen::Vector3d(t[0], t[1], t[2]).normalized();
+    const double a = 0.08 + 0.4 * unit(rng);
+    const double parameters[6] = {normal.x(), normal.y(), normal.z(), truth.albedo.ptr<float>()[p],
+                                  0.2 + 0.5 * unit(rng), a};
+    ASSERT_TRUE(model.Predict(parameters, &observed[p * n]));
+    const Eigen::Vector3d start = (normal + 0.05 * normal.unitOrthogonal()).normalized();
+    problems.push_back({&observed[p * n], &inverse_sigma[p * n], start, parameters[3]});
+    normals.push_back(normal);
+    roughness.push_back(a);
+  }
+  LobeLaneFitter fitter(lights, Eigen::Vector3d::UnitZ(), BlinnPhongOptions{}, LaneLobe::kGgx);
+  ExpectTrueParameters(&fitter, problems, normals, roughness);
+}
+
 // Pixels that each see their own lights and their own line of sight (near
 // LEDs, a perspective camera): the lanes read each pixel's geometry and land
 // on its true parameters, as with shared lights.
@@ -251,7 +303,7 @@ TEST(BlinnPhongLanes, EachPixelsOwnLightsAndViewAreFittedToTheTruth) {
   std::mt19937 rng(23);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<double> observed(pixels * n), inverse_sigma(pixels * n, 100.0), geometry(6 * pixels * n);
-  std::vector<BlinnPhongProblem> problems;
+  std::vector<LobeProblem> problems;
   std::vector<Eigen::Vector3d> normals;
   std::vector<double> exponents;
   for (int p = 0; p < pixels; ++p) {
@@ -274,13 +326,13 @@ TEST(BlinnPhongLanes, EachPixelsOwnLightsAndViewAreFittedToTheTruth) {
       const double c = std::max(0.0, w.dot(normal)), h = std::max(0.0, half.dot(normal));
       observed[p * n + k] = (rho_d / M_PI + rho_s * (e + 2) / (2 * M_PI) * std::pow(h, e)) * c;
     }
-    BlinnPhongProblem problem{&observed[p * n], &inverse_sigma[p * n], (normal + 0.05 * normal.unitOrthogonal()).normalized(), rho_d};
+    LobeProblem problem{&observed[p * n], &inverse_sigma[p * n], (normal + 0.05 * normal.unitOrthogonal()).normalized(), rho_d};
     problem.geometry = &geometry[6 * p * n];
     problems.push_back(problem);
     normals.push_back(normal);
     exponents.push_back(e);
   }
-  BlinnPhongLaneFitter fitter(n, BlinnPhongOptions{});
+  LobeLaneFitter fitter(n, BlinnPhongOptions{});
   ExpectTrueParameters(&fitter, problems, normals, exponents);
 }
 
@@ -289,10 +341,10 @@ TEST(BlinnPhongLanes, SamplesWithoutWeightAreIgnored) {
   const int n = static_cast<int>(lights.size());
   std::vector<double> observed(n, 0.1), inverse_sigma(n, 0.0);
   BlinnPhongOptions options;
-  BlinnPhongLaneFitter fitter(lights, Eigen::Vector3d::UnitZ(), options);
+  LobeLaneFitter fitter(lights, Eigen::Vector3d::UnitZ(), options);
   // No usable sample: the cost is 0 and no step can lower it.
-  std::vector<BlinnPhongProblem> problems{{observed.data(), inverse_sigma.data(), Eigen::Vector3d::UnitZ(), 0.5}};
-  std::vector<BlinnPhongSolution> solutions(1);
+  std::vector<LobeProblem> problems{{observed.data(), inverse_sigma.data(), Eigen::Vector3d::UnitZ(), 0.5}};
+  std::vector<LobeSolution> solutions(1);
   fitter.Fit(problems, solutions);
   EXPECT_EQ(solutions[0].chi2, 0.0);
   EXPECT_EQ(solutions[0].iterations, 0);

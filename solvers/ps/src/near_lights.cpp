@@ -344,7 +344,7 @@ class NearRefitter {
     for (std::size_t i = 0; i < n; ++i) {
       int used = 0;
       for (int k = 0; k < lights_; ++k) used += scaled_inverse_sigma_[i * lights_ + k] > 0.0;
-      answers[i] = {internal::BlinnPhongFit(lobe_solutions_[i], used), lobe_solutions_[i].chi2};
+      answers[i] = {internal::LobeFitFrom(lobe_solutions_[i], used, PixelModel::kBlinnPhong), lobe_solutions_[i].chi2};
     }
   }
 
@@ -352,15 +352,15 @@ class NearRefitter {
   int lights_;
   RobustOptions::Loss loss_;
   internal::RobustLambertianLanes irls_;
-  std::optional<internal::BlinnPhongLaneFitter> lobes_;
+  std::optional<internal::LobeLaneFitter> lobes_;
   NearPixelSamples samples_;
   std::vector<double> observed_, inverse_sigma_, rows_;  // the samples and IRLS rows s_k f_k(x) l_k(x)
   // The lobe's: the samples over their gains, and its light and half vectors.
   std::vector<double> scaled_, scaled_inverse_sigma_, geometry_;
   std::vector<internal::RobustProblem> robust_problems_;
   std::vector<internal::RobustSolution> robust_solutions_;
-  std::vector<internal::BlinnPhongProblem> lobe_problems_;
-  std::vector<internal::BlinnPhongSolution> lobe_solutions_;
+  std::vector<internal::LobeProblem> lobe_problems_;
+  std::vector<internal::LobeSolution> lobe_solutions_;
 };
 
 // Whether a pixel's Lambertian fit explains its samples: chi-square at most

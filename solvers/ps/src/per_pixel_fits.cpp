@@ -1,6 +1,6 @@
 #include "per_pixel_fits.h"
 
-#include "kernels/blinn_phong_fit.h"
+#include "kernels/lobe_lane_fit.h"
 #include "kernels/trimmed_lambertian_fit.h"
 
 #include "photorig/solvers/autodiff/blinn_phong_jacobian.h"
@@ -27,17 +27,17 @@ PixelFit IrlsFit(const RobustSolution& solution) {
   return fit;
 }
 
-PixelFit BlinnPhongFit(const BlinnPhongSolution& solution, int used) {
+PixelFit LobeFitFrom(const LobeSolution& solution, int used, PixelModel model) {
   return {.ok = solution.ok,
           .normal = solution.normal,
           .albedo = solution.diffuse_albedo,
           .specular_albedo = solution.specular_albedo,
           .exponent = solution.exponent,
           .chi2 = solution.chi2,
-          .parameters = kBlinnPhongParameters,
+          .parameters = model == PixelModel::kGgx ? kGgxParameters : kBlinnPhongParameters,
           .used = used,
           .rejected = 0,
-          .model = PixelModel::kBlinnPhong};
+          .model = model};
 }
 
 PixelFit LambertianOnRow(const SampleReader& reader, const double* observed, const double* inverse_sigma,
@@ -369,14 +369,6 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
   return LobeFit(p, cost, shared ? kSharedLobeParameters : kBlinnPhongParameters, n, PixelModel::kBlinnPhong);
 }
 
-// Step 6's GGX roughness: a grid from which the fit starts (each a factor
-// 1.4 from the last, so the best point is within a sixth of the width of
-// the lobe that made the samples), and the range the fit keeps to (below
-// 0.01 the lobe falls between the lights of any practical dome; 1 is the
-// broadest lobe GGX has).
-constexpr double kGgxStartRoughness[] = {0.03, 0.042, 0.06, 0.084, 0.12, 0.17, 0.24, 0.33, 0.47, 0.66};
-constexpr double kMinRoughness = 0.01, kMaxRoughness = 1.0;
-
 // Chi-square of a Blinn-Phong fit (normal, rho_d, rho_s, e) on a pixel's
 // usable samples.
 double BlinnPhongChi2(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& fit) {
@@ -427,7 +419,7 @@ PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelF
     }
   }
   if (!std::isfinite(best)) return PixelFit{};
-  auto project = [](Eigen::Matrix<double, 6, 1>* q) { ProjectLobe(kMinRoughness, kMaxRoughness, q); };
+  auto project = [](Eigen::Matrix<double, 6, 1>* q) { ProjectLobe(kMinGgxRoughness, kMaxGgxRoughness, q); };
   BlinnPhongOptions derivatives = options;
   if (options.fitter == BlinnPhongOptions::Fitter::kLanes)
     derivatives.derivative = solvers::autodiff::DerivativeMethod::kSymbolic;
@@ -512,10 +504,9 @@ PixelFit PerPixelFits::ShareLobe(int pixel, const PixelFit& kept, const SharedLo
   }
 }
 
-PixelFit PerPixelFits::OfferGgx(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const {
+PixelFit PerPixelFits::KeptOnUsable(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const {
   PixelSamples& s = scratch->samples;
   reader_.Usable(pixel, &s);
-  // The kept fit on the samples the GGX fit takes: every usable one.
   PixelFit on_samples;
   if (kept.model == PixelModel::kBlinnPhong) {
     on_samples = kept;
@@ -528,6 +519,12 @@ PixelFit PerPixelFits::OfferGgx(int pixel, const PixelFit& kept, bool held_lobe,
                                  kept.normal * kept.albedo / M_PI);
     on_samples.normal = kept.normal;  // the kept fit is where the GGX fit starts
   }
+  return on_samples;
+}
+
+PixelFit PerPixelFits::OfferGgx(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const {
+  const PixelFit on_samples = KeptOnUsable(pixel, kept, held_lobe, scratch);
+  const PixelSamples& s = scratch->samples;
   PixelFit ggx;
   GgxFits fits{&on_samples};
   for (;;) {

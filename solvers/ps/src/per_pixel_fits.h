@@ -6,7 +6,7 @@
 // same models. Also the fitter of `--derivative forward | reverse | symbolic |
 // central-difference`.
 
-#include "kernels/blinn_phong_fit.h"
+#include "kernels/lobe_lane_fit.h"
 #include "kernels/irls_lambertian_fit.h"
 #include "model_selection.h"
 #include "sample_reader.h"
@@ -21,8 +21,8 @@ namespace photorig::solvers::ps::internal {
 
 // The `robust` fit of a pixel from its IRLS solution.
 PixelFit IrlsFit(const RobustSolution& solution);
-// The lobe fitted to `used` samples.
-PixelFit BlinnPhongFit(const BlinnPhongSolution& solution, int used);
+// The lobe (kBlinnPhong or kGgx) fitted to `used` samples.
+PixelFit LobeFitFrom(const LobeSolution& solution, int used, PixelModel model);
 
 // Step 5's Lambertian fit of a row's usable samples, the one the shared lobe
 // must beat: least squares (unweighted, as the Lambertian pass fits), with
@@ -68,6 +68,9 @@ class PerPixelFits {
   // (ModelLadder::NextWithGgx): its GGX fit where the ladder takes it, else
   // `kept`.
   PixelFit OfferGgx(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const;
+  // Step 6's first half: `kept` judged on the samples a GGX fit takes (every
+  // usable one, left in scratch->samples), as NextWithGgx compares them.
+  PixelFit KeptOnUsable(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const;
 
  private:
   const ModelLadder& ladder_;

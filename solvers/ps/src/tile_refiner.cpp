@@ -190,8 +190,8 @@ struct TileRefiner::ThreadState {
   std::vector<RobustProblem> robust_problems;
   std::vector<RobustSolution> robust_solutions;
   std::vector<TrimSolution> trim_solutions;
-  std::vector<BlinnPhongProblem> problems;
-  std::vector<BlinnPhongSolution> solutions;
+  std::vector<LobeProblem> problems;
+  std::vector<LobeSolution> solutions;
   std::size_t lambertian = 0, trimmed = 0, irls_fits = 0, blinn_phong = 0, rejected = 0, failed = 0, fell_back = 0;
   std::vector<GlossyPixel> glossy;  // pixels that kept a lobe with kConfidentLobeEvidence
   // Step 5: the pixels of a batch offered the shared lobe, and what it changed
@@ -210,6 +210,15 @@ struct TileRefiner::ThreadState {
   std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0;
   // Step 6: the pixels that took a GGX lobe, by the model they had kept.
   std::size_t ggx = 0, ggx_from_lambertian = 0, ggx_from_trimmed = 0, ggx_from_blinn_phong = 0, ggx_from_held_lobe = 0;
+  // Step 6 in lanes: a batch's pixels the ladder asks a GGX fit of.
+  struct GgxOffer {
+    int pixel;
+    bool held;
+    PixelFit kept, on_samples;  // on_samples: kept judged on every usable sample
+    int used;                   // usable samples
+    std::size_t row;            // of the thread's rows
+  };
+  std::vector<GgxOffer> ggx_offers;
   // Samples a kept fit had left out (trimmed or unlit) that steps 5 and 6's lobe uses again.
   std::size_t samples_restored = 0;
 };
@@ -234,6 +243,8 @@ TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const Lamberti
   if (lanes_) {
     for (int t = 0; t < threads; ++t) {
       lobe_fitters_.emplace_back(stack.light_directions, stack.view_direction, options.blinn_phong);
+      if (options.method == Method::kAuto)
+        ggx_fitters_.emplace_back(stack.light_directions, stack.view_direction, options.blinn_phong, LaneLobe::kGgx);
       trimmers_.emplace_back(stack, lambertian, ladder.gross_u2(), options.selection.max_rejected_fraction);
     }
   }
@@ -378,7 +389,7 @@ void TileRefiner::FitLobes(int thread) {
   for (std::size_t i = 0; i < count; ++i) {
     const Queued& q = state.lobes[i];
     const PixelFit lambertian = LambertianFit(q.x, q.chi2, q.used, 0);
-    const PixelFit blinn_phong = BlinnPhongFit(state.solutions[i], q.row_lambertian.used);
+    const PixelFit blinn_phong = LobeFitFrom(state.solutions[i], q.row_lambertian.used, PixelModel::kBlinnPhong);
     const LadderFits fits{&lambertian, &kNoFit, &q.trimmed, &blinn_phong, &q.row_lambertian};
     Climb(thread, q.pixel, q.x, fits);
   }
@@ -553,7 +564,7 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
     state.owning.clear();
     for (std::size_t i = 0; i < state.sharing.size(); ++i) {
       ThreadState::Sharing& sharing = state.sharing[i];
-      sharing.lobe = BlinnPhongFit(state.solutions[i], sharing.lambertian.used);
+      sharing.lobe = LobeFitFrom(state.solutions[i], sharing.lambertian.used, PixelModel::kBlinnPhong);
       sharing.lobe.parameters = kSharedLobeParameters;
       sharing.lobe_fitted = true;
       const SharedLobeFits fits = sharing.Fits();
@@ -570,7 +581,7 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
     if (!state.problems.empty()) lobe_fitters_[thread].Fit(state.problems, state.solutions);
     for (std::size_t j = 0; j < state.owning.size(); ++j) {
       ThreadState::Sharing& sharing = state.sharing[state.owning[j]];
-      sharing.own = BlinnPhongFit(state.solutions[j], sharing.lambertian.used);
+      sharing.own = LobeFitFrom(state.solutions[j], sharing.lambertian.used, PixelModel::kBlinnPhong);
       sharing.own_fitted = true;
       const SharedLobeFits fits = sharing.Fits();
       finish(*sharing.item, fits, *ladder_.NextWithSharedLobe(fits).keep, sharing.lambertian.used);
@@ -670,16 +681,59 @@ void TileRefiner::ShareLobe() {
                               model[p] == static_cast<std::uint8_t>(PixelModel::kBlinnPhong)))
       offered.push_back(p);
   in_parallel(offered.size(), [&](int thread, std::size_t begin, std::size_t end) {
-    for (std::size_t i = begin; i < end; ++i) OfferGgx(thread, offered[i]);
+    OfferGgx(thread, std::span(offered).subspan(begin, end - begin));
   });
 }
 
-void TileRefiner::OfferGgx(int thread, int p) {
+void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
   ThreadState& state = states_[thread];
-  const PixelFit kept = KeptFit(p);
-  const bool held = held_lobe_[p] != 0;
-  const PixelFit chosen = per_pixel_.OfferGgx(p, kept, held, &state.scratch);
-  if (chosen.model != PixelModel::kGgx) return;
+  if (!lanes_) {
+    for (const int p : pixels) {
+      const PixelFit kept = KeptFit(p);
+      const bool held = held_lobe_[p] != 0;
+      const PixelFit chosen = per_pixel_.OfferGgx(p, kept, held, &state.scratch);
+      if (chosen.model == PixelModel::kGgx) RecordGgx(state, p, kept, held, chosen);
+    }
+    return;
+  }
+  for (std::size_t first = 0; first < pixels.size(); first += kBatch) {
+    const std::size_t last = std::min(pixels.size(), first + kBatch);
+    state.rows = 0;
+    state.ggx_offers.clear();
+    for (std::size_t i = first; i < last; ++i) {
+      ThreadState::GgxOffer offer{.pixel = pixels[i], .held = held_lobe_[pixels[i]] != 0};
+      offer.kept = KeptFit(offer.pixel);
+      offer.on_samples = per_pixel_.KeptOnUsable(offer.pixel, offer.kept, offer.held, &state.scratch);
+      if (ladder_.NextWithGgx(GgxFits{&offer.on_samples}).action != LadderStep::Action::kFitGgx) continue;
+      const PixelSamples& samples = state.scratch.samples;
+      offer.used = samples.size();
+      offer.row = state.rows++;
+      if (state.observed.size() < state.rows * lights_) {
+        state.observed.resize(2 * state.rows * lights_);
+        state.inverse_sigma.resize(2 * state.rows * lights_);
+      }
+      std::copy(samples.row_observed.begin(), samples.row_observed.end(), &state.observed[offer.row * lights_]);
+      std::copy(samples.row_inverse_sigma.begin(), samples.row_inverse_sigma.end(),
+                &state.inverse_sigma[offer.row * lights_]);
+      state.ggx_offers.push_back(offer);
+    }
+    // The rows are complete (growing may have moved them): now point at them.
+    state.problems.clear();
+    for (const ThreadState::GgxOffer& offer : state.ggx_offers)
+      state.problems.push_back({&state.observed[offer.row * lights_], &state.inverse_sigma[offer.row * lights_],
+                                offer.on_samples.normal, offer.on_samples.albedo});
+    state.solutions.assign(state.problems.size(), {});
+    if (!state.problems.empty()) ggx_fitters_[thread].Fit(state.problems, state.solutions);
+    for (std::size_t i = 0; i < state.ggx_offers.size(); ++i) {
+      const ThreadState::GgxOffer& offer = state.ggx_offers[i];
+      const PixelFit ggx = LobeFitFrom(state.solutions[i], offer.used, PixelModel::kGgx);
+      if (ladder_.NextWithGgx(GgxFits{&offer.on_samples, &ggx}).keep == &ggx)
+        RecordGgx(state, offer.pixel, offer.kept, offer.held, ggx);
+    }
+  }
+}
+
+void TileRefiner::RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& chosen) {
   WriteFit(p, chosen, result_);
   ++state.ggx;
   switch (kept.model) {

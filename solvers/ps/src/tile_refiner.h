@@ -14,7 +14,7 @@
 // are copied out when it is queued. With the per-pixel fitter each doubtful
 // pixel climbs the ladder on its own (PerPixelFits), the reference.
 
-#include "kernels/blinn_phong_fit.h"
+#include "kernels/lobe_lane_fit.h"
 #include "kernels/irls_lambertian_fit.h"
 #include "kernels/lambertian_recheck.h"
 #include "kernels/trimmed_lambertian_fit.h"
@@ -83,8 +83,11 @@ class TileRefiner {
   void ShareLobe(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests);
   // Pixel p, kept as `kept`, takes the lobe fitted with its region's exponent.
   void RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe, int usable);
-  // Step 6 for pixel p: its GGX fit, into the map where the ladder takes it.
-  void OfferGgx(int thread, int p);
+  // Step 6 for `pixels`: their GGX fits (in lanes, kBatch at a time, or one
+  // by one), into the map where the ladder takes them.
+  void OfferGgx(int thread, std::span<const int> pixels);
+  // Pixel p, kept as `kept` (held: a lobe step 5 held), takes the GGX fit `ggx`.
+  void RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& ggx);
   // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps
   // the pixel's answer, or queues it for the stage the ladder asks for.
   // samples: the pixel's samples as copied for trimming, if they were.
@@ -113,7 +116,7 @@ class TileRefiner {
   const PerPixelFits per_pixel_;
   const int threads_;
   std::vector<ThreadState> states_;
-  std::vector<BlinnPhongLaneFitter> lobe_fitters_;
+  std::vector<LobeLaneFitter> lobe_fitters_, ggx_fitters_;
   std::vector<TrimmedLambertianLanes> trimmers_;
   // Per pixel: 1 where step 5 gave it a held lobe (as many parameters of its own as the Lambertian fit).
   std::vector<std::uint8_t> held_lobe_;

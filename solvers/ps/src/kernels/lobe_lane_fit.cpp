@@ -1,10 +1,12 @@
-#include "blinn_phong_fit.h"
+#include "lobe_lane_fit.h"
 
 #include "lane_math.h"
 
+#include "photorig/solvers/autodiff/ggx.h"
 #include "photorig/solvers/autodiff/vector.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -77,6 +79,28 @@ PHOTORIG_LANE_INLINE float GeometryOf(const float* geometry, int k, int i, int j
   }
 }
 
+// One sample's residual r and derivatives d0..d4 into lane j's sums:
+// r^2, J^T J's upper triangle, J^T r (LaneEquations' order).
+using LaneSums = float[1 + kHessianEntries + kParameters][kFloatLanes];
+PHOTORIG_LANE_INLINE void AddSample(LaneSums& acc, int j, float r, float d0, float d1, float d2, float d3, float d4) {
+  // Written out: loops here would stop GCC vectorising over the lanes.
+  acc[0][j] += r * r;
+  acc[1][j] += d0 * d0, acc[2][j] += d0 * d1, acc[3][j] += d0 * d2, acc[4][j] += d0 * d3, acc[5][j] += d0 * d4;
+  acc[6][j] += d1 * d1, acc[7][j] += d1 * d2, acc[8][j] += d1 * d3, acc[9][j] += d1 * d4;
+  acc[10][j] += d2 * d2, acc[11][j] += d2 * d3, acc[12][j] += d2 * d4;
+  acc[13][j] += d3 * d3, acc[14][j] += d3 * d4;
+  acc[15][j] += d4 * d4;
+  acc[16][j] += d0 * r, acc[17][j] += d1 * r, acc[18][j] += d2 * r, acc[19][j] += d3 * r, acc[20][j] += d4 * r;
+}
+
+void StoreSums(const LaneSums& acc, LaneEquations* out) {
+  for (int j = 0; j < kFloatLanes; ++j) {
+    out->cost[j] = acc[0][j];
+    for (int e = 0; e < kHessianEntries; ++e) out->hessian[e][j] = acc[1 + e][j];
+    for (int p = 0; p < kParameters; ++p) out->gradient[p][j] = acc[1 + kHessianEntries + p][j];
+  }
+}
+
 template <bool kPerLane>
 PHOTORIG_LANE_INLINE void EvaluateLanesOf(const LanePoint& q, int lights, const float* geometry, const float* observed,
                                           const float* inverse_sigma, LaneEquations* out) {
@@ -96,7 +120,7 @@ PHOTORIG_LANE_INLINE void EvaluateLanesOf(const LanePoint& q, int lights, const 
     exponent[j] = static_cast<float>(q.exponent[j]);
     lobe_scale[j] = static_cast<float>(q.specular_albedo[j] * (q.exponent[j] + 2.0) * (0.5 * kInvPi));
   }
-  alignas(64) float acc[1 + kHessianEntries + kParameters][kFloatLanes] = {};
+  alignas(64) LaneSums acc = {};
   for (int k = 0; k < lights; ++k) {
     const float* sigma_k = inverse_sigma + k * kFloatLanes;
     bool used = false;
@@ -130,27 +154,104 @@ PHOTORIG_LANE_INLINE void EvaluateLanesOf(const LanePoint& q, int lights, const 
       const float d0 = a * w_t1 + s * h_t1, d1 = a * w_t2 + s * h_t2, d2 = cs * kInvPiF;
       const float d3 = cs * (exponent[j] + 2.0f) * (0.5f * kInvPiF) * lobe;
       const float d4 = cs * rho_s[j] * lobe * (0.5f * kInvPiF + (exponent[j] + 2.0f) * (0.5f * kInvPiF) * log_h);
-      // Written out: loops here would stop GCC vectorising over the lanes.
-      acc[0][j] += r * r;
-      acc[1][j] += d0 * d0, acc[2][j] += d0 * d1, acc[3][j] += d0 * d2, acc[4][j] += d0 * d3, acc[5][j] += d0 * d4;
-      acc[6][j] += d1 * d1, acc[7][j] += d1 * d2, acc[8][j] += d1 * d3, acc[9][j] += d1 * d4;
-      acc[10][j] += d2 * d2, acc[11][j] += d2 * d3, acc[12][j] += d2 * d4;
-      acc[13][j] += d3 * d3, acc[14][j] += d3 * d4;
-      acc[15][j] += d4 * d4;
-      acc[16][j] += d0 * r, acc[17][j] += d1 * r, acc[18][j] += d2 * r, acc[19][j] += d3 * r, acc[20][j] += d4 * r;
+      AddSample(acc, j, r, d0, d1, d2, d3, d4);
     }
   }
-  for (int j = 0; j < kFloatLanes; ++j) {
-    out->cost[j] = acc[0][j];
-    for (int e = 0; e < kHessianEntries; ++e) out->hessian[e][j] = acc[1 + e][j];
-    for (int p = 0; p < kParameters; ++p) out->gradient[p][j] = acc[1 + kHessianEntries + p][j];
-  }
+  StoreSums(acc, out);
 }
 
+// G1(c) = 2 c / (c + r), r = sqrt(a^2 + (1 - a^2) c^2), with dG1/dc =
+// 2 a^2 / (r (c + r)^2) and dG1/d(a^2) = -c (1 - c^2) / (r (c + r)^2)
+// (autodiff::GgxG1); c > 0.
+PHOTORIG_LANE_INLINE void LaneGgxG1(float c, float a2, float* value, float* d_cos, float* d_a2) {
+  const float r = std::sqrt(a2 + (1.0f - a2) * c * c), sum = c + r;
+  const float q = 1.0f / (r * sum * sum);
+  *value = 2.0f * c / sum, *d_cos = 2.0f * a2 * q, *d_a2 = -c * (1.0f - c * c) * q;
+}
+
+// The GGX lobe's pass (autodiff::SymbolicGgxJacobian in lanes, shared
+// geometry). The lobe per unit rho_s is S G1(c) / t^2 with the per-pixel
+// S = a^2 G1(v . n) / (4 pi v . n) and t = h^2 (a^2 - 1) + 1, c = w . n,
+// h = max(0, w_h . n); zero where v . n <= 0 (no lobe faces the camera).
+//   dI/dn = (rho_d / pi + rho_s S G1'(c) / t^2) w + rho_s S'(v.n) G1(c) / t^2 v
+//           - 4 rho_s S G1(c) h (a^2 - 1) / t^3 w_h,
+//   dI/da = 2 a rho_s (S_a2 G1 / t^2 + S G1_a2 / t^2 - 2 S G1 h^2 / t^3),
+// all zero where c <= 0.
+PHOTORIG_LANE_INLINE void EvaluateGgxLanesOf(const LanePoint& q, int lights, const float* geometry, const float* view,
+                                             const float* observed, const float* inverse_sigma, LaneEquations* out) {
+  constexpr float kInvPiF = static_cast<float>(kInvPi);
+  alignas(64) float nx[kFloatLanes], ny[kFloatLanes], nz[kFloatLanes], t[2][3][kFloatLanes];
+  alignas(64) float rho_d[kFloatLanes], rho_s[kFloatLanes], a2[kFloatLanes], two_a[kFloatLanes];
+  alignas(64) float s_unit[kFloatLanes], s_d_cos_view[kFloatLanes], s_d_a2[kFloatLanes], v_t[2][kFloatLanes];
+#pragma omp simd
+  for (int j = 0; j < kFloatLanes; ++j) {
+    nx[j] = static_cast<float>(q.normal[0][j]), ny[j] = static_cast<float>(q.normal[1][j]);
+    nz[j] = static_cast<float>(q.normal[2][j]);
+    t[0][0][j] = static_cast<float>(q.tangent[0][0][j]), t[0][1][j] = static_cast<float>(q.tangent[0][1][j]);
+    t[0][2][j] = static_cast<float>(q.tangent[0][2][j]), t[1][0][j] = static_cast<float>(q.tangent[1][0][j]);
+    t[1][1][j] = static_cast<float>(q.tangent[1][1][j]), t[1][2][j] = static_cast<float>(q.tangent[1][2][j]);
+    rho_d[j] = static_cast<float>(q.diffuse_albedo[j]), rho_s[j] = static_cast<float>(q.specular_albedo[j]);
+    const float a = static_cast<float>(q.exponent[j]);
+    a2[j] = a * a, two_a[j] = 2.0f * a;
+    // One select, the other clamps as max(): GCC gives up on a lane loop with more conditions.
+    const float cos_view = view[0] * nx[j] + view[1] * ny[j] + view[2] * nz[j];
+    const float lobe = cos_view > 0.0f ? 1.0f : 0.0f;
+    const float safe_cos_view = std::max(cos_view, 1e-6f);  // what it gives is multiplied by lobe
+    float g, g_d_cos, g_d_a2;
+    LaneGgxG1(safe_cos_view, a2[j], &g, &g_d_cos, &g_d_a2);
+    const float k = lobe * 0.25f * kInvPiF / safe_cos_view;
+    s_unit[j] = k * a2[j] * g;
+    s_d_cos_view[j] = k * a2[j] * (g_d_cos - g / safe_cos_view);
+    s_d_a2[j] = k * (g + a2[j] * g_d_a2);
+    v_t[0][j] = view[0] * t[0][0][j] + view[1] * t[0][1][j] + view[2] * t[0][2][j];
+    v_t[1][j] = view[0] * t[1][0][j] + view[1] * t[1][1][j] + view[2] * t[1][2][j];
+  }
+  alignas(64) LaneSums acc = {};
+  for (int k = 0; k < lights; ++k) {
+    const float* sigma_k = inverse_sigma + k * kFloatLanes;
+    // Every light is evaluated: with a skip of the lights no lane uses, as
+    // the Blinn-Phong pass has, GCC leaves the lane loop below scalar.
+    const float* observed_k = observed + k * kFloatLanes;
+    const float wx = geometry[6 * k], wy = geometry[6 * k + 1], wz = geometry[6 * k + 2];
+    const float hx = geometry[6 * k + 3], hy = geometry[6 * k + 4], hz = geometry[6 * k + 5];
+#pragma omp simd
+    for (int j = 0; j < kFloatLanes; ++j) {
+      const float c = wx * nx[j] + wy * ny[j] + wz * nz[j];
+      const float h = std::max(hx * nx[j] + hy * ny[j] + hz * nz[j], 0.0f);
+      // As above: one select; the clamped cosines' terms are multiplied by lit.
+      const float lit = c > 0.0f ? 1.0f : 0.0f;
+      const float lit_c = std::max(c, 0.0f), safe_c = std::max(c, 1e-6f);
+      const float inverse_t = 1.0f / (h * h * (a2[j] - 1.0f) + 1.0f), inverse_t2 = inverse_t * inverse_t;
+      float g, g_d_cos, g_d_a2;
+      LaneGgxG1(safe_c, a2[j], &g, &g_d_cos, &g_d_a2);
+      const float unit = lit * s_unit[j] * g * inverse_t2;  // the lobe per unit rho_s
+      const float sigma = sigma_k[j], lit_sigma = lit * sigma;
+      const float r = ((rho_d[j] * kInvPiF) * lit_c + rho_s[j] * unit - observed_k[j]) * sigma;
+      const float along_w = (rho_d[j] * kInvPiF + rho_s[j] * s_unit[j] * g_d_cos * inverse_t2) * lit_sigma;
+      const float along_v = rho_s[j] * s_d_cos_view[j] * g * inverse_t2 * lit_sigma;
+      const float along_h = -4.0f * rho_s[j] * s_unit[j] * g * h * (a2[j] - 1.0f) * inverse_t2 * inverse_t * lit_sigma;
+      const float w_t1 = wx * t[0][0][j] + wy * t[0][1][j] + wz * t[0][2][j];
+      const float w_t2 = wx * t[1][0][j] + wy * t[1][1][j] + wz * t[1][2][j];
+      const float h_t1 = hx * t[0][0][j] + hy * t[0][1][j] + hz * t[0][2][j];
+      const float h_t2 = hx * t[1][0][j] + hy * t[1][1][j] + hz * t[1][2][j];
+      const float d0 = along_w * w_t1 + along_v * v_t[0][j] + along_h * h_t1;
+      const float d1 = along_w * w_t2 + along_v * v_t[1][j] + along_h * h_t2;
+      const float d2 = lit_c * kInvPiF * sigma, d3 = unit * sigma;
+      const float d4 = two_a[j] * rho_s[j] * inverse_t2 *
+                       (s_d_a2[j] * g + s_unit[j] * g_d_a2 - 2.0f * s_unit[j] * g * h * h * inverse_t) * lit_sigma;
+      AddSample(acc, j, r, d0, d1, d2, d3, d4);
+    }
+  }
+  StoreSums(acc, out);
+}
+
+// view: GGX's, towards the camera (the Blinn-Phong pass has it in its half vectors).
 PHOTORIG_PS_MULTIVERSION
-void EvaluateLanes(bool per_lane, const LanePoint& q, int lights, const float* geometry, const float* observed,
-                   const float* inverse_sigma, LaneEquations* out) {
-  if (per_lane)
+void EvaluateLanes(LaneLobe lobe, bool per_lane, const LanePoint& q, int lights, const float* geometry,
+                   const float* view, const float* observed, const float* inverse_sigma, LaneEquations* out) {
+  if (lobe == LaneLobe::kGgx)
+    EvaluateGgxLanesOf(q, lights, geometry, view, observed, inverse_sigma, out);
+  else if (per_lane)
     EvaluateLanesOf<true>(q, lights, geometry, observed, inverse_sigma, out);
   else
     EvaluateLanesOf<false>(q, lights, geometry, observed, inverse_sigma, out);
@@ -159,12 +260,12 @@ void EvaluateLanes(bool per_lane, const LanePoint& q, int lights, const float* g
 // The damped Gauss-Newton step of every lane from its current point p:
 // (H + lambda diag(H) + 1e-12 I) step = g by Cholesky, then the candidate
 // q = p - step (the normal renormalised, the material projected onto its
-// bounds). positive[j] is 0 where the damped matrix is not positive definite
+// bounds: e's or a's are min_shape and max_shape). positive[j] is 0 where the damped matrix is not positive definite
 // (raise lambda and try again); predicted[j] is the decrease of the cost the
 // linearised model promises, 2 step.g - step.H.step.
 PHOTORIG_PS_MULTIVERSION
-void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lambda, double min_exponent,
-                  double max_exponent, LanePoint* q, double* positive, double* predicted) {
+void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lambda, double min_shape,
+                  double max_shape, LanePoint* q, double* positive, double* predicted) {
   // Lower triangle of the factor, [row][col][lane]; loops over the matrix
   // indices stay outside the lane loops so that each lane loop vectorises.
   alignas(64) double l[kParameters][kParameters][kFloatLanes];
@@ -254,7 +355,7 @@ void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lam
     q->tangent[1][0][j] = t2[0], q->tangent[1][1][j] = t2[1], q->tangent[1][2][j] = t2[2];
     q->diffuse_albedo[j] = std::max(0.0, p.diffuse_albedo[j] - step[2][j]);
     q->specular_albedo[j] = std::max(0.0, p.specular_albedo[j] - step[3][j]);
-    q->exponent[j] = std::min(std::max(p.exponent[j] - step[4][j], min_exponent), max_exponent);
+    q->exponent[j] = std::min(std::max(p.exponent[j] - step[4][j], min_shape), max_shape);
   }
 }
 
@@ -376,6 +477,69 @@ void BlinnPhongSharedStartLanes(int lights, const double* cos_light, const doubl
   }
 }
 
+namespace {
+
+// GGX's start material at each lane's normal: for each roughness of the
+// grid, rho_d and rho_s >= 0 by weighted least squares in the model's two
+// linear columns (c / pi and the lobe per unit rho_s); the grid point with
+// the lowest chi-square wins, else rho_d = start_albedo with no lobe.
+// geometry: w then w_h per light, shared by the lanes.
+PHOTORIG_PS_MULTIVERSION
+void GgxGridStartLanes(int lights, const double* geometry, const Eigen::Vector3d& view,
+                       const double (&normal)[3][kFloatLanes], const double* observed, const double* weight,
+                       const double* start_albedo, LaneMaterial* out) {
+  alignas(64) double cos_view[kFloatLanes], bb[kFloatLanes] = {}, best_chi2[kFloatLanes];
+  for (int j = 0; j < kFloatLanes; ++j) {
+    cos_view[j] = view.x() * normal[0][j] + view.y() * normal[1][j] + view.z() * normal[2][j];
+    best_chi2[j] = std::numeric_limits<double>::infinity();
+    out->diffuse_albedo[j] = start_albedo[j], out->specular_albedo[j] = 0.0, out->exponent[j] = kGgxStartRoughness[5];
+  }
+  for (int k = 0; k < lights; ++k)
+    for (int j = 0; j < kFloatLanes; ++j)
+      bb[j] += weight[k * kFloatLanes + j] * observed[k * kFloatLanes + j] * observed[k * kFloatLanes + j];
+  for (const double roughness : kGgxStartRoughness) {
+    const double a2 = roughness * roughness;
+    alignas(64) double s_unit[kFloatLanes], dd[kFloatLanes] = {}, dl[kFloatLanes] = {}, ll[kFloatLanes] = {},
+                                            db[kFloatLanes] = {}, lb[kFloatLanes] = {};
+    for (int j = 0; j < kFloatLanes; ++j)
+      s_unit[j] = cos_view[j] > 0.0 ? a2 * solvers::autodiff::GgxG1(cos_view[j], a2).value * 0.25 * kInvPi / cos_view[j]
+                                    : 0.0;
+    for (int k = 0; k < lights; ++k) {
+      const double* g = geometry + 6 * k;
+      for (int j = 0; j < kFloatLanes; ++j) {
+        const double c = g[0] * normal[0][j] + g[1] * normal[1][j] + g[2] * normal[2][j];
+        const double w = weight[k * kFloatLanes + j];
+        if (!(c > 0.0) || w == 0.0) continue;
+        const double h = std::max(0.0, g[3] * normal[0][j] + g[4] * normal[1][j] + g[5] * normal[2][j]);
+        const double t = h * h * (a2 - 1.0) + 1.0;
+        const double d = c * kInvPi, l = s_unit[j] * solvers::autodiff::GgxG1(c, a2).value / (t * t);
+        const double b = observed[k * kFloatLanes + j];
+        dd[j] += w * d * d, dl[j] += w * d * l, ll[j] += w * l * l, db[j] += w * d * b, lb[j] += w * l * b;
+      }
+    }
+    for (int j = 0; j < kFloatLanes; ++j) {
+      // Non-negative least squares in two unknowns: the free solution, else
+      // the better of the two with one held at 0.
+      const double det = dd[j] * ll[j] - dl[j] * dl[j];
+      double rho_d = (ll[j] * db[j] - dl[j] * lb[j]) / det, rho_s = (dd[j] * lb[j] - dl[j] * db[j]) / det;
+      if (!(det > 0.0 && rho_d >= 0.0 && rho_s >= 0.0)) {
+        const double only_d = dd[j] > 0.0 ? std::max(0.0, db[j] / dd[j]) : 0.0;
+        const double only_l = ll[j] > 0.0 ? std::max(0.0, lb[j] / ll[j]) : 0.0;
+        const bool diffuse = 2.0 * only_d * db[j] - only_d * only_d * dd[j] >= 2.0 * only_l * lb[j] - only_l * only_l * ll[j];
+        rho_d = diffuse ? only_d : 0.0, rho_s = diffuse ? 0.0 : only_l;
+      }
+      const double chi2 = bb[j] - 2.0 * (rho_d * db[j] + rho_s * lb[j]) + rho_d * rho_d * dd[j] +
+                          2.0 * rho_d * rho_s * dl[j] + rho_s * rho_s * ll[j];
+      if (std::isfinite(chi2) && chi2 < best_chi2[j]) {
+        best_chi2[j] = chi2;
+        out->diffuse_albedo[j] = rho_d, out->specular_albedo[j] = rho_s, out->exponent[j] = roughness;
+      }
+    }
+  }
+}
+
+}  // namespace
+
 BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, const double* cos_half,
                                        const double* observed, const double* weight, double start_albedo,
                                        const BlinnPhongOptions& options) {
@@ -396,7 +560,7 @@ BlinnPhongMaterial BlinnPhongGridStart(int samples, const double* cos_light, con
   return {material.diffuse_albedo[0], material.specular_albedo[0], material.exponent[0]};
 }
 
-struct BlinnPhongLaneFitter::State {
+struct LobeLaneFitter::State {
   LanePoint candidate, current, proposal;
   LaneEquations candidate_equations, current_equations;
   double current_cost[kFloatLanes];
@@ -404,14 +568,17 @@ struct BlinnPhongLaneFitter::State {
   double positive[kFloatLanes], predicted_decrease[kFloatLanes];
   int iterations[kFloatLanes];
   bool restarted[kFloatLanes];  // the start had no finite cost and the lane started again
-  double shared_exponent[kFloatLanes];  // > 0: the lane's lobe is held (BlinnPhongProblem's)
+  double shared_exponent[kFloatLanes];  // > 0: the lane's lobe is held (LobeProblem's)
   int problem[kFloatLanes];  // index into the problems being fitted, -1 for an idle lane
 };
 
-BlinnPhongLaneFitter::BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& light_directions,
-                                           const Eigen::Vector3d& view, const BlinnPhongOptions& options)
-    : BlinnPhongLaneFitter(static_cast<int>(light_directions.size()), options) {
+LobeLaneFitter::LobeLaneFitter(const std::vector<Eigen::Vector3d>& light_directions, const Eigen::Vector3d& view,
+                               const BlinnPhongOptions& options, LaneLobe lobe)
+    : LobeLaneFitter(static_cast<int>(light_directions.size()), options) {
   per_lane_geometry_ = false;
+  lobe_ = lobe;
+  view_ = view.normalized();
+  if (lobe == LaneLobe::kGgx) min_shape_ = kMinGgxRoughness, max_shape_ = kMaxGgxRoughness;
   std::vector<double> towards_light(3 * light_directions.size());
   for (int k = 0; k < lights_; ++k) {
     const Eigen::Vector3d w = light_directions[k].normalized();
@@ -422,9 +589,11 @@ BlinnPhongLaneFitter::BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& l
   evaluation_geometry_.assign(geometry_.begin(), geometry_.end());
 }
 
-BlinnPhongLaneFitter::BlinnPhongLaneFitter(int lights, const BlinnPhongOptions& options)
+LobeLaneFitter::LobeLaneFitter(int lights, const BlinnPhongOptions& options)
     : lights_(lights),
       options_(options),
+      min_shape_(options.min_exponent),
+      max_shape_(options.max_exponent),
       evaluation_geometry_(6 * static_cast<std::size_t>(lights) * kFloatLanes, 0.0f),
       per_lane_geometry_(true),
       observed_(static_cast<std::size_t>(lights) * kFloatLanes),
@@ -444,10 +613,10 @@ void BlinnPhongGeometry(int lights, const double* towards_light, const Eigen::Ve
   }
 }
 
-BlinnPhongLaneFitter::~BlinnPhongLaneFitter() = default;
-BlinnPhongLaneFitter::BlinnPhongLaneFitter(BlinnPhongLaneFitter&&) noexcept = default;
+LobeLaneFitter::~LobeLaneFitter() = default;
+LobeLaneFitter::LobeLaneFitter(LobeLaneFitter&&) noexcept = default;
 
-void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem, const BlinnPhongMaterial& start) {
+void LobeLaneFitter::Load(int lane, const LobeProblem& problem, const BlinnPhongMaterial& start) {
   State& s = *state_;
   const Eigen::Vector3d n = problem.start_normal.normalized();
   for (int k = 0; k < lights_; ++k) {
@@ -471,7 +640,7 @@ void BlinnPhongLaneFitter::Load(int lane, const BlinnPhongProblem& problem, cons
   s.shared_exponent[lane] = problem.shared_exponent;
 }
 
-void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problems) {
+void LobeLaneFitter::GridStarts(std::span<const LobeProblem> problems) {
   const int count = static_cast<int>(problems.size());
   starts_.resize(count);
   for (int first = 0; first < count; first += kFloatLanes) {
@@ -487,6 +656,14 @@ void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problem
         start_observed_[k * kFloatLanes + j] = present ? problems[first + j].observed[k] : 0.0;
         weight_[k * kFloatLanes + j] = inverse_sigma * inverse_sigma;
       }
+    }
+    if (lobe_ == LaneLobe::kGgx) {
+      LaneMaterial material;
+      GgxGridStartLanes(lights_, geometry_.data(), view_, normal, start_observed_.data(), weight_.data(), start_albedo,
+                        &material);
+      for (int j = 0; j < kFloatLanes && first + j < count; ++j)
+        starts_[first + j] = {material.diffuse_albedo[j], material.specular_albedo[j], material.exponent[j]};
+      continue;
     }
     if (per_lane_geometry_) {
       for (int j = 0; j < kFloatLanes; ++j) {
@@ -533,7 +710,7 @@ void BlinnPhongLaneFitter::GridStarts(std::span<const BlinnPhongProblem> problem
   }
 }
 
-void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std::span<BlinnPhongSolution> solutions) {
+void LobeLaneFitter::Fit(std::span<const LobeProblem> problems, std::span<LobeSolution> solutions) {
   State& s = *state_;
   const int count = static_cast<int>(problems.size());
   GridStarts(problems);
@@ -547,7 +724,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
       s.candidate.tangent[0][i][lane] = t1[i], s.candidate.tangent[1][i][lane] = t2[i];
     }
     s.candidate.diffuse_albedo[lane] = s.candidate.specular_albedo[lane] = 0.0;
-    s.candidate.exponent[lane] = options_.min_exponent;
+    s.candidate.exponent[lane] = min_shape_;
   };
   LaneQueue queue(count, kFloatLanes);
   // A loaded problem's start is the lane's next candidate.
@@ -555,7 +732,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
   auto refill = [&](int lane) { queue.Refill(lane, s.problem, load, idle); };
   for (int lane = 0; lane < kFloatLanes; ++lane) refill(lane);
   auto finish = [&](int lane) {
-    BlinnPhongSolution& out = solutions[s.problem[lane]];
+    LobeSolution& out = solutions[s.problem[lane]];
     out.ok = std::isfinite(s.current_cost[lane]);
     out.normal = Eigen::Vector3d(s.current.normal[0][lane], s.current.normal[1][lane], s.current.normal[2][lane]);
     out.diffuse_albedo = s.current.diffuse_albedo[lane];
@@ -568,8 +745,10 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
   // Changes of the cost below what the float evaluation resolves are noise.
   const double tolerance = std::max(options_.relative_tolerance, kEvaluationPrecision);
   bool stepping[kFloatLanes];  // lanes whose next candidate is a step from their current point
+  const std::array<float, 3> view = {static_cast<float>(view_.x()), static_cast<float>(view_.y()),
+                                     static_cast<float>(view_.z())};
   while (queue.busy() > 0) {
-    EvaluateLanes(per_lane_geometry_, s.candidate, lights_, evaluation_geometry_.data(), observed_.data(),
+    EvaluateLanes(lobe_, per_lane_geometry_, s.candidate, lights_, evaluation_geometry_.data(), view.data(), observed_.data(),
                   inverse_sigma_.data(), &s.candidate_equations);
     HoldSharedLobes(s.shared_exponent, &s.candidate_equations);
     for (int lane = 0; lane < kFloatLanes; ++lane) {
@@ -601,7 +780,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
           s.candidate.diffuse_albedo[lane] = problems[s.problem[lane]].start_albedo;
           if (!(s.shared_exponent[lane] > 0.0)) {  // a shared lobe stays
             s.candidate.specular_albedo[lane] = 0.0;
-            s.candidate.exponent[lane] = options_.min_exponent;
+            s.candidate.exponent[lane] = min_shape_;
           }
           continue;  // stepping stays false: the candidate is evaluated as it is
         }
@@ -620,7 +799,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
     // The next candidates, all lanes at once; a lane whose damped system is
     // not positive definite raises its damping and all go round again.
     for (bool retry = true; retry;) {
-      ProposeLanes(s.current, s.current_equations, s.lambda, options_.min_exponent, options_.max_exponent,
+      ProposeLanes(s.current, s.current_equations, s.lambda, min_shape_, max_shape_,
                    &s.proposal, s.positive, s.predicted_decrease);
       retry = false;
       for (int lane = 0; lane < kFloatLanes; ++lane) {
@@ -648,7 +827,7 @@ void BlinnPhongLaneFitter::Fit(std::span<const BlinnPhongProblem> problems, std:
   }
 }
 
-BlinnPhongLaneFitter::Linearization BlinnPhongLaneFitter::Linearize(const BlinnPhongProblem& problem,
+LobeLaneFitter::Linearization LobeLaneFitter::Linearize(const LobeProblem& problem,
                                                                    const Eigen::Vector3d& normal,
                                                                    double diffuse_albedo, double specular_albedo,
                                                                    double exponent) {
@@ -672,7 +851,8 @@ BlinnPhongLaneFitter::Linearization BlinnPhongLaneFitter::Linearize(const BlinnP
   if (per_lane_geometry_)
     for (int i = 0; i < 6 * lights_; ++i) evaluation_geometry_[i * kFloatLanes] = static_cast<float>(problem.geometry[i]);
   LaneEquations equations;
-  EvaluateLanes(per_lane_geometry_, point, lights_, evaluation_geometry_.data(), observed_.data(),
+  const float view[3] = {static_cast<float>(view_.x()), static_cast<float>(view_.y()), static_cast<float>(view_.z())};
+  EvaluateLanes(lobe_, per_lane_geometry_, point, lights_, evaluation_geometry_.data(), view, observed_.data(),
                 inverse_sigma_.data(), &equations);
   Linearization out;
   out.cost = equations.cost[0];

@@ -1,6 +1,6 @@
 #pragma once
-// The Blinn-Phong fit of many pixels under one set of lights, one pixel per
-// SIMD lane. A pixel's Levenberg-Marquardt fit is a few iterations, each a
+// The lobe fit (Blinn-Phong, or GGX for `auto`'s step 6) of many pixels
+// under one set of lights, one pixel per SIMD lane. A pixel's Levenberg-Marquardt fit is a few iterations, each a
 // pass over its K samples with a pow per sample; run one pixel at a time that
 // pass is scalar (and, with forward-mode derivatives, carries six tangents
 // through every operation). Here kFloatLanes pixels share each pass: the light
@@ -12,7 +12,8 @@
 // noise is in the second or third); the iteration's state, its normal
 // equations and the damped steps stay in double.
 //
-// Derivatives are the closed forms of blinn_phong_symbolic.h (the tests check
+// Derivatives are the closed forms of the autodiff library's symbolic
+// Jacobians (SymbolicBlinnPhongJacobian, SymbolicGgxJacobian; the tests check
 // the lanes' Jacobian against forward-mode automatic differentiation). The
 // normal moves on the sphere: each step is in the tangent plane of the current
 // normal, so the normal has two parameters and the 5 x 5 normal equations
@@ -64,7 +65,7 @@ void BlinnPhongSharedStartLanes(int lights, const double* cos_light, const doubl
 // made without shared lights, the pixel's own geometry (BlinnPhongGeometry:
 // under near LEDs and a perspective camera every pixel has its own light and
 // half vectors).
-struct BlinnPhongProblem {
+struct LobeProblem {
   const double* observed = nullptr;
   const double* inverse_sigma = nullptr;
   Eigen::Vector3d start_normal = Eigen::Vector3d::UnitZ();
@@ -76,10 +77,11 @@ struct BlinnPhongProblem {
   const double* geometry = nullptr;
 };
 
-struct BlinnPhongSolution {
+struct LobeSolution {
   bool ok = false;
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-  double diffuse_albedo = 0.0, specular_albedo = 0.0, exponent = 0.0;
+  double diffuse_albedo = 0.0, specular_albedo = 0.0;
+  double exponent = 0.0;  // Blinn-Phong's e; GGX's roughness a
   double chi2 = 0.0;
   int iterations = 0;  // accepted steps
 };
@@ -90,41 +92,57 @@ struct BlinnPhongSolution {
 // exactly opposite the camera has no half vector (zero): no highlight.
 void BlinnPhongGeometry(int lights, const double* towards_light, const Eigen::Vector3d& view, double* geometry);
 
-class BlinnPhongLaneFitter {
+// The lobe a fitter fits. Blinn-Phong: rho_d / pi + rho_s (e + 2) / (2 pi) h^e
+// (autodiff::BlinnPhongPixel). GGX: rho_d / pi + rho_s D G1 G1 / (4 v.n)
+// with roughness a (autodiff::GgxPixel); GGX problems start from a roughness
+// grid (GgxGridStartLanes), bring no geometry of their own and hold no lobe.
+enum class LaneLobe { kBlinnPhong, kGgx };
+
+// GGX's roughness range: below 0.01 the lobe falls between the lights of any
+// practical dome; 1 is the broadest lobe GGX has.
+inline constexpr double kMinGgxRoughness = 0.01, kMaxGgxRoughness = 1.0;
+// The roughness grid a GGX fit starts from: each point a factor 1.4 from the
+// last, so the best is within a sixth of the width of the lobe that made the samples.
+inline constexpr double kGgxStartRoughness[] = {0.03, 0.042, 0.06, 0.084, 0.12, 0.17, 0.24, 0.33, 0.47, 0.66};
+
+class LobeLaneFitter {
  public:
   // light_directions: unit vectors towards the lights; view: towards the camera.
-  BlinnPhongLaneFitter(const std::vector<Eigen::Vector3d>& light_directions, const Eigen::Vector3d& view,
-                       const BlinnPhongOptions& options);
-  // A fitter whose problems each bring their own geometry (BlinnPhongProblem::geometry).
-  BlinnPhongLaneFitter(int lights, const BlinnPhongOptions& options);
-  ~BlinnPhongLaneFitter();
-  BlinnPhongLaneFitter(BlinnPhongLaneFitter&&) noexcept;
+  LobeLaneFitter(const std::vector<Eigen::Vector3d>& light_directions, const Eigen::Vector3d& view,
+                 const BlinnPhongOptions& options, LaneLobe lobe = LaneLobe::kBlinnPhong);
+  // A Blinn-Phong fitter whose problems each bring their own geometry (LobeProblem::geometry).
+  LobeLaneFitter(int lights, const BlinnPhongOptions& options);
+  ~LobeLaneFitter();
+  LobeLaneFitter(LobeLaneFitter&&) noexcept;
 
   // Fits every problem; solutions[i] answers problems[i].
-  void Fit(std::span<const BlinnPhongProblem> problems, std::span<BlinnPhongSolution> solutions);
+  void Fit(std::span<const LobeProblem> problems, std::span<LobeSolution> solutions);
 
   // The normal equations a fit builds at one point, to check its derivatives:
   // cost = sum r^2 with r = (I - observed) / sigma, hessian = J^T J and
   // gradient = J^T r, J taken w.r.t. (steps along tangent[0] and tangent[1],
-  // rho_d, rho_s, e); tangent is the basis the fitter uses at `normal`.
+  // rho_d, rho_s, e or a); tangent is the basis the fitter uses at `normal`.
   struct Linearization {
     double cost = 0.0;
     Eigen::Matrix<double, 5, 5> hessian;
     Eigen::Matrix<double, 5, 1> gradient;
     Eigen::Vector3d tangent[2];
   };
-  Linearization Linearize(const BlinnPhongProblem& problem, const Eigen::Vector3d& normal, double diffuse_albedo,
+  Linearization Linearize(const LobeProblem& problem, const Eigen::Vector3d& normal, double diffuse_albedo,
                           double specular_albedo, double exponent);
 
  private:
-  struct State;  // lane registers, in blinn_phong_fit.cpp
+  struct State;  // lane registers, in lobe_lane_fit.cpp
 
   // Every problem's start material, kFloatLanes problems per pass.
-  void GridStarts(std::span<const BlinnPhongProblem> problems);
-  void Load(int lane, const BlinnPhongProblem& problem, const BlinnPhongMaterial& start);
+  void GridStarts(std::span<const LobeProblem> problems);
+  void Load(int lane, const LobeProblem& problem, const BlinnPhongMaterial& start);
 
   int lights_;
   BlinnPhongOptions options_;
+  LaneLobe lobe_ = LaneLobe::kBlinnPhong;
+  double min_shape_, max_shape_;  // the bounds of e (Blinn-Phong) or a (GGX)
+  Eigen::Vector3d view_ = Eigen::Vector3d::UnitZ();  // towards the camera (GGX's lobe reads it)
   // Per light: w (3), w_h (3), shared by every lane; or, with
   // per_lane_geometry_, each lane's in float, [(6 light + i) * kFloatLanes + lane].
   std::vector<double> geometry_;
