@@ -383,8 +383,8 @@ double BlinnPhongChi2(const PixelSamples& s, const Eigen::Vector3d& view, const 
 // A GGX lobe fitted to a pixel's usable samples from `start`'s normal: rho_d
 // and rho_s from the best point of the roughness grid (weighted least
 // squares, both non-negative), then Levenberg-Marquardt on all six
-// parameters with Jacobians from solvers/autodiff: GGX's closed form beside
-// the lane fitter's, else by `options.derivative`.
+// parameters with Jacobians from solvers/autodiff by `options.derivative`
+// (the per-pixel reference of the lanes' GGX fit, lobe_lane_fit.h).
 PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& start,
                 const BlinnPhongOptions& options, solvers::autodiff::Tape* tape) {
   const int n = s.size();
@@ -420,11 +420,8 @@ PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelF
   }
   if (!std::isfinite(best)) return PixelFit{};
   auto project = [](Eigen::Matrix<double, 6, 1>* q) { ProjectLobe(kMinGgxRoughness, kMaxGgxRoughness, q); };
-  BlinnPhongOptions derivatives = options;
-  if (options.fitter == BlinnPhongOptions::Fitter::kLanes)
-    derivatives.derivative = solvers::autodiff::DerivativeMethod::kSymbolic;
-  const LobeCost<solvers::autodiff::GgxPixel> cost_at(pixel, &solvers::autodiff::GgxResidualsAndJacobian, m,
-                                                      derivatives, tape);
+  const LobeCost<solvers::autodiff::GgxPixel> cost_at(pixel, &solvers::autodiff::GgxResidualsAndJacobian, m, options,
+                                                      tape);
   double cost = 0.0;
   if (!cost_at(p, true, &cost) || !std::isfinite(cost)) return PixelFit{};
   cost = LevenbergMarquardt(&p, cost, m.inverse_sigma, cost_at.residuals(), cost_at.jacobian(), cost_at, project,

@@ -101,23 +101,36 @@ void StoreSums(const LaneSums& acc, LaneEquations* out) {
   }
 }
 
+// A LanePoint in float, one array per quantity, so that each lane loop reads
+// whole registers.
+struct alignas(64) FloatLanePoint {
+  float nx[kFloatLanes], ny[kFloatLanes], nz[kFloatLanes], t[2][3][kFloatLanes];
+  float rho_d[kFloatLanes], rho_s[kFloatLanes], shape[kFloatLanes];  // shape: e or a
+};
+PHOTORIG_LANE_INLINE void ToFloat(const LanePoint& q, FloatLanePoint* f) {
+#pragma omp simd
+  for (int j = 0; j < kFloatLanes; ++j) {
+    f->nx[j] = static_cast<float>(q.normal[0][j]), f->ny[j] = static_cast<float>(q.normal[1][j]);
+    f->nz[j] = static_cast<float>(q.normal[2][j]);
+    for (int i = 0; i < 3; ++i)
+      f->t[0][i][j] = static_cast<float>(q.tangent[0][i][j]), f->t[1][i][j] = static_cast<float>(q.tangent[1][i][j]);
+    f->rho_d[j] = static_cast<float>(q.diffuse_albedo[j]), f->rho_s[j] = static_cast<float>(q.specular_albedo[j]);
+    f->shape[j] = static_cast<float>(q.exponent[j]);
+  }
+}
+
 template <bool kPerLane>
 PHOTORIG_LANE_INLINE void EvaluateLanesOf(const LanePoint& q, int lights, const float* geometry, const float* observed,
                                           const float* inverse_sigma, LaneEquations* out) {
   constexpr float kInvPiF = static_cast<float>(kInvPi);
-  // The point in float, one array per quantity, so that each lane loop reads
-  // whole registers.
-  alignas(64) float nx[kFloatLanes], ny[kFloatLanes], nz[kFloatLanes], t[2][3][kFloatLanes];
-  alignas(64) float rho_d[kFloatLanes], rho_s[kFloatLanes], exponent[kFloatLanes], lobe_scale[kFloatLanes];
+  FloatLanePoint point;
+  ToFloat(q, &point);
+  const auto &nx = point.nx, &ny = point.ny, &nz = point.nz, &rho_d = point.rho_d, &rho_s = point.rho_s;
+  const auto& t = point.t;
+  const auto& exponent = point.shape;
+  alignas(64) float lobe_scale[kFloatLanes];
 #pragma omp simd
   for (int j = 0; j < kFloatLanes; ++j) {
-    nx[j] = static_cast<float>(q.normal[0][j]), ny[j] = static_cast<float>(q.normal[1][j]);
-    nz[j] = static_cast<float>(q.normal[2][j]);
-    t[0][0][j] = static_cast<float>(q.tangent[0][0][j]), t[0][1][j] = static_cast<float>(q.tangent[0][1][j]);
-    t[0][2][j] = static_cast<float>(q.tangent[0][2][j]), t[1][0][j] = static_cast<float>(q.tangent[1][0][j]);
-    t[1][1][j] = static_cast<float>(q.tangent[1][1][j]), t[1][2][j] = static_cast<float>(q.tangent[1][2][j]);
-    rho_d[j] = static_cast<float>(q.diffuse_albedo[j]), rho_s[j] = static_cast<float>(q.specular_albedo[j]);
-    exponent[j] = static_cast<float>(q.exponent[j]);
     lobe_scale[j] = static_cast<float>(q.specular_albedo[j] * (q.exponent[j] + 2.0) * (0.5 * kInvPi));
   }
   alignas(64) LaneSums acc = {};
@@ -180,18 +193,15 @@ PHOTORIG_LANE_INLINE void LaneGgxG1(float c, float a2, float* value, float* d_co
 PHOTORIG_LANE_INLINE void EvaluateGgxLanesOf(const LanePoint& q, int lights, const float* geometry, const float* view,
                                              const float* observed, const float* inverse_sigma, LaneEquations* out) {
   constexpr float kInvPiF = static_cast<float>(kInvPi);
-  alignas(64) float nx[kFloatLanes], ny[kFloatLanes], nz[kFloatLanes], t[2][3][kFloatLanes];
-  alignas(64) float rho_d[kFloatLanes], rho_s[kFloatLanes], a2[kFloatLanes], two_a[kFloatLanes];
+  FloatLanePoint point;
+  ToFloat(q, &point);
+  const auto &nx = point.nx, &ny = point.ny, &nz = point.nz, &rho_d = point.rho_d, &rho_s = point.rho_s;
+  const auto& t = point.t;
+  alignas(64) float a2[kFloatLanes], two_a[kFloatLanes];
   alignas(64) float s_unit[kFloatLanes], s_d_cos_view[kFloatLanes], s_d_a2[kFloatLanes], v_t[2][kFloatLanes];
 #pragma omp simd
   for (int j = 0; j < kFloatLanes; ++j) {
-    nx[j] = static_cast<float>(q.normal[0][j]), ny[j] = static_cast<float>(q.normal[1][j]);
-    nz[j] = static_cast<float>(q.normal[2][j]);
-    t[0][0][j] = static_cast<float>(q.tangent[0][0][j]), t[0][1][j] = static_cast<float>(q.tangent[0][1][j]);
-    t[0][2][j] = static_cast<float>(q.tangent[0][2][j]), t[1][0][j] = static_cast<float>(q.tangent[1][0][j]);
-    t[1][1][j] = static_cast<float>(q.tangent[1][1][j]), t[1][2][j] = static_cast<float>(q.tangent[1][2][j]);
-    rho_d[j] = static_cast<float>(q.diffuse_albedo[j]), rho_s[j] = static_cast<float>(q.specular_albedo[j]);
-    const float a = static_cast<float>(q.exponent[j]);
+    const float a = point.shape[j];
     a2[j] = a * a, two_a[j] = 2.0f * a;
     // One select, the other clamps as max(): GCC gives up on a lane loop with more conditions.
     const float cos_view = view[0] * nx[j] + view[1] * ny[j] + view[2] * nz[j];
@@ -483,38 +493,43 @@ namespace {
 // grid, rho_d and rho_s >= 0 by weighted least squares in the model's two
 // linear columns (c / pi and the lobe per unit rho_s); the grid point with
 // the lowest chi-square wins, else rho_d = start_albedo with no lobe.
-// geometry: w then w_h per light, shared by the lanes.
+// cos_light and cos_half are max(0, w . n) and max(0, w_h . n) per sample;
+// an unlit sample (c = 0) has G1 = 0, so neither column has it.
 PHOTORIG_PS_MULTIVERSION
-void GgxGridStartLanes(int lights, const double* geometry, const Eigen::Vector3d& view,
-                       const double (&normal)[3][kFloatLanes], const double* observed, const double* weight,
-                       const double* start_albedo, LaneMaterial* out) {
-  alignas(64) double cos_view[kFloatLanes], bb[kFloatLanes] = {}, best_chi2[kFloatLanes];
+void GgxGridStartLanes(int lights, const double* cos_light, const double* cos_half, const double* cos_view,
+                       const double* observed, const double* weight, const double* start_albedo, LaneMaterial* out) {
+  alignas(64) double bb[kFloatLanes] = {}, best_chi2[kFloatLanes];
   for (int j = 0; j < kFloatLanes; ++j) {
-    cos_view[j] = view.x() * normal[0][j] + view.y() * normal[1][j] + view.z() * normal[2][j];
     best_chi2[j] = std::numeric_limits<double>::infinity();
     out->diffuse_albedo[j] = start_albedo[j], out->specular_albedo[j] = 0.0, out->exponent[j] = kGgxStartRoughness[5];
   }
-  for (int k = 0; k < lights; ++k)
-    for (int j = 0; j < kFloatLanes; ++j)
-      bb[j] += weight[k * kFloatLanes + j] * observed[k * kFloatLanes + j] * observed[k * kFloatLanes + j];
+  for (int k = 0; k < lights; ++k) {
+    const double* w = weight + k * kFloatLanes;
+    const double* b = observed + k * kFloatLanes;
+#pragma omp simd
+    for (int j = 0; j < kFloatLanes; ++j) bb[j] += w[j] * b[j] * b[j];
+  }
   for (const double roughness : kGgxStartRoughness) {
     const double a2 = roughness * roughness;
+    // S = a^2 G1(v . n) / (4 pi v . n), 0 where the lobe faces away.
     alignas(64) double s_unit[kFloatLanes], dd[kFloatLanes] = {}, dl[kFloatLanes] = {}, ll[kFloatLanes] = {},
                                             db[kFloatLanes] = {}, lb[kFloatLanes] = {};
     for (int j = 0; j < kFloatLanes; ++j)
       s_unit[j] = cos_view[j] > 0.0 ? a2 * solvers::autodiff::GgxG1(cos_view[j], a2).value * 0.25 * kInvPi / cos_view[j]
                                     : 0.0;
     for (int k = 0; k < lights; ++k) {
-      const double* g = geometry + 6 * k;
+      const double* c = cos_light + k * kFloatLanes;
+      const double* h = cos_half + k * kFloatLanes;
+      const double* w = weight + k * kFloatLanes;
+      const double* b = observed + k * kFloatLanes;
+#pragma omp simd
       for (int j = 0; j < kFloatLanes; ++j) {
-        const double c = g[0] * normal[0][j] + g[1] * normal[1][j] + g[2] * normal[2][j];
-        const double w = weight[k * kFloatLanes + j];
-        if (!(c > 0.0) || w == 0.0) continue;
-        const double h = std::max(0.0, g[3] * normal[0][j] + g[4] * normal[1][j] + g[5] * normal[2][j]);
-        const double t = h * h * (a2 - 1.0) + 1.0;
-        const double d = c * kInvPi, l = s_unit[j] * solvers::autodiff::GgxG1(c, a2).value / (t * t);
-        const double b = observed[k * kFloatLanes + j];
-        dd[j] += w * d * d, dl[j] += w * d * l, ll[j] += w * l * l, db[j] += w * d * b, lb[j] += w * l * b;
+        // The lobe S G1(c) / t^2 with G1 = 2 c / (c + sqrt(a^2 + (1 - a^2) c^2)): one root, one division.
+        const double t = h[j] * h[j] * (a2 - 1.0) + 1.0;
+        const double root = std::sqrt(a2 + (1.0 - a2) * c[j] * c[j]);
+        const double d = c[j] * kInvPi, l = s_unit[j] * 2.0 * c[j] / ((c[j] + root) * t * t);
+        dd[j] += w[j] * d * d, dl[j] += w[j] * d * l, ll[j] += w[j] * l * l;
+        db[j] += w[j] * d * b[j], lb[j] += w[j] * l * b[j];
       }
     }
     for (int j = 0; j < kFloatLanes; ++j) {
@@ -657,14 +672,6 @@ void LobeLaneFitter::GridStarts(std::span<const LobeProblem> problems) {
         weight_[k * kFloatLanes + j] = inverse_sigma * inverse_sigma;
       }
     }
-    if (lobe_ == LaneLobe::kGgx) {
-      LaneMaterial material;
-      GgxGridStartLanes(lights_, geometry_.data(), view_, normal, start_observed_.data(), weight_.data(), start_albedo,
-                        &material);
-      for (int j = 0; j < kFloatLanes && first + j < count; ++j)
-        starts_[first + j] = {material.diffuse_albedo[j], material.specular_albedo[j], material.exponent[j]};
-      continue;
-    }
     if (per_lane_geometry_) {
       for (int j = 0; j < kFloatLanes; ++j) {
         const double* g = first + j < count ? problems[first + j].geometry : nullptr;
@@ -685,6 +692,17 @@ void LobeLaneFitter::GridStarts(std::span<const LobeProblem> problems) {
           cos_half[j] = std::max(0.0, g[3] * normal[0][j] + g[4] * normal[1][j] + g[5] * normal[2][j]);
         }
       }
+    }
+    if (lobe_ == LaneLobe::kGgx) {
+      alignas(64) double cos_view[kFloatLanes];
+      for (int j = 0; j < kFloatLanes; ++j)
+        cos_view[j] = view_.x() * normal[0][j] + view_.y() * normal[1][j] + view_.z() * normal[2][j];
+      LaneMaterial material;
+      GgxGridStartLanes(lights_, cos_light_.data(), cos_half_.data(), cos_view, start_observed_.data(), weight_.data(),
+                        start_albedo, &material);
+      for (int j = 0; j < kFloatLanes && first + j < count; ++j)
+        starts_[first + j] = {material.diffuse_albedo[j], material.specular_albedo[j], material.exponent[j]};
+      continue;
     }
     // Problems with a shared lobe start from it, the others from the grid
     // (which overwrites its inputs, so it goes second).

@@ -70,10 +70,11 @@ struct RobustOptions {
 };
 
 struct BlinnPhongOptions {
-  // How the fit runs. kLanes: sixteen pixels at once, one per SIMD lane, with
-  // the closed-form derivatives evaluated in float (the tests check them
-  // against forward-mode automatic differentiation); several times faster
-  // than one pixel at a time (docs/performance.md).
+  // How the lobe fits (Blinn-Phong, and `auto`'s GGX) run. kLanes: sixteen
+  // pixels at once, one per SIMD lane, with the closed-form derivatives
+  // evaluated in float (the tests check them against forward-mode automatic
+  // differentiation); several times faster than one pixel at a time
+  // (docs/performance.md).
   // kPerPixel: one pixel at a time with Jacobians by `derivative`: the
   // reference, and the way to compare derivative methods.
   enum class Fitter { kLanes, kPerPixel };
