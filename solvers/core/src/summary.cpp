@@ -1,5 +1,6 @@
 #include "photorig/solvers/core/summary.h"
 
+#include <cstdio>
 #include <utility>
 
 namespace photorig::solvers::core {
@@ -27,6 +28,12 @@ bool Summary::IsSolutionUsable() const {
 void Summary::End(Termination how, std::string why) {
   termination = how;
   message = std::move(why);
+}
+
+std::string Summary::BriefReport() const {
+  char text[96];
+  std::snprintf(text, sizeof(text), "%s, %.1f ms (setup %.1f ms)", TerminationName(termination), total_ms, setup_ms);
+  return message.empty() ? std::string(text) : std::string(text) + ": " + message;
 }
 
 bool Refuse(std::string* why, std::string reason) {

@@ -43,6 +43,11 @@ struct Summary {
   // Ends the summary with `termination` and `why` (for the early returns of
   // invalid options, invalid input and failures).
   void End(Termination how, std::string why);
+
+  // One line: "success, 12.3 ms (setup 0.4 ms)" and ": message" when there is
+  // one. A family's summary that adds figures has a BriefReport of its own
+  // that says them (ps::SolverSummary's); summary_json.h gives the same as JSON.
+  std::string BriefReport() const;
 };
 
 // The refusal of an Options::IsValid: sets *why (when given) to `reason` and
