@@ -4,10 +4,10 @@ See docs/python.md for a tour.
 """
 
 from ._photorig import (Run, calibrate_color, calibrate_leds, calibrate_lights, eval_brdf, fit_brdf, open_run, read_merl,
-                        run_recipe, solve_ps, solve_svbrdf, solve_tomography, write_merl)
+                        run_recipe, solve_brdf, solve_ps, solve_svbrdf, solve_tomography, write_merl)
 from .client import Daemon, DaemonError
 
 __all__ = [
     "Daemon", "DaemonError", "Run", "calibrate_color", "calibrate_leds", "calibrate_lights", "eval_brdf", "fit_brdf",
-    "open_run", "read_merl", "run_recipe", "solve_ps", "solve_svbrdf", "solve_tomography", "write_merl",
+    "open_run", "read_merl", "run_recipe", "solve_brdf", "solve_ps", "solve_svbrdf", "solve_tomography", "write_merl",
 ]

@@ -1,11 +1,14 @@
 // photorig.read_merl, write_merl, eval_brdf and fit_brdf: measured-BRDF
 // tables and samples through the solver's own readers, writers and fits
 // (solvers/brdf/merl.h, measured.h, samples.h, table_fit.h), as `photorig
-// brdf eval`, `convert` and `fit` use them.
+// brdf eval`, `convert` and `fit` use them; solve_brdf: `photorig solve brdf
+// --run` in-process, through the same pipeline (brdf_solve.h).
 
 #include "arrays.h"
 #include "bindings.h"
 #include "choices.h"
+#include "run.h"
+#include "photorig/daemon/pipelines/brdf_solve.h"
 #include "photorig/daemon/pipelines/internal/brdf_report.h"
 #include "photorig/solvers/brdf/measured.h"
 #include "photorig/solvers/brdf/merl.h"
@@ -172,6 +175,43 @@ py::dict FitBrdf(const py::object& table_or_path, const std::optional<std::strin
   return FittedOf(fit.selection, doc);
 }
 
+// A gonioreflectometer run measured and fitted as `photorig solve brdf` does
+// it, its results folder written as the CLI writes it.
+py::dict SolveBrdf(const std::string& run_directory, const std::string& loss, const std::string& calibration,
+                   const std::optional<std::string>& out, bool accept_failed_capture) {
+  config::BrdfRequest request;
+  request.loss = ParseChoice(brdf::kFitLossNames, loss, "loss");
+  request.calibrate_with_target = ParseChoice(config::BrdfRequest::kCalibrationNames, calibration, "calibration");
+  const std::string destination = ResultsFolder(run_directory, out, "brdf");
+  daemon::BrdfSolveResult result;
+  {
+    py::gil_scoped_release unlocked;
+    result = daemon::SolveBrdfAndWrite(run_directory, request, destination, FailedCapturePolicy(accept_failed_capture));
+  }
+  if (result.refused_input()) throw py::value_error(result.measurement.message);
+  py::dict solved;
+  solved["summary"] = ToPython(result.report);
+  solved["directory"] = result.results;
+  solved["model"] = py::none();
+  solved["parameters"] = py::none();
+  if (result.selection && result.selection->chosen) {
+    solved["model"] = brdf::ModelName(*result.selection->chosen);
+    solved["parameters"] = ToPython(result.report["candidates"][result.selection->chosen_index]);
+  }
+  // The samples as samples.csv holds them: wi, wo (n, 3) and f_r, sigma (n, 3) in 1/sr.
+  const std::vector<brdf::BrdfSample>& samples = result.measurement.samples;
+  const py::ssize_t n = static_cast<py::ssize_t>(samples.size());
+  py::array_t<double> wi({n, py::ssize_t{3}}), wo({n, py::ssize_t{3}}), value({n, py::ssize_t{3}}),
+      sigma({n, py::ssize_t{3}});
+  for (py::ssize_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      wi.mutable_at(i, c) = samples[i].wi[c], wo.mutable_at(i, c) = samples[i].wo[c];
+      value.mutable_at(i, c) = samples[i].value[c], sigma.mutable_at(i, c) = samples[i].sigma[c];
+    }
+  solved["wi"] = wi, solved["wo"] = wo, solved["value"] = value, solved["sigma"] = sigma;
+  return solved;
+}
+
 }  // namespace
 
 void BindBrdf(py::module_& m) {
@@ -191,6 +231,19 @@ void BindBrdf(py::module_& m) {
         "None), parameters (its report entry) and summary, report.json's fields. Options are the CLI's (loss: None "
         "for log on a table, which carries no deviations, and weighted on samples; samples: a table's cells the "
         "fits see).");
+  m.def(
+      "solve_brdf",
+      [](py::object run, const std::string& loss, const std::string& calibration, const std::optional<std::string>& out,
+         bool accept_failed_capture) { return SolveBrdf(RunDirectory(run), loss, calibration, out, accept_failed_capture); },
+      py::arg("run"), py::kw_only(), py::arg("loss") = brdf::FitLossName(config::BrdfRequest().loss),
+      py::arg("calibration") = solvers::core::NameOf(config::BrdfRequest::kCalibrationNames,
+                                                     config::BrdfRequest().calibrate_with_target),
+      py::arg("out") = py::none(), py::arg("accept_failed_capture") = false,
+      "A gonioreflectometer run (a Run or its directory) measured and fitted as `photorig solve brdf --run`, "
+      "which writes results/brdf (or `out`) as the CLI does: model (the chosen one's name, or None), parameters "
+      "(its report entry), the samples (wi, wo, value and sigma, (n, 3) each, f_r in 1/sr), directory and "
+      "summary, report.json's fields. Options are the CLI's (loss: weighted | log; calibration: reference | "
+      "camera). ValueError for options or run data the solve refuses.");
 }
 
 }  // namespace photorig::python
