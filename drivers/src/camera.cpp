@@ -13,8 +13,7 @@ const char* CameraStateName(Camera::State state) {
 }
 
 Status Camera::IllegalTransition(const char* action) const {
-  return {StatusCode::kFailedPrecondition,
-          "camera " + id_ + ": cannot " + action + " while " + CameraStateName(state_)};
+  return Device::IllegalTransition(action, CameraStateName(state_));
 }
 
 Status Camera::Open() {
@@ -45,19 +44,19 @@ Status Camera::Start() {
 Status Camera::Trigger() {
   if (state_ != State::kStreaming) return IllegalTransition("trigger");
   if (settings_.trigger != TriggerMode::kSoftware)
-    return {StatusCode::kFailedPrecondition, "camera " + id_ + ": software trigger while not in software trigger mode"};
+    return DeviceError(StatusCode::kFailedPrecondition, "software trigger while not in software trigger mode");
   return DoTrigger();
 }
 
 Result<Frame> Camera::WaitFrame(int timeout_ms) {
   if (state_ != State::kStreaming) return IllegalTransition("wait for a frame");
-  if (timeout_ms <= 0) return Status{StatusCode::kInvalidArgument, "camera " + id_ + ": timeout_ms must be > 0"};
+  if (timeout_ms <= 0) return DeviceError(StatusCode::kInvalidArgument, "timeout_ms must be > 0");
   auto frame = DoWaitFrame(timeout_ms);
   // Every driver gets the same check: a frame shorter than its geometry is data loss, not a frame.
   if (frame.ok() && frame->pixels.size() != static_cast<std::size_t>(frame->width) * frame->height)
-    return Status{StatusCode::kDataLoss, "camera " + id_ + ": frame " + std::to_string(frame->frame_id) + " is short (" +
-                                             std::to_string(frame->pixels.size()) + " of " +
-                                             std::to_string(frame->width * frame->height) + " pixels)"};
+    return DeviceError(StatusCode::kDataLoss, "frame " + std::to_string(frame->frame_id) + " is short (" +
+                                                  std::to_string(frame->pixels.size()) + " of " +
+                                                  std::to_string(frame->width * frame->height) + " pixels)");
   return frame;
 }
 

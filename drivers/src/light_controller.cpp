@@ -4,7 +4,7 @@ namespace photorig::drivers {
 
 Status LightController::Open() {
   if (state_ != State::kClosed)
-    return {StatusCode::kFailedPrecondition, "light controller " + id_ + ": already open"};
+    return DeviceError(StatusCode::kFailedPrecondition, "already open");
   Status status = DoOpen();
   if (!status.ok()) return status;
   state_ = State::kOpen;
@@ -14,16 +14,14 @@ Status LightController::Open() {
 
 Status LightController::SetPattern(const LightPattern& pattern) {
   if (state_ != State::kOpen)
-    return {StatusCode::kFailedPrecondition, "light controller " + id_ + ": set pattern while closed"};
+    return DeviceError(StatusCode::kFailedPrecondition, "set pattern while closed");
   if (static_cast<int>(pattern.levels.size()) != channel_count())
-    return {StatusCode::kInvalidArgument, "light controller " + id_ + ": pattern has " +
-                                              std::to_string(pattern.levels.size()) + " channels, device has " +
-                                              std::to_string(channel_count())};
+    return DeviceError(StatusCode::kInvalidArgument, "pattern has " + std::to_string(pattern.levels.size()) +
+                                                         " channels, device has " + std::to_string(channel_count()));
   for (std::size_t i = 0; i < pattern.levels.size(); ++i) {
     if (!(pattern.levels[i] >= 0.0 && pattern.levels[i] <= 1.0))
-      return {StatusCode::kInvalidArgument, "light controller " + id_ + ": channel " + std::to_string(i) +
-                                                " level " + std::to_string(pattern.levels[i]) +
-                                                " outside [0, 1]"};
+      return DeviceError(StatusCode::kInvalidArgument, "channel " + std::to_string(i) + " level " +
+                                                           std::to_string(pattern.levels[i]) + " outside [0, 1]");
   }
   return DoSetPattern(pattern);
 }
@@ -32,13 +30,13 @@ Status LightController::AllOff() { return SetPattern(LightPattern::AllOff(channe
 
 Result<LightPattern> LightController::ReadBack() {
   if (state_ != State::kOpen)
-    return Status{StatusCode::kFailedPrecondition, "light controller " + id_ + ": read back while closed"};
+    return DeviceError(StatusCode::kFailedPrecondition, "read back while closed");
   return DoReadBack();
 }
 
 Status LightController::KeepAlive() {
   if (state_ != State::kOpen)
-    return {StatusCode::kFailedPrecondition, "light controller " + id_ + ": keep-alive while closed"};
+    return DeviceError(StatusCode::kFailedPrecondition, "keep-alive while closed");
   return DoKeepAlive();
 }
 

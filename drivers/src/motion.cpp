@@ -45,14 +45,14 @@ const char* MotionStateName(Motion::State state) {
 }
 
 Motion::Motion(std::string id, AxisLimits limits, SettleOptions settle)
-    : id_(std::move(id)), limits_(limits), settle_(settle) {}
+    : Device("axis", std::move(id)), limits_(limits), settle_(settle) {}
 
 Motion::~Motion() { SafetyNet::Remove(this); }
 
 Status Motion::IllegalTransition(const char* action) const {
-  return {StatusCode::kFailedPrecondition,
-          "axis " + id_ + ": cannot " + action + " while " + MotionStateName(state_) +
-              (state_ == State::kFault ? " (" + fault_reason_ + "; clear the fault first)" : "")};
+  std::string state = MotionStateName(state_);
+  if (state_ == State::kFault) state += " (" + fault_reason_ + "; clear the fault first)";
+  return Device::IllegalTransition(action, state);
 }
 
 Status Motion::EnterFault(StatusCode code, const std::string& reason) {
@@ -60,19 +60,19 @@ Status Motion::EnterFault(StatusCode code, const std::string& reason) {
   state_ = State::kFault;
   homed_ = false;  // after a fault the position is not trusted until homed again
   fault_reason_ = reason + (stopped.ok() ? "" : "; stop failed: " + stopped.message());
-  return {code, "axis " + id_ + ": " + fault_reason_};
+  return DeviceError(code, fault_reason_);
 }
 
 Status Motion::Open() {
   if (state_ != State::kClosed) return IllegalTransition("open");
   std::string why;
-  if (!settle_.IsValid(&why)) return {StatusCode::kInvalidArgument, "axis " + id_ + ": " + why};
+  if (!settle_.IsValid(&why)) return DeviceError(StatusCode::kInvalidArgument, why);
   if (!(limits_.min_deg < limits_.max_deg))
-    return {StatusCode::kInvalidArgument, "axis " + id_ + ": soft limits need min_deg < max_deg"};
+    return DeviceError(StatusCode::kInvalidArgument, "soft limits need min_deg < max_deg");
   if (!limits_.Contains(limits_.home_deg))
-    return {StatusCode::kInvalidArgument, "axis " + id_ + ": home " + Degrees(limits_.home_deg) +
-                                              " outside its soft limits [" + Degrees(limits_.min_deg) + ", " +
-                                              Degrees(limits_.max_deg) + "]"};
+    return DeviceError(StatusCode::kInvalidArgument, "home " + Degrees(limits_.home_deg) +
+                                                         " outside its soft limits [" + Degrees(limits_.min_deg) +
+                                                         ", " + Degrees(limits_.max_deg) + "]");
   Status status = DoOpen();
   if (!status.ok()) return status;
   state_ = State::kOpen;
@@ -99,10 +99,11 @@ Status Motion::Home() {
 Status Motion::MoveTo(double target_deg, const MotionProfile& profile) {
   if (state_ != State::kIdle) return IllegalTransition(state_ == State::kOpen ? "move before homing" : "move");
   if (!limits_.Contains(target_deg))
-    return {StatusCode::kInvalidArgument, "axis " + id_ + ": target " + Degrees(target_deg) + " outside soft limits [" +
-                                              Degrees(limits_.min_deg) + ", " + Degrees(limits_.max_deg) + "]"};
+    return DeviceError(StatusCode::kInvalidArgument, "target " + Degrees(target_deg) + " outside soft limits [" +
+                                                         Degrees(limits_.min_deg) + ", " + Degrees(limits_.max_deg) +
+                                                         "]");
   if (!(profile.velocity_deg_s > 0) || !(profile.acceleration_deg_s2 > 0))
-    return {StatusCode::kInvalidArgument, "axis " + id_ + ": velocity and acceleration must be > 0"};
+    return DeviceError(StatusCode::kInvalidArgument, "velocity and acceleration must be > 0");
   Result<AxisStatus> start = ReadStatus();
   if (!start.ok()) return EnterFault(start.status().code(), start.status().message());
   Status status = DoStartMove(target_deg - limits_.home_deg, profile);

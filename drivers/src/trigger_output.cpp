@@ -15,8 +15,7 @@ const char* TriggerOutputStateName(TriggerOutput::State state) {
 TriggerOutput::~TriggerOutput() { SafetyNet::Remove(this); }
 
 Status TriggerOutput::IllegalTransition(const char* action) const {
-  return {StatusCode::kFailedPrecondition,
-          "trigger " + id_ + ": cannot " + action + " while " + TriggerOutputStateName(state_)};
+  return Device::IllegalTransition(action, TriggerOutputStateName(state_));
 }
 
 Status TriggerOutput::Open() {
@@ -30,7 +29,7 @@ Status TriggerOutput::Open() {
 
 Status TriggerOutput::Fire(std::chrono::microseconds width) {
   if (state_ != State::kOpen) return IllegalTransition("fire");
-  if (width.count() <= 0) return {StatusCode::kInvalidArgument, "trigger " + id_ + ": pulse width must be > 0"};
+  if (width.count() <= 0) return DeviceError(StatusCode::kInvalidArgument, "pulse width must be > 0");
   return DoFire(width);
 }
 

@@ -13,12 +13,13 @@
 namespace photorig::python {
 namespace {
 
-py::dict SolvePs(const std::string& run_directory, const std::string& method, const std::string& derivative,
+py::dict SolvePs(const py::object& run, const std::string& method, const std::string& derivative,
                  const std::string& integrator, double shadow_threshold_sigma, double max_condition_number,
                  bool assume_distant, double max_distant_bias_deg, bool fill_unresolved,
                  const std::optional<std::string>& mask, const std::optional<std::string>& rig,
                  const std::string& demosaic, const std::optional<std::string>& color_model,
                  bool accept_failed_capture, py::object progress) {
+  const std::string run_directory = RunDirectory(run);
   config::PhotometricStereoRequest request;
   request.method = ParseChoice(solvers::ps::kMethodNames, method, "method");
   request.derivative = ParseChoice(solvers::ps::kBlinnPhongDerivativeNames, derivative, "derivative");
@@ -67,31 +68,21 @@ py::dict SolvePs(const std::string& run_directory, const std::string& method, co
 
 void BindPs(py::module_& m) {
   const config::PhotometricStereoRequest defaults;
-  m.def(
-      "solve_ps",
-      [](py::object run, const std::string& method, const std::string& derivative, const std::string& integrator,
-         double shadow_threshold_sigma, double max_condition_number, bool assume_distant, double max_distant_bias_deg,
-         bool fill_unresolved, const std::optional<std::string>& mask, const std::optional<std::string>& rig,
-         const std::string& demosaic, const std::optional<std::string>& color_model, bool accept_failed_capture,
-         py::object progress) {
-        return SolvePs(RunDirectory(run), method, derivative, integrator, shadow_threshold_sigma, max_condition_number,
-                       assume_distant, max_distant_bias_deg, fill_unresolved, mask, rig, demosaic, color_model,
-                       accept_failed_capture, std::move(progress));
-      },
-      py::arg("run"), py::kw_only(), py::arg("method") = solvers::ps::MethodName(defaults.method),
-      py::arg("derivative") = solvers::core::NameOf(solvers::ps::kBlinnPhongDerivativeNames, defaults.derivative),
-      py::arg("integrator") = config::IntegratorChoiceName(defaults.integrator),
-      py::arg("shadow_threshold_sigma") = defaults.shadow_threshold_sigma,
-      py::arg("max_condition_number") = defaults.max_condition_number,
-      py::arg("assume_distant") = defaults.assume_distant,
-      py::arg("max_distant_bias_deg") = defaults.max_distant_bias_deg,
-      py::arg("fill_unresolved") = defaults.fill_unresolved, py::arg("mask") = py::none(), py::arg("rig") = py::none(),
-      py::arg("demosaic") = "bilinear", py::arg("color_model") = py::none(),
-      py::arg("accept_failed_capture") = false, py::arg("progress") = py::none(),
-      "Photometric stereo on a run (a Run or its directory), as `photorig solve ps --run`: a dict of arrays "
-      "(normals, albedo, confidence, flags, model, specular, usable_lights, depth, angular_error_deg) and "
-      "summary, report.json's fields. Options are the recipe's photometric_stereo keys; rig: a rig file whose LEDs "
-      "and camera replace the run's (`--rig`, a calibration made after the capture).");
+  m.def("solve_ps", &SolvePs, py::arg("run"), py::kw_only(),
+        py::arg("method") = solvers::ps::MethodName(defaults.method),
+        py::arg("derivative") = solvers::core::NameOf(solvers::ps::kBlinnPhongDerivativeNames, defaults.derivative),
+        py::arg("integrator") = config::IntegratorChoiceName(defaults.integrator),
+        py::arg("shadow_threshold_sigma") = defaults.shadow_threshold_sigma,
+        py::arg("max_condition_number") = defaults.max_condition_number,
+        py::arg("assume_distant") = defaults.assume_distant,
+        py::arg("max_distant_bias_deg") = defaults.max_distant_bias_deg,
+        py::arg("fill_unresolved") = defaults.fill_unresolved, py::arg("mask") = py::none(),
+        py::arg("rig") = py::none(), py::arg("demosaic") = "bilinear", py::arg("color_model") = py::none(),
+        py::arg("accept_failed_capture") = false, py::arg("progress") = py::none(),
+        "Photometric stereo on a run (a Run or its directory), as `photorig solve ps --run`: a dict of arrays "
+        "(normals, albedo, confidence, flags, model, specular, usable_lights, depth, angular_error_deg) and "
+        "summary, report.json's fields. Options are the recipe's photometric_stereo keys; rig: a rig file whose LEDs "
+        "and camera replace the run's (`--rig`, a calibration made after the capture).");
 }
 
 }  // namespace photorig::python

@@ -30,9 +30,12 @@ config::SvbrdfRequest SvbrdfRequestOf(const std::string& method, int max_materia
   return request;
 }
 
-py::dict SolveSvbrdf(const std::string& run_directory, config::SvbrdfRequest request,
-                     const std::optional<std::string>& mask, const std::optional<std::string>& out,
-                     const std::string& demosaic, bool accept_failed_capture, py::object progress) {
+py::dict SolveSvbrdf(const py::object& run, const std::string& method, int max_materials, int held_out,
+                     bool refine_normals, bool export_gltf, const std::optional<std::string>& mask,
+                     const std::optional<std::string>& out, const std::string& demosaic, bool accept_failed_capture,
+                     py::object progress) {
+  const std::string run_directory = RunDirectory(run);
+  config::SvbrdfRequest request = SvbrdfRequestOf(method, max_materials, held_out, refine_normals, export_gltf);
   daemon::ColorStackOptions color;
   color.demosaic = ParseChoice(solvers::color::kDemosaicMethodNames, demosaic, "demosaic");
   const std::string destination = ResultsFolder(run_directory, out, "svbrdf");
@@ -66,25 +69,17 @@ py::dict SolveSvbrdf(const std::string& run_directory, config::SvbrdfRequest req
 
 void BindSvbrdf(py::module_& m) {
   const config::SvbrdfRequest defaults;
-  m.def(
-      "solve_svbrdf",
-      [](py::object run, const std::string& method, int max_materials, int held_out, bool refine_normals,
-         bool export_gltf, const std::optional<std::string>& mask, const std::optional<std::string>& out,
-         const std::string& demosaic, bool accept_failed_capture, py::object progress) {
-        return SolveSvbrdf(RunDirectory(run),
-                           SvbrdfRequestOf(method, max_materials, held_out, refine_normals, export_gltf), mask, out,
-                           demosaic, accept_failed_capture, std::move(progress));
-      },
-      py::arg("run"), py::kw_only(), py::arg("method") = solvers::ps::MethodName(defaults.ps.method),
-      py::arg("max_materials") = defaults.max_materials, py::arg("held_out") = defaults.held_out_lights,
-      py::arg("refine_normals") = defaults.refine_normals, py::arg("export_gltf") = defaults.export_gltf,
-      py::arg("mask") = py::none(), py::arg("out") = py::none(), py::arg("demosaic") = "bilinear",
-      py::arg("accept_failed_capture") = false, py::arg("progress") = py::none(),
-      "Spatially varying reflectance of a run (a Run or its directory), as `photorig solve svbrdf --run`: "
-      "writes the same results folder (out, default RUN/results/svbrdf) and returns a dict of arrays (albedo, "
-      "material, flags, normals), summary, report.json's fields, and directory, the folder written. Options are "
-      "the CLI's: method (photometric stereo's, for the normals), max_materials, held_out (-1 skips the check), "
-      "refine_normals, export_gltf (`--no-gltf`), demosaic.");
+  m.def("solve_svbrdf", &SolveSvbrdf, py::arg("run"), py::kw_only(),
+        py::arg("method") = solvers::ps::MethodName(defaults.ps.method),
+        py::arg("max_materials") = defaults.max_materials, py::arg("held_out") = defaults.held_out_lights,
+        py::arg("refine_normals") = defaults.refine_normals, py::arg("export_gltf") = defaults.export_gltf,
+        py::arg("mask") = py::none(), py::arg("out") = py::none(), py::arg("demosaic") = "bilinear",
+        py::arg("accept_failed_capture") = false, py::arg("progress") = py::none(),
+        "Spatially varying reflectance of a run (a Run or its directory), as `photorig solve svbrdf --run`: "
+        "writes the same results folder (out, default RUN/results/svbrdf) and returns a dict of arrays (albedo, "
+        "material, flags, normals), summary, report.json's fields, and directory, the folder written. Options are "
+        "the CLI's: method (photometric stereo's, for the normals), max_materials, held_out (-1 skips the check), "
+        "refine_normals, export_gltf (`--no-gltf`), demosaic.");
 }
 
 }  // namespace photorig::python

@@ -6,22 +6,21 @@
 
 #include "../command.h"
 #include "../command_output.h"
+#include "calibration_outputs.h"
 #include "photorig/daemon/pipelines/led_positions.h"
 
 #include <cmath>
-#include <filesystem>
 #include <iostream>
 #include <sstream>
 
 namespace photorig::app {
 namespace {
 
-namespace fs = std::filesystem;
-
 struct Options {
-  std::string run_dir, rig, out_rig, out;
+  std::string run_dir;
   std::vector<std::string> spheres;
   double radius_mm = 0.0;
+  CalibrationOutputs outputs;
 };
 
 // "X,Y" or "X,Y,Z" in millimetres; false for anything else.
@@ -54,11 +53,11 @@ int Execute(const Options& o) {
   if (request.sphere_centres_mm.size() < 2)
     return Fail(kExitUsage, "give --sphere X,Y[,Z] for each of two or more mirror spheres");
   request.sphere_radius_mm = o.radius_mm;
-  request.base_rig = o.out_rig.empty() ? "" : o.rig;
-  request.out_rig = o.out_rig;
+  request.base_rig = o.outputs.BaseRig();
+  request.out_rig = o.outputs.out_rig;
   if (std::string why; !request.IsValid(&why)) return Fail(kExitUsage, why);
 
-  const std::string out = o.out.empty() ? (fs::path(o.run_dir) / "results" / "leds").string() : o.out;
+  const std::string out = o.outputs.Directory(o.run_dir, "leds");
   const daemon::LedPositionCalibration result =
       daemon::CalibrateLedPositions(daemon::LoadLedPositionInputs(o.run_dir), request, out);
   if (result.bad_input) return Fail(kExitUsage, result.message);
@@ -84,9 +83,7 @@ CLI::App* Setup(CLI::App& app, Options* o) {
       ->expected(1)
       ->take_all();
   leds->add_option("--radius-mm", o->radius_mm, "the spheres' radius")->required();
-  leds->add_option("--rig", o->rig, "rig YAML to copy with the calibrated positions")->check(CLI::ExistingFile);
-  leds->add_option("--out-rig", o->out_rig, "new rig YAML to write");
-  leds->add_option("--out", o->out, "output directory (default: RUN/results/leds)");
+  AddCalibrationOutputOptions(leds, &o->outputs, "rig YAML to copy with the calibrated positions", "leds");
   return leds;
 }
 

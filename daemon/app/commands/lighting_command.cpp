@@ -7,6 +7,7 @@
 
 #include "../command.h"
 #include "../command_output.h"
+#include "calibration_outputs.h"
 #include "photorig/daemon/pipelines/light_calibration.h"
 #include "photorig/config/rig.h"
 #include "photorig/config/sim.h"
@@ -25,11 +26,12 @@ namespace {
 namespace fs = std::filesystem;
 
 struct Options {
-  std::string run_dir, silhouette, rig, out_rig, out;
+  std::string run_dir, silhouette;
   solvers::lighting::CameraModel camera;  // --camera and its intrinsics (fy 0: fx)
   std::vector<std::string> images, white_images;
   std::vector<double> circle;
   double radius_mm = 0;
+  CalibrationOutputs outputs;
 };
 
 cv::Mat ReadSingleChannel(const std::string& path) {
@@ -40,10 +42,10 @@ cv::Mat ReadSingleChannel(const std::string& path) {
 
 int Execute(const Options& o) {
   // Nothing is written outside --out or, by default, the run's own results.
-  if (o.out.empty() && o.run_dir.empty()) {
+  if (o.outputs.out.empty() && o.run_dir.empty()) {
     return Fail(kExitUsage, "calibrate lights: give --out DIR for the outputs (with --run they default to RUN/results/lights)");
   }
-  const std::string out = o.out.empty() ? (fs::path(o.run_dir) / "results" / "lights").string() : o.out;
+  const std::string out = o.outputs.Directory(o.run_dir, "lights");
   daemon::LightCalibrationInputs inputs;
   if (!o.run_dir.empty()) {
     inputs = daemon::LoadLightCalibrationInputs(o.run_dir);
@@ -52,8 +54,8 @@ int Execute(const Options& o) {
       inputs.frames.push_back(ReadSingleChannel(path));
       inputs.names.push_back(fs::path(path).filename().string());
     }
-    if (!o.rig.empty()) {  // nominal directions for locating the sphere from its highlights
-      const config::RigConfig rig = config::LoadRigConfig(o.rig);
+    if (!o.outputs.rig.empty()) {  // nominal directions for locating the sphere from its highlights
+      const config::RigConfig rig = config::LoadRigConfig(o.outputs.rig);
       for (const auto& led : rig.lights.leds) inputs.nominal_directions.push_back(led.direction);
       inputs.pixel_pitch_mm = rig.camera.pixel_pitch_mm;
       inputs.projection = rig.camera.projection;
@@ -71,8 +73,8 @@ int Execute(const Options& o) {
   if (o.circle.size() == 3) request.circle = solvers::lighting::Circle{o.circle[0], o.circle[1], o.circle[2]};
   request.silhouette_image = o.silhouette;
   request.sphere_radius_mm = o.radius_mm;
-  request.base_rig = o.out_rig.empty() ? "" : o.rig;
-  request.out_rig = o.out_rig;
+  request.base_rig = o.outputs.BaseRig();
+  request.out_rig = o.outputs.out_rig;
 
   const daemon::LightCalibrationSummary summary = daemon::CalibrateLights(inputs, request, out);
   std::cout << "sphere (" << daemon::SphereSourceName(summary.sphere_source) << "): centre " << summary.circle.cx_px << ", "
@@ -106,10 +108,9 @@ CLI::App* Setup(CLI::App& app, Options* o) {
   lights->add_option("--cx", o->camera.cx_px, "pinhole principal point x (px)");
   lights->add_option("--cy", o->camera.cy_px, "pinhole principal point y (px)");
   lights->add_option("--white-images", o->white_images, "white-sphere images, one per light")->check(CLI::ExistingFile);
-  lights->add_option("--rig", o->rig, "rig YAML to copy with the calibrated lights (and, with --images, the nominal directions)")
-      ->check(CLI::ExistingFile);
-  lights->add_option("--out-rig", o->out_rig, "new rig YAML to write");
-  lights->add_option("--out", o->out, "output directory (default: RUN/results/lights)");
+  AddCalibrationOutputOptions(lights, &o->outputs,
+                              "rig YAML to copy with the calibrated lights (and, with --images, the nominal directions)",
+                              "lights");
   return lights;
 }
 

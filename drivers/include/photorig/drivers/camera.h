@@ -9,6 +9,7 @@
 // Do* hook, so every driver (real or simulated) shares the same rules: an
 // illegal transition returns kFailedPrecondition and changes nothing.
 
+#include "photorig/drivers/device.h"
 #include "photorig/drivers/status.h"
 
 #include <cstdint>
@@ -68,16 +69,13 @@ struct CameraInfo {
   std::string error;
 };
 
-class Camera {
+class Camera : public Device {
  public:
   enum class State { kClosed, kOpen, kConfigured, kStreaming };
 
-  explicit Camera(std::string id) : id_(std::move(id)) {}
+  explicit Camera(std::string id) : Device("camera", std::move(id)) {}
   virtual ~Camera() = default;
-  Camera(const Camera&) = delete;
-  Camera& operator=(const Camera&) = delete;
 
-  const std::string& id() const { return id_; }
   State state() const { return state_; }
 
   Status Open();
@@ -104,7 +102,6 @@ class Camera {
   Status IllegalTransition(const char* action) const;
 
  private:
-  std::string id_;
   State state_ = State::kClosed;
   CameraSettings settings_;
 };

@@ -6,6 +6,7 @@
 // switches every channel off before releasing the device, so an owner that
 // closes on every exit path leaves the dome dark.
 
+#include "photorig/drivers/device.h"
 #include "photorig/drivers/status.h"
 
 #include <string>
@@ -30,16 +31,13 @@ struct LightPattern {
   }
 };
 
-class LightController {
+class LightController : public Device {
  public:
   enum class State { kClosed, kOpen };
 
-  explicit LightController(std::string id) : id_(std::move(id)) {}
+  explicit LightController(std::string id) : Device("light controller", std::move(id)) {}
   virtual ~LightController() = default;
-  LightController(const LightController&) = delete;
-  LightController& operator=(const LightController&) = delete;
 
-  const std::string& id() const { return id_; }
   State state() const { return state_; }
   virtual int channel_count() const = 0;
 
@@ -62,7 +60,6 @@ class LightController {
   virtual Status DoKeepAlive() { return Status::Ok(); }
 
  private:
-  std::string id_;
   State state_ = State::kClosed;
 };
 

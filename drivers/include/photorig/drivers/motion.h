@@ -12,6 +12,7 @@
 // detect stalls and overshoot; drivers implement the Do* hooks only. Close
 // stops the drive first, from any state.
 
+#include "photorig/drivers/device.h"
 #include "photorig/drivers/status.h"
 
 #include <string>
@@ -58,17 +59,14 @@ struct AxisStatus {
   std::string fault_text;   // the drive's reason, if it gives one
 };
 
-class Motion {
+class Motion : public Device {
  public:
   enum class State { kClosed, kOpen, kHoming, kIdle, kMoving, kFault };
 
   Motion(std::string id, AxisLimits limits, SettleOptions settle);
   // Implementations call Close() in their own destructor (the hooks are gone by the time this runs).
   virtual ~Motion();
-  Motion(const Motion&) = delete;
-  Motion& operator=(const Motion&) = delete;
 
-  const std::string& id() const { return id_; }
   State state() const { return state_; }
   const AxisLimits& limits() const { return limits_; }
   const std::string& fault_reason() const { return fault_reason_; }
@@ -97,7 +95,6 @@ class Motion {
   Status EnterFault(StatusCode code, const std::string& reason);
   Status WaitSettled(double start_deg, double target_deg, bool homing);
 
-  std::string id_;
   AxisLimits limits_;
   SettleOptions settle_;
   State state_ = State::kClosed;

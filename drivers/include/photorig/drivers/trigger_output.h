@@ -13,6 +13,7 @@
 // deasserted, from any state, and is safe to call twice. An open output is
 // registered with the SafetyNet, so it is released at exit as well.
 
+#include "photorig/drivers/device.h"
 #include "photorig/drivers/status.h"
 
 #include <chrono>
@@ -20,17 +21,14 @@
 
 namespace photorig::drivers {
 
-class TriggerOutput {
+class TriggerOutput : public Device {
  public:
   enum class State { kClosed, kOpen };
 
-  explicit TriggerOutput(std::string id) : id_(std::move(id)) {}
+  explicit TriggerOutput(std::string id) : Device("trigger", std::move(id)) {}
   // Implementations call Close() in their own destructor (the hooks are gone by the time this runs).
   virtual ~TriggerOutput();
-  TriggerOutput(const TriggerOutput&) = delete;
-  TriggerOutput& operator=(const TriggerOutput&) = delete;
 
-  const std::string& id() const { return id_; }
   State state() const { return state_; }
 
   // Claims the output, deasserted.
@@ -49,7 +47,6 @@ class TriggerOutput {
  private:
   Status IllegalTransition(const char* action) const;
 
-  std::string id_;
   State state_ = State::kClosed;
 };
 

@@ -48,6 +48,17 @@ T BlinnPhongShading(const Eigen::Matrix<T, 3, 1>& normal, const BlinnPhongLobe<T
   return (lobe.diffuse + lobe.specular * pow(cos_half, lobe.exponent)) * cos_light;
 }
 
+// The parameters of a pixel with one specular lobe, BlinnPhongPixel's and GgxPixel's alike: the
+// normal's 3 components, rho_d, rho_s, then the lobe's one shape parameter (Blinn-Phong's
+// exponent, GGX's roughness). One layout, so that one fitter serves both lobes.
+struct OneLobeParameters {
+  static constexpr int kNormal = 0;  // 3 components
+  static constexpr int kDiffuseAlbedo = 3;
+  static constexpr int kSpecularAlbedo = 4;
+  static constexpr int kLobeShape = 5;
+  static constexpr int kNumParameters = 6;
+};
+
 // Residual functor of one pixel for a photometric-stereo fit: residual_i = I_i - observed_i.
 //
 // Parameters (kNumParameters = 6): the normal as 3 unconstrained components m, normalised
@@ -58,13 +69,9 @@ T BlinnPhongShading(const Eigen::Matrix<T, 3, 1>& normal, const BlinnPhongLobe<T
 // are orthogonal to n): Levenberg-Marquardt damping handles that, and a fitter renormalises m
 // after each step to keep its scale near 1. A normal shorter than kDefaultMinNorm makes
 // evaluation fail (returns false) instead of producing NaN.
-class BlinnPhongPixel {
+class BlinnPhongPixel : public OneLobeParameters {
  public:
-  static constexpr int kNormal = 0;  // 3 components
-  static constexpr int kDiffuseAlbedo = 3;
-  static constexpr int kSpecularAlbedo = 4;
-  static constexpr int kExponent = 5;
-  static constexpr int kNumParameters = 6;
+  static constexpr int kExponent = kLobeShape;
 
   // light_directions: N x 3, rows towards each light (normalised here).
   // light_intensities, observed_intensities: N each; pass zeros as observed to render.

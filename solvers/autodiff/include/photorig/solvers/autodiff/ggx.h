@@ -30,13 +30,9 @@ namespace photorig::solvers::autodiff {
 // residual_i = I_i - observed_i. Parameters (kNumParameters = 6): the normal as 3 unconstrained
 // components normalised inside (as BlinnPhongPixel, for the same reason), rho_d, rho_s, a.
 // Lights, half vectors and intensities as BlinnPhongPixel's, which holds them.
-class GgxPixel {
+class GgxPixel : public OneLobeParameters {
  public:
-  static constexpr int kNormal = 0;  // 3 components
-  static constexpr int kDiffuseAlbedo = 3;
-  static constexpr int kSpecularAlbedo = 4;
-  static constexpr int kRoughness = 5;
-  static constexpr int kNumParameters = 6;
+  static constexpr int kRoughness = kLobeShape;
 
   GgxPixel(const Eigen::Matrix<double, Eigen::Dynamic, 3>& light_directions, Eigen::VectorXd light_intensities,
            const Eigen::Vector3d& view_direction, Eigen::VectorXd observed_intensities)
