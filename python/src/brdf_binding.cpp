@@ -177,8 +177,9 @@ py::dict FitBrdf(const py::object& table_or_path, const std::optional<std::strin
 
 // A gonioreflectometer run measured and fitted as `photorig solve brdf` does
 // it, its results folder written as the CLI writes it.
-py::dict SolveBrdf(const std::string& run_directory, const std::string& loss, const std::string& calibration,
+py::dict SolveBrdf(const py::object& run, const std::string& loss, const std::string& calibration,
                    const std::optional<std::string>& out, bool accept_failed_capture) {
+  const std::string run_directory = RunDirectory(run);
   config::BrdfRequest request;
   request.loss = ParseChoice(brdf::kFitLossNames, loss, "loss");
   request.calibrate_with_target = ParseChoice(config::BrdfRequest::kCalibrationNames, calibration, "calibration");
@@ -231,19 +232,16 @@ void BindBrdf(py::module_& m) {
         "None), parameters (its report entry) and summary, report.json's fields. Options are the CLI's (loss: None "
         "for log on a table, which carries no deviations, and weighted on samples; samples: a table's cells the "
         "fits see).");
-  m.def(
-      "solve_brdf",
-      [](py::object run, const std::string& loss, const std::string& calibration, const std::optional<std::string>& out,
-         bool accept_failed_capture) { return SolveBrdf(RunDirectory(run), loss, calibration, out, accept_failed_capture); },
-      py::arg("run"), py::kw_only(), py::arg("loss") = brdf::FitLossName(config::BrdfRequest().loss),
-      py::arg("calibration") = solvers::core::NameOf(config::BrdfRequest::kCalibrationNames,
-                                                     config::BrdfRequest().calibrate_with_target),
-      py::arg("out") = py::none(), py::arg("accept_failed_capture") = false,
-      "A gonioreflectometer run (a Run or its directory) measured and fitted as `photorig solve brdf --run`, "
-      "which writes results/brdf (or `out`) as the CLI does: model (the chosen one's name, or None), parameters "
-      "(its report entry), the samples (wi, wo, value and sigma, (n, 3) each, f_r in 1/sr), directory and "
-      "summary, report.json's fields. Options are the CLI's (loss: weighted | log; calibration: reference | "
-      "camera). ValueError for options or run data the solve refuses.");
+  const config::BrdfRequest defaults;
+  m.def("solve_brdf", &SolveBrdf, py::arg("run"), py::kw_only(), py::arg("loss") = brdf::FitLossName(defaults.loss),
+        py::arg("calibration") = solvers::core::NameOf(config::BrdfRequest::kCalibrationNames,
+                                                       defaults.calibrate_with_target),
+        py::arg("out") = py::none(), py::arg("accept_failed_capture") = false,
+        "A gonioreflectometer run (a Run or its directory) measured and fitted as `photorig solve brdf --run`, "
+        "which writes results/brdf (or `out`) as the CLI does: model (the chosen one's name, or None), parameters "
+        "(its report entry), the samples (wi, wo, value and sigma, (n, 3) each, f_r in 1/sr), directory and "
+        "summary, report.json's fields. Options are the CLI's (loss: weighted | log; calibration: reference | "
+        "camera). ValueError for options or run data the solve refuses.");
 }
 
 }  // namespace photorig::python
