@@ -1,6 +1,7 @@
 """Fixtures: the CLI and the runs it captures, which the module is compared with."""
 
 import json
+import math
 import os
 import subprocess
 from pathlib import Path
@@ -9,6 +10,15 @@ import pytest
 
 SOURCE_DIR = Path(os.environ.get("PHOTORIG_SOURCE_DIR", Path(__file__).resolve().parents[2]))
 BIN_DIR = Path(os.environ.get("PHOTORIG_BIN_DIR", SOURCE_DIR / "build" / "bin"))
+
+
+def as_written(value):
+    """A summary as report.json holds it: JSON writes NaN (a deviation not estimated) as null."""
+    if isinstance(value, dict):
+        return {key: as_written(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [as_written(item) for item in value]
+    return None if isinstance(value, float) and math.isnan(value) else value
 
 
 def photorig(*args):

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import photorig
+from conftest import as_written
 
 SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])  # MERL's channel scales (merl.h)
 
@@ -106,15 +107,6 @@ def samples_csv(tmp_path_factory):
     lines += [",".join(repr(float(v)) for v in row) for row in rows]
     path.write_text("\n".join(lines) + "\n")
     return path, len(rows)
-
-
-def as_written(value):
-    """A summary as report.json holds it: JSON writes NaN (a deviation not estimated) as null."""
-    if isinstance(value, dict):
-        return {key: as_written(item) for key, item in value.items()}
-    if isinstance(value, list):
-        return [as_written(item) for item in value]
-    return None if isinstance(value, float) and math.isnan(value) else value
 
 
 def test_samples_fit_is_the_clis(samples_csv, cli, tmp_path):

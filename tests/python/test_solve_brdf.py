@@ -1,28 +1,18 @@
 """photorig.solve_brdf against `photorig solve brdf` on the same gonioreflectometer run: the same samples and fits."""
 
 import json
-import math
 
 import numpy as np
 import pytest
 
 import photorig
-from conftest import capture, photorig_json
+from conftest import as_written, capture, photorig_json
 
 
 @pytest.fixture(scope="module")
 def gonio_run(tmp_path_factory):
     """The simulated gonioreflectometer's glossy sample (config/recipes/brdf-gonio.yaml), captured only."""
     return capture("brdf-gonio.yaml", tmp_path_factory.mktemp("gonio"))
-
-
-def as_written(value):
-    """A value as report.json holds it: JSON has no NaN, so a NaN (an undetermined deviation) is written null."""
-    if isinstance(value, dict):
-        return {key: as_written(item) for key, item in value.items()}
-    if isinstance(value, list):
-        return [as_written(item) for item in value]
-    return None if isinstance(value, float) and math.isnan(value) else value
 
 
 def without_date(report):
