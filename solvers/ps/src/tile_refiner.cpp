@@ -287,8 +287,7 @@ __attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& stat
   }
 }
 
-std::size_t TileRefiner::GatherRow(ThreadState& state, int p, const Eigen::Vector3d& x, PixelFit* lambertian,
-                                   const float* samples) {
+std::size_t TileRefiner::NewRow(ThreadState& state) const {
   const std::size_t row = state.rows++;
   // Rows are reused from tile to tile: grow only (a resize would zero-fill
   // every row again for each tile).
@@ -296,6 +295,12 @@ std::size_t TileRefiner::GatherRow(ThreadState& state, int p, const Eigen::Vecto
     state.observed.resize(2 * state.rows * lights_);
     state.inverse_sigma.resize(2 * state.rows * lights_);
   }
+  return row;
+}
+
+std::size_t TileRefiner::GatherRow(ThreadState& state, int p, const Eigen::Vector3d& x, PixelFit* lambertian,
+                                   const float* samples) {
+  const std::size_t row = NewRow(state);
   int used = 0;
   double* observed = &state.observed[row * lights_];
   double* inverse_sigma = &state.inverse_sigma[row * lights_];
@@ -707,11 +712,7 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
       if (ladder_.NextWithGgx(GgxFits{&offer.on_samples}).action != LadderStep::Action::kFitGgx) continue;
       const PixelSamples& samples = state.scratch.samples;
       offer.used = samples.size();
-      offer.row = state.rows++;
-      if (state.observed.size() < state.rows * lights_) {
-        state.observed.resize(2 * state.rows * lights_);
-        state.inverse_sigma.resize(2 * state.rows * lights_);
-      }
+      offer.row = NewRow(state);
       std::copy(samples.row_observed.begin(), samples.row_observed.end(), &state.observed[offer.row * lights_]);
       std::copy(samples.row_inverse_sigma.begin(), samples.row_inverse_sigma.end(),
                 &state.inverse_sigma[offer.row * lights_]);

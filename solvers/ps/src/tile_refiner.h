@@ -92,6 +92,8 @@ class TileRefiner {
   // the pixel's answer, or queues it for the stage the ladder asks for.
   // samples: the pixel's samples as copied for trimming, if they were.
   void Climb(int thread, int p, const Eigen::Vector3d& x, const LadderFits& fits, const float* samples = nullptr);
+  // A new row of the thread's rows (observed and inverse_sigma), its index.
+  std::size_t NewRow(ThreadState& state) const;
   // Pixel p's samples as a new row of the thread's rows (from the planes, or
   // from their copy `samples`), and the Lambertian fit x tested on them.
   std::size_t GatherRow(ThreadState& state, int p, const Eigen::Vector3d& x, PixelFit* lambertian,
