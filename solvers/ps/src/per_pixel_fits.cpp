@@ -400,22 +400,11 @@ PixelFit FitGgx(const PixelSamples& s, const Eigen::Vector3d& view, const PixelF
     if (!pixel.Predict(unit_diffuse, diffuse.data()) || !pixel.Predict(unit_lobe, lobe.data())) return PixelFit{};
     const Eigen::VectorXd wd = diffuse.cwiseProduct(m.inverse_sigma), wl = lobe.cwiseProduct(m.inverse_sigma),
                           wb = m.observed.cwiseProduct(m.inverse_sigma);
-    Eigen::Matrix2d g;
-    g << wd.dot(wd), wd.dot(wl), wd.dot(wl), wl.dot(wl);
-    const Eigen::Vector2d r(wd.dot(wb), wl.dot(wb));
-    // Non-negative least squares in two unknowns: the free solution, else the
-    // better of the two with one held at 0.
-    Eigen::Vector2d c = g.ldlt().solve(r);
-    if (!(c.minCoeff() >= 0.0)) {
-      const Eigen::Vector2d only_diffuse(std::max(0.0, r(0) / g(0, 0)), 0.0),
-          only_lobe(0.0, std::max(0.0, r(1) / g(1, 1)));
-      auto reduction = [&](const Eigen::Vector2d& x) { return 2.0 * x.dot(r) - x.dot(g * x); };
-      c = reduction(only_diffuse) >= reduction(only_lobe) ? only_diffuse : only_lobe;
-    }
-    const double chi2 = (wb - c(0) * wd - c(1) * wl).squaredNorm();
-    if (std::isfinite(chi2) && chi2 < best) {
-      best = chi2;
-      p << start.normal, c(0), c(1), roughness;
+    const TwoColumnFit fit =
+        NonNegativeTwoColumnFit(wd.dot(wd), wd.dot(wl), wl.dot(wl), wd.dot(wb), wl.dot(wb), wb.dot(wb));
+    if (std::isfinite(fit.chi2) && fit.chi2 < best) {
+      best = fit.chi2;
+      p << start.normal, fit.diffuse, fit.lobe, roughness;
     }
   }
   if (!std::isfinite(best)) return PixelFit{};

@@ -533,21 +533,10 @@ void GgxGridStartLanes(int lights, const double* cos_light, const double* cos_ha
       }
     }
     for (int j = 0; j < kFloatLanes; ++j) {
-      // Non-negative least squares in two unknowns: the free solution, else
-      // the better of the two with one held at 0.
-      const double det = dd[j] * ll[j] - dl[j] * dl[j];
-      double rho_d = (ll[j] * db[j] - dl[j] * lb[j]) / det, rho_s = (dd[j] * lb[j] - dl[j] * db[j]) / det;
-      if (!(det > 0.0 && rho_d >= 0.0 && rho_s >= 0.0)) {
-        const double only_d = dd[j] > 0.0 ? std::max(0.0, db[j] / dd[j]) : 0.0;
-        const double only_l = ll[j] > 0.0 ? std::max(0.0, lb[j] / ll[j]) : 0.0;
-        const bool diffuse = 2.0 * only_d * db[j] - only_d * only_d * dd[j] >= 2.0 * only_l * lb[j] - only_l * only_l * ll[j];
-        rho_d = diffuse ? only_d : 0.0, rho_s = diffuse ? 0.0 : only_l;
-      }
-      const double chi2 = bb[j] - 2.0 * (rho_d * db[j] + rho_s * lb[j]) + rho_d * rho_d * dd[j] +
-                          2.0 * rho_d * rho_s * dl[j] + rho_s * rho_s * ll[j];
-      if (std::isfinite(chi2) && chi2 < best_chi2[j]) {
-        best_chi2[j] = chi2;
-        out->diffuse_albedo[j] = rho_d, out->specular_albedo[j] = rho_s, out->exponent[j] = roughness;
+      const TwoColumnFit fit = NonNegativeTwoColumnFit(dd[j], dl[j], ll[j], db[j], lb[j], bb[j]);
+      if (std::isfinite(fit.chi2) && fit.chi2 < best_chi2[j]) {
+        best_chi2[j] = fit.chi2;
+        out->diffuse_albedo[j] = fit.diffuse, out->specular_albedo[j] = fit.lobe, out->exponent[j] = roughness;
       }
     }
   }

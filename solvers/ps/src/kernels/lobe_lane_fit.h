@@ -24,6 +24,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <memory>
 #include <span>
 #include <vector>
@@ -104,6 +105,25 @@ inline constexpr double kMinGgxRoughness = 0.01, kMaxGgxRoughness = 1.0;
 // The roughness grid a GGX fit starts from: each point a factor 1.4 from the
 // last, so the best is within a sixth of the width of the lobe that made the samples.
 inline constexpr double kGgxStartRoughness[] = {0.03, 0.042, 0.06, 0.084, 0.12, 0.17, 0.24, 0.33, 0.47, 0.66};
+
+// Non-negative least squares in a model's two linear columns d (diffuse) and
+// l (lobe) from their weighted sums dd = d.d, dl, ll, db = d.b, lb and
+// bb = b.b: the free solution, else the better of the two with one held at
+// 0; and the chi-square it leaves. The GGX starts' fit at each grid point.
+struct TwoColumnFit {
+  double diffuse = 0.0, lobe = 0.0, chi2 = 0.0;
+};
+inline TwoColumnFit NonNegativeTwoColumnFit(double dd, double dl, double ll, double db, double lb, double bb) {
+  const double det = dd * ll - dl * dl;
+  double d = (ll * db - dl * lb) / det, l = (dd * lb - dl * db) / det;
+  if (!(det > 0.0 && d >= 0.0 && l >= 0.0)) {
+    const double only_d = dd > 0.0 ? std::max(0.0, db / dd) : 0.0;
+    const double only_l = ll > 0.0 ? std::max(0.0, lb / ll) : 0.0;
+    const bool diffuse = 2.0 * only_d * db - only_d * only_d * dd >= 2.0 * only_l * lb - only_l * only_l * ll;
+    d = diffuse ? only_d : 0.0, l = diffuse ? 0.0 : only_l;
+  }
+  return {d, l, bb - 2.0 * (d * db + l * lb) + d * d * dd + 2.0 * d * l * dl + l * l * ll};
+}
 
 class LobeLaneFitter {
  public:
