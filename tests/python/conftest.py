@@ -21,6 +21,19 @@ def as_written(value):
     return None if isinstance(value, float) and math.isnan(value) else value
 
 
+# Wall-clock figures, which no two solves share: each summary's timings_ms and the colour reports' own.
+TIMINGS = {"timings_ms", "total_ms", "fit_ms", "loo_ms"}
+
+
+def without_timings(value):
+    """A summary less its wall-clock figures, at every depth."""
+    if isinstance(value, dict):
+        return {key: without_timings(item) for key, item in value.items() if key not in TIMINGS}
+    if isinstance(value, list):
+        return [without_timings(item) for item in value]
+    return value
+
+
 def photorig(*args):
     """Runs the CLI; fails the test with its output when it fails."""
     done = subprocess.run([str(BIN_DIR / "photorig"), *map(str, args)], capture_output=True, text=True)

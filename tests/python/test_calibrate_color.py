@@ -7,18 +7,7 @@ import numpy as np
 import pytest
 
 import photorig
-
-# Wall-clock figures, which no two runs share.
-TIMINGS = {"total_ms", "fit_ms", "loo_ms"}
-
-
-def without_timings(value):
-    if isinstance(value, dict):
-        return {key: without_timings(item) for key, item in value.items() if key not in TIMINGS}
-    if isinstance(value, list):
-        return [without_timings(item) for item in value]
-    return value
-
+from conftest import without_timings
 
 def as_floats(values):
     """A report's per-patch list, null (a patch not used) as NaN."""

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import photorig
-from conftest import SOURCE_DIR
+from conftest import SOURCE_DIR, without_timings
 
 
 def read_nrrd(path):
@@ -34,7 +34,7 @@ def test_same_volume_as_the_cli(scan, cli, tmp_path):
     np.testing.assert_array_equal(solved["volume"], expected)
     report = json.loads((tmp_path / "report.json").read_text())
     for key in ["iterations", "stop_reason", "residual_history", "volume", "absorbance"]:
-        assert solved["summary"][key] == report[key], key
+        assert without_timings(solved["summary"][key]) == without_timings(report[key]), key
     assert solved["summary"]["centre_of_rotation"]["offset_mm"] == report["centre_of_rotation"]["offset_mm"]
 
 

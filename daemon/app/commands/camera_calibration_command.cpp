@@ -9,6 +9,7 @@
 #include "../progress_display.h"
 #include "photorig/daemon/io/lens_json.h"
 #include "photorig/daemon/pipelines/camera_calibration.h"
+#include "photorig/solvers/core/summary_json.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -43,25 +44,22 @@ int PlaneImageIndex(const std::string& plane, std::vector<std::string>* images) 
 }
 
 nlohmann::json SummaryJson(const solvers::camera::CheckerboardCalibrationSummary& s) {
-  return {{"termination", solvers::core::TerminationName(s.termination)},
-          {"message", s.message},
-          {"width_px", s.width_px},
-          {"height_px", s.height_px},
-          {"lens", daemon::PinholeLensJson(s.lens)},
-          {"std",
-           {{"fx_px", s.fx_std_px},
-            {"fy_px", s.fy_std_px},
-            {"cx_px", s.cx_std_px},
-            {"cy_px", s.cy_std_px},
-            {"distortion", s.distortion_std}}},
-          {"rms_px", s.rms_px},
-          {"tilt_deg", s.tilt_deg},
-          {"used", s.used},
-          {"image_rms_px", s.image_rms_px},
-          {"rejected", s.rejected},
-          {"setup_ms", s.setup_ms},
-          {"solve_ms", s.solve_ms},
-          {"total_ms", s.total_ms}};
+  nlohmann::json doc = solvers::core::ToJson(s);
+  doc.update({{"width_px", s.width_px},
+              {"height_px", s.height_px},
+              {"lens", daemon::PinholeLensJson(s.lens)},
+              {"std",
+               {{"fx_px", s.fx_std_px},
+                {"fy_px", s.fy_std_px},
+                {"cx_px", s.cx_std_px},
+                {"cy_px", s.cy_std_px},
+                {"distortion", s.distortion_std}}},
+              {"rms_px", s.rms_px},
+              {"tilt_deg", s.tilt_deg},
+              {"used", s.used},
+              {"image_rms_px", s.image_rms_px},
+              {"rejected", s.rejected}});
+  return doc;
 }
 
 int Execute(Options o) {

@@ -1,6 +1,8 @@
+
 #include "photorig/daemon/pipelines/internal/brdf_report.h"
 
 #include "photorig/daemon/pipelines/brdf_measurement.h"
+#include "photorig/solvers/core/summary_json.h"
 
 #include <cmath>
 #include <string>
@@ -13,33 +15,33 @@ namespace brdf = photorig::solvers::brdf;
 nlohmann::json Vec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
 
 nlohmann::json FitJson(const brdf::FitSummary& f) {
-  return {{"model", brdf::ModelName(f.params.model)},
-          {"termination", solvers::core::TerminationName(f.termination)},
-          {"message", f.message},
-          {"bic", f.bic},
-          {"train_rms", f.residuals > 0 ? std::sqrt(f.cost / static_cast<double>(f.residuals)) : NAN},
-          {"held_out_rms", f.held_out_rms},
-          {"cost", f.cost},
-          {"parameters", f.parameters},
-          {"diffuse", Vec(f.params.diffuse)},
-          {"diffuse_sigma", Vec(f.diffuse_sigma)},
-          {"specular", Vec(f.params.specular)},
-          {"specular_sigma", Vec(f.specular_sigma)},
-          {"shape", f.params.shape},
-          {"shape_sigma", f.shape_sigma},
-          {"fresnel_f0", f.params.fresnel_f0},
-          {"fresnel_f0_sigma", f.fresnel_f0_sigma},
-          {"specular_scale", f.params.specular_scale},
-          {"specular_scale_sigma", f.specular_scale_sigma},
-          {"specular2", Vec(f.params.specular2)},
-          {"specular2_sigma", Vec(f.specular2_sigma)},
-          {"shape2", f.params.shape2},
-          {"shape2_sigma", f.shape2_sigma},
-          {"lobe_identifiable", f.lobe_identifiable},
-          {"at_bound", f.at_bound},
-          {"normal_albedo", Vec(f.normal_albedo)},
-          {"implausible", f.implausible},
-          {"samples_fitted", f.fitted_samples}};
+  nlohmann::json doc = solvers::core::ToJson(f);
+  doc.update({{"model", brdf::ModelName(f.params.model)},
+              {"bic", f.bic},
+              {"train_rms", f.residuals > 0 ? std::sqrt(f.cost / static_cast<double>(f.residuals)) : NAN},
+              {"held_out_rms", f.held_out_rms},
+              {"cost", f.cost},
+              {"parameters", f.parameters},
+              {"diffuse", Vec(f.params.diffuse)},
+              {"diffuse_sigma", Vec(f.diffuse_sigma)},
+              {"specular", Vec(f.params.specular)},
+              {"specular_sigma", Vec(f.specular_sigma)},
+              {"shape", f.params.shape},
+              {"shape_sigma", f.shape_sigma},
+              {"fresnel_f0", f.params.fresnel_f0},
+              {"fresnel_f0_sigma", f.fresnel_f0_sigma},
+              {"specular_scale", f.params.specular_scale},
+              {"specular_scale_sigma", f.specular_scale_sigma},
+              {"specular2", Vec(f.params.specular2)},
+              {"specular2_sigma", Vec(f.specular2_sigma)},
+              {"shape2", f.params.shape2},
+              {"shape2_sigma", f.shape2_sigma},
+              {"lobe_identifiable", f.lobe_identifiable},
+              {"at_bound", f.at_bound},
+              {"normal_albedo", Vec(f.normal_albedo)},
+              {"implausible", f.implausible},
+              {"samples_fitted", f.fitted_samples}});
+  return doc;
 }
 
 bool ReadVec(const nlohmann::json& j, const char* key, Eigen::Vector3d* v, std::string* error) {
@@ -56,11 +58,10 @@ bool ReadVec(const nlohmann::json& j, const char* key, Eigen::Vector3d* v, std::
 }  // namespace
 
 nlohmann::json SelectionJson(const brdf::SelectionSummary& s) {
-  nlohmann::json doc = {{"termination", solvers::core::TerminationName(s.termination)},
-                        {"message", s.message},
-                        {"min_theta_h_deg", s.min_theta_h_deg},
-                        {"peak_sampled", s.peak_sampled},
-                        {"candidates", nlohmann::json::array()}};
+  nlohmann::json doc = solvers::core::ToJson(s);
+  doc.update({{"min_theta_h_deg", s.min_theta_h_deg},
+              {"peak_sampled", s.peak_sampled},
+              {"candidates", nlohmann::json::array()}});
   for (const brdf::FitSummary& f : s.candidates) doc["candidates"].push_back(FitJson(f));
   if (s.chosen) {
     doc["chosen"] = brdf::ModelName(*s.chosen);

@@ -1,9 +1,11 @@
+
 #include "photorig/daemon/pipelines/led_radiance.h"
 
 #include "photorig/config/rig.h"
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/daemon/io/utc_time.h"
 #include "photorig/daemon/pipelines/ps_pipeline.h"
+#include "photorig/solvers/core/summary_json.h"
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -130,18 +132,15 @@ nlohmann::json ToJson(const LedRadianceRequest& request, const LedRadianceResult
                     {"samples", e.samples},
                     {"note", e.note}});
   }
-  return {{"termination", solvers::core::TerminationName(s.termination)},
-          {"message", s.message},
-          {"run", request.run_directory},
-          {"albedo", request.options.albedo},
-          {"plane_height_mm", request.options.plane_height_mm},
-          {"exponent", solvers::lighting::ExponentRuleName(request.options.exponent)},
-          {"plane_pixels", s.plane_pixels},
-          {"usable", s.usable},
-          {"leds", leds},
-          {"setup_ms", s.setup_ms},
-          {"solve_ms", s.solve_ms},
-          {"total_ms", s.total_ms}};
+  nlohmann::json doc = solvers::core::ToJson(s);
+  doc.update({{"run", request.run_directory},
+              {"albedo", request.options.albedo},
+              {"plane_height_mm", request.options.plane_height_mm},
+              {"exponent", solvers::lighting::ExponentRuleName(request.options.exponent)},
+              {"plane_pixels", s.plane_pixels},
+              {"usable", s.usable},
+              {"leds", leds}});
+  return doc;
 }
 
 }  // namespace photorig::daemon

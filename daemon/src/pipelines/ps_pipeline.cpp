@@ -1,3 +1,4 @@
+
 #include "photorig/daemon/pipelines/ps_pipeline.h"
 #include "photorig/daemon/capture/frame_health.h"
 
@@ -15,6 +16,7 @@
 #include "photorig/solvers/ps/photometric_stereo.h"
 #include "photorig/solvers/ps/channel_albedo.h"
 #include "photorig/solvers/color/colorimetry.h"
+#include "photorig/solvers/core/summary_json.h"
 
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
@@ -402,10 +404,9 @@ double EffectiveSaturationLevel(const PhotometricStereoInput& input) {
 json ToJson(const PhotometricStereoResult& result) {
   const solvers::ps::SolverSummary& summary = result.summary;
   const double saturation = result.saturation_level;
-  json report = {{"source", result.source},
+  json report = solvers::core::ToJson(summary);
+  report.update({{"source", result.source},
                  {"method", summary.method},
-                 {"termination", solvers::core::TerminationName(summary.termination)},
-                 {"message", summary.message},
                  {"lights", summary.light_count},
                  {"dark_frames", result.dark_frames},
                  {"condition_number", summary.condition_number},
@@ -416,8 +417,9 @@ json ToJson(const PhotometricStereoResult& result) {
                  {"noise_sigma_dn", result.noise_sigma_dn},
                  {"shadow_threshold", summary.shadow_threshold},
                  {"saturation_level", std::isfinite(saturation) ? json(saturation) : json(nullptr)},
-                 {"mask", {{"source", result.mask_source.empty() ? json(nullptr) : json(result.mask_source)},
-                           {"pixels", result.mask_pixels}}},
+                 {"mask",
+                  {{"source", result.mask_source.empty() ? json(nullptr) : json(result.mask_source)},
+                   {"pixels", result.mask_pixels}}},
                  {"pixels",
                   {{"total", summary.pixels_total},
                    {"solved", summary.pixels_solved},
@@ -426,7 +428,8 @@ json ToJson(const PhotometricStereoResult& result) {
                    {"ill_conditioned", summary.pixels_ill_conditioned},
                    {"rejected_by_model", summary.pixels_rejected_by_model},
                    {"fell_back", summary.pixels_fell_back},
-                   // of models.blinn_phong: auto's step 5, with the lobe of its region or nearest glossy pixels
+                   // of models.blinn_phong: auto's step 5, with the lobe of its region or
+                   // nearest glossy pixels
                    {"shared_lobe", summary.pixels_shared_lobe}}},
                  {"models",
                   {{"lambertian", summary.pixels_lambertian},
@@ -435,8 +438,9 @@ json ToJson(const PhotometricStereoResult& result) {
                    {"blinn_phong", summary.pixels_blinn_phong},
                    {"ggx", summary.pixels_ggx}}},
                  {"samples_rejected", summary.samples_rejected},
-                 {"pixels_on_light_subsets", summary.pixels_on_light_subsets},
-                 {"timings_ms", {{"setup", summary.setup_ms}, {"solve", summary.solve_ms}, {"total", result.total_ms}}}};
+                 {"pixels_on_light_subsets", summary.pixels_on_light_subsets}});
+  // The stage's total: reading the frames and writing the results included.
+  report["timings_ms"]["total"] = result.total_ms;
   const LightModelReport& lights = result.light_model;
   report["light_model"] = {{"model", lights.near ? "near" : "distant"}};
   if (lights.near)
@@ -481,12 +485,11 @@ json ToJson(const PhotometricStereoResult& result) {
   }
   if (result.fill) {
     const solvers::ps::FillSummary& fill = *result.fill;
-    report["fill"] = {{"termination", solvers::core::TerminationName(fill.termination)},
-                      {"message", fill.message},
-                      {"pixels_filled", fill.pixels_filled},
-                      {"pixels_left", fill.pixels_left},
-                      {"max_distance_px", fill.max_distance_px},
-                      {"mean_confidence", fill.mean_confidence}};
+    report["fill"] = solvers::core::ToJson(fill);
+    report["fill"].update({{"pixels_filled", fill.pixels_filled},
+                           {"pixels_left", fill.pixels_left},
+                           {"max_distance_px", fill.max_distance_px},
+                           {"mean_confidence", fill.mean_confidence}});
     report["timings_ms"]["fill"] = fill.total_ms;
   }
   if (result.normals_vs_truth) {

@@ -1,3 +1,4 @@
+
 #include "photorig/daemon/pipelines/svbrdf_pipeline.h"
 
 #include "photorig/daemon/io/json_fields.h"
@@ -9,6 +10,7 @@
 #include "photorig/daemon/pipelines/internal/results_folder.h"
 #include "photorig/solvers/ps/evaluation.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
+#include "photorig/solvers/core/summary_json.h"
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -239,11 +241,9 @@ std::string AddPixelGeometry(const PhotometricStereoInput& input, bool near, con
 }
 
 nlohmann::json ToJson(const SvbrdfResult& result) {
-  nlohmann::json j;
+  nlohmann::json j = solvers::core::ToJson(result.summary);
   j["source"] = result.ps.source;
   if (result.ps.capture) j["capture"] = result.ps.capture->ToJson();
-  j["termination"] = solvers::core::TerminationName(result.summary.termination);
-  j["message"] = result.summary.message;
   j["pixels"] = {{"fitted", result.summary.pixels_fitted},
                  {"outside_mask", result.summary.pixels_outside_mask},
                  {"no_normal", result.summary.pixels_no_normal},
@@ -276,14 +276,17 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
   if (result.normal_refinement) {
     const refl::NormalRefinementSummary& n = *result.normal_refinement;
     nlohmann::json& nj = j["normal_refinement"];
-    nj = {{"termination", solvers::core::TerminationName(n.termination)}, {"message", n.message}, {"rounds", n.rounds},
-          {"pixels_refined", n.pixels_refined}, {"pixels_held", n.pixels_held},
-          {"median_change_deg", n.median_change_deg}, {"p95_change_deg", n.p95_change_deg},
-          {"reduced_chi_square_before", n.reduced_chi_square_before},
-          {"reduced_chi_square_after", n.reduced_chi_square_after}, {"total_ms", n.total_ms},
-          {"normals_ms", n.normals_ms}, {"kept", n.kept_refined ? "refined" : "given"},
-          {"held_out_rmse", {{"given", n.held_out_rmse_given}, {"refined", n.held_out_rmse_refined}}},
-          {"judge_ms", n.judge_ms}};
+    nj = solvers::core::ToJson(n);
+    nj.update({{"rounds", n.rounds},
+               {"pixels_refined", n.pixels_refined},
+               {"pixels_held", n.pixels_held},
+               {"median_change_deg", n.median_change_deg},
+               {"p95_change_deg", n.p95_change_deg},
+               {"reduced_chi_square_before", n.reduced_chi_square_before},
+               {"reduced_chi_square_after", n.reduced_chi_square_after},
+               {"kept", n.kept_refined ? "refined" : "given"},
+               {"held_out_rmse", {{"given", n.held_out_rmse_given}, {"refined", n.held_out_rmse_refined}}}});
+    nj["timings_ms"].update({{"normals", n.normals_ms}, {"judge", n.judge_ms}});
     if (result.refined_normals_vs_truth_mean_deg)
       nj["normals_vs_truth_mean_deg"] = {{"before", *result.unrefined_normals_vs_truth_mean_deg},
                                          {"after", *result.refined_normals_vs_truth_mean_deg}};
@@ -291,8 +294,7 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
   j["demosaic"] = {{"method", result.demosaic}, {"fit_passes", result.fit_passes},
                    {"region_edges_moved", result.region_edges_moved}};
   if (!result.demosaic_refit_failure.empty()) j["demosaic"]["refit_failure"] = result.demosaic_refit_failure;
-  j["timings_ms"] = {{"setup", result.summary.setup_ms}, {"solve", result.summary.solve_ms},
-                     {"total", result.summary.total_ms}, {"pipeline", result.total_ms}};
+  j["timings_ms"]["pipeline"] = result.total_ms;
   if (result.ps.normals_vs_truth)
     j["normals_vs_truth_deg"] = {{"mean", result.ps.normals_vs_truth->mean_deg},
                                  {"median", result.ps.normals_vs_truth->median_deg}};
@@ -308,10 +310,9 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
                                         {"pixels", result.material_agreement_pixels}};
   if (result.relighting) {
     const refl::RelightingSummary& r = *result.relighting;
-    nlohmann::json h;
+    nlohmann::json h = solvers::core::ToJson(r);
     h["subset"] = "stratified (farthest-point over the light directions)";
     h["lights"] = r.held_out;
-    h["termination"] = solvers::core::TerminationName(r.termination);
     for (int m = 0; m < 3; ++m) {
       const char* name = refl::MethodName(static_cast<refl::Method>(m));
       h["mean"][name] = {{"rmse", r.mean_rmse[m]}, {"psnr_db", r.mean_psnr_db[m]}, {"fit_ms", r.mean_fit_ms[m]}};

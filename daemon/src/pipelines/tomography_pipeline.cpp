@@ -1,3 +1,4 @@
+
 #include "photorig/daemon/pipelines/tomography_pipeline.h"
 #include "photorig/daemon/pipelines/internal/phantom_json.h"
 
@@ -8,6 +9,7 @@
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/io/json_fields.h"
 #include "photorig/daemon/pipelines/internal/results_folder.h"
+#include "photorig/solvers/core/summary_json.h"
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/tomography/nrrd.h"
 
@@ -404,40 +406,36 @@ TomographyResult SolveTomography(const TomographyInput& input, const config::Tom
 
 json TomographyResult::ToJson() const {
   const solvers::tomography::ReconstructionSummary& r = reconstruction;
-  json doc = {
-      {"method", solvers::tomography::MethodName(r.method)},
-      {"termination", solvers::core::TerminationName(r.termination)},
-      {"message", r.message},
-      {"trusted", trusted()},
-      {"iterations", r.iterations},
-      {"stop_reason", stopped_by_held_out ? "held-out-minimum" : solvers::tomography::StopReasonName(r.stop_reason)},
-      {"relaxation", r.relaxation},
-      {"tv_strength", r.tv_strength},
-      {"residual", r.residual_history.empty() ? 0.0 : r.residual_history.back()},
-      {"discrepancy_target", r.discrepancy_target},
-      {"residual_history", r.residual_history},
-      {"rays_used", r.rays_used},
-      {"voxels_reached", r.voxels_reached},
-      {"voxels_unreached", r.voxels_unreached},
-      {"underdetermined", r.underdetermined},
-      {"inconsistent", r.inconsistent},
-      {"volume", {{"nx", grid.nx}, {"ny", grid.ny}, {"nz", grid.nz}, {"voxel_mm", grid.voxel_mm}}},
-      {"projector", {{"sparse", projector.sparse}, {"nonzeros", projector.nonzeros}, {"stored_bytes", projector.stored_bytes}}},
-      {"absorbance",
-       {{"termination", solvers::core::TerminationName(absorbance.termination)},
-        {"rays", absorbance.rays},
-        {"flagged_non_positive", absorbance.flagged_non_positive},
-        {"flagged_saturated", absorbance.flagged_saturated},
-        {"flagged_no_flat", absorbance.flagged_no_flat},
-        {"noise_estimated", absorbance.noise_estimated},
-        {"mean_b_sigma", absorbance.mean_b_sigma}}},
-      {"geometry", GeometryToJson(geometry, 0.0)},
-      {"timings_ms",
-       {{"absorbance", absorbance_ms},
-        {"projector", projector.total_ms},
-        {"reconstruct_setup", r.setup_ms},
-        {"reconstruct_solve", r.solve_ms},
-        {"total", total_ms}}}};
+  json doc = solvers::core::ToJson(r);
+  doc.update(
+      {{"method", solvers::tomography::MethodName(r.method)},
+       {"trusted", trusted()},
+       {"iterations", r.iterations},
+       {"stop_reason", stopped_by_held_out ? "held-out-minimum" : solvers::tomography::StopReasonName(r.stop_reason)},
+       {"relaxation", r.relaxation},
+       {"tv_strength", r.tv_strength},
+       {"residual", r.residual_history.empty() ? 0.0 : r.residual_history.back()},
+       {"discrepancy_target", r.discrepancy_target},
+       {"residual_history", r.residual_history},
+       {"rays_used", r.rays_used},
+       {"voxels_reached", r.voxels_reached},
+       {"voxels_unreached", r.voxels_unreached},
+       {"underdetermined", r.underdetermined},
+       {"inconsistent", r.inconsistent},
+       {"volume", {{"nx", grid.nx}, {"ny", grid.ny}, {"nz", grid.nz}, {"voxel_mm", grid.voxel_mm}}},
+       {"projector",
+        {{"sparse", projector.sparse}, {"nonzeros", projector.nonzeros}, {"stored_bytes", projector.stored_bytes}}},
+       {"geometry", GeometryToJson(geometry, 0.0)}});
+  // timings_ms: the reconstruction's setup and solve, the stages before it,
+  // and the whole stage as its total.
+  doc["timings_ms"].update({{"absorbance", absorbance_ms}, {"projector", projector.total_ms}, {"total", total_ms}});
+  doc["absorbance"] = solvers::core::ToJson(absorbance);
+  doc["absorbance"].update({{"rays", absorbance.rays},
+                            {"flagged_non_positive", absorbance.flagged_non_positive},
+                            {"flagged_saturated", absorbance.flagged_saturated},
+                            {"flagged_no_flat", absorbance.flagged_no_flat},
+                            {"noise_estimated", absorbance.noise_estimated},
+                            {"mean_b_sigma", absorbance.mean_b_sigma}});
   doc["geometry"].erase("saturation_dn");
   doc["geometry"]["views"] = geometry.views();
   doc["centre_of_rotation"] = {{"source", cor ? "estimated" : "given"},
@@ -445,29 +443,27 @@ json TomographyResult::ToJson() const {
                                 {"offset_px", geometry.cor_offset_mm / geometry.pixel_mm}};
   if (cor) {
     json& c = doc["centre_of_rotation"];
+    c.update(solvers::core::ToJson(*cor));
     c["method"] = solvers::tomography::CorMethodName(cor->method);
-    c["termination"] = solvers::core::TerminationName(cor->termination);
-    c["message"] = cor->message;
     c["sigma_mm"] = cor->offset_sigma_mm;
     c["sigma_px"] = cor->offset_sigma_mm / geometry.pixel_mm;
     c["tilt_deg"] = cor->tilt_deg;
     c["tilt_sigma_deg"] = cor->tilt_sigma_deg;
     c["pairs"] = cor->pairs;
     c["candidates"] = cor->candidates;
-    c["ms"] = cor->total_ms;
   }
-  if (held_out)
-    doc["held_out"] = {{"termination", solvers::core::TerminationName(held_out->termination)},
-                       {"message", held_out->message},
-                       {"relative_residual", held_out->relative_residual},
-                       {"noise_floor", held_out->noise_floor},
-                       {"fit_views", held_out->fit_views},
-                       {"held_out_views", held_out->held_out_views},
-                       {"iterations", stopped_by_held_out ? held_out->best_iteration : held_out->reconstruction.iterations},
-                       {"stopping_rule", stopped_by_held_out},
-                       {"ms", held_out->total_ms}};
-  if (ring_filter)
-    doc["ring_filter"] = {{"stripes", ring_filter->stripes}, {"max_offset", ring_filter->max_offset}, {"ms", ring_filter->total_ms}};
+  if (held_out) doc["held_out"] = solvers::core::ToJson(*held_out);
+  doc["held_out"].update(
+      {{"relative_residual", held_out->relative_residual},
+       {"noise_floor", held_out->noise_floor},
+       {"fit_views", held_out->fit_views},
+       {"held_out_views", held_out->held_out_views},
+       {"iterations", stopped_by_held_out ? held_out->best_iteration : held_out->reconstruction.iterations},
+       {"stopping_rule", stopped_by_held_out}});
+  if (ring_filter) {
+    doc["ring_filter"] = solvers::core::ToJson(*ring_filter);
+    doc["ring_filter"].update({{"stripes", ring_filter->stripes}, {"max_offset", ring_filter->max_offset}});
+  }
   if (relative_error_vs_truth) doc["relative_error_vs_truth"] = *relative_error_vs_truth;
   if (capture) doc["capture"] = capture->ToJson();
   doc["provenance"] = provenance.ToJson();
