@@ -1,4 +1,5 @@
 #include "photorig/solvers/color/model_io.h"
+#include "photorig/solvers/core/summary_json.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -155,12 +156,9 @@ ColorModel ParseModel(const std::string& text, const std::string& path) {
 
 nlohmann::json CalibrationReport(const CalibrationSummary& summary, const std::vector<PatchMeasurement>& measurements,
                                  const std::vector<std::string>& patch_names) {
-  nlohmann::json report;
-  report["termination"] = solvers::core::TerminationName(summary.termination);
-  report["message"] = summary.message;
+  nlohmann::json report = solvers::core::ToJson(summary);
   report["patches_used"] = summary.patches_used;
   report["exposure_patch"] = summary.exposure_patch;
-  report["total_ms"] = summary.total_ms;
   report["chosen"] = summary.chosen >= 0 ? nlohmann::json(summary.models[static_cast<std::size_t>(summary.chosen)].spec.Name())
                                          : nlohmann::json(nullptr);
   nlohmann::json models = nlohmann::json::array();
