@@ -15,6 +15,8 @@
 namespace photorig::daemon {
 namespace {
 
+using solvers::color::DemosaicMethod;
+
 constexpr int kSide = 1024;
 
 cv::Mat RawMosaic() {

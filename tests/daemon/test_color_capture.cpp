@@ -37,6 +37,7 @@ namespace photorig::daemon {
 namespace {
 
 namespace fs = std::filesystem;
+using solvers::color::DemosaicMethod;
 using testing::TempDir;
 
 std::string SourceDir() {

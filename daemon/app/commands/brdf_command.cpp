@@ -43,7 +43,7 @@ int Execute(const Options& options) {
     ResultFields() = doc;
     return error.empty() ? static_cast<int>(code) : Fail(code, error);
   };
-  daemon::BrdfRequest request;
+  config::BrdfRequest request;
   request.loss = options.loss;
   request.calibrate_with_target = options.calibrate_with_target;
   const std::string out = options.out.empty() ? (fs::path(options.run_dir) / "results" / "brdf").string() : options.out;

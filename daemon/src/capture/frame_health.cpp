@@ -127,8 +127,9 @@ std::string DescribeGroup(HealthCheck check, const std::vector<const HealthFindi
 
 }  // namespace
 
-FrameHealth::FrameHealth(HealthConfig config, const std::vector<config::CaptureStep>& steps, std::vector<config::LedConfig> leds)
-    : config_(config), leds_(std::move(leds)) {
+FrameHealth::FrameHealth(config::HealthConfig health, const std::vector<config::CaptureStep>& steps,
+                         std::vector<config::LedConfig> leds)
+    : config_(std::move(health)), leds_(std::move(leds)) {
   AddSteps(steps);
 }
 

@@ -77,7 +77,7 @@ bool BrdfSolveResult::refused_input() const {
   return !measurement.IsSolutionUsable() && measurement.termination != solvers::core::Termination::kFailure;
 }
 
-BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const BrdfRequest& request, const std::string& out_dir,
+BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const config::BrdfRequest& request, const std::string& out_dir,
                                   FailedCapture failed) {
   const solvers::core::SolveTimer timer;
   BrdfSolveResult result;

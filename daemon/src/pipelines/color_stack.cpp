@@ -32,7 +32,7 @@ cv::Mat ToFloatRgb(const cv::Mat& frame_rgb) {
 
 }  // namespace
 
-cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, DemosaicMethod method) {
+cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, solvers::color::DemosaicMethod method) {
   cv::Mat bgr;
   const solvers::core::Summary demosaiced = solvers::color::Demosaic(raw, pattern, &bgr, method);
   if (!demosaiced.IsSolutionUsable()) throw std::invalid_argument("demosaicing: " + demosaiced.message);
@@ -143,8 +143,8 @@ ColorImageStack LoadRunColorStack(const std::string& run_directory, const ColorS
     out.loaded_with = options;
   }
   const std::string model_path = !options.color_model_path.empty() ? options.color_model_path : manifest.color_model_path;
-  std::optional<LoadedColorModel> model;
-  if (!model_path.empty()) model = LoadColorModelFile(model_path);
+  std::optional<config::LoadedColorModel> model;
+  if (!model_path.empty()) model = config::LoadColorModelFile(model_path);
 
   const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
   const double saturation = manifest.saturation_dn > 0.0 ? std::min(manifest.saturation_dn, top_code) : top_code;

@@ -491,7 +491,7 @@ HeldOutLightImages PredictHeldOutLight(const std::string& run_directory, const s
   ColorStackOptions color;
   if (report.contains("demosaic"))
     color.demosaic = solvers::core::ParseName(solvers::color::kDemosaicMethodNames, report["demosaic"].value("method", ""))
-                         .value_or(DemosaicMethod::kBilinear);
+                         .value_or(solvers::color::DemosaicMethod::kBilinear);
   const bool within_regions = fs::exists(dir / "demosaic_regions.png");
   if (within_regions) {
     color.demosaic_regions = ReadImage((dir / "demosaic_regions.png").string());

@@ -36,9 +36,6 @@ namespace photorig::daemon {
 double RobustSigma(const cv::Mat& values);
 
 
-using config::HealthConfig;
-using config::LedConfig;
-
 enum class HealthCheck { kNoLight, kLightInDark, kClipped, kRepeated, kBrightness, kDimLed };
 
 // What one frame measured, in DN.
@@ -67,7 +64,8 @@ class FrameHealth {
  public:
   // `steps`: the whole plan (for brackets); `leds`: the rig's LEDs (CaptureStep::led
   // indexes them), for LED ids in messages and the neighbour comparison.
-  FrameHealth(HealthConfig config, const std::vector<config::CaptureStep>& steps, std::vector<config::LedConfig> leds);
+  FrameHealth(config::HealthConfig health, const std::vector<config::CaptureStep>& steps,
+              std::vector<config::LedConfig> leds);
 
   // Steps added to the plan while it runs (an adaptive pose plan's passes): brackets among them.
   void AddSteps(const std::vector<config::CaptureStep>& steps);
@@ -106,7 +104,7 @@ class FrameHealth {
   // The LED's drive scale: exposure x gain x level x calibrated intensity.
   double LedScale(const config::CaptureStep& step) const;
 
-  HealthConfig config_;
+  config::HealthConfig config_;
   std::vector<config::LedConfig> leds_;
   std::vector<bool> bracket_long_;   // by step index: a longer exposure of a bracket, expected to clip
   std::vector<bool> bracket_short_;  // by step index: a shorter exposure of a bracket, may be too dark

@@ -111,7 +111,7 @@ struct RunManifest {
   std::string mosaic = "mono";
   std::string pixel_format;  // the camera's GenICam pixel format, e.g. "BayerRG12"; "" when not recorded
   // The rig's camera.color_model when the run was captured: its path and
-  // content hash (color_stack.h ContentHash); empty without one.
+  // content hash (config::ContentHash); empty without one.
   std::string color_model_path;
   std::string color_model_hash;
   std::vector<config::LedConfig> lights;

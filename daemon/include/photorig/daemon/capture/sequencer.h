@@ -67,7 +67,7 @@ struct CaptureOptions {
   drivers::TriggerOutput* trigger_output = nullptr;
   // Thresholds of the health checks (the rig's `health:`), and the rig's
   // LEDs, which name them in messages and find each LED's neighbours.
-  HealthConfig health;
+  config::HealthConfig health;
   std::vector<config::LedConfig> leds;
   // Adaptive pose plans: after each step that ends a pass (CaptureStep::ends_pass),
   // once it is stored, with every step so far and the index of that one; the

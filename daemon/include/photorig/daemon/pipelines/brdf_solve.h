@@ -16,8 +16,6 @@
 
 namespace photorig::daemon {
 
-using config::BrdfRequest;
-
 struct BrdfSolveResult {
   BrdfMeasurement measurement;
   std::optional<solvers::brdf::SelectionSummary> selection;  // absent when there was nothing to fit
@@ -41,7 +39,7 @@ struct BrdfSolveResult {
 // store throws for an unreadable manifest or frame, FailedCaptureError for a
 // capture that did not complete unless `failed` accepts it (the report then
 // says so), and ResultsWriteError when the results cannot be written.
-BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const BrdfRequest& request, const std::string& out_dir,
+BrdfSolveResult SolveBrdfAndWrite(const std::string& run_dir, const config::BrdfRequest& request, const std::string& out_dir,
                                   FailedCapture failed = FailedCapture::kRefuse);
 
 // The measurement's part of the report: frames, calibration, noise, clipped poses.

@@ -30,17 +30,10 @@
 
 namespace photorig::daemon {
 
-using solvers::color::DemosaicMethod;  // bilinear (the default) or edge-aware: photorig/solvers/color/apply.h
-
 // One-channel raw (CV_16U or CV_8U) -> (R, G, B) of the same depth, through
 // solvers::color::Demosaic. Throws std::invalid_argument with its message for an
 // unknown pattern or a multi-channel raw.
-cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, DemosaicMethod method);
-
-// camera.color_model files: loaded and checked when a rig loads (rigconfig).
-using config::ContentHash;
-using config::LoadColorModelFile;
-using config::LoadedColorModel;
+cv::Mat DemosaicToRgb(const cv::Mat& raw, const std::string& pattern, solvers::color::DemosaicMethod method);
 
 // Where a colour stack's numbers came from, for report.json "color".
 struct ColorProvenance {
@@ -55,7 +48,8 @@ struct ColorProvenance {
 nlohmann::json ToJson(const ColorProvenance& provenance);
 
 struct ColorStackOptions {
-  DemosaicMethod demosaic = DemosaicMethod::kBilinear;
+  // bilinear (the default) or edge-aware: photorig/solvers/color/apply.h
+  solvers::color::DemosaicMethod demosaic = solvers::color::DemosaicMethod::kBilinear;
   // The colour model file; empty: the one the run's manifest names (the rig's
   // camera.color_model at capture), if any; without one the stack stays in
   // camera RGB.
