@@ -595,4 +595,49 @@ TEST(EndToEnd, RelightingMatchesTheCapturedFrameOfTheSameLight) {
   EXPECT_GT(Correlation(image, signal, lit), 0.99);
 }
 
+// On a near dome every pixel sees the LEDs from its own point: the map's
+// light goes to the LED nearest each direction as seen from there, and each
+// frame is divided by that LED's falloff at the point, on the surface the
+// near-light solve placed (results/ps/depth.tiff). A map lit only around
+// LED 7's direction then gives the object as a distant light from there
+// shows it: the normals' and albedo's render (`--light`).
+TEST(EndToEnd, RelightingANearDomeRunWeighsEachPixelsOwnLeds) {
+  TempDir dir;
+  const fs::path run = dir.path() / "run";
+  ASSERT_EQ(RunPhotorig("run " + SourceDir() + "/config/recipes/ps-sphere.yaml --rig " + SourceDir() +
+                            "/config/rigs/sim-dome-near.yaml --out " + run.string(),
+                        dir.path() / "log"),
+            0)
+      << ReadText(dir.path() / "log");
+  const auto manifest = nlohmann::json::parse(ReadText(run / "manifest.json"));
+  const auto& d = manifest["lights"][7]["direction"];
+  const Eigen::Vector3d led(d[0].get<double>(), d[1].get<double>(), d[2].get<double>());
+  cv::Mat map = cv::Mat::zeros(128, 256, CV_32FC3);
+  for (int r = 0; r < map.rows; ++r)
+    for (int c = 0; c < map.cols; ++c)
+      if (photorig::solvers::lighting::LatLongDirection(c, r, map.cols, map.rows).dot(led) > std::cos(3.0 * M_PI / 180))
+        map.at<cv::Vec3f>(r, c) = cv::Vec3f(1, 1, 1);
+  ASSERT_TRUE(cv::imwrite((dir.path() / "map.hdr").string(), map));
+  const photorig::testing::CommandOutcome relit =
+      Photorig("relight --run " + run.string() + " --envmap " + (dir.path() / "map.hdr").string() + " --out " +
+                   (dir.path() / "image.tiff").string() + " --json",
+               dir);
+  ASSERT_EQ(relit.exit_code, 0) << relit.err;
+  const auto fields = nlohmann::json::parse(relit.out);
+  EXPECT_EQ(fields["light_model"], "near");
+  EXPECT_EQ(fields["points"], (run / "results/ps/depth.tiff").string());
+  const std::string light = std::to_string(led.x()) + "," + std::to_string(led.y()) + "," + std::to_string(led.z());
+  ASSERT_EQ(RunPhotorig("relight --run " + run.string() + " --light " + light + " --out " + (dir.path() / "model.tiff").string(),
+                        dir.path() / "log"),
+            0)
+      << ReadText(dir.path() / "log");
+  cv::Mat image = photorig::daemon::ReadFloatTiff((dir.path() / "image.tiff").string());
+  if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_RGB2GRAY);
+  const cv::Mat model = photorig::daemon::ReadFloatTiff((dir.path() / "model.tiff").string());
+  const cv::Mat solved = cv::imread((run / "results/ps/mask.png").string(), cv::IMREAD_GRAYSCALE);
+  double brightest;
+  cv::minMaxLoc(model, nullptr, &brightest, nullptr, nullptr, solved);
+  EXPECT_GT(Correlation(image, model, solved & (model > 0.2 * brightest)), 0.99);
+}
+
 }  // namespace

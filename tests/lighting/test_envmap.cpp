@@ -140,5 +140,141 @@ TEST(EnvMap, RelightingWithAnEnvironmentBySphericalHarmonicsAndByTheDome) {
   RecordProperty("dome_vs_sh_relative_error", std::to_string(diff / ref));
 }
 
+// A matte plane (albedo 0.5, facing the camera, 38 mm across) under a dome
+// of LEDs 80 mm away, one frame per LED: relit by an environment, its exact
+// radiance is albedo / pi times the map's light integrated over the upper
+// hemisphere with the cosine.
+struct NearPlane {
+  static constexpr int kSize = 96;
+  static constexpr double kPitchMm = 0.4, kDomeMm = 80.0, kAlbedo = 0.5;
+  std::vector<camera::NearLight> leds;
+  std::vector<double> scales;
+  std::vector<Eigen::Vector3d> directions;  // from the dome's centre
+  cv::Mat points;
+  std::vector<cv::Mat> frames;
+
+  explicit NearPlane(const std::vector<Eigen::Vector3d>& dome = testing::DomeDirections())
+      : points(kSize, kSize, CV_32FC3) {
+    for (const Eigen::Vector3d& d : dome) {
+      leds.push_back({kDomeMm * d.normalized(), -d.normalized(), 1.0});
+      scales.push_back(1000.0);
+      directions.push_back(d.normalized());
+    }
+    for (int r = 0; r < kSize; ++r)
+      for (int c = 0; c < kSize; ++c)
+        points.at<cv::Vec3f>(r, c) = cv::Vec3f(float((c + 0.5 - 0.5 * kSize) * kPitchMm), float((0.5 * kSize - r - 0.5) * kPitchMm), 0.0f);
+    for (std::size_t k = 0; k < leds.size(); ++k) {
+      cv::Mat frame(kSize, kSize, CV_32F);
+      for (int r = 0; r < kSize; ++r)
+        for (int c = 0; c < kSize; ++c) {
+          const cv::Vec3f& p = points.at<cv::Vec3f>(r, c);
+          Eigen::Vector3d towards;
+          const double irradiance = scales[k] * leds[k].RelativeIrradiance(Eigen::Vector3d(p[0], p[1], p[2]), &towards);
+          frame.at<float>(r, c) = static_cast<float>(kAlbedo / M_PI * std::max(0.0, towards.z()) * irradiance);
+        }
+      frames.push_back(frame);
+    }
+  }
+
+  // The plane's exact radiance under `map` (stored B, G, R like the map).
+  static cv::Vec3f Reference(const cv::Mat& map) {
+    cv::Vec3d sum(0.0, 0.0, 0.0);
+    for (int v = 0; v < map.rows; ++v) {
+      const double theta0 = M_PI * v / map.rows, theta1 = M_PI * (v + 1) / map.rows;
+      const double d_omega = 2.0 * M_PI / map.cols * (std::cos(theta0) - std::cos(theta1));
+      for (int u = 0; u < map.cols; ++u) {
+        const double cosine = LatLongDirection(u, v, map.cols, map.rows).z();
+        if (cosine > 0.0) sum += cv::Vec3d(map.at<cv::Vec3f>(v, u)) * (cosine * d_omega);
+      }
+    }
+    return cv::Vec3f(sum * (kAlbedo / M_PI));
+  }
+};
+
+// Worst relative error (over channels) of a relit image against the plane's reference.
+double WorstRelativeError(const cv::Mat& relit, const cv::Vec3f& reference) {
+  double worst = 0.0;
+  for (int r = 0; r < relit.rows; ++r)
+    for (int c = 0; c < relit.cols; ++c)
+      for (int ch = 0; ch < 3; ++ch)
+        worst = std::max(worst, std::abs(relit.at<cv::Vec3f>(r, c)[ch] / reference[ch] - 1.0));
+  return worst;
+}
+
+// n directions spread evenly over the hemisphere above 3 deg of elevation (a Fibonacci spiral).
+std::vector<Eigen::Vector3d> DenseDome(int n) {
+  std::vector<Eigen::Vector3d> dome;
+  const double golden = M_PI * (3.0 - std::sqrt(5.0)), lowest = std::sin(3.0 * M_PI / 180.0);
+  for (int i = 0; i < n; ++i) {
+    const double z = 1.0 - (1.0 - lowest) * (i + 0.5) / n, radius = std::sqrt(1.0 - z * z);
+    dome.emplace_back(radius * std::cos(golden * i), radius * std::sin(golden * i), z);
+  }
+  return dome;
+}
+
+TEST(EnvMap, NearLedFramesAreRelitWithEachPixelsOwnDirectionsAndFalloff) {
+  // A dome dense enough (300 LEDs) that its cells sum the lit hemisphere to about a percent, so
+  // what remains is the frames' own falloff and directions, which only per-pixel weights take out.
+  const NearPlane plane(DenseDome(300));
+  // Worst relative error of the relit plane with per-pixel weights, and with one direction and
+  // intensity per LED as for a distant dome.
+  auto errors = [&](const cv::Mat& env) {
+    const cv::Vec3f reference = NearPlane::Reference(env);
+    const cv::Mat near = OutputOf<cv::Mat>([&](cv::Mat* out) {
+      return RelightNearFromEnvironment({}, env, plane.leds, plane.scales, plane.frames, plane.points, out);
+    });
+    const Eigen::MatrixXd weights = OutputOf<Eigen::MatrixXd>(
+        [&](Eigen::MatrixXd* out) { return LatLongToLedWeights(env, plane.directions, plane.scales, out); });
+    const cv::Mat distant = OutputOf<cv::Mat>([&](cv::Mat* out) { return RelightFromFrames(plane.frames, weights, out); });
+    return std::pair(WorstRelativeError(near, reference), WorstRelativeError(distant, reference));
+  };
+  // Uniform light: a shell of Lambertian emitters aimed at its centre lights every point inside
+  // alike (an integrating sphere), so here one weight per LED is right too.
+  const auto [uniform_near, uniform_distant] = errors(cv::Mat(128, 256, CV_32FC3, cv::Scalar::all(1.0)));
+  EXPECT_LT(uniform_near, 0.03);
+  EXPECT_LT(uniform_distant, 0.03);
+  // A sky with a warm lobe: 1.3 % per pixel, 38 % with one weight per LED.
+  const auto [sky_near, sky_distant] = errors(SmoothEnvironment(256));
+  EXPECT_LT(sky_near, 0.03);
+  EXPECT_GT(sky_distant, 0.2);
+}
+
+TEST(EnvMap, NearRelightingWeightsAreBilinearBetweenGridPoints) {
+  const NearPlane plane;
+  const cv::Mat env = SmoothEnvironment(256);
+  NearRelightOptions fine;
+  fine.grid_px = 2;
+  cv::Mat coarse, dense;
+  ASSERT_TRUE(RelightNearFromEnvironment({}, env, plane.leds, plane.scales, plane.frames, plane.points, &coarse)
+                  .IsSolutionUsable());
+  ASSERT_TRUE(RelightNearFromEnvironment(fine, env, plane.leds, plane.scales, plane.frames, plane.points, &dense)
+                  .IsSolutionUsable());
+  cv::Mat ratio;
+  cv::divide(coarse, dense, ratio);
+  double low, high;
+  cv::minMaxLoc(ratio.reshape(1), &low, &high);
+  EXPECT_GT(low, 1.0 - 5e-3);
+  EXPECT_LT(high, 1.0 + 5e-3);
+}
+
+TEST(EnvMap, NearRelightingRefusesWhatItCannotUse) {
+  const cv::Mat env = SmoothEnvironment(64);
+  const NearPlane plane;
+  cv::Mat out;
+  NearRelightOptions coarse;
+  coarse.grid_px = 1;
+  EXPECT_EQ(RelightNearFromEnvironment(coarse, env, plane.leds, plane.scales, plane.frames, plane.points, &out).termination,
+            core::Termination::kInvalidOptions);
+  std::vector<cv::Mat> fewer(plane.frames.begin(), plane.frames.end() - 1);
+  EXPECT_EQ(RelightNearFromEnvironment({}, env, plane.leds, plane.scales, fewer, plane.points, &out).termination,
+            core::Termination::kInvalidInput);
+  cv::Mat holes = plane.points.clone();
+  holes.at<cv::Vec3f>(5, 5)[2] = std::nanf("");
+  const core::Summary refused = RelightNearFromEnvironment({}, env, plane.leds, plane.scales, plane.frames, holes, &out);
+  EXPECT_EQ(refused.termination, core::Termination::kInvalidInput);
+  EXPECT_NE(refused.message.find("finite"), std::string::npos) << refused.message;
+  EXPECT_TRUE(out.empty());
+}
+
 }  // namespace
 }  // namespace photorig::solvers::lighting

@@ -19,8 +19,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <stdexcept>
 
 namespace photorig::app {
@@ -123,6 +125,59 @@ int RelightHeldOut(const RelightOptions& options) {
   return kExitOk;
 }
 
+// Each pixel's surface point for a near dome's relighting, in the dome's
+// frame: on the surface a near-light photometric-stereo solve placed in
+// millimetres (results/ps depth.tiff, report.json depth.from_near_lights)
+// where it has one, else on the sample plane (z = 0).
+cv::Mat SurfacePoints(const std::string& run_dir, const daemon::PhotometricStereoInput& input, std::string* source) {
+  const solvers::camera::Camera camera =
+      input.camera ? *input.camera
+                   : solvers::camera::Camera::Orthographic(input.stack.width(), input.stack.height(), input.pixel_pitch);
+  const solvers::camera::PixelRays rays(camera);
+  const fs::path ps = fs::path(run_dir) / "results" / "ps";
+  cv::Mat depth;
+  *source = "sample plane";
+  if (fs::exists(ps / "report.json") && fs::exists(ps / "depth.tiff")) {
+    std::ifstream in(ps / "report.json");
+    const nlohmann::json report = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+    if (report.contains("depth") && report["depth"].value("from_near_lights", false)) {
+      depth = daemon::ReadFloatTiff((ps / "depth.tiff").string());
+      *source = (ps / "depth.tiff").string();
+    }
+  }
+  cv::Mat points(input.stack.height(), input.stack.width(), CV_32FC3);
+  for (int r = 0; r < points.rows; ++r)
+    for (int c = 0; c < points.cols; ++c) {
+      const float z = depth.empty() ? 0.0f : depth.at<float>(r, c);
+      const Eigen::Vector3d p = rays.Point(r, c, std::isfinite(z) ? z : 0.0);
+      points.at<cv::Vec3f>(r, c) = cv::Vec3f(float(p.x()), float(p.y()), float(p.z()));
+    }
+  return points;
+}
+
+// Image-based: the captured one-light frames, weighted so the dome
+// approximates the map; per pixel on a dome of near LEDs.
+solvers::core::Summary RelightFromEnvironment(const RelightOptions& options, cv::Mat* relit) {
+  const daemon::PhotometricStereoInput input = daemon::LoadRunStack(options.run_dir);
+  const cv::Mat map = daemon::ReadImage(options.envmap);
+  if (map.depth() != CV_32F) throw std::runtime_error(options.envmap + ": expected a float (HDR) lat-long map");
+  std::vector<cv::Mat> frames;
+  for (const cv::Mat& frame : input.stack.images) frames.push_back(input.stack.dark.empty() ? frame : frame - input.stack.dark);
+  if (!input.near_lights.empty()) {
+    std::string points_from;
+    const cv::Mat points = SurfacePoints(options.run_dir, input, &points_from);
+    ResultFields()["light_model"] = "near";
+    ResultFields()["points"] = points_from;
+    return solvers::lighting::RelightNearFromEnvironment({}, map, input.near_lights, input.stack.light_scales, frames,
+                                                         points, relit);
+  }
+  ResultFields()["light_model"] = "distant";
+  Eigen::MatrixXd weights;
+  const solvers::core::Summary done =
+      solvers::lighting::LatLongToLedWeights(map, input.stack.light_directions, input.stack.light_scales, &weights);
+  return done.IsSolutionUsable() ? solvers::lighting::RelightFromFrames(frames, weights, relit) : done;
+}
+
 int Relight(const RelightOptions& options) {
   if (options.held_out >= 0) {
     if (!options.envmap.empty() || !options.lights.empty()) return Fail(kExitUsage, "--held-out takes neither --envmap nor --light");
@@ -132,16 +187,7 @@ int Relight(const RelightOptions& options) {
   if (options.envmap.empty() == options.lights.empty()) return Fail(kExitUsage, "give either --envmap, --light or --held-out");
   cv::Mat relit;
   if (!options.envmap.empty()) {
-    // Image-based: the captured one-light frames, weighted so the dome approximates the map.
-    const daemon::PhotometricStereoInput input = daemon::LoadRunStack(options.run_dir);
-    const cv::Mat map = daemon::ReadImage(options.envmap);
-    if (map.depth() != CV_32F) throw std::runtime_error(options.envmap + ": expected a float (HDR) lat-long map");
-    std::vector<cv::Mat> frames;
-    for (const cv::Mat& frame : input.stack.images) frames.push_back(input.stack.dark.empty() ? frame : frame - input.stack.dark);
-    Eigen::MatrixXd weights;
-    solvers::core::Summary done = solvers::lighting::LatLongToLedWeights(map, input.stack.light_directions, input.stack.light_scales,
-                                                          &weights);
-    if (done.IsSolutionUsable()) done = solvers::lighting::RelightFromFrames(frames, weights, &relit);
+    const solvers::core::Summary done = RelightFromEnvironment(options, &relit);
     if (!done.IsSolutionUsable())
       return Fail(kExitFailed, options.run_dir + " with " + options.envmap + ": " + done.message);
   } else if (options.model == solvers::reflectance::Method::kPerMaterial) {

@@ -208,6 +208,58 @@ solvers::core::Summary ProjectLatLongToSh(const cv::Mat& latlong, int band, Eige
   return timer.Succeeded();
 }
 
+namespace {
+
+// Per LED (rows) and channel (R, G, B columns), the map's radiance over the
+// directions of the upper hemisphere (z > 0) nearer that LED than any other
+// with reaches[k], times their solid angle. directions: unit vectors.
+Eigen::MatrixXd NearestLedRadiance(const cv::Mat& source, const std::vector<Eigen::Vector3d>& directions,
+                                   const std::vector<char>& reaches) {
+  const int channels = source.channels();
+  Eigen::MatrixXd radiance = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(directions.size()), channels);
+  for (int v = 0; v < source.rows; ++v) {
+    const double d_omega = PixelSolidAngle(v, source.cols, source.rows);
+    const float* row = source.ptr<float>(v);
+    for (int u = 0; u < source.cols; ++u) {
+      const Eigen::Vector3d d = LatLongDirection(u, v, source.cols, source.rows);
+      if (d.z() <= 0.0) continue;
+      Eigen::Index nearest = -1;
+      double best = -2.0;
+      for (std::size_t k = 0; k < directions.size(); ++k) {
+        const double cosine = d.dot(directions[k]);
+        if (reaches[k] && cosine > best) {
+          best = cosine;
+          nearest = static_cast<Eigen::Index>(k);
+        }
+      }
+      if (nearest < 0) continue;
+      for (int ch = 0; ch < channels; ++ch) radiance(nearest, channels == 3 ? 2 - ch : 0) += row[u * channels + ch] * d_omega;
+    }
+  }
+  return radiance;
+}
+
+// The grid positions along an axis of `size` pixels: every step-th, and the last.
+std::vector<int> GridPositions(int size, int step) {
+  std::vector<int> at;
+  for (int v = 0; v < size; v += step) at.push_back(v);
+  if (at.back() != size - 1) at.push_back(size - 1);
+  return at;
+}
+
+// For each pixel along an axis, the grid position at or before it and its fraction of the way to the next.
+void GridCells(const std::vector<int>& grid, int size, std::vector<int>* left, std::vector<float>* fraction) {
+  left->resize(size), fraction->resize(size);
+  std::size_t j = 0;
+  for (int x = 0; x < size; ++x) {
+    while (j + 2 < grid.size() && grid[j + 1] <= x) ++j;
+    (*left)[x] = static_cast<int>(j);
+    (*fraction)[x] = grid.size() < 2 ? 0.0f : static_cast<float>(x - grid[j]) / static_cast<float>(grid[j + 1] - grid[j]);
+  }
+}
+
+}  // namespace
+
 solvers::core::Summary LatLongToLedWeights(const cv::Mat& latlong, const std::vector<Eigen::Vector3d>& led_directions,
                                      const std::vector<double>& led_intensities, Eigen::MatrixXd* weights_out) {
   const solvers::core::SolveTimer timer;
@@ -224,31 +276,107 @@ solvers::core::Summary LatLongToLedWeights(const cv::Mat& latlong, const std::ve
   }
   cv::Mat source;
   latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
-  const int channels = source.channels();
-  Eigen::MatrixXd weights = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(led_directions.size()), channels);
-  for (int v = 0; v < source.rows; ++v) {
-    const double d_omega = PixelSolidAngle(v, source.cols, source.rows);
-    const float* row = source.ptr<float>(v);
-    for (int u = 0; u < source.cols; ++u) {
-      const Eigen::Vector3d d = LatLongDirection(u, v, source.cols, source.rows);
-      if (d.z() <= 0.0) continue;
-      Eigen::Index nearest = 0;
-      double best = -2.0;
-      for (std::size_t k = 0; k < led_directions.size(); ++k) {
-        const double cosine = d.dot(led_directions[k].normalized());
-        if (cosine > best) {
-          best = cosine;
-          nearest = static_cast<Eigen::Index>(k);
-        }
-      }
-      for (int ch = 0; ch < channels; ++ch) {
-        weights(nearest, channels == 3 ? 2 - ch : 0) += row[u * channels + ch] * d_omega;
-      }
-    }
-  }
+  std::vector<Eigen::Vector3d> directions;
+  for (const Eigen::Vector3d& d : led_directions) directions.push_back(d.normalized());
+  Eigen::MatrixXd weights = NearestLedRadiance(source, directions, std::vector<char>(directions.size(), 1));
   for (std::size_t k = 0; k < led_intensities.size(); ++k) weights.row(static_cast<Eigen::Index>(k)) /= led_intensities[k];
   *weights_out = std::move(weights);
   return timer.Succeeded();
+}
+
+bool NearRelightOptions::IsValid(std::string* why) const {
+  if (grid_px < 2) return solvers::core::Refuse(why, "grid_px must be at least 2, got " + std::to_string(grid_px));
+  if (map_width_px < 2 || map_width_px % 2 != 0)
+    return solvers::core::Refuse(why, "map_width_px must be even and at least 2, got " + std::to_string(map_width_px));
+  return true;
+}
+
+solvers::core::Summary RelightNearFromEnvironment(const NearRelightOptions& options, const cv::Mat& latlong,
+                                                  const std::vector<camera::NearLight>& leds,
+                                                  const std::vector<double>& led_scales,
+                                                  const std::vector<cv::Mat>& frames, const cv::Mat& points_mm,
+                                                  cv::Mat* image) {
+  solvers::core::SolveTimer timer;
+  solvers::core::Summary summary;
+  if (solvers::core::EndIfInvalid(options, &summary)) return summary;
+  if (!IsLatLong(latlong)) return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map");
+  if (leds.empty() || leds.size() != led_scales.size() || leds.size() != frames.size())
+    return Ended(Termination::kInvalidInput, std::to_string(leds.size()) + " LEDs, " + std::to_string(led_scales.size()) +
+                                                 " scales and " + std::to_string(frames.size()) + " frames");
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (frames[k].empty() || frames[k].size() != frames[0].size() || frames[k].channels() != 1)
+      return Ended(Termination::kInvalidInput,
+                   "frame " + std::to_string(k) + " is not single-channel or differs from frame 0 in size");
+    if (!(led_scales[k] > 0.0)) return Ended(Termination::kInvalidInput, "LED " + std::to_string(k) + " has a non-positive scale");
+  }
+  if (points_mm.type() != CV_32FC3 || points_mm.size() != frames[0].size() || !cv::checkRange(points_mm))
+    return Ended(Termination::kInvalidInput, "points_mm must be finite CV_32FC3 points, one per frame pixel");
+  cv::Mat source;
+  latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
+  cv::resize(source, source, cv::Size(options.map_width_px, options.map_width_px / 2), 0.0, 0.0, cv::INTER_AREA);
+  const int channels = source.channels(), lights = static_cast<int>(leds.size());
+  std::vector<camera::PreparedNearLight> prepared;
+  for (const camera::NearLight& led : leds) prepared.emplace_back(led);
+  const std::vector<int> grid_rows = GridPositions(points_mm.rows, options.grid_px),
+                         grid_cols = GridPositions(points_mm.cols, options.grid_px);
+  timer.SetupDone(&summary);
+
+  // Each grid point's weights: [(grid row * grid columns + grid column) * lights + k] * channels + channel.
+  const std::size_t grid_points = grid_rows.size() * grid_cols.size(), per_point = static_cast<std::size_t>(lights) * channels;
+  std::vector<double> node_weights(grid_points * per_point, 0.0);
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::size_t g = 0; g < grid_points; ++g) {
+    const cv::Vec3f& p = points_mm.at<cv::Vec3f>(grid_rows[g / grid_cols.size()], grid_cols[g % grid_cols.size()]);
+    std::vector<Eigen::Vector3d> directions(lights);
+    std::vector<double> irradiance(lights);
+    std::vector<char> reaches(lights);
+    for (int k = 0; k < lights; ++k) {
+      irradiance[k] = led_scales[k] * prepared[k].RelativeIrradiance(Eigen::Vector3d(p[0], p[1], p[2]), &directions[k]);
+      reaches[k] = irradiance[k] > 0.0;
+    }
+    const Eigen::MatrixXd radiance = NearestLedRadiance(source, directions, reaches);
+    for (int k = 0; k < lights; ++k)
+      for (int ch = 0; ch < channels; ++ch)
+        node_weights[g * per_point + k * channels + ch] = reaches[k] ? radiance(k, ch) / irradiance[k] : 0.0;
+  }
+
+  std::vector<int> row_cell, col_cell;
+  std::vector<float> row_fraction, col_fraction;
+  GridCells(grid_rows, points_mm.rows, &row_cell, &row_fraction);
+  GridCells(grid_cols, points_mm.cols, &col_cell, &col_fraction);
+  std::vector<cv::Mat> converted(frames.size());
+  for (std::size_t k = 0; k < frames.size(); ++k) frames[k].convertTo(converted[k], CV_32F);
+  cv::Mat relit(points_mm.size(), CV_32FC(channels));
+  const std::size_t last_col = grid_cols.size() - 1, last_row = grid_rows.size() - 1;
+#pragma omp parallel for schedule(static)
+  for (int r = 0; r < relit.rows; ++r) {
+    const std::size_t r0 = row_cell[r], r1 = std::min(r0 + 1, last_row);
+    const double fr = row_fraction[r];
+    float* out = relit.ptr<float>(r);
+    for (int c = 0; c < relit.cols; ++c) {
+      const std::size_t c0 = col_cell[c], c1 = std::min(c0 + 1, last_col);
+      const double fc = col_fraction[c];
+      const double* w00 = &node_weights[(r0 * grid_cols.size() + c0) * per_point];
+      const double* w01 = &node_weights[(r0 * grid_cols.size() + c1) * per_point];
+      const double* w10 = &node_weights[(r1 * grid_cols.size() + c0) * per_point];
+      const double* w11 = &node_weights[(r1 * grid_cols.size() + c1) * per_point];
+      double sum[3] = {0.0, 0.0, 0.0};
+      for (int k = 0; k < lights; ++k) {
+        const double value = converted[k].at<float>(r, c);
+        for (int ch = 0; ch < channels; ++ch) {
+          const int i = k * channels + ch;
+          const double w = (1.0 - fr) * ((1.0 - fc) * w00[i] + fc * w01[i]) + fr * ((1.0 - fc) * w10[i] + fc * w11[i]);
+          sum[ch] += w * value;
+        }
+      }
+      // Columns are R, G, B; the image stores B, G, R.
+      for (int ch = 0; ch < channels; ++ch) out[c * channels + ch] = static_cast<float>(sum[channels == 3 ? 2 - ch : 0]);
+    }
+  }
+  *image = relit;
+  timer.Finish(&summary);
+  summary.termination = Termination::kSuccess;
+  return summary;
 }
 
 }  // namespace photorig::solvers::lighting

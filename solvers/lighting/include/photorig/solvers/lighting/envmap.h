@@ -8,6 +8,7 @@
 // camera) to +x: direction = (sin theta sin phi, cos theta, sin theta cos phi).
 // The direction straight behind the ball (-z), which a mirror ball cannot see, lies on the seam.
 
+#include "photorig/solvers/camera/near_light.h"
 #include "photorig/solvers/lighting/sphere.h"
 
 #include <Eigen/Core>
@@ -62,5 +63,33 @@ solvers::core::Summary ProjectLatLongToSh(const cv::Mat& latlong, int band, Eige
 // weighted by solid angle and divided by the LED's intensity (positive, one per direction).
 solvers::core::Summary LatLongToLedWeights(const cv::Mat& latlong, const std::vector<Eigen::Vector3d>& led_directions,
                                      const std::vector<double>& led_intensities, Eigen::MatrixXd* weights);
+
+// The same relighting from a dome of near LEDs (camera/near_light.h). Each
+// surface point x sees LED k along its own direction l_k(x) and with its own
+// irradiance E_k(x) = led_scales[k] * RelativeIrradiance_k(x), so the
+// weights differ from pixel to pixel: each direction of the upper hemisphere
+// goes to the LED nearest it as seen from x (of those that reach x),
+// weighted by its solid angle and divided by E_k(x), and the image is
+// sum_k w_k(x) frames[k](x). With one direction and intensity per LED
+// (LatLongToLedWeights) an 80 mm dome leaves the relit object's shading
+// tens of percent off across it: the falloff and the directions of its frames.
+struct NearRelightOptions {
+  // The weights are worked out at every grid_px-th pixel of every
+  // grid_px-th row (and the last row and column) and bilinear between: they
+  // follow l_k(x) and E_k(x), which change over millimetres, not pixels.
+  int grid_px = 16;
+  // The map is area-averaged to this width (2:1) first: the weights sum it
+  // over each LED's cell, tens of degrees wide, which 2.8-degree texels resolve.
+  int map_width_px = 128;
+  bool IsValid(std::string* why) const;  // both at least 2 (the width even)
+};
+// frames: one single-channel image per LED, one size; points_mm: CV_32FC3 of
+// that size, each pixel's surface point in the dome's frame (mm), finite.
+// *image: CV_32F with the map's channels (3: stored BGR).
+solvers::core::Summary RelightNearFromEnvironment(const NearRelightOptions& options, const cv::Mat& latlong,
+                                                  const std::vector<camera::NearLight>& leds,
+                                                  const std::vector<double>& led_scales,
+                                                  const std::vector<cv::Mat>& frames, const cv::Mat& points_mm,
+                                                  cv::Mat* image);
 
 }  // namespace photorig::solvers::lighting
