@@ -37,22 +37,28 @@ int ThetaHBin(std::uint32_t index) { return static_cast<int>(index / kCellsPerTh
 int ThetaDBin(std::uint32_t index) { return static_cast<int>(index / MerlTable::kPhiDBins) % MerlTable::kThetaDBins; }
 
 // Every cell whose centre has both directions within max_theta_deg and a
-// finite value in the table, in index order (theta_h bin by theta_h bin).
+// finite value in the table, in index order (theta_h bin by theta_h bin). A
+// MERL table's value at a cell centre is the stored one (its Evaluate's
+// trilinear weights are 1 there), so its cells are read directly: no lookup
+// through the directions, and no directions for an unmeasured cell.
 std::vector<Cell> ValidCells(const MeasuredBrdf& table, double max_theta_deg) {
   const double min_cos = std::cos(max_theta_deg * M_PI / 180.0);
+  const MerlBrdf* merl = table.target<MerlBrdf>();
   std::vector<std::vector<Cell>> per_bin(MerlTable::kThetaHBins);
 #pragma omp parallel for schedule(dynamic)
   for (int ih = 0; ih < MerlTable::kThetaHBins; ++ih)
     for (int id = 0; id < MerlTable::kThetaDBins; ++id)
       for (int ip = 0; ip < MerlTable::kPhiDBins; ++ip) {
+        const std::size_t index = MerlTable::CellIndex(ih, id, ip);
+        std::optional<Eigen::Vector3d> value;
+        if (merl && !(value = merl->table->EvaluateCell(index))) continue;
         const DirectionPair d = FromHalfDiff(MerlTable::CellCentre(ih, id, ip));
         if (d.wi.z() <= 0.0 || d.wo.z() <= 0.0 || d.wi.z() < min_cos || d.wo.z() < min_cos) continue;
-        const std::optional<Eigen::Vector3d> value = table(d.wi, d.wo);
+        if (!merl) value = table(d.wi, d.wo);
         if (!value || !value->allFinite() || (value->array() * d.wi.z() <= -1.0).any()) continue;
         Eigen::Vector3d log_value;
         for (int ch = 0; ch < 3; ++ch) log_value[ch] = std::log1p((*value)[ch] * d.wi.z());
-        per_bin[ih].push_back({static_cast<std::uint32_t>(MerlTable::CellIndex(ih, id, ip)), *value,
-                               GeometryOf(d.wi, d.wo), log_value});
+        per_bin[ih].push_back({static_cast<std::uint32_t>(index), *value, GeometryOf(d.wi, d.wo), log_value});
       }
   std::vector<Cell> cells;
   for (const std::vector<Cell>& bin : per_bin) cells.insert(cells.end(), bin.begin(), bin.end());
