@@ -1,9 +1,10 @@
 #pragma once
 // The specular lobes of models.h, templated so that the fitter differentiates
-// them with Ceres' jets. `specular` is one channel's k_s (Blinn-Phong,
-// Cook-Torrance), rho_s (Ward) or F0 (GGX); `shape` the exponent or the
-// roughness; `extra` the one parameter the channels share beyond the shape:
-// Cook-Torrance's Fresnel F0, GGX's scale (the other lobes ignore it).
+// them with autodiff's Dual (the tests and the bench also with Ceres' jets).
+// `specular` is one channel's k_s (Blinn-Phong, Cook-Torrance), rho_s (Ward)
+// or F0 (GGX); `shape` the exponent or the roughness; `extra` the one
+// parameter the channels share beyond the shape: Cook-Torrance's Fresnel F0,
+// GGX's scale (the other lobes ignore it).
 
 #include "photorig/solvers/brdf/models.h"
 
