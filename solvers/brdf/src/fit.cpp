@@ -36,9 +36,9 @@ class SampleResidual {
   template <typename T>
   bool operator()(const T* kd, const T* lobe, const T* extra, T* residual) const {
     using std::exp;
-    const T shape = exp(lobe[3]);
+    const T factor = internal::LobeFactor(model_, T(exp(lobe[3])), *extra, s_.geometry);
     for (int c = 0; c < 3; ++c)
-      Finish(c, kd[c] / M_PI + internal::Lobe(model_, lobe[c], shape, *extra, s_.geometry), residual);
+      Finish(c, kd[c] / M_PI + internal::ChannelLobe(model_, lobe[c], factor, s_.geometry), residual);
     return true;
   }
   template <typename T>
@@ -77,12 +77,9 @@ class TwoLobeResidual : public SampleResidual {
   template <typename T>
   bool operator()(const T* kd, const T* lobe, const T* lobe2, T* residual) const {
     using std::exp;
-    const T e1 = exp(lobe[3]), e2 = exp(lobe2[3]);
-    for (int c = 0; c < 3; ++c)
-      Finish(c,
-             kd[c] / M_PI + internal::BlinnPhongLobe(lobe[c], e1, s_.geometry) +
-                 internal::BlinnPhongLobe(lobe2[c], e2, s_.geometry),
-             residual);
+    const T first = internal::BlinnPhongFactor(T(exp(lobe[3])), s_.geometry);
+    const T second = internal::BlinnPhongFactor(T(exp(lobe2[3])), s_.geometry);
+    for (int c = 0; c < 3; ++c) Finish(c, kd[c] / M_PI + lobe[c] * first + lobe2[c] * second, residual);
     return true;
   }
 };
@@ -214,8 +211,10 @@ void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd
     const double shape = shape_at(step);
     for (double shared : StartingExtras(model)) {
       for (std::size_t k = 0; k < n; ++k) {
-        offset[k] = internal::Lobe(model, 0.0, shape, shared, prepared[k].geometry);
-        basis[k] = internal::Lobe(model, 1.0, shape, shared, prepared[k].geometry) - offset[k];
+        const Geometry& g = prepared[k].geometry;
+        const double factor = internal::LobeFactor(model, shape, shared, g);
+        offset[k] = internal::ChannelLobe(model, 0.0, factor, g);
+        basis[k] = internal::ChannelLobe(model, 1.0, factor, g) - offset[k];
       }
       double error = 0.0, trial[3][2];
       for (int c = 0; c < 3; ++c) error += FitLinearChannel(prepared, {&basis}, offset, c, trial[c]);
