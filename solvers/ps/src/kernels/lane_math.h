@@ -15,12 +15,9 @@ using core::kLn2LoF;
 using core::LaneExp;
 using core::LaneLogAndInverse;
 
-// The hot loops are built for several instruction sets and the best one the
-// CPU supports is picked at load time (GCC function multi-versioning): the
-// library itself stays at the baseline ISA (see CMakeLists.txt). They use no
-// Eigen, whose types must not cross code built for different ISAs.
-#define PHOTORIG_PS_MULTIVERSION \
-  __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+// The hot loops are multi-versioned (PHOTORIG_LANE_MULTIVERSION): the
+// library itself stays at the baseline ISA (see CMakeLists.txt).
+#define PHOTORIG_PS_MULTIVERSION PHOTORIG_LANE_MULTIVERSION
 
 // Pixels per lane kernel pass: one AVX-512 register of doubles, two of AVX2;
 // kFloatLanes for the kernels that run in float.

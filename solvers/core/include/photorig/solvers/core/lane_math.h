@@ -14,6 +14,13 @@ namespace photorig::solvers::core {
 
 #define PHOTORIG_LANE_INLINE inline __attribute__((always_inline))
 
+// A lane loop's function built for several instruction sets, the best one
+// the CPU supports picked at load time (GCC function multi-versioning), so
+// that a library stays at the baseline ISA. Such a function must use no
+// Eigen, whose types must not cross code built for different ISAs.
+#define PHOTORIG_LANE_MULTIVERSION \
+  __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+
 // c0 x^n + c1 x^(n-1) + ... + cn by Horner's rule, unrolled by the fold (a
 // loop here would stop the enclosing lane loop from vectorising).
 template <typename T, typename... Coefficients>
