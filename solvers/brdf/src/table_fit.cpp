@@ -47,7 +47,10 @@ std::vector<Cell> ValidCells(const MeasuredBrdf& table, double max_theta_deg) {
   const MerlBrdf* merl = table.target<MerlBrdf>();
   std::vector<std::vector<Cell>> per_bin(MerlTable::kThetaHBins);
 #pragma omp parallel for schedule(dynamic)
-  for (int ih = 0; ih < MerlTable::kThetaHBins; ++ih)
+  for (int ih = 0; ih < MerlTable::kThetaHBins; ++ih) {
+    // A bin's cells at most: no growth, whose copies and fresh pages cost
+    // as much as filling the bin.
+    per_bin[ih].reserve(kCellsPerThetaH);
     for (int id = 0; id < MerlTable::kThetaDBins; ++id)
       for (int ip = 0; ip < MerlTable::kPhiDBins; ++ip) {
         const std::size_t index = MerlTable::CellIndex(ih, id, ip);
@@ -61,7 +64,11 @@ std::vector<Cell> ValidCells(const MeasuredBrdf& table, double max_theta_deg) {
         for (int ch = 0; ch < 3; ++ch) log_value[ch] = std::log1p((*value)[ch] * d.wi.z());
         per_bin[ih].push_back({static_cast<std::uint32_t>(index), *value, GeometryOf(d.wi, d.wo), log_value});
       }
+  }
+  std::size_t total = 0;
+  for (const std::vector<Cell>& bin : per_bin) total += bin.size();
   std::vector<Cell> cells;
+  cells.reserve(total);
   for (const std::vector<Cell>& bin : per_bin) cells.insert(cells.end(), bin.begin(), bin.end());
   return cells;
 }
