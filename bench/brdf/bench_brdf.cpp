@@ -107,7 +107,7 @@ const MeasuredBrdf& NoisyTable() {
       for (int c = 0; c < 3; ++c) f[c] *= 1.0 + noise(rng);
       return std::optional<Eigen::Vector3d>(f);
     }));
-    return MeasuredBrdf([table](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return table->Evaluate(wi, wo); });
+    return MeasuredBrdf(MerlBrdf{table});  // as ReadMeasured gives it
   }();
   return brdf;
 }

@@ -1,7 +1,9 @@
 #include "photorig/solvers/brdf/fit.h"
 
+#include "lobes.h"
 #include "synthetic_samples.h"
 
+#include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -503,6 +505,56 @@ TEST(BrdfFit, LargeSetsAreFittedOnASubsampleAndCostedOnAll) {
         << c;
   }
   EXPECT_LT(std::abs(sub.params.shape - full.params.shape), 3.0 * sub.shape_sigma * std::sqrt(3.0));
+}
+
+// Ceres' parameter blocks of a GGX fit with the weighted loss: the
+// reference the fit's deviations are checked against.
+struct GgxWeightedResidual {
+  Geometry g;
+  Eigen::Vector3d value, sigma;
+  template <typename T>
+  bool operator()(const T* kd, const T* lobe, const T* scale, T* residual) const {
+    using std::exp;
+    const T roughness = exp(lobe[3]);
+    for (int c = 0; c < 3; ++c)
+      residual[c] = (kd[c] / M_PI + internal::Lobe(Model::kGgx, lobe[c], roughness, scale[0], g) - value[c]) / sigma[c];
+    return true;
+  }
+};
+
+// The deviations are the diagonal of (J^T J)^-1 at the solution, computed
+// from the solver's own Jacobian: the same as ceres::Covariance (DENSE_SVD)
+// gives on the same residuals.
+TEST(BrdfFit, DeviationsAreCeresCovarianceOfTheSolution) {
+  const std::vector<BrdfSample> samples = SyntheticSamples(GlossyGgx(), {});
+  const FitSummary fit = FitModel(Model::kGgx, samples);
+  ASSERT_TRUE(fit.IsSolutionUsable()) << fit.message;
+  ASSERT_TRUE(fit.covariance_available);
+  const ModelParams& p = fit.params;
+  double kd[3] = {p.diffuse[0], p.diffuse[1], p.diffuse[2]};
+  double lobe[4] = {p.specular[0], p.specular[1], p.specular[2], std::log(p.shape)};
+  double scale[1] = {p.specular_scale};
+  ceres::Problem problem;
+  for (const BrdfSample& s : samples)
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<GgxWeightedResidual, 3, 3, 4, 1>(
+                                 new GgxWeightedResidual{GeometryOf(s.wi, s.wo), s.value, s.sigma}),
+                             nullptr, kd, lobe, scale);
+  ceres::Covariance::Options options;
+  options.algorithm_type = ceres::DENSE_SVD;
+  ceres::Covariance covariance(options);
+  const std::vector<const double*> blocks = {kd, lobe, scale};
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (const double* a : blocks)
+    for (const double* b : blocks) pairs.emplace_back(a, b);
+  Eigen::Matrix<double, 8, 8, Eigen::RowMajor> cov;
+  ASSERT_TRUE(covariance.Compute(pairs, &problem) && covariance.GetCovarianceMatrix(blocks, cov.data()));
+  const Eigen::Matrix<double, 8, 1> sd = cov.diagonal().cwiseSqrt();
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(fit.diffuse_sigma[c], sd[c], 1e-6 * sd[c]) << c;
+    EXPECT_NEAR(fit.specular_sigma[c], sd[3 + c], 1e-6 * sd[3 + c]) << c;
+  }
+  EXPECT_NEAR(fit.shape_sigma, p.shape * sd[6], 1e-6 * p.shape * sd[6]);
+  EXPECT_NEAR(fit.specular_scale_sigma, sd[7], 1e-6 * sd[7]);
 }
 
 // A start near the optimum (as each held-out fold gets: the fit to all

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 
 namespace photorig::solvers::brdf {
 namespace {
@@ -51,6 +52,47 @@ TEST(TableFit, ASubDegreeLobeIsSeenAndTheReportedErrorIsTheTables) {
     EXPECT_LT(t.reported_over_all_cells[c], 1.25) << ModelName(s.candidates[c].params.model);
   }
   EXPECT_GT(t.cells, 900000u);  // of MERL's 1,458,000, those with both directions within 80 deg
+}
+
+// A MERL table as ReadMeasured gives it (MerlBrdf) is read at its cell
+// centres directly: the same cells with the same values as through its
+// trilinear Evaluate, so the same draw and the same fits. The table has a
+// lobe, a ripple that makes every cell's value its own, and unmeasured cells
+// (a theta_d band and a scatter).
+TEST(TableFit, AMerlTableReadAtItsCellsGivesTheCellsOfItsLookup) {
+  ModelParams truth;
+  truth.model = Model::kGgx;
+  truth.diffuse = {0.3, 0.2, 0.1};
+  truth.specular = {0.05, 0.04, 0.03};
+  truth.shape = 0.1;
+  auto table = std::make_shared<MerlTable>(MerlTable::FromFunction([&](const DirectionPair& d) {
+    return std::optional<Eigen::Vector3d>(Evaluate(truth, d.wi, d.wo) * (1.0 + 0.01 * std::sin(1e3 * d.wo.x())));
+  }));
+  for (int ih = 0; ih < MerlTable::kThetaHBins; ++ih)
+    for (int ip = 0; ip < MerlTable::kPhiDBins; ++ip) {
+      table->SetCellInvalid(MerlTable::CellIndex(ih, 40, ip));
+      table->SetCellInvalid(MerlTable::CellIndex(ih, (ih * 7 + ip) % MerlTable::kThetaDBins, ip));
+    }
+  const std::shared_ptr<const MerlTable> read_only = table;
+  const TableFitSummary direct = FitTable(MerlBrdf{read_only}, Quick(0));
+  const TableFitSummary lookup = FitTable(
+      [read_only](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return read_only->Evaluate(wi, wo); }, Quick(0));
+  ASSERT_EQ(direct.termination, core::Termination::kSuccess) << direct.message;
+  EXPECT_EQ(direct.cells, lookup.cells);
+  EXPECT_LT(direct.cells, 900000u);
+  ASSERT_EQ(direct.selection.chosen, lookup.selection.chosen);
+  ASSERT_EQ(direct.selection.candidates.size(), lookup.selection.candidates.size());
+  for (std::size_t c = 0; c < direct.selection.candidates.size(); ++c) {
+    const FitSummary &a = direct.selection.candidates[c], &b = lookup.selection.candidates[c];
+    const char* name = ModelName(a.params.model);
+    EXPECT_EQ(a.cost, b.cost) << name;
+    EXPECT_EQ(a.params.diffuse, b.params.diffuse) << name;
+    EXPECT_EQ(a.params.specular, b.params.specular) << name;
+    EXPECT_EQ(a.params.shape, b.params.shape) << name;
+    if (!a.IsSolutionUsable()) continue;
+    // The passes over the cells add per thread in either order: equal to rounding.
+    EXPECT_NEAR(direct.all_cells[c].log_rms, lookup.all_cells[c].log_rms, 1e-12 * lookup.all_cells[c].log_rms) << name;
+  }
 }
 
 // A retro-reflective peak (light back towards the source: theta_d near 0 at

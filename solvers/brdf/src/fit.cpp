@@ -4,11 +4,15 @@
 #include "photorig/solvers/autodiff/dual.h"
 #include "photorig/solvers/core/number_text.h"
 
-#include <ceres/ceres.h>
+#include <Eigen/QR>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
+#include <optional>
+#include <type_traits>
 
 namespace photorig::solvers::brdf {
 namespace {
@@ -23,7 +27,7 @@ struct Prepared {
 
 // The residuals of one sample. `kd` holds rho_d per channel; `lobe` (absent
 // for Lambertian) holds the specular parameter per channel and log(shape);
-// `extra` (Cook-Torrance, GGX: HasSharedExtra) the one parameter the channels
+// `extra` (Cook-Torrance, GGX) the one parameter the channels
 // share beyond the shape: Cook-Torrance's F0, GGX's scale.
 class SampleResidual {
  public:
@@ -32,9 +36,9 @@ class SampleResidual {
   template <typename T>
   bool operator()(const T* kd, const T* lobe, const T* extra, T* residual) const {
     using std::exp;
-    const T shape = exp(lobe[3]);
+    const T factor = internal::LobeFactor(model_, T(exp(lobe[3])), *extra, s_.geometry);
     for (int c = 0; c < 3; ++c)
-      Finish(c, kd[c] / M_PI + internal::Lobe(model_, lobe[c], shape, *extra, s_.geometry), residual);
+      Finish(c, kd[c] / M_PI + internal::ChannelLobe(model_, lobe[c], factor, s_.geometry), residual);
     return true;
   }
   template <typename T>
@@ -73,12 +77,9 @@ class TwoLobeResidual : public SampleResidual {
   template <typename T>
   bool operator()(const T* kd, const T* lobe, const T* lobe2, T* residual) const {
     using std::exp;
-    const T e1 = exp(lobe[3]), e2 = exp(lobe2[3]);
-    for (int c = 0; c < 3; ++c)
-      Finish(c,
-             kd[c] / M_PI + internal::BlinnPhongLobe(lobe[c], e1, s_.geometry) +
-                 internal::BlinnPhongLobe(lobe2[c], e2, s_.geometry),
-             residual);
+    const T first = internal::BlinnPhongFactor(T(exp(lobe[3])), s_.geometry);
+    const T second = internal::BlinnPhongFactor(T(exp(lobe2[3])), s_.geometry);
+    for (int c = 0; c < 3; ++c) Finish(c, kd[c] / M_PI + lobe[c] * first + lobe2[c] * second, residual);
     return true;
   }
 };
@@ -104,10 +105,6 @@ const char* ShapeName(Model model) {
     default: return "roughness";
   }
 }
-
-// Cook-Torrance and GGX have one parameter beyond the shape that the channels
-// share (Cook-Torrance's F0, GGX's scale); it is a parameter block of its own.
-bool HasSharedExtra(Model model) { return model == Model::kCookTorrance || model == Model::kGgx; }
 
 // That parameter is not linear in the lobe: the starting grid tries these.
 std::vector<double> StartingExtras(Model model) {
@@ -214,8 +211,10 @@ void StartingPoint(Model model, const std::vector<Prepared>& prepared, double kd
     const double shape = shape_at(step);
     for (double shared : StartingExtras(model)) {
       for (std::size_t k = 0; k < n; ++k) {
-        offset[k] = internal::Lobe(model, 0.0, shape, shared, prepared[k].geometry);
-        basis[k] = internal::Lobe(model, 1.0, shape, shared, prepared[k].geometry) - offset[k];
+        const Geometry& g = prepared[k].geometry;
+        const double factor = internal::LobeFactor(model, shape, shared, g);
+        offset[k] = internal::ChannelLobe(model, 0.0, factor, g);
+        basis[k] = internal::ChannelLobe(model, 1.0, factor, g) - offset[k];
       }
       double error = 0.0, trial[3][2];
       for (int c = 0; c < 3; ++c) error += FitLinearChannel(prepared, {&basis}, offset, c, trial[c]);
@@ -379,13 +378,10 @@ bool PrepareSamples(const std::vector<BrdfSample>& samples, const FitOptions& op
 }
 
 // The Levenberg-Marquardt problem of one model on some prepared samples, its
-// parameter blocks and Ceres' account of the solve. `extra`: Cook-Torrance's
+// parameter blocks and the account of the solve. `extra`: Cook-Torrance's
 // F0 or GGX's scale (extra[0]), or the second lobe (as `lobe`).
 struct LeastSquares {
   double kd[3] = {0, 0, 0}, lobe[4] = {0, 0, 0, 0}, extra[4] = {0, 0, 0, 0};
-  // The residuals at the solution, for the covariance and the F0 score test
-  // (AddResiduals); the solve itself is Levenberg-Marquardt below.
-  ceres::Problem problem;
   bool usable = false;     // the solution is finite
   bool converged = false;  // a tolerance, not the iteration limit, ended the solve
   double cost = 0.0;       // sum of squared residuals at the solution
@@ -407,7 +403,25 @@ struct LeastSquares {
     }
     return p;
   }
+  // The blocks as one vector x = (kd, lobe, extra), the solver's layout.
+  void Pack(double x[11]) const {
+    std::copy(kd, kd + 3, x);
+    std::copy(lobe, lobe + 4, x + 3);
+    std::copy(extra, extra + 4, x + 7);
+  }
 };
+
+// f(std::integral_constant<int, P>()) with P = ParameterCount(model): the
+// solver's and the Jacobian's fixed sizes.
+template <typename F>
+void WithParameterCount(Model model, const F& f) {
+  switch (ParameterCount(model)) {
+    case 3: f(std::integral_constant<int, 3>()); break;
+    case 7: f(std::integral_constant<int, 7>()); break;
+    case 8: f(std::integral_constant<int, 8>()); break;
+    default: f(std::integral_constant<int, 11>()); break;
+  }
+}
 
 // The bounds of the least squares' parameters, laid out as (kd, lobe,
 // extra): weights, GGX's scale and F0 non-negative, GGX's per-channel F0 and
@@ -547,53 +561,6 @@ void SolveProjectedLm(Model model, const std::vector<Prepared>& fitted, const Fi
   Eigen::Map<Vector>{x_out} = x;
 }
 
-// Solves for `model` on `fitted`, from options.start or the starting grid.
-void SolveLeastSquares(Model model, const std::vector<Prepared>& fitted, const FitOptions& options, LeastSquares* ls) {
-  if (options.start) {
-    StartAt(*options.start, ls->kd, ls->lobe, ls->extra);
-  } else {
-    StartingPoint(model, fitted, ls->kd, ls->lobe, ls->extra);
-  }
-  double x[11];
-  std::copy(ls->kd, ls->kd + 3, x);
-  std::copy(ls->lobe, ls->lobe + 4, x + 3);
-  std::copy(ls->extra, ls->extra + 4, x + 7);
-  switch (ParameterCount(model)) {
-    case 3: SolveProjectedLm<3>(model, fitted, options, x, ls); break;
-    case 7: SolveProjectedLm<7>(model, fitted, options, x, ls); break;
-    case 8: SolveProjectedLm<8>(model, fitted, options, x, ls); break;
-    default: SolveProjectedLm<11>(model, fitted, options, x, ls); break;
-  }
-  const int p = ParameterCount(model);
-  std::copy(x, x + 3, ls->kd);
-  if (p > 3) std::copy(x + 3, x + 7, ls->lobe);
-  if (p > 7) std::copy(x + 7, x + p, ls->extra);
-}
-
-// The Ceres problem of the residuals at `ls`'s solution: what the covariance
-// and the F0 score test evaluate.
-void AddResiduals(Model model, const std::vector<Prepared>& fitted, const FitOptions& options, LeastSquares* ls) {
-  ceres::Problem& problem = ls->problem;
-  for (const Prepared& p : fitted) {
-    if (HasSecondLobe(model)) {
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<TwoLobeResidual, 3, 3, 4, 4>(new TwoLobeResidual(model, p, options.loss)),
-          nullptr, ls->kd, ls->lobe, ls->extra);
-      continue;
-    }
-    auto* residual = new SampleResidual(model, p, options.loss);
-    if (model == Model::kLambertian) {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3>(residual), nullptr, ls->kd);
-    } else if (HasSharedExtra(model)) {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4, 1>(residual), nullptr, ls->kd,
-                               ls->lobe, ls->extra);
-    } else {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SampleResidual, 3, 3, 4>(residual), nullptr, ls->kd,
-                               ls->lobe);
-    }
-  }
-}
-
 // The samples the least squares see among those at `indices`: all of them, or
 // an evenly spaced subsample of max_fit_samples (a table's grid order makes
 // that stratified over theta_h, theta_d and phi_d).
@@ -605,6 +572,78 @@ std::vector<Prepared> FittedSubset(const std::vector<Prepared>& prepared, const 
   fitted.reserve(m);
   for (std::size_t j = 0; j < m; ++j) fitted.push_back(prepared[indices[m == n ? j : j * n / m]]);
   return fitted;
+}
+
+// The starting grid sees at most this many of the least squares' samples,
+// evenly spaced. It only picks the basin, 41 shapes 1.16x apart with each
+// channel's linear weights solved exactly, which the least squares then
+// refine on every sample. The grid's cost is linear in its samples; at 5,000
+// each grid point's error is still the mean of 15,000 residuals.
+constexpr std::size_t kGridSamples = 5000;
+
+// Solves for `model` on `fitted`, from options.start or the starting grid.
+void SolveLeastSquares(Model model, const std::vector<Prepared>& fitted, const FitOptions& options, LeastSquares* ls) {
+  if (options.start) {
+    StartAt(*options.start, ls->kd, ls->lobe, ls->extra);
+  } else {
+    std::vector<std::size_t> every(fitted.size());
+    std::iota(every.begin(), every.end(), std::size_t{0});
+    StartingPoint(model, FittedSubset(fitted, every, kGridSamples), ls->kd, ls->lobe, ls->extra);
+  }
+  double x[11];
+  ls->Pack(x);
+  WithParameterCount(model, [&](auto p) { SolveProjectedLm<p()>(model, fitted, options, x, ls); });
+  const int p = ParameterCount(model);
+  std::copy(x, x + 3, ls->kd);
+  if (p > 3) std::copy(x + 3, x + 7, ls->lobe);
+  if (p > 7) std::copy(x + 7, x + p, ls->extra);
+}
+
+// The residuals r and their Jacobian J (3 rows per sample, the columns
+// x = (kd, lobe, extra)) at `ls`'s solution: what the covariance and the F0
+// score test evaluate. Forward mode, as the solver's normal equations.
+struct Linearisation {
+  Eigen::VectorXd residuals;
+  Eigen::MatrixXd jacobian;
+};
+
+Linearisation Linearise(Model model, const std::vector<Prepared>& fitted, FitLoss loss, const LeastSquares& ls) {
+  double x[11];
+  ls.Pack(x);
+  Linearisation at;
+  WithParameterCount(model, [&](auto count) {
+    constexpr int P = count();
+    using Dual = autodiff::Dual<P>;
+    Dual xd[P], r[3];
+    for (int k = 0; k < P; ++k) xd[k] = Dual(x[k], k);
+    at.residuals.resize(3 * static_cast<Eigen::Index>(fitted.size()));
+    at.jacobian.resize(at.residuals.size(), P);
+    for (std::size_t s = 0; s < fitted.size(); ++s) {
+      Residuals<P>(model, fitted[s], loss, xd, r);
+      for (int c = 0; c < 3; ++c) {
+        const Eigen::Index row = 3 * static_cast<Eigen::Index>(s) + c;
+        at.residuals[row] = r[c].value;
+        at.jacobian.row(row) = r[c].tangent.transpose();
+      }
+    }
+  });
+  return at;
+}
+
+// (J^T J)^-1 = V diag(1 / s^2) V^T from the singular values s and right
+// singular vectors V of J, taken from the R of J = QR (P x P) rather than
+// from J^T J, whose condition number is J's squared. Empty, as Ceres'
+// DENSE_SVD with its default min_reciprocal_condition_number (1e-14 on s^2),
+// when a singular value is below 1e-7 of the largest: a rank-deficient
+// Jacobian gets no invented variance.
+std::optional<Eigen::MatrixXd> InverseNormalMatrix(const Eigen::MatrixXd& jacobian) {
+  if (!jacobian.allFinite()) return std::nullopt;
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(jacobian);
+  const Eigen::MatrixXd r = qr.matrixQR().topRows(jacobian.cols()).triangularView<Eigen::Upper>();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(r, Eigen::ComputeFullV);
+  const Eigen::VectorXd& s = svd.singularValues();
+  if (!(s.minCoeff() >= std::sqrt(1e-14) * s.maxCoeff())) return std::nullopt;
+  return svd.matrixV() * s.cwiseAbs2().cwiseInverse().asDiagonal() * svd.matrixV().transpose();
 }
 
 // One held-out fold of `all` (the fit to every sample): sample k is left out
@@ -648,30 +687,24 @@ std::vector<int> FresnelIndices(Model model) {
 // with g_i < 0. F0 = 1 itself is a lobe without a Fresnel rise (a table
 // made with it does not press); pressing means the data want F0 > 1.
 // Returns each F0 index's statistic, 0 where it does not press.
-std::vector<double> FresnelScores(Model model, LeastSquares* ls, const FitOptions& options, int parameters) {
+std::vector<double> FresnelScores(Model model, const LeastSquares& ls, const Linearisation& at, const FitOptions& options) {
   const std::vector<int> indices = FresnelIndices(model);
   std::vector<double> scores(indices.size(), 0.0);
-  const double* values[] = {&ls->lobe[0], &ls->lobe[1], &ls->lobe[2]};
+  const double* values[] = {&ls.lobe[0], &ls.lobe[1], &ls.lobe[2]};
   bool any = false;
   for (std::size_t j = 0; j < indices.size(); ++j)
-    any |= (model == Model::kCookTorrance ? ls->extra[0] : *values[j]) >= 1.0 - 1e-6;
+    any |= (model == Model::kCookTorrance ? ls.extra[0] : *values[j]) >= 1.0 - 1e-6;
   if (!any) return scores;
-  double cost = 0.0;
-  std::vector<double> residuals, gradient;
-  ceres::CRSMatrix jacobian;
-  if (!ls->problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, &residuals, &gradient, &jacobian)) return scores;
-  Eigen::MatrixXd jtj = Eigen::MatrixXd::Zero(parameters, parameters);
-  for (int row = 0; row < jacobian.num_rows; ++row)
-    for (int a = jacobian.rows[row]; a < jacobian.rows[row + 1]; ++a)
-      for (int b = jacobian.rows[row]; b < jacobian.rows[row + 1]; ++b)
-        jtj(jacobian.cols[a], jacobian.cols[b]) += jacobian.values[a] * jacobian.values[b];
+  const Eigen::VectorXd gradient = at.jacobian.transpose() * at.residuals;
+  const Eigen::MatrixXd jtj = at.jacobian.transpose() * at.jacobian;
   const Eigen::MatrixXd inverse = jtj.completeOrthogonalDecomposition().pseudoInverse();
-  const double m = static_cast<double>(residuals.size());
+  const double m = static_cast<double>(at.residuals.size()), parameters = static_cast<double>(at.jacobian.cols());
   const double s2 = options.loss == FitLoss::kWeighted
                         ? 1.0
-                        : std::max(2.0 * cost / std::max(1.0, m - parameters), options.min_log_residual_variance);
+                        : std::max(at.residuals.squaredNorm() / std::max(1.0, m - parameters),
+                                   options.min_log_residual_variance);
   for (std::size_t j = 0; j < indices.size(); ++j) {
-    const double value = model == Model::kCookTorrance ? ls->extra[0] : *values[j];
+    const double value = model == Model::kCookTorrance ? ls.extra[0] : *values[j];
     const int i = indices[j];
     if (value < 1.0 - 1e-6 || !(gradient[i] < 0.0) || !(s2 > 0.0)) continue;
     scores[j] = gradient[i] * gradient[i] * inverse(i, i) / s2;
@@ -681,7 +714,8 @@ std::vector<double> FresnelScores(Model model, LeastSquares* ls, const FitOption
 
 // Sets `at_bound`, `normal_albedo` and `implausible` of a fit at `ls`'s
 // solution; a shape at a bound also makes the lobe not identifiable.
-void CheckBoundsAndPlausibility(Model model, LeastSquares* ls, const FitOptions& options, FitSummary* summary) {
+void CheckBoundsAndPlausibility(Model model, const LeastSquares& ls, const Linearisation& at, const FitOptions& options,
+                                FitSummary* summary) {
   const ModelParams& p = summary->params;
   std::string& at_bound = summary->at_bound;
   auto add = [](std::string* list, const std::string& what) { *list += (list->empty() ? "" : ", ") + what; };
@@ -704,7 +738,7 @@ void CheckBoundsAndPlausibility(Model model, LeastSquares* ls, const FitOptions&
     }
   }
   std::string implausible;
-  const std::vector<double> scores = FresnelScores(model, ls, options, summary->parameters);
+  const std::vector<double> scores = FresnelScores(model, ls, at, options);
   for (std::size_t j = 0; j < scores.size(); ++j) {
     if (!(scores[j] > 4.0)) continue;
     const std::string channel = model == Model::kGgx ? std::string(" (") + "RGB"[j] + ")" : "";
@@ -790,31 +824,20 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
   summary.bic = options.loss == FitLoss::kWeighted ? summary.cost + k * std::log(n)
                                                    : n * std::log(std::max(summary.cost, 1e-300) / n) + k * std::log(n);
   summary.params = ls.Params(model);
-  AddResiduals(model, fitted, options, &ls);
-  ceres::Problem& problem = ls.problem;
+  const Linearisation at_solution = Linearise(model, fitted, options.loss, ls);
 
-  // Uncertainties: the inverse of J^T J at the solution (DENSE_SVD refuses a
-  // rank-deficient Jacobian instead of inventing a variance for it).
-  ceres::Covariance::Options covariance_options;
-  covariance_options.algorithm_type = ceres::DENSE_SVD;
-  ceres::Covariance covariance(covariance_options);
-  std::vector<const double*> blocks = {kd};
-  if (model != Model::kLambertian) blocks.push_back(lobe);
-  if (HasSharedExtra(model) || HasSecondLobe(model)) blocks.push_back(extra);
-  std::vector<std::pair<const double*, const double*>> pairs;
-  for (const double* a : blocks)
-    for (const double* b : blocks) pairs.emplace_back(a, b);
-  const int p = summary.parameters;
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> cov(p, p);
-  if (covariance.Compute(pairs, &problem) && covariance.GetCovarianceMatrix(blocks, cov.data())) {
+  // Uncertainties: the inverse of J^T J at the solution (none for a
+  // rank-deficient Jacobian rather than an invented variance).
+  std::optional<Eigen::MatrixXd> cov = InverseNormalMatrix(at_solution.jacobian);
+  if (cov) {
     // A subsample's J^T J is about fitted/all of the whole set's.
-    cov *= static_cast<double>(fitted.size()) / static_cast<double>(prepared.size());
+    *cov *= static_cast<double>(fitted.size()) / static_cast<double>(prepared.size());
     // The log loss carries no absolute scale: use the residual variance.
-    if (options.loss == FitLoss::kLog) cov *= summary.cost / std::max(1.0, n - k);
-    summary.covariance_available = cov.allFinite();
+    if (options.loss == FitLoss::kLog) *cov *= summary.cost / std::max(1.0, n - k);
+    summary.covariance_available = cov->allFinite();
   }
   if (summary.covariance_available) {
-    const Eigen::VectorXd sd = cov.diagonal().cwiseMax(0.0).cwiseSqrt();
+    const Eigen::VectorXd sd = cov->diagonal().cwiseMax(0.0).cwiseSqrt();
     summary.diffuse_sigma = sd.head<3>();
     if (model != Model::kLambertian) {
       summary.specular_sigma = sd.segment<3>(3);
@@ -853,7 +876,7 @@ FitSummary FitPrepared(Model model, const std::vector<Prepared>& prepared, const
                         relative(summary.shape2_sigma, summary.params.shape2) +
                         "): the samples support one lobe, or two too alike to separate";
   }
-  CheckBoundsAndPlausibility(model, &ls, options, &summary);
+  CheckBoundsAndPlausibility(model, ls, at_solution, options, &summary);
   timer.Finish(&summary);
   return summary;
 }

@@ -13,9 +13,12 @@ Eigen::Vector3d Evaluate(const ModelParams& p, const Eigen::Vector3d& wi, const 
 Eigen::Vector3d EvaluateAt(const ModelParams& p, const Geometry& g) {
   if (g.cos_i <= 0.0 || g.cos_o <= 0.0) return Eigen::Vector3d::Zero();
   Eigen::Vector3d f;
-  for (int c = 0; c < 3; ++c) f[c] = p.diffuse[c] / M_PI + internal::Lobe(p.model, p.specular[c], p.shape, internal::ExtraOf(p), g);
-  if (HasSecondLobe(p.model))
-    for (int c = 0; c < 3; ++c) f[c] += internal::BlinnPhongLobe(p.specular2[c], p.shape2, g);
+  const double factor = internal::LobeFactor(p.model, p.shape, internal::ExtraOf(p), g);
+  for (int c = 0; c < 3; ++c) f[c] = p.diffuse[c] / M_PI + internal::ChannelLobe(p.model, p.specular[c], factor, g);
+  if (HasSecondLobe(p.model)) {
+    const double second = internal::BlinnPhongFactor(p.shape2, g);
+    for (int c = 0; c < 3; ++c) f[c] += p.specular2[c] * second;
+  }
   return f;
 }
 

@@ -28,7 +28,7 @@ core::Summary ReadMeasured(const std::string& path, MeasuredBrdf* brdf) {
     auto table = std::make_shared<MerlTable>();
     const core::Summary read = ReadMerl(path, table.get());
     if (!read.IsSolutionUsable()) return read;
-    *brdf = [table](const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) { return table->Evaluate(wi, wo); };
+    *brdf = MerlBrdf{table};
     return read;
   }
   auto rgl = std::make_shared<RglBrdf>();

@@ -4,12 +4,14 @@
 // is fitted by the same SelectModel as a gonioreflectometer's samples.
 
 #include "photorig/solvers/brdf/half_diff.h"
+#include "photorig/solvers/brdf/merl.h"
 #include "photorig/solvers/brdf/samples.h"
 #include "photorig/solvers/core/summary.h"
 
 #include <Eigen/Core>
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -18,6 +20,16 @@ namespace photorig::solvers::brdf {
 
 // f_r in 1/sr per channel, or nothing (below the horizon, an unmeasured cell).
 using MeasuredBrdf = std::function<std::optional<Eigen::Vector3d>(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo)>;
+
+// A MERL table as a MeasuredBrdf (ReadMeasured's for a .binary): its
+// trilinear Evaluate, and the table itself for a caller that reads the cells
+// directly (FitTable, through MeasuredBrdf::target<MerlBrdf>()).
+struct MerlBrdf {
+  std::shared_ptr<const MerlTable> table;
+  std::optional<Eigen::Vector3d> operator()(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const {
+    return table->Evaluate(wi, wo);
+  }
+};
 
 enum class TableFormat { kMerl, kRgl };
 const char* TableFormatName(TableFormat format);  // "merl", "rgl"
