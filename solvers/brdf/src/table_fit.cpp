@@ -131,11 +131,12 @@ constexpr std::size_t kBlockCells = 256;
 
 // Per cell of a block: the squared log residuals summed over the channels,
 // sum_ch (log_one_plus(arg[ch]) - log_value[ch])^2, into log2 and added to
-// score; returns their sum. Multi-versioned: 4 or 8 lanes where the CPU has
-// AVX2 or AVX-512, 2 at the baseline.
+// score; returns their sum. Inlined into its callers, so that the lanes'
+// version is built for each instruction set LaneLogSquares is.
 template <typename LogOnePlus>
-PHOTORIG_LANE_MULTIVERSION double LogSquares(std::size_t count, const double (*arg)[kBlockCells], const double (*log_value)[kBlockCells],
-                  double* log2, double* score, const LogOnePlus& log_one_plus) {
+PHOTORIG_LANE_INLINE double LogSquares(std::size_t count, const double (*arg)[kBlockCells],
+                                       const double (*log_value)[kBlockCells], double* log2, double* score,
+                                       const LogOnePlus& log_one_plus) {
   double total = 0.0;
 #pragma omp simd reduction(+ : total)
   for (std::size_t i = 0; i < count; ++i) {
@@ -149,6 +150,17 @@ PHOTORIG_LANE_MULTIVERSION double LogSquares(std::size_t count, const double (*a
     total += sum;
   }
   return total;
+}
+
+// LogSquares with the lanes' log, for finite arguments in [2^-1022, 2^1022].
+// Multi-versioned (not a template: target_clones takes none): 4 or 8 lanes
+// where the CPU has AVX2 or AVX-512, 2 at the baseline.
+PHOTORIG_LANE_MULTIVERSION double LaneLogSquares(std::size_t count, const double (*arg)[kBlockCells],
+                                                 const double (*log_value)[kBlockCells], double* log2, double* score) {
+  return LogSquares(count, arg, log_value, log2, score, [](double x) {
+    double unused;
+    return core::LaneLogAndInverse(1.0 + x, &unused);
+  });
 }
 
 Pass ErrorsOverCells(const std::vector<Cell>& cells, const SelectionSummary& selection,
@@ -194,13 +206,8 @@ Pass ErrorsOverCells(const std::vector<Cell>& cells, const SelectionSummary& sel
         // block with a value outside (an infinite or NaN model value) takes
         // log1p, so that the error says so.
         const double log_sum =
-            in_lane_range
-                ? LogSquares(count, arg, log_value, log2, score,
-                             [](double x) {
-                               double unused;
-                               return core::LaneLogAndInverse(1.0 + x, &unused);
-                             })
-                : LogSquares(count, arg, log_value, log2, score, [](double x) { return std::log1p(x); });
+            in_lane_range ? LaneLogSquares(count, arg, log_value, log2, score)
+                          : LogSquares(count, arg, log_value, log2, score, [](double x) { return std::log1p(x); });
         local.log_sum[c] += log_sum;
         local.neutral_sum[c] += neutral2;
         if (region_candidate && c == *region_candidate)
