@@ -452,14 +452,16 @@ json TomographyResult::ToJson() const {
     c["pairs"] = cor->pairs;
     c["candidates"] = cor->candidates;
   }
-  if (held_out) doc["held_out"] = solvers::core::ToJson(*held_out);
-  doc["held_out"].update(
-      {{"relative_residual", held_out->relative_residual},
-       {"noise_floor", held_out->noise_floor},
-       {"fit_views", held_out->fit_views},
-       {"held_out_views", held_out->held_out_views},
-       {"iterations", stopped_by_held_out ? held_out->best_iteration : held_out->reconstruction.iterations},
-       {"stopping_rule", stopped_by_held_out}});
+  if (held_out) {
+    doc["held_out"] = solvers::core::ToJson(*held_out);
+    doc["held_out"].update(
+        {{"relative_residual", held_out->relative_residual},
+         {"noise_floor", held_out->noise_floor},
+         {"fit_views", held_out->fit_views},
+         {"held_out_views", held_out->held_out_views},
+         {"iterations", stopped_by_held_out ? held_out->best_iteration : held_out->reconstruction.iterations},
+         {"stopping_rule", stopped_by_held_out}});
+  }
   if (ring_filter) {
     doc["ring_filter"] = solvers::core::ToJson(*ring_filter);
     doc["ring_filter"].update({{"stripes", ring_filter->stripes}, {"max_offset", ring_filter->max_offset}});
