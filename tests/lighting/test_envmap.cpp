@@ -265,6 +265,10 @@ TEST(EnvMap, NearRelightingRefusesWhatItCannotUse) {
   coarse.grid_px = 1;
   EXPECT_EQ(RelightNearFromEnvironment(coarse, env, plane.leds, plane.scales, plane.frames, plane.points, &out).termination,
             core::Termination::kInvalidOptions);
+  const cv::Mat four_channels(32, 64, CV_32FC4, cv::Scalar::all(1.0));
+  EXPECT_EQ(RelightNearFromEnvironment({}, four_channels, plane.leds, plane.scales, plane.frames, plane.points, &out)
+                .termination,
+            core::Termination::kInvalidInput);
   std::vector<cv::Mat> fewer(plane.frames.begin(), plane.frames.end() - 1);
   EXPECT_EQ(RelightNearFromEnvironment({}, env, plane.leds, plane.scales, fewer, plane.points, &out).termination,
             core::Termination::kInvalidInput);

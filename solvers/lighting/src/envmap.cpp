@@ -210,31 +210,46 @@ solvers::core::Summary ProjectLatLongToSh(const cv::Mat& latlong, int band, Eige
 
 namespace {
 
-// Per LED (rows) and channel (R, G, B columns), the map's radiance over the
-// directions of the upper hemisphere (z > 0) nearer that LED than any other
-// with reaches[k], times their solid angle. directions: unit vectors.
-Eigen::MatrixXd NearestLedRadiance(const cv::Mat& source, const std::vector<Eigen::Vector3d>& directions,
-                                   const std::vector<char>& reaches) {
-  const int channels = source.channels();
-  Eigen::MatrixXd radiance = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(directions.size()), channels);
-  for (int v = 0; v < source.rows; ++v) {
-    const double d_omega = PixelSolidAngle(v, source.cols, source.rows);
-    const float* row = source.ptr<float>(v);
-    for (int u = 0; u < source.cols; ++u) {
-      const Eigen::Vector3d d = LatLongDirection(u, v, source.cols, source.rows);
-      if (d.z() <= 0.0) continue;
-      Eigen::Index nearest = -1;
-      double best = -2.0;
-      for (std::size_t k = 0; k < directions.size(); ++k) {
-        const double cosine = d.dot(directions[k]);
-        if (reaches[k] && cosine > best) {
-          best = cosine;
-          nearest = static_cast<Eigen::Index>(k);
-        }
+// A map's texels of the upper hemisphere (z > 0): each one's direction and
+// its radiance times its solid angle, per channel as R, G, B. Built once per
+// map, since a near dome assigns them to LEDs once per grid point.
+struct UpperTexels {
+  int channels = 1;
+  std::vector<Eigen::Vector3d> directions;
+  std::vector<Eigen::Vector3d> light;  // radiance x solid angle; channels == 1: x only
+
+  explicit UpperTexels(const cv::Mat& source) : channels(source.channels()) {
+    for (int v = 0; v < source.rows; ++v) {
+      const double d_omega = PixelSolidAngle(v, source.cols, source.rows);
+      const float* row = source.ptr<float>(v);
+      for (int u = 0; u < source.cols; ++u) {
+        const Eigen::Vector3d d = LatLongDirection(u, v, source.cols, source.rows);
+        if (d.z() <= 0.0) continue;
+        directions.push_back(d);
+        Eigen::Vector3d l = Eigen::Vector3d::Zero();
+        for (int ch = 0; ch < channels; ++ch) l[channels == 3 ? 2 - ch : 0] = row[u * channels + ch] * d_omega;
+        light.push_back(l);
       }
-      if (nearest < 0) continue;
-      for (int ch = 0; ch < channels; ++ch) radiance(nearest, channels == 3 ? 2 - ch : 0) += row[u * channels + ch] * d_omega;
     }
+  }
+};
+
+// Per LED (rows) and channel (R, G, B columns), the light of the texels
+// nearer that LED than any other with reaches[k]. directions: unit vectors.
+Eigen::MatrixXd NearestLedRadiance(const UpperTexels& texels, const std::vector<Eigen::Vector3d>& directions,
+                                   const std::vector<char>& reaches) {
+  Eigen::MatrixXd radiance = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(directions.size()), texels.channels);
+  for (std::size_t t = 0; t < texels.directions.size(); ++t) {
+    Eigen::Index nearest = -1;
+    double best = -2.0;
+    for (std::size_t k = 0; k < directions.size(); ++k) {
+      const double cosine = texels.directions[t].dot(directions[k]);
+      if (reaches[k] && cosine > best) {
+        best = cosine;
+        nearest = static_cast<Eigen::Index>(k);
+      }
+    }
+    if (nearest >= 0) radiance.row(nearest) += texels.light[t].head(texels.channels).transpose();
   }
   return radiance;
 }
@@ -263,7 +278,8 @@ void GridCells(const std::vector<int>& grid, int size, std::vector<int>* left, s
 solvers::core::Summary LatLongToLedWeights(const cv::Mat& latlong, const std::vector<Eigen::Vector3d>& led_directions,
                                      const std::vector<double>& led_intensities, Eigen::MatrixXd* weights_out) {
   const solvers::core::SolveTimer timer;
-  if (!IsLatLong(latlong)) return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map");
+  if (!IsLatLong(latlong) || (latlong.channels() != 1 && latlong.channels() != 3))
+    return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map of 1 or 3 channels");
   if (led_directions.empty() || led_directions.size() != led_intensities.size()) {
     return Ended(Termination::kInvalidInput, std::to_string(led_directions.size()) + " LED directions for " +
                                                           std::to_string(led_intensities.size()) + " intensities");
@@ -278,7 +294,7 @@ solvers::core::Summary LatLongToLedWeights(const cv::Mat& latlong, const std::ve
   latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
   std::vector<Eigen::Vector3d> directions;
   for (const Eigen::Vector3d& d : led_directions) directions.push_back(d.normalized());
-  Eigen::MatrixXd weights = NearestLedRadiance(source, directions, std::vector<char>(directions.size(), 1));
+  Eigen::MatrixXd weights = NearestLedRadiance(UpperTexels(source), directions, std::vector<char>(directions.size(), 1));
   for (std::size_t k = 0; k < led_intensities.size(); ++k) weights.row(static_cast<Eigen::Index>(k)) /= led_intensities[k];
   *weights_out = std::move(weights);
   return timer.Succeeded();
@@ -299,7 +315,8 @@ solvers::core::Summary RelightNearFromEnvironment(const NearRelightOptions& opti
   solvers::core::SolveTimer timer;
   solvers::core::Summary summary;
   if (solvers::core::EndIfInvalid(options, &summary)) return summary;
-  if (!IsLatLong(latlong)) return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map");
+  if (!IsLatLong(latlong) || (latlong.channels() != 1 && latlong.channels() != 3))
+    return Ended(Termination::kInvalidInput, "needs a 2:1 lat-long map of 1 or 3 channels");
   if (leds.empty() || leds.size() != led_scales.size() || leds.size() != frames.size())
     return Ended(Termination::kInvalidInput, std::to_string(leds.size()) + " LEDs, " + std::to_string(led_scales.size()) +
                                                  " scales and " + std::to_string(frames.size()) + " frames");
@@ -314,7 +331,8 @@ solvers::core::Summary RelightNearFromEnvironment(const NearRelightOptions& opti
   cv::Mat source;
   latlong.convertTo(source, CV_MAKETYPE(CV_32F, latlong.channels()));
   cv::resize(source, source, cv::Size(options.map_width_px, options.map_width_px / 2), 0.0, 0.0, cv::INTER_AREA);
-  const int channels = source.channels(), lights = static_cast<int>(leds.size());
+  const UpperTexels texels(source);
+  const int channels = texels.channels, lights = static_cast<int>(leds.size());
   std::vector<camera::PreparedNearLight> prepared;
   for (const camera::NearLight& led : leds) prepared.emplace_back(led);
   const std::vector<int> grid_rows = GridPositions(points_mm.rows, options.grid_px),
@@ -334,7 +352,7 @@ solvers::core::Summary RelightNearFromEnvironment(const NearRelightOptions& opti
       irradiance[k] = led_scales[k] * prepared[k].RelativeIrradiance(Eigen::Vector3d(p[0], p[1], p[2]), &directions[k]);
       reaches[k] = irradiance[k] > 0.0;
     }
-    const Eigen::MatrixXd radiance = NearestLedRadiance(source, directions, reaches);
+    const Eigen::MatrixXd radiance = NearestLedRadiance(texels, directions, reaches);
     for (int k = 0; k < lights; ++k)
       for (int ch = 0; ch < channels; ++ch)
         node_weights[g * per_point + k * channels + ch] = reaches[k] ? radiance(k, ch) / irradiance[k] : 0.0;

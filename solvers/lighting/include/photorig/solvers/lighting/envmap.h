@@ -84,7 +84,8 @@ struct NearRelightOptions {
   bool IsValid(std::string* why) const;  // both at least 2 (the width even)
 };
 // frames: one single-channel image per LED, one size; points_mm: CV_32FC3 of
-// that size, each pixel's surface point in the dome's frame (mm), finite.
+// that size, each pixel's surface point in the dome's frame (mm), finite;
+// the map of 1 or 3 channels (as LatLongToLedWeights').
 // *image: CV_32F with the map's channels (3: stored BGR).
 solvers::core::Summary RelightNearFromEnvironment(const NearRelightOptions& options, const cv::Mat& latlong,
                                                   const std::vector<camera::NearLight>& leds,
