@@ -105,24 +105,23 @@ struct PixelFit {
   double chi_square = 0.0;  // weighted by the noise where it is known
 };
 
-// Lane j's weighted least squares of I_k - D = s_k f_k(x) (b . l_k(x)),
-// from the lanes' solutions; a lane that failed the conditioning screen is
-// tested exactly (its normal matrix's eigenvalues) and solved again.
-PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneSums& sums,
-                   const internal::NearLaneSolutions& solutions, int j) {
+// Lane j's weighted least squares of I_k - D = s_k f_k(x) (b . l_k(x));
+// a lane that failed the conditioning screen is tested exactly (its normal
+// matrix's eigenvalues) and solved again.
+PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneFits& lanes, int j) {
   PixelFit fit;
-  fit.usable = static_cast<int>(sums.usable[j]);
+  fit.usable = static_cast<int>(lanes.usable[j]);
   if (fit.usable < 3) {
     fit.flag = PixelFlag::kTooFewLights;
     return fit;
   }
-  fit.b = Eigen::Vector3d(solutions.b[0][j], solutions.b[1][j], solutions.b[2][j]);
-  fit.chi_square = solutions.chi_square[j];
-  if (!solutions.conditioned[j]) {
-    const auto& m = sums.equations.matrix;
+  fit.b = Eigen::Vector3d(lanes.b[0][j], lanes.b[1][j], lanes.b[2][j]);
+  fit.chi_square = lanes.chi_square[j];
+  if (!lanes.conditioned[j]) {
+    const auto& m = lanes.matrix;
     Eigen::Matrix3d normal_matrix;
     normal_matrix << m[0][j], m[1][j], m[2][j], m[1][j], m[3][j], m[4][j], m[2][j], m[4][j], m[5][j];
-    const Eigen::Vector3d rhs(sums.equations.rhs[0][j], sums.equations.rhs[1][j], sums.equations.rhs[2][j]);
+    const Eigen::Vector3d rhs(lanes.rhs[0][j], lanes.rhs[1][j], lanes.rhs[2][j]);
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
     eigen.computeDirect(normal_matrix, Eigen::EigenvaluesOnly);
     const double smallest = eigen.eigenvalues()(0), largest = eigen.eigenvalues()(2);
@@ -131,32 +130,31 @@ PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneSums& sums,
       fit.flag = PixelFlag::kIllConditioned;
       return fit;
     }
+    // The same system's solution (the chi-square above is its residuals').
     fit.b = normal_matrix.ldlt().solve(rhs);
-    fit.chi_square = std::max(0.0, sums.weighted_square_sum[j] - fit.b.dot(rhs));
   }
   if (!(fit.b.norm() > 0.0)) fit.flag = PixelFlag::kRejectedByModel;
   return fit;
 }
 
-// fits[i]: pixels[i]'s fit over its usable samples, kLanes pixels at a time.
+// fits[i]: pixels[i]'s fit over its usable samples, kNearLanes pixels at a time.
 void FitPixels(const PixelProblem& p, std::span<const PixelAt> pixels, std::span<PixelFit> fits) {
-  using internal::kLanes;
-  for (std::size_t start = 0; start < pixels.size(); start += kLanes) {
-    const int n = static_cast<int>(std::min<std::size_t>(kLanes, pixels.size() - start));
-    internal::NearLanePixels lanes;
-    for (int j = 0; j < kLanes; ++j) {
+  using internal::kNearLanes;
+  std::vector<float> rows;
+  internal::NearLaneFits lanes;
+  for (std::size_t start = 0; start < pixels.size(); start += kNearLanes) {
+    const int n = static_cast<int>(std::min<std::size_t>(kNearLanes, pixels.size() - start));
+    internal::NearLanePixels batch;
+    for (int j = 0; j < kNearLanes; ++j) {
       const PixelAt& at = pixels[start + std::min(j, n - 1)];  // spare lanes repeat the last pixel
       const Eigen::Vector3d point = p.Point(at.r, at.c, at.z_mm);
-      lanes.x[j] = static_cast<float>(point.x()), lanes.y[j] = static_cast<float>(point.y());
-      lanes.z[j] = static_cast<float>(point.z());
-      lanes.dark[j] = static_cast<float>(p.Dark(at.r, at.c));
-      lanes.offset[j] = p.SampleIndex(at.r, at.c);
+      batch.x[j] = static_cast<float>(point.x()), batch.y[j] = static_cast<float>(point.y());
+      batch.z[j] = static_cast<float>(point.z());
+      batch.dark[j] = static_cast<float>(p.Dark(at.r, at.c));
+      batch.offset[j] = p.SampleIndex(at.r, at.c);
     }
-    internal::NearLaneSums sums;
-    internal::NearLambertianSums(p.lights, p.planes.data(), p.rules, lanes, &sums);
-    internal::NearLaneSolutions solutions;
-    internal::SolveNearLanes(sums, p.max_condition_number, &solutions);
-    for (int j = 0; j < n; ++j) fits[start + j] = SolveLane(p, sums, solutions, j);
+    internal::FitNearLanes(p.lights, p.planes.data(), p.rules, p.max_condition_number, batch, &rows, &lanes);
+    for (int j = 0; j < n; ++j) fits[start + j] = SolveLane(p, lanes, j);
   }
 }
 
@@ -529,7 +527,7 @@ SparseGrid SparsePixels(int stride, const NormalMap& map, const cv::Mat& relativ
 // steps with any number of threads.
 double SparseMisfit(const PixelProblem& p, const PhotometricStereoOptions& options, const LambertianAdequacy& adequacy,
                     SparseGrid& grid, double offset_mm) {
-  constexpr std::size_t kChunk = 8 * internal::kLanes;
+  constexpr std::size_t kChunk = 8 * internal::kNearLanes;
   const std::size_t count = grid.pixels.size(), chunks = (count + kChunk - 1) / kChunk;
   for (std::size_t i = 0; i < count; ++i)
     grid.pixels[i].z_mm = grid.starts[i].z_mm = p.Height(grid.relative[i], offset_mm);

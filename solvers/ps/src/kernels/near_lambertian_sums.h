@@ -1,12 +1,12 @@
 #pragma once
-// The near-light Lambertian fit's sums, one pixel per SIMD lane: each lane's
+// The near-light Lambertian fit, one pixel per SIMD lane: each lane's
 // surface point x sees LED k along its own unit vector l_k(x) and with its
 // own relative irradiance f_k(x) (solvers/ps/near_lights.h), so unlike the
 // distant fits no light matrix is shared; the kernel builds every sample's
-// row s_k f_k(x) l_k(x) in the lane and adds it to the lane's weighted
-// normal equations. The 3 x 3 solves stay with the caller.
+// row s_k f_k(x) l_k(x) in the lane, sums the lane's weighted normal
+// equations, solves them, and takes the chi-square from the residuals.
 
-#include "normal_equations.h"
+#include "lane_math.h"
 
 #include <vector>
 
@@ -35,36 +35,37 @@ struct NearSampleRules {
   double read_variance = 0.0, shot_gain = 0.0;
 };
 
-// kLanes pixels: their surface points (mm), dark levels, and the index of
-// each pixel's sample in every light's image (all images share one layout).
-// Floats: the kernel's geometry runs in float (near_lambertian_sums.cpp).
+// The pixels of one kernel pass: one AVX-512 register of floats.
+inline constexpr int kNearLanes = kFloatLanes;
+
+// kNearLanes pixels: their surface points (mm), dark levels, and the index
+// of each pixel's sample in every light's image (all images share one
+// layout).
 struct alignas(64) NearLanePixels {
-  float x[kLanes], y[kLanes], z[kLanes], dark[kLanes];
-  int offset[kLanes];
+  float x[kNearLanes], y[kNearLanes], z[kNearLanes], dark[kNearLanes];
+  int offset[kNearLanes];
 };
 
-struct alignas(64) NearLaneSums {
-  LaneNormalEquations equations;
-  double weighted_square_sum[kLanes];  // sum c (I - D)^2: the chi-square's first term
-  double usable[kLanes];               // samples that entered
-};
-
-// Each lane's solution of its normal equations G b = r (G = A^T W A):
-// b = G^-1 r by the adjugate, chi-square = sum c (I - D)^2 - b . r, and a
-// screen of the conditioning, cond(A)^2 = cond(G) <= |G|_F |G^-1|_F.
-struct alignas(64) NearLaneSolutions {
-  double b[3][kLanes];
-  double chi_square[kLanes];
+// Each lane's fit: its normal equations G b = r (G = A^T W A; xx, xy, xz,
+// yy, yz, zz), the samples that entered, b = G^-1 r by the adjugate, the
+// chi-square sum c (I - D - row . b)^2, and a screen of the conditioning,
+// cond(A)^2 = cond(G) <= |G|_F |G^-1|_F.
+struct alignas(64) NearLaneFits {
+  double matrix[6][kNearLanes];
+  double rhs[3][kNearLanes];
+  double usable[kNearLanes];
+  double b[3][kNearLanes];
+  double chi_square[kNearLanes];
   // 1: G is positive definite (det > 0) and the Frobenius bound keeps cond(A)
   // within the limit; 0: the bound does not, and only an exact test can tell.
-  double conditioned[kLanes];
+  double conditioned[kNearLanes];
 };
 
-void SolveNearLanes(const NearLaneSums& sums, double max_condition_number, NearLaneSolutions* solutions);
-
 // planes[k]: light k's image. Lanes past the batch's end may repeat a pixel;
-// their sums are ignored.
-void NearLambertianSums(const NearLightTable& lights, const float* const* planes, const NearSampleRules& rules,
-                        const NearLanePixels& pixels, NearLaneSums* sums);
+// their fits are ignored. *rows: the pass's scratch (each sample's weight,
+// signal and row), kept between calls so that it is allocated once.
+void FitNearLanes(const NearLightTable& lights, const float* const* planes, const NearSampleRules& rules,
+                  double max_condition_number, const NearLanePixels& pixels, std::vector<float>* rows,
+                  NearLaneFits* fits);
 
 }  // namespace photorig::solvers::ps::internal
