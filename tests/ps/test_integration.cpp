@@ -97,6 +97,32 @@ TEST(IntegrateNormals, FrankotChellappaIsExactOnPeriodicSurfacesAndBendsAtMaskBo
   EXPECT_GT(RmsAfterRemovingMean(fc_depth, height, mask), 2 * RmsAfterRemovingMean(poisson_depth, height, mask));
 }
 
+TEST(IntegrateNormals, AWorkspaceFactorsOncePerSetOfPixelsAndChangesNoAnswer) {
+  cv::Mat normals, height, mask, alone, kept;
+  Sphere(64, 26.0, &normals, &height, &mask);
+  IntegrationWorkspace workspace;
+  ASSERT_TRUE(IntegrateNormals(IntegrationOptions{}, normals, mask, &alone).IsSolutionUsable());
+  ASSERT_TRUE(IntegrateNormals(IntegrationOptions{}, normals, mask, &kept, &workspace).IsSolutionUsable());
+  EXPECT_EQ(workspace.reuses(), 0);
+  // Other normals on the same pixels: the factorisation is kept, and the
+  // depth is the one a fresh solve gives, to the bit.
+  cv::Mat tilted = normals.clone();
+  tilted.forEach<cv::Vec3f>([](cv::Vec3f& n, const int*) {
+    if (n == n) n = cv::normalize(n + cv::Vec3f(0.2f, -0.1f, 0.0f));
+  });
+  ASSERT_TRUE(IntegrateNormals(IntegrationOptions{}, tilted, mask, &alone).IsSolutionUsable());
+  ASSERT_TRUE(IntegrateNormals(IntegrationOptions{}, tilted, mask, &kept, &workspace).IsSolutionUsable());
+  EXPECT_EQ(workspace.reuses(), 1);
+  EXPECT_EQ(cv::norm(alone, kept, cv::NORM_INF, mask), 0.0);
+  // One pixel less: factored anew, and still the fresh answer.
+  mask.at<std::uint8_t>(32, 32) = 0;
+  ASSERT_TRUE(IntegrateNormals(IntegrationOptions{}, tilted, mask, &alone).IsSolutionUsable());
+  ASSERT_TRUE(IntegrateNormals(IntegrationOptions{}, tilted, mask, &kept, &workspace).IsSolutionUsable());
+  EXPECT_EQ(workspace.reuses(), 1);
+  EXPECT_EQ(cv::norm(alone, kept, cv::NORM_INF, mask), 0.0);
+  EXPECT_TRUE(std::isnan(kept.at<float>(32, 32)));
+}
+
 TEST(IntegrateNormals, SeparateRegionsAndHolesAreHandled) {
   cv::Mat normals(40, 80, CV_32FC3, cv::Scalar(0.0, 0.0, 1.0));
   // Left block: plane rising to the right with slope 0.5; right block: flat.

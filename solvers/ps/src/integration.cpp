@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
@@ -9,6 +10,29 @@
 #include <vector>
 
 namespace photorig::solvers::ps {
+
+struct IntegrationWorkspace::Factorisation {
+  struct Pair {
+    int a = 0, b = 0;  // unknowns, b the right or lower neighbour of a
+    int r = 0, c = 0;  // a's pixel
+    bool down = false;
+  };
+  cv::Mat mask;   // the pixels factored for
+  cv::Mat index;  // CV_32S: each pixel's unknown, -1 off the mask
+  int unknowns = 0;
+  std::vector<Pair> pairs;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  bool factored = false;
+  int reuses = 0;
+};
+
+IntegrationWorkspace::IntegrationWorkspace() : factorisation_(std::make_unique<Factorisation>()) {}
+IntegrationWorkspace::~IntegrationWorkspace() = default;
+IntegrationWorkspace::IntegrationWorkspace(IntegrationWorkspace&&) noexcept = default;
+IntegrationWorkspace& IntegrationWorkspace::operator=(IntegrationWorkspace&&) noexcept = default;
+int IntegrationWorkspace::reuses() const { return factorisation_->reuses; }
+IntegrationWorkspace::Factorisation& FactorisationOf(IntegrationWorkspace& workspace) { return *workspace.factorisation_; }
+
 namespace {
 
 struct Gradients {
@@ -150,47 +174,68 @@ void FrankotChellappa(const Gradients& g, cv::Mat* depth) {
   z.convertTo(*depth, CV_32F);
 }
 
-bool Poisson(const Gradients& g, cv::Mat* depth, std::string* message) {
-  const int rows = g.mask.rows, cols = g.mask.cols;
-  cv::Mat index(rows, cols, CV_32S, cv::Scalar(-1));
-  int unknowns = 0;
-  for (int r = 0; r < rows; ++r)
+// The masked grid's unknowns and its pairs of 4-neighbours (z_b - z_a is
+// one equation each), with the factorised normal matrix A^T A: per pair
+// +1 on both diagonals and -1 off them (the 5-point Laplacian of the mask,
+// assembled directly rather than as a sparse product).
+bool Factor(const cv::Mat& mask, IntegrationWorkspace::Factorisation* f, std::string* message) {
+  const int rows = mask.rows, cols = mask.cols;
+  f->mask = mask.clone();
+  f->index.create(rows, cols, CV_32S);
+  f->index.setTo(-1);
+  f->unknowns = 0;
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* in = mask.ptr<std::uint8_t>(r);
+    int* index = f->index.ptr<int>(r);
     for (int c = 0; c < cols; ++c)
-      if (g.mask.at<std::uint8_t>(r, c)) index.at<int>(r, c) = unknowns++;
-  std::vector<Eigen::Triplet<double>> triplets;
-  std::vector<double> rhs;
-  auto equation = [&](int a, int b, double difference) {  // z_b - z_a = difference
-    const int row = static_cast<int>(rhs.size());
-    triplets.emplace_back(row, a, -1.0);
-    triplets.emplace_back(row, b, 1.0);
-    rhs.push_back(difference);
-  };
+      if (in[c]) index[c] = f->unknowns++;
+  }
+  f->pairs.clear();
   for (int r = 0; r < rows; ++r)
     for (int c = 0; c < cols; ++c) {
-      const int a = index.at<int>(r, c);
+      const int a = f->index.at<int>(r, c);
       if (a < 0) continue;
-      if (c + 1 < cols && index.at<int>(r, c + 1) >= 0)
-        equation(a, index.at<int>(r, c + 1), 0.5 * (g.dzdx.at<double>(r, c) + g.dzdx.at<double>(r, c + 1)));
-      if (r + 1 < rows && index.at<int>(r + 1, c) >= 0)
-        equation(a, index.at<int>(r + 1, c), -0.5 * (g.dzdy.at<double>(r, c) + g.dzdy.at<double>(r + 1, c)));
+      if (c + 1 < cols && f->index.at<int>(r, c + 1) >= 0) f->pairs.push_back({a, f->index.at<int>(r, c + 1), r, c, false});
+      if (r + 1 < rows && f->index.at<int>(r + 1, c) >= 0) f->pairs.push_back({a, f->index.at<int>(r + 1, c), r, c, true});
     }
-  Eigen::SparseMatrix<double> a(static_cast<int>(rhs.size()), unknowns);
-  a.setFromTriplets(triplets.begin(), triplets.end());
-  const Eigen::Map<const Eigen::VectorXd> b(rhs.data(), static_cast<Eigen::Index>(rhs.size()));
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(3 * f->pairs.size() + f->unknowns);
   // A tiny pull towards 0 fixes each region's free constant; CentreRegions then removes its effect.
-  Eigen::SparseMatrix<double> normal = a.transpose() * a;
-  for (int i = 0; i < unknowns; ++i) normal.coeffRef(i, i) += 1e-9;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
-  if (solver.info() != Eigen::Success) {
-    *message = "sparse factorisation failed";
-    return false;
+  for (int i = 0; i < f->unknowns; ++i) triplets.emplace_back(i, i, 1e-9);
+  for (const auto& pair : f->pairs) {  // the lower triangle: index b > a
+    triplets.emplace_back(pair.a, pair.a, 1.0);
+    triplets.emplace_back(pair.b, pair.b, 1.0);
+    triplets.emplace_back(pair.b, pair.a, -1.0);
   }
-  const Eigen::VectorXd z = solver.solve(a.transpose() * b);
-  depth->create(rows, cols, CV_32F);
+  Eigen::SparseMatrix<double> normal(f->unknowns, f->unknowns);
+  normal.setFromTriplets(triplets.begin(), triplets.end());
+  f->solver.compute(normal);
+  f->factored = f->solver.info() == Eigen::Success;
+  if (!f->factored) *message = "sparse factorisation failed";
+  return f->factored;
+}
+
+bool Poisson(const Gradients& g, cv::Mat* depth, std::string* message, IntegrationWorkspace::Factorisation* f) {
+  const bool same_pixels = f->factored && f->mask.size() == g.mask.size() && cv::countNonZero(f->mask != g.mask) == 0;
+  if (same_pixels)
+    ++f->reuses;
+  else if (!Factor(g.mask, f, message))
+    return false;
+  // A^T d: each pair's difference d (trapezoidal: the mean of the two
+  // pixels' slopes) to +b and -a.
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(f->unknowns);
+  for (const auto& pair : f->pairs) {
+    const double difference =
+        pair.down ? -0.5 * (g.dzdy.at<double>(pair.r, pair.c) + g.dzdy.at<double>(pair.r + 1, pair.c))
+                  : 0.5 * (g.dzdx.at<double>(pair.r, pair.c) + g.dzdx.at<double>(pair.r, pair.c + 1));
+    rhs[pair.b] += difference, rhs[pair.a] -= difference;
+  }
+  const Eigen::VectorXd z = f->solver.solve(rhs);
+  depth->create(g.mask.size(), CV_32F);
   depth->setTo(0.0f);
-  for (int r = 0; r < rows; ++r)
-    for (int c = 0; c < cols; ++c)
-      if (index.at<int>(r, c) >= 0) depth->at<float>(r, c) = static_cast<float>(z[index.at<int>(r, c)]);
+  for (int r = 0; r < depth->rows; ++r)
+    for (int c = 0; c < depth->cols; ++c)
+      if (const int i = f->index.at<int>(r, c); i >= 0) depth->at<float>(r, c) = static_cast<float>(z[i]);
   return true;
 }
 
@@ -279,17 +324,20 @@ std::string CheckInputs(const cv::Mat& normals, const cv::Mat& mask) {
   return {};
 }
 
-bool Solve(const IntegrationOptions& options, const Gradients& g, cv::Mat* depth, std::string* why) {
+bool Solve(const IntegrationOptions& options, const Gradients& g, cv::Mat* depth, std::string* why,
+           IntegrationWorkspace& workspace) {
   if (options.integrator == Integrator::kFrankotChellappa) {
     FrankotChellappa(g, depth);
     return true;
   }
-  return Poisson(g, depth, why);
+  return Poisson(g, depth, why, &FactorisationOf(workspace));
 }
 
 // Integrates g into *depth (each region's mean 0).
 void Integrate(const IntegrationOptions& options, Gradients g, solvers::core::SolveTimer& timer,
-               IntegrationSummary* summary, cv::Mat* depth) {
+               IntegrationSummary* summary, cv::Mat* depth, IntegrationWorkspace* workspace) {
+  IntegrationWorkspace local;
+  IntegrationWorkspace& kept = workspace ? *workspace : local;
   summary->pixels_dropped = g.dropped;
   if (cv::countNonZero(g.mask) == 0) {
     summary->End(solvers::core::Termination::kFailure, "no pixel has a usable normal to integrate");
@@ -298,11 +346,11 @@ void Integrate(const IntegrationOptions& options, Gradients g, solvers::core::So
   timer.SetupDone(summary);
   std::string why;
   if (options.block_px == 1) {
-    if (!Solve(options, g, depth, &why)) return summary->End(solvers::core::Termination::kFailure, why);
+    if (!Solve(options, g, depth, &why, kept)) return summary->End(solvers::core::Termination::kFailure, why);
   } else {
     const Gradients coarse = BlockGradients(g, options.block_px);
     cv::Mat coarse_depth;
-    if (!Solve(options, coarse, &coarse_depth, &why)) return summary->End(solvers::core::Termination::kFailure, why);
+    if (!Solve(options, coarse, &coarse_depth, &why, kept)) return summary->End(solvers::core::Termination::kFailure, why);
     g.mask = g.mask.clone();
     InterpolateBlocks(coarse_depth, coarse.mask, options.block_px, &g.mask, depth);
   }
@@ -315,19 +363,20 @@ void Integrate(const IntegrationOptions& options, Gradients g, solvers::core::So
 }  // namespace
 
 IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask,
-                                    cv::Mat* depth) {
+                                    cv::Mat* depth, IntegrationWorkspace* workspace) {
   solvers::core::SolveTimer timer;
   IntegrationSummary summary;
   if (solvers::core::EndIfInvalid(options, &summary) ||
       solvers::core::EndIfBadInput(CheckInputs(normals, mask), &summary))
     return summary;
-  Integrate(options, OrthographicGradients(options, normals, mask), timer, &summary, depth);
+  Integrate(options, OrthographicGradients(options, normals, mask), timer, &summary, depth, workspace);
   timer.Finish(&summary);
   return summary;
 }
 
 IntegrationSummary IntegrateNormalsPerspective(const IntegrationOptions& options, const camera::PixelRays& rays,
-                                               const cv::Mat& normals, const cv::Mat& mask, cv::Mat* height_mm) {
+                                               const cv::Mat& normals, const cv::Mat& mask, cv::Mat* height_mm,
+                                               IntegrationWorkspace* workspace) {
   solvers::core::SolveTimer timer;
   IntegrationSummary summary;
   std::string inputs = CheckInputs(normals, mask);
@@ -336,7 +385,7 @@ IntegrationSummary IntegrateNormalsPerspective(const IntegrationOptions& options
     inputs = "the camera's image size differs from the normals'";
   if (solvers::core::EndIfInvalid(options, &summary) || solvers::core::EndIfBadInput(inputs, &summary)) return summary;
   cv::Mat log_distance;
-  Integrate(options, PerspectiveGradients(options, rays, normals, mask), timer, &summary, &log_distance);
+  Integrate(options, PerspectiveGradients(options, rays, normals, mask), timer, &summary, &log_distance, workspace);
   if (summary.IsSolutionUsable()) {
     // Each region's mean log distance is 0: its geometric-mean distance from
     // the camera becomes the camera's distance, the object on the sample plane.

@@ -37,9 +37,10 @@ struct PixelProblem {
   const PhotometricStack& stack;
   std::vector<camera::PreparedNearLight> prepared;  // the same LEDs, for one sample at a time
   internal::NearLightTable lights;
-  std::vector<const float*> planes;  // one per light, rows without padding
-  std::vector<cv::Mat> copies;       // the stack's images, where some have padding
-  int row_stride = 0;
+  // One per light, the lattice's samples row after row without padding: the
+  // kernel reads neighbouring lanes as one vector.
+  std::vector<const float*> planes;
+  std::vector<cv::Mat> copies;  // the planes, where the images themselves do not serve
   int step = 1, origin = 0;
   camera::PixelRays rays;  // the lattice's
   internal::NearSampleRules rules;
@@ -55,21 +56,26 @@ struct PixelProblem {
       lights.constant.push_back(stack.light_scales[k] * light.scale);
       lights.w.push_back(light.w);
     }
-    // The kernel reads every plane at one index per pixel: planes with row
-    // padding are copied without it.
     bool continuous = true;
     for (const cv::Mat& image : stack.images) continuous = continuous && image.isContinuous();
     if (!continuous)
       for (const cv::Mat& image : stack.images) copies.push_back(image.clone());
     for (const cv::Mat& image : continuous ? stack.images : copies) planes.push_back(image.ptr<float>());
-    row_stride = stack.width();
   }
 
-  // The same problem on the lattice of every step-th pixel from (origin, origin).
+  // The same problem on the lattice of every step-th pixel from (origin,
+  // origin), its samples copied out of the images.
   PixelProblem Lattice(int lattice_step, int lattice_origin) const {
     PixelProblem lattice = *this;
     lattice.step = lattice_step, lattice.origin = lattice_origin;
     lattice.rays = rays.Lattice(lattice_step, lattice_origin);
+    lattice.copies.clear(), lattice.planes.clear();
+    for (const cv::Mat& image : stack.images) {
+      cv::Mat& samples = lattice.copies.emplace_back(lattice.rows(), lattice.cols(), CV_32F);
+      for (int r = 0; r < samples.rows; ++r)
+        for (int c = 0; c < samples.cols; ++c) samples.at<float>(r, c) = image.at<float>(lattice.ImageRow(r), lattice.ImageCol(c));
+      lattice.planes.push_back(samples.ptr<float>());
+    }
     return lattice;
   }
   int rows() const { return rays.camera().height_px; }
@@ -78,7 +84,7 @@ struct PixelProblem {
   int ImageRow(int r) const { return origin + step * r; }
   int ImageCol(int c) const { return origin + step * c; }
   // Where pixel (r, c)'s sample lies in every plane.
-  int SampleIndex(int r, int c) const { return ImageRow(r) * row_stride + ImageCol(c); }
+  int SampleIndex(int r, int c) const { return r * cols() + c; }
   double Dark(int r, int c) const { return stack.dark.empty() ? 0.0 : stack.dark.at<float>(ImageRow(r), ImageCol(c)); }
   bool InMask(int r, int c) const { return stack.mask.empty() || stack.mask.at<std::uint8_t>(ImageRow(r), ImageCol(c)) != 0; }
 
@@ -437,7 +443,8 @@ void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const
 // nearest neighbour's height (a rim pixel sits at the height of the surface
 // beside it), as do the pixels off the mask: the lattice is interpolated
 // between its pixels.
-cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, const NormalMap& map) {
+cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, const NormalMap& map,
+                      IntegrationWorkspace* workspace = nullptr) {
   const cv::Mat solved = map.flags == static_cast<int>(PixelFlag::kSolved);
   IntegrationOptions integration;
   integration.integrator = options.integrator;
@@ -445,8 +452,8 @@ cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, co
   if (!pinhole) integration.pixel_pitch = p.rays.camera().pixel_pitch_mm;
   cv::Mat depth;
   const IntegrationSummary integrated =
-      pinhole ? IntegrateNormalsPerspective(integration, p.rays, map.normals, solved, &depth)
-              : IntegrateNormals(integration, map.normals, solved, &depth);
+      pinhole ? IntegrateNormalsPerspective(integration, p.rays, map.normals, solved, &depth, workspace)
+              : IntegrateNormals(integration, map.normals, solved, &depth, workspace);
   cv::Mat relative = cv::Mat::zeros(map.normals.size(), CV_32F);
   if (!integrated.IsSolutionUsable() || integrated.pixels == 0) return relative;
   const cv::Mat known = depth == depth;  // not NaN
@@ -630,6 +637,7 @@ bool RunRounds(const PhotometricStereoOptions& options, const NearLightOptions& 
                const OffsetRange& range, NormalMap* map, cv::Mat* relative, NearLightSummary* summary) {
   AllocateResult(p.size(), map);
   cv::Mat height = cv::Mat::zeros(p.size(), CV_32F);
+  IntegrationWorkspace integration;  // the rounds solve on one set of pixels, as a rule
   for (int round = 1; round <= near_options.max_rounds; ++round) {
     const cv::Mat previous = round > 1 ? map->normals.clone() : cv::Mat();
     FitRound(p, options, height, round > 1, map);
@@ -642,7 +650,7 @@ bool RunRounds(const PhotometricStereoOptions& options, const NearLightOptions& 
     }
     if (round == near_options.max_rounds) break;  // no round left to fit at a new depth
     const core::SolveTimer depth_timer;
-    *relative = RelativeDepth(near_options, p, *map);
+    *relative = RelativeDepth(near_options, p, *map, &integration);
     summary->depth_offset_mm = BestOffset(p, options, near_options, *map, *relative, range);
     summary->depth_ms += depth_timer.ElapsedMs();
     height = Heights(p, *relative, summary->depth_offset_mm);

@@ -23,6 +23,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -58,16 +59,39 @@ struct IntegrationSummary : solvers::core::Summary {
   double residual_rms = 0.0;
 };
 
+// What the Poisson integrator keeps between calls: its equations' matrix
+// depends on the integrated pixels alone (one row per pair of neighbours),
+// so calls that integrate the same pixels again, such as the near-light
+// solve's rounds, factor it once and pay only for the solve. One per
+// thread; a call on other pixels factors anew.
+class IntegrationWorkspace {
+ public:
+  IntegrationWorkspace();
+  ~IntegrationWorkspace();
+  IntegrationWorkspace(IntegrationWorkspace&&) noexcept;
+  IntegrationWorkspace& operator=(IntegrationWorkspace&&) noexcept;
+  // Calls that found the pixels of the last factorisation (for tests and reports).
+  int reuses() const;
+
+  struct Factorisation;  // integration.cpp
+
+ private:
+  friend Factorisation& FactorisationOf(IntegrationWorkspace&);
+  std::unique_ptr<Factorisation> factorisation_;
+};
+
 // normals: CV_32FC3 (x, y, z), NaN where unknown; mask: CV_8U (empty = every
 // finite normal). *depth: CV_32F, NaN outside the integrated pixels.
+// workspace: optional, kept between calls (above).
 IntegrationSummary IntegrateNormals(const IntegrationOptions& options, const cv::Mat& normals, const cv::Mat& mask,
-                                    cv::Mat* depth);
+                                    cv::Mat* depth, IntegrationWorkspace* workspace = nullptr);
 
 // The same for normals seen through the pinhole camera of `rays` (its frame:
 // camera/camera.h): *height_mm is the surface's z in mm, each region scaled
 // so its geometric-mean distance from the camera is the camera's distance_mm
 // (an object on the sample plane); options.pixel_pitch is not used.
 IntegrationSummary IntegrateNormalsPerspective(const IntegrationOptions& options, const camera::PixelRays& rays,
-                                               const cv::Mat& normals, const cv::Mat& mask, cv::Mat* height_mm);
+                                               const cv::Mat& normals, const cv::Mat& mask, cv::Mat* height_mm,
+                                               IntegrationWorkspace* workspace = nullptr);
 
 }  // namespace photorig::solvers::ps
