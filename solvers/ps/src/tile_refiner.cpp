@@ -17,108 +17,6 @@ namespace {
 
 // Queues longer than this run their stage; see Flush.
 constexpr std::size_t kBatch = 64;
-// Step 5 counts a region glossy only with at least this many confidently
-// glossy pixels (the median of 16 is within about a third of a standard
-// deviation of their spread).
-constexpr std::size_t kMinPooledLobes = 16;
-// Step 5 pools each pixel's lobe from this many of its region's confidently
-// glossy pixels, the nearest to it (all, in a region with fewer).
-constexpr std::size_t kPooledLobes = 32;
-// Step 5 tests a glossy region's shape on about this many of the pixels it
-// offers its lobe to (every 8th at least): the test's threshold is then
-// within 14 % of its expectation, against a sum several times that where a
-// GGX lobe is fitted as Blinn-Phong, and the test costs a few per cent of a
-// glossy object's time.
-constexpr std::size_t kShapeTestPixels = 1024;
-
-// A pixel that kept a lobe with kConfidentLobeEvidence, and its rho_s and e.
-struct GlossyPixel {
-  int pixel;
-  float specular_albedo, exponent;
-};
-
-// Step 5's lobe for a pixel of a region whose pixels reject one shared shape
-// (ModelLadder::RejectsSharedShape): the medians of rho_s and e over the
-// kPooledLobes confidently glossy pixels of its region nearest to it. Where
-// the object's lobe is not Blinn-Phong, its best Blinn-Phong exponent varies
-// over the object (a GGX lobe's long tails read as a broader lobe on the
-// pixels that see only them, at the rim of a sphere), so the nearest
-// confident pixels say more than the region's median. The glossy pixels are
-// bucketed in square cells, searched in rings around the pixel's cell until
-// no pixel further out can be nearer; ties go to the lower pixel index, so
-// the answer does not depend on the order the threads found them in.
-class NearestLobes {
- public:
-  // labels: CV_32S regions; glossy: confident pixels; in_region: how many of
-  // them each region has.
-  NearestLobes(const cv::Mat& labels, std::vector<GlossyPixel> glossy, std::vector<std::size_t> in_region)
-      : cols_(labels.cols),
-        cell_cols_((labels.cols + kCell - 1) / kCell),
-        cell_rows_((labels.rows + kCell - 1) / kCell),
-        label_(labels.ptr<int>()),
-        in_region_(std::move(in_region)),
-        cell_start_(static_cast<std::size_t>(cell_cols_) * cell_rows_ + 1, 0) {
-    std::sort(glossy.begin(), glossy.end(), [this](const GlossyPixel& a, const GlossyPixel& b) {
-      const int ca = Cell(a.pixel), cb = Cell(b.pixel);
-      return ca != cb ? ca < cb : a.pixel < b.pixel;
-    });
-    for (const GlossyPixel& g : glossy) ++cell_start_[Cell(g.pixel) + 1];
-    for (std::size_t c = 1; c < cell_start_.size(); ++c) cell_start_[c] += cell_start_[c - 1];
-    glossy_ = std::move(glossy);
-  }
-
-  // near: scratch, (squared distance, index into glossy_) per pixel seen.
-  SharedLobe At(int pixel, std::vector<std::pair<int, int>>* near) const {
-    const int row = pixel / cols_, col = pixel % cols_, cell_row = row / kCell, cell_col = col / kCell;
-    near->clear();
-    const int rings = std::max(cell_rows_, cell_cols_);
-    const std::size_t in_region = in_region_[label_[pixel]];
-    for (int ring = 0; ring < rings && near->size() < in_region; ++ring) {
-      for (int r = cell_row - ring; r <= cell_row + ring; ++r) {
-        if (r < 0 || r >= cell_rows_) continue;
-        // The ring's top and bottom rows whole, its sides one cell each.
-        const int step = r == cell_row - ring || r == cell_row + ring ? 1 : std::max(1, 2 * ring);
-        for (int c = cell_col - ring; c <= cell_col + ring; c += step) {
-          if (c < 0 || c >= cell_cols_) continue;
-          for (int i = cell_start_[r * cell_cols_ + c]; i < cell_start_[r * cell_cols_ + c + 1]; ++i) {
-            const int q = glossy_[i].pixel;
-            if (label_[q] != label_[pixel]) continue;
-            const int dr = q / cols_ - row, dc = q % cols_ - col;
-            near->push_back({dr * dr + dc * dc, i});
-          }
-        }
-      }
-      // Every pixel outside the rings searched is at least ring * kCell away.
-      if (near->size() >= kPooledLobes) {
-        std::nth_element(near->begin(), near->begin() + (kPooledLobes - 1), near->end());
-        const int reach = ring * kCell;
-        if ((*near)[kPooledLobes - 1].first <= reach * reach) break;
-      }
-    }
-    const std::size_t pooled = std::min(near->size(), kPooledLobes);
-    if (pooled == 0) return {};
-    std::nth_element(near->begin(), near->begin() + (pooled - 1), near->end());
-    float specular[kPooledLobes], exponent[kPooledLobes];
-    for (std::size_t i = 0; i < pooled; ++i) {
-      const GlossyPixel& g = glossy_[(*near)[i].second];
-      specular[i] = g.specular_albedo, exponent[i] = g.exponent;
-    }
-    std::nth_element(specular, specular + pooled / 2, specular + pooled);
-    std::nth_element(exponent, exponent + pooled / 2, exponent + pooled);
-    return {specular[pooled / 2], exponent[pooled / 2]};
-  }
-
- private:
-  static constexpr int kCell = 8;
-  int Cell(int pixel) const { return (pixel / cols_ / kCell) * cell_cols_ + (pixel % cols_) / kCell; }
-
-  int cols_, cell_cols_, cell_rows_;
-  const int* label_;
-  std::vector<std::size_t> in_region_;
-  std::vector<int> cell_start_;  // glossy_[cell_start_[c], cell_start_[c + 1]) lie in cell c
-  std::vector<GlossyPixel> glossy_;
-};
-
 PixelFit TrimmedFit(const TrimSolution& trimmed) {
   PixelFit fit;
   const double length = trimmed.x.norm();
@@ -196,29 +94,12 @@ struct TileRefiner::ThreadState {
   std::vector<GlossyPixel> glossy;  // pixels that kept a lobe with kConfidentLobeEvidence
   // Step 5: the pixels of a batch offered the shared lobe, and what it changed
   // (the pixels it took from each simpler model, the samples those had left out).
-  struct Sharing {
-    const SharedLobeItem* item = nullptr;
-    PixelFit kept, lambertian, lobe, own;
-    std::size_t row = 0;  // of the thread's rows
-    bool lobe_fitted = false, own_fitted = false;
-    SharedLobeFits Fits() const {
-      return {&kept, &lambertian, lobe_fitted ? &lobe : nullptr, item->test_shape, own_fitted ? &own : nullptr};
-    }
-  };
-  std::vector<Sharing> sharing;
-  std::vector<std::size_t> owning;  // of `sharing`: those the ladder asks for their own lobe
+  std::vector<SharingCandidate> sharing;
   std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0;
   // Step 6: the pixels that took a GGX lobe, by the model they had kept.
   std::size_t ggx = 0, ggx_from_lambertian = 0, ggx_from_trimmed = 0, ggx_from_blinn_phong = 0, ggx_from_held_lobe = 0;
   // Step 6 in lanes: a batch's pixels the ladder asks a GGX fit of.
-  struct GgxOffer {
-    int pixel;
-    bool held;
-    PixelFit kept, on_samples;  // on_samples: kept judged on every usable sample
-    int used;                   // usable samples
-    std::size_t row;            // of the thread's rows
-  };
-  std::vector<GgxOffer> ggx_offers;
+  std::vector<GgxCandidate> ggx_offers;
   // Samples a kept fit had left out (trimmed or unlit) that steps 5 and 6's lobe uses again.
   std::size_t samples_restored = 0;
 };
@@ -542,152 +423,44 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
     const std::size_t last = std::min(items.size(), first + kBatch);
     state.rows = 0;
     state.sharing.clear();
+    std::vector<std::size_t> rows;
     for (std::size_t i = first; i < last; ++i) {
-      ThreadState::Sharing sharing;
-      sharing.item = &items[i];
-      sharing.kept = KeptFit(items[i].pixel);
-      const Eigen::Vector3d x = sharing.kept.normal * sharing.kept.albedo / M_PI;
+      SharingCandidate candidate;
+      candidate.item = &items[i];
+      candidate.kept = KeptFit(items[i].pixel);
+      const Eigen::Vector3d x = candidate.kept.normal * candidate.kept.albedo / M_PI;
       PixelFit tested;
-      sharing.row = GatherRow(state, items[i].pixel, x, &tested);
-      sharing.lambertian =
-          LambertianOnRow(reader_, &state.observed[sharing.row * lights_], &state.inverse_sigma[sharing.row * lights_], x);
-      if (ladder_.NextWithSharedLobe(sharing.Fits()).action != LadderStep::Action::kFitSharedLobe) {
+      const std::size_t row = GatherRow(state, items[i].pixel, x, &tested);
+      candidate.lambertian =
+          LambertianOnRow(reader_, &state.observed[row * lights_], &state.inverse_sigma[row * lights_], x);
+      if (ladder_.NextWithSharedLobe(candidate.Fits()).action != LadderStep::Action::kFitSharedLobe) {
         --state.rows;
         continue;
       }
-      state.sharing.push_back(sharing);
+      state.sharing.push_back(candidate);
+      rows.push_back(row);
     }
     // The rows are complete (gathering may have moved them): now point at them.
-    state.problems.clear();
-    for (const ThreadState::Sharing& sharing : state.sharing)
-      state.problems.push_back({&state.observed[sharing.row * lights_], &state.inverse_sigma[sharing.row * lights_],
-                                sharing.kept.normal, sharing.kept.albedo, sharing.item->lobe.specular_albedo,
-                                sharing.item->lobe.exponent});
-    state.solutions.assign(state.problems.size(), {});
-    if (!state.problems.empty()) lobe_fitters_[thread].Fit(state.problems, state.solutions);
-    state.problems.clear();
-    state.owning.clear();
-    for (std::size_t i = 0; i < state.sharing.size(); ++i) {
-      ThreadState::Sharing& sharing = state.sharing[i];
-      sharing.lobe = LobeFitFrom(state.solutions[i], sharing.lambertian.used, PixelModel::kBlinnPhong);
-      sharing.lobe.parameters = kSharedLobeParameters;
-      sharing.lobe_fitted = true;
-      const SharedLobeFits fits = sharing.Fits();
-      const LadderStep step = ladder_.NextWithSharedLobe(fits);
-      if (step.action == LadderStep::Action::kKeep) {
-        finish(*sharing.item, fits, *step.keep, sharing.lambertian.used);
-        continue;
-      }
-      state.owning.push_back(i);  // kFitOwnLobe
-      state.problems.push_back({&state.observed[sharing.row * lights_], &state.inverse_sigma[sharing.row * lights_],
-                                step.start->normal, step.start->albedo});
-    }
-    state.solutions.assign(state.problems.size(), {});
-    if (!state.problems.empty()) lobe_fitters_[thread].Fit(state.problems, state.solutions);
-    for (std::size_t j = 0; j < state.owning.size(); ++j) {
-      ThreadState::Sharing& sharing = state.sharing[state.owning[j]];
-      sharing.own = LobeFitFrom(state.solutions[j], sharing.lambertian.used, PixelModel::kBlinnPhong);
-      sharing.own_fitted = true;
-      const SharedLobeFits fits = sharing.Fits();
-      finish(*sharing.item, fits, *ladder_.NextWithSharedLobe(fits).keep, sharing.lambertian.used);
-    }
+    for (std::size_t i = 0; i < rows.size(); ++i)
+      state.sharing[i].problem.observed = &state.observed[rows[i] * lights_],
+      state.sharing[i].problem.inverse_sigma = &state.inverse_sigma[rows[i] * lights_];
+    ClimbSharedLobes(ladder_, lobe_fitters_[thread], state.sharing,
+                     [&](const SharingCandidate& candidate, const PixelFit& chosen) {
+                       finish(*candidate.item, candidate.Fits(), chosen, candidate.lambertian.used);
+                     });
   }
   state.rows = 0;
 }
 
 void TileRefiner::ShareLobe() {
   if (options_.method != Method::kAuto || !options_.selection.share_lobe) return;
-  std::size_t confident = 0;
-  for (const ThreadState& state : states_) confident += state.glossy.size();
-  // No region can be glossy: a matte scene stops here, before any pass over the image.
-  if (confident < kMinPooledLobes) return;
-  const cv::Mat solved = result_->flags == static_cast<int>(PixelFlag::kSolved);
-  cv::Mat labels, stats, centroids;
-  const int regions = cv::connectedComponentsWithStats(solved, labels, stats, centroids, 8, CV_32S);
-  const int* label = labels.ptr<int>();
-  std::vector<std::vector<float>> specular(regions), exponent(regions);
   std::vector<GlossyPixel> glossy;
-  for (const ThreadState& state : states_)
-    for (const GlossyPixel& g : state.glossy) {
-      specular[label[g.pixel]].push_back(g.specular_albedo);
-      exponent[label[g.pixel]].push_back(g.exponent);
-      glossy.push_back(g);
-    }
-  auto median = [](std::vector<float>& values) {
-    std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-    return values[values.size() / 2];
-  };
-  // Label 0 is the background (pixels not solved).
-  std::vector<SharedLobe> region_lobe(regions);
-  std::vector<std::size_t> region_confident(regions, 0);
-  bool any_glossy = false;
-  for (int r = 1; r < regions; ++r) {
-    region_confident[r] = exponent[r].size();
-    const double area = stats.at<int>(r, cv::CC_STAT_AREA);
-    if (region_confident[r] < kMinPooledLobes || region_confident[r] < options_.selection.glossy_region_fraction * area)
-      continue;
-    region_lobe[r] = {median(specular[r]), median(exponent[r])};
-    any_glossy = true;
-  }
-  if (!any_glossy) return;
-  std::vector<SharedLobeItem> items;
-  const std::uint8_t* model = result_->model.ptr<std::uint8_t>();
-  const int pixels = labels.rows * labels.cols;
-  for (int p = 0; p < pixels; ++p) {
-    const SharedLobe& lobe = region_lobe[label[p]];
-    if (lobe.exponent > 0.0 && (model[p] == static_cast<std::uint8_t>(PixelModel::kLambertian) ||
-                                model[p] == static_cast<std::uint8_t>(PixelModel::kTrimmed)))
-      items.push_back({p, label[p], lobe, false});
-  }
-  // Each glossy region's shape, tested on a sample of its pixels with its lobe and their own.
-  std::vector<SharedLobeItem> sample;
-  const std::size_t stride = std::max<std::size_t>(8, items.size() / kShapeTestPixels);
-  for (std::size_t i = 0; i < items.size(); i += stride) {
-    sample.push_back(items[i]);
-    sample.back().test_shape = true;
-  }
-  std::vector<std::vector<SharedShapeTest>> tests(threads_, std::vector<SharedShapeTest>(regions));
-  auto in_parallel = [this](std::size_t count, const auto& run) {
-#pragma omp parallel num_threads(threads_)
-    {
-      const std::size_t thread = omp_get_thread_num(), team = omp_get_num_threads();
-      run(static_cast<int>(thread), count * thread / team, count * (thread + 1) / team);
-    }
-  };
-  in_parallel(sample.size(), [&](int thread, std::size_t begin, std::size_t end) {
-    ShareLobe(thread, std::span(sample).subspan(begin, end - begin), &tests[thread]);
-  });
-  std::vector<std::uint8_t> rejects(regions, 0);
-  bool any_rejects = false;
-  for (int r = 1; r < regions; ++r) {
-    SharedShapeTest test;
-    for (const std::vector<SharedShapeTest>& thread_tests : tests) {
-      test.chi2_gain += thread_tests[r].chi2_gain;
-      test.pixels += thread_tests[r].pixels;
-    }
-    rejects[r] = ladder_.RejectsSharedShape(test);
-    any_rejects = any_rejects || rejects[r];
-  }
-  std::unique_ptr<NearestLobes> nearest;
-  if (any_rejects) nearest = std::make_unique<NearestLobes>(labels, std::move(glossy), region_confident);
-  held_lobe_.assign(pixels, 0);
-  in_parallel(items.size(), [&](int thread, std::size_t begin, std::size_t end) {
-    std::vector<std::pair<int, int>> near;
-    for (std::size_t i = begin; i < end; ++i)
-      if (rejects[items[i].region]) items[i].lobe = nearest->At(items[i].pixel, &near);
-    ShareLobe(thread, std::span(items).subspan(begin, end - begin), nullptr);
-  });
-  if (!any_rejects) return;
-  // Step 6: where the lobe is not Blinn-Phong, each pixel of the region is offered a GGX lobe of its own.
-  std::vector<int> offered;
-  for (int p = 0; p < pixels; ++p)
-    if (rejects[label[p]] && (model[p] == static_cast<std::uint8_t>(PixelModel::kLambertian) ||
-                              model[p] == static_cast<std::uint8_t>(PixelModel::kTrimmed) ||
-                              model[p] == static_cast<std::uint8_t>(PixelModel::kBlinnPhong)))
-      offered.push_back(p);
-  in_parallel(offered.size(), [&](int thread, std::size_t begin, std::size_t end) {
-    OfferGgx(thread, std::span(offered).subspan(begin, end - begin));
-  });
+  for (const ThreadState& state : states_) glossy.insert(glossy.end(), state.glossy.begin(), state.glossy.end());
+  ShareLobes(ladder_, options_.selection.glossy_region_fraction, *result_, std::move(glossy), threads_,
+             {.begin = [this] { held_lobe_.assign(result_->flags.total(), 0); },
+              .share = [this](int thread, std::span<const SharedLobeItem> items,
+                              std::vector<SharedShapeTest>* tests) { ShareLobe(thread, items, tests); },
+              .offer_ggx = [this](int thread, std::span<const int> pixels) { OfferGgx(thread, pixels); }});
 }
 
 void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
@@ -705,32 +478,27 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
     const std::size_t last = std::min(pixels.size(), first + kBatch);
     state.rows = 0;
     state.ggx_offers.clear();
+    std::vector<std::size_t> rows;
     for (std::size_t i = first; i < last; ++i) {
-      ThreadState::GgxOffer offer{.pixel = pixels[i], .held = held_lobe_[pixels[i]] != 0};
+      GgxCandidate offer;
+      offer.pixel = pixels[i], offer.held = held_lobe_[pixels[i]] != 0;
       offer.kept = KeptFit(offer.pixel);
       offer.on_samples = per_pixel_.KeptOnUsable(offer.pixel, offer.kept, offer.held, &state.scratch);
       if (ladder_.NextWithGgx(GgxFits{&offer.on_samples}).action != LadderStep::Action::kFitGgx) continue;
       const PixelSamples& samples = state.scratch.samples;
-      offer.used = samples.size();
-      offer.row = NewRow(state);
-      std::copy(samples.row_observed.begin(), samples.row_observed.end(), &state.observed[offer.row * lights_]);
-      std::copy(samples.row_inverse_sigma.begin(), samples.row_inverse_sigma.end(),
-                &state.inverse_sigma[offer.row * lights_]);
+      const std::size_t row = NewRow(state);
+      std::copy(samples.row_observed.begin(), samples.row_observed.end(), &state.observed[row * lights_]);
+      std::copy(samples.row_inverse_sigma.begin(), samples.row_inverse_sigma.end(), &state.inverse_sigma[row * lights_]);
       state.ggx_offers.push_back(offer);
+      rows.push_back(row);
     }
     // The rows are complete (growing may have moved them): now point at them.
-    state.problems.clear();
-    for (const ThreadState::GgxOffer& offer : state.ggx_offers)
-      state.problems.push_back({&state.observed[offer.row * lights_], &state.inverse_sigma[offer.row * lights_],
-                                offer.on_samples.normal, offer.on_samples.albedo});
-    state.solutions.assign(state.problems.size(), {});
-    if (!state.problems.empty()) ggx_fitters_[thread].Fit(state.problems, state.solutions);
-    for (std::size_t i = 0; i < state.ggx_offers.size(); ++i) {
-      const ThreadState::GgxOffer& offer = state.ggx_offers[i];
-      const PixelFit ggx = LobeFitFrom(state.solutions[i], offer.used, PixelModel::kGgx);
-      if (ladder_.NextWithGgx(GgxFits{&offer.on_samples, &ggx}).keep == &ggx)
-        RecordGgx(state, offer.pixel, offer.kept, offer.held, ggx);
-    }
+    for (std::size_t i = 0; i < rows.size(); ++i)
+      state.ggx_offers[i].problem.observed = &state.observed[rows[i] * lights_],
+      state.ggx_offers[i].problem.inverse_sigma = &state.inverse_sigma[rows[i] * lights_];
+    ClimbGgx(ladder_, ggx_fitters_[thread], state.ggx_offers, [&](const GgxCandidate& offer, const PixelFit& ggx) {
+      RecordGgx(state, offer.pixel, offer.kept, offer.held, ggx);
+    });
   }
 }
 

@@ -18,6 +18,7 @@
 #include "kernels/irls_lambertian_fit.h"
 #include "kernels/lambertian_recheck.h"
 #include "kernels/trimmed_lambertian_fit.h"
+#include "lobe_sharing.h"
 #include "model_selection.h"
 #include "per_pixel_fits.h"
 #include "sample_reader.h"
@@ -75,11 +76,6 @@ class TileRefiner {
   // Step 5 on `items`: with `tests` (per region), their parts in their
   // regions' shape tests (items with test_shape), the map unchanged; else
   // the fits the ladder keeps, into the map.
-  struct SharedLobeItem {
-    int pixel, region;
-    SharedLobe lobe;
-    bool test_shape;
-  };
   void ShareLobe(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests);
   // Pixel p, kept as `kept`, takes the lobe fitted with its region's exponent.
   void RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe, int usable);

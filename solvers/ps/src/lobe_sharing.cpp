@@ -1,0 +1,253 @@
+#include "lobe_sharing.h"
+
+#include "per_pixel_fits.h"
+
+#include <omp.h>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <memory>
+
+namespace photorig::solvers::ps::internal {
+namespace {
+
+// Step 5 counts a region glossy only with at least this many confidently
+// glossy pixels (the median of 16 is within about a third of a standard
+// deviation of their spread).
+constexpr std::size_t kMinPooledLobes = 16;
+// Step 5 pools each pixel's lobe from this many of its region's confidently
+// glossy pixels, the nearest to it (all, in a region with fewer).
+constexpr std::size_t kPooledLobes = 32;
+// Step 5 tests a glossy region's shape on about this many of the pixels it
+// offers its lobe to (every 8th at least): the test's threshold is then
+// within 14 % of its expectation, against a sum several times that where a
+// GGX lobe is fitted as Blinn-Phong, and the test costs a few per cent of a
+// glossy object's time.
+constexpr std::size_t kShapeTestPixels = 1024;
+
+// Step 5's lobe for a pixel of a region whose pixels reject one shared shape
+// (ModelLadder::RejectsSharedShape): the medians of rho_s and e over the
+// kPooledLobes confidently glossy pixels of its region nearest to it. Where
+// the object's lobe is not Blinn-Phong, its best Blinn-Phong exponent varies
+// over the object (a GGX lobe's long tails read as a broader lobe on the
+// pixels that see only them, at the rim of a sphere), so the nearest
+// confident pixels say more than the region's median. The glossy pixels are
+// bucketed in square cells, searched in rings around the pixel's cell until
+// no pixel further out can be nearer; ties go to the lower pixel index, so
+// the answer does not depend on the order the threads found them in.
+class NearestLobes {
+ public:
+  // labels: CV_32S regions; glossy: confident pixels; in_region: how many of
+  // them each region has.
+  NearestLobes(const cv::Mat& labels, std::vector<GlossyPixel> glossy, std::vector<std::size_t> in_region)
+      : cols_(labels.cols),
+        cell_cols_((labels.cols + kCell - 1) / kCell),
+        cell_rows_((labels.rows + kCell - 1) / kCell),
+        label_(labels.ptr<int>()),
+        in_region_(std::move(in_region)),
+        cell_start_(static_cast<std::size_t>(cell_cols_) * cell_rows_ + 1, 0) {
+    std::sort(glossy.begin(), glossy.end(), [this](const GlossyPixel& a, const GlossyPixel& b) {
+      const int ca = Cell(a.pixel), cb = Cell(b.pixel);
+      return ca != cb ? ca < cb : a.pixel < b.pixel;
+    });
+    for (const GlossyPixel& g : glossy) ++cell_start_[Cell(g.pixel) + 1];
+    for (std::size_t c = 1; c < cell_start_.size(); ++c) cell_start_[c] += cell_start_[c - 1];
+    glossy_ = std::move(glossy);
+  }
+
+  // near: scratch, (squared distance, index into glossy_) per pixel seen.
+  SharedLobe At(int pixel, std::vector<std::pair<int, int>>* near) const {
+    const int row = pixel / cols_, col = pixel % cols_, cell_row = row / kCell, cell_col = col / kCell;
+    near->clear();
+    const int rings = std::max(cell_rows_, cell_cols_);
+    const std::size_t in_region = in_region_[label_[pixel]];
+    for (int ring = 0; ring < rings && near->size() < in_region; ++ring) {
+      for (int r = cell_row - ring; r <= cell_row + ring; ++r) {
+        if (r < 0 || r >= cell_rows_) continue;
+        // The ring's top and bottom rows whole, its sides one cell each.
+        const int step = r == cell_row - ring || r == cell_row + ring ? 1 : std::max(1, 2 * ring);
+        for (int c = cell_col - ring; c <= cell_col + ring; c += step) {
+          if (c < 0 || c >= cell_cols_) continue;
+          for (int i = cell_start_[r * cell_cols_ + c]; i < cell_start_[r * cell_cols_ + c + 1]; ++i) {
+            const int q = glossy_[i].pixel;
+            if (label_[q] != label_[pixel]) continue;
+            const int dr = q / cols_ - row, dc = q % cols_ - col;
+            near->push_back({dr * dr + dc * dc, i});
+          }
+        }
+      }
+      // Every pixel outside the rings searched is at least ring * kCell away.
+      if (near->size() >= kPooledLobes) {
+        std::nth_element(near->begin(), near->begin() + (kPooledLobes - 1), near->end());
+        const int reach = ring * kCell;
+        if ((*near)[kPooledLobes - 1].first <= reach * reach) break;
+      }
+    }
+    const std::size_t pooled = std::min(near->size(), kPooledLobes);
+    if (pooled == 0) return {};
+    std::nth_element(near->begin(), near->begin() + (pooled - 1), near->end());
+    float specular[kPooledLobes], exponent[kPooledLobes];
+    for (std::size_t i = 0; i < pooled; ++i) {
+      const GlossyPixel& g = glossy_[(*near)[i].second];
+      specular[i] = g.specular_albedo, exponent[i] = g.exponent;
+    }
+    std::nth_element(specular, specular + pooled / 2, specular + pooled);
+    std::nth_element(exponent, exponent + pooled / 2, exponent + pooled);
+    return {specular[pooled / 2], exponent[pooled / 2]};
+  }
+
+ private:
+  static constexpr int kCell = 8;
+  int Cell(int pixel) const { return (pixel / cols_ / kCell) * cell_cols_ + (pixel % cols_) / kCell; }
+
+  int cols_, cell_cols_, cell_rows_;
+  const int* label_;
+  std::vector<std::size_t> in_region_;
+  std::vector<int> cell_start_;  // glossy_[cell_start_[c], cell_start_[c + 1]) lie in cell c
+  std::vector<GlossyPixel> glossy_;
+};
+
+}  // namespace
+
+void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
+                std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits) {
+  // No region can be glossy: a matte scene stops here, before any pass over the image.
+  if (glossy.size() < kMinPooledLobes) return;
+  const cv::Mat solved = map.flags == static_cast<int>(PixelFlag::kSolved);
+  cv::Mat labels, stats, centroids;
+  const int regions = cv::connectedComponentsWithStats(solved, labels, stats, centroids, 8, CV_32S);
+  const int* label = labels.ptr<int>();
+  std::vector<std::vector<float>> specular(regions), exponent(regions);
+  for (const GlossyPixel& g : glossy) {
+    specular[label[g.pixel]].push_back(g.specular_albedo);
+    exponent[label[g.pixel]].push_back(g.exponent);
+  }
+  auto median = [](std::vector<float>& values) {
+    std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+    return values[values.size() / 2];
+  };
+  // Label 0 is the background (pixels not solved).
+  std::vector<SharedLobe> region_lobe(regions);
+  std::vector<std::size_t> region_confident(regions, 0);
+  bool any_glossy = false;
+  for (int r = 1; r < regions; ++r) {
+    region_confident[r] = exponent[r].size();
+    const double area = stats.at<int>(r, cv::CC_STAT_AREA);
+    if (region_confident[r] < kMinPooledLobes || region_confident[r] < glossy_region_fraction * area) continue;
+    region_lobe[r] = {median(specular[r]), median(exponent[r])};
+    any_glossy = true;
+  }
+  if (!any_glossy) return;
+  fits.begin();
+  auto kept_without_lobe = [](std::uint8_t model) {
+    return model == static_cast<std::uint8_t>(PixelModel::kLambertian) ||
+           model == static_cast<std::uint8_t>(PixelModel::kTrimmed);
+  };
+  std::vector<SharedLobeItem> items;
+  const std::uint8_t* model = map.model.ptr<std::uint8_t>();
+  const int pixels = labels.rows * labels.cols;
+  for (int p = 0; p < pixels; ++p) {
+    const SharedLobe& lobe = region_lobe[label[p]];
+    if (lobe.exponent > 0.0 && kept_without_lobe(model[p])) items.push_back({p, label[p], lobe, false});
+  }
+  // Each glossy region's shape, tested on a sample of its pixels with its lobe and their own.
+  std::vector<SharedLobeItem> sample;
+  const std::size_t stride = std::max<std::size_t>(8, items.size() / kShapeTestPixels);
+  for (std::size_t i = 0; i < items.size(); i += stride) {
+    sample.push_back(items[i]);
+    sample.back().test_shape = true;
+  }
+  std::vector<std::vector<SharedShapeTest>> tests(threads, std::vector<SharedShapeTest>(regions));
+  auto in_parallel = [threads](std::size_t count, const auto& run) {
+#pragma omp parallel num_threads(threads)
+    {
+      const std::size_t thread = omp_get_thread_num(), team = omp_get_num_threads();
+      run(static_cast<int>(thread), count * thread / team, count * (thread + 1) / team);
+    }
+  };
+  in_parallel(sample.size(), [&](int thread, std::size_t begin, std::size_t end) {
+    fits.share(thread, std::span(sample).subspan(begin, end - begin), &tests[thread]);
+  });
+  std::vector<std::uint8_t> rejects(regions, 0);
+  bool any_rejects = false;
+  for (int r = 1; r < regions; ++r) {
+    SharedShapeTest test;
+    for (const std::vector<SharedShapeTest>& thread_tests : tests) {
+      test.chi2_gain += thread_tests[r].chi2_gain;
+      test.pixels += thread_tests[r].pixels;
+    }
+    rejects[r] = ladder.RejectsSharedShape(test);
+    any_rejects = any_rejects || rejects[r];
+  }
+  std::unique_ptr<NearestLobes> nearest;
+  if (any_rejects) nearest = std::make_unique<NearestLobes>(labels, std::move(glossy), region_confident);
+  in_parallel(items.size(), [&](int thread, std::size_t begin, std::size_t end) {
+    std::vector<std::pair<int, int>> near;
+    for (std::size_t i = begin; i < end; ++i)
+      if (rejects[items[i].region]) items[i].lobe = nearest->At(items[i].pixel, &near);
+    fits.share(thread, std::span(items).subspan(begin, end - begin), nullptr);
+  });
+  if (!any_rejects) return;
+  // Step 6: where the lobe is not Blinn-Phong, each pixel of the region is offered a GGX lobe of its own.
+  std::vector<int> offered;
+  for (int p = 0; p < pixels; ++p)
+    if (rejects[label[p]] && (kept_without_lobe(model[p]) || model[p] == static_cast<std::uint8_t>(PixelModel::kBlinnPhong)))
+      offered.push_back(p);
+  in_parallel(offered.size(), [&](int thread, std::size_t begin, std::size_t end) {
+    fits.offer_ggx(thread, std::span(offered).subspan(begin, end - begin));
+  });
+}
+
+void ClimbSharedLobes(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<SharingCandidate> batch,
+                      const std::function<void(const SharingCandidate&, const PixelFit& chosen)>& done) {
+  std::vector<LobeProblem> problems;
+  for (const SharingCandidate& candidate : batch) {
+    LobeProblem& problem = problems.emplace_back(candidate.problem);
+    problem.start_normal = candidate.kept.normal, problem.start_albedo = candidate.kept.albedo;
+    problem.shared_specular_albedo = candidate.item->lobe.specular_albedo;
+    problem.shared_exponent = candidate.item->lobe.exponent;
+  }
+  std::vector<LobeSolution> solutions(problems.size());
+  if (!problems.empty()) fitter.Fit(problems, solutions);
+  problems.clear();
+  std::vector<std::size_t> owning;  // of `batch`: those the ladder asks for their own lobe
+  for (std::size_t i = 0; i < batch.size(); ++i) {
+    SharingCandidate& candidate = batch[i];
+    candidate.lobe = LobeFitFrom(solutions[i], candidate.lambertian.used, PixelModel::kBlinnPhong);
+    candidate.lobe.parameters = kSharedLobeParameters;
+    candidate.lobe_fitted = true;
+    const LadderStep step = ladder.NextWithSharedLobe(candidate.Fits());
+    if (step.action == LadderStep::Action::kKeep) {
+      done(candidate, *step.keep);
+      continue;
+    }
+    owning.push_back(i);  // kFitOwnLobe
+    LobeProblem& problem = problems.emplace_back(candidate.problem);
+    problem.start_normal = step.start->normal, problem.start_albedo = step.start->albedo;
+  }
+  solutions.assign(problems.size(), {});
+  if (!problems.empty()) fitter.Fit(problems, solutions);
+  for (std::size_t j = 0; j < owning.size(); ++j) {
+    SharingCandidate& candidate = batch[owning[j]];
+    candidate.own = LobeFitFrom(solutions[j], candidate.lambertian.used, PixelModel::kBlinnPhong);
+    candidate.own_fitted = true;
+    done(candidate, *ladder.NextWithSharedLobe(candidate.Fits()).keep);
+  }
+}
+
+void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCandidate> batch,
+              const std::function<void(const GgxCandidate&, const PixelFit& ggx)>& keep) {
+  std::vector<LobeProblem> problems;
+  for (const GgxCandidate& candidate : batch) {
+    LobeProblem& problem = problems.emplace_back(candidate.problem);
+    problem.start_normal = candidate.on_samples.normal, problem.start_albedo = candidate.on_samples.albedo;
+  }
+  std::vector<LobeSolution> solutions(problems.size());
+  if (!problems.empty()) fitter.Fit(problems, solutions);
+  for (std::size_t i = 0; i < batch.size(); ++i) {
+    const PixelFit ggx = LobeFitFrom(solutions[i], batch[i].on_samples.used, PixelModel::kGgx);
+    if (ladder.NextWithGgx(GgxFits{&batch[i].on_samples, &ggx}).keep == &ggx) keep(batch[i], ggx);
+  }
+}
+
+}  // namespace photorig::solvers::ps::internal

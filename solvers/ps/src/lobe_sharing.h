@@ -1,0 +1,92 @@
+#pragma once
+// `auto`'s steps 5 and 6 (model_selection.h) apart from how a pixel's samples
+// are read: the plan over the image (which connected regions of solved
+// pixels are glossy and the lobe each shares, the pixels offered it, the test
+// of a region's shape on a sample of them, the lobes pooled from the nearest
+// glossy pixels where a region rejects one shape, and the pixels then offered
+// a GGX lobe), and the climbs of a batch of such pixels in lanes. The distant
+// solve (TileRefiner) reads a pixel's samples under the stack's shared
+// lights, the near-light solve with each pixel's own light and view vectors;
+// both hand their rows to the same plan and climbs.
+
+#include "kernels/lobe_lane_fit.h"
+#include "model_selection.h"
+
+#include "photorig/solvers/ps/photometric_stereo.h"
+
+#include <functional>
+#include <span>
+#include <vector>
+
+namespace photorig::solvers::ps::internal {
+
+// A pixel that kept a lobe with kConfidentLobeEvidence, and its rho_s and e.
+struct GlossyPixel {
+  int pixel;
+  float specular_albedo, exponent;
+};
+
+// A pixel offered a held lobe by step 5, in its region, and whether it takes
+// part in its region's shape test (then the map is left as it is).
+struct SharedLobeItem {
+  int pixel, region;
+  SharedLobe lobe;
+  bool test_shape;
+};
+
+// The fits steps 5 and 6 ask of the caller, each on one of `threads` threads.
+struct LobeSharingFits {
+  // Once, before any fit, where some region is glossy (the state the fits
+  // keep is made only then: a matte scene costs nothing).
+  std::function<void()> begin;
+  // Step 5's fits of `items`: with `tests` (one per region), each item's
+  // part in its region's shape test (ModelLadder::AddToShapeTest), the map
+  // unchanged; else the fits the ladder keeps, into the map.
+  std::function<void(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests)> share;
+  // Step 6's fits of `pixels` (indices into the map), into the map where the ladder keeps them.
+  std::function<void(int thread, std::span<const int> pixels)> offer_ggx;
+};
+
+// Steps 5 and 6 over `map` (its flags and models as steps 1-4 left them),
+// `glossy` its confidently glossy pixels, on `threads` threads. A scene with
+// fewer than 16 confidently glossy pixels, or no glossy region, costs nothing.
+void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
+                std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits);
+
+// One pixel of a step-5 batch: the fit steps 1-4 kept, its Lambertian fit on
+// every usable sample (LambertianOnRow), its samples as a lobe fit reads
+// them (`problem`: observed, inverse_sigma and, under near lights, geometry
+// and view; the climb sets the rest), and the fits the climb makes.
+struct SharingCandidate {
+  const SharedLobeItem* item = nullptr;
+  PixelFit kept, lambertian, lobe, own;
+  LobeProblem problem;
+  bool lobe_fitted = false, own_fitted = false;
+  SharedLobeFits Fits() const {
+    return {&kept, &lambertian, lobe_fitted ? &lobe : nullptr, item->test_shape, own_fitted ? &own : nullptr};
+  }
+};
+
+// Step 5's climb of `batch` (pixels the ladder asks a held lobe of) in
+// `fitter`'s lanes: every held lobe, then the own lobes a shape test asks
+// for; done(candidate, chosen) with the fit the ladder keeps (in the shape
+// test, its part is taken from candidate.Fits()).
+void ClimbSharedLobes(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<SharingCandidate> batch,
+                      const std::function<void(const SharingCandidate&, const PixelFit& chosen)>& done);
+
+// One pixel of a step-6 batch: the fit steps 1-5 kept, that fit judged on
+// every usable sample (`on_samples`, where the GGX fit starts), whether step
+// 5 held its lobe, and its samples as the GGX fit reads them.
+struct GgxCandidate {
+  int pixel = 0;
+  bool held = false;
+  PixelFit kept, on_samples;
+  LobeProblem problem;
+};
+
+// Step 6's GGX fits of `batch` in `fitter`'s lanes; keep(candidate, ggx) for
+// each pixel whose GGX fit the ladder keeps.
+void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCandidate> batch,
+              const std::function<void(const GgxCandidate&, const PixelFit& ggx)>& keep);
+
+}  // namespace photorig::solvers::ps::internal
