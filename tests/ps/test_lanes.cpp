@@ -102,6 +102,7 @@ struct Pixel {
   std::vector<Eigen::Vector3d> lights;
   std::vector<double> observed, inverse_sigma;
   Eigen::Vector3d normal;
+  Eigen::Vector3d view = Eigen::Vector3d::UnitZ();
 };
 
 Pixel RandomPixel(std::mt19937& rng, int light_count) {
@@ -120,27 +121,50 @@ Pixel RandomPixel(std::mt19937& rng, int light_count) {
   return pixel;
 }
 
+// The pixel as a point up to 10 mm from the dome's centre, its lights LEDs
+// 80 mm out along its directions, its view tilted by up to 15 deg as through
+// a pinhole: geometry of its own, as under a near dome.
+void MoveUnderNearLights(std::mt19937& rng, Pixel* pixel) {
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const Eigen::Vector3d point(20.0 * unit(rng) - 10.0, 20.0 * unit(rng) - 10.0, 0.0);
+  for (Eigen::Vector3d& w : pixel->lights) w = (80.0 * w - point).normalized();
+  const Eigen::Vector3d axis = Eigen::Vector3d(unit(rng) - 0.5, unit(rng) - 0.5, 0.0).normalized();
+  pixel->view = Eigen::AngleAxisd(unit(rng) * 15.0 * M_PI / 180, axis) * Eigen::Vector3d::UnitZ();
+}
+
 // The lanes' normal equations at random points against those built from the
 // forward-mode Jacobian of `Model` (autodiff::BlinnPhongPixel or GgxPixel)
 // over (m, rho_d, rho_s, shape) at |m| = 1; a tangent step t moves m by t, so
-// its column is J_m t. shape_of draws e or a from a uniform number.
+// its column is J_m t. shape_of draws e or a from a uniform number. With
+// own_geometry, each pixel brings its own (MoveUnderNearLights) to one fitter
+// made without shared lights.
 template <typename Model, typename Jacobian, typename Shape>
 void ExpectNormalEquationsMatchForwardMode(LaneLobe lobe, Jacobian residuals_and_jacobian, Shape shape_of,
-                                          double tolerance) {
+                                          double tolerance, bool own_geometry = false) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   int lights_past_horizon = 0;
+  constexpr int kLights = 24;
+  LobeLaneFitter own_geometry_fitter(kLights, BlinnPhongOptions{}, lobe);
+  std::mt19937 geometry_rng(13);  // the pixels and points the same as with shared lights
   for (int trial = 0; trial < 40; ++trial) {
-    const Pixel pixel = RandomPixel(rng, 24);
+    Pixel pixel = RandomPixel(rng, kLights);
+    if (own_geometry) MoveUnderNearLights(geometry_rng, &pixel);
     const int n = static_cast<int>(pixel.lights.size());
     const double rho_d = 0.2 + unit(rng), rho_s = unit(rng), shape = shape_of(unit(rng), unit(rng));
-    LobeLaneFitter fitter(pixel.lights, Eigen::Vector3d::UnitZ(), BlinnPhongOptions{}, lobe);
-    const LobeProblem problem{pixel.observed.data(), pixel.inverse_sigma.data(), pixel.normal, rho_d};
+    std::vector<double> towards_light, geometry(6 * n);
+    for (const Eigen::Vector3d& w : pixel.lights) towards_light.insert(towards_light.end(), w.data(), w.data() + 3);
+    internal::BlinnPhongGeometry(n, towards_light.data(), pixel.view, geometry.data());
+    LobeLaneFitter shared_fitter(pixel.lights, pixel.view, BlinnPhongOptions{}, lobe);
+    LobeLaneFitter& fitter = own_geometry ? own_geometry_fitter : shared_fitter;
+    LobeProblem problem{pixel.observed.data(), pixel.inverse_sigma.data(), pixel.normal, rho_d};
+    problem.geometry = geometry.data();
+    problem.view = pixel.view;
     const auto lanes = fitter.Linearize(problem, pixel.normal, rho_d, rho_s, shape);
 
     Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
     for (int k = 0; k < n; ++k) directions.row(k) = pixel.lights[k].transpose();
-    const Model model(directions, Eigen::VectorXd::Ones(n), Eigen::Vector3d::UnitZ(),
+    const Model model(directions, Eigen::VectorXd::Ones(n), pixel.view,
                       Eigen::Map<const Eigen::VectorXd>(pixel.observed.data(), n));
     const double parameters[6] = {pixel.normal.x(), pixel.normal.y(), pixel.normal.z(), rho_d, rho_s, shape};
     Eigen::VectorXd residuals;
@@ -190,21 +214,32 @@ TEST(GgxLanes, NormalEquationsMatchForwardModeAutodiff) {
       [](double u, double) { return 0.03 + 0.67 * u; }, 2e-5);
 }
 
+// The same with each pixel's own lights and view, as under a near dome: the
+// lanes read the pixel's half vectors and its v . n.
+TEST(GgxLanes, PerLaneNormalEquationsMatchForwardModeAutodiff) {
+  ExpectNormalEquationsMatchForwardMode<solvers::autodiff::GgxPixel>(
+      LaneLobe::kGgx, &solvers::autodiff::GgxResidualsAndJacobian,
+      [](double u, double) { return 0.03 + 0.67 * u; }, 2e-5, true);
+}
+
 // Fits noise-free problems and expects every pixel's true normal (within
-// 1e-4 deg) and exponent or roughness (0.1 %), each within the iteration limit.
-void ExpectTrueParameters(LobeLaneFitter* fitter, const std::vector<LobeProblem>& problems,
-                          const std::vector<Eigen::Vector3d>& normals, const std::vector<double>& exponents) {
+// 1e-4 deg) and exponent or roughness (0.1 %), each within the iteration
+// limit; returns the solutions.
+std::vector<LobeSolution> ExpectTrueParameters(LobeLaneFitter* fitter, const std::vector<LobeProblem>& problems,
+                                               const std::vector<Eigen::Vector3d>& normals,
+                                               const std::vector<double>& exponents) {
   std::vector<LobeSolution> solutions(problems.size());
   fitter->Fit(problems, solutions);
   double worst_deg = 0.0, worst_exponent = 0.0;
   for (std::size_t p = 0; p < problems.size(); ++p) {
-    ASSERT_TRUE(solutions[p].ok) << p;
+    EXPECT_TRUE(solutions[p].ok) << p;
     worst_deg = std::max(worst_deg, std::acos(std::min(1.0, solutions[p].normal.dot(normals[p]))) * 180 / M_PI);
     worst_exponent = std::max(worst_exponent, std::abs(solutions[p].exponent / exponents[p] - 1.0));
     EXPECT_LT(solutions[p].iterations, BlinnPhongOptions{}.max_iterations);
   }
   EXPECT_LT(worst_deg, 1e-4);
   EXPECT_LT(worst_exponent, 1e-3);
+  return solutions;
 }
 
 // Noise-free shiny pixels: the lane fit must land where the per-pixel
@@ -294,46 +329,114 @@ TEST(GgxLanes, NoiseFreePixelsAreFittedToTheTruth) {
   ExpectTrueParameters(&fitter, problems, normals, roughness);
 }
 
-// Pixels that each see their own lights and their own line of sight (near
-// LEDs, a perspective camera): the lanes read each pixel's geometry and land
-// on its true parameters, as with shared lights.
-TEST(BlinnPhongLanes, EachPixelsOwnLightsAndViewAreFittedToTheTruth) {
-  const auto ring = testing::RingLights(40, 25, 80);
-  const int pixels = 37, n = static_cast<int>(ring.size());  // 37: not a multiple of the lane count
-  std::mt19937 rng(23);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  std::vector<double> observed(pixels * n), inverse_sigma(pixels * n, 100.0), geometry(6 * pixels * n);
+// Noise-free pixels that each see their own lights and their own line of
+// sight (near LEDs, a perspective camera): the ring tilted by up to 10 deg
+// about a random axis, the view by up to 15 deg. render(lights, view, normal,
+// observed) draws the pixel's material from rng, writes its samples and
+// returns the material; each problem starts 3 deg off its normal.
+struct OwnGeometryScene {
+  int lights = 0;
+  std::vector<double> observed, inverse_sigma, geometry;
   std::vector<LobeProblem> problems;
   std::vector<Eigen::Vector3d> normals;
-  std::vector<double> exponents;
+  std::vector<internal::BlinnPhongMaterial> materials;
+
+  std::vector<double> Shapes() const {
+    std::vector<double> shapes;
+    for (const auto& material : materials) shapes.push_back(material.exponent);
+    return shapes;
+  }
+  // The largest relative error of rho_d or rho_s.
+  double WorstAlbedoError(const std::vector<LobeSolution>& solutions) const {
+    double worst = 0.0;
+    for (std::size_t p = 0; p < materials.size(); ++p)
+      worst = std::max({worst, std::abs(solutions[p].diffuse_albedo / materials[p].diffuse_albedo - 1.0),
+                        std::abs(solutions[p].specular_albedo / materials[p].specular_albedo - 1.0)});
+    return worst;
+  }
+};
+template <typename Render>
+OwnGeometryScene RenderOwnGeometry(std::mt19937& rng, Render render) {
+  const auto ring = testing::RingLights(40, 25, 80);
+  const int pixels = 37, n = static_cast<int>(ring.size());  // 37: not a multiple of the lane count
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  OwnGeometryScene scene;
+  scene.lights = n;
+  scene.observed.resize(pixels * n), scene.geometry.resize(6 * pixels * n);
+  scene.inverse_sigma.assign(pixels * n, 100.0);
   for (int p = 0; p < pixels; ++p) {
-    // The ring tilted by up to 10 deg about a random axis, the view by up to 15 deg.
     const Eigen::Vector3d axis = Eigen::Vector3d(unit(rng) - 0.5, unit(rng) - 0.5, 0.0).normalized();
     const Eigen::Matrix3d tilt = Eigen::AngleAxisd(unit(rng) * 10.0 * M_PI / 180, axis).toRotationMatrix();
     const Eigen::Vector3d view =
         Eigen::AngleAxisd(unit(rng) * 15.0 * M_PI / 180, axis.unitOrthogonal()).toRotationMatrix() * Eigen::Vector3d::UnitZ();
-    std::vector<double> towards(3 * n);
-    for (int k = 0; k < n; ++k) {
-      const Eigen::Vector3d w = tilt * ring[k];
-      for (int i = 0; i < 3; ++i) towards[3 * k + i] = w[i];
+    std::vector<Eigen::Vector3d> lights;
+    std::vector<double> towards;
+    for (const Eigen::Vector3d& light : ring) {
+      lights.push_back(tilt * light);
+      towards.insert(towards.end(), lights.back().data(), lights.back().data() + 3);
     }
-    internal::BlinnPhongGeometry(n, towards.data(), view, &geometry[6 * p * n]);
+    internal::BlinnPhongGeometry(n, towards.data(), view, &scene.geometry[6 * p * n]);
     const Eigen::Vector3d normal =
         (Eigen::Vector3d::UnitZ() + 0.4 * Eigen::Vector3d(unit(rng) - 0.5, unit(rng) - 0.5, 0.0)).normalized();
-    const double rho_d = 0.3 + 0.4 * unit(rng), rho_s = 0.2 + 0.5 * unit(rng), e = 10.0 + 40.0 * unit(rng);
-    for (int k = 0; k < n; ++k) {
-      const Eigen::Vector3d w = tilt * ring[k], half = (w + view).normalized();
-      const double c = std::max(0.0, w.dot(normal)), h = std::max(0.0, half.dot(normal));
-      observed[p * n + k] = (rho_d / M_PI + rho_s * (e + 2) / (2 * M_PI) * std::pow(h, e)) * c;
-    }
-    LobeProblem problem{&observed[p * n], &inverse_sigma[p * n], (normal + 0.05 * normal.unitOrthogonal()).normalized(), rho_d};
-    problem.geometry = &geometry[6 * p * n];
-    problems.push_back(problem);
-    normals.push_back(normal);
-    exponents.push_back(e);
+    const internal::BlinnPhongMaterial material = render(lights, view, normal, &scene.observed[p * n]);
+    LobeProblem problem{&scene.observed[p * n], &scene.inverse_sigma[p * n],
+                        (normal + 0.05 * normal.unitOrthogonal()).normalized(), material.diffuse_albedo};
+    problem.geometry = &scene.geometry[6 * p * n];
+    problem.view = view;
+    scene.problems.push_back(problem);
+    scene.normals.push_back(normal);
+    scene.materials.push_back(material);
   }
-  LobeLaneFitter fitter(n, BlinnPhongOptions{});
-  ExpectTrueParameters(&fitter, problems, normals, exponents);
+  return scene;
+}
+
+// The lanes read each pixel's geometry and land on its true parameters, as
+// with shared lights.
+TEST(BlinnPhongLanes, EachPixelsOwnLightsAndViewAreFittedToTheTruth) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const OwnGeometryScene scene = RenderOwnGeometry(rng, [&](const std::vector<Eigen::Vector3d>& lights,
+                                                            const Eigen::Vector3d& view, const Eigen::Vector3d& normal,
+                                                            double* observed) {
+    const double rho_d = 0.3 + 0.4 * unit(rng), rho_s = 0.2 + 0.5 * unit(rng), e = 10.0 + 40.0 * unit(rng);
+    for (std::size_t k = 0; k < lights.size(); ++k) {
+      const Eigen::Vector3d half = (lights[k] + view).normalized();
+      const double c = std::max(0.0, lights[k].dot(normal)), h = std::max(0.0, half.dot(normal));
+      observed[k] = (rho_d / M_PI + rho_s * (e + 2) / (2 * M_PI) * std::pow(h, e)) * c;
+    }
+    return internal::BlinnPhongMaterial{rho_d, rho_s, e};
+  });
+  LobeLaneFitter fitter(scene.lights, BlinnPhongOptions{});
+  ExpectTrueParameters(&fitter, scene.problems, scene.normals, scene.Shapes());
+}
+
+// The same for GGX (autodiff::GgxPixel renders each pixel under its own
+// lights and view). A wrong view changes only S(v . n), the factor the lobe
+// takes from the view, which rho_s absorbs at the true normal: rho_s shows it.
+TEST(GgxLanes, EachPixelsOwnLightsAndViewAreFittedToTheTruth) {
+  std::mt19937 rng(23);  // the Blinn-Phong test's pixels and geometry
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  OwnGeometryScene scene = RenderOwnGeometry(rng, [&](const std::vector<Eigen::Vector3d>& lights,
+                                                      const Eigen::Vector3d& view, const Eigen::Vector3d& normal,
+                                                      double* observed) {
+    const int n = static_cast<int>(lights.size());
+    Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
+    for (int k = 0; k < n; ++k) directions.row(k) = lights[k].transpose();
+    const solvers::autodiff::GgxPixel model(directions, Eigen::VectorXd::Ones(n), view, Eigen::VectorXd::Zero(n));
+    const internal::BlinnPhongMaterial material{0.3 + 0.4 * unit(rng), 0.2 + 0.5 * unit(rng), 0.08 + 0.4 * unit(rng)};
+    const double parameters[6] = {normal.x(), normal.y(), normal.z(), material.diffuse_albedo,
+                                  material.specular_albedo, material.exponent};
+    EXPECT_TRUE(model.Predict(parameters, observed));
+    return material;
+  });
+  LobeLaneFitter fitter(scene.lights, BlinnPhongOptions{}, LaneLobe::kGgx);
+  const auto solutions = ExpectTrueParameters(&fitter, scene.problems, scene.normals, scene.Shapes());
+  EXPECT_LT(scene.WorstAlbedoError(solutions), 1e-4);
+
+  for (LobeProblem& problem : scene.problems) problem.view = Eigen::Vector3d::UnitZ();
+  std::vector<LobeSolution> wrong(scene.problems.size());
+  fitter.Fit(scene.problems, wrong);
+  EXPECT_GT(scene.WorstAlbedoError(wrong), 1e-2);
 }
 
 TEST(BlinnPhongLanes, SamplesWithoutWeightAreIgnored) {

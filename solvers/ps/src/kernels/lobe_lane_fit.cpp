@@ -6,7 +6,6 @@
 #include "photorig/solvers/autodiff/vector.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -51,6 +50,11 @@ void CopyLane(const LanePoint& from, int lane, LanePoint* to) {
   to->exponent[lane] = from.exponent[lane];
 }
 
+// A view into its lane's column of a per-lane table, [i * kFloatLanes + lane].
+void StoreLaneView(const Eigen::Vector3d& view, int lane, float* views) {
+  for (int i = 0; i < 3; ++i) views[i * kFloatLanes + lane] = static_cast<float>(view[i]);
+}
+
 // A tangent basis for a unit normal, continuous everywhere but on n_z = -1
 // (Duff et al. 2017): branch-free, so it also runs in lanes.
 PHOTORIG_LANE_INLINE void TangentBasis(double nx, double ny, double nz, double t1[3], double t2[3]) {
@@ -68,15 +72,20 @@ PHOTORIG_LANE_INLINE void TangentBasis(double nx, double ny, double nz, double t
 //   dI/drho_d = c / pi, dI/drho_s = c k h^e, dI/de = c rho_s h^e (1 / (2 pi) + k ln h),
 // all zero where c <= 0, the h terms zero where h <= 0. A tangent step t moves
 // the normal by t to first order, so dI/dt = dI/dn . t.
-// Entry i of light k's geometry (w then w_h) for lane j: one row all lanes
-// share, or each lane's own (near lights, a perspective camera).
+// Row `row` of a table for lane j: one value all lanes share, or each lane's
+// own at [row * kFloatLanes + j] (near lights, a perspective camera).
+template <bool kPerLane>
+PHOTORIG_LANE_INLINE float LaneEntry(const float* table, int row, int j) {
+  if constexpr (kPerLane) {
+    return table[row * kFloatLanes + j];
+  } else {
+    return table[row];
+  }
+}
+// Entry i of light k's geometry (w then w_h) for lane j.
 template <bool kPerLane>
 PHOTORIG_LANE_INLINE float GeometryOf(const float* geometry, int k, int i, int j) {
-  if constexpr (kPerLane) {
-    return geometry[(6 * k + i) * kFloatLanes + j];
-  } else {
-    return geometry[6 * k + i];
-  }
+  return LaneEntry<kPerLane>(geometry, 6 * k + i, j);
 }
 
 // One sample's residual r and derivatives d0..d4 into lane j's sums:
@@ -182,14 +191,16 @@ PHOTORIG_LANE_INLINE void LaneGgxG1(float c, float a2, float* value, float* d_co
   *value = 2.0f * c / sum, *d_cos = 2.0f * a2 * q, *d_a2 = -c * (1.0f - c * c) * q;
 }
 
-// The GGX lobe's pass (autodiff::SymbolicGgxJacobian in lanes, shared
-// geometry). The lobe per unit rho_s is S G1(c) / t^2 with the per-pixel
+// The GGX lobe's pass (autodiff::SymbolicGgxJacobian in lanes); the geometry
+// and the view v (three rows) shared or each lane's, as in EvaluateLanesOf.
+// The lobe per unit rho_s is S G1(c) / t^2 with the per-pixel
 // S = a^2 G1(v . n) / (4 pi v . n) and t = h^2 (a^2 - 1) + 1, c = w . n,
 // h = max(0, w_h . n); zero where v . n <= 0 (no lobe faces the camera).
 //   dI/dn = (rho_d / pi + rho_s S G1'(c) / t^2) w + rho_s S'(v.n) G1(c) / t^2 v
 //           - 4 rho_s S G1(c) h (a^2 - 1) / t^3 w_h,
 //   dI/da = 2 a rho_s (S_a2 G1 / t^2 + S G1_a2 / t^2 - 2 S G1 h^2 / t^3),
 // all zero where c <= 0.
+template <bool kPerLane>
 PHOTORIG_LANE_INLINE void EvaluateGgxLanesOf(const LanePoint& q, int lights, const float* geometry, const float* view,
                                              const float* observed, const float* inverse_sigma, LaneEquations* out) {
   constexpr float kInvPiF = static_cast<float>(kInvPi);
@@ -204,7 +215,9 @@ PHOTORIG_LANE_INLINE void EvaluateGgxLanesOf(const LanePoint& q, int lights, con
     const float a = point.shape[j];
     a2[j] = a * a, two_a[j] = 2.0f * a;
     // One select, the other clamps as max(): GCC gives up on a lane loop with more conditions.
-    const float cos_view = view[0] * nx[j] + view[1] * ny[j] + view[2] * nz[j];
+    const float vx = LaneEntry<kPerLane>(view, 0, j), vy = LaneEntry<kPerLane>(view, 1, j);
+    const float vz = LaneEntry<kPerLane>(view, 2, j);
+    const float cos_view = vx * nx[j] + vy * ny[j] + vz * nz[j];
     const float lobe = cos_view > 0.0f ? 1.0f : 0.0f;
     const float safe_cos_view = std::max(cos_view, 1e-6f);  // what it gives is multiplied by lobe
     float g, g_d_cos, g_d_a2;
@@ -213,8 +226,8 @@ PHOTORIG_LANE_INLINE void EvaluateGgxLanesOf(const LanePoint& q, int lights, con
     s_unit[j] = k * a2[j] * g;
     s_d_cos_view[j] = k * a2[j] * (g_d_cos - g / safe_cos_view);
     s_d_a2[j] = k * (g + a2[j] * g_d_a2);
-    v_t[0][j] = view[0] * t[0][0][j] + view[1] * t[0][1][j] + view[2] * t[0][2][j];
-    v_t[1][j] = view[0] * t[1][0][j] + view[1] * t[1][1][j] + view[2] * t[1][2][j];
+    v_t[0][j] = vx * t[0][0][j] + vy * t[0][1][j] + vz * t[0][2][j];
+    v_t[1][j] = vx * t[1][0][j] + vy * t[1][1][j] + vz * t[1][2][j];
   }
   alignas(64) LaneSums acc = {};
   for (int k = 0; k < lights; ++k) {
@@ -222,10 +235,11 @@ PHOTORIG_LANE_INLINE void EvaluateGgxLanesOf(const LanePoint& q, int lights, con
     // Every light is evaluated: with a skip of the lights no lane uses, as
     // the Blinn-Phong pass has, GCC leaves the lane loop below scalar.
     const float* observed_k = observed + k * kFloatLanes;
-    const float wx = geometry[6 * k], wy = geometry[6 * k + 1], wz = geometry[6 * k + 2];
-    const float hx = geometry[6 * k + 3], hy = geometry[6 * k + 4], hz = geometry[6 * k + 5];
 #pragma omp simd
     for (int j = 0; j < kFloatLanes; ++j) {
+      const float wx = GeometryOf<kPerLane>(geometry, k, 0, j), wy = GeometryOf<kPerLane>(geometry, k, 1, j);
+      const float wz = GeometryOf<kPerLane>(geometry, k, 2, j), hx = GeometryOf<kPerLane>(geometry, k, 3, j);
+      const float hy = GeometryOf<kPerLane>(geometry, k, 4, j), hz = GeometryOf<kPerLane>(geometry, k, 5, j);
       const float c = wx * nx[j] + wy * ny[j] + wz * nz[j];
       const float h = std::max(hx * nx[j] + hy * ny[j] + hz * nz[j], 0.0f);
       // As above: one select; the clamped cosines' terms are multiplied by lit.
@@ -259,8 +273,10 @@ PHOTORIG_LANE_INLINE void EvaluateGgxLanesOf(const LanePoint& q, int lights, con
 PHOTORIG_PS_MULTIVERSION
 void EvaluateLanes(LaneLobe lobe, bool per_lane, const LanePoint& q, int lights, const float* geometry,
                    const float* view, const float* observed, const float* inverse_sigma, LaneEquations* out) {
-  if (lobe == LaneLobe::kGgx)
-    EvaluateGgxLanesOf(q, lights, geometry, view, observed, inverse_sigma, out);
+  if (lobe == LaneLobe::kGgx && per_lane)
+    EvaluateGgxLanesOf<true>(q, lights, geometry, view, observed, inverse_sigma, out);
+  else if (lobe == LaneLobe::kGgx)
+    EvaluateGgxLanesOf<false>(q, lights, geometry, view, observed, inverse_sigma, out);
   else if (per_lane)
     EvaluateLanesOf<true>(q, lights, geometry, observed, inverse_sigma, out);
   else
@@ -578,11 +594,10 @@ struct LobeLaneFitter::State {
 
 LobeLaneFitter::LobeLaneFitter(const std::vector<Eigen::Vector3d>& light_directions, const Eigen::Vector3d& view,
                                const BlinnPhongOptions& options, LaneLobe lobe)
-    : LobeLaneFitter(static_cast<int>(light_directions.size()), options) {
+    : LobeLaneFitter(static_cast<int>(light_directions.size()), options, lobe) {
   per_lane_geometry_ = false;
-  lobe_ = lobe;
   view_ = view.normalized();
-  if (lobe == LaneLobe::kGgx) min_shape_ = kMinGgxRoughness, max_shape_ = kMaxGgxRoughness;
+  evaluation_view_ = {static_cast<float>(view_.x()), static_cast<float>(view_.y()), static_cast<float>(view_.z())};
   std::vector<double> towards_light(3 * light_directions.size());
   for (int k = 0; k < lights_; ++k) {
     const Eigen::Vector3d w = light_directions[k].normalized();
@@ -593,12 +608,14 @@ LobeLaneFitter::LobeLaneFitter(const std::vector<Eigen::Vector3d>& light_directi
   evaluation_geometry_.assign(geometry_.begin(), geometry_.end());
 }
 
-LobeLaneFitter::LobeLaneFitter(int lights, const BlinnPhongOptions& options)
+LobeLaneFitter::LobeLaneFitter(int lights, const BlinnPhongOptions& options, LaneLobe lobe)
     : lights_(lights),
       options_(options),
-      min_shape_(options.min_exponent),
-      max_shape_(options.max_exponent),
+      lobe_(lobe),
+      min_shape_(lobe == LaneLobe::kGgx ? kMinGgxRoughness : options.min_exponent),
+      max_shape_(lobe == LaneLobe::kGgx ? kMaxGgxRoughness : options.max_exponent),
       evaluation_geometry_(6 * static_cast<std::size_t>(lights) * kFloatLanes, 0.0f),
+      evaluation_view_(3 * kFloatLanes, 0.0f),
       per_lane_geometry_(true),
       observed_(static_cast<std::size_t>(lights) * kFloatLanes),
       inverse_sigma_(static_cast<std::size_t>(lights) * kFloatLanes),
@@ -606,7 +623,9 @@ LobeLaneFitter::LobeLaneFitter(int lights, const BlinnPhongOptions& options)
       cos_half_(static_cast<std::size_t>(lights) * kFloatLanes),
       start_observed_(static_cast<std::size_t>(lights) * kFloatLanes),
       weight_(static_cast<std::size_t>(lights) * kFloatLanes),
-      state_(std::make_unique<State>()) {}
+      state_(std::make_unique<State>()) {
+  std::fill(evaluation_view_.begin() + 2 * kFloatLanes, evaluation_view_.end(), 1.0f);  // +z until a problem's
+}
 
 void BlinnPhongGeometry(int lights, const double* towards_light, const Eigen::Vector3d& view, double* geometry) {
   const Eigen::Vector3d towards_camera = view.normalized();
@@ -620,16 +639,21 @@ void BlinnPhongGeometry(int lights, const double* towards_light, const Eigen::Ve
 LobeLaneFitter::~LobeLaneFitter() = default;
 LobeLaneFitter::LobeLaneFitter(LobeLaneFitter&&) noexcept = default;
 
-void LobeLaneFitter::Load(int lane, const LobeProblem& problem, const BlinnPhongMaterial& start) {
-  State& s = *state_;
-  const Eigen::Vector3d n = problem.start_normal.normalized();
+void LobeLaneFitter::LoadSamples(int lane, const LobeProblem& problem) {
   for (int k = 0; k < lights_; ++k) {
     observed_[k * kFloatLanes + lane] = static_cast<float>(problem.observed[k]);
     inverse_sigma_[k * kFloatLanes + lane] = static_cast<float>(problem.inverse_sigma[k]);
   }
-  if (per_lane_geometry_)
-    for (int i = 0; i < 6 * lights_; ++i)
-      evaluation_geometry_[i * kFloatLanes + lane] = static_cast<float>(problem.geometry[i]);
+  if (!per_lane_geometry_) return;
+  for (int i = 0; i < 6 * lights_; ++i)
+    evaluation_geometry_[i * kFloatLanes + lane] = static_cast<float>(problem.geometry[i]);
+  StoreLaneView(problem.view.normalized(), lane, evaluation_view_.data());
+}
+
+void LobeLaneFitter::Load(int lane, const LobeProblem& problem, const BlinnPhongMaterial& start) {
+  State& s = *state_;
+  const Eigen::Vector3d n = problem.start_normal.normalized();
+  LoadSamples(lane, problem);
   LanePoint& q = s.candidate;
   double t1[3], t2[3];
   TangentBasis(n.x(), n.y(), n.z(), t1, t2);
@@ -684,8 +708,12 @@ void LobeLaneFitter::GridStarts(std::span<const LobeProblem> problems) {
     }
     if (lobe_ == LaneLobe::kGgx) {
       alignas(64) double cos_view[kFloatLanes];
-      for (int j = 0; j < kFloatLanes; ++j)
-        cos_view[j] = view_.x() * normal[0][j] + view_.y() * normal[1][j] + view_.z() * normal[2][j];
+      for (int j = 0; j < kFloatLanes; ++j) {
+        Eigen::Vector3d v = view_;
+        if (per_lane_geometry_)
+          v = first + j < count ? problems[first + j].view.normalized() : Eigen::Vector3d::UnitZ();
+        cos_view[j] = v.x() * normal[0][j] + v.y() * normal[1][j] + v.z() * normal[2][j];
+      }
       LaneMaterial material;
       GgxGridStartLanes(lights_, cos_light_.data(), cos_half_.data(), cos_view, start_observed_.data(), weight_.data(),
                         start_albedo, &material);
@@ -732,6 +760,7 @@ void LobeLaneFitter::Fit(std::span<const LobeProblem> problems, std::span<LobeSo
     }
     s.candidate.diffuse_albedo[lane] = s.candidate.specular_albedo[lane] = 0.0;
     s.candidate.exponent[lane] = min_shape_;
+    if (per_lane_geometry_) StoreLaneView(Eigen::Vector3d::UnitZ(), lane, evaluation_view_.data());
   };
   LaneQueue queue(count, kFloatLanes);
   // A loaded problem's start is the lane's next candidate.
@@ -752,11 +781,9 @@ void LobeLaneFitter::Fit(std::span<const LobeProblem> problems, std::span<LobeSo
   // Changes of the cost below what the float evaluation resolves are noise.
   const double tolerance = std::max(options_.relative_tolerance, kEvaluationPrecision);
   bool stepping[kFloatLanes];  // lanes whose next candidate is a step from their current point
-  const std::array<float, 3> view = {static_cast<float>(view_.x()), static_cast<float>(view_.y()),
-                                     static_cast<float>(view_.z())};
   while (queue.busy() > 0) {
-    EvaluateLanes(lobe_, per_lane_geometry_, s.candidate, lights_, evaluation_geometry_.data(), view.data(), observed_.data(),
-                  inverse_sigma_.data(), &s.candidate_equations);
+    EvaluateLanes(lobe_, per_lane_geometry_, s.candidate, lights_, evaluation_geometry_.data(), evaluation_view_.data(),
+                  observed_.data(), inverse_sigma_.data(), &s.candidate_equations);
     HoldSharedLobes(s.shared_exponent, &s.candidate_equations);
     for (int lane = 0; lane < kFloatLanes; ++lane) {
       stepping[lane] = false;
@@ -851,16 +878,10 @@ LobeLaneFitter::Linearization LobeLaneFitter::Linearize(const LobeProblem& probl
     point.specular_albedo[lane] = specular_albedo;
     point.exponent[lane] = exponent;
   }
-  for (int k = 0; k < lights_; ++k) {
-    observed_[k * kFloatLanes] = static_cast<float>(problem.observed[k]);
-    inverse_sigma_[k * kFloatLanes] = static_cast<float>(problem.inverse_sigma[k]);
-  }
-  if (per_lane_geometry_)
-    for (int i = 0; i < 6 * lights_; ++i) evaluation_geometry_[i * kFloatLanes] = static_cast<float>(problem.geometry[i]);
+  LoadSamples(0, problem);
   LaneEquations equations;
-  const float view[3] = {static_cast<float>(view_.x()), static_cast<float>(view_.y()), static_cast<float>(view_.z())};
-  EvaluateLanes(lobe_, per_lane_geometry_, point, lights_, evaluation_geometry_.data(), view, observed_.data(),
-                inverse_sigma_.data(), &equations);
+  EvaluateLanes(lobe_, per_lane_geometry_, point, lights_, evaluation_geometry_.data(), evaluation_view_.data(),
+                observed_.data(), inverse_sigma_.data(), &equations);
   Linearization out;
   out.cost = equations.cost[0];
   int entry = 0;

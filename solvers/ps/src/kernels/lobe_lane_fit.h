@@ -65,7 +65,7 @@ void BlinnPhongSharedStartLanes(int lights, const double* cos_light, const doubl
 // 1 / sigma for each (0 marks a sample the fit must not use); for a fitter
 // made without shared lights, the pixel's own geometry (BlinnPhongGeometry:
 // under near LEDs and a perspective camera every pixel has its own light and
-// half vectors).
+// half vectors) and, for its GGX lobe, its own view.
 struct LobeProblem {
   const double* observed = nullptr;
   const double* inverse_sigma = nullptr;
@@ -76,6 +76,7 @@ struct LobeProblem {
   // and rho_d are fitted.
   double shared_specular_albedo = 0.0, shared_exponent = 0.0;
   const double* geometry = nullptr;
+  Eigen::Vector3d view = Eigen::Vector3d::UnitZ();  // towards the camera; the half vectors' (geometry's)
 };
 
 struct LobeSolution {
@@ -96,7 +97,7 @@ void BlinnPhongGeometry(int lights, const double* towards_light, const Eigen::Ve
 // The lobe a fitter fits. Blinn-Phong: rho_d / pi + rho_s (e + 2) / (2 pi) h^e
 // (autodiff::BlinnPhongPixel). GGX: rho_d / pi + rho_s D G1 G1 / (4 v.n)
 // with roughness a (autodiff::GgxPixel); GGX problems start from a roughness
-// grid (GgxGridStartLanes), bring no geometry of their own and hold no lobe.
+// grid (GgxGridStartLanes) and hold no lobe.
 enum class LaneLobe { kBlinnPhong, kGgx };
 
 // GGX's roughness range: below 0.01 the lobe falls between the lights of any
@@ -130,8 +131,8 @@ class LobeLaneFitter {
   // light_directions: unit vectors towards the lights; view: towards the camera.
   LobeLaneFitter(const std::vector<Eigen::Vector3d>& light_directions, const Eigen::Vector3d& view,
                  const BlinnPhongOptions& options, LaneLobe lobe = LaneLobe::kBlinnPhong);
-  // A Blinn-Phong fitter whose problems each bring their own geometry (LobeProblem::geometry).
-  LobeLaneFitter(int lights, const BlinnPhongOptions& options);
+  // A fitter whose problems each bring their own geometry (LobeProblem::geometry, and view for GGX).
+  LobeLaneFitter(int lights, const BlinnPhongOptions& options, LaneLobe lobe = LaneLobe::kBlinnPhong);
   ~LobeLaneFitter();
   LobeLaneFitter(LobeLaneFitter&&) noexcept;
 
@@ -157,16 +158,20 @@ class LobeLaneFitter {
   // Every problem's start material, kFloatLanes problems per pass.
   void GridStarts(std::span<const LobeProblem> problems);
   void Load(int lane, const LobeProblem& problem, const BlinnPhongMaterial& start);
+  // A problem's samples into a lane, with per_lane_geometry_ its geometry and view too.
+  void LoadSamples(int lane, const LobeProblem& problem);
 
   int lights_;
   BlinnPhongOptions options_;
   LaneLobe lobe_ = LaneLobe::kBlinnPhong;
   double min_shape_, max_shape_;  // the bounds of e (Blinn-Phong) or a (GGX)
-  Eigen::Vector3d view_ = Eigen::Vector3d::UnitZ();  // towards the camera (GGX's lobe reads it)
+  Eigen::Vector3d view_ = Eigen::Vector3d::UnitZ();  // towards the camera, every lane's unless per_lane_geometry_
   // Per light: w (3), w_h (3), shared by every lane; or, with
   // per_lane_geometry_, each lane's in float, [(6 light + i) * kFloatLanes + lane].
   std::vector<double> geometry_;
   std::vector<float> evaluation_geometry_;  // the same in float
+  // view_ in float; or, with per_lane_geometry_, each lane's, [i * kFloatLanes + lane].
+  std::vector<float> evaluation_view_;
   bool per_lane_geometry_ = false;
   // Struct-of-arrays over lanes: [light * kFloatLanes + lane].
   std::vector<float> observed_, inverse_sigma_;
