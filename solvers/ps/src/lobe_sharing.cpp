@@ -109,6 +109,20 @@ class NearestLobes {
 
 }  // namespace
 
+PixelFit FitInMap(const NormalMap& map, int p) {
+  PixelFit fit;
+  fit.ok = true;
+  const cv::Vec3f n = map.normals.ptr<cv::Vec3f>()[p];
+  fit.normal = Eigen::Vector3d(n[0], n[1], n[2]);
+  fit.albedo = map.albedo.ptr<float>()[p];
+  fit.used = map.usable_lights.ptr<std::uint16_t>()[p];
+  fit.model = static_cast<PixelModel>(map.model.ptr<std::uint8_t>()[p]);
+  const cv::Vec2f lobe = map.specular.ptr<cv::Vec2f>()[p];
+  fit.specular_albedo = lobe[0];
+  fit.exponent = lobe[1];
+  return fit;
+}
+
 void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
                 std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits) {
   // No region can be glossy: a matte scene stops here, before any pass over the image.

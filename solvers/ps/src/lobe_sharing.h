@@ -14,11 +14,30 @@
 
 #include "photorig/solvers/ps/photometric_stereo.h"
 
+#include <algorithm>
+#include <cstdint>
 #include <functional>
 #include <span>
 #include <vector>
 
 namespace photorig::solvers::ps::internal {
+
+// The fit a solved pixel p kept, as the map holds it (its chi-square is not kept).
+PixelFit FitInMap(const NormalMap& map, int p);
+// Writes `fit` as pixel p's answer: normal, albedo, model, lobe, samples used
+// and confidence. Inline: the distant stages record every doubtful pixel through it.
+inline void WriteFitToMap(int pixel, const PixelFit& fit, NormalMap* out) {
+  out->normals.ptr<cv::Vec3f>()[pixel] = cv::Vec3f(float(fit.normal.x()), float(fit.normal.y()), float(fit.normal.z()));
+  out->albedo.ptr<float>()[pixel] = static_cast<float>(fit.albedo);
+  out->model.ptr<std::uint8_t>()[pixel] = static_cast<std::uint8_t>(fit.model);
+  out->specular.ptr<cv::Vec2f>()[pixel] = cv::Vec2f(float(fit.specular_albedo), float(fit.exponent));
+  out->usable_lights.ptr<std::uint16_t>()[pixel] = static_cast<std::uint16_t>(fit.used);
+  // chi2 / dof is the residual variance relative to the noise: confidence = its
+  // inverse, capped; 0 for a fit with no degree of freedom left to test it.
+  const int dof = fit.Dof();
+  out->confidence.ptr<float>()[pixel] =
+      dof > 0 ? static_cast<float>(std::min(1.0, 1.0 / std::max(fit.chi2 / dof, 1e-12))) : 0.0f;
+}
 
 // A pixel that kept a lobe with kConfidentLobeEvidence, and its rho_s and e.
 struct GlossyPixel {

@@ -3,10 +3,12 @@
 #include "photorig/solvers/ps/evaluation.h"
 
 #include "kernels/near_lambertian_sums.h"
+#include "lobe_sharing.h"
 #include "model_selection.h"
 #include "per_pixel_fits.h"
 
 #include <boost/math/tools/minima.hpp>
+#include <omp.h>
 #include <opencv2/imgproc.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -14,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <span>
 #include <vector>
@@ -66,6 +69,7 @@ struct PixelProblem {
   // The same problem on the lattice of every step-th pixel from (origin,
   // origin), its samples copied out of the images.
   PixelProblem Lattice(int lattice_step, int lattice_origin) const {
+    if (lattice_step == step && lattice_origin == origin) return *this;
     PixelProblem lattice = *this;
     lattice.step = lattice_step, lattice.origin = lattice_origin;
     lattice.rays = rays.Lattice(lattice_step, lattice_origin);
@@ -272,18 +276,88 @@ struct RefitAnswer {
 // and inter-reflections lose their pull as under distant lights;
 // `blinn-phong` and `auto` by its Blinn-Phong lanes with a diffuse term and a
 // normalised lobe, the samples divided by their gains (which scale the whole
-// model) and their sigmas likewise. One per thread.
+// model) and their sigmas likewise; and `auto`'s steps 5 and 6 (shared and
+// GGX lobes, lobe_sharing.h) on the same rows. One per thread.
 class NearRefitter {
  public:
   NearRefitter(const PixelProblem& p, const PhotometricStereoOptions& options)
       : p_(p), lights_(p.lights.count()), loss_(options.robust.loss), irls_(lights_, options.robust) {
     if (options.method != Method::kRobust) lobes_.emplace(lights_, options.blinn_phong);
+    if (options.method == Method::kAuto) ggx_.emplace(lights_, options.blinn_phong, internal::LaneLobe::kGgx);
   }
 
   void Fit(std::span<const RefitPixel> pixels, std::span<RefitAnswer> answers) {
+    Read(pixels);
+    FitRobust(pixels, answers);
+    if (lobes_) FitLobes(pixels, answers);
+  }
+
+  // Step 5 for `items` (pixels of the map, whose surface is at height_mm):
+  // as LobeSharingFits::share, a pixel that takes its held lobe marked in *held.
+  void ShareLobe(const internal::ModelLadder& ladder, std::span<const internal::SharedLobeItem> items,
+                 const cv::Mat& height_mm, std::vector<internal::SharedShapeTest>* tests, NormalMap* map,
+                 std::vector<std::uint8_t>* held) {
+    for (std::size_t first = 0; first < items.size(); first += kLobeBatch) {
+      const std::size_t count = std::min(kLobeBatch, items.size() - first);
+      ReadMapPixels(items.subspan(first, count), height_mm, [](const internal::SharedLobeItem& item) { return item.pixel; });
+      candidates_.clear();
+      for (std::size_t i = 0; i < count; ++i) {
+        internal::SharingCandidate candidate;
+        candidate.item = &items[first + i];
+        candidate.kept = internal::FitInMap(*map, candidate.item->pixel);
+        candidate.lambertian = LambertianOnRow(i, candidate.kept);
+        if (ladder.NextWithSharedLobe(candidate.Fits()).action != internal::LadderStep::Action::kFitSharedLobe) continue;
+        candidate.problem = LobeRow(i);
+        candidates_.push_back(candidate);
+      }
+      internal::ClimbSharedLobes(ladder, *lobes_, candidates_,
+                                 [&](const internal::SharingCandidate& candidate, const internal::PixelFit& chosen) {
+                                   if (tests) {
+                                     ladder.AddToShapeTest(candidate.Fits(), &(*tests)[candidate.item->region]);
+                                   } else if (&chosen != &candidate.kept) {
+                                     internal::WriteFitToMap(candidate.item->pixel, chosen, map);
+                                     (*held)[candidate.item->pixel] = 1;
+                                   }
+                                 });
+    }
+  }
+
+  // Step 6 for `pixels` of the map (LobeSharingFits::offer_ggx); held: the
+  // pixels whose lobe step 5 held.
+  void OfferGgx(const internal::ModelLadder& ladder, std::span<const int> pixels, const cv::Mat& height_mm,
+                const std::vector<std::uint8_t>& held, NormalMap* map) {
+    for (std::size_t first = 0; first < pixels.size(); first += kLobeBatch) {
+      const std::size_t count = std::min(kLobeBatch, pixels.size() - first);
+      ReadMapPixels(pixels.subspan(first, count), height_mm, [](int pixel) { return pixel; });
+      offers_.clear();
+      for (std::size_t i = 0; i < count; ++i) {
+        internal::GgxCandidate offer;
+        offer.pixel = pixels[first + i];
+        offer.held = !held.empty() && held[offer.pixel] != 0;
+        offer.kept = internal::FitInMap(*map, offer.pixel);
+        offer.on_samples = KeptOnUsable(i, offer.kept, offer.held);
+        if (ladder.NextWithGgx(internal::GgxFits{&offer.on_samples}).action != internal::LadderStep::Action::kFitGgx)
+          continue;
+        offer.problem = LobeRow(i);
+        offers_.push_back(offer);
+      }
+      internal::ClimbGgx(ladder, *ggx_, offers_, [&](const internal::GgxCandidate& offer, const internal::PixelFit& ggx) {
+        internal::WriteFitToMap(offer.pixel, ggx, map);
+      });
+    }
+  }
+
+ private:
+  // Steps 5 and 6 read and fit this many pixels at a time.
+  static constexpr std::size_t kLobeBatch = 64;
+
+  // Every pixel's samples, IRLS rows and (for the lobes) scaled samples and geometry.
+  void Read(std::span<const RefitPixel> pixels) {
     const std::size_t n = pixels.size();
     observed_.resize(n * lights_), inverse_sigma_.resize(n * lights_), rows_.resize(3 * n * lights_);
-    if (lobes_) scaled_.resize(n * lights_), scaled_inverse_sigma_.resize(n * lights_), geometry_.resize(6 * n * lights_);
+    if (lobes_)
+      scaled_.resize(n * lights_), scaled_inverse_sigma_.resize(n * lights_), geometry_.resize(6 * n * lights_),
+          views_.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       const RefitPixel& at = pixels[i];
       samples_.Read(p_, at.r, at.c, at.z_mm);
@@ -299,14 +373,66 @@ class NearRefitter {
         scaled_[i * lights_ + k] = lit ? samples_.observed[k] / gain : 0.0;
         scaled_inverse_sigma_[i * lights_ + k] = lit ? samples_.inverse_sigma[k] * gain : 0.0;
       }
-      internal::BlinnPhongGeometry(lights_, samples_.towards.data(), p_.rays.ViewDirection(at.r, at.c),
-                                   &geometry_[6 * i * lights_]);
+      views_[i] = p_.rays.ViewDirection(at.r, at.c);
+      internal::BlinnPhongGeometry(lights_, samples_.towards.data(), views_[i], &geometry_[6 * i * lights_]);
     }
-    FitRobust(pixels, answers);
-    if (lobes_) FitLobes(pixels, answers);
   }
 
- private:
+  // Read() for pixels of the map (`index_of` an entry's index into it), each
+  // at its surface's height.
+  template <typename Entry, typename IndexOf>
+  void ReadMapPixels(std::span<const Entry> entries, const cv::Mat& height_mm, IndexOf index_of) {
+    map_pixels_.clear();
+    for (const Entry& entry : entries) {
+      const int pixel = index_of(entry), r = pixel / p_.cols(), c = pixel % p_.cols();
+      map_pixels_.push_back({r, c, height_mm.at<float>(r, c)});
+    }
+    Read(map_pixels_);
+  }
+
+  // Pixel i's row as a lobe fit reads it: samples over their gains, geometry and view.
+  internal::LobeProblem LobeRow(std::size_t i) const {
+    internal::LobeProblem problem;
+    problem.observed = &scaled_[i * lights_], problem.inverse_sigma = &scaled_inverse_sigma_[i * lights_];
+    problem.geometry = &geometry_[6 * i * lights_], problem.view = views_[i];
+    return problem;
+  }
+
+  // Step 5's Lambertian fit of pixel i's lit samples (LambertianOnRow) in the lobe's units.
+  internal::PixelFit LambertianOnRow(std::size_t i, const internal::PixelFit& kept) const {
+    const double* w = &geometry_[6 * i * lights_];
+    return internal::LambertianOnRow(lights_, w, w + 1, w + 2, 6, &scaled_[i * lights_], &scaled_inverse_sigma_[i * lights_],
+                                     kept.normal * kept.albedo / kPi);
+  }
+
+  // Step 6's judgement of the fit pixel i kept on its lit samples: a lobe's
+  // chi-square at its parameters (3 of its own where step 5 held it), a
+  // Lambertian fit's as step 5 takes it.
+  internal::PixelFit KeptOnUsable(std::size_t i, const internal::PixelFit& kept, bool held) const {
+    if (kept.model != PixelModel::kBlinnPhong) {
+      internal::PixelFit on_samples = LambertianOnRow(i, kept);
+      on_samples.normal = kept.normal;  // the kept fit is where the GGX fit starts
+      return on_samples;
+    }
+    const double* geometry = &geometry_[6 * i * lights_];
+    std::vector<int> lit;
+    for (int k = 0; k < lights_; ++k)
+      if (scaled_inverse_sigma_[i * lights_ + k] > 0.0) lit.push_back(k);
+    Eigen::Matrix<double, Eigen::Dynamic, 3> directions(lit.size(), 3);
+    Eigen::VectorXd observed(lit.size()), inverse_sigma(lit.size());
+    for (std::size_t j = 0; j < lit.size(); ++j) {
+      const int k = lit[j];
+      directions.row(j) = Eigen::RowVector3d(geometry[6 * k], geometry[6 * k + 1], geometry[6 * k + 2]);
+      observed[j] = scaled_[i * lights_ + k], inverse_sigma[j] = scaled_inverse_sigma_[i * lights_ + k];
+    }
+    internal::PixelFit on_samples = kept;
+    on_samples.chi2 = internal::BlinnPhongChi2(directions, observed, inverse_sigma, views_[i], kept);
+    on_samples.ok = std::isfinite(on_samples.chi2);
+    on_samples.used = static_cast<int>(lit.size());
+    on_samples.parameters = held ? internal::kSharedLobeParameters : internal::kBlinnPhongParameters;
+    return on_samples;
+  }
+
   void FitRobust(std::span<const RefitPixel> pixels, std::span<RefitAnswer> answers) {
     const std::size_t n = pixels.size();
     robust_problems_.resize(n), robust_solutions_.assign(n, {});
@@ -356,11 +482,15 @@ class NearRefitter {
   int lights_;
   RobustOptions::Loss loss_;
   internal::RobustLambertianLanes irls_;
-  std::optional<internal::LobeLaneFitter> lobes_;
+  std::optional<internal::LobeLaneFitter> lobes_, ggx_;
   NearPixelSamples samples_;
   std::vector<double> observed_, inverse_sigma_, rows_;  // the samples and IRLS rows s_k f_k(x) l_k(x)
-  // The lobe's: the samples over their gains, and its light and half vectors.
+  // The lobe's: the samples over their gains, its light and half vectors, and the view.
   std::vector<double> scaled_, scaled_inverse_sigma_, geometry_;
+  std::vector<Eigen::Vector3d> views_;
+  std::vector<RefitPixel> map_pixels_;
+  std::vector<internal::SharingCandidate> candidates_;
+  std::vector<internal::GgxCandidate> offers_;
   std::vector<internal::RobustProblem> robust_problems_;
   std::vector<internal::RobustSolution> robust_solutions_;
   std::vector<internal::LobeProblem> lobe_problems_;
@@ -388,19 +518,26 @@ class LambertianAdequacy {
 // Whether the method keeps a refit over the pixel's Lambertian fit: IRLS
 // and `blinn-phong` wherever the refit succeeds; `auto` only where the
 // information criterion says the samples pay for the lobe's two parameters
-// (its step 4), on a pixel with a sample to spare.
-bool KeepsRefit(Method method, const internal::PixelFit& refit, double lambertian_chi_square) {
+// (its step 4), on a pixel with a sample to spare; *evidence: how far the
+// lobe's criterion is below the Lambertian fit's.
+bool KeepsRefit(Method method, const internal::PixelFit& refit, double lambertian_chi_square, double* evidence) {
+  *evidence = 0.0;
   if (!refit.ok) return false;
   if (method != Method::kAuto) return true;
   const internal::PixelFit lambertian{.ok = true, .chi2 = lambertian_chi_square, .used = refit.used};
-  return refit.used > internal::kBlinnPhongParameters && refit.Bic() < lambertian.Bic();
+  *evidence = lambertian.Bic() - refit.Bic();
+  return refit.used > internal::kBlinnPhongParameters && *evidence > 0.0;
 }
 
 // From the second round on: the pixels whose Lambertian fit the noise does
 // not explain (chi-square above its adequacy quantile; every solved pixel
 // where the noise is unknown) refitted as the method says (NearRefitter).
-void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm,
-           const cv::Mat& lambertian_chi_square, NormalMap* result) {
+// Returns the pixels that kept a lobe with kConfidentLobeEvidence (`auto`'s
+// glossy pixels, for its step 5).
+std::vector<internal::GlossyPixel> Refit(const PixelProblem& p, const PhotometricStereoOptions& options,
+                                         const cv::Mat& height_mm, const cv::Mat& lambertian_chi_square,
+                                         NormalMap* result) {
+  std::vector<internal::GlossyPixel> glossy;
   const LambertianAdequacy adequacy(p, options);
   auto explained = [&](int r, int c) {
     return adequacy.Explains(lambertian_chi_square.at<float>(r, c), result->usable_lights.at<std::uint16_t>(r, c));
@@ -410,7 +547,8 @@ void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const
     NearRefitter refitter(p, options);
     std::vector<RefitPixel> pixels;
     std::vector<RefitAnswer> answers;
-#pragma omp for schedule(dynamic, 4)
+    std::vector<internal::GlossyPixel> thread_glossy;
+#pragma omp for schedule(dynamic, 4) nowait
     for (int r = 0; r < p.rows(); ++r) {
       pixels.clear();
       for (int c = 0; c < p.cols(); ++c) {
@@ -424,7 +562,10 @@ void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const
       for (std::size_t i = 0; i < pixels.size(); ++i) {
         const internal::PixelFit& fit = answers[i].fit;
         const int c = pixels[i].c;
-        if (!KeepsRefit(options.method, fit, lambertian_chi_square.at<float>(r, c))) continue;
+        double evidence;
+        if (!KeepsRefit(options.method, fit, lambertian_chi_square.at<float>(r, c), &evidence)) continue;
+        if (evidence >= internal::kConfidentLobeEvidence)
+          thread_glossy.push_back({r * p.cols() + c, static_cast<float>(fit.specular_albedo), static_cast<float>(fit.exponent)});
         result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(fit.normal.x()), float(fit.normal.y()), float(fit.normal.z()));
         result->albedo.at<float>(r, c) = static_cast<float>(fit.albedo);
         result->specular.at<cv::Vec2f>(r, c) = cv::Vec2f(float(fit.specular_albedo), float(fit.exponent));
@@ -433,7 +574,12 @@ void Refit(const PixelProblem& p, const PhotometricStereoOptions& options, const
         WriteConfidence(p.rules, fit.used, fit.parameters, fit.chi2, &result->confidence.at<float>(r, c));
       }
     }
+#pragma omp critical
+    glossy.insert(glossy.end(), thread_glossy.begin(), thread_glossy.end());
   }
+  // In pixel order, whatever the threads did: the lobes pooled from them do not depend on it.
+  std::sort(glossy.begin(), glossy.end(), [](const auto& a, const auto& b) { return a.pixel < b.pixel; });
+  return glossy;
 }
 
 // The integrated height of every pixel of p's lattice, 0 at its reference
@@ -617,15 +763,54 @@ cv::Mat Heights(const PixelProblem& p, const cv::Mat& relative, double offset_mm
 }
 
 // One fit of every pixel of p with its surface at height_mm: the Lambertian
-// fit, and once the surface is placed the method's refits.
-void FitRound(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm, bool placed,
-              NormalMap* map) {
+// fit, and once the surface is placed the method's refits; returns the
+// refits' confidently glossy pixels.
+std::vector<internal::GlossyPixel> FitRound(const PixelProblem& p, const PhotometricStereoOptions& options,
+                                            const cv::Mat& height_mm, bool placed, NormalMap* map) {
   // On an unplaced surface the residuals are the geometry's, not outliers',
   // so the chi-square test cannot tell which samples to distrust.
   const bool refit = placed && options.method != Method::kL2 && options.method != Method::kLambertian;
   cv::Mat chi_square;
   FitAllPixels(p, height_mm, map, refit ? &chi_square : nullptr);
-  if (refit) Refit(p, options, height_mm, chi_square, map);
+  if (!refit) return {};
+  return Refit(p, options, height_mm, chi_square, map);
+}
+
+// The surface a map's pixels were fitted at, and the glossy pixels of that fit.
+struct FittedSurface {
+  cv::Mat height_mm;
+  std::vector<internal::GlossyPixel> glossy;
+};
+
+// `auto`'s steps 5 and 6 (lobe_sharing.h) on p's map fitted at `surface`,
+// with every pixel's own light and view vectors; returns how many pixels
+// took a held lobe.
+std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& options, FittedSurface surface,
+                       NormalMap* map) {
+  if (options.method != Method::kAuto || !options.selection.share_lobe) return 0;
+  const internal::ModelLadder ladder(options.method, options.selection, p.lights.count());
+  const int threads = omp_get_max_threads();
+  std::vector<std::unique_ptr<NearRefitter>> refitters;
+  std::vector<std::uint8_t> held;
+  internal::ShareLobes(
+      ladder, options.selection.glossy_region_fraction, *map, std::move(surface.glossy), threads,
+      {.begin =
+           [&] {
+             held.assign(map->flags.total(), 0);
+             for (int t = 0; t < threads; ++t) refitters.push_back(std::make_unique<NearRefitter>(p, options));
+           },
+       .share = [&](int thread, std::span<const internal::SharedLobeItem> items,
+                    std::vector<internal::SharedShapeTest>* tests) {
+         refitters[thread]->ShareLobe(ladder, items, surface.height_mm, tests, map, &held);
+       },
+       .offer_ggx = [&](int thread, std::span<const int> pixels) {
+         refitters[thread]->OfferGgx(ladder, pixels, surface.height_mm, held, map);
+       }});
+  // Step 6 may have given a held pixel a GGX lobe of its own.
+  std::size_t still_held = 0;
+  for (std::size_t i = 0; i < held.size(); ++i)
+    still_held += held[i] && map->model.ptr<std::uint8_t>()[i] == static_cast<std::uint8_t>(PixelModel::kBlinnPhong);
+  return still_held;
 }
 
 // The rounds on p's lattice: round 1 with the surface on the sample plane,
@@ -634,13 +819,15 @@ void FitRound(const PixelProblem& p, const PhotometricStereoOptions& options, co
 // max_rounds end. *relative: the surface the last round fitted on (empty
 // if none was placed), its offset in summary->depth_offset_mm.
 bool RunRounds(const PhotometricStereoOptions& options, const NearLightOptions& near_options, const PixelProblem& p,
-               const OffsetRange& range, NormalMap* map, cv::Mat* relative, NearLightSummary* summary) {
+               const OffsetRange& range, NormalMap* map, cv::Mat* relative, NearLightSummary* summary,
+               FittedSurface* last) {
   AllocateResult(p.size(), map);
   cv::Mat height = cv::Mat::zeros(p.size(), CV_32F);
   IntegrationWorkspace integration;  // the rounds solve on one set of pixels, as a rule
   for (int round = 1; round <= near_options.max_rounds; ++round) {
     const cv::Mat previous = round > 1 ? map->normals.clone() : cv::Mat();
-    FitRound(p, options, height, round > 1, map);
+    last->glossy = FitRound(p, options, height, round > 1, map);
+    last->height_mm = height.clone();
     summary->rounds = round;
     if (options.progress) options.progress({"near lights", round, near_options.max_rounds, {}});
     if (round > 1) {
@@ -671,6 +858,7 @@ void CountPixels(const NormalMap& map, NearLightSummary* summary) {
   summary->pixels_lambertian = count(map.model, PixelModel::kLambertian);
   summary->pixels_irls = count(map.model, PixelModel::kIrls);
   summary->pixels_blinn_phong = count(map.model, PixelModel::kBlinnPhong);
+  summary->pixels_ggx = count(map.model, PixelModel::kGgx);
 }
 
 std::string CheckInputs(const PhotometricStack& stack, const std::vector<camera::NearLight>& lights, const camera::Camera& camera) {
@@ -771,9 +959,11 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   timer.SetupDone(&summary);
   bool converged = true;
   cv::Mat relative;  // the lattice's surface the last round fitted on; empty: none placed
+  FittedSurface fitted;  // where the answer's pixels were fitted
   if (depth_matters) {
     NormalMap lattice_map;
-    converged = RunRounds(options, near_options, lattice, range, step == 1 ? result : &lattice_map, &relative, &summary);
+    converged = RunRounds(options, near_options, lattice, range, step == 1 ? result : &lattice_map, &relative, &summary,
+                          &fitted);
   }
   if (!depth_matters || step > 1) {
     // Every pixel fitted once, at the surface the last round fitted on (or,
@@ -781,10 +971,13 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     const cv::Mat height = relative.empty() ? cv::Mat::zeros(stack.height(), stack.width(), CV_32F)
                                             : Heights(problem, LatticeToImage(lattice, relative, problem), summary.depth_offset_mm);
     AllocateResult(height.size(), result);
-    FitRound(problem, options, height, !depth_matters || !relative.empty(), result);
+    fitted.glossy = FitRound(problem, options, height, !depth_matters || !relative.empty(), result);
+    fitted.height_mm = height;
     if (!depth_matters) summary.rounds = 1;
   }
+  const std::size_t held_lobes = ShareLobes(problem, options, std::move(fitted), result);
   CountPixels(*result, &summary);
+  summary.pixels_shared_lobe = held_lobes;
   if (height_mm) {
     // The surface itself, from the final normals at every pixel, placed
     // where the model fits it best: the rounds' surface, integrated on their

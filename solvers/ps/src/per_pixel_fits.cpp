@@ -40,15 +40,14 @@ PixelFit LobeFitFrom(const LobeSolution& solution, int used, PixelModel model) {
           .model = model};
 }
 
-PixelFit LambertianOnRow(const SampleReader& reader, const double* observed, const double* inverse_sigma,
-                         const Eigen::Vector3d& kept) {
-  const double *wx = reader.direction_axis(0), *wy = reader.direction_axis(1), *wz = reader.direction_axis(2);
+PixelFit LambertianOnRow(int lights, const double* wx, const double* wy, const double* wz, int stride,
+                         const double* observed, const double* inverse_sigma, const Eigen::Vector3d& kept) {
   Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
   Eigen::Vector3d r = Eigen::Vector3d::Zero();
   int used = 0;
-  for (int k = 0; k < reader.lights(); ++k) {
+  for (int k = 0; k < lights; ++k) {
     if (inverse_sigma[k] == 0.0) continue;
-    const Eigen::Vector3d w(wx[k], wy[k], wz[k]);
+    const Eigen::Vector3d w(wx[k * stride], wy[k * stride], wz[k * stride]);
     g += w * w.transpose();
     r += observed[k] * w;
     ++used;
@@ -56,16 +55,22 @@ PixelFit LambertianOnRow(const SampleReader& reader, const double* observed, con
   if (used < 3) return PixelFit{};
   const Eigen::Vector3d x = g.ldlt().solve(r);
   double chi2 = 0.0, kept_chi2 = 0.0;
-  for (int k = 0; k < reader.lights(); ++k) {
-    const double u = (observed[k] - (wx[k] * x.x() + wy[k] * x.y() + wz[k] * x.z())) * inverse_sigma[k];
-    const double v = (observed[k] - std::max(0.0, wx[k] * kept.x() + wy[k] * kept.y() + wz[k] * kept.z())) *
-                     inverse_sigma[k];
+  for (int k = 0; k < lights; ++k) {
+    const Eigen::Vector3d w(wx[k * stride], wy[k * stride], wz[k * stride]);
+    const double u = (observed[k] - w.dot(x)) * inverse_sigma[k];
+    const double v = (observed[k] - std::max(0.0, w.dot(kept))) * inverse_sigma[k];
     chi2 += u * u, kept_chi2 += v * v;  // 0 where unusable
   }
   chi2 = std::min(chi2, kept_chi2);
   PixelFit fit = LambertianFit(x, chi2, used, 0);
   fit.ok = fit.ok && std::isfinite(chi2);
   return fit;
+}
+
+PixelFit LambertianOnRow(const SampleReader& reader, const double* observed, const double* inverse_sigma,
+                         const Eigen::Vector3d& kept) {
+  return LambertianOnRow(reader.lights(), reader.direction_axis(0), reader.direction_axis(1), reader.direction_axis(2), 1,
+                         observed, inverse_sigma, kept);
 }
 
 namespace {
@@ -369,15 +374,24 @@ PixelFit FitBlinnPhong(const PixelSamples& s, const Eigen::Vector3d& view, const
   return LobeFit(p, cost, shared ? kSharedLobeParameters : kBlinnPhongParameters, n, PixelModel::kBlinnPhong);
 }
 
+}  // namespace
+
+double BlinnPhongChi2(const Eigen::Matrix<double, Eigen::Dynamic, 3>& directions, const Eigen::VectorXd& observed,
+                      const Eigen::VectorXd& inverse_sigma, const Eigen::Vector3d& view, const PixelFit& fit) {
+  const solvers::autodiff::BlinnPhongPixel pixel(directions, Eigen::VectorXd::Ones(observed.size()), view, observed);
+  const double q[6] = {fit.normal.x(), fit.normal.y(), fit.normal.z(), fit.albedo, fit.specular_albedo, fit.exponent};
+  Eigen::VectorXd residuals(observed.size());
+  if (!pixel(q, residuals.data())) return std::numeric_limits<double>::infinity();
+  return residuals.cwiseProduct(inverse_sigma).squaredNorm();
+}
+
+namespace {
+
 // Chi-square of a Blinn-Phong fit (normal, rho_d, rho_s, e) on a pixel's
 // usable samples.
 double BlinnPhongChi2(const PixelSamples& s, const Eigen::Vector3d& view, const PixelFit& fit) {
   const ModelSamples m(s);
-  const solvers::autodiff::BlinnPhongPixel pixel(m.directions, Eigen::VectorXd::Ones(s.size()), view, m.observed);
-  const double q[6] = {fit.normal.x(), fit.normal.y(), fit.normal.z(), fit.albedo, fit.specular_albedo, fit.exponent};
-  Eigen::VectorXd residuals(s.size());
-  if (!pixel(q, residuals.data())) return std::numeric_limits<double>::infinity();
-  return residuals.cwiseProduct(m.inverse_sigma).squaredNorm();
+  return BlinnPhongChi2(m.directions, m.observed, m.inverse_sigma, view, fit);
 }
 
 // A GGX lobe fitted to a pixel's usable samples from `start`'s normal: rho_d

@@ -32,6 +32,15 @@ PixelFit LobeFitFrom(const LobeSolution& solution, int used, PixelModel model);
 // shadow, the latter.
 PixelFit LambertianOnRow(const SampleReader& reader, const double* observed, const double* inverse_sigma,
                          const Eigen::Vector3d& kept);
+// The same with each light's direction (wx[k s], wy[k s], wz[k s]) at
+// stride s: the stack's shared directions, or a pixel's own under near lights.
+PixelFit LambertianOnRow(int lights, const double* wx, const double* wy, const double* wz, int stride,
+                         const double* observed, const double* inverse_sigma, const Eigen::Vector3d& kept);
+
+// Chi-square of a Blinn-Phong fit (normal, rho_d, rho_s, e) on samples seen
+// from `view`: one row of `directions` (towards the light) per sample.
+double BlinnPhongChi2(const Eigen::Matrix<double, Eigen::Dynamic, 3>& directions, const Eigen::VectorXd& observed,
+                      const Eigen::VectorXd& inverse_sigma, const Eigen::Vector3d& view, const PixelFit& fit);
 
 // The samples of one pixel as plain arrays, for loops the compiler vectorises.
 struct TrimScratch {

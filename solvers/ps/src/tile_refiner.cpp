@@ -30,19 +30,6 @@ PixelFit TrimmedFit(const TrimSolution& trimmed) {
   return fit;
 }
 
-void WriteFit(int pixel, const PixelFit& fit, NormalMap* out) {
-  out->normals.ptr<cv::Vec3f>()[pixel] = cv::Vec3f(float(fit.normal.x()), float(fit.normal.y()), float(fit.normal.z()));
-  out->albedo.ptr<float>()[pixel] = static_cast<float>(fit.albedo);
-  out->model.ptr<std::uint8_t>()[pixel] = static_cast<std::uint8_t>(fit.model);
-  out->specular.ptr<cv::Vec2f>()[pixel] = cv::Vec2f(float(fit.specular_albedo), float(fit.exponent));
-  out->usable_lights.ptr<std::uint16_t>()[pixel] = static_cast<std::uint16_t>(fit.used);
-  // chi2 / dof is the residual variance relative to the noise: confidence = its
-  // inverse, capped; 0 for a fit with no degree of freedom left to test it.
-  const int dof = fit.Dof();
-  out->confidence.ptr<float>()[pixel] =
-      dof > 0 ? static_cast<float>(std::min(1.0, 1.0 / std::max(fit.chi2 / dof, 1e-12))) : 0.0f;
-}
-
 }  // namespace
 
 // A pixel waiting for a lane stage that works on a row of its samples (IRLS,
@@ -151,7 +138,7 @@ __attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& stat
     ++state.failed;
     return;
   }
-  WriteFit(p, chosen, result_);
+  WriteFitToMap(p, chosen, result_);
   state.rejected += static_cast<std::size_t>(chosen.rejected);
   state.fell_back += fell_back;
   switch (chosen.model) {
@@ -370,23 +357,9 @@ void TileRefiner::Finish(int thread) {
   if (lanes_) Flush(thread, true);
 }
 
-PixelFit TileRefiner::KeptFit(int p) const {
-  PixelFit fit;
-  fit.ok = true;
-  const cv::Vec3f n = result_->normals.ptr<cv::Vec3f>()[p];
-  fit.normal = Eigen::Vector3d(n[0], n[1], n[2]);
-  fit.albedo = result_->albedo.ptr<float>()[p];
-  fit.used = result_->usable_lights.ptr<std::uint16_t>()[p];
-  fit.model = static_cast<PixelModel>(result_->model.ptr<std::uint8_t>()[p]);
-  const cv::Vec2f lobe = result_->specular.ptr<cv::Vec2f>()[p];
-  fit.specular_albedo = lobe[0];
-  fit.exponent = lobe[1];
-  return fit;
-}
-
 void TileRefiner::RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe,
                                    int usable) {
-  WriteFit(p, lobe, result_);
+  WriteFitToMap(p, lobe, result_);
   held_lobe_[p] = 1;
   ++state.shared_lobes;
   (kept.model == PixelModel::kTrimmed ? state.shared_from_trimmed : state.shared_from_lambertian) += 1;
@@ -406,7 +379,7 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
   };
   if (!lanes_) {
     for (const SharedLobeItem& item : items) {
-      const PixelFit kept = KeptFit(item.pixel);
+      const PixelFit kept = FitInMap(*result_, item.pixel);
       SharedShapeTest test;
       const PixelFit chosen =
           per_pixel_.ShareLobe(item.pixel, kept, item.lobe, item.test_shape, &state.scratch, tests ? &test : nullptr);
@@ -427,7 +400,7 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
     for (std::size_t i = first; i < last; ++i) {
       SharingCandidate candidate;
       candidate.item = &items[i];
-      candidate.kept = KeptFit(items[i].pixel);
+      candidate.kept = FitInMap(*result_, items[i].pixel);
       const Eigen::Vector3d x = candidate.kept.normal * candidate.kept.albedo / M_PI;
       PixelFit tested;
       const std::size_t row = GatherRow(state, items[i].pixel, x, &tested);
@@ -467,7 +440,7 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
   ThreadState& state = states_[thread];
   if (!lanes_) {
     for (const int p : pixels) {
-      const PixelFit kept = KeptFit(p);
+      const PixelFit kept = FitInMap(*result_, p);
       const bool held = held_lobe_[p] != 0;
       const PixelFit chosen = per_pixel_.OfferGgx(p, kept, held, &state.scratch);
       if (chosen.model == PixelModel::kGgx) RecordGgx(state, p, kept, held, chosen);
@@ -482,7 +455,7 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
     for (std::size_t i = first; i < last; ++i) {
       GgxCandidate offer;
       offer.pixel = pixels[i], offer.held = held_lobe_[pixels[i]] != 0;
-      offer.kept = KeptFit(offer.pixel);
+      offer.kept = FitInMap(*result_, offer.pixel);
       offer.on_samples = per_pixel_.KeptOnUsable(offer.pixel, offer.kept, offer.held, &state.scratch);
       if (ladder_.NextWithGgx(GgxFits{&offer.on_samples}).action != LadderStep::Action::kFitGgx) continue;
       const PixelSamples& samples = state.scratch.samples;
@@ -503,7 +476,7 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
 }
 
 void TileRefiner::RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& chosen) {
-  WriteFit(p, chosen, result_);
+  WriteFitToMap(p, chosen, result_);
   ++state.ggx;
   switch (kept.model) {
     case PixelModel::kLambertian: ++state.ggx_from_lambertian; break;

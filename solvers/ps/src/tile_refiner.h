@@ -71,8 +71,6 @@ class TileRefiner {
   // fell_back: `chosen` stands in for a fit that failed (LadderStep's);
   // evidence: LadderStep's, for a kept lobe.
   void Record(ThreadState& state, int p, const PixelFit& chosen, bool fell_back, double evidence = 0.0);
-  // The fit steps 1-4 kept for solved pixel p, as the map holds it.
-  PixelFit KeptFit(int p) const;
   // Step 5 on `items`: with `tests` (per region), their parts in their
   // regions' shape tests (items with test_shape), the map unchanged; else
   // the fits the ladder keeps, into the map.
