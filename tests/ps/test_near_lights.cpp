@@ -298,6 +298,16 @@ TEST(NearLights, RobustOnSamplesWithoutOutliersIsTheLambertianFit) {
       << solved.robust.pixels_solved;
 }
 
+// The scene solved by `method` with *options (its method set to it): the
+// mean error, the summary in *summary.
+double SolveGlossy(const NearScene& scene, Method method, PhotometricStereoOptions* options, NearLightSummary* summary) {
+  options->method = method;
+  NormalMap map;
+  *summary = SolveNearLightPhotometricStereo(*options, Near(scene.camera), scene.stack, scene.lights, &map, nullptr);
+  EXPECT_TRUE(summary->IsSolutionUsable()) << MethodName(method) << ": " << summary->message;
+  return CompareNormals(map.normals, scene.normals, scene.stack.mask).mean_deg;
+}
+
 // A glossy sphere on a near dome seen through a pinhole: the lobe peaks
 // where each pixel's own half vector (its LED and its line of sight) meets
 // the normal, so only per-pixel geometry fits it.
@@ -305,13 +315,7 @@ TEST(NearLights, LobesAreFittedWithEachPixelsLightsAndLineOfSight) {
   const NearScene scene = RenderNearSphere(80.0, 2.0, Pinhole(), 1.0, testing::Specular{0.1, 60.0});
   PhotometricStereoOptions options = Lambertian();
   options.shadow_threshold_read_sigmas = 3.0;
-  auto solve = [&](Method method, NearLightSummary* summary) {
-    options.method = method;
-    NormalMap map;
-    *summary = SolveNearLightPhotometricStereo(options, Near(scene.camera), scene.stack, scene.lights, &map, nullptr);
-    EXPECT_TRUE(summary->IsSolutionUsable()) << MethodName(method) << ": " << summary->message;
-    return CompareNormals(map.normals, scene.normals, scene.stack.mask).mean_deg;
-  };
+  auto solve = [&](Method method, NearLightSummary* summary) { return SolveGlossy(scene, method, &options, summary); };
   NearLightSummary lambertian, robust, blinn_phong, automatic;
   const double lambertian_deg = solve(Method::kLambertian, &lambertian);
   const double robust_deg = solve(Method::kRobust, &robust);
@@ -339,13 +343,7 @@ TEST(NearLights, AutoFitsAGgxLobeWithEachPixelsLightsAndLineOfSight) {
   const NearScene scene = RenderNearSphere(80.0, 2.0, Pinhole(), 1.0, {}, GgxLobe{0.3, 0.2});
   PhotometricStereoOptions options = Lambertian();
   options.shadow_threshold_read_sigmas = 3.0;
-  auto solve = [&](Method method, NearLightSummary* summary) {
-    options.method = method;
-    NormalMap map;
-    *summary = SolveNearLightPhotometricStereo(options, Near(scene.camera), scene.stack, scene.lights, &map, nullptr);
-    EXPECT_TRUE(summary->IsSolutionUsable()) << MethodName(method) << ": " << summary->message;
-    return CompareNormals(map.normals, scene.normals, scene.stack.mask).mean_deg;
-  };
+  auto solve = [&](Method method, NearLightSummary* summary) { return SolveGlossy(scene, method, &options, summary); };
   NearLightSummary blinn_phong, automatic, stops_at_step_4;
   const double blinn_phong_deg = solve(Method::kBlinnPhong, &blinn_phong);
   const double auto_deg = solve(Method::kAuto, &automatic);

@@ -212,6 +212,17 @@ void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const 
   });
 }
 
+namespace {
+
+// Every problem's lobe fit, solutions[i] answering problems[i].
+std::vector<LobeSolution> FitEach(LobeLaneFitter& fitter, std::span<const LobeProblem> problems) {
+  std::vector<LobeSolution> solutions(problems.size());
+  if (!problems.empty()) fitter.Fit(problems, solutions);
+  return solutions;
+}
+
+}  // namespace
+
 void ClimbSharedLobes(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<SharingCandidate> batch,
                       const std::function<void(const SharingCandidate&, const PixelFit& chosen)>& done) {
   std::vector<LobeProblem> problems;
@@ -221,13 +232,12 @@ void ClimbSharedLobes(const ModelLadder& ladder, LobeLaneFitter& fitter, std::sp
     problem.shared_specular_albedo = candidate.item->lobe.specular_albedo;
     problem.shared_exponent = candidate.item->lobe.exponent;
   }
-  std::vector<LobeSolution> solutions(problems.size());
-  if (!problems.empty()) fitter.Fit(problems, solutions);
+  const std::vector<LobeSolution> held = FitEach(fitter, problems);
   problems.clear();
   std::vector<std::size_t> owning;  // of `batch`: those the ladder asks for their own lobe
   for (std::size_t i = 0; i < batch.size(); ++i) {
     SharingCandidate& candidate = batch[i];
-    candidate.lobe = LobeFitFrom(solutions[i], candidate.lambertian.used, PixelModel::kBlinnPhong);
+    candidate.lobe = LobeFitFrom(held[i], candidate.lambertian.used, PixelModel::kBlinnPhong);
     candidate.lobe.parameters = kSharedLobeParameters;
     candidate.lobe_fitted = true;
     const LadderStep step = ladder.NextWithSharedLobe(candidate.Fits());
@@ -239,11 +249,10 @@ void ClimbSharedLobes(const ModelLadder& ladder, LobeLaneFitter& fitter, std::sp
     LobeProblem& problem = problems.emplace_back(candidate.problem);
     problem.start_normal = step.start->normal, problem.start_albedo = step.start->albedo;
   }
-  solutions.assign(problems.size(), {});
-  if (!problems.empty()) fitter.Fit(problems, solutions);
+  const std::vector<LobeSolution> own = FitEach(fitter, problems);
   for (std::size_t j = 0; j < owning.size(); ++j) {
     SharingCandidate& candidate = batch[owning[j]];
-    candidate.own = LobeFitFrom(solutions[j], candidate.lambertian.used, PixelModel::kBlinnPhong);
+    candidate.own = LobeFitFrom(own[j], candidate.lambertian.used, PixelModel::kBlinnPhong);
     candidate.own_fitted = true;
     done(candidate, *ladder.NextWithSharedLobe(candidate.Fits()).keep);
   }
@@ -256,8 +265,7 @@ void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCa
     LobeProblem& problem = problems.emplace_back(candidate.problem);
     problem.start_normal = candidate.on_samples.normal, problem.start_albedo = candidate.on_samples.albedo;
   }
-  std::vector<LobeSolution> solutions(problems.size());
-  if (!problems.empty()) fitter.Fit(problems, solutions);
+  const std::vector<LobeSolution> solutions = FitEach(fitter, problems);
   for (std::size_t i = 0; i < batch.size(); ++i) {
     const PixelFit ggx = LobeFitFrom(solutions[i], batch[i].on_samples.used, PixelModel::kGgx);
     if (ladder.NextWithGgx(GgxFits{&batch[i].on_samples, &ggx}).keep == &ggx) keep(batch[i], ggx);
