@@ -131,6 +131,44 @@ TEST_F(Hardening, AnAliasedRecipeIsRefusedWith413AndTheDaemonStaysUp) {
   EXPECT_EQ(big.body["steps"].size(), 10000u);
 }
 
+// A fuzzer's queue, grown by every run it submitted, took GET /runs past 10
+// s: the list is a page of the newest runs, a client pages back with
+// ?before=, and the health check counts queued runs without reading them.
+TEST_F(Hardening, TheRunListIsAPageOfTheNewestRuns) {
+  std::vector<std::string> ids;
+  StartDaemon("", [&](const std::string& data_root) {
+    fs::create_directories(data_root);
+    RunQueue queue((fs::path(data_root) / "queue.sqlite").string());
+    for (int i = 0; i < 250; ++i) {
+      QueuedRun run = queue.Add("stored", 1, nullptr);
+      run.state = RunState::kFailed;  // nothing for the worker to start
+      queue.Update(run);
+      ids.push_back(run.id);
+    }
+  });
+  ApiClient client = Client();
+  auto listed_ids = [](const ServiceReply& reply) {
+    std::vector<std::string> listed;
+    for (const json& run : reply.body["runs"]) listed.push_back(run["id"]);
+    return listed;
+  };
+  const auto newest = client.Get("/api/v1/runs");
+  ASSERT_EQ(newest.http_status, 200) << newest.body.dump();
+  EXPECT_EQ(listed_ids(newest), std::vector<std::string>(ids.begin() + 50, ids.end()));  // 200, oldest first
+  EXPECT_EQ(newest.body["older"], true);
+  ASSERT_EQ(newest.body["before"], ids[50]);
+  const auto back = client.Get("/api/v1/runs?before=" + ids[50]);
+  EXPECT_EQ(listed_ids(back), std::vector<std::string>(ids.begin(), ids.begin() + 50));
+  EXPECT_EQ(back.body["older"], false);
+  EXPECT_FALSE(back.body.contains("before"));
+  EXPECT_EQ(listed_ids(client.Get("/api/v1/runs?limit=3")), std::vector<std::string>(ids.end() - 3, ids.end()));
+  for (const char* limit : {"0", "1001", "2.5", "abc", "-3"})
+    EXPECT_EQ(client.Get(std::string("/api/v1/runs?limit=") + limit).http_status, 400) << limit;
+  EXPECT_EQ(client.Get("/api/v1/runs?before=000001-nowhere").http_status, 404);
+  const auto health = client.Get("/api/v1/health");
+  EXPECT_EQ(health.http_status, 200) << health.body.dump();
+}
+
 // Finding 4: a name that is not UTF-8 broke every later listing.
 TEST_F(Hardening, BytesThatAreNotUtf8AreRefusedAndStoredOnesStillList) {
   std::string stored_id;

@@ -49,6 +49,20 @@ TEST(RunQueue, AFailedPreparationAddsNothing) {
   EXPECT_EQ(queue.NextQueued()->id, run.id);
 }
 
+// The health check's count of waiting runs, without reading the runs.
+TEST(RunQueue, CountsTheQueuedRunsAlone) {
+  TempDir dir;
+  RunQueue queue((dir.path() / "queue.db").string());
+  EXPECT_EQ(queue.CountQueued(), 0);
+  for (int i = 0; i < 3; ++i) queue.Add("ps-sphere", 49, [](const QueuedRun&) {});
+  QueuedRun first = *queue.NextQueued();
+  ASSERT_TRUE(queue.LeaveQueued(first, RunState::kRunning, ""));
+  EXPECT_EQ(queue.CountQueued(), 2);
+  bool older = true;
+  EXPECT_EQ(queue.Page(5, "", &older).size(), 3u);
+  EXPECT_FALSE(older);
+}
+
 // The worker claims a queued run and Abort cancels one with the same
 // conditional transition: whichever comes second finds the run gone from the
 // queue and changes nothing.

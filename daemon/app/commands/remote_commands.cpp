@@ -11,6 +11,7 @@
 #include "../progress_display.h"
 #include "daemon_connection.h"
 #include "photorig/daemon/capture/run_control.h"
+#include "photorig/daemon/service/service.h"
 
 #include <cstdio>
 #include <cstdlib>
@@ -186,11 +187,14 @@ CLI::App* SetupSubmit(CLI::App& app, SubmitOptions* options) {
 struct RunOptions {
   Connection connection;
   std::string id;
+  int limit = daemon::RunService::kRunsPerPage;  // status: the newest this many runs
+  std::string before;                            // status: ... added before this run
 };
 
 int Status(const RunOptions& options) {
   auto client = options.connection.Client();
-  auto reply = client.Get(options.id.empty() ? "/api/v1/runs" : "/api/v1/runs/" + options.id);
+  const std::string page = "?limit=" + std::to_string(options.limit) + (options.before.empty() ? "" : "&before=" + options.before);
+  auto reply = client.Get(options.id.empty() ? "/api/v1/runs" + page : "/api/v1/runs/" + options.id);
   if (!Ok(reply)) return Fail(options.connection, reply);
   const auto with_eta = [&client](json& run) {
     if (const auto eta = EtaSeconds(client, run)) run["eta_s"] = *eta;
@@ -200,6 +204,8 @@ int Status(const RunOptions& options) {
       with_eta(run);
       std::printf("%s\n", RunLine(run).c_str());
     }
+    if (reply.body.value("older", false))
+      std::printf("older runs: photorig status --before %s\n", reply.body.value("before", "").c_str());
   } else {
     with_eta(reply.body);
     std::printf("%s\n", RunLine(reply.body).c_str());
@@ -212,6 +218,9 @@ int Status(const RunOptions& options) {
 CLI::App* SetupStatus(CLI::App& app, RunOptions* options) {
   CLI::App* sub = app.add_subcommand("status", "list the daemon's runs, or show one");
   sub->add_option("run", options->id, "run id");
+  sub->add_option("--limit", options->limit, "list at most this many runs, the newest")
+      ->check(CLI::Range(1, daemon::RunService::kMaxRunsPerPage));
+  sub->add_option("--before", options->before, "list the runs added before this one (a page further back)");
   options->connection.AddOptions(sub);
   return sub;
 }

@@ -269,9 +269,10 @@ struct Measurement {
   std::string where;  // "<run>: ", the start of every message
   bool grey = true;
   double saturation_dn = 0.0;
-  std::map<double, std::vector<cv::Mat>> darks;
-  std::vector<PoseFrames> poses, target;
-  std::map<double, Dark> dark_means;
+  // Filled as the measurement goes; {} so that MeasureBrdf initialises the inputs alone.
+  std::map<double, std::vector<cv::Mat>> darks{};
+  std::vector<PoseFrames> poses{}, target{};
+  std::map<double, Dark> dark_means{};
   double read_var = 0.0;
 };
 

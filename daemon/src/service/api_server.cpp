@@ -465,7 +465,17 @@ void ApiServer::Routes() {
 
 void ApiServer::Health(const httplib::Request&, httplib::Response& res) { Reply(res, service_.Health()); }
 void ApiServer::Devices(const httplib::Request&, httplib::Response& res) { Reply(res, service_.Devices()); }
-void ApiServer::ListRuns(const httplib::Request&, httplib::Response& res) { Reply(res, service_.ListRuns()); }
+void ApiServer::ListRuns(const httplib::Request& req, httplib::Response& res) {
+  try {
+    const double limit = NumberParam(req, "limit", RunService::kRunsPerPage);
+    if (limit != std::floor(limit) || std::abs(limit) > RunService::kMaxRunsPerPage)
+      throw std::invalid_argument("?limit= must be a whole number within [1, " +
+                                  std::to_string(RunService::kMaxRunsPerPage) + "]");
+    Reply(res, service_.ListRuns(static_cast<int>(limit), req.has_param("before") ? req.get_param_value("before") : ""));
+  } catch (const std::invalid_argument& e) {
+    ErrorReply(res, 400, e.what());
+  }
+}
 void ApiServer::ListRecipes(const httplib::Request&, httplib::Response& res) { Reply(res, service_.ListRecipes()); }
 void ApiServer::GetRun(const httplib::Request& req, httplib::Response& res) { Reply(res, service_.GetRun(req.matches[1])); }
 

@@ -1,5 +1,6 @@
 #include "photorig/daemon/service/run_queue.h"
 
+#include <algorithm>
 #include <sqlite3.h>
 
 #include <cctype>
@@ -203,13 +204,14 @@ QueuedRun RunQueue::Add(const std::string& recipe_name, int steps_total,
   return run;
 }
 
-std::vector<QueuedRun> RunQueue::Select(const std::string& where, const std::string& text_argument) const {
+std::vector<QueuedRun> RunQueue::Select(const std::string& where, const std::string& text_argument,
+                                        const std::string& order) const {
   std::lock_guard lock(mutex_);
   if (db_ == nullptr) return {};  // not yet created (OpenReadOnly)
   Statement select(db_,
                    "SELECT id, recipe_name, state, reason, frames, steps_total, retries, dropped_frames, created_ns, "
                    "updated_ns, solve FROM runs " +
-                       where + " ORDER BY seq",
+                       where + " " + order,
                    path_);
   if (!text_argument.empty()) select.Bind(1, text_argument);
   std::vector<QueuedRun> runs;
@@ -242,6 +244,23 @@ std::optional<QueuedRun> RunQueue::Get(const std::string& id) const {
 }
 
 std::vector<QueuedRun> RunQueue::List() const { return Select("", ""); }
+
+std::vector<QueuedRun> RunQueue::Page(int limit, const std::string& before_id, bool* older) const {
+  const std::string where = before_id.empty() ? "" : "WHERE seq < (SELECT seq FROM runs WHERE id = ?1)";
+  // One more than asked: whether it exists says whether older runs remain.
+  std::vector<QueuedRun> runs = Select(where, before_id, "ORDER BY seq DESC LIMIT " + std::to_string(limit + 1));
+  *older = static_cast<int>(runs.size()) > limit;
+  if (*older) runs.pop_back();
+  std::reverse(runs.begin(), runs.end());
+  return runs;
+}
+
+int RunQueue::CountQueued() const {
+  std::lock_guard lock(mutex_);
+  if (db_ == nullptr) return 0;  // not yet created (OpenReadOnly)
+  Statement count(db_, "SELECT COUNT(*) FROM runs WHERE state = 'queued'", path_);
+  return sqlite3_step(count.get()) == SQLITE_ROW ? sqlite3_column_int(count.get(), 0) : 0;
+}
 
 std::optional<QueuedRun> RunQueue::NextQueued() const {
   auto runs = Select("WHERE state = 'queued'", "");

@@ -537,11 +537,18 @@ ServiceReply RunService::Submit(const std::string& name, const std::string& reci
   return {201, {{"id", run.id}, {"state", "queued"}, {"plan", std::move(plan)}}, 0, reply.holds};
 }
 
-ServiceReply RunService::ListRuns() const {
+ServiceReply RunService::ListRuns(int limit, const std::string& before) const {
+  if (limit < 1 || limit > kMaxRunsPerPage)
+    return Error(400, "limit must be within [1, " + std::to_string(kMaxRunsPerPage) + "], got " + std::to_string(limit));
+  if (!before.empty() && (!IsValidRunId(before) || !queue_->Get(before))) return Error(404, "no run '" + before + "'");
+  bool older = false;
   json runs = json::array();
   std::lock_guard lock(mutex_);
-  for (const QueuedRun& run : queue_->List()) runs.push_back(RunJson(run.id == current_id_ ? current_ : run));
-  return {200, {{"runs", runs}}};
+  for (const QueuedRun& run : queue_->Page(limit, before, &older))
+    runs.push_back(RunJson(run.id == current_id_ ? current_ : run));
+  json body = {{"runs", runs}, {"older", older}};
+  if (older) body["before"] = runs.front()["id"];
+  return {200, body};
 }
 
 json RunService::RunJson(const QueuedRun& run) const {
@@ -725,7 +732,7 @@ ServiceReply RunService::Health() const {
   // A queue opened read-only on a full disk becomes writable here once there is room.
   std::string queue_error = queue_->ReadOnlyReason();
   try {
-    for (const QueuedRun& run : queue_->List()) queued += run.state == RunState::kQueued;
+    queued = queue_->CountQueued();
   } catch (const std::exception& e) {
     queue_error = e.what();
   }

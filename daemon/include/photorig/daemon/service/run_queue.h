@@ -55,6 +55,11 @@ class RunQueue {
                 const std::function<void(const QueuedRun&)>& prepare);
   std::optional<QueuedRun> Get(const std::string& id) const;
   std::vector<QueuedRun> List() const;  // oldest first
+  // The `limit` newest runs added before run `before_id` (before none: the
+  // newest of all), oldest first; *older: whether older runs remain. A
+  // client pages back through years of runs without the daemon reading them all.
+  std::vector<QueuedRun> Page(int limit, const std::string& before_id, bool* older) const;
+  int CountQueued() const;
   std::optional<QueuedRun> NextQueued() const;
   std::vector<QueuedRun> Unfinished() const;  // neither queued nor final: a run the daemon was executing
   void Update(const QueuedRun& run);          // state, reason, counters and solve
@@ -73,7 +78,8 @@ class RunQueue {
   void OpenReadOnly(const std::string& why_not_writable);
   void MakeWritable();  // mutex_ held; throws while the queue stays read-only
   void Exec(const std::string& sql) const;
-  std::vector<QueuedRun> Select(const std::string& where, const std::string& text_argument) const;
+  std::vector<QueuedRun> Select(const std::string& where, const std::string& text_argument,
+                                const std::string& order = "ORDER BY seq") const;
 
   std::string path_;
   sqlite3* db_ = nullptr;

@@ -95,7 +95,11 @@ class RunService {
   ServiceReply Submit(const std::string& name, const std::string& recipe_yaml, const std::string& recipe_path = "");
   ServiceReply DryRun(const std::string& name, const std::string& recipe_yaml,
                       const std::string& recipe_path = "") const;
-  ServiceReply ListRuns() const;
+  // A page of the run history: the `limit` newest runs before run `before`
+  // ("": the newest), oldest first: {"runs", "older"} and, while older runs
+  // remain, "before", the cursor of the next page back.
+  static constexpr int kRunsPerPage = 200, kMaxRunsPerPage = 1000;
+  ServiceReply ListRuns(int limit = kRunsPerPage, const std::string& before = "") const;
   ServiceReply GetRun(const std::string& id) const;
   ServiceReply Pause(const std::string& id);
   ServiceReply Resume(const std::string& id);
