@@ -11,8 +11,9 @@ all: build
 deps:
 	./scripts/install-deps.sh
 
+# Tests and benchmarks on explicitly: a tree `make demo` configured has them off.
 configure:
-	cmake -S . -B $(BUILD_DIR) $(CMAKE_FLAGS)
+	cmake -S . -B $(BUILD_DIR) -DPHOTORIG_BUILD_TESTS=ON -DPHOTORIG_BUILD_BENCH=ON $(CMAKE_FLAGS)
 
 build: configure
 	cmake --build $(BUILD_DIR) -j $(JOBS)
@@ -21,8 +22,12 @@ build: configure
 DEMO_TARGETS ?= photorig photorig_python
 
 # The main job: capture the sphere recipe on the simulated dome and reconstruct its normals.
-# Builds only the demo's targets; `make build` (and `make test`) build everything.
-demo: deps configure
+# Installs the demo's packages only (scripts/install-deps.sh demo), which have no GoogleTest
+# or Google Benchmark, and builds only the demo's targets; `make build` (and `make test`)
+# build everything.
+demo:
+	./scripts/install-deps.sh demo
+	cmake -S . -B $(BUILD_DIR) -DPHOTORIG_BUILD_TESTS=OFF -DPHOTORIG_BUILD_BENCH=OFF $(CMAKE_FLAGS)
 	cmake --build $(BUILD_DIR) -j $(JOBS) --target $(DEMO_TARGETS)
 	rm -rf runs/demo
 	$(BUILD_DIR)/bin/photorig run config/recipes/ps-sphere.yaml --out runs/demo

@@ -4,7 +4,9 @@
 #include "photorig/solvers/core/names.h"
 
 #include <opencv2/imgproc.hpp>
+#if PHOTORIG_HAVE_MCC
 #include <opencv2/mcc.hpp>
+#endif
 
 #include <algorithm>
 #include <cerrno>
@@ -29,6 +31,7 @@ cv::Point2f Map(const cv::Matx33d& h, double x, double y) {
   return {static_cast<float>(p[0] / p[2]), static_cast<float>(p[1] / p[2])};
 }
 
+#if PHOTORIG_HAVE_MCC
 double Distance(const cv::Point2f& a, const cv::Point2f& b) { return std::hypot(a.x - b.x, a.y - b.y); }
 
 // 8-bit view for the detector: scaled to the bright end, gamma for contrast.
@@ -73,6 +76,7 @@ std::array<cv::Point2f, 4> OrientCorners(std::array<cv::Point2f, 4> corners, con
   // Either way round, the corner order must stay clockwise in the image.
   return ramp_score(flipped) > ramp_score(corners) ? flipped : corners;
 }
+#endif
 
 }  // namespace
 
@@ -118,6 +122,7 @@ LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options)
     return timer.End(&result, Termination::kInvalidInput, "chart image must have 3 channels (B, G, R)");
   std::string detector_note = "detector off";
   if (options.use_detector) {
+#if PHOTORIG_HAVE_MCC
     cv::Ptr<cv::mcc::CCheckerDetector> detector = cv::mcc::CCheckerDetector::create();
     if (detector->process(DetectorView(image_bgr), cv::mcc::MCC24, 1)) {
       const std::vector<cv::Point2f> box = detector->getBestColorChecker()->getBox();
@@ -131,6 +136,9 @@ LocateResult LocateChart(const cv::Mat& image_bgr, const LocateOptions& options)
       }
     }
     detector_note = "the mcc detector found no 24-patch chart";
+#else
+    detector_note = "this build has no mcc detector (libopencv-contrib-dev)";
+#endif
   }
   if (options.fixed_corners) {
     for (const cv::Point2f& p : *options.fixed_corners)
