@@ -827,7 +827,7 @@ bool RunRounds(const PhotometricStereoOptions& options, const NearLightOptions& 
   for (int round = 1; round <= near_options.max_rounds; ++round) {
     const cv::Mat previous = round > 1 ? map->normals.clone() : cv::Mat();
     last->glossy = FitRound(p, options, height, round > 1, map);
-    last->height_mm = height.clone();
+    last->height_mm = height;  // shared: each round's heights are a new image (Heights), never written again
     summary->rounds = round;
     if (options.progress) options.progress({"near lights", round, near_options.max_rounds, {}});
     if (round > 1) {
