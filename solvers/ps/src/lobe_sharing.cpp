@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <unordered_map>
 
 namespace photorig::solvers::ps::internal {
 namespace {
@@ -109,6 +110,52 @@ class NearestLobes {
 
 }  // namespace
 
+// No region holds more glossy pixels than there are, so a region past
+// glossy.size() / fraction pixels cannot be glossy: a flood from each glossy
+// pixel stops there.
+bool AnyRegionCouldBeGlossy(const cv::Mat& flags, std::span<const GlossyPixel> glossy, double fraction) {
+  const int rows = flags.rows, cols = flags.cols;
+  const std::uint8_t* flag = flags.ptr<std::uint8_t>();
+  auto solved = [&](int p) { return flag[p] == static_cast<std::uint8_t>(PixelFlag::kSolved); };
+  std::unordered_map<int, std::size_t> glossy_at;  // pixel -> its entries in `glossy`, as ShareLobes counts them
+  std::size_t glossy_solved = 0;
+  for (const GlossyPixel& g : glossy)
+    if (solved(g.pixel)) ++glossy_at[g.pixel], ++glossy_solved;
+  if (glossy_solved < kMinPooledLobes) return false;
+  const double max_area = static_cast<double>(glossy_solved) / fraction;
+  std::unordered_map<int, int> flood_of;  // pixel -> the flood that reached it
+  std::vector<int> front;
+  int flood = 0;
+  for (const auto& [start, unused] : glossy_at) {
+    if (flood_of.count(start) != 0) continue;  // in a region already looked at
+    ++flood;
+    flood_of[start] = flood;
+    front.assign(1, start);
+    std::size_t area = 1, in_region = 0;
+    bool too_big = false;
+    while (!front.empty() && !too_big) {
+      const int p = front.back();
+      front.pop_back();
+      if (const auto found = glossy_at.find(p); found != glossy_at.end()) in_region += found->second;
+      const int r = p / cols, c = p % cols;
+      for (int dr = -1; dr <= 1 && !too_big; ++dr)
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int rr = r + dr, cc = c + dc, q = rr * cols + cc;
+          if (rr < 0 || rr >= rows || cc < 0 || cc >= cols || !solved(q)) continue;
+          const auto [at, added] = flood_of.emplace(q, flood);
+          // A pixel of an earlier flood: that flood stopped short, so this is its too-big region.
+          if (!added && at->second != flood) too_big = true;
+          if (!added) continue;
+          front.push_back(q);
+          too_big = ++area > max_area;
+          if (too_big) break;
+        }
+    }
+    if (!too_big && in_region >= kMinPooledLobes && in_region >= fraction * static_cast<double>(area)) return true;
+  }
+  return false;
+}
+
 PixelFit FitInMap(const NormalMap& map, int p) {
   PixelFit fit;
   fit.ok = true;
@@ -126,7 +173,7 @@ PixelFit FitInMap(const NormalMap& map, int p) {
 void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
                 std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits) {
   // No region can be glossy: a matte scene stops here, before any pass over the image.
-  if (glossy.size() < kMinPooledLobes) return;
+  if (!AnyRegionCouldBeGlossy(map.flags, glossy, glossy_region_fraction)) return;
   const cv::Mat solved = map.flags == static_cast<int>(PixelFlag::kSolved);
   cv::Mat labels, stats, centroids;
   const int regions = cv::connectedComponentsWithStats(solved, labels, stats, centroids, 8, CV_32S);

@@ -66,6 +66,13 @@ struct LobeSharingFits {
   std::function<void(int thread, std::span<const int> pixels)> offer_ggx;
 };
 
+// Whether some 8-connected region of solved pixels (flags kSolved) could be
+// glossy in ShareLobes' sense: 16 or more of `glossy` in it, and at least
+// `fraction` of its area. Exact, and settled by floods from the glossy
+// pixels that stop at glossy.size() / fraction pixels: a matte scene with a
+// few glossy pixels costs a few thousand pixels, not a labelling of the image.
+bool AnyRegionCouldBeGlossy(const cv::Mat& flags, std::span<const GlossyPixel> glossy, double fraction);
+
 // Steps 5 and 6 over `map` (its flags and models as steps 1-4 left them),
 // `glossy` its confidently glossy pixels, on `threads` threads. A scene with
 // fewer than 16 confidently glossy pixels, or no glossy region, costs nothing.

@@ -17,6 +17,12 @@ namespace {
 
 // Queues longer than this run their stage; see Flush.
 constexpr std::size_t kBatch = 64;
+// Doubtful pixels wait for the exact test until a thread has this many:
+// between two tiles the Lambertian pass streams its samples from memory at
+// full speed, and a tile's handful of doubtful pixels (a matte scene has
+// about 1 %) stopping it every tile slowed it by a fifth; at this many the
+// re-read of their samples is the smaller cost. A glossy tile fills it alone.
+constexpr std::size_t kDeferredDoubtful = 512;
 PixelFit TrimmedFit(const TrimSolution& trimmed) {
   PixelFit fit;
   const double length = trimmed.x.norm();
@@ -323,7 +329,11 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
   }
   for (; i < count; ++i)
     if (state.needs_refit[i]) doubt(i);
-  if (!lanes_) return;
+  if (lanes_ && state.doubtful.size() >= kDeferredDoubtful) ClimbDoubtful(thread);
+}
+
+void TileRefiner::ClimbDoubtful(int thread) {
+  ThreadState& state = states_[thread];
   const std::size_t doubtful = state.doubtful.size();
   // `auto` looks again at the doubtful pixels in lanes before copying any
   // samples out: most are settled by the exact test or the lit refit.
@@ -354,7 +364,9 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
 }
 
 void TileRefiner::Finish(int thread) {
-  if (lanes_) Flush(thread, true);
+  if (!lanes_) return;
+  ClimbDoubtful(thread);
+  Flush(thread, true);
 }
 
 void TileRefiner::RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe,

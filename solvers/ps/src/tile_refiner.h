@@ -92,6 +92,9 @@ class TileRefiner {
   // from their copy `samples`), and the Lambertian fit x tested on them.
   std::size_t GatherRow(ThreadState& state, int p, const Eigen::Vector3d& x, PixelFit* lambertian,
                         const float* samples = nullptr);
+  // The exact test and lit refit of the thread's doubtful pixels, and their
+  // climbs; RefineTile collects them until there are kDeferredDoubtful.
+  void ClimbDoubtful(int thread);
   // The lane stages, on the thread's queues.
   void Trim(int thread);
   void Reweight(int thread);
