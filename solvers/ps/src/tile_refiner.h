@@ -1,8 +1,11 @@
 #pragma once
 // The refinement of the Lambertian pass's answer by the methods that go
 // beyond it (`robust`, `blinn-phong`, `auto`), tile by tile: each tile is
-// refined right after the Lambertian pass wrote it, on the same thread, while
-// its samples are still in cache (SolveLambertianTiles' visitor).
+// screened right after the Lambertian pass wrote it, on the same thread
+// (SolveLambertianTiles' visitor), and its doubtful pixels are refined once
+// the thread has collected enough of them: at once in a glossy tile, whose
+// samples are still in cache, and every few dozen tiles in a matte scene,
+// whose pass then streams on undisturbed.
 //
 // A tile's pixels climb ModelLadder. The screen settles most of them from the
 // Lambertian pass's confidence alone. With the lane fitter the others go
