@@ -1,23 +1,20 @@
 // The glTF export round trip: bytes -> a small spatially varying reflectance
 // (what FitReflectance hands WriteGltfAsset: 1 to 3 materials of any model,
 // per-pixel albedo, unit normals, NaN where not fitted, a depth map with
-// holes) -> WriteGltfAsset -> loaded back by tinygltf -> compared. The
-// contract: an asset tinygltf loads, whose mesh has one vertex per fitted
-// pixel with a finite depth at that pixel's place with its unit normal, whose
-// triangles index those vertices only, and whose roughness texture holds the
+// holes) -> the asset WriteGltfAsset writes, built in memory
+// (internal::BuildGltfModel) -> tinygltf's JSON and back, in memory -> compared.
+// The files are left out: writing them is one OpenCV or tinygltf call each,
+// and tests/reflectance/test_gltf_export.cpp reads a written asset back from
+// disk. The contract: a model that tinygltf serialises and loads, whose mesh
+// has one vertex per fitted pixel with a finite depth at that pixel's place
+// with its unit normal, whose triangles index those vertices only, whose
+// images are the PNGs the asset writes, and whose roughness texture holds the
 // materials' roughness; or std::runtime_error when no fitted pixel has a
 // depth. Anything else aborts.
-#include "fuzz_support.h"
-#include "photorig/daemon/io/gltf_export.h"
+#include "gltf_model.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
 
-#define TINYGLTF_NO_STB_IMAGE
-#define TINYGLTF_NO_STB_IMAGE_WRITE
-#define TINYGLTF_NO_EXTERNAL_IMAGE
-#include <tiny_gltf.h>
-
 #include <fuzzer/FuzzedDataProvider.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <array>
@@ -25,6 +22,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 
 namespace {
@@ -88,20 +86,22 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
 
   const photorig::solvers::camera::PixelRays rays(photorig::solvers::camera::Camera::Orthographic(cols, rows, pixel_pitch));
-  const std::filesystem::path dir = photorig::fuzz::WorkDir() / "asset";
-  std::filesystem::remove_all(dir);
-  photorig::daemon::GltfExport written;
+  photorig::daemon::internal::GltfModel written;
   try {
-    written = photorig::daemon::WriteGltfAsset(dir.string(), maps, depth, rays);
+    written = photorig::daemon::internal::BuildGltfModel(maps, depth, rays);
   } catch (const std::runtime_error& e) {
     Check(std::strstr(e.what(), "no fitted pixel has a depth") != nullptr, e.what());
     return 0;
   }
 
-  tinygltf::TinyGLTF loader;
+  tinygltf::TinyGLTF gltf;
+  std::ostringstream json;
+  Check(gltf.WriteGltfSceneToStream(&written.model, json, false, false), "tinygltf cannot write the model");
+  const std::string text = json.str();
   tinygltf::Model model;
   std::string error, warning;
-  Check(loader.LoadASCIIFromFile(&model, &error, &warning, written.gltf_path), "tinygltf cannot load the asset");
+  Check(gltf.LoadASCIIFromString(&model, &error, &warning, text.data(), static_cast<unsigned>(text.size()), ""),
+        "tinygltf cannot load the asset");
   Check(model.meshes.size() == 1 && model.meshes[0].primitives.size() == 1, "not one mesh of one primitive");
   const tinygltf::Primitive& primitive = model.meshes[0].primitives[0];
   for (const char* attribute : {"POSITION", "NORMAL", "TEXCOORD_0"})
@@ -153,17 +153,21 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   Check(model.materials.size() == 1, "not one material");
   const int mr_texture = model.materials[0].pbrMetallicRoughness.metallicRoughnessTexture.index;
   const std::string mr_uri = model.images.at(model.textures.at(mr_texture).source).uri;
-  const cv::Mat mr = cv::imread((dir / mr_uri).string(), cv::IMREAD_UNCHANGED);
+  auto png = [&](const std::string& name) {
+    const auto found = std::find_if(written.png.begin(), written.png.end(), [&](const auto& p) { return p.first == name; });
+    return found == written.png.end() ? cv::Mat() : found->second;
+  };
+  const cv::Mat mr = png(mr_uri);
   Check(mr.rows == rows && mr.cols == cols && mr.type() == CV_8UC3, "the roughness texture has the wrong shape");
   for (int r = 0; r < rows; ++r)
     for (int c = 0; c < cols; ++c) {
       const int m = maps.material.at<std::uint8_t>(r, c);
       if (m >= materials) continue;
       const double roughness = std::clamp(refl::ToGltf(maps.materials[m]).roughness, 0.0, 1.0);
-      Check(mr.at<cv::Vec3b>(r, c)[1] == static_cast<int>(std::lround(255.0 * roughness)),  // BGR in memory: G is [1]
+      Check(mr.at<cv::Vec3b>(r, c)[1] == static_cast<int>(std::lround(255.0 * roughness)),  // RGB: G is [1]
             "a pixel's roughness differs from its material's");
     }
   for (const tinygltf::Image& image : model.images)
-    Check(std::filesystem::exists(dir / image.uri), "the asset names a texture that was not written");
+    Check(!png(image.uri).empty(), "the asset names a texture it does not write");
   return 0;
 }

@@ -1,15 +1,8 @@
 #include "photorig/daemon/io/gltf_export.h"
 
+#include "gltf_model.h"
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
-
-// Debian's libtinygltf-dev ships the header only, without stb: images are
-// written and read by OpenCV, and tinygltf only references them by URI.
-#define TINYGLTF_IMPLEMENTATION
-#define TINYGLTF_NO_STB_IMAGE
-#define TINYGLTF_NO_STB_IMAGE_WRITE
-#define TINYGLTF_NO_EXTERNAL_IMAGE
-#include <tiny_gltf.h>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -98,10 +91,11 @@ void GltfParameterMaps(const refl::ReflectanceMaps& maps, cv::Mat* roughness, cv
     }
 }
 
-GltfExport WriteGltfAsset(const std::string& directory, const refl::ReflectanceMaps& maps, const cv::Mat& depth,
-                          const solvers::camera::PixelRays& rays) {
-  const fs::path dir(directory);
-  fs::create_directories(dir);
+namespace internal {
+
+GltfModel BuildGltfModel(const refl::ReflectanceMaps& maps, const cv::Mat& depth,
+                         const solvers::camera::PixelRays& rays) {
+  GltfModel asset;
   const int rows = maps.albedo.rows, cols = maps.albedo.cols, C = maps.albedo.channels();
   cv::Mat roughness, f0;
   GltfParameterMaps(maps, &roughness, &f0);
@@ -125,16 +119,12 @@ GltfExport WriteGltfAsset(const std::string& directory, const refl::ReflectanceM
       const cv::Vec3f n = maps.normals.at<cv::Vec3f>(r, c);
       for (int ch = 0; ch < 3; ++ch) normal.at<cv::Vec3b>(r, c)[ch] = ToUnit8(0.5 * (n[ch] + 1.0));
     }
-  WritePng(dir / "base_colour.png", base);
-  WritePng(dir / "metallic_roughness.png", mr);
-  WritePng(dir / "specular_colour.png", spec);
-  WritePng(dir / "normal.png", normal);
-  WriteExr(dir / "albedo.exr", albedo3);
-  WriteExr(dir / "roughness.exr", roughness);
-  WriteExr(dir / "specular.exr", f0);
   cv::Mat normals_rgb = maps.normals.clone();
   cv::patchNaNs(normals_rgb, 0.0);
-  WriteExr(dir / "normals.exr", normals_rgb);
+  asset.png = {{"base_colour.png", base}, {"metallic_roughness.png", mr}, {"specular_colour.png", spec},
+               {"normal.png", normal}};
+  asset.exr = {{"albedo.exr", albedo3}, {"roughness.exr", roughness}, {"specular.exr", f0},
+               {"normals.exr", normals_rgb}};
 
   // Mesh: a vertex per fitted pixel with finite depth.
   std::vector<float> positions, normals, uvs;
@@ -165,9 +155,9 @@ GltfExport WriteGltfAsset(const std::string& directory, const refl::ReflectanceM
       indices.insert(indices.end(), {static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b), static_cast<std::uint32_t>(d)});
       indices.insert(indices.end(), {static_cast<std::uint32_t>(d), static_cast<std::uint32_t>(b), static_cast<std::uint32_t>(e)});
     }
-  if (positions.empty()) throw std::runtime_error("glTF export to " + directory + ": no fitted pixel has a depth");
+  if (positions.empty()) throw std::runtime_error("no fitted pixel has a depth");
 
-  tinygltf::Model model;
+  tinygltf::Model& model = asset.model;
   model.asset.version = "2.0";
   model.asset.generator = "photorig solve svbrdf";
   model.extensionsUsed = {"KHR_materials_specular"};
@@ -228,14 +218,33 @@ GltfExport WriteGltfAsset(const std::string& directory, const refl::ReflectanceM
   model.scenes.push_back(scene);
   model.defaultScene = 0;
 
+  asset.vertices = vertex_count;
+  asset.triangles = indices.size() / 3;
+  return asset;
+}
+
+}  // namespace internal
+
+GltfExport WriteGltfAsset(const std::string& directory, const refl::ReflectanceMaps& maps, const cv::Mat& depth,
+                          const solvers::camera::PixelRays& rays) {
+  internal::GltfModel asset;
+  try {
+    asset = internal::BuildGltfModel(maps, depth, rays);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error("glTF export to " + directory + ": " + e.what());
+  }
+  const fs::path dir(directory);
+  fs::create_directories(dir);
+  for (const auto& [name, image] : asset.png) WritePng(dir / name, image);
+  for (const auto& [name, image] : asset.exr) WriteExr(dir / name, image);
   GltfExport out;
   out.gltf_path = (dir / "asset.gltf").string();
   tinygltf::TinyGLTF writer;
   // Buffers to asset.bin beside it; images stay the PNGs written above.
-  if (!writer.WriteGltfSceneToFile(&model, out.gltf_path, false, false, true, false))
+  if (!writer.WriteGltfSceneToFile(&asset.model, out.gltf_path, false, false, true, false))
     throw std::runtime_error("cannot write " + out.gltf_path);
-  out.vertices = vertex_count;
-  out.triangles = indices.size() / 3;
+  out.vertices = asset.vertices;
+  out.triangles = asset.triangles;
   return out;
 }
 
