@@ -28,7 +28,7 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 // The rounds' lattice leaves at least this many pixels across the object
 // (NearLightOptions::round_step_px).
-constexpr int kRoundLatticeSidePx = 64;
+constexpr int kRoundLatticeSidePx = 32;
 
 double RadiansToDegrees(double radians) { return radians * 180.0 / kPi; }
 

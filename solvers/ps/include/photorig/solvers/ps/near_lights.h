@@ -52,14 +52,16 @@ struct NearLightOptions {
   // The rounds fit and integrate only the lattice of every round_step_px-th
   // pixel of every round_step_px-th row; once they stop, every pixel is
   // fitted once at the surface the last round fitted on, interpolated
-  // between the lattice's pixels. 0 picks the longest step that leaves 64
+  // between the lattice's pixels. 0 picks the longest step that leaves 32
   // pixels across the object (the mask's longer side); 1 fits every pixel
-  // in every round. A
-  // height error dz turns a light vector by about dz / d (d the LED's
-  // distance) and changes its falloff by 2 dz / d, and the interpolated
-  // surface is off by about its curvature times the step squared over 8:
-  // 2 um on a 34 mm sphere in 0.5 mm steps, against LEDs 80 mm away. So the
-  // normals do not notice, while the rounds cost a step squared less.
+  // in every round. A height error dz turns a light vector by about dz / d
+  // (d the LED's distance) and changes its falloff by 2 dz / d, and the
+  // interpolated surface is off by about its curvature times the step
+  // squared over 8: 8 um on a 34 mm sphere in 1.06 mm steps, which turns
+  // the light of LEDs 80 mm away by 0.006 deg, an eighth of
+  // normal_change_tolerance_deg. So the normals do not notice (0.1752 deg
+  // against 0.1748 with 64 pixels across, docs/performance.md), while the
+  // rounds cost a step squared less.
   int round_step_px = 0;
   bool IsValid(std::string* why) const;
 };
