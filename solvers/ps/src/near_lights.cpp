@@ -48,9 +48,14 @@ struct PixelProblem {
   camera::PixelRays rays;  // the lattice's
   internal::NearSampleRules rules;
   double max_condition_number = 0.0;
+  const float* dark_ = nullptr;  // the stack's dark frame; null without one
+  const std::uint8_t* mask_ = nullptr;  // its mask; null without one
+  std::size_t dark_stride_ = 0, mask_stride_ = 0;  // their rows' strides, in elements
 
   PixelProblem(const PhotometricStack& stack, const std::vector<camera::NearLight>& leds, const camera::Camera& camera)
       : stack(stack), rays(camera) {
+    if (!stack.dark.empty()) dark_ = stack.dark.ptr<float>(), dark_stride_ = stack.dark.step1();
+    if (!stack.mask.empty()) mask_ = stack.mask.ptr<std::uint8_t>(), mask_stride_ = stack.mask.step1();
     for (std::size_t k = 0; k < leds.size(); ++k) {
       const camera::PreparedNearLight& light = prepared.emplace_back(leds[k]);
       lights.position.insert(lights.position.end(), {light.position_mm.x(), light.position_mm.y(), light.position_mm.z()});
@@ -89,8 +94,9 @@ struct PixelProblem {
   int ImageCol(int c) const { return origin + step * c; }
   // Where pixel (r, c)'s sample lies in every plane.
   int SampleIndex(int r, int c) const { return r * cols() + c; }
-  double Dark(int r, int c) const { return stack.dark.empty() ? 0.0 : stack.dark.at<float>(ImageRow(r), ImageCol(c)); }
-  bool InMask(int r, int c) const { return stack.mask.empty() || stack.mask.at<std::uint8_t>(ImageRow(r), ImageCol(c)) != 0; }
+  // Read for every pixel of every pass: through plain pointers (dark_, mask_), not cv::Mat's out-of-line empty().
+  double Dark(int r, int c) const { return dark_ ? dark_[ImageRow(r) * dark_stride_ + ImageCol(c)] : 0.0; }
+  bool InMask(int r, int c) const { return !mask_ || mask_[ImageRow(r) * mask_stride_ + ImageCol(c)] != 0; }
 
   Eigen::Vector3d Point(int r, int c, double z_mm) const { return rays.Point(r, c, z_mm); }
   // The height of a pixel whose integrated height is `relative` (0 at the
@@ -111,6 +117,7 @@ struct PixelAt {
 struct PixelFit {
   PixelFlag flag = PixelFlag::kSolved;
   Eigen::Vector3d b = Eigen::Vector3d::Zero();  // rho / pi * n
+  double length = 0.0;                          // |b| = rho / pi
   int usable = 0;
   double chi_square = 0.0;  // weighted by the noise where it is known
 };
@@ -126,6 +133,7 @@ PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneFits& lanes, i
     return fit;
   }
   fit.b = Eigen::Vector3d(lanes.b[0][j], lanes.b[1][j], lanes.b[2][j]);
+  fit.length = lanes.length[j];
   fit.chi_square = lanes.chi_square[j];
   if (!lanes.conditioned[j]) {
     const auto& m = lanes.matrix;
@@ -142,8 +150,9 @@ PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneFits& lanes, i
     }
     // The same system's solution (the chi-square above is its residuals').
     fit.b = normal_matrix.ldlt().solve(rhs);
+    fit.length = fit.b.norm();
   }
-  if (!(fit.b.norm() > 0.0)) fit.flag = PixelFlag::kRejectedByModel;
+  if (!(fit.length > 0.0)) fit.flag = PixelFlag::kRejectedByModel;
   return fit;
 }
 
@@ -217,9 +226,9 @@ void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* re
           result->confidence.at<float>(r, c) = 0.0f;
           continue;
         }
-        const Eigen::Vector3d n = fit.b.normalized();
+        const Eigen::Vector3d n = fit.b * (1.0 / fit.length);
         result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
-        result->albedo.at<float>(r, c) = static_cast<float>(kPi * fit.b.norm());
+        result->albedo.at<float>(r, c) = static_cast<float>(kPi * fit.length);
         result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelModel::kLambertian);
         WriteConfidence(p.rules, fit.usable, 3, fit.chi_square, &result->confidence.at<float>(r, c));
       }

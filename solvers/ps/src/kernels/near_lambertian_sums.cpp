@@ -108,6 +108,7 @@ PHOTORIG_LANE_INLINE void SolveLanes(const FloatSums& sums, double max_condition
     fits.b[0][j] = (a_xx * rx + a_xy * ry + a_xz * rz) * inverse_det;
     fits.b[1][j] = (a_xy * rx + a_yy * ry + a_yz * rz) * inverse_det;
     fits.b[2][j] = (a_xz * rx + a_yz * ry + a_zz * rz) * inverse_det;
+    fits.length[j] = std::sqrt(fits.b[0][j] * fits.b[0][j] + fits.b[1][j] * fits.b[1][j] + fits.b[2][j] * fits.b[2][j]);
     const double frobenius2 = xx * xx + yy * yy + zz * zz + 2.0 * (xy * xy + xz * xz + yz * yz);
     const double adjugate2 = a_xx * a_xx + a_yy * a_yy + a_zz * a_zz + 2.0 * (a_xy * a_xy + a_xz * a_xz + a_yz * a_yz);
     const double bound4 = frobenius2 * adjugate2 * inverse_det * inverse_det;

@@ -47,14 +47,15 @@ struct alignas(64) NearLanePixels {
 };
 
 // Each lane's fit: its normal equations G b = r (G = A^T W A; xx, xy, xz,
-// yy, yz, zz), the samples that entered, b = G^-1 r by the adjugate, the
-// chi-square sum c (I - D - row . b)^2, and a screen of the conditioning,
-// cond(A)^2 = cond(G) <= |G|_F |G^-1|_F.
+// yy, yz, zz), the samples that entered, b = G^-1 r by the adjugate and its
+// length |b| (rho / pi), the chi-square sum c (I - D - row . b)^2, and a
+// screen of the conditioning, cond(A)^2 = cond(G) <= |G|_F |G^-1|_F.
 struct alignas(64) NearLaneFits {
   double matrix[6][kNearLanes];
   double rhs[3][kNearLanes];
   double usable[kNearLanes];
   double b[3][kNearLanes];
+  double length[kNearLanes];
   double chi_square[kNearLanes];
   // 1: G is positive definite (det > 0) and the Frobenius bound keeps cond(A)
   // within the limit; 0: the bound does not, and only an exact test can tell.
