@@ -26,7 +26,7 @@ struct alignas(64) FloatSums {
 // turns a normal by as many radians. kContiguous: the lanes' samples are
 // neighbours in every plane, read as one vector. kProfile: the LED's cos^mu
 // for mu != 1 (as e^(mu ln cos)); mu = 1, the common Lambertian emitter,
-// needs neither.
+// needs neither that nor the distance itself.
 template <bool kContiguous, bool kProfile>
 PHOTORIG_LANE_INLINE void AddLight(const NearLightTable& lights, int k, const float* plane, float shadow_threshold,
                                    float saturation_level, float read_variance, float shot_gain,
@@ -51,24 +51,31 @@ PHOTORIG_LANE_INLINE void AddLight(const NearLightTable& lights, int k, const fl
   for (int j = 0; j < kNearLanes; ++j) {
     const float value = kContiguous ? first[j] : plane[pixels.offset[j]];
     const float signal = value - pixels.dark[j];
+    // t: from the point to the LED, |t| = d; `along` = d cos_axis.
     const float tx = px - w * pixels.x[j], ty = py - w * pixels.y[j], tz = pz - w * pixels.z[j];
-    const float inverse = 1.0f / std::sqrt(tx * tx + ty * ty + tz * tz);
-    const float lx = tx * inverse, ly = ty * inverse, lz = tz * inverse;
-    const float cos_axis = -(ax * lx + ay * ly + az * lz);
-    float profile = cos_axis;
+    const float d2 = tx * tx + ty * ty + tz * tz;
+    const float along = -(ax * tx + ay * ty + az * tz);
+    // The row s f l = constant cos^mu / d^2 (t / d). For mu = 1 that is
+    // constant along t / d^4: no square root.
+    float scale;
     if constexpr (kProfile) {
+      const float inverse = 1.0f / std::sqrt(d2);
+      const float cos_axis = along * inverse;
       double unused;
-      profile = static_cast<float>(
+      const float profile = static_cast<float>(
           LaneExp(mu * LaneLogAndInverse(cos_axis > 1e-30f ? static_cast<double>(cos_axis) : 1e-30, &unused)));
+      scale = constant * profile * inverse * inverse * inverse;
+    } else {
+      const float inverse_d2 = 1.0f / d2;
+      scale = constant * along * inverse_d2 * inverse_d2;
     }
     // Behind the LED (cos_axis <= 0) the point is not lit: the sample says
     // nothing. A sample left out keeps a signal of 0, so that its weight of 0
     // meets finite numbers whatever the image holds.
-    const bool enters = (signal > shadow_threshold) & (value < saturation_level) & (cos_axis > 0.0f);
-    const float gain = constant * profile * inverse * inverse;
+    const bool enters = (signal > shadow_threshold) & (value < saturation_level) & (along > 0.0f);
     const float c = enters ? 1.0f / (read_variance + shot_gain * (signal > 0.0f ? signal : 0.0f)) : 0.0f;
     const float b = enters ? signal : 0.0f;
-    const float gx = gain * lx, gy = gain * ly, gz = gain * lz;
+    const float gx = scale * tx, gy = scale * ty, gz = scale * tz;
     const float cx = c * gx, cy = c * gy, cz = c * gz;
     sums.matrix[0][j] += cx * gx, sums.matrix[1][j] += cx * gy, sums.matrix[2][j] += cx * gz;
     sums.matrix[3][j] += cy * gy, sums.matrix[4][j] += cy * gz, sums.matrix[5][j] += cz * gz;
