@@ -633,24 +633,29 @@ cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, co
 cv::Mat LatticeToImage(const PixelProblem& lattice_problem, const cv::Mat& lattice, const PixelProblem& image) {
   cv::Mat relative(image.size(), CV_32F);
   const double step = lattice_problem.step, origin = lattice_problem.origin;
-  auto position = [&](int pixel, int last, int* low, double* fraction) {
-    const double u = std::clamp((pixel - origin) / step, 0.0, static_cast<double>(last));
-    *low = std::min(static_cast<int>(u), std::max(last - 1, 0));
-    *fraction = u - *low;
+  // Image pixel i lies between lattice pixels low and low + 1 (clamped to
+  // the last), `fraction` of the way: worked out once per column and row.
+  struct Between {
+    int low, high;
+    float fraction;
   };
+  auto between = [&](int pixel, int last) {
+    const double u = std::clamp((pixel - origin) / step, 0.0, static_cast<double>(last));
+    const int low = std::min(static_cast<int>(u), std::max(last - 1, 0));
+    return Between{low, std::min(low + 1, last), static_cast<float>(u - low)};
+  };
+  std::vector<Between> columns(relative.cols);
+  for (int c = 0; c < relative.cols; ++c) columns[c] = between(c, lattice.cols - 1);
   for (int r = 0; r < relative.rows; ++r) {
-    int r0;
-    double fr;
-    position(r, lattice.rows - 1, &r0, &fr);
-    const int r1 = std::min(r0 + 1, lattice.rows - 1);
+    const Between row = between(r, lattice.rows - 1);
+    const float* top = lattice.ptr<float>(row.low);
+    const float* bottom = lattice.ptr<float>(row.high);
+    float* out = relative.ptr<float>(r);
     for (int c = 0; c < relative.cols; ++c) {
-      int c0;
-      double fc;
-      position(c, lattice.cols - 1, &c0, &fc);
-      const int c1 = std::min(c0 + 1, lattice.cols - 1);
-      const double top = (1.0 - fc) * lattice.at<float>(r0, c0) + fc * lattice.at<float>(r0, c1);
-      const double bottom = (1.0 - fc) * lattice.at<float>(r1, c0) + fc * lattice.at<float>(r1, c1);
-      relative.at<float>(r, c) = static_cast<float>((1.0 - fr) * top + fr * bottom);
+      const Between& column = columns[c];
+      const float upper = top[column.low] + column.fraction * (top[column.high] - top[column.low]);
+      const float lower = bottom[column.low] + column.fraction * (bottom[column.high] - bottom[column.low]);
+      out[c] = upper + row.fraction * (lower - upper);
     }
   }
   return relative;
@@ -765,9 +770,11 @@ double BestOffset(const PixelProblem& p, const PhotometricStereoOptions& options
 // Each pixel's height with the surface `relative` placed at offset_mm.
 cv::Mat Heights(const PixelProblem& p, const cv::Mat& relative, double offset_mm) {
   cv::Mat height(relative.size(), CV_32F);
-  for (int r = 0; r < height.rows; ++r)
-    for (int c = 0; c < height.cols; ++c)
-      height.at<float>(r, c) = static_cast<float>(p.Height(relative.at<float>(r, c), offset_mm));
+  for (int r = 0; r < height.rows; ++r) {
+    const float* in = relative.ptr<float>(r);
+    float* out = height.ptr<float>(r);
+    for (int c = 0; c < height.cols; ++c) out[c] = static_cast<float>(p.Height(in[c], offset_mm));
+  }
   return height;
 }
 
