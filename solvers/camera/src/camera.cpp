@@ -67,20 +67,13 @@ Camera Camera::Orthographic(int width_px, int height_px, double pixel_pitch_mm) 
   return camera;
 }
 
-PixelRays::PixelRays(const Camera& camera) : camera_(camera), lines_(camera.height_px, camera.width_px, CV_32FC4) {
-  if (!camera.IsPinhole()) {
-    // A column's x and a row's y, each worked out once: a solve builds the
-    // rays of every pixel, and this fill runs at memory speed.
-    std::vector<float> x(camera.width_px);
-    for (int c = 0; c < camera.width_px; ++c)
-      x[c] = static_cast<float>((c + 0.5 - 0.5 * camera.width_px) * camera.pixel_pitch_mm);
-    for (int r = 0; r < camera.height_px; ++r) {
-      const float y = static_cast<float>((0.5 * camera.height_px - r - 0.5) * camera.pixel_pitch_mm);
-      cv::Vec4f* row = lines_.ptr<cv::Vec4f>(r);
-      for (int c = 0; c < camera.width_px; ++c) row[c] = cv::Vec4f(x[c], y, 0.0f, 0.0f);
-    }
-    return;
-  }
+PixelRays::PixelRays(const Camera& camera)
+    : camera_(camera),
+      image_width_px_(camera.width_px),
+      image_height_px_(camera.height_px),
+      image_pitch_mm_(camera.pixel_pitch_mm) {
+  if (!camera.IsPinhole()) return;
+  lines_.create(camera.height_px, camera.width_px, CV_32FC4);
   // The line from the centre C = (0, 0, D) along (a, b, -1) with a = x_n,
   // b = -y_n reaches height z at s = D - z: (D a - z a, D b - z b, z).
   const std::vector<cv::Point2d> normalised = NormalisedCoordinates(camera);
@@ -95,7 +88,7 @@ PixelRays::PixelRays(const Camera& camera) : camera_(camera), lines_(camera.heig
 }
 
 cv::Mat PixelRays::ViewDirections() const {
-  cv::Mat views(lines_.size(), CV_32FC3);
+  cv::Mat views(camera_.height_px, camera_.width_px, CV_32FC3);
   for (int r = 0; r < views.rows; ++r)
     for (int c = 0; c < views.cols; ++c) {
       const Eigen::Vector3d v = ViewDirection(r, c);
@@ -114,6 +107,10 @@ PixelRays PixelRays::Lattice(int step, int origin) const {
   camera.pinhole.fx_px /= step, camera.pinhole.fy_px /= step;
   camera.pinhole.cx_px = (camera.pinhole.cx_px - origin) / step;
   camera.pinhole.cy_px = (camera.pinhole.cy_px - origin) / step;
+  lattice.origin_ = origin_ + step_ * origin, lattice.step_ = step_ * step;
+  lattice.image_width_px_ = image_width_px_, lattice.image_height_px_ = image_height_px_;
+  lattice.image_pitch_mm_ = image_pitch_mm_;
+  if (lines_.empty()) return lattice;
   lattice.lines_.create(camera.height_px, camera.width_px, CV_32FC4);
   for (int r = 0; r < camera.height_px; ++r)
     for (int c = 0; c < camera.width_px; ++c)

@@ -60,7 +60,9 @@ struct Camera {
   static Camera Orthographic(int width_px, int height_px, double pixel_pitch_mm);
 };
 
-// Every pixel's line of sight, worked out once (undistortion is not free).
+// Every pixel's line of sight: a pinhole camera's worked out once
+// (undistortion is not free), an orthographic camera's from its pixel's
+// place (a table of them would cost a solve more than the arithmetic).
 class PixelRays {
  public:
   PixelRays() = default;
@@ -70,11 +72,13 @@ class PixelRays {
   const Camera& camera() const { return camera_; }
   // The point of pixel (r, c)'s line of sight at height z_mm.
   Eigen::Vector3d Point(int r, int c, double z_mm) const {
+    if (lines_.empty()) return {OrthographicX(c), OrthographicY(r), z_mm};
     const cv::Vec4f& l = lines_.at<cv::Vec4f>(r, c);
     return {l[0] + z_mm * l[2], l[1] + z_mm * l[3], z_mm};
   }
   // The unit vector from any point of pixel (r, c)'s line towards the camera.
   Eigen::Vector3d ViewDirection(int r, int c) const {
+    if (lines_.empty()) return Eigen::Vector3d::UnitZ();
     const cv::Vec4f& l = lines_.at<cv::Vec4f>(r, c);
     return Eigen::Vector3d(l[2], l[3], 1.0).normalized();
   }
@@ -89,13 +93,27 @@ class PixelRays {
   // The slope of pixel (r, c)'s line: (dx, dy) per mm of height (0 when
   // orthographic); for a pinhole camera -(x_n, -y_n).
   Eigen::Vector2d Slope(int r, int c) const {
+    if (lines_.empty()) return Eigen::Vector2d::Zero();
     const cv::Vec4f& l = lines_.at<cv::Vec4f>(r, c);
     return {l[2], l[3]};
   }
 
  private:
+  // An orthographic pixel's place, x right and y up from the image's centre,
+  // rounded to float as a table of lines would hold it; pixel (r, c) is the
+  // full image's (origin_ + step_ r, origin_ + step_ c).
+  float OrthographicX(int c) const {
+    return static_cast<float>((origin_ + step_ * c + 0.5 - 0.5 * image_width_px_) * image_pitch_mm_);
+  }
+  float OrthographicY(int r) const {
+    return static_cast<float>((0.5 * image_height_px_ - (origin_ + step_ * r) - 0.5) * image_pitch_mm_);
+  }
+
   Camera camera_;
-  cv::Mat lines_;  // CV_32FC4: x0, y0, dx, dy
+  cv::Mat lines_;  // pinhole: CV_32FC4, x0, y0, dx, dy; orthographic: empty
+  int origin_ = 0, step_ = 1;                            // orthographic: this lattice of the full image
+  int image_width_px_ = 0, image_height_px_ = 0;         // orthographic: the full image
+  double image_pitch_mm_ = 0.0;
 };
 
 }  // namespace photorig::solvers::camera
