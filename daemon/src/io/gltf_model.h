@@ -4,8 +4,8 @@
 // Internal to photorig_daemon_io; the glTF round-trip fuzzer reads it to
 // check the model through tinygltf's JSON in memory, without the files.
 
-#include "photorig/daemon/io/gltf_export.h"
-
+#include "photorig/solvers/camera/camera.h"
+#include "photorig/solvers/reflectance/fit.h"
 #include "tinygltf_config.h"
 
 #include <opencv2/core.hpp>
