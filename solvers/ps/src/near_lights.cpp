@@ -117,7 +117,8 @@ struct PixelAt {
 struct PixelFit {
   PixelFlag flag = PixelFlag::kSolved;
   Eigen::Vector3d b = Eigen::Vector3d::Zero();  // rho / pi * n
-  double length = 0.0;                          // |b| = rho / pi
+  double length = 0.0, inverse_length = 0.0;    // |b| = rho / pi, and 1 / |b|
+  float confidence = 0.0f;                      // as WriteConfidence gives it for these 3 parameters
   int usable = 0;
   double chi_square = 0.0;  // weighted by the noise where it is known
 };
@@ -133,8 +134,9 @@ PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneFits& lanes, i
     return fit;
   }
   fit.b = Eigen::Vector3d(lanes.b[0][j], lanes.b[1][j], lanes.b[2][j]);
-  fit.length = lanes.length[j];
+  fit.length = lanes.length[j], fit.inverse_length = lanes.inverse_length[j];
   fit.chi_square = lanes.chi_square[j];
+  fit.confidence = static_cast<float>(lanes.confidence[j]);
   if (!lanes.conditioned[j]) {
     const auto& m = lanes.matrix;
     Eigen::Matrix3d normal_matrix;
@@ -150,7 +152,7 @@ PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneFits& lanes, i
     }
     // The same system's solution (the chi-square above is its residuals').
     fit.b = normal_matrix.ldlt().solve(rhs);
-    fit.length = fit.b.norm();
+    fit.length = fit.b.norm(), fit.inverse_length = 1.0 / fit.length;
   }
   if (!(fit.length > 0.0)) fit.flag = PixelFlag::kRejectedByModel;
   return fit;
@@ -226,11 +228,11 @@ void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* re
           result->confidence.at<float>(r, c) = 0.0f;
           continue;
         }
-        const Eigen::Vector3d n = fit.b * (1.0 / fit.length);
+        const Eigen::Vector3d n = fit.b * fit.inverse_length;
         result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
         result->albedo.at<float>(r, c) = static_cast<float>(kPi * fit.length);
         result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelModel::kLambertian);
-        WriteConfidence(p.rules, fit.usable, 3, fit.chi_square, &result->confidence.at<float>(r, c));
+        result->confidence.at<float>(r, c) = fit.confidence;
       }
     }
   }

@@ -1,5 +1,6 @@
 #include "near_lambertian_sums.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -116,6 +117,7 @@ PHOTORIG_LANE_INLINE void SolveLanes(const FloatSums& sums, double max_condition
     fits.b[1][j] = (a_xy * rx + a_yy * ry + a_yz * rz) * inverse_det;
     fits.b[2][j] = (a_xz * rx + a_yz * ry + a_zz * rz) * inverse_det;
     fits.length[j] = std::sqrt(fits.b[0][j] * fits.b[0][j] + fits.b[1][j] * fits.b[1][j] + fits.b[2][j] * fits.b[2][j]);
+    fits.inverse_length[j] = 1.0 / fits.length[j];
     const double frobenius2 = xx * xx + yy * yy + zz * zz + 2.0 * (xy * xy + xz * xz + yz * yz);
     const double adjugate2 = a_xx * a_xx + a_yy * a_yy + a_zz * a_zz + 2.0 * (a_xy * a_xy + a_xz * a_xz + a_yz * a_yz);
     const double bound4 = frobenius2 * adjugate2 * inverse_det * inverse_det;
@@ -128,7 +130,7 @@ PHOTORIG_LANE_INLINE void SolveLanes(const FloatSums& sums, double max_condition
 
 // sum c (I - D - row . b)^2 over the scratch: residuals of the noise's
 // size, which float sums keep to its digits.
-PHOTORIG_LANE_INLINE void ChiSquares(int light_count, const float* rows, NearLaneFits& fits) {
+PHOTORIG_LANE_INLINE void ChiSquares(int light_count, const float* rows, bool noise_known, NearLaneFits& fits) {
   float bx[kNearLanes], by[kNearLanes], bz[kNearLanes], chi_square[kNearLanes] = {};
 #pragma omp simd
   for (int j = 0; j < kNearLanes; ++j)
@@ -144,7 +146,11 @@ PHOTORIG_LANE_INLINE void ChiSquares(int light_count, const float* rows, NearLan
     }
   }
 #pragma omp simd
-  for (int j = 0; j < kNearLanes; ++j) fits.chi_square[j] = chi_square[j] > 0.0f ? chi_square[j] : 0.0f;
+  for (int j = 0; j < kNearLanes; ++j) {
+    const double sum = chi_square[j] > 0.0f ? chi_square[j] : 0.0f, dof = fits.usable[j] - 3.0;
+    fits.chi_square[j] = sum;
+    fits.confidence[j] = noise_known && dof > 0.0 ? std::min(1.0, dof / std::max(sum, 1e-300)) : 0.0;
+  }
 }
 
 }  // namespace
@@ -169,7 +175,7 @@ void FitNearLanes(const NearLightTable& lights, const float* const* planes, cons
   else
     AddLights<false>(lights, planes, shadow, saturation, read_variance, shot_gain, pixels, rows->data(), sums);
   SolveLanes(sums, max_condition_number, *fits);
-  ChiSquares(lights.count(), rows->data(), *fits);
+  ChiSquares(lights.count(), rows->data(), rules.noise_known, *fits);
 }
 
 }  // namespace photorig::solvers::ps::internal

@@ -48,15 +48,17 @@ struct alignas(64) NearLanePixels {
 
 // Each lane's fit: its normal equations G b = r (G = A^T W A; xx, xy, xz,
 // yy, yz, zz), the samples that entered, b = G^-1 r by the adjugate and its
-// length |b| (rho / pi), the chi-square sum c (I - D - row . b)^2, and a
-// screen of the conditioning, cond(A)^2 = cond(G) <= |G|_F |G^-1|_F.
+// length |b| (rho / pi) with its inverse, the chi-square sum
+// c (I - D - row . b)^2 and the confidence it gives (the map's: min(1,
+// dof / chi-square) with the noise known and a sample to spare, else 0),
+// and a screen of the conditioning, cond(A)^2 = cond(G) <= |G|_F |G^-1|_F.
 struct alignas(64) NearLaneFits {
   double matrix[6][kNearLanes];
   double rhs[3][kNearLanes];
   double usable[kNearLanes];
   double b[3][kNearLanes];
-  double length[kNearLanes];
-  double chi_square[kNearLanes];
+  double length[kNearLanes], inverse_length[kNearLanes];
+  double chi_square[kNearLanes], confidence[kNearLanes];
   // 1: G is positive definite (det > 0) and the Frobenius bound keeps cond(A)
   // within the limit; 0: the bound does not, and only an exact test can tell.
   double conditioned[kNearLanes];
