@@ -48,14 +48,14 @@ struct PixelProblem {
   camera::PixelRays rays;  // the lattice's
   internal::NearSampleRules rules;
   double max_condition_number = 0.0;
-  const float* dark_ = nullptr;  // the stack's dark frame; null without one
-  const std::uint8_t* mask_ = nullptr;  // its mask; null without one
-  std::size_t dark_stride_ = 0, mask_stride_ = 0;  // their rows' strides, in elements
+  const float* dark_data = nullptr;  // the stack's dark frame; null without one
+  const std::uint8_t* mask_data = nullptr;  // its mask; null without one
+  std::size_t dark_stride = 0, mask_stride = 0;  // their rows' strides, in elements
 
   PixelProblem(const PhotometricStack& stack, const std::vector<camera::NearLight>& leds, const camera::Camera& camera)
       : stack(stack), rays(camera) {
-    if (!stack.dark.empty()) dark_ = stack.dark.ptr<float>(), dark_stride_ = stack.dark.step1();
-    if (!stack.mask.empty()) mask_ = stack.mask.ptr<std::uint8_t>(), mask_stride_ = stack.mask.step1();
+    if (!stack.dark.empty()) dark_data = stack.dark.ptr<float>(), dark_stride = stack.dark.step1();
+    if (!stack.mask.empty()) mask_data = stack.mask.ptr<std::uint8_t>(), mask_stride = stack.mask.step1();
     for (std::size_t k = 0; k < leds.size(); ++k) {
       const camera::PreparedNearLight& light = prepared.emplace_back(leds[k]);
       lights.position.insert(lights.position.end(), {light.position_mm.x(), light.position_mm.y(), light.position_mm.z()});
@@ -94,9 +94,9 @@ struct PixelProblem {
   int ImageCol(int c) const { return origin + step * c; }
   // Where pixel (r, c)'s sample lies in every plane.
   int SampleIndex(int r, int c) const { return r * cols() + c; }
-  // Read for every pixel of every pass: through plain pointers (dark_, mask_), not cv::Mat's out-of-line empty().
-  double Dark(int r, int c) const { return dark_ ? dark_[ImageRow(r) * dark_stride_ + ImageCol(c)] : 0.0; }
-  bool InMask(int r, int c) const { return !mask_ || mask_[ImageRow(r) * mask_stride_ + ImageCol(c)] != 0; }
+  // Read for every pixel of every pass: through plain pointers, not cv::Mat's out-of-line empty().
+  double Dark(int r, int c) const { return dark_data ? dark_data[ImageRow(r) * dark_stride + ImageCol(c)] : 0.0; }
+  bool InMask(int r, int c) const { return !mask_data || mask_data[ImageRow(r) * mask_stride + ImageCol(c)] != 0; }
 
   Eigen::Vector3d Point(int r, int c, double z_mm) const { return rays.Point(r, c, z_mm); }
   // The height of a pixel whose integrated height is `relative` (0 at the

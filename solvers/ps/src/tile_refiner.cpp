@@ -18,11 +18,13 @@ namespace {
 // Queues longer than this run their stage; see Flush.
 constexpr std::size_t kBatch = 64;
 // Doubtful pixels wait for the exact test until a thread has this many:
-// between two tiles the Lambertian pass streams its samples from memory at
-// full speed, and a tile's handful of doubtful pixels (a matte scene has
-// about 1 %) stopping it every tile slowed it by a fifth; at this many the
-// re-read of their samples is the smaller cost. A glossy tile fills it alone.
+// the Lambertian pass streams its samples from memory tile after tile, and
+// stopping it for each tile's handful of doubtful pixels (a matte scene has
+// about 1 %) cost 4-7 % of `auto`'s time on the benchmark spheres; at this
+// many the re-read of their samples is the smaller cost. A glossy tile
+// fills it alone, its samples still in cache.
 constexpr std::size_t kDeferredDoubtful = 512;
+
 PixelFit TrimmedFit(const TrimSolution& trimmed) {
   PixelFit fit;
   const double length = trimmed.x.norm();
