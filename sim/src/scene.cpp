@@ -1,12 +1,17 @@
 #include "photorig/sim/scene.h"
 
+#include "photorig/solvers/core/image_file_format.h"
+
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
+#include <vector>
 
 namespace photorig::sim {
 using solvers::core::Refuse;
@@ -19,8 +24,13 @@ using Eigen::Vector3d;
 using HeightFunction = std::function<bool(double x, double y, double* z, double* dzdx, double* dzdy)>;
 
 cv::Mat LoadDepthMap(const Scene& scene) {
-  const cv::Mat raw = cv::imread(scene.depth_map_path, cv::IMREAD_UNCHANGED);
-  if (raw.empty()) throw std::runtime_error("cannot read depth map '" + scene.depth_map_path + "'");
+  // Decoded only as a format its first bytes name: OpenCV hands a file
+  // marked as DICOM to a decoder that aborts on a malformed one.
+  std::ifstream in(scene.depth_map_path, std::ios::binary);
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const bool known = solvers::core::ImageFileFormatOf(bytes) != solvers::core::ImageFileFormat::kUnknown;
+  const cv::Mat raw = known ? cv::imdecode(bytes, cv::IMREAD_UNCHANGED) : cv::Mat();
+  if (raw.empty()) throw std::runtime_error("cannot read depth map '" + scene.depth_map_path + "' (missing, or not a PNG or TIFF image)");
   if (raw.channels() != 1 || (raw.depth() != CV_16U && raw.depth() != CV_32F))
     throw std::runtime_error("depth map '" + scene.depth_map_path +
                              "': expected a single-channel 16-bit PNG or float TIFF");

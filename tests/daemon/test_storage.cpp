@@ -47,6 +47,42 @@ TEST(ImageIo, DurableWriteLeavesNoTempFile) {
   EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
 }
 
+// What OpenCV would hand to its DICOM decoder, which aborts the process on a
+// malformed file: DICOM's mark at byte 128 (a fuzzer's find, as the DiLiGenT
+// reader met it), and a PNG whose bytes there were overwritten with it.
+TEST(ImageIo, AFileMarkedAsDicomIsRefusedNamingItAndTheProcessLives) {
+  TempDir dir;
+  const std::string marked = (dir.path() / "001.png").string(), png = (dir.path() / "002.png").string();
+  {
+    std::ofstream out(marked, std::ios::binary);
+    out << "\xce 2 1\n" << std::string(114, '\xca') << "0.92.1 0\nDICM1\n";
+  }
+  try {
+    ReadImage(marked);
+    ADD_FAILURE() << "read a file whose first bytes name no image format";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(marked), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("not a PNG, TIFF"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ReadInputImage(marked), std::invalid_argument);  // a request's file: the request's fault
+
+  cv::Mat pixels(40, 40, CV_16UC3);
+  cv::randu(pixels, 0, 65535);
+  ASSERT_TRUE(cv::imwrite(png, pixels));
+  const cv::Mat back = ReadImage(png);
+  ASSERT_EQ(back.type(), CV_16UC3);
+  EXPECT_EQ(cv::norm(pixels, back, cv::NORM_INF), 0.0);  // unchanged: 16 bits, every channel
+  EXPECT_EQ(ReadImage(png, cv::IMREAD_GRAYSCALE).type(), CV_8UC1);
+  {
+    std::fstream patch(png, std::ios::binary | std::ios::in | std::ios::out);
+    patch.seekp(128);
+    patch.write("DICM", 4);
+  }
+  EXPECT_THROW(ReadImage(png), std::runtime_error);  // its PNG decoder fails; no other decoder is tried
+  EXPECT_THROW(ReadImage(dir.path().string()), std::runtime_error);  // a directory
+  EXPECT_THROW(ReadImage((dir.path() / "absent.png").string()), std::runtime_error);
+}
+
 drivers::Frame MakeFrame(int width, int height, std::uint64_t id) {
   drivers::Frame frame;
   frame.width = width;

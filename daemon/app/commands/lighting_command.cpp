@@ -8,6 +8,7 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "calibration_outputs.h"
+#include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/pipelines/light_calibration.h"
 #include "photorig/config/rig.h"
 #include "photorig/config/sim.h"
@@ -35,9 +36,7 @@ struct Options {
 };
 
 cv::Mat ReadSingleChannel(const std::string& path) {
-  cv::Mat image = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
-  if (image.empty()) throw std::runtime_error(path + ": cannot read image");
-  return image;
+  return daemon::ReadImage(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
 }
 
 int Execute(const Options& o) {

@@ -1,5 +1,7 @@
 #include "photorig/daemon/io/image_io.h"
 
+#include "photorig/solvers/core/image_file_format.h"
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <libdeflate.h>
@@ -11,6 +13,8 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <system_error>
 
@@ -94,10 +98,30 @@ void WriteFloatTiff(const std::string& path, const cv::Mat& image) {
   WriteImage(path, bgr);
 }
 
-cv::Mat ReadImage(const std::string& path) {
-  cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw std::runtime_error("cannot read image " + path + " (missing, truncated or not an image)");
+// The file's bytes, decoded only as a format ImageFileFormatOf names: handed
+// a file with DICOM's mark, cv::imread would give it to GDCM, which aborts
+// the process on a malformed one.
+cv::Mat ReadImage(const std::string& path, int imread_flags) {
+  std::error_code error;
+  if (!fs::is_regular_file(path, error))
+    throw std::runtime_error("cannot read image " + path + (fs::exists(path, error) ? " (not a regular file)" : " (missing)"));
+  std::ifstream in(path, std::ios::binary);
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (!in.good() && !in.eof()) throw std::runtime_error("cannot read image " + path + ": read error");
+  if (solvers::core::ImageFileFormatOf(bytes) == solvers::core::ImageFileFormat::kUnknown)
+    throw std::runtime_error("cannot read image " + path + ": not a " + solvers::core::ReadableImageFormats() +
+                             " file (its first bytes name none of them)");
+  cv::Mat image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8U, bytes.data()), imread_flags);
+  if (image.empty()) throw std::runtime_error("cannot read image " + path + " (truncated or corrupt)");
   return image;
+}
+
+cv::Mat ReadInputImage(const std::string& path, int imread_flags) {
+  try {
+    return ReadImage(path, imread_flags);
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument(e.what());
+  }
 }
 
 cv::Mat ReadFloatTiff(const std::string& path) {

@@ -1,6 +1,7 @@
 #include "photorig/daemon/pipelines/camera_calibration.h"
 
 #include "photorig/config/rig.h"
+#include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/io/utc_time.h"
 
 #include <opencv2/imgcodecs.hpp>
@@ -76,8 +77,7 @@ CameraCalibrationResult CalibrateCamera(const CameraCalibrationRequest& request)
   const config::RigConfig base = config::LoadRigConfig(request.base_rig);
   std::vector<cv::Mat> images;
   for (const std::string& path : request.images) {
-    images.push_back(cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR));
-    if (images.back().empty()) throw std::invalid_argument(path + ": cannot read image");
+    images.push_back(ReadInputImage(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR));
     if (images.back().cols != base.camera.width || images.back().rows != base.camera.height)
       throw std::invalid_argument(path + ": " + std::to_string(images.back().cols) + " x " +
                                   std::to_string(images.back().rows) + " px, the camera of " + request.base_rig +

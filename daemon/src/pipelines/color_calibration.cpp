@@ -144,12 +144,7 @@ std::vector<color::ModelSpec> ParseColorModels(const std::vector<std::string>& n
 }
 
 cv::Mat ReadColorCapture(const std::string& path, const std::string& bayer) {
-  cv::Mat image;
-  try {
-    image = ReadImage(path);
-  } catch (const std::runtime_error& e) {
-    throw std::invalid_argument(e.what());  // a capture given that is not an image: the request's fault
-  }
+  cv::Mat image = ReadInputImage(path);
   if (bayer.empty()) {
     if (const auto means = MosaicPhaseMeans(image)) {
       char figures[160];

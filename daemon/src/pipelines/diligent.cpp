@@ -31,9 +31,11 @@ namespace {
 // An image of the folder, unchanged (16-bit stays 16-bit); one that does not
 // decode is malformed input like any other file of the folder.
 cv::Mat ReadFolderImage(const fs::path& file) {
-  cv::Mat image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-  if (image.empty()) Malformed(file, 0, "cannot read as an image (truncated or not an image)");
-  return image;
+  try {
+    return ReadImage(file.string());
+  } catch (const std::runtime_error& e) {
+    Malformed(file, 0, e.what());
+  }
 }
 
 // Non-blank lines with their 1-based line numbers.

@@ -1,6 +1,7 @@
 #include "photorig/daemon/pipelines/light_calibration.h"
 
 #include "photorig/daemon/capture/run_store.h"
+#include "photorig/daemon/io/image_io.h"
 #include "photorig/solvers/lighting/light_files.h"
 #include "photorig/solvers/lighting/light_intensity.h"
 
@@ -70,9 +71,7 @@ LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directo
 
 void LoadWhiteFrames(const std::vector<std::string>& paths, LightCalibrationInputs* inputs) {
   for (const std::string& path : paths) {
-    cv::Mat image = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
-    if (image.empty()) throw std::invalid_argument(path + ": cannot read the white-sphere image");
-    inputs->white_frames.push_back(std::move(image));
+    inputs->white_frames.push_back(ReadInputImage(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR));
   }
 }
 
@@ -108,9 +107,11 @@ bool FindSphereCircle(const LightCalibrationInputs& inputs, const config::LightC
     return true;
   }
   if (!request.silhouette_image.empty()) {
-    const cv::Mat silhouette = cv::imread(request.silhouette_image, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
-    if (silhouette.empty()) {
-      summary->message = request.silhouette_image + ": cannot read the silhouette image";
+    cv::Mat silhouette;
+    try {
+      silhouette = ReadImage(request.silhouette_image, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
+    } catch (const std::runtime_error& e) {
+      summary->message = std::string("the silhouette: ") + e.what();
       return false;
     }
     const SphereFitSummary fit = FitSphereSilhouette(silhouette);

@@ -121,7 +121,7 @@ std::vector<std::vector<std::uint16_t>> ReadFrames(const fs::path& folder) {
   std::sort(files.begin(), files.end());
   std::vector<std::vector<std::uint16_t>> frames;
   for (const fs::path& file : files)
-    frames.push_back(Pixels(cv::imread(file.string(), cv::IMREAD_UNCHANGED), file.string()));
+    frames.push_back(Pixels(ReadInputImage(file.string()), file.string()));
   return frames;
 }
 

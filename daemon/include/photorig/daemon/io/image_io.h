@@ -4,6 +4,7 @@
 // LogLuv. Normal maps are stored with channels (R, G, B) = (x, y, z).
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <string>
 #include <vector>
@@ -26,8 +27,14 @@ void WriteImage(const std::string& path, const cv::Mat& image);
 void WriteFloatTiff(const std::string& path, const cv::Mat& image);
 // Reads back what WriteFloatTiff wrote (channels in x, y, z order).
 cv::Mat ReadFloatTiff(const std::string& path);
-// Reads any image unchanged (16-bit PNG stays 16-bit). Throws naming the file.
-cv::Mat ReadImage(const std::string& path);
+// Reads a PNG, TIFF, JPEG, BMP, PNM or Radiance HDR file, by default
+// unchanged (16-bit PNG stays 16-bit; other cv::ImreadModes as imread takes
+// them). Any other file, one whose format its first bytes do not name among
+// those, is refused unread. Throws std::runtime_error naming the file.
+cv::Mat ReadImage(const std::string& path, int imread_flags = cv::IMREAD_UNCHANGED);
+// The same for an image a request names (a capture, a board, a sphere): one
+// that cannot be read is the request's fault, so std::invalid_argument.
+cv::Mat ReadInputImage(const std::string& path, int imread_flags = cv::IMREAD_UNCHANGED);
 
 // 8-bit view for people: normals as RGB = (n + 1) / 2 (other views: previews.h).
 cv::Mat NormalsToBgr8(const cv::Mat& normals);

@@ -1,0 +1,39 @@
+#include "photorig/solvers/core/image_file_format.h"
+
+#include <algorithm>
+#include <string_view>
+
+namespace photorig::solvers::core {
+namespace {
+
+bool StartsWith(std::span<const std::uint8_t> head, std::string_view magic) {
+  return head.size() >= magic.size() &&
+         std::equal(magic.begin(), magic.end(), head.begin(),
+                    [](char m, std::uint8_t h) { return static_cast<std::uint8_t>(m) == h; });
+}
+
+bool IsSpace(std::uint8_t c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\v' || c == '\f'; }
+
+}  // namespace
+
+// The same tests as OpenCV's decoders' checkSignature, so that a file named
+// here reaches the decoder of its format.
+ImageFileFormat ImageFileFormatOf(std::span<const std::uint8_t> head) {
+  using namespace std::string_view_literals;
+  if (StartsWith(head, "\x89PNG\r\n\x1a\n"sv)) return ImageFileFormat::kPng;
+  if (StartsWith(head, "II\x2a\x00"sv) || StartsWith(head, "MM\x00\x2a"sv) || StartsWith(head, "II\x2b\x00"sv) ||
+      StartsWith(head, "MM\x00\x2b"sv))
+    return ImageFileFormat::kTiff;
+  if (StartsWith(head, "\xff\xd8\xff"sv)) return ImageFileFormat::kJpeg;
+  if (StartsWith(head, "BM"sv)) return ImageFileFormat::kBmp;
+  // P1-P6 (PBM, PGM, PPM), P7 (PAM), Pf and PF (PFM), each followed by white space.
+  if (head.size() >= 3 && head[0] == 'P' &&
+      ((head[1] >= '1' && head[1] <= '7') || head[1] == 'f' || head[1] == 'F') && IsSpace(head[2]))
+    return ImageFileFormat::kPnm;
+  if (StartsWith(head, "#?RGBE"sv) || StartsWith(head, "#?RADIANCE"sv)) return ImageFileFormat::kRadianceHdr;
+  return ImageFileFormat::kUnknown;
+}
+
+const char* ReadableImageFormats() { return "PNG, TIFF, JPEG, BMP, PNM or Radiance HDR"; }
+
+}  // namespace photorig::solvers::core
