@@ -101,18 +101,31 @@ void WriteFloatTiff(const std::string& path, const cv::Mat& image) {
 // The file's bytes, decoded only as a format ImageFileFormatOf names: handed
 // a file with DICOM's mark, cv::imread would give it to GDCM, which aborts
 // the process on a malformed one.
-cv::Mat ReadImage(const std::string& path, int imread_flags) {
+cv::Mat TryReadImage(const std::string& path, int imread_flags, std::string* why) {
   std::error_code error;
-  if (!fs::is_regular_file(path, error))
-    throw std::runtime_error("cannot read image " + path + (fs::exists(path, error) ? " (not a regular file)" : " (missing)"));
+  if (!fs::is_regular_file(path, error)) {
+    *why = fs::exists(path, error) ? "not a regular file" : "missing";
+    return {};
+  }
   std::ifstream in(path, std::ios::binary);
   std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (!in.good() && !in.eof()) throw std::runtime_error("cannot read image " + path + ": read error");
-  if (solvers::core::ImageFileFormatOf(bytes) == solvers::core::ImageFileFormat::kUnknown)
-    throw std::runtime_error("cannot read image " + path + ": not a " + solvers::core::ReadableImageFormats() +
-                             " file (its first bytes name none of them)");
-  cv::Mat image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8U, bytes.data()), imread_flags);
-  if (image.empty()) throw std::runtime_error("cannot read image " + path + " (truncated or corrupt)");
+  if (in.bad()) {
+    *why = "read error";
+    return {};
+  }
+  if (solvers::core::ImageFileFormatOf(bytes) == solvers::core::ImageFileFormat::kUnknown) {
+    *why = std::string("not a ") + solvers::core::ReadableImageFormats() + " file: its first bytes name none of them";
+    return {};
+  }
+  cv::Mat image = cv::imdecode(bytes, imread_flags);
+  if (image.empty()) *why = "truncated or corrupt";
+  return image;
+}
+
+cv::Mat ReadImage(const std::string& path, int imread_flags) {
+  std::string why;
+  cv::Mat image = TryReadImage(path, imread_flags, &why);
+  if (image.empty()) throw std::runtime_error("cannot read image " + path + " (" + why + ")");
   return image;
 }
 

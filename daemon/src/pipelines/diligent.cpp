@@ -31,11 +31,10 @@ namespace {
 // An image of the folder, unchanged (16-bit stays 16-bit); one that does not
 // decode is malformed input like any other file of the folder.
 cv::Mat ReadFolderImage(const fs::path& file) {
-  try {
-    return ReadImage(file.string());
-  } catch (const std::runtime_error& e) {
-    Malformed(file, 0, e.what());
-  }
+  std::string why;
+  cv::Mat image = TryReadImage(file.string(), cv::IMREAD_UNCHANGED, &why);
+  if (image.empty()) Malformed(file, 0, "cannot read as an image (" + why + ")");
+  return image;
 }
 
 // Non-blank lines with their 1-based line numbers.

@@ -71,7 +71,10 @@ LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directo
 
 void LoadWhiteFrames(const std::vector<std::string>& paths, LightCalibrationInputs* inputs) {
   for (const std::string& path : paths) {
-    inputs->white_frames.push_back(ReadInputImage(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR));
+    std::string why;
+    cv::Mat image = TryReadImage(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR, &why);
+    if (image.empty()) throw std::invalid_argument(path + ": cannot read the white-sphere image (" + why + ")");
+    inputs->white_frames.push_back(std::move(image));
   }
 }
 
@@ -107,11 +110,10 @@ bool FindSphereCircle(const LightCalibrationInputs& inputs, const config::LightC
     return true;
   }
   if (!request.silhouette_image.empty()) {
-    cv::Mat silhouette;
-    try {
-      silhouette = ReadImage(request.silhouette_image, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
-    } catch (const std::runtime_error& e) {
-      summary->message = std::string("the silhouette: ") + e.what();
+    std::string why;
+    const cv::Mat silhouette = TryReadImage(request.silhouette_image, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE, &why);
+    if (silhouette.empty()) {
+      summary->message = request.silhouette_image + ": cannot read the silhouette image (" + why + ")";
       return false;
     }
     const SphereFitSummary fit = FitSphereSilhouette(silhouette);

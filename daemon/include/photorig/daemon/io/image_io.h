@@ -30,8 +30,11 @@ cv::Mat ReadFloatTiff(const std::string& path);
 // Reads a PNG, TIFF, JPEG, BMP, PNM or Radiance HDR file, by default
 // unchanged (16-bit PNG stays 16-bit; other cv::ImreadModes as imread takes
 // them). Any other file, one whose format its first bytes do not name among
-// those, is refused unread. Throws std::runtime_error naming the file.
+// those, is refused undecoded. Throws std::runtime_error naming the file.
 cv::Mat ReadImage(const std::string& path, int imread_flags = cv::IMREAD_UNCHANGED);
+// The same without throwing: an empty image, and in `why` the reason
+// (missing, not a regular file, not one of those formats, truncated or corrupt).
+cv::Mat TryReadImage(const std::string& path, int imread_flags, std::string* why);
 // The same for an image a request names (a capture, a board, a sphere): one
 // that cannot be read is the request's fault, so std::invalid_argument.
 cv::Mat ReadInputImage(const std::string& path, int imread_flags = cv::IMREAD_UNCHANGED);
