@@ -180,6 +180,14 @@ TEST_F(DiligentFolder, AListedImageThatIsMissingIsNamedWithItsLine) {
   EXPECT_NE(error.find("005.png"), std::string::npos) << error;
 }
 
+TEST_F(DiligentFolder, ANameLongerThanTheSystemAllowsIsNamedWithItsLine) {
+  // The file system's refusal (ENAMETOOLONG) escaped as a filesystem_error (a fuzzer's find).
+  names_ = "001.png\n002.png\n" + std::string(300, 'x') + ".png\n004.png\n";
+  const std::string error = LoadError();
+  EXPECT_NE(error.find("filenames.txt:3:"), std::string::npos) << error;
+  EXPECT_NE(error.find("File name too long"), std::string::npos) << error;
+}
+
 TEST_F(DiligentFolder, AnImageOrMaskThatDoesNotDecodeIsAConfigErrorNamingIt) {
   // An empty or damaged PNG escaped as a plain runtime_error, not the folder's ConfigError.
   for (const std::string name : {"002.png", "mask.png"}) {

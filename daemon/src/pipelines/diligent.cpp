@@ -39,7 +39,8 @@ cv::Mat ReadFolderImage(const fs::path& file) {
 
 // Non-blank lines with their 1-based line numbers.
 std::vector<std::pair<int, std::string>> ReadLines(const fs::path& path) {
-  if (fs::is_directory(path)) Malformed(path, 0, "is a directory, expected a text file");
+  std::error_code error;
+  if (fs::is_directory(path, error)) Malformed(path, 0, "is a directory, expected a text file");
   std::ifstream in(path);
   if (!in) Malformed(path, 0, "cannot open (a DiLiGenT folder needs filenames.txt, light_directions.txt and light_intensities.txt)");
   std::vector<std::pair<int, std::string>> lines;
@@ -124,7 +125,9 @@ std::string MatHeaderProblem(const fs::path& path) {
                   : std::uint32_t(head[at + 3]) | std::uint32_t(head[at + 2]) << 8 | std::uint32_t(head[at + 1]) << 16 |
                         std::uint32_t(head[at]) << 24;
   };
-  const std::uintmax_t size = fs::file_size(path);
+  std::error_code error;
+  const std::uintmax_t size = fs::file_size(path, error);
+  if (error) return "cannot tell its size (" + error.message() + ")";
   if (word(132) > size - 136) return "its first variable claims " + std::to_string(word(132)) + " bytes of a " +
                                      std::to_string(size) + "-byte file (truncated or damaged)";
   return {};
@@ -219,8 +222,12 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   bool colour_seen = false;
   for (std::size_t i = 0; i < names.size(); ++i) {
     const fs::path file = root / names[i].second;
-    if (!fs::is_regular_file(file))
-      Malformed(names_file, names[i].first, "'" + names[i].second + "' is not a file in " + root.string());
+    // The error_code form: a name the system refuses (longer than a file
+    // name may be, say) is the line's fault, not an escaped filesystem_error.
+    std::error_code error;
+    if (!fs::is_regular_file(file, error))
+      Malformed(names_file, names[i].first,
+                "'" + names[i].second + "' is not a file in " + root.string() + (error ? " (" + error.message() + ")" : ""));
     const cv::Mat image = ReadFolderImage(file);
     if (first.empty()) {
       first = image;
@@ -287,7 +294,8 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   // Channels are rescaled, so there is no common full-scale code to detect.
   input.saturation_level = std::numeric_limits<double>::infinity();
   const fs::path mask_file = root / "mask.png";
-  if (fs::exists(mask_file)) {
+  std::error_code error;
+  if (fs::exists(mask_file, error)) {
     cv::Mat mask = ReadFolderImage(mask_file);
     if (mask.size() != first.size())
       Malformed(mask_file, 0, std::to_string(mask.cols) + "x" + std::to_string(mask.rows) + ", but the images are " +
@@ -299,7 +307,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
       Malformed(mask_file, 0, "the mask is empty (no nonzero pixel): nothing to solve; fix or remove mask.png");
     input.mask_source = mask_file.string();
   }
-  if (fs::exists(root / "Normal_gt.mat"))
+  if (fs::exists(root / "Normal_gt.mat", error))
     input.truth_normals = ReadNormalsMat(root / "Normal_gt.mat", first.size(), input.object_mask);
   return input;
 }
