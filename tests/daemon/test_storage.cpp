@@ -80,6 +80,15 @@ TEST(ImageIo, AFileMarkedAsDicomIsRefusedNamingItAndTheProcessLives) {
   }
   EXPECT_THROW(ReadImage(png), std::runtime_error);  // its PNG decoder fails; no other decoder is tried
   EXPECT_THROW(ReadImage(dir.path().string()), std::runtime_error);  // a directory
+  {
+    // A sparse file past 1 GiB that starts as a PNG is refused before it is read into memory.
+    const std::filesystem::path huge = dir.path() / "huge.png";
+    std::ofstream(huge, std::ios::binary) << "\x89PNG\r\n\x1a\n";
+    std::filesystem::resize_file(huge, (std::uintmax_t{1} << 30) + 1);
+    std::string why;
+    EXPECT_TRUE(TryReadImage(huge.string(), cv::IMREAD_UNCHANGED, &why).empty());
+    EXPECT_EQ(why, "larger than 1 GiB");
+  }
   EXPECT_THROW(ReadImage((dir.path() / "absent.png").string()), std::runtime_error);
 }
 

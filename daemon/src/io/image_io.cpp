@@ -107,6 +107,13 @@ cv::Mat TryReadImage(const std::string& path, int imread_flags, std::string* why
     *why = fs::exists(path, error) ? "not a regular file" : "missing";
     return {};
   }
+  // Read whole before decoding: past 1 GiB (a 16-bit RGB image of 170
+  // megapixels, stored raw) it is not a frame this project reads.
+  constexpr std::uintmax_t kMaxImageFileBytes = std::uintmax_t{1} << 30;
+  if (const std::uintmax_t size = fs::file_size(path, error); error || size > kMaxImageFileBytes) {
+    *why = error ? "cannot tell its size (" + error.message() + ")" : "larger than 1 GiB";
+    return {};
+  }
   std::ifstream in(path, std::ios::binary);
   std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   if (in.bad()) {
