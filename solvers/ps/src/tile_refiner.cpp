@@ -61,6 +61,7 @@ struct TileRefiner::ThreadState {
   std::vector<std::uint8_t> needs_refit;  // per pixel of the tile
   std::vector<int> doubtful;  // the tile's pixels that need refitting, with lanes
   std::vector<Eigen::Vector3d> doubtful_x;
+  std::vector<float> doubtful_samples;  // `auto`: each doubtful pixel's samples, as the recheck reads them
   std::vector<Recheck> rechecks;
   PixelScratch scratch;  // the per-pixel fitter's
   // Every light's sample of the queued pixels, one row per pixel
@@ -186,7 +187,9 @@ std::size_t TileRefiner::GatherRow(ThreadState& state, int p, const Eigen::Vecto
   return row;
 }
 
-__attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p, const Eigen::Vector3d& x, const LadderFits& fits, const float* samples) {
+__attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p, const Eigen::Vector3d& x,
+                                                              const LadderFits& fits, const float* samples,
+                                                              const float* values) {
   ThreadState& state = states_[thread];
   const LadderStep step = ladder_.Next(fits);
   switch (step.action) {
@@ -199,7 +202,7 @@ __attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p,
       state.trimming.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used});
       const std::size_t at = state.trim_rows.size();
       state.trim_rows.resize(at + trimmers_[thread].row_length());
-      trimmers_[thread].CopySamples(p, &state.trim_rows[at]);
+      trimmers_[thread].CopySamples(p, &state.trim_rows[at], values);
       return;
     }
     case LadderStep::Action::kReweight: {
@@ -319,6 +322,13 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
     }
     state.doubtful.push_back(p);
     state.doubtful_x.push_back(PassSolution(p));
+    // `auto` tests the pixel again later, when the tile's samples have left
+    // the cache: its own are copied now, while they are in it.
+    if (options_.method == Method::kAuto) {
+      const std::size_t at = state.doubtful_samples.size();
+      state.doubtful_samples.resize(at + lights_);
+      recheck_.CopySamples(p, &state.doubtful_samples[at]);
+    }
   };
   // Most pixels pass the screen: the flags (0 or 1) are read eight at a
   // time, and each set one is found as the lowest set bit of its word.
@@ -342,10 +352,11 @@ void TileRefiner::ClimbDoubtful(int thread) {
   const bool recheck = options_.method == Method::kAuto;
   if (recheck) {
     state.rechecks.resize(doubtful);
-    recheck_.Check(state.doubtful, state.doubtful_x, state.rechecks);
+    recheck_.Check(state.doubtful, state.doubtful_x, state.rechecks, state.doubtful_samples.data());
   }
   for (std::size_t j = 0; j < doubtful; ++j) {
     const Eigen::Vector3d& x = state.doubtful_x[j];
+    const float* values = recheck ? &state.doubtful_samples[j * lights_] : nullptr;
     if (!recheck) {  // `robust` and `blinn-phong` refit every pixel: x is not tested
       const PixelFit lambertian = LambertianFit(x, 0.0, 0, 0);
       Climb(thread, state.doubtful[j], x, {&lambertian});
@@ -354,14 +365,15 @@ void TileRefiner::ClimbDoubtful(int thread) {
     const Recheck& again = state.rechecks[j];
     const PixelFit lambertian = LambertianFit(x, again.chi2, again.used, 0);
     if (!again.refitted) {
-      Climb(thread, state.doubtful[j], x, {&lambertian, &kNoFit});
+      Climb(thread, state.doubtful[j], x, {&lambertian, &kNoFit}, nullptr, values);
       continue;
     }
     const PixelFit lit = LambertianFit(again.lit_x, again.lit_chi2, again.lit_used, again.unlit);
-    Climb(thread, state.doubtful[j], x, {&lambertian, &lit});
+    Climb(thread, state.doubtful[j], x, {&lambertian, &lit}, nullptr, values);
   }
   state.doubtful.clear();
   state.doubtful_x.clear();
+  state.doubtful_samples.clear();
   Flush(thread, false);
 }
 

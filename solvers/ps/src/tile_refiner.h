@@ -87,8 +87,10 @@ class TileRefiner {
   void RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& ggx);
   // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps
   // the pixel's answer, or queues it for the stage the ladder asks for.
-  // samples: the pixel's samples as copied for trimming, if they were.
-  void Climb(int thread, int p, const Eigen::Vector3d& x, const LadderFits& fits, const float* samples = nullptr);
+  // samples: the pixel's samples as copied for trimming, if they were;
+  // values: its raw values as copied for the recheck, if they were.
+  void Climb(int thread, int p, const Eigen::Vector3d& x, const LadderFits& fits, const float* samples = nullptr,
+             const float* values = nullptr);
   // A new row of the thread's rows (observed and inverse_sigma), its index.
   std::size_t NewRow(ThreadState& state) const;
   // Pixel p's samples as a new row of the thread's rows (from the planes, or

@@ -125,15 +125,26 @@ RecheckLanes::RecheckLanes(const PhotometricStack& stack, const LambertianOption
   max_frobenius_condition2_ = static_cast<float>(0.99 * max_condition2 * max_condition2);
 }
 
-void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x,
-                         std::span<Recheck> out) const {
-  const Constants c(samples_, max_frobenius_condition2_);
+void RecheckLanes::CopySamples(int pixel, float* out) const {
+  for (int k = 0; k < samples_.lights(); ++k) out[k] = samples_.planes[k][pixel];
+}
+
+void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x, std::span<Recheck> out,
+                         const float* copies) const {
+  Constants c(samples_, max_frobenius_condition2_);
+  // The copies as planes: light k's "plane" starts at copies + k, and pixel
+  // j's sample lies j * lights further on.
+  std::vector<const float*> copied_planes;
+  if (copies) {
+    for (int k = 0; k < c.lights; ++k) copied_planes.push_back(copies + k);
+    c.planes = copied_planes.data();
+  }
   Lanes lanes;
   for (std::size_t first = 0; first < pixels.size(); first += kPixels) {
     const int count = static_cast<int>(std::min<std::size_t>(kPixels, pixels.size() - first));
     for (int i = 0; i < kPixels; ++i) {
       const std::size_t j = first + (i < count ? i : 0);
-      lanes.pixel[i] = pixels[j];
+      lanes.pixel[i] = copies ? static_cast<int>(j) * c.lights : pixels[j];
       lanes.dark[i] = samples_.dark ? samples_.dark[pixels[j]] : 0.0f;
       lanes.x0[i] = static_cast<float>(x[j].x());
       lanes.x1[i] = static_cast<float>(x[j].y());

@@ -37,7 +37,13 @@ class RecheckLanes {
   RecheckLanes(const PhotometricStack& stack, const LambertianOptions& options);
 
   // pixels and x of the same length; any length (taken kFloatLanes at a time).
-  void Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x, std::span<Recheck> out) const;
+  // copies: null, or pixel j's samples at copies[j * lights .. + lights) as
+  // CopySamples wrote them, read instead of the planes.
+  void Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x, std::span<Recheck> out,
+             const float* copies = nullptr) const;
+  // Pixel p's sample under each light, lights() floats, into out.
+  void CopySamples(int pixel, float* out) const;
+  int lights() const { return samples_.lights(); }
 
  private:
   PlaneSamples samples_;

@@ -164,9 +164,9 @@ TrimmedLambertianLanes::TrimmedLambertianLanes(TrimmedLambertianLanes&&) noexcep
 
 int TrimmedLambertianLanes::row_length() const { return RowLayout(samples_.lights()).length(); }
 
-void TrimmedLambertianLanes::CopySamples(int pixel, float* row) const {
+void TrimmedLambertianLanes::CopySamples(int pixel, float* row, const float* values) const {
   const int lights = samples_.lights();
-  for (int k = 0; k < lights; ++k) row[k] = samples_.planes[k][pixel];
+  for (int k = 0; k < lights; ++k) row[k] = values ? values[k] : samples_.planes[k][pixel];
   row[RowLayout(lights).dark()] = samples_.dark ? samples_.dark[pixel] : 0.0f;
   PrepareRow(PlaneConstants(samples_), weight_unit_, row);
 }

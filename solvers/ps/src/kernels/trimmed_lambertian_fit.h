@@ -57,7 +57,9 @@ class TrimmedLambertianLanes {
   // into a lane (the samples in solver units, their weights and their normal
   // equations).
   int row_length() const;
-  void CopySamples(int pixel, float* row) const;
+  // values: null, or the pixel's raw values already copied out (one per
+  // light), read instead of the planes.
+  void CopySamples(int pixel, float* row, const float* values = nullptr) const;
 
   // rows: one row of row_length() floats per pixel, solutions[i] answers row i.
   // A fit with dof = used - 3 > 0 is adequate when chi2 <= chi2_quantile[dof];
