@@ -130,6 +130,17 @@ bool FitLit(const SampleReader& reader, const double* observed, const double* in
 // keeps its inadequate fit. Highlights are a few huge residuals, so this
 // usually stops after one or two rounds at O(n) each, where IRLS needs ~10
 // weighted passes. The per-pixel reference of TrimmedLambertianLanes.
+// The usable samples lit by x and above its prediction by sqrt(gross_u2)
+// sigmas or more (PixelFit::brighter_lit).
+int BrighterLitSamples(const PixelSamples& s, const Eigen::Vector3d& x, double gross_u2) {
+  int count = 0;
+  for (int k = 0; k < s.size(); ++k) {
+    const double prediction = s.w[k].dot(x), r = s.b[k] - prediction;
+    count += prediction > 0.0 && r > 0.0 && r * r >= gross_u2 * s.variance[k];
+  }
+  return count;
+}
+
 PixelFit FitTrimmed(const PixelSamples& s, const ModelLadder& ladder, TrimScratch* t) {
   const int max_rejected = ladder.MaxRejected(s.size());
   const double gross_u2 = ladder.gross_u2();
@@ -459,6 +470,7 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
         break;
       case Action::kTrim:
         robust = FitTrimmed(s, ladder_, &scratch->trim);
+        if (robust.ok) robust.brighter_lit = BrighterLitSamples(s, robust.normal * robust.albedo / M_PI, ladder_.gross_u2());
         fits.robust = &robust;
         break;
       case Action::kReweight: {

@@ -171,6 +171,19 @@ void TrimmedLambertianLanes::CopySamples(int pixel, float* row, const float* val
   PrepareRow(PlaneConstants(samples_), weight_unit_, row);
 }
 
+int TrimmedLambertianLanes::BrighterLitSamples(const float* row, const Eigen::Vector3d& x) const {
+  const RowLayout layout(samples_.lights());
+  const float *observed = row + layout.observed(), *weight = row + layout.weight();
+  int count = 0;
+  for (int k = 0; k < layout.lights; ++k) {
+    const double prediction = samples_.wx[k] * x.x() + samples_.wy[k] * x.y() + samples_.wz[k] * x.z();
+    const double r = observed[k] - prediction;
+    // weight = s^2 unit / Var: r^2 weight / unit is the squared standardised residual.
+    count += weight[k] > 0.0f && prediction > 0.0 && r > 0.0 && r * r * weight[k] >= gross_u2_ * weight_unit_;
+  }
+  return count;
+}
+
 void TrimmedLambertianLanes::Fit(std::span<const float> rows, std::span<const double> chi2_quantile,
                                  std::span<TrimSolution> solutions) {
   State& s = *state_;
