@@ -231,7 +231,7 @@ void TileRefiner::Trim(int thread) {
     const ThreadState::Trimming& t = state.trimming[i];
     const PixelFit lambertian = LambertianFit(t.x, t.chi2, t.used, 0);
     PixelFit trimmed = TrimmedFit(state.trim_solutions[i]);
-    if (trimmed.ok)
+    if (ladder_.Adequate(trimmed))  // the ladder asks only of an adequate trimmed fit
       trimmed.brighter_lit = trimmers_[thread].BrighterLitSamples(&state.trim_rows[i * trimmers_[thread].row_length()],
                                                                   state.trim_solutions[i].x);
     const LadderFits fits{&lambertian, &kNoFit, &trimmed};
