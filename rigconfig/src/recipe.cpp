@@ -406,7 +406,8 @@ std::string RecipeRigPath(const std::string& recipe_path, const std::string& ove
   const YamlNode root = YamlNode::LoadFile(recipe_path);
   if (auto rig = root["recipe"].Find("rig")) {
     const std::string path = RelativeToRecipe(recipe_path, rig->AsString());
-    if (!fs::exists(path)) {
+    std::error_code error;
+    if (!fs::exists(path, error)) {
       const fs::path folder = fs::path(recipe_path).parent_path();
       rig->Fail("rig file " + path + " not found (a relative rig path resolves from the recipe's folder, " +
                 (folder.empty() ? std::string(".") : folder.string()) + "/, not from where photorig runs); fix it " +

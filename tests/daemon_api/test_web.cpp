@@ -199,6 +199,9 @@ TEST_F(Web, ImageRoutesKeepToTheRunAndToImages) {
   EXPECT_EQ(http.Get(base + "/preview/%2E%2E/%2E%2E/queue.sqlite")->status, 400);
   EXPECT_EQ(http.Get(base + "/values/manifest.json")->status, 400);
   EXPECT_EQ(http.Get(base + "/stats/frames/9999_none.png")->status, 404);
+  // A name longer than the file system allows is a missing file, not a 500.
+  EXPECT_EQ(http.Get(base + "/stats/frames/" + std::string(300, 'x') + ".png")->status, 404);
+  EXPECT_EQ(http.Get(base + "/files/" + std::string(300, 'x') + ".json")->status, 404);
   EXPECT_EQ(http.Get("/api/v1/runs/000099-none/preview/frames/0001_led00.png")->status, 404);
   EXPECT_EQ(http.Get(base + "/preview/frames/0001_led00.png?gamma=0")->status, 400);
   EXPECT_EQ(http.Get(base + "/preview/frames/0001_led00.png?low=abc")->status, 400);

@@ -553,7 +553,7 @@ void ApiServer::SendFile(const httplib::Request& req, httplib::Response& res) {
     return Reply(res, resolved);
   std::error_code error;
   const std::uintmax_t size = fs::file_size(file, error);
-  if (error || !fs::is_regular_file(file)) return ErrorReply(res, 404, "no file '" + relative + "' in the run");
+  if (error || !fs::is_regular_file(file, error)) return ErrorReply(res, 404, "no file '" + relative + "' in the run");
   if (size == 0) return res.set_content("", ContentType(file));
   // Streamed from the file, so a large result never sits in memory whole.
   auto in = std::make_shared<std::ifstream>(file, std::ios::binary);
@@ -572,7 +572,9 @@ std::optional<cv::Mat> ApiServer::ReadRunImage(const httplib::Request& req, http
     Reply(res, resolved);
     return std::nullopt;
   }
-  if (!fs::is_regular_file(file)) {
+  // The error_code form: a name the file system refuses (too long) is a 404 like any other.
+  std::error_code error;
+  if (!fs::is_regular_file(file, error)) {
     ErrorReply(res, 404, "no file '" + relative + "' in the run");
     return std::nullopt;
   }
