@@ -123,13 +123,6 @@ bool FitLit(const SampleReader& reader, const double* observed, const double* in
   return true;
 }
 
-// Trimming, the cheap robust stage of kAuto: drop the samples TrimThreshold
-// picks (the worst alone, or all gross outliers of a round together) and
-// refit (rank-one downdates of the 3 x 3 normal equations), until the fit is
-// adequate; a pixel that would have to drop more than `max_rejected` samples
-// keeps its inadequate fit. Highlights are a few huge residuals, so this
-// usually stops after one or two rounds at O(n) each, where IRLS needs ~10
-// weighted passes. The per-pixel reference of TrimmedLambertianLanes.
 // The usable samples lit by x and above its prediction by sqrt(gross_u2)
 // sigmas or more (PixelFit::brighter_lit).
 int BrighterLitSamples(const PixelSamples& s, const Eigen::Vector3d& x, double gross_u2) {
@@ -141,6 +134,13 @@ int BrighterLitSamples(const PixelSamples& s, const Eigen::Vector3d& x, double g
   return count;
 }
 
+// Trimming, the cheap robust stage of kAuto: drop the samples TrimThreshold
+// picks (the worst alone, or all gross outliers of a round together) and
+// refit (rank-one downdates of the 3 x 3 normal equations), until the fit is
+// adequate; a pixel that would have to drop more than `max_rejected` samples
+// keeps its inadequate fit. Highlights are a few huge residuals, so this
+// usually stops after one or two rounds at O(n) each, where IRLS needs ~10
+// weighted passes. The per-pixel reference of TrimmedLambertianLanes.
 PixelFit FitTrimmed(const PixelSamples& s, const ModelLadder& ladder, TrimScratch* t) {
   const int max_rejected = ladder.MaxRejected(s.size());
   const double gross_u2 = ladder.gross_u2();
@@ -470,7 +470,8 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
         break;
       case Action::kTrim:
         robust = FitTrimmed(s, ladder_, &scratch->trim);
-        if (robust.ok) robust.brighter_lit = BrighterLitSamples(s, robust.normal * robust.albedo / M_PI, ladder_.gross_u2());
+        if (ladder_.Adequate(robust))  // the ladder asks only of an adequate trimmed fit
+          robust.brighter_lit = BrighterLitSamples(s, robust.normal * robust.albedo / M_PI, ladder_.gross_u2());
         fits.robust = &robust;
         break;
       case Action::kReweight: {

@@ -20,9 +20,9 @@ constexpr std::size_t kBatch = 64;
 // Doubtful pixels wait for the exact test until a thread has this many:
 // the Lambertian pass streams its samples from memory tile after tile, and
 // stopping it for each tile's handful of doubtful pixels (a matte scene has
-// about 1 %) cost 4-7 % of `auto`'s time on the benchmark spheres; at this
-// many the re-read of their samples is the smaller cost. A glossy tile
-// fills it alone, its samples still in cache.
+// about 1 %) cost 4-7 % of `auto`'s time on the benchmark spheres. Their
+// samples are copied while the tile is in cache (RefineTile), so the wait
+// costs no second read from memory. A glossy tile fills it alone.
 constexpr std::size_t kDeferredDoubtful = 512;
 
 PixelFit TrimmedFit(const TrimSolution& trimmed) {

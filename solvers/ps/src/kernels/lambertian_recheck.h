@@ -1,6 +1,7 @@
 #pragma once
 // A second look at the pixels `auto`'s screen could not accept, several
-// pixels per SIMD lane set, straight from the stack's planes: the exact
+// pixels per SIMD lane set, from the stack's planes or from copies of the
+// pixels' samples made while they were in cache: the exact
 // adequacy test of the Lambertian pass's fit (chi-square with every sample's
 // own variance, where the screen used their average) and, where that fit
 // leaves usable samples in attached shadow, one refit without them (FitLit in
