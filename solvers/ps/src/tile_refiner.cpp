@@ -314,6 +314,7 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
                                  result_->usable_lights.ptr<std::uint16_t>() + begin,
                                  result_->confidence.ptr<float>() + begin, count, screen_threshold_.data(),
                                  state.needs_refit.data());
+  const std::size_t tile_first = state.doubtful.size();
   auto doubt = [&](int i) {
     const int p = begin + i;
     if (!lanes_) {
@@ -326,13 +327,6 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
     }
     state.doubtful.push_back(p);
     state.doubtful_x.push_back(PassSolution(p));
-    // `auto` tests the pixel again later, when the tile's samples have left
-    // the cache: its own are copied now, while they are in it.
-    if (options_.method == Method::kAuto) {
-      const std::size_t at = state.doubtful_samples.size();
-      state.doubtful_samples.resize(at + lights_);
-      recheck_.CopySamples(p, &state.doubtful_samples[at]);
-    }
   };
   // Most pixels pass the screen: the flags (0 or 1) are read eight at a
   // time, and each set one is found as the lowest set bit of its word.
@@ -345,45 +339,61 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
   }
   for (; i < count; ++i)
     if (state.needs_refit[i]) doubt(i);
-  if (lanes_ && state.doubtful.size() >= kDeferredDoubtful) ClimbDoubtful(thread);
+  if (!lanes_) return;
+  const bool recheck = options_.method == Method::kAuto;
+  if (state.doubtful.size() - tile_first >= kDeferredDoubtful) {
+    // A glossy tile: its doubtful pixels are rechecked now, their samples
+    // still in cache.
+    ClimbDoubtful(thread, tile_first, false);
+  } else if (recheck) {
+    // `auto` tests these pixels later, when the tile's samples have left the
+    // cache: their own are copied now, while they are in it.
+    state.doubtful_samples.resize(state.doubtful.size() * lights_);
+    for (std::size_t j = tile_first; j < state.doubtful.size(); ++j)
+      recheck_.CopySamples(state.doubtful[j], &state.doubtful_samples[j * lights_]);
+  }
+  if (state.doubtful.size() >= kDeferredDoubtful) ClimbDoubtful(thread, 0, recheck);
 }
 
-void TileRefiner::ClimbDoubtful(int thread) {
+void TileRefiner::ClimbDoubtful(int thread, std::size_t first, bool copied) {
   ThreadState& state = states_[thread];
-  const std::size_t doubtful = state.doubtful.size();
+  const std::span<const int> pixels(state.doubtful.data() + first, state.doubtful.size() - first);
+  const std::span<const Eigen::Vector3d> xs(state.doubtful_x.data() + first, pixels.size());
+  const float* copies = copied ? state.doubtful_samples.data() + first * lights_ : nullptr;
   // `auto` looks again at the doubtful pixels in lanes before copying any
-  // samples out: most are settled by the exact test or the lit refit.
+  // samples out for the lane stages: most are settled by the exact test or
+  // the lit refit.
   const bool recheck = options_.method == Method::kAuto;
   if (recheck) {
-    state.rechecks.resize(doubtful);
-    recheck_.Check(state.doubtful, state.doubtful_x, state.rechecks, state.doubtful_samples.data());
+    state.rechecks.resize(pixels.size());
+    recheck_.Check(pixels, xs, state.rechecks, copies);
   }
-  for (std::size_t j = 0; j < doubtful; ++j) {
-    const Eigen::Vector3d& x = state.doubtful_x[j];
-    const float* values = recheck ? &state.doubtful_samples[j * lights_] : nullptr;
+  for (std::size_t j = 0; j < pixels.size(); ++j) {
+    const Eigen::Vector3d& x = xs[j];
+    const float* values = copies ? copies + j * lights_ : nullptr;
     if (!recheck) {  // `robust` and `blinn-phong` refit every pixel: x is not tested
       const PixelFit lambertian = LambertianFit(x, 0.0, 0, 0);
-      Climb(thread, state.doubtful[j], x, {&lambertian});
+      Climb(thread, pixels[j], x, {&lambertian});
       continue;
     }
     const Recheck& again = state.rechecks[j];
     const PixelFit lambertian = LambertianFit(x, again.chi2, again.used, 0);
     if (!again.refitted) {
-      Climb(thread, state.doubtful[j], x, {&lambertian, &kNoFit}, nullptr, values);
+      Climb(thread, pixels[j], x, {&lambertian, &kNoFit}, nullptr, values);
       continue;
     }
     const PixelFit lit = LambertianFit(again.lit_x, again.lit_chi2, again.lit_used, again.unlit);
-    Climb(thread, state.doubtful[j], x, {&lambertian, &lit}, nullptr, values);
+    Climb(thread, pixels[j], x, {&lambertian, &lit}, nullptr, values);
   }
-  state.doubtful.clear();
-  state.doubtful_x.clear();
-  state.doubtful_samples.clear();
+  state.doubtful.resize(first);
+  state.doubtful_x.resize(first);
+  if (copied) state.doubtful_samples.resize(first * lights_);
   Flush(thread, false);
 }
 
 void TileRefiner::Finish(int thread) {
   if (!lanes_) return;
-  ClimbDoubtful(thread);
+  ClimbDoubtful(thread, 0, options_.method == Method::kAuto);
   Flush(thread, true);
 }
 

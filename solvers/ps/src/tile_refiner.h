@@ -97,9 +97,11 @@ class TileRefiner {
   // from their copy `samples`), and the Lambertian fit x tested on them.
   std::size_t GatherRow(ThreadState& state, int p, const Eigen::Vector3d& x, PixelFit* lambertian,
                         const float* samples = nullptr);
-  // The exact test and lit refit of the thread's doubtful pixels, and their
-  // climbs; RefineTile collects them until there are kDeferredDoubtful.
-  void ClimbDoubtful(int thread);
+  // The exact test and lit refit of the thread's doubtful pixels from
+  // `first` on, and their climbs; RefineTile collects them until there are
+  // kDeferredDoubtful. copied: their samples are in the thread's copies
+  // (doubtful_samples, from `first` on), not only in the planes.
+  void ClimbDoubtful(int thread, std::size_t first, bool copied);
   // The lane stages, on the thread's queues.
   void Trim(int thread);
   void Reweight(int thread);
