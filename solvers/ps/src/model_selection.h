@@ -52,9 +52,6 @@ struct PixelFit {
   int parameters = 3;
   int used = 0;          // samples with weight >= inlier threshold (all for least squares)
   int rejected = 0;
-  // A trimmed fit: its usable samples lit by its normal and above its
-  // prediction by gross_outlier_sigma or more, the ones a lobe could make.
-  int brighter_lit = 0;
   PixelModel model = PixelModel::kLambertian;
 
   double Bic() const { return chi2 + parameters * std::log(std::max(used, 1)); }
@@ -180,10 +177,8 @@ class ModelLadder {
   //      where trimming failed), kept if its information criterion is lower
   //      than the Lambertian fit's on the same samples; else the trimmed fit
   //      if adequate, else that Lambertian fit. An adequate trimmed fit does
-  //      not end the climb where it dropped what could be a highlight's core
-  //      (PixelFit::brighter_lit): the lobe's shoulders it kept still tilt
-  //      its normal. Elsewhere it stands: a lobe only adds light, and only
-  //      where the surface is lit.
+  //      not end the climb: the samples it dropped are a highlight's core,
+  //      and the lobe's shoulders it kept still tilt its normal.
   // `robust` keeps the IRLS fit, `blinn-phong` the lobe fitted from the
   // trimmed fit, `lambertian` and `l2` the Lambertian fit. Where the fit a
   // method asked for fails, it falls back: `blinn-phong` to the trimmed fit,
@@ -282,7 +277,6 @@ inline LadderStep ModelLadder::Next(const LadderFits& fits) const {
   const bool trimmed_adequate = Adequate(trimmed);  // it trimmed at most its allowance
   const PixelFit& adequate_simpler = trimmed.rejected > 0 ? trimmed : lambertian;
   if (lambertian.used <= kBlinnPhongParameters) return Keep(trimmed_adequate ? adequate_simpler : lambertian);
-  if (trimmed_adequate && trimmed.brighter_lit == 0) return Keep(adequate_simpler);
   if (!fits.blinn_phong) return {Action::kFitLobe, nullptr, trimmed.ok ? &trimmed : &lambertian};
   // The information criterion decides between the models fitted to all
   // usable samples; where the lobe does not pay for its parameters, an

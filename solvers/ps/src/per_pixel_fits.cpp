@@ -123,17 +123,6 @@ bool FitLit(const SampleReader& reader, const double* observed, const double* in
   return true;
 }
 
-// The usable samples lit by x and above its prediction by sqrt(gross_u2)
-// sigmas or more (PixelFit::brighter_lit).
-int BrighterLitSamples(const PixelSamples& s, const Eigen::Vector3d& x, double gross_u2) {
-  int count = 0;
-  for (int k = 0; k < s.size(); ++k) {
-    const double prediction = s.w[k].dot(x), r = s.b[k] - prediction;
-    count += prediction > 0.0 && r > 0.0 && r * r >= gross_u2 * s.variance[k];
-  }
-  return count;
-}
-
 // Trimming, the cheap robust stage of kAuto: drop the samples TrimThreshold
 // picks (the worst alone, or all gross outliers of a round together) and
 // refit (rank-one downdates of the 3 x 3 normal equations), until the fit is
@@ -470,8 +459,6 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
         break;
       case Action::kTrim:
         robust = FitTrimmed(s, ladder_, &scratch->trim);
-        if (ladder_.Adequate(robust))  // the ladder asks only of an adequate trimmed fit
-          robust.brighter_lit = BrighterLitSamples(s, robust.normal * robust.albedo / M_PI, ladder_.gross_u2());
         fits.robust = &robust;
         break;
       case Action::kReweight: {

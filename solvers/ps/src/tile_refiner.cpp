@@ -229,11 +229,7 @@ void TileRefiner::Trim(int thread) {
   if (count > 0) trimmers_[thread].Fit(state.trim_rows, ladder_.quantiles(), state.trim_solutions);
   for (std::size_t i = 0; i < count; ++i) {
     const ThreadState::Trimming& t = state.trimming[i];
-    const PixelFit lambertian = LambertianFit(t.x, t.chi2, t.used, 0);
-    PixelFit trimmed = TrimmedFit(state.trim_solutions[i]);
-    if (ladder_.Adequate(trimmed))  // the ladder asks only of an adequate trimmed fit
-      trimmed.brighter_lit = trimmers_[thread].BrighterLitSamples(&state.trim_rows[i * trimmers_[thread].row_length()],
-                                                                  state.trim_solutions[i].x);
+    const PixelFit lambertian = LambertianFit(t.x, t.chi2, t.used, 0), trimmed = TrimmedFit(state.trim_solutions[i]);
     const LadderFits fits{&lambertian, &kNoFit, &trimmed};
     // The pixel's samples as copied: only a pixel that goes on to the
     // Blinn-Phong fit has them read into a row of doubles.

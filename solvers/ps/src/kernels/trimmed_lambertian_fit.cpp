@@ -132,21 +132,6 @@ void DropSamples(const PlaneConstants& c, const float* observed, const float* u2
   }
 }
 
-// The usable samples of a row lit by x and above its prediction by
-// sqrt(gross_u2) sigmas or more; weight = s^2 unit / Var, so r^2 weight is
-// the squared standardised residual times unit (the bound comes so scaled).
-PHOTORIG_PS_MULTIVERSION
-int CountBrighterLit(const PlaneConstants& c, const float* observed, const float* weight, float x0, float x1,
-                     float x2, float scaled_gross_u2) {
-  int count = 0;
-#pragma omp simd reduction(+ : count)
-  for (int k = 0; k < c.lights; ++k) {
-    const float prediction = c.wx[k] * x0 + c.wy[k] * x1 + c.wz[k] * x2, r = observed[k] - prediction;
-    count += (weight[k] > 0.0f) & (prediction > 0.0f) & (r > 0.0f) & (r * r * weight[k] >= scaled_gross_u2) ? 1 : 0;
-  }
-  return count;
-}
-
 }  // namespace
 
 struct TrimmedLambertianLanes::State {
@@ -184,13 +169,6 @@ void TrimmedLambertianLanes::CopySamples(int pixel, float* row, const float* val
   for (int k = 0; k < lights; ++k) row[k] = values ? values[k] : samples_.planes[k][pixel];
   row[RowLayout(lights).dark()] = samples_.dark ? samples_.dark[pixel] : 0.0f;
   PrepareRow(PlaneConstants(samples_), weight_unit_, row);
-}
-
-int TrimmedLambertianLanes::BrighterLitSamples(const float* row, const Eigen::Vector3d& x) const {
-  const RowLayout layout(samples_.lights());
-  return CountBrighterLit(PlaneConstants(samples_), row + layout.observed(), row + layout.weight(),
-                          static_cast<float>(x.x()), static_cast<float>(x.y()), static_cast<float>(x.z()),
-                          static_cast<float>(gross_u2_ * weight_unit_));
 }
 
 void TrimmedLambertianLanes::Fit(std::span<const float> rows, std::span<const double> chi2_quantile,

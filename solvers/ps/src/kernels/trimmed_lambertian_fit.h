@@ -60,9 +60,6 @@ class TrimmedLambertianLanes {
   // values: null, or the pixel's raw values already copied out (one per
   // light), read instead of the planes.
   void CopySamples(int pixel, float* row, const float* values = nullptr) const;
-  // Of a row's usable samples, those lit by x and above its prediction by
-  // sqrt(gross_u2) sigmas or more (PixelFit::brighter_lit).
-  int BrighterLitSamples(const float* row, const Eigen::Vector3d& x) const;
 
   // rows: one row of row_length() floats per pixel, solutions[i] answers row i.
   // A fit with dof = used - 3 > 0 is adequate when chi2 <= chi2_quantile[dof];
