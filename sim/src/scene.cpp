@@ -6,9 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <functional>
-#include <iterator>
 #include <limits>
 #include <stdexcept>
 #include <vector>
@@ -26,11 +24,12 @@ using HeightFunction = std::function<bool(double x, double y, double* z, double*
 cv::Mat LoadDepthMap(const Scene& scene) {
   // Decoded only as a format its first bytes name: OpenCV hands a file
   // marked as DICOM to a decoder that aborts on a malformed one.
-  std::ifstream in(scene.depth_map_path, std::ios::binary);
-  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const bool known = solvers::core::ImageFileFormatOf(bytes) != solvers::core::ImageFileFormat::kUnknown;
-  const cv::Mat raw = known ? cv::imdecode(bytes, cv::IMREAD_UNCHANGED) : cv::Mat();
-  if (raw.empty()) throw std::runtime_error("cannot read depth map '" + scene.depth_map_path + "' (missing, or not a PNG or TIFF image)");
+  std::vector<std::uint8_t> bytes;
+  std::string why = "truncated or corrupt";
+  const cv::Mat raw = solvers::core::ReadImageFileBytes(scene.depth_map_path, &bytes, &why)
+                          ? cv::imdecode(bytes, cv::IMREAD_UNCHANGED)
+                          : cv::Mat();
+  if (raw.empty()) throw std::runtime_error("cannot read depth map '" + scene.depth_map_path + "' (" + why + ")");
   if (raw.channels() != 1 || (raw.depth() != CV_16U && raw.depth() != CV_32F))
     throw std::runtime_error("depth map '" + scene.depth_map_path +
                              "': expected a single-channel 16-bit PNG or float TIFF");

@@ -4,6 +4,7 @@
 // iteration, and `auto` in lanes against the per-pixel reference.
 #include "kernels/lobe_lane_fit.h"
 #include "kernels/irls_lambertian_fit.h"
+#include "kernels/lambertian_recheck.h"
 #include "kernels/lane_math.h"
 #include "kernels/trimmed_lambertian_fit.h"
 #include "lambertian_tiles.h"
@@ -541,6 +542,48 @@ TEST(TrimmedLambertianLanes, DropsExactlyTheOutliersAndNothingElse) {
     EXPECT_LE(s.chi2, thresholds[s.used - 3]) << p;
     EXPECT_LT((s.x - truth[p]).norm(), 2.0) << p;  // a few noise sigmas over ~30 samples
   }
+}
+
+// `auto` copies a doubtful pixel's samples while its tile is in cache and
+// rechecks it later from the copy: the same test, bit for bit, as from the
+// planes, for pixels that pass, fail, and are refitted without a sample in
+// attached shadow.
+TEST(RecheckLanes, ReadsCopiedSamplesAsThePlanes) {
+  const auto lights = testing::RingLights(32, 25, 80);
+  const int n = static_cast<int>(lights.size()), pixels = 21;  // not a multiple of the lane count
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::vector<double> observed(pixels * n);
+  std::vector<Eigen::Vector3d> x;
+  for (int p = 0; p < pixels; ++p) {
+    const Eigen::Vector3d normal = Eigen::Vector3d(0.6 * noise(rng), 0.6 * noise(rng), 1.0).normalized();
+    x.push_back(normal * 100.0);
+    for (int k = 0; k < n; ++k) observed[p * n + k] = std::max(0.0, lights[k].dot(x.back())) + noise(rng);
+    if (p % 3 == 1) observed[p * n + p % n] += 60.0;  // an outlier
+  }
+  const PhotometricStack stack = RowStack(lights, observed);
+  const internal::RecheckLanes recheck(stack, LambertianOptions{});
+  std::vector<int> indices(pixels);
+  std::vector<float> copies(static_cast<std::size_t>(pixels) * n);
+  for (int p = 0; p < pixels; ++p) {
+    indices[p] = p;
+    recheck.CopySamples(p, &copies[static_cast<std::size_t>(p) * n]);
+  }
+  std::vector<internal::Recheck> from_planes(pixels), from_copies(pixels);
+  recheck.Check(indices, x, from_planes);
+  recheck.Check(indices, x, from_copies, copies.data());
+  int refitted = 0;
+  for (int p = 0; p < pixels; ++p) {
+    EXPECT_EQ(from_copies[p].chi2, from_planes[p].chi2) << p;
+    EXPECT_EQ(from_copies[p].used, from_planes[p].used) << p;
+    EXPECT_EQ(from_copies[p].unlit, from_planes[p].unlit) << p;
+    EXPECT_EQ(from_copies[p].refitted, from_planes[p].refitted) << p;
+    EXPECT_EQ(from_copies[p].lit_x, from_planes[p].lit_x) << p;
+    EXPECT_EQ(from_copies[p].lit_chi2, from_planes[p].lit_chi2) << p;
+    EXPECT_GT(from_planes[p].used, 0) << p;
+    refitted += from_planes[p].refitted;
+  }
+  EXPECT_GT(refitted, 0);  // the refit path is exercised too
 }
 
 // A lone bad sample leaves alone; gross ones leave together with everything

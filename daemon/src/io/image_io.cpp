@@ -13,8 +13,6 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <stdexcept>
 #include <system_error>
 
@@ -102,28 +100,8 @@ void WriteFloatTiff(const std::string& path, const cv::Mat& image) {
 // a file with DICOM's mark, cv::imread would give it to GDCM, which aborts
 // the process on a malformed one.
 cv::Mat TryReadImage(const std::string& path, int imread_flags, std::string* why) {
-  std::error_code error;
-  if (!fs::is_regular_file(path, error)) {
-    *why = fs::exists(path, error) ? "not a regular file" : "missing";
-    return {};
-  }
-  // Read whole before decoding: past 1 GiB (a 16-bit RGB image of 170
-  // megapixels, stored raw) it is not a frame this project reads.
-  constexpr std::uintmax_t kMaxImageFileBytes = std::uintmax_t{1} << 30;
-  if (const std::uintmax_t size = fs::file_size(path, error); error || size > kMaxImageFileBytes) {
-    *why = error ? "cannot tell its size (" + error.message() + ")" : "larger than 1 GiB";
-    return {};
-  }
-  std::ifstream in(path, std::ios::binary);
-  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) {
-    *why = "read error";
-    return {};
-  }
-  if (solvers::core::ImageFileFormatOf(bytes) == solvers::core::ImageFileFormat::kUnknown) {
-    *why = std::string("not a ") + solvers::core::ReadableImageFormats() + " file: its first bytes name none of them";
-    return {};
-  }
+  std::vector<std::uint8_t> bytes;
+  if (!solvers::core::ReadImageFileBytes(path, &bytes, why)) return {};
   cv::Mat image = cv::imdecode(bytes, imread_flags);
   if (image.empty()) *why = "truncated or corrupt";
   return image;
@@ -137,11 +115,10 @@ cv::Mat ReadImage(const std::string& path, int imread_flags) {
 }
 
 cv::Mat ReadInputImage(const std::string& path, int imread_flags) {
-  try {
-    return ReadImage(path, imread_flags);
-  } catch (const std::runtime_error& e) {
-    throw std::invalid_argument(e.what());
-  }
+  std::string why;
+  cv::Mat image = TryReadImage(path, imread_flags, &why);
+  if (image.empty()) throw std::invalid_argument("cannot read image " + path + " (" + why + ")");
+  return image;
 }
 
 cv::Mat ReadFloatTiff(const std::string& path) {

@@ -637,13 +637,12 @@ ServiceReply RunService::ResolveRunPath(const std::string& id, const std::string
   const fs::path root = fs::weakly_canonical(directory, error);
   // Resolve first, then check: "..", absolute paths and symlinks all end up outside the root.
   const fs::path target = fs::weakly_canonical(root / relative, error);
+  const auto outside = std::mismatch(root.begin(), root.end(), target.begin(), target.end()).first != root.end();
+  if (relative.find('\0') != std::string::npos || fs::path(relative).is_absolute() || (!error && outside))
+    return Error(400, "path '" + relative + "' leaves the run directory");
   // A name the file system refuses (longer than a file name may be, a loop
   // of links) names no file of the run.
-  if (error && !relative.empty() && relative.find('\0') == std::string::npos)
-    return Error(404, "no file '" + relative + "' in the run (" + error.message() + ")");
-  const auto outside = std::mismatch(root.begin(), root.end(), target.begin(), target.end()).first != root.end();
-  if (error || relative.find('\0') != std::string::npos || fs::path(relative).is_absolute() || outside)
-    return Error(400, "path '" + relative + "' leaves the run directory");
+  if (error) return Error(404, "no file '" + relative + "' in the run (" + error.message() + ")");
   *absolute = target.string();
   return {200, json::object()};
 }

@@ -1,7 +1,11 @@
 #include "photorig/solvers/core/image_file_format.h"
 
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string_view>
+#include <system_error>
 
 namespace photorig::solvers::core {
 namespace {
@@ -35,5 +39,29 @@ ImageFileFormat ImageFileFormatOf(std::span<const std::uint8_t> head) {
 }
 
 const char* ReadableImageFormats() { return "PNG, TIFF, JPEG, BMP, PNM or Radiance HDR"; }
+
+bool ReadImageFileBytes(const std::string& path, std::vector<std::uint8_t>* bytes, std::string* why) {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  if (!fs::is_regular_file(path, error)) {  // a device such as /dev/urandom would never end
+    *why = fs::exists(path, error) ? "not a regular file" : "missing";
+    return false;
+  }
+  if (const std::uintmax_t size = fs::file_size(path, error); error || size > kMaxImageFileBytes) {
+    *why = error ? "cannot tell its size (" + error.message() + ")" : "larger than 1 GiB";
+    return false;
+  }
+  std::ifstream in(path, std::ios::binary);
+  bytes->assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  if (!in.is_open() || in.bad()) {
+    *why = "read error";
+    return false;
+  }
+  if (ImageFileFormatOf(*bytes) == ImageFileFormat::kUnknown) {
+    *why = std::string("not a ") + ReadableImageFormats() + " file: its first bytes name none of them";
+    return false;
+  }
+  return true;
+}
 
 }  // namespace photorig::solvers::core

@@ -44,7 +44,6 @@ class RecheckLanes {
              const float* copies = nullptr) const;
   // Pixel p's sample under each light, lights() floats, into out.
   void CopySamples(int pixel, float* out) const;
-  int lights() const { return samples_.lights(); }
 
  private:
   PlaneSamples samples_;

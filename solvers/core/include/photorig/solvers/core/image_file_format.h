@@ -10,6 +10,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <string>
+#include <vector>
 
 namespace photorig::solvers::core {
 
@@ -21,5 +23,16 @@ ImageFileFormat ImageFileFormatOf(std::span<const std::uint8_t> head);
 
 // The formats named above, for messages: "PNG, TIFF, JPEG, BMP, PNM or Radiance HDR".
 const char* ReadableImageFormats();
+
+// Largest image file read: past 1 GiB (a 16-bit RGB image of 170 megapixels
+// stored raw) it is not a frame this project reads, and the file is read
+// whole before it is decoded.
+inline constexpr std::uintmax_t kMaxImageFileBytes = std::uintmax_t{1} << 30;
+
+// The bytes of an image file ready to decode: a regular file of at most
+// kMaxImageFileBytes whose first bytes name a readable format. Otherwise
+// false, and `why` says which (missing, not a regular file, its size, a read
+// error, not one of the formats).
+bool ReadImageFileBytes(const std::string& path, std::vector<std::uint8_t>* bytes, std::string* why);
 
 }  // namespace photorig::solvers::core
