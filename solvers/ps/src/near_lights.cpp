@@ -14,6 +14,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -78,12 +79,21 @@ struct PixelProblem {
     PixelProblem lattice = *this;
     lattice.step = lattice_step, lattice.origin = lattice_origin;
     lattice.rays = rays.Lattice(lattice_step, lattice_origin);
-    lattice.copies.clear(), lattice.planes.clear();
-    for (const cv::Mat& image : stack.images) {
-      cv::Mat& samples = lattice.copies.emplace_back(lattice.rows(), lattice.cols(), CV_32F);
-      for (int r = 0; r < samples.rows; ++r)
-        for (int c = 0; c < samples.cols; ++c) samples.at<float>(r, c) = image.at<float>(lattice.ImageRow(r), lattice.ImageCol(c));
-      lattice.planes.push_back(samples.ptr<float>());
+    const int count = static_cast<int>(stack.images.size());
+    lattice.copies.assign(count, cv::Mat());
+    lattice.planes.assign(count, nullptr);
+    // Each sample is a line of its own in a plane of the whole image: the
+    // planes in parallel keep twice as many of those reads in flight.
+#pragma omp parallel for schedule(static)
+    for (int k = 0; k < count; ++k) {
+      cv::Mat& samples = lattice.copies[k];
+      samples.create(lattice.rows(), lattice.cols(), CV_32F);
+      for (int r = 0; r < samples.rows; ++r) {
+        const float* in = stack.images[k].ptr<float>(lattice.ImageRow(r)) + lattice.origin;
+        float* out = samples.ptr<float>(r);
+        for (int c = 0; c < samples.cols; ++c) out[c] = in[lattice.step * c];
+      }
+      lattice.planes[k] = samples.ptr<float>();
     }
     return lattice;
   }
@@ -187,21 +197,40 @@ void WriteConfidence(const internal::NearSampleRules& rules, int used, int param
   *out = rules.noise_known && dof > 0 ? static_cast<float>(std::min(1.0, dof / std::max(chi_square, 1e-300))) : 0.0f;
 }
 
+// The maps of a fit of every pixel, their values left for FitAllPixels to write.
 void AllocateResult(const cv::Size size, NormalMap* result) {
   result->normals.create(size, CV_32FC3);
-  result->normals.setTo(cv::Scalar::all(kNaN));
   result->albedo.create(size, CV_32F);
-  result->albedo.setTo(kNaN);
   result->flags.create(size, CV_8U);
-  result->flags.setTo(static_cast<int>(PixelFlag::kOutsideMask));
-  result->usable_lights = cv::Mat::zeros(size, CV_16U);
-  result->model = cv::Mat::zeros(size, CV_8U);
-  result->confidence = cv::Mat::zeros(size, CV_32F);
-  result->specular = cv::Mat::zeros(size, CV_32FC2);
+  result->usable_lights.create(size, CV_16U);
+  result->model.create(size, CV_8U);
+  result->confidence.create(size, CV_32F);
+  result->specular.create(size, CV_32FC2);
 }
 
-// Every pixel of the mask fitted with its surface at height_mm; each fit's
-// chi-square into *chi_square (CV_32F) unless null.
+// Row r of every map of a NormalMap, as plain pointers: a pass writes
+// every pixel of its rows.
+struct MapRow {
+  float *normal, *albedo, *confidence, *specular;
+  std::uint8_t *flag, *model;
+  std::uint16_t* usable;
+  MapRow(NormalMap* map, int r)
+      : normal(map->normals.ptr<float>(r)), albedo(map->albedo.ptr<float>(r)),
+        confidence(map->confidence.ptr<float>(r)), specular(map->specular.ptr<float>(r)),
+        flag(map->flags.ptr<std::uint8_t>(r)), model(map->model.ptr<std::uint8_t>(r)),
+        usable(map->usable_lights.ptr<std::uint16_t>(r)) {}
+  // Pixel c without a normal (flag says why), its lobe cleared.
+  void Unsolved(int c, PixelFlag why, int used) const {
+    normal[3 * c] = normal[3 * c + 1] = normal[3 * c + 2] = kNaN;
+    albedo[c] = kNaN, confidence[c] = 0.0f, specular[2 * c] = specular[2 * c + 1] = 0.0f;
+    flag[c] = static_cast<std::uint8_t>(why), model[c] = static_cast<std::uint8_t>(PixelModel::kNone);
+    usable[c] = static_cast<std::uint16_t>(std::min(used, 65535));
+  }
+};
+
+// Every pixel of the mask fitted with its surface at height_mm, every map
+// of *result written whole (AllocateResult); each fit's chi-square into
+// *chi_square (CV_32F) unless null.
 void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* result, cv::Mat* chi_square = nullptr) {
   if (chi_square) chi_square->create(height_mm.size(), CV_32F);
 #pragma omp parallel
@@ -210,29 +239,33 @@ void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* re
     std::vector<PixelFit> fits;
 #pragma omp for schedule(dynamic, 4)
     for (int r = 0; r < p.rows(); ++r) {
+      const MapRow out(result, r);
+      const float* height = height_mm.ptr<float>(r);
       row.clear();
       for (int c = 0; c < p.cols(); ++c)
-        if (p.InMask(r, c)) row.push_back({r, c, height_mm.at<float>(r, c)});
+        if (p.InMask(r, c))
+          row.push_back({r, c, height[c]});
+        else
+          out.Unsolved(c, PixelFlag::kOutsideMask, 0);
       fits.resize(row.size());
       FitPixels(p, row, fits);
+      float* chi = chi_square ? chi_square->ptr<float>(r) : nullptr;
       for (std::size_t i = 0; i < row.size(); ++i) {
         const int c = row[i].c;
         const PixelFit& fit = fits[i];
-        if (chi_square) chi_square->at<float>(r, c) = static_cast<float>(fit.chi_square);
-        result->flags.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(fit.flag);
-        result->usable_lights.at<std::uint16_t>(r, c) = static_cast<std::uint16_t>(std::min(fit.usable, 65535));
+        if (chi) chi[c] = static_cast<float>(fit.chi_square);
         if (fit.flag != PixelFlag::kSolved) {
-          result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(kNaN, kNaN, kNaN);
-          result->albedo.at<float>(r, c) = kNaN;
-          result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelModel::kNone);
-          result->confidence.at<float>(r, c) = 0.0f;
+          out.Unsolved(c, fit.flag, fit.usable);
           continue;
         }
         const Eigen::Vector3d n = fit.b * fit.inverse_length;
-        result->normals.at<cv::Vec3f>(r, c) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
-        result->albedo.at<float>(r, c) = static_cast<float>(kPi * fit.length);
-        result->model.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(PixelModel::kLambertian);
-        result->confidence.at<float>(r, c) = fit.confidence;
+        out.normal[3 * c] = static_cast<float>(n.x()), out.normal[3 * c + 1] = static_cast<float>(n.y());
+        out.normal[3 * c + 2] = static_cast<float>(n.z());
+        out.albedo[c] = static_cast<float>(kPi * fit.length), out.confidence[c] = fit.confidence;
+        out.specular[2 * c] = out.specular[2 * c + 1] = 0.0f;
+        out.flag[c] = static_cast<std::uint8_t>(PixelFlag::kSolved);
+        out.model[c] = static_cast<std::uint8_t>(PixelModel::kLambertian);
+        out.usable[c] = static_cast<std::uint16_t>(std::min(fit.usable, 65535));
       }
     }
   }
@@ -593,6 +626,22 @@ std::vector<internal::GlossyPixel> Refit(const PixelProblem& p, const Photometri
   return glossy;
 }
 
+// Each pixel of *values (CV_32F) that `known` leaves out (0) takes the value
+// of the nearest pixel it keeps; nothing changes if it keeps none.
+void FillFromNearest(const cv::Mat& known, cv::Mat* values) {
+  if (cv::countNonZero(known) == 0) return;
+  cv::Mat distance, labels;
+  const cv::Mat unknown = ~known;
+  cv::distanceTransform(unknown, distance, labels, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+  std::vector<float> value_of_label(values->total() + 1);  // labels number the known pixels from 1
+  for (int r = 0; r < values->rows; ++r)
+    for (int c = 0; c < values->cols; ++c)
+      if (known.at<std::uint8_t>(r, c)) value_of_label[labels.at<int>(r, c)] = values->at<float>(r, c);
+  for (int r = 0; r < values->rows; ++r)
+    for (int c = 0; c < values->cols; ++c)
+      if (!known.at<std::uint8_t>(r, c)) values->at<float>(r, c) = value_of_label[labels.at<int>(r, c)];
+}
+
 // The integrated height of every pixel of p's lattice, 0 at its reference
 // (the mean for an orthographic camera; for a pinhole one, the
 // geometric-mean distance from the camera at the sample plane). The
@@ -611,29 +660,20 @@ cv::Mat RelativeDepth(const NearLightOptions& options, const PixelProblem& p, co
   const IntegrationSummary integrated =
       pinhole ? IntegrateNormalsPerspective(integration, p.rays, map.normals, solved, &depth, workspace)
               : IntegrateNormals(integration, map.normals, solved, &depth, workspace);
-  cv::Mat relative = cv::Mat::zeros(map.normals.size(), CV_32F);
-  if (!integrated.IsSolutionUsable() || integrated.pixels == 0) return relative;
+  if (!integrated.IsSolutionUsable() || integrated.pixels == 0) return cv::Mat::zeros(map.normals.size(), CV_32F);
   const cv::Mat known = depth == depth;  // not NaN
-  cv::Mat distance, labels;
-  cv::Mat unknown = ~known;
-  cv::distanceTransform(unknown, distance, labels, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
-  std::vector<float> value_of_label(depth.total() + 1, 0.0f);  // labels number the known pixels from 1
-  for (int r = 0; r < depth.rows; ++r)
-    for (int c = 0; c < depth.cols; ++c)
-      if (known.at<std::uint8_t>(r, c)) value_of_label[labels.at<int>(r, c)] = depth.at<float>(r, c);
   const double reference = pinhole ? 0.0 : cv::mean(depth, known)[0];
-  for (int r = 0; r < depth.rows; ++r)
-    for (int c = 0; c < depth.cols; ++c)
-      relative.at<float>(r, c) = static_cast<float>(
-          (known.at<std::uint8_t>(r, c) ? depth.at<float>(r, c) : value_of_label[labels.at<int>(r, c)]) - reference);
-  return relative;
+  FillFromNearest(known, &depth);
+  return depth - reference;
 }
 
-// The lattice's relative heights (`lattice` of lattice_problem) at every
-// pixel of `image` (a step-1 problem), bilinear between the lattice pixels
-// around it; past the lattice's last row or column, the nearest one's.
-cv::Mat LatticeToImage(const PixelProblem& lattice_problem, const cv::Mat& lattice, const PixelProblem& image) {
-  cv::Mat relative(image.size(), CV_32F);
+// Each pixel's height at `image`'s pixels (a step-1 problem) with the
+// surface placed at offset_mm, its relative height bilinear between the
+// pixels of lattice_problem's `lattice` around it; past the lattice's last
+// row or column, the nearest one's.
+cv::Mat HeightsFromLattice(const PixelProblem& lattice_problem, const cv::Mat& lattice, const PixelProblem& image,
+                           double offset_mm) {
+  cv::Mat height(image.size(), CV_32F);
   const double step = lattice_problem.step, origin = lattice_problem.origin;
   // Image pixel i lies between lattice pixels low and low + 1 (clamped to
   // the last), `fraction` of the way: worked out once per column and row.
@@ -646,21 +686,22 @@ cv::Mat LatticeToImage(const PixelProblem& lattice_problem, const cv::Mat& latti
     const int low = std::min(static_cast<int>(u), std::max(last - 1, 0));
     return Between{low, std::min(low + 1, last), static_cast<float>(u - low)};
   };
-  std::vector<Between> columns(relative.cols);
-  for (int c = 0; c < relative.cols; ++c) columns[c] = between(c, lattice.cols - 1);
-  for (int r = 0; r < relative.rows; ++r) {
+  std::vector<Between> columns(height.cols);
+  for (int c = 0; c < height.cols; ++c) columns[c] = between(c, lattice.cols - 1);
+#pragma omp parallel for schedule(static)
+  for (int r = 0; r < height.rows; ++r) {
     const Between row = between(r, lattice.rows - 1);
     const float* top = lattice.ptr<float>(row.low);
     const float* bottom = lattice.ptr<float>(row.high);
-    float* out = relative.ptr<float>(r);
-    for (int c = 0; c < relative.cols; ++c) {
+    float* out = height.ptr<float>(r);
+    for (int c = 0; c < height.cols; ++c) {
       const Between& column = columns[c];
       const float upper = top[column.low] + column.fraction * (top[column.high] - top[column.low]);
       const float lower = bottom[column.low] + column.fraction * (bottom[column.high] - bottom[column.low]);
-      out[c] = upper + row.fraction * (lower - upper);
+      out[c] = static_cast<float>(image.Height(upper + row.fraction * (lower - upper), offset_mm));
     }
   }
-  return relative;
+  return height;
 }
 
 // The solved pixels of every stride-th row and column, with their
@@ -749,9 +790,15 @@ OffsetRange DepthOffsetRange(const std::vector<camera::NearLight>& lights, const
 }
 
 // The depth offset within the range where the grid's summed misfit is least.
+// With a guess (the last round's offset), first within kGuessWindowMm of it:
+// a round moves the surface by hundredths of a millimetre once it is placed,
+// and the search's first golden-section steps across the whole range would
+// cost a full round's fits each. Should the least misfit there lie at the
+// window's edge, the whole range is searched after all.
 double BestOffset(const PixelProblem& p, const PhotometricStereoOptions& options, const NearLightOptions& near_options,
-                  const NormalMap& map, const cv::Mat& relative, const OffsetRange& range) {
-  constexpr double kToleranceMm = 0.01;
+                  const NormalMap& map, const cv::Mat& relative, const OffsetRange& range,
+                  std::optional<double> guess_mm = std::nullopt) {
+  constexpr double kToleranceMm = 0.01, kGuessWindowMm = 1.0;
   // offset_stride counts the image's pixels, a lattice pixel p.step of them.
   SparseGrid grid = SparsePixels((near_options.offset_stride + p.step - 1) / p.step, map, relative);
   const LambertianAdequacy adequacy(p, options);  // its quantiles are worked out once for the whole search
@@ -760,13 +807,24 @@ double BestOffset(const PixelProblem& p, const PhotometricStereoOptions& options
   // ones where not. Its tolerance is relative to |t|, so t runs over [1, 2]
   // for a near-uniform one in mm; the bracket it stops at is a few
   // tolerances wide.
-  const double width_mm = range.high_mm - range.low_mm;
-  const int bits = static_cast<int>(std::ceil(1.0 - std::log2(kToleranceMm / (4.0 * width_mm))));
-  auto offset = [&](double t) { return range.low_mm + (t - 1.0) * width_mm; };
-  std::uintmax_t max_iterations = 200;
-  const auto [t, misfit] = boost::math::tools::brent_find_minima(
-      [&](double t) { return SparseMisfit(p, options, adequacy, grid, offset(t)); }, 1.0, 2.0, bits, max_iterations);
-  return offset(t);
+  auto search = [&](const OffsetRange& within) {
+    const double width_mm = within.high_mm - within.low_mm;
+    const int bits = static_cast<int>(std::ceil(1.0 - std::log2(kToleranceMm / (4.0 * width_mm))));
+    auto offset = [&](double t) { return within.low_mm + (t - 1.0) * width_mm; };
+    std::uintmax_t max_iterations = 200;
+    const auto [t, misfit] = boost::math::tools::brent_find_minima(
+        [&](double t) { return SparseMisfit(p, options, adequacy, grid, offset(t)); }, 1.0, 2.0, bits, max_iterations);
+    return offset(t);
+  };
+  if (guess_mm) {
+    const OffsetRange window{std::max(range.low_mm, *guess_mm - kGuessWindowMm),
+                             std::min(range.high_mm, *guess_mm + kGuessWindowMm)};
+    const double best_mm = search(window);
+    const bool at_window_edge = (best_mm - window.low_mm < 4.0 * kToleranceMm && window.low_mm > range.low_mm) ||
+                                (window.high_mm - best_mm < 4.0 * kToleranceMm && window.high_mm < range.high_mm);
+    if (!at_window_edge) return best_mm;
+  }
+  return search(range);
 }
 
 // Each pixel's height with the surface `relative` placed at offset_mm.
@@ -856,7 +914,8 @@ bool RunRounds(const PhotometricStereoOptions& options, const NearLightOptions& 
     if (round == near_options.max_rounds) break;  // no round left to fit at a new depth
     const core::SolveTimer depth_timer;
     *relative = RelativeDepth(near_options, p, *map, &integration);
-    summary->depth_offset_mm = BestOffset(p, options, near_options, *map, *relative, range);
+    summary->depth_offset_mm = BestOffset(p, options, near_options, *map, *relative, range,
+                                          round > 1 ? std::optional(summary->depth_offset_mm) : std::nullopt);
     summary->depth_ms += depth_timer.ElapsedMs();
     height = Heights(p, *relative, summary->depth_offset_mm);
   }
@@ -864,19 +923,25 @@ bool RunRounds(const PhotometricStereoOptions& options, const NearLightOptions& 
 }
 
 void CountPixels(const NormalMap& map, NearLightSummary* summary) {
+  // One pass over the labels, each map's values counted at once.
+  std::array<std::size_t, 256> flags{}, models{};
+  for (int r = 0; r < map.flags.rows; ++r) {
+    const std::uint8_t* flag = map.flags.ptr<std::uint8_t>(r);
+    const std::uint8_t* model = map.model.ptr<std::uint8_t>(r);
+    for (int c = 0; c < map.flags.cols; ++c) ++flags[flag[c]], ++models[model[c]];
+  }
+  auto flagged = [&](PixelFlag flag) { return flags[static_cast<std::uint8_t>(flag)]; };
+  auto modelled = [&](PixelModel model) { return models[static_cast<std::uint8_t>(model)]; };
   summary->pixels_total = map.flags.total();
-  auto count = [](const cv::Mat& labels, auto label) {
-    return static_cast<std::size_t>(cv::countNonZero(labels == static_cast<int>(label)));
-  };
-  summary->pixels_solved = count(map.flags, PixelFlag::kSolved);
-  summary->pixels_outside_mask = count(map.flags, PixelFlag::kOutsideMask);
-  summary->pixels_too_few_lights = count(map.flags, PixelFlag::kTooFewLights);
-  summary->pixels_ill_conditioned = count(map.flags, PixelFlag::kIllConditioned);
-  summary->pixels_rejected_by_model = count(map.flags, PixelFlag::kRejectedByModel);
-  summary->pixels_lambertian = count(map.model, PixelModel::kLambertian);
-  summary->pixels_irls = count(map.model, PixelModel::kIrls);
-  summary->pixels_blinn_phong = count(map.model, PixelModel::kBlinnPhong);
-  summary->pixels_ggx = count(map.model, PixelModel::kGgx);
+  summary->pixels_solved = flagged(PixelFlag::kSolved);
+  summary->pixels_outside_mask = flagged(PixelFlag::kOutsideMask);
+  summary->pixels_too_few_lights = flagged(PixelFlag::kTooFewLights);
+  summary->pixels_ill_conditioned = flagged(PixelFlag::kIllConditioned);
+  summary->pixels_rejected_by_model = flagged(PixelFlag::kRejectedByModel);
+  summary->pixels_lambertian = modelled(PixelModel::kLambertian);
+  summary->pixels_irls = modelled(PixelModel::kIrls);
+  summary->pixels_blinn_phong = modelled(PixelModel::kBlinnPhong);
+  summary->pixels_ggx = modelled(PixelModel::kGgx);
 }
 
 std::string CheckInputs(const PhotometricStack& stack, const std::vector<camera::NearLight>& lights, const camera::Camera& camera) {
@@ -987,7 +1052,7 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     // Every pixel fitted once, at the surface the last round fitted on (or,
     // with nothing depending on it, anywhere).
     const cv::Mat height = relative.empty() ? cv::Mat::zeros(stack.height(), stack.width(), CV_32F)
-                                            : Heights(problem, LatticeToImage(lattice, relative, problem), summary.depth_offset_mm);
+                                            : HeightsFromLattice(lattice, relative, problem, summary.depth_offset_mm);
     AllocateResult(height.size(), result);
     fitted.glossy = FitRound(problem, options, height, !depth_matters || !relative.empty(), result);
     fitted.height_mm = height;
@@ -1003,7 +1068,8 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     // placement by tens of micrometres on a sphere.
     const core::SolveTimer depth_timer;
     const cv::Mat whole = RelativeDepth(near_options, problem, *result);
-    if (step > 1 && !relative.empty()) summary.depth_offset_mm = BestOffset(problem, options, near_options, *result, whole, range);
+    if (step > 1 && !relative.empty())
+      summary.depth_offset_mm = BestOffset(problem, options, near_options, *result, whole, range, summary.depth_offset_mm);
     *height_mm = Heights(problem, whole, summary.depth_offset_mm);
     height_mm->setTo(kNaN, result->flags != static_cast<int>(PixelFlag::kSolved));
     summary.depth_ms += depth_timer.ElapsedMs();
