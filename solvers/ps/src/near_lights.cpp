@@ -790,15 +790,9 @@ OffsetRange DepthOffsetRange(const std::vector<camera::NearLight>& lights, const
 }
 
 // The depth offset within the range where the grid's summed misfit is least.
-// With a guess (the last round's offset), first within kGuessWindowMm of it:
-// a round moves the surface by hundredths of a millimetre once it is placed,
-// and the search's first golden-section steps across the whole range would
-// cost a full round's fits each. Should the least misfit there lie at the
-// window's edge, the whole range is searched after all.
 double BestOffset(const PixelProblem& p, const PhotometricStereoOptions& options, const NearLightOptions& near_options,
-                  const NormalMap& map, const cv::Mat& relative, const OffsetRange& range,
-                  std::optional<double> guess_mm = std::nullopt) {
-  constexpr double kToleranceMm = 0.01, kGuessWindowMm = 1.0;
+                  const NormalMap& map, const cv::Mat& relative, const OffsetRange& range) {
+  constexpr double kToleranceMm = 0.01;
   // offset_stride counts the image's pixels, a lattice pixel p.step of them.
   SparseGrid grid = SparsePixels((near_options.offset_stride + p.step - 1) / p.step, map, relative);
   const LambertianAdequacy adequacy(p, options);  // its quantiles are worked out once for the whole search
@@ -807,24 +801,13 @@ double BestOffset(const PixelProblem& p, const PhotometricStereoOptions& options
   // ones where not. Its tolerance is relative to |t|, so t runs over [1, 2]
   // for a near-uniform one in mm; the bracket it stops at is a few
   // tolerances wide.
-  auto search = [&](const OffsetRange& within) {
-    const double width_mm = within.high_mm - within.low_mm;
-    const int bits = static_cast<int>(std::ceil(1.0 - std::log2(kToleranceMm / (4.0 * width_mm))));
-    auto offset = [&](double t) { return within.low_mm + (t - 1.0) * width_mm; };
-    std::uintmax_t max_iterations = 200;
-    const auto [t, misfit] = boost::math::tools::brent_find_minima(
-        [&](double t) { return SparseMisfit(p, options, adequacy, grid, offset(t)); }, 1.0, 2.0, bits, max_iterations);
-    return offset(t);
-  };
-  if (guess_mm) {
-    const OffsetRange window{std::max(range.low_mm, *guess_mm - kGuessWindowMm),
-                             std::min(range.high_mm, *guess_mm + kGuessWindowMm)};
-    const double best_mm = search(window);
-    const bool at_window_edge = (best_mm - window.low_mm < 4.0 * kToleranceMm && window.low_mm > range.low_mm) ||
-                                (window.high_mm - best_mm < 4.0 * kToleranceMm && window.high_mm < range.high_mm);
-    if (!at_window_edge) return best_mm;
-  }
-  return search(range);
+  const double width_mm = range.high_mm - range.low_mm;
+  const int bits = static_cast<int>(std::ceil(1.0 - std::log2(kToleranceMm / (4.0 * width_mm))));
+  auto offset = [&](double t) { return range.low_mm + (t - 1.0) * width_mm; };
+  std::uintmax_t max_iterations = 200;
+  const auto [t, misfit] = boost::math::tools::brent_find_minima(
+      [&](double t) { return SparseMisfit(p, options, adequacy, grid, offset(t)); }, 1.0, 2.0, bits, max_iterations);
+  return offset(t);
 }
 
 // Each pixel's height with the surface `relative` placed at offset_mm.
@@ -914,8 +897,7 @@ bool RunRounds(const PhotometricStereoOptions& options, const NearLightOptions& 
     if (round == near_options.max_rounds) break;  // no round left to fit at a new depth
     const core::SolveTimer depth_timer;
     *relative = RelativeDepth(near_options, p, *map, &integration);
-    summary->depth_offset_mm = BestOffset(p, options, near_options, *map, *relative, range,
-                                          round > 1 ? std::optional(summary->depth_offset_mm) : std::nullopt);
+    summary->depth_offset_mm = BestOffset(p, options, near_options, *map, *relative, range);
     summary->depth_ms += depth_timer.ElapsedMs();
     height = Heights(p, *relative, summary->depth_offset_mm);
   }
@@ -1068,8 +1050,7 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     // placement by tens of micrometres on a sphere.
     const core::SolveTimer depth_timer;
     const cv::Mat whole = RelativeDepth(near_options, problem, *result);
-    if (step > 1 && !relative.empty())
-      summary.depth_offset_mm = BestOffset(problem, options, near_options, *result, whole, range, summary.depth_offset_mm);
+    if (step > 1 && !relative.empty()) summary.depth_offset_mm = BestOffset(problem, options, near_options, *result, whole, range);
     *height_mm = Heights(problem, whole, summary.depth_offset_mm);
     height_mm->setTo(kNaN, result->flags != static_cast<int>(PixelFlag::kSolved));
     summary.depth_ms += depth_timer.ElapsedMs();

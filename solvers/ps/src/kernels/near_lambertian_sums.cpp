@@ -42,8 +42,7 @@ PHOTORIG_LANE_INLINE void AddLight(const NearLightTable& lights, int k, const fl
   // A lane batch reads each of the (tens of) planes at one place, more
   // streams than the hardware prefetchers follow: ask for the line the
   // batches four ahead will read.
-  __builtin_prefetch(pixels.prefetch_ahead > 0 ? first + pixels.prefetch_ahead
-                                               : plane + pixels.offset[kNearLanes - 1] + 4 * kNearLanes);
+  __builtin_prefetch(plane + pixels.offset[kNearLanes - 1] + 4 * kNearLanes);
   float* weight_out = row;
   float* signal_out = row + kNearLanes;
   float* gx_out = row + 2 * kNearLanes;

@@ -44,10 +44,6 @@ inline constexpr int kNearLanes = kFloatLanes;
 struct alignas(64) NearLanePixels {
   float x[kNearLanes], y[kNearLanes], z[kNearLanes], dark[kNearLanes];
   int offset[kNearLanes];
-  // How far past lane 0's sample (in samples) the pixels of a later batch
-  // lie, e.g. one image row: their lines are fetched while this batch
-  // computes (0: the batches four ahead in the same row).
-  int prefetch_ahead = 0;
 };
 
 // Each lane's fit: its normal equations G b = r (G = A^T W A; xx, xy, xz,
