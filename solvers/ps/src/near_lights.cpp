@@ -30,6 +30,9 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 // The rounds' lattice leaves at least this many pixels across the object
 // (NearLightOptions::round_step_px).
 constexpr int kRoundLatticeSidePx = 32;
+// The depth search's grid leaves about this many pixels across the object
+// (NearLightOptions::offset_stride): a few hundred pixels in all.
+constexpr int kOffsetGridSidePx = 16;
 
 double RadiansToDegrees(double radians) { return radians * 180.0 / kPi; }
 
@@ -979,7 +982,7 @@ bool NearLightOptions::IsValid(std::string* why) const {
   if (std::string camera_why; !camera.IsValid(&camera_why)) return core::Refuse(why, "camera: " + camera_why);
   if (max_rounds < 1 || max_rounds > 100) return core::Refuse(why, "max_rounds must be within [1, 100]");
   if (!(normal_change_tolerance_deg > 0.0)) return core::Refuse(why, "normal_change_tolerance_deg must be > 0");
-  if (offset_stride < 1) return core::Refuse(why, "offset_stride must be >= 1");
+  if (offset_stride < 0) return core::Refuse(why, "offset_stride must be >= 0");
   if (round_step_px < 0 || round_step_px > 64) return core::Refuse(why, "round_step_px must be within [0, 64]");
   return true;
 }
@@ -1021,13 +1024,16 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
                    : near_options.round_step_px > 0 ? near_options.round_step_px
                                                     : std::max(1, std::max(object.width, object.height) / kRoundLatticeSidePx);
   const PixelProblem lattice = problem.Lattice(step, (step - 1) / 2);
+  NearLightOptions resolved = near_options;  // the depth search's grid, in the image's pixels
+  if (resolved.offset_stride == 0)
+    resolved.offset_stride = std::max(1, std::max(object.width, object.height) / kOffsetGridSidePx);
   timer.SetupDone(&summary);
   bool converged = true;
   cv::Mat relative;  // the lattice's surface the last round fitted on; empty: none placed
   FittedSurface fitted;  // where the answer's pixels were fitted
   if (depth_matters) {
     NormalMap lattice_map;
-    converged = RunRounds(options, near_options, lattice, range, step == 1 ? result : &lattice_map, &relative, &summary,
+    converged = RunRounds(options, resolved, lattice, range, step == 1 ? result : &lattice_map, &relative, &summary,
                           &fitted);
   }
   if (!depth_matters || step > 1) {
@@ -1050,7 +1056,7 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     // placement by tens of micrometres on a sphere.
     const core::SolveTimer depth_timer;
     const cv::Mat whole = RelativeDepth(near_options, problem, *result);
-    if (step > 1 && !relative.empty()) summary.depth_offset_mm = BestOffset(problem, options, near_options, *result, whole, range);
+    if (step > 1 && !relative.empty()) summary.depth_offset_mm = BestOffset(problem, options, resolved, *result, whole, range);
     *height_mm = Heights(problem, whole, summary.depth_offset_mm);
     height_mm->setTo(kNaN, result->flags != static_cast<int>(PixelFlag::kSolved));
     summary.depth_ms += depth_timer.ElapsedMs();

@@ -46,12 +46,12 @@ struct NearLightOptions {
   double normal_change_tolerance_deg = 0.05;
   Integrator integrator = Integrator::kPoisson;
   // The depth's placement is chosen on every offset_stride-th pixel of every
-  // offset_stride-th row (rounded up to the rounds' lattice; with its
-  // default, every other lattice pixel): a few hundred pixels pin one
-  // number, and each step of the search fits them all. Every lattice pixel
-  // (8) places the 80 mm dome's sphere where every fourth (24) does: mean
-  // errors equal to 1e-4 deg (docs/performance.md).
-  int offset_stride = 16;
+  // offset_stride-th row (rounded up to the rounds' lattice). 0 picks the
+  // stride that leaves 16 pixels across the object: a few hundred pixels
+  // pin one number, and each step of the search fits them all. On the 80 mm
+  // dome's sphere 32, 16 and 11 across give mean errors within 1e-4 deg of
+  // each other (docs/performance.md).
+  int offset_stride = 0;
   // The rounds fit and integrate only the lattice of every round_step_px-th
   // pixel of every round_step_px-th row; once they stop, every pixel is
   // fitted once at the surface the last round fitted on, interpolated
