@@ -240,6 +240,29 @@ TEST(NearLights, RoundsOnALatticeLeaveTheNormalsAsOnEveryPixel) {
   EXPECT_EQ(cv::norm(normals_only.normals, coarse.normals, cv::NORM_INF), 0.0);
 }
 
+TEST(NearLights, ADepthSearchOnAGridAcrossTheObjectPlacesItAsEveryLatticePixelDoes) {
+  // With noise, so that the grid's pixel count is what pins the offset.
+  const NearScene scene = RenderNearSphere(80.0, 2.0);
+  PhotometricStereoOptions options = Lambertian();
+  options.shadow_threshold_read_sigmas = 3.0;  // as `photorig solve ps` does: noise on a shadow is no light
+  NearLightOptions grid = Near(), every_pixel = Near();  // grid: offset_stride 0, 16 pixels across
+  every_pixel.offset_stride = 1;                          // every pixel of the rounds' lattice
+  NormalMap on_grid, on_every_pixel;
+  const NearLightSummary placed = SolveNearLightPhotometricStereo(options, grid, scene.stack, scene.lights, &on_grid, nullptr);
+  const NearLightSummary reference =
+      SolveNearLightPhotometricStereo(options, every_pixel, scene.stack, scene.lights, &on_every_pixel, nullptr);
+  ASSERT_EQ(placed.termination, core::Termination::kSuccess) << placed.message;
+  ASSERT_EQ(reference.termination, core::Termination::kSuccess) << reference.message;
+  // An offset 0.02 mm off turns the light of LEDs 80 mm away by 0.015 deg.
+  EXPECT_NEAR(placed.depth_offset_mm, reference.depth_offset_mm, 0.02);
+  const double grid_deg = CompareNormals(on_grid.normals, scene.normals, scene.stack.mask).mean_deg;
+  EXPECT_NEAR(grid_deg, CompareNormals(on_every_pixel.normals, scene.normals, scene.stack.mask).mean_deg, 0.01);
+  EXPECT_LT(grid_deg, 0.5);
+  NearLightOptions negative = Near();
+  negative.offset_stride = -1;
+  EXPECT_FALSE(negative.IsValid(nullptr));
+}
+
 TEST(NearLights, PixelsBeyondTheConditionLimitAreFlaggedNotSolved) {
   const NearScene scene = RenderNearSphere(150.0);
   PhotometricStereoOptions options = Lambertian();
