@@ -94,8 +94,8 @@ double DistantModelBiasDeg(const std::vector<camera::NearLight>& lights, const s
 // tolerances; the lane fitter whatever its `derivative`), kAuto with the
 // lobe kept where the information criterion prefers it; kL2 and kLambertian
 // keep the Lambertian fit. Every refit sees the pixel's own light vectors,
-// gains and line of sight. (`auto`'s shared and GGX lobes, steps 5 and 6,
-// are fitted by SolvePhotometricStereo only.) Lights at infinity
+// gains and line of sight; `auto` then climbs its steps 5 and 6 (shared and
+// GGX lobes) on the final surface's rows. Lights at infinity
 // (NearLight::AtInfinity) are taken too: with no LED near, nothing depends
 // on the depth and the solve is one pass over the pixels (rounds 1). Fills *result as
 // SolvePhotometricStereo does and *height_mm, unless null (CV_32F, NaN off
