@@ -50,6 +50,9 @@ test_packages=(
   python3-matplotlib
   # the tomography peer: scikit-image's radon-transform reconstructions (scripts/chart-tomography.sh)
   python3-skimage
+  # the low-frequency reflectance study on DiLiGenT objects: SciPy's NNLS and least squares
+  # (scripts/diligent-low-frequency.py)
+  python3-scipy
   # the browser interface's libraries, served by photorigd (docs/ui.md): three.js r111, Chart.js 3.9
   libjs-three libjs-chart.js
   # the browser interface's test: headless Chromium over WebDriver (tests/browser)

@@ -1,0 +1,152 @@
+#!/usr/bin/python3
+"""A low-frequency reflectance against the trimmed Lambertian fit on DiLiGenT objects.
+
+    /usr/bin/python3 scripts/diligent-low-frequency.py DIR [--objects ball,bear] [--pixels 1000] [--seed 1]
+
+DIR holds DiLiGenT-layout object folders (<name>PNG/ with the images, filenames.txt,
+light_directions.txt, light_intensities.txt, mask.png and Normal_gt.mat); the project ships none.
+For a random sample of each object's masked pixels it fits, from the pixel's own samples:
+
+  trimmed     a Lambertian fit that drops its worst sample while any lies beyond 3 robust sigma
+  lowfreq     I_k = (n . l_k) (a0 + a1 (n . h_k) + a2 (n . h_k)^2 + a3 cos theta_d,k), every a >= 0
+  lowfreq-N   the same without the pixel's brightest N % of lit samples
+
+The low-frequency model is an isotropic reflectance that grows towards the mirror direction and
+with the half angle, with no lobe width to fit: a broad lobe seen by its tail, light the surface
+sends back to itself and a soft shoulder all fit it, while a sharp spike does not, which is why
+the brightest samples are left out. With a fixed view (DiLiGenT's camera looks down -z) cos
+theta_d = l . h depends on the light alone, so for a given normal the model is linear in a and
+the normal is fitted by variable projection (non-negative least squares inside a 2-parameter
+least-squares search over the normal's angles, from the trimmed fit).
+
+Prints the mean angular error against the ground truth per object and method, over all sampled
+pixels and split by the true normal's tilt from the view, the edge being the half vectors' cone
+(the largest angle between a light's half vector and the view): inside it a pixel's highlight
+peak falls among the samples, outside only its tail does.
+"""
+import argparse
+import os
+import sys
+
+import cv2
+import numpy as np
+import scipy.io
+from scipy.optimize import least_squares, nnls
+
+VIEW = np.array([0.0, 0.0, 1.0])
+MIN_SAMPLES = 8
+
+
+def load_object(folder):
+    lights = np.loadtxt(os.path.join(folder, "light_directions.txt"))
+    gains = np.loadtxt(os.path.join(folder, "light_intensities.txt"))
+    names = open(os.path.join(folder, "filenames.txt")).read().split()
+    values, raw = [], []
+    for k, name in enumerate(names):
+        image = cv2.imread(os.path.join(folder, name), cv2.IMREAD_UNCHANGED)
+        if image is None:
+            sys.exit(f"{folder}/{name}: not an image OpenCV can read")
+        rgb = image[:, :, ::-1].astype(np.float64)
+        values.append((rgb / gains[k]).sum(axis=2))  # grey, each channel divided by its light's colour
+        raw.append(image.max(axis=2))
+    mask = cv2.imread(os.path.join(folder, "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
+    truth = scipy.io.loadmat(os.path.join(folder, "Normal_gt.mat"))["Normal_gt"]
+    return lights, np.stack(values, -1), np.stack(raw, -1), mask, truth
+
+
+def angle_deg(estimate, truth):
+    estimate = estimate / np.linalg.norm(estimate)
+    return float(np.degrees(np.arccos(np.clip(estimate @ truth, -1.0, 1.0))))
+
+
+def lambertian(values, lights, used):
+    b, *_ = np.linalg.lstsq(lights[used], values[used], rcond=None)
+    return b
+
+
+def trimmed_lambertian(values, lights, used):
+    used = used.copy()
+    while True:
+        b = lambertian(values, lights, used)
+        residual = np.where(used, np.abs(values - lights @ b), -1.0)
+        sigma = 1.4826 * np.median(residual[used]) + 1e-12
+        worst = int(np.argmax(residual))
+        if residual[worst] <= 3.0 * sigma or used.sum() <= MIN_SAMPLES:
+            return b
+        used[worst] = False
+
+
+def unit(theta, phi):
+    return np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
+
+
+def low_frequency(values, lights, halves, cos_d, used, start, drop_fraction):
+    if drop_fraction > 0.0:
+        used = used & (values <= np.quantile(values[used], 1.0 - drop_fraction))
+    l, h, d, y = lights[used], halves[used], cos_d[used], values[used]
+
+    def columns(n):
+        nl = np.maximum(l @ n, 0.0)
+        nh = np.clip(h @ n, 0.0, 1.0)
+        return np.stack([nl, nl * nh, nl * nh * nh, nl * d], axis=1)
+
+    def residuals(angles):
+        design = columns(unit(*angles))
+        a, _ = nnls(design, y)
+        return design @ a - y
+
+    start = start / np.linalg.norm(start)
+    angles = [np.arccos(np.clip(start[2], -1.0, 1.0)), np.arctan2(start[1], start[0])]
+    fit = least_squares(residuals, angles, method="trf", x_scale=0.1, diff_step=1e-4)
+    return unit(*fit.x)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("dir")
+    parser.add_argument("--objects", default="ball,bear,goblet,pot1,reading")
+    parser.add_argument("--pixels", type=int, default=1000)
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+    methods = {"trimmed": None, "lowfreq": 0.0, "lowfreq-5": 0.05, "lowfreq-10": 0.10, "lowfreq-20": 0.20}
+    print("| object | pixels | tilt | " + " | ".join(methods) + " |")
+    print("|---|---|---|" + "---|" * len(methods))
+    for name in args.objects.split(","):
+        folder = os.path.join(args.dir, name + "PNG")
+        if not os.path.isdir(folder):
+            sys.exit(f"{folder}: no such object folder (expected DIR/<object>PNG/)")
+        lights, values, raw, mask, truth = load_object(folder)
+        halves = lights + VIEW
+        halves /= np.linalg.norm(halves, axis=1, keepdims=True)
+        cos_d = halves @ VIEW
+        cone_deg = float(np.degrees(np.arccos(cos_d.min())))
+        rows, cols = np.nonzero(mask)
+        rng = np.random.default_rng(args.seed)
+        picked = rng.choice(len(rows), min(args.pixels, len(rows)), replace=False)
+        errors = {m: [] for m in methods}
+        tilts = []
+        for i in picked:
+            r, c = rows[i], cols[i]
+            # lit and unsaturated: 8-bit samples under 2 DN are shadow or noise, 255 clipped
+            used = (raw[r, c] >= 2) & (raw[r, c] < 255)
+            if used.sum() < MIN_SAMPLES:
+                continue
+            pixel, normal = values[r, c], truth[r, c]
+            tilts.append(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0))))
+            start = trimmed_lambertian(pixel, lights, used)
+            for method, drop in methods.items():
+                n = start if drop is None else low_frequency(pixel, lights, halves, cos_d, used, start, drop)
+                errors[method].append(angle_deg(n, normal))
+        tilts = np.array(tilts)
+        bands = [("all", 0.0, 90.0), (f"< {cone_deg:.1f}", 0.0, cone_deg),
+                 (f"{cone_deg:.1f}-40", cone_deg, 40.0), ("> 40", 40.0, 90.0)]
+        for label, low, high in bands:
+            inside = (tilts >= low) & (tilts < high)
+            if not inside.any():
+                continue
+            means = " | ".join(f"{np.mean(np.array(errors[m])[inside]):.2f}" for m in methods)
+            print(f"| {name} | {int(inside.sum())} | {label} | {means} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
