@@ -2,6 +2,7 @@
 """A low-frequency reflectance against the trimmed Lambertian fit on DiLiGenT objects.
 
     /usr/bin/python3 scripts/diligent-low-frequency.py DIR [--objects ball,bear] [--pixels 1000] [--seed 1]
+                                                         [--synthetic 0.18,0.35]
 
 DIR holds DiLiGenT-layout object folders (<name>PNG/ with the images, filenames.txt,
 light_directions.txt, light_intensities.txt, mask.png and Normal_gt.mat); the project ships none.
@@ -18,6 +19,11 @@ the brightest samples are left out. With a fixed view (DiLiGenT's camera looks d
 theta_d = l . h depends on the light alone, so for a given normal the model is linear in a and
 the normal is fitted by variable projection (non-negative least squares inside a 2-parameter
 least-squares search over the normal's angles, from the trimmed fit).
+
+With --synthetic, no images are read: pixels of known normal (tilt up to 60 deg) are rendered under
+the first object's lights, a Lambertian term of albedo 0.5 plus a GGX lobe (Smith-Schlick shadowing,
+Schlick Fresnel with F0 0.3) of each roughness given (0: none), 120 DN diffuse at normal incidence, 0.5 DN
+noise and 8-bit rounding: a convex surface with no foreign light, where a lobe model is exact.
 
 Prints the mean angular error against the ground truth per object and method, over all sampled
 pixels and split by the true normal's tilt from the view, the edge being the half vectors' cone
@@ -101,14 +107,65 @@ def low_frequency(values, lights, halves, cos_d, used, start, drop_fraction):
     return unit(*fit.x)
 
 
+def render_ggx(normal, lights, halves, cos_d, roughness, rng):
+    albedo, f0 = 0.5, 0.3
+    nl = np.maximum(lights @ normal, 0.0)
+    if roughness == 0.0:  # no lobe: a Lambertian surface
+        return np.round(np.clip(nl * 120.0 + rng.normal(0.0, 0.5, nl.shape), 0.0, 255.0))
+    nv = normal @ VIEW
+    nh = np.clip(halves @ normal, 0.0, 1.0)
+    a2 = roughness * roughness
+    distribution = a2 / (np.pi * (nh * nh * (a2 - 1.0) + 1.0) ** 2)
+    k = roughness / 2.0
+    shadowing = (nl / (nl * (1.0 - k) + k)) * (nv / (nv * (1.0 - k) + k))
+    fresnel = f0 + (1.0 - f0) * (1.0 - cos_d) ** 5
+    specular = distribution * shadowing * fresnel / np.maximum(4.0 * nl * nv, 1e-6)
+    radiance = (albedo / np.pi + specular) * nl
+    dn = radiance * 120.0 / (albedo / np.pi) + rng.normal(0.0, 0.5, radiance.shape)
+    return np.round(np.clip(dn, 0.0, 255.0))
+
+
+def synthetic(lights, roughnesses, pixels, seed, methods):
+    halves = lights + VIEW
+    halves /= np.linalg.norm(halves, axis=1, keepdims=True)
+    cos_d = halves @ VIEW
+    rng = np.random.default_rng(seed)
+    print("| GGX roughness | pixels | " + " | ".join(methods) + " |")
+    print("|---|---|" + "---|" * len(methods))
+    for roughness in roughnesses:
+        errors = {m: [] for m in methods}
+        for _ in range(pixels):
+            tilt, azimuth = np.radians(rng.uniform(0.0, 60.0)), rng.uniform(0.0, 2.0 * np.pi)
+            normal = unit(tilt, azimuth)
+            values = render_ggx(normal, lights, halves, cos_d, roughness, rng)
+            used = (values >= 2) & (values < 255)
+            if used.sum() < MIN_SAMPLES:
+                continue
+            start = trimmed_lambertian(values, lights, used)
+            for method, drop in methods.items():
+                n = start if drop is None else low_frequency(values, lights, halves, cos_d, used, start, drop)
+                errors[method].append(angle_deg(n, normal))
+        means = " | ".join(f"{np.mean(errors[m]):.2f}" for m in methods)
+        print(f"| {roughness:g} | {len(errors['trimmed'])} | {means} |", flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("dir")
     parser.add_argument("--objects", default="ball,bear,goblet,pot1,reading")
     parser.add_argument("--pixels", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--synthetic", metavar="ROUGHNESS,...",
+                        help="render GGX pixels of these roughnesses under the first object's lights instead")
     args = parser.parse_args()
     methods = {"trimmed": None, "lowfreq": 0.0, "lowfreq-5": 0.05, "lowfreq-10": 0.10, "lowfreq-20": 0.20}
+    if args.synthetic:
+        first = os.path.join(args.dir, args.objects.split(",")[0] + "PNG", "light_directions.txt")
+        if not os.path.isfile(first):
+            sys.exit(f"{first}: no such file (the lights are read from the first object)")
+        roughnesses = [float(r) for r in args.synthetic.split(",")]
+        synthetic(np.loadtxt(first), roughnesses, args.pixels, args.seed, methods)
+        return
     print("| object | pixels | tilt | " + " | ".join(methods) + " |")
     print("|---|---|---|" + "---|" * len(methods))
     for name in args.objects.split(","):
