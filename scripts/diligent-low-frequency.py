@@ -2,7 +2,7 @@
 """A low-frequency reflectance against the trimmed Lambertian fit on DiLiGenT objects.
 
     /usr/bin/python3 scripts/diligent-low-frequency.py DIR [--objects ball,bear] [--pixels 1000] [--seed 1]
-                                                         [--synthetic 0.18,0.35]
+                                                         [--leave-out 0,5,10,20] [--synthetic 0.18,0.35]
 
 DIR holds DiLiGenT-layout object folders (<name>PNG/ with the images, filenames.txt,
 light_directions.txt, light_intensities.txt, mask.png and Normal_gt.mat); the project ships none.
@@ -153,12 +153,16 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("dir")
     parser.add_argument("--objects", default="ball,bear,goblet,pot1,reading")
-    parser.add_argument("--pixels", type=int, default=1000)
+    parser.add_argument("--pixels", type=int, default=1000, help="pixels sampled per object; 0: every masked pixel")
+    parser.add_argument("--leave-out", default="0,5,10,20", metavar="PERCENT,...",
+                        help="the low-frequency fits to run, by the share of brightest lit samples left out")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--synthetic", metavar="ROUGHNESS,...",
                         help="render GGX pixels of these roughnesses under the first object's lights instead")
     args = parser.parse_args()
-    methods = {"trimmed": None, "lowfreq": 0.0, "lowfreq-5": 0.05, "lowfreq-10": 0.10, "lowfreq-20": 0.20}
+    methods = {"trimmed": None}
+    for percent in args.leave_out.split(","):
+        methods["lowfreq" if float(percent) == 0 else f"lowfreq-{percent}"] = float(percent) / 100.0
     if args.synthetic:
         first = os.path.join(args.dir, args.objects.split(",")[0] + "PNG", "light_directions.txt")
         if not os.path.isfile(first):
@@ -179,7 +183,8 @@ def main():
         cone_deg = float(np.degrees(np.arccos(cos_d.min())))
         rows, cols = np.nonzero(mask)
         rng = np.random.default_rng(args.seed)
-        picked = rng.choice(len(rows), min(args.pixels, len(rows)), replace=False)
+        count = len(rows) if args.pixels <= 0 else min(args.pixels, len(rows))
+        picked = rng.choice(len(rows), count, replace=False)
         errors = {m: [] for m in methods}
         tilts = []
         for i in picked:
