@@ -746,7 +746,9 @@ double SparseMisfit(const PixelProblem& p, const PhotometricStereoOptions& optio
     grid.pixels[i].z_mm = grid.starts[i].z_mm = p.Height(grid.relative[i], offset_mm);
   std::vector<double> chunk_sum(chunks, 0.0);
   const bool refits = options.method != Method::kL2 && options.method != Method::kLambertian;
-#pragma omp parallel
+  // Without refits the grid's few hundred Lambertian fits take less time
+  // than waking a second thread; the search calls this a dozen times or more.
+#pragma omp parallel if (refits)
   {
     std::vector<PixelFit> fits(kChunk);
     std::optional<NearRefitter> refitter;
