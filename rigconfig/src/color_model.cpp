@@ -89,7 +89,7 @@ LoadedColorModel LoadColorModelFile(const std::string& path) {
     }
   } else {
     try {
-      (void)nlohmann::json::parse(text);
+      [[maybe_unused]] const nlohmann::json document = nlohmann::json::parse(text);
     } catch (const nlohmann::json::parse_error& e) {
       const std::size_t at = std::min<std::size_t>(e.byte, text.size());
       const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(at), '\n'));

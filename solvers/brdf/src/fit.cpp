@@ -1035,7 +1035,7 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
     if (!options.starts.empty()) fit.start = options.starts[c];
     summary.candidates[c] = FitPrepared(options.candidates[c], prepared, fit);
   }
-  if (options.progress) options.progress({"fit", candidates, candidates});
+  if (options.progress) options.progress({"fit", candidates, candidates, {}});
   const int folds = options.held_out_folds;
   if (folds > 0) {
     const std::size_t fit_samples = options.fold_fit_samples > 0 ? options.fold_fit_samples : options.fit.max_fit_samples;
@@ -1062,7 +1062,7 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
       for (double e : fit.held_out_errors) sum += e;
       fit.held_out_rms = std::sqrt(sum / static_cast<double>(fit.held_out_errors.size()));
     }
-    if (options.progress) options.progress({"held-out", candidates * folds, candidates * folds});
+    if (options.progress) options.progress({"held-out", candidates * folds, candidates * folds, {}});
   }
   const double min_held_out_gain = options.fit.loss == FitLoss::kWeighted ? options.min_held_out_gain_weighted
                                                                            : options.min_held_out_gain_log;

@@ -230,7 +230,7 @@ NormalRefinementSummary RefineNormalsAndReflectance(const NormalRefinementOption
   const double max_change = options.max_change_deg / kDegPerRad;
   const internal::PixelLights lights(stack);
   for (int round = 0; round < options.rounds; ++round) {
-    if (options.progress) options.progress({"normals", round, options.rounds});
+    if (options.progress) options.progress({"normals", round, options.rounds, {}});
     std::vector<int> fitted_pixels;
     for (int i = 0; i < static_cast<int>(current.material.total()); ++i)
       if (current.material.data[i] != 255) fitted_pixels.push_back(i);
