@@ -32,7 +32,7 @@ else
   for folder in "$data"/*PNG; do [ -d "$folder" ] && objects+=("$(basename "$folder" PNG)"); done
 fi
 [ ${#objects[@]} -gt 0 ] || { echo "benchmark-diligent: no <object>PNG folder in $data" >&2; exit 2; }
-IFS=, read -r -a methods <<<"${3:-l2,lambertian,robust,blinn-phong,auto}"
+IFS=, read -r -a methods <<<"${3:-l2,lambertian,robust,blinn-phong,auto,low-frequency}"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 csv="$out/diligent.csv"

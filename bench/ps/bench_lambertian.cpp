@@ -206,6 +206,7 @@ void BM_Method(benchmark::State& state) {
   const double solved = std::max<std::size_t>(1, summary.pixels_solved);
   state.counters["lambertian_pct"] = 100.0 * summary.pixels_lambertian / solved;
   state.counters["blinn_phong_pct"] = 100.0 * summary.pixels_blinn_phong / solved;
+  state.counters["low_frequency_pct"] = 100.0 * summary.pixels_low_frequency / solved;
   state.counters["mean_deg"] = photorig::solvers::ps::CompareNormals(map.normals, scene.truth_normals, stack.mask).mean_deg;
 }
 
@@ -346,7 +347,7 @@ BENCHMARK(BM_Lambertian)
     ->Args({96, 1, 0})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-// Args: method (l2, lambertian, robust, blinn-phong, auto as 0-4), Blinn-Phong
+// Args: method (l2, lambertian, robust, blinn-phong, auto, low-frequency as 0-5), Blinn-Phong
 // exponent (0 = matte), fitter (0 lanes, 1 per pixel with forward-mode autodiff),
 // noise model (1 given; 0 shot noise unknown, so estimated from the data first).
 BENCHMARK(BM_Method)
@@ -361,6 +362,8 @@ BENCHMARK(BM_Method)
     ->Args({4, 50, 0, 1})
     ->Args({4, 50, 0, 0})
     ->Args({4, 50, 1, 1})
+    ->Args({5, 0, 0, 1})
+    ->Args({5, 50, 0, 1})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 // Args: method (as above), Blinn-Phong exponent. The targets: `auto` within
@@ -370,6 +373,8 @@ BENCHMARK(BM_MethodVsL2)
     ->Args({1, 0})
     ->Args({4, 0})
     ->Args({4, 50})
+    ->Args({5, 0})
+    ->Args({5, 50})
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
 // Args: the LEDs' distance (mm), the method of both solves (as BM_Method's),
@@ -382,6 +387,7 @@ BENCHMARK(BM_NearVsDistant)
     ->Args({80, 2, 50})
     ->Args({80, 3, 50})
     ->Args({80, 4, 50})
+    ->Args({80, 5, 50})
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
 

@@ -2,7 +2,8 @@
 // scenes, captured on the 96-LED dome (config/rigs/sim-dome-96.yaml) and solved
 // with all 96 lights and with every 2nd, 4th and 8th of them (and on DiLiGenT
 // folders given as arguments), written as CSV rows
-//   source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct
+//   source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,
+//   low_frequency_pct
 // for scripts/chart-ps.sh; solve_ms is the fastest of three runs. Captures go
 // through the same code as `photorig run`.
 //
@@ -10,7 +11,8 @@
 // what a real capture has and the simulated one lacks, each effect alone and
 // all together (kEffects below), every method solved once, written as rows
 //   scene,method,mean_deg,median_deg,pixels_with_truth,unresolved,unresolved_usable3,too_few_lights,
-//   ill_conditioned,rejected_by_model,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,mean_confidence,
+//   ill_conditioned,rejected_by_model,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,low_frequency_pct,
+//   mean_confidence,
 //   read_sigma,shot_gain,noise_estimated,shadow_threshold,saturation_level,solve_ms
 // (unresolved: pixels with a true normal but no estimate; unresolved_usable3:
 // those of them that had three or more usable samples; the three flag counts
@@ -42,8 +44,9 @@ namespace {
 namespace fs = std::filesystem;
 using namespace photorig;
 
-const solvers::ps::Method kMethods[] = {solvers::ps::Method::kL2, solvers::ps::Method::kLambertian, solvers::ps::Method::kRobust, solvers::ps::Method::kBlinnPhong,
-                               solvers::ps::Method::kAuto};
+const solvers::ps::Method kMethods[] = {solvers::ps::Method::kL2,         solvers::ps::Method::kLambertian,
+                                        solvers::ps::Method::kRobust,     solvers::ps::Method::kBlinnPhong,
+                                        solvers::ps::Method::kAuto,       solvers::ps::Method::kLowFrequency};
 
 constexpr int kRuns = 3;
 
@@ -90,7 +93,7 @@ void Evaluate(std::ostream& csv, const std::string& source, const std::string& s
         << 100.0 * error.fraction_under_15deg << ',' << ms << ',' << 100.0 * summary.pixels_lambertian / solved << ','
         << 100.0 * summary.pixels_trimmed / solved << ','
         << 100.0 * summary.pixels_irls / solved << ',' << 100.0 * summary.pixels_blinn_phong / solved << ','
-        << 100.0 * summary.pixels_ggx / solved << '\n';
+        << 100.0 * summary.pixels_ggx / solved << ',' << 100.0 * summary.pixels_low_frequency / solved << '\n';
     std::fprintf(stderr, "%-16s %2d lights noise x%-4g %-12s mean %7.3f deg  %8.1f ms\n", scene.c_str(),
                  stack.light_count(), relative_noise, solvers::ps::MethodName(method), error.mean_deg, ms);
   }
@@ -204,7 +207,7 @@ void EvaluateRealistic(std::ostream& csv, const std::string& scene, const daemon
         << 100.0 * summary.pixels_lambertian / pixels << ',' << 100.0 * summary.pixels_trimmed / pixels << ','
         << 100.0 * summary.pixels_irls / pixels << ','
         << 100.0 * summary.pixels_blinn_phong / pixels << ',' << 100.0 * summary.pixels_ggx / pixels << ','
-        << cv::mean(map.confidence, solved)[0] << ','
+        << 100.0 * summary.pixels_low_frequency / pixels << ',' << cv::mean(map.confidence, solved)[0] << ','
         << summary.noise_read_sigma << ',' << summary.noise_shot_gain << ',' << summary.noise_estimated << ','
         << summary.shadow_threshold << ',' << (std::isfinite(saturation) ? saturation : -1.0) << ',' << ms << '\n';
     std::fprintf(stderr, "%-13s %-12s mean %6.3f deg  median %6.3f deg  unresolved %5zu (%zu with >= 3 usable)\n",
@@ -216,7 +219,8 @@ void EvaluateRealistic(std::ostream& csv, const std::string& scene, const daemon
 void RunRealistic(const fs::path& source, const fs::path& out, const fs::path& scratch) {
   std::ofstream csv(out);
   csv << "scene,method,mean_deg,median_deg,pixels_with_truth,unresolved,unresolved_usable3,too_few_lights,"
-         "ill_conditioned,rejected_by_model,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,mean_confidence,"
+         "ill_conditioned,rejected_by_model,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,"
+         "low_frequency_pct,mean_confidence,"
          "read_sigma,"
          "shot_gain,noise_estimated,shadow_threshold,saturation_level,solve_ms\n";
   const std::string base_recipe = ReadText(source / "config" / "recipes" / "ps-shiny-sphere.yaml");
@@ -269,7 +273,7 @@ int main(int argc, char** argv) {
   }
   std::ofstream csv(argv[2]);
   csv << "source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,"
-         "trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct\n";
+         "trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,low_frequency_pct\n";
   try {
     const fs::path rig = source / "config" / "rigs" / "sim-dome-96.yaml";
     for (const char* scene : {"ps-sphere", "ps-shiny-sphere", "ps-ggx-bumps"}) {

@@ -10,8 +10,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 rows = list(csv.DictReader(open(sys.argv[1])))
 out = sys.argv[2]
-methods = ["l2", "lambertian", "robust", "blinn-phong", "auto"]
-markers = {"l2": "o", "lambertian": "s", "robust": "^", "blinn-phong": "D", "auto": "*"}
+methods = ["l2", "lambertian", "robust", "blinn-phong", "auto", "low-frequency"]
+markers = {"l2": "o", "lambertian": "s", "robust": "^", "blinn-phong": "D", "auto": "*", "low-frequency": "v"}
 scenes = sorted({(r["source"], r["scene"]) for r in rows})
 full = {s: max(int(r["lights"]) for r in rows if (r["source"], r["scene"]) == s) for s in scenes}
 

@@ -1,5 +1,6 @@
 // The model ladder on hand-made fits: which fit it keeps, and which it asks
 // for next, for each method.
+#include "kernels/low_frequency_fit.h"
 #include "model_selection.h"
 
 #include <gtest/gtest.h>
@@ -14,6 +15,7 @@ using internal::GgxFits;
 using internal::kNoFit;
 using internal::LadderFits;
 using internal::LadderStep;
+using internal::LowFrequencyFits;
 using internal::ModelLadder;
 using internal::PixelFit;
 using Action = LadderStep::Action;
@@ -224,6 +226,70 @@ TEST(ModelLadder, AutoTakesGgxWhereItsInformationCriterionIsLower) {
   const PixelFit few = FitWith(5, 2.0);
   EXPECT_EQ(ladder.NextWithGgx({&few}).keep, &few);
   EXPECT_EQ(Ladder(Method::kBlinnPhong).NextWithGgx({&held}).keep, &held);
+}
+
+// Step 7: the low-frequency fit is offered to a kept lobe that fails the
+// adequacy test (unless a sampled spike pins its normal), and replaces it
+// only on very strong evidence on the same samples.
+TEST(ModelLadder, AutoOffersTheLowFrequencyFitToALobeThatDoesNotExplainItsSamples) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  // Fits without a lobe stand, adequate or not (steps 4-6 weighed a lobe against them already).
+  const PixelFit adequate = FitWith(40, 1.0), inadequate = FitWith(40, 3.0);
+  const PixelFit trimmed = FitWith(36, 3.0, PixelModel::kTrimmed);
+  EXPECT_EQ(ladder.NextWithLowFrequency({&adequate}).keep, &adequate);
+  EXPECT_EQ(ladder.NextWithLowFrequency({&inadequate}).keep, &inadequate);
+  EXPECT_EQ(ladder.NextWithLowFrequency({&trimmed}).keep, &trimmed);
+  // An adequate lobe stands; an inadequate one is offered it, unless a spike pins it.
+  const PixelFit good_lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  EXPECT_EQ(ladder.NextWithLowFrequency({&good_lobe}).keep, &good_lobe);
+  const PixelFit lobe = FitWith(40, 3.0, PixelModel::kBlinnPhong, 5);
+  EXPECT_EQ(ladder.NextWithLowFrequency({&lobe}).action, Action::kFitLowFrequency);
+  LowFrequencyFits pinned{&lobe};
+  pinned.spike_pins_normal = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(pinned).keep, &lobe);
+  // On the 36 samples it fitted: the kept lobe's chi2 there against the low-frequency fit's.
+  const PixelFit judged = FitWith(36, 2.0, PixelModel::kBlinnPhong, 5);  // chi2 62, BIC 62 + 5 ln 36
+  PixelFit low = FitWith(36, 1.0, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);  // chi2 30
+  const LowFrequencyFits fitted{&lobe, &low, &judged};
+  ASSERT_GT(judged.Bic() - low.Bic(), internal::kConfidentLobeEvidence);  // 32 - ln 36 = 28.4
+  EXPECT_EQ(ladder.NextWithLowFrequency(fitted).keep, &low);
+  low.chi2 = judged.chi2 - std::log(36.0) - 0.5 * internal::kConfidentLobeEvidence;  // lower, but not by 10
+  EXPECT_EQ(ladder.NextWithLowFrequency(fitted).keep, &lobe);
+  // Where the low-frequency fit is far above the noise too (chi2 / dof 100),
+  // the difference counts a hundredth: 3,000 less chi-square is 30, enough;
+  // 1,000 less is 10 less the penalty, not.
+  low.chi2 = 100.0 * low.Dof();
+  PixelFit far = judged;
+  far.chi2 = low.chi2 + 3000.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency({&lobe, &low, &far}).keep, &low);
+  far.chi2 = low.chi2 + 1000.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency({&lobe, &low, &far}).keep, &lobe);
+  low.chi2 = 30.0;
+  low.ok = false;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fitted).keep, &lobe);
+  // Off, or another refining method: never offered.
+  ModelSelectionOptions off;
+  off.low_frequency = false;
+  EXPECT_EQ(ModelLadder(Method::kAuto, off, kLights).NextWithLowFrequency({&lobe}).keep, &lobe);
+  EXPECT_EQ(Ladder(Method::kBlinnPhong).NextWithLowFrequency({&lobe}).keep, &lobe);
+}
+
+// The `low-frequency` method takes its fit wherever it succeeds, else falls back to the Lambertian fit.
+TEST(ModelLadder, TheLowFrequencyMethodKeepsItsFitOrFallsBack) {
+  const ModelLadder ladder = Ladder(Method::kLowFrequency);
+  const PixelFit lambertian = FitWith(40, 1.0);
+  EXPECT_EQ(ladder.Next({&lambertian}).keep, &lambertian);  // the tiles keep the pass's fit
+  const LadderStep ask = ladder.NextWithLowFrequency({&lambertian});
+  ASSERT_EQ(ask.action, Action::kFitLowFrequency);
+  PixelFit low = FitWith(36, 5.0, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  const PixelFit judged = FitWith(36, 1.0);
+  LadderStep step = ladder.NextWithLowFrequency({&lambertian, &low, &judged});
+  EXPECT_EQ(step.keep, &low);  // no comparison: the method is the model
+  EXPECT_FALSE(step.fell_back);
+  low.ok = false;
+  step = ladder.NextWithLowFrequency({&lambertian, &low, &judged});
+  EXPECT_EQ(step.keep, &lambertian);
+  EXPECT_TRUE(step.fell_back);
 }
 
 TEST(ModelLadder, OnlyAutoScreensOnTheLambertianConfidence) {

@@ -109,7 +109,8 @@ const std::vector<Category>& ModelCategories() {
        {int(solvers::ps::PixelModel::kTrimmed), {0, 206, 209}},
        {int(solvers::ps::PixelModel::kBlinnPhong), {255, 215, 0}},
        {int(solvers::ps::PixelModel::kIrls), {199, 21, 133}},
-       {int(solvers::ps::PixelModel::kGgx), {255, 127, 80}}},
+       {int(solvers::ps::PixelModel::kGgx), {255, 127, 80}},
+       {int(solvers::ps::PixelModel::kLowFrequency), {154, 205, 50}}},
       [](int code) { return solvers::ps::PixelModelName(static_cast<solvers::ps::PixelModel>(code)); });
   return categories;
 }

@@ -436,7 +436,8 @@ json ToJson(const PhotometricStereoResult& result) {
                    {"trimmed", summary.pixels_trimmed},
                    {"irls", summary.pixels_irls},
                    {"blinn_phong", summary.pixels_blinn_phong},
-                   {"ggx", summary.pixels_ggx}}},
+                   {"ggx", summary.pixels_ggx},
+                   {"low_frequency", summary.pixels_low_frequency}}},
                  {"samples_rejected", summary.samples_rejected},
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets}});
   // The stage's total: reading the frames and writing the results included.
@@ -596,7 +597,8 @@ solvers::ps::SolverSummary SolveNormals(const PhotometricStereoInput& input, con
                          "; drop --assume-distant (recipe key assume_distant) to solve with the near-light model");
     }
   }
-  const bool views_matter = options.method == Method::kBlinnPhong || options.method == Method::kAuto;
+  const bool views_matter = options.method == Method::kBlinnPhong || options.method == Method::kAuto ||
+                            options.method == Method::kLowFrequency;
   if (camera.IsPinhole() && views_matter) {
     const double bias_deg = PredictedViewBiasDeg(camera, stack.mask);
     report->predicted_view_bias_deg = bias_deg;

@@ -170,6 +170,18 @@ PixelFit FitInMap(const NormalMap& map, int p) {
   return fit;
 }
 
+PixelFit FitInMapWithChi2(const NormalMap& map, int p, bool held) {
+  PixelFit fit = FitInMap(map, p);
+  switch (fit.model) {
+    case PixelModel::kBlinnPhong: fit.parameters = held ? kSharedLobeParameters : kBlinnPhongParameters; break;
+    case PixelModel::kGgx: fit.parameters = kGgxParameters; break;
+    default: fit.parameters = 3; break;
+  }
+  const double confidence = map.confidence.ptr<float>()[p];
+  fit.chi2 = fit.Dof() > 0 && confidence > 0.0 ? fit.Dof() / std::min(confidence, 1.0) : 0.0;
+  return fit;
+}
+
 void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
                 std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits) {
   // No region can be glossy: a matte scene stops here, before any pass over the image.
@@ -316,6 +328,54 @@ void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCa
   for (std::size_t i = 0; i < batch.size(); ++i) {
     const PixelFit ggx = LobeFitFrom(solutions[i], batch[i].on_samples.used, PixelModel::kGgx);
     if (ladder.NextWithGgx(GgxFits{&batch[i].on_samples, &ggx}).keep == &ggx) keep(batch[i], ggx);
+  }
+}
+
+std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalMap& map,
+                                        const std::vector<std::uint8_t>& held) {
+  const std::uint8_t* flags = map.flags.ptr<std::uint8_t>();
+  const std::uint8_t* model = map.model.ptr<std::uint8_t>();
+  const std::uint16_t* used = map.usable_lights.ptr<std::uint16_t>();
+  const float* confidence = map.confidence.ptr<float>();
+  const bool automatic = ladder.method() == Method::kAuto;
+  constexpr auto kBlinnPhong = static_cast<std::uint8_t>(PixelModel::kBlinnPhong);
+  constexpr auto kGgx = static_cast<std::uint8_t>(PixelModel::kGgx);
+  std::vector<int> candidates;
+  const int pixels = static_cast<int>(map.flags.total());
+  for (int p = 0; p < pixels; ++p) {
+    if (flags[p] != static_cast<std::uint8_t>(PixelFlag::kSolved)) continue;
+    const bool is_held = !held.empty() && held[p] != 0;
+    if (automatic) {
+      // Only a lobe that fails the adequacy test, as its confidence tells.
+      if (model[p] != kBlinnPhong && model[p] != kGgx) continue;
+      const int dof = used[p] - (is_held ? kSharedLobeParameters : kBlinnPhongParameters);
+      if (dof > 0 && confidence[p] >= ladder.AdequateConfidence(dof)) continue;
+    }
+    const PixelFit kept = FitInMapWithChi2(map, p, is_held);
+    if (ladder.NextWithLowFrequency({&kept}).action == LadderStep::Action::kFitLowFrequency) candidates.push_back(p);
+  }
+  return candidates;
+}
+
+PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter, const PixelFit& kept,
+                           const LowFrequencyProblem& problem, bool* fell_back) {
+  int usable = 0;
+  for (int k = 0; k < problem.lights; ++k) usable += problem.inverse_sigma[k] > 0.0;
+  LowFrequencyFits fits{&kept};
+  fits.spike_pins_normal = SpikePinsNormal(kept, problem.lights, problem.wx, problem.wy, problem.wz, problem.stride,
+                                           problem.view, problem.inverse_sigma, fitter.LeftOut(usable));
+  PixelFit low, judged;
+  for (;;) {
+    const LadderStep step = ladder.NextWithLowFrequency(fits);
+    if (step.action != LadderStep::Action::kFitLowFrequency) {
+      *fell_back = step.fell_back;
+      return *step.keep;
+    }
+    low = LowFrequencyFitFrom(fitter.Fit(problem));
+    judged = KeptOnLights(kept, fitter.used_lights(), problem.wx, problem.wy, problem.wz, problem.stride, problem.view,
+                          problem.observed, problem.inverse_sigma);
+    fits.low_frequency = &low;
+    fits.kept_on_samples = &judged;
   }
 }
 

@@ -10,6 +10,7 @@
 // both hand their rows to the same plan and climbs.
 
 #include "kernels/lobe_lane_fit.h"
+#include "kernels/low_frequency_fit.h"
 #include "model_selection.h"
 
 #include "photorig/solvers/ps/photometric_stereo.h"
@@ -24,6 +25,11 @@ namespace photorig::solvers::ps::internal {
 
 // The fit a solved pixel p kept, as the map holds it (its chi-square is not kept).
 PixelFit FitInMap(const NormalMap& map, int p);
+// The same with its parameters (held: a lobe step 5 held, 3) and its
+// chi-square as the map's confidence gives it: dof / confidence, or dof
+// where the confidence is capped at 1 (a fit at or below the noise, which
+// every adequacy test passes alike).
+PixelFit FitInMapWithChi2(const NormalMap& map, int p, bool held);
 // Writes `fit` as pixel p's answer: normal, albedo, model, lobe, samples used
 // and confidence. Inline: the distant stages record every doubtful pixel through it.
 inline void WriteFitToMap(int pixel, const PixelFit& fit, NormalMap* out) {
@@ -114,5 +120,20 @@ struct GgxCandidate {
 // each pixel whose GGX fit the ladder keeps.
 void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCandidate> batch,
               const std::function<void(const GgxCandidate&, const PixelFit& ggx)>& keep);
+
+// The solved pixels of `map` step 7 offers the low-frequency fit
+// (ModelLadder::NextWithLowFrequency asks for it); held: step 5's held
+// lobes (empty: none). An adequate fit is settled from the map's confidence
+// alone, so a matte scene costs one pass over four of its maps.
+std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalMap& map,
+                                        const std::vector<std::uint8_t>& held);
+
+// Step 7's climb of one pixel (ModelLadder::NextWithLowFrequency): `kept`
+// as FitInMapWithChi2 gives it, its samples in `problem` (the low-frequency
+// fit's units: a lobe fit's, the samples over their gains). Returns the fit
+// the ladder keeps, *fell_back where it stands in for a failed low-frequency
+// fit (the `low-frequency` method's).
+PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter, const PixelFit& kept,
+                           const LowFrequencyProblem& problem, bool* fell_back);
 
 }  // namespace photorig::solvers::ps::internal

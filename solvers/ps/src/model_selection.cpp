@@ -39,7 +39,8 @@ ModelLadder::ModelLadder(Method method, const ModelSelectionOptions& options, in
       lambertian_quantile_(ChiSquareQuantiles(lights, options.lambertian_quantile)),
       gross_u2_(options.gross_outlier_sigma * options.gross_outlier_sigma),
       max_rejected_fraction_(options.max_rejected_fraction),
-      adequacy_quantile_(options.adequacy_quantile) {}
+      adequacy_quantile_(options.adequacy_quantile),
+      low_frequency_(options.low_frequency) {}
 
 std::vector<float> ModelLadder::ScreenThresholds() const {
   const int lights = static_cast<int>(quantile_.size()) - 1;

@@ -394,6 +394,37 @@ class NearRefitter {
     }
   }
 
+  // Step 7 for `pixels` of the map (ModelLadder::NextWithLowFrequency), each
+  // at its surface's height with its own light and view vectors; held: the
+  // pixels whose lobe step 5 held (empty: none). Returns how many fell back.
+  std::size_t OfferLowFrequency(const internal::ModelLadder& ladder, double spike_fraction, std::span<const int> pixels,
+                                const cv::Mat& height_mm, const std::vector<std::uint8_t>& held, NormalMap* map) {
+    internal::LowFrequencyFitter fitter(spike_fraction);
+    std::size_t fell_back = 0;
+    for (std::size_t first = 0; first < pixels.size(); first += kLobeBatch) {
+      const std::size_t count = std::min(kLobeBatch, pixels.size() - first);
+      ReadMapPixels(pixels.subspan(first, count), height_mm, [](int pixel) { return pixel; });
+      for (std::size_t i = 0; i < count; ++i) {
+        const int pixel = pixels[first + i];
+        const internal::PixelFit kept = internal::FitInMapWithChi2(*map, pixel, !held.empty() && held[pixel] != 0);
+        const double* w = &geometry_[6 * i * lights_];
+        const internal::LowFrequencyProblem problem{.lights = lights_,
+                                                    .wx = w,
+                                                    .wy = w + 1,
+                                                    .wz = w + 2,
+                                                    .stride = 6,
+                                                    .view = views_[i],
+                                                    .observed = &scaled_[i * lights_],
+                                                    .inverse_sigma = &scaled_inverse_sigma_[i * lights_]};
+        bool fell = false;
+        const internal::PixelFit chosen = internal::ClimbLowFrequency(ladder, fitter, kept, problem, &fell);
+        if (chosen.model == PixelModel::kLowFrequency) internal::WriteFitToMap(pixel, chosen, map);
+        fell_back += fell;
+      }
+    }
+    return fell_back;
+  }
+
  private:
   // Steps 5 and 6 read and fit this many pixels at a time.
   static constexpr std::size_t kLobeBatch = 64;
@@ -561,6 +592,13 @@ class LambertianAdequacy {
   bool noise_known_;
   std::vector<double> quantiles_;
 };
+
+// Whether the method refits pixels in each round: `low-frequency` fits once,
+// after the last round (step 7), and its rounds place the surface with the
+// Lambertian fit, as `lambertian`'s do.
+bool RefitsInRounds(Method method) {
+  return method != Method::kL2 && method != Method::kLambertian && method != Method::kLowFrequency;
+}
 
 // Whether the method keeps a refit over the pixel's Lambertian fit: IRLS
 // and `blinn-phong` wherever the refit succeeds; `auto` only where the
@@ -745,7 +783,7 @@ double SparseMisfit(const PixelProblem& p, const PhotometricStereoOptions& optio
   for (std::size_t i = 0; i < count; ++i)
     grid.pixels[i].z_mm = grid.starts[i].z_mm = p.Height(grid.relative[i], offset_mm);
   std::vector<double> chunk_sum(chunks, 0.0);
-  const bool refits = options.method != Method::kL2 && options.method != Method::kLambertian;
+  const bool refits = RefitsInRounds(options.method);
   // Without refits the grid's few hundred Lambertian fits take less time
   // than waking a second thread; the search calls this a dozen times or more.
 #pragma omp parallel if (refits)
@@ -833,7 +871,7 @@ std::vector<internal::GlossyPixel> FitRound(const PixelProblem& p, const Photome
                                             const cv::Mat& height_mm, bool placed, NormalMap* map) {
   // On an unplaced surface the residuals are the geometry's, not outliers',
   // so the chi-square test cannot tell which samples to distrust.
-  const bool refit = placed && options.method != Method::kL2 && options.method != Method::kLambertian;
+  const bool refit = placed && RefitsInRounds(options.method);
   cv::Mat chi_square;
   FitAllPixels(p, height_mm, map, refit ? &chi_square : nullptr);
   if (!refit) return {};
@@ -848,14 +886,14 @@ struct FittedSurface {
 
 // `auto`'s steps 5 and 6 (lobe_sharing.h) on p's map fitted at `surface`,
 // with every pixel's own light and view vectors; returns how many pixels
-// took a held lobe.
+// took a held lobe, *held marks them (empty: none).
 std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& options, FittedSurface surface,
-                       NormalMap* map) {
+                       NormalMap* map, std::vector<std::uint8_t>* held_out) {
   if (options.method != Method::kAuto || !options.selection.share_lobe) return 0;
   const internal::ModelLadder ladder(options.method, options.selection, p.lights.count());
   const int threads = omp_get_max_threads();
   std::vector<std::unique_ptr<NearRefitter>> refitters;
-  std::vector<std::uint8_t> held;
+  std::vector<std::uint8_t>& held = *held_out;
   internal::ShareLobes(
       ladder, options.selection.glossy_region_fraction, *map, std::move(surface.glossy), threads,
       {.begin =
@@ -875,6 +913,31 @@ std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& op
   for (std::size_t i = 0; i < held.size(); ++i)
     still_held += held[i] && map->model.ptr<std::uint8_t>()[i] == static_cast<std::uint8_t>(PixelModel::kBlinnPhong);
   return still_held;
+}
+
+// Step 7 (`auto`, `low-frequency`; ModelLadder::NextWithLowFrequency) on p's
+// map fitted at height_mm, with every pixel's own light and view vectors;
+// held: step 5's held lobes. Returns how many pixels fell back.
+std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm,
+                              const std::vector<std::uint8_t>& held, NormalMap* map) {
+  const Method method = options.method;
+  if (!(method == Method::kLowFrequency || (method == Method::kAuto && options.selection.low_frequency))) return 0;
+  const internal::ModelLadder ladder(method, options.selection, p.lights.count());
+  const std::vector<int> offered = internal::LowFrequencyCandidates(ladder, *map, held);
+  constexpr std::size_t kChunk = 256;
+  const std::size_t chunks = (offered.size() + kChunk - 1) / kChunk;
+  std::size_t fell_back = 0;
+#pragma omp parallel if (chunks > 1) reduction(+ : fell_back)
+  {
+    NearRefitter refitter(p, options);
+#pragma omp for schedule(dynamic, 1)
+    for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
+      const std::size_t first = chunk * kChunk, count = std::min(kChunk, offered.size() - first);
+      fell_back += refitter.OfferLowFrequency(ladder, options.selection.spike_fraction,
+                                              std::span<const int>(offered).subspan(first, count), height_mm, held, map);
+    }
+  }
+  return fell_back;
 }
 
 // The rounds on p's lattice: round 1 with the surface on the sample plane,
@@ -929,6 +992,7 @@ void CountPixels(const NormalMap& map, NearLightSummary* summary) {
   summary->pixels_irls = modelled(PixelModel::kIrls);
   summary->pixels_blinn_phong = modelled(PixelModel::kBlinnPhong);
   summary->pixels_ggx = modelled(PixelModel::kGgx);
+  summary->pixels_low_frequency = modelled(PixelModel::kLowFrequency);
 }
 
 std::string CheckInputs(const PhotometricStack& stack, const std::vector<camera::NearLight>& lights, const camera::Camera& camera) {
@@ -1048,9 +1112,13 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     fitted.height_mm = height;
     if (!depth_matters) summary.rounds = 1;
   }
-  const std::size_t held_lobes = ShareLobes(problem, options, std::move(fitted), result);
+  std::vector<std::uint8_t> held;
+  const cv::Mat fitted_height_mm = fitted.height_mm;
+  const std::size_t held_lobes = ShareLobes(problem, options, std::move(fitted), result, &held);
+  const std::size_t fell_back = OfferLowFrequency(problem, options, fitted_height_mm, held, result);
   CountPixels(*result, &summary);
   summary.pixels_shared_lobe = held_lobes;
+  summary.pixels_fell_back += fell_back;
   if (height_mm) {
     // The surface itself, from the final normals at every pixel, placed
     // where the model fits it best: the rounds' surface, integrated on their

@@ -42,6 +42,8 @@ bool ModelSelectionOptions::IsValid(std::string* why) const {
     return core::Refuse(why, "selection: gross_outlier_sigma must be finite and > 0");
   if (!(glossy_region_fraction > 0.0 && glossy_region_fraction <= 1.0))
     return core::Refuse(why, "selection: glossy_region_fraction must be in (0, 1]");
+  if (!(spike_fraction >= 0.0 && spike_fraction < 0.5))
+    return core::Refuse(why, "selection: spike_fraction must be in [0, 0.5)");
   return true;
 }
 

@@ -40,6 +40,72 @@ PixelFit LobeFitFrom(const LobeSolution& solution, int used, PixelModel model) {
           .model = model};
 }
 
+PixelFit LowFrequencyFitFrom(const LowFrequencySolution& solution) {
+  return {.ok = solution.ok,
+          .normal = solution.normal,
+          .albedo = M_PI * (solution.a[0] + solution.a[3]),
+          .specular_albedo = M_PI * (solution.a[1] + solution.a[2]),
+          .exponent = 0.0,
+          .chi2 = solution.chi2,
+          .parameters = kLowFrequencyParameters,
+          .used = solution.used,
+          .rejected = solution.left_out,
+          .model = PixelModel::kLowFrequency};
+}
+
+PixelFit KeptOnLights(const PixelFit& kept, std::span<const int> lights, const double* wx, const double* wy,
+                      const double* wz, int stride, const Eigen::Vector3d& view, const double* observed,
+                      const double* inverse_sigma) {
+  const int n = static_cast<int>(lights.size());
+  Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
+  Eigen::VectorXd b(n), predicted(n);
+  for (int i = 0; i < n; ++i) {
+    const int k = lights[i];
+    directions.row(i) << wx[k * stride], wy[k * stride], wz[k * stride];
+    b[i] = observed[k];
+  }
+  PixelFit judged = kept;
+  judged.used = n;
+  judged.rejected = 0;
+  const double q[6] = {kept.normal.x(), kept.normal.y(), kept.normal.z(), kept.albedo, kept.specular_albedo, kept.exponent};
+  bool ok = true;
+  if (kept.model == PixelModel::kBlinnPhong) {
+    ok = solvers::autodiff::BlinnPhongPixel(directions, Eigen::VectorXd::Ones(n), view, b).Predict(q, predicted.data());
+  } else if (kept.model == PixelModel::kGgx) {
+    ok = solvers::autodiff::GgxPixel(directions, Eigen::VectorXd::Ones(n), view, b).Predict(q, predicted.data());
+  } else {
+    predicted = (directions * (kept.normal * kept.albedo / M_PI)).cwiseMax(0.0);
+  }
+  judged.chi2 = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double u = (predicted[i] - b[i]) * inverse_sigma[lights[i]];
+    judged.chi2 += u * u;
+  }
+  judged.ok = ok && std::isfinite(judged.chi2);
+  return judged;
+}
+
+bool SpikePinsNormal(const PixelFit& kept, int lights, const double* wx, const double* wy, const double* wz,
+                     int stride, const Eigen::Vector3d& view, const double* inverse_sigma, int spike_samples) {
+  double half_maximum_cos = 0.0;
+  if (kept.model == PixelModel::kBlinnPhong) {
+    half_maximum_cos = std::pow(0.5, 1.0 / std::max(kept.exponent, 1e-6));
+  } else if (kept.model == PixelModel::kGgx) {
+    const double a2 = kept.exponent * kept.exponent;
+    if (a2 >= M_SQRT1_2) return false;  // no half maximum on the hemisphere: no spike
+    half_maximum_cos = std::sqrt((1.0 - M_SQRT2 * a2) / (1.0 - a2));
+  } else {
+    return false;
+  }
+  int core = 0;
+  for (int k = 0; k < lights; ++k) {
+    if (inverse_sigma[k] == 0.0) continue;
+    const Eigen::Vector3d h = (Eigen::Vector3d(wx[k * stride], wy[k * stride], wz[k * stride]) + view).normalized();
+    core += h.dot(kept.normal) >= half_maximum_cos;
+  }
+  return core >= 1 && core <= spike_samples;
+}
+
 PixelFit LambertianOnRow(int lights, const double* wx, const double* wy, const double* wz, int stride,
                          const double* observed, const double* inverse_sigma, const Eigen::Vector3d& kept) {
   Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
@@ -452,7 +518,8 @@ PixelFit PerPixelFits::Refine(int pixel, const Eigen::Vector3d& x, PixelScratch*
         return *step.keep;
       case Action::kFitSharedLobe:
       case Action::kFitOwnLobe:
-      case Action::kFitGgx: return *fits.lambertian;  // Next never asks for them (steps 5 and 6 do)
+      case Action::kFitGgx:
+      case Action::kFitLowFrequency: return *fits.lambertian;  // Next never asks for them (steps 5-7 do)
       case Action::kRefitLit:
         FitLit(reader_, s.row_observed.data(), s.row_inverse_sigma.data(), x, &lit);  // ok stays false without one
         fits.lit = &lit;

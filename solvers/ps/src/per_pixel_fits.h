@@ -8,6 +8,7 @@
 
 #include "kernels/lobe_lane_fit.h"
 #include "kernels/irls_lambertian_fit.h"
+#include "kernels/low_frequency_fit.h"
 #include "model_selection.h"
 #include "sample_reader.h"
 
@@ -15,6 +16,7 @@
 
 #include <Eigen/Core>
 
+#include <span>
 #include <vector>
 
 namespace photorig::solvers::ps::internal {
@@ -23,6 +25,10 @@ namespace photorig::solvers::ps::internal {
 PixelFit IrlsFit(const RobustSolution& solution);
 // The lobe (kBlinnPhong or kGgx) fitted to `used` samples.
 PixelFit LobeFitFrom(const LobeSolution& solution, int used, PixelModel model);
+// Step 7's low-frequency fit: albedo pi (a0 + a3), the reflectance away from
+// the mirror direction with the half angle 0; specular_albedo pi (a1 + a2),
+// its rise at the mirror direction; `rejected` the samples left out as a spike.
+PixelFit LowFrequencyFitFrom(const LowFrequencySolution& solution);
 
 // Step 5's Lambertian fit of a row's usable samples, the one the shared lobe
 // must beat: least squares (unweighted, as the Lambertian pass fits), with
@@ -36,6 +42,23 @@ PixelFit LambertianOnRow(const SampleReader& reader, const double* observed, con
 // stride s: the stack's shared directions, or a pixel's own under near lights.
 PixelFit LambertianOnRow(int lights, const double* wx, const double* wy, const double* wz, int stride,
                          const double* observed, const double* inverse_sigma, const Eigen::Vector3d& kept);
+
+// A kept fit (Lambertian, trimmed, IRLS, Blinn-Phong or GGX; its normal,
+// albedo and lobe) judged on the samples of `lights` only, each light's
+// direction (wx[k s], wy[k s], wz[k s]) at stride s: its chi-square there,
+// used that many samples, its own parameters (step 7 weighs it against the
+// low-frequency fit of the same samples).
+PixelFit KeptOnLights(const PixelFit& kept, std::span<const int> lights, const double* wx, const double* wy,
+                      const double* wz, int stride, const Eigen::Vector3d& view, const double* observed,
+                      const double* inverse_sigma);
+
+// Whether a lobe fit's core, the half vectors within its half maximum of its
+// normal (Blinn-Phong: cos^e = 1/2; GGX's distribution: cos^2 = (1 - sqrt 2
+// a^2) / (1 - a^2)), holds between 1 and spike_samples of the usable
+// samples: a spike the samples see, no wider than what step 7's fit leaves
+// out. False for a fit without a lobe.
+bool SpikePinsNormal(const PixelFit& kept, int lights, const double* wx, const double* wy, const double* wz,
+                     int stride, const Eigen::Vector3d& view, const double* inverse_sigma, int spike_samples);
 
 // Chi-square of a Blinn-Phong fit (normal, rho_d, rho_s, e) on samples seen
 // from `view`: one row of `directions` (towards the light) per sample.

@@ -88,7 +88,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   // estimated from the data first, so that the Lambertian pass can already
   // judge its own fits (its confidence) and spare them a second look.
   const bool refine = options.method == Method::kRobust || options.method == Method::kBlinnPhong ||
-                      options.method == Method::kAuto;
+                      options.method == Method::kAuto || options.method == Method::kLowFrequency;
   PhotometricStack working = stack;
   const internal::SolveNoise noise = internal::NoiseForSolve(options, refine, stack, lambertian);
   working.noise = noise.model;
@@ -107,7 +107,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   TileProgress progress(options.progress, MethodName(options.method),
                         static_cast<std::int64_t>(stack.width()) * stack.height());
   // Setup is everything before the first tile (the noise model included);
-  // solve_ms covers the tiles and, for refining methods, steps 5 and 6 after them.
+  // solve_ms covers the tiles and, for refining methods, steps 5-7 after them.
   const double setup_ms = timer.ElapsedMs();
   auto end_timings = [&](SolverSummary* summary) {
     summary->setup_ms = setup_ms;
@@ -132,13 +132,18 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   const internal::ModelLadder ladder(options.method, options.selection, working.light_count());
   const int threads = options.lambertian.num_threads > 0 ? options.lambertian.num_threads : omp_get_max_threads();
   internal::TileRefiner refiner(options, lambertian, working, ladder, threads, result);
+  // `low-frequency` refines no tile: its fit (step 7) takes every solved pixel after the pass.
+  const bool refine_tiles = options.method != Method::kLowFrequency;
   SolverSummary summary = internal::SolveLambertianTiles(
       lambertian, working, result,
       [&](int thread, int begin, int count) {
-        refiner.RefineTile(thread, begin, count);
+        if (refine_tiles) refiner.RefineTile(thread, begin, count);
         progress.TileDone(thread, count);
       },
-      [&](int thread) { refiner.Finish(thread); });
+      [&](int thread) {
+        if (refine_tiles) refiner.Finish(thread);
+      });
+  if (!refine_tiles) summary.pixels_lambertian = summary.pixels_solved;
   summary.method = MethodName(options.method);
   summary.shadow_threshold = lambertian.shadow_threshold;
   if (!summary.IsSolutionUsable()) {
@@ -146,6 +151,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     return summary;
   }
   refiner.ShareLobe();
+  refiner.OfferLowFrequency();
   summary.noise_estimated = noise_estimated;
   summary.noise_read_sigma = working.noise.read_sigma;
   summary.noise_shot_gain = working.noise.shot_gain;

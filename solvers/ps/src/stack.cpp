@@ -51,6 +51,7 @@ const char* PixelModelName(PixelModel model) {
     case PixelModel::kBlinnPhong: return "blinn_phong";
     case PixelModel::kIrls: return "irls";
     case PixelModel::kGgx: return "ggx";
+    case PixelModel::kLowFrequency: return "low_frequency";
   }
   return "unknown";
 }

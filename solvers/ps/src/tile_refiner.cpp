@@ -96,7 +96,10 @@ struct TileRefiner::ThreadState {
   std::size_t ggx = 0, ggx_from_lambertian = 0, ggx_from_trimmed = 0, ggx_from_blinn_phong = 0, ggx_from_held_lobe = 0;
   // Step 6 in lanes: a batch's pixels the ladder asks a GGX fit of.
   std::vector<GgxCandidate> ggx_offers;
-  // Samples a kept fit had left out (trimmed or unlit) that steps 5 and 6's lobe uses again.
+  // Step 7: the pixels that took the low-frequency fit, by the model they had kept.
+  std::size_t low_frequency = 0, low_from_lambertian = 0, low_from_trimmed = 0, low_from_blinn_phong = 0,
+              low_from_held_lobe = 0, low_from_ggx = 0;
+  // Samples a kept fit had left out (trimmed or unlit) that steps 5-7's fits use again.
   std::size_t samples_restored = 0;
 };
 
@@ -159,7 +162,8 @@ __attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& stat
       if (evidence >= kConfidentLobeEvidence)
         state.glossy.push_back({p, static_cast<float>(chosen.specular_albedo), static_cast<float>(chosen.exponent)});
       break;
-    case PixelModel::kGgx:  // only step 6 keeps a GGX lobe, after every Record
+    case PixelModel::kGgx:  // only steps 6 and 7 keep these, after every Record
+    case PixelModel::kLowFrequency:
     case PixelModel::kNone: break;
   }
 }
@@ -197,7 +201,8 @@ __attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p,
     case LadderStep::Action::kRefitLit: return;  // not asked: the recheck refits every pixel it looks at
     case LadderStep::Action::kFitSharedLobe:
     case LadderStep::Action::kFitOwnLobe:
-    case LadderStep::Action::kFitGgx: return;  // Next never asks for them (steps 5 and 6 do)
+    case LadderStep::Action::kFitGgx:
+    case LadderStep::Action::kFitLowFrequency: return;  // Next never asks for them (steps 5-7 do)
     case LadderStep::Action::kTrim: {
       state.trimming.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used});
       const std::size_t at = state.trim_rows.size();
@@ -522,11 +527,67 @@ void TileRefiner::RecordGgx(ThreadState& state, int p, const PixelFit& kept, boo
   state.samples_restored += static_cast<std::size_t>(std::max(0, chosen.used - kept.used));
 }
 
+void TileRefiner::OfferLowFrequency() {
+  const Method method = options_.method;
+  if (!(method == Method::kLowFrequency || (method == Method::kAuto && options_.selection.low_frequency))) return;
+  auto held = [this](int p) { return !held_lobe_.empty() && held_lobe_[p] != 0; };
+  // Listed before any thread starts: in a matte scene only the few whose
+  // Lambertian fit fails the adequacy test.
+  const std::vector<int> offered = LowFrequencyCandidates(ladder_, *result_, held_lobe_);
+  const int count = static_cast<int>(offered.size());
+  if (count == 0) return;
+#pragma omp parallel num_threads(std::min(threads_, 1 + count / 64))
+  {
+    ThreadState& state = states_[omp_get_thread_num()];
+    LowFrequencyFitter fitter(options_.selection.spike_fraction);
+    state.rows = 0;
+    const std::size_t row = NewRow(state);
+    double* observed = &state.observed[row * lights_];
+    double* inverse_sigma = &state.inverse_sigma[row * lights_];
+    const LowFrequencyProblem problem{.lights = lights_,
+                                      .wx = reader_.direction_axis(0),
+                                      .wy = reader_.direction_axis(1),
+                                      .wz = reader_.direction_axis(2),
+                                      .stride = 1,
+                                      .view = stack_.view_direction,
+                                      .observed = observed,
+                                      .inverse_sigma = inverse_sigma};
+#pragma omp for schedule(dynamic, 16)
+    for (int i = 0; i < count; ++i) {
+      const int p = offered[i];
+      const PixelFit kept = FitInMapWithChi2(*result_, p, held(p));
+      int usable = 0;
+      reader_.Row(p, kept.normal, observed, inverse_sigma, &usable);
+      bool fell_back = false;
+      const PixelFit chosen = ClimbLowFrequency(ladder_, fitter, kept, problem, &fell_back);
+      if (chosen.model == PixelModel::kLowFrequency) RecordLowFrequency(state, p, kept, held(p), chosen);
+      state.fell_back += fell_back;
+    }
+    state.rows = 0;
+  }
+}
+
+void TileRefiner::RecordLowFrequency(ThreadState& state, int p, const PixelFit& kept, bool held,
+                                     const PixelFit& low) {
+  WriteFitToMap(p, low, result_);
+  ++state.low_frequency;
+  switch (kept.model) {
+    case PixelModel::kLambertian: ++state.low_from_lambertian; break;
+    case PixelModel::kTrimmed: ++state.low_from_trimmed; break;
+    case PixelModel::kGgx: ++state.low_from_ggx; break;
+    default: ++(held ? state.low_from_held_lobe : state.low_from_blinn_phong); break;
+  }
+  // The samples the kept fit had left out come back, less the spike the low-frequency fit leaves out.
+  state.samples_restored += static_cast<std::size_t>(std::max(0, low.used + low.rejected - kept.used));
+  state.rejected += static_cast<std::size_t>(low.rejected);
+}
+
 void TileRefiner::AddCounts(SolverSummary* summary) const {
   std::size_t failed = 0;
-  // Steps 5 and 6 moved pixels between models counted on other threads: subtract
+  // Steps 5-7 moved pixels between models counted on other threads: subtract
   // after summing.
-  std::size_t from_lambertian = 0, from_trimmed = 0, from_blinn_phong = 0, from_held_lobe = 0, restored = 0;
+  std::size_t from_lambertian = 0, from_trimmed = 0, from_blinn_phong = 0, from_held_lobe = 0, from_ggx = 0,
+              restored = 0;
   for (const ThreadState& state : states_) {
     summary->pixels_lambertian += state.lambertian;
     summary->pixels_trimmed += state.trimmed;
@@ -539,6 +600,12 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
     from_trimmed += state.shared_from_trimmed + state.ggx_from_trimmed;
     from_blinn_phong += state.ggx_from_blinn_phong + state.ggx_from_held_lobe;
     from_held_lobe += state.ggx_from_held_lobe;
+    summary->pixels_low_frequency += state.low_frequency;
+    from_lambertian += state.low_from_lambertian;
+    from_trimmed += state.low_from_trimmed;
+    from_blinn_phong += state.low_from_blinn_phong + state.low_from_held_lobe;
+    from_held_lobe += state.low_from_held_lobe;
+    from_ggx += state.low_from_ggx;
     restored += state.samples_restored;
     summary->pixels_fell_back += state.fell_back;
     failed += state.failed;
@@ -547,6 +614,7 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
   summary->pixels_trimmed -= from_trimmed;
   summary->pixels_blinn_phong -= from_blinn_phong;
   summary->pixels_shared_lobe -= from_held_lobe;
+  summary->pixels_ggx -= from_ggx;
   summary->samples_rejected -= restored;
   summary->pixels_solved -= failed;
   summary->pixels_rejected_by_model += failed;

@@ -60,6 +60,11 @@ class TileRefiner {
   // nearest confidently glossy pixels instead, and then (step 6,
   // ModelLadder::NextWithGgx) a GGX lobe of its own. Runs its own threads.
   void ShareLobe();
+  // `auto`'s step 7, after step 5 and 6: each solved pixel whose kept fit
+  // fails the adequacy test is offered the low-frequency reflectance
+  // (ModelLadder::NextWithLowFrequency), one pixel at a time on the
+  // refiner's threads. Runs its own threads.
+  void OfferLowFrequency();
 
   // The counts of models, rejected samples and failed fits, into a summary of
   // the Lambertian pass (whose counts of solved and rejected pixels they correct).
@@ -85,6 +90,8 @@ class TileRefiner {
   void OfferGgx(int thread, std::span<const int> pixels);
   // Pixel p, kept as `kept` (held: a lobe step 5 held), takes the GGX fit `ggx`.
   void RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& ggx);
+  // Pixel p, kept as `kept` (held as RecordGgx's), takes the low-frequency fit `low`.
+  void RecordLowFrequency(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& low);
   // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps
   // the pixel's answer, or queues it for the stage the ladder asks for.
   // samples: the pixel's samples as copied for trimming, if they were;

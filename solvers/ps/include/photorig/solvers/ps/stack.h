@@ -74,7 +74,8 @@ enum class PixelModel : std::uint8_t {
   kTrimmed = 2,     // Lambertian with its worst samples left out (`auto`'s trimming)
   kBlinnPhong = 3,  // diffuse + normalised Blinn-Phong lobe
   kIrls = 4,        // Lambertian with outlying samples down-weighted (IRLS, the `robust` method)
-  kGgx = 5          // diffuse + GGX lobe (`auto`'s step 6, where the lobe is not Blinn-Phong)
+  kGgx = 5,         // diffuse + GGX lobe (`auto`'s step 6, where the lobe is not Blinn-Phong)
+  kLowFrequency = 6  // a reflectance with no lobe shape (`auto`'s step 7, where no model above explains the pixel)
 };
 const char* PixelModelName(PixelModel model);
 
@@ -90,7 +91,8 @@ struct NormalMap {
   // fit is exactly determined (3 usable samples for a Lambertian normal), so
   // that no residual tests it.
   cv::Mat confidence;
-  cv::Mat specular;       // CV_32FC2 (rho_s, exponent) where model == kBlinnPhong, (rho_s, roughness) where kGgx, else 0
+  cv::Mat specular;       // CV_32FC2 (rho_s, exponent) where model == kBlinnPhong, (rho_s, roughness) where kGgx,
+                          // (pi (a1 + a2), 0) where kLowFrequency (its rise towards the mirror direction), else 0
 };
 
 }  // namespace photorig::solvers::ps

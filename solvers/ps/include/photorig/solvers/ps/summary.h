@@ -37,6 +37,8 @@ struct SolverSummary : solvers::core::Summary {
   std::size_t pixels_shared_lobe = 0;
   // Diffuse + GGX lobe: `auto`'s step 6, in regions whose lobe is not Blinn-Phong.
   std::size_t pixels_ggx = 0;
+  // Low-frequency reflectance: `auto`'s step 7, where no model above explains the pixel.
+  std::size_t pixels_low_frequency = 0;
   // Pixels whose method's own fit failed and which kept a simpler fit instead
   // (`blinn-phong`: the trimmed, then the Lambertian fit; `robust` and `auto`:
   // the Lambertian fit), counted among the models above by the fit they kept.

@@ -1,0 +1,322 @@
+#include "low_frequency_fit.h"
+
+#include "lane_math.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+
+namespace photorig::solvers::ps::internal {
+namespace {
+
+// The Levenberg-Marquardt search stops after this many iterations, or once
+// a step moves the normal by less than kConvergedStepRad.
+constexpr int kMaxIterations = 40;
+constexpr double kConvergedStepRad = 1e-5;
+
+// The least-squares solution of G a = g on `support` (a bit mask of the
+// four unknowns; G symmetric, upper triangle used) by Cholesky, into a (0
+// off the support). False where the support's system is singular: a pivot
+// that keeps no more than 1e-12 of its diagonal is a dependent column (e.g.
+// no sample near the mirror direction, where n.h and (n.h)^2 coincide).
+bool SolveOnSupport(const double (&G)[4][4], const double (&g)[4], int support, std::array<double, 4>* a) {
+  int index[4], n = 0;
+  for (int j = 0; j < 4; ++j)
+    if (support >> j & 1) index[n++] = j;
+  double L[4][4] = {}, x[4];
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j <= i; ++j) {
+      double sum = G[std::min(index[i], index[j])][std::max(index[i], index[j])];
+      for (int k = 0; k < j; ++k) sum -= L[i][k] * L[j][k];
+      if (i == j) {
+        const double diagonal = G[index[i]][index[i]];
+        if (!(diagonal > 0.0) || !(sum > 1e-12 * diagonal)) return false;
+        L[i][i] = std::sqrt(sum);
+      } else {
+        L[i][j] = sum / L[j][j];
+      }
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    double sum = g[index[i]];
+    for (int k = 0; k < i; ++k) sum -= L[i][k] * x[k];
+    x[i] = sum / L[i][i];
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    double sum = x[i];
+    for (int k = i + 1; k < n; ++k) sum -= L[k][i] * x[k];
+    x[i] = sum / L[i][i];
+  }
+  a->fill(0.0);
+  for (int i = 0; i < n; ++i) (*a)[index[i]] = x[i];
+  return true;
+}
+
+// Whether a (the least-squares solution on its support) is the non-negative
+// least-squares solution: every a on the support positive, and the gradient
+// G a - g non-negative off it (the Karush-Kuhn-Tucker conditions of a convex problem).
+bool IsNonNegativeOptimum(const double (&G)[4][4], const double (&g)[4], int support, const std::array<double, 4>& a) {
+  for (int j = 0; j < 4; ++j) {
+    if (support >> j & 1) {
+      if (!(a[j] > 0.0)) return false;
+      continue;
+    }
+    double gradient = -g[j];
+    for (int k = 0; k < 4; ++k) gradient += G[std::min(j, k)][std::max(j, k)] * a[k];
+    if (gradient < -1e-12 * (std::abs(g[j]) + G[j][j])) return false;
+  }
+  return true;
+}
+
+// Non-negative least squares on four unknowns from the normal equations
+// G a = g and yy = the sum of squared targets, returning the sum of squared
+// residuals. The solution is the unconstrained one on its own support, so
+// it is the best non-negative one over the fifteen supports; *support
+// (the last solution's, as a bit mask) is tried first and kept if it passes
+// the optimality conditions, which from one Levenberg-Marquardt step to the
+// next it almost always does.
+double NonNegativeLeastSquares(const double (&G)[4][4], const double (&g)[4], double yy, int* support,
+                               std::array<double, 4>* a) {
+  auto misfit = [&](const std::array<double, 4>& x) {
+    // At the least-squares solution on a support, the misfit is yy - g . a.
+    return std::max(yy - (g[0] * x[0] + g[1] * x[1] + g[2] * x[2] + g[3] * x[3]), 0.0);
+  };
+  if (*support > 0 && SolveOnSupport(G, g, *support, a) && IsNonNegativeOptimum(G, g, *support, *a)) return misfit(*a);
+  double best = yy;  // the empty support
+  int best_support = 0;
+  std::array<double, 4> best_a{}, x;
+  for (int s = 1; s < 16; ++s) {
+    if (!SolveOnSupport(G, g, s, &x) || !std::all_of(x.begin(), x.end(), [](double v) { return v >= 0.0; })) continue;
+    const double m = misfit(x);
+    if (m < best) best = m, best_support = s, best_a = x;
+  }
+  *support = best_support;
+  *a = best_a;
+  return best;
+}
+
+// The normal equations of a at normal n: the upper triangle of G (10
+// sums, row by row) and g (4), columns max(0, n.l) (1, c, c^2, d) with c =
+// max(0, n.h).
+PHOTORIG_PS_MULTIVERSION
+void NormalEquationSums(const LowFrequencySamples& s, const double* n, double* out) {
+  const double nx = n[0], ny = n[1], nz = n[2];
+  double s00 = 0, s01 = 0, s02 = 0, s03 = 0, s11 = 0, s12 = 0, s13 = 0, s22 = 0, s23 = 0, s33 = 0;
+  double g0 = 0, g1 = 0, g2 = 0, g3 = 0;
+#pragma omp simd reduction(+ : s00, s01, s02, s03, s11, s12, s13, s22, s23, s33, g0, g1, g2, g3)
+  for (int k = 0; k < s.count; ++k) {
+    const double c0 = std::max(0.0, nx * s.lx[k] + ny * s.ly[k] + nz * s.lz[k]);
+    const double c = std::max(0.0, nx * s.hx[k] + ny * s.hy[k] + nz * s.hz[k]);
+    const double c1 = c0 * c, c2 = c1 * c, c3 = c0 * s.d[k];
+    s00 += c0 * c0, s01 += c0 * c1, s02 += c0 * c2, s03 += c0 * c3;
+    s11 += c1 * c1, s12 += c1 * c2, s13 += c1 * c3;
+    s22 += c2 * c2, s23 += c2 * c3, s33 += c3 * c3;
+    g0 += c0 * s.b[k], g1 += c1 * s.b[k], g2 += c2 * s.b[k], g3 += c3 * s.b[k];
+  }
+  const double sums[14] = {s00, s01, s02, s03, s11, s12, s13, s22, s23, s33, g0, g1, g2, g3};
+  std::copy(sums, sums + 14, out);
+}
+
+// The misfit's derivatives along the tangent directions t1, t2 at n, a
+// held (the clamps' derivatives are 0 where they bind): with v_j the
+// residuals' derivative along t_j, out = v1.v1, v1.v2, v2.v2, v1.r, v2.r,
+// then the four columns' products with v1 and with v2 (for the projection
+// of variable projection's Jacobian).
+PHOTORIG_PS_MULTIVERSION
+void TangentSums(const LowFrequencySamples& s, const double* n, const double* t1, const double* t2, const double* a,
+                 double* out) {
+  const double nx = n[0], ny = n[1], nz = n[2];
+  const double a0 = a[0], a1 = a[1], a2 = a[2], a3 = a[3];
+  double j11 = 0, j12 = 0, j22 = 0, r1 = 0, r2 = 0;
+  double p01 = 0, p11 = 0, p21 = 0, p31 = 0, p02 = 0, p12 = 0, p22 = 0, p32 = 0;
+#pragma omp simd reduction(+ : j11, j12, j22, r1, r2, p01, p11, p21, p31, p02, p12, p22, p32)
+  for (int k = 0; k < s.count; ++k) {
+    const double dot_l = nx * s.lx[k] + ny * s.ly[k] + nz * s.lz[k];
+    const double dot_h = nx * s.hx[k] + ny * s.hy[k] + nz * s.hz[k];
+    const double nl = std::max(0.0, dot_l), c = std::max(0.0, dot_h);
+    const double shape = a0 + c * (a1 + a2 * c) + a3 * s.d[k];
+    const double residual = nl * shape - s.b[k];
+    const double dl = dot_l > 0.0 ? shape : 0.0;
+    const double dh = dot_h > 0.0 ? nl * (a1 + 2.0 * a2 * c) : 0.0;
+    const double d1 = dl * (t1[0] * s.lx[k] + t1[1] * s.ly[k] + t1[2] * s.lz[k]) +
+                      dh * (t1[0] * s.hx[k] + t1[1] * s.hy[k] + t1[2] * s.hz[k]);
+    const double d2 = dl * (t2[0] * s.lx[k] + t2[1] * s.ly[k] + t2[2] * s.lz[k]) +
+                      dh * (t2[0] * s.hx[k] + t2[1] * s.hy[k] + t2[2] * s.hz[k]);
+    const double c1 = nl * c, c2 = c1 * c, c3 = nl * s.d[k];
+    j11 += d1 * d1, j12 += d1 * d2, j22 += d2 * d2;
+    r1 += d1 * residual, r2 += d2 * residual;
+    p01 += nl * d1, p11 += c1 * d1, p21 += c2 * d1, p31 += c3 * d1;
+    p02 += nl * d2, p12 += c1 * d2, p22 += c2 * d2, p32 += c3 * d2;
+  }
+  const double sums[13] = {j11, j12, j22, r1, r2, p01, p11, p21, p31, p02, p12, p22, p32};
+  std::copy(sums, sums + 13, out);
+}
+
+// Chi-square of the fit (n, a): each residual over its sample's sigma.
+PHOTORIG_PS_MULTIVERSION
+double WeightedMisfit(const LowFrequencySamples& s, const double* n, const double* a) {
+  const double nx = n[0], ny = n[1], nz = n[2];
+  double chi2 = 0.0;
+#pragma omp simd reduction(+ : chi2)
+  for (int k = 0; k < s.count; ++k) {
+    const double nl = std::max(0.0, nx * s.lx[k] + ny * s.ly[k] + nz * s.lz[k]);
+    const double c = std::max(0.0, nx * s.hx[k] + ny * s.hy[k] + nz * s.hz[k]);
+    const double u = s.inverse_sigma[k] * (nl * (a[0] + c * (a[1] + a[2] * c) + a[3] * s.d[k]) - s.b[k]);
+    chi2 += u * u;
+  }
+  return chi2;
+}
+
+// Two unit vectors that complete n (unit) to an orthonormal basis.
+void Tangents(const Eigen::Vector3d& n, Eigen::Vector3d* t1, Eigen::Vector3d* t2) {
+  const Eigen::Vector3d helper = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  *t1 = n.cross(helper).normalized();
+  *t2 = n.cross(*t1);
+}
+
+}  // namespace
+
+LowFrequencyFitter::Evaluation LowFrequencyFitter::Evaluate(const Eigen::Vector3d& normal, int support) const {
+  Evaluation e;
+  e.support = support;
+  NormalEquationSums(Samples(), normal.data(), e.sums.data());
+  const double* sums = e.sums.data();
+  const double G[4][4] = {{sums[0], sums[1], sums[2], sums[3]},
+                          {0, sums[4], sums[5], sums[6]},
+                          {0, 0, sums[7], sums[8]},
+                          {0, 0, 0, sums[9]}};
+  const double g[4] = {sums[10], sums[11], sums[12], sums[13]};
+  e.misfit = NonNegativeLeastSquares(G, g, b2_, &e.support, &e.a);
+  return e;
+}
+
+double LowFrequencyFitter::Chi2(const Eigen::Vector3d& normal, const std::array<double, 4>& a) const {
+  return WeightedMisfit(Samples(), normal.data(), a.data());
+}
+
+void LowFrequencyFitter::TangentSystem(const Eigen::Vector3d& normal, const Evaluation& at, const Eigen::Vector3d& t1,
+                                       const Eigen::Vector3d& t2, Eigen::Matrix2d* jtj, Eigen::Vector2d* jtr) const {
+  double sums[13];
+  TangentSums(Samples(), normal.data(), t1.data(), t2.data(), at.a.data(), sums);
+  *jtj << sums[0], sums[1], sums[1], sums[2];
+  // At the least-squares a on its support the residual is orthogonal to the
+  // support's columns, so J^T r needs no projection.
+  *jtr << sums[3], sums[4];
+  // Variable projection (Golub and Pereyra; Kaufman's form): the Jacobian of
+  // the residual with a re-solved is v_j less its projection onto the
+  // support's columns, so J^T J loses p_j^T G_S^-1 p_k. Without it the
+  // search moves the normal and a in turns and crawls along the valley
+  // where the n . h terms trade against the normal.
+  int index[4], n = 0;
+  for (int j = 0; j < 4; ++j)
+    if (at.support >> j & 1) index[n++] = j;
+  if (n == 0) return;
+  const double* normal_sums = at.sums.data();
+  Eigen::Matrix4d g = Eigen::Matrix4d::Zero();
+  Eigen::Matrix<double, 4, 2> p = Eigen::Matrix<double, 4, 2>::Zero();
+  const double G[4][4] = {{normal_sums[0], normal_sums[1], normal_sums[2], normal_sums[3]},
+                          {normal_sums[1], normal_sums[4], normal_sums[5], normal_sums[6]},
+                          {normal_sums[2], normal_sums[5], normal_sums[7], normal_sums[8]},
+                          {normal_sums[3], normal_sums[6], normal_sums[8], normal_sums[9]}};
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) g(i, j) = G[index[i]][index[j]];
+    p(i, 0) = sums[5 + index[i]], p(i, 1) = sums[9 + index[i]];
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> factor(g.topLeftCorner(n, n));
+  if (factor.info() != Eigen::Success) return;
+  const Eigen::MatrixXd projected = p.topRows(n).transpose() * factor.solve(p.topRows(n));
+  *jtj -= projected;
+  // Rounding can leave the difference a hair from positive semi-definite.
+  jtj->diagonal() = jtj->diagonal().cwiseMax(0.0);
+}
+
+Eigen::Vector3d LowFrequencyFitter::Search(Eigen::Vector3d normal, const Eigen::Vector3d& view, Evaluation* at,
+                                           int* iterations) const {
+  Evaluation current = Evaluate(normal, 0);
+  double damping = -1.0;  // set from the first system's diagonal
+  for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
+    *iterations = iteration + 1;
+    Eigen::Vector3d t1, t2;
+    Tangents(normal, &t1, &t2);
+    Eigen::Matrix2d jtj;
+    Eigen::Vector2d jtr;
+    TangentSystem(normal, current, t1, t2, &jtj, &jtr);
+    if (damping < 0.0) damping = 1e-3 * std::max(jtj.trace() / 2.0, 1e-300);
+    bool moved = false, converged = false;
+    // Marquardt's damping: raised until a step lowers the misfit (or gives up).
+    while (damping < 1e12 * std::max(jtj.trace(), 1e-300)) {
+      Eigen::Matrix2d damped = jtj;
+      damped.diagonal().array() += damping;
+      const Eigen::Vector2d step = damped.ldlt().solve(-jtr);
+      if (!step.allFinite()) break;
+      const Eigen::Vector3d trial = (normal + step.x() * t1 + step.y() * t2).normalized();
+      if (!(trial.dot(view) > 0.0)) {
+        damping *= 10.0;
+        continue;
+      }
+      const Evaluation next = Evaluate(trial, current.support);
+      if (next.misfit < current.misfit) {
+        converged = step.norm() < kConvergedStepRad || current.misfit - next.misfit <= 1e-10 * current.misfit;
+        normal = trial, current = next, moved = true;
+        damping = std::max(damping * 0.3, 1e-300);
+        break;
+      }
+      damping *= 10.0;
+    }
+    if (!moved || converged) break;
+  }
+  *at = current;
+  return normal;
+}
+
+LowFrequencySolution LowFrequencyFitter::Fit(const LowFrequencyProblem& problem) {
+  LowFrequencySolution out;
+  // The usable samples, the brightest spike_fraction of them left out.
+  order_.clear();
+  for (int k = 0; k < problem.lights; ++k)
+    if (problem.inverse_sigma[k] > 0.0) order_.push_back(k);
+  const int usable = static_cast<int>(order_.size());
+  const int left_out = LeftOut(usable);
+  if (left_out > 0) {
+    std::nth_element(order_.begin(), order_.begin() + left_out, order_.end(),
+                     [&](int i, int j) { return problem.observed[i] > problem.observed[j]; });
+    order_.erase(order_.begin(), order_.begin() + left_out);
+  }
+  const int count = static_cast<int>(order_.size());
+  out.left_out = left_out;
+  out.used = count;
+  if (count <= kLowFrequencyParameters) return out;
+  for (auto* v : {&lx_, &ly_, &lz_, &hx_, &hy_, &hz_, &d_, &b_, &inverse_sigma_}) v->resize(count);
+  b2_ = 0.0;
+  // The start: the model's Lambertian case (a0 alone) fitted to the same samples.
+  Eigen::Matrix3d lambertian_lhs = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d lambertian_rhs = Eigen::Vector3d::Zero();
+  for (int i = 0; i < count; ++i) {
+    const int k = order_[i];
+    const Eigen::Vector3d l(problem.wx[k * problem.stride], problem.wy[k * problem.stride],
+                            problem.wz[k * problem.stride]);
+    const Eigen::Vector3d h = (l + problem.view).normalized();
+    lx_[i] = l.x(), ly_[i] = l.y(), lz_[i] = l.z();
+    hx_[i] = h.x(), hy_[i] = h.y(), hz_[i] = h.z();
+    d_[i] = l.dot(h);
+    b_[i] = problem.observed[k];
+    inverse_sigma_[i] = problem.inverse_sigma[k];
+    b2_ += b_[i] * b_[i];
+    lambertian_lhs += l * l.transpose();
+    lambertian_rhs += l * b_[i];
+  }
+  const Eigen::Vector3d x = lambertian_lhs.ldlt().solve(lambertian_rhs);
+  if (!x.allFinite() || !(x.dot(problem.view) > 0.0)) return out;
+  Evaluation current;
+  const Eigen::Vector3d normal = Search(x.normalized(), problem.view, &current, &out.iterations);
+  out.normal = normal;
+  out.a = current.a;
+  out.chi2 = Chi2(normal, current.a);
+  out.ok = normal.allFinite() && std::isfinite(out.chi2) && current.a[0] + current.a[1] + current.a[2] + current.a[3] > 0.0;
+  return out;
+}
+
+}  // namespace photorig::solvers::ps::internal
