@@ -531,8 +531,9 @@ void TileRefiner::OfferLowFrequency() {
   const Method method = options_.method;
   if (!(method == Method::kLowFrequency || (method == Method::kAuto && options_.selection.low_frequency))) return;
   auto held = [this](int p) { return !held_lobe_.empty() && held_lobe_[p] != 0; };
-  // Listed before any thread starts: in a matte scene only the few whose
-  // Lambertian fit fails the adequacy test.
+  // Listed before any thread starts: for `auto` the lobes that fail the
+  // adequacy test (a matte scene has almost none); for `low-frequency`
+  // every solved pixel.
   const std::vector<int> offered = LowFrequencyCandidates(ladder_, *result_, held_lobe_);
   const int count = static_cast<int>(offered.size());
   if (count == 0) return;

@@ -25,20 +25,22 @@
 //                samples better (ModelSelectionOptions::share_lobe); in a
 //                region whose pixels reject one Blinn-Phong shape, each
 //                pixel takes a GGX lobe of its own (PixelModel::kGgx) where
-//                the information criterion prefers it. Last, a pixel that
-//                kept a lobe (unless a spike its samples see pins its
-//                normal) or an inadequate fit takes the low-frequency
-//                reflectance of kLowFrequency where the criterion prefers it
-//                on the samples that fit uses
+//                the information criterion prefers it. Last, a pixel whose
+//                lobe fails the adequacy test (unless a spike its samples
+//                see pins its normal) takes the low-frequency reflectance
+//                of kLowFrequency where the criterion prefers it, by very
+//                strong evidence, on the samples that fit uses
 //                (ModelSelectionOptions::low_frequency).
 //   kLowFrequency  per pixel, I = max(0, n.l)(a0 + a1 n.h + a2 (n.h)^2 +
 //                a3 cos theta_d) with every a >= 0, fitted without the
 //                pixel's brightest samples (ModelSelectionOptions::
 //                spike_fraction): a reflectance that only grows towards the
 //                mirror direction and with the half angle, with no lobe
-//                shape to assume. Slower than kBlinnPhong; on real objects
-//                whose gloss is not one lobe (painted, glazed, sheen) the
-//                most accurate single method (docs/photometric-stereo-accuracy.md).
+//                shape to assume. Wrong by degrees where a lobe model is
+//                exact (it drops the highlight that pins the normal); on
+//                real objects whose gloss is not one lobe (painted, glazed,
+//                sheen) the most accurate single method
+//                (docs/photometric-stereo-accuracy.md).
 //   Where a method's own fit fails, the pixel falls back to a simpler one
 //   (SolverSummary::pixels_fell_back).
 
@@ -155,17 +157,17 @@ struct ModelSelectionOptions {
   // chance sends a matte pixel to the lobe.
   bool share_lobe = true;
   double glossy_region_fraction = 0.05;
-  // kAuto's step 7: a pixel whose kept fit still fails the adequacy test
-  // (no model above explains it: inter-reflection, a lobe of another shape,
-  // a shoulder) is fitted the low-frequency reflectance
-  // I = max(0, n.l)(a0 + a1 n.h + a2 (n.h)^2 + a3 cos theta_d), every a >= 0,
-  // without its brightest spike_fraction of usable samples, and keeps it
-  // where its residual variance relative to the noise is below the kept
-  // fit's (PixelModel::kLowFrequency). It claims no lobe shape, so a lobe
-  // that is not the model's tilts its normal less. 10 %: the samples a
-  // highlight of half-width 7 deg (a Blinn-Phong exponent of 100) covers
-  // under a dome whose half vectors span 22 deg (DiLiGenT's 96 lights):
-  // (1 - cos 6.7 deg) / (1 - cos 21.6 deg) = 0.097.
+  // kAuto's step 7: a pixel whose kept lobe fails the adequacy test (a lobe
+  // of another shape, a shoulder, light the surface sends back to itself)
+  // is fitted kLowFrequency's reflectance, and keeps it where the
+  // information criterion on the samples it fitted is lower by
+  // kConfidentLobeEvidence (PixelModel::kLowFrequency; the ladder's
+  // NextWithLowFrequency). spike_fraction (both methods): the share of a
+  // pixel's usable samples, brightest first, that fit leaves out as a spike
+  // it cannot make. 10 %: the samples a highlight of half-width 6.7 deg (a
+  // Blinn-Phong exponent of 100) covers under a dome whose half vectors
+  // span 22 deg (DiLiGenT's 96 lights): (1 - cos 6.7 deg) / (1 - cos 21.6
+  // deg) = 0.097.
   bool low_frequency = true;
   double spike_fraction = 0.10;
   bool IsValid(std::string* why) const;
