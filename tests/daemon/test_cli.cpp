@@ -192,7 +192,8 @@ TEST(Cli, ChoiceFlagsOfferTheSolversOwnNamesAndRefuseOthers) {
   TempDir dir;
   // Help lists each choice flag's names and default from the solver's name table.
   const Outcome ps = Photorig("solve ps --help", dir);
-  EXPECT_NE((ps.out + ps.err).find("l2 | lambertian | robust | blinn-phong | auto (default auto)"), std::string::npos)
+  EXPECT_NE((ps.out + ps.err).find("l2 | lambertian | robust | blinn-phong | auto | low-frequency (default auto)"),
+            std::string::npos)
       << ps.out;
   EXPECT_NE((ps.out + ps.err).find("lanes | forward | reverse | symbolic | central-difference (default lanes)"),
             std::string::npos);
