@@ -170,13 +170,23 @@ PixelFit FitInMap(const NormalMap& map, int p) {
   return fit;
 }
 
+namespace {
+
+// The parameters of a fit the map holds as `model` (held: a lobe step 5 held).
+int KeptParameters(PixelModel model, bool held) {
+  switch (model) {
+    case PixelModel::kBlinnPhong: return held ? kSharedLobeParameters : kBlinnPhongParameters;
+    case PixelModel::kGgx: return kGgxParameters;
+    case PixelModel::kLowFrequency: return kLowFrequencyParameters;
+    default: return 3;
+  }
+}
+
+}  // namespace
+
 PixelFit FitInMapWithChi2(const NormalMap& map, int p, bool held) {
   PixelFit fit = FitInMap(map, p);
-  switch (fit.model) {
-    case PixelModel::kBlinnPhong: fit.parameters = held ? kSharedLobeParameters : kBlinnPhongParameters; break;
-    case PixelModel::kGgx: fit.parameters = kGgxParameters; break;
-    default: fit.parameters = 3; break;
-  }
+  fit.parameters = KeptParameters(fit.model, held);
   const double confidence = map.confidence.ptr<float>()[p];
   fit.chi2 = fit.Dof() > 0 && confidence > 0.0 ? fit.Dof() / std::min(confidence, 1.0) : 0.0;
   return fit;
@@ -348,7 +358,7 @@ std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalM
     if (automatic) {
       // Only a lobe that fails the adequacy test, as its confidence tells.
       if (model[p] != kBlinnPhong && model[p] != kGgx) continue;
-      const int dof = used[p] - (is_held ? kSharedLobeParameters : kBlinnPhongParameters);
+      const int dof = used[p] - KeptParameters(static_cast<PixelModel>(model[p]), is_held);
       if (dof > 0 && confidence[p] >= ladder.AdequateConfidence(dof)) continue;
     }
     const PixelFit kept = FitInMapWithChi2(map, p, is_held);
