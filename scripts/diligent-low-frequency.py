@@ -2,7 +2,7 @@
 """A low-frequency reflectance against the trimmed Lambertian fit on DiLiGenT objects.
 
     /usr/bin/python3 scripts/diligent-low-frequency.py DIR [--objects ball,bear] [--pixels 1000] [--seed 1]
-                                                         [--leave-out 0,5,10,20] [--synthetic 0.18,0.35]
+                                                         [--leave-out 0,5,10,20] [--synthetic 0.18,0.35] [--lobes]
 
 DIR holds DiLiGenT-layout object folders (<name>PNG/ with the images, filenames.txt,
 light_directions.txt, light_intensities.txt, mask.png and Normal_gt.mat); the project ships none.
@@ -11,6 +11,13 @@ For a random sample of each object's masked pixels it fits, from the pixel's own
   trimmed     a Lambertian fit that drops its worst sample while any lies beyond 3 robust sigma
   lowfreq     I_k = (n . l_k) (a0 + a1 (n . h_k) + a2 (n . h_k)^2 + a3 cos theta_d,k), every a >= 0
   lowfreq-N   the same without the pixel's brightest N % of lit samples
+  lobe        with --lobes: Lambertian plus a normalised Blinn-Phong lobe, rho_d / pi + rho_s (e + 2) / (2 pi)
+              (n . h)^e, from the trimmed fit's normal and the best of five start exponents (3 to 300)
+  lobe+retro  the same with a diffuse term that grows towards the camera, a3 (n . l) cos theta_d, a3 >= 0
+              (a rough surface's retro-reflection to first order), fitted from the same starts
+  lobe-bic    lobe+retro where it lowers the misfit, over the lobe fit's residual variance per degree of
+              freedom (at least 1 DN^2), by more than ln(samples) + 10 (the information criterion with
+              the margin `auto` uses), else lobe
 
 The low-frequency model is an isotropic reflectance that grows towards the mirror direction and
 with the half angle, with no lobe width to fit: a broad lobe seen by its tail, light the surface
@@ -107,6 +114,55 @@ def low_frequency(values, lights, halves, cos_d, used, start, drop_fraction):
     return unit(*fit.x)
 
 
+def lobe_fits(values, lights, halves, cos_d, used, start):
+    """Normals of lobe, lobe+retro and lobe-bic (see the module's help) from one pixel's samples."""
+    l, h, d, y = lights[used], halves[used], cos_d[used], values[used]
+
+    def predict(x, retro):
+        n = unit(x[0], x[1])
+        nl = np.maximum(l @ n, 0.0)
+        nh = np.clip(h @ n, 0.0, 1.0)
+        e = np.exp(x[4])
+        diffuse = x[2] / np.pi + (x[5] * d if retro else 0.0)
+        return nl * (diffuse + x[3] * (e + 2.0) / (2.0 * np.pi) * nh ** e)
+
+    def fit(retro):
+        s = start / np.linalg.norm(start)
+        albedo = np.pi * np.linalg.norm(start)
+        lower = [-np.inf, -np.inf, 0.0, 0.0, 0.0] + ([0.0] if retro else [])
+        upper = [np.inf, np.inf, np.inf, np.inf, np.log(2000.0)] + ([np.inf] if retro else [])
+        best = None
+        for exponent in (3.0, 10.0, 30.0, 100.0, 300.0):
+            x0 = [np.arccos(np.clip(s[2], -1.0, 1.0)), np.arctan2(s[1], s[0]), albedo, 0.05 * albedo,
+                  np.log(exponent)] + ([1e-9] if retro else [])
+            result = least_squares(lambda x: predict(x, retro) - y, x0, bounds=(lower, upper), x_scale="jac")
+            if best is None or result.cost < best.cost:
+                best = result
+        return unit(best.x[0], best.x[1]), 2.0 * best.cost
+
+    lobe, lobe_misfit = fit(False)
+    retro, retro_misfit = fit(True)
+    variance = max(1.0, lobe_misfit / max(1, len(y) - 5))
+    chosen = retro if (lobe_misfit - retro_misfit) / variance > np.log(len(y)) + 10.0 else lobe
+    return {"lobe": lobe, "lobe+retro": retro, "lobe-bic": chosen}
+
+
+def estimate(methods, values, lights, halves, cos_d, used, start):
+    """Each method's normal for one pixel: None the trimmed fit, a number a low-frequency fit leaving
+    out that share of the brightest samples, "lobe" the lobe fits."""
+    lobes = None
+    normals = {}
+    for method, spec in methods.items():
+        if spec is None:
+            normals[method] = start
+        elif spec == "lobe":
+            lobes = lobes or lobe_fits(values, lights, halves, cos_d, used, start)
+            normals[method] = lobes[method]
+        else:
+            normals[method] = low_frequency(values, lights, halves, cos_d, used, start, spec)
+    return normals
+
+
 def render_ggx(normal, lights, halves, cos_d, roughness, rng):
     albedo, f0 = 0.5, 0.3
     nl = np.maximum(lights @ normal, 0.0)
@@ -142,8 +198,7 @@ def synthetic(lights, roughnesses, pixels, seed, methods):
             if used.sum() < MIN_SAMPLES:
                 continue
             start = trimmed_lambertian(values, lights, used)
-            for method, drop in methods.items():
-                n = start if drop is None else low_frequency(values, lights, halves, cos_d, used, start, drop)
+            for method, n in estimate(methods, values, lights, halves, cos_d, used, start).items():
                 errors[method].append(angle_deg(n, normal))
         means = " | ".join(f"{np.mean(errors[m]):.2f}" for m in methods)
         print(f"| {roughness:g} | {len(errors['trimmed'])} | {means} |", flush=True)
@@ -159,10 +214,14 @@ def main():
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--synthetic", metavar="ROUGHNESS,...",
                         help="render GGX pixels of these roughnesses under the first object's lights instead")
+    parser.add_argument("--lobes", action="store_true",
+                        help="also fit lobe, lobe+retro and lobe-bic (slow: ten lobe fits per pixel)")
     args = parser.parse_args()
     methods = {"trimmed": None}
     for percent in args.leave_out.split(","):
         methods["lowfreq" if float(percent) == 0 else f"lowfreq-{percent}"] = float(percent) / 100.0
+    if args.lobes:
+        methods.update({"lobe": "lobe", "lobe+retro": "lobe", "lobe-bic": "lobe"})
     if args.synthetic:
         first = os.path.join(args.dir, args.objects.split(",")[0] + "PNG", "light_directions.txt")
         if not os.path.isfile(first):
@@ -196,8 +255,7 @@ def main():
             pixel, normal = values[r, c], truth[r, c]
             tilts.append(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0))))
             start = trimmed_lambertian(pixel, lights, used)
-            for method, drop in methods.items():
-                n = start if drop is None else low_frequency(pixel, lights, halves, cos_d, used, start, drop)
+            for method, n in estimate(methods, pixel, lights, halves, cos_d, used, start).items():
                 errors[method].append(angle_deg(n, normal))
         tilts = np.array(tilts)
         bands = [("all", 0.0, 90.0), (f"< {cone_deg:.1f}", 0.0, cone_deg),
