@@ -274,6 +274,52 @@ TEST(ModelLadder, AutoOffersTheLowFrequencyFitToALobeThatDoesNotExplainItsSample
   EXPECT_EQ(Ladder(Method::kBlinnPhong).NextWithLowFrequency({&lobe}).keep, &lobe);
 }
 
+// Step 7 in a region whose pixels reject one Blinn-Phong shape (step 5): an
+// inadequate Blinn-Phong lobe there takes the low-frequency fit outright,
+// without the evidence a pixel of another region needs; an adequate lobe,
+// a GGX lobe (the shape step 6 offered instead) and a pinned spike do not.
+TEST(ModelLadder, AutoTakesTheLowFrequencyFitForAnInadequateLobeWhereItsRegionRejectsTheShape) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit lobe = FitWith(40, 3.0, PixelModel::kBlinnPhong, 5);
+  const PixelFit judged = FitWith(36, 2.0, PixelModel::kBlinnPhong, 5);  // chi2 62 on the fit's samples
+  // Worse than the lobe on its samples (chi2 90 against 62): elsewhere the lobe stands.
+  PixelFit low = FitWith(36, 3.0, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  LowFrequencyFits fits{&lobe, &low, &judged};
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
+  fits.region_rejects_shape = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &low);
+  // Asked for before it is fitted, as for any inadequate lobe.
+  LowFrequencyFits unfitted{&lobe};
+  unfitted.region_rejects_shape = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(unfitted).action, Action::kFitLowFrequency);
+  // A failed low-frequency fit leaves the lobe, as does one its samples do
+  // not determine (fewer degrees of freedom left than its 6 parameters).
+  low.ok = false;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
+  low.ok = true;
+  PixelFit few = FitWith(11, 3.0, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  const PixelFit few_judged = FitWith(11, 2.0, PixelModel::kBlinnPhong, 5);
+  LowFrequencyFits undetermined{&lobe, &few, &few_judged};
+  undetermined.region_rejects_shape = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(undetermined).keep, &lobe);
+  few = FitWith(12, 3.0, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  EXPECT_EQ(ladder.NextWithLowFrequency(undetermined).keep, &few);
+  // An adequate lobe explains its samples whatever its region says.
+  const PixelFit good_lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  LowFrequencyFits adequate{&good_lobe, &low, &judged};
+  adequate.region_rejects_shape = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(adequate).keep, &good_lobe);
+  // A GGX lobe is judged on the evidence, as elsewhere.
+  const PixelFit ggx = FitWith(40, 3.0, PixelModel::kGgx, 5);
+  const PixelFit ggx_judged = FitWith(36, 2.0, PixelModel::kGgx, 5);
+  LowFrequencyFits other_shape{&ggx, &low, &ggx_judged};
+  other_shape.region_rejects_shape = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(other_shape).keep, &ggx);
+  // A sampled spike that pins the normal keeps it.
+  fits.spike_pins_normal = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
+}
+
 // The `low-frequency` method takes its fit wherever it succeeds, else falls back to the Lambertian fit.
 TEST(ModelLadder, TheLowFrequencyMethodKeepsItsFitOrFallsBack) {
   const ModelLadder ladder = Ladder(Method::kLowFrequency);

@@ -68,7 +68,9 @@ struct LobeSharingFits {
   // part in its region's shape test (ModelLadder::AddToShapeTest), the map
   // unchanged; else the fits the ladder keeps, into the map.
   std::function<void(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests)> share;
-  // Step 6's fits of `pixels` (indices into the map), into the map where the ladder keeps them.
+  // Step 6's fits of `pixels` (indices into the map; every pixel of a region
+  // that rejects one Blinn-Phong shape, save those with a lobe of another
+  // kind), into the map where the ladder keeps them.
   std::function<void(int thread, std::span<const int> pixels)> offer_ggx;
 };
 
@@ -132,8 +134,9 @@ std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalM
 // as FitInMapWithChi2 gives it, its samples in `problem` (the low-frequency
 // fit's units: a lobe fit's, the samples over their gains). Returns the fit
 // the ladder keeps, *fell_back where it stands in for a failed low-frequency
-// fit (the `low-frequency` method's).
+// fit (the `low-frequency` method's). region_rejects_shape: as
+// LowFrequencyFits has it.
 PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter, const PixelFit& kept,
-                           const LowFrequencyProblem& problem, bool* fell_back);
+                           const LowFrequencyProblem& problem, bool region_rejects_shape, bool* fell_back);
 
 }  // namespace photorig::solvers::ps::internal

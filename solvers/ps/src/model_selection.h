@@ -160,6 +160,9 @@ struct LowFrequencyFits {
   // The kept lobe's core lies within the samples the low-frequency fit
   // leaves out (SpikePinsNormal).
   bool spike_pins_normal = false;
+  // The pixel's glossy region rejects one Blinn-Phong shape (step 5's
+  // RejectsSharedShape).
+  bool region_rejects_shape = false;
 };
 
 class ModelLadder {
@@ -373,6 +376,18 @@ inline LadderStep ModelLadder::NextWithLowFrequency(const LowFrequencyFits& fits
   if (!lobe || Adequate(kept) || fits.spike_pins_normal) return Keep(kept);
   if (!fits.low_frequency) return {LadderStep::Action::kFitLowFrequency, nullptr, &kept};
   const PixelFit& low = *fits.low_frequency;
+  // A Blinn-Phong lobe that leaves its samples unexplained, in a region
+  // that rejects one Blinn-Phong shape (step 5): the pixel and its region
+  // both say the shape is wrong, so the residuals are systematic and the
+  // normal has tilted to absorb them; no criterion on those residuals can
+  // weigh the lobe fairly against a fit that assumes no lobe shape, which
+  // is taken outright, where its samples determine it (as many degrees of
+  // freedom left as it has parameters; under a 12-light dome they do not,
+  // and its normal follows the noise). A GGX lobe is the shape step 6
+  // offered such a region instead: what it leaves may be foreign light,
+  // judged below.
+  const bool misspecified = fits.region_rejects_shape && kept.model == PixelModel::kBlinnPhong;
+  if (misspecified && low.ok && low.Dof() >= low.parameters) return Keep(low);
   // The two are not nested and the ladder chose the kept fit already: the
   // low-frequency fit replaces it on very strong evidence only. Where even
   // the low-frequency fit leaves residuals far above the noise, chi-square

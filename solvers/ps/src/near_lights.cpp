@@ -396,9 +396,12 @@ class NearRefitter {
 
   // Step 7 for `pixels` of the map (ModelLadder::NextWithLowFrequency), each
   // at its surface's height with its own light and view vectors; held: the
-  // pixels whose lobe step 5 held (empty: none). Returns how many fell back.
+  // pixels whose lobe step 5 held (empty: none), shape_rejected: the pixels
+  // of regions that reject one Blinn-Phong shape (empty: none). Returns how
+  // many fell back.
   std::size_t OfferLowFrequency(const internal::ModelLadder& ladder, double spike_fraction, std::span<const int> pixels,
-                                const cv::Mat& height_mm, const std::vector<std::uint8_t>& held, NormalMap* map) {
+                                const cv::Mat& height_mm, const std::vector<std::uint8_t>& held,
+                                const std::vector<std::uint8_t>& shape_rejected, NormalMap* map) {
     internal::LowFrequencyFitter fitter(spike_fraction);
     std::size_t fell_back = 0;
     for (std::size_t first = 0; first < pixels.size(); first += kLobeBatch) {
@@ -417,7 +420,8 @@ class NearRefitter {
                                                     .observed = &scaled_[i * lights_],
                                                     .inverse_sigma = &scaled_inverse_sigma_[i * lights_]};
         bool fell = false;
-        const internal::PixelFit chosen = internal::ClimbLowFrequency(ladder, fitter, kept, problem, &fell);
+        const internal::PixelFit chosen = internal::ClimbLowFrequency(
+            ladder, fitter, kept, problem, !shape_rejected.empty() && shape_rejected[pixel] != 0, &fell);
         if (chosen.model == PixelModel::kLowFrequency) internal::WriteFitToMap(pixel, chosen, map);
         fell_back += fell;
       }
@@ -886,9 +890,11 @@ struct FittedSurface {
 
 // `auto`'s steps 5 and 6 (lobe_sharing.h) on p's map fitted at `surface`,
 // with every pixel's own light and view vectors; returns how many pixels
-// took a held lobe, *held marks them (empty: none).
+// took a held lobe, *held marks them (empty: none), *shape_rejected the
+// pixels of regions that reject one Blinn-Phong shape.
 std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& options, FittedSurface surface,
-                       NormalMap* map, std::vector<std::uint8_t>* held_out) {
+                       NormalMap* map, std::vector<std::uint8_t>* held_out,
+                       std::vector<std::uint8_t>* shape_rejected) {
   if (options.method != Method::kAuto || !options.selection.share_lobe) return 0;
   const internal::ModelLadder ladder(options.method, options.selection, p.lights.count());
   const int threads = omp_get_max_threads();
@@ -899,6 +905,7 @@ std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& op
       {.begin =
            [&] {
              held.assign(map->flags.total(), 0);
+             shape_rejected->assign(map->flags.total(), 0);
              for (int t = 0; t < threads; ++t) refitters.push_back(std::make_unique<NearRefitter>(p, options));
            },
        .share = [&](int thread, std::span<const internal::SharedLobeItem> items,
@@ -906,6 +913,7 @@ std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& op
          refitters[thread]->ShareLobe(ladder, items, surface.height_mm, tests, map, &held);
        },
        .offer_ggx = [&](int thread, std::span<const int> pixels) {
+         for (const int pixel : pixels) (*shape_rejected)[pixel] = 1;
          refitters[thread]->OfferGgx(ladder, pixels, surface.height_mm, held, map);
        }});
   // Step 6 may have given a held pixel a GGX lobe of its own.
@@ -917,9 +925,11 @@ std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& op
 
 // Step 7 (`auto`, `low-frequency`; ModelLadder::NextWithLowFrequency) on p's
 // map fitted at height_mm, with every pixel's own light and view vectors;
-// held: step 5's held lobes. Returns how many pixels fell back.
+// held: step 5's held lobes, shape_rejected: its rejecting regions' pixels.
+// Returns how many pixels fell back.
 std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm,
-                              const std::vector<std::uint8_t>& held, NormalMap* map) {
+                              const std::vector<std::uint8_t>& held, const std::vector<std::uint8_t>& shape_rejected,
+                              NormalMap* map) {
   const Method method = options.method;
   if (!(method == Method::kLowFrequency || (method == Method::kAuto && options.selection.low_frequency))) return 0;
   const internal::ModelLadder ladder(method, options.selection, p.lights.count());
@@ -934,7 +944,8 @@ std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOpti
     for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
       const std::size_t first = chunk * kChunk, count = std::min(kChunk, offered.size() - first);
       fell_back += refitter.OfferLowFrequency(ladder, options.selection.spike_fraction,
-                                              std::span<const int>(offered).subspan(first, count), height_mm, held, map);
+                                              std::span<const int>(offered).subspan(first, count), height_mm, held,
+                                              shape_rejected, map);
     }
   }
   return fell_back;
@@ -1112,10 +1123,10 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
     fitted.height_mm = height;
     if (!depth_matters) summary.rounds = 1;
   }
-  std::vector<std::uint8_t> held;
+  std::vector<std::uint8_t> held, shape_rejected;
   const cv::Mat fitted_height_mm = fitted.height_mm;
-  const std::size_t held_lobes = ShareLobes(problem, options, std::move(fitted), result, &held);
-  const std::size_t fell_back = OfferLowFrequency(problem, options, fitted_height_mm, held, result);
+  const std::size_t held_lobes = ShareLobes(problem, options, std::move(fitted), result, &held, &shape_rejected);
+  const std::size_t fell_back = OfferLowFrequency(problem, options, fitted_height_mm, held, shape_rejected, result);
   CountPixels(*result, &summary);
   summary.pixels_shared_lobe = held_lobes;
   summary.pixels_fell_back += fell_back;

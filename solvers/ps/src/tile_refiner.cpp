@@ -471,7 +471,11 @@ void TileRefiner::ShareLobe() {
   std::vector<GlossyPixel> glossy;
   for (const ThreadState& state : states_) glossy.insert(glossy.end(), state.glossy.begin(), state.glossy.end());
   ShareLobes(ladder_, options_.selection.glossy_region_fraction, *result_, std::move(glossy), threads_,
-             {.begin = [this] { held_lobe_.assign(result_->flags.total(), 0); },
+             {.begin =
+                  [this] {
+                    held_lobe_.assign(result_->flags.total(), 0);
+                    shape_rejected_.assign(result_->flags.total(), 0);
+                  },
               .share = [this](int thread, std::span<const SharedLobeItem> items,
                               std::vector<SharedShapeTest>* tests) { ShareLobe(thread, items, tests); },
               .offer_ggx = [this](int thread, std::span<const int> pixels) { OfferGgx(thread, pixels); }});
@@ -479,6 +483,7 @@ void TileRefiner::ShareLobe() {
 
 void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
   ThreadState& state = states_[thread];
+  for (const int p : pixels) shape_rejected_[p] = 1;
   if (!lanes_) {
     for (const int p : pixels) {
       const PixelFit kept = FitInMap(*result_, p);
@@ -560,7 +565,8 @@ void TileRefiner::OfferLowFrequency() {
       int usable = 0;
       reader_.Row(p, kept.normal, observed, inverse_sigma, &usable);
       bool fell_back = false;
-      const PixelFit chosen = ClimbLowFrequency(ladder_, fitter, kept, problem, &fell_back);
+      const PixelFit chosen = ClimbLowFrequency(ladder_, fitter, kept, problem,
+                                                !shape_rejected_.empty() && shape_rejected_[p] != 0, &fell_back);
       if (chosen.model == PixelModel::kLowFrequency) RecordLowFrequency(state, p, kept, held(p), chosen);
       state.fell_back += fell_back;
     }

@@ -133,6 +133,8 @@ class TileRefiner {
   std::vector<TrimmedLambertianLanes> trimmers_;
   // Per pixel: 1 where step 5 gave it a held lobe (as many parameters of its own as the Lambertian fit).
   std::vector<std::uint8_t> held_lobe_;
+  // Per pixel: 1 where step 5 found the pixel's region rejecting one Blinn-Phong shape.
+  std::vector<std::uint8_t> shape_rejected_;
 };
 
 }  // namespace photorig::solvers::ps::internal
