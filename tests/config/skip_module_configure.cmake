@@ -19,16 +19,17 @@ foreach(expected "PHOTORIG_HAVE_DRIVERS_ARAVIS 0" "PHOTORIG_HAVE_SIM_GIGE 0" "PH
   endif()
 endforeach()
 
+# Make lists "... name", Ninja "name: phony".
 execute_process(COMMAND ${CMAKE_COMMAND} --build "${BINARY_DIR}" --target help
                 RESULT_VARIABLE status OUTPUT_VARIABLE targets ERROR_VARIABLE targets)
 foreach(target photorig_capture photorig_service photorig photorigd photorig-sim-modbus test_config)
-  string(REGEX MATCH "[ \n]${target}[ \n]" found "${targets}")
+  string(REGEX MATCH "[ \n]${target}[: \n]" found "${targets}")
   if(NOT found)
     message(FATAL_ERROR "no target ${target} without aravis:\n${targets}")
   endif()
 endforeach()
 foreach(target photorig_drivers_aravis photorig_sim_gige test_aravis test_gige_end_to_end)
-  string(REGEX MATCH "[ \n]${target}[ \n]" found "${targets}")
+  string(REGEX MATCH "[ \n]${target}[: \n]" found "${targets}")
   if(found)
     message(FATAL_ERROR "target ${target} is still built without aravis")
   endif()

@@ -18,6 +18,7 @@ using internal::LadderStep;
 using internal::LowFrequencyFits;
 using internal::ModelLadder;
 using internal::PixelFit;
+using internal::SharedShapeTest;
 using Action = LadderStep::Action;
 
 constexpr int kLights = 48;
@@ -272,6 +273,28 @@ TEST(ModelLadder, AutoOffersTheLowFrequencyFitToALobeThatDoesNotExplainItsSample
   off.low_frequency = false;
   EXPECT_EQ(ModelLadder(Method::kAuto, off, kLights).NextWithLowFrequency({&lobe}).keep, &lobe);
   EXPECT_EQ(Ladder(Method::kBlinnPhong).NextWithLowFrequency({&lobe}).keep, &lobe);
+}
+
+// Step 5's shape test sums, over pixels the held lobe explains, its
+// chi-square less the pixel's own lobe's: a likelihood ratio of nested
+// models, so an own fit that converged worse than the held one counts 0.
+TEST(ModelLadder, TheShapeTestCountsAnOwnLobeThatFitsWorseAsNoGain) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit lambertian = FitWith(40, 3.0);                             // chi2 111
+  const PixelFit held = FitWith(40, 1.0, PixelModel::kBlinnPhong, 3);       // chi2 37, adequate
+  PixelFit own = FitWith(40, 0.8, PixelModel::kBlinnPhong, 5);              // chi2 28
+  SharedShapeTest test;
+  ladder.AddToShapeTest({&lambertian, &lambertian, &held, true, &own}, &test);
+  EXPECT_EQ(test.pixels, 1);
+  EXPECT_NEAR(test.chi2_gain, 9.0, 1e-12);
+  own.chi2 = 45.0;  // stopped short of the held fit
+  ladder.AddToShapeTest({&lambertian, &lambertian, &held, true, &own}, &test);
+  EXPECT_EQ(test.pixels, 2);
+  EXPECT_NEAR(test.chi2_gain, 9.0, 1e-12);
+  // 2 pixels: rejects above chi-square's adequacy quantile for 4 degrees of freedom.
+  EXPECT_FALSE(ladder.RejectsSharedShape(test));
+  test.chi2_gain = 40.0;
+  EXPECT_TRUE(ladder.RejectsSharedShape(test));
 }
 
 // Step 7 in a region whose pixels reject one Blinn-Phong shape (step 5): an

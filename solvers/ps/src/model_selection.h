@@ -130,9 +130,9 @@ struct SharedLobeFits {
 // Whether a glossy region's pixels reject the lobe it shares, by a likelihood
 // ratio: over pixels the held lobe explains (adequate, and below the
 // Lambertian fit), the sum of its chi-square less that of the pixel's own
-// lobe. Where the region's lobe is the
-// pixels' own, that sum is chi-square with two degrees of freedom per pixel
-// (the two the own lobe frees). Pixels the held lobe does not explain (a
+// lobe (at least 0: the own lobe nests the held one). Where the region's
+// lobe is the pixels' own, that sum is chi-square with two degrees of
+// freedom per pixel (the two the own lobe frees). Pixels the held lobe does not explain (a
 // matte pixel, one with spikes from inter-reflection) say nothing about the
 // lobe's shape.
 struct SharedShapeTest {
@@ -407,7 +407,10 @@ inline void ModelLadder::AddToShapeTest(const SharedLobeFits& fits, SharedShapeT
   if (!fits.lobe || !fits.own || !fits.own->ok || !Adequate(*fits.lobe) ||
       !(fits.lobe->chi2 < fits.lambertian->chi2))
     return;
-  test->chi2_gain += fits.lobe->chi2 - fits.own->chi2;
+  // The held lobe is the own lobe with rho_s and e fixed, so the own fit's
+  // best is never worse: a negative difference is an own fit that stopped
+  // short of it (from its exponent grid), and the pixel's ratio is then 0.
+  test->chi2_gain += std::max(0.0, fits.lobe->chi2 - fits.own->chi2);
   ++test->pixels;
 }
 
