@@ -192,10 +192,10 @@ PixelFit FitInMapWithChi2(const NormalMap& map, int p, bool held) {
   return fit;
 }
 
-void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
-                std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits) {
+std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
+                                     std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits) {
   // No region can be glossy: a matte scene stops here, before any pass over the image.
-  if (!AnyRegionCouldBeGlossy(map.flags, glossy, glossy_region_fraction)) return;
+  if (!AnyRegionCouldBeGlossy(map.flags, glossy, glossy_region_fraction)) return {};
   const cv::Mat solved = map.flags == static_cast<int>(PixelFlag::kSolved);
   cv::Mat labels, stats, centroids;
   const int regions = cv::connectedComponentsWithStats(solved, labels, stats, centroids, 8, CV_32S);
@@ -220,7 +220,7 @@ void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const 
     region_lobe[r] = {median(specular[r]), median(exponent[r])};
     any_glossy = true;
   }
-  if (!any_glossy) return;
+  if (!any_glossy) return {};
   fits.begin();
   auto kept_without_lobe = [](std::uint8_t model) {
     return model == static_cast<std::uint8_t>(PixelModel::kLambertian) ||
@@ -270,15 +270,19 @@ void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const 
       if (rejects[items[i].region]) items[i].lobe = nearest->At(items[i].pixel, &near);
     fits.share(thread, std::span(items).subspan(begin, end - begin), nullptr);
   });
-  if (!any_rejects) return;
+  if (!any_rejects) return {};
   // Step 6: where the lobe is not Blinn-Phong, each pixel of the region is offered a GGX lobe of its own.
+  std::vector<std::uint8_t> region_rejects(pixels, 0);
   std::vector<int> offered;
-  for (int p = 0; p < pixels; ++p)
-    if (rejects[label[p]] && (kept_without_lobe(model[p]) || model[p] == static_cast<std::uint8_t>(PixelModel::kBlinnPhong)))
-      offered.push_back(p);
+  for (int p = 0; p < pixels; ++p) {
+    if (!rejects[label[p]]) continue;
+    region_rejects[p] = 1;
+    if (kept_without_lobe(model[p]) || model[p] == static_cast<std::uint8_t>(PixelModel::kBlinnPhong)) offered.push_back(p);
+  }
   in_parallel(offered.size(), [&](int thread, std::size_t begin, std::size_t end) {
     fits.offer_ggx(thread, std::span(offered).subspan(begin, end - begin));
   });
+  return region_rejects;
 }
 
 namespace {

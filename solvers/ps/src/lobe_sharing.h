@@ -68,9 +68,7 @@ struct LobeSharingFits {
   // part in its region's shape test (ModelLadder::AddToShapeTest), the map
   // unchanged; else the fits the ladder keeps, into the map.
   std::function<void(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests)> share;
-  // Step 6's fits of `pixels` (indices into the map; every pixel of a region
-  // that rejects one Blinn-Phong shape, save those with a lobe of another
-  // kind), into the map where the ladder keeps them.
+  // Step 6's fits of `pixels` (indices into the map), into the map where the ladder keeps them.
   std::function<void(int thread, std::span<const int> pixels)> offer_ggx;
 };
 
@@ -84,8 +82,10 @@ bool AnyRegionCouldBeGlossy(const cv::Mat& flags, std::span<const GlossyPixel> g
 // Steps 5 and 6 over `map` (its flags and models as steps 1-4 left them),
 // `glossy` its confidently glossy pixels, on `threads` threads. A scene with
 // fewer than 16 confidently glossy pixels, or no glossy region, costs nothing.
-void ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
-                std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits);
+// Returns per pixel 1 where its region rejects one Blinn-Phong shape (empty
+// where none does), for step 7 (LowFrequencyFits::region_rejects_shape).
+std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
+                                     std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits);
 
 // One pixel of a step-5 batch: the fit steps 1-4 kept, its Lambertian fit on
 // every usable sample (LambertianOnRow), its samples as a lobe fit reads

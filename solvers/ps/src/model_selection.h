@@ -132,9 +132,9 @@ struct SharedLobeFits {
 // Lambertian fit), the sum of its chi-square less that of the pixel's own
 // lobe (at least 0: the own lobe nests the held one). Where the region's
 // lobe is the pixels' own, that sum is chi-square with two degrees of
-// freedom per pixel (the two the own lobe frees). Pixels the held lobe does not explain (a
-// matte pixel, one with spikes from inter-reflection) say nothing about the
-// lobe's shape.
+// freedom per pixel (the two the own lobe frees). Pixels the held lobe does
+// not explain (a matte pixel, one with spikes from inter-reflection) say
+// nothing about the lobe's shape.
 struct SharedShapeTest {
   double chi2_gain = 0.0;
   int pixels = 0;

@@ -891,7 +891,7 @@ struct FittedSurface {
 // `auto`'s steps 5 and 6 (lobe_sharing.h) on p's map fitted at `surface`,
 // with every pixel's own light and view vectors; returns how many pixels
 // took a held lobe, *held marks them (empty: none), *shape_rejected the
-// pixels of regions that reject one Blinn-Phong shape.
+// pixels of regions that reject one Blinn-Phong shape (empty: none).
 std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& options, FittedSurface surface,
                        NormalMap* map, std::vector<std::uint8_t>* held_out,
                        std::vector<std::uint8_t>* shape_rejected) {
@@ -900,12 +900,11 @@ std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& op
   const int threads = omp_get_max_threads();
   std::vector<std::unique_ptr<NearRefitter>> refitters;
   std::vector<std::uint8_t>& held = *held_out;
-  internal::ShareLobes(
+  *shape_rejected = internal::ShareLobes(
       ladder, options.selection.glossy_region_fraction, *map, std::move(surface.glossy), threads,
       {.begin =
            [&] {
              held.assign(map->flags.total(), 0);
-             shape_rejected->assign(map->flags.total(), 0);
              for (int t = 0; t < threads; ++t) refitters.push_back(std::make_unique<NearRefitter>(p, options));
            },
        .share = [&](int thread, std::span<const internal::SharedLobeItem> items,
@@ -913,7 +912,6 @@ std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& op
          refitters[thread]->ShareLobe(ladder, items, surface.height_mm, tests, map, &held);
        },
        .offer_ggx = [&](int thread, std::span<const int> pixels) {
-         for (const int pixel : pixels) (*shape_rejected)[pixel] = 1;
          refitters[thread]->OfferGgx(ladder, pixels, surface.height_mm, held, map);
        }});
   // Step 6 may have given a held pixel a GGX lobe of its own.

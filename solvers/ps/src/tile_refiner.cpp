@@ -470,20 +470,16 @@ void TileRefiner::ShareLobe() {
   if (options_.method != Method::kAuto || !options_.selection.share_lobe) return;
   std::vector<GlossyPixel> glossy;
   for (const ThreadState& state : states_) glossy.insert(glossy.end(), state.glossy.begin(), state.glossy.end());
-  ShareLobes(ladder_, options_.selection.glossy_region_fraction, *result_, std::move(glossy), threads_,
-             {.begin =
-                  [this] {
-                    held_lobe_.assign(result_->flags.total(), 0);
-                    shape_rejected_.assign(result_->flags.total(), 0);
-                  },
-              .share = [this](int thread, std::span<const SharedLobeItem> items,
-                              std::vector<SharedShapeTest>* tests) { ShareLobe(thread, items, tests); },
-              .offer_ggx = [this](int thread, std::span<const int> pixels) { OfferGgx(thread, pixels); }});
+  shape_rejected_ =
+      ShareLobes(ladder_, options_.selection.glossy_region_fraction, *result_, std::move(glossy), threads_,
+                 {.begin = [this] { held_lobe_.assign(result_->flags.total(), 0); },
+                  .share = [this](int thread, std::span<const SharedLobeItem> items,
+                                  std::vector<SharedShapeTest>* tests) { ShareLobe(thread, items, tests); },
+                  .offer_ggx = [this](int thread, std::span<const int> pixels) { OfferGgx(thread, pixels); }});
 }
 
 void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
   ThreadState& state = states_[thread];
-  for (const int p : pixels) shape_rejected_[p] = 1;
   if (!lanes_) {
     for (const int p : pixels) {
       const PixelFit kept = FitInMap(*result_, p);

@@ -133,7 +133,7 @@ class TileRefiner {
   std::vector<TrimmedLambertianLanes> trimmers_;
   // Per pixel: 1 where step 5 gave it a held lobe (as many parameters of its own as the Lambertian fit).
   std::vector<std::uint8_t> held_lobe_;
-  // Per pixel: 1 where step 5 found the pixel's region rejecting one Blinn-Phong shape.
+  // Per pixel: 1 where step 5 found the pixel's region rejecting one Blinn-Phong shape (empty: nowhere).
   std::vector<std::uint8_t> shape_rejected_;
 };
 
