@@ -50,7 +50,8 @@ struct NearLightOptions {
   // stride that leaves 16 pixels across the object: a few hundred pixels
   // pin one number, and each step of the search fits them all. On the 80 mm
   // dome's sphere 32, 16 and 11 across give mean errors within 1e-4 deg of
-  // each other (docs/performance.md).
+  // each other (tested against every lattice pixel:
+  // NearLights.ADepthSearchOnAGridAcrossTheObjectPlacesItAsEveryLatticePixelDoes).
   int offset_stride = 0;
   // The rounds fit and integrate only the lattice of every round_step_px-th
   // pixel of every round_step_px-th row; once they stop, every pixel is
@@ -63,7 +64,8 @@ struct NearLightOptions {
   // squared over 8: 8 um on a 34 mm sphere in 1.06 mm steps, which turns
   // the light of LEDs 80 mm away by 0.006 deg, an eighth of
   // normal_change_tolerance_deg. So the normals do not notice (0.1752 deg
-  // against 0.1748 with 64 pixels across, docs/performance.md), while the
+  // against 0.1748 with 64 pixels across; tested against every pixel:
+  // NearLights.RoundsOnALatticeLeaveTheNormalsAsOnEveryPixel), while the
   // rounds cost a step squared less.
   int round_step_px = 0;
   bool IsValid(std::string* why) const;
