@@ -108,44 +108,72 @@ class NearestLobes {
   std::vector<GlossyPixel> glossy_;
 };
 
+// An int per pixel, 0 where none was set. Hashed where few pixels are set
+// (a matte scene's floods touch a few thousand), a plain array where floods
+// may cover much of the image: hashing a glossy object's every pixel costs a
+// node allocation each, a tenth of shiny `auto`'s time.
+class PixelInts {
+ public:
+  PixelInts(std::size_t pixels, bool dense) {
+    if (dense) dense_.assign(pixels, 0);
+  }
+  int Get(int p) const {
+    if (!dense_.empty()) return dense_[p];
+    const auto found = sparse_.find(p);
+    return found == sparse_.end() ? 0 : found->second;
+  }
+  int& At(int p) { return dense_.empty() ? sparse_[p] : dense_[p]; }
+
+ private:
+  std::vector<int> dense_;
+  std::unordered_map<int, int> sparse_;
+};
+
 }  // namespace
 
 // No region holds more glossy pixels than there are, so a region past
 // glossy.size() / fraction pixels cannot be glossy: a flood from each glossy
-// pixel stops there.
+// pixel stops there. The answer does not depend on the order of the floods:
+// a region small enough is flooded whole by its first, and every flood in a
+// region too big stops or meets an earlier one.
 bool AnyRegionCouldBeGlossy(const cv::Mat& flags, std::span<const GlossyPixel> glossy, double fraction) {
   const int rows = flags.rows, cols = flags.cols;
   const std::uint8_t* flag = flags.ptr<std::uint8_t>();
   auto solved = [&](int p) { return flag[p] == static_cast<std::uint8_t>(PixelFlag::kSolved); };
-  std::unordered_map<int, std::size_t> glossy_at;  // pixel -> its entries in `glossy`, as ShareLobes counts them
   std::size_t glossy_solved = 0;
-  for (const GlossyPixel& g : glossy)
-    if (solved(g.pixel)) ++glossy_at[g.pixel], ++glossy_solved;
+  for (const GlossyPixel& g : glossy) glossy_solved += solved(g.pixel);
   if (glossy_solved < kMinPooledLobes) return false;
   const double max_area = static_cast<double>(glossy_solved) / fraction;
-  std::unordered_map<int, int> flood_of;  // pixel -> the flood that reached it
+  const std::size_t pixels = flags.total();
+  const bool dense = max_area >= static_cast<double>(pixels) / 32.0;
+  PixelInts glossy_at(pixels, dense);  // pixel -> its entries in `glossy`, as ShareLobes counts them
+  for (const GlossyPixel& g : glossy)
+    if (solved(g.pixel)) ++glossy_at.At(g.pixel);
+  PixelInts flood_of(pixels, dense);  // pixel -> the flood that reached it (from 1)
   std::vector<int> front;
   int flood = 0;
-  for (const auto& [start, unused] : glossy_at) {
-    if (flood_of.count(start) != 0) continue;  // in a region already looked at
+  for (const GlossyPixel& g : glossy) {
+    const int start = g.pixel;
+    if (!solved(start) || flood_of.Get(start) != 0) continue;  // in a region already looked at
     ++flood;
-    flood_of[start] = flood;
+    flood_of.At(start) = flood;
     front.assign(1, start);
     std::size_t area = 1, in_region = 0;
     bool too_big = false;
     while (!front.empty() && !too_big) {
       const int p = front.back();
       front.pop_back();
-      if (const auto found = glossy_at.find(p); found != glossy_at.end()) in_region += found->second;
+      in_region += static_cast<std::size_t>(glossy_at.Get(p));
       const int r = p / cols, c = p % cols;
       for (int dr = -1; dr <= 1 && !too_big; ++dr)
         for (int dc = -1; dc <= 1; ++dc) {
           const int rr = r + dr, cc = c + dc, q = rr * cols + cc;
           if (rr < 0 || rr >= rows || cc < 0 || cc >= cols || !solved(q)) continue;
-          const auto [at, added] = flood_of.emplace(q, flood);
+          int& mark = flood_of.At(q);
           // A pixel of an earlier flood: that flood stopped short, so this is its too-big region.
-          if (!added && at->second != flood) too_big = true;
-          if (!added) continue;
+          if (mark != 0 && mark != flood) too_big = true;
+          if (mark != 0) continue;
+          mark = flood;
           front.push_back(q);
           too_big = ++area > max_area;
           if (too_big) break;

@@ -490,10 +490,15 @@ void BlinnPhongSharedStartLanes(int lights, const double* cos_light, const doubl
     const double* c = cos_light + k * kFloatLanes;
     const double* h = cos_half + k * kFloatLanes;
     const double* b = observed + k * kFloatLanes;
+    // h^e as exp(e ln h) in the lanes' own log and exp: std::pow here, one
+    // scalar call per sample and lane, was 6 % of a glossy object's solve.
+#pragma omp simd
     for (int j = 0; j < kFloatLanes; ++j) {
-      const double lobe = h[j] > 0.0 && exponent[j] > 0.0
-                              ? specular_albedo[j] * (exponent[j] + 2.0) * (0.5 * kInvPi) * std::pow(h[j], exponent[j])
-                              : 0.0;
+      double unused;
+      const double safe_h = h[j] > 1e-300 ? h[j] : 1e-300;  // a value, not std::max's reference: it vectorises
+      const double power = LaneExp(exponent[j] * LaneLogAndInverse(safe_h, &unused));
+      const double lobe =
+          h[j] > 0.0 && exponent[j] > 0.0 ? specular_albedo[j] * (exponent[j] + 2.0) * (0.5 * kInvPi) * power : 0.0;
       sum_a[j] += w[j] * c[j] * c[j], sum_b[j] += w[j] * c[j] * (b[j] - lobe * c[j]);
     }
   }
