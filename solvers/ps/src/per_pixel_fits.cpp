@@ -108,23 +108,31 @@ bool SpikePinsNormal(const PixelFit& kept, int lights, const double* wx, const d
 
 PixelFit LambertianOnRow(int lights, const double* wx, const double* wy, const double* wz, int stride,
                          const double* observed, const double* inverse_sigma, const Eigen::Vector3d& kept) {
-  Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d r = Eigen::Vector3d::Zero();
+  // Sums over the usable samples as masked lane loops: step 5 calls this for
+  // every pixel it offers a lobe, a twentieth of a glossy object's solve
+  // where the loops branched per sample.
+  double gxx = 0.0, gxy = 0.0, gxz = 0.0, gyy = 0.0, gyz = 0.0, gzz = 0.0, rx = 0.0, ry = 0.0, rz = 0.0;
   int used = 0;
+#pragma omp simd reduction(+ : gxx, gxy, gxz, gyy, gyz, gzz, rx, ry, rz, used)
   for (int k = 0; k < lights; ++k) {
-    if (inverse_sigma[k] == 0.0) continue;
-    const Eigen::Vector3d w(wx[k * stride], wy[k * stride], wz[k * stride]);
-    g += w * w.transpose();
-    r += observed[k] * w;
-    ++used;
+    const double usable = inverse_sigma[k] != 0.0 ? 1.0 : 0.0;
+    const double x = usable * wx[k * stride], y = usable * wy[k * stride], z = usable * wz[k * stride];
+    gxx += x * x, gxy += x * y, gxz += x * z, gyy += y * y, gyz += y * z, gzz += z * z;
+    const double b = inverse_sigma[k] != 0.0 ? observed[k] : 0.0;
+    rx += b * x, ry += b * y, rz += b * z;
+    used += inverse_sigma[k] != 0.0;
   }
   if (used < 3) return PixelFit{};
-  const Eigen::Vector3d x = g.ldlt().solve(r);
+  Eigen::Matrix3d g;
+  g << gxx, gxy, gxz, gxy, gyy, gyz, gxz, gyz, gzz;
+  const Eigen::Vector3d x = g.ldlt().solve(Eigen::Vector3d(rx, ry, rz));
   double chi2 = 0.0, kept_chi2 = 0.0;
+#pragma omp simd reduction(+ : chi2, kept_chi2)
   for (int k = 0; k < lights; ++k) {
-    const Eigen::Vector3d w(wx[k * stride], wy[k * stride], wz[k * stride]);
-    const double u = (observed[k] - w.dot(x)) * inverse_sigma[k];
-    const double v = (observed[k] - std::max(0.0, w.dot(kept))) * inverse_sigma[k];
+    const double w_x = wx[k * stride] * x.x() + wy[k * stride] * x.y() + wz[k * stride] * x.z();
+    const double w_kept = wx[k * stride] * kept.x() + wy[k * stride] * kept.y() + wz[k * stride] * kept.z();
+    const double u = (observed[k] - w_x) * inverse_sigma[k];
+    const double v = (observed[k] - (w_kept > 0.0 ? w_kept : 0.0)) * inverse_sigma[k];
     chi2 += u * u, kept_chi2 += v * v;  // 0 where unusable
   }
   chi2 = std::min(chi2, kept_chi2);
