@@ -166,17 +166,28 @@ void AccumulateTile(const TileConstants& c, int begin, int first, int end, TileS
     const float* __restrict b = c.planes[l + 1] + begin;
     const float* __restrict e = c.planes[l + 2] + begin;
     const float* __restrict f = c.planes[l + 3] + begin;
+    // The planes two groups on are fetched meanwhile, a cache line of each
+    // per 16 pixels: a tile reads 4 KB of each plane, and the hardware
+    // prefetchers stop at every 4 KB page, so each plane's run starts cold.
+    const int ahead = std::min(l + 8, k - 4);
+    const float* ahead_planes[4] = {c.planes[ahead] + begin, c.planes[ahead + 1] + begin, c.planes[ahead + 2] + begin,
+                                    c.planes[ahead + 3] + begin};
+    for (int i0 = 0; i0 < n; i0 += 16) {
+      for (const float* plane : ahead_planes) __builtin_prefetch(plane + i0);
 #pragma omp simd
-    for (int i = 0; i < n; ++i) {
-      const float va = a[i], vb = b[i], ve = e[i], vf = f[i];
-      x0[i] += w0[l] * va + w0[l + 1] * vb + w0[l + 2] * ve + w0[l + 3] * vf;
-      x1[i] += w1[l] * va + w1[l + 1] * vb + w1[l + 2] * ve + w1[l + 3] * vf;
-      x2[i] += w2[l] * va + w2[l + 1] * vb + w2[l + 2] * ve + w2[l + 3] * vf;
-      q1[i] += u[l] * va + u[l + 1] * vb + u[l + 2] * ve + u[l + 3] * vf;
-      q2[i] += u[l] * va * va + u[l + 1] * vb * vb + u[l + 2] * ve * ve + u[l + 3] * vf * vf;
-      const float ti = threshold[i];
-      usable[i] += static_cast<float>((va > ti) & (va < saturation)) + static_cast<float>((vb > ti) & (vb < saturation)) +
-                   static_cast<float>((ve > ti) & (ve < saturation)) + static_cast<float>((vf > ti) & (vf < saturation));
+      for (int i = i0; i < std::min(n, i0 + 16); ++i) {
+        const float va = a[i], vb = b[i], ve = e[i], vf = f[i];
+        x0[i] += w0[l] * va + w0[l + 1] * vb + w0[l + 2] * ve + w0[l + 3] * vf;
+        x1[i] += w1[l] * va + w1[l + 1] * vb + w1[l + 2] * ve + w1[l + 3] * vf;
+        x2[i] += w2[l] * va + w2[l + 1] * vb + w2[l + 2] * ve + w2[l + 3] * vf;
+        q1[i] += u[l] * va + u[l + 1] * vb + u[l + 2] * ve + u[l + 3] * vf;
+        q2[i] += u[l] * va * va + u[l + 1] * vb * vb + u[l + 2] * ve * ve + u[l + 3] * vf * vf;
+        const float ti = threshold[i];
+        usable[i] += static_cast<float>((va > ti) & (va < saturation)) +
+                     static_cast<float>((vb > ti) & (vb < saturation)) +
+                     static_cast<float>((ve > ti) & (ve < saturation)) +
+                     static_cast<float>((vf > ti) & (vf < saturation));
+      }
     }
   }
   for (; l < k; ++l) {
