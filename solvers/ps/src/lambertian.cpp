@@ -341,8 +341,9 @@ void AccumulateSubsetBlock(const TileConstants& c, int offset, int count, const 
 // count, sum 1 / s^2) are looked up per group of four lights by each pixel's
 // usable pattern (group_terms) instead of summed light by light: one permute
 // and one add per sum and group where there were four masked adds. Each
-// light's next cache lines are prefetched: the hardware prefetcher does not
-// follow K streams at once.
+// light's line eight iterations on is prefetched into L2: the hardware
+// prefetcher does not follow K streams at once, and K lines each four on
+// into L1 held more fill buffers than the core has (a fifth slower).
 __attribute__((target("avx512f"))) void AccumulateSubsetBlockAvx512(const TileConstants& c, int offset, int count,
                                                                     const float* __restrict d, SubsetBlock* a) {
   constexpr int kLanes = 16;
@@ -362,7 +363,7 @@ __attribute__((target("avx512f"))) void AccumulateSubsetBlockAvx512(const TileCo
       const int end = std::min(first + kSubsetGroup, c.lights);
       for (int j = first; j < end; ++j) {
         const float* samples = c.planes[j] + offset + i;
-        _mm_prefetch(reinterpret_cast<const char*>(samples + 4 * kLanes), _MM_HINT_T0);
+        _mm_prefetch(reinterpret_cast<const char*>(samples + 8 * kLanes), _MM_HINT_T1);
         const __m512 v = _mm512_maskz_loadu_ps(lanes, samples);
         const __mmask16 usable = _mm512_mask_cmp_ps_mask(
             _mm512_mask_cmp_ps_mask(lanes, v, threshold, _CMP_GT_OQ), v, saturation, _CMP_LT_OQ);
