@@ -3,6 +3,7 @@
 
     /usr/bin/python3 scripts/diligent-low-frequency.py DIR [--objects ball,bear] [--pixels 1000] [--seed 1]
                                                          [--leave-out 0,5,10,20] [--synthetic 0.18,0.35] [--lobes]
+                                                         [--shared-retro 0,0.5,1,2,4,8]
 
 DIR holds DiLiGenT-layout object folders (<name>PNG/ with the images, filenames.txt,
 light_directions.txt, light_intensities.txt, mask.png and Normal_gt.mat); the project ships none.
@@ -18,6 +19,13 @@ For a random sample of each object's masked pixels it fits, from the pixel's own
   lobe-bic    lobe+retro where it lowers the misfit, over the lobe fit's residual variance per degree of
               freedom (at least 1 DN^2), by more than ln(samples) + 10 (the information criterion with
               the margin `auto` uses), else lobe
+
+With --shared-retro K,...: instead of the table above, one retro-reflection factor k shared by every
+sampled pixel of an object (or, with --synthetic, of each roughness), diffuse rho_d / pi (1 + k cos
+theta_d) beside the Blinn-Phong lobe, each pixel's lobe refitted (five start exponents) at each k given:
+per k the misfit summed over the pixels (chi^2 in DN^2) and the mean angular error; then the k an
+information criterion picks (one parameter for all the pixels; the margin `auto` uses) and, on the same
+pixels, the low-frequency fit without the brightest 10 %.
 
 The low-frequency model is an isotropic reflectance that grows towards the mirror direction and
 with the half angle, with no lobe width to fit: a broad lobe seen by its tail, light the surface
@@ -147,6 +155,56 @@ def lobe_fits(values, lights, halves, cos_d, used, start):
     return {"lobe": lobe, "lobe+retro": retro, "lobe-bic": chosen}
 
 
+def lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor):
+    """Normal and misfit (chi^2, DN^2) of a Blinn-Phong lobe beside the diffuse rho_d / pi (1 + factor cos theta_d)."""
+    l, h, d, y = lights[used], halves[used], cos_d[used], values[used]
+
+    def predict(x):
+        n = unit(x[0], x[1])
+        nl = np.maximum(l @ n, 0.0)
+        nh = np.clip(h @ n, 0.0, 1.0)
+        e = np.exp(x[4])
+        return nl * (x[2] / np.pi * (1.0 + factor * d) + x[3] * (e + 2.0) / (2.0 * np.pi) * nh ** e)
+
+    s = start / np.linalg.norm(start)
+    albedo = np.pi * np.linalg.norm(start) / (1.0 + factor)
+    best = None
+    for exponent in (3.0, 10.0, 30.0, 100.0, 300.0):
+        x0 = [np.arccos(np.clip(s[2], -1.0, 1.0)), np.arctan2(s[1], s[0]), albedo, 0.05 * albedo, np.log(exponent)]
+        result = least_squares(lambda x: predict(x) - y, x0, x_scale="jac",
+                               bounds=([-np.inf, -np.inf, 0.0, 0.0, 0.0], [np.inf, np.inf, np.inf, np.inf, np.log(2000.0)]))
+        if best is None or result.cost < best.cost:
+            best = result
+    return unit(best.x[0], best.x[1]), 2.0 * best.cost
+
+
+def shared_retro(name, pixels, factors):
+    """Prints the --shared-retro rows for one scene's sampled pixels (values, lights, halves, cos_d, used,
+    start, truth): per k the summed misfit and mean error, then the k the criterion picks and, on the same
+    pixels, the low-frequency fit without the brightest 10 %."""
+    results = []
+    for factor in factors:
+        misfit, errors, samples, dof = 0.0, [], 0, 0
+        for values, lights, halves, cos_d, used, start, truth in pixels:
+            normal, chi2 = lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor)
+            misfit += chi2
+            samples += int(used.sum())
+            dof += int(used.sum()) - 5
+            errors.append(angle_deg(normal, truth))
+        results.append((factor, misfit, float(np.mean(errors))))
+        print(f"| {name} | {len(pixels)} | {factor:g} | {misfit:.4g} | {np.mean(errors):.2f} |", flush=True)
+    # The factor is one parameter for every pixel: kept where it lowers the misfit, over the lobe fits'
+    # residual variance per degree of freedom (at least 1 DN^2), by more than ln(samples) + 10.
+    base = next(r for r in results if r[0] == 0.0) if any(r[0] == 0.0 for r in results) else None
+    if base is not None:
+        variance = max(1.0, base[1] / max(1, dof))
+        best = min(results, key=lambda r: r[1])
+        picked = best if (base[1] - best[1]) / variance > np.log(samples) + 10.0 else base
+        low = [angle_deg(low_frequency(v, l, h, d, u, st, 0.1), t) for v, l, h, d, u, st, t in pixels]
+        print(f"| {name} | {len(pixels)} | picked {picked[0]:g} (gain {(base[1] - best[1]) / variance:.3g}) | | "
+              f"{picked[2]:.2f}; low-frequency-10 {np.mean(low):.2f} |", flush=True)
+
+
 def estimate(methods, values, lights, halves, cos_d, used, start):
     """Each method's normal for one pixel: None the trimmed fit, a number a low-frequency fit leaving
     out that share of the brightest samples, "lobe" the lobe fits."""
@@ -216,7 +274,53 @@ def main():
                         help="render GGX pixels of these roughnesses under the first object's lights instead")
     parser.add_argument("--lobes", action="store_true",
                         help="also fit lobe, lobe+retro and lobe-bic (slow: ten lobe fits per pixel)")
+    parser.add_argument("--shared-retro", metavar="K,...",
+                        help="instead: one retro-reflection factor shared by each object's sampled pixels, at each K")
     args = parser.parse_args()
+    if args.shared_retro:
+        factors = [float(k) for k in args.shared_retro.split(",")]
+        print("| object | pixels | shared k | misfit, DN^2 | mean error, deg |")
+        print("|---|---|---|---|---|")
+        if args.synthetic:
+            first = os.path.join(args.dir, args.objects.split(",")[0] + "PNG", "light_directions.txt")
+            lights = np.loadtxt(first)
+            halves = lights + VIEW
+            halves /= np.linalg.norm(halves, axis=1, keepdims=True)
+            cos_d = halves @ VIEW
+            rng = np.random.default_rng(args.seed)
+            for roughness in [float(r) for r in args.synthetic.split(",")]:
+                pixels = []
+                while len(pixels) < args.pixels:
+                    tilt, azimuth = np.radians(rng.uniform(0.0, 60.0)), rng.uniform(0.0, 2.0 * np.pi)
+                    normal = unit(tilt, azimuth)
+                    values = render_ggx(normal, lights, halves, cos_d, roughness, rng)
+                    used = (values >= 2) & (values < 255)
+                    if used.sum() >= MIN_SAMPLES:
+                        pixels.append((values, lights, halves, cos_d, used, trimmed_lambertian(values, lights, used),
+                                       normal))
+                shared_retro(f"GGX {roughness:g}", pixels, factors)
+            return
+        for name in args.objects.split(","):
+            folder = os.path.join(args.dir, name + "PNG")
+            if not os.path.isdir(folder):
+                sys.exit(f"{folder}: no such object folder (expected DIR/<object>PNG/)")
+            lights, values, raw, mask, truth = load_object(folder)
+            halves = lights + VIEW
+            halves /= np.linalg.norm(halves, axis=1, keepdims=True)
+            cos_d = halves @ VIEW
+            rows, cols = np.nonzero(mask)
+            rng = np.random.default_rng(args.seed)
+            picked = rng.choice(len(rows), min(args.pixels, len(rows)) if args.pixels > 0 else len(rows), replace=False)
+            pixels = []
+            for i in picked:
+                r, c = rows[i], cols[i]
+                used = (raw[r, c] >= 2) & (raw[r, c] < 255)
+                if used.sum() < MIN_SAMPLES:
+                    continue
+                start = trimmed_lambertian(values[r, c], lights, used)
+                pixels.append((values[r, c], lights, halves, cos_d, used, start, truth[r, c]))
+            shared_retro(name, pixels, factors)
+        return
     methods = {"trimmed": None}
     for percent in args.leave_out.split(","):
         methods["lowfreq" if float(percent) == 0 else f"lowfreq-{percent}"] = float(percent) / 100.0
