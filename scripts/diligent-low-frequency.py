@@ -155,8 +155,10 @@ def lobe_fits(values, lights, halves, cos_d, used, start):
     return {"lobe": lobe, "lobe+retro": retro, "lobe-bic": chosen}
 
 
-def lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor):
-    """Normal and misfit (chi^2, DN^2) of a Blinn-Phong lobe beside the diffuse rho_d / pi (1 + factor cos theta_d)."""
+def lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor, previous=None):
+    """Normal, misfit (chi^2, DN^2) and parameters of a Blinn-Phong lobe beside the diffuse
+    rho_d / pi (1 + factor cos theta_d); previous: (factor, parameters) of the pixel's fit at another
+    factor, a sixth start (rho_d rescaled), so that a larger factor never ends above a smaller one's fit."""
     l, h, d, y = lights[used], halves[used], cos_d[used], values[used]
 
     def predict(x):
@@ -168,14 +170,19 @@ def lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor):
 
     s = start / np.linalg.norm(start)
     albedo = np.pi * np.linalg.norm(start) / (1.0 + factor)
+    starts = [[np.arccos(np.clip(s[2], -1.0, 1.0)), np.arctan2(s[1], s[0]), albedo, 0.05 * albedo, np.log(exponent)]
+              for exponent in (3.0, 10.0, 30.0, 100.0, 300.0)]
+    if previous is not None:
+        x = np.array(previous[1], dtype=float)
+        x[2] *= (1.0 + previous[0]) / (1.0 + factor)
+        starts.append(list(x))
     best = None
-    for exponent in (3.0, 10.0, 30.0, 100.0, 300.0):
-        x0 = [np.arccos(np.clip(s[2], -1.0, 1.0)), np.arctan2(s[1], s[0]), albedo, 0.05 * albedo, np.log(exponent)]
+    for x0 in starts:
         result = least_squares(lambda x: predict(x) - y, x0, x_scale="jac",
                                bounds=([-np.inf, -np.inf, 0.0, 0.0, 0.0], [np.inf, np.inf, np.inf, np.inf, np.log(2000.0)]))
         if best is None or result.cost < best.cost:
             best = result
-    return unit(best.x[0], best.x[1]), 2.0 * best.cost
+    return unit(best.x[0], best.x[1]), 2.0 * best.cost, best.x
 
 
 def shared_retro(name, pixels, factors):
@@ -183,10 +190,12 @@ def shared_retro(name, pixels, factors):
     start, truth): per k the summed misfit and mean error, then the k the criterion picks and, on the same
     pixels, the low-frequency fit without the brightest 10 %."""
     results = []
+    previous = [None] * len(pixels)  # each pixel's fit at the last factor, factors taken in the order given
     for factor in factors:
         misfit, errors, samples, dof = 0.0, [], 0, 0
-        for values, lights, halves, cos_d, used, start, truth in pixels:
-            normal, chi2 = lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor)
+        for i, (values, lights, halves, cos_d, used, start, truth) in enumerate(pixels):
+            normal, chi2, x = lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor, previous[i])
+            previous[i] = (factor, x)
             misfit += chi2
             samples += int(used.sum())
             dof += int(used.sum()) - 5
