@@ -75,6 +75,34 @@ def load_object(folder):
     return lights, np.stack(values, -1), np.stack(raw, -1), mask, truth
 
 
+def half_vectors(lights):
+    """Each light's half vector with the view and cos theta_d = l . h."""
+    halves = lights + VIEW
+    halves /= np.linalg.norm(halves, axis=1, keepdims=True)
+    return halves, halves @ VIEW
+
+
+def object_samples(directory, name, pixels, seed):
+    """One object's lights, half vectors and cos theta_d, and a random sample of `pixels` of its masked pixels
+    (0: all) with enough usable samples, each as (values, used, trimmed start, true normal)."""
+    folder = os.path.join(directory, name + "PNG")
+    if not os.path.isdir(folder):
+        sys.exit(f"{folder}: no such object folder (expected DIR/<object>PNG/)")
+    lights, values, raw, mask, truth = load_object(folder)
+    halves, cos_d = half_vectors(lights)
+    rows, cols = np.nonzero(mask)
+    rng = np.random.default_rng(seed)
+    count = len(rows) if pixels <= 0 else min(pixels, len(rows))
+    samples = []
+    for i in rng.choice(len(rows), count, replace=False):
+        r, c = rows[i], cols[i]
+        # lit and unsaturated: 8-bit samples under 2 DN are shadow or noise, 255 clipped
+        used = (raw[r, c] >= 2) & (raw[r, c] < 255)
+        if used.sum() >= MIN_SAMPLES:
+            samples.append((values[r, c], used, trimmed_lambertian(values[r, c], lights, used), truth[r, c]))
+    return lights, halves, cos_d, samples
+
+
 def angle_deg(estimate, truth):
     estimate = estimate / np.linalg.norm(estimate)
     return float(np.degrees(np.arccos(np.clip(estimate @ truth, -1.0, 1.0))))
@@ -249,9 +277,7 @@ def render_ggx(normal, lights, halves, cos_d, roughness, rng):
 
 
 def synthetic(lights, roughnesses, pixels, seed, methods):
-    halves = lights + VIEW
-    halves /= np.linalg.norm(halves, axis=1, keepdims=True)
-    cos_d = halves @ VIEW
+    halves, cos_d = half_vectors(lights)
     rng = np.random.default_rng(seed)
     print("| GGX roughness | pixels | " + " | ".join(methods) + " |")
     print("|---|---|" + "---|" * len(methods))
@@ -293,9 +319,7 @@ def main():
         if args.synthetic:
             first = os.path.join(args.dir, args.objects.split(",")[0] + "PNG", "light_directions.txt")
             lights = np.loadtxt(first)
-            halves = lights + VIEW
-            halves /= np.linalg.norm(halves, axis=1, keepdims=True)
-            cos_d = halves @ VIEW
+            halves, cos_d = half_vectors(lights)
             rng = np.random.default_rng(args.seed)
             for roughness in [float(r) for r in args.synthetic.split(",")]:
                 pixels = []
@@ -310,25 +334,8 @@ def main():
                 shared_retro(f"GGX {roughness:g}", pixels, factors)
             return
         for name in args.objects.split(","):
-            folder = os.path.join(args.dir, name + "PNG")
-            if not os.path.isdir(folder):
-                sys.exit(f"{folder}: no such object folder (expected DIR/<object>PNG/)")
-            lights, values, raw, mask, truth = load_object(folder)
-            halves = lights + VIEW
-            halves /= np.linalg.norm(halves, axis=1, keepdims=True)
-            cos_d = halves @ VIEW
-            rows, cols = np.nonzero(mask)
-            rng = np.random.default_rng(args.seed)
-            picked = rng.choice(len(rows), min(args.pixels, len(rows)) if args.pixels > 0 else len(rows), replace=False)
-            pixels = []
-            for i in picked:
-                r, c = rows[i], cols[i]
-                used = (raw[r, c] >= 2) & (raw[r, c] < 255)
-                if used.sum() < MIN_SAMPLES:
-                    continue
-                start = trimmed_lambertian(values[r, c], lights, used)
-                pixels.append((values[r, c], lights, halves, cos_d, used, start, truth[r, c]))
-            shared_retro(name, pixels, factors)
+            lights, halves, cos_d, samples = object_samples(args.dir, name, args.pixels, args.seed)
+            shared_retro(name, [(v, lights, halves, cos_d, u, st, t) for v, u, st, t in samples], factors)
         return
     methods = {"trimmed": None}
     for percent in args.leave_out.split(","):
@@ -345,29 +352,12 @@ def main():
     print("| object | pixels | tilt | " + " | ".join(methods) + " |")
     print("|---|---|---|" + "---|" * len(methods))
     for name in args.objects.split(","):
-        folder = os.path.join(args.dir, name + "PNG")
-        if not os.path.isdir(folder):
-            sys.exit(f"{folder}: no such object folder (expected DIR/<object>PNG/)")
-        lights, values, raw, mask, truth = load_object(folder)
-        halves = lights + VIEW
-        halves /= np.linalg.norm(halves, axis=1, keepdims=True)
-        cos_d = halves @ VIEW
+        lights, halves, cos_d, samples = object_samples(args.dir, name, args.pixels, args.seed)
         cone_deg = float(np.degrees(np.arccos(cos_d.min())))
-        rows, cols = np.nonzero(mask)
-        rng = np.random.default_rng(args.seed)
-        count = len(rows) if args.pixels <= 0 else min(args.pixels, len(rows))
-        picked = rng.choice(len(rows), count, replace=False)
         errors = {m: [] for m in methods}
         tilts = []
-        for i in picked:
-            r, c = rows[i], cols[i]
-            # lit and unsaturated: 8-bit samples under 2 DN are shadow or noise, 255 clipped
-            used = (raw[r, c] >= 2) & (raw[r, c] < 255)
-            if used.sum() < MIN_SAMPLES:
-                continue
-            pixel, normal = values[r, c], truth[r, c]
+        for pixel, used, start, normal in samples:
             tilts.append(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0))))
-            start = trimmed_lambertian(pixel, lights, used)
             for method, n in estimate(methods, pixel, lights, halves, cos_d, used, start).items():
                 errors[method].append(angle_deg(n, normal))
         tilts = np.array(tilts)
