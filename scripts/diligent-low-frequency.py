@@ -154,33 +154,29 @@ def lobe_fits(values, lights, halves, cos_d, used, start):
     """Normals of lobe, lobe+retro and lobe-bic (see the module's help) from one pixel's samples."""
     l, h, d, y = lights[used], halves[used], cos_d[used], values[used]
 
-    def predict(x, retro):
+    def predict(x):  # the lobe beside a diffuse with its own retro-reflection term a3 = x[5]
         n = unit(x[0], x[1])
         nl = np.maximum(l @ n, 0.0)
         nh = np.clip(h @ n, 0.0, 1.0)
         e = np.exp(x[4])
-        diffuse = x[2] / np.pi + (x[5] * d if retro else 0.0)
-        return nl * (diffuse + x[3] * (e + 2.0) / (2.0 * np.pi) * nh ** e)
+        return nl * (x[2] / np.pi + x[5] * d + x[3] * (e + 2.0) / (2.0 * np.pi) * nh ** e)
 
-    def fit(retro):
-        s = start / np.linalg.norm(start)
-        albedo = np.pi * np.linalg.norm(start)
-        lower = [-np.inf, -np.inf, 0.0, 0.0, 0.0] + ([0.0] if retro else [])
-        upper = [np.inf, np.inf, np.inf, np.inf, np.log(2000.0)] + ([np.inf] if retro else [])
-        best = None
-        for exponent in (3.0, 10.0, 30.0, 100.0, 300.0):
-            x0 = [np.arccos(np.clip(s[2], -1.0, 1.0)), np.arctan2(s[1], s[0]), albedo, 0.05 * albedo,
-                  np.log(exponent)] + ([1e-9] if retro else [])
-            result = least_squares(lambda x: predict(x, retro) - y, x0, bounds=(lower, upper), x_scale="jac")
-            if best is None or result.cost < best.cost:
-                best = result
-        return unit(best.x[0], best.x[1]), 2.0 * best.cost
-
-    lobe, lobe_misfit = fit(False)
-    retro, retro_misfit = fit(True)
+    s = start / np.linalg.norm(start)
+    albedo = np.pi * np.linalg.norm(start)
+    retro = None
+    for exponent in (3.0, 10.0, 30.0, 100.0, 300.0):
+        x0 = [np.arccos(np.clip(s[2], -1.0, 1.0)), np.arctan2(s[1], s[0]), albedo, 0.05 * albedo, np.log(exponent),
+              1e-9]
+        result = least_squares(lambda x: predict(x) - y, x0, x_scale="jac",
+                               bounds=([-np.inf, -np.inf, 0.0, 0.0, 0.0, 0.0],
+                                       [np.inf, np.inf, np.inf, np.inf, np.log(2000.0), np.inf]))
+        if retro is None or result.cost < retro.cost:
+            retro = result
+    retro_normal, retro_misfit = unit(retro.x[0], retro.x[1]), 2.0 * retro.cost
+    lobe, lobe_misfit, _ = lobe_with_retro_factor(values, lights, halves, cos_d, used, start, 0.0)
     variance = max(1.0, lobe_misfit / max(1, len(y) - 5))
-    chosen = retro if (lobe_misfit - retro_misfit) / variance > np.log(len(y)) + 10.0 else lobe
-    return {"lobe": lobe, "lobe+retro": retro, "lobe-bic": chosen}
+    chosen = retro_normal if (lobe_misfit - retro_misfit) / variance > np.log(len(y)) + 10.0 else lobe
+    return {"lobe": lobe, "lobe+retro": retro_normal, "lobe-bic": chosen}
 
 
 def lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor, previous=None):
@@ -213,31 +209,31 @@ def lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor, p
     return unit(best.x[0], best.x[1]), 2.0 * best.cost, best.x
 
 
-def shared_retro(name, pixels, factors):
-    """Prints the --shared-retro rows for one scene's sampled pixels (values, lights, halves, cos_d, used,
-    start, truth): per k the summed misfit and mean error, then the k the criterion picks and, on the same
-    pixels, the low-frequency fit without the brightest 10 %."""
+def shared_retro(name, lights, halves, cos_d, pixels, factors):
+    """Prints the --shared-retro rows for one scene's sampled pixels (as object_samples gives them): per k
+    the summed misfit and mean error, then the k the criterion picks and, on the same pixels, the
+    low-frequency fit without the brightest 10 %."""
     results = []
     previous = [None] * len(pixels)  # each pixel's fit at the last factor, factors taken in the order given
     for factor in factors:
-        misfit, errors, samples, dof = 0.0, [], 0, 0
-        for i, (values, lights, halves, cos_d, used, start, truth) in enumerate(pixels):
+        misfit, errors = 0.0, []
+        for i, (values, used, start, truth) in enumerate(pixels):
             normal, chi2, x = lobe_with_retro_factor(values, lights, halves, cos_d, used, start, factor, previous[i])
             previous[i] = (factor, x)
             misfit += chi2
-            samples += int(used.sum())
-            dof += int(used.sum()) - 5
             errors.append(angle_deg(normal, truth))
         results.append((factor, misfit, float(np.mean(errors))))
         print(f"| {name} | {len(pixels)} | {factor:g} | {misfit:.4g} | {np.mean(errors):.2f} |", flush=True)
     # The factor is one parameter for every pixel: kept where it lowers the misfit, over the lobe fits'
     # residual variance per degree of freedom (at least 1 DN^2), by more than ln(samples) + 10.
-    base = next(r for r in results if r[0] == 0.0) if any(r[0] == 0.0 for r in results) else None
+    samples = sum(int(used.sum()) for _, used, _, _ in pixels)
+    dof = samples - 5 * len(pixels)
+    base = next((r for r in results if r[0] == 0.0), None)
     if base is not None:
         variance = max(1.0, base[1] / max(1, dof))
         best = min(results, key=lambda r: r[1])
         picked = best if (base[1] - best[1]) / variance > np.log(samples) + 10.0 else base
-        low = [angle_deg(low_frequency(v, l, h, d, u, st, 0.1), t) for v, l, h, d, u, st, t in pixels]
+        low = [angle_deg(low_frequency(v, lights, halves, cos_d, u, st, 0.1), t) for v, u, st, t in pixels]
         print(f"| {name} | {len(pixels)} | picked {picked[0]:g} (gain {(base[1] - best[1]) / variance:.3g}) | | "
               f"{picked[2]:.2f}; low-frequency-10 {np.mean(low):.2f} |", flush=True)
 
@@ -276,6 +272,20 @@ def render_ggx(normal, lights, halves, cos_d, roughness, rng):
     return np.round(np.clip(dn, 0.0, 255.0))
 
 
+def synthetic_samples(lights, halves, cos_d, roughness, draws, rng):
+    """`draws` pixels of random normal (tilt up to 60 deg) rendered with render_ggx, those with enough usable
+    samples kept as object_samples keeps them: (values, used, trimmed start, true normal)."""
+    samples = []
+    for _ in range(draws):
+        tilt, azimuth = np.radians(rng.uniform(0.0, 60.0)), rng.uniform(0.0, 2.0 * np.pi)
+        normal = unit(tilt, azimuth)
+        values = render_ggx(normal, lights, halves, cos_d, roughness, rng)
+        used = (values >= 2) & (values < 255)
+        if used.sum() >= MIN_SAMPLES:
+            samples.append((values, used, trimmed_lambertian(values, lights, used), normal))
+    return samples
+
+
 def synthetic(lights, roughnesses, pixels, seed, methods):
     halves, cos_d = half_vectors(lights)
     rng = np.random.default_rng(seed)
@@ -283,14 +293,7 @@ def synthetic(lights, roughnesses, pixels, seed, methods):
     print("|---|---|" + "---|" * len(methods))
     for roughness in roughnesses:
         errors = {m: [] for m in methods}
-        for _ in range(pixels):
-            tilt, azimuth = np.radians(rng.uniform(0.0, 60.0)), rng.uniform(0.0, 2.0 * np.pi)
-            normal = unit(tilt, azimuth)
-            values = render_ggx(normal, lights, halves, cos_d, roughness, rng)
-            used = (values >= 2) & (values < 255)
-            if used.sum() < MIN_SAMPLES:
-                continue
-            start = trimmed_lambertian(values, lights, used)
+        for values, used, start, normal in synthetic_samples(lights, halves, cos_d, roughness, pixels, rng):
             for method, n in estimate(methods, values, lights, halves, cos_d, used, start).items():
                 errors[method].append(angle_deg(n, normal))
         means = " | ".join(f"{np.mean(errors[m]):.2f}" for m in methods)
@@ -321,21 +324,14 @@ def main():
             lights = np.loadtxt(first)
             halves, cos_d = half_vectors(lights)
             rng = np.random.default_rng(args.seed)
-            for roughness in [float(r) for r in args.synthetic.split(",")]:
-                pixels = []
-                while len(pixels) < args.pixels:
-                    tilt, azimuth = np.radians(rng.uniform(0.0, 60.0)), rng.uniform(0.0, 2.0 * np.pi)
-                    normal = unit(tilt, azimuth)
-                    values = render_ggx(normal, lights, halves, cos_d, roughness, rng)
-                    used = (values >= 2) & (values < 255)
-                    if used.sum() >= MIN_SAMPLES:
-                        pixels.append((values, lights, halves, cos_d, used, trimmed_lambertian(values, lights, used),
-                                       normal))
-                shared_retro(f"GGX {roughness:g}", pixels, factors)
-            return
-        for name in args.objects.split(","):
-            lights, halves, cos_d, samples = object_samples(args.dir, name, args.pixels, args.seed)
-            shared_retro(name, [(v, lights, halves, cos_d, u, st, t) for v, u, st, t in samples], factors)
+            scenes = [(f"GGX {r:g}", lights, halves, cos_d,
+                       synthetic_samples(lights, halves, cos_d, float(r), args.pixels, rng))
+                      for r in [float(r) for r in args.synthetic.split(",")]]
+        else:
+            scenes = [(name, *object_samples(args.dir, name, args.pixels, args.seed))
+                      for name in args.objects.split(",")]
+        for scene in scenes:
+            shared_retro(*scene, factors)
         return
     methods = {"trimmed": None}
     for percent in args.leave_out.split(","):
