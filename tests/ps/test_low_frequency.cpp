@@ -129,6 +129,49 @@ TEST(LowFrequencyFit, NoiseMovesTheNormalByItsOwnMeasure) {
   EXPECT_LT(sum_deg / ok, 1.0);
 }
 
+// The normal's information (inverse covariance along its two tangents)
+// measures its noise: over 400 draws the deviation from the truth in it is
+// chi-square with two degrees of freedom, mean 2, above the 0.999
+// quantile (13.8) about once in a thousand.
+TEST(LowFrequencyFit, TheNormalsInformationMeasuresItsNoise) {
+  LowFrequencyFitter fitter(0.1);
+  double sum = 0.0;
+  int beyond = 0, ok = 0;
+  for (unsigned seed = 1; seed <= 400; ++seed) {
+    const Pixel pixel = Render(kTilted, {0.25, 0.02, 0.1, 0.03}, 0.0, 0.002, seed);
+    const LowFrequencySolution fit = fitter.Fit(pixel.Problem());
+    if (!fit.ok) continue;
+    ++ok;
+    const Eigen::Vector2d off = fit.tangents.transpose() * (kTilted - fit.normal);
+    const double chi2 = off.dot(fit.normal_information * off);
+    sum += chi2;
+    beyond += chi2 > 13.8;
+  }
+  ASSERT_EQ(ok, 400);
+  EXPECT_GT(sum / ok, 1.5);
+  EXPECT_LT(sum / ok, 2.6);
+  EXPECT_LE(beyond, 4);
+}
+
+// FitSameSamples fits the last Fit's samples (its spike left out by the
+// first values' brightness) with other values: the fit of another pixel
+// seen under the same lights, exactly where no sample is left out.
+TEST(LowFrequencyFit, FitSameSamplesIsTheFitOfTheOtherValues) {
+  const Pixel first = Render(kTilted, {0.3, 0.0, 0.1, 0.0}, 0.0, 0.0);
+  const Pixel second = Render(kTilted, {0.1, 0.05, 0.3, 0.02}, 0.0, 0.001, 5);
+  LowFrequencyFitter fitter(0.0), reference(0.0);
+  ASSERT_TRUE(fitter.Fit(first.Problem()).ok);
+  std::vector<double> values;
+  for (int k : fitter.used_lights()) values.push_back(second.observed[k]);
+  const LowFrequencySolution same = fitter.FitSameSamples(values);
+  const LowFrequencySolution direct = reference.Fit(second.Problem());
+  ASSERT_TRUE(same.ok);
+  ASSERT_TRUE(direct.ok);
+  EXPECT_LT(AngleDeg(same.normal, direct.normal), 1e-9);
+  for (int j = 0; j < 4; ++j) EXPECT_NEAR(same.a[j], direct.a[j], 1e-9);
+  EXPECT_EQ(same.used, direct.used);
+}
+
 // Where it breaks: with no more usable samples than parameters nothing
 // tests the fit, and it says so rather than pass a curve through them.
 TEST(LowFrequencyFit, RefusesWhatItsSamplesCannotDetermine) {

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <vector>
 
 namespace photorig::solvers::ps {
@@ -341,6 +342,82 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitForAnInadequateLobeWhereItsRegionRe
   // A sampled spike that pins the normal keeps it.
   fits.spike_pins_normal = true;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
+}
+
+// Step 7's lobe-shift test: any lobe but a pinned spike, adequate or not,
+// takes a determined low-frequency fit whose normal lies beyond the
+// chi-square quantile (two degrees of freedom, at the adequacy level 0.999:
+// -2 ln 0.001 = 13.82) from where the same fit puts the lobe's prediction;
+// below it the ladder goes on as without the test.
+TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  EXPECT_FALSE(ladder.LobeShifted(13.81));
+  EXPECT_TRUE(ladder.LobeShifted(13.82));
+  const PixelFit good_lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  const PixelFit judged = FitWith(36, 1.0, PixelModel::kBlinnPhong, 5);
+  const PixelFit low = FitWith(36, 1.2, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  // Without the test an adequate lobe is not even offered the fit; with it, it is.
+  LowFrequencyFits unfitted{&good_lobe};
+  EXPECT_EQ(ladder.NextWithLowFrequency(unfitted).keep, &good_lobe);
+  unfitted.test_lobe_shift = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(unfitted).action, Action::kFitLowFrequency);
+  LowFrequencyFits fits{&good_lobe, &low, &judged};
+  fits.test_lobe_shift = true;
+  fits.lobe_shift_chi2 = 13.0;
+  fits.lobe_bias_chi2 = 1.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
+  fits.lobe_shift_chi2 = 14.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &low);
+  // Not where the fit is further off on the lobe's own prediction (its
+  // bias on this lobe) than the samples move it, nor where that was not measured.
+  fits.lobe_bias_chi2 = 15.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
+  fits.lobe_bias_chi2 = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
+  fits.lobe_bias_chi2 = 1.0;
+  // Measured but not asked for, it counts for nothing.
+  fits.test_lobe_shift = false;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
+  fits.test_lobe_shift = true;
+  // A GGX lobe the same; a pinned spike never; an undetermined fit never.
+  const PixelFit ggx = FitWith(40, 1.0, PixelModel::kGgx, 5);
+  LowFrequencyFits ggx_fits{&ggx, &low, &judged};
+  ggx_fits.test_lobe_shift = true, ggx_fits.lobe_shift_chi2 = 14.0, ggx_fits.lobe_bias_chi2 = 1.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(ggx_fits).keep, &low);
+  fits.spike_pins_normal = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
+  fits.spike_pins_normal = false;
+  const PixelFit few = FitWith(11, 1.0, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  LowFrequencyFits undetermined{&good_lobe, &few, &judged};
+  undetermined.test_lobe_shift = true, undetermined.lobe_shift_chi2 = 100.0, undetermined.lobe_bias_chi2 = 1.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(undetermined).keep, &good_lobe);
+  // A fit without a lobe has no lobe to test.
+  const PixelFit lambertian = FitWith(40, 1.0);
+  LowFrequencyFits matte{&lambertian};
+  matte.test_lobe_shift = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(matte).keep, &lambertian);
+  // Off: the ladder does not try it.
+  ModelSelectionOptions off;
+  off.lobe_shift_test = false;
+  EXPECT_FALSE(ModelLadder(Method::kAuto, off, kLights).lobe_shift_test());
+  EXPECT_TRUE(ladder.lobe_shift_test());
+  EXPECT_FALSE(Ladder(Method::kBlinnPhong).lobe_shift_test());
+}
+
+// A scene's lobes fail the test as a whole where the binomial tail of the
+// shifts counted, at the test's own level 0.001, is below 0.001: with 256
+// tested, P(X >= 3) = 2.3e-3 and P(X >= 4) = 1.5e-4; one of one is 0.001
+// exactly, not below.
+TEST(ModelLadder, LobesFailTheShiftTestOnlyBeyondChance) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  EXPECT_FALSE(ladder.LobesFailShiftTest(0, 256));
+  EXPECT_FALSE(ladder.LobesFailShiftTest(3, 256));
+  EXPECT_TRUE(ladder.LobesFailShiftTest(4, 256));
+  EXPECT_TRUE(ladder.LobesFailShiftTest(200, 256));
+  EXPECT_FALSE(ladder.LobesFailShiftTest(1, 1));
+  EXPECT_TRUE(ladder.LobesFailShiftTest(2, 2));  // 1e-6
+  EXPECT_FALSE(ladder.LobesFailShiftTest(0, 0));
+  EXPECT_FALSE(ladder.LobesFailShiftTest(3, 2));
 }
 
 // The `low-frequency` method takes its fit wherever it succeeds, else falls back to the Lambertian fit.

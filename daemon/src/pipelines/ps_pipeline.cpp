@@ -438,6 +438,12 @@ json ToJson(const PhotometricStereoResult& result) {
                    {"blinn_phong", summary.pixels_blinn_phong},
                    {"ggx", summary.pixels_ggx},
                    {"low_frequency", summary.pixels_low_frequency}}},
+                 // auto's step 7: the lobe-shift test on a sample of the lobes, and
+                 // whether it went on to every lobe
+                 {"lobe_shift_test",
+                  {{"sample_tested", summary.lobe_shift_sample_tested},
+                   {"sample_shifted", summary.lobe_shift_sample_shifted},
+                   {"every_lobe", summary.lobe_shift_every_lobe}}},
                  {"samples_rejected", summary.samples_rejected},
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets}});
   // The stage's total: reading the frames and writing the results included.

@@ -374,7 +374,7 @@ void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCa
 }
 
 std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalMap& map,
-                                        const std::vector<std::uint8_t>& held) {
+                                        const std::vector<std::uint8_t>& held, bool test_lobe_shift) {
   const std::uint8_t* flags = map.flags.ptr<std::uint8_t>();
   const std::uint8_t* model = map.model.ptr<std::uint8_t>();
   const std::uint16_t* used = map.usable_lights.ptr<std::uint16_t>();
@@ -388,13 +388,16 @@ std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalM
     if (flags[p] != static_cast<std::uint8_t>(PixelFlag::kSolved)) return;
     const bool is_held = !held.empty() && held[p] != 0;
     if (automatic) {
-      // Only a lobe that fails the adequacy test, as its confidence tells.
+      // Only a lobe, and without the lobe-shift test only one that fails the
+      // adequacy test, as its confidence tells.
       if (model[p] != kBlinnPhong && model[p] != kGgx) return;
       const int dof = used[p] - KeptParameters(static_cast<PixelModel>(model[p]), is_held);
-      if (dof > 0 && confidence[p] >= ladder.AdequateConfidence(dof)) return;
+      if (!test_lobe_shift && dof > 0 && confidence[p] >= ladder.AdequateConfidence(dof)) return;
     }
     const PixelFit kept = FitInMapWithChi2(map, p, is_held);
-    if (ladder.NextWithLowFrequency({&kept}).action == LadderStep::Action::kFitLowFrequency) candidates.push_back(p);
+    LowFrequencyFits fits{&kept};
+    fits.test_lobe_shift = test_lobe_shift;
+    if (ladder.NextWithLowFrequency(fits).action == LadderStep::Action::kFitLowFrequency) candidates.push_back(p);
   };
   if (!automatic) {
     for (int p = 0; p < pixels; ++p) offer(p);
@@ -417,26 +420,67 @@ std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalM
 }
 
 PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter, const PixelFit& kept,
-                           const LowFrequencyProblem& problem, bool region_rejects_shape, bool* fell_back) {
+                           const LowFrequencyProblem& problem, const LowFrequencyOffer& offer, bool* fell_back,
+                           LobeShiftTally* tally) {
   int usable = 0;
   for (int k = 0; k < problem.lights; ++k) usable += problem.inverse_sigma[k] > 0.0;
   LowFrequencyFits fits{&kept};
-  fits.region_rejects_shape = region_rejects_shape;
+  fits.region_rejects_shape = offer.region_rejects_shape;
+  fits.test_lobe_shift = offer.test_lobe_shift;
   fits.spike_pins_normal = SpikePinsNormal(kept, problem.lights, problem.wx, problem.wy, problem.wz, problem.stride,
                                            problem.view, problem.inverse_sigma, fitter.LeftOut(usable));
+  const bool lobe = kept.model == PixelModel::kBlinnPhong || kept.model == PixelModel::kGgx;
+  const bool test_shift = offer.test_lobe_shift && lobe;
   PixelFit low, judged;
+  std::vector<double> predicted;
   for (;;) {
     const LadderStep step = ladder.NextWithLowFrequency(fits);
     if (step.action != LadderStep::Action::kFitLowFrequency) {
       *fell_back = step.fell_back;
       return *step.keep;
     }
-    low = LowFrequencyFitFrom(fitter.Fit(problem));
+    const LowFrequencySolution on_samples = fitter.Fit(problem);
+    low = LowFrequencyFitFrom(on_samples);
     judged = KeptOnLights(kept, fitter.used_lights(), problem.wx, problem.wy, problem.wz, problem.stride, problem.view,
-                          problem.observed, problem.inverse_sigma);
+                          problem.observed, problem.inverse_sigma, test_shift ? &predicted : nullptr);
     fits.low_frequency = &low;
     fits.kept_on_samples = &judged;
+    if (test_shift && on_samples.ok && judged.ok) {
+      // The same fit of the lobe's prediction: where the lobe would put the
+      // low-frequency normal, its bias on an exact lobe included.
+      const LowFrequencySolution on_lobe = fitter.FitSameSamples(predicted);
+      if (on_lobe.ok) {
+        const Eigen::Vector2d shift = on_samples.tangents.transpose() * (on_lobe.normal - on_samples.normal);
+        fits.lobe_shift_chi2 = shift.dot(on_samples.normal_information * shift);
+        const Eigen::Vector2d bias = on_samples.tangents.transpose() * (on_lobe.normal - kept.normal);
+        fits.lobe_bias_chi2 = bias.dot(on_samples.normal_information * bias);
+        if (tally) {
+          ++tally->tested;
+          tally->shifted += ladder.LobeShifted(fits.lobe_shift_chi2);
+        }
+      }
+    }
   }
+}
+
+LowFrequencyPlan PlanLowFrequency(const ModelLadder& ladder, const NormalMap& map, const std::vector<std::uint8_t>& held,
+                                  const std::function<LobeShiftTally(std::span<const int> sample)>& climb_sample) {
+  if (!ladder.lobe_shift_test()) return {LowFrequencyCandidates(ladder, map, held, false), false};
+  std::vector<int> lobes = LowFrequencyCandidates(ladder, map, held, true);
+  // Spread evenly over the lobes in raster order: the same sample whatever
+  // the threads do.
+  std::vector<int> sample;
+  const std::size_t count = std::min<std::size_t>(kLobeShiftSample, lobes.size());
+  for (std::size_t i = 0; i < count; ++i) sample.push_back(lobes[i * lobes.size() / count]);
+  const LobeShiftTally tally = climb_sample(sample);
+  if (ladder.LobesFailShiftTest(tally.shifted, tally.tested)) return {std::move(lobes), true, tally};
+  return {LowFrequencyCandidates(ladder, map, held, false), false, tally};
+}
+
+void LowFrequencyPlan::AddTo(SolverSummary* summary) const {
+  summary->lobe_shift_sample_tested = static_cast<std::size_t>(sample.tested);
+  summary->lobe_shift_sample_shifted = static_cast<std::size_t>(sample.shifted);
+  summary->lobe_shift_every_lobe = test_lobe_shift;
 }
 
 }  // namespace photorig::solvers::ps::internal

@@ -125,18 +125,60 @@ void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCa
 
 // The solved pixels of `map` step 7 offers the low-frequency fit
 // (ModelLadder::NextWithLowFrequency asks for it); held: step 5's held
-// lobes (empty: none). An adequate fit is settled from the map's confidence
-// alone, so a matte scene costs one pass over four of its maps.
+// lobes (empty: none); test_lobe_shift: as LowFrequencyFits has it (every
+// lobe, adequate or not). An adequate fit is settled from the map's
+// confidence alone, so a matte scene costs one pass over four of its maps.
 std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalMap& map,
-                                        const std::vector<std::uint8_t>& held);
+                                        const std::vector<std::uint8_t>& held, bool test_lobe_shift);
+
+// How step 7 takes a pixel: as LowFrequencyFits has them.
+struct LowFrequencyOffer {
+  bool region_rejects_shape = false;
+  bool test_lobe_shift = false;
+};
+
+// Lobe-shift tests run (a lobe's low-frequency fits both succeeded) and
+// how many of them found the lobe shifted (ModelLadder::LobeShifted).
+struct LobeShiftTally {
+  int tested = 0;
+  int shifted = 0;
+  LobeShiftTally& operator+=(const LobeShiftTally& other) {
+    tested += other.tested, shifted += other.shifted;
+    return *this;
+  }
+};
 
 // Step 7's climb of one pixel (ModelLadder::NextWithLowFrequency): `kept`
 // as FitInMapWithChi2 gives it, its samples in `problem` (the low-frequency
 // fit's units: a lobe fit's, the samples over their gains). Returns the fit
 // the ladder keeps, *fell_back where it stands in for a failed low-frequency
-// fit (the `low-frequency` method's). region_rejects_shape: as
-// LowFrequencyFits has it.
+// fit (the `low-frequency` method's); adds its lobe-shift test to *tally
+// (if not null).
 PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter, const PixelFit& kept,
-                           const LowFrequencyProblem& problem, bool region_rejects_shape, bool* fell_back);
+                           const LowFrequencyProblem& problem, const LowFrequencyOffer& offer, bool* fell_back,
+                           LobeShiftTally* tally = nullptr);
+
+// How many of a scene's lobes step 7 tests first, spread over them: if
+// chance explains their shifts, no other lobe is tested (a scene whose
+// lobes are its reflectance pays these fits only, about 2 ms per thread);
+// four or more shifted at the adequacy level 0.999 open the test to every
+// lobe (chance gives four of 256 with probability 1.4e-4).
+inline constexpr int kLobeShiftSample = 256;
+
+// Step 7's pixels and whether the lobe-shift test runs on them. `auto`
+// climbs the sample of its lobes with climb_sample (lobe-shift test on,
+// nothing written) and returns every lobe with the test where they fail it
+// as a whole (ModelLadder::LobesFailShiftTest), else the lobes that fail the
+// adequacy test, without it (also where the test is off,
+// ModelLadder::lobe_shift_test); `low-frequency` every solved pixel.
+struct LowFrequencyPlan {
+  std::vector<int> pixels;
+  bool test_lobe_shift = false;
+  LobeShiftTally sample;  // the sample's tests
+  // Into a summary's lobe_shift_ counts.
+  void AddTo(SolverSummary* summary) const;
+};
+LowFrequencyPlan PlanLowFrequency(const ModelLadder& ladder, const NormalMap& map, const std::vector<std::uint8_t>& held,
+                                  const std::function<LobeShiftTally(std::span<const int> sample)>& climb_sample);
 
 }  // namespace photorig::solvers::ps::internal

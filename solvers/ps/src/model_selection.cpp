@@ -40,7 +40,23 @@ ModelLadder::ModelLadder(Method method, const ModelSelectionOptions& options, in
       gross_u2_(options.gross_outlier_sigma * options.gross_outlier_sigma),
       max_rejected_fraction_(options.max_rejected_fraction),
       adequacy_quantile_(options.adequacy_quantile),
-      low_frequency_(options.low_frequency) {}
+      shift_quantile_(-2.0 * std::log1p(-options.adequacy_quantile)),
+      low_frequency_(options.low_frequency),
+      lobe_shift_test_(options.lobe_shift_test) {}
+
+bool ModelLadder::LobesFailShiftTest(int shifted, int tested) const {
+  if (shifted <= 0 || shifted > tested) return false;
+  // P(X >= shifted) for X binomial(tested, alpha), summed term by term (no
+  // difference of nearly equal numbers): below alpha, chance is not the
+  // explanation. A single lobe tested and shifted is exactly alpha: not enough.
+  const double alpha = 1.0 - adequacy_quantile_;
+  double term = std::pow(1.0 - alpha, tested), tail = 0.0;
+  for (int i = 0; i <= tested; ++i) {
+    if (i >= shifted) tail += term;
+    term *= (tested - i) / (i + 1.0) * alpha / (1.0 - alpha);
+  }
+  return tail < alpha;
+}
 
 std::vector<float> ModelLadder::ScreenThresholds() const {
   const int lights = static_cast<int>(quantile_.size()) - 1;

@@ -397,13 +397,14 @@ class NearRefitter {
   // Step 7 for `pixels` of the map (ModelLadder::NextWithLowFrequency), each
   // at its surface's height with its own light and view vectors; held: the
   // pixels whose lobe step 5 held (empty: none), shape_rejected: the pixels
-  // of regions that reject one Blinn-Phong shape (empty: none). Returns how
-  // many fell back.
-  std::size_t OfferLowFrequency(const internal::ModelLadder& ladder, double spike_fraction, std::span<const int> pixels,
-                                const cv::Mat& height_mm, const std::vector<std::uint8_t>& held,
-                                const std::vector<std::uint8_t>& shape_rejected, NormalMap* map) {
+  // of regions that reject one Blinn-Phong shape (empty: none). Into the map
+  // if `write`; adds how many fell back to *fell_back and the lobe-shift
+  // tests to *tally.
+  void OfferLowFrequency(const internal::ModelLadder& ladder, double spike_fraction, std::span<const int> pixels,
+                         const cv::Mat& height_mm, const std::vector<std::uint8_t>& held,
+                         const std::vector<std::uint8_t>& shape_rejected, bool test_lobe_shift, bool write,
+                         NormalMap* map, std::size_t* fell_back, internal::LobeShiftTally* tally) {
     internal::LowFrequencyFitter fitter(spike_fraction);
-    std::size_t fell_back = 0;
     for (std::size_t first = 0; first < pixels.size(); first += kLobeBatch) {
       const std::size_t count = std::min(kLobeBatch, pixels.size() - first);
       ReadMapPixels(pixels.subspan(first, count), height_mm, [](int pixel) { return pixel; });
@@ -419,14 +420,16 @@ class NearRefitter {
                                                     .view = views_[i],
                                                     .observed = &scaled_[i * lights_],
                                                     .inverse_sigma = &scaled_inverse_sigma_[i * lights_]};
+        const internal::LowFrequencyOffer offer{
+            .region_rejects_shape = !shape_rejected.empty() && shape_rejected[pixel] != 0,
+            .test_lobe_shift = test_lobe_shift};
         bool fell = false;
-        const internal::PixelFit chosen = internal::ClimbLowFrequency(
-            ladder, fitter, kept, problem, !shape_rejected.empty() && shape_rejected[pixel] != 0, &fell);
+        const internal::PixelFit chosen = internal::ClimbLowFrequency(ladder, fitter, kept, problem, offer, &fell, tally);
+        if (!write) continue;
         if (chosen.model == PixelModel::kLowFrequency) internal::WriteFitToMap(pixel, chosen, map);
-        fell_back += fell;
+        *fell_back += fell;
       }
     }
-    return fell_back;
   }
 
  private:
@@ -924,28 +927,38 @@ std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& op
 // Step 7 (`auto`, `low-frequency`; ModelLadder::NextWithLowFrequency) on p's
 // map fitted at height_mm, with every pixel's own light and view vectors;
 // held: step 5's held lobes, shape_rejected: its rejecting regions' pixels.
-// Returns how many pixels fell back.
+// Returns how many pixels fell back; the lobe-shift test's counts into *summary.
 std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOptions& options, const cv::Mat& height_mm,
                               const std::vector<std::uint8_t>& held, const std::vector<std::uint8_t>& shape_rejected,
-                              NormalMap* map) {
+                              NormalMap* map, SolverSummary* summary) {
   const Method method = options.method;
   if (!(method == Method::kLowFrequency || (method == Method::kAuto && options.selection.low_frequency))) return 0;
   const internal::ModelLadder ladder(method, options.selection, p.lights.count());
-  const std::vector<int> offered = internal::LowFrequencyCandidates(ladder, *map, held);
-  constexpr std::size_t kChunk = 256;
-  const std::size_t chunks = (offered.size() + kChunk - 1) / kChunk;
   std::size_t fell_back = 0;
-#pragma omp parallel if (chunks > 1) reduction(+ : fell_back)
-  {
-    NearRefitter refitter(p, options);
+  auto climb = [&](std::span<const int> pixels, bool test_lobe_shift, bool write) {
+    constexpr std::size_t kChunk = 256;
+    const std::size_t chunks = (pixels.size() + kChunk - 1) / kChunk;
+    std::size_t fell = 0;
+    int tested = 0, shifted = 0;
+#pragma omp parallel if (chunks > 1) reduction(+ : fell, tested, shifted)
+    {
+      NearRefitter refitter(p, options);
+      internal::LobeShiftTally tally;
 #pragma omp for schedule(dynamic, 1)
-    for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
-      const std::size_t first = chunk * kChunk, count = std::min(kChunk, offered.size() - first);
-      fell_back += refitter.OfferLowFrequency(ladder, options.selection.spike_fraction,
-                                              std::span<const int>(offered).subspan(first, count), height_mm, held,
-                                              shape_rejected, map);
+      for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
+        const std::size_t first = chunk * kChunk, count = std::min(kChunk, pixels.size() - first);
+        refitter.OfferLowFrequency(ladder, options.selection.spike_fraction, pixels.subspan(first, count), height_mm,
+                                   held, shape_rejected, test_lobe_shift, write, map, &fell, &tally);
+      }
+      tested += tally.tested, shifted += tally.shifted;
     }
-  }
+    fell_back += fell;
+    return internal::LobeShiftTally{tested, shifted};
+  };
+  const internal::LowFrequencyPlan plan = internal::PlanLowFrequency(
+      ladder, *map, held, [&](std::span<const int> sample) { return climb(sample, true, false); });
+  climb(plan.pixels, plan.test_lobe_shift, true);
+  plan.AddTo(summary);
   return fell_back;
 }
 
@@ -1124,7 +1137,7 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   std::vector<std::uint8_t> held, shape_rejected;
   const cv::Mat fitted_height_mm = fitted.height_mm;
   const std::size_t held_lobes = ShareLobes(problem, options, std::move(fitted), result, &held, &shape_rejected);
-  const std::size_t fell_back = OfferLowFrequency(problem, options, fitted_height_mm, held, shape_rejected, result);
+  const std::size_t fell_back = OfferLowFrequency(problem, options, fitted_height_mm, held, shape_rejected, result, &summary);
   CountPixels(*result, &summary);
   summary.pixels_shared_lobe = held_lobes;
   summary.pixels_fell_back += fell_back;

@@ -55,7 +55,7 @@ PixelFit LowFrequencyFitFrom(const LowFrequencySolution& solution) {
 
 PixelFit KeptOnLights(const PixelFit& kept, std::span<const int> lights, const double* wx, const double* wy,
                       const double* wz, int stride, const Eigen::Vector3d& view, const double* observed,
-                      const double* inverse_sigma) {
+                      const double* inverse_sigma, std::vector<double>* predicted_out) {
   const int n = static_cast<int>(lights.size());
   Eigen::Matrix<double, Eigen::Dynamic, 3> directions(n, 3);
   Eigen::VectorXd b(n), predicted(n);
@@ -82,6 +82,7 @@ PixelFit KeptOnLights(const PixelFit& kept, std::span<const int> lights, const d
     judged.chi2 += u * u;
   }
   judged.ok = ok && std::isfinite(judged.chi2);
+  if (predicted_out) predicted_out->assign(predicted.data(), predicted.data() + n);
   return judged;
 }
 

@@ -47,10 +47,11 @@ PixelFit LambertianOnRow(int lights, const double* wx, const double* wy, const d
 // albedo and lobe) judged on the samples of `lights` only, each light's
 // direction (wx[k s], wy[k s], wz[k s]) at stride s: its chi-square there,
 // used that many samples, its own parameters (step 7 weighs it against the
-// low-frequency fit of the same samples).
+// low-frequency fit of the same samples). predicted (if not null): the
+// kept fit's value of each of those samples, in the order of `lights`.
 PixelFit KeptOnLights(const PixelFit& kept, std::span<const int> lights, const double* wx, const double* wy,
                       const double* wz, int stride, const Eigen::Vector3d& view, const double* observed,
-                      const double* inverse_sigma);
+                      const double* inverse_sigma, std::vector<double>* predicted = nullptr);
 
 // Whether a lobe fit's core, the half vectors within its half maximum of its
 // normal (Blinn-Phong: cos^e = 1/2; GGX's distribution: cos^2 = (1 - sqrt 2

@@ -531,16 +531,25 @@ void TileRefiner::RecordGgx(ThreadState& state, int p, const PixelFit& kept, boo
 void TileRefiner::OfferLowFrequency() {
   const Method method = options_.method;
   if (!(method == Method::kLowFrequency || (method == Method::kAuto && options_.selection.low_frequency))) return;
+  // Listed before any thread starts: for `auto` the lobes (a matte scene
+  // has almost none), for `low-frequency` every solved pixel.
+  const LowFrequencyPlan plan = PlanLowFrequency(ladder_, *result_, held_lobe_, [this](std::span<const int> sample) {
+    return ClimbLowFrequencyPixels(sample, true, false);
+  });
+  ClimbLowFrequencyPixels(plan.pixels, plan.test_lobe_shift, true);
+  low_frequency_plan_ = {.pixels = {}, .test_lobe_shift = plan.test_lobe_shift, .sample = plan.sample};
+}
+
+LobeShiftTally TileRefiner::ClimbLowFrequencyPixels(std::span<const int> pixels, bool test_lobe_shift, bool write) {
   auto held = [this](int p) { return !held_lobe_.empty() && held_lobe_[p] != 0; };
-  // Listed before any thread starts: for `auto` the lobes that fail the
-  // adequacy test (a matte scene has almost none); for `low-frequency`
-  // every solved pixel.
-  const std::vector<int> offered = LowFrequencyCandidates(ladder_, *result_, held_lobe_);
-  const int count = static_cast<int>(offered.size());
-  if (count == 0) return;
+  const int count = static_cast<int>(pixels.size());
+  LobeShiftTally tally;
+  if (count == 0) return tally;
+  std::vector<LobeShiftTally> tallies(threads_);
 #pragma omp parallel num_threads(std::min(threads_, 1 + count / 64))
   {
     ThreadState& state = states_[omp_get_thread_num()];
+    LobeShiftTally& mine = tallies[omp_get_thread_num()];
     LowFrequencyFitter fitter(options_.selection.spike_fraction);
     state.rows = 0;
     const std::size_t row = NewRow(state);
@@ -556,18 +565,22 @@ void TileRefiner::OfferLowFrequency() {
                                       .inverse_sigma = inverse_sigma};
 #pragma omp for schedule(dynamic, 16)
     for (int i = 0; i < count; ++i) {
-      const int p = offered[i];
+      const int p = pixels[i];
       const PixelFit kept = FitInMapWithChi2(*result_, p, held(p));
       int usable = 0;
       reader_.Row(p, kept.normal, observed, inverse_sigma, &usable);
       bool fell_back = false;
-      const PixelFit chosen = ClimbLowFrequency(ladder_, fitter, kept, problem,
-                                                !shape_rejected_.empty() && shape_rejected_[p] != 0, &fell_back);
+      const LowFrequencyOffer offer{.region_rejects_shape = !shape_rejected_.empty() && shape_rejected_[p] != 0,
+                                    .test_lobe_shift = test_lobe_shift};
+      const PixelFit chosen = ClimbLowFrequency(ladder_, fitter, kept, problem, offer, &fell_back, &mine);
+      if (!write) continue;
       if (chosen.model == PixelModel::kLowFrequency) RecordLowFrequency(state, p, kept, held(p), chosen);
       state.fell_back += fell_back;
     }
     state.rows = 0;
   }
+  for (const LobeShiftTally& t : tallies) tally += t;
+  return tally;
 }
 
 void TileRefiner::RecordLowFrequency(ThreadState& state, int p, const PixelFit& kept, bool held,
@@ -621,6 +634,7 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
   summary->samples_rejected -= restored;
   summary->pixels_solved -= failed;
   summary->pixels_rejected_by_model += failed;
+  low_frequency_plan_.AddTo(summary);
 }
 
 }  // namespace photorig::solvers::ps::internal

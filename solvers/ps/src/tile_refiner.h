@@ -60,10 +60,11 @@ class TileRefiner {
   // nearest confidently glossy pixels instead, and then (step 6,
   // ModelLadder::NextWithGgx) a GGX lobe of its own. Runs its own threads.
   void ShareLobe();
-  // `auto`'s step 7, after step 5 and 6: each solved pixel whose kept fit
-  // fails the adequacy test is offered the low-frequency reflectance
-  // (ModelLadder::NextWithLowFrequency), one pixel at a time on the
-  // refiner's threads. Runs its own threads.
+  // `auto`'s step 7, after step 5 and 6: the pixels PlanLowFrequency lists
+  // (the lobes that fail the adequacy test, or every lobe where a sample of
+  // them fails the lobe-shift test) are offered the low-frequency
+  // reflectance (ModelLadder::NextWithLowFrequency), one pixel at a time on
+  // the refiner's threads. Runs its own threads.
   void OfferLowFrequency();
 
   // The counts of models, rejected samples and failed fits, into a summary of
@@ -90,6 +91,9 @@ class TileRefiner {
   void OfferGgx(int thread, std::span<const int> pixels);
   // Pixel p, kept as `kept` (held: a lobe step 5 held), takes the GGX fit `ggx`.
   void RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& ggx);
+  // Step 7's climb of `pixels` (OfferLowFrequency), into the map if `write`;
+  // returns their lobe-shift tests.
+  LobeShiftTally ClimbLowFrequencyPixels(std::span<const int> pixels, bool test_lobe_shift, bool write);
   // Pixel p, kept as `kept` (held as RecordGgx's), takes the low-frequency fit `low`.
   void RecordLowFrequency(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& low);
   // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps
@@ -128,6 +132,8 @@ class TileRefiner {
   const RecheckLanes recheck_;
   const PerPixelFits per_pixel_;
   const int threads_;
+  // Step 7's plan, for the summary (its pixels dropped).
+  LowFrequencyPlan low_frequency_plan_;
   std::vector<ThreadState> states_;
   std::vector<LobeLaneFitter> lobe_fitters_, ggx_fitters_;
   std::vector<TrimmedLambertianLanes> trimmers_;

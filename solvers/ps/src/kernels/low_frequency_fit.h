@@ -47,6 +47,13 @@ struct LowFrequencySolution {
   int used = 0;       // samples fitted
   int left_out = 0;   // the brightest usable samples, left out as a spike
   int iterations = 0;
+  // The normal's uncertainty: two unit tangents at it (columns) and the
+  // inverse covariance of its angles along them, J^T J (variable
+  // projection's, with a re-solved) over the residual variance per degree
+  // of freedom (unweighted, as the fit; at least the samples' mean noise
+  // variance).
+  Eigen::Matrix<double, 3, 2> tangents = Eigen::Matrix<double, 3, 2>::Zero();
+  Eigen::Matrix2d normal_information = Eigen::Matrix2d::Zero();
 };
 
 // A pixel's samples: per light k, the direction towards the light (wx[k
@@ -75,6 +82,10 @@ class LowFrequencyFitter {
   explicit LowFrequencyFitter(double spike_fraction) : spike_fraction_(spike_fraction) {}
 
   LowFrequencySolution Fit(const LowFrequencyProblem& problem);
+  // The same fit of the last Fit's samples (used_lights()) with other
+  // values, one per sample in that order: what the fit makes of a model's
+  // prediction of the pixel.
+  LowFrequencySolution FitSameSamples(std::span<const double> values);
   // How many of `usable` samples a fit leaves out.
   int LeftOut(int usable) const { return static_cast<int>(spike_fraction_ * usable); }
   // The lights of the samples the last Fit used.
@@ -101,6 +112,8 @@ class LowFrequencyFitter {
   // Levenberg-Marquardt from `normal` to the misfit's nearest minimum:
   // returns the normal, *at its evaluation, *iterations how many it took.
   Eigen::Vector3d Search(Eigen::Vector3d normal, const Eigen::Vector3d& view, Evaluation* at, int* iterations) const;
+  // The fit of the compacted samples, from the Lambertian case's normal.
+  LowFrequencySolution Solve() const;
   LowFrequencySamples Samples() const {
     return {lx_.data(), ly_.data(), lz_.data(), hx_.data(),          hy_.data(),
             hz_.data(), d_.data(),  b_.data(),  inverse_sigma_.data(), static_cast<int>(b_.size())};
@@ -112,6 +125,8 @@ class LowFrequencyFitter {
   std::vector<double> lx_, ly_, lz_, hx_, hy_, hz_, d_, b_, inverse_sigma_;
   std::vector<int> order_;
   double b2_ = 0.0;  // sum of b^2
+  Eigen::Vector3d view_ = Eigen::Vector3d::UnitZ();
+  int left_out_ = 0;
 };
 
 }  // namespace photorig::solvers::ps::internal

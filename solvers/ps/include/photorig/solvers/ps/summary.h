@@ -39,6 +39,12 @@ struct SolverSummary : solvers::core::Summary {
   std::size_t pixels_ggx = 0;
   // Low-frequency reflectance: `auto`'s step 7, where no model above explains the pixel.
   std::size_t pixels_low_frequency = 0;
+  // Step 7's lobe-shift test (ModelSelectionOptions::lobe_shift_test): of
+  // the sample of lobes tried first, how many it tested and found shifted,
+  // and whether it then tested every lobe (they failed it as a whole).
+  std::size_t lobe_shift_sample_tested = 0;
+  std::size_t lobe_shift_sample_shifted = 0;
+  bool lobe_shift_every_lobe = false;
   // Pixels whose method's own fit failed and which kept a simpler fit instead
   // (`blinn-phong`: the trimmed, then the Lambertian fit; `robust` and `auto`:
   // the Lambertian fit), counted among the models above by the fit they kept.
