@@ -3,8 +3,9 @@
 // with all 96 lights and with every 2nd, 4th and 8th of them (and on DiLiGenT
 // folders given as arguments), written as CSV rows
 //   source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,
-//   low_frequency_pct
-// for scripts/chart-ps.sh; solve_ms is the fastest of three runs. Captures go
+//   low_frequency_pct,lobe_shift_sample_shifted,lobe_shift_sample_tested
+// for scripts/chart-ps.sh; solve_ms is the fastest of three runs; the last
+// two: `auto`'s lobe-shift test on its sample of lobes (0,0 where it did not run). Captures go
 // through the same code as `photorig run`.
 //
 // With --realistic: the shiny sphere (ps-shiny-sphere) on the 96-LED dome with
@@ -13,7 +14,8 @@
 //   scene,method,mean_deg,median_deg,pixels_with_truth,unresolved,unresolved_usable3,too_few_lights,
 //   ill_conditioned,rejected_by_model,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,low_frequency_pct,
 //   mean_confidence,
-//   read_sigma,shot_gain,noise_estimated,shadow_threshold,saturation_level,solve_ms
+//   read_sigma,shot_gain,noise_estimated,shadow_threshold,saturation_level,solve_ms,
+//   lobe_shift_sample_shifted,lobe_shift_sample_tested
 // (unresolved: pixels with a true normal but no estimate; unresolved_usable3:
 // those of them that had three or more usable samples; the three flag counts
 // split `unresolved`).
@@ -93,7 +95,8 @@ void Evaluate(std::ostream& csv, const std::string& source, const std::string& s
         << 100.0 * error.fraction_under_15deg << ',' << ms << ',' << 100.0 * summary.pixels_lambertian / solved << ','
         << 100.0 * summary.pixels_trimmed / solved << ','
         << 100.0 * summary.pixels_irls / solved << ',' << 100.0 * summary.pixels_blinn_phong / solved << ','
-        << 100.0 * summary.pixels_ggx / solved << ',' << 100.0 * summary.pixels_low_frequency / solved << '\n';
+        << 100.0 * summary.pixels_ggx / solved << ',' << 100.0 * summary.pixels_low_frequency / solved << ','
+        << summary.lobe_shift_sample_shifted << ',' << summary.lobe_shift_sample_tested << '\n';
     std::fprintf(stderr, "%-16s %2d lights noise x%-4g %-12s mean %7.3f deg  %8.1f ms\n", scene.c_str(),
                  stack.light_count(), relative_noise, solvers::ps::MethodName(method), error.mean_deg, ms);
   }
@@ -209,7 +212,8 @@ void EvaluateRealistic(std::ostream& csv, const std::string& scene, const daemon
         << 100.0 * summary.pixels_blinn_phong / pixels << ',' << 100.0 * summary.pixels_ggx / pixels << ','
         << 100.0 * summary.pixels_low_frequency / pixels << ',' << cv::mean(map.confidence, solved)[0] << ','
         << summary.noise_read_sigma << ',' << summary.noise_shot_gain << ',' << summary.noise_estimated << ','
-        << summary.shadow_threshold << ',' << (std::isfinite(saturation) ? saturation : -1.0) << ',' << ms << '\n';
+        << summary.shadow_threshold << ',' << (std::isfinite(saturation) ? saturation : -1.0) << ',' << ms << ','
+        << summary.lobe_shift_sample_shifted << ',' << summary.lobe_shift_sample_tested << '\n';
     std::fprintf(stderr, "%-13s %-12s mean %6.3f deg  median %6.3f deg  unresolved %5zu (%zu with >= 3 usable)\n",
                  scene.c_str(), solvers::ps::MethodName(method), error.mean_deg, error.median_deg, error.pixels_unresolved,
                  usable3);
@@ -222,7 +226,8 @@ void RunRealistic(const fs::path& source, const fs::path& out, const fs::path& s
          "ill_conditioned,rejected_by_model,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,"
          "low_frequency_pct,mean_confidence,"
          "read_sigma,"
-         "shot_gain,noise_estimated,shadow_threshold,saturation_level,solve_ms\n";
+         "shot_gain,noise_estimated,shadow_threshold,saturation_level,solve_ms,lobe_shift_sample_shifted,"
+         "lobe_shift_sample_tested\n";
   const std::string base_recipe = ReadText(source / "config" / "recipes" / "ps-shiny-sphere.yaml");
   const std::string base_rig = ReadText(source / "config" / "rigs" / "sim-dome-96.yaml");
   for (const Effect& effect : kEffects) {
@@ -273,7 +278,8 @@ int main(int argc, char** argv) {
   }
   std::ofstream csv(argv[2]);
   csv << "source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,"
-         "trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,low_frequency_pct\n";
+         "trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,low_frequency_pct,lobe_shift_sample_shifted,"
+         "lobe_shift_sample_tested\n";
   try {
     const fs::path rig = source / "config" / "rigs" / "sim-dome-96.yaml";
     for (const char* scene : {"ps-sphere", "ps-shiny-sphere", "ps-ggx-bumps"}) {

@@ -406,7 +406,7 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
 
 // A scene's lobes fail the test as a whole where the binomial tail of the
 // shifts counted, at the test's own level 0.001, is below 0.001: with 256
-// tested, P(X >= 3) = 2.3e-3 and P(X >= 4) = 1.5e-4; one of one is 0.001
+// tested, P(X >= 3) = 2.3e-3 and P(X >= 4) = 1.4e-4; one of one is 0.001
 // exactly, not below.
 TEST(ModelLadder, LobesFailTheShiftTestOnlyBeyondChance) {
   const ModelLadder ladder = Ladder(Method::kAuto);

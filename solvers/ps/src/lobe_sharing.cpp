@@ -465,7 +465,10 @@ PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter
 
 LowFrequencyPlan PlanLowFrequency(const ModelLadder& ladder, const NormalMap& map, const std::vector<std::uint8_t>& held,
                                   const std::function<LobeShiftTally(std::span<const int> sample)>& climb_sample) {
-  if (!ladder.lobe_shift_test()) return {LowFrequencyCandidates(ladder, map, held, false), false};
+  // `held` is allocated where step 5 found a glossy region: without one the
+  // scene's lobes are the noise's chance fits, with no material to test (a
+  // matte scene pays nothing).
+  if (!ladder.lobe_shift_test() || held.empty()) return {LowFrequencyCandidates(ladder, map, held, false), false};
   std::vector<int> lobes = LowFrequencyCandidates(ladder, map, held, true);
   // Spread evenly over the lobes in raster order: the same sample whatever
   // the threads do.

@@ -165,12 +165,14 @@ PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter
 // lobe (chance gives four of 256 with probability 1.4e-4).
 inline constexpr int kLobeShiftSample = 256;
 
-// Step 7's pixels and whether the lobe-shift test runs on them. `auto`
-// climbs the sample of its lobes with climb_sample (lobe-shift test on,
-// nothing written) and returns every lobe with the test where they fail it
-// as a whole (ModelLadder::LobesFailShiftTest), else the lobes that fail the
+// Step 7's pixels and whether the lobe-shift test runs on them. `auto`, in a
+// scene with a glossy region (step 5's; `held` allocated), climbs the
+// sample of its lobes with climb_sample (lobe-shift test on, nothing
+// written) and returns every lobe with the test where they fail it as a
+// whole (ModelLadder::LobesFailShiftTest), else the lobes that fail the
 // adequacy test, without it (also where the test is off,
-// ModelLadder::lobe_shift_test); `low-frequency` every solved pixel.
+// ModelLadder::lobe_shift_test, or no region is glossy); `low-frequency`
+// every solved pixel.
 struct LowFrequencyPlan {
   std::vector<int> pixels;
   bool test_lobe_shift = false;
