@@ -365,6 +365,11 @@ TEST(EndToEnd, AutoAtLeastHalvesTheL2ErrorOnHighlightsAndCastShadows) {
               0)
         << scene;
     EXPECT_LE(auto_report["pixels"]["shared_lobe"].get<int>(), auto_report["models"]["blinn_phong"].get<int>()) << scene;
+    // Step 7's lobe-shift test tried its sample of these exact lobes and went no further.
+    const auto& shift = auto_report["lobe_shift_test"];
+    EXPECT_GT(shift["sample_tested"].get<int>(), 50) << scene;
+    EXPECT_LE(shift["sample_shifted"].get<int>(), 3) << scene;
+    EXPECT_FALSE(shift["every_lobe"].get<bool>()) << scene;
     EXPECT_TRUE(auto_report["depth"]["success"].get<bool>()) << scene;
     EXPECT_TRUE(fs::exists(automatic / "mesh.ply")) << scene;
     EXPECT_TRUE(fs::exists(automatic / "model.png")) << scene;

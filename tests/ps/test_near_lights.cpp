@@ -355,6 +355,11 @@ TEST(NearLights, LobesAreFittedWithEachPixelsLightsAndLineOfSight) {
   EXPECT_LT(auto_deg, 0.3) << "lambertian " << lambertian_deg << " deg";
   EXPECT_GT(blinn_phong.pixels_blinn_phong, blinn_phong.pixels_solved / 4);
   EXPECT_GT(automatic.pixels_blinn_phong, automatic.pixels_solved / 4);
+  // Step 7's lobe-shift test, with each pixel's own vectors, tries a sample
+  // of the lobes and finds them the scene's reflectance.
+  EXPECT_GT(automatic.lobe_shift_sample_tested, 50u);
+  EXPECT_LE(automatic.lobe_shift_sample_shifted, 3u);
+  EXPECT_FALSE(automatic.lobe_shift_every_lobe);
 }
 
 // A GGX lobe's tails read as a broader Blinn-Phong lobe away from its peak,
