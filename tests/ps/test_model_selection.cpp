@@ -347,8 +347,9 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitForAnInadequateLobeWhereItsRegionRe
 // Step 7's lobe-shift test: any lobe but a pinned spike, adequate or not,
 // takes a determined low-frequency fit whose normal lies beyond the
 // chi-square quantile (two degrees of freedom, at the adequacy level 0.999:
-// -2 ln 0.001 = 13.82) from where the same fit puts the lobe's prediction;
-// below it the ladder goes on as without the test.
+// -2 ln 0.001 = 13.82) from where the same fit puts the lobe's prediction,
+// and beyond it from the lobe's own normal; below it the ladder goes on as
+// without the test.
 TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
   const ModelLadder ladder = Ladder(Method::kAuto);
   EXPECT_FALSE(ladder.LobeShifted(13.81));
@@ -363,6 +364,7 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
   EXPECT_EQ(ladder.NextWithLowFrequency(unfitted).action, Action::kFitLowFrequency);
   LowFrequencyFits fits{&good_lobe, &low, &judged};
   fits.test_lobe_shift = true;
+  fits.lobe_offset_chi2 = 20.0;
   fits.lobe_shift_chi2 = 13.0;
   fits.lobe_bias_chi2 = 1.0;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
@@ -375,6 +377,10 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
   fits.lobe_bias_chi2 = std::numeric_limits<double>::infinity();
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
   fits.lobe_bias_chi2 = 1.0;
+  // Nor where the two normals agree within the noise.
+  fits.lobe_offset_chi2 = 13.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
+  fits.lobe_offset_chi2 = 20.0;
   // Measured but not asked for, it counts for nothing.
   fits.test_lobe_shift = false;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
@@ -383,6 +389,7 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
   const PixelFit ggx = FitWith(40, 1.0, PixelModel::kGgx, 5);
   LowFrequencyFits ggx_fits{&ggx, &low, &judged};
   ggx_fits.test_lobe_shift = true, ggx_fits.lobe_shift_chi2 = 14.0, ggx_fits.lobe_bias_chi2 = 1.0;
+  ggx_fits.lobe_offset_chi2 = 20.0;
   EXPECT_EQ(ladder.NextWithLowFrequency(ggx_fits).keep, &low);
   fits.spike_pins_normal = true;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
@@ -390,6 +397,7 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
   const PixelFit few = FitWith(11, 1.0, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
   LowFrequencyFits undetermined{&good_lobe, &few, &judged};
   undetermined.test_lobe_shift = true, undetermined.lobe_shift_chi2 = 100.0, undetermined.lobe_bias_chi2 = 1.0;
+  undetermined.lobe_offset_chi2 = 100.0;
   EXPECT_EQ(ladder.NextWithLowFrequency(undetermined).keep, &good_lobe);
   // A fit without a lobe has no lobe to test.
   const PixelFit lambertian = FitWith(40, 1.0);

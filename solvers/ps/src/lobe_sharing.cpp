@@ -446,6 +446,12 @@ PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter
     fits.low_frequency = &low;
     fits.kept_on_samples = &judged;
     if (test_shift && on_samples.ok && judged.ok) {
+      const Eigen::Vector2d offset = on_samples.tangents.transpose() * (kept.normal - on_samples.normal);
+      fits.lobe_offset_chi2 = offset.dot(on_samples.normal_information * offset);
+    }
+    // Where the two normals agree within the noise the lobe stands whatever
+    // the shift, and only a tally (the scene's sample) needs it measured.
+    if (test_shift && on_samples.ok && judged.ok && (tally || ladder.LobeShifted(fits.lobe_offset_chi2))) {
       // The same fit of the lobe's prediction: where the lobe would put the
       // low-frequency normal, its bias on an exact lobe included.
       const LowFrequencySolution on_lobe = fitter.FitSameSamples(predicted);

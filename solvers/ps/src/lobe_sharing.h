@@ -153,7 +153,8 @@ struct LobeShiftTally {
 // fit's units: a lobe fit's, the samples over their gains). Returns the fit
 // the ladder keeps, *fell_back where it stands in for a failed low-frequency
 // fit (the `low-frequency` method's); adds its lobe-shift test to *tally
-// (if not null).
+// (if not null: a sample's climb, which measures the shift even where the
+// two normals agree and the lobe stands).
 PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter, const PixelFit& kept,
                            const LowFrequencyProblem& problem, const LowFrequencyOffer& offer, bool* fell_back,
                            LobeShiftTally* tally = nullptr);

@@ -176,6 +176,9 @@ struct LowFrequencyFits {
   // normal, in the same covariance: the low-frequency fit's bias on this
   // lobe (infinity: not measured).
   double lobe_bias_chi2 = std::numeric_limits<double>::infinity();
+  // How far the low-frequency fit's normal lies from the lobe's, in the same
+  // covariance (0: not measured).
+  double lobe_offset_chi2 = 0.0;
 };
 
 class ModelLadder {
@@ -269,7 +272,8 @@ class ModelLadder {
   // fit, and takes it outright where determined and LobeShifted: the
   // low-frequency fit of its samples lands further from where it lands on
   // the lobe's own prediction of them than the noise explains, and further
-  // than that is from the lobe's normal.
+  // than that is from the lobe's normal, and beyond the noise from the
+  // lobe's normal.
   // The `low-frequency` method keeps the fit wherever it succeeds (else the
   // Lambertian fit, fell_back).
   inline LadderStep NextWithLowFrequency(const LowFrequencyFits& fits) const;
@@ -421,13 +425,15 @@ inline LadderStep ModelLadder::NextWithLowFrequency(const LowFrequencyFits& fits
   // has tilted its normal to absorb (light the surface sends back to
   // itself, a soft shadow, a lobe of another shape), which the fit that
   // assumes no lobe shape takes: provided the samples move it further than
-  // it is off on the lobe's prediction (its own bias on this lobe). Where
+  // it is off on the lobe's prediction (its own bias on this lobe), and its
+  // normal lies beyond the noise from the lobe's (else the two agree, and
+  // the lobe's fit need not be repeated). Where
   // the lobe is sharper than its quadratic can follow, that bias is large,
   // changes with whatever else the lobe fit absorbs, and the shift measures
   // the change rather than a tilt (on a Blinn-Phong lobe of exponent 20
   // beside a retro-reflecting diffuse, 13 of 1,024 pixels took fits 10 deg
   // off without this condition).
-  if (fits.test_lobe_shift && determined && LobeShifted(fits.lobe_shift_chi2) &&
+  if (fits.test_lobe_shift && determined && LobeShifted(fits.lobe_offset_chi2) && LobeShifted(fits.lobe_shift_chi2) &&
       fits.lobe_bias_chi2 < fits.lobe_shift_chi2)
     return Keep(low);
   if (adequate) return Keep(kept);

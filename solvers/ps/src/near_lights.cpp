@@ -424,7 +424,7 @@ class NearRefitter {
             .region_rejects_shape = !shape_rejected.empty() && shape_rejected[pixel] != 0,
             .test_lobe_shift = test_lobe_shift};
         bool fell = false;
-        const internal::PixelFit chosen = internal::ClimbLowFrequency(ladder, fitter, kept, problem, offer, &fell, tally);
+        const internal::PixelFit chosen = internal::ClimbLowFrequency(ladder, fitter, kept, problem, offer, &fell, write ? nullptr : tally);
         if (!write) continue;
         if (chosen.model == PixelModel::kLowFrequency) internal::WriteFitToMap(pixel, chosen, map);
         *fell_back += fell;

@@ -572,7 +572,7 @@ LobeShiftTally TileRefiner::ClimbLowFrequencyPixels(std::span<const int> pixels,
       bool fell_back = false;
       const LowFrequencyOffer offer{.region_rejects_shape = !shape_rejected_.empty() && shape_rejected_[p] != 0,
                                     .test_lobe_shift = test_lobe_shift};
-      const PixelFit chosen = ClimbLowFrequency(ladder_, fitter, kept, problem, offer, &fell_back, &mine);
+      const PixelFit chosen = ClimbLowFrequency(ladder_, fitter, kept, problem, offer, &fell_back, write ? nullptr : &mine);
       if (!write) continue;
       if (chosen.model == PixelModel::kLowFrequency) RecordLowFrequency(state, p, kept, held(p), chosen);
       state.fell_back += fell_back;

@@ -182,7 +182,7 @@ struct ModelSelectionOptions {
   // share_lobe): tried on 256 of its lobes first, and on every lobe where
   // they fail it more often than chance at that level. On the simulated
   // scenes it changes nothing; on DiLiGenT's five objects `auto` goes from
-  // 8.07 to 7.48 deg (docs/photometric-stereo-accuracy.md).
+  // 8.07 to 7.47 deg (docs/photometric-stereo-accuracy.md).
   bool lobe_shift_test = true;
   bool IsValid(std::string* why) const;
 };
