@@ -162,9 +162,9 @@ PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter
 // How many of a scene's lobes step 7 tests first, spread over them: if
 // chance explains their shifts, no other lobe is tested (a scene whose
 // lobes are its reflectance pays these fits only: about 1 ms, 1 % of
-// `auto` on the shiny sphere);
-// four or more shifted at the adequacy level 0.999 open the test to every
-// lobe (chance gives four of 256 with probability 1.4e-4).
+// `auto` on the shiny sphere); four or more shifted at the adequacy level
+// 0.999 open the test to every lobe (chance gives four of 256 with
+// probability 1.4e-4).
 inline constexpr int kLobeShiftSample = 256;
 
 // Step 7's pixels and whether the lobe-shift test runs on them. `auto`, in a
