@@ -373,39 +373,22 @@ void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCa
   }
 }
 
-std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalMap& map,
-                                        const std::vector<std::uint8_t>& held, bool test_lobe_shift) {
+namespace {
+
+// Calls visit(p) for every solved pixel of `map` that kept a lobe, in
+// raster order. A matte scene has a few per thousand pixels: blocks without
+// one are passed over on a vector compare of their models, where the
+// branches per pixel cost a tenth of matte `auto`'s time.
+template <typename Visit>
+void ForEachLobe(const NormalMap& map, const Visit& visit) {
   const std::uint8_t* flags = map.flags.ptr<std::uint8_t>();
   const std::uint8_t* model = map.model.ptr<std::uint8_t>();
-  const std::uint16_t* used = map.usable_lights.ptr<std::uint16_t>();
-  const float* confidence = map.confidence.ptr<float>();
-  const bool automatic = ladder.method() == Method::kAuto;
   constexpr auto kBlinnPhong = static_cast<std::uint8_t>(PixelModel::kBlinnPhong);
   constexpr auto kGgx = static_cast<std::uint8_t>(PixelModel::kGgx);
-  std::vector<int> candidates;
-  const int pixels = static_cast<int>(map.flags.total());
-  auto offer = [&](int p) {
-    if (flags[p] != static_cast<std::uint8_t>(PixelFlag::kSolved)) return;
-    const bool is_held = !held.empty() && held[p] != 0;
-    if (automatic) {
-      // Only a lobe, and without the lobe-shift test only one that fails the
-      // adequacy test, as its confidence tells.
-      if (model[p] != kBlinnPhong && model[p] != kGgx) return;
-      const int dof = used[p] - KeptParameters(static_cast<PixelModel>(model[p]), is_held);
-      if (!test_lobe_shift && dof > 0 && confidence[p] >= ladder.AdequateConfidence(dof)) return;
-    }
-    const PixelFit kept = FitInMapWithChi2(map, p, is_held);
-    LowFrequencyFits fits{&kept};
-    fits.test_lobe_shift = test_lobe_shift;
-    if (ladder.NextWithLowFrequency(fits).action == LadderStep::Action::kFitLowFrequency) candidates.push_back(p);
+  auto lobe = [&](int p) {
+    return flags[p] == static_cast<std::uint8_t>(PixelFlag::kSolved) && (model[p] == kBlinnPhong || model[p] == kGgx);
   };
-  if (!automatic) {
-    for (int p = 0; p < pixels; ++p) offer(p);
-    return candidates;
-  }
-  // `auto` looks only at lobes, a few per thousand pixels of a matte scene:
-  // blocks without one are passed over on a vector compare of their models,
-  // where the branches per pixel cost a tenth of matte `auto`'s time.
+  const int pixels = static_cast<int>(map.flags.total());
   constexpr int kBlock = 64;
   int p = 0;
   for (; p + kBlock <= pixels; p += kBlock) {
@@ -413,9 +396,42 @@ std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalM
 #pragma omp simd reduction(+ : lobes)
     for (int j = 0; j < kBlock; ++j) lobes += (model[p + j] == kBlinnPhong) | (model[p + j] == kGgx);
     if (lobes == 0) continue;
-    for (int j = 0; j < kBlock; ++j) offer(p + j);
+    for (int j = 0; j < kBlock; ++j)
+      if (lobe(p + j)) visit(p + j);
   }
-  for (; p < pixels; ++p) offer(p);
+  for (; p < pixels; ++p)
+    if (lobe(p)) visit(p);
+}
+
+}  // namespace
+
+std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalMap& map,
+                                        const std::vector<std::uint8_t>& held, bool test_lobe_shift) {
+  const std::uint16_t* used = map.usable_lights.ptr<std::uint16_t>();
+  const float* confidence = map.confidence.ptr<float>();
+  const std::uint8_t* model = map.model.ptr<std::uint8_t>();
+  std::vector<int> candidates;
+  auto offer = [&](int p) {
+    const bool is_held = !held.empty() && held[p] != 0;
+    const PixelFit kept = FitInMapWithChi2(map, p, is_held);
+    LowFrequencyFits fits{&kept};
+    fits.test_lobe_shift = test_lobe_shift;
+    if (ladder.NextWithLowFrequency(fits).action == LadderStep::Action::kFitLowFrequency) candidates.push_back(p);
+  };
+  if (ladder.method() != Method::kAuto) {
+    const std::uint8_t* flags = map.flags.ptr<std::uint8_t>();
+    for (int p = 0; p < static_cast<int>(map.flags.total()); ++p)
+      if (flags[p] == static_cast<std::uint8_t>(PixelFlag::kSolved)) offer(p);
+    return candidates;
+  }
+  // `auto` looks only at lobes, and without the lobe-shift test only at one
+  // that fails the adequacy test, as its confidence tells.
+  ForEachLobe(map, [&](int p) {
+    const bool is_held = !held.empty() && held[p] != 0;
+    const int dof = used[p] - KeptParameters(static_cast<PixelModel>(model[p]), is_held);
+    if (!test_lobe_shift && dof > 0 && confidence[p] >= ladder.AdequateConfidence(dof)) return;
+    offer(p);
+  });
   return candidates;
 }
 
@@ -475,15 +491,16 @@ LowFrequencyPlan PlanLowFrequency(const ModelLadder& ladder, const NormalMap& ma
   // scene's lobes are the noise's chance fits, with no material to test (a
   // matte scene pays nothing).
   if (!ladder.lobe_shift_test() || held.empty()) return {LowFrequencyCandidates(ladder, map, held, false), false};
-  std::vector<int> lobes = LowFrequencyCandidates(ladder, map, held, true);
-  // Spread evenly over the lobes in raster order: the same sample whatever
-  // the threads do.
+  // The sample spread evenly over the lobes in raster order (the same
+  // whatever the threads do); the candidates listed once, as the sample decides.
+  std::vector<int> lobes;
+  ForEachLobe(map, [&](int p) { lobes.push_back(p); });
   std::vector<int> sample;
   const std::size_t count = std::min<std::size_t>(kLobeShiftSample, lobes.size());
   for (std::size_t i = 0; i < count; ++i) sample.push_back(lobes[i * lobes.size() / count]);
   const LobeShiftTally tally = climb_sample(sample);
-  if (ladder.LobesFailShiftTest(tally.shifted, tally.tested)) return {std::move(lobes), true, tally};
-  return {LowFrequencyCandidates(ladder, map, held, false), false, tally};
+  const bool every_lobe = ladder.LobesFailShiftTest(tally.shifted, tally.tested);
+  return {LowFrequencyCandidates(ladder, map, held, every_lobe), every_lobe, tally};
 }
 
 void LowFrequencyPlan::AddTo(SolverSummary* summary) const {
