@@ -171,6 +171,40 @@ PixelFit SolveLane(const PixelProblem& p, const internal::NearLaneFits& lanes, i
   return fit;
 }
 
+// The kernel's lanes for pixels[start, start + kNearLanes): spare lanes
+// past the end repeat the last pixel.
+internal::NearLanePixels LanePixels(const PixelProblem& p, std::span<const PixelAt> pixels, std::size_t start) {
+  internal::NearLanePixels batch;
+  const std::size_t last = pixels.size() - 1;
+  for (int j = 0; j < internal::kNearLanes; ++j) {
+    const PixelAt& at = pixels[std::min(start + j, last)];
+    const Eigen::Vector3d point = p.Point(at.r, at.c, at.z_mm);
+    batch.x[j] = static_cast<float>(point.x()), batch.y[j] = static_cast<float>(point.y());
+    batch.z[j] = static_cast<float>(point.z());
+    batch.dark[j] = static_cast<float>(p.Dark(at.r, at.c));
+    batch.offset[j] = p.SampleIndex(at.r, at.c);
+  }
+  return batch;
+}
+
+// The kernel's lanes for row r's pixels columns[0, kNearLanes), their
+// surface points at height[c]: spare lanes past the end repeat the last.
+internal::NearLanePixels RowLanePixels(const PixelProblem& p, int r, std::span<const int> columns, const float* height) {
+  using internal::kNearLanes;
+  internal::NearLanePixels batch;
+  int c[kNearLanes];
+  float z[kNearLanes];
+  const std::size_t last = columns.size() - 1;
+  for (int j = 0; j < kNearLanes; ++j) c[j] = columns[std::min<std::size_t>(j, last)], z[j] = height[c[j]];
+  p.rays.RowPoints(r, c, z, kNearLanes, batch.x, batch.y, batch.z);
+  const float* dark = p.dark_data ? p.dark_data + p.ImageRow(r) * p.dark_stride : nullptr;
+  for (int j = 0; j < kNearLanes; ++j) {
+    batch.dark[j] = dark ? dark[p.ImageCol(c[j])] : 0.0f;
+    batch.offset[j] = p.SampleIndex(r, c[j]);
+  }
+  return batch;
+}
+
 // fits[i]: pixels[i]'s fit over its usable samples, kNearLanes pixels at a time.
 void FitPixels(const PixelProblem& p, std::span<const PixelAt> pixels, std::span<PixelFit> fits) {
   using internal::kNearLanes;
@@ -178,16 +212,8 @@ void FitPixels(const PixelProblem& p, std::span<const PixelAt> pixels, std::span
   internal::NearLaneFits lanes;
   for (std::size_t start = 0; start < pixels.size(); start += kNearLanes) {
     const int n = static_cast<int>(std::min<std::size_t>(kNearLanes, pixels.size() - start));
-    internal::NearLanePixels batch;
-    for (int j = 0; j < kNearLanes; ++j) {
-      const PixelAt& at = pixels[start + std::min(j, n - 1)];  // spare lanes repeat the last pixel
-      const Eigen::Vector3d point = p.Point(at.r, at.c, at.z_mm);
-      batch.x[j] = static_cast<float>(point.x()), batch.y[j] = static_cast<float>(point.y());
-      batch.z[j] = static_cast<float>(point.z());
-      batch.dark[j] = static_cast<float>(p.Dark(at.r, at.c));
-      batch.offset[j] = p.SampleIndex(at.r, at.c);
-    }
-    internal::FitNearLanes(p.lights, p.planes.data(), p.rules, p.max_condition_number, batch, &rows, &lanes);
+    internal::FitNearLanes(p.lights, p.planes.data(), p.rules, p.max_condition_number, LanePixels(p, pixels, start),
+                           &rows, &lanes);
     for (int j = 0; j < n; ++j) fits[start + j] = SolveLane(p, lanes, j);
   }
 }
@@ -233,42 +259,56 @@ struct MapRow {
 
 // Every pixel of the mask fitted with its surface at height_mm, every map
 // of *result written whole (AllocateResult); each fit's chi-square into
-// *chi_square (CV_32F) unless null.
+// *chi_square (CV_32F) unless null. A lane the kernel solved and found well
+// conditioned is written from the kernel's numbers as they stand; only the
+// rest go through SolveLane.
 void FitAllPixels(const PixelProblem& p, const cv::Mat& height_mm, NormalMap* result, cv::Mat* chi_square = nullptr) {
+  using internal::kNearLanes;
   if (chi_square) chi_square->create(height_mm.size(), CV_32F);
 #pragma omp parallel
   {
-    std::vector<PixelAt> row;
-    std::vector<PixelFit> fits;
+    std::vector<int> columns;  // the row's pixels in the mask
+    std::vector<float> rows;
+    internal::NearLaneFits lanes;
 #pragma omp for schedule(dynamic, 4)
     for (int r = 0; r < p.rows(); ++r) {
       const MapRow out(result, r);
       const float* height = height_mm.ptr<float>(r);
-      row.clear();
+      columns.clear();
       for (int c = 0; c < p.cols(); ++c)
         if (p.InMask(r, c))
-          row.push_back({r, c, height[c]});
+          columns.push_back(c);
         else
           out.Unsolved(c, PixelFlag::kOutsideMask, 0);
-      fits.resize(row.size());
-      FitPixels(p, row, fits);
       float* chi = chi_square ? chi_square->ptr<float>(r) : nullptr;
-      for (std::size_t i = 0; i < row.size(); ++i) {
-        const int c = row[i].c;
-        const PixelFit& fit = fits[i];
-        if (chi) chi[c] = static_cast<float>(fit.chi_square);
-        if (fit.flag != PixelFlag::kSolved) {
-          out.Unsolved(c, fit.flag, fit.usable);
-          continue;
+      for (std::size_t start = 0; start < columns.size(); start += kNearLanes) {
+        const int n = static_cast<int>(std::min<std::size_t>(kNearLanes, columns.size() - start));
+        internal::FitNearLanes(p.lights, p.planes.data(), p.rules, p.max_condition_number,
+                               RowLanePixels(p, r, std::span<const int>(columns).subspan(start), height), &rows, &lanes);
+        for (int j = 0; j < n; ++j) {
+          const int c = columns[start + j];
+          const int usable = static_cast<int>(lanes.usable[j]);
+          if (chi) chi[c] = usable < 3 ? 0.0f : static_cast<float>(lanes.chi_square[j]);  // as SolveLane leaves it
+          double b[3] = {lanes.b[0][j], lanes.b[1][j], lanes.b[2][j]};
+          double length = lanes.length[j], inverse_length = lanes.inverse_length[j];
+          if (!(lanes.conditioned[j] && usable >= 3 && length > 0.0)) {
+            const PixelFit fit = SolveLane(p, lanes, j);
+            if (fit.flag != PixelFlag::kSolved) {
+              out.Unsolved(c, fit.flag, fit.usable);
+              continue;
+            }
+            b[0] = fit.b.x(), b[1] = fit.b.y(), b[2] = fit.b.z();
+            length = fit.length, inverse_length = fit.inverse_length;
+          }
+          out.normal[3 * c] = static_cast<float>(b[0] * inverse_length);
+          out.normal[3 * c + 1] = static_cast<float>(b[1] * inverse_length);
+          out.normal[3 * c + 2] = static_cast<float>(b[2] * inverse_length);
+          out.albedo[c] = static_cast<float>(kPi * length), out.confidence[c] = static_cast<float>(lanes.confidence[j]);
+          out.specular[2 * c] = out.specular[2 * c + 1] = 0.0f;
+          out.flag[c] = static_cast<std::uint8_t>(PixelFlag::kSolved);
+          out.model[c] = static_cast<std::uint8_t>(PixelModel::kLambertian);
+          out.usable[c] = static_cast<std::uint16_t>(std::min(usable, 65535));
         }
-        const Eigen::Vector3d n = fit.b * fit.inverse_length;
-        out.normal[3 * c] = static_cast<float>(n.x()), out.normal[3 * c + 1] = static_cast<float>(n.y());
-        out.normal[3 * c + 2] = static_cast<float>(n.z());
-        out.albedo[c] = static_cast<float>(kPi * fit.length), out.confidence[c] = fit.confidence;
-        out.specular[2 * c] = out.specular[2 * c + 1] = 0.0f;
-        out.flag[c] = static_cast<std::uint8_t>(PixelFlag::kSolved);
-        out.model[c] = static_cast<std::uint8_t>(PixelModel::kLambertian);
-        out.usable[c] = static_cast<std::uint16_t>(std::min(fit.usable, 65535));
       }
     }
   }

@@ -42,7 +42,7 @@ PHOTORIG_LANE_INLINE void AddLight(const NearLightTable& lights, int k, const fl
   // A lane batch reads each of the (tens of) planes at one place, more
   // streams than the hardware prefetchers follow: ask for the line the
   // batches four ahead will read.
-  __builtin_prefetch(plane + pixels.offset[kNearLanes - 1] + 4 * kNearLanes);
+  __builtin_prefetch(plane + pixels.offset[kNearLanes - 1] + kNearLanes);
   float* weight_out = row;
   float* signal_out = row + kNearLanes;
   float* gx_out = row + 2 * kNearLanes;
@@ -102,7 +102,8 @@ PHOTORIG_LANE_INLINE void AddLights(const NearLightTable& lights, const float* c
 // Each lane's normal equations solved by the adjugate, with the screen of
 // its conditioning.
 PHOTORIG_LANE_INLINE void SolveLanes(const FloatSums& sums, double max_condition_number, NearLaneFits& fits) {
-  const double max_condition4 = std::pow(max_condition_number, 4.0);  // |G|_F^2 |G^-1|_F^2 against cond(A)^4
+  const double max_condition2 = max_condition_number * max_condition_number;
+  const double max_condition4 = max_condition2 * max_condition2;  // |G|_F^2 |G^-1|_F^2 against cond(A)^4
 #pragma omp simd
   for (int j = 0; j < kNearLanes; ++j) {
     const double xx = sums.matrix[0][j], xy = sums.matrix[1][j], xz = sums.matrix[2][j], yy = sums.matrix[3][j],

@@ -76,6 +76,22 @@ class PixelRays {
     const cv::Vec4f& l = lines_.at<cv::Vec4f>(r, c);
     return {l[0] + z_mm * l[2], l[1] + z_mm * l[3], z_mm};
   }
+  // Point for pixels (r, c[j]) of one row at heights z_mm[j], j < count, as
+  // three float arrays: a batch of pixels without a call per pixel.
+  void RowPoints(int r, const int* c, const float* z_mm, int count, float* x, float* y, float* z) const {
+    if (lines_.empty()) {
+      const float row_y = OrthographicY(r);
+      for (int j = 0; j < count; ++j) x[j] = OrthographicX(c[j]), y[j] = row_y, z[j] = z_mm[j];
+      return;
+    }
+    const cv::Vec4f* row = lines_.ptr<cv::Vec4f>(r);
+    for (int j = 0; j < count; ++j) {
+      const cv::Vec4f& l = row[c[j]];
+      const double height = z_mm[j];
+      x[j] = static_cast<float>(l[0] + height * l[2]), y[j] = static_cast<float>(l[1] + height * l[3]);
+      z[j] = z_mm[j];
+    }
+  }
   // The unit vector from any point of pixel (r, c)'s line towards the camera.
   Eigen::Vector3d ViewDirection(int r, int c) const {
     if (lines_.empty()) return Eigen::Vector3d::UnitZ();
