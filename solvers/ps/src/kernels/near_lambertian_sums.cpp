@@ -40,8 +40,9 @@ PHOTORIG_LANE_INLINE void AddLight(const NearLightTable& lights, int k, const fl
   const float constant = static_cast<float>(lights.constant[k]), w = static_cast<float>(lights.w[k]);
   const float* first = plane + pixels.offset[0];
   // A lane batch reads each of the (tens of) planes at one place, more
-  // streams than the hardware prefetchers follow: ask for the line the
-  // batches four ahead will read.
+  // streams than the hardware prefetchers follow: ask for the line the next
+  // batch will read. Not further: the planes' lines at one offset share L1
+  // sets, and lines fetched batches ahead are evicted before they are read.
   __builtin_prefetch(plane + pixels.offset[kNearLanes - 1] + kNearLanes);
   float* weight_out = row;
   float* signal_out = row + kNearLanes;
