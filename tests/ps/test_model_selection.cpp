@@ -356,7 +356,9 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
   EXPECT_TRUE(ladder.LobeShifted(13.82));
   const PixelFit good_lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
   const PixelFit judged = FitWith(36, 1.0, PixelModel::kBlinnPhong, 5);
-  const PixelFit low = FitWith(36, 1.2, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  // Determined but not adequate (an adequate one is the next test's case).
+  const PixelFit low = FitWith(36, 2.2, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  ASSERT_FALSE(ladder.Adequate(low));
   // Without the test an adequate lobe is not even offered the fit; with it, it is.
   LowFrequencyFits unfitted{&good_lobe};
   EXPECT_EQ(ladder.NextWithLowFrequency(unfitted).keep, &good_lobe);
@@ -410,6 +412,51 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
   EXPECT_FALSE(ModelLadder(Method::kAuto, off, kLights).lobe_shift_test());
   EXPECT_TRUE(ladder.lobe_shift_test());
   EXPECT_FALSE(Ladder(Method::kBlinnPhong).lobe_shift_test());
+}
+
+// In a scene whose lobes fail the shift test, an adequate, determined
+// low-frequency fit whose normal lies beyond the noise from the lobe's
+// replaces the lobe, though the lobe is adequate and bends the fit as far
+// as the samples do (no shift): the difference is the lobe shape's tilt.
+TEST(ModelLadder, AutoTakesAnAdequateLowFrequencyFitThatDisagreesWithTheLobeInASceneOfWrongLobes) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit lobe = FitWith(40, 1.0, PixelModel::kBlinnPhong, 5);
+  const PixelFit judged = FitWith(36, 1.0, PixelModel::kBlinnPhong, 5);
+  const PixelFit low = FitWith(36, 1.2, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  ASSERT_TRUE(ladder.Adequate(lobe));
+  ASSERT_TRUE(ladder.Adequate(low));
+  LowFrequencyFits fits{&lobe, &low, &judged};
+  fits.test_lobe_shift = true;
+  fits.lobe_offset_chi2 = 20.0;  // beyond the noise (13.82)
+  fits.lobe_shift_chi2 = 1.0;    // the lobe's prediction moves the fit as the samples do
+  fits.lobe_bias_chi2 = 20.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &low);
+  // A GGX lobe the same.
+  const PixelFit ggx = FitWith(40, 1.0, PixelModel::kGgx, 5);
+  LowFrequencyFits ggx_fits = fits;
+  ggx_fits.kept = &ggx;
+  EXPECT_EQ(ladder.NextWithLowFrequency(ggx_fits).keep, &low);
+  // Not where the two normals agree within the noise.
+  fits.lobe_offset_chi2 = 13.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
+  fits.lobe_offset_chi2 = 20.0;
+  // Not in a scene whose lobes pass the test, nor where a sampled spike pins the lobe's normal.
+  fits.test_lobe_shift = false;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
+  fits.test_lobe_shift = true;
+  fits.spike_pins_normal = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
+  fits.spike_pins_normal = false;
+  // Not where the low-frequency fit leaves its samples unexplained, nor where they do not determine it.
+  const PixelFit misfit = FitWith(36, 2.2, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  LowFrequencyFits misfit_fits = fits;
+  misfit_fits.low_frequency = &misfit;
+  EXPECT_EQ(ladder.NextWithLowFrequency(misfit_fits).keep, &lobe);
+  const PixelFit few = FitWith(11, 0.5, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
+  ASSERT_TRUE(ladder.Adequate(few));
+  LowFrequencyFits few_fits = fits;
+  few_fits.low_frequency = &few;
+  EXPECT_EQ(ladder.NextWithLowFrequency(few_fits).keep, &lobe);
 }
 
 // A scene's lobes fail the test as a whole where the binomial tail of the

@@ -490,7 +490,7 @@ LowFrequencyPlan PlanLowFrequency(const ModelLadder& ladder, const NormalMap& ma
   // `held` is allocated where step 5 found a glossy region: without one the
   // scene's lobes are the noise's chance fits, with no material to test (a
   // matte scene pays nothing).
-  if (!ladder.lobe_shift_test() || held.empty()) return {LowFrequencyCandidates(ladder, map, held, false), false};
+  if (!ladder.lobe_shift_test() || held.empty()) return {LowFrequencyCandidates(ladder, map, held, false), false, {}};
   // The sample spread evenly over the lobes in raster order (the same
   // whatever the threads do); the candidates listed once, as the sample decides.
   std::vector<int> lobes;

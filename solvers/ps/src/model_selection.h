@@ -436,6 +436,19 @@ inline LadderStep ModelLadder::NextWithLowFrequency(const LowFrequencyFits& fits
   if (fits.test_lobe_shift && determined && LobeShifted(fits.lobe_offset_chi2) && LobeShifted(fits.lobe_shift_chi2) &&
       fits.lobe_bias_chi2 < fits.lobe_shift_chi2)
     return Keep(low);
+  // Two explanations of the samples in a scene whose lobes, as a whole, are
+  // not the shape its samples have (test_lobe_shift): the low-frequency fit
+  // explains them to the noise (its spike left out) and determines its
+  // normal, and the lobe's normal lies beyond that noise from it. The
+  // low-frequency normal rests on the samples and no lobe shape; the lobe's
+  // also on its Blinn-Phong or GGX shape, which these samples do not need
+  // and the scene has shown to be wrong, so the difference is that shape's
+  // tilt, even where the lobe's own chi-square passes and the test above
+  // sees no shift (the lobe then bends the low-frequency fit as far as the
+  // samples do). A scene whose lobes have the samples' shape passes the
+  // test as a whole and never comes here (an exact e = 20 lobe beside a
+  // retro-reflecting diffuse: 3 of 138 sampled lobes shift).
+  if (fits.test_lobe_shift && determined && Adequate(low) && LobeShifted(fits.lobe_offset_chi2)) return Keep(low);
   if (adequate) return Keep(kept);
   // A Blinn-Phong lobe that leaves its samples unexplained, in a region
   // that rejects one Blinn-Phong shape (step 5): the pixel and its region
