@@ -370,6 +370,10 @@ TEST(EndToEnd, AutoAtLeastHalvesTheL2ErrorOnHighlightsAndCastShadows) {
     EXPECT_GT(shift["sample_tested"].get<int>(), 50) << scene;
     EXPECT_LE(shift["sample_shifted"].get<int>(), 3) << scene;
     EXPECT_FALSE(shift["every_lobe"].get<bool>()) << scene;
+    // Every low-frequency pixel is counted under the rule that took it.
+    int by_rule = 0;
+    for (const auto& [rule, count] : auto_report["low_frequency_rules"].items()) by_rule += count.get<int>();
+    EXPECT_EQ(by_rule, auto_report["models"]["low_frequency"].get<int>()) << scene;
     EXPECT_TRUE(auto_report["depth"]["success"].get<bool>()) << scene;
     EXPECT_TRUE(fs::exists(automatic / "mesh.ply")) << scene;
     EXPECT_TRUE(fs::exists(automatic / "model.png")) << scene;

@@ -255,6 +255,7 @@ TEST(ModelLadder, AutoOffersTheLowFrequencyFitToALobeThatDoesNotExplainItsSample
   const LowFrequencyFits fitted{&lobe, &low, &judged};
   ASSERT_GT(judged.Bic() - low.Bic(), internal::kConfidentLobeEvidence);  // 32 - ln 36 = 28.4
   EXPECT_EQ(ladder.NextWithLowFrequency(fitted).keep, &low);
+  EXPECT_EQ(ladder.NextWithLowFrequency(fitted).low_frequency_rule, internal::LowFrequencyRule::kStrongEvidence);
   low.chi2 = judged.chi2 - std::log(36.0) - 0.5 * internal::kConfidentLobeEvidence;  // lower, but not by 10
   EXPECT_EQ(ladder.NextWithLowFrequency(fitted).keep, &lobe);
   // Where the low-frequency fit is far above the noise too (chi2 / dof 100),
@@ -312,6 +313,7 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitForAnInadequateLobeWhereItsRegionRe
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
   fits.region_rejects_shape = true;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &low);
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).low_frequency_rule, internal::LowFrequencyRule::kRegionRejectsShape);
   // Asked for before it is fitted, as for any inadequate lobe.
   LowFrequencyFits unfitted{&lobe};
   unfitted.region_rejects_shape = true;
@@ -372,6 +374,7 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitWhereItLandsAwayFromTheLobesOwn) {
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &good_lobe);
   fits.lobe_shift_chi2 = 14.0;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &low);
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).low_frequency_rule, internal::LowFrequencyRule::kLobeShifted);
   // Not where the fit is further off on the lobe's own prediction (its
   // bias on this lobe) than the samples move it, nor where that was not measured.
   fits.lobe_bias_chi2 = 15.0;
@@ -431,6 +434,7 @@ TEST(ModelLadder, AutoTakesAnAdequateLowFrequencyFitThatDisagreesWithTheLobeInAS
   fits.lobe_shift_chi2 = 1.0;    // the lobe's prediction moves the fit as the samples do
   fits.lobe_bias_chi2 = 20.0;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &low);
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).low_frequency_rule, internal::LowFrequencyRule::kExplainsApart);
   // A GGX lobe the same.
   const PixelFit ggx = FitWith(40, 1.0, PixelModel::kGgx, 5);
   LowFrequencyFits ggx_fits = fits;
@@ -439,6 +443,7 @@ TEST(ModelLadder, AutoTakesAnAdequateLowFrequencyFitThatDisagreesWithTheLobeInAS
   // Not where the two normals agree within the noise.
   fits.lobe_offset_chi2 = 13.0;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
+  EXPECT_EQ(ladder.NextWithLowFrequency(fits).low_frequency_rule, internal::LowFrequencyRule::kNone);
   fits.lobe_offset_chi2 = 20.0;
   // Not in a scene whose lobes pass the test, nor where a sampled spike pins the lobe's normal.
   fits.test_lobe_shift = false;

@@ -437,7 +437,7 @@ std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalM
 
 PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter, const PixelFit& kept,
                            const LowFrequencyProblem& problem, const LowFrequencyOffer& offer, bool* fell_back,
-                           LobeShiftTally* tally) {
+                           LobeShiftTally* tally, LowFrequencyRule* rule) {
   int usable = 0;
   for (int k = 0; k < problem.lights; ++k) usable += problem.inverse_sigma[k] > 0.0;
   LowFrequencyFits fits{&kept};
@@ -453,6 +453,7 @@ PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter
     const LadderStep step = ladder.NextWithLowFrequency(fits);
     if (step.action != LadderStep::Action::kFitLowFrequency) {
       *fell_back = step.fell_back;
+      if (rule) *rule = step.low_frequency_rule;
       return *step.keep;
     }
     const LowFrequencySolution on_samples = fitter.Fit(problem);
@@ -501,6 +502,29 @@ LowFrequencyPlan PlanLowFrequency(const ModelLadder& ladder, const NormalMap& ma
   const LobeShiftTally tally = climb_sample(sample);
   const bool every_lobe = ladder.LobesFailShiftTest(tally.shifted, tally.tested);
   return {LowFrequencyCandidates(ladder, map, held, every_lobe), every_lobe, tally};
+}
+
+void LowFrequencyRuleCounts::Add(LowFrequencyRule rule) {
+  switch (rule) {
+    case LowFrequencyRule::kLobeShifted: ++lobe_shifted; break;
+    case LowFrequencyRule::kExplainsApart: ++explains_apart; break;
+    case LowFrequencyRule::kRegionRejectsShape: ++region_rejects_shape; break;
+    case LowFrequencyRule::kStrongEvidence: ++strong_evidence; break;
+    case LowFrequencyRule::kNone: break;
+  }
+}
+
+LowFrequencyRuleCounts& LowFrequencyRuleCounts::operator+=(const LowFrequencyRuleCounts& other) {
+  lobe_shifted += other.lobe_shifted, explains_apart += other.explains_apart;
+  region_rejects_shape += other.region_rejects_shape, strong_evidence += other.strong_evidence;
+  return *this;
+}
+
+void LowFrequencyRuleCounts::AddTo(SolverSummary* summary) const {
+  summary->low_frequency_lobe_shifted += lobe_shifted;
+  summary->low_frequency_explains_apart += explains_apart;
+  summary->low_frequency_shape_rejected += region_rejects_shape;
+  summary->low_frequency_strong_evidence += strong_evidence;
 }
 
 void LowFrequencyPlan::AddTo(SolverSummary* summary) const {

@@ -152,12 +152,22 @@ struct LobeShiftTally {
 // as FitInMapWithChi2 gives it, its samples in `problem` (the low-frequency
 // fit's units: a lobe fit's, the samples over their gains). Returns the fit
 // the ladder keeps, *fell_back where it stands in for a failed low-frequency
-// fit (the `low-frequency` method's); adds its lobe-shift test to *tally
-// (if not null: a sample's climb, which measures the shift even where the
-// two normals agree and the lobe stands).
+// fit (the `low-frequency` method's), and *rule (if not null) the rule that
+// took it; adds its lobe-shift test to *tally (if not null: a sample's
+// climb, which measures the shift even where the two normals agree and the
+// lobe stands).
 PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter, const PixelFit& kept,
                            const LowFrequencyProblem& problem, const LowFrequencyOffer& offer, bool* fell_back,
-                           LobeShiftTally* tally = nullptr);
+                           LobeShiftTally* tally = nullptr, LowFrequencyRule* rule = nullptr);
+
+// How many pixels each of step 7's rules gave the low-frequency fit.
+struct LowFrequencyRuleCounts {
+  std::size_t lobe_shifted = 0, explains_apart = 0, region_rejects_shape = 0, strong_evidence = 0;
+  void Add(LowFrequencyRule rule);
+  LowFrequencyRuleCounts& operator+=(const LowFrequencyRuleCounts& other);
+  // Into a summary's low_frequency_ counts.
+  void AddTo(SolverSummary* summary) const;
+};
 
 // How many of a scene's lobes step 7 tests first, spread over them: if
 // chance explains their shifts, no other lobe is tested (a scene whose

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -92,6 +93,16 @@ struct LadderFits {
 inline const PixelFit kNoFit{};
 
 // What a pixel's climb does next.
+// Which of step 7's rules (ModelLadder::NextWithLowFrequency) gave `auto`'s
+// pixel the low-frequency fit.
+enum class LowFrequencyRule : std::uint8_t {
+  kNone,                // not step 7's low-frequency fit, or the `low-frequency` method's
+  kLobeShifted,         // the lobe-shift test found the lobe tilted
+  kExplainsApart,       // the fit explains its samples, beyond the noise from the lobe
+  kRegionRejectsShape,  // an inadequate Blinn-Phong lobe in a region that rejects the shape
+  kStrongEvidence,      // the information criterion, by kConfidentLobeEvidence or more
+};
+
 struct LadderStep {
   enum class Action {
     kKeep,        // `keep` is the pixel's answer
@@ -113,6 +124,8 @@ struct LadderStep {
   // kKeep of a lobe fit: how far its information criterion is below the
   // simpler fit's (kConfidentLobeEvidence and more: a confidently glossy pixel).
   double evidence = 0.0;
+  // kKeep of `auto`'s low-frequency fit: the rule that took it.
+  LowFrequencyRule low_frequency_rule = LowFrequencyRule::kNone;
 };
 
 // Step 5's fits of a pixel that steps 1-4 kept without a lobe, in a glossy
@@ -310,6 +323,11 @@ class ModelLadder {
 
  private:
   static LadderStep Keep(const PixelFit& fit) { return {LadderStep::Action::kKeep, &fit, nullptr}; }
+  static LadderStep KeepLowFrequency(const PixelFit& low, LowFrequencyRule rule) {
+    LadderStep step = Keep(low);
+    step.low_frequency_rule = rule;
+    return step;
+  }
   // `asked` failed: keep `fallback` instead, or `asked` (no normal) where it failed too.
   static LadderStep FallBack(const PixelFit& asked, const PixelFit& fallback) {
     if (asked.ok || !fallback.ok) return Keep(asked);
@@ -435,7 +453,7 @@ inline LadderStep ModelLadder::NextWithLowFrequency(const LowFrequencyFits& fits
   // off without this condition).
   if (fits.test_lobe_shift && determined && LobeShifted(fits.lobe_offset_chi2) && LobeShifted(fits.lobe_shift_chi2) &&
       fits.lobe_bias_chi2 < fits.lobe_shift_chi2)
-    return Keep(low);
+    return KeepLowFrequency(low, LowFrequencyRule::kLobeShifted);
   // Two explanations of the samples in a scene whose lobes, as a whole, are
   // not the shape its samples have (test_lobe_shift): the low-frequency fit
   // explains them to the noise (its spike left out) and determines its
@@ -448,7 +466,8 @@ inline LadderStep ModelLadder::NextWithLowFrequency(const LowFrequencyFits& fits
   // samples do). A scene whose lobes have the samples' shape passes the
   // test as a whole and never comes here (an exact e = 20 lobe beside a
   // retro-reflecting diffuse: 3 of 138 sampled lobes shift).
-  if (fits.test_lobe_shift && determined && Adequate(low) && LobeShifted(fits.lobe_offset_chi2)) return Keep(low);
+  if (fits.test_lobe_shift && determined && Adequate(low) && LobeShifted(fits.lobe_offset_chi2))
+    return KeepLowFrequency(low, LowFrequencyRule::kExplainsApart);
   if (adequate) return Keep(kept);
   // A Blinn-Phong lobe that leaves its samples unexplained, in a region
   // that rejects one Blinn-Phong shape (step 5): the pixel and its region
@@ -459,7 +478,7 @@ inline LadderStep ModelLadder::NextWithLowFrequency(const LowFrequencyFits& fits
   // offered such a region instead: what it leaves may be foreign light,
   // judged below.
   const bool misspecified = fits.region_rejects_shape && kept.model == PixelModel::kBlinnPhong;
-  if (misspecified && determined) return Keep(low);
+  if (misspecified && determined) return KeepLowFrequency(low, LowFrequencyRule::kRegionRejectsShape);
   // The two are not nested and the ladder chose the kept fit already: the
   // low-frequency fit replaces it on very strong evidence only. Where even
   // the low-frequency fit leaves residuals far above the noise, chi-square
@@ -470,7 +489,8 @@ inline LadderStep ModelLadder::NextWithLowFrequency(const LowFrequencyFits& fits
   if (low.ok && judged.ok && low.Dof() > 0) {
     const double inflation = std::max(1.0, low.chi2 / low.Dof());
     const double penalty = (low.parameters - judged.parameters) * std::log(std::max(low.used, 1));
-    if ((judged.chi2 - low.chi2) / inflation - penalty > kConfidentLobeEvidence) return Keep(low);
+    if ((judged.chi2 - low.chi2) / inflation - penalty > kConfidentLobeEvidence)
+      return KeepLowFrequency(low, LowFrequencyRule::kStrongEvidence);
   }
   return Keep(kept);
 }

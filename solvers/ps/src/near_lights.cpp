@@ -438,12 +438,13 @@ class NearRefitter {
   // at its surface's height with its own light and view vectors; held: the
   // pixels whose lobe step 5 held (empty: none), shape_rejected: the pixels
   // of regions that reject one Blinn-Phong shape (empty: none). Into the map
-  // if `write`; adds how many fell back to *fell_back and the lobe-shift
-  // tests to *tally.
+  // if `write`; adds how many fell back to *fell_back, the pixels each
+  // rule gave the fit to *rules and the lobe-shift tests to *tally.
   void OfferLowFrequency(const internal::ModelLadder& ladder, double spike_fraction, std::span<const int> pixels,
                          const cv::Mat& height_mm, const std::vector<std::uint8_t>& held,
                          const std::vector<std::uint8_t>& shape_rejected, bool test_lobe_shift, bool write,
-                         NormalMap* map, std::size_t* fell_back, internal::LobeShiftTally* tally) {
+                         NormalMap* map, std::size_t* fell_back, internal::LowFrequencyRuleCounts* rules,
+                         internal::LobeShiftTally* tally) {
     internal::LowFrequencyFitter fitter(spike_fraction);
     for (std::size_t first = 0; first < pixels.size(); first += kLobeBatch) {
       const std::size_t count = std::min(kLobeBatch, pixels.size() - first);
@@ -464,9 +465,14 @@ class NearRefitter {
             .region_rejects_shape = !shape_rejected.empty() && shape_rejected[pixel] != 0,
             .test_lobe_shift = test_lobe_shift};
         bool fell = false;
-        const internal::PixelFit chosen = internal::ClimbLowFrequency(ladder, fitter, kept, problem, offer, &fell, write ? nullptr : tally);
+        internal::LowFrequencyRule rule = internal::LowFrequencyRule::kNone;
+        const internal::PixelFit chosen =
+            internal::ClimbLowFrequency(ladder, fitter, kept, problem, offer, &fell, write ? nullptr : tally, &rule);
         if (!write) continue;
-        if (chosen.model == PixelModel::kLowFrequency) internal::WriteFitToMap(pixel, chosen, map);
+        if (chosen.model == PixelModel::kLowFrequency) {
+          internal::WriteFitToMap(pixel, chosen, map);
+          rules->Add(rule);
+        }
         *fell_back += fell;
       }
     }
@@ -975,6 +981,7 @@ std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOpti
   if (!(method == Method::kLowFrequency || (method == Method::kAuto && options.selection.low_frequency))) return 0;
   const internal::ModelLadder ladder(method, options.selection, p.lights.count());
   std::size_t fell_back = 0;
+  internal::LowFrequencyRuleCounts rules;
   auto climb = [&](std::span<const int> pixels, bool test_lobe_shift, bool write) {
     constexpr std::size_t kChunk = 256;
     const std::size_t chunks = (pixels.size() + kChunk - 1) / kChunk;
@@ -984,13 +991,16 @@ std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOpti
     {
       NearRefitter refitter(p, options);
       internal::LobeShiftTally tally;
+      internal::LowFrequencyRuleCounts mine;
 #pragma omp for schedule(dynamic, 1)
       for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
         const std::size_t first = chunk * kChunk, count = std::min(kChunk, pixels.size() - first);
         refitter.OfferLowFrequency(ladder, options.selection.spike_fraction, pixels.subspan(first, count), height_mm,
-                                   held, shape_rejected, test_lobe_shift, write, map, &fell, &tally);
+                                   held, shape_rejected, test_lobe_shift, write, map, &fell, &mine, &tally);
       }
       tested += tally.tested, shifted += tally.shifted;
+#pragma omp critical(near_low_frequency_rules)
+      rules += mine;
     }
     fell_back += fell;
     return internal::LobeShiftTally{tested, shifted};
@@ -999,6 +1009,7 @@ std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOpti
       ladder, *map, held, [&](std::span<const int> sample) { return climb(sample, true, false); });
   climb(plan.pixels, plan.test_lobe_shift, true);
   plan.AddTo(summary);
+  rules.AddTo(summary);
   return fell_back;
 }
 

@@ -99,6 +99,7 @@ struct TileRefiner::ThreadState {
   // Step 7: the pixels that took the low-frequency fit, by the model they had kept.
   std::size_t low_frequency = 0, low_from_lambertian = 0, low_from_trimmed = 0, low_from_blinn_phong = 0,
               low_from_held_lobe = 0, low_from_ggx = 0;
+  LowFrequencyRuleCounts low_rules;  // and by the rule that took them
   // Samples a kept fit had left out (trimmed or unlit) that steps 5-7's fits use again.
   std::size_t samples_restored = 0;
 };
@@ -570,11 +571,13 @@ LobeShiftTally TileRefiner::ClimbLowFrequencyPixels(std::span<const int> pixels,
       int usable = 0;
       reader_.Row(p, kept.normal, observed, inverse_sigma, &usable);
       bool fell_back = false;
+      LowFrequencyRule rule = LowFrequencyRule::kNone;
       const LowFrequencyOffer offer{.region_rejects_shape = !shape_rejected_.empty() && shape_rejected_[p] != 0,
                                     .test_lobe_shift = test_lobe_shift};
-      const PixelFit chosen = ClimbLowFrequency(ladder_, fitter, kept, problem, offer, &fell_back, write ? nullptr : &mine);
+      const PixelFit chosen =
+          ClimbLowFrequency(ladder_, fitter, kept, problem, offer, &fell_back, write ? nullptr : &mine, &rule);
       if (!write) continue;
-      if (chosen.model == PixelModel::kLowFrequency) RecordLowFrequency(state, p, kept, held(p), chosen);
+      if (chosen.model == PixelModel::kLowFrequency) RecordLowFrequency(state, p, kept, held(p), chosen, rule);
       state.fell_back += fell_back;
     }
     state.rows = 0;
@@ -584,9 +587,10 @@ LobeShiftTally TileRefiner::ClimbLowFrequencyPixels(std::span<const int> pixels,
 }
 
 void TileRefiner::RecordLowFrequency(ThreadState& state, int p, const PixelFit& kept, bool held,
-                                     const PixelFit& low) {
+                                     const PixelFit& low, LowFrequencyRule rule) {
   WriteFitToMap(p, low, result_);
   ++state.low_frequency;
+  state.low_rules.Add(rule);
   switch (kept.model) {
     case PixelModel::kLambertian: ++state.low_from_lambertian; break;
     case PixelModel::kTrimmed: ++state.low_from_trimmed; break;
@@ -622,6 +626,7 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
     from_blinn_phong += state.low_from_blinn_phong + state.low_from_held_lobe;
     from_held_lobe += state.low_from_held_lobe;
     from_ggx += state.low_from_ggx;
+    state.low_rules.AddTo(summary);
     restored += state.samples_restored;
     summary->pixels_fell_back += state.fell_back;
     failed += state.failed;

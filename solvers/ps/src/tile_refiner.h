@@ -94,8 +94,9 @@ class TileRefiner {
   // Step 7's climb of `pixels` (OfferLowFrequency), into the map if `write`;
   // returns their lobe-shift tests.
   LobeShiftTally ClimbLowFrequencyPixels(std::span<const int> pixels, bool test_lobe_shift, bool write);
-  // Pixel p, kept as `kept` (held as RecordGgx's), takes the low-frequency fit `low`.
-  void RecordLowFrequency(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& low);
+  // Pixel p, kept as `kept` (held as RecordGgx's), takes the low-frequency fit `low` by `rule`.
+  void RecordLowFrequency(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& low,
+                          LowFrequencyRule rule);
   // Climbs the ladder from `fits` as far as it goes without a lane stage: keeps
   // the pixel's answer, or queues it for the stage the ladder asks for.
   // samples: the pixel's samples as copied for trimming, if they were;

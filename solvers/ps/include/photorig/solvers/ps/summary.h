@@ -39,6 +39,13 @@ struct SolverSummary : solvers::core::Summary {
   std::size_t pixels_ggx = 0;
   // Low-frequency reflectance: `auto`'s step 7, where no model above explains the pixel.
   std::size_t pixels_low_frequency = 0;
+  // Of those (`auto`), by the rule of step 7 that took each: the lobe-shift
+  // test found the lobe tilted; the fit explains its samples to the noise
+  // beyond the noise from the lobe, in a scene that opened the test; an
+  // inadequate Blinn-Phong lobe in a region that rejects the shape; the
+  // information criterion's very strong evidence.
+  std::size_t low_frequency_lobe_shifted = 0, low_frequency_explains_apart = 0, low_frequency_shape_rejected = 0,
+              low_frequency_strong_evidence = 0;
   // Step 7's lobe-shift test (ModelSelectionOptions::lobe_shift_test): of
   // the sample of lobes tried first, how many it tested and found shifted,
   // and whether it then tested every lobe (they failed it as a whole).
