@@ -92,7 +92,6 @@ struct LadderFits {
 };
 inline const PixelFit kNoFit{};
 
-// What a pixel's climb does next.
 // Which of step 7's rules (ModelLadder::NextWithLowFrequency) gave `auto`'s
 // pixel the low-frequency fit.
 enum class LowFrequencyRule : std::uint8_t {
@@ -103,6 +102,7 @@ enum class LowFrequencyRule : std::uint8_t {
   kStrongEvidence,      // the information criterion, by kConfidentLobeEvidence or more
 };
 
+// What a pixel's climb does next.
 struct LadderStep {
   enum class Action {
     kKeep,        // `keep` is the pixel's answer
@@ -286,7 +286,8 @@ class ModelLadder {
   // low-frequency fit of its samples lands further from where it lands on
   // the lobe's own prediction of them than the noise explains, and further
   // than that is from the lobe's normal, and beyond the noise from the
-  // lobe's normal.
+  // lobe's normal; or where the fit is determined and adequate and its
+  // normal lies beyond the noise from the lobe's, adequate lobe or not.
   // The `low-frequency` method keeps the fit wherever it succeeds (else the
   // Lambertian fit, fell_back).
   inline LadderStep NextWithLowFrequency(const LowFrequencyFits& fits) const;
