@@ -188,15 +188,15 @@ TEST(PhotometricStereo, AutoTakesTheLowFrequencyFitWhereTheLobeTiltedToAbsorbRet
     const AngularErrorStats without = CompareNormals(before.normals, truth.normals);
     EXPECT_LT(automatic.error.mean_deg, gain * without.mean_deg) << "e = " << specular.exponent;
     const SolverSummary& s = automatic.summary;
-    EXPECT_EQ(s.low_frequency_lobe_shifted + s.low_frequency_explains_apart + s.low_frequency_shape_rejected +
-                  s.low_frequency_strong_evidence,
+    const auto& rules = s.low_frequency_rules;
+    EXPECT_EQ(rules.lobe_shifted + rules.explains_apart + rules.region_rejects_shape + rules.strong_evidence,
               s.pixels_low_frequency);
     if (specular.exponent < 10.0) {
       EXPECT_TRUE(automatic.summary.lobe_shift_every_lobe) << automatic.summary.lobe_shift_sample_shifted;
       EXPECT_GT(automatic.summary.pixels_low_frequency, automatic.summary.pixels_solved / 2)
           << automatic.summary.BriefReport();
       // Taken by the lobe-shift test, the rule made for this case.
-      EXPECT_GT(s.low_frequency_lobe_shifted, s.pixels_low_frequency / 2);
+      EXPECT_GT(rules.lobe_shifted, s.pixels_low_frequency / 2);
     } else {
       EXPECT_LT(automatic.summary.pixels_low_frequency, automatic.summary.pixels_solved / 100)
           << automatic.summary.BriefReport();

@@ -446,10 +446,10 @@ json ToJson(const PhotometricStereoResult& result) {
                    {"every_lobe", summary.lobe_shift_every_lobe}}},
                  // of models.low_frequency (auto): the step-7 rule that took each
                  {"low_frequency_rules",
-                  {{"lobe_shifted", summary.low_frequency_lobe_shifted},
-                   {"explains_apart", summary.low_frequency_explains_apart},
-                   {"region_rejects_shape", summary.low_frequency_shape_rejected},
-                   {"strong_evidence", summary.low_frequency_strong_evidence}}},
+                  {{"lobe_shifted", summary.low_frequency_rules.lobe_shifted},
+                   {"explains_apart", summary.low_frequency_rules.explains_apart},
+                   {"region_rejects_shape", summary.low_frequency_rules.region_rejects_shape},
+                   {"strong_evidence", summary.low_frequency_rules.strong_evidence}}},
                  {"samples_rejected", summary.samples_rejected},
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets}});
   // The stage's total: reading the frames and writing the results included.

@@ -504,27 +504,14 @@ LowFrequencyPlan PlanLowFrequency(const ModelLadder& ladder, const NormalMap& ma
   return {LowFrequencyCandidates(ladder, map, held, every_lobe), every_lobe, tally};
 }
 
-void LowFrequencyRuleCounts::Add(LowFrequencyRule rule) {
+void CountRule(LowFrequencyRule rule, LowFrequencyRuleCounts* counts) {
   switch (rule) {
-    case LowFrequencyRule::kLobeShifted: ++lobe_shifted; break;
-    case LowFrequencyRule::kExplainsApart: ++explains_apart; break;
-    case LowFrequencyRule::kRegionRejectsShape: ++region_rejects_shape; break;
-    case LowFrequencyRule::kStrongEvidence: ++strong_evidence; break;
+    case LowFrequencyRule::kLobeShifted: ++counts->lobe_shifted; break;
+    case LowFrequencyRule::kExplainsApart: ++counts->explains_apart; break;
+    case LowFrequencyRule::kRegionRejectsShape: ++counts->region_rejects_shape; break;
+    case LowFrequencyRule::kStrongEvidence: ++counts->strong_evidence; break;
     case LowFrequencyRule::kNone: break;
   }
-}
-
-LowFrequencyRuleCounts& LowFrequencyRuleCounts::operator+=(const LowFrequencyRuleCounts& other) {
-  lobe_shifted += other.lobe_shifted, explains_apart += other.explains_apart;
-  region_rejects_shape += other.region_rejects_shape, strong_evidence += other.strong_evidence;
-  return *this;
-}
-
-void LowFrequencyRuleCounts::AddTo(SolverSummary* summary) const {
-  summary->low_frequency_lobe_shifted += lobe_shifted;
-  summary->low_frequency_explains_apart += explains_apart;
-  summary->low_frequency_shape_rejected += region_rejects_shape;
-  summary->low_frequency_strong_evidence += strong_evidence;
 }
 
 void LowFrequencyPlan::AddTo(SolverSummary* summary) const {

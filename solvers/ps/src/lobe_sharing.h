@@ -160,14 +160,8 @@ PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter
                            const LowFrequencyProblem& problem, const LowFrequencyOffer& offer, bool* fell_back,
                            LobeShiftTally* tally = nullptr, LowFrequencyRule* rule = nullptr);
 
-// How many pixels each of step 7's rules gave the low-frequency fit.
-struct LowFrequencyRuleCounts {
-  std::size_t lobe_shifted = 0, explains_apart = 0, region_rejects_shape = 0, strong_evidence = 0;
-  void Add(LowFrequencyRule rule);
-  LowFrequencyRuleCounts& operator+=(const LowFrequencyRuleCounts& other);
-  // Into a summary's low_frequency_ counts.
-  void AddTo(SolverSummary* summary) const;
-};
+// One more pixel given the low-frequency fit by `rule` in *counts.
+void CountRule(LowFrequencyRule rule, LowFrequencyRuleCounts* counts);
 
 // How many of a scene's lobes step 7 tests first, spread over them: if
 // chance explains their shifts, no other lobe is tested (a scene whose

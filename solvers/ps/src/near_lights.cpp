@@ -443,7 +443,7 @@ class NearRefitter {
   void OfferLowFrequency(const internal::ModelLadder& ladder, double spike_fraction, std::span<const int> pixels,
                          const cv::Mat& height_mm, const std::vector<std::uint8_t>& held,
                          const std::vector<std::uint8_t>& shape_rejected, bool test_lobe_shift, bool write,
-                         NormalMap* map, std::size_t* fell_back, internal::LowFrequencyRuleCounts* rules,
+                         NormalMap* map, std::size_t* fell_back, LowFrequencyRuleCounts* rules,
                          internal::LobeShiftTally* tally) {
     internal::LowFrequencyFitter fitter(spike_fraction);
     for (std::size_t first = 0; first < pixels.size(); first += kLobeBatch) {
@@ -471,7 +471,7 @@ class NearRefitter {
         if (!write) continue;
         if (chosen.model == PixelModel::kLowFrequency) {
           internal::WriteFitToMap(pixel, chosen, map);
-          rules->Add(rule);
+          internal::CountRule(rule, rules);
         }
         *fell_back += fell;
       }
@@ -981,7 +981,7 @@ std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOpti
   if (!(method == Method::kLowFrequency || (method == Method::kAuto && options.selection.low_frequency))) return 0;
   const internal::ModelLadder ladder(method, options.selection, p.lights.count());
   std::size_t fell_back = 0;
-  internal::LowFrequencyRuleCounts rules;
+  LowFrequencyRuleCounts rules;
   auto climb = [&](std::span<const int> pixels, bool test_lobe_shift, bool write) {
     constexpr std::size_t kChunk = 256;
     const std::size_t chunks = (pixels.size() + kChunk - 1) / kChunk;
@@ -991,7 +991,7 @@ std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOpti
     {
       NearRefitter refitter(p, options);
       internal::LobeShiftTally tally;
-      internal::LowFrequencyRuleCounts mine;
+      LowFrequencyRuleCounts mine;
 #pragma omp for schedule(dynamic, 1)
       for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
         const std::size_t first = chunk * kChunk, count = std::min(kChunk, pixels.size() - first);
@@ -1009,7 +1009,7 @@ std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOpti
       ladder, *map, held, [&](std::span<const int> sample) { return climb(sample, true, false); });
   climb(plan.pixels, plan.test_lobe_shift, true);
   plan.AddTo(summary);
-  rules.AddTo(summary);
+  summary->low_frequency_rules += rules;
   return fell_back;
 }
 

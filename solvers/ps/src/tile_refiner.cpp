@@ -590,7 +590,7 @@ void TileRefiner::RecordLowFrequency(ThreadState& state, int p, const PixelFit& 
                                      const PixelFit& low, LowFrequencyRule rule) {
   WriteFitToMap(p, low, result_);
   ++state.low_frequency;
-  state.low_rules.Add(rule);
+  CountRule(rule, &state.low_rules);
   switch (kept.model) {
     case PixelModel::kLambertian: ++state.low_from_lambertian; break;
     case PixelModel::kTrimmed: ++state.low_from_trimmed; break;
@@ -626,7 +626,7 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
     from_blinn_phong += state.low_from_blinn_phong + state.low_from_held_lobe;
     from_held_lobe += state.low_from_held_lobe;
     from_ggx += state.low_from_ggx;
-    state.low_rules.AddTo(summary);
+    summary->low_frequency_rules += state.low_rules;
     restored += state.samples_restored;
     summary->pixels_fell_back += state.fell_back;
     failed += state.failed;

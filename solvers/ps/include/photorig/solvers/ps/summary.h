@@ -13,6 +13,20 @@ namespace photorig::solvers::ps {
 // kInvalidOptions, kInvalidInput, kFailure (degenerate lights): no result; see message.
 using solvers::core::Termination;
 
+// Of `auto`'s low-frequency pixels, how many each rule of step 7 gave the
+// fit: the lobe-shift test found the lobe tilted; the fit explains its
+// samples to the noise beyond the noise from the lobe, in a scene that
+// opened the test; an inadequate Blinn-Phong lobe in a region that rejects
+// the shape; the information criterion's very strong evidence.
+struct LowFrequencyRuleCounts {
+  std::size_t lobe_shifted = 0, explains_apart = 0, region_rejects_shape = 0, strong_evidence = 0;
+  LowFrequencyRuleCounts& operator+=(const LowFrequencyRuleCounts& other) {
+    lobe_shifted += other.lobe_shifted, explains_apart += other.explains_apart;
+    region_rejects_shape += other.region_rejects_shape, strong_evidence += other.strong_evidence;
+    return *this;
+  }
+};
+
 struct SolverSummary : solvers::core::Summary {
   std::string method;
 
@@ -39,13 +53,7 @@ struct SolverSummary : solvers::core::Summary {
   std::size_t pixels_ggx = 0;
   // Low-frequency reflectance: `auto`'s step 7, where no model above explains the pixel.
   std::size_t pixels_low_frequency = 0;
-  // Of those (`auto`), by the rule of step 7 that took each: the lobe-shift
-  // test found the lobe tilted; the fit explains its samples to the noise
-  // beyond the noise from the lobe, in a scene that opened the test; an
-  // inadequate Blinn-Phong lobe in a region that rejects the shape; the
-  // information criterion's very strong evidence.
-  std::size_t low_frequency_lobe_shifted = 0, low_frequency_explains_apart = 0, low_frequency_shape_rejected = 0,
-              low_frequency_strong_evidence = 0;
+  LowFrequencyRuleCounts low_frequency_rules;  // of those, by the rule of step 7 that took each
   // Step 7's lobe-shift test (ModelSelectionOptions::lobe_shift_test): of
   // the sample of lobes tried first, how many it tested and found shifted,
   // and whether it then tested every lobe (they failed it as a whole).
