@@ -222,13 +222,22 @@ PixelFit FitInMapWithChi2(const NormalMap& map, int p, bool held) {
 
 std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_region_fraction, const NormalMap& map,
                                      std::vector<GlossyPixel> glossy, int threads, const LobeSharingFits& fits) {
-  // No region can be glossy: a matte scene stops here, before any pass over the image.
-  if (!AnyRegionCouldBeGlossy(map.flags, glossy, glossy_region_fraction)) return {};
+  // No region can be glossy: a matte scene stops here, before any pass over
+  // the image. Where the floods' bound reaches the image's size, labelling
+  // it costs no more and answers the same.
+  const bool floods_cheaper = static_cast<double>(glossy.size()) / glossy_region_fraction < map.flags.total();
+  if (floods_cheaper && !AnyRegionCouldBeGlossy(map.flags, glossy, glossy_region_fraction)) return {};
   const cv::Mat solved = map.flags == static_cast<int>(PixelFlag::kSolved);
   cv::Mat labels, stats, centroids;
   const int regions = cv::connectedComponentsWithStats(solved, labels, stats, centroids, 8, CV_32S);
   const int* label = labels.ptr<int>();
+  // Sized before they fill: a glossy object's lists run to megabytes, and
+  // growing them by doubling touches each page twice (fresh pages cost a
+  // fault each, on a virtual machine about 10 us).
+  std::vector<std::size_t> glossy_in(regions, 0);
+  for (const GlossyPixel& g : glossy) ++glossy_in[label[g.pixel]];
   std::vector<std::vector<float>> specular(regions), exponent(regions);
+  for (int r = 0; r < regions; ++r) specular[r].reserve(glossy_in[r]), exponent[r].reserve(glossy_in[r]);
   for (const GlossyPixel& g : glossy) {
     specular[label[g.pixel]].push_back(g.specular_albedo);
     exponent[label[g.pixel]].push_back(g.exponent);
@@ -254,12 +263,15 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
     return model == static_cast<std::uint8_t>(PixelModel::kLambertian) ||
            model == static_cast<std::uint8_t>(PixelModel::kTrimmed);
   };
-  std::vector<SharedLobeItem> items;
   const std::uint8_t* model = map.model.ptr<std::uint8_t>();
   const int pixels = labels.rows * labels.cols;
+  auto offers_lobe = [&](int p) { return region_lobe[label[p]].exponent > 0.0 && kept_without_lobe(model[p]); };
+  std::size_t offers = 0;
+  for (int p = 0; p < pixels; ++p) offers += offers_lobe(p);
+  std::vector<SharedLobeItem> items;
+  items.reserve(offers);
   for (int p = 0; p < pixels; ++p) {
-    const SharedLobe& lobe = region_lobe[label[p]];
-    if (lobe.exponent > 0.0 && kept_without_lobe(model[p])) items.push_back({p, label[p], lobe, false});
+    if (offers_lobe(p)) items.push_back({p, label[p], region_lobe[label[p]], false});
   }
   // Each glossy region's shape, tested on a sample of its pixels with its lobe and their own.
   std::vector<SharedLobeItem> sample;

@@ -470,6 +470,9 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
 void TileRefiner::ShareLobe() {
   if (options_.method != Method::kAuto || !options_.selection.share_lobe) return;
   std::vector<GlossyPixel> glossy;
+  std::size_t confident = 0;
+  for (const ThreadState& state : states_) confident += state.glossy.size();
+  glossy.reserve(confident);
   for (const ThreadState& state : states_) glossy.insert(glossy.end(), state.glossy.begin(), state.glossy.end());
   shape_rejected_ =
       ShareLobes(ladder_, options_.selection.glossy_region_fraction, *result_, std::move(glossy), threads_,
