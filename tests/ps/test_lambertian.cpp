@@ -77,8 +77,12 @@ TEST(Lambertian, ConfidenceMatchesResidualsSummedInDoubleAtEveryNoiseLevel) {
   const auto lights = RingLights(24, 20, 70);
   const double scale = 1000.0;
   const float dark = 10.0f;
+  // Both subset kernels' float sums, where the CPU has AVX-512 (else the portable one twice).
+  for (const bool avx512 : {true, false})
   for (const double noise_sigma : {2.0, 0.02}) {
     SCOPED_TRACE(noise_sigma);
+    SCOPED_TRACE(avx512 ? "AVX-512 subset kernel" : "portable subset kernel");
+    internal::UseAvx512SubsetKernel(avx512);
     PhotometricStack stack = testing::RenderShinyStack(truth, lights, scale, {}, dark, noise_sigma);
     // A read noise well below the real one keeps every confidence below the
     // clamp at 1, so it is proportional to 1 / RSS.
@@ -106,6 +110,7 @@ TEST(Lambertian, ConfidenceMatchesResidualsSummedInDoubleAtEveryNoiseLevel) {
     EXPECT_LT(relative_errors.back(), 0.04);
     EXPECT_LT(relative_errors[relative_errors.size() / 2], 0.005);
   }
+  internal::UseAvx512SubsetKernel(true);
 }
 
 TEST(Lambertian, ExcludesSaturatedSamples) {
