@@ -1,5 +1,7 @@
 #include "photorig/solvers/ps/integration.h"
 
+#include "poisson_multigrid.h"
+
 #include <Eigen/Core>
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
@@ -12,16 +14,14 @@
 namespace photorig::solvers::ps {
 
 struct IntegrationWorkspace::Factorisation {
-  struct Pair {
-    int a = 0, b = 0;  // unknowns, b the right or lower neighbour of a
-    int r = 0, c = 0;  // a's pixel
-    bool down = false;
-  };
-  cv::Mat mask;   // the pixels factored for
-  cv::Mat index;  // CV_32S: each pixel's unknown, -1 off the mask
+  cv::Mat mask;  // the pixels factored for
+  // Up to PoissonMultigrid::kCoarsestUnknowns pixels, the normal matrix is
+  // factored (index: CV_32S, each pixel's unknown, -1 off the mask); above,
+  // a multigrid-preconditioned iteration solves it on the pixel grid.
+  cv::Mat index;
   int unknowns = 0;
-  std::vector<Pair> pairs;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  std::unique_ptr<internal::PoissonMultigrid> multigrid;
   bool factored = false;
   int reuses = 0;
 };
@@ -100,26 +100,32 @@ Gradients PerspectiveGradients(const IntegrationOptions& options, const camera::
   });
 }
 
-// Residual of the integrated depth against the gradient on every neighbour
-// pair inside the mask (trapezoidal: the mean of the two pixels' slopes).
+// Calls visit(a, b, d) for each pair of 4-neighbours in g's mask, a the
+// pixel and b its right or lower neighbour, with d the depth difference
+// z_b - z_a the gradient asks for (trapezoidal: the mean of the two pixels'
+// slopes). One equation each.
+template <typename Visit>
+void ForEachPair(const Gradients& g, Visit visit) {
+  const cv::Mat& mask = g.mask;
+  for (int r = 0; r < mask.rows; ++r)
+    for (int c = 0; c < mask.cols; ++c) {
+      if (!mask.at<std::uint8_t>(r, c)) continue;
+      if (c + 1 < mask.cols && mask.at<std::uint8_t>(r, c + 1))
+        visit(cv::Point(c, r), cv::Point(c + 1, r), 0.5 * (g.dzdx.at<double>(r, c) + g.dzdx.at<double>(r, c + 1)));
+      // One row down is one step of -y.
+      if (r + 1 < mask.rows && mask.at<std::uint8_t>(r + 1, c))
+        visit(cv::Point(c, r), cv::Point(c, r + 1), -0.5 * (g.dzdy.at<double>(r, c) + g.dzdy.at<double>(r + 1, c)));
+    }
+}
+
+// Residual of the integrated depth against the gradient on every neighbour pair inside the mask.
 double ResidualRms(const Gradients& g, const cv::Mat& depth) {
   double sum = 0.0;
   std::size_t count = 0;
-  for (int r = 0; r < depth.rows; ++r)
-    for (int c = 0; c < depth.cols; ++c) {
-      if (!g.mask.at<std::uint8_t>(r, c)) continue;
-      if (c + 1 < depth.cols && g.mask.at<std::uint8_t>(r, c + 1)) {
-        const double e = (depth.at<float>(r, c + 1) - depth.at<float>(r, c)) -
-                         0.5 * (g.dzdx.at<double>(r, c) + g.dzdx.at<double>(r, c + 1));
-        sum += e * e, ++count;
-      }
-      if (r + 1 < depth.rows && g.mask.at<std::uint8_t>(r + 1, c)) {
-        // One row down is one step of -y.
-        const double e = (depth.at<float>(r + 1, c) - depth.at<float>(r, c)) +
-                         0.5 * (g.dzdy.at<double>(r, c) + g.dzdy.at<double>(r + 1, c));
-        sum += e * e, ++count;
-      }
-    }
+  ForEachPair(g, [&](cv::Point a, cv::Point b, double d) {
+    const double e = (depth.at<float>(b) - depth.at<float>(a)) - d;
+    sum += e * e, ++count;
+  });
   return count ? std::sqrt(sum / count) : 0.0;
 }
 
@@ -174,39 +180,41 @@ void FrankotChellappa(const Gradients& g, cv::Mat* depth) {
   z.convertTo(*depth, CV_32F);
 }
 
-// The masked grid's unknowns and its pairs of 4-neighbours (z_b - z_a is
-// one equation each), with the factorised normal matrix A^T A: per pair
-// +1 on both diagonals and -1 off them (the 5-point Laplacian of the mask,
-// assembled directly rather than as a sparse product).
+// The normal matrix A^T A of the pairs' equations for `mask`: per pair +1 on
+// both diagonals and -1 off them (the 5-point Laplacian of the mask,
+// assembled directly rather than as a sparse product), factored, or its
+// multigrid levels built.
 bool Factor(const cv::Mat& mask, IntegrationWorkspace::Factorisation* f, std::string* message) {
   const int rows = mask.rows, cols = mask.cols;
   f->mask = mask.clone();
+  f->unknowns = cv::countNonZero(mask);
+  if (f->unknowns > internal::PoissonMultigrid::kCoarsestUnknowns) {
+    f->index.release();
+    f->multigrid = std::make_unique<internal::PoissonMultigrid>(mask);
+    f->factored = true;
+    return true;
+  }
+  f->multigrid.reset();
   f->index.create(rows, cols, CV_32S);
   f->index.setTo(-1);
-  f->unknowns = 0;
-  for (int r = 0; r < rows; ++r) {
-    const std::uint8_t* in = mask.ptr<std::uint8_t>(r);
-    int* index = f->index.ptr<int>(r);
+  int unknown = 0;
+  for (int r = 0; r < rows; ++r)
     for (int c = 0; c < cols; ++c)
-      if (in[c]) index[c] = f->unknowns++;
-  }
-  f->pairs.clear();
+      if (mask.at<std::uint8_t>(r, c)) f->index.at<int>(r, c) = unknown++;
+  std::vector<Eigen::Triplet<double>> triplets;
+  // A tiny pull towards 0 fixes each region's free constant; CentreRegions then removes its effect.
+  for (int i = 0; i < f->unknowns; ++i) triplets.emplace_back(i, i, 1e-9);
   for (int r = 0; r < rows; ++r)
     for (int c = 0; c < cols; ++c) {
       const int a = f->index.at<int>(r, c);
       if (a < 0) continue;
-      if (c + 1 < cols && f->index.at<int>(r, c + 1) >= 0) f->pairs.push_back({a, f->index.at<int>(r, c + 1), r, c, false});
-      if (r + 1 < rows && f->index.at<int>(r + 1, c) >= 0) f->pairs.push_back({a, f->index.at<int>(r + 1, c), r, c, true});
+      for (const int b : {c + 1 < cols ? f->index.at<int>(r, c + 1) : -1, r + 1 < rows ? f->index.at<int>(r + 1, c) : -1}) {
+        if (b < 0) continue;
+        triplets.emplace_back(a, a, 1.0);  // the lower triangle: index b > a
+        triplets.emplace_back(b, b, 1.0);
+        triplets.emplace_back(b, a, -1.0);
+      }
     }
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(3 * f->pairs.size() + f->unknowns);
-  // A tiny pull towards 0 fixes each region's free constant; CentreRegions then removes its effect.
-  for (int i = 0; i < f->unknowns; ++i) triplets.emplace_back(i, i, 1e-9);
-  for (const auto& pair : f->pairs) {  // the lower triangle: index b > a
-    triplets.emplace_back(pair.a, pair.a, 1.0);
-    triplets.emplace_back(pair.b, pair.b, 1.0);
-    triplets.emplace_back(pair.b, pair.a, -1.0);
-  }
   Eigen::SparseMatrix<double> normal(f->unknowns, f->unknowns);
   normal.setFromTriplets(triplets.begin(), triplets.end());
   f->solver.compute(normal);
@@ -215,23 +223,43 @@ bool Factor(const cv::Mat& mask, IntegrationWorkspace::Factorisation* f, std::st
   return f->factored;
 }
 
-bool Poisson(const Gradients& g, cv::Mat* depth, std::string* message, IntegrationWorkspace::Factorisation* f) {
+// The iteration stops where the residual of the normal equations is this
+// fraction of their right-hand side: the depth then differs from the
+// factored solution by under 1e-6 of its range (test_integration), far
+// below what float depth maps hold. Multigrid takes about ten iterations to
+// get there on any size; a hundred means the preconditioner failed.
+constexpr double kPoissonRelativeResidual = 1e-10;
+constexpr int kPoissonMaxIterations = 100;
+
+bool Poisson(const Gradients& g, cv::Mat* depth, std::string* message, IntegrationWorkspace::Factorisation* f,
+             int* iterations) {
   const bool same_pixels = f->factored && f->mask.size() == g.mask.size() && cv::countNonZero(f->mask != g.mask) == 0;
   if (same_pixels)
     ++f->reuses;
   else if (!Factor(g.mask, f, message))
     return false;
-  // A^T d: each pair's difference d (trapezoidal: the mean of the two
-  // pixels' slopes) to +b and -a.
-  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(f->unknowns);
-  for (const auto& pair : f->pairs) {
-    const double difference =
-        pair.down ? -0.5 * (g.dzdy.at<double>(pair.r, pair.c) + g.dzdy.at<double>(pair.r + 1, pair.c))
-                  : 0.5 * (g.dzdx.at<double>(pair.r, pair.c) + g.dzdx.at<double>(pair.r, pair.c + 1));
-    rhs[pair.b] += difference, rhs[pair.a] -= difference;
-  }
-  const Eigen::VectorXd z = f->solver.solve(rhs);
   depth->create(g.mask.size(), CV_32F);
+  if (f->multigrid) {
+    // A^T d on the pixel grid: each pair's d to +b and -a.
+    cv::Mat rhs = cv::Mat::zeros(g.mask.size(), CV_64F), z;
+    ForEachPair(g, [&rhs](cv::Point a, cv::Point b, double d) { rhs.at<double>(b) += d, rhs.at<double>(a) -= d; });
+    const internal::PoissonMultigrid::Result solved =
+        f->multigrid->Solve(rhs, kPoissonRelativeResidual, kPoissonMaxIterations, &z);
+    *iterations = solved.iterations;
+    if (!solved.converged) {
+      *message = "the Poisson equations did not converge in " + std::to_string(solved.iterations) +
+                 " iterations (relative residual " + std::to_string(solved.relative_residual) +
+                 "); integrate with --integrator frankot-chellappa, or in blocks (block_px > 1)";
+      return false;
+    }
+    z.convertTo(*depth, CV_32F);
+    return true;
+  }
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(f->unknowns);
+  ForEachPair(g, [&](cv::Point a, cv::Point b, double d) {
+    rhs[f->index.at<int>(b)] += d, rhs[f->index.at<int>(a)] -= d;
+  });
+  const Eigen::VectorXd z = f->solver.solve(rhs);
   depth->setTo(0.0f);
   for (int r = 0; r < depth->rows; ++r)
     for (int c = 0; c < depth->cols; ++c)
@@ -325,12 +353,12 @@ std::string CheckInputs(const cv::Mat& normals, const cv::Mat& mask) {
 }
 
 bool Solve(const IntegrationOptions& options, const Gradients& g, cv::Mat* depth, std::string* why,
-           IntegrationWorkspace& workspace) {
+           IntegrationWorkspace& workspace, int* iterations) {
   if (options.integrator == Integrator::kFrankotChellappa) {
     FrankotChellappa(g, depth);
     return true;
   }
-  return Poisson(g, depth, why, &FactorisationOf(workspace));
+  return Poisson(g, depth, why, &FactorisationOf(workspace), iterations);
 }
 
 // Integrates g into *depth (each region's mean 0).
@@ -346,11 +374,13 @@ void Integrate(const IntegrationOptions& options, Gradients g, solvers::core::So
   timer.SetupDone(summary);
   std::string why;
   if (options.block_px == 1) {
-    if (!Solve(options, g, depth, &why, kept)) return summary->End(solvers::core::Termination::kFailure, why);
+    if (!Solve(options, g, depth, &why, kept, &summary->iterations))
+      return summary->End(solvers::core::Termination::kFailure, why);
   } else {
     const Gradients coarse = BlockGradients(g, options.block_px);
     cv::Mat coarse_depth;
-    if (!Solve(options, coarse, &coarse_depth, &why, kept)) return summary->End(solvers::core::Termination::kFailure, why);
+    if (!Solve(options, coarse, &coarse_depth, &why, kept, &summary->iterations))
+      return summary->End(solvers::core::Termination::kFailure, why);
     g.mask = g.mask.clone();
     InterpolateBlocks(coarse_depth, coarse.mask, options.block_px, &g.mask, depth);
   }

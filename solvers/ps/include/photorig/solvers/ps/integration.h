@@ -57,13 +57,17 @@ struct IntegrationSummary : solvers::core::Summary {
   // RMS of (depth difference - integrated gradient) over neighbour pairs, in
   // depth units (perspective: the log distance's, times the camera distance).
   double residual_rms = 0.0;
+  // Poisson on more than a few thousand unknowns: the conjugate-gradient
+  // iterations its multigrid-preconditioned solve took (0: solved directly).
+  int iterations = 0;
 };
 
 // What the Poisson integrator keeps between calls: its equations' matrix
 // depends on the integrated pixels alone (one row per pair of neighbours),
 // so calls that integrate the same pixels again, such as the near-light
-// solve's rounds, factor it once and pay only for the solve. One per
-// thread; a call on other pixels factors anew.
+// solve's rounds, factor it once (or, above a few thousand pixels, build its
+// multigrid levels once) and pay only for the solve. One per thread; a call
+// on other pixels starts anew.
 class IntegrationWorkspace {
  public:
   IntegrationWorkspace();
