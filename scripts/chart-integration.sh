@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Normal integration: Poisson (from scratch and with a factored workspace) and
+# Normal integration: Poisson (from scratch and with a kept workspace) and
 # Frankot-Chellappa on a sphere's disc at 32, 384 and 1024 px (bench_ps
 # BM_IntegrateNormals) -> docs/charts/integration.csv and
 # integration_error_vs_time.png (RMS depth error against time).

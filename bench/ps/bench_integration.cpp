@@ -1,6 +1,7 @@
 // Normal integration on a sphere's disc, against the sphere's own depth:
-// Poisson from scratch (numbering, factorisation, solve), Poisson again on
-// the same pixels with a workspace (how the near-light rounds call it), and
+// Poisson from scratch (the factorisation, or above 4,096 pixels the
+// multigrid levels, then the solve), Poisson again on the same pixels with a
+// workspace that kept them (how the near-light rounds call it), and
 // Frankot-Chellappa. The disc is 0.9 of the image's side; the error counter
 // is the RMS depth error in pixels after each depth's mean is removed.
 
@@ -67,7 +68,7 @@ double RmsErrorPx(const Sphere& sphere, const cv::Mat& depth) {
 }
 
 // Args: side (px), integrator (0 Poisson, 1 Frankot-Chellappa), reuse (1: a
-// workspace that has factored these pixels already).
+// workspace that has factored these pixels, or built their levels, already).
 void BM_IntegrateNormals(benchmark::State& state) {
   const Sphere& sphere = SphereOfSide(static_cast<int>(state.range(0)));
   IntegrationOptions options;
@@ -84,7 +85,7 @@ void BM_IntegrateNormals(benchmark::State& state) {
   state.counters["unknowns"] = cv::countNonZero(sphere.mask);
   state.counters["rms_error_px"] = RmsErrorPx(sphere, depth);
   state.SetLabel(std::string(options.integrator == Integrator::kPoisson ? "poisson" : "frankot-chellappa") +
-                 (reuse ? ", factored" : ""));
+                 (reuse ? ", workspace kept" : ""));
 }
 
 }  // namespace

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 rows = list(csv.DictReader(open(sys.argv[1])))
 out = sys.argv[2]
 fig, ax = plt.subplots(figsize=(7, 5))
-for method, marker in (("poisson", "o"), ("poisson, factored", "s"), ("frankot-chellappa", "^")):
+for method, marker in (("poisson", "o"), ("poisson, workspace kept", "s"), ("frankot-chellappa", "^")):
     pts = sorted((int(r["unknowns"]), r) for r in rows if r["method"] == method)
     if not pts:
         continue
@@ -21,7 +21,7 @@ for method, marker in (("poisson", "o"), ("poisson, factored", "s"), ("frankot-c
         ax.annotate(f'{r["side_px"]} px', (t, e), fontsize=7, textcoords="offset points", xytext=(4, 4))
 ax.set_xscale("log")
 ax.set_yscale("log")
-ax.set_xlabel("time (ms, log; one thread)")
+ax.set_xlabel("time (ms, log; two threads)")
 ax.set_ylabel("RMS depth error against the sphere (px, log)")
 ax.set_title("Normal integration on a sphere's disc")
 ax.legend()
