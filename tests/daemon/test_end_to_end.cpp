@@ -71,6 +71,14 @@ TEST(EndToEnd, SphereRecipeWithDefaultNoiseIsAccurateToUnderOneDegree) {
   // Depth integrated from the normals matches the sphere's height to a small fraction of its 17 mm radius.
   EXPECT_TRUE(report["depth"]["success"].get<bool>());
   EXPECT_LT(report["depth"]["rms_error_vs_truth"].get<double>(), 0.05);
+  // Poisson above 4,096 pixels iterates (multigrid-preconditioned), about ten times.
+  const int depth_pixels = report["depth"]["pixels"].get<int>(), iterations = report["depth"]["iterations"].get<int>();
+  if (depth_pixels > 4096) {
+    EXPECT_GT(iterations, 0);
+    EXPECT_LE(iterations, 20);
+  } else {
+    EXPECT_EQ(iterations, 0);
+  }
   EXPECT_TRUE(fs::exists(run / "results/ps/mesh.ply"));
   EXPECT_TRUE(fs::exists(run / "ground_truth/height.tiff"));
   // Background pixels see no light and must be flagged, not solved.

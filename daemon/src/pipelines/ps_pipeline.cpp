@@ -484,6 +484,7 @@ json ToJson(const PhotometricStereoResult& result) {
                        {"pixels", integrated.pixels},
                        {"pixels_dropped", integrated.pixels_dropped},
                        {"residual_rms", integrated.residual_rms},
+                       {"iterations", integrated.iterations},
                        {"pixel_pitch", result.depth->pixel_pitch},
                        {"perspective", result.depth->perspective},
                        {"from_near_lights", result.depth->from_near_lights}};
