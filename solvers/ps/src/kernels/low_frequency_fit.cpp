@@ -13,9 +13,13 @@ namespace photorig::solvers::ps::internal {
 namespace {
 
 // The Levenberg-Marquardt search stops after this many iterations, or once
-// a step moves the normal by less than kConvergedStepRad.
+// a step moves the normal by less than kConvergedStepRad or by less than
+// kConvergedStepSigma of its own standard error (the information the fit
+// reports, LowFrequencySolution::normal_information): further steps would
+// move it by a small fraction of what the noise already does.
 constexpr int kMaxIterations = 40;
 constexpr double kConvergedStepRad = 1e-5;
+constexpr double kConvergedStepSigma = 0.01;
 
 // The least-squares solution of G a = g on `support` (a bit mask of the
 // four unknowns; G symmetric, upper triangle used) by Cholesky, into a (0
@@ -97,6 +101,17 @@ double NonNegativeLeastSquares(const double (&G)[4][4], const double (&g)[4], do
       }
     }
   }
+  // Then every support, fewest unknowns first (a pixel's reflectance uses
+  // few of the four), the first that passes the conditions being the optimum.
+  static constexpr int kSupportsBySize[15] = {1, 2, 4, 8, 3, 5, 6, 9, 10, 12, 7, 11, 13, 14, 15};
+  for (const int s : kSupportsBySize) {
+    if (SolveOnSupport(G, g, s, a) && IsNonNegativeOptimum(G, g, s, *a)) {
+      *support = s;
+      return misfit(*a);
+    }
+  }
+  // Rounding can fail the conditions everywhere near a dependent column:
+  // the best of the supports whose solution is non-negative.
   double best = yy;  // the empty support
   int best_support = 0;
   std::array<double, 4> best_a{}, x;
@@ -247,7 +262,8 @@ void LowFrequencyFitter::TangentSystem(const Eigen::Vector3d& normal, const Eval
 
 Eigen::Vector3d LowFrequencyFitter::Search(Eigen::Vector3d normal, const Eigen::Vector3d& view, Evaluation* at,
                                            int* iterations) const {
-  Evaluation current = Evaluate(normal, 0);
+  // The start is the Lambertian case, so its support (a0 alone) is tried first.
+  Evaluation current = Evaluate(normal, 1);
   double damping = -1.0;  // set from the first system's diagonal
   for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
     *iterations = iteration + 1;
@@ -257,6 +273,11 @@ Eigen::Vector3d LowFrequencyFitter::Search(Eigen::Vector3d normal, const Eigen::
     Eigen::Vector2d jtr;
     TangentSystem(normal, current, t1, t2, &jtj, &jtr);
     if (damping < 0.0) damping = 1e-3 * std::max(jtj.trace() / 2.0, 1e-300);
+    const double variance = ResidualVariance(current.misfit);
+    auto negligible = [&](const Eigen::Vector2d& step) {
+      return step.norm() < kConvergedStepRad ||
+             step.dot(jtj * step) < kConvergedStepSigma * kConvergedStepSigma * variance;
+    };
     bool moved = false, converged = false;
     // Marquardt's damping: raised until a step lowers the misfit (or gives up).
     while (damping < 1e12 * std::max(jtj.trace(), 1e-300)) {
@@ -264,6 +285,11 @@ Eigen::Vector3d LowFrequencyFitter::Search(Eigen::Vector3d normal, const Eigen::
       damped.diagonal().array() += damping;
       const Eigen::Vector2d step = damped.ldlt().solve(-jtr);
       if (!step.allFinite()) break;
+      // Damping only shrinks the step from here: one this short would end
+      // the search if taken, so the normal is where it stays to that
+      // precision, and evaluating it (and shorter ones after a rejection)
+      // would not move it further.
+      if (negligible(step)) break;
       const Eigen::Vector3d trial = (normal + step.x() * t1 + step.y() * t2).normalized();
       if (!(trial.dot(view) > 0.0)) {
         damping *= 10.0;
@@ -271,7 +297,7 @@ Eigen::Vector3d LowFrequencyFitter::Search(Eigen::Vector3d normal, const Eigen::
       }
       const Evaluation next = Evaluate(trial, current.support);
       if (next.misfit < current.misfit) {
-        converged = step.norm() < kConvergedStepRad || current.misfit - next.misfit <= 1e-10 * current.misfit;
+        converged = negligible(step) || current.misfit - next.misfit <= 1e-10 * current.misfit;
         normal = trial, current = next, moved = true;
         damping = std::max(damping * 0.3, 1e-300);
         break;
@@ -323,7 +349,15 @@ LowFrequencySolution LowFrequencyFitter::FitSameSamples(std::span<const double> 
   return Solve();
 }
 
-LowFrequencySolution LowFrequencyFitter::Solve() const {
+double LowFrequencyFitter::ResidualVariance(double misfit) const {
+  // Quasi-likelihood: where the model leaves more than the noise, its
+  // residual variance (with the noise's alone, a pixel's misfit counts as
+  // evidence against the kept lobe: on goblet's GGX pixels, whose lobes are
+  // right, that sends 0.5 deg more error to the low-frequency fit).
+  return std::max(misfit / (static_cast<double>(b_.size()) - kLowFrequencyParameters), mean_noise_variance_);
+}
+
+LowFrequencySolution LowFrequencyFitter::Solve() {
   LowFrequencySolution out;
   const int count = static_cast<int>(b_.size());
   out.left_out = left_out_;
@@ -339,6 +373,9 @@ LowFrequencySolution LowFrequencyFitter::Solve() const {
   }
   const Eigen::Vector3d x = lambertian_lhs.ldlt().solve(lambertian_rhs);
   if (!x.allFinite() || !(x.dot(view_) > 0.0)) return out;
+  mean_noise_variance_ = 0.0;
+  for (int i = 0; i < count; ++i) mean_noise_variance_ += 1.0 / (inverse_sigma_[i] * inverse_sigma_[i]);
+  mean_noise_variance_ /= count;
   Evaluation current;
   const Eigen::Vector3d normal = Search(x.normalized(), view_, &current, &out.iterations);
   out.normal = normal;
@@ -351,15 +388,8 @@ LowFrequencySolution LowFrequencyFitter::Solve() const {
   Eigen::Matrix2d jtj;
   Eigen::Vector2d jtr;
   TangentSystem(normal, current, t1, t2, &jtj, &jtr);
-  double noise_variance = 0.0;
-  for (int i = 0; i < count; ++i) noise_variance += 1.0 / (inverse_sigma_[i] * inverse_sigma_[i]);
-  // Quasi-likelihood: where the model leaves more than the noise, its
-  // residual variance (with the noise's alone, a pixel's misfit counts as
-  // evidence against the kept lobe: on goblet's GGX pixels, whose lobes are
-  // right, that sends 0.5 deg more error to the low-frequency fit).
-  const double variance = std::max(current.misfit / (count - kLowFrequencyParameters), noise_variance / count);
   out.tangents.col(0) = t1, out.tangents.col(1) = t2;
-  out.normal_information = jtj / variance;
+  out.normal_information = jtj / ResidualVariance(current.misfit);
   return out;
 }
 

@@ -113,7 +113,10 @@ class LowFrequencyFitter {
   // returns the normal, *at its evaluation, *iterations how many it took.
   Eigen::Vector3d Search(Eigen::Vector3d normal, const Eigen::Vector3d& view, Evaluation* at, int* iterations) const;
   // The fit of the compacted samples, from the Lambertian case's normal.
-  LowFrequencySolution Solve() const;
+  LowFrequencySolution Solve();
+  // The variance per sample the fit's normal_information divides by, at a misfit
+  // (sum of squared residuals) of the compacted samples.
+  double ResidualVariance(double misfit) const;
   LowFrequencySamples Samples() const {
     return {lx_.data(), ly_.data(), lz_.data(), hx_.data(),          hy_.data(),
             hz_.data(), d_.data(),  b_.data(),  inverse_sigma_.data(), static_cast<int>(b_.size())};
@@ -125,6 +128,7 @@ class LowFrequencyFitter {
   std::vector<double> lx_, ly_, lz_, hx_, hy_, hz_, d_, b_, inverse_sigma_;
   std::vector<int> order_;
   double b2_ = 0.0;  // sum of b^2
+  double mean_noise_variance_ = 0.0;  // of the compacted samples (Solve's)
   Eigen::Vector3d view_ = Eigen::Vector3d::UnitZ();
   int left_out_ = 0;
 };
