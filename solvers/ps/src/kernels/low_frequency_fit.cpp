@@ -21,41 +21,59 @@ constexpr int kMaxIterations = 40;
 constexpr double kConvergedStepRad = 1e-5;
 constexpr double kConvergedStepSigma = 0.01;
 
-// The least-squares solution of G a = g on `support` (a bit mask of the
-// four unknowns; G symmetric, upper triangle used) by Cholesky, into a (0
-// off the support). False where the support's system is singular: a pivot
-// that keeps no more than 1e-12 of its diagonal is a dependent column (e.g.
-// no sample near the mirror direction, where n.h and (n.h)^2 coincide).
-bool SolveOnSupport(const double (&G)[4][4], const double (&g)[4], int support, std::array<double, 4>* a) {
-  int index[4], n = 0;
-  for (int j = 0; j < 4; ++j)
-    if (support >> j & 1) index[n++] = j;
-  double L[4][4] = {}, x[4];
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j <= i; ++j) {
-      double sum = G[std::min(index[i], index[j])][std::max(index[i], index[j])];
-      for (int k = 0; k < j; ++k) sum -= L[i][k] * L[j][k];
-      if (i == j) {
-        const double diagonal = G[index[i]][index[i]];
-        if (!(diagonal > 0.0) || !(sum > 1e-12 * diagonal)) return false;
-        L[i][i] = std::sqrt(sum);
-      } else {
-        L[i][j] = sum / L[j][j];
+// The Cholesky factor L L^T of G restricted to `support` (a bit mask of the
+// four unknowns; G symmetric, upper triangle used). False where that system
+// is singular: a pivot that keeps no more than 1e-12 of its diagonal is a
+// dependent column (e.g. no sample near the mirror direction, where n.h and
+// (n.h)^2 coincide).
+struct SupportFactor {
+  int index[4];  // the support's unknowns, ascending
+  int n = 0;
+  double L[4][4] = {};
+
+  bool Factor(const double (&G)[4][4], int support) {
+    n = 0;
+    for (int j = 0; j < 4; ++j)
+      if (support >> j & 1) index[n++] = j;
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j <= i; ++j) {
+        double sum = G[std::min(index[i], index[j])][std::max(index[i], index[j])];
+        for (int k = 0; k < j; ++k) sum -= L[i][k] * L[j][k];
+        if (i == j) {
+          const double diagonal = G[index[i]][index[i]];
+          if (!(diagonal > 0.0) || !(sum > 1e-12 * diagonal)) return false;
+          L[i][i] = std::sqrt(sum);
+        } else {
+          L[i][j] = sum / L[j][j];
+        }
       }
     }
+    return true;
   }
-  for (int i = 0; i < n; ++i) {
-    double sum = g[index[i]];
-    for (int k = 0; k < i; ++k) sum -= L[i][k] * x[k];
-    x[i] = sum / L[i][i];
+  // y = L^-1 (the support's entries of v).
+  void ForwardSubstitute(const double* v, double* y) const {
+    for (int i = 0; i < n; ++i) {
+      double sum = v[index[i]];
+      for (int k = 0; k < i; ++k) sum -= L[i][k] * y[k];
+      y[i] = sum / L[i][i];
+    }
   }
-  for (int i = n - 1; i >= 0; --i) {
+};
+
+// The least-squares solution of G a = g on `support` (SupportFactor's), into
+// a (0 off the support); false where the support's system is singular.
+bool SolveOnSupport(const double (&G)[4][4], const double (&g)[4], int support, std::array<double, 4>* a) {
+  SupportFactor f;
+  if (!f.Factor(G, support)) return false;
+  double x[4];
+  f.ForwardSubstitute(g, x);
+  for (int i = f.n - 1; i >= 0; --i) {
     double sum = x[i];
-    for (int k = i + 1; k < n; ++k) sum -= L[k][i] * x[k];
-    x[i] = sum / L[i][i];
+    for (int k = i + 1; k < f.n; ++k) sum -= f.L[k][i] * x[k];
+    x[i] = sum / f.L[i][i];
   }
   a->fill(0.0);
-  for (int i = 0; i < n; ++i) (*a)[index[i]] = x[i];
+  for (int i = 0; i < f.n; ++i) (*a)[f.index[i]] = x[i];
   return true;
 }
 
@@ -237,24 +255,24 @@ void LowFrequencyFitter::TangentSystem(const Eigen::Vector3d& normal, const Eval
   // support's columns, so J^T J loses p_j^T G_S^-1 p_k. Without it the
   // search moves the normal and a in turns and crawls along the valley
   // where the n . h terms trade against the normal.
-  int index[4], n = 0;
-  for (int j = 0; j < 4; ++j)
-    if (at.support >> j & 1) index[n++] = j;
-  if (n == 0) return;
+  if (at.support == 0) return;
   const double* normal_sums = at.sums.data();
-  Eigen::Matrix4d g = Eigen::Matrix4d::Zero();
-  Eigen::Matrix<double, 4, 2> p = Eigen::Matrix<double, 4, 2>::Zero();
   const double G[4][4] = {{normal_sums[0], normal_sums[1], normal_sums[2], normal_sums[3]},
-                          {normal_sums[1], normal_sums[4], normal_sums[5], normal_sums[6]},
-                          {normal_sums[2], normal_sums[5], normal_sums[7], normal_sums[8]},
-                          {normal_sums[3], normal_sums[6], normal_sums[8], normal_sums[9]}};
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) g(i, j) = G[index[i]][index[j]];
-    p(i, 0) = sums[5 + index[i]], p(i, 1) = sums[9 + index[i]];
+                          {0, normal_sums[4], normal_sums[5], normal_sums[6]},
+                          {0, 0, normal_sums[7], normal_sums[8]},
+                          {0, 0, 0, normal_sums[9]}};
+  SupportFactor f;
+  if (!f.Factor(G, at.support)) return;
+  // p_j^T G_S^-1 p_k = y_j . y_k with y_j = L^-1 p_j.
+  double y1[4], y2[4];
+  f.ForwardSubstitute(sums + 5, y1);
+  f.ForwardSubstitute(sums + 9, y2);
+  Eigen::Matrix2d projected = Eigen::Matrix2d::Zero();
+  for (int i = 0; i < f.n; ++i) {
+    projected(0, 0) += y1[i] * y1[i], projected(1, 1) += y2[i] * y2[i];
+    projected(0, 1) += y1[i] * y2[i];
   }
-  const Eigen::LDLT<Eigen::MatrixXd> factor(g.topLeftCorner(n, n));
-  if (factor.info() != Eigen::Success) return;
-  const Eigen::MatrixXd projected = p.topRows(n).transpose() * factor.solve(p.topRows(n));
+  projected(1, 0) = projected(0, 1);
   *jtj -= projected;
   // Rounding can leave the difference a hair from positive semi-definite.
   jtj->diagonal() = jtj->diagonal().cwiseMax(0.0);
