@@ -9,6 +9,10 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -151,6 +155,71 @@ TEST(LowFrequencyFit, TheNormalsInformationMeasuresItsNoise) {
   EXPECT_GT(sum / ok, 1.5);
   EXPECT_LT(sum / ok, 2.6);
   EXPECT_LE(beyond, 4);
+}
+
+// The misfit of the model at `normal` over the pixel's usable samples, its
+// non-negative a found by trying every support (independent of the
+// fitter's active-set order).
+double MisfitAt(const Pixel& pixel, const Eigen::Vector3d& normal) {
+  std::vector<std::array<double, 4>> columns;
+  std::vector<double> values;
+  for (std::size_t k = 0; k < pixel.observed.size(); ++k) {
+    if (pixel.inverse_sigma[k] == 0.0) continue;
+    const Eigen::Vector3d l(pixel.wx[k], pixel.wy[k], pixel.wz[k]), h = (l + Eigen::Vector3d::UnitZ()).normalized();
+    const double nl = std::max(0.0, normal.dot(l)), c = std::max(0.0, normal.dot(h));
+    columns.push_back({nl, nl * c, nl * c * c, nl * l.dot(h)});
+    values.push_back(pixel.observed[k]);
+  }
+  const int n = static_cast<int>(values.size());
+  const Eigen::Map<const Eigen::VectorXd> b(values.data(), n);
+  double best = b.squaredNorm();
+  for (int support = 1; support < 16; ++support) {
+    std::vector<int> index;
+    for (int j = 0; j < 4; ++j)
+      if (support >> j & 1) index.push_back(j);
+    Eigen::MatrixXd A(n, index.size());
+    for (int i = 0; i < n; ++i)
+      for (std::size_t j = 0; j < index.size(); ++j) A(i, j) = columns[i][index[j]];
+    const Eigen::VectorXd a = A.colPivHouseholderQr().solve(b);
+    if ((a.array() < 0.0).any()) continue;
+    best = std::min(best, (A * a - b).squaredNorm());
+  }
+  return best;
+}
+
+// The search stops once a step would move the normal by less than a
+// hundredth of its own standard error: on pixels the model cannot fit
+// exactly (a narrow highlight kept in the fit, noise), no normal within a
+// tenth of a standard error of the answer, on a grid of a hundredth, has a
+// misfit lower by more than a step of that size could gain.
+TEST(LowFrequencyFit, StopsWithinAHundredthOfItsStandardErrorOfTheMinimum) {
+  LowFrequencyFitter fitter(0.0);
+  for (unsigned seed = 1; seed <= 20; ++seed) {
+    const Pixel pixel = Render(kTilted, {0.2, 0.03, 0.1, 0.02}, 0.3, 0.003, seed);
+    const LowFrequencySolution fit = fitter.Fit(pixel.Problem());
+    ASSERT_TRUE(fit.ok) << seed;
+    // Unit steps along the tangents in standard errors: the information's
+    // eigenvectors scaled by 1 / sqrt(eigenvalue).
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(fit.normal_information);
+    ASSERT_GT(eigen.eigenvalues().minCoeff(), 0.0);
+    const double at_fit = MisfitAt(pixel, fit.normal);
+    // The misfit grows as `variance` times the squared distance in standard
+    // errors (the information is J^T J over the variance the fit takes, its
+    // residual's or at least the noise's): a tenth of a standard error off
+    // costs 1e-2 of it, a thirtieth about 1e-3.
+    const double variance = std::max(at_fit / (fit.used - internal::kLowFrequencyParameters), 0.003 * 0.003);
+    double lowest = at_fit;
+    for (int i = -10; i <= 10; ++i) {
+      for (int j = -10; j <= 10; ++j) {
+        Eigen::Vector2d angles = Eigen::Vector2d::Zero();
+        for (int e = 0; e < 2; ++e)
+          angles += (e == 0 ? i : j) * 0.01 * eigen.eigenvectors().col(e) / std::sqrt(eigen.eigenvalues()[e]);
+        const Eigen::Vector3d normal = (fit.normal + fit.tangents * angles).normalized();
+        lowest = std::min(lowest, MisfitAt(pixel, normal));
+      }
+    }
+    EXPECT_GT(lowest, at_fit - 1e-3 * variance) << seed;
+  }
 }
 
 // FitSameSamples fits the last Fit's samples (its spike left out by the
