@@ -77,6 +77,12 @@ bool SolveOnSupport(const double (&G)[4][4], const double (&g)[4], int support, 
   return true;
 }
 
+// G's upper triangle from NormalEquationSums' first ten sums (the rest of G 0).
+void GramOf(const std::array<double, 14>& sums, double (&G)[4][4]) {
+  for (int row = 0, entry = 0; row < 4; ++row)
+    for (int col = 0; col < 4; ++col) G[row][col] = col >= row ? sums[entry++] : 0.0;
+}
+
 // Whether a (the least-squares solution on its support) is the non-negative
 // least-squares solution: every a on the support positive, and the gradient
 // G a - g non-negative off it (the Karush-Kuhn-Tucker conditions of a convex problem).
@@ -229,10 +235,8 @@ LowFrequencyFitter::Evaluation LowFrequencyFitter::Evaluate(const Eigen::Vector3
   e.support = support;
   NormalEquationSums(Samples(), normal.data(), e.sums.data());
   const double* sums = e.sums.data();
-  const double G[4][4] = {{sums[0], sums[1], sums[2], sums[3]},
-                          {0, sums[4], sums[5], sums[6]},
-                          {0, 0, sums[7], sums[8]},
-                          {0, 0, 0, sums[9]}};
+  double G[4][4];
+  GramOf(e.sums, G);
   const double g[4] = {sums[10], sums[11], sums[12], sums[13]};
   e.misfit = NonNegativeLeastSquares(G, g, b2_, &e.support, &e.a);
   return e;
@@ -256,11 +260,8 @@ void LowFrequencyFitter::TangentSystem(const Eigen::Vector3d& normal, const Eval
   // search moves the normal and a in turns and crawls along the valley
   // where the n . h terms trade against the normal.
   if (at.support == 0) return;
-  const double* normal_sums = at.sums.data();
-  const double G[4][4] = {{normal_sums[0], normal_sums[1], normal_sums[2], normal_sums[3]},
-                          {0, normal_sums[4], normal_sums[5], normal_sums[6]},
-                          {0, 0, normal_sums[7], normal_sums[8]},
-                          {0, 0, 0, normal_sums[9]}};
+  double G[4][4];
+  GramOf(at.sums, G);
   SupportFactor f;
   if (!f.Factor(G, at.support)) return;
   // p_j^T G_S^-1 p_k = y_j . y_k with y_j = L^-1 p_j.
