@@ -133,74 +133,83 @@ struct TileSolution {
 // [first, end) of the tile at `begin`, in one pass over their K planes.
 // Planes are taken four at a time so the accumulators are loaded and stored
 // once per four samples.
+//
+// The body runs sixteen pixels at a time with a fixed trip count, the sums
+// addressed from the one TileSums and the group's twenty weights from one
+// local block: with a variable-length inner loop and a pointer per row, GCC
+// spilled the rows' addresses and recomputed them for every sixteen pixels
+// (as many instructions as the arithmetic itself).
 PHOTORIG_PS_MULTIVERSION
 void AccumulateTile(const TileConstants& c, int begin, int first, int end, TileSums* t) {
+  constexpr int kStep = 16;
   const int k = c.lights;
-  const int n = end - first;
   const float* w0 = c.weights;
   const float* w1 = c.weights + k;
   const float* w2 = c.weights + 2 * k;
   const float* u = c.inverse_scale2;
   const float saturation = c.saturation;
-  // Runs start at whole chunks, so the rows stay 64-byte aligned; saying so
-  // spares the vectoriser its alignment peeling.
-  static_assert(kChunkPixels % 16 == 0);
-  auto row = [first](float* start) { return static_cast<float*>(__builtin_assume_aligned(start + first, 64)); };
-  float* __restrict x0 = row(t->x0);
-  float* __restrict x1 = row(t->x1);
-  float* __restrict x2 = row(t->x2);
-  float* __restrict q1 = row(t->q1);
-  float* __restrict q2 = row(t->q2);
-  float* __restrict usable = row(t->usable);
-  float* __restrict threshold = row(t->threshold);
-  const float* __restrict dark = row(t->dark);
 #pragma omp simd
-  for (int i = 0; i < n; ++i) {
-    threshold[i] = dark[i] + c.shadow;
-    x0[i] = x1[i] = x2[i] = q1[i] = q2[i] = usable[i] = 0.0f;
+  for (int i = first; i < end; ++i) {
+    t->threshold[i] = t->dark[i] + c.shadow;
+    t->x0[i] = t->x1[i] = t->x2[i] = t->q1[i] = t->q2[i] = t->usable[i] = 0.0f;
   }
-  begin += first;
+  // The sums of one group of four planes over pixels [from, to): the planes
+  // point at the tile's pixel 0, as the sums' rows do.
+  struct Group {
+    alignas(64) float w0[4], w1[4], w2[4], u[4];
+  };
+  auto add_group = [&](const Group& g, const float* __restrict a, const float* __restrict b,
+                       const float* __restrict e, const float* __restrict f, int from, int to) {
+#pragma omp simd
+    for (int i = from; i < to; ++i) {
+      const float va = a[i], vb = b[i], ve = e[i], vf = f[i];
+      t->x0[i] += g.w0[0] * va + g.w0[1] * vb + g.w0[2] * ve + g.w0[3] * vf;
+      t->x1[i] += g.w1[0] * va + g.w1[1] * vb + g.w1[2] * ve + g.w1[3] * vf;
+      t->x2[i] += g.w2[0] * va + g.w2[1] * vb + g.w2[2] * ve + g.w2[3] * vf;
+      t->q1[i] += g.u[0] * va + g.u[1] * vb + g.u[2] * ve + g.u[3] * vf;
+      t->q2[i] += g.u[0] * va * va + g.u[1] * vb * vb + g.u[2] * ve * ve + g.u[3] * vf * vf;
+      const float ti = t->threshold[i];
+      t->usable[i] += ((va > ti) & (va < saturation) ? 1.0f : 0.0f) + ((vb > ti) & (vb < saturation) ? 1.0f : 0.0f) +
+                      ((ve > ti) & (ve < saturation) ? 1.0f : 0.0f) + ((vf > ti) & (vf < saturation) ? 1.0f : 0.0f);
+    }
+  };
   int l = 0;
   for (; l + 4 <= k; l += 4) {
-    const float* __restrict a = c.planes[l] + begin;
-    const float* __restrict b = c.planes[l + 1] + begin;
-    const float* __restrict e = c.planes[l + 2] + begin;
-    const float* __restrict f = c.planes[l + 3] + begin;
+    Group g;
+    for (int j = 0; j < 4; ++j) g.w0[j] = w0[l + j], g.w1[j] = w1[l + j], g.w2[j] = w2[l + j], g.u[j] = u[l + j];
+    const float* a = c.planes[l] + begin;
+    const float* b = c.planes[l + 1] + begin;
+    const float* e = c.planes[l + 2] + begin;
+    const float* f = c.planes[l + 3] + begin;
     // The planes two groups on are fetched meanwhile, a cache line of each
     // per 16 pixels: a tile reads 4 KB of each plane, and the hardware
     // prefetchers stop at every 4 KB page, so each plane's run starts cold.
     const int ahead = std::min(l + 8, k - 4);
-    const float* ahead_planes[4] = {c.planes[ahead] + begin, c.planes[ahead + 1] + begin, c.planes[ahead + 2] + begin,
-                                    c.planes[ahead + 3] + begin};
-    for (int i0 = 0; i0 < n; i0 += 16) {
-      for (const float* plane : ahead_planes) __builtin_prefetch(plane + i0);
-#pragma omp simd
-      for (int i = i0; i < std::min(n, i0 + 16); ++i) {
-        const float va = a[i], vb = b[i], ve = e[i], vf = f[i];
-        x0[i] += w0[l] * va + w0[l + 1] * vb + w0[l + 2] * ve + w0[l + 3] * vf;
-        x1[i] += w1[l] * va + w1[l + 1] * vb + w1[l + 2] * ve + w1[l + 3] * vf;
-        x2[i] += w2[l] * va + w2[l + 1] * vb + w2[l + 2] * ve + w2[l + 3] * vf;
-        q1[i] += u[l] * va + u[l + 1] * vb + u[l + 2] * ve + u[l + 3] * vf;
-        q2[i] += u[l] * va * va + u[l + 1] * vb * vb + u[l + 2] * ve * ve + u[l + 3] * vf * vf;
-        const float ti = threshold[i];
-        usable[i] += static_cast<float>((va > ti) & (va < saturation)) +
-                     static_cast<float>((vb > ti) & (vb < saturation)) +
-                     static_cast<float>((ve > ti) & (ve < saturation)) +
-                     static_cast<float>((vf > ti) & (vf < saturation));
-      }
+    const float* pa = c.planes[ahead] + begin;
+    const float* pb = c.planes[ahead + 1] + begin;
+    const float* pe = c.planes[ahead + 2] + begin;
+    const float* pf = c.planes[ahead + 3] + begin;
+    int i = first;
+    for (; i + kStep <= end; i += kStep) {
+      __builtin_prefetch(pa + i);
+      __builtin_prefetch(pb + i);
+      __builtin_prefetch(pe + i);
+      __builtin_prefetch(pf + i);
+      add_group(g, a, b, e, f, i, i + kStep);
     }
+    add_group(g, a, b, e, f, i, end);
   }
   for (; l < k; ++l) {
     const float* __restrict a = c.planes[l] + begin;
 #pragma omp simd
-    for (int i = 0; i < n; ++i) {
+    for (int i = first; i < end; ++i) {
       const float v = a[i];
-      x0[i] += w0[l] * v;
-      x1[i] += w1[l] * v;
-      x2[i] += w2[l] * v;
-      q1[i] += u[l] * v;
-      q2[i] += u[l] * v * v;
-      usable[i] += static_cast<float>((v > threshold[i]) & (v < saturation));
+      t->x0[i] += w0[l] * v;
+      t->x1[i] += w1[l] * v;
+      t->x2[i] += w2[l] * v;
+      t->q1[i] += u[l] * v;
+      t->q2[i] += u[l] * v * v;
+      t->usable[i] += (v > t->threshold[i]) & (v < saturation) ? 1.0f : 0.0f;
     }
   }
 }
