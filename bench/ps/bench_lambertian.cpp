@@ -208,6 +208,10 @@ void BM_Method(benchmark::State& state) {
   state.counters["blinn_phong_pct"] = 100.0 * summary.pixels_blinn_phong / solved;
   state.counters["low_frequency_pct"] = 100.0 * summary.pixels_low_frequency / solved;
   state.counters["mean_deg"] = photorig::solvers::ps::CompareNormals(map.normals, scene.truth_normals, stack.mask).mean_deg;
+  // The last solve's steps (SolverSummary): where a method's time beyond `l2` goes.
+  state.counters["tiles_ms"] = summary.tiles_ms;
+  state.counters["steps_5_6_ms"] = summary.shared_lobe_ms;
+  state.counters["step_7_ms"] = summary.low_frequency_ms;
 }
 
 // A method and `l2` timed alternately on the same sphere, each iteration a

@@ -452,6 +452,10 @@ json ToJson(const PhotometricStereoResult& result) {
                    {"strong_evidence", summary.low_frequency_rules.strong_evidence}}},
                  {"samples_rejected", summary.samples_rejected},
                  {"pixels_on_light_subsets", summary.pixels_on_light_subsets}});
+  // The solve's steps, of its `solve`.
+  report["timings_ms"].update({{"tiles", summary.tiles_ms},
+                               {"shared_lobe", summary.shared_lobe_ms},
+                               {"low_frequency", summary.low_frequency_ms}});
   // The stage's total: reading the frames and writing the results included.
   report["timings_ms"]["total"] = result.total_ms;
   const LightModelReport& lights = result.light_model;

@@ -1187,8 +1187,13 @@ NearLightSummary SolveNearLightPhotometricStereo(const PhotometricStereoOptions&
   }
   std::vector<std::uint8_t> held, shape_rejected;
   const cv::Mat fitted_height_mm = fitted.height_mm;
+  const double fits_end_ms = timer.ElapsedMs();
+  summary.tiles_ms = fits_end_ms - summary.setup_ms - summary.depth_ms;
   const std::size_t held_lobes = ShareLobes(problem, options, std::move(fitted), result, &held, &shape_rejected);
+  const double shared_lobe_end_ms = timer.ElapsedMs();
+  summary.shared_lobe_ms = shared_lobe_end_ms - fits_end_ms;
   const std::size_t fell_back = OfferLowFrequency(problem, options, fitted_height_mm, held, shape_rejected, result, &summary);
+  summary.low_frequency_ms = timer.ElapsedMs() - shared_lobe_end_ms;
   CountPixels(*result, &summary);
   summary.pixels_shared_lobe = held_lobes;
   summary.pixels_fell_back += fell_back;

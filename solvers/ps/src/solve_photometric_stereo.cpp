@@ -118,6 +118,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     const internal::TileVisitor count_tiles = [&](int thread, int, int count) { progress.TileDone(thread, count); };
     SolverSummary summary =
         internal::SolveLambertianTiles(lambertian, working, result, options.progress ? count_tiles : nullptr);
+    summary.tiles_ms = timer.ElapsedMs() - setup_ms;
     if (summary.IsSolutionUsable()) progress.Finish();
     summary.method = MethodName(options.method);
     summary.pixels_lambertian = summary.pixels_solved;
@@ -143,6 +144,8 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
       [&](int thread) {
         if (refine_tiles) refiner.Finish(thread);
       });
+  const double tiles_end_ms = timer.ElapsedMs();
+  summary.tiles_ms = tiles_end_ms - setup_ms;
   if (!refine_tiles) summary.pixels_lambertian = summary.pixels_solved;
   summary.method = MethodName(options.method);
   summary.shadow_threshold = lambertian.shadow_threshold;
@@ -151,7 +154,10 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     return summary;
   }
   refiner.ShareLobe();
+  const double shared_lobe_end_ms = timer.ElapsedMs();
+  summary.shared_lobe_ms = shared_lobe_end_ms - tiles_end_ms;
   refiner.OfferLowFrequency();
+  summary.low_frequency_ms = timer.ElapsedMs() - shared_lobe_end_ms;
   summary.noise_estimated = noise_estimated;
   summary.noise_read_sigma = working.noise.read_sigma;
   summary.noise_shot_gain = working.noise.shot_gain;

@@ -70,6 +70,14 @@ struct SolverSummary : solvers::core::Summary {
   double noise_read_sigma = 0.0;  // the noise model the tests used, input units
   double noise_shot_gain = 0.0;
   double shadow_threshold = 0.0;  // I - D at or below which a sample counted as shadowed, input units
+  // Of solve_ms: the Lambertian pass with each tile refined as it is written
+  // (`auto`'s steps 1-4, and each thread's last queued fits: the slower
+  // thread's end), `auto`'s steps 5-6 (the shared lobe, GGX) and step 7
+  // (the low-frequency fit; all of `low-frequency`'s fit). Under near lights
+  // tiles_ms is every round's per-pixel fits (NearLightSummary::depth_ms apart).
+  double tiles_ms = 0.0;
+  double shared_lobe_ms = 0.0;
+  double low_frequency_ms = 0.0;
 
   std::string BriefReport() const;
 };
