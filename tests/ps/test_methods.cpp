@@ -1,6 +1,7 @@
 #include "photorig/solvers/ps/evaluation.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
 #include "ps_test_scene.h"
+#include "summary_checks.h"
 
 #include <gtest/gtest.h>
 
@@ -39,12 +40,7 @@ Outcome Solve(Method method, const PhotometricStack& stack, const cv::Mat& truth
   // The timings add up: the solve's share covers every step, the refinement after the tiles included.
   EXPECT_NEAR(outcome.summary.setup_ms + outcome.summary.solve_ms, outcome.summary.total_ms, 1e-9);
   EXPECT_GT(outcome.summary.solve_ms, 0.0);
-  // Its steps are parts of it: the tiles, then (refining methods) steps 5-6 and 7.
-  const SolverSummary& s = outcome.summary;
-  EXPECT_GT(s.tiles_ms, 0.0);
-  EXPECT_GE(s.shared_lobe_ms, 0.0);
-  EXPECT_GE(s.low_frequency_ms, 0.0);
-  EXPECT_LE(s.tiles_ms + s.shared_lobe_ms + s.low_frequency_ms, s.solve_ms + 1e-9);
+  testing::ExpectStepsWithinSolve(outcome.summary);
   outcome.error = CompareNormals(outcome.map.normals, truth);
   return outcome;
 }
