@@ -4,6 +4,8 @@
 // result (or none), never part of a new one; --retry-failed completes the batch.
 
 #include "photorig/daemon/pipelines/ps_pipeline.h"
+#include "photorig/daemon/service/internal/batch.h"
+#include "photorig/daemon/service/internal/slurm_solve.h"
 #include "photorig/daemon/service/run.h"
 #include "test_support.h"
 
@@ -157,6 +159,93 @@ TEST(BatchLocal, ATaskRecordWhoseExitCodeIsNoIntegerIsAFailedTaskNamingIt) {
   EXPECT_EQ(status["tasks"][1]["state"], "failed") << status.dump(2);
   EXPECT_NE(status["tasks"][1]["error"].get<std::string>().find("1.json"), std::string::npos) << status.dump(2);
   EXPECT_EQ(status["tasks"][0]["state"], "completed");
+}
+
+// Slurm's clients replaced by scripts on PATH that answer as a busy or
+// forgetful controller does: what the batch makes of each answer, no cluster needed.
+class SlurmAnswers : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    bin_ = dir_.path() / "bin";
+    fs::create_directories(bin_);
+    // No accounting, as on the test node: sacct fails and squeue alone speaks.
+    Tool("sacct", "echo 'sacct: error: Slurm accounting storage is disabled'; exit 1");
+    Tool("sbatch", "touch " + (dir_.path() / "sbatch-ran").string() + "; echo 'sbatch: error: not expected'; exit 1");
+    saved_path_ = std::getenv("PATH");
+    ::setenv("PATH", (bin_.string() + ":" + saved_path_).c_str(), 1);
+    fs::create_directories(dir_.path() / "run");
+    batch_ = CreateBatch((dir_.path() / "run" / "batch").string(), {(dir_.path() / "run").string()}, "photorig",
+                         SolveArguments(config::PhotometricStereoRequest{}), config::Executor::kSlurm, {});
+    batch_.job_ids = {"41"};
+    SaveBatch(batch_);
+  }
+  void TearDown() override { ::setenv("PATH", saved_path_.c_str(), 1); }
+
+  void Tool(const std::string& name, const std::string& body) const {
+    const fs::path path = bin_ / name;
+    std::ofstream(path) << "#!/bin/sh\n" << body << "\n";
+    fs::permissions(path, fs::perms::owner_all);
+  }
+  // squeue answering `answers` in turn (each "EXIT|TEXT"), the last one from
+  // then on, running `before_last` first (a task that ends meanwhile).
+  void Squeue(const std::vector<std::string>& answers, const std::string& before_last = "") const {
+    const fs::path calls = dir_.path() / "squeue-calls";
+    std::string body = "n=$(cat " + calls.string() + " 2>/dev/null || echo 0); n=$((n+1)); echo $n > " + calls.string() + "\n";
+    for (std::size_t i = 0; i < answers.size(); ++i) {
+      const std::size_t bar = answers[i].find('|');
+      const bool last = i + 1 == answers.size();
+      body += "if " + (last ? std::string("true") : "[ $n -le " + std::to_string(i + 1) + " ]") + "; then " +
+              (last && !before_last.empty() ? before_last + "; " : "") + "echo '" + answers[i].substr(bar + 1) +
+              "'; exit " + answers[i].substr(0, bar) + "; fi\n";
+    }
+    Tool("squeue", body);
+  }
+  fs::path Record() const { return fs::path(batch_.directory) / "tasks" / "0.json"; }
+  void WriteRecord(int exit_code) const { std::ofstream(Record()) << json{{"exit_code", exit_code}}.dump(); }
+
+  TempDir dir_;
+  fs::path bin_;
+  std::string saved_path_;
+  BatchManifest batch_;
+};
+
+TEST_F(SlurmAnswers, AClientErrorIsSlurmUnavailableNotATaskThatEnded) {
+  Squeue({"1|slurm_load_jobs error: Zero Bytes were transmitted or received"});
+  try {
+    CollectBatchStatus(batch_);
+    ADD_FAILURE() << "a failed squeue read as the task's state";
+  } catch (const SlurmUnavailable& e) {
+    EXPECT_NE(std::string(e.what()).find("Zero Bytes"), std::string::npos) << e.what();
+  }
+  Squeue({"1|slurm_load_jobs error: Unable to contact slurm controller (connect failure)"});
+  EXPECT_THROW(CollectBatchStatus(batch_), SlurmUnavailable);
+}
+
+TEST_F(SlurmAnswers, AJobSlurmForgotIsItsTaskRecord) {
+  Squeue({"1|slurm_load_jobs error: Invalid job id specified"});
+  EXPECT_EQ(CollectBatchStatus(batch_).front().state, "no_result");
+  WriteRecord(0);
+  EXPECT_EQ(CollectBatchStatus(batch_).front().state, "completed");
+  Squeue({"0|41_0|RUNNING"});
+  EXPECT_EQ(CollectBatchStatus(batch_).front().state, "running");
+}
+
+TEST_F(SlurmAnswers, ARestartedSolveFollowsItsJobThroughABusyController) {
+  // The job runs, its task has no record yet; two failed answers (the
+  // restart's look, the first poll), then the task has ended and says so.
+  Squeue({"1|slurm_load_jobs error: Zero Bytes were transmitted or received",
+          "1|slurm_load_jobs error: Socket timed out on send/recv operation", "0|41_0|COMPLETED"},
+         "echo '{\"exit_code\": 0}' > " + Record().string());
+  config::SolveExecutorConfig executor;
+  executor.executor = config::Executor::kSlurm;
+  executor.poll_ms = 100;
+  const SlurmSolveOutcome outcome = SolvePhotometricStereoOnSlurm((dir_.path() / "run").string(),
+                                                                  config::PhotometricStereoRequest{}, executor, RunRequest{});
+  EXPECT_FALSE(fs::exists(dir_.path() / "sbatch-ran")) << "a second job was submitted for the run";
+  EXPECT_EQ(outcome.job_id, "41_0");
+  ASSERT_TRUE(outcome.report.has_value());
+  EXPECT_EQ(outcome.report->termination, "completed");
+  EXPECT_EQ(ReadText(dir_.path() / "squeue-calls"), "3\n");
 }
 
 // A single-node Slurm cluster for each test (tests/slurm/slurm-node.sh).

@@ -232,7 +232,13 @@ int ExecuteStatus(const StatusOptions& options) {
       ReportStatuses(batch, statuses);
       return Fail(kExitInterrupted, "interrupted while waiting; the tasks go on");
     }
-    statuses = daemon::CollectBatchStatus(batch);
+    try {
+      statuses = daemon::CollectBatchStatus(batch);
+    } catch (const daemon::SlurmUnavailable& e) {
+      // A busy or restarting controller while waiting: the tasks go on, ask again.
+      progress.EndLine();
+      std::fprintf(stderr, "batch %s: %s; asking again\n", batch.directory.c_str(), e.what());
+    }
   }
   progress.EndLine();
   return ReportStatuses(batch, statuses);

@@ -306,9 +306,14 @@ std::vector<TaskStatus> CollectBatchStatus(const BatchManifest& batch) {
         if (bar != std::string::npos) consider(line.substr(0, bar), line.substr(bar + 1));
       }
     const ProgramResult squeue = RunProgram({"squeue", "-h", "-r", "--states=all", "-j", jobs, "-o", "%i|%T"});
-    // Jobs Slurm has forgotten make squeue fail too ("Invalid job id"): their tasks' records speak for them.
+    // Jobs Slurm has forgotten make squeue fail ("Invalid job id"): their tasks'
+    // records speak for them. Any other failure (a controller too busy to
+    // answer, "Zero Bytes were transmitted or received"; a client killed) says
+    // nothing about the jobs, so it must not read as a task that ended.
     if (squeue.exit_code == 127) throw SlurmUnavailable("squeue cannot be run (Debian: slurm-client)");
-    if (ControllerUnreachable(squeue.output)) throw SlurmUnavailable(OneLine(squeue.output));
+    if (ControllerUnreachable(squeue.output) ||
+        (squeue.exit_code != 0 && squeue.output.find("Invalid job id") == std::string::npos))
+      throw SlurmUnavailable("squeue (exit " + std::to_string(squeue.exit_code) + "): " + OneLine(squeue.output));
     if (squeue.exit_code == 0)
       for (const std::string& line : Lines(squeue.output)) {
         const std::size_t bar = line.find('|');

@@ -76,8 +76,15 @@ SlurmSolveOutcome SolvePhotometricStereoOnSlurm(const std::string& run_directory
     try {
       batch = LoadBatch(batch_directory.string());
       if (batch.solve_arguments == arguments && !batch.job_ids.empty()) {
-        const TaskStatus status = CollectBatchStatus(batch).front();
-        follow = status.live() || status.succeeded();
+        try {
+          const TaskStatus status = CollectBatchStatus(batch).front();
+          follow = status.live() || status.succeeded();
+        } catch (const SlurmUnavailable& e) {
+          // Slurm cannot say now; a second job would solve the run twice. The
+          // loop below asks again until it can.
+          spdlog::warn("solve photometric_stereo: Slurm job {}_0: {}", batch.job_ids.back(), e.what());
+          follow = true;
+        }
       }
     } catch (const std::invalid_argument& e) {
       spdlog::warn("{}: {}; submitting anew", batch_directory.string(), e.what());
