@@ -6,6 +6,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <atomic>
+#include <limits>
 #include <memory>
 #include <unordered_map>
 
@@ -25,6 +27,9 @@ constexpr std::size_t kPooledLobes = 32;
 // GGX lobe is fitted as Blinn-Phong, and the test costs a few per cent of a
 // glossy object's time.
 constexpr std::size_t kShapeTestPixels = 1024;
+// Steps 5 and 6 hand their pixels to the threads this many at a time: a few
+// lane batches, so a chunk's overhead is small beside its fits.
+constexpr std::size_t kPassChunk = 256;
 
 // Step 5's lobe for a pixel of a region whose pixels reject one shared shape
 // (ModelLadder::RejectsSharedShape): the medians of rho_s and e over the
@@ -32,64 +37,125 @@ constexpr std::size_t kShapeTestPixels = 1024;
 // the object's lobe is not Blinn-Phong, its best Blinn-Phong exponent varies
 // over the object (a GGX lobe's long tails read as a broader lobe on the
 // pixels that see only them, at the rim of a sphere), so the nearest
-// confident pixels say more than the region's median. The glossy pixels are
-// bucketed in square cells, searched in rings around the pixel's cell until
-// no pixel further out can be nearer; ties go to the lower pixel index, so
-// the answer does not depend on the order the threads found them in.
+// confident pixels say more than the region's median. Nearest means by
+// distance, ties to the lower pixel index, so the answer does not depend on
+// the order the threads found them in. Where the glossy pixels are dense
+// (most pixels of such a region kept a confident lobe) the offsets of a disc,
+// walked in that order, find them after a few dozen lookups; elsewhere the
+// glossy pixels, bucketed in square cells, are searched in rings around the
+// pixel's cell until no pixel further out can be nearer.
 class NearestLobes {
  public:
+  // A glossy pixel seen: its squared distance, pixel index, and index into glossy_.
+  struct Seen {
+    int distance2, pixel, index;
+    bool operator<(const Seen& other) const {
+      return distance2 != other.distance2 ? distance2 < other.distance2 : pixel < other.pixel;
+    }
+  };
+
   // labels: CV_32S regions; glossy: confident pixels; in_region: how many of
   // them each region has.
   NearestLobes(const cv::Mat& labels, std::vector<GlossyPixel> glossy, std::vector<std::size_t> in_region)
-      : cols_(labels.cols),
+      : rows_(labels.rows),
+        cols_(labels.cols),
         cell_cols_((labels.cols + kCell - 1) / kCell),
         cell_rows_((labels.rows + kCell - 1) / kCell),
         label_(labels.ptr<int>()),
         in_region_(std::move(in_region)),
-        cell_start_(static_cast<std::size_t>(cell_cols_) * cell_rows_ + 1, 0) {
+        cell_start_(static_cast<std::size_t>(cell_cols_) * cell_rows_ + 1, 0),
+        glossy_index_(labels.total(), -1) {
     std::sort(glossy.begin(), glossy.end(), [this](const GlossyPixel& a, const GlossyPixel& b) {
       const int ca = Cell(a.pixel), cb = Cell(b.pixel);
       return ca != cb ? ca < cb : a.pixel < b.pixel;
     });
     for (const GlossyPixel& g : glossy) ++cell_start_[Cell(g.pixel) + 1];
     for (std::size_t c = 1; c < cell_start_.size(); ++c) cell_start_[c] += cell_start_[c - 1];
+    for (std::size_t i = 0; i < glossy.size(); ++i) glossy_index_[glossy[i].pixel] = static_cast<int>(i);
     glossy_ = std::move(glossy);
+    // Every offset within kDiscRadius, in the order At ranks pixels: a pixel's
+    // index differs from the centre's by dr * cols + dc, so ties go by that.
+    for (int dr = -kDiscRadius; dr <= kDiscRadius; ++dr)
+      for (int dc = -kDiscRadius; dc <= kDiscRadius; ++dc)
+        if (dr * dr + dc * dc <= kDiscRadius * kDiscRadius) disc_.push_back({dr * dr + dc * dc, dr, dc});
+    std::sort(disc_.begin(), disc_.end(), [this](const Offset& a, const Offset& b) {
+      return a.distance2 != b.distance2 ? a.distance2 < b.distance2 : a.dr * cols_ + a.dc < b.dr * cols_ + b.dc;
+    });
   }
 
-  // near: scratch, (squared distance, index into glossy_) per pixel seen.
-  SharedLobe At(int pixel, std::vector<std::pair<int, int>>* near) const {
-    const int row = pixel / cols_, col = pixel % cols_, cell_row = row / kCell, cell_col = col / kCell;
+  // near: scratch.
+  SharedLobe At(int pixel, std::vector<Seen>* near) const {
+    const int row = pixel / cols_, col = pixel % cols_;
     near->clear();
+    // The disc holds every pixel within its radius, so the first kPooledLobes
+    // found in its order are the nearest (any pixel outside is further).
+    for (const Offset& o : disc_) {
+      const int r = row + o.dr, c = col + o.dc;
+      if (r < 0 || r >= rows_ || c < 0 || c >= cols_) continue;
+      const int q = pixel + o.dr * cols_ + o.dc;
+      if (glossy_index_[q] < 0 || label_[q] != label_[pixel]) continue;
+      near->push_back({o.distance2, q, glossy_index_[q]});
+      if (near->size() == kPooledLobes) return Medians(*near);
+    }
+    near->clear();
+    const int cell_row = row / kCell, cell_col = col / kCell;
     const int rings = std::max(cell_rows_, cell_cols_);
     const std::size_t in_region = in_region_[label_[pixel]];
+    // Once kPooledLobes are seen, the furthest of the nearest kPooledLobes: a
+    // cell further than that holds none nearer.
+    int bound = std::numeric_limits<int>::max();
     for (int ring = 0; ring < rings && near->size() < in_region; ++ring) {
       for (int r = cell_row - ring; r <= cell_row + ring; ++r) {
         if (r < 0 || r >= cell_rows_) continue;
         // The ring's top and bottom rows whole, its sides one cell each.
         const int step = r == cell_row - ring || r == cell_row + ring ? 1 : std::max(1, 2 * ring);
         for (int c = cell_col - ring; c <= cell_col + ring; c += step) {
-          if (c < 0 || c >= cell_cols_) continue;
+          if (c < 0 || c >= cell_cols_ || CellDistance2(row, col, r, c) > bound) continue;
           for (int i = cell_start_[r * cell_cols_ + c]; i < cell_start_[r * cell_cols_ + c + 1]; ++i) {
             const int q = glossy_[i].pixel;
             if (label_[q] != label_[pixel]) continue;
             const int dr = q / cols_ - row, dc = q % cols_ - col;
-            near->push_back({dr * dr + dc * dc, i});
+            near->push_back({dr * dr + dc * dc, q, i});
           }
         }
       }
-      // Every pixel outside the rings searched is at least ring * kCell away.
+      // Every pixel outside the rings searched is at least ring * kCell away;
+      // those beyond the nearest kPooledLobes can no longer enter them.
       if (near->size() >= kPooledLobes) {
         std::nth_element(near->begin(), near->begin() + (kPooledLobes - 1), near->end());
+        near->resize(kPooledLobes);
+        bound = std::max_element(near->begin(), near->end())->distance2;
         const int reach = ring * kCell;
-        if ((*near)[kPooledLobes - 1].first <= reach * reach) break;
+        if (bound <= reach * reach) break;
       }
     }
-    const std::size_t pooled = std::min(near->size(), kPooledLobes);
+    return Medians(*near);
+  }
+
+ private:
+  static constexpr int kCell = 8;
+  // Larger than a dense region needs (32 pixels lie within 3.2 pixels), small
+  // enough that a sparse one soon falls back to the rings.
+  static constexpr int kDiscRadius = 6;
+  struct Offset {
+    int distance2, dr, dc;
+  };
+  int Cell(int pixel) const { return (pixel / cols_ / kCell) * cell_cols_ + (pixel % cols_) / kCell; }
+  // The squared distance from pixel (row, col) to the nearest pixel of cell (cell_row, cell_col).
+  static int CellDistance2(int row, int col, int cell_row, int cell_col) {
+    const int dr = std::max({0, cell_row * kCell - row, row - (cell_row * kCell + kCell - 1)});
+    const int dc = std::max({0, cell_col * kCell - col, col - (cell_col * kCell + kCell - 1)});
+    return dr * dr + dc * dc;
+  }
+
+  // The medians of rho_s and e over the nearest kPooledLobes of `seen` (all, if fewer).
+  SharedLobe Medians(std::vector<Seen>& seen) const {
+    const std::size_t pooled = std::min(seen.size(), kPooledLobes);
     if (pooled == 0) return {};
-    std::nth_element(near->begin(), near->begin() + (pooled - 1), near->end());
+    std::nth_element(seen.begin(), seen.begin() + (pooled - 1), seen.end());
     float specular[kPooledLobes], exponent[kPooledLobes];
     for (std::size_t i = 0; i < pooled; ++i) {
-      const GlossyPixel& g = glossy_[(*near)[i].second];
+      const GlossyPixel& g = glossy_[seen[i].index];
       specular[i] = g.specular_albedo, exponent[i] = g.exponent;
     }
     std::nth_element(specular, specular + pooled / 2, specular + pooled);
@@ -97,15 +163,13 @@ class NearestLobes {
     return {specular[pooled / 2], exponent[pooled / 2]};
   }
 
- private:
-  static constexpr int kCell = 8;
-  int Cell(int pixel) const { return (pixel / cols_ / kCell) * cell_cols_ + (pixel % cols_) / kCell; }
-
-  int cols_, cell_cols_, cell_rows_;
+  int rows_, cols_, cell_cols_, cell_rows_;
   const int* label_;
   std::vector<std::size_t> in_region_;
   std::vector<int> cell_start_;  // glossy_[cell_start_[c], cell_start_[c + 1]) lie in cell c
   std::vector<GlossyPixel> glossy_;
+  std::vector<int> glossy_index_;  // per pixel, its index into glossy_ (-1: not glossy)
+  std::vector<Offset> disc_;
 };
 
 // An int per pixel, 0 where none was set. Hashed where few pixels are set
@@ -281,16 +345,27 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
     sample.back().test_shape = true;
   }
   std::vector<std::vector<SharedShapeTest>> tests(threads, std::vector<SharedShapeTest>(regions));
+  // Chunks handed out as threads come free: pixels' fits differ in cost
+  // (a GGX fit several times a held lobe's), and halves of the list leave
+  // one thread idle for a third of the pass. A pixel's answer does not
+  // depend on which thread fits it or on the pixels beside it in the lanes.
   auto in_parallel = [threads](std::size_t count, const auto& run) {
+    std::atomic<std::size_t> next{0};
 #pragma omp parallel num_threads(threads)
     {
-      const std::size_t thread = omp_get_thread_num(), team = omp_get_num_threads();
-      run(static_cast<int>(thread), count * thread / team, count * (thread + 1) / team);
+      const int thread = omp_get_thread_num();
+      for (std::size_t begin; (begin = next.fetch_add(kPassChunk)) < count;)
+        run(thread, begin, std::min(count, begin + kPassChunk));
     }
   };
-  in_parallel(sample.size(), [&](int thread, std::size_t begin, std::size_t end) {
-    fits.share(thread, std::span(sample).subspan(begin, end - begin), &tests[thread]);
-  });
+  // The sample in halves, one per thread: each thread's test sums in a
+  // fixed order, so the verdict is the same on every run.
+#pragma omp parallel num_threads(threads)
+  {
+    const std::size_t thread = omp_get_thread_num(), team = omp_get_num_threads();
+    const std::size_t begin = sample.size() * thread / team, end = sample.size() * (thread + 1) / team;
+    fits.share(static_cast<int>(thread), std::span(sample).subspan(begin, end - begin), &tests[thread]);
+  }
   std::vector<std::uint8_t> rejects(regions, 0);
   bool any_rejects = false;
   for (int r = 1; r < regions; ++r) {
@@ -305,7 +380,7 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
   std::unique_ptr<NearestLobes> nearest;
   if (any_rejects) nearest = std::make_unique<NearestLobes>(labels, std::move(glossy), region_confident);
   in_parallel(items.size(), [&](int thread, std::size_t begin, std::size_t end) {
-    std::vector<std::pair<int, int>> near;
+    std::vector<NearestLobes::Seen> near;
     for (std::size_t i = begin; i < end; ++i)
       if (rejects[items[i].region]) items[i].lobe = nearest->At(items[i].pixel, &near);
     fits.share(thread, std::span(items).subspan(begin, end - begin), nullptr);
