@@ -530,8 +530,7 @@ PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter
   LowFrequencyFits fits{&kept};
   fits.region_rejects_shape = offer.region_rejects_shape;
   fits.test_lobe_shift = offer.test_lobe_shift;
-  fits.spike_pins_normal = SpikePinsNormal(kept, problem.lights, problem.wx, problem.wy, problem.wz, problem.stride,
-                                           problem.view, problem.inverse_sigma, fitter.LeftOut(usable));
+  fits.spike_pins_normal = SpikePinsNormal(kept, problem, fitter.LeftOut(usable));
   const bool lobe = kept.model == PixelModel::kBlinnPhong || kept.model == PixelModel::kGgx;
   const bool test_shift = offer.test_lobe_shift && lobe;
   PixelFit low, judged;

@@ -86,8 +86,7 @@ PixelFit KeptOnLights(const PixelFit& kept, std::span<const int> lights, const d
   return judged;
 }
 
-bool SpikePinsNormal(const PixelFit& kept, int lights, const double* wx, const double* wy, const double* wz,
-                     int stride, const Eigen::Vector3d& view, const double* inverse_sigma, int spike_samples) {
+bool SpikePinsNormal(const PixelFit& kept, const LowFrequencyProblem& samples, int spike_samples) {
   double half_maximum_cos = 0.0;
   if (kept.model == PixelModel::kBlinnPhong) {
     half_maximum_cos = std::pow(0.5, 1.0 / std::max(kept.exponent, 1e-6));
@@ -99,9 +98,11 @@ bool SpikePinsNormal(const PixelFit& kept, int lights, const double* wx, const d
     return false;
   }
   int core = 0;
-  for (int k = 0; k < lights; ++k) {
-    if (inverse_sigma[k] == 0.0) continue;
-    const Eigen::Vector3d h = (Eigen::Vector3d(wx[k * stride], wy[k * stride], wz[k * stride]) + view).normalized();
+  for (int k = 0; k < samples.lights; ++k) {
+    if (samples.inverse_sigma[k] == 0.0) continue;
+    Eigen::Vector3d l, h;
+    double cos_d = 0.0;
+    samples.Geometry(k, &l, &h, &cos_d);
     core += h.dot(kept.normal) >= half_maximum_cos;
   }
   return core >= 1 && core <= spike_samples;

@@ -58,8 +58,7 @@ PixelFit KeptOnLights(const PixelFit& kept, std::span<const int> lights, const d
 // a^2) / (1 - a^2)), holds between 1 and spike_samples of the usable
 // samples: a spike the samples see, no wider than what step 7's fit leaves
 // out. False for a fit without a lobe.
-bool SpikePinsNormal(const PixelFit& kept, int lights, const double* wx, const double* wy, const double* wz,
-                     int stride, const Eigen::Vector3d& view, const double* inverse_sigma, int spike_samples);
+bool SpikePinsNormal(const PixelFit& kept, const LowFrequencyProblem& samples, int spike_samples);
 
 // Chi-square of a Blinn-Phong fit (normal, rho_d, rho_s, e) on samples seen
 // from `view`: one row of `directions` (towards the light) per sample.

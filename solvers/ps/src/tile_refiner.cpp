@@ -550,6 +550,14 @@ LobeShiftTally TileRefiner::ClimbLowFrequencyPixels(std::span<const int> pixels,
   LobeShiftTally tally;
   if (count == 0) return tally;
   std::vector<LobeShiftTally> tallies(threads_);
+  // Distant lights and one view: every pixel's samples share their half vectors.
+  const LowFrequencyProblem lights{.lights = lights_,
+                                   .wx = reader_.direction_axis(0),
+                                   .wy = reader_.direction_axis(1),
+                                   .wz = reader_.direction_axis(2),
+                                   .stride = 1,
+                                   .view = stack_.view_direction};
+  const HalfVectorTable halves(lights);
 #pragma omp parallel num_threads(std::min(threads_, 1 + count / 64))
   {
     ThreadState& state = states_[omp_get_thread_num()];
@@ -559,14 +567,8 @@ LobeShiftTally TileRefiner::ClimbLowFrequencyPixels(std::span<const int> pixels,
     const std::size_t row = NewRow(state);
     double* observed = &state.observed[row * lights_];
     double* inverse_sigma = &state.inverse_sigma[row * lights_];
-    const LowFrequencyProblem problem{.lights = lights_,
-                                      .wx = reader_.direction_axis(0),
-                                      .wy = reader_.direction_axis(1),
-                                      .wz = reader_.direction_axis(2),
-                                      .stride = 1,
-                                      .view = stack_.view_direction,
-                                      .observed = observed,
-                                      .inverse_sigma = inverse_sigma};
+    LowFrequencyProblem problem = lights;
+    problem.observed = observed, problem.inverse_sigma = inverse_sigma, problem.halves = &halves;
 #pragma omp for schedule(dynamic, 16)
     for (int i = 0; i < count; ++i) {
       const int p = pixels[i];

@@ -230,6 +230,28 @@ void Tangents(const Eigen::Vector3d& n, Eigen::Vector3d* t1, Eigen::Vector3d* t2
 
 }  // namespace
 
+void LowFrequencyProblem::Geometry(int k, Eigen::Vector3d* l, Eigen::Vector3d* h, double* cos_d) const {
+  *l = Eigen::Vector3d(wx[k * stride], wy[k * stride], wz[k * stride]);
+  if (halves) {
+    *h = Eigen::Vector3d(halves->x[k], halves->y[k], halves->z[k]);
+    *cos_d = halves->cos_d[k];
+    return;
+  }
+  *h = (*l + view).normalized();
+  *cos_d = l->dot(*h);
+}
+
+HalfVectorTable::HalfVectorTable(const LowFrequencyProblem& problem) {
+  LowFrequencyProblem each = problem;
+  each.halves = nullptr;
+  for (int k = 0; k < problem.lights; ++k) {
+    Eigen::Vector3d l, h;
+    double d = 0.0;
+    each.Geometry(k, &l, &h, &d);
+    x.push_back(h.x()), y.push_back(h.y()), z.push_back(h.z()), cos_d.push_back(d);
+  }
+}
+
 LowFrequencyFitter::Evaluation LowFrequencyFitter::Evaluate(const Eigen::Vector3d& normal, int support) const {
   Evaluation e;
   e.support = support;
@@ -349,12 +371,10 @@ LowFrequencySolution LowFrequencyFitter::Fit(const LowFrequencyProblem& problem)
   b2_ = 0.0;
   for (int i = 0; i < count; ++i) {
     const int k = order_[i];
-    const Eigen::Vector3d l(problem.wx[k * problem.stride], problem.wy[k * problem.stride],
-                            problem.wz[k * problem.stride]);
-    const Eigen::Vector3d h = (l + problem.view).normalized();
+    Eigen::Vector3d l, h;
+    problem.Geometry(k, &l, &h, &d_[i]);
     lx_[i] = l.x(), ly_[i] = l.y(), lz_[i] = l.z();
     hx_[i] = h.x(), hy_[i] = h.y(), hz_[i] = h.z();
-    d_[i] = l.dot(h);
     b_[i] = problem.observed[k];
     inverse_sigma_[i] = problem.inverse_sigma[k];
     b2_ += b_[i] * b_[i];

@@ -56,6 +56,8 @@ struct LowFrequencySolution {
   Eigen::Matrix2d normal_information = Eigen::Matrix2d::Zero();
 };
 
+struct HalfVectorTable;
+
 // A pixel's samples: per light k, the direction towards the light (wx[k
 // stride], wy[k stride], wz[k stride]), the observed value and its inverse
 // sigma (0: unusable); `view` towards the camera (unit).
@@ -66,6 +68,22 @@ struct LowFrequencyProblem {
   Eigen::Vector3d view = Eigen::Vector3d::UnitZ();
   const double* observed = nullptr;
   const double* inverse_sigma = nullptr;
+  // Every light's half vector and cos theta_d where all pixels share them
+  // (distant lights, one view; made from these directions and view); null:
+  // computed per sample.
+  const HalfVectorTable* halves = nullptr;
+
+  // Light k's direction l, half vector h = (l + view) / |l + view| and cos theta_d = l . h.
+  void Geometry(int k, Eigen::Vector3d* l, Eigen::Vector3d* h, double* cos_d) const;
+};
+
+// The half vectors and cos theta_d of a problem's lights, once for every
+// pixel that shares them: a step-7 pixel otherwise normalises one per
+// sample twice (its fit and its spike test).
+struct HalfVectorTable {
+  std::vector<double> x, y, z, cos_d;
+  // From `problem`'s directions and view (its halves unused).
+  explicit HalfVectorTable(const LowFrequencyProblem& problem);
 };
 
 // A fit's samples as plain arrays, for its multi-versioned loops: light and
