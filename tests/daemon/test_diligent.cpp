@@ -91,6 +91,63 @@ TEST_F(DiligentFolder, AWellFormedFolderLoadsWithUnitDirectionsAndTruth) {
   EXPECT_TRUE(std::isnan(input.truth_normals.at<cv::Vec3f>(0, 0)[0]));  // off the object: not counted
 }
 
+// Each frame as the solve takes it, checked pixel by pixel against the
+// formula: grey = sum over B, G, R of I_c mean(L) / (3 L_c); colour in R G B
+// with every channel of a pixel at the top code clipped (+inf); each frame
+// its own (distinct, continuous) image; grey saved as RGB stays grey.
+TEST_F(DiligentFolder, EachFrameIsItsOwnChannelsBalancedByItsLightWithTopCodesClipped) {
+  cv::RNG random(7);
+  std::vector<cv::Mat> written;
+  for (int k = 1; k <= 4; ++k) {
+    cv::Mat image(kSize, kSize, CV_16UC3);
+    random.fill(image, cv::RNG::UNIFORM, 0, 60000);
+    image.at<cv::Vec3w>(3, 5)[k % 3] = 65535;  // one channel at the top code
+    char name[16];
+    std::snprintf(name, sizeof(name), "%03d.png", k);
+    cv::imwrite((dir_.path() / name).string(), image);
+    written.push_back(image);
+  }
+  const std::vector<cv::Vec3d> rgb_intensity = {{1, 1, 1}, {1.2, 1.1, 1.0}, {0.9, 1.0, 1.1}, {1, 1, 1}};
+  const PhotometricStereoInput input = Load();
+  ASSERT_EQ(input.stack.light_count(), 4);
+  ASSERT_TRUE(input.color);
+  for (int k = 0; k < 4; ++k) {
+    const cv::Mat& grey = input.stack.images[k];
+    const cv::Mat& colour = input.color->images[k];
+    ASSERT_EQ(grey.type(), CV_32F);
+    ASSERT_EQ(colour.type(), CV_32FC3);
+    EXPECT_TRUE(grey.isContinuous() && colour.isContinuous());
+    if (k > 0) EXPECT_NE(grey.data, input.stack.images[k - 1].data);
+    const cv::Vec3d& l = rgb_intensity[k];
+    const double mean = (l[0] + l[1] + l[2]) / 3.0;
+    EXPECT_DOUBLE_EQ(input.stack.light_scales[k], mean);
+    for (int y = 0; y < kSize; ++y)
+      for (int x = 0; x < kSize; ++x) {
+        const cv::Vec3w bgr = written[k].at<cv::Vec3w>(y, x);
+        double expected = 0.0;
+        for (int c = 0; c < 3; ++c) expected += bgr[c] * mean / (3.0 * l[2 - c]);
+        ASSERT_NEAR(grey.at<float>(y, x), expected, 1e-5 * expected) << "frame " << k << " at " << x << "," << y;
+        const cv::Vec3f rgb = colour.at<cv::Vec3f>(y, x);
+        const bool top = bgr[0] == 65535 || bgr[1] == 65535 || bgr[2] == 65535;
+        for (int c = 0; c < 3; ++c) {
+          if (top)
+            ASSERT_TRUE(std::isinf(rgb[c])) << "frame " << k << " at " << x << "," << y;
+          else
+            ASSERT_EQ(rgb[c], bgr[2 - c]) << "frame " << k << " at " << x << "," << y;
+        }
+      }
+  }
+}
+
+TEST_F(DiligentFolder, GreyImagesSavedAsRgbLoadAsAGreyStack) {
+  const PhotometricStereoInput input = Load();  // SetUp's images: all three channels equal
+  EXPECT_FALSE(input.color);
+  ASSERT_EQ(input.stack.light_count(), 4);
+  // 002's intensities are R 1.2, G 1.1, B 1.0: grey = 25200 mean(L) / 3 sum_c 1 / L_c.
+  const double mean = 1.1, expected = 25200.0 * mean / 3.0 * (1.0 / 1.2 + 1.0 / 1.1 + 1.0 / 1.0);
+  EXPECT_NEAR(input.stack.images[1].at<float>(4, 4), expected, 1e-5 * expected);
+}
+
 TEST_F(DiligentFolder, EightBitImagesAmongSixteenBitOnesAreRefusedByName) {
   WriteImageFile(3, CV_8U);
   const std::string error = LoadError();

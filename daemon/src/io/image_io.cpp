@@ -7,10 +7,12 @@
 #include <libdeflate.h>
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
@@ -127,6 +129,21 @@ cv::Mat ReadFloatTiff(const std::string& path) {
   if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2RGB);
   return image;
 }
+
+cv::Mat AllocateFrameSlab(int count, cv::Size size, int type) {
+  cv::Mat slab(count * size.height, size.width, type);
+  // Advice only for whole 2 MB pages inside the allocation, before any is
+  // touched; a kernel without transparent huge pages refuses it, and the
+  // slab is then an ordinary allocation.
+  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
+  const auto begin = reinterpret_cast<std::uintptr_t>(slab.data);
+  const std::uintptr_t end = begin + slab.total() * slab.elemSize();
+  const std::uintptr_t first = (begin + kHugePage - 1) & ~(kHugePage - 1), last = end & ~(kHugePage - 1);
+  if (last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+  return slab;
+}
+
+cv::Mat FrameOfSlab(const cv::Mat& slab, int frame, int rows) { return slab.rowRange(frame * rows, (frame + 1) * rows); }
 
 cv::Mat NormalsToBgr8(const cv::Mat& normals) {
   cv::Mat out(normals.size(), CV_8UC3, cv::Scalar::all(0));

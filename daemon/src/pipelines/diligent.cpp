@@ -10,6 +10,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <array>
+#include <atomic>
+#include <exception>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -17,6 +19,8 @@
 #include <map>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
+#include <vector>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
@@ -35,6 +39,110 @@ cv::Mat ReadFolderImage(const fs::path& file) {
   cv::Mat image = TryReadImage(file.string(), cv::IMREAD_UNCHANGED, &why);
   if (image.empty()) Malformed(file, 0, "cannot read as an image (" + why + ")");
   return image;
+}
+
+// One image of the folder as the solve takes it (see LoadDiligent): the grey
+// frame, channel c scaled by mean(L) / (L_c * channels), and for an RGB image
+// the colour frame in R G B, every channel of a pixel with any at the top code
+// +inf (clipped). Made in one pass over the decoded pixels, into the stack's
+// slabs: splitting, converting and comparing channel by channel made eight
+// intermediate images a frame (11 MB of fresh pages for a 612 x 512 colour
+// image) and took most of a load.
+struct FolderFrame {
+  std::string why;              // the file does not decode: why (the rest is empty)
+  std::exception_ptr failure;   // anything else that went wrong (out of memory)
+  cv::Size size;
+  int depth = 0, channels = 0;  // as decoded
+  bool channels_differ = false; // a 3-channel image whose channels differ somewhere (colour, not grey saved as RGB)
+};
+
+template <typename T>
+void ConvertFolderPixels(const cv::Mat& image, const float* scale, cv::Mat& grey_frame, cv::Mat& rgb_frame,
+                         FolderFrame* frame) {
+  const int channels = image.channels(), columns = image.cols;
+  if (channels != 3) {
+    for (int r = 0; r < image.rows; ++r) {
+      const T* in = image.ptr<T>(r);
+      float* grey = grey_frame.ptr<float>(r);
+      for (int x = 0; x < columns; ++x, in += channels) {
+        float sum = 0.0f;  // the channels in order, as the sum of per-channel images added
+        for (int c = 0; c < channels; ++c) sum += static_cast<float>(in[c]) * scale[c];
+        grey[x] = sum;
+      }
+    }
+    return;
+  }
+  // The top code of the stored depth: 8-bit 255, anything deeper 65535.
+  const float full_scale = image.depth() == CV_8U ? 255.0f : 65535.0f;
+  const float clipped = std::numeric_limits<float>::infinity();
+  bool differ = false;
+  for (int r = 0; r < image.rows; ++r) {
+    const T* in = image.ptr<T>(r);
+    float* grey = grey_frame.ptr<float>(r);
+    float* rgb = rgb_frame.ptr<float>(r);
+    for (int x = 0; x < columns; ++x, in += 3, rgb += 3) {
+      const float b = static_cast<float>(in[0]), g = static_cast<float>(in[1]), red = static_cast<float>(in[2]);
+      grey[x] = (b * scale[0] + g * scale[1]) + red * scale[2];  // OpenCV's order: B G R
+      differ |= (b != g) | (g != red);
+      const bool top = (b >= full_scale) | (g >= full_scale) | (red >= full_scale);
+      rgb[0] = top ? clipped : red;
+      rgb[1] = top ? clipped : g;
+      rgb[2] = top ? clipped : b;
+    }
+  }
+  frame->channels_differ = differ;
+}
+
+// Converts the decoded `image` into grey_frame and rgb_frame if it has the
+// stack's size, depth and channels (those of `like`, or any when `like` is
+// null). intensity: the file's line of light_intensities.txt (R G B).
+FolderFrame ConvertFolderFrame(const cv::Mat& image, const cv::Vec3d& intensity, const FolderFrame* like,
+                               cv::Mat grey_frame, cv::Mat rgb_frame) {
+  FolderFrame frame;
+  frame.size = image.size();
+  frame.depth = image.depth();
+  frame.channels = image.channels();
+  if (like && (frame.size != like->size || frame.depth != like->depth || frame.channels != like->channels))
+    return frame;  // LoadDiligent refuses it, naming both
+  // Colour-balance each channel by its intensity but keep the sensor's scale:
+  // grey = mean_c(I_c * mean(L) / L_c), light scale = mean(L). Thresholds in
+  // DN (shadows, quantisation) then keep their meaning.
+  const double mean_intensity = (intensity[0] + intensity[1] + intensity[2]) / 3.0;
+  std::vector<float> scale(frame.channels);
+  for (int c = 0; c < frame.channels; ++c) {
+    // OpenCV reads BGR; light_intensities.txt lists R G B.
+    const double channel_intensity = frame.channels == 3 ? intensity[2 - c] : mean_intensity;
+    scale[c] = static_cast<float>(mean_intensity / (channel_intensity * frame.channels));
+  }
+  switch (image.depth()) {
+    case CV_8U: ConvertFolderPixels<std::uint8_t>(image, scale.data(), grey_frame, rgb_frame, &frame); break;
+    case CV_16U: ConvertFolderPixels<std::uint16_t>(image, scale.data(), grey_frame, rgb_frame, &frame); break;
+    case CV_32F: ConvertFolderPixels<float>(image, scale.data(), grey_frame, rgb_frame, &frame); break;
+    default: {  // signed or double data (rare in an image file): through float
+      cv::Mat as_float;
+      image.convertTo(as_float, CV_32F);
+      ConvertFolderPixels<float>(as_float, scale.data(), grey_frame, rgb_frame, &frame);
+    }
+  }
+  return frame;
+}
+
+// Decodes `file` and converts it as ConvertFolderFrame does; failures are kept
+// in the frame, for LoadDiligent to report in file order.
+FolderFrame ReadFolderFrame(const fs::path& file, const cv::Vec3d& intensity, const FolderFrame& like,
+                            const cv::Mat& grey_frame, const cv::Mat& rgb_frame) try {
+  std::string why;
+  const cv::Mat image = TryReadImage(file.string(), cv::IMREAD_UNCHANGED, &why);
+  if (image.empty()) {
+    FolderFrame failed;
+    failed.why = why.empty() ? "empty image" : why;
+    return failed;
+  }
+  return ConvertFolderFrame(image, intensity, &like, grey_frame, rgb_frame);
+} catch (...) {
+  FolderFrame failed;
+  failed.failure = std::current_exception();
+  return failed;
 }
 
 // Non-blank lines with their 1-based line numbers.
@@ -218,7 +326,36 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   const fs::path directions_file = root / "light_directions.txt", intensities_file = root / "light_intensities.txt";
   const auto directions = ReadTriples(directions_file, names.size());
   const auto intensities = ReadTriples(intensities_file, names.size());
-  cv::Mat first;
+  // Decoding and converting are most of a load (96 PNGs for DiLiGenT): the
+  // first image sizes the stack's slabs, then the frames are made on every
+  // core and checked and kept in file order, so the fault reported is the
+  // first the file order meets.
+  std::vector<FolderFrame> frames(names.size());
+  cv::Mat grey_slab, rgb_slab;
+  std::string why;
+  if (const cv::Mat head = TryReadImage((root / names[0].second).string(), cv::IMREAD_UNCHANGED, &why); head.empty()) {
+    frames[0].why = why.empty() ? "empty image" : why;
+  } else {
+    const int count = static_cast<int>(frames.size()), rows = head.rows;
+    grey_slab = AllocateFrameSlab(count, head.size(), CV_32F);
+    if (head.channels() == 3) rgb_slab = AllocateFrameSlab(count, head.size(), CV_32FC3);
+    auto slice = [&](const cv::Mat& slab, std::size_t i) {
+      return slab.empty() ? cv::Mat() : FrameOfSlab(slab, static_cast<int>(i), rows);
+    };
+    frames[0] = ConvertFolderFrame(head, intensities[0].second, nullptr, slice(grey_slab, 0), slice(rgb_slab, 0));
+    std::atomic<std::size_t> next{1};
+    auto convert = [&] {
+      for (std::size_t i; (i = next++) < frames.size();)
+        frames[i] = ReadFolderFrame(root / names[i].second, intensities[i].second, frames[0], slice(grey_slab, i),
+                                    slice(rgb_slab, i));
+    };
+    const std::size_t workers = std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), frames.size());
+    std::vector<std::thread> helpers;
+    for (std::size_t w = 1; w < workers; ++w) helpers.emplace_back(convert);
+    convert();
+    for (std::thread& helper : helpers) helper.join();
+  }
+  const FolderFrame* first = nullptr;
   bool colour_seen = false;
   for (std::size_t i = 0; i < names.size(); ++i) {
     const fs::path file = root / names[i].second;
@@ -228,47 +365,30 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
     if (!fs::is_regular_file(file, error))
       Malformed(names_file, names[i].first,
                 "'" + names[i].second + "' is not a file in " + root.string() + (error ? " (" + error.message() + ")" : ""));
-    const cv::Mat image = ReadFolderImage(file);
-    if (first.empty()) {
-      first = image;
-    } else if (image.size() != first.size() || image.depth() != first.depth() || image.channels() != first.channels()) {
+    FolderFrame& frame = frames[i];
+    if (frame.failure) std::rethrow_exception(frame.failure);
+    if (!frame.why.empty()) Malformed(file, 0, "cannot read as an image (" + frame.why + ")");
+    if (!first) {
+      first = &frame;
+    } else if (frame.size != first->size || frame.depth != first->depth || frame.channels != first->channels) {
       // Mixed bit depths solve with "success" at several times the error: the
       // 8-bit images are 257 times too dark for their light.
-      Malformed(file, 0, std::to_string(image.cols) + "x" + std::to_string(image.rows) + " " + DepthName(image.depth()) +
-                             " with " + std::to_string(image.channels()) + " channel(s), but " + names[0].second + " is " +
-                             std::to_string(first.cols) + "x" + std::to_string(first.rows) + " " + DepthName(first.depth()) +
-                             " with " + std::to_string(first.channels()) +
+      Malformed(file, 0, std::to_string(frame.size.width) + "x" + std::to_string(frame.size.height) + " " +
+                             DepthName(frame.depth) + " with " + std::to_string(frame.channels) + " channel(s), but " +
+                             names[0].second + " is " + std::to_string(first->size.width) + "x" +
+                             std::to_string(first->size.height) + " " + DepthName(first->depth) + " with " +
+                             std::to_string(first->channels) +
                              ": every image of a stack must share size, bit depth and channels (re-export it)");
     }
     const auto& [intensity_line, rgb] = intensities[i];
     for (int c = 0; c < 3; ++c)
       if (!(rgb[c] >= kMinLightIntensity && rgb[c] <= kMaxLightIntensity))
         Malformed(intensities_file, intensity_line, "intensities must lie in [1e-6, 1e6] (relative units, of order 1)");
-    // Colour-balance each channel by its intensity but keep the sensor's scale:
-    // grey = mean_c(I_c * mean(L) / L_c), light scale = mean(L). Thresholds in
-    // DN (shadows, quantisation) then keep their meaning.
-    std::vector<cv::Mat> channels;
-    cv::split(image, channels);
-    const double mean_intensity = (rgb[0] + rgb[1] + rgb[2]) / 3.0;
-    cv::Mat grey = cv::Mat::zeros(image.size(), CV_32F);
-    for (std::size_t c = 0; c < channels.size(); ++c) {
-      // OpenCV reads BGR; light_intensities.txt lists R G B.
-      const double intensity = channels.size() == 3 ? rgb[2 - c] : mean_intensity;
-      cv::Mat channel;
-      channels[c].convertTo(channel, CV_32F, mean_intensity / (intensity * channels.size()));
-      grey += channel;
-    }
-    input.stack.images.push_back(grey);
+    input.stack.images.push_back(FrameOfSlab(grey_slab, static_cast<int>(i), frame.size.height));
     input.stack.light_directions.push_back(LightDirection(directions_file, directions[i].first, directions[i].second));
-    input.stack.light_scales.push_back(mean_intensity);
-    // Grey images saved as RGB (a monochrome camera's, an export of a
-    // monochrome run) carry no colour: all three channels agree.
-    if (image.channels() == 3 && !colour_seen) {
-      std::vector<cv::Mat> bgr;
-      cv::split(image, bgr);
-      colour_seen = cv::countNonZero(bgr[0] != bgr[1]) > 0 || cv::countNonZero(bgr[1] != bgr[2]) > 0;
-    }
-    if (image.channels() == 3) {
+    input.stack.light_scales.push_back((rgb[0] + rgb[1] + rgb[2]) / 3.0);
+    colour_seen = colour_seen || frame.channels_differ;
+    if (frame.channels == 3) {
       // Colour kept as well: each channel's albedo is fitted under that
       // channel's intensity once the normals are solved on the grey stack.
       if (!input.color) {
@@ -278,14 +398,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
         input.color->provenance.color_space = "camera-rgb";
         input.color->provenance.light_colors = intensities_file.string() + " per channel";
       }
-      cv::Mat frame_rgb;
-      cv::cvtColor(image, frame_rgb, cv::COLOR_BGR2RGB);
-      const double full_scale = image.depth() == CV_8U ? 255.0 : 65535.0;
-      cv::Mat clipped;  // any channel at the top code
-      cv::transform(frame_rgb >= full_scale, clipped, cv::Matx13f(1, 1, 1));
-      frame_rgb.convertTo(frame_rgb, CV_32F);
-      frame_rgb.setTo(cv::Scalar::all(std::numeric_limits<float>::infinity()), clipped != 0);
-      input.color->images.push_back(frame_rgb);
+      input.color->images.push_back(FrameOfSlab(rgb_slab, static_cast<int>(i), frame.size.height));
       input.color->light_directions.push_back(input.stack.light_directions.back());
       input.color->light_scales.emplace_back(rgb[0], rgb[1], rgb[2]);  // light_intensities.txt: R G B
     }
@@ -297,9 +410,9 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   std::error_code error;
   if (fs::exists(mask_file, error)) {
     cv::Mat mask = ReadFolderImage(mask_file);
-    if (mask.size() != first.size())
+    if (mask.size() != first->size)
       Malformed(mask_file, 0, std::to_string(mask.cols) + "x" + std::to_string(mask.rows) + ", but the images are " +
-                                  std::to_string(first.cols) + "x" + std::to_string(first.rows));
+                                  std::to_string(first->size.width) + "x" + std::to_string(first->size.height));
     if (mask.channels() > 1) cv::extractChannel(mask, mask, 0);
     if (mask.depth() != CV_8U) mask.convertTo(mask, CV_8U, 1.0 / 257.0);
     input.object_mask = mask > 0;
@@ -308,7 +421,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
     input.mask_source = mask_file.string();
   }
   if (fs::exists(root / "Normal_gt.mat", error))
-    input.truth_normals = ReadNormalsMat(root / "Normal_gt.mat", first.size(), input.object_mask);
+    input.truth_normals = ReadNormalsMat(root / "Normal_gt.mat", first->size, input.object_mask);
   return input;
 }
 

@@ -39,6 +39,15 @@ cv::Mat TryReadImage(const std::string& path, int imread_flags, std::string* why
 // that cannot be read is the request's fault, so std::invalid_argument.
 cv::Mat ReadInputImage(const std::string& path, int imread_flags = cv::IMREAD_UNCHANGED);
 
+// `count` frames of one size and type in one allocation, frame i as rows
+// [i * size.height, (i + 1) * size.height) (FrameOfSlab): each continuous,
+// each sharing the allocation's reference count. The kernel is asked to back
+// it with 2 MB pages (MADV_HUGEPAGE, where transparent huge pages are
+// allowed at all): a 96-light stack of 612 x 512 colour frames is 480 MB,
+// 120,000 first-touch faults in 4 KB pages, a quarter of loading it.
+cv::Mat AllocateFrameSlab(int count, cv::Size size, int type);
+cv::Mat FrameOfSlab(const cv::Mat& slab, int frame, int rows);
+
 // 8-bit view for people: normals as RGB = (n + 1) / 2 (other views: previews.h).
 cv::Mat NormalsToBgr8(const cv::Mat& normals);
 
