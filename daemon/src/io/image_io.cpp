@@ -10,6 +10,8 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
@@ -17,6 +19,7 @@
 #include <filesystem>
 #include <stdexcept>
 #include <system_error>
+#include <thread>
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
@@ -144,6 +147,24 @@ cv::Mat AllocateFrameSlab(int count, cv::Size size, int type) {
 }
 
 cv::Mat FrameOfSlab(const cv::Mat& slab, int frame, int rows) { return slab.rowRange(frame * rows, (frame + 1) * rows); }
+
+std::vector<std::exception_ptr> LoadOnEveryCore(std::size_t count, const std::function<void(std::size_t)>& load) {
+  std::vector<std::exception_ptr> failures(count);
+  std::atomic<std::size_t> next{0};
+  auto work = [&] {
+    for (std::size_t i; (i = next++) < count;) try {
+        load(i);
+      } catch (...) {
+        failures[i] = std::current_exception();
+      }
+  };
+  const std::size_t workers = std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), count);
+  std::vector<std::thread> helpers;
+  for (std::size_t w = 1; w < workers; ++w) helpers.emplace_back(work);
+  work();
+  for (std::thread& helper : helpers) helper.join();
+  return failures;
+}
 
 cv::Mat NormalsToBgr8(const cv::Mat& normals) {
   cv::Mat out(normals.size(), CV_8UC3, cv::Scalar::all(0));

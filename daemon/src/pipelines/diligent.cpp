@@ -10,7 +10,6 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <array>
-#include <atomic>
 #include <exception>
 #include <cmath>
 #include <cstdio>
@@ -19,7 +18,6 @@
 #include <map>
 #include <sstream>
 #include <stdexcept>
-#include <thread>
 #include <vector>
 
 namespace photorig::daemon {
@@ -50,7 +48,6 @@ cv::Mat ReadFolderImage(const fs::path& file) {
 // image) and took most of a load.
 struct FolderFrame {
   std::string why;              // the file does not decode: why (the rest is empty)
-  std::exception_ptr failure;   // anything else that went wrong (out of memory)
   cv::Size size;
   int depth = 0, channels = 0;  // as decoded
   bool channels_differ = false; // a 3-channel image whose channels differ somewhere (colour, not grey saved as RGB)
@@ -127,10 +124,10 @@ FolderFrame ConvertFolderFrame(const cv::Mat& image, const cv::Vec3d& intensity,
   return frame;
 }
 
-// Decodes `file` and converts it as ConvertFolderFrame does; failures are kept
-// in the frame, for LoadDiligent to report in file order.
+// Decodes `file` and converts it as ConvertFolderFrame does; one that does not
+// decode says why in the frame, for LoadDiligent to report in file order.
 FolderFrame ReadFolderFrame(const fs::path& file, const cv::Vec3d& intensity, const FolderFrame& like,
-                            const cv::Mat& grey_frame, const cv::Mat& rgb_frame) try {
+                            const cv::Mat& grey_frame, const cv::Mat& rgb_frame) {
   std::string why;
   const cv::Mat image = TryReadImage(file.string(), cv::IMREAD_UNCHANGED, &why);
   if (image.empty()) {
@@ -139,10 +136,6 @@ FolderFrame ReadFolderFrame(const fs::path& file, const cv::Vec3d& intensity, co
     return failed;
   }
   return ConvertFolderFrame(image, intensity, &like, grey_frame, rgb_frame);
-} catch (...) {
-  FolderFrame failed;
-  failed.failure = std::current_exception();
-  return failed;
 }
 
 // Non-blank lines with their 1-based line numbers.
@@ -331,6 +324,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   // core and checked and kept in file order, so the fault reported is the
   // first the file order meets.
   std::vector<FolderFrame> frames(names.size());
+  std::vector<std::exception_ptr> failures(frames.size());
   cv::Mat grey_slab, rgb_slab;
   std::string why;
   if (const cv::Mat head = TryReadImage((root / names[0].second).string(), cv::IMREAD_UNCHANGED, &why); head.empty()) {
@@ -343,17 +337,11 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
       return slab.empty() ? cv::Mat() : FrameOfSlab(slab, static_cast<int>(i), rows);
     };
     frames[0] = ConvertFolderFrame(head, intensities[0].second, nullptr, slice(grey_slab, 0), slice(rgb_slab, 0));
-    std::atomic<std::size_t> next{1};
-    auto convert = [&] {
-      for (std::size_t i; (i = next++) < frames.size();)
+    failures = LoadOnEveryCore(frames.size(), [&](std::size_t i) {
+      if (i > 0)  // the first is made
         frames[i] = ReadFolderFrame(root / names[i].second, intensities[i].second, frames[0], slice(grey_slab, i),
                                     slice(rgb_slab, i));
-    };
-    const std::size_t workers = std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), frames.size());
-    std::vector<std::thread> helpers;
-    for (std::size_t w = 1; w < workers; ++w) helpers.emplace_back(convert);
-    convert();
-    for (std::thread& helper : helpers) helper.join();
+    });
   }
   const FolderFrame* first = nullptr;
   bool colour_seen = false;
@@ -366,7 +354,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
       Malformed(names_file, names[i].first,
                 "'" + names[i].second + "' is not a file in " + root.string() + (error ? " (" + error.message() + ")" : ""));
     FolderFrame& frame = frames[i];
-    if (frame.failure) std::rethrow_exception(frame.failure);
+    if (failures[i]) std::rethrow_exception(failures[i]);
     if (!frame.why.empty()) Malformed(file, 0, "cannot read as an image (" + frame.why + ")");
     if (!first) {
       first = &frame;

@@ -239,10 +239,24 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
   const double saturation = manifest.saturation_dn > 0.0 ? std::min(manifest.saturation_dn, top_code) : top_code;
   const bool colour = manifest.mosaic != "mono";
+  // Only darks and single-LED frames enter the stack: flats, patterns and
+  // gonioreflectometer poses (led -1) light several LEDs or none on their own.
+  // Bracketed and repeated frames of one LED are extra rows, each scaled by
+  // its own exposure; the solver drops their saturated samples, so a bracket
+  // merges into one least-squares fit.
+  std::vector<const FrameRecord*> records;
+  int lit = 0;
+  for (const FrameRecord& record : manifest.frames) {
+    const bool dark = record.kind == config::CaptureStep::Kind::kDark;
+    if (!dark && (record.kind != config::CaptureStep::Kind::kLight || record.led < 0)) continue;
+    records.push_back(&record);
+    lit += dark ? 0 : 1;
+  }
+  // A monochrome stack's frames go straight into one slab (AllocateFrameSlab).
+  const cv::Mat slab = colour || lit == 0 ? cv::Mat() : AllocateFrameSlab(lit, {manifest.width, manifest.height}, CV_32F);
   // A colour frame's luminance stand-in is the sum of its camera channels
   // (after demosaicing); a pixel any clipped raw sample reached is clipped in it.
-  auto to_float = [&](const cv::Mat& raw) {
-    cv::Mat out;
+  auto to_float = [&](const cv::Mat& raw, cv::Mat out) {
     if (!colour) {
       raw.convertTo(out, CV_32F);
       return out;
@@ -260,16 +274,22 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
     out.setTo(3.0 * saturation, clipped);
     return out;
   };
+  // Decoding and checking the frames is most of a load: on all cores, then
+  // taken in the manifest's order, so a fault is reported where that order meets it.
+  std::vector<cv::Mat> frames(records.size());
+  std::vector<int> slots(records.size(), -1);
+  for (std::size_t i = 0, slot = 0; i < records.size(); ++i)
+    if (records[i]->kind != config::CaptureStep::Kind::kDark) slots[i] = static_cast<int>(slot++);
+  const std::vector<std::exception_ptr> failures = LoadOnEveryCore(records.size(), [&](std::size_t i) {
+    const cv::Mat into = slab.empty() || slots[i] < 0 ? cv::Mat() : FrameOfSlab(slab, slots[i], manifest.height);
+    frames[i] = to_float(LoadFrame(run_directory, *records[i]), into);
+  });
   std::vector<cv::Mat> darks;
   std::vector<const config::LedConfig*> stack_leds;  // the LED of each image
-  for (const FrameRecord& record : manifest.frames) {
-    // Only darks and single-LED frames enter the stack: flats, patterns and
-    // gonioreflectometer poses (led -1) light several LEDs or none on their own.
-    // Bracketed and repeated frames of one LED are extra rows, each scaled by
-    // its own exposure; the solver drops their saturated samples, so a bracket
-    // merges into one least-squares fit.
-    if (record.kind != config::CaptureStep::Kind::kDark && (record.kind != config::CaptureStep::Kind::kLight || record.led < 0)) continue;
-    const cv::Mat frame = to_float(LoadFrame(run_directory, record));
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    const FrameRecord& record = *records[i];
+    if (failures[i]) std::rethrow_exception(failures[i]);
+    const cv::Mat& frame = frames[i];
     if (frame.cols != manifest.width || frame.rows != manifest.height)
       throw std::runtime_error(run_directory + "/" + record.file + ": frame is " + std::to_string(frame.cols) + "x" +
                                std::to_string(frame.rows) + ", the run is " + std::to_string(manifest.width) + "x" +
@@ -278,7 +298,7 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
       darks.push_back(frame);
       continue;
     }
-    if (record.led < 0 || record.led >= static_cast<int>(manifest.lights.size()))
+    if (record.led >= static_cast<int>(manifest.lights.size()))
       throw std::runtime_error(run_directory + "/manifest.json: frame " + record.file + " names LED index " +
                                std::to_string(record.led) + " outside the rig's " +
                                std::to_string(manifest.lights.size()) + " LEDs");

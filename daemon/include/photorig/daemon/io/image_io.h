@@ -6,6 +6,9 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include <cstddef>
+#include <exception>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -47,6 +50,10 @@ cv::Mat ReadInputImage(const std::string& path, int imread_flags = cv::IMREAD_UN
 // 120,000 first-touch faults in 4 KB pages, a quarter of loading it.
 cv::Mat AllocateFrameSlab(int count, cv::Size size, int type);
 cv::Mat FrameOfSlab(const cv::Mat& slab, int frame, int rows);
+// Runs load(i) for every i in [0, count) on all cores (decoding and checking
+// a stack's image files is most of loading it) and returns what each call
+// threw (null where none), so that the caller reports faults in its own order.
+std::vector<std::exception_ptr> LoadOnEveryCore(std::size_t count, const std::function<void(std::size_t)>& load);
 
 // 8-bit view for people: normals as RGB = (n + 1) / 2 (other views: previews.h).
 cv::Mat NormalsToBgr8(const cv::Mat& normals);
