@@ -1,5 +1,7 @@
 #include "photorig/daemon/pipelines/color_stack.h"
 
+#include "photorig/daemon/io/image_io.h"
+
 #include "photorig/solvers/color/apply.h"
 #include "photorig/solvers/color/region_demosaic.h"
 #include "photorig/config/rig.h"
@@ -56,8 +58,12 @@ solvers::ps::PhotometricStack ColorImageStack::Channel(int c) const {
   solvers::ps::PhotometricStack stack;
   stack.light_directions = light_directions;
   stack.images.reserve(images.size());
+  // One slab for the channel's frames (AllocateFrameSlab): a DiLiGenT
+  // object's three channels are 360 MB of fresh pages.
+  const cv::Mat slab = images.empty() ? cv::Mat()
+                                      : AllocateFrameSlab(static_cast<int>(images.size()), images.front().size(), CV_32F);
   for (std::size_t k = 0; k < images.size(); ++k) {
-    cv::Mat channel;
+    cv::Mat channel = FrameOfSlab(slab, static_cast<int>(k), images.front().rows);
     cv::extractChannel(images[k], channel, c);
     stack.images.push_back(channel);
     stack.light_scales.push_back(light_scales[k][c]);
