@@ -13,6 +13,7 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <filesystem>
 
@@ -109,15 +110,22 @@ TEST(RecipeGroups, CompileToLabelledStepsWithKindsPatternsAndExposures) {
   EXPECT_FALSE(PlanRun(recipe, rig, steps, options).ok());
 }
 
-TEST(RecipeGroups, CaptureWritesEveryFrameAndPhotometricStereoUsesOnlySingleLedFrames) {
-  TempDir dir;
+// kMixedSteps captured on the noise-free small rig into dir/run, unsolved.
+RunRequest CaptureMixedSteps(const TempDir& dir) {
   dir.Write("rig.yaml", SmallRigYaml() + "  sensor: {read_noise_e: 0, shot_noise: false}\n");
   RunRequest request;
   request.recipe_path = dir.Write("r.yaml", RecipeWithSteps(kMixedSteps));
   request.output_directory = (dir.path() / "run").string();
   request.solve = false;
   const RunOutcome outcome = ExecuteRun(request);
-  ASSERT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;
+  EXPECT_EQ(outcome.capture.status, CaptureStatus::kComplete) << outcome.capture.reason;
+  return request;
+}
+
+TEST(RecipeGroups, CaptureWritesEveryFrameAndPhotometricStereoUsesOnlySingleLedFrames) {
+  TempDir dir;
+  const RunRequest request = CaptureMixedSteps(dir);
+  ASSERT_FALSE(::testing::Test::HasFailure());
 
   const RunManifest manifest = LoadRunManifest(request.output_directory);
   ASSERT_EQ(manifest.frames.size(), 22u);
@@ -151,6 +159,41 @@ TEST(RecipeGroups, CaptureWritesEveryFrameAndPhotometricStereoUsesOnlySingleLedF
   EXPECT_EQ(input.stack.images.size(), 16u);
   EXPECT_EQ(input.dark_frames, 2);
   EXPECT_NEAR(input.stack.light_scales[1] / input.stack.light_scales[0], 4.0, 1e-9);
+}
+
+// The stack's frames are loaded on all cores: each is still its own frame's
+// samples in the manifest's order, and of two damaged frames the error names
+// the one the manifest lists first.
+TEST(RecipeGroups, AStackIsItsFramesInOrderAndTheFirstDamagedFrameIsNamed) {
+  TempDir dir;
+  const RunRequest request = CaptureMixedSteps(dir);
+  ASSERT_FALSE(::testing::Test::HasFailure());
+  const RunManifest manifest = LoadRunManifest(request.output_directory);
+  const PhotometricStereoInput input = LoadRunStack(request.output_directory);
+  std::vector<const FrameRecord*> lit;
+  for (const FrameRecord& record : manifest.frames)
+    if (record.kind == config::CaptureStep::Kind::kLight && record.led >= 0) lit.push_back(&record);
+  ASSERT_EQ(input.stack.images.size(), lit.size());
+  for (std::size_t k = 0; k < lit.size(); ++k) {
+    cv::Mat raw;
+    LoadFrame(request.output_directory, *lit[k]).convertTo(raw, CV_32F);
+    EXPECT_EQ(cv::norm(input.stack.images[k], raw, cv::NORM_INF), 0.0) << lit[k]->file;
+    EXPECT_EQ(input.image_leds[k], lit[k]->led) << lit[k]->file;
+  }
+  // Damage the 3rd and the 12th single-LED frames: other pixels, same size.
+  for (const std::size_t k : {11u, 2u}) {
+    cv::Mat frame = LoadFrame(request.output_directory, *lit[k]);
+    frame += cv::Scalar::all(7);
+    ASSERT_TRUE(cv::imwrite((std::filesystem::path(request.output_directory) / lit[k]->file).string(), frame));
+  }
+  try {
+    LoadRunStack(request.output_directory);
+    ADD_FAILURE() << "a damaged frame loaded";
+  } catch (const std::runtime_error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(lit[2]->file), std::string::npos) << message;
+    EXPECT_NE(message.find("checksum"), std::string::npos) << message;
+  }
 }
 
 // The rig's LED limits hold at dry-run: a plan the safety layer would cut
