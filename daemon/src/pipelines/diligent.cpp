@@ -124,18 +124,20 @@ FolderFrame ConvertFolderFrame(const cv::Mat& image, const cv::Vec3d& intensity,
   return frame;
 }
 
+// An image of the folder, unchanged; empty with `why` set if it does not decode.
+cv::Mat DecodeFolderImage(const fs::path& file, std::string* why) {
+  cv::Mat image = TryReadImage(file.string(), cv::IMREAD_UNCHANGED, why);
+  if (image.empty() && why->empty()) *why = "empty image";
+  return image;
+}
+
 // Decodes `file` and converts it as ConvertFolderFrame does; one that does not
 // decode says why in the frame, for LoadDiligent to report in file order.
 FolderFrame ReadFolderFrame(const fs::path& file, const cv::Vec3d& intensity, const FolderFrame& like,
                             const cv::Mat& grey_frame, const cv::Mat& rgb_frame) {
-  std::string why;
-  const cv::Mat image = TryReadImage(file.string(), cv::IMREAD_UNCHANGED, &why);
-  if (image.empty()) {
-    FolderFrame failed;
-    failed.why = why.empty() ? "empty image" : why;
-    return failed;
-  }
-  return ConvertFolderFrame(image, intensity, &like, grey_frame, rgb_frame);
+  FolderFrame failed;
+  const cv::Mat image = DecodeFolderImage(file, &failed.why);
+  return image.empty() ? failed : ConvertFolderFrame(image, intensity, &like, grey_frame, rgb_frame);
 }
 
 // Non-blank lines with their 1-based line numbers.
@@ -326,10 +328,7 @@ PhotometricStereoInput LoadDiligent(const std::string& directory) {
   std::vector<FolderFrame> frames(names.size());
   std::vector<std::exception_ptr> failures(frames.size());
   cv::Mat grey_slab, rgb_slab;
-  std::string why;
-  if (const cv::Mat head = TryReadImage((root / names[0].second).string(), cv::IMREAD_UNCHANGED, &why); head.empty()) {
-    frames[0].why = why.empty() ? "empty image" : why;
-  } else {
+  if (const cv::Mat head = DecodeFolderImage(root / names[0].second, &frames[0].why); !head.empty()) {
     const int count = static_cast<int>(frames.size()), rows = head.rows;
     grey_slab = AllocateFrameSlab(count, head.size(), CV_32F);
     if (head.channels() == 3) rgb_slab = AllocateFrameSlab(count, head.size(), CV_32FC3);

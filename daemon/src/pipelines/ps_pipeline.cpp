@@ -245,12 +245,13 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   // its own exposure; the solver drops their saturated samples, so a bracket
   // merges into one least-squares fit.
   std::vector<const FrameRecord*> records;
+  std::vector<int> slots;  // a light frame's place in the stack; -1 for a dark
   int lit = 0;
   for (const FrameRecord& record : manifest.frames) {
     const bool dark = record.kind == config::CaptureStep::Kind::kDark;
     if (!dark && (record.kind != config::CaptureStep::Kind::kLight || record.led < 0)) continue;
     records.push_back(&record);
-    lit += dark ? 0 : 1;
+    slots.push_back(dark ? -1 : lit++);
   }
   // A monochrome stack's frames go straight into one slab (AllocateFrameSlab).
   const cv::Mat slab = colour || lit == 0 ? cv::Mat() : AllocateFrameSlab(lit, {manifest.width, manifest.height}, CV_32F);
@@ -277,9 +278,6 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   // Decoding and checking the frames is most of a load: on all cores, then
   // taken in the manifest's order, so a fault is reported where that order meets it.
   std::vector<cv::Mat> frames(records.size());
-  std::vector<int> slots(records.size(), -1);
-  for (std::size_t i = 0, slot = 0; i < records.size(); ++i)
-    if (records[i]->kind != config::CaptureStep::Kind::kDark) slots[i] = static_cast<int>(slot++);
   const std::vector<std::exception_ptr> failures = LoadOnEveryCore(records.size(), [&](std::size_t i) {
     const cv::Mat into = slab.empty() || slots[i] < 0 ? cv::Mat() : FrameOfSlab(slab, slots[i], manifest.height);
     frames[i] = to_float(LoadFrame(run_directory, *records[i]), into);
