@@ -207,6 +207,7 @@ void BM_Method(benchmark::State& state) {
   state.counters["lambertian_pct"] = 100.0 * summary.pixels_lambertian / solved;
   state.counters["blinn_phong_pct"] = 100.0 * summary.pixels_blinn_phong / solved;
   state.counters["low_frequency_pct"] = 100.0 * summary.pixels_low_frequency / solved;
+  state.counters["shared_lobe_pct"] = 100.0 * summary.pixels_shared_lobe / solved;  // `auto`'s step 5
   state.counters["mean_deg"] = photorig::solvers::ps::CompareNormals(map.normals, scene.truth_normals, stack.mask).mean_deg;
   // The last solve's steps (SolverSummary): where a method's time beyond `l2` goes.
   state.counters["tiles_ms"] = summary.tiles_ms;

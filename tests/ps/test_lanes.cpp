@@ -2,12 +2,15 @@
 // derivatives against forward-mode automatic differentiation, the trimming
 // against known outliers, IRLS against a plain implementation of the same
 // iteration, and `auto` in lanes against the per-pixel reference.
+#include "kernels/held_lobe_fit.h"
 #include "kernels/lobe_lane_fit.h"
 #include "kernels/irls_lambertian_fit.h"
 #include "kernels/lambertian_recheck.h"
 #include "kernels/lane_math.h"
 #include "kernels/trimmed_lambertian_fit.h"
 #include "lambertian_tiles.h"
+#include "per_pixel_fits.h"
+#include "sample_reader.h"
 
 #include "photorig/solvers/autodiff/blinn_phong_jacobian.h"
 #include "photorig/solvers/autodiff/ggx.h"
@@ -295,6 +298,90 @@ TEST(BlinnPhongLanes, FitsAgreeWithThePerPixelReference) {
     ++compared;
   }
   EXPECT_GE(compared, pixels * 8 / 10);
+}
+
+// Step 5's held lobe in lanes straight from the planes: on noise-free pixels
+// it lands on the true normal and rho_d from 3 deg off; on noisy ones it
+// lands where the general lane fitter lands with the same lobe held (from
+// rows read as step 5 reads them), and its Lambertian fit on the usable
+// samples is LambertianOnRow's.
+TEST(HeldLobeLanes, LandsWhereTheLaneFitterLandsWithTheLobeHeld) {
+  const auto lights = testing::RingLights(40, 25, 80);
+  const auto truth = testing::RandomSurface(9, 5, 40.0, 21);  // 45 pixels: not a multiple of the lane count
+  const testing::Specular lobe{0.4, 40.0};
+  const int pixels = truth.normals.rows * truth.normals.cols, n = static_cast<int>(lights.size());
+  LambertianOptions thresholds;
+  thresholds.shadow_threshold = 6.0;
+  for (const double noise : {0.0, 2.0}) {
+    SCOPED_TRACE(noise);
+    PhotometricStack stack = testing::RenderShinyStack(truth, lights, 2000.0, lobe, 20.0f, noise);
+    stack.noise.read_sigma = std::max(noise, 0.5);  // a finite weight for the noise-free stack
+    std::vector<internal::HeldLobeProblem> problems;
+    std::vector<Eigen::Vector3d> normals;
+    for (int p = 0; p < pixels; ++p) {
+      const cv::Vec3f t = truth.normals.ptr<cv::Vec3f>()[p];
+      const Eigen::Vector3d normal = Eigen::Vector3d(t[0], t[1], t[2]).normalized();
+      const Eigen::Vector3d start = (normal + 0.05 * normal.unitOrthogonal()).normalized();
+      const double albedo = truth.albedo.ptr<float>()[p];
+      problems.push_back({.pixel = p,
+                          .start_normal = start,
+                          .start_albedo = albedo,
+                          .specular_albedo = lobe.albedo,
+                          .exponent = lobe.exponent,
+                          .kept_x = start * albedo / M_PI});
+      normals.push_back(normal);
+    }
+    std::vector<internal::HeldLobeSolution> held(pixels);
+    internal::HeldLobeLanes(stack, thresholds, BlinnPhongOptions{}).Fit(problems, held);
+
+    const internal::SampleReader reader(stack, thresholds);
+    std::vector<double> observed(pixels * n), inverse_sigma(pixels * n);
+    std::vector<LobeProblem> rows;
+    for (int p = 0; p < pixels; ++p) {
+      int usable = 0;
+      reader.Row(p, problems[p].kept_x, &observed[p * n], &inverse_sigma[p * n], &usable);
+      LobeProblem row{&observed[p * n], &inverse_sigma[p * n], problems[p].start_normal, problems[p].start_albedo};
+      row.shared_specular_albedo = lobe.albedo, row.shared_exponent = lobe.exponent;
+      rows.push_back(row);
+      EXPECT_EQ(held[p].used, usable) << p;
+      const internal::PixelFit on_row =
+          internal::LambertianOnRow(reader, &observed[p * n], &inverse_sigma[p * n], problems[p].kept_x);
+      EXPECT_EQ(held[p].lambertian_ok, on_row.ok) << p;
+      EXPECT_NEAR(held[p].lambertian_chi2, on_row.chi2, 1e-4 * on_row.chi2 + 1e-3) << p;
+      EXPECT_LT((held[p].lambertian_x - on_row.normal * on_row.albedo / M_PI).norm(), 1e-5 * on_row.albedo) << p;
+    }
+    std::vector<LobeSolution> reference(pixels);
+    LobeLaneFitter(lights, Eigen::Vector3d::UnitZ(), BlinnPhongOptions{}).Fit(rows, reference);
+    for (int p = 0; p < pixels; ++p) {
+      ASSERT_TRUE(held[p].ok) << p;
+      ASSERT_TRUE(reference[p].ok) << p;
+      const double from_truth = std::atan2(held[p].normal.cross(normals[p]).norm(), held[p].normal.dot(normals[p]));
+      const double apart = std::atan2(held[p].normal.cross(reference[p].normal).norm(),
+                                      held[p].normal.dot(reference[p].normal));
+      if (noise == 0.0) {
+        EXPECT_LT(from_truth * 180 / M_PI, 1e-3) << p;
+        EXPECT_NEAR(held[p].diffuse_albedo, truth.albedo.ptr<float>()[p], 1e-4) << p;
+      }
+      // Both stop where a step changes chi-square by under 1e-5 of it: far
+      // within the noise's scatter of the normal (about 0.1 deg here).
+      EXPECT_LT(apart * 180 / M_PI, 0.01) << p;
+      EXPECT_NEAR(held[p].diffuse_albedo, reference[p].diffuse_albedo, 1e-3 * reference[p].diffuse_albedo) << p;
+      // Noise-free, both stop at float's floor: chi-square a few thousandths.
+      EXPECT_NEAR(held[p].chi2, reference[p].chi2, 1e-3 * reference[p].chi2 + 0.01) << p;
+      EXPECT_LT(held[p].iterations, BlinnPhongOptions{}.max_iterations) << p;
+    }
+  }
+  // A pixel in cast shadow under every light has nothing to fit: no usable
+  // sample and no Lambertian fit, which step 5 reads as "keep what it has".
+  PhotometricStack dark = testing::RenderShinyStack(truth, lights, 2000.0, lobe, 20.0f, 2.0);
+  for (cv::Mat& image : dark.images) image.ptr<float>()[0] = 20.0f;
+  const internal::HeldLobeProblem shadowed{.pixel = 0, .start_normal = Eigen::Vector3d::UnitZ(), .start_albedo = 0.5,
+                                           .specular_albedo = lobe.albedo, .exponent = lobe.exponent};
+  std::vector<internal::HeldLobeSolution> none(1);
+  internal::HeldLobeLanes(dark, thresholds, BlinnPhongOptions{}).Fit({&shadowed, 1}, none);
+  EXPECT_EQ(none[0].used, 0);
+  EXPECT_FALSE(none[0].lambertian_ok);
+  EXPECT_EQ(none[0].chi2, 0.0);
 }
 
 // Noise-free GGX pixels (autodiff::GgxPixel renders them), started 3 deg off

@@ -421,13 +421,21 @@ void ClimbSharedLobes(const ModelLadder& ladder, LobeLaneFitter& fitter, std::sp
     problem.shared_exponent = candidate.item->lobe.exponent;
   }
   const std::vector<LobeSolution> held = FitEach(fitter, problems);
-  problems.clear();
-  std::vector<std::size_t> owning;  // of `batch`: those the ladder asks for their own lobe
   for (std::size_t i = 0; i < batch.size(); ++i) {
     SharingCandidate& candidate = batch[i];
     candidate.lobe = LobeFitFrom(held[i], candidate.lambertian.used, PixelModel::kBlinnPhong);
     candidate.lobe.parameters = kSharedLobeParameters;
     candidate.lobe_fitted = true;
+  }
+  ClimbFromHeldLobes(ladder, fitter, batch, done);
+}
+
+void ClimbFromHeldLobes(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<SharingCandidate> batch,
+                        const std::function<void(const SharingCandidate&, const PixelFit& chosen)>& done) {
+  std::vector<LobeProblem> problems;
+  std::vector<std::size_t> owning;  // of `batch`: those the ladder asks for their own lobe
+  for (std::size_t i = 0; i < batch.size(); ++i) {
+    SharingCandidate& candidate = batch[i];
     const LadderStep step = ladder.NextWithSharedLobe(candidate.Fits());
     if (step.action == LadderStep::Action::kKeep) {
       done(candidate, *step.keep);

@@ -107,6 +107,11 @@ struct SharingCandidate {
 // test, its part is taken from candidate.Fits()).
 void ClimbSharedLobes(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<SharingCandidate> batch,
                       const std::function<void(const SharingCandidate&, const PixelFit& chosen)>& done);
+// The same climb from held lobes fitted already (each candidate's `lobe`,
+// lobe_fitted): the own lobes a shape test asks for, from the candidates'
+// rows (problem.observed, problem.inverse_sigma), then done().
+void ClimbFromHeldLobes(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<SharingCandidate> batch,
+                        const std::function<void(const SharingCandidate&, const PixelFit& chosen)>& done);
 
 // One pixel of a step-6 batch: the fit steps 1-5 kept, that fit judged on
 // every usable sample (`on_samples`, where the GGX fit starts), whether step

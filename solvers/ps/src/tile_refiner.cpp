@@ -91,6 +91,8 @@ struct TileRefiner::ThreadState {
   // Step 5: the pixels of a batch offered the shared lobe, and what it changed
   // (the pixels it took from each simpler model, the samples those had left out).
   std::vector<SharingCandidate> sharing;
+  std::vector<HeldLobeProblem> held_problems;
+  std::vector<HeldLobeSolution> held_solutions;
   std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0;
   // Step 6: the pixels that took a GGX lobe, by the model they had kept.
   std::size_t ggx = 0, ggx_from_lambertian = 0, ggx_from_trimmed = 0, ggx_from_blinn_phong = 0, ggx_from_held_lobe = 0;
@@ -115,6 +117,7 @@ TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const Lamberti
       screen_threshold_(ladder.ScreenThresholds()),
       reader_(stack, lambertian),
       recheck_(stack, lambertian),
+      held_lobes_(stack, lambertian, options.blinn_phong),
       per_pixel_(ladder, reader_, stack.view_direction, options.blinn_phong),
       threads_(threads),
       states_(threads) {
@@ -438,31 +441,57 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
     const std::size_t last = std::min(items.size(), first + kBatch);
     state.rows = 0;
     state.sharing.clear();
-    std::vector<std::size_t> rows;
+    state.held_problems.clear();
+    // Every pixel's held lobe and Lambertian fit on its usable samples in
+    // lanes from the planes; a row of doubles only for a pixel of its
+    // region's shape test, whose own lobe the lane fitter fits.
     for (std::size_t i = first; i < last; ++i) {
+      const PixelFit kept = FitInMap(*result_, items[i].pixel);
+      state.held_problems.push_back({.pixel = items[i].pixel,
+                                     .start_normal = kept.normal,
+                                     .start_albedo = kept.albedo,
+                                     .specular_albedo = items[i].lobe.specular_albedo,
+                                     .exponent = items[i].lobe.exponent,
+                                     .kept_x = kept.normal * kept.albedo / M_PI});
+    }
+    state.held_solutions.resize(state.held_problems.size());
+    held_lobes_.Fit(state.held_problems, state.held_solutions);
+    std::vector<std::size_t> rows;  // of the shape test's pixels, in the order of `sharing`
+    for (std::size_t i = first; i < last; ++i) {
+      const HeldLobeProblem& problem = state.held_problems[i - first];
+      const HeldLobeSolution& held = state.held_solutions[i - first];
       SharingCandidate candidate;
       candidate.item = &items[i];
       candidate.kept = FitInMap(*result_, items[i].pixel);
-      const Eigen::Vector3d x = candidate.kept.normal * candidate.kept.albedo / M_PI;
-      PixelFit tested;
-      const std::size_t row = GatherRow(state, items[i].pixel, x, &tested);
-      candidate.lambertian =
-          LambertianOnRow(reader_, &state.observed[row * lights_], &state.inverse_sigma[row * lights_], x);
-      if (ladder_.NextWithSharedLobe(candidate.Fits()).action != LadderStep::Action::kFitSharedLobe) {
-        --state.rows;
-        continue;
+      candidate.lambertian = LambertianFit(held.lambertian_x, held.lambertian_chi2, held.used, 0);
+      candidate.lambertian.ok = candidate.lambertian.ok && held.lambertian_ok;
+      if (ladder_.NextWithSharedLobe(candidate.Fits()).action != LadderStep::Action::kFitSharedLobe) continue;
+      const LobeSolution lobe{.ok = held.ok,
+                              .normal = held.normal,
+                              .diffuse_albedo = held.diffuse_albedo,
+                              .specular_albedo = problem.specular_albedo,
+                              .exponent = problem.exponent,
+                              .chi2 = held.chi2,
+                              .iterations = held.iterations};
+      candidate.lobe = LobeFitFrom(lobe, held.used, PixelModel::kBlinnPhong);
+      candidate.lobe.parameters = kSharedLobeParameters;
+      candidate.lobe_fitted = true;
+      if (items[i].test_shape) {
+        PixelFit tested;
+        rows.push_back(GatherRow(state, items[i].pixel, problem.kept_x, &tested));
       }
       state.sharing.push_back(candidate);
-      rows.push_back(row);
     }
     // The rows are complete (gathering may have moved them): now point at them.
-    for (std::size_t i = 0; i < rows.size(); ++i)
-      state.sharing[i].problem.observed = &state.observed[rows[i] * lights_],
-      state.sharing[i].problem.inverse_sigma = &state.inverse_sigma[rows[i] * lights_];
-    ClimbSharedLobes(ladder_, lobe_fitters_[thread], state.sharing,
-                     [&](const SharingCandidate& candidate, const PixelFit& chosen) {
-                       finish(*candidate.item, candidate.Fits(), chosen, candidate.lambertian.used);
-                     });
+    for (std::size_t i = 0, row = 0; i < state.sharing.size(); ++i) {
+      if (!state.sharing[i].item->test_shape) continue;
+      state.sharing[i].problem.observed = &state.observed[rows[row] * lights_];
+      state.sharing[i].problem.inverse_sigma = &state.inverse_sigma[rows[row++] * lights_];
+    }
+    ClimbFromHeldLobes(ladder_, lobe_fitters_[thread], state.sharing,
+                       [&](const SharingCandidate& candidate, const PixelFit& chosen) {
+                         finish(*candidate.item, candidate.Fits(), chosen, candidate.lambertian.used);
+                       });
   }
   state.rows = 0;
 }

@@ -17,6 +17,7 @@
 // are copied out when it is queued. With the per-pixel fitter each doubtful
 // pixel climbs the ladder on its own (PerPixelFits), the reference.
 
+#include "kernels/held_lobe_fit.h"
 #include "kernels/lobe_lane_fit.h"
 #include "kernels/irls_lambertian_fit.h"
 #include "kernels/lambertian_recheck.h"
@@ -131,6 +132,7 @@ class TileRefiner {
   const std::vector<float> screen_threshold_;
   const SampleReader reader_;
   const RecheckLanes recheck_;
+  const HeldLobeLanes held_lobes_;  // step 5's held lobes, straight from the planes
   const PerPixelFits per_pixel_;
   const int threads_;
   // Step 7's plan, for the summary (its pixels dropped).
