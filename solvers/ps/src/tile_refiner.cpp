@@ -526,17 +526,44 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
     const std::size_t last = std::min(pixels.size(), first + kBatch);
     state.rows = 0;
     state.ggx_offers.clear();
+    // The kept fits judged on their usable samples in lanes (PerPixelFits::
+    // KeptOnUsable's answers): a lobe's chi-square at its parameters, a
+    // Lambertian or trimmed fit's as step 5 takes it.
+    state.held_problems.clear();
+    for (std::size_t i = first; i < last; ++i) {
+      const PixelFit kept = FitInMap(*result_, pixels[i]);
+      const bool lobe = kept.model == PixelModel::kBlinnPhong;
+      state.held_problems.push_back({.pixel = pixels[i],
+                                     .start_normal = kept.normal,
+                                     .start_albedo = kept.albedo,
+                                     .specular_albedo = lobe ? kept.specular_albedo : 0.0,
+                                     .exponent = lobe ? kept.exponent : 1.0,
+                                     .kept_x = kept.normal * kept.albedo / M_PI});
+    }
+    state.held_solutions.resize(state.held_problems.size());
+    held_lobes_.Judge(state.held_problems, state.held_solutions);
     std::vector<std::size_t> rows;
     for (std::size_t i = first; i < last; ++i) {
+      const HeldLobeSolution& judged = state.held_solutions[i - first];
       GgxCandidate offer;
       offer.pixel = pixels[i], offer.held = held_lobe_[pixels[i]] != 0;
       offer.kept = FitInMap(*result_, offer.pixel);
-      offer.on_samples = per_pixel_.KeptOnUsable(offer.pixel, offer.kept, offer.held, &state.scratch);
+      if (offer.kept.model == PixelModel::kBlinnPhong) {
+        offer.on_samples = offer.kept;
+        offer.on_samples.chi2 = judged.chi2;
+        offer.on_samples.ok = judged.ok;
+        offer.on_samples.used = judged.used;
+        offer.on_samples.parameters = offer.held ? kSharedLobeParameters : kBlinnPhongParameters;
+      } else {
+        offer.on_samples = LambertianFit(judged.lambertian_x, judged.lambertian_chi2, judged.used, 0);
+        offer.on_samples.ok = offer.on_samples.ok && judged.lambertian_ok;
+        offer.on_samples.normal = offer.kept.normal;  // the kept fit is where the GGX fit starts
+      }
       if (ladder_.NextWithGgx(GgxFits{&offer.on_samples}).action != LadderStep::Action::kFitGgx) continue;
-      const PixelSamples& samples = state.scratch.samples;
       const std::size_t row = NewRow(state);
-      std::copy(samples.row_observed.begin(), samples.row_observed.end(), &state.observed[row * lights_]);
-      std::copy(samples.row_inverse_sigma.begin(), samples.row_inverse_sigma.end(), &state.inverse_sigma[row * lights_]);
+      int usable = 0;
+      reader_.Row(offer.pixel, state.held_problems[i - first].kept_x, &state.observed[row * lights_],
+                  &state.inverse_sigma[row * lights_], &usable);
       state.ggx_offers.push_back(offer);
       rows.push_back(row);
     }

@@ -224,6 +224,92 @@ void CopyLane(const Point& from, int i, Point* to) {
   to->rho_d[i] = from.rho_d[i];
 }
 
+// Levenberg-Marquardt from each lane's `candidate` with LobeLaneFitter's
+// rules: the start is always taken; a lower cost is accepted (lambda / 3), a
+// higher one rejected (lambda x 4); stop on a relative decrease within the
+// tolerance, a promised one below it, or lambda at 1e12. A start that does
+// not evaluate is tried once more with rho_d = start_albedo. Lanes from
+// `count` on idle. The fit into `current`, its cost and accepted steps.
+void Descend(const Geometry& geo, const Lanes& lanes, int count, double tolerance, int max_iterations,
+             const float start_albedo[kPixels], Point* candidate, Point* current, double current_cost[kPixels],
+             int iterations[kPixels]) {
+  Equations at_candidate, at_current;
+  double lambda[kPixels];
+  bool active[kPixels], restarted[kPixels];
+  for (int i = 0; i < kPixels; ++i) {
+    current_cost[i] = std::numeric_limits<double>::infinity();
+    lambda[i] = 1e-3, iterations[i] = 0, active[i] = i < count, restarted[i] = false;
+  }
+  *current = *candidate;  // what a lane that never evaluates reports
+  Point proposal;
+  bool stepping[kPixels], positive[kPixels];
+  double predicted[kPixels];
+  for (int live = count; live > 0;) {
+    Evaluate(geo, lanes, *candidate, &at_candidate);
+    auto finish = [&](int i) { active[i] = false, --live; };
+    for (int i = 0; i < kPixels; ++i) {
+      stepping[i] = false;
+      if (!active[i]) continue;
+      const double cost = at_candidate.cost[i];
+      const bool at_start = std::isinf(current_cost[i]);
+      bool done = false;
+      if (cost < current_cost[i]) {
+        const double decrease = (current_cost[i] - cost) / std::max(current_cost[i], 1e-300);
+        CopyLane(*candidate, i, current);
+        at_current.cost[i] = at_candidate.cost[i];
+        for (int e = 0; e < 6; ++e) at_current.h[e][i] = at_candidate.h[e][i];
+        for (int e = 0; e < 3; ++e) at_current.g[e][i] = at_candidate.g[e][i];
+        current_cost[i] = cost;
+        if (!at_start) {
+          ++iterations[i];
+          lambda[i] = std::max(lambda[i] / 3.0, 1e-12);
+          done = decrease <= tolerance || iterations[i] >= max_iterations;
+        }
+      } else if (at_start) {
+        done = restarted[i];
+        if (!done) {
+          restarted[i] = true;
+          candidate->rho_d[i] = start_albedo[i];
+          continue;  // not stepping: the candidate is evaluated as it is
+        }
+      } else {
+        lambda[i] *= 4.0;
+        done = lambda[i] >= 1e12 || cost - current_cost[i] <= tolerance * current_cost[i];
+      }
+      if (done) {
+        finish(i);
+      } else {
+        stepping[i] = true;
+      }
+    }
+    // All lanes' steps at once; a lane whose damped matrix is not positive
+    // definite raises its damping and all go round again.
+    for (bool retry = true; retry;) {
+      Propose(*current, at_current, lambda, &proposal, positive, predicted);
+      retry = false;
+      for (int i = 0; i < kPixels; ++i) {
+        if (!stepping[i] || positive[i]) continue;
+        lambda[i] *= 4.0;
+        if (lambda[i] < 1e12) {
+          retry = true;
+        } else {
+          stepping[i] = false;
+          finish(i);
+        }
+      }
+    }
+    for (int i = 0; i < kPixels; ++i) {
+      if (!stepping[i]) continue;
+      // The linearised model promises less than the tolerance: converged.
+      if (!(predicted[i] > tolerance * current_cost[i])) {
+        finish(i);
+        continue;
+      }
+      CopyLane(proposal, i, candidate);
+    }
+  }
+}
+
 }  // namespace
 
 HeldLobeLanes::HeldLobeLanes(const PhotometricStack& stack, const LambertianOptions& lambertian,
@@ -243,23 +329,32 @@ HeldLobeLanes::HeldLobeLanes(const PhotometricStack& stack, const LambertianOpti
 }
 
 void HeldLobeLanes::Fit(std::span<const HeldLobeProblem> problems, std::span<HeldLobeSolution> solutions) const {
+  Run(problems, solutions, true);
+}
+
+void HeldLobeLanes::Judge(std::span<const HeldLobeProblem> problems, std::span<HeldLobeSolution> judged) const {
+  Run(problems, judged, false);
+}
+
+void HeldLobeLanes::Run(std::span<const HeldLobeProblem> problems, std::span<HeldLobeSolution> solutions,
+                        bool fit) const {
   const PlaneConstants c(samples_);
   const Geometry geo{c.lights, c.wx, c.wy, c.wz, half_x_.data(), half_y_.data(), half_z_.data()};
   Lanes lanes(c.lights);
   for (std::size_t first = 0; first < problems.size(); first += kPixels) {
     const int count = static_cast<int>(std::min<std::size_t>(kPixels, problems.size() - first));
-    // A lane past the last problem repeats problem 0 of the pass.
-    auto problem_of = [&](int i) -> const HeldLobeProblem& { return problems[first + (i < count ? i : 0)]; };
     Point current, candidate;
-    alignas(64) float kept[3][kPixels];
+    alignas(64) float kept[3][kPixels], start_albedo[kPixels];
     for (int i = 0; i < kPixels; ++i) {
-      const HeldLobeProblem& problem = problem_of(i);
+      // A lane past the last problem repeats problem 0 of the pass.
+      const HeldLobeProblem& problem = problems[first + (i < count ? i : 0)];
       lanes.pixel[i] = problem.pixel;
       lanes.dark[i] = samples_.dark ? samples_.dark[problem.pixel] : 0.0f;
       lanes.exponent[i] = static_cast<float>(problem.exponent);
       lanes.lobe_scale[i] = static_cast<float>(problem.specular_albedo * (problem.exponent + 2.0) * 0.5 *
                                                std::numbers::inv_pi);
       for (int a = 0; a < 3; ++a) kept[a][i] = static_cast<float>(problem.kept_x[a]);
+      start_albedo[i] = static_cast<float>(problem.start_albedo);
       SetNormal(problem.start_normal, i, &candidate);
     }
 
@@ -277,101 +372,30 @@ void HeldLobeLanes::Fit(std::span<const HeldLobeProblem> problems, std::span<Hel
     alignas(64) float chi2[kPixels], kept_chi2[kPixels];
     LambertianChi2(geo, lanes, x, kept, chi2, kept_chi2);
 
-    // The start: rho_d by least squares with the lobe held at the start normal.
-    alignas(64) float sum_a[kPixels], sum_b[kPixels];
-    StartSums(geo, lanes, candidate, sum_a, sum_b);
-    for (int i = 0; i < kPixels; ++i)
-      candidate.rho_d[i] = sum_a[i] > 0.0f ? std::max(0.0f, std::numbers::pi_v<float> * sum_b[i] / sum_a[i])
-                                           : static_cast<float>(problem_of(i).start_albedo);
-    current = candidate;  // what a lane that never evaluates reports
-
-    // Levenberg-Marquardt, LobeLaneFitter's rules: the start is always
-    // taken; a lower cost is accepted (lambda / 3), a higher one rejected
-    // (lambda x 4); stop on a relative decrease within the tolerance, a
-    // promised one below it, or lambda at 1e12.
-    Equations at_candidate, at_current;
-    double current_cost[kPixels], lambda[kPixels];
-    int iterations[kPixels];
-    bool active[kPixels], restarted[kPixels];
-    for (int i = 0; i < kPixels; ++i) {
-      current_cost[i] = std::numeric_limits<double>::infinity();
-      lambda[i] = 1e-3, iterations[i] = 0, active[i] = i < count, restarted[i] = false;
-    }
-    Point proposal;
-    bool stepping[kPixels], positive[kPixels];
-    double predicted[kPixels];
-    for (int live = count; live > 0;) {
-      Evaluate(geo, lanes, candidate, &at_candidate);
-      auto finish = [&](int i) { active[i] = false, --live; };
-      for (int i = 0; i < kPixels; ++i) {
-        stepping[i] = false;
-        if (!active[i]) continue;
-        const double cost = at_candidate.cost[i];
-        const bool at_start = std::isinf(current_cost[i]);
-        bool done = false;
-        if (cost < current_cost[i]) {
-          const double decrease = (current_cost[i] - cost) / std::max(current_cost[i], 1e-300);
-          CopyLane(candidate, i, &current);
-          at_current.cost[i] = at_candidate.cost[i];
-          for (int e = 0; e < 6; ++e) at_current.h[e][i] = at_candidate.h[e][i];
-          for (int e = 0; e < 3; ++e) at_current.g[e][i] = at_candidate.g[e][i];
-          current_cost[i] = cost;
-          if (!at_start) {
-            ++iterations[i];
-            lambda[i] = std::max(lambda[i] / 3.0, 1e-12);
-            done = decrease <= tolerance_ || iterations[i] >= max_iterations_;
-          }
-        } else if (at_start) {
-          // The start does not evaluate: once more from the given rho_d.
-          done = restarted[i];
-          if (!done) {
-            restarted[i] = true;
-            candidate.rho_d[i] = static_cast<float>(problem_of(i).start_albedo);
-            continue;  // not stepping: the candidate is evaluated as it is
-          }
-        } else {
-          lambda[i] *= 4.0;
-          done = lambda[i] >= 1e12 || cost - current_cost[i] <= tolerance_ * current_cost[i];
-        }
-        if (done) {
-          finish(i);
-        } else {
-          stepping[i] = true;
-        }
-      }
-      // All lanes' steps at once; a lane whose damped matrix is not positive
-      // definite raises its damping and all go round again.
-      for (bool retry = true; retry;) {
-        Propose(current, at_current, lambda, &proposal, positive, predicted);
-        retry = false;
-        for (int i = 0; i < kPixels; ++i) {
-          if (!stepping[i] || positive[i]) continue;
-          lambda[i] *= 4.0;
-          if (lambda[i] < 1e12) {
-            retry = true;
-          } else {
-            stepping[i] = false;
-            finish(i);
-          }
-        }
-      }
-      for (int i = 0; i < kPixels; ++i) {
-        if (!stepping[i]) continue;
-        // The linearised model promises less than the tolerance: converged.
-        if (!(predicted[i] > tolerance_ * current_cost[i])) {
-          finish(i);
-          continue;
-        }
-        CopyLane(proposal, i, &candidate);
-      }
+    double cost[kPixels];
+    int iterations[kPixels] = {};
+    if (fit) {
+      // The start: rho_d by least squares with the lobe held at the start normal.
+      alignas(64) float sum_a[kPixels], sum_b[kPixels];
+      StartSums(geo, lanes, candidate, sum_a, sum_b);
+      for (int i = 0; i < kPixels; ++i)
+        candidate.rho_d[i] =
+            sum_a[i] > 0.0f ? std::max(0.0f, std::numbers::pi_v<float> * sum_b[i] / sum_a[i]) : start_albedo[i];
+      Descend(geo, lanes, count, tolerance_, max_iterations_, start_albedo, &candidate, &current, cost, iterations);
+    } else {
+      for (int i = 0; i < kPixels; ++i) candidate.rho_d[i] = start_albedo[i];
+      Equations at_start;
+      Evaluate(geo, lanes, candidate, &at_start);
+      for (int i = 0; i < kPixels; ++i) cost[i] = at_start.cost[i];
+      current = candidate;
     }
 
     for (int i = 0; i < count; ++i) {
       HeldLobeSolution& out = solutions[first + i];
-      out.ok = std::isfinite(current_cost[i]);
+      out.ok = std::isfinite(cost[i]);
       out.normal = NormalOf(current, i).normalized();
       out.diffuse_albedo = current.rho_d[i];
-      out.chi2 = current_cost[i];
+      out.chi2 = cost[i];
       out.iterations = iterations[i];
       out.used = static_cast<int>(used[i]);
       out.lambertian_x = Eigen::Vector3d(x[0][i], x[1][i], x[2][i]);

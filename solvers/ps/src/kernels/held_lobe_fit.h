@@ -13,7 +13,9 @@
 // tangent-plane steps of the normal, rho_d) with the same acceptance,
 // damping and stopping rules as LobeLaneFitter, so the two land on the same
 // minimum. The load pass also fits the Lambertian model to every usable sample
-// (step 5's comparison, LambertianOnRow), from the same lanes.
+// (step 5's comparison, LambertianOnRow), from the same lanes. Judge
+// evaluates a given fit the same way without moving it (step 6's judgement
+// of the fit a pixel kept).
 
 #include "plane_samples.h"
 
@@ -58,8 +60,16 @@ class HeldLobeLanes {
 
   // solutions[i] answers problems[i]; any count.
   void Fit(std::span<const HeldLobeProblem> problems, std::span<HeldLobeSolution> solutions) const;
+  // No fit: each problem's start (normal, start_albedo as rho_d, the lobe;
+  // rho_s 0 for none) judged on the pixel's usable samples, its chi-square
+  // into `chi2` (iterations 0), with the Lambertian fit as Fit's. Step 6
+  // judges the fit a pixel kept so.
+  void Judge(std::span<const HeldLobeProblem> problems, std::span<HeldLobeSolution> judged) const;
 
  private:
+  // Fit (fit) or Judge (!fit).
+  void Run(std::span<const HeldLobeProblem> problems, std::span<HeldLobeSolution> out, bool fit) const;
+
   PlaneSamples samples_;
   std::vector<float> half_x_, half_y_, half_z_;  // per light: the half vector of w and the view
   double tolerance_;
