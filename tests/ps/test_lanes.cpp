@@ -384,6 +384,62 @@ TEST(HeldLobeLanes, LandsWhereTheLaneFitterLandsWithTheLobeHeld) {
   EXPECT_EQ(none[0].chi2, 0.0);
 }
 
+// Step 6 judges the fit a pixel kept in lanes (HeldLobeLanes::Judge): the
+// same chi-square as the per-pixel judgement through the autodiff model
+// (PerPixelFits::KeptOnUsable), for a kept lobe and for a kept Lambertian fit.
+TEST(HeldLobeLanes, JudgesAKeptFitAsThePerPixelJudgement) {
+  const auto lights = testing::RingLights(40, 25, 80);
+  const auto truth = testing::RandomSurface(7, 5, 40.0, 23);  // 35 pixels
+  const testing::Specular lobe{0.4, 40.0};
+  const int pixels = truth.normals.rows * truth.normals.cols;
+  const PhotometricStack stack = testing::RenderShinyStack(truth, lights, 2000.0, lobe, 20.0f, 2.0, 9);
+  LambertianOptions thresholds;
+  thresholds.shadow_threshold = 6.0;
+  const internal::ModelLadder ladder(Method::kAuto, ModelSelectionOptions{}, static_cast<int>(lights.size()));
+  const internal::SampleReader reader(stack, thresholds);
+  const internal::PerPixelFits per_pixel(ladder, reader, stack.view_direction, BlinnPhongOptions{});
+  const internal::HeldLobeLanes lanes(stack, thresholds, BlinnPhongOptions{});
+  internal::PixelScratch scratch;
+  for (const bool kept_lobe : {true, false}) {
+    SCOPED_TRACE(kept_lobe);
+    std::vector<internal::PixelFit> kept(pixels);
+    std::vector<internal::HeldLobeProblem> problems;
+    for (int p = 0; p < pixels; ++p) {
+      const cv::Vec3f t = truth.normals.ptr<cv::Vec3f>()[p];
+      // A fit 2 deg off the truth, so that the chi-squares are well above the noise.
+      const Eigen::Vector3d n = Eigen::Vector3d(t[0], t[1], t[2]).normalized();
+      kept[p].ok = true;
+      kept[p].normal = (n + 0.035 * n.unitOrthogonal()).normalized();
+      kept[p].albedo = truth.albedo.ptr<float>()[p];
+      kept[p].model = kept_lobe ? PixelModel::kBlinnPhong : PixelModel::kLambertian;
+      kept[p].specular_albedo = kept_lobe ? lobe.albedo : 0.0;
+      kept[p].exponent = kept_lobe ? lobe.exponent : 1.0;
+      problems.push_back({.pixel = p,
+                          .start_normal = kept[p].normal,
+                          .start_albedo = kept[p].albedo,
+                          .specular_albedo = kept[p].specular_albedo,
+                          .exponent = kept[p].exponent,
+                          .kept_x = kept[p].normal * kept[p].albedo / M_PI});
+    }
+    std::vector<internal::HeldLobeSolution> judged(pixels);
+    lanes.Judge(problems, judged);
+    for (int p = 0; p < pixels; ++p) {
+      const internal::PixelFit reference = per_pixel.KeptOnUsable(p, kept[p], false, &scratch);
+      EXPECT_EQ(judged[p].used, reference.used) << p;
+      EXPECT_EQ(judged[p].iterations, 0) << p;
+      EXPECT_GT(judged[p].normal.dot(kept[p].normal), 1.0 - 1e-6) << p;  // not moved
+      if (kept_lobe) {
+        EXPECT_TRUE(judged[p].ok) << p;
+        EXPECT_NEAR(judged[p].chi2, reference.chi2, 1e-4 * reference.chi2) << p;
+      } else {
+        EXPECT_EQ(judged[p].lambertian_ok, reference.ok) << p;
+        EXPECT_NEAR(judged[p].lambertian_chi2, reference.chi2, 1e-4 * reference.chi2) << p;
+        EXPECT_NEAR(M_PI * judged[p].lambertian_x.norm(), reference.albedo, 1e-5 * reference.albedo) << p;
+      }
+    }
+  }
+}
+
 // Noise-free GGX pixels (autodiff::GgxPixel renders them), started 3 deg off
 // as step 6 starts from the kept fit: the lanes land on the true normal and
 // roughness from the roughness grid's start.
