@@ -117,7 +117,9 @@ TEST_F(DiligentFolder, EachFrameIsItsOwnChannelsBalancedByItsLightWithTopCodesCl
     ASSERT_EQ(grey.type(), CV_32F);
     ASSERT_EQ(colour.type(), CV_32FC3);
     EXPECT_TRUE(grey.isContinuous() && colour.isContinuous());
-    if (k > 0) EXPECT_NE(grey.data, input.stack.images[k - 1].data);
+    if (k > 0) {
+      EXPECT_NE(grey.data, input.stack.images[k - 1].data);
+    }
     const cv::Vec3d& l = rgb_intensity[k];
     const double mean = (l[0] + l[1] + l[2]) / 3.0;
     EXPECT_DOUBLE_EQ(input.stack.light_scales[k], mean);
