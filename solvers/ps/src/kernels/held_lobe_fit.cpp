@@ -40,19 +40,19 @@ struct Lanes {
   alignas(64) float dark[kPixels], lobe_scale[kPixels], exponent[kPixels];
 };
 
-// As LobeLaneFitter's TangentBasis (Duff et al. 2017), in float.
-PHOTORIG_LANE_INLINE void TangentBasis(float nx, float ny, float nz, float t1[3], float t2[3]) {
-  const float sign = std::copysign(1.0f, nz);
-  const float a = -1.0f / (sign + nz);
-  const float b = nx * ny * a;
-  t1[0] = 1.0f + sign * nx * nx * a, t1[1] = sign * b, t1[2] = -sign * nx;
-  t2[0] = b, t2[1] = sign + ny * ny * a, t2[2] = -ny;
-}
-
 struct Geometry {
   int lights;
   const float *wx, *wy, *wz, *hx, *hy, *hz;
 };
+
+// Light k's direction, half vector and the lanes' samples under it.
+struct LightRow {
+  float wx, wy, wz, hx, hy, hz;
+  const float *b, *isig;
+};
+PHOTORIG_LANE_INLINE LightRow RowOf(const Geometry& geo, const Lanes& l, int k) {
+  return {geo.wx[k], geo.wy[k], geo.wz[k], geo.hx[k], geo.hy[k], geo.hz[k], &l.b[k * kPixels], &l.isig[k * kPixels]};
+}
 
 // Reads every lane's samples from the planes and sums the Lambertian normal
 // equations of the usable ones (unweighted, as LambertianOnRow):
@@ -110,9 +110,7 @@ PHOTORIG_PS_MULTIVERSION
 void StartSums(const Geometry& geo, const Lanes& l, const Point& p, float sum_a[kPixels], float sum_b[kPixels]) {
   for (int i = 0; i < kPixels; ++i) sum_a[i] = sum_b[i] = 0.0f;
   for (int k = 0; k < geo.lights; ++k) {
-    const float wx = geo.wx[k], wy = geo.wy[k], wz = geo.wz[k], hx = geo.hx[k], hy = geo.hy[k], hz = geo.hz[k];
-    const float* b = &l.b[k * kPixels];
-    const float* isig = &l.isig[k * kPixels];
+    const auto [wx, wy, wz, hx, hy, hz, b, isig] = RowOf(geo, l, k);
 #pragma omp simd
     for (int i = 0; i < kPixels; ++i) {
       const float c = std::max(0.0f, wx * p.n[0][i] + wy * p.n[1][i] + wz * p.n[2][i]);
@@ -134,9 +132,7 @@ PHOTORIG_PS_MULTIVERSION
 void Evaluate(const Geometry& geo, const Lanes& l, const Point& p, Equations* out) {
   float acc[10][kPixels] = {};
   for (int k = 0; k < geo.lights; ++k) {
-    const float wx = geo.wx[k], wy = geo.wy[k], wz = geo.wz[k], hx = geo.hx[k], hy = geo.hy[k], hz = geo.hz[k];
-    const float* b = &l.b[k * kPixels];
-    const float* isig = &l.isig[k * kPixels];
+    const auto [wx, wy, wz, hx, hy, hz, b, isig] = RowOf(geo, l, k);
 #pragma omp simd
     for (int i = 0; i < kPixels; ++i) {
       const float c = wx * p.n[0][i] + wy * p.n[1][i] + wz * p.n[2][i];
@@ -186,7 +182,7 @@ Eigen::Vector3d NormalOf(const Point& p, int i) {
 // is not positive definite; predicted[i] is the decrease the linearised
 // model promises, 2 step.g - step.H.step.
 PHOTORIG_PS_MULTIVERSION
-void Propose(const Point& p, const Equations& eq, const double lambda[kPixels], Point* q, bool positive[kPixels],
+void Propose(const Point& p, const Equations& eq, const double lambda[kPixels], Point* q, double positive[kPixels],
              double predicted[kPixels]) {
 #pragma omp simd
   for (int i = 0; i < kPixels; ++i) {
@@ -200,7 +196,7 @@ void Propose(const Point& p, const Equations& eq, const double lambda[kPixels], 
     const double l11 = std::sqrt(std::max(s11, 1e-300)), l21 = (h12 - l20 * l10) / l11;
     const double s22 = h22 * damping + 1e-12 - l20 * l20 - l21 * l21;
     const double l22 = std::sqrt(std::max(s22, 1e-300));
-    positive[i] = (a > 0.0) & (s11 > 0.0) & (s22 > 0.0);
+    positive[i] = (a > 0.0) & (s11 > 0.0) & (s22 > 0.0) ? 1.0 : 0.0;
     const double y0 = g0 / l00, y1 = (g1 - l10 * y0) / l11, y2 = (g2 - l20 * y0 - l21 * y1) / l22;
     const double x2 = y2 / l22, x1 = (y1 - l21 * x2) / l11, x0 = (y0 - l10 * x1 - l20 * x2) / l00;
     predicted[i] = 2.0 * (x0 * g0 + x1 * g1 + x2 * g2) -
@@ -242,8 +238,8 @@ void Descend(const Geometry& geo, const Lanes& lanes, int count, double toleranc
   }
   *current = *candidate;  // what a lane that never evaluates reports
   Point proposal;
-  bool stepping[kPixels], positive[kPixels];
-  double predicted[kPixels];
+  bool stepping[kPixels];
+  double positive[kPixels], predicted[kPixels];
   for (int live = count; live > 0;) {
     Evaluate(geo, lanes, *candidate, &at_candidate);
     auto finish = [&](int i) { active[i] = false, --live; };
@@ -284,20 +280,9 @@ void Descend(const Geometry& geo, const Lanes& lanes, int count, double toleranc
     }
     // All lanes' steps at once; a lane whose damped matrix is not positive
     // definite raises its damping and all go round again.
-    for (bool retry = true; retry;) {
-      Propose(*current, at_current, lambda, &proposal, positive, predicted);
-      retry = false;
-      for (int i = 0; i < kPixels; ++i) {
-        if (!stepping[i] || positive[i]) continue;
-        lambda[i] *= 4.0;
-        if (lambda[i] < 1e12) {
-          retry = true;
-        } else {
-          stepping[i] = false;
-          finish(i);
-        }
-      }
-    }
+    ProposeWhilePositiveDefinite<kPixels>(
+        stepping, lambda, positive, [&] { Propose(*current, at_current, lambda, &proposal, positive, predicted); },
+        finish);
     for (int i = 0; i < kPixels; ++i) {
       if (!stepping[i]) continue;
       // The linearised model promises less than the tolerance: converged.

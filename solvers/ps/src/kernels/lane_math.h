@@ -5,6 +5,8 @@
 
 #include "photorig/solvers/core/lane_math.h"
 
+#include <cmath>
+
 namespace photorig::solvers::ps::internal {
 
 using core::Horner;
@@ -23,6 +25,41 @@ using core::LaneLogAndInverse;
 // kFloatLanes for the kernels that run in float.
 inline constexpr int kLanes = 8;
 inline constexpr int kFloatLanes = 16;
+
+// A tangent basis for a unit normal, continuous everywhere but on n_z = -1
+// (Duff et al. 2017): branch-free, so it also runs in lanes (double or float).
+template <typename T>
+PHOTORIG_LANE_INLINE void TangentBasis(T nx, T ny, T nz, T t1[3], T t2[3]) {
+  const T sign = std::copysign(T(1), nz);
+  const T a = T(-1) / (sign + nz);
+  const T b = nx * ny * a;
+  t1[0] = T(1) + sign * nx * nx * a, t1[1] = sign * b, t1[2] = -sign * nx;
+  t2[0] = b, t2[1] = sign + ny * ny * a, t2[2] = -ny;
+}
+
+// Levenberg-Marquardt's proposals across lanes: propose() fills positive[lane]
+// (0 where the lane's damped matrix is not positive definite); each stepping
+// lane without one raises its damping fourfold and all propose again, until
+// every stepping lane has one or its damping reaches 1e12 (then it stops
+// stepping and finish(lane): no step is left to try).
+template <int kCount, typename Propose, typename Finish>
+void ProposeWhilePositiveDefinite(bool* stepping, double* lambda, const double* positive, const Propose& propose,
+                                  const Finish& finish) {
+  for (bool retry = true; retry;) {
+    propose();
+    retry = false;
+    for (int lane = 0; lane < kCount; ++lane) {
+      if (!stepping[lane] || positive[lane] != 0.0) continue;
+      lambda[lane] *= 4.0;
+      if (lambda[lane] < 1e12) {
+        retry = true;
+      } else {
+        stepping[lane] = false;
+        finish(lane);
+      }
+    }
+  }
+}
 
 // Problems handed to lanes in order: a lane keeps its problem until it is
 // done, then takes the next at once; `busy` counts the lanes with a problem.

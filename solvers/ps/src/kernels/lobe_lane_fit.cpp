@@ -55,16 +55,6 @@ void StoreLaneView(const Eigen::Vector3d& view, int lane, float* views) {
   for (int i = 0; i < 3; ++i) views[i * kFloatLanes + lane] = static_cast<float>(view[i]);
 }
 
-// A tangent basis for a unit normal, continuous everywhere but on n_z = -1
-// (Duff et al. 2017): branch-free, so it also runs in lanes.
-PHOTORIG_LANE_INLINE void TangentBasis(double nx, double ny, double nz, double t1[3], double t2[3]) {
-  const double sign = std::copysign(1.0, nz);
-  const double a = -1.0 / (sign + nz);
-  const double b = nx * ny * a;
-  t1[0] = 1.0 + sign * nx * nx * a, t1[1] = sign * b, t1[2] = -sign * nx;
-  t2[0] = b, t2[1] = sign + ny * ny * a, t2[2] = -ny;
-}
-
 // The pass over the lights shared by all lanes: residuals r = (I - observed) / sigma
 // and their derivatives, accumulated into the normal equations. Per light
 // (blinn_phong_symbolic.h), with c = w . n, h = w_h . n, k = (e + 2) / (2 pi):
@@ -837,21 +827,13 @@ void LobeLaneFitter::Fit(std::span<const LobeProblem> problems, std::span<LobeSo
     }
     // The next candidates, all lanes at once; a lane whose damped system is
     // not positive definite raises its damping and all go round again.
-    for (bool retry = true; retry;) {
-      ProposeLanes(s.current, s.current_equations, s.lambda, min_shape_, max_shape_,
-                   &s.proposal, s.positive, s.predicted_decrease);
-      retry = false;
-      for (int lane = 0; lane < kFloatLanes; ++lane) {
-        if (!stepping[lane] || s.positive[lane] != 0.0) continue;
-        s.lambda[lane] *= 4.0;
-        if (s.lambda[lane] < 1e12) {
-          retry = true;
-        } else {
-          stepping[lane] = false;
-          finish(lane);
-        }
-      }
-    }
+    ProposeWhilePositiveDefinite<kFloatLanes>(
+        stepping, s.lambda, s.positive,
+        [&] {
+          ProposeLanes(s.current, s.current_equations, s.lambda, min_shape_, max_shape_, &s.proposal, s.positive,
+                       s.predicted_decrease);
+        },
+        finish);
     for (int lane = 0; lane < kFloatLanes; ++lane) {
       if (!stepping[lane]) continue;
       // Converged when even the linearised model promises less than the
