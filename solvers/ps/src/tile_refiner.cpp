@@ -91,6 +91,8 @@ struct TileRefiner::ThreadState {
   // Step 5: the pixels of a batch offered the shared lobe, and what it changed
   // (the pixels it took from each simpler model, the samples those had left out).
   std::vector<SharingCandidate> sharing;
+  // Steps 5 and 6: a batch's problems for HeldLobeLanes (held lobes to fit,
+  // kept fits to judge) and its answers.
   std::vector<HeldLobeProblem> held_problems;
   std::vector<HeldLobeSolution> held_solutions;
   std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0;
