@@ -110,16 +110,16 @@ PHOTORIG_PS_MULTIVERSION
 void StartSums(const Geometry& geo, const Lanes& l, const Point& p, float sum_a[kPixels], float sum_b[kPixels]) {
   for (int i = 0; i < kPixels; ++i) sum_a[i] = sum_b[i] = 0.0f;
   for (int k = 0; k < geo.lights; ++k) {
-    const auto [wx, wy, wz, hx, hy, hz, b, isig] = RowOf(geo, l, k);
+    const LightRow row = RowOf(geo, l, k);  // members, not bindings: OpenMP regions cannot name bindings
 #pragma omp simd
     for (int i = 0; i < kPixels; ++i) {
-      const float c = std::max(0.0f, wx * p.n[0][i] + wy * p.n[1][i] + wz * p.n[2][i]);
-      const float h = hx * p.n[0][i] + hy * p.n[1][i] + hz * p.n[2][i];
+      const float c = std::max(0.0f, row.wx * p.n[0][i] + row.wy * p.n[1][i] + row.wz * p.n[2][i]);
+      const float h = row.hx * p.n[0][i] + row.hy * p.n[1][i] + row.hz * p.n[2][i];
       float unused;
       const float lobe = h > 0.0f ? l.lobe_scale[i] * LaneExp(l.exponent[i] * LaneLogAndInverse(std::max(h, 1e-30f), &unused))
                                   : 0.0f;
-      const float w = isig[i] * isig[i];
-      sum_a[i] += w * c * c, sum_b[i] += w * c * (b[i] - lobe * c);
+      const float w = row.isig[i] * row.isig[i];
+      sum_a[i] += w * c * c, sum_b[i] += w * c * (row.b[i] - lobe * c);
     }
   }
 }
@@ -132,25 +132,25 @@ PHOTORIG_PS_MULTIVERSION
 void Evaluate(const Geometry& geo, const Lanes& l, const Point& p, Equations* out) {
   float acc[10][kPixels] = {};
   for (int k = 0; k < geo.lights; ++k) {
-    const auto [wx, wy, wz, hx, hy, hz, b, isig] = RowOf(geo, l, k);
+    const LightRow row = RowOf(geo, l, k);  // members, not bindings: OpenMP regions cannot name bindings
 #pragma omp simd
     for (int i = 0; i < kPixels; ++i) {
-      const float c = wx * p.n[0][i] + wy * p.n[1][i] + wz * p.n[2][i];
-      const float h = hx * p.n[0][i] + hy * p.n[1][i] + hz * p.n[2][i];
+      const float c = row.wx * p.n[0][i] + row.wy * p.n[1][i] + row.wz * p.n[2][i];
+      const float h = row.hx * p.n[0][i] + row.hy * p.n[1][i] + row.hz * p.n[2][i];
       const float lit_c = std::max(c, 0.0f);
       float inverse_h;
       const float log_h = LaneLogAndInverse(std::max(h, 1e-30f), &inverse_h);
       const float lobe = l.lobe_scale[i] * LaneExp(l.exponent[i] * log_h);
       const float brdf = p.rho_d[i] * kInvPiF + lobe;
-      const float sigma = isig[i];
-      const float r = (brdf * lit_c - b[i]) * sigma;
+      const float sigma = row.isig[i];
+      const float r = (brdf * lit_c - row.b[i]) * sigma;
       const float cs = lit_c * sigma;
       const float a = c > 0.0f ? brdf * sigma : 0.0f;
       const float s = h > 0.0f ? l.exponent[i] * lobe * inverse_h * cs : 0.0f;
-      const float d0 = a * (wx * p.t1[0][i] + wy * p.t1[1][i] + wz * p.t1[2][i]) +
-                       s * (hx * p.t1[0][i] + hy * p.t1[1][i] + hz * p.t1[2][i]);
-      const float d1 = a * (wx * p.t2[0][i] + wy * p.t2[1][i] + wz * p.t2[2][i]) +
-                       s * (hx * p.t2[0][i] + hy * p.t2[1][i] + hz * p.t2[2][i]);
+      const float d0 = a * (row.wx * p.t1[0][i] + row.wy * p.t1[1][i] + row.wz * p.t1[2][i]) +
+                       s * (row.hx * p.t1[0][i] + row.hy * p.t1[1][i] + row.hz * p.t1[2][i]);
+      const float d1 = a * (row.wx * p.t2[0][i] + row.wy * p.t2[1][i] + row.wz * p.t2[2][i]) +
+                       s * (row.hx * p.t2[0][i] + row.hy * p.t2[1][i] + row.hz * p.t2[2][i]);
       const float d2 = cs * kInvPiF;
       acc[0][i] += r * r;
       acc[1][i] += d0 * d0, acc[2][i] += d0 * d1, acc[3][i] += d0 * d2;
