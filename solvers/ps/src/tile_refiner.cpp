@@ -91,8 +91,9 @@ struct TileRefiner::ThreadState {
   // Step 5: the pixels of a batch offered the shared lobe, and what it changed
   // (the pixels it took from each simpler model, the samples those had left out).
   std::vector<SharingCandidate> sharing;
-  // Steps 5 and 6: a batch's problems for HeldLobeLanes (held lobes to fit,
-  // kept fits to judge) and its answers.
+  // Steps 5 and 6: a batch's kept fits, its problems for HeldLobeLanes (held
+  // lobes to fit, kept fits to judge) and their answers.
+  std::vector<PixelFit> held_kept;
   std::vector<HeldLobeProblem> held_problems;
   std::vector<HeldLobeSolution> held_solutions;
   std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0;
@@ -443,12 +444,13 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
     const std::size_t last = std::min(items.size(), first + kBatch);
     state.rows = 0;
     state.sharing.clear();
+    state.held_kept.clear();
     state.held_problems.clear();
     // Every pixel's held lobe and Lambertian fit on its usable samples in
     // lanes from the planes; a row of doubles only for a pixel of its
     // region's shape test, whose own lobe the lane fitter fits.
     for (std::size_t i = first; i < last; ++i) {
-      const PixelFit kept = FitInMap(*result_, items[i].pixel);
+      const PixelFit& kept = state.held_kept.emplace_back(FitInMap(*result_, items[i].pixel));
       state.held_problems.push_back({.pixel = items[i].pixel,
                                      .start_normal = kept.normal,
                                      .start_albedo = kept.albedo,
@@ -464,7 +466,7 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
       const HeldLobeSolution& held = state.held_solutions[i - first];
       SharingCandidate candidate;
       candidate.item = &items[i];
-      candidate.kept = FitInMap(*result_, items[i].pixel);
+      candidate.kept = state.held_kept[i - first];
       candidate.lambertian = LambertianFit(held.lambertian_x, held.lambertian_chi2, held.used, 0);
       candidate.lambertian.ok = candidate.lambertian.ok && held.lambertian_ok;
       if (ladder_.NextWithSharedLobe(candidate.Fits()).action != LadderStep::Action::kFitSharedLobe) continue;
@@ -531,9 +533,10 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
     // The kept fits judged on their usable samples in lanes (PerPixelFits::
     // KeptOnUsable's answers): a lobe's chi-square at its parameters, a
     // Lambertian or trimmed fit's as step 5 takes it.
+    state.held_kept.clear();
     state.held_problems.clear();
     for (std::size_t i = first; i < last; ++i) {
-      const PixelFit kept = FitInMap(*result_, pixels[i]);
+      const PixelFit& kept = state.held_kept.emplace_back(FitInMap(*result_, pixels[i]));
       const bool lobe = kept.model == PixelModel::kBlinnPhong;
       state.held_problems.push_back({.pixel = pixels[i],
                                      .start_normal = kept.normal,
@@ -549,7 +552,7 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
       const HeldLobeSolution& judged = state.held_solutions[i - first];
       GgxCandidate offer;
       offer.pixel = pixels[i], offer.held = held_lobe_[pixels[i]] != 0;
-      offer.kept = FitInMap(*result_, offer.pixel);
+      offer.kept = state.held_kept[i - first];
       if (offer.kept.model == PixelModel::kBlinnPhong) {
         offer.on_samples = offer.kept;
         offer.on_samples.chi2 = judged.chi2;

@@ -1,6 +1,7 @@
 #include "held_lobe_fit.h"
 
 #include "lane_math.h"
+#include "lobe_lane_fit.h"
 
 #include <Eigen/Cholesky>
 
@@ -18,8 +19,8 @@ constexpr float kInvPiF = std::numbers::inv_pi_v<float>;
 // As LobeLaneFitter: cost changes below this fraction are float rounding.
 constexpr double kEvaluationPrecision = 1e-5;
 
-// A lane's point: the unit normal, its tangent basis and rho_d; the held lobe
-// as its scale rho_s (e + 2) / (2 pi) and exponent.
+// A lane's point: the unit normal, its tangent basis and rho_d (the held
+// lobe is the lanes', Lanes::lobe_scale and exponent).
 struct alignas(64) Point {
   float n[3][kPixels], t1[3][kPixels], t2[3][kPixels];
   float rho_d[kPixels];
@@ -302,14 +303,17 @@ HeldLobeLanes::HeldLobeLanes(const PhotometricStack& stack, const LambertianOpti
     : samples_(stack, lambertian),
       tolerance_(std::max(options.relative_tolerance, kEvaluationPrecision)),
       max_iterations_(options.max_iterations) {
-  const Eigen::Vector3d view = stack.view_direction.normalized();
-  for (const Eigen::Vector3d& light : stack.light_directions) {
-    const Eigen::Vector3d w = light.normalized(), sum = w + view;
-    // A light exactly opposite the camera has no half vector: no highlight.
-    const Eigen::Vector3d half = sum.norm() > 0.0 ? Eigen::Vector3d(sum.normalized()) : Eigen::Vector3d::Zero();
-    half_x_.push_back(static_cast<float>(half.x()));
-    half_y_.push_back(static_cast<float>(half.y()));
-    half_z_.push_back(static_cast<float>(half.z()));
+  // The half vectors as the lane fitter makes them (zero for a light
+  // opposite the camera: no highlight).
+  const int lights = stack.light_count();
+  std::vector<double> towards_light(3 * lights), geometry(6 * lights);
+  for (int k = 0; k < lights; ++k)
+    for (int i = 0; i < 3; ++i) towards_light[3 * k + i] = stack.light_directions[k].normalized()[i];
+  BlinnPhongGeometry(lights, towards_light.data(), stack.view_direction, geometry.data());
+  for (int k = 0; k < lights; ++k) {
+    half_x_.push_back(static_cast<float>(geometry[6 * k + 3]));
+    half_y_.push_back(static_cast<float>(geometry[6 * k + 4]));
+    half_z_.push_back(static_cast<float>(geometry[6 * k + 5]));
   }
 }
 

@@ -24,6 +24,7 @@
 #include <Eigen/Core>
 
 #include <span>
+#include <vector>
 
 namespace photorig::solvers::ps::internal {
 
