@@ -14,6 +14,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
 
 namespace photorig::solvers::color {
 namespace {
@@ -196,6 +199,94 @@ TEST(ColourAlbedo, MissingNormalsAndDarkChannelsAreFlaggedNotGuessed) {
   EXPECT_TRUE(std::isnan(albedo.at<float>(0, 0)));
   // Wrong-sized normals are refused.
   EXPECT_FALSE(solvers::ps::SolveChannelAlbedo(options, stack, cv::Mat(3, 3, CV_32FC3), &albedo).IsSolutionUsable());
+}
+
+}  // namespace
+}  // namespace photorig::solvers::color
+
+namespace photorig::solvers::color {
+namespace {
+
+// RGB frames with every kind of sample (lit, shadowed, clipped, grazing) and
+// a pixel without a normal, solved for all channels at once and channel by
+// channel: the same albedo to the last bit and the same counts.
+TEST(ColourAlbedo, AllChannelsAtOnceAnswerAsEachChannelAlone) {
+  constexpr int kLights = 9, kRows = 5, kCols = 7;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::vector<cv::Mat> frames;
+  std::vector<Eigen::Vector3d> directions, scales;
+  std::array<solvers::ps::PhotometricStack, 3> channels;
+  for (int k = 0; k < kLights; ++k) {
+    directions.push_back(Eigen::Vector3d(0.5 * unit(rng), 0.5 * unit(rng), 1.0).normalized());
+    scales.push_back(Eigen::Vector3d(1.0 + 0.3 * unit(rng), 0.8, 1.2 + 0.1 * k));
+    cv::Mat frame(kRows, kCols, CV_32FC3);
+    for (int y = 0; y < kRows; ++y)
+      for (int x = 0; x < kCols; ++x)
+        for (int c = 0; c < 3; ++c) {
+          // 100 +- 90 DN, some at 0 (shadow) and some clipped (+infinity).
+          const double roll = unit(rng);
+          frame.at<cv::Vec3f>(y, x)[c] = roll > 0.85   ? std::numeric_limits<float>::infinity()
+                                         : roll < -0.8 ? 0.0f
+                                                       : static_cast<float>(100.0 + 90.0 * unit(rng));
+        }
+    frames.push_back(frame);
+    std::vector<cv::Mat> split;
+    cv::split(frame, split);
+    for (int c = 0; c < 3; ++c) {
+      channels[c].images.push_back(split[c]);
+      channels[c].light_directions.push_back(directions.back());
+      channels[c].light_scales.push_back(scales.back()(c));
+    }
+  }
+  cv::Mat normals(kRows, kCols, CV_32FC3);
+  for (int y = 0; y < kRows; ++y)
+    for (int x = 0; x < kCols; ++x) {
+      const Eigen::Vector3d n = Eigen::Vector3d(0.6 * unit(rng), 0.6 * unit(rng), 1.0).normalized();
+      normals.at<cv::Vec3f>(y, x) = cv::Vec3f(float(n.x()), float(n.y()), float(n.z()));
+    }
+  normals.at<cv::Vec3f>(2, 3) = cv::Vec3f(NAN, NAN, NAN);
+  std::array<solvers::ps::ChannelAlbedoOptions, 3> options;
+  for (int c = 0; c < 3; ++c) {
+    options[c].shadow_threshold = 5.0 * (c + 1);
+    options[c].min_cosine = 0.2 + 0.2 * c;  // the blue channel drops the grazing lights
+    options[c].min_samples = 3;
+    options[c].saturation_level = c == 1 ? 180.0 : std::numeric_limits<double>::infinity();
+  }
+  cv::Mat together;
+  const std::array<solvers::ps::SolverSummary, 3> summaries =
+      solvers::ps::SolveRgbAlbedo(options, frames, directions, scales, normals, &together);
+  ASSERT_EQ(together.type(), CV_32FC3);
+  std::size_t solved = 0;
+  for (int c = 0; c < 3; ++c) {
+    ASSERT_TRUE(summaries[c].IsSolutionUsable()) << summaries[c].message;
+    cv::Mat alone;
+    const solvers::ps::SolverSummary summary = solvers::ps::SolveChannelAlbedo(options[c], channels[c], normals, &alone);
+    ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
+    cv::Mat channel;
+    cv::extractChannel(together, channel, c);
+    for (int y = 0; y < kRows; ++y)
+      for (int x = 0; x < kCols; ++x) {
+        const float a = alone.at<float>(y, x), b = channel.at<float>(y, x);
+        EXPECT_TRUE(a == b || (std::isnan(a) && std::isnan(b))) << "channel " << c << " at " << x << "," << y;
+      }
+    EXPECT_EQ(summaries[c].pixels_solved, summary.pixels_solved);
+    EXPECT_EQ(summaries[c].pixels_too_few_lights, summary.pixels_too_few_lights);
+    EXPECT_EQ(summaries[c].pixels_outside_mask, 1u);
+    EXPECT_EQ(summaries[c].samples_rejected, summary.samples_rejected);
+    EXPECT_GT(summary.samples_rejected, 0u);
+    solved += summary.pixels_solved;
+  }
+  // The case is not empty: most pixels have an albedo, some have too few samples.
+  EXPECT_GT(solved, 3u * kRows * kCols / 2);
+  // Frames that do not fit their lights are refused in every channel's summary.
+  std::vector<Eigen::Vector3d> two_scales(scales.begin(), scales.begin() + 2);
+  const std::array<solvers::ps::SolverSummary, 3> refused =
+      solvers::ps::SolveRgbAlbedo(options, frames, directions, two_scales, normals, &together);
+  for (const solvers::ps::SolverSummary& summary : refused) {
+    EXPECT_FALSE(summary.IsSolutionUsable());
+    EXPECT_NE(summary.message.find("light scales"), std::string::npos) << summary.message;
+  }
 }
 
 }  // namespace

@@ -54,24 +54,6 @@ nlohmann::json ToJson(const ColorProvenance& p) {
   return out;
 }
 
-solvers::ps::PhotometricStack ColorImageStack::Channel(int c) const {
-  solvers::ps::PhotometricStack stack;
-  stack.light_directions = light_directions;
-  stack.images.reserve(images.size());
-  // One slab for the channel's frames (AllocateFrameSlab): a DiLiGenT
-  // object's three channels are 360 MB of fresh pages.
-  const cv::Mat slab = images.empty() ? cv::Mat()
-                                      : AllocateFrameSlab(static_cast<int>(images.size()), images.front().size(), CV_32F);
-  for (std::size_t k = 0; k < images.size(); ++k) {
-    cv::Mat channel = FrameOfSlab(slab, static_cast<int>(k), images.front().rows);
-    cv::extractChannel(images[k], channel, c);
-    stack.images.push_back(channel);
-    stack.light_scales.push_back(light_scales[k][c]);
-  }
-  stack.noise.read_sigma = read_sigma[c];
-  return stack;
-}
-
 void ApplyColorModelInPlace(const solvers::color::ColorModel& model, cv::Mat* rgb) {
   CV_Assert(rgb->type() == CV_32FC3);
   const cv::Mat clipped = *rgb == std::numeric_limits<float>::infinity();  // per channel

@@ -22,6 +22,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 
 #include <chrono>
 #include <cmath>
@@ -96,24 +97,25 @@ cv::Mat RepeatMask3(const cv::Mat& mask) {
   return three.reshape(1, mask.rows * mask.cols * 3);
 }
 
-// Per-channel albedo with the normals fixed (solvers::ps::SolveChannelAlbedo): R, G, B
+// Per-channel albedo with the normals fixed (solvers::ps::SolveRgbAlbedo): R, G, B
 // as CV_32FC3, NaN where a channel has too few usable samples.
 cv::Mat SolveColorAlbedo(const ColorImageStack& color, const cv::Mat& normals, double shadow_sigmas,
                          PhotometricStereoResult* result) {
-  std::vector<cv::Mat> channels(3);
+  std::array<solvers::ps::ChannelAlbedoOptions, 3> options;
   for (int c = 0; c < 3; ++c) {
-    solvers::ps::ChannelAlbedoOptions options;
     // Clipped samples are +infinity in a colour stack; shadows sit at zero
     // after the dark, within the channel's noise.
-    options.shadow_threshold = std::max(1.0, shadow_sigmas * color.read_sigma[c]);
-    options.saturation_level = std::numeric_limits<double>::infinity();
-    const solvers::ps::SolverSummary summary = solvers::ps::SolveChannelAlbedo(options, color.Channel(c), normals, &channels[c]);
-    if (c == 1) result->color_albedo_summary = summary;
-    if (!summary.IsSolutionUsable())
-      spdlog::warn("{}: channel {} albedo: {}", result->source, "RGB"[c], summary.message);
+    options[c].shadow_threshold = std::max(1.0, shadow_sigmas * color.read_sigma[c]);
+    options[c].saturation_level = std::numeric_limits<double>::infinity();
   }
   cv::Mat albedo;
-  cv::merge(channels, albedo);
+  const std::array<solvers::ps::SolverSummary, 3> summaries =
+      solvers::ps::SolveRgbAlbedo(options, color.images, color.light_directions, color.light_scales, normals, &albedo);
+  result->color_albedo_summary = summaries[1];
+  for (int c = 0; c < 3; ++c)
+    if (!summaries[c].IsSolutionUsable())
+      spdlog::warn("{}: channel {} albedo: {}", result->source, "RGB"[c], summaries[c].message);
+  if (albedo.empty()) albedo = cv::Mat(normals.size(), CV_32FC3, cv::Scalar::all(std::numeric_limits<float>::quiet_NaN()));
   result->color = color.provenance;
   return albedo;
 }

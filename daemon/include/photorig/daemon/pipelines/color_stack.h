@@ -17,7 +17,6 @@
 #include "photorig/solvers/color/apply.h"
 #include "photorig/solvers/color/model.h"
 #include "photorig/config/color_model.h"
-#include "photorig/solvers/ps/stack.h"
 
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
@@ -85,9 +84,6 @@ struct ColorImageStack {
   int width() const { return images.empty() ? 0 : images.front().cols; }
   int height() const { return images.empty() ? 0 : images.front().rows; }
   int light_count() const { return static_cast<int>(images.size()); }
-  // Channel c (0 = R) as a photometric stack: its images, directions and
-  // that channel's scales, no dark.
-  solvers::ps::PhotometricStack Channel(int c) const;
 };
 
 

@@ -13,8 +13,13 @@
 #include "photorig/solvers/ps/stack.h"
 #include "photorig/solvers/ps/summary.h"
 
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <array>
 #include <limits>
 #include <string>
+#include <vector>
 
 namespace photorig::solvers::ps {
 
@@ -39,5 +44,19 @@ struct ChannelAlbedoOptions {
 // Pixels without a normal are counted with those outside the mask.
 SolverSummary SolveChannelAlbedo(const ChannelAlbedoOptions& options, const PhotometricStack& channel,
                                  const cv::Mat& normals, cv::Mat* albedo);
+
+// The same fit for the three channels of RGB frames at once: `frames` are
+// CV_32FC3, one per light (towards light_directions[k], unit), dark
+// subtracted; light_scales[k](c) is light k's scale in channel c and
+// options[c] channel c's rules. Each frame is read once and no channel is
+// copied out: for a DiLiGenT object, three channels' frames made one at a
+// time are 360 MB of fresh pages. *albedo becomes CV_32FC3 (the channels in
+// the frames' order); each channel's answer is SolveChannelAlbedo's on that
+// channel's frames alone, and summaries[c] its summary.
+std::array<SolverSummary, 3> SolveRgbAlbedo(const std::array<ChannelAlbedoOptions, 3>& options,
+                                            const std::vector<cv::Mat>& frames,
+                                            const std::vector<Eigen::Vector3d>& light_directions,
+                                            const std::vector<Eigen::Vector3d>& light_scales, const cv::Mat& normals,
+                                            cv::Mat* albedo);
 
 }  // namespace photorig::solvers::ps
