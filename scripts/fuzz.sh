@@ -28,8 +28,8 @@ build="${PHOTORIG_FUZZ_BUILD:-$root/build-fuzz}"
 jobs="${FUZZ_JOBS:-2}"
 workers="${FUZZ_WORKERS:-2}"
 log_root="$build/logs"
-targets=(fuzz_rig fuzz_recipe fuzz_diligent fuzz_run_store fuzz_manifest fuzz_color_model fuzz_light_files fuzz_api fuzz_merl fuzz_rgl_tensor
-         fuzz_gltf_roundtrip)
+targets=(fuzz_rig fuzz_recipe fuzz_diligent fuzz_run_store fuzz_manifest fuzz_image_decode fuzz_color_model fuzz_light_files fuzz_api
+         fuzz_merl fuzz_rgl_tensor fuzz_gltf_roundtrip)
 # Limits of every run: a finding is a crash, a sanitizer report, an escaped
 # exception, more than 2 GiB of memory or one input taking more than 10 s.
 limits=(-rss_limit_mb=2048 -timeout=10)

@@ -11,9 +11,11 @@ demo_packages=(
   build-essential cmake pkg-config
   # maths and images. OpenCV by module: libopencv-dev and libopencv-contrib-dev pull in every
   # module's -dev package (viz, dnn, videoio, ...); cmake/FindOpenCV.cmake finds these without it
-  libeigen3-dev libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-calib3d-dev
+  libeigen3-dev libopencv-core-dev libopencv-imgproc-dev libopencv-calib3d-dev
+  # image files (solvers/codecs): PNG, TIFF, JPEG and OpenEXR on their reference libraries
+  libpng-dev libtiff-dev libjpeg62-turbo-dev libopenexr-dev
   libceres-dev
-  # relightable assets: glTF 2.0 writer/reader (header-only; images through OpenCV, see docs/reflectance.md)
+  # relightable assets: glTF 2.0 writer/reader (header-only; its textures through solvers/codecs)
   libtinygltf-dev
   # data sets (DiLiGenT's ground truth is a MATLAB file)
   libmatio-dev

@@ -1,8 +1,8 @@
 #include "photorig/sim/scene.h"
 
+#include "photorig/solvers/codecs/image_codecs.h"
 #include "photorig/solvers/core/image_file_format.h"
 
-#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -22,12 +22,10 @@ using Eigen::Vector3d;
 using HeightFunction = std::function<bool(double x, double y, double* z, double* dzdx, double* dzdy)>;
 
 cv::Mat LoadDepthMap(const Scene& scene) {
-  // Decoded only as a format its first bytes name: OpenCV hands a file
-  // marked as DICOM to a decoder that aborts on a malformed one.
   std::vector<std::uint8_t> bytes;
-  std::string why = "truncated or corrupt";
+  std::string why;
   const cv::Mat raw = solvers::core::ReadImageFileBytes(scene.depth_map_path, &bytes, &why)
-                          ? cv::imdecode(bytes, cv::IMREAD_UNCHANGED)
+                          ? solvers::codecs::DecodeImage(bytes, solvers::codecs::ReadMode::kAsStored, &why)
                           : cv::Mat();
   if (raw.empty()) throw std::runtime_error("cannot read depth map '" + scene.depth_map_path + "' (" + why + ")");
   if (raw.channels() != 1 || (raw.depth() != CV_16U && raw.depth() != CV_32F))

@@ -72,7 +72,7 @@ TEST(ImageIo, AFileMarkedAsDicomIsRefusedNamingItAndTheProcessLives) {
   const cv::Mat back = ReadImage(png);
   ASSERT_EQ(back.type(), CV_16UC3);
   EXPECT_EQ(cv::norm(pixels, back, cv::NORM_INF), 0.0);  // unchanged: 16 bits, every channel
-  EXPECT_EQ(ReadImage(png, cv::IMREAD_GRAYSCALE).type(), CV_8UC1);
+  EXPECT_EQ(ReadImage(png, solvers::codecs::ReadMode::kGrey).type(), CV_16UC1);  // grey at the stored depth
   {
     std::fstream patch(png, std::ios::binary | std::ios::in | std::ios::out);
     patch.seekp(128);
@@ -86,7 +86,7 @@ TEST(ImageIo, AFileMarkedAsDicomIsRefusedNamingItAndTheProcessLives) {
     std::ofstream(huge, std::ios::binary) << "\x89PNG\r\n\x1a\n";
     std::filesystem::resize_file(huge, (std::uintmax_t{1} << 30) + 1);
     std::string why;
-    EXPECT_TRUE(TryReadImage(huge.string(), cv::IMREAD_UNCHANGED, &why).empty());
+    EXPECT_TRUE(TryReadImage(huge.string(), solvers::codecs::ReadMode::kAsStored, &why).empty());
     EXPECT_EQ(why, "larger than 1 GiB");
   }
   EXPECT_THROW(ReadImage((dir.path() / "absent.png").string()), std::runtime_error);

@@ -15,7 +15,6 @@
 #include "photorig/config/yaml_node.h"
 #include "ps_report.h"
 
-#include <opencv2/imgcodecs.hpp>
 
 #include <filesystem>
 #include <iostream>
@@ -36,7 +35,7 @@ struct Options {
 };
 
 cv::Mat ReadSingleChannel(const std::string& path) {
-  return daemon::ReadImage(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
+  return daemon::ReadImage(path, solvers::codecs::ReadMode::kGrey);
 }
 
 int Execute(const Options& o) {

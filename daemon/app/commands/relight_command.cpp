@@ -16,7 +16,6 @@
 #include "photorig/solvers/lighting/relight.h"
 #include "photorig/solvers/lighting/sphere.h"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
@@ -357,7 +356,7 @@ int Envmap(const EnvmapOptions& options) {
   solvers::lighting::LatLongMap map;
   const solvers::core::Summary unwrapped = solvers::lighting::MirrorBallToLatLong(ball, sphere, unwrap, &map);
   if (!unwrapped.IsSolutionUsable()) return Fail(kExitFailed, options.ball + ": " + unwrapped.message);
-  if (!cv::imwrite(options.out, map.radiance)) throw std::runtime_error("cannot write " + options.out);
+  daemon::WriteImage(options.out, map.radiance);
   const double seen = double(cv::countNonZero(map.valid)) / double(map.valid.total());
   std::printf("wrote %s (%d x %d, %d%% of directions seen)\n", options.out.c_str(), map.radiance.cols,
               map.radiance.rows, int(100.0 * seen));

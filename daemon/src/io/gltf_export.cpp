@@ -4,7 +4,6 @@
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/solvers/reflectance/gltf_material.h"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
@@ -26,16 +25,11 @@ std::uint8_t ToSrgb8(double linear) {
 
 std::uint8_t ToUnit8(double v) { return static_cast<std::uint8_t>(std::lround(255.0 * std::clamp(v, 0.0, 1.0))); }
 
-void WritePng(const fs::path& path, const cv::Mat& rgb8) {
-  cv::Mat bgr;
-  if (rgb8.channels() == 3) cv::cvtColor(rgb8, bgr, cv::COLOR_RGB2BGR); else bgr = rgb8;
-  if (!cv::imwrite(path.string(), bgr)) throw std::runtime_error("cannot write " + path.string());
-}
-
-void WriteExr(const fs::path& path, const cv::Mat& image) {
-  cv::Mat out = image;
-  if (image.channels() == 3) cv::cvtColor(image, out, cv::COLOR_RGB2BGR);
-  if (!cv::imwrite(path.string(), out)) throw std::runtime_error("cannot write " + path.string());
+// Textures are held in glTF's channel order (R, G, B); files are written from OpenCV's (B, G, R).
+void WriteRgbImage(const fs::path& path, const cv::Mat& rgb) {
+  cv::Mat bgr = rgb;
+  if (rgb.channels() == 3) cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  WriteImage(path.string(), bgr);
 }
 
 int AddTexture(tinygltf::Model* model, const std::string& uri) {
@@ -235,8 +229,8 @@ GltfExport WriteGltfAsset(const std::string& directory, const refl::ReflectanceM
   }
   const fs::path dir(directory);
   fs::create_directories(dir);
-  for (const auto& [name, image] : asset.png) WritePng(dir / name, image);
-  for (const auto& [name, image] : asset.exr) WriteExr(dir / name, image);
+  for (const auto& [name, image] : asset.png) WriteRgbImage(dir / name, image);
+  for (const auto& [name, image] : asset.exr) WriteRgbImage(dir / name, image);
   GltfExport out;
   out.gltf_path = (dir / "asset.gltf").string();
   tinygltf::TinyGLTF writer;

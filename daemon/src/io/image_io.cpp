@@ -2,7 +2,6 @@
 
 #include "photorig/solvers/core/image_file_format.h"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <libdeflate.h>
 
@@ -23,14 +22,13 @@
 
 namespace photorig::daemon {
 namespace fs = std::filesystem;
+using solvers::codecs::ReadMode;
 namespace {
 
 // A system_error keeps errno, so callers can tell a full disk from other failures.
 [[noreturn]] void Fail(const std::string& what, const std::string& path) {
   throw std::system_error(errno, std::generic_category(), what + " " + path);
 }
-
-std::string Extension(const std::string& path) { return fs::path(path).extension().string(); }
 
 }  // namespace
 
@@ -83,12 +81,13 @@ void WriteFileDurably(const std::string& path, const std::string& text) {
   WriteFileDurably(path, text.data(), text.size());
 }
 
-void WriteImage(const std::string& path, const cv::Mat& image) {
-  std::vector<int> params;
-  if (Extension(path) == ".tiff" || Extension(path) == ".tif") params = {cv::IMWRITE_TIFF_COMPRESSION, 5};  // LZW
+void WriteImage(const std::string& path, const cv::Mat& image, const solvers::codecs::EncodeOptions& options) {
+  const auto encoding = solvers::codecs::EncodingOfPath(path);
+  if (!encoding) throw std::runtime_error("cannot write image " + path + ": its extension names no format written (.png, .tiff, .hdr, .exr)");
   std::vector<std::uint8_t> bytes;
-  if (!cv::imencode(Extension(path), image, bytes, params))
-    throw std::runtime_error("cannot encode image for " + path);
+  std::string why;
+  if (!solvers::codecs::EncodeImage(*encoding, image, &bytes, &why, options))
+    throw std::runtime_error("cannot encode image for " + path + ": " + why);
   WriteFileDurably(path, bytes.data(), bytes.size());
 }
 
@@ -101,27 +100,22 @@ void WriteFloatTiff(const std::string& path, const cv::Mat& image) {
   WriteImage(path, bgr);
 }
 
-// The file's bytes, decoded only as a format ImageFileFormatOf names: handed
-// a file with DICOM's mark, cv::imread would give it to GDCM, which aborts
-// the process on a malformed one.
-cv::Mat TryReadImage(const std::string& path, int imread_flags, std::string* why) {
+cv::Mat TryReadImage(const std::string& path, ReadMode mode, std::string* why) {
   std::vector<std::uint8_t> bytes;
   if (!solvers::core::ReadImageFileBytes(path, &bytes, why)) return {};
-  cv::Mat image = cv::imdecode(bytes, imread_flags);
-  if (image.empty()) *why = "truncated or corrupt";
-  return image;
+  return solvers::codecs::DecodeImage(bytes, mode, why);
 }
 
-cv::Mat ReadImage(const std::string& path, int imread_flags) {
+cv::Mat ReadImage(const std::string& path, ReadMode mode) {
   std::string why;
-  cv::Mat image = TryReadImage(path, imread_flags, &why);
+  cv::Mat image = TryReadImage(path, mode, &why);
   if (image.empty()) throw std::runtime_error("cannot read image " + path + " (" + why + ")");
   return image;
 }
 
-cv::Mat ReadInputImage(const std::string& path, int imread_flags) {
+cv::Mat ReadInputImage(const std::string& path, ReadMode mode) {
   std::string why;
-  cv::Mat image = TryReadImage(path, imread_flags, &why);
+  cv::Mat image = TryReadImage(path, mode, &why);
   if (image.empty()) throw std::invalid_argument("cannot read image " + path + " (" + why + ")");
   return image;
 }

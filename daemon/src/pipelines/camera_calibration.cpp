@@ -4,7 +4,6 @@
 #include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/io/utc_time.h"
 
-#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <ctime>
@@ -77,7 +76,7 @@ CameraCalibrationResult CalibrateCamera(const CameraCalibrationRequest& request)
   const config::RigConfig base = config::LoadRigConfig(request.base_rig);
   std::vector<cv::Mat> images;
   for (const std::string& path : request.images) {
-    images.push_back(ReadInputImage(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR));
+    images.push_back(ReadInputImage(path, solvers::codecs::ReadMode::kWithoutAlpha));
     if (images.back().cols != base.camera.width || images.back().rows != base.camera.height)
       throw std::invalid_argument(path + ": " + std::to_string(images.back().cols) + " x " +
                                   std::to_string(images.back().rows) + " px, the camera of " + request.base_rig +

@@ -7,7 +7,6 @@
 
 #include <matio.h>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <array>
 #include <exception>
@@ -34,7 +33,7 @@ namespace {
 // decode is malformed input like any other file of the folder.
 cv::Mat ReadFolderImage(const fs::path& file) {
   std::string why;
-  cv::Mat image = TryReadImage(file.string(), cv::IMREAD_UNCHANGED, &why);
+  cv::Mat image = TryReadImage(file.string(), solvers::codecs::ReadMode::kAsStored, &why);
   if (image.empty()) Malformed(file, 0, "cannot read as an image (" + why + ")");
   return image;
 }
@@ -126,7 +125,7 @@ FolderFrame ConvertFolderFrame(const cv::Mat& image, const cv::Vec3d& intensity,
 
 // An image of the folder, unchanged; empty with `why` set if it does not decode.
 cv::Mat DecodeFolderImage(const fs::path& file, std::string* why) {
-  cv::Mat image = TryReadImage(file.string(), cv::IMREAD_UNCHANGED, why);
+  cv::Mat image = TryReadImage(file.string(), solvers::codecs::ReadMode::kAsStored, why);
   if (image.empty() && why->empty()) *why = "empty image";
   return image;
 }

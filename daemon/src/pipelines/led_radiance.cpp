@@ -3,12 +3,12 @@
 
 #include "photorig/config/rig.h"
 #include "photorig/daemon/capture/run_store.h"
+#include "photorig/daemon/io/image_io.h"
 #include "photorig/daemon/io/utc_time.h"
 #include "photorig/daemon/pipelines/ps_pipeline.h"
 #include "photorig/solvers/core/summary_json.h"
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <filesystem>
@@ -103,8 +103,7 @@ LedRadianceResult CalibrateLedRadianceRun(const LedRadianceRequest& request) {
   std::ofstream report(folder / "report.json");
   report << ToJson(request, result).dump(2) << "\n";
   if (!report) throw std::runtime_error("cannot write " + (folder / "report.json").string());
-  if (!result.summary.plane_mask.empty() && !cv::imwrite((folder / "plane_mask.png").string(), result.summary.plane_mask))
-    throw std::runtime_error("cannot write " + (folder / "plane_mask.png").string());
+  if (!result.summary.plane_mask.empty()) WriteImage((folder / "plane_mask.png").string(), result.summary.plane_mask);
   if (result.summary.IsSolutionUsable() && !request.out_rig.empty()) {
     const std::string base_rig = request.base_rig.empty() ? manifest.rig_path : request.base_rig;
     WriteCalibratedRig(request, base_rig, result);

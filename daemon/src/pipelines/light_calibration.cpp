@@ -6,7 +6,6 @@
 #include "photorig/solvers/lighting/light_intensity.h"
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -72,7 +71,7 @@ LightCalibrationInputs LoadLightCalibrationInputs(const std::string& run_directo
 void LoadWhiteFrames(const std::vector<std::string>& paths, LightCalibrationInputs* inputs) {
   for (const std::string& path : paths) {
     std::string why;
-    cv::Mat image = TryReadImage(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR, &why);
+    cv::Mat image = TryReadImage(path, solvers::codecs::ReadMode::kWithoutAlpha, &why);
     if (image.empty()) throw std::invalid_argument(path + ": cannot read the white-sphere image (" + why + ")");
     inputs->white_frames.push_back(std::move(image));
   }
@@ -111,7 +110,7 @@ bool FindSphereCircle(const LightCalibrationInputs& inputs, const config::LightC
   }
   if (!request.silhouette_image.empty()) {
     std::string why;
-    const cv::Mat silhouette = TryReadImage(request.silhouette_image, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE, &why);
+    const cv::Mat silhouette = TryReadImage(request.silhouette_image, solvers::codecs::ReadMode::kGrey, &why);
     if (silhouette.empty()) {
       summary->message = request.silhouette_image + ": cannot read the silhouette image (" + why + ")";
       return false;

@@ -12,7 +12,6 @@
 #include "photorig/solvers/reflectance/gltf_material.h"
 #include "photorig/solvers/core/summary_json.h"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>

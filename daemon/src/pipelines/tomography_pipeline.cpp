@@ -13,7 +13,6 @@
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/tomography/nrrd.h"
 
-#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <chrono>

@@ -4,7 +4,6 @@
 #include "photorig/daemon/io/image_io.h"
 #include "http_front.h"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <httplib.h>
@@ -591,8 +590,10 @@ void ApiServer::SendPreview(const httplib::Request& req, httplib::Response& res)
   if (!values) return;
   try {
     const Preview preview = TonemapPreview(*values, req);
-    std::vector<unsigned char> png;
-    cv::imencode(".png", preview.bgr8, png, {cv::IMWRITE_PNG_COMPRESSION, 1});
+    std::vector<std::uint8_t> png;
+    std::string why;
+    if (!solvers::codecs::EncodeImage(solvers::codecs::ImageEncoding::kPng, preview.bgr8, &png, &why))
+      throw std::runtime_error("cannot encode the preview: " + why);
     res.set_header("X-Preview-Low", std::to_string(preview.low));
     res.set_header("X-Preview-High", std::to_string(preview.high));
     if (req.has_param("saturation")) res.set_header("X-Preview-Clipped", std::to_string(preview.clipped));

@@ -1,10 +1,12 @@
 #pragma once
-// Image files written by runs and solvers. Float images go to TIFF with
-// lossless LZW compression: OpenCV's default for 3-channel float TIFF is lossy
-// LogLuv. Normal maps are stored with channels (R, G, B) = (x, y, z).
+// Image files written by runs and solvers, decoded and encoded by
+// photorig/solvers/codecs/image_codecs.h. Float images go to TIFF with
+// lossless LZW compression. Normal maps are stored with channels (R, G, B) =
+// (x, y, z).
+
+#include "photorig/solvers/codecs/image_codecs.h"
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <cstddef>
 #include <exception>
@@ -23,24 +25,25 @@ void WriteFileDurably(const std::string& path, const std::string& text);
 // Makes a directory's entries (files created, renamed or removed in it) durable.
 void FsyncDirectory(const std::string& directory);
 
-// Encodes with OpenCV (format from the extension) and writes durably.
-// Throws std::runtime_error naming the file on failure.
-void WriteImage(const std::string& path, const cv::Mat& image);
+// Encodes in the format the extension names (.png, .tif/.tiff, .hdr, .exr;
+// photorig/solvers/codecs/image_codecs.h) and writes durably. Throws
+// std::runtime_error naming the file and the reason on failure.
+void WriteImage(const std::string& path, const cv::Mat& image, const solvers::codecs::EncodeOptions& options = {});
 // 1- or 3-channel CV_32F; 3-channel images are taken as (x, y, z).
 void WriteFloatTiff(const std::string& path, const cv::Mat& image);
 // Reads back what WriteFloatTiff wrote (channels in x, y, z order).
 cv::Mat ReadFloatTiff(const std::string& path);
-// Reads a PNG, TIFF, JPEG, BMP, PNM or Radiance HDR file, by default
-// unchanged (16-bit PNG stays 16-bit; other cv::ImreadModes as imread takes
-// them). Any other file, one whose format its first bytes do not name among
-// those, is refused undecoded. Throws std::runtime_error naming the file.
-cv::Mat ReadImage(const std::string& path, int imread_flags = cv::IMREAD_UNCHANGED);
+// Reads a PNG, TIFF, JPEG, BMP, PNM or Radiance HDR file, by default as
+// stored (16-bit PNG stays 16-bit). Any other file, one whose format its
+// first bytes do not name among those, is refused undecoded. Throws
+// std::runtime_error naming the file.
+cv::Mat ReadImage(const std::string& path, solvers::codecs::ReadMode mode = solvers::codecs::ReadMode::kAsStored);
 // The same without throwing: an empty image, and in `why` the reason
 // (missing, not a regular file, not one of those formats, truncated or corrupt).
-cv::Mat TryReadImage(const std::string& path, int imread_flags, std::string* why);
+cv::Mat TryReadImage(const std::string& path, solvers::codecs::ReadMode mode, std::string* why);
 // The same for an image a request names (a capture, a board, a sphere): one
 // that cannot be read is the request's fault, so std::invalid_argument.
-cv::Mat ReadInputImage(const std::string& path, int imread_flags = cv::IMREAD_UNCHANGED);
+cv::Mat ReadInputImage(const std::string& path, solvers::codecs::ReadMode mode = solvers::codecs::ReadMode::kAsStored);
 
 // `count` frames of one size and type in one allocation, frame i as rows
 // [i * size.height, (i + 1) * size.height) (FrameOfSlab): each continuous,
