@@ -11,6 +11,8 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfInputFile.h>
+#include "same_bits.h"
+
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
@@ -39,19 +41,7 @@ class OpenCvReadsOpenExr : public ::testing::Environment {
 [[maybe_unused]] ::testing::Environment* const kOpenCvReadsOpenExr =
     ::testing::AddGlobalTestEnvironment(new OpenCvReadsOpenExr);
 
-// Same type, same size and the same bytes in every row (for floats: the same
-// bits, NaNs included).
-::testing::AssertionResult SameBits(const cv::Mat& actual, const cv::Mat& expected) {
-  if (actual.type() != expected.type() || actual.size() != expected.size())
-    return ::testing::AssertionFailure() << "type " << actual.type() << " " << actual.cols << " x " << actual.rows
-                                         << ", expected type " << expected.type() << " " << expected.cols << " x "
-                                         << expected.rows;
-  const std::size_t row_bytes = actual.cols * actual.elemSize();
-  for (int r = 0; r < actual.rows; ++r)
-    if (std::memcmp(actual.ptr(r), expected.ptr(r), row_bytes) != 0)
-      return ::testing::AssertionFailure() << "row " << r << " differs";
-  return ::testing::AssertionSuccess();
-}
+using photorig::solvers::codecs::test_support::SameBits;
 
 // Gradients, a sharp edge and noise: smooth areas, ringing, and colour that
 // changes within a chroma block.

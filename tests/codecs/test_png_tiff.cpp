@@ -6,6 +6,8 @@
 // reason. And the read modes, and the choice of encoding by extension.
 #include "photorig/solvers/codecs/image_codecs.h"
 
+#include "same_bits.h"
+
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -53,16 +55,7 @@ const std::vector<std::uint8_t> kOneBitPng = {
     0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82
 };
 
-// Equal type, size and bytes (so NaN and -0 count as stored).
-::testing::AssertionResult SameImage(const cv::Mat& a, const cv::Mat& b) {
-  if (a.type() != b.type() || a.size() != b.size())
-    return ::testing::AssertionFailure() << "type " << a.type() << " vs " << b.type() << ", size " << a.size()
-                                         << " vs " << b.size();
-  for (int r = 0; r < a.rows; ++r)
-    if (std::memcmp(a.ptr(r), b.ptr(r), a.cols * a.elemSize()) != 0)
-      return ::testing::AssertionFailure() << "row " << r << " differs";
-  return ::testing::AssertionSuccess();
-}
+using photorig::solvers::codecs::test_support::SameBits;
 
 cv::Mat RandomImage(int depth, int channels, int rows = 37, int cols = 53) {
   cv::Mat image(rows, cols, CV_MAKETYPE(depth, channels));
@@ -108,11 +101,11 @@ TEST_P(EveryLayout, PngDecodesAsOpenCvAndOpenCvDecodesOurs) {
   const auto [depth, channels] = GetParam();
   if (depth == CV_32F) GTEST_SKIP() << "PNG has no float samples";
   const cv::Mat image = RandomImage(depth, channels);
-  EXPECT_TRUE(SameImage(Decode(OpenCvEncode(".png", image)), image));
+  EXPECT_TRUE(SameBits(Decode(OpenCvEncode(".png", image)), image));
   for (int level : {0, 1, 9}) {
     const std::vector<std::uint8_t> ours = Encode(ImageEncoding::kPng, image, {.png_compression_level = level});
-    EXPECT_TRUE(SameImage(cv::imdecode(ours, cv::IMREAD_UNCHANGED), image)) << "level " << level;
-    EXPECT_TRUE(SameImage(Decode(ours), image)) << "level " << level;
+    EXPECT_TRUE(SameBits(cv::imdecode(ours, cv::IMREAD_UNCHANGED), image)) << "level " << level;
+    EXPECT_TRUE(SameBits(Decode(ours), image)) << "level " << level;
   }
 }
 
@@ -122,13 +115,13 @@ TEST_P(EveryLayout, TiffDecodesAsOpenCvAndOpenCvDecodesOurs) {
   // LZW, as float colour must be asked for: OpenCV's default for it is lossy LogLuv.
   std::vector<std::uint8_t> theirs;
   ASSERT_TRUE(cv::imencode(".tiff", image, theirs, {cv::IMWRITE_TIFF_COMPRESSION, 5}));
-  EXPECT_TRUE(SameImage(Decode(theirs), image));
+  EXPECT_TRUE(SameBits(Decode(theirs), image));
   const std::vector<std::uint8_t> ours = Encode(ImageEncoding::kTiff, image);
-  EXPECT_TRUE(SameImage(Decode(ours), image));
+  EXPECT_TRUE(SameBits(Decode(ours), image));
   // OpenCV 4.6 premultiplies a fourth sample the file marks as unassociated
   // alpha (its own files leave the fourth sample unmarked).
   if (channels != 4) {
-    EXPECT_TRUE(SameImage(cv::imdecode(ours, cv::IMREAD_UNCHANGED), image));
+    EXPECT_TRUE(SameBits(cv::imdecode(ours, cv::IMREAD_UNCHANGED), image));
   }
 }
 
@@ -147,7 +140,7 @@ TEST(Png, VariantsOpenCvDoesNotWriteDecodeAsOpenCvDecodesThem) {
   for (const auto* bytes : {&kPalettePngWithTransparency, &kGreyAlphaPng, &kOneBitPng}) {
     const cv::Mat theirs = cv::imdecode(*bytes, cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(theirs.empty());
-    EXPECT_TRUE(SameImage(Decode(*bytes), theirs));
+    EXPECT_TRUE(SameBits(Decode(*bytes), theirs));
   }
   // What OpenCV gives, said outright: palette with transparency -> B, G, R, A.
   const cv::Mat palette = Decode(kPalettePngWithTransparency);
@@ -230,9 +223,9 @@ TEST(Tiff, TilesAndSeparatePlanesDecodeToThePixelsWritten) {
   for (bool tiled : {false, true})
     for (bool separate : {false, true}) {
       const std::vector<std::uint8_t> bytes = LibtiffFile(rgb16, tiled, separate);
-      EXPECT_TRUE(SameImage(Decode(bytes), bgr16)) << "tiled " << tiled << ", separate planes " << separate;
+      EXPECT_TRUE(SameBits(Decode(bytes), bgr16)) << "tiled " << tiled << ", separate planes " << separate;
       if (!separate) {
-        EXPECT_TRUE(SameImage(Decode(bytes), cv::imdecode(bytes, cv::IMREAD_UNCHANGED))) << "tiled " << tiled;
+        EXPECT_TRUE(SameBits(Decode(bytes), cv::imdecode(bytes, cv::IMREAD_UNCHANGED))) << "tiled " << tiled;
       }
     }
 }
@@ -252,8 +245,8 @@ TEST(ReadModes, AlphaDroppedAndGreyAsOpenCvReadsThem) {
   const std::vector<std::uint8_t> png = Encode(ImageEncoding::kPng, bgra);
   cv::Mat bgr;
   cv::cvtColor(bgra, bgr, cv::COLOR_BGRA2BGR);
-  EXPECT_TRUE(SameImage(Decode(png, ReadMode::kWithoutAlpha), bgr));
-  EXPECT_TRUE(SameImage(Decode(png, ReadMode::kWithoutAlpha), cv::imdecode(png, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR)));
+  EXPECT_TRUE(SameBits(Decode(png, ReadMode::kWithoutAlpha), bgr));
+  EXPECT_TRUE(SameBits(Decode(png, ReadMode::kWithoutAlpha), cv::imdecode(png, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR)));
   // OpenCV's PNG reader makes grey inside libpng, with its own rounding:
   // within 1 DN of 8 bits, 8 DN of 16 (0.01 %).
   for (int depth : {CV_8U, CV_16U}) {
@@ -270,7 +263,7 @@ TEST(ReadModes, AlphaDroppedAndGreyAsOpenCvReadsThem) {
   // Grey stays as stored whatever the mode.
   const cv::Mat grey16 = RandomImage(CV_16U, 1);
   for (ReadMode mode : {ReadMode::kAsStored, ReadMode::kWithoutAlpha, ReadMode::kGrey})
-    EXPECT_TRUE(SameImage(Decode(Encode(ImageEncoding::kTiff, grey16), mode), grey16));
+    EXPECT_TRUE(SameBits(Decode(Encode(ImageEncoding::kTiff, grey16), mode), grey16));
 }
 
 TEST(ImageCodecs, EncodingByExtensionAndRefusals) {

@@ -6,6 +6,8 @@
 
 #include "formats.h"
 
+#include "same_bits.h"
+
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
@@ -35,18 +37,7 @@ Bytes Encoded(const std::string& extension, const cv::Mat& image, const std::vec
   return bytes;
 }
 
-// Same type, same size and the same bytes in every row (for floats: the same bits).
-::testing::AssertionResult SameBits(const cv::Mat& actual, const cv::Mat& expected) {
-  if (actual.type() != expected.type() || actual.size() != expected.size())
-    return ::testing::AssertionFailure() << "type " << actual.type() << " " << actual.cols << " x " << actual.rows
-                                         << ", expected type " << expected.type() << " " << expected.cols << " x "
-                                         << expected.rows;
-  const std::size_t row_bytes = actual.cols * actual.elemSize();
-  for (int r = 0; r < actual.rows; ++r)
-    if (std::memcmp(actual.ptr(r), expected.ptr(r), row_bytes) != 0)
-      return ::testing::AssertionFailure() << "row " << r << " differs";
-  return ::testing::AssertionSuccess();
-}
+using photorig::solvers::codecs::test_support::SameBits;
 
 // Decoded, with no reason given, to exactly what OpenCV decodes.
 ::testing::AssertionResult DecodesAsOpenCv(Decoder decode, const Bytes& bytes) {
