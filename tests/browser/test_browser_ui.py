@@ -406,6 +406,7 @@ def main():
 
     if not browser_installed():
         return SKIP
+    from selenium.common.exceptions import StaleElementReferenceException
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select, WebDriverWait
@@ -426,7 +427,11 @@ def main():
         driver_logs = [os.path.join(args.artefacts, name) for name in ("chromedriver.log", "chromium-output.log")]
         chromedriver, chromedriver_url = start_chromedriver(*driver_logs)
         driver = start_browser(os.path.join(temp, "chromium-profile"), chromedriver_url, driver_logs)
-        wait = lambda seconds, condition, what: WebDriverWait(driver, seconds).until(  # noqa: E731
+        # The pages re-render as the daemon's state moves on: an element found
+        # may be replaced before it is read, so a condition that meets a stale
+        # one is asked again.
+        wait = lambda seconds, condition, what: WebDriverWait(  # noqa: E731
+            driver, seconds, ignored_exceptions=[StaleElementReferenceException]).until(
             lambda d: condition(d), message=what)
         shots = {}
 
@@ -521,8 +526,9 @@ def main():
         wait(60, lambda d: d.find_element(By.ID, "frame-image").get_attribute("data-file"), "the run to abort shows no frame")
         driver.find_element(By.CSS_SELECTOR, "button[data-action=abort]").click()
         wait(30, lambda d: d.find_elements(By.CSS_SELECTOR, "#run-state [data-state=aborted]"), "the run did not end aborted")
-        verdict = wait(10, lambda d: d.find_elements(By.CSS_SELECTOR, "#run-verdict [data-verdict=aborted]"),
-                       "the Run page does not say the capture was aborted")[0].text
+        verdict = wait(10, lambda d: [e.text for e in
+                                      d.find_elements(By.CSS_SELECTOR, "#run-verdict [data-verdict=aborted]")],
+                       "the Run page does not say the capture was aborted")[0]
         for button in driver.find_elements(By.CSS_SELECTOR, "button[data-action]"):
             check(not button.is_enabled(), f"{button.text} stays enabled on the aborted run")
         write_brdf_results(os.path.join(temp, "data", "runs", aborted_run, "results", "brdf"))
