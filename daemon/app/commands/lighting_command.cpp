@@ -15,7 +15,6 @@
 #include "photorig/config/yaml_node.h"
 #include "ps_report.h"
 
-
 #include <filesystem>
 #include <iostream>
 #include <stdexcept>

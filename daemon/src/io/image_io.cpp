@@ -83,7 +83,9 @@ void WriteFileDurably(const std::string& path, const std::string& text) {
 
 void WriteImage(const std::string& path, const cv::Mat& image, const solvers::codecs::EncodeOptions& options) {
   const auto encoding = solvers::codecs::EncodingOfPath(path);
-  if (!encoding) throw std::runtime_error("cannot write image " + path + ": its extension names no format written (.png, .tiff, .hdr, .exr)");
+  if (!encoding)
+    throw std::runtime_error("cannot write image " + path + ": its extension names no format written (.png, .tiff, "
+                             ".hdr, .exr)");
   std::vector<std::uint8_t> bytes;
   std::string why;
   if (!solvers::codecs::EncodeImage(*encoding, image, &bytes, &why, options))

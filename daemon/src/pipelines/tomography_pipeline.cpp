@@ -13,7 +13,6 @@
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/solvers/tomography/nrrd.h"
 
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>

@@ -96,9 +96,8 @@ bool WritePixels(png_structp png, png_infop info, const cv::Mat& image, int comp
                image.depth() == CV_16U ? 16 : 8, color_type, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
                PNG_FILTER_TYPE_DEFAULT);
   png_set_compression_level(png, compression_level);
-  // At the fast levels previews and masks are written at, the Sub filter and
-  // run-length matching give nearly the adaptive filters' size in a fraction
-  // of their time.
+  // At the fast levels previews and masks are written at, one fixed filter
+  // and run-length matching spare libpng trying every filter on every row.
   if (compression_level <= 3) {
     png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB);
     png_set_compression_strategy(png, 3 /* Z_RLE */);

@@ -4,7 +4,7 @@
 // OpenEXR) and short readers of the project's own for PNM, BMP and Radiance
 // HDR. OpenCV's image codec module is not used: its plugins (GDAL, GDCM,
 // HEIF and what they need) bind about 120 shared libraries when any program
-// linking it starts, 0.2-0.3 s of every photorig process.
+// linking it starts: `photorig --help` took 0.24 s with them, 0.13 s without.
 //
 // Decoding is pure computation on bytes already read (ReadImageFileBytes in
 // photorig/solvers/core/image_file_format.h reads them and refuses what is
@@ -48,8 +48,8 @@ enum class ImageEncoding { kPng, kTiff, kRadianceHdr, kOpenExr };
 std::optional<ImageEncoding> EncodingOfPath(const std::string& path);
 
 struct EncodeOptions {
-  // zlib level for PNG, 0-9. 1 (default): about the size of level 6 on
-  // noisy frames and masks at a fraction of the time.
+  // zlib level for PNG, 0-9. 1 (default): the fastest level that compresses,
+  // for previews, masks and textures written while a person waits.
   int png_compression_level = 1;
 
   bool IsValid(std::string* why) const;
