@@ -3,6 +3,7 @@
 // ones; the OpenEXR encoder read back by OpenEXR itself and by OpenCV.
 
 #include "formats.h"
+#include "photorig/solvers/codecs/image_codecs.h"
 
 #include <OpenEXR/Iex.h>
 #include <OpenEXR/ImfChannelList.h>
@@ -65,7 +66,7 @@ std::vector<std::uint8_t> OpenCvJpeg(const cv::Mat& image, const std::vector<int
 // DecodeJpeg's image is OpenCV's, bit for bit.
 void ExpectAsOpenCv(const std::vector<std::uint8_t>& jpeg) {
   std::string why;
-  const cv::Mat decoded = DecodeJpeg(jpeg, &why);
+  const cv::Mat decoded = DecodeJpeg(jpeg, &why, kMaxDecodedBytes);
   const cv::Mat expected = cv::imdecode(jpeg, cv::IMREAD_UNCHANGED);
   ASSERT_FALSE(expected.empty());
   ASSERT_FALSE(decoded.empty()) << why;
@@ -182,7 +183,7 @@ TEST(Jpeg, GreyFromOpenCvDecodesAsOpenCvDoes) {
             OpenCvJpeg(image, {cv::IMWRITE_JPEG_QUALITY, quality, cv::IMWRITE_JPEG_PROGRESSIVE, progressive});
         ExpectAsOpenCv(jpeg);
         std::string why;
-        EXPECT_EQ(DecodeJpeg(jpeg, &why).type(), CV_8UC1);
+        EXPECT_EQ(DecodeJpeg(jpeg, &why, kMaxDecodedBytes).type(), CV_8UC1);
       }
     }
   }
@@ -218,7 +219,7 @@ TEST(Jpeg, CmykAndYcckBecomeBgrAsOpenCvConvertsThem) {
           LibjpegJpeg(cmyk, JCS_CMYK, {.file_space = space, .progressive = progressive});
       ExpectAsOpenCv(jpeg);
       std::string why;
-      EXPECT_EQ(DecodeJpeg(jpeg, &why).type(), CV_8UC3);
+      EXPECT_EQ(DecodeJpeg(jpeg, &why, kMaxDecodedBytes).type(), CV_8UC3);
     }
   }
 }
@@ -238,7 +239,7 @@ TEST(Jpeg, MotionJpegWithoutHuffmanTablesDecodesAsOpenCvDoes) {
   ASSERT_LT(frame.size(), jpeg.size());
   ExpectAsOpenCv(frame);
   std::string why;
-  EXPECT_TRUE(SameBits(DecodeJpeg(frame, &why), DecodeJpeg(jpeg, &why)));
+  EXPECT_TRUE(SameBits(DecodeJpeg(frame, &why, kMaxDecodedBytes), DecodeJpeg(jpeg, &why, kMaxDecodedBytes)));
 }
 
 // IMREAD_UNCHANGED keeps the stored orientation, and so does the decoder.
@@ -254,7 +255,7 @@ TEST(Jpeg, ExifOrientationIsNotApplied) {
   rotated.insert(rotated.end(), jpeg.begin() + 2, jpeg.end());
   ASSERT_EQ(cv::imdecode(rotated, cv::IMREAD_COLOR).size(), cv::Size(24, 40));  // the orientation is read
   std::string why;
-  const cv::Mat decoded = DecodeJpeg(rotated, &why);
+  const cv::Mat decoded = DecodeJpeg(rotated, &why, kMaxDecodedBytes);
   EXPECT_EQ(decoded.size(), cv::Size(40, 24)) << why;
   ExpectAsOpenCv(rotated);
 }
@@ -269,7 +270,7 @@ TEST(Jpeg, BytesAfterTheLastRowAreNotRead) {
   padded.insert(padded.end(), {0, 0, 0, 0, 0, 0xff, 0xd9, 'j', 'u', 'n', 'k'});
   ExpectAsOpenCv(padded);
   std::string why;
-  EXPECT_TRUE(SameBits(DecodeJpeg(padded, &why), DecodeJpeg(jpeg, &why)));
+  EXPECT_TRUE(SameBits(DecodeJpeg(padded, &why, kMaxDecodedBytes), DecodeJpeg(jpeg, &why, kMaxDecodedBytes)));
 }
 
 // libjpeg warns of a JFIF version or an Adobe colour transform it does not
@@ -307,7 +308,7 @@ TEST(Jpeg, CutFilesAreRefusedAsTruncated) {
       LibjpegJpeg(colour, JCS_RGB, {.progressive = true, .arithmetic = true})};
   for (const std::vector<std::uint8_t>& whole : files) {
     std::string why;
-    const cv::Mat expected = DecodeJpeg(whole, &why);
+    const cv::Mat expected = DecodeJpeg(whole, &why, kMaxDecodedBytes);
     ASSERT_FALSE(expected.empty()) << why;
     int accepted = 0;
     for (std::size_t size = 0; size < whole.size(); ++size) {
@@ -315,7 +316,7 @@ TEST(Jpeg, CutFilesAreRefusedAsTruncated) {
       // A copy of exactly the cut, so that a read past it is out of bounds.
       const std::vector<std::uint8_t> cut(whole.begin(), whole.begin() + size);
       why.clear();
-      const cv::Mat decoded = DecodeJpeg(cut, &why);
+      const cv::Mat decoded = DecodeJpeg(cut, &why, kMaxDecodedBytes);
       if (decoded.empty()) {
         EXPECT_EQ(why, "JPEG: the file ends early (truncated)");
         continue;
@@ -340,7 +341,7 @@ TEST(Jpeg, CorruptDataIsRefused) {
   jpeg[at + 1] = 0xd3;  // RST3 where RST0 belongs
   EXPECT_FALSE(cv::imdecode(jpeg, cv::IMREAD_UNCHANGED).empty());
   std::string why;
-  EXPECT_TRUE(DecodeJpeg(jpeg, &why).empty());
+  EXPECT_TRUE(DecodeJpeg(jpeg, &why, kMaxDecodedBytes).empty());
   EXPECT_EQ(why.rfind("JPEG: Corrupt JPEG data", 0), 0u) << why;
 }
 
@@ -350,15 +351,15 @@ TEST(Jpeg, ImagesPastOneGibAreRefused) {
   const std::vector<std::uint8_t> grey = OpenCvJpeg(TestImage(16, 16, 1), {});
   const std::vector<std::uint8_t> colour = OpenCvJpeg(TestImage(16, 16, 3), {});
   std::string why;
-  EXPECT_TRUE(DecodeJpeg(WithSize(grey, 32768, 32769), &why).empty());
+  EXPECT_TRUE(DecodeJpeg(WithSize(grey, 32768, 32769), &why, kMaxDecodedBytes).empty());
   EXPECT_EQ(why, "JPEG: 32768 x 32769 pixels, past the 1 GiB limit");
-  EXPECT_TRUE(DecodeJpeg(WithSize(colour, 18919, 18919), &why).empty());
+  EXPECT_TRUE(DecodeJpeg(WithSize(colour, 18919, 18919), &why, kMaxDecodedBytes).empty());
   EXPECT_EQ(why, "JPEG: 18919 x 18919 pixels, past the 1 GiB limit");
-  EXPECT_TRUE(DecodeJpeg(WithSize(grey, 65500, 65500), &why).empty());
+  EXPECT_TRUE(DecodeJpeg(WithSize(grey, 65500, 65500), &why, kMaxDecodedBytes).empty());
   EXPECT_EQ(why, "JPEG: 65500 x 65500 pixels, past the 1 GiB limit");
   // Exactly 1 GiB passes the limit; the scan then meets the end marker
   // long before the last row.
-  EXPECT_TRUE(DecodeJpeg(WithSize(grey, 32768, 32768), &why).empty());
+  EXPECT_TRUE(DecodeJpeg(WithSize(grey, 32768, 32768), &why, kMaxDecodedBytes).empty());
   EXPECT_EQ(why, "JPEG: Corrupt JPEG data: premature end of data segment");
 }
 
@@ -371,11 +372,26 @@ TEST(Jpeg, ProgressiveFilesNeedingOverOneAndAHalfGibAreRefused) {
       LibjpegJpeg(TestImage(16, 16, 3), JCS_RGB, {.luma_h = 1, .luma_v = 1, .progressive = true});
   const std::vector<std::uint8_t> subsampled = OpenCvJpeg(TestImage(16, 16, 3), {cv::IMWRITE_JPEG_PROGRESSIVE, 1});
   std::string why;
-  EXPECT_TRUE(DecodeJpeg(WithSize(full, 18000, 18000), &why).empty());  // 972 MB of pixels, 1.9 GB of coefficients
+  EXPECT_TRUE(DecodeJpeg(WithSize(full, 18000, 18000), &why, kMaxDecodedBytes).empty());  // 972 MB of pixels, 1.9 GB of coefficients
   EXPECT_EQ(why, "JPEG: decoding it takes more than 1.5 GiB of memory");
-  EXPECT_TRUE(DecodeJpeg(WithSize(subsampled, 17000, 17000), &why).empty());  // 867 MB and 868 MB
+  EXPECT_TRUE(DecodeJpeg(WithSize(subsampled, 17000, 17000), &why, kMaxDecodedBytes).empty());  // 867 MB and 868 MB
   EXPECT_EQ(why, "JPEG: decoding it takes more than 1.5 GiB of memory");
-  EXPECT_TRUE(DecodeJpeg(WithSize(full, 4000, 4000), &why).empty());  // within the limit, short of data
+  EXPECT_TRUE(DecodeJpeg(WithSize(full, 4000, 4000), &why, kMaxDecodedBytes).empty());  // within the limit, short of data
+  EXPECT_EQ(why, "JPEG: Corrupt JPEG data: premature end of data segment");
+}
+
+// A lower pixel limit (DecodeOptions) lowers the memory held to with it.
+TEST(Jpeg, TheMemoryLimitIsOneAndAHalfTimesThePixelLimit) {
+  const std::vector<std::uint8_t> full =
+      LibjpegJpeg(TestImage(16, 16, 3), JCS_RGB, {.luma_h = 1, .luma_v = 1, .progressive = true});
+  constexpr std::uint64_t k64MiB = std::uint64_t{64} << 20;
+  std::string why;
+  // 48 MB of pixels, 96 MB of coefficients: past 96 MiB together.
+  EXPECT_TRUE(DecodeJpeg(WithSize(full, 4000, 4000), &why, k64MiB).empty());
+  EXPECT_EQ(why, "JPEG: decoding it takes more than 96 MiB of memory");
+  EXPECT_TRUE(DecodeJpeg(WithSize(full, 5000, 5000), &why, k64MiB).empty());  // 75 MB of pixels
+  EXPECT_EQ(why, "JPEG: 5000 x 5000 pixels, past the 64 MiB limit");
+  EXPECT_TRUE(DecodeJpeg(WithSize(full, 2000, 2000), &why, k64MiB).empty());  // within it, short of data
   EXPECT_EQ(why, "JPEG: Corrupt JPEG data: premature end of data segment");
 }
 
@@ -395,21 +411,21 @@ TEST(Jpeg, ScansPastFiveHundredAreRefused) {
   const std::vector<std::uint8_t> jpeg = ManyScans(8);  // 505 scans
   EXPECT_FALSE(cv::imdecode(jpeg, cv::IMREAD_UNCHANGED).empty());
   std::string why;
-  EXPECT_TRUE(DecodeJpeg(jpeg, &why).empty());
+  EXPECT_TRUE(DecodeJpeg(jpeg, &why, kMaxDecodedBytes).empty());
   EXPECT_EQ(why, "JPEG: more than 500 scans");
 }
 
 TEST(Jpeg, OtherInputIsRefusedWithLibjpegsReason) {
   std::string why;
-  EXPECT_TRUE(DecodeJpeg({}, &why).empty());
+  EXPECT_TRUE(DecodeJpeg({}, &why, kMaxDecodedBytes).empty());
   EXPECT_EQ(why, "JPEG: the file ends early (truncated)");
   const std::vector<std::uint8_t> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 0, 0, 0, 13};
-  EXPECT_TRUE(DecodeJpeg(png, &why).empty());
+  EXPECT_TRUE(DecodeJpeg(png, &why, kMaxDecodedBytes).empty());
   EXPECT_EQ(why.rfind("JPEG: Not a JPEG file", 0), 0u) << why;
   // Two components: neither grey nor colour in OpenCV's terms.
   const std::vector<std::uint8_t> two = LibjpegJpeg(TestImage(16, 16, 2), JCS_UNKNOWN, {.file_space = JCS_UNKNOWN});
   EXPECT_TRUE(cv::imdecode(two, cv::IMREAD_UNCHANGED).empty());
-  EXPECT_TRUE(DecodeJpeg(two, &why).empty());
+  EXPECT_TRUE(DecodeJpeg(two, &why, kMaxDecodedBytes).empty());
   EXPECT_EQ(why, "JPEG: Unsupported color conversion request");
 }
 

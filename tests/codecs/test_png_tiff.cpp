@@ -291,5 +291,44 @@ TEST(ImageCodecs, EncodingByExtensionAndRefusals) {
   EXPECT_NE(why.find("PNG, TIFF"), std::string::npos) << why;
 }
 
+// DecodeOptions' limit holds for every format: an image of exactly that
+// many pixel bytes (as stored) decodes, one byte less refuses it before
+// decoding and says the limit; options out of range are refused.
+TEST(DecodeOptions, EveryFormatKeepsToThePixelLimit) {
+  const cv::Mat colour = [] {
+    cv::Mat image(48, 64, CV_8UC3);
+    cv::randu(image, 0, 256);
+    return image;
+  }();
+  cv::Mat hdr;
+  colour.convertTo(hdr, CV_32F, 1.0 / 255);
+  for (const auto& [extension, image] : std::vector<std::pair<std::string, cv::Mat>>{
+           {".png", colour}, {".tiff", colour}, {".jpg", colour}, {".bmp", colour}, {".ppm", colour}, {".hdr", hdr}}) {
+    std::vector<std::uint8_t> bytes;
+    ASSERT_TRUE(cv::imencode(extension, image, bytes)) << extension;
+    const std::uint64_t pixel_bytes = image.total() * image.elemSize();
+    std::string why;
+    EXPECT_FALSE(DecodeImage(bytes, DecodeOptions{.max_pixel_bytes = pixel_bytes}, &why).empty())
+        << extension << ": " << why;
+    why.clear();
+    EXPECT_TRUE(DecodeImage(bytes, DecodeOptions{.max_pixel_bytes = pixel_bytes - 1}, &why).empty()) << extension;
+    EXPECT_NE(why.find("past the " + std::to_string(pixel_bytes - 1) + " bytes limit"), std::string::npos)
+        << extension << ": " << why;
+    // The read mode applies after the limit, which is the stored image's.
+    const cv::Mat grey = DecodeImage(bytes, DecodeOptions{.mode = ReadMode::kGrey, .max_pixel_bytes = pixel_bytes}, &why);
+    EXPECT_EQ(grey.channels(), 1) << extension << ": " << why;
+  }
+  std::string why;
+  EXPECT_FALSE(DecodeOptions{.max_pixel_bytes = 0}.IsValid(&why));
+  EXPECT_EQ(why, "max_pixel_bytes 0 is not in 1-1073741824");
+  EXPECT_FALSE(DecodeOptions{.max_pixel_bytes = kMaxDecodedBytes + 1}.IsValid(&why));
+  EXPECT_TRUE(DecodeOptions{}.IsValid(&why));
+  std::vector<std::uint8_t> png;
+  ASSERT_TRUE(cv::imencode(".png", colour, png));
+  why.clear();
+  EXPECT_TRUE(DecodeImage(png, DecodeOptions{.max_pixel_bytes = 0}, &why).empty());
+  EXPECT_EQ(why, "max_pixel_bytes 0 is not in 1-1073741824");
+}
+
 }  // namespace
 }  // namespace photorig::solvers::codecs

@@ -5,6 +5,7 @@
 // corrupt, unsupported and oversized files are refused with a reason.
 
 #include "formats.h"
+#include "photorig/solvers/codecs/image_codecs.h"
 
 #include "same_bits.h"
 
@@ -27,7 +28,7 @@ namespace photorig::solvers::codecs::internal {
 namespace {
 
 using Bytes = std::vector<std::uint8_t>;
-using Decoder = cv::Mat (*)(std::span<const std::uint8_t>, std::string*);
+using Decoder = cv::Mat (*)(std::span<const std::uint8_t>, std::string*, std::uint64_t);
 
 Bytes ToBytes(const std::string& text) { return Bytes(text.begin(), text.end()); }
 
@@ -42,7 +43,7 @@ using photorig::solvers::codecs::test_support::SameBits;
 // Decoded, with no reason given, to exactly what OpenCV decodes.
 ::testing::AssertionResult DecodesAsOpenCv(Decoder decode, const Bytes& bytes) {
   std::string why;
-  const cv::Mat image = decode(bytes, &why);
+  const cv::Mat image = decode(bytes, &why, kMaxDecodedBytes);
   if (image.empty()) return ::testing::AssertionFailure() << "refused: " << why;
   if (!why.empty()) return ::testing::AssertionFailure() << "decoded, yet with a reason: " << why;
   const cv::Mat opencv = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
@@ -54,7 +55,7 @@ using photorig::solvers::codecs::test_support::SameBits;
 ::testing::AssertionResult Refused(Decoder decode, const Bytes& bytes, const std::string& format,
                                    const std::string& words) {
   std::string why;
-  const cv::Mat image = decode(bytes, &why);
+  const cv::Mat image = decode(bytes, &why, kMaxDecodedBytes);
   if (!image.empty()) return ::testing::AssertionFailure() << "decoded " << image.cols << " x " << image.rows;
   if (why.rfind(format + ":", 0) != 0 || why.find(words) == std::string::npos)
     return ::testing::AssertionFailure() << "reason \"" << why << "\" lacks \"" << format << ":\" or \"" << words
@@ -67,12 +68,12 @@ using photorig::solvers::codecs::test_support::SameBits;
 // the whole file's image.
 void ExpectCutsRefused(Decoder decode, const Bytes& bytes, std::size_t needed) {
   std::string why;
-  const cv::Mat whole = decode(bytes, &why);
+  const cv::Mat whole = decode(bytes, &why, kMaxDecodedBytes);
   ASSERT_FALSE(whole.empty()) << why;
   for (std::size_t size = 0; size < bytes.size(); ++size) {
     const Bytes cut(bytes.begin(), bytes.begin() + size);
     why.clear();
-    const cv::Mat image = decode(cut, &why);
+    const cv::Mat image = decode(cut, &why, kMaxDecodedBytes);
     if (size < needed) {
       EXPECT_TRUE(image.empty() && !why.empty()) << "cut to " << size << " of " << bytes.size() << " bytes";
     } else {
@@ -132,7 +133,7 @@ TEST(RadianceHdr, DecodesMantissaTimesTwoToTheExponentLessOneHundredThirtySix) {
   // R, G, B, E: 128, 64, 32 at 2^(129 - 136); E = 0 is black whatever the mantissas.
   const Bytes file = ToBytes(std::string(kHdrHeader) + "-Y 1 +X 2\n" + "\x80\x40\x20\x81\x01\x02\x03\x00"s);
   std::string why;
-  const cv::Mat image = DecodeRadianceHdr(file, &why);
+  const cv::Mat image = DecodeRadianceHdr(file, &why, kMaxDecodedBytes);
   ASSERT_FALSE(image.empty()) << why;
   EXPECT_EQ(image.type(), CV_32FC3);
   EXPECT_EQ(image.at<cv::Vec3f>(0, 0), cv::Vec3f(0.25f, 0.5f, 1.0f));
@@ -151,7 +152,7 @@ TEST(RadianceHdr, TellsFlatAndEncodedScanlinesApartOneByOne) {
   for (int x = 0; x < 8; ++x) file += "\x80\x40\x20\x81";  // 128, 64, 32 at 2^-7
   file += "\x02\x02\x00\x08\x88\x40\x88\x40\x88\x40\x88\x82"s;  // runs of 64, 64, 64 at 2^-6
   std::string why;
-  const cv::Mat image = DecodeRadianceHdr(ToBytes(file), &why);
+  const cv::Mat image = DecodeRadianceHdr(ToBytes(file), &why, kMaxDecodedBytes);
   cv::Mat expected(2, 8, CV_32FC3, cv::Scalar(1.0f, 1.0f, 1.0f));
   expected.row(0).setTo(cv::Scalar(0.25f, 0.5f, 1.0f));
   EXPECT_TRUE(SameBits(image, expected)) << why;
@@ -168,7 +169,7 @@ TEST(RadianceHdr, ReadsHeaderVariantsAsOpenCv) {
     EXPECT_TRUE(DecodesAsOpenCv(DecodeRadianceHdr, ToBytes(header + pixels))) << header;
   // FORMAT is optional in Radiance's files (RGBE by default); OpenCV insists on it.
   std::string why;
-  const cv::Mat image = DecodeRadianceHdr(ToBytes("#?RADIANCE\nEXPOSURE=1\n\n-Y 1 +X 2\n" + pixels), &why);
+  const cv::Mat image = DecodeRadianceHdr(ToBytes("#?RADIANCE\nEXPOSURE=1\n\n-Y 1 +X 2\n" + pixels), &why, kMaxDecodedBytes);
   EXPECT_TRUE(SameBits(image, cv::imdecode(ToBytes(std::string(kHdrHeader) + "-Y 1 +X 2\n" + pixels),
                                            cv::IMREAD_UNCHANGED)))
       << why;
@@ -254,7 +255,7 @@ TEST(RadianceHdr, EncodedFilesReadAlikeInOpenCvAndHoldTheImage) {
         EXPECT_EQ(file.size(), kHdrHeader.size() + std::to_string(size.height).size() +
                                    std::to_string(size.width).size() + 8 + 4 * size.area());
       }
-      const cv::Mat decoded = DecodeRadianceHdr(file, &why);
+      const cv::Mat decoded = DecodeRadianceHdr(file, &why, kMaxDecodedBytes);
       ASSERT_FALSE(decoded.empty()) << why;
       EXPECT_TRUE(DecodesAsOpenCv(DecodeRadianceHdr, file)) << size << " " << channels;
       EXPECT_TRUE(WithinRgbePrecision(decoded, image)) << size << " " << channels;
@@ -271,7 +272,7 @@ TEST(RadianceHdr, EncodingCompressesRunsAndKeepsRepresentableValuesExactly) {
   ASSERT_TRUE(EncodeRadianceHdr(image, &file, &why)) << why;
   const std::size_t flat_size = kHdrHeader.size() + std::string("-Y 4 +X 64\n").size() + 4 * 4 * 64;
   EXPECT_LT(file.size(), flat_size / 4);
-  EXPECT_TRUE(SameBits(DecodeRadianceHdr(file, &why), image));
+  EXPECT_TRUE(SameBits(DecodeRadianceHdr(file, &why, kMaxDecodedBytes), image));
   EXPECT_TRUE(SameBits(cv::imdecode(file, cv::IMREAD_UNCHANGED), image));
   // A region of a larger image (rows apart in memory) as the same pixels copied.
   const cv::Mat larger = HdrImage(10, 50, 3);
@@ -294,7 +295,7 @@ TEST(RadianceHdr, EncodingMakesWhatRgbeCannotHoldItsNearest) {
   Bytes file;
   std::string why;
   ASSERT_TRUE(EncodeRadianceHdr(image, &file, &why)) << why;
-  const cv::Mat decoded = DecodeRadianceHdr(file, &why);
+  const cv::Mat decoded = DecodeRadianceHdr(file, &why, kMaxDecodedBytes);
   ASSERT_FALSE(decoded.empty()) << why;
   EXPECT_EQ(decoded.at<cv::Vec3f>(0, 0), cv::Vec3f(0.0f, 0.0f, 1.0f));
   EXPECT_EQ(decoded.at<cv::Vec3f>(0, 1), cv::Vec3f(largest, largest, 0.0f));
@@ -348,7 +349,7 @@ TEST(Pnm, DecodesOpenCvsFilesAsOpenCv) {
 
 cv::Mat DecodedPnm(const std::string& text) {
   std::string why;
-  cv::Mat image = DecodePnm(ToBytes(text), &why);
+  cv::Mat image = DecodePnm(ToBytes(text), &why, kMaxDecodedBytes);
   EXPECT_FALSE(image.empty()) << why;
   return image;
 }
@@ -506,7 +507,7 @@ Bytes Built(const BmpFile& spec) {
 
 cv::Mat DecodedBmp(const Bytes& file) {
   std::string why;
-  cv::Mat image = DecodeBmp(file, &why);
+  cv::Mat image = DecodeBmp(file, &why, kMaxDecodedBytes);
   EXPECT_FALSE(image.empty()) << why;
   return image;
 }

@@ -257,7 +257,7 @@ void ConvertRow(const std::uint8_t* stored, const Layout& layout, std::uint8_t* 
 
 }  // namespace
 
-cv::Mat DecodeBmp(std::span<const std::uint8_t> bytes, std::string* why) {
+cv::Mat DecodeBmp(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes) {
   Layout layout;
   if (!ReadLayout(bytes, &layout, why)) return {};
   Palette palette{};
@@ -270,9 +270,9 @@ cv::Mat DecodeBmp(std::span<const std::uint8_t> bytes, std::string* why) {
   const int channels = layout.bits <= 8 ? (grey ? 1 : 3) : layout.alpha ? 4 : 3;
   const int width = layout.width, height = layout.height;
   if (std::uint64_t{static_cast<std::uint32_t>(width)} * static_cast<std::uint32_t>(height) * channels >
-      kMaxPixelBytes) {
+      max_pixel_bytes) {
     *why = "BMP: header says " + std::to_string(width) + " x " + std::to_string(height) +
-           " pixels, past the 1 GiB limit";
+           " pixels, past the " + LimitText(max_pixel_bytes) + " limit";
     return {};
   }
   const bool run_length = layout.compression == kRle8 || layout.compression == kRle4;

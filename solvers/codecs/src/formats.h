@@ -16,18 +16,20 @@
 
 namespace photorig::solvers::codecs::internal {
 
-// A decoded image past 1 GiB is not a frame this project reads (image files
-// are read whole up to 1 GiB as well): a header asking for more is refused
-// before anything is allocated.
-inline constexpr std::uint64_t kMaxPixelBytes = std::uint64_t{1} << 30;
-
-cv::Mat DecodePng(std::span<const std::uint8_t> bytes, std::string* why);
-cv::Mat DecodeTiff(std::span<const std::uint8_t> bytes, std::string* why);
-cv::Mat DecodeJpeg(std::span<const std::uint8_t> bytes, std::string* why);
-cv::Mat DecodeBmp(std::span<const std::uint8_t> bytes, std::string* why);
-cv::Mat DecodePnm(std::span<const std::uint8_t> bytes, std::string* why);
+// Each decoder refuses a header asking for more than max_pixel_bytes of
+// pixels before anything is allocated (DecodeOptions: at most
+// kMaxDecodedBytes, which image_codecs.h defines).
+cv::Mat DecodePng(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes);
+cv::Mat DecodeTiff(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes);
+cv::Mat DecodeJpeg(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes);
+cv::Mat DecodeBmp(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes);
+cv::Mat DecodePnm(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes);
 // Radiance RGBE: CV_32FC3 (B, G, R).
-cv::Mat DecodeRadianceHdr(std::span<const std::uint8_t> bytes, std::string* why);
+cv::Mat DecodeRadianceHdr(std::span<const std::uint8_t> bytes, std::string* why,
+                          std::uint64_t max_pixel_bytes);
+
+// A limit as the decoders' reasons name it: "1 GiB", "1.5 GiB", "64 MiB", or bytes.
+std::string LimitText(std::uint64_t bytes);
 
 // Encoders append the whole file to `out`; false and `why` for an image the
 // format cannot hold (its depth or channel count).

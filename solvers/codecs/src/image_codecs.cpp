@@ -9,17 +9,26 @@
 #include <filesystem>
 
 namespace photorig::solvers::codecs {
+
+std::string internal::LimitText(std::uint64_t bytes) {
+  constexpr std::uint64_t kMiB = std::uint64_t{1} << 20, kGiB = std::uint64_t{1} << 30;
+  if (bytes % kGiB == 0) return std::to_string(bytes / kGiB) + " GiB";
+  if (bytes % (kGiB / 2) == 0) return std::to_string(bytes / kGiB) + ".5 GiB";
+  if (bytes % kMiB == 0) return std::to_string(bytes / kMiB) + " MiB";
+  return std::to_string(bytes) + " bytes";
+}
+
 namespace {
 
-cv::Mat DecodeAsStored(std::span<const std::uint8_t> bytes, std::string* why) {
+cv::Mat DecodeAsStored(std::span<const std::uint8_t> bytes, std::uint64_t limit, std::string* why) {
   using core::ImageFileFormat;
   switch (core::ImageFileFormatOf(bytes)) {
-    case ImageFileFormat::kPng: return internal::DecodePng(bytes, why);
-    case ImageFileFormat::kTiff: return internal::DecodeTiff(bytes, why);
-    case ImageFileFormat::kJpeg: return internal::DecodeJpeg(bytes, why);
-    case ImageFileFormat::kBmp: return internal::DecodeBmp(bytes, why);
-    case ImageFileFormat::kPnm: return internal::DecodePnm(bytes, why);
-    case ImageFileFormat::kRadianceHdr: return internal::DecodeRadianceHdr(bytes, why);
+    case ImageFileFormat::kPng: return internal::DecodePng(bytes, why, limit);
+    case ImageFileFormat::kTiff: return internal::DecodeTiff(bytes, why, limit);
+    case ImageFileFormat::kJpeg: return internal::DecodeJpeg(bytes, why, limit);
+    case ImageFileFormat::kBmp: return internal::DecodeBmp(bytes, why, limit);
+    case ImageFileFormat::kPnm: return internal::DecodePnm(bytes, why, limit);
+    case ImageFileFormat::kRadianceHdr: return internal::DecodeRadianceHdr(bytes, why, limit);
     case ImageFileFormat::kUnknown: break;
   }
   *why = std::string("not one of the formats read (") + core::ReadableImageFormats() + ")";
@@ -28,8 +37,22 @@ cv::Mat DecodeAsStored(std::span<const std::uint8_t> bytes, std::string* why) {
 
 }  // namespace
 
+bool DecodeOptions::IsValid(std::string* why) const {
+  if (max_pixel_bytes == 0 || max_pixel_bytes > kMaxDecodedBytes) {
+    *why = "max_pixel_bytes " + std::to_string(max_pixel_bytes) + " is not in 1-" + std::to_string(kMaxDecodedBytes);
+    return false;
+  }
+  return true;
+}
+
 cv::Mat DecodeImage(std::span<const std::uint8_t> bytes, ReadMode mode, std::string* why) {
-  cv::Mat image = DecodeAsStored(bytes, why);
+  return DecodeImage(bytes, DecodeOptions{.mode = mode}, why);
+}
+
+cv::Mat DecodeImage(std::span<const std::uint8_t> bytes, const DecodeOptions& options, std::string* why) {
+  if (!options.IsValid(why)) return {};
+  cv::Mat image = DecodeAsStored(bytes, options.max_pixel_bytes, why);
+  const ReadMode mode = options.mode;
   if (image.empty() || mode == ReadMode::kAsStored || image.channels() == 1) return image;
   cv::Mat kept;
   if (mode == ReadMode::kGrey) {

@@ -18,11 +18,11 @@
 namespace photorig::solvers::codecs::internal {
 namespace {
 
-// The image and libjpeg's buffers together stay within 1.5 GiB. A
-// progressive or multi-scan file keeps every coefficient while it is read
-// (3 bytes a pixel at 4:2:0, 6 at 4:4:4), so the image alone would not bound
-// a decode.
-constexpr std::uint64_t kMaxDecodeBytes = std::uint64_t{3} << 29;
+// The image and libjpeg's buffers together stay within 1.5 times the pixel
+// limit (1.5 GiB at most). A progressive or multi-scan file keeps every
+// coefficient while it is read (3 bytes a pixel at 4:2:0, 6 at 4:4:4), so
+// the image alone would not bound a decode.
+std::uint64_t MemoryLimit(std::uint64_t max_pixel_bytes) { return max_pixel_bytes / 2 * 3; }
 // A progressive file has about ten scans; each scan walks the whole image,
 // so a few bytes of repeated scans would otherwise buy minutes of decoding.
 constexpr int kMaxScans = 500;
@@ -34,6 +34,10 @@ struct Decoder {
   jpeg_progress_mgr progress{};
   std::jmp_buf jump{};
   char message[JMSG_LENGTH_MAX] = "";
+  // The limits (DecodeOptions), and as the reasons name them: formatted
+  // before decoding, as the functions that jump back keep no std::string.
+  std::uint64_t max_pixel_bytes = 0;
+  char pixel_limit[32] = "", memory_limit[32] = "";
   ~Decoder() { jpeg_destroy_decompress(&info); }  // safe before jpeg_create_decompress too: info.mem is null
 };
 
@@ -46,7 +50,8 @@ Decoder& DecoderOf(j_common_ptr info) { return *static_cast<Decoder*>(info->clie
   if (info->err->msg_code == JERR_CANT_SUSPEND)  // the arithmetic decoder, out of input
     std::snprintf(decoder.message, sizeof decoder.message, "%s", kTruncated);
   else if (info->err->msg_code == JERR_NO_BACKING_STORE)  // libjpeg's way of saying max_memory_to_use is exceeded
-    std::snprintf(decoder.message, sizeof decoder.message, "decoding it takes more than 1.5 GiB of memory");
+    std::snprintf(decoder.message, sizeof decoder.message, "decoding it takes more than %s of memory",
+                  decoder.memory_limit);
   else
     (*info->err->format_message)(info, decoder.message);
   std::longjmp(decoder.jump, 1);
@@ -114,12 +119,12 @@ bool Start(Decoder* decoder, const std::uint8_t* bytes, std::size_t size) {
   // refuses the conversion for two components or more than four.
   const int channels = info->num_components == 1 ? 1 : 3;
   const std::uint64_t image_bytes = std::uint64_t{info->image_width} * info->image_height * channels;
-  if (image_bytes > kMaxPixelBytes) {
-    std::snprintf(decoder->message, sizeof decoder->message, "%u x %u pixels, past the 1 GiB limit",
-                  info->image_width, info->image_height);
+  if (image_bytes > decoder->max_pixel_bytes) {
+    std::snprintf(decoder->message, sizeof decoder->message, "%u x %u pixels, past the %s limit",
+                  info->image_width, info->image_height, decoder->pixel_limit);
     return false;
   }
-  info->mem->max_memory_to_use = static_cast<long>(kMaxDecodeBytes - image_bytes);
+  info->mem->max_memory_to_use = static_cast<long>(MemoryLimit(decoder->max_pixel_bytes) - image_bytes);
   info->out_color_space = channels == 1 ? JCS_GRAYSCALE : info->num_components == 4 ? JCS_CMYK : JCS_EXT_BGR;
   if (!jpeg_start_decompress(info)) return Truncated(decoder);  // a multi-scan file is read whole here
   return true;
@@ -159,8 +164,12 @@ bool ReadRows(Decoder* decoder, std::uint8_t* pixels, std::size_t step) {
 
 }  // namespace
 
-cv::Mat DecodeJpeg(std::span<const std::uint8_t> bytes, std::string* why) {
+cv::Mat DecodeJpeg(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes) {
   Decoder decoder;
+  decoder.max_pixel_bytes = max_pixel_bytes;
+  std::snprintf(decoder.pixel_limit, sizeof decoder.pixel_limit, "%s", LimitText(max_pixel_bytes).c_str());
+  std::snprintf(decoder.memory_limit, sizeof decoder.memory_limit, "%s",
+                LimitText(MemoryLimit(max_pixel_bytes)).c_str());
   if (!Start(&decoder, bytes.data(), bytes.size())) {
     *why = std::string("JPEG: ") + decoder.message;
     return {};

@@ -118,7 +118,7 @@ struct WriteStructs {
 
 }  // namespace
 
-cv::Mat DecodePng(std::span<const std::uint8_t> bytes, std::string* why) {
+cv::Mat DecodePng(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes) {
   ErrorState error;
   ReadStructs structs;
   structs.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &error, OnError, OnWarning);
@@ -142,9 +142,9 @@ cv::Mat DecodePng(std::span<const std::uint8_t> bytes, std::string* why) {
   const int depth = header.bit_depth == 16 ? CV_16U : CV_8U;
   const std::uint64_t pixel_bytes = std::uint64_t{header.width} * header.height * channels * (depth == CV_16U ? 2 : 1);
   if (header.width > static_cast<png_uint_32>(INT32_MAX) || header.height > static_cast<png_uint_32>(INT32_MAX) ||
-      pixel_bytes > kMaxPixelBytes) {
+      pixel_bytes > max_pixel_bytes) {
     *why = "PNG: " + std::to_string(header.width) + " x " + std::to_string(header.height) +
-           " pixels, past the 1 GiB limit";
+           " pixels, past the " + LimitText(max_pixel_bytes) + " limit";
     return {};
   }
   cv::Mat image(static_cast<int>(header.height), static_cast<int>(header.width), CV_MAKETYPE(depth, channels));

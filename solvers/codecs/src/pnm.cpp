@@ -122,7 +122,7 @@ void Store(cv::Mat& image, std::size_t sample, int value) {
 
 }  // namespace
 
-cv::Mat DecodePnm(std::span<const std::uint8_t> bytes, std::string* why) {
+cv::Mat DecodePnm(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes) {
   if (bytes.size() < 2 || bytes[0] != 'P' || bytes[1] < '1' || bytes[1] > '6') {
     const bool pam_or_pfm =
         bytes.size() >= 2 && bytes[0] == 'P' && (bytes[1] == '7' || bytes[1] == 'f' || bytes[1] == 'F');
@@ -153,9 +153,9 @@ cv::Mat DecodePnm(std::span<const std::uint8_t> bytes, std::string* why) {
   const std::size_t sample_bytes = depth == CV_16U ? 2 : 1;
   const std::uint64_t samples = std::uint64_t{static_cast<std::uint32_t>(width)} * static_cast<std::uint32_t>(height) *
                                 static_cast<std::uint32_t>(channels);
-  if (samples * sample_bytes > kMaxPixelBytes) {
+  if (samples * sample_bytes > max_pixel_bytes) {
     *why = "PNM: header says " + std::to_string(width) + " x " + std::to_string(height) +
-           " pixels, past the 1 GiB limit";
+           " pixels, past the " + LimitText(max_pixel_bytes) + " limit";
     return {};
   }
   // Bytes the pixels take at the least (a plain sample is a digit and, but in

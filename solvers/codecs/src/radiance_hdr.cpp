@@ -62,7 +62,8 @@ bool ParseResolution(std::string_view line, int* height, int* width) {
 }
 
 // Reads the header through the resolution line; `*offset` is then the first scanline's.
-bool ReadHeader(std::span<const std::uint8_t> bytes, int* width, int* height, std::size_t* offset, std::string* why) {
+bool ReadHeader(std::span<const std::uint8_t> bytes, std::uint64_t max_pixel_bytes, int* width, int* height,
+                std::size_t* offset, std::string* why) {
   const std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   std::size_t position = 0;
   const auto next_line = [&](std::string_view* line) {
@@ -99,9 +100,9 @@ bool ReadHeader(std::span<const std::uint8_t> bytes, int* width, int* height, st
     return false;
   }
   if (std::uint64_t{static_cast<std::uint32_t>(*width)} * static_cast<std::uint32_t>(*height) * 3 * sizeof(float) >
-      kMaxPixelBytes) {
+      max_pixel_bytes) {
     *why = "Radiance HDR: header says " + std::to_string(*width) + " x " + std::to_string(*height) +
-           " pixels, past the 1 GiB limit";
+           " pixels, past the " + LimitText(max_pixel_bytes) + " limit";
     return false;
   }
   *offset = position;
@@ -206,10 +207,10 @@ void PutComponent(const std::uint8_t* component, int width, std::vector<std::uin
 
 }  // namespace
 
-cv::Mat DecodeRadianceHdr(std::span<const std::uint8_t> bytes, std::string* why) {
+cv::Mat DecodeRadianceHdr(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes) {
   int width = 0, height = 0;
   std::size_t offset = 0;
-  if (!ReadHeader(bytes, &width, &height, &offset, why)) return {};
+  if (!ReadHeader(bytes, max_pixel_bytes, &width, &height, &offset, why)) return {};
   // The fewest bytes a scanline can take (every component in runs of the
   // longest, or flat), so that a short file is refused before the allocation.
   const std::uint64_t min_scanline_bytes =

@@ -3,6 +3,7 @@
 // and are shared between threads decoding a stack).
 
 #include "formats.h"
+#include "photorig/solvers/codecs/image_codecs.h"
 
 #include <opencv2/core.hpp>
 #include <tiffio.h>
@@ -77,7 +78,10 @@ using TiffHandle = std::unique_ptr<TIFF, TiffCloser>;
 
 TiffHandle Open(Stream* stream, const char* mode) {
   TIFFOpenOptions* options = TIFFOpenOptionsAlloc();
-  TIFFOpenOptionsSetMaxSingleMemAlloc(options, static_cast<tmsize_t>(kMaxPixelBytes));
+  // libtiff's own buffers (a codec's tables, a strip) are held to the most
+  // any image may take; the image itself is checked against the caller's
+  // limit from the header (DecodeTiff).
+  TIFFOpenOptionsSetMaxSingleMemAlloc(options, static_cast<tmsize_t>(kMaxDecodedBytes));
   TIFFOpenOptionsSetErrorHandlerExtR(options, KeepError, stream);
   TIFFOpenOptionsSetWarningHandlerExtR(options, IgnoreWarning, nullptr);
   TIFF* tif = TIFFClientOpenExt("memory", mode, stream, Read, mode[0] == 'w' ? Write : NoWrite, Seek, Close, SizeOf,
@@ -206,7 +210,7 @@ cv::Mat ReadAsRgba(TIFF* tif, const Layout& layout, Stream* stream, std::string*
 
 }  // namespace
 
-cv::Mat DecodeTiff(std::span<const std::uint8_t> bytes, std::string* why) {
+cv::Mat DecodeTiff(std::span<const std::uint8_t> bytes, std::string* why, std::uint64_t max_pixel_bytes) {
   Stream stream;
   stream.readable = bytes;
   TiffHandle tif = Open(&stream, "r");
@@ -227,9 +231,9 @@ cv::Mat DecodeTiff(std::span<const std::uint8_t> bytes, std::string* why) {
   const std::uint64_t pixel_bytes = std::uint64_t{layout.width} * layout.height *
                                     (layout.Direct() ? layout.samples * (layout.bits / 8) : 4);
   if (layout.width == 0 || layout.height == 0 || layout.width > INT32_MAX || layout.height > INT32_MAX ||
-      pixel_bytes > kMaxPixelBytes) {
+      pixel_bytes > max_pixel_bytes) {
     *why = "TIFF: " + std::to_string(layout.width) + " x " + std::to_string(layout.height) +
-           " pixels, empty or past the 1 GiB limit";
+           " pixels, empty or past the " + LimitText(max_pixel_bytes) + " limit";
     return {};
   }
   if (layout.Direct()) return ReadDirect(tif.get(), layout, &stream, why);

@@ -29,13 +29,33 @@ enum class ReadMode {
   kGrey,          // one channel at the stored depth (colour as 0.299 R + 0.587 G + 0.114 B)
 };
 
+// The largest decoded image a reader accepts, in bytes of pixels: image
+// files are read whole up to 1 GiB as well, and no frame of this project
+// comes near it.
+inline constexpr std::uint64_t kMaxDecodedBytes = std::uint64_t{1} << 30;
+
+struct DecodeOptions {
+  ReadMode mode = ReadMode::kAsStored;
+  // A header asking for more pixel bytes than this is refused before
+  // anything is allocated (a JPEG's decoder may use half as much again for
+  // its buffers). Default kMaxDecodedBytes, the most allowed. A caller that
+  // knows its frames sets less: a small file may legally claim a large image,
+  // and an arithmetic-coded JPEG of a few hundred bytes takes seconds to
+  // decode into 1 GiB.
+  std::uint64_t max_pixel_bytes = kMaxDecodedBytes;
+
+  bool IsValid(std::string* why) const;
+};
+
 // Decodes `bytes` as the format their first bytes name (ImageFileFormatOf):
 // PNG (1-16 bits, palettes expanded), TIFF (8/16-bit unsigned and float
 // samples as stored; palette, bilevel, YCbCr and CMYK as 8-bit colour), JPEG
 // (8-bit grey or colour; EXIF orientation not applied: pixels as the sensor
 // gave them), BMP, PNM (P1-P6, 8- or 16-bit) and Radiance HDR (float colour).
 // An empty Mat and `why` (the format and what is wrong: truncated, corrupt,
-// a variant not read, past 1 GiB of pixels) otherwise; never throws.
+// a variant not read, past the limit, invalid options) otherwise; never throws.
+cv::Mat DecodeImage(std::span<const std::uint8_t> bytes, const DecodeOptions& options, std::string* why);
+// The same with the default limit.
 cv::Mat DecodeImage(std::span<const std::uint8_t> bytes, ReadMode mode, std::string* why);
 
 // Formats written: PNG (8/16-bit, 1/3/4 channels), TIFF (LZW; 8/16-bit or
