@@ -49,6 +49,22 @@ constexpr double kErrorBound = 0.3;
 // The recipe's SART with TV: 0.127 measured.
 constexpr double kRecipeErrorBound = 0.15;
 
+#if PHOTORIG_HAVE_OPENVDB
+// OpenVDB (and what it pulls in) is loaded only when a solve writes
+// volume.vdb (daemon/src/io/vdb_module_abi.h): the libraries the dynamic
+// loader maps for the program at start name none of it. The recipe's test
+// below checks the volume is written all the same.
+TEST(TomographyRun, TheProgramStartsWithoutOpenVdb) {
+  TempDir dir;
+  const std::string listing = (dir.path() / "libraries").string();
+  const std::string command = "LD_TRACE_LOADED_OBJECTS=1 " + std::string(PHOTORIG_BIN_DIR) + "/photorig > " + listing;
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  const std::string libraries = ReadText(listing);
+  EXPECT_NE(libraries.find("libopencv_core"), std::string::npos) << libraries;  // the listing is the program's
+  EXPECT_EQ(libraries.find("openvdb"), std::string::npos) << libraries;
+}
+#endif
+
 TEST(TomographyRun, TheRecipeCapturesAndReconstructsThePhantomThroughTheExecutable) {
   TempDir dir;
   const std::string run = (dir.path() / "run").string();

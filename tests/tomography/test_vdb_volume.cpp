@@ -86,5 +86,16 @@ TEST(VdbVolume, RefusesAVolumeThatDoesNotFitItsGrid) {
   EXPECT_FALSE(fs::exists(dir.path() / "v.vdb"));
 }
 
+// OpenVDB's exception, raised inside the module, comes back as a reason.
+TEST(VdbVolume, AFileThatCannotBeWrittenIsAFailureWithOpenVdbsReason) {
+  TempDir dir;
+  const std::string path = (dir.path() / "missing" / "v.vdb").string();
+  const solvers::core::Summary s = WriteVdb(path, {4, 4, 4, 1.0}, Eigen::VectorXf::Ones(64));
+  EXPECT_EQ(s.termination, solvers::core::Termination::kFailure);
+  EXPECT_NE(s.message.find("cannot write " + path + ": "), std::string::npos) << s.message;
+  EXPECT_GT(s.message.size(), ("cannot write " + path + ": ").size() + 5) << s.message;
+  EXPECT_FALSE(fs::exists(path));
+}
+
 }  // namespace
 }  // namespace photorig::daemon
