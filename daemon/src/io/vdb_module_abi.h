@@ -16,7 +16,7 @@ inline constexpr char kVdbWriteSymbol[] = "photorig_vdb_write_v1";
 
 // Writes a FloatGrid "sigma" (vdb_volume.h) of nx * ny * nz voxels of edge
 // voxel_mm from `sigma`, x fastest, then y, then z (VolumeGrid::Index);
-// values at or below inactive_below the background. Returns 0, or non-zero
+// values at or below inactive_below are left as the background (0). Returns 0, or non-zero
 // with a reason (NUL-terminated, cut to reason_size) in `reason`. Never throws.
 using VdbWriteFunction = int (*)(const char* path, int nx, int ny, int nz, double voxel_mm, const float* sigma,
                                  float inactive_below, char* reason, std::size_t reason_size);

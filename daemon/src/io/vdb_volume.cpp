@@ -13,7 +13,7 @@ namespace {
 // The module's entry point, loaded once per process. The module stays loaded
 // (OpenVDB's static state is not made to be unloaded). The dynamic loader
 // finds it through the program's RUNPATH: the build tree's lib/photorig, or
-// the installed prefix's (CMakeLists.txt).
+// once installed the module folder relative to the program (CMakeLists.txt).
 struct VdbModule {
   internal::VdbWriteFunction write = nullptr;
   std::string error;  // why `write` is null

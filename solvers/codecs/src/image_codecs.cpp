@@ -20,15 +20,15 @@ std::string internal::LimitText(std::uint64_t bytes) {
 
 namespace {
 
-cv::Mat DecodeAsStored(std::span<const std::uint8_t> bytes, std::uint64_t limit, std::string* why) {
+cv::Mat DecodeAsStored(std::span<const std::uint8_t> bytes, std::uint64_t max_pixel_bytes, std::string* why) {
   using core::ImageFileFormat;
   switch (core::ImageFileFormatOf(bytes)) {
-    case ImageFileFormat::kPng: return internal::DecodePng(bytes, why, limit);
-    case ImageFileFormat::kTiff: return internal::DecodeTiff(bytes, why, limit);
-    case ImageFileFormat::kJpeg: return internal::DecodeJpeg(bytes, why, limit);
-    case ImageFileFormat::kBmp: return internal::DecodeBmp(bytes, why, limit);
-    case ImageFileFormat::kPnm: return internal::DecodePnm(bytes, why, limit);
-    case ImageFileFormat::kRadianceHdr: return internal::DecodeRadianceHdr(bytes, why, limit);
+    case ImageFileFormat::kPng: return internal::DecodePng(bytes, why, max_pixel_bytes);
+    case ImageFileFormat::kTiff: return internal::DecodeTiff(bytes, why, max_pixel_bytes);
+    case ImageFileFormat::kJpeg: return internal::DecodeJpeg(bytes, why, max_pixel_bytes);
+    case ImageFileFormat::kBmp: return internal::DecodeBmp(bytes, why, max_pixel_bytes);
+    case ImageFileFormat::kPnm: return internal::DecodePnm(bytes, why, max_pixel_bytes);
+    case ImageFileFormat::kRadianceHdr: return internal::DecodeRadianceHdr(bytes, why, max_pixel_bytes);
     case ImageFileFormat::kUnknown: break;
   }
   *why = std::string("not one of the formats read (") + core::ReadableImageFormats() + ")";

@@ -22,7 +22,8 @@ namespace {
 // limit (1.5 GiB at most). A progressive or multi-scan file keeps every
 // coefficient while it is read (3 bytes a pixel at 4:2:0, 6 at 4:4:4), so
 // the image alone would not bound a decode.
-std::uint64_t MemoryLimit(std::uint64_t max_pixel_bytes) { return max_pixel_bytes / 2 * 3; }
+// Never below the pixel limit, so the buffers' share below is never negative.
+std::uint64_t MemoryLimit(std::uint64_t max_pixel_bytes) { return max_pixel_bytes + max_pixel_bytes / 2; }
 // A progressive file has about ten scans; each scan walks the whole image,
 // so a few bytes of repeated scans would otherwise buy minutes of decoding.
 constexpr int kMaxScans = 500;
