@@ -6,6 +6,8 @@
 #include "photorig/solvers/autodiff/vector.h"
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -135,9 +137,14 @@ PHOTORIG_LANE_INLINE void EvaluateLanesOf(const LanePoint& q, int lights, const 
   alignas(64) LaneSums acc = {};
   for (int k = 0; k < lights; ++k) {
     const float* sigma_k = inverse_sigma + k * kFloatLanes;
-    bool used = false;
-    for (int j = 0; j < kFloatLanes; ++j) used |= sigma_k[j] != 0.0f;
-    if (!used) continue;  // shadowed in every lane
+    // Skipped only where every lane's weight is +0 (shadowed in every lane),
+    // tested as one OR of their bits: a compare per lane compiled to sixteen
+    // scalar compares, about a third as many instructions as the sample's
+    // arithmetic.
+    std::uint32_t any_bits = 0;
+#pragma omp simd reduction(| : any_bits)
+    for (int j = 0; j < kFloatLanes; ++j) any_bits |= std::bit_cast<std::uint32_t>(sigma_k[j]);
+    if (any_bits == 0) continue;
     const float* observed_k = observed + k * kFloatLanes;
 #pragma omp simd
     for (int j = 0; j < kFloatLanes; ++j) {
