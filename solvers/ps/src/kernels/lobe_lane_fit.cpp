@@ -80,6 +80,18 @@ PHOTORIG_LANE_INLINE float GeometryOf(const float* geometry, int k, int i, int j
   return LaneEntry<kPerLane>(geometry, 6 * k + i, j);
 }
 
+// Whether any lane's weight for a light is other than +0. A skipped light
+// adds nothing to any lane's sums (its observed values are 0 too), so the
+// passes skip it. One OR of the weights' bits: a compare per lane compiled
+// to sixteen scalar compares (about a third as many instructions as a
+// sample's arithmetic), and with it the GGX pass's lane loop stayed scalar.
+PHOTORIG_LANE_INLINE bool AnyLaneUses(const float* inverse_sigma) {
+  std::uint32_t bits = 0;
+#pragma omp simd reduction(| : bits)
+  for (int j = 0; j < kFloatLanes; ++j) bits |= std::bit_cast<std::uint32_t>(inverse_sigma[j]);
+  return bits != 0;
+}
+
 // One sample's residual r and derivatives d0..d4 into lane j's sums:
 // r^2, J^T J's upper triangle, J^T r (LaneEquations' order).
 using LaneSums = float[1 + kHessianEntries + kParameters][kFloatLanes];
@@ -137,14 +149,7 @@ PHOTORIG_LANE_INLINE void EvaluateLanesOf(const LanePoint& q, int lights, const 
   alignas(64) LaneSums acc = {};
   for (int k = 0; k < lights; ++k) {
     const float* sigma_k = inverse_sigma + k * kFloatLanes;
-    // Skipped only where every lane's weight is +0 (shadowed in every lane),
-    // tested as one OR of their bits: a compare per lane compiled to sixteen
-    // scalar compares, about a third as many instructions as the sample's
-    // arithmetic.
-    std::uint32_t any_bits = 0;
-#pragma omp simd reduction(| : any_bits)
-    for (int j = 0; j < kFloatLanes; ++j) any_bits |= std::bit_cast<std::uint32_t>(sigma_k[j]);
-    if (any_bits == 0) continue;
+    if (!AnyLaneUses(sigma_k)) continue;  // shadowed in every lane
     const float* observed_k = observed + k * kFloatLanes;
 #pragma omp simd
     for (int j = 0; j < kFloatLanes; ++j) {
@@ -229,8 +234,7 @@ PHOTORIG_LANE_INLINE void EvaluateGgxLanesOf(const LanePoint& q, int lights, con
   alignas(64) LaneSums acc = {};
   for (int k = 0; k < lights; ++k) {
     const float* sigma_k = inverse_sigma + k * kFloatLanes;
-    // Every light is evaluated: with a skip of the lights no lane uses, as
-    // the Blinn-Phong pass has, GCC leaves the lane loop below scalar.
+    if (!AnyLaneUses(sigma_k)) continue;  // shadowed in every lane
     const float* observed_k = observed + k * kFloatLanes;
 #pragma omp simd
     for (int j = 0; j < kFloatLanes; ++j) {
