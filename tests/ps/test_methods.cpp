@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <thread>
 #include <vector>
 #include <cmath>
@@ -293,6 +294,71 @@ TEST(PhotometricStereo, BroadLobesNeedBlinnPhong) {
   EXPECT_GT(automatic.summary.pixels_blinn_phong, automatic.summary.pixels_solved / 2)
       << automatic.summary.BriefReport();
   EXPECT_LT(automatic.error.mean_deg, 0.5 * l2.error.mean_deg);
+}
+
+// Lattice lobes: a glossy tile's pixels other than every 8th hold the lobe
+// of the lattice pixels nearest them in their row, and keep it where it
+// explains their samples. `auto` without them into maps[0], with them into
+// maps[1]; returns the pixels with a held lobe (step 4's or step 5's) in each.
+std::array<std::size_t, 2> SolveWithAndWithoutLatticeLobes(const PhotometricStack& stack, NormalMap maps[2]) {
+  std::array<std::size_t, 2> held{};
+  for (const bool lattice : {false, true}) {
+    PhotometricStereoOptions options = Options(Method::kAuto, 3.0);
+    options.selection.lattice_lobes = lattice;
+    const SolverSummary summary = SolvePhotometricStereo(options, stack, &maps[lattice]);
+    EXPECT_TRUE(summary.IsSolutionUsable()) << summary.message;
+    EXPECT_EQ(summary.pixels_rejected_by_model, 0u) << summary.BriefReport();
+    held[lattice] = summary.pixels_shared_lobe;
+  }
+  return held;
+}
+
+// One material: many pixels hold the lattice's lobe instead of fitting five
+// parameters of their own, and their normals are no worse (the two the
+// lattice pools are better determined over many pixels than over one).
+TEST(PhotometricStereo, LatticeLobesStandInForOwnLobesOnOneMaterial) {
+  const auto truth = RandomSurface(64, 64, 35.0, 5);
+  const auto stack = RenderShinyStack(truth, RingLights(48, 30, 85), 2000.0, Specular{0.5, 40.0}, 50.0f, 1.0);
+  NormalMap maps[2];
+  const auto held = SolveWithAndWithoutLatticeLobes(stack, maps);
+  EXPECT_GT(held[1], held[0] + 64u * 64u / 4) << "pixels with a held lobe: " << held[1] << " with, " << held[0]
+                                              << " without the lattice";
+  const double own = CompareNormals(maps[0].normals, truth.normals).mean_deg;
+  const double lattice = CompareNormals(maps[1].normals, truth.normals).mean_deg;
+  EXPECT_LE(lattice, own * 1.02) << "lattice " << lattice << " deg, own lobes " << own << " deg";
+}
+
+// Two materials side by side in every row (exponent 10 on the left half, 120
+// on the right): a pixel near the seam holds a median of both sides' lobes,
+// which misfits a sharp lobe's samples; it fits its own instead, and neither
+// half loses accuracy.
+TEST(PhotometricStereo, LatticeLobesOfAnotherMaterialAreRefused) {
+  const int size = 64;
+  const auto truth = RandomSurface(size, size, 35.0, 9);
+  const auto lights = RingLights(48, 30, 85);
+  PhotometricStack stack = RenderShinyStack(truth, lights, 2000.0, Specular{0.5, 10.0}, 50.0f, 1.0);
+  const PhotometricStack sharp = RenderShinyStack(truth, lights, 2000.0, Specular{0.5, 120.0}, 50.0f, 1.0, 12);
+  for (std::size_t k = 0; k < lights.size(); ++k)
+    for (int y = 0; y < size; ++y)
+      for (int x = size / 2; x < size; ++x) stack.images[k].at<float>(y, x) = sharp.images[k].at<float>(y, x);
+  NormalMap maps[2];
+  const auto held = SolveWithAndWithoutLatticeLobes(stack, maps);
+  EXPECT_GT(held[1], held[0] + size * size / 8) << "pixels with a held lobe: " << held[1] << " with, " << held[0]
+                                                << " without the lattice";
+  for (const int half : {0, 1}) {
+    const cv::Rect rect(half * size / 2, 0, size / 2, size);
+    const double own = CompareNormals(maps[0].normals(rect), truth.normals(rect)).mean_deg;
+    const double lattice = CompareNormals(maps[1].normals(rect), truth.normals(rect)).mean_deg;
+    EXPECT_LE(lattice, own * 1.05 + 0.005) << "half " << half << ": lattice " << lattice << " deg, own " << own;
+    // The held exponents of each half are its own material's, within a factor 1.5.
+    const auto blinn_phong = static_cast<std::uint8_t>(PixelModel::kBlinnPhong);
+    const double exponent = half ? 120.0 : 10.0;
+    for (int y = 0; y < size; ++y)
+      for (int x = rect.x; x < rect.x + rect.width; ++x)
+        if (maps[1].model.at<std::uint8_t>(y, x) == blinn_phong && maps[1].confidence.at<float>(y, x) > 0.1f)
+          EXPECT_NEAR(std::log(maps[1].specular.at<cv::Vec2f>(y, x)[1] / exponent), 0.0, std::log(1.5))
+              << "pixel " << x << ", " << y;
+  }
 }
 
 // Richer models only where the samples can tell them apart. Pixel A keeps

@@ -581,11 +581,11 @@ PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter
 }
 
 LowFrequencyPlan PlanLowFrequency(const ModelLadder& ladder, const NormalMap& map, const std::vector<std::uint8_t>& held,
+                                  bool glossy_region,
                                   const std::function<LobeShiftTally(std::span<const int> sample)>& climb_sample) {
-  // `held` is allocated where step 5 found a glossy region: without one the
-  // scene's lobes are the noise's chance fits, with no material to test (a
-  // matte scene pays nothing).
-  if (!ladder.lobe_shift_test() || held.empty()) return {LowFrequencyCandidates(ladder, map, held, false), false, {}};
+  // Without a glossy region the scene's lobes are the noise's chance fits,
+  // with no material to test (a matte scene pays nothing).
+  if (!ladder.lobe_shift_test() || !glossy_region) return {LowFrequencyCandidates(ladder, map, held, false), false, {}};
   // The sample spread evenly over the lobes in raster order (the same
   // whatever the threads do); the candidates listed once, as the sample decides.
   std::vector<int> lobes;

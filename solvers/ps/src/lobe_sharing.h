@@ -177,7 +177,7 @@ void CountRule(LowFrequencyRule rule, LowFrequencyRuleCounts* counts);
 inline constexpr int kLobeShiftSample = 256;
 
 // Step 7's pixels and whether the lobe-shift test runs on them. `auto`, in a
-// scene with a glossy region (step 5's; `held` allocated), climbs the
+// scene with a glossy region (step 5's: glossy_region), climbs the
 // sample of its lobes with climb_sample (lobe-shift test on, nothing
 // written) and returns every lobe with the test where they fail it as a
 // whole (ModelLadder::LobesFailShiftTest), else the lobes that fail the
@@ -191,7 +191,9 @@ struct LowFrequencyPlan {
   // Into a summary's lobe_shift_ counts.
   void AddTo(SolverSummary* summary) const;
 };
+// held: per pixel, non-zero where the map's lobe is held (empty: none is).
 LowFrequencyPlan PlanLowFrequency(const ModelLadder& ladder, const NormalMap& map, const std::vector<std::uint8_t>& held,
+                                  bool glossy_region,
                                   const std::function<LobeShiftTally(std::span<const int> sample)>& climb_sample);
 
 }  // namespace photorig::solvers::ps::internal

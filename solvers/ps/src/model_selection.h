@@ -250,6 +250,16 @@ class ModelLadder {
   // object. A pixel of the shape test (test_shape) is fitted its own lobe
   // too, for the test only.
   inline LadderStep NextWithSharedLobe(const SharedLobeFits& fits) const;
+  // Step 4 with lattice lobes (ModelSelectionOptions::lattice_lobes): a
+  // pixel the ladder sent to the lobe fit keeps the lobe of the lattice
+  // pixels around it, held (`held`, kSharedLobeParameters), where that
+  // explains its samples and its chi-square is below the Lambertian fit's on
+  // them (`lambertian`): the held lobe costs the pixel no parameter, so the
+  // two compare by the likelihood ratio, as in step 5. Else the pixel fits
+  // its own lobe (Next's step 4).
+  bool KeepsLatticeLobe(const PixelFit& held, const PixelFit& lambertian) const {
+    return method_ == Method::kAuto && Adequate(held) && lambertian.ok && held.chi2 < lambertian.chi2;
+  }
   // A pixel's part in its region's SharedShapeTest, from fits that climbed
   // NextWithSharedLobe with test_shape to the end.
   void AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const;

@@ -1006,7 +1006,7 @@ std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOpti
     return internal::LobeShiftTally{tested, shifted};
   };
   const internal::LowFrequencyPlan plan = internal::PlanLowFrequency(
-      ladder, *map, held, [&](std::span<const int> sample) { return climb(sample, true, false); });
+      ladder, *map, held, !held.empty(), [&](std::span<const int> sample) { return climb(sample, true, false); });
   climb(plan.pixels, plan.test_lobe_shift, true);
   plan.AddTo(summary);
   summary->low_frequency_rules += rules;

@@ -24,6 +24,18 @@ constexpr std::size_t kBatch = 64;
 // samples are copied while the tile is in cache (RefineTile), so the wait
 // costs no second read from memory. A glossy tile fills it alone.
 constexpr std::size_t kDeferredDoubtful = 512;
+// Lattice lobes (ModelSelectionOptions::lattice_lobes): in a glossy tile,
+// the pixels whose index is a multiple of kLatticeStride fit their own lobes;
+// a pixel waiting for them holds the median of the kNearestLatticeLobes
+// confident ones nearest it in its row, and fits its own where its row has
+// fewer than kMinLatticeLobes. Eight: one own fit in eight, the held fit
+// about a seventh of its cost; five: a median that one lobe of another
+// material beside the pixel does not move.
+constexpr int kLatticeStride = 8;
+constexpr std::size_t kNearestLatticeLobes = 5;
+constexpr std::size_t kMinLatticeLobes = 3;
+// held_lobe_'s values: a lobe held by step 5, or by step 4's lattice.
+constexpr std::uint8_t kHeldByRegion = 1, kHeldByLattice = 2;
 
 PixelFit TrimmedFit(const TrimSolution& trimmed) {
   PixelFit fit;
@@ -80,6 +92,15 @@ struct TileRefiner::ThreadState {
   std::vector<Trimming> trimming;
   std::vector<float> trim_rows;
   std::vector<Queued> reweighting, lobes;
+  // Lattice lobes: the glossy tile being refined, pixels [lattice_begin,
+  // lattice_end), its pixels that wait for its lattice's lobes (no row yet),
+  // and those that kept a held lattice lobe (marked in held_lobe_ once every
+  // tile is done).
+  int lattice_begin = 0, lattice_end = 0;
+  std::vector<Queued> awaiting_lattice;
+  std::vector<GlossyPixel> lattice;  // the tile's confident lattice lobes, in pixel order
+  std::vector<float> nearest_specular, nearest_exponent;
+  std::vector<int> lattice_held;
   std::unique_ptr<RobustLambertianLanes> irls;  // `robust` only
   std::vector<RobustProblem> robust_problems;
   std::vector<RobustSolution> robust_solutions;
@@ -97,6 +118,9 @@ struct TileRefiner::ThreadState {
   std::vector<HeldLobeProblem> held_problems;
   std::vector<HeldLobeSolution> held_solutions;
   std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0;
+  // Pixels that kept a held lattice lobe, and those of them whose region
+  // rejected one lobe shape (step 6: their lobes count as their own).
+  std::size_t lattice_lobes = 0, lattice_lobes_own = 0;
   // Step 6: the pixels that took a GGX lobe, by the model they had kept.
   std::size_t ggx = 0, ggx_from_lambertian = 0, ggx_from_trimmed = 0, ggx_from_blinn_phong = 0, ggx_from_held_lobe = 0;
   // Step 6 in lanes: a batch's pixels the ladder asks a GGX fit of.
@@ -123,7 +147,8 @@ TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const Lamberti
       held_lobes_(stack, lambertian, options.blinn_phong),
       per_pixel_(ladder, reader_, stack.view_direction, options.blinn_phong),
       threads_(threads),
-      states_(threads) {
+      states_(threads),
+      lattice_lobes_(options.method == Method::kAuto && lanes_ && options.selection.lattice_lobes) {
   if (options.method == Method::kRobust)
     for (ThreadState& state : states_)
       state.irls = std::make_unique<RobustLambertianLanes>(stack.light_directions, options.robust);
@@ -225,6 +250,13 @@ __attribute__((always_inline)) inline void TileRefiner::Climb(int thread, int p,
       return;
     }
     case LadderStep::Action::kFitLobe: {
+      if (p >= state.lattice_begin && p < state.lattice_end && p % kLatticeStride != 0) {
+        // Waits for the lobes of its tile's lattice (HoldLatticeLobes).
+        state.awaiting_lattice.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used, kNoFit,
+                                          fits.robust ? *fits.robust : kNoFit, step.start->normal,
+                                          step.start->albedo, 0});
+        return;
+      }
       PixelFit lambertian;
       const std::size_t row = GatherRow(state, p, x, &lambertian, samples);
       state.lobes.push_back({p, x, fits.lambertian->chi2, fits.lambertian->used, lambertian,
@@ -352,7 +384,16 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
   if (state.doubtful.size() - tile_first >= kDeferredDoubtful) {
     // A glossy tile: its doubtful pixels are rechecked now, their samples
     // still in cache.
-    ClimbDoubtful(thread, tile_first, false);
+    if (lattice_lobes_) {
+      const std::size_t glossy_first = state.glossy.size();
+      state.lattice_begin = begin, state.lattice_end = begin + count;
+      ClimbDoubtful(thread, tile_first, false);
+      Flush(thread, true);  // the lattice's own lobes, every stage's queue emptied
+      state.lattice_begin = state.lattice_end = 0;
+      HoldLatticeLobes(thread, begin, begin + count, glossy_first);
+    } else {
+      ClimbDoubtful(thread, tile_first, false);
+    }
   } else if (recheck) {
     // `auto` tests these pixels later, when the tile's samples have left the
     // cache: their own are copied now, while they are in it.
@@ -399,6 +440,101 @@ void TileRefiner::ClimbDoubtful(int thread, std::size_t first, bool copied) {
   Flush(thread, false);
 }
 
+void TileRefiner::HoldLatticeLobes(int thread, int begin, int end, std::size_t glossy_first) {
+  ThreadState& state = states_[thread];
+  if (state.awaiting_lattice.empty()) return;
+  state.lattice.clear();
+  // A lobe that does not explain its own pixel's samples (another shape,
+  // light from elsewhere) is no stand-in for its neighbours'.
+  for (std::size_t i = glossy_first; i < state.glossy.size(); ++i) {
+    const int p = state.glossy[i].pixel;
+    if (p >= begin && p < end && ladder_.Adequate(FitInMapWithChi2(*result_, p, false)))
+      state.lattice.push_back(state.glossy[i]);
+  }
+  std::sort(state.lattice.begin(), state.lattice.end(),
+            [](const GlossyPixel& a, const GlossyPixel& b) { return a.pixel < b.pixel; });
+  const int width = result_->normals.cols;
+  auto median = [](std::vector<float>& values) {
+    std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+    return static_cast<double>(values[values.size() / 2]);
+  };
+  // The median lobe of the confident lattice lobes nearest pixel p in its
+  // row (ties to the left); false where the row has too few.
+  auto nearest_lobe = [&](int p, double* specular_albedo, double* exponent) {
+    const int row_begin = std::max(begin, p - p % width), row_end = std::min(end, row_begin - row_begin % width + width);
+    auto at = [&](int pixel) {
+      return std::lower_bound(state.lattice.begin(), state.lattice.end(), pixel,
+                              [](const GlossyPixel& g, int q) { return g.pixel < q; });
+    };
+    auto left = at(p), right = left;
+    const auto first = at(row_begin), last = at(row_end);
+    state.nearest_specular.clear();
+    state.nearest_exponent.clear();
+    while (state.nearest_exponent.size() < kNearestLatticeLobes && (left != first || right != last)) {
+      const bool take_left = left != first && (right == last || p - (left - 1)->pixel <= right->pixel - p);
+      const GlossyPixel& g = take_left ? *--left : *right++;
+      state.nearest_specular.push_back(g.specular_albedo);
+      state.nearest_exponent.push_back(g.exponent);
+    }
+    if (state.nearest_exponent.size() < kMinLatticeLobes) return false;
+    *specular_albedo = median(state.nearest_specular);
+    *exponent = median(state.nearest_exponent);
+    return true;
+  };
+  // Queues pixel q for its own lobe, as Climb would have.
+  auto own_lobe = [&](Queued q) {
+    q.row = GatherRow(state, q.pixel, q.x, &q.row_lambertian);
+    state.lobes.push_back(q);
+  };
+  std::vector<Queued> awaiting;
+  awaiting.swap(state.awaiting_lattice);
+  for (std::size_t first = 0; first < awaiting.size(); first += kBatch) {
+    const std::size_t last = std::min(awaiting.size(), first + kBatch);
+    state.held_problems.clear();
+    std::vector<const Queued*> held;
+    for (std::size_t i = first; i < last; ++i) {
+      const Queued& q = awaiting[i];
+      HeldLobeProblem problem{.pixel = q.pixel, .start_normal = q.start_normal, .start_albedo = q.start_albedo,
+                              .kept_x = q.x};
+      if (!nearest_lobe(q.pixel, &problem.specular_albedo, &problem.exponent)) {
+        own_lobe(q);
+        continue;
+      }
+      state.held_problems.push_back(problem);
+      held.push_back(&q);
+    }
+    state.held_solutions.resize(state.held_problems.size());
+    held_lobes_.Fit(state.held_problems, state.held_solutions);
+    for (std::size_t i = 0; i < held.size(); ++i) {
+      const HeldLobeProblem& problem = state.held_problems[i];
+      const HeldLobeSolution& solution = state.held_solutions[i];
+      PixelFit lambertian = LambertianFit(solution.lambertian_x, solution.lambertian_chi2, solution.used, 0);
+      lambertian.ok = lambertian.ok && solution.lambertian_ok;
+      PixelFit lobe = LobeFitFrom({.ok = solution.ok,
+                                   .normal = solution.normal,
+                                   .diffuse_albedo = solution.diffuse_albedo,
+                                   .specular_albedo = problem.specular_albedo,
+                                   .exponent = problem.exponent,
+                                   .chi2 = solution.chi2,
+                                   .iterations = solution.iterations},
+                                  solution.used, PixelModel::kBlinnPhong);
+      lobe.parameters = kSharedLobeParameters;
+      if (!ladder_.KeepsLatticeLobe(lobe, lambertian)) {
+        own_lobe(*held[i]);
+        continue;
+      }
+      WriteFitToMap(problem.pixel, lobe, result_);
+      state.lattice_held.push_back(problem.pixel);
+      ++state.lattice_lobes;
+      // It counts for step 5 as the lattice lobes it holds stand for it.
+      if (lambertian.Bic() - lobe.Bic() >= kConfidentLobeEvidence)
+        state.glossy.push_back({problem.pixel, static_cast<float>(problem.specular_albedo),
+                                static_cast<float>(problem.exponent)});
+    }
+  }
+  Flush(thread, false);
+}
+
 void TileRefiner::Finish(int thread) {
   if (!lanes_) return;
   ClimbDoubtful(thread, 0, options_.method == Method::kAuto);
@@ -408,7 +544,7 @@ void TileRefiner::Finish(int thread) {
 void TileRefiner::RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe,
                                    int usable) {
   WriteFitToMap(p, lobe, result_);
-  held_lobe_[p] = 1;
+  held_lobe_[p] = kHeldByRegion;
   ++state.shared_lobes;
   (kept.model == PixelModel::kTrimmed ? state.shared_from_trimmed : state.shared_from_lambertian) += 1;
   // The kept fit left out what it did not use (trimmed or unlit samples); the lobe uses them all.
@@ -501,6 +637,14 @@ void TileRefiner::ShareLobe(int thread, std::span<const SharedLobeItem> items, s
 }
 
 void TileRefiner::ShareLobe() {
+  // The pixels that kept a lattice lobe hold it as step 5's pixels do theirs.
+  std::size_t lattice_held = 0;
+  for (const ThreadState& state : states_) lattice_held += state.lattice_held.size();
+  if (lattice_held > 0) {
+    held_lobe_.assign(result_->flags.total(), 0);
+    for (const ThreadState& state : states_)
+      for (const int p : state.lattice_held) held_lobe_[p] = kHeldByLattice;
+  }
   if (options_.method != Method::kAuto || !options_.selection.share_lobe) return;
   std::vector<GlossyPixel> glossy;
   std::size_t confident = 0;
@@ -509,7 +653,11 @@ void TileRefiner::ShareLobe() {
   for (const ThreadState& state : states_) glossy.insert(glossy.end(), state.glossy.begin(), state.glossy.end());
   shape_rejected_ =
       ShareLobes(ladder_, options_.selection.glossy_region_fraction, *result_, std::move(glossy), threads_,
-                 {.begin = [this] { held_lobe_.assign(result_->flags.total(), 0); },
+                 {.begin =
+                      [this] {
+                        held_lobe_.resize(result_->flags.total(), 0);
+                        glossy_region_ = true;
+                      },
                   .share = [this](int thread, std::span<const SharedLobeItem> items,
                                   std::vector<SharedShapeTest>* tests) { ShareLobe(thread, items, tests); },
                   .offer_ggx = [this](int thread, std::span<const int> pixels) { OfferGgx(thread, pixels); }});
@@ -528,6 +676,7 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
   }
   for (std::size_t first = 0; first < pixels.size(); first += kBatch) {
     const std::size_t last = std::min(pixels.size(), first + kBatch);
+    FitOwnLobesOfLattice(thread, pixels.subspan(first, last - first));
     state.rows = 0;
     state.ggx_offers.clear();
     // The kept fits judged on their usable samples in lanes (PerPixelFits::
@@ -582,6 +731,36 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
   }
 }
 
+void TileRefiner::FitOwnLobesOfLattice(int thread, std::span<const int> pixels) {
+  ThreadState& state = states_[thread];
+  state.rows = 0;
+  state.problems.clear();
+  std::vector<int> lattice;
+  std::vector<int> used;
+  for (const int p : pixels) {
+    if (held_lobe_[p] != kHeldByLattice) continue;
+    held_lobe_[p] = 0;
+    const PixelFit held = FitInMap(*result_, p);
+    const std::size_t row = NewRow(state);
+    reader_.Row(p, held.normal * held.albedo / M_PI, &state.observed[row * lights_],
+                &state.inverse_sigma[row * lights_], &used.emplace_back());
+    lattice.push_back(p);
+    state.problems.push_back({nullptr, nullptr, held.normal, held.albedo});
+  }
+  if (lattice.empty()) return;
+  // The rows are complete (growing may have moved them): now point at them.
+  for (std::size_t i = 0; i < lattice.size(); ++i)
+    state.problems[i].observed = &state.observed[i * lights_],
+    state.problems[i].inverse_sigma = &state.inverse_sigma[i * lights_];
+  state.solutions.assign(lattice.size(), {});
+  lobe_fitters_[thread].Fit(state.problems, state.solutions);
+  for (std::size_t i = 0; i < lattice.size(); ++i) {
+    const PixelFit own = LobeFitFrom(state.solutions[i], used[i], PixelModel::kBlinnPhong);
+    if (own.ok) WriteFitToMap(lattice[i], own, result_);
+    ++state.lattice_lobes_own;
+  }
+}
+
 void TileRefiner::RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& chosen) {
   WriteFitToMap(p, chosen, result_);
   ++state.ggx;
@@ -598,7 +777,8 @@ void TileRefiner::OfferLowFrequency() {
   if (!(method == Method::kLowFrequency || (method == Method::kAuto && options_.selection.low_frequency))) return;
   // Listed before any thread starts: for `auto` the lobes (a matte scene
   // has almost none), for `low-frequency` every solved pixel.
-  const LowFrequencyPlan plan = PlanLowFrequency(ladder_, *result_, held_lobe_, [this](std::span<const int> sample) {
+  const LowFrequencyPlan plan = PlanLowFrequency(ladder_, *result_, held_lobe_, glossy_region_,
+                                                 [this](std::span<const int> sample) {
     return ClimbLowFrequencyPixels(sample, true, false);
   });
   ClimbLowFrequencyPixels(plan.pixels, plan.test_lobe_shift, true);
@@ -678,8 +858,8 @@ void TileRefiner::AddCounts(SolverSummary* summary) const {
     summary->pixels_lambertian += state.lambertian;
     summary->pixels_trimmed += state.trimmed;
     summary->pixels_irls += state.irls_fits;
-    summary->pixels_blinn_phong += state.blinn_phong + state.shared_lobes;
-    summary->pixels_shared_lobe += state.shared_lobes;
+    summary->pixels_blinn_phong += state.blinn_phong + state.shared_lobes + state.lattice_lobes;
+    summary->pixels_shared_lobe += state.shared_lobes + state.lattice_lobes - state.lattice_lobes_own;
     summary->samples_rejected += state.rejected;
     summary->pixels_ggx += state.ggx;
     from_lambertian += state.shared_from_lambertian + state.ggx_from_lambertian;

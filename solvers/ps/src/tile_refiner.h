@@ -90,6 +90,12 @@ class TileRefiner {
   // Step 6 for `pixels`: their GGX fits (in lanes, kBatch at a time, or one
   // by one), into the map where the ladder takes them.
   void OfferGgx(int thread, std::span<const int> pixels);
+  // Step 6's first act on `pixels`: a lattice lobe stood in for a pixel's
+  // own on the premise that one lobe shape spans its neighbourhood; its
+  // region rejects that shape, so the pixel fits the lobe of its own it
+  // would have fitted in step 4 (from the held fit), which steps 6 and 7
+  // then judge as such.
+  void FitOwnLobesOfLattice(int thread, std::span<const int> pixels);
   // Pixel p, kept as `kept` (held: a lobe step 5 held), takes the GGX fit `ggx`.
   void RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& ggx);
   // Step 7's climb of `pixels` (OfferLowFrequency), into the map if `write`;
@@ -115,6 +121,15 @@ class TileRefiner {
   // kDeferredDoubtful. copied: their samples are in the thread's copies
   // (doubtful_samples, from `first` on), not only in the planes.
   void ClimbDoubtful(int thread, std::size_t first, bool copied);
+  // Lattice lobes (ModelSelectionOptions::lattice_lobes) for the glossy tile
+  // of pixels [begin, end), once its lattice pixels have fitted their own
+  // lobes: each pixel waiting for them is fitted with the median lobe of
+  // the confident lattice lobes nearest it in its row held, and keeps it
+  // where the ladder does (KeepsLatticeLobe); the others, and every pixel
+  // with fewer than kMinLatticeLobes of them in its row, are queued for
+  // their own lobes. glossy_first: the thread's first glossy pixel recorded
+  // for the tile.
+  void HoldLatticeLobes(int thread, int begin, int end, std::size_t glossy_first);
   // The lane stages, on the thread's queues.
   void Trim(int thread);
   void Reweight(int thread);
@@ -135,12 +150,17 @@ class TileRefiner {
   const HeldLobeLanes held_lobes_;  // step 5's held lobes, straight from the planes
   const PerPixelFits per_pixel_;
   const int threads_;
+  // Step 5 found a glossy region.
+  bool glossy_region_ = false;
   // Step 7's plan, for the summary (its pixels dropped).
   LowFrequencyPlan low_frequency_plan_;
   std::vector<ThreadState> states_;
   std::vector<LobeLaneFitter> lobe_fitters_, ggx_fitters_;
   std::vector<TrimmedLambertianLanes> trimmers_;
-  // Per pixel: 1 where step 5 gave it a held lobe (as many parameters of its own as the Lambertian fit).
+  // In a glossy tile, only every 8th of the pixels that reach the lobe fit fits its own first.
+  const bool lattice_lobes_;
+  // Per pixel: non-zero where step 5 (1) or step 4's lattice lobes (2) gave
+  // it a held lobe (as many parameters of its own as the Lambertian fit).
   std::vector<std::uint8_t> held_lobe_;
   // Per pixel: 1 where step 5 found the pixel's region rejecting one Blinn-Phong shape (empty: nowhere).
   std::vector<std::uint8_t> shape_rejected_;

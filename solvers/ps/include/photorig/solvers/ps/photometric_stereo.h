@@ -184,6 +184,18 @@ struct ModelSelectionOptions {
   // scenes it changes nothing; on DiLiGenT's five objects `auto` goes from
   // 8.07 to 7.47 deg (docs/photometric-stereo-accuracy.md).
   bool lobe_shift_test = true;
+  // kAuto's step 4 with the lane fitter, in a tile of kDeferredDoubtful (512)
+  // or more doubtful pixels (a glossy stretch of the image): only every 8th
+  // pixel (pixel index a multiple of 8) of those the ladder sends to the lobe
+  // fit fits its own lobe first; each of the others is fitted with the median
+  // rho_s and exponent of the confident lattice lobes nearest it in its row
+  // held (as step 5 holds a region's lobe), and keeps that where it is
+  // adequate and its chi-square below the Lambertian fit's on the same
+  // samples, else fits its own lobe as before. A material's lobe varies
+  // slowly over its surface and costs a pixel nothing it must pay for
+  // itself; its own five-parameter fit is the slow part of the climb. The
+  // per-pixel fitter fits every pixel's own lobe (the reference).
+  bool lattice_lobes = true;
   bool IsValid(std::string* why) const;
 };
 
