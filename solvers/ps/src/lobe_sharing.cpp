@@ -158,9 +158,7 @@ class NearestLobes {
       const GlossyPixel& g = glossy_[seen[i].index];
       specular[i] = g.specular_albedo, exponent[i] = g.exponent;
     }
-    std::nth_element(specular, specular + pooled / 2, specular + pooled);
-    std::nth_element(exponent, exponent + pooled / 2, exponent + pooled);
-    return {specular[pooled / 2], exponent[pooled / 2]};
+    return {MedianOf(std::span(specular, pooled)), MedianOf(std::span(exponent, pooled))};
   }
 
   int rows_, cols_, cell_cols_, cell_rows_;
@@ -306,10 +304,6 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
     specular[label[g.pixel]].push_back(g.specular_albedo);
     exponent[label[g.pixel]].push_back(g.exponent);
   }
-  auto median = [](std::vector<float>& values) {
-    std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-    return values[values.size() / 2];
-  };
   // Label 0 is the background (pixels not solved).
   std::vector<SharedLobe> region_lobe(regions);
   std::vector<std::size_t> region_confident(regions, 0);
@@ -318,7 +312,7 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
     region_confident[r] = exponent[r].size();
     const double area = stats.at<int>(r, cv::CC_STAT_AREA);
     if (region_confident[r] < kMinPooledLobes || region_confident[r] < glossy_region_fraction * area) continue;
-    region_lobe[r] = {median(specular[r]), median(exponent[r])};
+    region_lobe[r] = {MedianOf(specular[r]), MedianOf(exponent[r])};
     any_glossy = true;
   }
   if (!any_glossy) return {};

@@ -51,6 +51,13 @@ struct GlossyPixel {
   float specular_albedo, exponent;
 };
 
+// The median of `values` (not empty; reordered; the upper middle of an even
+// count): rho_s and e are pooled so, one at a time, wherever a lobe is held.
+inline float MedianOf(std::span<float> values) {
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2];
+}
+
 // A pixel offered a held lobe by step 5, in its region, and whether it takes
 // part in its region's shape test (then the map is left as it is).
 struct SharedLobeItem {

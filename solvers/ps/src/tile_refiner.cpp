@@ -27,10 +27,10 @@ constexpr std::size_t kDeferredDoubtful = 512;
 // Lattice lobes (ModelSelectionOptions::lattice_lobes): in a glossy tile,
 // the pixels whose index is a multiple of kLatticeStride fit their own lobes;
 // a pixel waiting for them holds the median of the kNearestLatticeLobes
-// confident ones nearest it in its row, and fits its own where its row has
-// fewer than kMinLatticeLobes. Eight: one own fit in eight, the held fit
-// about a seventh of its cost; five: a median that one lobe of another
-// material beside the pixel does not move.
+// adequate confident ones nearest it in its row, and fits its own where its
+// row has fewer than kMinLatticeLobes. Eight: one own fit in eight, beside
+// seven held fits at about 0.4 of its cost each (docs/performance.md); five:
+// a median that two lobes of another material beside the pixel do not move.
 constexpr int kLatticeStride = 8;
 constexpr std::size_t kNearestLatticeLobes = 5;
 constexpr std::size_t kMinLatticeLobes = 3;
@@ -454,14 +454,11 @@ void TileRefiner::HoldLatticeLobes(int thread, int begin, int end, std::size_t g
   std::sort(state.lattice.begin(), state.lattice.end(),
             [](const GlossyPixel& a, const GlossyPixel& b) { return a.pixel < b.pixel; });
   const int width = result_->normals.cols;
-  auto median = [](std::vector<float>& values) {
-    std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-    return static_cast<double>(values[values.size() / 2]);
-  };
-  // The median lobe of the confident lattice lobes nearest pixel p in its
-  // row (ties to the left); false where the row has too few.
+  // The median lobe of the lattice lobes nearest pixel p in its row (ties to
+  // the left); false where the row has too few.
   auto nearest_lobe = [&](int p, double* specular_albedo, double* exponent) {
-    const int row_begin = std::max(begin, p - p % width), row_end = std::min(end, row_begin - row_begin % width + width);
+    const int row_start = p - p % width;
+    const int row_begin = std::max(begin, row_start), row_end = std::min(end, row_start + width);
     auto at = [&](int pixel) {
       return std::lower_bound(state.lattice.begin(), state.lattice.end(), pixel,
                               [](const GlossyPixel& g, int q) { return g.pixel < q; });
@@ -477,8 +474,8 @@ void TileRefiner::HoldLatticeLobes(int thread, int begin, int end, std::size_t g
       state.nearest_exponent.push_back(g.exponent);
     }
     if (state.nearest_exponent.size() < kMinLatticeLobes) return false;
-    *specular_albedo = median(state.nearest_specular);
-    *exponent = median(state.nearest_exponent);
+    *specular_albedo = MedianOf(state.nearest_specular);
+    *exponent = MedianOf(state.nearest_exponent);
     return true;
   };
   // Queues pixel q for its own lobe, as Climb would have.
@@ -486,12 +483,14 @@ void TileRefiner::HoldLatticeLobes(int thread, int begin, int end, std::size_t g
     q.row = GatherRow(state, q.pixel, q.x, &q.row_lambertian);
     state.lobes.push_back(q);
   };
-  std::vector<Queued> awaiting;
-  awaiting.swap(state.awaiting_lattice);
+  // Queueing a pixel for its own lobe adds nothing to awaiting_lattice: the
+  // tile's climb is over (lattice_begin = lattice_end).
+  const std::vector<Queued>& awaiting = state.awaiting_lattice;
+  std::vector<const Queued*> held;
   for (std::size_t first = 0; first < awaiting.size(); first += kBatch) {
     const std::size_t last = std::min(awaiting.size(), first + kBatch);
     state.held_problems.clear();
-    std::vector<const Queued*> held;
+    held.clear();
     for (std::size_t i = first; i < last; ++i) {
       const Queued& q = awaiting[i];
       HeldLobeProblem problem{.pixel = q.pixel, .start_normal = q.start_normal, .start_albedo = q.start_albedo,
@@ -532,6 +531,7 @@ void TileRefiner::HoldLatticeLobes(int thread, int begin, int end, std::size_t g
                                 static_cast<float>(problem.exponent)});
     }
   }
+  state.awaiting_lattice.clear();
   Flush(thread, false);
 }
 

@@ -124,7 +124,7 @@ class TileRefiner {
   // Lattice lobes (ModelSelectionOptions::lattice_lobes) for the glossy tile
   // of pixels [begin, end), once its lattice pixels have fitted their own
   // lobes: each pixel waiting for them is fitted with the median lobe of
-  // the confident lattice lobes nearest it in its row held, and keeps it
+  // the adequate confident lattice lobes nearest it in its row held, and keeps it
   // where the ladder does (KeepsLatticeLobe); the others, and every pixel
   // with fewer than kMinLatticeLobes of them in its row, are queued for
   // their own lobes. glossy_first: the thread's first glossy pixel recorded

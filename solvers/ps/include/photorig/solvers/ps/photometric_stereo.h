@@ -188,13 +188,15 @@ struct ModelSelectionOptions {
   // or more doubtful pixels (a glossy stretch of the image): only every 8th
   // pixel (pixel index a multiple of 8) of those the ladder sends to the lobe
   // fit fits its own lobe first; each of the others is fitted with the median
-  // rho_s and exponent of the confident lattice lobes nearest it in its row
-  // held (as step 5 holds a region's lobe), and keeps that where it is
-  // adequate and its chi-square below the Lambertian fit's on the same
-  // samples, else fits its own lobe as before. A material's lobe varies
-  // slowly over its surface and costs a pixel nothing it must pay for
-  // itself; its own five-parameter fit is the slow part of the climb. The
-  // per-pixel fitter fits every pixel's own lobe (the reference).
+  // rho_s and exponent of the lattice lobes nearest it in its row that are
+  // confident and adequate held (as step 5 holds a region's lobe), and keeps
+  // that where it is adequate and its chi-square below the Lambertian fit's
+  // on the same samples, else fits its own lobe as before. A material's lobe
+  // varies slowly over its surface and costs a pixel nothing it must pay
+  // for itself; its own five-parameter fit is the slow part of the climb.
+  // Where step 5's shape test rejects one lobe shape for the region, the
+  // pixel fits its own lobe before step 6. The per-pixel fitter fits every
+  // pixel's own lobe (the reference).
   bool lattice_lobes = true;
   bool IsValid(std::string* why) const;
 };
