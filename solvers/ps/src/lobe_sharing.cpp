@@ -296,22 +296,21 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
   // Sized before they fill: a glossy object's lists run to megabytes, and
   // growing them by doubling touches each page twice (fresh pages cost a
   // fault each, on a virtual machine about 10 us).
-  std::vector<std::size_t> glossy_in(regions, 0);
-  for (const GlossyPixel& g : glossy) ++glossy_in[label[g.pixel]];
+  std::vector<std::size_t> glossy_in(regions, 0), own_in(regions, 0);
+  for (const GlossyPixel& g : glossy) ++glossy_in[label[g.pixel]], own_in[label[g.pixel]] += !g.held;
   std::vector<std::vector<float>> specular(regions), exponent(regions);
-  for (int r = 0; r < regions; ++r) specular[r].reserve(glossy_in[r]), exponent[r].reserve(glossy_in[r]);
+  for (int r = 0; r < regions; ++r) specular[r].reserve(own_in[r]), exponent[r].reserve(own_in[r]);
   for (const GlossyPixel& g : glossy) {
+    if (g.held) continue;
     specular[label[g.pixel]].push_back(g.specular_albedo);
     exponent[label[g.pixel]].push_back(g.exponent);
   }
   // Label 0 is the background (pixels not solved).
   std::vector<SharedLobe> region_lobe(regions);
-  std::vector<std::size_t> region_confident(regions, 0);
   bool any_glossy = false;
   for (int r = 1; r < regions; ++r) {
-    region_confident[r] = exponent[r].size();
     const double area = stats.at<int>(r, cv::CC_STAT_AREA);
-    if (region_confident[r] < kMinPooledLobes || region_confident[r] < glossy_region_fraction * area) continue;
+    if (exponent[r].empty() || glossy_in[r] < kMinPooledLobes || glossy_in[r] < glossy_region_fraction * area) continue;
     region_lobe[r] = {MedianOf(specular[r]), MedianOf(exponent[r])};
     any_glossy = true;
   }
@@ -372,7 +371,16 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
     any_rejects = any_rejects || rejects[r];
   }
   std::unique_ptr<NearestLobes> nearest;
-  if (any_rejects) nearest = std::make_unique<NearestLobes>(labels, std::move(glossy), region_confident);
+  if (any_rejects) {
+    std::erase_if(glossy, [](const GlossyPixel& g) { return g.held; });
+    if (fits.own_lobes) {
+      for (const GlossyPixel& g : fits.own_lobes([&](int p) { return rejects[label[p]] != 0; })) {
+        glossy.push_back(g);
+        ++own_in[label[g.pixel]];
+      }
+    }
+    nearest = std::make_unique<NearestLobes>(labels, std::move(glossy), std::move(own_in));
+  }
   in_parallel(items.size(), [&](int thread, std::size_t begin, std::size_t end) {
     std::vector<NearestLobes::Seen> near;
     for (std::size_t i = begin; i < end; ++i)

@@ -49,6 +49,9 @@ inline void WriteFitToMap(int pixel, const PixelFit& fit, NormalMap* out) {
 struct GlossyPixel {
   int pixel;
   float specular_albedo, exponent;
+  // A lattice lobe held (step 4), not the pixel's own: it counts towards its
+  // region's glossiness but is not pooled, being a median of pooled lobes.
+  bool held = false;
 };
 
 // The median of `values` (not empty; reordered; the upper middle of an even
@@ -77,6 +80,12 @@ struct LobeSharingFits {
   std::function<void(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests)> share;
   // Step 6's fits of `pixels` (indices into the map), into the map where the ladder keeps them.
   std::function<void(int thread, std::span<const int> pixels)> offer_ggx;
+  // Optional, once the shape tests are done and some region rejects its
+  // shape, before the pooled lobes are drawn: each pixel holding a lattice
+  // lobe (step 4) whose region rejects (rejects(pixel)) fits the lobe of its
+  // own step 4 would have fitted, into the map; returns those of them
+  // confidently glossy (the held lobe stood in on the premise of one shape).
+  std::function<std::vector<GlossyPixel>(const std::function<bool(int pixel)>& rejects)> own_lobes;
 };
 
 // Whether some 8-connected region of solved pixels (flags kSolved) could be

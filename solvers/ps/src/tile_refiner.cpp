@@ -6,9 +6,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <span>
 
@@ -100,7 +102,7 @@ struct TileRefiner::ThreadState {
   std::vector<Queued> awaiting_lattice;
   std::vector<GlossyPixel> lattice;  // the tile's confident lattice lobes, in pixel order
   std::vector<float> nearest_specular, nearest_exponent;
-  std::vector<int> lattice_held;
+  std::vector<LatticeHeld> lattice_held;
   std::unique_ptr<RobustLambertianLanes> irls;  // `robust` only
   std::vector<RobustProblem> robust_problems;
   std::vector<RobustSolution> robust_solutions;
@@ -523,12 +525,18 @@ void TileRefiner::HoldLatticeLobes(int thread, int begin, int end, std::size_t g
         continue;
       }
       WriteFitToMap(problem.pixel, lobe, result_);
-      state.lattice_held.push_back(problem.pixel);
+      const Queued& q = *held[i];
+      state.lattice_held.push_back({.pixel = problem.pixel,
+                                    .start_normal = {static_cast<float>(q.start_normal.x()),
+                                                     static_cast<float>(q.start_normal.y()),
+                                                     static_cast<float>(q.start_normal.z())},
+                                    .start_albedo = static_cast<float>(q.start_albedo),
+                                    .lambertian_chi2 = static_cast<float>(lambertian.chi2)});
       ++state.lattice_lobes;
       // It counts for step 5 as the lattice lobes it holds stand for it.
       if (lambertian.Bic() - lobe.Bic() >= kConfidentLobeEvidence)
         state.glossy.push_back({problem.pixel, static_cast<float>(problem.specular_albedo),
-                                static_cast<float>(problem.exponent)});
+                                static_cast<float>(problem.exponent), true});
     }
   }
   state.awaiting_lattice.clear();
@@ -642,8 +650,12 @@ void TileRefiner::ShareLobe() {
   for (const ThreadState& state : states_) lattice_held += state.lattice_held.size();
   if (lattice_held > 0) {
     held_lobe_.assign(result_->flags.total(), 0);
-    for (const ThreadState& state : states_)
-      for (const int p : state.lattice_held) held_lobe_[p] = kHeldByLattice;
+    lattice_held_.reserve(lattice_held);
+    for (ThreadState& state : states_) {
+      for (const LatticeHeld& held : state.lattice_held) held_lobe_[held.pixel] = kHeldByLattice;
+      lattice_held_.insert(lattice_held_.end(), state.lattice_held.begin(), state.lattice_held.end());
+      state.lattice_held = {};
+    }
   }
   if (options_.method != Method::kAuto || !options_.selection.share_lobe) return;
   std::vector<GlossyPixel> glossy;
@@ -660,7 +672,10 @@ void TileRefiner::ShareLobe() {
                       },
                   .share = [this](int thread, std::span<const SharedLobeItem> items,
                                   std::vector<SharedShapeTest>* tests) { ShareLobe(thread, items, tests); },
-                  .offer_ggx = [this](int thread, std::span<const int> pixels) { OfferGgx(thread, pixels); }});
+                  .offer_ggx = [this](int thread, std::span<const int> pixels) { OfferGgx(thread, pixels); },
+                  .own_lobes = [this](const std::function<bool(int)>& rejects) {
+                    return FitOwnLobesOfLattice(rejects);
+                  }});
 }
 
 void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
@@ -676,7 +691,6 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
   }
   for (std::size_t first = 0; first < pixels.size(); first += kBatch) {
     const std::size_t last = std::min(pixels.size(), first + kBatch);
-    FitOwnLobesOfLattice(thread, pixels.subspan(first, last - first));
     state.rows = 0;
     state.ggx_offers.clear();
     // The kept fits judged on their usable samples in lanes (PerPixelFits::
@@ -731,34 +745,60 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
   }
 }
 
-void TileRefiner::FitOwnLobesOfLattice(int thread, std::span<const int> pixels) {
-  ThreadState& state = states_[thread];
-  state.rows = 0;
-  state.problems.clear();
-  std::vector<int> lattice;
-  std::vector<int> used;
-  for (const int p : pixels) {
-    if (held_lobe_[p] != kHeldByLattice) continue;
-    held_lobe_[p] = 0;
-    const PixelFit held = FitInMap(*result_, p);
-    const std::size_t row = NewRow(state);
-    reader_.Row(p, held.normal * held.albedo / M_PI, &state.observed[row * lights_],
-                &state.inverse_sigma[row * lights_], &used.emplace_back());
-    lattice.push_back(p);
-    state.problems.push_back({nullptr, nullptr, held.normal, held.albedo});
+std::vector<GlossyPixel> TileRefiner::FitOwnLobesOfLattice(const std::function<bool(int pixel)>& rejects) {
+  std::vector<std::size_t> refit;
+  for (std::size_t i = 0; i < lattice_held_.size(); ++i)
+    if (rejects(lattice_held_[i].pixel)) refit.push_back(i);
+  auto normal_of = [](const LatticeHeld& held) {
+    return Eigen::Vector3d(held.start_normal[0], held.start_normal[1], held.start_normal[2]);
+  };
+  std::vector<std::vector<GlossyPixel>> confident(threads_);
+  std::atomic<std::size_t> next{0};
+#pragma omp parallel num_threads(threads_)
+  {
+    const int thread = omp_get_thread_num();
+    ThreadState& state = states_[thread];
+    std::vector<int> used;
+    for (std::size_t first; (first = next.fetch_add(kBatch)) < refit.size();) {
+      const std::size_t last = std::min(refit.size(), first + kBatch);
+      state.rows = 0;
+      state.problems.clear();
+      used.clear();
+      for (std::size_t i = first; i < last; ++i) {
+        // From where step 4 would have started it: the fit it climbed to.
+        const LatticeHeld& held = lattice_held_[refit[i]];
+        const Eigen::Vector3d normal = normal_of(held);
+        const std::size_t row = NewRow(state);
+        reader_.Row(held.pixel, normal * held.start_albedo / M_PI, &state.observed[row * lights_],
+                    &state.inverse_sigma[row * lights_], &used.emplace_back());
+        state.problems.push_back({nullptr, nullptr, normal, held.start_albedo});
+      }
+      // The rows are complete (growing may have moved them): now point at them.
+      for (std::size_t i = 0; i < state.problems.size(); ++i)
+        state.problems[i].observed = &state.observed[i * lights_],
+        state.problems[i].inverse_sigma = &state.inverse_sigma[i * lights_];
+      state.solutions.assign(state.problems.size(), {});
+      lobe_fitters_[thread].Fit(state.problems, state.solutions);
+      for (std::size_t i = first; i < last; ++i) {
+        const LatticeHeld& held = lattice_held_[refit[i]];
+        held_lobe_[held.pixel] = 0;
+        ++state.lattice_lobes_own;
+        const LobeSolution& solution = state.solutions[i - first];
+        const PixelFit own = LobeFitFrom(solution, used[i - first], PixelModel::kBlinnPhong);
+        if (!own.ok) continue;
+        WriteFitToMap(held.pixel, own, result_);
+        // Step 4's evidence: against the Lambertian fit on the same samples.
+        const PixelFit lambertian = LambertianFit(normal_of(held) * held.start_albedo / M_PI, held.lambertian_chi2,
+                                                  own.used, 0);
+        if (lambertian.Bic() - own.Bic() >= kConfidentLobeEvidence)
+          confident[thread].push_back({held.pixel, static_cast<float>(solution.specular_albedo),
+                                       static_cast<float>(solution.exponent)});
+      }
+    }
   }
-  if (lattice.empty()) return;
-  // The rows are complete (growing may have moved them): now point at them.
-  for (std::size_t i = 0; i < lattice.size(); ++i)
-    state.problems[i].observed = &state.observed[i * lights_],
-    state.problems[i].inverse_sigma = &state.inverse_sigma[i * lights_];
-  state.solutions.assign(lattice.size(), {});
-  lobe_fitters_[thread].Fit(state.problems, state.solutions);
-  for (std::size_t i = 0; i < lattice.size(); ++i) {
-    const PixelFit own = LobeFitFrom(state.solutions[i], used[i], PixelModel::kBlinnPhong);
-    if (own.ok) WriteFitToMap(lattice[i], own, result_);
-    ++state.lattice_lobes_own;
-  }
+  std::vector<GlossyPixel> all;
+  for (const std::vector<GlossyPixel>& found : confident) all.insert(all.end(), found.begin(), found.end());
+  return all;
 }
 
 void TileRefiner::RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& chosen) {

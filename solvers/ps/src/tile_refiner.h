@@ -75,6 +75,13 @@ class TileRefiner {
  private:
   struct ThreadState;
   struct Queued;
+  // A pixel that kept a lattice lobe: where step 4 would have started its
+  // own lobe fit, and the Lambertian fit's chi-square on its samples.
+  struct LatticeHeld {
+    int pixel;
+    float start_normal[3], start_albedo;
+    float lambertian_chi2;
+  };
 
   // The Lambertian pass's solution x = albedo / pi n of pixel p.
   Eigen::Vector3d PassSolution(int p) const;
@@ -90,12 +97,13 @@ class TileRefiner {
   // Step 6 for `pixels`: their GGX fits (in lanes, kBatch at a time, or one
   // by one), into the map where the ladder takes them.
   void OfferGgx(int thread, std::span<const int> pixels);
-  // Step 6's first act on `pixels`: a lattice lobe stood in for a pixel's
-  // own on the premise that one lobe shape spans its neighbourhood; its
-  // region rejects that shape, so the pixel fits the lobe of its own it
-  // would have fitted in step 4 (from the held fit), which steps 6 and 7
-  // then judge as such.
-  void FitOwnLobesOfLattice(int thread, std::span<const int> pixels);
+  // Step 5, where a region rejects one lobe shape (rejects(pixel)): a
+  // lattice lobe stood in for a pixel's own on the premise that one shape
+  // spans its neighbourhood, so each lattice-held pixel there fits the lobe
+  // of its own step 4 would have fitted, from where step 4 would have
+  // started it, before step 5 pools the nearest lobes and steps 6 and 7
+  // judge it as its own. Returns those confidently glossy.
+  std::vector<GlossyPixel> FitOwnLobesOfLattice(const std::function<bool(int pixel)>& rejects);
   // Pixel p, kept as `kept` (held: a lobe step 5 held), takes the GGX fit `ggx`.
   void RecordGgx(ThreadState& state, int p, const PixelFit& kept, bool held, const PixelFit& ggx);
   // Step 7's climb of `pixels` (OfferLowFrequency), into the map if `write`;
@@ -162,6 +170,8 @@ class TileRefiner {
   // Per pixel: non-zero where step 5 (1) or step 4's lattice lobes (2) gave
   // it a held lobe (as many parameters of its own as the Lambertian fit).
   std::vector<std::uint8_t> held_lobe_;
+  // The pixels that kept a lattice lobe (FitOwnLobesOfLattice).
+  std::vector<LatticeHeld> lattice_held_;
   // Per pixel: 1 where step 5 found the pixel's region rejecting one Blinn-Phong shape (empty: nowhere).
   std::vector<std::uint8_t> shape_rejected_;
 };
