@@ -962,7 +962,8 @@ std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& op
        },
        .offer_ggx = [&](int thread, std::span<const int> pixels) {
          refitters[thread]->OfferGgx(ladder, pixels, surface.height_mm, held, map);
-       }});
+       },
+       .own_lobes = nullptr});  // near lights hold no lattice lobes
   // Step 6 may have given a held pixel a GGX lobe of its own.
   std::size_t still_held = 0;
   for (std::size_t i = 0; i < held.size(); ++i)

@@ -35,8 +35,13 @@ struct alignas(64) Equations {
 // The pixels' samples in solver units, [light * kPixels + lane]: b = (I - D)
 // / s and 1 / sigma (0: shadowed or clipped), and what the lanes hold fixed.
 struct Lanes {
-  explicit Lanes(int lights) : b(static_cast<std::size_t>(lights) * kPixels), isig(b.size()) {}
+  explicit Lanes(int lights)
+      : b(static_cast<std::size_t>(lights) * kPixels), isig(b.size()), start_lobe(b.size()), start_inverse_h(b.size()) {}
   std::vector<float> b, isig;
+  // At the start normal, as StartSums makes them for Evaluate<true>: each
+  // sample's lobe k h^e and 1 / h (the logarithm and exponential are most of
+  // a pass's cost, and the first evaluation is at that normal).
+  std::vector<float> start_lobe, start_inverse_h;
   alignas(64) int pixel[kPixels];
   alignas(64) float dark[kPixels], lobe_scale[kPixels], exponent[kPixels];
 };
@@ -108,17 +113,20 @@ void LambertianChi2(const Geometry& geo, const Lanes& l, const float x[3][kPixel
 // lobe subtracted (BlinnPhongSharedStartLanes in float): sum_a = sum w c^2,
 // sum_b = sum w c (b - lobe c), rho_d = pi sum_b / sum_a.
 PHOTORIG_PS_MULTIVERSION
-void StartSums(const Geometry& geo, const Lanes& l, const Point& p, float sum_a[kPixels], float sum_b[kPixels]) {
+void StartSums(const Geometry& geo, Lanes* l, const Point& p, float sum_a[kPixels], float sum_b[kPixels]) {
   for (int i = 0; i < kPixels; ++i) sum_a[i] = sum_b[i] = 0.0f;
   for (int k = 0; k < geo.lights; ++k) {
-    const LightRow row = RowOf(geo, l, k);  // members, not bindings: OpenMP regions cannot name bindings
+    const LightRow row = RowOf(geo, *l, k);  // members, not bindings: OpenMP regions cannot name bindings
+    float* start_lobe = &l->start_lobe[k * kPixels];
+    float* start_inverse_h = &l->start_inverse_h[k * kPixels];
 #pragma omp simd
     for (int i = 0; i < kPixels; ++i) {
       const float c = std::max(0.0f, row.wx * p.n[0][i] + row.wy * p.n[1][i] + row.wz * p.n[2][i]);
       const float h = row.hx * p.n[0][i] + row.hy * p.n[1][i] + row.hz * p.n[2][i];
-      float unused;
-      const float lobe = h > 0.0f ? l.lobe_scale[i] * LaneExp(l.exponent[i] * LaneLogAndInverse(std::max(h, 1e-30f), &unused))
-                                  : 0.0f;
+      float inverse_h;
+      const float full = l->lobe_scale[i] * LaneExp(l->exponent[i] * LaneLogAndInverse(std::max(h, 1e-30f), &inverse_h));
+      const float lobe = h > 0.0f ? full : 0.0f;
+      start_lobe[i] = full, start_inverse_h[i] = inverse_h;
       const float w = row.isig[i] * row.isig[i];
       sum_a[i] += w * c * c, sum_b[i] += w * c * (row.b[i] - lobe * c);
     }
@@ -129,19 +137,25 @@ void StartSums(const Geometry& geo, const Lanes& l, const Point& p, float sum_a[
 // lobe's two columns): with c = w . n, h = w_h . n, the lobe L = k h^e,
 //   dI/dn = (rho_d / pi + L) w + k e h^(e-1) c w_h, dI/drho_d = c / pi,
 // zero where c <= 0, the w_h term zero where h <= 0.
-PHOTORIG_PS_MULTIVERSION
-void Evaluate(const Geometry& geo, const Lanes& l, const Point& p, Equations* out) {
+// at_start: p's normals are the start's, whose lobes StartSums kept.
+template <bool at_start>
+PHOTORIG_LANE_INLINE void EvaluateLanes(const Geometry& geo, const Lanes& l, const Point& p, Equations* out) {
   float acc[10][kPixels] = {};
   for (int k = 0; k < geo.lights; ++k) {
     const LightRow row = RowOf(geo, l, k);  // members, not bindings: OpenMP regions cannot name bindings
+    const float* start_lobe = &l.start_lobe[k * kPixels];
+    const float* start_inverse_h = &l.start_inverse_h[k * kPixels];
 #pragma omp simd
     for (int i = 0; i < kPixels; ++i) {
       const float c = row.wx * p.n[0][i] + row.wy * p.n[1][i] + row.wz * p.n[2][i];
       const float h = row.hx * p.n[0][i] + row.hy * p.n[1][i] + row.hz * p.n[2][i];
       const float lit_c = std::max(c, 0.0f);
-      float inverse_h;
-      const float log_h = LaneLogAndInverse(std::max(h, 1e-30f), &inverse_h);
-      const float lobe = l.lobe_scale[i] * LaneExp(l.exponent[i] * log_h);
+      float inverse_h, lobe;
+      if constexpr (at_start) {
+        inverse_h = start_inverse_h[i], lobe = start_lobe[i];
+      } else {
+        lobe = l.lobe_scale[i] * LaneExp(l.exponent[i] * LaneLogAndInverse(std::max(h, 1e-30f), &inverse_h));
+      }
       const float brdf = p.rho_d[i] * kInvPiF + lobe;
       const float sigma = row.isig[i];
       const float r = (brdf * lit_c - row.b[i]) * sigma;
@@ -166,11 +180,20 @@ void Evaluate(const Geometry& geo, const Lanes& l, const Point& p, Equations* ou
   }
 }
 
+PHOTORIG_PS_MULTIVERSION
+void Evaluate(const Geometry& geo, const Lanes& l, const Point& p, Equations* out) {
+  EvaluateLanes<false>(geo, l, p, out);
+}
+
+PHOTORIG_PS_MULTIVERSION
+void EvaluateAtStart(const Geometry& geo, const Lanes& l, const Point& p, Equations* out) {
+  EvaluateLanes<true>(geo, l, p, out);
+}
+
 void SetNormal(const Eigen::Vector3d& n, int i, Point* p) {
   const Eigen::Vector3d u = n.normalized();
-  float t1[3], t2[3];
-  TangentBasis(static_cast<float>(u.x()), static_cast<float>(u.y()), static_cast<float>(u.z()), t1, t2);
-  for (int a = 0; a < 3; ++a) p->n[a][i] = static_cast<float>(u[a]), p->t1[a][i] = t1[a], p->t2[a][i] = t2[a];
+  const TangentPair<float> t = TangentBasis(static_cast<float>(u.x()), static_cast<float>(u.y()), static_cast<float>(u.z()));
+  for (int a = 0; a < 3; ++a) p->n[a][i] = static_cast<float>(u[a]), p->t1[a][i] = t.t1[a], p->t2[a][i] = t.t2[a];
 }
 
 Eigen::Vector3d NormalOf(const Point& p, int i) {
@@ -207,11 +230,10 @@ void Propose(const Point& p, const Equations& eq, const double lambda[kPixels], 
     const float ny = p.n[1][i] - step0 * p.t1[1][i] - step1 * p.t2[1][i];
     const float nz = p.n[2][i] - step0 * p.t1[2][i] - step1 * p.t2[2][i];
     const float inverse_length = 1.0f / std::sqrt(nx * nx + ny * ny + nz * nz);
-    float t1[3], t2[3];
     const float ux = nx * inverse_length, uy = ny * inverse_length, uz = nz * inverse_length;
-    TangentBasis(ux, uy, uz, t1, t2);
+    const TangentPair<float> t = TangentBasis(ux, uy, uz);
     q->n[0][i] = ux, q->n[1][i] = uy, q->n[2][i] = uz;
-    for (int a = 0; a < 3; ++a) q->t1[a][i] = t1[a], q->t2[a][i] = t2[a];
+    for (int a = 0; a < 3; ++a) q->t1[a][i] = t.t1[a], q->t2[a][i] = t.t2[a];
     q->rho_d[i] = static_cast<float>(std::max(0.0, p.rho_d[i] - x2));
   }
 }
@@ -241,8 +263,9 @@ void Descend(const Geometry& geo, const Lanes& lanes, int count, double toleranc
   Point proposal;
   bool stepping[kPixels];
   double positive[kPixels], predicted[kPixels];
-  for (int live = count; live > 0;) {
-    Evaluate(geo, lanes, *candidate, &at_candidate);
+  // Until a lane steps, every candidate normal is the start's.
+  for (int live = count, evaluations = 0; live > 0; ++evaluations) {
+    (evaluations == 0 ? EvaluateAtStart : Evaluate)(geo, lanes, *candidate, &at_candidate);
     auto finish = [&](int i) { active[i] = false, --live; };
     for (int i = 0; i < kPixels; ++i) {
       stepping[i] = false;
@@ -366,7 +389,7 @@ void HeldLobeLanes::Run(std::span<const HeldLobeProblem> problems, std::span<Hel
     if (fit) {
       // The start: rho_d by least squares with the lobe held at the start normal.
       alignas(64) float sum_a[kPixels], sum_b[kPixels];
-      StartSums(geo, lanes, candidate, sum_a, sum_b);
+      StartSums(geo, &lanes, candidate, sum_a, sum_b);
       for (int i = 0; i < kPixels; ++i)
         candidate.rho_d[i] =
             sum_a[i] > 0.0f ? std::max(0.0f, std::numbers::pi_v<float> * sum_b[i] / sum_a[i]) : start_albedo[i];

@@ -26,15 +26,21 @@ using core::LaneLogAndInverse;
 inline constexpr int kLanes = 8;
 inline constexpr int kFloatLanes = 16;
 
+template <typename T>
+struct TangentPair {
+  T t1[3], t2[3];
+};
+
 // A tangent basis for a unit normal, continuous everywhere but on n_z = -1
 // (Duff et al. 2017): branch-free, so it also runs in lanes (double or float).
+// Returned by value: GCC 12 leaves an `omp simd` loop scalar if it declares
+// a local array (the result arrays this once wrote into).
 template <typename T>
-PHOTORIG_LANE_INLINE void TangentBasis(T nx, T ny, T nz, T t1[3], T t2[3]) {
+PHOTORIG_LANE_INLINE TangentPair<T> TangentBasis(T nx, T ny, T nz) {
   const T sign = std::copysign(T(1), nz);
   const T a = T(-1) / (sign + nz);
   const T b = nx * ny * a;
-  t1[0] = T(1) + sign * nx * nx * a, t1[1] = sign * b, t1[2] = -sign * nx;
-  t2[0] = b, t2[1] = sign + ny * ny * a, t2[2] = -ny;
+  return {{T(1) + sign * nx * nx * a, sign * b, -sign * nx}, {b, sign + ny * ny * a, -ny}};
 }
 
 // Levenberg-Marquardt's proposals across lanes: propose() fills positive[lane]

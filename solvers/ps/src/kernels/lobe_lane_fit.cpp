@@ -375,11 +375,10 @@ void ProposeLanes(const LanePoint& p, const LaneEquations& eq, const double* lam
     const double nz = p.normal[2][j] - step_t1 * p.tangent[0][2][j] - step_t2 * p.tangent[1][2][j];
     const double inverse_length = 1.0 / std::sqrt(nx * nx + ny * ny + nz * nz);
     const double ux = nx * inverse_length, uy = ny * inverse_length, uz = nz * inverse_length;
-    double t1[3], t2[3];
-    TangentBasis(ux, uy, uz, t1, t2);
+    const TangentPair<double> t = TangentBasis(ux, uy, uz);
     q->normal[0][j] = ux, q->normal[1][j] = uy, q->normal[2][j] = uz;
-    q->tangent[0][0][j] = t1[0], q->tangent[0][1][j] = t1[1], q->tangent[0][2][j] = t1[2];
-    q->tangent[1][0][j] = t2[0], q->tangent[1][1][j] = t2[1], q->tangent[1][2][j] = t2[2];
+    q->tangent[0][0][j] = t.t1[0], q->tangent[0][1][j] = t.t1[1], q->tangent[0][2][j] = t.t1[2];
+    q->tangent[1][0][j] = t.t2[0], q->tangent[1][1][j] = t.t2[1], q->tangent[1][2][j] = t.t2[2];
     q->diffuse_albedo[j] = std::max(0.0, p.diffuse_albedo[j] - step[2][j]);
     q->specular_albedo[j] = std::max(0.0, p.specular_albedo[j] - step[3][j]);
     q->exponent[j] = std::min(std::max(p.exponent[j] - step[4][j], min_shape), max_shape);
@@ -661,9 +660,8 @@ void LobeLaneFitter::Load(int lane, const LobeProblem& problem, const BlinnPhong
   const Eigen::Vector3d n = problem.start_normal.normalized();
   LoadSamples(lane, problem);
   LanePoint& q = s.candidate;
-  double t1[3], t2[3];
-  TangentBasis(n.x(), n.y(), n.z(), t1, t2);
-  for (int i = 0; i < 3; ++i) q.normal[i][lane] = n[i], q.tangent[0][i][lane] = t1[i], q.tangent[1][i][lane] = t2[i];
+  const TangentPair<double> t = TangentBasis(n.x(), n.y(), n.z());
+  for (int i = 0; i < 3; ++i) q.normal[i][lane] = n[i], q.tangent[0][i][lane] = t.t1[i], q.tangent[1][i][lane] = t.t2[i];
   q.diffuse_albedo[lane] = start.diffuse_albedo;
   q.specular_albedo[lane] = start.specular_albedo;
   q.exponent[lane] = start.exponent;
@@ -758,11 +756,10 @@ void LobeLaneFitter::Fit(std::span<const LobeProblem> problems, std::span<LobeSo
   // An idle lane evaluates a harmless point with no samples.
   auto idle = [&](int lane) {
     for (int k = 0; k < lights_; ++k) observed_[k * kFloatLanes + lane] = inverse_sigma_[k * kFloatLanes + lane] = 0.0f;
-    double t1[3], t2[3];
-    TangentBasis(0.0, 0.0, 1.0, t1, t2);
+    const TangentPair<double> t = TangentBasis(0.0, 0.0, 1.0);
     for (int i = 0; i < 3; ++i) {
       s.candidate.normal[i][lane] = i == 2 ? 1.0 : 0.0;
-      s.candidate.tangent[0][i][lane] = t1[i], s.candidate.tangent[1][i][lane] = t2[i];
+      s.candidate.tangent[0][i][lane] = t.t1[i], s.candidate.tangent[1][i][lane] = t.t2[i];
     }
     s.candidate.diffuse_albedo[lane] = s.candidate.specular_albedo[lane] = 0.0;
     s.candidate.exponent[lane] = min_shape_;
@@ -868,10 +865,9 @@ LobeLaneFitter::Linearization LobeLaneFitter::Linearize(const LobeProblem& probl
   LanePoint point{};
   for (int lane = 0; lane < kFloatLanes; ++lane) {
     const Eigen::Vector3d n = normal.normalized();
-    double t1[3], t2[3];
-    TangentBasis(n.x(), n.y(), n.z(), t1, t2);
+    const TangentPair<double> t = TangentBasis(n.x(), n.y(), n.z());
     for (int i = 0; i < 3; ++i)
-      point.normal[i][lane] = n[i], point.tangent[0][i][lane] = t1[i], point.tangent[1][i][lane] = t2[i];
+      point.normal[i][lane] = n[i], point.tangent[0][i][lane] = t.t1[i], point.tangent[1][i][lane] = t.t2[i];
     point.diffuse_albedo[lane] = diffuse_albedo;
     point.specular_albedo[lane] = specular_albedo;
     point.exponent[lane] = exponent;
