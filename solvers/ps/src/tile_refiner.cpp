@@ -650,12 +650,8 @@ void TileRefiner::ShareLobe() {
   for (const ThreadState& state : states_) lattice_held += state.lattice_held.size();
   if (lattice_held > 0) {
     held_lobe_.assign(result_->flags.total(), 0);
-    lattice_held_.reserve(lattice_held);
-    for (ThreadState& state : states_) {
+    for (const ThreadState& state : states_)
       for (const LatticeHeld& held : state.lattice_held) held_lobe_[held.pixel] = kHeldByLattice;
-      lattice_held_.insert(lattice_held_.end(), state.lattice_held.begin(), state.lattice_held.end());
-      state.lattice_held = {};
-    }
   }
   if (options_.method != Method::kAuto || !options_.selection.share_lobe) return;
   std::vector<GlossyPixel> glossy;
@@ -746,9 +742,10 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
 }
 
 std::vector<GlossyPixel> TileRefiner::FitOwnLobesOfLattice(const std::function<bool(int pixel)>& rejects) {
-  std::vector<std::size_t> refit;
-  for (std::size_t i = 0; i < lattice_held_.size(); ++i)
-    if (rejects(lattice_held_[i].pixel)) refit.push_back(i);
+  std::vector<const LatticeHeld*> refit;
+  for (const ThreadState& state : states_)
+    for (const LatticeHeld& held : state.lattice_held)
+      if (rejects(held.pixel)) refit.push_back(&held);
   auto normal_of = [](const LatticeHeld& held) {
     return Eigen::Vector3d(held.start_normal[0], held.start_normal[1], held.start_normal[2]);
   };
@@ -766,7 +763,7 @@ std::vector<GlossyPixel> TileRefiner::FitOwnLobesOfLattice(const std::function<b
       used.clear();
       for (std::size_t i = first; i < last; ++i) {
         // From where step 4 would have started it: the fit it climbed to.
-        const LatticeHeld& held = lattice_held_[refit[i]];
+        const LatticeHeld& held = *refit[i];
         const Eigen::Vector3d normal = normal_of(held);
         const std::size_t row = NewRow(state);
         reader_.Row(held.pixel, normal * held.start_albedo / M_PI, &state.observed[row * lights_],
@@ -780,7 +777,7 @@ std::vector<GlossyPixel> TileRefiner::FitOwnLobesOfLattice(const std::function<b
       state.solutions.assign(state.problems.size(), {});
       lobe_fitters_[thread].Fit(state.problems, state.solutions);
       for (std::size_t i = first; i < last; ++i) {
-        const LatticeHeld& held = lattice_held_[refit[i]];
+        const LatticeHeld& held = *refit[i];
         held_lobe_[held.pixel] = 0;
         ++state.lattice_lobes_own;
         const LobeSolution& solution = state.solutions[i - first];

@@ -170,8 +170,6 @@ class TileRefiner {
   // Per pixel: non-zero where step 5 (1) or step 4's lattice lobes (2) gave
   // it a held lobe (as many parameters of its own as the Lambertian fit).
   std::vector<std::uint8_t> held_lobe_;
-  // The pixels that kept a lattice lobe (FitOwnLobesOfLattice).
-  std::vector<LatticeHeld> lattice_held_;
   // Per pixel: 1 where step 5 found the pixel's region rejecting one Blinn-Phong shape (empty: nowhere).
   std::vector<std::uint8_t> shape_rejected_;
 };
