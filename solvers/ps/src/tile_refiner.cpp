@@ -784,7 +784,8 @@ std::vector<GlossyPixel> TileRefiner::FitOwnLobesOfLattice(const std::function<b
         const PixelFit own = LobeFitFrom(solution, used[i - first], PixelModel::kBlinnPhong);
         if (!own.ok) continue;
         WriteFitToMap(held.pixel, own, result_);
-        // Step 4's evidence: against the Lambertian fit on the same samples.
+        // Step 4's evidence: against the Lambertian fit on the same samples
+        // (its criterion reads only the chi-square and the sample count).
         const PixelFit lambertian = LambertianFit(normal_of(held) * held.start_albedo / M_PI, held.lambertian_chi2,
                                                   own.used, 0);
         if (lambertian.Bic() - own.Bic() >= kConfidentLobeEvidence)

@@ -195,8 +195,9 @@ struct ModelSelectionOptions {
   // varies slowly over its surface and costs a pixel nothing it must pay
   // for itself; its own five-parameter fit is the slow part of the climb.
   // Where step 5's shape test rejects one lobe shape for the region, the
-  // pixel fits its own lobe before step 6. The per-pixel fitter fits every
-  // pixel's own lobe (the reference).
+  // pixel fits its own lobe before step 5 pools lobes (held ones are never
+  // pooled). The per-pixel fitter fits every pixel's own lobe (the
+  // reference).
   bool lattice_lobes = true;
   bool IsValid(std::string* why) const;
 };
