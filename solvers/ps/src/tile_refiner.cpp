@@ -31,8 +31,9 @@ constexpr std::size_t kDeferredDoubtful = 512;
 // a pixel waiting for them holds the median of the kNearestLatticeLobes
 // adequate confident ones nearest it in its row, and fits its own where its
 // row has fewer than kMinLatticeLobes. Eight: one own fit in eight, beside
-// seven held fits at about 0.4 of its cost each (docs/performance.md); five:
-// a median that two lobes of another material beside the pixel do not move.
+// seven held fits (three parameters, not five, and fewer steps) at a
+// fraction of its cost each; five: a median that two lobes of another
+// material beside the pixel do not move.
 constexpr int kLatticeStride = 8;
 constexpr std::size_t kNearestLatticeLobes = 5;
 constexpr std::size_t kMinLatticeLobes = 3;
