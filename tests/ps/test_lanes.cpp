@@ -710,10 +710,8 @@ TEST(RecheckLanes, ReadsCopiedSamplesAsThePlanes) {
   const internal::RecheckLanes recheck(stack, LambertianOptions{});
   std::vector<int> indices(pixels);
   std::vector<float> copies(static_cast<std::size_t>(pixels) * n);
-  for (int p = 0; p < pixels; ++p) {
-    indices[p] = p;
-    recheck.CopySamples(p, &copies[static_cast<std::size_t>(p) * n]);
-  }
+  for (int p = 0; p < pixels; ++p) indices[p] = p;
+  recheck.CopySamples(indices, copies.data());
   std::vector<internal::Recheck> from_planes(pixels), from_copies(pixels);
   recheck.Check(indices, x, from_planes);
   recheck.Check(indices, x, from_copies, copies.data());
@@ -729,6 +727,12 @@ TEST(RecheckLanes, ReadsCopiedSamplesAsThePlanes) {
     refitted += from_planes[p].refitted;
   }
   EXPECT_GT(refitted, 0);  // the refit path is exercised too
+  // Pixels in any order, over more than one block: each row is its pixel's.
+  const std::vector<int> scrambled = {20, 3, 3, 17, 0, 9, 12, 1, 19, 5, 8, 14, 2, 11, 6, 16, 4, 7};
+  std::vector<float> rows(scrambled.size() * n);
+  recheck.CopySamples(scrambled, rows.data());
+  for (std::size_t j = 0; j < scrambled.size(); ++j)
+    for (int k = 0; k < n; ++k) ASSERT_EQ(rows[j * n + k], stack.images[k].ptr<float>()[scrambled[j]]) << j << " " << k;
 }
 
 // A lone bad sample leaves alone; gross ones leave together with everything

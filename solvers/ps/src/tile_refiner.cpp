@@ -76,7 +76,7 @@ struct TileRefiner::ThreadState {
   std::vector<std::uint8_t> needs_refit;  // per pixel of the tile
   std::vector<int> doubtful;  // the tile's pixels that need refitting, with lanes
   std::vector<Eigen::Vector3d> doubtful_x;
-  std::vector<float> doubtful_samples;  // `auto`: each doubtful pixel's samples, as the recheck reads them
+  std::vector<float> doubtful_samples;  // each copied doubtful pixel's samples, one row of lights_ (RecheckLanes::CopySamples)
   std::vector<Recheck> rechecks;
   PixelScratch scratch;  // the per-pixel fitter's
   // Every light's sample of the queued pixels, one row per pixel
@@ -384,25 +384,30 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
     if (state.needs_refit[i]) doubt(i);
   if (!lanes_) return;
   const bool recheck = options_.method == Method::kAuto;
-  if (state.doubtful.size() - tile_first >= kDeferredDoubtful) {
-    // A glossy tile: its doubtful pixels are rechecked now, their samples
-    // still in cache.
+  // A glossy tile's doubtful pixels are climbed now; `auto` tests a matte
+  // tile's later, when the tile's samples have left the cache. Either way
+  // their samples are copied now, while they are in it, into one row a
+  // pixel: the stages read them there instead of gathering each pixel's
+  // samples from the planes again.
+  const bool glossy = state.doubtful.size() - tile_first >= kDeferredDoubtful;
+  if (glossy || recheck) {
+    // Grow only: a resize down and up again would zero-fill the rows for each tile.
+    if (state.doubtful_samples.size() < state.doubtful.size() * lights_)
+      state.doubtful_samples.resize(2 * state.doubtful.size() * lights_);
+    recheck_.CopySamples(std::span<const int>(state.doubtful).subspan(tile_first),
+                         &state.doubtful_samples[tile_first * lights_]);
+  }
+  if (glossy) {
     if (lattice_lobes_) {
       const std::size_t glossy_first = state.glossy.size();
       state.lattice_begin = begin, state.lattice_end = begin + count;
-      ClimbDoubtful(thread, tile_first, false);
+      ClimbDoubtful(thread, tile_first, true);
       Flush(thread, true);  // the lattice's own lobes, every stage's queue emptied
       state.lattice_begin = state.lattice_end = 0;
       HoldLatticeLobes(thread, begin, begin + count, glossy_first);
     } else {
-      ClimbDoubtful(thread, tile_first, false);
+      ClimbDoubtful(thread, tile_first, true);
     }
-  } else if (recheck) {
-    // `auto` tests these pixels later, when the tile's samples have left the
-    // cache: their own are copied now, while they are in it.
-    state.doubtful_samples.resize(state.doubtful.size() * lights_);
-    for (std::size_t j = tile_first; j < state.doubtful.size(); ++j)
-      recheck_.CopySamples(state.doubtful[j], &state.doubtful_samples[j * lights_]);
   }
   if (state.doubtful.size() >= kDeferredDoubtful) ClimbDoubtful(thread, 0, recheck);
 }
@@ -439,7 +444,6 @@ void TileRefiner::ClimbDoubtful(int thread, std::size_t first, bool copied) {
   }
   state.doubtful.resize(first);
   state.doubtful_x.resize(first);
-  if (copied) state.doubtful_samples.resize(first * lights_);
   Flush(thread, false);
 }
 

@@ -125,8 +125,24 @@ RecheckLanes::RecheckLanes(const PhotometricStack& stack, const LambertianOption
   max_frobenius_condition2_ = static_cast<float>(0.99 * max_condition2 * max_condition2);
 }
 
-void RecheckLanes::CopySamples(int pixel, float* out) const {
-  for (int k = 0; k < samples_.lights(); ++k) out[k] = samples_.planes[k][pixel];
+void RecheckLanes::CopySamples(std::span<const int> pixels, float* out) const {
+  const int lights = samples_.lights();
+  // Sixteen pixels at a time, plane by plane. A pixel's samples under
+  // successive lights lie a plane apart, and planes of a power-of-two size
+  // put them all in one L1 set: copied pixel by pixel, every sample missed
+  // L1 (the trimming's copy was 6 % of shiny `auto`). Plane by plane, a
+  // block's cache line of each plane is loaded once for its sixteen pixels,
+  // and its 16 rows (3 KB at 48 lights) stay in L1 as they fill.
+  constexpr std::size_t kBlock = 16;
+  for (std::size_t first = 0; first < pixels.size(); first += kBlock) {
+    const std::size_t count = std::min(kBlock, pixels.size() - first);
+    const int* block = pixels.data() + first;
+    float* rows = out + first * lights;
+    for (int k = 0; k < lights; ++k) {
+      const float* plane = samples_.planes[k];
+      for (std::size_t j = 0; j < count; ++j) rows[j * lights + k] = plane[block[j]];
+    }
+  }
 }
 
 void RecheckLanes::Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x, std::span<Recheck> out,

@@ -42,8 +42,9 @@ class RecheckLanes {
   // CopySamples wrote them, read instead of the planes.
   void Check(std::span<const int> pixels, std::span<const Eigen::Vector3d> x, std::span<Recheck> out,
              const float* copies = nullptr) const;
-  // Pixel p's sample under each light, lights() floats, into out.
-  void CopySamples(int pixel, float* out) const;
+  // Each pixel's sample under each light into out: pixels[j]'s at
+  // out[j * lights .. + lights).
+  void CopySamples(std::span<const int> pixels, float* out) const;
 
  private:
   PlaneSamples samples_;
