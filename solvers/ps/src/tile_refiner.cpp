@@ -461,17 +461,33 @@ void TileRefiner::HoldLatticeLobes(int thread, int begin, int end, std::size_t g
   std::sort(state.lattice.begin(), state.lattice.end(),
             [](const GlossyPixel& a, const GlossyPixel& b) { return a.pixel < b.pixel; });
   const int width = result_->normals.cols;
+  using LatticeIterator = std::vector<GlossyPixel>::const_iterator;
+  auto at = [&](int pixel) {
+    return std::lower_bound(state.lattice.cbegin(), state.lattice.cend(), pixel,
+                            [](const GlossyPixel& g, int q) { return g.pixel < q; });
+  };
+  // The first lattice lobe at or after a pixel. The waiting pixels come
+  // nearly in ascending order, so the search moves on from the last one;
+  // a row's bounds are searched once per row.
+  LatticeIterator cursor = state.lattice.cbegin(), row_first, row_last;
+  int cursor_pixel = -1, row_cached = -1;
+  auto at_or_after = [&](int pixel) {
+    if (pixel < cursor_pixel) cursor = at(pixel);
+    while (cursor != state.lattice.cend() && cursor->pixel < pixel) ++cursor;
+    cursor_pixel = pixel;
+    return cursor;
+  };
   // The median lobe of the lattice lobes nearest pixel p in its row (ties to
   // the left); false where the row has too few.
   auto nearest_lobe = [&](int p, double* specular_albedo, double* exponent) {
     const int row_start = p - p % width;
-    const int row_begin = std::max(begin, row_start), row_end = std::min(end, row_start + width);
-    auto at = [&](int pixel) {
-      return std::lower_bound(state.lattice.begin(), state.lattice.end(), pixel,
-                              [](const GlossyPixel& g, int q) { return g.pixel < q; });
-    };
-    auto left = at(p), right = left;
-    const auto first = at(row_begin), last = at(row_end);
+    if (row_start != row_cached) {
+      row_first = at(std::max(begin, row_start));
+      row_last = at(std::min(end, row_start + width));
+      row_cached = row_start;
+    }
+    auto left = at_or_after(p), right = left;
+    const LatticeIterator first = row_first, last = row_last;
     state.nearest_specular.clear();
     state.nearest_exponent.clear();
     while (state.nearest_exponent.size() < kNearestLatticeLobes && (left != first || right != last)) {

@@ -97,6 +97,34 @@ void LoadLanes(const PlaneConstants& c, Lanes* l, float g[6][kPixels], float r[3
   }
 }
 
+// Every lane's Lambertian normal equations g x = r (as LoadLanes sums them)
+// solved in double by the adjugate, where the determinant is safely
+// positive: well_posed[i] = 1. Elsewhere (0) x is left for the caller's
+// pivoted solve. One vector pass where a 3 x 3 factorisation per lane cost
+// as many instructions as the lanes' Lambertian pass itself.
+PHOTORIG_PS_MULTIVERSION
+void SolveLambertianLanes(const float g[6][kPixels], const float r[3][kPixels], float x[3][kPixels],
+                          double well_posed[kPixels]) {
+#pragma omp simd
+  for (int i = 0; i < kPixels; ++i) {
+    const double xx = g[0][i], xy = g[1][i], xz = g[2][i], yy = g[3][i], yz = g[4][i], zz = g[5][i];
+    const double a_xx = yy * zz - yz * yz, a_xy = xz * yz - xy * zz, a_xz = xy * yz - xz * yy;
+    const double a_yy = xx * zz - xz * xz, a_yz = xy * xz - xx * yz, a_zz = xx * yy - xy * xy;
+    const double det = xx * a_xx + xy * a_xy + xz * a_xz;
+    // det = l1 l2 l3 > 1e-6 trace^3 >= 1e-6 l1^3 (eigenvalues l1 >= l2 >=
+    // l3) bounds the condition number l1 / l3 below 10^6: the adjugate in
+    // double then keeps ten digits, more than the float result holds.
+    const double trace = xx + yy + zz;
+    const bool ok = det > 1e-6 * trace * trace * trace;
+    const double inverse_det = ok ? 1.0 / det : 0.0;
+    const double rx = r[0][i], ry = r[1][i], rz = r[2][i];
+    x[0][i] = static_cast<float>((a_xx * rx + a_xy * ry + a_xz * rz) * inverse_det);
+    x[1][i] = static_cast<float>((a_xy * rx + a_yy * ry + a_yz * rz) * inverse_det);
+    x[2][i] = static_cast<float>((a_xz * rx + a_yz * ry + a_zz * rz) * inverse_det);
+    well_posed[i] = ok ? 1.0 : 0.0;
+  }
+}
+
 // Chi-square of the Lambertian solutions x (as fitted) and kept (its
 // attached shadow clamped) on every lane's usable samples.
 PHOTORIG_PS_MULTIVERSION
@@ -383,12 +411,18 @@ void HeldLobeLanes::Run(std::span<const HeldLobeProblem> problems, std::span<Hel
     alignas(64) float g[6][kPixels], r[3][kPixels], used[kPixels], x[3][kPixels];
     LoadLanes(c, &lanes, g, r, used);
     bool solvable[kPixels];
+    alignas(64) double well_posed[kPixels];
+    SolveLambertianLanes(g, r, x, well_posed);
     for (int i = 0; i < kPixels; ++i) {
-      Eigen::Matrix3d m;
-      m << g[0][i], g[1][i], g[2][i], g[1][i], g[3][i], g[4][i], g[2][i], g[4][i], g[5][i];
-      const Eigen::Vector3d solution = m.ldlt().solve(Eigen::Vector3d(r[0][i], r[1][i], r[2][i]));
       solvable[i] = used[i] >= 3.0f;
-      for (int a = 0; a < 3; ++a) x[a][i] = solvable[i] ? static_cast<float>(solution[a]) : 0.0f;
+      if (solvable[i] && well_posed[i] == 0.0) {
+        // Near singular (lights nearly coplanar): pivoted LDL^T, as before.
+        Eigen::Matrix3d m;
+        m << g[0][i], g[1][i], g[2][i], g[1][i], g[3][i], g[4][i], g[2][i], g[4][i], g[5][i];
+        const Eigen::Vector3d solution = m.ldlt().solve(Eigen::Vector3d(r[0][i], r[1][i], r[2][i]));
+        for (int a = 0; a < 3; ++a) x[a][i] = static_cast<float>(solution[a]);
+      }
+      if (!solvable[i]) x[0][i] = x[1][i] = x[2][i] = 0.0f;
     }
     alignas(64) float chi2[kPixels], kept_chi2[kPixels];
     LambertianChi2(geo, lanes, x, kept, chi2, kept_chi2);
