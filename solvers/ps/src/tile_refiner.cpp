@@ -12,6 +12,7 @@
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <mutex>
 #include <span>
 
 namespace photorig::solvers::ps::internal {
@@ -72,17 +73,20 @@ struct TileRefiner::Queued {
   std::size_t row;  // of the thread's rows
 };
 
-struct TileRefiner::ThreadState {
+// A thread's queues, rows and lists: everything whose size grows with the
+// pixels it refines. They outlive the solve (TakeThreadBuffers), emptied but
+// with their capacity: allocated afresh, a solve paid for every page of them
+// again, and on two threads shiny `auto` took 1.2x as long.
+struct TileRefiner::ThreadBuffers {
   std::vector<std::uint8_t> needs_refit;  // per pixel of the tile
   std::vector<int> doubtful;  // the tile's pixels that need refitting, with lanes
   std::vector<Eigen::Vector3d> doubtful_x;
-  std::vector<float> doubtful_samples;  // each copied doubtful pixel's samples, one row of lights_ (RecheckLanes::CopySamples)
+  // Copied doubtful pixels' samples, a row of lights_ each (RecheckLanes::CopySamples).
+  std::vector<float> doubtful_samples;
   std::vector<Recheck> rechecks;
-  PixelScratch scratch;  // the per-pixel fitter's
   // Every light's sample of the queued pixels, one row per pixel
   // (SampleReader::Row); see Flush.
   std::vector<double> observed, inverse_sigma;
-  std::size_t rows = 0;
   // Pixels queued for trimming (with the Lambertian pass's solution x and,
   // for `auto`, its chi-square and sample count as the recheck found them)
   // and their samples (TrimmedLambertianLanes::CopySamples), one row each.
@@ -95,39 +99,55 @@ struct TileRefiner::ThreadState {
   std::vector<Trimming> trimming;
   std::vector<float> trim_rows;
   std::vector<Queued> reweighting, lobes;
-  // Lattice lobes: the glossy tile being refined, pixels [lattice_begin,
-  // lattice_end), its pixels that wait for its lattice's lobes (no row yet),
-  // and those that kept a held lattice lobe (marked in held_lobe_ once every
-  // tile is done).
-  int lattice_begin = 0, lattice_end = 0;
+  // Lattice lobes: the glossy tile's pixels that wait for its lattice's
+  // lobes (no row yet), and those that kept a held lattice lobe (marked in
+  // held_lobe_ once every tile is done).
   std::vector<Queued> awaiting_lattice;
   std::vector<GlossyPixel> lattice;  // the tile's confident lattice lobes, in pixel order
   std::vector<float> nearest_specular, nearest_exponent;
   std::vector<LatticeHeld> lattice_held;
-  std::unique_ptr<RobustLambertianLanes> irls;  // `robust` only
   std::vector<RobustProblem> robust_problems;
   std::vector<RobustSolution> robust_solutions;
   std::vector<TrimSolution> trim_solutions;
   std::vector<LobeProblem> problems;
   std::vector<LobeSolution> solutions;
-  std::size_t lambertian = 0, trimmed = 0, irls_fits = 0, blinn_phong = 0, rejected = 0, failed = 0, fell_back = 0;
   std::vector<GlossyPixel> glossy;  // pixels that kept a lobe with kConfidentLobeEvidence
-  // Step 5: the pixels of a batch offered the shared lobe, and what it changed
-  // (the pixels it took from each simpler model, the samples those had left out).
+  // Step 5: the pixels of a batch offered the shared lobe.
   std::vector<SharingCandidate> sharing;
   // Steps 5 and 6: a batch's kept fits, its problems for HeldLobeLanes (held
   // lobes to fit, kept fits to judge) and their answers.
   std::vector<PixelFit> held_kept;
   std::vector<HeldLobeProblem> held_problems;
   std::vector<HeldLobeSolution> held_solutions;
+  // Step 6 in lanes: a batch's pixels the ladder asks a GGX fit of.
+  std::vector<GgxCandidate> ggx_offers;
+
+  // Empties every list, keeping its capacity.
+  void Clear() {
+    auto clear = [](auto&... lists) { (lists.clear(), ...); };
+    clear(needs_refit, doubtful, doubtful_x, doubtful_samples, rechecks, observed, inverse_sigma, trimming, trim_rows,
+          reweighting, lobes, awaiting_lattice, lattice, nearest_specular, nearest_exponent, lattice_held,
+          robust_problems, robust_solutions, trim_solutions, problems, solutions, glossy, sharing, held_kept,
+          held_problems, held_solutions, ggx_offers);
+  }
+};
+
+// One solve's state of a thread: its buffers, taken from those earlier
+// solves left, and its counts.
+struct TileRefiner::ThreadState : ThreadBuffers {
+  PixelScratch scratch;  // the per-pixel fitter's
+  std::size_t rows = 0;  // of observed and inverse_sigma in use
+  // The glossy tile being refined with lattice lobes: pixels [lattice_begin, lattice_end).
+  int lattice_begin = 0, lattice_end = 0;
+  std::unique_ptr<RobustLambertianLanes> irls;  // `robust` only
+  std::size_t lambertian = 0, trimmed = 0, irls_fits = 0, blinn_phong = 0, rejected = 0, failed = 0, fell_back = 0;
+  // Step 5: the pixels it took from each simpler model, the samples those had left out.
   std::size_t shared_lobes = 0, shared_from_lambertian = 0, shared_from_trimmed = 0;
   // Pixels that kept a held lattice lobe, and those of them whose region
   // rejected one lobe shape (step 6: their lobes count as their own).
   std::size_t lattice_lobes = 0, lattice_lobes_own = 0;
   // Step 6: the pixels that took a GGX lobe, by the model they had kept.
   std::size_t ggx = 0, ggx_from_lambertian = 0, ggx_from_trimmed = 0, ggx_from_blinn_phong = 0, ggx_from_held_lobe = 0;
-  // Step 6 in lanes: a batch's pixels the ladder asks a GGX fit of.
-  std::vector<GgxCandidate> ggx_offers;
   // Step 7: the pixels that took the low-frequency fit, by the model they had kept.
   std::size_t low_frequency = 0, low_from_lambertian = 0, low_from_trimmed = 0, low_from_blinn_phong = 0,
               low_from_held_lobe = 0, low_from_ggx = 0;
@@ -135,6 +155,37 @@ struct TileRefiner::ThreadState {
   // Samples a kept fit had left out (trimmed or unlit) that steps 5-7's fits use again.
   std::size_t samples_restored = 0;
 };
+
+namespace {
+
+// The buffers solves have given back, for the next solves to take: as many
+// as ran at once at most.
+std::mutex& ThreadBuffersLock() {
+  static std::mutex lock;
+  return lock;
+}
+
+}  // namespace
+
+std::vector<TileRefiner::ThreadBuffers>& TileRefiner::FreeThreadBuffers() {
+  static std::vector<ThreadBuffers> free;
+  return free;
+}
+
+TileRefiner::ThreadBuffers TileRefiner::TakeThreadBuffers() {
+  const std::lock_guard<std::mutex> hold(ThreadBuffersLock());
+  std::vector<ThreadBuffers>& free = FreeThreadBuffers();
+  if (free.empty()) return {};
+  ThreadBuffers buffers = std::move(free.back());
+  free.pop_back();
+  return buffers;
+}
+
+void TileRefiner::GiveThreadBuffers(ThreadBuffers&& buffers) {
+  buffers.Clear();
+  const std::lock_guard<std::mutex> hold(ThreadBuffersLock());
+  FreeThreadBuffers().push_back(std::move(buffers));
+}
 
 TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const LambertianOptions& lambertian,
                          const PhotometricStack& stack, const ModelLadder& ladder, int threads, NormalMap* result)
@@ -152,6 +203,7 @@ TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const Lamberti
       threads_(threads),
       states_(threads),
       lattice_lobes_(options.method == Method::kAuto && lanes_ && options.selection.lattice_lobes) {
+  for (ThreadState& state : states_) static_cast<ThreadBuffers&>(state) = TakeThreadBuffers();
   if (options.method == Method::kRobust)
     for (ThreadState& state : states_)
       state.irls = std::make_unique<RobustLambertianLanes>(stack.light_directions, options.robust);
@@ -165,7 +217,9 @@ TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const Lamberti
   }
 }
 
-TileRefiner::~TileRefiner() = default;
+TileRefiner::~TileRefiner() {
+  for (ThreadState& state : states_) GiveThreadBuffers(std::move(static_cast<ThreadBuffers&>(state)));
+}
 
 Eigen::Vector3d TileRefiner::PassSolution(int p) const {
   const cv::Vec3f n = result_->normals.ptr<cv::Vec3f>()[p];
@@ -275,7 +329,7 @@ void TileRefiner::Trim(int thread) {
   state.trim_solutions.assign(count, {});
   if (count > 0) trimmers_[thread].Fit(state.trim_rows, ladder_.quantiles(), state.trim_solutions);
   for (std::size_t i = 0; i < count; ++i) {
-    const ThreadState::Trimming& t = state.trimming[i];
+    const ThreadBuffers::Trimming& t = state.trimming[i];
     const PixelFit lambertian = LambertianFit(t.x, t.chi2, t.used, 0), trimmed = TrimmedFit(state.trim_solutions[i]);
     const LadderFits fits{&lambertian, &kNoFit, &trimmed};
     // The pixel's samples as copied: only a pixel that goes on to the

@@ -73,6 +73,7 @@ class TileRefiner {
   void AddCounts(SolverSummary* summary) const;
 
  private:
+  struct ThreadBuffers;
   struct ThreadState;
   struct Queued;
   // A pixel that kept a lattice lobe: where step 4 would have started its
@@ -138,6 +139,10 @@ class TileRefiner {
   // their own lobes. glossy_first: the thread's first glossy pixel recorded
   // for the tile.
   void HoldLatticeLobes(int thread, int begin, int end, std::size_t glossy_first);
+  // The buffers of finished solves' threads, taken by a new solve's and given back when it ends.
+  static std::vector<ThreadBuffers>& FreeThreadBuffers();
+  static ThreadBuffers TakeThreadBuffers();
+  static void GiveThreadBuffers(ThreadBuffers&& buffers);
   // The lane stages, on the thread's queues.
   void Trim(int thread);
   void Reweight(int thread);
