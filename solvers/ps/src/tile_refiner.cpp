@@ -156,35 +156,32 @@ struct TileRefiner::ThreadState : ThreadBuffers {
   std::size_t samples_restored = 0;
 };
 
-namespace {
+// The buffers finished solves gave back, for the next solves to take: at
+// most as many sets as threads of solves that ran at once.
+struct TileRefiner::ThreadBufferPool {
+  std::mutex lock;
+  std::vector<ThreadBuffers> free;
+};
 
-// The buffers solves have given back, for the next solves to take: as many
-// as ran at once at most.
-std::mutex& ThreadBuffersLock() {
-  static std::mutex lock;
-  return lock;
-}
-
-}  // namespace
-
-std::vector<TileRefiner::ThreadBuffers>& TileRefiner::FreeThreadBuffers() {
-  static std::vector<ThreadBuffers> free;
-  return free;
+TileRefiner::ThreadBufferPool& TileRefiner::BufferPool() {
+  static ThreadBufferPool pool;
+  return pool;
 }
 
 TileRefiner::ThreadBuffers TileRefiner::TakeThreadBuffers() {
-  const std::lock_guard<std::mutex> hold(ThreadBuffersLock());
-  std::vector<ThreadBuffers>& free = FreeThreadBuffers();
-  if (free.empty()) return {};
-  ThreadBuffers buffers = std::move(free.back());
-  free.pop_back();
+  ThreadBufferPool& pool = BufferPool();
+  const std::lock_guard<std::mutex> hold(pool.lock);
+  if (pool.free.empty()) return {};
+  ThreadBuffers buffers = std::move(pool.free.back());
+  pool.free.pop_back();
   return buffers;
 }
 
 void TileRefiner::GiveThreadBuffers(ThreadBuffers&& buffers) {
   buffers.Clear();
-  const std::lock_guard<std::mutex> hold(ThreadBuffersLock());
-  FreeThreadBuffers().push_back(std::move(buffers));
+  ThreadBufferPool& pool = BufferPool();
+  const std::lock_guard<std::mutex> hold(pool.lock);
+  pool.free.push_back(std::move(buffers));
 }
 
 TileRefiner::TileRefiner(const PhotometricStereoOptions& options, const LambertianOptions& lambertian,

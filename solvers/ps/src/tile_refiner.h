@@ -140,7 +140,8 @@ class TileRefiner {
   // for the tile.
   void HoldLatticeLobes(int thread, int begin, int end, std::size_t glossy_first);
   // The buffers of finished solves' threads, taken by a new solve's and given back when it ends.
-  static std::vector<ThreadBuffers>& FreeThreadBuffers();
+  struct ThreadBufferPool;
+  static ThreadBufferPool& BufferPool();
   static ThreadBuffers TakeThreadBuffers();
   static void GiveThreadBuffers(ThreadBuffers&& buffers);
   // The lane stages, on the thread's queues.
