@@ -41,6 +41,13 @@ constexpr std::size_t kMinLatticeLobes = 3;
 // held_lobe_'s values: a lobe held by step 5, or by step 4's lattice.
 constexpr std::uint8_t kHeldByRegion = 1, kHeldByLattice = 2;
 
+// Rows reused from tile to tile grow only, doubling: a resize to each
+// tile's size would zero-fill them again every time.
+template <typename T>
+void GrowToHold(std::vector<T>& rows, std::size_t size) {
+  if (rows.size() < size) rows.resize(2 * size);
+}
+
 PixelFit TrimmedFit(const TrimSolution& trimmed) {
   PixelFit fit;
   const double length = trimmed.x.norm();
@@ -256,12 +263,8 @@ __attribute__((always_inline)) inline void TileRefiner::Record(ThreadState& stat
 
 std::size_t TileRefiner::NewRow(ThreadState& state) const {
   const std::size_t row = state.rows++;
-  // Rows are reused from tile to tile: grow only (a resize would zero-fill
-  // every row again for each tile).
-  if (state.observed.size() < state.rows * lights_) {
-    state.observed.resize(2 * state.rows * lights_);
-    state.inverse_sigma.resize(2 * state.rows * lights_);
-  }
+  GrowToHold(state.observed, state.rows * lights_);
+  GrowToHold(state.inverse_sigma, state.rows * lights_);
   return row;
 }
 
@@ -442,9 +445,7 @@ void TileRefiner::RefineTile(int thread, int begin, int count) {
   // samples from the planes again.
   const bool glossy = state.doubtful.size() - tile_first >= kDeferredDoubtful;
   if (glossy || recheck) {
-    // Grow only: a resize down and up again would zero-fill the rows for each tile.
-    if (state.doubtful_samples.size() < state.doubtful.size() * lights_)
-      state.doubtful_samples.resize(2 * state.doubtful.size() * lights_);
+    GrowToHold(state.doubtful_samples, state.doubtful.size() * lights_);
     recheck_.CopySamples(std::span<const int>(state.doubtful).subspan(tile_first),
                          &state.doubtful_samples[tile_first * lights_]);
   }
