@@ -6,6 +6,7 @@
 #include "photorig/config/rig.h"
 #include "photorig/config/sim.h"
 #include "photorig/config/yaml_node.h"
+#include "photorig/daemon/capture/run_store.h"
 #include "signals.h"
 
 #include <spdlog/spdlog.h>
@@ -109,6 +110,8 @@ int main(int argc, char** argv) {
         return internal::EndCommand(runner.run(), "failed");
   } catch (const photorig::config::ConfigError& e) {
     return internal::EndCommand(Fail(kExitUsage, std::string("configuration error: ") + e.what()), "");
+  } catch (const photorig::daemon::DamagedRunError& e) {
+    return internal::EndCommand(Fail(kExitUsage, e.what()), "");
   } catch (const std::invalid_argument& e) {
     return internal::EndCommand(Fail(kExitUsage, e.what()), "");
   } catch (const std::exception& e) {

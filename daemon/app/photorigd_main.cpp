@@ -11,6 +11,7 @@
 // and the run stays queued for the next start. Under systemd (Type=notify)
 // it reports readiness and feeds the watchdog while the worker is alive.
 
+#include "photorig/config/yaml_node.h"
 #include "photorig/daemon/service/api_server.h"
 #include "photorig/daemon/service/service.h"
 #include "library_logging.h"
@@ -124,7 +125,13 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--backoff-ms", service_options.retry.initial_backoff_ms, "first retry backoff")->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // Help exits 0; bad flags and a missing --rig file exit 2, as photorig's do, not with CLI11's own codes.
+    const int printed = app.exit(e);
+    return printed == 0 ? 0 : 2;
+  }
   if (service_options.data_root.empty()) {
     std::cerr << "photorigd: no --data-root, and no $HOME for the default ~/.local/share/photorig: give --data-root DIR\n";
     return 2;
@@ -192,8 +199,14 @@ int main(int argc, char** argv) {
     spdlog::error("event=fatal error={}", nlohmann::json(e.what()).dump());
     std::cerr << "photorigd: " << e.what() << std::endl;
     return 2;
+  } catch (const photorig::config::ConfigError& e) {
+    // A rig that does not load is a configuration error (exit 2), as for photorig.
+    spdlog::error("event=fatal error={}", nlohmann::json(e.what()).dump());
+    std::cerr << "photorigd: configuration error: " << e.what() << std::endl;
+    return 2;
   } catch (const std::exception& e) {
     spdlog::error("event=fatal error={}", nlohmann::json(e.what()).dump());
+    std::cerr << "photorigd: " << e.what() << std::endl;
     return 1;
   }
   return 0;

@@ -519,18 +519,74 @@ TEST(Cli, PhotorigdWithoutADataRootUsesTheUsersDataDirectory) {
   EXPECT_TRUE(fs::is_empty(work)) << "photorigd wrote into its working directory";
 }
 
-// A damaged frame is named once, by photorig, without OpenCV's own warnings.
+// A damaged frame is named once, by photorig, without OpenCV's own warnings,
+// and is an input error (exit 2) for every command that reads the run.
 TEST(Cli, AnUnreadableFrameIsNamedWithoutTheLibrarysWarnings) {
   TempDir dir;
   const SmallRun small(dir);
   ASSERT_EQ(Photorig("run " + small.recipe + " --out " + small.run + " --no-solve", dir).exit_code, 0);
   const fs::path frame = fs::path(small.run) / "frames" / "0002_led01.png";
   fs::resize_file(frame, 40);
-  const Outcome solve = Photorig("solve ps --run " + small.run, dir);
-  EXPECT_EQ(solve.exit_code, 1);
-  EXPECT_TRUE(Contains(solve.err, "cannot read image " + frame.string())) << solve.err;
-  EXPECT_FALSE(Contains(solve.err, "WARN")) << solve.err;
-  EXPECT_FALSE(Contains(solve.err, "imread_")) << solve.err;
+  const std::vector<std::string> commands = {"solve ps --run " + small.run,
+                                             "export nexus --run " + small.run + " --out " + (dir.path() / "run.nxs").string()};
+  for (const std::string& command : commands) {
+    const Outcome outcome = Photorig(command, dir);
+    EXPECT_EQ(outcome.exit_code, 2) << command;
+    EXPECT_TRUE(Contains(outcome.err, "cannot read image " + frame.string())) << outcome.err;
+    EXPECT_TRUE(Contains(outcome.err, "capture the run again")) << outcome.err;
+    EXPECT_FALSE(Contains(outcome.err, "WARN")) << outcome.err;
+    EXPECT_FALSE(Contains(outcome.err, "imread_")) << outcome.err;
+  }
+}
+
+// A manifest cut short is named with where it ends, in the project's words
+// rather than the JSON library's, and exits 2 whichever command reads it.
+TEST(Cli, ACorruptManifestExitsTwoNamingTheFile) {
+  TempDir dir;
+  const SmallRun small(dir);
+  ASSERT_EQ(Photorig("run " + small.recipe + " --out " + small.run + " --no-solve", dir).exit_code, 0);
+  const fs::path manifest = fs::path(small.run) / "manifest.json";
+  fs::resize_file(manifest, fs::file_size(manifest) / 2);
+  const std::vector<std::pair<std::string, std::string>> commands = {
+      {"solve ps", "ps"}, {"solve brdf", "brdf"}, {"export diligent", "diligent"}};
+  for (const auto& [command, folder] : commands) {
+    const std::string out = (dir.path() / folder).string();
+    const Outcome outcome = Photorig(command + " --run " + small.run + " --out " + out + " --json", dir);
+    EXPECT_EQ(outcome.exit_code, 2) << command << outcome.err;
+    EXPECT_TRUE(Contains(outcome.err, manifest.string() + ": corrupt manifest")) << outcome.err;
+    EXPECT_TRUE(Contains(outcome.err, "capture the run again")) << outcome.err;
+    EXPECT_FALSE(Contains(outcome.err, "json.exception")) << outcome.err;
+    Document(outcome, command);
+  }
+}
+
+// A colour model given for a monochrome run is refused, not ignored with a
+// report that names it.
+TEST(Cli, AColourModelForAMonochromeRunIsRefused) {
+  TempDir dir;
+  const SmallRun small(dir);
+  ASSERT_EQ(Photorig("run " + small.recipe + " --out " + small.run + " --no-solve", dir).exit_code, 0);
+  const std::string model = dir.Write("model.yaml", "this: [is not\n");
+  const Outcome solve = Photorig("solve ps --run " + small.run + " --color-model " + model, dir);
+  EXPECT_EQ(solve.exit_code, 2) << solve.err;
+  EXPECT_TRUE(Contains(solve.err, "monochrome run")) << solve.err;
+  EXPECT_FALSE(fs::exists(fs::path(small.run) / "results" / "ps" / "report.json"));
+}
+
+// photorigd exits 2 on a flag it does not know and on a rig that is missing,
+// as photorig does, not with the argument parser's own codes.
+TEST(Cli, PhotorigdExitsTwoOnBadFlagsAndAMissingRig) {
+  TempDir dir;
+  const std::string bin = std::string(PHOTORIG_BIN_DIR) + "/photorigd";
+  auto exit_code = [&](const std::string& arguments) {
+    const std::string command = bin + " " + arguments + " > " + (dir.path() / "log").string() + " 2>&1 < /dev/null";
+    const int status = std::system(command.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  EXPECT_EQ(exit_code("--bogus"), 2) << ReadText(dir.path() / "log");
+  EXPECT_EQ(exit_code("--data-root " + dir.path().string() + " --rig " + (dir.path() / "nope.yaml").string()), 2)
+      << ReadText(dir.path() / "log");
+  EXPECT_EQ(exit_code("--help"), 0) << ReadText(dir.path() / "log");
 }
 
 }  // namespace

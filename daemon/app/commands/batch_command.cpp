@@ -72,10 +72,10 @@ int ReportStatuses(const BatchManifest& batch, const std::vector<TaskStatus>& st
     std::printf("  task %d %s%s%s: %s\n", status.index, status.state.c_str(), status.job_id.empty() ? "" : " job ",
                 status.job_id.c_str(), status.run.c_str());
     if (!status.error.empty()) std::printf("    %s\n", status.error.c_str());
+    std::printf("    log: %s/logs/%d.log\n", batch.directory.c_str(), status.index);
   }
   if (failed.empty()) return kExitOk;
-  std::printf("  log of task N: %s/logs/N.log; resubmit with photorig batch solve --retry-failed --batch %s\n",
-              batch.directory.c_str(), batch.directory.c_str());
+  std::printf("  resubmit with photorig batch solve --retry-failed --batch %s\n", batch.directory.c_str());
   return Fail(kExitFailed, std::to_string(failed.size()) + " of " + std::to_string(statuses.size()) +
                                " tasks ended without a result");
 }

@@ -75,7 +75,7 @@ int Execute(Options o) {
   if (options.plane_image < 0)
     return Fail(kExitUsage, "calibrate camera: --plane-image " + o.plane_image +
                                 " is neither one of --images (a path or an index from 0) nor an image file");
-  if (std::string why; !options.IsValid(&why)) return Fail(kExitUsage, "calibrate camera: " + why);
+  if (std::string why; !options.IsValid(&why)) return Fail(kExitUsage, why);
   request.images = o.images;
   request.base_rig = o.rig;
   request.out_rig = o.out_rig;
@@ -110,7 +110,7 @@ int Execute(Options o) {
     // Bad options or images are the caller's to fix; a fit the data do not support is a failed calibration.
     const bool usage = s.termination == solvers::core::Termination::kInvalidOptions ||
                        s.termination == solvers::core::Termination::kInvalidInput;
-    return Fail(usage ? kExitUsage : kExitFailed, "calibrate camera: " + s.message);
+    return Fail(usage ? kExitUsage : kExitFailed, s.message);
   }
   if (!s.message.empty()) std::printf("%s\n", s.message.c_str());
   std::printf("rig written: %s\n", o.out_rig.c_str());

@@ -34,7 +34,7 @@ struct Options {
 };
 
 cv::Mat ReadSingleChannel(const std::string& path) {
-  return daemon::ReadImage(path, solvers::codecs::ReadMode::kGrey);
+  return daemon::ReadInputImage(path, solvers::codecs::ReadMode::kGrey);
 }
 
 int Execute(const Options& o) {
@@ -74,6 +74,12 @@ int Execute(const Options& o) {
   request.out_rig = o.outputs.out_rig;
 
   const daemon::LightCalibrationSummary summary = daemon::CalibrateLights(inputs, request, out);
+  ResultFields() = daemon::ToJson(summary);
+  ResultFields()["out"] = out;
+  // Before a sphere is located, what stops the calibration is its input (no
+  // frames, a request that cannot work); after, the fit. Either way no
+  // summary of outputs that were not written.
+  if (!summary.success) return Fail(summary.sphere_source == daemon::SphereSource::kNone ? kExitUsage : kExitFailed, summary.message);
   std::cout << "sphere (" << daemon::SphereSourceName(summary.sphere_source) << "): centre " << summary.circle.cx_px << ", "
             << summary.circle.cy_px << " px, radius " << summary.circle.radius_px << " px\n"
             << "lights: " << summary.lights << ", unusable: " << summary.unusable << ", mean uncertainty "
@@ -81,11 +87,6 @@ int Execute(const Options& o) {
   if (summary.circle_shift_deg > 0.0)
     std::cout << "circle check: the highlights' circle would move the directions by " << summary.circle_shift_deg
               << " deg on average (included in the uncertainty)\n";
-  ResultFields() = daemon::ToJson(summary);
-  ResultFields()["out"] = out;
-  // Before a sphere is located, what stops the calibration is its input (no
-  // frames, a request that cannot work); after, the fit.
-  if (!summary.success) return Fail(summary.sphere_source == daemon::SphereSource::kNone ? kExitUsage : kExitFailed, summary.message);
   return kExitOk;
 }
 

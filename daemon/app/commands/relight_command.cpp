@@ -158,8 +158,8 @@ cv::Mat SurfacePoints(const std::string& run_dir, const daemon::PhotometricStere
 // approximates the map; per pixel on a dome of near LEDs.
 solvers::core::Summary RelightFromEnvironment(const RelightOptions& options, cv::Mat* relit) {
   const daemon::PhotometricStereoInput input = daemon::LoadRunStack(options.run_dir);
-  const cv::Mat map = daemon::ReadImage(options.envmap);
-  if (map.depth() != CV_32F) throw std::runtime_error(options.envmap + ": expected a float (HDR) lat-long map");
+  const cv::Mat map = daemon::ReadInputImage(options.envmap);
+  if (map.depth() != CV_32F) throw std::invalid_argument(options.envmap + ": expected a float (HDR) lat-long map (.hdr or float .tiff)");
   std::vector<cv::Mat> frames;
   for (const cv::Mat& frame : input.stack.images) frames.push_back(input.stack.dark.empty() ? frame : frame - input.stack.dark);
   if (!input.near_lights.empty()) {
@@ -285,7 +285,7 @@ struct EnvmapOptions {
 cv::Mat BallOffset(const EnvmapOptions& options, cv::Size size, std::string* said) {
   if (!options.dark.empty()) {
     cv::Mat dark;
-    daemon::ReadImage(options.dark).convertTo(dark, CV_32F);
+    daemon::ReadInputImage(options.dark).convertTo(dark, CV_32F);
     if (dark.channels() > 1) cv::cvtColor(dark, dark, cv::COLOR_BGR2GRAY);
     if (dark.size() != size)
       throw config::ConfigError(options.dark, 0, 0, "", "the dark frame is " + std::to_string(dark.cols) + "x" +
@@ -319,7 +319,7 @@ cv::Mat BallOffset(const EnvmapOptions& options, cv::Size size, std::string* sai
 
 int Envmap(const EnvmapOptions& options) {
   cv::Mat ball;
-  daemon::ReadImage(options.ball).convertTo(ball, CV_32F);
+  daemon::ReadInputImage(options.ball).convertTo(ball, CV_32F);
   const double cx = options.circle[0], cy = options.circle[1], r = options.circle[2];
   // Pixel centres are at integer coordinates: the image covers -0.5 .. cols - 0.5.
   if (!(r > 0) || cx - r < -0.5 || cy - r < -0.5 || cx + r > ball.cols - 0.5 || cy + r > ball.rows - 0.5) {

@@ -516,6 +516,18 @@ void RunWriter::Finish(const StopRecord& stop) {
   WriteFileDurably((fs::path(directory_) / "manifest.json").string(), ToJson(manifest_).dump(2) + "\n");
 }
 
+namespace {
+
+// The JSON library's message without its "[json.exception.parse_error.101] "
+// tag, which tells a reader nothing.
+std::string WithoutJsonLibraryTag(const std::string& message) {
+  if (message.rfind("[json.exception.", 0) != 0) return message;
+  const std::size_t end = message.find("] ");
+  return end == std::string::npos ? message : message.substr(end + 2);
+}
+
+}  // namespace
+
 RunManifest LoadRunManifest(const std::string& directory) {
   const std::string path = (fs::path(directory) / "manifest.json").string();
   std::ifstream in(path);
@@ -528,7 +540,8 @@ RunManifest LoadRunManifest(const std::string& directory) {
   try {
     return RunManifestFromJson(json::parse(in));
   } catch (const std::exception& e) {
-    throw std::runtime_error(path + ": corrupt manifest: " + e.what());
+    throw DamagedRunError(path + ": corrupt manifest: " + WithoutJsonLibraryTag(e.what()) +
+                          "; the run cannot be read: restore manifest.json from a copy or capture the run again");
   }
 }
 
@@ -574,14 +587,17 @@ CaptureVerdict CheckCaptureForSolve(const std::string& directory, const RunManif
 
 cv::Mat LoadFrame(const std::string& directory, const FrameRecord& record) {
   const std::string path = (fs::path(directory) / record.file).string();
-  cv::Mat image = ReadImage(path);
+  static const std::string kNextStep = ": the run's frame is damaged; restore it from a copy or capture the run again";
+  std::string why;
+  cv::Mat image = TryReadImage(path, solvers::codecs::ReadMode::kAsStored, &why);
+  if (image.empty()) throw DamagedRunError("cannot read image " + path + " (" + why + ")" + kNextStep);
   if (image.depth() != CV_16U || (image.channels() != 1 && image.channels() != 3))
-    throw std::runtime_error(path + ": expected a 16-bit frame of one or three channels");
+    throw DamagedRunError(path + ": not a 16-bit frame of one or three channels" + kNextStep);
   // RGB frames are stored as RGB PNG; OpenCV reads them as B, G, R.
   if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2RGB);
   if (!image.isContinuous()) image = image.clone();
   if (Crc32(image.data, image.total() * image.elemSize()) != record.crc32)
-    throw std::runtime_error(path + ": pixel checksum does not match the manifest (corrupt frame)");
+    throw DamagedRunError(path + ": pixel checksum does not match the manifest (corrupt frame)" + kNextStep);
   return image;
 }
 

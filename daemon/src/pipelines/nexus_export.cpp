@@ -157,8 +157,7 @@ bool WriteFrames(NexusWriter& out, const std::string& run, const RunManifest& m,
     try {
       pixels = LoadFrame(run, frame);
     } catch (const std::exception& e) {
-      summary->End(solvers::core::Termination::kInvalidInput,
-                   std::string(e.what()) + "; check the run with `photorig validate` or capture it again");
+      summary->End(solvers::core::Termination::kInvalidInput, e.what());  // LoadFrame says what to do
       return false;
     }
     if (pixels.rows != m.height || pixels.cols != m.width || pixels.channels() != channels) {

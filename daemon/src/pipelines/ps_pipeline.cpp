@@ -241,6 +241,10 @@ PhotometricStereoInput LoadRunStack(const std::string& run_directory, const Colo
   const double top_code = static_cast<double>((1u << manifest.bit_depth) - 1u);
   const double saturation = manifest.saturation_dn > 0.0 ? std::min(manifest.saturation_dn, top_code) : top_code;
   const bool colour = manifest.mosaic != "mono";
+  // Not ignored: a report must not name a model that touched no pixel.
+  if (!colour && !color.color_model_path.empty())
+    throw std::invalid_argument("--color-model " + color.color_model_path + ": " + run_directory +
+                                " is a monochrome run, and a colour model applies only to colour runs: drop the option");
   // Only darks and single-LED frames enter the stack: flats, patterns and
   // gonioreflectometer poses (led -1) light several LEDs or none on their own.
   // Bracketed and repeated frames of one LED are extra rows, each scaled by
@@ -387,7 +391,7 @@ void ApplyRigCalibration(const std::string& rig_path, PhotometricStereoInput* in
 }
 
 void SetObjectMaskFromFile(const std::string& path, PhotometricStereoInput* input) {
-  cv::Mat mask = ReadImage(path);
+  cv::Mat mask = ReadInputImage(path);
   if (mask.channels() > 1) cv::extractChannel(mask, mask, 0);
   const cv::Size images = input->stack.images.empty() ? mask.size() : input->stack.images.front().size();
   if (mask.size() != images)

@@ -188,9 +188,18 @@ class RunWriter {
   Png16Encoder encoder_;
 };
 
+// A stored run that cannot be read: its manifest or a frame is missing,
+// truncated, corrupt or fails its checksum. The input is damaged, not the
+// solve: the command exits 2, as for any other unreadable input, and the
+// message names the file and what to do.
+class DamagedRunError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Reads manifest.json. Throws std::invalid_argument naming the directory when
 // it holds no manifest (not a run: the caller named the wrong folder), and
-// std::runtime_error naming the file on a corrupt one.
+// DamagedRunError naming the file on a corrupt one.
 RunManifest LoadRunManifest(const std::string& directory);
 
 // What a run's capture says about solving it, from its manifest: a capture
@@ -223,7 +232,8 @@ class FailedCaptureError : public std::runtime_error {
 // and `failed` is kRefuse; with kAccept the verdict says it was accepted.
 CaptureVerdict CheckCaptureForSolve(const std::string& directory, const RunManifest& manifest, FailedCapture failed);
 // Loads a frame as 16-bit (one channel, or three in R, G, B order for an RGB
-// run) and checks the checksum against its record.
+// run) and checks the checksum against its record; DamagedRunError, naming
+// the file, where it cannot.
 cv::Mat LoadFrame(const std::string& directory, const FrameRecord& record);
 // Checks a finished run: every step's frame present exactly once, intact, and
 // nothing else in frames/. Returns the problems found (empty when sound).
