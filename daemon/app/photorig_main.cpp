@@ -69,6 +69,17 @@ std::string CommandNameFromArguments(CLI::App& app, int argc, char** argv) {
   return name.empty() ? "photorig" : name;
 }
 
+// The first argument when it is meant as a command and names none ("" otherwise).
+std::string UnknownCommand(CLI::App& app, int argc, char** argv) {
+  if (argc < 2 || argv[1][0] == '-') return "";
+  try {
+    app.get_subcommand(argv[1]);
+    return "";
+  } catch (const CLI::OptionNotFound&) {
+    return argv[1];
+  }
+}
+
 bool ArgumentsAskForJson(int argc, char** argv) {
   for (int i = 1; i < argc; ++i)
     if (std::strcmp(argv[i], "--json") == 0) return true;
@@ -95,6 +106,9 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     // Usage errors exit 2 like every other configuration error, not with CLI11's own codes.
     internal::BeginCommand(CommandNameFromArguments(app, argc, argv), ArgumentsAskForJson(argc, argv));
+    if (const std::string unknown = UnknownCommand(app, argc, argv); !unknown.empty())
+      return internal::EndCommand(
+          Fail(kExitUsage, "unknown command '" + unknown + "': `photorig --help` lists the commands"), "");
     app.exit(e);
     return internal::EndCommand(kExitUsage, e.what());
   }

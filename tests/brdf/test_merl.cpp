@@ -106,6 +106,18 @@ TEST(MerlTable, EvaluationMatchesTheModelAtBinCentres) {
   EXPECT_GT(compared, 1000);
 }
 
+// A direction that is not finite has no value (it once indexed far outside the table).
+TEST(MerlTable, ADirectionThatIsNotFiniteHasNoValue) {
+  const MerlTable& table = GgxTable();
+  const Eigen::Vector3d up(0.0, 0.0, 1.0), tilted = Eigen::Vector3d(0.3, 0.1, 1.0).normalized();
+  for (const double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    EXPECT_FALSE(table.Evaluate(Eigen::Vector3d(bad, 0.0, 1.0), up).has_value());
+    EXPECT_FALSE(table.Evaluate(up, Eigen::Vector3d(0.0, bad, 1.0)).has_value());
+    EXPECT_FALSE(table.Evaluate(tilted, Eigen::Vector3d(0.0, 0.0, bad)).has_value());
+  }
+  EXPECT_TRUE(table.Evaluate(tilted, up).has_value());
+}
+
 // Between centres the lookup interpolates: against the model it came from,
 // several times closer than the nearest cell.
 TEST(MerlTable, TrilinearLookupBeatsTheNearestCellBetweenCentres) {

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -587,6 +588,66 @@ TEST(Cli, PhotorigdExitsTwoOnBadFlagsAndAMissingRig) {
   EXPECT_EQ(exit_code("--data-root " + dir.path().string() + " --rig " + (dir.path() / "nope.yaml").string()), 2)
       << ReadText(dir.path() / "log");
   EXPECT_EQ(exit_code("--help"), 0) << ReadText(dir.path() / "log");
+}
+
+// Each of these is refused before any work, exit 2, with a message that
+// names what is wrong: not as an unreachable daemon, not after a solve.
+TEST(Cli, CommandsCheckTheirInputsBeforeWorkingAndNameWhatIsWrong) {
+  TempDir dir;
+  const SmallRun small(dir);
+  ASSERT_EQ(Photorig("run " + small.recipe + " --out " + small.run + " --no-solve", dir).exit_code, 0);
+  const std::string broken = dir.Write("broken.yaml", "recipe: {name: x\ncapture: [\n");
+  const std::string ball = (dir.path() / "ball.png").string();
+  ASSERT_TRUE(cv::imwrite(ball, cv::Mat(16, 16, CV_16U, cv::Scalar(100))));
+  dir.Write("occupied/notes.txt", "keep\n");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"bogus", "unknown command 'bogus'"},
+      {"status abc --url not-a-url", "'not-a-url' is not an address"},
+      {"submit " + broken + " --url " + ClosedUrl(), broken + ":"},
+      {"envmap --ball " + ball + " --circle 8 8 6 --out " + (dir.path() / "map.png").string(), "name a .hdr, .exr or .tiff"},
+      {"relight --run " + dir.path().string() + " --light 0,0,1 --out " + (dir.path() / "r.tiff").string(),
+       "is not a run directory"},
+      {"solve brdf --run " + small.run, "not a gonioreflectometer run"},
+      {"solve ps --run " + small.run + " --out " + (dir.path() / "occupied").string(), "holds files that are not"}};
+  for (const auto& [arguments, said] : cases) {
+    const Outcome outcome = Photorig(arguments, dir);
+    EXPECT_EQ(outcome.exit_code, 2) << arguments << "\n" << outcome.err;
+    EXPECT_TRUE(Contains(outcome.err, said)) << arguments << "\n" << outcome.err;
+    EXPECT_FALSE(Contains(outcome.err, "not reachable")) << arguments << "\n" << outcome.err;
+    EXPECT_FALSE(Contains(outcome.err, "100%")) << arguments << ": refused only after the work\n" << outcome.err;
+  }
+  EXPECT_EQ(ReadText(dir.path() / "occupied" / "notes.txt"), "keep\n");
+  // A file where the results would go is not exchanged for them.
+  const std::string file = dir.Write("results.txt", "keep\n");
+  const Outcome onto_file = Photorig("solve ps --run " + small.run + " --out " + file, dir);
+  EXPECT_EQ(onto_file.exit_code, 2) << onto_file.err;
+  EXPECT_TRUE(Contains(onto_file.err, "is a file, not a folder")) << onto_file.err;
+  EXPECT_EQ(ReadText(file), "keep\n");
+}
+
+// A calibration that fails prints no summary of outputs it did not write.
+TEST(Cli, AFailedLightCalibrationPrintsNoSummaryOfOutputs) {
+  TempDir dir;
+  std::string images;
+  for (int i = 0; i < 3; ++i) {
+    const std::string image = (dir.path() / ("dark" + std::to_string(i) + ".png")).string();
+    ASSERT_TRUE(cv::imwrite(image, cv::Mat(32, 32, CV_16U, cv::Scalar(0))));
+    images += " " + image;
+  }
+  const fs::path out = dir.path() / "lights";
+  const Outcome outcome = Photorig("calibrate lights --images" + images + " --out " + out.string(), dir);
+  EXPECT_NE(outcome.exit_code, 0) << outcome.err;
+  EXPECT_FALSE(Contains(outcome.out, "outputs in")) << outcome.out;
+  EXPECT_FALSE(fs::exists(out)) << "nothing is written when the sphere is not found";
+}
+
+// Help names what a flag takes, not the parser's internals.
+TEST(Cli, HelpShowsNamesForChoicesAndPlainFlags) {
+  TempDir dir;
+  const Outcome brdf = Photorig("solve brdf --help", dir), ps = Photorig("solve ps --help", dir);
+  EXPECT_TRUE(Contains(brdf.out, "--calibration NAME")) << brdf.out;
+  EXPECT_FALSE(Contains(ps.out, "{false}")) << ps.out;
+  EXPECT_TRUE(Contains(ps.out, "--no-fill")) << ps.out;
 }
 
 }  // namespace

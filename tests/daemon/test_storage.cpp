@@ -275,6 +275,24 @@ TEST(RunStore, CorruptFrameIsDetectedByItsChecksum) {
   }
 }
 
+// A manifest names frames inside its run: one elsewhere is refused unread.
+TEST(RunStore, AFrameOutsideTheRunIsRefusedUnread) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  RunWriter writer(run, Header());
+  FrameRecord record = writer.WriteFrame(Step(1, 0), MakeFrame(20, 10, 1));
+  for (const std::string& outside : std::vector<std::string>{"/etc/passwd", "../run/" + record.file, "frames/../../x.png"}) {
+    record.file = outside;
+    try {
+      LoadFrame(run, record);
+      ADD_FAILURE() << outside << " was read";
+    } catch (const DamagedRunError& e) {
+      EXPECT_NE(std::string(e.what()).find("'" + outside + "' lies outside the run's folder"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(RunStore, ShortFramesAreRefusedAndExistingRunsAreNotOverwritten) {
   TempDir dir;
   const std::string run = (dir.path() / "run").string();

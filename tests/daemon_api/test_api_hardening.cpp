@@ -21,6 +21,7 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <mutex>
 #include <thread>
@@ -435,6 +436,67 @@ TEST_F(Hardening, RebindingHostsAndTheirOriginsChangeNothing) {
   }
   const httplib::Headers allowed = {{"Host", "rig.lab.example:" + port}, {"Origin", "http://rig.lab.example:" + port}};
   EXPECT_EQ(raw.Post("/api/v1/runs/" + id + "/abort", allowed, "{}", "application/json")->status, 202);
+}
+
+// Requests that cannot be met get the status that says why and a message
+// that names the field or state, never the JSON library's words or the
+// daemon's own paths; a request that would change nothing is refused.
+TEST_F(Hardening, RequestsThatCannotBeMetSayWhyWithTheRightStatus) {
+  StartDaemon();
+  ApiClient client = Client();
+  httplib::Client raw = Raw();
+  auto error_of = [](const httplib::Result& result) {
+    return json::parse(result->body, nullptr, false).value("error", std::string("(not JSON) ") + result->body);
+  };
+  // A route asked with a method it does not take.
+  auto expect_405 = [](const httplib::Result& result, const std::string& allow) {
+    ASSERT_TRUE(result);
+    EXPECT_EQ(result->status, 405) << result->body;
+    EXPECT_EQ(result->get_header_value("Allow"), allow);
+  };
+  expect_405(raw.Post("/api/v1/health", "{}", "application/json"), "GET");
+  expect_405(raw.Get("/api/v1/dry-run"), "POST");
+  expect_405(raw.Delete("/api/v1/runs/000001-x"), "GET");
+  expect_405(raw.Put("/api/v1/runs", "{}", "application/json"), "GET, POST");
+  // A JSON body of the wrong shape names the field.
+  const auto array = raw.Post("/api/v1/dry-run", "[\"recipe\"]", "application/json");
+  EXPECT_EQ(array->status, 400);
+  EXPECT_NE(error_of(array).find("not a JSON object"), std::string::npos) << array->body;
+  const auto number = raw.Post("/api/v1/dry-run", json{{"recipe", SmallRecipeYaml()}, {"name", 7}}.dump(), "application/json");
+  EXPECT_EQ(number->status, 400);
+  EXPECT_NE(error_of(number).find("'name' must be a string"), std::string::npos) << number->body;
+  EXPECT_EQ(array->body.find("json.exception"), std::string::npos) << array->body;
+  EXPECT_EQ(number->body.find("json.exception"), std::string::npos) << number->body;
+  const auto relative = raw.Post("/api/v1/dry-run", json{{"recipe", SmallRecipeYaml()}, {"path", "r/x.yaml"}}.dump(),
+                                 "application/json");
+  EXPECT_EQ(relative->status, 400);
+  EXPECT_NE(error_of(relative).find("must be absolute"), std::string::npos) << relative->body;
+  // Media types are case-insensitive.
+  EXPECT_EQ(raw.Post("/api/v1/dry-run", json{{"recipe", SmallRecipeYaml()}}.dump(), "Application/JSON")->status, 200);
+
+  // Pause, resume and abort only where they change something.
+  const std::string id = PausedRun(client, [this] { return Client(); });
+  const std::string run = "/api/v1/runs/" + id;
+  const auto again = client.Post(run + "/pause", json::object());
+  EXPECT_EQ(again.http_status, 409);
+  EXPECT_NE(again.body.value("error", "").find("already paused"), std::string::npos) << again.body.dump();
+  EXPECT_EQ(client.Post(run + "/resume", json::object()).http_status, 202);
+  const auto twice = client.Post(run + "/resume", json::object());
+  EXPECT_EQ(twice.http_status, 409);
+  EXPECT_NE(twice.body.value("error", "").find("not paused"), std::string::npos) << twice.body.dump();
+  EXPECT_EQ(client.Post("/api/v1/runs/000099-none/pause", json::object()).http_status, 404);
+
+  // A stream's id must be one; a damaged image is the request's problem, said
+  // with the run's own file name.
+  EXPECT_EQ(raw.Get(run + "/events", {{"Last-Event-ID", "-1"}})->status, 400);
+  std::ofstream(fs::path(dir_.path()) / "data" / "runs" / id / "torn.png") << "not a png";
+  const auto torn = raw.Get(run + "/preview/torn.png");
+  EXPECT_EQ(torn->status, 400) << torn->body;
+  EXPECT_NE(error_of(torn).find("'torn.png' in the run cannot be shown"), std::string::npos) << torn->body;
+  EXPECT_EQ(torn->body.find((dir_.path() / "data").string()), std::string::npos) << torn->body;
+
+  EXPECT_EQ(client.Post(run + "/abort", json::object()).http_status, 202);
+  EXPECT_EQ(client.Post(run + "/abort", json::object()).http_status, 409);
 }
 
 TEST(LoopbackAddress, OnlyLoopbackLiteralsAndLocalhost) {

@@ -34,6 +34,17 @@ TEST(CompareNormals, ReportsKnownAnglesAndUnresolvedPixels) {
   EXPECT_TRUE(std::isnan(error.at<float>(0, 4)));
 }
 
+// No pixel with both a normal and a truth gives no figure, not a perfect 0 deg.
+TEST(CompareNormals, NoPixelToCompareGivesNaNFigures) {
+  const cv::Mat truth(2, 2, CV_32FC3, cv::Scalar(0, 0, 1));
+  const cv::Mat estimate(2, 2, CV_32FC3, cv::Scalar(NAN, NAN, NAN));
+  const AngularErrorStats stats = CompareNormals(estimate, truth);
+  EXPECT_EQ(stats.pixels_evaluated, 0u);
+  EXPECT_EQ(stats.pixels_unresolved, 4u);
+  for (const double figure : {stats.mean_deg, stats.median_deg, stats.max_deg, stats.fraction_under_5deg})
+    EXPECT_TRUE(std::isnan(figure)) << figure;
+}
+
 TEST(CompareNormals, SmallAnglesKeepTheirPrecision) {
   cv::Mat truth(1, 1, CV_32FC3, cv::Scalar(0, 0, 1));
   cv::Mat estimate(1, 1, CV_32FC3);

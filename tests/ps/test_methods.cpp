@@ -78,6 +78,22 @@ TEST(PhotometricStereo, AutoKeepsLambertianPixelsLambertian) {
   EXPECT_LT(automatic.error.mean_deg, 1.05 * l2.error.mean_deg + 0.01);
 }
 
+// A solve whose mask selects no pixel has no result to use: every method
+// says so, naming what left the pixels out, instead of success with nothing.
+TEST(PhotometricStereo, AMaskThatSelectsNoPixelIsAFailure) {
+  const auto truth = RandomSurface(24, 24, 45.0);
+  auto stack = RenderShinyStack(truth, RingLights(16, 30, 80), 2000.0, Specular{0.0, 1.0}, 50.0f, 2.0);
+  stack.mask = cv::Mat::zeros(24, 24, CV_8U);
+  for (const Method method : {Method::kL2, Method::kLambertian, Method::kAuto, Method::kBlinnPhong}) {
+    NormalMap map;
+    const SolverSummary summary = SolvePhotometricStereo(Options(method, 6.0), stack, &map);
+    EXPECT_EQ(summary.termination, core::Termination::kFailure) << MethodName(method);
+    EXPECT_EQ(summary.pixels_solved, 0u);
+    EXPECT_NE(summary.message.find("no pixel could be solved: 576 outside the mask"), std::string::npos)
+        << MethodName(method) << ": " << summary.message;
+  }
+}
+
 // Two lobes, a broad one (a sheen, e = 3) under a sharp one (e = 1000): no
 // single Blinn-Phong lobe explains the pixel, and the one fitted to it tilts
 // the normal. The low-frequency model takes the broad lobe, the samples it
@@ -355,9 +371,10 @@ TEST(PhotometricStereo, LatticeLobesOfAnotherMaterialAreRefused) {
     const double exponent = half ? 120.0 : 10.0;
     for (int y = 0; y < size; ++y)
       for (int x = rect.x; x < rect.x + rect.width; ++x)
-        if (maps[1].model.at<std::uint8_t>(y, x) == blinn_phong && maps[1].confidence.at<float>(y, x) > 0.1f)
+        if (maps[1].model.at<std::uint8_t>(y, x) == blinn_phong && maps[1].confidence.at<float>(y, x) > 0.1f) {
           EXPECT_NEAR(std::log(maps[1].specular.at<cv::Vec2f>(y, x)[1] / exponent), 0.0, std::log(1.5))
               << "pixel " << x << ", " << y;
+        }
   }
 }
 

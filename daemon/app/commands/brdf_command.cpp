@@ -79,7 +79,8 @@ CLI::App* Setup(CLI::App& app, Options* options) {
   AddAcceptFailedCaptureFlag(sub, &options->accept_failed_capture);
   AddChoice(sub, "--loss", &options->loss, brdf::kFitLossNames, "weighted: by each sample's deviation");
   AddChoice(sub, "--calibration", &options->calibrate_with_target, config::BrdfRequest::kCalibrationNames,
-            "reference: the rig's reference target; camera: the camera's stated response");
+            "reference: the rig's reference target; camera: the camera's stated response")
+      ->type_name("NAME");  // a bool behind the names: CLI11 would call it BOOLEAN
   sub->add_option("--out", options->out, "output directory (default: RUN/results/brdf)");
   return sub;
 }

@@ -22,7 +22,16 @@ struct Connection {
   void AddOptions(CLI::App* sub) {
     const char* env_url = std::getenv("PHOTORIG_URL");
     url = env_url ? env_url : "http://127.0.0.1:8750";
-    sub->add_option("--url", url, "photorigd address ($PHOTORIG_URL)")->capture_default_str();
+    // A malformed address is a usage error (exit 2), not an unreachable daemon.
+    const CLI::Validator http_url(
+        [](std::string& value) -> std::string {
+          const bool scheme = value.rfind("http://", 0) == 0 || value.rfind("https://", 0) == 0;
+          const std::size_t host = value.find("://") + 3;
+          if (scheme && host < value.size() && value[host] != '/' && value[host] != ':') return "";
+          return "'" + value + "' is not an address like http://HOST:PORT";
+        },
+        "URL");
+    sub->add_option("--url", url, "photorigd address ($PHOTORIG_URL)")->capture_default_str()->check(http_url);
     sub->add_option("--token-file", token_file, "bearer token file (default: $PHOTORIG_TOKEN, else $PHOTORIG_TOKEN_FILE)")
         ->check(CLI::ExistingFile);
   }

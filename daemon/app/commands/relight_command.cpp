@@ -12,6 +12,7 @@
 #include "photorig/config/yaml_node.h"
 #include "photorig/daemon/capture/run_store.h"
 #include "photorig/daemon/pipelines/svbrdf_pipeline.h"
+#include "photorig/solvers/codecs/image_codecs.h"
 #include "photorig/solvers/lighting/envmap.h"
 #include "photorig/solvers/lighting/relight.h"
 #include "photorig/solvers/lighting/sphere.h"
@@ -178,6 +179,9 @@ solvers::core::Summary RelightFromEnvironment(const RelightOptions& options, cv:
 }
 
 int Relight(const RelightOptions& options) {
+  // Every form reads a run: a folder that is not one is named as such, not
+  // sent to solve first.
+  daemon::LoadRunManifest(options.run_dir);
   if (options.held_out >= 0) {
     if (!options.envmap.empty() || !options.lights.empty()) return Fail(kExitUsage, "--held-out takes neither --envmap nor --light");
     return RelightHeldOut(options);
@@ -318,6 +322,10 @@ cv::Mat BallOffset(const EnvmapOptions& options, cv::Size size, std::string* sai
 }
 
 int Envmap(const EnvmapOptions& options) {
+  // The map is float radiance: refuse an 8- or 16-bit format before the unwrap, not after it.
+  const auto encoding = solvers::codecs::EncodingOfPath(options.out);
+  if (!encoding || *encoding == solvers::codecs::ImageEncoding::kPng)
+    return Fail(kExitUsage, "--out " + options.out + ": the map is float radiance; name a .hdr, .exr or .tiff file");
   cv::Mat ball;
   daemon::ReadInputImage(options.ball).convertTo(ball, CV_32F);
   const double cx = options.circle[0], cy = options.circle[1], r = options.circle[2];

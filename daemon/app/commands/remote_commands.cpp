@@ -10,6 +10,7 @@
 #include "../command_output.h"
 #include "../progress_display.h"
 #include "daemon_connection.h"
+#include "photorig/config/yaml_node.h"
 #include "photorig/daemon/capture/run_control.h"
 #include "photorig/daemon/service/service.h"
 
@@ -160,6 +161,9 @@ struct SubmitOptions {
 };
 
 int Submit(const SubmitOptions& options) {
+  // YAML that does not parse (or is no map) is named here with its line,
+  // not reported as whatever the daemon, or its absence, makes of it.
+  config::YamlNode::LoadFile(options.recipe);
   std::ifstream in(options.recipe);
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   auto client = options.connection.Client();

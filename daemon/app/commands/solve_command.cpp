@@ -82,9 +82,9 @@ CLI::App* SetupSolve(CLI::App& app, Options* options) {
   AddIntegratorOption(ps, &options->request);
   ps->add_flag("--assume-distant", options->request.assume_distant,
                "solve a rig with LED positions as if its LEDs were distant (refused beyond --max-distant-bias)");
-  ps->add_flag("--no-fill{false}", options->request.fill_unresolved,
-               "leave masked pixels without a normal where their own samples give none (default: interpolated from "
-               "their neighbours, flagged filled)");
+  ps->add_flag_callback("--no-fill", [options] { options->request.fill_unresolved = false; },
+                        "leave masked pixels without a normal where their own samples give none (default: "
+                        "interpolated from their neighbours, flagged filled)");
   ps->add_option("--max-distant-bias", options->request.max_distant_bias_deg,
                  "largest predicted bias of the distant model, in degrees, that is solved (default 0.5)")
       ->check(CLI::Range(1e-3, 90.0));

@@ -516,18 +516,6 @@ void RunWriter::Finish(const StopRecord& stop) {
   WriteFileDurably((fs::path(directory_) / "manifest.json").string(), ToJson(manifest_).dump(2) + "\n");
 }
 
-namespace {
-
-// The JSON library's message without its "[json.exception.parse_error.101] "
-// tag, which tells a reader nothing.
-std::string WithoutJsonLibraryTag(const std::string& message) {
-  if (message.rfind("[json.exception.", 0) != 0) return message;
-  const std::size_t end = message.find("] ");
-  return end == std::string::npos ? message : message.substr(end + 2);
-}
-
-}  // namespace
-
 RunManifest LoadRunManifest(const std::string& directory) {
   const std::string path = (fs::path(directory) / "manifest.json").string();
   std::ifstream in(path);
@@ -586,6 +574,13 @@ CaptureVerdict CheckCaptureForSolve(const std::string& directory, const RunManif
 }
 
 cv::Mat LoadFrame(const std::string& directory, const FrameRecord& record) {
+  // A manifest names its frames inside the run: never an absolute path or one through "..".
+  const fs::path named(record.file);
+  if (named.empty() || named.is_absolute() || std::any_of(named.begin(), named.end(), [](const fs::path& part) {
+        return part == "..";
+      }))
+    throw DamagedRunError((fs::path(directory) / "manifest.json").string() + ": frame '" + record.file +
+                          "' lies outside the run's folder: the manifest is damaged; capture the run again");
   const std::string path = (fs::path(directory) / record.file).string();
   static const std::string kNextStep = ": the run's frame is damaged; restore it from a copy or capture the run again";
   std::string why;

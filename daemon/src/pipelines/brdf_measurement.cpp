@@ -297,6 +297,17 @@ bool CheckRun(Measurement& m, BrdfMeasurement* out) {
     out->End(Termination::kInvalidOptions, "block_px must be even for a Bayer mosaic (whole 2 x 2 blocks)");
     return false;
   }
+  // A dome's run (one frame per LED) has no arm poses: say what it is
+  // before any check of the darks a gonioreflectometer run would have.
+  const bool posed = std::any_of(m.manifest.frames.begin(), m.manifest.frames.end(), [](const FrameRecord& record) {
+    return record.kind == config::CaptureStep::Kind::kPose && record.pose;
+  });
+  if (!posed) {
+    out->End(Termination::kInvalidInput,
+             m.where + "no arm poses: not a gonioreflectometer run (config/recipes/brdf-gonio.yaml); a dome's run "
+                       "is solved by `photorig solve ps` or `solve svbrdf`");
+    return false;
+  }
   out->mosaic = m.manifest.mosaic;
   const int bits = m.manifest.bit_depth > 0 ? m.manifest.bit_depth : 16;
   m.saturation_dn = m.manifest.saturation_dn > 0.0 ? m.manifest.saturation_dn : std::ldexp(1.0, bits) - 1.0;

@@ -804,9 +804,10 @@ void WriteMaps(const PhotometricStereoInput& input, const PhotometricStereoMaps&
 PhotometricStereoResult SolveAndWrite(const PhotometricStereoInput& input, const config::PhotometricStereoRequest& request,
                                       const std::string& output_directory, const std::function<void()>& before_commit) {
   const auto start = std::chrono::steady_clock::now();
+  // Before the solve: a destination holding other files is refused at once, not after it.
+  ResultsFolder folder(output_directory);
   PhotometricStereoMaps maps;
   PhotometricStereoResult result = SolveToMaps(input, request, &maps);
-  ResultsFolder folder(output_directory);
   try {  // a write that fails (a full disk) leaves no partial folder and says what to do
     if (result.usable()) WriteMaps(input, maps, folder.path(), &result);
     result.total_ms = Ms(start);

@@ -53,6 +53,9 @@ ResultsFolder::ResultsFolder(const std::string& destination) {
   const fs::path normal = target.filename().empty() ? target.parent_path() : target;
   destination_ = normal.string();
   std::error_code error;
+  // A file (not a folder) there would be exchanged for the results and lost.
+  if (fs::exists(fs::symlink_status(normal, error)) && !fs::is_directory(normal, error))
+    throw std::invalid_argument(destination_ + " is a file, not a folder: give a new or empty output folder");
   if (fs::is_directory(normal, error) && !fs::is_empty(normal, error) && !fs::exists(normal / "report.json", error))
     throw std::invalid_argument(destination_ + " holds files that are not a solver's results (no report.json); "
                              "give a new or empty output folder");

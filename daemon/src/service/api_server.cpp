@@ -2,6 +2,7 @@
 
 #include "photorig/config/yaml_node.h"
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/json_fields.h"
 #include "http_front.h"
 
 #include <opencv2/imgproc.hpp>
@@ -16,13 +17,16 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <sstream>
+#include <tuple>
 #include <vector>
 
 namespace photorig::daemon {
@@ -56,20 +60,45 @@ bool ConstantTimeEquals(const std::string& a, const std::string& b) {
 // YAML itself with ?name= and ?path=.
 bool ParseRecipeBody(const httplib::Request& req, httplib::Response& res, std::string* name, std::string* yaml,
                      std::string* path) {
-  if (req.get_header_value("Content-Type").rfind("application/json", 0) == 0) {
+  std::string type = req.get_header_value("Content-Type");
+  std::transform(type.begin(), type.end(), type.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (type.rfind("application/json", 0) == 0) {  // media types are case-insensitive (RFC 9110)
+    static const std::string kShape = "expected {\"recipe\": \"<yaml>\", \"name\": \"...\", \"path\": \"/abs/...\"}";
+    json body;
     try {
-      const json body = json::parse(req.body);
-      *yaml = body.at("recipe").get<std::string>();
-      *name = body.value("name", "recipe.yaml");
-      *path = body.value("path", "");
-    } catch (const std::exception& e) {
-      ErrorReply(res, 400, std::string("expected {\"name\": ..., \"recipe\": \"<yaml>\"}: ") + e.what());
+      body = json::parse(req.body);
+    } catch (const json::parse_error& e) {
+      ErrorReply(res, 400, "the body is not valid JSON (" + WithoutJsonLibraryTag(e.what()) + "): " + kShape);
       return false;
+    }
+    if (!body.is_object()) {
+      ErrorReply(res, 400, "the body is not a JSON object: " + kShape);
+      return false;
+    }
+    // Each field named when it is missing or not a string.
+    for (const auto& [field, out, fallback] : {std::tuple<const char*, std::string*, const char*>{"recipe", yaml, nullptr},
+                                               {"name", name, "recipe.yaml"},
+                                               {"path", path, ""}}) {
+      const auto found = body.find(field);
+      if (found == body.end() && fallback) {
+        *out = fallback;
+      } else if (found == body.end() || !found->is_string()) {
+        ErrorReply(res, 400, std::string("'") + field + "' " + (found == body.end() ? "is missing" : "must be a string") +
+                                 ": " + kShape);
+        return false;
+      } else {
+        *out = found->get<std::string>();
+      }
     }
   } else {
     *yaml = req.body;
     *name = req.has_param("name") ? req.get_param_value("name") : "recipe.yaml";
     *path = req.has_param("path") ? req.get_param_value("path") : "";
+  }
+  if (!path->empty() && path->front() != '/') {
+    ErrorReply(res, 400, "path '" + *path + "' must be absolute: the recipe's own path, so that its recipe.rig "
+                                            "resolves as `photorig run` would resolve it");
+    return false;
   }
   if (name->size() > 200 || name->find('\n') != std::string::npos || !config::IsValidUtf8(*name) ||
       path->size() > 4096 || path->find('\n') != std::string::npos || !config::IsValidUtf8(*path)) {
@@ -412,7 +441,8 @@ void ApiServer::InstallGuards() {
     ErrorReply(res, res.status,
                res.status == 413   ? "request body too large"
                : res.status == 404 ? "no such route"
-                                   : "malformed request");
+                                   : "malformed request (a POST needs a Content-Length, even with no body: send "
+                                     "Content-Type: application/json and the body {})");
   });
   // Every error a handler lets through ends here as a 500; the daemon keeps serving.
   s.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
@@ -459,6 +489,22 @@ void ApiServer::Routes() {
     if (route.post) server_->Post(route.pattern, handler);
     else server_->Get(route.pattern, handler);
   }
+  // A route asked with a method it does not take: 405 with the methods it
+  // does (Allow, RFC 9110), not "no such route".
+  std::map<std::string, std::pair<bool, bool>> takes;  // pattern: GET, POST
+  for (const Route& route : kRoutes) (route.post ? takes[route.pattern].second : takes[route.pattern].first) = true;
+  for (const auto& [pattern, get_post] : takes) {
+    const std::string methods = get_post.first && get_post.second ? "GET, POST" : get_post.first ? "GET" : "POST";
+    const auto refuse = [methods](const httplib::Request& req, httplib::Response& res) {
+      res.set_header("Allow", methods);
+      ErrorReply(res, 405, req.method + " is not a method of this route: it takes " + methods);
+    };
+    if (methods.find("GET") == std::string::npos) server_->Get(pattern, refuse);
+    if (methods.find("POST") == std::string::npos) server_->Post(pattern, refuse);
+    server_->Put(pattern, refuse);
+    server_->Delete(pattern, refuse);
+    server_->Patch(pattern, refuse);
+  }
   MountWebInterface();
 }
 
@@ -500,7 +546,13 @@ void ApiServer::StreamEvents(const httplib::Request& req, httplib::Response& res
   const ServiceReply run = service_.GetRun(id);
   if (run.http_status != 200) return Reply(res, run);
   std::uint64_t start = 0;
-  if (req.has_header("Last-Event-ID")) start = std::strtoull(req.get_header_value("Last-Event-ID").c_str(), nullptr, 10);
+  if (req.has_header("Last-Event-ID")) {
+    // Strictly a whole number: strtoull would wrap "-1" to the last id there is.
+    const std::string given = req.get_header_value("Last-Event-ID");
+    const auto [end, error] = std::from_chars(given.data(), given.data() + given.size(), start);
+    if (error != std::errc() || end != given.data() + given.size())
+      return ErrorReply(res, 400, "Last-Event-ID '" + given + "' is not an event id (a whole number)");
+  }
   auto last = std::make_shared<std::uint64_t>(start);
   auto idle_ms = std::make_shared<int>(0);
   if (++open_event_streams_ > options_.max_event_streams) {
@@ -579,8 +631,12 @@ std::optional<cv::Mat> ApiServer::ReadRunImage(const httplib::Request& req, http
   }
   try {
     return ReadImageAsFloat(file);
-  } catch (const std::invalid_argument& e) {
-    ErrorReply(res, 400, e.what());
+  } catch (const std::exception& e) {
+    // A file that is no image, or a damaged one: the client's request for
+    // this file cannot be met (400), said without the daemon's own paths.
+    std::string why = e.what();
+    for (std::size_t at; (at = why.find(file)) != std::string::npos;) why.replace(at, file.size(), relative);
+    ErrorReply(res, 400, "'" + relative + "' in the run cannot be shown: " + why);
     return std::nullopt;
   }
 }

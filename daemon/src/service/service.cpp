@@ -592,18 +592,29 @@ ServiceReply RunService::GetRun(const std::string& id) const {
   return {200, body};
 }
 
+ServiceReply RunService::NotTheCurrentRun(const std::string& id, const std::string& request) const {
+  const auto found = IsValidRunId(id) ? queue_->Get(id) : std::nullopt;
+  if (!found) return Error(404, "no run '" + id + "'");
+  return Error(409, "run '" + id + "' is " + RunStateName(found->state) + ": only the running run can " + request);
+}
+
+// A request that would change nothing is refused (409) naming the state, not
+// acknowledged as if it had been carried out.
 ServiceReply RunService::Pause(const std::string& id) {
   std::lock_guard lock(mutex_);
-  if (id != current_id_ || !current_control_) return Error(409, "run '" + id + "' is not running");
+  if (id != current_id_ || !current_control_) return NotTheCurrentRun(id, "pause");
   if (current_.state == RunState::kSolving)
     return Error(409, "run '" + id + "' is solving: its capture is over, and a solve stage cannot pause");
+  if (current_control_->abort_requested()) return Error(409, "run '" + id + "' is aborting");
+  if (current_control_->paused()) return Error(409, "run '" + id + "' is already paused");
   current_control_->Pause();
   return {202, {{"id", id}, {"requested", "pause"}}};
 }
 
 ServiceReply RunService::Resume(const std::string& id) {
   std::lock_guard lock(mutex_);
-  if (id != current_id_ || !current_control_) return Error(409, "run '" + id + "' is not running");
+  if (id != current_id_ || !current_control_) return NotTheCurrentRun(id, "resume");
+  if (!current_control_->paused()) return Error(409, "run '" + id + "' is not paused: nothing to resume");
   current_control_->Resume();
   return {202, {{"id", id}, {"requested", "resume"}}};
 }
@@ -614,6 +625,7 @@ ServiceReply RunService::Abort(const std::string& id) {
   {
     std::lock_guard lock(mutex_);  // as Execute claims a run
     if (id == current_id_ && current_control_) {
+      if (current_control_->abort_requested()) return Error(409, "run '" + id + "' is already aborting");
       current_control_->Abort();
       return {202, {{"id", id}, {"requested", "abort"}}};
     }

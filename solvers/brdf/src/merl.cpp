@@ -71,6 +71,8 @@ void Bracket(double u, int bins, int* lower, int* upper, double* t) {
 }  // namespace
 
 std::optional<Eigen::Vector3d> MerlTable::Evaluate(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const {
+  // A NaN compares false below: without this it reached a cell index far outside the table.
+  if (!wi.allFinite() || !wo.allFinite()) return std::nullopt;
   if (wi.z() <= 0.0 || wo.z() <= 0.0) return std::nullopt;
   const HalfDiff a = ToHalfDiff(wi, wo);
   // The cell the configuration falls in must be measured; its measured

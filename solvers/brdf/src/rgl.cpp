@@ -175,6 +175,7 @@ Eigen::Vector2d Warp2D::Sample(Eigen::Vector2d u, const std::vector<double>& par
 }
 
 std::optional<Eigen::Vector3d> RglBrdf::Evaluate(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const {
+  if (!wi.allFinite() || !wo.allFinite()) return std::nullopt;  // as MerlTable::Evaluate
   if (wi.z() <= 0.0 || wo.z() <= 0.0) return std::nullopt;
   const Eigen::Vector3d wm = (wi + wo).normalized();
   const double theta_i = Elevation(wi), phi_i = std::atan2(wi.y(), wi.x());

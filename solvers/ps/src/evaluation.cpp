@@ -44,6 +44,9 @@ AngularErrorStats CompareNormals(const cv::Mat& estimate, const cv::Mat& truth, 
   }
   stats.pixels_evaluated = errors.size();
   if (errors.empty()) {
+    // No figure, rather than a perfect 0 deg from no pixels at all.
+    stats.mean_deg = stats.median_deg = stats.max_deg = std::numeric_limits<double>::quiet_NaN();
+    stats.fraction_under_5deg = stats.fraction_under_10deg = stats.fraction_under_15deg = stats.mean_deg;
     stats.End(solvers::core::Termination::kSuccess, "no pixel has both a normal and a ground truth");
     timer.Finish(&stats);
     return stats;

@@ -109,10 +109,17 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   // Setup is everything before the first tile (the noise model included);
   // solve_ms covers the tiles and, for refining methods, steps 5-7 after them.
   const double setup_ms = timer.ElapsedMs();
-  auto end_timings = [&](SolverSummary* summary) {
+  auto finish = [&](SolverSummary* summary) {
     summary->setup_ms = setup_ms;
     summary->total_ms = timer.ElapsedMs();
     summary->solve_ms = summary->total_ms - setup_ms;
+    // Every step may succeed and still leave no pixel with a normal (a mask
+    // that selects none, every pixel in shadow): no result to use.
+    if (summary->IsSolutionUsable() && summary->pixels_solved == 0)
+      summary->End(Termination::kFailure,
+                   "no pixel could be solved: " + std::to_string(summary->pixels_outside_mask) + " outside the mask, " +
+                       std::to_string(summary->pixels_too_few_lights) + " with fewer than 3 usable lights, " +
+                       std::to_string(summary->pixels_ill_conditioned) + " ill-conditioned");
   };
   if (!refine) {
     const internal::TileVisitor count_tiles = [&](int thread, int, int count) { progress.TileDone(thread, count); };
@@ -126,7 +133,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
     summary.noise_read_sigma = working.noise.read_sigma;
     summary.noise_shot_gain = working.noise.shot_gain;
     summary.shadow_threshold = lambertian.shadow_threshold;
-    end_timings(&summary);
+    finish(&summary);
     return summary;
   }
   if (!(working.noise.read_sigma > 0.0)) working.noise.read_sigma = 1e-9;  // noise-free: any residual counts
@@ -150,7 +157,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   summary.method = MethodName(options.method);
   summary.shadow_threshold = lambertian.shadow_threshold;
   if (!summary.IsSolutionUsable()) {
-    end_timings(&summary);
+    finish(&summary);
     return summary;
   }
   refiner.ShareLobe();
@@ -163,7 +170,7 @@ SolverSummary SolvePhotometricStereo(const PhotometricStereoOptions& options, co
   summary.noise_shot_gain = working.noise.shot_gain;
   refiner.AddCounts(&summary);
   progress.Finish();
-  end_timings(&summary);
+  finish(&summary);
   return summary;
 }
 

@@ -3,6 +3,7 @@
 // projection geometries). nlohmann's get<int> converts a number with a
 // fraction or beyond the type's range with undefined behaviour (1e137 into an
 // int); these refuse it, naming the field, so a corrupt file is an error.
+// And the JSON library's messages as a person reads them.
 
 #include <nlohmann/json.hpp>
 
@@ -29,6 +30,14 @@ Int IntegerAt(const nlohmann::json& object, const char* key) {
   throw std::runtime_error(std::string("'") + key + "' must be an integer from " +
                            std::to_string(std::numeric_limits<Int>::min()) + " to " +
                            std::to_string(std::numeric_limits<Int>::max()) + ", not " + value.dump());
+}
+
+// The JSON library's message without its "[json.exception.parse_error.101] "
+// tag, which tells a reader nothing.
+inline std::string WithoutJsonLibraryTag(const std::string& message) {
+  if (message.rfind("[json.exception.", 0) != 0) return message;
+  const std::size_t end = message.find("] ");
+  return end == std::string::npos ? message : message.substr(end + 2);
 }
 
 // As IntegerAt, or `absent` when the object has no such key.

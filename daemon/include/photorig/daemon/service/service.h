@@ -125,6 +125,8 @@ class RunService {
   const ServiceOptions& options() const { return options_; }
 
  private:
+  // 404 for an unknown run, else 409 naming the state of a run that is not the current one (mutex_ held).
+  ServiceReply NotTheCurrentRun(const std::string& id, const std::string& request) const;
   void WorkerLoop();
   void Execute(QueuedRun run);
   void Publish(const std::string& run_id, const std::string& type, nlohmann::json data);

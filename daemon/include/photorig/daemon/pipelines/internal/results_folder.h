@@ -26,7 +26,8 @@ class ResultsFolder {
   // Creates the partial folder beside `destination`, first removing the
   // partial folders earlier, killed attempts left there. Throws
   // std::invalid_argument when `destination` exists and is not a results folder
-  // (it holds files but no report.json): replacing it would lose them.
+  // (a file, or a folder holding files but no report.json): replacing it
+  // would lose them.
   explicit ResultsFolder(const std::string& destination);
   // Removes the partial folder unless committed: an exception mid-solve leaves nothing.
   ~ResultsFolder();

@@ -54,8 +54,8 @@ class MerlTable {
   // its square-root mapping; phi_d periodic over pi; constant beyond the outer
   // centres), unmeasured neighbours left out and the weights renormalised. At
   // a cell centre it is the stored value bit for bit. Empty below the horizon
-  // (w_i.z <= 0 or w_o.z <= 0) and when the cell the configuration falls in
-  // is not measured.
+  // (w_i.z <= 0 or w_o.z <= 0), for a direction that is not finite, and when
+  // the cell the configuration falls in is not measured.
   std::optional<Eigen::Vector3d> Evaluate(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const;
   // One cell's stored value in 1/sr; empty when not measured.
   std::optional<Eigen::Vector3d> EvaluateCell(std::size_t cell) const;

@@ -10,6 +10,7 @@
 namespace photorig::solvers::ps {
 
 // kSuccess, or kInvalidInput (maps of other types or sizes; every figure 0).
+// Where no pixel has both a normal and a ground truth the figures are NaN.
 struct AngularErrorStats : solvers::core::Summary {
   std::size_t pixels_with_truth = 0;   // ground truth defined (finite, non-zero)
   std::size_t pixels_evaluated = 0;    // ... and the estimate has a normal
