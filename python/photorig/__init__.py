@@ -5,9 +5,9 @@ See docs/python.md for a tour.
 
 from ._photorig import (Run, calibrate_color, calibrate_leds, calibrate_lights, eval_brdf, fit_brdf, open_run, read_merl,
                         run_recipe, solve_brdf, solve_ps, solve_svbrdf, solve_tomography, write_merl)
-from .client import Daemon, DaemonError
+from .client import Daemon, DaemonError, DaemonUnreachable
 
 __all__ = [
-    "Daemon", "DaemonError", "Run", "calibrate_color", "calibrate_leds", "calibrate_lights", "eval_brdf", "fit_brdf",
-    "open_run", "read_merl", "run_recipe", "solve_brdf", "solve_ps", "solve_svbrdf", "solve_tomography", "write_merl",
+    "Daemon", "DaemonError", "DaemonUnreachable", "Run", "calibrate_color", "calibrate_leds", "calibrate_lights",
+    "eval_brdf", "fit_brdf", "open_run", "read_merl", "run_recipe", "solve_brdf", "solve_ps", "solve_svbrdf", "solve_tomography", "write_merl",
 ]

@@ -30,9 +30,23 @@ class DaemonError(RuntimeError):
         self.message = message
 
 
+def _run_id(run_id):
+    """A run's id, quoted for a path; anything but a str is a mistake."""
+    if not isinstance(run_id, str):
+        raise TypeError(f"run_id must be a str such as '000001-ps-sphere', not {type(run_id).__name__}")
+    return urllib.parse.quote(run_id)
+
+
+class DaemonUnreachable(ConnectionError):
+    """Nothing answered at the daemon's address."""
+
+
 class Daemon:
     def __init__(self, url="http://127.0.0.1:8750", token=None, timeout_s=30.0):
-        self.base = url.rstrip("/") + "/api/v1"
+        if not isinstance(url, str) or not url.startswith(("http://", "https://")):
+            raise TypeError(f"url must be an address like http://HOST:PORT, not {url!r}")
+        self.url = url.rstrip("/")
+        self.base = self.url + "/api/v1"
         self.token = token
         self.timeout_s = timeout_s
 
@@ -49,6 +63,11 @@ class Daemon:
             except (ValueError, KeyError, TypeError):
                 message = text
             raise DaemonError(e.code, message) from None
+        except urllib.error.URLError as e:
+            raise DaemonUnreachable(
+                f"photorigd is not reachable at {self.url} ({e.reason}); start it with "
+                "`photorigd --rig RIG.yaml --data-root DIR` (docs/daemon.md), or give the address of the one that runs"
+            ) from None
 
     def _json(self, path, body=None):
         headers = {"Content-Type": "application/json"} if body is not None else None
@@ -63,7 +82,7 @@ class Daemon:
         return self._json("/runs")["runs"]
 
     def run(self, run_id):
-        return self._json(f"/runs/{urllib.parse.quote(run_id)}")
+        return self._json(f"/runs/{_run_id(run_id)}")
 
     def submit(self, recipe):
         """Queues a recipe file (its rig must be the daemon's); the run record, with its plan."""
@@ -76,7 +95,7 @@ class Daemon:
         while True:
             headers = {"Last-Event-ID": last_id} if last_id else {}
             try:
-                with self._open(f"/runs/{urllib.parse.quote(run_id)}/events", headers=headers,
+                with self._open(f"/runs/{_run_id(run_id)}/events", headers=headers,
                                 timeout_s=max(self.timeout_s, 60.0)) as stream:
                     event, data = "message", []
                     for raw in stream:
@@ -100,12 +119,12 @@ class Daemon:
         """Downloads the run's files (or those `under` a folder) into `out`, each checked
         against the size and CRC-32 the daemon lists; returns the paths written."""
         query = "?" + urllib.parse.urlencode({"under": under}) if under else ""
-        listing = self._json(f"/runs/{urllib.parse.quote(run_id)}/files{query}")
+        listing = self._json(f"/runs/{_run_id(run_id)}/files{query}")
         written = []
         for entry in listing["files"]:
             target = Path(out) / entry["path"]
             target.parent.mkdir(parents=True, exist_ok=True)
-            with self._open(f"/runs/{urllib.parse.quote(run_id)}/files/{urllib.parse.quote(entry['path'])}") as answer:
+            with self._open(f"/runs/{_run_id(run_id)}/files/{urllib.parse.quote(entry['path'])}") as answer:
                 content = answer.read()
             if len(content) != entry["size"] or zlib.crc32(content) != entry["crc32"]:
                 raise DaemonError(0, f"{entry['path']}: {len(content)} bytes with CRC-32 {zlib.crc32(content)}, "

@@ -142,6 +142,8 @@ py::dict FitSamples(const std::string& path, const std::optional<std::string>& l
     py::gil_scoped_release unlocked;
     selection = brdf::SelectModel(samples, options);
   }
+  // Refused samples (NaN values, a negative deviation, a zero direction) raise, as a refused table does.
+  if (selection.termination == solvers::core::Termination::kInvalidInput) throw py::value_error(path + ": " + selection.message);
   nlohmann::json doc = {{"file", path},
                         {"format", "samples"},
                         {"loss", brdf::FitLossName(options.fit.loss)},

@@ -49,7 +49,12 @@ std::vector<cv::Mat> Run::Load(const std::vector<const daemon::FrameRecord*>& re
 }
 
 std::string RunDirectory(const py::object& run) {
-  return py::isinstance<Run>(run) ? run.cast<const Run&>().directory() : py::str(run).cast<std::string>();
+  if (py::isinstance<Run>(run)) return run.cast<const Run&>().directory();
+  // A path (str or os.PathLike); None or a number is a mistake, not a folder named "None".
+  if (!py::isinstance<py::str>(run) && !py::hasattr(run, "__fspath__"))
+    throw py::type_error("run must be a Run, a str or an os.PathLike, not " +
+                         py::str(py::type::of(run).attr("__name__")).cast<std::string>());
+  return py::str(py::module_::import("os").attr("fspath")(run)).cast<std::string>();
 }
 
 namespace {

@@ -67,7 +67,8 @@ PhotometricStereoRequest ParsePhotometricStereoRequest(const YamlNode& node) {
 
 bool LightCalibrationRequest::IsValid(std::string* why) const {
   if (circle && !(circle->radius_px > 0.0)) return Refuse(why, "the sphere circle needs a positive radius");
-  if (!(sphere_radius_mm >= 0.0)) return Refuse(why, "sphere radius_mm must be >= 0");
+  if (!(sphere_radius_mm >= 0.0) || !std::isfinite(sphere_radius_mm))
+    return Refuse(why, "sphere radius_mm must be finite and >= 0 (0: unknown)");
   if (!camera.IsValid(why)) return false;
   if (base_rig.empty() != out_rig.empty()) return Refuse(why, "a new rig file needs both the rig to copy and the file to write");
   return true;
@@ -100,7 +101,8 @@ LightCalibrationRequest ParseLightCalibrationRequest(const YamlNode& node) {
     }
     if (request.circle && !request.silhouette_image.empty()) (*sphere)["silhouette"].Fail("give one of circle, silhouette or from");
     request.sphere_radius_mm = sphere->Double("radius_mm", 0.0);
-    if (!(request.sphere_radius_mm >= 0.0)) (*sphere)["radius_mm"].Fail("must be >= 0");
+    if (!(request.sphere_radius_mm >= 0.0) || !std::isfinite(request.sphere_radius_mm))
+      (*sphere)["radius_mm"].Fail("must be finite and >= 0");
   }
   if (auto out_rig = node.Find("out_rig")) request.out_rig = ParseOutRig(*out_rig);
   return request;

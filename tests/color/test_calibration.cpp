@@ -137,6 +137,18 @@ TEST(ColorCalibration, SaturatedWhiteFallsBackToAGreyForExposure) {
   EXPECT_NE(result.summary.message.find("flagged and left out"), std::string::npos);
 }
 
+// A white patch the chart does not have is refused, not fallen back from.
+TEST(ColorCalibration, AWhitePatchTheChartDoesNotHaveIsRefused) {
+  const sim::ChartRender render = RenderChart("nikon-5100", Illuminant::kD65, 0.8);
+  CalibrationOptions options;
+  options.white_patch = 99;
+  const ChartCalibration result = CalibrateChartImage(render.raw, render.dark, Illuminant::kD65, FixedChart(),
+                                                      SimMeasureOptions(render), options);
+  EXPECT_EQ(result.summary.termination, solvers::core::Termination::kInvalidOptions);
+  EXPECT_NE(result.summary.message.find("white_patch 99 is not one of the chart's 24 patches"), std::string::npos)
+      << result.summary.message;
+}
+
 TEST(ColorCalibration, NoChartGivesAClearFailure) {
   const cv::Mat blank(200, 300, CV_16UC3, cv::Scalar::all(1000));
   const ChartCalibration result =

@@ -75,8 +75,9 @@ def test_a_calibrated_rig_is_a_new_file(mirror_run, tmp_path):
 
 def test_bad_options_raise_the_solvers_message(mirror_run, tmp_path):
     out = str(tmp_path / "never")
-    with pytest.raises(ValueError, match="sphere radius_mm must be >= 0"):
-        photorig.calibrate_lights(str(mirror_run), sphere_radius_mm=-1, out=out)
+    for radius_mm in (-1, float("inf")):
+        with pytest.raises(ValueError, match="sphere radius_mm must be finite and >= 0"):
+            photorig.calibrate_lights(str(mirror_run), sphere_radius_mm=radius_mm, out=out)
     with pytest.raises(ValueError, match="the sphere circle needs a positive radius"):
         photorig.calibrate_lights(str(mirror_run), circle=(192, 192, 0), out=out)
     with pytest.raises(ValueError, match="needs both the rig to copy and the file to write"):

@@ -1,6 +1,7 @@
 """photorig.Daemon against a real photorigd on the simulated dome: submit, watch, fetch."""
 
 import re
+import socket
 import subprocess
 import threading
 
@@ -60,3 +61,16 @@ def test_refusals_carry_the_daemons_message(daemon):
     with pytest.raises(photorig.DaemonError) as missing:
         client.run("000999-none")
     assert missing.value.status == 404
+    with pytest.raises(TypeError, match="run_id must be a str"):
+        client.run(None)
+
+
+def test_an_unreachable_daemon_is_named_with_its_address():
+    with socket.socket() as probe:  # a port the kernel gave out, then closed: nothing listens there
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    client = photorig.Daemon(f"http://127.0.0.1:{port}", timeout_s=5)
+    with pytest.raises(photorig.DaemonUnreachable, match=f"not reachable at http://127.0.0.1:{port}"):
+        client.health()
+    with pytest.raises(TypeError, match="url must be an address"):
+        photorig.Daemon(None)

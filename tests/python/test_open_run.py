@@ -1,6 +1,7 @@
 """photorig.open_run against the run's own files, read with OpenCV."""
 
 import json
+import shutil
 
 import cv2
 import numpy as np
@@ -64,3 +65,16 @@ def test_refusals(demo_run, tmp_path):
         run.frame(len(run.manifest["frames"]))
     with pytest.raises(ValueError):
         photorig.open_run(str(tmp_path))
+    # A path is a str or os.PathLike; None is a mistake, not a folder named "None".
+    with pytest.raises(TypeError, match="run must be"):
+        photorig.solve_ps(None)
+
+
+def test_a_damaged_run_raises_value_error_naming_the_file(demo_run, tmp_path):
+    damaged = tmp_path / "damaged"
+    shutil.copytree(demo_run, damaged)
+    manifest = damaged / "manifest.json"
+    manifest.write_bytes(manifest.read_bytes()[: manifest.stat().st_size // 2])
+    with pytest.raises(ValueError, match="manifest.json: corrupt manifest") as refused:
+        photorig.open_run(str(damaged))
+    assert "json.exception" not in str(refused.value)

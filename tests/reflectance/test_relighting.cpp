@@ -35,6 +35,18 @@ TEST(Relighting, InvalidOptionsAreRefusedBeforeAnyFit) {
   EXPECT_NE(summary.message.find("held_out_lights"), std::string::npos) << summary.message;
 }
 
+// More held-out lights than the stack has is refused before any fit, not
+// taken silently as every light.
+TEST(Relighting, MoreHeldOutLightsThanTheStackHasAreRefused) {
+  const SvbrdfScene scene = MakeScene(ThreeMaterials());
+  refl::RelightingOptions options;
+  options.held_out_lights = scene.stack.light_count() + 1;
+  const auto summary = refl::EvaluateHeldOutLights(options, scene.stack, scene.truth.normals, scene.mask);
+  EXPECT_EQ(summary.termination, solvers::core::Termination::kInvalidOptions);
+  EXPECT_NE(summary.message.find("exceeds the stack's"), std::string::npos) << summary.message;
+  EXPECT_TRUE(summary.errors.empty());
+}
+
 TEST(Relighting, OnAMatteObjectTheMaterialFitIsLambertianWithinNoise) {
   SceneSpec spec;
   spec.materials = {Matte(), Matte()};

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -167,6 +168,13 @@ cv::Mat ReadColorCapture(const std::string& path, const std::string& bayer) {
 ColorCalibrationResult CalibrateColor(ColorCalibrationRequest request, const std::string& out_directory) {
   if (request.image.empty() == request.sim_camera.empty())
     throw std::invalid_argument("give exactly one of a chart image and a simulated camera");
+  // The simulated camera renders its own dark frame: a given one would be overwritten unread.
+  if (!request.sim_camera.empty() && !request.dark.empty())
+    throw std::invalid_argument("a simulated camera renders its own dark frame: drop the dark frame " + request.dark);
+  if (!std::isfinite(request.white_level) || request.white_level < 0.0 || !std::isfinite(request.black_level))
+    throw std::invalid_argument("the white level (" + std::to_string(request.white_level) + ") must be >= 0 (0: the image "
+                                "type's maximum) and the black level (" + std::to_string(request.black_level) +
+                                ") finite");
   if (std::string why; !request.calibration.IsValid(&why)) throw std::invalid_argument(why);
   std::optional<config::RigConfig> rig;
   if (!request.rig.empty()) {

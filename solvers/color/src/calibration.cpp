@@ -178,6 +178,13 @@ CalibrationSummary Calibrate(const CalibrationInput& input, const CalibrationOpt
     return summary;
   }
 
+  // A white patch the chart does not have is a mistake, not a patch to fall back from.
+  if (options.normalise_exposure && options.white_patch >= static_cast<int>(n)) {
+    summary.End(solvers::core::Termination::kInvalidOptions, "white_patch " + std::to_string(options.white_patch) +
+                                                                 " is not one of the chart's " + std::to_string(n) +
+                                                                 " patches (0-" + std::to_string(n - 1) + ")");
+    return summary;
+  }
   double scale = 1.0;
   if (options.normalise_exposure && !NormaliseExposure(input, options.white_patch, used, &scale, &summary))
     return summary;

@@ -147,11 +147,22 @@ Prediction FitMethod(Method method, const internal::Samples& s, const std::vecto
 }
 
 // True, ending *summary kInvalidOptions with the reason, when the options fail IsValid.
-bool RefusedOptions(const RelightingOptions& options, RelightingSummary* summary) {
+// Invalid options, or more held-out lights than the stack has (taken as
+// given, the count would silently become "every light": one full fit per
+// light and method).
+bool RefusedOptions(const RelightingOptions& options, const ReflectanceStack& stack, RelightingSummary* summary) {
   std::string why;
-  if (options.IsValid(&why)) return false;
-  summary->End(core::Termination::kInvalidOptions, why);
-  return true;
+  if (!options.IsValid(&why)) {
+    summary->End(core::Termination::kInvalidOptions, why);
+    return true;
+  }
+  if (options.lights.empty() && options.held_out_lights > stack.light_count() && stack.light_count() > 0) {
+    summary->End(core::Termination::kInvalidOptions,
+                 "held_out_lights " + std::to_string(options.held_out_lights) + " exceeds the stack's " +
+                     std::to_string(stack.light_count()) + " lights (0 holds out every light)");
+    return true;
+  }
+  return false;
 }
 
 }  // namespace
@@ -159,7 +170,7 @@ bool RefusedOptions(const RelightingOptions& options, RelightingSummary* summary
 RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const ReflectanceStack& stack,
                                         const cv::Mat& normals, const cv::Mat& mask) {
   // Before the fit on every light, which invalid options would waste.
-  if (RelightingSummary refused; RefusedOptions(options, &refused)) return refused;
+  if (RelightingSummary refused; RefusedOptions(options, stack, &refused)) return refused;
   // Materials and their lobes chosen once, on every light.
   ReflectanceMaps full;
   const ReflectanceSummary fitted = FitReflectance(options.fit, stack, normals, mask, &full);
@@ -176,7 +187,7 @@ RelightingSummary EvaluateHeldOutLights(const RelightingOptions& options, const 
                                         const ReflectanceSummary& fitted) {
   core::SolveTimer timer;
   RelightingSummary summary;
-  if (RefusedOptions(options, &summary)) return summary;
+  if (RefusedOptions(options, stack, &summary)) return summary;
   if (!fitted.IsSolutionUsable() || full.material.size() != cv::Size(stack.width(), stack.height()) ||
       static_cast<int>(full.materials.size()) != fitted.materials) {
     summary.End(core::Termination::kInvalidInput, "the full fit is not a usable fit of this stack");
