@@ -608,6 +608,7 @@ TEST(Cli, CommandsCheckTheirInputsBeforeWorkingAndNameWhatIsWrong) {
       {"relight --run " + dir.path().string() + " --light 0,0,1 --out " + (dir.path() / "r.tiff").string(),
        "is not a run directory"},
       {"solve brdf --run " + small.run, "not a gonioreflectometer run"},
+      {"solve svbrdf --run " + small.run + " --held-out 99", "99 exceeds the 4 lights"},
       {"solve ps --run " + small.run + " --out " + (dir.path() / "occupied").string(), "holds files that are not"}};
   for (const auto& [arguments, said] : cases) {
     const Outcome outcome = Photorig(arguments, dir);

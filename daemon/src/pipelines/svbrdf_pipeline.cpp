@@ -335,6 +335,11 @@ nlohmann::json ToJson(const SvbrdfResult& result) {
 SvbrdfResult SolveSvbrdfAndWrite(const PhotometricStereoInput& input, const config::SvbrdfRequest& request,
                                  const std::string& output_directory) {
   const auto start = std::chrono::steady_clock::now();
+  // Refused before the solve, which would end with the relighting check refusing it.
+  if (request.held_out_lights > input.stack.light_count())
+    throw std::invalid_argument("held-out lights: " + std::to_string(request.held_out_lights) + " exceeds the " +
+                                std::to_string(input.stack.light_count()) + " lights of " + input.source +
+                                " (0 holds out every light, -1 none)");
   // Whole or not at all, like photometric stereo's folder (results_folder.h).
   ResultsFolder folder(output_directory);
   const fs::path out(folder.path());
