@@ -57,14 +57,28 @@ void ToTable(const TableArray& values, Table* table) {
   const double* in = values.data();
   for (std::size_t cell = 0; cell < Table::kCells; ++cell) {
     const Eigen::Vector3d value(in[cell], in[Table::kCells + cell], in[2 * Table::kCells + cell]);
-    if (value.array().isNaN().any())
+    if (value.array().isNaN().any()) {
       table->SetCellInvalid(cell);
-    else
-      table->SetCell(cell, value);
+      continue;
+    }
+    // The file marks a cell not measured by a negative value: a negative
+    // value given here would come back as a hole.
+    for (int c = 0; c < 3; ++c)
+      if (value[c] < 0.0) {
+        const std::size_t per_h = std::size_t{Table::kThetaDBins} * Table::kPhiDBins;
+        throw py::value_error("values[" + std::to_string(c) + ", " + std::to_string(cell / per_h) + ", " +
+                              std::to_string(cell % per_h / Table::kPhiDBins) + ", " +
+                              std::to_string(cell % Table::kPhiDBins) + "] is " + std::to_string(value[c]) +
+                              ": a BRDF is not negative (NaN marks a cell not measured)");
+      }
+    table->SetCell(cell, value);
   }
 }
 
 void WriteMerl(const std::string& path, const TableArray& values) {
+  // eval_brdf, fit_brdf and `photorig brdf` know a table's format by its name.
+  if (brdf::TableFormatOf(path) != brdf::TableFormat::kMerl)
+    throw py::value_error("'" + path + "': a MERL table is written as a .binary file");
   Table table;
   ToTable(values, &table);
   py::gil_scoped_release unlocked;

@@ -12,6 +12,7 @@
 #include <exception>
 #include <limits>
 #include <thread>
+#include <utility>
 
 namespace photorig::python {
 
@@ -61,8 +62,10 @@ namespace {
 
 // The frames' records as columns, row i describing frame i of frames(kind).
 py::dict MetadataOf(const std::vector<const daemon::FrameRecord*>& records) {
+  // Every column even without a frame (empty, of its type): code that reads
+  // one need not ask first whether a run has frames of a kind.
   const auto column = [&](auto field) {
-    using Value = decltype(field(*records.front()));
+    using Value = decltype(field(std::declval<const daemon::FrameRecord&>()));
     py::array_t<Value> out(static_cast<py::ssize_t>(records.size()));
     for (std::size_t i = 0; i < records.size(); ++i) out.mutable_at(i) = field(*records[i]);
     return out;
@@ -77,7 +80,6 @@ py::dict MetadataOf(const std::vector<const daemon::FrameRecord*>& records) {
   metadata["file"] = files;
   metadata["kind"] = kinds;
   metadata["group"] = groups;
-  if (records.empty()) return metadata;
   metadata["index"] = column([](const daemon::FrameRecord& r) { return r.index; });
   metadata["led"] = column([](const daemon::FrameRecord& r) { return r.led; });
   metadata["level"] = column([](const daemon::FrameRecord& r) { return r.level; });

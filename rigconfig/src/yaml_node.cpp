@@ -1,12 +1,18 @@
 #include "photorig/config/yaml_node.h"
 
+#include <yaml-cpp/eventhandler.h>
+#include <yaml-cpp/parser.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <optional>
+#include <sstream>
+#include <vector>
 
 namespace photorig::config {
 namespace {
@@ -40,6 +46,84 @@ std::string KeyName(const YAML::Node& key, const std::string& file, const std::s
   if (!key.IsScalar()) YamlNode(key, file, parent).Fail("expected a name as a key, got " + Describe(key));
   return key.Scalar();
 }
+
+// Refuses a key given twice in one map. yaml-cpp keeps both entries and
+// answers a lookup with the first, so the second (often a later edit) would
+// be ignored without a word. Walks the parser's events, in which an alias is
+// one event, not a copy of what it names: a file of nested aliases costs its
+// length, not their expansion.
+class DuplicateKeyCheck : public YAML::EventHandler {
+ public:
+  explicit DuplicateKeyCheck(std::string file) : file_(std::move(file)) {}
+
+  void OnDocumentStart(const YAML::Mark&) override {}
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& mark, YAML::anchor_t) override { Node(mark, nullptr); }
+  void OnAlias(const YAML::Mark& mark, YAML::anchor_t) override { Node(mark, nullptr); }
+  void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t, const std::string& value) override {
+    Node(mark, &value);
+  }
+  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    Node(mark, nullptr);
+    levels_.push_back({});
+  }
+  void OnSequenceEnd() override { levels_.pop_back(); }
+  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    Node(mark, nullptr);
+    levels_.push_back({.map = true});
+  }
+  void OnMapEnd() override { levels_.pop_back(); }
+
+ private:
+  struct Level {
+    bool map = false;
+    bool at_key = true;              // a map's next node is a key
+    std::string key;                 // a map's current key
+    int index = -1;                  // a sequence's current item
+    std::map<std::string, int> seen;  // a map's keys, with the line each first appeared on
+  };
+
+  // The dotted key of the innermost node, as YamlNode names it.
+  std::string Path() const {
+    std::string path;
+    for (const Level& level : levels_) {
+      if (level.map) {
+        path += (path.empty() ? "" : ".") + level.key;
+      } else {
+        path += "[" + std::to_string(level.index) + "]";
+      }
+    }
+    return path;
+  }
+
+  // A node begins at `mark`: a map's key (scalar: its text) or value, or a sequence's item.
+  void Node(const YAML::Mark& mark, const std::string* scalar) {
+    if (levels_.empty()) return;
+    Level& level = levels_.back();
+    if (!level.map) {
+      ++level.index;
+      return;
+    }
+    if (!level.at_key) {
+      level.at_key = true;
+      return;
+    }
+    level.at_key = false;
+    level.key = scalar ? *scalar : "?";
+    if (!scalar) return;  // not a name: YamlNode refuses it where it is read
+    const auto [first, inserted] = level.seen.emplace(*scalar, mark.line + 1);
+    if (inserted) return;
+    level.key.clear();
+    std::string parent = Path();
+    if (!parent.empty() && parent.back() == '.') parent.pop_back();
+    throw ConfigError(file_, mark.line + 1, mark.column + 1, parent,
+                      "key '" + *scalar + "' is given twice in one map (first on line " +
+                          std::to_string(first->second) + "); remove one of them");
+  }
+
+  std::string file_;
+  std::vector<Level> levels_;
+};
 
 }  // namespace
 
@@ -99,6 +183,9 @@ YamlNode YamlNode::LoadString(const std::string& text, const std::string& name) 
   try {
     YAML::Node root = YAML::Load(text);
     if (!root.IsMap()) throw ConfigError(name, 1, 1, "", "expected a map at the top level");
+    std::istringstream stream(text);
+    DuplicateKeyCheck check(name);
+    YAML::Parser(stream).HandleNextDocument(check);
     return YamlNode(root, name, "");
   } catch (const YAML::ParserException& e) {
     throw ConfigError(name, e.mark.line + 1, e.mark.column + 1, "", "YAML syntax error: " + e.msg);

@@ -277,6 +277,33 @@ TEST(Cli, ColourCalibrationOfARawChartWithoutBayerAsksForIt) {
                                    dir);
   ASSERT_EQ(applied.exit_code, 0) << applied.err;
   EXPECT_EQ(Document(applied, "apply-color")["outputs"].size(), 1u);
+
+  // An input that cannot be read is named and skipped; the good one after it
+  // is still converted, and the command fails naming what it skipped.
+  const std::string torn = dir.Write("torn.png", "not an image");
+  const std::string mixed_out = (dir.path() / "mixed").string();
+  const Outcome mixed = Photorig("apply-color --model " + rendered + "/model.json --in " + torn + " " + chart +
+                                     " --dark " + dark + " --bayer RGGB --out " + mixed_out + " --json",
+                                 dir);
+  EXPECT_EQ(mixed.exit_code, 2);
+  const json mixed_document = Document(mixed, "apply-color");
+  ASSERT_EQ(mixed_document["outputs"].size(), 1u) << mixed_document.dump();
+  EXPECT_EQ(mixed_document["outputs"][0]["input"], chart);
+  EXPECT_TRUE(std::filesystem::exists(mixed_out + "/chart_srgb.png"));
+  ASSERT_EQ(mixed_document["failed"].size(), 1u);
+  EXPECT_EQ(mixed_document["failed"][0]["input"], torn);
+  EXPECT_NE(mixed_document.value("error", "").find("1 of 2 inputs not converted (" + torn + ")"), std::string::npos)
+      << mixed_document.dump();
+  // Two inputs of one name would write the same outputs: refused before any is written.
+  std::filesystem::create_directories(dir.path() / "copy");
+  std::filesystem::copy_file(chart, dir.path() / "copy" / "chart.png");
+  const std::string twins_out = (dir.path() / "twins").string();
+  const Outcome twins = Photorig("apply-color --model " + rendered + "/model.json --in " + chart + " " +
+                                     (dir.path() / "copy" / "chart.png").string() + " --bayer RGGB --out " + twins_out,
+                                 dir);
+  EXPECT_EQ(twins.exit_code, 2);
+  EXPECT_NE(twins.err.find("would both write " + twins_out + "/chart_*"), std::string::npos) << twins.err;
+  EXPECT_FALSE(std::filesystem::exists(twins_out));
 }
 
 TEST(Cli, AnUnreachableDaemonExitsThreeAndSaysHowToStartIt) {

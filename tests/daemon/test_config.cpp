@@ -215,6 +215,29 @@ TEST(RigConfig, AKeyThatIsNotANameIsAConfigErrorWhereItIs) {
   }
 }
 
+// yaml-cpp keeps both of a repeated key and answers with the first: the
+// second, often the later edit, was ignored without a word.
+TEST(RigConfig, AKeyGivenTwiceInOneMapIsAnErrorAtTheSecond) {
+  TempDir dir;
+  std::string top = kRig;
+  top.replace(top.find("  height: 24\n"), 13, "  height: 24\n  width: 64\n");
+  ExpectConfigError(dir.Write("a.yaml", top), top, 13, 3, "camera", "key 'width' is given twice in one map (first on line 11)");
+  std::string flow = kRig;
+  flow.replace(flow.find("intensity: 0.9}"), 15, "intensity: 0.9, direction: [0, 0, 1]}");
+  ExpectConfigError(dir.Write("b.yaml", flow), flow, 7, 50, "lights.leds[1]", "key 'direction' is given twice");
+  // The same key in different maps, and an alias used many times, are no repeats.
+  const std::string aliases = std::string(kRig) + "extra: {a: &x {k: 1}, b: *x, c: [*x, *x]}\n";
+  EXPECT_NO_THROW(config::YamlNode::LoadString(aliases, "c.yaml"));
+  // Nested aliases are checked as written, not as expanded (2^40 nodes here).
+  std::string nested = "l0: &a0 [1, 1]\n";
+  for (int i = 1; i <= 40; ++i)
+    nested += "l" + std::to_string(i) + ": &a" + std::to_string(i) + " [*a" + std::to_string(i - 1) + ", *a" +
+              std::to_string(i - 1) + "]\n";
+  EXPECT_NO_THROW(config::YamlNode::LoadString(nested, "d.yaml"));
+  photorig::testing::ExpectConfigErrorAt([&] { config::YamlNode::LoadString(nested + "l3: 0\n", "e.yaml"); }, "e.yaml",
+                                         42, 1, "key 'l3' is given twice in one map (first on line 4)");
+}
+
 TEST(RigConfig, MissingKeyAndBadNumberAreExplained) {
   TempDir dir;
   std::string missing = kRig;

@@ -247,6 +247,66 @@ TEST(RunStore, IntegerFieldsWithAFractionOrOutOfRangeAreRefusedNamingTheField) {
   }
 }
 
+// A value no camera, LED or capture step can have is a corrupt manifest,
+// named with its field and where it is, before any solver sees it (a width
+// of -5 once ended in an OpenCV assertion that named no file).
+TEST(RunStore, FieldsOutsideTheirRangeAreRefusedNamingTheFieldAndWhere) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  {
+    RunWriter writer(run, Header());
+    writer.WriteFrame(Step(1, 0), MakeFrame(20, 10, 1));
+    writer.Finish({CaptureStatus::kComplete, "", 1, 1, 0, 0});
+  }
+  const std::filesystem::path file = std::filesystem::path(run) / "manifest.json";
+  const nlohmann::json stored = nlohmann::json::parse(std::ifstream(file));
+  ASSERT_EQ(LoadRunManifest(run).frames.size(), 1u);
+  struct Tampering {
+    const char* pointer;
+    nlohmann::json value;
+    const char* message;  // what the error must say
+  };
+  const Tampering tampering[] = {
+      {"/camera/width", -5, "'width' must be an integer from 1 to 65535, not -5"},
+      {"/camera/height", 0, "'height' must be an integer from 1 to 65535"},
+      {"/camera/bit_depth", 0, "'bit_depth' must be an integer from 1 to 16"},
+      {"/camera/bit_depth", 99, "'bit_depth' must be an integer from 1 to 16, not 99"},
+      {"/camera/pixel_pitch_mm", -0.1, "'pixel_pitch_mm' must be a finite number >= 0, not -0.1"},
+      {"/camera/saturation_dn", 70000, "'saturation_dn' must be a finite number from 0 to 65535"},
+      {"/camera/dn_per_radiance_per_us", "fast", "'dn_per_radiance_per_us' must be a finite number >= 0"},
+      {"/lights/0/direction", nlohmann::json::array({0, 0, 0}), "light 0: 'direction' must be three finite numbers not all zero"},
+      {"/lights/0/direction", nlohmann::json::array({0, 1}), "light 0: 'direction' must be three finite numbers"},
+      {"/lights/0/intensity", -1, "light 0: 'intensity' must be a finite number >= 0"},
+      {"/lights/0/id", -3, "light 0: 'id' must be an integer from 0"},
+      {"/frames/0/led", -3, "frame 0: 'led' must be an integer from -1"},
+      {"/frames/0/led", 7, "names LED 7 but the run has 1 lights"},
+      {"/frames/0/level", 1.5, "frame 0: 'level' must be a finite number from 0 to 1, not 1.5"},
+      {"/frames/0/exposure_us", -10, "frame 0: 'exposure_us' must be a finite number >= 0"},
+      {"/frames/0/bit_depth", 0, "frame 0: 'bit_depth' must be an integer from 1 to 16"},
+      {"/frames/0/index", -1, "frame 0: 'index' must be an integer from 0"},
+      {"/stop/frames", -2, "'frames' must be an integer from 0"},
+  };
+  for (const Tampering& t : tampering) {
+    nlohmann::json tampered = stored;
+    tampered[nlohmann::json::json_pointer(t.pointer)] = t.value;
+    std::ofstream(file) << tampered.dump();
+    try {
+      LoadRunManifest(run);
+      ADD_FAILURE() << t.pointer << " = " << t.value.dump() << " loaded";
+    } catch (const DamagedRunError& e) {
+      EXPECT_NE(std::string(e.what()).find(t.message), std::string::npos) << t.pointer << ": " << e.what();
+      EXPECT_NE(std::string(e.what()).find("manifest.json: corrupt manifest"), std::string::npos) << e.what();
+    }
+  }
+  // A value at the edge of its range is a value, not corruption.
+  nlohmann::json edge = stored;
+  edge["frames"][0]["led"] = 0;
+  edge["frames"][0]["level"] = 1.0;
+  edge["camera"]["pixel_pitch_mm"] = 0.0;  // unknown
+  std::ofstream(file) << edge.dump();
+  EXPECT_EQ(LoadRunManifest(run).frames[0].led, 0);
+}
+
 TEST(RunStore, CorruptFrameIsDetectedByItsChecksum) {
   TempDir dir;
   const std::string run = (dir.path() / "run").string();

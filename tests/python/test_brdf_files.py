@@ -61,6 +61,28 @@ def test_bad_files_raise_the_readers_message(tmp_path):
         photorig.read_merl(str(short))
     with pytest.raises(ValueError, match=r"\(3, 90, 90, 180\)"):
         photorig.write_merl(str(tmp_path / "x.binary"), np.zeros((3, 90, 90)))
+    # A negative value would read back as a cell not measured; a name other than .binary would not read back at all.
+    negative = np.full((3, 90, 90, 180), 0.1)
+    negative[1, 2, 3, 4] = -0.5
+    with pytest.raises(ValueError, match=r"values\[1, 2, 3, 4\] is -0.5.*not negative"):
+        photorig.write_merl(str(tmp_path / "neg.binary"), negative)
+    with pytest.raises(ValueError, match="a MERL table is written as a .binary file"):
+        photorig.write_merl(str(tmp_path / "table.png"), np.full((3, 90, 90, 180), 0.1))
+    assert not (tmp_path / "neg.binary").exists() and not (tmp_path / "table.png").exists()
+
+
+def test_a_measurement_that_reflects_nothing_is_not_fitted(tmp_path):
+    """A black table, or samples whose values are all at or below 0, once fitted Lambertian with success."""
+    with pytest.raises(ValueError, match="R plane .* has no value above 0: it reflects nothing to fit"):
+        photorig.fit_brdf(np.zeros((3, 90, 90, 180)), samples=2000)
+    dark = tmp_path / "dark.csv"
+    lines = ["wi_x,wi_y,wi_z,wo_x,wo_y,wo_z,f_r,f_g,f_b,sigma_r,sigma_g,sigma_b"]
+    for theta_o in range(5, 80, 5):
+        wi, wo = direction(30, 180), direction(theta_o, 0)
+        lines.append(",".join(repr(float(v)) for v in [*wi, *wo, 0.1, 0.1, -0.01, 0.01, 0.01, 0.01]))
+    dark.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match="no sample has a positive B value"):
+        photorig.fit_brdf(str(dark))
 
 
 def test_fit_is_the_clis(table, cli, tmp_path):

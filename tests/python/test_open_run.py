@@ -31,6 +31,9 @@ def test_frames_are_the_png_files(demo_run):
     metadata = run.metadata("light")
     assert list(metadata["led"]) == [f["led"] for f in lights]
     assert list(metadata["exposure_us"]) == [f["exposure_us"] for f in lights]
+    # A kind the run has no frame of gives the same columns, empty.
+    none = run.metadata("flat")
+    assert set(none) == set(metadata) and all(len(column) == 0 for column in none.values())
 
 
 def test_one_frame_is_not_copied(demo_run):

@@ -15,7 +15,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
+#include <vector>
 
 namespace photorig::app {
 namespace {
@@ -91,27 +93,58 @@ int ExecuteApply(const ApplyCommandOptions& options) {
   } catch (const std::invalid_argument& e) {
     return Fail(kExitUsage, e.what());
   }
+  // Outputs are named by their input's stem: two inputs of one stem would
+  // write the same files, the second over the first.
+  std::map<std::string, std::string> stems;
+  for (const std::string& input : options.inputs) {
+    const auto [first, inserted] = stems.emplace(fs::path(input).stem().string(), input);
+    if (!inserted)
+      return Fail(kExitUsage, input + " and " + first->second + " would both write " +
+                                  (fs::path(options.out) / first->first).string() +
+                                  "_*: rename one, or convert them into different --out folders");
+  }
   fs::create_directories(options.out);
+  // An input that cannot be converted is named and skipped: the others are
+  // still converted, and the command fails at the end naming every one.
+  std::vector<std::string> failed;
+  ResultFields()["outputs"] = nlohmann::json::array();
+  ResultFields()["failed"] = nlohmann::json::array();
+  auto skip = [&](const std::string& input, const std::string& why) {
+    std::fprintf(stderr, "apply-color: %s: skipped: %s\n", input.c_str(), why.c_str());
+    ResultFields()["failed"].push_back({{"input", input}, {"error", why}});
+    failed.push_back(input);
+  };
   for (const std::string& input : options.inputs) {
     cv::Mat image;
     try {
       image = daemon::ReadColorCapture(input, options.bayer);
     } catch (const std::invalid_argument& e) {
-      return Fail(kExitUsage, e.what());
+      skip(input, e.what());
+      continue;
     }
-    if (image.channels() != 3)
-      return Fail(kExitUsage, input + " has " + std::to_string(image.channels()) +
-                                  " channel(s); colour correction needs 3 (B, G, R)");
+    if (image.channels() != 3) {
+      skip(input, "has " + std::to_string(image.channels()) + " channel(s); colour correction needs 3 (B, G, R)");
+      continue;
+    }
     cv::Mat xyz, srgb;
     const solvers::core::Summary corrected = solvers::color::CameraToXyz(model, image, dark, apply, &xyz);
     const solvers::core::Summary encoded =
         corrected.IsSolutionUsable() ? solvers::color::XyzToSrgb8(xyz, model.white_xyz, &srgb) : corrected;
-    if (!encoded.IsSolutionUsable()) return Fail(kExitUsage, input + ": " + encoded.message);
+    if (!encoded.IsSolutionUsable()) {
+      skip(input, encoded.message);
+      continue;
+    }
     const std::string stem = (fs::path(options.out) / fs::path(input).stem()).string();
     daemon::WriteFloatTiff(stem + "_xyz.tiff", xyz);
     daemon::WriteImage(stem + "_srgb.png", srgb);
     std::printf("%s -> %s_xyz.tiff, %s_srgb.png\n", input.c_str(), stem.c_str(), stem.c_str());
     ResultFields()["outputs"].push_back({{"input", input}, {"xyz", stem + "_xyz.tiff"}, {"srgb", stem + "_srgb.png"}});
+  }
+  if (!failed.empty()) {
+    std::string names;
+    for (const std::string& input : failed) names += (names.empty() ? "" : ", ") + input;
+    return Fail(kExitUsage, std::to_string(failed.size()) + " of " + std::to_string(options.inputs.size()) +
+                                " inputs not converted (" + names + "); the others are in " + options.out);
   }
   return kExitOk;
 }

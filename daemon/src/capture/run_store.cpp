@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -89,7 +90,7 @@ json ToJson(const FrameRecord& f) {
 
 FrameRecord FrameRecordFromJson(const json& j) {
   FrameRecord f;
-  f.index = IntegerAt<int>(j, "index");
+  f.index = IntegerIn<int>(j, "index", 0, std::numeric_limits<int>::max());
   f.file = j.at("file").get<std::string>();
   const std::string kind = j.at("kind").get<std::string>();
   const auto parsed = config::CaptureStepKindFromName(kind);
@@ -97,12 +98,12 @@ FrameRecord FrameRecordFromJson(const json& j) {
   f.kind = *parsed;
   f.group = j.value("group", "");  // absent in runs stored before groups existed
   f.group_kind = config::GroupKindOfLabel(f.group);
-  f.repeat = IntegerOr(j, "repeat", 0);
-  f.led = IntegerAt<int>(j, "led");
-  f.level = j.at("level").get<double>();
-  f.exposure_us = j.at("exposure_us").get<double>();
-  f.gain_db = j.at("gain_db").get<double>();
-  f.bit_depth = IntegerAt<int>(j, "bit_depth");
+  f.repeat = IntegerOr(j, "repeat", 0, 0, std::numeric_limits<int>::max());
+  f.led = IntegerIn<int>(j, "led", -1, std::numeric_limits<int>::max());  // checked against the lights by the manifest
+  f.level = NumberIn(j, "level", 0.0, 1.0);
+  f.exposure_us = NumberIn(j, "exposure_us", 0.0);
+  f.gain_db = NumberIn(j, "gain_db");
+  f.bit_depth = IntegerIn<int>(j, "bit_depth", 1, 16);
   f.pixel_format = j.value("pixel_format", "");  // absent in runs stored before it was recorded
   f.frame_id = IntegerAt<std::uint64_t>(j, "frame_id");
   f.device_timestamp_ns = IntegerAt<std::int64_t>(j, "device_timestamp_ns");
@@ -110,11 +111,11 @@ FrameRecord FrameRecordFromJson(const json& j) {
   f.crc32 = IntegerAt<std::uint32_t>(j, "crc32");
   if (j.contains("pose")) {
     const json& p = j.at("pose");
-    f.pose = config::GonioPose{p.at("light_arm_deg").get<double>(), p.at("camera_arm_deg").get<double>(),
-                       p.at("sample_rotation_deg").get<double>(), std::nullopt};
-    if (p.contains("sample_changer_deg")) f.pose->sample_changer_deg = p.at("sample_changer_deg").get<double>();
+    f.pose = config::GonioPose{NumberIn(p, "light_arm_deg"), NumberIn(p, "camera_arm_deg"),
+                               NumberIn(p, "sample_rotation_deg"), std::nullopt};
+    if (p.contains("sample_changer_deg")) f.pose->sample_changer_deg = NumberIn(p, "sample_changer_deg");
   }
-  f.pass = IntegerOr(j, "pass", 0);
+  f.pass = IntegerOr(j, "pass", 0, 0, std::numeric_limits<int>::max());
   return f;
 }
 
@@ -151,10 +152,11 @@ StopRecord StopRecordFromJson(const json& j) {
   StopRecord s;
   s.status = CaptureStatusFromJson(j.at("status"));
   s.reason = j.value("reason", "");
-  s.frames = IntegerAt<int>(j, "frames");
-  s.steps_total = IntegerAt<int>(j, "steps_total");
-  s.retries = IntegerOr(j, "retries", 0);
-  s.dropped_frames = IntegerOr(j, "dropped_frames", 0);
+  constexpr int kMost = std::numeric_limits<int>::max();
+  s.frames = IntegerIn<int>(j, "frames", 0, kMost);
+  s.steps_total = IntegerIn<int>(j, "steps_total", 0, kMost);
+  s.retries = IntegerOr(j, "retries", 0, 0, kMost);
+  s.dropped_frames = IntegerOr(j, "dropped_frames", 0, 0, kMost);
   return s;
 }
 
@@ -206,6 +208,50 @@ json ToJson(const RunManifest& m) {
   return out;
 }
 
+namespace {
+
+// object[key] as three finite numbers; a direction must not be all zero.
+Eigen::Vector3d Vector3At(const json& object, const char* key, bool direction) {
+  const json& value = object.at(key);
+  if (value.is_array() && value.size() == 3 && std::all_of(value.begin(), value.end(), [](const json& v) {
+        return v.is_number() && std::isfinite(v.get<double>());
+      })) {
+    const Eigen::Vector3d v(value[0].get<double>(), value[1].get<double>(), value[2].get<double>());
+    if (!direction || v.squaredNorm() > 0.0) return v;
+  }
+  throw std::runtime_error(std::string("'") + key + "' must be three finite numbers" +
+                           (direction ? " not all zero" : "") + ", not " + value.dump());
+}
+
+config::LedConfig LedFromJson(const json& light) {
+  config::LedConfig led;
+  led.id = IntegerIn<int>(light, "id", 0, std::numeric_limits<int>::max());
+  led.direction = Vector3At(light, "direction", true);
+  led.intensity = NumberIn(light, "intensity", 0.0);
+  // absent in runs stored before the field existed
+  if (light.contains("rgb_intensity")) {
+    led.rgb_intensity = Vector3At(light, "rgb_intensity", false);
+    if (led.rgb_intensity.minCoeff() < 0.0)
+      throw std::runtime_error("'rgb_intensity' must not be negative, not " + light.at("rgb_intensity").dump());
+  }
+  if (light.contains("position_mm")) {
+    led.position_mm = Vector3At(light, "position_mm", false);
+    // absent in runs stored before LED axes were recorded: aimed at the origin
+    if (light.contains("axis")) led.axis = Vector3At(light, "axis", true);
+    led.cos_exponent = NumberOr(light, "cos_exponent", 1.0, 0.0);
+  }
+  return led;
+}
+
+// Manifest `m` names frame `f`'s LED among its lights.
+void CheckLedOfFrame(const RunManifest& m, const FrameRecord& f) {
+  if (f.led >= static_cast<int>(m.lights.size()))
+    throw std::runtime_error("frame " + f.file + " names LED " + std::to_string(f.led) + " but the run has " +
+                             std::to_string(m.lights.size()) + " lights");
+}
+
+}  // namespace
+
 RunManifest RunManifestFromJson(const json& j) {
   RunManifest m;
   m.format = j.at("format").get<std::string>();
@@ -221,13 +267,14 @@ RunManifest RunManifestFromJson(const json& j) {
   m.sample_name = j.value("sample", "");
   const json& camera = j.at("camera");
   m.camera_id = camera.at("id").get<std::string>();
-  m.width = IntegerAt<int>(camera, "width");
-  m.height = IntegerAt<int>(camera, "height");
-  m.bit_depth = IntegerAt<int>(camera, "bit_depth");
-  m.saturation_dn = camera.value("saturation_dn", 0.0);  // absent in runs of earlier versions
-  m.dn_per_radiance_per_us = camera.at("dn_per_radiance_per_us").get<double>();
-  m.e_per_dn = camera.value("e_per_dn", 0.0);
-  m.pixel_pitch_mm = camera.value("pixel_pitch_mm", 0.0);
+  // Each range as wide as any camera photorig stores frames of (16-bit PNGs).
+  m.width = IntegerIn<int>(camera, "width", 1, 65535);
+  m.height = IntegerIn<int>(camera, "height", 1, 65535);
+  m.bit_depth = IntegerIn<int>(camera, "bit_depth", 1, 16);
+  m.saturation_dn = NumberOr(camera, "saturation_dn", 0.0, 0.0, 65535.0);  // absent in runs of earlier versions
+  m.dn_per_radiance_per_us = NumberIn(camera, "dn_per_radiance_per_us", 0.0);
+  m.e_per_dn = NumberOr(camera, "e_per_dn", 0.0, 0.0);
+  m.pixel_pitch_mm = NumberOr(camera, "pixel_pitch_mm", 0.0, 0.0);
   const std::string projection = camera.value("projection", "orthographic");
   const std::optional<solvers::camera::Projection> parsed = solvers::camera::ParseProjection(projection);
   if (!parsed) throw std::runtime_error("unknown camera projection '" + projection + "'");
@@ -244,32 +291,27 @@ RunManifest RunManifestFromJson(const json& j) {
     m.color_model_hash = camera.at("color_model").value("hash", "");
   }
   for (const json& light : j.at("lights")) {
-    config::LedConfig led;
-    led.id = IntegerAt<int>(light, "id");
-    const auto d = light.at("direction").get<std::vector<double>>();
-    if (d.size() != 3) throw std::runtime_error("light direction needs 3 components");
-    led.direction = Eigen::Vector3d(d[0], d[1], d[2]);
-    led.intensity = light.at("intensity").get<double>();
-    if (light.contains("rgb_intensity")) {  // absent in runs stored before the field existed
-      const auto rgb = light.at("rgb_intensity").get<std::vector<double>>();
-      if (rgb.size() != 3) throw std::runtime_error("light rgb_intensity needs 3 components");
-      led.rgb_intensity = Eigen::Vector3d(rgb[0], rgb[1], rgb[2]);
+    try {
+      m.lights.push_back(LedFromJson(light));
+    } catch (const std::exception& e) {
+      throw std::runtime_error("light " + std::to_string(m.lights.size()) + ": " + WithoutJsonLibraryTag(e.what()));
     }
-    if (light.contains("position_mm")) {
-      const auto p = light.at("position_mm").get<std::vector<double>>();
-      if (p.size() != 3) throw std::runtime_error("light position_mm needs 3 components");
-      led.position_mm = Eigen::Vector3d(p[0], p[1], p[2]);
-      if (light.contains("axis")) {  // absent in runs stored before LED axes were recorded: aimed at the origin
-        const auto a = light.at("axis").get<std::vector<double>>();
-        if (a.size() != 3) throw std::runtime_error("light axis needs 3 components");
-        led.axis = Eigen::Vector3d(a[0], a[1], a[2]);
-      }
-      led.cos_exponent = light.value("cos_exponent", 1.0);
-    }
-    m.lights.push_back(led);
   }
-  if (j.contains("reference_target")) m.reference_albedo = j.at("reference_target").at("albedo").get<double>();
-  for (const json& frame : j.at("frames")) m.frames.push_back(FrameRecordFromJson(frame));
+  if (j.contains("reference_target")) {
+    try {
+      m.reference_albedo = NumberIn(j.at("reference_target"), "albedo", 0.0, 1.0);
+    } catch (const std::exception& e) {
+      throw std::runtime_error("reference_target: " + WithoutJsonLibraryTag(e.what()));
+    }
+  }
+  for (const json& frame : j.at("frames")) {
+    try {
+      m.frames.push_back(FrameRecordFromJson(frame));
+    } catch (const std::exception& e) {
+      throw std::runtime_error("frame " + std::to_string(m.frames.size()) + ": " + WithoutJsonLibraryTag(e.what()));
+    }
+    CheckLedOfFrame(m, m.frames.back());
+  }
   m.has_ground_truth = j.value("ground_truth", false);
   if (j.contains("stop")) m.stop = StopRecordFromJson(j.at("stop"));
   return m;
@@ -343,6 +385,7 @@ std::unique_ptr<RunWriter> RunWriter::Reopen(const std::string& directory, Recov
         writer->manifest_.stop = StopRecordFromJson(entry.at("stop"));
       } else {
         const FrameRecord record = FrameRecordFromJson(entry);
+        if (have_header) CheckLedOfFrame(writer->manifest_, record);
         frames[record.index] = record;
       }
     } catch (const std::exception& e) {

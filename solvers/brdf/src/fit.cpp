@@ -999,6 +999,16 @@ SelectionSummary SelectModel(const std::vector<BrdfSample>& samples, const Selec
     summary.End(core::Termination::kInvalidInput, "no samples");
     return summary;
   }
+  // A channel without one positive value saw no reflection: every model
+  // would fit it with zero albedo and call that a success.
+  for (int c = 0; c < 3; ++c)
+    if (std::none_of(samples.begin(), samples.end(), [c](const BrdfSample& s) { return s.value[c] > 0.0; })) {
+      summary.End(core::Termination::kInvalidInput,
+                  std::string("no sample has a positive ") + "RGB"[c] +
+                      " value: the measurement saw no light reflected (check the exposure, the lights and the dark "
+                      "frames)");
+      return summary;
+    }
   if (!options.folds.empty() && options.folds.size() != samples.size()) {
     summary.End(core::Termination::kInvalidOptions, "folds gives " + std::to_string(options.folds.size()) +
                                                       " samples' folds for " + std::to_string(samples.size()) +

@@ -265,6 +265,13 @@ TableFitSummary FitTable(const MeasuredBrdf& table, const TableFitOptions& optio
                 "the table has no value within " + Number(options.max_theta_deg) + " deg of the normal");
     return summary;
   }
+  for (int ch = 0; ch < 3; ++ch)
+    if (std::none_of(cells.begin(), cells.end(), [ch](const Cell& c) { return c.value[ch] > 0.0; })) {
+      summary.End(core::Termination::kInvalidInput, std::string("the table's ") + "RGB"[ch] +
+                                                        " plane within " + Number(options.max_theta_deg) +
+                                                        " deg of the normal has no value above 0: it reflects nothing to fit");
+      return summary;
+    }
   // The first draw's score: the squared log deviation of f cos theta_i from
   // the table's median (per channel), large on the lobe and where the table
   // changes towards grazing, small where it is flat.
