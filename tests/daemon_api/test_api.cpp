@@ -149,7 +149,10 @@ TEST_F(Api, PauseResumeAndAbortARunningRun) {
   ASSERT_EQ(second.http_status, 201);
   const std::string id = first.body["id"], queued = second.body["id"];
   // Abort the queued one before it starts.
-  EXPECT_EQ(client.Post("/api/v1/runs/" + queued + "/abort", json::object()).http_status, 200);
+  const auto aborted = client.Post("/api/v1/runs/" + queued + "/abort", json::object());
+  EXPECT_EQ(aborted.http_status, 200);
+  EXPECT_EQ(aborted.body["state"], "aborted");  // carried out at once: the record says so
+  EXPECT_EQ(aborted.body["requested"], "abort");
   EXPECT_EQ(client.Get("/api/v1/runs/" + queued).body["state"], "aborted");
 
   // Each request follows from an event the previous one caused, never from a

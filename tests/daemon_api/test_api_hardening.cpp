@@ -480,7 +480,12 @@ TEST_F(Hardening, RequestsThatCannotBeMetSayWhyWithTheRightStatus) {
   const auto again = client.Post(run + "/pause", json::object());
   EXPECT_EQ(again.http_status, 409);
   EXPECT_NE(again.body.value("error", "").find("already paused"), std::string::npos) << again.body.dump();
-  EXPECT_EQ(client.Post(run + "/resume", json::object()).http_status, 202);
+  // Each acknowledgement is the run's record and what was asked of it.
+  const auto resumed = client.Post(run + "/resume", json::object());
+  EXPECT_EQ(resumed.http_status, 202);
+  EXPECT_EQ(resumed.body["id"], id);
+  EXPECT_EQ(resumed.body["requested"], "resume");
+  EXPECT_TRUE(resumed.body.contains("state")) << resumed.body.dump();
   const auto twice = client.Post(run + "/resume", json::object());
   EXPECT_EQ(twice.http_status, 409);
   EXPECT_NE(twice.body.value("error", "").find("not paused"), std::string::npos) << twice.body.dump();
@@ -495,7 +500,30 @@ TEST_F(Hardening, RequestsThatCannotBeMetSayWhyWithTheRightStatus) {
   EXPECT_NE(error_of(torn).find("'torn.png' in the run cannot be shown"), std::string::npos) << torn->body;
   EXPECT_EQ(torn->body.find((dir_.path() / "data").string()), std::string::npos) << torn->body;
 
-  EXPECT_EQ(client.Post(run + "/abort", json::object()).http_status, 202);
+  // Query values out of range or out of order, each named with what was given.
+  const std::string image = "ground_truth/albedo.tiff";  // the simulated rig's: the run is paused before its first frame
+  const std::pair<std::string, std::string> refusals[] = {
+      {"?low=5&high=2", "?low= must be below ?high=, got 5 and 2"},
+      {"?gamma=0", "?gamma= must be > 0, got '0'"},
+      {"?max_side=8", "?max_side= must be within [16, 8192], got '8'"}};
+  for (const auto& [query, message] : refusals) {
+    const auto refused = raw.Get(run + "/preview/" + image + query);
+    EXPECT_EQ(refused->status, 400) << query;
+    EXPECT_NE(error_of(refused).find(message), std::string::npos) << query << ": " << refused->body;
+  }
+  EXPECT_EQ(raw.Get(run + "/preview/" + image + "?low=5")->status, 200);  // a default high below it widens
+  for (const char* limit : {"0", "-5", "2.5"}) {
+    const auto listed = raw.Get(std::string("/api/v1/runs?limit=") + limit);
+    EXPECT_EQ(listed->status, 400) << limit;
+    EXPECT_NE(error_of(listed).find(std::string("?limit= must be a whole number within [1, 1000], got '") + limit + "'"),
+              std::string::npos)
+        << listed->body;
+  }
+
+  const auto aborting = client.Post(run + "/abort", json::object());
+  EXPECT_EQ(aborting.http_status, 202);
+  EXPECT_EQ(aborting.body["id"], id);
+  EXPECT_EQ(aborting.body["requested"], "abort");
   EXPECT_EQ(client.Post(run + "/abort", json::object()).http_status, 409);
 }
 

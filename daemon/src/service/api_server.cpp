@@ -260,11 +260,17 @@ Preview TonemapPreview(const cv::Mat& values, const httplib::Request& req) {
   cv::minMaxLoc(values.reshape(1), &min_value, nullptr, nullptr, nullptr, finite_mask);
   preview.low = NumberParam(req, "low", min_value);
   preview.high = NumberParam(req, "high", Percentile(values, 0.995));
+  // Both given and out of order is a mistake; a default that falls at or
+  // below the other bound (a flat image, a `low` above most values) widens.
+  if (req.has_param("low") && req.has_param("high") && !(preview.high > preview.low))
+    throw std::invalid_argument("?low= must be below ?high=, got " + req.get_param_value("low") + " and " +
+                                req.get_param_value("high"));
   if (!(preview.high > preview.low)) preview.high = preview.low + 1.0;
   const double gamma = NumberParam(req, "gamma", 2.2);
   const double max_side = NumberParam(req, "max_side", 1024);
-  if (gamma <= 0 || max_side < 16 || max_side > 8192)
-    throw std::invalid_argument("?gamma= must be > 0 and ?max_side= within [16, 8192]");
+  if (!(gamma > 0)) throw std::invalid_argument("?gamma= must be > 0, got '" + req.get_param_value("gamma") + "'");
+  if (max_side < 16 || max_side > 8192)
+    throw std::invalid_argument("?max_side= must be within [16, 8192], got '" + req.get_param_value("max_side") + "'");
   cv::Mat scaled = (values - preview.low) / (preview.high - preview.low);
   cv::patchNaNs(scaled, 0.0);
   cv::max(scaled, 0.0, scaled);
@@ -513,9 +519,10 @@ void ApiServer::Devices(const httplib::Request&, httplib::Response& res) { Reply
 void ApiServer::ListRuns(const httplib::Request& req, httplib::Response& res) {
   try {
     const double limit = NumberParam(req, "limit", RunService::kRunsPerPage);
-    if (limit != std::floor(limit) || std::abs(limit) > RunService::kMaxRunsPerPage)
+    if (limit != std::floor(limit) || limit < 1 || limit > RunService::kMaxRunsPerPage)
       throw std::invalid_argument("?limit= must be a whole number within [1, " +
-                                  std::to_string(RunService::kMaxRunsPerPage) + "]");
+                                  std::to_string(RunService::kMaxRunsPerPage) + "], got '" +
+                                  req.get_param_value("limit") + "'");
     Reply(res, service_.ListRuns(static_cast<int>(limit), req.has_param("before") ? req.get_param_value("before") : ""));
   } catch (const std::invalid_argument& e) {
     ErrorReply(res, 400, e.what());

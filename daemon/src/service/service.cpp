@@ -598,6 +598,14 @@ ServiceReply RunService::NotTheCurrentRun(const std::string& id, const std::stri
   return Error(409, "run '" + id + "' is " + RunStateName(found->state) + ": only the running run can " + request);
 }
 
+// The reply to pause, resume or abort: 202 with the run's record as it
+// stands and what was asked of it (the run acts on it at its next step).
+ServiceReply RunService::Requested(const QueuedRun& run, const char* what) const {
+  json body = RunJson(run);
+  body["requested"] = what;
+  return {202, body};
+}
+
 // A request that would change nothing is refused (409) naming the state, not
 // acknowledged as if it had been carried out.
 ServiceReply RunService::Pause(const std::string& id) {
@@ -608,7 +616,7 @@ ServiceReply RunService::Pause(const std::string& id) {
   if (current_control_->abort_requested()) return Error(409, "run '" + id + "' is aborting");
   if (current_control_->paused()) return Error(409, "run '" + id + "' is already paused");
   current_control_->Pause();
-  return {202, {{"id", id}, {"requested", "pause"}}};
+  return Requested(current_, "pause");
 }
 
 ServiceReply RunService::Resume(const std::string& id) {
@@ -616,7 +624,7 @@ ServiceReply RunService::Resume(const std::string& id) {
   if (id != current_id_ || !current_control_) return NotTheCurrentRun(id, "resume");
   if (!current_control_->paused()) return Error(409, "run '" + id + "' is not paused: nothing to resume");
   current_control_->Resume();
-  return {202, {{"id", id}, {"requested", "resume"}}};
+  return Requested(current_, "resume");
 }
 
 ServiceReply RunService::Abort(const std::string& id) {
@@ -627,7 +635,7 @@ ServiceReply RunService::Abort(const std::string& id) {
     if (id == current_id_ && current_control_) {
       if (current_control_->abort_requested()) return Error(409, "run '" + id + "' is already aborting");
       current_control_->Abort();
-      return {202, {{"id", id}, {"requested", "abort"}}};
+      return Requested(current_, "abort");
     }
     auto found = queue_->Get(id);
     if (!found) return Error(404, "no run '" + id + "'");
@@ -636,9 +644,10 @@ ServiceReply RunService::Abort(const std::string& id) {
       return Error(409, "run '" + id + "' is " + RunStateName(run.state) + "; nothing to abort");
   }
   AnnounceState(run);
-  const json body = RunJson(run);
-  Publish(id, "stop", StopEventData(body));
-  return {200, body};
+  ServiceReply reply = Requested(run, "abort");
+  reply.http_status = 200;  // carried out, not only requested: the run never started
+  Publish(id, "stop", StopEventData(RunJson(run)));
+  return reply;
 }
 
 ServiceReply RunService::ResolveRunPath(const std::string& id, const std::string& relative,

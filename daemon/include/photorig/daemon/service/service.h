@@ -127,6 +127,8 @@ class RunService {
  private:
   // 404 for an unknown run, else 409 naming the state of a run that is not the current one (mutex_ held).
   ServiceReply NotTheCurrentRun(const std::string& id, const std::string& request) const;
+  // 202 with `run`'s record and "requested": what (pause, resume or abort).
+  ServiceReply Requested(const QueuedRun& run, const char* what) const;
   void WorkerLoop();
   void Execute(QueuedRun run);
   void Publish(const std::string& run_id, const std::string& type, nlohmann::json data);
