@@ -3,6 +3,7 @@
 #include "driver_options_parse.h"
 #include "photorig/config/scene.h"
 #include "photorig/config/yaml_node.h"
+#include "photorig/solvers/camera/calibration.h"
 #include "photorig/solvers/color/spectrum.h"
 
 #include <algorithm>
@@ -365,9 +366,10 @@ void CheckPositionCalibrationRecord(const YamlNode& record) {
 // camera.calibration: where a pinhole lens came from (`photorig calibrate
 // camera`). For people reading the rig; checked so a hand edit stays readable.
 void CheckCalibrationRecord(const YamlNode& record) {
-  record.ExpectKeys({"date", "rms_px", "tilt_deg", "board", "plane_image", "images", "rejected"});
+  record.ExpectKeys({"date", "rms_px", "distortion_model", "tilt_deg", "board", "plane_image", "images", "rejected"});
   record["date"].AsString();
   record["rms_px"].AsDoubleIn(0.0, 1e3);
+  record.Choice("distortion_model", solvers::camera::kDistortionModelNames, solvers::camera::DistortionModel::kNone);
   if (auto tilt = record.Find("tilt_deg")) tilt->AsDoubleIn(0.0, 90.0);
   if (auto board = record.Find("board")) {
     board->ExpectKeys({"inner_corners", "square_mm"});

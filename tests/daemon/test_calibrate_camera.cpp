@@ -45,6 +45,11 @@ TEST(CalibrateCamera, WritesARigWithTheLensThatLoadsAndCaptures) {
   EXPECT_EQ(summary["termination"], "success");
   EXPECT_LT(summary["rms_px"].get<double>(), 0.3);
   EXPECT_EQ(summary["out_rig"], out_rig);
+  // Every distortion model fitted to the corners, the one of lowest BIC chosen and recorded in the rig.
+  EXPECT_EQ(summary["distortion_model"], "k1") << summary["distortion_reason"];
+  ASSERT_EQ(summary["candidates"].size(), 5u);
+  for (const nlohmann::json& candidate : summary["candidates"])
+    EXPECT_GE(candidate["bic"].get<double>(), summary["candidates"][1]["bic"].get<double>()) << candidate.dump();
 
   const photorig::config::RigConfig rig = photorig::config::LoadRigConfig(out_rig);
   const CameraModel truth = TrueCamera();
@@ -53,6 +58,7 @@ TEST(CalibrateCamera, WritesARigWithTheLensThatLoadsAndCaptures) {
   const std::string text = ReadText(out_rig);
   EXPECT_NE(text.find("calibration:"), std::string::npos);
   EXPECT_NE(text.find("board0.png"), std::string::npos);
+  EXPECT_NE(text.find("distortion_model: k1\n"), std::string::npos) << text;
 
   const std::string recipe = SourceDir() + "/config/recipes/ps-sphere.yaml";
   EXPECT_EQ(RunPhotorig("run " + recipe + " --rig " + out_rig + " --no-solve --out " + (dir.path() / "run").string(),
@@ -66,6 +72,13 @@ TEST(CalibrateCamera, WritesARigWithTheLensThatLoadsAndCaptures) {
                    kBaseRig + " --out-rig " + out_rig,
                dir);
   EXPECT_EQ(again.exit_code, 2) << again.err;
+  // A model the calibration does not know is a usage error, naming the ones it does.
+  const CommandOutcome unknown =
+      Photorig("calibrate camera --images" + images + " --board 9x6 --square-mm 10 --plane-image 0 --rig " +
+                   kBaseRig + " --out-rig " + (dir.path() / "other.yaml").string() + " --distortion fisheye",
+               dir);
+  EXPECT_EQ(unknown.exit_code, 2) << unknown.err;
+  EXPECT_NE(unknown.err.find("k1-k2-p1-p2"), std::string::npos) << unknown.err;
 }
 
 TEST(CalibrateCamera, TooFewBoardsFailsAndWritesNoRig) {

@@ -47,6 +47,14 @@ void ExpectConfigError(const std::string& path, const std::string& text, int lin
   photorig::testing::ExpectConfigErrorAt([&] { config::LoadRigConfig(path); }, path, line, column, fragment, key);
 }
 
+// ExpectConfigError for kRig with its first `from` replaced by `to`, written to `name` in `dir`.
+void ExpectEditedRigError(const TempDir& dir, const std::string& name, const std::string& from, const std::string& to,
+                          int line, int column, const std::string& key, const std::string& fragment) {
+  std::string text = kRig;
+  text.replace(text.find(from), from.size(), to);
+  ExpectConfigError(dir.Write(name, text), text, line, column, key, fragment);
+}
+
 TEST(RigConfig, LoadsTheShippedSimulatedDome) {
   const config::RigConfig rig = config::LoadRigConfig(SourceDir() + "/config/rigs/sim-dome.yaml");
   EXPECT_EQ(rig.name, "sim-dome");
@@ -219,12 +227,10 @@ TEST(RigConfig, AKeyThatIsNotANameIsAConfigErrorWhereItIs) {
 // second, often the later edit, was ignored without a word.
 TEST(RigConfig, AKeyGivenTwiceInOneMapIsAnErrorAtTheSecond) {
   TempDir dir;
-  std::string top = kRig;
-  top.replace(top.find("  height: 24\n"), 13, "  height: 24\n  width: 64\n");
-  ExpectConfigError(dir.Write("a.yaml", top), top, 13, 3, "camera", "key 'width' is given twice in one map (first on line 11)");
-  std::string flow = kRig;
-  flow.replace(flow.find("intensity: 0.9}"), 15, "intensity: 0.9, direction: [0, 0, 1]}");
-  ExpectConfigError(dir.Write("b.yaml", flow), flow, 7, 50, "lights.leds[1]", "key 'direction' is given twice");
+  ExpectEditedRigError(dir, "a.yaml", "  height: 24\n", "  height: 24\n  width: 64\n", 13, 3, "camera",
+                       "key 'width' is given twice in one map (first on line 11)");
+  ExpectEditedRigError(dir, "b.yaml", "intensity: 0.9}", "intensity: 0.9, direction: [0, 0, 1]}", 7, 50,
+                       "lights.leds[1]", "key 'direction' is given twice");
   // The same key in different maps, and an alias used many times, are no repeats.
   const std::string aliases = std::string(kRig) + "extra: {a: &x {k: 1}, b: *x, c: [*x, *x]}\n";
   EXPECT_NO_THROW(config::YamlNode::LoadString(aliases, "c.yaml"));
@@ -240,12 +246,9 @@ TEST(RigConfig, AKeyGivenTwiceInOneMapIsAnErrorAtTheSecond) {
 
 TEST(RigConfig, MissingKeyAndBadNumberAreExplained) {
   TempDir dir;
-  std::string missing = kRig;
-  missing.replace(missing.find("  width: 32\n"), 12, "");
-  ExpectConfigError(dir.Write("a.yaml", missing), missing, 10, 3, "camera", "missing required key 'width'");
-  std::string bad = kRig;
-  bad.replace(bad.find("intensity: 0.9"), 14, "intensity: lots");
-  ExpectConfigError(dir.Write("b.yaml", bad), bad, 7, 45, "lights.leds[1].intensity", "expected a number, got 'lots'");
+  ExpectEditedRigError(dir, "a.yaml", "  width: 32\n", "", 10, 3, "camera", "missing required key 'width'");
+  ExpectEditedRigError(dir, "b.yaml", "intensity: 0.9", "intensity: lots", 7, 45, "lights.leds[1].intensity",
+                       "expected a number, got 'lots'");
 }
 
 TEST(RigConfig, LightsBelowTheSampleAreRejected) {

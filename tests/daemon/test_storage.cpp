@@ -216,16 +216,21 @@ TEST(RunStore, CaptureStatusIsStoredAsTheFormatsWords) {
 // A number where the format has an integer, with a fraction or beyond its
 // type's range, is refused naming the field (it once reached a conversion
 // with undefined behaviour: found by fuzz_manifest).
-TEST(RunStore, IntegerFieldsWithAFractionOrOutOfRangeAreRefusedNamingTheField) {
-  TempDir dir;
-  const std::string run = (dir.path() / "run").string();
+// A finished run of one lit frame in `run`: its manifest's path and contents.
+std::pair<std::filesystem::path, nlohmann::json> OneFrameRun(const std::string& run) {
   {
     RunWriter writer(run, Header());
     writer.WriteFrame(Step(1, 0), MakeFrame(20, 10, 1));
     writer.Finish({CaptureStatus::kComplete, "", 1, 1, 0, 0});
   }
   const std::filesystem::path file = std::filesystem::path(run) / "manifest.json";
-  const nlohmann::json stored = nlohmann::json::parse(std::ifstream(file));
+  return {file, nlohmann::json::parse(std::ifstream(file))};
+}
+
+TEST(RunStore, IntegerFieldsWithAFractionOrOutOfRangeAreRefusedNamingTheField) {
+  TempDir dir;
+  const std::string run = (dir.path() / "run").string();
+  const auto [file, stored] = OneFrameRun(run);
   ASSERT_EQ(LoadRunManifest(run).frames.size(), 1u);
   const std::vector<std::pair<nlohmann::json::json_pointer, nlohmann::json>> tampering = {
       {nlohmann::json::json_pointer("/camera/width"), 1.79596e137},
@@ -253,13 +258,7 @@ TEST(RunStore, IntegerFieldsWithAFractionOrOutOfRangeAreRefusedNamingTheField) {
 TEST(RunStore, FieldsOutsideTheirRangeAreRefusedNamingTheFieldAndWhere) {
   TempDir dir;
   const std::string run = (dir.path() / "run").string();
-  {
-    RunWriter writer(run, Header());
-    writer.WriteFrame(Step(1, 0), MakeFrame(20, 10, 1));
-    writer.Finish({CaptureStatus::kComplete, "", 1, 1, 0, 0});
-  }
-  const std::filesystem::path file = std::filesystem::path(run) / "manifest.json";
-  const nlohmann::json stored = nlohmann::json::parse(std::ifstream(file));
+  const auto [file, stored] = OneFrameRun(run);
   ASSERT_EQ(LoadRunManifest(run).frames.size(), 1u);
   struct Tampering {
     const char* pointer;

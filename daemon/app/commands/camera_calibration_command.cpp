@@ -1,5 +1,5 @@
 // photorig calibrate camera --images F... --board COLSxROWS --square-mm S --plane-image F|INDEX
-//   --rig IN.yaml --out-rig NEW.yaml
+//   --rig IN.yaml --out-rig NEW.yaml [--distortion auto|none|k1|k1-k2|k1-k2-p1-p2|k1-k2-p1-p2-k3]
 // The camera's pinhole intrinsics and distortion from checkerboard
 // photographs, and its height from the one of the board lying on the sample
 // plane, written as a new rig (an existing file is never overwritten).
@@ -24,6 +24,7 @@ namespace fs = std::filesystem;
 struct Options {
   std::vector<std::string> images;
   std::string board, plane_image, rig, out_rig;
+  std::string distortion = "auto";
   double square_mm = 0.0;
 };
 
@@ -58,7 +59,14 @@ nlohmann::json SummaryJson(const solvers::camera::CheckerboardCalibrationSummary
               {"tilt_deg", s.tilt_deg},
               {"used", s.used},
               {"image_rms_px", s.image_rms_px},
-              {"rejected", s.rejected}});
+              {"rejected", s.rejected},
+              {"distortion_model", solvers::core::NameOf(solvers::camera::kDistortionModelNames, s.distortion_model)},
+              {"distortion_reason", s.distortion_reason}});
+  doc["candidates"] = nlohmann::json::array();
+  for (const solvers::camera::DistortionCandidate& c : s.candidates)
+    doc["candidates"].push_back({{"model", solvers::core::NameOf(solvers::camera::kDistortionModelNames, c.model)},
+                                 {"rms_px", c.rms_px},
+                                 {"bic", c.bic}});
   return doc;
 }
 
@@ -71,6 +79,8 @@ int Execute(Options o) {
   options.inner_corners_cols = std::stoi(board[1]);
   options.inner_corners_rows = std::stoi(board[2]);
   options.square_mm = o.square_mm;
+  if (o.distortion != "auto")
+    options.distortion = solvers::core::ParseName(solvers::camera::kDistortionModelNames, o.distortion);
   options.plane_image = PlaneImageIndex(o.plane_image, &o.images);
   if (options.plane_image < 0)
     return Fail(kExitUsage, "calibrate camera: --plane-image " + o.plane_image +
@@ -103,6 +113,7 @@ int Execute(Options o) {
                 s.fx_std_px, lens.fy_px, s.fy_std_px, lens.cx_px, s.cx_std_px, lens.cy_px, s.cy_std_px);
     std::printf("distortion k1 %.5f k2 %.5f p1 %.6f p2 %.6f k3 %.5f\n", lens.distortion[0], lens.distortion[1],
                 lens.distortion[2], lens.distortion[3], lens.distortion[4]);
+    std::printf("distortion model %s\n", s.distortion_reason.c_str());
     std::printf("camera %.2f mm above the sample plane, tilted %.3f deg; RMS reprojection error %.3f px\n",
                 lens.distance_mm, s.tilt_deg, s.rms_px);
   }
@@ -127,6 +138,15 @@ CLI::App* Setup(CLI::App& app, Options* o) {
   camera->add_option("--plane-image", o->plane_image,
                      "the photograph of the board lying flat on the sample plane: a file or an index into --images")
       ->required();
+  camera
+      ->add_option("--distortion", o->distortion,
+                   "distortion model: auto (the one of lowest BIC on the corners) or " +
+                       solvers::core::JoinNames(solvers::camera::kDistortionModelNames) + " (default auto)")
+      ->check(CLI::IsMember([] {
+        std::vector<std::string> names = {"auto"};
+        for (const auto& named : solvers::camera::kDistortionModelNames) names.emplace_back(named.name);
+        return names;
+      }()));
   camera->add_option("--rig", o->rig, "rig YAML whose camera took the photographs")->required()->check(CLI::ExistingFile);
   camera->add_option("--out-rig", o->out_rig, "new rig YAML to write, with the calibrated lens")->required();
   return camera;

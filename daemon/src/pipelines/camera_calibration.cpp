@@ -48,6 +48,7 @@ void WriteCalibratedRig(const CameraCalibrationRequest& request,
   YAML::Node record;
   record["date"] = UtcNowIso8601();
   record["rms_px"] = summary.rms_px;
+  record["distortion_model"] = solvers::core::NameOf(solvers::camera::kDistortionModelNames, summary.distortion_model);
   record["tilt_deg"] = summary.tilt_deg;
   YAML::Node board;
   board["inner_corners"] = std::vector<int>{options.inner_corners_cols, options.inner_corners_rows};

@@ -8,16 +8,35 @@
 // must be small because Camera models a lens looking straight down.
 
 #include "photorig/solvers/camera/camera.h"
+#include "photorig/solvers/core/names.h"
 #include "photorig/solvers/core/progress.h"
 #include "photorig/solvers/core/summary.h"
 
 #include <opencv2/core.hpp>
 
 #include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace photorig::solvers::camera {
+
+// The lens distortion a calibration fits: OpenCV's coefficients (k1, k2, p1,
+// p2, k3) in nested models, from none to all five; the others stay 0.
+enum class DistortionModel {
+  kNone,               // a distortion-free pinhole
+  kRadial1,            // k1
+  kRadial2,            // k1, k2
+  kRadial2Tangential,  // k1, k2, p1, p2 (a lens decentred from the sensor)
+  kRadial3Tangential,  // k1, k2, p1, p2, k3 (a wide lens)
+};
+inline constexpr core::NameTable<DistortionModel, 5> kDistortionModelNames = {{
+    {DistortionModel::kNone, "none"},
+    {DistortionModel::kRadial1, "k1"},
+    {DistortionModel::kRadial2, "k1-k2"},
+    {DistortionModel::kRadial2Tangential, "k1-k2-p1-p2"},
+    {DistortionModel::kRadial3Tangential, "k1-k2-p1-p2-k3"},
+}};
 
 struct CheckerboardCalibrationOptions {
   // Inner corners (where four squares meet) along a row and along a column
@@ -36,10 +55,14 @@ struct CheckerboardCalibrationOptions {
   // Above this angle between the optical axis and the sample plane's normal
   // the looking-straight-down model misplaces pixels by more than it saves.
   double max_tilt_deg = 2.0;
-  // Fit k3 too. A dome's narrow lens (tens of degrees across) bends its
-  // corners too little for r^6 to tell k3 from k1, k2 and the focal length,
-  // which it then drags off by percents: k3 stays 0 unless the lens is wide.
-  bool fit_k3 = false;
+  // The distortion model; empty (the default): chosen, the one of lowest
+  // BIC on the corners. A model with more coefficients than the lens needs
+  // fits the corners' noise and drags the principal point and the focal
+  // length with it: a dome's narrow lens (tens of degrees across) bends its
+  // corners too little for p1, p2 to tell a decentred lens from a shifted
+  // principal point, or r^6 to tell k3 from k1, k2 and the focal length
+  // (docs/cameras.md: a pixel's point on the sample plane moves by 1-2 px).
+  std::optional<DistortionModel> distortion;
   // cornerSubPix's search window: half its side (px). Must stay below half a
   // square's size in the image.
   int subpixel_half_window_px = 5;
@@ -47,6 +70,15 @@ struct CheckerboardCalibrationOptions {
   core::ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
+};
+
+// One distortion model fitted to the corners.
+struct DistortionCandidate {
+  DistortionModel model = DistortionModel::kNone;
+  double rms_px = 0.0;  // reprojection error over every corner
+  // Schwarz's criterion on the 2 x corners residuals with 4 intrinsics, the
+  // model's coefficients and 6 pose parameters per image.
+  double bic = 0.0;
 };
 
 struct CheckerboardCalibrationSummary : core::Summary {
@@ -63,11 +95,17 @@ struct CheckerboardCalibrationSummary : core::Summary {
   std::vector<std::string> used;
   std::vector<double> image_rms_px;
   std::vector<std::string> rejected;
+  // The distortion model of `lens`, every model fitted (the simplest first;
+  // one when the options fix it) and why this one was chosen.
+  DistortionModel distortion_model = DistortionModel::kNone;
+  std::vector<DistortionCandidate> candidates;
+  std::string distortion_reason;
 };
 
 // Calibrates the lens from `images` (all the same size; 8- or 16-bit, grey
 // or colour), named in messages by `names` (when as many as the images,
-// otherwise "image <index>"). kSuccess with the lens; kInvalidOptions,
+// otherwise "image <index>"). The corners are found once and every
+// candidate distortion model is fitted to them. kSuccess with the lens; kInvalidOptions,
 // kInvalidInput (empty or mixed-size images, no plane image), or kFailure
 // (too few boards found, the plane image without one, RMS or tilt beyond
 // their limits) with the message naming the images and figures concerned.
