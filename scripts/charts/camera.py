@@ -26,17 +26,23 @@ def main(chart_dir):
         series = defaultdict(list)
         for r in rows:
             if r["lens"] == lens:
-                series[r["model"]].append((int(r["images"]), float(r["time_ms"]), float(r["plane_rms_px"]), r["chosen"]))
+                series[r["model"]].append((int(r["images"]), float(r["time_ms"]), float(r["plane_rms_px"]), r["chosen"],
+                                           r["trusted"] == "1"))
         top, bottom = axes[0][column], axes[1][column]
         for model in MODELS:
             points = sorted(series.get(model, []))
             if not points:
                 continue
             width = 2.2 if model == "auto" else 1.0
-            top.plot([p[1] for p in points], [p[2] for p in points], STYLE[model], lw=width, label=model)
+            line, = top.plot([p[1] for p in points], [p[2] for p in points], STYLE[model], lw=width, label=model)
             bottom.plot([p[0] for p in points], [p[2] for p in points], STYLE[model], lw=width, label=model)
+            # A calibration that refused its result (the corners do not reach the image's): hollow.
+            refused = [p for p in points if not p[4]]
+            for ax, x in ((top, 1), (bottom, 0)):
+                ax.plot([p[x] for p in refused], [p[2] for p in refused], STYLE[model][0], ms=10, mfc="none",
+                        mec=line.get_color(), ls="none")
             if model == "auto":
-                for images, time_ms, error, chosen in points:
+                for images, time_ms, error, chosen, _ in points:
                     top.annotate(chosen, (time_ms, error), fontsize=7, xytext=(4, 4), textcoords="offset points")
         for ax in (top, bottom):
             ax.set_yscale("log")
@@ -47,7 +53,8 @@ def main(chart_dir):
         top.set_title(lens)
         bottom.set_xlabel("photographs of the board")
     axes[0][0].legend(fontsize=8)
-    fig.suptitle("Checkerboard lens calibration, 384 x 384 px, noise 0.5 % of full scale")
+    fig.suptitle("Checkerboard lens calibration, 384 x 384 px, noise 0.5 % of full scale "
+                 "(ringed: refused, the corners do not reach the image's)")
     fig.tight_layout()
     fig.savefig(chart_dir / "camera_error_vs_time.png", dpi=110)
 

@@ -127,6 +127,24 @@ TEST(CameraCalibration, RefusesATiltedCamera) {
   EXPECT_NE(summary.message.find("tilted"), std::string::npos) << summary.message;
 }
 
+// Boards photographed only about the image's centre leave its outer part to
+// extrapolation: refused, saying where to put the board.
+TEST(CameraCalibration, BoardsThatDoNotReachTheImagesCornersFail) {
+  std::vector<Eigen::Isometry3d> poses = Poses();
+  poses.resize(5);  // flat and tilted about the centre: enough for a fit, not for the distortion outside
+  const auto summary = CalibrateFromCheckerboards(Options(), Render(TrueCamera(), poses));
+  EXPECT_EQ(summary.termination, Termination::kFailure);
+  EXPECT_NEAR(summary.corner_reach, 0.44, 0.03);
+  EXPECT_NE(summary.message.find("the corners found reach 43.9 % of the way"), std::string::npos) << summary.message;
+  EXPECT_NE(summary.message.find("near the image's corners"), std::string::npos) << summary.message;
+  // The boards moved towards the corners reach far enough.
+  poses = Poses();
+  poses.resize(9);
+  const auto covered = CalibrateFromCheckerboards(Options(), Render(TrueCamera(), poses));
+  EXPECT_EQ(covered.termination, Termination::kSuccess) << covered.message;
+  EXPECT_GT(covered.corner_reach, 0.7);
+}
+
 TEST(CameraCalibration, PlaneImageWithoutBoardFails) {
   std::vector<Eigen::Isometry3d> poses = Poses();
   poses.resize(5);

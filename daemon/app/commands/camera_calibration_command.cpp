@@ -57,6 +57,7 @@ nlohmann::json SummaryJson(const solvers::camera::CheckerboardCalibrationSummary
                 {"distortion", s.distortion_std}}},
               {"rms_px", s.rms_px},
               {"tilt_deg", s.tilt_deg},
+              {"corner_reach", s.corner_reach},
               {"used", s.used},
               {"image_rms_px", s.image_rms_px},
               {"rejected", s.rejected},
@@ -114,8 +115,9 @@ int Execute(Options o) {
     std::printf("distortion k1 %.5f k2 %.5f p1 %.6f p2 %.6f k3 %.5f\n", lens.distortion[0], lens.distortion[1],
                 lens.distortion[2], lens.distortion[3], lens.distortion[4]);
     std::printf("distortion model %s\n", s.distortion_reason.c_str());
-    std::printf("camera %.2f mm above the sample plane, tilted %.3f deg; RMS reprojection error %.3f px\n",
-                lens.distance_mm, s.tilt_deg, s.rms_px);
+    std::printf("camera %.2f mm above the sample plane, tilted %.3f deg; RMS reprojection error %.3f px; corners "
+                "reach %.0f %% of the way to the image's corners\n",
+                lens.distance_mm, s.tilt_deg, s.rms_px, 100.0 * s.corner_reach);
   }
   if (!s.IsSolutionUsable()) {
     // Bad options or images are the caller's to fix; a fit the data do not support is a failed calibration.

@@ -146,6 +146,18 @@ LensFit ChooseLens(const std::vector<std::vector<cv::Point3f>>& boards,
   return std::move(*best);
 }
 
+// The largest distance of a corner found from the principal point over the
+// farthest image corner's.
+double CornerReach(const std::vector<std::vector<cv::Point2f>>& corners, const PinholeLens& lens, cv::Size size) {
+  const double w = size.width - 1.0, h = size.height - 1.0;
+  const double dx = std::max(lens.cx_px, w - lens.cx_px), dy = std::max(lens.cy_px, h - lens.cy_px);
+  const double farthest = std::hypot(dx, dy);
+  double reach = 0.0;
+  for (const auto& view : corners)
+    for (const cv::Point2f& p : view) reach = std::max(reach, std::hypot(p.x - lens.cx_px, p.y - lens.cy_px));
+  return reach / farthest;
+}
+
 }  // namespace
 
 bool CheckerboardCalibrationOptions::IsValid(std::string* why) const {
@@ -157,6 +169,7 @@ bool CheckerboardCalibrationOptions::IsValid(std::string* why) const {
   if (min_images < 3) return core::Refuse(why, "min_images must be at least 3 (two poses do not fix the intrinsics)");
   if (!(max_rms_px > 0.0)) return core::Refuse(why, "max_rms_px must be positive");
   if (!(max_tilt_deg > 0.0 && max_tilt_deg < 90.0)) return core::Refuse(why, "max_tilt_deg must lie in (0, 90)");
+  if (!(min_corner_reach >= 0.0 && min_corner_reach <= 1.0)) return core::Refuse(why, "min_corner_reach must lie in [0, 1]");
   if (subpixel_half_window_px < 1) return core::Refuse(why, "subpixel_half_window_px must be at least 1");
   return true;
 }
@@ -235,6 +248,7 @@ CheckerboardCalibrationSummary CalibrateFromCheckerboards(const CheckerboardCali
     summary.distortion_std[static_cast<std::size_t>(i)] = std_intrinsics.at<double>(4 + i);
   }
   for (int i = 0; i < fit.per_view_rms.rows; ++i) summary.image_rms_px.push_back(fit.per_view_rms.at<double>(i));
+  summary.corner_reach = CornerReach(corners, lens, images[0].size());
 
   // The plane image's board: its normal n in the camera's frame against the
   // optical axis gives the tilt, and the plane n.x = n.t its distance from
@@ -258,6 +272,14 @@ CheckerboardCalibrationSummary CalibrateFromCheckerboards(const CheckerboardCali
     figures << "the camera is tilted " << summary.tilt_deg << " deg from the normal of the board in " << plane_name
             << " (limit " << options.max_tilt_deg
             << " deg): the model needs a camera looking straight down on a board lying flat on the sample plane";
+    return timer.End(&summary, core::Termination::kFailure, figures.str());
+  }
+  if (!(summary.corner_reach >= options.min_corner_reach)) {
+    figures << "the corners found reach " << 100.0 * summary.corner_reach
+            << " % of the way from the principal point to the image's corners (at least "
+            << 100.0 * options.min_corner_reach
+            << " % needed): the distortion beyond them would be extrapolated; add photographs with the board near "
+               "the image's corners and edges";
     return timer.End(&summary, core::Termination::kFailure, figures.str());
   }
   std::string why;

@@ -63,6 +63,14 @@ struct CheckerboardCalibrationOptions {
   // principal point, or r^6 to tell k3 from k1, k2 and the focal length
   // (docs/cameras.md: a pixel's point on the sample plane moves by 1-2 px).
   std::optional<DistortionModel> distortion;
+  // The corners found must reach at least this fraction of the way from the
+  // principal point to the image's farthest corner (corner_reach). Beyond
+  // them the distortion is extrapolated, and its highest terms grow with r^5:
+  // at 0.6 the image's corners lie 1.7x out, where such a term is 13x what
+  // the fit saw at the reach (sub-pixel for a corner noise of 0.05 px); at
+  // 0.44, four central photographs' reach, 60x, and a full model misses by
+  // 9 px there (docs/cameras.md).
+  double min_corner_reach = 0.6;
   // cornerSubPix's search window: half its side (px). Must stay below half a
   // square's size in the image.
   int subpixel_half_window_px = 5;
@@ -90,6 +98,10 @@ struct CheckerboardCalibrationSummary : core::Summary {
   std::array<double, 5> distortion_std{};
   double rms_px = 0.0;     // reprojection error over every corner of every used image
   double tilt_deg = 0.0;   // optical axis from the plane image's board normal
+  // How far out the corners found reach: the largest distance of one from
+  // the principal point, as a fraction of the farthest image corner's.
+  // Beyond it the distortion is extrapolated.
+  double corner_reach = 0.0;
   // The images whose board was found, each with its RMS reprojection error
   // (px), and those without a board (by name).
   std::vector<std::string> used;
@@ -107,8 +119,9 @@ struct CheckerboardCalibrationSummary : core::Summary {
 // otherwise "image <index>"). The corners are found once and every
 // candidate distortion model is fitted to them. kSuccess with the lens; kInvalidOptions,
 // kInvalidInput (empty or mixed-size images, no plane image), or kFailure
-// (too few boards found, the plane image without one, RMS or tilt beyond
-// their limits) with the message naming the images and figures concerned.
+// (too few boards found, the plane image without one, RMS, tilt or the
+// corners' reach beyond their limits) with the message naming the images and
+// figures concerned.
 CheckerboardCalibrationSummary CalibrateFromCheckerboards(const CheckerboardCalibrationOptions& options,
                                                           const std::vector<cv::Mat>& images,
                                                           const std::vector<std::string>& names = {});
