@@ -1,7 +1,10 @@
-// Inverse lighting and environment-map throughput on a 1024 x 1024 sphere.
+// Inverse lighting and environment-map throughput on a 1024 x 1024 sphere;
+// near LEDs placed from three chrome balls.
 #include "photorig/solvers/lighting/envmap.h"
 #include "photorig/solvers/lighting/inverse_lighting.h"
+#include "photorig/solvers/lighting/led_positions.h"
 #include "photorig/solvers/lighting/relight.h"
+#include "led_dome_scene.h"
 #include "synthetic_sphere.h"
 
 #include <benchmark/benchmark.h>
@@ -75,5 +78,16 @@ void BM_MirrorBallUnwrap1024(benchmark::State& state) {
 BENCHMARK(BM_MirrorBallUnwrap1024)->Unit(benchmark::kMillisecond);
 
 }  // namespace
+
+// Twelve near LEDs placed from three 17 mm chrome balls, 384 x 384 frames:
+// the balls found once, then per LED a highlight on each and the rays met.
+void BM_LedPositions12(benchmark::State& state) {
+  static const std::vector<cv::Mat> frames =
+      testing::RenderLedFrames(false, testing::ThreeBalls(), testing::LedPositionsMm());
+  const photorig::solvers::camera::Camera dome_camera = testing::DomeCamera(false);
+  for (auto _ : state) benchmark::DoNotOptimize(EstimateLedPositions(frames, dome_camera, testing::ThreeBalls()));
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(frames.size()));
+}
+BENCHMARK(BM_LedPositions12)->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

@@ -1,13 +1,18 @@
 // Writes CHART_DIR/lighting_direction_error.csv: mirror-sphere light-direction
 // error over a 48-LED dome vs sphere radius (noise 3 DN) and vs noise (radius
 // 100 px), orthographic camera, with the mean predicted uncertainty; and
-// lighting_envmap_roundtrip.csv: lat-long -> mirror ball -> lat-long error vs ball size.
+// lighting_envmap_roundtrip.csv: lat-long -> mirror ball -> lat-long error vs ball size;
+// lighting_led_positions.csv: near LEDs placed from three chrome balls (12 LEDs
+// of a 250 mm dome), error against the truth and time vs ball size and noise,
+// orthographic and through a pinhole.
 #include "photorig/solvers/lighting/envmap.h"
 #include "photorig/solvers/lighting/mirror_sphere.h"
+#include "led_dome_scene.h"
 #include "synthetic_sphere.h"
 
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <string>
 
 namespace {
@@ -47,6 +52,27 @@ void Sweep(std::ofstream& out, const std::string& name, double radius_px, double
               noise_dn, sum / std::max(used, 1), worst, flagged);
 }
 
+void LedPositionSweep(std::ofstream& out, const std::string& name, double radius_mm, double noise_dn, bool pinhole) {
+  const std::vector<Eigen::Vector3d> truth = testing::LedPositionsMm();
+  const MirrorSphereLayout balls = testing::ThreeBalls(radius_mm);
+  const LedPositionSummary summary =
+      EstimateLedPositions(testing::RenderLedFrames(pinhole, balls, truth, noise_dn), testing::DomeCamera(pinhole), balls);
+  const testing::PositionErrors e = testing::ErrorsAgainst(summary, truth);
+  // NaN figures where no LED is placed (each flagged).
+  double predicted = summary.usable > 0 ? 0.0 : std::numeric_limits<double>::quiet_NaN();
+  for (const LedPositionEstimate& led : summary.leds)
+    if (led.usable) predicted += led.predicted_sigma_mm / summary.usable;
+  const double radius_px = radius_mm / testing::DomeCamera(false).pixel_pitch_mm;
+  out << name << "," << (pinhole ? "pinhole" : "orthographic") << "," << radius_mm << "," << radius_px << ","
+      << noise_dn << "," << e.mean_mm << "," << e.max_mm << "," << predicted << "," << summary.unusable << ","
+      << e.beyond_two_sigma << ","
+      << summary.total_ms / truth.size() << "\n";
+  std::printf("LED positions, %s sweep, %s: balls %.0f mm (%.0f px), noise %.1f DN: mean %.3f mm, max %.3f mm "
+              "(predicted sigma %.3f mm, %d beyond 2 sigma), %d unusable, %.2f ms per LED\n",
+              name.c_str(), pinhole ? "pinhole" : "orthographic", radius_mm, radius_px, noise_dn, e.mean_mm, e.max_mm,
+              predicted, e.beyond_two_sigma, summary.unusable, summary.total_ms / truth.size());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -84,6 +110,12 @@ int main(int argc, char** argv) {
       envmap << size << "," << cone << "," << error << "\n";
       std::printf("envmap ball %d px, blind cone %.0f deg: relative error %.4f\n", size, cone, error);
     }
+  }
+  std::ofstream leds(dir + "/lighting_led_positions.csv");
+  leds << "sweep,camera,radius_mm,radius_px,noise_dn,mean_error_mm,max_error_mm,mean_predicted_mm,unusable,beyond_two_sigma,ms_per_led\n";
+  for (const bool pinhole : {false, true}) {
+    for (double radius : {6.0, 10.0, 17.0, 25.0}) LedPositionSweep(leds, "radius", radius, 2.0, pinhole);
+    for (double noise : {0.5, 8.0, 32.0, 128.0}) LedPositionSweep(leds, "noise", 17.0, noise, pinhole);
   }
   return 0;
 }

@@ -1,5 +1,5 @@
-"""Draws docs/charts/lighting_direction_error.png and lighting_envmap_roundtrip.png from the
-CSVs written by photorig-lighting-chart. Usage: lighting.py CHART_DIR"""
+"""Draws docs/charts/lighting_direction_error.png, lighting_envmap_roundtrip.png and
+lighting_led_positions.png from the CSVs written by photorig-lighting-chart. Usage: lighting.py CHART_DIR"""
 
 import csv
 import sys
@@ -56,6 +56,37 @@ def main(chart_dir):
     ax.legend()
     fig.tight_layout()
     fig.savefig(chart_dir / "lighting_envmap_roundtrip.png", dpi=110)
+
+    leds = rows(chart_dir / "lighting_led_positions.csv")
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    flagged = defaultdict(list)  # per panel: the configurations whose every LED was flagged uncertain
+    for camera, marker in (("orthographic", "o"), ("pinhole", "s")):
+        for ax, sweep, key, label in ((axes[0], "radius", "radius_px", "ball radius in the image (px), noise 2 DN"),
+                                      (axes[1], "noise", "noise_dn", "read noise (DN, highlight 3000 DN), balls 49 px")):
+            sel = [r for r in leds if r["sweep"] == sweep and r["camera"] == camera]
+            x = [float(r[key]) for r in sel]
+            ax.plot(x, [float(r["mean_error_mm"]) for r in sel], marker + "-", label=f"{camera}: mean error")
+            ax.plot(x, [float(r["max_error_mm"]) for r in sel], marker + "--", label=f"{camera}: max error")
+            ax.plot(x, [float(r["mean_predicted_mm"]) for r in sel], marker + ":", label=f"{camera}: mean predicted sigma")
+            flagged[ax].extend(f"{camera} at {float(r[key]):.3g}: {r['unusable']} of 12 flagged, none placed"
+                               for r in sel if int(r["unusable"]) > 0)
+            ax.set_xscale("log")
+            ax.set_xlabel(label)
+        sel = [r for r in leds if r["camera"] == camera]
+        axes[2].plot([float(r["ms_per_led"]) for r in sel], [float(r["mean_error_mm"]) for r in sel], marker,
+                     label=camera)
+    for ax in axes:
+        if flagged[ax]:
+            ax.text(0.02, 0.02, "\n".join(flagged[ax]), transform=ax.transAxes, fontsize=7, va="bottom")
+        ax.set_yscale("log")
+        ax.set_ylabel("LED position error (mm)")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=7, loc="upper right")
+    axes[2].set_xlabel("time per LED (ms), every configuration")
+    axes[2].legend()
+    axes[0].set_title("12 LEDs of a 250 mm dome, three chrome balls")
+    fig.tight_layout()
+    fig.savefig(chart_dir / "lighting_led_positions.png", dpi=110)
 
 
 if __name__ == "__main__":

@@ -1,5 +1,5 @@
 #include "photorig/solvers/lighting/led_positions.h"
-#include "synthetic_sphere.h"
+#include "led_dome_scene.h"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -10,82 +10,14 @@
 namespace photorig::solvers::lighting {
 namespace {
 
-using testing::SyntheticCamera;
-using testing::SyntheticImageOptions;
-using testing::SyntheticLight;
-using testing::SyntheticSphere;
+using testing::DomeCamera;
+using testing::ErrorsAgainst;
+using testing::LedPositionsMm;
+using testing::PositionErrors;
+using testing::RenderLedFrames;
+using testing::ThreeBalls;
 
-// A 384 x 384 camera over a 50 cm dome, as config/rigs/sim-dome-near.yaml:
-// orthographic at 0.35 mm per pixel, or a pinhole 250 mm above the plane
-// seeing the same 0.35 mm per pixel there.
-constexpr int kSize = 384;
-constexpr double kPitchMm = 0.35, kFocalPx = 716.55, kDistanceMm = 250.0;
-// The LED's highlight lobe: 2 deg wide, as a diffused LED's is.
-constexpr double kLobeDeg = 2.0;
-
-camera::Camera DomeCamera(bool pinhole) {
-  camera::Camera camera = camera::Camera::Orthographic(kSize, kSize, kPitchMm);
-  if (!pinhole) return camera;
-  camera.projection = camera::Projection::kPinhole;
-  camera.pinhole = {kFocalPx, kFocalPx, 0.5 * (kSize - 1), 0.5 * (kSize - 1), {}, kDistanceMm};
-  return camera;
-}
-
-// Three 17 mm balls in a triangle, so every LED sees two baselines.
-MirrorSphereLayout ThreeBalls() { return {{{-30.0, -20.0, 0.0}, {30.0, -20.0, 0.0}, {0.0, 35.0, 0.0}}, 17.0}; }
-
-// Every fourth LED of a dome of rings on a 250 mm hemisphere.
-std::vector<Eigen::Vector3d> LedPositionsMm() {
-  std::vector<Eigen::Vector3d> positions;
-  const std::vector<Eigen::Vector3d> directions = testing::DomeDirections();
-  for (std::size_t k = 0; k < directions.size(); k += 4) positions.push_back(250.0 * directions[k]);
-  return positions;
-}
-
-// One frame per LED showing every ball, rendered by the tests' own ray tracer
-// (the synthetic frame is the dome's: orthographic x = (u + 0.5 - W/2) p; the
-// pinhole sits at the origin, so the dome is moved down by its height).
-std::vector<cv::Mat> RenderFrames(bool pinhole, const MirrorSphereLayout& balls, const std::vector<Eigen::Vector3d>& leds) {
-  SyntheticCamera camera;
-  camera.pixel_pitch_mm = kPitchMm;
-  camera.pinhole = pinhole;
-  camera.fx_px = camera.fy_px = kFocalPx;
-  camera.cx_px = camera.cy_px = 0.5 * (kSize - 1);
-  const Eigen::Vector3d to_camera(0.0, 0.0, pinhole ? -kDistanceMm : 0.0);
-  SyntheticImageOptions options;
-  options.width = options.height = kSize;
-  options.noise_sigma = 2.0;
-  std::vector<cv::Mat> frames;
-  for (std::size_t k = 0; k < leds.size(); ++k) {
-    SyntheticLight light;
-    light.near = true;
-    light.position_mm = leds[k] + to_camera;
-    light.angular_sigma_deg = kLobeDeg;
-    cv::Mat frame;
-    for (std::size_t s = 0; s < balls.centres_mm.size(); ++s) {
-      SyntheticSphere ball{balls.centres_mm[s] + to_camera, balls.radius_mm};
-      options.seed = static_cast<unsigned>(10 * k + s + 1);
-      const cv::Mat image = testing::RenderMirrorSphere(camera, ball, {light}, options);
-      frame = frame.empty() ? image : cv::max(frame, image);  // the balls do not overlap in the image
-    }
-    frames.push_back(frame);
-  }
-  return frames;
-}
-
-struct Errors {
-  double mean_mm = 0.0, max_mm = 0.0;
-};
-
-Errors PositionErrors(const LedPositionSummary& summary, const std::vector<Eigen::Vector3d>& truth) {
-  Errors e;
-  for (std::size_t k = 0; k < truth.size(); ++k) {
-    const double error = (summary.leds[k].position_mm - truth[k]).norm();
-    e.mean_mm += error / truth.size();
-    e.max_mm = std::max(e.max_mm, error);
-  }
-  return e;
-}
+constexpr int kSize = testing::kDomeFrameSize;
 
 // Error budget: the highlight's first moment is good to about 0.01 px here
 // (a smooth lobe, each pixel integrated), which on a ball of 49 px radius
@@ -97,7 +29,7 @@ Errors PositionErrors(const LedPositionSummary& summary, const std::vector<Eigen
 TEST(LedPositions, ThreeBallsPlaceNearLedsOrthographic) {
   const std::vector<Eigen::Vector3d> truth = LedPositionsMm();
   const LedPositionSummary summary =
-      EstimateLedPositions(RenderFrames(false, ThreeBalls(), truth), DomeCamera(false), ThreeBalls());
+      EstimateLedPositions(RenderLedFrames(false, ThreeBalls(), truth), DomeCamera(false), ThreeBalls());
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   ASSERT_EQ(summary.leds.size(), truth.size());
   EXPECT_EQ(summary.unusable, 0);
@@ -105,7 +37,7 @@ TEST(LedPositions, ThreeBallsPlaceNearLedsOrthographic) {
     EXPECT_TRUE(led.usable) << led.note;
     EXPECT_EQ(led.used_spheres.size(), 3u);
   }
-  const Errors e = PositionErrors(summary, truth);
+  const PositionErrors e = ErrorsAgainst(summary, truth);
   EXPECT_LT(e.mean_mm, 0.5);  // measured: 0.26 mean, 0.42 max
   EXPECT_LT(e.max_mm, 1.0);
 }
@@ -113,10 +45,10 @@ TEST(LedPositions, ThreeBallsPlaceNearLedsOrthographic) {
 TEST(LedPositions, ThreeBallsPlaceNearLedsThroughAPinhole) {
   const std::vector<Eigen::Vector3d> truth = LedPositionsMm();
   const LedPositionSummary summary =
-      EstimateLedPositions(RenderFrames(true, ThreeBalls(), truth), DomeCamera(true), ThreeBalls());
+      EstimateLedPositions(RenderLedFrames(true, ThreeBalls(), truth), DomeCamera(true), ThreeBalls());
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.message;
   EXPECT_EQ(summary.unusable, 0);
-  const Errors e = PositionErrors(summary, truth);
+  const PositionErrors e = ErrorsAgainst(summary, truth);
   EXPECT_LT(e.mean_mm, 0.5);  // measured: 0.18 mean, 0.31 max
   EXPECT_LT(e.max_mm, 1.0);
   for (std::size_t k = 0; k < truth.size(); ++k) {
@@ -129,7 +61,7 @@ TEST(LedPositions, ThreeBallsPlaceNearLedsThroughAPinhole) {
 TEST(LedPositions, AMissingHighlightLeavesTwoRaysOrFlagsTheLed) {
   const MirrorSphereLayout two{{{-30.0, 0.0, 0.0}, {30.0, 0.0, 0.0}}, 17.0};
   const std::vector<Eigen::Vector3d> leds = {{0.0, 176.777, 176.777}};
-  std::vector<cv::Mat> frames = RenderFrames(false, ThreeBalls(), leds);
+  std::vector<cv::Mat> frames = RenderLedFrames(false, ThreeBalls(), leds);
   // Ball 2's highlight hidden (a finger on the ball, a dead LED's ghost).
   const LedPositionSummary clean = EstimateLedPositions(frames, DomeCamera(false), ThreeBalls());
   const Circle c = clean.sphere_circles[2];
@@ -143,7 +75,7 @@ TEST(LedPositions, AMissingHighlightLeavesTwoRaysOrFlagsTheLed) {
   EXPECT_LT((three.leds[0].position_mm - leds[0]).norm(), 3.0);
 
   // Two balls, one highlight gone: no position, and the report says why.
-  std::vector<cv::Mat> pair = RenderFrames(false, two, leds);
+  std::vector<cv::Mat> pair = RenderLedFrames(false, two, leds);
   const Circle left = EstimateLedPositions(pair, DomeCamera(false), two).sphere_circles[0];
   cv::circle(pair[0], cv::Point(static_cast<int>(left.cx_px), static_cast<int>(left.cy_px)),
              static_cast<int>(left.radius_px) + 2, cv::Scalar(20.0), cv::FILLED);
@@ -158,9 +90,32 @@ TEST(LedPositions, AMissingHighlightLeavesTwoRaysOrFlagsTheLed) {
   EXPECT_FALSE(flagged.IsSolutionUsable());
 }
 
+// Balls of 17 px radius in the image make highlights a pixel across, placed
+// to no better than the pixel: the rays then fix an LED to about 20 mm, and
+// each LED is flagged uncertain, not placed (it had been placed 7 mm off on
+// average, four of them beyond twice their predicted sigma).
+TEST(LedPositions, HighlightsSmallerThanAPixelLeaveEachLedUncertain) {
+  const std::vector<Eigen::Vector3d> truth = LedPositionsMm();
+  const MirrorSphereLayout small = ThreeBalls(6.0);
+  const LedPositionSummary summary = EstimateLedPositions(RenderLedFrames(false, small, truth), DomeCamera(false), small);
+  ASSERT_EQ(summary.leds.size(), truth.size());
+  EXPECT_EQ(summary.usable, 0);
+  EXPECT_FALSE(summary.IsSolutionUsable());
+  for (const LedPositionEstimate& led : summary.leds) {
+    EXPECT_FALSE(led.usable);
+    EXPECT_TRUE(led.flags & kLedUncertain) << LedFlagsToString(led.flags) << ": " << led.note;
+    EXPECT_NE(led.note.find("larger balls"), std::string::npos) << led.note;
+  }
+  // Balls of 29 px still place every LED, each within twice its predicted sigma.
+  const MirrorSphereLayout medium = ThreeBalls(10.0);
+  const LedPositionSummary placed = EstimateLedPositions(RenderLedFrames(false, medium, truth), DomeCamera(false), medium);
+  EXPECT_EQ(placed.usable, static_cast<int>(truth.size()));
+  EXPECT_EQ(ErrorsAgainst(placed, truth).beyond_two_sigma, 0);
+}
+
 TEST(LedPositions, AMisplacedBallFlagsItsLedsRaysApart) {
   const std::vector<Eigen::Vector3d> truth = LedPositionsMm();
-  const std::vector<cv::Mat> frames = RenderFrames(false, ThreeBalls(), truth);
+  const std::vector<cv::Mat> frames = RenderLedFrames(false, ThreeBalls(), truth);
   // The third ball said to lie 1 mm off where it is: its rays turn by about
   // 2 x 1 / 17 rad and miss the other two by centimetres.
   MirrorSphereLayout told = ThreeBalls();

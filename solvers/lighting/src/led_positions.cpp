@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <sstream>
 
 namespace photorig::solvers::lighting {
 
@@ -20,8 +21,10 @@ bool LedPositionOptions::IsValid(std::string* why) const {
 }
 
 std::string LedFlagsToString(unsigned flags) {
-  static constexpr std::array<std::pair<unsigned, const char*>, 3> kNames = {
-      {{kLedTooFewRays, "too-few-rays"}, {kLedRaysApart, "rays-apart"}, {kLedNotTriangulated, "not-triangulated"}}};
+  static constexpr std::array<std::pair<unsigned, const char*>, 4> kNames = {{{kLedTooFewRays, "too-few-rays"},
+                                                                              {kLedRaysApart, "rays-apart"},
+                                                                              {kLedNotTriangulated, "not-triangulated"},
+                                                                              {kLedUncertain, "uncertain"}}};
   return core::FlagNames(flags, kNames);
 }
 
@@ -142,9 +145,26 @@ void RefineHighlight(const cv::Mat& frame, const SphereGeometry& ball, LightDire
   // the simulated dome's position errors are 0.89 times the predicted sigma
   // (RMS; 1.9 at most). The normal turns by sigma over the radius and cos(theta).
   constexpr double kModelPx = 0.02;
-  double squares = 0.0;
-  for (const Eigen::Vector2d& at : used) squares += (at - highlight->highlight_px).squaredNorm();
-  const double sigma_px = std::hypot(noise * std::sqrt(0.5 * squares) / sum, kModelPx);
+  // A blob narrower than a pixel is located to no better than the pixel: the
+  // first moment of pixel-integrated light is that of each pixel's light put
+  // at the pixel's centre, off by E[round(x) - x] under the blob, whose RMS
+  // over where the blob falls is 1/sqrt(12) px for a point and falls as
+  // exp(-2 pi^2 s^2) for a blob of width s (the sawtooth's first harmonic).
+  // s^2 is the light's second moment less a pixel's own 1/12, over the
+  // pixels clear of the noise (the noise's own spread would widen it).
+  double squares = 0.0, moment = 0.0, clear = 0.0;
+  for (const Eigen::Vector2d& at : used) {
+    const double d2 = (at - highlight->highlight_px).squaredNorm();
+    squares += d2;
+    const double w = window.at<double>(static_cast<int>(at.y()) - r0, static_cast<int>(at.x()) - c0) - background;
+    if (w <= 3.0 * noise) continue;
+    moment += w * d2;
+    clear += w;
+  }
+  const double blob_variance = clear > 0.0 ? std::max(0.0, 0.5 * moment / clear - 1.0 / 12.0) : 0.0;
+  const double sampling_px = std::exp(-2.0 * M_PI * M_PI * blob_variance) / std::sqrt(12.0);
+  const double sigma_px = std::sqrt(std::pow(noise * std::sqrt(0.5 * squares) / sum, 2) + kModelPx * kModelPx +
+                                    sampling_px * sampling_px);
   const double cos_normal = std::clamp(point.to_camera.dot(point.normal), 1e-6, 1.0);
   highlight->uncertainty_deg = 2.0 * sigma_px / (ball.circle.radius_px * cos_normal) / kDegToRad;
 }
@@ -208,6 +228,18 @@ void PlaceLed(const std::vector<Ray>& rays, const LedPositionOptions& options, L
     led->flags |= kLedRaysApart;
     led->note = "the rays pass " + std::to_string(led->rms_ray_distance_mm) + " mm RMS from their meeting point, more than " +
                 std::to_string(led->ray_tolerance_mm) + " mm";
+    return;
+  }
+  // The position's error as a direction from the sample's centre.
+  const double uncertainty_deg = std::atan2(led->predicted_sigma_mm, led->position_mm.norm()) / kDegToRad;
+  if (uncertainty_deg > options.highlight.max_uncertainty_deg) {
+    led->flags |= kLedUncertain;
+    std::ostringstream note;
+    note.precision(3);
+    note << "the position is known to " << led->predicted_sigma_mm << " mm (one sigma), " << uncertainty_deg
+         << " deg seen from the sample, more than " << options.highlight.max_uncertainty_deg
+         << " deg: larger balls or brighter, sharper highlights place it better";
+    led->note = note.str();
     return;
   }
   led->usable = true;

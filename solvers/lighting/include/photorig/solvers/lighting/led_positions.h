@@ -34,9 +34,12 @@ struct LedPositionOptions {
   // max(min_ray_tolerance_mm, ray_tolerance_sigmas x the RMS distance the
   // highlights' predicted uncertainties imply); beyond it the rays do not
   // meet in one LED (a ball misplaced, a stray reflection) and the LED is
-  // flagged rays-apart. The prediction is the highlight centre's: its noise
-  // and a 0.02 px model floor (led_positions.cpp). The floor in mm keeps a
+  // flagged rays-apart. The prediction is the highlight centre's: its noise,
+  // its sampling (a blob narrower than a pixel is placed to a pixel) and a
+  // 0.02 px model floor (led_positions.cpp). The floor in mm keeps a
   // prediction that is optimistic (a saturated blob) from flagging a good LED.
+  // A position whose predicted error subtends more than
+  // highlight.max_uncertainty_deg at the sample is flagged uncertain.
   double ray_tolerance_sigmas = 3.0;
   double min_ray_tolerance_mm = 0.5;
 
@@ -49,6 +52,9 @@ enum LedFlag : unsigned {
   kLedTooFewRays = 1u << 0,    // fewer than two balls show a usable highlight
   kLedRaysApart = 1u << 1,     // the rays pass further apart than the tolerance
   kLedNotTriangulated = 1u << 2,  // the rays are parallel, or the point lies behind a ball
+  // The predicted position error subtends more than highlight.max_uncertainty_deg
+  // at the sample's centre (balls too small in the image, faint or broad highlights).
+  kLedUncertain = 1u << 3,
 };
 std::string LedFlagsToString(unsigned flags);
 
