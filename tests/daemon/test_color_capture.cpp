@@ -162,6 +162,7 @@ TEST(ColourCapture, RawBayerFramesAreStoredByteForByteWithThePatternRecorded) {
   header.bit_depth = frame.bit_depth;
   header.mosaic = colour.rig.camera.mosaic;
   header.pixel_format = colour.rig.camera.pixel_format;
+  header.lights.resize(1);  // the LED the frame names
   const std::string run = (dir.path() / "run").string();
   RunWriter writer(run, header);
   config::CaptureStep step;
@@ -183,7 +184,11 @@ TEST(ColourCapture, RawBayerFramesAreStoredByteForByteWithThePatternRecorded) {
 }
 
 TEST(ColourCapture, RunsWithoutAMosaicLoadAsMonochrome) {
-  nlohmann::json manifest = ToJson(RunManifest{});
+  RunManifest header;
+  header.width = 8;
+  header.height = 6;
+  header.bit_depth = 12;
+  nlohmann::json manifest = ToJson(header);
   manifest["camera"].erase("mosaic");
   manifest["camera"].erase("pixel_format");
   EXPECT_EQ(RunManifestFromJson(manifest).mosaic, "mono");

@@ -65,13 +65,15 @@ TEST_P(FaultInjection, RunCompletesIntactOrFailsCleanlyWithTheLightsOff) {
   sim::SimCamera camera("cam", world);
 
   const std::vector<config::CaptureStep> steps = photorig::testing::DarkThenEachLight(kLeds);
-  RunManifest header;
-  header.width = 16;
-  header.height = 12;
-  RunWriter writer((dir.path() / "run").string(), header);
   config::CameraConfig camera_config;
   camera_config.width = 16;
   camera_config.height = 12;
+  RunManifest header;
+  header.width = camera_config.width;
+  header.height = camera_config.height;
+  header.bit_depth = camera_config.bit_depth;
+  header.lights.resize(kLeds);  // the LEDs the frames name
+  RunWriter writer((dir.path() / "run").string(), header);
   CaptureOptions options;
   options.frame_timeout_margin_ms = 5;
   options.retry.initial_backoff_ms = 1;
