@@ -1,12 +1,14 @@
-// photorig.calibrate_lights, calibrate_leds and calibrate_color: `photorig
-// calibrate lights --run`, `calibrate leds` and `calibrate color`
-// in-process, through the same pipelines (light_calibration.h,
-// led_positions.h, color_calibration.h), which write their results folders
-// as the CLI does.
+// photorig.calibrate_lights, calibrate_leds, calibrate_color and
+// calibrate_camera: `photorig calibrate lights --run`, `calibrate leds`,
+// `calibrate color` and `calibrate camera` in-process, through the same
+// pipelines (light_calibration.h, led_positions.h, color_calibration.h,
+// camera_calibration.h), which write their results folders and rigs as the
+// CLI does.
 
 #include "arrays.h"
 #include "bindings.h"
 #include "choices.h"
+#include "photorig/daemon/pipelines/camera_calibration.h"
 #include "photorig/daemon/pipelines/color_calibration.h"
 #include "photorig/daemon/pipelines/led_positions.h"
 #include "photorig/daemon/pipelines/light_calibration.h"
@@ -172,6 +174,46 @@ py::dict CalibrateColor(const daemon::ColorCalibrationRequest& request, const st
   return calibrated;
 }
 
+// `photorig calibrate camera`'s request; bad options raise ValueError with
+// IsValid's message.
+daemon::CameraCalibrationRequest CameraRequestOf(const std::vector<std::string>& images, const std::array<int, 2>& board,
+                                                 double square_mm, int plane_image, const std::string& rig,
+                                                 const std::string& out_rig, const std::string& distortion) {
+  daemon::CameraCalibrationRequest request;
+  solvers::camera::CheckerboardCalibrationOptions& options = request.options;
+  options.inner_corners_cols = board[0];
+  options.inner_corners_rows = board[1];
+  options.square_mm = square_mm;
+  options.plane_image = plane_image;
+  if (distortion != "auto")
+    options.distortion = ParseChoice(solvers::camera::kDistortionModelNames, distortion, "distortion (or auto)");
+  if (std::string why; !options.IsValid(&why)) throw py::value_error(why);
+  request.images = images;
+  request.base_rig = rig;
+  request.out_rig = out_rig;
+  return request;
+}
+
+py::dict CalibrateCamera(daemon::CameraCalibrationRequest request, ProgressBridge* bridge) {
+  request.options.progress = bridge->Callback();
+  daemon::CameraCalibrationResult result;
+  {
+    py::gil_scoped_release unlocked;
+    result = daemon::CalibrateCamera(request);  // std::invalid_argument: ValueError
+  }
+  bridge->RethrowIfFailed();
+  const solvers::core::Termination termination = result.summary.termination;
+  if (termination == solvers::core::Termination::kInvalidOptions ||
+      termination == solvers::core::Termination::kInvalidInput)
+    throw py::value_error(result.summary.message);
+  py::dict calibrated;
+  calibrated["summary"] = ToPython(daemon::ToJson(result, request));
+  calibrated["out_rig"] = result.rig_written ? py::cast(request.out_rig) : py::none();
+  calibrated["distortion_model"] =
+      solvers::core::NameOf(solvers::camera::kDistortionModelNames, result.summary.distortion_model);
+  return calibrated;
+}
+
 }  // namespace
 
 void BindCalibration(py::module_& m) {
@@ -273,6 +315,26 @@ void BindCalibration(py::module_& m) {
       "chosen one's name, or None), coefficients (terms, 3), input_scale, white_xyz, training_de and held_out_de "
       "(CIEDE2000 per patch, NaN: not used), patch_rgb, summary (report.json's fields) and directory. Options are "
       "the CLI's and CalibrationOptions' (models: None for all).");
+
+  const solvers::camera::CheckerboardCalibrationOptions lens;
+  m.def(
+      "calibrate_camera",
+      [](const std::vector<std::string>& images, const std::array<int, 2>& board, double square_mm, int plane_image,
+         const std::string& rig, const std::string& out_rig, const std::string& distortion, py::object progress) {
+        ProgressBridge bridge(std::move(progress));
+        return CalibrateCamera(CameraRequestOf(images, board, square_mm, plane_image, rig, out_rig, distortion),
+                               &bridge);
+      },
+      py::arg("images"), py::kw_only(), py::arg("board"), py::arg("square_mm"),
+      py::arg("plane_image") = lens.plane_image, py::arg("rig"), py::arg("out_rig"), py::arg("distortion") = "auto",
+      py::arg("progress") = py::none(),
+      "A pinhole lens from photographs of a flat checkerboard, one of them (plane_image, an index into images) "
+      "lying on the sample plane, as `photorig calibrate camera`: writes out_rig (rig with the calibrated lens) "
+      "when the calibration succeeds and returns summary, the CLI's JSON result (lens, deviations, rms_px, "
+      "tilt_deg, corner_reach, distortion_model and every candidate's BIC), out_rig (None when none was written) "
+      "and distortion_model. board: inner corners (cols, rows); distortion: auto (the model of lowest BIC) or "
+      "none, k1, k1-k2, k1-k2-p1-p2, k1-k2-p1-p2-k3. Bad options, unreadable images or an existing out_rig raise "
+      "ValueError; a calibration the photographs do not support returns its summary, termination \"failure\".");
 }
 
 }  // namespace photorig::python

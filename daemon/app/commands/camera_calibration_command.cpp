@@ -7,9 +7,7 @@
 #include "../command.h"
 #include "../command_output.h"
 #include "../progress_display.h"
-#include "photorig/daemon/io/lens_json.h"
 #include "photorig/daemon/pipelines/camera_calibration.h"
-#include "photorig/solvers/core/summary_json.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -44,33 +42,6 @@ int PlaneImageIndex(const std::string& plane, std::vector<std::string>* images) 
   return static_cast<int>(images->size()) - 1;
 }
 
-nlohmann::json SummaryJson(const solvers::camera::CheckerboardCalibrationSummary& s) {
-  nlohmann::json doc = solvers::core::ToJson(s);
-  doc.update({{"width_px", s.width_px},
-              {"height_px", s.height_px},
-              {"lens", daemon::PinholeLensJson(s.lens)},
-              {"std",
-               {{"fx_px", s.fx_std_px},
-                {"fy_px", s.fy_std_px},
-                {"cx_px", s.cx_std_px},
-                {"cy_px", s.cy_std_px},
-                {"distortion", s.distortion_std}}},
-              {"rms_px", s.rms_px},
-              {"tilt_deg", s.tilt_deg},
-              {"corner_reach", s.corner_reach},
-              {"used", s.used},
-              {"image_rms_px", s.image_rms_px},
-              {"rejected", s.rejected},
-              {"distortion_model", solvers::core::NameOf(solvers::camera::kDistortionModelNames, s.distortion_model)},
-              {"distortion_reason", s.distortion_reason}});
-  doc["candidates"] = nlohmann::json::array();
-  for (const solvers::camera::DistortionCandidate& c : s.candidates)
-    doc["candidates"].push_back({{"model", solvers::core::NameOf(solvers::camera::kDistortionModelNames, c.model)},
-                                 {"rms_px", c.rms_px},
-                                 {"bic", c.bic}});
-  return doc;
-}
-
 int Execute(Options o) {
   daemon::CameraCalibrationRequest request;
   solvers::camera::CheckerboardCalibrationOptions& options = request.options;
@@ -97,8 +68,7 @@ int Execute(Options o) {
   progress.EndLine();
 
   const solvers::camera::CheckerboardCalibrationSummary& s = result.summary;
-  ResultFields() = SummaryJson(s);
-  ResultFields()["out_rig"] = result.rig_written ? o.out_rig : "";
+  ResultFields() = daemon::ToJson(result, request);
   std::printf("boards found in %zu of %zu images", s.used.size(), request.images.size());
   for (std::size_t i = 0; i < s.used.size() && i < s.image_rms_px.size(); ++i)
     std::printf("%s %s %.3f px", i == 0 ? ":" : ",", s.used[i].c_str(), s.image_rms_px[i]);

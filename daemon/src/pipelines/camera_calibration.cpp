@@ -2,7 +2,9 @@
 
 #include "photorig/config/rig.h"
 #include "photorig/daemon/io/image_io.h"
+#include "photorig/daemon/io/lens_json.h"
 #include "photorig/daemon/io/utc_time.h"
+#include "photorig/solvers/core/summary_json.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -91,6 +93,35 @@ CameraCalibrationResult CalibrateCamera(const CameraCalibrationRequest& request)
   config::LoadRigConfig(request.out_rig);  // what was written loads, or this throws
   result.rig_written = true;
   return result;
+}
+
+nlohmann::json ToJson(const CameraCalibrationResult& result, const CameraCalibrationRequest& request) {
+  const solvers::camera::CheckerboardCalibrationSummary& s = result.summary;
+  nlohmann::json doc = solvers::core::ToJson(s);
+  doc.update({{"width_px", s.width_px},
+              {"height_px", s.height_px},
+              {"lens", PinholeLensJson(s.lens)},
+              {"std",
+               {{"fx_px", s.fx_std_px},
+                {"fy_px", s.fy_std_px},
+                {"cx_px", s.cx_std_px},
+                {"cy_px", s.cy_std_px},
+                {"distortion", s.distortion_std}}},
+              {"rms_px", s.rms_px},
+              {"tilt_deg", s.tilt_deg},
+              {"corner_reach", s.corner_reach},
+              {"used", s.used},
+              {"image_rms_px", s.image_rms_px},
+              {"rejected", s.rejected},
+              {"distortion_model", solvers::core::NameOf(solvers::camera::kDistortionModelNames, s.distortion_model)},
+              {"distortion_reason", s.distortion_reason},
+              {"out_rig", result.rig_written ? request.out_rig : ""}});
+  doc["candidates"] = nlohmann::json::array();
+  for (const solvers::camera::DistortionCandidate& c : s.candidates)
+    doc["candidates"].push_back({{"model", solvers::core::NameOf(solvers::camera::kDistortionModelNames, c.model)},
+                                 {"rms_px", c.rms_px},
+                                 {"bic", c.bic}});
+  return doc;
 }
 
 }  // namespace photorig::daemon

@@ -6,6 +6,8 @@
 
 #include "photorig/solvers/camera/calibration.h"
 
+#include <nlohmann/json.hpp>
+
 #include <string>
 #include <vector>
 
@@ -30,5 +32,12 @@ struct CameraCalibrationResult {
 // out_rig cannot be written. A calibration that fails is in the summary, and
 // no rig is written.
 CameraCalibrationResult CalibrateCamera(const CameraCalibrationRequest& request);
+
+// The calibration's figures as `photorig calibrate camera --json` prints them
+// (and the Python module returns them): the summary's termination, message
+// and timings, the lens and its deviations, the fit's figures, the images
+// used and rejected, the distortion model with every candidate, and
+// `out_rig` (empty when none was written).
+nlohmann::json ToJson(const CameraCalibrationResult& result, const CameraCalibrationRequest& request);
 
 }  // namespace photorig::daemon
