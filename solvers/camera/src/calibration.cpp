@@ -66,16 +66,16 @@ int FixedCoefficients(DistortionModel model) {
   return 0;
 }
 
-// The coefficients a model fits, as indices into OpenCV's (k1, k2, p1, p2, k3).
-std::vector<int> FreeCoefficients(DistortionModel model) {
+// How many of the coefficients a model fits.
+int CoefficientCount(DistortionModel model) {
   switch (model) {
-    case DistortionModel::kNone: return {};
-    case DistortionModel::kRadial1: return {0};
-    case DistortionModel::kRadial2: return {0, 1};
-    case DistortionModel::kRadial2Tangential: return {0, 1, 2, 3};
-    case DistortionModel::kRadial3Tangential: return {0, 1, 2, 3, 4};
+    case DistortionModel::kNone: return 0;
+    case DistortionModel::kRadial1: return 1;
+    case DistortionModel::kRadial2: return 2;
+    case DistortionModel::kRadial2Tangential: return 4;
+    case DistortionModel::kRadial3Tangential: return 5;
   }
-  return {};
+  return 0;
 }
 
 // calibrateCamera's answer for one model.
@@ -99,8 +99,7 @@ LensFit FitLens(const std::vector<std::vector<cv::Point3f>>& boards,
   std::size_t points = 0;
   for (const auto& view : corners) points += view.size();
   const double residuals = 2.0 * static_cast<double>(points);
-  const std::vector<int> free = FreeCoefficients(model);
-  const double parameters = 4.0 + static_cast<double>(free.size()) + 6.0 * static_cast<double>(corners.size());
+  const double parameters = 4.0 + CoefficientCount(model) + 6.0 * static_cast<double>(corners.size());
   const double rss = fit.candidate.rms_px * fit.candidate.rms_px * static_cast<double>(points);
   fit.candidate.bic = residuals * std::log(std::max(rss, 1e-300) / residuals) + parameters * std::log(residuals);
   return fit;
