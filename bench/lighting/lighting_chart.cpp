@@ -4,8 +4,13 @@
 // lighting_envmap_roundtrip.csv: lat-long -> mirror ball -> lat-long error vs ball size;
 // lighting_led_positions.csv: near LEDs placed from three chrome balls (12 LEDs
 // of a 250 mm dome), error against the truth and time vs ball size and noise,
-// orthographic and through a pinhole.
+// orthographic and through a pinhole; lighting_sh_fit.csv: spherical-harmonic
+// lighting fitted to a sphere's cap of normals (90 to 15 deg from the view) with
+// each band selection, its error on the normals seen and on the whole visible
+// hemisphere, and its time.
 #include "photorig/solvers/lighting/envmap.h"
+#include "photorig/solvers/lighting/inverse_lighting.h"
+#include "photorig/solvers/lighting/relight.h"
 #include "photorig/solvers/lighting/mirror_sphere.h"
 #include "led_dome_scene.h"
 #include "synthetic_sphere.h"
@@ -73,6 +78,66 @@ void LedPositionSweep(std::ofstream& out, const std::string& name, double radius
               predicted, e.beyond_two_sigma, summary.unusable, summary.total_ms / truth.size());
 }
 
+// Relative RMS of `fitted` against `truth` over the pixels of `mask`.
+double RelativeRms(const cv::Mat& fitted, const cv::Mat& truth, const cv::Mat& mask) {
+  double squares = 0.0, reference = 0.0;
+  for (int r = 0; r < truth.rows; ++r)
+    for (int c = 0; c < truth.cols; ++c) {
+      if (!mask.at<std::uint8_t>(r, c)) continue;
+      const double d = fitted.at<float>(r, c) - truth.at<float>(r, c);
+      squares += d * d;
+      reference += static_cast<double>(truth.at<float>(r, c)) * truth.at<float>(r, c);
+    }
+  return std::sqrt(squares / std::max(reference, 1e-300));
+}
+
+void ShFitSweep(std::ofstream& out) {
+  cv::Mat normals, hemisphere;
+  testing::SphereNormals(256, 1.0, &normals, &hemisphere);
+  const cv::Mat albedo(normals.size(), CV_32F, cv::Scalar(0.7));
+  Eigen::MatrixXd truth_sh = Eigen::MatrixXd::Zero(9, 1);
+  truth_sh << 2.0, 0.4, 0.9, -0.3, 0.15, -0.1, 0.2, 0.12, -0.15;
+  cv::Mat truth;
+  RenderShLighting(normals, albedo, truth_sh, &truth);
+  struct Selection {
+    const char* name;
+    ShFitOptions::Selection selection;
+    int band;
+  };
+  const Selection selections[] = {{"held-out", ShFitOptions::Selection::kHeldOut, 0},
+                                  {"bic", ShFitOptions::Selection::kBic, 0},
+                                  {"band 1", ShFitOptions::Selection::kFixed, 1},
+                                  {"band 2", ShFitOptions::Selection::kFixed, 2},
+                                  {"band 4", ShFitOptions::Selection::kFixed, 4}};
+  for (const double cap_deg : {90.0, 60.0, 40.0, 25.0, 15.0}) {
+    // The normals within cap_deg of the view: a sphere seen whole down to a nearly flat patch.
+    cv::Mat cap = hemisphere.clone();
+    for (int r = 0; r < cap.rows; ++r)
+      for (int c = 0; c < cap.cols; ++c)
+        if (normals.at<cv::Vec3f>(r, c)[2] < std::cos(cap_deg * M_PI / 180.0) - 1e-9) cap.at<std::uint8_t>(r, c) = 0;
+    cv::Mat image = truth.clone(), noise(truth.size(), CV_32F);
+    cv::RNG rng(7);
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, 0.01 * cv::mean(truth, cap)[0]);
+    image += noise;
+    for (const Selection& s : selections) {
+      ShFitOptions options;
+      options.selection = s.selection;
+      options.fixed_band = s.band;
+      const ShLightingSummary fit = FitShLighting(normals, albedo, image, cap, options);
+      cv::Mat rendered;
+      RenderShLighting(normals, albedo, fit.coefficients, &rendered);
+      const double seen = RelativeRms(rendered, truth, cap), whole = RelativeRms(rendered, truth, hemisphere);
+      out << cap_deg << "," << s.name << "," << fit.band << "," << (fit.IsSolutionUsable() ? 1 : 0) << ","
+          << fit.condition_number << "," << fit.hemisphere_relative_sigma << "," << seen << "," << whole << ","
+          << fit.total_ms << "\n";
+      std::printf("SH lighting, normals within %.0f deg, %s: band %d, condition %.3g, error %.4f on the normals seen, "
+                  "%.4f on the hemisphere (predicted sigma %.4f at the worst normal), %.1f ms\n",
+                  cap_deg, s.name, fit.band, fit.condition_number, seen, whole, fit.hemisphere_relative_sigma,
+                  fit.total_ms);
+    }
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -117,5 +182,9 @@ int main(int argc, char** argv) {
     for (double radius : {6.0, 10.0, 17.0, 25.0}) LedPositionSweep(leds, "radius", radius, 2.0, pinhole);
     for (double noise : {0.5, 8.0, 32.0, 128.0}) LedPositionSweep(leds, "noise", 17.0, noise, pinhole);
   }
+
+  std::ofstream sh(dir + "/lighting_sh_fit.csv");
+  sh << "cap_deg,selection,band,usable,condition_number,predicted_hemisphere_sigma,error_seen,error_hemisphere,time_ms\n";
+  ShFitSweep(sh);
   return 0;
 }

@@ -1,5 +1,5 @@
-"""Draws docs/charts/lighting_direction_error.png, lighting_envmap_roundtrip.png and
-lighting_led_positions.png from the CSVs written by photorig-lighting-chart. Usage: lighting.py CHART_DIR"""
+"""Draws docs/charts/lighting_direction_error.png, lighting_envmap_roundtrip.png, lighting_led_positions.png and
+lighting_sh_fit.png from the CSVs written by photorig-lighting-chart. Usage: lighting.py CHART_DIR"""
 
 import csv
 import sys
@@ -87,6 +87,32 @@ def main(chart_dir):
     axes[0].set_title("12 LEDs of a 250 mm dome, three chrome balls")
     fig.tight_layout()
     fig.savefig(chart_dir / "lighting_led_positions.png", dpi=110)
+
+    sh = rows(chart_dir / "lighting_sh_fit.csv")
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+    styles = {"held-out": "o-", "bic": "s--", "band 1": "v:", "band 2": "^:", "band 4": "x:"}
+    for selection, style in styles.items():
+        sel = [r for r in sh if r["selection"] == selection]
+        caps = [float(r["cap_deg"]) for r in sel]
+        line, = axes[0].plot(caps, [float(r["error_hemisphere"]) for r in sel], style, label=f"{selection}: error")
+        axes[0].plot(caps, [float(r["predicted_hemisphere_sigma"]) for r in sel], style[0], mfc="none", ms=10,
+                     color=line.get_color(), ls="none")
+        axes[1].plot([float(r["time_ms"]) for r in sel], [float(r["error_seen"]) for r in sel], style[0],
+                     color=line.get_color(), label=selection)
+    axes[0].axhline(0.05, color="0.6", lw=0.8)
+    axes[0].set_xlabel("normals seen: within this angle of the view (deg)")
+    axes[0].set_ylabel("relative RMS irradiance error, visible hemisphere")
+    axes[0].set_title("SH lighting extrapolated beyond the normals seen\n(rings: predicted sigma at the worst normal)")
+    axes[0].invert_xaxis()
+    axes[1].set_xlabel("fit time (ms), 256 x 256 sphere")
+    axes[1].set_ylabel("relative RMS irradiance error, normals seen")
+    axes[1].set_title("on the normals seen, against time")
+    for ax in axes:
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(chart_dir / "lighting_sh_fit.png", dpi=110)
 
 
 if __name__ == "__main__":

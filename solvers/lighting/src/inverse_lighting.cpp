@@ -5,8 +5,11 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <string>
 
 namespace photorig::solvers::lighting {
 namespace {
@@ -94,11 +97,36 @@ double Sse(const Eigen::MatrixXd& g, const Eigen::VectorXd& h, double s, const E
   return std::max(0.0, x.dot(g * x) - 2.0 * x.dot(h) + s);
 }
 
+// The fitted irradiance's worst one-sigma over the visible hemisphere, over
+// its mean there: `covariance` of the coefficients `x` of the columns
+// `index`, each normal's regressors from `basis`. Directions on a
+// Fibonacci lattice of the hemisphere, dense enough for band 8's lobes.
+template <typename Basis>
+double HemisphereRelativeSigma(const Eigen::MatrixXd& covariance, const Eigen::VectorXd& x, const std::vector<int>& index,
+                               int columns, Basis basis) {
+  constexpr int kDirections = 600;
+  Eigen::VectorXd phi(columns), row(static_cast<Eigen::Index>(index.size()));
+  double worst = 0.0, mean = 0.0;
+  for (int i = 0; i < kDirections; ++i) {
+    const double z = (i + 0.5) / kDirections, radius = std::sqrt(1.0 - z * z);
+    const double azimuth = i * M_PI * (3.0 - std::sqrt(5.0));
+    basis(Eigen::Vector3d(radius * std::cos(azimuth), radius * std::sin(azimuth), z), phi.data());
+    for (std::size_t a = 0; a < index.size(); ++a) row(static_cast<Eigen::Index>(a)) = phi(index[a]);
+    worst = std::max(worst, std::sqrt(std::max(0.0, row.dot(covariance * row))));
+    mean += row.dot(x) / kDirections;
+  }
+  return worst / std::max(std::abs(mean), 1e-300);
+}
+
 }  // namespace
 
 bool ShFitOptions::IsValid(std::string* why) const {
   if (max_band < 0 || max_band > 8 || fixed_band < 0 || fixed_band > 8 || pixel_stride < 1 || !(heldout_tolerance >= 0.0)) {
     if (why) *why = "bands in [0, 8], pixel_stride >= 1, heldout_tolerance >= 0";
+    return false;
+  }
+  if (!(max_hemisphere_relative_sigma > 0.0)) {
+    if (why) *why = "max_hemisphere_relative_sigma must be > 0";
     return false;
   }
   return true;
@@ -115,11 +143,12 @@ ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, c
   std::vector<double> kernel(static_cast<std::size_t>(columns));
   for (int l = 0; l <= top_band; ++l)
     for (int m = -l; m <= l; ++m) kernel[static_cast<std::size_t>(l * l + l + m)] = LambertianKernel(l) / M_PI;
-  const NormalEquations eq = Accumulate(normals, albedo, image, mask, options.pixel_stride, options.min_albedo, columns,
-                                        [&](const Eigen::Vector3d& n, double* out) {
-                                          EvaluateSh(top_band, n, out);
-                                          for (int j = 0; j < columns; ++j) out[j] *= kernel[static_cast<std::size_t>(j)];
-                                        });
+  const auto basis = [&](const Eigen::Vector3d& n, double* out) {
+    EvaluateSh(top_band, n, out);
+    for (int j = 0; j < columns; ++j) out[j] *= kernel[static_cast<std::size_t>(j)];
+  };
+  const NormalEquations eq =
+      Accumulate(normals, albedo, image, mask, options.pixel_stride, options.min_albedo, columns, basis);
   const int channels = eq.channels;
   summary.pixels_used = eq.samples[0] + eq.samples[1];
 
@@ -203,12 +232,27 @@ ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, c
       const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(g);
       summary.condition_number =
           std::sqrt(eigen.eigenvalues().maxCoeff() / std::max(eigen.eigenvalues().minCoeff(), 1e-300));
+      const double dof = std::max(1.0, static_cast<double>(summary.pixels_used) - static_cast<double>(index.size()));
+      const Eigen::MatrixXd covariance =
+          Sse(g, h, eq.sum_squares[k0] + eq.sum_squares[k1], x) / dof *
+          g.ldlt().solve(Eigen::MatrixXd::Identity(g.rows(), g.cols()));
+      summary.hemisphere_relative_sigma = HemisphereRelativeSigma(covariance, x, index, columns, basis);
     }
   }
   summary.rms_residual = std::sqrt(sse / n_total);
   summary.relative_rms_residual = summary.rms_residual / std::max(std::abs(eq.sum_intensity / n_total), 1e-300);
   if (std::isfinite(summary.rms_residual)) {
-    summary.End(solvers::core::Termination::kSuccess, "band " + std::to_string(chosen) + " selected");
+    std::string message = "band " + std::to_string(chosen) + " selected";
+    if (!(summary.hemisphere_relative_sigma <= options.max_hemisphere_relative_sigma)) {
+      char figures[160];
+      std::snprintf(figures, sizeof figures, "%.3g %% (one sigma) at the worst normal, above the %.3g %% allowed",
+                    100.0 * summary.hemisphere_relative_sigma, 100.0 * options.max_hemisphere_relative_sigma);
+      message += "; the lighting is pinned down on the normals seen, but the rest of the visible hemisphere is "
+                 "extrapolated: " + std::string(figures) +
+                 ". Relight only these normals, or fit normals that span more of the sphere (a lower band "
+                 "extrapolates less)";
+    }
+    summary.End(solvers::core::Termination::kSuccess, message);
   } else {
     summary.End(solvers::core::Termination::kFailure, "the fit's residual is not finite (NaN or infinite input values?)");
   }

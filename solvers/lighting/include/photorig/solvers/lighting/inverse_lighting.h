@@ -26,6 +26,12 @@ struct ShFitOptions {
   double heldout_tolerance = 0.01;  // relative
   int pixel_stride = 1;       // use every n-th pixel in both directions
   double min_albedo = 1e-3;
+  // The fit pins the lighting down on the normals it sees; towards the rest
+  // of the visible hemisphere it extrapolates. Above this predicted relative
+  // uncertainty there (ShLightingSummary::hemisphere_relative_sigma) the
+  // summary's message says so: relighting other normals, or reading the
+  // lighting as the environment's, would carry that error.
+  double max_hemisphere_relative_sigma = 0.05;
 
   bool IsValid(std::string* why) const;
 };
@@ -46,6 +52,12 @@ struct ShLightingSummary : solvers::core::Summary {
   double rms_residual = 0.0;
   double relative_rms_residual = 0.0;  // rms / mean intensity
   double condition_number = 0.0;
+  // One sigma of the fitted irradiance (first channel) at the worst normal of
+  // the visible hemisphere (z >= 0), from the coefficients' covariance (the
+  // residual variance times the inverse normal matrix), over the mean
+  // fitted irradiance there. Small when the normals seen span the hemisphere;
+  // large when they are a narrow cap.
+  double hemisphere_relative_sigma = 0.0;
   std::size_t pixels_used = 0;
 };
 
