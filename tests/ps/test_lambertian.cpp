@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <utility>
 #include <vector>
 
 namespace photorig::solvers::ps {
@@ -18,6 +19,16 @@ namespace {
 using testing::RandomSurface;
 using testing::RenderStack;
 using testing::RingLights;
+
+// The subset kernels this CPU runs, with their names.
+std::vector<std::pair<internal::SubsetKernel, const char*>> SubsetKernels() {
+  std::vector<std::pair<internal::SubsetKernel, const char*>> kernels;
+  for (const auto& [kernel, name] : {std::pair{internal::SubsetKernel::kPortable, "portable subset kernel"},
+                                     std::pair{internal::SubsetKernel::kAvx2, "AVX2 subset kernel"},
+                                     std::pair{internal::SubsetKernel::kAvx512, "AVX-512 subset kernel"}})
+    if (internal::SubsetKernelAvailable(kernel)) kernels.emplace_back(kernel, name);
+  return kernels;
+}
 
 std::vector<double> Scales(int count, double base = 1000.0) {
   std::vector<double> scales;
@@ -77,12 +88,12 @@ TEST(Lambertian, ConfidenceMatchesResidualsSummedInDoubleAtEveryNoiseLevel) {
   const auto lights = RingLights(24, 20, 70);
   const double scale = 1000.0;
   const float dark = 10.0f;
-  // Both subset kernels' float sums, where the CPU has AVX-512 (else the portable one twice).
-  for (const bool avx512 : {true, false})
+  // Every subset kernel's float sums this CPU runs.
+  for (const auto& [kernel, name] : SubsetKernels())
   for (const double noise_sigma : {2.0, 0.02}) {
     SCOPED_TRACE(noise_sigma);
-    SCOPED_TRACE(avx512 ? "AVX-512 subset kernel" : "portable subset kernel");
-    internal::UseAvx512SubsetKernel(avx512);
+    SCOPED_TRACE(name);
+    internal::UseSubsetKernel(kernel);
     PhotometricStack stack = testing::RenderShinyStack(truth, lights, scale, {}, dark, noise_sigma);
     // A read noise well below the real one keeps every confidence below the
     // clamp at 1, so it is proportional to 1 / RSS.
@@ -110,7 +121,7 @@ TEST(Lambertian, ConfidenceMatchesResidualsSummedInDoubleAtEveryNoiseLevel) {
     EXPECT_LT(relative_errors.back(), 0.04);
     EXPECT_LT(relative_errors[relative_errors.size() / 2], 0.005);
   }
-  internal::UseAvx512SubsetKernel(true);
+  internal::UseFastestSubsetKernel();
 }
 
 TEST(Lambertian, ExcludesSaturatedSamples) {
@@ -313,13 +324,12 @@ TEST(Lambertian, FullyLitPixelsDoNotDependOnTheTileSolvedBefore) {
   }
 }
 
-// The subset kernel's AVX-512 version sums G_S per group of four lights from
-// a table, the portable loop light by light: the same equations, rounded
-// differently. A row width that is no multiple of the 16 lanes, a light count
-// that is no multiple of four, shadows, clipping and noise exercise every
-// edge of both.
-TEST(Lambertian, Avx512AndPortableSubsetKernelsAgree) {
-  if (!internal::Avx512SubsetKernelAvailable()) GTEST_SKIP() << "this CPU has no AVX-512F";
+// The subset kernel's intrinsic versions sum G_S per group of lights from a
+// table (four lights with AVX-512, three with AVX2), the portable loop light
+// by light: the same equations, rounded differently. A row width that is no
+// multiple of the 16 or 8 lanes, a light count that is no multiple of four
+// or three, shadows, clipping and noise exercise every edge of each.
+TEST(Lambertian, IntrinsicAndPortableSubsetKernelsAgree) {
   const auto truth = RandomSurface(61, 37, 70.0);
   const PhotometricStack stack =
       testing::RenderShinyStack(truth, RingLights(23, 15, 75), 3000.0, {}, 10.0f, 2.0);
@@ -328,30 +338,39 @@ TEST(Lambertian, Avx512AndPortableSubsetKernelsAgree) {
   options.saturation_level = 700.0;  // clips where albedo cos > 0.72
   LambertianOptions unclipped = options;
   unclipped.saturation_level = std::numeric_limits<double>::infinity();
-  NormalMap fast, portable, shadows_only;
+  internal::UseSubsetKernel(internal::SubsetKernel::kPortable);
+  NormalMap portable, shadows_only;
   ASSERT_LT(SolveLambertian(unclipped, stack, &shadows_only).samples_rejected + 500,
-            SolveLambertian(options, stack, &fast).samples_rejected);
-  const SolverSummary fast_summary = SolveLambertian(options, stack, &fast);
-  internal::UseAvx512SubsetKernel(false);
+            SolveLambertian(options, stack, &portable).samples_rejected);
   const SolverSummary portable_summary = SolveLambertian(options, stack, &portable);
-  internal::UseAvx512SubsetKernel(true);
-  ASSERT_TRUE(fast_summary.IsSolutionUsable()) << fast_summary.message;
   ASSERT_TRUE(portable_summary.IsSolutionUsable()) << portable_summary.message;
-  EXPECT_GT(fast_summary.pixels_on_light_subsets, 1000u);
-  EXPECT_GT(fast_summary.samples_rejected, 5000u);
-  EXPECT_EQ(fast_summary.samples_rejected, portable_summary.samples_rejected);
-  EXPECT_EQ(cv::countNonZero(fast.flags != portable.flags), 0);
-  EXPECT_EQ(cv::countNonZero(fast.usable_lights != portable.usable_lights), 0);
-  EXPECT_LT(CompareNormals(fast.normals, portable.normals).max_deg, 1e-3);
-  for (int p = 0; p < static_cast<int>(truth.albedo.total()); ++p) {
-    if (fast.flags.ptr<std::uint8_t>()[p] != static_cast<std::uint8_t>(PixelFlag::kSolved)) continue;
-    ASSERT_NEAR(fast.albedo.ptr<float>()[p], portable.albedo.ptr<float>()[p], 1e-5 * portable.albedo.ptr<float>()[p])
-        << "pixel " << p;
-    // The residual from the sums, b^2 - 2 x^T r + x^T G x, cancels: both
-    // kernels are within a few per cent of the RSS summed in double (see
-    // ConfidenceMatchesResidualsSummedInDoubleAtEveryNoiseLevel).
-    ASSERT_NEAR(fast.confidence.ptr<float>()[p], portable.confidence.ptr<float>()[p], 0.01) << "pixel " << p;
+  EXPECT_GT(portable_summary.pixels_on_light_subsets, 1000u);
+  EXPECT_GT(portable_summary.samples_rejected, 5000u);
+  int compared = 0;
+  for (const auto& [kernel, name] : SubsetKernels()) {
+    if (kernel == internal::SubsetKernel::kPortable) continue;
+    SCOPED_TRACE(name);
+    ++compared;
+    internal::UseSubsetKernel(kernel);
+    NormalMap fast;
+    const SolverSummary fast_summary = SolveLambertian(options, stack, &fast);
+    ASSERT_TRUE(fast_summary.IsSolutionUsable()) << fast_summary.message;
+    EXPECT_EQ(fast_summary.samples_rejected, portable_summary.samples_rejected);
+    EXPECT_EQ(cv::countNonZero(fast.flags != portable.flags), 0);
+    EXPECT_EQ(cv::countNonZero(fast.usable_lights != portable.usable_lights), 0);
+    EXPECT_LT(CompareNormals(fast.normals, portable.normals).max_deg, 1e-3);
+    for (int p = 0; p < static_cast<int>(truth.albedo.total()); ++p) {
+      if (fast.flags.ptr<std::uint8_t>()[p] != static_cast<std::uint8_t>(PixelFlag::kSolved)) continue;
+      ASSERT_NEAR(fast.albedo.ptr<float>()[p], portable.albedo.ptr<float>()[p], 1e-5 * portable.albedo.ptr<float>()[p])
+          << "pixel " << p;
+      // The residual from the sums, b^2 - 2 x^T r + x^T G x, cancels: both
+      // kernels are within a few per cent of the RSS summed in double (see
+      // ConfidenceMatchesResidualsSummedInDoubleAtEveryNoiseLevel).
+      ASSERT_NEAR(fast.confidence.ptr<float>()[p], portable.confidence.ptr<float>()[p], 0.01) << "pixel " << p;
+    }
   }
+  internal::UseFastestSubsetKernel();
+  if (compared == 0) GTEST_SKIP() << "this CPU has neither AVX2 with FMA nor AVX-512F";
 }
 
 TEST(LambertianOptions, ValidationExplainsTheProblem) {

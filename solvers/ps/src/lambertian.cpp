@@ -17,16 +17,22 @@
 namespace photorig::solvers::ps {
 namespace {
 
+using internal::SubsetKernel;
+
 constexpr int kMaxLights = 65535;  // NormalMap::usable_lights is 16-bit
 constexpr int kTilePixels = 1024;  // 4 KB per accumulator row: stays in L1 across all K planes
 // Granularity at which a tile decides whether pixels need their own subsets
 // (and skips what the mask leaves out): small enough that a dome-lit object's
 // rim of attached shadows does not drag its fully lit interior along.
 constexpr int kChunkPixels = 64;
-// The AVX-512 subset kernel looks up what groups of this many lights add to
-// the normal equations (TileConstants::group_terms) by which of them are usable.
+// The subset kernels' intrinsics look up what groups of lights add to the
+// normal equations (TileConstants::group_terms) by which of them are usable,
+// one register of terms per quantity: groups of four lights (16 patterns)
+// with AVX-512, of three (8 patterns) with AVX2.
 constexpr int kSubsetGroup = 4;
 constexpr int kGroupPatterns = 1 << kSubsetGroup;
+constexpr int kSubsetGroupAvx2 = 3;
+constexpr int kGroupPatternsAvx2 = 1 << kSubsetGroupAvx2;
 constexpr int kGroupQuantities = 8;  // G_S's six entries, the usable count, sum 1 / s^2
 
 // Pseudo-inverse of the full light matrix, with 1/s_k folded in:
@@ -100,6 +106,9 @@ struct TileConstants {
   // [group][quantity][pattern]: a quantity's 16 patterns fill one AVX-512
   // register, so one permute looks up all sixteen pixels' terms.
   const float* group_terms = nullptr;
+  // The same for groups of three lights (3 g .. 3 g + 2) and their 8
+  // patterns, one AVX2 register per quantity.
+  const float* group_terms_avx2 = nullptr;
   std::array<double, 3> dark_weight{};    // row sums of weights
   std::array<double, 6> gram{};           // G = A^T A: xx, yy, zz, xy, xz, yz
   double sum_inverse_scale2 = 0.0;
@@ -418,11 +427,99 @@ __attribute__((target("avx512f"))) void AccumulateSubsetBlockAvx512(const TileCo
   }
 }
 
-std::atomic<bool> use_avx512_subset_kernel{true};
+// The same sums with AVX2 and FMA, eight pixels at a time. Without mask
+// registers each conditional sum is an AND and an add, and sixteen registers
+// cannot hold the thirteen sums with the samples in flight, so a sweep runs
+// in two parts per eight pixels: the five sums of the samples themselves
+// with the lights' usable pattern in registers (three bits per group of
+// three lights, 24 lights to a sweep), then the eight pattern sums, one
+// permute and one add per sum and group (group_terms_avx2). GCC's code for
+// the portable loop spilled the sums to the stack and blended every one
+// (4 cycles a sample on Zen 2, three quarters of a shadowed solve).
+constexpr int kSweepLightsAvx2 = 24;
+static_assert(kSweepLightsAvx2 % kSubsetGroupAvx2 == 0 && kSweepLightsAvx2 <= 32);
+__attribute__((target("avx2,fma"))) void AccumulateSubsetBlockAvx2(const TileConstants& c, int offset, int count,
+                                                                   const float* __restrict d, SubsetBlock* a) {
+  constexpr int kLanes = 8;
+  static_assert(kBlockPixels % kLanes == 0 && kGroupPatternsAvx2 == kLanes);
+  float* const pattern_rows[kGroupQuantities] = {a->g[0], a->g[1], a->g[2], a->g[3], a->g[4], a->g[5], a->usable, a->u};
+  float* const sum_rows[5] = {a->r[0], a->r[1], a->r[2], a->signal, a->b2};
+  const int padded = (count + kLanes - 1) / kLanes * kLanes;  // rows hold kBlockPixels
+  for (float* row : pattern_rows) std::fill(row, row + padded, 0.0f);
+  for (float* row : sum_rows) std::fill(row, row + padded, 0.0f);
+  const __m256 saturation = _mm256_set1_ps(c.saturation), shadow = _mm256_set1_ps(c.shadow);
+  const __m256i lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  for (int sweep = 0; sweep < c.lights; sweep += kSweepLightsAvx2) {
+    const int sweep_end = std::min(sweep + kSweepLightsAvx2, c.lights);
+    for (int i = 0; i < count; i += kLanes) {
+      // The last eight may reach past the block, and past the image: loaded masked.
+      const __m256i lanes = _mm256_cmpgt_epi32(_mm256_set1_epi32(count - i), lane_index);
+      const bool whole = count - i >= kLanes;
+      const __m256 dark = _mm256_maskload_ps(d + i, lanes);
+      const __m256 threshold = _mm256_add_ps(dark, shadow);
+      __m256 rx = _mm256_load_ps(sum_rows[0] + i), ry = _mm256_load_ps(sum_rows[1] + i);
+      __m256 rz = _mm256_load_ps(sum_rows[2] + i), signal_sum = _mm256_load_ps(sum_rows[3] + i);
+      __m256 b2 = _mm256_load_ps(sum_rows[4] + i);
+      __m256i pattern = _mm256_setzero_si256();  // bit j: light sweep + j usable
+      for (int j = sweep; j < sweep_end; ++j) {
+        const float* samples = c.planes[j] + offset + i;
+        _mm_prefetch(reinterpret_cast<const char*>(samples + kPrefetchLines * kLanes), _MM_HINT_T1);
+        const __m256 v = whole ? _mm256_loadu_ps(samples) : _mm256_maskload_ps(samples, lanes);
+        // A lane past the block loads 0 as its sample and its dark, and 0 is
+        // never above the shadow threshold (>= 0): never usable.
+        const __m256 usable =
+            _mm256_and_ps(_mm256_cmp_ps(v, threshold, _CMP_GT_OQ), _mm256_cmp_ps(v, saturation, _CMP_LT_OQ));
+        const __m256 inverse_scale = _mm256_broadcast_ss(c.inverse_scale + j);
+        const __m256 b = _mm256_and_ps(usable, _mm256_mul_ps(_mm256_sub_ps(v, dark), inverse_scale));
+        pattern = _mm256_or_si256(pattern, _mm256_and_si256(_mm256_castps_si256(usable),
+                                                            _mm256_set1_epi32(1 << (j - sweep))));
+        rx = _mm256_fmadd_ps(_mm256_broadcast_ss(c.direction[0] + j), b, rx);
+        ry = _mm256_fmadd_ps(_mm256_broadcast_ss(c.direction[1] + j), b, ry);
+        rz = _mm256_fmadd_ps(_mm256_broadcast_ss(c.direction[2] + j), b, rz);
+        signal_sum = _mm256_fmadd_ps(b, inverse_scale, signal_sum);  // (v - dark) / s^2
+        b2 = _mm256_fmadd_ps(b, b, b2);
+      }
+      _mm256_store_ps(sum_rows[0] + i, rx);
+      _mm256_store_ps(sum_rows[1] + i, ry);
+      _mm256_store_ps(sum_rows[2] + i, rz);
+      _mm256_store_ps(sum_rows[3] + i, signal_sum);
+      _mm256_store_ps(sum_rows[4] + i, b2);
+      __m256 pattern_sums[kGroupQuantities];
+      for (int q = 0; q < kGroupQuantities; ++q) pattern_sums[q] = _mm256_load_ps(pattern_rows[q] + i);
+      for (int first = sweep; first < sweep_end; first += kSubsetGroupAvx2) {
+        // vpermps reads an index's low three bits: the group's pattern once shifted down.
+        const __m256i group_pattern = _mm256_srli_epi32(pattern, first - sweep);
+        const float* terms =
+            c.group_terms_avx2 + static_cast<std::size_t>(first / kSubsetGroupAvx2) * kGroupQuantities * kLanes;
+        for (int q = 0; q < kGroupQuantities; ++q)
+          pattern_sums[q] = _mm256_add_ps(
+              pattern_sums[q], _mm256_permutevar8x32_ps(_mm256_loadu_ps(terms + q * kLanes), group_pattern));
+      }
+      for (int q = 0; q < kGroupQuantities; ++q) _mm256_store_ps(pattern_rows[q] + i, pattern_sums[q]);
+    }
+  }
+}
 
-bool Avx512Available() {
-  static const bool available = (__builtin_cpu_init(), __builtin_cpu_supports("avx512f"));
-  return available;
+std::atomic<int> chosen_subset_kernel{-1};  // a SubsetKernel; -1: the fastest available
+
+bool CpuSupports(SubsetKernel kernel) {
+  static const bool avx512 = (__builtin_cpu_init(), __builtin_cpu_supports("avx512f"));
+  static const bool avx2 = (__builtin_cpu_init(), __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"));
+  switch (kernel) {
+    case SubsetKernel::kAvx512: return avx512;
+    case SubsetKernel::kAvx2: return avx2;
+    case SubsetKernel::kPortable: return true;
+  }
+  return false;
+}
+
+SubsetKernel ActiveSubsetKernel() {
+  const int chosen = chosen_subset_kernel.load(std::memory_order_relaxed);
+  if (chosen >= 0) return static_cast<SubsetKernel>(chosen);
+  static const SubsetKernel fastest = CpuSupports(SubsetKernel::kAvx512) ? SubsetKernel::kAvx512
+                                      : CpuSupports(SubsetKernel::kAvx2) ? SubsetKernel::kAvx2
+                                                                         : SubsetKernel::kPortable;
+  return fastest;
 }
 
 // Least squares on each pixel's usable samples, for pixels [first, end) of a
@@ -441,10 +538,11 @@ void SolveSubsetTile(const TileConstants& c, int begin, int first, int end, cons
   for (int first_pixel = first; first_pixel < end; first_pixel += kBlockPixels) {
     const int count = std::min(kBlockPixels, end - first_pixel);
     const float* __restrict d = dark + first_pixel;
-    if (use_avx512_subset_kernel.load(std::memory_order_relaxed) && Avx512Available())
-      AccumulateSubsetBlockAvx512(c, begin + first_pixel, count, d, a);
-    else
-      AccumulateSubsetBlock(c, begin + first_pixel, count, d, a);
+    switch (ActiveSubsetKernel()) {
+      case SubsetKernel::kAvx512: AccumulateSubsetBlockAvx512(c, begin + first_pixel, count, d, a); break;
+      case SubsetKernel::kAvx2: AccumulateSubsetBlockAvx2(c, begin + first_pixel, count, d, a); break;
+      case SubsetKernel::kPortable: AccumulateSubsetBlock(c, begin + first_pixel, count, d, a); break;
+    }
     float* __restrict x0 = s->x0 + first_pixel;
     float* __restrict x1 = s->x1 + first_pixel;
     float* __restrict x2 = s->x2 + first_pixel;
@@ -698,9 +796,32 @@ class TileSetup {
  private:
   std::vector<const float*> planes_;
   std::vector<float> weights_, inverse_scale2_, inverse_scale_, direction_;
-  std::vector<float> group_terms_;
+  std::vector<float> group_terms_, group_terms_avx2_;
   TileConstants constants_;
 };
+
+// TileConstants::group_terms for groups of `group_size` lights.
+std::vector<float> GroupTerms(const PhotometricStack& stack, int group_size) {
+  const int k = stack.light_count(), groups = (k + group_size - 1) / group_size, patterns = 1 << group_size;
+  std::vector<float> terms(static_cast<std::size_t>(groups) * kGroupQuantities * patterns, 0.0f);
+  for (int g = 0; g < groups; ++g) {
+    for (int pattern = 0; pattern < patterns; ++pattern) {
+      std::array<double, kGroupQuantities> sum{};
+      for (int j = 0; j < group_size && group_size * g + j < k; ++j) {
+        if (!(pattern & (1 << j))) continue;
+        const int light = group_size * g + j;
+        const Eigen::Vector3d& w = stack.light_directions[light];
+        const std::array<double, kGroupQuantities> term = {
+            w.x() * w.x(), w.y() * w.y(), w.z() * w.z(), w.x() * w.y(), w.x() * w.z(), w.y() * w.z(), 1.0,
+            1.0 / (stack.light_scales[light] * stack.light_scales[light])};
+        for (int q = 0; q < kGroupQuantities; ++q) sum[q] += term[q];
+      }
+      for (int q = 0; q < kGroupQuantities; ++q)
+        terms[(static_cast<std::size_t>(g) * kGroupQuantities + q) * patterns + pattern] = static_cast<float>(sum[q]);
+    }
+  }
+  return terms;
+}
 
 TileSetup::TileSetup(const LambertianOptions& options, const PhotometricStack& stack, const GlobalSolver& global) {
   const int k = stack.light_count();
@@ -727,26 +848,10 @@ TileSetup::TileSetup(const LambertianOptions& options, const PhotometricStack& s
     c.sum_inverse_scale2 += inverse_scale2_[i];
     gram += w * w.transpose();
   }
-  const int groups = (k + kSubsetGroup - 1) / kSubsetGroup;
-  group_terms_.assign(static_cast<std::size_t>(groups) * kGroupQuantities * kGroupPatterns, 0.0f);
-  for (int g = 0; g < groups; ++g) {
-    for (int pattern = 0; pattern < kGroupPatterns; ++pattern) {
-      std::array<double, kGroupQuantities> sum{};
-      for (int j = 0; j < kSubsetGroup && kSubsetGroup * g + j < k; ++j) {
-        if (!(pattern & (1 << j))) continue;
-        const int light = kSubsetGroup * g + j;
-        const Eigen::Vector3d& w = stack.light_directions[light];
-        const std::array<double, kGroupQuantities> term = {
-            w.x() * w.x(), w.y() * w.y(), w.z() * w.z(), w.x() * w.y(), w.x() * w.z(), w.y() * w.z(), 1.0,
-            1.0 / (stack.light_scales[light] * stack.light_scales[light])};
-        for (int q = 0; q < kGroupQuantities; ++q) sum[q] += term[q];
-      }
-      for (int q = 0; q < kGroupQuantities; ++q)
-        group_terms_[(static_cast<std::size_t>(g) * kGroupQuantities + q) * kGroupPatterns + pattern] =
-            static_cast<float>(sum[q]);
-    }
-  }
+  group_terms_ = GroupTerms(stack, kSubsetGroup);
+  group_terms_avx2_ = GroupTerms(stack, kSubsetGroupAvx2);
   c.group_terms = group_terms_.data();
+  c.group_terms_avx2 = group_terms_avx2_.data();
   c.planes = planes_.data();
   c.lights = k;
   c.weights = weights_.data();
@@ -945,8 +1050,11 @@ void PixelResiduals::Fit(std::span<const Run> runs, PixelResidual* out) const {
   }
 }
 
-void UseAvx512SubsetKernel(bool use) { use_avx512_subset_kernel.store(use, std::memory_order_relaxed); }
-bool Avx512SubsetKernelAvailable() { return Avx512Available(); }
+bool SubsetKernelAvailable(SubsetKernel kernel) { return CpuSupports(kernel); }
+void UseSubsetKernel(SubsetKernel kernel) {
+  chosen_subset_kernel.store(CpuSupports(kernel) ? static_cast<int>(kernel) : -1, std::memory_order_relaxed);
+}
+void UseFastestSubsetKernel() { chosen_subset_kernel.store(-1, std::memory_order_relaxed); }
 
 SolverSummary SolveLambertianTiles(const LambertianOptions& options, const PhotometricStack& stack,
                                    NormalMap* result, const TileVisitor& visit, const ThreadDone& done) {

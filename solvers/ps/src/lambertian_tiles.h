@@ -60,10 +60,13 @@ class PixelResiduals {
 };
 
 // The subset kernel sums the normal equations with AVX-512 intrinsics where
-// the CPU has AVX-512F, else with its portable loop (multi-versioned for AVX2
-// and the baseline). Off: the portable loop everywhere, so that tests can
-// compare the two on one machine. Not to be switched while a solve runs.
-void UseAvx512SubsetKernel(bool use);
-bool Avx512SubsetKernelAvailable();
+// the CPU has AVX-512F, else with AVX2 intrinsics where it has AVX2 and FMA,
+// else with its portable loop (multi-versioned for AVX2 and the baseline).
+// Tests choose one to compare them on one machine (a kernel the CPU lacks
+// leaves the fastest); not to be switched while a solve runs.
+enum class SubsetKernel { kPortable, kAvx2, kAvx512 };
+bool SubsetKernelAvailable(SubsetKernel kernel);
+void UseSubsetKernel(SubsetKernel kernel);
+void UseFastestSubsetKernel();
 
 }  // namespace photorig::solvers::ps::internal
