@@ -1,8 +1,9 @@
 // Inverse lighting and environment-map throughput on a 1024 x 1024 sphere;
-// near LEDs placed from three chrome balls.
+// near LEDs placed from three chrome balls; one light's intensity from a white sphere.
 #include "photorig/solvers/lighting/envmap.h"
 #include "photorig/solvers/lighting/inverse_lighting.h"
 #include "photorig/solvers/lighting/led_positions.h"
+#include "photorig/solvers/lighting/light_intensity.h"
 #include "photorig/solvers/lighting/relight.h"
 #include "led_dome_scene.h"
 #include "synthetic_sphere.h"
@@ -89,5 +90,32 @@ void BM_LedPositions12(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(frames.size()));
 }
 BENCHMARK(BM_LedPositions12)->Unit(benchmark::kMillisecond);
+
+// One light's relative intensity from a 100 px white sphere (a 230 x 230
+// 16-bit RGB frame, 31k samples): the fit, the adjacent-sample noise
+// estimate and the model-error test.
+void BM_LightIntensity100px(benchmark::State& state) {
+  testing::SyntheticCamera camera;
+  testing::SyntheticSphere sphere;
+  sphere.radius_mm = 100.0 * camera.pixel_pitch_mm;
+  testing::SyntheticImageOptions options;
+  options.width = options.height = 230;
+  options.supersample = 1;
+  options.background = 0.0;
+  options.noise_sigma = 2.0;
+  const SphereGeometry geometry =
+      LocateSphere(CameraModel{}, FitSphereSilhouette(testing::RenderSilhouette(camera, sphere, options)).circle);
+  const Eigen::Vector3d light = Eigen::Vector3d(0.4, 0.2, 0.89).normalized();
+  cv::Mat frame;
+  testing::RenderWhiteSphere(camera, sphere, light, Eigen::Vector3d(3000, 2900, 2800), options).convertTo(frame, CV_16UC3);
+  LightIntensityEstimate estimate;
+  for (auto _ : state) {
+    estimate = EstimateIntensityFromSphere(frame, geometry, light);
+    benchmark::DoNotOptimize(estimate.rgb.data());
+  }
+  state.counters["samples"] = estimate.samples_used;
+  state.counters["model_error"] = estimate.model_error;
+}
+BENCHMARK(BM_LightIntensity100px)->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

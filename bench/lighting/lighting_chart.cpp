@@ -7,18 +7,25 @@
 // orthographic and through a pinhole; lighting_sh_fit.csv: spherical-harmonic
 // lighting fitted to a sphere's cap of normals (90 to 15 deg from the view) with
 // each band selection, its error on the normals seen and on the whole visible
-// hemisphere, and its time.
+// hemisphere, and its time; lighting_intensity.csv: relative intensities from a
+// white sphere under the 48-LED dome, the error against the truth, the model
+// error, the lights refused and the time, vs a sheen on the sphere and vs the
+// level of a dim 8-bit frame.
 #include "photorig/solvers/lighting/envmap.h"
+#include "photorig/solvers/lighting/light_intensity.h"
 #include "photorig/solvers/lighting/inverse_lighting.h"
 #include "photorig/solvers/lighting/relight.h"
 #include "photorig/solvers/lighting/mirror_sphere.h"
 #include "led_dome_scene.h"
 #include "synthetic_sphere.h"
 
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <limits>
 #include <string>
+#include <vector>
 
 namespace {
 
@@ -55,6 +62,63 @@ void Sweep(std::ofstream& out, const std::string& name, double radius_px, double
       << predicted / std::max(used, 1) << "," << flagged << "\n";
   std::printf("%s sweep: radius %.0f px noise %.0f DN: mean %.3f deg, max %.3f deg, flagged %d\n", name.c_str(), radius_px,
               noise_dn, sum / std::max(used, 1), worst, flagged);
+}
+
+// One point of the intensity sweeps: a 100 px white sphere of albedo 1 (plus
+// `sheen`, a Blinn-Phong lobe of exponent 20) under each dome light with
+// irradiance `level` x (1, 0.95, 0.9), noise `noise_dn`; 8-bit frames rounded
+// to whole DN. The error is |E / E_true - 1|, the worst channel's, of the
+// estimates the fit accepts and, for the chart's other points, of all.
+void IntensitySweep(std::ofstream& out, const std::string& name, double sheen, double level, double noise_dn,
+                    bool eight_bit) {
+  testing::SyntheticCamera camera;
+  testing::SyntheticSphere sphere;
+  sphere.radius_mm = 100.0 * camera.pixel_pitch_mm;
+  testing::SyntheticImageOptions options;
+  options.width = options.height = 230;
+  options.supersample = 2;
+  options.background = 0.0;
+  options.noise_sigma = noise_dn;
+  options.saturation = eight_bit ? 255.0 : 65535.0;
+  const SphereGeometry geometry =
+      LocateSphere(CameraModel{}, FitSphereSilhouette(testing::RenderSilhouette(camera, sphere, options)).circle);
+  const Eigen::Vector3d rgb = level * Eigen::Vector3d(1.0, 0.95, 0.9);
+  double error_sum = 0.0, error_max = 0.0, model_error_sum = 0.0, residual_sum = 0.0, seconds = 0.0;
+  int lights = 0, refused = 0;
+  unsigned seed = 1;
+  std::vector<Eigen::Vector3d> ratios;  // E / E_true per light, for the error relative to the set's mean
+  for (const Eigen::Vector3d& direction : testing::DomeDirections()) {
+    options.seed = seed++;
+    cv::Mat frame = testing::RenderWhiteSphere(camera, sphere, direction, rgb, options, sheen, 20.0);
+    if (eight_bit) frame.convertTo(frame, CV_8UC3);
+    const auto start = std::chrono::steady_clock::now();
+    const LightIntensityEstimate e = EstimateIntensityFromSphere(frame, geometry, direction);
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ++lights;
+    refused += e.usable ? 0 : 1;
+    double error = 0.0;
+    for (int c = 0; c < 3; ++c) error = std::max(error, std::abs(e.rgb(c) / rgb(c) - 1.0));
+    error_sum += error;
+    error_max = std::max(error_max, error);
+    model_error_sum += e.model_error;
+    residual_sum += e.relative_rms_residual;
+    ratios.push_back(e.rgb.cwiseQuotient(rgb));
+  }
+  // As NormaliseIntensities leaves them: relative to the set's mean, which
+  // takes out a bias every light shares.
+  double mean_ratio = 0.0;
+  for (const Eigen::Vector3d& ratio : ratios) mean_ratio += ratio.sum() / (3.0 * ratios.size());
+  double relative_sum = 0.0;
+  for (const Eigen::Vector3d& ratio : ratios) relative_sum += (ratio / mean_ratio - Eigen::Vector3d::Ones()).cwiseAbs().maxCoeff();
+  out << name << "," << sheen << "," << level << "," << noise_dn << "," << (eight_bit ? 8 : 16) << ","
+      << error_sum / lights << "," << error_max << "," << relative_sum / lights << "," << model_error_sum / lights << ","
+      << residual_sum / lights << ","
+      << refused << "," << lights << "," << 1e3 * seconds / lights << "\n";
+  std::printf("intensity %s: sheen %.3f level %.0f noise %.1f DN %d-bit: error mean %.4f max %.4f, normalised %.4f, "
+              "model error %.4f, residual %.4f, refused %d of %d, %.2f ms each\n",
+              name.c_str(), sheen, level, noise_dn, eight_bit ? 8 : 16, error_sum / lights, error_max,
+              relative_sum / lights, model_error_sum / lights, residual_sum / lights, refused, lights,
+              1e3 * seconds / lights);
 }
 
 void LedPositionSweep(std::ofstream& out, const std::string& name, double radius_mm, double noise_dn, bool pinhole) {
@@ -186,5 +250,12 @@ int main(int argc, char** argv) {
   std::ofstream sh(dir + "/lighting_sh_fit.csv");
   sh << "cap_deg,selection,band,usable,condition_number,predicted_hemisphere_sigma,error_seen,error_hemisphere,time_ms\n";
   ShFitSweep(sh);
+
+  std::ofstream intensity(dir + "/lighting_intensity.csv");
+  intensity << "sweep,sheen,level,noise_dn,bits,mean_error,max_error,mean_normalised_error,mean_model_error,"
+               "mean_relative_residual,refused,"
+               "lights,ms_per_light\n";
+  for (double sheen : {0.0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.16}) IntensitySweep(intensity, "sheen", sheen, 3000.0, 2.0, false);
+  for (double level : {25.0, 50.0, 100.0, 200.0, 400.0}) IntensitySweep(intensity, "dim8", 0.0, level, 1.5, true);
   return 0;
 }

@@ -1,5 +1,5 @@
-"""Draws docs/charts/lighting_direction_error.png, lighting_envmap_roundtrip.png, lighting_led_positions.png and
-lighting_sh_fit.png from the CSVs written by photorig-lighting-chart. Usage: lighting.py CHART_DIR"""
+"""Draws docs/charts/lighting_direction_error.png, lighting_envmap_roundtrip.png, lighting_led_positions.png,
+lighting_sh_fit.png and lighting_intensity.png from the CSVs written by photorig-lighting-chart. Usage: lighting.py CHART_DIR"""
 
 import csv
 import sys
@@ -113,6 +113,45 @@ def main(chart_dir):
         ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(chart_dir / "lighting_sh_fit.png", dpi=110)
+
+    intensity = rows(chart_dir / "lighting_intensity.csv")
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
+    sheen = [r for r in intensity if r["sweep"] == "sheen"]
+    dim = [r for r in intensity if r["sweep"] == "dim8"]
+    floor = 1e-5  # zeros (no sheen; no model error) are drawn here
+    for ax, sel, key, label in ((axes[0], sheen, "sheen", "sheen: lobe share of the albedo (exponent 20; 0 at left)"),
+                                (axes[1], dim, "level", "irradiance (peak = level / pi DN)")):
+        x = [max(float(r[key]), 0.002) for r in sel]
+        for column, style, name in (("mean_error", "o-", "intensity error, mean"),
+                                    ("max_error", "s--", "intensity error, max"),
+                                    ("mean_normalised_error", "d-", "error relative to the set's mean"),
+                                    ("mean_model_error", "^-", "model error (residual beyond noise)"),
+                                    ("mean_relative_residual", "v:", "relative RMS residual")):
+            ax.plot(x, [max(float(r[column]), floor) for r in sel], style, label=name)
+        ax.axhline(0.05, color="0.6", lw=0.8, label="max_model_error 5 %")
+        for xi, r in zip(x, sel):
+            if int(r["refused"]) > 0:
+                ax.annotate(f"{r['refused']}/{r['lights']}\nrefused", (xi, max(float(r["mean_model_error"]), floor)),
+                            fontsize=7, xytext=(-8, -24), textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_ylim(floor / 2, 1.0)
+        ax.set_xlabel(label)
+        ax.set_ylabel("relative (to the mean sample or the truth)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
+    axes[0].set_title("white sphere, 48 lights, 2 DN noise: a sheen", fontsize=10)
+    axes[1].set_title("dim 8-bit frames, 1.5 DN noise: noise is no model error", fontsize=10)
+    for sel, marker, label in ((sheen, "o", "sheen sweep"), (dim, "s", "dim 8-bit sweep")):
+        axes[2].plot([float(r["ms_per_light"]) for r in sel],
+                     [max(float(r["mean_normalised_error"]), floor) for r in sel], marker, label=label)
+    axes[2].set_xlabel("time per light (ms), 230 x 230 RGB frame")
+    axes[2].set_ylabel("mean error relative to the set's mean")
+    axes[2].set_yscale("log")
+    axes[2].grid(True, which="both", alpha=0.3)
+    axes[2].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(chart_dir / "lighting_intensity.png", dpi=110)
 
 
 if __name__ == "__main__":

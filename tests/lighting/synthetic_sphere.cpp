@@ -74,13 +74,16 @@ cv::Mat Render(const SyntheticCamera& camera, const SyntheticSphere& sphere, con
   return image;
 }
 
+// Background, noise and clipping for every channel of every pixel (the image
+// is continuous: Render made it).
 void Finish(cv::Mat* image, const SyntheticImageOptions& options) {
   std::mt19937 rng(options.seed);
   std::normal_distribution<float> noise(0.0f, static_cast<float>(options.noise_sigma));
-  for (auto it = image->begin<float>(); it != image->end<float>(); ++it) {
-    float v = *it + static_cast<float>(options.background);
+  float* values = image->ptr<float>();
+  for (std::size_t i = 0; i < image->total() * image->channels(); ++i) {
+    float v = values[i] + static_cast<float>(options.background);
     if (options.noise_sigma > 0.0) v += noise(rng);
-    *it = std::clamp(v, 0.0f, static_cast<float>(options.saturation));
+    values[i] = std::clamp(v, 0.0f, static_cast<float>(options.saturation));
   }
 }
 
@@ -117,10 +120,15 @@ cv::Mat RenderMirrorSphere(const SyntheticCamera& camera, const SyntheticSphere&
 }
 
 cv::Mat RenderWhiteSphere(const SyntheticCamera& camera, const SyntheticSphere& sphere, const Eigen::Vector3d& light,
-                          const Eigen::Vector3d& rgb, const SyntheticImageOptions& options) {
+                          const Eigen::Vector3d& rgb, const SyntheticImageOptions& options, double sheen,
+                          double sheen_exponent) {
+  const Eigen::Vector3d l = light.normalized();
   cv::Mat image = Render(camera, sphere, options, 3, HUGE_VAL,
-                         [&](const Eigen::Vector3d&, const Eigen::Vector3d& n, const Eigen::Vector3d&) {
-                           return Eigen::Vector3d(rgb / M_PI * std::max(0.0, n.dot(light.normalized())));
+                         [&](const Eigen::Vector3d&, const Eigen::Vector3d& n, const Eigen::Vector3d& w_o) {
+                           const double cosine = std::max(0.0, n.dot(l));
+                           const double lobe = sheen * (sheen_exponent + 2.0) / (2.0 * M_PI) *
+                                               std::pow(std::max(0.0, n.dot((l + w_o).normalized())), sheen_exponent);
+                           return Eigen::Vector3d(rgb * (1.0 / M_PI + lobe) * cosine);
                          });
   Finish(&image, options);
   return image;

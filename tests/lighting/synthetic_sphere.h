@@ -46,8 +46,11 @@ cv::Mat RenderSilhouette(const SyntheticCamera& camera, const SyntheticSphere& s
 cv::Mat RenderMirrorSphere(const SyntheticCamera& camera, const SyntheticSphere& sphere,
                            const std::vector<SyntheticLight>& lights, const SyntheticImageOptions& options);
 // Diffuse sphere of albedo 1: rgb / pi * max(0, n . l), BGR 3-channel.
+// With sheen > 0, a Blinn-Phong lobe of that share of rgb and that exponent
+// on top (a glossy target the Lambertian intensity fit must refuse).
 cv::Mat RenderWhiteSphere(const SyntheticCamera& camera, const SyntheticSphere& sphere, const Eigen::Vector3d& light,
-                          const Eigen::Vector3d& rgb, const SyntheticImageOptions& options);
+                          const Eigen::Vector3d& rgb, const SyntheticImageOptions& options, double sheen = 0.0,
+                          double sheen_exponent = 1.0);
 
 // Orthographic sphere filling a square image: normals (CV_32FC3, zero outside) and mask.
 void SphereNormals(int size_px, double radius_fraction, cv::Mat* normals, cv::Mat* mask);

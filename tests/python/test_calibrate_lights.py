@@ -1,12 +1,13 @@
 """photorig.calibrate_lights against `photorig calibrate lights --run` on the same run: the same lights, bit for bit."""
 
 import json
+import subprocess
 
 import numpy as np
 import pytest
 
 import photorig
-from conftest import SOURCE_DIR, capture, photorig_json
+from conftest import BIN_DIR, SOURCE_DIR, capture, photorig as photorig_cli, photorig_json
 
 
 @pytest.fixture(scope="module")
@@ -42,11 +43,27 @@ def test_same_lights_as_the_cli(mirror_run, tmp_path):
     assert angles.mean() < 0.2 and angles.max() < 0.3
 
 
-def test_white_sphere_intensities_as_the_cli(mirror_run, demo_run, cli, tmp_path):
-    # The demo's matte sphere has the mirror sphere's place and radius: its light frames serve as white-sphere images.
-    demo = photorig.open_run(str(demo_run))
-    meta = demo.metadata("light")
-    white = [str(demo_run / name) for _, name in sorted(zip(meta["led"], meta["file"]))]
+@pytest.fixture(scope="module")
+def white_run(tmp_path_factory):
+    """The demo's sphere (the mirror sphere's place and radius) painted a uniform white, captured only."""
+    folder = tmp_path_factory.mktemp("white")
+    recipe = (SOURCE_DIR / "config/recipes/ps-sphere.yaml").read_text()
+    recipe = recipe.replace("rig: ../rigs/", f"rig: {SOURCE_DIR}/config/rigs/")
+    recipe = recipe.replace("{pattern: checker, low: 0.35, high: 0.85, period_mm: 6}", "{pattern: uniform, high: 0.8}")
+    assert "pattern: uniform" in recipe
+    (folder / "white.yaml").write_text(recipe)
+    run = folder / "run"
+    photorig_cli("run", folder / "white.yaml", "--no-solve", "--out", run)
+    return run
+
+
+def light_frames(run):
+    meta = photorig.open_run(str(run)).metadata("light")
+    return [str(run / name) for _, name in sorted(zip(meta["led"], meta["file"]))]
+
+
+def test_white_sphere_intensities_as_the_cli(mirror_run, white_run, cli, tmp_path):
+    white = light_frames(white_run)
     cli("calibrate", "lights", "--run", mirror_run, "--radius-mm", 17, "--white-images", *white,
         "--out", tmp_path / "cli")
     calibrated = photorig.calibrate_lights(str(mirror_run), sphere_radius_mm=17, white_images=white,
@@ -56,7 +73,26 @@ def test_white_sphere_intensities_as_the_cli(mirror_run, demo_run, cli, tmp_path
     np.testing.assert_array_equal(calibrated["rgb_intensity"], rgb)
     np.testing.assert_array_equal(calibrated["intensity"], rgb.mean(axis=1))
     assert np.isfinite(rgb).all() and rgb.min() > 0
+    assert calibrated["summary"]["unusable_intensities"] == 0
+    assert max(light["intensity_model_error"] for light in report["lights"]) < 0.05
     same_files(tmp_path / "module", tmp_path / "cli", ["light_intensities.txt", "report.json"])
+
+
+def test_a_textured_sphere_gives_no_intensities(mirror_run, demo_run, tmp_path):
+    # The demo's sphere is checkered (albedo 0.35-0.85): as a white target its shading is no matte surface's.
+    done = subprocess.run([str(BIN_DIR / "photorig"), "calibrate", "lights", "--run", str(mirror_run), "--radius-mm",
+                           "17", "--white-images", *light_frames(demo_run), "--out", str(tmp_path / "cli")],
+                          capture_output=True, text=True)
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert "48 of 48 intensities unusable" in done.stdout + done.stderr
+    assert "departs from a matte surface's" in done.stdout + done.stderr
+    calibrated = photorig.calibrate_lights(str(mirror_run), sphere_radius_mm=17, white_images=light_frames(demo_run),
+                                           out=str(tmp_path / "module"))
+    assert not calibrated["summary"]["success"] and calibrated["summary"]["unusable_intensities"] == 48
+    assert np.isnan(calibrated["rgb_intensity"]).all()
+    assert np.isfinite(calibrated["direction"]).all()  # the directions stand
+    report = json.loads((tmp_path / "cli/report.json").read_text())
+    assert not any(light["intensity_usable"] for light in report["lights"])
 
 
 def test_a_calibrated_rig_is_a_new_file(mirror_run, tmp_path):

@@ -265,12 +265,22 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
   summary.mean_uncertainty_deg = usable > 0 ? uncertainty_sum / usable : 0.0;
 
   std::vector<LightIntensityEstimate> intensities(inputs.frames.size());
+  std::string unusable_intensity;  // the first, for the message
   if (!inputs.white_frames.empty()) {
     for (std::size_t k = 0; k < inputs.frames.size(); ++k)
       intensities[k] = EstimateIntensityFromSphere(inputs.white_frames[k], sphere, directions[k].direction);
     NormaliseIntensities(&intensities);
-    for (std::size_t k = 0; k < inputs.frames.size(); ++k)
-      report["lights"][k]["rgb_intensity"] = {intensities[k].rgb.x(), intensities[k].rgb.y(), intensities[k].rgb.z()};
+    for (std::size_t k = 0; k < inputs.frames.size(); ++k) {
+      const LightIntensityEstimate& e = intensities[k];
+      nlohmann::json& light = report["lights"][k];
+      light["intensity_usable"] = e.usable;
+      light["intensity_note"] = e.note;
+      light["rgb_intensity"] = {e.rgb.x(), e.rgb.y(), e.rgb.z()};
+      light["intensity_model_error"] = e.model_error;
+      light["intensity_relative_noise_rms"] = e.relative_noise_rms;
+      if (e.usable) continue;
+      if (summary.unusable_intensities++ == 0) unusable_intensity = "light " + std::to_string(k) + "'s intensity: " + e.note;
+    }
   }
   WriteLightFiles(inputs, directions, intensities, out_directory);
   if (estimates) *estimates = {directions, inputs.white_frames.empty() ? std::vector<LightIntensityEstimate>{} : intensities};
@@ -286,13 +296,17 @@ LightCalibrationSummary CalibrateLights(const LightCalibrationInputs& inputs, co
     }
   }
   report["summary"] = {{"lights", summary.lights}, {"unusable", summary.unusable},
+                       {"unusable_intensities", summary.unusable_intensities},
                        {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
                        {"circle_shift_deg", summary.circle_shift_deg}, {"out_rig", summary.out_rig}};
   std::ofstream((fs::path(out_directory) / "report.json").string()) << report.dump(2) << "\n";
-  summary.success = rig_written && summary.unusable == 0;
+  summary.success = rig_written && summary.unusable == 0 && summary.unusable_intensities == 0;
   if (summary.message.empty())
     summary.message = std::to_string(usable) + " of " + std::to_string(summary.lights) + " lights calibrated (sphere from " +
                       SphereSourceName(summary.sphere_source) + ")";
+  if (summary.unusable_intensities > 0)
+    summary.message += "; " + std::to_string(summary.unusable_intensities) + " of " + std::to_string(summary.lights) +
+                       " intensities unusable and kept at their previous values, e.g. " + unusable_intensity;
   return summary;
 }
 
@@ -302,6 +316,7 @@ nlohmann::json ToJson(const LightCalibrationSummary& summary) {
           {"sphere", SphereJson(summary)},
           {"lights", summary.lights},
           {"unusable", summary.unusable},
+          {"unusable_intensities", summary.unusable_intensities},
           {"mean_uncertainty_deg", summary.mean_uncertainty_deg},
           {"out_rig", summary.out_rig}};
 }

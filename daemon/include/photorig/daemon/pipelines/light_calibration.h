@@ -62,13 +62,16 @@ inline constexpr solvers::core::NameTable<SphereSource, 4> kSphereSourceNames = 
 inline const char* SphereSourceName(SphereSource source) { return solvers::core::NameOf(kSphereSourceNames, source); }
 
 struct LightCalibrationSummary {
-  bool success = false;  // every light usable and all outputs written
+  bool success = false;  // every light's direction and intensity usable, and all outputs written
   std::string message;
   solvers::lighting::Circle circle;
   SphereSource sphere_source = SphereSource::kNone;
   double sphere_fit_rms_px = 0.0;
   int lights = 0;
-  int unusable = 0;
+  int unusable = 0;  // lights without a usable direction
+  // Lights whose white-sphere frame gave no usable intensity (0 without
+  // white-sphere frames); they keep their previous intensity.
+  int unusable_intensities = 0;
   double mean_uncertainty_deg = 0.0;  // includes circle_shift_deg's per-light shifts
   // A given circle only: mean change of the directions had the sphere been
   // placed from the highlights instead (0 when not checked).
