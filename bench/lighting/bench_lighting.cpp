@@ -95,22 +95,13 @@ BENCHMARK(BM_LedPositions12)->Unit(benchmark::kMillisecond);
 // 16-bit RGB frame, 31k samples): the fit, the adjacent-sample noise
 // estimate and the model-error test.
 void BM_LightIntensity100px(benchmark::State& state) {
-  testing::SyntheticCamera camera;
-  testing::SyntheticSphere sphere;
-  sphere.radius_mm = 100.0 * camera.pixel_pitch_mm;
-  testing::SyntheticImageOptions options;
-  options.width = options.height = 230;
-  options.supersample = 1;
-  options.background = 0.0;
-  options.noise_sigma = 2.0;
-  const SphereGeometry geometry =
-      LocateSphere(CameraModel{}, FitSphereSilhouette(testing::RenderSilhouette(camera, sphere, options)).circle);
+  const testing::WhiteSphereScene scene = testing::MakeWhiteSphereScene(100.0, 230, 2.0, 1);
   const Eigen::Vector3d light = Eigen::Vector3d(0.4, 0.2, 0.89).normalized();
   cv::Mat frame;
-  testing::RenderWhiteSphere(camera, sphere, light, Eigen::Vector3d(3000, 2900, 2800), options).convertTo(frame, CV_16UC3);
+  scene.Render(light, Eigen::Vector3d(3000, 2900, 2800)).convertTo(frame, CV_16UC3);
   LightIntensityEstimate estimate;
   for (auto _ : state) {
-    estimate = EstimateIntensityFromSphere(frame, geometry, light);
+    estimate = EstimateIntensityFromSphere(frame, scene.geometry, light);
     benchmark::DoNotOptimize(estimate.rgb.data());
   }
   state.counters["samples"] = estimate.samples_used;

@@ -71,28 +71,19 @@ void Sweep(std::ofstream& out, const std::string& name, double radius_px, double
 // estimates the fit accepts and, for the chart's other points, of all.
 void IntensitySweep(std::ofstream& out, const std::string& name, double sheen, double level, double noise_dn,
                     bool eight_bit) {
-  testing::SyntheticCamera camera;
-  testing::SyntheticSphere sphere;
-  sphere.radius_mm = 100.0 * camera.pixel_pitch_mm;
-  testing::SyntheticImageOptions options;
-  options.width = options.height = 230;
-  options.supersample = 2;
-  options.background = 0.0;
-  options.noise_sigma = noise_dn;
-  options.saturation = eight_bit ? 255.0 : 65535.0;
-  const SphereGeometry geometry =
-      LocateSphere(CameraModel{}, FitSphereSilhouette(testing::RenderSilhouette(camera, sphere, options)).circle);
+  testing::WhiteSphereScene scene = testing::MakeWhiteSphereScene(100.0, 230, noise_dn);
+  scene.options.saturation = eight_bit ? 255.0 : 65535.0;
   const Eigen::Vector3d rgb = level * Eigen::Vector3d(1.0, 0.95, 0.9);
   double error_sum = 0.0, error_max = 0.0, model_error_sum = 0.0, residual_sum = 0.0, seconds = 0.0;
   int lights = 0, refused = 0;
   unsigned seed = 1;
   std::vector<Eigen::Vector3d> ratios;  // E / E_true per light, for the error relative to the set's mean
   for (const Eigen::Vector3d& direction : testing::DomeDirections()) {
-    options.seed = seed++;
-    cv::Mat frame = testing::RenderWhiteSphere(camera, sphere, direction, rgb, options, sheen, 20.0);
+    scene.options.seed = seed++;
+    cv::Mat frame = scene.Render(direction, rgb, sheen, 20.0);
     if (eight_bit) frame.convertTo(frame, CV_8UC3);
     const auto start = std::chrono::steady_clock::now();
-    const LightIntensityEstimate e = EstimateIntensityFromSphere(frame, geometry, direction);
+    const LightIntensityEstimate e = EstimateIntensityFromSphere(frame, scene.geometry, direction);
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     ++lights;
     refused += e.usable ? 0 : 1;

@@ -134,6 +134,23 @@ cv::Mat RenderWhiteSphere(const SyntheticCamera& camera, const SyntheticSphere& 
   return image;
 }
 
+cv::Mat WhiteSphereScene::Render(const Eigen::Vector3d& light, const Eigen::Vector3d& rgb, double sheen,
+                                 double sheen_exponent) const {
+  return RenderWhiteSphere(camera, sphere, light, rgb, options, sheen, sheen_exponent);
+}
+
+WhiteSphereScene MakeWhiteSphereScene(double radius_px, int size_px, double noise_sigma, int supersample) {
+  WhiteSphereScene scene;
+  scene.sphere.radius_mm = radius_px * scene.camera.pixel_pitch_mm;
+  scene.options.width = scene.options.height = size_px;
+  scene.options.supersample = supersample;
+  scene.options.background = 0.0;
+  scene.options.noise_sigma = noise_sigma;
+  scene.geometry =
+      LocateSphere(CameraModel{}, FitSphereSilhouette(RenderSilhouette(scene.camera, scene.sphere, scene.options)).circle);
+  return scene;
+}
+
 void SphereNormals(int size_px, double radius_fraction, cv::Mat* normals, cv::Mat* mask) {
   *normals = cv::Mat(size_px, size_px, CV_32FC3, cv::Scalar::all(0));
   *mask = cv::Mat(size_px, size_px, CV_8U, cv::Scalar(0));

@@ -2,6 +2,8 @@
 // Analytic images of calibration spheres for the lighting tests, independent of
 // the solver's own sphere geometry: a ray-sphere intersection per sub-sample.
 
+#include "photorig/solvers/lighting/sphere.h"
+
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
@@ -51,6 +53,20 @@ cv::Mat RenderMirrorSphere(const SyntheticCamera& camera, const SyntheticSphere&
 cv::Mat RenderWhiteSphere(const SyntheticCamera& camera, const SyntheticSphere& sphere, const Eigen::Vector3d& light,
                           const Eigen::Vector3d& rgb, const SyntheticImageOptions& options, double sheen = 0.0,
                           double sheen_exponent = 1.0);
+
+// A white sphere of radius `radius_px` at the centre of a square image of
+// `size_px` without background, noise `noise_sigma` DN, as RenderWhiteSphere
+// draws it; `geometry` is where the solver places it from its silhouette.
+struct WhiteSphereScene {
+  SyntheticCamera camera;
+  SyntheticSphere sphere;
+  SyntheticImageOptions options;
+  SphereGeometry geometry;
+  // RenderWhiteSphere of this scene.
+  cv::Mat Render(const Eigen::Vector3d& light, const Eigen::Vector3d& rgb, double sheen = 0.0,
+                 double sheen_exponent = 1.0) const;
+};
+WhiteSphereScene MakeWhiteSphereScene(double radius_px, int size_px, double noise_sigma, int supersample = 2);
 
 // Orthographic sphere filling a square image: normals (CV_32FC3, zero outside) and mask.
 void SphereNormals(int size_px, double radius_fraction, cv::Mat* normals, cv::Mat* mask);

@@ -7,25 +7,15 @@ namespace photorig::solvers::lighting {
 namespace {
 
 TEST(LightIntensity, RelativeRgbFromAWhiteSphere) {
-  testing::SyntheticCamera camera;
-  testing::SyntheticSphere sphere;
-  sphere.radius_mm = 10.0;
-  testing::SyntheticImageOptions options;
-  options.width = options.height = 240;
-  options.supersample = 2;
-  options.background = 0.0;
-  options.noise_sigma = 2.0;
-  const SphereFitSummary fit = FitSphereSilhouette(testing::RenderSilhouette(camera, sphere, options));
-  const SphereGeometry geometry = LocateSphere(CameraModel{}, fit.circle);
+  testing::WhiteSphereScene scene = testing::MakeWhiteSphereScene(100.0, 240, 2.0);
   const std::vector<Eigen::Vector3d> directions = {Eigen::Vector3d(0.6, 0.2, 0.77).normalized(),
                                                    Eigen::Vector3d(-0.3, -0.7, 0.65).normalized(),
                                                    Eigen::Vector3d(0.0, 0.1, 0.99).normalized()};
   const std::vector<Eigen::Vector3d> rgb = {{3000, 2800, 2500}, {2000, 2100, 2300}, {2600, 2600, 2600}};
   std::vector<LightIntensityEstimate> estimates;
   for (std::size_t k = 0; k < directions.size(); ++k) {
-    options.seed = static_cast<unsigned>(k + 1);
-    estimates.push_back(EstimateIntensityFromSphere(
-        testing::RenderWhiteSphere(camera, sphere, directions[k], rgb[k], options), geometry, directions[k]));
+    scene.options.seed = static_cast<unsigned>(k + 1);
+    estimates.push_back(EstimateIntensityFromSphere(scene.Render(directions[k], rgb[k]), scene.geometry, directions[k]));
     ASSERT_TRUE(estimates.back().usable) << estimates.back().note;
     EXPECT_NEAR(estimates.back().rgb.x() / rgb[k].x(), 1.0, 0.005);
     EXPECT_LT(estimates.back().relative_rms_residual, 0.01);
@@ -79,21 +69,12 @@ TEST(LightIntensity, NoiseFromAdjacentSamplesMatchesTheNoiseAdded) {
 // A limit on the relative residual would refuse it; the model error
 // (residual beyond the noise) accepts it, and the intensity is right.
 TEST(LightIntensity, ADim8BitFrameIsNoiseNotAModelError) {
-  testing::SyntheticCamera camera;
-  testing::SyntheticSphere sphere;
-  sphere.radius_mm = 10.0;
-  testing::SyntheticImageOptions options;
-  options.width = options.height = 240;
-  options.supersample = 2;
-  options.background = 0.0;
-  options.noise_sigma = 1.5;
-  const SphereGeometry geometry =
-      LocateSphere(CameraModel{}, FitSphereSilhouette(testing::RenderSilhouette(camera, sphere, options)).circle);
+  const testing::WhiteSphereScene scene = testing::MakeWhiteSphereScene(100.0, 240, 1.5);
   const Eigen::Vector3d light = Eigen::Vector3d(0.4, -0.3, 0.87).normalized();
   const Eigen::Vector3d rgb(65.0, 60.0, 55.0);
   cv::Mat frame;
-  testing::RenderWhiteSphere(camera, sphere, light, rgb, options).convertTo(frame, CV_8UC3);  // rounds to whole DN
-  const LightIntensityEstimate e = EstimateIntensityFromSphere(frame, geometry, light);
+  scene.Render(light, rgb).convertTo(frame, CV_8UC3);  // rounds to whole DN
+  const LightIntensityEstimate e = EstimateIntensityFromSphere(frame, scene.geometry, light);
   ASSERT_TRUE(e.usable) << e.note;
   EXPECT_GT(e.relative_rms_residual, 0.06);
   EXPECT_LT(e.model_error, 0.02);
@@ -105,35 +86,25 @@ TEST(LightIntensity, ADim8BitFrameIsNoiseNotAModelError) {
 // over a third of the sphere each leave shading the fit cannot explain,
 // while the noise estimate stays at the noise.
 TEST(LightIntensity, AGlossyOrShadowedTargetIsRefused) {
-  testing::SyntheticCamera camera;
-  testing::SyntheticSphere sphere;
-  sphere.radius_mm = 10.0;
-  testing::SyntheticImageOptions options;
-  options.width = options.height = 240;
-  options.supersample = 2;
-  options.background = 0.0;
-  options.noise_sigma = 2.0;
-  const SphereGeometry geometry =
-      LocateSphere(CameraModel{}, FitSphereSilhouette(testing::RenderSilhouette(camera, sphere, options)).circle);
+  const testing::WhiteSphereScene scene = testing::MakeWhiteSphereScene(100.0, 240, 2.0);
   const Eigen::Vector3d light = Eigen::Vector3d(0.5, 0.1, 0.86).normalized();
   const Eigen::Vector3d rgb(3000.0, 2900.0, 2800.0);
-  const LightIntensityEstimate glossy =
-      EstimateIntensityFromSphere(testing::RenderWhiteSphere(camera, sphere, light, rgb, options, 0.1, 20.0), geometry, light);
+  const LightIntensityEstimate glossy = EstimateIntensityFromSphere(scene.Render(light, rgb, 0.1, 20.0), scene.geometry, light);
   EXPECT_FALSE(glossy.usable);
   EXPECT_GT(glossy.model_error, 0.05);
   EXPECT_LT(glossy.relative_noise_rms, 0.01);
   EXPECT_NE(glossy.note.find("departs from a matte surface's"), std::string::npos) << glossy.note;
 
-  cv::Mat shadowed = testing::RenderWhiteSphere(camera, sphere, light, rgb, options);
+  cv::Mat shadowed = scene.Render(light, rgb);
   shadowed.colRange(0, 100).setTo(cv::Scalar::all(0.0));
-  const LightIntensityEstimate shadow = EstimateIntensityFromSphere(shadowed, geometry, light);
+  const LightIntensityEstimate shadow = EstimateIntensityFromSphere(shadowed, scene.geometry, light);
   EXPECT_FALSE(shadow.usable);
   EXPECT_GT(shadow.model_error, 0.05);
   EXPECT_LT(shadow.relative_noise_rms, 0.01);
 
   DiffuseIntensityOptions lenient;
   lenient.max_model_error = 1.0;
-  EXPECT_TRUE(EstimateIntensityFromSphere(shadowed, geometry, light, lenient).usable);
+  EXPECT_TRUE(EstimateIntensityFromSphere(shadowed, scene.geometry, light, lenient).usable);
   lenient.max_model_error = 0.0;
   std::string why;
   EXPECT_FALSE(lenient.IsValid(&why));
