@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates docs/charts/lighting_*.csv and lighting_*.png: mirror-sphere light-direction error
 # vs sphere radius and vs noise, the env-map round-trip error vs mirror-ball size, LED positions,
-# spherical-harmonic lighting and white-sphere intensities.
+# spherical-harmonic lighting, white-sphere intensities and LED drive weights.
 # Usage: scripts/chart-lighting.sh   (BUILD_DIR selects the build tree; default ./build)
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -48,14 +48,22 @@ void BM_ShFitSelectedUpToBand4(benchmark::State& state) {
 }
 BENCHMARK(BM_ShFitSelectedUpToBand4)->Unit(benchmark::kMillisecond);
 
+// Arg: 1 drives the simplest LED set (LedWeightsOptions::simplest_led_set), 0 every LED NNLS drives.
 void BM_LedWeightsNnls48(benchmark::State& state) {
   const Scene& s = GetScene();
+  LedWeightsOptions options;
+  options.simplest_led_set = state.range(0) != 0;
+  LedWeightsSummary fit;
   for (auto _ : state) {
-    benchmark::DoNotOptimize(FitLedWeights(s.normals, s.albedo, s.image, s.mask, s.dome, s.intensities));
+    fit = FitLedWeights(s.normals, s.albedo, s.image, s.mask, s.dome, s.intensities, options);
+    benchmark::DoNotOptimize(fit.weights.data());
   }
+  state.counters["active_leds"] = fit.active_leds;
+  state.counters["leds_dropped"] = fit.leds_dropped;
+  state.counters["relative_rms_residual"] = fit.relative_rms_residual;
   state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(s.normals.total()));
 }
-BENCHMARK(BM_LedWeightsNnls48)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LedWeightsNnls48)->ArgName("simplest")->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
 
 void BM_RenderShBand2(benchmark::State& state) {
   const Scene& s = GetScene();

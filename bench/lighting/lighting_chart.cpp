@@ -10,7 +10,11 @@
 // hemisphere, and its time; lighting_intensity.csv: relative intensities from a
 // white sphere under the 48-LED dome, the error against the truth, the model
 // error, the lights refused and the time, vs a sheen on the sphere and vs the
-// level of a dim 8-bit frame.
+// level of a dim 8-bit frame; lighting_led_weights.csv: a mixture of three of
+// the 48 dome LEDs recovered as LED drive weights (FitLedWeights) from a
+// sphere lit by it, vs the image noise and vs the pixel stride, with the
+// simplest LED set and with every LED the least squares drives: the weights'
+// error, the relit image's, the LEDs the fit drives, and its time.
 #include "photorig/solvers/lighting/envmap.h"
 #include "photorig/solvers/lighting/light_intensity.h"
 #include "photorig/solvers/lighting/inverse_lighting.h"
@@ -110,6 +114,57 @@ void IntensitySweep(std::ofstream& out, const std::string& name, double sheen, d
               name.c_str(), sheen, level, noise_dn, eight_bit ? 8 : 16, error_sum / lights, error_max,
               relative_sum / lights, model_error_sum / lights, residual_sum / lights, refused, lights,
               1e3 * seconds / lights);
+}
+
+// One point of the LED-weight sweeps: a 256 px sphere (albedo 0.7) lit by
+// LEDs 3, 20 and 44 of the dome at drives 0.7, 1.3 and 0.5, with Gaussian
+// noise of `relative_noise` times the image's mean, fitted every
+// `pixel_stride` pixels. The relit error is the RMS of the image the fitted
+// weights make against the noise-free one, relative to its mean.
+void LedWeightsSweep(std::ofstream& out, const std::string& name, double relative_noise, int pixel_stride,
+                     bool simplest_led_set) {
+  cv::Mat normals, mask;
+  testing::SphereNormals(256, 0.95, &normals, &mask);
+  const cv::Mat albedo(normals.size(), CV_32F, cv::Scalar(0.7));
+  const std::vector<Eigen::Vector3d> dome = testing::DomeDirections();
+  const std::vector<double> intensities(dome.size(), 1.0);
+  Eigen::MatrixXd truth = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(dome.size()), 1);
+  truth(3, 0) = 0.7;
+  truth(20, 0) = 1.3;
+  truth(44, 0) = 0.5;
+  const auto relit = [&](const Eigen::MatrixXd& weights) {
+    std::vector<double> drives(dome.size());
+    for (std::size_t k = 0; k < dome.size(); ++k) drives[k] = weights(static_cast<Eigen::Index>(k), 0) * intensities[k];
+    cv::Mat image;
+    RenderDirectionalLights(normals, albedo, dome, drives, &image);
+    return image;
+  };
+  const cv::Mat clean = relit(truth);
+  const double mean = cv::mean(clean, mask)[0];
+  cv::Mat noisy = clean.clone(), noise(clean.size(), CV_32F);
+  cv::theRNG().state = 7;
+  cv::randn(noise, 0.0, relative_noise * mean);
+  noisy += noise;
+  LedWeightsOptions options;
+  options.pixel_stride = pixel_stride;
+  options.simplest_led_set = simplest_led_set;
+  const auto start = std::chrono::steady_clock::now();
+  const LedWeightsSummary fit = FitLedWeights(normals, albedo, noisy, mask, dome, intensities, options);
+  const double ms = 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  double weight_error = std::numeric_limits<double>::quiet_NaN(), relit_error = weight_error;
+  if (fit.IsSolutionUsable()) {
+    weight_error = (fit.weights - truth).cwiseAbs().maxCoeff();
+    cv::Mat difference = relit(fit.weights) - clean;
+    relit_error = std::sqrt(cv::mean(difference.mul(difference), mask)[0]) / mean;
+  }
+  out << name << "," << (simplest_led_set ? "simplest" : "all") << "," << relative_noise << "," << pixel_stride << ","
+      << fit.IsSolutionUsable() << "," << weight_error
+      << "," << relit_error << "," << fit.relative_rms_residual << "," << fit.active_leds << "," << ms << "\n";
+  std::printf("led weights %s, %s: noise %.3f stride %d: weight error %.4f, relit error %.5f, residual %.4f, %d LEDs "
+              "driven, %.1f ms\n",
+              name.c_str(), simplest_led_set ? "simplest set" : "all LEDs", relative_noise, pixel_stride, weight_error,
+              relit_error, fit.relative_rms_residual,
+              fit.active_leds, ms);
 }
 
 void LedPositionSweep(std::ofstream& out, const std::string& name, double radius_mm, double noise_dn, bool pinhole) {
@@ -248,5 +303,13 @@ int main(int argc, char** argv) {
                "lights,ms_per_light\n";
   for (double sheen : {0.0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.16}) IntensitySweep(intensity, "sheen", sheen, 3000.0, 2.0, false);
   for (double level : {25.0, 50.0, 100.0, 200.0, 400.0}) IntensitySweep(intensity, "dim8", 0.0, level, 1.5, true);
+
+  std::ofstream weights(dir + "/lighting_led_weights.csv");
+  weights << "sweep,led_set,relative_noise,pixel_stride,usable,max_weight_error,relit_relative_rms,"
+             "relative_rms_residual,active_leds,time_ms\n";
+  for (const bool simplest : {true, false}) {
+    for (double noise : {0.0, 0.001, 0.003, 0.01, 0.03, 0.1}) LedWeightsSweep(weights, "noise", noise, 1, simplest);
+    for (int stride : {1, 2, 4, 8, 16}) LedWeightsSweep(weights, "stride", 0.01, stride, simplest);
+  }
   return 0;
 }

@@ -1,5 +1,5 @@
 """Draws docs/charts/lighting_direction_error.png, lighting_envmap_roundtrip.png, lighting_led_positions.png,
-lighting_sh_fit.png and lighting_intensity.png from the CSVs written by photorig-lighting-chart. Usage: lighting.py CHART_DIR"""
+lighting_sh_fit.png, lighting_intensity.png and lighting_led_weights.png from the CSVs written by photorig-lighting-chart. Usage: lighting.py CHART_DIR"""
 
 import csv
 import sys
@@ -152,6 +152,38 @@ def main(chart_dir):
     axes[2].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(chart_dir / "lighting_intensity.png", dpi=110)
+
+    weights = rows(chart_dir / "lighting_led_weights.csv")
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    for led_set, marker, label in (("simplest", "o", "simplest LED set (BIC)"), ("all", "s", "every LED NNLS drives")):
+        for ax, sweep, key in ((axes[0], "noise", "relative_noise"), (axes[1], "stride", "pixel_stride")):
+            sel = [r for r in weights if r["sweep"] == sweep and r["led_set"] == led_set]
+            x = [max(float(r[key]), 3e-4) for r in sel]
+            line, = ax.plot(x, [max(float(r["max_weight_error"]), 1e-6) for r in sel], marker + "-",
+                            label=f"{label}: max weight error")
+            ax.plot(x, [max(float(r["relit_relative_rms"]), 1e-6) for r in sel], marker + ":", color=line.get_color(),
+                    label=f"{label}: relit image error")
+            for xi, r in zip(x, sel):
+                ax.annotate(r["active_leds"], (xi, max(float(r["max_weight_error"]), 1e-6)), fontsize=7,
+                            xytext=(2, 4), textcoords="offset points", color=line.get_color())
+        sel = [r for r in weights if r["led_set"] == led_set]
+        axes[2].plot([float(r["time_ms"]) for r in sel], [max(float(r["relit_relative_rms"]), 1e-6) for r in sel],
+                     marker, label=label)
+    axes[0].set_xlabel("image noise relative to its mean (0 at left), every pixel")
+    axes[1].set_xlabel("pixel stride, noise 1 %")
+    axes[0].set_title("3 of 48 LEDs (drives 0.7, 1.3, 0.5); numbers: LEDs driven", fontsize=10)
+    axes[2].set_xlabel("fit time (ms), 256 px sphere")
+    axes[2].set_ylabel("relit image error relative to its mean")
+    for ax in axes[:2]:
+        ax.set_xscale("log")
+        ax.set_ylabel("error (drive units; relative)")
+    for ax in axes:
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[2].set_xscale("log")
+    fig.tight_layout()
+    fig.savefig(chart_dir / "lighting_led_weights.png", dpi=110)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <vector>
 
 namespace photorig::solvers::lighting {
 namespace {
@@ -260,6 +261,50 @@ ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, c
   return summary;
 }
 
+namespace {
+
+// The simplest set of LEDs the data support, from the NNLS solution x of
+// (g, h) (one channel; sum_squares = b.b, n samples): the LED whose removal
+// raises the sum of squares least is dropped, and the rest refitted, while
+// that rise is below BIC's price of one parameter, ln(n) sigma^2, sigma^2
+// the full fit's residual variance. Returns the number dropped.
+int DropUnsupportedLeds(const Eigen::MatrixXd& g, const Eigen::VectorXd& h, double sum_squares, double n,
+                        Eigen::VectorXd* x) {
+  std::vector<int> active;
+  for (int k = 0; k < x->size(); ++k)
+    if ((*x)(k) > 0.0) active.push_back(k);
+  double sse = Sse(g, h, sum_squares, *x);
+  const double variance = sse / std::max(1.0, n - static_cast<double>(active.size()));
+  const double price = std::log(n) * variance;
+  int dropped = 0;
+  while (active.size() > 1) {
+    double best_sse = std::numeric_limits<double>::infinity();
+    std::size_t best = 0;
+    Eigen::VectorXd best_x;
+    for (std::size_t i = 0; i < active.size(); ++i) {
+      std::vector<int> kept = active;
+      kept.erase(kept.begin() + static_cast<std::ptrdiff_t>(i));
+      Eigen::VectorXd sub_x;
+      const NnlsSummary nnls = SolveNnlsNormal(g(kept, kept), h(kept), &sub_x);
+      if (nnls.termination != solvers::core::Termination::kSuccess) continue;
+      Eigen::VectorXd full = Eigen::VectorXd::Zero(x->size());
+      full(kept) = sub_x;
+      const double candidate = Sse(g, h, sum_squares, full);
+      if (candidate < best_sse) best_sse = candidate, best = i, best_x = full;
+    }
+    if (!(best_sse - sse < price)) break;
+    active.erase(active.begin() + static_cast<std::ptrdiff_t>(best));
+    // An LED the refit set to zero is gone as well.
+    active.erase(std::remove_if(active.begin(), active.end(), [&](int k) { return !(best_x(k) > 0.0); }), active.end());
+    *x = best_x;
+    sse = best_sse;
+    ++dropped;
+  }
+  return dropped;
+}
+
+}  // namespace
+
 bool LedWeightsOptions::IsValid(std::string* why) const {
   if (pixel_stride < 1) {
     if (why) *why = "pixel_stride >= 1";
@@ -303,6 +348,9 @@ LedWeightsSummary FitLedWeights(const cv::Mat& normals, const cv::Mat& albedo, c
     Eigen::VectorXd x;
     const NnlsSummary nnls = SolveNnlsNormal(g, h, &x);
     converged = converged && nnls.termination == solvers::core::Termination::kSuccess;
+    if (options.simplest_led_set && converged)
+      summary.leds_dropped += DropUnsupportedLeds(g, h, eq.sum_squares[k0] + eq.sum_squares[k1],
+                                                  static_cast<double>(summary.pixels_used), &x);
     summary.weights.col(ColourColumn(ch, eq.channels)) = x;
     sse += Sse(g, h, eq.sum_squares[k0] + eq.sum_squares[k1], x);
   }

@@ -69,6 +69,13 @@ ShLightingSummary FitShLighting(const cv::Mat& normals, const cv::Mat& albedo, c
 struct LedWeightsOptions {
   int pixel_stride = 1;
   double min_albedo = 1e-3;
+  // Drive no more LEDs than the image supports: from the non-negative least
+  // squares, LEDs are dropped one at a time (the one whose loss costs least,
+  // the rest refitted) while the rise of the sum of squares stays below the
+  // Bayesian information criterion's price of one parameter, ln(pixels)
+  // times the fit's residual variance. Off: every LED the least squares
+  // drives, where noise spreads a few LEDs' light over their neighbours.
+  bool simplest_led_set = true;
   bool IsValid(std::string* why) const;
 };
 
@@ -77,6 +84,7 @@ struct LedWeightsSummary : solvers::core::Summary {
   double rms_residual = 0.0;
   double relative_rms_residual = 0.0;
   int active_leds = 0;  // weights above 1e-4 of the largest
+  int leds_dropped = 0;  // by simplest_led_set, summed over the channels
   std::size_t pixels_used = 0;
 };
 
