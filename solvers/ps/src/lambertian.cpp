@@ -796,7 +796,7 @@ class TileSetup {
  private:
   std::vector<const float*> planes_;
   std::vector<float> weights_, inverse_scale2_, inverse_scale_, direction_;
-  std::vector<float> group_terms_, group_terms_avx2_;
+  std::vector<float> group_terms_;  // for the active subset kernel's group size
   TileConstants constants_;
 };
 
@@ -848,10 +848,12 @@ TileSetup::TileSetup(const LambertianOptions& options, const PhotometricStack& s
     c.sum_inverse_scale2 += inverse_scale2_[i];
     gram += w * w.transpose();
   }
-  group_terms_ = GroupTerms(stack, kSubsetGroup);
-  group_terms_avx2_ = GroupTerms(stack, kSubsetGroupAvx2);
-  c.group_terms = group_terms_.data();
-  c.group_terms_avx2 = group_terms_avx2_.data();
+  // Only the table the solve's kernel reads.
+  const SubsetKernel kernel = ActiveSubsetKernel();
+  if (kernel == SubsetKernel::kAvx512) group_terms_ = GroupTerms(stack, kSubsetGroup);
+  if (kernel == SubsetKernel::kAvx2) group_terms_ = GroupTerms(stack, kSubsetGroupAvx2);
+  c.group_terms = kernel == SubsetKernel::kAvx512 ? group_terms_.data() : nullptr;
+  c.group_terms_avx2 = kernel == SubsetKernel::kAvx2 ? group_terms_.data() : nullptr;
   c.planes = planes_.data();
   c.lights = k;
   c.weights = weights_.data();
