@@ -24,8 +24,8 @@
 // fit was 0.4 deg worse on the mean). Chi-square, for the ladder, weighs
 // each residual by its sigma.
 //
-// One pixel at a time in double; the sample loops are plain arrays that the
-// compiler vectorises.
+// One pixel at a time in double; the sample loops run a few samples per
+// pass, one per SIMD lane.
 
 #include <Eigen/Core>
 
@@ -86,11 +86,16 @@ struct HalfVectorTable {
   explicit HalfVectorTable(const LowFrequencyProblem& problem);
 };
 
+// Samples per pass of the fit's sample loops (four doubles: one AVX2 register).
+inline constexpr int kLowFrequencySampleLanes = 4;
+
 // A fit's samples as plain arrays, for its multi-versioned loops: light and
-// half vectors by axis, cos theta_d, value and inverse sigma.
+// half vectors by axis, cos theta_d, value and inverse sigma; padded_count
+// entries, a whole number of passes, the samples beyond the fit's all zero
+// (a zero light direction and value add nothing to any sum).
 struct LowFrequencySamples {
   const double *lx, *ly, *lz, *hx, *hy, *hz, *d, *b, *inverse_sigma;
-  int count;
+  int padded_count;
 };
 
 class LowFrequencyFitter {
@@ -139,11 +144,14 @@ class LowFrequencyFitter {
     return {lx_.data(), ly_.data(), lz_.data(), hx_.data(),          hy_.data(),
             hz_.data(), d_.data(),  b_.data(),  inverse_sigma_.data(), static_cast<int>(b_.size())};
   }
+  // Sizes the sample arrays for `count` samples, zero beyond them (Samples()).
+  void ResizeSamples(int count);
 
   double spike_fraction_;
   // The samples fitted, compacted: light and half vectors, cos theta_d,
-  // value and inverse sigma.
+  // value and inverse sigma; count_ of them, then zeros to a whole pass.
   std::vector<double> lx_, ly_, lz_, hx_, hy_, hz_, d_, b_, inverse_sigma_;
+  int count_ = 0;
   std::vector<int> order_;
   double b2_ = 0.0;  // sum of b^2
   double mean_noise_variance_ = 0.0;  // of the compacted samples (Solve's)
