@@ -10,7 +10,8 @@
 //
 // With --realistic: the shiny sphere (ps-shiny-sphere) on the 96-LED dome with
 // what a real capture has and the simulated one lacks, each effect alone and
-// all together (kEffects below), every method solved once, written as rows
+// all together, and the same sphere painted metal (kEffects below), every
+// method solved once, written as rows
 //   scene,method,mean_deg,median_deg,pixels_with_truth,unresolved,unresolved_usable3,too_few_lights,
 //   ill_conditioned,rejected_by_model,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,low_frequency_pct,
 //   mean_confidence,
@@ -160,6 +161,9 @@ struct Effect {
   bool ambient = false;      // the dome's walls send back 2 % of each LED's light as an even sky
   bool gamma = false;        // camera response DN ~ S^(1/1.1) instead of linear
   bool dataset = false;      // exported as a DiLiGenT folder and read back: no dark frames, no noise model, no saturation code
+  // Not an effect but another material: a metal-like paint, GGX of roughness 0.3 and F0 0.9 over a dark diffuse
+  // term (rho_d 0.04-0.08), whose lobe every pixel's samples see (so every pixel keeps a lobe of its own).
+  bool metal = false;
 };
 
 const Effect kEffects[] = {
@@ -170,6 +174,7 @@ const Effect kEffects[] = {
     {"+gamma", false, false, false, true},
     {"+no-darks", false, false, false, false, true},
     {"all", true, true, true, true, true},
+    {"metal", false, false, false, false, false, true},
 };
 
 // Every method once on `input`, with the counts that say what was left unresolved and why.
@@ -241,6 +246,11 @@ void RunRealistic(const fs::path& source, const fs::path& out, const fs::path& s
     // peak near the Blinn-Phong one (0.74 against 0.99 /sr).
     if (effect.ggx_lobe)
       recipe = ReplaceFirst(recipe, "brdf: *\\{[^}]*\\}", "brdf: {model: ggx, roughness: 0.18, f0: 0.3}", effect.name);
+    if (effect.metal) {
+      recipe = ReplaceFirst(recipe, "brdf: *\\{[^}]*\\}", "brdf: {model: ggx, roughness: 0.3, f0: 0.9}", effect.name);
+      recipe = ReplaceFirst(recipe, "albedo: *\\{[^}]*\\}", "albedo: {pattern: checker, low: 0.04, high: 0.08, period_mm: 6}",
+                            effect.name);
+    }
     const std::string name = std::string("realistic-") + (effect.name[0] == '+' ? effect.name + 1 : effect.name);
     const std::string run = CaptureRun(recipe, rig, name, scratch);
     if (effect.dataset) {

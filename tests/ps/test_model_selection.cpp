@@ -299,6 +299,32 @@ TEST(ModelLadder, TheShapeTestCountsAnOwnLobeThatFitsWorseAsNoGain) {
   EXPECT_TRUE(ladder.RejectsSharedShape(test));
 }
 
+// A region tested on its own lobes: a lobe counts for GGX only where GGX's
+// criterion is below it by very strong evidence (same parameters: by
+// chi-square), and the region rejects the shape where more than half do.
+TEST(ModelLadder, TheOwnLobesTestCountsVeryStrongEvidenceForGgxAndRejectsOnAMajority) {
+  const ModelLadder ladder = Ladder(Method::kAuto);
+  const PixelFit own = FitWith(40, 1.5, PixelModel::kBlinnPhong, 5);  // chi2 52.5
+  PixelFit ggx = FitWith(40, 1.0, PixelModel::kGgx, 5);               // chi2 35: evidence 17.5
+  SharedShapeTest test;
+  ladder.AddToShapeTest(GgxFits{&own, &ggx}, &test);
+  EXPECT_EQ(test.own_lobes, 1);
+  EXPECT_EQ(test.own_lobes_ggx, 1);
+  ggx.chi2 = 43.0;  // evidence 9.5: below very strong
+  ladder.AddToShapeTest(GgxFits{&own, &ggx}, &test);
+  ladder.AddToShapeTest(GgxFits{&own, nullptr}, &test);  // the ladder kept no GGX fit
+  EXPECT_EQ(test.own_lobes, 3);
+  EXPECT_EQ(test.own_lobes_ggx, 1);
+  const PixelFit lambertian = FitWith(40, 1.5);  // not an own lobe: no part
+  ladder.AddToShapeTest(GgxFits{&lambertian, &ggx}, &test);
+  EXPECT_EQ(test.own_lobes, 3);
+  EXPECT_FALSE(ladder.RejectsSharedShape(test));
+  test.own_lobes_ggx = 2;
+  EXPECT_TRUE(ladder.RejectsSharedShape(test));
+  test = {.own_lobes = 4, .own_lobes_ggx = 2};  // half: not more than half
+  EXPECT_FALSE(ladder.RejectsSharedShape(test));
+}
+
 // Step 7 in a region whose pixels reject one Blinn-Phong shape (step 5): an
 // inadequate Blinn-Phong lobe there takes the low-frequency fit outright,
 // without the evidence a pixel of another region needs; an adequate lobe,

@@ -1,3 +1,4 @@
+#include <cstdio>
 #include "lobe_sharing.h"
 
 #include "per_pixel_fits.h"
@@ -353,21 +354,49 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
   };
   // The sample in halves, one per thread: each thread's test sums in a
   // fixed order, so the verdict is the same on every run.
+  auto halves = [threads](std::size_t count, const auto& run) {
 #pragma omp parallel num_threads(threads)
-  {
-    const std::size_t thread = omp_get_thread_num(), team = omp_get_num_threads();
-    const std::size_t begin = sample.size() * thread / team, end = sample.size() * (thread + 1) / team;
-    fits.share(static_cast<int>(thread), std::span(sample).subspan(begin, end - begin), &tests[thread]);
-  }
-  std::vector<std::uint8_t> rejects(regions, 0);
-  bool any_rejects = false;
-  for (int r = 1; r < regions; ++r) {
+    {
+      const std::size_t thread = omp_get_thread_num(), team = omp_get_num_threads();
+      run(static_cast<int>(thread), count * thread / team, count * (thread + 1) / team);
+    }
+  };
+  halves(sample.size(), [&](int thread, std::size_t begin, std::size_t end) {
+    fits.share(thread, std::span(sample).subspan(begin, end - begin), &tests[thread]);
+  });
+  auto region_test = [&](int r) {
     SharedShapeTest test;
     for (const std::vector<SharedShapeTest>& thread_tests : tests) {
       test.chi2_gain += thread_tests[r].chi2_gain;
       test.pixels += thread_tests[r].pixels;
+      test.own_lobes += thread_tests[r].own_lobes;
+      test.own_lobes_ggx += thread_tests[r].own_lobes_ggx;
     }
-    rejects[r] = ladder.RejectsSharedShape(test);
+    return test;
+  };
+  // A glossy region where fewer pixels offered its lobe take part in the
+  // test than step 5 pools a lobe from is tested on its own lobes
+  // (SharedShapeTest): up to kShapeTestPixels of them, spread evenly in
+  // raster order whatever the threads did.
+  std::vector<std::vector<int>> own_lobes(regions);
+  for (const GlossyPixel& g : glossy)
+    if (!g.held && region_lobe[label[g.pixel]].exponent > 0.0) own_lobes[label[g.pixel]].push_back(g.pixel);
+  for (int r = 1; r < regions; ++r) {
+    if (own_lobes[r].empty() || region_test(r).pixels >= static_cast<int>(kMinPooledLobes)) continue;
+    std::vector<int>& own = own_lobes[r];
+    std::sort(own.begin(), own.end());
+    std::vector<int> tested;
+    const std::size_t count = std::min(own.size(), kShapeTestPixels);
+    for (std::size_t i = 0; i < count; ++i) tested.push_back(own[i * own.size() / count]);
+    halves(tested.size(), [&](int thread, std::size_t begin, std::size_t end) {
+      fits.offer_ggx(thread, std::span(tested).subspan(begin, end - begin), &tests[thread][r]);
+    });
+  }
+  std::vector<std::uint8_t> rejects(regions, 0);
+  bool any_rejects = false;
+  for (int r = 1; r < regions; ++r) {
+    rejects[r] = ladder.RejectsSharedShape(region_test(r));
+    { const SharedShapeTest t = region_test(r); if (region_lobe[r].exponent > 0.0) fprintf(stderr, "TMPV region %d pixels %d gain %.1f own %d ggx %d reject %d\n", r, t.pixels, t.chi2_gain, t.own_lobes, t.own_lobes_ggx, int(rejects[r])); }
     any_rejects = any_rejects || rejects[r];
   }
   std::unique_ptr<NearestLobes> nearest;
@@ -397,7 +426,7 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
     if (kept_without_lobe(model[p]) || model[p] == static_cast<std::uint8_t>(PixelModel::kBlinnPhong)) offered.push_back(p);
   }
   in_parallel(offered.size(), [&](int thread, std::size_t begin, std::size_t end) {
-    fits.offer_ggx(thread, std::span(offered).subspan(begin, end - begin));
+    fits.offer_ggx(thread, std::span(offered).subspan(begin, end - begin), nullptr);
   });
   return region_rejects;
 }
@@ -468,6 +497,14 @@ void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCa
     const PixelFit ggx = LobeFitFrom(solutions[i], batch[i].on_samples.used, PixelModel::kGgx);
     if (ladder.NextWithGgx(GgxFits{&batch[i].on_samples, &ggx}).keep == &ggx) keep(batch[i], ggx);
   }
+}
+
+void TestGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCandidate> batch, SharedShapeTest* test) {
+  std::vector<PixelFit> kept_ggx(batch.size());  // not ok: the ladder kept no GGX fit
+  ClimbGgx(ladder, fitter, batch,
+           [&](const GgxCandidate& candidate, const PixelFit& ggx) { kept_ggx[&candidate - batch.data()] = ggx; });
+  for (std::size_t i = 0; i < batch.size(); ++i)
+    ladder.AddToShapeTest(GgxFits{&batch[i].on_samples, kept_ggx[i].ok ? &kept_ggx[i] : nullptr}, test);
 }
 
 namespace {

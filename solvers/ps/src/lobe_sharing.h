@@ -78,8 +78,11 @@ struct LobeSharingFits {
   // part in its region's shape test (ModelLadder::AddToShapeTest), the map
   // unchanged; else the fits the ladder keeps, into the map.
   std::function<void(int thread, std::span<const SharedLobeItem> items, std::vector<SharedShapeTest>* tests)> share;
-  // Step 6's fits of `pixels` (indices into the map), into the map where the ladder keeps them.
-  std::function<void(int thread, std::span<const int> pixels)> offer_ggx;
+  // Step 6's fits of `pixels` (indices into the map), into the map where
+  // the ladder keeps them; with `test`, each pixel's part in its region's
+  // shape test instead (ModelLadder::AddToShapeTest's of a GGX fit), the
+  // map unchanged.
+  std::function<void(int thread, std::span<const int> pixels, SharedShapeTest* test)> offer_ggx;
   // Optional, once the shape tests are done and some region rejects its
   // shape, before the pooled lobes are drawn: each pixel holding a lattice
   // lobe (step 4) whose region rejects (rejects(pixel)) fits the lobe of its
@@ -143,6 +146,9 @@ struct GgxCandidate {
 // each pixel whose GGX fit the ladder keeps.
 void ClimbGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCandidate> batch,
               const std::function<void(const GgxCandidate&, const PixelFit& ggx)>& keep);
+// The same fits of `batch` for a region's shape test: each pixel's part,
+// GGX kept or not, into `test` (ModelLadder::AddToShapeTest's).
+void TestGgx(const ModelLadder& ladder, LobeLaneFitter& fitter, std::span<GgxCandidate> batch, SharedShapeTest* test);
 
 // The solved pixels of `map` step 7 offers the low-frequency fit
 // (ModelLadder::NextWithLowFrequency asks for it); held: step 5's held

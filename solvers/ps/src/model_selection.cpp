@@ -30,7 +30,8 @@ std::vector<double> ChiSquareQuantiles(int max_dof, double p) {
 }
 
 bool ModelLadder::RejectsSharedShape(const SharedShapeTest& test) const {
-  return test.pixels > 0 && test.chi2_gain > ChiSquareQuantile(2 * test.pixels, adequacy_quantile_);
+  return (test.pixels > 0 && test.chi2_gain > ChiSquareQuantile(2 * test.pixels, adequacy_quantile_)) ||
+         (test.own_lobes > 0 && 2 * test.own_lobes_ggx > test.own_lobes);
 }
 
 ModelLadder::ModelLadder(Method method, const ModelSelectionOptions& options, int lights)

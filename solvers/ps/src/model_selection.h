@@ -149,9 +149,19 @@ struct SharedLobeFits {
 // freedom per pixel (the two the own lobe frees). Pixels the held lobe does
 // not explain (a matte pixel, one with spikes from inter-reflection) say
 // nothing about the lobe's shape.
+//
+// A region where too few pixels offered its lobe take part (every pixel kept
+// a lobe of its own, as on a metal whose lobe no pixel's samples miss) is
+// tested on its own lobes instead: each against its GGX fit, on the same
+// samples and with as many parameters. On a Blinn-Phong object GGX fits a
+// pixel's samples about as well as the lobe that made them, so very strong
+// evidence for GGX (kConfidentLobeEvidence) on most of them says the lobe
+// is not Blinn-Phong.
 struct SharedShapeTest {
   double chi2_gain = 0.0;
   int pixels = 0;
+  int own_lobes = 0;      // own lobes tested against GGX
+  int own_lobes_ggx = 0;  // of them, those GGX replaces on very strong evidence
 };
 
 // Step 6's fits of a pixel in a region whose pixels reject one Blinn-Phong
@@ -263,8 +273,12 @@ class ModelLadder {
   // A pixel's part in its region's SharedShapeTest, from fits that climbed
   // NextWithSharedLobe with test_shape to the end.
   void AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const;
+  // An own lobe's part in its region's SharedShapeTest, from fits that
+  // climbed NextWithGgx to the end (the kept lobe on its usable samples).
+  void AddToShapeTest(const GgxFits& fits, SharedShapeTest* test) const;
   // The test's sum is above the adequacy quantile of chi-square with two
-  // degrees of freedom per pixel.
+  // degrees of freedom per pixel, or GGX replaces most of the own lobes
+  // tested on very strong evidence.
   bool RejectsSharedShape(const SharedShapeTest& test) const;
 
   // Step 6 (`auto` only), for the pixels of a region that RejectsSharedShape
@@ -504,6 +518,13 @@ inline LadderStep ModelLadder::NextWithLowFrequency(const LowFrequencyFits& fits
       return KeepLowFrequency(low, LowFrequencyRule::kStrongEvidence);
   }
   return Keep(kept);
+}
+
+inline void ModelLadder::AddToShapeTest(const GgxFits& fits, SharedShapeTest* test) const {
+  const PixelFit& kept = *fits.kept;
+  if (!kept.ok || kept.model != PixelModel::kBlinnPhong) return;
+  ++test->own_lobes;
+  if (fits.ggx && fits.ggx->ok && kept.Bic() - fits.ggx->Bic() >= kConfidentLobeEvidence) ++test->own_lobes_ggx;
 }
 
 inline void ModelLadder::AddToShapeTest(const SharedLobeFits& fits, SharedShapeTest* test) const {

@@ -409,10 +409,10 @@ class NearRefitter {
     }
   }
 
-  // Step 6 for `pixels` of the map (LobeSharingFits::offer_ggx); held: the
-  // pixels whose lobe step 5 held.
+  // Step 6 for `pixels` of the map (LobeSharingFits::offer_ggx, `test`
+  // its); held: the pixels whose lobe step 5 held.
   void OfferGgx(const internal::ModelLadder& ladder, std::span<const int> pixels, const cv::Mat& height_mm,
-                const std::vector<std::uint8_t>& held, NormalMap* map) {
+                const std::vector<std::uint8_t>& held, internal::SharedShapeTest* test, NormalMap* map) {
     for (std::size_t first = 0; first < pixels.size(); first += kLobeBatch) {
       const std::size_t count = std::min(kLobeBatch, pixels.size() - first);
       ReadMapPixels(pixels.subspan(first, count), height_mm, [](int pixel) { return pixel; });
@@ -427,6 +427,10 @@ class NearRefitter {
           continue;
         offer.problem = LobeRow(i);
         offers_.push_back(offer);
+      }
+      if (test) {
+        internal::TestGgx(ladder, *ggx_, offers_, test);
+        continue;
       }
       internal::ClimbGgx(ladder, *ggx_, offers_, [&](const internal::GgxCandidate& offer, const internal::PixelFit& ggx) {
         internal::WriteFitToMap(offer.pixel, ggx, map);
@@ -960,8 +964,8 @@ std::size_t ShareLobes(const PixelProblem& p, const PhotometricStereoOptions& op
                     std::vector<internal::SharedShapeTest>* tests) {
          refitters[thread]->ShareLobe(ladder, items, surface.height_mm, tests, map, &held);
        },
-       .offer_ggx = [&](int thread, std::span<const int> pixels) {
-         refitters[thread]->OfferGgx(ladder, pixels, surface.height_mm, held, map);
+       .offer_ggx = [&](int thread, std::span<const int> pixels, internal::SharedShapeTest* test) {
+         refitters[thread]->OfferGgx(ladder, pixels, surface.height_mm, held, test, map);
        },
        .own_lobes = nullptr});  // near lights hold no lattice lobes
   // Step 6 may have given a held pixel a GGX lobe of its own.

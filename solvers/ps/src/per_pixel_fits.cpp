@@ -599,14 +599,18 @@ PixelFit PerPixelFits::KeptOnUsable(int pixel, const PixelFit& kept, bool held_l
   return on_samples;
 }
 
-PixelFit PerPixelFits::OfferGgx(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const {
+PixelFit PerPixelFits::OfferGgx(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch,
+                                SharedShapeTest* test) const {
   const PixelFit on_samples = KeptOnUsable(pixel, kept, held_lobe, scratch);
   const PixelSamples& s = scratch->samples;
   PixelFit ggx;
   GgxFits fits{&on_samples};
   for (;;) {
     const LadderStep step = ladder_.NextWithGgx(fits);
-    if (step.action != LadderStep::Action::kFitGgx) return step.keep == &ggx ? ggx : kept;
+    if (step.action != LadderStep::Action::kFitGgx) {
+      if (test && fits.ggx) ladder_.AddToShapeTest(fits, test);
+      return step.keep == &ggx ? ggx : kept;
+    }
     ggx = FitGgx(s, view_, *step.start, blinn_phong_, &scratch->tape);
     fits.ggx = &ggx;
   }

@@ -98,8 +98,9 @@ class PerPixelFits {
   // Step 6 for `pixel`, which steps 1-5 left with `kept` (held_lobe: a lobe
   // step 5 held) in a region whose pixels reject one Blinn-Phong shape
   // (ModelLadder::NextWithGgx): its GGX fit where the ladder takes it, else
-  // `kept`.
-  PixelFit OfferGgx(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const;
+  // `kept`. With `test`, also the pixel's part in its region's shape test.
+  PixelFit OfferGgx(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch,
+                    SharedShapeTest* test = nullptr) const;
   // Step 6's first half: `kept` judged on the samples a GGX fit takes (every
   // usable one, left in scratch->samples), as NextWithGgx compares them.
   PixelFit KeptOnUsable(int pixel, const PixelFit& kept, bool held_lobe, PixelScratch* scratch) const;

@@ -741,20 +741,21 @@ void TileRefiner::ShareLobe() {
                       },
                   .share = [this](int thread, std::span<const SharedLobeItem> items,
                                   std::vector<SharedShapeTest>* tests) { ShareLobe(thread, items, tests); },
-                  .offer_ggx = [this](int thread, std::span<const int> pixels) { OfferGgx(thread, pixels); },
+                  .offer_ggx = [this](int thread, std::span<const int> pixels,
+                                      SharedShapeTest* test) { OfferGgx(thread, pixels, test); },
                   .own_lobes = [this](const std::function<bool(int)>& rejects) {
                     return FitOwnLobesOfLattice(rejects);
                   }});
 }
 
-void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
+void TileRefiner::OfferGgx(int thread, std::span<const int> pixels, SharedShapeTest* test) {
   ThreadState& state = states_[thread];
   if (!lanes_) {
     for (const int p : pixels) {
       const PixelFit kept = FitInMap(*result_, p);
       const bool held = held_lobe_[p] != 0;
-      const PixelFit chosen = per_pixel_.OfferGgx(p, kept, held, &state.scratch);
-      if (chosen.model == PixelModel::kGgx) RecordGgx(state, p, kept, held, chosen);
+      const PixelFit chosen = per_pixel_.OfferGgx(p, kept, held, &state.scratch, test);
+      if (!test && chosen.model == PixelModel::kGgx) RecordGgx(state, p, kept, held, chosen);
     }
     return;
   }
@@ -808,6 +809,10 @@ void TileRefiner::OfferGgx(int thread, std::span<const int> pixels) {
     for (std::size_t i = 0; i < rows.size(); ++i)
       state.ggx_offers[i].problem.observed = &state.observed[rows[i] * lights_],
       state.ggx_offers[i].problem.inverse_sigma = &state.inverse_sigma[rows[i] * lights_];
+    if (test) {
+      TestGgx(ladder_, ggx_fitters_[thread], state.ggx_offers, test);
+      continue;
+    }
     ClimbGgx(ladder_, ggx_fitters_[thread], state.ggx_offers, [&](const GgxCandidate& offer, const PixelFit& ggx) {
       RecordGgx(state, offer.pixel, offer.kept, offer.held, ggx);
     });

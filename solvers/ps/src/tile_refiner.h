@@ -96,8 +96,9 @@ class TileRefiner {
   // Pixel p, kept as `kept`, takes the lobe fitted with its region's exponent.
   void RecordSharedLobe(ThreadState& state, int p, const PixelFit& kept, const PixelFit& lobe, int usable);
   // Step 6 for `pixels`: their GGX fits (in lanes, kBatch at a time, or one
-  // by one), into the map where the ladder takes them.
-  void OfferGgx(int thread, std::span<const int> pixels);
+  // by one), into the map where the ladder takes them; with `test`, their
+  // parts in their region's shape test instead (LobeSharingFits::offer_ggx).
+  void OfferGgx(int thread, std::span<const int> pixels, SharedShapeTest* test);
   // Step 5, where a region rejects one lobe shape (rejects(pixel)): a
   // lattice lobe stood in for a pixel's own on the premise that one shape
   // spans its neighbourhood, so each lattice-held pixel there fits the lobe
