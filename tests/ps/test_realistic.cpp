@@ -188,7 +188,7 @@ TEST(RealisticSphere, AutoIsMoreAccurateThanBlinnPhongWhereTheLobeIsGgx) {
 // On a metal every pixel's samples see the lobe and every pixel keeps one of
 // its own, so no pixel is offered the region's lobe and step 5's test of
 // one shape has no pixel it explains: the region's own lobes are tested
-// against GGX instead, and on the GGX metal most of them take it on very
+// against GGX too, and on the GGX metal most of them take it on very
 // strong evidence, the region rejects one Blinn-Phong shape and step 6 fits
 // GGX. Over six draws of noise (seeds 1-5 and this one) 1,017-1,021 of the
 // 1,024 own lobes tested took GGX so, and `auto` was 0.59-0.61 deg against

@@ -374,15 +374,16 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
     }
     return test;
   };
-  // A glossy region where fewer pixels offered its lobe take part in the
-  // test than step 5 pools a lobe from is tested on its own lobes
+  // A glossy region the test does not reject is tested on its own lobes
   // (SharedShapeTest): up to kShapeTestPixels of them, spread evenly in
-  // raster order whatever the threads did.
+  // raster order whatever the threads did. Its pixels offered the region's
+  // lobe are those whose samples cannot tell a lobe apart, and a metal has
+  // none the held lobe explains (every pixel's samples see the lobe).
   std::vector<std::vector<int>> own_lobes(regions);
   for (const GlossyPixel& g : glossy)
     if (!g.held && region_lobe[label[g.pixel]].exponent > 0.0) own_lobes[label[g.pixel]].push_back(g.pixel);
   for (int r = 1; r < regions; ++r) {
-    if (own_lobes[r].empty() || region_test(r).pixels >= static_cast<int>(kMinPooledLobes)) continue;
+    if (own_lobes[r].empty() || ladder.RejectsSharedShape(region_test(r))) continue;
     std::vector<int>& own = own_lobes[r];
     std::sort(own.begin(), own.end());
     std::vector<int> tested;

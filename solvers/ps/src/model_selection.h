@@ -150,13 +150,13 @@ struct SharedLobeFits {
 // not explain (a matte pixel, one with spikes from inter-reflection) say
 // nothing about the lobe's shape.
 //
-// A region where too few pixels offered its lobe take part (every pixel kept
-// a lobe of its own, as on a metal whose lobe no pixel's samples miss) is
-// tested on its own lobes instead: each against its GGX fit, on the same
-// samples and with as many parameters. On a Blinn-Phong object GGX fits a
-// pixel's samples about as well as the lobe that made them, so very strong
-// evidence for GGX (kConfidentLobeEvidence) on most of them says the lobe
-// is not Blinn-Phong.
+// A region that test does not reject is tested on its own lobes too (on a
+// metal every pixel's samples see the lobe, every pixel keeps one of its
+// own, and the test has no pixel to judge): each against its GGX fit, on
+// the same samples and with as many parameters. On a Blinn-Phong object GGX
+// fits a pixel's samples about as well as the lobe that made them, so very
+// strong evidence for GGX (kConfidentLobeEvidence) on most of them says the
+// lobe is not Blinn-Phong.
 struct SharedShapeTest {
   double chi2_gain = 0.0;
   int pixels = 0;

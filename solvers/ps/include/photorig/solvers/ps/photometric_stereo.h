@@ -150,9 +150,9 @@ struct ModelSelectionOptions {
   // fit's), the pixels kept Lambertian or trimmed are fitted with the lobe
   // held at the region's median rho_s and exponent (at their nearest glossy
   // pixels' where a likelihood-ratio test on a sample of them rejects one
-  // shape for the region, as a GGX lobe's, or, where too few of them test
-  // it, GGX replaces most of a sample of the region's own lobes on very
-  // strong evidence, as on a metal), and keep it where it lowers
+  // shape for the region, as a GGX lobe's, or GGX replaces most of a
+  // sample of the region's own lobes on very strong evidence, as on a
+  // metal), and keep it where it lowers
   // chi-square below the Lambertian fit's. Their own samples cannot tell the
   // lobe apart, yet it tilts their normals (on the realistic shiny spheres,
   // a tenth to a third of the pixels). 5 %: fifty times the rate at which
