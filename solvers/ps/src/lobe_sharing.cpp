@@ -1,4 +1,3 @@
-#include <cstdio>
 #include "lobe_sharing.h"
 
 #include "per_pixel_fits.h"
@@ -397,7 +396,6 @@ std::vector<std::uint8_t> ShareLobes(const ModelLadder& ladder, double glossy_re
   bool any_rejects = false;
   for (int r = 1; r < regions; ++r) {
     rejects[r] = ladder.RejectsSharedShape(region_test(r));
-    { const SharedShapeTest t = region_test(r); if (region_lobe[r].exponent > 0.0) fprintf(stderr, "TMPV region %d pixels %d gain %.1f own %d ggx %d reject %d\n", r, t.pixels, t.chi2_gain, t.own_lobes, t.own_lobes_ggx, int(rejects[r])); }
     any_rejects = any_rejects || rejects[r];
   }
   std::unique_ptr<NearestLobes> nearest;
