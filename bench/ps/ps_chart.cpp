@@ -21,8 +21,16 @@
 // those of them that had three or more usable samples; the three flag counts
 // split `unresolved`).
 //
+// With --materials: the same sphere and dome with measured reflectance, one
+// capture per table given (MERL .binary or RGL .bsdf, `brdf: {model:
+// tabulated}`), every method solved once, rows as --realistic's with the
+// table's name as the scene. Each capture is exposed as a person at the bench
+// would: a first capture at the recipe's exposure, then the exposure scaled so
+// that the median lit sample matches the shiny sphere's (MaterialExposure).
+//
 //   photorig-ps-chart SOURCE_DIR OUT.csv [DILIGENT_DIR...]
 //   photorig-ps-chart SOURCE_DIR --realistic OUT.csv
+//   photorig-ps-chart SOURCE_DIR --materials OUT.csv TABLE...
 
 #include "photorig/daemon/pipelines/diligent.h"
 #include "photorig/daemon/pipelines/ps_pipeline.h"
@@ -39,6 +47,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <numbers>
 #include <regex>
 #include <sstream>
 
@@ -137,17 +146,20 @@ std::string CaptureRun(const std::string& recipe, const std::string& rig, const 
   return outcome.directory;
 }
 
+// The recipe's exposure_us scaled by `factor`.
+std::string ScaleExposure(const std::string& recipe, double factor, const std::string& what) {
+  std::smatch match;
+  const std::regex exposure("exposure_us: *([0-9.]+)");
+  if (!std::regex_search(recipe, match, exposure)) throw std::runtime_error(what + ": no exposure_us");
+  return ReplaceFirst(recipe, "exposure_us: *[0-9.]+", "exposure_us: " + std::to_string(std::lround(std::stod(match[1]) * factor)), what);
+}
+
 // Captures `recipe` on the rig `rig` with its exposure divided by `dimming`
 // (shot noise relative to the signal grows as sqrt(dimming); read noise as
 // dimming).
 daemon::PhotometricStereoInput Capture(const fs::path& recipe, const fs::path& rig, double dimming,
                                        const fs::path& scratch) {
-  std::string yaml = ReadText(recipe);
-  std::smatch match;
-  const std::regex exposure("exposure_us: *([0-9.]+)");
-  if (!std::regex_search(yaml, match, exposure)) throw std::runtime_error(recipe.string() + ": no exposure_us");
-  const double exposure_us = std::stod(match[1]) / dimming;
-  yaml = std::regex_replace(yaml, exposure, "exposure_us: " + std::to_string(exposure_us), std::regex_constants::format_first_only);
+  const std::string yaml = ScaleExposure(ReadText(recipe), 1.0 / dimming, recipe.string());
   const std::string name = recipe.stem().string() + "-" + std::to_string(int(dimming));
   return daemon::LoadRunStack(CaptureRun(yaml, ReadText(rig), name, scratch));
 }
@@ -225,14 +237,18 @@ void EvaluateRealistic(std::ostream& csv, const std::string& scene, const daemon
   }
 }
 
-void RunRealistic(const fs::path& source, const fs::path& out, const fs::path& scratch) {
-  std::ofstream csv(out);
+void WriteRealisticHeader(std::ostream& csv) {
   csv << "scene,method,mean_deg,median_deg,pixels_with_truth,unresolved,unresolved_usable3,too_few_lights,"
          "ill_conditioned,rejected_by_model,lambertian_pct,trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,"
          "low_frequency_pct,mean_confidence,"
          "read_sigma,"
          "shot_gain,noise_estimated,shadow_threshold,saturation_level,solve_ms,lobe_shift_sample_shifted,"
          "lobe_shift_sample_tested\n";
+}
+
+void RunRealistic(const fs::path& source, const fs::path& out, const fs::path& scratch) {
+  std::ofstream csv(out);
+  WriteRealisticHeader(csv);
   const std::string base_recipe = ReadText(source / "config" / "recipes" / "ps-shiny-sphere.yaml");
   const std::string base_rig = ReadText(source / "config" / "rigs" / "sim-dome-96.yaml");
   for (const Effect& effect : kEffects) {
@@ -264,12 +280,88 @@ void RunRealistic(const fs::path& source, const fs::path& out, const fs::path& s
   }
 }
 
+// The median over the object of the samples above the shadows (dark
+// subtracted, more than 10 DN): the level a person at the bench exposes for.
+double MedianLitSample(const daemon::PhotometricStereoInput& input) {
+  std::vector<float> lit;
+  const solvers::ps::PhotometricStack& stack = input.stack;
+  for (const cv::Mat& image : stack.images)
+    for (int r = 0; r < image.rows; ++r)
+      for (int c = 0; c < image.cols; ++c) {
+        if (!input.object_mask.empty() && !input.object_mask.at<std::uint8_t>(r, c)) continue;
+        if (input.truth_normals.empty() || !std::isfinite(input.truth_normals.at<cv::Vec3f>(r, c)[0])) continue;
+        const float signal = image.at<float>(r, c) - (stack.dark.empty() ? 0.0f : stack.dark.at<float>(r, c));
+        if (signal > 10.0f) lit.push_back(signal);
+      }
+  if (lit.empty()) return 0.0;
+  auto middle = lit.begin() + static_cast<std::ptrdiff_t>(lit.size() / 2);
+  std::nth_element(lit.begin(), middle, lit.end());
+  return *middle;
+}
+
+// Measured materials on the shiny sphere's shape and dome. A table's diffuse
+// level spans two decades between materials (dark felts to white paint), so
+// one exposure for all would test the read noise, not the reflectance: each
+// is captured at the exposure that puts its median lit sample where the
+// shiny sphere's is (at most 64x either way), shortened by 1.5x steps while
+// the capture's health check finds a frame overexposed; highlights then clip
+// where they exceed the camera's range, as on a real dome. The rim seen
+// beyond 80 deg is masked: a table holds least there.
+void RunMaterials(const fs::path& source, const fs::path& out, const std::vector<fs::path>& tables,
+                  const fs::path& scratch) {
+  std::ofstream csv(out);
+  WriteRealisticHeader(csv);
+  const std::string base_recipe = ReadText(source / "config" / "recipes" / "ps-shiny-sphere.yaml");
+  const std::string rig = ReadText(source / "config" / "rigs" / "sim-dome-96.yaml");
+  const double reference = MedianLitSample(daemon::LoadRunStack(CaptureRun(base_recipe, rig, "materials-reference", scratch)));
+  for (const fs::path& table : tables) {
+    const std::string name = table.stem().string();
+    // A recipe names files inside its own folder only.
+    const fs::path copy = scratch / ("material" + table.extension().string());
+    fs::copy_file(table, copy, fs::copy_options::overwrite_existing);
+    const std::string recipe = ReplaceFirst(base_recipe, "brdf: *\\{[^}]*\\}",
+                                            "brdf: {model: tabulated, table: " + copy.filename().string() + "}", name);
+    const double first = MedianLitSample(daemon::LoadRunStack(CaptureRun(recipe, rig, "material-first", scratch)));
+    double factor = first > 0.0 ? std::clamp(reference / first, 1.0 / 64.0, 64.0) : 64.0;
+    std::string run;
+    // The capture's health check refuses a frame with more than 2 % of its
+    // pixels clipped: shorten the exposure, as the bench would.
+    for (int attempt = 0; run.empty(); ++attempt) {
+      try {
+        run = CaptureRun(ScaleExposure(recipe, factor, name), rig, "material", scratch);
+      } catch (const std::runtime_error& e) {
+        if (attempt == 8 || std::string(e.what()).find("overexposed") == std::string::npos) throw;
+        factor /= 1.5;
+      }
+    }
+    std::fprintf(stderr, "%s: exposure x%.3g\n", name.c_str(), factor);
+    daemon::PhotometricStereoInput input = daemon::LoadRunStack(run);
+    // Measured tables are least reliable at grazing angles (TableSampling's
+    // max_theta_deg): the sphere's rim seen beyond 80 deg is left out.
+    const double min_view_cosine = std::cos(80.0 * std::numbers::pi / 180.0);
+    cv::Mat measured(input.truth_normals.size(), CV_8U);
+    for (int r = 0; r < measured.rows; ++r)
+      for (int c = 0; c < measured.cols; ++c) {
+        const cv::Vec3f n = input.truth_normals.at<cv::Vec3f>(r, c);
+        const bool inside = input.object_mask.empty() || input.object_mask.at<std::uint8_t>(r, c);
+        const Eigen::Vector3d normal(n[0], n[1], n[2]);
+        measured.at<std::uint8_t>(r, c) = inside && normal.dot(input.stack.view_direction) >= min_view_cosine ? 255 : 0;
+      }
+    input.object_mask = measured;
+    EvaluateRealistic(csv, name, input);
+    csv.flush();
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 3 || (std::string(argv[2]) == "--realistic" && argc != 4)) {
-    std::fprintf(stderr, "usage: %s SOURCE_DIR OUT.csv [DILIGENT_DIR...]\n       %s SOURCE_DIR --realistic OUT.csv\n",
-                 argv[0], argv[0]);
+  if (argc < 3 || (std::string(argv[2]) == "--realistic" && argc != 4) ||
+      (std::string(argv[2]) == "--materials" && argc < 5)) {
+    std::fprintf(stderr,
+                 "usage: %s SOURCE_DIR OUT.csv [DILIGENT_DIR...]\n       %s SOURCE_DIR --realistic OUT.csv\n"
+                 "       %s SOURCE_DIR --materials OUT.csv TABLE...\n",
+                 argv[0], argv[0], argv[0]);
     return 2;
   }
   spdlog::set_level(spdlog::level::warn);
@@ -279,6 +371,16 @@ int main(int argc, char** argv) {
   if (std::string(argv[2]) == "--realistic") {
     try {
       RunRealistic(source, argv[3], scratch);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "photorig-ps-chart: %s\n", e.what());
+      return 1;
+    }
+    fs::remove_all(scratch);
+    return 0;
+  }
+  if (std::string(argv[2]) == "--materials") {
+    try {
+      RunMaterials(source, argv[3], std::vector<fs::path>(argv + 4, argv + argc), scratch);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "photorig-ps-chart: %s\n", e.what());
       return 1;
