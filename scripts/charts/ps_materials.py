@@ -37,6 +37,10 @@ for m in materials:
 means = {k: sum(error(m, k) for m in materials) / len(materials) for k in methods}
 times = {k: sum(float(by[(m, k)]["solve_ms"]) for m in materials) / len(materials) for k in methods}
 print("| mean | " + " | ".join(f"{means[k]:.2f}" for k in methods) + " | | | |")
+best_counts = {k: sum(1 for _, _, b in ratios if b == k) for k in singles}
+print("| best single method on | " + " | ".join(str(best_counts[k]) for k in singles) + " | | | | |")
+print(f"\nauto's solve time {times['auto'] / times['blinn-phong']:.2f}x blinn-phong's (mean {times['auto']:.0f} ms "
+      f"against {times['blinn-phong']:.0f} ms)")
 over = [r for r in ratios if r[1] > 1.03]
 print(f"\n{len(materials)} materials; auto within 1.03x of the best single method on {len(materials) - len(over)}, "
       f"beyond it on {len(over)}: " + ", ".join(f"{m} {r:.2f}x ({b})" for m, r, b in sorted(over, key=lambda x: -x[1])))
