@@ -51,6 +51,8 @@
 #include <regex>
 #include <sstream>
 
+#include <unistd.h>
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -314,7 +316,7 @@ void RunMaterials(const fs::path& source, const fs::path& out, const std::vector
   const std::string base_recipe = ReadText(source / "config" / "recipes" / "ps-shiny-sphere.yaml");
   const std::string rig = ReadText(source / "config" / "rigs" / "sim-dome-96.yaml");
   const double reference = MedianLitSample(daemon::LoadRunStack(CaptureRun(base_recipe, rig, "materials-reference", scratch)));
-  for (const fs::path& table : tables) {
+  for (const fs::path& table : tables) try {
     const std::string name = table.stem().string();
     // A recipe names files inside its own folder only.
     const fs::path copy = scratch / ("material" + table.extension().string());
@@ -350,6 +352,34 @@ void RunMaterials(const fs::path& source, const fs::path& out, const std::vector
     input.object_mask = measured;
     EvaluateRealistic(csv, name, input);
     csv.flush();
+  } catch (const std::exception& e) {
+    throw std::runtime_error(table.string() + ": " + e.what());
+  }
+}
+
+// The simulated scenes at every light subset and noise level, then the
+// DiLiGenT folders given (those with ground truth), into `out`.
+void RunScenes(const fs::path& source, const fs::path& out, const std::vector<fs::path>& diligent,
+               const fs::path& scratch) {
+  std::ofstream csv(out);
+  csv << "source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,"
+         "trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,low_frequency_pct,lobe_shift_sample_shifted,"
+         "lobe_shift_sample_tested\n";
+  const fs::path rig = source / "config" / "rigs" / "sim-dome-96.yaml";
+  for (const char* scene : {"ps-sphere", "ps-shiny-sphere", "ps-ggx-bumps"}) {
+    const fs::path recipe = source / "config" / "recipes" / (std::string(scene) + ".yaml");
+    for (double dimming : {1.0, 4.0, 16.0}) {
+      const daemon::PhotometricStereoInput input = Capture(recipe, rig, dimming, scratch);
+      if (dimming == 1.0) {
+        for (int step : {8, 4, 2}) Evaluate(csv, "sim", scene, 1.0, SubsetLights(input, step));
+      }
+      Evaluate(csv, "sim", scene, std::sqrt(dimming), input);
+    }
+  }
+  for (const fs::path& folder : diligent) {
+    const daemon::PhotometricStereoInput input = daemon::LoadDiligent(folder.string());
+    if (input.truth_normals.empty()) continue;
+    Evaluate(csv, "diligent", folder.filename().string(), 1.0, input);
   }
 }
 
@@ -366,53 +396,23 @@ int main(int argc, char** argv) {
   }
   spdlog::set_level(spdlog::level::warn);
   const fs::path source(argv[1]);
-  const fs::path scratch = fs::temp_directory_path() / "photorig-ps-chart";
+  const std::string mode = argv[2];
+  // One per process: two charts run at once must not remove each other's captures.
+  const fs::path scratch = fs::temp_directory_path() / ("photorig-ps-chart-" + std::to_string(::getpid()));
   fs::create_directories(scratch);
-  if (std::string(argv[2]) == "--realistic") {
-    try {
-      RunRealistic(source, argv[3], scratch);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "photorig-ps-chart: %s\n", e.what());
-      return 1;
-    }
-    fs::remove_all(scratch);
-    return 0;
-  }
-  if (std::string(argv[2]) == "--materials") {
-    try {
-      RunMaterials(source, argv[3], std::vector<fs::path>(argv + 4, argv + argc), scratch);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "photorig-ps-chart: %s\n", e.what());
-      return 1;
-    }
-    fs::remove_all(scratch);
-    return 0;
-  }
-  std::ofstream csv(argv[2]);
-  csv << "source,scene,lights,relative_noise,method,mean_deg,median_deg,under_15deg_pct,solve_ms,lambertian_pct,"
-         "trimmed_pct,irls_pct,blinn_phong_pct,ggx_pct,low_frequency_pct,lobe_shift_sample_shifted,"
-         "lobe_shift_sample_tested\n";
+  int status = 0;
   try {
-    const fs::path rig = source / "config" / "rigs" / "sim-dome-96.yaml";
-    for (const char* scene : {"ps-sphere", "ps-shiny-sphere", "ps-ggx-bumps"}) {
-      const fs::path recipe = source / "config" / "recipes" / (std::string(scene) + ".yaml");
-      for (double dimming : {1.0, 4.0, 16.0}) {
-        const daemon::PhotometricStereoInput input = Capture(recipe, rig, dimming, scratch);
-        if (dimming == 1.0) {
-          for (int step : {8, 4, 2}) Evaluate(csv, "sim", scene, 1.0, SubsetLights(input, step));
-        }
-        Evaluate(csv, "sim", scene, std::sqrt(dimming), input);
-      }
-    }
-    for (int i = 3; i < argc; ++i) {
-      const daemon::PhotometricStereoInput input = daemon::LoadDiligent(argv[i]);
-      if (input.truth_normals.empty()) continue;
-      Evaluate(csv, "diligent", fs::path(argv[i]).filename().string(), 1.0, input);
+    if (mode == "--realistic") {
+      RunRealistic(source, argv[3], scratch);
+    } else if (mode == "--materials") {
+      RunMaterials(source, argv[3], std::vector<fs::path>(argv + 4, argv + argc), scratch);
+    } else {
+      RunScenes(source, argv[2], std::vector<fs::path>(argv + 3, argv + argc), scratch);
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "photorig-ps-chart: %s\n", e.what());
-    return 1;
+    status = 1;
   }
   fs::remove_all(scratch);
-  return 0;
+  return status;
 }
