@@ -153,7 +153,8 @@ std::string ScaleExposure(const std::string& recipe, double factor, const std::s
   std::smatch match;
   const std::regex exposure("exposure_us: *([0-9.]+)");
   if (!std::regex_search(recipe, match, exposure)) throw std::runtime_error(what + ": no exposure_us");
-  return ReplaceFirst(recipe, "exposure_us: *[0-9.]+", "exposure_us: " + std::to_string(std::lround(std::stod(match[1]) * factor)), what);
+  const long exposure_us = std::lround(std::stod(match[1]) * factor);
+  return match.prefix().str() + "exposure_us: " + std::to_string(exposure_us) + match.suffix().str();
 }
 
 // Captures `recipe` on the rig `rig` with its exposure divided by `dimming`
