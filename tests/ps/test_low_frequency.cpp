@@ -3,6 +3,7 @@
 // must refuse; then the `low-frequency` method and `auto`'s step 7 on whole
 // stacks.
 #include "kernels/low_frequency_fit.h"
+#include "per_pixel_fits.h"
 #include "photorig/solvers/ps/evaluation.h"
 #include "photorig/solvers/ps/photometric_stereo.h"
 #include "ps_test_scene.h"
@@ -14,6 +15,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -95,6 +97,50 @@ TEST(LowFrequencyFit, ALambertianPixelIsA0Alone) {
   EXPECT_NEAR(fit.a[0] + fit.a[3], 0.3, 1e-6);  // cos theta_d is 1 at most: a3 can stand in for a0 only where d = 1
   EXPECT_NEAR(fit.a[1] + fit.a[2], 0.0, 1e-6);
   EXPECT_LT(fit.chi2, 1e-12 * fit.used);
+}
+
+// Step 7's measure of how far a Blinn-Phong lobe moves its samples is the
+// chi-square the fit's own model gives the lobe alone against samples of 0
+// (its normalisation rho_s (e + 2) / (2 pi) included). A sharp lobe with a
+// light's half vector at its peak moves that sample far beyond the noise;
+// the same lobe peaking between the half vectors moves none.
+TEST(LowFrequencyFit, ALobesTermChiSquareIsItsOwnModelsAndVanishesBetweenTheLights) {
+  Pixel pixel = Render(kTilted, {0.2, 0.0, 0.0, 0.0}, 0.0, 0.01);
+  const int lights = static_cast<int>(pixel.observed.size());
+  std::vector<int> all(lights);
+  for (int k = 0; k < lights; ++k) all[k] = k;
+  std::fill(pixel.observed.begin(), pixel.observed.end(), 0.0);
+  std::fill(pixel.inverse_sigma.begin(), pixel.inverse_sigma.end(), 100.0);
+  std::vector<Eigen::Vector3d> halves;
+  for (int k = 0; k < lights; ++k)
+    halves.push_back((Eigen::Vector3d(pixel.wx[k], pixel.wy[k], pixel.wz[k]) + Eigen::Vector3d::UnitZ()).normalized());
+  // The normal within 30 deg of the view farthest from every half vector.
+  Eigen::Vector3d between = Eigen::Vector3d::UnitZ();
+  double gap_deg = 0.0;
+  for (double tilt = 0.0; tilt <= 30.0; tilt += 0.5)
+    for (double azimuth = 0.0; azimuth < 360.0; azimuth += 2.0) {
+      const double t = tilt * M_PI / 180.0, a = azimuth * M_PI / 180.0;
+      const Eigen::Vector3d n(std::sin(t) * std::cos(a), std::sin(t) * std::sin(a), std::cos(t));
+      double nearest = 180.0;
+      for (const Eigen::Vector3d& h : halves) nearest = std::min(nearest, AngleDeg(n, h));
+      if (nearest > gap_deg) gap_deg = nearest, between = n;
+    }
+  ASSERT_GT(gap_deg, 3.0);
+  internal::PixelFit lobe{.ok = true, .normal = halves[0], .albedo = 0.0, .specular_albedo = 0.3,
+                          .exponent = 2000.0, .parameters = 5, .model = PixelModel::kBlinnPhong};
+  for (const Eigen::Vector3d& normal : {halves[0], between}) {
+    lobe.normal = normal;
+    const internal::PixelFit alone =
+        internal::KeptOnLights(lobe, all, pixel.wx.data(), pixel.wy.data(), pixel.wz.data(), 1,
+                               Eigen::Vector3d::UnitZ(), pixel.observed.data(), pixel.inverse_sigma.data());
+    ASSERT_TRUE(alone.ok);
+    EXPECT_NEAR(internal::BlinnPhongTermChi2(lobe, pixel.Problem()), alone.chi2, 1e-9 * alone.chi2);
+  }
+  // e = 2000 falls to half its peak 1.5 deg from it.
+  lobe.normal = halves[0];
+  EXPECT_GT(internal::BlinnPhongTermChi2(lobe, pixel.Problem()), 1e4);
+  lobe.normal = between;
+  EXPECT_LT(internal::BlinnPhongTermChi2(lobe, pixel.Problem()), 1.0) << gap_deg << " deg from every half vector";
 }
 
 // A spike the model cannot make, on the samples nearest the mirror

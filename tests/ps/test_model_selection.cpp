@@ -328,7 +328,8 @@ TEST(ModelLadder, TheOwnLobesTestCountsVeryStrongEvidenceForGgxAndRejectsOnAMajo
 // Step 7 in a region whose pixels reject one Blinn-Phong shape (step 5): an
 // inadequate Blinn-Phong lobe there takes the low-frequency fit outright,
 // without the evidence a pixel of another region needs; an adequate lobe,
-// a GGX lobe (the shape step 6 offered instead) and a pinned spike do not.
+// a GGX lobe (the shape step 6 offered instead), a pinned spike, a lobe the
+// samples do not see and one at the exponent's lower bound do not.
 TEST(ModelLadder, AutoTakesTheLowFrequencyFitForAnInadequateLobeWhereItsRegionRejectsTheShape) {
   const ModelLadder ladder = Ladder(Method::kAuto);
   const PixelFit lobe = FitWith(40, 3.0, PixelModel::kBlinnPhong, 5);
@@ -336,10 +337,24 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitForAnInadequateLobeWhereItsRegionRe
   // Worse than the lobe on its samples (chi2 90 against 62): elsewhere the lobe stands.
   PixelFit low = FitWith(36, 3.0, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
   LowFrequencyFits fits{&lobe, &low, &judged};
+  // The lobe's own term moves the samples by chi-square 40: seen (the
+  // two-degree quantile at the adequacy level 0.999 is 13.8).
+  fits.lobe_term_chi2 = 40.0;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &lobe);
   fits.region_rejects_shape = true;
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).keep, &low);
   EXPECT_EQ(ladder.NextWithLowFrequency(fits).low_frequency_rule, internal::LowFrequencyRule::kRegionRejectsShape);
+  // A lobe within the noise (a sharp one between the lights whose tail
+  // touches a sample) has no shape for its region to reject, nor has one as
+  // broad as the diffuse term: the evidence decides, and here keeps the lobe.
+  LowFrequencyFits unseen = fits;
+  unseen.lobe_term_chi2 = 13.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(unseen).keep, &lobe);
+  unseen.lobe_term_chi2 = 14.0;
+  EXPECT_EQ(ladder.NextWithLowFrequency(unseen).keep, &low);
+  LowFrequencyFits broadest = fits;
+  broadest.lobe_at_exponent_bound = true;
+  EXPECT_EQ(ladder.NextWithLowFrequency(broadest).keep, &lobe);
   // Asked for before it is fitted, as for any inadequate lobe.
   LowFrequencyFits unfitted{&lobe};
   unfitted.region_rejects_shape = true;
@@ -353,6 +368,7 @@ TEST(ModelLadder, AutoTakesTheLowFrequencyFitForAnInadequateLobeWhereItsRegionRe
   const PixelFit few_judged = FitWith(11, 2.0, PixelModel::kBlinnPhong, 5);
   LowFrequencyFits undetermined{&lobe, &few, &few_judged};
   undetermined.region_rejects_shape = true;
+  undetermined.lobe_term_chi2 = fits.lobe_term_chi2;
   EXPECT_EQ(ladder.NextWithLowFrequency(undetermined).keep, &lobe);
   few = FitWith(12, 3.0, PixelModel::kLowFrequency, internal::kLowFrequencyParameters);
   EXPECT_EQ(ladder.NextWithLowFrequency(undetermined).keep, &few);

@@ -575,6 +575,10 @@ PixelFit ClimbLowFrequency(const ModelLadder& ladder, LowFrequencyFitter& fitter
   for (int k = 0; k < problem.lights; ++k) usable += problem.inverse_sigma[k] > 0.0;
   LowFrequencyFits fits{&kept};
   fits.region_rejects_shape = offer.region_rejects_shape;
+  if (offer.region_rejects_shape && kept.model == PixelModel::kBlinnPhong) {
+    fits.lobe_at_exponent_bound = kept.exponent <= offer.min_exponent;
+    fits.lobe_term_chi2 = BlinnPhongTermChi2(kept, problem);
+  }
   fits.test_lobe_shift = offer.test_lobe_shift;
   fits.spike_pins_normal = SpikePinsNormal(kept, problem, fitter.LeftOut(usable));
   const bool lobe = kept.model == PixelModel::kBlinnPhong || kept.model == PixelModel::kGgx;

@@ -162,6 +162,8 @@ std::vector<int> LowFrequencyCandidates(const ModelLadder& ladder, const NormalM
 struct LowFrequencyOffer {
   bool region_rejects_shape = false;
   bool test_lobe_shift = false;
+  // BlinnPhongOptions::min_exponent, the lobe fit's lower bound.
+  double min_exponent = 0.0;
 };
 
 // Lobe-shift tests run (a lobe's low-frequency fits both succeeded) and

@@ -41,7 +41,7 @@ ModelLadder::ModelLadder(Method method, const ModelSelectionOptions& options, in
       gross_u2_(options.gross_outlier_sigma * options.gross_outlier_sigma),
       max_rejected_fraction_(options.max_rejected_fraction),
       adequacy_quantile_(options.adequacy_quantile),
-      shift_quantile_(-2.0 * std::log1p(-options.adequacy_quantile)),
+      two_dof_quantile_(-2.0 * std::log1p(-options.adequacy_quantile)),
       low_frequency_(options.low_frequency),
       lobe_shift_test_(options.lobe_shift_test) {}
 

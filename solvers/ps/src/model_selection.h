@@ -187,6 +187,12 @@ struct LowFrequencyFits {
   // The pixel's glossy region rejects one Blinn-Phong shape (step 5's
   // RejectsSharedShape).
   bool region_rejects_shape = false;
+  // Of a kept Blinn-Phong lobe, where its region rejects the shape: its
+  // exponent is at the fit's lower bound (BlinnPhongOptions::min_exponent),
+  // and the chi-square of its own term over the usable samples (how far the
+  // lobe moves them, in their noise; BlinnPhongTermChi2).
+  bool lobe_at_exponent_bound = false;
+  double lobe_term_chi2 = 0.0;
   // Test the kept lobe by the low-frequency fit's view of it (the lobe-shift
   // test, ModelLadder::NextWithLowFrequency), adequate or not.
   bool test_lobe_shift = false;
@@ -294,7 +300,8 @@ class ModelLadder {
   // spike_fraction of the samples left out as a spike it cannot make) is
   // fitted to a pixel that kept a lobe (steps 4-6) that fails the adequacy
   // test, and kept where its region rejects one Blinn-Phong shape (a
-  // Blinn-Phong lobe, outright where determined) or where the information
+  // Blinn-Phong lobe whose own term the samples see, its exponent above the
+  // fit's lower bound: outright where determined) or where the information
   // criterion is lower than
   // the kept fit's on the same samples (the ones it fitted) by
   // kConfidentLobeEvidence or more: very strong evidence, as the two are not
@@ -317,7 +324,10 @@ class ModelLadder {
   inline LadderStep NextWithLowFrequency(const LowFrequencyFits& fits) const;
   // A pixel's lobe-shift chi-square (LowFrequencyFits::lobe_shift_chi2) is
   // above the adequacy quantile of chi-square with two degrees of freedom.
-  bool LobeShifted(double lobe_shift_chi2) const { return lobe_shift_chi2 > shift_quantile_; }
+  bool LobeShifted(double lobe_shift_chi2) const { return lobe_shift_chi2 > two_dof_quantile_; }
+  // A lobe's own term moves its samples further than two free parameters
+  // fit to noise alone (the same quantile): the samples see the lobe.
+  bool LobeTermSeen(double lobe_term_chi2) const { return lobe_term_chi2 > two_dof_quantile_; }
   // Of `tested` lobes of a scene (a sample spread over its lobes), `shifted`
   // are LobeShifted: more than chance gives at the adequacy level (the
   // binomial tail at or beyond `shifted` is below 1 - adequacy_quantile).
@@ -363,7 +373,7 @@ class ModelLadder {
   std::vector<double> quantile_, lambertian_quantile_;
   double gross_u2_, max_rejected_fraction_, adequacy_quantile_;
   // Chi-square's quantile at adequacy_quantile with two degrees of freedom.
-  double shift_quantile_;
+  double two_dof_quantile_;
   bool low_frequency_, lobe_shift_test_;
 };
 
@@ -499,10 +509,19 @@ inline LadderStep ModelLadder::NextWithLowFrequency(const LowFrequencyFits& fits
   // both say the shape is wrong, so the residuals are systematic and the
   // normal has tilted to absorb them; no criterion on those residuals can
   // weigh the lobe fairly against a fit that assumes no lobe shape, which
-  // is taken outright where determined. A GGX lobe is the shape step 6
-  // offered such a region instead: what it leaves may be foreign light,
-  // judged below.
-  const bool misspecified = fits.region_rejects_shape && kept.model == PixelModel::kBlinnPhong;
+  // is taken outright where determined. Only where the pixel's lobe has a
+  // shape to be wrong: its exponent above the fit's lower bound (there the
+  // lobe is as broad as the diffuse term) and its own term seen in the
+  // samples (LobeTermSeen). A lobe below the noise, or a narrow one whose
+  // tail touches a sample or two, cannot have tilted the normal by its
+  // shape; what the pixel leaves unexplained is then not the lobe's, and
+  // the fit that drops its brightest samples loses what pins the normal
+  // (on a measured felt whose sharp lobe falls between the lights, taking
+  // it raised those pixels' error from 2.1 to 3.1 deg). A GGX lobe is the
+  // shape step 6 offered such a region instead: what it leaves may be
+  // foreign light, judged below.
+  const bool misspecified = fits.region_rejects_shape && kept.model == PixelModel::kBlinnPhong &&
+                            !fits.lobe_at_exponent_bound && LobeTermSeen(fits.lobe_term_chi2);
   if (misspecified && determined) return KeepLowFrequency(low, LowFrequencyRule::kRegionRejectsShape);
   // The two are not nested and the ladder chose the kept fit already: the
   // low-frequency fit replaces it on very strong evidence only. Where even

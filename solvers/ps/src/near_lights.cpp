@@ -444,12 +444,12 @@ class NearRefitter {
   // of regions that reject one Blinn-Phong shape (empty: none). Into the map
   // if `write`; adds how many fell back to *fell_back, the pixels each
   // rule gave the fit to *rules and the lobe-shift tests to *tally.
-  void OfferLowFrequency(const internal::ModelLadder& ladder, double spike_fraction, std::span<const int> pixels,
-                         const cv::Mat& height_mm, const std::vector<std::uint8_t>& held,
+  void OfferLowFrequency(const internal::ModelLadder& ladder, const PhotometricStereoOptions& options,
+                         std::span<const int> pixels, const cv::Mat& height_mm, const std::vector<std::uint8_t>& held,
                          const std::vector<std::uint8_t>& shape_rejected, bool test_lobe_shift, bool write,
                          NormalMap* map, std::size_t* fell_back, LowFrequencyRuleCounts* rules,
                          internal::LobeShiftTally* tally) {
-    internal::LowFrequencyFitter fitter(spike_fraction);
+    internal::LowFrequencyFitter fitter(options.selection.spike_fraction);
     for (std::size_t first = 0; first < pixels.size(); first += kLobeBatch) {
       const std::size_t count = std::min(kLobeBatch, pixels.size() - first);
       ReadMapPixels(pixels.subspan(first, count), height_mm, [](int pixel) { return pixel; });
@@ -467,7 +467,8 @@ class NearRefitter {
                                                     .inverse_sigma = &scaled_inverse_sigma_[i * lights_]};
         const internal::LowFrequencyOffer offer{
             .region_rejects_shape = !shape_rejected.empty() && shape_rejected[pixel] != 0,
-            .test_lobe_shift = test_lobe_shift};
+            .test_lobe_shift = test_lobe_shift,
+            .min_exponent = options.blinn_phong.min_exponent};
         bool fell = false;
         internal::LowFrequencyRule rule = internal::LowFrequencyRule::kNone;
         const internal::PixelFit chosen =
@@ -1000,8 +1001,8 @@ std::size_t OfferLowFrequency(const PixelProblem& p, const PhotometricStereoOpti
 #pragma omp for schedule(dynamic, 1)
       for (std::size_t chunk = 0; chunk < chunks; ++chunk) {
         const std::size_t first = chunk * kChunk, count = std::min(kChunk, pixels.size() - first);
-        refitter.OfferLowFrequency(ladder, options.selection.spike_fraction, pixels.subspan(first, count), height_mm,
-                                   held, shape_rejected, test_lobe_shift, write, map, &fell, &mine, &tally);
+        refitter.OfferLowFrequency(ladder, options, pixels.subspan(first, count), height_mm, held, shape_rejected,
+                                   test_lobe_shift, write, map, &fell, &mine, &tally);
       }
       tested += tally.tested, shifted += tally.shifted;
 #pragma omp critical(near_low_frequency_rules)

@@ -108,6 +108,21 @@ bool SpikePinsNormal(const PixelFit& kept, const LowFrequencyProblem& samples, i
   return core >= 1 && core <= spike_samples;
 }
 
+double BlinnPhongTermChi2(const PixelFit& kept, const LowFrequencyProblem& samples) {
+  // The lobe alone: BlinnPhongShading with no diffuse term.
+  const solvers::autodiff::BlinnPhongLobe<double> lobe(0.0, kept.specular_albedo, kept.exponent);
+  double chi2 = 0.0;
+  for (int k = 0; k < samples.lights; ++k) {
+    if (samples.inverse_sigma[k] == 0.0) continue;
+    Eigen::Vector3d l, h;
+    double cos_d = 0.0;
+    samples.Geometry(k, &l, &h, &cos_d);
+    const double term = solvers::autodiff::BlinnPhongShading(kept.normal, lobe, l, h) * samples.inverse_sigma[k];
+    chi2 += term * term;
+  }
+  return chi2;
+}
+
 PixelFit LambertianOnRow(int lights, const double* wx, const double* wy, const double* wz, int stride,
                          const double* observed, const double* inverse_sigma, const Eigen::Vector3d& kept) {
   // Sums over the usable samples as masked lane loops: step 5 calls this for

@@ -60,6 +60,11 @@ PixelFit KeptOnLights(const PixelFit& kept, std::span<const int> lights, const d
 // out. False for a fit without a lobe.
 bool SpikePinsNormal(const PixelFit& kept, const LowFrequencyProblem& samples, int spike_samples);
 
+// The chi-square of a Blinn-Phong fit's lobe term alone (rho_s (e + 2) /
+// (2 pi) (n.h)^e n.l) over the usable samples: how far the lobe moves them,
+// in their noise.
+double BlinnPhongTermChi2(const PixelFit& kept, const LowFrequencyProblem& samples);
+
 // Chi-square of a Blinn-Phong fit (normal, rho_d, rho_s, e) on samples seen
 // from `view`: one row of `directions` (towards the light) per sample.
 double BlinnPhongChi2(const Eigen::Matrix<double, Eigen::Dynamic, 3>& directions, const Eigen::VectorXd& observed,

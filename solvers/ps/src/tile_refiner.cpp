@@ -935,7 +935,8 @@ LobeShiftTally TileRefiner::ClimbLowFrequencyPixels(std::span<const int> pixels,
       bool fell_back = false;
       LowFrequencyRule rule = LowFrequencyRule::kNone;
       const LowFrequencyOffer offer{.region_rejects_shape = !shape_rejected_.empty() && shape_rejected_[p] != 0,
-                                    .test_lobe_shift = test_lobe_shift};
+                                    .test_lobe_shift = test_lobe_shift,
+                                    .min_exponent = options_.blinn_phong.min_exponent};
       const PixelFit chosen =
           ClimbLowFrequency(ladder_, fitter, kept, problem, offer, &fell_back, write ? nullptr : &mine, &rule);
       if (!write) continue;
