@@ -86,6 +86,23 @@ PixelFit KeptOnLights(const PixelFit& kept, std::span<const int> lights, const d
   return judged;
 }
 
+namespace {
+
+// Calls visit(k, l, h) for every usable sample k of `samples`, with its
+// light direction and half vector.
+template <typename Visit>
+void ForEachUsableSample(const LowFrequencyProblem& samples, const Visit& visit) {
+  for (int k = 0; k < samples.lights; ++k) {
+    if (samples.inverse_sigma[k] == 0.0) continue;
+    Eigen::Vector3d l, h;
+    double cos_d = 0.0;
+    samples.Geometry(k, &l, &h, &cos_d);
+    visit(k, l, h);
+  }
+}
+
+}  // namespace
+
 bool SpikePinsNormal(const PixelFit& kept, const LowFrequencyProblem& samples, int spike_samples) {
   double half_maximum_cos = 0.0;
   if (kept.model == PixelModel::kBlinnPhong) {
@@ -98,13 +115,9 @@ bool SpikePinsNormal(const PixelFit& kept, const LowFrequencyProblem& samples, i
     return false;
   }
   int core = 0;
-  for (int k = 0; k < samples.lights; ++k) {
-    if (samples.inverse_sigma[k] == 0.0) continue;
-    Eigen::Vector3d l, h;
-    double cos_d = 0.0;
-    samples.Geometry(k, &l, &h, &cos_d);
+  ForEachUsableSample(samples, [&](int, const Eigen::Vector3d&, const Eigen::Vector3d& h) {
     core += h.dot(kept.normal) >= half_maximum_cos;
-  }
+  });
   return core >= 1 && core <= spike_samples;
 }
 
@@ -112,14 +125,10 @@ double BlinnPhongTermChi2(const PixelFit& kept, const LowFrequencyProblem& sampl
   // The lobe alone: BlinnPhongShading with no diffuse term.
   const solvers::autodiff::BlinnPhongLobe<double> lobe(0.0, kept.specular_albedo, kept.exponent);
   double chi2 = 0.0;
-  for (int k = 0; k < samples.lights; ++k) {
-    if (samples.inverse_sigma[k] == 0.0) continue;
-    Eigen::Vector3d l, h;
-    double cos_d = 0.0;
-    samples.Geometry(k, &l, &h, &cos_d);
+  ForEachUsableSample(samples, [&](int k, const Eigen::Vector3d& l, const Eigen::Vector3d& h) {
     const double term = solvers::autodiff::BlinnPhongShading(kept.normal, lobe, l, h) * samples.inverse_sigma[k];
     chi2 += term * term;
-  }
+  });
   return chi2;
 }
 
