@@ -11,6 +11,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <memory>
 
@@ -109,6 +110,10 @@ struct TileConstants {
   // The same for groups of three lights (3 g .. 3 g + 2) and their 8
   // patterns, one AVX2 register per quantity.
   const float* group_terms_avx2 = nullptr;
+  // Per light, w_k's x, y, z and 1 / s_k, each repeated over an AVX2
+  // register's eight lanes ([light][quantity][lane]): the AVX2 kernel's
+  // multiply-adds read them as memory operands instead of broadcasting them.
+  const float* light_lanes_avx2 = nullptr;
   std::array<double, 3> dark_weight{};    // row sums of weights
   std::array<double, 6> gram{};           // G = A^T A: xx, yy, zz, xy, xz, yz
   double sum_inverse_scale2 = 0.0;
@@ -435,9 +440,20 @@ __attribute__((target("avx512f"))) void AccumulateSubsetBlockAvx512(const TileCo
 // three lights, 24 lights to a sweep), then the eight pattern sums, one
 // permute and one add per sum and group (group_terms_avx2). GCC's code for
 // the portable loop spilled the sums to the stack and blended every one
-// (4 cycles a sample on Zen 2, three quarters of a shadowed solve).
+// (4 cycles a sample on Zen 2, three quarters of a shadowed solve). Each
+// light's direction, 1 / s and pattern bit come from tables as memory
+// operands, and the light and group tables are walked by pointer: 21
+// instructions a light and eight pixels, where broadcasting them, making
+// the bit and indexing the tables took 32.
 constexpr int kSweepLightsAvx2 = 24;
 static_assert(kSweepLightsAvx2 % kSubsetGroupAvx2 == 0 && kSweepLightsAvx2 <= 32);
+// Bit j of the usable pattern in every lane, for the sweep's light j: read as
+// a memory operand, where making it took a shift, a move and a broadcast.
+constexpr std::array<std::array<std::int32_t, 8>, kSweepLightsAvx2> kSweepBits = [] {
+  std::array<std::array<std::int32_t, 8>, kSweepLightsAvx2> bits{};
+  for (int j = 0; j < kSweepLightsAvx2; ++j) bits[j].fill(std::int32_t{1} << j);
+  return bits;
+}();
 __attribute__((target("avx2,fma"))) void AccumulateSubsetBlockAvx2(const TileConstants& c, int offset, int count,
                                                                    const float* __restrict d, SubsetBlock* a) {
   constexpr int kLanes = 8;
@@ -461,7 +477,9 @@ __attribute__((target("avx2,fma"))) void AccumulateSubsetBlockAvx2(const TileCon
       __m256 rz = _mm256_load_ps(sum_rows[2] + i), signal_sum = _mm256_load_ps(sum_rows[3] + i);
       __m256 b2 = _mm256_load_ps(sum_rows[4] + i);
       __m256i pattern = _mm256_setzero_si256();  // bit j: light sweep + j usable
-      for (int j = sweep; j < sweep_end; ++j) {
+      const float* light = c.light_lanes_avx2 + static_cast<std::size_t>(sweep) * 4 * kLanes;
+      const std::int32_t* bit = kSweepBits[0].data();
+      for (int j = sweep; j < sweep_end; ++j, light += 4 * kLanes, bit += kLanes) {
         const float* samples = c.planes[j] + offset + i;
         _mm_prefetch(reinterpret_cast<const char*>(samples + kPrefetchLines * kLanes), _MM_HINT_T1);
         const __m256 v = whole ? _mm256_loadu_ps(samples) : _mm256_maskload_ps(samples, lanes);
@@ -469,13 +487,13 @@ __attribute__((target("avx2,fma"))) void AccumulateSubsetBlockAvx2(const TileCon
         // never above the shadow threshold (>= 0): never usable.
         const __m256 usable =
             _mm256_and_ps(_mm256_cmp_ps(v, threshold, _CMP_GT_OQ), _mm256_cmp_ps(v, saturation, _CMP_LT_OQ));
-        const __m256 inverse_scale = _mm256_broadcast_ss(c.inverse_scale + j);
+        const __m256 inverse_scale = _mm256_loadu_ps(light + 3 * kLanes);
         const __m256 b = _mm256_and_ps(usable, _mm256_mul_ps(_mm256_sub_ps(v, dark), inverse_scale));
         pattern = _mm256_or_si256(pattern, _mm256_and_si256(_mm256_castps_si256(usable),
-                                                            _mm256_set1_epi32(1 << (j - sweep))));
-        rx = _mm256_fmadd_ps(_mm256_broadcast_ss(c.direction[0] + j), b, rx);
-        ry = _mm256_fmadd_ps(_mm256_broadcast_ss(c.direction[1] + j), b, ry);
-        rz = _mm256_fmadd_ps(_mm256_broadcast_ss(c.direction[2] + j), b, rz);
+                                                            _mm256_loadu_si256(reinterpret_cast<const __m256i*>(bit))));
+        rx = _mm256_fmadd_ps(_mm256_loadu_ps(light), b, rx);
+        ry = _mm256_fmadd_ps(_mm256_loadu_ps(light + kLanes), b, ry);
+        rz = _mm256_fmadd_ps(_mm256_loadu_ps(light + 2 * kLanes), b, rz);
         signal_sum = _mm256_fmadd_ps(b, inverse_scale, signal_sum);  // (v - dark) / s^2
         b2 = _mm256_fmadd_ps(b, b, b2);
       }
@@ -486,11 +504,12 @@ __attribute__((target("avx2,fma"))) void AccumulateSubsetBlockAvx2(const TileCon
       _mm256_store_ps(sum_rows[4] + i, b2);
       __m256 pattern_sums[kGroupQuantities];
       for (int q = 0; q < kGroupQuantities; ++q) pattern_sums[q] = _mm256_load_ps(pattern_rows[q] + i);
-      for (int first = sweep; first < sweep_end; first += kSubsetGroupAvx2) {
+      // The sweep's groups' terms follow one another (sweeps start on a group).
+      const float* terms =
+          c.group_terms_avx2 + static_cast<std::size_t>(sweep / kSubsetGroupAvx2) * kGroupQuantities * kLanes;
+      for (int first = sweep; first < sweep_end; first += kSubsetGroupAvx2, terms += kGroupQuantities * kLanes) {
         // vpermps reads an index's low three bits: the group's pattern once shifted down.
         const __m256i group_pattern = _mm256_srli_epi32(pattern, first - sweep);
-        const float* terms =
-            c.group_terms_avx2 + static_cast<std::size_t>(first / kSubsetGroupAvx2) * kGroupQuantities * kLanes;
         for (int q = 0; q < kGroupQuantities; ++q)
           pattern_sums[q] = _mm256_add_ps(
               pattern_sums[q], _mm256_permutevar8x32_ps(_mm256_loadu_ps(terms + q * kLanes), group_pattern));
@@ -797,6 +816,7 @@ class TileSetup {
   std::vector<const float*> planes_;
   std::vector<float> weights_, inverse_scale2_, inverse_scale_, direction_;
   std::vector<float> group_terms_;  // for the active subset kernel's group size
+  std::vector<float> light_lanes_;  // TileConstants::light_lanes_avx2, for the AVX2 kernel only
   TileConstants constants_;
 };
 
@@ -854,6 +874,15 @@ TileSetup::TileSetup(const LambertianOptions& options, const PhotometricStack& s
   if (kernel == SubsetKernel::kAvx2) group_terms_ = GroupTerms(stack, kSubsetGroupAvx2);
   c.group_terms = kernel == SubsetKernel::kAvx512 ? group_terms_.data() : nullptr;
   c.group_terms_avx2 = kernel == SubsetKernel::kAvx2 ? group_terms_.data() : nullptr;
+  if (kernel == SubsetKernel::kAvx2) {
+    constexpr int kLanes = 8;
+    light_lanes_.resize(static_cast<std::size_t>(k) * 4 * kLanes);
+    for (int i = 0; i < k; ++i)
+      for (int q = 0; q < 4; ++q)
+        std::fill_n(light_lanes_.begin() + (static_cast<std::ptrdiff_t>(i) * 4 + q) * kLanes, kLanes,
+                    q < 3 ? static_cast<float>(stack.light_directions[i](q)) : inverse_scale_[i]);
+  }
+  c.light_lanes_avx2 = kernel == SubsetKernel::kAvx2 ? light_lanes_.data() : nullptr;
   c.planes = planes_.data();
   c.lights = k;
   c.weights = weights_.data();
